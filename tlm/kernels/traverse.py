@@ -1,0 +1,337 @@
+"""The Traversal PM's algorithm (§III.B.2): ordered leaf lists, then leaf-by-leaf tests.
+
+"There are 3 directional bits associated with each ray R ... An array of leaf-voxels,
+through which R passes, is constructed. The algorithm is similar to algorithm 2. The
+directional bits direct the sorted voxel list such that the ray always traverses the
+voxel nearer to the origin first. Once a minimum intersection point is found for a ray,
+the current ray traversal loop is terminated and a new traversal list is loaded."
+
+So a ray's work has two phases, both vectorized over all rays of a packet:
+
+1. **Leaf list** (like Fig. 8's level-by-level node lists): starting from the root
+   clipped to the ray's segment, every level replaces each (ray, node, t-interval) by
+   the children the interval enters, near child first by the ray's direction bit on
+   the level's axis. After the last level, each ray owns its crossed leaves in
+   near-to-far order. Every (ray, inner node) pair formed is a node visit.
+2. **Leaf loop**: the ray tests the triangles of its leaves in order and stops after
+   the first leaf whose exit distance is not below the closest hit found so far
+   (closest-hit), or at the first leaf with any hit (any-hit, for shadow rays).
+
+Phase 2 is evaluated leaf-major to keep numpy vectors long: a batch of the next few
+leaves of every unfinished ray is grouped by leaf, each leaf's triangles are tested
+against all its rays in one block, and the sequential stopping rule is applied
+afterwards; tests beyond a ray's stopping leaf are discarded and not counted. Results
+and counts are exactly those of the sequential loop, for any packet of rays.
+
+Zero direction components (+0.0 or -0.0) are handled explicitly: such a ray never
+crosses a split plane on that axis and stays in the child that holds its origin (an
+origin exactly on the plane belongs to the right child, as ``x >= split`` does in
+Algorithm 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tlm.kernels.bsp import BSPTree, build_triangle_tree
+from tlm.kernels.intersect import TriangleSoA, closest_block
+
+
+@dataclass(frozen=True)
+class TriangleAccel:
+    """A triangle BSP and its leaf-ordered triangle constants (the Traversal PM's memory).
+
+    ``soa`` holds one slot per (leaf, triangle) entry, in ``tree.items`` order, so a
+    leaf ``k``'s triangles are slots ``leaf_first[k]:leaf_last[k]``.
+    """
+
+    tree: BSPTree
+    soa: TriangleSoA
+    leaf_first: np.ndarray
+    leaf_last: np.ndarray
+    n_triangles: int
+    scale: float  # length of the root box diagonal (for relative epsilons)
+
+    @property
+    def leaf_size(self) -> np.ndarray:
+        return self.leaf_last - self.leaf_first
+
+
+def build_accel(
+    triangles: np.ndarray, levels: int | None = None, memory_factor: float = 20.0
+) -> TriangleAccel:
+    """Build the triangle BSP (Algorithm 1 + expansion) and the per-slot constants."""
+    tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    tree = build_triangle_tree(tri, levels=levels, memory_factor=memory_factor)
+    soa = TriangleSoA.from_triangles(tri).take(tree.items)
+    first, last = tree.leaf_ranges()
+    scale = float(np.linalg.norm(tree.hi[0] - tree.lo[0]))
+    return TriangleAccel(tree, soa, first.copy(), last.copy(), tri.shape[0], scale)
+
+
+@dataclass(frozen=True)
+class Counts:
+    """Per-ray work of the Traversal and Intersection PMs, each (r,) int64.
+
+    node_visits : inner nodes entered while building the leaf list.
+    leaves_crossed : leaves on the ray's list (its segment crosses them).
+    leaf_visits : leaves whose triangles were tested before the loop stopped.
+    tri_tests : triangles tested (sum of the sizes of the visited leaves).
+    """
+
+    node_visits: np.ndarray
+    leaves_crossed: np.ndarray
+    leaf_visits: np.ndarray
+    tri_tests: np.ndarray
+
+    def totals(self) -> dict[str, int]:
+        return {
+            "rays": int(self.node_visits.shape[0]),
+            "node_visits": int(self.node_visits.sum()),
+            "leaves_crossed": int(self.leaves_crossed.sum()),
+            "leaf_visits": int(self.leaf_visits.sum()),
+            "tri_tests": int(self.tri_tests.sum()),
+        }
+
+
+@dataclass(frozen=True)
+class Touched:
+    """Memory a packet touched, in visiting order, as CSR lists per ray.
+
+    Ray ``i`` entered inner nodes ``node_ids[node_ptr[i]:node_ptr[i+1]]`` (level by
+    level, near first) and tested the leaves ``leaf_ids[leaf_ptr[i]:leaf_ptr[i+1]]``
+    (leaf numbers, 0-based; heap index = leaf + ``tree.leaf_offset``), that is the
+    triangle slots ``leaf_first[leaf]:leaf_last[leaf]`` of each.
+    """
+
+    node_ptr: np.ndarray
+    node_ids: np.ndarray
+    leaf_ptr: np.ndarray
+    leaf_ids: np.ndarray
+
+
+@dataclass(frozen=True)
+class Hits:
+    """Closest hits: ``t`` (inf on a miss), ``triangle`` (-1 on a miss), ``u``, ``v``."""
+
+    t: np.ndarray
+    triangle: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    counts: Counts
+    touched: Touched | None = None
+
+
+@dataclass(frozen=True)
+class Occlusion:
+    """Any-hit answers: ``occluded`` (r,) bool."""
+
+    occluded: np.ndarray
+    counts: Counts
+    touched: Touched | None = None
+
+
+def _prepare(origins, directions, tmin, tmax, ignore):
+    o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3))
+    d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    r = o.shape[0]
+    if d.shape[0] != r:
+        raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
+    tmin = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)))
+    tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
+    if ignore is None:
+        ignore = np.full(r, -1, dtype=np.int64)
+    else:
+        ignore = np.ascontiguousarray(np.broadcast_to(np.asarray(ignore, dtype=np.int64), (r,)))
+    return o, d, tmin, tmax, ignore
+
+
+def _clip_root(tree: BSPTree, o, d, tmin, tmax):
+    """Slab test against the root box; returns the entry/exit distances per ray."""
+    lo, hi = tree.lo[0], tree.hi[0]
+    zero = d == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        t0 = (lo - o) * inv
+        t1 = (hi - o) * inv
+    inside = (o >= lo) & (o <= hi)
+    near = np.where(zero, np.where(inside, -np.inf, np.inf), np.minimum(t0, t1))
+    far = np.where(zero, np.where(inside, np.inf, -np.inf), np.maximum(t0, t1))
+    ta = np.maximum(near.max(axis=1), tmin)
+    tb = np.minimum(far.min(axis=1), tmax)
+    return ta, tb, inv
+
+
+def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
+    """Phase 1: every ray's crossed leaves, near to far. Pairs are sorted by ray."""
+    r = o.shape[0]
+    ray = np.flatnonzero(ta <= tb)
+    node = np.zeros(ray.shape[0], dtype=np.int64)
+    a, b = ta[ray], tb[ray]
+    node_visits = np.zeros(r, dtype=np.int64)
+    rec_ray, rec_node = [], []
+    for j in range(tree.levels):
+        axis = j % 3
+        node_visits += np.bincount(ray, minlength=r)
+        if record:
+            rec_ray.append(ray)
+            rec_node.append(node)
+        s = tree.split[node]
+        oa = o[ray, axis]
+        da = d[ray, axis]
+        with np.errstate(invalid="ignore"):
+            ts = (s - oa) * inv[ray, axis]
+        flat = da == 0.0
+        # near child by the direction bit (d >= 0: left first); a flat ray: its side
+        near_is_left = np.where(flat, oa < s, da > 0.0)
+        left = 2 * node + 1
+        near_node = np.where(near_is_left, left, left + 1)
+        far_node = np.where(near_is_left, left + 1, left)
+        near_b = np.where(flat, b, np.minimum(b, ts))
+        far_a = np.where(flat, np.inf, np.maximum(a, ts))
+        keep_near = a <= near_b
+        keep_far = far_a <= b
+        ray = np.stack([ray, ray], axis=1).reshape(-1)
+        node = np.stack([near_node, far_node], axis=1).reshape(-1)
+        keep = np.stack([keep_near, keep_far], axis=1).reshape(-1)
+        a_new = np.stack([a, far_a], axis=1).reshape(-1)
+        b_new = np.stack([near_b, b], axis=1).reshape(-1)
+        ray, node, a, b = ray[keep], node[keep], a_new[keep], b_new[keep]
+    touched_nodes = None
+    if record:
+        rr = np.concatenate(rec_ray) if rec_ray else np.zeros(0, np.int64)
+        nn = np.concatenate(rec_node) if rec_node else np.zeros(0, np.int64)
+        order = np.argsort(rr, kind="stable")
+        ptr = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rr, minlength=r), out=ptr[1:])
+        touched_nodes = (ptr, nn[order])
+    leaf = node - tree.leaf_offset
+    return ray, leaf, b, node_visits, touched_nodes
+
+
+def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, any_hit, batch):
+    tree = accel.tree
+    o, d, tmin, tmax, ignore = _prepare(origins, directions, tmin, tmax, ignore)
+    r = o.shape[0]
+    ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)
+    pray, pleaf, pexit, node_visits, touched_nodes = _leaf_lists(tree, o, d, inv, ta, tb, record)
+    npairs = pray.shape[0]
+    cnt = np.bincount(pray, minlength=r)
+    start = np.cumsum(cnt) - cnt
+    size = accel.leaf_size[pleaf]
+
+    best_t = np.full(r, np.inf)
+    best_slot = np.full(r, -1, dtype=np.int64)
+    best_u = np.zeros(r)
+    best_v = np.zeros(r)
+    last_k = cnt - 1  # index of the stopping leaf on each ray's list
+    done = cnt == 0
+    pt = np.full(npairs, np.inf)
+    pslot = np.full(npairs, -1, dtype=np.int64)
+    pu = np.zeros(npairs)
+    pv = np.zeros(npairs)
+    soa = accel.soa
+    lf, ll = accel.leaf_first, accel.leaf_last
+    chunk_elems = 1 << 16
+    k0 = 0
+    while True:
+        act = np.flatnonzero(~done & (cnt > k0))
+        if act.shape[0] == 0:
+            break
+        nb = np.minimum(cnt[act] - k0, batch)
+        rep = np.repeat(act, nb)
+        within = np.arange(rep.shape[0]) - np.repeat(np.cumsum(nb) - nb, nb)
+        idx = start[rep] + k0 + within  # pair indices tested in this batch
+        leaves = pleaf[idx]
+        order = np.argsort(leaves, kind="stable")
+        idx = idx[order]
+        leaves = leaves[order]
+        bounds = np.flatnonzero(np.diff(leaves)) + 1
+        group_start = np.concatenate([[0], bounds])
+        group_end = np.concatenate([bounds, [leaves.shape[0]]])
+        for g0, g1 in zip(group_start.tolist(), group_end.tolist(), strict=True):
+            leaf = int(leaves[g0])
+            s0, s1 = int(lf[leaf]), int(ll[leaf])
+            if s1 <= s0:
+                continue
+            step = max(1, chunk_elems // (s1 - s0))
+            for c0 in range(g0, g1, step):
+                p = idx[c0 : min(c0 + step, g1)]
+                rays = pray[p]
+                t, slot, u, v = closest_block(
+                    o[rays], d[rays], tmin[rays], tmax[rays], ignore[rays], soa, s0, s1
+                )
+                pt[p], pslot[p], pu[p], pv[p] = t, slot, u, v
+        # the sequential stopping rule over the batch's leaves
+        for k in range(k0, k0 + batch):
+            live = act[(~done[act]) & (cnt[act] > k)]
+            if live.shape[0] == 0:
+                break
+            p = start[live] + k
+            better = pt[p] < best_t[live]
+            if any_hit:
+                stop = better
+            else:
+                upd = live[better]
+                pb = p[better]
+                best_t[upd], best_slot[upd], best_u[upd], best_v[upd] = pt[pb], pslot[pb], pu[pb], pv[pb]
+                stop = best_t[live] <= pexit[p]
+            stopped = live[stop]
+            if any_hit:
+                best_t[stopped] = pt[p[stop]]
+                best_slot[stopped] = pslot[p[stop]]
+            last_k[stopped] = k
+            done[stopped] = True
+        k0 += batch
+
+    leaf_visits = np.where(cnt > 0, last_k + 1, 0)
+    k_in_ray = np.arange(npairs) - start[pray]
+    visited = k_in_ray <= last_k[pray]
+    tri_tests = np.bincount(pray, weights=size * visited, minlength=r).astype(np.int64)
+    counts = Counts(node_visits, cnt.astype(np.int64), leaf_visits.astype(np.int64), tri_tests)
+    touched = None
+    if record:
+        leaf_ptr = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(leaf_visits, out=leaf_ptr[1:])
+        touched = Touched(touched_nodes[0], touched_nodes[1], leaf_ptr, pleaf[visited])
+    if any_hit:
+        return Occlusion(best_slot >= 0, counts, touched)
+    hit = best_slot >= 0
+    triangle = np.where(hit, soa.ids[np.maximum(best_slot, 0)], -1)
+    return Hits(best_t, triangle, best_u, best_v, counts, touched)
+
+
+def closest_hit(
+    accel: TriangleAccel,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    tmin: float | np.ndarray = 0.0,
+    tmax: float | np.ndarray = np.inf,
+    ignore: np.ndarray | None = None,
+    record: bool = False,
+    batch: int = 4,
+) -> Hits:
+    """Closest hit of every ray inside ``(tmin, tmax)``, never on its ``ignore`` triangle.
+
+    origins, directions : (r, 3) float64 (directions need not be unit; ``t`` is in units
+        of the direction's length).
+    record : also return the nodes and leaves touched (:class:`Touched`).
+    batch : leaves per ray evaluated together (speed only; results do not depend on it).
+    """
+    return _traverse(accel, origins, directions, tmin, tmax, ignore, record, False, batch)
+
+
+def any_hit(
+    accel: TriangleAccel,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    tmin: float | np.ndarray = 0.0,
+    tmax: float | np.ndarray = np.inf,
+    ignore: np.ndarray | None = None,
+    record: bool = False,
+    batch: int = 2,
+) -> Occlusion:
+    """Whether each ray hits anything inside ``(tmin, tmax)`` (shadow rays)."""
+    return _traverse(accel, origins, directions, tmin, tmax, ignore, record, True, batch)

@@ -1,0 +1,115 @@
+"""The scene model: triangles, materials, lights and a pinhole camera.
+
+A scene is what the thesis's Vertex PM receives as raw data: a flat list of world-space
+triangles (the order of that list is the triangle id used everywhere: AOVs, BSP
+leaves, exports), a material per triangle, the lights and the camera. Geometry comes
+either from a built-in builder (`ring`, `room`, `cornell`) or from a mesh that trimesh
+loads; in both cases it arrives as named *parts*, and the scene file maps parts to
+materials.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MATERIAL_KINDS = ("lambertian", "mirror", "dielectric")
+LIGHT_KINDS = ("quad", "point")
+
+
+@dataclass(frozen=True)
+class Material:
+    """A surface description.
+
+    kind : 'lambertian' (RGB ``albedo``), 'mirror' (RGB ``reflectance``) or
+    'dielectric' (``ior`` and RGB ``transmittance``).
+    """
+
+    name: str
+    kind: str
+    albedo: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    reflectance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ior: float = 1.0
+    transmittance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Light:
+    """A quad area light or a point light with RGB power in watts.
+
+    A quad light is the parallelogram ``corner + a*edge_u + b*edge_v`` (a, b in
+    [0, 1]); it emits on the side of ``cross(edge_u, edge_v)`` only, with constant
+    radiance ``power / (pi * area)``. A point light emits ``power / (4 pi)`` watts per
+    steradian in every direction.
+    """
+
+    kind: str
+    power: tuple[float, float, float]
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    corner: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    edge_u: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    edge_v: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def area(self) -> float:
+        return float(np.linalg.norm(np.cross(self.edge_u, self.edge_v)))
+
+    @property
+    def normal(self) -> np.ndarray:
+        n = np.cross(self.edge_u, self.edge_v)
+        return n / np.linalg.norm(n)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole look-at camera; ``vfov`` is the vertical field of view in degrees."""
+
+    eye: tuple[float, float, float]
+    target: tuple[float, float, float]
+    up: tuple[float, float, float]
+    vfov: float
+    width: int
+    height: int
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Triangles as named parts, as a builder or a mesh loader returns them.
+
+    triangles : (n, 3, 3) float64, world space, vertex order defines the normal.
+    part : (n,) int32 index into ``part_names``.
+    """
+
+    triangles: np.ndarray
+    part: np.ndarray
+    part_names: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything the renderer needs; triangle ids are indices into ``triangles``."""
+
+    name: str
+    triangles: np.ndarray  # (n, 3, 3) float64
+    material_index: np.ndarray  # (n,) int32 into materials
+    materials: tuple[Material, ...]
+    part: np.ndarray  # (n,) int32 into part_names
+    part_names: tuple[str, ...]
+    lights: tuple[Light, ...]
+    camera: Camera
+    photons: int
+    source: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.triangles.shape[0])
+
+    def kinds_present(self) -> set[str]:
+        used = np.unique(self.material_index)
+        return {self.materials[i].kind for i in used}
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        flat = self.triangles.reshape(-1, 3)
+        return flat.min(axis=0), flat.max(axis=0)
