@@ -42,7 +42,7 @@ import numpy as np
 
 def default_levels(n: int) -> int:
     """The thesis's depth, ``floor(ln n)`` (0 for n < 3)."""
-    return int(math.floor(math.log(n))) if n >= 3 else 0
+    return math.floor(math.log(n)) if n >= 3 else 0
 
 
 @dataclass(frozen=True)
@@ -275,5 +275,5 @@ def build_triangle_tree(
         root_lo = root_hi = np.zeros(3)
     else:
         root_lo, root_hi = tmin.min(axis=0), tmax.max(axis=0)
-    capacity = int(math.floor(memory_factor * max(n, 1)))
+    capacity = math.floor(memory_factor * max(n, 1))
     return _build(tmin, tmax, root_lo, root_hi, levels, capacity=capacity)

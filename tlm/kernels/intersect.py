@@ -23,6 +23,11 @@ lower triangle id wins.
 All functions here are array functions: one call tests a block of rays against a
 block of triangles with numpy broadcasting, elementwise, so each pair's result is the
 same whatever else is in the block (packet invariance, bit for bit).
+
+Precision: the Intersection PM's datapath is 32-bit (a 96-bit vertex is three floats),
+and so is the block test here: it decides *which* triangle a ray hits first in float32,
+with vertices stored relative to the scene's centre. The hit's ``t``, ``u`` and ``v``
+are then recomputed in float64 from eq. 3.6 for that one triangle (:func:`exact`).
 """
 
 from __future__ import annotations
@@ -31,146 +36,218 @@ from dataclasses import dataclass
 
 import numpy as np
 
-EDGE_EPS = 1e-9
+EDGE_EPS = {np.dtype(np.float32): 2.0**-20, np.dtype(np.float64): 1e-9}
 
 
 @dataclass(frozen=True)
 class TriangleSoA:
-    """Per-triangle constants of eq. 3.6, structure of arrays, each (m,) float64.
+    """Per-triangle constants of eq. 3.6, each a (3, m) array (rows x, y, z).
 
-    ``v0`` is the first vertex, ``e2`` the edge ``V2 - V0``, ``e1n = -(V1 - V0)``,
-    ``n = E1 x E2`` and ``nn = -n`` (signs folded in so the pair loop has no negation).
-    ``ids`` are the triangle ids of the slots.
+    ``v0`` is the first vertex relative to ``origin``, ``e2`` the edge ``V2 - V0``,
+    ``e1n = -(V1 - V0)``, ``n = E1 x E2`` and ``nn = -n`` (signs folded in so the pair
+    loop has no negation). ``ids`` are the triangle ids of the slots. The arrays are
+    float32 for the Intersection PM's datapath (a 96-bit vertex is three 32-bit floats)
+    or float64 for exact values; vertices are stored relative to ``origin`` (the
+    scene's centre) so that a scene far from the world origin loses no precision.
     """
 
-    v0: tuple[np.ndarray, np.ndarray, np.ndarray]
-    e1n: tuple[np.ndarray, np.ndarray, np.ndarray]
-    e2: tuple[np.ndarray, np.ndarray, np.ndarray]
-    n: tuple[np.ndarray, np.ndarray, np.ndarray]
-    nn: tuple[np.ndarray, np.ndarray, np.ndarray]
+    v0: np.ndarray
+    e1n: np.ndarray
+    e2: np.ndarray
+    n: np.ndarray
+    nn: np.ndarray
     ids: np.ndarray
+    origin: np.ndarray
 
     @classmethod
-    def from_triangles(cls, triangles: np.ndarray, ids: np.ndarray | None = None) -> TriangleSoA:
+    def from_triangles(
+        cls,
+        triangles: np.ndarray,
+        ids: np.ndarray | None = None,
+        origin: np.ndarray | None = None,
+        dtype: type = np.float64,
+    ) -> TriangleSoA:
         """triangles : (m, 3, 3) float64; ids : (m,) int64 (default 0..m-1)."""
         tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-        v0 = tri[:, 0]
-        e1 = tri[:, 1] - v0
-        e2 = tri[:, 2] - v0
+        origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=np.float64)
+        v0 = tri[:, 0] - origin
+        e1 = tri[:, 1] - tri[:, 0]
+        e2 = tri[:, 2] - tri[:, 0]
         n = np.cross(e1, e2)
-
-        def cols(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            a = np.ascontiguousarray(a.T)
-            return a[0], a[1], a[2]
-
         if ids is None:
             ids = np.arange(tri.shape[0], dtype=np.int64)
-        return cls(cols(v0), cols(-e1), cols(e2), cols(n), cols(-n), np.asarray(ids, np.int64))
+
+        def rows(a: np.ndarray) -> np.ndarray:
+            return np.ascontiguousarray(a.T, dtype=dtype)
+
+        return cls(rows(v0), rows(-e1), rows(e2), rows(n), rows(-n), np.asarray(ids, np.int64), origin)
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.v0.dtype
 
     def take(self, index: np.ndarray) -> TriangleSoA:
         """The slots ``index`` (for example a BSP's leaf order) as a new SoA."""
-
-        def sel(t: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            return t[0][index], t[1][index], t[2][index]
-
         return TriangleSoA(
-            sel(self.v0), sel(self.e1n), sel(self.e2), sel(self.n), sel(self.nn), self.ids[index]
+            np.ascontiguousarray(self.v0[:, index]),
+            np.ascontiguousarray(self.e1n[:, index]),
+            np.ascontiguousarray(self.e2[:, index]),
+            np.ascontiguousarray(self.n[:, index]),
+            np.ascontiguousarray(self.nn[:, index]),
+            self.ids[index],
+            self.origin,
         )
 
 
-def closest_block(
-    o: np.ndarray,
-    d: np.ndarray,
-    tmin: np.ndarray,
-    tmax: np.ndarray,
-    ignore: np.ndarray,
-    tri: TriangleSoA,
-    s0: int,
-    s1: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Test rays against slots ``s0:s1`` of ``tri``; closest valid hit per ray.
+class _Workspace:
+    """Reused scratch for :func:`closest_slots`: no allocation per block.
 
-    o, d : (r, 3) float64 origins and directions (any length; t is in units of d).
-    tmin, tmax : (r,) float64, the open interval a hit must lie in.
-    ignore : (r,) int64, a triangle id each ray must not hit (-1: none).
-
-    Returns ``t`` (r,) (inf: no hit), ``slot`` (r,) int64 (index into ``tri``, -1 on
-    no hit), ``u``, ``v`` (r,) barycentrics of the hit (0 on no hit).
+    Each buffer is a contiguous (m, r) view, so that full-block operations run as one
+    flat SIMD loop.
     """
-    r = o.shape[0]
-    if r == 0 or s1 <= s0:
-        return (
-            np.full(r, np.inf),
-            np.full(r, -1, dtype=np.int64),
-            np.zeros(r),
-            np.zeros(r),
-        )
-    ox, oy, oz = (o[:, i, None] for i in range(3))
-    dx, dy, dz = (d[:, i, None] for i in range(3))
-    sl = slice(s0, s1)
-    v0x, v0y, v0z = (a[None, sl] for a in tri.v0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # T = O - V0
-        tx = ox - v0x
-        ty = oy - v0y
-        tz = oz - v0z
-        # det = P.E1 = -D.N
-        nnx, nny, nnz = (a[None, sl] for a in tri.nn)
-        rdet = dx * nnx
-        rdet += dy * nny
-        rdet += dz * nnz
-        np.divide(1.0, rdet, out=rdet)
-        # C = T x D
-        cx = ty * dz - tz * dy
-        cy = tz * dx - tx * dz
-        cz = tx * dy - ty * dx
-        # u = P.T / det = C.E2 / det
-        e2x, e2y, e2z = (a[None, sl] for a in tri.e2)
-        u = cx * e2x
-        u += cy * e2y
-        u += cz * e2z
-        u *= rdet
-        # v = Q.D / det = -C.E1 / det
-        e1x, e1y, e1z = (a[None, sl] for a in tri.e1n)
-        v = cx * e1x
-        v += cy * e1y
-        v += cz * e1z
-        v *= rdet
-        # t = Q.E2 / det = T.N / det
-        nx, ny, nz = (a[None, sl] for a in tri.n)
-        t = tx * nx
-        t += ty * ny
-        t += tz * nz
-        t *= rdet
-        ok = u >= -EDGE_EPS
-        ok &= v >= -EDGE_EPS
-        u_plus_v = u + v
-        ok &= u_plus_v <= 1.0 + EDGE_EPS
-        ok &= t > tmin[:, None]
-        ok &= t < tmax[:, None]
-        ok &= tri.ids[None, sl] != ignore[:, None]
-    t = np.where(ok, t, np.inf)
-    j = np.argmin(t, axis=1)
-    rows = np.arange(r)
-    best = t[rows, j]
-    hit = best < np.inf
-    slot = np.where(hit, j + s0, -1)
-    return best, slot, np.where(hit, u[rows, j], 0.0), np.where(hit, v[rows, j], 0.0)
+
+    NAMES = ("tx", "ty", "tz", "cx", "cy", "cz", "rdet", "t", "tmp", "dx", "dy", "dz")
+
+    def __init__(self) -> None:
+        self.flat = np.empty(0, dtype=np.float32)
+        self.key = np.empty(0, dtype=np.uint64)
+
+    def views(self, m: int, r: int) -> tuple[list[np.ndarray], np.ndarray]:
+        size = m * r
+        k = len(self.NAMES)
+        if self.flat.shape[0] < k * size:
+            self.flat = np.empty(max(k * size, 1 << 18), dtype=np.float32)
+            self.key = np.empty(max(size, 1 << 15), dtype=np.uint64)
+        views = [self.flat[i * size : (i + 1) * size].reshape(m, r) for i in range(k)]
+        return views, self.key[:size].reshape(m, r)
 
 
-def any_block(
+_WS = _Workspace()
+_NO_HIT = np.uint64(0x7F800000) << np.uint64(32)  # float32 +inf in the high word
+
+
+def closest_slots(
     o: np.ndarray,
     d: np.ndarray,
     tmin: np.ndarray,
     tmax: np.ndarray,
-    ignore: np.ndarray,
+    ignore: np.ndarray | None,
     tri: TriangleSoA,
     s0: int,
     s1: int,
-) -> np.ndarray:
-    """Like :func:`closest_block` but only whether any valid hit exists: (r,) bool."""
-    t, _, _, _ = closest_block(o, d, tmin, tmax, ignore, tri, s0, s1)
-    return t < np.inf
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which of slots ``s0:s1`` each ray hits first inside ``(tmin, tmax)``.
+
+    o, d : (3, r) float32 origins (relative to ``tri.origin``) and directions;
+        directions need not be unit (``t`` is in units of their length).
+    tmin, tmax : (r,) float32, ``0 <= tmin``. ignore : (r,) int64 triangle id each ray
+        must not hit (-1: none), or None when no ray ignores anything.
+
+    Returns ``slot`` (r,) int64, an index into ``tri`` (-1: no hit), and the hit
+    distance ``t`` (r,) float32 (inf: no hit); among equal distances the lowest slot
+    wins. The pairs form an (m, r) block, slot-major, so every numpy loop runs along
+    the rays; scratch buffers are reused.
+
+    The accept test is branch-free and mask-free: with ``t' = t - tmin`` and
+    ``w = min(u, v, 1 - u - v) + eps``, the value ``copysign(t', min(w, t'))`` is
+    negative, or NaN, exactly when the pair is rejected, and a negative or NaN float
+    has its top bit set, so as an unsigned integer it sorts after every positive
+    distance. The smallest ``(bits(t'), slot)`` key is the first hit.
+    """
+    r = o.shape[1]
+    m = s1 - s0
+    if r == 0 or m <= 0:
+        return np.full(r, -1, dtype=np.int64), np.full(r, np.inf, dtype=np.float32)
+    dt = np.float32
+    eps = dt(EDGE_EPS[np.dtype(dt)])
+    ox, oy, oz = o[0][None, :], o[1][None, :], o[2][None, :]
+    dx, dy, dz = d[0][None, :], d[1][None, :], d[2][None, :]
+    sl = slice(s0, s1)
+
+    def col(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return a[0, sl, None], a[1, sl, None], a[2, sl, None]
+
+    (tx, ty, tz, cx, cy, cz, rdet, t, tmp, dfx, dfy, dfz), key = _WS.views(m, r)
+    u, v = tx, ty  # T is dead once C and t are known
+    mul, add, sub, mn = np.multiply, np.add, np.subtract, np.minimum
+    np.copyto(dfx, dx)  # D spread over the block: full-by-full products are faster
+    np.copyto(dfy, dy)
+    np.copyto(dfz, dz)
+    dx, dy, dz = dfx, dfy, dfz
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        v0x, v0y, v0z = col(tri.v0)
+        sub(ox, v0x, out=tx)  # T = O - V0
+        sub(oy, v0y, out=ty)
+        sub(oz, v0z, out=tz)
+        nnx, nny, nnz = col(tri.nn)
+        mul(dx, nnx, out=rdet)  # det = P.E1 = -D.N
+        add(rdet, mul(dy, nny, out=tmp), out=rdet)
+        add(rdet, mul(dz, nnz, out=tmp), out=rdet)
+        np.divide(dt(1.0), rdet, out=rdet)
+        nx, ny, nz = col(tri.n)
+        mul(tx, nx, out=t)  # t = Q.E2 / det = T.N / det
+        add(t, mul(ty, ny, out=tmp), out=t)
+        add(t, mul(tz, nz, out=tmp), out=t)
+        mul(t, rdet, out=t)
+        sub(mul(ty, dz, out=cx), mul(tz, dy, out=tmp), out=cx)  # C = T x D
+        sub(mul(tz, dx, out=cy), mul(tx, dz, out=tmp), out=cy)
+        sub(mul(tx, dy, out=cz), mul(ty, dx, out=tmp), out=cz)
+        e2x, e2y, e2z = col(tri.e2)
+        mul(cx, e2x, out=u)  # u = P.T / det = C.E2 / det
+        add(u, mul(cy, e2y, out=tmp), out=u)
+        add(u, mul(cz, e2z, out=tmp), out=u)
+        mul(u, rdet, out=u)
+        e1x, e1y, e1z = col(tri.e1n)
+        mul(cx, e1x, out=v)  # v = Q.D / det = -C.E1 / det
+        add(v, mul(cy, e1y, out=tmp), out=v)
+        add(v, mul(cz, e1z, out=tmp), out=v)
+        mul(v, rdet, out=v)
+        w = tz
+        sub(dt(1.0), add(u, v, out=w), out=w)  # w = min(u, v, 1 - u - v) + eps
+        mn(w, mn(u, v, out=tmp), out=w)
+        add(w, eps, out=w)
+        sub(t, tmin[None, :], out=t)  # t' = t - tmin
+        mn(w, t, out=w)
+        if ignore is not None:
+            np.copyto(w, dt(-1.0), where=tri.ids[sl, None] == ignore[None, :])
+        np.copysign(t, w, out=t)
+    np.left_shift(t.view(np.uint32), np.uint32(32), out=key, dtype=np.uint64)
+    key |= np.arange(m, dtype=np.uint64)[:, None]
+    best = key.min(axis=0)
+    t_best = (best >> np.uint64(32)).astype(np.uint32).view(np.float32) + tmin
+    hit = (best < _NO_HIT) & (t_best < tmax)
+    slot = np.where(hit, (best & np.uint64(0xFFFFFFFF)).astype(np.int64) + s0, -1)
+    return slot, np.where(hit, t_best, np.float32(np.inf))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of (3, k) row arrays."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def exact(o: np.ndarray, d: np.ndarray, tri: TriangleSoA, slot: np.ndarray):
+    """Eq. 3.6 in float64 for one (ray, slot) pair per row: ``t``, ``u``, ``v``.
+
+    o : (k, 3) float64 origins relative to ``tri.origin``; d : (k, 3); slot : (k,) valid
+    slots of a float64 ``tri``.
+    """
+    v0 = tri.v0[:, slot]
+    e1 = -tri.e1n[:, slot]
+    e2 = tri.e2[:, slot]
+    tv = o.T - v0
+    dd = d.T
+    p = _cross(dd, e2)
+    q = _cross(tv, e1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / _dot(p, e1)
+        t = _dot(q, e2) * inv
+        u = _dot(p, tv) * inv
+        v = _dot(q, dd) * inv
+    return t, u, v
 
 
 def brute_force(
@@ -180,9 +257,9 @@ def brute_force(
     tmin: float | np.ndarray = 0.0,
     tmax: float | np.ndarray = np.inf,
     ignore: np.ndarray | None = None,
-    chunk: int = 1 << 18,
+    chunk: int = 1 << 16,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Closest hit of every ray against every triangle (the reference for tests).
+    """Closest hit of every ray against every triangle, without a tree (for tests).
 
     Returns ``t`` (r,), ``triangle`` (r,) int64 (-1 on a miss), ``u``, ``v``.
     """
@@ -191,16 +268,23 @@ def brute_force(
     r = o.shape[0]
     tmin = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,))
     tmax = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,))
-    ignore = np.full(r, -1, np.int64) if ignore is None else np.asarray(ignore, np.int64)
-    soa = TriangleSoA.from_triangles(triangles)
+    ignore = None if ignore is None else np.asarray(ignore, np.int64)
+    tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    origin = 0.5 * (tri.reshape(-1, 3).min(axis=0) + tri.reshape(-1, 3).max(axis=0)) if tri.size else None
+    soa = TriangleSoA.from_triangles(tri, origin=origin, dtype=np.float32)
+    soa64 = TriangleSoA.from_triangles(tri, origin=origin)
+    o = o - soa64.origin
     m = soa.ids.shape[0]
-    t = np.full(r, np.inf)
-    tri = np.full(r, -1, dtype=np.int64)
-    u = np.zeros(r)
-    v = np.zeros(r)
+    slot = np.full(r, -1, dtype=np.int64)
     step = max(1, chunk // max(m, 1))
     for a in range(0, r, step):
         s = slice(a, a + step)
-        t[s], slot, u[s], v[s] = closest_block(o[s], d[s], tmin[s], tmax[s], ignore[s], soa, 0, m)
-        tri[s] = np.where(slot >= 0, soa.ids[np.maximum(slot, 0)], -1)
-    return t, tri, u, v
+        ign = None if ignore is None else ignore[s]
+        slot[s], _ = closest_slots(
+            o[s].T.astype(np.float32), d[s].T.astype(np.float32), tmin[s].astype(np.float32),
+            tmax[s].astype(np.float32), ign, soa, 0, m,
+        )
+    hit = slot >= 0
+    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
+    t[hit], u[hit], v[hit] = exact(o[hit], d[hit], soa64, slot[hit])
+    return t, np.where(hit, soa.ids[np.maximum(slot, 0)], -1), u, v

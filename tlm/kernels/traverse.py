@@ -36,19 +36,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
-from tlm.kernels.intersect import TriangleSoA, closest_block
+from tlm.kernels.intersect import TriangleSoA, closest_slots, exact
+
+CHUNK_PAIRS = 1 << 15  # (slot, ray) pairs per block: temporaries stay in the L2 cache
 
 
 @dataclass(frozen=True)
 class TriangleAccel:
     """A triangle BSP and its leaf-ordered triangle constants (the Traversal PM's memory).
 
-    ``soa`` holds one slot per (leaf, triangle) entry, in ``tree.items`` order, so a
-    leaf ``k``'s triangles are slots ``leaf_first[k]:leaf_last[k]``.
+    ``soa`` (float32, the test datapath) and ``soa64`` (float64, exact hit values)
+    hold one slot per (leaf, triangle) entry, in ``tree.items`` order, so a leaf
+    ``k``'s triangles are slots ``leaf_first[k]:leaf_last[k]``. Vertices are stored
+    relative to ``soa.origin``, the centre of the root box.
     """
 
     tree: BSPTree
     soa: TriangleSoA
+    soa64: TriangleSoA
     leaf_first: np.ndarray
     leaf_last: np.ndarray
     n_triangles: int
@@ -65,10 +70,12 @@ def build_accel(
     """Build the triangle BSP (Algorithm 1 + expansion) and the per-slot constants."""
     tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     tree = build_triangle_tree(tri, levels=levels, memory_factor=memory_factor)
-    soa = TriangleSoA.from_triangles(tri).take(tree.items)
+    centre = 0.5 * (tree.lo[0] + tree.hi[0])
+    soa64 = TriangleSoA.from_triangles(tri, origin=centre).take(tree.items)
+    soa = TriangleSoA.from_triangles(tri, origin=centre, dtype=np.float32).take(tree.items)
     first, last = tree.leaf_ranges()
     scale = float(np.linalg.norm(tree.hi[0] - tree.lo[0]))
-    return TriangleAccel(tree, soa, first.copy(), last.copy(), tri.shape[0], scale)
+    return TriangleAccel(tree, soa, soa64, first.copy(), last.copy(), tri.shape[0], scale)
 
 
 @dataclass(frozen=True)
@@ -139,7 +146,7 @@ def _prepare(origins, directions, tmin, tmax, ignore):
     r = o.shape[0]
     if d.shape[0] != r:
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
-    tmin = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)))
+    tmin = np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0)
     tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
     if ignore is None:
         ignore = np.full(r, -1, dtype=np.int64)
@@ -224,17 +231,18 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
 
     best_t = np.full(r, np.inf)
     best_slot = np.full(r, -1, dtype=np.int64)
-    best_u = np.zeros(r)
-    best_v = np.zeros(r)
     last_k = cnt - 1  # index of the stopping leaf on each ray's list
     done = cnt == 0
-    pt = np.full(npairs, np.inf)
+    pt = np.full(npairs, np.inf, dtype=np.float32)
     pslot = np.full(npairs, -1, dtype=np.int64)
-    pu = np.zeros(npairs)
-    pv = np.zeros(npairs)
-    soa = accel.soa
+    soa, soa64 = accel.soa, accel.soa64
+    o_local = o - soa64.origin
+    o32 = np.ascontiguousarray(o_local.T, dtype=np.float32)
+    d32 = np.ascontiguousarray(d.T, dtype=np.float32)
+    tmin32 = tmin.astype(np.float32)
+    tmax32 = tmax.astype(np.float32)
+    ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
-    chunk_elems = 1 << 16
     k0 = 0
     while True:
         act = np.flatnonzero(~done & (cnt > k0))
@@ -256,31 +264,30 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
             s0, s1 = int(lf[leaf]), int(ll[leaf])
             if s1 <= s0:
                 continue
-            step = max(1, chunk_elems // (s1 - s0))
+            step = max(1, CHUNK_PAIRS // (s1 - s0))
             for c0 in range(g0, g1, step):
                 p = idx[c0 : min(c0 + step, g1)]
                 rays = pray[p]
-                t, slot, u, v = closest_block(
-                    o[rays], d[rays], tmin[rays], tmax[rays], ignore[rays], soa, s0, s1
+                pslot[p], pt[p] = closest_slots(
+                    o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
+                    None if ign is None else ign[rays], soa, s0, s1,
                 )
-                pt[p], pslot[p], pu[p], pv[p] = t, slot, u, v
         # the sequential stopping rule over the batch's leaves
         for k in range(k0, k0 + batch):
             live = act[(~done[act]) & (cnt[act] > k)]
             if live.shape[0] == 0:
                 break
             p = start[live] + k
-            better = pt[p] < best_t[live]
             if any_hit:
-                stop = better
+                stop = pslot[p] >= 0
             else:
+                better = pt[p] < best_t[live]
                 upd = live[better]
                 pb = p[better]
-                best_t[upd], best_slot[upd], best_u[upd], best_v[upd] = pt[pb], pslot[pb], pu[pb], pv[pb]
+                best_t[upd], best_slot[upd] = pt[pb], pslot[pb]
                 stop = best_t[live] <= pexit[p]
             stopped = live[stop]
             if any_hit:
-                best_t[stopped] = pt[p[stop]]
                 best_slot[stopped] = pslot[p[stop]]
             last_k[stopped] = k
             done[stopped] = True
@@ -300,7 +307,9 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         return Occlusion(best_slot >= 0, counts, touched)
     hit = best_slot >= 0
     triangle = np.where(hit, soa.ids[np.maximum(best_slot, 0)], -1)
-    return Hits(best_t, triangle, best_u, best_v, counts, touched)
+    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
+    t[hit], u[hit], v[hit] = exact(o_local[hit], d[hit], soa64, best_slot[hit])
+    return Hits(t, triangle, u, v, counts, touched)
 
 
 def closest_hit(

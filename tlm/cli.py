@@ -1,0 +1,140 @@
+"""Command line: ``tlm run | scene | params``. Argument parsing and printing only.
+
+Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
+status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from tlm.errors import InputError
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from tlm.config import load_config
+    from tlm.experiments.run import run
+
+    overrides = list(args.set or [])
+    if args.mode is not None:
+        overrides.append(f"mode={args.mode}")
+    if args.seed is not None:
+        overrides.append(f"seed={args.seed}")
+    cfg, base = load_config(Path(args.config), overrides)
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    results = run(cfg, out, base, config_path=str(args.config))
+    sc = results["scene"]
+    print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
+          f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
+    for name in results["plan"]["run"]:
+        w = results["work"][name]
+        print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
+              f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests']:>10d}")
+    for name, why in results["plan"]["left_out"].items():
+        print(f"  left out {name}: {why}")
+    for note in results["plan"]["notes"]:
+        print(f"  note: {note}")
+    total = sum(results["host_seconds"].values())
+    print(f"wrote {out} ({total:.2f} s)")
+    return 0
+
+
+def _cmd_scene(args: argparse.Namespace) -> int:
+    from tlm.scenes.loader import list_scenes, load_scene
+
+    if args.scene_cmd == "list":
+        for name in list_scenes():
+            print(name)
+        return 0
+    scene = load_scene(args.name, Path.cwd())
+    if args.scene_cmd == "show":
+        lo, hi = scene.bounds()
+        used = np.bincount(scene.material_index, minlength=len(scene.materials))
+        info = {
+            "name": scene.name,
+            "source": scene.source,
+            "triangles": scene.n_triangles,
+            "bounds": {"min": lo.tolist(), "max": hi.tolist()},
+            "resolution": [scene.camera.width, scene.camera.height],
+            "photons": scene.photons,
+            "materials": [
+                {"name": m.name, "type": m.kind, "triangles": int(used[i]),
+                 **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
+                 **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
+                 **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {})}
+                for i, m in enumerate(scene.materials)
+            ],
+            "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
+            "lights": [
+                {"type": lt.kind, "power": list(lt.power),
+                 **({"position": list(lt.position)} if lt.kind == "point" else
+                    {"corner": list(lt.corner), "edge_u": list(lt.edge_u), "edge_v": list(lt.edge_v),
+                     "area": lt.area})}
+                for lt in scene.lights
+            ],
+            "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
+                       "up": list(scene.camera.up), "vfov": scene.camera.vfov},
+        }
+        print(json.dumps(info, indent=2))
+        return 0
+    from tlm.scenes.export import export_triangles
+
+    export_triangles(scene, Path(args.file))
+    print(f"wrote {args.file} ({scene.n_triangles} triangles)")
+    return 0
+
+
+def _cmd_params(args: argparse.Namespace) -> int:
+    from tlm.config import describe
+
+    for key, default, help_text in describe():
+        print(f"{key:24s} {default!r:>10s}  {help_text}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="tlm", description="Transaction-level model of J. Ling's "
+                                "ray-tracing and photon-mapping GPU (2004).")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run", help="render one experiment into a run folder")
+    r.add_argument("config", help="experiment YAML (see 'tlm params')")
+    r.add_argument("--out", help="run folder (default: runs/<config name>)")
+    r.add_argument("--mode", choices=("rcast", "reflect", "refract"), help="override the mode")
+    r.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
+    r.add_argument("--seed", type=int, help="override the seed")
+    r.set_defaults(func=_cmd_run)
+    s = sub.add_parser("scene", help="list, show or export scenes")
+    ss = s.add_subparsers(dest="scene_cmd", required=True)
+    ss.add_parser("list", help="the built-in scenes")
+    sh = ss.add_parser("show", help="triangle count, bounds, materials, lights")
+    sh.add_argument("name", help="built-in scene name or scene YAML path")
+    se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ)")
+    se.add_argument("name", help="built-in scene name or scene YAML path")
+    se.add_argument("file", help="output .ply or .obj")
+    s.set_defaults(func=_cmd_scene)
+    pa = sub.add_parser("params", help="every config parameter with its default and meaning")
+    pa.set_defaults(func=_cmd_params)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except InputError as e:
+        print(f"tlm: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("tlm: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

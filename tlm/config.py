@@ -1,0 +1,255 @@
+"""The experiment schema: every parameter declared once, with its default, unit and help.
+
+A config is a YAML mapping; each section is a frozen dataclass whose fields carry their
+help text in ``metadata``. Loading walks the dataclasses, so an unknown key, a wrong
+type or a value out of range is reported with the file, the dotted key and the value
+(``InputError``), and the fully resolved config (defaults included) can be written
+next to the results. ``--set dotted.key=value`` overrides go through the same checks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tlm.errors import InputError, did_you_mean
+
+MODES = ("rcast", "reflect", "refract")
+
+
+def _f(default: Any, help: str, **check: Any) -> Any:  # noqa: A002 - "help" reads best
+    return field(default=default, metadata={"help": help, **check})
+
+
+@dataclass(frozen=True)
+class BSPConfig:
+    levels: int | None = _f(
+        None, "BSP split levels (2**levels leaves); null = floor(ln n), the thesis's depth",
+        min=0, max=24,
+    )
+    memory_factor: float = _f(
+        20.0, "element slots reserved per triangle for the expansion pass (thesis: 20x)", min=1.0
+    )
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    reflect_depth: int = _f(4, "specular bounces followed by the Reflect pass", min=0, max=64)
+    refract_depth: int = _f(6, "specular bounces followed by the Refract pass", min=0, max=64)
+    light_samples: int = _f(
+        4, "shadow rays per quad light per shaded point (a square number: n x n strata)",
+        min=1, max=1024,
+    )
+    exposure: float | None = _f(
+        None, "radiance scale before the sRGB curve; null = auto (99.5th percentile -> 1)",
+        min_exclusive=0.0,
+    )
+    batch: int = _f(4, "leaves per ray tested together by the traversal kernel (speed only)",
+                    min=1, max=64)
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    scene: str = _f("cornell", "built-in scene name or path to a scene YAML (relative to the config)")
+    mode: str = _f("refract", "rcast | reflect | refract (each adds passes to the previous)",
+                   choices=MODES)
+    seed: int = _f(0, "seed of every random stream (SeedSequence)", min=0)
+    resolution: list[int] | None = _f(
+        None, "[width, height] in pixels; null = the scene's", length=2
+    )
+    bsp: BSPConfig = field(default_factory=BSPConfig, metadata={"help": "geometry BSP"})
+    render: RenderConfig = field(default_factory=RenderConfig, metadata={"help": "passes"})
+
+
+def _type_ok(value: Any, tp: Any) -> bool:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        return any(_type_ok(value, a) for a in typing.get_args(tp))
+    if tp is type(None):
+        return value is None
+    if tp is bool:
+        return isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if origin is list:
+        (inner,) = typing.get_args(tp)
+        return isinstance(value, list) and all(_type_ok(v, inner) for v in value)
+    return False
+
+
+def _type_name(tp: Any) -> str:
+    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
+
+
+def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise InputError(f"must be a mapping, got {raw!r}", source=source, key=prefix or "(top)")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for key in raw:
+        if key not in fields:
+            where = f"{prefix}.{key}" if prefix else str(key)
+            raise InputError(f"unknown key{did_you_mean(str(key), fields)}", source=source, key=where)
+    values = {}
+    for name, f in fields.items():
+        key = f"{prefix}.{name}" if prefix else name
+        tp = hints[name]
+        if dataclasses.is_dataclass(tp):
+            values[name] = _build(tp, raw.get(name), source, key)
+            continue
+        if name not in raw:
+            continue
+        v = raw[name]
+        if not _type_ok(v, tp):
+            raise InputError(f"{v!r} is not a {_type_name(tp)}", source=source, key=key)
+        if isinstance(v, float) and not math.isfinite(v):
+            raise InputError(f"{v!r} is not finite", source=source, key=key)
+        _check_range(v, f.metadata, source, key)
+        if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
+            v = float(v)
+        values[name] = v
+    return cls(**values)
+
+
+def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
+    if v is None:
+        return
+    if "choices" in meta and v not in meta["choices"]:
+        raise InputError(
+            f"{v!r} is not one of {', '.join(meta['choices'])}{did_you_mean(str(v), meta['choices'])}",
+            source=source, key=key,
+        )
+    if "length" in meta and len(v) != meta["length"]:
+        raise InputError(f"{v!r} must have {meta['length']} entries", source=source, key=key)
+    items = v if isinstance(v, list) else [v]
+    for x in items:
+        if not isinstance(x, (int, float)):
+            continue
+        if "min" in meta and x < meta["min"]:
+            raise InputError(f"{v!r} must be >= {meta['min']}", source=source, key=key)
+        if "min_exclusive" in meta and x <= meta["min_exclusive"]:
+            raise InputError(f"{v!r} must be > {meta['min_exclusive']}", source=source, key=key)
+        if "max" in meta and x > meta["max"]:
+            raise InputError(f"{v!r} must be <= {meta['max']}", source=source, key=key)
+    if key == "resolution" and any(x <= 0 for x in items):
+        raise InputError(f"{v!r} must be positive", source=source, key=key)
+    if key == "render.light_samples" and math.isqrt(v) ** 2 != v:
+        raise InputError(f"{v!r} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6'."""
+
+
+_Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+][0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def parse_yaml(text: str) -> Any:
+    """YAML text to data, with YAML 1.2 floats."""
+    return yaml.load(text, Loader=_Loader)
+
+
+def read_yaml(path: Path) -> Any:
+    """Read a YAML file; a missing file or a syntax error is an InputError naming it."""
+    try:
+        text = Path(path).read_text()
+    except FileNotFoundError:
+        raise InputError("file not found", source=str(path)) from None
+    except OSError as e:
+        raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
+    try:
+        return parse_yaml(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise InputError(f"YAML syntax error{where}: {problem}", source=str(path)) from None
+
+
+def apply_overrides(raw: dict, overrides: list[str], source: str = "--set") -> dict:
+    """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping."""
+    raw = dict(raw)
+    for item in overrides:
+        if "=" not in item:
+            raise InputError(f"{item!r} is not of the form dotted.key=value", source=source)
+        key, _, text = item.partition("=")
+        try:
+            value = parse_yaml(text)
+        except yaml.YAMLError:
+            raise InputError(f"cannot parse value {text!r}", source=source, key=key) from None
+        parts = key.strip().split(".")
+        node = raw
+        for p in parts[:-1]:
+            child = node.get(p)
+            child = dict(child) if isinstance(child, dict) else {}
+            node[p] = child
+            node = child
+        node[parts[-1]] = value
+    return raw
+
+
+def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[RunConfig, Path]:
+    """Load and check a run config; returns it and the folder relative paths start from."""
+    raw: Any = {}
+    source = "(defaults)"
+    base = Path.cwd()
+    if path is not None:
+        raw = read_yaml(Path(path))
+        source = str(path)
+        base = Path(path).resolve().parent
+        if raw is None:
+            raw = {}
+        if not isinstance(raw, dict):
+            raise InputError(f"must be a mapping of keys, got {type(raw).__name__}", source=source)
+    if overrides:
+        raw = apply_overrides(raw, overrides)
+        source = f"{source} (with --set)"
+    return _build(RunConfig, raw, source, ""), base
+
+
+def config_from_dict(raw: dict, source: str = "(dict)") -> RunConfig:
+    return _build(RunConfig, raw, source, "")
+
+
+def to_dict(cfg: Any) -> dict:
+    """The resolved config as plain data (every parameter, defaults included)."""
+    return dataclasses.asdict(cfg)
+
+
+def describe(cls: type = RunConfig, prefix: str = "") -> list[tuple[str, Any, str]]:
+    """(dotted key, default, help) for every parameter: the documentation of the schema."""
+    out = []
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        key = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(hints[f.name]):
+            out.extend(describe(hints[f.name], key + "."))
+        else:
+            out.append((key, f.default, f.metadata.get("help", "")))
+    return out

@@ -1,0 +1,1 @@
+"""Experiments: one run, and (later) sweeps, calibration and error-versus-cost studies."""

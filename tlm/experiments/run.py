@@ -1,0 +1,235 @@
+"""One experiment: load, plan, build, render every planned frame, write the run folder.
+
+The run folder is written to a temporary sibling folder and renamed into place only
+when everything succeeded, so a failed or interrupted run leaves no half-written
+output. Contents::
+
+    config.resolved.yaml      every parameter, defaults included
+    results.json              scene stats, passes run and left out (with reasons),
+                              work counts per pass, host seconds per stage, versions
+    images/<pass>.png         tone-mapped sRGB, one exposure for all images
+    images/composite.png
+    radiance/<pass>.npy       float32 (H, W, 3) linear radiance, and composite.npy
+    aov/primary.npz           origin, direction, t, triangle, normal of the eye rays
+    aov/work.npz              per-pixel work counts, "<pass>.<count>" -> (H, W) int64
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from tlm.config import RunConfig, to_dict
+from tlm.kernels.traverse import TriangleAccel, build_accel
+from tlm.render.image import auto_exposure, to_srgb8, write_png
+from tlm.render.passes import PASS_FUNCTIONS, WORK_KEYS, Frame, GBuffer, cast
+from tlm.render.planner import Plan, plan
+from tlm.scenes.loader import load_scene
+from tlm.scenes.model import Scene
+
+
+@dataclass
+class Timer:
+    """Host wall seconds per named stage."""
+
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def stage(self, name: str):
+        timer = self
+
+        class _Stage:
+            def __enter__(self):
+                self.t0 = time.perf_counter()
+
+            def __exit__(self, *exc):
+                timer.seconds[name] = timer.seconds.get(name, 0.0) + time.perf_counter() - self.t0
+
+        return _Stage()
+
+
+@dataclass
+class RenderResult:
+    """Everything a run computed (before it is written out)."""
+
+    scene: Scene
+    cfg: RunConfig
+    plan: Plan
+    frame: Frame
+    gbuffer: GBuffer
+    radiance: dict[str, np.ndarray]  # pass -> (H, W, 3)
+    work: dict[str, dict[str, np.ndarray]]  # pass -> count -> (H, W)
+    timer: Timer
+
+    @property
+    def accel(self) -> TriangleAccel:
+        return self.frame.accel
+
+    @property
+    def composite(self) -> np.ndarray:
+        out = np.zeros_like(next(iter(self.radiance.values())))
+        for name in self.plan.run_names:
+            out = out + self.radiance[name]
+        return out
+
+
+def render(cfg: RunConfig, base: Path | None = None) -> RenderResult:
+    """Render every planned frame of ``cfg`` over the whole image."""
+    timer = Timer()
+    with timer.stage("load_scene"):
+        scene = load_scene(cfg.scene, base, cfg.resolution)
+    the_plan = plan(scene, cfg)
+    with timer.stage("build_bsp"):
+        accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
+    frame = Frame.create(scene, accel, cfg)
+    w, h = scene.camera.width, scene.camera.height
+    pixels = np.arange(w * h, dtype=np.int64)
+    with timer.stage("cast"):
+        g = cast(frame, pixels)
+    radiance, work = {}, {}
+    for name in the_plan.run_names:
+        with timer.stage(f"pass_{name}"):
+            rad, wk = PASS_FUNCTIONS[name](frame, g)
+        radiance[name] = rad.reshape(h, w, 3)
+        work[name] = {k: v.reshape(h, w) for k, v in wk.items()}
+    return RenderResult(scene, cfg, the_plan, frame, g, radiance, work, timer)
+
+
+def _versions() -> dict[str, str]:
+    import importlib.metadata as md
+
+    out = {"python": platform.python_version(), "platform": platform.platform()}
+    for pkg in ("tlm", "numpy", "scipy", "simpy", "trimesh", "pyyaml", "pillow"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def _git_revision() -> str | None:
+    try:
+        here = Path(__file__).resolve().parent
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
+                             text=True, timeout=5, check=False)
+        return out.stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
+    lo, hi = scene.bounds()
+    used = np.bincount(scene.material_index, minlength=len(scene.materials))
+    return {
+        "name": scene.name,
+        "source": scene.source,
+        "triangles": scene.n_triangles,
+        "bounds": [lo.tolist(), hi.tolist()],
+        "resolution": [scene.camera.width, scene.camera.height],
+        "photons": scene.photons,
+        "materials": {
+            m.name: {"kind": m.kind, "triangles": int(used[i])} for i, m in enumerate(scene.materials)
+        },
+        "lights": [{"type": lt.kind, "power": list(lt.power)} for lt in scene.lights],
+        "bsp": accel.tree.stats(),
+    }
+
+
+def results_dict(res: RenderResult, exposure: float, config_path: str | None) -> dict:
+    work = {}
+    for name, counts in res.work.items():
+        total = {k: int(v.sum()) for k, v in counts.items()}
+        rays = total["primary_rays"] + total["secondary_rays"] + total["shadow_rays"]
+        total["tri_tests_per_ray"] = total["tri_tests"] / rays if rays else 0.0
+        total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
+        work[name] = total
+    g = res.gbuffer
+    warnings = []
+    if res.accel.tree.truncated:
+        t = res.accel.tree
+        warnings.append(
+            f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
+            f"{res.cfg.bsp.memory_factor:g}x the triangle list"
+        )
+    return {
+        "tlm": "results/1",
+        "config": config_path,
+        "seed": res.cfg.seed,
+        "mode": res.cfg.mode,
+        "scene": scene_stats(res.scene, res.accel),
+        "plan": res.plan.to_dict(),
+        "primary": {
+            "rays": int(g.pixels.shape[0]),
+            "hits": int((g.triangle >= 0).sum()),
+            "misses": int((g.triangle < 0).sum()),
+        },
+        "work": work,
+        "work_keys": list(WORK_KEYS),
+        "image": {"exposure": exposure},
+        "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
+        "versions": _versions(),
+        "git_revision": _git_revision(),
+        "warnings": warnings,
+    }
+
+
+def write_run(res: RenderResult, out: Path, config_path: str | None = None) -> dict:
+    """Write the run folder atomically (temporary sibling, then rename)."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    t0 = time.perf_counter()
+    try:
+        (tmp / "images").mkdir(parents=True)
+        (tmp / "radiance").mkdir()
+        (tmp / "aov").mkdir()
+        composite = res.composite
+        surfaces = ~res.gbuffer.sees_light  # lights seen directly would set the exposure
+        exposure = res.cfg.render.exposure or auto_exposure(composite.reshape(-1, 3)[surfaces])
+        for name, rad in [*res.radiance.items(), ("composite", composite)]:
+            write_png(tmp / "images" / f"{name}.png", to_srgb8(rad, exposure))
+            np.save(tmp / "radiance" / f"{name}.npy", rad.astype(np.float32))
+        h, w = res.scene.camera.height, res.scene.camera.width
+        g = res.gbuffer
+        np.savez_compressed(
+            tmp / "aov" / "primary.npz",
+            origin=g.origin.reshape(h, w, 3),
+            direction=g.direction.reshape(h, w, 3),
+            t=g.t.reshape(h, w),
+            triangle=g.triangle.astype(np.int64).reshape(h, w),
+            normal=g.normal(res.frame).reshape(h, w, 3),
+        )
+        np.savez_compressed(
+            tmp / "aov" / "work.npz",
+            **{f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()},
+        )
+        (tmp / "config.resolved.yaml").write_text(
+            yaml.safe_dump(to_dict(res.cfg), sort_keys=False)
+        )
+        res.timer.seconds["write"] = time.perf_counter() - t0
+        results = results_dict(res, exposure, config_path)
+        (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return results
+
+
+def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None) -> dict:
+    """Render and write; returns the results dictionary."""
+    res = render(cfg, base)
+    return write_run(res, out, config_path)
+

@@ -1,0 +1,1 @@
+"""Passes and the pass planner: the functional frames of an image (no timing)."""

@@ -1,0 +1,30 @@
+"""Radiance to pictures: exposure, the sRGB curve and 8-bit PNG files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def auto_exposure(radiance: np.ndarray, percentile: float = 99.5) -> float:
+    """Scale that maps the given percentile of luminance to 1 (1.0 for a black image)."""
+    lum = radiance @ np.array([0.2126, 0.7152, 0.0722])
+    lit = lum[lum > 0]
+    if lit.size == 0:
+        return 1.0
+    level = float(np.percentile(lit, percentile))
+    return 1.0 / level if level > 0 and np.isfinite(level) else 1.0
+
+
+def to_srgb8(radiance: np.ndarray, exposure: float) -> np.ndarray:
+    """(H, W, 3) linear radiance -> (H, W, 3) uint8 sRGB, clipped."""
+    x = np.clip(np.nan_to_num(radiance * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.round(s * 255.0).astype(np.uint8)
+
+
+def write_png(path: Path, rgb8: np.ndarray) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.ascontiguousarray(rgb8)).save(path, optimize=False)

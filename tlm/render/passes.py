@@ -1,0 +1,234 @@
+"""The frames of one image, in pipeline order: ray cast, then reflection and refraction.
+
+"At the end of the ray-cast operation, we store the intersection points, and normals.
+... The shadow, reflective and refractive (indirect illumination) rays are then created
+and traversed in separate passes through the acceleration data structure. These
+separate frames are summed for the final rendering output." (§III.B)
+
+* :func:`cast` traces the eye rays of a packet of pixels and keeps their hits (the
+  stored intersection points and normals every later pass starts from);
+* :func:`rcast_pass`: direct light with shadow rays at Lambertian eye hits, and quad
+  lights seen directly;
+* :func:`reflect_pass`: eye paths whose first surface is a mirror, followed through up
+  to ``reflect_depth`` specular bounces to a Lambertian surface, lit directly;
+* :func:`refract_pass`: the same for eye paths whose first surface is a dielectric
+  (Snell refraction, total internal reflection), up to ``refract_depth`` bounces.
+
+Each eye path belongs to exactly one frame, so the composite is their sum. Every
+function works on any packet of pixel ids and returns, with the radiance, the per-pixel
+work (:data:`WORK_KEYS`); a pixel's results do not depend on the rest of its packet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tlm.config import RunConfig
+from tlm.kernels.camera import primary_rays
+from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, reflect, refract
+from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
+from tlm.scenes.model import Scene
+
+WORK_KEYS = (
+    "primary_rays",  # eye rays traced
+    "secondary_rays",  # reflected / refracted rays traced
+    "shadow_rays",  # shadow rays traced (any-hit)
+    "shadow_hits",  # shadow rays that found an occluder
+    "node_visits",  # traversal: inner nodes entered, all rays of the pass
+    "leaves_crossed",  # traversal: leaves on the rays' lists
+    "leaf_visits",  # traversal: leaves tested before stopping
+    "tri_tests",  # intersection: ray-triangle tests
+    "fragments",  # Lambertian points shaded
+    "specular_bounces",  # mirror reflections, refractions and total internal reflections
+)
+KIND = {"lambertian": 0, "mirror": 1, "dielectric": 2}
+
+
+@dataclass(frozen=True)
+class Frame:
+    """What every pass reads: the scene, its BSP, per-triangle material tables, settings."""
+
+    scene: Scene
+    accel: TriangleAccel
+    cfg: RunConfig
+    normals: np.ndarray  # (n, 3) unit geometric normals
+    kind: np.ndarray  # (n,) int8, KIND of each triangle's material
+    albedo: np.ndarray  # (n, 3)
+    reflectance: np.ndarray  # (n, 3)
+    transmittance: np.ndarray  # (n, 3)
+    ior: np.ndarray  # (n,)
+    eps: float  # spawn epsilon in scene units
+
+    @classmethod
+    def create(cls, scene: Scene, accel: TriangleAccel, cfg: RunConfig) -> Frame:
+        mats = scene.materials
+        mi = scene.material_index
+        table = {
+            "kind": np.array([KIND[m.kind] for m in mats], dtype=np.int8),
+            "albedo": np.array([m.albedo for m in mats], dtype=np.float64),
+            "reflectance": np.array([m.reflectance for m in mats], dtype=np.float64),
+            "transmittance": np.array([m.transmittance for m in mats], dtype=np.float64),
+            "ior": np.array([m.ior for m in mats], dtype=np.float64),
+        }
+        return cls(
+            scene=scene,
+            accel=accel,
+            cfg=cfg,
+            normals=face_normals(scene.triangles),
+            eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
+            **{k: v[mi] for k, v in table.items()},
+        )
+
+
+def new_work(p: int) -> dict[str, np.ndarray]:
+    return {k: np.zeros(p, dtype=np.int64) for k in WORK_KEYS}
+
+
+def _add(work: dict[str, np.ndarray], index: np.ndarray, values: dict[str, np.ndarray]) -> None:
+    p = work["fragments"].shape[0]
+    for k, v in values.items():
+        work[k] += np.bincount(index, weights=v, minlength=p).astype(np.int64)
+
+
+def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
+    c = hits.counts
+    return {
+        "node_visits": c.node_visits,
+        "leaves_crossed": c.leaves_crossed,
+        "leaf_visits": c.leaf_visits,
+        "tri_tests": c.tri_tests,
+    }
+
+
+@dataclass(frozen=True)
+class GBuffer:
+    """The ray-cast frame's stored hits for a packet of pixels."""
+
+    pixels: np.ndarray  # (p,) int64
+    origin: np.ndarray  # (p, 3)
+    direction: np.ndarray  # (p, 3) unit
+    hits: Hits
+    light: np.ndarray  # (p, 3) radiance of a quad light seen before the surface
+    sees_light: np.ndarray  # (p,) bool
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.hits.t
+
+    @property
+    def triangle(self) -> np.ndarray:
+        return self.hits.triangle
+
+    def normal(self, frame: Frame) -> np.ndarray:
+        """(p, 3) geometric normals of the hit triangles (zero on a miss)."""
+        n = frame.normals[np.maximum(self.triangle, 0)]
+        return np.where(self.triangle[:, None] >= 0, n, 0.0)
+
+
+def cast(frame: Frame, pixels: np.ndarray) -> GBuffer:
+    """Trace the eye rays of ``pixels`` (the ray-cast operation)."""
+    pixels = np.asarray(pixels, dtype=np.int64)
+    o, d = primary_rays(frame.scene.camera, pixels)
+    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch)
+    le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
+    return GBuffer(pixels, o, d, hits, le, seen)
+
+
+def _shade_lambertian(frame: Frame, pix_local: np.ndarray, keys: np.ndarray, points: np.ndarray,
+                      d: np.ndarray, tri: np.ndarray, weight: np.ndarray,
+                      work: dict[str, np.ndarray]) -> np.ndarray:
+    """Direct light at Lambertian hits, weighted; records fragment and shadow work."""
+    n = frame.normals[tri]
+    n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)  # face the incoming ray
+    radiance, w = direct_light(
+        frame.accel, frame.scene.lights, points, n, tri, frame.albedo[tri], keys,
+        frame.cfg.seed, frame.cfg.render.light_samples, frame.eps,
+    )
+    _add(work, pix_local, w)
+    _add(work, pix_local, {"fragments": np.ones(pix_local.shape[0], dtype=np.int64)})
+    return radiance * weight
+
+
+def rcast_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Ray cast + shadows: direct light at Lambertian eye hits; visible quad lights."""
+    p = g.pixels.shape[0]
+    work = new_work(p)
+    radiance = np.zeros((p, 3))
+    local = np.arange(p)
+    _add(work, local, {"primary_rays": np.ones(p, dtype=np.int64), **_trace_counts(g.hits)})
+    radiance[g.sees_light] = g.light[g.sees_light]
+    hit = (g.triangle >= 0) & ~g.sees_light
+    lam = hit & (frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"])
+    idx = np.flatnonzero(lam)
+    if idx.shape[0]:
+        tri = g.triangle[idx]
+        pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
+        keys = g.pixels[idx] * 64
+        radiance[idx] = _shade_lambertian(frame, idx, keys, pts, g.direction[idx], tri,
+                                          np.ones((idx.shape[0], 1)), work)
+    return radiance, work
+
+
+def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int):
+    """Paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces."""
+    p = g.pixels.shape[0]
+    work = new_work(p)
+    radiance = np.zeros((p, 3))
+    start = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind])
+    start &= ~g.sees_light
+    idx = np.flatnonzero(start)
+    tri = g.triangle[idx]
+    d = g.direction[idx]
+    x = g.origin[idx] + g.t[idx, None] * d
+    weight = np.ones((idx.shape[0], 3))
+    for bounce in range(1, depth + 1):
+        if idx.shape[0] == 0:
+            break
+        kind = frame.kind[tri]
+        n = frame.normals[tri]
+        mirror = kind == KIND["mirror"]
+        new_d = np.empty_like(d)
+        if mirror.any():
+            new_d[mirror] = reflect(d[mirror], n[mirror])
+            weight[mirror] *= frame.reflectance[tri[mirror]]
+        diel = ~mirror
+        if diel.any():
+            rd, tir = refract(d[diel], n[diel], frame.ior[tri[diel]])
+            new_d[diel] = rd
+            wd = weight[diel]
+            wd[~tir] *= frame.transmittance[tri[diel]][~tir]
+            weight[diel] = wd
+        _add(work, idx, {"specular_bounces": np.ones(idx.shape[0], dtype=np.int64)})
+        d = new_d
+        hits = closest_hit(frame.accel, x, d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch)
+        _add(work, idx, {"secondary_rays": np.ones(idx.shape[0], dtype=np.int64), **_trace_counts(hits)})
+        le, seen = emitted(frame.scene.lights, x, d, hits.t, frame.eps)
+        radiance[idx[seen]] += weight[seen] * le[seen]
+        hit = (hits.triangle >= 0) & ~seen
+        kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
+        lam = hit & (kind_hit == KIND["lambertian"])
+        if lam.any():
+            li = np.flatnonzero(lam)
+            pts = x[li] + hits.t[li, None] * d[li]
+            keys = g.pixels[idx[li]] * 64 + bounce
+            radiance[idx[li]] += _shade_lambertian(frame, idx[li], keys, pts, d[li],
+                                                   hits.triangle[li], weight[li], work)
+        go = hit & ~lam
+        x = x[go] + hits.t[go, None] * d[go]
+        idx, tri, d, weight = idx[go], hits.triangle[go], d[go], weight[go]
+    return radiance, work
+
+
+def reflect_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Eye paths that first meet a mirror."""
+    return _specular_walk(frame, g, "mirror", frame.cfg.render.reflect_depth)
+
+
+def refract_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Eye paths that first meet a dielectric."""
+    return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth)
+
+
+PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass}

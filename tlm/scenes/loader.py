@@ -1,0 +1,340 @@
+"""Scene files: YAML in, a checked :class:`~tlm.scenes.model.Scene` out.
+
+A scene file names its geometry (a built-in builder or a mesh that trimesh loads),
+maps the geometry's parts to materials, and lists the lights, the camera, the
+resolution and the default photon count. The built-in scenes are the files in the
+repository's ``scenes/`` folder (shipped inside the wheel as ``tlm/_scenes``).
+
+Every problem is an :class:`~tlm.errors.InputError` naming the file, the key and the
+value: unknown keys (with a "did you mean"), wrong types, unknown materials, NaN or
+infinite vertices, an empty mesh, a resolution that cannot fit in memory.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tlm.config import read_yaml
+from tlm.errors import InputError, did_you_mean
+from tlm.scenes.model import LIGHT_KINDS, MATERIAL_KINDS, Camera, Geometry, Light, Material, Scene
+
+SCENE_KEYS = (
+    "name", "description", "geometry", "materials", "parts", "default_material",
+    "lights", "camera", "resolution", "photons", "transform",
+)
+MATERIAL_KEYS = {
+    "lambertian": ("type", "albedo"),
+    "mirror": ("type", "reflectance"),
+    "dielectric": ("type", "ior", "transmittance"),
+}
+LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power")}
+CAMERA_KEYS = ("eye", "target", "up", "vfov")
+BYTES_PER_PIXEL = 4096  # generous bound on every per-pixel buffer of a run, all passes
+
+
+def scenes_dir() -> Path:
+    """Where the built-in scene files are: inside the wheel, or the repository's."""
+    packaged = Path(__file__).resolve().parent.parent / "_scenes"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[2] / "scenes"
+
+
+def list_scenes() -> list[str]:
+    return sorted(p.stem for p in scenes_dir().glob("*.yaml"))
+
+
+def resolve_scene_path(ref: str, base: Path | None = None) -> Path:
+    """A built-in name (``cornell``) or a path, tried relative to ``base`` then the cwd."""
+    looks_like_path = ref.endswith((".yaml", ".yml")) or "/" in ref or os.sep in ref
+    if looks_like_path:
+        p = Path(ref)
+        for cand in ([base / p] if base is not None and not p.is_absolute() else []) + [p]:
+            if cand.is_file():
+                return cand
+        raise InputError("scene file not found", source=ref, key="scene")
+    builtin = scenes_dir() / f"{ref}.yaml"
+    if builtin.is_file():
+        return builtin
+    raise InputError(
+        f"{ref!r} is not a built-in scene ({', '.join(list_scenes())}){did_you_mean(ref, list_scenes())}",
+        key="scene",
+    )
+
+
+def _mapping(v: Any, src: str, key: str) -> dict:
+    if not isinstance(v, dict):
+        raise InputError(f"must be a mapping, got {v!r}", source=src, key=key)
+    return v
+
+
+def _keys(d: dict, allowed: tuple[str, ...], src: str, key: str) -> None:
+    for k in d:
+        if k not in allowed:
+            where = f"{key}.{k}" if key else str(k)
+            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=src, key=where)
+
+
+def _vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: float | None = None):
+    ok = isinstance(v, list) and len(v) == n and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
+    )
+    if not ok:
+        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
+    if not all(math.isfinite(x) for x in v):
+        raise InputError(f"{v!r} is not finite", source=src, key=key)
+    if lo is not None and any(x < lo for x in v):
+        raise InputError(f"{v!r} must be >= {lo}", source=src, key=key)
+    if hi is not None and any(x > hi for x in v):
+        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
+    return tuple(float(x) for x in v)
+
+
+def _num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = None,
+         lo_exclusive: bool = False) -> float:
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
+    if lo is not None and (v <= lo if lo_exclusive else v < lo):
+        raise InputError(f"{v!r} must be {'>' if lo_exclusive else '>='} {lo}", source=src, key=key)
+    if hi is not None and v > hi:
+        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
+    return float(v)
+
+
+def _material(name: str, raw: Any, src: str) -> Material:
+    key = f"materials.{name}"
+    raw = _mapping(raw, src, key)
+    kind = raw.get("type")
+    if kind not in MATERIAL_KINDS:
+        raise InputError(
+            f"type {kind!r} is not one of {', '.join(MATERIAL_KINDS)}{did_you_mean(str(kind), MATERIAL_KINDS)}",
+            source=src, key=key,
+        )
+    _keys(raw, MATERIAL_KEYS[kind], src, key)
+    if kind == "lambertian":
+        return Material(name, kind, albedo=_vec(raw.get("albedo"), src, f"{key}.albedo", lo=0.0, hi=1.0))
+    if kind == "mirror":
+        refl = _vec(raw.get("reflectance"), src, f"{key}.reflectance", lo=0.0, hi=1.0)
+        return Material(name, kind, reflectance=refl)
+    ior = _num(raw.get("ior"), src, f"{key}.ior", lo=0.0, lo_exclusive=True)
+    trans = _vec(raw.get("transmittance", [1.0, 1.0, 1.0]), src, f"{key}.transmittance", lo=0.0, hi=1.0)
+    return Material(name, kind, ior=ior, transmittance=trans)
+
+
+def _light(i: int, raw: Any, src: str) -> Light:
+    key = f"lights[{i}]"
+    raw = _mapping(raw, src, key)
+    kind = raw.get("type")
+    if kind not in LIGHT_KINDS:
+        raise InputError(
+            f"type {kind!r} is not one of {', '.join(LIGHT_KINDS)}{did_you_mean(str(kind), LIGHT_KINDS)}",
+            source=src, key=key,
+        )
+    _keys(raw, LIGHT_KEYS[kind], src, key)
+    power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
+    if kind == "point":
+        return Light(kind, power, position=_vec(raw.get("position"), src, f"{key}.position"))
+    light = Light(
+        kind, power,
+        corner=_vec(raw.get("corner"), src, f"{key}.corner"),
+        edge_u=_vec(raw.get("edge_u"), src, f"{key}.edge_u"),
+        edge_v=_vec(raw.get("edge_v"), src, f"{key}.edge_v"),
+    )
+    size = np.linalg.norm(light.edge_u) * np.linalg.norm(light.edge_v)
+    if not light.area > 1e-12 * size or size == 0.0:
+        raise InputError("edge_u and edge_v span no area", source=src, key=key)
+    return light
+
+
+def _geometry(raw: Any, src: str, path: Path) -> Geometry:
+    from tlm.scenes.builders import BUILDERS
+
+    raw = _mapping(raw, src, "geometry")
+    _keys(raw, ("builder", "params", "mesh"), src, "geometry")
+    if ("builder" in raw) == ("mesh" in raw):
+        raise InputError("give exactly one of 'builder' or 'mesh'", source=src, key="geometry")
+    if "mesh" in raw:
+        mesh = raw["mesh"]
+        if not isinstance(mesh, str):
+            raise InputError(f"{mesh!r} is not a file name", source=src, key="geometry.mesh")
+        mpath = Path(mesh)
+        if not mpath.is_absolute():
+            mpath = path.parent / mpath
+        if not mpath.is_file():
+            raise InputError(f"mesh file {str(mpath)!r} not found", source=src, key="geometry.mesh")
+        from tlm.scenes.meshes import load_mesh
+
+        return load_mesh(mpath)
+    name = raw["builder"]
+    if name not in BUILDERS:
+        raise InputError(
+            f"{name!r} is not a builder ({', '.join(BUILDERS)}){did_you_mean(str(name), BUILDERS)}",
+            source=src, key="geometry.builder",
+        )
+    params = _mapping(raw.get("params") or {}, src, "geometry.params")
+    try:
+        return BUILDERS[name](**params)
+    except TypeError as e:
+        raise InputError(f"bad builder parameter ({e})", source=src, key="geometry.params") from None
+    except ValueError as e:
+        raise InputError(str(e), source=src, key="geometry.params") from None
+
+
+def _check_triangles(tri: np.ndarray, src: str) -> None:
+    if tri.ndim != 3 or tri.shape[1:] != (3, 3):
+        raise InputError(f"triangles have shape {tri.shape}, expected (n, 3, 3)", source=src, key="geometry")
+    if tri.shape[0] == 0:
+        raise InputError("the geometry has no triangles", source=src, key="geometry")
+    bad = ~np.isfinite(tri).all(axis=(1, 2))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{int(bad.sum())} triangle(s) have NaN or infinite vertices (first: triangle {i}, "
+            f"{tri[i].tolist()})",
+            source=src, key="geometry",
+        )
+
+
+def check_resolution(width: int, height: int, src: str, key: str = "resolution") -> None:
+    if width <= 0 or height <= 0:
+        raise InputError(f"[{width}, {height}] must be positive", source=src, key=key)
+    need = width * height * BYTES_PER_PIXEL
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        total = 1 << 36
+    if need > total:
+        raise InputError(
+            f"[{width}, {height}] needs about {need / 2**30:.0f} GiB, more than this machine's "
+            f"{total / 2**30:.0f} GiB",
+            source=src, key=key,
+        )
+
+
+def load_scene(ref: str, base: Path | None = None, resolution: list[int] | None = None) -> Scene:
+    """Load a built-in scene by name or a scene file by path."""
+    path = resolve_scene_path(ref, base)
+    src = str(path)
+    raw = read_yaml(path)
+    raw = _mapping(raw, src, "")
+    _keys(raw, SCENE_KEYS, src, "")
+    if "geometry" not in raw:
+        raise InputError("missing (builder or mesh)", source=src, key="geometry")
+    geom = _geometry(raw["geometry"], src, path)
+    tri = np.asarray(geom.triangles, dtype=np.float64)
+    _check_triangles(tri, src)
+
+    materials_raw = _mapping(raw.get("materials") or {}, src, "materials")
+    if not materials_raw:
+        raise InputError("no materials defined", source=src, key="materials")
+    materials = tuple(_material(str(k), v, src) for k, v in materials_raw.items())
+    names = [m.name for m in materials]
+    parts_raw = _mapping(raw.get("parts") or {}, src, "parts")
+    default = raw.get("default_material")
+    if default is not None and default not in names:
+        raise InputError(f"{default!r} is not a material{did_you_mean(str(default), names)}",
+                         source=src, key="default_material")
+    part_material = []
+    for p in parts_raw:
+        if p not in geom.part_names:
+            raise InputError(
+                f"the geometry has no part {p!r} (parts: {', '.join(geom.part_names)})"
+                f"{did_you_mean(str(p), geom.part_names)}",
+                source=src, key=f"parts.{p}",
+            )
+    for p in geom.part_names:
+        m = parts_raw.get(p, default)
+        if m is None:
+            raise InputError(f"part {p!r} has no material and there is no default_material",
+                             source=src, key="parts")
+        if m not in names:
+            raise InputError(f"{m!r} is not a material{did_you_mean(str(m), names)}",
+                             source=src, key=f"parts.{p}")
+        part_material.append(names.index(m))
+    part = np.asarray(geom.part, dtype=np.int32)
+    material_index = np.asarray(part_material, dtype=np.int32)[part]
+
+    lights_raw = raw.get("lights") or []
+    if not isinstance(lights_raw, list):
+        raise InputError(f"must be a list, got {lights_raw!r}", source=src, key="lights")
+    lights = tuple(_light(i, v, src) for i, v in enumerate(lights_raw))
+
+    cam_raw = _mapping(raw.get("camera"), src, "camera")
+    _keys(cam_raw, CAMERA_KEYS, src, "camera")
+    eye = _vec(cam_raw.get("eye"), src, "camera.eye")
+    target = _vec(cam_raw.get("target"), src, "camera.target")
+    up = _vec(cam_raw.get("up", [0.0, 1.0, 0.0]), src, "camera.up")
+    vfov = _num(cam_raw.get("vfov"), src, "camera.vfov", lo=0.0, hi=179.0, lo_exclusive=True)
+    fwd = np.subtract(target, eye)
+    if not np.linalg.norm(fwd) > 0:
+        raise InputError("eye and target coincide", source=src, key="camera")
+    if not np.linalg.norm(np.cross(fwd, up)) > 1e-12 * np.linalg.norm(fwd) * np.linalg.norm(up):
+        raise InputError(f"up {list(up)} is parallel to the view direction", source=src, key="camera.up")
+
+    res = resolution if resolution is not None else raw.get("resolution")
+    res_src = "--set/config resolution" if resolution is not None else src
+    whole = isinstance(res, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in res)
+    if not (whole and len(res) == 2):
+        raise InputError(f"{res!r} is not [width, height] in whole pixels", source=res_src, key="resolution")
+    check_resolution(res[0], res[1], res_src)
+    photons = raw.get("photons", 0)
+    if not isinstance(photons, int) or isinstance(photons, bool) or photons < 0:
+        raise InputError(f"{photons!r} must be a whole number >= 0", source=src, key="photons")
+
+    scale, translate = 1.0, (0.0, 0.0, 0.0)
+    if raw.get("transform") is not None:
+        tr = _mapping(raw["transform"], src, "transform")
+        _keys(tr, ("scale", "translate"), src, "transform")
+        scale = _num(tr.get("scale", 1.0), src, "transform.scale", lo=0.0, lo_exclusive=True)
+        translate = _vec(tr.get("translate", [0.0, 0.0, 0.0]), src, "transform.translate")
+    camera = Camera(eye, target, up, vfov, res[0], res[1])
+    scene = Scene(
+        name=str(raw.get("name", path.stem)),
+        triangles=tri,
+        material_index=material_index,
+        materials=materials,
+        part=part,
+        part_names=tuple(geom.part_names),
+        lights=lights,
+        camera=camera,
+        photons=photons,
+        source=src,
+        extra={"description": str(raw.get("description", ""))},
+    )
+    if scale != 1.0 or translate != (0.0, 0.0, 0.0):
+        scene = transform_scene(scene, scale, np.asarray(translate))
+    return scene
+
+
+def transform_scene(scene: Scene, scale: float, translate: np.ndarray) -> Scene:
+    """Scale about the origin then translate: geometry, lights and camera together.
+
+    Light power is scaled by ``scale**2`` so that radiance, and so the image, does not
+    change: a scene scaled by 1e-6 or moved 1e6 away renders the same picture.
+    """
+    from dataclasses import replace
+
+    def pt(p):
+        return tuple(float(x) for x in np.asarray(p) * scale + translate)
+
+    def vec(v):
+        return tuple(float(x) for x in np.asarray(v) * scale)
+
+    lights = tuple(
+        replace(
+            lt,
+            power=tuple(float(x) * scale**2 for x in lt.power),
+            position=pt(lt.position),
+            corner=pt(lt.corner),
+            edge_u=vec(lt.edge_u),
+            edge_v=vec(lt.edge_v),
+        )
+        for lt in scene.lights
+    )
+    cam = replace(scene.camera, eye=pt(scene.camera.eye), target=pt(scene.camera.target))
+    return replace(scene, triangles=scene.triangles * scale + translate, lights=lights, camera=cam)
