@@ -106,20 +106,20 @@ class _Workspace:
     flat SIMD loop.
     """
 
-    NAMES = ("tx", "ty", "tz", "cx", "cy", "cz", "rdet", "t", "tmp", "dx", "dy", "dz")
+    NAMES = ("tx", "ty", "tz", "cx", "cy", "cz", "rdet", "t", "tmp", "dx", "dy", "dz", "u", "v")
 
     def __init__(self) -> None:
         self.flat = np.empty(0, dtype=np.float32)
         self.key = np.empty(0, dtype=np.uint64)
 
-    def views(self, m: int, r: int) -> tuple[list[np.ndarray], np.ndarray]:
+    def views(self, m: int, r: int) -> tuple[np.ndarray, np.ndarray]:
+        """A (k, m, r) float32 stack of buffers and an (m, r) uint64 key buffer."""
         size = m * r
         k = len(self.NAMES)
         if self.flat.shape[0] < k * size:
             self.flat = np.empty(max(k * size, 1 << 18), dtype=np.float32)
             self.key = np.empty(max(size, 1 << 15), dtype=np.uint64)
-        views = [self.flat[i * size : (i + 1) * size].reshape(m, r) for i in range(k)]
-        return views, self.key[:size].reshape(m, r)
+        return self.flat[: k * size].reshape(k, m, r), self.key[:size].reshape(m, r)
 
 
 _WS = _Workspace()
@@ -139,7 +139,11 @@ def closest_slots(
     """Which of slots ``s0:s1`` each ray hits first inside ``(tmin, tmax)``.
 
     o, d : (3, r) float32 origins (relative to ``tri.origin``) and directions;
-        directions need not be unit (``t`` is in units of their length).
+        directions need not be unit (``t`` is in units of their length). ``o`` is
+        (3, 1) for rays that share one origin by construction (eye rays): ``T`` is
+        then one column and ``u``, ``v`` are linear forms in ``D``. That path rounds
+        differently from the general one, so the caller chooses it by ray kind,
+        never by what a packet happens to contain (packet invariance).
     tmin, tmax : (r,) float32, ``0 <= tmin``. ignore : (r,) int64 triangle id each ray
         must not hit (-1: none), or None when no ray ignores anything.
 
@@ -154,7 +158,7 @@ def closest_slots(
     has its top bit set, so as an unsigned integer it sorts after every positive
     distance. The smallest ``(bits(t'), slot)`` key is the first hit.
     """
-    r = o.shape[1]
+    r = d.shape[1]
     m = s1 - s0
     if r == 0 or m <= 0:
         return np.full(r, -1, dtype=np.int64), np.full(r, np.inf, dtype=np.float32)
@@ -167,42 +171,54 @@ def closest_slots(
     def col(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return a[0, sl, None], a[1, sl, None], a[2, sl, None]
 
-    (tx, ty, tz, cx, cy, cz, rdet, t, tmp, dfx, dfy, dfz), key = _WS.views(m, r)
-    u, v = tx, ty  # T is dead once C and t are known
+    (tx, ty, tz, cx, cy, cz, rdet, t, tmp, dfx, dfy, dfz, u, v), key = _WS.views(m, r)  # unpacks axis 0
     mul, add, sub, mn = np.multiply, np.add, np.subtract, np.minimum
     np.copyto(dfx, dx)  # D spread over the block: full-by-full products are faster
     np.copyto(dfy, dy)
     np.copyto(dfz, dz)
     dx, dy, dz = dfx, dfy, dfz
+    shared = o.shape[1] == 1  # one origin for every ray (eye rays)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         v0x, v0y, v0z = col(tri.v0)
-        sub(ox, v0x, out=tx)  # T = O - V0
-        sub(oy, v0y, out=ty)
-        sub(oz, v0z, out=tz)
         nnx, nny, nnz = col(tri.nn)
         mul(dx, nnx, out=rdet)  # det = P.E1 = -D.N
         add(rdet, mul(dy, nny, out=tmp), out=rdet)
         add(rdet, mul(dz, nnz, out=tmp), out=rdet)
         np.divide(dt(1.0), rdet, out=rdet)
         nx, ny, nz = col(tri.n)
-        mul(tx, nx, out=t)  # t = Q.E2 / det = T.N / det
-        add(t, mul(ty, ny, out=tmp), out=t)
-        add(t, mul(tz, nz, out=tmp), out=t)
-        mul(t, rdet, out=t)
-        sub(mul(ty, dz, out=cx), mul(tz, dy, out=tmp), out=cx)  # C = T x D
-        sub(mul(tz, dx, out=cy), mul(tx, dz, out=tmp), out=cy)
-        sub(mul(tx, dy, out=cz), mul(ty, dx, out=tmp), out=cz)
         e2x, e2y, e2z = col(tri.e2)
-        mul(cx, e2x, out=u)  # u = P.T / det = C.E2 / det
-        add(u, mul(cy, e2y, out=tmp), out=u)
-        add(u, mul(cz, e2z, out=tmp), out=u)
-        mul(u, rdet, out=u)
         e1x, e1y, e1z = col(tri.e1n)
-        mul(cx, e1x, out=v)  # v = Q.D / det = -C.E1 / det
-        add(v, mul(cy, e1y, out=tmp), out=v)
-        add(v, mul(cz, e1z, out=tmp), out=v)
-        mul(v, rdet, out=v)
-        w = tz
+        if shared:
+            # T is one column; P.T = (E2 x T).D and Q.D = (-E1 x T).D are then linear
+            # in D with per-slot coefficients, and T.N is per slot.
+            tx, ty, tz = ox - v0x, oy - v0y, oz - v0z
+            mul((tx * nx + ty * ny) + tz * nz, rdet, out=t)
+            for (ax, ay, az), out in (((e2x, e2y, e2z), u), ((e1x, e1y, e1z), v)):
+                kx, ky, kz = ay * tz - az * ty, az * tx - ax * tz, ax * ty - ay * tx
+                mul(dx, kx, out=out)
+                add(out, mul(dy, ky, out=tmp), out=out)
+                add(out, mul(dz, kz, out=tmp), out=out)
+                mul(out, rdet, out=out)
+        else:
+            sub(ox, v0x, out=tx)  # T = O - V0
+            sub(oy, v0y, out=ty)
+            sub(oz, v0z, out=tz)
+            mul(tx, nx, out=t)  # t = Q.E2 / det = T.N / det
+            add(t, mul(ty, ny, out=tmp), out=t)
+            add(t, mul(tz, nz, out=tmp), out=t)
+            mul(t, rdet, out=t)
+            sub(mul(ty, dz, out=cx), mul(tz, dy, out=tmp), out=cx)  # C = T x D
+            sub(mul(tz, dx, out=cy), mul(tx, dz, out=tmp), out=cy)
+            sub(mul(tx, dy, out=cz), mul(ty, dx, out=tmp), out=cz)
+            mul(cx, e2x, out=u)  # u = P.T / det = C.E2 / det
+            add(u, mul(cy, e2y, out=tmp), out=u)
+            add(u, mul(cz, e2z, out=tmp), out=u)
+            mul(u, rdet, out=u)
+            mul(cx, e1x, out=v)  # v = Q.D / det = -C.E1 / det
+            add(v, mul(cy, e1y, out=tmp), out=v)
+            add(v, mul(cz, e1z, out=tmp), out=v)
+            mul(v, rdet, out=v)
+        w = cz  # C is dead once u and v are known
         sub(dt(1.0), add(u, v, out=w), out=w)  # w = min(u, v, 1 - u - v) + eps
         mn(w, mn(u, v, out=tmp), out=w)
         add(w, eps, out=w)

@@ -156,18 +156,28 @@ def _prepare(origins, directions, tmin, tmax, ignore):
 
 
 def _clip_root(tree: BSPTree, o, d, tmin, tmax):
-    """Slab test against the root box; returns the entry/exit distances per ray."""
+    """Slab test against the root box; the entry and exit distances and 1/d per ray.
+
+    A zero direction component (either sign) never crosses its slab: the ray is inside
+    it for all t when its origin is (closed box), outside for all t otherwise.
+    """
     lo, hi = tree.lo[0], tree.hi[0]
-    zero = d == 0.0
+    ta, tb = tmin.copy(), tmax.copy()
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / d
-        t0 = (lo - o) * inv
-        t1 = (hi - o) * inv
-    inside = (o >= lo) & (o <= hi)
-    near = np.where(zero, np.where(inside, -np.inf, np.inf), np.minimum(t0, t1))
-    far = np.where(zero, np.where(inside, np.inf, -np.inf), np.maximum(t0, t1))
-    ta = np.maximum(near.max(axis=1), tmin)
-    tb = np.minimum(far.min(axis=1), tmax)
+        for k in range(3):
+            oc = o[:, k]
+            t0 = (lo[k] - oc) * inv[:, k]
+            t1 = (hi[k] - oc) * inv[:, k]
+            near = np.minimum(t0, t1)
+            far = np.maximum(t0, t1)
+            zero = np.flatnonzero(d[:, k] == 0.0)
+            if zero.shape[0]:
+                inside = (oc[zero] >= lo[k]) & (oc[zero] <= hi[k])
+                near[zero] = np.where(inside, -np.inf, np.inf)
+                far[zero] = np.where(inside, np.inf, -np.inf)
+            np.maximum(ta, near, out=ta)
+            np.minimum(tb, far, out=tb)
     return ta, tb, inv
 
 
@@ -179,33 +189,44 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
     a, b = ta[ray], tb[ray]
     node_visits = np.zeros(r, dtype=np.int64)
     rec_ray, rec_node = [], []
+    cols = [(np.ascontiguousarray(o[:, k]), np.ascontiguousarray(d[:, k]), np.ascontiguousarray(inv[:, k]))
+            for k in range(3)]
     for j in range(tree.levels):
-        axis = j % 3
+        oc, dc, ic = cols[j % 3]
         node_visits += np.bincount(ray, minlength=r)
         if record:
             rec_ray.append(ray)
             rec_node.append(node)
         s = tree.split[node]
-        oa = o[ray, axis]
-        da = d[ray, axis]
+        oa = oc[ray]
+        da = dc[ray]
         with np.errstate(invalid="ignore"):
-            ts = (s - oa) * inv[ray, axis]
+            ts = (s - oa) * ic[ray]
         flat = da == 0.0
-        # near child by the direction bit (d >= 0: left first); a flat ray: its side
-        near_is_left = np.where(flat, oa < s, da > 0.0)
-        left = 2 * node + 1
-        near_node = np.where(near_is_left, left, left + 1)
-        far_node = np.where(near_is_left, left + 1, left)
+        # near child by the direction bit (d > 0: left first); a flat ray: its own side
+        near_right = np.where(flat, oa >= s, da < 0.0)
         near_b = np.where(flat, b, np.minimum(b, ts))
         far_a = np.where(flat, np.inf, np.maximum(a, ts))
         keep_near = a <= near_b
         keep_far = far_a <= b
-        ray = np.stack([ray, ray], axis=1).reshape(-1)
-        node = np.stack([near_node, far_node], axis=1).reshape(-1)
-        keep = np.stack([keep_near, keep_far], axis=1).reshape(-1)
-        a_new = np.stack([a, far_a], axis=1).reshape(-1)
-        b_new = np.stack([near_b, b], axis=1).reshape(-1)
-        ray, node, a, b = ray[keep], node[keep], a_new[keep], b_new[keep]
+        n_child = keep_near.view(np.int8) + keep_far.view(np.int8)
+        pos = np.cumsum(n_child, dtype=np.int64)
+        total = int(pos[-1]) if pos.shape[0] else 0
+        pos -= n_child
+        near_at = pos[keep_near]
+        far_at = (pos + keep_near)[keep_far]
+        left = 2 * node + 1
+        new_node = np.empty(total, dtype=np.int64)
+        new_a = np.empty(total)
+        new_b = np.empty(total)
+        new_node[near_at] = (left + near_right)[keep_near]
+        new_node[far_at] = (left + ~near_right)[keep_far]
+        new_a[near_at] = a[keep_near]
+        new_a[far_at] = far_a[keep_far]
+        new_b[near_at] = near_b[keep_near]
+        new_b[far_at] = b[keep_far]
+        ray = np.repeat(ray, n_child)
+        node, a, b = new_node, new_a, new_b
     touched_nodes = None
     if record:
         rr = np.concatenate(rec_ray) if rec_ray else np.zeros(0, np.int64)
@@ -218,7 +239,8 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
     return ray, leaf, b, node_visits, touched_nodes
 
 
-def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, any_hit, batch):
+def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, any_hit, batch,
+              shared_origin=False):
     tree = accel.tree
     o, d, tmin, tmax, ignore = _prepare(origins, directions, tmin, tmax, ignore)
     r = o.shape[0]
@@ -238,11 +260,15 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     soa, soa64 = accel.soa, accel.soa64
     o_local = o - soa64.origin
     o32 = np.ascontiguousarray(o_local.T, dtype=np.float32)
+    if shared_origin and r > 0 and not (o32 == o32[:, :1]).all():
+        raise ValueError("shared_origin=True but the rays do not share one origin")
     d32 = np.ascontiguousarray(d.T, dtype=np.float32)
     tmin32 = tmin.astype(np.float32)
     tmax32 = tmax.astype(np.float32)
     ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
+    # small integer leaf numbers sort by radix (stable) instead of by merge
+    sort_leaf = pleaf.astype(np.int16) if tree.n_leaves <= np.iinfo(np.int16).max else pleaf
     k0 = 0
     while True:
         act = np.flatnonzero(~done & (cnt > k0))
@@ -252,7 +278,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         rep = np.repeat(act, nb)
         within = np.arange(rep.shape[0]) - np.repeat(np.cumsum(nb) - nb, nb)
         idx = start[rep] + k0 + within  # pair indices tested in this batch
-        leaves = pleaf[idx]
+        leaves = sort_leaf[idx]
         order = np.argsort(leaves, kind="stable")
         idx = idx[order]
         leaves = leaves[order]
@@ -269,7 +295,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 p = idx[c0 : min(c0 + step, g1)]
                 rays = pray[p]
                 pslot[p], pt[p] = closest_slots(
-                    o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
+                    o32[:, :1] if shared_origin else o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
                     None if ign is None else ign[rays], soa, s0, s1,
                 )
         # the sequential stopping rule over the batch's leaves
@@ -321,6 +347,7 @@ def closest_hit(
     ignore: np.ndarray | None = None,
     record: bool = False,
     batch: int = 4,
+    shared_origin: bool = False,
 ) -> Hits:
     """Closest hit of every ray inside ``(tmin, tmax)``, never on its ``ignore`` triangle.
 
@@ -328,8 +355,11 @@ def closest_hit(
         of the direction's length).
     record : also return the nodes and leaves touched (:class:`Touched`).
     batch : leaves per ray evaluated together (speed only; results do not depend on it).
+    shared_origin : the rays share one origin by construction (eye rays); the test
+        then hoists the origin's terms. Results can differ in the last float32 bit
+        from ``shared_origin=False``, so pass it for a kind of ray, always or never.
     """
-    return _traverse(accel, origins, directions, tmin, tmax, ignore, record, False, batch)
+    return _traverse(accel, origins, directions, tmin, tmax, ignore, record, False, batch, shared_origin)
 
 
 def any_hit(

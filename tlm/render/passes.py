@@ -131,7 +131,7 @@ def cast(frame: Frame, pixels: np.ndarray) -> GBuffer:
     """Trace the eye rays of ``pixels`` (the ray-cast operation)."""
     pixels = np.asarray(pixels, dtype=np.int64)
     o, d = primary_rays(frame.scene.camera, pixels)
-    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch)
+    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True)
     le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
     return GBuffer(pixels, o, d, hits, le, seen)
 
