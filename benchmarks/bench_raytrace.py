@@ -53,40 +53,48 @@ def shadow_rays(scene, accel, hits, o, d):
     return o_s, d_s, np.concatenate(ignore), rel
 
 
+def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float]]:
+    """(kind, rays, tlm seconds, Embree seconds) for the primary and the shadow rays."""
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+
+    scene = load_scene(name)
+    accel = build_accel(scene.triangles)
+    w, h = scene.camera.width, scene.camera.height
+    o, d = primary_rays(scene.camera, np.arange(w * h))
+    emb = rtcs.EmbreeScene()
+    TriangleMesh(emb, scene.triangles.astype(np.float32))
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    emb.run(o32[:16], d32[:16])  # build Embree's BVH outside the timing
+    hits = closest_hit(accel, o, d, shared_origin=True)
+    rows = [(
+        "primary", o.shape[0],
+        best_of(lambda: closest_hit(accel, o, d, shared_origin=True), repeat),
+        best_of(lambda: emb.run(o32, d32), repeat),
+    )]
+    so, sd, sign, rel = shadow_rays(scene, accel, hits, o, d)
+    # embreex's run() has no tnear: Embree's rays start at tmin and end at tmax
+    so32 = (so + rel[:, None] * sd).astype(np.float32)
+    sd32 = (sd * (1.0 - 2.0 * rel[:, None])).astype(np.float32)
+    ones = np.ones(len(so32), np.float32)
+    rows.append((
+        "shadow", so.shape[0],
+        best_of(lambda: any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign), repeat),
+        best_of(lambda: emb.run(so32, sd32, dists=ones, query="OCCLUDED"), repeat),
+    ))
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=["cornell", "ring", "room"])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    from embreex import rtcore_scene as rtcs
-    from embreex.mesh_construction import TriangleMesh
-
     print(f"{'scene':8s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'embree Mrays/s':>15s} {'ratio':>9s}")
     for name in args.scenes:
-        scene = load_scene(name)
-        accel = build_accel(scene.triangles)
-        w, h = scene.camera.width, scene.camera.height
-        o, d = primary_rays(scene.camera, np.arange(w * h))
-        emb = rtcs.EmbreeScene()
-        TriangleMesh(emb, scene.triangles.astype(np.float32))
-        o32, d32 = o.astype(np.float32), d.astype(np.float32)
-        emb.run(o32[:16], d32[:16])  # build Embree's BVH outside the timing
-        hits = closest_hit(accel, o, d, shared_origin=True)
-        t_ours = best_of(lambda: closest_hit(accel, o, d, shared_origin=True), args.repeat)
-        t_emb = best_of(lambda: emb.run(o32, d32), args.repeat)
-        n = o.shape[0]
-        print(f"{name:8s} {n:8d} {'primary':8s} {n / t_ours / 1e6:12.3f} {n / t_emb / 1e6:15.3f} "
-              f"1/{t_ours / t_emb:6.1f}")
-        so, sd, sign, rel = shadow_rays(scene, accel, hits, o, d)
-        # Embree has no tnear in embreex's run(): start its rays at tmin, end them at tmax
-        so32 = (so + rel[:, None] * sd).astype(np.float32)
-        sd32 = (sd * (1.0 - 2.0 * rel[:, None])).astype(np.float32)
-        t_ours = best_of(lambda: any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign), args.repeat)
-        t_emb = best_of(lambda: emb.run(so32, sd32, dists=np.ones(len(so32), np.float32), query="OCCLUDED"),
-                        args.repeat)
-        n = so.shape[0]
-        print(f"{name:8s} {n:8d} {'shadow':8s} {n / t_ours / 1e6:12.3f} {n / t_emb / 1e6:15.3f} "
-              f"1/{t_ours / t_emb:6.1f}")
+        for kind, n, t_ours, t_emb in bench_scene(name, args.repeat):
+            print(f"{name:8s} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_emb / 1e6:15.3f} "
+                  f"1/{t_ours / t_emb:6.1f}")
 
 
 if __name__ == "__main__":

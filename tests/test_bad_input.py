@@ -318,14 +318,11 @@ def test_bad_scene_show(tmp_path, capsys, name):
 
 @pytest.mark.parametrize("name", list(CONFIG_SCENE_CASES))
 def test_bad_config_scene_keys(tmp_path, capsys, name):
-    """Everything but naming the config file (see the xfail below)."""
     case = CONFIG_SCENE_CASES[name]
     write_inputs(tmp_path, case)
     run_and_check(tmp_path, capsys, run_argv(tmp_path, case), case.expect)
 
 
-@pytest.mark.xfail(reason=NO_CONFIG_FILE + " (load_scene raises InputError with source=None for an "
-                   "unknown scene name and source='--set/config resolution' for the resolution)", strict=True)
 @pytest.mark.parametrize("name", list(CONFIG_SCENE_CASES))
 def test_bad_config_scene_keys_name_the_config(tmp_path, capsys, name):
     case = CONFIG_SCENE_CASES[name]
@@ -354,8 +351,6 @@ def test_existing_run_folder_survives_a_bad_run(tmp_path, capsys):
     assert (out / "results.json").read_text() == "{}"
 
 
-@pytest.mark.xfail(reason="BUG: argparse errors (e.g. --seed abc, --mode fast) print a usage block and "
-                   "'tlm run: error: ...' and raise SystemExit(2) instead of one 'tlm: error:' line", strict=True)
 @pytest.mark.parametrize("argv", [["--seed", "abc"], ["--mode", "fast"]], ids=["seed-abc", "mode-fast"])
 def test_bad_command_line_arguments(tmp_path, capsys, argv):
     write_inputs(tmp_path, Case())

@@ -27,7 +27,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"seed={args.seed}")
     cfg, base = load_config(Path(args.config), overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
-    results = run(cfg, out, base, config_path=str(args.config))
+    source = f"{args.config} (with --set)" if overrides else str(args.config)
+    results = run(cfg, out, base, config_path=source)
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -97,8 +98,15 @@ def _cmd_params(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's one-line error and exit status 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise InputError(message.replace("\n", " "), source=self.prog)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="tlm", description="Transaction-level model of J. Ling's "
+    p = _Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
@@ -125,8 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         return args.func(args)
     except InputError as e:
         print(f"tlm: error: {e}", file=sys.stderr)

@@ -81,11 +81,11 @@ class RenderResult:
         return out
 
 
-def render(cfg: RunConfig, base: Path | None = None) -> RenderResult:
+def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None) -> RenderResult:
     """Render every planned frame of ``cfg`` over the whole image."""
     timer = Timer()
     with timer.stage("load_scene"):
-        scene = load_scene(cfg.scene, base, cfg.resolution)
+        scene = load_scene(cfg.scene, base, cfg.resolution, config_source)
     the_plan = plan(scene, cfg)
     with timer.stage("build_bsp"):
         accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
@@ -229,7 +229,10 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None) -> d
 
 
 def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None) -> dict:
-    """Render and write; returns the results dictionary."""
-    res = render(cfg, base)
+    """Render and write; returns the results dictionary.
+
+    ``config_path`` names where the config came from (errors and ``results.json``).
+    """
+    res = render(cfg, base, config_path)
     return write_run(res, out, config_path)
 

@@ -266,6 +266,78 @@ def exact(o: np.ndarray, d: np.ndarray, tri: TriangleSoA, slot: np.ndarray):
     return t, u, v
 
 
+def verify(
+    o: np.ndarray,
+    d: np.ndarray,
+    tmin: np.ndarray,
+    tmax: np.ndarray,
+    ignore: np.ndarray | None,
+    tri: TriangleSoA,
+    slot: np.ndarray,
+    s0: np.ndarray | int,
+    s1: np.ndarray | int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The float64 check of float32 choices, and a float64 re-decision where it fails.
+
+    o, d : (k, 3) float64 origins (relative to ``tri.origin``) and directions; tmin,
+    tmax : (k,) float64; slot : (k,) the float32 choices (-1: none) among each ray's
+    slots ``s0:s1`` (scalars or (k,) arrays) of the float64 ``tri``. A choice stands
+    when eq. 3.6 in float64 puts it strictly inside ``(tmin, tmax)`` with barycentrics
+    within the float32 tolerance; otherwise (a grazing hit that float32 placed on the
+    wrong side of ``tmax``, say) the ray's slots are tested again in float64 and that
+    answer is taken.
+
+    Returns ``slot``, ``t`` (inf: none), ``u``, ``v``, all (k,).
+    """
+    k = slot.shape[0]
+    t, u, v = np.full(k, np.inf), np.zeros(k), np.zeros(k)
+    has = slot >= 0
+    if not has.any():
+        return slot, t, u, v
+    t[has], u[has], v[has] = exact(o[has], d[has], tri, slot[has])
+    eps = EDGE_EPS[np.dtype(np.float32)]
+    with np.errstate(invalid="ignore"):
+        ok = (t > tmin) & (t < tmax) & (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
+    bad = np.flatnonzero(has & ~ok)
+    if bad.shape[0] == 0:
+        return slot, t, u, v
+    slot = slot.copy()
+    t[bad], u[bad], v[bad] = np.inf, 0.0, 0.0
+    lo = np.broadcast_to(np.asarray(s0), (k,))[bad]
+    hi = np.broadcast_to(np.asarray(s1), (k,))[bad]
+    for a, b in set(zip(lo.tolist(), hi.tolist(), strict=True)):  # rare: a few ranges
+        sel = bad[(lo == a) & (hi == b)]
+        ign = None if ignore is None else ignore[sel]
+        slot[sel] = _closest_slots64(o[sel], d[sel], tmin[sel], tmax[sel], ign, tri, a, b)
+    redo = bad[slot[bad] >= 0]
+    t[redo], u[redo], v[redo] = exact(o[redo], d[redo], tri, slot[redo])
+    return slot, t, u, v
+
+
+def _closest_slots64(o, d, tmin, tmax, ignore, tri: TriangleSoA, s0: int, s1: int) -> np.ndarray:
+    """Eq. 3.6 in float64 over slots ``s0:s1`` for a few rays, (m, k) block, literal form."""
+    eps = EDGE_EPS[np.dtype(np.float64)]
+    sl = slice(s0, s1)
+    v0 = tri.v0[:, sl, None]
+    e1 = -tri.e1n[:, sl, None]
+    e2 = tri.e2[:, sl, None]
+    dd = d.T[:, None, :]
+    tv = o.T[:, None, :] - v0
+    p = _cross(np.broadcast_to(dd, tv.shape), e2)
+    q = _cross(tv, e1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = 1.0 / _dot(p, e1)
+        t = _dot(q, e2) * inv
+        u = _dot(p, tv) * inv
+        v = _dot(q, dd) * inv
+        ok = (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps) & (t > tmin) & (t < tmax)
+    if ignore is not None:
+        ok &= tri.ids[sl, None] != ignore[None, :]
+    t = np.where(ok, t, np.inf)
+    j = np.argmin(t, axis=0)
+    return np.where(np.isfinite(t[j, np.arange(t.shape[1])]), j + s0, -1)
+
+
 def brute_force(
     origins: np.ndarray,
     directions: np.ndarray,
@@ -300,7 +372,5 @@ def brute_force(
             o[s].T.astype(np.float32), d[s].T.astype(np.float32), tmin[s].astype(np.float32),
             tmax[s].astype(np.float32), ign, soa, 0, m,
         )
-    hit = slot >= 0
-    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
-    t[hit], u[hit], v[hit] = exact(o[hit], d[hit], soa64, slot[hit])
-    return t, np.where(hit, soa.ids[np.maximum(slot, 0)], -1), u, v
+    slot, t, u, v = verify(o, d, tmin, tmax, ignore, soa64, slot, 0, m)
+    return t, np.where(slot >= 0, soa.ids[np.maximum(slot, 0)], -1), u, v

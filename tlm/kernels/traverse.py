@@ -23,7 +23,8 @@ against all its rays in one block, and the sequential stopping rule is applied
 afterwards; tests beyond a ray's stopping leaf are discarded and not counted. Results
 and counts are exactly those of the sequential loop, for any packet of rays.
 
-Zero direction components (+0.0 or -0.0) are handled explicitly: such a ray never
+Zero direction components (+0.0 or -0.0, and subnormal ones, which are flushed to
+zero where they enter) are handled explicitly: such a ray never
 crosses a split plane on that axis and stays in the child that holds its origin (an
 origin exactly on the plane belongs to the right child, as ``x >= split`` does in
 Algorithm 1).
@@ -36,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
-from tlm.kernels.intersect import TriangleSoA, closest_slots, exact
+from tlm.kernels.intersect import TriangleSoA, closest_slots, verify
 
 CHUNK_PAIRS = 1 << 15  # (slot, ray) pairs per block: temporaries stay in the L2 cache
 
@@ -143,6 +144,9 @@ class Occlusion:
 def _prepare(origins, directions, tmin, tmax, ignore):
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3))
     d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    tiny = np.abs(d) < np.finfo(np.float64).tiny
+    if tiny.any():  # a subnormal component would make 1/d overflow: it is a zero
+        d = np.where(tiny, 0.0, d)
     r = o.shape[0]
     if d.shape[0] != r:
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
@@ -253,9 +257,12 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
 
     best_t = np.full(r, np.inf)
     best_slot = np.full(r, -1, dtype=np.int64)
+    best_pair = np.full(r, -1, dtype=np.int64)
     last_k = cnt - 1  # index of the stopping leaf on each ray's list
     done = cnt == 0
-    pt = np.full(npairs, np.inf, dtype=np.float32)
+    pt = np.full(npairs, np.inf)
+    pu = np.zeros(npairs)
+    pv = np.zeros(npairs)
     pslot = np.full(npairs, -1, dtype=np.int64)
     soa, soa64 = accel.soa, accel.soa64
     o_local = o - soa64.origin
@@ -294,10 +301,18 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
             for c0 in range(g0, g1, step):
                 p = idx[c0 : min(c0 + step, g1)]
                 rays = pray[p]
-                pslot[p], pt[p] = closest_slots(
+                pslot[p], _ = closest_slots(
                     o32[:, :1] if shared_origin else o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
                     None if ign is None else ign[rays], soa, s0, s1,
                 )
+        # every float32 choice checked in float64 (and re-decided there if it fails)
+        found = idx[pslot[idx] >= 0]
+        if found.shape[0]:
+            f_leaf, f_rays = pleaf[found], pray[found]
+            pslot[found], pt[found], pu[found], pv[found] = verify(
+                o_local[f_rays], d[f_rays], tmin[f_rays], tmax[f_rays],
+                None if ign is None else ign[f_rays], soa64, pslot[found], lf[f_leaf], ll[f_leaf],
+            )
         # the sequential stopping rule over the batch's leaves
         for k in range(k0, k0 + batch):
             live = act[(~done[act]) & (cnt[act] > k)]
@@ -311,6 +326,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 upd = live[better]
                 pb = p[better]
                 best_t[upd], best_slot[upd] = pt[pb], pslot[pb]
+                best_pair[upd] = pb
                 stop = best_t[live] <= pexit[p]
             stopped = live[stop]
             if any_hit:
@@ -334,7 +350,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     hit = best_slot >= 0
     triangle = np.where(hit, soa.ids[np.maximum(best_slot, 0)], -1)
     t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
-    t[hit], u[hit], v[hit] = exact(o_local[hit], d[hit], soa64, best_slot[hit])
+    t[hit], u[hit], v[hit] = pt[best_pair[hit]], pu[best_pair[hit]], pv[best_pair[hit]]
     return Hits(t, triangle, u, v, counts, touched)
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from tlm.config import read_yaml
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.model import LIGHT_KINDS, MATERIAL_KINDS, Camera, Geometry, Light, Material, Scene
+from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 
 SCENE_KEYS = (
     "name", "description", "geometry", "materials", "parts", "default_material",
@@ -49,21 +49,24 @@ def list_scenes() -> list[str]:
     return sorted(p.stem for p in scenes_dir().glob("*.yaml"))
 
 
-def resolve_scene_path(ref: str, base: Path | None = None) -> Path:
-    """A built-in name (``cornell``) or a path, tried relative to ``base`` then the cwd."""
+def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | None = None) -> Path:
+    """A built-in name (``cornell``) or a path, tried relative to ``base`` then the cwd.
+
+    ``config_source`` names the file the reference came from, for error messages.
+    """
     looks_like_path = ref.endswith((".yaml", ".yml")) or "/" in ref or os.sep in ref
     if looks_like_path:
         p = Path(ref)
         for cand in ([base / p] if base is not None and not p.is_absolute() else []) + [p]:
             if cand.is_file():
                 return cand
-        raise InputError("scene file not found", source=ref, key="scene")
+        raise InputError(f"scene file {ref!r} not found", source=config_source, key="scene")
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
     raise InputError(
         f"{ref!r} is not a built-in scene ({', '.join(list_scenes())}){did_you_mean(ref, list_scenes())}",
-        key="scene",
+        source=config_source, key="scene",
     )
 
 
@@ -106,16 +109,22 @@ def _num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None =
     return float(v)
 
 
-def _material(name: str, raw: Any, src: str) -> Material:
-    key = f"materials.{name}"
+def _typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) -> tuple[dict, str]:
+    """A mapping with a ``type`` among ``allowed``'s keys and only that type's keys."""
     raw = _mapping(raw, src, key)
     kind = raw.get("type")
-    if kind not in MATERIAL_KINDS:
+    if kind not in allowed:
         raise InputError(
-            f"type {kind!r} is not one of {', '.join(MATERIAL_KINDS)}{did_you_mean(str(kind), MATERIAL_KINDS)}",
+            f"type {kind!r} is not one of {', '.join(allowed)}{did_you_mean(str(kind), allowed)}",
             source=src, key=key,
         )
-    _keys(raw, MATERIAL_KEYS[kind], src, key)
+    _keys(raw, allowed[kind], src, key)
+    return raw, kind
+
+
+def _material(name: str, raw: Any, src: str) -> Material:
+    key = f"materials.{name}"
+    raw, kind = _typed(raw, src, key, MATERIAL_KEYS)
     if kind == "lambertian":
         return Material(name, kind, albedo=_vec(raw.get("albedo"), src, f"{key}.albedo", lo=0.0, hi=1.0))
     if kind == "mirror":
@@ -128,14 +137,7 @@ def _material(name: str, raw: Any, src: str) -> Material:
 
 def _light(i: int, raw: Any, src: str) -> Light:
     key = f"lights[{i}]"
-    raw = _mapping(raw, src, key)
-    kind = raw.get("type")
-    if kind not in LIGHT_KINDS:
-        raise InputError(
-            f"type {kind!r} is not one of {', '.join(LIGHT_KINDS)}{did_you_mean(str(kind), LIGHT_KINDS)}",
-            source=src, key=key,
-        )
-    _keys(raw, LIGHT_KEYS[kind], src, key)
+    raw, kind = _typed(raw, src, key, LIGHT_KEYS)
     power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
     if kind == "point":
         return Light(kind, power, position=_vec(raw.get("position"), src, f"{key}.position"))
@@ -216,9 +218,15 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
         )
 
 
-def load_scene(ref: str, base: Path | None = None, resolution: list[int] | None = None) -> Scene:
-    """Load a built-in scene by name or a scene file by path."""
-    path = resolve_scene_path(ref, base)
+def load_scene(
+    ref: str, base: Path | None = None, resolution: list[int] | None = None, config_source: str | None = None
+) -> Scene:
+    """Load a built-in scene by name or a scene file by path.
+
+    ``resolution`` overrides the scene's; ``config_source`` names the file (or
+    ``--set``) that gave ``ref`` and ``resolution``, for error messages.
+    """
+    path = resolve_scene_path(ref, base, config_source)
     src = str(path)
     raw = read_yaml(path)
     raw = _mapping(raw, src, "")
@@ -277,7 +285,7 @@ def load_scene(ref: str, base: Path | None = None, resolution: list[int] | None 
         raise InputError(f"up {list(up)} is parallel to the view direction", source=src, key="camera.up")
 
     res = resolution if resolution is not None else raw.get("resolution")
-    res_src = "--set/config resolution" if resolution is not None else src
+    res_src = (config_source or "(config)") if resolution is not None else src
     whole = isinstance(res, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in res)
     if not (whole and len(res) == 2):
         raise InputError(f"{res!r} is not [width, height] in whole pixels", source=res_src, key="resolution")
