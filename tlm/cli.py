@@ -27,8 +27,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"seed={args.seed}")
     cfg, base = load_config(Path(args.config), overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
-    source = f"{args.config} (with --set)" if overrides else str(args.config)
-    results = run(cfg, out, base, config_path=source)
+    results = run(cfg, out, base, config_path=str(args.config), overrides=overrides)
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")

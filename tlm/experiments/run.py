@@ -143,7 +143,8 @@ def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
     }
 
 
-def results_dict(res: RenderResult, exposure: float, config_path: str | None) -> dict:
+def results_dict(res: RenderResult, exposure: float, config_path: str | None,
+                 overrides: list[str] | None = None) -> dict:
     work = {}
     for name, counts in res.work.items():
         total = {k: int(v.sum()) for k, v in counts.items()}
@@ -162,6 +163,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None) ->
     return {
         "tlm": "results/1",
         "config": config_path,
+        "overrides": list(overrides or []),
         "seed": res.cfg.seed,
         "mode": res.cfg.mode,
         "scene": scene_stats(res.scene, res.accel),
@@ -181,7 +183,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None) ->
     }
 
 
-def write_run(res: RenderResult, out: Path, config_path: str | None = None) -> dict:
+def write_run(res: RenderResult, out: Path, config_path: str | None = None,
+              overrides: list[str] | None = None) -> dict:
     """Write the run folder atomically (temporary sibling, then rename)."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -217,7 +220,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None) -> d
             yaml.safe_dump(to_dict(res.cfg), sort_keys=False)
         )
         res.timer.seconds["write"] = time.perf_counter() - t0
-        results = results_dict(res, exposure, config_path)
+        results = results_dict(res, exposure, config_path, overrides)
         (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
         if out.exists():
             shutil.rmtree(out)
@@ -228,11 +231,14 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None) -> d
     return results
 
 
-def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None) -> dict:
+def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None,
+        overrides: list[str] | None = None) -> dict:
     """Render and write; returns the results dictionary.
 
-    ``config_path`` names where the config came from (errors and ``results.json``).
+    ``config_path`` and ``overrides`` (the ``--set`` strings) say where the config came
+    from, for error messages and ``results.json``.
     """
-    res = render(cfg, base, config_path)
-    return write_run(res, out, config_path)
+    source = f"{config_path} (with --set)" if overrides else config_path
+    res = render(cfg, base, source)
+    return write_run(res, out, config_path, overrides)
 
