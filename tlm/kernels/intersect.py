@@ -266,65 +266,52 @@ def exact(o: np.ndarray, d: np.ndarray, tri: TriangleSoA, slot: np.ndarray):
     return t, u, v
 
 
-def verify(
+def check(
+    o: np.ndarray, d: np.ndarray, tmin: np.ndarray, tmax: np.ndarray, tri: TriangleSoA, slot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The float64 check of float32 choices: eq. 3.6 for one chosen slot per ray.
+
+    o, d : (k, 3) float64 origins (relative to ``tri.origin``) and directions; tmin,
+    tmax : (k,); slot : (k,) valid slots of the float64 ``tri``. Returns ``t``, ``u``,
+    ``v`` and ``ok``: the choice stands when ``t`` lies strictly inside ``(tmin, tmax)``
+    and the barycentrics within the float32 tolerance. Where it does not (a grazing
+    hit that float32 put on the wrong side of ``tmax``, say), the caller decides again
+    in float64 with :func:`closest_slots64`.
+    """
+    t, u, v = exact(o, d, tri, slot)
+    eps = EDGE_EPS[np.dtype(np.float32)]
+    with np.errstate(invalid="ignore"):
+        ok = (t > tmin) & (t < tmax) & (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
+    return t, u, v, ok
+
+
+def closest_slots64(
     o: np.ndarray,
     d: np.ndarray,
     tmin: np.ndarray,
     tmax: np.ndarray,
     ignore: np.ndarray | None,
     tri: TriangleSoA,
-    slot: np.ndarray,
-    s0: np.ndarray | int,
-    s1: np.ndarray | int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The float64 check of float32 choices, and a float64 re-decision where it fails.
+    s0: int,
+    s1: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`closest_slots` in float64, eq. 3.6 written out: the fallback of :func:`check`.
 
-    o, d : (k, 3) float64 origins (relative to ``tri.origin``) and directions; tmin,
-    tmax : (k,) float64; slot : (k,) the float32 choices (-1: none) among each ray's
-    slots ``s0:s1`` (scalars or (k,) arrays) of the float64 ``tri``. A choice stands
-    when eq. 3.6 in float64 puts it strictly inside ``(tmin, tmax)`` with barycentrics
-    within the float32 tolerance; otherwise (a grazing hit that float32 placed on the
-    wrong side of ``tmax``, say) the ray's slots are tested again in float64 and that
-    answer is taken.
-
-    Returns ``slot``, ``t`` (inf: none), ``u``, ``v``, all (k,).
+    Same arguments and results as :func:`closest_slots`, with float64 ``o`` (3, r) or
+    (3, 1), ``d`` (3, r), ``tmin``, ``tmax`` and a float64 ``tri``.
     """
-    k = slot.shape[0]
-    t, u, v = np.full(k, np.inf), np.zeros(k), np.zeros(k)
-    has = slot >= 0
-    if not has.any():
-        return slot, t, u, v
-    t[has], u[has], v[has] = exact(o[has], d[has], tri, slot[has])
-    eps = EDGE_EPS[np.dtype(np.float32)]
-    with np.errstate(invalid="ignore"):
-        ok = (t > tmin) & (t < tmax) & (u >= -eps) & (v >= -eps) & (u + v <= 1.0 + eps)
-    bad = np.flatnonzero(has & ~ok)
-    if bad.shape[0] == 0:
-        return slot, t, u, v
-    slot = slot.copy()
-    t[bad], u[bad], v[bad] = np.inf, 0.0, 0.0
-    lo = np.broadcast_to(np.asarray(s0), (k,))[bad]
-    hi = np.broadcast_to(np.asarray(s1), (k,))[bad]
-    for a, b in set(zip(lo.tolist(), hi.tolist(), strict=True)):  # rare: a few ranges
-        sel = bad[(lo == a) & (hi == b)]
-        ign = None if ignore is None else ignore[sel]
-        slot[sel] = _closest_slots64(o[sel], d[sel], tmin[sel], tmax[sel], ign, tri, a, b)
-    redo = bad[slot[bad] >= 0]
-    t[redo], u[redo], v[redo] = exact(o[redo], d[redo], tri, slot[redo])
-    return slot, t, u, v
-
-
-def _closest_slots64(o, d, tmin, tmax, ignore, tri: TriangleSoA, s0: int, s1: int) -> np.ndarray:
-    """Eq. 3.6 in float64 over slots ``s0:s1`` for a few rays, (m, k) block, literal form."""
+    r = d.shape[1]
+    if r == 0 or s1 <= s0:
+        return np.full(r, -1, dtype=np.int64), np.full(r, np.inf)
     eps = EDGE_EPS[np.dtype(np.float64)]
     sl = slice(s0, s1)
     v0 = tri.v0[:, sl, None]
     e1 = -tri.e1n[:, sl, None]
     e2 = tri.e2[:, sl, None]
-    dd = d.T[:, None, :]
-    tv = o.T[:, None, :] - v0
-    p = _cross(np.broadcast_to(dd, tv.shape), e2)
-    q = _cross(tv, e1)
+    dd = d[:, None, :]
+    tv = o[:, None, :] - v0
+    p = _cross(np.broadcast_to(dd, (3, s1 - s0, r)), e2)
+    q = _cross(np.broadcast_to(tv, (3, s1 - s0, r)), e1)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = 1.0 / _dot(p, e1)
         t = _dot(q, e2) * inv
@@ -335,7 +322,8 @@ def _closest_slots64(o, d, tmin, tmax, ignore, tri: TriangleSoA, s0: int, s1: in
         ok &= tri.ids[sl, None] != ignore[None, :]
     t = np.where(ok, t, np.inf)
     j = np.argmin(t, axis=0)
-    return np.where(np.isfinite(t[j, np.arange(t.shape[1])]), j + s0, -1)
+    best = t[j, np.arange(r)]
+    return np.where(np.isfinite(best), j + s0, -1), best
 
 
 def brute_force(
@@ -372,5 +360,14 @@ def brute_force(
             o[s].T.astype(np.float32), d[s].T.astype(np.float32), tmin[s].astype(np.float32),
             tmax[s].astype(np.float32), ign, soa, 0, m,
         )
-    slot, t, u, v = verify(o, d, tmin, tmax, ignore, soa64, slot, 0, m)
+    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
+    hit = np.flatnonzero(slot >= 0)
+    t[hit], u[hit], v[hit], ok = check(o[hit], d[hit], tmin[hit], tmax[hit], soa64, slot[hit])
+    bad = hit[~ok]
+    if bad.shape[0]:
+        ign = None if ignore is None else ignore[bad]
+        slot[bad], _ = closest_slots64(o[bad].T, d[bad].T, tmin[bad], tmax[bad], ign, soa64, 0, m)
+        t[bad], u[bad], v[bad] = np.inf, 0.0, 0.0
+        redo = bad[slot[bad] >= 0]
+        t[redo], u[redo], v[redo], _ = check(o[redo], d[redo], tmin[redo], tmax[redo], soa64, slot[redo])
     return t, np.where(slot >= 0, soa.ids[np.maximum(slot, 0)], -1), u, v

@@ -37,9 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
-from tlm.kernels.intersect import TriangleSoA, closest_slots, verify
+from tlm.kernels.intersect import TriangleSoA, check, closest_slots, closest_slots64
 
-CHUNK_PAIRS = 1 << 15  # (slot, ray) pairs per block: temporaries stay in the L2 cache
+CHUNK_PAIRS = 1 << 17  # (slot, ray) pairs per block: fewer, longer numpy calls
 
 
 @dataclass(frozen=True)
@@ -244,7 +244,9 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
 
 
 def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, any_hit, batch,
-              shared_origin=False):
+              shared_origin=False, exact64=False):
+    """Both phases for a packet. ``exact64``: test in float64 (the fallback of rays whose
+    float32 answer failed its float64 check); otherwise in float32, then checked."""
     tree = accel.tree
     o, d, tmin, tmax, ignore = _prepare(origins, directions, tmin, tmax, ignore)
     r = o.shape[0]
@@ -260,18 +262,17 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     best_pair = np.full(r, -1, dtype=np.int64)
     last_k = cnt - 1  # index of the stopping leaf on each ray's list
     done = cnt == 0
-    pt = np.full(npairs, np.inf)
-    pu = np.zeros(npairs)
-    pv = np.zeros(npairs)
+    pt = np.full(npairs, np.inf, dtype=np.float64 if exact64 else np.float32)
     pslot = np.full(npairs, -1, dtype=np.int64)
     soa, soa64 = accel.soa, accel.soa64
     o_local = o - soa64.origin
-    o32 = np.ascontiguousarray(o_local.T, dtype=np.float32)
+    test, tri, dt = (closest_slots64, soa64, np.float64) if exact64 else (closest_slots, soa, np.float32)
+    o32 = np.ascontiguousarray(o_local.T, dtype=dt)
     if shared_origin and r > 0 and not (o32 == o32[:, :1]).all():
         raise ValueError("shared_origin=True but the rays do not share one origin")
-    d32 = np.ascontiguousarray(d.T, dtype=np.float32)
-    tmin32 = tmin.astype(np.float32)
-    tmax32 = tmax.astype(np.float32)
+    d32 = np.ascontiguousarray(d.T, dtype=dt)
+    tmin32 = tmin.astype(dt)
+    tmax32 = tmax.astype(dt)
     ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
     # small integer leaf numbers sort by radix (stable) instead of by merge
@@ -301,18 +302,10 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
             for c0 in range(g0, g1, step):
                 p = idx[c0 : min(c0 + step, g1)]
                 rays = pray[p]
-                pslot[p], _ = closest_slots(
+                pslot[p], pt[p] = test(
                     o32[:, :1] if shared_origin else o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
-                    None if ign is None else ign[rays], soa, s0, s1,
+                    None if ign is None else ign[rays], tri, s0, s1,
                 )
-        # every float32 choice checked in float64 (and re-decided there if it fails)
-        found = idx[pslot[idx] >= 0]
-        if found.shape[0]:
-            f_leaf, f_rays = pleaf[found], pray[found]
-            pslot[found], pt[found], pu[found], pv[found] = verify(
-                o_local[f_rays], d[f_rays], tmin[f_rays], tmax[f_rays],
-                None if ign is None else ign[f_rays], soa64, pslot[found], lf[f_leaf], ll[f_leaf],
-            )
         # the sequential stopping rule over the batch's leaves
         for k in range(k0, k0 + batch):
             live = act[(~done[act]) & (cnt[act] > k)]
@@ -331,9 +324,27 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
             stopped = live[stop]
             if any_hit:
                 best_slot[stopped] = pslot[p[stop]]
+                best_pair[stopped] = p[stop]
             last_k[stopped] = k
             done[stopped] = True
         k0 += batch
+
+    # the float64 check of every ray's float32 answer; the rays whose answer fails it
+    # (rare: grazing hits at the end of their segment) are traversed again in float64
+    hit = np.flatnonzero(best_pair >= 0)
+    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
+    t[hit], u[hit], v[hit], ok = check(o_local[hit], d[hit], tmin[hit], tmax[hit], soa64, best_slot[hit])
+    bad = hit[~ok]
+    if bad.shape[0] and not exact64:
+        again = _traverse(accel, o[bad], d[bad], tmin[bad], tmax[bad], ignore[bad], False, any_hit, batch,
+                          exact64=True)
+        last_k[bad] = again.counts.leaf_visits - 1
+        if any_hit:
+            best_slot[bad] = np.where(again.occluded, 0, -1)
+        else:
+            best_slot[bad] = np.where(again.triangle >= 0, 0, -1)
+            t[bad], u[bad], v[bad] = again.t, again.u, again.v
+            tri_id = again.triangle
 
     leaf_visits = np.where(cnt > 0, last_k + 1, 0)
     k_in_ray = np.arange(npairs) - start[pray]
@@ -347,10 +358,10 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         touched = Touched(touched_nodes[0], touched_nodes[1], leaf_ptr, pleaf[visited])
     if any_hit:
         return Occlusion(best_slot >= 0, counts, touched)
-    hit = best_slot >= 0
-    triangle = np.where(hit, soa.ids[np.maximum(best_slot, 0)], -1)
-    t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
-    t[hit], u[hit], v[hit] = pt[best_pair[hit]], pu[best_pair[hit]], pv[best_pair[hit]]
+    found = best_slot >= 0
+    triangle = np.where(found, soa.ids[np.maximum(best_slot, 0)], -1)
+    if bad.shape[0] and not exact64:
+        triangle[bad] = tri_id
     return Hits(t, triangle, u, v, counts, touched)
 
 
