@@ -243,10 +243,13 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
     return ray, leaf, b, node_visits, touched_nodes
 
 
-def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, any_hit, batch,
+def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, first_only, batch,
               shared_origin=False, exact64=False):
-    """Both phases for a packet. ``exact64``: test in float64 (the fallback of rays whose
-    float32 answer failed its float64 check); otherwise in float32, then checked."""
+    """Both phases for a packet; ``first_only``: stop at any hit (shadow rays).
+
+    ``exact64``: test in float64 (the fallback of rays whose float32 answer failed its
+    float64 check); otherwise test in float32 and check every ray's answer.
+    """
     tree = accel.tree
     o, d, tmin, tmax, ignore = _prepare(origins, directions, tmin, tmax, ignore)
     r = o.shape[0]
@@ -267,12 +270,12 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     soa, soa64 = accel.soa, accel.soa64
     o_local = o - soa64.origin
     test, tri, dt = (closest_slots64, soa64, np.float64) if exact64 else (closest_slots, soa, np.float32)
-    o32 = np.ascontiguousarray(o_local.T, dtype=dt)
-    if shared_origin and r > 0 and not (o32 == o32[:, :1]).all():
+    o_t = np.ascontiguousarray(o_local.T, dtype=dt)
+    if shared_origin and r > 0 and not (o_t == o_t[:, :1]).all():
         raise ValueError("shared_origin=True but the rays do not share one origin")
-    d32 = np.ascontiguousarray(d.T, dtype=dt)
-    tmin32 = tmin.astype(dt)
-    tmax32 = tmax.astype(dt)
+    d_t = np.ascontiguousarray(d.T, dtype=dt)
+    tmin_t = tmin.astype(dt)
+    tmax_t = tmax.astype(dt)
     ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
     # small integer leaf numbers sort by radix (stable) instead of by merge
@@ -303,7 +306,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 p = idx[c0 : min(c0 + step, g1)]
                 rays = pray[p]
                 pslot[p], pt[p] = test(
-                    o32[:, :1] if shared_origin else o32[:, rays], d32[:, rays], tmin32[rays], tmax32[rays],
+                    o_t[:, :1] if shared_origin else o_t[:, rays], d_t[:, rays], tmin_t[rays], tmax_t[rays],
                     None if ign is None else ign[rays], tri, s0, s1,
                 )
         # the sequential stopping rule over the batch's leaves
@@ -312,7 +315,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
             if live.shape[0] == 0:
                 break
             p = start[live] + k
-            if any_hit:
+            if first_only:
                 stop = pslot[p] >= 0
             else:
                 better = pt[p] < best_t[live]
@@ -322,7 +325,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 best_pair[upd] = pb
                 stop = best_t[live] <= pexit[p]
             stopped = live[stop]
-            if any_hit:
+            if first_only:
                 best_slot[stopped] = pslot[p[stop]]
                 best_pair[stopped] = p[stop]
             last_k[stopped] = k
@@ -334,17 +337,18 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     hit = np.flatnonzero(best_pair >= 0)
     t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
     t[hit], u[hit], v[hit], ok = check(o_local[hit], d[hit], tmin[hit], tmax[hit], soa64, best_slot[hit])
+    found = best_slot >= 0
+    triangle = np.where(found, soa.ids[np.maximum(best_slot, 0)], -1)
     bad = hit[~ok]
     if bad.shape[0] and not exact64:
-        again = _traverse(accel, o[bad], d[bad], tmin[bad], tmax[bad], ignore[bad], False, any_hit, batch,
+        again = _traverse(accel, o[bad], d[bad], tmin[bad], tmax[bad], ignore[bad], False, first_only, batch,
                           exact64=True)
         last_k[bad] = again.counts.leaf_visits - 1
-        if any_hit:
-            best_slot[bad] = np.where(again.occluded, 0, -1)
+        if first_only:
+            found[bad] = again.occluded
         else:
-            best_slot[bad] = np.where(again.triangle >= 0, 0, -1)
-            t[bad], u[bad], v[bad] = again.t, again.u, again.v
-            tri_id = again.triangle
+            found[bad] = again.triangle >= 0
+            triangle[bad], t[bad], u[bad], v[bad] = again.triangle, again.t, again.u, again.v
 
     leaf_visits = np.where(cnt > 0, last_k + 1, 0)
     k_in_ray = np.arange(npairs) - start[pray]
@@ -356,12 +360,8 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         leaf_ptr = np.zeros(r + 1, dtype=np.int64)
         np.cumsum(leaf_visits, out=leaf_ptr[1:])
         touched = Touched(touched_nodes[0], touched_nodes[1], leaf_ptr, pleaf[visited])
-    if any_hit:
-        return Occlusion(best_slot >= 0, counts, touched)
-    found = best_slot >= 0
-    triangle = np.where(found, soa.ids[np.maximum(best_slot, 0)], -1)
-    if bad.shape[0] and not exact64:
-        triangle[bad] = tri_id
+    if first_only:
+        return Occlusion(found, counts, touched)
     return Hits(t, triangle, u, v, counts, touched)
 
 
