@@ -1,0 +1,131 @@
+"""Photon emission and tracing: power bookkeeping, storage rules, Russian roulette, seeds."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from tlm.kernels.photons import bounding_cone, emit, photon_key, split_photons, trace_photons
+from tlm.kernels.traverse import build_accel
+from tlm.scenes.loader import load_scene
+from tlm.scenes.model import Light
+from tlm.scenes.shapes import uv_sphere
+
+
+def sphere_scene(tmp_path: Path, albedo: float = 0.5, n_seg: int = 48, n_rings: int = 24) -> Path:
+    """A closed diffuse unit sphere around a point light of intensity pi (power 4 pi^2)."""
+    tri = uv_sphere((0.0, 0.0, 0.0), 1.0, n_seg, n_rings)
+    mesh = trimesh.Trimesh(vertices=tri.reshape(-1, 3), faces=np.arange(tri.shape[0] * 3).reshape(-1, 3),
+                           process=False)
+    mesh.export(tmp_path / "sphere.ply")
+    p = 4.0 * math.pi**2
+    (tmp_path / "furnace.yaml").write_text(f"""
+name: furnace
+geometry: {{mesh: sphere.ply}}
+materials: {{grey: {{type: lambertian, albedo: [{albedo}, {albedo}, {albedo}]}}}}
+default_material: grey
+lights: [{{type: point, position: [0.0, 0.0, 0.0], power: [{p}, {p}, {p}]}}]
+camera: {{eye: [0.0, 0.0, 0.0], target: [0.0, 0.0, 1.0], up: [0.0, 1.0, 0.0], vfov: 60.0}}
+resolution: [24, 24]
+photons: 20000
+""")
+    return tmp_path / "furnace.yaml"
+
+
+def test_split_photons_by_power():
+    lights = (Light("point", (1.0, 1.0, 1.0)), Light("point", (3.0, 3.0, 3.0)), Light("point", (0.0, 0.0, 0.0)))
+    assert split_photons(lights, 100).tolist() == [25, 75, 0]
+    assert split_photons(lights, 7).sum() == 7
+    assert split_photons(lights, 0).tolist() == [0, 0, 0]
+    assert split_photons((Light("point", (0.0, 0.0, 0.0)),), 10).tolist() == [0]
+
+
+def test_quad_emission_is_cosine_weighted_and_carries_the_light_power():
+    light = Light("quad", (2.0, 4.0, 6.0), corner=(0.0, 1.0, 0.0), edge_u=(0.0, 0.0, 1.0), edge_v=(1.0, 0.0, 0.0))
+    o, d, power, group = emit((light,), 40000, photon_key(3))
+    assert o.shape == d.shape == power.shape == (40000, 3) and not group.any()
+    np.testing.assert_allclose(power.sum(axis=0), light.power)
+    cos = d @ light.normal
+    assert cos.min() >= 0.0
+    assert abs(cos.mean() - 2.0 / 3.0) < 0.01  # E[cos] under a cosine-weighted hemisphere
+    assert np.all((o[:, 0] >= 0) & (o[:, 0] <= 1) & (o[:, 2] >= 0) & (o[:, 2] <= 1) & (o[:, 1] == 1.0))
+
+
+def test_point_light_aims_at_the_scene_and_scales_power_by_the_cone():
+    pos = np.array([0.0, 10.0, 0.0])
+    lo, hi = np.array([-1.0, 0.0, -1.0]), np.array([1.0, 1.0, 1.0])
+    axis, cos_max = bounding_cone(pos, lo, hi)
+    light = Light("point", (1.0, 1.0, 1.0), position=tuple(pos))
+    o, d, power, _ = emit((light,), 20000, photon_key(0), (lo, hi))
+    assert np.all(d @ axis >= cos_max - 1e-12)
+    np.testing.assert_allclose(power.sum(axis=0), np.ones(3) * (1.0 - cos_max) / 2.0)
+    # inside the box: the whole sphere, all the power
+    _, cos_all = bounding_cone(np.zeros(3), -np.ones(3), np.ones(3))
+    assert cos_all == -1.0
+
+
+def test_first_hits_are_not_stored_and_bounce_limit(tmp_path):
+    scene = load_scene(str(sphere_scene(tmp_path)))
+    accel = build_accel(scene.triangles)
+    one = trace_photons(scene, accel, 2000, max_bounces=1)
+    assert one.photons.n == 0  # the only hit is straight from the light: the ray-cast frame's
+    assert one.totals()["bounces"] == 2000
+    three = trace_photons(scene, accel, 2000, max_bounces=3)
+    assert 0 < three.photons.n <= 2 * 2000
+    assert not three.photons.caustic.any()  # no specular surface: every stored photon is indirect
+    np.testing.assert_allclose(np.linalg.norm(three.photons.incoming, axis=1), 1.0)
+    # stored normals face the arriving photon
+    assert np.all(np.sum(three.photons.normal * three.photons.incoming, axis=1) <= 0)
+
+
+def test_same_seed_same_map_other_seed_other_map(tmp_path):
+    scene = load_scene(str(sphere_scene(tmp_path)))
+    accel = build_accel(scene.triangles)
+    a = trace_photons(scene, accel, 3000, seed=7)
+    b = trace_photons(scene, accel, 3000, seed=7)
+    c = trace_photons(scene, accel, 3000, seed=8)
+    for name in ("position", "power", "incoming", "normal"):
+        np.testing.assert_array_equal(getattr(a.photons, name), getattr(b.photons, name))
+    np.testing.assert_array_equal(a.photons.tree.items, b.photons.tree.items)
+    assert a.photons.n != c.photons.n or not np.array_equal(a.photons.position, c.photons.position)
+
+
+def test_russian_roulette_is_unbiased(tmp_path):
+    """Mean stored power with and without Russian roulette agree within 3 sigma."""
+    scene = load_scene(str(sphere_scene(tmp_path, n_seg=24, n_rings=12)))
+    accel = build_accel(scene.triangles)
+    totals = {True: [], False: []}
+    for rr in (True, False):
+        for seed in range(8):
+            tr = trace_photons(scene, accel, 4000, seed=seed, max_bounces=6, russian_roulette=rr)
+            totals[rr].append(tr.photons.power.sum())
+    m_rr, m_no = np.mean(totals[True]), np.mean(totals[False])
+    sigma = math.sqrt(np.var(totals[True], ddof=1) / 8 + np.var(totals[False], ddof=1) / 8)
+    assert abs(m_rr - m_no) <= 3.0 * sigma + 1e-12 * m_no, (m_rr, m_no, sigma)
+    # and the expectation is the geometric series of the albedo: bounces 1..5 stored
+    expected = 3.0 * 4.0 * math.pi**2 * sum(0.5**b for b in range(1, 6))
+    assert abs(m_no - expected) / expected < 0.02
+
+
+def test_caustic_group_stores_only_caustics():
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    tr = trace_photons(scene, accel, 20000, seed=1, caustic_fraction=0.5)
+    ph = tr.photons
+    assert ph.caustic.any() and (~ph.caustic).any()
+    none = trace_photons(scene, accel, 20000, seed=1, caustic_fraction=0.0)
+    # without a caustic group the global photons store caustics too
+    assert none.photons.caustic.any()
+
+
+@pytest.mark.parametrize("bad", [dict(n=-1), dict(max_bounces=-1), dict(caustic_fraction=1.0)])
+def test_bad_arguments(bad):
+    scene = load_scene("ring")
+    accel = build_accel(scene.triangles)
+    args = dict(n=10) | bad
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        trace_photons(scene, accel, **args)

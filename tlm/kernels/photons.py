@@ -1,0 +1,318 @@
+"""Photon emission and tracing (thesis §III.A, Fig. 4): the photon map's raw data.
+
+"The first step in creating a photon map is backward ray tracing, i.e. tracing rays
+from a light source. When the path of the photon is obstructed by a Lambertian surface,
+we store that photon. Russian roulette method is used to eliminate photons depending on
+the absorbance of the surface and construct secondary reflected/refracted photon path
+arrays."
+
+* **Emission.** The photon count is shared among the lights in proportion to their
+  power; each photon of light ``l`` carries ``P_l / N_l``. A quad light emits from a
+  uniform point on the quad in a cosine-weighted direction about its normal; a point
+  light uniformly over the sphere.
+* **Tracing** runs through the geometry BSP with the same traversal kernel as eye
+  rays, all photons of a bounce at once. A Lambertian hit stores the photon (position,
+  normal facing the arriving side, RGB power, incoming direction), then Russian
+  roulette on the albedo decides whether it is reflected diffusely (probability
+  ``max(albedo)``, power scaled by ``albedo / p``) or absorbed. Mirrors reflect (power
+  times reflectance); dielectrics refract by Snell's law or reflect totally (power
+  times transmittance on refraction). Paths stop at ``max_bounces`` surface hits.
+* **What the map holds.** The ray-cast frame already renders direct light (shadow
+  rays), so a photon's *first* surface hit, straight from the light, is not stored:
+  the map holds caustics (light that reached the Lambertian surface through mirrors or
+  dielectrics, L S+ D) and indirect light (after at least one diffuse bounce,
+  L D ... D) — the two effects the thesis's PMap column adds.
+
+Random numbers: a :class:`numpy.random.SeedSequence` of the run's seed gives the key
+of a counter-based hash (:func:`tlm.kernels.shade.hash_uniform`) indexed by (photon,
+bounce, dimension), so every photon's path is the same whichever photons it is traced
+with, and a run repeats exactly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tlm.kernels.bsp import BSPTree, build_point_tree
+from tlm.kernels.shade import SPAWN_EPS, face_normals, hash_uniform, reflect, refract
+from tlm.kernels.traverse import TriangleAccel, closest_hit
+from tlm.scenes.model import Light, Scene
+
+KIND = {"lambertian": 0, "mirror": 1, "dielectric": 2}
+PHOTON_WORK = (
+    "photons_emitted", "rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests",
+    "bounces", "stored", "absorbed", "lost",
+)
+
+
+@dataclass(frozen=True)
+class PhotonMap:
+    """Stored photons and their BSP (Algorithm 1).
+
+    position, normal, incoming : (n, 3) float64 (normal faces the arriving side;
+    incoming is the unit direction of travel). power : (n, 3) float64 RGB watts.
+    caustic : (n,) bool, the photon reached its surface through specular bounces only.
+    tree : the photon BSP over ``position``.
+    """
+
+    position: np.ndarray
+    normal: np.ndarray
+    incoming: np.ndarray
+    power: np.ndarray
+    caustic: np.ndarray
+    tree: BSPTree
+    emitted: int
+
+    @property
+    def n(self) -> int:
+        return int(self.position.shape[0])
+
+    def stats(self) -> dict:
+        return {
+            "emitted": self.emitted,
+            "stored": self.n,
+            "caustic": int(self.caustic.sum()),
+            "indirect": int((~self.caustic).sum()),
+            "stored_power": self.power.sum(axis=0).tolist(),
+            "tree": self.tree.stats(),
+        }
+
+
+@dataclass(frozen=True)
+class PhotonTrace:
+    """A traced photon map and the work it took: ``work[name]`` per emitted photon."""
+
+    photons: PhotonMap
+    work: dict[str, np.ndarray]
+
+    def totals(self) -> dict[str, int]:
+        return {k: int(v.sum()) for k, v in self.work.items()}
+
+
+def photon_key(seed: int) -> int:
+    """The hash key of a run's photon streams, from a SeedSequence of its seed."""
+    return int(np.random.SeedSequence([seed, 0x9E0704]).generate_state(1, dtype=np.uint64)[0] >> 1)
+
+
+def split_photons(lights: tuple[Light, ...], n: int) -> np.ndarray:
+    """Photons per light in proportion to power (largest remainder), (len(lights),) int."""
+    weight = np.array([sum(lt.power) for lt in lights], dtype=np.float64)
+    if n <= 0 or weight.sum() <= 0:
+        return np.zeros(len(lights), dtype=np.int64)
+    share = weight / weight.sum() * n
+    count = np.floor(share).astype(np.int64)
+    rest = n - int(count.sum())
+    order = np.argsort(-(share - count), kind="stable")
+    count[order[:rest]] += 1
+    return count
+
+
+def _frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents completing unit normals ``n`` (k, 3) to an orthonormal frame."""
+    a = np.where(np.abs(n[:, :1]) > 0.9, np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    t = np.cross(n, a)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return t, np.cross(n, t)
+
+
+def _around(axis: np.ndarray, cos_t: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit directions at polar cosine ``cos_t`` and azimuth ``phi`` about unit ``axis``."""
+    t, b = _frame(axis)
+    s = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    d = (s * np.cos(phi))[:, None] * t + (s * np.sin(phi))[:, None] * b + cos_t[:, None] * axis
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _cosine_dirs(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Cosine-weighted unit directions about unit normals ``n`` (k, 3)."""
+    return _around(n, np.sqrt(np.maximum(0.0, 1.0 - u1)), 2.0 * np.pi * u2)
+
+
+def bounding_cone(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """Axis and cosine of the half-angle of a cone from ``p`` holding the box [lo, hi].
+
+    A point inside the box sees all of it: the whole sphere (cosine -1).
+    """
+    if np.all(p >= lo) and np.all(p <= hi):
+        return np.array([0.0, 0.0, 1.0]), -1.0
+    centre = 0.5 * (lo + hi)
+    axis = centre - p
+    axis /= np.linalg.norm(axis)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    to = corners - p
+    cos = (to @ axis) / np.linalg.norm(to, axis=1)
+    return axis, float(max(-1.0, min(cos.min(), 1.0)))
+
+
+def emit(
+    lights: tuple[Light, ...],
+    n: int,
+    key: int,
+    scene_box: tuple[np.ndarray, np.ndarray] | None = None,
+    specular_box: tuple[np.ndarray, np.ndarray] | None = None,
+    caustic_fraction: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Origins, unit directions, RGB powers (n, 3) and caustic-group flags (n,).
+
+    Each light's photons are split into a *global* group and, when ``specular_box`` is
+    given and ``caustic_fraction > 0``, a *caustic* group. A point light aims each group
+    at the cone that bounds its target box (the scene's, or the specular objects'), and
+    the photons' power is scaled by the cone's share of the sphere, so no photon is
+    wasted on empty space (Jensen's projection maps, with boxes for maps). A quad light
+    emits both groups over its cosine-weighted hemisphere.
+    """
+    counts = split_photons(lights, n)
+    out: list[tuple[np.ndarray, ...]] = []
+    first = 0
+    for li, (light, c) in enumerate(zip(lights, counts.tolist(), strict=True)):
+        n_c = round(c * caustic_fraction) if specular_box is not None else 0
+        for group, m, box in ((False, c - n_c, scene_box), (True, n_c, specular_box)):
+            if m == 0:
+                continue
+            ids = np.arange(first, first + m)
+            first += m
+            u = [hash_uniform(key, ids, -1, li, dim) for dim in range(4)]
+            power = np.asarray(light.power, dtype=np.float64) / m
+            if light.kind == "quad":
+                o = (np.asarray(light.corner)[None, :] + u[0][:, None] * np.asarray(light.edge_u)
+                     + u[1][:, None] * np.asarray(light.edge_v))
+                d = _cosine_dirs(np.broadcast_to(light.normal, (m, 3)).copy(), u[2], u[3])
+            else:
+                pos = np.asarray(light.position, dtype=np.float64)
+                o = np.broadcast_to(pos, (m, 3)).copy()
+                axis, cos_max = bounding_cone(pos, *box) if box is not None else (np.array([0.0, 0, 1]), -1.0)
+                d = _around(np.broadcast_to(axis, (m, 3)).copy(), 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
+                power = power * (1.0 - cos_max) / 2.0  # the cone's share of the sphere
+            out.append((o, d, np.broadcast_to(power, (m, 3)).copy(), np.full(m, group)))
+    if not out:
+        empty = np.zeros((0, 3))
+        return empty, empty.copy(), empty.copy(), np.zeros(0, dtype=bool)
+    return tuple(np.concatenate(x) for x in zip(*out, strict=True))  # type: ignore[return-value]
+
+
+def trace_photons(
+    scene: Scene,
+    accel: TriangleAccel,
+    n: int,
+    seed: int = 0,
+    max_bounces: int = 8,
+    russian_roulette: bool = True,
+    levels: int | None = None,
+    caustic_fraction: float = 0.5,
+    batch: int = 4,
+) -> PhotonTrace:
+    """Emit ``n`` photons, trace them through the scene and build the photon BSP.
+
+    With mirrors or dielectrics in the scene, ``caustic_fraction`` of each light's
+    photons form a caustic group aimed at the specular objects, which stores only
+    caustic photons (L S+ D); the global group then stores only indirect ones (a
+    diffuse bounce on the way), so nothing is counted twice.
+    """
+    if n < 0:
+        raise ValueError(f"photons (={n}) must be >= 0")
+    if max_bounces < 0:
+        raise ValueError(f"max_bounces (={max_bounces}) must be >= 0")
+    if not 0.0 <= caustic_fraction < 1.0:
+        raise ValueError(f"caustic_fraction (={caustic_fraction}) must be in [0, 1)")
+    key = photon_key(seed)
+    mats = scene.materials
+    kind_of = np.array([KIND[m.kind] for m in mats], dtype=np.int8)[scene.material_index]
+    flat = scene.triangles.reshape(-1, 3)
+    spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
+    specular_box = (spec.min(axis=0), spec.max(axis=0)) if spec.shape[0] and caustic_fraction > 0 else None
+    o, d, power, caustic_group = emit(scene.lights, n, key, (flat.min(axis=0), flat.max(axis=0)),
+                                      specular_box, caustic_fraction)
+    split = specular_box is not None  # caustics come from the caustic group only
+    n = o.shape[0]
+    work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
+    work["photons_emitted"][:] = 1
+    albedo = np.array([m.albedo for m in mats])[scene.material_index]
+    refl = np.array([m.reflectance for m in mats])[scene.material_index]
+    trans = np.array([m.transmittance for m in mats])[scene.material_index]
+    ior = np.array([m.ior for m in mats])[scene.material_index]
+    normals = face_normals(scene.triangles)
+    eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
+
+    pid = np.arange(n)  # photon ids still travelling
+    last = np.full(n, -1, dtype=np.int64)  # triangle each photon leaves
+    specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
+    stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
+    for bounce in range(max_bounces):
+        if pid.shape[0] == 0:
+            break
+        rel = eps / np.linalg.norm(d, axis=1)
+        hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch)
+        for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
+            work[name][pid] += getattr(hits.counts, name)
+        work["rays"][pid] += 1
+        hit = hits.triangle >= 0
+        work["lost"][pid[~hit]] += 1
+        pid, o, d, power = pid[hit], o[hit], d[hit], power[hit]
+        tri, specular_only = hits.triangle[hit], specular_only[hit]
+        group = caustic_group[pid]
+        x = o + hits.t[hit, None] * d
+        work["bounces"][pid] += 1
+        kind = kind_of[tri]
+        n_geo = normals[tri]
+        facing = np.where((np.sum(n_geo * d, axis=1) > 0)[:, None], -n_geo, n_geo)
+
+        lam = kind == KIND["lambertian"]
+        store = lam & (bounce > 0)  # the first hit is direct light: the ray-cast frame's
+        if split:
+            store &= specular_only == group
+        for name, value in (("position", x), ("normal", facing), ("incoming", d), ("power", power),
+                            ("caustic", specular_only)):
+            stored[name].append(value[store])
+        work["stored"][pid[store]] += 1
+
+        u = [hash_uniform(key, pid, bounce, dim) for dim in range(3)]
+        new_d = np.empty_like(d)
+        alive = np.ones(pid.shape[0], dtype=bool)
+        if lam.any():
+            a = albedo[tri[lam]]
+            if russian_roulette:
+                p = a.max(axis=1)
+                survive = u[0][lam] < p
+                scale = np.where(survive[:, None], a / np.where(p > 0, p, 1.0)[:, None], 0.0)
+            else:
+                survive = a.max(axis=1) > 0
+                scale = a
+            power[lam] = power[lam] * scale
+            new_d[lam] = _cosine_dirs(facing[lam], u[1][lam], u[2][lam])
+            if split:  # a caustic-group photon has nothing left to give after a diffuse hit
+                survive &= ~group[lam]
+            alive[lam] = survive
+            work["absorbed"][pid[lam][~survive]] += 1
+        mir = kind == KIND["mirror"]
+        if mir.any():
+            new_d[mir] = reflect(d[mir], n_geo[mir])
+            power[mir] = power[mir] * refl[tri[mir]]
+        die = kind == KIND["dielectric"]
+        if die.any():
+            rd, tir = refract(d[die], n_geo[die], ior[tri[die]])
+            new_d[die] = rd
+            pw = power[die]
+            pw[~tir] *= trans[tri[die]][~tir]
+            power[die] = pw
+        specular_only = specular_only & ~lam
+        keep = alive & (power.max(axis=1) > 0)
+        pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
+        last, specular_only = tri[keep], specular_only[keep]
+
+    def cat(name: str, shape: tuple, dtype=np.float64) -> np.ndarray:
+        parts = stored[name]
+        return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
+
+    position = cat("position", (0, 3))
+    photons = PhotonMap(
+        position=position,
+        normal=cat("normal", (0, 3)),
+        incoming=cat("incoming", (0, 3)),
+        power=cat("power", (0, 3)),
+        caustic=cat("caustic", (0,), bool),
+        tree=build_point_tree(position, levels),
+        emitted=n,
+    )
+    return PhotonTrace(photons, work)
