@@ -85,8 +85,9 @@ def test_results_json(cornell_run):
     assert results["seed"] == 0 and results["mode"] == "refract"
     assert results["config"] == CORNELL
     assert results["plan"]["run"] == ["rcast", "reflect", "refract"]
-    assert results["plan"]["left_out"] == {}
-    assert set(results["plan"]["reasons"]) == {"rcast", "reflect", "refract"}
+    assert set(results["plan"]["left_out"]) == {"pmap"}  # the photon map is mode pmap's
+    assert set(results["plan"]["reasons"]) == {"rcast", "reflect", "refract", "pmap"}
+    assert results["photons"] is None and results["error"] is None
     assert results["scene"]["triangles"] == 2604
     assert results["scene"]["resolution"] == [48, 48]
     assert results["scene"]["bsp"]["levels"] == 7  # floor(ln 2604)
@@ -204,7 +205,7 @@ def test_mode_rcast(tmp_path, capsys):
     assert results["mode"] == "rcast"
     assert results["plan"]["run"] == ["rcast"]
     left = results["plan"]["left_out"]
-    assert set(left) == {"reflect", "refract"}
+    assert set(left) == {"reflect", "refract", "pmap"}
     for name, why in left.items():
         assert "mode 'rcast'" in why and name in why
     assert set(results["work"]) == {"rcast"}

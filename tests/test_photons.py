@@ -3,37 +3,16 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-import trimesh
 
 from tlm.kernels.photons import bounding_cone, emit, photon_key, split_photons, trace_photons
 from tlm.kernels.traverse import build_accel
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Light
-from tlm.scenes.shapes import uv_sphere
 
-
-def sphere_scene(tmp_path: Path, albedo: float = 0.5, n_seg: int = 48, n_rings: int = 24) -> Path:
-    """A closed diffuse unit sphere around a point light of intensity pi (power 4 pi^2)."""
-    tri = uv_sphere((0.0, 0.0, 0.0), 1.0, n_seg, n_rings)
-    mesh = trimesh.Trimesh(vertices=tri.reshape(-1, 3), faces=np.arange(tri.shape[0] * 3).reshape(-1, 3),
-                           process=False)
-    mesh.export(tmp_path / "sphere.ply")
-    p = 4.0 * math.pi**2
-    (tmp_path / "furnace.yaml").write_text(f"""
-name: furnace
-geometry: {{mesh: sphere.ply}}
-materials: {{grey: {{type: lambertian, albedo: [{albedo}, {albedo}, {albedo}]}}}}
-default_material: grey
-lights: [{{type: point, position: [0.0, 0.0, 0.0], power: [{p}, {p}, {p}]}}]
-camera: {{eye: [0.0, 0.0, 0.0], target: [0.0, 0.0, 1.0], up: [0.0, 1.0, 0.0], vfov: 60.0}}
-resolution: [24, 24]
-photons: 20000
-""")
-    return tmp_path / "furnace.yaml"
+from .scenes import sphere_scene
 
 
 def test_split_photons_by_power():
@@ -60,7 +39,7 @@ def test_point_light_aims_at_the_scene_and_scales_power_by_the_cone():
     lo, hi = np.array([-1.0, 0.0, -1.0]), np.array([1.0, 1.0, 1.0])
     axis, cos_max = bounding_cone(pos, lo, hi)
     light = Light("point", (1.0, 1.0, 1.0), position=tuple(pos))
-    o, d, power, _ = emit((light,), 20000, photon_key(0), (lo, hi))
+    _o, d, power, _ = emit((light,), 20000, photon_key(0), (lo, hi))
     assert np.all(d @ axis >= cos_max - 1e-12)
     np.testing.assert_allclose(power.sum(axis=0), np.ones(3) * (1.0 - cos_max) / 2.0)
     # inside the box: the whole sphere, all the power
@@ -122,10 +101,10 @@ def test_caustic_group_stores_only_caustics():
     assert none.photons.caustic.any()
 
 
-@pytest.mark.parametrize("bad", [dict(n=-1), dict(max_bounces=-1), dict(caustic_fraction=1.0)])
+@pytest.mark.parametrize("bad", [{"n": -1}, {"max_bounces": -1}, {"caustic_fraction": 1.0}])
 def test_bad_arguments(bad):
     scene = load_scene("ring")
     accel = build_accel(scene.triangles)
-    args = dict(n=10) | bad
+    args = {"n": 10} | bad
     with pytest.raises(ValueError, match=next(iter(bad))):
         trace_photons(scene, accel, **args)

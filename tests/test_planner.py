@@ -67,13 +67,13 @@ def decide(scene, **cfg):
     return p, {x.name: x for x in p.passes}
 
 
-def test_cornell_refract_runs_everything():
-    p, by = decide(load_scene("cornell"), mode="refract")
-    assert p.run_names == ["rcast", "reflect", "refract"]
+def test_cornell_pmap_runs_everything():
+    p, by = decide(load_scene("cornell"), mode="pmap")
+    assert p.run_names == ["rcast", "reflect", "refract", "pmap"]
     assert all(by[n].run for n in PASSES)
     assert p.notes == ()
     d = p.to_dict()
-    assert d["run"] == ["rcast", "reflect", "refract"] and d["left_out"] == {}
+    assert d["run"] == ["rcast", "reflect", "refract", "pmap"] and d["left_out"] == {}
     assert set(d["reasons"]) == set(PASSES)
     json.dumps(plan_dict(p))  # serialisable
 
@@ -83,7 +83,8 @@ def test_ring_has_no_dielectric():
     assert p.run_names == ["rcast", "reflect"]
     assert not by["refract"].run
     assert "no dielectric" in by["refract"].reason
-    assert p.to_dict()["left_out"] == {"refract": by["refract"].reason}
+    assert p.to_dict()["left_out"] == {"refract": by["refract"].reason, "pmap": by["pmap"].reason}
+    assert "mode 'refract'" in by["pmap"].reason
 
 
 def test_room_runs_everything():
@@ -92,7 +93,8 @@ def test_room_runs_everything():
 
 
 @pytest.mark.parametrize("mode,runs", [("rcast", ["rcast"]), ("reflect", ["rcast", "reflect"]),
-                                       ("refract", ["rcast", "reflect", "refract"])])
+                                       ("refract", ["rcast", "reflect", "refract"]),
+                                       ("pmap", ["rcast", "reflect", "refract", "pmap"])])
 def test_modes_are_cumulative(mode, runs):
     p, by = decide(load_scene("cornell"), mode=mode)
     assert p.run_names == runs

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config import MODES
 from tlm.errors import InputError
 
 
@@ -33,6 +34,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
     for name in results["plan"]["run"]:
         w = results["work"][name]
+        if name == "pmap":
+            ph = results["photons"]
+            print(f"  pass {name:8s} photons {ph['emitted']:>8d} stored {ph['stored']:>8d} "
+                  f"({ph['caustic']} caustic); {ph['filter']} gathers {w['gathers']}, "
+                  f"photons tested {w['photons_tested']}")
+            continue
         print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
               f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests']:>10d}")
     for name, why in results["plan"]["left_out"].items():
@@ -89,6 +96,55 @@ def _cmd_scene(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_reference(args: argparse.Namespace) -> int:
+    from tlm.config import load_config
+    from tlm.experiments.reference import (
+        ReferenceSettings,
+        compute_reference,
+        load_reference,
+        reference_key,
+        save_reference,
+    )
+    from tlm.kernels.traverse import build_accel
+    from tlm.render.passes import Frame, cast
+    from tlm.scenes.loader import load_scene
+
+    cfg, base = load_config(Path(args.config), list(args.set or []))
+    scene = load_scene(cfg.scene, base, cfg.resolution, str(args.config))
+    settings = ReferenceSettings.from_config(scene, cfg)
+    key = reference_key(scene, cfg, settings)
+    if not args.force and load_reference(key) is not None:
+        print(f"reference {key} is cached (use --force to compute it again)")
+        return 0
+    accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
+    frame = Frame.create(scene, accel, cfg)
+    g = cast(frame, np.arange(scene.camera.width * scene.camera.height, dtype=np.int64))
+    print(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
+          f"tolerance {settings.tolerance}")
+    image, meta = compute_reference(frame, g, settings,
+                                    progress=lambda k, c: print(f"  round {k:3d}  change {c:.4f}", flush=True))
+    folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
+    state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
+    print(f"{state} after {meta['rounds']} rounds; wrote {folder}")
+    return 0
+
+
+def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
+    from tlm.experiments.error_cost import run_error_vs_cost
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+
+    def progress(i: int, n: int, row: dict) -> None:
+        rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g}"
+        print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {row['radius'] or 0:8.3g} "
+              f"k {row['k'] or row['k_nearest'] or '-'!s:>4s}  relMSE {rel:>9s}  tested {row['photons_tested']:>10d}  "
+              f"{row['gather_seconds']:.2f} s", flush=True)
+
+    rows = run_error_vs_cost(Path(args.config), out, progress=progress)
+    print(f"wrote {out} ({len(rows)} rows)")
+    return 0
+
+
 def _cmd_params(args: argparse.Namespace) -> int:
     from tlm.config import describe
 
@@ -111,7 +167,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="render one experiment into a run folder")
     r.add_argument("config", help="experiment YAML (see 'tlm params')")
     r.add_argument("--out", help="run folder (default: runs/<config name>)")
-    r.add_argument("--mode", choices=("rcast", "reflect", "refract"), help="override the mode")
+    r.add_argument("--mode", choices=MODES, help="override the mode")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
     r.add_argument("--seed", type=int, help="override the seed")
@@ -125,6 +181,15 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("name", help="built-in scene name or scene YAML path")
     se.add_argument("file", help="output .ply or .obj")
     s.set_defaults(func=_cmd_scene)
+    rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config")
+    rf.add_argument("config", help="experiment YAML")
+    rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
+    rf.add_argument("--force", action="store_true", help="compute again even if cached")
+    rf.set_defaults(func=_cmd_reference)
+    ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
+    ev.add_argument("config", help="experiment YAML (base config and grids of points)")
+    ev.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ev.set_defaults(func=_cmd_error_vs_cost)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
     return p

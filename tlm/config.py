@@ -22,7 +22,8 @@ import yaml
 
 from tlm.errors import InputError, did_you_mean
 
-MODES = ("rcast", "reflect", "refract")
+MODES = ("rcast", "reflect", "refract", "pmap")
+FILTERS = ("disk", "mvoxel", "kvoxel", "knn")
 
 
 def _f(default: Any, help: str, **check: Any) -> Any:  # noqa: A002 - "help" reads best
@@ -57,9 +58,48 @@ class RenderConfig:
 
 
 @dataclass(frozen=True)
+class PhotonConfig:
+    count: int | None = _f(None, "photons emitted; null = the scene's default", min=0)
+    max_bounces: int = _f(8, "surface hits after which a photon path stops", min=0, max=64)
+    russian_roulette: bool = _f(True, "absorb photons at Lambertian hits with probability 1 - max(albedo)")
+    caustic_fraction: float = _f(
+        0.5, "share of each light's photons aimed at mirrors and dielectrics (caustic group)",
+        min=0.0, max=0.95,
+    )
+    levels: int | None = _f(
+        None, "photon BSP split levels; null = floor(ln n) of the stored photons", min=0, max=24
+    )
+
+
+@dataclass(frozen=True)
+class EstimateConfig:
+    filter: str = _f("mvoxel", "disk (eq. 3.2) | mvoxel (eq. 3.3) | kvoxel (eq. 3.5) | knn (exact reference)",
+                     choices=FILTERS)
+    radius: float | None = _f(
+        None, "search radius in scene units; null = radius_fraction x the scene's diagonal",
+        min_exclusive=0.0,
+    )
+    radius_fraction: float = _f(0.02, "radius as a fraction of the scene's diagonal when radius is null",
+                                min_exclusive=0.0, max=1.0)
+    k: int = _f(8, "voxels sampled by the stochastic k-voxel filter", min=1, max=1024)
+    k_nearest: int = _f(50, "photons of the exact k-nearest reference estimate", min=1, max=100000)
+    cone_k: float = _f(1.1, "cone filter constant: weight 1 - d / (cone_k r)", min=1.0)
+
+
+@dataclass(frozen=True)
+class ReferenceConfig:
+    photons: int | None = _f(None, "photons per round of the reference; null = the scene's default", min=1)
+    k_nearest: int = _f(50, "photons of each round's k-nearest estimate", min=1, max=100000)
+    tolerance: float = _f(0.01, "stop when one round changes the mean by less (relative RMS)",
+                          min_exclusive=0.0)
+    min_rounds: int = _f(3, "rounds before the tolerance may stop", min=2, max=10000)
+    max_rounds: int = _f(64, "rounds at most (the reference then says it did not converge)", min=2, max=10000)
+
+
+@dataclass(frozen=True)
 class RunConfig:
     scene: str = _f("cornell", "built-in scene name or path to a scene YAML (relative to the config)")
-    mode: str = _f("refract", "rcast | reflect | refract (each adds passes to the previous)",
+    mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)",
                    choices=MODES)
     seed: int = _f(0, "seed of every random stream (SeedSequence)", min=0)
     resolution: list[int] | None = _f(
@@ -67,6 +107,10 @@ class RunConfig:
     )
     bsp: BSPConfig = field(default_factory=BSPConfig, metadata={"help": "geometry BSP"})
     render: RenderConfig = field(default_factory=RenderConfig, metadata={"help": "passes"})
+    photons: PhotonConfig = field(default_factory=PhotonConfig, metadata={"help": "photon tracing"})
+    estimate: EstimateConfig = field(default_factory=EstimateConfig, metadata={"help": "radiance estimate"})
+    reference: ReferenceConfig = field(default_factory=ReferenceConfig,
+                                       metadata={"help": "converged reference of the photon-map frame"})
 
 
 def _type_ok(value: Any, tp: Any) -> bool:

@@ -29,10 +29,12 @@ import numpy as np
 import yaml
 
 from tlm.config import RunConfig, to_dict
+from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
+from tlm.kernels.photons import PhotonTrace, trace_photons
 from tlm.kernels.traverse import TriangleAccel, build_accel
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.passes import PASS_FUNCTIONS, WORK_KEYS, Frame, GBuffer, cast
-from tlm.render.planner import Plan, plan
+from tlm.render.passes import PASS_FUNCTIONS, WORK_KEYS, Frame, GBuffer, cast, pmap_pass, search_radius
+from tlm.render.planner import Plan, photon_count, plan
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
 
@@ -68,6 +70,8 @@ class RenderResult:
     radiance: dict[str, np.ndarray]  # pass -> (H, W, 3)
     work: dict[str, dict[str, np.ndarray]]  # pass -> count -> (H, W)
     timer: Timer
+    photons: PhotonTrace | None = None  # the traced photon map, when the pmap pass ran
+    error: dict | None = None  # the photon-map frame against its reference
 
     @property
     def accel(self) -> TriangleAccel:
@@ -95,12 +99,40 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     with timer.stage("cast"):
         g = cast(frame, pixels)
     radiance, work = {}, {}
+    traced = None
     for name in the_plan.run_names:
-        with timer.stage(f"pass_{name}"):
-            rad, wk = PASS_FUNCTIONS[name](frame, g)
+        if name == "pmap":
+            with timer.stage("photon_trace"):
+                traced = trace_photons(
+                    scene, accel, photon_count(scene, cfg), seed=cfg.seed, max_bounces=cfg.photons.max_bounces,
+                    russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
+                    caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
+                )
+            with timer.stage("pass_pmap"):
+                rad, wk = pmap_pass(frame, g, traced.photons)
+        else:
+            with timer.stage(f"pass_{name}"):
+                rad, wk = PASS_FUNCTIONS[name](frame, g)
         radiance[name] = rad.reshape(h, w, 3)
         work[name] = {k: v.reshape(h, w) for k, v in wk.items()}
-    return RenderResult(scene, cfg, the_plan, frame, g, radiance, work, timer)
+    error = None
+    if traced is not None:
+        error = photon_error(frame, radiance["pmap"].reshape(-1, 3))
+    return RenderResult(scene, cfg, the_plan, frame, g, radiance, work, timer, traced, error)
+
+
+def photon_error(frame: Frame, pmap: np.ndarray) -> dict:
+    """The photon-map frame's error against the cached reference, if there is one."""
+    settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
+    key = reference_key(frame.scene, frame.cfg, settings)
+    found = load_reference(key)
+    if found is None:
+        return {"reference": key, "available": False,
+                "hint": "run 'tlm reference CONFIG' to compute and cache it"}
+    image, meta = found
+    return {"reference": key, "available": True, **image_error(pmap, image.reshape(-1, 3)),
+            "reference_converged": meta.get("converged"), "reference_rounds": meta.get("rounds"),
+            "reference_final_change": meta.get("final_change")}
 
 
 def _versions() -> dict[str, str]:
@@ -148,9 +180,13 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
     work = {}
     for name, counts in res.work.items():
         total = {k: int(v.sum()) for k, v in counts.items()}
-        rays = total["primary_rays"] + total["secondary_rays"] + total["shadow_rays"]
-        total["tri_tests_per_ray"] = total["tri_tests"] / rays if rays else 0.0
-        total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
+        if name == "pmap":
+            gathers = total["gathers"]
+            total["photons_tested_per_gather"] = total["photons_tested"] / gathers if gathers else 0.0
+        else:
+            rays = total["primary_rays"] + total["secondary_rays"] + total["shadow_rays"]
+            total["tri_tests_per_ray"] = total["tri_tests"] / rays if rays else 0.0
+            total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
         work[name] = total
     g = res.gbuffer
     warnings = []
@@ -175,7 +211,14 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         },
         "work": work,
         "work_keys": list(WORK_KEYS),
+        "photons": None if res.photons is None else {
+            **res.photons.photons.stats(),
+            "work": res.photons.totals(),
+            "filter": res.cfg.estimate.filter,
+            "radius": search_radius(res.frame),
+        },
         "image": {"exposure": exposure},
+        "error": res.error,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
         "versions": _versions(),
         "git_revision": _git_revision(),

@@ -12,7 +12,9 @@ separate frames are summed for the final rendering output." (§III.B)
 * :func:`reflect_pass`: eye paths whose first surface is a mirror, followed through up
   to ``reflect_depth`` specular bounces to a Lambertian surface, lit directly;
 * :func:`refract_pass`: the same for eye paths whose first surface is a dielectric
-  (Snell refraction, total internal reflection), up to ``refract_depth`` bounces.
+  (Snell refraction, total internal reflection), up to ``refract_depth`` bounces;
+* :func:`pmap_pass`: the photon-mapped term (caustics and indirect light) at
+  Lambertian eye hits, from the photon map with the configured filter (eqs. 3.2–3.5).
 
 Each eye path belongs to exactly one frame, so the composite is their sum. Every
 function works on any packet of pixel ids and returns, with the radiance, the per-pixel
@@ -26,7 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.config import RunConfig
+from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
+from tlm.kernels.photons import PhotonMap
 from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, reflect, refract
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
 from tlm.scenes.model import Scene
@@ -42,6 +46,13 @@ WORK_KEYS = (
     "tri_tests",  # intersection: ray-triangle tests
     "fragments",  # Lambertian points shaded
     "specular_bounces",  # mirror reflections, refractions and total internal reflections
+)
+GATHER_KEYS = (
+    "gathers",  # radiance estimates made (Lambertian eye hits)
+    "node_visits",  # photon BSP: inner nodes on the search lists (Fig. 8)
+    "leaves_visited",  # photon BSP leaves searched
+    "photons_tested",  # photons compared against the search radius
+    "photons_accepted",  # photons inside it, from the front, that were filtered
 )
 KIND = {"lambertian": 0, "mirror": 1, "dielectric": 2}
 
@@ -229,6 +240,49 @@ def reflect_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.nda
 def refract_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Eye paths that first meet a dielectric."""
     return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth)
+
+
+def search_radius(frame: Frame) -> float:
+    """The fixed search radius r: ``estimate.radius`` or a fraction of the scene diagonal."""
+    est = frame.cfg.estimate
+    return est.radius if est.radius is not None else est.radius_fraction * frame.accel.scale
+
+
+def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The photon-map frame: ``albedo / pi * density`` at Lambertian eye hits.
+
+    ``density`` is the reflected flux density from the photon map by the configured
+    filter; ``kdtree`` is an optional prebuilt ``cKDTree`` of the photon positions for
+    the exact k-nearest estimate.
+    """
+    p = g.pixels.shape[0]
+    work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
+    radiance = np.zeros((p, 3))
+    lam = (g.triangle >= 0) & ~g.sees_light
+    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
+    idx = np.flatnonzero(lam)
+    if idx.shape[0] == 0 or photons.n == 0:
+        return radiance, work
+    tri = g.triangle[idx]
+    pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
+    n = frame.normals[tri]
+    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
+    est = frame.cfg.estimate
+    args = (photons.position, photons.power, photons.incoming)
+    if est.filter == "knn":
+        e = estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
+    elif est.filter == "kvoxel":
+        e = estimate.kvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), k=est.k,
+                                     cone_k=est.cone_k, seed=frame.cfg.seed, keys=g.pixels[idx])
+    elif est.filter == "disk":
+        e = estimate.disk_estimate(*args, photons.tree, pts, n, search_radius(frame))
+    else:
+        e = estimate.mvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), cone_k=est.cone_k)
+    radiance[idx] = frame.albedo[tri] / np.pi * e.density
+    work["gathers"][idx] = 1
+    for k in GATHER_KEYS[1:]:
+        work[k][idx] = getattr(e, k)
+    return radiance, work
 
 
 PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass}

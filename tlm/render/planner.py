@@ -1,11 +1,12 @@
 """The pass planner: which frames a run renders, and why the others are left out.
 
 The thesis renders multi-pass, RenderMan-like: a ray-cast frame with shadows, then
-reflection and refraction frames, summed into the final image (Fig. 9). The modes are
-cumulative: ``rcast`` < ``reflect`` < ``refract``. A pass the mode asks for is still
-left out when the scene cannot use it: no mirror material, no Reflect pass; no
-dielectric, no Refract pass; a depth of 0, nothing to follow. A scene without lights
-renders primary visibility only (black), and the planner says so.
+reflection, refraction and photon-map frames, summed into the final image (Fig. 9).
+The modes are cumulative: ``rcast`` < ``reflect`` < ``refract`` < ``pmap``. A pass the
+mode asks for is still left out when the scene cannot use it: no mirror material, no
+Reflect pass; no dielectric, no Refract pass; a depth of 0, nothing to follow; no
+light, no Lambertian surface to receive photons, or no photons, no photon pass. A
+scene without lights renders primary visibility only (black), and the planner says so.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from dataclasses import asdict, dataclass
 from tlm.config import MODES, RunConfig
 from tlm.scenes.model import Scene
 
-PASSES = ("rcast", "reflect", "refract")
+PASSES = ("rcast", "reflect", "refract", "pmap")
 
 
 @dataclass(frozen=True)
@@ -71,8 +72,25 @@ def plan(scene: Scene, cfg: RunConfig) -> Plan:
         PassPlan("rcast", True, "every mode casts primary rays with shadow rays"),
         decide("reflect", "mirror", cfg.render.reflect_depth),
         decide("refract", "dielectric", cfg.render.refract_depth),
+        _decide_pmap(scene, cfg, "pmap" in wanted, kinds),
     )
     return Plan(passes, tuple(notes))
+
+
+def photon_count(scene: Scene, cfg: RunConfig) -> int:
+    return scene.photons if cfg.photons.count is None else cfg.photons.count
+
+
+def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) -> PassPlan:
+    if not wanted:
+        return PassPlan("pmap", False, f"mode {cfg.mode!r} does not include the pmap (photon-map) pass")
+    if not scene.lights or all(max(lt.power) == 0.0 for lt in scene.lights):
+        return PassPlan("pmap", False, "no light with power: nothing emits photons")
+    if "lambertian" not in kinds:
+        return PassPlan("pmap", False, "no Lambertian surface: nothing stores or shows photons")
+    if photon_count(scene, cfg) == 0:
+        return PassPlan("pmap", False, "photons.count is 0")
+    return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
 
 
 def plan_dict(p: Plan) -> dict:

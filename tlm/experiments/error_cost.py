@@ -1,0 +1,180 @@
+"""Error against cost of the photon-map filters: one row per (filter, photons, radius, k).
+
+An experiment file names a base run config and a union of grids over dotted config
+keys; every point renders the photon-map frame of the base scene and records its
+error against the converged reference (:mod:`tlm.experiments.reference`, computed
+and cached first if missing) beside its cost: the gather's work (node visits, leaves
+visited, photons tested and accepted) and host seconds (photon tracing and gathering).
+Simulated cycles join these rows when the timing model exists.
+
+The eye rays are cast once, and each photon map (one per photon count and seed) is
+traced once and shared by every filter, radius and k that uses it.
+
+File format::
+
+    base: {scene: cornell, seed: 0}        # a run config (see 'tlm params')
+    points:                                # a list of grids, each a product
+      - {estimate.filter: [disk, mvoxel], photons.count: [30000, 120000],
+         estimate.radius_fraction: [0.01, 0.02]}
+      - {estimate.filter: [kvoxel], estimate.k: [4, 8, 16], ...}
+
+Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
+pandas), ``reference.json`` (the reference used) and ``config.resolved.yaml``.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import os
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from tlm.config import apply_overrides, config_from_dict, read_yaml, to_dict
+from tlm.errors import InputError
+from tlm.experiments.reference import (
+    ReferenceSettings,
+    compute_reference,
+    image_error,
+    load_reference,
+    reference_key,
+    save_reference,
+)
+from tlm.kernels.photons import trace_photons
+from tlm.kernels.traverse import build_accel
+from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius
+from tlm.render.planner import photon_count
+from tlm.scenes.loader import load_scene
+
+COLUMNS = (
+    "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
+    "rmse", "rel_mse", *GATHER_KEYS[1:], "gathers", "trace_seconds", "gather_seconds",
+)
+
+
+def expand(points: Any, source: str) -> list[dict[str, Any]]:
+    """The union of the grids: a list of {dotted key: value} overrides, in file order."""
+    if isinstance(points, dict):
+        points = [points]
+    if not isinstance(points, list) or not points:
+        raise InputError("must be a non-empty list of grids (mappings of key: [values])", source=source,
+                         key="points")
+    out = []
+    for i, grid in enumerate(points):
+        if not isinstance(grid, dict) or not grid:
+            raise InputError(f"grid {i} must be a mapping of key: [values]", source=source, key=f"points[{i}]")
+        keys = list(grid)
+        values = []
+        for k in keys:
+            v = grid[k]
+            v = v if isinstance(v, list) else [v]
+            if not v:
+                raise InputError("has no values", source=source, key=f"points[{i}].{k}")
+            values.append(v)
+        out.extend(dict(zip(keys, combo, strict=True)) for combo in itertools.product(*values))
+    return out
+
+
+def _override_strings(point: dict[str, Any]) -> list[str]:
+    return [f"{k}={json.dumps(v)}" for k, v in point.items()]
+
+
+def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
+    raw = read_yaml(path)
+    src = str(path)
+    if not isinstance(raw, dict):
+        raise InputError("must be a mapping with 'base' and 'points'", source=src)
+    for key in raw:
+        if key not in ("base", "points", "description"):
+            raise InputError("unknown key (expected base, points, description)", source=src, key=str(key))
+    base = raw.get("base") or {}
+    if not isinstance(base, dict):
+        raise InputError("must be a run config mapping", source=src, key="base")
+    points = expand(raw.get("points"), src)
+    for p in points:  # check every point before any work starts
+        config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})")
+    return base, points, Path(path).resolve().parent
+
+
+def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
+    """Run every point of the experiment file ``path``; write the rows into ``out``."""
+    base, points, folder = load_experiment(Path(path))
+    cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
+    scene = load_scene(cfg0.scene, folder, cfg0.resolution, str(path))
+    accel = build_accel(scene.triangles, levels=cfg0.bsp.levels, memory_factor=cfg0.bsp.memory_factor)
+    g = cast(Frame.create(scene, accel, cfg0), np.arange(scene.camera.width * scene.camera.height))
+
+    settings = ReferenceSettings.from_config(scene, cfg0)
+    key = reference_key(scene, cfg0, settings)
+    found = load_reference(key)
+    if found is None:
+        image, meta = compute_reference(Frame.create(scene, accel, cfg0), g, settings)
+        save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
+        found = load_reference(key)
+    reference, ref_meta = found
+    reference = reference.reshape(-1, 3)
+
+    maps: dict[tuple, tuple] = {}
+    rows = []
+    for i, point in enumerate(points):
+        cfg = config_from_dict({**apply_overrides(base, _override_strings(point)), "mode": "pmap"}, str(path))
+        if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
+            raise InputError("a point changes what the reference depends on (scene, max_bounces or reference.*)",
+                             source=str(path), key=f"points: {point}")
+        n = photon_count(scene, cfg)
+        map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
+                   cfg.photons.caustic_fraction, cfg.photons.levels)
+        if map_key not in maps:
+            t0 = time.perf_counter()
+            traced = trace_photons(scene, accel, n, seed=cfg.seed, max_bounces=cfg.photons.max_bounces,
+                                   russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
+                                   caustic_fraction=cfg.photons.caustic_fraction)
+            maps[map_key] = (traced, time.perf_counter() - t0)
+        traced, trace_s = maps[map_key]
+        frame = Frame.create(scene, accel, cfg)
+        t0 = time.perf_counter()
+        radiance, work = pmap_pass(frame, g, traced.photons)
+        gather_s = time.perf_counter() - t0
+        est = cfg.estimate
+        row = {
+            "point": i, "filter": est.filter, "photons": n, "stored": traced.photons.n,
+            "radius": None if est.filter == "knn" else search_radius(frame),
+            "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
+            "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
+            **image_error(radiance, reference),
+            **{k: int(work[k].sum()) for k in GATHER_KEYS},
+            "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
+        }
+        rows.append(row)
+        if progress is not None:
+            progress(i, len(points), row)
+    _write(out, rows, cfg0, {"key": key, **ref_meta})
+    return rows
+
+
+def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        tmp.mkdir()
+        with open(tmp / "rows.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(COLUMNS))
+            w.writeheader()
+            w.writerows(rows)
+        (tmp / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+        (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

@@ -1,0 +1,163 @@
+"""Converged reference images of the photon-mapped term, cached, and image error.
+
+A reference is the exact k-nearest-photon estimate (Jensen's, cone filter) at the
+Lambertian eye hits, averaged over independent photon maps (each round traces a new
+map from a child of one ``SeedSequence``) until the relative RMS change of the mean
+in one round falls below a tolerance. What it converges to is the expectation of the
+k-NN estimate with that many photons per round: the kernel's blur remains (a smaller
+``k_nearest`` or more photons per round shrink it); ``meta.json`` records the rounds,
+the change per round and whether the tolerance was met.
+
+References are cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``) in
+``references/<key>/``, keyed by everything the converged image depends on: the scene
+(triangles, materials, lights, camera and resolution), the photon path settings
+(``max_bounces``) and the reference settings. The run's seed, filter, radius and
+photon count are not part of the key: every PMap run of a scene is measured against
+the same reference.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tlm.config import RunConfig
+from tlm.kernels.estimate import knn_estimate
+from tlm.kernels.photons import trace_photons
+from tlm.render.passes import KIND, Frame, GBuffer
+from tlm.scenes.model import Scene
+
+REFERENCE_SEED = 0x5EED
+
+
+@dataclass(frozen=True)
+class ReferenceSettings:
+    photons: int  # per round
+    k_nearest: int = 50
+    tolerance: float = 0.01
+    min_rounds: int = 3
+    max_rounds: int = 64
+
+    @classmethod
+    def from_config(cls, scene: Scene, cfg: RunConfig) -> ReferenceSettings:
+        r = cfg.reference
+        return cls(photons=scene.photons if r.photons is None else r.photons, k_nearest=r.k_nearest,
+                   tolerance=r.tolerance, min_rounds=r.min_rounds, max_rounds=r.max_rounds)
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / "references"
+
+
+def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> str:
+    """A hash of everything the converged photon-map image depends on."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(scene.triangles).tobytes())
+    h.update(np.ascontiguousarray(scene.material_index).tobytes())
+    doc = {
+        "materials": [asdict(m) for m in scene.materials],
+        "lights": [asdict(lt) for lt in scene.lights],
+        "camera": asdict(scene.camera),
+        "max_bounces": cfg.photons.max_bounces,
+        "reference": asdict(settings),
+    }
+    h.update(json.dumps(doc, sort_keys=True).encode())
+    return h.hexdigest()[:20]
+
+
+def _lambertian_hits(frame: Frame, g: GBuffer):
+    lam = (g.triangle >= 0) & ~g.sees_light
+    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
+    idx = np.flatnonzero(lam)
+    tri = g.triangle[idx]
+    pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
+    n = frame.normals[tri]
+    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
+    return idx, tri, pts, n
+
+
+def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, progress=None) -> tuple[np.ndarray, dict]:
+    """Average k-NN photon-map frames over independent maps until converged.
+
+    Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
+    """
+    from scipy.spatial import cKDTree
+
+    scene, cfg = frame.scene, frame.cfg
+    idx, tri, pts, n = _lambertian_hits(frame, g)
+    mean = np.zeros((g.pixels.shape[0], 3))
+    changes: list[float] = []
+    seeds = np.random.SeedSequence(REFERENCE_SEED).spawn(settings.max_rounds)
+    t0 = time.perf_counter()
+    converged = False
+    for k, child in enumerate(seeds, start=1):
+        seed = int(child.generate_state(1)[0])
+        traced = trace_photons(scene, frame.accel, settings.photons, seed=seed,
+                               max_bounces=cfg.photons.max_bounces, caustic_fraction=cfg.photons.caustic_fraction)
+        ph = traced.photons
+        frame_k = np.zeros_like(mean)
+        if ph.n and idx.shape[0]:
+            e = knn_estimate(ph.position, ph.power, ph.incoming, pts, n, k_nearest=settings.k_nearest,
+                             cone_k=cfg.estimate.cone_k, kdtree=cKDTree(ph.position))
+            frame_k[idx] = frame.albedo[tri] / np.pi * e.density
+        new = mean + (frame_k - mean) / k
+        norm = float(np.sqrt(np.mean(new**2)))
+        change = float(np.sqrt(np.mean((new - mean) ** 2)) / norm) if norm > 0 else 0.0
+        mean = new
+        if k > 1:
+            changes.append(change)
+        if progress is not None:
+            progress(k, change)
+        if k >= settings.min_rounds and k > 1 and change < settings.tolerance:
+            converged = True
+            break
+    meta = {
+        **asdict(settings),
+        "rounds": len(changes) + 1,
+        "change_per_round": changes,
+        "final_change": changes[-1] if changes else None,
+        "converged": converged,
+        "host_seconds": round(time.perf_counter() - t0, 3),
+        "seed": REFERENCE_SEED,
+    }
+    return mean, meta
+
+
+def save_reference(key: str, image: np.ndarray, meta: dict) -> Path:
+    """Write ``reference.npy`` and ``meta.json`` atomically into the cache."""
+    final = cache_dir() / key
+    tmp = final.parent / f".{key}.tmp-{os.getpid()}"
+    tmp.mkdir(parents=True, exist_ok=True)
+    try:
+        np.save(tmp / "reference.npy", image.astype(np.float32))
+        (tmp / "meta.json").write_text(json.dumps({"key": key, **meta}, indent=2) + "\n")
+        if final.exists():
+            shutil.rmtree(final)
+        tmp.rename(final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return final
+
+
+def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
+    folder = cache_dir() / key
+    if not (folder / "reference.npy").is_file():
+        return None
+    return np.load(folder / "reference.npy"), json.loads((folder / "meta.json").read_text())
+
+
+def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | None]:
+    """RMSE and relative MSE (sum of squared error over sum of squared reference; None
+    for a black reference)."""
+    diff = np.asarray(image, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
+    ref2 = float(np.sum(np.asarray(reference, dtype=np.float64) ** 2))
+    sq = float(np.sum(diff**2))
+    return {"rmse": float(np.sqrt(np.mean(diff**2))), "rel_mse": sq / ref2 if ref2 > 0 else None}
