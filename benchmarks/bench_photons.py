@@ -6,6 +6,7 @@ from inside the box; or ``--dist cube``: uniform in the unit cube, random direct
 * **build**: ``build_point_tree(position)`` (Algorithm 1, default depth ``floor(ln n)``)
   against ``scipy.spatial.cKDTree(position)``; also the leaf-order copy of the photon
   arrays (``leaf_photons``) that the gathers read. Bar: the tree within 3x of cKDTree.
+* **tracing**: photons emitted and traced per second on the thesis scenes.
 * **gathers**: radiance estimates per second at ``--queries`` query points (also on the
   faces, normals pointing into the box) with the m-voxel (eq. 3.3, Fig. 8), k-voxel
   (eq. 3.5) and disk (eq. 3.2) filters, against ``cKDTree.query_ball_point(points, r,
@@ -116,14 +117,22 @@ def bench_size(n: int, args) -> None:
               f"accepted {e.photons_accepted.mean():6.1f}{bar}")
 
 
-# ============================================================================ TODO(photons)
-def bench_tracing() -> None:
-    """STUB — photon emission and tracing throughput (tlm/kernels/photons.py).
+def bench_tracing(scenes: list[str], repeat: int) -> None:
+    """Photons emitted and traced (through the geometry BSP, to the end of their paths)
+    per second on the thesis scenes at their default photon counts, tree build included."""
+    from tlm.kernels.photons import trace_photons
+    from tlm.kernels.traverse import build_accel
+    from tlm.scenes.loader import load_scene
 
-    To be written by the engineer who owns photon tracing; not called yet.
-    """
-    raise NotImplementedError("photon tracing benchmark not written yet")
-# ============================================================================
+    for name in scenes:
+        scene = load_scene(name)
+        accel = build_accel(scene.triangles)
+        n = scene.photons
+        result = []
+        t = best_of(lambda: result.append(trace_photons(scene, accel, n, seed=0)), repeat)  # noqa: B023
+        tr = result[-1]
+        print(f"tracing {name:8s} {n:7d} photons  {n / t / 1e3:8.1f} k photons/s   "
+              f"{tr.totals()['rays'] / t / 1e3:8.1f} k photon rays/s   stored {tr.photons.n}")
 
 
 def main() -> None:
@@ -134,7 +143,10 @@ def main() -> None:
     ap.add_argument("--k", type=int, default=8, help="voxels sampled by the k-voxel filter")
     ap.add_argument("--dist", choices=["box", "cube"], default="box")
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--trace-scenes", nargs="*", default=["ring", "room", "cornell"],
+                    help="scenes whose photon tracing is timed (none: skip)")
     args = ap.parse_args()
+    bench_tracing(args.trace_scenes, args.repeat)
     print(f"queries {args.queries}, best of {args.repeat}, one thread; photons {args.dist}: "
           + ("uniform on the faces of the unit cube" if args.dist == "box" else "uniform in the unit cube"))
     for n in args.sizes:

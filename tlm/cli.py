@@ -121,11 +121,14 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     g = cast(frame, np.arange(scene.camera.width * scene.camera.height, dtype=np.int64))
     print(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
           f"tolerance {settings.tolerance}")
-    image, meta = compute_reference(frame, g, settings,
-                                    progress=lambda k, c: print(f"  round {k:3d}  change {c:.4f}", flush=True))
+    image, meta = compute_reference(
+        frame, g, settings,
+        progress=lambda k, c, e: print(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}", flush=True),
+    )
     folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
     state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
-    print(f"{state} after {meta['rounds']} rounds; wrote {folder}")
+    print(f"{state} after {meta['rounds']} rounds (relative standard error "
+          f"{meta['relative_standard_error']:.4f}); wrote {folder}")
     return 0
 
 

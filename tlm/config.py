@@ -89,10 +89,9 @@ class EstimateConfig:
 @dataclass(frozen=True)
 class ReferenceConfig:
     photons: int | None = _f(None, "photons per round of the reference; null = the scene's default", min=1)
-    k_nearest: int = _f(50, "photons of each round's k-nearest estimate", min=1, max=100000)
-    tolerance: float = _f(0.01, "stop when one round changes the mean by less (relative RMS)",
-                          min_exclusive=0.0)
-    min_rounds: int = _f(3, "rounds before the tolerance may stop", min=2, max=10000)
+    k_nearest: int = _f(100, "photons of each round's k-nearest estimate", min=1, max=100000)
+    tolerance: float = _f(0.02, "stop when the mean's relative standard error is below it", min_exclusive=0.0)
+    min_rounds: int = _f(4, "rounds before the tolerance may stop", min=2, max=10000)
     max_rounds: int = _f(64, "rounds at most (the reference then says it did not converge)", min=2, max=10000)
 
 

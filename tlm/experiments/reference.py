@@ -2,11 +2,15 @@
 
 A reference is the exact k-nearest-photon estimate (Jensen's, cone filter) at the
 Lambertian eye hits, averaged over independent photon maps (each round traces a new
-map from a child of one ``SeedSequence``) until the relative RMS change of the mean
-in one round falls below a tolerance. What it converges to is the expectation of the
-k-NN estimate with that many photons per round: the kernel's blur remains (a smaller
-``k_nearest`` or more photons per round shrink it); ``meta.json`` records the rounds,
-the change per round and whether the tolerance was met.
+map from a child of one ``SeedSequence``) until the mean's relative standard error —
+the RMS over pixels of the per-pixel standard error of the mean, estimated from the
+spread of the rounds, over the RMS of the mean — falls below ``tolerance``. (The
+change a single round makes shrinks as 1/rounds while the error shrinks only as
+1/sqrt(rounds), so the standard error is the honest stopping rule; the change per
+round is recorded too.) What it converges to is the expectation of the k-NN estimate
+with that many photons per round: the kernel's blur remains (a smaller
+``k_nearest`` or more photons per round shrink it). ``meta.json`` records the rounds,
+both measures per round and whether the tolerance was met.
 
 References are cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``) in
 ``references/<key>/``, keyed by everything the converged image depends on: the scene
@@ -40,9 +44,9 @@ REFERENCE_SEED = 0x5EED
 @dataclass(frozen=True)
 class ReferenceSettings:
     photons: int  # per round
-    k_nearest: int = 50
-    tolerance: float = 0.01
-    min_rounds: int = 3
+    k_nearest: int = 100
+    tolerance: float = 0.02
+    min_rounds: int = 4
     max_rounds: int = 64
 
     @classmethod
@@ -93,7 +97,9 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     scene, cfg = frame.scene, frame.cfg
     idx, tri, pts, n = _lambertian_hits(frame, g)
     mean = np.zeros((g.pixels.shape[0], 3))
+    m2 = np.zeros_like(mean)  # Welford's running sum of squared deviations
     changes: list[float] = []
+    errors: list[float] = []
     seeds = np.random.SeedSequence(REFERENCE_SEED).spawn(settings.max_rounds)
     t0 = time.perf_counter()
     converged = False
@@ -107,22 +113,29 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
             e = knn_estimate(ph.position, ph.power, ph.incoming, pts, n, k_nearest=settings.k_nearest,
                              cone_k=cfg.estimate.cone_k, kdtree=cKDTree(ph.position))
             frame_k[idx] = frame.albedo[tri] / np.pi * e.density
-        new = mean + (frame_k - mean) / k
+        delta = frame_k - mean
+        new = mean + delta / k
+        m2 += delta * (frame_k - new)
         norm = float(np.sqrt(np.mean(new**2)))
-        change = float(np.sqrt(np.mean((new - mean) ** 2)) / norm) if norm > 0 else 0.0
+        if k > 1 and norm > 0:
+            changes.append(float(np.sqrt(np.mean((new - mean) ** 2)) / norm))
+            errors.append(float(np.sqrt(np.mean(m2 / (k - 1) / k)) / norm))
+        elif k > 1:
+            changes.append(0.0)
+            errors.append(0.0)
         mean = new
-        if k > 1:
-            changes.append(change)
-        if progress is not None:
-            progress(k, change)
-        if k >= settings.min_rounds and k > 1 and change < settings.tolerance:
+        if progress is not None and k > 1:
+            progress(k, changes[-1], errors[-1])
+        if k >= settings.min_rounds and errors[-1] < settings.tolerance:
             converged = True
             break
     meta = {
         **asdict(settings),
-        "rounds": len(changes) + 1,
-        "change_per_round": changes,
+        "rounds": len(errors) + 1,
+        "relative_standard_error": errors[-1] if errors else None,
         "final_change": changes[-1] if changes else None,
+        "standard_error_per_round": errors,
+        "change_per_round": changes,
         "converged": converged,
         "host_seconds": round(time.perf_counter() - t0, 3),
         "seed": REFERENCE_SEED,

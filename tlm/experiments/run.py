@@ -132,7 +132,7 @@ def photon_error(frame: Frame, pmap: np.ndarray) -> dict:
     image, meta = found
     return {"reference": key, "available": True, **image_error(pmap, image.reshape(-1, 3)),
             "reference_converged": meta.get("converged"), "reference_rounds": meta.get("rounds"),
-            "reference_final_change": meta.get("final_change")}
+            "reference_standard_error": meta.get("relative_standard_error")}
 
 
 def _versions() -> dict[str, str]:

@@ -1,0 +1,115 @@
+"""PMap mode end to end, converged references (cached) and the error-against-cost runs."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from tlm.cli import main
+
+from .scenes import sphere_scene
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("TLM_CACHE", str(folder))
+    return folder
+
+
+def furnace_config(tmp_path, **extra) -> str:
+    sphere_scene(tmp_path)
+    body = {
+        "scene": "furnace.yaml",
+        "mode": "pmap",
+        "photons": {"count": 6000},
+        "estimate": {"radius_fraction": 0.06},
+        "reference": {"photons": 6000, "k_nearest": 80, "tolerance": 0.05, "max_rounds": 16},
+        **extra,
+    }
+    path = tmp_path / "cfg.yaml"
+    path.write_text(json.dumps(body))
+    return str(path)
+
+
+def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
+    cfg = furnace_config(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", cfg, "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["plan"]["run"] == ["rcast", "pmap"]
+    assert results["photons"]["emitted"] == 6000 and results["photons"]["stored"] > 0
+    assert results["photons"]["filter"] == "mvoxel"
+    assert results["error"]["available"] is False and "tlm reference" in results["error"]["hint"]
+    assert (out / "images" / "pmap.png").is_file() and (out / "radiance" / "pmap.npy").is_file()
+    work = np.load(out / "aov" / "work.npz")
+    assert work["pmap.gathers"].sum() == 24 * 24  # every eye ray hits the diffuse sphere
+
+    assert main(["reference", cfg]) == 0
+    printed = capsys.readouterr().out
+    assert "converged after" in printed
+    (folder,) = (cache / "references").iterdir()
+    meta = json.loads((folder / "meta.json").read_text())
+    assert meta["converged"] and meta["rounds"] >= 4 and meta["relative_standard_error"] < 0.05
+    reference = np.load(folder / "reference.npy")
+    assert reference.shape == (24, 24, 3)
+    assert abs(reference.mean() - 0.5) < 0.03  # the furnace's indirect half
+
+    assert main(["reference", cfg]) == 0
+    assert "cached" in capsys.readouterr().out
+
+    assert main(["run", cfg, "--out", str(out)]) == 0
+    error = json.loads((out / "results.json").read_text())["error"]
+    assert error["available"] and error["reference"] == folder.name
+    assert 0 < error["rmse"] < 0.2 and 0 < error["rel_mse"] < 0.2
+    # the error falls with more photons
+    assert main(["run", cfg, "--out", str(out), "--set", "photons.count=48000"]) == 0
+    more = json.loads((out / "results.json").read_text())["error"]
+    assert more["rmse"] < error["rmse"]
+
+
+def test_error_vs_cost_rows(tmp_path, cache, capsys):
+    sphere_scene(tmp_path)
+    exp = tmp_path / "evc.yaml"
+    exp.write_text(json.dumps({
+        "base": {"scene": "furnace.yaml", "reference": {"photons": 6000, "k_nearest": 40, "tolerance": 0.05}},
+        "points": [
+            {"estimate.filter": ["disk", "mvoxel"], "photons.count": [3000, 12000]},
+            {"estimate.filter": ["kvoxel"], "photons.count": [12000], "estimate.k": [2, 8]},
+            {"estimate.filter": ["knn"], "photons.count": [12000], "estimate.k_nearest": [20]},
+        ],
+    }))
+    out = tmp_path / "evc"
+    assert main(["error-vs-cost", str(exp), "--out", str(out)]) == 0
+    with open(out / "rows.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 7
+    assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn"]
+    jsonl = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines()]
+    assert len(jsonl) == 7
+    for row in jsonl:
+        assert np.isfinite(row["rmse"]) and row["gathers"] == 24 * 24 and row["gather_seconds"] >= 0
+    mv = [r for r in jsonl if r["filter"] == "mvoxel"]
+    assert mv[1]["photons_tested"] > mv[0]["photons_tested"]  # more photons, more work
+    kv = [r for r in jsonl if r["filter"] == "kvoxel"]
+    assert kv[1]["leaves_visited"] >= kv[0]["leaves_visited"]
+    assert json.loads((out / "reference.json").read_text())["converged"]
+
+
+@pytest.mark.parametrize("body,expect", [
+    ({"base": {}, "points": []}, "points"),
+    ({"base": {}, "points": [{"estimate.filter": ["mvox"]}]}, "did you mean 'mvoxel'"),
+    ({"base": {}, "points": [{"estimate.radius": [-1.0]}]}, "estimate.radius"),
+    ({"base": {}, "grid": {}}, "grid"),
+    ({"base": {"mdoe": "pmap"}, "points": [{"estimate.k": [1]}]}, "mdoe"),
+])
+def test_bad_experiment_files(tmp_path, capsys, body, expect):
+    exp = tmp_path / "bad.yaml"
+    exp.write_text(json.dumps(body))
+    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tlm: error:") and "bad.yaml" in err[0] and expect in err[0]
+    assert not (tmp_path / "out").exists()
