@@ -113,3 +113,29 @@ def test_bad_experiment_files(tmp_path, capsys, body, expect):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("tlm: error:") and "bad.yaml" in err[0] and expect in err[0]
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("filt", ["disk", "mvoxel", "kvoxel", "knn"])
+def test_pmap_pass_is_packet_invariant_and_repeats(filt):
+    from tlm.config import config_from_dict
+    from tlm.kernels.photons import trace_photons
+    from tlm.kernels.traverse import build_accel
+    from tlm.render.passes import Frame, cast, pmap_pass
+    from tlm.scenes.loader import load_scene
+
+    scene = load_scene("cornell", resolution=[40, 40])
+    accel = build_accel(scene.triangles)
+    cfg = config_from_dict({"mode": "pmap", "seed": 3, "estimate": {"filter": filt}})
+    frame = Frame.create(scene, accel, cfg)
+    photons = trace_photons(scene, accel, 20000, seed=3).photons
+    again = trace_photons(scene, accel, 20000, seed=3).photons
+    pixels = np.arange(1600)
+    full, work = pmap_pass(frame, cast(frame, pixels), photons)
+    rng = np.random.default_rng(0)
+    for size in (1, 7, 500):
+        sub = rng.choice(1600, size, replace=False)
+        part, wpart = pmap_pass(frame, cast(frame, sub), again)
+        np.testing.assert_array_equal(part, full[sub])
+        for k in work:
+            np.testing.assert_array_equal(wpart[k], work[k][sub])
+    assert np.isfinite(full).all() and full.max() > 0
