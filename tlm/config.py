@@ -63,7 +63,7 @@ class PhotonConfig:
     max_bounces: int = _f(8, "surface hits after which a photon path stops", min=0, max=64)
     russian_roulette: bool = _f(True, "absorb photons at Lambertian hits with probability 1 - max(albedo)")
     caustic_fraction: float = _f(
-        0.5, "share of each light's photons aimed at mirrors and dielectrics (caustic group)",
+        0.5, "share of each light's photons in the caustic group (a point light aims it at the specular objects)",
         min=0.0, max=0.95,
     )
     levels: int | None = _f(

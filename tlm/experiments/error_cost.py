@@ -46,9 +46,8 @@ from tlm.experiments.reference import (
     reference_key,
     save_reference,
 )
-from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius
+from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius, trace_photon_map
 from tlm.render.planner import photon_count
 from tlm.scenes.loader import load_scene
 
@@ -130,14 +129,11 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
         n = photon_count(scene, cfg)
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
                    cfg.photons.caustic_fraction, cfg.photons.levels)
+        frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:
             t0 = time.perf_counter()
-            traced = trace_photons(scene, accel, n, seed=cfg.seed, max_bounces=cfg.photons.max_bounces,
-                                   russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
-                                   caustic_fraction=cfg.photons.caustic_fraction)
-            maps[map_key] = (traced, time.perf_counter() - t0)
+            maps[map_key] = (trace_photon_map(frame), time.perf_counter() - t0)
         traced, trace_s = maps[map_key]
-        frame = Frame.create(scene, accel, cfg)
         t0 = time.perf_counter()
         radiance, work = pmap_pass(frame, g, traced.photons)
         gather_s = time.perf_counter() - t0

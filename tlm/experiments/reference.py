@@ -34,8 +34,7 @@ import numpy as np
 
 from tlm.config import RunConfig
 from tlm.kernels.estimate import knn_estimate
-from tlm.kernels.photons import trace_photons
-from tlm.render.passes import KIND, Frame, GBuffer
+from tlm.render.passes import Frame, GBuffer, lambertian_hits, trace_photon_map
 from tlm.scenes.model import Scene
 
 REFERENCE_SEED = 0x5EED
@@ -76,17 +75,6 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
     return h.hexdigest()[:20]
 
 
-def _lambertian_hits(frame: Frame, g: GBuffer):
-    lam = (g.triangle >= 0) & ~g.sees_light
-    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
-    idx = np.flatnonzero(lam)
-    tri = g.triangle[idx]
-    pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
-    n = frame.normals[tri]
-    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
-    return idx, tri, pts, n
-
-
 def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, progress=None) -> tuple[np.ndarray, dict]:
     """Average k-NN photon-map frames over independent maps until converged.
 
@@ -94,8 +82,8 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     """
     from scipy.spatial import cKDTree
 
-    scene, cfg = frame.scene, frame.cfg
-    idx, tri, pts, n = _lambertian_hits(frame, g)
+    cfg = frame.cfg
+    idx, tri, pts, n = lambertian_hits(frame, g)
     mean = np.zeros((g.pixels.shape[0], 3))
     m2 = np.zeros_like(mean)  # Welford's running sum of squared deviations
     changes: list[float] = []
@@ -105,9 +93,7 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     converged = False
     for k, child in enumerate(seeds, start=1):
         seed = int(child.generate_state(1)[0])
-        traced = trace_photons(scene, frame.accel, settings.photons, seed=seed,
-                               max_bounces=cfg.photons.max_bounces, caustic_fraction=cfg.photons.caustic_fraction)
-        ph = traced.photons
+        ph = trace_photon_map(frame, settings.photons, seed).photons
         frame_k = np.zeros_like(mean)
         if ph.n and idx.shape[0]:
             e = knn_estimate(ph.position, ph.power, ph.incoming, pts, n, k_nearest=settings.k_nearest,

@@ -30,11 +30,20 @@ import yaml
 
 from tlm.config import RunConfig, to_dict
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
-from tlm.kernels.photons import PhotonTrace, trace_photons
+from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.passes import PASS_FUNCTIONS, WORK_KEYS, Frame, GBuffer, cast, pmap_pass, search_radius
-from tlm.render.planner import Plan, photon_count, plan
+from tlm.render.passes import (
+    PASS_FUNCTIONS,
+    WORK_KEYS,
+    Frame,
+    GBuffer,
+    cast,
+    pmap_pass,
+    search_radius,
+    trace_photon_map,
+)
+from tlm.render.planner import Plan, plan
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
 
@@ -103,11 +112,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     for name in the_plan.run_names:
         if name == "pmap":
             with timer.stage("photon_trace"):
-                traced = trace_photons(
-                    scene, accel, photon_count(scene, cfg), seed=cfg.seed, max_bounces=cfg.photons.max_bounces,
-                    russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
-                    caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
-                )
+                traced = trace_photon_map(frame)
             with timer.stage("pass_pmap"):
                 rad, wk = pmap_pass(frame, g, traced.photons)
         else:

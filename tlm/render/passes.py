@@ -30,9 +30,10 @@ import numpy as np
 from tlm.config import RunConfig
 from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
-from tlm.kernels.photons import PhotonMap
+from tlm.kernels.photons import PhotonMap, PhotonTrace, trace_photons
 from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, reflect, refract
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
+from tlm.render.planner import photon_count
 from tlm.scenes.model import Scene
 
 WORK_KEYS = (
@@ -242,6 +243,30 @@ def refract_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.nda
     return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth)
 
 
+def lambertian_hits(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Eye hits on Lambertian surfaces (not behind a light seen directly): their packet
+    indices, triangles, points and normals facing the eye, where photons are gathered."""
+    lam = (g.triangle >= 0) & ~g.sees_light
+    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
+    idx = np.flatnonzero(lam)
+    tri = g.triangle[idx]
+    pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
+    n = frame.normals[tri]
+    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
+    return idx, tri, pts, n
+
+
+def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None) -> PhotonTrace:
+    """The frame's photon map by its ``photons.*`` settings (``n``, ``seed``: overrides)."""
+    cfg = frame.cfg
+    return trace_photons(
+        frame.scene, frame.accel, photon_count(frame.scene, cfg) if n is None else n,
+        seed=cfg.seed if seed is None else seed, max_bounces=cfg.photons.max_bounces,
+        russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
+        caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
+    )
+
+
 def search_radius(frame: Frame) -> float:
     """The fixed search radius r: ``estimate.radius`` or a fraction of the scene diagonal."""
     est = frame.cfg.estimate
@@ -258,15 +283,9 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None) -> tupl
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
     radiance = np.zeros((p, 3))
-    lam = (g.triangle >= 0) & ~g.sees_light
-    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
-    idx = np.flatnonzero(lam)
+    idx, tri, pts, n = lambertian_hits(frame, g)
     if idx.shape[0] == 0 or photons.n == 0:
         return radiance, work
-    tri = g.triangle[idx]
-    pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
-    n = frame.normals[tri]
-    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
     est = frame.cfg.estimate
     args = (photons.position, photons.power, photons.incoming)
     if est.filter == "knn":
