@@ -20,6 +20,7 @@ from tlm.kernels.shade import hash_uniform
 
 CONE = 1.1
 SLACK = 2.0**-40  # the documented widening of Fig. 8's search cube
+COPLANAR_TOL = 2.0**-32  # the documented tolerance of the k-voxel filter's flat splits
 
 # ---------------------------------------------------------------- maps and queries
 
@@ -134,15 +135,52 @@ def fig8(tree, x: np.ndarray, r: float) -> tuple[list[int], int]:
     return leaves, inner
 
 
-def descend(tree, p: np.ndarray) -> int:
-    i = 0
-    for j in range(tree.levels):
-        i = 2 * i + (2 if p[j % 3] >= tree.split[i] else 1)
-    return i - tree.leaf_offset
+def layered_splits(tree, pos):
+    """Brute force, node by node: (delta, moved splits, flat) as the module docstring defines them."""
+    delta = COPLANAR_TOL * np.abs(np.concatenate([tree.lo[0], tree.hi[0]])).max()
+    split = tree.split.copy()
+    flat = np.zeros(tree.leaf_offset, dtype=bool)
+    for i in range(tree.leaf_offset):
+        a, d = ((i + 1).bit_length() - 1) % 3, tree.split[i]
+        n_left = tree.last[2 * i + 1] - tree.first[2 * i + 1]
+        n_right = tree.last[2 * i + 2] - tree.first[2 * i + 2]
+        if n_left and n_right:
+            flat[i] = np.all(np.abs(pos[tree.items[tree.first[i] : tree.last[i]], a] - d) <= delta)
+        elif n_left:
+            split[i] = d + 2.0 * delta
+        elif n_right:
+            split[i] = d - 2.0 * delta
+    return delta, split, flat
+
+
+def descend(tree, layered, p: np.ndarray, x: np.ndarray, lim: np.ndarray) -> tuple[list[int], int]:
+    """Leaves reached by point ``p`` of the disk at ``x``, and the inner nodes visited."""
+    _, split, flat = layered
+    leaves: list[int] = []
+    inner = 0
+
+    def visit(i: int, j: int) -> None:
+        nonlocal inner
+        if j == tree.levels:
+            leaves.append(i - tree.leaf_offset)
+            return
+        inner += 1
+        a = j % 3
+        if flat[i] and abs(x[a] - tree.split[i]) <= lim[a]:  # the disk lies on the split: both layers
+            visit(2 * i + 1, j + 1)
+            visit(2 * i + 2, j + 1)
+        else:
+            visit(2 * i + (2 if p[a] >= split[i] else 1), j + 1)
+
+    visit(0, 0)
+    return leaves, inner
 
 
 def kvoxel_reference(pos, power, inc, tree, pts, nrm, r, k, cone_k, seed, keys):
-    """Query by query: sample, locate, search each distinct voxel by brute force (eqs. 3.4/3.5)."""
+    """Query by query: sample, locate, search each distinct voxel by brute force (eqs. 3.4/3.5).
+
+    A sample reaching several leaves (layers under flat splits) sums their estimates.
+    """
     m = np.arange(64)
     rho = np.sqrt((m + 0.5) / 64)
     phi = m * math.pi * (3.0 - math.sqrt(5.0))
@@ -150,9 +188,11 @@ def kvoxel_reference(pos, power, inc, tree, pts, nrm, r, k, cone_k, seed, keys):
     cw = np.round((1.0 - rho / cone_k) * 2.0**20) * 2.0**-20
     norm = (1.0 - 2.0 / (3.0 * cone_k)) * math.pi * r * r
     first, last = tree.leaf_ranges()
+    layered = layered_splits(tree, pos)
     q = pts.shape[0]
     dens = np.zeros((q, 3))
-    counts = {name: np.zeros(q, dtype=np.int64) for name in ("leaves", "tested", "accepted")}
+    names = ("leaves", "tested", "accepted", "nodes", "probes")
+    counts = {name: np.zeros(q, dtype=np.int64) for name in names}
     for i in range(q):
         x, (nx, ny, nz) = pts[i], nrm[i]
         sign = math.copysign(1.0, nz)
@@ -160,23 +200,27 @@ def kvoxel_reference(pos, power, inc, tree, pts, nrm, r, k, cone_k, seed, keys):
         b = nx * ny * a
         t1 = np.array([1.0 + sign * nx * nx * a, sign * b, -sign * nx])
         t2 = np.array([b, sign + ny * ny * a, -ny])
+        lim = layered[0] - r * np.sqrt(t1 * t1 + t2 * t2)
         s = np.arange(1, k)
         rs = r * np.sqrt(hash_uniform(seed, keys[i], 7, s, 0))
         ph = 2.0 * math.pi * hash_uniform(seed, keys[i], 7, s, 1)
         samples = [x] + [x + (u * t1 + v * t2) for u, v in zip(rs * np.cos(ph), rs * np.sin(ph))]
-        leaves = [descend(tree, p) for p in samples]
-        probe_leaf = np.array([descend(tree, x + ((r * a_) * t1 + (r * b_) * t2)) for a_, b_ in zip(pu, pv)])
-        for leaf in sorted(set(leaves)):
+        reached = [descend(tree, layered, p, x, lim) for p in samples]
+        probes = [descend(tree, layered, x + ((r * a_) * t1 + (r * b_) * t2), x, lim)[0] for a_, b_ in zip(pu, pv)]
+        counts["nodes"][i] = sum(v for _, v in reached)
+        counts["probes"][i] = sum(len(pl) for pl in probes)
+        for leaf in sorted({leaf for ls, _ in reached for leaf in ls}):
             ids = tree.items[first[leaf] : last[leaf]]
             d2 = sq_dist(pos[ids], x[None])[0]
             ok = (d2 <= r * r) & front(inc[ids], nrm[i : i + 1])[0]
             counts["leaves"][i] += 1
             counts["tested"][i] += ids.shape[0]
             counts["accepted"][i] += ok.sum()
-            frac = cw[probe_leaf == leaf].sum() / cw.sum()
+            frac = sum(c for c, pl in zip(cw, probes) if leaf in pl) / cw.sum()
+            mult = sum(leaf in ls for ls, _ in reached)
             if r > 0 and frac > 0:
                 w = np.where(ok, 1.0 - np.sqrt(d2) / (cone_k * r), 0.0)
-                dens[i] += (w @ power[ids]) / (norm * frac) * leaves.count(leaf) / k
+                dens[i] += (w @ power[ids]) / (norm * frac) * mult / k
     return dens, counts
 
 
@@ -243,8 +287,102 @@ def test_kvoxel_equals_reference(k):
     np.testing.assert_array_equal(e.photons_tested, counts["tested"])
     np.testing.assert_array_equal(e.photons_accepted, counts["accepted"])
     assert np.all(e.node_visits == k * tree.levels) and np.all(e.probe_tests == est.PROBES)
+    np.testing.assert_array_equal(e.node_visits, counts["nodes"])
+    np.testing.assert_array_equal(e.probe_tests, counts["probes"])
     assert np.all(e.leaves_visited <= k)
     finite_nonneg(e)
+
+
+def traced_plane(n: int, seed: int, z0: float = 0.5, jitter: float = 1e-13):
+    """``plane_map`` on the plane z = z0, each z off by up to ``jitter`` (rounding of traced photons)."""
+    pos, power, inc = plane_map(n, seed)
+    pos[:, 2] = z0 + np.random.default_rng(seed + 1).uniform(-jitter, jitter, n)
+    return pos, power, inc
+
+
+def scattered_z_splits(tree, pos) -> int:
+    """Inner nodes splitting along z whose photons lie on both sides, all within 1e-12 of the split."""
+    count = 0
+    for i in range(tree.leaf_offset):
+        if ((i + 1).bit_length() - 1) % 3 == 2:
+            z = pos[tree.items[tree.first[i] : tree.last[i]], 2]
+            d = tree.split[i]
+            count += bool(np.any(z < d) and np.any(z >= d) and np.all(np.abs(z - d) < 1e-12))
+    return count
+
+
+@pytest.mark.parametrize("k", [1, 4, 8])
+def test_kvoxel_layers_equal_reference(k):
+    """Photons on a plane, off it by rounding: the splits along z scatter them (layers)."""
+    pos, power, inc = traced_plane(6000, 30)
+    tree = build_point_tree(pos)
+    assert scattered_z_splits(tree, pos) >= 7
+    pts, nrm = plane_queries(60, 31)
+    pts[:, 2] = 0.5 + np.random.default_rng(32).uniform(-1e-13, 1e-13, 60)
+    pts[-10:] += [0.0, 0.0, 1e-3]  # off the plane: a disk that does not lie on the splits
+    keys = np.arange(60, dtype=np.int64) * 131 + 3
+    e = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=k, cone_k=CONE, seed=5, keys=keys)
+    ref, counts = kvoxel_reference(pos, power, inc, tree, pts, nrm, 0.1, k, CONE, 5, keys)
+    close(e.density, ref)
+    for name, key in (("leaves_visited", "leaves"), ("photons_tested", "tested"),
+                      ("photons_accepted", "accepted"), ("node_visits", "nodes"), ("probe_tests", "probes")):
+        np.testing.assert_array_equal(getattr(e, name), counts[key], err_msg=name)
+    assert np.all(e.node_visits[:-10] > k * tree.levels) and np.all(e.probe_tests[:-10] > est.PROBES)
+    np.testing.assert_array_equal(e.node_visits[-10:], k * tree.levels)
+    finite_nonneg(e)
+
+
+@pytest.mark.parametrize("k", [1, 4, 8, 16])
+def test_kvoxel_unbiased_on_traced_plane(k):
+    """Regression: with every z split on the plane, one voxel held one layer's photons only.
+
+    The voxel was credited with the whole disk, and the estimate fell to ~1/8 of the
+    m-voxel one (three z levels); summing the layers' estimates removes the bias.
+    """
+    pos, power, inc = traced_plane(40_000, 33)
+    tree = build_point_tree(pos)
+    assert scattered_z_splits(tree, pos) >= 50
+    pts, nrm = plane_queries(400, 34)
+    pts[:, 2] = 0.5 + np.random.default_rng(35).uniform(-1e-13, 1e-13, 400)
+    args = (pos, power, inc, tree, pts, nrm, 0.05)
+    mv = est.mvoxel_estimate(*args, cone_k=CONE)
+    kv = est.kvoxel_estimate(*args, k=k, cone_k=CONE, seed=6)
+    assert abs(kv.density.mean() / mv.density.mean() - 1.0) < 0.03, kv.density.mean() / mv.density.mean()
+    assert abs(mv.density.mean() / 3.0 - 1.0) < 0.03
+    # the layers' leaves are searched by the m-voxel filter too
+    assert np.all(kv.photons_tested <= mv.photons_tested)
+    finite_nonneg(kv)
+
+
+@pytest.mark.parametrize("tilt", [0.0, 1e-9, 1e-6, 1e-3])
+def test_kvoxel_unbiased_on_traced_box(tilt):
+    """Photons and queries on the six faces of a box, rounded off them by ~1e-13, faces
+    tilted by ``tilt`` (0: flat splits on every face; otherwise the splits cut the faces)."""
+    rng = np.random.default_rng(36)
+    n, q = 60_000, 600
+    pos, normal, axis = [], [], []
+    for size in (n, q):
+        p = rng.uniform(0.0, 1.0, (size, 3))
+        ax = rng.integers(0, 3, size)
+        side = rng.integers(0, 2, size).astype(np.float64)
+        rows = np.arange(size)
+        other = (ax + 1) % 3
+        p[rows, ax] = side + tilt * (p[rows, other] - 0.5) + rng.uniform(-1e-13, 1e-13, size)
+        nv = np.zeros((size, 3))
+        nv[rows, ax] = 1.0 - 2.0 * side
+        nv[rows, other] = -tilt * (1.0 - 2.0 * side)
+        pos.append(p)
+        normal.append(unit(nv))
+        axis.append(ax)
+    inc = unit(-normal[0] + rng.uniform(-0.7, 0.7, (n, 3)) * (np.abs(normal[0]) < 0.5))
+    power = rng.uniform(0.5, 1.5, (n, 3)) / n
+    tree = build_point_tree(pos[0])
+    pts, nrm = pos[1], normal[1]
+    inside = np.all((pts > 0.1) & (pts < 0.9) | (np.abs(nrm) > 0.5), axis=1)  # away from edges
+    args = (pos[0], power, inc, tree, pts[inside], nrm[inside], 0.06)
+    mv = est.mvoxel_estimate(*args, cone_k=CONE).density.sum(axis=1)
+    kv = est.kvoxel_estimate(*args, k=8, cone_k=CONE, seed=7).density.sum(axis=1)
+    assert abs(kv.mean() / mv.mean() - 1.0) < 0.03, kv.mean() / mv.mean()
 
 
 def test_kvoxel_one_voxel_is_mvoxel():
@@ -502,6 +640,30 @@ def test_packet_invariance(monkeypatch):
     small = run_all(pos, power, inc, tree, pts, nrm, keys)
     for kind in full:
         assert_same(full[kind], small[kind])
+
+
+def test_packet_invariance_with_layers(monkeypatch):
+    """Queries on a traced plane (flat splits, extra branches) and in a cloud beside it."""
+    pos, power, inc = traced_plane(5000, 37)
+    pos = np.vstack([pos, cube_map(1000, 38)[0] + [1.5, 0.0, 0.0]])  # and a cloud beside the plane
+    power, inc = np.vstack([power, power[:1000]]), np.vstack([inc, inc[:1000]])
+    tree = build_point_tree(pos)
+    pts, nrm = plane_queries(300, 39)
+    pts[:, 2] = 0.5 + np.random.default_rng(40).uniform(-1e-13, 1e-13, 300)
+    pts[200:] = cube_queries(100, 41)[0] + [1.5, 0.0, 0.0]
+    nrm[250:] = cube_queries(50, 42)[1]
+    keys = np.arange(300, dtype=np.int64) * 17 + 1
+
+    def run(idx):
+        return est.kvoxel_estimate(pos, power, inc, tree, pts[idx], nrm[idx], 0.08, k=6, seed=9, keys=keys[idx])
+
+    full = run(np.arange(300))
+    assert np.any(full.probe_tests > est.PROBES)
+    rng = np.random.default_rng(43)
+    for idx in (rng.permutation(300)[:71], rng.permutation(300), np.array([7])):
+        assert_same(full, run(idx), idx)
+    monkeypatch.setattr(est, "QUERY_BLOCK", 24)
+    assert_same(full, run(np.arange(300)))
 
 
 def test_prepared_is_the_same():
