@@ -1,0 +1,6 @@
+"""The timing layer: the thesis GPU's units as SimPy processes, in integer clock cycles.
+
+This package never changes a result of the functional layer (``tlm.kernels``); it turns
+the work the kernels report into cycles. It is built up in issue [3 of 7]; so far it
+holds the programmable PMs' data cache model (:mod:`tlm.arch.cache`).
+"""
