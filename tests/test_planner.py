@@ -189,3 +189,31 @@ def test_cornell_no_lights(tmp_path):
     p, _ = decide(load_scene(str(path)))
     assert p.run_names == ["rcast", "reflect", "refract"]
     assert len(p.notes) == 1 and "no lights" in p.notes[0]
+
+
+def test_pmap_left_out_without_lights(tmp_path):
+    _p, by = decide(load_scene(str(box_scene(tmp_path, "lambertian", lights=""))), mode="pmap")
+    assert not by["pmap"].run and "nothing emits photons" in by["pmap"].reason
+
+
+def test_pmap_left_out_with_zero_power(tmp_path):
+    dark = "lights:\n  - {type: point, position: [0, 5, -5], power: [0, 0, 0]}\n"
+    _p, by = decide(load_scene(str(box_scene(tmp_path, "lambertian", lights=dark))), mode="pmap")
+    assert not by["pmap"].run and "nothing emits photons" in by["pmap"].reason
+
+
+@pytest.mark.parametrize("material", ["mirror", "dielectric"])
+def test_pmap_left_out_without_a_diffuse_receiver(tmp_path, material):
+    _p, by = decide(load_scene(str(box_scene(tmp_path, material))), mode="pmap")
+    assert not by["pmap"].run and "no Lambertian surface" in by["pmap"].reason
+
+
+def test_pmap_left_out_with_no_photons():
+    p, by = decide(load_scene("cornell"), mode="pmap", photons={"count": 0})
+    assert p.run_names == ["rcast", "reflect", "refract"]
+    assert by["pmap"].reason == "photons.count is 0"
+
+
+def test_pmap_runs_on_a_lit_diffuse_box(tmp_path):
+    p, _by = decide(load_scene(str(box_scene(tmp_path, "lambertian"))), mode="pmap")
+    assert p.run_names == ["rcast", "pmap"]
