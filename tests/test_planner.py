@@ -215,5 +215,7 @@ def test_pmap_left_out_with_no_photons():
 
 
 def test_pmap_runs_on_a_lit_diffuse_box(tmp_path):
-    p, _by = decide(load_scene(str(box_scene(tmp_path, "lambertian"))), mode="pmap")
+    scene = load_scene(str(box_scene(tmp_path, "lambertian")))  # the file sets no photon count
+    assert decide(scene, mode="pmap")[1]["pmap"].reason == "photons.count is 0"
+    p, _by = decide(scene, mode="pmap", photons={"count": 1000})
     assert p.run_names == ["rcast", "pmap"]
