@@ -27,8 +27,6 @@ from __future__ import annotations
 import csv
 import itertools
 import json
-import os
-import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -38,6 +36,7 @@ import yaml
 
 from tlm.config import apply_overrides, config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
+from tlm.experiments.atomic import atomic_folder
 from tlm.experiments.reference import (
     ReferenceSettings,
     compute_reference,
@@ -155,12 +154,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
 
 
 def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
-        tmp.mkdir()
+    with atomic_folder(out) as tmp:
         with open(tmp / "rows.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(COLUMNS))
             w.writeheader()
@@ -168,9 +162,3 @@ def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
         (tmp / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
         (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise

@@ -25,7 +25,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import RunConfig
+from tlm.experiments.atomic import atomic_folder
 from tlm.kernels.estimate import knn_estimate
 from tlm.render.passes import Frame, GBuffer, lambertian_hits, trace_photon_map
 from tlm.scenes.model import Scene
@@ -132,17 +132,9 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
 def save_reference(key: str, image: np.ndarray, meta: dict) -> Path:
     """Write ``reference.npy`` and ``meta.json`` atomically into the cache."""
     final = cache_dir() / key
-    tmp = final.parent / f".{key}.tmp-{os.getpid()}"
-    tmp.mkdir(parents=True, exist_ok=True)
-    try:
+    with atomic_folder(final) as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
         (tmp / "meta.json").write_text(json.dumps({"key": key, **meta}, indent=2) + "\n")
-        if final.exists():
-            shutil.rmtree(final)
-        tmp.rename(final)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return final
 
 

@@ -17,9 +17,7 @@ output. Contents::
 from __future__ import annotations
 
 import json
-import os
 import platform
-import shutil
 import subprocess
 import time
 from dataclasses import dataclass, field
@@ -29,6 +27,7 @@ import numpy as np
 import yaml
 
 from tlm.config import RunConfig, to_dict
+from tlm.experiments.atomic import atomic_folder
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
@@ -234,14 +233,9 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
 def write_run(res: RenderResult, out: Path, config_path: str | None = None,
               overrides: list[str] | None = None) -> dict:
     """Write the run folder atomically (temporary sibling, then rename)."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
     t0 = time.perf_counter()
-    try:
-        (tmp / "images").mkdir(parents=True)
+    with atomic_folder(out) as tmp:
+        (tmp / "images").mkdir()
         (tmp / "radiance").mkdir()
         (tmp / "aov").mkdir()
         composite = res.composite
@@ -264,18 +258,10 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             tmp / "aov" / "work.npz",
             **{f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()},
         )
-        (tmp / "config.resolved.yaml").write_text(
-            yaml.safe_dump(to_dict(res.cfg), sort_keys=False)
-        )
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False))
         res.timer.seconds["write"] = time.perf_counter() - t0
         results = results_dict(res, exposure, config_path, overrides)
         (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return results
 
 
