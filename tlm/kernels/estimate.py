@@ -51,9 +51,11 @@ Lambertian BRDF ``albedo / pi``. A photon counts only if it arrived from the fro
   one, 5% to 38% on its axis-aligned surfaces, more with depth as more splits land on
   planes (the m-voxel search covers both sides and is immune). So a
   split is *flat* when both children hold photons and all the node's photons lie
-  within ``delta = COPLANAR_TOL * S`` of it along its axis (``S``: the largest
-  coordinate magnitude of the root box: rounding in the traced positions and in the
-  centre-of-mass sums is orders of magnitude smaller, any modelled feature larger),
+  within ``delta = min(COPLANAR_TOL * S, 2**-20 * E)`` of it along its axis (``S``:
+  the largest coordinate magnitude of the root box, ``E`` its largest extent:
+  rounding in the traced positions and in the centre-of-mass sums is orders of
+  magnitude smaller, any modelled feature larger, even for a small scene placed far
+  from the origin),
   and a query's disk *lies on* a flat split when ``|x_a - D| + r |(t1_a, t2_a)| <=
   delta`` (it is flat along the axis and on the plane, to within ``delta``). There
   every sample point and probe of the query descends into both children, so a sample
@@ -253,7 +255,7 @@ def _gather(lp: LeafPhotons, pts, nrm, pq, leaf, radius: float, cone_k: float | 
     start, size = lp.first[leaf], lp.size[leaf]
     ends = np.cumsum(size)
     r2 = radius * radius
-    inv = 1.0 / (cone_k * radius) if (cone_k is not None and radius > 0.0) else 0.0
+    span = cone_k * radius if cone_k is not None else 0.0  # the cone's base, Delta D of eq. 3.3
     a = 0
     while a < n_pairs:
         base = ends[a] - size[a]
@@ -280,7 +282,10 @@ def _gather(lp: LeafPhotons, pts, nrm, pq, leaf, radius: float, cone_k: float | 
         front = cos < 0.0
         s, ln = s[front], ln[front]
         accepted[a:b] = np.bincount(ln, minlength=b - a)
-        w = None if cone_k is None else 1.0 - np.sqrt(d2[near[front]]) * inv
+        w = None
+        if cone_k is not None:  # 1 - d / (cone_k r); d = 0 when r = 0 (a photon exactly at x)
+            d = np.sqrt(d2[near[front]])
+            w = 1.0 - np.divide(d, span, out=np.zeros_like(d), where=span > 0.0)
         for c in range(3):
             pw = lp.pow[c][s]
             sums[c, a:b] = np.bincount(ln, weights=pw if w is None else pw * w, minlength=b - a)
@@ -310,7 +315,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         out.leaves_visited[q0:q1] = np.bincount(loc, minlength=m)
         out.photons_tested[q0:q1] = np.bincount(loc, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[q0:q1] = np.bincount(loc, weights=acc, minlength=m)
-        if r > 0.0:
+        if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = _per_query(loc, sums[c], m) / norm
     return out
@@ -369,7 +374,9 @@ class _Layers:
     """The k-voxel filter's view of the tree's splits (see the module docstring).
 
     delta : the coplanarity tolerance, ``COPLANAR_TOL * S`` (S: the largest coordinate
-        magnitude of the root box). split : (nodes,) the splits, moved by ``2 delta``
+        magnitude of the root box), but at most ``2**-20`` of the box's largest extent, so
+        that a small scene far from the origin does not see its features as flat.
+    split : (nodes,) the splits, moved by ``2 delta``
         towards a child that holds no photon when its sibling does. flat : (inner nodes,)
         bool, both children hold photons and all the node's photons lie within ``delta``
         of the split along its axis. flat_level : (levels,) bool, a level holds a flat node.
@@ -383,7 +390,8 @@ class _Layers:
 
 def _layers(lp: LeafPhotons) -> _Layers:
     tree = lp.tree
-    delta = COPLANAR_TOL * float(np.abs(np.concatenate([tree.lo[0], tree.hi[0]])).max())
+    extent = float(np.max(tree.hi[0] - tree.lo[0]))
+    delta = min(COPLANAR_TOL * float(np.abs(np.concatenate([tree.lo[0], tree.hi[0]])).max()), 2.0**-20 * extent)
     split = tree.split.copy()
     inner = tree.leaf_offset
     if inner == 0:

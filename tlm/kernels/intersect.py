@@ -135,15 +135,17 @@ def closest_slots(
     tri: TriangleSoA,
     s0: int,
     s1: int,
+    shared: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Which of slots ``s0:s1`` each ray hits first inside ``(tmin, tmax)``.
 
     o, d : (3, r) float32 origins (relative to ``tri.origin``) and directions;
-        directions need not be unit (``t`` is in units of their length). ``o`` is
-        (3, 1) for rays that share one origin by construction (eye rays): ``T`` is
-        then one column and ``u``, ``v`` are linear forms in ``D``. That path rounds
-        differently from the general one, so the caller chooses it by ray kind,
-        never by what a packet happens to contain (packet invariance).
+        directions need not be unit (``t`` is in units of their length).
+    shared : the rays share one origin by construction (eye rays) and ``o`` is (3, 1):
+        ``T`` is then one column and ``u``, ``v`` are linear forms in ``D``. That path
+        rounds differently from the general one, so the caller chooses it by ray kind,
+        never by what a packet happens to contain (packet invariance): a lone ray with
+        ``shared=False`` takes the general path.
     tmin, tmax : (r,) float32, ``0 <= tmin``. ignore : (r,) int64 triangle id each ray
         must not hit (-1: none), or None when no ray ignores anything.
 
@@ -177,7 +179,8 @@ def closest_slots(
     np.copyto(dfy, dy)
     np.copyto(dfz, dz)
     dx, dy, dz = dfx, dfy, dfz
-    shared = o.shape[1] == 1  # one origin for every ray (eye rays)
+    if shared and o.shape[1] != 1:
+        raise ValueError("shared=True takes one origin column")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         v0x, v0y, v0z = col(tri.v0)
         nnx, nny, nnz = col(tri.nn)
@@ -294,11 +297,13 @@ def closest_slots64(
     tri: TriangleSoA,
     s0: int,
     s1: int,
+    shared: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`closest_slots` in float64, eq. 3.6 written out: the fallback of :func:`check`.
 
     Same arguments and results as :func:`closest_slots`, with float64 ``o`` (3, r) or
-    (3, 1), ``d`` (3, r), ``tmin``, ``tmax`` and a float64 ``tri``.
+    (3, 1), ``d`` (3, r), ``tmin``, ``tmax`` and a float64 ``tri``. One path serves
+    both shapes (broadcasting gives the same numbers), so ``shared`` changes nothing.
     """
     r = d.shape[1]
     if r == 0 or s1 <= s0:

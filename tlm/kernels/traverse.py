@@ -307,7 +307,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 rays = pray[p]
                 pslot[p], pt[p] = test(
                     o_t[:, :1] if shared_origin else o_t[:, rays], d_t[:, rays], tmin_t[rays], tmax_t[rays],
-                    None if ign is None else ign[rays], tri, s0, s1,
+                    None if ign is None else ign[rays], tri, s0, s1, shared_origin,
                 )
         # the sequential stopping rule over the batch's leaves
         for k in range(k0, k0 + batch):
