@@ -399,3 +399,23 @@ def test_counts_relations(cornell, full_hits):
     for f in COUNT_FIELDS:
         assert getattr(far.counts, f)[0] == 0
     assert far.touched.node_ids.shape == far.touched.leaf_ids.shape == (0,)
+
+
+def test_shadow_ray_work_is_kept_apart():
+    """A pass's node_visits ... tri_tests are its eye and secondary rays' alone; the
+    shadow rays' traversal is counted under shadow_* (the thesis traces them in passes
+    of their own)."""
+    from tlm.config import config_from_dict
+    from tlm.render.passes import Frame, cast, rcast_pass
+
+    scene = load_scene("cornell", resolution=[32, 32])
+    accel = build_accel(scene.triangles)
+    frame = Frame.create(scene, accel, config_from_dict({}))
+    g = cast(frame, np.arange(32 * 32))
+    _, work = rcast_pass(frame, g)
+    for name in COUNT_FIELDS:
+        np.testing.assert_array_equal(work[name], getattr(g.hits.counts, name))
+    lit = work["shadow_rays"] > 0
+    assert lit.any()
+    assert np.all(work["shadow_node_visits"][lit] > 0) and np.all(work["shadow_node_visits"][~lit] == 0)
+    assert np.all(work["shadow_tri_tests"] >= 0)

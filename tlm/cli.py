@@ -41,7 +41,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                   f"photons tested {w['photons_tested']}")
             continue
         print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
-              f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests']:>10d}")
+              f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d}")
     for name, why in results["plan"]["left_out"].items():
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:

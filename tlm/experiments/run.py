@@ -188,9 +188,11 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             gathers = total["gathers"]
             total["photons_tested_per_gather"] = total["photons_tested"] / gathers if gathers else 0.0
         else:
-            rays = total["primary_rays"] + total["secondary_rays"] + total["shadow_rays"]
+            rays = total["primary_rays"] + total["secondary_rays"]
+            shadow = total["shadow_rays"]
             total["tri_tests_per_ray"] = total["tri_tests"] / rays if rays else 0.0
             total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
+            total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
     g = res.gbuffer
     warnings = []

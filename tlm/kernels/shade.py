@@ -22,6 +22,7 @@ import numpy as np
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit
 from tlm.scenes.model import Light
 
+TRAVERSAL_COUNTS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
 SPAWN_EPS = 1e-5  # relative to the scene diagonal: above float32 test error
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -128,12 +129,13 @@ def direct_light(
     triangles : (k,) int64, the triangle each point lies on (shadow rays ignore it).
     albedo : (k, 3). keys : (k,) int64 random-stream key of each point (pixel and bounce).
     Returns radiance (k, 3) and per-point work: ``shadow_rays``, ``shadow_hits`` and the
-    traversal counts of the shadow rays.
+    traversal counts of the shadow rays (``shadow_node_visits``, ...): the thesis traces
+    shadow rays in passes of their own, so the timing model keeps them apart.
     """
     k = points.shape[0]
     irradiance = np.zeros((k, 3))
     work = {name: np.zeros(k, dtype=np.int64) for name in
-            ("shadow_rays", "shadow_hits", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests")}
+            ("shadow_rays", "shadow_hits", *(f"shadow_{c}" for c in TRAVERSAL_COUNTS))}
     g = round(np.sqrt(samples))
     for li, light in enumerate(lights):
         if light.kind == "point":
@@ -181,5 +183,5 @@ def direct_light(
 
 def _add_counts(work: dict[str, np.ndarray], index: np.ndarray, counts: Counts) -> None:
     k = next(iter(work.values())).shape[0]
-    for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
-        work[name] += np.bincount(index, weights=getattr(counts, name), minlength=k).astype(np.int64)
+    for name in TRAVERSAL_COUNTS:
+        work[f"shadow_{name}"] += np.bincount(index, weights=getattr(counts, name), minlength=k).astype(np.int64)

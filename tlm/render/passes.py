@@ -41,10 +41,14 @@ WORK_KEYS = (
     "secondary_rays",  # reflected / refracted rays traced
     "shadow_rays",  # shadow rays traced (any-hit)
     "shadow_hits",  # shadow rays that found an occluder
-    "node_visits",  # traversal: inner nodes entered, all rays of the pass
-    "leaves_crossed",  # traversal: leaves on the rays' lists
-    "leaf_visits",  # traversal: leaves tested before stopping
-    "tri_tests",  # intersection: ray-triangle tests
+    "node_visits",  # traversal of the eye and secondary rays: inner nodes entered
+    "leaves_crossed",  # ... leaves on the rays' lists
+    "leaf_visits",  # ... leaves tested before stopping
+    "tri_tests",  # ... ray-triangle tests (the Intersection PM)
+    "shadow_node_visits",  # the same four for the shadow rays, which the thesis
+    "shadow_leaves_crossed",  # traces in passes of their own
+    "shadow_leaf_visits",
+    "shadow_tri_tests",
     "fragments",  # Lambertian points shaded
     "specular_bounces",  # mirror reflections, refractions and total internal reflections
 )
