@@ -23,22 +23,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
 
 import numpy as np
 from scipy.spatial import cKDTree
+from timing import best_of
 
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.estimate import disk_estimate, knn_estimate, kvoxel_estimate, leaf_photons, mvoxel_estimate
-
-
-def best_of(fn, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def on_box_faces(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -13,24 +13,15 @@ primary-ray ratio of at least 1/20 on Cornell (the project goal: 1/10).
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+from timing import best_of
 
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
 from tlm.render.passes import KIND
 from tlm.scenes.loader import load_scene
-
-
-def best_of(fn, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def shadow_rays(scene, accel, hits, o, d):
