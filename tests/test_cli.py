@@ -243,14 +243,41 @@ def test_seed_and_determinism(tmp_path, cornell_run):
         (tmp_path / "seed7" / "images" / "composite.png").read_bytes()
 
 
-def test_existing_run_folder_is_replaced(tmp_path):
+def test_an_earlier_run_folder_is_replaced(tmp_path):
     out = tmp_path / "run"
-    out.mkdir()
-    (out / "stale.txt").write_text("old")
+    run(out, "--mode", "rcast")
+    (out / "stale.txt").write_text("old")  # an earlier run folder, with something added
     run(out, "--mode", "rcast")
     assert not (out / "stale.txt").exists()
     assert (out / "results.json").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("make", ["folder_of_other_things", "file", "cwd", "parent"])
+def test_out_never_replaces_anything_else(tmp_path, monkeypatch, capsys, make):
+    """--out refuses what is not an earlier run folder: nothing is deleted, exit 2."""
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "precious.txt").write_text("keep")
+    monkeypatch.chdir(work)
+    out = {"folder_of_other_things": "..", "file": "precious.txt", "cwd": ".", "parent": ".."}[make]
+    if make == "folder_of_other_things":
+        (tmp_path / "mine").mkdir()
+        (tmp_path / "mine" / "notes.txt").write_text("keep")
+        out = str(tmp_path / "mine")
+    assert main(["run", CORNELL, "--mode", "rcast", "--set", "resolution=[8,8]", "--out", out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tlm: error: --out:")
+    assert (work / "precious.txt").read_text() == "keep"
+    if make == "folder_of_other_things":
+        assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+    assert not list(tmp_path.rglob(".*.tmp-*"))
+
+
+def test_export_into_a_missing_folder(tmp_path, capsys):
+    assert main(["scene", "export", "ring", str(tmp_path / "nowhere" / "x.ply")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("tlm: error:") and "does not exist" in err
 
 
 def test_default_out_folder(tmp_path, monkeypatch):

@@ -219,3 +219,10 @@ def test_pmap_runs_on_a_lit_diffuse_box(tmp_path):
     assert decide(scene, mode="pmap")[1]["pmap"].reason == "photons.count is 0"
     p, _by = decide(scene, mode="pmap", photons={"count": 1000})
     assert p.run_names == ["rcast", "pmap"]
+
+
+@pytest.mark.parametrize("bounces", [0, 1])
+def test_pmap_left_out_when_no_photon_can_be_stored(bounces):
+    p, by = decide(load_scene("cornell"), mode="pmap", photons={"max_bounces": bounces})
+    assert "pmap" not in p.run_names
+    assert f"photons.max_bounces is {bounces}" in by["pmap"].reason

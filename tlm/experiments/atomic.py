@@ -1,8 +1,14 @@
-"""Output folders that appear whole or not at all.
+"""Output folders that appear whole or not at all, and never replace anything else.
 
 Everything is written into a temporary sibling folder, which is renamed onto the
 destination only when the block finished; on any error (or Ctrl-C) the temporary
 folder is removed and an earlier folder of the same name is left as it was.
+
+An existing destination is replaced only if it is an earlier output of the same kind:
+a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
+folder. Anything else — a file, a folder of other things, the current folder or one of
+its parents — is refused with an :class:`~tlm.errors.InputError`, so ``--out .`` can
+never delete a checkout.
 """
 
 from __future__ import annotations
@@ -13,17 +19,45 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from tlm.errors import InputError
+
+
+def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
+    """The resolved destination, or an InputError saying why it may not be written."""
+    out = Path(out)
+    resolved = out.resolve()
+    cwd = Path.cwd().resolve()
+    if resolved == cwd or resolved in cwd.parents:
+        raise InputError(f"{str(out)!r} is the current folder or one of its parents; name a new folder",
+                         key=key)
+    if resolved.exists():
+        if not resolved.is_dir():
+            raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
+        if any(resolved.iterdir()) and not (resolved / marker).is_file():
+            raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
+                             "refusing to replace it", key=key)
+    return resolved
+
 
 @contextmanager
-def atomic_folder(out: Path) -> Iterator[Path]:
-    """Yield a fresh temporary folder that replaces ``out`` when the block succeeds."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
+    """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
+
+    ``marker`` is the file that marks an earlier output of this kind (it may be
+    replaced); the block must write it.
+    """
+    out = check_destination(out, marker)
     tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir()
+    except OSError as e:
+        raise InputError(f"cannot create the output folder ({e.strerror})", source=str(out)) from None
     try:
         yield tmp
+        if not (tmp / marker).is_file():
+            raise RuntimeError(f"an output folder was written without its {marker}")
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)

@@ -36,7 +36,7 @@ import yaml
 
 from tlm.config import apply_overrides, config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder
+from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import (
     ReferenceSettings,
     compute_reference,
@@ -103,6 +103,7 @@ def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
 def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
     """Run every point of the experiment file ``path``; write the rows into ``out``."""
     base, points, folder = load_experiment(Path(path))
+    check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
     scene = load_scene(cfg0.scene, folder, cfg0.resolution, str(path))
     accel = build_accel(scene.triangles, levels=cfg0.bsp.levels, memory_factor=cfg0.bsp.memory_factor)
@@ -154,7 +155,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
 
 
 def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
-    with atomic_folder(out) as tmp:
+    with atomic_folder(out, "rows.jsonl") as tmp:
         with open(tmp / "rows.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(COLUMNS))
             w.writeheader()

@@ -132,7 +132,7 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
 def save_reference(key: str, image: np.ndarray, meta: dict) -> Path:
     """Write ``reference.npy`` and ``meta.json`` atomically into the cache."""
     final = cache_dir() / key
-    with atomic_folder(final) as tmp:
+    with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
         (tmp / "meta.json").write_text(json.dumps({"key": key, **meta}, indent=2) + "\n")
     return final

@@ -27,7 +27,7 @@ import numpy as np
 import yaml
 
 from tlm.config import RunConfig, to_dict
-from tlm.experiments.atomic import atomic_folder
+from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
@@ -236,7 +236,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
               overrides: list[str] | None = None) -> dict:
     """Write the run folder atomically (temporary sibling, then rename)."""
     t0 = time.perf_counter()
-    with atomic_folder(out) as tmp:
+    with atomic_folder(out, "results.json") as tmp:
         (tmp / "images").mkdir()
         (tmp / "radiance").mkdir()
         (tmp / "aov").mkdir()
@@ -275,6 +275,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     from, for error messages and ``results.json``.
     """
     source = f"{config_path} (with --set)" if overrides else config_path
+    check_destination(out, "results.json")  # before any work: a bad --out fails at once
     res = render(cfg, base, source)
     return write_run(res, out, config_path, overrides)
 

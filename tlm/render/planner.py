@@ -90,6 +90,9 @@ def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) ->
         return PassPlan("pmap", False, "no Lambertian surface: nothing stores or shows photons")
     if photon_count(scene, cfg) == 0:
         return PassPlan("pmap", False, "photons.count is 0")
+    if cfg.photons.max_bounces < 2:
+        return PassPlan("pmap", False, f"photons.max_bounces is {cfg.photons.max_bounces}: a photon's first hit "
+                        "is direct light (the ray-cast frame's), so the map would store nothing")
     return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
 
 

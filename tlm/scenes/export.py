@@ -29,6 +29,10 @@ def export_triangles(scene: Scene, path: Path) -> None:
     n = tri.shape[0]
     verts = tri.reshape(-1, 3)
     faces = np.arange(3 * n, dtype=np.int64).reshape(n, 3)
+    if not path.parent.is_dir():
+        raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
+    if path.is_dir():
+        raise InputError("is a folder; name a .ply or .obj file", source=str(path))
     tmp = path.with_name(f".{path.name}.tmp")
     if suffix == ".ply":
         header = (
