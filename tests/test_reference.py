@@ -60,10 +60,17 @@ def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
 
     assert main(["reference", cfg]) == 0
     assert "cached" in capsys.readouterr().out
+    # the stopping rule is not part of the key: a stricter tolerance recomputes the same
+    # reference, and a run with other round limits still finds it
+    assert main(["reference", cfg, "--set", "reference.tolerance=0.03"]) == 0
+    assert "does not meet tolerance" in capsys.readouterr().out
+    assert [p.name for p in (cache / "references").iterdir()] == [folder.name]
 
     assert main(["run", cfg, "--out", str(out)]) == 0
     error = json.loads((out / "results.json").read_text())["error"]
     assert error["available"] and error["reference"] == folder.name
+    assert main(["run", cfg, "--out", str(out), "--set", "reference.max_rounds=40"]) == 0
+    assert json.loads((out / "results.json").read_text())["error"]["reference"] == folder.name
     assert 0 < error["rmse"] < 0.2 and 0 < error["rel_mse"] < 0.2
     # the error falls with more photons
     assert main(["run", cfg, "--out", str(out), "--set", "photons.count=48000"]) == 0

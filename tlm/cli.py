@@ -113,9 +113,14 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     scene = load_scene(cfg.scene, base, cfg.resolution, str(args.config))
     settings = ReferenceSettings.from_config(scene, cfg)
     key = reference_key(scene, cfg, settings)
-    if not args.force and load_reference(key) is not None:
-        print(f"reference {key} is cached (use --force to compute it again)")
-        return 0
+    cached = None if args.force else load_reference(key)
+    if cached is not None:
+        err = cached[1].get("relative_standard_error")
+        if cached[1].get("converged") and err is not None and err <= settings.tolerance:
+            print(f"reference {key} is cached, relative standard error {err:.4f} <= {settings.tolerance} "
+                  "(use --force to compute it again)")
+            return 0
+        print(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
     frame = Frame.create(scene, accel, cfg)
     g = cast(frame, np.arange(scene.camera.width * scene.camera.height, dtype=np.int64))

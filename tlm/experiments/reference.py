@@ -17,7 +17,8 @@ References are cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``) in
 (triangles, materials, lights, camera and resolution), the photon path settings
 (``max_bounces``) and the reference settings. The run's seed, filter, radius and
 photon count are not part of the key: every PMap run of a scene is measured against
-the same reference.
+the same reference. Nor is the stopping rule: ``tlm reference`` reuses a cached
+reference that meets the requested tolerance and computes it again otherwise.
 """
 
 from __future__ import annotations
@@ -69,7 +70,9 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
         "lights": [asdict(lt) for lt in scene.lights],
         "camera": asdict(scene.camera),
         "max_bounces": cfg.photons.max_bounces,
-        "reference": asdict(settings),
+        # what the converged image depends on; the stopping rule (tolerance, rounds) only
+        # says how close to it the cached mean is, which meta.json records
+        "reference": {"photons": settings.photons, "k_nearest": settings.k_nearest},
     }
     h.update(json.dumps(doc, sort_keys=True).encode())
     return h.hexdigest()[:20]
