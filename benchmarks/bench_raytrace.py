@@ -20,13 +20,13 @@ from timing import best_of
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
-from tlm.render.passes import KIND
 from tlm.scenes.loader import load_scene
+from tlm.scenes.model import KIND
 
 
 def shadow_rays(scene, accel, hits, o, d):
     hit = hits.triangle >= 0
-    kinds = np.array([KIND[m.kind] for m in scene.materials])[scene.material_index]
+    kinds = scene.material_table()["kind"]
     lam = hit & (kinds[np.maximum(hits.triangle, 0)] == KIND["lambertian"])
     pts = o[lam] + hits.t[lam, None] * d[lam]
     tri = hits.triangle[lam]

@@ -137,7 +137,8 @@ def fig8(tree, x: np.ndarray, r: float) -> tuple[list[int], int]:
 
 def layered_splits(tree, pos):
     """Brute force, node by node: (delta, moved splits, flat) as the module docstring defines them."""
-    delta = COPLANAR_TOL * np.abs(np.concatenate([tree.lo[0], tree.hi[0]])).max()
+    delta = min(COPLANAR_TOL * np.abs(np.concatenate([tree.lo[0], tree.hi[0]])).max(),
+                2.0**-20 * np.max(tree.hi[0] - tree.lo[0]))
     split = tree.split.copy()
     flat = np.zeros(tree.leaf_offset, dtype=bool)
     for i in range(tree.leaf_offset):

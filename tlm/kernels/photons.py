@@ -36,11 +36,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_point_tree
-from tlm.kernels.shade import SPAWN_EPS, face_normals, hash_uniform, reflect, refract
+from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, reflect, refract
 from tlm.kernels.traverse import TriangleAccel, closest_hit
-from tlm.scenes.model import Light, Scene
+from tlm.scenes.model import KIND, Light, Scene
 
-KIND = {"lambertian": 0, "mirror": 1, "dielectric": 2}
 PHOTON_WORK = (
     "photons_emitted", "rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests",
     "bounces", "stored", "absorbed", "lost",
@@ -217,8 +216,9 @@ def trace_photons(
     if not 0.0 <= caustic_fraction < 1.0:
         raise ValueError(f"caustic_fraction (={caustic_fraction}) must be in [0, 1)")
     key = photon_key(seed)
-    mats = scene.materials
-    kind_of = np.array([KIND[m.kind] for m in mats], dtype=np.int8)[scene.material_index]
+    table = scene.material_table()
+    kind_of, albedo, refl = table["kind"], table["albedo"], table["reflectance"]
+    trans, ior = table["transmittance"], table["ior"]
     flat = scene.triangles.reshape(-1, 3)
     spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
     specular_box = (spec.min(axis=0), spec.max(axis=0)) if spec.shape[0] and caustic_fraction > 0 else None
@@ -228,10 +228,6 @@ def trace_photons(
     n = o.shape[0]
     work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
     work["photons_emitted"][:] = 1
-    albedo = np.array([m.albedo for m in mats])[scene.material_index]
-    refl = np.array([m.reflectance for m in mats])[scene.material_index]
-    trans = np.array([m.transmittance for m in mats])[scene.material_index]
-    ior = np.array([m.ior for m in mats])[scene.material_index]
     normals = face_normals(scene.triangles)
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
@@ -256,13 +252,13 @@ def trace_photons(
         work["bounces"][pid] += 1
         kind = kind_of[tri]
         n_geo = normals[tri]
-        facing = np.where((np.sum(n_geo * d, axis=1) > 0)[:, None], -n_geo, n_geo)
+        front = facing(n_geo, d)
 
         lam = kind == KIND["lambertian"]
         store = lam & (bounce > 0)  # the first hit is direct light: the ray-cast frame's
         if split:
             store &= specular_only == group
-        for name, value in (("position", x), ("normal", facing), ("incoming", d), ("power", power),
+        for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
                             ("caustic", specular_only)):
             stored[name].append(value[store])
         work["stored"][pid[store]] += 1
@@ -280,7 +276,7 @@ def trace_photons(
                 survive = a.max(axis=1) > 0
                 scale = a
             power[lam] = power[lam] * scale
-            new_d[lam] = _cosine_dirs(facing[lam], u[1][lam], u[2][lam])
+            new_d[lam] = _cosine_dirs(front[lam], u[1][lam], u[2][lam])
             if split:  # a caustic-group photon has nothing left to give after a diffuse hit
                 survive &= ~group[lam]
             alive[lam] = survive

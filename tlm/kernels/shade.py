@@ -53,6 +53,11 @@ def face_normals(triangles: np.ndarray) -> np.ndarray:
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
 
 
+def facing(n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Normals ``n`` (k, 3) turned to face the side rays of direction ``d`` arrive from."""
+    return np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)
+
+
 def reflect(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Mirror direction of ``d`` about unit normal ``n`` (either orientation)."""
     return d - 2.0 * np.sum(d * n, axis=1, keepdims=True) * n

@@ -31,10 +31,10 @@ from tlm.config import RunConfig
 from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.photons import PhotonMap, PhotonTrace, trace_photons
-from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, reflect, refract
+from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, facing, reflect, refract
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
 from tlm.render.planner import photon_count
-from tlm.scenes.model import Scene
+from tlm.scenes.model import KIND, Scene
 
 WORK_KEYS = (
     "primary_rays",  # eye rays traced
@@ -59,7 +59,6 @@ GATHER_KEYS = (
     "photons_tested",  # photons compared against the search radius
     "photons_accepted",  # photons inside it, from the front, that were filtered
 )
-KIND = {"lambertian": 0, "mirror": 1, "dielectric": 2}
 
 
 @dataclass(frozen=True)
@@ -79,22 +78,13 @@ class Frame:
 
     @classmethod
     def create(cls, scene: Scene, accel: TriangleAccel, cfg: RunConfig) -> Frame:
-        mats = scene.materials
-        mi = scene.material_index
-        table = {
-            "kind": np.array([KIND[m.kind] for m in mats], dtype=np.int8),
-            "albedo": np.array([m.albedo for m in mats], dtype=np.float64),
-            "reflectance": np.array([m.reflectance for m in mats], dtype=np.float64),
-            "transmittance": np.array([m.transmittance for m in mats], dtype=np.float64),
-            "ior": np.array([m.ior for m in mats], dtype=np.float64),
-        }
         return cls(
             scene=scene,
             accel=accel,
             cfg=cfg,
             normals=face_normals(scene.triangles),
             eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
-            **{k: v[mi] for k, v in table.items()},
+            **scene.material_table(),
         )
 
 
@@ -156,8 +146,7 @@ def _shade_lambertian(frame: Frame, pix_local: np.ndarray, keys: np.ndarray, poi
                       d: np.ndarray, tri: np.ndarray, weight: np.ndarray,
                       work: dict[str, np.ndarray]) -> np.ndarray:
     """Direct light at Lambertian hits, weighted; records fragment and shadow work."""
-    n = frame.normals[tri]
-    n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)  # face the incoming ray
+    n = facing(frame.normals[tri], d)
     radiance, w = direct_light(
         frame.accel, frame.scene.lights, points, n, tri, frame.albedo[tri], keys,
         frame.cfg.seed, frame.cfg.render.light_samples, frame.eps,
@@ -255,8 +244,7 @@ def lambertian_hits(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, n
     idx = np.flatnonzero(lam)
     tri = g.triangle[idx]
     pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
-    n = frame.normals[tri]
-    n = np.where((np.sum(n * g.direction[idx], axis=1) > 0)[:, None], -n, n)
+    n = facing(frame.normals[tri], g.direction[idx])
     return idx, tri, pts, n
 
 

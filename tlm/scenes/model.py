@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 MATERIAL_KINDS = ("lambertian", "mirror", "dielectric")
+KIND = {k: i for i, k in enumerate(MATERIAL_KINDS)}  # a material kind's small-integer code
 LIGHT_KINDS = ("quad", "point")
 
 
@@ -105,6 +106,19 @@ class Scene:
     @property
     def n_triangles(self) -> int:
         return int(self.triangles.shape[0])
+
+    def material_table(self) -> dict[str, np.ndarray]:
+        """Per-triangle material arrays: ``kind`` (n,) int8 (:data:`KIND` codes),
+        ``albedo``, ``reflectance``, ``transmittance`` (n, 3) and ``ior`` (n,)."""
+        mats = self.materials
+        table = {
+            "kind": np.array([KIND[m.kind] for m in mats], dtype=np.int8),
+            "albedo": np.array([m.albedo for m in mats], dtype=np.float64).reshape(-1, 3),
+            "reflectance": np.array([m.reflectance for m in mats], dtype=np.float64).reshape(-1, 3),
+            "transmittance": np.array([m.transmittance for m in mats], dtype=np.float64).reshape(-1, 3),
+            "ior": np.array([m.ior for m in mats], dtype=np.float64),
+        }
+        return {k: v[self.material_index] for k, v in table.items()}
 
     def kinds_present(self) -> set[str]:
         used = np.unique(self.material_index)
