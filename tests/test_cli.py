@@ -59,7 +59,7 @@ def test_run_folder_layout(cornell_run):
     out, _ = cornell_run
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     assert files == sorted([
-        "config.resolved.yaml", "results.json",
+        "config.resolved.yaml", "results.json", "trace.json",
         "images/rcast.png", "images/reflect.png", "images/refract.png", "images/composite.png",
         "radiance/rcast.npy", "radiance/reflect.npy", "radiance/refract.npy", "radiance/composite.npy",
         "aov/primary.npz", "aov/work.npz",

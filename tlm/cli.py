@@ -46,6 +46,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:
         print(f"  note: {note}")
+    cyc = results.get("cycles")
+    if cyc:
+        tm = results["timing"]
+        print(f"timing ({tm['frames']} frames, packets of {tm['packet_size']}, "
+              f"{tm['clock_hz'] / 1e6:g} MHz), millions of cycles per frame:")
+        print("  " + "  ".join(f"{k} {cyc[k] / 1e6:.3f}" for k in
+                               ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
+        print(f"  {results['fps']:.2f} frames per second")
     total = sum(results["host_seconds"].values())
     print(f"wrote {out} ({total:.2f} s)")
     return 0
@@ -161,6 +169,64 @@ def _cmd_params(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_thesis(args: argparse.Namespace) -> int:
+    from tlm.experiments.thesis import describe_rows, run_thesis
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+
+    def progress(scene, mode, results):
+        c = results["cycles"]
+        print(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {results['fps']:.2f} fps",
+              flush=True)
+
+    done = run_thesis(Path(args.config), out, progress)
+    print("ours (thesis), millions of cycles; FPS in frames per second")
+    print(describe_rows(done["rows"]))
+    sm = done["summary"]
+    med = sm["median_abs_rel_error_held_out"]
+    print(f"median |relative error| over {sm['held_out_cells']} held-out cells: "
+          f"{'n/a' if med is None else f'{med:.1%}'}; slowest PM as in the thesis in "
+          f"{sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
+    print(f"wrote {out}/thesis_comparison.csv")
+    return 0
+
+
+def _cmd_granularity(args: argparse.Namespace) -> int:
+    from tlm.experiments.granularity import run_granularity
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+
+    def progress(size, tm, secs):
+        print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
+              f"{tm.events:>9d} events, {secs:7.2f} s", flush=True)
+
+    rows = run_granularity(Path(args.config), out, progress)
+    for r in rows:
+        print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
+              f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
+    print(f"wrote {out}/granularity.csv")
+    return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from tlm.arch.programs import DEFAULT_PATH
+    from tlm.experiments.thesis import calibrate, write_calibrated
+
+    def progress(it, scales):
+        print(f"  iteration {it}: " + ", ".join(f"{k}.scale {v:.4g}" for k, v in scales.items()), flush=True)
+
+    programs, report = calibrate(Path(args.config), progress=progress)
+    for scene, cells in report["cells"].items():
+        print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
+    if args.dry_run:
+        return 0
+    target = Path(args.write) if args.write else DEFAULT_PATH
+    command = "tlm calibrate " + " ".join(sys.argv[2:]) if args.argv is None else "tlm " + " ".join(args.argv)
+    write_calibrated(programs, report, target, command)
+    print(f"wrote {target}")
+    return 0
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with the project's one-line error and exit status 2."""
 
@@ -198,6 +264,20 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
     ev.add_argument("--out", help="output folder (default: runs/<config name>)")
     ev.set_defaults(func=_cmd_error_vs_cost)
+    th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
+    th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
+    th.add_argument("--out", help="output folder (default: runs/<config name>)")
+    th.set_defaults(func=_cmd_thesis)
+    gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
+                        "with host wall time")
+    gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml")
+    gr.add_argument("--out", help="output folder (default: runs/<config name>)")
+    gr.set_defaults(func=_cmd_granularity)
+    ca = sub.add_parser("calibrate", help="fit the PM programs' scales to the RCast column of Tables I-III")
+    ca.add_argument("config", help="study YAML, e.g. configs/thesis.yaml")
+    ca.add_argument("--write", help="table to write (default: the packaged tlm/arch/programs.yaml)")
+    ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
+    ca.set_defaults(func=_cmd_calibrate)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
     return p
@@ -207,6 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+        args.argv = argv
         return args.func(args)
     except InputError as e:
         print(f"tlm: error: {e}", file=sys.stderr)

@@ -23,6 +23,7 @@ import yaml
 from tlm.errors import InputError, did_you_mean
 
 MODES = ("rcast", "reflect", "refract", "pmap")
+MEMORY_READINGS = ("swap", "copy")
 FILTERS = ("disk", "mvoxel", "kvoxel", "knn")
 
 
@@ -96,6 +97,29 @@ class ReferenceConfig:
 
 
 @dataclass(frozen=True)
+class ArchConfig:
+    clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles",
+                         min_exclusive=0.0)
+    frames: int = _f(4, "frames in the simulated stream (the same image, two in flight)", min=1, max=10000)
+    images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
+                               min=1, max=2)
+    packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",
+                          min=1)
+    fifo_depth: int = _f(1024, "triangle addresses the Traversal PM's FIFO to the Intersection PM holds", min=1)
+    page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access)", min=0)
+    flush_cycles: int = _f(4, "T_ps cycles per pipeline flush (thesis: 4)", min=0)
+    swap_cycles: int = _f(2, "cycles to re-route a PM to another module (top two address bits)", min=0)
+    copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1)
+    context_switch_cycles: int = _f(16, "cycles to save or restore a PM's context at a preemption", min=0)
+    memory: str = _f("swap", "swap: frames move down the chain by re-routing, data is copied only where two "
+                     "stages need it | copy: every hand-over copies the working set", choices=MEMORY_READINGS)
+    programs: str | None = _f(None, "instruction-cost table (YAML, relative to the config); null = the "
+                              "calibrated default tlm/arch/programs.yaml")
+    max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock", min=1)
+    trace: bool = _f(True, "write trace.json (Chrome trace events, opens in ui.perfetto.dev)")
+
+
+@dataclass(frozen=True)
 class RunConfig:
     scene: str = _f("cornell", "built-in scene name or path to a scene YAML (relative to the config)")
     mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)",
@@ -110,6 +134,7 @@ class RunConfig:
     estimate: EstimateConfig = field(default_factory=EstimateConfig, metadata={"help": "radiance estimate"})
     reference: ReferenceConfig = field(default_factory=ReferenceConfig,
                                        metadata={"help": "converged reference of the photon-map frame"})
+    arch: ArchConfig = field(default_factory=ArchConfig, metadata={"help": "the timing model (SimPy layer)"})
 
 
 def _type_ok(value: Any, tp: Any) -> bool:

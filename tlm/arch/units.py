@@ -77,13 +77,26 @@ class Trace:
     def __init__(self) -> None:
         self.events: list[dict] = []
         self.rows: dict[str, int] = {}
+        self._last: dict[int, dict] = {}  # each row's latest slice
 
     def slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
+        """Add a slice; one that continues its row's latest slice of the same name extends it."""
         if end <= start:
             return
         tid = self.rows.setdefault(scope, len(self.rows))
-        self.events.append({"name": name, "ph": "X", "ts": start, "dur": end - start, "pid": 0, "tid": tid,
-                            "args": args})
+        last = self._last.get(tid)
+        if last is not None and last["name"] == name and last["ts"] + last["dur"] == start:
+            last["dur"] = end - last["ts"]
+            for k, v in args.items():
+                old = last["args"].get(k)
+                if isinstance(v, int) and isinstance(old, int):
+                    last["args"][k] = old + v
+                elif old is None:
+                    last["args"][k] = v
+            return
+        event = {"name": name, "ph": "X", "ts": start, "dur": end - start, "pid": 0, "tid": tid, "args": args}
+        self.events.append(event)
+        self._last[tid] = event
 
     def to_json(self, clock_hz: float | None = None) -> dict:
         """The trace document; timestamps are cycles (displayed as microseconds)."""

@@ -6,7 +6,11 @@ output. Contents::
 
     config.resolved.yaml      every parameter, defaults included
     results.json              scene stats, passes run and left out (with reasons),
-                              work counts per pass, host seconds per stage, versions
+                              work counts per pass, the timing model's cycles per PM,
+                              throughput, latency and FPS with the eq. 5.1 breakdown
+                              of every unit, host seconds per stage, versions
+    trace.json                the timing model's timeline (Chrome trace events; opens
+                              in ui.perfetto.dev), unless arch.trace is false
     images/<pass>.png         tone-mapped sRGB, one exposure for all images
     images/composite.png
     radiance/<pass>.npy       float32 (H, W, 3) linear radiance, and composite.npy
@@ -26,6 +30,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tlm.arch.functional import Functional
+from tlm.arch.model import Timing, simulate
+from tlm.arch.programs import Programs, load_programs
 from tlm.config import RunConfig, to_dict
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
@@ -80,6 +87,8 @@ class RenderResult:
     timer: Timer
     photons: PhotonTrace | None = None  # the traced photon map, when the pmap pass ran
     error: dict | None = None  # the photon-map frame against its reference
+    timing: Timing | None = None  # the timing model's outcome (simulate_run)
+    programs: Programs | None = None
 
     @property
     def accel(self) -> TriangleAccel:
@@ -123,6 +132,38 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     if traced is not None:
         error = photon_error(frame, radiance["pmap"].reshape(-1, 3))
     return RenderResult(scene, cfg, the_plan, frame, g, radiance, work, timer, traced, error)
+
+
+def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
+    """The instruction-cost table of ``arch.programs`` (a path relative to the config)."""
+    if cfg.arch.programs is None:
+        return load_programs()
+    path = Path(cfg.arch.programs)
+    if not path.is_absolute() and base is not None:
+        path = base / path
+    return load_programs(path)
+
+
+def simulate_run(res: RenderResult, programs: Programs) -> Timing:
+    """Run the timing model over the rendered frame's work (the SimPy layer)."""
+    with res.timer.stage("simulate"):
+        res.programs = programs
+        res.timing = simulate(Functional.of(res), programs, res.cfg.arch)
+    return res.timing
+
+
+def timing_dict(res: RenderResult) -> dict:
+    tm, arch = res.timing, res.cfg.arch
+    return {
+        "clock_hz": arch.clock_hz,
+        "packet_size": arch.packet_size,
+        "frames": arch.frames,
+        "images_in_flight": arch.images_in_flight,
+        "memory": arch.memory,
+        "programs": {"source": res.programs.source, "scale": res.programs.scale},
+        "simpy_events": tm.events,
+        **{k: v for k, v in tm.to_dict().items() if k not in ("cycles", "fps", "events")},
+    }
 
 
 def photon_error(frame: Frame, pmap: np.ndarray) -> dict:
@@ -223,6 +264,9 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             "filter": res.cfg.estimate.filter,
             "radius": search_radius(res.frame),
         },
+        "cycles": None if res.timing is None else res.timing.cycles,
+        "fps": None if res.timing is None else res.timing.fps,
+        "timing": None if res.timing is None else timing_dict(res),
         "image": {"exposure": exposure},
         "error": res.error,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
@@ -261,6 +305,8 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             **{f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()},
         )
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False))
+        if res.timing is not None and res.timing.trace is not None:
+            res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         res.timer.seconds["write"] = time.perf_counter() - t0
         results = results_dict(res, exposure, config_path, overrides)
         (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
@@ -276,6 +322,8 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     """
     source = f"{config_path} (with --set)" if overrides else config_path
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
+    programs = programs_for(cfg, base)  # a bad instruction table fails before the render
     res = render(cfg, base, source)
+    simulate_run(res, programs)
     return write_run(res, out, config_path, overrides)
 

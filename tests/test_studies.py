@@ -1,0 +1,189 @@
+"""The thesis reproduction, the calibration, the packet-size study and the functional cache."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+import tlm.experiments.run as run_mod
+from tlm.arch.functional import Functional, cached_functional
+from tlm.arch.model import simulate
+from tlm.arch.programs import DEFAULT_PATH, load_programs
+from tlm.cli import main
+from tlm.config import config_from_dict
+from tlm.errors import InputError
+from tlm.experiments.granularity import run_granularity
+from tlm.experiments.run import render
+from tlm.experiments.thesis import (
+    COLUMNS,
+    _fit_scale,
+    calibrate,
+    load_study,
+    restrict,
+    run_thesis,
+    summarize,
+    write_calibrated,
+)
+
+TINY = {"resolution": [24, 16], "render": {"light_samples": 1}, "photons": {"count": 800},
+        "arch": {"frames": 2, "packet_size": 32}}
+
+
+def _study(tmp_path, **extra) -> str:
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump({"base": TINY, **extra}))
+    return path
+
+
+def test_restrict_equals_rendering_the_smaller_mode():
+    big = render(config_from_dict({**TINY, "scene": "cornell", "mode": "pmap"}))
+    small_cfg = config_from_dict({**TINY, "scene": "cornell", "mode": "reflect"})
+    direct = render(small_cfg)
+    cut = restrict(big, small_cfg)
+    assert cut.plan.run_names == direct.plan.run_names == ["rcast", "reflect"]
+    a, b = Functional.of(cut), Functional.of(direct)
+    for p in a.passes:
+        for k in a.work[p]:
+            np.testing.assert_array_equal(a.work[p][k], b.work[p][k], err_msg=f"{p}.{k}")
+    for p in cut.radiance:
+        np.testing.assert_array_equal(cut.radiance[p], direct.radiance[p])
+    assert cut.photons is None
+
+
+def test_thesis_study_writes_the_comparison(tmp_path):
+    path = _study(tmp_path, scenes=["ring"], modes=["rcast", "pmap"])
+    out = tmp_path / "out"
+    done = run_thesis(path, out)
+    with open(out / "thesis_comparison.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == COLUMNS
+    assert len(rows) == 2 * 6
+    marked = {(r["mode"], r["metric"]) for r in rows if r["calibrated"] == "True"}
+    assert marked == {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
+    for r in rows:
+        t, o = float(r["thesis"]), float(r["ours"])
+        assert float(r["rel_error"]) == pytest.approx((o - t) / t, abs=1e-5)
+    for mode in ("rcast", "pmap"):
+        res = json.loads((out / "ring" / mode / "results.json").read_text())
+        assert res["mode"] == mode
+        assert (out / "ring" / mode / "trace.json").exists()
+        assert float(next(r["ours"] for r in rows if r["mode"] == mode and r["metric"] == "TThru")) == \
+            pytest.approx(res["cycles"]["throughput"] / 1e6, rel=1e-6)
+    summary = json.loads((out / "thesis_summary.json").read_text())
+    assert summary["held_out_cells"] == 12 - 3
+    assert summary == {**done["summary"], "host_seconds": summary["host_seconds"]}
+
+
+def test_summary_counts_slowest_pm_matches():
+    rows = []
+    for metric, ours in (("TVert", 1.0), ("TTrav", 50.0), ("Tisct", 10.0), ("TFrag", 4.0), ("TThru", 51.0),
+                         ("FPS", 11.0)):
+        t = {"TVert": .378, "TTrav": 24.4, "Tisct": 10.8, "TFrag": 4.12, "TThru": 24.8, "FPS": 24.2}[metric]
+        rows.append({"scene": "ring", "mode": "rcast", "metric": metric, "thesis": t, "ours": ours,
+                     "rel_error": (ours - t) / t, "calibrated": metric in ("TVert", "TTrav", "TFrag")})
+    s = summarize(rows)
+    assert s["slowest_pm"]["ring/rcast"] == {"thesis": "TTrav", "ours": "TTrav", "match": True}
+    assert s["held_out_cells"] == 3
+    held = sorted(abs(r["rel_error"]) for r in rows if not r["calibrated"])
+    assert s["median_abs_rel_error_held_out"] == pytest.approx(held[1])
+
+
+def test_fit_scale_is_the_weighted_least_squares_minimum():
+    rng = np.random.default_rng(1)
+    n, m, y = rng.uniform(1, 10, 5), rng.uniform(0, 2, 5), rng.uniform(5, 20, 5)
+    s = _fit_scale(n, m, y)
+
+    def cost(x):
+        return float(np.sum(((x * n + m - y) / y) ** 2))
+
+    assert cost(s) < cost(s * 1.01) and cost(s) < cost(s * 0.99)
+    assert _fit_scale(n, m + 100 * y, y) == 0.0  # never a negative cost
+
+
+def test_calibrate_fits_and_rewrites_the_table(tmp_path):
+    path = _study(tmp_path, scenes=["ring", "cornell"], modes=["rcast"])
+    programs, report = calibrate(path, iterations=3)
+    assert set(report["cells"]) == {"ring", "cornell"}
+    assert all(programs.scale[p] > 0 for p in ("vertex", "traversal", "fragment"))
+    target = tmp_path / "programs.yaml"
+    write_calibrated(programs, report, target, "tlm calibrate study.yaml")
+    text = target.read_text()
+    assert text.startswith(DEFAULT_PATH.read_text().splitlines()[0])  # the documentation is kept
+    again = load_programs(target)
+    for p in ("vertex", "traversal", "fragment"):
+        assert again.scale[p] == pytest.approx(programs.scale[p], rel=1e-5)
+    assert again.calibration["command"] == "tlm calibrate study.yaml"
+    assert again.jobs == load_programs().jobs  # only the scales change
+
+
+def test_granularity_rows_and_the_functional_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "g.yaml"
+    path.write_text(yaml.safe_dump({"base": {**TINY, "scene": "cornell", "mode": "rcast"},
+                                    "packet_sizes": [64, 1, 8, 100000]}))
+    rows = run_granularity(path, tmp_path / "g1")
+    assert [r["packet_size"] for r in rows] == [1, 8, 64, 100000]
+    assert rows[0]["max_abs_rel_error"] == 0.0 and rows[0]["reference"] == 1
+    assert rows[0]["simpy_events"] > rows[-1]["simpy_events"]
+    # the second study reuses the cached work: rendering would fail now
+    monkeypatch.setattr(run_mod, "render", lambda *a, **k: pytest.fail("rendered again"))
+    again = run_granularity(path, tmp_path / "g2")
+    assert [r["throughput"] for r in again] == [r["throughput"] for r in rows]
+
+
+def test_cached_functional_simulates_like_a_fresh_render(tmp_path, monkeypatch):
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path))
+    cfg = config_from_dict({**TINY, "scene": "ring", "mode": "pmap"})
+    fresh, hit = cached_functional(cfg)
+    assert not hit
+    cached, hit = cached_functional(cfg)
+    assert hit
+    a = simulate(fresh, load_programs(), cfg.arch)
+    b = simulate(cached, load_programs(), cfg.arch)
+    assert a.cycles == b.cycles and a.units == b.units
+    other = config_from_dict({**TINY, "scene": "ring", "mode": "pmap", "seed": 3})
+    assert not cached_functional(other)[1]  # the seed changes the work: another entry
+
+
+@pytest.mark.parametrize("body, key", [
+    ({"base": {}, "scenes": ["ring"], "modez": ["rcast"]}, "modez"),
+    ({"base": {"scene": "ring"}}, "base.scene"),
+    ({"base": {}, "modes": ["rcast", "raytrace"]}, "modes"),
+    ({"base": {"arch": {"packet_size": 0}}}, "arch.packet_size"),
+    ({"base": {}, "scenes": []}, "scenes"),
+])
+def test_bad_study_files(tmp_path, body, key):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(body))
+    with pytest.raises(InputError) as e:
+        load_study(path)
+    assert key in str(e.value) and str(path) in str(e.value)
+
+
+@pytest.mark.parametrize("body", [
+    {"base": {}, "packet_sizes": [0, 4]},
+    {"base": {}, "packet_sizes": []},
+    {"base": {}, "packet_sizes": [4], "frames": 2},
+])
+def test_bad_granularity_files_exit_2(tmp_path, capsys, body):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(body))
+    assert main(["granularity", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_programs_table_fails_before_the_render(tmp_path, capsys):
+    table = tmp_path / "p.yaml"
+    table.write_text(DEFAULT_PATH.read_text().replace("  scale: ", "  scael: ", 1))
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({"scene": "ring", "arch": {"programs": "p.yaml"}}))
+    assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "scael" in err and "p.yaml" in err
+    assert not (tmp_path / "run").exists()

@@ -1,0 +1,170 @@
+"""The PM programs: instruction and flush costs per work item (eq. 5.1's T_norm and T_ps).
+
+The table is YAML (the calibrated default is ``tlm/arch/programs.yaml``, which documents
+every field). Per programmable PM (``vertex``, ``traversal``, ``fragment``) it has a
+``scale`` (the free parameter ``tlm calibrate`` fits) and one entry per job kind with
+
+* ``instructions``: 4-D vector instructions per work item, issued one per cycle;
+* ``flushes``: pipeline flushes per work item (each ``flush_cycles``, thesis: 4);
+* ``misses``: the work key counting the job's page misses (``null``: none), each
+  ``page_miss_cycles`` (thesis: 12).
+
+The fixed-function Intersection PM has ``ray_load_cycles``, ``triangle_cycles`` and
+``stages`` instead. :meth:`Programs.cost` turns a job's per-packet work counts into
+per-packet cycles; T_norm is rounded on the running total, so the packets of a job sum
+to the cycles of the whole job whatever the packet size.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from tlm.errors import InputError, did_you_mean
+
+DEFAULT_PATH = Path(__file__).with_name("programs.yaml")
+PROGRAMMABLE = ("vertex", "traversal", "fragment")
+JOBS = {
+    "vertex": ("geometry_bsp", "photon_emit", "photon_bsp"),
+    "traversal": ("rays", "shadow", "photons"),
+    "fragment": ("shade", "light", "photons", "gather"),
+}
+FIXED_KEYS = ("ray_load_cycles", "triangle_cycles", "stages")
+
+
+@dataclass(frozen=True)
+class JobProgram:
+    instructions: dict[str, float]
+    flushes: dict[str, float]
+    misses: str | None
+
+
+@dataclass(frozen=True)
+class Programs:
+    """A validated instruction-cost table."""
+
+    source: str
+    scale: dict[str, float]  # per programmable PM
+    jobs: dict[tuple[str, str], JobProgram]  # (pm, job) -> program
+    intersection: dict[str, int]
+    calibration: dict
+
+    def cost(self, pm: str, job: str, counts: dict[str, np.ndarray], items: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-packet (instructions cycles, flushes, page misses) of one job.
+
+        counts : work key -> (packets,) int64 summed per packet; a key the table names
+        but the counts lack counts as zero. items : (packets,) int64.
+        """
+        prog = self.jobs[(pm, job)]
+        n = items.shape[0]
+
+        def weighted(table: dict[str, float]) -> np.ndarray:
+            total = np.zeros(n)
+            for key, w in table.items():
+                v = items if key == "items" else counts.get(key)
+                if v is not None and w:
+                    total += w * np.asarray(v, dtype=np.float64)
+            return total
+
+        norm = _exact_rounding(self.scale[pm] * weighted(prog.instructions))
+        flushes = _exact_rounding(weighted(prog.flushes))
+        misses = np.asarray(counts.get(prog.misses, np.zeros(n)), dtype=np.int64) if prog.misses \
+            else np.zeros(n, dtype=np.int64)
+        return norm, flushes, misses
+
+    def instruction_count(self, pm: str, job: str, totals: dict[str, float]) -> float:
+        """Unscaled instructions of a job's whole work (for calibration)."""
+        prog = self.jobs[(pm, job)]
+        return float(sum(w * totals.get(k, 0) for k, w in prog.instructions.items()))
+
+    def with_scales(self, scales: dict[str, float]) -> Programs:
+        return Programs(self.source, {**self.scale, **scales}, self.jobs, self.intersection, self.calibration)
+
+    def to_yaml_dict(self) -> dict:
+        out: dict = {"calibration": self.calibration}
+        for pm in PROGRAMMABLE:
+            out[pm] = {"scale": self.scale[pm]}
+            for job in JOBS[pm]:
+                p = self.jobs[(pm, job)]
+                out[pm][job] = {"instructions": dict(p.instructions), "flushes": dict(p.flushes),
+                                "misses": p.misses}
+        out["intersection"] = dict(self.intersection)
+        return out
+
+
+def _exact_rounding(x: np.ndarray) -> np.ndarray:
+    """Integers whose running sums are the rounded running sums of ``x``."""
+    c = np.rint(np.cumsum(x)).astype(np.int64)
+    return np.diff(np.concatenate([[0], c]))
+
+
+def _number(v, source: str, key: str, integer: bool = False) -> float:
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v >= 0
+    if integer:
+        ok = ok and float(v).is_integer()
+    if not ok:
+        kind = "a whole number" if integer else "a number"
+        raise InputError(f"{v!r} must be {kind} >= 0", source=source, key=key)
+    return int(v) if integer else float(v)
+
+
+def _mapping(v, source: str, key: str) -> dict:
+    if v is None:
+        return {}
+    if not isinstance(v, dict):
+        raise InputError(f"must be a mapping, got {v!r}", source=source, key=key)
+    return v
+
+
+def _unknown(raw: dict, allowed, source: str, prefix: str) -> None:
+    for k in raw:
+        if k not in allowed:
+            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=source, key=f"{prefix}.{k}")
+
+
+def load_programs(path: str | Path | None = None) -> Programs:
+    """Read and check an instruction-cost table (default: the calibrated one)."""
+    p = Path(path) if path is not None else DEFAULT_PATH
+    source = str(p)
+    try:
+        raw = yaml.safe_load(p.read_text())
+    except FileNotFoundError:
+        raise InputError("file not found", source=source, key="arch.programs") from None
+    except yaml.YAMLError as e:
+        raise InputError(f"not valid YAML: {str(e).splitlines()[0]}", source=source) from None
+    raw = _mapping(raw, source, "(top)")
+    _unknown(raw, ("calibration", *PROGRAMMABLE, "intersection"), source, "programs")
+    scale, jobs = {}, {}
+    for pm in PROGRAMMABLE:
+        if pm not in raw:
+            raise InputError("missing section", source=source, key=pm)
+        sec = _mapping(raw[pm], source, pm)
+        _unknown(sec, ("scale", *JOBS[pm]), source, pm)
+        scale[pm] = _number(sec.get("scale", 1.0), source, f"{pm}.scale")
+        for job in JOBS[pm]:
+            js = _mapping(sec.get(job), source, f"{pm}.{job}")
+            _unknown(js, ("instructions", "flushes", "misses"), source, f"{pm}.{job}")
+            ins = {str(k): _number(v, source, f"{pm}.{job}.instructions.{k}")
+                   for k, v in _mapping(js.get("instructions"), source, f"{pm}.{job}.instructions").items()}
+            fl = {str(k): _number(v, source, f"{pm}.{job}.flushes.{k}")
+                  for k, v in _mapping(js.get("flushes"), source, f"{pm}.{job}.flushes").items()}
+            misses = js.get("misses")
+            if misses is not None and not isinstance(misses, str):
+                raise InputError(f"{misses!r} must be a work key or null", source=source, key=f"{pm}.{job}.misses")
+            jobs[(pm, job)] = JobProgram(ins, fl, misses)
+    isect = _mapping(raw.get("intersection"), source, "intersection")
+    _unknown(isect, FIXED_KEYS, source, "intersection")
+    defaults = {"ray_load_cycles": 2, "triangle_cycles": 3, "stages": 11}
+    fixed = {k: _number(isect.get(k, defaults[k]), source, f"intersection.{k}", integer=True) for k in FIXED_KEYS}
+    calibration = _mapping(raw.get("calibration"), source, "calibration")
+    return Programs(source, scale, jobs, fixed, calibration)
+
+
+def write_programs(programs: Programs, path: Path, header: str) -> None:
+    """Write a table (``tlm calibrate``), keeping the documentation header."""
+    body = yaml.safe_dump(programs.to_yaml_dict(), sort_keys=False, default_flow_style=False)
+    Path(path).write_text(header + body)

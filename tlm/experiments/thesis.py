@@ -1,0 +1,297 @@
+"""Reproduce Tables I-III of the thesis, and calibrate the PM programs on their RCast column.
+
+An experiment file (``configs/thesis.yaml``)::
+
+    base: {render: {light_samples: 1}}   # a run config applied to every cell
+    scenes: [ring, room, cornell]        # the thesis's three scenes
+    modes: [rcast, reflect, refract, pmap]
+
+``tlm thesis FILE --out DIR`` renders every scene once in the last (largest) mode; the
+modes are cumulative, so each smaller mode's frames are a subset of that render and
+its run folder is written from it without rendering again (``DIR/<scene>/<mode>``,
+each with its own simulation). Then ``DIR/thesis_comparison.csv`` has one row per
+(scene, mode, metric) with the columns ``scene, mode, metric, thesis, ours,
+rel_error, calibrated`` (cycles in millions as in the tables, FPS in frames per
+second), and ``DIR/thesis_summary.json`` the median absolute relative error over the
+held-out cells and, per scene-mode, whether our slowest PM is the thesis's.
+
+``tlm calibrate FILE`` fits the free parameters of the instruction table (the
+``scale`` of each programmable PM) by least squares on the relative error of the RCast
+column's TVert, TTrav and TFrag cells of the three tables (9 cells, 3 parameters) and
+writes the table (by default over the packaged ``tlm/arch/programs.yaml``). Every other
+cell is a prediction.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import json
+import re
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tlm.arch.functional import Functional
+from tlm.arch.model import PM_TABLE_NAMES, simulate
+from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
+from tlm.config import MODES, RunConfig, config_from_dict, read_yaml
+from tlm.errors import InputError
+from tlm.experiments.atomic import atomic_folder, check_destination
+from tlm.experiments.run import RenderResult, Timer, programs_for, render, simulate_run, write_run
+from tlm.render.planner import plan
+
+# Tables I-III: millions of cycles (FPS in frames per second).
+THESIS = {
+    "ring": {
+        "TVert": (0.378, 0.378, 0.378, 1.34), "TTrav": (24.4, 31.6, 68.6, 64.4),
+        "Tisct": (10.8, 15.4, 26.1, 27.8), "TFrag": (4.12, 4.42, 6.28, 16.9),
+        "TThru": (24.8, 32.0, 68.9, 64.9), "FPS": (24.2, 18.8, 8.71, 9.24),
+    },
+    "room": {
+        "TVert": (4.57, 4.57, 4.57, 8.47), "TTrav": (41.2, 43.8, 91.4, 113),
+        "Tisct": (47.7, 51.9, 110, 123), "TFrag": (5.96, 6.28, 79.0, 178),
+        "TThru": (47.9, 52.1, 110.4, 178), "FPS": (12.5, 11.5, 5.43, 3.037),
+    },
+    "cornell": {
+        "TVert": (1.52, 1.52, 1.52, 8.73), "TTrav": (42.7, 46.3, 75.8, 107),
+        "Tisct": (37.9, 39.6, 64.3, 102), "TFrag": (8.14, 8.49, 10.3, 210),
+        "TThru": (43.0, 46.7, 76.1, 210), "FPS": (14.0, 12.9, 7.88, 2.86),
+    },
+}
+METRICS = ("TVert", "TTrav", "Tisct", "TFrag", "TThru", "FPS")
+PM_METRICS = ("TVert", "TTrav", "Tisct", "TFrag")
+CALIBRATED = {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
+FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
+COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated")
+
+
+def thesis_value(scene: str, mode: str, metric: str) -> float | None:
+    table = THESIS.get(scene)
+    return None if table is None else table[metric][MODES.index(mode)]
+
+
+def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
+    raw = read_yaml(path)
+    src = str(path)
+    if not isinstance(raw, dict):
+        raise InputError("must be a mapping with base, scenes and modes", source=src)
+    for key in raw:
+        if key not in ("base", "scenes", "modes", "description"):
+            raise InputError("unknown key (expected base, scenes, modes, description)", source=src, key=str(key))
+    base = raw.get("base") or {}
+    if not isinstance(base, dict):
+        raise InputError("must be a run config mapping", source=src, key="base")
+    for key in ("scene", "mode"):
+        if key in base:
+            raise InputError(f"is set by '{key}s', not in base", source=src, key=f"base.{key}")
+    scenes = raw.get("scenes", list(THESIS))
+    modes = raw.get("modes", list(MODES))
+    if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) for s in scenes):
+        raise InputError(f"{scenes!r} must be a non-empty list of scene names or paths", source=src, key="scenes")
+    if not isinstance(modes, list) or not modes or any(m not in MODES for m in modes):
+        raise InputError(f"{modes!r} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
+    for s in scenes:
+        for m in modes:
+            config_from_dict({**base, "scene": s, "mode": m}, f"{src} (scene {s}, mode {m})")
+    return base, scenes, sorted(set(modes), key=MODES.index), Path(path).resolve().parent
+
+
+def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
+    """The render of a smaller mode, cut out of a render of a larger one (same settings)."""
+    p = plan(res.scene, cfg)
+    missing = [n for n in p.run_names if n not in res.radiance]
+    if missing:
+        raise ValueError(f"the render lacks the passes {missing}")
+    keep = p.run_names
+    pm = "pmap" in keep
+    return replace(res, cfg=cfg, plan=p, timer=Timer(dict(res.timer.seconds)),
+                   radiance={k: res.radiance[k] for k in keep},
+                   work={k: res.work[k] for k in keep}, photons=res.photons if pm else None,
+                   error=res.error if pm else None, timing=None)
+
+
+def _ours(cycles: dict, fps: float) -> dict[str, float]:
+    out = {PM_TABLE_NAMES[pm]: cycles[pm] / 1e6 for pm in PM_TABLE_NAMES}
+    out["TThru"] = cycles["throughput"] / 1e6
+    out["FPS"] = fps
+    return out
+
+
+def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]:
+    rows = []
+    for metric in METRICS:
+        t = thesis_value(scene, mode, metric)
+        o = ours[metric]
+        rows.append({
+            "scene": scene, "mode": mode, "metric": metric, "thesis": t, "ours": round(o, 6),
+            "rel_error": None if t is None else round((o - t) / t, 6),
+            "calibrated": (mode, metric) in CALIBRATED,
+        })
+    return rows
+
+
+def summarize(rows: list[dict]) -> dict:
+    held = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and not r["calibrated"]]
+    fitted = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and r["calibrated"]]
+    slowest = {}
+    cells: dict[tuple[str, str], dict[str, dict]] = {}
+    for r in rows:
+        cells.setdefault((r["scene"], r["mode"]), {})[r["metric"]] = r
+    for (scene, mode), m in cells.items():
+        if any(m[k]["thesis"] is None for k in PM_METRICS):
+            continue
+        theirs = max(PM_METRICS, key=lambda k: m[k]["thesis"])
+        ours = max(PM_METRICS, key=lambda k: m[k]["ours"])
+        slowest[f"{scene}/{mode}"] = {"thesis": theirs, "ours": ours, "match": theirs == ours}
+    return {
+        "held_out_cells": len(held),
+        "median_abs_rel_error_held_out": float(np.median(held)) if held else None,
+        "calibrated_cells": len(fitted),
+        "median_abs_rel_error_calibrated": float(np.median(fitted)) if fitted else None,
+        "slowest_pm": slowest,
+        "slowest_pm_matches": sum(v["match"] for v in slowest.values()),
+        "scene_modes": len(slowest),
+    }
+
+
+def run_thesis(path: Path, out: Path, progress=None) -> dict:
+    """Every (scene, mode) of the study: run folders, the comparison CSV and its summary."""
+    base, scenes, modes, folder = load_study(Path(path))
+    check_destination(out, "thesis_comparison.csv")
+    rows: list[dict] = []
+    wall: dict[str, float] = {}
+    with atomic_folder(out, "thesis_comparison.csv") as tmp:
+        for scene in scenes:
+            t0 = time.perf_counter()
+            big = config_from_dict({**base, "scene": scene, "mode": modes[-1]}, str(path))
+            programs = programs_for(big, folder)
+            res = render(big, folder, str(path))
+            for mode in modes:
+                cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
+                sub = restrict(res, cfg)
+                simulate_run(sub, programs)
+                results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
+                rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
+                if progress is not None:
+                    progress(scene, mode, results)
+            wall[scene] = round(time.perf_counter() - t0, 3)
+        summary = summarize(rows)
+        summary["host_seconds"] = wall
+        _write_rows(tmp / "thesis_comparison.csv", rows)
+        (tmp / "thesis_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return {"rows": rows, "summary": summary}
+
+
+def _name(scene: str) -> str:
+    return Path(scene).stem
+
+
+def _write_rows(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(COLUMNS))
+        w.writeheader()
+        w.writerows(rows)
+
+
+# -- calibration --------------------------------------------------------------------------------
+
+def _fit_scale(n: np.ndarray, m: np.ndarray, y: np.ndarray) -> float:
+    """argmin_s sum(((s n + m - y) / y)^2), s >= 0: the scale of one PM's instructions."""
+    a, b = n / y, (y - m) / y
+    denom = float(a @ a)
+    return max(float(a @ b) / denom, 0.0) if denom > 0 else 1.0
+
+
+def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs, dict]:
+    """Fit ``vertex.scale``, ``traversal.scale`` and ``fragment.scale`` to the RCast column.
+
+    The cycles of a PM are ``scale x instructions + (page misses, flushes, swaps, copies,
+    preemption)``; the second part barely depends on the scales, so the fit alternates a
+    closed-form weighted least-squares step with a re-simulation until it settles.
+    """
+    base, scenes, _modes, folder = load_study(Path(path))
+    unknown = [s for s in scenes if _name(s) not in THESIS]
+    if unknown:
+        raise InputError(f"{unknown} have no thesis table to calibrate against", source=str(path), key="scenes")
+    fns = {}
+    cfg0 = None
+    for scene in scenes:
+        cfg = config_from_dict({**base, "scene": scene, "mode": "rcast"}, str(path))
+        cfg0 = cfg0 or cfg
+        fns[scene] = (Functional.of(render(cfg, folder, str(path))), cfg)
+    programs = programs_for(cfg0, folder)
+    programs = programs.with_scales(dict.fromkeys(PROGRAMMABLE, 1.0))
+    history = []
+    for it in range(iterations):
+        sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
+        scales = {}
+        for pm, metric in FIT_PMS.items():
+            y = np.array([thesis_value(_name(s), "rcast", metric) * 1e6 for s in scenes])
+            frames = np.array([fns[s][1].arch.frames for s in scenes], dtype=float)
+            norm = np.array([sims[s].units[f"pipe0.{pm}"]["T_norm"] for s in scenes], dtype=float) / frames
+            total = np.array([sims[s].cycles[pm] for s in scenes], dtype=float)
+            n = norm / programs.scale[pm]  # instructions per frame
+            scales[pm] = _fit_scale(n, total - norm, y)
+        history.append({"iteration": it, "scales": scales,
+                        "cells": {_name(s): _ours(sims[s].cycles, sims[s].fps) for s in scenes}})
+        if progress is not None:
+            progress(it, scales)
+        converged = all(abs(scales[p] - programs.scale[p]) <= 1e-6 * max(scales[p], 1e-12) for p in scales)
+        programs = programs.with_scales(scales)
+        if converged:
+            break
+    sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
+    cells = {}
+    for s in scenes:
+        ours = _ours(sims[s].cycles, sims[s].fps)
+        cells[_name(s)] = {m: {"thesis": thesis_value(_name(s), "rcast", m), "ours": round(ours[m], 4)}
+                           for m in FIT_PMS.values()}
+    report = {"scales": programs.scale, "cells": cells, "iterations": len(history), "history": history}
+    return programs, report
+
+
+def write_calibrated(programs: Programs, report: dict, target: Path, command: str) -> None:
+    """Rewrite the table's ``scale`` values and ``calibration`` block, keeping its comments."""
+    source = Path(programs.source) if Path(programs.source).exists() else DEFAULT_PATH
+    text = source.read_text()
+    for pm in PROGRAMMABLE:
+        pattern = re.compile(rf"(^{pm}:\n(?:[ \t]*#.*\n)*  scale: )([^\n#]*)", re.MULTILINE)
+        text, n = pattern.subn(lambda m, pm=pm: m.group(1) + f"{programs.scale[pm]:.6g}", text)
+        if n != 1:
+            raise ValueError(f"{source}: cannot find '{pm}:' followed by its 'scale:' line")
+    cells = "\n".join(
+        f"    {s}: {{" + ", ".join(f"{m}: [{v['thesis']}, {v['ours']}]" for m, v in c.items()) + "}"
+        for s, c in report["cells"].items())
+    block = (
+        "calibration:\n"
+        f"  command: {json.dumps(command)}\n"
+        f"  date: {datetime.date.today().isoformat()}\n"
+        "  fitted: [vertex.scale, traversal.scale, fragment.scale]\n"
+        "  cells:  # RCast, millions of cycles: [thesis, ours after the fit]\n"
+        f"{cells}\n"
+    )
+    text, n = re.subn(r"^calibration:\n(?:[ \t]+.*\n)*", block, text, count=1, flags=re.MULTILINE)
+    if n != 1:
+        raise ValueError(f"{source}: no 'calibration:' block")
+    tmp = target.with_name(target.name + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(target)
+
+
+def describe_rows(rows: list[dict[str, Any]]) -> str:
+    lines = [f"{'scene':8s} {'mode':8s} " + " ".join(f"{m:>16s}" for m in METRICS)]
+    cells: dict[tuple[str, str], dict[str, dict]] = {}
+    for r in rows:
+        cells.setdefault((r["scene"], r["mode"]), {})[r["metric"]] = r
+    for (scene, mode), m in cells.items():
+        parts = []
+        for metric in METRICS:
+            r = m[metric]
+            t = "-" if r["thesis"] is None else f"{r['thesis']:g}"
+            parts.append(f"{r['ours']:>7.3g} ({t:>6s})")
+        lines.append(f"{scene:8s} {mode:8s} " + " ".join(f"{p:>16s}" for p in parts))
+    return "\n".join(lines)
