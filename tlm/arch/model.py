@@ -71,6 +71,7 @@ class PhaseSpec:
     name: str
     jobs: tuple[JobSpec, ...]
     copy_words: int  # words the crossbar copies between the image's modules before the phase
+    copy_to: int | None = None  # the role the copy goes to (None: the role of the phase's first job)
 
 
 @dataclass(frozen=True)
@@ -138,7 +139,7 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
                                                        items),), 0))
 
     def ti_phase(name: str, t_kind: str, work: dict[str, np.ndarray], mask: np.ndarray, keys: dict,
-                 copy_words: int) -> None:
+                 copy_words: int, copy_to: int | None = None) -> None:
         counts, items = _compact(work, mask, ps)
         zero = np.zeros(items.shape[0], dtype=np.int64)
         rays = sum((counts.get(k, zero) for k in keys["rays"]), zero)
@@ -147,7 +148,7 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
         i = _intersection(programs, t_kind, rays, tris, counts.get(keys["isect_misses"], zero))
         if copy_mode:
             copy_words += tree_words + vertex_words
-        phases.append(PhaseSpec(name, (t, i), copy_words))
+        phases.append(PhaseSpec(name, (t, i), copy_words, copy_to))
 
     def f_phase(name: str, kind: str, work: dict[str, np.ndarray], mask: np.ndarray, copy_words: int = 0) -> None:
         counts, items = _compact(work, mask, ps)
@@ -170,7 +171,7 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
         phases.append(PhaseSpec("photons.emit", (_programmable(programs, arch, "vertex", "photon_emit", 0,
                                                                emit_counts, emit.sizes),), 0))
         ti_phase("photons.trace", "photons", pw, np.ones(n, dtype=bool),
-                 {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}, first_ti_copy)
+                 {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}, first_ti_copy, 1)
         first_ti_copy = 0
         f_phase("photons.store", "photons", pw, pw["bounces"] > 0)
         stored = int(pw["stored"].sum())
@@ -192,9 +193,13 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
         if not rays.any():
             left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
             continue
-        copy = first_ti_copy + (WORDS_PER_RAY * int(w["secondary_rays"].sum()) if name != "rcast" else 0)
+        # the first ray phase receives the vertices (towards the Intersection PM's module);
+        # a secondary pass receives the Fragment PM's new rays (towards the Traversal PM's)
+        if first_ti_copy:
+            ti_phase(f"{name}.rays", "rays", w, rays > 0, ray_keys, first_ti_copy, 1)
+        else:
+            ti_phase(f"{name}.rays", "rays", w, rays > 0, ray_keys, WORDS_PER_RAY * int(w["secondary_rays"].sum()), 0)
         first_ti_copy = 0
-        ti_phase(f"{name}.rays", "rays", w, rays > 0, ray_keys, copy)
         f_phase(f"{name}.shade", "shade", w, rays > 0)
         shadow = w["shadow_rays"]
         if shadow.any():
@@ -384,7 +389,9 @@ class PM:
                 m.xbar.swaps += 1
             self.route = job.module
         if job.suspended:
-            m.trace_slice(f"mem{job.module}", "preempted", job.suspended_at, env_now(self))
+            # on a row of its own: the PM itself is busy for the other image meanwhile
+            m.trace_slice(f"{self.unit.scope} (preempted)", "preempted", job.suspended_at, env_now(self),
+                          job=job.label)
             yield from self.unit.delay("preemption", m.arch.context_switch_cycles, "restore context")
             job.suspended = False
         spec = job.spec
@@ -429,6 +436,13 @@ class PM:
             if self.unit.trace is not None:
                 self.unit.trace.slice(self.unit.scope, "busy", start, self.env.now, T_ms=waited)
         yield from self.unit.work(int(spec.norm[k]), 0, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
+        if len(self.queue) > 1:
+            # let every event of this cycle (a semaphore firing now) settle before the
+            # packet-boundary check, so preemption does not depend on event order
+            settle = self.env.event()
+            settle._ok, settle._value = True, None
+            self.env.schedule(settle, priority=2)
+            yield settle
 
     def _push(self, job: Job, k: int):
         """Put packet k's triangle addresses into the FIFO; False if preempted while it was full."""
@@ -488,9 +502,9 @@ class Model:
     pms: dict[str, PM] = field(default_factory=dict)
     frames: list[FrameRecord] = field(default_factory=list)
 
-    def trace_slice(self, scope: str, name: str, start: int, end: int) -> None:
+    def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         if self.trace is not None:
-            self.trace.slice(scope, name, start, end)
+            self.trace.slice(scope, name, start, end, **args)
 
 
 def _frame_process(model: Model, rec: FrameRecord):
@@ -546,7 +560,8 @@ def _copy_after(model: Model, prev, copy_done, spec: PhaseSpec, a: int, b: int, 
     if prev is not None:
         yield prev
     # data produced on one module of the image and needed on the other
-    src, dst = (b, a) if spec.jobs[0].role == 0 else (a, b)
+    to = spec.jobs[0].role if spec.copy_to is None else spec.copy_to
+    src, dst = (b, a) if to == 0 else (a, b)
     yield from model.xbar.copy(src, dst, spec.copy_words, f"{spec.name} (frame {frame})")
     copy_done.succeed()
 

@@ -33,6 +33,18 @@ JOBS = {
     "fragment": ("shade", "light", "photons", "gather"),
 }
 FIXED_KEYS = ("ray_load_cycles", "triangle_cycles", "stages")
+MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
+             "gather_misses")
+
+
+def work_keys() -> tuple[str, ...]:
+    """Every work item a program may price: the functional layer's keys and the model's."""
+    from tlm.arch.functional import LEVEL_FIELDS
+    from tlm.kernels.photons import PHOTON_WORK
+    from tlm.render.passes import GATHER_KEYS, WORK_KEYS
+
+    extra = ("items", "elements", "stream_restarts", "photons_emitted")
+    return tuple(dict.fromkeys((*WORK_KEYS, *GATHER_KEYS, *PHOTON_WORK, *LEVEL_FIELDS, *MISS_KEYS, *extra)))
 
 
 @dataclass(frozen=True)
@@ -145,16 +157,25 @@ def load_programs(path: str | Path | None = None) -> Programs:
         sec = _mapping(raw[pm], source, pm)
         _unknown(sec, ("scale", *JOBS[pm]), source, pm)
         scale[pm] = _number(sec.get("scale", 1.0), source, f"{pm}.scale")
+        keys = work_keys()
         for job in JOBS[pm]:
+            if job not in sec:
+                raise InputError("missing job program", source=source, key=f"{pm}.{job}")
             js = _mapping(sec.get(job), source, f"{pm}.{job}")
+            for part in ("instructions", "flushes"):
+                for k in _mapping(js.get(part), source, f"{pm}.{job}.{part}"):
+                    if k not in keys:
+                        raise InputError(f"unknown work item{did_you_mean(str(k), keys)}", source=source,
+                                         key=f"{pm}.{job}.{part}.{k}")
             _unknown(js, ("instructions", "flushes", "misses"), source, f"{pm}.{job}")
             ins = {str(k): _number(v, source, f"{pm}.{job}.instructions.{k}")
                    for k, v in _mapping(js.get("instructions"), source, f"{pm}.{job}.instructions").items()}
             fl = {str(k): _number(v, source, f"{pm}.{job}.flushes.{k}")
                   for k, v in _mapping(js.get("flushes"), source, f"{pm}.{job}.flushes").items()}
             misses = js.get("misses")
-            if misses is not None and not isinstance(misses, str):
-                raise InputError(f"{misses!r} must be a work key or null", source=source, key=f"{pm}.{job}.misses")
+            if misses is not None and (not isinstance(misses, str) or misses not in keys):
+                raise InputError(f"{misses!r} must be a work key or null{did_you_mean(str(misses), keys)}",
+                                 source=source, key=f"{pm}.{job}.misses")
             jobs[(pm, job)] = JobProgram(ins, fl, misses)
     isect = _mapping(raw.get("intersection"), source, "intersection")
     _unknown(isect, FIXED_KEYS, source, "intersection")
