@@ -414,7 +414,8 @@ def test_one_frame_throughput_is_latency_is_done():
     assert t.cycles["throughput"] == t.cycles["latency"] == 14
     assert t.fps == 600e6 / 14
     assert t.checks == {"busy + stall + idle = elapsed": True, "every work item issued is retired": True,
-                        "T_norm equals the programs' cycles": True}
+                        "T_norm equals the programs' cycles": True,
+                        "every FIFO entry pushed is popped": True}
 
 
 def test_three_frames_throughput_and_latency():

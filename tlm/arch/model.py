@@ -501,6 +501,7 @@ class Model:
     xbar: Crossbar | None = None
     pms: dict[str, PM] = field(default_factory=dict)
     frames: list[FrameRecord] = field(default_factory=list)
+    fifos: list = field(default_factory=list)
 
     def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         if self.trace is not None:
@@ -521,6 +522,8 @@ def _frame_process(model: Model, rec: FrameRecord):
             copy_done = env.event()
             after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
         fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
+        if fifo is not None:
+            model.fifos.append(fifo)
         dones = []
         for js in spec.jobs:
             done = env.event()
@@ -680,6 +683,10 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
             raise AssertionError(f"pipe0.{name}: T_norm {pm.unit.stats.norm} != the program's "
                                  f"{expected_norm[name]}")
     checks["every work item issued is retired"] = True
+    for fifo in model.fifos:
+        if fifo.pushed != fifo.popped or fifo.space.level != fifo.depth:
+            raise AssertionError(f"a FIFO ended with {fifo.pushed} addresses pushed, {fifo.popped} popped")
+    checks["every FIFO entry pushed is popped"] = True
     checks["T_norm equals the programs' cycles"] = True
     for rec in model.frames:
         if rec.done < 0:
