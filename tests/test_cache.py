@@ -1,11 +1,25 @@
-"""The PM data cache: page misses of address streams, checked by hand."""
+"""The PM data cache: page misses of address streams, checked by hand; compressed
+streams (page spans, compaction, owner-major reordering) against the full streams."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from tlm.arch.cache import PAGE_WORDS, PairState, misses_per_packet, page_misses, span_addresses
+from tlm.arch.cache import (
+    PAGE_WORDS,
+    Accesses,
+    PairState,
+    Recorder,
+    Streams,
+    misses_per_packet,
+    page_misses,
+    page_spans,
+    range_misses,
+    span_addresses,
+)
 
 
 def misses(addresses, state=None, page_words=8):
@@ -32,6 +46,15 @@ def test_state_carries_across_packets():
     first, mid = page_misses(stream[:37], page_words=8)
     second, _ = page_misses(stream[37:], mid, page_words=8)
     np.testing.assert_array_equal(np.concatenate([first, second]), whole)
+
+
+def test_a_prefetch_armed_in_the_previous_packet_stays_armed():
+    # page 0 is armed by offset 6 in the first packet; the second goes on with page 0
+    # below the middle, then steps to page 1: the prefetch issued before still hits
+    whole, _ = misses([0, 6, 1, 2, 8])
+    first, mid = misses([0, 6])
+    second, end = misses([1, 2, 8], mid)
+    assert whole == first == [0] and second == [] and end == PairState(1, False)
 
 
 def test_misses_per_packet_and_empty_stream():
@@ -63,3 +86,113 @@ def test_default_page_is_the_thesis_block():
 def test_bad_page_size():
     with pytest.raises(ValueError, match="page_words"):
         page_misses(np.arange(3), page_words=0)
+
+
+# ---------------------------------------------------------------- compressed streams
+
+OWNERS = 5
+ranges = st.lists(st.tuples(st.integers(0, 120), st.integers(-3, 40), st.integers(0, OWNERS - 1)), max_size=30)
+pages = st.sampled_from([1, 2, 3, 4, 8, 16, 1024])
+states = st.one_of(st.none(), st.builds(PairState, st.integers(-1, 12), st.booleans()))
+
+
+def expand(first, last, owner):
+    """The full stream: every word of every range, with its owner."""
+    words = span_addresses(first, last)
+    return words, np.repeat(owner, np.maximum(np.asarray(last) - np.asarray(first), 0))
+
+
+def arrays(rs):
+    a = np.array(rs, dtype=np.int64).reshape(-1, 3)
+    return a[:, 0], a[:, 0] + a[:, 1], a[:, 2]
+
+
+@settings(max_examples=300, deadline=None)
+@given(ranges, pages, states)
+def test_page_spans_give_the_misses_of_the_full_stream(rs, page_words, state):
+    first, last, owner = arrays(rs)
+    words, own = expand(first, last, owner)
+    want, want_end = misses_per_packet(words, own, OWNERS, state, page_words)
+    got, end = range_misses(first, last, owner, OWNERS, state, page_words)
+    np.testing.assert_array_equal(got, want)
+    assert end == want_end
+    # the spans: first and last word of each (range, page), in the range's page
+    spans, span_owner = page_spans(first, last, owner, page_words)
+    assert spans.shape == span_owner.shape and spans.shape[0] % 2 == 0
+    lo, hi = spans[0::2], spans[1::2]
+    assert np.all(lo <= hi) and np.all(lo // page_words == hi // page_words)
+    assert np.isin(spans, words).all() and np.array_equal(np.unique(lo // page_words), np.unique(words // page_words))
+    # and compacted
+    acc = Accesses.of_ranges(first, last, owner, page_words)
+    got, end = misses_per_packet(acc.words, acc.owner, OWNERS, state, page_words)
+    np.testing.assert_array_equal(got, want)
+    assert end == want_end
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, OWNERS - 1), ranges), max_size=8), pages, states)
+def test_compacted_steps_in_owner_order_give_the_full_owner_major_stream(steps, page_words, state):
+    """A kernel's steps (bounces) each read ranges for several owners; charged owner-major,
+    each owner's reads in step order, the compacted steps give the full stream's misses."""
+    rec = Recorder(page_words)
+    per_owner = {o: [] for o in range(OWNERS)}
+    for shift, rs in steps:
+        first, last, owner = arrays(rs)
+        local = (owner + shift) % OWNERS  # the step's own owner numbering ...
+        names = (np.arange(OWNERS) - shift) % OWNERS  # ... renamed to the program's
+        rec.add("s", Accesses.of_ranges(first, last, local, page_words), names)
+        for f, la, o in zip(first.tolist(), last.tolist(), owner.tolist(), strict=True):
+            per_owner[o].append((f, la))
+    flat = np.array([(f, la, o) for o in range(OWNERS) for f, la in per_owner[o]], dtype=np.int64).reshape(-1, 3)
+    words, own = expand(flat[:, 0], flat[:, 1], flat[:, 2])
+    want, want_end = misses_per_packet(words, own, OWNERS, state, page_words)
+    streams = Streams(page_words)
+    if state is not None:
+        streams.states["s"] = state
+    got = rec.charge(streams, OWNERS).get("s", np.zeros(OWNERS, np.int64))
+    np.testing.assert_array_equal(got, want)
+    assert streams.states.get("s", state or PairState()) == want_end
+
+
+def test_streams_carry_the_state_from_packet_to_packet():
+    rng = np.random.default_rng(1)
+    length = rng.integers(0, 60, 300)
+    first = np.cumsum(length) - length + np.where(rng.random(300) < 0.05, 500, 0)  # mostly sequential
+    last = first + length
+    owner = np.sort(rng.integers(0, 40, 300))
+    whole, _ = range_misses(first, last, owner, 40, page_words=64)
+    cuts = ((0, 7), (7, 8), (8, 40))
+    for carried in (True, False):
+        streams = Streams(64)
+        parts = []
+        for lo, hi in cuts:
+            sel = (owner >= lo) & (owner < hi)
+            acc = Accesses.of_ranges(first[sel], last[sel], owner[sel] - lo, 64)
+            parts.append((streams if carried else Streams(64)).charge("x", acc, hi - lo))
+        if carried:
+            np.testing.assert_array_equal(np.concatenate(parts), whole)
+        else:  # cold pairs per packet miss where the packet starts
+            assert np.concatenate(parts).sum() > whole.sum()
+
+
+def test_compact_keeps_the_largest_word_of_each_run():
+    acc = Accesses.of_words([3, 1, 6, 9, 8, 2, 2], [0, 0, 0, 0, 1, 1, 2], page_words=8)
+    assert acc.words.tolist() == [6, 9, 8, 2, 2] and acc.owner.tolist() == [0, 0, 1, 1, 2]
+    assert page_spans([0, 5, 9], [20, 5, 10], [4, 5, 6], 8)[0].tolist() == [0, 7, 8, 15, 16, 19, 9, 9]
+    with pytest.raises(ValueError, match="16-word pages"):
+        Streams(8).charge("x", acc.__class__(acc.words, acc.owner, 16), 3)
+    with pytest.raises(ValueError, match="page_words"):
+        Streams(0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(0, 60), max_size=40), st.lists(st.integers(0, 40), max_size=4), pages, states)
+def test_any_split_with_the_state_carried_is_the_whole_stream(stream, cuts, page_words, state):
+    a = np.array(stream, dtype=np.int64)
+    whole, end = page_misses(a, state, page_words)
+    parts, s = [], state
+    for lo, hi in zip([0, *sorted(cuts)], [*sorted(cuts), len(stream)], strict=True):
+        miss, s = page_misses(a[lo:hi] if lo < hi else a[:0], s, page_words)
+        parts.append(miss)
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    assert s == end or (len(stream) == 0 and s == (state or PairState()))

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from tlm.arch.cache import Streams, page_misses, span_addresses
 from tlm.kernels import estimate as est
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.shade import hash_uniform
@@ -608,17 +609,25 @@ def test_invalid_arguments():
 # ---------------------------------------------------------------- packet invariance
 
 
-def run_all(pos, power, inc, tree, pts, nrm, keys):
+def run_all(pos, power, inc, tree, pts, nrm, keys, streams=None):
+    """Every filter; ``streams``: one Streams per filter (a dict), or one to copy, or None."""
+    if not isinstance(streams, dict):
+        streams = {kind: None if streams is None else Streams(streams.page_words)
+                   for kind in ("disk", "mvoxel", "kvoxel")}
     return {
-        "disk": est.disk_estimate(pos, power, inc, tree, pts, nrm, 0.08),
-        "mvoxel": est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, cone_k=CONE),
-        "kvoxel": est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, k=6, seed=9, keys=keys),
+        "disk": est.disk_estimate(pos, power, inc, tree, pts, nrm, 0.08, streams=streams["disk"]),
+        "mvoxel": est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, cone_k=CONE, streams=streams["mvoxel"]),
+        "kvoxel": est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, k=6, seed=9, keys=keys,
+                                      streams=streams["kvoxel"]),
         "knn": est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=20),
     }
 
 
-def assert_same(a: est.Estimate, b: est.Estimate, idx=slice(None)) -> None:
-    for name in ("density", "node_visits", "leaves_visited", "photons_tested", "photons_accepted", "probe_tests"):
+def assert_same(a: est.Estimate, b: est.Estimate, idx=slice(None), misses: bool = False) -> None:
+    """Equal results and work; ``misses``: the page misses too (they depend on the queries
+    before, so only for the same queries in the same order)."""
+    names = ["density", "node_visits", "leaves_visited", "photons_tested", "photons_accepted", "probe_tests"]
+    for name in names + ["gather_misses"] * misses:
         np.testing.assert_array_equal(getattr(a, name)[idx], getattr(b, name), err_msg=name)
 
 
@@ -640,7 +649,7 @@ def test_packet_invariance(monkeypatch):
     monkeypatch.setattr(est, "PAIR_BUDGET", 60)
     small = run_all(pos, power, inc, tree, pts, nrm, keys)
     for kind in full:
-        assert_same(full[kind], small[kind])
+        assert_same(full[kind], small[kind], misses=True)
 
 
 def test_packet_invariance_with_layers(monkeypatch):
@@ -664,7 +673,7 @@ def test_packet_invariance_with_layers(monkeypatch):
     for idx in (rng.permutation(300)[:71], rng.permutation(300), np.array([7])):
         assert_same(full, run(idx), idx)
     monkeypatch.setattr(est, "QUERY_BLOCK", 24)
-    assert_same(full, run(np.arange(300)))
+    assert_same(full, run(np.arange(300)), misses=True)
 
 
 def test_prepared_is_the_same():
@@ -709,3 +718,63 @@ def test_mvoxel_work_counts(surface):
             touching = np.flatnonzero(np.sum(gap * gap, axis=1) <= r * r)
             assert set(touching.tolist()) <= set(leaves)
             assert e.leaves_visited[i] >= touching.shape[0]
+
+
+# ---------------------------------------------------------------- page misses
+
+
+def test_gather_misses_are_those_of_the_photon_leaf_stream():
+    """Disk and m-voxel: the misses of reading, query by query, every photon (2 words) of
+    every leaf Fig. 8 lists, left to right; the k-voxel filter's of its own leaves."""
+    pos, power, inc = cube_map(5000, 51)
+    tree = build_point_tree(pos)
+    pts, nrm = cube_queries(80, 52, -0.1, 1.1)
+    lp = est.leaf_photons(pos, power, inc, tree)
+    for page_words in (1024, 64):
+        for e in (est.disk_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(page_words)),
+                  est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(page_words))):
+            words, owner = [], []
+            for i in range(pts.shape[0]):
+                leaves, _ = fig8(tree, pts[i], 0.1)
+                w = span_addresses(lp.first[leaves], lp.first[leaves] + lp.size[leaves], 2)
+                words.append(w)
+                owner.append(np.full(w.shape[0], i))
+            miss, _ = page_misses(np.concatenate(words), page_words=page_words)
+            want = np.bincount(np.concatenate(owner)[miss], minlength=pts.shape[0])
+            np.testing.assert_array_equal(e.gather_misses, want)
+            assert want.sum() > (0 if page_words == 1024 else pts.shape[0])
+    kv = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(64))
+    assert np.all(kv.gather_misses <= 2 * kv.photons_tested) and kv.gather_misses.sum() > 0
+    assert np.all(kv.gather_misses[kv.photons_tested == 0] == 0)
+    # every query's leaves on a page of their own: one miss per leaf (read once each)
+    one = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(1))
+    full = kv.photons_tested > 0
+    assert np.all(one.gather_misses[full] >= 1)
+    assert np.all(one.gather_misses <= 2 * kv.photons_tested)
+    knn = est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=20)
+    assert np.all(knn.gather_misses == 0)  # the cKDTree reference: no hardware leaves
+
+
+def test_gather_misses_of_packets_in_order_with_the_state_carried():
+    pos, power, inc = cube_map(6000, 53)
+    tree = build_point_tree(pos)
+    pts, nrm = cube_queries(300, 54, -0.05, 1.05)
+    order = np.lexsort(np.round(pts * 3).T[::-1])  # coherent, like neighbouring pixels
+    pts, nrm = pts[order], nrm[order]
+    keys = np.arange(300, dtype=np.int64) * 7 + 2
+    for page_words in (1024, 32):
+        whole = run_all(pos, power, inc, tree, pts, nrm, keys, Streams(page_words))
+        streams = {kind: Streams(page_words) for kind in whole}
+        parts = {kind: [] for kind in whole}
+        cold = dict.fromkeys(whole, 0)
+        for s0 in range(0, 300, 37):
+            sl = slice(s0, s0 + 37)
+            for kind, e in run_all(pos, power, inc, tree, pts[sl], nrm[sl], keys[sl], streams).items():
+                parts[kind].append(e.gather_misses)
+            for kind, e in run_all(pos, power, inc, tree, pts[sl], nrm[sl], keys[sl], Streams(page_words)).items():
+                cold[kind] += int(e.gather_misses.sum())
+        for kind, e in whole.items():
+            np.testing.assert_array_equal(np.concatenate(parts[kind]), e.gather_misses, err_msg=kind)
+            if kind != "knn":  # cold pairs per packet miss where the packets start
+                assert cold[kind] >= e.gather_misses.sum() > 0, (kind, page_words)
+                assert cold[kind] > e.gather_misses.sum() or page_words < 1024, kind

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from tlm.arch.cache import page_misses, span_addresses
+from tlm.kernels import photons as photons_module
 from tlm.kernels.photons import bounding_cone, emit, photon_key, split_photons, trace_photons
 from tlm.kernels.traverse import build_accel
 from tlm.scenes.loader import load_scene
@@ -99,6 +101,47 @@ def test_caustic_group_stores_only_caustics():
     none = trace_photons(scene, accel, 20000, seed=1, caustic_fraction=0.0)
     # without a caustic group the global photons store caustics too
     assert none.photons.caustic.any()
+
+
+def test_photon_misses_are_those_of_the_photon_major_streams(monkeypatch):
+    """Each photon's page misses, all its bounces: the full word streams of its rays (node
+    heap and leaf indices for the Traversal PM, vertices for the Intersection PM), photon
+    after photon in emission order, each photon's bounces in order."""
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    calls = []
+    real = photons_module.closest_hit
+
+    def spy(*args, **kw):
+        h = real(*args, **kw)
+        calls.append(h.touched)
+        return h
+
+    monkeypatch.setattr(photons_module, "closest_hit", spy)
+    tr = trace_photons(scene, accel, 1500, seed=2)
+    n = 1500
+    assert len(calls) >= 3 and tr.work["rays"].max() == len(calls)
+    rows = {"nodes": [], "indices": [], "vertices": []}  # (photon, bounce, words)
+    for b, t in enumerate(calls):
+        pid = np.flatnonzero(tr.work["rays"] > b)  # the photons still travelling, in order
+        for i, p in enumerate(pid.tolist()):
+            leaves = t.leaf_ids[t.leaf_ptr[i] : t.leaf_ptr[i + 1]]
+            lf, ll = accel.leaf_first[leaves], accel.leaf_last[leaves]
+            lf, ll = lf[ll > lf], ll[ll > lf]
+            rows["nodes"].append((p, b, t.node_ids[t.node_ptr[i] : t.node_ptr[i + 1]]))
+            rows["indices"].append((p, b, span_addresses(lf // 4, (ll - 1) // 4 + 1)))
+            rows["vertices"].append((p, b, span_addresses(lf, ll, 3)))
+    want = {"trav_misses": np.zeros(n, np.int64), "isect_misses": np.zeros(n, np.int64)}
+    for name, r in rows.items():
+        r.sort(key=lambda x: x[:2])
+        words = np.concatenate([x[2] for x in r])
+        owner = np.concatenate([np.full(x[2].shape[0], x[0]) for x in r])
+        miss, _ = page_misses(words)
+        want["isect_misses" if name == "vertices" else "trav_misses"] += np.bincount(owner[miss], minlength=n)
+    for k, v in want.items():
+        np.testing.assert_array_equal(tr.work[k], v, err_msg=k)
+        assert v.sum() > 0
+    assert tr.work["isect_misses"].sum() > tr.work["trav_misses"].sum()  # 16 vertex pages, 2 index pages
 
 
 @pytest.mark.parametrize("bad", [{"n": -1}, {"max_bounces": -1}, {"caustic_fraction": 1.0}])

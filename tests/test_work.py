@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tlm.arch.cache import Streams
 from tlm.arch.work import frame_work, split, tree_work
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
@@ -31,20 +32,28 @@ def test_packets_sum_to_the_frame_for_every_size(result):
 
 
 def test_a_packet_equals_the_kernels_run_on_it(result):
-    """The seam's promise: packet k's counts are what the pass computes for its pixels."""
+    """The seam's promise: packet k's counts are what the pass computes for its pixels, the
+    packets run in order with the cache pairs' state carried (page misses depend on the
+    accesses before)."""
     fw = frame_work(result, 64)
     frame = result.frame
-    for k in (0, 3, 7):  # 7 is the short last packet (480 = 7 * 64 + 32)
+    reflect = next(p for p in fw.passes if p.name == "reflect")
+    pm = next(p for p in fw.passes if p.name == "pmap")
+    assert reflect.counts["trav_misses"].sum() > 0 and pm.counts["gather_misses"].sum() > 0
+    streams = {"reflect": Streams(), "pmap": Streams()}
+    cold = 0
+    for k in range(8):  # 7 is the short last packet (480 = 7 * 64 + 32)
         pixels = np.arange(64 * k, min(64 * (k + 1), 480))
         g = cast(frame, pixels)
-        _, work = reflect_pass(frame, g)
-        reflect = next(p for p in fw.passes if p.name == "reflect")
+        _, work = reflect_pass(frame, g, streams["reflect"])
         for key, v in work.items():
             assert reflect.counts[key][k] == v.sum(), key
-        _, gather = pmap_pass(frame, g, result.photons.photons)
-        pm = next(p for p in fw.passes if p.name == "pmap")
+        _, gather = pmap_pass(frame, g, result.photons.photons, streams=streams["pmap"])
         for key, v in gather.items():
             assert pm.counts[key][k] == v.sum(), key
+        _, alone = pmap_pass(frame, g, result.photons.photons)  # cold pairs
+        cold += alone["gather_misses"].sum()
+    assert cold > pm.counts["gather_misses"].sum()  # without the carried state it differs
 
 
 def test_tree_work_matches_algorithm_1(result):

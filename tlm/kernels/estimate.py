@@ -86,13 +86,22 @@ root included: one split comparison each; for the k-voxel filter ``k * levels`` 
 the inner nodes below flat splits visited by the samples' extra branches),
 ``leaves_visited`` (distinct leaves searched), ``photons_tested`` (the sizes of the
 leaves searched; for k-NN the neighbours examined), ``photons_accepted`` (within ``r``
-and from the front) and ``probe_tests`` (k-voxel only: leaves the probe points reach,
-``PROBES`` per query plus one per extra branch at flat splits).
+and from the front), ``probe_tests`` (k-voxel only: leaves the probe points reach,
+``PROBES`` per query plus one per extra branch at flat splits) and ``gather_misses``:
+the page misses (:mod:`tlm.arch.cache`) of the Fragment PM's photon-leaf pair reading
+the photons of every leaf searched (``PHOTON_WORDS`` = 2 words per photon, leaves in
+slot order, one address space), queries in order and each query's leaves in the order
+searched (the m-voxel lists' left-to-right order; the k-voxel filter's distinct leaves,
+each read once, in leaf order). k-NN reads no photon leaves of this tree (it is the
+``cKDTree`` reference, not hardware): 0.
 
-Packet invariance: a query's numbers never depend on the other queries computed with
-it. Photons are summed per (query, leaf) pair in photon-slot order with
+Packet invariance: a query's numbers (but ``gather_misses``) never depend on the other
+queries computed with it. Photons are summed per (query, leaf) pair in photon-slot order with
 ``np.bincount`` (which adds in array order), then per query over its pairs in leaf
-order; the probe weights are multiples of ``2**-20`` so their sums are exact.
+order; the probe weights are multiples of ``2**-20`` so their sums are exact. The misses
+depend on the gathers before, so each filter takes ``streams``
+(:class:`~tlm.arch.cache.Streams`, the pair's state; default: cold), and queries
+computed in consecutive packets with one such object get the misses of one call.
 Randomness comes from :func:`~tlm.kernels.shade.hash_uniform` keyed by the query's key
 (``keys``; the default ``arange(q)`` depends on the position in the packet, so pass
 stable keys, e.g. pixel ids, when invariance matters). Radius 0, empty maps or leaves
@@ -106,6 +115,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tlm.arch.cache import PHOTON_WORDS, Accesses, Streams
 from tlm.kernels.bsp import BSPTree
 from tlm.kernels.shade import hash_uniform
 
@@ -123,8 +133,8 @@ class Estimate:
     """Result of a radiance estimate for ``q`` queries.
 
     density : (q, 3) float64, reflected flux density ``sum w power / area`` (W/m^2).
-    node_visits, leaves_visited, photons_tested, photons_accepted, probe_tests :
-        (q,) int64 work counts (see the module docstring).
+    node_visits, leaves_visited, photons_tested, photons_accepted, probe_tests,
+    gather_misses : (q,) int64 work counts (see the module docstring).
     """
 
     density: np.ndarray
@@ -133,6 +143,7 @@ class Estimate:
     photons_tested: np.ndarray
     photons_accepted: np.ndarray
     probe_tests: np.ndarray
+    gather_misses: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -206,7 +217,18 @@ def _prepare(position, power, incoming, tree, points, normals, prepared):
 
 def _empty(q: int) -> Estimate:
     z = np.zeros(q, dtype=np.int64)
-    return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy())
+    return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy(), z.copy())
+
+
+GATHER_STREAM = "photons"  # the Fragment PM's pair reading photon leaves
+
+
+def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int) -> np.ndarray:
+    """Misses (m,) of reading the photons of leaf ``leaf[i]`` for query ``query[i]`` (in
+    ``[0, m)``), pairs in order, on the pair ``streams[GATHER_STREAM]``."""
+    first = lp.first[leaf] * PHOTON_WORDS
+    acc = Accesses.of_ranges(first, first + lp.size[leaf] * PHOTON_WORDS, query, streams.page_words)
+    return streams.charge(GATHER_STREAM, acc, m)
 
 
 def _per_query(index: np.ndarray, values: np.ndarray, q: int) -> np.ndarray:
@@ -293,8 +315,9 @@ def _gather(lp: LeafPhotons, pts, nrm, pq, leaf, radius: float, cone_k: float | 
     return accepted, sums
 
 
-def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone_k, prepared) -> Estimate:
+def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone_k, prepared, streams) -> Estimate:
     lp, pts, nrm = _prepare(position, power, incoming, tree, points, normals, prepared)
+    streams = Streams() if streams is None else streams
     r = _check_radius(radius)
     q = pts.shape[1]
     out = _empty(q)
@@ -315,6 +338,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         out.leaves_visited[q0:q1] = np.bincount(loc, minlength=m)
         out.photons_tested[q0:q1] = np.bincount(loc, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[q0:q1] = np.bincount(loc, weights=acc, minlength=m)
+        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, loc, leaf, m)  # blocks run in order
         if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = _per_query(loc, sums[c], m) / norm
@@ -325,25 +349,29 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
 
 
 def disk_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float,
-                  *, prepared: LeafPhotons | None = None) -> Estimate:
+                  *, prepared: LeafPhotons | None = None, streams: Streams | None = None) -> Estimate:
     """Eq. 3.2, the disk filter: every front photon within ``radius`` counts, area ``pi r**2``.
 
     position, power, incoming : (n, 3) photon map; tree : ``build_point_tree(position)``.
     points, normals : (q, 3) query points and unit normals facing the shaded side.
     prepared : optional :func:`leaf_photons` of the same map (skips the reordering).
+    streams : the photon-leaf pair's state before these queries, left in the state after
+    them (default: a cold pair).
     Candidate leaves are found by Fig. 8 exactly as in :func:`mvoxel_estimate`.
     """
-    return _fixed_radius(position, power, incoming, tree, points, normals, radius, None, prepared)
+    return _fixed_radius(position, power, incoming, tree, points, normals, radius, None, prepared, streams)
 
 
 def mvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float,
-                    cone_k: float = 1.1, *, prepared: LeafPhotons | None = None) -> Estimate:
+                    cone_k: float = 1.1, *, prepared: LeafPhotons | None = None,
+                    streams: Streams | None = None) -> Estimate:
     """Eq. 3.3 with Fig. 8, the m-voxel cone filter (see the module docstring).
 
-    Shapes as :func:`disk_estimate`; weight ``1 - d / (cone_k r)``, area
+    Shapes and ``streams`` as :func:`disk_estimate`; weight ``1 - d / (cone_k r)``, area
     ``(1 - 2 / (3 cone_k)) pi r**2``.
     """
-    return _fixed_radius(position, power, incoming, tree, points, normals, radius, _check_cone(cone_k), prepared)
+    return _fixed_radius(position, power, incoming, tree, points, normals, radius, _check_cone(cone_k), prepared,
+                         streams)
 
 
 def _tangent_basis(nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -480,10 +508,10 @@ def _locate_layers(tree: BSPTree, layers: _Layers, coords: np.ndarray, x: np.nda
 
 def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float, k: int = 8,
                     cone_k: float = 1.1, seed: int = 0, keys: np.ndarray | None = None,
-                    *, prepared: LeafPhotons | None = None) -> Estimate:
+                    *, prepared: LeafPhotons | None = None, streams: Streams | None = None) -> Estimate:
     """Eqs. 3.4/3.5, the stochastic k-voxel filter (reading in the module docstring).
 
-    Shapes as :func:`disk_estimate`. k : voxels sampled (x itself and ``k - 1`` random
+    Shapes and ``streams`` as :func:`disk_estimate`. k : voxels sampled (x itself and ``k - 1`` random
     points of the tangent disk). keys : (q,) int64 random-stream key per query (default
     ``arange(q)``); sample ``s`` uses ``hash_uniform(seed, key, 7, s, dim)``. The samples
     and probes of a disk lying on a flat split search both of its layers (module docstring).
@@ -498,6 +526,7 @@ def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, r
     if keys.shape[0] != q:
         raise ValueError(f"keys must have shape ({q},), got {keys.shape}")
     out = _empty(q)
+    streams = Streams() if streams is None else streams
     tree = lp.tree
     t1, t2 = _tangent_basis(nrm)
     pu, pv, pweight = _probe_pattern(cone_k)
@@ -546,6 +575,7 @@ def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, r
         out.photons_tested[sl] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[sl] = np.bincount(pq, weights=acc, minlength=m)
         out.probe_tests[sl] = PROBES + np.bincount(xrow // PROBES, minlength=m)
+        out.gather_misses[sl] = _charge_leaves(streams, lp, pq, leaf, m)  # blocks run in order
         if r > 0.0:
             area = norm * frac
             share = mult / k
@@ -565,6 +595,8 @@ def knn_estimate(position, power, incoming, points, normals, k_nearest: int = 50
     (distance, photon id); ``r_k`` is the largest; photons from behind are dropped.
     Density ``sum w power / ((1 - 2 / (3 cone_k)) pi r_k**2)`` with ``w = 1 - d / (cone_k
     r_k)``; 0 when ``r_k = 0`` or the map is empty. ``photons_tested`` = neighbours found.
+    ``gather_misses`` is 0: the ``cKDTree`` is the exact reference, not a memory layout
+    of the thesis hardware, so it has no photon-leaf stream to charge.
     """
     position, power, incoming = (_rows(a, "photon arrays") for a in (position, power, incoming))
     pts, nrm = _rows(points, "points"), _rows(normals, "normals")

@@ -23,6 +23,13 @@ arrays."
   dielectrics, L S+ D) and indirect light (after at least one diffuse bounce,
   L D ... D) — the two effects the thesis's PMap column adds.
 
+Work per emitted photon (:data:`PHOTON_WORK`) includes the page misses of its rays'
+reads (:mod:`tlm.arch.cache`), all its bounces: ``trav_misses`` (the Traversal PM's
+node-heap and leaf-index pairs) and ``isect_misses`` (the Intersection PM's vertex
+pair). The bounces are traced for all photons at once, but the streams are charged
+photon-major (a photon's rays bounce by bounce, photons in emission order), so the
+misses of consecutive photons are those of the photons traced as packets in order.
+
 Random numbers: a :class:`numpy.random.SeedSequence` of the run's seed gives the key
 of a counter-based hash (:func:`tlm.kernels.shade.hash_uniform`) indexed by (photon,
 bounce, dimension), so every photon's path is the same whichever photons it is traced
@@ -35,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tlm.arch.cache import Recorder, Streams, traversal_accesses
 from tlm.kernels.bsp import BSPTree, build_point_tree
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, reflect, refract
 from tlm.kernels.traverse import TriangleAccel, closest_hit
@@ -42,8 +50,9 @@ from tlm.scenes.model import KIND, Light, Scene
 
 PHOTON_WORK = (
     "photons_emitted", "rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests",
-    "bounces", "stored", "absorbed", "lost",
+    "bounces", "stored", "absorbed", "lost", "trav_misses", "isect_misses",
 )
+_MISS_KEYS = {"nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses"}
 
 
 @dataclass(frozen=True)
@@ -234,12 +243,15 @@ def trace_photons(
     pid = np.arange(n)  # photon ids still travelling
     last = np.full(n, -1, dtype=np.int64)  # triangle each photon leaves
     specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
+    rec = Recorder()
     stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
     for bounce in range(max_bounces):
         if pid.shape[0] == 0:
             break
         rel = eps / np.linalg.norm(d, axis=1)
-        hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch)
+        hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch, record=True)
+        for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last).items():
+            rec.add(name, acc, pid)
         for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
             work[name][pid] += getattr(hits.counts, name)
         work["rays"][pid] += 1
@@ -296,6 +308,9 @@ def trace_photons(
         keep = alive & (power.max(axis=1) > 0)
         pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
         last, specular_only = tri[keep], specular_only[keep]
+
+    for name, counts in rec.charge(Streams(), n).items():
+        work[_MISS_KEYS[name]] += counts
 
     def cat(name: str, shape: tuple, dtype=np.float64) -> np.ndarray:
         parts = stored[name]

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tlm.arch.cache import PAGE_WORDS, Accesses, Recorder, traversal_accesses
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit
 from tlm.scenes.model import Light
 
@@ -127,17 +128,24 @@ def direct_light(
     samples: int,
     eps: float,
     batch: int = 2,
-) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    record: bool = False,
+    page_words: int = PAGE_WORDS,
+) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, Accesses] | None]:
     """Direct light reflected by Lambertian points, with one shadow ray per light sample.
 
     points, normals : (k, 3); normals face the side being shaded.
     triangles : (k,) int64, the triangle each point lies on (shadow rays ignore it).
     albedo : (k, 3). keys : (k,) int64 random-stream key of each point (pixel and bounce).
-    Returns radiance (k, 3) and per-point work: ``shadow_rays``, ``shadow_hits`` and the
+    Returns radiance (k, 3), per-point work: ``shadow_rays``, ``shadow_hits`` and the
     traversal counts of the shadow rays (``shadow_node_visits``, ...): the thesis traces
-    shadow rays in passes of their own, so the timing model keeps them apart.
+    shadow rays in passes of their own, so the timing model keeps them apart; and, with
+    ``record``, the shadow rays' reads (:func:`~tlm.arch.cache.traversal_accesses`:
+    ``nodes``, ``indices``, ``vertices``, compacted for ``page_words``-word pages) with
+    owner = the point, point-major (a point's rays light by light, sample by sample),
+    else None.
     """
     k = points.shape[0]
+    rec = Recorder(page_words) if record else None
     irradiance = np.zeros((k, 3))
     work = {name: np.zeros(k, dtype=np.int64) for name in
             ("shadow_rays", "shadow_hits", *(f"shadow_{c}" for c in TRAVERSAL_COUNTS))}
@@ -172,7 +180,11 @@ def direct_light(
             continue
         rel = eps / dist[pi, si]
         occ = any_hit(accel, points[pi], dirs[pi, si], tmin=rel, tmax=1.0 - rel,
-                      ignore=triangles[pi], batch=batch)
+                      ignore=triangles[pi], batch=batch, record=record)
+        if rec is not None:
+            for name, acc in traversal_accesses(occ.touched, accel.leaf_first, accel.leaf_last,
+                                                page_words).items():
+                rec.add(name, acc, pi)
         lit = np.zeros(cast.shape, dtype=bool)
         lit[pi, si] = ~occ.occluded
         contrib = np.where(lit, geo, 0.0)
@@ -183,7 +195,7 @@ def direct_light(
         _add_counts(work, pi, occ.counts)
         work["shadow_rays"] += np.bincount(pi, minlength=k)
         work["shadow_hits"] += np.bincount(pi[occ.occluded], minlength=k)
-    return albedo / np.pi * irradiance, work
+    return albedo / np.pi * irradiance, work, (None if rec is None else rec.collect())
 
 
 def _add_counts(work: dict[str, np.ndarray], index: np.ndarray, counts: Counts) -> None:

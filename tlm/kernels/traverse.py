@@ -108,8 +108,9 @@ class Counts:
 class Touched:
     """Memory a packet touched, in visiting order, as CSR lists per ray.
 
-    Ray ``i`` entered inner nodes ``node_ids[node_ptr[i]:node_ptr[i+1]]`` (level by
-    level, near first) and tested the leaves ``leaf_ids[leaf_ptr[i]:leaf_ptr[i+1]]``
+    Ray ``i`` entered inner nodes ``node_ids[node_ptr[i]:node_ptr[i+1]]`` (heap indices,
+    int32 unless the tree has more nodes; level by level, near first) and tested the
+    leaves ``leaf_ids[leaf_ptr[i]:leaf_ptr[i+1]]``
     (leaf numbers, 0-based; heap index = leaf + ``tree.leaf_offset``), that is the
     triangle slots ``leaf_first[leaf]:leaf_last[leaf]`` of each.
     """
@@ -192,15 +193,16 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
     node = np.zeros(ray.shape[0], dtype=np.int64)
     a, b = ta[ray], tb[ray]
     node_visits = np.zeros(r, dtype=np.int64)
-    rec_ray, rec_node = [], []
+    rec = []
+    id_type = np.int32 if tree.n_nodes <= np.iinfo(np.int32).max else np.int64
     cols = [(np.ascontiguousarray(o[:, k]), np.ascontiguousarray(d[:, k]), np.ascontiguousarray(inv[:, k]))
             for k in range(3)]
     for j in range(tree.levels):
         oc, dc, ic = cols[j % 3]
-        node_visits += np.bincount(ray, minlength=r)
-        if record:
-            rec_ray.append(ray)
-            rec_node.append(node)
+        level_visits = np.bincount(ray, minlength=r)
+        if record:  # kept small: the level's nodes (rays are sorted) and visits per ray
+            rec.append((node.astype(id_type), level_visits.astype(np.int32)))
+        node_visits += level_visits
         s = tree.split[node]
         oa = oc[ray]
         da = dc[ray]
@@ -232,13 +234,21 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
         ray = np.repeat(ray, n_child)
         node, a, b = new_node, new_a, new_b
     touched_nodes = None
-    if record:
-        rr = np.concatenate(rec_ray) if rec_ray else np.zeros(0, np.int64)
-        nn = np.concatenate(rec_node) if rec_node else np.zeros(0, np.int64)
-        order = np.argsort(rr, kind="stable")
+    if record:  # the visits in ray-major order (levels in order), placed without a sort
         ptr = np.zeros(r + 1, dtype=np.int64)
-        np.cumsum(np.bincount(rr, minlength=r), out=ptr[1:])
-        touched_nodes = (ptr, nn[order])
+        np.cumsum(node_visits, out=ptr[1:])
+        ids = np.empty(int(ptr[-1]), dtype=id_type)
+        free = ptr[:-1].copy()  # where each ray's next level goes
+        rays = np.arange(r, dtype=np.int64)
+        for node_j, level_visits in rec:
+            # entry i of the level (ray q) goes to free[q] + i - (q's first entry in the level)
+            first = np.cumsum(level_visits, dtype=np.int64)
+            first -= level_visits
+            at = (free - first)[np.repeat(rays, level_visits)]
+            at += np.arange(node_j.shape[0], dtype=np.int64)
+            ids[at] = node_j
+            free += level_visits
+        touched_nodes = (ptr, ids)
     leaf = node - tree.leaf_offset
     return ray, leaf, b, node_visits, touched_nodes
 

@@ -18,7 +18,20 @@ separate frames are summed for the final rendering output." (§III.B)
 
 Each eye path belongs to exactly one frame, so the composite is their sum. Every
 function works on any packet of pixel ids and returns, with the radiance, the per-pixel
-work (:data:`WORK_KEYS`); a pixel's results do not depend on the rest of its packet.
+work (:data:`WORK_KEYS`); a pixel's results and work do not depend on the rest of its
+packet, except its page misses, which depend on the pixels before it (below).
+
+Page misses (the ``*_misses`` keys) are the data cache's (:mod:`tlm.arch.cache`) on
+the kernels' real address streams, one cache pair per stream: the Traversal PM's node
+heap and leaf triangle indices (``trav_misses``, the two pairs' sum), the Intersection
+PM's vertex data (``isect_misses``), the same three for the shadow rays on pairs of
+their own (the thesis traces them in passes of their own), and the Fragment PM's
+shading records, one per fragment (``frag_misses``). A miss depends on the accesses
+before it, so the streams are in pixel-major program order (a pixel's rays bounce by
+bounce, its shadow rays light by light, sample by sample) and each pass function takes
+a :class:`~tlm.arch.cache.Streams` holding the pairs' states: packets run in pixel
+order with one such object give exactly the misses of the whole image (a fresh one per
+packet charges each packet from cold pairs).
 """
 
 from __future__ import annotations
@@ -27,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tlm.arch.cache import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.config import RunConfig
 from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
@@ -51,6 +65,11 @@ WORK_KEYS = (
     "shadow_tri_tests",
     "fragments",  # Lambertian points shaded
     "specular_bounces",  # mirror reflections, refractions and total internal reflections
+    "trav_misses",  # page misses of the eye and secondary rays: node heap + leaf indices
+    "isect_misses",  # ... triangle vertex data (the Intersection PM)
+    "shadow_trav_misses",  # the same two for the shadow rays, on pairs of their own
+    "shadow_isect_misses",
+    "frag_misses",  # ... shading records read per fragment (the Fragment PM)
 )
 GATHER_KEYS = (
     "gathers",  # radiance estimates made (Lambertian eye hits)
@@ -58,7 +77,18 @@ GATHER_KEYS = (
     "leaves_visited",  # photon BSP leaves searched
     "photons_tested",  # photons compared against the search radius
     "photons_accepted",  # photons inside it, from the front, that were filtered
+    "gather_misses",  # page misses reading the searched leaves' photons (0 for knn)
 )
+# the keys that depend on the accesses before the pixel (the pairs' carried state): equal
+# for a pixel only when the pixels before it ran too, in order, with one Streams
+MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
+             "gather_misses")
+# each stream of a pass, on its own cache pair, and the work key its misses go to
+STREAM_KEYS = {
+    "nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses",
+    "shadow_nodes": "shadow_trav_misses", "shadow_indices": "shadow_trav_misses",
+    "shadow_vertices": "shadow_isect_misses", "shading": "frag_misses",
+}
 
 
 @dataclass(frozen=True)
@@ -98,6 +128,21 @@ def _add(work: dict[str, np.ndarray], index: np.ndarray, values: dict[str, np.nd
         work[k] += np.bincount(index, weights=v, minlength=p).astype(np.int64)
 
 
+def _record_rays(frame: Frame, rec: Recorder, hits: Hits, owners: np.ndarray | None = None) -> None:
+    """Add a traversal's reads (node heap, leaf indices, vertices) to ``rec``; ray i is owner ``owners[i]``."""
+    if hits.touched is None:
+        raise ValueError("the rays were traced without record=True: their reads are unknown")
+    accel = frame.accel
+    for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last, rec.page_words).items():
+        rec.add(name, acc, owners)
+
+
+def _charge(rec: Recorder, streams: Streams, work: dict[str, np.ndarray]) -> None:
+    """Charge the recorded streams, pixel-major, to ``streams``; add the misses to ``work``."""
+    for name, counts in rec.charge(streams, work["fragments"].shape[0]).items():
+        work[STREAM_KEYS[name]] += counts
+
+
 def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
     c = hits.counts
     return {
@@ -133,36 +178,54 @@ class GBuffer:
         return np.where(self.triangle[:, None] >= 0, n, 0.0)
 
 
-def cast(frame: Frame, pixels: np.ndarray) -> GBuffer:
-    """Trace the eye rays of ``pixels`` (the ray-cast operation)."""
+def cast(frame: Frame, pixels: np.ndarray, record: bool = True) -> GBuffer:
+    """Trace the eye rays of ``pixels`` (the ray-cast operation).
+
+    record : keep the nodes and leaves each ray touched (``hits.touched``), from which
+        :func:`rcast_pass` charges the eye rays' page misses; the other passes do not
+        need them.
+    """
     pixels = np.asarray(pixels, dtype=np.int64)
     o, d = primary_rays(frame.scene.camera, pixels)
-    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True)
+    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True,
+                       record=record)
     le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
     return GBuffer(pixels, o, d, hits, le, seen)
 
 
 def _shade_lambertian(frame: Frame, pix_local: np.ndarray, keys: np.ndarray, points: np.ndarray,
                       d: np.ndarray, tri: np.ndarray, weight: np.ndarray,
-                      work: dict[str, np.ndarray]) -> np.ndarray:
-    """Direct light at Lambertian hits, weighted; records fragment and shadow work."""
+                      work: dict[str, np.ndarray], rec: Recorder) -> np.ndarray:
+    """Direct light at Lambertian hits, weighted; records fragment and shadow work and reads
+    (the shadow rays' and one shading record per fragment) under the pixels ``pix_local``."""
     n = facing(frame.normals[tri], d)
-    radiance, w = direct_light(
+    radiance, w, reads = direct_light(
         frame.accel, frame.scene.lights, points, n, tri, frame.albedo[tri], keys,
-        frame.cfg.seed, frame.cfg.render.light_samples, frame.eps,
+        frame.cfg.seed, frame.cfg.render.light_samples, frame.eps, record=True, page_words=rec.page_words,
     )
     _add(work, pix_local, w)
     _add(work, pix_local, {"fragments": np.ones(pix_local.shape[0], dtype=np.int64)})
+    for name, acc in reads.items():
+        rec.add(f"shadow_{name}", acc, pix_local)
+    rec.add("shading", Accesses.of_words(tri * SHADING_WORDS, pix_local, rec.page_words))
     return radiance * weight
 
 
-def rcast_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Ray cast + shadows: direct light at Lambertian eye hits; visible quad lights."""
+def rcast_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Ray cast + shadows: direct light at Lambertian eye hits; visible quad lights.
+
+    The eye rays' traversal (counts and misses) is charged here, from ``g`` (cast with
+    ``record=True``). streams : the cache pairs' states before this packet (default:
+    empty), left in the state after it.
+    """
     p = g.pixels.shape[0]
     work = new_work(p)
+    streams = Streams() if streams is None else streams
+    rec = Recorder(streams.page_words)
     radiance = np.zeros((p, 3))
     local = np.arange(p)
     _add(work, local, {"primary_rays": np.ones(p, dtype=np.int64), **_trace_counts(g.hits)})
+    _record_rays(frame, rec, g.hits)
     radiance[g.sees_light] = g.light[g.sees_light]
     hit = (g.triangle >= 0) & ~g.sees_light
     lam = hit & (frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"])
@@ -172,14 +235,22 @@ def rcast_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarr
         pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
         keys = g.pixels[idx] * 64
         radiance[idx] = _shade_lambertian(frame, idx, keys, pts, g.direction[idx], tri,
-                                          np.ones((idx.shape[0], 1)), work)
+                                          np.ones((idx.shape[0], 1)), work, rec)
+    _charge(rec, streams, work)
     return radiance, work
 
 
-def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int):
-    """Paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces."""
+def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, streams: Streams | None):
+    """Paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces.
+
+    The walk runs bounce by bounce over the packet; its reads are charged afterwards in
+    pixel-major order (a pixel's bounces in order), so that packets in pixel order with
+    a carried ``streams`` give the misses of the whole image.
+    """
     p = g.pixels.shape[0]
     work = new_work(p)
+    streams = Streams() if streams is None else streams
+    rec = Recorder(streams.page_words)
     radiance = np.zeros((p, 3))
     start = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind])
     start &= ~g.sees_light
@@ -207,8 +278,10 @@ def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int):
             weight[diel] = wd
         _add(work, idx, {"specular_bounces": np.ones(idx.shape[0], dtype=np.int64)})
         d = new_d
-        hits = closest_hit(frame.accel, x, d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch)
+        hits = closest_hit(frame.accel, x, d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch,
+                           record=True)
         _add(work, idx, {"secondary_rays": np.ones(idx.shape[0], dtype=np.int64), **_trace_counts(hits)})
+        _record_rays(frame, rec, hits, idx)
         le, seen = emitted(frame.scene.lights, x, d, hits.t, frame.eps)
         radiance[idx[seen]] += weight[seen] * le[seen]
         hit = (hits.triangle >= 0) & ~seen
@@ -219,21 +292,22 @@ def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int):
             pts = x[li] + hits.t[li, None] * d[li]
             keys = g.pixels[idx[li]] * 64 + bounce
             radiance[idx[li]] += _shade_lambertian(frame, idx[li], keys, pts, d[li],
-                                                   hits.triangle[li], weight[li], work)
+                                                   hits.triangle[li], weight[li], work, rec)
         go = hit & ~lam
         x = x[go] + hits.t[go, None] * d[go]
         idx, tri, d, weight = idx[go], hits.triangle[go], d[go], weight[go]
+    _charge(rec, streams, work)
     return radiance, work
 
 
-def reflect_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Eye paths that first meet a mirror."""
-    return _specular_walk(frame, g, "mirror", frame.cfg.render.reflect_depth)
+def reflect_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Eye paths that first meet a mirror (``streams`` as in :func:`rcast_pass`)."""
+    return _specular_walk(frame, g, "mirror", frame.cfg.render.reflect_depth, streams)
 
 
-def refract_pass(frame: Frame, g: GBuffer) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Eye paths that first meet a dielectric."""
-    return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth)
+def refract_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Eye paths that first meet a dielectric (``streams`` as in :func:`rcast_pass`)."""
+    return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth, streams)
 
 
 def lambertian_hits(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -265,12 +339,14 @@ def search_radius(frame: Frame) -> float:
     return est.radius if est.radius is not None else est.radius_fraction * frame.accel.scale
 
 
-def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None,
+              streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The photon-map frame: ``albedo / pi * density`` at Lambertian eye hits.
 
     ``density`` is the reflected flux density from the photon map by the configured
     filter; ``kdtree`` is an optional prebuilt ``cKDTree`` of the photon positions for
-    the exact k-nearest estimate.
+    the exact k-nearest estimate. ``gather_misses``: the photon-leaf stream's misses,
+    gathers in pixel order (``streams`` as in :func:`rcast_pass`).
     """
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
@@ -284,11 +360,12 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None) -> tupl
         e = estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
     elif est.filter == "kvoxel":
         e = estimate.kvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), k=est.k,
-                                     cone_k=est.cone_k, seed=frame.cfg.seed, keys=g.pixels[idx])
+                                     cone_k=est.cone_k, seed=frame.cfg.seed, keys=g.pixels[idx], streams=streams)
     elif est.filter == "disk":
-        e = estimate.disk_estimate(*args, photons.tree, pts, n, search_radius(frame))
+        e = estimate.disk_estimate(*args, photons.tree, pts, n, search_radius(frame), streams=streams)
     else:
-        e = estimate.mvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), cone_k=est.cone_k)
+        e = estimate.mvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), cone_k=est.cone_k,
+                                     streams=streams)
     radiance[idx] = frame.albedo[tri] / np.pi * e.density
     work["gathers"][idx] = 1
     for k in GATHER_KEYS[1:]:

@@ -1,0 +1,252 @@
+"""Page misses of the render passes, from the kernels' real address streams.
+
+* brute force: the passes' ``*_misses`` equal :func:`page_misses` of the full word
+  streams (every node, index word and vertex word of every ray, every shading record),
+  put together here from the kernels' own calls in pixel-major program order;
+* packets of pixels run in order with one carried :class:`Streams` give exactly the
+  whole image's misses (and cold pairs per packet do not, so the test can fail);
+* the recorded leaf lists agree with the counts, also for rays that fell back to the
+  float64 traversal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tlm.arch.cache import Streams, page_misses, span_addresses
+from tlm.config import config_from_dict
+from tlm.kernels import shade, traverse
+from tlm.kernels.traverse import any_hit, build_accel, closest_hit
+from tlm.render import passes
+from tlm.render.passes import MISS_KEYS, WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
+from tlm.scenes.loader import load_scene
+
+W, H = 24, 20
+PASSES = (rcast_pass, reflect_pass, refract_pass)
+
+
+@pytest.fixture(scope="module")
+def frame():
+    scene = load_scene("cornell", resolution=[W, H])
+    accel = build_accel(scene.triangles)
+    return Frame.create(scene, accel, config_from_dict({"resolution": [W, H], "mode": "refract"}))
+
+
+@pytest.fixture(scope="module")
+def gbuffer(frame):
+    return cast(frame, np.arange(W * H))
+
+
+# ---------------------------------------------------------------- brute force
+
+
+def ray_words(accel, touched, i: int) -> dict[str, np.ndarray]:
+    """Every word ray ``i`` read, stream by stream, in order (nothing compressed)."""
+    nodes = touched.node_ids[touched.node_ptr[i] : touched.node_ptr[i + 1]]
+    leaves = touched.leaf_ids[touched.leaf_ptr[i] : touched.leaf_ptr[i + 1]]
+    lf, ll = accel.leaf_first[leaves], accel.leaf_last[leaves]
+    full = ll > lf
+    lf, ll = lf[full], ll[full]
+    return {
+        "nodes": nodes.astype(np.int64),
+        "indices": span_addresses(lf // 4, (ll - 1) // 4 + 1),
+        "vertices": span_addresses(lf, ll, 3),
+    }
+
+
+class Capture:
+    """The kernels' calls during one pass: secondary rays, shadow rays and fragments."""
+
+    def __init__(self, monkeypatch):
+        self.rays = []  # touched of each closest_hit call (bounces in order)
+        self.shade = []  # (keys, triangles, touched of its shadow rays, shadow rays per point)
+        real_closest, real_direct, real_any = passes.closest_hit, passes.direct_light, shade.any_hit
+
+        def closest(*args, **kw):
+            h = real_closest(*args, **kw)
+            self.rays.append(h.touched)
+            return h
+
+        def direct(accel, lights, points, normals, triangles, albedo, keys, *args, **kw):
+            self._shadow = []
+            out = real_direct(accel, lights, points, normals, triangles, albedo, keys, *args, **kw)
+            assert len(self._shadow) <= 1  # one light: its rays are point-major
+            touched = self._shadow[0] if self._shadow else None
+            self.shade.append((keys.copy(), triangles.copy(), touched, out[1]["shadow_rays"].copy()))
+            return out
+
+        def anyhit(*args, **kw):
+            occ = real_any(*args, **kw)
+            self._shadow.append(occ.touched)
+            return occ
+
+        monkeypatch.setattr(passes, "closest_hit", closest)
+        monkeypatch.setattr(passes, "direct_light", direct)
+        monkeypatch.setattr(shade, "any_hit", anyhit)
+
+
+def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int) -> dict[str, np.ndarray]:
+    """Each miss key per pixel from the full streams, ordered (pixel, bounce, ray)."""
+    p = g.pixels.shape[0]
+    local = {int(px): i for i, px in enumerate(g.pixels.tolist())}
+    items: dict[str, list] = {}  # stream -> [(pixel, bounce, seq, words)]
+
+    def add(prefix, touched, owners, bounce):
+        for i, owner in enumerate(owners):
+            for name, words in ray_words(frame.accel, touched, i).items():
+                items.setdefault(prefix + name, []).append((int(owner), bounce, i, words))
+
+    if eye:
+        add("", g.hits.touched, np.arange(p), 0)
+    else:  # bounce b traces the pixels whose path is still alive, in pixel order
+        for b, touched in enumerate(cap.rays, start=1):
+            add("", touched, np.flatnonzero(work["secondary_rays"] >= b), b)
+    for keys, tri, touched, per_point in cap.shade:
+        pix = np.array([local[int(k)] for k in keys // 64])
+        bounce = int(keys[0] % 64)
+        if touched is not None:
+            add("shadow_", touched, np.repeat(pix, per_point), bounce)
+        for i, (px, t) in enumerate(zip(pix.tolist(), tri.tolist(), strict=True)):
+            items.setdefault("shading", []).append((px, bounce, i, np.array([t], np.int64)))
+    out = {k: np.zeros(p, np.int64) for k in MISS_KEYS if k != "gather_misses"}
+    for name, rows in items.items():
+        rows.sort(key=lambda r: r[:3])
+        words = np.concatenate([r[3] for r in rows])
+        owner = np.concatenate([np.full(r[3].shape[0], r[0]) for r in rows])
+        miss, _ = page_misses(words, page_words=page_words)
+        out[passes.STREAM_KEYS[name]] += np.bincount(owner[miss], minlength=p)
+    return out
+
+
+@pytest.mark.parametrize("page_words", [1024, 16])
+@pytest.mark.parametrize("f", PASSES, ids=lambda f: f.__name__)
+def test_misses_are_those_of_the_full_streams(frame, gbuffer, monkeypatch, f, page_words):
+    cap = Capture(monkeypatch)
+    _, work = f(frame, gbuffer, Streams(page_words))
+    want = brute_force(frame, gbuffer, cap, work, f is rcast_pass, page_words)
+    for k, v in want.items():
+        np.testing.assert_array_equal(work[k], v, err_msg=k)
+    if f is rcast_pass:
+        assert work["trav_misses"].sum() > 0 and work["isect_misses"].sum() > 0
+        assert work["shadow_isect_misses"].sum() > 0
+    if page_words == 16:  # small pages: every stream misses somewhere
+        for k in want:
+            assert work[k].sum() > 0, k
+    assert work["shadow_rays"].sum() > 0 and work["fragments"].sum() > 0
+
+
+def test_eye_rays_must_be_recorded(frame):
+    g = cast(frame, np.arange(10), record=False)
+    assert g.hits.touched is None
+    with pytest.raises(ValueError, match="record=True"):
+        rcast_pass(frame, g)
+    # the other passes trace their own rays
+    reflect_pass(frame, g)
+
+
+# ---------------------------------------------------------------- packets in order
+
+
+@pytest.mark.parametrize("page_words", [1024, 32])
+def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words):
+    whole = {f.__name__: f(frame, gbuffer, Streams(page_words)) for f in PASSES}
+    for size in (1, 7, 64):
+        starts = range(0, W * H, size)
+        for f in PASSES:
+            rad_w, work_w = whole[f.__name__]
+            streams = Streams(page_words)
+            got = {k: [] for k in WORK_KEYS}
+            cold = {k: [] for k in MISS_KEYS if k in WORK_KEYS}
+            for s0 in starts:
+                g = cast(frame, np.arange(s0, min(s0 + size, W * H)))
+                rad, work = f(frame, g, streams)
+                np.testing.assert_array_equal(rad, rad_w[s0 : s0 + size])
+                for k in WORK_KEYS:
+                    got[k].append(work[k])
+                if size == 64:
+                    _, work = f(frame, g, Streams(page_words))  # cold pairs per packet
+                    for k in cold:
+                        cold[k].append(work[k])
+            for k in WORK_KEYS:
+                np.testing.assert_array_equal(np.concatenate(got[k]), work_w[k], err_msg=(f.__name__, size, k))
+            if size == 64:  # packets with cold pairs miss more: the carried state matters
+                assert sum(np.concatenate(v).sum() for v in cold.values()) > sum(work_w[k].sum() for k in cold)
+
+
+# ---------------------------------------------------------------- recorded leaves
+
+
+def assert_touched_matches_counts(accel, res) -> None:
+    t, c = res.touched, res.counts
+    np.testing.assert_array_equal(np.diff(t.leaf_ptr), c.leaf_visits)
+    np.testing.assert_array_equal(np.diff(t.node_ptr), c.node_visits)
+    r = c.leaf_visits.shape[0]
+    owner = np.repeat(np.arange(r), c.leaf_visits)
+    size = accel.leaf_size[t.leaf_ids]
+    np.testing.assert_array_equal(np.bincount(owner, weights=size, minlength=r).astype(np.int64), c.tri_tests)
+
+
+@pytest.mark.parametrize("first_only", [False, True])
+def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
+    """Rays whose float32 answer fails its check are traversed again in float64; their
+    recorded leaves must be the float64 traversal's, which here (its tests made to find
+    nothing) are all the leaves the ray crosses, not the float32 run's."""
+    accel = frame.accel
+    rng = np.random.default_rng(3)
+    o = rng.uniform(100, 450, (300, 3))
+    d = rng.normal(size=(300, 3))
+    fn = any_hit if first_only else closest_hit
+    plain = fn(accel, o, d, record=True)
+    real_check, real64 = traverse.check, traverse.closest_slots64
+
+    def flaky(o_, d_, tmin, tmax, soa64, slot):
+        t, u, v, ok = real_check(o_, d_, tmin, tmax, soa64, slot)
+        ok = ok.copy()
+        ok[::2] = False  # every other hit fails its check
+        return t, u, v, ok
+
+    def blind(*args):
+        slot, t = real64(*args)
+        return np.full_like(slot, -1), np.full_like(t, np.inf)
+
+    monkeypatch.setattr(traverse, "check", flaky)
+    monkeypatch.setattr(traverse, "closest_slots64", blind)
+    res = fn(accel, o, d, record=True)
+    assert_touched_matches_counts(accel, res)
+    assert_touched_matches_counts(accel, plain)
+    hit = np.flatnonzero(plain.occluded if first_only else plain.triangle >= 0)
+    bad = hit[::2]
+    assert bad.shape[0] > 20
+    c = res.counts
+    np.testing.assert_array_equal(c.leaf_visits[bad], c.leaves_crossed[bad])  # float64 found nothing
+    assert np.any(c.leaf_visits[bad] > plain.counts.leaf_visits[bad])
+    again = traverse._traverse(accel, o[bad], d[bad], 0.0, np.inf, None, True, first_only, 4, exact64=True)
+    for j, i in enumerate(bad.tolist()):
+        got = res.touched.leaf_ids[res.touched.leaf_ptr[i] : res.touched.leaf_ptr[i + 1]]
+        want = again.touched.leaf_ids[again.touched.leaf_ptr[j] : again.touched.leaf_ptr[j + 1]]
+        np.testing.assert_array_equal(got, want)
+
+
+def test_touched_matches_counts_in_the_passes(frame, gbuffer, monkeypatch):
+    """Every ray a pass traces (eye, secondary, shadow) records as many leaves as it visited."""
+    seen = []
+    real_closest, real_any = passes.closest_hit, shade.any_hit
+
+    def closest(*args, **kw):
+        h = real_closest(*args, **kw)
+        seen.append(h)
+        return h
+
+    def anyhit(*args, **kw):
+        h = real_any(*args, **kw)
+        seen.append(h)
+        return h
+
+    monkeypatch.setattr(passes, "closest_hit", closest)
+    monkeypatch.setattr(shade, "any_hit", anyhit)
+    for f in PASSES:
+        f(frame, gbuffer)
+    assert len(seen) > 5
+    for res in [gbuffer.hits, *seen]:
+        assert_touched_matches_counts(frame.accel, res)
