@@ -22,7 +22,7 @@ import numpy as np
 from tlm.kernels.bsp import BSPTree
 
 LEVEL_FIELDS = ("nodes", "elements_in", "storage_reads", "elements_out", "expansion_copies")
-FORMAT = "functional/2"
+FORMAT = "functional/3"
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,11 @@ class Functional:
     photon_work: dict[str, np.ndarray] | None  # key -> (photons,) int64, emission order
     photon_tree: TreeWork | None
     pixels: int
+    width: int  # image columns: pixel i is at row i // width, column i % width
+
+    @property
+    def height(self) -> int:
+        return self.pixels // self.width
 
     @classmethod
     def of(cls, res) -> Functional:
@@ -65,13 +70,14 @@ class Functional:
             passes=tuple(res.plan.run_names), work=work, geometry=TreeWork.of(res.accel.tree),
             photon_work=None if traced is None else {k: np.asarray(v, np.int64) for k, v in traced.work.items()},
             photon_tree=None if traced is None else TreeWork.of(traced.photons.tree),
-            pixels=int(res.gbuffer.pixels.shape[0]),
+            pixels=int(res.gbuffer.pixels.shape[0]), width=int(res.scene.camera.width),
         )
 
     # -- persistence -------------------------------------------------------------------
     def save(self, path: Path) -> None:
         arrays: dict[str, np.ndarray] = {}
-        meta = {"format": FORMAT, "passes": list(self.passes), "pixels": self.pixels, "trees": {}}
+        meta = {"format": FORMAT, "passes": list(self.passes), "pixels": self.pixels, "width": self.width,
+                "trees": {}}
         for p, counts in self.work.items():
             for k, v in counts.items():
                 arrays[f"work/{p}/{k}"] = v
@@ -108,7 +114,7 @@ class Functional:
                     levels.setdefault(parts[1], {})[parts[2]] = z[name]
         trees = {name: TreeWork(levels[name], **sizes) for name, sizes in meta["trees"].items()}
         return cls(tuple(meta["passes"]), work, trees["geometry"], photons or None,
-                   trees.get("photon_tree"), int(meta["pixels"]))
+                   trees.get("photon_tree"), int(meta["pixels"]), int(meta["width"]))
 
 
 def code_fingerprint() -> str:
