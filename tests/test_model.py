@@ -53,20 +53,20 @@ def phase(name, *jobs, copy_words=0):
 
 
 def program(*phases):
-    return FrameProgram(tuple(phases), {})
+    return FrameProgram.linear(phases)
 
 
 def log(timing, pm):
-    return timing.model.pms[pm].unit.log
+    return timing.model.pm(0, pm).unit.log
 
 
 def stall(timing, pm, cause):
-    return timing.model.pms[pm].unit.stats.stall[cause]
+    return timing.model.pm(0, pm).unit.stats.stall[cause]
 
 
 def stalls(timing, pm):
     """The PM's stall cycles by cause, the causes it never stalled on left out."""
-    return {cause: c for cause, c in timing.model.pms[pm].unit.stats.stall.items() if c}
+    return {cause: c for cause, c in timing.model.pm(0, pm).unit.stats.stall.items() if c}
 
 
 def row(timing, scope):
@@ -222,7 +222,8 @@ def test_preemption_at_a_packet_boundary():
                                   ("stall handshake", 25), ("stall swap", 59), ("busy start", 61),
                                   ("busy end", 66)]
     assert stalls(t, "vertex") == {"preemption": 5 + 5, "swap": 3 * 2, "handshake": 7}
-    assert t.crossbar["preemptions"] == {"vertex": 1, "traversal": 0, "intersection": 0, "fragment": 0}
+    assert t.crossbar["preemptions"] == {"pipe0.vertex": 1, "pipe0.traversal": 0, "pipe0.intersection": 0,
+                                         "pipe0.fragment": 0}
     assert t.crossbar["swaps"] == 3 + 1
     assert [f["done"] for f in t.frames] == [36, 69]
     assert ("preempted", 31, 38 - 31) in row(t, "pipe0.vertex (preempted)")
@@ -266,7 +267,8 @@ def test_preemption_cuts_fifo_waits_short():
         ("busy start", 87), ("busy end", 90)]
     assert stalls(t, "traversal") == {"fifo_full": 9 + 9 + 11 + 17, "preemption": 8, "swap": 6, "handshake": 17}
     assert stalls(t, "intersection") == {"fifo_empty": 1 + 2, "preemption": 8, "swap": 6, "handshake": 7}
-    assert t.crossbar["preemptions"] == {"vertex": 0, "traversal": 1, "intersection": 1, "fragment": 0}
+    assert t.crossbar["preemptions"] == {"pipe0.vertex": 0, "pipe0.traversal": 1, "pipe0.intersection": 1,
+                                         "pipe0.fragment": 0}
     assert [f["done"] for f in t.frames] == [52, 90]
     assert ("preempted", 40, 6) in row(t, "pipe0.traversal (preempted)")
     assert ("preempted", 47, 7) in row(t, "pipe0.intersection (preempted)")
@@ -549,7 +551,7 @@ def test_ring_vertices_are_copied_towards_the_intersection_pm(ring):
     cfg, fn, progs = ring
     t = simulate(fn, progs, _with(cfg.arch, packet_size=64, frames=1))
     first = t.model.xbar.unit.log[0][0]
-    assert first == "copy mem0->mem1: rcast.rays (frame 0) start"
+    assert first == "copy mem0->mem1: vertices (frame 0) start"
 
 
 # -- 11. bad instruction-cost tables ---------------------------------------------------------------

@@ -23,6 +23,8 @@ import yaml
 from tlm.errors import InputError, did_you_mean
 
 MODES = ("rcast", "reflect", "refract", "pmap")
+SCHEDULERS = ("static", "dynamic")
+FANOUTS = ("broadcast", "serial")
 MEMORY_READINGS = ("swap", "copy")
 FILTERS = ("disk", "mvoxel", "kvoxel", "knn")
 
@@ -113,6 +115,13 @@ class ArchConfig:
     context_switch_cycles: int = _f(16, "cycles to save or restore a PM's context at a preemption", min=0)
     memory: str = _f("swap", "swap: frames move down the chain by re-routing, data is copied only where two "
                      "stages need it | copy: every hand-over copies the working set", choices=MEMORY_READINGS)
+    pipelines: int = _f(1, "duplicated pipelines (thesis §V.D): the image is cut into tiles, one Vertex PM "
+                        "builds the shared structures, the crossbar copies them to every pipeline", min=1, max=4096)
+    scheduler: str = _f("static", "static: one tile (quadrant for 4) per pipeline | dynamic: a shared queue of "
+                        "tiles_per_pipeline x pipelines tiles, an idle pipeline takes the next", choices=SCHEDULERS)
+    tiles_per_pipeline: int = _f(4, "tiles per pipeline in the dynamic scheduler's queue", min=1, max=4096)
+    fanout: str = _f("broadcast", "copies of shared structures to the pipelines: broadcast (the crossbar writes "
+                     "every pipeline's module at once) | serial (one copy per pipeline)", choices=FANOUTS)
     programs: str | None = _f(None, "instruction-cost table (YAML, relative to the config); null = the "
                               "calibrated default tlm/arch/programs.yaml")
     max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock", min=1)

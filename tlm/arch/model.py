@@ -28,216 +28,50 @@ every FIFO entry pushed is popped, and busy + stall + idle = elapsed for every u
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 import simpy
 
-from tlm.arch.functional import Functional, TreeWork
+from tlm.arch.functional import Functional
+from tlm.arch.program import (
+    PM_TABLE_NAMES,
+    PMS,
+    WORDS_PER_PIXEL,
+    FrameProgram,
+    JobSpec,
+    PhaseSpec,
+    Stage,
+    frame_program,
+)
 from tlm.arch.programs import Programs
 from tlm.arch.units import Deadlock, Trace, Unit, run
-from tlm.arch.work import split
 from tlm.config import ArchConfig
-
-PMS = ("vertex", "traversal", "intersection", "fragment")
-PM_TABLE_NAMES = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "fragment": "TFrag"}
-WORDS_PER_RAY = 2  # a ray record: origin and direction, two 128-bit words
-WORDS_PER_PHOTON = 2  # position and power (with the incoming direction packed)
-WORDS_PER_HIT = 2  # a hit record: t, triangle, barycentrics, pixel
-
-
-# -- the frame program (Figs. 13 and 14) ---------------------------------------------------
-
-@dataclass(frozen=True)
-class JobSpec:
-    """One PM's part of a phase, in packets (all arrays (packets,) int64)."""
-
-    pm: str
-    kind: str  # program entry (vertex: geometry_bsp, ...; intersection: the phase's ray kind)
-    role: int  # 0: the image's first module (tree, rays), 1: its second (vertices, hits)
-    norm: np.ndarray
-    misses: np.ndarray
-    flushes: np.ndarray
-    items: np.ndarray  # work items retired per packet (pixels, photons, rays, levels)
-    entries: np.ndarray | None = None  # FIFO entries pushed (traversal) or popped (intersection)
-
-    @property
-    def n(self) -> int:
-        return int(self.items.shape[0])
-
-
-@dataclass(frozen=True)
-class PhaseSpec:
-    name: str
-    jobs: tuple[JobSpec, ...]
-    copy_words: int  # words the crossbar copies between the image's modules before the phase
-    copy_to: int | None = None  # the role the copy goes to (None: the role of the phase's first job)
-
-
-@dataclass(frozen=True)
-class FrameProgram:
-    phases: tuple[PhaseSpec, ...]
-    left_out: dict[str, str]  # what was not built, and why
-
-
-def _level_packets(tw: TreeWork) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """A BSP build cut into one packet per level."""
-    n = tw.n_levels
-    counts = {k: v.astype(np.int64) for k, v in tw.levels.items()}
-    elements = np.zeros(n, dtype=np.int64)
-    restarts = np.full(n, 3, dtype=np.int64)  # per level: read P twice, write P'
-    if n:
-        elements[0] = tw.n_elements
-        restarts[0] += 1  # the element list itself
-    else:  # a tree of 0 levels still reads its elements once
-        elements = np.array([tw.n_elements], dtype=np.int64)
-        restarts = np.array([1], dtype=np.int64)
-        counts = {k: np.zeros(1, dtype=np.int64) for k in counts}
-        counts["nodes"][:] = 1
-    counts["elements"] = elements
-    counts["stream_restarts"] = restarts
-    return counts, np.ones(elements.shape[0], dtype=np.int64)
-
-
-def _programmable(programs: Programs, arch: ArchConfig, pm: str, kind: str, role: int,
-                  counts: dict[str, np.ndarray], items: np.ndarray,
-                  entries: np.ndarray | None = None) -> JobSpec:
-    norm, flushes, misses = programs.cost(pm, kind, counts, items)
-    return JobSpec(pm, kind, role, norm, misses, flushes, items, entries)
-
-
-def _intersection(programs: Programs, kind: str, rays: np.ndarray, tris: np.ndarray,
-                  misses: np.ndarray) -> JobSpec:
-    fx = programs.intersection
-    norm = fx["ray_load_cycles"] * rays + fx["triangle_cycles"] * tris
-    if norm.shape[0]:
-        norm = norm.copy()
-        norm[-1] += fx["stages"] * fx["triangle_cycles"]  # the pipeline drains at the job's end
-    return JobSpec("intersection", kind, 1, norm.astype(np.int64), misses.astype(np.int64),
-                   np.zeros_like(rays), rays.astype(np.int64), tris.astype(np.int64))
-
-
-def _compact(work: dict[str, np.ndarray], mask: np.ndarray, packet_size: int):
-    """The packets of the pixels in ``mask`` (a pass's ray buffer holds only its rays)."""
-    idx = np.flatnonzero(mask)
-    p = split("sub", {k: v[idx] for k, v in work.items()}, packet_size)
-    return p.counts, p.sizes
-
-
-def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> FrameProgram:
-    """The phases of one frame, in the order the control unit runs them."""
-    ps = arch.packet_size
-    phases: list[PhaseSpec] = []
-    left_out: dict[str, str] = {}
-    copy_mode = arch.memory == "copy"
-    g = fn.geometry
-    tree_words = g.nodes + -(-g.slots // 4)  # nodes, and the leaves' triangle indices (4 per word)
-    vertex_words = 3 * g.slots
-
-    counts, items = _level_packets(g)
-    phases.append(PhaseSpec("geometry", (_programmable(programs, arch, "vertex", "geometry_bsp", 0, counts,
-                                                       items),), 0))
-
-    def ti_phase(name: str, t_kind: str, work: dict[str, np.ndarray], mask: np.ndarray, keys: dict,
-                 copy_words: int, copy_to: int | None = None) -> None:
-        counts, items = _compact(work, mask, ps)
-        zero = np.zeros(items.shape[0], dtype=np.int64)
-        rays = sum((counts.get(k, zero) for k in keys["rays"]), zero)
-        tris = counts.get(keys["tris"], zero)
-        t = _programmable(programs, arch, "traversal", t_kind, 0, counts, items, tris)
-        i = _intersection(programs, t_kind, rays, tris, counts.get(keys["isect_misses"], zero))
-        if copy_mode:
-            copy_words += tree_words + vertex_words
-        phases.append(PhaseSpec(name, (t, i), copy_words, copy_to))
-
-    def f_phase(name: str, kind: str, work: dict[str, np.ndarray], mask: np.ndarray, copy_words: int = 0) -> None:
-        counts, items = _compact(work, mask, ps)
-        if copy_mode:
-            copy_words += WORDS_PER_HIT * int(items.sum())
-        phases.append(PhaseSpec(name, (_programmable(programs, arch, "fragment", kind, 1, counts, items),),
-                                copy_words))
-
-    # the vertices go to the image's second module, where the Intersection PM reads them
-    first_ti_copy = vertex_words
-
-    if "pmap" in fn.passes and fn.photon_work is not None and fn.photon_tree is not None:
-        pw = fn.photon_work
-        n = pw["photons_emitted"].shape[0]
-        emit = split("emit", {"photons_emitted": pw["photons_emitted"]}, ps)
-        emit_counts = dict(emit.counts)
-        emit_counts["stream_restarts"] = np.zeros(emit.n, dtype=np.int64)
-        if emit.n:
-            emit_counts["stream_restarts"][0] = 1
-        phases.append(PhaseSpec("photons.emit", (_programmable(programs, arch, "vertex", "photon_emit", 0,
-                                                               emit_counts, emit.sizes),), 0))
-        ti_phase("photons.trace", "photons", pw, np.ones(n, dtype=bool),
-                 {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}, first_ti_copy, 1)
-        first_ti_copy = 0
-        f_phase("photons.store", "photons", pw, pw["bounces"] > 0)
-        stored = int(pw["stored"].sum())
-        counts, items = _level_packets(fn.photon_tree)
-        copy = WORDS_PER_PHOTON * stored  # the stored photons, from the Fragment PM's module
-        phases.append(PhaseSpec("photons.bsp", (_programmable(programs, arch, "vertex", "photon_bsp", 0, counts,
-                                                              items),), copy))
-    else:
-        left_out["photon programs, photon memory and photon tree"] = "the plan has no pmap pass"
-
-    ray_keys = {"rays": ("primary_rays", "secondary_rays"), "tris": "tri_tests", "isect_misses": "isect_misses"}
-    shadow_keys = {"rays": ("shadow_rays",), "tris": "shadow_tri_tests", "isect_misses": "shadow_isect_misses"}
-    for name in ("rcast", "reflect", "refract"):
-        if name not in fn.passes:
-            left_out[f"{name} frames"] = "the plan does not render this pass"
-            continue
-        w = fn.work[name]
-        rays = w["primary_rays"] + w["secondary_rays"]
-        if not rays.any():
-            left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
-            continue
-        # the first ray phase receives the vertices (towards the Intersection PM's module);
-        # a secondary pass receives the Fragment PM's new rays (towards the Traversal PM's)
-        if first_ti_copy:
-            ti_phase(f"{name}.rays", "rays", w, rays > 0, ray_keys, first_ti_copy, 1)
-        else:
-            ti_phase(f"{name}.rays", "rays", w, rays > 0, ray_keys, WORDS_PER_RAY * int(w["secondary_rays"].sum()), 0)
-        first_ti_copy = 0
-        f_phase(f"{name}.shade", "shade", w, rays > 0)
-        shadow = w["shadow_rays"]
-        if shadow.any():
-            ti_phase(f"{name}.shadow", "shadow", w, shadow > 0, shadow_keys, WORDS_PER_RAY * int(shadow.sum()))
-            f_phase(f"{name}.light", "light", w, shadow > 0)
-        else:
-            left_out[f"{name} shadow frames"] = "no shadow ray (no light, or no Lambertian hit)"
-    if "pmap" in fn.passes and fn.photon_tree is not None:
-        w = fn.work["pmap"]
-        copy = WORDS_PER_PHOTON * fn.photon_tree.n_elements + fn.photon_tree.nodes
-        f_phase("pmap.gather", "gather", w, w["gathers"] > 0, copy)
-    return FrameProgram(tuple(phases), left_out)
-
 
 # -- the units --------------------------------------------------------------------------------
 
 class Module:
-    """A DDR memory module: serves its routed PM's page misses, one at a time."""
+    """A DDR memory module: serves its routed PM's page misses and the crossbar's copies.
 
-    def __init__(self, env: simpy.Environment, index: int, miss_cycles: int, trace: Trace | None):
+    The crossbar grants modules to PMs one to one and copies only between phases, so a
+    module never has two clients at once and never queues: its service is accounted
+    here, inside the process of the PM or the copy that it serves (the same cycles as
+    a process of its own, without its events).
+    """
+
+    def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):
         self.env = env
-        self.index = index
-        self.unit = Unit(env, f"mem{index}", trace)
-        self.miss_cycles = miss_cycles
-        self.requests: simpy.Store = simpy.Store(env)
+        self.unit = Unit(env, scope, trace)
         self.rows_opened = 0
-        self.unit.waiting_for = None
-        env.process(self._serve())
 
-    def _serve(self):
-        while True:
-            misses, done = yield self.requests.get()
-            self.rows_opened += misses
-            yield from self.unit.work(0, misses * self.miss_cycles, 0, label="page misses")
-            done.succeed()
+    def serve(self, start: int, misses: int, cycles: int) -> None:
+        """Page misses served to the routed PM from ``start`` (T_ms of both)."""
+        self.rows_opened += misses
+        self.unit.account(start, 0, cycles, 0, "page misses")
 
-    def copy(self, cycles: int, label: str):
-        yield from self.unit.work(cycles, 0, 0, label=label)
+    def copy(self, start: int, cycles: int, label: str) -> None:
+        self.unit.account(start, cycles, 0, 0, label)
 
 
 class Crossbar:
@@ -253,20 +87,31 @@ class Crossbar:
         self.copies = 0
         self.words_copied = 0
 
-    def copy(self, src: int, dst: int, words: int, what: str):
-        """Copy ``words`` from module ``src`` to ``dst`` (the crossbar copies one block at a time)."""
+    def copy(self, src: int, dsts: list[int], words: int, what: str):
+        """Copy ``words`` from module ``src`` to every module of ``dsts`` (one block at a time).
+
+        More than one destination is the crossbar's fan-out: every destination is
+        written at once, for the cycles of one copy.
+        """
         cycles = -(-words // self.arch.copy_words_per_cycle)
         with self.lock.request() as req:
             yield req
             self.copies += 1
             self.words_copied += words
-            label = f"copy mem{src}->mem{dst}: {what}"
-            self.env.process(self.modules[src].copy(cycles, label))
-            self.env.process(self.modules[dst].copy(cycles, label))
+            src_m = self.modules[src]
+            if len(dsts) == 1:
+                to = self.modules[dsts[0]].unit.scope
+            else:
+                to = f"{len(dsts)} modules"
+            label = f"copy {src_m.unit.scope}->{to}: {what}"
+            start = int(self.env.now)
+            src_m.copy(start, cycles, label)
+            for d in dsts:
+                self.modules[d].copy(start, cycles, label)
             yield from self.unit.work(cycles, 0, 0, label=label)
 
 
-@dataclass
+@dataclass(eq=False)
 class Job:
     """A job in flight: one PM's part of one phase of one frame."""
 
@@ -283,11 +128,18 @@ class Job:
     interrupted: bool = False  # a FIFO wait was cut short by a priority job
     retired: int = 0
     suspended_at: int = 0
+    waited: int = 0  # how many of ``after`` have fired
 
     def blocker(self):
-        for ev, cause, what in self.after:
-            if not ev.triggered:
-                return ev, cause, what
+        """The first (event, cause, what) of ``after`` not yet fired, or None: ready to run."""
+        after = self.after
+        k = self.waited
+        while k < len(after):
+            if not after[k][0].triggered:
+                self.waited = k
+                return after[k]
+            k += 1
+        self.waited = k  # events only ever fire: what has fired need not be looked at again
         return None
 
     @property
@@ -305,25 +157,56 @@ class Fifo:
     """
 
     def __init__(self, env: simpy.Environment, depth: int):
+        self.env = env
         self.depth = depth
-        self.space = simpy.Container(env, capacity=depth, init=depth)
-        self.packets = simpy.Store(env)
+        self.level = depth  # free entries
+        self.queue: deque[int] = deque()  # packets in the FIFO, in order
         self.pushed = 0
         self.popped = 0
+        self._space: simpy.events.Event | None = None  # fires when entries are freed
+        self._data: simpy.events.Event | None = None  # fires when a packet enters
 
     def slots(self, entries: int) -> int:
         # a packet without addresses still passes its end-of-packet marker
         return max(1, min(int(entries), self.depth))
 
+    def try_push(self, k: int, slots: int) -> bool:
+        if self.level < slots:
+            return False
+        self.level -= slots
+        self.queue.append(k)
+        if self._data is not None and not self._data.triggered:
+            self._data.succeed()
+        return True
+
+    def try_pop(self) -> int | None:
+        return self.queue.popleft() if self.queue else None
+
+    def free(self, slots: int) -> None:
+        self.level += slots
+        if self._space is not None and not self._space.triggered:
+            self._space.succeed()
+
+    def space_freed(self) -> simpy.events.Event:
+        if self._space is None or self._space.triggered:
+            self._space = self.env.event()
+        return self._space
+
+    def data_arrived(self) -> simpy.events.Event:
+        if self._data is None or self._data.triggered:
+            self._data = self.env.event()
+        return self._data
+
 
 class PM:
     """A Processing Module: takes jobs of both images, the priority image's first."""
 
-    def __init__(self, model: Model, name: str):
+    def __init__(self, model: Model, pipe: int, name: str):
         self.model = model
         self.env = model.env
+        self.pipe = pipe
         self.name = name
-        self.unit = Unit(model.env, f"pipe0.{name}", model.trace)
+        self.unit = Unit(model.env, f"pipe{pipe}.{name}", model.trace)
         self.queue: list[Job] = []
         self.route: int | None = None
         self.changed = self.env.event()
@@ -334,7 +217,13 @@ class PM:
 
     # -- queue ------------------------------------------------------------------------
     def submit(self, job: Job) -> None:
-        self.queue.append(job)
+        """Queue ``job`` behind every job of the same or a higher priority."""
+        q = self.queue
+        i = len(q)
+        rank = self._rank(job)
+        while i > 0 and self._rank(q[i - 1]) > rank:
+            i -= 1
+        q.insert(i, job)
         self.issued += int(job.spec.items.sum())
         self.poke()
 
@@ -349,17 +238,37 @@ class PM:
     def _rank(self, job: Job) -> int:
         return job.frame  # the image that arrived first has priority
 
-    def _ready(self) -> list[Job]:
-        return sorted((j for j in self.queue if j.blocker() is None), key=self._rank)
+    def _ready(self) -> Job | None:
+        """The ready job of the highest priority (the queue is kept in priority order)."""
+        for j in self.queue:
+            if j.blocker() is None:
+                return j
+        return None
 
     def _higher_ready(self, job: Job) -> bool:
-        return any(j is not job and j.blocker() is None and self._rank(j) < self._rank(job) for j in self.queue)
-
-    def _wake_events(self) -> list:
-        evs = [self.changed]
+        rank = self._rank(job)
         for j in self.queue:
+            if self._rank(j) >= rank:
+                return False
+            if j.blocker() is None:
+                return True
+        return False
+
+    def _wake_events(self, job: Job | None = None) -> list:
+        """What may make a job ready: the first unfired event of each waiting job.
+
+        With ``job`` (running, waiting on its FIFO), only jobs of a higher priority count:
+        they alone can preempt it.
+        """
+        evs = [self.changed]
+        seen = set()
+        rank = None if job is None else self._rank(job)
+        for j in self.queue:
+            if rank is not None and self._rank(j) >= rank:
+                break
             b = j.blocker()
-            if b is not None:
+            if b is not None and id(b[0]) not in seen:
+                seen.add(id(b[0]))
                 evs.append(b[0])
         return evs
 
@@ -369,8 +278,8 @@ class PM:
         while True:
             self._rearm()
             ready = self._ready()
-            if ready:
-                yield from self._run(ready[0])
+            if ready is not None:
+                yield from self._run(ready)
                 continue
             if not self.queue:  # no frame in flight needs this PM: idle
                 self.unit.waiting_for = "a job (idle)"
@@ -385,7 +294,7 @@ class PM:
         m = self.model
         if self.route != job.module:
             if self.route is not None:
-                yield from self.unit.delay("swap", m.arch.swap_cycles, f"route to mem{job.module}")
+                yield from self.unit.delay("swap", m.arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
                 m.xbar.swaps += 1
             self.route = job.module
         if job.suspended:
@@ -414,7 +323,7 @@ class PM:
                 job.interrupted = True
                 continue
             if self.name == "intersection":
-                job.fifo.space.put(job.fifo.slots(spec.entries[k]))
+                job.fifo.free(job.fifo.slots(spec.entries[k]))
                 job.fifo.popped += int(spec.entries[k])
             job.retired += int(spec.items[k])
             self.retired += int(spec.items[k])
@@ -426,19 +335,14 @@ class PM:
         spec = job.spec
         m = self.model
         misses = int(spec.misses[k])
-        if misses and m.arch.page_miss_cycles:
-            done = self.env.event()
-            start = self.env.now
-            m.modules[job.module].requests.put((misses, done))
-            yield done
-            waited = self.env.now - start
-            self.unit.stats.ms += waited
-            if self.unit.trace is not None:
-                self.unit.trace.slice(self.unit.scope, "busy", start, self.env.now, T_ms=waited)
-        yield from self.unit.work(int(spec.norm[k]), 0, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
-        if len(self.queue) > 1:
-            # let every event of this cycle (a semaphore firing now) settle before the
-            # packet-boundary check, so preemption does not depend on event order
+        ms = misses * m.arch.page_miss_cycles
+        if ms:
+            m.modules[job.module].serve(int(self.env.now), misses, ms)
+        yield from self.unit.work(int(spec.norm[k]), ms, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
+        if self._rank(self.queue[0]) < self._rank(job):
+            # an older image's job may become ready this very cycle: let every event of the
+            # cycle (a semaphore firing now) settle before the packet-boundary check, so
+            # preemption does not depend on event order
             settle = self.env.event()
             settle._ok, settle._value = True, None
             self.env.schedule(settle, priority=2)
@@ -448,32 +352,31 @@ class PM:
         """Put packet k's triangle addresses into the FIFO; False if preempted while it was full."""
         fifo = job.fifo
         n = int(job.spec.entries[k])
-        put = fifo.space.get(fifo.slots(n))
-        while not put.triggered:
+        slots = fifo.slots(n)
+        while not fifo.try_push(k, slots):
             job.pending_push = True
-            yield from self.unit.stall("fifo_full", self.env.any_of([put, *self._wake_events()]),
+            yield from self.unit.stall("fifo_full", self.env.any_of([fifo.space_freed(), *self._wake_events(job)]),
                                        f"FIFO space ({job.label})")
             self._rearm()
-            if not put.triggered and self._higher_ready(job):
-                put.cancel()
+            if fifo.level < slots and self._higher_ready(job):
                 return False
         job.pending_push = False
         fifo.pushed += n
-        fifo.packets.put(k)
         return True
 
     def _pop(self, job: Job):
         """Take the next packet's addresses from the FIFO; False if preempted while it was empty."""
-        get = job.fifo.packets.get()
-        while not get.triggered:
-            yield from self.unit.stall("fifo_empty", self.env.any_of([get, *self._wake_events()]),
+        fifo = job.fifo
+        k = fifo.try_pop()
+        while k is None:
+            yield from self.unit.stall("fifo_empty", self.env.any_of([fifo.data_arrived(), *self._wake_events(job)]),
                                        f"FIFO data ({job.label})")
             self._rearm()
-            if not get.triggered and self._higher_ready(job):
-                get.cancel()
+            k = fifo.try_pop()
+            if k is None and self._higher_ready(job):
                 return False
-        if get.value != job.next:
-            raise AssertionError(f"FIFO order broken: packet {get.value} arrived for {job.next}")
+        if k != job.next:
+            raise AssertionError(f"FIFO order broken: packet {k} arrived for {job.next}")
         return True
 
 
@@ -497,30 +400,96 @@ class Model:
     arch: ArchConfig
     program: FrameProgram
     trace: Trace | None
-    modules: list[Module] = field(default_factory=list)
+    modules: list[Module] = field(default_factory=list)  # per pipeline: 2 per image in flight
     xbar: Crossbar | None = None
-    pms: dict[str, PM] = field(default_factory=dict)
+    pms: dict[tuple[int, str], PM] = field(default_factory=dict)  # (pipeline, PM name)
     frames: list[FrameRecord] = field(default_factory=list)
     fifos: list = field(default_factory=list)
+    compose: int | None = None  # index in ``modules`` of the top-level unit (more than one pipeline)
 
     def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         if self.trace is not None:
             self.trace.slice(scope, name, start, end, **args)
 
+    def module(self, pipe: int, slot: int, role: int) -> int:
+        """The index of pipeline ``pipe``'s module ``role`` of image slot ``slot``."""
+        return 2 * (pipe * self.arch.images_in_flight + slot) + role
+
+    def pm(self, pipe: int, name: str) -> PM:
+        return self.pms[(pipe, name)]
+
 
 def _frame_process(model: Model, rec: FrameRecord):
+    """Submit one frame's stages: shared ones on pipeline 0, tiled ones on every pipeline."""
     env = model.env
-    a, b = 2 * rec.slot, 2 * rec.slot + 1
-    prev = None
-    prev_name = ""
-    for spec in model.program.phases:
-        after = []
+    n_pipes = model.program.pipelines
+    returns = [0] * n_pipes  # words each pipeline sends back to pipeline 0 after a tiled stage
+    prev, prev_name = None, ""
+    pending_returns = 0
+    tails = []  # the top-level unit's compose copies
+    for stage in model.program.stages:
+        gate = []
         if prev is not None:
-            after.append((prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}"))
-        copy_done = None
+            gate.append((prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}"))
+        if stage.shared:
+            if pending_returns:
+                fan_in = env.event()
+                gate.append((fan_in, "copy", f"results to pipeline 0 for '{stage.name}' of frame {rec.index}"))
+                env.process(_fan_in(model, rec, prev, stage, returns, fan_in))
+            (tile,) = stage.tiles
+            prev = _submit_chain(model, rec, 0, tile.phases, gate)
+            pending_returns = 0
+        else:
+            fan_out = [env.event() for _ in range(n_pipes)]
+            env.process(_fan_out(model, rec, prev, stage, fan_out))
+            if model.program.scheduler == "static":
+                dones = []
+                for p, tile in enumerate(stage.tiles):
+                    first = [*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
+                    chain = _submit_chain(model, rec, p, tile.phases, first)
+                    dones.append(chain)
+                    chain.callbacks.append(lambda _ev, p=p, tile=tile: _returned(returns, p, tile.returns))
+                    if tile.pixels:
+                        tails.append(env.process(_compose(model, rec, p, tile, chain)))
+                prev = _all_done(env, dones)
+            else:
+                queue = deque(stage.tiles)
+                workers = [env.process(_worker(model, rec, p, queue, prev, fan_out[p], stage, returns, tails))
+                           for p in range(n_pipes)]
+                prev = _all_done(env, workers)
+            pending_returns = sum(t.returns for t in stage.tiles)
+        prev_name = stage.name
+    yield _all_done(env, [prev, *tails]) if tails else prev
+    # compose copies started after ``prev`` by dynamic workers are in ``tails`` by now
+    pending = [t for t in tails if not t.processed]
+    if pending:
+        yield _all_done(env, pending)
+    rec.done = int(env.now)
+
+
+def _returned(returns: list[int], pipe: int, words: int) -> None:
+    returns[pipe] += words
+
+
+def _submit_chain(model: Model, rec: FrameRecord, pipe: int, phases, gate: list) -> simpy.events.Event:
+    """Queue a tile's phases on pipeline ``pipe``'s PMs; the event fires when the last is done.
+
+    The first phase waits for ``gate`` ([(event, cause, what)]); each later phase for its
+    predecessor (a handshake) and for its block copy, if it needs one.
+    """
+    env = model.env
+    a, b = model.module(pipe, rec.slot, 0), model.module(pipe, rec.slot, 1)
+    prev, prev_name = None, ""
+    for spec in phases:
+        if prev is None:
+            after = list(gate)
+        else:
+            after = [(prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}")]
         if spec.copy_words:
             copy_done = env.event()
+            waits = [ev for ev, _, _ in after]
             after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
+            env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index))
         fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
         if fifo is not None:
             model.fifos.append(fifo)
@@ -528,14 +497,78 @@ def _frame_process(model: Model, rec: FrameRecord):
         for js in spec.jobs:
             done = env.event()
             dones.append(done)
-            model.pms[js.pm].submit(Job(js, rec.index, spec.name, a if js.role == 0 else b, list(after), fifo, done))
-        if copy_done is not None:
-            env.process(_copy_after(model, prev, copy_done, spec, a, b, rec.index))
+            model.pm(pipe, js.pm).submit(Job(js, rec.index, spec.name, a if js.role == 0 else b, list(after),
+                                              fifo, done))
         prev = _all_done(env, dones)
         prev_name = spec.name
+    if prev is None:  # a tile without work still waits for its gate
+        prev = _all_done(env, [ev for ev, _, _ in gate])
+    return prev
+
+
+def _worker(model: Model, rec: FrameRecord, pipe: int, queue: deque, prev, fan_out, stage: Stage,
+            returns: list[int], tails: list):
+    """The dynamic scheduler: pipeline ``pipe`` takes the next waiting tile when it is free."""
     if prev is not None:
         yield prev
-    rec.done = int(env.now)
+    while queue:
+        tile = queue.popleft()
+        yield _submit_chain(model, rec, pipe, tile.phases,
+                            [(fan_out, "copy", f"'{stage.name}' data of frame {rec.index}")])
+        returns[pipe] += tile.returns
+        if tile.pixels:  # the tile's pixels leave the pipeline's module before it takes the next tile
+            yield from _compose_copy(model, rec, pipe, tile)
+
+
+def _compose(model: Model, rec: FrameRecord, pipe: int, tile, chain):
+    yield chain
+    yield from _compose_copy(model, rec, pipe, tile)
+
+
+def _compose_copy(model: Model, rec: FrameRecord, pipe: int, tile):
+    yield from model.xbar.copy(model.module(pipe, rec.slot, 1), [model.compose], WORDS_PER_PIXEL * tile.pixels,
+                               f"{tile.name} to the image (frame {rec.index})")
+
+
+def _fan_out(model: Model, rec: FrameRecord, prev, stage: Stage, events: list):
+    """Copy pipeline 0's shared structures into every pipeline (broadcast or one by one)."""
+    if prev is not None:
+        yield prev
+    n_pipes = len(events)
+    src = {fo: model.module(0, rec.slot, fo.src_role) for fo in stage.fan_out}
+
+    def targets(fo, pipes):
+        return [model.module(p, rec.slot, fo.dst_role) for p in pipes
+                if not (p == 0 and fo.src_role == fo.dst_role) and fo.words]
+
+    if model.arch.fanout == "broadcast" or n_pipes == 1:
+        for fo in stage.fan_out:
+            dsts = targets(fo, range(n_pipes))
+            if dsts:
+                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})")
+        for ev in events:
+            ev.succeed()
+        return
+    for p in range(n_pipes):
+        for fo in stage.fan_out:
+            dsts = targets(fo, [p])
+            if dsts:
+                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})")
+        events[p].succeed()
+
+
+def _fan_in(model: Model, rec: FrameRecord, prev, stage: Stage, returns: list[int], done):
+    """Each pipeline's results (stored photons, on its Fragment PM's module) to pipeline 0."""
+    if prev is not None:
+        yield prev
+    dst = model.module(0, rec.slot, stage.fan_in_role)
+    for p, words in enumerate(returns):
+        if words:
+            src = model.module(p, rec.slot, 1)
+            if src != dst:
+                yield from model.xbar.copy(src, [dst], words, f"{stage.name} (frame {rec.index})")
+        returns[p] = 0
+    done.succeed()
 
 
 def _all_done(env: simpy.Environment, events: list) -> simpy.events.Event:
@@ -545,27 +578,28 @@ def _all_done(env: simpy.Environment, events: list) -> simpy.events.Event:
     condition once the outer one fires, and PMs wait on any-of sets that include it.
     """
     done = env.event()
-    left = [len(events)]
+    waiting = [ev for ev in events if not ev.processed]
+    left = [len(waiting)]
 
     def one(_ev):
         left[0] -= 1
         if left[0] == 0:
             done.succeed()
 
-    for ev in events:
+    for ev in waiting:
         ev.callbacks.append(one)
-    if not events:
+    if not waiting:
         done.succeed()
     return done
 
 
-def _copy_after(model: Model, prev, copy_done, spec: PhaseSpec, a: int, b: int, frame: int):
-    if prev is not None:
-        yield prev
+def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b: int, frame: int):
+    for ev in waits:  # noqa: UP028 - SimPy sends event values back; a list iterator cannot take them
+        yield ev
     # data produced on one module of the image and needed on the other
     to = spec.jobs[0].role if spec.copy_to is None else spec.copy_to
     src, dst = (b, a) if to == 0 else (a, b)
-    yield from model.xbar.copy(src, dst, spec.copy_words, f"{spec.name} (frame {frame})")
+    yield from model.xbar.copy(src, [dst], spec.copy_words, f"{spec.name} (frame {frame})")
     copy_done.succeed()
 
 
@@ -603,6 +637,7 @@ class Timing:
     trace: Trace | None
     checks: dict
     crossbar: dict
+    pipelines: list[dict] = field(default_factory=list)  # per pipeline: each PM's cycles per frame
     model: Model | None = None  # the simulated units (their logs), for tests and inspection
 
     def to_dict(self) -> dict:
@@ -616,6 +651,9 @@ class Timing:
             "left_out": self.program.left_out,
             "invariants": self.checks,
             "crossbar": self.crossbar,
+            "pipelines": self.pipelines,
+            "scheduler": self.program.scheduler,
+            "tiling": self.program.tiling,
         }
 
 
@@ -629,35 +667,26 @@ def simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     env = simpy.Environment()
     trace = Trace() if arch.trace else None
     model = Model(env, arch, program, trace)
-    model.modules = [Module(env, i, arch.page_miss_cycles, trace) for i in range(2 * arch.images_in_flight)]
+    n_pipes = program.pipelines
+    per_pipe = 2 * arch.images_in_flight
+    model.modules = [Module(env, f"mem{i}", trace) for i in range(per_pipe * n_pipes)]
+    if n_pipes > 1:  # the top-level unit that composes the tiles into the image
+        model.compose = len(model.modules)
+        model.modules.append(Module(env, "compose", trace))
     model.xbar = Crossbar(env, model.modules, arch, trace)
-    model.pms = {name: PM(model, name) for name in PMS}
+    used = {js.pm for ph in program.phases for js in ph.jobs}
+    for p in range(n_pipes):
+        for name in PMS:
+            if name == "vertex" and p > 0 and "vertex" in used:
+                continue  # one Vertex PM builds the shared structures (§V.D)
+            model.pms[(p, name)] = PM(model, p, name)
     done = env.event()
     env.process(_stream(model, done))
-    units = [pm.unit for pm in model.pms.values()]
-    counter = _EventCounter(env)
-    end = run(env, done, units, max_events=arch.max_events)
-    timing = _results(model, program, end, counter.count(), trace)
+    counts: dict = {}
+    end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=arch.max_events, counts=counts)
+    timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     return timing
-
-
-class _EventCounter:
-    """Counts processed SimPy events (``env.step`` calls) without slowing the loop."""
-
-    def __init__(self, env: simpy.Environment):
-        self.env = env
-        self.n = 0
-        step = env.step
-
-        def counted():
-            self.n += 1
-            step()
-
-        env.step = counted
-
-    def count(self) -> int:
-        return self.n
 
 
 def _results(model: Model, program: FrameProgram, end: int, events: int, trace: Trace | None) -> Timing:
@@ -675,16 +704,20 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         for js in ph.jobs:
             expected[js.pm] += int(js.items.sum()) * nf
             expected_norm[js.pm] += int(js.norm.sum()) * nf
-    for name, pm in model.pms.items():
-        if pm.issued != expected[name] or pm.retired != pm.issued or pm.queue:
-            raise AssertionError(f"pipe0.{name}: {pm.issued} work items issued, {pm.retired} retired, "
-                                 f"{expected[name]} expected, {len(pm.queue)} jobs left")
-        if pm.unit.stats.norm != expected_norm[name]:
-            raise AssertionError(f"pipe0.{name}: T_norm {pm.unit.stats.norm} != the program's "
-                                 f"{expected_norm[name]}")
+    for name in PMS:
+        pms = [pm for (_, n), pm in model.pms.items() if n == name]
+        issued = sum(pm.issued for pm in pms)
+        retired = sum(pm.retired for pm in pms)
+        left = sum(len(pm.queue) for pm in pms)
+        if issued != expected[name] or retired != issued or left:
+            raise AssertionError(f"{name} PMs: {issued} work items issued, {retired} retired, "
+                                 f"{expected[name]} expected, {left} jobs left")
+        norm = sum(pm.unit.stats.norm for pm in pms)
+        if norm != expected_norm[name]:
+            raise AssertionError(f"{name} PMs: T_norm {norm} != the program's {expected_norm[name]}")
     checks["every work item issued is retired"] = True
     for fifo in model.fifos:
-        if fifo.pushed != fifo.popped or fifo.space.level != fifo.depth:
+        if fifo.pushed != fifo.popped or fifo.level != fifo.depth or fifo.queue:
             raise AssertionError(f"a FIFO ended with {fifo.pushed} addresses pushed, {fifo.popped} popped")
     checks["every FIFO entry pushed is popped"] = True
     checks["T_norm equals the programs' cycles"] = True
@@ -694,11 +727,13 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     done = [r.done for r in model.frames]
     throughput = (done[-1] - done[0]) / (nf - 1) if nf > 1 else done[0]
     latency = float(np.mean([r.done - r.arrival for r in model.frames]))
-    cycles = {}
-    for name, pm in model.pms.items():
+    per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]
+    for (p, name), pm in model.pms.items():
         s = pm.unit.stats
         own = s.busy + s.stall["swap"] + s.stall["copy"] + s.stall["preemption"]
-        cycles[name] = round(own / nf)
+        per_pipe[p][name] = round(own / nf)
+    # a PM kind's cycles: its slowest pipeline's (the one the frame waits for)
+    cycles = {name: max(pp[name] for pp in per_pipe) for name in PMS}
     throughput_i = round(throughput)
     cycles["throughput"] = throughput_i
     cycles["latency"] = round(latency)
@@ -707,15 +742,15 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         _fill_idle(trace, end)
     frames = [{"frame": r.index, "slot": r.slot, "arrival": r.arrival, "done": r.done} for r in model.frames]
     xb = {"swaps": model.xbar.swaps, "copies": model.xbar.copies, "words_copied": model.xbar.words_copied,
-          "preemptions": {name: pm.switches for name, pm in model.pms.items()}}
-    return Timing(cycles, fps, units, frames, events, program, trace, checks, xb)
+          "preemptions": {pm.unit.scope: pm.switches for pm in model.pms.values()}}
+    return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe)
 
 
 def _fill_idle(trace: Trace, end: int) -> None:
     """Idle slices in every gap of every row, up to the end of the run."""
     by_row: dict[int, list[tuple[int, int]]] = {}
-    for e in trace.events:
-        by_row.setdefault(e["tid"], []).append((e["ts"], e["ts"] + e["dur"]))
+    for tid, s, e in trace.spans():
+        by_row.setdefault(tid, []).append((s, e))
     scopes = {tid: scope for scope, tid in trace.rows.items()}
     for tid, spans in by_row.items():
         spans.sort()

@@ -75,28 +75,41 @@ class Trace:
     """Chrome trace events: one row per unit, one slice per interval."""
 
     def __init__(self) -> None:
-        self.events: list[dict] = []
+        self._slices: list[list] = []  # [name, start, end, tid, args]
         self.rows: dict[str, int] = {}
-        self._last: dict[int, dict] = {}  # each row's latest slice
+        self._last: dict[int, list] = {}  # each row's latest slice
 
     def slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         """Add a slice; one that continues its row's latest slice of the same name extends it."""
         if end <= start:
             return
-        tid = self.rows.setdefault(scope, len(self.rows))
+        tid = self.rows.get(scope)
+        if tid is None:
+            tid = self.rows[scope] = len(self.rows)
         last = self._last.get(tid)
-        if last is not None and last["name"] == name and last["ts"] + last["dur"] == start:
-            last["dur"] = end - last["ts"]
+        if last is not None and last[2] == start and last[0] == name:
+            last[2] = end
+            old_args = last[4]
             for k, v in args.items():
-                old = last["args"].get(k)
-                if isinstance(v, int) and isinstance(old, int):
-                    last["args"][k] = old + v
-                elif old is None:
-                    last["args"][k] = v
+                old = old_args.get(k)
+                if old is None:
+                    old_args[k] = v
+                elif type(v) is int and type(old) is int:
+                    old_args[k] = old + v
             return
-        event = {"name": name, "ph": "X", "ts": start, "dur": end - start, "pid": 0, "tid": tid, "args": args}
-        self.events.append(event)
+        event = [name, start, end, tid, args]
+        self._slices.append(event)
         self._last[tid] = event
+
+    @property
+    def events(self) -> list[dict]:
+        """The slices as Chrome trace events ("X": complete events)."""
+        return [{"name": n, "ph": "X", "ts": s, "dur": e - s, "pid": 0, "tid": tid, "args": a}
+                for n, s, e, tid, a in self._slices]
+
+    def spans(self) -> list[tuple[int, int, int]]:
+        """(tid, start, end) of every slice."""
+        return [(tid, s, e) for _, s, e, tid, _ in self._slices]
 
     def to_json(self, clock_hz: float | None = None) -> dict:
         """The trace document; timestamps are cycles (displayed as microseconds)."""
@@ -124,14 +137,20 @@ class Unit:
         """Spend ``norm`` instruction, ``ms`` page-miss and ``ps`` flush cycles."""
         norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
         start = self.env.now
-        self.log.append((f"{label} start", start))
         yield self.env.timeout(norm + ms + ps)
-        self.stats.norm += norm
-        self.stats.ms += ms
-        self.stats.ps += ps
+        self.account(start, norm, ms, ps, label)
+
+    def account(self, start: int, norm: int, ms: int, ps: int, label: str) -> None:
+        """Book work of ``norm + ms + ps`` cycles from ``start`` (done inside another process)."""
+        stats = self.stats
+        stats.norm += norm
+        stats.ms += ms
+        stats.ps += ps
+        end = start + norm + ms + ps
+        self.log.append((f"{label} start", start))
         if self.trace is not None:
-            self.trace.slice(self.scope, label, start, self.env.now, T_norm=norm, T_ms=ms, T_ps=ps)
-        self.log.append((f"{label} end", self.env.now))
+            self.trace.slice(self.scope, label, start, end, T_norm=norm, T_ms=ms, T_ps=ps)
+        self.log.append((f"{label} end", end))
 
     def stall(self, cause: str, event: simpy.events.Event, waiting_for: str) -> Generator:
         """Wait for ``event``; the time waited is a data stall (T_ds) under ``cause``."""
@@ -183,21 +202,28 @@ class Handshake:
         return key in self._events and self._events[key].triggered
 
 
-def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000) -> int:
+def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
+        counts: dict | None = None) -> int:
     """Run until ``done`` fires; return the cycle it fired at.
 
     Raises :class:`Deadlock` if the event queue empties first, or if ``max_events`` events
     pass without ``done`` (the message names every blocked unit and what it awaits).
+    ``counts``, if given, receives the number of events processed under ``"events"``.
     """
     units = list(units)
     steps = 0
-    while not done.triggered:
-        if env.peek() == float("inf"):
-            _deadlock(env, units, "no event is scheduled")
-        if steps >= max_events:
-            _deadlock(env, units, f"{max_events} events passed")
-        env.step()
-        steps += 1
+    step = env.step
+    try:
+        while not done.triggered:
+            if steps >= max_events:
+                _deadlock(env, units, f"{max_events} events passed")
+            step()
+            steps += 1
+    except simpy.core.EmptySchedule:
+        _deadlock(env, units, "no event is scheduled")
+    finally:
+        if counts is not None:
+            counts["events"] = steps
     return int(env.now)
 
 

@@ -1,0 +1,335 @@
+"""The frame program: what each PM of each pipeline runs for one frame, in packets.
+
+The reconstruction of the thesis's Figs. 13 and 14 (``docs/architecture.md``). A frame
+is a sequence of :class:`Stage` s. A *shared* stage runs on pipeline 0 alone: the one
+Vertex PM builds the geometry BSP and emits photons, and later builds the photon BSP
+(§V.D: "the initial geometry/photon list are partitioned via a single Vertex PM"). A
+*tiled* stage runs on every pipeline: its work is cut into :class:`Tile` s (image tiles
+for the ray and gather passes, chunks of the photon list for photon tracing); each
+tile is a chain of *phases* run in order on one pipeline. A phase is one job (Vertex or
+Fragment PM) or two coupled jobs (Traversal and Intersection PMs joined by the FIFO).
+
+Copies between memory modules (the crossbar's work):
+
+* ``Stage.fan_out``: before a tiled stage, what the shared stage produced on pipeline
+  0 is copied into every pipeline's modules (the tree, the vertices, the photon tree);
+  with one pipeline only the copies between the image's two modules remain.
+* ``Stage.fan_in``: before a shared stage, each pipeline's results of the previous
+  tiled stage (``Tile.returns``, the stored photons) go back to pipeline 0.
+* ``PhaseSpec.copy_words``: within a tile, between the image's two modules of one
+  pipeline (new rays from the Fragment PM's module to the Traversal PM's).
+* With more than one pipeline, each finished tile's pixels go to the top-level unit
+  that composes the image (``Tile.pixels``).
+
+The static scheduler cuts the image into exactly ``pipelines`` tiles (quadrants for 4,
+the most nearly square grid for any N) and gives tile i to pipeline i; the dynamic
+one cuts ``tiles_per_pipeline`` x ``pipelines`` tiles into a shared queue from which a
+pipeline that finished its tile takes the next. Every work item is in exactly one tile,
+so the work (and the image) does not depend on the tiling.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tlm.arch.functional import Functional, TreeWork
+from tlm.arch.programs import Programs
+from tlm.arch.work import split
+from tlm.config import ArchConfig
+
+PMS = ("vertex", "traversal", "intersection", "fragment")
+PM_TABLE_NAMES = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "fragment": "TFrag"}
+WORDS_PER_RAY = 2  # a ray record: origin and direction, two 128-bit words
+WORDS_PER_PHOTON = 2  # position and power (with the incoming direction packed)
+WORDS_PER_HIT = 2  # a hit record: t, triangle, barycentrics, pixel
+WORDS_PER_PIXEL = 1  # a composed pixel: RGB in one 128-bit word
+
+
+@dataclass(frozen=True)
+class JobSpec:
+    """One PM's part of a phase, in packets (all arrays (packets,) int64)."""
+
+    pm: str
+    kind: str  # program entry (vertex: geometry_bsp, ...; intersection: the phase's ray kind)
+    role: int  # 0: the image's first module (tree, rays), 1: its second (vertices, hits)
+    norm: np.ndarray
+    misses: np.ndarray
+    flushes: np.ndarray
+    items: np.ndarray  # work items retired per packet (pixels, photons, rays, levels)
+    entries: np.ndarray | None = None  # FIFO entries pushed (traversal) or popped (intersection)
+
+    @property
+    def n(self) -> int:
+        return int(self.items.shape[0])
+
+
+@dataclass(frozen=True)
+class PhaseSpec:
+    name: str
+    jobs: tuple[JobSpec, ...]
+    copy_words: int  # words the crossbar copies between the image's modules before the phase
+    copy_to: int | None = None  # the role the copy goes to (None: the role of the phase's first job)
+
+
+@dataclass(frozen=True)
+class Tile:
+    """A chain of phases that one pipeline runs in order."""
+
+    name: str
+    phases: tuple[PhaseSpec, ...]
+    pixels: int = 0  # pixels it composes into the image (with more than one pipeline)
+    returns: int = 0  # words copied back to pipeline 0 before the next shared stage
+
+
+@dataclass(frozen=True)
+class FanOut:
+    """Words produced on pipeline 0's module ``src_role``, needed on every pipeline's ``dst_role``."""
+
+    what: str
+    words: int
+    src_role: int
+    dst_role: int
+
+
+@dataclass(frozen=True)
+class Stage:
+    name: str
+    shared: bool  # pipeline 0 alone (one tile), else tiles over all pipelines
+    tiles: tuple[Tile, ...]
+    fan_out: tuple[FanOut, ...] = ()
+    fan_in_role: int = 0  # where the previous stage's ``Tile.returns`` go on pipeline 0
+
+
+@dataclass(frozen=True)
+class FrameProgram:
+    stages: tuple[Stage, ...]
+    left_out: dict[str, str]  # what was not built, and why
+    pipelines: int = 1
+    scheduler: str = "static"
+    tiling: dict = field(default_factory=dict)  # rows, cols and tile bounds of the image tiles
+
+    @classmethod
+    def linear(cls, phases, left_out: dict[str, str] | None = None) -> FrameProgram:
+        """One pipeline running ``phases`` in order (hand-built programs in tests)."""
+        return cls((Stage("frame", True, (Tile("frame", tuple(phases)),)),), dict(left_out or {}))
+
+    @property
+    def phases(self) -> tuple[PhaseSpec, ...]:
+        """Every phase of every tile, in program order."""
+        return tuple(ph for st in self.stages for t in st.tiles for ph in t.phases)
+
+
+# -- tiling ----------------------------------------------------------------------------------
+
+def grid_shape(n: int, width: int, height: int) -> tuple[int, int]:
+    """Rows and columns of ``n`` tiles, the factorisation whose tiles are most nearly square."""
+    best, best_cost = (1, n), math.inf
+    for rows in range(1, n + 1):
+        if n % rows:
+            continue
+        cols = n // rows
+        cost = abs(math.log((max(height, 1) / rows) / (max(width, 1) / cols)))
+        if cost < best_cost - 1e-12:
+            best, best_cost = (rows, cols), cost
+    return best
+
+
+def _edges(total: int, parts: int) -> np.ndarray:
+    return (np.arange(parts + 1, dtype=np.int64) * total) // parts
+
+
+def image_tiles(width: int, height: int, n: int) -> tuple[list[np.ndarray], dict]:
+    """``n`` rectangular tiles covering the image: each tile's pixel indices, row-major."""
+    rows, cols = grid_shape(n, width, height)
+    ry, cx = _edges(height, rows), _edges(width, cols)
+    tiles, bounds = [], []
+    for r in range(rows):
+        for c in range(cols):
+            ys = np.arange(ry[r], ry[r + 1], dtype=np.int64)
+            xs = np.arange(cx[c], cx[c + 1], dtype=np.int64)
+            tiles.append((ys[:, None] * width + xs[None, :]).reshape(-1))
+            bounds.append([int(cx[c]), int(ry[r]), int(cx[c + 1]), int(ry[r + 1])])
+    return tiles, {"rows": rows, "cols": cols, "tiles": bounds}
+
+
+# -- phase builders --------------------------------------------------------------------------
+
+def _level_packets(tw: TreeWork) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """A BSP build cut into one packet per level."""
+    n = tw.n_levels
+    counts = {k: v.astype(np.int64) for k, v in tw.levels.items()}
+    elements = np.zeros(n, dtype=np.int64)
+    restarts = np.full(n, 3, dtype=np.int64)  # per level: read P twice, write P'
+    if n:
+        elements[0] = tw.n_elements
+        restarts[0] += 1  # the element list itself
+    else:  # a tree of 0 levels still reads its elements once
+        elements = np.array([tw.n_elements], dtype=np.int64)
+        restarts = np.array([1], dtype=np.int64)
+        counts = {k: np.zeros(1, dtype=np.int64) for k in counts}
+        counts["nodes"][:] = 1
+    counts["elements"] = elements
+    counts["stream_restarts"] = restarts
+    return counts, np.ones(elements.shape[0], dtype=np.int64)
+
+
+def _programmable(programs: Programs, pm: str, kind: str, role: int, counts: dict[str, np.ndarray],
+                  items: np.ndarray, entries: np.ndarray | None = None) -> JobSpec:
+    norm, flushes, misses = programs.cost(pm, kind, counts, items)
+    return JobSpec(pm, kind, role, norm, misses, flushes, items, entries)
+
+
+def _intersection(programs: Programs, kind: str, rays: np.ndarray, tris: np.ndarray,
+                  misses: np.ndarray) -> JobSpec:
+    fx = programs.intersection
+    norm = fx["ray_load_cycles"] * rays + fx["triangle_cycles"] * tris
+    if norm.shape[0]:
+        norm = norm.copy()
+        norm[-1] += fx["stages"] * fx["triangle_cycles"]  # the pipeline drains at the job's end
+    return JobSpec("intersection", kind, 1, norm.astype(np.int64), misses.astype(np.int64),
+                   np.zeros_like(rays), rays.astype(np.int64), tris.astype(np.int64))
+
+
+RAY_KEYS = {"rays": ("primary_rays", "secondary_rays"), "tris": "tri_tests", "isect_misses": "isect_misses"}
+SHADOW_KEYS = {"rays": ("shadow_rays",), "tris": "shadow_tri_tests", "isect_misses": "shadow_isect_misses"}
+PHOTON_KEYS = {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}
+
+
+class _Builder:
+    """Builds phases over a selection of pixels or photons (a tile's ray buffer)."""
+
+    def __init__(self, fn: Functional, programs: Programs, arch: ArchConfig):
+        self.fn, self.programs, self.arch = fn, programs, arch
+        g = fn.geometry
+        self.tree_words = g.nodes + -(-g.slots // 4)  # nodes, and the leaves' triangle indices (4 per word)
+        self.vertex_words = 3 * g.slots
+        self.copy_mode = arch.memory == "copy"
+
+    def packets(self, work: dict[str, np.ndarray], idx: np.ndarray):
+        p = split("sub", {k: v[idx] for k, v in work.items()}, self.arch.packet_size)
+        return p.counts, p.sizes
+
+    def ti(self, name: str, t_kind: str, work: dict[str, np.ndarray], idx: np.ndarray, keys: dict,
+           copy_words: int, copy_to: int | None = None) -> PhaseSpec:
+        counts, items = self.packets(work, idx)
+        zero = np.zeros(items.shape[0], dtype=np.int64)
+        rays = sum((counts.get(k, zero) for k in keys["rays"]), zero)
+        tris = counts.get(keys["tris"], zero)
+        t = _programmable(self.programs, "traversal", t_kind, 0, counts, items, tris)
+        i = _intersection(self.programs, t_kind, rays, tris, counts.get(keys["isect_misses"], zero))
+        if self.copy_mode:
+            copy_words += self.tree_words + self.vertex_words
+        return PhaseSpec(name, (t, i), copy_words, copy_to)
+
+    def f(self, name: str, kind: str, work: dict[str, np.ndarray], idx: np.ndarray) -> PhaseSpec:
+        counts, items = self.packets(work, idx)
+        copy_words = WORDS_PER_HIT * int(items.sum()) if self.copy_mode else 0
+        return PhaseSpec(name, (_programmable(self.programs, "fragment", kind, 1, counts, items),), copy_words)
+
+    def pixel_tile(self, idx: np.ndarray, passes: list[str], with_gather: bool) -> list[PhaseSpec]:
+        """The ray passes and the gather of the pixels ``idx`` (row-major)."""
+        phases = []
+        for name in passes:
+            w = self.fn.work[name]
+            rays = (w["primary_rays"] + w["secondary_rays"])[idx]
+            sel = idx[rays > 0]
+            if not sel.size:
+                continue
+            # a secondary pass receives the Fragment PM's new rays (towards the Traversal PM's module)
+            phases.append(self.ti(f"{name}.rays", "rays", w, sel, RAY_KEYS,
+                                  WORDS_PER_RAY * int(w["secondary_rays"][sel].sum()), 0))
+            phases.append(self.f(f"{name}.shade", "shade", w, sel))
+            ssel = idx[w["shadow_rays"][idx] > 0]
+            if ssel.size:
+                phases.append(self.ti(f"{name}.shadow", "shadow", w, ssel, SHADOW_KEYS,
+                                      WORDS_PER_RAY * int(w["shadow_rays"][ssel].sum())))
+                phases.append(self.f(f"{name}.light", "light", w, ssel))
+        if with_gather:
+            w = self.fn.work["pmap"]
+            gsel = idx[w["gathers"][idx] > 0]
+            if gsel.size:
+                phases.append(self.f("pmap.gather", "gather", w, gsel))
+        return phases
+
+    def photon_chunk(self, idx: np.ndarray) -> tuple[list[PhaseSpec], int]:
+        pw = self.fn.photon_work
+        phases = [self.ti("photons.trace", "photons", pw, idx, PHOTON_KEYS, 0)]
+        stored_sel = idx[pw["bounces"][idx] > 0]
+        if stored_sel.size:
+            phases.append(self.f("photons.store", "photons", pw, stored_sel))
+        return phases, WORDS_PER_PHOTON * int(pw["stored"][idx].sum())
+
+
+def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> FrameProgram:
+    """The stages of one frame, in the order the control unit runs them."""
+    b = _Builder(fn, programs, arch)
+    n_pipes = arch.pipelines
+    n_tiles = n_pipes if arch.scheduler == "static" else n_pipes * arch.tiles_per_pipeline
+    left_out: dict[str, str] = {}
+    if n_pipes > 1:
+        left_out["vertex PMs of pipelines 1.." + str(n_pipes - 1)] = (
+            "one Vertex PM builds the shared structures for every pipeline (§V.D)")
+    stages: list[Stage] = []
+
+    counts, items = _level_packets(fn.geometry)
+    shared = [PhaseSpec("geometry", (_programmable(programs, "vertex", "geometry_bsp", 0, counts, items),), 0)]
+    # every pipeline's Traversal PM reads the tree, its Intersection PM the vertices
+    geometry_out = (FanOut("tree", b.tree_words, 0, 0), FanOut("vertices", b.vertex_words, 0, 1))
+
+    passes = []
+    for name in ("rcast", "reflect", "refract"):
+        if name not in fn.passes:
+            left_out[f"{name} frames"] = "the plan does not render this pass"
+            continue
+        w = fn.work[name]
+        if not (w["primary_rays"] + w["secondary_rays"]).any():
+            left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
+            continue
+        passes.append(name)
+        if not w["shadow_rays"].any():
+            left_out[f"{name} shadow frames"] = "no shadow ray (no light, or no Lambertian hit)"
+
+    with_pmap = "pmap" in fn.passes and fn.photon_work is not None and fn.photon_tree is not None
+    pixel_out = geometry_out
+    if with_pmap:
+        pw = fn.photon_work
+        n = pw["photons_emitted"].shape[0]
+        emit = split("emit", {"photons_emitted": pw["photons_emitted"]}, arch.packet_size)
+        emit_counts = dict(emit.counts)
+        emit_counts["stream_restarts"] = np.zeros(emit.n, dtype=np.int64)
+        if emit.n:
+            emit_counts["stream_restarts"][0] = 1
+        shared.append(PhaseSpec("photons.emit", (_programmable(programs, "vertex", "photon_emit", 0, emit_counts,
+                                                               emit.sizes),), 0))
+        stages.append(Stage("geometry", True, (Tile("geometry", tuple(shared)),)))
+        chunks = [np.arange(lo, hi, dtype=np.int64) for lo, hi in zip(_edges(n, n_tiles)[:-1], _edges(n, n_tiles)[1:])]
+        tiles = []
+        for i, idx in enumerate(chunks):
+            phases, returns = b.photon_chunk(idx) if idx.size else ([], 0)
+            tiles.append(Tile(f"photons {i}", tuple(phases), 0, returns))
+        stages.append(Stage("photons", False, tuple(tiles),
+                            (*geometry_out, FanOut("photon rays", WORDS_PER_RAY * n, 0, 0))))
+        counts, items = _level_packets(fn.photon_tree)
+        bsp = PhaseSpec("photons.bsp", (_programmable(programs, "vertex", "photon_bsp", 0, counts, items),), 0)
+        stages.append(Stage("photon tree", True, (Tile("photon tree", (bsp,)),), (), fan_in_role=0))
+        # the gather reads the photon tree and its photons on the Fragment PM's module
+        pixel_out = (FanOut("photon tree", WORDS_PER_PHOTON * fn.photon_tree.n_elements + fn.photon_tree.nodes,
+                            0, 1),)
+    else:
+        left_out["photon programs, photon memory and photon tree"] = "the plan has no pmap pass"
+        stages.append(Stage("geometry", True, (Tile("geometry", tuple(shared)),)))
+
+    tiles_idx, tiling = image_tiles(fn.width, fn.height, n_tiles)
+    tiles = []
+    for i, idx in enumerate(tiles_idx):
+        phases = b.pixel_tile(idx, passes, with_pmap)
+        tiles.append(Tile(f"tile {i}", tuple(phases), int(idx.size) if n_pipes > 1 else 0))
+    stages.append(Stage("pixels", False, tuple(tiles), pixel_out))
+    return FrameProgram(tuple(stages), left_out, n_pipes, arch.scheduler, tiling)
+
+
+__all__ = ["PMS", "PM_TABLE_NAMES", "FanOut", "FrameProgram", "JobSpec", "PhaseSpec", "Stage", "Tile",
+           "frame_program", "grid_shape", "image_tiles"]
