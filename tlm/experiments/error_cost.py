@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from tlm.config import apply_overrides, config_from_dict, read_yaml, to_dict
+from tlm.config import apply_overrides, config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import (
@@ -45,6 +45,7 @@ from tlm.experiments.reference import (
     reference_key,
     save_reference,
 )
+from tlm.experiments.study import read_study
 from tlm.kernels.traverse import build_accel
 from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius, trace_photon_map
 from tlm.render.planner import photon_count
@@ -84,16 +85,7 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
 
 
 def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
-    raw = read_yaml(path)
-    src = str(path)
-    if not isinstance(raw, dict):
-        raise InputError("must be a mapping with 'base' and 'points'", source=src)
-    for key in raw:
-        if key not in ("base", "points", "description"):
-            raise InputError("unknown key (expected base, points, description)", source=src, key=str(key))
-    base = raw.get("base") or {}
-    if not isinstance(base, dict):
-        raise InputError("must be a run config mapping", source=src, key="base")
+    raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
     for p in points:  # check every point before any work starts
         config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})")

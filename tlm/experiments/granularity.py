@@ -27,10 +27,11 @@ import yaml
 
 from tlm.arch.functional import cached_functional
 from tlm.arch.model import simulate
-from tlm.config import config_from_dict, read_yaml, to_dict
+from tlm.config import config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.run import programs_for
+from tlm.experiments.study import read_study
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
@@ -38,16 +39,7 @@ COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_a
 
 
 def load_granularity(path: Path):
-    raw = read_yaml(path)
-    src = str(path)
-    if not isinstance(raw, dict):
-        raise InputError("must be a mapping with base and packet_sizes", source=src)
-    for key in raw:
-        if key not in ("base", "packet_sizes", "description"):
-            raise InputError("unknown key (expected base, packet_sizes, description)", source=src, key=str(key))
-    base = raw.get("base") or {}
-    if not isinstance(base, dict):
-        raise InputError("must be a run config mapping", source=src, key="base")
+    raw, base, src = read_study(path, ("packet_sizes",))
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):

@@ -38,10 +38,11 @@ import numpy as np
 from tlm.arch.functional import Functional
 from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
-from tlm.config import MODES, RunConfig, config_from_dict, read_yaml
+from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.run import RenderResult, Timer, programs_for, render, simulate_run, write_run
+from tlm.experiments.study import read_study
 from tlm.render.planner import plan
 
 # Tables I-III: millions of cycles (FPS in frames per second).
@@ -75,16 +76,7 @@ def thesis_value(scene: str, mode: str, metric: str) -> float | None:
 
 
 def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
-    raw = read_yaml(path)
-    src = str(path)
-    if not isinstance(raw, dict):
-        raise InputError("must be a mapping with base, scenes and modes", source=src)
-    for key in raw:
-        if key not in ("base", "scenes", "modes", "description"):
-            raise InputError("unknown key (expected base, scenes, modes, description)", source=src, key=str(key))
-    base = raw.get("base") or {}
-    if not isinstance(base, dict):
-        raise InputError("must be a run config mapping", source=src, key="base")
+    raw, base, src = read_study(path, ("scenes", "modes"))
     for key in ("scene", "mode"):
         if key in base:
             raise InputError(f"is set by '{key}s', not in base", source=src, key=f"base.{key}")

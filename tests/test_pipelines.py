@@ -1,0 +1,187 @@
+"""N duplicated pipelines (thesis §V.D) and the dynamic scheduler."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from tlm.arch.functional import Functional
+from tlm.arch.model import PMS, simulate
+from tlm.arch.program import frame_program, grid_shape, image_tiles
+from tlm.arch.programs import load_programs
+from tlm.config import config_from_dict
+
+EQ_TERMS = ("T_norm", "T_ms", "T_ps", "T_ds", "idle")
+
+
+def _with(a, **kw):
+    return dataclasses.replace(a, **kw)
+
+
+@pytest.fixture(scope="module")
+def ring():
+    from tlm.experiments.run import render
+
+    cfg = config_from_dict({"scene": "ring", "mode": "refract", "resolution": [32, 24],
+                            "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
+    res = render(cfg)
+    return cfg, Functional.of(res), load_programs(), res
+
+
+@pytest.fixture(scope="module")
+def cornell_pmap():
+    from tlm.experiments.run import render
+
+    cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [24, 24], "photons": {"count": 3000},
+                            "arch": {"frames": 2, "packet_size": 32, "trace": False}}, "test")
+    return cfg, Functional.of(render(cfg)), load_programs()
+
+
+# -- tiling ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize(("n", "w", "h", "want"), [(1, 320, 240, (1, 1)), (4, 320, 320, (2, 2)), (2, 320, 240, (1, 2)),
+                                                    (8, 320, 320, (2, 4)), (16, 320, 240, (4, 4)), (64, 320, 320, (8, 8)),
+                                                    (7, 320, 240, (1, 7)), (3, 10, 300, (3, 1))])
+def test_grid_shape_is_the_most_nearly_square(n, w, h, want):
+    assert grid_shape(n, w, h) == want
+
+
+@pytest.mark.parametrize(("n", "w", "h"), [(1, 5, 3), (4, 32, 24), (7, 32, 24), (64, 32, 24), (64, 4, 3), (12, 1, 1)])
+def test_tiles_cover_every_pixel_once(n, w, h):
+    tiles, info = image_tiles(w, h, n)
+    assert len(tiles) == n == info["rows"] * info["cols"]
+    every = np.concatenate(tiles)
+    assert np.array_equal(np.sort(every), np.arange(w * h))
+    for t, (x0, y0, x1, y1) in zip(tiles, info["tiles"]):
+        assert t.size == (x1 - x0) * (y1 - y0)
+        if t.size:
+            assert np.all(np.diff(t) > 0)  # row-major inside the tile
+            assert set(t % w) == set(range(x0, x1)) and set(t // w) == set(range(y0, y1))
+
+
+def test_quadrants_for_four_pipelines():
+    tiles, info = image_tiles(4, 4, 4)
+    assert [sorted(t.tolist()) for t in tiles] == [[0, 1, 4, 5], [2, 3, 6, 7], [8, 9, 12, 13], [10, 11, 14, 15]]
+    assert info["tiles"] == [[0, 0, 2, 2], [2, 0, 4, 2], [0, 2, 2, 4], [2, 2, 4, 4]]
+
+
+# -- the program: every work item in exactly one tile ------------------------------------------------
+
+def _totals(prog):
+    items, norm, jobs = dict.fromkeys(PMS, 0), dict.fromkeys(PMS, 0), dict.fromkeys(PMS, 0)
+    for ph in prog.phases:
+        for js in ph.jobs:
+            items[js.pm] += int(js.items.sum())
+            norm[js.pm] += int(js.norm.sum())
+            jobs[js.pm] += 1
+    return items, norm, jobs
+
+
+@pytest.mark.parametrize("scheduler", ["static", "dynamic"])
+@pytest.mark.parametrize("n", [2, 3, 4, 16, 64])
+def test_work_is_conserved_over_tiles(ring, cornell_pmap, n, scheduler):
+    for cfg, fn, progs, *_ in (ring, cornell_pmap):
+        one = frame_program(fn, progs, cfg.arch)
+        many = frame_program(fn, progs, _with(cfg.arch, pipelines=n, scheduler=scheduler))
+        i1, n1, j1 = _totals(one)
+        iN, nN, jN = _totals(many)
+        assert iN == i1
+        drain = progs.intersection["stages"] * progs.intersection["triangle_cycles"]
+        for pm in ("vertex", "traversal", "fragment"):  # rounding on running totals: <= 1 cycle per job
+            assert abs(nN[pm] - n1[pm]) <= jN[pm], pm
+        # the Intersection PM drains its pipeline at the end of every job
+        assert nN["intersection"] - n1["intersection"] == drain * (jN["intersection"] - j1["intersection"])
+        tiled = [st for st in many.stages if not st.shared]
+        want = n if scheduler == "static" else n * cfg.arch.tiles_per_pipeline
+        assert all(len(st.tiles) == want for st in tiled)
+
+
+def test_one_pipeline_is_the_single_pipeline_model(ring):
+    """N = 1 gives the cycles the single-pipeline model gave before pipelines existed.
+
+    The numbers were measured with the model of commit 2674e34 (one pipeline, no
+    tiles) on this fixture's frame with packets of 64.
+    """
+    cfg, fn, progs, _ = ring
+    t = simulate(fn, progs, _with(cfg.arch, packet_size=64, pipelines=1, scheduler="static"))
+    assert t.cycles == {"vertex": 387755, "traversal": 196092, "intersection": 560966, "fragment": 52415,
+                        "throughput": 587836, "latency": 1346159}
+    assert t.crossbar["copies"] == 8
+    assert t.pipelines == [{k: t.cycles[k] for k in PMS}]
+
+
+# -- the simulation -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("scheduler", ["static", "dynamic"])
+@pytest.mark.parametrize("n", [2, 4, 64])
+def test_pipelines_finish_and_account_every_cycle(ring, cornell_pmap, n, scheduler):
+    for cfg, fn, progs, *_ in (ring, cornell_pmap):
+        t = simulate(fn, progs, _with(cfg.arch, pipelines=n, scheduler=scheduler))
+        assert len(t.pipelines) == n
+        scopes = set(t.units)
+        assert "pipe0.vertex" in scopes and "pipe1.vertex" not in scopes  # one Vertex PM (§V.D)
+        assert {f"pipe{p}.{pm}" for p in range(n) for pm in ("traversal", "intersection", "fragment")} <= scopes
+        assert {f"mem{i}" for i in range(4 * n)} | {"compose", "xbar"} <= scopes
+        for u in t.units.values():
+            assert sum(u[k] for k in EQ_TERMS) == u["elapsed"]
+        assert all(t.checks.values())
+        # every pixel passes the crossbar to the top-level unit once per frame, a copy per tile
+        tiles = t.program.stages[-1].tiles
+        assert sum(tl.pixels for tl in tiles) == fn.pixels
+        per_frame = sum(-(-tl.pixels // cfg.arch.copy_words_per_cycle) for tl in tiles)
+        assert t.units["compose"]["T_norm"] == per_frame * cfg.arch.frames
+        for k in PMS:
+            assert t.cycles[k] == max(p[k] for p in t.pipelines)
+
+
+def test_more_pipelines_are_faster(ring):
+    """This small frame is Vertex-bound (its throughput is the one Vertex PM's); the per-pipeline
+    PMs and the latency shrink with N."""
+    cfg, fn, progs, _ = ring
+    t = {n: simulate(fn, progs, _with(cfg.arch, pipelines=n, scheduler="dynamic")) for n in (1, 2, 4)}
+    for key in ("traversal", "intersection", "fragment", "latency"):
+        assert t[4].cycles[key] < t[2].cycles[key] < t[1].cycles[key], key
+    assert t[4].cycles["vertex"] == t[1].cycles["vertex"]
+    assert t[4].cycles["throughput"] >= t[4].cycles["vertex"]
+
+
+def test_dynamic_scheduler_balances_an_unbalanced_image(ring):
+    """All the work in one quadrant: static tiling leaves three pipelines idle, the queue does not."""
+    cfg, fn, progs, _ = ring
+    keep = np.zeros(fn.pixels, dtype=bool)
+    rows, cols = np.divmod(np.arange(fn.pixels), fn.width)
+    keep[(rows < fn.height // 2) & (cols < fn.width // 2)] = True
+    work = {p: {k: np.where(keep, v, 0) for k, v in w.items()} for p, w in fn.work.items()}
+    lopsided = dataclasses.replace(fn, work=work)
+    a = _with(cfg.arch, pipelines=4, frames=3)
+    static = simulate(lopsided, progs, _with(a, scheduler="static"))
+    dynamic = simulate(lopsided, progs, _with(a, scheduler="dynamic", tiles_per_pipeline=4))
+    # the slowest pipeline's Intersection PM (the frame waits for it) and the latency
+    assert dynamic.cycles["intersection"] < 0.4 * static.cycles["intersection"]
+    assert dynamic.cycles["latency"] < static.cycles["latency"]
+    idle_static = [static.units[f"pipe{p}.intersection"]["idle"] / static.units[f"pipe{p}.intersection"]["elapsed"]
+                   for p in range(4)]
+    assert max(idle_static) > 0.9  # three quadrants without work
+    busy_dyn = [dynamic.units[f"pipe{p}.intersection"]["busy"] for p in range(4)]
+    assert min(busy_dyn) > 0  # every pipeline took tiles
+
+
+def test_serial_fanout_copies_once_per_pipeline(ring):
+    cfg, fn, progs, _ = ring
+    a = _with(cfg.arch, pipelines=4, frames=1)
+    b = simulate(fn, progs, _with(a, fanout="broadcast"))
+    s = simulate(fn, progs, _with(a, fanout="serial"))
+    # broadcast: tree and vertices once each; serial: the tree to pipelines 1..3, the vertices to 0..3
+    assert s.crossbar["copies"] - b.crossbar["copies"] == (3 - 1) + (4 - 1)
+    assert s.cycles["latency"] > b.cycles["latency"]
+
+
+def test_images_do_not_depend_on_the_pipelines(ring):
+    from tlm.experiments.run import render
+
+    cfg, _, _, res = ring
+    other = render(dataclasses.replace(cfg, arch=_with(cfg.arch, pipelines=4, scheduler="dynamic")))
+    for name, rad in res.radiance.items():
+        assert np.array_equal(rad, other.radiance[name])
