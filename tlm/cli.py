@@ -1,4 +1,4 @@
-"""Command line: ``tlm run | scene | params``. Argument parsing and printing only.
+"""Command line: ``tlm run | sweep | scene | params``. Argument parsing and printing only.
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
 status 2, never a traceback.
@@ -56,6 +56,34 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"  {results['fps']:.2f} frames per second")
     total = sum(results["host_seconds"].values())
     print(f"wrote {out} ({total:.2f} s)")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from tlm.experiments.sweep import run_sweep
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    done = run_sweep(Path(args.config), out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress)
+    for row in done.rows:
+        if row["status"] != "ok":
+            print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
+    n = len(done.rows)
+    print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
+          f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
+    return 1 if done.failed else 0
+
+
+def _cmd_scaling(args: argparse.Namespace) -> int:
+    from tlm.experiments.scaling import analyse
+
+    dirs = [Path(d) for d in args.sweeps]
+    out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
+    done = analyse(dirs, out)
+    print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
+    for f in done["fits"]:
+        print(f"  {f['scene']:8s} {f['mode']:7s} {f['scheduler']:8s} {f['target']:10s} A {f['A']:8.4g}  "
+              f"B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:.1%} over N = {f['pipelines']}")
+    print(f"wrote {out}")
     return 0
 
 
@@ -246,6 +274,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
     r.add_argument("--seed", type=int, help="override the seed")
     r.set_defaults(func=_cmd_run)
+    sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
+                        "(resumable)")
+    sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml")
+    sw.add_argument("--out", help="output folder (default: runs/<config name>)")
+    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPU count; 1 = in this process)")
+    sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
+                    help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
+    sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
+                    "not a terminal)")
+    sw.set_defaults(func=_cmd_sweep)
+    sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
+                        "(Figs. 18-20)")
+    sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
+    sc.add_argument("--out", help="output folder (default: runs/eq52_<first sweep folder's name>)")
+    sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
     ss = s.add_subparsers(dest="scene_cmd", required=True)
     ss.add_parser("list", help="the built-in scenes")

@@ -33,7 +33,7 @@ import yaml
 from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.arch.programs import Programs, load_programs
-from tlm.config import RunConfig, to_dict
+from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
@@ -152,15 +152,15 @@ def simulate_run(res: RenderResult, programs: Programs) -> Timing:
     return res.timing
 
 
-def timing_dict(res: RenderResult) -> dict:
-    tm, arch = res.timing, res.cfg.arch
+def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
+    """The ``timing`` section of ``results.json``: the simulated architecture and its outcome."""
     return {
         "clock_hz": arch.clock_hz,
         "packet_size": arch.packet_size,
         "frames": arch.frames,
         "images_in_flight": arch.images_in_flight,
         "memory": arch.memory,
-        "programs": {"source": res.programs.source, "scale": res.programs.scale},
+        "programs": {"source": programs.source, "scale": programs.scale},
         "simpy_events": tm.events,
         **{k: v for k, v in tm.to_dict().items() if k not in ("cycles", "fps", "events")},
     }
@@ -266,7 +266,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         },
         "cycles": None if res.timing is None else res.timing.cycles,
         "fps": None if res.timing is None else res.timing.fps,
-        "timing": None if res.timing is None else timing_dict(res),
+        "timing": None if res.timing is None else timing_dict(res.timing, res.cfg.arch, res.programs),
         "image": {"exposure": exposure},
         "error": res.error,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},

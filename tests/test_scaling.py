@@ -1,0 +1,83 @@
+"""Eq. 5.2 fitted to scaling sweeps (tlm scaling)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tlm.cli import main
+from tlm.errors import InputError
+from tlm.experiments.scaling import fit_group
+from tlm.experiments.sweep import run_sweep
+
+
+def _points(a, b, v, sums, target="throughput"):
+    return [{"pipelines": n, "T_vert0": v, "sum_max": s, target: round(a * v + b * s / n)} for n, s in sums.items()]
+
+
+def test_fit_recovers_a_and_b_of_data_that_follow_eq_5_2():
+    pts = _points(0.7, 1.3, 1000, {1: 90_000, 2: 91_000, 4: 93_000, 8: 97_000})
+    f = fit_group(pts, "throughput")
+    assert f["A"] == pytest.approx(0.7, rel=1e-3) and f["B"] == pytest.approx(1.3, rel=1e-4)
+    assert f["max_abs_rel_error"] < 1e-4
+
+
+def test_fit_is_exact_at_one_pipeline_and_least_squares_elsewhere():
+    pts = [{"pipelines": 1, "T_vert0": 100, "sum_max": 1000, "latency": 1200},
+           {"pipelines": 2, "T_vert0": 100, "sum_max": 1000, "latency": 700},
+           {"pipelines": 4, "T_vert0": 100, "sum_max": 1000, "latency": 500}]
+    f = fit_group(pts, "latency")
+    one = f["rows"][0]
+    assert one["pipelines"] == 1 and one["analytical"] == 1200 and one["rel_error"] == 0
+    # x = M(N) - M(1) = -500, -750; y = -500, -700: B = (250000 + 525000) / (250000 + 562500)
+    b = (500 * 500 + 750 * 700) / (500 ** 2 + 750 ** 2)
+    assert f["B"] == pytest.approx(b)
+    assert f["A"] == pytest.approx((1200 - b * 1000) / 100)
+    assert [r["speedup"] for r in f["rows"]] == [1.0, pytest.approx(1200 / 700, abs=1e-4), 2.4]
+
+
+def test_fit_needs_one_pipeline():
+    with pytest.raises(InputError, match="N = 1"):
+        fit_group([{"pipelines": 2, "T_vert0": 1, "sum_max": 1, "latency": 1}], "latency")
+
+
+def test_not_a_sweep_folder_exits_2(tmp_path, capsys):
+    assert main(["scaling", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    assert "sweep.jsonl" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+
+
+def test_a_scaling_sweep_end_to_end(tmp_path, cache, capsys):
+    sweep = tmp_path / "scaling.yaml"
+    sweep.write_text(yaml.safe_dump({
+        "base": {"scene": "cornell", "mode": "rcast", "resolution": [32, 32], "render": {"light_samples": 1},
+                 "arch": {"frames": 2, "trace": False}},
+        "grid": {"arch.scheduler": ["static", "dynamic"], "arch.pipelines": [1, 2, 4]},
+    }))
+    done = run_sweep(sweep, tmp_path / "sw", jobs=1)
+    assert done.ok == 6 and done.renders == 1
+    assert main(["scaling", str(tmp_path / "sw"), "--out", str(tmp_path / "eq")]) == 0
+    out = capsys.readouterr().out
+    assert "eq. 5.2" in out
+    with open(tmp_path / "eq" / "eq52.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 * 2 * 3  # schedulers x targets x N
+    fits = json.loads((tmp_path / "eq" / "eq52.json").read_text())["fits"]
+    assert {(f["scheduler"], f["target"]) for f in fits} == {(s, t) for s in ("static", "dynamic")
+                                                              for t in ("latency", "throughput")}
+    assert Path(tmp_path / "eq" / "scaling_cornell.png").stat().st_size > 10_000
+    for r in rows:
+        if r["pipelines"] == "1":
+            assert r["simulated"] == r["analytical"]
+    # more pipelines: every pipeline's share of the work shrinks
+    by_n = {int(r["pipelines"]): int(r["sum_max_per_N"]) for r in rows if r["scheduler"] == "dynamic"}
+    assert by_n[4] < by_n[2] < by_n[1]

@@ -1,0 +1,338 @@
+"""Sweeps: points from grid x zip, executors, resume after a kill, failed points, the shared render."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+import tlm.experiments.run as run_mod
+import tlm.experiments.sweep as sweep_mod
+from tlm.arch.functional import cache_dir, cached_render
+from tlm.cli import main
+from tlm.config import config_from_dict
+from tlm.experiments.sweep import config_hash, expand, load_sweep, run_sweep, utilization
+
+from .scenes import sphere_scene
+
+REPO = Path(__file__).resolve().parents[1]
+BASE = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
+        "arch": {"frames": 2, "trace": False, "packet_size": 32}}
+HOST = ("seconds.functional", "seconds.simulate")
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("TLM_CACHE", str(folder))
+    return folder
+
+
+def sweep_file(tmp_path: Path, name: str = "sweep.yaml", **body) -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump({"base": BASE, **body}, sort_keys=False))
+    return path
+
+
+def jsonl(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines()]
+
+
+def without_host(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k not in HOST} for r in rows]
+
+
+# ---------------------------------------------------------------- the sweep file
+
+
+def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
+    assert expand({"a": [1, 2], "b": ["x", "y"]}, {"c": [7, 8], "d": [0, 1]}) == [
+        {"a": a, "b": b, "c": c, "d": d} for a in (1, 2) for b in ("x", "y") for c, d in ((7, 0), (8, 1))]
+    assert expand({}, {"c": [7, 8]}) == [{"c": 7}, {"c": 8}]
+    assert expand({"a": [1, 2]}, {}) == [{"a": 1}, {"a": 2}]
+
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump(BASE))
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({
+        "base": "run.yaml", "set": {"arch.frames": 3, "render.reflect_depth": 2},
+        "grid": {"arch.fifo_depth": [1, 16], "arch.page_miss_cycles": [0, 12]},
+        "zip": {"seed": [0, 1, 2], "bsp.levels": [3, 4, 5]},
+    }, sort_keys=False))
+    sw = load_sweep(path)
+    assert sw.factors == ["arch.fifo_depth", "arch.page_miss_cycles", "seed", "bsp.levels"]
+    assert len(sw.points) == 2 * 2 * 3
+    assert [p.index for p in sw.points] == list(range(12))
+    assert [(p.factors["arch.fifo_depth"], p.factors["arch.page_miss_cycles"], p.factors["seed"])
+            for p in sw.points[:4]] == [(1, 0, 0), (1, 0, 1), (1, 0, 2), (1, 12, 0)]
+    for p in sw.points:
+        c = p.config
+        assert c["arch"]["fifo_depth"] == p.factors["arch.fifo_depth"]
+        assert c["bsp"]["levels"] == p.factors["bsp.levels"] and c["seed"] == p.factors["seed"]
+        assert c["arch"]["frames"] == 3 and c["render"]["reflect_depth"] == 2  # set
+        assert c["arch"]["packet_size"] == 32 and c["resolution"] == [24, 16]  # the base file
+        assert c["render"]["batch"] == 4  # a default
+        assert p.hash == config_hash(c) and len(p.hash) == 16
+    assert len({p.hash for p in sw.points}) == 12
+    assert sw.folder == tmp_path.resolve()
+
+
+@pytest.mark.parametrize("body, key", [
+    ({"grids": {"seed": [0, 1]}}, "grids"),
+    ({"zip": {"seed": [0, 1], "arch.fifo_depth": [1, 2, 3]}}, "zip"),
+    ({"grid": {"arch.fifo_dept": [1, 2]}}, "arch.fifo_dept"),
+    ({"grid": {"arch.fifo_depth": [16, 0]}}, "arch.fifo_depth"),
+    ({"grid": {"arch.fifo_depth": 16}}, "grid.arch.fifo_depth"),
+    ({"grid": {"arch.fifo_depth": []}}, "grid.arch.fifo_depth"),
+    ({"grid": {"mode": ["rcast", "raytrace"]}}, "mode"),
+    ({"set": {"arch.fifo_depth": 4}, "grid": {"arch": [{"fifo_depth": 2}]}}, "grid.arch"),
+    ({"grid": {"scene": ["cornell", "cornel"]}}, "scene"),
+    ({"zip": {"arch.programs": ["missing.yaml"]}}, "arch.programs"),
+    ({"base": "missing.yaml", "grid": {"seed": [0]}}, "base"),
+    ({"description": "no factors"}, "grid"),
+])
+def test_bad_sweep_files_exit_2_and_write_nothing(tmp_path, capsys, body, key):
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump({"base": BASE, **body}))
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tlm: error:")
+    assert str(path) in err[0] and key in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("args, key", [(["--jobs", "0"], "--jobs"), (["--dask", "nowhere"], "--dask")])
+def test_bad_executor_options_exit_2(tmp_path, capsys, args, key):
+    path = sweep_file(tmp_path, grid={"seed": [0]})
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o"), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"tlm: error: {key}:")
+    assert not (tmp_path / "o").exists()
+
+
+# ---------------------------------------------------------------- running
+
+
+def test_local_pool_and_dask_give_identical_rows(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, grid={"arch.pipelines": [1, 2], "arch.page_miss_cycles": [0, 48]},
+                      zip={"seed": [0, 1]})
+    local = run_sweep(path, tmp_path / "local", jobs=2)
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache2"))  # each renders its own two frames
+    dask = run_sweep(path, tmp_path / "dask", jobs=2, dask="local")
+    assert (local.ok, local.failed, local.skipped, local.renders) == (8, 0, 0, 2)
+    assert (dask.ok, dask.failed, dask.skipped, dask.renders) == (8, 0, 0, 2)
+    assert without_host(local.rows) == without_host(dask.rows)
+    for out in ("local", "dask"):
+        assert without_host(jsonl(tmp_path / out / "sweep.jsonl")) == without_host(local.rows)
+    assert [r["point"] for r in local.rows] == list(range(8))
+    assert all(r["status"] == "ok" and r["error"] is None for r in local.rows)
+    assert {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 0} != \
+        {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 48}
+
+
+def test_utilization_averages_the_pipelines_of_a_kind():
+    def unit(busy, stalled, elapsed=100):
+        return {"busy": busy, "stalled": stalled, "idle": elapsed - busy - stalled, "elapsed": elapsed}
+
+    units = {"pipe0.vertex": unit(50, 10), "pipe0.traversal": unit(60, 20), "pipe1.traversal": unit(20, 40),
+             "mem0": unit(90, 0), "xbar": unit(5, 0)}
+    assert utilization(units) == {
+        "busy.vertex": 0.5, "busy.traversal": 0.4,
+        "stall.vertex": 0.1, "stall.traversal": 0.3,
+        "idle.vertex": 0.4, "idle.traversal": 0.3,
+    }
+
+
+def test_rows_folders_and_the_csv(tmp_path):
+    path = sweep_file(tmp_path, set={"arch.trace": True}, grid={"arch.page_miss_cycles": [0, 12, 48]})
+    done = run_sweep(path, tmp_path / "o", jobs=1)
+    out = tmp_path / "o"
+    table = pd.read_csv(out / "sweep.csv")
+    assert len(table) == 3 and list(table["point"]) == [0, 1, 2]
+    assert list(table.columns[:5]) == ["point", "hash", "status", "error", "arch.page_miss_cycles"]
+    for pm in ("vertex", "traversal", "intersection", "fragment"):
+        assert {f"cycles.{pm}", f"busy.{pm}", f"stall.{pm}", f"idle.{pm}"} <= set(table.columns)
+        total = table[f"busy.{pm}"] + table[f"stall.{pm}"] + table[f"idle.{pm}"]
+        assert ((total - 1.0).abs() < 1e-5).all()
+    for col in ("cycles.throughput", "cycles.latency", "fps", "simpy_events", "functional_cached", *HOST):
+        assert col in table.columns
+    assert list(table["scene"]) == ["cornell"] * 3 and list(table["mode"]) == ["rcast"] * 3
+    assert pd.read_json(out / "sweep.jsonl", lines=True).shape[0] == 3
+    resolved = yaml.safe_load((out / "sweep.yaml").read_text())
+    assert [p["hash"] for p in resolved["points"]] == list(table["hash"])
+    # a point's folder: what tlm run writes for the same config
+    row = done.rows[1]
+    folder = out / "points" / row["hash"]
+    assert sorted(p.name for p in folder.iterdir()) == ["config.resolved.yaml", "results.json", "trace.json"]
+    res = json.loads((folder / "results.json").read_text())
+    assert res["factors"] == {"arch.page_miss_cycles": 12}
+    assert res["work"]["rcast"]["primary_rays"] == 24 * 16 and res["scene"]["triangles"] == 2604
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text(yaml.safe_dump(yaml.safe_load((folder / "config.resolved.yaml").read_text())))
+    assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 0
+    alone = json.loads((tmp_path / "run" / "results.json").read_text())
+    assert res["cycles"] == alone["cycles"] and res["fps"] == alone["fps"]
+    assert res["work"] == alone["work"] and res["scene"] == alone["scene"]
+    assert res["timing"].keys() == alone["timing"].keys()
+    assert row["cycles.throughput"] == alone["cycles"]["throughput"]
+
+
+def test_points_that_differ_only_in_arch_render_once(tmp_path, monkeypatch):
+    calls = []
+    render = run_mod.render
+    monkeypatch.setattr(run_mod, "render", lambda *a, **k: calls.append(1) or render(*a, **k))
+    path = sweep_file(tmp_path, grid={"seed": [0, 1], "arch.fifo_depth": [1, 16, 256]})
+    done = run_sweep(path, tmp_path / "o", jobs=1)
+    assert len(calls) == 2 and done.renders == 2
+    for seed in (0, 1):
+        flags = [r["functional_cached"] for r in done.rows if r["seed"] == seed]
+        assert flags == [False, True, True]
+    # two worker processes: still one render per frame, whichever worker gets it
+    again = run_sweep(sweep_file(tmp_path, "s2.yaml", grid={"seed": [2, 3], "arch.fifo_depth": [1, 16, 256]}),
+                      tmp_path / "o2", jobs=2)
+    assert again.renders == 2
+    assert sorted(r["functional_cached"] for r in again.rows) == [False] * 2 + [True] * 4
+
+
+def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
+    # 50 SimPy events cannot finish a frame: the model raises Deadlock at simulate time
+    path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]}, zip={"arch.max_events": [50, 10**8]})
+    out = tmp_path / "o"
+    assert main(["sweep", str(path), "--out", str(out), "--jobs", "2"]) == 1
+    printed = capsys.readouterr().out
+    assert "2 ok, 2 failed, 0 skipped" in printed and printed.count("Deadlock") == 2
+    rows = pd.read_csv(out / "sweep.csv")
+    assert list(rows["status"]) == ["failed", "ok", "failed", "ok"]
+    failed = rows[rows["status"] == "failed"]
+    assert failed["error"].str.startswith("Deadlock: the model cannot finish").all()
+    assert failed["cycles.throughput"].isna().all() and rows["cycles.throughput"].notna().sum() == 2
+    for h in failed["hash"]:
+        folder = out / "points" / h
+        assert sorted(p.name for p in folder.iterdir()) == ["config.resolved.yaml", "error.json"]
+        err = json.loads((folder / "error.json").read_text())
+        assert err["type"] == "Deadlock" and err["stage"] == "simulate" and "Traceback" in err["traceback"]
+    # a rerun skips what is done and retries what failed
+    again = run_sweep(path, out, jobs=1)
+    assert (again.ok, again.failed, again.skipped) == (0, 2, 2)
+
+
+def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48], "arch.fifo_depth": [1, 16]})
+    out = tmp_path / "o"
+    first = run_sweep(path, out, jobs=2)
+    gone = first.rows[3]["hash"]
+    shutil.rmtree(out / "points" / gone)
+    (out / "sweep.jsonl").write_text((out / "sweep.jsonl").read_text().splitlines(keepends=True)[0])
+    ran = []
+    point = sweep_mod.run_point
+    monkeypatch.setattr(sweep_mod, "run_point", lambda task: ran.append(task.hash) or point(task))
+    second = run_sweep(path, out, jobs=1)
+    assert ran == [gone]
+    assert (second.ok, second.failed, second.skipped, second.renders) == (1, 0, 5, 0)
+    assert without_host(jsonl(out / "sweep.jsonl")) == [
+        {**r, "functional_cached": True if r["hash"] == gone else r["functional_cached"]}
+        for r in without_host(first.rows)]
+    # another sweep into the same folder: shared points are found by their hash, the rows
+    # are this sweep's
+    other = run_sweep(sweep_file(tmp_path, "other.yaml", set={"arch.fifo_depth": 16},
+                                 grid={"arch.page_miss_cycles": [12, 24]}), out, jobs=1)
+    assert (other.ok, other.skipped) == (1, 1)
+    table = pd.read_csv(out / "sweep.csv")
+    assert list(table["arch.page_miss_cycles"]) == [12, 24] and "arch.fifo_depth" not in table.columns
+    assert table["hash"][0] == next(r["hash"] for r in first.rows
+                                    if (r["arch.page_miss_cycles"], r["arch.fifo_depth"]) == (12, 16))
+    assert len(list((out / "points").iterdir())) == 7
+
+
+def test_a_killed_point_leaves_nothing_half_written(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48, 96]})
+    out = tmp_path / "o"
+    timing_dict, calls = run_mod.timing_dict, []
+
+    def interrupted(*a):
+        calls.append(1)
+        if len(calls) == 3:  # inside the third point's folder, after its config was written
+            raise KeyboardInterrupt
+        return timing_dict(*a)
+
+    monkeypatch.setattr(run_mod, "timing_dict", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(path, out, jobs=1)
+    assert len(jsonl(out / "sweep.jsonl")) == 2  # what finished is kept
+    assert sorted(p.name for p in (out / "points").iterdir()) == sorted(r["hash"] for r in jsonl(out / "sweep.jsonl"))
+    monkeypatch.setattr(run_mod, "timing_dict", timing_dict)
+    done = run_sweep(path, out, jobs=1)
+    assert (done.ok, done.skipped) == (2, 2)
+    assert len(list((out / "points").iterdir())) == 4
+
+
+def test_resume_after_a_killed_process(tmp_path):
+    path = sweep_file(tmp_path, set={"arch.packet_size": 4}, grid={"arch.page_miss_cycles": list(range(0, 80, 10))})
+    out = tmp_path / "o"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "1"],
+                            cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            rows = out / "sweep.jsonl"
+            if rows.exists() and rows.read_text().count("\n") >= 1:
+                break
+            time.sleep(0.01)
+        proc.send_signal(signal.SIGKILL)
+    finally:
+        proc.wait()
+    finished = {p.name for p in (out / "points").iterdir() if (p / "results.json").is_file()}
+    assert finished  # the kill came after the first point
+    # what a point killed while writing its folder leaves: a temporary folder of a dead process
+    stale = out / "points" / f".0123456789abcdef.tmp-{proc.pid}"
+    stale.mkdir(exist_ok=True)
+    (stale / "trace.json").write_text("[")
+    done = run_sweep(path, out, jobs=1)
+    assert done.skipped == len(finished) and done.ok == 8 - len(finished) and done.failed == 0
+    assert sorted(p.name for p in (out / "points").iterdir()) == sorted(r["hash"] for r in done.rows)
+    assert [r["point"] for r in jsonl(out / "sweep.jsonl")] == list(range(8))
+
+
+def test_photon_map_points_carry_the_image_error(tmp_path, cache):
+    sphere_scene(tmp_path)
+    base = {"scene": "furnace.yaml", "mode": "pmap", "photons": {"count": 3000},
+            "estimate": {"radius_fraction": 0.06},
+            "reference": {"photons": 3000, "k_nearest": 40, "tolerance": 0.2, "max_rounds": 4},
+            "arch": {"frames": 2, "trace": False, "packet_size": 64}}
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump(base))
+    assert main(["reference", str(tmp_path / "run.yaml")]) == 0
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": "run.yaml", "grid": {"estimate.filter": ["disk", "mvoxel"],
+                                                                 "arch.page_miss_cycles": [0, 48]}},
+                                   sort_keys=False))
+    done = run_sweep(path, tmp_path / "o", jobs=1)
+    assert done.renders == 2 and done.ok == 4
+    for r in done.rows:
+        assert 0 < r["error.rel_mse"] < 1 and 0 < r["error.rmse"] < 1
+    by_filter = {r["estimate.filter"]: r["error.rmse"] for r in done.rows}
+    assert by_filter["disk"] != by_filter["mvoxel"]
+    # the sidecar kept the error for the points that read the frame from the cache
+    assert done.rows[0]["error.rmse"] == done.rows[1]["error.rmse"]
+
+
+def test_the_cache_sidecar(tmp_path, cache):
+    cfg = config_from_dict({**BASE, "mode": "reflect"})
+    fresh = cached_render(cfg)
+    again = cached_render(cfg)
+    assert not fresh.cached and again.cached and fresh.key == again.key
+    assert again.summary == json.loads(json.dumps(fresh.summary))
+    assert set(fresh.summary["work"]) == {"rcast", "reflect"}
+    assert fresh.summary["scene"]["resolution"] == [24, 16] and fresh.summary["error"] is None
+    # an entry without its sidecar (written before sidecars existed) is rendered again
+    (cache_dir() / f"{fresh.key}.json").unlink()
+    assert not cached_render(cfg).cached
+    assert cached_render(cfg).cached

@@ -1,0 +1,148 @@
+"""Eq. 5.2 against the simulation: the thesis's multi-pipeline model (Figs. 18-20).
+
+The thesis estimates the time of N duplicated pipelines as
+
+    T_tot(N) ~ A * T_vert0 + sum_i B * max(T_t,i, T_r,i, T_f,i) / N          (5.2)
+
+with A and B constants "such that, if N = 1, T_tot = acquired simulation time".
+:func:`fit` reads the simulated points of a scaling sweep (``tlm sweep`` over
+``arch.pipelines``), takes T_vert0 (the one Vertex PM's cycles per frame) and each
+pipeline's Traversal, Intersection and Fragment cycles per frame from every point,
+and fits A and B per (scene, mode, scheduler) and per target: the frame latency (the
+"total time" of one frame, arrival to image) and the throughput (TThru, cycles per
+frame in the stream). The fit is exact at N = 1, as the thesis asks, and least squares
+over the other N. :func:`analyse` writes ``eq52.csv`` (per point: simulated and
+analytical cycles, relative error), ``eq52.json`` (A, B, the largest error, per
+group) and one figure per scene (``scaling_<scene>.png``): simulated and analytical
+T_tot against N, and the speed-up T(1) / T(N), for each scheduler.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import yaml
+
+from tlm.errors import InputError
+from tlm.experiments.atomic import atomic_folder, check_destination
+
+TARGETS = ("latency", "throughput")
+COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
+           "T_vert0", "sum_max_per_N", "speedup")
+
+
+def collect(sweep_dir: Path) -> list[dict]:
+    """One record per finished point of the sweep in ``sweep_dir``."""
+    sweep_dir = Path(sweep_dir)
+    rows_path = sweep_dir / "sweep.jsonl"
+    if not rows_path.is_file():
+        raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
+    records = []
+    for line in rows_path.read_text().splitlines():
+        if not line.strip():
+            continue
+        row = json.loads(line)
+        if row.get("status") != "ok":
+            continue
+        folder = sweep_dir / "points" / row["hash"]
+        res = json.loads((folder / "results.json").read_text())
+        cfg = yaml.safe_load((folder / "config.resolved.yaml").read_text())
+        per_pipe = res["timing"]["pipelines"]
+        records.append({
+            "scene": cfg["scene"], "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
+            "pipelines": int(cfg["arch"]["pipelines"]),
+            "T_vert0": int(res["cycles"]["vertex"]),
+            "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
+            "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
+        })
+    if not records:
+        raise InputError("has no finished point", source=str(rows_path))
+    return records
+
+
+def fit_group(points: list[dict], target: str) -> dict:
+    """A and B of eq. 5.2 for one group, exact at N = 1 and least squares elsewhere."""
+    by_n = {p["pipelines"]: p for p in points}
+    if 1 not in by_n:
+        raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {sorted(by_n)}",
+                         key="arch.pipelines")
+    one = by_n[1]
+    t1, v, m1 = one[target], one["T_vert0"], one["sum_max"]
+    # T(N) - T(1) = B * (M(N) - M(1)), M(N) = sum_i max(...) / N; then A from N = 1
+    xs = [(p["sum_max"] / n - m1, p[target] - t1) for n, p in by_n.items() if n != 1]
+    den = sum(x * x for x, _ in xs)
+    b = sum(x * y for x, y in xs) / den if den > 0 else 1.0
+    a = (t1 - b * m1) / v if v else 0.0
+    rows = []
+    for n in sorted(by_n):
+        p = by_n[n]
+        model = a * v + b * p["sum_max"] / n
+        rows.append({"pipelines": n, "simulated": p[target], "analytical": round(model),
+                     "rel_error": round((model - p[target]) / p[target], 6) if p[target] else 0.0,
+                     "T_vert0": v, "sum_max_per_N": round(p["sum_max"] / n), "speedup": round(t1 / p[target], 4)})
+    worst = max(abs(r["rel_error"]) for r in rows)
+    return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows}
+
+
+def fit(records: list[dict]) -> dict[tuple, dict]:
+    groups: dict[tuple, list[dict]] = defaultdict(list)
+    for r in records:
+        groups[(r["scene"], r["mode"], r["scheduler"])].append(r)
+    return {(*key, target): fit_group(pts, target) for key, pts in sorted(groups.items()) for target in TARGETS}
+
+
+def analyse(sweep_dirs: list[Path], out: Path) -> dict:
+    """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and the figures."""
+    check_destination(out, "eq52.json")
+    records = [r for d in sweep_dirs for r in collect(d)]
+    fits = fit(records)
+    table, summary = [], []
+    for (scene, mode, sched, target), f in fits.items():
+        summary.append({"scene": scene, "mode": mode, "scheduler": sched, "target": target, "A": f["A"],
+                        "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"],
+                        "pipelines": [r["pipelines"] for r in f["rows"]]})
+        table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
+    with atomic_folder(out, "eq52.json") as tmp:
+        with open(tmp / "eq52.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(COLUMNS))
+            w.writeheader()
+            w.writerows(table)
+        for scene in sorted({k[0] for k in fits}):
+            plot_scene(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
+        (tmp / "eq52.json").write_text(json.dumps({"fits": summary}, indent=2) + "\n")
+    return {"fits": summary, "rows": table}
+
+
+def plot_scene(scene: str, fits: dict[tuple, dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
+    colors = {"static": "C0", "dynamic": "C1"}
+    for (_, mode, sched, target), f in sorted(fits.items()):
+        ns = [r["pipelines"] for r in f["rows"]]
+        c = colors.get(sched, "C2")
+        ax = axes[0 if target == "latency" else 1]
+        ax.plot(ns, [r["simulated"] for r in f["rows"]], "o-", color=c, label=f"{sched}: simulated")
+        ax.plot(ns, [r["analytical"] for r in f["rows"]], "--", color=c,
+                label=f"{sched}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}")
+        if target == "throughput":
+            axes[2].plot(ns, [r["speedup"] for r in f["rows"]], "o-", color=c, label=f"{sched} ({mode})")
+    for ax, title in zip(axes[:2], ("frame latency (eq. 5.2's T_tot)", "throughput TThru")):
+        ax.set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="cycles per frame", title=f"{scene}: {title}")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+    ns = sorted({r["pipelines"] for f in fits.values() for r in f["rows"]})
+    axes[2].plot(ns, ns, ":", color="gray", label="linear")
+    axes[2].set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="TThru(1) / TThru(N)",
+                title=f"{scene}: speed-up")
+    axes[2].legend(fontsize=7)
+    axes[2].grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,622 @@
+"""Sweeps: a base run config copied over a product of factors, one folder per point.
+
+A sweep file (``tlm sweep FILE``)::
+
+    description: FIFO depth against page-miss cost
+    base: cornell.yaml            # a run config file (relative to this file) or a mapping
+    set: {mode: rcast}            # dotted keys applied to base, for every point
+    grid:                         # the full product; the first key varies slowest
+      arch.fifo_depth: [1, 16, 256, 1024]
+      arch.page_miss_cycles: [0, 12, 48]
+    zip:                          # lists of one length, taken together
+      seed: [0, 1]
+      render.light_samples: [1, 4]
+
+Points are product(grid) x zip: every combination of the grid with every zip column,
+zip varying fastest. Any config key may be a factor by its dotted path, and every
+point's config goes through the run config's checks before any point runs. Relative
+paths in the configs (``scene``, ``arch.programs``) start at the base config's folder
+when ``base`` is a file, else at the sweep file's folder.
+
+A point is keyed by the hash of its resolved config, so a rerun (or another sweep
+into the same folder) skips the points already done. Output folder::
+
+    sweep.yaml               the sweep as resolved: base, set, factors, every point's hash
+    sweep.jsonl              one row per point, appended as points finish (a killed sweep
+                             keeps them); rewritten sorted when the sweep ends
+    sweep.csv                the same rows, one column per field, written at the end
+    points/<hash>/           config.resolved.yaml, results.json, trace.json (arch.trace);
+                             or error.json when the point failed (retried by a rerun)
+
+A point renders nothing that another point rendered: points that differ only in
+``arch`` share one functional result (DESIGN.md §6, :mod:`tlm.arch.functional`). One
+point per functional result goes first; the others follow once it is cached, so two
+workers never render the same frame. Workers: a local process pool, or Dask.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import hashlib
+import itertools
+import json
+import multiprocessing
+import os
+import re
+import shutil
+import sys
+import time
+import traceback
+from collections import deque
+from concurrent.futures.process import BrokenProcessPool
+from contextlib import ExitStack, suppress
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tlm.arch.functional import SUMMARY_KEYS, cached_render, is_cached, render_key
+from tlm.config import config_from_dict, read_yaml, to_dict
+from tlm.errors import InputError
+from tlm.experiments.atomic import atomic_folder, check_destination
+
+SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
+MARKER = "sweep.yaml"  # marks an output folder as a sweep's
+FIRST_COLUMNS = ("point", "hash", "status", "error")
+CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+
+
+# ---------------------------------------------------------------- the sweep file
+
+
+@dataclass(frozen=True)
+class Point:
+    """One point: its factor values and its resolved config."""
+
+    index: int
+    factors: dict[str, Any]  # dotted key -> value
+    config: dict  # to_dict of the resolved RunConfig
+    hash: str  # 16 hex digits of sha256 over the canonical JSON of ``config``
+
+
+@dataclass(frozen=True)
+class Sweep:
+    path: Path
+    description: str | None
+    base: dict  # the base run config as written (before ``set``)
+    base_file: str | None
+    set: dict[str, Any]
+    grid: dict[str, list]
+    zip: dict[str, list]
+    folder: Path  # where relative paths in the configs start
+    points: list[Point] = field(default_factory=list)
+
+    @property
+    def factors(self) -> list[str]:
+        return [*self.grid, *self.zip]
+
+    def to_dict(self) -> dict:
+        return {
+            "tlm": "sweep/1", "sweep": str(self.path), "description": self.description,
+            "base_file": self.base_file, "base": self.base, "set": self.set, "grid": self.grid, "zip": self.zip,
+            "points": [{"point": p.index, "hash": p.hash, "factors": p.factors} for p in self.points],
+        }
+
+
+def config_hash(resolved: dict) -> str:
+    """The point's key: sha256 of the resolved config's canonical JSON, 16 hex digits."""
+    blob = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def _assign(raw: dict, key: str, value: Any) -> dict:
+    """A copy of ``raw`` with the dotted ``key`` set to ``value`` (sections created as needed)."""
+    out = dict(raw)
+    node = out
+    parts = key.split(".")
+    for p in parts[:-1]:
+        child = node.get(p)
+        node[p] = child = dict(child) if isinstance(child, dict) else {}
+        node = child
+    node[parts[-1]] = value
+    return out
+
+
+def _dotted_keys(section: Any, name: str, src: str, lists: bool) -> dict[str, Any]:
+    if section is None:
+        return {}
+    if not isinstance(section, dict):
+        raise InputError(f"must be a mapping of dotted keys, got {section!r}", source=src, key=name)
+    for k, v in section.items():
+        if not isinstance(k, str) or not k or any(not p for p in k.split(".")):
+            raise InputError(f"{k!r} is not a dotted config key", source=src, key=name)
+        if lists:
+            if not isinstance(v, list):
+                raise InputError(f"{v!r} is not a list of values", source=src, key=f"{name}.{k}")
+            if not v:
+                raise InputError("has no values", source=src, key=f"{name}.{k}")
+    return dict(section)
+
+
+def expand(grid: dict[str, list], zipped: dict[str, list]) -> list[dict[str, Any]]:
+    """product(grid) x zip, as {dotted key: value}; the grid's first key varies slowest, zip fastest."""
+    columns = list(zip(*zipped.values())) if zipped else [()]
+    return [{**dict(zip(grid, combo)), **dict(zip(zipped, col))}
+            for combo in itertools.product(*grid.values()) for col in columns]
+
+
+def load_sweep(path: Path) -> Sweep:
+    """Read and check a sweep file and every point's config; InputError names the file and key."""
+    path = Path(path)
+    src = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise InputError(f"must be a mapping with {', '.join(SWEEP_KEYS)}", source=src)
+    for key in raw:
+        if key not in SWEEP_KEYS:
+            raise InputError(f"unknown key (expected {', '.join(SWEEP_KEYS)})", source=src, key=str(key))
+    description = raw.get("description")
+    if description is not None and not isinstance(description, str):
+        raise InputError(f"{description!r} is not a string", source=src, key="description")
+    folder = path.resolve().parent
+    base, base_file, base_src = raw.get("base"), None, src
+    if isinstance(base, str):
+        file = folder / base
+        if not file.is_file():
+            raise InputError(f"{base!r}: file not found (relative to the sweep file)", source=src, key="base")
+        base_file, base_src, folder = base, str(file), file.resolve().parent
+        base = read_yaml(file)
+    if base is None:
+        base = {}
+    if not isinstance(base, dict):
+        raise InputError("must be a run config mapping or the path of a run config file", source=src, key="base")
+    config_from_dict(base, base_src)  # the base alone, so its errors name its own file
+
+    settings = _dotted_keys(raw.get("set"), "set", src, lists=False)
+    grid = _dotted_keys(raw.get("grid"), "grid", src, lists=True)
+    zipped = _dotted_keys(raw.get("zip"), "zip", src, lists=True)
+    if not grid and not zipped:
+        raise InputError("needs at least one factor under 'grid' or 'zip'", source=src)
+    lengths = {k: len(v) for k, v in zipped.items()}
+    if len(set(lengths.values())) > 1:
+        raise InputError(f"lists of unequal length ({', '.join(f'{k}: {n}' for k, n in lengths.items())})",
+                         source=src, key="zip")
+    seen: dict[str, str] = {}
+    for name, section in (("set", settings), ("grid", grid), ("zip", zipped)):
+        for k in section:
+            for other, where in seen.items():
+                if k == other or k.startswith(other + ".") or other.startswith(k + "."):
+                    raise InputError(f"overlaps {where}.{other}", source=src, key=f"{name}.{k}")
+            seen[k] = name
+
+    fixed = dict(base)
+    for k, v in settings.items():
+        fixed = _assign(fixed, k, v)
+    config_from_dict(fixed, f"{src} (base with set)")
+    points = []
+    for i, factors in enumerate(expand(grid, zipped)):
+        point = fixed
+        for k, v in factors.items():
+            point = _assign(point, k, v)
+        shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
+        resolved = to_dict(config_from_dict(point, f"{src} (point {i}: {shown})"))
+        points.append(Point(i, factors, resolved, config_hash(resolved)))
+    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points)
+
+
+# ---------------------------------------------------------------- one point (runs in a worker)
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs to run one point (plain data: it travels to other processes)."""
+
+    hash: str
+    config: dict
+    factors: dict[str, Any]
+    folder: str  # where relative paths start
+    source: str  # the sweep file, for messages
+    out: str  # the point's folder
+    provenance: dict  # versions and git revision of the submitting host
+
+
+def run_point(task: Task) -> dict:
+    """Render (or load) the point's functional result, simulate it, write its folder.
+
+    Returns ``{"status": "ok", "results": ...}``, or ``{"status": "failed", "error":
+    ...}`` after writing ``error.json``: an exception never leaves the worker.
+    """
+    from tlm.arch.model import simulate  # the timing layer is imported where it runs
+    from tlm.experiments.run import programs_for, timing_dict
+
+    stage = "functional"
+    t0 = time.perf_counter()
+    try:
+        cfg = config_from_dict(task.config, task.source)
+        folder = Path(task.folder)
+        got = cached_render(cfg, folder, task.source)
+        t1 = time.perf_counter()
+        stage = "simulate"
+        programs = programs_for(cfg, folder)
+        timing = simulate(got.functional, programs, cfg.arch)
+        t2 = time.perf_counter()
+        stage = "write"
+        summary = got.summary
+        with atomic_folder(Path(task.out), "results.json") as tmp:
+            (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
+            if timing.trace is not None:
+                timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
+            results = {
+                "tlm": "sweep-point/1", "hash": task.hash, "sweep": task.source, "factors": task.factors,
+                "seed": cfg.seed, "mode": cfg.mode,
+                **{k: summary.get(k) for k in SUMMARY_KEYS},
+                "cycles": timing.cycles, "fps": timing.fps,
+                "timing": timing_dict(timing, cfg.arch, programs),
+                "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},
+                "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6)},
+                **task.provenance,
+            }
+            (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+        return {"status": "ok", "results": results}
+    except Exception as e:
+        error = _error_record(e, stage, traceback.format_exc())
+        write_error(task, error)
+        return {"status": "failed", "error": error}
+
+
+def _error_record(e: BaseException, stage: str, tb: str) -> dict:
+    return {"type": type(e).__name__, "message": str(e), "stage": stage, "traceback": tb}
+
+
+def write_error(task: Task, error: dict) -> None:
+    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config."""
+    with atomic_folder(Path(task.out), "error.json") as tmp:
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
+        body = {"hash": task.hash, "factors": task.factors, **error}
+        (tmp / "error.json").write_text(json.dumps(body, indent=2) + "\n")
+
+
+# ---------------------------------------------------------------- rows
+
+
+def point_row(point: Point, record: dict) -> dict:
+    """One tidy flat row: the point, its factors, cycles, fps, utilization, error, host seconds."""
+    row: dict[str, Any] = {"point": point.index, "hash": point.hash, "status": record["status"], "error": None}
+    row.update(point.factors)
+    row["scene"] = point.config["scene"]
+    row["mode"] = point.config["mode"]
+    if record["status"] != "ok":
+        err = record["error"]
+        row["error"] = f"{err['type']}: {err['message']}".replace("\n", " ")
+        return row
+    res = record["results"]
+    row.update({f"cycles.{k}": v for k, v in res["cycles"].items()})
+    row["fps"] = res["fps"]
+    row["simpy_events"] = res["timing"]["simpy_events"]
+    row.update(utilization(res["timing"]["units"]))
+    err = res.get("error") or {}
+    if err.get("available"):
+        row["error.rel_mse"] = err.get("rel_mse")
+        row["error.rmse"] = err.get("rmse")
+    row["functional_cached"] = res["functional"]["cached"]
+    row["seconds.functional"] = res["host_seconds"]["functional"]
+    row["seconds.simulate"] = res["host_seconds"]["simulate"]
+    return row
+
+
+def utilization(units: dict) -> dict[str, float]:
+    """busy / stall / idle fractions of elapsed per PM kind, averaged over the pipelines.
+
+    PMs are the units named ``pipe<p>.<pm>``; memory modules and the crossbar are not PMs.
+    """
+    kinds: dict[str, list[dict]] = {}
+    for scope, b in units.items():
+        m = re.fullmatch(r"pipe\d+\.(\w+)", scope)
+        if m:
+            kinds.setdefault(m[1], []).append(b)
+    out = {}
+    for what, key in (("busy", "busy"), ("stall", "stalled"), ("idle", "idle")):
+        for kind, bs in kinds.items():
+            out[f"{what}.{kind}"] = round(sum(b[key] / b["elapsed"] if b["elapsed"] else 0.0 for b in bs)
+                                          / len(bs), 6)
+    return out
+
+
+def write_rows(out: Path, rows: list[dict]) -> None:
+    """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point, the union of their columns."""
+    rows = sorted(rows, key=lambda r: r["point"])
+    columns = list(FIRST_COLUMNS)
+    for r in rows:
+        columns.extend(k for k in r if k not in columns)
+    _write_text(out / "sweep.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    tmp = out / f".sweep.csv.tmp{os.getpid()}"
+    with open(tmp, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: json.dumps(v) if isinstance(v, (list, dict)) else v for k, v in r.items()})
+    os.replace(tmp, out / "sweep.csv")
+
+
+def _write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+# ---------------------------------------------------------------- executors
+
+
+class _InProcess(cf.Executor):
+    """``--jobs 1``: points run one at a time in this process (for debugging, and for a
+    debugger's breakpoints); :meth:`run_next` runs the oldest submitted one."""
+
+    def __init__(self) -> None:
+        self.queue: deque[tuple[cf.Future, Any, tuple]] = deque()
+
+    def submit(self, fn, /, *args, **kwargs):
+        f: cf.Future = cf.Future()
+        self.queue.append((f, fn, args))
+        return f
+
+    def run_next(self) -> None:
+        f, fn, args = self.queue.popleft()
+        try:
+            f.set_result(fn(*args))
+        except Exception as e:  # KeyboardInterrupt goes through: the sweep stops
+            f.set_exception(e)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self.queue.clear()
+
+
+class _LocalPool(cf.Executor):
+    """A process pool that replaces itself when a worker process died (the pool is then
+    broken: the points in flight fail, the rest run in a new pool).
+
+    Workers are forked from a fresh server process (``forkserver``), never from this
+    one: this process may hold threads (the progress bar's monitor, a Dask client's
+    event loop) whose locks a forked child would inherit held.
+    """
+
+    def __init__(self, jobs: int) -> None:
+        self.jobs = jobs
+        self.context = _mp_context()
+        self.pool = self._new()
+
+    def _new(self) -> cf.ProcessPoolExecutor:
+        env = {k: v for k, v in os.environ.items() if k.startswith("TLM_")}  # the server's may be older
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
+                                      initializer=_worker_env, initargs=(env,))
+
+    def submit(self, fn, /, *args, **kwargs):
+        try:
+            return self.pool.submit(fn, *args, **kwargs)
+        except BrokenProcessPool:
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            self.pool = self._new()
+            return self.pool.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self.pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+
+def _worker_env(env: dict[str, str]) -> None:
+    """Give a worker this process's ``TLM_*`` variables (``TLM_CACHE``) as they are now."""
+    for k in [k for k in os.environ if k.startswith("TLM_")]:
+        del os.environ[k]
+    os.environ.update(env)
+
+
+def _mp_context():
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(["tlm.experiments.sweep", "tlm.experiments.run"])  # imported once, not per worker
+    return ctx
+
+
+def _open_executor(stack: ExitStack, jobs: int, dask: str | None) -> cf.Executor:
+    """A concurrent.futures executor: local processes, in-process, or a Dask client's."""
+    if dask is None:
+        return _InProcess() if jobs == 1 else _LocalPool(jobs)
+    from distributed import Client, LocalCluster
+
+    if dask == "local":
+        cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                                   dashboard_address=None))
+        client = stack.enter_context(Client(cluster))
+    else:
+        try:
+            client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
+        except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
+            raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
+    return client.get_executor(pure=False)
+
+
+# ---------------------------------------------------------------- the sweep
+
+
+@dataclass
+class Outcome:
+    """What a sweep did: the rows of its points and the counts of the summary line."""
+
+    rows: list[dict]
+    ok: int
+    failed: int
+    skipped: int
+    renders: int  # points whose functional result was rendered, not read from the cache
+    seconds: float
+    out: Path
+
+
+def _check_points(sweep: Sweep) -> dict[str, str]:
+    """Load every distinct programs table and scene before any point runs.
+
+    Returns each point hash's functional key: points with one key share one render.
+    """
+    from tlm.experiments.run import programs_for
+
+    tables, keys, by_hash = set(), {}, {}
+    for p in sweep.points:
+        cfg = config_from_dict(p.config, str(sweep.path))
+        shown = f"{sweep.path} (point {p.index})"
+        if cfg.arch.programs not in tables:
+            try:
+                programs_for(cfg, sweep.folder)
+            except InputError as e:  # the table's own message, and which point names it
+                raise InputError(str(e), source=shown) from None
+            tables.add(cfg.arch.programs)
+        work = json.dumps({k: v for k, v in p.config.items() if k != "arch"}, sort_keys=True)
+        if work not in keys:
+            keys[work] = render_key(cfg, sweep.folder, shown)
+        by_hash[p.hash] = keys[work]
+    return by_hash
+
+
+def _clean_stale(points_dir: Path) -> None:
+    """Remove temporary point folders of sweeps that were killed (their process is gone)."""
+    for d in points_dir.glob(".*.tmp-*"):
+        m = re.fullmatch(r"\..+\.tmp-(\d+)", d.name)
+        if m is None:
+            continue
+        try:
+            os.kill(int(m[1]), 0)
+        except ProcessLookupError:
+            shutil.rmtree(d, ignore_errors=True)
+        except OSError:
+            pass  # alive (another user's) or unknown: leave it
+
+
+def _done(folder: Path) -> dict | None:
+    """A finished point's record from its folder, or None (not run, failed, or unreadable)."""
+    try:
+        return {"status": "ok", "results": json.loads((folder / "results.json").read_text())}
+    except (OSError, ValueError):
+        return None
+
+
+def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
+              progress: bool = False) -> Outcome:
+    """Run every point of the sweep file ``path`` not already done in ``out``."""
+    t_start = time.perf_counter()
+    if jobs is None:
+        jobs = os.cpu_count() or 1
+    if jobs < 1:
+        raise InputError(f"{jobs} must be >= 1", key="--jobs")
+    sweep = load_sweep(Path(path))
+    fkeys = _check_points(sweep)
+    out = Path(out)
+    check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
+    points_dir = out / "points"
+
+    by_hash: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        by_hash.setdefault(p.hash, []).append(p)
+    records: dict[str, dict] = {}
+    todo: list[str] = []
+    for h in by_hash:
+        rec = _done(points_dir / h)
+        if rec is not None:
+            records[h] = rec
+        else:
+            todo.append(h)
+    skipped = sum(len(by_hash[h]) for h in records)
+
+    from tlm.experiments.run import _git_revision, _versions
+
+    provenance = {"versions": _versions(), "git_revision": _git_revision()}
+    tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
+                     str(points_dir / h), provenance) for h in todo}
+
+    with ExitStack() as stack:
+        pool = _open_executor(stack, min(jobs, max(len(todo), 1)), dask) if todo else None
+        points_dir.mkdir(parents=True, exist_ok=True)
+        _write_text(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
+        _clean_stale(points_dir)
+        for h in todo:  # a failed point's folder (or an unreadable one) is run again
+            if (points_dir / h).exists():
+                shutil.rmtree(points_dir / h)
+        if pool is not None:
+            _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+
+    rows = [point_row(p, records[p.hash]) for p in sweep.points]
+    write_rows(out, rows)
+    computed = [r for r in rows if r["hash"] in tasks]
+    failed = sum(r["status"] != "ok" for r in computed)
+    renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
+    return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out)
+
+
+def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],
+              records: dict[str, dict], out: Path, progress: bool, total: int, skipped: int) -> None:
+    """Run the tasks: one per functional key first, the rest of its group once it is cached."""
+    from tqdm import tqdm
+
+    groups: dict[str, deque[str]] = {}
+    for h in tasks:
+        groups.setdefault(fkeys[h], deque()).append(h)
+    futures: dict[cf.Future, str] = {}
+
+    def submit(h: str) -> None:
+        futures[pool.submit(run_point, tasks[h])] = h
+
+    def release(key: str, everything: bool) -> None:
+        queue = groups[key]
+        while queue:
+            submit(queue.popleft())
+            if not everything:
+                break
+
+    bar = None
+    try:
+        for key in groups:
+            release(key, everything=is_cached(key))
+        bar = tqdm(total=total, initial=skipped, disable=None if progress else True, file=sys.stderr,
+                   unit="point", desc="sweep", dynamic_ncols=True)
+        failed = 0
+        with open(out / "sweep.jsonl", "a") as jsonl:
+            while futures:
+                if isinstance(pool, _InProcess):
+                    pool.run_next()
+                done, _ = cf.wait(list(futures), return_when=cf.FIRST_COMPLETED)
+                for f in done:
+                    h = futures.pop(f)
+                    record = _record(f, tasks[h])
+                    records[h] = record
+                    for p in by_hash[h]:
+                        jsonl.write(json.dumps(point_row(p, record)) + "\n")
+                    jsonl.flush()
+                    failed += record["status"] != "ok"
+                    # the frame is cached unless the point failed while rendering it (or its
+                    # worker died): then the next point of the group renders, one at a time
+                    rendered = record["status"] == "ok" or record["error"]["stage"] in ("simulate", "write")
+                    release(fkeys[h], everything=rendered)
+                    bar.update(len(by_hash[h]))
+                    if failed:
+                        bar.set_postfix(failed=failed)
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        if isinstance(pool, (_InProcess, _LocalPool)):
+            pool.shutdown(wait=False, cancel_futures=True)
+        else:
+            pool.shutdown(wait=False)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    pool.shutdown(wait=True)
+
+
+def _record(f: cf.Future, task: Task) -> dict:
+    """The worker's record, or a failed one when the worker itself died or could not be reached."""
+    try:
+        return f.result()
+    except Exception as e:  # a worker process killed, a lost Dask worker, an unpicklable result
+        error = _error_record(e, "worker", "".join(traceback.format_exception(e)))
+        with suppress(OSError, InputError):  # the row still says what happened
+            write_error(task, error)
+        return {"status": "failed", "error": error}
