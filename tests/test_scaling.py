@@ -16,7 +16,8 @@ from tlm.experiments.sweep import run_sweep
 
 
 def _points(a, b, v, sums, target="throughput"):
-    return [{"pipelines": n, "T_vert0": v, "sum_max": s, target: round(a * v + b * s / n)} for n, s in sums.items()]
+    return [{"pipelines": n, "T_vert0": v, "sum_max": s, "max_max": s / n, target: round(a * v + b * s / n)}
+            for n, s in sums.items()]
 
 
 def test_fit_recovers_a_and_b_of_data_that_follow_eq_5_2():
@@ -27,9 +28,9 @@ def test_fit_recovers_a_and_b_of_data_that_follow_eq_5_2():
 
 
 def test_fit_is_exact_at_one_pipeline_and_least_squares_elsewhere():
-    pts = [{"pipelines": 1, "T_vert0": 100, "sum_max": 1000, "latency": 1200},
-           {"pipelines": 2, "T_vert0": 100, "sum_max": 1000, "latency": 700},
-           {"pipelines": 4, "T_vert0": 100, "sum_max": 1000, "latency": 500}]
+    pts = [{"pipelines": 1, "T_vert0": 100, "sum_max": 1000, "max_max": 1000, "latency": 1200},
+           {"pipelines": 2, "T_vert0": 100, "sum_max": 1000, "max_max": 500, "latency": 700},
+           {"pipelines": 4, "T_vert0": 100, "sum_max": 1000, "max_max": 250, "latency": 500}]
     f = fit_group(pts, "latency")
     one = f["rows"][0]
     assert one["pipelines"] == 1 and one["analytical"] == 1200 and one["rel_error"] == 0
@@ -38,6 +39,18 @@ def test_fit_is_exact_at_one_pipeline_and_least_squares_elsewhere():
     assert f["B"] == pytest.approx(b)
     assert f["A"] == pytest.approx((1200 - b * 1000) / 100)
     assert [r["speedup"] for r in f["rows"]] == [1.0, pytest.approx(1200 / 700, abs=1e-4), 2.4]
+
+
+def test_slowest_pipeline_variant_fits_an_uneven_static_tiling():
+    """The slowest pipeline keeps most of the work as N grows: T(N) = T_vert0 + its time,
+    which the slowest-pipeline variant follows exactly and the mean over the pipelines does not."""
+    slowest = {1: 1000, 2: 800, 4: 600, 8: 500}
+    pts = [{"pipelines": n, "T_vert0": 100, "sum_max": 1000, "max_max": m, "throughput": 100 + m}
+           for n, m in slowest.items()]
+    mean = fit_group(pts, "throughput")
+    slow = fit_group(pts, "throughput", slowest=True)
+    assert slow["max_abs_rel_error"] < 1e-9
+    assert mean["max_abs_rel_error"] > 0.05
 
 
 def test_fit_needs_one_pipeline():
@@ -77,7 +90,7 @@ def test_a_scaling_sweep_end_to_end(tmp_path, cache, capsys):
     assert Path(tmp_path / "eq" / "scaling_cornell.png").stat().st_size > 10_000
     for r in rows:
         if r["pipelines"] == "1":
-            assert r["simulated"] == r["analytical"]
+            assert r["simulated"] == r["analytical"] == r["analytical_slowest"]
     # more pipelines: every pipeline's share of the work shrinks
     by_n = {int(r["pipelines"]): int(r["sum_max_per_N"]) for r in rows if r["scheduler"] == "dynamic"}
     assert by_n[4] < by_n[2] < by_n[1]

@@ -11,9 +11,12 @@ pipeline's Traversal, Intersection and Fragment cycles per frame from every poin
 and fits A and B per (scene, mode, scheduler) and per target: the frame latency (the
 "total time" of one frame, arrival to image) and the throughput (TThru, cycles per
 frame in the stream). The fit is exact at N = 1, as the thesis asks, and least squares
-over the other N. :func:`analyse` writes ``eq52.csv`` (per point: simulated and
-analytical cycles, relative error), ``eq52.json`` (A, B, the largest error, per
-group) and one figure per scene (``scaling_<scene>.png``): simulated and analytical
+over the other N. Eq. 5.2 divides the sum over the pipelines by N: it assumes tiles of
+equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
+pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a static
+tiling of an uneven image waits for. :func:`analyse` writes ``eq52.csv`` (per point:
+simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
+largest error, per group) and one figure per scene (``scaling_<scene>.png``): simulated and analytical
 T_tot against N, and the speed-up T(1) / T(N), for each scheduler.
 """
 
@@ -31,7 +34,7 @@ from tlm.experiments.atomic import atomic_folder, check_destination
 
 TARGETS = ("latency", "throughput")
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
-           "T_vert0", "sum_max_per_N", "speedup")
+           "analytical_slowest", "rel_error_slowest", "T_vert0", "sum_max_per_N", "speedup")
 
 
 def collect(sweep_dir: Path) -> list[dict]:
@@ -56,6 +59,7 @@ def collect(sweep_dir: Path) -> list[dict]:
             "pipelines": int(cfg["arch"]["pipelines"]),
             "T_vert0": int(res["cycles"]["vertex"]),
             "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
+            "max_max": max(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
             "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
         })
     if not records:
@@ -63,8 +67,13 @@ def collect(sweep_dir: Path) -> list[dict]:
     return records
 
 
-def fit_group(points: list[dict], target: str) -> dict:
-    """A and B of eq. 5.2 for one group, exact at N = 1 and least squares elsewhere."""
+def fit_group(points: list[dict], target: str, slowest: bool = False) -> dict:
+    """A and B of eq. 5.2 for one group, exact at N = 1 and least squares elsewhere.
+
+    ``slowest``: the variant with the slowest pipeline's max(T_t, T_r, T_f) in place of
+    the mean over the pipelines (eq. 5.2 assumes tiles of equal work).
+    """
+    points = [{**p, "sum_max": p["max_max"] * p["pipelines"]} for p in points] if slowest else points
     by_n = {p["pipelines"]: p for p in points}
     if 1 not in by_n:
         raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {sorted(by_n)}",
@@ -87,11 +96,22 @@ def fit_group(points: list[dict], target: str) -> dict:
     return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows}
 
 
+def fit_both(points: list[dict], target: str) -> dict:
+    """Eq. 5.2 as the thesis writes it, with the slowest-pipeline variant beside it."""
+    f = fit_group(points, target)
+    g = fit_group(points, target, slowest=True)
+    for r, q in zip(f["rows"], g["rows"]):
+        r["analytical_slowest"] = q["analytical"]
+        r["rel_error_slowest"] = q["rel_error"]
+    f["slowest"] = {"A": g["A"], "B": g["B"], "max_abs_rel_error": g["max_abs_rel_error"]}
+    return f
+
+
 def fit(records: list[dict]) -> dict[tuple, dict]:
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in records:
         groups[(r["scene"], r["mode"], r["scheduler"])].append(r)
-    return {(*key, target): fit_group(pts, target) for key, pts in sorted(groups.items()) for target in TARGETS}
+    return {(*key, target): fit_both(pts, target) for key, pts in sorted(groups.items()) for target in TARGETS}
 
 
 def analyse(sweep_dirs: list[Path], out: Path) -> dict:
@@ -102,7 +122,7 @@ def analyse(sweep_dirs: list[Path], out: Path) -> dict:
     table, summary = [], []
     for (scene, mode, sched, target), f in fits.items():
         summary.append({"scene": scene, "mode": mode, "scheduler": sched, "target": target, "A": f["A"],
-                        "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"],
+                        "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
                         "pipelines": [r["pipelines"] for r in f["rows"]]})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
     with atomic_folder(out, "eq52.json") as tmp:
@@ -131,6 +151,8 @@ def plot_scene(scene: str, fits: dict[tuple, dict], path: Path) -> None:
         ax.plot(ns, [r["simulated"] for r in f["rows"]], "o-", color=c, label=f"{sched}: simulated")
         ax.plot(ns, [r["analytical"] for r in f["rows"]], "--", color=c,
                 label=f"{sched}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}")
+        ax.plot(ns, [r["analytical_slowest"] for r in f["rows"]], ":", color=c,
+                label=f"{sched}: slowest pipeline, A={f['slowest']['A']:.3g}, B={f['slowest']['B']:.3g}")
         if target == "throughput":
             axes[2].plot(ns, [r["speedup"] for r in f["rows"]], "o-", color=c, label=f"{sched} ({mode})")
     for ax, title in zip(axes[:2], ("frame latency (eq. 5.2's T_tot)", "throughput TThru")):

@@ -106,9 +106,29 @@ class Sweep:
 
 
 def config_hash(resolved: dict) -> str:
-    """The point's key: sha256 of the resolved config's canonical JSON, 16 hex digits."""
-    blob = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+    """The point's key: sha256 of the resolved config's canonical JSON and of tlm's code, 16 hex digits.
+
+    The code is part of the key so that a rerun after a change to the model or the
+    kernels computes its points again instead of reusing results of other code.
+    """
+    blob = json.dumps({"config": resolved, "code": code_version()}, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def code_version() -> str:
+    """Hash of tlm's source and data tables (every .py and .yaml of the package)."""
+    global _CODE_VERSION
+    if _CODE_VERSION is None:
+        root = Path(__file__).resolve().parents[1]
+        h = hashlib.sha256()
+        for f in sorted([*root.rglob("*.py"), *root.rglob("*.yaml")]):
+            h.update(str(f.relative_to(root)).encode())
+            h.update(f.read_bytes())
+        _CODE_VERSION = h.hexdigest()[:16]
+    return _CODE_VERSION
+
+
+_CODE_VERSION: str | None = None
 
 
 def _assign(raw: dict, key: str, value: Any) -> dict:
