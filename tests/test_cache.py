@@ -1,7 +1,10 @@
 """The PM data cache: page misses of address streams, checked by hand; compressed
-streams (page spans, compaction, owner-major reordering) against the full streams."""
+streams (page spans, compaction, owner-major reordering) against the full streams;
+streams sharing a pair (``cache.pairs``), by hand and against the full merged stream."""
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 import pytest
@@ -10,6 +13,8 @@ from hypothesis import strategies as st
 
 from tlm.arch.cache import (
     PAGE_WORDS,
+    PM_STREAMS,
+    REGION_PAGES,
     Accesses,
     PairState,
     Recorder,
@@ -196,3 +201,114 @@ def test_any_split_with_the_state_carried_is_the_whole_stream(stream, cuts, page
         parts.append(miss)
     np.testing.assert_array_equal(np.concatenate(parts), whole)
     assert s == end or (len(stream) == 0 and s == (state or PairState()))
+
+
+# ---------------------------------------------------------------- pairs shared by streams
+
+
+def test_streams_take_pair_k_mod_pairs_of_their_pm_phase():
+    want = {  # pairs -> stream -> (pair, address region in it)
+        1: {"nodes": ("traversal[0]", 0), "indices": ("traversal[0]", 1),
+            "shadow_nodes": ("shadow_traversal[0]", 0), "shadow_indices": ("shadow_traversal[0]", 1),
+            "shading": ("fragment[0]", 0), "photons": ("fragment[0]", 1)},
+        2: {"nodes": ("traversal[0]", 0), "indices": ("traversal[1]", 0),
+            "shadow_nodes": ("shadow_traversal[0]", 0), "shadow_indices": ("shadow_traversal[1]", 0),
+            "shading": ("fragment[0]", 0), "photons": ("fragment[1]", 0)},
+    }
+    want[3] = want[4] = want[2]
+    for pairs, table in want.items():
+        streams = Streams(pairs=pairs)
+        assert {name: streams.pair_of(name) for name in table} == table
+        # the Intersection PM's vertex streams (and any unlisted one) have a pair of their own
+        for name in ("vertices", "shadow_vertices", "x"):
+            assert streams.pair_of(name) == (name, 0)
+    assert PM_STREAMS["traversal"] == ("nodes", "indices")
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="pairs"):
+            Streams(pairs=bad)
+
+
+def test_two_streams_on_one_pair_evict_each_other_by_hand():
+    # pages of 8 words (prefetch armed past offset 4). Owner 0 reads node words 0, 5 and
+    # index words 0, 1; owner 1 reads node word 9 and index word 2. Alone (pairs = 2):
+    #   nodes    0 5 | 9   -> page 0 misses (armed by 5), page 1 was prefetched: [1, 0]
+    #   indices  0 1 | 2   -> page 0 misses once:                                 [1, 0]
+    # On one pair (pairs = 1), owner-major, a ray's nodes then its indices, the indices in
+    # a region of their own (page R = REGION_PAGES of the merged stream):
+    #   N0 (0, 5) miss | R (0, 1) miss | N1 (9) miss: its prefetch was lost | R (2) miss
+    #   -> nodes [1, 1], indices [1, 1]; the pair ends on page R, not armed (offset 2).
+    # The Intersection PM's vertices (0 | 3, 30) keep a pair of their own either way:
+    #   page 0 misses, 3 hits, page 3 misses (and arms): [1, 1].
+    def record(pairs):
+        rec = Recorder(8)
+        rec.add("nodes", Accesses.of_words([0, 5, 9], [0, 0, 1], 8))
+        rec.add("indices", Accesses.of_words([2, 0, 1], [0, 1, 1], 8), owners=[1, 0])  # a step's own numbering
+        rec.add("vertices", Accesses.of_words([0, 3, 30], [0, 1, 1], 8))
+        streams = Streams(8, pairs)
+        got = {k: v.tolist() for k, v in rec.charge(streams, 2).items()}
+        return got, streams.states
+
+    got, states = record(2)
+    assert got == {"nodes": [1, 0], "indices": [1, 0], "vertices": [1, 1]}
+    assert states == {"traversal[0]": PairState(1, False), "traversal[1]": PairState(0, False),
+                      "vertices": PairState(3, True)}
+    got, states = record(1)
+    assert got == {"nodes": [1, 1], "indices": [1, 1], "vertices": [1, 1]}  # the vertices: unaffected
+    assert states == {"traversal[0]": PairState(REGION_PAGES, False), "vertices": PairState(3, True)}
+    # a stream charged alone on a shared pair keeps its region: the pair's state goes on
+    streams = Streams(8, 1)
+    assert streams.charge("indices", Accesses.of_words([3], [0], 8), 1).tolist() == [1]
+    assert streams.charge("indices", Accesses.of_words([6], [0], 8), 1).tolist() == [0]
+    assert streams.states == {"traversal[0]": PairState(REGION_PAGES, True)}
+
+
+STREAMS = ("nodes", "indices", "vertices")
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(STREAMS), st.integers(0, OWNERS - 1), ranges), max_size=8),
+       pages, st.sampled_from([1, 2, 4]), st.lists(st.integers(0, OWNERS), max_size=3))
+def test_shared_pairs_give_the_full_merged_stream_in_any_packets(steps, page_words, pairs, cuts):
+    """Steps of several streams, charged owner-major with their pairs merged, give the
+    misses of the full merged stream (each owner's words in step order, each stream's
+    words in its region), per stream; and so do packets of owners with the state carried."""
+    rec = Recorder(page_words)
+    per_owner = {o: [] for o in range(OWNERS)}
+    probe = Streams(page_words, pairs)
+    for name, shift, rs in steps:
+        first, last, owner = arrays(rs)
+        local = (owner + shift) % OWNERS
+        rec.add(name, Accesses.of_ranges(first, last, local, page_words), (np.arange(OWNERS) - shift) % OWNERS)
+        for f, la, o in zip(first.tolist(), last.tolist(), owner.tolist(), strict=True):
+            per_owner[o].append((name, f, la))
+    want = {}
+    for key in dict.fromkeys(probe.pair_of(name)[0] for name in STREAMS):
+        rows = [(o, name, f, la) for o in range(OWNERS) for name, f, la in per_owner[o]
+                if probe.pair_of(name)[0] == key]
+        words, owner, which = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+        for o, name, f, la in rows:
+            w = span_addresses([f], [la]) + probe.pair_of(name)[1] * REGION_PAGES * page_words
+            words.append(w)
+            owner.append(np.full(w.shape[0], o))
+            which.append(np.full(w.shape[0], STREAMS.index(name)))
+        miss, _ = page_misses(np.concatenate(words), page_words=page_words)
+        owner, which = np.concatenate(owner)[miss], np.concatenate(which)[miss]
+        for name in STREAMS:
+            if probe.pair_of(name)[0] == key:
+                want[name] = np.bincount(owner[which == STREAMS.index(name)], minlength=OWNERS)
+    got = rec.charge(Streams(page_words, pairs), OWNERS)
+    for name in STREAMS:
+        np.testing.assert_array_equal(got.get(name, np.zeros(OWNERS, np.int64)), want[name], err_msg=name)
+    # the same steps charged in packets of owners, in owner order, with one Streams
+    streams, parts = Streams(page_words, pairs), {name: [] for name in STREAMS}
+    bounds = [0, *sorted(cuts), OWNERS]
+    for lo, hi in itertools.pairwise(bounds):
+        packet = Recorder(page_words)
+        for name, acc in rec.added:
+            keep = (acc.owner >= lo) & (acc.owner < hi)
+            packet.add(name, Accesses(acc.words[keep], acc.owner[keep] - lo, page_words))
+        got = packet.charge(streams, hi - lo)
+        for name in STREAMS:
+            parts[name].append(got.get(name, np.zeros(hi - lo, np.int64)))
+    for name in STREAMS:
+        np.testing.assert_array_equal(np.concatenate(parts[name]), want[name], err_msg=name)

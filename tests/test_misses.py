@@ -5,16 +5,21 @@
   put together here from the kernels' own calls in pixel-major program order;
 * packets of pixels run in order with one carried :class:`Streams` give exactly the
   whole image's misses (and cold pairs per packet do not, so the test can fail);
+* both for the thesis's 4 pairs per PM and for 1 (the node heap and the leaf indices
+  on one pair, merged owner-major), and for other block sizes; on a real frame 1 pair
+  misses more than 4, 2 and 3 miss as 4 does, smaller blocks miss more (``cache``);
 * the recorded leaf lists agree with the counts, also for rays that fell back to the
   float64 traversal.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from tlm.arch.cache import Streams, page_misses, span_addresses
+from tlm.arch.cache import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.config import config_from_dict
 from tlm.kernels import shade, traverse
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
@@ -86,8 +91,10 @@ class Capture:
         monkeypatch.setattr(shade, "any_hit", anyhit)
 
 
-def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int) -> dict[str, np.ndarray]:
-    """Each miss key per pixel from the full streams, ordered (pixel, bounce, ray)."""
+def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int, pairs: int) -> dict[str, np.ndarray]:
+    """Each miss key per pixel from the full streams, ordered (pixel, bounce, ray); the
+    streams sharing a pair merged, ordered (pixel, bounce, stream, ray), each stream in
+    its own address region."""
     p = g.pixels.shape[0]
     local = {int(px): i for i, px in enumerate(g.pixels.tolist())}
     items: dict[str, list] = {}  # stream -> [(pixel, bounce, seq, words)]
@@ -109,22 +116,30 @@ def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int) -> dic
             add("shadow_", touched, np.repeat(pix, per_point), bounce)
         for i, (px, t) in enumerate(zip(pix.tolist(), tri.tolist(), strict=True)):
             items.setdefault("shading", []).append((px, bounce, i, np.array([t], np.int64)))
-    out = {k: np.zeros(p, np.int64) for k in MISS_KEYS if k != "gather_misses"}
+    probe = Streams(page_words, pairs)
+    merged: dict[str, list] = {}  # pair -> [(pixel, bounce, region, seq, words, stream)]
     for name, rows in items.items():
-        rows.sort(key=lambda r: r[:3])
-        words = np.concatenate([r[3] for r in rows])
-        owner = np.concatenate([np.full(r[3].shape[0], r[0]) for r in rows])
+        pair, region = probe.pair_of(name)
+        merged.setdefault(pair, []).extend(
+            (px, b, region, i, words + region * REGION_PAGES * page_words, name) for px, b, i, words in rows)
+    out = {k: np.zeros(p, np.int64) for k in MISS_KEYS if k != "gather_misses"}
+    for rows in merged.values():
+        rows.sort(key=lambda r: r[:4])
+        words = np.concatenate([r[4] for r in rows])
+        owner = np.concatenate([np.full(r[4].shape[0], r[0]) for r in rows])
+        key = np.concatenate([np.full(r[4].shape[0], r[5]) for r in rows])
         miss, _ = page_misses(words, page_words=page_words)
-        out[passes.STREAM_KEYS[name]] += np.bincount(owner[miss], minlength=p)
+        for name in np.unique(key).tolist():
+            out[passes.STREAM_KEYS[name]] += np.bincount(owner[miss & (key == name)], minlength=p)
     return out
 
 
-@pytest.mark.parametrize("page_words", [1024, 16])
+@pytest.mark.parametrize(("page_words", "pairs"), [(1024, 4), (16, 4), (1024, 1), (16, 1)])
 @pytest.mark.parametrize("f", PASSES, ids=lambda f: f.__name__)
-def test_misses_are_those_of_the_full_streams(frame, gbuffer, monkeypatch, f, page_words):
+def test_misses_are_those_of_the_full_streams(frame, gbuffer, monkeypatch, f, page_words, pairs):
     cap = Capture(monkeypatch)
-    _, work = f(frame, gbuffer, Streams(page_words))
-    want = brute_force(frame, gbuffer, cap, work, f is rcast_pass, page_words)
+    _, work = f(frame, gbuffer, Streams(page_words, pairs))
+    want = brute_force(frame, gbuffer, cap, work, f is rcast_pass, page_words, pairs)
     for k, v in want.items():
         np.testing.assert_array_equal(work[k], v, err_msg=k)
     if f is rcast_pass:
@@ -148,14 +163,15 @@ def test_eye_rays_must_be_recorded(frame):
 # ---------------------------------------------------------------- packets in order
 
 
-@pytest.mark.parametrize("page_words", [1024, 32])
-def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words):
-    whole = {f.__name__: f(frame, gbuffer, Streams(page_words)) for f in PASSES}
-    for size in (1, 7, 64):
+@pytest.mark.parametrize(("page_words", "pairs", "sizes"), [(1024, 4, (1, 7, 64)), (32, 4, (1, 7, 64)),
+                                                          (1024, 1, (5, 64)), (64, 1, (5, 64))])
+def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words, pairs, sizes):
+    whole = {f.__name__: f(frame, gbuffer, Streams(page_words, pairs)) for f in PASSES}
+    for size in sizes:
         starts = range(0, W * H, size)
         for f in PASSES:
             rad_w, work_w = whole[f.__name__]
-            streams = Streams(page_words)
+            streams = Streams(page_words, pairs)
             got = {k: [] for k in WORK_KEYS}
             cold = {k: [] for k in MISS_KEYS if k in WORK_KEYS}
             for s0 in starts:
@@ -165,13 +181,84 @@ def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words)
                 for k in WORK_KEYS:
                     got[k].append(work[k])
                 if size == 64:
-                    _, work = f(frame, g, Streams(page_words))  # cold pairs per packet
+                    _, work = f(frame, g, Streams(page_words, pairs))  # cold pairs per packet
                     for k in cold:
                         cold[k].append(work[k])
             for k in WORK_KEYS:
                 np.testing.assert_array_equal(np.concatenate(got[k]), work_w[k], err_msg=(f.__name__, size, k))
             if size == 64:  # packets with cold pairs miss more: the carried state matters
                 assert sum(np.concatenate(v).sum() for v in cold.values()) > sum(work_w[k].sum() for k in cold)
+
+
+# ---------------------------------------------------------------- the cache section
+
+
+def with_cache(frame, **cache):
+    """The frame with other ``cache`` settings (the passes' default Streams follow them)."""
+    return dataclasses.replace(frame, cfg=config_from_dict({"resolution": [W, H], "mode": "refract",
+                                                            "cache": cache}))
+
+
+def test_one_pair_misses_more_and_two_are_as_many_as_four(frame, gbuffer):
+    runs = {pairs: {f.__name__: f(with_cache(frame, pairs=pairs), gbuffer)[1] for f in PASSES}
+            for pairs in (1, 2, 3, 4)}
+    for f in PASSES:  # the passes' default Streams are the config's
+        np.testing.assert_array_equal(f(frame, gbuffer, Streams(1024, 1))[1]["trav_misses"],
+                                      runs[1][f.__name__]["trav_misses"])
+    for name, four in runs[4].items():
+        for k in WORK_KEYS:
+            for pairs in (2, 3):  # at most two cached streams per PM phase: two pairs are enough
+                np.testing.assert_array_equal(runs[pairs][name][k], four[k], err_msg=(pairs, name, k))
+            one = runs[1][name][k]
+            if k in ("trav_misses", "shadow_trav_misses"):  # node heap and leaf indices on one pair
+                assert np.all(one >= four[k]), (name, k)
+            else:  # the vertex streams have no pairs knob; the shading records are alone
+                np.testing.assert_array_equal(one, four[k], err_msg=(name, k))
+    for k in ("trav_misses", "shadow_trav_misses"):
+        assert runs[1]["rcast_pass"][k].sum() > runs[4]["rcast_pass"][k].sum(), k
+
+
+def test_smaller_blocks_miss_more(frame, gbuffer):
+    runs = {bw: {f.__name__: f(with_cache(frame, block_words=bw), gbuffer)[1] for f in PASSES}
+            for bw in (64, 1024)}
+    total = dict.fromkeys(runs, 0)
+    for name, big in runs[1024].items():
+        for k in WORK_KEYS:
+            small = runs[64][name][k]
+            if k in MISS_KEYS:
+                assert small.sum() >= big[k].sum(), (name, k)
+                total[64] += small.sum()
+                total[1024] += big[k].sum()
+            else:  # the block size changes the misses only
+                np.testing.assert_array_equal(small, big[k], err_msg=(name, k))
+    assert total[64] > total[1024]
+
+
+def test_the_photon_tracer_and_the_gather_follow_the_cache_section(frame, gbuffer):
+    settings = {"thesis": {}, "one_pair": {"pairs": 1}, "small": {"block_words": 64},
+                "both": {"pairs": 1, "block_words": 64}}
+    frames = {name: with_cache(frame, **c) for name, c in settings.items()}
+    traced = {name: passes.trace_photon_map(fr, n=3000) for name, fr in frames.items()}
+    thesis = traced["thesis"]
+    for t in traced.values():  # the same photons, whatever the cache
+        np.testing.assert_array_equal(t.photons.position, thesis.photons.position)
+    w, w1 = thesis.work, traced["one_pair"].work
+    np.testing.assert_array_equal(w1["isect_misses"], w["isect_misses"])
+    assert np.all(w1["trav_misses"] >= w["trav_misses"]) and w1["trav_misses"].sum() > w["trav_misses"].sum()
+    ws = traced["small"].work
+    assert ws["trav_misses"].sum() > w["trav_misses"].sum() and ws["isect_misses"].sum() > w["isect_misses"].sum()
+    gather = {name: passes.pmap_pass(fr, gbuffer, thesis.photons)[1]["gather_misses"] for name, fr in frames.items()}
+    assert gather["thesis"].sum() > 0
+    # the Fragment PM's photon-leaf stream is the only one of its pass: pairs do not matter
+    np.testing.assert_array_equal(gather["one_pair"], gather["thesis"])
+    np.testing.assert_array_equal(gather["both"], gather["small"])
+    assert gather["small"].sum() > gather["thesis"].sum()
+    # packets in pixel order with one carried Streams of the section: the whole frame's
+    streams, parts = passes.new_streams(frames["both"]), []
+    for s0 in range(0, W * H, 97):
+        g = cast(frame, np.arange(s0, min(s0 + 97, W * H)))
+        parts.append(passes.pmap_pass(frames["both"], g, thesis.photons, streams=streams)[1]["gather_misses"])
+    np.testing.assert_array_equal(np.concatenate(parts), gather["both"])
 
 
 # ---------------------------------------------------------------- recorded leaves

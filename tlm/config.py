@@ -90,6 +90,14 @@ class EstimateConfig:
 
 
 @dataclass(frozen=True)
+class CacheConfig:
+    pairs: int = _f(4, "cache block pairs per programmable PM (thesis: 8 blocks = 4 pairs); a PM phase's k-th "
+                    "stream takes pair k mod pairs (1: node heap and leaf indices share one)", min=1, max=4)
+    block_words: int = _f(1024, "128-bit words per cache block, the page a miss fetches (thesis: 1024); "
+                          "the next block is prefetched past its middle", min=2, max=1 << 20)
+
+
+@dataclass(frozen=True)
 class ReferenceConfig:
     photons: int | None = _f(None, "photons per round of the reference; null = the scene's default", min=1)
     k_nearest: int = _f(100, "photons of each round's k-nearest estimate", min=1, max=100000)
@@ -141,6 +149,8 @@ class RunConfig:
     render: RenderConfig = field(default_factory=RenderConfig, metadata={"help": "passes"})
     photons: PhotonConfig = field(default_factory=PhotonConfig, metadata={"help": "photon tracing"})
     estimate: EstimateConfig = field(default_factory=EstimateConfig, metadata={"help": "radiance estimate"})
+    cache: CacheConfig = field(default_factory=CacheConfig,
+                               metadata={"help": "the PMs' data cache (page misses of the work counts)"})
     reference: ReferenceConfig = field(default_factory=ReferenceConfig,
                                        metadata={"help": "converged reference of the photon-map frame"})
     arch: ArchConfig = field(default_factory=ArchConfig, metadata={"help": "the timing model (SimPy layer)"})

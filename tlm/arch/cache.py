@@ -8,12 +8,56 @@ index of the current operation M_i and index of first address of current page M'
 are such that M_i > M'_i + BlockSize/2", while the current page is still in use.
 
 Reading (documented in ``docs/architecture.md``): a *page* is a block-aligned run of
-``PAGE_WORDS`` = 1024 main-memory words of 128 bits. Each of the four pairs serves one
-data stream of the PM's program (for the Traversal PM: its rays, the node heap, ...),
-so a pair sees that stream's addresses in program order. An access to the pair's
-current page hits; an access to the next page hits too when the prefetch was issued —
-that is, when an access to the current page reached past its middle; any other page
-is a miss, which costs ``T_ms`` = 12 cycles (eq. 5.1) and makes that page current.
+``block_words`` main-memory words of 128 bits (``PAGE_WORDS`` = 1024, the thesis's block,
+by default). A pair serves data streams of the PM's program (for the Traversal PM: the
+node heap, the leaf indices), so it sees those streams' addresses in program order. An
+access to the pair's current page hits; an access to the next page hits too when the
+prefetch was issued — that is, when an access to the current page reached past its
+middle; any other page is a miss, which costs ``T_ms`` = 12 cycles (eq. 5.1) and makes
+that page current.
+
+Pairs per PM and the block size (the run config's ``cache`` section, ``cache.pairs`` =
+``PAIRS`` = 4 and ``cache.block_words`` = ``PAGE_WORDS`` by default). Each PM has a
+cache of its own, and a phase of its program (the eye and secondary rays, the shadow
+rays, the photon rays, the fragments) runs on it alone, so the cached streams are
+listed per PM phase (:data:`PM_STREAMS`) in a fixed order, and stream ``k`` of a phase
+takes pair ``k mod pairs``:
+
+* Traversal PM, eye and secondary rays (and, on a Streams of their own, the photon
+  tracer's rays): ``nodes``, ``indices``;
+* Traversal PM, shadow rays: ``shadow_nodes``, ``shadow_indices``;
+* Fragment PM: ``shading``, ``photons`` (the gather's photon leaves).
+
+So ``pairs`` = 1 puts both streams of a phase on pair 0; ``pairs`` >= 2 gives each its
+own (pairs 0 and 1).
+
+Streams that share a pair are charged as one stream: their accesses merged owner-major
+(for each owner — a ray, a pixel, a photon, a query — its accesses in the order the
+kernel added them: a ray's node reads, then its leaf indices; a pixel's bounces in
+order; a shaded point's shadow rays' node reads, then their index reads), each stream
+in an address region of its own (stream ``j`` of a pair reads pages ``j *
+REGION_PAGES + p``), so two streams never share a page but do evict each other's. Each
+miss of the merged stream is the miss of the stream whose access it was, so it goes
+to that stream's work key; streams of one pair are always of one PM phase, so this is
+the phase's key (``trav_misses``: node heap and leaf indices). The Fragment PM's two
+streams are read by different passes (shading records by the ray-cast, reflect and
+refract frames, photon leaves by the photon-map frame), each charged on cold pairs of
+its own, so they never run in one stream; on one carried :class:`Streams` they would
+share pair 0's state at ``pairs`` = 1.
+
+The Intersection PM is fixed function and has no data cache in the thesis ("eight
+blocks ... to each of the Vertex, Traversal and Fragment Processing Modules"); its
+vertex reads (``vertices``, ``shadow_vertices``) are still charged here, as before, as
+one stream on a page buffer of its own: ``cache.block_words`` sets its page, ``pairs``
+does not touch it. A stream not listed in :data:`PM_STREAMS` has a pair of its own.
+
+A finding: with the streams the PMs have today (at most two cached streams per phase),
+``pairs`` = 1 puts the node heap and the leaf indices on one pair and changes the
+Traversal PM's misses; ``pairs`` >= 2 gives every stream a pair of its own and the
+misses are those of ``pairs`` = 4, the thesis's. Fewer pairs than streams is the only
+thing the knob can show until a phase reads more streams (its rays, the stack, the
+FIFO's triangle addresses are not modelled as memory streams); the config stops at 4,
+the thesis's eight blocks, since more pairs could only show no change.
 
 Everything is vectorized over the stream: consecutive accesses to one page form a run,
 and a run is a miss unless it continues its predecessor onto the prefetched next page.
@@ -40,7 +84,7 @@ photon, a query) to one page become one access at their largest offset. A run's 
 and whether it armed the prefetch are all :func:`page_misses` reads, so a compacted
 stream has exactly the misses of the full one, and streams compacted per owner can be
 put in another owner order (pixel-major, photon-major) before they are charged.
-:class:`Streams` carries the named pairs' states from packet to packet.
+:class:`Streams` carries the pairs' states from packet to packet.
 """
 
 from __future__ import annotations
@@ -52,6 +96,8 @@ import numpy as np
 PAGE_WORDS = 1024  # a cache block: 1024 x 128-bit words
 WORD_BYTES = 16  # 128 bits
 PAIRS = 4  # cache block pairs of a programmable PM
+REGION_PAGES = 1 << 32  # pages of one stream's address region when streams share a pair
+MAX_PAGE_WORDS = 1 << 24  # the largest page: a few regions of it still fit in int64 addresses
 MISS_CYCLES = 12  # T_ms per page miss: DDR row and column access
 
 NODE_WORDS = 1  # a BSP node (first index, last index, split: 96 bits)
@@ -59,6 +105,16 @@ INDICES_PER_WORD = 4  # 32-bit triangle indices of a leaf
 VERTEX_WORDS = 3  # a triangle slot: three 96-bit vertices with 32-bit headers
 SHADING_WORDS = 1  # a triangle's shading record (material and normal)
 PHOTON_WORDS = 2  # a stored photon (position, power, incoming direction)
+
+# The cached streams of each programmable PM phase, in the order they take the pairs
+# (stream k: pair k mod pairs). The photon tracer's rays are the Traversal PM's
+# "nodes" and "indices" of a phase of their own (a Streams of their own).
+PM_STREAMS = {
+    "traversal": ("nodes", "indices"),
+    "shadow_traversal": ("shadow_nodes", "shadow_indices"),
+    "fragment": ("shading", "photons"),
+}
+_PAIR_OF = {name: (phase, k) for phase, names in PM_STREAMS.items() for k, name in enumerate(names)}
 
 
 @dataclass(frozen=True)
@@ -282,6 +338,14 @@ class Accesses:
             return parts[0]
         return cls(np.concatenate([p.words for p in parts]), np.concatenate([p.owner for p in parts]), page_words)
 
+    def shifted(self, offset: int) -> Accesses:
+        """The accesses ``offset`` words further (a whole number of pages: the same runs)."""
+        if offset == 0:
+            return self
+        if offset % self.page_words:
+            raise ValueError(f"offset (={offset}) is not a whole number of {self.page_words}-word pages")
+        return Accesses(self.words + offset, self.owner, self.page_words)
+
     def relabel(self, owners: np.ndarray) -> Accesses:
         """Owner ``i`` renamed ``owners[i]``."""
         return Accesses(self.words, np.asarray(owners, dtype=np.int64)[self.owner], self.page_words)
@@ -295,33 +359,79 @@ class Accesses:
         return Accesses(*compact(self.words[order], own[order], self.page_words), self.page_words)
 
 
-class Streams:
-    """The cache pairs' states of named streams, carried from packet to packet (mutable).
+def _whole(name: str, value, low: int, high: int | None = None) -> int:
+    """``value`` as an int, checked to be a whole number in ``[low, high]``."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer)) and int(value) == value
+    if not ok or value < low or (high is not None and value > high):
+        bound = f">= {low}" if high is None else f"in [{low}, {high}]"
+        raise ValueError(f"{name} (={value!r}) must be a whole number {bound}")
+    return int(value)
 
-    A pass takes one (default: a fresh one, every pair empty), charges each of its
-    streams' accesses to the pair of that name and leaves the state after its packet in
-    it. Packets of a frame run in order with one object give exactly the whole frame's
-    misses, per owner.
+
+class Streams:
+    """The cache pairs' states, carried from packet to packet (mutable).
+
+    page_words : words per cache block (the page); pairs : block pairs of each PM's
+    cache (:data:`PM_STREAMS` says which stream takes which pair). ``states`` is keyed
+    by pair: ``"traversal[0]"`` (pair 0 of the Traversal PM's eye-ray phase), or a
+    stream's own name for a stream with a pair of its own (the Intersection PM's).
+
+    A pass takes one (default: a fresh one, every pair empty), charges its streams'
+    accesses to their pairs and leaves the state after its packet in it. Packets of a
+    frame run in order with one object give exactly the whole frame's misses, per owner.
     """
 
-    def __init__(self, page_words: int = PAGE_WORDS):
-        if isinstance(page_words, bool) or int(page_words) != page_words or page_words <= 0:
-            raise ValueError(f"page_words (={page_words!r}) must be a whole number > 0")
-        self.page_words = int(page_words)
+    def __init__(self, page_words: int = PAGE_WORDS, pairs: int = PAIRS):
+        self.page_words = _whole("page_words", page_words, 1, MAX_PAGE_WORDS)
+        self.pairs = _whole("pairs", pairs, 1)
         self.states: dict[str, PairState] = {}
 
+    def pair_of(self, name: str) -> tuple[str, int]:
+        """The pair serving stream ``name`` and the stream's address region in it."""
+        if name not in _PAIR_OF:
+            return name, 0
+        phase, k = _PAIR_OF[name]
+        return f"{phase}[{k % self.pairs}]", k // self.pairs
+
     def charge(self, name: str, accesses: Accesses, n_owners: int) -> np.ndarray:
-        """Misses (n_owners,) int64 per owner of stream ``name``'s accesses, which run next."""
-        if accesses.page_words != self.page_words:
-            raise ValueError(f"accesses compacted for {accesses.page_words}-word pages, the pairs have "
-                             f"{self.page_words}")
-        counts, self.states[name] = misses_per_packet(
-            accesses.words, accesses.owner, n_owners, self.states.get(name), self.page_words
-        )
-        return counts
+        """Misses (n_owners,) int64 per owner of stream ``name``'s accesses, which run
+        next on its pair, in the order given."""
+        return self._charge_pair(self.pair_of(name)[0], [(name, accesses)], n_owners, False)[name]
+
+    def charge_owner_major(self, parts: list[tuple[str, Accesses]], n_owners: int) -> dict[str, np.ndarray]:
+        """Misses per owner of each named stream; ``parts`` are (name, accesses) in the
+        order a kernel added them. The streams of one pair are merged into one stream,
+        owner-major (each owner's accesses in the order added); the pairs run next."""
+        by_pair: dict[str, list[tuple[str, Accesses]]] = {}
+        for name, acc in parts:
+            by_pair.setdefault(self.pair_of(name)[0], []).append((name, acc))
+        out: dict[str, np.ndarray] = {}
+        for key, group in by_pair.items():
+            out.update(self._charge_pair(key, group, n_owners, True))
+        return out
+
+    def _charge_pair(self, key: str, group: list[tuple[str, Accesses]], n_owners: int,
+                     owner_major: bool) -> dict[str, np.ndarray]:
+        pw = self.page_words
+        for _, acc in group:
+            if acc.page_words != pw:
+                raise ValueError(f"accesses compacted for {acc.page_words}-word pages, the pairs have {pw}")
+        region_words = REGION_PAGES * pw
+        region = {name: self.pair_of(name)[1] for name, _ in group}
+        acc = Accesses.concat([a.shifted(region[name] * region_words) for name, a in group], pw)
+        if owner_major:
+            acc = acc.owner_major()
+        miss, self.states[key] = page_misses(acc.words, self.states.get(key), pw)
+        owner = np.asarray(acc.owner, dtype=np.int64)
+        if len(region) == 1:
+            (name,) = region
+            return {name: np.bincount(owner[miss], minlength=n_owners).astype(np.int64)}
+        where = acc.words[miss] // region_words
+        return {name: np.bincount(owner[miss][where == r], minlength=n_owners).astype(np.int64)
+                for name, r in region.items()}
 
     def __repr__(self) -> str:
-        return f"Streams(page_words={self.page_words}, states={self.states!r})"
+        return f"Streams(page_words={self.page_words}, pairs={self.pairs}, states={self.states!r})"
 
 
 class Recorder:
@@ -329,27 +439,35 @@ class Recorder:
 
     A kernel that runs its work in another order than the program charges (the bounces
     of a specular walk, all photons of a bounce at once) adds each step's accesses with
-    the program's owner (pixel, photon) of every access; :meth:`collect` puts them in
-    owner order, each owner's accesses in the order they were added.
+    the program's owner (pixel, photon) of every access; :meth:`collect` puts each
+    stream in owner order, each owner's accesses in the order they were added, and
+    :meth:`charge` does the same per pair (streams sharing a pair merged, an owner's
+    accesses of all of them in the order added).
     """
 
     def __init__(self, page_words: int = PAGE_WORDS):
         self.page_words = page_words
-        self.parts: dict[str, list[Accesses]] = {}
+        self.added: list[tuple[str, Accesses]] = []
 
     def add(self, name: str, accesses: Accesses, owners: np.ndarray | None = None) -> None:
         """Append ``accesses`` to stream ``name``, owner ``i`` renamed ``owners[i]``."""
         if owners is not None:
             accesses = accesses.relabel(owners)
-        self.parts.setdefault(name, []).append(accesses)
+        self.added.append((name, accesses))
 
     def collect(self) -> dict[str, Accesses]:
         """Every stream's accesses, owner-major."""
-        return {name: Accesses.concat(parts, self.page_words).owner_major() for name, parts in self.parts.items()}
+        parts: dict[str, list[Accesses]] = {}
+        for name, acc in self.added:
+            parts.setdefault(name, []).append(acc)
+        return {name: Accesses.concat(p, self.page_words).owner_major() for name, p in parts.items()}
 
     def charge(self, streams: Streams, n_owners: int) -> dict[str, np.ndarray]:
-        """Misses per owner of every stream, charged to ``streams`` owner-major."""
-        return {name: streams.charge(name, acc, n_owners) for name, acc in self.collect().items()}
+        """Misses per owner of every stream, charged to ``streams``' pairs owner-major."""
+        if self.added and streams.page_words != self.page_words:
+            raise ValueError(f"accesses recorded for {self.page_words}-word pages, the pairs have "
+                             f"{streams.page_words}")
+        return streams.charge_owner_major(self.added, n_owners)
 
 
 def traversal_accesses(touched, leaf_first: np.ndarray, leaf_last: np.ndarray,

@@ -100,8 +100,10 @@ queries computed with it. Photons are summed per (query, leaf) pair in photon-sl
 ``np.bincount`` (which adds in array order), then per query over its pairs in leaf
 order; the probe weights are multiples of ``2**-20`` so their sums are exact. The misses
 depend on the gathers before, so each filter takes ``streams``
-(:class:`~tlm.arch.cache.Streams`, the pair's state; default: cold), and queries
-computed in consecutive packets with one such object get the misses of one call.
+(:class:`~tlm.arch.cache.Streams`, the pair's state, its page size and the pairs per PM,
+which say which Fragment PM pair serves the stream ``photons``; default: cold, the
+thesis's 1024-word blocks), and queries computed in consecutive packets with one such
+object get the misses of one call.
 Randomness comes from :func:`~tlm.kernels.shade.hash_uniform` keyed by the query's key
 (``keys``; the default ``arange(q)`` depends on the position in the packet, so pass
 stable keys, e.g. pixel ids, when invariance matters). Radius 0, empty maps or leaves
@@ -220,7 +222,7 @@ def _empty(q: int) -> Estimate:
     return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy(), z.copy())
 
 
-GATHER_STREAM = "photons"  # the Fragment PM's pair reading photon leaves
+GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.arch.cache.PM_STREAMS)
 
 
 def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int) -> np.ndarray:

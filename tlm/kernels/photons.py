@@ -25,8 +25,10 @@ arrays."
 
 Work per emitted photon (:data:`PHOTON_WORK`) includes the page misses of its rays'
 reads (:mod:`tlm.arch.cache`), all its bounces: ``trav_misses`` (the Traversal PM's
-node-heap and leaf-index pairs) and ``isect_misses`` (the Intersection PM's vertex
-pair). The bounces are traced for all photons at once, but the streams are charged
+node-heap and leaf-index streams, on pairs of their own or, with ``pairs`` = 1, on one
+pair: a photon's node reads then its leaf indices, bounce by bounce) and
+``isect_misses`` (the Intersection PM's vertex stream), on ``page_words``-word pages.
+The bounces are traced for all photons at once, but the streams are charged
 photon-major (a photon's rays bounce by bounce, photons in emission order), so the
 misses of consecutive photons are those of the photons traced as packets in order.
 
@@ -42,7 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tlm.arch.cache import Recorder, Streams, traversal_accesses
+from tlm.arch.cache import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.bsp import BSPTree, build_point_tree
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, reflect, refract
 from tlm.kernels.traverse import TriangleAccel, closest_hit
@@ -210,13 +212,16 @@ def trace_photons(
     levels: int | None = None,
     caustic_fraction: float = 0.5,
     batch: int = 4,
+    page_words: int = PAGE_WORDS,
+    pairs: int = PAIRS,
 ) -> PhotonTrace:
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
     With mirrors or dielectrics in the scene, ``caustic_fraction`` of each light's
     photons form a caustic group aimed at the specular objects, which stores only
     caustic photons (L S+ D); the global group then stores only indirect ones (a
-    diffuse bounce on the way), so nothing is counted twice.
+    diffuse bounce on the way), so nothing is counted twice. page_words, pairs : the
+    data cache whose misses the photons' reads are charged (the ``cache`` section).
     """
     if n < 0:
         raise ValueError(f"photons (={n}) must be >= 0")
@@ -224,6 +229,7 @@ def trace_photons(
         raise ValueError(f"max_bounces (={max_bounces}) must be >= 0")
     if not 0.0 <= caustic_fraction < 1.0:
         raise ValueError(f"caustic_fraction (={caustic_fraction}) must be in [0, 1)")
+    streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
     table = scene.material_table()
     kind_of, albedo, refl = table["kind"], table["albedo"], table["reflectance"]
@@ -243,14 +249,15 @@ def trace_photons(
     pid = np.arange(n)  # photon ids still travelling
     last = np.full(n, -1, dtype=np.int64)  # triangle each photon leaves
     specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
-    rec = Recorder()
+    rec = Recorder(streams.page_words)
     stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
     for bounce in range(max_bounces):
         if pid.shape[0] == 0:
             break
         rel = eps / np.linalg.norm(d, axis=1)
         hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch, record=True)
-        for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last).items():
+        for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last,
+                                            streams.page_words).items():
             rec.add(name, acc, pid)
         for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
             work[name][pid] += getattr(hits.counts, name)
@@ -309,7 +316,7 @@ def trace_photons(
         pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
         last, specular_only = tri[keep], specular_only[keep]
 
-    for name, counts in rec.charge(Streams(), n).items():
+    for name, counts in rec.charge(streams, n).items():
         work[_MISS_KEYS[name]] += counts
 
     def cat(name: str, shape: tuple, dtype=np.float64) -> np.ndarray:

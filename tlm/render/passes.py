@@ -22,16 +22,20 @@ work (:data:`WORK_KEYS`); a pixel's results and work do not depend on the rest o
 packet, except its page misses, which depend on the pixels before it (below).
 
 Page misses (the ``*_misses`` keys) are the data cache's (:mod:`tlm.arch.cache`) on
-the kernels' real address streams, one cache pair per stream: the Traversal PM's node
-heap and leaf triangle indices (``trav_misses``, the two pairs' sum), the Intersection
-PM's vertex data (``isect_misses``), the same three for the shadow rays on pairs of
-their own (the thesis traces them in passes of their own), and the Fragment PM's
-shading records, one per fragment (``frag_misses``). A miss depends on the accesses
-before it, so the streams are in pixel-major program order (a pixel's rays bounce by
-bounce, its shadow rays light by light, sample by sample) and each pass function takes
-a :class:`~tlm.arch.cache.Streams` holding the pairs' states: packets run in pixel
-order with one such object give exactly the misses of the whole image (a fresh one per
-packet charges each packet from cold pairs).
+the kernels' real address streams (:data:`STREAM_KEYS`): the Traversal PM's node heap
+and leaf triangle indices (``trav_misses``), the Intersection PM's vertex data
+(``isect_misses``), the same three for the shadow rays, a phase of their own (the
+thesis traces them in passes of their own), and the Fragment PM's shading records, one
+per fragment (``frag_misses``). The run config's ``cache`` section sets the block (page)
+size and the pairs per PM: with the thesis's 4 pairs every stream has a pair of its
+own; with 1 the node heap and the leaf indices share one and evict each other's pages
+(:mod:`tlm.arch.cache` has the reading). A miss depends on the accesses before it, so
+the streams are in pixel-major program order (a pixel's rays bounce by bounce, its
+shadow rays light by light, sample by sample) and each pass function takes a
+:class:`~tlm.arch.cache.Streams` holding the pairs' states (default: a fresh one of the
+frame's ``cache`` settings, :func:`new_streams`): packets run in pixel order with one
+such object give exactly the misses of the whole image (a fresh one per packet charges
+each packet from cold pairs).
 """
 
 from __future__ import annotations
@@ -83,7 +87,8 @@ GATHER_KEYS = (
 # for a pixel only when the pixels before it ran too, in order, with one Streams
 MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
              "gather_misses")
-# each stream of a pass, on its own cache pair, and the work key its misses go to
+# each stream of a pass and the work key its misses go to (the pairs they take:
+# tlm.arch.cache.PM_STREAMS; streams sharing a pair always go to one key)
 STREAM_KEYS = {
     "nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses",
     "shadow_nodes": "shadow_trav_misses", "shadow_indices": "shadow_trav_misses",
@@ -116,6 +121,11 @@ class Frame:
             eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
             **scene.material_table(),
         )
+
+
+def new_streams(frame: Frame) -> Streams:
+    """Cold cache pairs of the frame's ``cache`` settings (block size, pairs per PM)."""
+    return Streams(frame.cfg.cache.block_words, frame.cfg.cache.pairs)
 
 
 def new_work(p: int) -> dict[str, np.ndarray]:
@@ -216,11 +226,11 @@ def rcast_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tupl
 
     The eye rays' traversal (counts and misses) is charged here, from ``g`` (cast with
     ``record=True``). streams : the cache pairs' states before this packet (default:
-    empty), left in the state after it.
+    empty pairs of ``frame.cfg.cache``), left in the state after it.
     """
     p = g.pixels.shape[0]
     work = new_work(p)
-    streams = Streams() if streams is None else streams
+    streams = new_streams(frame) if streams is None else streams
     rec = Recorder(streams.page_words)
     radiance = np.zeros((p, 3))
     local = np.arange(p)
@@ -249,7 +259,7 @@ def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, stream
     """
     p = g.pixels.shape[0]
     work = new_work(p)
-    streams = Streams() if streams is None else streams
+    streams = new_streams(frame) if streams is None else streams
     rec = Recorder(streams.page_words)
     radiance = np.zeros((p, 3))
     start = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind])
@@ -330,6 +340,7 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         seed=cfg.seed if seed is None else seed, max_bounces=cfg.photons.max_bounces,
         russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
         caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
+        page_words=cfg.cache.block_words, pairs=cfg.cache.pairs,
     )
 
 
@@ -355,6 +366,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None,
     if idx.shape[0] == 0 or photons.n == 0:
         return radiance, work
     est = frame.cfg.estimate
+    streams = new_streams(frame) if streams is None else streams
     args = (photons.position, photons.power, photons.incoming)
     if est.filter == "knn":
         e = estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
