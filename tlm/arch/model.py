@@ -739,28 +739,11 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     cycles["latency"] = round(latency)
     fps = arch.clock_hz / throughput_i if throughput_i > 0 else math.inf
     if trace is not None:
-        _fill_idle(trace, end)
+        trace.fill_idle(end)
     frames = [{"frame": r.index, "slot": r.slot, "arrival": r.arrival, "done": r.done} for r in model.frames]
     xb = {"swaps": model.xbar.swaps, "copies": model.xbar.copies, "words_copied": model.xbar.words_copied,
           "preemptions": {pm.unit.scope: pm.switches for pm in model.pms.values()}}
     return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe)
-
-
-def _fill_idle(trace: Trace, end: int) -> None:
-    """Idle slices in every gap of every row, up to the end of the run."""
-    by_row: dict[int, list[tuple[int, int]]] = {}
-    for tid, s, e in trace.spans():
-        by_row.setdefault(tid, []).append((s, e))
-    scopes = {tid: scope for scope, tid in trace.rows.items()}
-    for tid, spans in by_row.items():
-        spans.sort()
-        t = 0
-        for s, e in spans:
-            if s > t:
-                trace.slice(scopes[tid], "idle", t, s)
-            t = max(t, e)
-        if end > t:
-            trace.slice(scopes[tid], "idle", t, end)
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "PhaseSpec", "Timing", "frame_program",

@@ -107,9 +107,23 @@ class Trace:
         return [{"name": n, "ph": "X", "ts": s, "dur": e - s, "pid": 0, "tid": tid, "args": a}
                 for n, s, e, tid, a in self._slices]
 
-    def spans(self) -> list[tuple[int, int, int]]:
-        """(tid, start, end) of every slice."""
-        return [(tid, s, e) for _, s, e, tid, _ in self._slices]
+    def fill_idle(self, end: int) -> None:
+        """Idle slices in every gap of every row, up to ``end``."""
+        by_row: dict[int, list[tuple[int, int]]] = {}
+        for _, s, e, tid, _ in self._slices:
+            by_row.setdefault(tid, []).append((s, e))
+        idle = []
+        for tid, spans in by_row.items():
+            spans.sort()
+            t = 0
+            for s, e in spans:
+                if s > t:
+                    idle.append(["idle", t, s, tid, {}])
+                if e > t:
+                    t = e
+            if end > t:
+                idle.append(["idle", t, end, tid, {}])
+        self._slices.extend(idle)
 
     def to_json(self, clock_hz: float | None = None) -> dict:
         """The trace document; timestamps are cycles (displayed as microseconds)."""
@@ -135,7 +149,8 @@ class Unit:
 
     def work(self, norm: int, ms: int = 0, ps: int = 0, label: str = "busy") -> Generator:
         """Spend ``norm`` instruction, ``ms`` page-miss and ``ps`` flush cycles."""
-        norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
+        if not (type(norm) is int and type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
+            norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
         start = self.env.now
         yield self.env.timeout(norm + ms + ps)
         self.account(start, norm, ms, ps, label)
