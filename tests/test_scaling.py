@@ -55,7 +55,15 @@ def test_slowest_pipeline_variant_fits_an_uneven_static_tiling():
 
 def test_fit_needs_one_pipeline():
     with pytest.raises(InputError, match="N = 1"):
-        fit_group([{"pipelines": 2, "T_vert0": 1, "sum_max": 1, "latency": 1}], "latency")
+        fit_group([{"pipelines": n, "T_vert0": 1, "sum_max": 1, "latency": 1} for n in (2, 4)], "latency")
+
+
+def test_points_that_differ_in_another_key_are_not_mixed():
+    pts = [{"pipelines": n, "T_vert0": 1, "sum_max": 10, "max_max": 10, "latency": 20} for n in (1, 2, 2)]
+    with pytest.raises(InputError, match="same N"):
+        fit_group(pts, "latency")
+    with pytest.raises(InputError, match="two values of N"):
+        fit_group(pts[:1], "latency")
 
 
 def test_not_a_sweep_folder_exits_2(tmp_path, capsys):

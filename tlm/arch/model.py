@@ -82,20 +82,28 @@ class Crossbar:
         self.unit = Unit(env, "xbar", trace)
         self.modules = modules
         self.arch = arch
-        self.lock = simpy.Resource(env, capacity=1)
+        self.busy = False
+        self.requests: list[tuple[tuple, simpy.events.Event]] = []  # (key, grant) of waiting copies
+        self.arbitrating = False
         self.swaps = 0
         self.copies = 0
         self.words_copied = 0
 
-    def copy(self, src: int, dsts: list[int], words: int, what: str):
+    def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = ()):
         """Copy ``words`` from module ``src`` to every module of ``dsts`` (one block at a time).
 
         More than one destination is the crossbar's fan-out: every destination is
-        written at once, for the cycles of one copy.
+        written at once, for the cycles of one copy. Copies wait for the crossbar; when
+        it is free the waiting copy of smallest ``key`` (frame, pipeline) goes first,
+        chosen once every other event of the cycle has run (so the choice does not
+        depend on the order of same-cycle events).
         """
         cycles = -(-words // self.arch.copy_words_per_cycle)
-        with self.lock.request() as req:
-            yield req
+        grant = self.env.event()
+        self.requests.append(((*key, what), grant))
+        self._arbitrate()
+        yield grant
+        try:
             self.copies += 1
             self.words_copied += words
             src_m = self.modules[src]
@@ -109,6 +117,28 @@ class Crossbar:
             for d in dsts:
                 self.modules[d].copy(start, cycles, label)
             yield from self.unit.work(cycles, 0, 0, label=label)
+        finally:
+            self.busy = False
+            self._arbitrate()
+
+    def _arbitrate(self) -> None:
+        if self.arbitrating or self.busy or not self.requests:
+            return
+        ev = self.env.event()
+        ev._ok, ev._value = True, None
+        ev.callbacks.append(self._grant)
+        # after the cycle's normal (1) and settling (2) events and the tile dispatch (3)
+        self.env.schedule(ev, priority=4)
+        self.arbitrating = True
+
+    def _grant(self, _ev) -> None:
+        self.arbitrating = False
+        if self.busy or not self.requests:
+            return
+        self.requests.sort(key=lambda r: r[0])
+        _, grant = self.requests.pop(0)
+        self.busy = True
+        grant.succeed()
 
 
 @dataclass(eq=False)
@@ -339,10 +369,15 @@ class PM:
         if ms:
             m.modules[job.module].serve(int(self.env.now), misses, ms)
         yield from self.unit.work(int(spec.norm[k]), ms, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
+        yield from self._settle(job)
+
+    def _settle(self, job: Job):
+        """Let every event of this cycle run before a packet-boundary decision.
+
+        Only needed when an older image's job is queued: it may become ready this very
+        cycle (a semaphore firing now), and preemption must not depend on event order.
+        """
         if self._rank(self.queue[0]) < self._rank(job):
-            # an older image's job may become ready this very cycle: let every event of the
-            # cycle (a semaphore firing now) settle before the packet-boundary check, so
-            # preemption does not depend on event order
             settle = self.env.event()
             settle._ok, settle._value = True, None
             self.env.schedule(settle, priority=2)
@@ -355,11 +390,11 @@ class PM:
         slots = fifo.slots(n)
         while not fifo.try_push(k, slots):
             job.pending_push = True
+            if self._higher_ready(job):  # a job of an older image is ready: switch now
+                return False
             yield from self.unit.stall("fifo_full", self.env.any_of([fifo.space_freed(), *self._wake_events(job)]),
                                        f"FIFO space ({job.label})")
             self._rearm()
-            if fifo.level < slots and self._higher_ready(job):
-                return False
         job.pending_push = False
         fifo.pushed += n
         return True
@@ -369,12 +404,12 @@ class PM:
         fifo = job.fifo
         k = fifo.try_pop()
         while k is None:
+            if self._higher_ready(job):  # a job of an older image is ready: switch now
+                return False
             yield from self.unit.stall("fifo_empty", self.env.any_of([fifo.data_arrived(), *self._wake_events(job)]),
                                        f"FIFO data ({job.label})")
             self._rearm()
             k = fifo.try_pop()
-            if k is None and self._higher_ready(job):
-                return False
         if k != job.next:
             raise AssertionError(f"FIFO order broken: packet {k} arrived for {job.next}")
         return True
@@ -453,9 +488,15 @@ def _frame_process(model: Model, rec: FrameRecord):
                         tails.append(env.process(_compose(model, rec, p, tile, chain)))
                 prev = _all_done(env, dones)
             else:
-                queue = deque(stage.tiles)
-                workers = [env.process(_worker(model, rec, p, queue, prev, fan_out[p], stage, returns, tails))
-                           for p in range(n_pipes)]
+                queue = _TileQueue(env, stage.tiles)
+                workers = []
+                for p in range(n_pipes):  # the first tiles go out at once, in pipeline order
+                    tile = queue.take()
+                    if tile is None:
+                        break
+                    first = [*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
+                    chain = _submit_chain(model, rec, p, tile.phases, first)
+                    workers.append(env.process(_worker(model, rec, p, queue, tile, chain, returns)))
                 prev = _all_done(env, workers)
             pending_returns = sum(t.returns for t in stage.tiles)
         prev_name = stage.name
@@ -489,7 +530,7 @@ def _submit_chain(model: Model, rec: FrameRecord, pipe: int, phases, gate: list)
             copy_done = env.event()
             waits = [ev for ev, _, _ in after]
             after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
-            env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index))
+            env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
         fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
         if fifo is not None:
             model.fifos.append(fifo)
@@ -506,18 +547,51 @@ def _submit_chain(model: Model, rec: FrameRecord, pipe: int, phases, gate: list)
     return prev
 
 
-def _worker(model: Model, rec: FrameRecord, pipe: int, queue: deque, prev, fan_out, stage: Stage,
-            returns: list[int], tails: list):
+class _TileQueue:
+    """The dynamic scheduler's shared queue of one frame's tiled stage.
+
+    A pipeline that is done with its tile asks for the next one; the requests of a cycle
+    are served together once every other event of the cycle has run, in pipeline order,
+    so which pipeline gets which tile does not depend on the order of same-cycle events.
+    """
+
+    def __init__(self, env: simpy.Environment, tiles):
+        self.env = env
+        self.tiles = deque(tiles)
+        self.waiting: dict[int, simpy.events.Event] = {}
+        self.scheduled = False
+
+    def take(self):
+        return self.tiles.popleft() if self.tiles else None
+
+    def request(self, pipe: int) -> simpy.events.Event:
+        """An event whose value is pipeline ``pipe``'s next tile (None: the queue is empty)."""
+        ev = self.env.event()
+        self.waiting[pipe] = ev
+        if not self.scheduled:
+            dispatch = self.env.event()
+            dispatch._ok, dispatch._value = True, None
+            dispatch.callbacks.append(self._dispatch)
+            self.env.schedule(dispatch, priority=3)  # after the cycle's normal (1) and settling (2) events
+            self.scheduled = True
+        return ev
+
+    def _dispatch(self, _ev) -> None:
+        self.scheduled = False
+        for p in sorted(self.waiting):
+            self.waiting.pop(p).succeed(self.take())
+
+
+def _worker(model: Model, rec: FrameRecord, pipe: int, queue: _TileQueue, tile, chain, returns: list[int]):
     """The dynamic scheduler: pipeline ``pipe`` takes the next waiting tile when it is free."""
-    if prev is not None:
-        yield prev
-    while queue:
-        tile = queue.popleft()
-        yield _submit_chain(model, rec, pipe, tile.phases,
-                            [(fan_out, "copy", f"'{stage.name}' data of frame {rec.index}")])
+    while tile is not None:
+        yield chain
         returns[pipe] += tile.returns
         if tile.pixels:  # the tile's pixels leave the pipeline's module before it takes the next tile
             yield from _compose_copy(model, rec, pipe, tile)
+        tile = yield queue.request(pipe)
+        if tile is not None:
+            chain = _submit_chain(model, rec, pipe, tile.phases, [])
 
 
 def _compose(model: Model, rec: FrameRecord, pipe: int, tile, chain):
@@ -527,7 +601,7 @@ def _compose(model: Model, rec: FrameRecord, pipe: int, tile, chain):
 
 def _compose_copy(model: Model, rec: FrameRecord, pipe: int, tile):
     yield from model.xbar.copy(model.module(pipe, rec.slot, 1), [model.compose], WORDS_PER_PIXEL * tile.pixels,
-                               f"{tile.name} to the image (frame {rec.index})")
+                               f"{tile.name} to the image (frame {rec.index})", (rec.index, pipe))
 
 
 def _fan_out(model: Model, rec: FrameRecord, prev, stage: Stage, events: list):
@@ -545,15 +619,17 @@ def _fan_out(model: Model, rec: FrameRecord, prev, stage: Stage, events: list):
         for fo in stage.fan_out:
             dsts = targets(fo, range(n_pipes))
             if dsts:
-                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})")
+                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})", (rec.index, 0))
         for ev in events:
             ev.succeed()
         return
-    for p in range(n_pipes):
+    # pipeline 0 last: its PMs start on the source module once its copies are done, and
+    # the other pipelines' copies still read that module until then
+    for p in [*range(1, n_pipes), 0]:
         for fo in stage.fan_out:
             dsts = targets(fo, [p])
             if dsts:
-                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})")
+                yield from model.xbar.copy(src[fo], dsts, fo.words, f"{fo.what} (frame {rec.index})", (rec.index, p))
         events[p].succeed()
 
 
@@ -566,7 +642,7 @@ def _fan_in(model: Model, rec: FrameRecord, prev, stage: Stage, returns: list[in
         if words:
             src = model.module(p, rec.slot, 1)
             if src != dst:
-                yield from model.xbar.copy(src, [dst], words, f"{stage.name} (frame {rec.index})")
+                yield from model.xbar.copy(src, [dst], words, f"{stage.name} (frame {rec.index})", (rec.index, p))
         returns[p] = 0
     done.succeed()
 
@@ -593,13 +669,13 @@ def _all_done(env: simpy.Environment, events: list) -> simpy.events.Event:
     return done
 
 
-def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b: int, frame: int):
+def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b: int, frame: int, pipe: int):
     for ev in waits:  # noqa: UP028 - SimPy sends event values back; a list iterator cannot take them
         yield ev
     # data produced on one module of the image and needed on the other
     to = spec.jobs[0].role if spec.copy_to is None else spec.copy_to
     src, dst = (b, a) if to == 0 else (a, b)
-    yield from model.xbar.copy(src, [dst], spec.copy_words, f"{spec.name} (frame {frame})")
+    yield from model.xbar.copy(src, [dst], spec.copy_words, f"{spec.name} (frame {frame})", (frame, pipe))
     copy_done.succeed()
 
 

@@ -75,6 +75,13 @@ def fit_group(points: list[dict], target: str, slowest: bool = False) -> dict:
     """
     points = [{**p, "sum_max": p["max_max"] * p["pipelines"]} for p in points] if slowest else points
     by_n = {p["pipelines"]: p for p in points}
+    if len(by_n) != len(points):
+        ns = sorted(p["pipelines"] for p in points)
+        raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ in "
+                         "another key, so fit them from separate sweeps", key="arch.pipelines")
+    if len(by_n) < 2:
+        raise InputError(f"eq. 5.2 needs at least two values of N, the group has {sorted(by_n)}",
+                         key="arch.pipelines")
     if 1 not in by_n:
         raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {sorted(by_n)}",
                          key="arch.pipelines")
