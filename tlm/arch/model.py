@@ -1,17 +1,19 @@
-"""The thesis GPU as SimPy processes: four PMs, four memory modules, the crossbar, two images.
+"""The thesis GPU as SimPy processes: PMs, memory modules, the crossbar, two images.
 
-One pipeline (``pipe0``) of four Processing Modules, each a :class:`PM` process:
-Vertex, Traversal, Ray-Triangle Intersection (fixed function) and Fragment; four memory
-modules ``mem0``..``mem3`` (:class:`Module`), each a process that serves its routed PM's
-page misses; the crossbar arbiter ``xbar`` (:class:`Crossbar`), a process that routes
-PMs to modules (swaps) and copies blocks between modules. A stream of ``arch.frames``
-frames passes through, ``arch.images_in_flight`` (2) at a time: image slot ``s`` owns
-modules ``2s`` and ``2s+1``.
+``arch.pipelines`` pipelines (``pipe0``..), each of Processing Modules that are
+:class:`PM` processes: Vertex (pipeline 0 only), Traversal, Ray-Triangle Intersection
+(fixed function) and Fragment; four memory modules per pipeline (``mem4p``..``mem4p+3``,
+:class:`Module`, serving the page misses of the PM routed to them); the crossbar
+``xbar`` (:class:`Crossbar`), which routes PMs to modules (swaps) and copies blocks
+between modules; with more than one pipeline, the ``compose`` unit that receives the
+tiles. A stream of ``arch.frames`` frames passes through, ``arch.images_in_flight`` (2)
+at a time: image slot ``s`` owns a pipeline's modules ``2s`` and ``2s+1``.
 
 Each frame runs the program of :func:`frame_program` (the reconstruction of the
-thesis's Figs. 13 and 14, see ``docs/architecture.md``): a sequence of *phases*; a
-phase is one job (Vertex or Fragment PM) or two coupled jobs (Traversal and
-Intersection PMs joined by the FIFO). A phase may start when the previous phase of its
+thesis's Figs. 13 and 14, see ``docs/architecture.md``): stages, shared ones on
+pipeline 0 and tiled ones on every pipeline, each a chain of *phases*; a phase is one
+job (Vertex or Fragment PM) or two coupled jobs (Traversal and Intersection PMs joined
+by the FIFO). A phase may start when the previous phase of its
 frame is done (the controller's semaphores: a PM that waits for it is in a *handshake*
 stall) and when the block copy it needs is done (*copy* stall). A PM serves the jobs of
 both images: the image that arrived first has priority, and a PM working for the other
@@ -20,7 +22,9 @@ costing ``context_switch_cycles`` to save and again to restore). Moving a PM to 
 module costs ``swap_cycles`` (*swap*). The Traversal PM waits when the FIFO is full
 (*fifo_full*), the Intersection PM when it is empty (*fifo_empty*).
 
-Every cycle of every unit is accounted by :mod:`tlm.arch.units` (eq. 5.1), and
+The units themselves are in :mod:`tlm.arch.hardware`; this module is the control unit
+(frames, stages, tiles, copies) and the simulation. Every cycle of every unit is
+accounted by :mod:`tlm.arch.units` (eq. 5.1), and
 :func:`simulate` checks the invariants of every run: every work item issued is retired,
 every FIFO entry pushed is popped, and busy + stall + idle = elapsed for every unit.
 """
@@ -35,6 +39,7 @@ import numpy as np
 import simpy
 
 from tlm.arch.functional import Functional
+from tlm.arch.hardware import PM, Crossbar, Fifo, FrameRecord, Job, Model, Module
 from tlm.arch.program import (
     PM_TABLE_NAMES,
     PMS,
@@ -46,412 +51,8 @@ from tlm.arch.program import (
     frame_program,
 )
 from tlm.arch.programs import Programs
-from tlm.arch.units import Deadlock, Trace, Unit, run
+from tlm.arch.units import Deadlock, Trace, run
 from tlm.config import ArchConfig
-
-# -- the units --------------------------------------------------------------------------------
-
-class Module:
-    """A DDR memory module: serves its routed PM's page misses and the crossbar's copies.
-
-    The crossbar grants modules to PMs one to one and copies only between phases, so a
-    module never has two clients at once and never queues: its service is accounted
-    here, inside the process of the PM or the copy that it serves (the same cycles as
-    a process of its own, without its events).
-    """
-
-    def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):
-        self.env = env
-        self.unit = Unit(env, scope, trace)
-        self.rows_opened = 0
-
-    def serve(self, start: int, misses: int, cycles: int) -> None:
-        """Page misses served to the routed PM from ``start`` (T_ms of both)."""
-        self.rows_opened += misses
-        self.unit.account(start, 0, cycles, 0, "page misses")
-
-    def copy(self, start: int, cycles: int, label: str) -> None:
-        self.unit.account(start, cycles, 0, 0, label)
-
-
-class Crossbar:
-    """The memory controller's crossbar: routes PMs to modules, copies blocks."""
-
-    def __init__(self, env: simpy.Environment, modules: list[Module], arch: ArchConfig, trace: Trace | None):
-        self.env = env
-        self.unit = Unit(env, "xbar", trace)
-        self.modules = modules
-        self.arch = arch
-        self.busy = False
-        self.requests: list[tuple[tuple, simpy.events.Event]] = []  # (key, grant) of waiting copies
-        self.arbitrating = False
-        self.swaps = 0
-        self.copies = 0
-        self.words_copied = 0
-
-    def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = ()):
-        """Copy ``words`` from module ``src`` to every module of ``dsts`` (one block at a time).
-
-        More than one destination is the crossbar's fan-out: every destination is
-        written at once, for the cycles of one copy. Copies wait for the crossbar; when
-        it is free the waiting copy of smallest ``key`` (frame, pipeline) goes first,
-        chosen once every other event of the cycle has run (so the choice does not
-        depend on the order of same-cycle events).
-        """
-        cycles = -(-words // self.arch.copy_words_per_cycle)
-        grant = self.env.event()
-        self.requests.append(((*key, what), grant))
-        self._arbitrate()
-        yield grant
-        try:
-            self.copies += 1
-            self.words_copied += words
-            src_m = self.modules[src]
-            if len(dsts) == 1:
-                to = self.modules[dsts[0]].unit.scope
-            else:
-                to = f"{len(dsts)} modules"
-            label = f"copy {src_m.unit.scope}->{to}: {what}"
-            start = int(self.env.now)
-            src_m.copy(start, cycles, label)
-            for d in dsts:
-                self.modules[d].copy(start, cycles, label)
-            yield from self.unit.work(cycles, 0, 0, label=label)
-        finally:
-            self.busy = False
-            self._arbitrate()
-
-    def _arbitrate(self) -> None:
-        if self.arbitrating or self.busy or not self.requests:
-            return
-        ev = self.env.event()
-        ev._ok, ev._value = True, None
-        ev.callbacks.append(self._grant)
-        # after the cycle's normal (1) and settling (2) events and the tile dispatch (3)
-        self.env.schedule(ev, priority=4)
-        self.arbitrating = True
-
-    def _grant(self, _ev) -> None:
-        self.arbitrating = False
-        if self.busy or not self.requests:
-            return
-        self.requests.sort(key=lambda r: r[0])
-        _, grant = self.requests.pop(0)
-        self.busy = True
-        grant.succeed()
-
-
-@dataclass(eq=False)
-class Job:
-    """A job in flight: one PM's part of one phase of one frame."""
-
-    spec: JobSpec
-    frame: int
-    phase: str
-    module: int
-    after: list  # [(event, cause, what)] to wait for, in order
-    fifo: Fifo | None
-    done: simpy.events.Event
-    next: int = 0
-    suspended: bool = False
-    pending_push: bool = False  # a Traversal packet done but not yet in the FIFO
-    interrupted: bool = False  # a FIFO wait was cut short by a priority job
-    retired: int = 0
-    suspended_at: int = 0
-    waited: int = 0  # how many of ``after`` have fired
-
-    def blocker(self):
-        """The first (event, cause, what) of ``after`` not yet fired, or None: ready to run."""
-        after = self.after
-        k = self.waited
-        while k < len(after):
-            if not after[k][0].triggered:
-                self.waited = k
-                return after[k]
-            k += 1
-        self.waited = k  # events only ever fire: what has fired need not be looked at again
-        return None
-
-    @property
-    def label(self) -> str:
-        return f"frame {self.frame} {self.phase}"
-
-
-class Fifo:
-    """The Traversal PM's FIFO of triangle addresses towards the Intersection PM.
-
-    A packet's addresses enter together; a packet with more addresses than the FIFO
-    holds enters when the FIFO is empty (the packet is the model's unit of transfer),
-    and a packet without addresses takes one entry (its end marker).
-    Its space is freed when the Intersection PM has tested the packet.
-    """
-
-    def __init__(self, env: simpy.Environment, depth: int):
-        self.env = env
-        self.depth = depth
-        self.level = depth  # free entries
-        self.queue: deque[int] = deque()  # packets in the FIFO, in order
-        self.pushed = 0
-        self.popped = 0
-        self._space: simpy.events.Event | None = None  # fires when entries are freed
-        self._data: simpy.events.Event | None = None  # fires when a packet enters
-
-    def slots(self, entries: int) -> int:
-        # a packet without addresses still passes its end-of-packet marker
-        return max(1, min(int(entries), self.depth))
-
-    def try_push(self, k: int, slots: int) -> bool:
-        if self.level < slots:
-            return False
-        self.level -= slots
-        self.queue.append(k)
-        if self._data is not None and not self._data.triggered:
-            self._data.succeed()
-        return True
-
-    def try_pop(self) -> int | None:
-        return self.queue.popleft() if self.queue else None
-
-    def free(self, slots: int) -> None:
-        self.level += slots
-        if self._space is not None and not self._space.triggered:
-            self._space.succeed()
-
-    def space_freed(self) -> simpy.events.Event:
-        if self._space is None or self._space.triggered:
-            self._space = self.env.event()
-        return self._space
-
-    def data_arrived(self) -> simpy.events.Event:
-        if self._data is None or self._data.triggered:
-            self._data = self.env.event()
-        return self._data
-
-
-class PM:
-    """A Processing Module: takes jobs of both images, the priority image's first."""
-
-    def __init__(self, model: Model, pipe: int, name: str):
-        self.model = model
-        self.env = model.env
-        self.pipe = pipe
-        self.name = name
-        self.unit = Unit(model.env, f"pipe{pipe}.{name}", model.trace)
-        self.queue: list[Job] = []
-        self.route: int | None = None
-        self.changed = self.env.event()
-        self.issued = 0
-        self.retired = 0
-        self.switches = 0
-        self.env.process(self._loop())
-
-    # -- queue ------------------------------------------------------------------------
-    def submit(self, job: Job) -> None:
-        """Queue ``job`` behind every job of the same or a higher priority."""
-        q = self.queue
-        i = len(q)
-        rank = self._rank(job)
-        while i > 0 and self._rank(q[i - 1]) > rank:
-            i -= 1
-        q.insert(i, job)
-        self.issued += int(job.spec.items.sum())
-        self.poke()
-
-    def poke(self) -> None:
-        if not self.changed.triggered:
-            self.changed.succeed()
-
-    def _rearm(self) -> None:
-        if self.changed.triggered:
-            self.changed = self.env.event()
-
-    def _rank(self, job: Job) -> int:
-        return job.frame  # the image that arrived first has priority
-
-    def _ready(self) -> Job | None:
-        """The ready job of the highest priority (the queue is kept in priority order)."""
-        for j in self.queue:
-            if j.blocker() is None:
-                return j
-        return None
-
-    def _higher_ready(self, job: Job) -> bool:
-        rank = self._rank(job)
-        for j in self.queue:
-            if self._rank(j) >= rank:
-                return False
-            if j.blocker() is None:
-                return True
-        return False
-
-    def _wake_events(self, job: Job | None = None) -> list:
-        """What may make a job ready: the first unfired event of each waiting job.
-
-        With ``job`` (running, waiting on its FIFO), only jobs of a higher priority count:
-        they alone can preempt it.
-        """
-        evs = [self.changed]
-        seen = set()
-        rank = None if job is None else self._rank(job)
-        for j in self.queue:
-            if rank is not None and self._rank(j) >= rank:
-                break
-            b = j.blocker()
-            if b is not None and id(b[0]) not in seen:
-                seen.add(id(b[0]))
-                evs.append(b[0])
-        return evs
-
-    # -- the process ------------------------------------------------------------------
-    def _loop(self):
-        env = self.env
-        while True:
-            self._rearm()
-            ready = self._ready()
-            if ready is not None:
-                yield from self._run(ready)
-                continue
-            if not self.queue:  # no frame in flight needs this PM: idle
-                self.unit.waiting_for = "a job (idle)"
-                yield self.changed
-                self.unit.waiting_for = None
-                continue
-            top = min(self.queue, key=self._rank)
-            _, cause, what = top.blocker()
-            yield from self.unit.stall(cause, env.any_of(self._wake_events()), f"{what} ({top.label})")
-
-    def _run(self, job: Job):
-        m = self.model
-        if self.route != job.module:
-            if self.route is not None:
-                yield from self.unit.delay("swap", m.arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
-                m.xbar.swaps += 1
-            self.route = job.module
-        if job.suspended:
-            # on a row of its own: the PM itself is busy for the other image meanwhile
-            m.trace_slice(f"{self.unit.scope} (preempted)", "preempted", job.suspended_at, env_now(self),
-                          job=job.label)
-            yield from self.unit.delay("preemption", m.arch.context_switch_cycles, "restore context")
-            job.suspended = False
-        spec = job.spec
-        while job.next < spec.n:
-            if (job.next > 0 or job.pending_push or job.interrupted) and self._higher_ready(job):
-                yield from self.unit.delay("preemption", m.arch.context_switch_cycles, "save context")
-                job.suspended = True
-                job.interrupted = False
-                job.suspended_at = env_now(self)
-                self.switches += 1
-                return
-            job.interrupted = False
-            k = job.next
-            if self.name == "intersection" and not (yield from self._pop(job)):
-                job.interrupted = True  # a priority job became ready while the FIFO was empty
-                continue
-            if not job.pending_push:
-                yield from self._packet(job, k)
-            if self.name == "traversal" and not (yield from self._push(job, k)):
-                job.interrupted = True
-                continue
-            if self.name == "intersection":
-                job.fifo.free(job.fifo.slots(spec.entries[k]))
-                job.fifo.popped += int(spec.entries[k])
-            job.retired += int(spec.items[k])
-            self.retired += int(spec.items[k])
-            job.next += 1
-        self.queue.remove(job)
-        job.done.succeed()
-
-    def _packet(self, job: Job, k: int):
-        spec = job.spec
-        m = self.model
-        misses = int(spec.misses[k])
-        ms = misses * m.arch.page_miss_cycles
-        if ms:
-            m.modules[job.module].serve(int(self.env.now), misses, ms)
-        yield from self.unit.work(int(spec.norm[k]), ms, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
-        yield from self._settle(job)
-
-    def _settle(self, job: Job):
-        """Let every event of this cycle run before a packet-boundary decision.
-
-        Only needed when an older image's job is queued: it may become ready this very
-        cycle (a semaphore firing now), and preemption must not depend on event order.
-        """
-        if self._rank(self.queue[0]) < self._rank(job):
-            settle = self.env.event()
-            settle._ok, settle._value = True, None
-            self.env.schedule(settle, priority=2)
-            yield settle
-
-    def _push(self, job: Job, k: int):
-        """Put packet k's triangle addresses into the FIFO; False if preempted while it was full."""
-        fifo = job.fifo
-        n = int(job.spec.entries[k])
-        slots = fifo.slots(n)
-        while not fifo.try_push(k, slots):
-            job.pending_push = True
-            if self._higher_ready(job):  # a job of an older image is ready: switch now
-                return False
-            yield from self.unit.stall("fifo_full", self.env.any_of([fifo.space_freed(), *self._wake_events(job)]),
-                                       f"FIFO space ({job.label})")
-            self._rearm()
-        job.pending_push = False
-        fifo.pushed += n
-        return True
-
-    def _pop(self, job: Job):
-        """Take the next packet's addresses from the FIFO; False if preempted while it was empty."""
-        fifo = job.fifo
-        k = fifo.try_pop()
-        while k is None:
-            if self._higher_ready(job):  # a job of an older image is ready: switch now
-                return False
-            yield from self.unit.stall("fifo_empty", self.env.any_of([fifo.data_arrived(), *self._wake_events(job)]),
-                                       f"FIFO data ({job.label})")
-            self._rearm()
-            k = fifo.try_pop()
-        if k != job.next:
-            raise AssertionError(f"FIFO order broken: packet {k} arrived for {job.next}")
-        return True
-
-
-def env_now(pm: PM) -> int:
-    return int(pm.env.now)
-
-
-# -- the model ----------------------------------------------------------------------------------
-
-@dataclass
-class FrameRecord:
-    index: int
-    slot: int
-    arrival: int = 0
-    done: int = -1
-
-
-@dataclass
-class Model:
-    env: simpy.Environment
-    arch: ArchConfig
-    program: FrameProgram
-    trace: Trace | None
-    modules: list[Module] = field(default_factory=list)  # per pipeline: 2 per image in flight
-    xbar: Crossbar | None = None
-    pms: dict[tuple[int, str], PM] = field(default_factory=dict)  # (pipeline, PM name)
-    frames: list[FrameRecord] = field(default_factory=list)
-    fifos: list = field(default_factory=list)
-    compose: int | None = None  # index in ``modules`` of the top-level unit (more than one pipeline)
-
-    def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
-        if self.trace is not None:
-            self.trace.slice(scope, name, start, end, **args)
-
-    def module(self, pipe: int, slot: int, role: int) -> int:
-        """The index of pipeline ``pipe``'s module ``role`` of image slot ``slot``."""
-        return 2 * (pipe * self.arch.images_in_flight + slot) + role
-
-    def pm(self, pipe: int, name: str) -> PM:
-        return self.pms[(pipe, name)]
 
 
 def _frame_process(model: Model, rec: FrameRecord):
@@ -500,11 +101,8 @@ def _frame_process(model: Model, rec: FrameRecord):
                 prev = _all_done(env, workers)
             pending_returns = sum(t.returns for t in stage.tiles)
         prev_name = stage.name
-    yield _all_done(env, [prev, *tails]) if tails else prev
-    # compose copies started after ``prev`` by dynamic workers are in ``tails`` by now
-    pending = [t for t in tails if not t.processed]
-    if pending:
-        yield _all_done(env, pending)
+    # static tiles' compose copies run after their chains; dynamic workers copy before they finish
+    yield _all_done(env, [prev, *tails])
     rec.done = int(env.now)
 
 

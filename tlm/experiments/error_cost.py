@@ -24,7 +24,6 @@ pandas), ``reference.json`` (the reference used) and ``config.resolved.yaml``.
 
 from __future__ import annotations
 
-import csv
 import itertools
 import json
 import time
@@ -45,7 +44,7 @@ from tlm.experiments.reference import (
     reference_key,
     save_reference,
 )
-from tlm.experiments.study import read_study
+from tlm.experiments.study import read_study, write_rows
 from tlm.kernels.traverse import build_accel
 from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius, trace_photon_map
 from tlm.render.planner import photon_count
@@ -148,10 +147,6 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
 
 def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
     with atomic_folder(out, "rows.jsonl") as tmp:
-        with open(tmp / "rows.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(COLUMNS))
-            w.writeheader()
-            w.writerows(rows)
-        (tmp / "rows.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+        write_rows(tmp, "rows", rows, COLUMNS)
         (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))

@@ -17,8 +17,6 @@ Images do not depend on the packet size (the functional layer never sees it).
 
 from __future__ import annotations
 
-import csv
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -31,7 +29,7 @@ from tlm.config import config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study
+from tlm.experiments.study import read_study, write_rows
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
@@ -74,10 +72,6 @@ def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
         row["reference"] = sizes[0]
         rows.append(row)
     with atomic_folder(out, "granularity.jsonl") as tmp:
-        with open(tmp / "granularity.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=list(COLUMNS))
-            w.writeheader()
-            w.writerows(rows)
-        (tmp / "granularity.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+        write_rows(tmp, "granularity", rows, COLUMNS)
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
     return rows
