@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from tlm.kernels.intersect import brute_force
@@ -551,6 +551,11 @@ vec3 = st.tuples(coord, coord, coord)
     d=vec3,
     levels=st.sampled_from([0, 1, 2]),
 )
+# found by CI: a direction that float32 flushes to zero hits at t ~ 1e276 in float64
+@example(tris=[((0.0, 0.0, 0.0), (0.0, 0.0, -2.0), (2.0, 0.0, 1.0))], o=(1.0, -1.0, 0.0),
+         d=(0.0, 8.85230326406259e-277, 0.0), levels=0)
+@example(tris=[((0.0, 0.0, 0.0), (0.0, 0.0, -2.0), (2.0, 0.0, 1.0))], o=(1.0, -1.0, 0.0),
+         d=(1e-300, 1e-290, 0.0), levels=1)
 def test_single_ray_property(tris, o, d, levels):
     """Any small soup, any ray (zero components included): the BSP, brute force and
     the reference agree up to explained near-ties; nothing is NaN."""
@@ -607,3 +612,24 @@ def test_subnormal_direction_components():
         h = closest_hit(accel, o, d, tmin=1e-6)
     assert k.tolist() == [3, 3, 0, 0]
     np.testing.assert_array_equal(h.triangle, k)
+
+
+@pytest.mark.parametrize("levels", [0, 2])
+def test_rays_float32_cannot_carry_fall_back_to_float64(levels):
+    """A direction float32 flushes to zero, or one it rounds to inf, is still traced:
+    the float32 datapath only finds candidates, and such rays are traced in float64."""
+    tri = np.array([[(0.0, 0.0, 0.0), (0.0, 0.0, -2.0), (2.0, 0.0, 1.0)]])
+    accel = build_accel(tri, levels=levels)
+    o = np.tile([1.0, -1.0, 0.0], (5, 1))
+    # float32 flushes the first to zero and rounds the second to inf; the fourth is
+    # subnormal in float64; the last meets the plane beyond float64's range (a miss)
+    d = np.array([[0.0, 1e-300, 0.0], [0.0, 1e300, 0.0], [0.0, 1.0, 0.0], [1e-320, 2e-308, 0.0], [0.0, 1e-310, 0.0]])
+    with np.errstate(over="ignore"):
+        h = closest_hit(accel, o, d)
+        occ = any_hit(accel, o, d).occluded
+        t, k, _, _ = brute_force(o, d, tri)
+    assert h.triangle.tolist() == [0, 0, 0, 0, -1]
+    np.testing.assert_allclose(h.t, [1e300, 1e-300, 1.0, 5e307, np.inf], rtol=1e-12)
+    assert k.tolist() == h.triangle.tolist()
+    np.testing.assert_array_equal(t, h.t)
+    assert occ.tolist() == [True, True, True, True, False]

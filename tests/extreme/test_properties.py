@@ -76,7 +76,8 @@ def test_closest_hit_agrees_with_brute_force(case, levels):
     differ = h.triangle != k
     if differ.any():
         ref = mt_reference(o, d, tri)
-        ok = explained(ref, h.triangle) & explained(ref, k)
+        # each side either agrees with the float64 reference or is an explained near-tie
+        ok = ((h.triangle == ref.tri) | explained(ref, h.triangle)) & ((k == ref.tri) | explained(ref, k))
         assert ok[differ].all(), (h.triangle[differ], k[differ], ref.tri[differ], ref.t[differ], ref.edge[differ])
     same = ~differ & (k >= 0)
     np.testing.assert_allclose(h.t[same], t[same], rtol=1e-12)

@@ -331,6 +331,45 @@ def closest_slots64(
     return np.where(np.isfinite(best), j + s0, -1), best
 
 
+def scale_directions(d: np.ndarray, tmin: np.ndarray, tmax: np.ndarray):
+    """Directions far outside float32's comfortable range, rescaled by exact powers of two.
+
+    ``d`` (r, 3) float64. A row whose largest component is outside about [2**-32, 2**32]
+    is multiplied by ``2**-e`` (its largest component then lies in [0.5, 1)) and its
+    ``tmin``, ``tmax`` by ``2**e``, so the hit point ``o + t d`` is unchanged and a
+    subnormal or huge direction is traced like any other. Other rows are untouched
+    (bitwise); ``tmax`` is capped where ``t`` would leave float64's range. Returns
+    ``d, tmin, tmax, e`` (e int (r,), 0 where untouched); the caller
+    maps ``t`` back with :func:`unscale_t`.
+    """
+    _, e = np.frexp(np.abs(d).max(axis=1, initial=0.0))
+    e = np.where(np.abs(e) > 32, e, 0)
+    if not e.any():
+        return d, tmin, tmax, e
+    with np.errstate(over="ignore", under="ignore"):
+        # a hit whose distance would leave float64's range is no hit, for any_hit too
+        tmax = np.minimum(np.ldexp(tmax, e), np.ldexp(np.finfo(np.float64).max, e))
+        return np.ldexp(d, -e[:, None]), np.ldexp(tmin, e), tmax, e
+
+
+def unscale_t(t: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``t`` measured along a direction rescaled by :func:`scale_directions`, back in
+    units of the caller's direction (inf where it leaves float64's range)."""
+    if not e.any():
+        return t
+    with np.errstate(over="ignore", under="ignore"):
+        return np.ldexp(t, -e)
+
+
+def lossy32(x: np.ndarray, x32_t: np.ndarray) -> np.ndarray:
+    """Rows of ``x`` (r, 3; float64) whose float32 copy ``x32_t`` (3, r) lost more than a
+    float32 rounding relative to the row's largest component (overflow to inf, flush to 0)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        err = np.abs(x32_t.T.astype(np.float64) - x).max(axis=1)
+        big = np.abs(x).max(axis=1)
+        return ~(err <= 2.0**-22 * big)
+
+
 def brute_force(
     origins: np.ndarray,
     directions: np.ndarray,
@@ -349,6 +388,7 @@ def brute_force(
     r = o.shape[0]
     tmin = np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,))
     tmax = np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,))
+    d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
     ignore = None if ignore is None else np.asarray(ignore, np.int64)
     tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     origin = 0.5 * (tri.reshape(-1, 3).min(axis=0) + tri.reshape(-1, 3).max(axis=0)) if tri.size else None
@@ -369,10 +409,16 @@ def brute_force(
     hit = np.flatnonzero(slot >= 0)
     t[hit], u[hit], v[hit], ok = check(o[hit], d[hit], tmin[hit], tmax[hit], soa64, slot[hit])
     bad = hit[~ok]
+    lossy = lossy32(d, d.T.astype(np.float32)) | lossy32(o, o.T.astype(np.float32))
+    if lossy.any():  # rays float32 cannot carry (see ``lossy32``) are tested in float64
+        bad = np.union1d(bad, np.flatnonzero(lossy))
     if bad.shape[0]:
         ign = None if ignore is None else ignore[bad]
         slot[bad], _ = closest_slots64(o[bad].T, d[bad].T, tmin[bad], tmax[bad], ign, soa64, 0, m)
         t[bad], u[bad], v[bad] = np.inf, 0.0, 0.0
         redo = bad[slot[bad] >= 0]
         t[redo], u[redo], v[redo], _ = check(o[redo], d[redo], tmin[redo], tmax[redo], soa64, slot[redo])
+    t = unscale_t(t, scale)
+    slot = np.where(np.isfinite(t), slot, -1)
+    u, v = np.where(slot >= 0, u, 0.0), np.where(slot >= 0, v, 0.0)
     return t, np.where(slot >= 0, soa.ids[np.maximum(slot, 0)], -1), u, v

@@ -37,7 +37,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
-from tlm.kernels.intersect import TriangleSoA, check, closest_slots, closest_slots64
+from tlm.kernels.intersect import (
+    TriangleSoA,
+    check,
+    closest_slots,
+    closest_slots64,
+    lossy32,
+    scale_directions,
+    unscale_t,
+)
 
 CHUNK_PAIRS = 1 << 17  # (slot, ray) pairs per block: fewer, longer numpy calls
 
@@ -145,19 +153,20 @@ class Occlusion:
 def _prepare(origins, directions, tmin, tmax, ignore):
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3))
     d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
-    tiny = np.abs(d) < np.finfo(np.float64).tiny
-    if tiny.any():  # a subnormal component would make 1/d overflow: it is a zero
-        d = np.where(tiny, 0.0, d)
     r = o.shape[0]
     if d.shape[0] != r:
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
     tmin = np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0)
     tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
+    d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
+    tiny = np.abs(d) < np.finfo(np.float64).tiny
+    if tiny.any():  # a subnormal component (negligible beside the row's largest) is a zero
+        d = np.where(tiny, 0.0, d)
     if ignore is None:
         ignore = np.full(r, -1, dtype=np.int64)
     else:
         ignore = np.ascontiguousarray(np.broadcast_to(np.asarray(ignore, dtype=np.int64), (r,)))
-    return o, d, tmin, tmax, ignore
+    return o, d, tmin, tmax, ignore, scale
 
 
 def _clip_root(tree: BSPTree, o, d, tmin, tmax):
@@ -261,7 +270,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     float64 check); otherwise test in float32 and check every ray's answer.
     """
     tree = accel.tree
-    o, d, tmin, tmax, ignore = _prepare(origins, directions, tmin, tmax, ignore)
+    o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
     r = o.shape[0]
     ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)
     pray, pleaf, pexit, node_visits, touched_nodes = _leaf_lists(tree, o, d, inv, ta, tb, record)
@@ -350,6 +359,12 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     found = best_slot >= 0
     triangle = np.where(found, soa.ids[np.maximum(best_slot, 0)], -1)
     bad = hit[~ok]
+    if not exact64:
+        # a miss is not checked, so rays that float32 cannot carry go to float64 whole:
+        # a direction or origin that over- or underflows (a subnormal direction is zero)
+        lossy = lossy32(d, d_t) | lossy32(o_local, o_t)
+        if lossy.any():
+            bad = np.union1d(bad, np.flatnonzero(lossy))
     if bad.shape[0] and not exact64:
         again = _traverse(accel, o[bad], d[bad], tmin[bad], tmax[bad], ignore[bad], False, first_only, batch,
                           exact64=True)
@@ -372,6 +387,10 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         touched = Touched(touched_nodes[0], touched_nodes[1], leaf_ptr, pleaf[visited])
     if first_only:
         return Occlusion(found, counts, touched)
+    if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
+        t = unscale_t(t, scale)
+        far = np.isinf(t)
+        triangle, u, v = np.where(far, -1, triangle), np.where(far, 0.0, u), np.where(far, 0.0, v)
     return Hits(t, triangle, u, v, counts, touched)
 
 
