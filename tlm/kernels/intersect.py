@@ -409,7 +409,8 @@ def brute_force(
     hit = np.flatnonzero(slot >= 0)
     t[hit], u[hit], v[hit], ok = check(o[hit], d[hit], tmin[hit], tmax[hit], soa64, slot[hit])
     bad = hit[~ok]
-    lossy = lossy32(d, d.T.astype(np.float32)) | lossy32(o, o.T.astype(np.float32))
+    with np.errstate(over="ignore"):
+        lossy = lossy32(d, d.T.astype(np.float32)) | lossy32(o, o.T.astype(np.float32))
     if lossy.any():  # rays float32 cannot carry (see ``lossy32``) are tested in float64
         bad = np.union1d(bad, np.flatnonzero(lossy))
     if bad.shape[0]:

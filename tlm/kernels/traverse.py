@@ -289,12 +289,13 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     soa, soa64 = accel.soa, accel.soa64
     o_local = o - soa64.origin
     test, tri, dt = (closest_slots64, soa64, np.float64) if exact64 else (closest_slots, soa, np.float32)
-    o_t = np.ascontiguousarray(o_local.T, dtype=dt)
+    with np.errstate(over="ignore"):  # beyond float32's range: inf (such rays go to float64, below)
+        o_t = np.ascontiguousarray(o_local.T, dtype=dt)
+        d_t = np.ascontiguousarray(d.T, dtype=dt)
+        tmin_t = tmin.astype(dt)
+        tmax_t = tmax.astype(dt)
     if shared_origin and r > 0 and not (o_t == o_t[:, :1]).all():
         raise ValueError("shared_origin=True but the rays do not share one origin")
-    d_t = np.ascontiguousarray(d.T, dtype=dt)
-    tmin_t = tmin.astype(dt)
-    tmax_t = tmax.astype(dt)
     ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
     # small integer leaf numbers sort by radix (stable) instead of by merge
