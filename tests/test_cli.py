@@ -58,6 +58,9 @@ def flatten(d: dict, prefix: str = "") -> dict:
 def test_run_folder_layout(cornell_run):
     out, _ = cornell_run
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    report = [f for f in files if f.startswith("report/")]  # tests/test_report.py checks it
+    assert "report/report.html" in report and all(f.endswith((".png", ".html")) for f in report)
+    files = [f for f in files if not f.startswith("report/")]
     assert files == sorted([
         "config.resolved.yaml", "results.json", "trace.json",
         "images/rcast.png", "images/reflect.png", "images/refract.png", "images/composite.png",

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from tlm.cli import main
+from tlm.config import config_from_dict
+from tlm.experiments.run import programs_for, render, simulate_run
 
 from .scenes import sphere_scene
 
@@ -87,23 +89,38 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
             {"estimate.filter": ["disk", "mvoxel"], "photons.count": [3000, 12000]},
             {"estimate.filter": ["kvoxel"], "photons.count": [12000], "estimate.k": [2, 8]},
             {"estimate.filter": ["knn"], "photons.count": [12000], "estimate.k_nearest": [20]},
+            {"estimate.filter": ["mvoxel"], "photons.count": [3000], "arch.pipelines": [2]},
         ],
     }))
     out = tmp_path / "evc"
     assert main(["error-vs-cost", str(exp), "--out", str(out)]) == 0
     with open(out / "rows.csv") as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 7
-    assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn"]
+    assert len(rows) == 8
+    assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn", "mvoxel"]
+    assert {"throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds"} <= set(rows[0])
     jsonl = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines()]
-    assert len(jsonl) == 7
+    assert len(jsonl) == 8
     for row in jsonl:
         assert np.isfinite(row["rmse"]) and row["gathers"] == 24 * 24 and row["gather_seconds"] >= 0
+        assert row["throughput_cycles"] > 0 and row["latency_cycles"] > 0 and row["simulate_seconds"] > 0
+        assert row["frame_seconds"] == row["throughput_cycles"] / 600e6
+        assert row["fps"] == pytest.approx(600e6 / row["throughput_cycles"], rel=1e-12)
     mv = [r for r in jsonl if r["filter"] == "mvoxel"]
     assert mv[1]["photons_tested"] > mv[0]["photons_tested"]  # more photons, more work
+    assert mv[1]["throughput_cycles"] > mv[0]["throughput_cycles"]  # ... and a longer frame
     kv = [r for r in jsonl if r["filter"] == "kvoxel"]
     assert kv[1]["leaves_visited"] >= kv[0]["leaves_visited"]
     assert json.loads((out / "reference.json").read_text())["converged"]
+    # the simulated frame is the one 'tlm run' simulates: the same point rendered and simulated
+    # on its own gives the same cycles, under each point's own arch settings
+    two = mv[2]
+    assert two["rmse"] == mv[0]["rmse"] and two["throughput_cycles"] != mv[0]["throughput_cycles"]
+    for row, pipes in ((mv[0], 1), (two, 2)):
+        cfg = config_from_dict({"scene": "furnace.yaml", "mode": "pmap", "estimate": {"filter": "mvoxel"},
+                                "photons": {"count": 3000}, "arch": {"pipelines": pipes}})
+        tm = simulate_run(render(cfg, tmp_path), programs_for(cfg, tmp_path))
+        assert (tm.cycles["throughput"], tm.cycles["latency"]) == (row["throughput_cycles"], row["latency_cycles"])
 
 
 @pytest.mark.parametrize("body,expect", [

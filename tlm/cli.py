@@ -17,6 +17,35 @@ from tlm.config import MODES
 from tlm.errors import InputError
 
 
+def _report_after(args: argparse.Namespace, out: Path) -> None:
+    """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``."""
+    if getattr(args, "no_report", False):
+        return
+    from tlm.report import build_report
+
+    print(f"report: {build_report([out])}")
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from tlm.report import build_report
+
+    dirs = [Path(d) for d in args.dirs]
+    if args.out is None and len(dirs) > 1:
+        raise InputError("several folders: name the report folder", key="--out")
+    path = build_report(dirs, Path(args.out) if args.out else None, args.title)
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_plots(args: argparse.Namespace) -> int:
+    from tlm.report.regenerate import regenerate
+
+    page = regenerate(Path(args.configs), Path(args.runs), Path(args.out), args.only,
+                      say=lambda line: print(line, flush=True))
+    print(f"wrote {page}")
+    return 0
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from tlm.config import load_config
     from tlm.experiments.run import run
@@ -55,6 +84,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
         print(f"  {results['fps']:.2f} frames per second")
     total = sum(results["host_seconds"].values())
+    _report_after(args, out)
     print(f"wrote {out} ({total:.2f} s)")
     return 0
 
@@ -70,6 +100,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     n = len(done.rows)
     print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
           f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
+    _report_after(args, out)
     return 1 if done.failed else 0
 
 
@@ -86,6 +117,7 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
               f"B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:6.1%}; slowest-pipeline variant: "
               f"max |error| {f['slowest']['max_abs_rel_error']:6.1%}")
     print(f"wrote {out}")
+    _report_after(args, out)
     return 0
 
 
@@ -184,10 +216,11 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
         rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g}"
         print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {row['radius'] or 0:8.3g} "
               f"k {row['k'] or row['k_nearest'] or '-'!s:>4s}  relMSE {rel:>9s}  tested {row['photons_tested']:>10d}  "
-              f"{row['gather_seconds']:.2f} s", flush=True)
+              f"{row['gather_seconds']:.2f} s  simulated {row['fps']:.3g} fps", flush=True)
 
     rows = run_error_vs_cost(Path(args.config), out, progress=progress)
     print(f"wrote {out} ({len(rows)} rows)")
+    _report_after(args, out)
     return 0
 
 
@@ -218,6 +251,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
           f"{'n/a' if med is None else f'{med:.1%}'}; slowest PM as in the thesis in "
           f"{sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
     print(f"wrote {out}/thesis_comparison.csv")
+    _report_after(args, out)
     return 0
 
 
@@ -235,6 +269,7 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
         print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
               f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
     print(f"wrote {out}/granularity.csv")
+    _report_after(args, out)
     return 0
 
 
@@ -275,6 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
     r.add_argument("--seed", type=int, help="override the seed")
+    r.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
@@ -285,11 +321,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
                     "not a terminal)")
+    sw.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     sw.set_defaults(func=_cmd_sweep)
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
                         "(Figs. 18-20)")
     sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
     sc.add_argument("--out", help="output folder (default: runs/eq52_<first sweep folder's name>)")
+    sc.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
     ss = s.add_subparsers(dest="scene_cmd", required=True)
@@ -308,21 +346,37 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
     ev.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ev.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
     th.add_argument("--out", help="output folder (default: runs/<config name>)")
+    th.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml")
     gr.add_argument("--out", help="output folder (default: runs/<config name>)")
+    gr.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' scales to the RCast column of Tables I-III")
     ca.add_argument("config", help="study YAML, e.g. configs/thesis.yaml")
     ca.add_argument("--write", help="table to write (default: the packaged tlm/arch/programs.yaml)")
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
     ca.set_defaults(func=_cmd_calibrate)
+    rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
+                        "or error-vs-cost folders")
+    rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
+    rp.add_argument("--out", help="report folder (default: DIR/report; required for several folders)")
+    rp.add_argument("--title", help="the page's title")
+    rp.set_defaults(func=_cmd_report)
+    pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
+    pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")
+    pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
+    pl.add_argument("--out", default="plots", help="report folder (default: plots)")
+    pl.add_argument("--only", nargs="+", metavar="STEP", help="run only these steps (thesis, scaling_ring, ..., "
+                    "cornell_pmap); the report reads every step's folder that exists")
+    pl.set_defaults(func=_cmd_plots)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
     return p

@@ -4,11 +4,20 @@ An experiment file names a base run config and a union of grids over dotted conf
 keys; every point renders the photon-map frame of the base scene and records its
 error against the converged reference (:mod:`tlm.experiments.reference`, computed
 and cached first if missing) beside its cost: the gather's work (node visits, leaves
-visited, photons tested and accepted) and host seconds (photon tracing and gathering).
-Simulated cycles join these rows when the timing model exists.
+visited, photons tested and accepted), host seconds (photon tracing and gathering) and
+the simulated time of the whole photon-map frame. That frame is what ``tlm run``
+simulates in pmap mode: the passes the planner runs (ray cast, and reflect and refract
+when the scene has mirrors or glass), the point's photon trace (its work and photon
+tree) and its photon-map pass, through the timing model (:func:`tlm.arch.model.simulate`
+under the point's ``arch`` settings, without a trace; a point whose photon pass the
+planner leaves out, e.g. ``photons.count: 0``, simulates the other passes). The row gets its
+``throughput_cycles`` and ``latency_cycles``, ``frame_seconds`` (throughput cycles /
+``arch.clock_hz``), ``fps`` and ``simulate_seconds`` (host seconds of the simulation).
 
-The eye rays are cast once, and each photon map (one per photon count and seed) is
-traced once and shared by every filter, radius and k that uses it.
+The eye rays are cast once; the other passes' work is computed once per setting of what
+it depends on (everything but ``photons``, ``estimate`` and ``arch``); each photon map
+(one per photon count, seed and tracing setting) is traced once and shared by every
+filter, radius and k that uses it.
 
 File format::
 
@@ -19,7 +28,8 @@ File format::
       - {estimate.filter: [kvoxel], estimate.k: [4, 8, 16], ...}
 
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
-pandas), ``reference.json`` (the reference used) and ``config.resolved.yaml``.
+pandas), ``reference.json`` (the reference used), ``config.resolved.yaml`` and
+``provenance.json`` (versions, git revision, host seconds).
 """
 
 from __future__ import annotations
@@ -27,13 +37,16 @@ from __future__ import annotations
 import itertools
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from tlm.config import apply_overrides, config_from_dict, to_dict
+from tlm.arch.functional import Functional, TreeWork
+from tlm.arch.model import simulate
+from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import (
@@ -44,15 +57,26 @@ from tlm.experiments.reference import (
     reference_key,
     save_reference,
 )
+from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, write_rows
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import GATHER_KEYS, Frame, cast, pmap_pass, search_radius, trace_photon_map
-from tlm.render.planner import photon_count
+from tlm.render.passes import (
+    GATHER_KEYS,
+    PASS_FUNCTIONS,
+    Frame,
+    GBuffer,
+    cast,
+    pmap_pass,
+    search_radius,
+    trace_photon_map,
+)
+from tlm.render.planner import photon_count, plan
 from tlm.scenes.loader import load_scene
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
     "rmse", "rel_mse", *GATHER_KEYS[1:], "gathers", "trace_seconds", "gather_seconds",
+    "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
 
 
@@ -93,9 +117,16 @@ def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
 
 def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
     """Run every point of the experiment file ``path``; write the rows into ``out``."""
+    start = time.perf_counter()
     base, points, folder = load_experiment(Path(path))
     check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
+    configs = [config_from_dict({**apply_overrides(base, _override_strings(p)), "mode": "pmap"}, str(path))
+               for p in points]
+    programs = {}  # arch.programs -> table; a bad table fails before any render
+    for cfg in configs:
+        if cfg.arch.programs not in programs:
+            programs[cfg.arch.programs] = programs_for(cfg, folder)
     scene = load_scene(cfg0.scene, folder, cfg0.resolution, str(path))
     accel = build_accel(scene.triangles, levels=cfg0.bsp.levels, memory_factor=cfg0.bsp.memory_factor)
     g = cast(Frame.create(scene, accel, cfg0), np.arange(scene.camera.width * scene.camera.height))
@@ -111,15 +142,16 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
     reference = reference.reshape(-1, 3)
 
     maps: dict[tuple, tuple] = {}
+    others: dict[str, dict] = {}  # the non-photon passes' work, per setting they depend on
+    geometry = TreeWork.of(accel.tree)
     rows = []
-    for i, point in enumerate(points):
-        cfg = config_from_dict({**apply_overrides(base, _override_strings(point)), "mode": "pmap"}, str(path))
+    for i, (point, cfg) in enumerate(zip(points, configs, strict=True)):
         if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
             raise InputError("a point changes what the reference depends on (scene, max_bounces or reference.*)",
                              source=str(path), key=f"points: {point}")
         n = photon_count(scene, cfg)
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
-                   cfg.photons.caustic_fraction, cfg.photons.levels)
+                   cfg.photons.caustic_fraction, cfg.photons.levels, cfg.cache.block_words, cfg.cache.pairs)
         frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:
             t0 = time.perf_counter()
@@ -128,6 +160,10 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
         t0 = time.perf_counter()
         radiance, work = pmap_pass(frame, g, traced.photons)
         gather_s = time.perf_counter() - t0
+        fn = frame_functional(frame, g, geometry, others, traced, work)
+        t0 = time.perf_counter()
+        tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
+        simulate_s = time.perf_counter() - t0
         est = cfg.estimate
         row = {
             "point": i, "filter": est.filter, "photons": n, "stored": traced.photons.n,
@@ -137,16 +173,62 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
             **image_error(radiance, reference),
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
+            **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
         }
         rows.append(row)
         if progress is not None:
             progress(i, len(points), row)
-    _write(out, rows, cfg0, {"key": key, **ref_meta})
+    _write(out, rows, str(path), time.perf_counter() - start, cfg0, {"key": key, **ref_meta})
     return rows
 
 
-def _write(out: Path, rows: list[dict], cfg, ref_meta: dict) -> None:
+def _others_key(cfg: RunConfig, names: tuple[str, ...]) -> str:
+    """What the passes other than the photon map depend on: the config but its photon,
+    estimate and timing settings (and the reference's, which only the error reads)."""
+    keep = {k: v for k, v in to_dict(cfg).items() if k not in ("photons", "estimate", "arch", "reference")}
+    return json.dumps([list(names), keep], sort_keys=True, default=str)
+
+
+def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[str, dict], traced,
+                     pmap_work: dict[str, np.ndarray]) -> Functional:
+    """The work of the point's whole photon-map frame, as :meth:`Functional.of` builds it for
+    ``tlm run``: the passes the planner runs for ``frame.cfg``, in plan order.
+
+    ``others`` caches the work of the passes other than the photon map, keyed by what it
+    depends on (computed here when missing, once for every point that shares it);
+    ``traced`` is the point's photon trace and ``pmap_work`` its photon-map pass's work.
+    """
+    names = tuple(plan(frame.scene, frame.cfg).run_names)
+    rest = tuple(n for n in names if n != "pmap")
+    key = _others_key(frame.cfg, rest)
+    if key not in others:
+        others[key] = {n: PASS_FUNCTIONS[n](frame, g)[1] for n in rest}
+    work = dict(others[key])
+    with_pmap = "pmap" in names
+    if with_pmap:
+        work["pmap"] = pmap_work
+    return Functional(
+        passes=names,
+        work={p: {k: np.asarray(v, dtype=np.int64).reshape(-1) for k, v in work[p].items()} for p in names},
+        geometry=geometry,
+        photon_work={k: np.asarray(v, np.int64) for k, v in traced.work.items()} if with_pmap else None,
+        photon_tree=TreeWork.of(traced.photons.tree) if with_pmap else None,
+        pixels=int(g.pixels.shape[0]), width=int(frame.scene.camera.width),
+    )
+
+
+def frame_time(cycles: dict, clock_hz: float) -> dict:
+    """A simulated frame's columns: throughput and latency cycles, seconds and FPS."""
+    thr = int(cycles["throughput"])
+    return {"throughput_cycles": thr, "latency_cycles": int(cycles["latency"]),
+            "frame_seconds": thr / clock_hz, "fps": clock_hz / thr if thr > 0 else None}
+
+
+def _write(out: Path, rows: list[dict], study: str, seconds: float, cfg, ref_meta: dict) -> None:
+    from tlm.experiments.run import provenance
+
     with atomic_folder(out, "rows.jsonl") as tmp:
         write_rows(tmp, "rows", rows, COLUMNS)
         (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
+        (tmp / "provenance.json").write_text(json.dumps(provenance(study, seconds), indent=2) + "\n")

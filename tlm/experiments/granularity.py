@@ -11,12 +11,14 @@ renders the frame once (its work comes from the functional cache when an identic
 render was cached: only the SimPy layer reruns), simulates it at every packet size,
 and writes ``granularity.csv`` and ``granularity.jsonl``: per packet size the cycles
 (per PM, throughput, latency), the relative error of each against the reference, the
-largest of them, the host wall seconds of the simulation and its SimPy events.
+largest of them, the host wall seconds of the simulation and its SimPy events; beside
+them ``config.resolved.yaml`` and ``provenance.json`` (versions, git revision, host seconds).
 Images do not depend on the packet size (the functional layer never sees it).
 """
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -28,7 +30,7 @@ from tlm.arch.model import simulate
 from tlm.config import config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
-from tlm.experiments.run import programs_for
+from tlm.experiments.run import programs_for, provenance
 from tlm.experiments.study import read_study, write_rows
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
@@ -48,6 +50,7 @@ def load_granularity(path: Path):
 
 
 def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
+    start = time.perf_counter()
     cfg, sizes, folder = load_granularity(Path(path))
     check_destination(out, "granularity.jsonl")
     programs = programs_for(cfg, folder)
@@ -74,4 +77,6 @@ def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
     with atomic_folder(out, "granularity.jsonl") as tmp:
         write_rows(tmp, "granularity", rows, COLUMNS)
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
+        info = provenance(str(path), time.perf_counter() - start)
+        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
     return rows

@@ -202,6 +202,12 @@ def _git_revision() -> str | None:
         return None
 
 
+def provenance(study: str | None, host_seconds: float | None) -> dict:
+    """What a study folder records of where it came from (``provenance.json``)."""
+    return {"study": study, "versions": _versions(), "git_revision": _git_revision(),
+            "host_seconds": None if host_seconds is None else round(host_seconds, 3)}
+
+
 def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
     lo, hi = scene.bounds()
     used = np.bincount(scene.material_index, minlength=len(scene.materials))

@@ -16,14 +16,16 @@ equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
 pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a static
 tiling of an uneven image waits for. :func:`analyse` writes ``eq52.csv`` (per point:
 simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
-largest error, per group) and one figure per scene (``scaling_<scene>.png``): simulated and analytical
-T_tot against N, and the speed-up T(1) / T(N), for each scheduler.
+largest error, per group), ``provenance.json`` and one figure per scene
+(``scaling_<scene>.png``): simulated and analytical T_tot against N, and the speed-up
+T(1) / T(N), for each scheduler.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -123,6 +125,7 @@ def fit(records: list[dict]) -> dict[tuple, dict]:
 
 def analyse(sweep_dirs: list[Path], out: Path) -> dict:
     """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and the figures."""
+    start = time.perf_counter()
     check_destination(out, "eq52.json")
     records = [r for d in sweep_dirs for r in collect(d)]
     fits = fit(records)
@@ -137,41 +140,13 @@ def analyse(sweep_dirs: list[Path], out: Path) -> dict:
             w = csv.DictWriter(fh, fieldnames=list(COLUMNS))
             w.writeheader()
             w.writerows(table)
+        from tlm.report.scaling import plot_scaling
+
         for scene in sorted({k[0] for k in fits}):
-            plot_scene(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
+            plot_scaling(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
         (tmp / "eq52.json").write_text(json.dumps({"fits": summary}, indent=2) + "\n")
+        from tlm.experiments.run import provenance
+
+        info = provenance(", ".join(str(d) for d in sweep_dirs), time.perf_counter() - start)
+        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
     return {"fits": summary, "rows": table}
-
-
-def plot_scene(scene: str, fits: dict[tuple, dict], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
-    colors = {"static": "C0", "dynamic": "C1"}
-    for (_, mode, sched, target), f in sorted(fits.items()):
-        ns = [r["pipelines"] for r in f["rows"]]
-        c = colors.get(sched, "C2")
-        ax = axes[0 if target == "latency" else 1]
-        ax.plot(ns, [r["simulated"] for r in f["rows"]], "o-", color=c, label=f"{sched}: simulated")
-        ax.plot(ns, [r["analytical"] for r in f["rows"]], "--", color=c,
-                label=f"{sched}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}")
-        ax.plot(ns, [r["analytical_slowest"] for r in f["rows"]], ":", color=c,
-                label=f"{sched}: slowest pipeline, A={f['slowest']['A']:.3g}, B={f['slowest']['B']:.3g}")
-        if target == "throughput":
-            axes[2].plot(ns, [r["speedup"] for r in f["rows"]], "o-", color=c, label=f"{sched} ({mode})")
-    for ax, title in zip(axes[:2], ("frame latency (eq. 5.2's T_tot)", "throughput TThru")):
-        ax.set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="cycles per frame", title=f"{scene}: {title}")
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
-    ns = sorted({r["pipelines"] for f in fits.values() for r in f["rows"]})
-    axes[2].plot(ns, ns, ":", color="gray", label="linear")
-    axes[2].set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="TThru(1) / TThru(N)",
-                title=f"{scene}: speed-up")
-    axes[2].legend(fontsize=7)
-    axes[2].grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -1,0 +1,73 @@
+"""``tlm report``: the figures and tables researchers read, in one self-contained page.
+
+:func:`build_report` reads any tlm output folders (:mod:`tlm.report.collect`), draws
+every section's figures as PNG files with matplotlib and writes ``report.html``, which
+embeds them. The sections, in order:
+
+1. Tables I-III, ours against the thesis (:mod:`tlm.report.tables`)
+2. image sets in the style of Figs. 15-17 (:mod:`tlm.report.images`)
+3. scaling with N pipelines, Figs. 18-20 and eq. 5.2 (:mod:`tlm.report.scaling`)
+4. the sweeps' points and their frame rate per factor (:mod:`tlm.report.sweeps`)
+5. where the cycles go: eq. 5.1 and the timeline (:mod:`tlm.report.cycles`)
+6. error against run time (:mod:`tlm.report.tradeoff`)
+7. peers: the frame rates the thesis quotes (:mod:`tlm.report.peers`)
+8. provenance (:mod:`tlm.report.provenance`)
+
+A section the inputs have nothing for still appears, saying why. The report folder is
+written whole or not at all (a temporary sibling renamed into place).
+"""
+
+from __future__ import annotations
+
+import datetime
+import time
+from pathlib import Path
+
+from tlm.experiments.atomic import atomic_folder
+from tlm.report.collect import Inputs, read
+from tlm.report.common import Section
+from tlm.report.html import esc, page
+
+MARKER = "report.html"
+
+
+def sections(inputs: Inputs, out: Path) -> list[Section]:
+    from tlm.report.cycles import cycles_section
+    from tlm.report.images import images_section
+    from tlm.report.peers import peers_section
+    from tlm.report.provenance import provenance_section
+    from tlm.report.scaling import scaling_section
+    from tlm.report.sweeps import sweeps_section
+    from tlm.report.tables import tables_section
+    from tlm.report.tradeoff import tradeoff_section
+
+    order = (tables_section, images_section, scaling_section, sweeps_section, cycles_section, tradeoff_section,
+             peers_section, provenance_section)
+    return [make(inputs, out) for make in order]
+
+
+def default_out(dirs: list[Path]) -> Path:
+    """``DIR/report`` for one folder; several folders need ``--out``."""
+    if len(dirs) == 1:
+        return Path(dirs[0]) / "report"
+    raise ValueError("several folders: name the report folder with --out")
+
+
+def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None) -> Path:
+    """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``."""
+    t0 = time.perf_counter()
+    dirs = [Path(d) for d in dirs]
+    inputs = read(dirs)
+    out = Path(out) if out is not None else default_out(dirs)
+    with atomic_folder(out, MARKER) as tmp:
+        secs = sections(inputs, tmp)
+        kinds = ", ".join(f"{esc(d)}" for d in dirs)
+        n_fig = sum(len(s.figures) for s in secs)
+        studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
+        intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "
+                 f"{len(inputs.studies)} studies ({esc(studies)})."
+                 f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
+                 f"in {time.perf_counter() - t0:.1f} s. Each figure links to its PNG file.</p>")
+        text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp)
+        (tmp / MARKER).write_text(text, encoding="utf-8")
+    return Path(out) / MARKER

@@ -1,0 +1,84 @@
+"""What every report section shares: the figure and section records, and one plot style.
+
+Figures are drawn with matplotlib's object API (``matplotlib.figure.Figure``, no
+pyplot state, no display needed). The style survives greyscale printing: colours are
+told apart by luminance as well as hue, and every series also has its own hatch (bars)
+or marker and line style (lines).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from matplotlib.figure import Figure as MplFigure
+
+# Okabe-Ito colours, ordered so that neighbours differ in luminance (greyscale-safe)
+COLOURS = ("#000000", "#E69F00", "#0072B2", "#F0E442", "#D55E00", "#56B4E9", "#009E73", "#CC79A7")
+HATCHES = ("", "///", "...", "xxx", "\\\\\\", "+++", "ooo", "---")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 2)), (0, (3, 1, 1, 1, 1, 1)))
+DPI = 110
+
+
+def colour(i: int) -> str:
+    return COLOURS[i % len(COLOURS)]
+
+
+def hatch(i: int) -> str:
+    return HATCHES[i % len(HATCHES)]
+
+
+def marker(i: int) -> str:
+    return MARKERS[i % len(MARKERS)]
+
+
+def linestyle(i: int):
+    return LINESTYLES[i % len(LINESTYLES)]
+
+
+def line_style(i: int) -> dict:
+    """Keyword arguments of ``ax.plot`` for series ``i``: colour, marker and dash differ."""
+    return {"color": colour(i), "marker": marker(i), "linestyle": linestyle(i), "markersize": 5}
+
+
+def bar_style(i: int) -> dict:
+    """Keyword arguments of ``ax.bar`` for series ``i``: colour and hatch differ, black edge."""
+    return {"color": colour(i), "hatch": hatch(i), "edgecolor": "black", "linewidth": 0.6}
+
+
+def new_figure(width: float = 7.0, height: float = 4.5) -> MplFigure:
+    return MplFigure(figsize=(width, height), layout="constrained")
+
+
+@dataclass
+class Figure:
+    """One PNG of the report: ``file`` is relative to the report folder."""
+
+    file: str
+    title: str
+    caption: str = ""
+
+
+@dataclass
+class Section:
+    """A numbered part of the report: figures, optional HTML (tables), or why it is absent.
+
+    ``absent`` is the reason the section has nothing to show for these inputs (the
+    report says so instead of dropping the section); ``notes`` are one-line remarks
+    (what was left out of a figure and why).
+    """
+
+    key: str
+    title: str
+    figures: list[Figure] = field(default_factory=list)
+    html: str = ""
+    absent: str | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def save(fig: MplFigure, out: Path, name: str, title: str, caption: str = "") -> Figure:
+    """Write ``fig`` as ``out/name`` (PNG) and return its record."""
+    path = Path(out) / name
+    fig.savefig(path, dpi=DPI)
+    return Figure(name, title, caption)

@@ -1,0 +1,525 @@
+"""Section: where the cycles go (eq. 5.1 per PM, and the timeline of every unit).
+
+Two figures per run shown:
+
+* **eq. 5.1 breakdown**: one stacked bar per Processing Module, in cycles per frame
+  (the run's totals over ``timing.frames`` frames, divided by the frame count):
+  instructions T_norm, page misses T_ms, pipeline flushes T_ps, the data stalls T_ds by
+  cause, and idle, so that every bar reaches the elapsed time per frame. With up to
+  :data:`FEW_PIPELINES` pipelines every PM of every pipeline has its bar; with more, a
+  PM kind's bar is the mean over the pipelines (the caption says so).
+* **timeline**: a Gantt chart from ``trace.json``: per unit (PMs, memory modules,
+  the compose unit, the crossbar) when it is busy, stalled (by cause) or idle, and when
+  a PM holds a preempted job of the other image (a striped band under its row).
+  Adjacent slices of one state are merged; a trace with more rectangles than the picture
+  has pixels (:data:`MAX_RECTS`) is drawn at pixel resolution: each pixel column of a row
+  shows the state that fills most of it (the caption says so).
+
+The number of runs is bounded (:data:`MAX_RUNS`): every ``tlm run`` folder, for a
+thesis study the slowest mode of each scene, for a sweep the fewest and the most
+pipelines of each combination of its other factors; a note names what was left out.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from matplotlib.patches import Patch, PathPatch
+from matplotlib.path import Path as MplPath
+
+from tlm.arch.units import STALL_CAUSES
+from tlm.report.collect import Inputs, Run
+from tlm.report.common import Section, new_figure, save
+
+PMS = ("vertex", "traversal", "intersection", "fragment")
+FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
+MAX_RUNS = 8  # runs shown (breakdown + timeline each)
+MAX_GANTT_ROWS = 30  # more units: the first and the last pipeline (and the shared units) only
+MAX_RECTS = 20000  # more merged slices than this: draw at pixel resolution
+BINS = 1600  # pixel columns of the timeline at pixel resolution
+MIN_WIDTH_PX = 800  # the time axis is about this many pixels wide: no span is drawn narrower than one
+
+SEGMENTS = ("T_norm", "T_ms", "T_ps", *(f"stall: {c}" for c in STALL_CAUSES), "idle")
+SEGMENT_LABELS = {"T_norm": "T_norm: instructions", "T_ms": "T_ms: page misses", "T_ps": "T_ps: pipeline flushes",
+                  **{f"stall: {c}": f"T_ds: {c} stall" for c in STALL_CAUSES}, "idle": "idle"}
+# the timeline's states, in legend order ("busy" is a PM's work: T_norm + T_ms + T_ps)
+STATES = ("busy", "page misses", "block copy", *(f"stall: {c}" for c in STALL_CAUSES), "idle")
+STATE_LABELS = {"busy": "busy (a PM's work: T_norm + T_ms + T_ps)", "page misses": "page misses (memory module)",
+                "block copy": "block copy (memory module, crossbar)",
+                **{f"stall: {c}": f"{c} stall" for c in STALL_CAUSES}, "idle": "idle",
+                "preempted": "holds a preempted job (band under the row)"}
+# greyscale-safe: fills differ in luminance and each has its own hatch
+STYLE = {
+    "T_norm": ("#0072B2", ""), "busy": ("#0072B2", ""),
+    "T_ms": ("#E69F00", "///"), "page misses": ("#E69F00", "///"),
+    "T_ps": ("#56B4E9", "..."),
+    "block copy": ("#009E73", "++"),
+    "stall: handshake": ("#D55E00", "xxx"),
+    "stall: swap": ("#F0E442", "\\\\\\"),
+    "stall: copy": ("#CC79A7", "oo"),
+    "stall: preemption": ("#777777", "**"),
+    "stall: fifo_full": ("#000000", ""),
+    "stall: fifo_empty": ("#BBBBBB", "---"),
+    "idle": ("#F4F4F4", ""),
+    "preempted": ("#FFFFFF", "||||"),
+}
+_EXTRA = [("#444444", "oo"), ("#999999", "xx"), ("#DDDDDD", "//")]  # states this module does not know
+
+_UNIT = re.compile(r"^pipe(\d+)\.(\w+)$")
+
+
+def style(state: str) -> tuple[str, str]:
+    if state in STYLE:
+        return STYLE[state]
+    return _EXTRA[sum(map(ord, state)) % len(_EXTRA)]
+
+
+# -- which runs ------------------------------------------------------------------------------
+
+def _throughput(run: Run) -> float:
+    return float((run.results.get("cycles") or {}).get("throughput") or 0)
+
+
+def _pipelines(run: Run) -> int:
+    return int(run.factors.get("arch.pipelines") or (run.config.get("arch") or {}).get("pipelines") or 1)
+
+
+def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[str]]:
+    """The runs this section draws, and notes on which were chosen and why.
+
+    Every ``tlm run`` folder; of a thesis study, the slowest mode (largest TThru) of each
+    scene; of a sweep, the fewest and the most pipelines of each combination of its other
+    factors (its first and last point if it does not vary ``arch.pipelines``). At most
+    ``limit`` in all, in that order.
+    """
+    timed = [r for r in inputs.runs if (r.results.get("timing") or {}).get("units")]
+    notes = []
+    untimed = [r.label for r in inputs.runs if r not in timed]
+    if untimed:
+        notes.append(f"No timing results (not simulated), left out: {', '.join(untimed)}.")
+    chosen = [r for r in timed if r.kind == "run"]
+    thesis = [r for r in timed if r.kind == "thesis"]
+    if thesis:
+        by_scene: dict[str, list[Run]] = defaultdict(list)
+        for r in thesis:
+            by_scene[r.scene].append(r)
+        picks = [max(rs, key=_throughput) for rs in by_scene.values()]
+        chosen += picks
+        if len(picks) < len(thesis):
+            shown = ", ".join(r.label for r in picks)
+            notes.append(f"Thesis cells: the slowest mode of each scene is shown ({shown}); "
+                         f"the other {len(thesis) - len(picks)} cells are in Tables I-III.")
+    in_sweep = {id(r) for r in timed if r.kind == "sweep-point"}
+    for sw in inputs.sweeps:
+        points = [r for r in sw.runs if id(r) in in_sweep]
+        if not points:
+            continue
+        groups: dict[tuple, list[Run]] = defaultdict(list)
+        for r in points:
+            groups[tuple(sorted((k, repr(v)) for k, v in r.factors.items() if k != "arch.pipelines"))].append(r)
+        picks = []
+        varies = any("arch.pipelines" in r.factors for r in points)
+        for rs in groups.values():
+            ends = [min(rs, key=_pipelines), max(rs, key=_pipelines)] if varies else [rs[0], rs[-1]]
+            picks += [r for i, r in enumerate(ends) if r not in ends[:i]]
+        chosen += picks
+        if len(picks) < len(points):
+            why = ("the fewest and the most pipelines of each combination of the other factors" if varies
+                   else "its first and last point")
+            notes.append(f"Sweep {sw.path.name}: {len(picks)} of {len(points)} points are shown, {why} "
+                         f"({', '.join(f'{r.label} [{_factors(r)}]' for r in picks)}).")
+    if len(chosen) > limit:
+        left = chosen[limit:]
+        notes.append(f"At most {limit} runs are drawn; left out: {', '.join(r.label for r in left)}.")
+        chosen = chosen[:limit]
+    return chosen, notes
+
+
+def _factors(run: Run) -> str:
+    return ", ".join(f"{k.split('.')[-1]}={v}" for k, v in run.factors.items())
+
+
+# -- (a) the eq. 5.1 breakdown ---------------------------------------------------------------
+
+@dataclass
+class Breakdown:
+    """Stacked bars: ``segments[s][i]`` is bar i's cycles per frame in segment s."""
+
+    labels: list[str]
+    segments: dict[str, np.ndarray]
+    elapsed: np.ndarray  # per bar: the unit's elapsed cycles per frame
+    frames: int
+    throughput: float  # TThru, cycles per frame
+    aggregate: str | None = None  # how bars were aggregated over pipelines (None: one per PM)
+
+
+def breakdown(run: Run, few: int = FEW_PIPELINES) -> Breakdown:
+    """The eq. 5.1 terms per PM of ``run``, in cycles per frame (see the module docstring)."""
+    timing = run.results["timing"]
+    units = timing["units"]
+    frames = max(int(timing.get("frames") or 1), 1)
+    pms: list[tuple[int, str, dict]] = []
+    for name, u in units.items():
+        m = _UNIT.match(name)
+        if m:
+            pms.append((int(m.group(1)), m.group(2), u))
+    order = {p: i for i, p in enumerate(PMS)}
+    pms.sort(key=lambda t: (t[0], order.get(t[1], len(order)), t[1]))
+    n_pipes = len({p for p, _, _ in pms})
+
+    def values(u: dict) -> dict[str, float]:
+        out = {"T_norm": u["T_norm"], "T_ms": u["T_ms"], "T_ps": u["T_ps"], "idle": u["idle"]}
+        for c in STALL_CAUSES:
+            out[f"stall: {c}"] = (u.get("stall") or {}).get(c, 0)
+        return out
+
+    rows: list[tuple[str, dict[str, float], float]] = []
+    aggregate = None
+    if n_pipes <= few:
+        for p, name, u in pms:
+            label = name if n_pipes == 1 else f"pipe{p}\n{name}"
+            rows.append((label, values(u), u["elapsed"]))
+    else:
+        aggregate = f"mean over the {n_pipes} pipelines of each PM kind"
+        kinds = sorted({name for _, name, _ in pms}, key=lambda n: order.get(n, len(order)))
+        for kind in kinds:
+            us = [u for _, name, u in pms if name == kind]
+            vals = [values(u) for u in us]
+            mean = {s: sum(v[s] for v in vals) / len(vals) for s in SEGMENTS}
+            label = f"{kind}\n(mean of {len(us)})" if len(us) > 1 else f"{kind}\n(pipe0 only)"
+            rows.append((label, mean, sum(u["elapsed"] for u in us) / len(us)))
+    segments = {s: np.array([v[s] / frames for _, v, _ in rows], dtype=float) for s in SEGMENTS}
+    return Breakdown([r[0] for r in rows], segments, np.array([r[2] / frames for r in rows], dtype=float), frames,
+                     _throughput(run), aggregate)
+
+
+def breakdown_figure(run: Run, out: Path, name: str):
+    bd = breakdown(run)
+    if not bd.labels:
+        return None
+    top = float(bd.elapsed.max()) if bd.elapsed.size else 0.0
+    scale, unit = (1e6, "million cycles") if top >= 1e6 else (1e3, "thousand cycles") if top >= 1e4 else (1, "cycles")
+    fig = new_figure(max(6.5, 1.0 * len(bd.labels) + 4.0), 4.8)
+    ax = fig.subplots()
+    x = np.arange(len(bd.labels))
+    bottom = np.zeros(len(bd.labels))
+    empty = []
+    for s in SEGMENTS:
+        v = bd.segments[s] / scale
+        if not v.any():
+            empty.append(s)
+            continue
+        c, h = style(s)
+        ax.bar(x, v, 0.6, bottom=bottom, color=c, hatch=h, edgecolor="black", linewidth=0.6, label=SEGMENT_LABELS[s])
+        bottom += v
+    if bd.throughput:
+        ax.axhline(bd.throughput / scale, color="black", linestyle="--", linewidth=1.0,
+                   label=f"TThru (frame period): {bd.throughput / scale:.4g}")
+    ax.set_xticks(x, bd.labels, fontsize=8)
+    ax.set_ylim(0, 1.06 * max(top, bd.throughput) / scale or 1.0)
+    ax.set(xlabel="Processing Module", ylabel=f"{unit} per frame",
+           title=f"{run.label}: eq. 5.1 breakdown per PM")
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    caption = (f"Cycles per frame (totals over {bd.frames} simulated frames / {bd.frames}); each bar reaches the "
+               f"PM's elapsed time, T_ds split by stall cause. ")
+    caption += (f"Bars: {bd.aggregate}." if bd.aggregate else "Bars: every PM of every pipeline.")
+    if empty:
+        caption += f" No cycles (not drawn): {', '.join(SEGMENT_LABELS[s] for s in empty)}."
+    return save(fig, out, name, f"{run.label}: where the cycles go (eq. 5.1)", caption)
+
+
+# -- (b) the timeline ------------------------------------------------------------------------
+
+@dataclass
+class Gantt:
+    """Merged spans per (unit, state) of a trace: ``spans[(unit, state)] = (starts, ends)`` in cycles."""
+
+    rows: list[str]  # units, display order
+    spans: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
+    end: int
+    clock_hz: float | None
+    slices: int  # slices in the trace (before merging)
+    unknown: list[str] = field(default_factory=list)  # slice names this module does not know
+
+    def total(self, unit: str, state: str) -> int:
+        got = self.spans.get((unit, state))
+        return 0 if got is None else int((got[1] - got[0]).sum())
+
+    def rects(self) -> int:
+        return sum(s.shape[0] for s, _ in self.spans.values())
+
+
+def state_of(name: str) -> str | None:
+    """A trace slice's state (None: not a state of its own)."""
+    if name in ("busy", "page misses", "idle", "preempted") or name.startswith("stall: "):
+        return name
+    if name.startswith("copy"):
+        return "block copy"
+    return None
+
+
+def _row_order(unit: str) -> tuple:
+    m = _UNIT.match(unit)
+    if m:
+        name = m.group(2)
+        return (0, int(m.group(1)), PMS.index(name) if name in PMS else len(PMS), name)
+    m = re.match(r"^mem(\d+)$", unit)
+    if m:
+        return (1, int(m.group(1)), 0, "")
+    return (2 if unit == "compose" else 3 if unit == "xbar" else 4, 0, 0, unit)
+
+
+def merge(starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sort spans and merge those that touch or overlap."""
+    if starts.size == 0:
+        return starts, ends
+    o = np.argsort(starts, kind="stable")
+    s, e = starts[o], ends[o]
+    reach = np.maximum.accumulate(e)
+    new = np.ones(s.shape[0], dtype=bool)
+    new[1:] = s[1:] > reach[:-1]
+    first = np.flatnonzero(new)
+    last = np.r_[first[1:] - 1, s.shape[0] - 1]
+    return s[first], reach[last]
+
+
+def gantt(trace_path: Path) -> Gantt:
+    """Read ``trace.json``: every unit's spans per state, adjacent slices merged.
+
+    Rows ``<unit> (preempted)`` (when a PM holds a job it switched away from) become the
+    state ``preempted`` of the unit; their idle filler is not a state of the unit and
+    is dropped. Slices of a name this module does not know keep their name as state.
+    """
+    doc = json.loads(Path(trace_path).read_text())
+    events = doc["traceEvents"] if isinstance(doc, dict) else doc
+    names: dict[int, str] = {}
+    for ev in events:
+        if ev.get("ph") == "M" and ev.get("name") == "thread_name":
+            names[ev["tid"]] = ev["args"]["name"]
+    raw: dict[tuple[str, str], list[tuple[int, int]]] = defaultdict(list)
+    unknown: set[str] = set()
+    end, n = 0, 0
+    for ev in events:
+        if ev.get("ph") != "X":
+            continue
+        n += 1
+        scope = names.get(ev["tid"], f"tid {ev['tid']}")
+        s, d = int(ev["ts"]), int(ev["dur"])
+        end = max(end, s + d)
+        name = ev["name"]
+        if scope.endswith(" (preempted)"):
+            if name != "preempted":
+                continue  # the row's idle filler
+            scope = scope[: -len(" (preempted)")]
+        state = state_of(name)
+        if state is None:
+            unknown.add(name)
+            state = name
+        raw[(scope, state)].append((s, s + d))
+    spans = {}
+    for key, pairs in raw.items():
+        a = np.array(pairs, dtype=np.int64)
+        spans[key] = merge(a[:, 0], a[:, 1])
+    rows = sorted({u for u, _ in spans}, key=_row_order)
+    clock = (doc.get("otherData") or {}).get("clock_hz") if isinstance(doc, dict) else None
+    return Gantt(rows, spans, end, clock, n, sorted(unknown))
+
+
+def _coverage(starts: np.ndarray, ends: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Cycles of the (sorted, disjoint) spans inside each bin between ``edges``."""
+    dur = ends - starts
+    before = np.r_[0, np.cumsum(dur)]
+    i = np.searchsorted(starts, edges, side="right") - 1
+    inside = np.where(i >= 0, np.clip(edges - starts[np.maximum(i, 0)], 0, dur[np.maximum(i, 0)]), 0)
+    cum = before[np.maximum(i, 0)] * (i >= 0) + inside
+    return np.diff(cum.astype(float))
+
+
+def _runs_of(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and one-past-last index of each run of True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def pixel_spans(g: Gantt, bins: int = BINS) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
+    """The spans at pixel resolution: each of ``bins`` columns of a row shows one state,
+    the one other than idle that fills most of it (idle only when nothing else happens
+    there), so that short activity stays visible.
+
+    The preempted band is kept where a column is at least half preempted.
+    """
+    edges = np.linspace(0, g.end, bins + 1)
+    out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+    for unit in g.rows:
+        states = [s for (u, s) in g.spans if u == unit and s != "preempted"]
+        if states:
+            cov = np.stack([_coverage(*g.spans[(unit, s)], edges) for s in states])
+            busy = np.where([s != "idle" for s in states], 1.0, 0.0)[:, None]
+            top = np.argmax(cov * (1.0 + busy * 1e12), axis=0)  # any activity beats idle
+            has = cov.sum(axis=0) > 0
+            for k, s in enumerate(states):
+                a, b = _runs_of((top == k) & has)
+                if a.size:
+                    out[(unit, s)] = (edges[a], edges[b])
+        if (unit, "preempted") in g.spans:
+            cov = _coverage(*g.spans[(unit, "preempted")], edges)
+            a, b = _runs_of(cov >= 0.5 * np.diff(edges))
+            if a.size:
+                out[(unit, "preempted")] = (edges[a], edges[b])
+    return out
+
+
+def _rects(xs: list[np.ndarray], ws: list[np.ndarray], ys: list[float], hs: list[float]) -> MplPath:
+    """Rectangles (x, y, width, height) as one compound path; ``xs[i]``, ``ws[i]`` share ``ys[i]``, ``hs[i]``."""
+    x = np.concatenate(xs)
+    w = np.concatenate(ws)
+    y = np.concatenate([np.full(len(a), v, dtype=float) for a, v in zip(xs, ys, strict=True)])
+    h = np.concatenate([np.full(len(a), v, dtype=float) for a, v in zip(xs, hs, strict=True)])
+    v = np.empty((x.shape[0], 5, 2))
+    v[:, 0, 0], v[:, 0, 1] = x, y
+    v[:, 1, 0], v[:, 1, 1] = x + w, y
+    v[:, 2, 0], v[:, 2, 1] = x + w, y + h
+    v[:, 3, 0], v[:, 3, 1] = x, y + h
+    v[:, 4] = v[:, 0]
+    codes = np.tile(np.array([MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY],
+                             dtype=MplPath.code_type), x.shape[0])
+    return MplPath(v.reshape(-1, 2), codes)
+
+
+def _gantt_rows(run: Run, g: Gantt) -> tuple[list[str], str | None]:
+    """The rows drawn, and a note when some were left out (too many pipelines)."""
+    if len(g.rows) <= MAX_GANTT_ROWS:
+        return g.rows, None
+    pipes = sorted({int(m.group(1)) for u in g.rows if (m := _UNIT.match(u))})
+    keep_p = {pipes[0], pipes[-1]}
+    per = 2 * int((run.results["timing"].get("images_in_flight")) or 2)
+    keep = []
+    for u in g.rows:
+        m = _UNIT.match(u)
+        mm = re.match(r"^mem(\d+)$", u)
+        if m:
+            ok = int(m.group(1)) in keep_p
+        elif mm:
+            ok = int(mm.group(1)) // per in keep_p
+        else:
+            ok = True
+        if ok:
+            keep.append(u)
+    return keep, (f"{run.label}: the timeline shows pipelines {pipes[0]} and {pipes[-1]} of {len(pipes)} "
+                  f"(their PMs and memory modules) and the shared units; {len(g.rows) - len(keep)} other units "
+                  f"are left out to keep the rows readable.")
+
+
+def gantt_figure(run: Run, out: Path, name: str, notes: list[str]):
+    g = gantt(run.trace)
+    if not g.rows or g.end <= 0:
+        notes.append(f"{run.label}: trace.json has no slices; no timeline.")
+        return None
+    rows, note = _gantt_rows(run, g)
+    if note:
+        notes.append(note)
+    if g.unknown:
+        notes.append(f"{run.label}: slices of unknown kind drawn as states of their own: {', '.join(g.unknown)}.")
+    coarse = g.rects() > MAX_RECTS
+    spans = pixel_spans(g) if coarse else g.spans
+    clock = g.clock_hz
+    if clock:
+        secs = g.end / clock
+        tscale, tunit = (1e3, "ms") if secs >= 1e-3 else (1e6, "µs")
+        k = tscale / clock
+        xlabel = f"time ({tunit} at {clock / 1e6:g} MHz)"
+    else:
+        k, xlabel = 1.0, "time (cycles)"
+    fig = new_figure(11, 1.6 + 0.3 * len(rows))
+    ax = fig.subplots()
+    min_w = g.end * k / MIN_WIDTH_PX  # a short span is drawn one pixel wide
+    index = {u: i for i, u in enumerate(rows)}
+    by_state: dict[str, list[tuple]] = defaultdict(list)
+    for (unit, state), (s, e) in spans.items():
+        if unit in index and s.size:
+            y = len(rows) - 1 - index[unit]
+            w = (e - s) * k
+            w = w if state == "idle" else np.maximum(w, min_w)
+            by_state[state].append((s * k, w, *((y - 0.42, 0.2) if state == "preempted" else (y - 0.2, 0.6))))
+    present = set(by_state)
+    for state, parts in by_state.items():
+        # one compound path per state: hatching and drawing cost per path, not per span
+        c, h = style(state)
+        pre = state == "preempted"
+        ax.add_artist(PathPatch(_rects([p[0] for p in parts], [p[1] for p in parts], [p[2] for p in parts],
+                                       [p[3] for p in parts]),
+                                facecolor=c, hatch=h, edgecolor="#444444" if pre else "black",
+                                linewidth=0.4 if pre else 0, zorder=3 if pre else 1 if state == "idle" else 2))
+    frame_times = run.results["timing"].get("frame_times") or []
+    for f in frame_times:
+        ax.axvline(f["done"] * k, color="black", linestyle=":", linewidth=0.8, zorder=4)
+    ax.set_yticks(range(len(rows)), list(reversed(rows)), fontsize=7)
+    ax.set_ylim(-0.6, len(rows) - 0.4)
+    ax.set_xlim(0, g.end * k)
+    ax.set(xlabel=xlabel, title=f"{run.label}: busy, stalled and idle over time")
+    if clock:
+        top = ax.secondary_xaxis("top", functions=(lambda t: t / k / 1e6, lambda c: c * 1e6 * k))
+        top.set_xlabel("million cycles", fontsize=8)
+    order = [s for s in (*STATES, "preempted") if s in present] + sorted(present - set(STATES) - {"preempted"})
+    handles = []
+    for s in order:
+        c, h = style(s)
+        handles.append(Patch(facecolor=c, hatch=h, edgecolor="black", linewidth=0.5, label=STATE_LABELS.get(s, s)))
+    if frame_times:
+        handles.append(ax.plot([], [], color="black", linestyle=":", linewidth=0.8, label="a frame is done")[0])
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    caption = (f"From trace.json ({g.slices} slices over {g.end} cycles, {len(frame_times) or 'the'} simulated "
+               f"frames); adjacent slices of one state merged; a span shorter than a pixel is drawn one pixel wide.")
+    if coarse:
+        caption += (f" {g.rects()} spans are more than the picture can show: each of {BINS} columns of a row "
+                    f"shows the state other than idle that fills most of it (idle only where nothing else "
+                    f"happens).")
+    return save(fig, out, name, f"{run.label}: timeline of every unit", caption)
+
+
+# -- the section -----------------------------------------------------------------------------
+
+def _slug(label: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "_", label).strip("_")[:60] or "run"
+
+
+def cycles_section(inputs: Inputs, out: Path) -> Section:
+    sec = Section("cycles", "Where the cycles go")
+    if not inputs.runs:
+        sec.absent = "no run, thesis or sweep folder among the inputs (nothing was simulated)"
+        return sec
+    runs, notes = select_runs(inputs)
+    sec.notes.extend(notes)
+    if not runs:
+        sec.absent = "none of the runs has timing results"
+        return sec
+    for i, run in enumerate(runs):
+        slug = f"cycles_{i:02d}_{_slug(run.label)}"
+        try:
+            fig = breakdown_figure(run, out, f"{slug}_breakdown.png")
+        except (KeyError, TypeError, ValueError) as e:
+            sec.notes.append(f"{run.label}: its timing results lack the eq. 5.1 terms ({type(e).__name__}: {e}); "
+                             f"no breakdown.")
+            fig = None
+        else:
+            if fig is None:
+                sec.notes.append(f"{run.label}: no Processing Module in its timing results; no breakdown.")
+        if fig is not None:
+            sec.figures.append(fig)
+        if run.trace is None:
+            sec.notes.append(f"{run.label}: no trace.json (arch.trace was false), so no timeline.")
+            continue
+        try:
+            fig = gantt_figure(run, out, f"{slug}_timeline.png", sec.notes)
+        except (OSError, KeyError, TypeError, ValueError) as e:
+            sec.notes.append(f"{run.label}: trace.json cannot be read ({type(e).__name__}: {e}); no timeline.")
+            fig = None
+        if fig is not None:
+            sec.figures.append(fig)
+    return sec

@@ -1,0 +1,239 @@
+"""Report section: image sets in the style of the thesis's Figs. 15-17.
+
+Per scene a row of four panels, RCast, Reflect, Refract and PMap, each the image of
+that mode, i.e. the *cumulative* composite (the modes add passes: Refract is ray cast
++ reflection + refraction), as in the thesis.
+
+* A ``tlm thesis`` folder: each cell ``<scene>/<mode>`` is one panel, its
+  ``images/composite.png`` (each cell tone-mapped with its own exposure, as written).
+  A mode the study did not run but a larger cell of the scene contains (the cells are
+  cuts of one render) is rebuilt from that cell's radiance, as for a single run.
+* A single run: the composites of its own mode and of every smaller mode are rebuilt
+  from ``radiance/<pass>.npy`` (sums of the passes the planner ran up to that mode),
+  all tone-mapped with the run's one exposure (``results.json`` ``image.exposure``), so
+  the four panels are directly comparable. A run folder without ``radiance/`` shows
+  its ``images/composite.png`` for its own mode only.
+
+A mode whose pass the planner left out for lack of what it needs (no mirror, no
+dielectric, ...) still has an image (the same as the previous mode's) and its panel
+gives the planner's reason; a mode beyond the run's is an empty panel saying it was
+not run and why. Sweep points keep no images; they are listed in a note.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tlm.config import MODES
+from tlm.render.image import to_srgb8
+from tlm.render.planner import PASSES
+from tlm.report.collect import Inputs, Run
+from tlm.report.common import Section, new_figure, save
+
+MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
+SCENE_TITLE = {"ring": "Scene with ring (Fig. 15)", "room": "Room scene (Fig. 16)",
+               "cornell": "Cornell Box scene (Fig. 17)"}
+MAX_ROWS = 4  # rows (scenes or runs) per figure
+MAX_FIGURES = 6  # image figures in the report; what is beyond is named in a note
+WRAP = 34
+
+
+@dataclass
+class Panel:
+    mode: str
+    image: np.ndarray | None = None  # (H, W, 3) uint8 or float in [0, 1]
+    remark: str = ""  # the planner's reason, or why there is no image
+
+
+@dataclass
+class Row:
+    label: str
+    resolution: str
+    panels: list[Panel] = field(default_factory=list)
+
+
+def _read_png(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
+
+
+def _plan(run: Run) -> tuple[list[str], dict[str, str]]:
+    plan = run.results.get("plan") or {}
+    return list(plan.get("run") or []), dict(plan.get("left_out") or {})
+
+
+def _resolution(run: Run) -> str:
+    res = run.results["scene"].get("resolution")
+    return f"{res[0]}×{res[1]}" if res else "?"
+
+
+def cell_panel(run: Run, mode: str) -> Panel:
+    """The panel of one thesis cell: its composite, and the reason if its pass was left out."""
+    _, left = _plan(run)
+    png = run.path / "images" / "composite.png"
+    if not png.is_file():
+        return Panel(mode, remark=f"no image: {run.label} has no images/composite.png")
+    remark = f"{mode} pass left out: {left[mode]} (image = previous mode's)" if mode in left else ""
+    return Panel(mode, _read_png(png), remark)
+
+
+def study_panels(cells: dict[str, Run], study_name: str) -> list[Panel]:
+    """One scene of a thesis study: each cell's composite; a mode the study did not run is
+    rebuilt from the radiance of a larger mode's cell (the cells are cuts of one render)."""
+    largest = max(cells.values(), key=lambda r: MODES.index(r.mode))
+    rebuilt: list[Panel] | None = None
+    panels = []
+    for i, mode in enumerate(MODES):
+        if mode in cells:
+            panels.append(cell_panel(cells[mode], mode))
+        elif i < MODES.index(largest.mode) and largest.radiance is not None:
+            rebuilt = rebuilt or run_panels(largest)
+            p = rebuilt[i]
+            why = (f"study {study_name} has no {mode} cell: rebuilt from the {largest.mode} cell's radiance "
+                   "and exposure")
+            panels.append(Panel(mode, p.image, f"{p.remark}; {why}" if p.remark else why))
+        else:
+            panels.append(Panel(mode, remark=f"not run: study {study_name} has no {mode} cell"))
+    return panels
+
+
+def run_panels(run: Run) -> list[Panel]:
+    """The four cumulative mode images of one run, rebuilt from its radiance."""
+    ran, left = _plan(run)
+    top = MODES.index(run.mode) if run.mode in MODES else len(MODES) - 1
+    exposure = float((run.results.get("image") or {}).get("exposure") or 1.0)
+    rad_dir = run.radiance
+    panels = []
+    total = None
+    for i, mode in enumerate(MODES):
+        if i > top:
+            panels.append(Panel(mode, remark=f"not run: {left.get(mode, f'the run is in mode {run.mode!r}')}"))
+            continue
+        if rad_dir is None:
+            if i == top and (run.path / "images" / "composite.png").is_file():
+                panels.append(Panel(mode, _read_png(run.path / "images" / "composite.png")))
+            else:
+                panels.append(Panel(mode, remark="cannot rebuild: the run folder has no radiance/"))
+            continue
+        name = PASSES[i]
+        remark = ""
+        if name in ran:
+            path = rad_dir / f"{name}.npy"
+            if not path.is_file():
+                panels.append(Panel(mode, remark=f"no radiance/{name}.npy in the run folder"))
+                total = None
+                continue
+            rad = np.load(path).astype(np.float64)
+            total = rad if total is None else total + rad
+        else:
+            remark = f"{name} pass left out: {left.get(name, 'not planned')} (image = previous mode's)"
+        panels.append(Panel(mode, None if total is None else to_srgb8(total, exposure), remark))
+    return panels
+
+
+def _draw(rows: list[Row], title: str, out: Path, name: str, caption: str):
+    ncols = len(MODES)
+    fig = new_figure(2.3 * ncols + 0.4, 2.55 * len(rows) + 0.5)
+    axes = fig.subplots(len(rows), ncols, squeeze=False)
+    for r, row in enumerate(rows):
+        for c, panel in enumerate(row.panels):
+            ax = axes[r][c]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            for spine in ax.spines.values():
+                spine.set_visible(panel.image is not None)
+            ax.set_title(MODE_TITLE[panel.mode], fontsize=9)
+            if panel.image is not None:
+                ax.imshow(panel.image, interpolation="nearest")
+                if panel.remark:
+                    ax.set_xlabel(textwrap.fill(panel.remark, WRAP), fontsize=6.5)
+            else:
+                ax.set_xlim(0, 1)
+                ax.set_ylim(0, 1)
+                ax.set_facecolor("#f2f2f2")
+                for spine in ax.spines.values():
+                    spine.set_visible(True)
+                    spine.set_linestyle(":")
+                ax.text(0.5, 0.5, textwrap.fill(panel.remark, 26), ha="center", va="center", fontsize=7,
+                        transform=ax.transAxes, wrap=True)
+            if c == 0:
+                ax.set_ylabel(textwrap.fill(f"{row.label} ({row.resolution})", 28), fontsize=8)
+    fig.suptitle(title, fontsize=11)
+    return save(fig, out, name, title, caption)
+
+
+def _slug(text: str) -> str:
+    return "".join(ch if ch.isalnum() else "_" for ch in text).strip("_")[:60] or "run"
+
+
+def images_section(inputs: Inputs, out: Path) -> Section:
+    """Figs. 15-17 style image sets: per thesis study one figure, per run one row."""
+    out = Path(out)
+    section = Section("images", "Image sets (Figs. 15–17): RCast, Reflect, Refract, PMap")
+    jobs: list[tuple[list[Row], str, str, str]] = []  # rows, title, file name, caption
+    in_study: set[Path] = set()
+    for study in inputs.of_kind("thesis"):
+        root = study.path.resolve()
+        cells = [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
+        in_study.update(r.path.resolve() for r in cells)
+        order = list(SCENE_TITLE)
+        scenes = sorted(dict.fromkeys(r.scene for r in cells), key=lambda s: (order.index(s) if s in order else 9, s))
+        rows = []
+        for scene in scenes:
+            by_mode = {r.mode: r for r in cells if r.scene == scene}
+            any_run = next(iter(by_mode.values()))
+            rows.append(Row(SCENE_TITLE.get(scene, scene), _resolution(any_run),
+                            study_panels(by_mode, study.path.name)))
+        if not rows:
+            section.notes.append(f"thesis study {study.path.name}: no cell folders, so no images")
+            continue
+        for k in range(0, len(rows), MAX_ROWS):
+            part = rows[k:k + MAX_ROWS]
+            suffix = f" ({k // MAX_ROWS + 1})" if len(rows) > MAX_ROWS else ""
+            jobs.append((part, f"Thesis study {study.path.name}: image sets by mode{suffix}",
+                         f"images_{_slug(study.path.name)}{'_' + str(k // MAX_ROWS + 1) if suffix else ''}.png",
+                         "Each panel is the cumulative composite of its mode as written by the study "
+                         "(images/composite.png of the cell, tone-mapped with that cell's own exposure)."))
+    runs = [r for r in inputs.runs if r.kind == "run" and r.path.resolve() not in in_study]
+    points = [r for r in inputs.runs if r.kind == "sweep-point"]
+    if points:
+        section.notes.append(f"{len(points)} sweep points have no images (a sweep keeps results only); "
+                             "render one point with 'tlm run' to see it")
+    with_images = []
+    for run in runs:
+        if run.images is None and run.radiance is None:
+            section.notes.append(f"{run.label}: the run folder has no images/ or radiance/, left out")
+        else:
+            with_images.append(run)
+    for k in range(0, len(with_images), MAX_ROWS):
+        part = with_images[k:k + MAX_ROWS]
+        rows = [Row(r.label, _resolution(r), run_panels(r)) for r in part]
+        n = k // MAX_ROWS + 1
+        many = len(with_images) > MAX_ROWS
+        title = "Runs: image sets by mode" + (f" ({n})" if many else "")
+        if len(part) == 1:
+            title = f"{SCENE_TITLE.get(part[0].scene, part[0].scene)}: image set by mode, {part[0].label}"
+        jobs.append((rows, title, f"images_runs{'_' + str(n) if many else ''}.png",
+                     "Each panel is the cumulative composite of its mode (the sum of the passes run up to it), "
+                     "rebuilt from the run's linear radiance and tone-mapped with the run's one exposure."))
+    if not jobs:
+        section.absent = ("no thesis cell or run folder with images among the inputs"
+                          + (" (sweep points keep no images)" if points else ""))
+        return section
+    if len(jobs) > MAX_FIGURES:
+        left = [title for _, title, _, _ in jobs[MAX_FIGURES:]]
+        section.notes.append(f"{len(left)} image figures left out (at most {MAX_FIGURES}): {'; '.join(left)}")
+        jobs = jobs[:MAX_FIGURES]
+    for rows, title, name, caption in jobs:
+        for row in rows:
+            for p in row.panels:
+                if p.remark:
+                    section.notes.append(f"{row.label}, {MODE_TITLE[p.mode]}: {p.remark}")
+        section.figures.append(_draw(rows, title, out, name, caption))
+    return section

@@ -1,0 +1,57 @@
+"""``tlm plots``: run every committed experiment and write the report of all of them.
+
+One command regenerates ``plots/`` (the figures the README shows)::
+
+    tlm plots                      # runs/ for the outputs, plots/ for the report
+
+Each step is a tlm command over a file in ``configs/``; a sweep skips the points it
+finished before, and the functional cache spares renders that were done before, so a
+second call redoes only the simulations and the report. ``--only`` runs a subset of
+the steps (the report still reads every step's folder that exists).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from tlm.errors import InputError
+
+SWEEPS = ("scaling_ring", "scaling_room", "scaling_cornell", "design_space", "bsp_levels", "sweep_fifo")
+
+# (step name, argv with {configs} and {runs}); the report reads the folder named like the step
+STEPS: tuple[tuple[str, list[str]], ...] = (
+    ("thesis", ["thesis", "{configs}/thesis.yaml", "--out", "{runs}/thesis"]),
+    *((s, ["sweep", f"{{configs}}/{s}.yaml", "--out", f"{{runs}}/{s}", "--no-progress"]) for s in SWEEPS),
+    ("eq52", ["scaling", "{runs}/scaling_ring", "{runs}/scaling_room", "{runs}/scaling_cornell",
+              "--out", "{runs}/eq52"]),
+    ("tlm_granularity", ["granularity", "{configs}/tlm_granularity.yaml", "--out", "{runs}/tlm_granularity"]),
+    ("error_vs_cost", ["error-vs-cost", "{configs}/error_vs_cost.yaml", "--out", "{runs}/error_vs_cost"]),
+    ("cornell_pmap", ["run", "{configs}/cornell_pmap.yaml", "--out", "{runs}/cornell_pmap"]),
+)
+# the scaling sweeps are shown through eq52 (the same fits): not read twice by the report
+REPORTED = tuple(name for name, _ in STEPS if not name.startswith("scaling_"))
+
+
+def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = None,
+               run_command: Callable[[list[str]], int] | None = None, say=print) -> Path:
+    """Run the steps (all, or ``only``), then the report of their folders into ``out``."""
+    from tlm.cli import main
+    from tlm.report import build_report
+
+    names = [n for n, _ in STEPS]
+    for n in only or []:
+        if n not in names:
+            raise InputError(f"unknown step {n!r} (steps: {', '.join(names)})", key="--only")
+    run_command = run_command or main
+    for name, argv in STEPS:
+        if only and name not in only:
+            continue
+        argv = [a.format(configs=configs, runs=runs) for a in argv] + ["--no-report"]
+        say(f"== {name}: tlm {' '.join(argv)}")
+        if run_command(argv) != 0:
+            raise InputError(f"step {name} failed (see above)", key="tlm plots")
+    dirs = [runs / n for n in REPORTED if (runs / n).is_dir()]
+    if not dirs:
+        raise InputError(f"no step's folder exists under {runs}", key="--runs")
+    return build_report(dirs, out, "tlm: the committed experiments")

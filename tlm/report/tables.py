@@ -1,0 +1,399 @@
+"""Report section: Tables I-III of the thesis reproduced, ours beside the thesis per cell.
+
+Where the rows come from:
+
+* a ``tlm thesis`` folder (a :class:`~tlm.report.collect.Study` of kind ``thesis``): its
+  ``thesis_comparison.csv``, one source per (study, scene);
+* otherwise every run folder and sweep point whose scene is a thesis scene (ring, room,
+  cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs whose resolved
+  configs agree except for ``mode`` fill the columns of one table; every other run
+  (every sweep point) is a source of its own.
+
+Each table is laid out like the thesis's (metrics as rows, modes as columns); a cell
+shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
+``†`` a calibrated cell (:data:`tlm.experiments.thesis.CALIBRATED`: fitted, not a
+prediction), ``▲`` the slowest PM of the scene-mode in the thesis, ``●`` the slowest PM
+in ours. A source whose resolution, photon count, pipeline count or clock differs from
+the thesis's is still shown, marked *not comparable* with the reason.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tlm.config import MODES
+from tlm.experiments.thesis import CALIBRATED, METRICS, PM_METRICS, THESIS, _ours, comparison_rows, summarize
+from tlm.report.collect import Inputs, Run, Study
+from tlm.report.common import Section, line_style, new_figure, save
+
+# The thesis's stated sizes (Tables I-III headings; the built-in scenes' defaults):
+# width, height, photons, triangles.
+THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
+                "cornell": (320, 320, 120_000, 2604)}
+THESIS_CLOCK_HZ = 600e6
+TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
+SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
+MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
+UNITS = dict.fromkeys(PM_METRICS, "M cycles") | {"TThru": "M cycles", "FPS": "frames/s"}
+
+MARK_CALIBRATED = "†"
+MARK_SLOW_THESIS = "▲"
+MARK_SLOW_OURS = "●"
+
+MAX_TABLES_PER_SCENE = 4  # sources shown as tables per scene; the rest are named in a note
+MAX_FIGURE_SOURCES = 4  # sources drawn in a scene's figure
+
+
+def fmt(v: float | None) -> str:
+    """A table value: four significant digits (the thesis gives three or four)."""
+    return "–" if v is None else f"{v:.4g}"
+
+
+def fmt_error(e: float | None) -> str:
+    """A relative error as a signed percentage with one decimal."""
+    return "–" if e is None else f"{e:+.1%}"
+
+
+@dataclass
+class Source:
+    """One table: the rows of one scene from one study, one run or a group of runs."""
+
+    label: str
+    scene: str
+    rows: dict[tuple[str, str], dict] = field(default_factory=dict)  # (mode, metric) -> comparison row
+    runs: list[Run] = field(default_factory=list)  # the run folders behind the rows
+    study: Study | None = None
+    not_comparable: list[str] = field(default_factory=list)  # why ours is not the thesis's setting
+    unknown: str | None = None  # why comparability cannot be told
+
+    @property
+    def modes(self) -> list[str]:
+        return [m for m in MODES if any(k[0] == m for k in self.rows)]
+
+    def slowest(self, mode: str) -> tuple[str | None, str | None]:
+        """The slowest PM of ``mode`` in the thesis and in ours (None: no such cell)."""
+        cells = {k: self.rows.get((mode, k)) for k in PM_METRICS}
+        if any(c is None for c in cells.values()):
+            return None, None
+        theirs = None if any(c["thesis"] is None for c in cells.values()) else \
+            max(PM_METRICS, key=lambda k: cells[k]["thesis"])
+        ours = max(PM_METRICS, key=lambda k: cells[k]["ours"])
+        return theirs, ours
+
+
+def _study_cells(inputs: Inputs, study: Study) -> list[Run]:
+    root = study.path.resolve()
+    return [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
+
+
+def photons_of(run: Run) -> int | None:
+    """The photons a run emitted (None when its photon pass did not run)."""
+    if "pmap" not in (run.results.get("plan") or {}).get("run", []):
+        return None
+    emitted = (run.results.get("photons") or {}).get("emitted")
+    if emitted is not None:
+        return int(emitted)
+    count = (run.config.get("photons") or {}).get("count")
+    return int(count) if count is not None else run.results["scene"].get("photons")
+
+
+def mismatches(run: Run, scene: str) -> list[str]:
+    """How ``run`` differs from the setting of the thesis's table for ``scene`` (empty: none)."""
+    w, h, n, _ = THESIS_SIZES[scene]
+    out = []
+    res = run.results["scene"].get("resolution")
+    if res and [int(res[0]), int(res[1])] != [w, h]:
+        out.append(f"{res[0]}×{res[1]} pixels (thesis {w}×{h})")
+    count = photons_of(run)
+    if count is not None and count != n:
+        out.append(f"{count:,} photons (thesis {n:,})")
+    pipelines = (run.config.get("arch") or {}).get("pipelines")
+    if pipelines is not None and int(pipelines) != 1:
+        out.append(f"{pipelines} pipelines (the tables are one pipeline)")
+    clock = (run.results.get("timing") or {}).get("clock_hz")
+    if clock is not None and not math.isclose(float(clock), THESIS_CLOCK_HZ):
+        out.append(f"clock {float(clock) / 1e6:g} MHz (thesis 600 MHz)")
+    return out
+
+
+def _config_key(run: Run) -> str:
+    if not run.config:
+        return f"path:{run.path.resolve()}"
+    return json.dumps({k: v for k, v in run.config.items() if k != "mode"}, sort_keys=True, default=str)
+
+
+def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
+    """Sources per thesis scene, in input order; what cannot be tabled goes to ``notes``."""
+    by_scene: dict[str, list[Source]] = {s: [] for s in THESIS}
+    in_study: set[Path] = set()
+    for study in inputs.of_kind("thesis"):
+        cells = _study_cells(inputs, study)
+        in_study.update(r.path.resolve() for r in cells)
+        scenes: dict[str, list[dict]] = {}
+        for row in study.rows:
+            scenes.setdefault(str(row["scene"]), []).append(row)
+        for scene, rows in scenes.items():
+            if scene not in THESIS:
+                notes.append(f"{study.path.name}: scene {scene!r} has no table in the thesis, left out of the tables")
+                continue
+            src = Source(f"thesis study {study.path.name}", scene, study=study,
+                         runs=[r for r in cells if r.scene == scene])
+            for row in rows:
+                src.rows[(str(row["mode"]), str(row["metric"]))] = row
+            _judge(src)
+            by_scene[scene].append(src)
+    groups: dict[tuple[str, str], list[Source]] = {}
+    skipped = [r for r in inputs.runs if r.kind == "sweep-point" and r.scene in THESIS and inputs.of_kind("thesis")]
+    if skipped:
+        notes.append(f"{len(skipped)} sweep points of thesis scenes are not tabled: a thesis study is among the "
+                     "inputs (sweep points are tabled only without one)")
+    for run in inputs.runs:
+        if run.path.resolve() in in_study or (skipped and run.kind == "sweep-point"):
+            continue
+        if run.scene not in THESIS:
+            notes.append(f"{run.label}: scene {run.scene!r} has no table in the thesis, left out of the tables")
+            continue
+        if not run.results.get("cycles") or run.results.get("fps") is None:
+            notes.append(f"{run.label}: no simulated cycles in results.json, left out of the tables")
+            continue
+        rows = comparison_rows(run.scene, run.mode, _ours(run.results["cycles"], run.results["fps"]))
+        key = (run.scene, _config_key(run))
+        src = next((s for s in groups.get(key, []) if run.mode not in s.modes), None)
+        if src is None:
+            src = Source(run.label, run.scene)
+            groups.setdefault(key, []).append(src)
+            by_scene[run.scene].append(src)
+        else:
+            src.label += f", {run.label}"
+        src.runs.append(run)
+        for row in rows:
+            src.rows[(run.mode, row["metric"])] = row
+    for sources in by_scene.values():
+        for src in sources:
+            if src.study is None:
+                _judge(src)
+    return {s: v for s, v in by_scene.items() if v}
+
+
+def _judge(src: Source) -> None:
+    if not src.runs:
+        src.unknown = "its run folders are missing, so its resolution and photon count are unknown"
+        return
+    seen: list[str] = []
+    for run in src.runs:
+        for m in mismatches(run, src.scene):
+            if m not in seen:
+                seen.append(m)
+    src.not_comparable = seen
+
+
+# -- HTML ---------------------------------------------------------------------------------------
+
+STYLE = """<style>
+.tlm-tables table{border-collapse:collapse;margin:0.6em 0 0.3em 0;font-size:0.9em}
+.tlm-tables th,.tlm-tables td{border:1px solid #888;padding:0.2em 0.5em;text-align:right;vertical-align:top}
+.tlm-tables caption{text-align:left;font-weight:bold;padding-bottom:0.3em}
+.tlm-tables .thesis{color:#555}
+.tlm-tables .err{font-style:italic}
+.tlm-tables .not-comparable{color:#a00;font-weight:normal}
+.tlm-tables td.calibrated{background:#eee}
+</style>"""
+
+
+def _cell_html(src: Source, mode: str, metric: str, slow: tuple[str | None, str | None]) -> str:
+    e = html.escape
+    cell_id = e(f"{src.scene}/{mode}/{metric}")
+    row = src.rows.get((mode, metric))
+    if row is None:
+        return f'<td data-cell="{cell_id}" class="missing" title="not run">–</td>'
+    cal = bool(row.get("calibrated")) or (mode, metric) in CALIBRATED
+    ours_mark = f' <span class="mark-slow-ours" title="slowest PM in ours">{MARK_SLOW_OURS}</span>' \
+        if slow[1] == metric else ""
+    thesis_mark = f' <span class="mark-slow-thesis" title="slowest PM in the thesis">{MARK_SLOW_THESIS}</span>' \
+        if slow[0] == metric else ""
+    cal_mark = f' <span class="mark-calibrated" title="calibrated (fitted) cell">{MARK_CALIBRATED}</span>' \
+        if cal else ""
+    cls = ' class="calibrated"' if cal else ""
+    return (f'<td data-cell="{cell_id}"{cls}><span class="ours">{e(fmt(row["ours"]))}</span>{ours_mark}<br>'
+            f'<span class="thesis">{e(fmt(row["thesis"]))}</span>{thesis_mark}<br>'
+            f'<span class="err">{e(fmt_error(row["rel_error"]))}</span>{cal_mark}</td>')
+
+
+def _summary_line(rows: list[dict]) -> str:
+    s = summarize(rows)
+    parts = []
+    if s["median_abs_rel_error_held_out"] is not None:
+        parts.append(f"median |relative error| over the {s['held_out_cells']} held-out cells "
+                     f"{s['median_abs_rel_error_held_out']:.1%}")
+    if s["median_abs_rel_error_calibrated"] is not None:
+        parts.append(f"over the {s['calibrated_cells']} calibrated cells {s['median_abs_rel_error_calibrated']:.1%}")
+    if s["scene_modes"]:
+        parts.append(f"slowest PM as in the thesis in {s['slowest_pm_matches']} of {s['scene_modes']} scene-modes")
+    return "; ".join(parts) if parts else "no cell with a thesis value"
+
+
+def table_html(src: Source) -> str:
+    """One thesis-style table of ``src`` (metrics as rows, modes as columns)."""
+    e = html.escape
+    w, h, n, tris = THESIS_SIZES[src.scene]
+    slow = {m: src.slowest(m) for m in MODES}
+    head = (f"Table {TABLE_NUMBER[src.scene]}. {SCENE_TITLE[src.scene]} ({src.scene}; thesis: {tris:,} triangles, "
+            f"{w}×{h} pixels, {n:,} photons). Ours: {src.label}")
+    flag = ""
+    if src.not_comparable:
+        flag = (f' <span class="not-comparable">Not comparable: ours is '
+                f'{e("; ".join(src.not_comparable))}.</span>')
+    elif src.unknown:
+        flag = f' <span class="not-comparable">Comparability unknown: {e(src.unknown)}.</span>'
+    lines = [f'<table class="thesis-table" data-scene="{e(src.scene)}" data-source="{e(src.label)}" '
+             f'data-comparable="{"no" if src.not_comparable else "unknown" if src.unknown else "yes"}">',
+             f"<caption>{e(head)}{flag}</caption>",
+             "<thead><tr><th>metric</th>" + "".join(f"<th>{MODE_TITLE[m]}</th>" for m in MODES) + "</tr></thead>",
+             "<tbody>"]
+    for metric in METRICS:
+        cells = "".join(_cell_html(src, m, metric, slow[m]) for m in MODES)
+        lines.append(f"<tr><th>{e(metric)} ({e(UNITS[metric])})</th>{cells}</tr>")
+    lines.append("</tbody></table>")
+    lines.append(f'<p class="table-summary">{e(_summary_line(list(src.rows.values())))}.</p>')
+    return "\n".join(lines)
+
+
+LEGEND = (f"Each cell: ours (simulated), the thesis's value, the relative error (ours − thesis) / thesis. "
+          f"{MARK_CALIBRATED} calibrated cell (fitted to the thesis, not a prediction); "
+          f"{MARK_SLOW_THESIS} slowest PM of the scene-mode in the thesis; {MARK_SLOW_OURS} slowest PM in ours. "
+          "Cycles in millions per frame, FPS in frames per second at the simulated clock.")
+
+
+# -- figure -------------------------------------------------------------------------------------
+
+def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]):
+    cyc = [m for m in METRICS if m != "FPS"]
+    fig = new_figure(11.5, 4.8)
+    gs = fig.add_gridspec(1, 2, width_ratios=[5, 1.4])
+    ax, axf = fig.add_subplot(gs[0]), fig.add_subplot(gs[1])
+    group = len(cyc) + 1
+    step = 0.7 / (len(sources) + 1)
+    dropped = []
+
+    def draw(axis, x0, mode, metric, first):
+        t = THESIS[scene][metric][MODES.index(mode)]
+        cal = (mode, metric) in CALIBRATED
+        axis.plot([x0], [t], linestyle="none", marker="D" if cal else "o", markersize=6, markerfacecolor="white",
+                  markeredgecolor="black", label=("thesis, calibrated cell" if cal else "thesis (Tables I–III)")
+                  if first.setdefault(("t", cal), True) else None)
+        first[("t", cal)] = False
+        for i, src in enumerate(sources):
+            row = src.rows.get((mode, metric))
+            if row is None:
+                continue
+            o = row["ours"]
+            x = x0 + step * (i + 1)
+            if o is None or o <= 0:
+                dropped.append(f"{src.label} {mode} {metric} = {o}")
+                continue
+            style = line_style(i + 1)
+            axis.plot([x0, x], [t, o], color=style["color"], linewidth=0.6, linestyle=":")
+            axis.plot([x], [o], linestyle="none", marker=style["marker"], color=style["color"], markersize=5,
+                      markeredgecolor="black", markeredgewidth=0.4,
+                      label=f"ours: {src.label}" if first.setdefault(("o", i), True) else None)
+            first[("o", i)] = False
+            if row["rel_error"] is not None:
+                axis.annotate(f"{row['rel_error']:+.0%}", (x, o), xytext=(2, 0), textcoords="offset points",
+                              fontsize=5.5, rotation=90, va="bottom", ha="left", color="#333")
+
+    first: dict = {}
+    ticks, labels = [], []
+    for mi, mode in enumerate(MODES):
+        base = mi * group
+        if mi % 2:
+            ax.axvspan(base - 0.5, base + len(cyc) - 0.3, color="#f0f0f0", zorder=0)
+        ax.text(base + (len(cyc) - 1) / 2, 1.01, MODE_TITLE[mode], transform=ax.get_xaxis_transform(),
+                ha="center", va="bottom", fontsize=9)
+        if not any((mode, metric) in src.rows for src in sources for metric in METRICS):
+            ax.text(base + (len(cyc) - 1) / 2, 0.02, "ours: not run", transform=ax.get_xaxis_transform(),
+                    ha="center", va="bottom", fontsize=8, color="#444")
+        for k, metric in enumerate(cyc):
+            draw(ax, base + k, mode, metric, first)
+            ticks.append(base + k + step * len(sources) / 2)
+            labels.append(metric)
+        draw(axf, mi, mode, "FPS", first)
+    ax.set_yscale("log")
+    ax.set_xticks(ticks, labels=labels, rotation=90, fontsize=7)
+    ax.set_ylabel("millions of cycles per frame (log)")
+    ax.set_xlabel("metric, grouped by mode")
+    ax.grid(axis="y", which="major", linewidth=0.4, color="#bbb")
+    axf.set_yscale("log")
+    axf.set_xticks([i + step * len(sources) / 2 for i in range(len(MODES))],
+                   labels=[MODE_TITLE[m] for m in MODES], rotation=90, fontsize=7)
+    axf.set_ylabel("frames per second (log)")
+    axf.set_xlabel("mode")
+    axf.set_title("FPS", fontsize=9)
+    axf.grid(axis="y", which="major", linewidth=0.4, color="#bbb")
+    for a in (ax, axf):
+        lo, hi = a.get_ylim()
+        a.set_ylim(lo, hi * 3.0)  # room for the error labels above the highest marker
+    handles, names = [], []
+    for a in (ax, axf):
+        for hnd, name in zip(*a.get_legend_handles_labels()):
+            if name not in names:
+                handles.append(hnd)
+                names.append(name)
+    order = sorted(range(len(names)), key=lambda i: not names[i].startswith("thesis"))
+    handles, names = [handles[i] for i in order], [names[i] for i in order]
+    fig.legend(handles, names, loc="outside lower center", ncol=min(3, len(names)), fontsize=7, frameon=False)
+    flag = " (not comparable: other sizes)" if any(s.not_comparable for s in sources) else ""
+    fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours against the thesis{flag}",
+                 fontsize=11)
+    if dropped:
+        notes.append(f"{scene} figure: values that cannot go on a log axis left out: {', '.join(dropped)}")
+    caption = (f"Simulated cycles per PM and throughput (left, millions of cycles per frame) and frame rate (right) "
+               f"of the {scene} scene per mode: hollow circles the thesis's Table {TABLE_NUMBER[scene]} "
+               "(diamonds: calibrated cells), filled markers ours, annotated with the relative error.")
+    return save(fig, out, f"tables_{scene}.png", f"Table {TABLE_NUMBER[scene]} ({scene}): ours against the thesis",
+                caption)
+
+
+# -- section ------------------------------------------------------------------------------------
+
+def tables_section(inputs: Inputs, out: Path) -> Section:
+    """Tables I-III reproduced: one HTML table per (scene, source) and one figure per scene."""
+    out = Path(out)
+    section = Section("tables", "Tables I–III: ours against the thesis")
+    sources = collect_sources(inputs, section.notes)
+    if not sources:
+        section.absent = ("no thesis study and no run of a thesis scene (ring, room, cornell) with simulated cycles "
+                          "among the inputs")
+        return section
+    parts = ['<div class="tlm-tables">', STYLE]
+    for study in inputs.of_kind("thesis"):
+        rows = [r for r in study.rows if str(r["scene"]) in THESIS]
+        if rows:
+            parts.append(f'<p class="study-summary">Thesis study {html.escape(study.path.name)}: '
+                         f"{html.escape(_summary_line(rows))}.</p>")
+    parts.append(f'<p class="legend">{html.escape(LEGEND)}</p>')
+    for scene, srcs in sources.items():
+        shown = srcs[:MAX_TABLES_PER_SCENE]
+        if len(srcs) > len(shown):
+            rest = ", ".join(s.label for s in srcs[len(shown):])
+            section.notes.append(f"{scene}: {len(srcs) - len(shown)} more sources left out of the tables and the "
+                                 f"figure (at most {MAX_TABLES_PER_SCENE} per scene): {rest}")
+        for src in shown:
+            parts.append(table_html(src))
+            if src.not_comparable:
+                section.notes.append(f"{scene} ({src.label}) is not comparable with the thesis: ours is "
+                                     f"{'; '.join(src.not_comparable)}")
+            elif src.unknown:
+                section.notes.append(f"{scene} ({src.label}): comparability unknown, {src.unknown}")
+        drawn = shown[:MAX_FIGURE_SOURCES]
+        if len(shown) > len(drawn):
+            section.notes.append(f"{scene} figure: drawn for the first {len(drawn)} sources only; "
+                                 f"{', '.join(s.label for s in shown[len(drawn):])} are in the tables")
+        section.figures.append(_scene_figure(scene, drawn, out, section.notes))
+    parts.append("</div>")
+    section.html = "\n".join(parts)
+    return section
+

@@ -1,0 +1,252 @@
+"""Section: error against run time (the two curves of DESIGN.md §3).
+
+(a) From ``tlm error-vs-cost`` folders: the photon-map frame's image RMSE against its
+    converged reference, against the simulated frame time (TThru / clock, the
+    ``frame_seconds`` column) and against host wall time (photon tracing + gathering,
+    ``trace_seconds + gather_seconds``). One marker and colour per filter; the marker's
+    area grows with the photon count; the Pareto front (the points no other point beats
+    on both error and time) is drawn as a step line and its points are named.
+(b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
+    (``max_abs_rel_error``, the largest relative error of any PM's cycles, TThru or the
+    latency) against the host wall time of the simulation (``simulate_seconds``), each
+    point labelled with its packet size. The reference's error is 0, which a log axis
+    cannot show: it is drawn hollow at a floor below the smallest nonzero error, and the
+    caption says so.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from tlm.report.collect import Inputs, Study
+from tlm.report.common import Section, colour, linestyle, marker, new_figure, save
+
+
+def pareto_front(cost, error) -> np.ndarray:
+    """Which points are on the Pareto front of (cost, error), both to be minimised.
+
+    A point is on the front when no other point has cost <= and error <= with one of them
+    strictly smaller (equal points are both on it). Points with a non-finite cost or
+    error are never on it (and dominate nothing).
+    """
+    c = np.asarray(cost, dtype=float)
+    e = np.asarray(error, dtype=float)
+    on = np.zeros(c.shape[0], dtype=bool)
+    ok = np.isfinite(c) & np.isfinite(e)
+    idx = np.flatnonzero(ok)
+    order = idx[np.lexsort((e[idx], c[idx]))]
+    best_e, best_c = math.inf, math.nan
+    for i in order:
+        if e[i] < best_e:
+            on[i] = True
+            best_e, best_c = e[i], c[i]
+        elif e[i] == best_e and c[i] == best_c:
+            on[i] = True  # the same point again
+    return on
+
+
+def _log_if_decades(ax, axis: str, values) -> None:
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x) and x > 0], dtype=float)
+    if v.size and v.max() / v.min() >= 10:
+        (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
+
+
+def _num(v) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return math.nan
+    return f
+
+
+def _sizes(photons: np.ndarray) -> np.ndarray:
+    """Marker areas (points^2) growing with log photon count."""
+    lp = np.log(np.maximum(photons, 1))
+    lo, hi = float(lp.min()), float(lp.max())
+    t = (lp - lo) / (hi - lo) if hi > lo else np.full(lp.shape, 0.5)
+    return 25 + 175 * t
+
+
+def _point_name(r: dict) -> str:
+    f = r.get("filter")
+    extra = ""
+    if f == "knn" and r.get("k_nearest") is not None:
+        extra = f", k={int(r['k_nearest'])}"
+    elif f == "kvoxel" and r.get("k") is not None:
+        extra = f", k={int(r['k'])}, r={_num(r.get('radius_fraction')):g}"
+    elif r.get("radius_fraction") is not None:
+        extra = f", r={_num(r.get('radius_fraction')):g}"
+    return f"{f}, {int(_num(r.get('photons'))):,} ph{extra}"
+
+
+def study_names(studies: list[Study]) -> list[str]:
+    """Short names of studies: the folder's, with its parent's where two folders share one."""
+    names = [s.path.name for s in studies]
+    return [f"{s.path.parent.name}/{n}" if names.count(n) > 1 else n for s, n in zip(studies, names, strict=True)]
+
+
+def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[str], label: str | None = None):
+    """RMSE against ``cost_key`` ("frame" or "wall") for one error-vs-cost study."""
+    rows = study.rows
+    if cost_key == "frame":
+        cost = np.array([_num(r.get("frame_seconds")) * 1e3 for r in rows])
+        xlabel = "simulated frame time TThru / clock (ms)"
+        what = "simulated frame time"
+    else:
+        cost = np.array([_num(r.get("trace_seconds")) + _num(r.get("gather_seconds")) for r in rows])
+        xlabel = "host wall time: photon tracing + gathering (s)"
+        what = "host wall time"
+    err = np.array([_num(r.get("rmse")) for r in rows])
+    ok = np.isfinite(cost) & np.isfinite(err)
+    label = label or study.path.name
+    if not ok.any():
+        if cost_key == "frame":
+            notes.append(f"{label}: its rows have no simulated frame time (written before 'tlm error-vs-cost' "
+                         f"simulated the frame; run it again): no RMSE against simulated frame time.")
+        else:
+            notes.append(f"{label}: no row has both an RMSE and host seconds: no RMSE against host wall time.")
+        return None
+    if not ok.all():
+        notes.append(f"{label}: {int((~ok).sum())} of {len(rows)} rows have no RMSE or no {what} and are not drawn.")
+    photons = np.array([_num(r.get("photons")) for r in rows])
+    sizes = _sizes(np.where(np.isfinite(photons), photons, 1)[ok])
+    sub = [r for r, k in zip(rows, ok, strict=True) if k]
+    c, e = cost[ok], err[ok]
+    front = pareto_front(c, e)
+    fig = new_figure(9, 5.5)
+    ax = fig.subplots()
+    filters = sorted({str(r.get("filter")) for r in sub})
+    for i, f in enumerate(filters):
+        m = np.array([str(r.get("filter")) == f for r in sub])
+        ax.scatter(c[m], e[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
+                   alpha=0.85, label=f"filter {f}", zorder=3)
+    o = np.argsort(c[front], kind="stable")
+    fc, fe = c[front][o], e[front][o]
+    ax.step(fc, fe, where="post", color="black", linestyle="--", linewidth=1.2, zorder=2,
+            label="Pareto front (lowest RMSE for no more time)")
+    ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
+               zorder=4)
+    front_rows = [sub[j] for j in np.flatnonzero(front)[o]]
+    for j, (x, y, r) in enumerate(zip(fc, fe, front_rows, strict=True)):
+        ax.annotate(_point_name(r), (x, y), xytext=(7, 5 if j % 2 == 0 else -11), textcoords="offset points",
+                    fontsize=6.5)
+    # the photon-count key: one grey marker per size shown
+    counts = sorted({int(p) for p in photons[ok] if np.isfinite(p)})
+    shown = counts if len(counts) <= 4 else [counts[0], counts[len(counts) // 2], counts[-1]]
+    all_sizes = _sizes(np.array(counts, dtype=float)) if counts else np.array([])
+    for p in shown:
+        ax.scatter([], [], s=float(all_sizes[counts.index(p)]), facecolors="0.7", edgecolors="black",
+                   label=f"{p:,} photons")
+    _log_if_decades(ax, "x", c)
+    _log_if_decades(ax, "y", e)
+    ax.set(xlabel=xlabel, ylabel="image RMSE against the converged reference (linear radiance)",
+           title=f"{label}: photon-map RMSE against {what}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    caption = (f"{int(ok.sum())} points; marker area grows with the photon count; ringed and named: the "
+               f"{int(front.sum())} points of the Pareto front.")
+    if cost_key == "wall":
+        caption += (" Tracing a photon map is shared by the points that use it, but each point counts it in "
+                    "full (its cost if run alone).")
+    else:
+        caption += (" The frame is the whole photon-map frame (ray cast and the other planned passes, photon "
+                    "tracing, the photon-map pass) through the timing model.")
+    return save(fig, out, name, f"{label}: RMSE against {what}", caption)
+
+
+def _gran_label(study: Study, name: str) -> str:
+    cfg = study.path / "config.resolved.yaml"
+    try:
+        c = yaml.safe_load(cfg.read_text()) if cfg.is_file() else None
+    except (OSError, yaml.YAMLError):
+        c = None
+    if isinstance(c, dict) and c.get("scene"):
+        return f"{name} ({c.get('scene')}/{c.get('mode')})"
+    return name
+
+
+def granularity_points(study: Study) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(packet sizes, host seconds, max |relative cycle error|), by packet size."""
+    rows = sorted(study.rows, key=lambda r: _num(r.get("packet_size")))
+    size = np.array([_num(r.get("packet_size")) for r in rows])
+    secs = np.array([_num(r.get("simulate_seconds")) for r in rows])
+    err = np.array([_num(r.get("max_abs_rel_error")) for r in rows])
+    return size, secs, err
+
+
+def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[str]):
+    data = []
+    for st, label in zip(studies, study_names(studies), strict=True):
+        size, secs, err = granularity_points(st)
+        ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
+        if not ok.all():
+            notes.append(f"{label}: {int((~ok).sum())} rows lack a packet size, seconds or error; not drawn.")
+        if ok.any():
+            data.append((_gran_label(st, label), size[ok], secs[ok], np.abs(err[ok])))
+    if not data:
+        notes.append("The granularity studies have no complete rows: no cycle-error figure.")
+        return None
+    positive = np.concatenate([e[e > 0] for *_, e in data])
+    log_y = positive.size > 0
+    floor = float(positive.min()) / 10 if log_y else 0.0
+    fig = new_figure(8.5, 5.2)
+    ax = fig.subplots()
+    for i, (label, size, secs, err) in enumerate(data):
+        y = np.where(err > 0, err, floor)
+        ax.plot(secs, y, color=colour(i), marker=marker(i), linestyle=linestyle(i), markersize=6, label=label,
+                zorder=3)
+        zero = err == 0
+        ax.scatter(secs[zero], y[zero], s=80, facecolors="white", edgecolors=colour(i), marker=marker(i),
+                   linewidths=1.5, zorder=4)
+        for x, yy, p in zip(secs, y, size, strict=True):
+            ax.annotate(f"{int(p)}", (x, yy), xytext=(5, 4), textcoords="offset points", fontsize=7)
+    caption = ("Each point is one packet size (labelled; 1 = one ray or pixel per packet, the fine reference). "
+               "Error: the largest |relative error| of any PM's cycles, TThru or the latency against the "
+               "smallest packet size.")
+    if log_y:
+        ax.set_yscale("log")
+        ax.axhline(floor, color="0.4", linestyle=":", linewidth=1.0,
+                   label=f"error 0 (the reference, hollow) drawn at {floor:.2g}")
+        caption += f" Error 0 cannot be shown on the log axis: those points are drawn hollow at {floor:.2g}."
+    else:
+        notes.append("Every packet size gave exactly the reference's cycles (error 0): a linear error axis.")
+    _log_if_decades(ax, "x", np.concatenate([s for _, _, s, _ in data]))
+    ax.set(xlabel="host wall time of the simulation (s)",
+           ylabel="TLM cycle error: max |relative error| vs. the finest packet",
+           title="TLM timing error against host wall time, per packet size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return save(fig, out, name, "TLM cycle error against host wall time", caption)
+
+
+def tradeoff_section(inputs: Inputs, out: Path) -> Section:
+    sec = Section("tradeoff", "Error against run time")
+    evc = inputs.of_kind("error-vs-cost")
+    gran = inputs.of_kind("granularity")
+    if not evc and not gran:
+        sec.absent = ("no error-vs-cost or granularity study among the inputs (written by 'tlm error-vs-cost' "
+                      "and 'tlm granularity')")
+        return sec
+    if not evc:
+        sec.notes.append("No error-vs-cost study among the inputs: no image error against run time "
+                         "('tlm error-vs-cost' writes one).")
+    if not gran:
+        sec.notes.append("No granularity study among the inputs: no TLM cycle error against run time "
+                         "('tlm granularity' writes one).")
+    for i, (st, label) in enumerate(zip(evc, study_names(evc), strict=True)):
+        if not st.rows:
+            sec.notes.append(f"{label}: the error-vs-cost study has no rows.")
+            continue
+        for key in ("frame", "wall"):
+            fig = evc_figure(st, out, f"tradeoff_{i:02d}_rmse_vs_{key}_time.png", key, sec.notes, label)
+            if fig is not None:
+                sec.figures.append(fig)
+    if gran:
+        fig = granularity_figure(gran, out, "tradeoff_granularity.png", sec.notes)
+        if fig is not None:
+            sec.figures.append(fig)
+    return sec
