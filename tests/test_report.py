@@ -26,7 +26,7 @@ from tlm.report import build_report
 from tlm.report.collect import read
 
 TINY = ["--set", "resolution=[32,32]", "--set", "arch.frames=1", "--set", "render.light_samples=1"]
-SECTIONS = ("tables", "images", "scaling", "sweeps", "cycles", "tradeoff", "peers", "provenance")
+SECTIONS = ("tables", "images", "scaling", "sweeps", "cycles", "tradeoff", "peers", "extreme", "provenance")
 
 
 class Refs(HTMLParser):
@@ -124,7 +124,9 @@ def test_page_references_only_files_that_exist(combined):
 def test_sections_say_why_they_are_empty(combined):
     text = combined.read_text(encoding="utf-8")
     # no error-vs-cost study among the inputs: section 6 has the granularity curve and says so for (a)
-    assert "<h2>1. " in text and "<h2>8. " in text
+    assert "<h2>1. " in text and "<h2>9. " in text
+    extreme = text[text.index('id="extreme"'):text.index('id="provenance"')]
+    assert "Nothing to show: no 'tlm extreme' folder" in extreme
     tradeoff = text[text.index('id="tradeoff"'):text.index('id="peers"')]
     assert "error-vs-cost" in tradeoff
 

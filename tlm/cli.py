@@ -46,6 +46,23 @@ def _cmd_plots(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_extreme(args: argparse.Namespace) -> int:
+    from tlm.experiments.extreme import run_extreme
+
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+
+    def progress(row: dict) -> None:
+        print(f"  {'pass' if row['passed'] else 'FAIL'}  {row['category']:10s} {row['case']:24s} {row['measured']}",
+              flush=True)
+
+    rows = run_extreme(Path(args.config), out, progress)
+    failed = [r["case"] for r in rows if not r["passed"]]
+    print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
+          + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
+    _report_after(args, out)
+    return 1 if failed else 0
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from tlm.config import load_config
     from tlm.experiments.run import run
@@ -84,8 +101,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
         print(f"  {results['fps']:.2f} frames per second")
     total = sum(results["host_seconds"].values())
-    _report_after(args, out)
     print(f"wrote {out} ({total:.2f} s)")
+    _report_after(args, out)
     return 0
 
 
@@ -370,6 +387,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", help="the page's title")
     rp.set_defaults(func=_cmd_report)
+    ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
+                        "measured one (exit 1 if any differs)")
+    ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml")
+    ex.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ex.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
     pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")

@@ -11,7 +11,8 @@ embeds them. The sections, in order:
 5. where the cycles go: eq. 5.1 and the timeline (:mod:`tlm.report.cycles`)
 6. error against run time (:mod:`tlm.report.tradeoff`)
 7. peers: the frame rates the thesis quotes (:mod:`tlm.report.peers`)
-8. provenance (:mod:`tlm.report.provenance`)
+8. the stiff and extreme cases, expected against measured (:mod:`tlm.report.extreme`)
+9. provenance (:mod:`tlm.report.provenance`)
 
 A section the inputs have nothing for still appears, saying why. The report folder is
 written whole or not at all (a temporary sibling renamed into place).
@@ -33,6 +34,7 @@ MARKER = "report.html"
 
 def sections(inputs: Inputs, out: Path) -> list[Section]:
     from tlm.report.cycles import cycles_section
+    from tlm.report.extreme import extreme_section
     from tlm.report.images import images_section
     from tlm.report.peers import peers_section
     from tlm.report.provenance import provenance_section
@@ -42,7 +44,7 @@ def sections(inputs: Inputs, out: Path) -> list[Section]:
     from tlm.report.tradeoff import tradeoff_section
 
     order = (tables_section, images_section, scaling_section, sweeps_section, cycles_section, tradeoff_section,
-             peers_section, provenance_section)
+             peers_section, extreme_section, provenance_section)
     return [make(inputs, out) for make in order]
 
 

@@ -12,6 +12,7 @@ thesis             ``tlm thesis``                              ``thesis_comparis
 error-vs-cost      ``tlm error-vs-cost``                       ``rows.jsonl`` + ``reference.json``
 granularity        ``tlm granularity``                         ``granularity.jsonl``
 scaling            ``tlm scaling``                             ``eq52.json``
+extreme            ``tlm extreme``                             ``extreme.jsonl``
 =================  ==========================================  ================================
 
 Every run folder found (a run, a thesis cell ``<scene>/<mode>``, a sweep point) becomes
@@ -133,6 +134,8 @@ def kind_of(folder: Path) -> str | None:
         return "thesis"
     if (folder / "eq52.json").is_file():
         return "scaling"
+    if (folder / "extreme.jsonl").is_file():
+        return "extreme"  # its cases/<name>/ run folders are not read as runs
     if (folder / "granularity.jsonl").is_file():
         return "granularity"
     if (folder / "rows.jsonl").is_file() and (folder / "reference.json").is_file():
@@ -171,8 +174,8 @@ def read(dirs: list[Path]) -> Inputs:
         inner = [(c, kind_of(c)) for c in sorted(d.iterdir()) if c.is_dir() and not c.name.startswith(".")]
         inner = [(c, k) for c, k in inner if k is not None]
         if not inner:
-            raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity or "
-                             "scaling folder)", source=str(d))
+            raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, "
+                             "scaling or extreme folder)", source=str(d))
         folders.extend(inner)
     labels: set[str] = set()
 
@@ -222,6 +225,8 @@ def _study(inputs: Inputs, folder: Path, kind: str) -> None:
         inputs.studies.append(Study("scaling", folder, rows, _json(folder / "eq52.json")))
     elif kind == "granularity":
         inputs.studies.append(Study("granularity", folder, _jsonl(folder / "granularity.jsonl")))
+    elif kind == "extreme":
+        inputs.studies.append(Study("extreme", folder, _jsonl(folder / "extreme.jsonl")))
     elif kind == "error-vs-cost":
         inputs.studies.append(Study("error-vs-cost", folder, _jsonl(folder / "rows.jsonl"),
                                     {"reference": _json(folder / "reference.json")}))

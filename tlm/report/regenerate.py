@@ -28,6 +28,7 @@ STEPS: tuple[tuple[str, list[str]], ...] = (
     ("tlm_granularity", ["granularity", "{configs}/tlm_granularity.yaml", "--out", "{runs}/tlm_granularity"]),
     ("error_vs_cost", ["error-vs-cost", "{configs}/error_vs_cost.yaml", "--out", "{runs}/error_vs_cost"]),
     ("cornell_pmap", ["run", "{configs}/cornell_pmap.yaml", "--out", "{runs}/cornell_pmap"]),
+    ("extreme", ["extreme", "{configs}/extreme.yaml", "--out", "{runs}/extreme"]),
 )
 # the scaling sweeps are shown through eq52 (the same fits): not read twice by the report
 REPORTED = tuple(name for name, _ in STEPS if not name.startswith("scaling_"))

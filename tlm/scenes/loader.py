@@ -25,7 +25,7 @@ from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 
 SCENE_KEYS = (
     "name", "description", "geometry", "materials", "parts", "default_material",
-    "lights", "camera", "resolution", "photons", "transform",
+    "lights", "camera", "resolution", "photons", "transform", "extends",
 )
 MATERIAL_KEYS = {
     "lambertian": ("type", "albedo"),
@@ -218,6 +218,39 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
         )
 
 
+def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
+    """The scene file's mapping with its ``extends:`` chain merged in, and the file whose
+    ``geometry`` it uses (a mesh path is relative to the file that names it).
+
+    ``extends: NAME_OR_PATH`` starts from another scene file; this file's keys replace
+    the base's, and mappings (``materials``, ``parts``, ``camera``, a material's fields)
+    merge key by key, so ``materials: {glass: {ior: 1.0}}`` changes one number.
+    """
+    src = str(path)
+    raw = _mapping(read_yaml(path), src, "")
+    _keys(raw, SCENE_KEYS, src, "")
+    if "extends" not in raw:
+        return raw, path
+    ref = raw.pop("extends")
+    if not isinstance(ref, str) or not ref:
+        raise InputError(f"{ref!r} must be a scene name or a scene file path", source=src, key="extends")
+    base_path = resolve_scene_path(ref, path.parent, src)
+    if base_path.resolve() in seen or base_path.resolve() == path.resolve():
+        chain = "".join(f" through {p.name}" for p in seen)
+        raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
+    base, geom_path = _read_scene(base_path, (*seen, path.resolve()))
+    if "geometry" in raw:
+        geom_path = path
+    return _merge(base, raw), geom_path
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
 def load_scene(
     ref: str, base: Path | None = None, resolution: list[int] | None = None, config_source: str | None = None
 ) -> Scene:
@@ -228,12 +261,10 @@ def load_scene(
     """
     path = resolve_scene_path(ref, base, config_source)
     src = str(path)
-    raw = read_yaml(path)
-    raw = _mapping(raw, src, "")
-    _keys(raw, SCENE_KEYS, src, "")
+    raw, geom_path = _read_scene(path, ())
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
-    geom = _geometry(raw["geometry"], src, path)
+    geom = _geometry(raw["geometry"], str(geom_path), geom_path)
     tri = np.asarray(geom.triangles, dtype=np.float64)
     _check_triangles(tri, src)
 

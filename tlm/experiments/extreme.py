@@ -1,0 +1,232 @@
+"""Stiff and extreme cases as an experiment: each case, the behaviour expected, the result measured.
+
+``tlm extreme configs/extreme.yaml --out runs/extreme`` runs every case through the
+normal pipeline (render, simulate, write a run folder) and checks what the case
+expects. The file::
+
+    description: ...
+    base: {resolution: [32, 32], arch: {frames: 1}}   # merged under every case's config
+    cases:
+      - name: cornell-ior1                              # unique; the case's folder name
+        category: shading
+        expect: the IOR-1 sphere vanishes               # the behaviour, in words
+        config: {scene: ../scenes/extreme/cornell_ior1.yaml, mode: refract}
+        checks:                                         # what is measured and judged
+          - finite                                      # every image finite, no NaN number
+          - invariants                                  # the timing model's invariants hold
+          - {same_image: cornell-no-glass, rel_rms: 1.0e-3}
+          - {value: cycles.throughput, min: 1, max: 1.0e12}
+          - {compare: cycles.throughput, case: cornell, op: ">="}
+          - {error: "must be > 0"}                      # bad input: this InputError, nothing written
+
+``same_image`` compares the composite radiance with another case's (relative RMS,
+0 = bitwise); ``compare`` a number of ``results.json`` (a dotted key) with the same
+number of another case (``op``: ``==``, ``<=``, ``>=``, ``<``, ``>``, or ``~`` with
+``rel``: within that relative difference). A case that
+expects an error passes when its run fails with an input error whose one line holds
+the text, and leaves no folder. Output: ``cases/<name>/`` (each run folder),
+``extreme.csv`` and ``extreme.jsonl`` (one row per case: category, expectation,
+checks, what was measured, pass or fail, host seconds), ``provenance.json``. The
+report shows the table (``tlm report``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import operator
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tlm.config import config_from_dict
+from tlm.errors import InputError
+from tlm.experiments.atomic import atomic_folder, check_destination
+from tlm.experiments.study import read_study, write_rows
+
+COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
+CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
+OPS = {"==": operator.eq, "<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt, "~": None}
+CASE_KEYS = ("name", "category", "expect", "config", "checks")
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
+    """The base config and the cases of the file, every one checked before any runs."""
+    raw, base, src = read_study(path, ("cases",))
+    cases = raw.get("cases")
+    if not isinstance(cases, list) or not cases:
+        raise InputError("must be a non-empty list of cases", source=src, key="cases")
+    names: set[str] = set()
+    for i, c in enumerate(cases):
+        where = f"cases[{i}]"
+        if not isinstance(c, dict):
+            raise InputError("must be a mapping (name, category, expect, config, checks)", source=src, key=where)
+        for k in c:
+            if k not in CASE_KEYS:
+                raise InputError(f"unknown key (expected {', '.join(CASE_KEYS)})", source=src, key=f"{where}.{k}")
+        for k in CASE_KEYS:
+            if k not in c:
+                raise InputError("missing", source=src, key=f"{where}.{k}")
+        name = c["name"]
+        if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+            raise InputError(f"{name!r} must be a folder name", source=src, key=f"{where}.name")
+        if name in names:
+            raise InputError(f"{name!r} is used twice", source=src, key=f"{where}.name")
+        names.add(name)
+        if not isinstance(c["config"], dict):
+            raise InputError("must be a run config mapping", source=src, key=f"{where}.config")
+        if not isinstance(c["checks"], list) or not c["checks"]:
+            raise InputError("must be a non-empty list", source=src, key=f"{where}.checks")
+        expects_error = False
+        for j, chk in enumerate(c["checks"]):
+            kind = chk if isinstance(chk, str) else (next(iter(chk)) if isinstance(chk, dict) and chk else None)
+            if kind not in CHECKS:
+                raise InputError(f"{chk!r} is not a check ({', '.join(CHECKS)})", source=src,
+                                 key=f"{where}.checks[{j}]")
+            if kind in ("same_image", "compare"):
+                other = chk.get("case") if kind == "compare" else chk["same_image"]
+                if other not in names:
+                    raise InputError(f"{other!r} is not an earlier case", source=src, key=f"{where}.checks[{j}]")
+            if kind == "compare" and chk.get("op", "==") not in OPS:
+                raise InputError(f"op {chk.get('op')!r} is not one of {', '.join(OPS)}", source=src,
+                                 key=f"{where}.checks[{j}]")
+            expects_error |= kind == "error"
+        if expects_error and len(c["checks"]) != 1:
+            raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
+        if not expects_error:  # a case that should run must have a valid config now
+            config_from_dict(_merge(base, c["config"]), f"{src} ({where})")
+    return base, cases, Path(path).resolve().parent
+
+
+def _get(results: dict, key: str) -> Any:
+    """``results`` at a dotted key; a key may hold dots itself (``timing.units.pipe0.vertex``)."""
+    v: Any = results
+    parts = key.split(".")
+    while parts:
+        for n in range(len(parts), 0, -1):  # the longest key first
+            k = ".".join(parts[:n])
+            if isinstance(v, dict) and k in v:
+                v, parts = v[k], parts[n:]
+                break
+        else:
+            raise KeyError(key)
+    return v
+
+
+def _numbers(x: Any):
+    if isinstance(x, dict):
+        for v in x.values():
+            yield from _numbers(v)
+    elif isinstance(x, list):
+        for v in x:
+            yield from _numbers(v)
+    elif isinstance(x, float):
+        yield x
+
+
+def _rel_rms(a: np.ndarray, b: np.ndarray) -> float:
+    den = float(np.sqrt(np.mean(b.astype(np.float64) ** 2)))
+    num = float(np.sqrt(np.mean((a.astype(np.float64) - b) ** 2)))
+    return num / den if den > 0 else (0.0 if num == 0 else math.inf)
+
+
+def judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]]) -> tuple[bool, str]:
+    """(passed, what was measured) of one check of a case that ran."""
+    try:
+        return _judge(check, folder, results, done)
+    except KeyError as e:
+        return False, f"results.json has no {e.args[0]!r}"
+
+
+def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]]) -> tuple[bool, str]:
+    kind = check if isinstance(check, str) else next(iter(check))
+    if kind == "finite":
+        bad_images = [p.name for p in sorted((folder / "radiance").glob("*.npy")) if not np.isfinite(np.load(p)).all()]
+        bad_numbers = sum(1 for v in _numbers(results) if not math.isfinite(v))
+        ok = not bad_images and bad_numbers == 0
+        return ok, ("images finite, no NaN or inf number" if ok
+                    else f"non-finite images {bad_images}, {bad_numbers} non-finite numbers")
+    if kind == "invariants":
+        inv = results["timing"]["invariants"]
+        failed = [k for k, v in inv.items() if not v]
+        return not failed, (f"{len(inv)} invariants hold" if not failed else f"failed: {failed}")
+    if kind == "same_image":
+        other, _ = done[check["same_image"]]
+        tol = float(check.get("rel_rms", 0.0))
+        a = np.load(folder / "radiance" / "composite.npy")
+        b = np.load(other / "radiance" / "composite.npy")
+        if a.shape != b.shape:
+            return False, f"image {a.shape[:2]} against {b.shape[:2]}"
+        err = _rel_rms(a, b)
+        return err <= tol, f"relative RMS {err:.3g} against {check['same_image']} (tolerance {tol:g})"
+    if kind == "value":
+        v = _get(results, check["value"])
+        ok = (check.get("min") is None or v >= check["min"]) and (check.get("max") is None or v <= check["max"])
+        if "equals" in check:
+            ok = ok and v == check["equals"]
+        return bool(ok), f"{check['value']} = {v:.6g}" if isinstance(v, float) else f"{check['value']} = {v}"
+    if kind == "compare":
+        _, theirs = done[check["case"]]
+        a, b = _get(results, check["compare"]), _get(theirs, check["compare"])
+        op = check.get("op", "==")
+        if op == "~":
+            rel = float(check.get("rel", 0.0))
+            err = abs(a - b) / abs(b) if b else math.inf
+            return err <= rel, f"{check['compare']}: {a} against {b} ({check['case']}): {err:.3%} (within {rel:.0%})"
+        return bool(OPS[op](a, b)), f"{check['compare']}: {a} {op} {b} ({check['case']})"
+    raise ValueError(kind)
+
+
+def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
+    """Run every case of ``path`` into ``out``; returns the rows (one per case)."""
+    from tlm.experiments.run import provenance, run
+
+    start = time.perf_counter()
+    base, cases, folder = load_cases(Path(path))
+    check_destination(out, "extreme.jsonl")
+    rows = []
+    with atomic_folder(out, "extreme.jsonl") as tmp:
+        done: dict[str, tuple[Path, dict]] = {}
+        for c in cases:
+            t0 = time.perf_counter()
+            dest = tmp / "cases" / c["name"]
+            checks = c["checks"]
+            want_error = isinstance(checks[0], dict) and "error" in checks[0]
+            try:
+                cfg = config_from_dict(_merge(base, c["config"]), f"{path} ({c['name']})")
+                results = run(cfg, dest, folder, config_path=str(path))
+            except InputError as e:
+                if want_error:
+                    text = checks[0]["error"]
+                    ok = text in str(e) and len(str(e).splitlines()) == 1 and not dest.exists()
+                    measured = f"input error: {e}"
+                else:
+                    ok, measured = False, f"unexpected input error: {e}"
+                results = None
+            else:
+                if want_error:
+                    ok, measured = False, "ran without the expected error"
+                else:
+                    verdicts = [judge(chk, dest, results, done) for chk in checks]
+                    ok = all(v for v, _ in verdicts)
+                    measured = "; ".join(m for _, m in verdicts)
+                    done[c["name"]] = (dest, results)
+            row = {"case": c["name"], "category": c["category"], "expect": c["expect"],
+                   "checks": json.dumps(checks), "measured": measured, "passed": ok,
+                   "seconds": round(time.perf_counter() - t0, 3)}
+            rows.append(row)
+            if progress is not None:
+                progress(row)
+        write_rows(tmp, "extreme", rows, COLUMNS)
+        info = provenance(str(path), time.perf_counter() - start)
+        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
+    return rows
