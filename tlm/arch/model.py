@@ -34,8 +34,8 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from fractions import Fraction
 
-import numpy as np
 import simpy
 
 from tlm.arch.functional import Functional
@@ -399,18 +399,18 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
     done = [r.done for r in model.frames]
-    throughput = (done[-1] - done[0]) / (nf - 1) if nf > 1 else done[0]
-    latency = float(np.mean([r.done - r.arrival for r in model.frames]))
+    # exact rational means rounded to whole cycles (a float mean is off past 2**53 cycles)
+    throughput_i = round(Fraction(done[-1] - done[0], nf - 1)) if nf > 1 else done[0]
+    latency_i = round(Fraction(sum(r.done - r.arrival for r in model.frames), len(model.frames)))
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]
     for (p, name), pm in model.pms.items():
         s = pm.unit.stats
         own = s.busy + s.stall["swap"] + s.stall["copy"] + s.stall["preemption"]
-        per_pipe[p][name] = round(own / nf)
+        per_pipe[p][name] = round(Fraction(own, nf))
     # a PM kind's cycles: its slowest pipeline's (the one the frame waits for)
     cycles = {name: max(pp[name] for pp in per_pipe) for name in PMS}
-    throughput_i = round(throughput)
     cycles["throughput"] = throughput_i
-    cycles["latency"] = round(latency)
+    cycles["latency"] = latency_i
     fps = arch.clock_hz / throughput_i if throughput_i > 0 else math.inf
     if trace is not None:
         trace.fill_idle(end)
