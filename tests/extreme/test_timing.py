@@ -8,9 +8,9 @@ elapsed, in Python ints), and an independent computation of the part the knob mo
 * Scales: 1-cycle swaps beside ~1.6e9-cycle frames (the Vertex PM's instruction scale
   raised) are exact: the Vertex-bound stream's frame interval is the Vertex PM's cycles,
   computed from the BSP levels in Python ints, plus the one swap. Work counts x 1e6
-  (~1.7e10-cycle frames, 7e9 FIFO entries) keep the fixed-function Intersection PM's
-  cycles exact. Past 2**53 cycles the reported throughput is rounded through a float
-  (a strict xfail records it).
+  (~4.5e10-cycle frames, 1.5e10 FIFO entries a frame) keep the fixed-function Intersection PM's
+  cycles exact. Past 2**53 cycles the frame times and the throughput stay exact ints
+  (a float mean was off by one there).
 * FIFO: any depth against a tandem queue with blocking worked out packet by packet;
   depth 1 on real frames is never faster than deeper FIFOs and books its fifo stalls.
 * Memory and other latencies: T_ms is exactly misses x page_miss_cycles (0 when 0);
@@ -203,8 +203,8 @@ WORK_SCALE = 10**6
 
 
 def test_work_counts_times_a_million_stay_exact(small):
-    """Every work count of the 8x8 ring x 1e6: ~1.7e10 Intersection PM cycles a frame and
-    ~7e9 FIFO entries (each packet far larger than the 1024-deep FIFO).
+    """Every work count of the 8x8 ring x 1e6: ~4.5e10 Intersection PM cycles a frame and
+    ~1.5e10 FIFO entries (each packet far larger than the 1024-deep FIFO).
 
     Expected, from the work arrays alone in Python ints: the fixed-function Intersection
     PM's T_norm is 2 per ray + 3 per triangle + the 11 x 3 drain of each job; its T_ms
