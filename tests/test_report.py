@@ -126,7 +126,7 @@ def test_sections_say_why_they_are_empty(combined):
     # no error-vs-cost study among the inputs: section 6 has the granularity curve and says so for (a)
     assert "<h2>1. " in text and "<h2>9. " in text
     extreme = text[text.index('id="extreme"'):text.index('id="provenance"')]
-    assert "Nothing to show: no 'tlm extreme' folder" in extreme
+    assert "Nothing to show: no &#x27;tlm extreme&#x27; folder" in extreme
     tradeoff = text[text.index('id="tradeoff"'):text.index('id="peers"')]
     assert "error-vs-cost" in tradeoff
 
