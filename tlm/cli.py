@@ -316,6 +316,10 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message.replace("\n", " "), source=self.prog)
 
 
+def _no_report(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
@@ -327,7 +331,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
     r.add_argument("--seed", type=int, help="override the seed")
-    r.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(r)
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
@@ -338,13 +342,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
                     "not a terminal)")
-    sw.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(sw)
     sw.set_defaults(func=_cmd_sweep)
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
                         "(Figs. 18-20)")
     sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
     sc.add_argument("--out", help="output folder (default: runs/eq52_<first sweep folder's name>)")
-    sc.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
     ss = s.add_subparsers(dest="scene_cmd", required=True)
@@ -363,18 +367,18 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
     ev.add_argument("--out", help="output folder (default: runs/<config name>)")
-    ev.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
     th.add_argument("--out", help="output folder (default: runs/<config name>)")
-    th.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(th)
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml")
     gr.add_argument("--out", help="output folder (default: runs/<config name>)")
-    gr.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' scales to the RCast column of Tables I-III")
     ca.add_argument("config", help="study YAML, e.g. configs/thesis.yaml")
@@ -391,7 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml")
     ex.add_argument("--out", help="output folder (default: runs/<config name>)")
-    ex.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
     pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")

@@ -279,6 +279,14 @@ def read_yaml(path: Path) -> Any:
         raise InputError(f"YAML syntax error{where}: {problem}", source=str(path)) from None
 
 
+def deep_merge(base: dict, over: dict) -> dict:
+    """``over`` on top of ``base``: mappings merge key by key, anything else replaces."""
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
 def apply_overrides(raw: dict, overrides: list[str], source: str = "--set") -> dict:
     """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping."""
     raw = dict(raw)

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import config_from_dict
+from tlm.config import config_from_dict, deep_merge
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.study import read_study, write_rows
@@ -51,12 +51,6 @@ CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
 OPS = {"==": operator.eq, "<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt, "~": None}
 CASE_KEYS = ("name", "category", "expect", "config", "checks")
 
-
-def _merge(base: dict, over: dict) -> dict:
-    out = dict(base)
-    for k, v in over.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
 
 
 def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
@@ -103,7 +97,7 @@ def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
         if expects_error and len(c["checks"]) != 1:
             raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
         if not expects_error:  # a case that should run must have a valid config now
-            config_from_dict(_merge(base, c["config"]), f"{src} ({where})")
+            config_from_dict(deep_merge(base, c["config"]), f"{src} ({where})")
     return base, cases, Path(path).resolve().parent
 
 
@@ -202,7 +196,7 @@ def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
             checks = c["checks"]
             want_error = isinstance(checks[0], dict) and "error" in checks[0]
             try:
-                cfg = config_from_dict(_merge(base, c["config"]), f"{path} ({c['name']})")
+                cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
                 results = run(cfg, dest, folder, config_path=str(path))
             except InputError as e:
                 if want_error:

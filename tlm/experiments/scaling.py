@@ -55,18 +55,23 @@ def collect(sweep_dir: Path) -> list[dict]:
         folder = sweep_dir / "points" / row["hash"]
         res = json.loads((folder / "results.json").read_text())
         cfg = yaml.safe_load((folder / "config.resolved.yaml").read_text())
-        per_pipe = res["timing"]["pipelines"]
-        records.append({
-            "scene": cfg["scene"], "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
-            "pipelines": int(cfg["arch"]["pipelines"]),
-            "T_vert0": int(res["cycles"]["vertex"]),
-            "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
-            "max_max": max(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
-            "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
-        })
+        records.append(record(res, cfg))
     if not records:
         raise InputError("has no finished point", source=str(rows_path))
     return records
+
+
+def record(res: dict, cfg: dict) -> dict:
+    """What eq. 5.2 needs of one point: its ``results.json`` and resolved config."""
+    per_pipe = res["timing"]["pipelines"]
+    return {
+        "scene": cfg["scene"], "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
+        "pipelines": int(cfg["arch"]["pipelines"]),
+        "T_vert0": int(res["cycles"]["vertex"]),
+        "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
+        "max_max": max(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
+        "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
+    }
 
 
 def fit_group(points: list[dict], target: str, slowest: bool = False) -> dict:

@@ -79,7 +79,7 @@ def _fits_of_study(study) -> dict[tuple, dict]:
 
 
 def _fits_of_sweep(sweep, notes: list[str]) -> dict[tuple, dict]:
-    records = eq52.collect(sweep.path)
+    records = [eq52.record(r.results, r.config) for r in sweep.runs]  # read once by collect.read
     groups = defaultdict(list)
     for r in records:
         groups[(r["scene"], r["mode"], r["scheduler"])].append(r)

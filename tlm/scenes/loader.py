@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import read_yaml
+from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 
@@ -241,14 +241,8 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     base, geom_path = _read_scene(base_path, (*seen, path.resolve()))
     if "geometry" in raw:
         geom_path = path
-    return _merge(base, raw), geom_path
+    return deep_merge(base, raw), geom_path
 
-
-def _merge(base: dict, over: dict) -> dict:
-    out = dict(base)
-    for k, v in over.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
 
 
 def load_scene(
