@@ -1,0 +1,170 @@
+"""Golden fingerprints: the images, work counts and cycles that a speed-up must not change.
+
+``tests/data/golden.json`` holds, for a handful of small runs and kernel calls, a
+SHA-256 of every radiance array and hit array (their exact bytes) and the integer work
+counts and simulated cycles. It was written before the performance work of issue
+[7 of 7] and is compared by ``tests/test_golden.py``: a faster kernel or timing model
+must reproduce it bit for bit.
+
+Regenerate only when a change *means* to alter results (and say so in the commit)::
+
+    python -m tests.golden --write      # from the repository's root
+    python -m tests.golden              # print the differences against the file
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from tlm.arch.functional import Functional
+from tlm.arch.model import simulate
+from tlm.arch.programs import load_programs
+from tlm.config import config_from_dict
+from tlm.experiments.run import render
+from tlm.kernels.traverse import any_hit, build_accel, closest_hit
+from tlm.scenes.loader import load_scene
+
+GOLDEN = Path(__file__).resolve().parent / "data" / "golden.json"
+
+# runs: every frame kind, every gather filter, the three scenes, N and the schedulers
+RUNS = {
+    "cornell-pmap-mvoxel": {"scene": "cornell", "mode": "pmap", "resolution": [48, 48],
+                            "photons": {"count": 4000},
+                            "arch": {"frames": 2, "packet_size": 64, "trace": False}},
+    "cornell-pmap-disk-n4": {"scene": "cornell", "mode": "pmap", "resolution": [32, 32],
+                             "photons": {"count": 3000}, "estimate": {"filter": "disk"},
+                             "arch": {"frames": 3, "pipelines": 4, "trace": False}},
+    "ring-pmap-kvoxel-dynamic": {"scene": "ring", "mode": "pmap", "resolution": [40, 30],
+                                 "photons": {"count": 3000}, "estimate": {"filter": "kvoxel"},
+                                 "arch": {"frames": 2, "pipelines": 3, "scheduler": "dynamic",
+                                          "packet_size": 32, "trace": False}},
+    "room-pmap-knn": {"scene": "room", "mode": "pmap", "resolution": [32, 24],
+                      "photons": {"count": 3000}, "estimate": {"filter": "knn"},
+                      "arch": {"frames": 2, "trace": False}},
+    "room-refract": {"scene": "room", "mode": "refract", "resolution": [64, 48],
+                     "arch": {"frames": 4, "packet_size": 128, "trace": False}},
+    "cornell-refract-1": {"scene": "cornell", "mode": "refract", "resolution": [40, 40],
+                          "arch": {"frames": 2, "packet_size": 1, "trace": False}},
+}
+# kernel calls on random rays: general origins (not the eye's), finite tmax, ignore
+KERNEL_SCENES = ("cornell", "room", "ring")
+KERNEL_RAYS = 6000
+
+
+def digest(a: np.ndarray) -> str:
+    a = np.ascontiguousarray(a)
+    h = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode())
+    h.update(a.tobytes())
+    return h.hexdigest()[:20]
+
+
+def _ints(d: dict) -> dict:
+    """The integer entries of a (nested) stats dict: cycles and counts, not fractions."""
+    out = {}
+    for k, v in sorted(d.items()):
+        if isinstance(v, dict):
+            out[k] = _ints(v)
+        elif isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+            out[k] = int(v)
+    return out
+
+
+def _run(raw: dict) -> dict:
+    cfg = config_from_dict({"seed": 0, **raw})
+    res = render(cfg)
+    tm = simulate(Functional.of(res), load_programs(), cfg.arch)
+    out = {
+        "radiance": {name: digest(rad) for name, rad in sorted(res.radiance.items())},
+        "work": {name: {k: int(v.sum()) for k, v in sorted(wk.items())} for name, wk in sorted(res.work.items())},
+        "cycles": {k: int(v) for k, v in sorted(tm.cycles.items())},
+        "events": int(tm.events),
+        "units": {name: _ints(u) for name, u in sorted(tm.units.items())},
+    }
+    if res.photons is not None:
+        out["photons"] = {k: digest(v) for k, v in sorted(vars(res.photons.photons).items())
+                          if isinstance(v, np.ndarray)}
+    return out
+
+
+def _rays(scene, n: int, seed: int):
+    rng = np.random.default_rng(seed)
+    tri = scene.triangles.reshape(-1, 3, 3)
+    lo, hi = tri.reshape(-1, 3).min(axis=0), tri.reshape(-1, 3).max(axis=0)
+    o = lo + rng.random((n, 3)) * (hi - lo)
+    # aim at random points on random triangles, so most rays hit
+    pick = rng.integers(0, tri.shape[0], n)
+    b = rng.dirichlet([1.0, 1.0, 1.0], n)
+    target = np.einsum("nk,nkj->nj", b, tri[pick])
+    d = target - o
+    d[::7] *= -1.0  # and some away from them
+    tmax = np.where(np.arange(n) % 3 == 0, 0.999, np.inf)
+    ignore = np.where(np.arange(n) % 5 == 0, pick, -1)
+    return o, d, tmax, ignore
+
+
+def _kernel(name: str) -> dict:
+    scene = load_scene(name, None, None, None)
+    accel = build_accel(scene.triangles)
+    o, d, tmax, ignore = _rays(scene, KERNEL_RAYS, seed=len(name))
+    h = closest_hit(accel, o, d, tmin=1e-6, tmax=tmax, ignore=ignore, record=True)
+    s = any_hit(accel, o, d, tmin=1e-6, tmax=tmax, ignore=ignore, record=True)
+    out = {"tree": {"items": digest(accel.tree.items), "split": digest(accel.tree.split)}}
+    for kind, r in (("closest", h), ("any", s)):
+        arrays = {"occluded": s.occluded} if kind == "any" else {"t": h.t, "triangle": h.triangle, "u": h.u, "v": h.v}
+        arrays.update({f"counts.{k}": v for k, v in vars(r.counts).items()})
+        arrays.update({f"touched.{k}": v for k, v in vars(r.touched).items()})
+        out[kind] = {k: digest(v) for k, v in sorted(arrays.items())}
+    return out
+
+
+def compute(names: list[str] | None = None) -> dict:
+    out = {}
+    for name, raw in RUNS.items():
+        if names is None or name in names:
+            out[f"run:{name}"] = _run(raw)
+    for name in KERNEL_SCENES:
+        if names is None or f"kernel:{name}" in names:
+            out[f"kernel:{name}"] = _kernel(name)
+    return out
+
+
+def load() -> dict:
+    return json.loads(GOLDEN.read_text())
+
+
+def differences(a, b, path: str = "") -> list[str]:
+    """Where two fingerprints differ, as dotted paths."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b)):
+            if k not in a or k not in b:
+                out.append(f"{path}{k}: {'missing' if k not in b else 'new'}")
+            else:
+                out.extend(differences(a[k], b[k], f"{path}{k}."))
+        return out
+    return [] if a == b else [f"{path.rstrip('.')}: {a!r} -> {b!r}"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--write", action="store_true", help="overwrite tests/data/golden.json")
+    args = ap.parse_args(argv)
+    now = compute()
+    if args.write:
+        GOLDEN.parent.mkdir(exist_ok=True)
+        GOLDEN.write_text(json.dumps(now, indent=1, sort_keys=True) + "\n")
+        print(f"wrote {GOLDEN}")
+        return 0
+    diff = differences(load(), now)
+    print("\n".join(diff) if diff else "identical")
+    return 1 if diff else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
