@@ -278,7 +278,10 @@ def assert_touched_matches_counts(accel, res) -> None:
 def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
     """Rays whose float32 answer fails its check are traversed again in float64; their
     recorded leaves must be the float64 traversal's, which here (its tests made to find
-    nothing) are all the leaves the ray crosses, not the float32 run's."""
+    nothing) are all the leaves the ray crosses, not the float32 run's. The numpy engine:
+    its check and fallback are the functions patched here (the compiled one is compared
+    with it in tests/test_engines.py)."""
+    monkeypatch.setenv("TLM_KERNELS", "numpy")
     accel = frame.accel
     rng = np.random.default_rng(3)
     o = rng.uniform(100, 450, (300, 3))

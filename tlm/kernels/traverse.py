@@ -32,12 +32,15 @@ Algorithm 1).
 
 from __future__ import annotations
 
+import functools
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
 from tlm.kernels.intersect import (
+    EDGE_EPS,
     TriangleSoA,
     check,
     closest_slots,
@@ -48,6 +51,31 @@ from tlm.kernels.intersect import (
 )
 
 CHUNK_PAIRS = 1 << 17  # (slot, ray) pairs per block: fewer, longer numpy calls
+ENGINES = ("numba", "numpy")
+
+
+def engine() -> str:
+    """Which implementation traces rays: ``TLM_KERNELS`` (``numba`` or ``numpy``).
+
+    Both give bit-identical hits, counts and memory traces (tests compare them). The
+    default is the compiled one, :mod:`tlm.kernels._jit`, when numba imports; the
+    vectorized numpy one is the reference.
+    """
+    name = os.environ.get("TLM_KERNELS", "").strip().lower()
+    if name and name not in ENGINES:
+        raise ValueError(f"TLM_KERNELS={name!r}: expected one of {', '.join(ENGINES)}")
+    if name == "numpy" or not _numba_available():
+        return "numpy"
+    return "numba"
+
+
+@functools.cache
+def _numba_available() -> bool:
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -71,6 +99,13 @@ class TriangleAccel:
     @property
     def leaf_size(self) -> np.ndarray:
         return self.leaf_last - self.leaf_first
+
+    @functools.cached_property
+    def jit_layout(self):
+        """The compiled kernel's padded copy of the constants (built on first use)."""
+        from tlm.kernels import _jit
+
+        return _jit.layout(self)
 
 
 def build_accel(
@@ -262,40 +297,24 @@ def _leaf_lists(tree: BSPTree, o, d, inv, ta, tb, record: bool):
     return ray, leaf, b, node_visits, touched_nodes
 
 
-def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, first_only, batch,
-              shared_origin=False, exact64=False):
-    """Both phases for a packet; ``first_only``: stop at any hit (shadow rays).
-
-    ``exact64``: test in float64 (the fallback of rays whose float32 answer failed its
-    float64 check); otherwise test in float32 and check every ray's answer.
-    """
+def _loop_numpy(accel, o, d, inv, ta, tb, o_t, d_t, tmin_t, tmax_t, ignore, record, first_only, batch,
+                shared_origin, exact64):
+    """Both phases, vectorized: leaf lists level by level, then the leaves in batches
+    grouped by leaf (one block test per leaf), the stopping rule applied afterwards."""
     tree = accel.tree
-    o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
     r = o.shape[0]
-    ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)
     pray, pleaf, pexit, node_visits, touched_nodes = _leaf_lists(tree, o, d, inv, ta, tb, record)
     npairs = pray.shape[0]
     cnt = np.bincount(pray, minlength=r)
     start = np.cumsum(cnt) - cnt
-    size = accel.leaf_size[pleaf]
 
     best_t = np.full(r, np.inf)
     best_slot = np.full(r, -1, dtype=np.int64)
-    best_pair = np.full(r, -1, dtype=np.int64)
     last_k = cnt - 1  # index of the stopping leaf on each ray's list
     done = cnt == 0
     pt = np.full(npairs, np.inf, dtype=np.float64 if exact64 else np.float32)
     pslot = np.full(npairs, -1, dtype=np.int64)
-    soa, soa64 = accel.soa, accel.soa64
-    o_local = o - soa64.origin
-    test, tri, dt = (closest_slots64, soa64, np.float64) if exact64 else (closest_slots, soa, np.float32)
-    with np.errstate(over="ignore"):  # beyond float32's range: inf (such rays go to float64, below)
-        o_t = np.ascontiguousarray(o_local.T, dtype=dt)
-        d_t = np.ascontiguousarray(d.T, dtype=dt)
-        tmin_t = tmin.astype(dt)
-        tmax_t = tmax.astype(dt)
-    if shared_origin and r > 0 and not (o_t == o_t[:, :1]).all():
-        raise ValueError("shared_origin=True but the rays do not share one origin")
+    test, tri = (closest_slots64, accel.soa64) if exact64 else (closest_slots, accel.soa)
     ign = ignore if (ignore >= 0).any() else None
     lf, ll = accel.leaf_first, accel.leaf_last
     # small integer leaf numbers sort by radix (stable) instead of by merge
@@ -342,19 +361,104 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
                 upd = live[better]
                 pb = p[better]
                 best_t[upd], best_slot[upd] = pt[pb], pslot[pb]
-                best_pair[upd] = pb
                 stop = best_t[live] <= pexit[p]
             stopped = live[stop]
             if first_only:
                 best_slot[stopped] = pslot[p[stop]]
-                best_pair[stopped] = p[stop]
             last_k[stopped] = k
             done[stopped] = True
         k0 += batch
 
+    return best_slot, last_k, pray, pleaf, cnt, node_visits, touched_nodes
+
+
+# the compiled kernel's starting buffers: the widest level list (entries), and the
+# visited leaves and entered nodes per ray; one that overflows is doubled and the
+# packet rerun
+JIT_BUFFERS = (1 << 12, 8, 16)
+
+
+def _jit_trace(*args):
+    from tlm.kernels import _jit
+
+    return _jit.trace(*args)
+
+
+def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin):
+    """The whole of :func:`_traverse` for prepared rays, compiled (:func:`tlm.kernels._jit.trace`)."""
+    from tlm.kernels import _jit
+
+    tree, lay = accel.tree, accel.jit_layout
+    r = o.shape[0]
+    if shared_origin and r > 0:
+        with np.errstate(over="ignore"):
+            o32 = (o - accel.soa64.origin).astype(np.float32)
+        if not (o32 == o32[:1]).all():
+            raise ValueError("shared_origin=True but the rays do not share one origin")
+    widest, leaves, nodes = JIT_BUFFERS
+    caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
+    while True:
+        status, t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = _jit_trace(
+            o, d, tmin, tmax, ignore, bool((ignore >= 0).any()), tree.lo[0], tree.hi[0], accel.soa64.origin,
+            tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back, lay.soa64,
+            lay.ids, lay.size, np.float32(EDGE_EPS[np.dtype(np.float32)]), EDGE_EPS[np.dtype(np.float32)],
+            EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, record, *caps)
+        if status == _jit.OK:
+            break
+        caps[status - 1] *= 2  # a buffer was too small: rerun with it doubled
+    counts = Counts(node_visits, cnt, leaf_visits, tri_tests)
+    touched = None
+    if record:
+        id_type = np.int32 if tree.n_nodes <= np.iinfo(np.int32).max else np.int64
+        node_ptr = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(node_visits, out=node_ptr[1:])
+        leaf_ptr = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(leaf_visits, out=leaf_ptr[1:])
+        touched = Touched(node_ptr, node_ids.astype(id_type), leaf_ptr, leaf_ids)
+    found = slot >= 0
+    if first_only:
+        return Occlusion(found, counts, touched)
+    triangle = np.where(found, lay.ids[np.maximum(slot, 0)], -1)
+    if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
+        t = unscale_t(t, scale)
+        far = np.isinf(t)
+        triangle, u, v = np.where(far, -1, triangle), np.where(far, 0.0, u), np.where(far, 0.0, v)
+    return Hits(t, triangle, u, v, counts, touched)
+
+
+def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, record, first_only, batch,
+              shared_origin=False, exact64=False):
+    """Both phases for a packet; ``first_only``: stop at any hit (shadow rays).
+
+    ``exact64``: test in float64 (the fallback of rays whose float32 answer failed its
+    float64 check); otherwise test in float32 and check every ray's answer.
+    """
+    tree = accel.tree
+    o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
+    if not exact64 and engine() == "numba":
+        return _traverse_jit(accel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin)
+    r = o.shape[0]
+    ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)
+    soa, soa64 = accel.soa, accel.soa64
+    o_local = o - soa64.origin
+    dt = np.float64 if exact64 else np.float32
+    with np.errstate(over="ignore"):  # beyond float32's range: inf (such rays go to float64, below)
+        o_t = np.ascontiguousarray(o_local.T, dtype=dt)
+        d_t = np.ascontiguousarray(d.T, dtype=dt)
+        tmin_t = tmin.astype(dt)
+        tmax_t = tmax.astype(dt)
+    if shared_origin and r > 0 and not (o_t == o_t[:, :1]).all():
+        raise ValueError("shared_origin=True but the rays do not share one origin")
+    best_slot, last_k, pray, pleaf, cnt, node_visits, touched_nodes = _loop_numpy(
+        accel, o, d, inv, ta, tb, o_t, d_t, tmin_t, tmax_t, ignore, record, first_only, batch,
+        shared_origin, exact64)
+    npairs = pray.shape[0]
+    start = np.cumsum(cnt) - cnt
+    size = accel.leaf_size[pleaf]
+
     # the float64 check of every ray's float32 answer; the rays whose answer fails it
     # (rare: grazing hits at the end of their segment) are traversed again in float64
-    hit = np.flatnonzero(best_pair >= 0)
+    hit = np.flatnonzero(best_slot >= 0)
     t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
     t[hit], u[hit], v[hit], ok = check(o_local[hit], d[hit], tmin[hit], tmax[hit], soa64, best_slot[hit])
     found = best_slot >= 0

@@ -1,0 +1,425 @@
+"""The traversal compiled with numba, one ray at a time: the fast path of :mod:`traverse`.
+
+This is :func:`tlm.kernels.traverse._traverse` (root clip, leaf list, leaf loop,
+float64 check, float64 fallback, work counts, memory touched) written per ray instead
+of per block: a ray stops testing where its stopping rule says so (the numpy version
+tests a batch of leaves ahead and discards the excess), and no (slot, ray) block is
+materialized. Every floating-point operation is the numpy version's, in the same order
+and precision: float32 for the block test (:func:`intersect.closest_slots`), float64
+for the intervals, the check (:func:`intersect.check`) and the fallback
+(:func:`intersect.closest_slots64`). numba compiles without fast-math, so nothing is
+reassociated or fused into an FMA. Hits, work counts and the memory touched are
+therefore bit-identical to the numpy path, which stays the reference
+(``TLM_KERNELS=numpy``); tests compare the two and a golden file pins both.
+
+Rejection in the float32 test follows numpy's semantics: a NaN in ``u``, ``v`` or
+``t'`` rejects the pair (numpy's ``minimum`` propagates it, and an x86 NaN has its sign
+bit set, so ``copysign`` makes the key negative), and ``min(w, t')`` returns ``t'`` on
+a tie of signed zeros, as the SIMD minimum does.
+
+Layout: the float32 constants are one (16, m') stack whose every leaf starts on a
+multiple of :data:`PAD` slots and is padded with NaN slots (rejected by every test),
+so the vectorized slot loop never runs a scalar remainder; ``back`` maps a padded slot
+to the accel's slot. Buffers are sized up front; a ray that would overflow one stops
+the kernel with a status, and the caller reruns it with larger buffers (no array is
+reallocated inside the loops, which would cost reference counting per ray).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+PAD = 8  # slots per AVX2 vector of float32
+_NO_HIT = np.uint32(0x7F800000)  # float32 +inf
+_REJECT = np.uint32(0xFFFFFFFF)
+OK, FULL_LEVEL, FULL_LEAVES, FULL_NODES = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The compiled kernel's copy of a :class:`~tlm.kernels.traverse.TriangleAccel`."""
+
+    soa32: np.ndarray  # (16, m') float32: v0, -E1, E2, N, -N (x, y, z), triangle id bits
+    first: np.ndarray  # (leaves,) int64: a leaf's first padded slot
+    last: np.ndarray  # (leaves,) int64: past its last padded slot (a multiple of PAD on)
+    back: np.ndarray  # (m',) int64: the accel's slot of a padded slot (-1: padding)
+    soa64: np.ndarray  # (15, m) float64: v0, -E1, E2, N, -N of the accel's slots
+    ids: np.ndarray  # (m,) int64: triangle id of the accel's slots
+    size: np.ndarray  # (leaves,) int64: triangles per leaf (the Intersection PM's work)
+
+
+def layout(accel) -> Layout:
+    """Build the :class:`Layout` of an accel (once per accel: it is cached there)."""
+    soa, soa64 = accel.soa, accel.soa64
+    ids = soa.ids
+    if ids.shape[0] and ids.max() > np.iinfo(np.int32).max:
+        raise ValueError("more than 2**31 triangles")
+    lf, ll = accel.leaf_first, accel.leaf_last
+    size = (ll - lf).astype(np.int64)
+    padded = (size + PAD - 1) // PAD * PAD
+    first = np.zeros(size.shape[0], dtype=np.int64)
+    np.cumsum(padded[:-1], out=first[1:])
+    m2 = int(padded.sum())
+    # where each accel slot goes: its leaf's padded start + its place in the leaf
+    leaf_of = np.repeat(np.arange(size.shape[0]), size)
+    src = np.concatenate([np.arange(a, b) for a, b in zip(lf.tolist(), ll.tolist(), strict=True)]
+                         or [np.zeros(0, np.int64)]).astype(np.int64)
+    dst = first[leaf_of] + (np.arange(src.shape[0]) - np.repeat(np.cumsum(size) - size, size))
+    soa32 = np.full((16, m2), np.nan, dtype=np.float32)
+    soa32[15] = np.array([-2], dtype=np.int32).view(np.float32)[0]  # no triangle's id
+    for k, rows in enumerate((soa.v0, soa.e1n, soa.e2, soa.n, soa.nn)):
+        soa32[3 * k : 3 * k + 3, dst] = rows[:, src]
+    soa32[15, dst] = ids[src].astype(np.int32).view(np.float32)
+    back = np.full(m2, -1, dtype=np.int64)
+    back[dst] = src
+    soa64_rows = np.ascontiguousarray(np.concatenate([soa64.v0, soa64.e1n, soa64.e2, soa64.n, soa64.nn]))
+    return Layout(soa32, first, first + padded, back, soa64_rows, np.ascontiguousarray(ids, dtype=np.int64),
+                  size)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mn(a, b):
+    """numpy's float minimum: a NaN operand wins (``a`` first), ``b`` on a tie."""
+    if a != a:
+        return a
+    if a < b:
+        return a
+    return b
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mx(a, b):
+    """numpy's float maximum: a NaN operand wins (``a`` first), ``b`` on a tie."""
+    if a != a:
+        return a
+    if a > b:
+        return a
+    return b
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, keys):
+    """:func:`closest_slots` for one ray and the padded slots ``s0:s1``: ``(slot, t)``
+    (a padded slot; -1 and inf when nothing is hit). Scalars are float32; ``ign`` is a
+    triangle id or -1. Among equal distances the lowest slot wins.
+
+    The slot loop is branch-free with unsigned indices, so LLVM vectorizes it (numba
+    adds a negative-index wraparound to signed ones, and LLVM then gathers lane by lane).
+    ``keys`` (scratch) gets the bits of ``t' = t - tmin`` of an accepted pair and
+    0xFFFFFFFF of a rejected one.
+    """
+    one = np.float32(1.0)
+    ign32 = np.int32(ign)
+    u0 = np.uint64(s0)
+    best_hi = _REJECT
+    for j in range(np.uint64(s1 - s0)):
+        s = u0 + j
+        rdet = dx * soa[12, s]
+        rdet = rdet + dy * soa[13, s]
+        rdet = rdet + dz * soa[14, s]
+        rdet = one / rdet
+        tx = ox - soa[0, s]
+        ty = oy - soa[1, s]
+        tz = oz - soa[2, s]
+        t = tx * soa[9, s]
+        t = t + ty * soa[10, s]
+        t = t + tz * soa[11, s]
+        t = t * rdet
+        if shared:  # u and v as linear forms in D (the numpy shared-origin path)
+            kx = soa[7, s] * tz - soa[8, s] * ty
+            ky = soa[8, s] * tx - soa[6, s] * tz
+            kz = soa[6, s] * ty - soa[7, s] * tx
+            u = dx * kx
+            u = u + dy * ky
+            u = u + dz * kz
+            u = u * rdet
+            kx = soa[4, s] * tz - soa[5, s] * ty
+            ky = soa[5, s] * tx - soa[3, s] * tz
+            kz = soa[3, s] * ty - soa[4, s] * tx
+            v = dx * kx
+            v = v + dy * ky
+            v = v + dz * kz
+            v = v * rdet
+        else:
+            cx = ty * dz - tz * dy
+            cy = tz * dx - tx * dz
+            cz = tx * dy - ty * dx
+            u = cx * soa[6, s]
+            u = u + cy * soa[7, s]
+            u = u + cz * soa[8, s]
+            u = u * rdet
+            v = cx * soa[3, s]
+            v = v + cy * soa[4, s]
+            v = v + cz * soa[5, s]
+            v = v * rdet
+        w = one - (u + v)
+        w = _mn(w, _mn(u, v))
+        w = w + eps
+        tp = t - tmin
+        w = _mn(w, tp)
+        # rejected: w NaN or negative (its sign bit), or the ray's ignored triangle
+        bad = (w != w) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
+            np.float32(soa[15, s]).view(np.int32) == ign32)
+        key = _REJECT if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
+        keys[j] = key
+        best_hi = min(best_hi, key)
+    if best_hi >= _NO_HIT:  # nothing accepted, or only at t' = inf
+        return -1, np.float32(np.inf)
+    best = 0
+    while keys[best] != best_hi:
+        best += 1
+    tb = np.uint32(best_hi).view(np.float32) + tmin
+    if not tb < tmax:
+        return -1, np.float32(np.inf)
+    return s0 + best, tb
+
+
+@njit(cache=True, error_model="numpy")
+def _leaf64(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, ids, s0, s1, eps):
+    """:func:`closest_slots64` for one ray and the accel's slots ``s0:s1``: ``(slot, t)``
+    (-1 and inf when nothing is hit), float64, eq. 3.6 written out; first minimum wins."""
+    best = -1
+    best_t = np.inf
+    for s in range(s0, s1):
+        v0x, v0y, v0z = soa[0, s], soa[1, s], soa[2, s]
+        e1x, e1y, e1z = -soa[3, s], -soa[4, s], -soa[5, s]
+        e2x, e2y, e2z = soa[6, s], soa[7, s], soa[8, s]
+        tx, ty, tz = ox - v0x, oy - v0y, oz - v0z
+        px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x  # P = D x E2
+        qx, qy, qz = ty * e1z - tz * e1y, tz * e1x - tx * e1z, tx * e1y - ty * e1x  # Q = T x E1
+        inv = 1.0 / ((px * e1x + py * e1y) + pz * e1z)
+        t = ((qx * e2x + qy * e2y) + qz * e2z) * inv
+        u = ((px * tx + py * ty) + pz * tz) * inv
+        v = ((qx * dx + qy * dy) + qz * dz) * inv
+        ok = (u >= -eps) and (v >= -eps) and (u + v <= 1.0 + eps) and (t > tmin) and (t < tmax)
+        if ok and ids[s] != ign and t < best_t:
+            best_t = t
+            best = s
+    if not np.isfinite(best_t):
+        return -1, np.inf
+    return best, best_t
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _exact(ox, oy, oz, dx, dy, dz, soa, s):
+    """:func:`intersect.exact`: eq. 3.6 in float64 for one ray and one slot."""
+    v0x, v0y, v0z = soa[0, s], soa[1, s], soa[2, s]
+    e1x, e1y, e1z = -soa[3, s], -soa[4, s], -soa[5, s]
+    e2x, e2y, e2z = soa[6, s], soa[7, s], soa[8, s]
+    tx, ty, tz = ox - v0x, oy - v0y, oz - v0z
+    px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x
+    qx, qy, qz = ty * e1z - tz * e1y, tz * e1x - tx * e1z, tx * e1y - ty * e1x
+    inv = 1.0 / ((px * e1x + py * e1y) + pz * e1z)
+    t = ((qx * e2x + qy * e2y) + qz * e2z) * inv
+    u = ((px * tx + py * ty) + pz * tz) * inv
+    v = ((qx * dx + qy * dy) + qz * dz) * inv
+    return t, u, v
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _lossy(x0, x1, x2, y0, y1, y2):
+    """:func:`intersect.lossy32` for one row: ``x`` float64, ``y`` its float32 copy."""
+    big = max(abs(x0), abs(x1), abs(x2))
+    lim = 2.0**-22 * big
+    e0 = abs(np.float64(y0) - x0)
+    e1 = abs(np.float64(y1) - x1)
+    e2 = abs(np.float64(y2) - x2)
+    return not (e0 <= lim and e1 <= lim and e2 <= lim)
+
+
+@njit(cache=True, error_model="numpy")
+def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
+          split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size,
+          eps32, eps_check, eps64, first_only, shared, record,
+          level_cap, leaf_cap, node_cap):
+    """Every ray of a packet, start to finish (see :func:`tlm.kernels.traverse._traverse`).
+
+    o, d : (r, 3) float64 (after ``_prepare``: rescaled, subnormals flushed); tmin, tmax,
+    ignore : (r,). The layout arrays are :class:`Layout`'s. ``*_cap`` size the buffers:
+    the widest level list, and the visited leaves and entered nodes of all rays.
+
+    Returns ``status`` (``OK`` or which buffer overflowed: rerun with it doubled), then
+    ``t, u, v`` (r,) float64, ``slot`` (r,) int64 (the accel's slot; -1: none),
+    ``node_visits, cnt, leaf_visits, tri_tests`` (r,) int64, and with ``record`` the
+    entered nodes and visited leaves, ray-major (sizes ``node_visits``, ``leaf_visits``).
+    """
+    r = o.shape[0]
+    t_out = np.full(r, np.inf)
+    u_out = np.zeros(r)
+    v_out = np.zeros(r)
+    slot_out = np.full(r, -1, dtype=np.int64)
+    node_visits = np.zeros(r, dtype=np.int64)
+    cnt = np.zeros(r, dtype=np.int64)
+    leaf_visits = np.zeros(r, dtype=np.int64)
+    tri_tests = np.zeros(r, dtype=np.int64)
+    leaf_ids = np.empty(leaf_cap if record else 0, dtype=np.int64)
+    node_ids = np.empty(node_cap if record else 0, dtype=np.int64)
+    n_leaf_out = 0
+    n_node_out = 0
+    lnode = np.empty(2 * level_cap, dtype=np.int64)  # two halves: this level, the next
+    la = np.empty(2 * level_cap)
+    lb = np.empty(2 * level_cap)
+    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
+    lo0, lo1, lo2 = root_lo[0], root_lo[1], root_lo[2]
+    hi0, hi1, hi2 = root_hi[0], root_hi[1], root_hi[2]
+    for i in range(r):
+        # the root clip (_clip_root): slabs, a zero component inside or outside its slab
+        ta = tmin[i]
+        tb = tmax[i]
+        for k in range(3):
+            oc = o[i, k]
+            dc = d[i, k]
+            lo = lo0 if k == 0 else (lo1 if k == 1 else lo2)
+            hi = hi0 if k == 0 else (hi1 if k == 1 else hi2)
+            if dc == 0.0:
+                inside = (oc >= lo) and (oc <= hi)
+                near = -np.inf if inside else np.inf
+                far = np.inf if inside else -np.inf
+            else:
+                ic = 1.0 / dc
+                t0 = (lo - oc) * ic
+                t1 = (hi - oc) * ic
+                near = _mn(t0, t1)
+                far = _mx(t0, t1)
+            ta = _mx(ta, near)
+            tb = _mn(tb, far)
+        if not ta <= tb:
+            continue
+        # phase 1: the level lists, near child first (_leaf_lists)
+        cur = 0
+        m = 1
+        lnode[0] = 0
+        la[0] = ta
+        lb[0] = tb
+        for j in range(levels):
+            axis = j % 3
+            oc = o[i, axis]
+            dc = d[i, axis]
+            ic = 1.0 / dc
+            node_visits[i] += m
+            if record:
+                if n_node_out + m > node_cap:
+                    return FULL_NODES, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
+                        tri_tests, node_ids, leaf_ids
+                for e in range(m):
+                    node_ids[n_node_out + e] = lnode[cur + e]
+                n_node_out += m
+            if 2 * m > level_cap:
+                return FULL_LEVEL, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
+                    tri_tests, node_ids, leaf_ids
+            nxt = level_cap - cur
+            k = 0
+            flat = dc == 0.0
+            for e in range(m):
+                node = lnode[cur + e]
+                a = la[cur + e]
+                b = lb[cur + e]
+                s = split[node]
+                if flat:
+                    near_right = oc >= s
+                    near_b = b
+                    far_a = np.inf
+                else:
+                    ts = (s - oc) * ic
+                    near_right = dc < 0.0
+                    near_b = _mn(b, ts)
+                    far_a = _mx(a, ts)
+                left = 2 * node + 1
+                if a <= near_b:
+                    lnode[nxt + k] = left + (1 if near_right else 0)
+                    la[nxt + k] = a
+                    lb[nxt + k] = near_b
+                    k += 1
+                if far_a <= b:
+                    lnode[nxt + k] = left + (0 if near_right else 1)
+                    la[nxt + k] = far_a
+                    lb[nxt + k] = b
+                    k += 1
+            m = k
+            cur = nxt
+            if m == 0:
+                break
+        cnt[i] = m
+        if m == 0:
+            continue
+        # phase 2 in float32, the datapath (the numpy leaf loop's stopping rule)
+        ox, oy, oz = o[i, 0] - origin[0], o[i, 1] - origin[1], o[i, 2] - origin[2]  # o_local
+        dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
+        ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
+        dx32, dy32, dz32 = np.float32(dx), np.float32(dy), np.float32(dz)
+        t0, t1 = np.float32(tmin[i]), np.float32(tmax[i])
+        ign = ignore[i] if has_ignore else -1
+        last = m - 1
+        best = -1  # padded slot
+        best_t = np.inf
+        for e in range(m):
+            leaf = lnode[cur + e] - leaf_offset
+            slot, pt = -1, np.float32(np.inf)
+            if last32[leaf] > first32[leaf]:
+                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32,
+                                   first32[leaf], last32[leaf], eps32, shared, keys)
+            if first_only:
+                if slot >= 0:
+                    best = slot
+                    last = e
+                    break
+            else:
+                if np.float64(pt) < best_t:
+                    best_t = np.float64(pt)
+                    best = slot
+                if best_t <= lb[cur + e]:
+                    last = e
+                    break
+        # the float64 check of the float32 answer (check), the rays that float32
+        # cannot carry (lossy32), and the float64 fallback of both
+        redo = _lossy(dx, dy, dz, dx32, dy32, dz32) or _lossy(ox, oy, oz, ox32, oy32, oz32)
+        if best >= 0:
+            sb = back[best]
+            t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa64, sb)
+            ok = (t > tmin[i]) and (t < tmax[i]) and (u >= -eps_check) and (v >= -eps_check) and (
+                u + v <= 1.0 + eps_check)
+            t_out[i], u_out[i], v_out[i], slot_out[i] = t, u, v, sb
+            redo = redo or not ok
+        if redo:
+            t_out[i], u_out[i], v_out[i], slot_out[i] = np.inf, 0.0, 0.0, -1
+            last = m - 1
+            best_t = np.inf
+            sb = -1
+            for e in range(m):
+                leaf = lnode[cur + e] - leaf_offset
+                s0 = first32[leaf]
+                slot, pt = _leaf64(ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], ign, soa64, ids,
+                                   back[s0], back[s0] + size[leaf], eps64) if size[leaf] > 0 else (-1, np.inf)
+                if first_only:
+                    if slot >= 0:
+                        sb = slot
+                        last = e
+                        break
+                else:
+                    if pt < best_t:
+                        best_t = pt
+                        sb = slot
+                    if best_t <= lb[cur + e]:
+                        last = e
+                        break
+            if sb >= 0:
+                t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa64, sb)
+                t_out[i], u_out[i], v_out[i], slot_out[i] = t, u, v, sb
+        leaf_visits[i] = last + 1
+        tests = 0
+        if record and n_leaf_out + last + 1 > leaf_cap:
+            return FULL_LEAVES, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
+                tri_tests, node_ids, leaf_ids
+        for e in range(last + 1):
+            leaf = lnode[cur + e] - leaf_offset
+            tests += size[leaf]
+            if record:
+                leaf_ids[n_leaf_out + e] = leaf
+        tri_tests[i] = tests
+        if record:
+            n_leaf_out += last + 1
+    return OK, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, tri_tests, \
+        node_ids[:n_node_out], leaf_ids[:n_leaf_out]
