@@ -5,16 +5,19 @@ from inside the box; or ``--dist cube``: uniform in the unit cube, random direct
 
 * **build**: ``build_point_tree(position)`` (Algorithm 1, default depth ``floor(ln n)``)
   against ``scipy.spatial.cKDTree(position)``; also the leaf-order copy of the photon
-  arrays (``leaf_photons``) that the gathers read. Bar: the tree within 3x of cKDTree.
+  arrays (``leaf_photons``) that the gathers read. Bar of issue [7 of 7]: the tree within
+  2x of cKDTree's build time (issue [2 of 7] asked for 3x).
 * **tracing**: photons emitted and traced per second on the thesis scenes.
 * **gathers**: radiance estimates per second at ``--queries`` query points (also on the
   faces, normals pointing into the box) with the m-voxel (eq. 3.3, Fig. 8), k-voxel
   (eq. 3.5) and disk (eq. 3.2) filters, against ``cKDTree.query_ball_point(points, r,
   workers=1)`` with the same ``r``, chosen so that about ``--per-sphere`` photons lie
-  within ``r`` of a query. Bar: m-voxel at least 0.25x cKDTree's throughput. The exact
+  within ``r`` of a query. Bar of issue [7 of 7]: m-voxel at least 0.5x cKDTree's
+  throughput (issue [2 of 7] asked for 0.25x). The exact
   k-NN reference (``knn_estimate``, cKDTree inside) is shown for information.
 
-Each timing is the best of ``--repeat`` runs, one thread. Prints, asserts nothing.
+Each timing is the best of ``--repeat`` runs, one thread. Prints PASS/FAIL per bar and
+exits 0 unless something crashes.
 
     python benchmarks/bench_photons.py [--sizes 20000 80000 120000] [--queries 20000] [--repeat 5]
 """
@@ -64,6 +67,10 @@ def queries(q: int, dist: str, rng: np.random.Generator):
     return pts, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
 
 
+TREE_BAR = 2.0  # photon tree build time / cKDTree build time, at most
+GATHER_BAR = 0.5  # m-voxel gather throughput / cKDTree.query_ball_point throughput, at least
+
+
 def radius_for(n: int, dist: str, per: float) -> float:
     if dist == "box":  # a sphere meets a face in a disk; n / 6 photons per unit area
         return math.sqrt(per * 6.0 / (math.pi * n))
@@ -86,7 +93,9 @@ def bench_size(n: int, args) -> None:
           f"{n / tree.n_leaves:.1f} photons per leaf, r = {r:.5f}")
     print(f"  build   tlm tree {t_tree * 1e3:8.2f} ms   + leaf_photons {t_leaf * 1e3:6.2f} ms   "
           f"cKDTree {t_kd * 1e3:8.2f} ms   tree / cKDTree time {t_tree / t_kd:5.2f}x "
-          f"(with leaf_photons {(t_tree + t_leaf) / t_kd:5.2f}x)   [bar: <= 3x]")
+          f"(with leaf_photons {(t_tree + t_leaf) / t_kd:5.2f}x)")
+    ok = t_tree / t_kd <= TREE_BAR
+    print(f"  {'PASS' if ok else 'FAIL'}: tree build {t_tree / t_kd:.2f}x cKDTree's time (bar: at most {TREE_BAR:g}x)")
 
     est_args = (pos, power, inc, tree, pts, nrm, r)
     t_ball = best_of(lambda: kd.query_ball_point(pts, r, workers=1), args.repeat)
@@ -102,10 +111,13 @@ def bench_size(n: int, args) -> None:
     for name, fn in runs.items():
         t = best_of(fn, args.repeat)
         e = fn()
-        bar = "   [bar: >= 0.25x]" if name == "mvoxel" else ""
         print(f"  {name:8s} gather            {q / t / 1e3:8.1f} kqueries/s   ours / cKDTree {t_ball / t:5.2f}x"
               f"   leaves {e.leaves_visited.mean():5.2f}  tested {e.photons_tested.mean():7.1f}  "
-              f"accepted {e.photons_accepted.mean():6.1f}{bar}")
+              f"accepted {e.photons_accepted.mean():6.1f}")
+        if name == "mvoxel":
+            ok = t_ball / t >= GATHER_BAR
+            print(f"  {'PASS' if ok else 'FAIL'}: m-voxel gather {t_ball / t:.2f}x cKDTree's throughput "
+                  f"(bar: at least {GATHER_BAR:g}x)")
 
 
 def bench_tracing(scenes: list[str], repeat: int) -> None:

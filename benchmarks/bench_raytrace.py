@@ -4,8 +4,10 @@ For each built-in scene: the primary rays of the whole image (closest hit) and o
 shadow ray per Lambertian primary hit towards the centre of every light (any hit).
 Both engines trace the same rays; each timing is the best of ``--repeat`` runs, one
 thread each (Embree's ``run`` traces the rays one after another on the calling
-thread). Prints a table and the ratio tlm / Embree; the bar of issue [1 of 7] is a
-primary-ray ratio of at least 1/20 on Cornell (the project goal: 1/10).
+thread). tlm runs twice: with its compiled kernel (numba, the default) and with the
+numpy reference (``TLM_KERNELS=numpy``), which gives bit-identical answers. Prints a
+table with the ratios tlm / Embree, then PASS/FAIL against the bar of issue [7 of 7]:
+primary and shadow rays on Cornell at least 1/10 of Embree's rate (compiled kernel).
 
     python benchmarks/bench_raytrace.py [--scenes cornell ring room] [--repeat 5]
 """
@@ -13,6 +15,7 @@ primary-ray ratio of at least 1/20 on Cornell (the project goal: 1/10).
 from __future__ import annotations
 
 import argparse
+import os
 
 import numpy as np
 from timing import best_of
@@ -44,8 +47,25 @@ def shadow_rays(scene, accel, hits, o, d):
     return o_s, d_s, np.concatenate(ignore), rel
 
 
-def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float]]:
-    """(kind, rays, tlm seconds, Embree seconds) for the primary and the shadow rays."""
+BAR = 10.0  # Embree's rate / tlm's rate, at most (Cornell, primary and shadow rays)
+
+
+def engine_time(engine: str, fn, repeat: int) -> float:
+    """Best time of ``fn`` with ``TLM_KERNELS=engine``."""
+    old = os.environ.get("TLM_KERNELS")
+    os.environ["TLM_KERNELS"] = engine
+    try:
+        fn()  # the first call of the compiled kernel loads it
+        return best_of(fn, repeat)
+    finally:
+        if old is None:
+            del os.environ["TLM_KERNELS"]
+        else:
+            os.environ["TLM_KERNELS"] = old
+
+
+def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float, float]]:
+    """(kind, rays, tlm seconds, tlm-numpy seconds, Embree seconds) per kind of ray."""
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
 
@@ -58,9 +78,11 @@ def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float]]:
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
     emb.run(o32[:16], d32[:16])  # build Embree's BVH outside the timing
     hits = closest_hit(accel, o, d, shared_origin=True)
+    def primary():
+        return closest_hit(accel, o, d, shared_origin=True)
+
     rows = [(
-        "primary", o.shape[0],
-        best_of(lambda: closest_hit(accel, o, d, shared_origin=True), repeat),
+        "primary", o.shape[0], engine_time("numba", primary, repeat), engine_time("numpy", primary, repeat),
         best_of(lambda: emb.run(o32, d32), repeat),
     )]
     so, sd, sign, rel = shadow_rays(scene, accel, hits, o, d)
@@ -68,9 +90,11 @@ def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float]]:
     so32 = (so + rel[:, None] * sd).astype(np.float32)
     sd32 = (sd * (1.0 - 2.0 * rel[:, None])).astype(np.float32)
     ones = np.ones(len(so32), np.float32)
+    def shadow():
+        return any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
+
     rows.append((
-        "shadow", so.shape[0],
-        best_of(lambda: any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign), repeat),
+        "shadow", so.shape[0], engine_time("numba", shadow, repeat), engine_time("numpy", shadow, repeat),
         best_of(lambda: emb.run(so32, sd32, dists=ones, query="OCCLUDED"), repeat),
     ))
     return rows
@@ -81,11 +105,20 @@ def main() -> None:
     ap.add_argument("--scenes", nargs="+", default=["cornell", "ring", "room"])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
-    print(f"{'scene':8s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'embree Mrays/s':>15s} {'ratio':>9s}")
+    print(f"{'scene':8s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
+          f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'numpy/embree':>13s}")
+    verdicts = []
     for name in args.scenes:
-        for kind, n, t_ours, t_emb in bench_scene(name, args.repeat):
-            print(f"{name:8s} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_emb / 1e6:15.3f} "
-                  f"1/{t_ours / t_emb:6.1f}")
+        for kind, n, t_ours, t_np, t_emb in bench_scene(name, args.repeat):
+            print(f"{name:8s} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_np / 1e6:14.3f} "
+                  f"{n / t_emb / 1e6:15.3f} {'1/' + format(t_ours / t_emb, '.1f'):>11s} "
+                  f"{'1/' + format(t_np / t_emb, '.1f'):>13s}")
+            if name == "cornell":
+                ok = t_ours / t_emb <= BAR
+                verdicts.append(f"{'PASS' if ok else 'FAIL'}: Cornell {kind} rays at 1/{t_ours / t_emb:.1f} of "
+                                f"Embree's rate (bar: at least 1/{BAR:g})")
+    for v in verdicts:
+        print(v)
 
 
 if __name__ == "__main__":
