@@ -13,9 +13,10 @@ from collections import deque
 from dataclasses import dataclass, field
 
 import simpy
+from simpy.events import PENDING, Event, Timeout
 
 from tlm.arch.program import FrameProgram, JobSpec
-from tlm.arch.units import Trace, Unit
+from tlm.arch.units import Trace, Unit, _cycles
 from tlm.config import ArchConfig
 
 # -- the units --------------------------------------------------------------------------------
@@ -129,21 +130,24 @@ class Job:
     suspended_at: int = 0
     waited: int = 0  # how many of ``after`` have fired
 
+    label: str = field(init=False, repr=False)  # "frame <frame> <phase>"
+
+    def __post_init__(self) -> None:
+        self.label = f"frame {self.frame} {self.phase}"
+
     def blocker(self):
         """The first (event, cause, what) of ``after`` not yet fired, or None: ready to run."""
         after = self.after
         k = self.waited
-        while k < len(after):
-            if not after[k][0].triggered:
+        n = len(after)
+        while k < n:
+            b = after[k]
+            if b[0]._value is PENDING:  # (not b[0].triggered)
                 self.waited = k
-                return after[k]
+                return b
             k += 1
         self.waited = k  # events only ever fire: what has fired need not be looked at again
         return None
-
-    @property
-    def label(self) -> str:
-        return f"frame {self.frame} {self.phase}"
 
 
 class Fifo:
@@ -174,8 +178,9 @@ class Fifo:
             return False
         self.level -= slots
         self.queue.append(k)
-        if self._data is not None and not self._data.triggered:
-            self._data.succeed()
+        data = self._data
+        if data is not None and data._value is PENDING:  # (not yet triggered)
+            data.succeed()
         return True
 
     def try_pop(self) -> int | None:
@@ -183,22 +188,73 @@ class Fifo:
 
     def free(self, slots: int) -> None:
         self.level += slots
-        if self._space is not None and not self._space.triggered:
-            self._space.succeed()
+        space = self._space
+        if space is not None and space._value is PENDING:
+            space.succeed()
 
     def space_freed(self) -> simpy.events.Event:
-        if self._space is None or self._space.triggered:
-            self._space = self.env.event()
+        if self._space is None or self._space._value is not PENDING:
+            self._space = Event(self.env)
         return self._space
 
     def data_arrived(self) -> simpy.events.Event:
-        if self._data is None or self._data.triggered:
-            self._data = self.env.event()
+        if self._data is None or self._data._value is not PENDING:
+            self._data = Event(self.env)
         return self._data
 
 
+class _AnyOf(Event):
+    """``env.any_of(events)`` for the PMs' waits, without the cost of a general condition.
+
+    Fires (is scheduled, with a normal priority) when the first of ``events`` is processed,
+    exactly when and as :class:`simpy.AnyOf` would, and is one event as it is; its value
+    is None rather than a ``ConditionValue`` (no PM reads it). Once processed it takes its
+    callbacks off the events that have not fired, as a condition does.
+    """
+
+    def __init__(self, env: simpy.Environment, events: list):
+        self.env = env
+        self.callbacks = [self._detach]
+        self._value = PENDING
+        self._events = events
+        self._fired = fired = self._fire  # one bound method: appended, and later removed, as itself
+        for ev in events:
+            if ev.callbacks is None:
+                fired(ev)
+            else:
+                ev.callbacks.append(fired)
+
+    def _fire(self, ev: Event) -> None:
+        if self._value is not PENDING:
+            return
+        if ev._ok:
+            self._ok = True
+            self._value = None
+        else:  # (no event of the model fails; a condition would fail with it)
+            ev._defused = True
+            self._ok = False
+            self._value = ev._value
+        self.env.schedule(self)
+
+    def _detach(self, _ev: Event) -> None:
+        fired = self._fired
+        for ev in self._events:
+            cbs = ev.callbacks
+            if cbs:
+                try:  # noqa: SIM105 - cheaper than contextlib.suppress, on the hot path
+                    cbs.remove(fired)
+                except ValueError:
+                    pass
+        self._fired = None  # (it refers to the event itself)
+
+
 class PM:
-    """A Processing Module: takes jobs of both images, the priority image's first."""
+    """A Processing Module: takes jobs of both images, the priority image's first.
+
+    A job's rank is its frame (:meth:`_rank`): the image that arrived first has priority.
+    The queue is kept in rank order, so only a job ahead of a running job's frame can
+    preempt it (the hot paths compare ``job.frame`` directly).
+    """
 
     def __init__(self, model: Model, pipe: int, name: str):
         self.model = model
@@ -215,6 +271,10 @@ class PM:
         self.env.process(self._loop())
 
     # -- queue ------------------------------------------------------------------------
+    @staticmethod
+    def _rank(job: Job) -> int:
+        return job.frame  # the image that arrived first has priority
+
     def submit(self, job: Job) -> None:
         """Queue ``job`` behind every job of the same or a higher priority."""
         q = self.queue
@@ -227,15 +287,12 @@ class PM:
         self.poke()
 
     def poke(self) -> None:
-        if not self.changed.triggered:
+        if self.changed._value is PENDING:
             self.changed.succeed()
 
     def _rearm(self) -> None:
-        if self.changed.triggered:
-            self.changed = self.env.event()
-
-    def _rank(self, job: Job) -> int:
-        return job.frame  # the image that arrived first has priority
+        if self.changed._value is not PENDING:
+            self.changed = Event(self.env)
 
     def _ready(self) -> Job | None:
         """The ready job of the highest priority (the queue is kept in priority order)."""
@@ -245,9 +302,9 @@ class PM:
         return None
 
     def _higher_ready(self, job: Job) -> bool:
-        rank = self._rank(job)
+        rank = job.frame
         for j in self.queue:
-            if self._rank(j) >= rank:
+            if j.frame >= rank:
                 return False
             if j.blocker() is None:
                 return True
@@ -261,9 +318,9 @@ class PM:
         """
         evs = [self.changed]
         seen = set()
-        rank = None if job is None else self._rank(job)
+        rank = None if job is None else job.frame
         for j in self.queue:
-            if rank is not None and self._rank(j) >= rank:
+            if rank is not None and j.frame >= rank:
                 break
             b = j.blocker()
             if b is not None and id(b[0]) not in seen:
@@ -274,6 +331,7 @@ class PM:
     # -- the process ------------------------------------------------------------------
     def _loop(self):
         env = self.env
+        unit = self.unit
         while True:
             self._rearm()
             ready = self._ready()
@@ -281,107 +339,145 @@ class PM:
                 yield from self._run(ready)
                 continue
             if not self.queue:  # no frame in flight needs this PM: idle
-                self.unit.waiting_for = "a job (idle)"
+                unit.waiting_for = "a job (idle)"
                 yield self.changed
-                self.unit.waiting_for = None
+                unit.waiting_for = None
                 continue
-            top = min(self.queue, key=self._rank)
+            top = self.queue[0]  # (of the highest priority)
             _, cause, what = top.blocker()
-            yield from self.unit.stall(cause, env.any_of(self._wake_events()), f"{what} ({top.label})")
+            yield from unit.stall(cause, _AnyOf(env, self._wake_events()), f"{what} ({top.label})")
 
     def _run(self, job: Job):
+        """Run ``job`` from its next packet until it is done or preempted.
+
+        Each packet: (Intersection PM) take its addresses from the FIFO, waiting while it
+        is empty; its work (page misses served by the routed module meanwhile); let the
+        cycle settle if an older image's job is queued; (Traversal PM) put its addresses
+        into the FIFO, waiting while it is full. A wait on the FIFO ends early when a
+        priority job becomes ready: the job is then preempted.
+        """
         m = self.model
+        env = self.env
+        unit = self.unit
+        arch = m.arch
         if self.route != job.module:
             if self.route is not None:
-                yield from self.unit.delay("swap", m.arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
+                yield from unit.delay("swap", arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
                 m.xbar.swaps += 1
             self.route = job.module
         if job.suspended:
             # on a row of its own: the PM itself is busy for the other image meanwhile
-            m.trace_slice(f"{self.unit.scope} (preempted)", "preempted", job.suspended_at, int(self.env.now),
+            m.trace_slice(f"{unit.scope} (preempted)", "preempted", job.suspended_at, int(env.now),
                           job=job.label)
-            yield from self.unit.delay("preemption", m.arch.context_switch_cycles, "restore context")
+            yield from unit.delay("preemption", arch.context_switch_cycles, "restore context")
             job.suspended = False
-        spec = job.spec
-        while job.next < spec.n:
-            if (job.next > 0 or job.pending_push or job.interrupted) and self._higher_ready(job):
-                yield from self.unit.delay("preemption", m.arch.context_switch_cycles, "save context")
+        packets = job.spec.packets
+        n = len(packets)
+        queue = self.queue
+        frame = job.frame
+        fifo = job.fifo
+        depth = 0 if fifo is None else fifo.depth
+        pops = self.name == "intersection"
+        pushes = self.name == "traversal"
+        module = m.modules[job.module]
+        page_cycles, flush_cycles = arch.page_miss_cycles, arch.flush_cycles
+        schedule = env.schedule
+        while job.next < n:
+            if (job.next > 0 or job.pending_push or job.interrupted) and queue[0].frame < frame \
+                    and self._higher_ready(job):
+                yield from unit.delay("preemption", arch.context_switch_cycles, "save context")
                 job.suspended = True
                 job.interrupted = False
-                job.suspended_at = int(self.env.now)
+                job.suspended_at = int(env.now)
                 self.switches += 1
                 return
             job.interrupted = False
             k = job.next
-            if self.name == "intersection" and not (yield from self._pop(job)):
-                job.interrupted = True  # a priority job became ready while the FIFO was empty
-                continue
-            if not job.pending_push:
-                yield from self._packet(job, k)
-            if self.name == "traversal" and not (yield from self._push(job, k)):
-                job.interrupted = True
-                continue
-            if self.name == "intersection":
-                job.fifo.free(job.fifo.slots(spec.entries[k]))
-                job.fifo.popped += int(spec.entries[k])
-            job.retired += int(spec.items[k])
-            self.retired += int(spec.items[k])
+            norm, misses, flushes, items, entries = packets[k]
+            if pops:  # take the packet's addresses from the FIFO
+                got = fifo.try_pop()
+                if got is None:
+                    got = yield from self._pop(job)
+                    if got is None:
+                        job.interrupted = True  # a priority job became ready while the FIFO was empty
+                        continue
+                if got != k:
+                    raise AssertionError(f"FIFO order broken: packet {got} arrived for {k}")
+            if not job.pending_push:  # the packet's work
+                ms = misses * page_cycles
+                if ms:
+                    module.serve(int(env._now), misses, ms)
+                ps = flushes * flush_cycles
+                if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
+                    norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
+                start = env._now
+                yield Timeout(env, norm + ms + ps)
+                unit.account(start, norm, ms, ps, "busy")
+                if queue[0].frame < frame:
+                    # Let every event of this cycle run before the packet-boundary decision. Only
+                    # needed when an older image's job is queued: it may become ready this very
+                    # cycle (a semaphore firing now), and preemption must not depend on event order.
+                    settle = Event(env)
+                    settle._ok, settle._value = True, None
+                    schedule(settle, 2)
+                    yield settle
+            if pushes:  # put the packet's addresses into the FIFO
+                slots = max(1, min(int(entries), depth))  # (Fifo.slots)
+                if fifo.try_push(k, slots):
+                    job.pending_push = False
+                elif not (yield from self._push(job, k, slots)):
+                    job.interrupted = True  # preempted while the FIFO was full
+                    continue
+                fifo.pushed += int(entries)
+            if pops:
+                fifo.free(max(1, min(int(entries), depth)))
+                fifo.popped += int(entries)
+            job.retired += items
+            self.retired += items
             job.next += 1
         self.queue.remove(job)
         job.done.succeed()
 
-    def _packet(self, job: Job, k: int):
-        spec = job.spec
-        m = self.model
-        misses = int(spec.misses[k])
-        ms = misses * m.arch.page_miss_cycles
-        if ms:
-            m.modules[job.module].serve(int(self.env.now), misses, ms)
-        yield from self.unit.work(int(spec.norm[k]), ms, int(spec.flushes[k]) * m.arch.flush_cycles, label="busy")
-        yield from self._settle(job)
-
-    def _settle(self, job: Job):
-        """Let every event of this cycle run before a packet-boundary decision.
-
-        Only needed when an older image's job is queued: it may become ready this very
-        cycle (a semaphore firing now), and preemption must not depend on event order.
-        """
-        if self._rank(self.queue[0]) < self._rank(job):
-            settle = self.env.event()
-            settle._ok, settle._value = True, None
-            self.env.schedule(settle, priority=2)
-            yield settle
-
-    def _push(self, job: Job, k: int):
-        """Put packet k's triangle addresses into the FIFO; False if preempted while it was full."""
+    def _push(self, job: Job, k: int, slots: int):
+        """Packet k's addresses did not fit in the FIFO: wait until they do; False if preempted meanwhile."""
         fifo = job.fifo
-        n = int(job.spec.entries[k])
-        slots = fifo.slots(n)
-        while not fifo.try_push(k, slots):
+        unit = self.unit
+        env = self.env
+        queue = self.queue
+        while True:
             job.pending_push = True
-            if self._higher_ready(job):  # a job of an older image is ready: switch now
+            if queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
                 return False
-            yield from self.unit.stall("fifo_full", self.env.any_of([fifo.space_freed(), *self._wake_events(job)]),
-                                       f"FIFO space ({job.label})")
+            wake = _AnyOf(env, [fifo.space_freed(), *self._wake_events(job)])
+            start = env._now
+            unit.waiting_for = waiting_for = f"FIFO space ({job.label})"
+            yield wake
+            unit.waiting_for = None
+            unit.stalled("fifo_full", start, waiting_for)
             self._rearm()
-        job.pending_push = False
-        fifo.pushed += n
-        return True
+            if fifo.try_push(k, slots):
+                job.pending_push = False
+                return True
 
     def _pop(self, job: Job):
-        """Take the next packet's addresses from the FIFO; False if preempted while it was empty."""
+        """The FIFO was empty: wait for the next packet's addresses; the packet, or None if preempted meanwhile."""
         fifo = job.fifo
-        k = fifo.try_pop()
-        while k is None:
-            if self._higher_ready(job):  # a job of an older image is ready: switch now
-                return False
-            yield from self.unit.stall("fifo_empty", self.env.any_of([fifo.data_arrived(), *self._wake_events(job)]),
-                                       f"FIFO data ({job.label})")
+        unit = self.unit
+        env = self.env
+        queue = self.queue
+        while True:
+            if queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
+                return None
+            wake = _AnyOf(env, [fifo.data_arrived(), *self._wake_events(job)])
+            start = env._now
+            unit.waiting_for = waiting_for = f"FIFO data ({job.label})"
+            yield wake
+            unit.waiting_for = None
+            unit.stalled("fifo_empty", start, waiting_for)
             self._rearm()
             k = fifo.try_pop()
-        if k != job.next:
-            raise AssertionError(f"FIFO order broken: packet {k} arrived for {job.next}")
-        return True
+            if k is not None:
+                return k
 
 
 # -- the model's state ------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -64,6 +65,18 @@ class JobSpec:
     @property
     def n(self) -> int:
         return int(self.items.shape[0])
+
+    @cached_property
+    def packets(self) -> list[tuple[int, int, int, int, int | None]]:
+        """Per packet (norm, misses, flushes, items, entries) as Python ints (entries None without them).
+
+        The timing model's hot loop reads these, not the arrays: a list of ints is much
+        cheaper to index than numpy scalars. (Computed once: the arrays are not changed.)
+        """
+        n = self.n
+        cols = [list(map(int, np.asarray(a)[:n].tolist())) for a in (self.norm, self.misses, self.flushes, self.items)]
+        entries = [None] * n if self.entries is None else list(map(int, np.asarray(self.entries)[:n].tolist()))
+        return list(zip(*cols, entries, strict=True))
 
 
 @dataclass(frozen=True)
@@ -198,6 +211,32 @@ SHADOW_KEYS = {"rays": ("shadow_rays",), "tris": "shadow_tri_tests", "isect_miss
 PHOTON_KEYS = {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}
 
 
+class _PacketSums:
+    """``split("sub", {k: v[idx] for k, v in work.items()}, packet_size).counts``, read with ``get``.
+
+    Each key is gathered and summed per packet when it is first asked for: a phase's
+    costs read a few of the many work keys.
+    """
+
+    def __init__(self, work: dict[str, np.ndarray], idx: np.ndarray, packet_size: int):
+        self.work, self.idx = work, idx
+        self.starts = np.arange(0, idx.shape[0], packet_size, dtype=np.int64)
+        self.sums: dict[str, np.ndarray] = {}
+
+    def get(self, key: str, default=None):
+        got = self.sums.get(key)
+        if got is None:
+            v = self.work.get(key)
+            if v is None:
+                return default
+            flat = np.asarray(v[self.idx]).reshape(-1)
+            if flat.shape[0] != self.idx.shape[0]:
+                raise ValueError("work arrays of 'sub' differ in length")
+            got = np.add.reduceat(flat.astype(np.int64), self.starts) if flat.shape[0] else np.zeros(0, np.int64)
+            self.sums[key] = got
+        return got
+
+
 class _Builder:
     """Builds phases over a selection of pixels or photons (a tile's ray buffer)."""
 
@@ -209,8 +248,9 @@ class _Builder:
         self.copy_mode = arch.memory == "copy"
 
     def packets(self, work: dict[str, np.ndarray], idx: np.ndarray):
-        p = split("sub", {k: v[idx] for k, v in work.items()}, self.arch.packet_size)
-        return p.counts, p.sizes
+        """The work of items ``idx`` in packets: (its counts, lazily per key, as ``split`` gives them; sizes)."""
+        p = split("sub", {"items": idx}, self.arch.packet_size)
+        return _PacketSums(work, idx, p.packet_size), p.sizes
 
     def ti(self, name: str, t_kind: str, work: dict[str, np.ndarray], idx: np.ndarray, keys: dict,
            copy_words: int, copy_to: int | None = None) -> PhaseSpec:

@@ -25,9 +25,12 @@ from __future__ import annotations
 import json
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
+from heapq import heappop
+from operator import itemgetter
 from pathlib import Path
 
 import simpy
+from simpy.events import PENDING
 
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
 
@@ -71,6 +74,9 @@ class Stats:
         }
 
 
+_START_END = itemgetter(1, 2)  # a slice's (start, end)
+
+
 class Trace:
     """Chrome trace events: one row per unit, one slice per interval."""
 
@@ -81,11 +87,18 @@ class Trace:
 
     def slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         """Add a slice; one that continues its row's latest slice of the same name extends it."""
-        if end <= start:
-            return
+        if end > start:
+            self.add(self.row(scope), name, start, end, args)
+
+    def row(self, scope: str) -> int:
+        """The row (tid) of ``scope``, a new one the first time a slice goes there."""
         tid = self.rows.get(scope)
         if tid is None:
             tid = self.rows[scope] = len(self.rows)
+        return tid
+
+    def add(self, tid: int, name: str, start: int, end: int, args: dict) -> None:
+        """:meth:`slice` on row ``tid`` (``end > start``), with its args as a dict of its own."""
         last = self._last.get(tid)
         if last is not None and last[2] == start and last[0] == name:
             last[2] = end
@@ -101,6 +114,32 @@ class Trace:
         self._slices.append(event)
         self._last[tid] = event
 
+    def add_work(self, tid: int, name: str, start: int, end: int, norm: int, ms: int, ps: int) -> None:
+        """:meth:`add` of a work slice, args T_norm, T_ms and T_ps (ints), without building them to merge."""
+        last = self._last.get(tid)
+        if last is not None and last[2] == start and last[0] == name:
+            last[2] = end
+            args = last[4]
+            old = args.get("T_norm")
+            if old is None:
+                args["T_norm"] = norm
+            elif type(old) is int:
+                args["T_norm"] = old + norm
+            old = args.get("T_ms")
+            if old is None:
+                args["T_ms"] = ms
+            elif type(old) is int:
+                args["T_ms"] = old + ms
+            old = args.get("T_ps")
+            if old is None:
+                args["T_ps"] = ps
+            elif type(old) is int:
+                args["T_ps"] = old + ps
+            return
+        event = [name, start, end, tid, {"T_norm": norm, "T_ms": ms, "T_ps": ps}]
+        self._slices.append(event)
+        self._last[tid] = event
+
     @property
     def events(self) -> list[dict]:
         """The slices as Chrome trace events ("X": complete events)."""
@@ -109,16 +148,22 @@ class Trace:
 
     def fill_idle(self, end: int) -> None:
         """Idle slices in every gap of every row, up to ``end``."""
-        by_row: dict[int, list[tuple[int, int]]] = {}
-        for _, s, e, tid, _ in self._slices:
-            by_row.setdefault(tid, []).append((s, e))
+        by_row: dict[int, list[list]] = {}  # (rows in the order of their first slice)
+        for ev in self._slices:
+            row = by_row.get(ev[3])
+            if row is None:
+                by_row[ev[3]] = [ev]
+            else:
+                row.append(ev)
         idle = []
         for tid, spans in by_row.items():
-            spans.sort()
+            spans.sort(key=_START_END)
             t = 0
-            for s, e in spans:
+            for ev in spans:
+                s = ev[1]
                 if s > t:
                     idle.append(["idle", t, s, tid, {}])
+                e = ev[2]
                 if e > t:
                     t = e
             if end > t:
@@ -136,6 +181,10 @@ class Trace:
         Path(path).write_text(json.dumps(self.to_json(clock_hz)))
 
 
+_STALL_LOG = {cause: f"stall {cause}" for cause in STALL_CAUSES}  # a stall's log entry
+_STALL_SLICE = {cause: f"stall: {cause}" for cause in STALL_CAUSES}  # its trace slice
+
+
 class Unit:
     """A named hardware unit: its processes account every cycle through this object."""
 
@@ -145,7 +194,31 @@ class Unit:
         self.stats = Stats()
         self.trace = trace
         self.waiting_for: str | None = None  # what a blocked unit waits for (Deadlock)
-        self.log: list[tuple[str, int]] = []  # (what, cycle) pairs, for tests and debugging
+        # what the unit did since :attr:`log` was last read: (label, start, end) per work interval,
+        # ("stall <cause>", start) per stall; :attr:`log` spells it out when it is read
+        self._raw: list[tuple] = []
+        self._log: list[tuple[str, int]] = []
+        self._tid: int | None = None  # the unit's row in the trace
+
+    @property
+    def log(self) -> list[tuple[str, int]]:
+        """(what, cycle) pairs, for tests and debugging: "<label> start", "<label> end", "stall <cause>"."""
+        raw = self._raw
+        if raw:  # spell out what was recorded since the last read
+            log = self._log
+            for e in raw:
+                if len(e) == 2:
+                    log.append(e)
+                else:
+                    log.append((f"{e[0]} start", e[1]))
+                    log.append((f"{e[0]} end", e[2]))
+            raw.clear()
+        return self._log
+
+    @log.setter
+    def log(self, value: list[tuple[str, int]]) -> None:
+        self._raw.clear()
+        self._log = value
 
     def work(self, norm: int, ms: int = 0, ps: int = 0, label: str = "busy") -> Generator:
         """Spend ``norm`` instruction, ``ms`` page-miss and ``ps`` flush cycles."""
@@ -162,10 +235,27 @@ class Unit:
         stats.ms += ms
         stats.ps += ps
         end = start + norm + ms + ps
-        self.log.append((f"{label} start", start))
-        if self.trace is not None:
-            self.trace.slice(self.scope, label, start, end, T_norm=norm, T_ms=ms, T_ps=ps)
-        self.log.append((f"{label} end", end))
+        self._raw.append((label, start, end))
+        trace = self.trace
+        if trace is not None and end > start:
+            tid = self._tid
+            if tid is None:
+                tid = self._tid = trace.row(self.scope)
+            trace.add_work(tid, label, start, end, norm, ms, ps)
+
+    def stalled(self, cause: str, start: int, waiting_for: str) -> None:
+        """Book a data stall under ``cause`` from ``start`` to now (done by the waiting process)."""
+        now = self.env._now
+        waited = now - start
+        self.stats.stall[cause] += waited
+        if waited:
+            self._raw.append((_STALL_LOG[cause], start))
+            trace = self.trace
+            if trace is not None:
+                tid = self._tid
+                if tid is None:
+                    tid = self._tid = trace.row(self.scope)
+                trace.add(tid, _STALL_SLICE[cause], start, now, {"waiting_for": waiting_for})
 
     def stall(self, cause: str, event: simpy.events.Event, waiting_for: str) -> Generator:
         """Wait for ``event``; the time waited is a data stall (T_ds) under ``cause``."""
@@ -175,12 +265,7 @@ class Unit:
         self.waiting_for = waiting_for
         value = yield event
         self.waiting_for = None
-        waited = self.env.now - start
-        self.stats.stall[cause] += waited
-        if waited:
-            self.log.append((f"stall {cause}", start))
-            if self.trace is not None:
-                self.trace.slice(self.scope, f"stall: {cause}", start, self.env.now, waiting_for=waiting_for)
+        self.stalled(cause, start, waiting_for)
         return value
 
     def delay(self, cause: str, cycles: int, what: str) -> Generator:
@@ -227,13 +312,32 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     """
     units = list(units)
     steps = 0
-    step = env.step
     try:
-        while not done.triggered:
-            if steps >= max_events:
-                _deadlock(env, units, f"{max_events} events passed")
-            step()
-            steps += 1
+        if type(env).step is simpy.Environment.step:
+            # Environment.step, inlined (the same events in the same order, without a call each)
+            queue = env._queue
+            while done._value is PENDING:
+                if steps >= max_events:
+                    _deadlock(env, units, f"{max_events} events passed")
+                try:
+                    env._now, _, _, event = heappop(queue)
+                except IndexError:
+                    raise simpy.core.EmptySchedule from None
+                callbacks, event.callbacks = event.callbacks, None
+                for callback in callbacks:
+                    callback(event)
+                if not event._ok and not hasattr(event, "_defused"):
+                    exc = type(event._value)(*event._value.args)
+                    exc.__cause__ = event._value
+                    raise exc
+                steps += 1
+        else:  # an environment of its own kind steps its own way
+            step = env.step
+            while not done.triggered:
+                if steps >= max_events:
+                    _deadlock(env, units, f"{max_events} events passed")
+                step()
+                steps += 1
     except simpy.core.EmptySchedule:
         _deadlock(env, units, "no event is scheduled")
     finally:
