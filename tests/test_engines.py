@@ -187,3 +187,42 @@ def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):
         traverse.engine()
+
+
+def tree_bytes(tree) -> dict:
+    out = {k: (v.dtype.str, v.shape, v.tobytes()) for k, v in vars(tree).items() if isinstance(v, np.ndarray)}
+    out.update({k: v for k, v in vars(tree).items() if not isinstance(v, np.ndarray)})
+    return out
+
+
+@pytest.mark.parametrize("case", ["cube", "faces", "coincident", "one", "empty", "deep"])
+def test_point_trees(monkeypatch, case):
+    from tlm.kernels.bsp import build_point_tree
+
+    rng = np.random.default_rng(1)
+    pts = {
+        "cube": rng.random((30000, 3)),
+        "faces": np.where(rng.random((20000, 3)) < 0.3, 0.0, rng.random((20000, 3))),
+        "coincident": np.repeat(rng.random((40, 3)), 50, axis=0),
+        "one": rng.random((1, 3)),
+        "empty": np.zeros((0, 3)),
+        "deep": rng.normal(size=(5000, 3)) * np.array([1e-3, 1.0, 1e3]),
+    }[case]
+    levels = 16 if case == "deep" else None
+    a = run(monkeypatch, "numpy", build_point_tree, pts, levels=levels)
+    b = run(monkeypatch, "numba", build_point_tree, pts, levels=levels)
+    assert tree_bytes(a) == tree_bytes(b)
+
+
+@pytest.mark.parametrize("memory_factor", [20.0, 1.3])
+def test_triangle_trees(scene_accel, monkeypatch, memory_factor):
+    """The geometry BSP with its expansion pass, and truncated where the reserved
+    memory runs out."""
+    from tlm.kernels.bsp import build_triangle_tree
+
+    scene, _ = scene_accel
+    levels = None if memory_factor > 2 else 12
+    a = run(monkeypatch, "numpy", build_triangle_tree, scene.triangles, levels=levels, memory_factor=memory_factor)
+    b = run(monkeypatch, "numba", build_triangle_tree, scene.triangles, levels=levels, memory_factor=memory_factor)
+    assert tree_bytes(a) == tree_bytes(b)
+    assert a.truncated == (memory_factor < 2)

@@ -15,8 +15,10 @@ pass, for triangles (§III.B.1):
   (the expansion pass); the thesis reserves 20x the triangle list for the copies;
 * ``floor(ln n)`` levels by default.
 
-Everything here is vectorized per level: one pass of numpy over all the nodes of a
-level, no recursion and no Python loop over nodes or elements. The builder also
+Everything here is vectorized per level: one pass over all the nodes of a level, no
+recursion and no Python loop over nodes or elements. The per-element passes run
+compiled (:mod:`tlm.kernels._jit_bsp`, numba) unless ``TLM_KERNELS=numpy`` selects the
+numpy reference; the two build bit-identical trees. The builder also
 returns, per level, the work the Vertex PM does (elements read by the centre-of-mass
 pass, read by the two storage passes, written, and copied by the expansion), which the
 timing model turns into cycles.
@@ -38,6 +40,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from tlm.kernels.engine import engine
 
 
 def default_levels(n: int) -> int:
@@ -155,6 +159,11 @@ def _build(
     items = np.arange(n, dtype=np.int64)  # buffer P
     # node label (index within its level) of every element of P
     label = np.zeros(n, dtype=np.int64)
+    lo_cols = [np.ascontiguousarray(key_lo[:, k]) for k in range(3)]
+    hi_cols = lo_cols if points else [np.ascontiguousarray(key_hi[:, k]) for k in range(3)]
+    jit = None
+    if engine() == "numba" and n > 0:
+        from tlm.kernels import _jit_bsp as jit
     work: list[LevelWork] = []
     built = 0
     for j in range(levels):
@@ -163,35 +172,50 @@ def _build(
         nodes = 1 << j
         nlo = lo[k0 : k0 + nodes, axis]
         nhi = hi[k0 : k0 + nodes, axis]
-        # pass 1: centre of mass of every node of the level
-        if points:
-            c = key_lo[items, axis]
+        if jit is not None:  # the same passes, compiled (tlm/kernels/_jit_bsp.py)
+            counts, sums = jit.level_sums(items, label, lo_cols[axis], hi_cols[axis], nlo, nhi, nodes, points)
+            n_in = items.shape[0]
         else:
-            c = 0.5 * (
-                np.maximum(key_lo[items, axis], nlo[label]) + np.minimum(key_hi[items, axis], nhi[label])
-            )
-        counts = np.bincount(label, minlength=nodes)
-        sums = np.bincount(label, weights=c, minlength=nodes)
+            x_lo = lo_cols[axis][items]
+            x_hi = x_lo if points else hi_cols[axis][items]
+            # pass 1: centre of mass of every node of the level
+            if points:
+                c = x_lo
+            else:
+                c = 0.5 * (np.maximum(x_lo, nlo[label]) + np.minimum(x_hi, nhi[label]))
+            counts = np.bincount(label, minlength=nodes)
+            sums = np.bincount(label, weights=c, minlength=nodes)
+            n_in = c.shape[0]
         with np.errstate(invalid="ignore", divide="ignore"):
             com = sums / counts
         s = np.where(counts > 0, com, 0.5 * (nlo + nhi))
         s = np.minimum(np.maximum(s, nlo), nhi)  # rounding never leaves the node
         # passes 2 and 3: left child's elements, then the right child's, stable
-        go_left = key_lo[items, axis] < s[label]
-        go_right = key_hi[items, axis] >= s[label] if not points else ~go_left
-        n_out = int(go_left.sum() + go_right.sum())
-        if n_out > capacity:
-            break  # the expansion would overflow the reserved memory: stop here
+        if jit is not None:
+            n_out, new_items, new_label, n_left, n_right = jit.level_partition(
+                items, label, lo_cols[axis], hi_cols[axis], s, nodes, points, capacity)
+            if n_out > capacity:
+                break  # the expansion would overflow the reserved memory: stop here
+            items, label = new_items, new_label  # swap P <=> P'
+            child_counts = np.empty(2 * nodes, dtype=np.int64)
+            child_counts[0::2], child_counts[1::2] = n_left, n_right
+        else:
+            s_el = s[label]
+            go_left = x_lo < s_el
+            go_right = ~go_left if points else x_hi >= s_el
+            n_out = int(go_left.sum() + go_right.sum())
+            if n_out > capacity:
+                break  # the expansion would overflow the reserved memory: stop here
+            child_label = np.concatenate([2 * label[go_left], 2 * label[go_right] + 1])
+            child_items = np.concatenate([items[go_left], items[go_right]])
+            order = np.argsort(child_label, kind="stable")
+            items = child_items[order]  # swap P <=> P'
+            label = child_label[order]
+            child_counts = np.bincount(label, minlength=2 * nodes)
         split[k0 : k0 + nodes] = s
-        child_label = np.concatenate([2 * label[go_left], 2 * label[go_right] + 1])
-        child_items = np.concatenate([items[go_left], items[go_right]])
-        order = np.argsort(child_label, kind="stable")
-        items = child_items[order]  # swap P <=> P'
-        label = child_label[order]
         # children boxes and ranges
         c0 = 2 * k0 + 1
         cnodes = 2 * nodes
-        child_counts = np.bincount(label, minlength=cnodes)
         ends = np.cumsum(child_counts)
         first[c0 : c0 + cnodes] = ends - child_counts
         last[c0 : c0 + cnodes] = ends
@@ -207,10 +231,10 @@ def _build(
             LevelWork(
                 level=j,
                 nodes=nodes,
-                elements_in=int(c.shape[0]),
-                storage_reads=2 * int(c.shape[0]),
-                elements_out=n_out,
-                expansion_copies=n_out - int(c.shape[0]),
+                elements_in=int(n_in),
+                storage_reads=2 * int(n_in),
+                elements_out=int(n_out),
+                expansion_copies=int(n_out) - int(n_in),
             )
         )
         built = j + 1

@@ -33,12 +33,13 @@ Algorithm 1).
 from __future__ import annotations
 
 import functools
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
+from tlm.kernels.engine import ENGINES, engine  # noqa: F401  (re-exported)
+from tlm.kernels.engine import numba_available as _numba_available  # noqa: F401  (for tests)
 from tlm.kernels.intersect import (
     EDGE_EPS,
     TriangleSoA,
@@ -51,31 +52,6 @@ from tlm.kernels.intersect import (
 )
 
 CHUNK_PAIRS = 1 << 17  # (slot, ray) pairs per block: fewer, longer numpy calls
-ENGINES = ("numba", "numpy")
-
-
-def engine() -> str:
-    """Which implementation traces rays: ``TLM_KERNELS`` (``numba`` or ``numpy``).
-
-    Both give bit-identical hits, counts and memory traces (tests compare them). The
-    default is the compiled one, :mod:`tlm.kernels._jit`, when numba imports; the
-    vectorized numpy one is the reference.
-    """
-    name = os.environ.get("TLM_KERNELS", "").strip().lower()
-    if name and name not in ENGINES:
-        raise ValueError(f"TLM_KERNELS={name!r}: expected one of {', '.join(ENGINES)}")
-    if name == "numpy" or not _numba_available():
-        return "numpy"
-    return "numba"
-
-
-@functools.cache
-def _numba_available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
 
 
 @dataclass(frozen=True)
@@ -395,6 +371,8 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
             o32 = (o - accel.soa64.origin).astype(np.float32)
         if not (o32 == o32[:1]).all():
             raise ValueError("shared_origin=True but the rays do not share one origin")
+    # one compiled signature: numba types a read-only array (a broadcast's view) apart
+    o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
     widest, leaves, nodes = JIT_BUFFERS
     caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
     while True:
