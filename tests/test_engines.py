@@ -226,3 +226,43 @@ def test_triangle_trees(scene_accel, monkeypatch, memory_factor):
     b = run(monkeypatch, "numba", build_triangle_tree, scene.triangles, levels=levels, memory_factor=memory_factor)
     assert tree_bytes(a) == tree_bytes(b)
     assert a.truncated == (memory_factor < 2)
+
+
+def test_ignore_outside_the_id_range(monkeypatch):
+    """An ignore id no triangle has (beyond int32, or negative) ignores nothing, in both
+    engines (the compiled test compares ids as int32)."""
+    tri = np.array([[[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 0, 2], [1, 0, 2], [0, 1, 2]]], float)
+    accel = build_accel(tri, levels=0)
+    o, d = np.array([[0.25, 0.25, 0.0]] * 4), np.array([[0.0, 0.0, 1.0]] * 4)
+    ignore = np.array([2**32, 2**31, -2, 0])  # 2**32 would be triangle 0 cut to 32 bits
+    h = assert_same(monkeypatch, closest_hit, accel, o, d, ignore=ignore)
+    assert h.triangle.tolist() == [0, 0, 0, 1]
+    s = assert_same(monkeypatch, any_hit, accel, o, d, tmax=1.5, ignore=ignore)
+    assert s.occluded.tolist() == [True, True, True, False]
+
+
+def test_shared_origins_equal_but_for_a_zero_sign(monkeypatch):
+    """Eye rays whose origins differ only in a zero's sign count as one origin; both
+    engines then test with the first ray's float32 origin (here it decides a hit at
+    t = 0 on the plane through the origin)."""
+    dl = 5e-7  # inside float32's edge tolerance, outside float64's
+    tri = np.array([
+        [[0, 0, 0], [1, 1, 0], [1, 0, 1]],
+        [[dl, -1, 1], [dl + 1, -1, 1], [dl, 1, 1]],
+        [[-dl, -1, -1], [-dl - 1, -1, -1], [-dl, 1, -1]],  # a mirror: the box's centre x is 0.0
+    ], float)
+    accel = build_accel(tri, levels=0)
+    d = np.array([[0.0, 0.0, 1.0]] * 2)
+    for x in (0.0, -0.0):
+        o = np.array([[0.0, 0.0, 0.0], [x, 0.0, 0.0]])
+        for shared in (False, True):
+            assert_same(monkeypatch, closest_hit, accel, o, d, shared_origin=shared, record=True)
+
+
+def test_no_triangles(monkeypatch):
+    accel = build_accel(np.zeros((0, 3, 3)))
+    o, d = np.zeros((2, 3)), np.array([[1.0, 0, 0], [0, 1.0, 0]])
+    h = assert_same(monkeypatch, closest_hit, accel, o, d, record=True)
+    assert h.triangle.tolist() == [-1, -1] and np.isinf(h.t).all()
+    s = assert_same(monkeypatch, any_hit, accel, o, d)
+    assert not s.occluded.any()

@@ -349,6 +349,11 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         ox, oy, oz = o[i, 0] - origin[0], o[i, 1] - origin[1], o[i, 2] - origin[2]  # o_local
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
         ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
+        if shared:  # the test takes the first ray's float32 origin, as the numpy engine does
+            # (the rays' origins are equal as float32 values, but a zero's sign may differ)
+            ox32 = np.float32(o[0, 0] - origin[0])
+            oy32 = np.float32(o[0, 1] - origin[1])
+            oz32 = np.float32(o[0, 2] - origin[2])
         dx32, dy32, dz32 = np.float32(dx), np.float32(dy), np.float32(dz)
         t0, t1 = np.float32(tmin[i]), np.float32(tmax[i])
         ign = ignore[i] if has_ignore else -1
@@ -375,7 +380,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
                     break
         # the float64 check of the float32 answer (check), the rays that float32
         # cannot carry (lossy32), and the float64 fallback of both
-        redo = _lossy(dx, dy, dz, dx32, dy32, dz32) or _lossy(ox, oy, oz, ox32, oy32, oz32)
+        redo = _lossy(dx, dy, dz, dx32, dy32, dz32) or _lossy(
+            ox, oy, oz, np.float32(ox), np.float32(oy), np.float32(oz))
         if best >= 0:
             sb = back[best]
             t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa64, sb)

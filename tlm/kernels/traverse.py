@@ -373,6 +373,11 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
             raise ValueError("shared_origin=True but the rays do not share one origin")
     # one compiled signature: numba types a read-only array (a broadcast's view) apart
     o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
+    # the kernel compares ids as int32 (ids are < 2**31): an ignore outside that range
+    # can match no triangle, as in the numpy engine, so it becomes -1 (none)
+    outside = (ignore < 0) | (ignore > np.iinfo(np.int32).max)
+    if outside.any():
+        ignore = np.where(outside, -1, ignore)
     widest, leaves, nodes = JIT_BUFFERS
     caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
     while True:
@@ -383,7 +388,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
             EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, record, *caps)
         if status == _jit.OK:
             break
-        caps[status - 1] *= 2  # a buffer was too small: rerun with it doubled
+        caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
     counts = Counts(node_visits, cnt, leaf_visits, tri_tests)
     touched = None
     if record:
@@ -396,7 +401,8 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     found = slot >= 0
     if first_only:
         return Occlusion(found, counts, touched)
-    triangle = np.where(found, lay.ids[np.maximum(slot, 0)], -1)
+    triangle = lay.ids[np.maximum(slot, 0)] if lay.ids.shape[0] else np.zeros(r, dtype=np.int64)
+    triangle = np.where(found, triangle, -1)
     if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
         t = unscale_t(t, scale)
         far = np.isinf(t)
@@ -440,7 +446,8 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     t, u, v = np.full(r, np.inf), np.zeros(r), np.zeros(r)
     t[hit], u[hit], v[hit], ok = check(o_local[hit], d[hit], tmin[hit], tmax[hit], soa64, best_slot[hit])
     found = best_slot >= 0
-    triangle = np.where(found, soa.ids[np.maximum(best_slot, 0)], -1)
+    triangle = soa.ids[np.maximum(best_slot, 0)] if soa.ids.shape[0] else np.zeros(r, dtype=np.int64)
+    triangle = np.where(found, triangle, -1)  # (no triangles: nothing is found)
     bad = hit[~ok]
     if not exact64:
         # a miss is not checked, so rays that float32 cannot carry go to float64 whole:
