@@ -438,23 +438,30 @@ class PM:
         self.queue.remove(job)
         job.done.succeed()
 
+    def _fifo_wait(self, job: Job, ready, cause: str, what: str):
+        """Stall (``cause``) until the event ``ready()`` fires or a job of an older image
+        may preempt this one; False, without waiting, if such a job is ready now.
+        ``ready`` is called only when the PM waits (a FIFO event made and never awaited
+        would still fire, one SimPy event more)."""
+        if self.queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
+            return False
+        env, unit = self.env, self.unit
+        wake = _AnyOf(env, [ready(), *self._wake_events(job)])
+        start = env._now
+        unit.waiting_for = what
+        yield wake
+        unit.waiting_for = None
+        unit.stalled(cause, start, what)
+        self._rearm()
+        return True
+
     def _push(self, job: Job, k: int, slots: int):
         """Packet k's addresses did not fit in the FIFO: wait until they do; False if preempted meanwhile."""
         fifo = job.fifo
-        unit = self.unit
-        env = self.env
-        queue = self.queue
         while True:
             job.pending_push = True
-            if queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
+            if not (yield from self._fifo_wait(job, fifo.space_freed, "fifo_full", f"FIFO space ({job.label})")):
                 return False
-            wake = _AnyOf(env, [fifo.space_freed(), *self._wake_events(job)])
-            start = env._now
-            unit.waiting_for = waiting_for = f"FIFO space ({job.label})"
-            yield wake
-            unit.waiting_for = None
-            unit.stalled("fifo_full", start, waiting_for)
-            self._rearm()
             if fifo.try_push(k, slots):
                 job.pending_push = False
                 return True
@@ -462,19 +469,9 @@ class PM:
     def _pop(self, job: Job):
         """The FIFO was empty: wait for the next packet's addresses; the packet, or None if preempted meanwhile."""
         fifo = job.fifo
-        unit = self.unit
-        env = self.env
-        queue = self.queue
         while True:
-            if queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
+            if not (yield from self._fifo_wait(job, fifo.data_arrived, "fifo_empty", f"FIFO data ({job.label})")):
                 return None
-            wake = _AnyOf(env, [fifo.data_arrived(), *self._wake_events(job)])
-            start = env._now
-            unit.waiting_for = waiting_for = f"FIFO data ({job.label})"
-            yield wake
-            unit.waiting_for = None
-            unit.stalled("fifo_empty", start, waiting_for)
-            self._rearm()
             k = fifo.try_pop()
             if k is not None:
                 return k

@@ -101,6 +101,18 @@ def _mx(a, b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _linear(ax, ay, az, tx, ty, tz, dx, dy, dz):
+    """``(A x T).D`` as the numpy shared-origin path evaluates it: ``K = A x T``, then
+    ``(dx kx + dy ky) + dz kz``."""
+    kx = ay * tz - az * ty
+    ky = az * tx - ax * tz
+    kz = ax * ty - ay * tx
+    out = dx * kx
+    out = out + dy * ky
+    return out + dz * kz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, keys):
     """:func:`closest_slots` for one ray and the padded slots ``s0:s1``: ``(slot, t)``
     (a padded slot; -1 and inf when nothing is hit). Scalars are float32; ``ign`` is a
@@ -129,20 +141,8 @@ def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, k
         t = t + tz * soa[11, s]
         t = t * rdet
         if shared:  # u and v as linear forms in D (the numpy shared-origin path)
-            kx = soa[7, s] * tz - soa[8, s] * ty
-            ky = soa[8, s] * tx - soa[6, s] * tz
-            kz = soa[6, s] * ty - soa[7, s] * tx
-            u = dx * kx
-            u = u + dy * ky
-            u = u + dz * kz
-            u = u * rdet
-            kx = soa[4, s] * tz - soa[5, s] * ty
-            ky = soa[5, s] * tx - soa[3, s] * tz
-            kz = soa[3, s] * ty - soa[4, s] * tx
-            v = dx * kx
-            v = v + dy * ky
-            v = v + dz * kz
-            v = v * rdet
+            u = _linear(soa[6, s], soa[7, s], soa[8, s], tx, ty, tz, dx, dy, dz) * rdet  # (E2 x T).D
+            v = _linear(soa[3, s], soa[4, s], soa[5, s], tx, ty, tz, dx, dy, dz) * rdet  # (-E1 x T).D
         else:
             cx = ty * dz - tz * dy
             cy = tz * dx - tx * dz
@@ -177,32 +177,6 @@ def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, k
     return s0 + best, tb
 
 
-@njit(cache=True, error_model="numpy")
-def _leaf64(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, ids, s0, s1, eps):
-    """:func:`closest_slots64` for one ray and the accel's slots ``s0:s1``: ``(slot, t)``
-    (-1 and inf when nothing is hit), float64, eq. 3.6 written out; first minimum wins."""
-    best = -1
-    best_t = np.inf
-    for s in range(s0, s1):
-        v0x, v0y, v0z = soa[0, s], soa[1, s], soa[2, s]
-        e1x, e1y, e1z = -soa[3, s], -soa[4, s], -soa[5, s]
-        e2x, e2y, e2z = soa[6, s], soa[7, s], soa[8, s]
-        tx, ty, tz = ox - v0x, oy - v0y, oz - v0z
-        px, py, pz = dy * e2z - dz * e2y, dz * e2x - dx * e2z, dx * e2y - dy * e2x  # P = D x E2
-        qx, qy, qz = ty * e1z - tz * e1y, tz * e1x - tx * e1z, tx * e1y - ty * e1x  # Q = T x E1
-        inv = 1.0 / ((px * e1x + py * e1y) + pz * e1z)
-        t = ((qx * e2x + qy * e2y) + qz * e2z) * inv
-        u = ((px * tx + py * ty) + pz * tz) * inv
-        v = ((qx * dx + qy * dy) + qz * dz) * inv
-        ok = (u >= -eps) and (v >= -eps) and (u + v <= 1.0 + eps) and (t > tmin) and (t < tmax)
-        if ok and ids[s] != ign and t < best_t:
-            best_t = t
-            best = s
-    if not np.isfinite(best_t):
-        return -1, np.inf
-    return best, best_t
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def _exact(ox, oy, oz, dx, dy, dz, soa, s):
     """:func:`intersect.exact`: eq. 3.6 in float64 for one ray and one slot."""
@@ -217,6 +191,23 @@ def _exact(ox, oy, oz, dx, dy, dz, soa, s):
     u = ((px * tx + py * ty) + pz * tz) * inv
     v = ((qx * dx + qy * dy) + qz * dz) * inv
     return t, u, v
+
+
+@njit(cache=True, error_model="numpy")
+def _leaf64(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, ids, s0, s1, eps):
+    """:func:`closest_slots64` for one ray and the accel's slots ``s0:s1``: ``(slot, t)``
+    (-1 and inf when nothing is hit), float64, eq. 3.6 written out; first minimum wins."""
+    best = -1
+    best_t = np.inf
+    for s in range(s0, s1):
+        t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa, s)
+        ok = (u >= -eps) and (v >= -eps) and (u + v <= 1.0 + eps) and (t > tmin) and (t < tmax)
+        if ok and ids[s] != ign and t < best_t:
+            best_t = t
+            best = s
+    if not np.isfinite(best_t):
+        return -1, np.inf
+    return best, best_t
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -265,6 +256,13 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
     lo0, lo1, lo2 = root_lo[0], root_lo[1], root_lo[2]
     hi0, hi1, hi2 = root_hi[0], root_hi[1], root_hi[2]
+    if shared and r > 0:  # the float32 test takes the first ray's origin, as the numpy
+        # engine does (the origins are equal as float32 values, but a zero's sign may differ)
+        sx32 = np.float32(o[0, 0] - origin[0])
+        sy32 = np.float32(o[0, 1] - origin[1])
+        sz32 = np.float32(o[0, 2] - origin[2])
+    else:
+        sx32 = sy32 = sz32 = np.float32(0.0)
     for i in range(r):
         # the root clip (_clip_root): slabs, a zero component inside or outside its slab
         ta = tmin[i]
@@ -349,11 +347,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         ox, oy, oz = o[i, 0] - origin[0], o[i, 1] - origin[1], o[i, 2] - origin[2]  # o_local
         dx, dy, dz = d[i, 0], d[i, 1], d[i, 2]
         ox32, oy32, oz32 = np.float32(ox), np.float32(oy), np.float32(oz)
-        if shared:  # the test takes the first ray's float32 origin, as the numpy engine does
-            # (the rays' origins are equal as float32 values, but a zero's sign may differ)
-            ox32 = np.float32(o[0, 0] - origin[0])
-            oy32 = np.float32(o[0, 1] - origin[1])
-            oz32 = np.float32(o[0, 2] - origin[2])
+        if shared:
+            ox32, oy32, oz32 = sx32, sy32, sz32
         dx32, dy32, dz32 = np.float32(dx), np.float32(dy), np.float32(dz)
         t0, t1 = np.float32(tmin[i]), np.float32(tmax[i])
         ign = ignore[i] if has_ignore else -1
@@ -381,7 +376,7 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         # the float64 check of the float32 answer (check), the rays that float32
         # cannot carry (lossy32), and the float64 fallback of both
         redo = _lossy(dx, dy, dz, dx32, dy32, dz32) or _lossy(
-            ox, oy, oz, np.float32(ox), np.float32(oy), np.float32(oz))
+            ox, oy, oz, np.float32(ox), np.float32(oy), np.float32(oz))  # the ray's own origin
         if best >= 0:
             sb = back[best]
             t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa64, sb)

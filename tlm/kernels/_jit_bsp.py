@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from tlm.kernels._jit import _mn, _mx
+
 
 @njit(cache=True, error_model="numpy")
 def level_sums(items, label, lo_col, hi_col, nlo, nhi, nodes, points):
@@ -34,10 +36,7 @@ def level_sums(items, label, lo_col, hi_col, nlo, nhi, nodes, points):
             a = nlo[lab]
             b = nhi[lab]
             y = hi_col[items[i]]
-            # numpy's maximum and minimum (a NaN operand wins; the second on a tie)
-            mx = x if (x != x or x > a) else a
-            mn = y if (y != y or y < b) else b
-            c = 0.5 * (mx + mn)
+            c = 0.5 * (_mx(x, a) + _mn(y, b))  # the node-clipped box's centre
         counts[lab] += 1
         sums[lab] += c
     return counts, sums
@@ -55,10 +54,12 @@ def level_partition(items, label, lo_col, hi_col, s, nodes, points, capacity):
     n = items.shape[0]
     n_left = np.zeros(nodes, dtype=np.int64)
     n_right = np.zeros(nodes, dtype=np.int64)
+    side = np.empty(n, dtype=np.uint8)  # bit 0: goes left, bit 1: goes right
     for i in range(n):
         lab = label[i]
         left = lo_col[items[i]] < s[lab]
         right = (not left) if points else hi_col[items[i]] >= s[lab]
+        side[i] = (1 if left else 0) | (2 if right else 0)
         if left:
             n_left[lab] += 1
         if right:
@@ -79,13 +80,11 @@ def level_partition(items, label, lo_col, hi_col, s, nodes, points, capacity):
     new_label = np.empty(n_out, dtype=np.int64)
     for i in range(n):
         lab = label[i]
-        left = lo_col[items[i]] < s[lab]
-        right = (not left) if points else hi_col[items[i]] >= s[lab]
-        if left:
+        if side[i] & 1:
             new_items[put_left[lab]] = items[i]
             new_label[put_left[lab]] = 2 * lab
             put_left[lab] += 1
-        if right:
+        if side[i] & 2:
             new_items[put_right[lab]] = items[i]
             new_label[put_right[lab]] = 2 * lab + 1
             put_right[lab] += 1

@@ -366,11 +366,6 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
 
     tree, lay = accel.tree, accel.jit_layout
     r = o.shape[0]
-    if shared_origin and r > 0:
-        with np.errstate(over="ignore"):
-            o32 = (o - accel.soa64.origin).astype(np.float32)
-        if not (o32 == o32[:1]).all():
-            raise ValueError("shared_origin=True but the rays do not share one origin")
     # one compiled signature: numba types a read-only array (a broadcast's view) apart
     o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
     # the kernel compares ids as int32 (ids are < 2**31): an ignore outside that range
@@ -419,6 +414,11 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     """
     tree = accel.tree
     o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
+    if shared_origin and o.shape[0] > 0:  # one origin as the float32 test sees it
+        with np.errstate(over="ignore"):
+            o32 = (o - accel.soa64.origin).astype(np.float32)
+        if not (o32 == o32[:1]).all():
+            raise ValueError("shared_origin=True but the rays do not share one origin")
     if not exact64 and engine() == "numba":
         return _traverse_jit(accel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin)
     r = o.shape[0]
@@ -431,8 +431,6 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
         d_t = np.ascontiguousarray(d.T, dtype=dt)
         tmin_t = tmin.astype(dt)
         tmax_t = tmax.astype(dt)
-    if shared_origin and r > 0 and not (o_t == o_t[:, :1]).all():
-        raise ValueError("shared_origin=True but the rays do not share one origin")
     best_slot, last_k, pray, pleaf, cnt, node_visits, touched_nodes = _loop_numpy(
         accel, o, d, inv, ta, tb, o_t, d_t, tmin_t, tmax_t, ignore, record, first_only, batch,
         shared_origin, exact64)
