@@ -6,8 +6,9 @@ embeds them. The sections, in order:
 
 1. Tables I-III, ours against the thesis (:mod:`tlm.report.tables`)
 2. image sets in the style of Figs. 15-17 (:mod:`tlm.report.images`)
-3. scaling with N pipelines, Figs. 18-20 and eq. 5.2 (:mod:`tlm.report.scaling`)
-4. the sweeps' points and their frame rate per factor (:mod:`tlm.report.sweeps`)
+3. scaling with N pipelines, Figs. 18-20 and eq. 5.2, idle fraction per PM (:mod:`tlm.report.scaling`)
+4. the sweeps' points, their frame rate per factor, BSP levels against floor(ln n)
+   (:mod:`tlm.report.sweeps`)
 5. where the cycles go: eq. 5.1 and the timeline (:mod:`tlm.report.cycles`)
 6. error against run time (:mod:`tlm.report.tradeoff`)
 7. peers: the frame rates the thesis quotes (:mod:`tlm.report.peers`)
@@ -24,6 +25,7 @@ import datetime
 import time
 from pathlib import Path
 
+from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section
@@ -55,15 +57,30 @@ def default_out(dirs: list[Path]) -> Path:
     raise ValueError("several folders: name the report folder with --out")
 
 
-def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None) -> Path:
-    """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``."""
+def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
+                 scaling_sweeps: list[Path] | None = None) -> Path:
+    """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``.
+
+    ``scaling_sweeps``: sweep folders that a scaling study among ``dirs`` was fitted from;
+    the scaling section draws their idle fractions per PM, and no other section reads them
+    (their eq. 5.2 fits are the study's).
+    """
     t0 = time.perf_counter()
     dirs = [Path(d) for d in dirs]
     inputs = read(dirs)
+    if scaling_sweeps:
+        extra = read([Path(d) for d in scaling_sweeps])
+        if extra.studies or any(r.kind != "sweep-point" for r in extra.runs):
+            raise InputError("a scaling study's sweeps must be sweep folders",
+                             source=", ".join(str(d) for d in scaling_sweeps))
+        inputs.scaling_sweeps = extra.sweeps
     out = Path(out) if out is not None else default_out(dirs)
     with atomic_folder(out, MARKER) as tmp:
         secs = sections(inputs, tmp)
         kinds = ", ".join(f"{esc(d)}" for d in dirs)
+        if inputs.scaling_sweeps:
+            kinds += " (and, for the scaling section only, " + ", ".join(
+                esc(sw.path) for sw in inputs.scaling_sweeps) + ")"
         n_fig = sum(len(s.figures) for s in secs)
         studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
         intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "

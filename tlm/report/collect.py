@@ -91,6 +91,9 @@ class Inputs:
     runs: list[Run] = field(default_factory=list)  # every run, sweep points included
     sweeps: list[Sweep] = field(default_factory=list)
     studies: list[Study] = field(default_factory=list)
+    # sweeps read for the scaling section only: the ones a scaling study among the inputs
+    # fitted (its idle fractions per PM are drawn; not fitted again, not shown as sweeps)
+    scaling_sweeps: list[Sweep] = field(default_factory=list)
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]

@@ -5,10 +5,19 @@ eq. 5.2 (and its slowest-pipeline variant), for the static and the dynamic sched
 and the speed-up TThru(1) / TThru(N). The fits come from ``tlm scaling`` folders
 (``eq52.json`` and ``eq52.csv``) and from every sweep given to the report that varies
 ``arch.pipelines`` (fitted here with :mod:`tlm.experiments.scaling`).
+
+Beside them, per scene of every such sweep (and of the sweeps a scaling study was
+fitted from, ``Inputs.scaling_sweeps``), the idle fraction of each PM kind against N,
+static scheduler against dynamic (:func:`idle_points`, :func:`plot_idle`), with a table
+of N, scheduler, TThru, speed-up and idle fractions. A sweep row's ``idle.<pm>`` is the
+PM's idle cycles (neither working nor in a stall: no job to run) over the stream's
+elapsed cycles, averaged over the pipelines' PMs of that kind; there is one Vertex PM,
+pipeline 0's.
 """
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from pathlib import Path
 
@@ -16,8 +25,15 @@ from matplotlib.ticker import NullLocator
 
 from tlm.errors import InputError
 from tlm.experiments import scaling as eq52
-from tlm.report.collect import Inputs
+from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import Figure, Section, colour, marker, new_figure
+from tlm.report.html import esc
+from tlm.report.sweeps import PMS, factors_of
+
+# one colour per PM kind (the yellow of the palette is too faint for a thin line); the
+# scheduler is the line style: static solid, dynamic dashed, any other dotted
+PM_COLOURS = {"vertex": 0, "traversal": 2, "intersection": 4, "fragment": 6}
+SCHEDULER_LINES = {"static": "-", "dynamic": "--"}
 
 TITLES = {"latency": "frame latency (eq. 5.2's T_tot)", "throughput": "throughput TThru"}
 
@@ -93,16 +109,142 @@ def _fits_of_sweep(sweep, notes: list[str]) -> dict[tuple, dict]:
     return fits
 
 
+def _varies_pipelines(sw: Sweep) -> bool:
+    return "arch.pipelines" in factors_of(sw)
+
+
+def _scheduler_order(s: str) -> tuple:
+    return (s != "static", s != "dynamic", s)
+
+
+def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
+    """The data behind the idle figures and tables of a sweep over ``arch.pipelines``.
+
+    Per (scene, mode): ``{"pms": [...], "points": [...]}``, the points sorted by scheduler
+    (static first) then N, each ``{"point", "scheduler", "pipelines", "throughput",
+    "speedup", "idle": {pm: fraction}}``: ``throughput`` is the row's
+    ``cycles.throughput`` (TThru), ``speedup`` TThru(1) / TThru(N) of the same scheduler
+    (None without an N = 1 point), ``idle`` the row's ``idle.<pm>`` as written. What
+    cannot be drawn is said in ``notes``.
+    """
+    name = sw.path.name
+    ok = [r for r in sw.rows if r.get("status") == "ok"]
+    if not ok:
+        notes.append(f"{name}: no idle fractions to draw: no finished point")
+        return {}
+    pms = [p for p in PMS if any(r.get(f"idle.{p}") is not None for r in ok)]
+    if not pms:
+        notes.append(f"{name}: no idle fractions to draw: its rows have no idle.<pm> column "
+                     f"({', '.join(f'idle.{p}' for p in PMS)}); a sweep run by a newer tlm writes them")
+        return {}
+    by_hash = {r.path.name: r for r in sw.runs}
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    unknown = []
+    for r in sorted(ok, key=lambda r: r.get("point", 0)):
+        run = by_hash.get(str(r.get("hash")))
+        arch = (run.config.get("arch") or {}) if run is not None else {}
+        n = r.get("arch.pipelines", arch.get("pipelines"))
+        sched = r.get("arch.scheduler", arch.get("scheduler"))
+        if n is None or sched is None:
+            unknown.append(str(r.get("point")))
+            continue
+        groups[(str(r.get("scene")), str(r.get("mode")))].append({
+            "point": r.get("point"), "scheduler": str(sched), "pipelines": int(n),
+            "throughput": r.get("cycles.throughput"),
+            "idle": {p: r.get(f"idle.{p}") for p in pms}})
+    if unknown:
+        notes.append(f"{name}: points {', '.join(unknown)} left out of the idle figures: neither the row nor a "
+                     "results folder gives their scheduler and N")
+    out = {}
+    for (scene, mode), pts in sorted(groups.items()):
+        seen = defaultdict(list)
+        for p in pts:
+            seen[(p["scheduler"], p["pipelines"])].append(str(p["point"]))
+        twice = [f"{s} N={n} (points {', '.join(ps)})" for (s, n), ps in seen.items() if len(ps) > 1]
+        if twice:
+            notes.append(f"{name}: {scene}/{mode}: no idle figure: several points share a scheduler and N, "
+                         f"they differ in another factor ({'; '.join(twice)})")
+            continue
+        if len({p["pipelines"] for p in pts}) < 2:
+            notes.append(f"{name}: {scene}/{mode}: no idle figure: one value of N only")
+            continue
+        pts.sort(key=lambda p: (_scheduler_order(p["scheduler"]), p["pipelines"]))
+        one = {p["scheduler"]: p["throughput"] for p in pts if p["pipelines"] == 1}
+        for p in pts:
+            t1, t = one.get(p["scheduler"]), p["throughput"]
+            p["speedup"] = t1 / t if t1 and t else None
+        out[(scene, mode)] = {"pms": pms, "points": pts}
+    return out
+
+
+def plot_idle(scene: str, pms: list[str], points: list[dict], path: Path, source: str = "") -> None:
+    """Idle fraction of each PM kind against N (log2): one colour and marker per PM, one line
+    style per scheduler (static solid with filled markers, dynamic dashed with open ones)."""
+    fig = new_figure(8, 4.8)
+    ax = fig.subplots()
+    scheds = sorted({p["scheduler"] for p in points}, key=_scheduler_order)
+    for j, sched in enumerate(scheds):
+        mine = [p for p in points if p["scheduler"] == sched]
+        ns = [p["pipelines"] for p in mine]
+        for i, pm in enumerate(pms):
+            c = colour(PM_COLOURS.get(pm, i))
+            ys = [math.nan if p["idle"][pm] is None else p["idle"][pm] for p in mine]
+            ax.plot(ns, ys, color=c, marker=marker(i), markersize=5, linestyle=SCHEDULER_LINES.get(sched, ":"),
+                    markerfacecolor=c if j == 0 else "white", markeredgecolor=c, label=f"{pm}, {sched}")
+    ns = sorted({p["pipelines"] for p in points})
+    ax.set_xscale("log", base=2)
+    ax.set_xticks(ns, [str(n) for n in ns])
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_ylim(-0.02, 1.02)
+    where = f" [{source}]" if source else ""
+    ax.set(xlabel="pipelines N", ylabel="idle fraction of the elapsed cycles",
+           title=f"{scene}: idle fraction per PM, {' against '.join(scheds)}{where}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=len(scheds))
+    fig.savefig(path, dpi=110)
+
+
+def _left(yes: bool) -> str:
+    return ' class="l"' if yes else ""
+
+
+def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
+    """N, scheduler, TThru, speed-up and the idle fraction of each PM, by N then scheduler."""
+    head = ["N", "scheduler", "TThru (M cycles)", "speed-up", *(f"idle {p}" for p in pms)]
+    rows = sorted(points, key=lambda p: (p["pipelines"], _scheduler_order(p["scheduler"])))
+    out = [f"<details><summary>{esc(title)}</summary>",
+           "<table><tr>" + "".join(f"<th{_left(h == 'scheduler')}>{esc(h)}</th>" for h in head) + "</tr>"]
+    for p in rows:
+        t = p["throughput"]
+        cells = [str(p["pipelines"]), p["scheduler"], "" if t is None else f"{t / 1e6:.4g}",
+                 "" if p["speedup"] is None else f"{p['speedup']:.3f}",
+                 *("" if p["idle"][pm] is None else f"{p['idle'][pm]:.3f}" for pm in pms)]
+        out.append("<tr>" + "".join(f"<td{_left(k == 1)}>{esc(c)}</td>" for k, c in enumerate(cells)) + "</tr>")
+    out.append("</table></details>")
+    return "\n".join(out)
+
+
+def _slug(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_")[:60] or "scene"
+
+
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
     sources: list[tuple[str, dict]] = [(s.path.name, _fits_of_study(s)) for s in inputs.of_kind("scaling")]
+    idle_sweeps = []
     for sw in inputs.sweeps:
-        if "arch.pipelines" not in (sw.spec.get("grid") or {}) and "arch.pipelines" not in (sw.spec.get("zip") or {}):
+        if not _varies_pipelines(sw):
             continue
+        idle_sweeps.append(sw)
         if not sw.runs:
-            sec.notes.append(f"{sw.path.name}: no finished point")
+            sec.notes.append(f"{sw.path.name}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes)))
+    for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
+        if _varies_pipelines(sw):
+            idle_sweeps.append(sw)
+        else:
+            sec.notes.append(f"{sw.path.name}: does not vary arch.pipelines, no idle figure")
     for name, fits in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
@@ -113,8 +255,23 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
                                              "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                              "least squares elsewhere; dotted: the slowest-pipeline variant. "
                                              f"Largest |error| of eq. 5.2: {worst}."))
+    tables = []
+    for sw in idle_sweeps:
+        groups = idle_points(sw, sec.notes)
+        many_modes = len({mode for _, mode in groups}) > 1
+        for (scene, mode), g in groups.items():
+            label = f"{scene}/{mode}" if many_modes else scene
+            file = f"idle_{_slug(sw.path.name)}_{_slug(scene)}{'_' + _slug(mode) if many_modes else ''}.png"
+            plot_idle(label, g["pms"], g["points"], out / file, sw.path.name)
+            sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.path.name}",
+                                      "Idle: no job to run (neither working nor stalled), as a fraction of the "
+                                      "stream's elapsed cycles, averaged over the pipelines' PMs of each kind (one "
+                                      "Vertex PM, pipeline 0's); the row's idle.<pm>. Solid, filled markers: static "
+                                      "tiling; dashed, open markers: the dynamic scheduler."))
+            tables.append(idle_table(f"{label} ({sw.path.name}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
+                                     "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
+    sec.html = "\n".join(tables)
     if not sec.figures:
         sec.absent = ("no 'tlm scaling' folder and no sweep over arch.pipelines among the inputs "
                       "(e.g. 'tlm sweep configs/scaling_ring.yaml')")
     return sec
-

@@ -5,6 +5,14 @@ PM, host seconds; a failed point with its error) and one figure per varied facto
 the simulated FPS against that factor's values, one line per combination of the other
 factors (up to :data:`MAX_SERIES`; more are drawn as their median with the min-max
 band, and a note says so).
+
+A sweep over ``bsp.levels`` also gets the thesis's balance claim ("floor(ln n) levels,
+with n denoting the number of photons and/or triangles, yields good performance balance"
+of the Traversal and Intersection PMs) tested: Ttrav / Tisct (the rows' cycles.traversal
+over cycles.intersection) and the simulated FPS against the levels, one line per scene,
+a vertical marker at each scene's floor(ln n) (n from the points' results.json) and a
+table of the ratio and FPS there, the level whose ratio is closest to 1 and the level
+of the best FPS (:func:`levels_balance`).
 """
 
 from __future__ import annotations
@@ -14,13 +22,17 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import Section, line_style, new_figure, save
+from tlm.report.common import Figure, Section, line_style, new_figure, save
 from tlm.report.html import esc
 
 MAX_SERIES = 8
 MAX_ROWS = 200
 PMS = ("vertex", "traversal", "intersection", "fragment")
+LEVELS = "bsp.levels"
 
 
 def _fmt(v: Any) -> str:
@@ -119,6 +131,166 @@ def _order(v):
     return (2, str(v))
 
 
+def _closest_to_one(points: list[dict]) -> dict:
+    """The point whose Ttrav / Tisct is closest to 1 in |ln ratio| (the fewer levels on a tie)."""
+    return min(points, key=lambda p: (abs(math.log(p["ratio"])), p["level"]))
+
+
+def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]], list[dict]]:
+    """The data behind the BSP-levels figure and table of a sweep over ``bsp.levels``.
+
+    Returns ``(series, summary)``. ``series``: per (scene, the other factors' values but
+    ``scene``), the finished points sorted by level, each ``{"point", "level",
+    "traversal", "intersection", "ratio", "fps", "throughput", "truncated"}`` (cycles from
+    the row, ratio = traversal / intersection). ``summary``: one dict per series,
+    ``{"key", "scene", "triangles", "floor_ln", "ratio_at_floor", "fps_at_floor",
+    "closest_level", "closest_ratio", "best_level", "best_fps"}``: ``triangles`` is the
+    scene's triangle count in its points' results.json (None without one), ``floor_ln``
+    floor(ln n) as the BSP builder computes it, the ``*_at_floor`` values None when the
+    sweep has no point at that level; closest means the smallest |ln ratio|, best the
+    highest FPS, the fewer levels on a tie. What cannot be used is said in ``notes``.
+    """
+    name = sw.path.name
+    others = [f for f in factors_of(sw) if f not in (LEVELS, "scene")]
+    by_hash = {r.path.name: r for r in sw.runs}
+    triangles: dict[str, set[int]] = defaultdict(set)
+    series: dict[tuple, list[dict]] = defaultdict(list)
+    unusable = []
+    for r in sorted(sw.rows, key=lambda r: r.get("point", 0)):
+        if r.get("status") != "ok":
+            continue
+        run = by_hash.get(str(r.get("hash")))
+        scene = str(r.get("scene"))
+        bsp = ((run.results.get("scene") or {}).get("bsp") or {}) if run is not None else {}
+        if run is not None and run.results["scene"].get("triangles") is not None:
+            triangles[scene].add(int(run.results["scene"]["triangles"]))
+        level = r.get(LEVELS)
+        if level is None:  # null: the builder's own floor(ln n)
+            level = bsp.get("requested_levels")
+        trav, isct = r.get("cycles.traversal"), r.get("cycles.intersection")
+        if level is None or trav is None or not isct or not trav:
+            unusable.append(str(r.get("point")))
+            continue
+        series[(scene, *(_key(r.get(f)) for f in others))].append({
+            "point": r.get("point"), "level": int(level), "traversal": trav, "intersection": isct,
+            "ratio": trav / isct, "fps": r.get("fps"), "throughput": r.get("cycles.throughput"),
+            "truncated": bool(bsp.get("truncated"))})
+    if unusable:
+        notes.append(f"{name}: points {', '.join(unusable)} left out of the BSP-levels balance: no level, or no "
+                     "traversal and intersection cycles")
+    if not series:
+        notes.append(f"{name}: no BSP-levels balance: no finished point with cycles.traversal and "
+                     "cycles.intersection")
+        return {}, []
+    truncated = [str(p["point"]) for pts in series.values() for p in pts if p["truncated"]]
+    if truncated:
+        notes.append(f"{name}: points {', '.join(truncated)} built a shallower BSP tree than their level asks "
+                     "(results.json scene.bsp.truncated); they are drawn at the level asked")
+    for scene, ns in sorted(triangles.items()):
+        if len(ns) > 1:
+            notes.append(f"{name}: {scene}: its points report different triangle counts {sorted(ns)}; "
+                         "floor(ln n) of the largest is marked")
+    missing = sorted({k[0] for k in series} - set(triangles))
+    if missing:
+        notes.append(f"{name}: no results.json for {', '.join(missing)}: its triangle count n, hence floor(ln n), "
+                     "is unknown and not marked")
+    out: dict[tuple, list[dict]] = {}
+    summary = []
+    for key, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
+        levels = [p["level"] for p in pts]
+        if len(set(levels)) != len(levels):
+            notes.append(f"{name}: {_series_label(key, others)}: no balance curve, several points share a level "
+                         "(they differ in a factor the report cannot tell apart)")
+            continue
+        if len(pts) < 2:
+            notes.append(f"{name}: {_series_label(key, others)}: one level only, no balance curve")
+            continue
+        pts.sort(key=lambda p: p["level"])
+        out[key] = pts
+        n = max(triangles[key[0]]) if triangles.get(key[0]) else None
+        floor_ln = default_levels(n) if n is not None else None
+        at = next((p for p in pts if p["level"] == floor_ln), None)
+        close = _closest_to_one(pts)
+        with_fps = [p for p in pts if p["fps"] is not None]
+        best = max(with_fps, key=lambda p: (p["fps"], -p["level"])) if with_fps else None
+        summary.append({"key": key, "label": _series_label(key, others), "scene": key[0], "triangles": n,
+                        "floor_ln": floor_ln,
+                        "ratio_at_floor": at["ratio"] if at else None, "fps_at_floor": at["fps"] if at else None,
+                        "closest_level": close["level"], "closest_ratio": close["ratio"],
+                        "best_level": best["level"] if best else None, "best_fps": best["fps"] if best else None})
+    return out, summary
+
+
+def _series_label(key: tuple, others: list[str]) -> str:
+    rest = ", ".join(f"{f.split('.')[-1]}={_fmt(v)}" for f, v in zip(others, key[1:], strict=True))
+    return f"{key[0]} ({rest})" if rest else str(key[0])
+
+
+def levels_table(summary: list[dict]) -> str:
+    head = ["scene", "triangles n", "floor(ln n)", "Ttrav / Tisct at floor(ln n)", "FPS at floor(ln n)",
+            "level with Ttrav / Tisct closest to 1", "Ttrav / Tisct there", "level of the best FPS", "best FPS"]
+    out = ["<table><tr>" + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
+
+    def num(v, f: str) -> str:
+        return "not swept" if v is None else format(v, f)
+
+    for s in summary:
+        known = s["floor_ln"] is not None
+        cells = [s["label"], "" if s["triangles"] is None else str(s["triangles"]),
+                 str(s["floor_ln"]) if known else "unknown",
+                 num(s["ratio_at_floor"], ".4f") if known else "", num(s["fps_at_floor"], ".4g") if known else "",
+                 str(s["closest_level"]), f"{s['closest_ratio']:.4f}",
+                 "" if s["best_level"] is None else str(s["best_level"]),
+                 "" if s["best_fps"] is None else f"{s['best_fps']:.4g}"]
+        left = ' class="l"'
+        out.append("<tr>" + "".join(f"<td{left if i == 0 else ''}>{esc(c)}</td>" for i, c in enumerate(cells))
+                   + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict], out: Path) -> Figure:
+    """Ttrav / Tisct (log) and FPS against the BSP levels, one line per series, a dotted
+    vertical line at each scene's floor(ln n) and a horizontal line at ratio 1."""
+    fig = new_figure(13, 4.8)
+    ratio_ax, fps_ax = fig.subplots(1, 2)
+    scenes = sorted({k[0] for k in series})
+    marked = set()
+    for i, s in enumerate(summary):
+        pts = series[s["key"]]
+        style = line_style(i)
+        levels = [p["level"] for p in pts]
+        ratio_ax.plot(levels, [p["ratio"] for p in pts], label=s["label"], **style)
+        fps_ax.plot(levels, [math.nan if p["fps"] is None else p["fps"] for p in pts], label=s["label"], **style)
+        if s["floor_ln"] is not None and s["scene"] not in marked:
+            marked.add(s["scene"])
+            for ax in (ratio_ax, fps_ax):
+                ax.axvline(s["floor_ln"], color=style["color"], linestyle=(0, (1, 2)), linewidth=1.4,
+                           label=f"floor(ln n) = {s['floor_ln']}: {s['scene']}, n = {s['triangles']}")
+    ratios = [p["ratio"] for pts in series.values() for p in pts]
+    ratio_ax.axhline(1.0, color="grey", linestyle="--", linewidth=1, label="Ttrav = Tisct")
+    ratio_ax.set_yscale("log")
+    ratio_ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ratio_ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ratio_ax.yaxis.set_minor_formatter(NullFormatter())
+    ratio_ax.set_ylim(min(*ratios, 1.0) / 1.25, max(*ratios, 1.0) * 1.25)
+    ratio_ax.set(ylabel="Ttrav / Tisct (cycles.traversal / cycles.intersection)",
+                 title=f"{sw.path.name}: traversal against intersection")
+    fps_ax.set(ylabel="simulated frames per second (FPS)", title=f"{sw.path.name}: FPS")
+    levels = sorted({p["level"] for pts in series.values() for p in pts})
+    for ax in (ratio_ax, fps_ax):
+        ax.set_xticks(levels, [str(v) for v in levels])
+        ax.set_xlabel("BSP levels (bsp.levels)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    where = ", ".join(f"{s['scene']} {s['floor_ln']}" for s in summary if s["floor_ln"] is not None)
+    return save(fig, out, f"bsp_balance_{sw.path.name}.png",
+                f"{sw.path.name}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
+                "The thesis: floor(ln n) levels balance the Traversal and Intersection PMs. Left: the slowest "
+                "pipeline's Traversal over Intersection cycles per frame (1 = balanced, dashed); right: the "
+                f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).")
+
+
 def sweeps_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("sweeps", "Sweeps: the points and the frame rate against each factor")
     html = []
@@ -132,6 +304,18 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
             fig = factor_figure(sw, factor, out, sec.notes)
             if fig is not None:
                 sec.figures.append(fig)
+        if LEVELS in factors_of(sw):
+            series, summary = levels_balance(sw, sec.notes)
+            if summary:
+                html.append(f"<p>{esc(sw.path.name)}: the BSP depth against the thesis's floor(ln n) "
+                            "(Ttrav / Tisct = cycles.traversal / cycles.intersection of the rows; closest to 1 "
+                            "in |ln ratio|; FPS as simulated).</p>")
+                html.append(levels_table(summary))
+                if len(summary) <= MAX_SERIES:
+                    sec.figures.append(levels_figure(sw, series, summary, out))
+                else:
+                    sec.notes.append(f"{sw.path.name}: no BSP-levels figure: {len(summary)} curves (scenes times "
+                                     f"the other factors' values), more than {MAX_SERIES}; the table lists them")
     sec.html = "\n".join(html)
     if not inputs.sweeps:
         sec.absent = "no sweep folder among the inputs"
