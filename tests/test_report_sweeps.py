@@ -251,3 +251,21 @@ def test_scaling_sweeps_must_be_sweeps(sweeps, tmp_path):
     with pytest.raises(InputError, match="must be sweep folders"):
         build_report([sweeps / "bsp"], tmp_path / "rep", scaling_sweeps=[sweeps / "sc" / "points" /
                                                                          rows(sweeps / "sc")[0]["hash"]])
+
+
+def test_a_torn_last_row_is_left_out_and_a_corrupt_one_refused(sweeps, tmp_path):
+    """A sweep killed while writing a row leaves it cut off: the report reads the others."""
+    torn = tmp_path / "torn"
+    shutil.copytree(sweeps / "sc", torn)
+    (torn / "sweep.csv").unlink()
+    with open(torn / "sweep.jsonl", "a") as f:
+        f.write('{"point": 99, "status": "o')
+    page = build_report([torn], tmp_path / "rep")
+    scaling = section(page, "scaling")
+    table = scaling[scaling.index("<details>"):scaling.index("</details>")]
+    assert len(table.split("<tr>")[2:]) == 6
+    lines = (torn / "sweep.jsonl").read_text().splitlines()
+    (torn / "sweep.jsonl").write_text("\n".join([lines[0], "{not json", *lines[1:]]) + "\n")
+    with pytest.raises(InputError, match="line 2"):
+        build_report([torn], tmp_path / "rep2")
+    assert not (tmp_path / "rep2").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -11,7 +12,7 @@ import yaml
 
 from tlm.cli import main
 from tlm.errors import InputError
-from tlm.experiments.scaling import fit_group
+from tlm.experiments.scaling import fit, fit_group
 from tlm.experiments.sweep import run_sweep
 
 
@@ -66,6 +67,17 @@ def test_points_that_differ_in_another_key_are_not_mixed():
         fit_group(pts[:1], "latency")
 
 
+def test_a_mixed_group_names_its_sweep_folders():
+    pts = [{"pipelines": n, "T_vert0": 1, "sum_max": 10, "max_max": 10, "latency": 20, "throughput": 20,
+            "scene": "cornell", "mode": "rcast", "scheduler": "static", "sweep": sweep}
+           for n, sweep in ((1, "runs/a"), (2, "runs/a"), (2, "runs/b"))]
+    with pytest.raises(InputError, match="same N") as e:
+        fit(pts)
+    assert str(e.value).startswith("runs/a, runs/b (cornell/rcast/static): arch.pipelines: ")
+    with pytest.raises(InputError, match=r"^somewhere: arch\.pipelines: two points"):
+        fit_group(pts, "latency", source="somewhere")
+
+
 def test_not_a_sweep_folder_exits_2(tmp_path, capsys):
     assert main(["scaling", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
     assert "sweep.jsonl" in capsys.readouterr().err
@@ -102,3 +114,68 @@ def test_a_scaling_sweep_end_to_end(tmp_path, cache, capsys):
     # more pipelines: every pipeline's share of the work shrinks
     by_n = {int(r["pipelines"]): int(r["sum_max_per_N"]) for r in rows if r["scheduler"] == "dynamic"}
     assert by_n[4] < by_n[2] < by_n[1]
+
+
+@pytest.fixture(scope="module")
+def small_sweep(tmp_path_factory):
+    """A finished sweep over N in (1, 2) and two FIFO depths (two points per N)."""
+    tmp = tmp_path_factory.mktemp("small")
+    path = tmp / "scaling.yaml"
+    path.write_text(yaml.safe_dump({
+        "base": {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1},
+                 "arch": {"frames": 2, "trace": False}},
+        "grid": {"arch.pipelines": [1, 2], "arch.fifo_depth": [1, 16]},
+    }))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("TLM_CACHE", str(tmp / "cache"))
+        done = run_sweep(path, tmp / "sw", jobs=1)
+    assert done.ok == 4
+    return tmp / "sw"
+
+
+def _copy(small_sweep: Path, tmp_path: Path, depth: int | None = 16) -> tuple[Path, list[str]]:
+    """A copy of the sweep folder whose sweep.jsonl keeps the rows of one FIFO depth (None: all)."""
+    folder = tmp_path / "sw"
+    shutil.copytree(small_sweep, folder)
+    lines = [line for line in (folder / "sweep.jsonl").read_text().splitlines(keepends=True)
+             if depth is None or json.loads(line)["arch.fifo_depth"] == depth]
+    (folder / "sweep.jsonl").write_text("".join(lines))
+    return folder, lines
+
+
+def test_points_of_a_mixed_group_exit_2_naming_the_sweep(tmp_path, small_sweep, capsys):
+    folder, _ = _copy(small_sweep, tmp_path, depth=None)
+    assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(folder) in err[0] and "same N ([1, 1, 2, 2])" in err[0]
+    assert not (tmp_path / "eq").exists()
+
+
+def test_a_torn_last_row_is_left_out(tmp_path, small_sweep, capsys):
+    """A sweep killed while writing a row leaves it cut off: the finished rows are fitted."""
+    folder, lines = _copy(small_sweep, tmp_path)
+    (folder / "sweep.jsonl").write_text("".join(lines) + lines[0][:30])
+    assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
+    fits = json.loads((tmp_path / "eq" / "eq52.json").read_text())["fits"]
+    assert {tuple(f["pipelines"]) for f in fits} == {(1, 2)}
+
+
+@pytest.mark.parametrize("damage, where", [
+    ("middle", "sweep.jsonl: line 2: is not a JSON row"),
+    ("not a row", "sweep.jsonl: line 3: is not a JSON row"),
+    ("folder", "sweep.jsonl: line 2: point 3: "),
+])
+def test_a_damaged_sweep_folder_exits_2(tmp_path, small_sweep, capsys, damage, where):
+    folder, lines = _copy(small_sweep, tmp_path)
+    if damage == "middle":  # a torn row, and more rows after it
+        (folder / "sweep.jsonl").write_text(lines[0] + lines[1][:30] + "\n" + lines[1])
+    elif damage == "not a row":
+        (folder / "sweep.jsonl").write_text("".join(lines) + "[1, 2]\n")
+    else:
+        shutil.rmtree(folder / "points" / json.loads(lines[1])["hash"])
+    assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tlm: error: ") and where in err[0], err
+    if damage == "folder":
+        assert "results.json is missing" in err[0]
+    assert not (tmp_path / "eq").exists()

@@ -6,21 +6,25 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
 
+import tlm.arch.functional as functional
 import tlm.experiments.run as run_mod
 import tlm.experiments.sweep as sweep_mod
 from tlm.arch.functional import cache_dir, cached_render
+from tlm.arch.programs import DEFAULT_PATH
 from tlm.cli import main
 from tlm.config import config_from_dict
-from tlm.experiments.sweep import config_hash, expand, load_sweep, run_sweep, utilization
+from tlm.experiments.sweep import config_hash, expand, load_sweep, point_inputs, run_sweep, utilization
 
 from .scenes import sphere_scene
 
@@ -80,7 +84,8 @@ def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
         assert c["arch"]["frames"] == 3 and c["render"]["reflect_depth"] == 2  # set
         assert c["arch"]["packet_size"] == 32 and c["resolution"] == [24, 16]  # the base file
         assert c["render"]["batch"] == 4  # a default
-        assert p.hash == config_hash(c) and len(p.hash) == 16
+        assert p.hash == config_hash(c, point_inputs(config_from_dict(c), sw.folder, "test")) and len(p.hash) == 16
+        assert p.hash != config_hash(c)  # the input files are part of the key
     assert len({p.hash for p in sw.points}) == 12
     assert sw.folder == tmp_path.resolve()
 
@@ -90,6 +95,8 @@ def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
     ({"zip": {"seed": [0, 1], "arch.fifo_depth": [1, 2, 3]}}, "zip"),
     ({"grid": {"arch.fifo_dept": [1, 2]}}, "arch.fifo_dept"),
     ({"grid": {"arch.fifo_depth": [16, 0]}}, "arch.fifo_depth"),
+    ({"grid": {"arch.fifo_depth": [16, 1.5]}}, "arch.fifo_depth: 1.5 is not an int"),
+    ({"zip": {"arch.clock_hz": ["fast"]}}, "arch.clock_hz: 'fast' is not a float"),
     ({"grid": {"arch.fifo_depth": 16}}, "grid.arch.fifo_depth"),
     ({"grid": {"arch.fifo_depth": []}}, "grid.arch.fifo_depth"),
     ({"grid": {"mode": ["rcast", "raytrace"]}}, "mode"),
@@ -136,6 +143,27 @@ def test_local_pool_and_dask_give_identical_rows(tmp_path, monkeypatch):
     assert all(r["status"] == "ok" and r["error"] is None for r in local.rows)
     assert {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 0} != \
         {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 48}
+
+
+def test_a_local_dask_cluster_does_not_need_port_8787(tmp_path, capfd):
+    """Another cluster (or anything) on the dashboard's usual port: no warning about it."""
+    taken = socket.socket()
+    try:
+        taken.bind(("", 8787))
+        taken.listen()
+    except OSError:
+        taken.close()
+        pytest.skip("port 8787 is in use already, or cannot be bound")
+    path = sweep_file(tmp_path, grid={"seed": [0]})
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["sweep", str(path), "--out", str(tmp_path / "o"), "--jobs", "1", "--dask", "local"]) == 0
+    finally:
+        taken.close()
+    err = capfd.readouterr().err
+    assert "already in use" not in err and "8787" not in err
+    assert not [w for w in caught if "already in use" in str(w.message)]
 
 
 def test_utilization_averages_the_pipelines_of_a_kind():
@@ -252,6 +280,60 @@ def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
     assert len(list((out / "points").iterdir())) == 7
 
 
+def test_changed_input_files_run_the_points_again(tmp_path):
+    """The point key covers the content of the files the config names: the programs table,
+    the scene file and the mesh it names. A rerun after a change to one computes the points
+    again (and never reports the old results as done)."""
+    sphere_scene(tmp_path, n_seg=12, n_rings=6)
+    programs = yaml.safe_load(DEFAULT_PATH.read_text())
+    (tmp_path / "myprog.yaml").write_text(yaml.safe_dump(programs))
+    base = {**BASE, "scene": "furnace.yaml", "arch": {**BASE["arch"], "programs": "myprog.yaml"}}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": base, "grid": {"arch.page_miss_cycles": [0, 48]}}))
+    out = tmp_path / "o"
+
+    def again():
+        done = run_sweep(path, out, jobs=1)
+        assert done.failed == 0 and done.ok + done.skipped == 2
+        return done
+
+    first = again()
+    assert (first.ok, first.skipped) == (2, 0)
+    assert (again().ok, again().skipped) == (0, 2)  # nothing changed: nothing runs
+
+    programs["vertex"]["scale"] *= 2
+    (tmp_path / "myprog.yaml").write_text(yaml.safe_dump(programs))
+    slower = again()
+    assert (slower.ok, slower.skipped, slower.renders) == (2, 0, 0)  # the frame is the same: from the cache
+    for old, new in zip(first.rows, slower.rows):
+        assert new["hash"] != old["hash"] and new["cycles.vertex"] > old["cycles.vertex"]
+
+    sphere_scene(tmp_path, n_seg=16, n_rings=8)  # the same scene file, another mesh
+    finer = again()
+    assert (finer.ok, finer.skipped, finer.renders) == (2, 0, 1)
+    assert finer.rows[0]["cycles.vertex"] != slower.rows[0]["cycles.vertex"]
+
+    sphere_scene(tmp_path, albedo=0.7, n_seg=16, n_rings=8)  # the same mesh, another material
+    grey = again()
+    assert (grey.ok, grey.skipped, grey.renders) == (2, 0, 1)
+    assert len({r["hash"] for r in first.rows + slower.rows + finer.rows + grey.rows}) == 8
+
+
+def test_a_resumed_sweep_never_appends_to_a_torn_row(tmp_path, monkeypatch):
+    path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48]})
+    out = tmp_path / "o"
+    first = run_sweep(path, out, jobs=1)
+    shutil.rmtree(out / "points" / first.rows[2]["hash"])
+    lines = (out / "sweep.jsonl").read_text().splitlines(keepends=True)
+    (out / "sweep.jsonl").write_text(lines[0] + lines[1][:25])  # killed while writing the second row
+    seen = []
+    monkeypatch.setattr(sweep_mod, "write_rows", lambda o, rows: seen.append((o / "sweep.jsonl").read_text()))
+    done = run_sweep(path, out, jobs=1)
+    assert (done.ok, done.skipped) == (1, 2)
+    # what a sweep killed before its end leaves: whole rows, the torn one cut off
+    assert [json.loads(line)["point"] for line in seen[0].splitlines()] == [0, 2]
+
+
 def test_a_killed_point_leaves_nothing_half_written(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48, 96]})
     out = tmp_path / "o"
@@ -274,24 +356,69 @@ def test_a_killed_point_leaves_nothing_half_written(tmp_path, monkeypatch):
     assert len(list((out / "points").iterdir())) == 4
 
 
-def test_resume_after_a_killed_process(tmp_path):
+def _stat(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after the command name (state, ppid, ...), or None."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text[text.rindex(")") + 2:].split()
+
+
+def _descendants(pid: int) -> set[tuple[int, str]]:
+    """The processes below ``pid``, as (pid, start time): a pid reused later is another process."""
+    children: dict[int, list[tuple[int, str]]] = {}
+    for d in Path("/proc").iterdir():
+        fields = _stat(int(d.name)) if d.name.isdigit() else None
+        if fields is not None:
+            children.setdefault(int(fields[1]), []).append((int(d.name), fields[19]))
+    found, todo = set(), [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.add(child)
+            todo.append(child[0])
+    return found
+
+
+def _running(process: tuple[int, str]) -> bool:
+    fields = _stat(process[0])
+    return fields is not None and fields[19] == process[1] and fields[0] not in "ZX"
+
+
+def test_resume_after_a_killed_process(tmp_path, monkeypatch):
+    """A sweep killed (SIGKILL) with two workers: its processes (the workers, the fork server)
+    end soon after it instead of running the queued points, and a rerun resumes."""
+    # the points' keys hold the code's hash: computed now, as the killed process did (not at
+    # the session's start, before edits to the checkout since)
+    monkeypatch.setattr(sweep_mod, "_CODE_VERSION", None)
+    monkeypatch.setattr(functional, "_CODE", None)
     path = sweep_file(tmp_path, set={"arch.packet_size": 4}, grid={"arch.page_miss_cycles": list(range(0, 80, 10))})
     out = tmp_path / "o"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "1"],
+    linux = Path("/proc/self/stat").is_file()
+    below: set[tuple[int, str]] = set()
+    proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "2"],
                             cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and proc.poll() is None:
+            if linux:
+                below |= _descendants(proc.pid)
             rows = out / "sweep.jsonl"
-            if rows.exists() and rows.read_text().count("\n") >= 1:
+            if rows.exists() and rows.read_text().count("\n") >= 2:  # both workers started
                 break
             time.sleep(0.01)
         proc.send_signal(signal.SIGKILL)
     finally:
         proc.wait()
+    if linux:  # the workers (and with them the fork server and the resource tracker) end
+        assert len(below) >= 3
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and any(map(_running, below)):
+            time.sleep(0.05)
+        assert not [p for p in below if _running(p)]
     finished = {p.name for p in (out / "points").iterdir() if (p / "results.json").is_file()}
-    assert finished  # the kill came after the first point
+    assert 2 <= len(finished) < 8  # the kill came after the first points, before the last
     # what a point killed while writing its folder leaves: a temporary folder of a dead process
     stale = out / "points" / f".0123456789abcdef.tmp-{proc.pid}"
     stale.mkdir(exist_ok=True)

@@ -13,6 +13,7 @@ never delete a checkout.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 from collections.abc import Iterator
@@ -64,3 +65,32 @@ def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
+    """The rows of a JSON-lines file the experiments append to, with their line numbers.
+
+    A last line cut off while written (no newline at the end of the file: a process
+    killed mid-write) is left out; any other line that is not a JSON object is an
+    :class:`InputError` naming the file and the line (``hint`` is added to its message).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", source=str(path)) from None
+    lines = text.splitlines()
+    rows = []
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+        except ValueError:
+            if n == len(lines) and not text.endswith("\n"):
+                continue  # the row a killed process was writing
+            row = None
+        if not isinstance(row, dict):
+            raise InputError(f"is not a JSON row{hint}", source=str(path), key=f"line {n}")
+        rows.append((n, row))
+    return rows

@@ -32,7 +32,7 @@ from pathlib import Path
 import yaml
 
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
+from tlm.experiments.atomic import atomic_folder, check_destination, read_jsonl
 
 TARGETS = ("latency", "throughput")
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
@@ -40,22 +40,30 @@ COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "an
 
 
 def collect(sweep_dir: Path) -> list[dict]:
-    """One record per finished point of the sweep in ``sweep_dir``."""
+    """One record per finished point of the sweep in ``sweep_dir`` (each names the folder).
+
+    A last row cut off while written (a killed sweep) is left out; any other row that is
+    not JSON, or a finished point whose folder is gone, is an InputError.
+    """
     sweep_dir = Path(sweep_dir)
     rows_path = sweep_dir / "sweep.jsonl"
     if not rows_path.is_file():
         raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
     records = []
-    for line in rows_path.read_text().splitlines():
-        if not line.strip():
-            continue
-        row = json.loads(line)
+    for n, row in read_jsonl(rows_path, " (the file is corrupt: rerun 'tlm sweep' into this folder)"):
         if row.get("status") != "ok":
             continue
-        folder = sweep_dir / "points" / row["hash"]
-        res = json.loads((folder / "results.json").read_text())
-        cfg = yaml.safe_load((folder / "config.resolved.yaml").read_text())
-        records.append(record(res, cfg))
+        folder = sweep_dir / "points" / str(row.get("hash"))
+        try:
+            res = json.loads((folder / "results.json").read_text())
+            cfg = yaml.safe_load((folder / "config.resolved.yaml").read_text())
+        except FileNotFoundError as e:
+            raise InputError(f"point {row.get('point')}: {e.filename} is missing (rerun 'tlm sweep' into this "
+                             "folder to compute the point again)", source=str(rows_path), key=f"line {n}") from None
+        except (OSError, ValueError, yaml.YAMLError) as e:
+            raise InputError(f"point {row.get('point')}: cannot read its folder ({e})", source=str(rows_path),
+                             key=f"line {n}") from None
+        records.append({**record(res, cfg), "sweep": str(sweep_dir)})
     if not records:
         raise InputError("has no finished point", source=str(rows_path))
     return records
@@ -74,24 +82,25 @@ def record(res: dict, cfg: dict) -> dict:
     }
 
 
-def fit_group(points: list[dict], target: str, slowest: bool = False) -> dict:
+def fit_group(points: list[dict], target: str, slowest: bool = False, source: str | None = None) -> dict:
     """A and B of eq. 5.2 for one group, exact at N = 1 and least squares elsewhere.
 
     ``slowest``: the variant with the slowest pipeline's max(T_t, T_r, T_f) in place of
-    the mean over the pipelines (eq. 5.2 assumes tiles of equal work).
+    the mean over the pipelines (eq. 5.2 assumes tiles of equal work). ``source``: where
+    the points come from (the sweep folders), for the errors' messages.
     """
     points = [{**p, "sum_max": p["max_max"] * p["pipelines"]} for p in points] if slowest else points
     by_n = {p["pipelines"]: p for p in points}
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
         raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ in "
-                         "another key, so fit them from separate sweeps", key="arch.pipelines")
+                         "another key, so fit them from separate sweeps", source=source, key="arch.pipelines")
     if len(by_n) < 2:
         raise InputError(f"eq. 5.2 needs at least two values of N, the group has {sorted(by_n)}",
-                         key="arch.pipelines")
+                         source=source, key="arch.pipelines")
     if 1 not in by_n:
         raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {sorted(by_n)}",
-                         key="arch.pipelines")
+                         source=source, key="arch.pipelines")
     one = by_n[1]
     t1, v, m1 = one[target], one["T_vert0"], one["sum_max"]
     # T(N) - T(1) = B * (M(N) - M(1)), M(N) = sum_i max(...) / N; then A from N = 1
@@ -110,10 +119,10 @@ def fit_group(points: list[dict], target: str, slowest: bool = False) -> dict:
     return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows}
 
 
-def fit_both(points: list[dict], target: str) -> dict:
+def fit_both(points: list[dict], target: str, source: str | None = None) -> dict:
     """Eq. 5.2 as the thesis writes it, with the slowest-pipeline variant beside it."""
-    f = fit_group(points, target)
-    g = fit_group(points, target, slowest=True)
+    f = fit_group(points, target, source=source)
+    g = fit_group(points, target, slowest=True, source=source)
     for r, q in zip(f["rows"], g["rows"]):
         r["analytical_slowest"] = q["analytical"]
         r["rel_error_slowest"] = q["rel_error"]
@@ -122,10 +131,17 @@ def fit_both(points: list[dict], target: str) -> dict:
 
 
 def fit(records: list[dict]) -> dict[tuple, dict]:
+    """Eq. 5.2 per (scene, mode, scheduler) and target; an error names the group's sweep folders."""
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in records:
         groups[(r["scene"], r["mode"], r["scheduler"])].append(r)
-    return {(*key, target): fit_both(pts, target) for key, pts in sorted(groups.items()) for target in TARGETS}
+    fits = {}
+    for key, pts in sorted(groups.items()):
+        sweeps = sorted({r["sweep"] for r in pts if r.get("sweep")})
+        source = f"{', '.join(sweeps)} ({'/'.join(key)})" if sweeps else None
+        for target in TARGETS:
+            fits[(*key, target)] = fit_both(pts, target, source)
+    return fits
 
 
 def analyse(sweep_dirs: list[Path], out: Path) -> dict:

@@ -18,12 +18,15 @@ point's config goes through the run config's checks before any point runs. Relat
 paths in the configs (``scene``, ``arch.programs``) start at the base config's folder
 when ``base`` is a file, else at the sweep file's folder.
 
-A point is keyed by the hash of its resolved config, so a rerun (or another sweep
-into the same folder) skips the points already done. Output folder::
+A point is keyed by the hash of its resolved config, of the content of the files it
+names (the scene and its meshes, through the functional key; the programs table) and
+of tlm's code, so a rerun (or another sweep into the same folder) skips the points
+already done, and recomputes those whose inputs changed. Output folder::
 
     sweep.yaml               the sweep as resolved: base, set, factors, every point's hash
     sweep.jsonl              one row per point, appended as points finish (a killed sweep
-                             keeps them); rewritten sorted when the sweep ends
+                             keeps them, its last row perhaps cut off); rewritten sorted
+                             when the sweep ends
     sweep.csv                the same rows, one column per field, written at the end
     points/<hash>/           config.resolved.yaml, results.json, trace.json (arch.trace);
                              or error.json when the point failed (retried by a rerun)
@@ -31,21 +34,26 @@ into the same folder) skips the points already done. Output folder::
 A point renders nothing that another point rendered: points that differ only in
 ``arch`` share one functional result (DESIGN.md §6, :mod:`tlm.arch.functional`). One
 point per functional result goes first; the others follow once it is cached, so two
-workers never render the same frame. Workers: a local process pool, or Dask.
+workers never render the same frame. Workers: a local process pool, or Dask. A local
+worker ends itself when the sweep's process dies (a killed sweep leaves none running).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import csv
+import ctypes
 import hashlib
 import itertools
 import json
 import multiprocessing
 import os
 import re
+import select
 import shutil
+import signal
 import sys
+import threading
 import time
 import traceback
 from collections import deque
@@ -66,6 +74,8 @@ SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 FIRST_COLUMNS = ("point", "hash", "status", "error")
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
+PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 
 
 # ---------------------------------------------------------------- the sweep file
@@ -78,7 +88,8 @@ class Point:
     index: int
     factors: dict[str, Any]  # dotted key -> value
     config: dict  # to_dict of the resolved RunConfig
-    hash: str  # 16 hex digits of sha256 over the canonical JSON of ``config``
+    hash: str  # 16 hex digits of sha256 over ``config``, its input files and tlm's code (config_hash)
+    functional: str = ""  # the functional key of its frame: points of one key share one render
 
 
 @dataclass(frozen=True)
@@ -105,14 +116,45 @@ class Sweep:
         }
 
 
-def config_hash(resolved: dict) -> str:
-    """The point's key: sha256 of the resolved config's canonical JSON and of tlm's code, 16 hex digits.
+def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
+    """The point's key: sha256 of the resolved config's canonical JSON, of the fingerprints
+    of its input files and of tlm's code, 16 hex digits.
 
-    The code is part of the key so that a rerun after a change to the model or the
-    kernels computes its points again instead of reusing results of other code.
+    ``inputs`` (:func:`point_inputs`) holds the content of what the config names by path
+    only: the scene and its meshes (through the functional key) and the programs table.
+    The files and the code are part of the key so that a rerun after a change to either
+    computes its points again instead of reusing results of other inputs or other code.
     """
-    blob = json.dumps({"config": resolved, "code": code_version()}, sort_keys=True, separators=(",", ":"))
+    body = {"config": resolved, "code": code_version()}
+    if inputs is not None:
+        body["inputs"] = inputs
+    blob = json.dumps(body, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None) -> dict[str, str]:
+    """Fingerprints of the files ``cfg`` names: its frame's functional key (the scene's
+    content) and the sha256 of the programs table's bytes.
+
+    Loads the scene and the programs table (an InputError names ``source``). ``seen``
+    keeps what was loaded, for the next point: points of one sweep share most of them.
+    """
+    from tlm.arch.programs import DEFAULT_PATH
+    from tlm.experiments.run import programs_for
+
+    seen = {} if seen is None else seen
+    table = cfg.arch.programs
+    if ("programs", table) not in seen:
+        try:
+            programs_for(cfg, folder)
+        except InputError as e:  # the table's own message, and which point names it
+            raise InputError(str(e), source=source) from None
+        path = DEFAULT_PATH if table is None else folder / table  # an absolute table stays itself
+        seen["programs", table] = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
+    if ("functional", work) not in seen:
+        seen["functional", work] = render_key(cfg, folder, source)
+    return {"functional": seen["functional", work], "programs": seen["programs", table]}
 
 
 def code_version() -> str:
@@ -168,7 +210,9 @@ def expand(grid: dict[str, list], zipped: dict[str, list]) -> list[dict[str, Any
 
 
 def load_sweep(path: Path) -> Sweep:
-    """Read and check a sweep file and every point's config; InputError names the file and key."""
+    """Read and check a sweep file and every point's config, and load the scenes and programs
+    tables the points name (their content is part of the points' keys); InputError names the
+    file and key."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -215,14 +259,19 @@ def load_sweep(path: Path) -> Sweep:
     for k, v in settings.items():
         fixed = _assign(fixed, k, v)
     config_from_dict(fixed, f"{src} (base with set)")
-    points = []
+    configs = []
     for i, factors in enumerate(expand(grid, zipped)):
         point = fixed
         for k, v in factors.items():
             point = _assign(point, k, v)
         shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
-        resolved = to_dict(config_from_dict(point, f"{src} (point {i}: {shown})"))
-        points.append(Point(i, factors, resolved, config_hash(resolved)))
+        configs.append((i, factors, config_from_dict(point, f"{src} (point {i}: {shown})")))
+    # every config is checked before any file it names is loaded
+    points, seen = [], {}
+    for i, factors, cfg in configs:
+        inputs = point_inputs(cfg, folder, f"{src} (point {i})", seen)
+        resolved = to_dict(cfg)
+        points.append(Point(i, factors, resolved, config_hash(resolved, inputs), inputs["functional"]))
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points)
 
 
@@ -409,7 +458,7 @@ class _LocalPool(cf.Executor):
     def _new(self) -> cf.ProcessPoolExecutor:
         env = {k: v for k, v in os.environ.items() if k.startswith("TLM_")}  # the server's may be older
         return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
-                                      initializer=_worker_env, initargs=(env,))
+                                      initializer=_worker_init, initargs=(env, os.getpid()))
 
     def submit(self, fn, /, *args, **kwargs):
         try:
@@ -423,11 +472,58 @@ class _LocalPool(cf.Executor):
         self.pool.shutdown(wait=wait, cancel_futures=cancel_futures)
 
 
+def _worker_init(env: dict[str, str], parent: int) -> None:
+    """A local worker's set-up: the sweep's ``TLM_*`` variables, and an end with the sweep's process."""
+    _worker_env(env)
+    _exit_with(parent)
+
+
 def _worker_env(env: dict[str, str]) -> None:
     """Give a worker this process's ``TLM_*`` variables (``TLM_CACHE``) as they are now."""
     for k in [k for k in os.environ if k.startswith("TLM_")]:
         del os.environ[k]
     os.environ.update(env)
+
+
+def _exit_with(parent: int) -> None:
+    """End this worker when the sweep's process ``parent`` dies.
+
+    A killed sweep (SIGKILL: no shutdown runs) would otherwise leave its workers running
+    the points queued to them, and then waiting for more forever. On Linux the kernel
+    kills a worker whose parent process dies (``PR_SET_PDEATHSIG``); but under
+    ``forkserver`` that parent is the fork server, which lives as long as its children.
+    So a daemon thread also waits for ``parent`` itself to end (on a pidfd, else polling
+    its pid and this process's parent) and ends the worker with ``os._exit``.
+    """
+    if sys.platform.startswith("linux"):
+        with suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    threading.Thread(target=_watch_parent, args=(parent, os.getppid()), name="tlm-watch-sweep",
+                     daemon=True).start()
+
+
+def _watch_parent(parent: int, ppid: int) -> None:
+    pidfd = None
+    with suppress(AttributeError, OSError):  # no pidfd (not Linux >= 5.3), or ``parent`` is gone already
+        pidfd = os.pidfd_open(parent)
+    if pidfd is not None:
+        select.select([pidfd], [], [])  # readable once ``parent`` has ended
+    else:
+        while _alive(parent) and os.getppid() == ppid:
+            time.sleep(PARENT_POLL)
+    os._exit(1)
+
+
+def _alive(pid: int) -> bool:
+    if os.name != "posix":  # os.kill(pid, 0) would terminate it there: the parent check alone
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        pass  # it exists (another user's pid: ours was reused); the parent check still holds
+    return True
 
 
 def _mp_context():
@@ -445,8 +541,11 @@ def _open_executor(stack: ExitStack, jobs: int, dask: str | None) -> cf.Executor
     from distributed import Client, LocalCluster
 
     if dask == "local":
+        # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
+        # it still tries 8787, and warns when that is taken (another cluster, another sweep)
         cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                                   dashboard_address=None))
+                                                   dashboard_address="127.0.0.1:0",
+                                                   scheduler_kwargs={"dashboard": False}))
         client = stack.enter_context(Client(cluster))
     else:
         try:
@@ -470,30 +569,6 @@ class Outcome:
     renders: int  # points whose functional result was rendered, not read from the cache
     seconds: float
     out: Path
-
-
-def _check_points(sweep: Sweep) -> dict[str, str]:
-    """Load every distinct programs table and scene before any point runs.
-
-    Returns each point hash's functional key: points with one key share one render.
-    """
-    from tlm.experiments.run import programs_for
-
-    tables, keys, by_hash = set(), {}, {}
-    for p in sweep.points:
-        cfg = config_from_dict(p.config, str(sweep.path))
-        shown = f"{sweep.path} (point {p.index})"
-        if cfg.arch.programs not in tables:
-            try:
-                programs_for(cfg, sweep.folder)
-            except InputError as e:  # the table's own message, and which point names it
-                raise InputError(str(e), source=shown) from None
-            tables.add(cfg.arch.programs)
-        work = json.dumps({k: v for k, v in p.config.items() if k != "arch"}, sort_keys=True)
-        if work not in keys:
-            keys[work] = render_key(cfg, sweep.folder, shown)
-        by_hash[p.hash] = keys[work]
-    return by_hash
 
 
 def _clean_stale(points_dir: Path) -> None:
@@ -526,8 +601,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         jobs = os.cpu_count() or 1
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
-    sweep = load_sweep(Path(path))
-    fkeys = _check_points(sweep)
+    sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
+    fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
     points_dir = out / "points"
@@ -597,6 +672,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         bar = tqdm(total=total, initial=skipped, disable=None if progress else True, file=sys.stderr,
                    unit="point", desc="sweep", dynamic_ncols=True)
         failed = 0
+        _trim_torn(out / "sweep.jsonl")
         with open(out / "sweep.jsonl", "a") as jsonl:
             while futures:
                 if isinstance(pool, _InProcess):
@@ -629,6 +705,15 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         if bar is not None:
             bar.close()
     pool.shutdown(wait=True)
+
+
+def _trim_torn(path: Path) -> None:
+    """Cut off a last row left half written (a sweep killed while writing it), so that the
+    rows appended next start on a line of their own."""
+    with suppress(FileNotFoundError), open(path, "rb+") as f:
+        data = f.read()
+        if data and not data.endswith(b"\n"):
+            f.truncate(data.rfind(b"\n") + 1)
 
 
 def _record(f: cf.Future, task: Task) -> dict:

@@ -30,6 +30,7 @@ from typing import Any
 import yaml
 
 from tlm.errors import InputError
+from tlm.experiments.atomic import read_jsonl
 
 
 @dataclass
@@ -107,10 +108,8 @@ def _json(path: Path) -> Any:
 
 
 def _jsonl(path: Path) -> list[dict]:
-    try:
-        return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    except (OSError, ValueError) as e:
-        raise InputError(f"cannot read: {e}", source=str(path)) from None
+    """The rows (a last row cut off by a killed process left out; any other bad row refused)."""
+    return [row for _, row in read_jsonl(path)]
 
 
 def _yaml(path: Path) -> Any:
