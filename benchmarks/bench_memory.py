@@ -3,8 +3,8 @@
 Runs the command (320 x 320 pixels, 120,000 photons, all four passes, the timing model
 and the report) in a fresh interpreter and reads its peak resident set size from the
 kernel (``os.wait4``'s ``ru_maxrss``), once as is and once with ``--no-report``.
-Prints PASS/FAIL against the bar of issue [7 of 7]: at most 2 GiB. Exits 0 unless
-something crashes.
+Prints PASS/FAIL against the bar of issue [7 of 7]: at most 2 GiB. Exits 1 if the
+bar fails.
 
     python benchmarks/bench_memory.py [--config configs/cornell_pmap.yaml] [--set KEY=VALUE ...]
 """
@@ -18,6 +18,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from timing import exit_status, verdict
 
 BAR_BYTES = 2 * 1024**3
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,8 +54,9 @@ def main() -> None:
     for label, rss, wall in rows:
         print(f"  {label:28s} peak RSS {rss / 2**20:8.0f} MiB   {wall:6.1f} s wall")
     worst = max(r[1] for r in rows)
-    print(f"{'PASS' if worst <= BAR_BYTES else 'FAIL'}: peak resident memory {worst / 2**20:.0f} MiB "
-          f"(bar: at most {BAR_BYTES / 2**30:.0f} GiB)")
+    verdict(worst <= BAR_BYTES, f"peak resident memory {worst / 2**20:.0f} MiB "
+            f"(bar: at most {BAR_BYTES / 2**30:.0f} GiB)")
+    exit_status()
 
 
 if __name__ == "__main__":

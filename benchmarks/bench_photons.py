@@ -17,7 +17,7 @@ from inside the box; or ``--dist cube``: uniform in the unit cube, random direct
   k-NN reference (``knn_estimate``, cKDTree inside) is shown for information.
 
 Each timing is the best of ``--repeat`` runs, one thread. Prints PASS/FAIL per bar and
-exits 0 unless something crashes.
+exits 1 if a bar fails.
 
     python benchmarks/bench_photons.py [--sizes 20000 80000 120000] [--queries 20000] [--repeat 5]
 """
@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 from scipy.spatial import cKDTree
-from timing import best_of
+from timing import best_of, exit_status, verdict
 
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.estimate import disk_estimate, knn_estimate, kvoxel_estimate, leaf_photons, mvoxel_estimate
@@ -95,7 +95,7 @@ def bench_size(n: int, args) -> None:
           f"cKDTree {t_kd * 1e3:8.2f} ms   tree / cKDTree time {t_tree / t_kd:5.2f}x "
           f"(with leaf_photons {(t_tree + t_leaf) / t_kd:5.2f}x)")
     ok = t_tree / t_kd <= TREE_BAR
-    print(f"  {'PASS' if ok else 'FAIL'}: tree build {t_tree / t_kd:.2f}x cKDTree's time (bar: at most {TREE_BAR:g}x)")
+    verdict(ok, f"tree build {t_tree / t_kd:.2f}x cKDTree's time (bar: at most {TREE_BAR:g}x)", "  ")
 
     est_args = (pos, power, inc, tree, pts, nrm, r)
     t_ball = best_of(lambda: kd.query_ball_point(pts, r, workers=1), args.repeat)
@@ -116,8 +116,8 @@ def bench_size(n: int, args) -> None:
               f"accepted {e.photons_accepted.mean():6.1f}")
         if name == "mvoxel":
             ok = t_ball / t >= GATHER_BAR
-            print(f"  {'PASS' if ok else 'FAIL'}: m-voxel gather {t_ball / t:.2f}x cKDTree's throughput "
-                  f"(bar: at least {GATHER_BAR:g}x)")
+            verdict(ok, f"m-voxel gather {t_ball / t:.2f}x cKDTree's throughput (bar: at least {GATHER_BAR:g}x)",
+                    "  ")
 
 
 def bench_tracing(scenes: list[str], repeat: int) -> None:
@@ -154,6 +154,7 @@ def main() -> None:
           + ("uniform on the faces of the unit cube" if args.dist == "box" else "uniform in the unit cube"))
     for n in args.sizes:
         bench_size(n, args)
+    exit_status()
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ thread each (Embree's ``run`` traces the rays one after another on the calling
 thread). tlm runs twice: with its compiled kernel (numba, the default) and with the
 numpy reference (``TLM_KERNELS=numpy``), which gives bit-identical answers. Prints a
 table with the ratios tlm / Embree, then PASS/FAIL against the bar of issue [7 of 7]:
-primary and shadow rays on Cornell at least 1/10 of Embree's rate (compiled kernel).
+primary and shadow rays on Cornell at least 1/10 of Embree's rate (compiled kernel). Exits 1 if a bar fails.
 
     python benchmarks/bench_raytrace.py [--scenes cornell ring room] [--repeat 5]
 """
@@ -18,7 +18,7 @@ import argparse
 import os
 
 import numpy as np
-from timing import best_of
+from timing import best_of, exit_status, verdict
 
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.shade import SPAWN_EPS
@@ -115,10 +115,11 @@ def main() -> None:
                   f"{'1/' + format(t_np / t_emb, '.1f'):>13s}")
             if name == "cornell":
                 ok = t_ours / t_emb <= BAR
-                verdicts.append(f"{'PASS' if ok else 'FAIL'}: Cornell {kind} rays at 1/{t_ours / t_emb:.1f} of "
-                                f"Embree's rate (bar: at least 1/{BAR:g})")
-    for v in verdicts:
-        print(v)
+                verdicts.append((ok, f"Cornell {kind} rays at 1/{t_ours / t_emb:.1f} of "
+                                 f"Embree's rate (bar: at least 1/{BAR:g})"))
+    for ok, v in verdicts:
+        verdict(ok, v)
+    exit_status()
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ cache before the timing (``$TLM_CACHE``; a fresh temporary cache unless ``--keep
 so the timed sweep reruns only the SimPy layer, as a design-space sweep does. Prints
 the wall seconds of the sweep and, per point, the simulation's host seconds and SimPy
 events, then PASS/FAIL against the bar of issue [7 of 7]: at most 30 s on this 2-core
-machine (issue [4 of 7] asked for 60 s). Exits 0 unless something crashes.
+machine (issue [4 of 7] asked for 60 s). Exits 1 if the bar fails.
 
     python benchmarks/bench_scaling.py [--jobs 2] [--config configs/scaling_cornell.yaml]
 """
@@ -19,6 +19,8 @@ import os
 import tempfile
 import time
 from pathlib import Path
+
+from timing import exit_status, verdict
 
 BAR_SECONDS = 30.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,8 +59,9 @@ def main() -> None:
     print(f"  sweep wall time {wall:.2f} s ({done.ok} ok, {done.failed} failed, {done.renders} rendered); "
           f"sum of simulation seconds {sum(r['seconds.simulate'] for r in done.rows):.2f} s")
     ok = wall <= BAR_SECONDS and done.failed == 0 and done.renders == 0
-    print(f"{'PASS' if ok else 'FAIL'}: the scaling sweep took {wall:.1f} s with cached functional results "
-          f"(bar: at most {BAR_SECONDS:.0f} s, no render)")
+    verdict(ok, f"the scaling sweep took {wall:.1f} s with cached functional results "
+            f"(bar: at most {BAR_SECONDS:.0f} s, no render)")
+    exit_status()
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ time includes the interpreter's start and every import. The compiled kernel is l
 from numba's on-disk cache as after any first run; ``--cold-jit`` also points
 ``NUMBA_CACHE_DIR`` at an empty folder, so that the run compiles it (what the very
 first run after an install pays). Prints PASS/FAIL against the bar of issue [7 of 7]:
-at most 30 s for the command with its report. Exits 0 unless something crashes.
+at most 30 s for the command with its report. Exits 1 if the bar fails.
 
     python benchmarks/bench_thesis.py [--config configs/thesis.yaml] [--cold-jit]
 """
@@ -21,6 +21,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from timing import exit_status, verdict
 
 BAR_SECONDS = 30.0
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,8 +52,8 @@ def main() -> None:
     for label, s in rows:
         print(f"  {label:32s} {s:7.1f} s wall")
     wall = rows[0][1]
-    print(f"{'PASS' if wall <= BAR_SECONDS else 'FAIL'}: the thesis reproduction took {wall:.1f} s "
-          f"(bar: at most {BAR_SECONDS:.0f} s)")
+    verdict(wall <= BAR_SECONDS, f"the thesis reproduction took {wall:.1f} s (bar: at most {BAR_SECONDS:.0f} s)")
+    exit_status()
 
 
 if __name__ == "__main__":

@@ -14,3 +14,20 @@ def best_of(fn: Callable[[], object], repeat: int) -> float:
         fn()
         best = min(best, time.perf_counter() - t0)
     return best
+
+
+_FAILED: list[str] = []
+
+
+def verdict(ok: bool, text: str, indent: str = "") -> str:
+    """Print ``PASS: text`` or ``FAIL: text`` (and remember a failure for :func:`exit_status`)."""
+    line = f"{indent}{'PASS' if ok else 'FAIL'}: {text}"
+    print(line)
+    if not ok:
+        _FAILED.append(text)
+    return line
+
+
+def exit_status() -> None:
+    """Exit 1 if any bar failed, 0 otherwise (a crash exits non-zero on its own)."""
+    raise SystemExit(1 if _FAILED else 0)

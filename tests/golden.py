@@ -4,7 +4,8 @@
 SHA-256 of every radiance array and hit array (their exact bytes) and the integer work
 counts and simulated cycles. It was written before the performance work of issue
 [7 of 7] and is compared by ``tests/test_golden.py``: a faster kernel or timing model
-must reproduce it bit for bit.
+must reproduce it bit for bit. Rewritten once since, when TThru became a steady-state
+measure (``model.steady_throughput``): only the ``cycles.throughput`` entries changed.
 
 Regenerate only when a change *means* to alter results (and say so in the commit)::
 

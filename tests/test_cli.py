@@ -202,6 +202,18 @@ def test_stdout_summary(tmp_path, capsys):
     assert not (tmp_path / "r" / "images" / "refract.png").exists()
 
 
+def test_a_deadlock_is_one_line_and_writes_nothing(tmp_path, capsys):
+    """A model that cannot finish (here: too few events allowed) names the blocked units."""
+    out = tmp_path / "d"
+    code = main(["run", RING, "--out", str(out), "--mode", "rcast", "--no-report",
+                 "--set", "resolution=[16,12]", "--set", "arch.max_events=50"])
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.startswith("tlm: deadlock: the model cannot finish at cycle ") and err.count("\n") == 1
+    assert "pipe0." in err and " waits for " in err
+    assert not out.exists()
+
+
 def test_mode_rcast(tmp_path, capsys):
     out = tmp_path / "rc"
     results = run(out, "--mode", "rcast", capsys=capsys)

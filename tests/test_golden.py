@@ -1,7 +1,8 @@
 """Speed-ups change nothing: images, hits, work counts and cycles equal the golden file.
 
 ``tests/data/golden.json`` was written (``python -m tests.golden --write``) before the
-performance work of issue [7 of 7]; every case here recomputes one entry and compares
+performance work of issue [7 of 7] (its ``cycles.throughput`` entries again when TThru
+became a steady-state measure); every case here recomputes one entry and compares
 it exactly (SHA-256 of the arrays' bytes, integers as they are).
 """
 

@@ -17,13 +17,23 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+from fractions import Fraction
 
 import numpy as np
 import pytest
 import yaml
 
 from tlm.arch.functional import Functional
-from tlm.arch.model import PMS, FrameProgram, JobSpec, PhaseSpec, frame_program, simulate, simulate_program
+from tlm.arch.model import (
+    PMS,
+    FrameProgram,
+    JobSpec,
+    PhaseSpec,
+    frame_program,
+    simulate,
+    simulate_program,
+    steady_throughput,
+)
 from tlm.arch.programs import DEFAULT_PATH, load_programs
 from tlm.arch.units import STALL_CAUSES, Deadlock
 from tlm.config import config_from_dict
@@ -421,15 +431,73 @@ def test_one_frame_throughput_is_latency_is_done():
 
 
 def test_three_frames_throughput_and_latency():
-    """Frames done 14, 28, 40 (see test_swap_each_time_a_pm_changes_module); f2 arrives at 14."""
+    """Frames done 14, 28, 40 (see test_swap_each_time_a_pm_changes_module); f2 arrives at 14.
+
+    Three frames with two in flight have no steady-state window (it needs 3 x 2): TThru is
+    the stream's elapsed cycles per frame, and the estimate says so.
+    """
     t = simulate_program(SWAP_PROGRAM, arch(frames=3, swap_cycles=2))
-    assert t.cycles["throughput"] == (40 - 14) / 2 == 13
+    assert [f["done"] for f in t.frames] == [14, 28, 40]
+    assert t.cycles["throughput"] == round(40 / 3) == 13
+    assert t.throughput_estimate == {"steady": False, "frames": 3, "window": None, "min_frames": 6,
+                                     "estimator": t.throughput_estimate["estimator"], "slowest_pm": "vertex",
+                                     "throughput_over_slowest_pm": 13 / 11}
     assert t.cycles["latency"] == round((14 + 28 + (40 - 14)) / 3) == 23
     # a PM's own cycles per frame: busy + swap + copy + preemption, averaged over frames
     assert t.cycles["vertex"] == round((3 * 10 + 2 * 2) / 3)
     assert t.cycles["fragment"] == round((3 * 4 + 2 * 2) / 3)
     assert t.cycles["traversal"] == t.cycles["intersection"] == 0
     assert t.cycles["throughput"] >= max(t.cycles[p] for p in PMS)
+
+
+def test_six_frames_steady_state_window():
+    """Two images in flight: frames 0 and 1 arrive at 0 (warm-up), 4 and 5 drain alone.
+
+    TThru is taken between the 2nd and the 4th completion: two gaps, one whole period of
+    the two images' alternation.
+    """
+    t = simulate_program(SWAP_PROGRAM, arch(frames=6, swap_cycles=2))
+    done = sorted(f["done"] for f in t.frames)
+    assert t.throughput_estimate["steady"] is True and t.throughput_estimate["window"] == [1, 3]
+    assert t.cycles["throughput"] == round(Fraction(done[3] - done[1], 2))
+    assert t.cycles["throughput"] >= max(t.cycles[p] for p in PMS)
+
+
+@pytest.mark.parametrize(("done", "k", "value", "window"), [
+    ([10, 12, 30, 32, 50, 52], 2, 10, [1, 3]),        # (32 - 12) / 2
+    ([10, 12, 30, 32, 50, 51, 60, 61], 2, 10, [1, 5]),  # (51 - 12) / 4 = 9.75
+    ([52, 50, 32, 30, 12, 10], 2, 10, [1, 3]),        # completion order, not frame order
+    ([5, 10, 15], 1, 5, [0, 1]),                      # one image: no overlap, the first gap
+    ([5, 10, 15, 20, 26], 1, 5, [0, 3]),              # (20 - 5) / 3
+])
+def test_steady_throughput_window(done, k, value, window):
+    v, est = steady_throughput(done, k)
+    assert (v, est["window"], est["steady"]) == (value, window, True)
+
+
+@pytest.mark.parametrize(("done", "k", "value"), [([7], 1, 7), ([7], 2, 7), ([6, 9], 1, 4), ([3, 9, 12, 20, 21], 2, 4)])
+def test_steady_throughput_short_stream_is_elapsed_per_frame(done, k, value):
+    v, est = steady_throughput(done, k)
+    assert (v, est["steady"], est["min_frames"]) == (value, False, 3 * k)
+
+
+def test_a_module_refuses_a_second_client_while_it_serves_one():
+    """The crossbar's one-to-one grant is checked where the service is booked."""
+    import simpy
+
+    from tlm.arch.hardware import Module
+
+    m = Module(simpy.Environment(), "mem0", None)
+    m.serve(0, 2, 24, "pipe0.vertex")
+    m.serve(24, 1, 12, "pipe0.fragment")  # back to back: fine
+    m.serve(30, 1, 12, "pipe0.fragment")  # the same client again: fine
+    with pytest.raises(AssertionError, match=r"mem0 serves xbar from cycle 40 while it serves pipe0\.fragment "
+                                             r"until cycle 42"):
+        m.copy(40, 8, "copy")
+    m.copy(42, 8, "copy")
+    with pytest.raises(AssertionError, match=r"pipe0\.traversal from cycle 49"):
+        m.serve(49, 1, 12, "pipe0.traversal")
+    assert m.rows_opened == 4
 
 
 # -- 9. extreme scales -----------------------------------------------------------------------------
@@ -449,7 +517,9 @@ def test_time_scales_far_apart():
     assert stall(t, "fragment", "swap") == stall(t, "vertex", "swap") == 1
     assert all(type(c) is int for _, c in log(t, "fragment") + log(t, "vertex"))
     assert all(type(v) is int for v in t.cycles.values())
-    assert t.cycles["throughput"] == g + 2
+    # two frames are too few for a steady-state window: the stream's elapsed cycles per frame
+    assert t.cycles["throughput"] == round(Fraction(3 * g + 2, 2)) == 3 * g // 2 + 1
+    assert t.throughput_estimate["steady"] is False
     assert_eq_5_1(t)
 
 

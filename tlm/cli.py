@@ -1,7 +1,8 @@
 """Command line: ``tlm run | sweep | scene | params``. Argument parsing and printing only.
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
-status 2, never a traceback.
+status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
+naming each blocked unit) ends with its message and exit status 1.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.arch.units import Deadlock
 from tlm.config import MODES
 from tlm.errors import InputError
 
@@ -418,6 +420,9 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as e:
         print(f"tlm: error: {e}", file=sys.stderr)
         return 2
+    except Deadlock as e:  # the model could not finish: nothing is written, no partial numbers
+        print(f"tlm: deadlock: {e}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("tlm: interrupted", file=sys.stderr)
         return 130

@@ -110,7 +110,8 @@ class ReferenceConfig:
 class ArchConfig:
     clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles",
                          min_exclusive=0.0)
-    frames: int = _f(4, "frames in the simulated stream (the same image, two in flight)", min=1, max=10000)
+    frames: int = _f(6, "frames in the simulated stream (the same image, two in flight); TThru is measured "
+                     "over the steady state, which needs at least 3 x images_in_flight frames", min=1, max=10000)
     images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
                                min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",
@@ -202,7 +203,8 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
             continue
         v = raw[name]
         if not _type_ok(v, tp):
-            raise InputError(f"{v!r} is not a {_type_name(tp)}", source=source, key=key)
+            kind = _type_name(tp)
+            raise InputError(f"{v!r} is not {'an' if kind[0] in 'aeiou' else 'a'} {kind}", source=source, key=key)
         if isinstance(v, float) and not math.isfinite(v):
             raise InputError(f"{v!r} is not finite", source=source, key=key)
         _check_range(v, f.metadata, source, key)

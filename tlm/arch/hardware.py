@@ -27,20 +27,38 @@ class Module:
     The crossbar grants modules to PMs one to one and copies only between phases, so a
     module never has two clients at once and never queues: its service is accounted
     here, inside the process of the PM or the copy that it serves (the same cycles as
-    a process of its own, without its events).
+    a process of its own, without its events). That a module never has two clients at
+    once is checked, not assumed: a service that starts while another client's is still
+    running raises (:meth:`_claim`). Its row state is the page the client's cache pair
+    holds (:mod:`tlm.arch.cache`): a page miss opens a row, ``rows_opened`` counts them.
     """
 
     def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):
         self.env = env
         self.unit = Unit(env, scope, trace)
         self.rows_opened = 0
+        self.client: str | None = None  # the client of the latest service, busy until ``free_at``
+        self.free_at = 0
 
-    def serve(self, start: int, misses: int, cycles: int) -> None:
-        """Page misses served to the routed PM from ``start`` (T_ms of both)."""
+    def _claim(self, client: str, start: int, cycles: int) -> None:
+        if start < self.free_at and client != self.client:
+            raise AssertionError(f"{self.unit.scope} serves {client} from cycle {start} while it serves "
+                                 f"{self.client} until cycle {self.free_at}: the crossbar grants a module "
+                                 "to one client at a time")
+        if start + cycles > self.free_at:
+            self.client, self.free_at = client, start + cycles
+
+    def serve(self, start: int, misses: int, cycles: int, client: str = "a PM") -> None:
+        """Page misses served to the routed PM ``client`` from ``start`` (T_ms of both)."""
+        if start < self.free_at or client != self.client:  # (the common case, its client again, inline)
+            self._claim(client, start, cycles)
+        else:
+            self.free_at = start + cycles
         self.rows_opened += misses
         self.unit.account(start, 0, cycles, 0, "page misses")
 
     def copy(self, start: int, cycles: int, label: str) -> None:
+        self._claim("xbar", start, cycles)
         self.unit.account(start, cycles, 0, 0, label)
 
 
@@ -406,7 +424,7 @@ class PM:
             if not job.pending_push:  # the packet's work
                 ms = misses * page_cycles
                 if ms:
-                    module.serve(int(env._now), misses, ms)
+                    module.serve(int(env._now), misses, ms, unit.scope)
                 ps = flushes * flush_cycles
                 if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
                     norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")

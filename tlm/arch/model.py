@@ -314,6 +314,7 @@ class Timing:
     crossbar: dict
     pipelines: list[dict] = field(default_factory=list)  # per pipeline: each PM's cycles per frame
     model: Model | None = None  # the simulated units (their logs), for tests and inspection
+    throughput_estimate: dict = field(default_factory=dict)  # how TThru was measured (steady_throughput)
 
     def to_dict(self) -> dict:
         return {
@@ -329,6 +330,7 @@ class Timing:
             "pipelines": self.pipelines,
             "scheduler": self.program.scheduler,
             "tiling": self.program.tiling,
+            "throughput_estimate": self.throughput_estimate,
         }
 
 
@@ -413,9 +415,8 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     for rec in model.frames:
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
-    done = [r.done for r in model.frames]
-    # exact rational means rounded to whole cycles (a float mean is off past 2**53 cycles)
-    throughput_i = round(Fraction(done[-1] - done[0], nf - 1)) if nf > 1 else done[0]
+    throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight)
+    # an exact rational mean rounded to whole cycles (a float mean is off past 2**53 cycles)
     latency_i = round(Fraction(sum(r.done - r.arrival for r in model.frames), len(model.frames)))
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]
     for (p, name), pm in model.pms.items():
@@ -426,14 +427,42 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     cycles = {name: max(pp[name] for pp in per_pipe) for name in PMS}
     cycles["throughput"] = throughput_i
     cycles["latency"] = latency_i
+    slowest = max(PMS, key=lambda p: cycles[p])
+    estimate["slowest_pm"] = slowest
+    estimate["throughput_over_slowest_pm"] = throughput_i / cycles[slowest] if cycles[slowest] else None
     fps = arch.clock_hz / throughput_i if throughput_i > 0 else math.inf
     if trace is not None:
         trace.fill_idle(end)
     frames = [{"frame": r.index, "slot": r.slot, "arrival": r.arrival, "done": r.done} for r in model.frames]
     xb = {"swaps": model.xbar.swaps, "copies": model.xbar.copies, "words_copied": model.xbar.words_copied,
           "preemptions": {pm.unit.scope: pm.switches for pm in model.pms.values()}}
-    return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe)
+    return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe,
+                  throughput_estimate=estimate)
+
+
+def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
+    """TThru, the steady-state cycles per frame, from the frames' completion cycles.
+
+    The first ``k`` = ``in_flight`` frames arrive together at cycle 0 (warm-up) and the
+    last ``k`` finish with no younger image competing (drain): gaps between completions
+    there are not the steady state's. With two images in flight the gaps alternate
+    (short, long), so the steady-state window spans a whole number of ``k`` gaps: from
+    the ``k``-th completion over ``m * k`` gaps, ``m = (F - 2k) // k``, which needs
+    ``F >= 3k`` frames (6 for the thesis's two images). A shorter stream has no steady
+    window: its TThru is then the stream's elapsed cycles per frame (``done[-1] / F``,
+    fill and drain included), and the estimate says so (``steady: false``).
+    """
+    f, k = len(done), in_flight
+    d = sorted(done)
+    m = (f - 2 * k) // k
+    if m >= 1:
+        a, b = k - 1, k - 1 + m * k
+        value = round(Fraction(d[b] - d[a], b - a))
+        return value, {"steady": True, "frames": f, "window": [a, b], "estimator": "steady-state window"}
+    value = round(Fraction(d[-1], f))
+    return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k,
+                   "estimator": "elapsed cycles per frame (stream too short for a steady-state window)"}
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "PhaseSpec", "Timing", "frame_program",
-           "simulate", "simulate_program"]
+           "simulate", "simulate_program", "steady_throughput"]
