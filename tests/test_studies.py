@@ -187,3 +187,19 @@ def test_bad_programs_table_fails_before_the_render(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "scael" in err and "p.yaml" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_flush_probability_from_a_programs_table(tmp_path):
+    """`flushes: {leaf_visits: 0.3}`: a flush on 30% of the leaf visits, rounded exactly over
+    the job (the running sums are the rounded running sums), not per packet."""
+    raw = yaml.safe_load(DEFAULT_PATH.read_text())
+    raw["traversal"]["rays"]["flushes"] = {"leaf_visits": 0.3}
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(raw))
+    progs = load_programs(tmp_path / "p.yaml")
+    visits = np.array([1, 1, 1, 4, 0, 7], dtype=np.int64)
+    items = np.ones(6, dtype=np.int64)
+    _, flushes, _ = progs.cost("traversal", "rays", {"leaf_visits": visits}, items)
+    # running sums 0.3 0.6 0.9 2.1 2.1 4.2 round to 0 1 1 2 2 4
+    assert flushes.tolist() == [0, 1, 0, 1, 0, 2]
+    _, default, _ = load_programs().cost("traversal", "rays", {"leaf_visits": visits}, items)
+    assert default.tolist() == visits.tolist()  # the default: one flush per leaf visit

@@ -165,7 +165,9 @@ def analyse(sweep_dirs: list[Path], out: Path) -> dict:
 
         for scene in sorted({k[0] for k in fits}):
             plot_scaling(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
-        (tmp / "eq52.json").write_text(json.dumps({"fits": summary}, indent=2) + "\n")
+        # the sweeps it was fitted from (absolute), for the report's idle fractions per PM
+        sweeps = [str(Path(d).resolve()) for d in sweep_dirs]
+        (tmp / "eq52.json").write_text(json.dumps({"fits": summary, "sweeps": sweeps}, indent=2) + "\n")
         from tlm.experiments.run import provenance
 
         info = provenance(", ".join(str(d) for d in sweep_dirs), time.perf_counter() - start)

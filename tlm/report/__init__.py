@@ -63,11 +63,17 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
 
     ``scaling_sweeps``: sweep folders that a scaling study among ``dirs`` was fitted from;
     the scaling section draws their idle fractions per PM, and no other section reads them
-    (their eq. 5.2 fits are the study's).
+    (their eq. 5.2 fits are the study's). By default, the sweeps the scaling studies
+    recorded in their ``eq52.json`` that still exist and are not inputs themselves.
     """
     t0 = time.perf_counter()
     dirs = [Path(d) for d in dirs]
     inputs = read(dirs)
+    if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
+        shown = {sw.path.resolve() for sw in inputs.sweeps}
+        recorded = [Path(p) for st in inputs.of_kind("scaling") for p in st.meta.get("sweeps", [])]
+        scaling_sweeps = [p for p in dict.fromkeys(recorded)
+                          if (p / "sweep.jsonl").is_file() and p.resolve() not in shown]
     if scaling_sweeps:
         extra = read([Path(d) for d in scaling_sweeps])
         if extra.studies or any(r.kind != "sweep-point" for r in extra.runs):
