@@ -214,6 +214,18 @@ def test_a_deadlock_is_one_line_and_writes_nothing(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_stream_too_short_for_a_steady_throughput_warns(tmp_path, capsys):
+    out = tmp_path / "short"
+    code = main(["run", RING, "--out", str(out), "--mode", "rcast", "--no-report",
+                 "--set", "resolution=[16,12]", "--set", "arch.frames=2"])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.startswith("tlm: warning: arch.frames=2 is too short for a steady-state throughput (at least 5")
+    results = json.loads((out / "results.json").read_text())
+    assert results["timing"]["throughput_estimate"]["steady"] is False
+    assert len(results["warnings"]) == 1 and "arch.frames=2" in results["warnings"][0]
+
+
 def test_mode_rcast(tmp_path, capsys):
     out = tmp_path / "rc"
     results = run(out, "--mode", "rcast", capsys=capsys)

@@ -433,15 +433,15 @@ def test_one_frame_throughput_is_latency_is_done():
 def test_three_frames_throughput_and_latency():
     """Frames done 14, 28, 40 (see test_swap_each_time_a_pm_changes_module); f2 arrives at 14.
 
-    Three frames with two in flight have no steady-state window (it needs 3 x 2): TThru is
-    the stream's elapsed cycles per frame, and the estimate says so.
+    Three frames with two in flight have no steady-state window (it needs 3 x 2 - 1): TThru
+    is the stream's elapsed cycles per frame, and the estimate says so.
     """
     t = simulate_program(SWAP_PROGRAM, arch(frames=3, swap_cycles=2))
     assert [f["done"] for f in t.frames] == [14, 28, 40]
     assert t.cycles["throughput"] == round(40 / 3) == 13
-    assert t.throughput_estimate == {"steady": False, "frames": 3, "window": None, "min_frames": 6,
+    assert t.throughput_estimate == {"steady": False, "frames": 3, "window": None, "min_frames": 5,
                                      "estimator": t.throughput_estimate["estimator"], "slowest_pm": "vertex",
-                                     "throughput_over_slowest_pm": 13 / 11}
+                                     "throughput_over_slowest_pm": 13 / 11, "latency_frames": [0, 1, 2]}
     assert t.cycles["latency"] == round((14 + 28 + (40 - 14)) / 3) == 23
     # a PM's own cycles per frame: busy + swap + copy + preemption, averaged over frames
     assert t.cycles["vertex"] == round((3 * 10 + 2 * 2) / 3)
@@ -450,35 +450,42 @@ def test_three_frames_throughput_and_latency():
     assert t.cycles["throughput"] >= max(t.cycles[p] for p in PMS)
 
 
-def test_six_frames_steady_state_window():
-    """Two images in flight: frames 0 and 1 arrive at 0 (warm-up), 4 and 5 drain alone.
+@pytest.mark.parametrize("frames", [5, 6])
+def test_steady_state_window(frames):
+    """Two images in flight: frames 0 and 1 arrive at 0 (warm-up); frame f + 2 arrives when
+    frame f is done, so the last completion has no younger image beside it (drain).
 
     TThru is taken between the 2nd and the 4th completion: two gaps, one whole period of
-    the two images' alternation.
+    the two images' alternation; the latency over the frames completing in it (2 and 3).
     """
-    t = simulate_program(SWAP_PROGRAM, arch(frames=6, swap_cycles=2))
-    done = sorted(f["done"] for f in t.frames)
+    t = simulate_program(SWAP_PROGRAM, arch(frames=frames, swap_cycles=2))
+    fr = sorted(t.frames, key=lambda f: f["done"])
     assert t.throughput_estimate["steady"] is True and t.throughput_estimate["window"] == [1, 3]
-    assert t.cycles["throughput"] == round(Fraction(done[3] - done[1], 2))
+    assert t.cycles["throughput"] == round(Fraction(fr[3]["done"] - fr[1]["done"], 2))
     assert t.cycles["throughput"] >= max(t.cycles[p] for p in PMS)
+    assert t.throughput_estimate["latency_frames"] == [2, 3]
+    assert t.cycles["latency"] == round(Fraction(sum(f["done"] - f["arrival"] for f in fr[2:4]), 2))
 
 
 @pytest.mark.parametrize(("done", "k", "value", "window"), [
-    ([10, 12, 30, 32, 50, 52], 2, 10, [1, 3]),        # (32 - 12) / 2
+    ([10, 12, 30, 32, 50], 2, 10, [1, 3]),            # (32 - 12) / 2, the fewest frames for k = 2
+    ([10, 12, 30, 32, 50, 52], 2, 10, [1, 3]),        # one more frame: the same window
     ([10, 12, 30, 32, 50, 51, 60, 61], 2, 10, [1, 5]),  # (51 - 12) / 4 = 9.75
     ([52, 50, 32, 30, 12, 10], 2, 10, [1, 3]),        # completion order, not frame order
-    ([5, 10, 15], 1, 5, [0, 1]),                      # one image: no overlap, the first gap
-    ([5, 10, 15, 20, 26], 1, 5, [0, 3]),              # (20 - 5) / 3
+    ([3, 9, 12, 20, 21], 2, 6, [1, 3]),               # (20 - 9) / 2 = 5.5, rounded half to even
+    ([6, 9], 1, 3, [0, 1]),                           # one image: frames back to back, every gap
+    ([5, 10, 15], 1, 5, [0, 2]),                      # (15 - 5) / 2
+    ([5, 10, 15, 20, 26], 1, 5, [0, 4]),              # (26 - 5) / 4 = 5.25
 ])
 def test_steady_throughput_window(done, k, value, window):
     v, est = steady_throughput(done, k)
     assert (v, est["window"], est["steady"]) == (value, window, True)
 
 
-@pytest.mark.parametrize(("done", "k", "value"), [([7], 1, 7), ([7], 2, 7), ([6, 9], 1, 4), ([3, 9, 12, 20, 21], 2, 4)])
+@pytest.mark.parametrize(("done", "k", "value"), [([7], 1, 7), ([7], 2, 7), ([6, 9], 2, 4), ([3, 9, 12, 20], 2, 5)])
 def test_steady_throughput_short_stream_is_elapsed_per_frame(done, k, value):
     v, est = steady_throughput(done, k)
-    assert (v, est["steady"], est["min_frames"]) == (value, False, 3 * k)
+    assert (v, est["steady"], est["min_frames"]) == (value, False, 3 * k - 1)
 
 
 def test_a_module_refuses_a_second_client_while_it_serves_one():

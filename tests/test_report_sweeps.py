@@ -277,11 +277,19 @@ def test_a_scaling_study_alone_brings_its_sweeps_idle_figure(sweeps, tmp_path):
     sc = tmp_path / "sc"
     shutil.copytree(sweeps / "sc", sc)
     assert main(["scaling", str(sc), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
-    assert json.loads((tmp_path / "eq" / "eq52.json").read_text())["sweeps"] == [str(sc.resolve())]
+    assert json.loads((tmp_path / "eq" / "eq52.json").read_text())["sweeps"] == ["../sc"]
     page = build_report([tmp_path / "eq"], tmp_path / "rep")
     nonblank(tmp_path / "rep" / "idle_sc_ring.png")
     assert "idle_sc_ring.png" in section(page, "scaling")
-    shutil.rmtree(sc)
-    build_report([tmp_path / "eq"], tmp_path / "rep2")
+    moved = tmp_path / "moved"  # the study and its sweep moved together: still found
+    moved.mkdir()
+    shutil.move(str(sc), moved / "sc")
+    shutil.move(str(tmp_path / "eq"), moved / "eq")
+    build_report([moved / "eq"], tmp_path / "rep1")
+    nonblank(tmp_path / "rep1" / "idle_sc_ring.png")
+    shutil.rmtree(moved / "sc")
+    page = build_report([moved / "eq"], tmp_path / "rep2")
     assert not list((tmp_path / "rep2").glob("idle_*.png"))
+    assert "eq: its sweep " in section(page, "scaling") and "is gone: no idle fractions from it" in section(
+        page, "scaling")
     assert list((tmp_path / "rep2").glob("scaling_*.png"))  # the eq. 5.2 figure needs no sweep folder

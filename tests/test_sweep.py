@@ -193,6 +193,8 @@ def test_rows_folders_and_the_csv(tmp_path):
     for col in ("cycles.throughput", "cycles.latency", "fps", "simpy_events", "functional_cached", *HOST):
         assert col in table.columns
     assert list(table["scene"]) == ["cornell"] * 3 and list(table["mode"]) == ["rcast"] * 3
+    # the base's stream (2 frames) is too short for a steady-state TThru: each row says so
+    assert BASE["arch"]["frames"] == 2 and list(table["throughput_steady"]) == [False] * 3
     assert pd.read_json(out / "sweep.jsonl", lines=True).shape[0] == 3
     resolved = yaml.safe_load((out / "sweep.yaml").read_text())
     assert [p["hash"] for p in resolved["points"]] == list(table["hash"])

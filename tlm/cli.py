@@ -104,6 +104,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"  {results['fps']:.2f} frames per second")
     total = sum(results["host_seconds"].values())
     print(f"wrote {out} ({total:.2f} s)")
+    for warning in results["warnings"]:
+        print(f"tlm: warning: {warning}", file=sys.stderr)
     _report_after(args, out)
     return 0
 

@@ -110,8 +110,8 @@ class ReferenceConfig:
 class ArchConfig:
     clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles",
                          min_exclusive=0.0)
-    frames: int = _f(6, "frames in the simulated stream (the same image, two in flight); TThru is measured "
-                     "over the steady state, which needs at least 3 x images_in_flight frames", min=1, max=10000)
+    frames: int = _f(5, "frames in the simulated stream (the same image, two in flight); TThru is measured "
+                     "over the steady state, which needs at least 3 x images_in_flight - 1 frames", min=1, max=10000)
     images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
                                min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",

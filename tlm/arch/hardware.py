@@ -28,9 +28,11 @@ class Module:
     module never has two clients at once and never queues: its service is accounted
     here, inside the process of the PM or the copy that it serves (the same cycles as
     a process of its own, without its events). That a module never has two clients at
-    once is checked, not assumed: a service that starts while another client's is still
-    running raises (:meth:`_claim`). Its row state is the page the client's cache pair
-    holds (:mod:`tlm.arch.cache`): a page miss opens a row, ``rows_opened`` counts them.
+    once is checked for the services it books: a copy or a page-miss service that starts
+    while another client's is still running raises (:meth:`_claim`). (A PM's misses are
+    booked at its packet's start, so a copy during the rest of the packet is not seen.)
+    Its row state is the page the client's cache pair holds (:mod:`tlm.arch.cache`): a
+    page miss opens a row, ``rows_opened`` counts them.
     """
 
     def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):

@@ -416,8 +416,13 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
     throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight)
-    # an exact rational mean rounded to whole cycles (a float mean is off past 2**53 cycles)
-    latency_i = round(Fraction(sum(r.done - r.arrival for r in model.frames), len(model.frames)))
+    # latency over the frames that complete in the steady window (all frames without one);
+    # exact rational means rounded to whole cycles (a float mean is off past 2**53 cycles)
+    by_done = sorted(model.frames, key=lambda r: (r.done, r.index))
+    window = estimate["window"]
+    steady = by_done[window[0] + 1:window[1] + 1] if window else by_done
+    latency_i = round(Fraction(sum(r.done - r.arrival for r in steady), len(steady)))
+    estimate["latency_frames"] = sorted(r.index for r in steady)
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]
     for (p, name), pm in model.pms.items():
         s = pm.unit.stats
@@ -441,26 +446,28 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
 
 
 def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
-    """TThru, the steady-state cycles per frame, from the frames' completion cycles.
+    """TThru, the steady state's cycles per frame, from the frames' completion cycles.
 
-    The first ``k`` = ``in_flight`` frames arrive together at cycle 0 (warm-up) and the
-    last ``k`` finish with no younger image competing (drain): gaps between completions
-    there are not the steady state's. With two images in flight the gaps alternate
-    (short, long), so the steady-state window spans a whole number of ``k`` gaps: from
-    the ``k``-th completion over ``m * k`` gaps, ``m = (F - 2k) // k``, which needs
-    ``F >= 3k`` frames (6 for the thesis's two images). A shorter stream has no steady
-    window: its TThru is then the stream's elapsed cycles per frame (``done[-1] / F``,
-    fill and drain included), and the estimate says so (``steady: false``).
+    With ``k`` = ``in_flight`` images, frames 0 .. k-1 arrive together at cycle 0 and
+    frame f + k arrives when frame f is done. Between the completions d[f-1] and d[f]
+    (sorted) the model is in its steady state when frame f - 1 + k exists, that is for
+    f <= F - k: the last k - 1 completions drain with fewer images in flight. The first
+    k completions are the warm-up. The gaps alternate with two images (short, long),
+    so the window spans a whole number of periods: from d[k-1] over m * k gaps,
+    m = (F - 2k + 1) // k, which needs F >= 3k - 1 frames (5 for the thesis's two images;
+    one image runs its frames back to back and needs 2). A shorter stream has no steady
+    window: its TThru is the stream's elapsed cycles per frame (``done[-1] / F``, fill
+    and drain included), and the estimate says so (``steady: false``).
     """
     f, k = len(done), in_flight
     d = sorted(done)
-    m = (f - 2 * k) // k
+    m = (f - 2 * k + 1) // k
     if m >= 1:
         a, b = k - 1, k - 1 + m * k
         value = round(Fraction(d[b] - d[a], b - a))
         return value, {"steady": True, "frames": f, "window": [a, b], "estimator": "steady-state window"}
     value = round(Fraction(d[-1], f))
-    return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k,
+    return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k - 1,
                    "estimator": "elapsed cycles per frame (stream too short for a steady-state window)"}
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -165,8 +166,8 @@ def analyse(sweep_dirs: list[Path], out: Path) -> dict:
 
         for scene in sorted({k[0] for k in fits}):
             plot_scaling(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
-        # the sweeps it was fitted from (absolute), for the report's idle fractions per PM
-        sweeps = [str(Path(d).resolve()) for d in sweep_dirs]
+        # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
+        sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
         (tmp / "eq52.json").write_text(json.dumps({"fits": summary, "sweeps": sweeps}, indent=2) + "\n")
         from tlm.experiments.run import provenance
 

@@ -364,6 +364,8 @@ def point_row(point: Point, record: dict) -> dict:
     row.update({f"cycles.{k}": v for k, v in res["cycles"].items()})
     row["fps"] = res["fps"]
     row["simpy_events"] = res["timing"]["simpy_events"]
+    # whether cycles.throughput is a steady-state TThru (false: a stream too short for one)
+    row["throughput_steady"] = res["timing"].get("throughput_estimate", {}).get("steady")
     row.update(utilization(res["timing"]["units"]))
     err = res.get("error") or {}
     if err.get("available"):

@@ -71,9 +71,16 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     inputs = read(dirs)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}
-        recorded = [Path(p) for st in inputs.of_kind("scaling") for p in st.meta.get("sweeps", [])]
-        scaling_sweeps = [p for p in dict.fromkeys(recorded)
-                          if (p / "sweep.jsonl").is_file() and p.resolve() not in shown]
+        scaling_sweeps = []
+        for st in inputs.of_kind("scaling"):
+            for rel in st.meta.get("sweeps", []):
+                p = (st.path / rel).resolve()  # (relative to the study's folder; an absolute path stays)
+                if p in shown or p in scaling_sweeps:
+                    continue
+                if (p / "sweep.jsonl").is_file():
+                    scaling_sweeps.append(p)
+                else:
+                    inputs.scaling_missing.append(f"{st.path.name}: its sweep {p} is gone: no idle fractions from it")
     if scaling_sweeps:
         extra = read([Path(d) for d in scaling_sweeps])
         if extra.studies or any(r.kind != "sweep-point" for r in extra.runs):

@@ -95,6 +95,7 @@ class Inputs:
     # sweeps read for the scaling section only: the ones a scaling study among the inputs
     # fitted (its idle fractions per PM are drawn; not fitted again, not shown as sweeps)
     scaling_sweeps: list[Sweep] = field(default_factory=list)
+    scaling_missing: list[str] = field(default_factory=list)  # sweeps a scaling study recorded, now gone
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]

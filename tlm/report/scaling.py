@@ -240,6 +240,7 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.append(f"{sw.path.name}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes)))
+    sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
