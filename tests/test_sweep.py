@@ -29,6 +29,7 @@ from tlm.experiments.sweep import config_hash, expand, load_sweep, point_inputs,
 from .scenes import sphere_scene
 
 REPO = Path(__file__).resolve().parents[1]
+RUN_POINT = sweep_mod.run_point
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
         "arch": {"frames": 2, "trace": False, "packet_size": 32}}
 HOST = ("seconds.functional", "seconds.simulate")
@@ -252,6 +253,45 @@ def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
     # a rerun skips what is done and retries what failed
     again = run_sweep(path, out, jobs=1)
     assert (again.ok, again.failed, again.skipped) == (0, 2, 2)
+
+
+def ends_its_worker(task):
+    """run_point, but the point of page-miss cost 48 ends its worker process every time, and
+    that of 96 the first time only. Local workers import it from this module by name."""
+    cycles = task.factors["arch.page_miss_cycles"]
+    if cycles in (48, 96):
+        time.sleep(0.3)  # another point is under way in the other worker
+        once = Path(task.folder) / f"died-{task.hash}"
+        if cycles == 48 or not once.exists():
+            once.touch()
+            os._exit(3)
+    return RUN_POINT(task)
+
+
+def test_a_point_that_kills_its_worker_fails_and_the_others_run(tmp_path, monkeypatch, capsys):
+    """A point that ends its worker (a crash, an OOM kill) breaks the local process pool.
+    The pool is replaced; the points in flight run again alone, so that the one whose
+    worker dies each time fails with that death, and every other point ends ok: those
+    queued, the one running beside it, the one whose worker died once."""
+    path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48, 96, 120]})
+    out = tmp_path / "o"
+    monkeypatch.setattr(sweep_mod, "run_point", ends_its_worker)
+    assert main(["sweep", str(path), "--out", str(out), "--jobs", "2", "--no-progress"]) == 1
+    assert "4 ok, 1 failed, 0 skipped" in capsys.readouterr().out
+    rows = pd.read_csv(out / "sweep.csv")
+    assert list(rows["status"]) == ["ok", "ok", "failed", "ok", "ok"]
+    assert rows["error"][2].startswith("WorkerDied: its worker process died 2 times running this point")
+    assert rows["error"][2].endswith("(exit code 3, exit code 3)")
+    assert rows["cycles.throughput"].notna().sum() == 4
+    assert (tmp_path / f"died-{rows['hash'][3]}").exists()  # 96 did end its worker once
+    err = json.loads((out / "points" / rows["hash"][2] / "error.json").read_text())
+    assert err["type"] == "WorkerDied" and err["stage"] == "worker" and "exit code 3" in err["message"]
+    assert sorted(p.name for p in (out / "points").iterdir()) == sorted(rows["hash"])
+    # a rerun (the crash fixed) runs the failed point only
+    monkeypatch.setattr(sweep_mod, "run_point", RUN_POINT)
+    fixed = run_sweep(path, out, jobs=2)
+    assert (fixed.ok, fixed.failed, fixed.skipped) == (1, 0, 4)
+    assert [r["status"] for r in jsonl(out / "sweep.jsonl")] == ["ok"] * 5
 
 
 def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):

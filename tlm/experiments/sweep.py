@@ -35,7 +35,9 @@ A point renders nothing that another point rendered: points that differ only in
 ``arch`` share one functional result (DESIGN.md §6, :mod:`tlm.arch.functional`). One
 point per functional result goes first; the others follow once it is cached, so two
 workers never render the same frame. Workers: a local process pool, or Dask. A local
-worker ends itself when the sweep's process dies (a killed sweep leaves none running).
+worker ends itself when the sweep's process dies (a killed sweep leaves none running);
+a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran, if that
+point kills its worker again when run alone (:class:`_LocalPool`).
 """
 
 from __future__ import annotations
@@ -76,6 +78,8 @@ FIRST_COLUMNS = ("point", "hash", "status", "error")
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
+MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
+MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
 
 
 # ---------------------------------------------------------------- the sweep file
@@ -443,9 +447,36 @@ class _InProcess(cf.Executor):
         self.queue.clear()
 
 
+class WorkerDied(RuntimeError):
+    """A point's worker process died while running it (a crash, a kill, ``os._exit``)."""
+
+
+@dataclass(eq=False)
+class _Job:
+    """A point submitted to a :class:`_LocalPool`: its future, its call and how its workers ended."""
+
+    future: cf.Future  # the sweep's: set once the point finished, or failed for good
+    fn: Any
+    args: tuple
+    kwargs: dict
+    token: int  # names the point to :func:`_run_started`
+    deaths: int = 0  # times its worker process died while running it
+    ends: list[str] = field(default_factory=list)  # how those workers ended
+
+
 class _LocalPool(cf.Executor):
-    """A process pool that replaces itself when a worker process died (the pool is then
-    broken: the points in flight fail, the rest run in a new pool).
+    """A process pool that outlives the death of a worker process.
+
+    A worker that dies (a crash, an OOM kill, ``os._exit``) breaks a
+    ProcessPoolExecutor: every point it holds fails with BrokenProcessPool. This pool
+    then replaces it. The points that had not started run again as before. Those that
+    had started (a worker says so before running a point) may be the culprit: each runs
+    again alone, one at a time, so that a death is charged to the one point running. A
+    death counts against a point unless its worker was ended by the broken pool
+    (SIGTERM) while another point ran beside it; a point whose worker died
+    ``MAX_DEATHS`` times, the last time running it alone, fails with
+    :class:`WorkerDied`. ``MAX_BLIND`` breaks in a row with no point started fail the
+    points they held. The points are waited for in this process's thread (:meth:`run_next`).
 
     Workers are forked from a fresh server process (``forkserver``), never from this
     one: this process may hold threads (the progress bar's monitor, a Dask client's
@@ -455,29 +486,166 @@ class _LocalPool(cf.Executor):
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
         self.context = _mp_context()
-        self.pool = self._new()
+        self.waiting: deque[_Job] = deque()  # not handed to the pool yet
+        self.suspects: deque[_Job] = deque()  # started when the pool broke: each runs alone next
+        self.inflight: dict[cf.Future, _Job] = {}  # the pool's futures
+        self.alone: _Job | None = None  # the suspect in flight: nothing else runs beside it
+        self.tokens = itertools.count()
+        self.settled = 0  # points whose future was set
+        self.blind = 0  # breaks in a row with no point started
+        self._new()
 
-    def _new(self) -> cf.ProcessPoolExecutor:
+    def _new(self) -> None:
         env = {k: v for k, v in os.environ.items() if k.startswith("TLM_")}  # the server's may be older
-        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
-                                      initializer=_worker_init, initargs=(env, os.getpid()))
+        self.started = self.context.SimpleQueue()  # (token, pid) from a worker starting a point; one per pool
+        self.pids: dict[int, int] = {}  # token -> pid of the worker that started it, in this pool
+        self.processes: dict[int, Any] = {}  # pid -> the pool's Process, for its exit code
+        self.pool = cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
+                                           initializer=_worker_init, initargs=(env, os.getpid(), self.started))
 
     def submit(self, fn, /, *args, **kwargs):
-        try:
-            return self.pool.submit(fn, *args, **kwargs)
-        except BrokenProcessPool:
-            self.pool.shutdown(wait=False, cancel_futures=True)
-            self.pool = self._new()
-            return self.pool.submit(fn, *args, **kwargs)
+        job = _Job(cf.Future(), fn, args, kwargs, next(self.tokens))
+        self.waiting.append(job)
+        self._pump()
+        return job.future
+
+    def run_next(self) -> None:
+        """Wait until a submitted point has finished or failed for good, replacing the
+        pool if it broke meanwhile."""
+        settled = self.settled
+        while self.settled == settled and self.inflight:
+            done, _ = cf.wait(list(self.inflight), return_when=cf.FIRST_COMPLETED)
+            if any(_broke(f) for f in done):
+                self._replace()
+            else:
+                self._read_started()
+                for f in done:
+                    self._settle(self.inflight.pop(f), f)
+                self.blind = 0
+            self._pump()
+
+    def _pump(self) -> None:
+        """Hand points to the pool: a suspect alone once nothing else is in flight, else every waiting one."""
+        while self.alone is None and (self.suspects or self.waiting):
+            if self.suspects:
+                if self.inflight:
+                    return
+                job = self.alone = self.suspects.popleft()
+            else:
+                job = self.waiting.popleft()
+            try:
+                f = self.pool.submit(_run_started, job.token, job.fn, *job.args, **job.kwargs)
+            except BrokenProcessPool:  # a worker died since the last look: not this point's doing
+                (self.suspects if job is self.alone else self.waiting).appendleft(job)
+                self.alone = None
+                self._replace()
+                continue
+            self.inflight[f] = job
+            self.processes.update(getattr(self.pool, "_processes", None) or {})
+
+    def _replace(self) -> None:
+        """The pool broke: a new one, each point it held settled, charged or queued again."""
+        cf.wait(list(self.inflight))  # the broken pool fails every point it holds at once
+        self.pool.shutdown(wait=True)  # its workers are joined: their exit codes are known
+        self._read_started()
+        self.started.close()
+        pids, processes, alone = self.pids, self.processes, self.alone
+        self.alone = None
+        held = sorted(self.inflight.items(), key=lambda item: item[1].token)
+        self.inflight = {}
+        self._new()
+        again: list[_Job] = []
+        for f, job in held:
+            if not _broke(f):  # finished before the break
+                self._settle(job, f)
+            elif job.token in pids:
+                p = processes.get(pids[job.token])
+                code = None if p is None else p.exitcode
+                if job is alone or code != -signal.SIGTERM:  # SIGTERM: ended by the broken pool, beside the culprit
+                    job.deaths += 1
+                    job.ends.append(_ended(code))
+                if job is alone and job.deaths >= MAX_DEATHS:
+                    self._settle(job, error=WorkerDied(
+                        f"its worker process died {job.deaths} times running this point, "
+                        f"the last time with no other point running ({', '.join(job.ends)})"))
+                else:
+                    self.suspects.append(job)
+            else:
+                again.append(job)
+        self.blind = 0 if any(job.token in pids for _, job in held) else self.blind + 1
+        if self.blind >= MAX_BLIND:  # workers die before running anything: give up on these points
+            for job in again:
+                self._settle(job, error=WorkerDied(
+                    f"the sweep's worker processes died {self.blind} times in a row before starting a point"))
+            self.blind, again = 0, []
+        for job in reversed(again):  # in their order, before those submitted since
+            (self.suspects if job is alone else self.waiting).appendleft(job)
+
+    def _read_started(self) -> None:
+        while not self.started.empty():
+            token, pid = self.started.get()
+            self.pids[token] = pid
+
+    def _settle(self, job: _Job, f: cf.Future | None = None, error: BaseException | None = None) -> None:
+        if job is self.alone:
+            self.alone = None
+        self.settled += 1
+        if job.future.done():  # cancelled
+            return
+        if error is None:
+            error = cf.CancelledError() if f.cancelled() else f.exception()
+        if error is None:
+            job.future.set_result(f.result())
+        else:
+            job.future.set_exception(error)
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        if cancel_futures:
+            for job in [*self.waiting, *self.suspects]:
+                job.future.cancel()
+            self.waiting.clear()
+            self.suspects.clear()
         self.pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+        if wait:
+            self.started.close()
 
 
-def _worker_init(env: dict[str, str], parent: int) -> None:
-    """A local worker's set-up: the sweep's ``TLM_*`` variables, and an end with the sweep's process."""
+def _broke(f: cf.Future) -> bool:
+    return not f.cancelled() and isinstance(f.exception(), BrokenProcessPool)
+
+
+def _ended(code: int | None) -> str:
+    """How a worker process ended, from its exit code."""
+    if code is None:
+        return "its exit status is unknown"
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit code {code}"
+
+
+_STARTED = None  # in a local worker: the queue on which it says which point it starts
+
+
+def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
+    """A local worker's set-up: the sweep's ``TLM_*`` variables, an end with the sweep's
+    process, and the queue on which it says which point it starts."""
+    global _STARTED
+    _STARTED = started
     _worker_env(env)
     _exit_with(parent)
+
+
+def _run_started(token: int, fn, /, *args, **kwargs):
+    """In a local worker: tell the sweep's process that this worker starts point ``token``, run it.
+
+    The message is written before the point runs and at once (a SimpleQueue has no
+    feeder thread), so it reaches the sweep even if the point ends the worker.
+    """
+    _STARTED.put((token, os.getpid()))
+    return fn(*args, **kwargs)
 
 
 def _worker_env(env: dict[str, str]) -> None:
@@ -536,10 +704,12 @@ def _mp_context():
     return ctx
 
 
-def _open_executor(stack: ExitStack, jobs: int, dask: str | None) -> cf.Executor:
-    """A concurrent.futures executor: local processes, in-process, or a Dask client's."""
-    if dask is None:
-        return _InProcess() if jobs == 1 else _LocalPool(jobs)
+def _open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:
+    """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
+    client's; no more workers than ``points``."""
+    if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
+        return _InProcess() if jobs == 1 else _LocalPool(min(jobs, points))
+    jobs = min(jobs, points)
     from distributed import Client, LocalCluster
 
     if dask == "local":
@@ -629,7 +799,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                      str(points_dir / h), provenance) for h in todo}
 
     with ExitStack() as stack:
-        pool = _open_executor(stack, min(jobs, max(len(todo), 1)), dask) if todo else None
+        pool = _open_executor(stack, jobs, dask, len(todo)) if todo else None
         points_dir.mkdir(parents=True, exist_ok=True)
         _write_text(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         _clean_stale(points_dir)
@@ -638,6 +808,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 shutil.rmtree(points_dir / h)
         if pool is not None:
             _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+    if todo:
+        _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
     rows = [point_row(p, records[p.hash]) for p in sweep.points]
     write_rows(out, rows)
@@ -677,7 +849,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         _trim_torn(out / "sweep.jsonl")
         with open(out / "sweep.jsonl", "a") as jsonl:
             while futures:
-                if isinstance(pool, _InProcess):
+                if isinstance(pool, (_InProcess, _LocalPool)):
                     pool.run_next()
                 done, _ = cf.wait(list(futures), return_when=cf.FIRST_COMPLETED)
                 for f in done:
@@ -722,7 +894,7 @@ def _record(f: cf.Future, task: Task) -> dict:
     """The worker's record, or a failed one when the worker itself died or could not be reached."""
     try:
         return f.result()
-    except Exception as e:  # a worker process killed, a lost Dask worker, an unpicklable result
+    except Exception as e:  # a worker process that died, a Dask KilledWorker, an unpicklable result
         error = _error_record(e, "worker", "".join(traceback.format_exception(e)))
         with suppress(OSError, InputError):  # the row still says what happened
             write_error(task, error)
