@@ -27,6 +27,7 @@ from tlm.arch.program import (
 )
 from tlm.arch.programs import load_programs
 from tlm.config import config_from_dict
+from tlm.render.passes import MISS_KEYS, PASS_FUNCTIONS, cast, pmap_pass
 
 EQ_TERMS = ("T_norm", "T_ms", "T_ps", "T_ds", "idle")
 
@@ -225,15 +226,94 @@ def test_a_module_never_has_two_clients(cornell_pmap, fanout, scheduler):
     assert _module_overlaps(t) == []
 
 
-def test_images_do_not_depend_on_the_pipelines(ring):
-    """(``render`` does not read ``arch``: what makes this hold is that the tilings partition
-    the image and the functional key leaves ``arch`` out, the tests below.)"""
+@pytest.fixture(scope="module")
+def cornell_tiles():
+    """A non-square Cornell frame with every pass: Reflect and Refract (secondary rays) and the photon map."""
     from tlm.experiments.run import render
 
-    cfg, _, _, res = ring
-    other = render(dataclasses.replace(cfg, arch=_with(cfg.arch, pipelines=4, scheduler="dynamic")))
-    for name, rad in res.radiance.items():
-        assert np.array_equal(rad, other.radiance[name])
+    cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [32, 24], "photons": {"count": 3000},
+                            "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
+    res = render(cfg)
+    fn = Functional.of(res)
+    assert res.plan.run_names == ["rcast", "reflect", "refract", "pmap"]
+    assert all(fn.work[p]["secondary_rays"].sum() > 0 for p in ("reflect", "refract"))
+    assert fn.work["pmap"]["gathers"].sum() > 0
+    return res, fn, load_programs()
+
+
+def _render_alone(res, pixels):
+    """Pass -> (radiance, work) of ``pixels`` rendered on their own, as one pipeline renders its tile
+    (with the frame's photon map: the shared stage traces it once for every pipeline)."""
+    g = cast(res.frame, pixels)
+    return {p: pmap_pass(res.frame, g, res.photons.photons) if p == "pmap" else PASS_FUNCTIONS[p](res.frame, g)
+            for p in res.plan.run_names}
+
+
+def _charged(tile):
+    """What the timing model charges a tile, per (phase, PM): work items and FIFO entries."""
+    return {(ph.name, j.pm): (int(j.items.sum()), None if j.entries is None else int(j.entries.sum()))
+            for ph in tile.phases for j in ph.jobs}
+
+
+def _charged_by_the_render(alone):
+    """The same from the work of the tile's own render (the phases ``frame_program`` builds)."""
+    out = {}
+    for p, (_, w) in alone.items():
+        if p == "pmap":
+            if w["gathers"].any():
+                out["pmap.gather", "fragment"] = (int((w["gathers"] > 0).sum()), None)
+            continue
+        for trace, frag, r, tris in (("rays", "shade", w["primary_rays"] + w["secondary_rays"], w["tri_tests"]),
+                                     ("shadow", "light", w["shadow_rays"], w["shadow_tri_tests"])):
+            if r.any():
+                n, entries = int((r > 0).sum()), int(tris[r > 0].sum())
+                out[f"{p}.{trace}", "traversal"] = (n, entries)
+                out[f"{p}.{trace}", "intersection"] = (int(r.sum()), entries)
+                out[f"{p}.{frag}", "fragment"] = (n, None)
+    return out
+
+
+@pytest.mark.parametrize("scheduler", ["static", "dynamic"])
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 7, 16, 64])
+def test_the_programs_tiles_rendered_alone_compose_the_image(cornell_tiles, n, scheduler):
+    """The image does not depend on N or the scheduler because each tile the timing model uses,
+    rendered on its own, gives its pixels' radiance of the whole-image render, and the tiles
+    partition the image. (``render`` never reads ``arch``: comparing whole renders across N
+    could not fail.) Each tile's pixels, from the program's bounds, are also those whose work
+    the program charges to it."""
+    res, fn, progs = cornell_tiles
+    w, h = fn.width, fn.height
+    prog = frame_program(fn, progs, _with(res.cfg.arch, pipelines=n, scheduler=scheduler))
+    want = n if scheduler == "static" else n * res.cfg.arch.tiles_per_pipeline
+    stage, bounds = prog.stages[-1], prog.tiling["tiles"]
+    assert stage.name == "pixels" and len(stage.tiles) == len(bounds) == want
+    photon_tiles = next(st for st in prog.stages if st.name == "photons").tiles
+    assert len(photon_tiles) == want  # the photon chunks partition the traced photons
+    assert sum(_charged(t).get(("photons.trace", "traversal"), (0,))[0]
+               for t in photon_tiles) == fn.photon_work["photons_emitted"].shape[0]
+
+    passes = res.plan.run_names
+    count = np.zeros(w * h, dtype=np.int64)
+    radiance = {p: np.full((w * h, 3), np.nan) for p in passes}
+    work = {p: {k: np.full(w * h, -1, dtype=np.int64) for k in res.work[p] if k not in MISS_KEYS} for p in passes}
+    for tile, (x0, y0, x1, y1) in zip(stage.tiles, bounds):
+        idx = (np.arange(y0, y1)[:, None] * w + np.arange(x0, x1)[None, :]).reshape(-1)
+        np.add.at(count, idx, 1)
+        alone = _render_alone(res, idx)
+        assert _charged(tile) == _charged_by_the_render(alone), tile.name
+        assert tile.pixels == (idx.size if n > 1 else 0)
+        for p, (rad, wk) in alone.items():
+            radiance[p][idx] = rad
+            for k in work[p]:
+                work[p][k][idx] = wk[k]
+    assert np.array_equal(count, np.ones(w * h, dtype=np.int64))  # every pixel in exactly one tile
+    composite = np.zeros((h, w, 3))
+    for p in passes:
+        assert np.array_equal(radiance[p].reshape(h, w, 3), res.radiance[p]), p
+        for k, v in work[p].items():
+            assert np.array_equal(v.reshape(h, w), res.work[p][k]), (p, k)
+        composite = composite + radiance[p].reshape(h, w, 3)
+    assert np.array_equal(composite, res.composite)
 
 
 def _assert_partition(tiles, bounds, w, h):
