@@ -7,7 +7,10 @@ counts and simulated cycles. It was written before the performance work of issue
 must reproduce it bit for bit. Rewritten once since, when TThru became a steady-state
 measure (``model.steady_throughput``): only the ``cycles.throughput`` entries changed
 (the runs' streams are shorter than a steady window: their TThru is now the elapsed
-cycles per frame). The runs use the programs' scales of that time (:data:`SCALES`).
+cycles per frame). Rewritten a second time when the memory modules and the crossbar
+became SimPy processes of their own: only the ``events`` entries changed (every cycle,
+unit breakdown, image and count stayed the same). The runs use the programs' scales of
+that time (:data:`SCALES`).
 
 Regenerate only when a change *means* to alter results (and say so in the commit)::
 
@@ -76,7 +79,9 @@ def _ints(d: dict) -> dict:
     out = {}
     for k, v in sorted(d.items()):
         if isinstance(v, dict):
-            out[k] = _ints(v)
+            sub = _ints(v)
+            if sub:  # (a dict of fractions only has no integer entries)
+                out[k] = sub
         elif isinstance(v, (int, np.integer)) and not isinstance(v, bool):
             out[k] = int(v)
     return out

@@ -285,9 +285,11 @@ def test_preemption_cuts_fifo_waits_short():
 
 
 def test_preemption_when_the_priority_job_is_ready_at_the_boundary():
-    """As test_preemption_at_a_packet_boundary, but F takes 6: f0's v2 is ready at 26, the
-    very cycle f1's p0 ends, so V should switch there (save 26-31, ...) and f0 finish at 36.
-    The model runs f1's p1 26-30 first and switches at 30 (f0 done at 40)."""
+    """As test_preemption_at_a_packet_boundary, but F takes 6: f0's v2 becomes ready at 26,
+    the very cycle f1's p0 ends. The boundary decision waits for the cycle to settle, so V
+    sees v2 ready and switches there (save 26-31, ...) and f0 is done at 36, rather than
+    running f1's p1 26-30 first and switching at 30 (f0 done at 40), which an event order
+    that decided before v2's semaphore fired would give."""
     t = simulate_program(program(phase("v", job("vertex", [4] * 5)), phase("f", job("fragment", [6], role=1)),
                                  phase("v2", job("vertex", [3]))),
                          arch(frames=2, swap_cycles=2, context_switch_cycles=5))
@@ -488,23 +490,72 @@ def test_steady_throughput_short_stream_is_elapsed_per_frame(done, k, value):
     assert (v, est["steady"], est["min_frames"]) == (value, False, 3 * k - 1)
 
 
-def test_a_module_refuses_a_second_client_while_it_serves_one():
-    """The crossbar's one-to-one grant is checked where the service is booked."""
+def _module_story(requests):
+    """Clients post (name, at, misses, cycles, then) to one module process; (name, done) log."""
     import simpy
 
     from tlm.arch.hardware import Module
 
-    m = Module(simpy.Environment(), "mem0", None)
-    m.serve(0, 2, 24, "pipe0.vertex")
-    m.serve(24, 1, 12, "pipe0.fragment")  # back to back: fine
-    m.serve(30, 1, 12, "pipe0.fragment")  # the same client again: fine
+    env = simpy.Environment()
+    m = Module(env, "mem0", None)
+    log = []
+
+    def client(name, at, misses, cycles, then):
+        yield env.timeout(at)
+        yield m.request(name, misses, cycles, then=then)
+        log.append((name, env.now))
+
+    for r in requests:
+        env.process(client(*r))
+    env.run()
+    return m, log
+
+
+def test_a_memory_module_is_a_process_that_serves_its_clients_requests():
+    """mem0: V's 2 misses 0-24; F's miss 24-36, then F computes 5 (its event at 41); F again 41-53;
+    the crossbar's copy (no rows) 53-61."""
+    m, log = _module_story([("pipe0.vertex", 0, 2, 24, 0), ("pipe0.fragment", 24, 1, 12, 5),
+                            ("pipe0.fragment", 41, 1, 12, 0), ("xbar", 53, 0, 8, 0)])
+    assert log == [("pipe0.vertex", 24), ("pipe0.fragment", 41), ("pipe0.fragment", 53), ("xbar", 61)]
+    assert (m.rows_opened, m.requests) == (4, 4)
+    assert (m.unit.stats.ms, m.unit.stats.norm) == (48, 8)  # page misses are T_ms, a copy's words T_norm
+    assert m.unit.log == [("page misses start", 0), ("page misses end", 24), ("page misses start", 24),
+                          ("page misses end", 36), ("page misses start", 41), ("page misses end", 53),
+                          ("page misses start", 53), ("page misses end", 61)]
+
+
+def test_a_module_refuses_a_second_client_while_it_serves_one():
+    """The crossbar's one-to-one grant, checked by the module process on its own timeline."""
     with pytest.raises(AssertionError, match=r"mem0 serves xbar from cycle 40 while it serves pipe0\.fragment "
                                              r"until cycle 42"):
-        m.copy(40, 8, "copy")
-    m.copy(42, 8, "copy")
-    with pytest.raises(AssertionError, match=r"pipe0\.traversal from cycle 49"):
-        m.serve(49, 1, 12, "pipe0.traversal")
-    assert m.rows_opened == 4
+        _module_story([("pipe0.fragment", 30, 1, 12, 0), ("xbar", 40, 0, 8, 0)])
+    _, log = _module_story([("pipe0.fragment", 30, 1, 12, 0), ("xbar", 42, 0, 8, 0)])  # back to back: fine
+    assert log == [("pipe0.fragment", 42), ("xbar", 50)]
+
+
+def test_the_crossbar_grants_a_module_to_one_pm_at_a_time():
+    import simpy
+
+    from tlm.arch.hardware import Crossbar, Module
+    from tlm.config import ArchConfig
+
+    class FakePM:
+        def __init__(self, scope):
+            self.unit = type("U", (), {"scope": scope})()
+            self.route = None
+            self.working_on = None
+
+    env = simpy.Environment()
+    mods = [Module(env, f"mem{i}", None) for i in range(4)]
+    xb = Crossbar(env, mods, ArchConfig(), None)
+    t, i = FakePM("pipe0.traversal"), FakePM("pipe0.intersection")
+    xb.route(t, 0)
+    t.route, t.working_on = 0, 0
+    with pytest.raises(AssertionError, match=r"pipe0\.intersection asks for mem0 while pipe0\.traversal works on it"):
+        xb.route(i, 0)
+    t.working_on = None  # T's job is done: the module may go to another PM
+    xb.route(i, 0)
+    assert xb.holder == {0: i}
 
 
 # -- 9. extreme scales -----------------------------------------------------------------------------

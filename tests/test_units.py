@@ -36,7 +36,8 @@ def test_handshake_stall(env):
     assert traversal.log == [("stall handshake", 0), ("traverse start", 5), ("traverse end", 8)]
     assert traversal.stats.breakdown(8) == {
         "T_norm": 3, "T_ms": 0, "T_ps": 0, "T_ds": 5, "stall": {**dict.fromkeys(STALL_CAUSES, 0), "handshake": 5},
-        "busy": 3, "stalled": 5, "idle": 0, "elapsed": 8,
+        "busy": 3, "stalled": 5, "idle": 0, "elapsed": 8, "idle_measured": False,
+        "fractions": {"busy": 0.375, "stalled": 0.625, "idle": 0.0},
     }
     assert vertex.stats.breakdown(8)["idle"] == 3
     # a handshake already produced does not stall
@@ -173,3 +174,17 @@ def test_unknown_stall_cause_and_double_produce(env):
     assert hs.is_ready("k") and not hs.is_ready("other")
     with pytest.raises(RuntimeError, match="produced twice"):
         hs.produce("k")
+
+
+def test_booked_idle_must_close_the_sum():
+    """A unit that books its idle cycles (the PMs) is checked: a cycle lost or booked twice raises."""
+    from tlm.arch.units import Stats
+
+    s = Stats(norm=3, idle=4)
+    s.stall["fifo_empty"] = 1
+    assert s.breakdown(8)["idle"] == 4
+    assert s.breakdown(8)["fractions"] == {"busy": 0.375, "stalled": 0.125, "idle": 0.5}
+    with pytest.raises(AssertionError, match=r"busy 3 \+ stall 1 \+ idle 4 = 8 != elapsed 9"):
+        s.breakdown(9)  # a cycle nobody booked
+    with pytest.raises(AssertionError, match=r"!= elapsed 7"):
+        s.breakdown(7)  # a cycle booked twice

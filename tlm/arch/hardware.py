@@ -22,25 +22,68 @@ from tlm.config import ArchConfig
 # -- the units --------------------------------------------------------------------------------
 
 class Module:
-    """A DDR memory module: serves its routed PM's page misses and the crossbar's copies.
+    """A DDR memory module, a SimPy process of its own: serves page requests and copies.
 
-    The crossbar grants modules to PMs one to one and copies only between phases, so a
-    module never has two clients at once and never queues: its service is accounted
-    here, inside the process of the PM or the copy that it serves (the same cycles as
-    a process of its own, without its events). That a module never has two clients at
-    once is checked for the services it books: a copy or a page-miss service that starts
-    while another client's is still running raises (:meth:`_claim`). (A PM's misses are
-    booked at its packet's start, so a copy during the rest of the packet is not seen.)
-    Its row state is the page the client's cache pair holds (:mod:`tlm.arch.cache`): a
-    page miss opens a row, ``rows_opened`` counts them.
+    Clients post requests (:meth:`request`): the PM the crossbar routes to the module
+    asks for a packet's page misses, the crossbar for its side of a block copy. The
+    module's process (:meth:`_serve`) takes them in order, books the service on its own
+    row (T_ms for page misses, T_norm for copies), opens the DDR rows (``rows_opened``)
+    and fires the request's event when the data are in: ``cycles`` after the service
+    starts. The crossbar grants a module to one client at a time, so a request never
+    finds the module busy with another client's service: the process checks it on its
+    own timeline (:meth:`_claim`) and raises if the grant was broken. Its row state is
+    the page the client's cache pair holds (:mod:`tlm.arch.cache`): each page miss opens
+    a row at ``page_miss_cycles`` (reading 19 of docs/architecture.md).
     """
 
     def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):
         self.env = env
         self.unit = Unit(env, scope, trace)
         self.rows_opened = 0
+        self.requests = 0
         self.client: str | None = None  # the client of the latest service, busy until ``free_at``
         self.free_at = 0
+        self._mailbox: deque = deque()  # (client, misses, cycles, label, done) not yet served
+        self._wake: Event | None = None  # what the process waits on while the mailbox is empty
+        env.process(self._serve())
+
+    def request(self, client: str, misses: int, cycles: int, label: str = "page misses", then: int = 0) -> Event:
+        """Post a request of ``cycles`` (``misses`` rows opened).
+
+        The event fires ``then`` cycles after the service ends: a PM passes the cycles
+        it computes once its data are in, so that one event ends its packet.
+        """
+        done = Event(self.env)
+        self._mailbox.append((client, misses, cycles, label, then, done))
+        wake = self._wake
+        if wake is not None and wake._value is PENDING:  # (wake.succeed(), inline)
+            wake._ok, wake._value = True, None
+            self.env.schedule(wake)
+        return done
+
+    def _serve(self):
+        env = self.env
+        mailbox = self._mailbox
+        unit = self.unit
+        while True:
+            if not mailbox:
+                self._wake = Event(env)
+                yield self._wake
+                continue
+            client, misses, cycles, label, then, done = mailbox.popleft()
+            start = env._now
+            if start < self.free_at or client != self.client:
+                self._claim(client, start, cycles)
+            else:  # (its client again, after the previous service: the common case, inline)
+                self.free_at = start + cycles
+            self.requests += 1
+            self.rows_opened += misses
+            if misses:
+                unit.account(start, 0, cycles, 0, label)
+            else:
+                unit.account(start, cycles, 0, 0, label)
+            done._ok, done._value = True, None
+            env.schedule(done, delay=cycles + then)  # (the process is free for the next request meanwhile)
 
     def _claim(self, client: str, start: int, cycles: int) -> None:
         if start < self.free_at and client != self.client:
@@ -50,85 +93,88 @@ class Module:
         if start + cycles > self.free_at:
             self.client, self.free_at = client, start + cycles
 
-    def serve(self, start: int, misses: int, cycles: int, client: str = "a PM") -> None:
-        """Page misses served to the routed PM ``client`` from ``start`` (T_ms of both)."""
-        if start < self.free_at or client != self.client:  # (the common case, its client again, inline)
-            self._claim(client, start, cycles)
-        else:
-            self.free_at = start + cycles
-        self.rows_opened += misses
-        self.unit.account(start, 0, cycles, 0, "page misses")
-
-    def copy(self, start: int, cycles: int, label: str) -> None:
-        self._claim("xbar", start, cycles)
-        self.unit.account(start, cycles, 0, 0, label)
-
 
 class Crossbar:
-    """The memory controller's crossbar: routes PMs to modules, copies blocks."""
+    """The memory controller's crossbar, a SimPy process: routes PMs to modules, copies blocks.
+
+    Routes: a PM that moves to another module asks the crossbar (:meth:`route`), which
+    keeps the map of modules to PMs and grants a module to one PM at a time: a module
+    still held by another PM that is working on it is refused (an AssertionError: the
+    frame program never asks for it). Copies: the waiting copies go to the arbiter
+    process (:meth:`_arbiter`), which, whenever the crossbar is free, grants the copy
+    of smallest (frame, pipeline) once every other event of the cycle has run.
+    """
 
     def __init__(self, env: simpy.Environment, modules: list[Module], arch: ArchConfig, trace: Trace | None):
         self.env = env
         self.unit = Unit(env, "xbar", trace)
         self.modules = modules
         self.arch = arch
-        self.busy = False
         self.requests: list[tuple[tuple, simpy.events.Event]] = []  # (key, grant) of waiting copies
-        self.arbitrating = False
+        self.holder: dict[int, object] = {}  # module index -> the PM routed to it
         self.swaps = 0
         self.copies = 0
         self.words_copied = 0
+        self._wake: Event | None = None  # the arbiter waits on it while no copy waits
+        self._released: Event | None = None  # fires when the granted copy is done
+        env.process(self._arbiter())
+
+    def route(self, pm, module: int) -> None:
+        """Grant ``module`` to ``pm`` (one to one): the PM it leaves, if any, is released."""
+        holder = self.holder.get(module)
+        if holder is not None and holder is not pm and holder.working_on == module:
+            raise AssertionError(f"{pm.unit.scope} asks for {self.modules[module].unit.scope} while "
+                                 f"{holder.unit.scope} works on it: the crossbar grants a module to one PM at a time")
+        if pm.route is not None and self.holder.get(pm.route) is pm:
+            del self.holder[pm.route]
+        self.holder[module] = pm
 
     def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = ()):
         """Copy ``words`` from module ``src`` to every module of ``dsts`` (one block at a time).
 
         More than one destination is the crossbar's fan-out: every destination is
-        written at once, for the cycles of one copy. Copies wait for the crossbar; when
-        it is free the waiting copy of smallest ``key`` (frame, pipeline) goes first,
-        chosen once every other event of the cycle has run (so the choice does not
-        depend on the order of same-cycle events).
+        written at once, for the cycles of one copy. The copy waits for the arbiter's
+        grant; the modules serve it as requests of their own.
         """
         cycles = -(-words // self.arch.copy_words_per_cycle)
         grant = self.env.event()
         self.requests.append(((*key, what), grant))
-        self._arbitrate()
+        wake = self._wake
+        if wake is not None and wake._value is PENDING:
+            wake.succeed()
         yield grant
+        released = self._released
         try:
             self.copies += 1
             self.words_copied += words
             src_m = self.modules[src]
-            if len(dsts) == 1:
-                to = self.modules[dsts[0]].unit.scope
-            else:
-                to = f"{len(dsts)} modules"
+            to = self.modules[dsts[0]].unit.scope if len(dsts) == 1 else f"{len(dsts)} modules"
             label = f"copy {src_m.unit.scope}->{to}: {what}"
             start = int(self.env.now)
-            src_m.copy(start, cycles, label)
-            for d in dsts:
-                self.modules[d].copy(start, cycles, label)
-            yield from self.unit.work(cycles, 0, 0, label=label)
+            served = [src_m.request("xbar", 0, cycles, label),
+                      *(self.modules[d].request("xbar", 0, cycles, label) for d in dsts)]
+            yield from served  # every module serves it at once, for the same cycles
+            self.unit.account(start, cycles, 0, 0, label)
         finally:
-            self.busy = False
-            self._arbitrate()
+            released.succeed()
 
-    def _arbitrate(self) -> None:
-        if self.arbitrating or self.busy or not self.requests:
-            return
-        ev = self.env.event()
-        ev._ok, ev._value = True, None
-        ev.callbacks.append(self._grant)
-        # after the cycle's normal (1) and settling (2) events and the tile dispatch (3)
-        self.env.schedule(ev, priority=4)
-        self.arbitrating = True
-
-    def _grant(self, _ev) -> None:
-        self.arbitrating = False
-        if self.busy or not self.requests:
-            return
-        self.requests.sort(key=lambda r: r[0])
-        _, grant = self.requests.pop(0)
-        self.busy = True
-        grant.succeed()
+    def _arbiter(self):
+        env = self.env
+        while True:
+            if not self.requests:
+                self._wake = Event(env)
+                yield self._wake
+                continue
+            # decide once the cycle's normal (1) and settling (2) events and the tile dispatch (3) have run
+            settle = Event(env)
+            settle._ok, settle._value = True, None
+            env.schedule(settle, priority=4)
+            yield settle
+            self.requests.sort(key=lambda r: r[0])
+            _, grant = self.requests.pop(0)
+            self._released = Event(env)
+            grant.succeed()
+            yield self._released
 
 
 @dataclass(eq=False)
@@ -226,10 +272,13 @@ class Fifo:
 class _AnyOf(Event):
     """``env.any_of(events)`` for the PMs' waits, without the cost of a general condition.
 
-    Fires (is scheduled, with a normal priority) when the first of ``events`` is processed,
-    exactly when and as :class:`simpy.AnyOf` would, and is one event as it is; its value
-    is None rather than a ``ConditionValue`` (no PM reads it). Once processed it takes its
-    callbacks off the events that have not fired, as a condition does.
+    Fires in the same cycle as :class:`simpy.AnyOf` would, when the first of ``events``
+    is processed, but is processed at once, inside that event's processing, rather than
+    scheduled as one event more: its waiter resumes as if it had waited on that event
+    alone (one SimPy event less per wait; the cycles of every run are the same, see
+    tests/test_golden.py). Its value is None rather than a ``ConditionValue`` (no PM reads
+    it). Once processed it takes its callbacks off the events that have not fired, as a
+    condition does.
     """
 
     def __init__(self, env: simpy.Environment, events: list):
@@ -248,13 +297,18 @@ class _AnyOf(Event):
         if self._value is not PENDING:
             return
         if ev._ok:
+            # processed at once, inside the first event's processing: its waiter resumes with
+            # that event rather than one event later in the same cycle
             self._ok = True
             self._value = None
+            callbacks, self.callbacks = self.callbacks, None
+            for callback in callbacks:
+                callback(self)
         else:  # (no event of the model fails; a condition would fail with it)
             ev._defused = True
             self._ok = False
             self._value = ev._value
-        self.env.schedule(self)
+            self.env.schedule(self)
 
     def _detach(self, _ev: Event) -> None:
         fired = self._fired
@@ -282,9 +336,13 @@ class PM:
         self.pipe = pipe
         self.name = name
         self.unit = Unit(model.env, f"pipe{pipe}.{name}", model.trace)
+        self.unit.stats.idle = 0  # booked in :meth:`_loop`, checked against elapsed at the end
+        self.idle_since: int | None = None  # while the PM waits for a job
         self.queue: list[Job] = []
-        self.route: int | None = None
+        self.route: int | None = None  # the module the crossbar routes this PM to
+        self.working_on: int | None = None  # that module while a job runs on it
         self.changed = self.env.event()
+        self.unit.waiting_for = "its process to start"  # (an event budget may end before it runs)
         self.issued = 0
         self.retired = 0
         self.switches = 0
@@ -352,15 +410,19 @@ class PM:
     def _loop(self):
         env = self.env
         unit = self.unit
+        unit.waiting_for = None
         while True:
             self._rearm()
             ready = self._ready()
             if ready is not None:
                 yield from self._run(ready)
                 continue
-            if not self.queue:  # no frame in flight needs this PM: idle
+            if not self.queue:  # no frame in flight needs this PM: idle (booked as such)
                 unit.waiting_for = "a job (idle)"
+                self.idle_since = start = env._now
                 yield self.changed
+                self.idle_since = None
+                unit.stats.idle += env._now - start
                 unit.waiting_for = None
                 continue
             top = self.queue[0]  # (of the highest priority)
@@ -381,10 +443,12 @@ class PM:
         unit = self.unit
         arch = m.arch
         if self.route != job.module:
+            m.xbar.route(self, job.module)
             if self.route is not None:
                 yield from unit.delay("swap", arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
                 m.xbar.swaps += 1
             self.route = job.module
+        self.working_on = job.module
         if job.suspended:
             # on a row of its own: the PM itself is busy for the other image meanwhile
             m.trace_slice(f"{unit.scope} (preempted)", "preempted", job.suspended_at, int(env.now),
@@ -402,6 +466,8 @@ class PM:
         module = m.modules[job.module]
         page_cycles, flush_cycles = arch.page_miss_cycles, arch.flush_cycles
         schedule = env.schedule
+        scope = unit.scope
+        stats, raw, trace = unit.stats, unit._raw, unit.trace
         while job.next < n:
             if (job.next > 0 or job.pending_push or job.interrupted) and queue[0].frame < frame \
                     and self._higher_ready(job):
@@ -410,6 +476,7 @@ class PM:
                 job.interrupted = False
                 job.suspended_at = int(env.now)
                 self.switches += 1
+                self.working_on = None
                 return
             job.interrupted = False
             k = job.next
@@ -425,14 +492,25 @@ class PM:
                     raise AssertionError(f"FIFO order broken: packet {got} arrived for {k}")
             if not job.pending_push:  # the packet's work
                 ms = misses * page_cycles
-                if ms:
-                    module.serve(int(env._now), misses, ms, unit.scope)
                 ps = flushes * flush_cycles
                 if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
                     norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
                 start = env._now
-                yield Timeout(env, norm + ms + ps)
-                unit.account(start, norm, ms, ps, "busy")
+                if ms:  # the routed module serves the packet's page misses (T_ms), then the PM computes
+                    yield module.request(scope, misses, ms, then=norm + ps)
+                else:
+                    yield Timeout(env, norm + ps)
+                # unit.account(start, norm, ms, ps, "busy"), inline (the hot path)
+                stats.norm += norm
+                stats.ms += ms
+                stats.ps += ps
+                end = env._now
+                raw.append(("busy", start, end))
+                if trace is not None and end > start:
+                    tid = unit._tid
+                    if tid is None:
+                        tid = unit._tid = trace.row(scope)
+                    trace.add_work(tid, "busy", start, end, norm, ms, ps)
                 if queue[0].frame < frame:
                     # Let every event of this cycle run before the packet-boundary decision. Only
                     # needed when an older image's job is queued: it may become ready this very
@@ -456,6 +534,7 @@ class PM:
             self.retired += items
             job.next += 1
         self.queue.remove(job)
+        self.working_on = None
         job.done.succeed()
 
     def _fifo_wait(self, job: Job, ready, cause: str, what: str):

@@ -53,6 +53,7 @@ class Stats:
     ms: int = 0
     ps: int = 0
     stall: dict[str, int] = field(default_factory=lambda: dict.fromkeys(STALL_CAUSES, 0))
+    idle: int | None = None  # measured idle cycles (a PM books them where it waits for a job), else derived
 
     @property
     def busy(self) -> int:
@@ -63,14 +64,28 @@ class Stats:
         return sum(self.stall.values())
 
     def breakdown(self, elapsed: int) -> dict:
-        """Eq. 5.1 terms, stalls by cause, and busy / stall / idle (summing to elapsed)."""
-        idle = elapsed - self.busy - self.ds
-        if idle < 0:
-            raise AssertionError(f"busy {self.busy} + stall {self.ds} exceed elapsed {elapsed}")
+        """Eq. 5.1 terms, stalls by cause, and busy / stall / idle (summing to elapsed).
+
+        A unit that books its idle cycles (:attr:`idle`, the PMs) is checked:
+        busy + stall + idle must equal ``elapsed`` exactly, or a cycle was booked twice or
+        not at all. Any other unit's idle time is what is left of ``elapsed``.
+        """
+        busy, ds = self.busy, self.ds
+        if self.idle is None:
+            idle = elapsed - busy - ds
+            if idle < 0:
+                raise AssertionError(f"busy {busy} + stall {ds} exceed elapsed {elapsed}")
+        else:
+            idle = self.idle
+            if busy + ds + idle != elapsed:
+                raise AssertionError(f"busy {busy} + stall {ds} + idle {idle} = {busy + ds + idle} "
+                                     f"!= elapsed {elapsed}")
+        frac = (lambda c: round(c / elapsed, 6)) if elapsed else (lambda c: 0.0)
         return {
-            "T_norm": self.norm, "T_ms": self.ms, "T_ps": self.ps, "T_ds": self.ds,
-            "stall": dict(self.stall), "busy": self.busy, "stalled": self.ds, "idle": idle,
-            "elapsed": elapsed,
+            "T_norm": self.norm, "T_ms": self.ms, "T_ps": self.ps, "T_ds": ds,
+            "stall": dict(self.stall), "busy": busy, "stalled": ds, "idle": idle,
+            "elapsed": elapsed, "idle_measured": self.idle is not None,
+            "fractions": {"busy": frac(busy), "stalled": frac(ds), "idle": frac(idle)},
         }
 
 
