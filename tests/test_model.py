@@ -378,6 +378,23 @@ def test_event_budget():
         simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
 
 
+def test_the_liveness_bound_follows_the_program():
+    """64 events per packet, job and tile, per frame, plus 100 000; it caps ``max_events``."""
+    from tlm.arch import model
+
+    p = program(phase("v", job("vertex", [1, 2, 3])), phase("f", job("fragment", [4], role=1)))
+    assert model.event_bound(p, arch(frames=2)) == 64 * ((3 + 1) + (1 + 1) + 1) * 2 + 100_000
+
+
+def test_a_model_past_the_liveness_bound_stops_and_says_why(monkeypatch):
+    from tlm.arch import model
+
+    monkeypatch.setattr(model, "event_bound", lambda program, arch: 7)
+    with pytest.raises(Deadlock, match=r"cannot finish at cycle \d+ \(7 events passed, 64 per packet, job and "
+                                       r"tile of the program: it makes no progress\): pipe0\.\w+ waits for"):
+        simulate_program(SWAP_PROGRAM, arch(frames=3))
+
+
 # -- 7. eq. 5.1 --------------------------------------------------------------------------------
 
 EQ_PROGRAM = program(
@@ -531,6 +548,19 @@ def test_a_module_refuses_a_second_client_while_it_serves_one():
         _module_story([("pipe0.fragment", 30, 1, 12, 0), ("xbar", 40, 0, 8, 0)])
     _, log = _module_story([("pipe0.fragment", 30, 1, 12, 0), ("xbar", 42, 0, 8, 0)])  # back to back: fine
     assert log == [("pipe0.fragment", 42), ("xbar", 50)]
+
+
+@pytest.mark.parametrize("before", [
+    [],  # V and F ask for mem0 at once
+    [phase("v", job("vertex", [5])), phase("f", job("fragment", [5]))],  # F held mem0 before: a stale route
+    [phase("v", job("vertex", [5], role=1)), phase("f", job("fragment", [5], role=1))],  # both swap to mem0
+])
+def test_two_pms_never_work_on_one_module(before):
+    """A (malformed) phase that puts V and F on the same module at once is refused by the
+    crossbar, whatever the PMs were routed to before (and during the swap's cycles)."""
+    both = phase("both", job("vertex", [50], role=0), job("fragment", [50], role=0))
+    with pytest.raises(AssertionError, match=r"pipe0\.fragment asks for mem0 while pipe0\.vertex works on it"):
+        simulate_program(program(*before, both), arch(frames=1, swap_cycles=2))
 
 
 def test_the_crossbar_grants_a_module_to_one_pm_at_a_time():

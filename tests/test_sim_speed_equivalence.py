@@ -30,7 +30,7 @@ def _any_of_story(make, seed: int) -> list:
     events, and the number of SimPy events processed.
     """
     env = simpy.Environment()
-    events = [env.event() for _ in range(6)]
+    events = [env.event() for _ in range(8)]  # events 6 and 7 never fire: callbacks stay on them
     fired, woke = {}, {w: [] for w in range(4)}
 
     def firer(i, ev):
@@ -43,12 +43,14 @@ def _any_of_story(make, seed: int) -> list:
         rng = random.Random(seed * 1000 + 100 + w)
         yield env.timeout(rng.randint(0, 3))
         for _ in range(3):
-            pick = rng.sample(events, rng.randint(1, 3))
+            pick = rng.sample(events[:6], rng.randint(1, 3))
+            if rng.random() < 0.5:  # sometimes wait on a never-fired event too, first or last
+                pick.insert(rng.choice([0, len(pick)]), events[6 + rng.randint(0, 1)])
             value = yield make(env, pick)
             woke[w].append((env.now, value is None or isinstance(value, simpy.events.ConditionValue)))
             yield env.timeout(rng.randint(0, 1))
 
-    for i, ev in enumerate(events):
+    for i, ev in enumerate(events[:6]):
         env.process(firer(i, ev))
     for w in range(4):
         env.process(waiter(w))

@@ -133,7 +133,8 @@ class ArchConfig:
                      "every pipeline's module at once) | serial (one copy per pipeline)", choices=FANOUTS)
     programs: str | None = _f(None, "instruction-cost table (YAML, relative to the config); null = the "
                               "calibrated default tlm/arch/programs.yaml")
-    max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock", min=1)
+    max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock (a cap: a run "
+                                      "also stops past 64 events per packet, job and tile of its program)", min=1)
     trace: bool = _f(True, "write trace.json (Chrome trace events, opens in ui.perfetto.dev)")
 
 

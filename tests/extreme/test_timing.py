@@ -41,7 +41,16 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tlm.arch.functional import Functional
-from tlm.arch.model import PMS, FrameProgram, JobSpec, PhaseSpec, frame_program, simulate, simulate_program
+from tlm.arch.model import (
+    PMS,
+    FrameProgram,
+    JobSpec,
+    PhaseSpec,
+    event_bound,
+    frame_program,
+    simulate,
+    simulate_program,
+)
 from tlm.arch.programs import load_programs
 from tlm.arch.units import STALL_CAUSES, Deadlock
 from tlm.config import FANOUTS, MEMORY_READINGS, SCHEDULERS, config_from_dict
@@ -686,6 +695,7 @@ def test_fuzzed_architectures_finish_or_name_the_deadlock(fuzz_work, cfg, work, 
     end = max(f["done"] for f in t.frames)
     events = t.events
     assert 0 < events < EVENT_BOUND
+    assert events * 8 < event_bound(t.program, a)  # the liveness bound leaves a wide margin
     again = simulate(fn, PROGRAMS, dataclasses.replace(a, max_events=events, trace=False))
     assert (again.cycles, again.frames, again.events) == (t.cycles, t.frames, events)
     for budget in sorted({events - 1, data.draw(st.integers(1, events - 1), label="budget")}):

@@ -112,6 +112,7 @@ class Crossbar:
         self.arch = arch
         self.requests: list[tuple[tuple, simpy.events.Event]] = []  # (key, grant) of waiting copies
         self.holder: dict[int, object] = {}  # module index -> the PM routed to it
+        self.copying: set[int] = set()  # the modules of the copy in progress
         self.swaps = 0
         self.copies = 0
         self.words_copied = 0
@@ -125,8 +126,11 @@ class Crossbar:
         if holder is not None and holder is not pm and holder.working_on == module:
             raise AssertionError(f"{pm.unit.scope} asks for {self.modules[module].unit.scope} while "
                                  f"{holder.unit.scope} works on it: the crossbar grants a module to one PM at a time")
-        if pm.route is not None and self.holder.get(pm.route) is pm:
-            del self.holder[pm.route]
+        if module in self.copying:
+            raise AssertionError(f"{pm.unit.scope} asks for {self.modules[module].unit.scope} while the crossbar "
+                                 "copies into or out of it")
+        for k in [k for k, v in self.holder.items() if v is pm]:  # the module it leaves
+            del self.holder[k]
         self.holder[module] = pm
 
     def copy(self, src: int, dsts: list[int], words: int, what: str, key: tuple = ()):
@@ -151,11 +155,18 @@ class Crossbar:
             to = self.modules[dsts[0]].unit.scope if len(dsts) == 1 else f"{len(dsts)} modules"
             label = f"copy {src_m.unit.scope}->{to}: {what}"
             start = int(self.env.now)
+            for k in (src, *dsts):  # copies go between phases: no PM may be working on these modules
+                holder = self.holder.get(k)
+                if holder is not None and holder.working_on == k:
+                    raise AssertionError(f"the crossbar copies {label!r} while {holder.unit.scope} works on "
+                                         f"{self.modules[k].unit.scope}: it grants a module to one client at a time")
+            self.copying.update((src, *dsts))
             served = [src_m.request("xbar", 0, cycles, label),
                       *(self.modules[d].request("xbar", 0, cycles, label) for d in dsts)]
             yield from served  # every module serves it at once, for the same cycles
             self.unit.account(start, cycles, 0, 0, label)
         finally:
+            self.copying.difference_update((src, *dsts))
             released.succeed()
 
     def _arbiter(self):
@@ -287,11 +298,15 @@ class _AnyOf(Event):
         self._value = PENDING
         self._events = events
         self._fired = fired = self._fire  # one bound method: appended, and later removed, as itself
+        over = None
         for ev in events:
             if ev.callbacks is None:
-                fired(ev)
+                if over is None:
+                    over = ev
             else:
                 ev.callbacks.append(fired)
+        if over is not None:  # already processed: fire now (and take the callbacks just added off)
+            fired(over)
 
     def _fire(self, ev: Event) -> None:
         if self._value is not PENDING:
@@ -442,13 +457,14 @@ class PM:
         env = self.env
         unit = self.unit
         arch = m.arch
+        if self.route != job.module or m.xbar.holder.get(job.module) is not self:
+            m.xbar.route(self, job.module)  # (also when another PM held the module meanwhile)
+        self.working_on = job.module  # (from the grant on: the swap's cycles are the module's too)
         if self.route != job.module:
-            m.xbar.route(self, job.module)
             if self.route is not None:
                 yield from unit.delay("swap", arch.swap_cycles, f"route to {m.modules[job.module].unit.scope}")
                 m.xbar.swaps += 1
             self.route = job.module
-        self.working_on = job.module
         if job.suspended:
             # on a row of its own: the PM itself is busy for the other image meanwhile
             m.trace_slice(f"{unit.scope} (preempted)", "preempted", job.suspended_at, int(env.now),

@@ -374,10 +374,32 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     done = env.event()
     env.process(_stream(model, done))
     counts: dict = {}
-    end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=arch.max_events, counts=counts)
+    bound = event_bound(program, arch)
+    budget = min(arch.max_events, bound)
+    why = None if budget == arch.max_events else (
+        f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
+    end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     return timing
+
+
+EVENTS_PER_ITEM = 64  # the liveness bound's SimPy events per packet, job and tile (runs need 1.6-3.2)
+
+
+def event_bound(program: FrameProgram, arch: ArchConfig) -> int:
+    """The most SimPy events a stream of ``program`` can need while it makes progress.
+
+    Every packet, job and tile costs a bounded number of events (its work, the module's
+    service, a FIFO hand-over, a preemption's save, swap and restore, a copy): at most a
+    few each in every run measured (1.6 to 3.2 per packet and job, packets of 1 to a
+    whole frame, 1 to 16 pipelines). ``EVENTS_PER_ITEM`` times that, plus a constant, is
+    the liveness bound: a model past it is not making progress, so it stops in seconds
+    rather than after ``arch.max_events`` (which caps it).
+    """
+    items = sum(len(js.packets) + 1 for ph in program.phases for js in ph.jobs)
+    tiles = sum(len(st.tiles) for st in program.stages)
+    return EVENTS_PER_ITEM * (items + tiles) * arch.frames + 100_000
 
 
 def _results(model: Model, program: FrameProgram, end: int, events: int, trace: Trace | None) -> Timing:

@@ -318,13 +318,15 @@ class Handshake:
 
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
-        counts: dict | None = None) -> int:
+        counts: dict | None = None, why: str | None = None) -> int:
     """Run until ``done`` fires; return the cycle it fired at.
 
     Raises :class:`Deadlock` if the event queue empties first, or if ``max_events`` events
     pass without ``done`` (the message names every blocked unit and what it awaits).
-    ``counts``, if given, receives the number of events processed under ``"events"``.
+    ``counts``, if given, receives the number of events processed under ``"events"``;
+    ``why``, if given, is what the error says when ``max_events`` pass.
     """
+    budget_why = why or f"{max_events} events passed"
     units = list(units)
     steps = 0
     try:
@@ -333,7 +335,7 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
             queue = env._queue
             while done._value is PENDING:
                 if steps >= max_events:
-                    _deadlock(env, units, f"{max_events} events passed")
+                    _deadlock(env, units, budget_why)
                 try:
                     env._now, _, _, event = heappop(queue)
                 except IndexError:
@@ -350,7 +352,7 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
             step = env.step
             while not done.triggered:
                 if steps >= max_events:
-                    _deadlock(env, units, f"{max_events} events passed")
+                    _deadlock(env, units, budget_why)
                 step()
                 steps += 1
     except simpy.core.EmptySchedule:

@@ -80,6 +80,7 @@ PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this proces
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
+BROKEN_WAIT = 60  # seconds a broken local pool gets to fail the points it holds
 
 
 # ---------------------------------------------------------------- the sweep file
@@ -535,7 +536,8 @@ class _LocalPool(cf.Executor):
                 job = self.waiting.popleft()
             try:
                 f = self.pool.submit(_run_started, job.token, job.fn, *job.args, **job.kwargs)
-            except BrokenProcessPool:  # a worker died since the last look: not this point's doing
+            except (BrokenProcessPool, RuntimeError):  # a worker died since the last look: not this point's
+                # doing (RuntimeError: the broken pool's shutdown raced this submit)
                 (self.suspects if job is self.alone else self.waiting).appendleft(job)
                 self.alone = None
                 self._replace()
@@ -545,7 +547,11 @@ class _LocalPool(cf.Executor):
 
     def _replace(self) -> None:
         """The pool broke: a new one, each point it held settled, charged or queued again."""
-        cf.wait(list(self.inflight))  # the broken pool fails every point it holds at once
+        # the broken pool fails every point it holds at once; one it never fails (a submit that
+        # raced its shutdown) is taken back after BROKEN_WAIT seconds as if it had failed
+        _, lost = cf.wait(list(self.inflight), timeout=BROKEN_WAIT)
+        for f in lost:
+            f.cancel()
         self.pool.shutdown(wait=True)  # its workers are joined: their exit codes are known
         self._read_started()
         self.started.close()
@@ -556,7 +562,7 @@ class _LocalPool(cf.Executor):
         self._new()
         again: list[_Job] = []
         for f, job in held:
-            if not _broke(f):  # finished before the break
+            if f not in lost and not _broke(f):  # finished before the break
                 self._settle(job, f)
             elif job.token in pids:
                 p = processes.get(pids[job.token])
