@@ -37,29 +37,23 @@ point per functional result goes first; the others follow once it is cached, so 
 workers never render the same frame. Workers: a local process pool, or Dask. A local
 worker ends itself when the sweep's process dies (a killed sweep leaves none running);
 a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran, if that
-point kills its worker again when run alone (:class:`_LocalPool`).
+point kills its worker again when run alone (:class:`LocalPool`).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import csv
-import ctypes
 import hashlib
 import itertools
 import json
-import multiprocessing
 import os
 import re
-import select
 import shutil
-import signal
 import sys
-import threading
 import time
 import traceback
 from collections import deque
-from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,16 +65,11 @@ from tlm.arch.functional import SUMMARY_KEYS, cached_render, is_cached, render_k
 from tlm.config import config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
 from tlm.experiments.atomic import atomic_folder, check_destination
+from tlm.experiments.executors import InProcess, LocalPool, open_executor
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 FIRST_COLUMNS = ("point", "hash", "status", "error")
-CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
-PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
-PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
-MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
-MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
-BROKEN_WAIT = 60  # seconds a broken local pool gets to fail the points it holds
 
 
 # ---------------------------------------------------------------- the sweep file
@@ -422,317 +411,6 @@ def _write_text(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-# ---------------------------------------------------------------- executors
-
-
-class _InProcess(cf.Executor):
-    """``--jobs 1``: points run one at a time in this process (for debugging, and for a
-    debugger's breakpoints); :meth:`run_next` runs the oldest submitted one."""
-
-    def __init__(self) -> None:
-        self.queue: deque[tuple[cf.Future, Any, tuple]] = deque()
-
-    def submit(self, fn, /, *args, **kwargs):
-        f: cf.Future = cf.Future()
-        self.queue.append((f, fn, args))
-        return f
-
-    def run_next(self) -> None:
-        f, fn, args = self.queue.popleft()
-        try:
-            f.set_result(fn(*args))
-        except Exception as e:  # KeyboardInterrupt goes through: the sweep stops
-            f.set_exception(e)
-
-    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        self.queue.clear()
-
-
-class WorkerDied(RuntimeError):
-    """A point's worker process died while running it (a crash, a kill, ``os._exit``)."""
-
-
-@dataclass(eq=False)
-class _Job:
-    """A point submitted to a :class:`_LocalPool`: its future, its call and how its workers ended."""
-
-    future: cf.Future  # the sweep's: set once the point finished, or failed for good
-    fn: Any
-    args: tuple
-    kwargs: dict
-    token: int  # names the point to :func:`_run_started`
-    deaths: int = 0  # times its worker process died while running it
-    ends: list[str] = field(default_factory=list)  # how those workers ended
-
-
-class _LocalPool(cf.Executor):
-    """A process pool that outlives the death of a worker process.
-
-    A worker that dies (a crash, an OOM kill, ``os._exit``) breaks a
-    ProcessPoolExecutor: every point it holds fails with BrokenProcessPool. This pool
-    then replaces it. The points that had not started run again as before. Those that
-    had started (a worker says so before running a point) may be the culprit: each runs
-    again alone, one at a time, so that a death is charged to the one point running. A
-    death counts against a point unless its worker was ended by the broken pool
-    (SIGTERM) while another point ran beside it; a point whose worker died
-    ``MAX_DEATHS`` times, the last time running it alone, fails with
-    :class:`WorkerDied`. ``MAX_BLIND`` breaks in a row with no point started fail the
-    points they held. The points are waited for in this process's thread (:meth:`run_next`).
-
-    Workers are forked from a fresh server process (``forkserver``), never from this
-    one: this process may hold threads (the progress bar's monitor, a Dask client's
-    event loop) whose locks a forked child would inherit held.
-    """
-
-    def __init__(self, jobs: int) -> None:
-        self.jobs = jobs
-        self.context = _mp_context()
-        self.waiting: deque[_Job] = deque()  # not handed to the pool yet
-        self.suspects: deque[_Job] = deque()  # started when the pool broke: each runs alone next
-        self.inflight: dict[cf.Future, _Job] = {}  # the pool's futures
-        self.alone: _Job | None = None  # the suspect in flight: nothing else runs beside it
-        self.tokens = itertools.count()
-        self.settled = 0  # points whose future was set
-        self.blind = 0  # breaks in a row with no point started
-        self._new()
-
-    def _new(self) -> None:
-        env = {k: v for k, v in os.environ.items() if k.startswith("TLM_")}  # the server's may be older
-        self.started = self.context.SimpleQueue()  # (token, pid) from a worker starting a point; one per pool
-        self.pids: dict[int, int] = {}  # token -> pid of the worker that started it, in this pool
-        self.processes: dict[int, Any] = {}  # pid -> the pool's Process, for its exit code
-        self.pool = cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
-                                           initializer=_worker_init, initargs=(env, os.getpid(), self.started))
-
-    def submit(self, fn, /, *args, **kwargs):
-        job = _Job(cf.Future(), fn, args, kwargs, next(self.tokens))
-        self.waiting.append(job)
-        self._pump()
-        return job.future
-
-    def run_next(self) -> None:
-        """Wait until a submitted point has finished or failed for good, replacing the
-        pool if it broke meanwhile."""
-        settled = self.settled
-        while self.settled == settled and self.inflight:
-            done, _ = cf.wait(list(self.inflight), return_when=cf.FIRST_COMPLETED)
-            if any(_broke(f) for f in done):
-                self._replace()
-            else:
-                self._read_started()
-                for f in done:
-                    self._settle(self.inflight.pop(f), f)
-                self.blind = 0
-            self._pump()
-
-    def _pump(self) -> None:
-        """Hand points to the pool: a suspect alone once nothing else is in flight, else every waiting one."""
-        while self.alone is None and (self.suspects or self.waiting):
-            if self.suspects:
-                if self.inflight:
-                    return
-                job = self.alone = self.suspects.popleft()
-            else:
-                job = self.waiting.popleft()
-            try:
-                f = self.pool.submit(_run_started, job.token, job.fn, *job.args, **job.kwargs)
-            except (BrokenProcessPool, RuntimeError):  # a worker died since the last look: not this point's
-                # doing (RuntimeError: the broken pool's shutdown raced this submit)
-                (self.suspects if job is self.alone else self.waiting).appendleft(job)
-                self.alone = None
-                self._replace()
-                continue
-            self.inflight[f] = job
-            self.processes.update(getattr(self.pool, "_processes", None) or {})
-
-    def _replace(self) -> None:
-        """The pool broke: a new one, each point it held settled, charged or queued again."""
-        # the broken pool fails every point it holds at once; one it never fails (a submit that
-        # raced its shutdown) is taken back after BROKEN_WAIT seconds as if it had failed
-        _, lost = cf.wait(list(self.inflight), timeout=BROKEN_WAIT)
-        for f in lost:
-            f.cancel()
-        self.pool.shutdown(wait=True)  # its workers are joined: their exit codes are known
-        self._read_started()
-        self.started.close()
-        pids, processes, alone = self.pids, self.processes, self.alone
-        self.alone = None
-        held = sorted(self.inflight.items(), key=lambda item: item[1].token)
-        self.inflight = {}
-        self._new()
-        again: list[_Job] = []
-        for f, job in held:
-            if f not in lost and not _broke(f):  # finished before the break
-                self._settle(job, f)
-            elif job.token in pids:
-                p = processes.get(pids[job.token])
-                code = None if p is None else p.exitcode
-                if job is alone or code != -signal.SIGTERM:  # SIGTERM: ended by the broken pool, beside the culprit
-                    job.deaths += 1
-                    job.ends.append(_ended(code))
-                if job is alone and job.deaths >= MAX_DEATHS:
-                    self._settle(job, error=WorkerDied(
-                        f"its worker process died {job.deaths} times running this point, "
-                        f"the last time with no other point running ({', '.join(job.ends)})"))
-                else:
-                    self.suspects.append(job)
-            else:
-                again.append(job)
-        self.blind = 0 if any(job.token in pids for _, job in held) else self.blind + 1
-        if self.blind >= MAX_BLIND:  # workers die before running anything: give up on these points
-            for job in again:
-                self._settle(job, error=WorkerDied(
-                    f"the sweep's worker processes died {self.blind} times in a row before starting a point"))
-            self.blind, again = 0, []
-        for job in reversed(again):  # in their order, before those submitted since
-            (self.suspects if job is alone else self.waiting).appendleft(job)
-
-    def _read_started(self) -> None:
-        while not self.started.empty():
-            token, pid = self.started.get()
-            self.pids[token] = pid
-
-    def _settle(self, job: _Job, f: cf.Future | None = None, error: BaseException | None = None) -> None:
-        if job is self.alone:
-            self.alone = None
-        self.settled += 1
-        if job.future.done():  # cancelled
-            return
-        if error is None:
-            error = cf.CancelledError() if f.cancelled() else f.exception()
-        if error is None:
-            job.future.set_result(f.result())
-        else:
-            job.future.set_exception(error)
-
-    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        if cancel_futures:
-            for job in [*self.waiting, *self.suspects]:
-                job.future.cancel()
-            self.waiting.clear()
-            self.suspects.clear()
-        self.pool.shutdown(wait=wait, cancel_futures=cancel_futures)
-        if wait:
-            self.started.close()
-
-
-def _broke(f: cf.Future) -> bool:
-    return not f.cancelled() and isinstance(f.exception(), BrokenProcessPool)
-
-
-def _ended(code: int | None) -> str:
-    """How a worker process ended, from its exit code."""
-    if code is None:
-        return "its exit status is unknown"
-    if code < 0:
-        try:
-            return f"killed by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"killed by signal {-code}"
-    return f"exit code {code}"
-
-
-_STARTED = None  # in a local worker: the queue on which it says which point it starts
-
-
-def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
-    """A local worker's set-up: the sweep's ``TLM_*`` variables, an end with the sweep's
-    process, and the queue on which it says which point it starts."""
-    global _STARTED
-    _STARTED = started
-    _worker_env(env)
-    _exit_with(parent)
-
-
-def _run_started(token: int, fn, /, *args, **kwargs):
-    """In a local worker: tell the sweep's process that this worker starts point ``token``, run it.
-
-    The message is written before the point runs and at once (a SimpleQueue has no
-    feeder thread), so it reaches the sweep even if the point ends the worker.
-    """
-    _STARTED.put((token, os.getpid()))
-    return fn(*args, **kwargs)
-
-
-def _worker_env(env: dict[str, str]) -> None:
-    """Give a worker this process's ``TLM_*`` variables (``TLM_CACHE``) as they are now."""
-    for k in [k for k in os.environ if k.startswith("TLM_")]:
-        del os.environ[k]
-    os.environ.update(env)
-
-
-def _exit_with(parent: int) -> None:
-    """End this worker when the sweep's process ``parent`` dies.
-
-    A killed sweep (SIGKILL: no shutdown runs) would otherwise leave its workers running
-    the points queued to them, and then waiting for more forever. On Linux the kernel
-    kills a worker whose parent process dies (``PR_SET_PDEATHSIG``); but under
-    ``forkserver`` that parent is the fork server, which lives as long as its children.
-    So a daemon thread also waits for ``parent`` itself to end (on a pidfd, else polling
-    its pid and this process's parent) and ends the worker with ``os._exit``.
-    """
-    if sys.platform.startswith("linux"):
-        with suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    threading.Thread(target=_watch_parent, args=(parent, os.getppid()), name="tlm-watch-sweep",
-                     daemon=True).start()
-
-
-def _watch_parent(parent: int, ppid: int) -> None:
-    pidfd = None
-    with suppress(AttributeError, OSError):  # no pidfd (not Linux >= 5.3), or ``parent`` is gone already
-        pidfd = os.pidfd_open(parent)
-    if pidfd is not None:
-        select.select([pidfd], [], [])  # readable once ``parent`` has ended
-    else:
-        while _alive(parent) and os.getppid() == ppid:
-            time.sleep(PARENT_POLL)
-    os._exit(1)
-
-
-def _alive(pid: int) -> bool:
-    if os.name != "posix":  # os.kill(pid, 0) would terminate it there: the parent check alone
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        pass  # it exists (another user's pid: ours was reused); the parent check still holds
-    return True
-
-
-def _mp_context():
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["tlm.experiments.sweep", "tlm.experiments.run"])  # imported once, not per worker
-    return ctx
-
-
-def _open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:
-    """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
-    client's; no more workers than ``points``."""
-    if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
-        return _InProcess() if jobs == 1 else _LocalPool(min(jobs, points))
-    jobs = min(jobs, points)
-    from distributed import Client, LocalCluster
-
-    if dask == "local":
-        # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
-        # it still tries 8787, and warns when that is taken (another cluster, another sweep)
-        cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                                   dashboard_address="127.0.0.1:0",
-                                                   scheduler_kwargs={"dashboard": False}))
-        client = stack.enter_context(Client(cluster))
-    else:
-        try:
-            client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
-        except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
-            raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
-    return client.get_executor(pure=False)
-
-
 # ---------------------------------------------------------------- the sweep
 
 
@@ -805,7 +483,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                      str(points_dir / h), provenance) for h in todo}
 
     with ExitStack() as stack:
-        pool = _open_executor(stack, jobs, dask, len(todo)) if todo else None
+        pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
         points_dir.mkdir(parents=True, exist_ok=True)
         _write_text(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         _clean_stale(points_dir)
@@ -855,7 +533,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         _trim_torn(out / "sweep.jsonl")
         with open(out / "sweep.jsonl", "a") as jsonl:
             while futures:
-                if isinstance(pool, (_InProcess, _LocalPool)):
+                if isinstance(pool, (InProcess, LocalPool)):
                     pool.run_next()
                 done, _ = cf.wait(list(futures), return_when=cf.FIRST_COMPLETED)
                 for f in done:
@@ -876,7 +554,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
     except BaseException:
         for f in futures:
             f.cancel()
-        if isinstance(pool, (_InProcess, _LocalPool)):
+        if isinstance(pool, (InProcess, LocalPool)):
             pool.shutdown(wait=False, cancel_futures=True)
         else:
             pool.shutdown(wait=False)
