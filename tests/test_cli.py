@@ -224,6 +224,8 @@ def test_a_stream_too_short_for_a_steady_throughput_warns(tmp_path, capsys):
     results = json.loads((out / "results.json").read_text())
     assert results["timing"]["throughput_estimate"]["steady"] is False
     assert len(results["warnings"]) == 1 and "arch.frames=2" in results["warnings"][0]
+    timing = results["timing"]  # the liveness bound: far above the events the run needed
+    assert 8 * timing["simpy_events"] < timing["event_bound"] <= 200_000_000
 
 
 def test_mode_rcast(tmp_path, capsys):
