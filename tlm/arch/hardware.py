@@ -21,6 +21,13 @@ from tlm.config import ArchConfig
 
 # -- the units --------------------------------------------------------------------------------
 
+def _wake_up(wake: Event | None) -> None:
+    """Wake a process waiting on ``wake`` for its mailbox (``wake.succeed()``, inline); no-op if none waits."""
+    if wake is not None and wake._value is PENDING:
+        wake._ok, wake._value = True, None
+        wake.env.schedule(wake)
+
+
 class Module:
     """A DDR memory module, a SimPy process of its own: serves page requests and copies.
 
@@ -55,10 +62,7 @@ class Module:
         """
         done = Event(self.env)
         self._mailbox.append((client, misses, cycles, label, then, done))
-        wake = self._wake
-        if wake is not None and wake._value is PENDING:  # (wake.succeed(), inline)
-            wake._ok, wake._value = True, None
-            self.env.schedule(wake)
+        _wake_up(self._wake)
         return done
 
     def _serve(self):
@@ -143,9 +147,7 @@ class Crossbar:
         cycles = -(-words // self.arch.copy_words_per_cycle)
         grant = self.env.event()
         self.requests.append(((*key, what), grant))
-        wake = self._wake
-        if wake is not None and wake._value is PENDING:
-            wake.succeed()
+        _wake_up(self._wake)
         yield grant
         released = self._released
         try:

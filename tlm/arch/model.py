@@ -315,6 +315,7 @@ class Timing:
     pipelines: list[dict] = field(default_factory=list)  # per pipeline: each PM's cycles per frame
     model: Model | None = None  # the simulated units (their logs), for tests and inspection
     throughput_estimate: dict = field(default_factory=dict)  # how TThru was measured (steady_throughput)
+    event_budget: int = 0  # the liveness bound the run had: min(arch.max_events, event_bound(...))
 
     def to_dict(self) -> dict:
         return {
@@ -381,6 +382,7 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
+    timing.event_budget = budget
     return timing
 
 

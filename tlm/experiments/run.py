@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 
 from tlm.arch.functional import Functional
-from tlm.arch.model import Timing, event_bound, simulate
+from tlm.arch.model import Timing, simulate
 from tlm.arch.programs import Programs, load_programs
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.experiments.atomic import atomic_folder, check_destination
@@ -162,7 +162,7 @@ def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
         "memory": arch.memory,
         "programs": {"source": programs.source, "scale": programs.scale},
         "simpy_events": tm.events,
-        "event_bound": min(arch.max_events, event_bound(tm.program, arch)),  # the liveness bound (model.event_bound)
+        "event_bound": tm.event_budget,  # the liveness bound the run had (model.event_bound)
         **{k: v for k, v in tm.to_dict().items() if k not in ("cycles", "fps", "events")},
     }
 
