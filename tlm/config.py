@@ -268,9 +268,12 @@ def parse_yaml(text: str) -> Any:
 def read_yaml(path: Path) -> Any:
     """Read a YAML file; a missing file or a syntax error is an InputError naming it."""
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError("file not found", source=str(path)) from None
+    except UnicodeDecodeError as e:
+        raise InputError(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
+                         source=str(path)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
     try:

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tlm.config import read_yaml
 from tlm.errors import InputError, did_you_mean
 
 DEFAULT_PATH = Path(__file__).with_name("programs.yaml")
@@ -142,12 +143,9 @@ def load_programs(path: str | Path | None = None) -> Programs:
     """Read and check an instruction-cost table (default: the calibrated one)."""
     p = Path(path) if path is not None else DEFAULT_PATH
     source = str(p)
-    try:
-        raw = yaml.safe_load(p.read_text())
-    except FileNotFoundError:
-        raise InputError("file not found", source=source, key="arch.programs") from None
-    except yaml.YAMLError as e:
-        raise InputError(f"not valid YAML: {str(e).splitlines()[0]}", source=source) from None
+    if not p.is_file():
+        raise InputError("file not found", source=source, key="arch.programs")
+    raw = read_yaml(p)
     raw = _mapping(raw, source, "(top)")
     _unknown(raw, ("calibration", *PROGRAMMABLE, "intersection"), source, "programs")
     scale, jobs = {}, {}
