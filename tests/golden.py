@@ -9,8 +9,12 @@ measure (``model.steady_throughput``): only the ``cycles.throughput`` entries ch
 (the runs' streams are shorter than a steady window: their TThru is now the elapsed
 cycles per frame). Rewritten a second time when the memory modules and the crossbar
 became SimPy processes of their own: only the ``events`` entries changed (every cycle,
-unit breakdown, image and count stayed the same). The runs use the programs' scales of
-that time (:data:`SCALES`).
+unit breakdown, image and count stayed the same). Rewritten a third time, for the ``run:``
+entries only, by issue 17 (images a rendering researcher trusts): four jittered eye rays
+per pixel, shading normals, glass split by Fresnel, index-matched glass letting shadow
+rays through, caustic and indirect photon maps gathered also at the ends of the specular
+paths; every ``kernel:`` entry (traversal, intersection, BSP) stayed the same. The runs
+use the programs' scales of that time (:data:`SCALES`).
 
 Regenerate only when a change *means* to alter results (and say so in the commit)::
 
@@ -98,9 +102,10 @@ def _run(raw: dict) -> dict:
         "events": int(tm.events),
         "units": {name: _ints(u) for name, u in sorted(tm.units.items())},
     }
-    if res.photons is not None:
-        out["photons"] = {k: digest(v) for k, v in sorted(vars(res.photons.photons).items())
-                          if isinstance(v, np.ndarray)}
+    if res.photons is not None:  # both maps: the caustic one, then the indirect one
+        maps = zip(("caustic", "indirect"), res.photons.photons.maps, strict=True)
+        out["photons"] = {f"{which}.{k}": digest(v) for which, m in maps
+                          for k, v in sorted(vars(m).items()) if isinstance(v, np.ndarray)}
     return out
 
 

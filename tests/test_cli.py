@@ -94,14 +94,15 @@ def test_results_json(cornell_run):
     assert results["scene"]["triangles"] == 2604
     assert results["scene"]["resolution"] == [48, 48]
     assert results["scene"]["bsp"]["levels"] == 7  # floor(ln 2604)
-    assert results["primary"]["rays"] == 48 * 48
-    assert results["primary"]["hits"] + results["primary"]["misses"] == 48 * 48
+    assert results["primary"]["pixels"] == 48 * 48 and results["primary"]["spp"] == 4
+    assert results["primary"]["rays"] == 4 * 48 * 48
+    assert results["primary"]["hits"] + results["primary"]["misses"] == 4 * 48 * 48
     assert set(results["work"]) == {"rcast", "reflect", "refract"}
     for name, w in results["work"].items():
         for k in WORK_KEYS:
             assert isinstance(w[k], int) and w[k] >= 0, (name, k)
         assert w["tri_tests"] > 0 and w["node_visits"] > 0
-    assert results["work"]["rcast"]["primary_rays"] == 48 * 48
+    assert results["work"]["rcast"]["primary_rays"] == 4 * 48 * 48  # render.spp 4 by default
     assert results["work"]["reflect"]["secondary_rays"] > 0
     assert results["work"]["refract"]["secondary_rays"] > 0
     hs = results["host_seconds"]
@@ -143,9 +144,14 @@ def test_radiance_arrays(cornell_run):
         rad[name] = a.astype(np.float64)
     np.testing.assert_allclose(rad["composite"], rad["rcast"] + rad["reflect"] + rad["refract"],
                                rtol=1e-6, atol=1e-12)
-    # each eye path belongs to one frame: the specular frames are zero where rcast shades
+    # each eye path belongs to one frame: a pixel shows both a Lambertian surface and the
+    # mirror only where its four samples straddle the mirror's silhouette
     lit = rad["rcast"].sum(axis=2) > 0
-    assert not np.any((rad["reflect"].sum(axis=2) > 0) & lit)
+    mirror = rad["reflect"].sum(axis=2) > 0
+    both = mirror & lit
+    assert mirror.sum() > 20 and both.sum() < 0.5 * mirror.sum()
+    inner = mirror & np.roll(mirror, 1, 0) & np.roll(mirror, -1, 0) & np.roll(mirror, 1, 1) & np.roll(mirror, -1, 1)
+    assert inner.any() and not np.any(inner & both)
 
 
 def test_primary_aov(cornell_run):
@@ -168,7 +174,8 @@ def test_primary_aov(cornell_run):
     np.testing.assert_array_equal(aov["origin"], np.broadcast_to([278.0, 273.0, -800.0], (48, 48, 3)))
     # the AOV is what the library computes for this scene and resolution
     scene = load_scene("cornell", resolution=[48, 48])
-    o, d = primary_rays(scene.camera, np.arange(48 * 48))
+    o, d = primary_rays(scene.camera, np.arange(48 * 48), spp=4)
+    o, d = o[::4], d[::4]  # the AOVs hold each pixel's first sample
     h = closest_hit(build_accel(scene.triangles), o, d, shared_origin=True)  # as cast() does
     np.testing.assert_array_equal(aov["direction"].reshape(-1, 3), d)
     np.testing.assert_array_equal(aov["triangle"].reshape(-1), h.triangle)

@@ -35,11 +35,14 @@ PASSES = (rcast_pass, reflect_pass, refract_pass)
 def frame():
     scene = load_scene("cornell", resolution=[W, H])
     accel = build_accel(scene.triangles)
-    return Frame.create(scene, accel, config_from_dict({"resolution": [W, H], "mode": "refract"}))
+    # one eye ray per pixel and Snell alone (no Fresnel split): one ray per pixel and bounce,
+    # the order the brute force below rebuilds
+    return Frame.create(scene, accel, config_from_dict({"resolution": [W, H], "mode": "refract",
+                                                        "render": {"spp": 1, "fresnel": False}}))
 
 
-@pytest.fixture(scope="module")
-def gbuffer(frame):
+@pytest.fixture
+def gbuffer(frame):  # a fresh one per test: a G-buffer remembers its specular walks
     return cast(frame, np.arange(W * H))
 
 
@@ -111,11 +114,15 @@ def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int, pairs:
             add("", touched, np.flatnonzero(work["secondary_rays"] >= b), b)
     for keys, tri, touched, per_point in cap.shade:
         pix = np.array([local[int(k)] for k in keys // 64])
-        bounce = int(keys[0] % 64)
+        bounce = keys % 64  # the shaded points of all bounces, each its own
         if touched is not None:
-            add("shadow_", touched, np.repeat(pix, per_point), bounce)
+            owners = np.repeat(pix, per_point)
+            rays_bounce = np.repeat(bounce, per_point)
+            for i, owner in enumerate(owners):
+                for name, words in ray_words(frame.accel, touched, i).items():
+                    items.setdefault("shadow_" + name, []).append((int(owner), int(rays_bounce[i]), i, words))
         for i, (px, t) in enumerate(zip(pix.tolist(), tri.tolist(), strict=True)):
-            items.setdefault("shading", []).append((px, bounce, i, np.array([t], np.int64)))
+            items.setdefault("shading", []).append((px, int(bounce[i]), i, np.array([t], np.int64)))
     probe = Streams(page_words, pairs)
     merged: dict[str, list] = {}  # pair -> [(pixel, bounce, region, seq, words, stream)]
     for name, rows in items.items():
@@ -196,6 +203,7 @@ def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words,
 def with_cache(frame, **cache):
     """The frame with other ``cache`` settings (the passes' default Streams follow them)."""
     return dataclasses.replace(frame, cfg=config_from_dict({"resolution": [W, H], "mode": "refract",
+                                                            "render": {"spp": 1, "fresnel": False},
                                                             "cache": cache}))
 
 
@@ -340,3 +348,32 @@ def test_touched_matches_counts_in_the_passes(frame, gbuffer, monkeypatch):
     assert len(seen) > 5
     for res in [gbuffer.hits, *seen]:
         assert_touched_matches_counts(frame.accel, res)
+
+
+@pytest.mark.parametrize(("page_words", "pairs"), [(1024, 4), (32, 1)])
+def test_packets_in_order_with_samples_and_fresnel_branches(page_words, pairs):
+    """The default rendering (4 jittered samples per pixel, glass split by Fresnel, the
+    photon term gathered at the walks' ends from two maps): packets of 7 pixels in order
+    with one carried Streams give the whole image's radiance, work and misses, bit for bit."""
+    scene = load_scene("cornell", resolution=[W, H])
+    fr = Frame.create(scene, build_accel(scene.triangles),
+                      config_from_dict({"resolution": [W, H], "mode": "pmap", "photons": {"count": 3000},
+                                        "cache": {"block_words": page_words, "pairs": pairs}}))
+    assert fr.spp == 4 and fr.cfg.render.fresnel
+    photons = passes.trace_photon_map(fr).photons
+    assert photons.caustic_map.n > 0 and photons.indirect_map.n > 0
+
+    def run(g, streams):
+        out = {f.__name__: f(fr, g, streams[f.__name__]) for f in PASSES}
+        out["pmap"] = passes.pmap_pass(fr, g, photons, streams=streams["pmap"])
+        return out
+
+    names = [f.__name__ for f in PASSES] + ["pmap"]
+    whole = run(cast(fr, np.arange(W * H)), {n: passes.new_streams(fr) for n in names})
+    assert whole["refract_pass"][1]["secondary_rays"].max() > 2  # some pixel's path split at the glass
+    streams = {n: passes.new_streams(fr) for n in names}
+    parts = [run(cast(fr, np.arange(s0, min(s0 + 7, W * H))), streams) for s0 in range(0, W * H, 7)]
+    for n in names:
+        np.testing.assert_array_equal(np.concatenate([p[n][0] for p in parts]), whole[n][0], err_msg=n)
+        for k, v in whole[n][1].items():
+            np.testing.assert_array_equal(np.concatenate([p[n][1][k] for p in parts]), v, err_msg=(n, k))

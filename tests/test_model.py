@@ -663,7 +663,7 @@ def test_empty_jobs_and_empty_program():
 def ring():
     from tlm.experiments.run import render
 
-    cfg = config_from_dict({"scene": "ring", "mode": "rcast", "resolution": [32, 24],
+    cfg = config_from_dict({"scene": "ring", "mode": "rcast", "resolution": [32, 24], "render": {"spp": 1},
                             "arch": {"frames": 2}}, "test")
     return cfg, Functional.of(render(cfg)), load_programs()
 

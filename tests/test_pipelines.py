@@ -37,10 +37,14 @@ def _with(a, **kw):
 
 
 @pytest.fixture(scope="module")
-def ring():
+def ring(tmp_path_factory):
+    """The ring as the model of commit 2674e34 rendered it: flat shading (crease_angle 0),
+    one eye ray per pixel (its mirror has no Fresnel term either way)."""
     from tlm.experiments.run import render
 
-    cfg = config_from_dict({"scene": "ring", "mode": "refract", "resolution": [32, 24],
+    scene = tmp_path_factory.mktemp("ring") / "ring_flat.yaml"
+    scene.write_text("extends: ring\ncrease_angle: 0\n")
+    cfg = config_from_dict({"scene": str(scene), "mode": "refract", "resolution": [32, 24], "render": {"spp": 1},
                             "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
     res = render(cfg)
     return cfg, Functional.of(res), load_programs(), res
@@ -487,8 +491,10 @@ def test_the_steady_state_throughput_does_not_depend_on_the_stream_length(cornel
             for f in (4, 5, 6, 8, 12)}
     assert not runs[4].throughput_estimate["steady"]
     assert all(runs[f].throughput_estimate["steady"] for f in (5, 6, 8, 12))
-    assert len({runs[f].cycles["throughput"] for f in (5, 6, 8, 12)}) == 1
-    assert len({runs[f].cycles["latency"] for f in (5, 6, 8, 12)}) == 1
+    thr = [runs[f].cycles["throughput"] for f in (5, 6, 8, 12)]
+    assert max(thr) - min(thr) <= 1  # one period's cycles split between its frames: rounding to whole cycles
+    lat = [runs[f].cycles["latency"] for f in (5, 6, 8, 12)]
+    assert max(lat) - min(lat) <= 1
 
     def gap_mean(t):
         done = sorted(f["done"] for f in t.frames)

@@ -48,7 +48,7 @@ def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
     assert results["error"]["available"] is False and "tlm reference" in results["error"]["hint"]
     assert (out / "images" / "pmap.png").is_file() and (out / "radiance" / "pmap.npy").is_file()
     work = np.load(out / "aov" / "work.npz")
-    assert work["pmap.gathers"].sum() == 24 * 24  # every eye ray hits the diffuse sphere
+    assert work["pmap.gathers"].sum() == 4 * 24 * 24  # every eye ray (4 per pixel) hits the diffuse sphere
 
     assert main(["reference", cfg]) == 0
     printed = capsys.readouterr().out
@@ -102,7 +102,7 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     jsonl = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines()]
     assert len(jsonl) == 8
     for row in jsonl:
-        assert np.isfinite(row["rmse"]) and row["gathers"] == 24 * 24 and row["gather_seconds"] >= 0
+        assert np.isfinite(row["rmse"]) and row["gathers"] == 4 * 24 * 24 and row["gather_seconds"] >= 0
         assert row["throughput_cycles"] > 0 and row["latency_cycles"] > 0 and row["simulate_seconds"] > 0
         assert row["frame_seconds"] == row["throughput_cycles"] / 600e6
         assert row["fps"] == pytest.approx(600e6 / row["throughput_cycles"], rel=1e-12)

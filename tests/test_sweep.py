@@ -205,7 +205,7 @@ def test_rows_folders_and_the_csv(tmp_path):
     assert sorted(p.name for p in folder.iterdir()) == ["config.resolved.yaml", "results.json", "trace.json"]
     res = json.loads((folder / "results.json").read_text())
     assert res["factors"] == {"arch.page_miss_cycles": 12}
-    assert res["work"]["rcast"]["primary_rays"] == 24 * 16 and res["scene"]["triangles"] == 2604
+    assert res["work"]["rcast"]["primary_rays"] == 4 * 24 * 16 and res["scene"]["triangles"] == 2604  # spp 4
     cfg = tmp_path / "run.yaml"
     cfg.write_text(yaml.safe_dump(yaml.safe_load((folder / "config.resolved.yaml").read_text())))
     assert main(["run", str(cfg), "--out", str(tmp_path / "run")]) == 0

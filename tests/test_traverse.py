@@ -206,22 +206,29 @@ def test_passes_do_work(frame64):
         assert np.isfinite(rad).all() and (rad >= 0).all()
 
 
+def samples_of(idx: np.ndarray, spp: int) -> np.ndarray:
+    """The sample rows of pixels ``idx`` (a pixel's ``spp`` samples are consecutive)."""
+    return (np.asarray(idx)[:, None] * spp + np.arange(spp)).ravel()
+
+
 @pytest.mark.parametrize("size", [1, 7, 333, 2048])
 def test_pass_subset_invariance(frame64, size):
     frame, g_full, full = frame64
+    assert frame.spp == 4  # the default: four jittered samples per pixel
     rng = np.random.default_rng(size)
     # bias toward pixels that see the mirror and glass spheres so every pass has work
-    spec = np.flatnonzero(
+    spec = np.unique(np.flatnonzero(
         (g_full.triangle >= 0) & (frame.kind[np.maximum(g_full.triangle, 0)] > 0)
-    )
+    ) // frame.spp)
     if size <= 7:
         idx = rng.choice(spec, size=size, replace=False)
     else:
         idx = rng.choice(64 * 64, size=size, replace=False)  # random order too
     g = cast(frame, idx)
-    assert_same_hits(g_full.hits, g.hits, idx)
-    np.testing.assert_array_equal(g.light, g_full.light[idx])
-    np.testing.assert_array_equal(g.sees_light, g_full.sees_light[idx])
+    rows = samples_of(idx, frame.spp)
+    assert_same_hits(g_full.hits, g.hits, rows)
+    np.testing.assert_array_equal(g.light, g_full.light[rows])
+    np.testing.assert_array_equal(g.sees_light, g_full.sees_light[rows])
     for f in (rcast_pass, reflect_pass, refract_pass):
         rad, work = f(frame, g)
         rad_full, work_full = full[f.__name__]
@@ -236,9 +243,9 @@ def test_pass_single_pixels(frame64):
     kinds = frame.kind[np.maximum(g_full.triangle, 0)]
     picks = []
     for k in (0, 1, 2):
-        picks += np.flatnonzero((g_full.triangle >= 0) & (kinds == k))[:3].tolist()
-    picks += np.flatnonzero(g_full.triangle < 0)[:2].tolist()
-    picks += np.flatnonzero(g_full.sees_light)[:2].tolist()
+        picks += (np.flatnonzero((g_full.triangle >= 0) & (kinds == k))[:3] // frame.spp).tolist()
+    picks += (np.flatnonzero(g_full.triangle < 0)[:2] // frame.spp).tolist()
+    picks += (np.flatnonzero(g_full.sees_light)[:2] // frame.spp).tolist()
     assert len(picks) >= 9
     for p in picks:
         g = cast(frame, np.array([p]))
@@ -413,8 +420,8 @@ def test_shadow_ray_work_is_kept_apart():
     frame = Frame.create(scene, accel, config_from_dict({}))
     g = cast(frame, np.arange(32 * 32))
     _, work = rcast_pass(frame, g)
-    for name in COUNT_FIELDS:
-        np.testing.assert_array_equal(work[name], getattr(g.hits.counts, name))
+    for name in COUNT_FIELDS:  # a pixel's count is its samples' sum
+        np.testing.assert_array_equal(work[name], getattr(g.hits.counts, name).reshape(-1, g.spp).sum(axis=1))
     lit = work["shadow_rays"] > 0
     assert lit.any()
     assert np.all(work["shadow_node_visits"][lit] > 0) and np.all(work["shadow_node_visits"][~lit] == 0)

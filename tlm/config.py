@@ -52,6 +52,16 @@ class RenderConfig:
         4, "shadow rays per quad light per shaded point (a square number: n x n strata)",
         min=1, max=1024,
     )
+    spp: int = _f(
+        4, "eye rays per pixel, jittered in the pixel (a square number: stratified); 1 = the pixel's centre, "
+        "the thesis's ray casting", min=1, max=4096,
+    )
+    fresnel: bool = _f(True, "glass reflects and refracts by the exact Fresnel terms (both branches traced); "
+                       "false: Snell refraction alone, reflection only when total")
+    min_weight: float = _f(
+        1e-3, "a Fresnel branch (glass reflection or refraction) whose path weight falls below it is not traced",
+        min=0.0, max=1.0,
+    )
     exposure: float | None = _f(
         None, "radiance scale before the sRGB curve; null = auto (99.5th percentile -> 1)",
         min_exclusive=0.0,
@@ -82,8 +92,14 @@ class EstimateConfig:
         None, "search radius in scene units; null = radius_fraction x the scene's diagonal",
         min_exclusive=0.0,
     )
-    radius_fraction: float = _f(0.02, "radius as a fraction of the scene's diagonal when radius is null",
+    radius_fraction: float = _f(0.04, "indirect-map radius as a fraction of the scene's diagonal when radius is null",
                                 min_exclusive=0.0, max=1.0)
+    caustic_radius: float | None = _f(
+        None, "search radius of the caustic map in scene units; null = caustic_radius_fraction x the diagonal",
+        min_exclusive=0.0,
+    )
+    caustic_radius_fraction: float = _f(0.01, "caustic radius as a fraction of the scene's diagonal when "
+                                        "caustic_radius is null", min_exclusive=0.0, max=1.0)
     k: int = _f(8, "voxels sampled by the stochastic k-voxel filter", min=1, max=1024)
     k_nearest: int = _f(50, "photons of the exact k-nearest reference estimate", min=1, max=100000)
     cone_k: float = _f(1.1, "cone filter constant: weight 1 - d / (cone_k r)", min=1.0)

@@ -383,14 +383,14 @@ def test_zero_power_map_through_the_pmap_pass():
 @pytest.mark.parametrize(
     ("filt", "est_cfg"),
     [
-        ("disk", {"radius": 1e-170}),
-        ("mvoxel", {"radius_fraction": 1e-300}),
-        ("kvoxel", {"radius": 1e-170}),
-        ("knn", {"radius": 1e-170}),
+        ("disk", {"radius": 1e-170, "caustic_radius": 1e-170}),
+        ("mvoxel", {"radius_fraction": 1e-300, "caustic_radius_fraction": 1e-300}),
+        ("kvoxel", {"radius": 1e-170, "caustic_radius": 1e-170}),
+        ("knn", {"radius": 1e-170, "caustic_radius": 1e-170}),
     ],
 )
 def test_tiny_radius_renders_black_not_nan(filt, est_cfg):
-    """The smallest radii the config accepts (it requires > 0): the photon frame is
+    """The smallest radii the config accepts (it requires > 0; both maps'): the photon frame is
     black (no photon within), never NaN, whatever the filter (k-NN ignores the radius
     and stays finite)."""
     with np.errstate(all="ignore"):

@@ -70,6 +70,8 @@ def arch(**kw):
 
 
 def functional(**cfg) -> Functional:
+    """The work of a small render, one eye ray per pixel (the workloads below were sized so)."""
+    cfg["render"] = {"spp": 1, **cfg.get("render", {})}
     return Functional.of(render(config_from_dict(cfg, "test")))
 
 

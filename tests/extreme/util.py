@@ -12,15 +12,18 @@ from tlm.config import config_from_dict
 from tlm.experiments.run import RenderResult, render
 from tlm.scenes.loader import scenes_dir
 from tlm.scenes.model import Camera, Light, Material, Scene
+from tlm.scenes.normals import crease_normals
 
 WHITE = Material("white", "lambertian", albedo=(0.8, 0.8, 0.8))
 
 
 def make_scene(parts: list[tuple[np.ndarray, Material]], lights: list[Light], eye, target, up=(0.0, 1.0, 0.0),
-               vfov: float = 40.0, resolution=(16, 16), photons: int = 1000, name: str = "extreme") -> Scene:
+               vfov: float = 40.0, resolution=(16, 16), photons: int = 1000, name: str = "extreme",
+               crease_angle: float = 0.0) -> Scene:
     """A scene from (triangles, material) parts; part ``i`` is named ``p<i>``.
 
-    Materials are shared by name (the first part that uses a name defines it).
+    Materials are shared by name (the first part that uses a name defines it). Flat
+    shading by default (``crease_angle`` 0): the analytic answers here are the facets'.
     """
     materials: list[Material] = []
     tri, mat_index, part = [], [], []
@@ -42,6 +45,7 @@ def make_scene(parts: list[tuple[np.ndarray, Material]], lights: list[Light], ey
         materials=tuple(materials),
         part=np.concatenate(part),
         part_names=tuple(f"p{i}" for i in range(len(parts))),
+        normals=crease_normals(np.concatenate(tri), np.concatenate(part), crease_angle),
         lights=tuple(lights),
         camera=camera,
         photons=photons,
@@ -50,7 +54,8 @@ def make_scene(parts: list[tuple[np.ndarray, Material]], lights: list[Light], ey
 
 def render_scene(scene: Scene, **cfg) -> RenderResult:
     """``tlm.experiments.run.render`` on an in-memory scene (the loader is bypassed)."""
-    config = config_from_dict({"scene": scene.name, **cfg})
+    settings = {"spp": 1, **cfg.pop("render", {})}  # one eye ray through each pixel's centre unless asked
+    config = config_from_dict({"scene": scene.name, "render": settings, **cfg})
     with mock.patch("tlm.experiments.run.load_scene", return_value=scene):
         return render(config)
 

@@ -41,6 +41,17 @@ class TreeWork:
         lv = {f: np.array([getattr(w, f) for w in tree.work], dtype=np.int64) for f in LEVEL_FIELDS}
         return cls(lv, int(tree.n_elements), int(tree.items.shape[0]), int(tree.n_nodes))
 
+    @classmethod
+    def of_maps(cls, photons) -> TreeWork:
+        """Both photon maps' builds (:class:`~tlm.kernels.photons.PhotonMaps`) as one job of
+        the Vertex PM: level j's work is the two trees' level-j work added (the shallower
+        tree's missing levels count as zero), sizes added."""
+        parts = [cls.of(m.tree) for m in photons.maps]
+        depth = max(p.n_levels for p in parts)
+        levels = {f: sum(np.pad(p.levels[f], (0, depth - p.n_levels)) for p in parts) for f in LEVEL_FIELDS}
+        return cls({f: np.asarray(v, dtype=np.int64) for f, v in levels.items()},
+                   sum(p.n_elements for p in parts), sum(p.slots for p in parts), sum(p.nodes for p in parts))
+
     @property
     def n_levels(self) -> int:
         return int(self.levels["nodes"].shape[0])
@@ -71,7 +82,7 @@ class Functional:
         return cls(
             passes=tuple(res.plan.run_names), work=work, geometry=TreeWork.of(res.accel.tree),
             photon_work=None if traced is None else {k: np.asarray(v, np.int64) for k, v in traced.work.items()},
-            photon_tree=None if traced is None else TreeWork.of(traced.photons.tree),
+            photon_tree=None if traced is None else TreeWork.of_maps(traced.photons),
             pixels=int(res.gbuffer.pixels.shape[0]), width=int(res.scene.camera.width),
         )
 
@@ -142,6 +153,8 @@ def scene_fingerprint(scene) -> str:
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(scene.triangles, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(scene.material_index).tobytes())
+    if scene.normals is not None:
+        h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
     h.update(repr((scene.materials, scene.lights, scene.camera, scene.photons)).encode())
     return h.hexdigest()[:16]
 

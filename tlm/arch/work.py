@@ -92,5 +92,6 @@ def frame_work(res, packet_size: int) -> FrameWork:
         geometry=tree_work(res.accel.tree),
         passes=passes,
         photon_trace=None if traced is None else split("photons", traced.work, packet_size),
-        photon_tree=None if traced is None else tree_work(traced.photons.tree),
+        photon_tree=None if traced is None else {k: sum(tree_work(m.tree)[k] for m in traced.photons.maps)
+                                                 for k in tree_work(traced.photons.maps[0].tree)},
     )

@@ -35,7 +35,7 @@ import numpy as np
 from tlm.config import RunConfig
 from tlm.experiments.atomic import atomic_folder
 from tlm.kernels.estimate import knn_estimate
-from tlm.render.passes import Frame, GBuffer, lambertian_hits, trace_photon_map
+from tlm.render.passes import Frame, GBuffer, gather_points, pixel_mean, trace_photon_map
 from tlm.scenes.model import Scene
 
 REFERENCE_SEED = 0x5EED
@@ -65,11 +65,16 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(scene.triangles).tobytes())
     h.update(np.ascontiguousarray(scene.material_index).tobytes())
+    if scene.normals is not None:
+        h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
     doc = {
         "materials": [asdict(m) for m in scene.materials],
         "lights": [asdict(lt) for lt in scene.lights],
         "camera": asdict(scene.camera),
         "max_bounces": cfg.photons.max_bounces,
+        # where the photon term is gathered: the eye samples and the specular walks' ends
+        "gather": {"spp": cfg.render.spp, "reflect_depth": cfg.render.reflect_depth,
+                   "refract_depth": cfg.render.refract_depth, "min_weight": cfg.render.min_weight},
         # what the converged image depends on; the stopping rule (tolerance, rounds) only
         # says how close to it the cached mean is, which meta.json records
         "reference": {"photons": settings.photons, "k_nearest": settings.k_nearest},
@@ -86,7 +91,7 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     from scipy.spatial import cKDTree
 
     cfg = frame.cfg
-    idx, tri, pts, n = lambertian_hits(frame, g)
+    idx, tri, pts, n, weight = gather_points(frame, g)
     mean = np.zeros((g.pixels.shape[0], 3))
     m2 = np.zeros_like(mean)  # Welford's running sum of squared deviations
     changes: list[float] = []
@@ -97,11 +102,12 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     for k, child in enumerate(seeds, start=1):
         seed = int(child.generate_state(1)[0])
         ph = trace_photon_map(frame, settings.photons, seed).photons
-        frame_k = np.zeros_like(mean)
+        samples = np.zeros((g.origin.shape[0], 3))
         if ph.n and idx.shape[0]:
             e = knn_estimate(ph.position, ph.power, ph.incoming, pts, n, k_nearest=settings.k_nearest,
                              cone_k=cfg.estimate.cone_k, kdtree=cKDTree(ph.position))
-            frame_k[idx] = frame.albedo[tri] / np.pi * e.density
+            np.add.at(samples, idx, weight * frame.albedo[tri] / np.pi * e.density)
+        frame_k = pixel_mean(frame, samples)
         delta = frame_k - mean
         new = mean + delta / k
         m2 += delta * (frame_k - new)

@@ -45,6 +45,7 @@ from tlm.render.passes import (
     Frame,
     GBuffer,
     cast,
+    caustic_radius,
     pmap_pass,
     search_radius,
     trace_photon_map,
@@ -266,7 +267,9 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "scene": scene_stats(res.scene, res.accel),
         "plan": res.plan.to_dict(),
         "primary": {
-            "rays": int(g.pixels.shape[0]),
+            "pixels": int(g.pixels.shape[0]),
+            "spp": int(g.spp),
+            "rays": int(g.origin.shape[0]),
             "hits": int((g.triangle >= 0).sum()),
             "misses": int((g.triangle < 0).sum()),
         },
@@ -277,6 +280,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             "work": res.photons.totals(),
             "filter": res.cfg.estimate.filter,
             "radius": search_radius(res.frame),
+            "caustic_radius": caustic_radius(res.frame),
         },
         "cycles": None if res.timing is None else res.timing.cycles,
         "fps": None if res.timing is None else res.timing.fps,
@@ -299,7 +303,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         (tmp / "radiance").mkdir()
         (tmp / "aov").mkdir()
         composite = res.composite
-        surfaces = ~res.gbuffer.sees_light  # lights seen directly would set the exposure
+        surfaces = ~res.gbuffer.first(res.gbuffer.sees_light)  # lights seen directly would set the exposure
         exposure = res.cfg.render.exposure or auto_exposure(composite.reshape(-1, 3)[surfaces])
         for name, rad in [*res.radiance.items(), ("composite", composite)]:
             write_png(tmp / "images" / f"{name}.png", to_srgb8(rad, exposure))
@@ -308,11 +312,11 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         g = res.gbuffer
         np.savez_compressed(
             tmp / "aov" / "primary.npz",
-            origin=g.origin.reshape(h, w, 3),
-            direction=g.direction.reshape(h, w, 3),
-            t=g.t.reshape(h, w),
-            triangle=g.triangle.astype(np.int64).reshape(h, w),
-            normal=g.normal(res.frame).reshape(h, w, 3),
+            origin=g.first(g.origin).reshape(h, w, 3),
+            direction=g.first(g.direction).reshape(h, w, 3),
+            t=g.first(g.t).reshape(h, w),
+            triangle=g.first(g.triangle).astype(np.int64).reshape(h, w),
+            normal=g.first(g.normal(res.frame)).reshape(h, w, 3),
         )
         np.savez_compressed(
             tmp / "aov" / "work.npz",

@@ -225,12 +225,14 @@ def _empty(q: int) -> Estimate:
 GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.arch.cache.PM_STREAMS)
 
 
-def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int) -> np.ndarray:
+def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int,
+                   stream: str = GATHER_STREAM) -> np.ndarray:
     """Misses (m,) of reading the photons of leaf ``leaf[i]`` for query ``query[i]`` (in
-    ``[0, m)``), pairs in order, on the pair ``streams[GATHER_STREAM]``."""
+    ``[0, m)``), pairs in order, on the pair of ``stream`` (default: the Fragment PM's
+    ``photons``; the caustic map's leaves are read as ``caustic_photons``)."""
     first = lp.first[leaf] * PHOTON_WORDS
     acc = Accesses.of_ranges(first, first + lp.size[leaf] * PHOTON_WORDS, query, streams.page_words)
-    return streams.charge(GATHER_STREAM, acc, m)
+    return streams.charge(stream, acc, m)
 
 
 def _per_query(index: np.ndarray, values: np.ndarray, q: int) -> np.ndarray:
@@ -317,7 +319,8 @@ def _gather(lp: LeafPhotons, pts, nrm, pq, leaf, radius: float, cone_k: float | 
     return accepted, sums
 
 
-def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone_k, prepared, streams) -> Estimate:
+def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone_k, prepared, streams,
+                  stream: str = GATHER_STREAM) -> Estimate:
     lp, pts, nrm = _prepare(position, power, incoming, tree, points, normals, prepared)
     streams = Streams() if streams is None else streams
     r = _check_radius(radius)
@@ -340,7 +343,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         out.leaves_visited[q0:q1] = np.bincount(loc, minlength=m)
         out.photons_tested[q0:q1] = np.bincount(loc, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[q0:q1] = np.bincount(loc, weights=acc, minlength=m)
-        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, loc, leaf, m)  # blocks run in order
+        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, loc, leaf, m, stream)  # blocks run in order
         if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = _per_query(loc, sums[c], m) / norm
@@ -351,29 +354,31 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
 
 
 def disk_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float,
-                  *, prepared: LeafPhotons | None = None, streams: Streams | None = None) -> Estimate:
+                  *, prepared: LeafPhotons | None = None, streams: Streams | None = None,
+                  stream: str = GATHER_STREAM) -> Estimate:
     """Eq. 3.2, the disk filter: every front photon within ``radius`` counts, area ``pi r**2``.
 
     position, power, incoming : (n, 3) photon map; tree : ``build_point_tree(position)``.
     points, normals : (q, 3) query points and unit normals facing the shaded side.
     prepared : optional :func:`leaf_photons` of the same map (skips the reordering).
     streams : the photon-leaf pair's state before these queries, left in the state after
-    them (default: a cold pair).
+    them (default: a cold pair). stream : the name the leaf reads are charged under
+    (:data:`GATHER_STREAM`; the caustic map's: ``caustic_photons``, a pair of its own).
     Candidate leaves are found by Fig. 8 exactly as in :func:`mvoxel_estimate`.
     """
-    return _fixed_radius(position, power, incoming, tree, points, normals, radius, None, prepared, streams)
+    return _fixed_radius(position, power, incoming, tree, points, normals, radius, None, prepared, streams, stream)
 
 
 def mvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float,
                     cone_k: float = 1.1, *, prepared: LeafPhotons | None = None,
-                    streams: Streams | None = None) -> Estimate:
+                    streams: Streams | None = None, stream: str = GATHER_STREAM) -> Estimate:
     """Eq. 3.3 with Fig. 8, the m-voxel cone filter (see the module docstring).
 
     Shapes and ``streams`` as :func:`disk_estimate`; weight ``1 - d / (cone_k r)``, area
     ``(1 - 2 / (3 cone_k)) pi r**2``.
     """
     return _fixed_radius(position, power, incoming, tree, points, normals, radius, _check_cone(cone_k), prepared,
-                         streams)
+                         streams, stream)
 
 
 def _tangent_basis(nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -510,7 +515,8 @@ def _locate_layers(tree: BSPTree, layers: _Layers, coords: np.ndarray, x: np.nda
 
 def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, radius: float, k: int = 8,
                     cone_k: float = 1.1, seed: int = 0, keys: np.ndarray | None = None,
-                    *, prepared: LeafPhotons | None = None, streams: Streams | None = None) -> Estimate:
+                    *, prepared: LeafPhotons | None = None, streams: Streams | None = None,
+                    stream: str = GATHER_STREAM) -> Estimate:
     """Eqs. 3.4/3.5, the stochastic k-voxel filter (reading in the module docstring).
 
     Shapes and ``streams`` as :func:`disk_estimate`. k : voxels sampled (x itself and ``k - 1`` random
@@ -577,7 +583,7 @@ def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, r
         out.photons_tested[sl] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[sl] = np.bincount(pq, weights=acc, minlength=m)
         out.probe_tests[sl] = PROBES + np.bincount(xrow // PROBES, minlength=m)
-        out.gather_misses[sl] = _charge_leaves(streams, lp, pq, leaf, m)  # blocks run in order
+        out.gather_misses[sl] = _charge_leaves(streams, lp, pq, leaf, m, stream)  # blocks run in order
         if r > 0.0:
             area = norm * frac
             share = mult / k

@@ -46,9 +46,10 @@ import numpy as np
 
 from tlm.arch.cache import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.bsp import BSPTree, build_point_tree
-from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, reflect, refract
+from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.scenes.model import KIND, Light, Scene
+from tlm.scenes.normals import crease_normals, interpolate
 
 PHOTON_WORK = (
     "photons_emitted", "rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests",
@@ -91,10 +92,66 @@ class PhotonMap:
 
 
 @dataclass(frozen=True)
-class PhotonTrace:
-    """A traced photon map and the work it took: ``work[name]`` per emitted photon."""
+class PhotonMaps:
+    """Jensen's two maps: ``caustic`` (L S+ D, gathered with a small radius: caustics are
+    sharp) and ``indirect`` (the global map: at least one diffuse bounce, gathered with
+    a larger one: indirect light is smooth), each with its own BSP (Algorithm 1).
 
-    photons: PhotonMap
+    The arrays of both (caustic photons first) are available as one map's would be.
+    """
+
+    caustic_map: PhotonMap
+    indirect_map: PhotonMap
+    emitted: int
+
+    @property
+    def maps(self) -> tuple[PhotonMap, PhotonMap]:
+        return self.caustic_map, self.indirect_map
+
+    @property
+    def n(self) -> int:
+        return self.caustic_map.n + self.indirect_map.n
+
+    def _cat(self, name: str) -> np.ndarray:
+        return np.concatenate([getattr(m, name) for m in self.maps])
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._cat("position")
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self._cat("normal")
+
+    @property
+    def incoming(self) -> np.ndarray:
+        return self._cat("incoming")
+
+    @property
+    def power(self) -> np.ndarray:
+        return self._cat("power")
+
+    @property
+    def caustic(self) -> np.ndarray:
+        return self._cat("caustic")
+
+    def stats(self) -> dict:
+        return {
+            "emitted": self.emitted,
+            "stored": self.n,
+            "caustic": self.caustic_map.n,
+            "indirect": self.indirect_map.n,
+            "stored_power": self.power.sum(axis=0).tolist(),
+            "tree": self.indirect_map.tree.stats(),
+            "caustic_tree": self.caustic_map.tree.stats(),
+        }
+
+
+@dataclass(frozen=True)
+class PhotonTrace:
+    """Traced photon maps and the work it took: ``work[name]`` per emitted photon."""
+
+    photons: PhotonMaps
     work: dict[str, np.ndarray]
 
     def totals(self) -> dict[str, int]:
@@ -156,6 +213,22 @@ def bounding_cone(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nda
     return axis, float(max(-1.0, min(cos.min(), 1.0)))
 
 
+def bounding_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bounding_cone` of every point of ``p`` (m, 3): axes (m, 3) and cosines (m,)."""
+    centre = 0.5 * (lo + hi)
+    axis = centre[None, :] - p
+    length = np.linalg.norm(axis, axis=1, keepdims=True)
+    axis = np.divide(axis, length, out=np.tile([0.0, 0.0, 1.0], (p.shape[0], 1)), where=length > 0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    to = corners[None, :, :] - p[:, None, :]
+    dist = np.linalg.norm(to, axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.sum(to * axis[:, None, :], axis=2) / dist
+    cos = np.where(dist > 0, cos, -1.0).min(axis=1)
+    inside = np.all((p >= lo) & (p <= hi), axis=1)
+    return axis, np.where(inside, -1.0, np.clip(cos, -1.0, 1.0))
+
+
 def emit(
     lights: tuple[Light, ...],
     n: int,
@@ -188,7 +261,14 @@ def emit(
             if light.kind == "quad":
                 o = (np.asarray(light.corner)[None, :] + u[0][:, None] * np.asarray(light.edge_u)
                      + u[1][:, None] * np.asarray(light.edge_v))
-                d = _cosine_dirs(np.broadcast_to(light.normal, (m, 3)).copy(), u[2], u[3])
+                if group and box is not None:  # uniform in the cone bounding the specular objects
+                    axis, cos_max = bounding_cones(o, *box)
+                    d = _around(axis, 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
+                    cos_l = np.maximum(0.0, d @ light.normal)  # a quad emits on its normal's side only
+                    # flux Le cos dA dw over the cone, sampled with pdf 1 / (A * solid angle)
+                    power = power[None, :] * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
+                else:
+                    d = _cosine_dirs(np.broadcast_to(light.normal, (m, 3)).copy(), u[2], u[3])
             else:
                 pos = np.asarray(light.position, dtype=np.float64)
                 o = np.broadcast_to(pos, (m, 3)).copy()
@@ -214,6 +294,7 @@ def trace_photons(
     batch: int = 4,
     page_words: int = PAGE_WORDS,
     pairs: int = PAIRS,
+    fresnel: bool = True,
 ) -> PhotonTrace:
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
@@ -232,7 +313,7 @@ def trace_photons(
     streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
     table = scene.material_table()
-    kind_of, albedo, refl = table["kind"], table["albedo"], table["reflectance"]
+    kind_of, albedo, refl_of = table["kind"], table["albedo"], table["reflectance"]
     trans, ior = table["transmittance"], table["ior"]
     flat = scene.triangles.reshape(-1, 3)
     spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
@@ -244,11 +325,14 @@ def trace_photons(
     work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
     work["photons_emitted"][:] = 1
     normals = face_normals(scene.triangles)
+    shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
+    matched = (kind_of == KIND["dielectric"]) & (ior == 1.0)  # index-matched: light crosses unchanged
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
     pid = np.arange(n)  # photon ids still travelling
     last = np.full(n, -1, dtype=np.int64)  # triangle each photon leaves
     specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
+    direct = np.ones(n, dtype=bool)  # straight from the light (index-matched crossings only)
     rec = Recorder(streams.page_words)
     stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
     for bounce in range(max_bounces):
@@ -265,7 +349,7 @@ def trace_photons(
         hit = hits.triangle >= 0
         work["lost"][pid[~hit]] += 1
         pid, o, d, power = pid[hit], o[hit], d[hit], power[hit]
-        tri, specular_only = hits.triangle[hit], specular_only[hit]
+        tri, specular_only, direct = hits.triangle[hit], specular_only[hit], direct[hit]
         group = caustic_group[pid]
         x = o + hits.t[hit, None] * d
         work["bounces"][pid] += 1
@@ -274,7 +358,7 @@ def trace_photons(
         front = facing(n_geo, d)
 
         lam = kind == KIND["lambertian"]
-        store = lam & (bounce > 0)  # the first hit is direct light: the ray-cast frame's
+        store = lam & ~direct  # the first hit is direct light: the ray-cast frame's
         if split:
             store &= specular_only == group
         for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
@@ -282,7 +366,7 @@ def trace_photons(
             stored[name].append(value[store])
         work["stored"][pid[store]] += 1
 
-        u = [hash_uniform(key, pid, bounce, dim) for dim in range(3)]
+        u = [hash_uniform(key, pid, bounce, dim) for dim in range(4)]
         new_d = np.empty_like(d)
         alive = np.ones(pid.shape[0], dtype=bool)
         if lam.any():
@@ -300,21 +384,28 @@ def trace_photons(
                 survive &= ~group[lam]
             alive[lam] = survive
             work["absorbed"][pid[lam][~survive]] += 1
-        mir = kind == KIND["mirror"]
-        if mir.any():
-            new_d[mir] = reflect(d[mir], n_geo[mir])
-            power[mir] = power[mir] * refl[tri[mir]]
-        die = kind == KIND["dielectric"]
-        if die.any():
-            rd, tir = refract(d[die], n_geo[die], ior[tri[die]])
-            new_d[die] = rd
-            pw = power[die]
-            pw[~tir] *= trans[tri[die]][~tir]
-            power[die] = pw
+        spec = ~lam
+        if spec.any():
+            ns = interpolate(shading, tri[spec], hits.u[hit][spec], hits.v[hit][spec], n_geo[spec])
+            mir = kind[spec] == KIND["mirror"]
+            refl, refr, f = scatter_specular(d[spec], ns, n_geo[spec], np.where(mir, 1.0, ior[tri[spec]]))
+            # a mirror reflects (power x reflectance); a dielectric reflects with probability F
+            # (Russian roulette on the Fresnel term: power unchanged) or refracts (x transmittance)
+            if not fresnel:  # Snell only: glass reflects only totally
+                f = np.where(f < 1.0, 0.0, 1.0)
+            go_refl = mir | (u[3][spec] < f)
+            new_d[spec] = np.where(go_refl[:, None], refl, refr)
+            ps = power[spec]
+            ps[mir] *= refl_of[tri[spec][mir]]
+            through = ~go_refl
+            ps[through] *= trans[tri[spec][through]]
+            power[spec] = ps
+        crossing = matched[tri]
         specular_only = specular_only & ~lam
+        direct = direct & crossing
         keep = alive & (power.max(axis=1) > 0)
         pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
-        last, specular_only = tri[keep], specular_only[keep]
+        last, specular_only, direct = tri[keep], specular_only[keep], direct[keep]
 
     for name, counts in rec.charge(streams, n).items():
         work[_MISS_KEYS[name]] += counts
@@ -323,14 +414,14 @@ def trace_photons(
         parts = stored[name]
         return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
 
-    position = cat("position", (0, 3))
-    photons = PhotonMap(
-        position=position,
-        normal=cat("normal", (0, 3)),
-        incoming=cat("incoming", (0, 3)),
-        power=cat("power", (0, 3)),
-        caustic=cat("caustic", (0,), bool),
-        tree=build_point_tree(position, levels),
-        emitted=n,
-    )
+    every = {name: cat(name, (0,) if name == "caustic" else (0, 3), bool if name == "caustic" else np.float64)
+             for name in stored}
+
+    def one_map(sel: np.ndarray) -> PhotonMap:
+        position = every["position"][sel]
+        return PhotonMap(position=position, normal=every["normal"][sel], incoming=every["incoming"][sel],
+                         power=every["power"][sel], caustic=every["caustic"][sel],
+                         tree=build_point_tree(position, levels), emitted=n)
+
+    photons = PhotonMaps(one_map(every["caustic"]), one_map(~every["caustic"]), emitted=n)
     return PhotonTrace(photons, work)

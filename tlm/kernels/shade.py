@@ -6,7 +6,10 @@
   points, ``E ~= Le * A / S * sum cos_x cos_l / d**2``. Each sample is one shadow ray
   (any-hit), cast only where both cosines are positive.
 * Mirror: ``R = D - 2 (D.N) N``. Dielectric: Snell's law with total internal
-  reflection (``k < 0``), entering when ``D.N < 0`` for the outward geometric normal.
+  reflection (``k < 0``), entering when ``D.N < 0`` for the outward geometric normal,
+  and the exact Fresnel reflectance of unpolarised light (:func:`scatter_specular`,
+  which takes the directions about the interpolated shading normal and falls back to
+  the geometric one where the shading normal would send a ray to the wrong side).
 * Random numbers are a counter-based hash of (seed, pixel, stream, ...), so a pixel's
   samples never depend on which other pixels share its packet.
 
@@ -20,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from tlm.arch.cache import PAGE_WORDS, Accesses, Recorder, traversal_accesses
-from tlm.kernels.traverse import Counts, TriangleAccel, any_hit
+from tlm.kernels.traverse import Counts, TriangleAccel, any_hit, closest_hit
 from tlm.scenes.model import Light
 
 TRAVERSAL_COUNTS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
@@ -83,6 +86,64 @@ def refract(d: np.ndarray, n_out: np.ndarray, ior: np.ndarray) -> tuple[np.ndarr
     return out, tir
 
 
+def fresnel_dielectric(cos_i: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact Fresnel reflectance of unpolarised light and the transmitted cosine.
+
+    cos_i : (k,) cosine of incidence, >= 0. eta : (k,) ratio ``n_incident / n_transmitted``.
+    Returns ``F`` (1 under total internal reflection; exactly 0 for ``eta == 1``) and
+    ``cos_t`` (0 under total internal reflection).
+    """
+    sin2_t = eta * eta * np.maximum(0.0, 1.0 - cos_i * cos_i)
+    tir = sin2_t >= 1.0
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+        rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    f = np.where(tir, 1.0, np.nan_to_num(0.5 * (rs * rs + rp * rp), nan=1.0))
+    return np.clip(f, 0.0, 1.0), np.where(tir, 0.0, cos_t)
+
+
+def scatter_specular(d: np.ndarray, shading: np.ndarray, geometric: np.ndarray,
+                     ior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mirror and Snell directions of unit rays ``d`` at a surface, and the Fresnel reflectance.
+
+    shading, geometric : (k, 3) unit shading and geometric normals on the same side (either
+    side: the side the ray arrives from decides entering or leaving, by the *geometric*
+    normal). ior : (k,) the dielectric's index (None: a mirror, no refraction).
+    Returns ``reflected`` (k, 3), ``refracted`` (k, 3) and ``F`` (k,) (1 for a mirror and
+    under total internal reflection, where ``refracted`` is meaningless). A direction the
+    shading normal would send to the wrong side of the geometric surface (a reflection
+    into it, a refraction that stays outside) is taken about the geometric normal instead.
+    """
+    k = d.shape[0]
+    front = np.sum(d * geometric, axis=1) < 0.0  # arriving on the side the normals point to
+    ng = np.where(front[:, None], geometric, -geometric)  # towards the arriving side
+    ns = np.where(front[:, None], shading, -shading)
+    bad = np.sum(d * ns, axis=1) >= 0.0  # the shading normal faces away from the ray
+    ns = np.where(bad[:, None], ng, ns)
+    refl = reflect(d, ns)
+    wrong = np.sum(refl * ng, axis=1) <= 0.0
+    refl = np.where(wrong[:, None], reflect(d, ng), refl)
+    if ior is None:
+        return refl, np.zeros_like(d), np.ones(k)
+    eta = np.where(front, 1.0 / ior, ior)  # entering through the geometric normal's side
+    refr, f = _snell(d, ns, eta)
+    stays = np.sum(refr * ng, axis=1) >= 0.0
+    if stays.any():
+        r2, f2 = _snell(d[stays], ng[stays], eta[stays])
+        refr[stays], f[stays] = r2, f2
+    return refl, refr, f
+
+
+def _snell(d: np.ndarray, n: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    cos_i = np.clip(-np.sum(d * n, axis=1), 0.0, 1.0)
+    f, cos_t = fresnel_dielectric(cos_i, eta)
+    t = eta[:, None] * d + (eta * cos_i - cos_t)[:, None] * n
+    length = np.linalg.norm(t, axis=1, keepdims=True)
+    t = np.divide(t, length, out=d.copy(), where=length > 0)
+    return t, f
+
+
 def emitted(lights: tuple[Light, ...], o: np.ndarray, d: np.ndarray, t_hit: np.ndarray,
             eps: float) -> tuple[np.ndarray, np.ndarray]:
     """Radiance of quad lights seen directly along rays, where nearer than ``t_hit + eps``.
@@ -130,11 +191,21 @@ def direct_light(
     batch: int = 2,
     record: bool = False,
     page_words: int = PAGE_WORDS,
+    geometric: np.ndarray | None = None,
+    transparent: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, Accesses] | None]:
     """Direct light reflected by Lambertian points, with one shadow ray per light sample.
 
-    points, normals : (k, 3); normals face the side being shaded.
+    points, normals : (k, 3); normals (the shading normals) face the side being shaded.
     triangles : (k,) int64, the triangle each point lies on (shadow rays ignore it).
+    geometric : (k, 3) the geometric normals facing the same side (default ``normals``):
+        a sample is cast only where the light is in front of both, so that a shading
+        normal never lets a surface light itself through its own back.
+    transparent : (n_triangles, 3) per-triangle transmittance of the triangles a shadow
+        ray passes through (index-matched dielectrics, ``ior == 1``: a straight line is
+        a light path through them), zero for the rest; None when there are none. Such
+        shadow rays are traced closest-hit, segment by segment (each segment counts as a
+        shadow ray), and carry the product of the transmittances crossed.
     albedo : (k, 3). keys : (k,) int64 random-stream key of each point (pixel and bounce).
     Returns radiance (k, 3), per-point work: ``shadow_rays``, ``shadow_hits`` and the
     traversal counts of the shadow rays (``shadow_node_visits``, ...): the thesis traces
@@ -174,28 +245,67 @@ def direct_light(
             cos_x = np.sum(dirs * normals[:, None, :], axis=2) / dist
             cos_l = 1.0 if nl is None else -(dirs @ nl) / dist
             geo = np.where(dist2 > 0, weight * cos_x * cos_l / dist2, 0.0)
-        cast = (cos_x > 0) & (np.asarray(cos_l) > 0) & (dist2 > 0)
+            front = np.sum(dirs * geometric[:, None, :], axis=2) > 0 if geometric is not None else True
+        cast = (cos_x > 0) & front & (np.asarray(cos_l) > 0) & (dist2 > 0)
         pi, si = np.nonzero(cast)
         if pi.shape[0] == 0:
             continue
         rel = eps / dist[pi, si]
-        occ = any_hit(accel, points[pi], dirs[pi, si], tmin=rel, tmax=1.0 - rel,
-                      ignore=triangles[pi], batch=batch, record=record)
-        if rec is not None:
-            for name, acc in traversal_accesses(occ.touched, accel.leaf_first, accel.leaf_last,
-                                                page_words).items():
-                rec.add(name, acc, pi)
-        lit = np.zeros(cast.shape, dtype=bool)
-        lit[pi, si] = ~occ.occluded
-        contrib = np.where(lit, geo, 0.0)
-        total = np.zeros(k)
+        lit = np.zeros((*cast.shape, 3))
+        if transparent is None:
+            occ = any_hit(accel, points[pi], dirs[pi, si], tmin=rel, tmax=1.0 - rel,
+                          ignore=triangles[pi], batch=batch, record=record)
+            if rec is not None:
+                for name, acc in traversal_accesses(occ.touched, accel.leaf_first, accel.leaf_last,
+                                                    page_words).items():
+                    rec.add(name, acc, pi)
+            lit[pi, si] = (~occ.occluded)[:, None]
+            _add_counts(work, pi, occ.counts)
+            work["shadow_rays"] += np.bincount(pi, minlength=k)
+            work["shadow_hits"] += np.bincount(pi[occ.occluded], minlength=k)
+        else:
+            lit[pi, si] = _transmitted(accel, points[pi], dirs[pi, si], rel, triangles[pi], pi, transparent,
+                                       batch, work, rec, page_words)
+        contrib = np.where(lit > 0, geo[..., None] * lit, 0.0)
+        total = np.zeros((k, 3))
         for j in range(contrib.shape[1]):  # a fixed order per point: packet invariant
             total += contrib[:, j]
-        irradiance += total[:, None] * scale[None, :]
-        _add_counts(work, pi, occ.counts)
-        work["shadow_rays"] += np.bincount(pi, minlength=k)
-        work["shadow_hits"] += np.bincount(pi[occ.occluded], minlength=k)
+        irradiance += total * scale[None, :]
     return albedo / np.pi * irradiance, work, (None if rec is None else rec.collect())
+
+
+def _transmitted(accel: TriangleAccel, o: np.ndarray, d: np.ndarray, rel: np.ndarray, ignore: np.ndarray,
+                 owner: np.ndarray, transparent: np.ndarray, batch: int, work: dict[str, np.ndarray],
+                 rec: Recorder | None, page_words: int, max_segments: int = 64) -> np.ndarray:
+    """(r, 3) transmittance of shadow rays ``o + t d``, t in (rel, 1 - rel), through the
+    triangles with a non-zero ``transparent`` row; 0 where anything else blocks them.
+    Each segment is one closest-hit shadow ray of point ``owner[i]``, counted as such."""
+    r = o.shape[0]
+    k = work["shadow_rays"].shape[0]
+    out = np.ones((r, 3))
+    live = np.arange(r)
+    tmin, skip = rel.copy(), ignore.copy()
+    tmax = 1.0 - rel
+    for _ in range(max_segments):
+        if live.shape[0] == 0:
+            break
+        hits = closest_hit(accel, o[live], d[live], tmin=tmin, tmax=tmax[live], ignore=skip, batch=batch,
+                           record=rec is not None)
+        if rec is not None:
+            for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last, page_words).items():
+                rec.add(name, acc, owner[live])
+        _add_counts(work, owner[live], hits.counts)
+        work["shadow_rays"] += np.bincount(owner[live], minlength=k)
+        hit = hits.triangle >= 0
+        tri = np.maximum(hits.triangle, 0)
+        passes = hit & np.any(transparent[tri] > 0, axis=1)
+        blocked = hit & ~passes
+        work["shadow_hits"] += np.bincount(owner[live[blocked]], minlength=k)
+        out[live[blocked]] = 0.0
+        out[live[passes]] *= transparent[tri[passes]]
+        live, tmin, skip = live[passes], hits.t[passes], hits.triangle[passes]
+    out[live] = 0.0  # still crossing after max_segments: treated as blocked
+    return out
 
 
 def _add_counts(work: dict[str, np.ndarray], index: np.ndarray, counts: Counts) -> None:

@@ -40,7 +40,7 @@ each packet from cold pairs).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,11 +48,13 @@ from tlm.arch.cache import SHADING_WORDS, Accesses, Recorder, Streams, traversal
 from tlm.config import RunConfig
 from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
-from tlm.kernels.photons import PhotonMap, PhotonTrace, trace_photons
-from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, facing, reflect, refract
+from tlm.kernels.estimate import GATHER_STREAM
+from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
+from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, facing, scatter_specular
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
 from tlm.render.planner import photon_count
 from tlm.scenes.model import KIND, Scene
+from tlm.scenes.normals import crease_normals, interpolate
 
 WORK_KEYS = (
     "primary_rays",  # eye rays traced
@@ -96,6 +98,11 @@ STREAM_KEYS = {
 }
 
 
+# the caustic map's leaf reads: a stream not in tlm.arch.cache.PM_STREAMS, so a pair of its own
+# (the two maps' gathers of consecutive packets then miss as the whole image's do)
+CAUSTIC_STREAM = "caustic_photons"
+
+
 @dataclass(frozen=True)
 class Frame:
     """What every pass reads: the scene, its BSP, per-triangle material tables, settings."""
@@ -104,23 +111,35 @@ class Frame:
     accel: TriangleAccel
     cfg: RunConfig
     normals: np.ndarray  # (n, 3) unit geometric normals
+    shading: np.ndarray  # (n, 3, 3) unit shading normal of every corner (tlm.scenes.normals)
     kind: np.ndarray  # (n,) int8, KIND of each triangle's material
     albedo: np.ndarray  # (n, 3)
     reflectance: np.ndarray  # (n, 3)
     transmittance: np.ndarray  # (n, 3)
     ior: np.ndarray  # (n,)
     eps: float  # spawn epsilon in scene units
+    transparent: np.ndarray | None  # (n, 3) transmittance shadow rays pass through (ior 1), None: none
 
     @classmethod
     def create(cls, scene: Scene, accel: TriangleAccel, cfg: RunConfig) -> Frame:
+        table = scene.material_table()
+        matched = (table["kind"] == KIND["dielectric"]) & (table["ior"] == 1.0)
+        transparent = np.where(matched[:, None], table["transmittance"], 0.0) if matched.any() else None
+        shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
         return cls(
             scene=scene,
             accel=accel,
             cfg=cfg,
             normals=face_normals(scene.triangles),
+            shading=shading,
             eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
-            **scene.material_table(),
+            transparent=transparent,
+            **table,
         )
+
+    @property
+    def spp(self) -> int:
+        return self.cfg.render.spp
 
 
 def new_streams(frame: Frame) -> Streams:
@@ -133,7 +152,7 @@ def new_work(p: int) -> dict[str, np.ndarray]:
 
 
 def _add(work: dict[str, np.ndarray], index: np.ndarray, values: dict[str, np.ndarray]) -> None:
-    p = work["fragments"].shape[0]
+    p = next(iter(work.values())).shape[0]
     for k, v in values.items():
         work[k] += np.bincount(index, weights=v, minlength=p).astype(np.int64)
 
@@ -163,16 +182,34 @@ def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
     }
 
 
+def pixel_mean(frame: Frame, values: np.ndarray) -> np.ndarray:
+    """(p * spp, 3) per-sample radiance -> (p, 3), each pixel's samples summed in order
+    (the box filter; a pixel's value never depends on its packet)."""
+    spp = frame.spp
+    v = values.reshape(-1, spp, values.shape[-1])
+    total = v[:, 0].copy()
+    for s in range(1, spp):
+        total += v[:, s]
+    return total / spp if spp > 1 else total
+
+
 @dataclass(frozen=True)
 class GBuffer:
-    """The ray-cast frame's stored hits for a packet of pixels."""
+    """The ray-cast frame's stored hits for a packet of pixels: ``spp`` eye rays each.
+
+    Sample ``i`` (rows of ``origin``, ``direction``, ``hits``, ...) belongs to pixel
+    ``pixels[i // spp]`` and is sample ``i % spp`` of it; ``memo`` keeps the specular walks
+    (:func:`specular_walk`) that the reflect, refract and photon-map passes share.
+    """
 
     pixels: np.ndarray  # (p,) int64
-    origin: np.ndarray  # (p, 3)
-    direction: np.ndarray  # (p, 3) unit
+    spp: int
+    origin: np.ndarray  # (p * spp, 3)
+    direction: np.ndarray  # (p * spp, 3) unit
     hits: Hits
-    light: np.ndarray  # (p, 3) radiance of a quad light seen before the surface
-    sees_light: np.ndarray  # (p,) bool
+    light: np.ndarray  # (p * spp, 3) radiance of a quad light seen before the surface
+    sees_light: np.ndarray  # (p * spp,) bool
+    memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def t(self) -> np.ndarray:
@@ -182,43 +219,68 @@ class GBuffer:
     def triangle(self) -> np.ndarray:
         return self.hits.triangle
 
+    @property
+    def owner(self) -> np.ndarray:
+        """(p * spp,) the packet index of each sample's pixel."""
+        return np.arange(self.origin.shape[0], dtype=np.int64) // self.spp
+
+    @property
+    def sample_keys(self) -> np.ndarray:
+        """(p * spp,) a stable id of each sample: ``pixel * spp + s``."""
+        s = np.arange(self.origin.shape[0], dtype=np.int64) % self.spp
+        return self.pixels[self.owner] * self.spp + s
+
+    def first(self, values: np.ndarray) -> np.ndarray:
+        """Each pixel's first sample of a per-sample array (what the AOVs hold)."""
+        return values[:: self.spp]
+
     def normal(self, frame: Frame) -> np.ndarray:
-        """(p, 3) geometric normals of the hit triangles (zero on a miss)."""
+        """(p * spp, 3) geometric normals of the hit triangles (zero on a miss)."""
         n = frame.normals[np.maximum(self.triangle, 0)]
         return np.where(self.triangle[:, None] >= 0, n, 0.0)
 
 
 def cast(frame: Frame, pixels: np.ndarray, record: bool = True) -> GBuffer:
-    """Trace the eye rays of ``pixels`` (the ray-cast operation).
+    """Trace the eye rays of ``pixels`` (the ray-cast operation), ``render.spp`` per pixel.
 
     record : keep the nodes and leaves each ray touched (``hits.touched``), from which
         :func:`rcast_pass` charges the eye rays' page misses; the other passes do not
         need them.
     """
     pixels = np.asarray(pixels, dtype=np.int64)
-    o, d = primary_rays(frame.scene.camera, pixels)
+    o, d = primary_rays(frame.scene.camera, pixels, frame.spp)
     hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True,
                        record=record)
     le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
-    return GBuffer(pixels, o, d, hits, le, seen)
+    return GBuffer(pixels, frame.spp, o, d, hits, le, seen)
 
 
-def _shade_lambertian(frame: Frame, pix_local: np.ndarray, keys: np.ndarray, points: np.ndarray,
-                      d: np.ndarray, tri: np.ndarray, weight: np.ndarray,
+def shading_normals(frame: Frame, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Interpolated unit shading normals at hits, on the side of the winding's geometric normal."""
+    return interpolate(frame.shading, tri, u, v, frame.normals[tri])
+
+
+def _shade_lambertian(frame: Frame, owner: np.ndarray, keys: np.ndarray, points: np.ndarray,
+                      d: np.ndarray, tri: np.ndarray, u: np.ndarray, v: np.ndarray,
                       work: dict[str, np.ndarray], rec: Recorder) -> np.ndarray:
-    """Direct light at Lambertian hits, weighted; records fragment and shadow work and reads
-    (the shadow rays' and one shading record per fragment) under the pixels ``pix_local``."""
-    n = facing(frame.normals[tri], d)
+    """Direct light (k, 3) at Lambertian hits, unweighted; records fragment and shadow work and
+    reads (the shadow rays' and one shading record per fragment) under the pixels ``owner``."""
+    geo = frame.normals[tri]
+    towards = np.sum(geo * d, axis=1) > 0  # the ray meets the back of the winding
+    n_geo = np.where(towards[:, None], -geo, geo)
+    n_sh = shading_normals(frame, tri, u, v)
+    n_sh = np.where(towards[:, None], -n_sh, n_sh)
     radiance, w, reads = direct_light(
-        frame.accel, frame.scene.lights, points, n, tri, frame.albedo[tri], keys,
+        frame.accel, frame.scene.lights, points, n_sh, tri, frame.albedo[tri], keys,
         frame.cfg.seed, frame.cfg.render.light_samples, frame.eps, record=True, page_words=rec.page_words,
+        geometric=n_geo, transparent=frame.transparent,
     )
-    _add(work, pix_local, w)
-    _add(work, pix_local, {"fragments": np.ones(pix_local.shape[0], dtype=np.int64)})
+    _add(work, owner, w)
+    _add(work, owner, {"fragments": np.ones(owner.shape[0], dtype=np.int64)})
     for name, acc in reads.items():
-        rec.add(f"shadow_{name}", acc, pix_local)
-    rec.add("shading", Accesses.of_words(tri * SHADING_WORDS, pix_local, rec.page_words))
-    return radiance * weight
+        rec.add(f"shadow_{name}", acc, owner)
+    rec.add("shading", Accesses.of_words(tri * SHADING_WORDS, owner, rec.page_words))
+    return radiance
 
 
 def rcast_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -226,163 +288,304 @@ def rcast_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tupl
 
     The eye rays' traversal (counts and misses) is charged here, from ``g`` (cast with
     ``record=True``). streams : the cache pairs' states before this packet (default:
-    empty pairs of ``frame.cfg.cache``), left in the state after it.
+    empty pairs of ``frame.cfg.cache``), left in the state after it. Returns the pixels'
+    radiance (p, 3) (the mean of their samples) and work (p,) per key.
     """
     p = g.pixels.shape[0]
     work = new_work(p)
     streams = new_streams(frame) if streams is None else streams
     rec = Recorder(streams.page_words)
-    radiance = np.zeros((p, 3))
-    local = np.arange(p)
-    _add(work, local, {"primary_rays": np.ones(p, dtype=np.int64), **_trace_counts(g.hits)})
-    _record_rays(frame, rec, g.hits)
+    owner = g.owner
+    radiance = np.zeros((owner.shape[0], 3))
+    _add(work, owner, {"primary_rays": np.ones(owner.shape[0], dtype=np.int64), **_trace_counts(g.hits)})
+    _record_rays(frame, rec, g.hits, owner)
     radiance[g.sees_light] = g.light[g.sees_light]
-    hit = (g.triangle >= 0) & ~g.sees_light
-    lam = hit & (frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"])
-    idx = np.flatnonzero(lam)
+    idx = _lambertian(frame, g)
     if idx.shape[0]:
         tri = g.triangle[idx]
         pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
-        keys = g.pixels[idx] * 64
-        radiance[idx] = _shade_lambertian(frame, idx, keys, pts, g.direction[idx], tri,
-                                          np.ones((idx.shape[0], 1)), work, rec)
+        keys = g.sample_keys[idx] * 64
+        radiance[idx] = _shade_lambertian(frame, owner[idx], keys, pts, g.direction[idx], tri,
+                                          g.hits.u[idx], g.hits.v[idx], work, rec)
     _charge(rec, streams, work)
-    return radiance, work
+    return pixel_mean(frame, radiance), work
 
 
-def _specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, streams: Streams | None):
-    """Paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces.
+def _lambertian(frame: Frame, g: GBuffer) -> np.ndarray:
+    """Samples whose eye ray meets a Lambertian surface (not behind a light seen directly)."""
+    lam = (g.triangle >= 0) & ~g.sees_light
+    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
+    return np.flatnonzero(lam)
 
-    The walk runs bounce by bounce over the packet; its reads are charged afterwards in
-    pixel-major order (a pixel's bounces in order), so that packets in pixel order with
-    a carried ``streams`` give the misses of the whole image.
+
+@dataclass(frozen=True)
+class Ends:
+    """Lambertian points where specular paths end: sample index, point, arriving
+    direction, triangle, barycentrics, path weight (k, 3) and bounce (1 = after the first
+    specular surface)."""
+
+    sample: np.ndarray
+    point: np.ndarray
+    direction: np.ndarray
+    triangle: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    weight: np.ndarray
+    bounce: np.ndarray
+
+
+@dataclass(frozen=True)
+class Walk:
+    """The specular paths of a packet that first meet one kind of surface.
+
+    ``emitted`` (sample, radiance) lights seen along the way (already weighted), ``ends``
+    the Lambertian points the paths reach, ``work`` the rays' work per pixel and
+    ``reads`` their traversal reads (stream name, accesses with owner = packet pixel).
+    """
+
+    emitted_sample: np.ndarray
+    emitted_radiance: np.ndarray
+    ends: Ends
+    work: dict[str, np.ndarray]
+    reads: list
+
+
+def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_words: int | None = None) -> Walk:
+    """Eye paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces.
+
+    Mirrors reflect (times reflectance). Glass splits every path in two, Whitted's way:
+    the reflection (times the exact Fresnel ``F``; all of it under total internal
+    reflection) and the refraction (times ``(1 - F)`` and the transmittance); a branch
+    whose path weight falls below ``render.min_weight`` is not traced (with
+    ``render.fresnel: false``, F is 0 but under total internal reflection: one ray per
+    path, Snell's law alone). Directions are taken about the interpolated shading normal
+    (the geometric one where it would send a ray to the wrong side); a new ray starts at
+    the hit, ignores the triangle it leaves and accepts hits from ``eps`` on (a relative
+    epsilon: the scene's diagonal x SPAWN_EPS), so neither the surface it leaves nor a
+    coplanar neighbour can stop it. Remembered in ``g.memo``: the reflect,
+    refract and photon-map passes share one walk. page_words : the pages its reads are
+    recorded for (default: the frame's ``cache.block_words``).
+    """
+    page_words = frame.cfg.cache.block_words if page_words is None else page_words
+    key = (first_kind, depth, frame.cfg.render.min_weight, frame.cfg.render.fresnel, page_words)
+    if key in g.memo:
+        return g.memo[key]
+    p = g.pixels.shape[0]
+    work = {k: np.zeros(p, dtype=np.int64) for k in ("secondary_rays", "node_visits", "leaves_crossed",
+                                                     "leaf_visits", "tri_tests", "specular_bounces")}
+    rec = Recorder(page_words)
+    em_s, em_r = [], []
+    ends: dict[str, list[np.ndarray]] = {f: [] for f in Ends.__dataclass_fields__}
+    start = (g.triangle >= 0) & ~g.sees_light
+    start &= frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind]
+    sidx = np.flatnonzero(start)
+    tri = g.triangle[sidx]
+    d = g.direction[sidx]
+    x = g.origin[sidx] + g.t[sidx, None] * d
+    u, v = g.hits.u[sidx], g.hits.v[sidx]
+    weight = np.ones((sidx.shape[0], 3))
+    owner_of = g.owner
+    min_w = frame.cfg.render.min_weight
+    for bounce in range(1, depth + 1):
+        if sidx.shape[0] == 0:
+            break
+        kind = frame.kind[tri]
+        geo = frame.normals[tri]
+        n_sh = shading_normals(frame, tri, u, v)
+        mirror = kind == KIND["mirror"]
+        refl, refr, f = scatter_specular(d, n_sh, geo, np.where(mirror, 1.0, frame.ior[tri]))
+        if not frame.cfg.render.fresnel:  # Snell only: glass refracts all but what it reflects totally
+            f = np.where(f < 1.0, 0.0, 1.0)
+        w_refl = np.where(mirror[:, None], weight * frame.reflectance[tri], weight * f[:, None])
+        w_refr = np.where(mirror[:, None], 0.0, weight * (1.0 - f)[:, None] * frame.transmittance[tri])
+        # the branches, each sample's reflection before its refraction
+        take_l = w_refl.max(axis=1) >= max(min_w, np.finfo(float).tiny)
+        take_r = w_refr.max(axis=1) >= max(min_w, np.finfo(float).tiny)
+        order = np.argsort(np.r_[np.flatnonzero(take_l) * 2, np.flatnonzero(take_r) * 2 + 1], kind="stable")
+        src = np.r_[np.flatnonzero(take_l), np.flatnonzero(take_r)][order]
+        new_d = np.r_[refl[take_l], refr[take_r]][order]
+        new_w = np.r_[w_refl[take_l], w_refr[take_r]][order]
+        sidx, tri, x, geo = sidx[src], tri[src], x[src], geo[src]
+        if sidx.shape[0] == 0:
+            break
+        origin = x
+        owner = owner_of[sidx]
+        work["specular_bounces"] += np.bincount(owner, minlength=p)
+        hits = closest_hit(frame.accel, origin, new_d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch,
+                           record=True)
+        work["secondary_rays"] += np.bincount(owner, minlength=p)
+        for name, c in _trace_counts(hits).items():
+            work[name] += np.bincount(owner, weights=c, minlength=p).astype(np.int64)
+        _record_rays(frame, rec, hits, owner)
+        le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
+        em_s.append(sidx[seen])
+        em_r.append(new_w[seen] * le[seen])
+        hit = (hits.triangle >= 0) & ~seen
+        kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
+        lam = hit & (kind_hit == KIND["lambertian"])
+        pts = origin + hits.t[:, None] * new_d
+        for name, val in (("sample", sidx), ("point", pts), ("direction", new_d), ("triangle", hits.triangle),
+                          ("u", hits.u), ("v", hits.v), ("weight", new_w),
+                          ("bounce", np.full(sidx.shape[0], bounce))):
+            ends[name].append(val[lam])
+        go = hit & ~lam
+        sidx, tri, d, weight = sidx[go], hits.triangle[go], new_d[go], new_w[go]
+        x, u, v = pts[go], hits.u[go], hits.v[go]
+
+    def cat(parts: list[np.ndarray], shape: tuple, dtype=np.float64) -> np.ndarray:
+        return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
+
+    walk = Walk(
+        emitted_sample=cat(em_s, (0,), np.int64), emitted_radiance=cat(em_r, (0, 3)),
+        ends=Ends(**{name: cat(vals, (0,) if name in ("sample", "triangle", "u", "v", "bounce") else (0, 3),
+                                np.int64 if name in ("sample", "triangle", "bounce") else np.float64)
+                     for name, vals in ends.items()}),
+        work=work, reads=list(rec.added),
+    )
+    g.memo[key] = walk
+    return walk
+
+
+def _walk_pass(frame: Frame, g: GBuffer, first_kind: str, depth: int, streams: Streams | None):
+    """A specular frame: lights seen along the walk and direct light where it ends.
+
+    Its reads are charged pixel-major: a pixel's rays bounce by bounce, then the shadow
+    rays and shading records of the points they reach; packets in pixel order with a
+    carried ``streams`` give the misses of the whole image.
     """
     p = g.pixels.shape[0]
     work = new_work(p)
     streams = new_streams(frame) if streams is None else streams
+    walk = specular_walk(frame, g, first_kind, depth, streams.page_words)
+    for k, v in walk.work.items():
+        work[k] += v
     rec = Recorder(streams.page_words)
-    radiance = np.zeros((p, 3))
-    start = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind])
-    start &= ~g.sees_light
-    idx = np.flatnonzero(start)
-    tri = g.triangle[idx]
-    d = g.direction[idx]
-    x = g.origin[idx] + g.t[idx, None] * d
-    weight = np.ones((idx.shape[0], 3))
-    for bounce in range(1, depth + 1):
-        if idx.shape[0] == 0:
-            break
-        kind = frame.kind[tri]
-        n = frame.normals[tri]
-        mirror = kind == KIND["mirror"]
-        new_d = np.empty_like(d)
-        if mirror.any():
-            new_d[mirror] = reflect(d[mirror], n[mirror])
-            weight[mirror] *= frame.reflectance[tri[mirror]]
-        diel = ~mirror
-        if diel.any():
-            rd, tir = refract(d[diel], n[diel], frame.ior[tri[diel]])
-            new_d[diel] = rd
-            wd = weight[diel]
-            wd[~tir] *= frame.transmittance[tri[diel]][~tir]
-            weight[diel] = wd
-        _add(work, idx, {"specular_bounces": np.ones(idx.shape[0], dtype=np.int64)})
-        d = new_d
-        hits = closest_hit(frame.accel, x, d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch,
-                           record=True)
-        _add(work, idx, {"secondary_rays": np.ones(idx.shape[0], dtype=np.int64), **_trace_counts(hits)})
-        _record_rays(frame, rec, hits, idx)
-        le, seen = emitted(frame.scene.lights, x, d, hits.t, frame.eps)
-        radiance[idx[seen]] += weight[seen] * le[seen]
-        hit = (hits.triangle >= 0) & ~seen
-        kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
-        lam = hit & (kind_hit == KIND["lambertian"])
-        if lam.any():
-            li = np.flatnonzero(lam)
-            pts = x[li] + hits.t[li, None] * d[li]
-            keys = g.pixels[idx[li]] * 64 + bounce
-            radiance[idx[li]] += _shade_lambertian(frame, idx[li], keys, pts, d[li],
-                                                   hits.triangle[li], weight[li], work, rec)
-        go = hit & ~lam
-        x = x[go] + hits.t[go, None] * d[go]
-        idx, tri, d, weight = idx[go], hits.triangle[go], d[go], weight[go]
+    rec.added = list(walk.reads)
+    radiance = np.zeros((g.origin.shape[0], 3))
+    np.add.at(radiance, walk.emitted_sample, walk.emitted_radiance)
+    e = walk.ends
+    if e.sample.shape[0]:
+        keys = g.sample_keys[e.sample] * 64 + e.bounce
+        direct = _shade_lambertian(frame, g.owner[e.sample], keys, e.point, e.direction, e.triangle, e.u, e.v,
+                                   work, rec)
+        np.add.at(radiance, e.sample, direct * e.weight)
     _charge(rec, streams, work)
-    return radiance, work
+    return pixel_mean(frame, radiance), work
 
 
 def reflect_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Eye paths that first meet a mirror (``streams`` as in :func:`rcast_pass`)."""
-    return _specular_walk(frame, g, "mirror", frame.cfg.render.reflect_depth, streams)
+    return _walk_pass(frame, g, "mirror", frame.cfg.render.reflect_depth, streams)
 
 
 def refract_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Eye paths that first meet a dielectric (``streams`` as in :func:`rcast_pass`)."""
-    return _specular_walk(frame, g, "dielectric", frame.cfg.render.refract_depth, streams)
+    return _walk_pass(frame, g, "dielectric", frame.cfg.render.refract_depth, streams)
 
 
 def lambertian_hits(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Eye hits on Lambertian surfaces (not behind a light seen directly): their packet
+    """Eye hits on Lambertian surfaces (not behind a light seen directly): their sample
     indices, triangles, points and normals facing the eye, where photons are gathered."""
-    lam = (g.triangle >= 0) & ~g.sees_light
-    lam &= frame.kind[np.maximum(g.triangle, 0)] == KIND["lambertian"]
-    idx = np.flatnonzero(lam)
+    idx = _lambertian(frame, g)
     tri = g.triangle[idx]
     pts = g.origin[idx] + g.t[idx, None] * g.direction[idx]
     n = facing(frame.normals[tri], g.direction[idx])
     return idx, tri, pts, n
 
 
+def gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every Lambertian point whose photon-map radiance the image shows: the eye hits
+    (weight 1) and, when the scene has mirrors or glass, the ends of the reflect and
+    refract walks (weighted by their paths). Returns sample indices, triangles, points,
+    normals facing the arriving ray and weights (k, 3)."""
+    idx, tri, pts, n = lambertian_hits(frame, g)
+    parts = [(idx, tri, pts, n, np.ones((idx.shape[0], 3)))]
+    render = frame.cfg.render
+    for kind, depth in (("mirror", render.reflect_depth), ("dielectric", render.refract_depth)):
+        if depth == 0 or not np.any(frame.kind == KIND[kind]):
+            continue
+        e = specular_walk(frame, g, kind, depth).ends
+        parts.append((e.sample, e.triangle, e.point, facing(frame.normals[e.triangle], e.direction), e.weight))
+    if len(parts) == 1:
+        return parts[0]
+    sample = np.concatenate([q[0] for q in parts])
+    order = np.argsort(sample, kind="stable")  # sample-major: the Fragment PM gathers pixel by pixel
+    return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(5))  # type: ignore[return-value]
+
+
 def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None) -> PhotonTrace:
-    """The frame's photon map by its ``photons.*`` settings (``n``, ``seed``: overrides)."""
+    """The frame's photon maps by its ``photons.*`` settings (``n``, ``seed``: overrides)."""
     cfg = frame.cfg
     return trace_photons(
         frame.scene, frame.accel, photon_count(frame.scene, cfg) if n is None else n,
         seed=cfg.seed if seed is None else seed, max_bounces=cfg.photons.max_bounces,
         russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
         caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
-        page_words=cfg.cache.block_words, pairs=cfg.cache.pairs,
+        page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
     )
 
 
 def search_radius(frame: Frame) -> float:
-    """The fixed search radius r: ``estimate.radius`` or a fraction of the scene diagonal."""
+    """The global (indirect) map's fixed search radius r: ``estimate.radius`` or a fraction
+    of the scene diagonal."""
     est = frame.cfg.estimate
     return est.radius if est.radius is not None else est.radius_fraction * frame.accel.scale
 
 
-def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMap, kdtree=None,
-              streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The photon-map frame: ``albedo / pi * density`` at Lambertian eye hits.
+def caustic_radius(frame: Frame) -> float:
+    """The caustic map's search radius: ``estimate.caustic_radius`` or a fraction of the diagonal."""
+    est = frame.cfg.estimate
+    return est.caustic_radius if est.caustic_radius is not None else est.caustic_radius_fraction * frame.accel.scale
 
-    ``density`` is the reflected flux density from the photon map by the configured
-    filter; ``kdtree`` is an optional prebuilt ``cKDTree`` of the photon positions for
-    the exact k-nearest estimate. ``gather_misses``: the photon-leaf stream's misses,
-    gathers in pixel order (``streams`` as in :func:`rcast_pass`).
+
+def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, streams, kdtree, stream: str):
+    est = frame.cfg.estimate
+    args = (photons.position, photons.power, photons.incoming)
+    if est.filter == "knn":
+        return estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
+    if est.filter == "kvoxel":
+        return estimate.kvoxel_estimate(*args, photons.tree, pts, n, radius, k=est.k, cone_k=est.cone_k,
+                                        seed=frame.cfg.seed, keys=keys, streams=streams, stream=stream)
+    if est.filter == "disk":
+        return estimate.disk_estimate(*args, photons.tree, pts, n, radius, streams=streams, stream=stream)
+    return estimate.mvoxel_estimate(*args, photons.tree, pts, n, radius, cone_k=est.cone_k, streams=streams,
+                                    stream=stream)
+
+
+def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=None,
+              streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The photon-map frame: ``albedo / pi * density`` at every gather point (:func:`gather_points`).
+
+    ``density`` is the reflected flux density by the configured filter: the caustic map's
+    within :func:`caustic_radius` plus the indirect map's within :func:`search_radius`
+    (a single :class:`PhotonMap` is gathered alone with the latter). ``kdtree``: optional
+    prebuilt ``cKDTree`` of a single map's positions for the exact k-nearest estimate.
+    ``gather_misses``: the photon-leaf stream's misses, gathers in pixel order (the
+    caustic map's leaves on a pair of their own, :data:`CAUSTIC_STREAM`; the indirect map's
+    on the Fragment PM's ``photons`` pair), ``streams`` as in :func:`rcast_pass`.
     """
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
-    radiance = np.zeros((p, 3))
-    idx, tri, pts, n = lambertian_hits(frame, g)
-    if idx.shape[0] == 0 or photons.n == 0:
-        return radiance, work
-    est = frame.cfg.estimate
+    radiance = np.zeros((g.origin.shape[0], 3))
+    sidx, tri, pts, n, weight = gather_points(frame, g)
+    maps = [(photons, search_radius(frame), kdtree, GATHER_STREAM)] if isinstance(photons, PhotonMap) else [
+        (photons.caustic_map, caustic_radius(frame), None, CAUSTIC_STREAM),
+        (photons.indirect_map, search_radius(frame), None, GATHER_STREAM)]
+    maps = [m for m in maps if m[0].n > 0]
+    if sidx.shape[0] == 0 or not maps:
+        return pixel_mean(frame, radiance), work
     streams = new_streams(frame) if streams is None else streams
-    args = (photons.position, photons.power, photons.incoming)
-    if est.filter == "knn":
-        e = estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
-    elif est.filter == "kvoxel":
-        e = estimate.kvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), k=est.k,
-                                     cone_k=est.cone_k, seed=frame.cfg.seed, keys=g.pixels[idx], streams=streams)
-    elif est.filter == "disk":
-        e = estimate.disk_estimate(*args, photons.tree, pts, n, search_radius(frame), streams=streams)
-    else:
-        e = estimate.mvoxel_estimate(*args, photons.tree, pts, n, search_radius(frame), cone_k=est.cone_k,
-                                     streams=streams)
-    radiance[idx] = frame.albedo[tri] / np.pi * e.density
-    work["gathers"][idx] = 1
-    for k in GATHER_KEYS[1:]:
-        work[k][idx] = getattr(e, k)
-    return radiance, work
+    owner = g.owner[sidx]
+    keys = g.sample_keys[sidx]
+    density = np.zeros((sidx.shape[0], 3))
+    for ph, radius, tree, stream in maps:
+        e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
+        density += e.density
+        for k in GATHER_KEYS[1:]:
+            work[k] += np.bincount(owner, weights=getattr(e, k), minlength=p).astype(np.int64)
+    np.add.at(radiance, sidx, weight * frame.albedo[tri] / np.pi * density)
+    work["gathers"] += np.bincount(owner, minlength=p)
+    return pixel_mean(frame, radiance), work
 
 
 PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass}

@@ -22,10 +22,11 @@ import numpy as np
 from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
+from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 
 SCENE_KEYS = (
     "name", "description", "geometry", "materials", "parts", "default_material",
-    "lights", "camera", "resolution", "photons", "transform", "extends",
+    "lights", "camera", "resolution", "photons", "transform", "extends", "crease_angle",
 )
 MATERIAL_KEYS = {
     "lambertian": ("type", "albedo"),
@@ -326,6 +327,12 @@ def load_scene(
         scale = _num(tr.get("scale", 1.0), src, "transform.scale", lo=0.0, lo_exclusive=True)
         translate = _vec(tr.get("translate", [0.0, 0.0, 0.0]), src, "transform.translate")
     camera = Camera(eye, target, up, vfov, res[0], res[1])
+    crease = _num(raw.get("crease_angle", DEFAULT_CREASE_ANGLE), src, "crease_angle", lo=0.0, hi=180.0)
+    normals = geom.normals
+    if normals is not None and not np.isfinite(normals).all():
+        raise InputError("the mesh's vertex normals are not finite", source=str(geom_path), key="geometry.mesh")
+    if normals is None or "crease_angle" in raw:  # the scene's crease angle overrides the file's normals
+        normals = crease_normals(tri, geom.part, crease)
     scene = Scene(
         name=str(raw.get("name", path.stem)),
         triangles=tri,
@@ -337,7 +344,9 @@ def load_scene(
         camera=camera,
         photons=photons,
         source=src,
-        extra={"description": str(raw.get("description", ""))},
+        extra={"description": str(raw.get("description", "")), "crease_angle": crease,
+               "normals": "file" if normals is geom.normals else "crease"},
+        normals=normals,
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):
         scene = transform_scene(scene, scale, np.asarray(translate))

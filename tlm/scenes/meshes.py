@@ -147,6 +147,7 @@ def load_mesh(path: Path) -> Geometry:
     names: list[str] = []
     chunks: list[np.ndarray] = []
     part_ids: list[np.ndarray] = []
+    corner_normals: list[np.ndarray | None] = []
     for name, geom, transform in items:
         label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
         if not isinstance(geom, trimesh.Trimesh):
@@ -157,10 +158,15 @@ def load_mesh(path: Path) -> Geometry:
         faces = np.asarray(geom.faces)
         _check_mesh(vertices, faces, label, src)
         tri = vertices[faces]
+        nrm = _file_normals(geom, faces)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
+            if nrm is not None:  # normals transform by the inverse transpose
+                nrm = nrm @ np.linalg.inv(transform[:3, :3])
             if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform flips winding
                 tri = tri[:, [0, 2, 1]]
+                nrm = None if nrm is None else nrm[:, [0, 2, 1]]
+        corner_normals.append(nrm)
         if not np.isfinite(tri).all():
             raise InputError(f"{label} has a scene transform that makes vertices non-finite",
                              source=src)
@@ -168,8 +174,27 @@ def load_mesh(path: Path) -> Geometry:
             names.append(name)
         chunks.append(tri)
         part_ids.append(np.full(len(tri), names.index(name), dtype=np.int32))
+    normals = None
+    if all(c is not None for c in corner_normals):  # the file gives every geometry's normals
+        normals = np.concatenate(corner_normals)
+        length = np.linalg.norm(normals, axis=2, keepdims=True)
+        normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
     return Geometry(
         triangles=np.ascontiguousarray(np.concatenate(chunks), dtype=np.float64),
         part=np.concatenate(part_ids),
         part_names=tuple(names),
+        normals=normals,
     )
+
+
+def _file_normals(geom, faces: np.ndarray) -> np.ndarray | None:
+    """(f, 3, 3) per-corner normals the file gave (OBJ ``vn``, PLY ``nx ny nz``, glTF
+    NORMAL), or None when trimesh would have to compute them (its own would be
+    area-weighted without a crease angle: the loader's crease normals are better)."""
+    given = geom._cache.cache.get("vertex_normals") if hasattr(geom, "_cache") else None
+    if given is None:
+        return None
+    given = np.asarray(given, dtype=np.float64)
+    if given.shape != (len(geom.vertices), 3) or not np.isfinite(given).all():
+        return None
+    return given[faces]

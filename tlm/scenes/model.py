@@ -85,6 +85,7 @@ class Geometry:
     triangles: np.ndarray
     part: np.ndarray
     part_names: tuple[str, ...]
+    normals: np.ndarray | None = None  # (n, 3, 3) per-corner shading normals from the file, if it has them
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,9 @@ class Scene:
     photons: int
     source: str = ""
     extra: dict = field(default_factory=dict)
+    # (n, 3, 3) unit shading normal of each triangle corner (tlm.scenes.normals); None:
+    # the renderer computes them with the default crease angle
+    normals: np.ndarray | None = None
 
     @property
     def n_triangles(self) -> int:
