@@ -218,7 +218,7 @@ def test_missing_mitsuba_is_one_line_with_the_install_hint(monkeypatch):
     with pytest.raises(InputError) as e:
         om.render(box_scene(8, 8), integrator="direct", spp=1)
     message = str(e.value)
-    assert "\n" not in message and "pip install mitsuba" in message
+    assert "\n" not in message and "pip install -e" in message and "[oracle]" in message
 
 
 def test_bad_settings_are_one_line_errors():

@@ -374,6 +374,39 @@ def test_slab_shifts_rays_by_snell(ior):
     assert np.all(res.work["refract"]["specular_bounces"] == 2)
 
 
+@pytest.mark.parametrize("ior", [1.5, 2.4])
+def test_slab_with_fresnel(ior):
+    """The same slab with the exact Fresnel split (the default): each pixel's light is
+    T**2 (1 - F)**2 times the analytic radiance at the wall point, F the unpolarised
+    Fresnel reflectance at the pixel's angle (the same on both faces of a parallel slab),
+    plus what the internal reflections carry (weights F**2 and below: within
+    1e-3 + 2 F**2 of it, relative; Snell alone would be (1 - F)**-2 ~ 8% above).
+    Every pixel splits: a front reflection and a refraction."""
+    res = render_scene(slab_scene(ior, 0.9), mode="refract")
+    assert_clean(res)
+    g = res.gbuffer
+    o, d = g.origin, g.direction
+    cos_i = np.abs(d[:, 2])
+    eta = 1.0 / ior
+    cos_t = np.sqrt(1.0 - eta * eta * (1.0 - cos_i * cos_i))
+    rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    f = 0.5 * (rs * rs + rp * rp)
+    assert np.all((f > 0.03) & (f < 0.2))
+    p1 = o + (-o[:, 2] / d[:, 2])[:, None] * d
+    d2, _ = snell(d, np.tile([0.0, 0.0, -1.0], (d.shape[0], 1)), ior)
+    p2 = p1 + ((0.2 - p1[:, 2]) / d2[:, 2])[:, None] * d2
+    d3, _ = snell(d2, np.tile([0.0, 0.0, 1.0], (d.shape[0], 1)), ior)
+    p3 = p2 + ((2.0 - p2[:, 2]) / d3[:, 2])[:, None] * d3
+    direct = point_light_radiance(p3, np.tile([0.0, 0.0, -1.0], (p3.shape[0], 1)), ALBEDO, [0.3, 0.2, 1.2], 50.0)
+    first = 0.81 * (1.0 - f) ** 2 * direct
+    got = res.radiance["refract"].reshape(-1, 3)[:, 0]
+    assert np.all(got >= first * (1 - 1e-9))  # the internal reflections only add
+    np.testing.assert_allclose(got, first, rtol=1e-3 + 2.0 * float(f.max()) ** 2)
+    snell_only = render_scene(slab_scene(ior, 0.9), mode="refract", render={"fresnel": False})
+    assert np.all(res.work["refract"]["secondary_rays"] > snell_only.work["refract"]["secondary_rays"])
+
+
 def test_ior_ten_sphere_renders_finite():
     """A tessellated glass sphere of IOR 10 (critical angle 5.7 degrees: most internal
     paths are totally reflected many times between facets) renders without NaN, never

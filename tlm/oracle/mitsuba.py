@@ -89,7 +89,7 @@ INTEGRATORS = ("direct", "path")
 MITSUBA_DIAGONAL = 1000.0  # the scene's bounding-box diagonal in Mitsuba's units (see _normalised)
 LIGHT_OFFSET = 1e-5  # quad lights move this fraction of the bounding-box diagonal along their normal
 MAPPING_VERSION = 1  # part of the cache key: bump when the scene mapping changes what Mitsuba renders
-INSTALL_HINT = "pip install mitsuba flip-evaluator"
+INSTALL_HINT = "pip install -e \".[oracle]\""
 REL_MSE_EPS = 1e-2  # rel_mse's floor on ref^2, as a fraction of mean(ref)^2 (see rel_mse)
 
 
