@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 
 import numpy as np
@@ -93,7 +94,8 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
         ],
     }))
     out = tmp_path / "evc"
-    assert main(["error-vs-cost", str(exp), "--out", str(out)]) == 0
+    truth = importlib.util.find_spec("mitsuba") is not None  # the oracle extra (in the test extras)
+    assert main(["error-vs-cost", str(exp), "--out", str(out), "--truth-spp", "256"]) == 0
     with open(out / "rows.csv") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 8
@@ -112,6 +114,17 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     kv = [r for r in jsonl if r["filter"] == "kvoxel"]
     assert kv[1]["leaves_visited"] >= kv[0]["leaves_visited"]
     assert json.loads((out / "reference.json").read_text())["converged"]
+    # the composites against Mitsuba's path tracer: the furnace's radiance is 1 everywhere
+    meta = json.loads((out / "truth.json").read_text())
+    assert meta["available"] is truth
+    if truth:
+        assert meta["spp"] == 256 and meta["integrator"] == "path"
+        for row in jsonl:
+            assert 0 < row["truth_rel_mse"] < 0.05 and 0 < row["truth_flip"] < 0.2
+        # more photons: closer to the truth (the indirect half is the photon map's)
+        assert mv[1]["truth_rel_mse"] < mv[0]["truth_rel_mse"]
+    else:
+        assert "oracle" in meta["reason"] and all(r["truth_rel_mse"] is None for r in jsonl)
     # the simulated frame is the one 'tlm run' simulates: the same point rendered and simulated
     # on its own gives the same cycles, under each point's own arch settings
     two = mv[2]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import shutil
@@ -15,7 +16,7 @@ from matplotlib.image import imread
 
 from tlm.arch.units import STALL_CAUSES
 from tlm.config import config_from_dict
-from tlm.experiments.error_cost import run_error_vs_cost
+from tlm.experiments.error_cost import Truth, run_error_vs_cost
 from tlm.experiments.granularity import run_granularity
 from tlm.experiments.run import run
 from tlm.report.collect import Inputs, Run, Study, Sweep, read
@@ -35,6 +36,8 @@ from tlm.report.tradeoff import granularity_points, pareto_front, tradeoff_secti
 from .scenes import sphere_scene
 
 TINY = {"resolution": [32, 32], "render": {"light_samples": 1}, "photons": {"count": 800}}
+
+ORACLE = importlib.util.find_spec("mitsuba") is not None
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +65,7 @@ def data(tmp_path_factory):
             "points": [{"estimate.filter": ["disk", "mvoxel"], "photons.count": [500, 2000]},
                        {"estimate.filter": ["knn"], "photons.count": [2000], "estimate.k_nearest": [10]}],
         }))
-        run_error_vs_cost(e, root / "evc")
+        run_error_vs_cost(e, root / "evc", truth=Truth(spp=64))
     return root
 
 
@@ -236,8 +239,9 @@ def test_tradeoff_section_draws_both_curves(data, tmp_path):
     inputs = read([data / "evc", data / "gran"])
     sec = tradeoff_section(inputs, tmp_path)
     assert sec.key == "tradeoff" and sec.absent is None and sec.notes == []
+    bias = ["tradeoff_00_bias_vs_wall_time.png"] if ORACLE else []  # the ground truth needs the oracle extra
     assert [f.file for f in sec.figures] == ["tradeoff_00_rmse_vs_frame_time.png",
-                                             "tradeoff_00_rmse_vs_wall_time.png", "tradeoff_granularity.png"]
+                                             "tradeoff_00_rmse_vs_wall_time.png", *bias, "tradeoff_granularity.png"]
     for f in sec.figures:
         _nontrivial(tmp_path / f.file)
     (gran,) = inputs.of_kind("granularity")
@@ -251,7 +255,8 @@ def test_tradeoff_notes_rows_without_simulated_time_and_absent_inputs(data, tmp_
     (evc,) = read([data / "evc"]).of_kind("error-vs-cost")
     old = Study("error-vs-cost", evc.path, [{k: v for k, v in r.items() if k != "frame_seconds"} for r in evc.rows])
     sec = tradeoff_section(Inputs([], studies=[old]), tmp_path)
-    assert [f.file for f in sec.figures] == ["tradeoff_00_rmse_vs_wall_time.png"]
+    bias = ["tradeoff_00_bias_vs_wall_time.png"] if ORACLE else []
+    assert [f.file for f in sec.figures] == ["tradeoff_00_rmse_vs_wall_time.png", *bias]
     assert any("no simulated frame time" in n for n in sec.notes)
     assert any("No granularity study" in n for n in sec.notes)
     sec = tradeoff_section(read([data / "pmap"]), tmp_path)

@@ -229,17 +229,22 @@ def _cmd_reference(args: argparse.Namespace) -> int:
 
 
 def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
-    from tlm.experiments.error_cost import run_error_vs_cost
+    from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(i: int, n: int, row: dict) -> None:
         rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g}"
+        if row["truth_rel_mse"] is not None:
+            rel += f" (composite vs truth {row['truth_rel_mse']:.4g}, FLIP {row['truth_flip']:.3f})"
         print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {row['radius'] or 0:8.3g} "
               f"k {row['k'] or row['k_nearest'] or '-'!s:>4s}  relMSE {rel:>9s}  tested {row['photons_tested']:>10d}  "
               f"{row['gather_seconds']:.2f} s  simulated {row['fps']:.3g} fps", flush=True)
 
-    rows = run_error_vs_cost(Path(args.config), out, progress=progress)
+    def note(message: str) -> None:
+        print(f"error-vs-cost: {message}", flush=True)
+
+    rows = run_error_vs_cost(Path(args.config), out, progress=progress, truth=Truth(spp=args.truth_spp), note=note)
     print(f"wrote {out} ({len(rows)} rows)")
     _report_after(args, out)
     return 0
@@ -371,6 +376,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
     ev.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
+                    help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
+                         "measured against (computed once and cached; needs pip install -e '.[oracle]'); 0: none")
     _no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")

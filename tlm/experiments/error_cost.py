@@ -37,7 +37,7 @@ from __future__ import annotations
 import itertools
 import json
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +75,8 @@ from tlm.scenes.loader import load_scene
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
-    "rmse", "rel_mse", *GATHER_KEYS[1:], "gathers", "trace_seconds", "gather_seconds",
+    "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers", "trace_seconds",
+    "gather_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
 
@@ -115,8 +116,54 @@ def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
     return base, points, Path(path).resolve().parent
 
 
-def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
-    """Run every point of the experiment file ``path``; write the rows into ``out``."""
+@dataclass(frozen=True)
+class Truth:
+    """What the composites are measured against besides our own reference: Mitsuba 3's
+    path tracer (:mod:`tlm.oracle.mitsuba`) at ``spp`` samples per pixel, or nothing
+    (``spp`` 0, or Mitsuba not installed: ``reason`` says which)."""
+
+    spp: int = 4096
+    max_depth: int = -1
+
+    def load(self, scene, progress=None) -> tuple[np.ndarray | None, dict]:
+        if self.spp <= 0:
+            return None, {"available": False, "reason": "not asked for (--truth-spp 0)"}
+        try:
+            from tlm.oracle import mitsuba as oracle
+
+            oracle.require()
+        except InputError as e:
+            return None, {"available": False, "reason": str(e)}
+        found = oracle.ground_truth(scene, "path", spp=self.spp, max_depth=self.max_depth, compute=False)
+        if found is None:
+            if progress is not None:
+                progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp (computed once, then cached)")
+            found = oracle.ground_truth(scene, "path", spp=self.spp, max_depth=self.max_depth)
+        image, meta = found
+        return np.asarray(image, dtype=np.float64), {"available": True, **meta}
+
+
+def truth_error(composite: np.ndarray, truth: np.ndarray | None) -> dict[str, float | None]:
+    """The composite's RMSE, relative MSE and mean FLIP against the ground truth (None without one)."""
+    if truth is None:
+        return {"truth_rmse": None, "truth_rel_mse": None, "truth_flip": None}
+    from tlm.oracle import mitsuba as oracle
+
+    img = composite.reshape(truth.shape)
+    return {"truth_rmse": float(np.sqrt(np.mean((img - truth) ** 2))),
+            "truth_rel_mse": oracle.rel_mse(img, truth), "truth_flip": oracle.flip(img, truth)}
+
+
+def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None) -> list[dict]:
+    """Run every point of the experiment file ``path``; write the rows into ``out``.
+
+    Each row measures the point's photon-map frame against our converged reference
+    (``rmse``, ``rel_mse``: the estimator's error at this photon path model) and its whole
+    composite (every planned frame) against the independent ground truth (``truth_*``:
+    Mitsuba's path tracer, so bias of the model shows as well as noise), when there is
+    one. ``note`` receives one-line messages (the ground truth computed, or missing).
+    """
+    truth = Truth() if truth is None else truth
     start = time.perf_counter()
     base, points, folder = load_experiment(Path(path))
     check_destination(out, "rows.jsonl")  # before any work
@@ -140,6 +187,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
         found = load_reference(key)
     reference, ref_meta = found
     reference = reference.reshape(-1, 3)
+    truth_image, truth_meta = truth.load(scene, note)
+    if not truth_meta["available"] and note is not None:
+        note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
 
     maps: dict[tuple, tuple] = {}
     others: dict[str, dict] = {}  # the non-photon passes' work, per setting they depend on
@@ -161,6 +211,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
         radiance, work = pmap_pass(frame, g, traced.photons)
         gather_s = time.perf_counter() - t0
         fn = frame_functional(frame, g, geometry, others, traced, work)
+        rest = others[_others_key(frame.cfg, tuple(n for n in fn.passes if n != "pmap"))]
+        composite = sum((rad for rad, _ in rest.values()), np.zeros_like(radiance)) + radiance
         t0 = time.perf_counter()
         tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
         simulate_s = time.perf_counter() - t0
@@ -171,6 +223,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             **image_error(radiance, reference),
+            **truth_error(composite, truth_image),
+            "truth_spp": truth.spp if truth_image is not None else None,
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
             **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
@@ -178,7 +232,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None) -> list[dict]:
         rows.append(row)
         if progress is not None:
             progress(i, len(points), row)
-    _write(out, rows, str(path), time.perf_counter() - start, cfg0, {"key": key, **ref_meta})
+    _write(out, rows, str(path), time.perf_counter() - start, cfg0, {"key": key, **ref_meta}, truth_meta)
     return rows
 
 
@@ -201,9 +255,9 @@ def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[
     names = tuple(plan(frame.scene, frame.cfg).run_names)
     rest = tuple(n for n in names if n != "pmap")
     key = _others_key(frame.cfg, rest)
-    if key not in others:
-        others[key] = {n: PASS_FUNCTIONS[n](frame, g)[1] for n in rest}
-    work = dict(others[key])
+    if key not in others:  # (radiance, work) of each pass
+        others[key] = {n: PASS_FUNCTIONS[n](frame, g) for n in rest}
+    work = {n: w for n, (_, w) in others[key].items()}
     with_pmap = "pmap" in names
     if with_pmap:
         work["pmap"] = pmap_work
@@ -224,11 +278,12 @@ def frame_time(cycles: dict, clock_hz: float) -> dict:
             "frame_seconds": thr / clock_hz, "fps": clock_hz / thr if thr > 0 else None}
 
 
-def _write(out: Path, rows: list[dict], study: str, seconds: float, cfg, ref_meta: dict) -> None:
+def _write(out: Path, rows: list[dict], study: str, seconds: float, cfg, ref_meta: dict, truth_meta: dict) -> None:
     from tlm.experiments.run import provenance
 
     with atomic_folder(out, "rows.jsonl") as tmp:
         write_rows(tmp, "rows", rows, COLUMNS)
         (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
+        (tmp / "truth.json").write_text(json.dumps(truth_meta, indent=2, default=str) + "\n")
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
         (tmp / "provenance.json").write_text(json.dumps(provenance(study, seconds), indent=2) + "\n")

@@ -105,6 +105,16 @@ def _mitsuba():
     return mi
 
 
+def require() -> None:
+    """Check that the oracle's optional packages (mitsuba, flip-evaluator) import; a
+    one-line InputError naming the install command otherwise."""
+    _mitsuba()
+    try:
+        import flip_evaluator  # noqa: F401
+    except ImportError:
+        raise InputError(f"FLIP needs the optional package flip-evaluator ({INSTALL_HINT})", key="oracle") from None
+
+
 def mitsuba_version() -> str:
     return str(_mitsuba().__version__)
 

@@ -89,6 +89,47 @@ def study_names(studies: list[Study]) -> list[str]:
     return [f"{s.path.parent.name}/{n}" if names.count(n) > 1 else n for s, n in zip(studies, names, strict=True)]
 
 
+def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label: str | None = None):
+    """Relative MSE against host wall time, twice per point: the photon-map frame against our
+    converged reference (the estimator's noise and blur at this photon path model) and the
+    whole composite against the independent ground truth (Mitsuba's path tracer: what a
+    researcher should trust). The gap between the two is the model's bias."""
+    rows = study.rows
+    label = label or study.path.name
+    own = np.array([_num(r.get("rel_mse")) for r in rows])
+    truth = np.array([_num(r.get("truth_rel_mse")) for r in rows])
+    cost = np.array([_num(r.get("trace_seconds")) + _num(r.get("gather_seconds")) for r in rows])
+    ok = np.isfinite(truth) & np.isfinite(cost)
+    if not ok.any():
+        notes.append(f"{label}: no row was measured against a ground truth ('tlm error-vs-cost' with Mitsuba "
+                     "installed, pip install -e '.[oracle]'): no bias against run time.")
+        return None
+    fig = new_figure(9, 5.5)
+    ax = fig.subplots()
+    filters = sorted({str(r.get("filter")) for r, k in zip(rows, ok, strict=True) if k})
+    for i, f in enumerate(filters):
+        m = ok & np.array([str(r.get("filter")) == f for r in rows])
+        ax.scatter(cost[m], truth[m], s=40, c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
+                   label=f"{f}: composite vs ground truth", zorder=3)
+        mo = m & np.isfinite(own)
+        ax.scatter(cost[mo], own[mo], s=40, facecolors="none", edgecolors=colour(i), marker=marker(i),
+                   linewidths=1.0, label=f"{f}: photon frame vs own reference", zorder=3)
+        for x, a, b in zip(cost[mo], own[mo], truth[mo], strict=True):
+            ax.plot([x, x], [a, b], color=colour(i), linewidth=0.6, alpha=0.5, zorder=2)
+    _log_if_decades(ax, "x", cost[ok])
+    ax.set_yscale("log")
+    ax.set(xlabel="host wall time: photon tracing + gathering (s)", ylabel="relative MSE",
+           title=f"{label}: error against our reference and against the ground truth")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    spp = next((r.get("truth_spp") for r in rows if r.get("truth_spp")), None)
+    caption = ("Filled: the whole composite against Mitsuba 3's path tracer" + (f" ({spp} spp)" if spp else "")
+               + "; hollow: the photon-map frame against our own converged k-NN reference; a vertical line "
+               "joins a point's two errors. The own reference shows the estimator's noise and blur; the "
+               "ground truth adds what the model leaves out or gets wrong (bias).")
+    return save(fig, out, name, f"{label}: bias against wall time", caption)
+
+
 def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[str], label: str | None = None):
     """RMSE against ``cost_key`` ("frame" or "wall") for one error-vs-cost study."""
     rows = study.rows
@@ -245,6 +286,9 @@ def tradeoff_section(inputs: Inputs, out: Path) -> Section:
             fig = evc_figure(st, out, f"tradeoff_{i:02d}_rmse_vs_{key}_time.png", key, sec.notes, label)
             if fig is not None:
                 sec.figures.append(fig)
+        fig = evc_truth_figure(st, out, f"tradeoff_{i:02d}_bias_vs_wall_time.png", sec.notes, label)
+        if fig is not None:
+            sec.figures.append(fig)
     if gran:
         fig = granularity_figure(gran, out, "tradeoff_granularity.png", sec.notes)
         if fig is not None:
