@@ -75,8 +75,8 @@ from tlm.scenes.loader import load_scene
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
-    "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers", "trace_seconds",
-    "gather_seconds",
+    "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers",
+    "trace_seconds", "gather_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
 
