@@ -249,3 +249,36 @@ def test_error_metrics():
     assert om.flip(ref, ref) == 0.0
     assert 0.0 < om.flip(1.5 * ref, ref) < 1.0
     assert 0.0 < om.flip(1.5 * ref, ref, exposure=0.5) < 1.0
+
+
+# The issue's bar for the whole Cornell box (spheres included): our RCast composite against
+# Mitsuba's `direct` at matched sample counts (ours 64 eye rays x 16 light samples per pixel,
+# Mitsuba 1024 spp), the lights masked and the pixels whose eye rays meet a mirror or glass
+# (the ray-cast frame leaves them black by the thesis's pass structure; Mitsuba's direct
+# shows the light reflected there). Measured with the code below at 64x64: 0.0153 (87% of
+# the pixels kept), at 48x48 (this test) 0.0156; with 256 samples each instead, 0.0446 at
+# 64x64, the two renderers' noise
+# (Mitsuba's own, between two seeds / sqrt 2, is 0.014 there).
+CORNELL_DIRECT_BAR = 0.03
+
+
+def test_cornell_ray_cast_matches_mitsuba_direct_at_matched_samples():
+    from tlm.experiments.run import render
+
+    w = 48
+    scene = load_scene("cornell", resolution=[w, w])
+    res = render(config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [w, w],
+                                   "render": {"spp": 64, "light_samples": 16}}))
+    ours = res.radiance["rcast"]
+    theirs = om.render(scene, integrator="direct", spp=1024, seed=3)
+    g = res.gbuffer
+    per_pixel = (w * w, g.spp)
+    light = ndimage.binary_dilation(g.sees_light.reshape(per_pixel).any(axis=1).reshape(w, w))
+    specular = ((g.triangle >= 0) & (res.frame.kind[np.maximum(g.triangle, 0)] > 0)).reshape(per_pixel)
+    keep = ~light & ~specular.any(axis=1).reshape(w, w)
+    assert 0.8 < keep.mean() < 0.95
+    err = om.mean_normalised_rel_rmse(ours, theirs, keep)
+    assert err <= CORNELL_DIRECT_BAR, err
+    # the figure can fail: 10% too much light, or the image mirrored, is far above the bar
+    assert om.mean_normalised_rel_rmse(1.1 * ours, theirs, keep) > 2 * CORNELL_DIRECT_BAR
+    assert om.mean_normalised_rel_rmse(ours[:, ::-1], theirs, keep & keep[:, ::-1]) > 5 * CORNELL_DIRECT_BAR

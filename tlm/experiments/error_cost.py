@@ -144,14 +144,15 @@ class Truth:
 
 
 def truth_error(composite: np.ndarray, truth: np.ndarray | None) -> dict[str, float | None]:
-    """The composite's RMSE, relative MSE and mean FLIP against the ground truth (None without one)."""
+    """The composite's RMSE, relative MSE (sum of squared error over sum of squared truth, as
+    ``rel_mse`` against our reference) and mean HDR-FLIP against the ground truth (None without one)."""
     if truth is None:
         return {"truth_rmse": None, "truth_rel_mse": None, "truth_flip": None}
     from tlm.oracle import mitsuba as oracle
 
     img = composite.reshape(truth.shape)
-    return {"truth_rmse": float(np.sqrt(np.mean((img - truth) ** 2))),
-            "truth_rel_mse": oracle.rel_mse(img, truth), "truth_flip": oracle.flip(img, truth)}
+    err = image_error(img, truth)  # the same measures as against our own reference
+    return {"truth_rmse": err["rmse"], "truth_rel_mse": err["rel_mse"], "truth_flip": oracle.flip(img, truth)}
 
 
 def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None) -> list[dict]:
