@@ -282,3 +282,29 @@ def test_cornell_ray_cast_matches_mitsuba_direct_at_matched_samples():
     # the figure can fail: 10% too much light, or the image mirrored, is far above the bar
     assert om.mean_normalised_rel_rmse(1.1 * ours, theirs, keep) > 2 * CORNELL_DIRECT_BAR
     assert om.mean_normalised_rel_rmse(ours[:, ::-1], theirs, keep & keep[:, ::-1]) > 5 * CORNELL_DIRECT_BAR
+
+
+def test_point_light_caustics_come_from_the_particle_tracer(cache):
+    """The ring's cardioid is a point light's caustic through a mirror: no eye path reaches
+    it, so Mitsuba's path tracer leaves the floor inside the ring dark; the composite truth
+    takes the particle tracer at the diffuse pixels and has it. Cornell's light is an area
+    light: the path tracer alone."""
+    from tlm.experiments.run import render
+    from tlm.render.passes import diffuse_pixels
+
+    assert om.needs_light_tracing(load_scene("ring")) and not om.needs_light_tracing(load_scene("cornell"))
+    w, h = 64, 48
+    res = render(config_from_dict({"scene": "ring", "mode": "rcast", "resolution": [w, h], "render": {"spp": 1}}))
+    scene = res.scene
+    diffuse = diffuse_pixels(res.frame, res.gbuffer).reshape(h, w)
+    assert 0.5 < diffuse.mean() < 1.0
+    path, _ = om.ground_truth(scene, "path", spp=64, seed=1)
+    truth, meta = om.composite_truth(scene, diffuse, spp=64, seed=1)
+    assert meta["integrator"] == "path + ptracer" and meta["ptracer"]["spp"] == om.PTRACER_FACTOR * 64
+    np.testing.assert_array_equal(truth[~diffuse], path[~diffuse])
+    # the floor inside the ring: the ray-cast frame (direct light) is dark there, the truth is not
+    g = res.gbuffer
+    p = g.origin + np.where(np.isfinite(g.t), g.t, 0.0)[:, None] * g.direction
+    inside = ((np.hypot(p[:, 0], p[:, 2]) < 4.0) & (p[:, 1] < 0.01) & (g.triangle >= 0)).reshape(h, w) & diffuse
+    assert inside.sum() > 20
+    assert truth[inside].mean() > 2.0 * path[inside].mean() + 1e-3

@@ -53,8 +53,8 @@ class RenderConfig:
         min=1, max=1024,
     )
     spp: int = _f(
-        4, "eye rays per pixel, jittered in the pixel (a square number: stratified); 1 = the pixel's centre, "
-        "the thesis's ray casting", min=1, max=4096,
+        4, "eye rays per pixel, jittered in the pixel (stratified when a square number); 1 = the pixel's "
+        "centre, the thesis's ray casting", min=1, max=4096,
     )
     fresnel: bool = _f(True, "glass reflects and refracts by the exact Fresnel terms (both branches traced); "
                        "false: Snell refraction alone, reflection only when total")
@@ -76,7 +76,7 @@ class PhotonConfig:
     max_bounces: int = _f(8, "surface hits after which a photon path stops", min=0, max=64)
     russian_roulette: bool = _f(True, "absorb photons at Lambertian hits with probability 1 - max(albedo)")
     caustic_fraction: float = _f(
-        0.5, "share of each light's photons in the caustic group (a point light aims it at the specular objects)",
+        0.5, "share of each light's photons in the caustic group, aimed at the specular objects (caustic map)",
         min=0.0, max=0.95,
     )
     levels: int | None = _f(

@@ -66,6 +66,7 @@ from tlm.render.passes import (
     Frame,
     GBuffer,
     cast,
+    diffuse_pixels,
     pmap_pass,
     search_radius,
     trace_photon_map,
@@ -123,9 +124,12 @@ class Truth:
     (``spp`` 0, or Mitsuba not installed: ``reason`` says which)."""
 
     spp: int = 4096
-    max_depth: int = -1
 
-    def load(self, scene, progress=None) -> tuple[np.ndarray | None, dict]:
+    def load(self, frame: Frame, g: GBuffer, progress=None) -> tuple[np.ndarray | None, dict]:
+        """The ground truth of the frame's scene (:func:`tlm.oracle.mitsuba.composite_truth`:
+        the path tracer, with the particle tracer at the diffuse pixels where a point
+        light's caustics would be missing), or None and why not."""
+        scene = frame.scene
         if self.spp <= 0:
             return None, {"available": False, "reason": "not asked for (--truth-spp 0)"}
         try:
@@ -134,11 +138,12 @@ class Truth:
             oracle.require()
         except InputError as e:
             return None, {"available": False, "reason": str(e)}
-        found = oracle.ground_truth(scene, "path", spp=self.spp, max_depth=self.max_depth, compute=False)
+        diffuse = diffuse_pixels(frame, g).reshape(scene.camera.height, scene.camera.width)
+        found = oracle.composite_truth(scene, diffuse, spp=self.spp, compute=False)
         if found is None:
             if progress is not None:
                 progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp (computed once, then cached)")
-            found = oracle.ground_truth(scene, "path", spp=self.spp, max_depth=self.max_depth)
+            found = oracle.composite_truth(scene, diffuse, spp=self.spp)
         image, meta = found
         return np.asarray(image, dtype=np.float64), {"available": True, **meta}
 
@@ -188,7 +193,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         found = load_reference(key)
     reference, ref_meta = found
     reference = reference.reshape(-1, 3)
-    truth_image, truth_meta = truth.load(scene, note)
+    truth_image, truth_meta = truth.load(Frame.create(scene, accel, cfg0), g, note)
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
 

@@ -85,7 +85,7 @@ from tlm.experiments.atomic import atomic_folder
 from tlm.scenes.model import Scene
 
 VARIANT = "scalar_rgb"
-INTEGRATORS = ("direct", "path")
+INTEGRATORS = ("direct", "path", "ptracer")
 MITSUBA_DIAGONAL = 1000.0  # the scene's bounding-box diagonal in Mitsuba's units (see _normalised)
 LIGHT_OFFSET = 1e-5  # quad lights move this fraction of the bounding-box diagonal along their normal
 MAPPING_VERSION = 1  # part of the cache key: bump when the scene mapping changes what Mitsuba renders
@@ -235,7 +235,10 @@ def scene_dict(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
                normals=None) -> dict[str, Any]:
     """The Mitsuba scene of ``scene`` (a dict for ``mi.load_dict``; sets the variant).
 
-    integrator : 'direct' or 'path'. spp : samples per pixel. max_depth : the path
+    integrator : 'direct', 'path' or 'ptracer' (Mitsuba's particle tracer: light paths
+    connected to the camera; it renders caustics of point lights seen on diffuse surfaces,
+    which no eye path can reach, and leaves black what the eye sees in a mirror or
+    glass). spp : samples per pixel. max_depth : the path
     tracer's longest path (-1 = unlimited). seed : the sampler's seed. normals :
     optional (n, 3, 3) unit per-corner shading normals (default ``scene.normals`` if
     the scene has them, else flat triangles).
@@ -254,7 +257,7 @@ def scene_dict(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
     doc: dict[str, Any] = {
         "type": "scene",
         "integrator": ({"type": "direct"} if integrator == "direct"
-                       else {"type": "path", "max_depth": int(max_depth)}),
+                       else {"type": integrator, "max_depth": int(max_depth)}),
         "sensor": {
             "type": "perspective",
             "fov": float(cam.vfov),
@@ -377,6 +380,43 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     }
     save_ground_truth(key, image, meta)
     return load_ground_truth(key)
+
+
+PTRACER_FACTOR = 4  # light paths per pixel of the particle tracer, per sample of the path tracer
+
+
+def needs_light_tracing(scene: Scene) -> bool:
+    """Whether the path tracer misses light the scene has: caustics of a point light.
+
+    A path traced from the eye reaches a point light only by a shadow ray from a diffuse
+    point; a path that meets a mirror or glass after the diffuse point can never hit a
+    delta light, so the caustics a point light casts through mirrors and glass (the
+    ring's cardioid, the room's) are missing from Mitsuba's ``path`` image.
+    """
+    point = any(light.kind == "point" for light in scene.lights)
+    return point and any(m.kind != "lambertian" for m in scene.materials)
+
+
+def composite_truth(scene: Scene, diffuse: np.ndarray, spp: int = 4096, seed: int = 0,
+                    compute: bool = True) -> tuple[np.ndarray, dict] | None:
+    """The ground truth of ``scene``: Mitsuba's path tracer, and where the path tracer
+    misses light (:func:`needs_light_tracing`), its particle tracer at the pixels whose
+    eye rays all meet a diffuse surface (``diffuse``, (height, width) bool), which it
+    renders completely (every light path ending on a diffuse surface seen by the camera,
+    caustics of point lights included) and ``PTRACER_FACTOR x spp`` light paths per pixel.
+    None when ``compute`` is False and an image is missing.
+    """
+    path = ground_truth(scene, "path", spp=spp, seed=seed, compute=compute)
+    if path is None or not needs_light_tracing(scene):
+        return path
+    light = ground_truth(scene, "ptracer", spp=PTRACER_FACTOR * spp, seed=seed, compute=compute)
+    if light is None:
+        return None
+    mask = np.asarray(diffuse, dtype=bool)[..., None]
+    image = np.where(mask, light[0], path[0])
+    meta = {**path[1], "integrator": "path + ptracer", "ptracer": light[1],
+            "ptracer_pixels": float(mask.mean())}
+    return image, meta
 
 
 # --------------------------------------------------------------------------- error metrics

@@ -230,6 +230,10 @@ class GBuffer:
         s = np.arange(self.origin.shape[0], dtype=np.int64) % self.spp
         return self.pixels[self.owner] * self.spp + s
 
+    def every(self, values: np.ndarray) -> np.ndarray:
+        """(p,) bool: whether a per-sample condition holds for all of each pixel's samples."""
+        return np.asarray(values, dtype=bool).reshape(-1, self.spp).all(axis=1)
+
     def first(self, values: np.ndarray) -> np.ndarray:
         """Each pixel's first sample of a per-sample array (what the AOVs hold)."""
         return values[:: self.spp]
@@ -481,6 +485,13 @@ def reflect_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tu
 def refract_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Eye paths that first meet a dielectric (``streams`` as in :func:`rcast_pass`)."""
     return _walk_pass(frame, g, "dielectric", frame.cfg.render.refract_depth, streams)
+
+
+def diffuse_pixels(frame: Frame, g: GBuffer) -> np.ndarray:
+    """(p,) bool: the pixels whose eye rays all meet a Lambertian surface (no light seen)."""
+    hit = np.zeros(g.origin.shape[0], dtype=bool)
+    hit[_lambertian(frame, g)] = True
+    return g.every(hit)
 
 
 def lambertian_hits(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
