@@ -11,7 +11,8 @@ every light path ending on a surface the camera sees
 
 * the Refract composite (direct light, mirrors and glass; no indirect light) and the PMap
   composite (plus the two photon maps): relative MSE (sum of squared error over sum of
-  squared truth, as ``tlm error-vs-cost``) and mean HDR-FLIP;
+  squared truth, as ``tlm error-vs-cost``, away from the lights seen directly:
+  :func:`tlm.oracle.mitsuba.away_from_lights`) and mean HDR-FLIP over the whole image;
 * on Cornell, the PMap composite against Mitsuba's path tracer *at equal wall time*: our
   render's host seconds (``render``, without the timing simulation), Mitsuba at the spp
   that takes as long (scaled from a 16 spp run), both measured against the same truth;
@@ -125,9 +126,12 @@ def main() -> None:
               + (f" (+ {meta['ptracer']['seconds']:.0f} s ptracer, {meta['ptracer_pixels']:.0%} of the pixels)"
                  if light_traced else ""))
         row = {"scene": name, "size": f"{cam.width}x{cam.height}", "truth_spp": args.truth_spp}
+        g = pmap.gbuffer
+        keep = om.away_from_lights(~g.every(~g.sees_light).reshape(cam.height, cam.width))
+        row["compared"] = float(keep.mean())
         for label, res, secs in (("refract", refract, t_refract), ("pmap", pmap, t_pmap)):
             img = res.composite
-            row[f"{label}_rel_mse"] = image_error(img, truth)["rel_mse"]
+            row[f"{label}_rel_mse"] = image_error(img[keep], truth[keep])["rel_mse"]
             row[f"{label}_flip"] = om.flip(img, truth)
             row[f"{label}_seconds"] = secs
             if args.images is not None:
@@ -147,7 +151,7 @@ def main() -> None:
             t0 = time.perf_counter()
             same_time = om.render(scene, integrator="path", spp=spp, seed=1)
             t_mi = time.perf_counter() - t0
-            mi_err = image_error(same_time, truth)["rel_mse"]
+            mi_err = image_error(same_time[keep], truth[keep])["rel_mse"]
             ratio = row["pmap_rel_mse"] / mi_err
             row.update(equal_time_spp=spp, equal_time_seconds=t_mi, equal_time_rel_mse=mi_err,
                        equal_time_flip=om.flip(same_time, truth), ratio=ratio)

@@ -148,15 +148,17 @@ class Truth:
         return np.asarray(image, dtype=np.float64), {"available": True, **meta}
 
 
-def truth_error(composite: np.ndarray, truth: np.ndarray | None) -> dict[str, float | None]:
+def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarray) -> dict[str, float | None]:
     """The composite's RMSE, relative MSE (sum of squared error over sum of squared truth, as
-    ``rel_mse`` against our reference) and mean HDR-FLIP against the ground truth (None without one)."""
+    ``rel_mse`` against our reference) over the pixels ``keep`` ((height, width) bool: away
+    from the lights seen directly, :func:`tlm.oracle.mitsuba.away_from_lights`) and mean
+    HDR-FLIP over the whole image, against the ground truth (None without one)."""
     if truth is None:
         return {"truth_rmse": None, "truth_rel_mse": None, "truth_flip": None}
     from tlm.oracle import mitsuba as oracle
 
     img = composite.reshape(truth.shape)
-    err = image_error(img, truth)  # the same measures as against our own reference
+    err = image_error(img[keep], truth[keep])  # the same measures as against our own reference
     return {"truth_rmse": err["rmse"], "truth_rel_mse": err["rel_mse"], "truth_flip": oracle.flip(img, truth)}
 
 
@@ -194,6 +196,12 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     reference, ref_meta = found
     reference = reference.reshape(-1, 3)
     truth_image, truth_meta = truth.load(Frame.create(scene, accel, cfg0), g, note)
+    keep = None
+    if truth_image is not None:
+        from tlm.oracle.mitsuba import away_from_lights
+
+        keep = away_from_lights(~g.every(~g.sees_light).reshape(truth_image.shape[:2]))
+        truth_meta["pixels_compared"] = float(keep.mean())
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
 
@@ -229,7 +237,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             **image_error(radiance, reference),
-            **truth_error(composite, truth_image),
+            **truth_error(composite, truth_image, keep),
             "truth_spp": truth.spp if truth_image is not None else None,
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),

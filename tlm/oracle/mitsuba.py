@@ -382,6 +382,17 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     return load_ground_truth(key)
 
 
+def away_from_lights(sees_light: np.ndarray) -> np.ndarray:
+    """(height, width) bool: the pixels to compare, given which pixels see a light directly
+    (any of their eye rays): those and their 8 neighbours are left out. A light's radiance
+    is hundreds of times a lit wall's, so its edge pixels (Mitsuba's emitter sits a hair in
+    front of the ceiling and its film box-filters the edge) would dominate a sum of
+    squared errors and, in a relative MSE's denominator, dilute every other error."""
+    from scipy import ndimage
+
+    return ~ndimage.binary_dilation(np.asarray(sees_light, dtype=bool), structure=np.ones((3, 3), dtype=bool))
+
+
 PTRACER_FACTOR = 4  # light paths per pixel of the particle tracer, per sample of the path tracer
 
 
