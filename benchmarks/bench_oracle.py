@@ -11,8 +11,9 @@ every light path ending on a surface the camera sees
 
 * the Refract composite (direct light, mirrors and glass; no indirect light) and the PMap
   composite (plus the two photon maps): relative MSE (sum of squared error over sum of
-  squared truth, as ``tlm error-vs-cost``, away from the lights seen directly:
-  :func:`tlm.oracle.mitsuba.away_from_lights`) and mean HDR-FLIP over the whole image;
+  squared truth, as ``tlm error-vs-cost``, away from the lights seen directly or as
+  highlights in mirrors and glass: :func:`tlm.oracle.mitsuba.away_from_lights`) and mean
+  HDR-FLIP over the whole image;
 * on Cornell, the PMap composite against Mitsuba's path tracer *at equal wall time*: our
   render's host seconds (``render``, without the timing simulation), Mitsuba at the spp
   that takes as long (scaled from a 16 spp run), both measured against the same truth;
@@ -54,7 +55,7 @@ from tlm.experiments.reference import image_error
 from tlm.experiments.run import render
 from tlm.oracle import mitsuba as om
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.passes import diffuse_pixels
+from tlm.render.passes import diffuse_pixels, sees_a_light
 from tlm.scenes.loader import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,8 +127,7 @@ def main() -> None:
               + (f" (+ {meta['ptracer']['seconds']:.0f} s ptracer, {meta['ptracer_pixels']:.0%} of the pixels)"
                  if light_traced else ""))
         row = {"scene": name, "size": f"{cam.width}x{cam.height}", "truth_spp": args.truth_spp}
-        g = pmap.gbuffer
-        keep = om.away_from_lights(~g.every(~g.sees_light).reshape(cam.height, cam.width))
+        keep = om.away_from_lights(sees_a_light(pmap.frame, pmap.gbuffer).reshape(cam.height, cam.width))
         row["compared"] = float(keep.mean())
         for label, res, secs in (("refract", refract, t_refract), ("pmap", pmap, t_pmap)):
             img = res.composite

@@ -69,6 +69,7 @@ from tlm.render.passes import (
     diffuse_pixels,
     pmap_pass,
     search_radius,
+    sees_a_light,
     trace_photon_map,
 )
 from tlm.render.planner import photon_count, plan
@@ -200,7 +201,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     if truth_image is not None:
         from tlm.oracle.mitsuba import away_from_lights
 
-        keep = away_from_lights(~g.every(~g.sees_light).reshape(truth_image.shape[:2]))
+        keep = away_from_lights(sees_a_light(Frame.create(scene, accel, cfg0), g).reshape(truth_image.shape[:2]))
         truth_meta["pixels_compared"] = float(keep.mean())
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")

@@ -487,6 +487,18 @@ def refract_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tu
     return _walk_pass(frame, g, "dielectric", frame.cfg.render.refract_depth, streams)
 
 
+def sees_a_light(frame: Frame, g: GBuffer) -> np.ndarray:
+    """(p,) bool: the pixels with a sample that sees a light, directly or along its mirror
+    and glass paths (a highlight): where a few samples carry a light's radiance, hundreds
+    of times a wall's, and one more or fewer of them changes the pixel the most."""
+    seen = g.sees_light.copy()
+    render = frame.cfg.render
+    for kind, depth in (("mirror", render.reflect_depth), ("dielectric", render.refract_depth)):
+        if depth and np.any(frame.kind == KIND[kind]):
+            seen[specular_walk(frame, g, kind, depth).emitted_sample] = True
+    return ~g.every(~seen)
+
+
 def diffuse_pixels(frame: Frame, g: GBuffer) -> np.ndarray:
     """(p,) bool: the pixels whose eye rays all meet a Lambertian surface (no light seen)."""
     hit = np.zeros(g.origin.shape[0], dtype=bool)
