@@ -15,13 +15,16 @@ arrays."
   normal facing the arriving side, RGB power, incoming direction), then Russian
   roulette on the albedo decides whether it is reflected diffusely (probability
   ``max(albedo)``, power scaled by ``albedo / p``) or absorbed. Mirrors reflect (power
-  times reflectance); dielectrics refract by Snell's law or reflect totally (power
-  times transmittance on refraction). Paths stop at ``max_bounces`` surface hits.
-* **What the map holds.** The ray-cast frame already renders direct light (shadow
-  rays), so a photon's *first* surface hit, straight from the light, is not stored:
-  the map holds caustics (light that reached the Lambertian surface through mirrors or
-  dielectrics, L S+ D) and indirect light (after at least one diffuse bounce,
-  L D ... D) — the two effects the thesis's PMap column adds.
+  times reflectance); glass reflects with the Fresnel probability ``F`` (Russian
+  roulette: power unchanged) or refracts (power times transmittance), total internal
+  reflection included; directions about the interpolated shading normals, as for eye
+  rays. Paths stop at ``max_bounces`` surface hits.
+* **What the maps hold.** The ray-cast frame already renders direct light (shadow
+  rays), so a photon's *first* surface hit, straight from the light, is not stored (nor
+  after crossing only index-matched glass, which shadow rays pass too): the caustic map
+  holds light that reached the Lambertian surface through mirrors or glass only
+  (L S+ D), the indirect map light after at least one diffuse bounce (L D ... D) — the
+  two effects the thesis's PMap column adds (:class:`PhotonMaps`, a BSP each).
 
 Work per emitted photon (:data:`PHOTON_WORK`) includes the page misses of its rays'
 reads (:mod:`tlm.arch.cache`), all its bounces: ``trav_misses`` (the Traversal PM's

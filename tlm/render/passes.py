@@ -5,21 +5,25 @@
 and traversed in separate passes through the acceleration data structure. These
 separate frames are summed for the final rendering output." (§III.B)
 
-* :func:`cast` traces the eye rays of a packet of pixels and keeps their hits (the
-  stored intersection points and normals every later pass starts from);
+* :func:`cast` traces the eye rays of a packet of pixels, ``render.spp`` per pixel, and
+  keeps their hits (the stored intersection points and normals every later pass starts
+  from);
 * :func:`rcast_pass`: direct light with shadow rays at Lambertian eye hits, and quad
   lights seen directly;
 * :func:`reflect_pass`: eye paths whose first surface is a mirror, followed through up
-  to ``reflect_depth`` specular bounces to a Lambertian surface, lit directly;
-* :func:`refract_pass`: the same for eye paths whose first surface is a dielectric
-  (Snell refraction, total internal reflection), up to ``refract_depth`` bounces;
-* :func:`pmap_pass`: the photon-mapped term (caustics and indirect light) at
-  Lambertian eye hits, from the photon map with the configured filter (eqs. 3.2–3.5).
+  to ``reflect_depth`` specular bounces to Lambertian surfaces, lit directly;
+* :func:`refract_pass`: the same for eye paths whose first surface is a dielectric (each
+  glass hit split into its Fresnel reflection and refraction), up to ``refract_depth``
+  bounces (:func:`specular_walk`, shared by the two and the photon-map frame);
+* :func:`pmap_pass`: the photon-mapped term (caustics and indirect light, two maps) at
+  the Lambertian eye hits and the ends of the mirror and glass paths, with the
+  configured filter (eqs. 3.2–3.5).
 
 Each eye path belongs to exactly one frame, so the composite is their sum. Every
-function works on any packet of pixel ids and returns, with the radiance, the per-pixel
-work (:data:`WORK_KEYS`); a pixel's results and work do not depend on the rest of its
-packet, except its page misses, which depend on the pixels before it (below).
+function works on any packet of pixel ids and returns, with the radiance (each pixel's
+samples averaged), the per-pixel work (:data:`WORK_KEYS`, a pixel's samples summed); a
+pixel's results and work do not depend on the rest of its packet, except its page
+misses, which depend on the pixels before it (below).
 
 Page misses (the ``*_misses`` keys) are the data cache's (:mod:`tlm.arch.cache`) on
 the kernels' real address streams (:data:`STREAM_KEYS`): the Traversal PM's node heap
@@ -30,8 +34,9 @@ per fragment (``frag_misses``). The run config's ``cache`` section sets the bloc
 size and the pairs per PM: with the thesis's 4 pairs every stream has a pair of its
 own; with 1 the node heap and the leaf indices share one and evict each other's pages
 (:mod:`tlm.arch.cache` has the reading). A miss depends on the accesses before it, so
-the streams are in pixel-major program order (a pixel's rays bounce by bounce, its
-shadow rays light by light, sample by sample) and each pass function takes a
+the streams are in pixel-major program order (a pixel's rays bounce by bounce, then the
+shadow rays of the points they reach, light by light, sample by sample) and each pass
+function takes a
 :class:`~tlm.arch.cache.Streams` holding the pairs' states (default: a fresh one of the
 frame's ``cache`` settings, :func:`new_streams`): packets run in pixel order with one
 such object give exactly the misses of the whole image (a fresh one per packet charges
@@ -267,8 +272,9 @@ def shading_normals(frame: Frame, tri: np.ndarray, u: np.ndarray, v: np.ndarray)
 def _shade_lambertian(frame: Frame, owner: np.ndarray, keys: np.ndarray, points: np.ndarray,
                       d: np.ndarray, tri: np.ndarray, u: np.ndarray, v: np.ndarray,
                       work: dict[str, np.ndarray], rec: Recorder) -> np.ndarray:
-    """Direct light (k, 3) at Lambertian hits, unweighted; records fragment and shadow work and
-    reads (the shadow rays' and one shading record per fragment) under the pixels ``owner``."""
+    """Direct light (k, 3) at Lambertian hits (the caller weights it); records fragment and
+    shadow work and reads (the shadow rays' and one shading record per fragment) under the
+    pixels ``owner``."""
     geo = frame.normals[tri]
     towards = np.sum(geo * d, axis=1) > 0  # the ray meets the back of the winding
     n_geo = np.where(towards[:, None], -geo, geo)
