@@ -80,8 +80,10 @@ def timed_render(cfg):
     return res, time.perf_counter() - t0
 
 
-def pair(path: Path, ours: np.ndarray, theirs: np.ndarray) -> None:
-    exposure = auto_exposure(theirs.reshape(-1, 3))
+def pair(path: Path, ours: np.ndarray, theirs: np.ndarray, keep: np.ndarray) -> None:
+    """Ours | Mitsuba's, one exposure: Mitsuba's, over the pixels ``keep`` (no light seen:
+    a light would set it, as a run's images leave them out)."""
+    exposure = auto_exposure(theirs[keep])
     gap = np.full((ours.shape[0], 4, 3), 255, dtype=np.uint8)
     write_png(path, np.hstack([to_srgb8(ours, exposure), gap, to_srgb8(theirs, exposure)]))
 
@@ -97,7 +99,7 @@ def direct_check(size: int, images: Path | None) -> tuple[float, float]:
     specular = ((g.triangle >= 0) & (res.frame.kind[np.maximum(g.triangle, 0)] > 0)).reshape(per_pixel)
     keep = ~light & ~specular.any(axis=1).reshape(size, size)
     if images is not None:
-        pair(images / "cornell_rcast_vs_direct.png", res.radiance["rcast"], theirs)
+        pair(images / "cornell_rcast_vs_direct.png", res.radiance["rcast"], theirs, ~light)
     return om.mean_normalised_rel_rmse(res.radiance["rcast"], theirs, keep), float(keep.mean())
 
 
@@ -143,7 +145,7 @@ def main() -> None:
             row[f"{label}_flip"] = om.flip(img, truth)
             row[f"{label}_seconds"] = secs
             if args.images is not None:
-                pair(args.images / f"{name}_{label}.png", img, truth)
+                pair(args.images / f"{name}_{label}.png", img, truth, keep)
         print(f"  Refract composite: rel MSE {row['refract_rel_mse']:.4f}, FLIP {row['refract_flip']:.3f} "
               f"({t_refract:.1f} s)")
         print(f"  PMap composite:    rel MSE {row['pmap_rel_mse']:.4f}, FLIP {row['pmap_flip']:.3f} "
@@ -168,7 +170,7 @@ def main() -> None:
             verdict(ratio <= EQUAL_TIME_BAR, f"cornell: PMap error / path tracer's at equal time = {ratio:.2f} "
                                               f"(bar: at most {EQUAL_TIME_BAR:g})", "  ")
             if args.images is not None:
-                pair(args.images / "cornell_pmap_vs_equal_time_path.png", pmap.composite, same_time)
+                pair(args.images / "cornell_pmap_vs_equal_time_path.png", pmap.composite, same_time, keep)
             err, kept = direct_check(args.direct_size, args.images)
             row["rcast_vs_direct"] = err
             verdict(err <= DIRECT_BAR, f"cornell {args.direct_size}x{args.direct_size}: RCast vs Mitsuba direct "
