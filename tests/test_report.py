@@ -168,7 +168,13 @@ def test_report_again_replaces_the_report(folders, tmp_path):
 
 def test_folder_of_folders(folders, tmp_path):
     """``tlm report runs/`` reads every tlm folder one level down."""
+    build_report([folders], tmp_path / "all")
+    (tmp_path / "all" / "oracle").mkdir()  # bench_oracle's images: kept when the report is rewritten
+    (tmp_path / "all" / "oracle" / "x.png").write_bytes(b"png")
+    (tmp_path / "all" / "stale.png").write_bytes(b"old")  # anything else of an earlier report goes
     page = build_report([folders], tmp_path / "all")
+    assert (tmp_path / "all" / "oracle" / "x.png").read_bytes() == b"png"
+    assert not (tmp_path / "all" / "stale.png").exists()
     inputs = read([folders])
     assert {s.kind for s in inputs.studies} == {"granularity"}
     assert len(inputs.sweeps) == 1

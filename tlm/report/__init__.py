@@ -22,6 +22,7 @@ written whole or not at all (a temporary sibling renamed into place).
 from __future__ import annotations
 
 import datetime
+import shutil
 import time
 from pathlib import Path
 
@@ -32,6 +33,9 @@ from tlm.report.common import Section
 from tlm.report.html import esc, page
 
 MARKER = "report.html"
+# subfolders of a report's folder that the report does not draw but keeps when it is
+# written again: the side-by-side images benchmarks/bench_oracle.py writes into plots/oracle
+KEPT_FOLDERS = ("oracle",)
 
 
 def sections(inputs: Inputs, out: Path) -> list[Section]:
@@ -89,6 +93,9 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
         inputs.scaling_sweeps = extra.sweeps
     out = Path(out) if out is not None else default_out(dirs)
     with atomic_folder(out, MARKER) as tmp:
+        for name in KEPT_FOLDERS:  # what others wrote into the report's folder stays
+            if (out / name).is_dir():
+                shutil.copytree(out / name, tmp / name)
         secs = sections(inputs, tmp)
         kinds = ", ".join(f"{esc(d)}" for d in dirs)
         if inputs.scaling_sweeps:
