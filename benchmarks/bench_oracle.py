@@ -49,13 +49,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 from timing import exit_status, verdict
 
 from tlm.config import config_from_dict, read_yaml
 from tlm.experiments.reference import image_error
 from tlm.experiments.run import render
 from tlm.oracle import mitsuba as om
+from tlm.oracle.masks import ray_cast_pixels
 from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.passes import diffuse_pixels, sees_a_light
 from tlm.scenes.loader import load_scene
@@ -93,13 +93,10 @@ def direct_check(size: int, images: Path | None) -> tuple[float, float]:
     res = render(config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [size, size],
                                    "render": {"spp": 64, "light_samples": 16}}))
     theirs = om.render(scene, integrator="direct", spp=1024, seed=3)
-    g = res.gbuffer
-    per_pixel = (size * size, g.spp)
-    light = ndimage.binary_dilation(g.sees_light.reshape(per_pixel).any(axis=1).reshape(size, size))
-    specular = ((g.triangle >= 0) & (res.frame.kind[np.maximum(g.triangle, 0)] > 0)).reshape(per_pixel)
-    keep = ~light & ~specular.any(axis=1).reshape(size, size)
+    keep = ray_cast_pixels(res.frame, res.gbuffer)
     if images is not None:
-        pair(images / "cornell_rcast_vs_direct.png", res.radiance["rcast"], theirs, ~light)
+        lights = ~res.gbuffer.every(~res.gbuffer.sees_light).reshape(size, size)
+        pair(images / "cornell_rcast_vs_direct.png", res.radiance["rcast"], theirs, ~lights)
     return om.mean_normalised_rel_rmse(res.radiance["rcast"], theirs, keep), float(keep.mean())
 
 

@@ -21,7 +21,7 @@ from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.kernels.traverse import build_accel
 from tlm.oracle import mitsuba as om
-from tlm.oracle.masks import smooth_pixels
+from tlm.oracle.masks import ray_cast_pixels, smooth_pixels
 from tlm.render.passes import Frame, cast, rcast_pass
 from tlm.scenes.builders import cornell
 from tlm.scenes.loader import load_scene, transform_scene
@@ -271,11 +271,7 @@ def test_cornell_ray_cast_matches_mitsuba_direct_at_matched_samples():
                                    "render": {"spp": 64, "light_samples": 16}}))
     ours = res.radiance["rcast"]
     theirs = om.render(scene, integrator="direct", spp=1024, seed=3)
-    g = res.gbuffer
-    per_pixel = (w * w, g.spp)
-    light = ndimage.binary_dilation(g.sees_light.reshape(per_pixel).any(axis=1).reshape(w, w))
-    specular = ((g.triangle >= 0) & (res.frame.kind[np.maximum(g.triangle, 0)] > 0)).reshape(per_pixel)
-    keep = ~light & ~specular.any(axis=1).reshape(w, w)
+    keep = ray_cast_pixels(res.frame, res.gbuffer)
     assert 0.8 < keep.mean() < 0.95
     err = om.mean_normalised_rel_rmse(ours, theirs, keep)
     assert err <= CORNELL_DIRECT_BAR, err

@@ -79,3 +79,21 @@ def smooth_pixels(scene: Scene, supersample: int = 2, accel: TriangleAccel | Non
     low = ndimage.minimum_filter(label.min(axis=(1, 3)), size=3, mode="nearest")
     high = ndimage.maximum_filter(label.max(axis=(1, 3)), size=3, mode="nearest")
     return low == high
+
+
+def ray_cast_pixels(frame, g) -> np.ndarray:
+    """(height, width) bool: where our ray-cast frame and Mitsuba's ``direct`` image are
+    comparable: no eye ray of the pixel (or of a neighbour) sees a light, and none meets a
+    mirror or glass (the ray-cast frame leaves those to the Reflect and Refract frames, by
+    the thesis's pass structure; Mitsuba's direct integrator shows the light reflected there).
+
+    frame, g : the :class:`~tlm.render.passes.Frame` and :class:`~tlm.render.passes.GBuffer`
+    of a whole image.
+    """
+    from scipy import ndimage
+
+    cam = frame.scene.camera
+    shape = (cam.height, cam.width)
+    light = ndimage.binary_dilation((~g.every(~g.sees_light)).reshape(shape))
+    specular = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] > 0)
+    return ~light & g.every(~specular).reshape(shape)
