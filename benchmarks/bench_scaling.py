@@ -36,8 +36,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if not args.keep_cache:
             os.environ["TLM_CACHE"] = str(Path(tmp) / "cache")
-        from tlm.arch.functional import cached_render
         from tlm.config import config_from_dict
+        from tlm.experiments.frames import cached_render
         from tlm.experiments.sweep import load_sweep, run_sweep
 
         sweep = load_sweep(Path(args.config))

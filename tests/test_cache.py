@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tlm.arch.cache import (
+from tlm.kernels.memory import (
     PAGE_WORDS,
     PM_STREAMS,
     REGION_PAGES,

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tlm.arch.functional import functional_key, render_key
 from tlm.cli import main
 from tlm.config import config_from_dict, describe, to_dict
+from tlm.experiments.frames import functional_key, render_key
 
 CONFIG = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": {"light_samples": 1}}
 

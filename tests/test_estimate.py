@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from tlm.arch.cache import Streams, page_misses, span_addresses
 from tlm.kernels import estimate as est
 from tlm.kernels.bsp import build_point_tree
+from tlm.kernels.memory import Streams, page_misses, span_addresses
 from tlm.kernels.shade import hash_uniform
 
 CONE = 1.1

@@ -19,9 +19,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tlm.arch.cache import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.config import config_from_dict
 from tlm.kernels import shade, traverse
+from tlm.kernels.memory import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
 from tlm.render import passes
 from tlm.render.passes import MISS_KEYS, WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from tlm.arch.cache import page_misses, span_addresses
 from tlm.kernels import photons as photons_module
+from tlm.kernels.memory import page_misses, span_addresses
 from tlm.kernels.photons import bounding_cone, emit, photon_key, split_photons, trace_photons
 from tlm.kernels.traverse import build_accel
 from tlm.scenes.loader import load_scene

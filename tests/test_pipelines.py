@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import simpy
 
-from tlm.arch.functional import Functional, render_key
+from tlm.arch.functional import Functional
 from tlm.arch.model import PMS, simulate, simulate_program, steady_throughput
 from tlm.arch.program import (
     FanOut,
@@ -27,6 +27,7 @@ from tlm.arch.program import (
 )
 from tlm.arch.programs import load_programs
 from tlm.config import config_from_dict
+from tlm.experiments.frames import render_key
 from tlm.render.passes import MISS_KEYS, PASS_FUNCTIONS, cast, pmap_pass
 
 EQ_TERMS = ("T_norm", "T_ms", "T_ps", "T_ds", "idle")

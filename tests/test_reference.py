@@ -154,8 +154,8 @@ def test_bad_experiment_files(tmp_path, capsys, body, expect):
 
 @pytest.mark.parametrize("filt", ["disk", "mvoxel", "kvoxel", "knn"])
 def test_pmap_pass_is_packet_invariant_and_repeats(filt):
-    from tlm.arch.cache import Streams
     from tlm.config import config_from_dict
+    from tlm.kernels.memory import Streams
     from tlm.kernels.photons import trace_photons
     from tlm.kernels.traverse import build_accel
     from tlm.render.passes import MISS_KEYS, Frame, cast, pmap_pass

@@ -10,12 +10,13 @@ import pytest
 import yaml
 
 import tlm.experiments.run as run_mod
-from tlm.arch.functional import Functional, cached_functional
+from tlm.arch.functional import Functional
 from tlm.arch.model import simulate
 from tlm.arch.programs import DEFAULT_PATH, load_programs
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.errors import InputError
+from tlm.experiments.frames import cached_functional
 from tlm.experiments.granularity import run_granularity
 from tlm.experiments.run import render
 from tlm.experiments.thesis import (

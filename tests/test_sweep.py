@@ -17,13 +17,13 @@ import pandas as pd
 import pytest
 import yaml
 
-import tlm.arch.functional as functional
 import tlm.experiments.run as run_mod
 import tlm.experiments.sweep as sweep_mod
-from tlm.arch.functional import cache_dir, cached_render
+import tlm.fingerprint as fingerprint
 from tlm.arch.programs import DEFAULT_PATH
 from tlm.cli import main
 from tlm.config import config_from_dict
+from tlm.experiments.frames import cache_dir, cached_render
 from tlm.experiments.sweep import config_hash, expand, load_sweep, point_inputs, run_sweep, utilization
 
 from .scenes import sphere_scene
@@ -432,8 +432,7 @@ def test_resume_after_a_killed_process(tmp_path, monkeypatch):
     end soon after it instead of running the queued points, and a rerun resumes."""
     # the points' keys hold the code's hash: computed now, as the killed process did (not at
     # the session's start, before edits to the checkout since)
-    monkeypatch.setattr(sweep_mod, "_CODE_VERSION", None)
-    monkeypatch.setattr(functional, "_CODE", None)
+    monkeypatch.setattr(fingerprint, "_CODE", None)
     path = sweep_file(tmp_path, set={"arch.packet_size": 4}, grid={"arch.page_miss_cycles": list(range(0, 80, 10))})
     out = tmp_path / "o"
     env = {**os.environ, "PYTHONPATH": str(REPO)}

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tlm.arch.cache import Streams
 from tlm.arch.work import frame_work, split, tree_work
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
+from tlm.kernels.memory import Streams
 from tlm.render.passes import cast, pmap_pass, reflect_pass
 
 

@@ -42,7 +42,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_plots(args: argparse.Namespace) -> int:
     from tlm.report.regenerate import regenerate
 
-    page = regenerate(Path(args.configs), Path(args.runs), Path(args.out), args.only,
+    page = regenerate(Path(args.configs), Path(args.runs), Path(args.out), args.only, run_command=main,
                       say=lambda line: print(line, flush=True))
     print(f"wrote {page}")
     return 0
@@ -127,10 +127,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 def _cmd_scaling(args: argparse.Namespace) -> int:
     from tlm.experiments.scaling import analyse
+    from tlm.report.scaling import plot_scaling
 
     dirs = [Path(d) for d in args.sweeps]
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
-    done = analyse(dirs, out)
+    done = analyse(dirs, out, plot=plot_scaling)
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1 "
           f"(N = {done['fits'][0]['pipelines']}):")
     for f in done["fits"]:

@@ -21,12 +21,12 @@ from typing import Any
 import yaml
 
 from tlm.errors import InputError, did_you_mean
+from tlm.registry import ESTIMATORS, SCHEDULERS
 
 MODES = ("rcast", "reflect", "refract", "pmap")
-SCHEDULERS = ("static", "dynamic")
 FANOUTS = ("broadcast", "serial")
 MEMORY_READINGS = ("swap", "copy")
-FILTERS = ("disk", "mvoxel", "kvoxel", "knn")
+FILTERS = ESTIMATORS  # the names estimate.filter may take (tlm.render.estimators and plug-ins)
 
 
 def _f(default: Any, help: str, **check: Any) -> Any:  # noqa: A002 - "help" reads best

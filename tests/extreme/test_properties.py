@@ -188,7 +188,7 @@ configs = st.fixed_dictionaries({
         "levels": st.sampled_from([None, 0, 2, 5]),
     }),
     "estimate": st.fixed_dictionaries({
-        "filter": st.sampled_from(FILTERS),
+        "filter": st.sampled_from(FILTERS.names()),
         "radius_fraction": st.sampled_from([0.005, 0.02, 0.1, 0.5]),
         "k": st.integers(1, 8),
         "k_nearest": st.integers(1, 20),

@@ -649,7 +649,7 @@ def fuzz_work(speck):
 
 ARCH = st.fixed_dictionaries({
     "pipelines": st.integers(1, 8),
-    "scheduler": st.sampled_from(SCHEDULERS),
+    "scheduler": st.sampled_from(SCHEDULERS.names()),
     "tiles_per_pipeline": st.integers(1, 6),
     "fanout": st.sampled_from(FANOUTS),
     "memory": st.sampled_from(MEMORY_READINGS),

@@ -39,7 +39,7 @@ class Module:
     starts. The crossbar grants a module to one client at a time, so a request never
     finds the module busy with another client's service: the process checks it on its
     own timeline (:meth:`_claim`) and raises if the grant was broken. Its row state is
-    the page the client's cache pair holds (:mod:`tlm.arch.cache`): each page miss opens
+    the page the client's cache pair holds (:mod:`tlm.kernels.memory`): each page miss opens
     a row at ``page_miss_cycles`` (reading 19 of docs/architecture.md).
     """
 

@@ -40,6 +40,7 @@ from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.programs import Programs
 from tlm.arch.work import split
 from tlm.config import ArchConfig
+from tlm.registry import SCHEDULERS
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
 PM_TABLE_NAMES = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "fragment": "TFrag"}
@@ -307,7 +308,7 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
     """The stages of one frame, in the order the control unit runs them."""
     b = _Builder(fn, programs, arch)
     n_pipes = arch.pipelines
-    n_tiles = n_pipes if arch.scheduler == "static" else n_pipes * arch.tiles_per_pipeline
+    n_tiles = SCHEDULERS[arch.scheduler]().tiles(arch)
     left_out: dict[str, str] = {}
     if n_pipes > 1:
         left_out["vertex PMs of pipelines 1.." + str(n_pipes - 1)] = (

@@ -25,6 +25,7 @@ import yaml
 
 from tlm.config import read_yaml
 from tlm.errors import InputError, did_you_mean
+from tlm.storage import write_file
 
 DEFAULT_PATH = Path(__file__).with_name("programs.yaml")
 PROGRAMMABLE = ("vertex", "traversal", "fragment")
@@ -186,4 +187,4 @@ def load_programs(path: str | Path | None = None) -> Programs:
 def write_programs(programs: Programs, path: Path, header: str) -> None:
     """Write a table (``tlm calibrate``), keeping the documentation header."""
     body = yaml.safe_dump(programs.to_yaml_dict(), sort_keys=False, default_flow_style=False)
-    Path(path).write_text(header + body)
+    write_file(path, header + body)

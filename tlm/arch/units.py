@@ -32,6 +32,8 @@ from pathlib import Path
 import simpy
 from simpy.events import PENDING
 
+from tlm.storage import write_file
+
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
 
 
@@ -193,7 +195,7 @@ class Trace:
                 "otherData": {"time_unit": "clock cycles", "clock_hz": clock_hz}}
 
     def write(self, path: Path, clock_hz: float | None = None) -> None:
-        Path(path).write_text(json.dumps(self.to_json(clock_hz)))
+        write_file(path, json.dumps(self.to_json(clock_hz)))
 
 
 _STALL_LOG = {cause: f"stall {cause}" for cause in STALL_CAUSES}  # a stall's log entry

@@ -48,7 +48,6 @@ from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import (
     ReferenceSettings,
     compute_reference,
@@ -58,8 +57,9 @@ from tlm.experiments.reference import (
     save_reference,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study, write_rows
+from tlm.experiments.study import read_study
 from tlm.kernels.traverse import build_accel
+from tlm.registry import ESTIMATORS
 from tlm.render.passes import (
     GATHER_KEYS,
     PASS_FUNCTIONS,
@@ -74,6 +74,7 @@ from tlm.render.passes import (
 )
 from tlm.render.planner import photon_count, plan
 from tlm.scenes.loader import load_scene
+from tlm.storage import atomic_folder, check_destination, write_rows
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
@@ -234,7 +235,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         est = cfg.estimate
         row = {
             "point": i, "filter": est.filter, "photons": n, "stored": traced.photons.n,
-            "radius": None if est.filter == "knn" else search_radius(frame),
+            "radius": search_radius(frame) if ESTIMATORS[est.filter].uses_radius else None,
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             **image_error(radiance, reference),

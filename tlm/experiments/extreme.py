@@ -43,8 +43,8 @@ import numpy as np
 
 from tlm.config import config_from_dict, deep_merge
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
-from tlm.experiments.study import read_study, write_rows
+from tlm.experiments.study import read_study
+from tlm.storage import atomic_folder, check_destination, write_rows
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
 CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")

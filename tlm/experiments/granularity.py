@@ -25,13 +25,13 @@ from pathlib import Path
 
 import yaml
 
-from tlm.arch.functional import cached_functional
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict, to_dict
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
+from tlm.experiments.frames import cached_functional
 from tlm.experiments.run import programs_for, provenance
-from tlm.experiments.study import read_study, write_rows
+from tlm.experiments.study import read_study
+from tlm.storage import atomic_folder, check_destination, write_rows
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,10 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import RunConfig
-from tlm.experiments.atomic import atomic_folder
 from tlm.kernels.estimate import knn_estimate
 from tlm.render.passes import Frame, GBuffer, gather_points, pixel_mean, trace_photon_map
 from tlm.scenes.model import Scene
+from tlm.storage import atomic_folder, cache_root
 
 REFERENCE_SEED = 0x5EED
 
@@ -57,7 +56,7 @@ class ReferenceSettings:
 
 
 def cache_dir() -> Path:
-    return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / "references"
+    return cache_root("references")
 
 
 def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> str:

@@ -34,7 +34,6 @@ from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.arch.programs import Programs, load_programs
 from tlm.config import ArchConfig, RunConfig, to_dict
-from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
@@ -53,6 +52,7 @@ from tlm.render.passes import (
 from tlm.render.planner import Plan, plan
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
+from tlm.storage import atomic_folder, check_destination
 
 
 @dataclass

@@ -23,17 +23,17 @@ T(1) / T(N), for each scheduler.
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import time
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import yaml
 
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination, read_jsonl
+from tlm.storage import atomic_folder, check_destination, read_jsonl, write_rows
 
 TARGETS = ("latency", "throughput")
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
@@ -145,8 +145,10 @@ def fit(records: list[dict]) -> dict[tuple, dict]:
     return fits
 
 
-def analyse(sweep_dirs: list[Path], out: Path) -> dict:
-    """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and the figures."""
+def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path], None] | None = None) -> dict:
+    """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and, given
+    ``plot`` (:func:`tlm.report.scaling.plot_scaling`, passed down by the CLI), a figure per
+    scene as ``scaling_<scene>.png``."""
     start = time.perf_counter()
     check_destination(out, "eq52.json")
     records = [r for d in sweep_dirs for r in collect(d)]
@@ -158,14 +160,9 @@ def analyse(sweep_dirs: list[Path], out: Path) -> dict:
                         "pipelines": [r["pipelines"] for r in f["rows"]]})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
     with atomic_folder(out, "eq52.json") as tmp:
-        with open(tmp / "eq52.csv", "w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(COLUMNS))
-            w.writeheader()
-            w.writerows(table)
-        from tlm.report.scaling import plot_scaling
-
-        for scene in sorted({k[0] for k in fits}):
-            plot_scaling(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
+        write_rows(tmp, "eq52", table, COLUMNS)
+        for scene in sorted({k[0] for k in fits} if plot else ()):
+            plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
         # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
         sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
         (tmp / "eq52.json").write_text(json.dumps({"fits": summary, "sweeps": sweeps}, indent=2) + "\n")

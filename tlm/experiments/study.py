@@ -4,13 +4,11 @@ A study file is a YAML mapping with a ``base`` run config (a mapping), an option
 ``description`` and the study's own keys. :func:`read_study` reads it and checks that
 frame, so every study rejects a non-mapping, an unknown key or a bad ``base`` with
 the same one-line errors (file and key named, exit status 2 through the CLI).
-:func:`write_rows` writes a study's result rows as ``<name>.csv`` and ``<name>.jsonl``.
+Result rows go through :func:`tlm.storage.write_rows`, as every experiment's do.
 """
 
 from __future__ import annotations
 
-import csv
-import json
 from pathlib import Path
 
 from tlm.config import read_yaml
@@ -31,12 +29,3 @@ def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
     return raw, base, src
-
-
-def write_rows(folder: Path, name: str, rows: list[dict], columns) -> None:
-    """``rows`` as ``folder/<name>.csv`` (the columns ``columns``) and ``folder/<name>.jsonl``."""
-    with open(Path(folder) / f"{name}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(columns))
-        w.writeheader()
-        w.writerows(rows)
-    (Path(folder) / f"{name}.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))

@@ -43,7 +43,6 @@ point kills its worker again when run alone (:class:`LocalPool`).
 from __future__ import annotations
 
 import concurrent.futures as cf
-import csv
 import hashlib
 import itertools
 import json
@@ -61,11 +60,13 @@ from typing import Any
 
 import yaml
 
-from tlm.arch.functional import SUMMARY_KEYS, cached_render, is_cached, render_key
+from tlm import storage
 from tlm.config import config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.executors import InProcess, LocalPool, open_executor
+from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
+from tlm.fingerprint import code_fingerprint
+from tlm.storage import atomic_folder, check_destination, write_file
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -119,7 +120,7 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
     The files and the code are part of the key so that a rerun after a change to either
     computes its points again instead of reusing results of other inputs or other code.
     """
-    body = {"config": resolved, "code": code_version()}
+    body = {"config": resolved, "code": code_fingerprint()}
     if inputs is not None:
         body["inputs"] = inputs
     blob = json.dumps(body, sort_keys=True, separators=(",", ":"))
@@ -149,22 +150,6 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None) -> di
     if ("functional", work) not in seen:
         seen["functional", work] = render_key(cfg, folder, source)
     return {"functional": seen["functional", work], "programs": seen["programs", table]}
-
-
-def code_version() -> str:
-    """Hash of tlm's source and data tables (every .py and .yaml of the package)."""
-    global _CODE_VERSION
-    if _CODE_VERSION is None:
-        root = Path(__file__).resolve().parents[1]
-        h = hashlib.sha256()
-        for f in sorted([*root.rglob("*.py"), *root.rglob("*.yaml")]):
-            h.update(str(f.relative_to(root)).encode())
-            h.update(f.read_bytes())
-        _CODE_VERSION = h.hexdigest()[:16]
-    return _CODE_VERSION
-
-
-_CODE_VERSION: str | None = None
 
 
 def _assign(raw: dict, key: str, value: Any) -> dict:
@@ -391,24 +376,7 @@ def utilization(units: dict) -> dict[str, float]:
 
 def write_rows(out: Path, rows: list[dict]) -> None:
     """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point, the union of their columns."""
-    rows = sorted(rows, key=lambda r: r["point"])
-    columns = list(FIRST_COLUMNS)
-    for r in rows:
-        columns.extend(k for k in r if k not in columns)
-    _write_text(out / "sweep.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
-    tmp = out / f".sweep.csv.tmp{os.getpid()}"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=columns)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: json.dumps(v) if isinstance(v, (list, dict)) else v for k, v in r.items()})
-    os.replace(tmp, out / "sweep.csv")
-
-
-def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    storage.write_rows(out, "sweep", sorted(rows, key=lambda r: r["point"]), FIRST_COLUMNS)
 
 
 # ---------------------------------------------------------------- the sweep
@@ -485,7 +453,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     with ExitStack() as stack:
         pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
         points_dir.mkdir(parents=True, exist_ok=True)
-        _write_text(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
+        write_file(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         _clean_stale(points_dir)
         for h in todo:  # a failed point's folder (or an unreadable one) is run again
             if (points_dir / h).exists():

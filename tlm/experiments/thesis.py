@@ -24,7 +24,6 @@ cell is a prediction.
 
 from __future__ import annotations
 
-import csv
 import datetime
 import json
 import re
@@ -40,10 +39,10 @@ from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder, check_destination
 from tlm.experiments.run import RenderResult, Timer, programs_for, render, simulate_run, write_run
 from tlm.experiments.study import read_study
 from tlm.render.planner import plan
+from tlm.storage import atomic_folder, check_destination, write_rows
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -173,20 +172,13 @@ def run_thesis(path: Path, out: Path, progress=None) -> dict:
             wall[scene] = round(time.perf_counter() - t0, 3)
         summary = summarize(rows)
         summary["host_seconds"] = wall
-        _write_rows(tmp / "thesis_comparison.csv", rows)
+        write_rows(tmp, "thesis_comparison", rows, COLUMNS)
         (tmp / "thesis_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return {"rows": rows, "summary": summary}
 
 
 def _name(scene: str) -> str:
     return Path(scene).stem
-
-
-def _write_rows(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(COLUMNS))
-        w.writeheader()
-        w.writerows(rows)
 
 
 # -- calibration --------------------------------------------------------------------------------

@@ -88,7 +88,7 @@ the inner nodes below flat splits visited by the samples' extra branches),
 leaves searched; for k-NN the neighbours examined), ``photons_accepted`` (within ``r``
 and from the front), ``probe_tests`` (k-voxel only: leaves the probe points reach,
 ``PROBES`` per query plus one per extra branch at flat splits) and ``gather_misses``:
-the page misses (:mod:`tlm.arch.cache`) of the Fragment PM's photon-leaf pair reading
+the page misses (:mod:`tlm.kernels.memory`) of the Fragment PM's photon-leaf pair reading
 the photons of every leaf searched (``PHOTON_WORDS`` = 2 words per photon, leaves in
 slot order, one address space), queries in order and each query's leaves in the order
 searched (the m-voxel lists' left-to-right order; the k-voxel filter's distinct leaves,
@@ -100,7 +100,7 @@ queries computed with it. Photons are summed per (query, leaf) pair in photon-sl
 ``np.bincount`` (which adds in array order), then per query over its pairs in leaf
 order; the probe weights are multiples of ``2**-20`` so their sums are exact. The misses
 depend on the gathers before, so each filter takes ``streams``
-(:class:`~tlm.arch.cache.Streams`, the pair's state, its page size and the pairs per PM,
+(:class:`~tlm.kernels.memory.Streams`, the pair's state, its page size and the pairs per PM,
 which say which Fragment PM pair serves the stream ``photons``; default: cold, the
 thesis's 1024-word blocks), and queries computed in consecutive packets with one such
 object get the misses of one call.
@@ -117,8 +117,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tlm.arch.cache import PHOTON_WORDS, Accesses, Streams
 from tlm.kernels.bsp import BSPTree
+from tlm.kernels.memory import PHOTON_WORDS, Accesses, Streams
 from tlm.kernels.shade import hash_uniform
 
 PROBES = 64  # probe points of the k-voxel filter's area measure
@@ -222,7 +222,7 @@ def _empty(q: int) -> Estimate:
     return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy(), z.copy())
 
 
-GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.arch.cache.PM_STREAMS)
+GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.kernels.memory.PM_STREAMS)
 
 
 def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int,

@@ -27,7 +27,7 @@ arrays."
   two effects the thesis's PMap column adds (:class:`PhotonMaps`, a BSP each).
 
 Work per emitted photon (:data:`PHOTON_WORK`) includes the page misses of its rays'
-reads (:mod:`tlm.arch.cache`), all its bounces: ``trav_misses`` (the Traversal PM's
+reads (:mod:`tlm.kernels.memory`), all its bounces: ``trav_misses`` (the Traversal PM's
 node-heap and leaf-index streams, on pairs of their own or, with ``pairs`` = 1, on one
 pair: a photon's node reads then its leaf indices, bounce by bounce) and
 ``isect_misses`` (the Intersection PM's vertex stream), on ``page_words``-word pages.
@@ -47,8 +47,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tlm.arch.cache import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.bsp import BSPTree, build_point_tree
+from tlm.kernels.memory import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.scenes.model import KIND, Light, Scene

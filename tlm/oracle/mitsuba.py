@@ -72,7 +72,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import time
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -81,8 +80,8 @@ from typing import Any
 import numpy as np
 
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder
 from tlm.scenes.model import Scene
+from tlm.storage import atomic_folder, cache_root
 
 VARIANT = "scalar_rgb"
 INTEGRATORS = ("direct", "path", "ptracer")
@@ -306,7 +305,7 @@ def render(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, seed
 
 def cache_dir() -> Path:
     """``$TLM_CACHE/oracle`` (default ``~/.cache/tlm/oracle``)."""
-    return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / "oracle"
+    return cache_root("oracle")
 
 
 def oracle_key(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, seed: int = 0,

@@ -25,7 +25,7 @@ samples averaged), the per-pixel work (:data:`WORK_KEYS`, a pixel's samples summ
 pixel's results and work do not depend on the rest of its packet, except its page
 misses, which depend on the pixels before it (below).
 
-Page misses (the ``*_misses`` keys) are the data cache's (:mod:`tlm.arch.cache`) on
+Page misses (the ``*_misses`` keys) are the data cache's (:mod:`tlm.kernels.memory`) on
 the kernels' real address streams (:data:`STREAM_KEYS`): the Traversal PM's node heap
 and leaf triangle indices (``trav_misses``), the Intersection PM's vertex data
 (``isect_misses``), the same three for the shadow rays, a phase of their own (the
@@ -33,11 +33,11 @@ thesis traces them in passes of their own), and the Fragment PM's shading record
 per fragment (``frag_misses``). The run config's ``cache`` section sets the block (page)
 size and the pairs per PM: with the thesis's 4 pairs every stream has a pair of its
 own; with 1 the node heap and the leaf indices share one and evict each other's pages
-(:mod:`tlm.arch.cache` has the reading). A miss depends on the accesses before it, so
+(:mod:`tlm.kernels.memory` has the reading). A miss depends on the accesses before it, so
 the streams are in pixel-major program order (a pixel's rays bounce by bounce, then the
 shadow rays of the points they reach, light by light, sample by sample) and each pass
 function takes a
-:class:`~tlm.arch.cache.Streams` holding the pairs' states (default: a fresh one of the
+:class:`~tlm.kernels.memory.Streams` holding the pairs' states (default: a fresh one of the
 frame's ``cache`` settings, :func:`new_streams`): packets run in pixel order with one
 such object give exactly the misses of the whole image (a fresh one per packet charges
 each packet from cold pairs).
@@ -49,14 +49,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tlm.arch.cache import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.config import RunConfig
-from tlm.kernels import estimate
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.estimate import GATHER_STREAM
+from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
 from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, facing, scatter_specular
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
+from tlm.registry import ESTIMATORS
+from tlm.render.estimators import Gather
 from tlm.render.planner import photon_count
 from tlm.scenes.model import KIND, Scene
 from tlm.scenes.normals import crease_normals, interpolate
@@ -95,7 +96,7 @@ GATHER_KEYS = (
 MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
              "gather_misses")
 # each stream of a pass and the work key its misses go to (the pairs they take:
-# tlm.arch.cache.PM_STREAMS; streams sharing a pair always go to one key)
+# tlm.kernels.memory.PM_STREAMS; streams sharing a pair always go to one key)
 STREAM_KEYS = {
     "nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses",
     "shadow_nodes": "shadow_trav_misses", "shadow_indices": "shadow_trav_misses",
@@ -103,7 +104,7 @@ STREAM_KEYS = {
 }
 
 
-# the caustic map's leaf reads: a stream not in tlm.arch.cache.PM_STREAMS, so a pair of its own
+# the caustic map's leaf reads: a stream not in tlm.kernels.memory.PM_STREAMS, so a pair of its own
 # (the two maps' gathers of consecutive packets then miss as the whole image's do)
 CAUSTIC_STREAM = "caustic_photons"
 
@@ -568,17 +569,10 @@ def caustic_radius(frame: Frame) -> float:
 
 
 def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, streams, kdtree, stream: str):
-    est = frame.cfg.estimate
-    args = (photons.position, photons.power, photons.incoming)
-    if est.filter == "knn":
-        return estimate.knn_estimate(*args, pts, n, k_nearest=est.k_nearest, cone_k=est.cone_k, kdtree=kdtree)
-    if est.filter == "kvoxel":
-        return estimate.kvoxel_estimate(*args, photons.tree, pts, n, radius, k=est.k, cone_k=est.cone_k,
-                                        seed=frame.cfg.seed, keys=keys, streams=streams, stream=stream)
-    if est.filter == "disk":
-        return estimate.disk_estimate(*args, photons.tree, pts, n, radius, streams=streams, stream=stream)
-    return estimate.mvoxel_estimate(*args, photons.tree, pts, n, radius, cone_k=est.cone_k, streams=streams,
-                                    stream=stream)
+    """One map's density at the gather points, by the estimator ``estimate.filter`` names."""
+    est = ESTIMATORS[frame.cfg.estimate.filter](frame.cfg.estimate, seed=frame.cfg.seed)
+    return est(Gather(photons.position, photons.power, photons.incoming, photons.tree, pts, n, radius, keys,
+                      streams, stream, kdtree))
 
 
 def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=None,

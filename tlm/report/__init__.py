@@ -27,10 +27,10 @@ import time
 from pathlib import Path
 
 from tlm.errors import InputError
-from tlm.experiments.atomic import atomic_folder
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section
 from tlm.report.html import esc, page
+from tlm.storage import atomic_folder
 
 MARKER = "report.html"
 # subfolders of a report's folder that the report does not draw but keeps when it is

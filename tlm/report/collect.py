@@ -30,7 +30,7 @@ from typing import Any
 import yaml
 
 from tlm.errors import InputError
-from tlm.experiments.atomic import read_jsonl
+from tlm.storage import read_jsonl
 
 
 @dataclass

@@ -36,17 +36,19 @@ STEPS: tuple[tuple[str, list[str]], ...] = (
 REPORTED = tuple(name for name, _ in STEPS if name not in SCALING)
 
 
-def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = None,
-               run_command: Callable[[list[str]], int] | None = None, say=print) -> Path:
-    """Run the steps (all, or ``only``), then the report of their folders into ``out``."""
-    from tlm.cli import main
+def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = None, *,
+               run_command: Callable[[list[str]], int], say=print) -> Path:
+    """Run the steps (all, or ``only``), then the report of their folders into ``out``.
+
+    ``run_command`` runs one step's argv and returns its exit status: ``tlm.cli.main``
+    for ``tlm plots`` (the CLI hands itself down, so the report layer never imports it).
+    """
     from tlm.report import build_report
 
     names = [n for n, _ in STEPS]
     for n in only or []:
         if n not in names:
             raise InputError(f"unknown step {n!r} (steps: {', '.join(names)})", key="--only")
-    run_command = run_command or main
     for name, argv in STEPS:
         if only and name not in only:
             continue

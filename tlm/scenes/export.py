@@ -15,6 +15,7 @@ import numpy as np
 
 from tlm.errors import InputError
 from tlm.scenes.model import Scene
+from tlm.storage import write_atomic, write_file
 
 FORMATS = (".ply", ".obj")
 
@@ -33,7 +34,6 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply or .obj file", source=str(path))
-    tmp = path.with_name(f".{path.name}.tmp")
     if suffix == ".ply":
         header = (
             "ply\nformat binary_little_endian 1.0\n"
@@ -46,7 +46,7 @@ def export_triangles(scene: Scene, path: Path) -> None:
         face_rec["k"] = 3
         face_rec["v"] = faces
         face_rec["m"] = scene.material_index
-        with open(tmp, "wb") as f:
+        with write_atomic(path, "wb") as f:
             f.write(header.encode())
             f.write(verts.astype("<f8").tobytes())
             f.write(face_rec.tobytes())
@@ -54,5 +54,4 @@ def export_triangles(scene: Scene, path: Path) -> None:
         lines = [f"# tlm scene {scene.name}: face i is triangle id i"]
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
         lines += [f"f {a + 1} {a + 2} {a + 3}" for a in range(0, 3 * n, 3)]
-        tmp.write_text("\n".join(lines) + "\n")
-    tmp.replace(path)
+        write_file(path, "\n".join(lines) + "\n")

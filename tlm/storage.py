@@ -1,6 +1,12 @@
-"""Output folders that appear whole or not at all, and never replace anything else.
+"""Files and folders that appear whole or not at all: the one place tlm writes atomically.
 
-Everything is written into a temporary sibling folder, which is renamed onto the
+* :func:`write_atomic` — one file, written beside its destination and renamed onto it;
+  :func:`write_file` the same for a ready ``str`` or ``bytes``.
+* :func:`atomic_folder` — an output folder (a run, a sweep, a study).
+* :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
+* :func:`cache_root` — where the caches live (``$TLM_CACHE``, default ``~/.cache/tlm``).
+
+For a folder, everything is written into a temporary sibling folder, which is renamed onto the
 destination only when the block finished; on any error (or Ctrl-C) the temporary
 folder is removed and an earlier folder of the same name is left as it was.
 
@@ -13,12 +19,14 @@ never delete a checkout.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 from tlm.errors import InputError
 
@@ -94,3 +102,53 @@ def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
             raise InputError(f"is not a JSON row{hint}", source=str(path), key=f"line {n}")
         rows.append((n, row))
     return rows
+
+
+@contextmanager
+def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
+    """An open file that replaces ``path`` when the block succeeds.
+
+    The data go to a hidden sibling (``.<name>.tmp<pid>``, so concurrent writers of one
+    path never share it) that is renamed onto ``path`` at the end; on any error the
+    sibling is removed and ``path`` is left as it was.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, mode, **open_kw) as fh:
+            yield fh
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_file(path: Path, data: str | bytes) -> None:
+    """``data`` as the whole of ``path``, atomically (:func:`write_atomic`)."""
+    with write_atomic(path, "wb" if isinstance(data, bytes) else "w") as fh:
+        fh.write(data)
+
+
+def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[str] = ()) -> None:
+    """Result rows as ``folder/<name>.jsonl`` (one JSON object a line) and ``<name>.csv``.
+
+    The CSV's columns are ``columns`` first, then every other key of the rows in the
+    order it first appears; a list or mapping value is written as JSON in its cell.
+    Both files are written atomically.
+    """
+    rows = list(rows)
+    cols = list(columns)
+    for r in rows:
+        cols.extend(k for k in r if k not in cols)
+    folder = Path(folder)
+    write_file(folder / f"{name}.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    with write_atomic(folder / f"{name}.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=cols)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: json.dumps(v) if isinstance(v, (list, dict)) else v for k, v in r.items()})
+
+
+def cache_root(kind: str) -> Path:
+    """``$TLM_CACHE/<kind>`` (default ``~/.cache/tlm/<kind>``)."""
+    return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / kind

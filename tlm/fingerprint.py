@@ -1,0 +1,42 @@
+"""The one fingerprint of tlm's code, part of every cache key and every sweep point's hash.
+
+It covers the whole package: every ``.py`` and ``.yaml`` file under ``tlm/``, by path
+and content. Any edit of the source therefore invalidates the functional cache, the
+references and a sweep's finished points: a cached result is always one that the
+code in hand would produce. (A narrower key, over the files one believes matter, is
+what let an edit of ``arch/functional.py`` or ``experiments/run.py`` reuse stale
+work counts before.)
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+
+_CODE: str | None = None
+
+
+def package_files(root: Path = ROOT) -> list[Path]:
+    """The files the fingerprint reads, sorted by their path below ``root``."""
+    files = [f for pat in ("*.py", "*.yaml") for f in root.rglob(pat) if "__pycache__" not in f.parts]
+    return sorted(files, key=lambda f: f.relative_to(root).as_posix())
+
+
+def fingerprint(root: Path = ROOT) -> str:
+    """16 hex digits of sha256 over the paths and bytes of :func:`package_files`."""
+    h = hashlib.sha256()
+    for f in package_files(root):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0")
+        h.update(f.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()[:16]
+
+
+def code_fingerprint() -> str:
+    """:func:`fingerprint` of the installed package, computed once per process."""
+    global _CODE
+    if _CODE is None:
+        _CODE = fingerprint()
+    return _CODE

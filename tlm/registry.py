@@ -1,0 +1,91 @@
+"""Registries: a new radiance estimator or scheduler is one class and one YAML value.
+
+A :class:`Registry` maps the names a config may give (``estimate.filter: disk``,
+``arch.scheduler: dynamic``) to the classes that implement them. A class joins with
+the registry's decorator::
+
+    from tlm.registry import ESTIMATORS
+
+    @ESTIMATORS.register("mine")
+    class Mine(Estimator): ...
+
+and ``estimate.filter: mine`` then selects it; the config check lists it among the
+choices and suggests it for a near miss. The registry itself sits in the bottom layer
+(so the config can check a value against it); the classes live in the layer that
+implements them, in the built-in *provider* modules the registry imports the first time
+it is asked for its names, and in any installed package that declares an entry point in
+the registry's group (``[project.entry-points."tlm.estimators"]``), so a researcher's
+own package can add one without editing tlm. docs/architecture.md shows both.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Iterator
+from importlib.metadata import entry_points
+
+from tlm.errors import InputError, did_you_mean
+
+
+class Registry:
+    """Named classes of one kind, filled by :meth:`register` and by its provider modules."""
+
+    def __init__(self, kind: str, providers: tuple[str, ...], group: str):
+        self.kind = kind
+        self.providers = providers  # modules that register the built-in classes on import
+        self.group = group  # entry-point group of other packages' classes
+        self._classes: dict[str, type] = {}
+        self._loaded = False
+
+    def register(self, name: str) -> Callable[[type], type]:
+        """Class decorator: the class is what the config value ``name`` selects."""
+        def add(cls: type) -> type:
+            have = self._classes.get(name)
+            if have is not None and have is not cls and have.__qualname__ != cls.__qualname__:
+                raise ValueError(f"{self.kind} {name!r} is registered twice ({have.__module__}.{have.__qualname__}"
+                                 f" and {cls.__module__}.{cls.__qualname__})")
+            cls.name = name
+            self._classes[name] = cls
+            return cls
+        return add
+
+    def _load(self) -> None:
+        if self._loaded:
+            return
+        self._loaded = True
+        for module in self.providers:
+            importlib.import_module(module)
+        for ep in entry_points(group=self.group):
+            cls = ep.load()
+            if ep.name not in self._classes:
+                self.register(ep.name)(cls)
+
+    def names(self) -> tuple[str, ...]:
+        """The registered names, built-in ones first in the order they were registered."""
+        self._load()
+        return tuple(self._classes)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.names()
+
+    def __len__(self) -> int:
+        return len(self.names())
+
+    def __getitem__(self, name: str) -> type:
+        """The class of ``name``; an unknown name is an InputError listing the known ones."""
+        self._load()
+        try:
+            return self._classes[name]
+        except KeyError:
+            raise InputError(f"unknown {self.kind} {name!r} (known: {', '.join(self._classes)})"
+                             f"{did_you_mean(str(name), self._classes)}") from None
+
+    def __repr__(self) -> str:
+        return f"Registry({self.kind!r}, {list(self._classes) if self._loaded else 'not loaded'})"
+
+
+ESTIMATORS = Registry("radiance estimator", ("tlm.render.estimators",), "tlm.estimators")
+SCHEDULERS = Registry("scheduler", ("tlm.arch.schedulers",), "tlm.schedulers")
