@@ -36,7 +36,9 @@ class Gather:
 
 
 class Estimator:
-    """A radiance estimate: ``(density (m, 3), work {key: (m,) int64})`` at the gather points.
+    """A radiance estimate at the gather points: an :class:`~tlm.kernels.estimate.Estimate`
+    (the reflected flux density, (m, 3), and the per-point work counts the Fragment PM is
+    charged: node visits, leaves, photons tested and accepted, probes, page misses).
 
     ``uses_radius``: whether the fixed search radius applies (False for a k-nearest one,
     whose rows report no radius). The config's ``estimate`` section is ``self.cfg``.
