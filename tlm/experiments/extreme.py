@@ -43,8 +43,7 @@ import numpy as np
 
 from tlm.config import config_from_dict, deep_merge
 from tlm.errors import InputError
-from tlm.experiments.study import read_study
-from tlm.storage import atomic_folder, check_destination, write_rows
+from tlm.experiments.study import read_study, run_study
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
 CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
@@ -182,45 +181,36 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
 
 def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
     """Run every case of ``path`` into ``out``; returns the rows (one per case)."""
-    from tlm.experiments.run import provenance, run
+    from tlm.experiments.run import run
 
-    start = time.perf_counter()
     base, cases, folder = load_cases(Path(path))
-    check_destination(out, "extreme.jsonl")
-    rows = []
-    with atomic_folder(out, "extreme.jsonl") as tmp:
-        done: dict[str, tuple[Path, dict]] = {}
-        for c in cases:
-            t0 = time.perf_counter()
-            dest = tmp / "cases" / c["name"]
-            checks = c["checks"]
-            want_error = isinstance(checks[0], dict) and "error" in checks[0]
-            try:
-                cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
-                results = run(cfg, dest, folder, config_path=str(path))
-            except InputError as e:
-                if want_error:
-                    text = checks[0]["error"]
-                    ok = text in str(e) and len(str(e).splitlines()) == 1 and not dest.exists()
-                    measured = f"input error: {e}"
-                else:
-                    ok, measured = False, f"unexpected input error: {e}"
-                results = None
+    done: dict[str, tuple[Path, dict]] = {}
+
+    def one(c: dict, tmp: Path) -> dict:
+        t0 = time.perf_counter()
+        dest = tmp / "cases" / c["name"]
+        checks = c["checks"]
+        want_error = isinstance(checks[0], dict) and "error" in checks[0]
+        try:
+            cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
+            results = run(cfg, dest, folder, config_path=str(path))
+        except InputError as e:
+            if want_error:
+                text = checks[0]["error"]
+                ok = text in str(e) and len(str(e).splitlines()) == 1 and not dest.exists()
+                measured = f"input error: {e}"
             else:
-                if want_error:
-                    ok, measured = False, "ran without the expected error"
-                else:
-                    verdicts = [judge(chk, dest, results, done) for chk in checks]
-                    ok = all(v for v, _ in verdicts)
-                    measured = "; ".join(m for _, m in verdicts)
-                    done[c["name"]] = (dest, results)
-            row = {"case": c["name"], "category": c["category"], "expect": c["expect"],
-                   "checks": json.dumps(checks), "measured": measured, "passed": ok,
-                   "seconds": round(time.perf_counter() - t0, 3)}
-            rows.append(row)
-            if progress is not None:
-                progress(row)
-        write_rows(tmp, "extreme", rows, COLUMNS)
-        info = provenance(str(path), time.perf_counter() - start)
-        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
-    return rows
+                ok, measured = False, f"unexpected input error: {e}"
+        else:
+            if want_error:
+                ok, measured = False, "ran without the expected error"
+            else:
+                verdicts = [judge(chk, dest, results, done) for chk in checks]
+                ok = all(v for v, _ in verdicts)
+                measured = "; ".join(m for _, m in verdicts)
+                done[c["name"]] = (dest, results)
+        return {"case": c["name"], "category": c["category"], "expect": c["expect"],
+                "checks": json.dumps(checks), "measured": measured, "passed": ok,
+                "seconds": round(time.perf_counter() - t0, 3)}
+
+    return run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress)

@@ -18,20 +18,17 @@ Images do not depend on the packet size (the functional layer never sees it).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
 
-import yaml
-
 from tlm.arch.model import simulate
-from tlm.config import config_from_dict, to_dict
+from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
-from tlm.experiments.run import programs_for, provenance
-from tlm.experiments.study import read_study
-from tlm.storage import atomic_folder, check_destination, write_rows
+from tlm.experiments.run import programs_for
+from tlm.experiments.study import read_study, run_study
+from tlm.storage import check_destination
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
@@ -50,33 +47,31 @@ def load_granularity(path: Path):
 
 
 def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
-    start = time.perf_counter()
+    """Simulate the frame of ``path`` at each packet size; rows relative to the smallest."""
     cfg, sizes, folder = load_granularity(Path(path))
-    check_destination(out, "granularity.jsonl")
+    check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
     fn, _hit = cached_functional(cfg, folder, str(path))
-    raw = []
-    for size in sizes:
-        arch = replace(cfg.arch, packet_size=size, trace=False)
+
+    def one(size: int, _folder: Path) -> dict:
         t0 = time.perf_counter()
-        tm = simulate(fn, programs, arch)
-        raw.append((size, tm, time.perf_counter() - t0))
+        tm = simulate(fn, programs, replace(cfg.arch, packet_size=size, trace=False))
+        secs = time.perf_counter() - t0
         if progress is not None:
-            progress(size, tm, raw[-1][2])
-    ref = raw[0][1].cycles  # the smallest packet size is the reference
-    rows = []
-    for size, tm, secs in raw:
-        row = {"packet_size": size, **{m: tm.cycles[m] for m in METRICS}}
-        errs = {f"rel_error_{m}": (tm.cycles[m] - ref[m]) / ref[m] if ref[m] else 0.0 for m in METRICS}
-        row.update({k: round(v, 6) for k, v in errs.items()})
-        row["max_abs_rel_error"] = round(max(abs(v) for v in errs.values()), 6)
-        row["simulate_seconds"] = round(secs, 4)
-        row["simpy_events"] = tm.events
-        row["reference"] = sizes[0]
-        rows.append(row)
-    with atomic_folder(out, "granularity.jsonl") as tmp:
-        write_rows(tmp, "granularity", rows, COLUMNS)
-        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
-        info = provenance(str(path), time.perf_counter() - start)
-        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
-    return rows
+            progress(size, tm, secs)
+        return {"packet_size": size, **{m: tm.cycles[m] for m in METRICS}, "simulate_seconds": round(secs, 4),
+                "simpy_events": tm.events}
+
+    def relative(raw: list[dict], _folder: Path) -> list[dict]:
+        ref = raw[0]  # the smallest packet size is the reference
+        rows = []
+        for r in raw:
+            errs = {f"rel_error_{m}": (r[m] - ref[m]) / ref[m] if ref[m] else 0.0 for m in METRICS}
+            rows.append({"packet_size": r["packet_size"], **{m: r[m] for m in METRICS},
+                         **{k: round(v, 6) for k, v in errs.items()},
+                         "max_abs_rel_error": round(max(abs(v) for v in errs.values()), 6),
+                         "simulate_seconds": r["simulate_seconds"], "simpy_events": r["simpy_events"],
+                         "reference": sizes[0]})
+        return rows
+
+    return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative)

@@ -1,4 +1,10 @@
-"""The shared frame of study files (``tlm thesis``, ``tlm granularity``, ``tlm error-vs-cost``).
+"""The one study runner, and the shared frame of study files (``tlm thesis``, ``tlm
+granularity``, ``tlm error-vs-cost``, ``tlm extreme``, ``tlm scaling``).
+
+:func:`run_study` runs a study's points one after the other into an output folder that
+appears whole or not at all, and writes what every study writes the same way: the
+rows (:func:`tlm.storage.write_rows`), the resolved config, ``provenance.json`` and any
+files of the study's own. A study supplies its points and what one point computes.
 
 A study file is a YAML mapping with a ``base`` run config (a mapping), an optional
 ``description`` and the study's own keys. :func:`read_study` reads it and checks that
@@ -9,10 +15,18 @@ Result rows go through :func:`tlm.storage.write_rows`, as every experiment's do.
 
 from __future__ import annotations
 
+import json
+import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
-from tlm.config import read_yaml
+import yaml
+
+from tlm.config import read_yaml, to_dict
 from tlm.errors import InputError
+from tlm.experiments.run import provenance
+from tlm.storage import atomic_folder, check_destination, write_file, write_rows
 
 
 def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
@@ -29,3 +43,51 @@ def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
     return raw, base, src
+
+
+def run_study(source: str, out: Path, name: str, points: Iterable[Any],
+              run_point: Callable[[Any, Path], dict | list[dict] | None], *, columns: Iterable[str] = (),
+              marker: str | None = None, config=None, finish: Callable[[list[dict], Path], list[dict]] | None = None,
+              files: Callable[[list[dict]], dict[str, Any]] | None = None,
+              progress: Callable[[dict], None] | None = None) -> list[dict]:
+    """Run ``points`` into the folder ``out``; the rows written, in the order computed.
+
+    ``run_point(point, folder)`` computes one point (it may write into ``folder``, the
+    temporary output folder) and returns its row, a list of rows, or None. ``finish(rows,
+    folder)`` may rewrite the rows once every point ran (errors relative to a reference
+    point, say). The rows go to ``<name>.jsonl`` and ``<name>.csv`` (``columns`` first);
+    ``config`` (a RunConfig) to ``config.resolved.yaml``; ``files(rows)`` names further
+    files (``.json`` values are written as JSON, ``.yaml`` as YAML, a str as text); then
+    ``provenance.json``. ``marker`` (default ``<name>.jsonl``) marks an earlier output of
+    this study, which may be replaced; the destination is checked before any work.
+    ``progress(row)`` is called after each row.
+    """
+    start = time.perf_counter()
+    marker = marker or f"{name}.jsonl"
+    check_destination(out, marker)
+    rows: list[dict] = []
+    with atomic_folder(out, marker) as tmp:
+        for point in points:
+            got = run_point(point, tmp)
+            for row in [] if got is None else [got] if isinstance(got, dict) else got:
+                rows.append(row)
+                if progress is not None:
+                    progress(row)
+        if finish is not None:
+            rows = finish(rows, tmp)
+        write_rows(tmp, name, rows, columns)
+        if config is not None:
+            write_file(tmp / "config.resolved.yaml", yaml.safe_dump(to_dict(config), sort_keys=False))
+        for fname, value in (files(rows) if files is not None else {}).items():
+            write_file(tmp / fname, _text(fname, value))
+        write_file(tmp / "provenance.json",
+                   json.dumps(provenance(source, time.perf_counter() - start), indent=2) + "\n")
+    return rows
+
+
+def _text(name: str, value: Any) -> str:
+    if isinstance(value, str):
+        return value
+    if name.endswith(".yaml"):
+        return yaml.safe_dump(value, sort_keys=False)
+    return json.dumps(value, indent=2, default=str) + "\n"
