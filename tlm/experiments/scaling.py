@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
@@ -33,7 +32,8 @@ from pathlib import Path
 import yaml
 
 from tlm.errors import InputError
-from tlm.storage import atomic_folder, check_destination, read_jsonl, write_rows
+from tlm.experiments.study import run_study
+from tlm.storage import check_destination, read_jsonl
 
 TARGETS = ("latency", "throughput")
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
@@ -149,7 +149,6 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and, given
     ``plot`` (:func:`tlm.report.scaling.plot_scaling`, passed down by the CLI), a figure per
     scene as ``scaling_<scene>.png``."""
-    start = time.perf_counter()
     check_destination(out, "eq52.json")
     records = [r for d in sweep_dirs for r in collect(d)]
     fits = fit(records)
@@ -159,15 +158,14 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
                         "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
                         "pipelines": [r["pipelines"] for r in f["rows"]]})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
-    with atomic_folder(out, "eq52.json") as tmp:
-        write_rows(tmp, "eq52", table, COLUMNS)
+
+    def figures(_point, tmp: Path) -> list[dict]:
         for scene in sorted({k[0] for k in fits} if plot else ()):
             plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
-        # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
-        sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
-        (tmp / "eq52.json").write_text(json.dumps({"fits": summary, "sweeps": sweeps}, indent=2) + "\n")
-        from tlm.experiments.run import provenance
+        return table
 
-        info = provenance(", ".join(str(d) for d in sweep_dirs), time.perf_counter() - start)
-        (tmp / "provenance.json").write_text(json.dumps(info, indent=2) + "\n")
+    # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
+    sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
+    run_study(", ".join(str(d) for d in sweep_dirs), out, "eq52", [None], figures, columns=COLUMNS,
+              marker="eq52.json", files=lambda _rows: {"eq52.json": {"fits": summary, "sweeps": sweeps}})
     return {"fits": summary, "rows": table}
