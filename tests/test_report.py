@@ -26,7 +26,7 @@ from tlm.report import build_report
 from tlm.report.collect import read
 
 TINY = ["--set", "resolution=[32,32]", "--set", "arch.frames=1", "--set", "render.light_samples=1"]
-SECTIONS = ("tables", "images", "scaling", "sweeps", "cycles", "tradeoff", "peers", "extreme", "provenance")
+SECTIONS = ("summary", "tables", "images", "scaling", "sweeps", "cycles", "tradeoff", "peers", "extreme", "provenance")
 
 
 class Refs(HTMLParser):

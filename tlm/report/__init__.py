@@ -2,7 +2,8 @@
 
 :func:`build_report` reads any tlm output folders (:mod:`tlm.report.collect`), draws
 every section's figures as PNG files with matplotlib and writes ``report.html``, which
-embeds them. The sections, in order:
+embeds them. First, unnumbered, what the model found (:mod:`tlm.report.summary`: frame
+rates, the bottleneck PM, scaling with N, error against run time); then the sections:
 
 1. Tables I-III, ours against the thesis (:mod:`tlm.report.tables`)
 2. image sets in the style of Figs. 15-17 (:mod:`tlm.report.images`)
@@ -107,6 +108,9 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
                  f"{len(inputs.studies)} studies ({esc(studies)})."
                  f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
                  f"in {time.perf_counter() - t0:.1f} s. Each figure links to its PNG file.</p>")
-        text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp)
+        from tlm.report.summary import summary_section
+
+        text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
+                    summary=summary_section(inputs, tmp))
         (tmp / MARKER).write_text(text, encoding="utf-8")
     return Path(out) / MARKER

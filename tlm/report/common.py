@@ -66,7 +66,9 @@ class Section:
 
     ``absent`` is the reason the section has nothing to show for these inputs (the
     report says so instead of dropping the section); ``notes`` are one-line remarks
-    (what was left out of a figure and why).
+    (what was left out of a figure and why). The page shows ``lead`` and the first
+    ``shown`` figures; the other figures, the tables (``html``, unless ``html_open``)
+    and the notes are behind ``<details>`` so that the page reads in a few screens.
     """
 
     key: str
@@ -75,6 +77,10 @@ class Section:
     html: str = ""
     absent: str | None = None
     notes: list[str] = field(default_factory=list)
+    lead: str = ""  # what the section found, in words (HTML), shown first
+    shown: int = 2  # figures shown open; the rest are behind a <details>
+    html_label: str = "Tables"  # the <summary> of the collapsed ``html``
+    html_open: bool = False  # ``html`` is short: shown open
 
 
 def save(fig: MplFigure, out: Path, name: str, title: str, caption: str = "") -> Figure:

@@ -15,9 +15,13 @@ from tlm.report.common import Section
 
 CSS = """
 body { font-family: sans-serif; margin: 2em auto; max-width: 72em; color: #111; line-height: 1.4; }
-h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #999; padding-bottom: .2em; margin-top: 2em; }
-figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #ccc; }
-figcaption { font-size: .9em; color: #333; }
+h1 { font-size: 1.6em; margin-bottom: .3em; }
+h2 { border-bottom: 1px solid #999; padding-bottom: .2em; margin: 1.4em 0 .4em; font-size: 1.3em; }
+figure { margin: .6em 0; } figure img { max-width: 100%; max-height: 24em; border: 1px solid #ccc; }
+figcaption { font-size: .85em; color: #333; }
+.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(26em, 1fr)); gap: 0 1.2em; }
+.summary .figs figure img { max-height: 17em; }
+.lead { font-size: 1.02em; }
 table { border-collapse: collapse; margin: .8em 0; font-size: .85em; }
 th, td { border: 1px solid #aaa; padding: .25em .5em; text-align: right; vertical-align: top; }
 th { background: #eee; } td.l, th.l { text-align: left; }
@@ -39,28 +43,53 @@ def figure_html(folder: Path, file: str, title: str, caption: str) -> str:
             f"<figcaption>{cap}</figcaption></figure>")
 
 
-def page(title: str, intro: str, sections: list[Section], folder: Path) -> str:
-    """The whole page; ``folder`` holds the sections' PNG files."""
+def figures_html(folder: Path, figures) -> str:
+    """Figures side by side in a grid (two to a row on a wide screen)."""
+    return '<div class="figs">' + "".join(figure_html(folder, f.file, f.title, f.caption) for f in figures) + "</div>"
+
+
+def details(label: str, body: str) -> str:
+    return f"<details><summary>{esc(label)}</summary>{body}</details>"
+
+
+def section_html(i: int | None, s: Section, folder: Path) -> str:
+    """One section: its lead and first figures open, the rest of it collapsed."""
+    num = f"{i}. " if i is not None else ""
+    parts = [f'<section id="{esc(s.key)}"><h2>{num}{esc(s.title)}</h2>']
+    if s.absent:
+        parts.append(f'<p class="absent">Nothing to show: {esc(s.absent)}</p>')
+    if s.lead:
+        parts.append(f'<p class="lead">{s.lead}</p>')
+    if s.figures[: s.shown]:
+        parts.append(figures_html(folder, s.figures[: s.shown]))
+    rest = s.figures[s.shown:]
+    if rest:
+        parts.append(details(f"{len(rest)} more figure{'s' * (len(rest) > 1)}", figures_html(folder, rest)))
+    if s.html:
+        parts.append(s.html if s.html_open else details(s.html_label, s.html))
+    if s.notes:
+        body = "".join(f'<p class="note">{esc(n)}</p>' for n in s.notes)
+        parts.append(details(f"Notes ({len(s.notes)}): what was left out and why", body))
+    parts.append("</section>")
+    return "\n".join(parts)
+
+
+def page(title: str, intro: str, sections: list[Section], folder: Path, summary: Section | None = None) -> str:
+    """The whole page; ``folder`` holds the sections' PNG files. ``summary``, when given,
+    comes first, unnumbered: what the model found, on the first screen."""
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
         f"<title>{esc(title)}</title><style>{CSS}</style></head><body>",
         f"<h1>{esc(title)}</h1>",
-        intro,
-        "<nav><ol>" + "".join(f'<li><a href="#{esc(s.key)}">{esc(s.title)}</a></li>' for s in sections)
-        + "</ol></nav>",
     ]
+    if summary is not None:
+        parts.append('<div class="summary">' + section_html(None, summary, folder) + "</div>")
+    parts.append("<nav><ol>" + "".join(f'<li><a href="#{esc(s.key)}">{esc(s.title)}</a></li>' for s in sections)
+                 + "</ol></nav>")
+    parts.append(details("About these inputs", intro))
     for i, s in enumerate(sections, 1):
-        parts.append(f'<section id="{esc(s.key)}"><h2>{i}. {esc(s.title)}</h2>')
-        if s.absent:
-            parts.append(f'<p class="absent">Nothing to show: {esc(s.absent)}</p>')
-        for n in s.notes:
-            parts.append(f'<p class="note">{esc(n)}</p>')
-        if s.html:
-            parts.append(s.html)
-        for f in s.figures:
-            parts.append(figure_html(folder, f.file, f.title, f.caption))
-        parts.append("</section>")
+        parts.append(section_html(i, s, folder))
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

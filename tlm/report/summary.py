@@ -1,0 +1,197 @@
+"""The report's first screen: what the model found, in words and one figure per question.
+
+Four questions, each answered from whatever the inputs hold (and saying so when they
+hold nothing for it):
+
+1. How fast? Frames per second per scene and mode, ours beside the thesis's (Tables I–III).
+2. What limits it? The bottleneck PM of each scene-mode and its utilisation (busy share
+   of the elapsed cycles), and whether the thesis names the same PM.
+3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
+4. What does quality cost? Image error against run time of the photon-map filters.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from tlm.report.collect import Inputs
+from tlm.report.common import Figure, Section, bar_style, line_style, new_figure, save
+from tlm.report.html import esc
+
+MODES = ("rcast", "reflect", "refract", "pmap")
+MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
+PMS = ("vertex", "traversal", "intersection", "fragment")
+PM_METRIC = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "fragment": "TFrag"}
+SIZE = (5.4, 3.1)
+
+
+def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    thesis = inputs.of_kind("thesis")
+    if thesis:
+        rows = [r for r in thesis[0].rows if r["metric"] == "FPS"]
+        ours = {(r["scene"], r["mode"]): r["ours"] for r in rows}
+        theirs = {(r["scene"], r["mode"]): r["thesis"] for r in rows}
+    else:
+        ours = {(r.scene, r.mode): r.results.get("fps") for r in inputs.runs if r.kind == "run"}
+        theirs = {}
+    ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
+    if not ours:
+        return "No run or thesis study among the inputs: no frame rate to show.", None
+    scenes = sorted({s for s, _ in ours}, key=lambda s: ("ring", "room", "cornell").index(s)
+                    if s in ("ring", "room", "cornell") else 9)
+    fig = new_figure(*SIZE)
+    ax = fig.add_subplot()
+    width = 0.8 / 4
+    for j, mode in enumerate(MODES):
+        xs = [i + (j - 1.5) * width for i in range(len(scenes))]
+        ax.bar(xs, [ours.get((s, mode), 0) for s in scenes], width, label=MODE_NAMES[mode], **bar_style(j))
+        th = [theirs.get((s, mode)) for s in scenes]
+        ax.plot([x for x, t in zip(xs, th, strict=True) if t], [t for t in th if t], "k_", markersize=11,
+                markeredgewidth=2, label="thesis" if j == 0 and any(th) else None)
+    ax.set_xticks(range(len(scenes)), scenes)
+    ax.set_yscale("log")
+    ax.set_ylabel("frames per second")
+    ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, 1.18), frameon=False)
+    f = save(fig, out, "summary_fps.png", "Frames per second", "bars: ours at the simulated clock; "
+             "black ticks: the thesis's Tables I–III")
+    best = max(ours, key=ours.get)
+    worst = min(ours, key=ours.get)
+    text = (f"<b>How fast:</b> from {ours[worst]:.3g} FPS ({esc(worst[0])} {MODE_NAMES.get(worst[1], worst[1])}) "
+            f"to {ours[best]:.3g} FPS ({esc(best[0])} {MODE_NAMES.get(best[1], best[1])}) at one pipeline.")
+    if thesis:
+        s = thesis[0].meta
+        med = s.get("median_abs_rel_error_held_out")
+        if med is not None:
+            text += (f" Against Tables I–III: median |relative error| {100 * med:.0f}% over "
+                     f"{s.get('held_out_cells')} held-out cells.")
+    return text, f
+
+
+def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    cells: dict[tuple[str, str], dict[str, float]] = {}
+    for r in inputs.runs:
+        if r.kind != "thesis" and not (r.kind == "run" and (r.scene, r.mode) not in cells):
+            continue
+        units = (r.results.get("timing") or {}).get("units") or {}
+        busy = {pm: units[f"pipe0.{pm}"]["fractions"]["busy"] for pm in PMS
+                if f"pipe0.{pm}" in units and "fractions" in units[f"pipe0.{pm}"]}
+        if len(busy) == len(PMS):
+            cells[(r.scene, r.mode)] = busy
+    if not cells:
+        return "No run records its units' busy fractions: no bottleneck to show.", None
+    thesis = inputs.of_kind("thesis")
+    slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
+    keys = sorted(cells, key=lambda k: (k[0], MODES.index(k[1]) if k[1] in MODES else 9))
+    grid = np.array([[cells[k][pm] for pm in PMS] for k in keys])
+    fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
+    ax = fig.add_subplot()
+    ax.imshow(grid, cmap="Greys", vmin=0, vmax=1, aspect="auto")
+    for i, k in enumerate(keys):
+        for j, pm in enumerate(PMS):
+            v = grid[i, j]
+            mark = ""
+            if slowest.get(f"{k[0]}/{k[1]}", {}).get("thesis") == PM_METRIC[pm]:
+                mark = " ▲"
+            ax.text(j, i, f"{100 * v:.0f}%{mark}", ha="center", va="center", fontsize=7,
+                    color="white" if v > 0.55 else "black", fontweight="bold" if j == grid[i].argmax() else None)
+    ax.set_xticks(range(len(PMS)), [PM_METRIC[p] for p in PMS])
+    ax.set_yticks(range(len(keys)), [f"{s} {MODE_NAMES.get(m, m)}" for s, m in keys], fontsize=7)
+    f = save(fig, out, "summary_bottleneck.png", "Busy share per PM",
+             "each cell: busy cycles / elapsed cycles of the PM; bold: our bottleneck; ▲: the thesis's slowest PM")
+    tops = defaultdict(int)
+    for k in keys:
+        tops[PMS[int(np.argmax(grid[keys.index(k)]))]] += 1
+    top = max(tops, key=tops.get)
+    share = [cells[k][top] for k in keys if PMS[int(np.argmax([cells[k][p] for p in PMS]))] == top]
+    text = (f"<b>What limits it:</b> the {PM_METRIC[top]} PM is the bottleneck in {tops[top]} of {len(keys)} "
+            f"scene-modes, busy {100 * min(share):.0f}–{100 * max(share):.0f}% of the time.")
+    if slowest:
+        m = sum(v["match"] for v in slowest.values())
+        text += f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes."
+    return text, f
+
+
+def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    rows = [r for st in inputs.of_kind("scaling") for r in st.rows
+            if r.get("target") == "throughput" and r.get("scheduler") == "static"]
+    if not rows:
+        return "No eq. 5.2 study among the inputs: no scaling to show.", None
+    by = defaultdict(list)
+    for r in rows:
+        by[r["scene"]].append(r)
+    fig = new_figure(*SIZE)
+    ax = fig.add_subplot()
+    top_n, gains = 1, []
+    for i, (scene, rs) in enumerate(sorted(by.items())):
+        rs = sorted(rs, key=lambda r: r["pipelines"])
+        ref = rs[0]["simulated"]
+        n = [r["pipelines"] for r in rs]
+        sp = [ref / r["simulated"] for r in rs]
+        ax.plot(n, sp, label=scene, **line_style(i))
+        top_n = max(top_n, n[-1])
+        gains.append((scene, n[-1], sp[-1]))
+    ax.plot([1, top_n], [1, top_n], color="0.6", linewidth=1, label="ideal")
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log", base=2)
+    ax.set_xlabel("pipelines N")
+    ax.set_ylabel("speed-up of TThru")
+    ax.legend(fontsize=7)
+    f = save(fig, out, "summary_scaling.png", "Scaling with N pipelines",
+             "speed-up of the throughput with the static scheduler; grey: the ideal N")
+    parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n}" for s, n, g in gains)
+    text = f"<b>Does it scale:</b> {parts} (static tiles; the dynamic scheduler and eq. 5.2 are in §3)."
+    return text, f
+
+
+def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    studies = inputs.of_kind("error-vs-cost")
+    rows = [r for st in studies for r in st.rows]
+    err = "truth_rel_mse" if any(r.get("truth_rel_mse") is not None for r in rows) else "rel_mse"
+    rows = [r for r in rows if r.get(err) is not None and r.get("frame_seconds")]
+    if not rows:
+        return "No error-against-cost study among the inputs: no error to show.", None
+    fig = new_figure(*SIZE)
+    ax = fig.add_subplot()
+    filters = sorted({r["filter"] for r in rows})
+    for i, flt in enumerate(filters):
+        rs = sorted((r for r in rows if r["filter"] == flt), key=lambda r: r["frame_seconds"])
+        ax.plot([1000 * r["frame_seconds"] for r in rs], [r[err] for r in rs], label=flt,
+                **{**line_style(i), "linestyle": "none"})
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("simulated frame time (ms)")
+    ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
+    ax.legend(fontsize=7)
+    f = save(fig, out, "summary_tradeoff.png", "Error against frame time",
+             "each point: one photon count, radius or k of a filter; lower left is better")
+    best = {}
+    for r in rows:
+        if r["filter"] not in best or r[err] < best[r["filter"]][err]:
+            best[r["filter"]] = r
+    lo = min(best.values(), key=lambda r: r[err])
+    text = (f"<b>What quality costs:</b> the lowest error is {lo['filter']}'s, relative MSE {lo[err]:.3g} at "
+            f"{1000 * lo['frame_seconds']:.3g} ms a frame"
+            + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference") + "; "
+            + ", ".join(f"{k} {v[err]:.3g} at {1000 * v['frame_seconds']:.3g} ms" for k, v in sorted(best.items())
+                        if v is not lo) + ".")
+    return text, f
+
+
+def summary_section(inputs: Inputs, out: Path) -> Section:
+    sec = Section("summary", "What the model found")
+    texts, figs = [], []
+    for q in (_fps, _bottleneck, _scaling, _tradeoff):
+        text, fig = q(inputs, out)
+        texts.append(text)
+        if fig is not None:
+            figs.append(fig)
+    sec.lead = "<br>".join(texts)
+    sec.figures = figs
+    sec.shown = len(figs)
+    if not figs:
+        sec.absent = "the inputs hold no frame rates, busy shares, scaling sweeps or error studies"
+    return sec
+
