@@ -21,6 +21,8 @@ import pytest
 import yaml
 from matplotlib.image import imread
 
+from tests.browser import chromium
+from tests.test_report_layout import check_layout
 from tlm.cli import main
 from tlm.report import build_report
 from tlm.report.collect import read
@@ -208,8 +210,6 @@ def test_unreadable_results_file(tmp_path, capsys):
     assert not (bad / "report").exists()
 
 
-CHROMIUM = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome") if shutil.which(n)),
-                None)
 CHECK = """<script>
 window.addEventListener('load', () => {
   const imgs = [...document.images];
@@ -219,15 +219,13 @@ window.addEventListener('load', () => {
 </script>"""
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium is not installed (Debian: apt-get install "
-                    "chromium); the links and images are checked without a browser above")
 def test_page_loads_in_headless_chromium(combined, tmp_path):
     """Chromium opens the page without a failed load, and decodes every embedded figure."""
     page = tmp_path / "check.html"
     page.write_text(combined.read_text(encoding="utf-8").replace("</body>", CHECK + "</body>"), encoding="utf-8")
     for png in combined.parent.glob("*.png"):
         shutil.copy(png, tmp_path / png.name)
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    cmd = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
            "--disable-background-networking", "--disable-component-update", "--disable-sync",
            f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr", "--v=0",
            "--virtual-time-budget=10000", "--dump-dom", page.as_uri()]
@@ -237,3 +235,8 @@ def test_page_loads_in_headless_chromium(combined, tmp_path):
     assert f"<title>IMAGES {n}/{n}</title>" in done.stdout, done.stdout[:500]
     for bad in ("Failed to load resource", "net::ERR_", "Uncaught"):
         assert bad not in done.stderr, done.stderr[-2000:]
+
+
+def test_the_combined_report_reads_in_a_few_screens(combined):
+    """Runs, sweeps and studies together: the summary first, the page within the screen budget."""
+    check_layout(combined)
