@@ -163,5 +163,5 @@ def test_the_check_finds_a_cycle_within_a_layer(tmp_path):
 
 
 def test_a_module_outside_the_layers_is_named():
-    with pytest.raises(AssertionError, match="tlm.plugins is in no layer"):
+    with pytest.raises(AssertionError, match=r"tlm\.plugins is in no layer"):
         layer_of("tlm.plugins")

@@ -36,7 +36,7 @@ from functools import cached_property
 
 import numpy as np
 
-from tlm.arch.functional import Functional, TreeWork
+from tlm.arch.functional import RAY_PASSES, Functional, PhotonWork, RayPassWork, TreeWork, WorkArrays
 from tlm.arch.programs import Programs
 from tlm.arch.work import split
 from tlm.config import ArchConfig
@@ -174,7 +174,7 @@ def image_tiles(width: int, height: int, n: int) -> tuple[list[np.ndarray], dict
 def _level_packets(tw: TreeWork) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """A BSP build cut into one packet per level."""
     n = tw.n_levels
-    counts = {k: v.astype(np.int64) for k, v in tw.levels.items()}
+    counts = {k: v.astype(np.int64) for k, v in tw.levels.as_dict().items()}
     elements = np.zeros(n, dtype=np.int64)
     restarts = np.full(n, 3, dtype=np.int64)  # per level: read P twice, write P'
     if n:
@@ -207,9 +207,19 @@ def _intersection(programs: Programs, kind: str, rays: np.ndarray, tris: np.ndar
                    np.zeros_like(rays), rays.astype(np.int64), tris.astype(np.int64))
 
 
-RAY_KEYS = {"rays": ("primary_rays", "secondary_rays"), "tris": "tri_tests", "isect_misses": "isect_misses"}
-SHADOW_KEYS = {"rays": ("shadow_rays",), "tris": "shadow_tri_tests", "isect_misses": "shadow_isect_misses"}
-PHOTON_KEYS = {"rays": ("rays",), "tris": "tri_tests", "isect_misses": "isect_misses"}
+@dataclass(frozen=True)
+class TraceFields:
+    """Which work fields a traversal + intersection phase reads for the fixed-function
+    Intersection PM (the Traversal PM's job is priced by name, ``programs.yaml``)."""
+
+    rays: tuple[str, ...]  # rays loaded (ray_load_cycles each)
+    tris: str  # triangles tested (triangle_cycles each): the FIFO's entries
+    isect_misses: str  # the Intersection PM's page misses
+
+
+RAY_TRACE = TraceFields(("primary_rays", "secondary_rays"), "tri_tests", "isect_misses")  # RayPassWork
+SHADOW_TRACE = TraceFields(("shadow_rays",), "shadow_tri_tests", "shadow_isect_misses")  # RayPassWork
+PHOTON_TRACE = TraceFields(("rays",), "tri_tests", "isect_misses")  # PhotonWork
 
 
 class _PacketSums:
@@ -219,7 +229,7 @@ class _PacketSums:
     costs read a few of the many work keys.
     """
 
-    def __init__(self, work: dict[str, np.ndarray], idx: np.ndarray, packet_size: int):
+    def __init__(self, work: WorkArrays, idx: np.ndarray, packet_size: int):
         self.work, self.idx = work, idx
         self.starts = np.arange(0, idx.shape[0], packet_size, dtype=np.int64)
         self.sums: dict[str, np.ndarray] = {}
@@ -248,24 +258,24 @@ class _Builder:
         self.vertex_words = 3 * g.slots
         self.copy_mode = arch.memory == "copy"
 
-    def packets(self, work: dict[str, np.ndarray], idx: np.ndarray):
+    def packets(self, work: WorkArrays, idx: np.ndarray):
         """The work of items ``idx`` in packets: (its counts, lazily per key, as ``split`` gives them; sizes)."""
         p = split("sub", {"items": idx}, self.arch.packet_size)
         return _PacketSums(work, idx, p.packet_size), p.sizes
 
-    def ti(self, name: str, t_kind: str, work: dict[str, np.ndarray], idx: np.ndarray, keys: dict,
+    def ti(self, name: str, t_kind: str, work: WorkArrays, idx: np.ndarray, trace: TraceFields,
            copy_words: int, copy_to: int | None = None) -> PhaseSpec:
         counts, items = self.packets(work, idx)
         zero = np.zeros(items.shape[0], dtype=np.int64)
-        rays = sum((counts.get(k, zero) for k in keys["rays"]), zero)
-        tris = counts.get(keys["tris"], zero)
+        rays = sum((counts.get(k, zero) for k in trace.rays), zero)
+        tris = counts.get(trace.tris, zero)
         t = _programmable(self.programs, "traversal", t_kind, 0, counts, items, tris)
-        i = _intersection(self.programs, t_kind, rays, tris, counts.get(keys["isect_misses"], zero))
+        i = _intersection(self.programs, t_kind, rays, tris, counts.get(trace.isect_misses, zero))
         if self.copy_mode:
             copy_words += self.tree_words + self.vertex_words
         return PhaseSpec(name, (t, i), copy_words, copy_to)
 
-    def f(self, name: str, kind: str, work: dict[str, np.ndarray], idx: np.ndarray) -> PhaseSpec:
+    def f(self, name: str, kind: str, work: WorkArrays, idx: np.ndarray) -> PhaseSpec:
         counts, items = self.packets(work, idx)
         copy_words = WORDS_PER_HIT * int(items.sum()) if self.copy_mode else 0
         return PhaseSpec(name, (_programmable(self.programs, "fragment", kind, 1, counts, items),), copy_words)
@@ -274,34 +284,34 @@ class _Builder:
         """The ray passes and the gather of the pixels ``idx`` (row-major)."""
         phases = []
         for name in passes:
-            w = self.fn.work[name]
-            rays = (w["primary_rays"] + w["secondary_rays"])[idx]
+            w: RayPassWork = self.fn.ray_work(name)
+            rays = (w.primary_rays + w.secondary_rays)[idx]
             sel = idx[rays > 0]
             if not sel.size:
                 continue
             # a secondary pass receives the Fragment PM's new rays (towards the Traversal PM's module)
-            phases.append(self.ti(f"{name}.rays", "rays", w, sel, RAY_KEYS,
-                                  WORDS_PER_RAY * int(w["secondary_rays"][sel].sum()), 0))
+            phases.append(self.ti(f"{name}.rays", "rays", w, sel, RAY_TRACE,
+                                  WORDS_PER_RAY * int(w.secondary_rays[sel].sum()), 0))
             phases.append(self.f(f"{name}.shade", "shade", w, sel))
-            ssel = idx[w["shadow_rays"][idx] > 0]
+            ssel = idx[w.shadow_rays[idx] > 0]
             if ssel.size:
-                phases.append(self.ti(f"{name}.shadow", "shadow", w, ssel, SHADOW_KEYS,
-                                      WORDS_PER_RAY * int(w["shadow_rays"][ssel].sum())))
+                phases.append(self.ti(f"{name}.shadow", "shadow", w, ssel, SHADOW_TRACE,
+                                      WORDS_PER_RAY * int(w.shadow_rays[ssel].sum())))
                 phases.append(self.f(f"{name}.light", "light", w, ssel))
-        if with_gather:
-            w = self.fn.work["pmap"]
-            gsel = idx[w["gathers"][idx] > 0]
+        g = self.fn.gather_work if with_gather else None
+        if g is not None:
+            gsel = idx[g.gathers[idx] > 0]
             if gsel.size:
-                phases.append(self.f("pmap.gather", "gather", w, gsel))
+                phases.append(self.f("pmap.gather", "gather", g, gsel))
         return phases
 
     def photon_chunk(self, idx: np.ndarray) -> tuple[list[PhaseSpec], int]:
-        pw = self.fn.photon_work
-        phases = [self.ti("photons.trace", "photons", pw, idx, PHOTON_KEYS, 0)]
-        stored_sel = idx[pw["bounces"][idx] > 0]
+        pw: PhotonWork = self.fn.photon_work
+        phases = [self.ti("photons.trace", "photons", pw, idx, PHOTON_TRACE, 0)]
+        stored_sel = idx[pw.bounces[idx] > 0]
         if stored_sel.size:
             phases.append(self.f("photons.store", "photons", pw, stored_sel))
-        return phases, WORDS_PER_PHOTON * int(pw["stored"][idx].sum())
+        return phases, WORDS_PER_PHOTON * int(pw.stored[idx].sum())
 
 
 def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> FrameProgram:
@@ -321,24 +331,24 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
     geometry_out = (FanOut("tree", b.tree_words, 0, 0), FanOut("vertices", b.vertex_words, 0, 1))
 
     passes = []
-    for name in ("rcast", "reflect", "refract"):
+    for name in RAY_PASSES:
         if name not in fn.passes:
             left_out[f"{name} frames"] = "the plan does not render this pass"
             continue
-        w = fn.work[name]
-        if not (w["primary_rays"] + w["secondary_rays"]).any():
+        w = fn.ray_work(name)
+        if not (w.primary_rays + w.secondary_rays).any():
             left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
             continue
         passes.append(name)
-        if not w["shadow_rays"].any():
+        if not w.shadow_rays.any():
             left_out[f"{name} shadow frames"] = "no shadow ray (no light, or no Lambertian hit)"
 
-    with_pmap = "pmap" in fn.passes and fn.photon_work is not None and fn.photon_tree is not None
+    with_pmap = fn.gather_work is not None and fn.photon_work is not None and fn.photon_tree is not None
     pixel_out = geometry_out
     if with_pmap:
         pw = fn.photon_work
-        n = pw["photons_emitted"].shape[0]
-        emit = split("emit", {"photons_emitted": pw["photons_emitted"]}, arch.packet_size)
+        n = pw.n
+        emit = split("emit", {"photons_emitted": pw.photons_emitted}, arch.packet_size)
         emit_counts = dict(emit.counts)
         emit_counts["stream_restarts"] = np.zeros(emit.n, dtype=np.int64)
         if emit.n:

@@ -40,13 +40,13 @@ MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_
 
 
 def work_keys() -> tuple[str, ...]:
-    """Every work item a program may price: the functional layer's keys and the model's."""
-    from tlm.arch.functional import LEVEL_FIELDS
-    from tlm.kernels.photons import PHOTON_WORK
-    from tlm.render.passes import GATHER_KEYS, WORK_KEYS
+    """Every work item a program may price: the fields of the seam's work classes
+    (:mod:`tlm.arch.functional`) and the model's own (``items``, ``elements``, ``stream_restarts``)."""
+    from tlm.arch.functional import BuildLevelWork, GatherWork, PhotonWork, RayPassWork
 
     extra = ("items", "elements", "stream_restarts", "photons_emitted")
-    return tuple(dict.fromkeys((*WORK_KEYS, *GATHER_KEYS, *PHOTON_WORK, *LEVEL_FIELDS, *MISS_KEYS, *extra)))
+    return tuple(dict.fromkeys((*RayPassWork.KEYS, *GatherWork.KEYS, *PhotonWork.KEYS, *BuildLevelWork.KEYS,
+                                *MISS_KEYS, *extra)))
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ geometry BSP's and the photon BSP's :class:`~tlm.kernels.bsp.LevelWork` totals.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +44,12 @@ class Packets:
         return {k: int(v.sum()) for k, v in self.counts.items()}
 
 
-def split(name: str, work: dict[str, np.ndarray], packet_size: int) -> Packets:
-    """Cut per-item work (arrays of any shape, read row-major) into packets."""
+def split(name: str, work: Mapping[str, np.ndarray], packet_size: int) -> Packets:
+    """Cut per-item work (arrays of any shape, read row-major) into packets.
+
+    ``work``: a render's dict, or one of the seam's typed work classes
+    (:class:`~tlm.arch.functional.RayPassWork`, ..., which read as mappings).
+    """
     if isinstance(packet_size, bool) or not isinstance(packet_size, (int, np.integer)) or packet_size < 1:
         raise ValueError(f"packet_size (={packet_size!r}) must be a whole number >= 1")
     flat = {k: np.asarray(v).reshape(-1) for k, v in work.items()}

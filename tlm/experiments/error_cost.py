@@ -277,11 +277,11 @@ def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[
     with_pmap = "pmap" in names
     if with_pmap:
         work["pmap"] = pmap_work
-    return Functional(
+    return Functional(  # the render's dicts, converted to the typed work by Functional
         passes=names,
-        work={p: {k: np.asarray(v, dtype=np.int64).reshape(-1) for k, v in work[p].items()} for p in names},
+        work={p: work[p] for p in names},
         geometry=geometry,
-        photon_work={k: np.asarray(v, np.int64) for k, v in traced.work.items()} if with_pmap else None,
+        photon_work=traced.work if with_pmap else None,
         photon_tree=TreeWork.of_maps(traced.photons) if with_pmap else None,
         pixels=int(g.pixels.shape[0]), width=int(frame.scene.camera.width),
     )
