@@ -400,3 +400,27 @@ def test_load_mesh_garbage_is_an_error(tmp_path):
     path = tmp_path / "junk.ply"
     path.write_bytes(b"ply\nthis is not a ply header\n\x00\x01")
     _raises_naming(path)
+
+
+def test_the_thesis_ring_has_the_thesis_counts_a_glass_part_and_rays_that_miss():
+    """scenes/thesis/ring.yaml (Fig. 15): 646 triangles, a refractive element (so the
+    Refract column runs a pass of its own) and a framing where most eye rays miss."""
+    import numpy as np
+
+    from tlm.config import config_from_dict
+    from tlm.kernels.camera import primary_rays
+    from tlm.kernels.traverse import build_accel, closest_hit
+    from tlm.render.planner import plan
+    from tlm.scenes.loader import load_scene
+
+    s = load_scene("thesis/ring")
+    assert s.n_triangles == 646 and (s.camera.width, s.camera.height) == (320, 240) and s.photons == 20000
+    assert any(m.kind == "dielectric" for m in s.materials)
+    cfg = config_from_dict({"scene": "thesis/ring", "mode": "refract"}, "t")
+    assert "refract" in plan(s, cfg).run_names
+    o, d = primary_rays(s.camera, np.arange(320 * 240))
+    hit = closest_hit(build_accel(s.triangles), o, d)
+    assert np.mean(hit.triangle < 0) > 0.5  # "many ... eye-ray paths do not yield any intersection"
+    with pytest.raises(ValueError, match="would touch the ring"):
+        from tlm.scenes.builders import ring
+        ring(glass_radius=3.0, glass_x=4.0, glass_z=0.0)

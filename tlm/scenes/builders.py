@@ -171,6 +171,12 @@ def ring(
     floor_nx: int = 7,
     floor_nz: int = 5,
     floor_cell: float = 10.0,
+    floor_back: float = 0.4,
+    glass_radius: float = 0.0,
+    glass_seg: int = 16,
+    glass_rings: int = 9,
+    glass_x: float = -10.0,
+    glass_z: float = -3.0,
 ) -> Geometry:
     """A polished metal ring standing on a diffuse floor (centimetres).
 
@@ -198,12 +204,22 @@ def ring(
         Floor cells along x and z.
     floor_cell : float
         Floor cell size in cm.
+    floor_back : float
+        Fraction of the floor's depth that lies behind the ring (+z), in (0, 1).
+    glass_radius : float
+        Radius in cm of a glass sphere resting on the floor at ``(glass_x, glass_z)``
+        (part ``glass``); 0 (the default) leaves it out.
+    glass_seg, glass_rings : int
+        The glass sphere's `shapes.uv_sphere` tessellation.
+    glass_x, glass_z : float
+        Where the glass sphere stands; it must lie on the floor and clear the ring.
 
     Returns
     -------
     Geometry
-        Parts ``floor, ring``; ``2 * floor_nx * floor_nz + 8 * n_seg`` triangles
-        (646 at the defaults: 70 + 576).
+        Parts ``floor, ring`` and, with ``glass_radius > 0``, ``glass``;
+        ``2 * floor_nx * floor_nz + 8 * n_seg`` triangles (646 at the defaults: 70 +
+        576), plus ``2 * glass_seg * (glass_rings - 1)`` with the glass sphere.
     """
     n = _positive_int("n_seg", n_seg, 3)
     nx = _positive_int("floor_nx", floor_nx)
@@ -215,8 +231,10 @@ def ring(
     if not t < r_out:
         raise ValueError(f"thickness {t} must be smaller than radius {r_out}")
     sx, sz = nx * cell, nz * cell
-    # Floor: centred in x; in z, 40 % of the depth lies behind the ring (+z).
-    z_back = 0.4 * sz
+    # Floor: centred in x; in z, floor_back (default 40 %) of the depth lies behind the ring (+z).
+    if not 0.0 < floor_back < 1.0:
+        raise ValueError(f"floor_back must lie in (0, 1), got {floor_back!r}")
+    z_back = floor_back * sz
     if sx / 2.0 < r_out or z_back < r_out:
         raise ValueError(
             f"the floor ({sx} x {sz} cm, reaching {z_back} cm behind the ring) does not hold "
@@ -226,6 +244,16 @@ def ring(
     p = _Parts()
     p.add("floor", shapes.quad(corner, (sx, 0.0, 0.0), (0.0, 0.0, -sz), nu=nx, nv=nz))
     p.add("ring", shapes.tube((0.0, 0.0, 0.0), r_out - t, r_out, h, n))
+    if glass_radius:
+        rg = _positive("glass_radius", glass_radius)
+        _positive_int("glass_seg", glass_seg, 3)
+        _positive_int("glass_rings", glass_rings, 2)
+        gx, gz = float(glass_x), float(glass_z)
+        if np.hypot(gx, gz) < r_out + rg:
+            raise ValueError(f"the glass sphere at ({gx}, {gz}) would touch the ring")
+        if not (-sx / 2.0 + rg <= gx <= sx / 2.0 - rg and z_back - sz + rg <= gz <= z_back - rg):
+            raise ValueError(f"the glass sphere at ({gx}, {gz}) does not stand on the floor")
+        p.add("glass", shapes.uv_sphere((gx, rg, gz), rg, glass_seg, glass_rings))
     return p.geometry()
 
 

@@ -47,6 +47,7 @@ def scenes_dir() -> Path:
 
 
 def list_scenes() -> list[str]:
+    """The built-in names (a file of a subfolder, such as ``thesis/ring``, is named with it)."""
     return sorted(p.stem for p in scenes_dir().glob("*.yaml"))
 
 
@@ -56,6 +57,8 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
     ``config_source`` names the file the reference came from, for error messages.
     """
     looks_like_path = ref.endswith((".yaml", ".yml")) or "/" in ref or os.sep in ref
+    if looks_like_path and not ref.endswith((".yaml", ".yml")) and (scenes_dir() / f"{ref}.yaml").is_file():
+        return scenes_dir() / f"{ref}.yaml"  # a built-in scene of a subfolder: thesis/ring
     if looks_like_path:
         p = Path(ref)
         for cand in ([base / p] if base is not None and not p.is_absolute() else []) + [p]:
