@@ -19,6 +19,14 @@ from tlm.config import MODES
 from tlm.errors import InputError
 
 
+def _say(line: str) -> None:
+    """A progress line on stdout, flushed, above any progress bar on stderr."""
+    from tqdm import tqdm
+
+    tqdm.write(line, file=sys.stdout)
+    sys.stdout.flush()
+
+
 def _report_after(args: argparse.Namespace, out: Path) -> None:
     """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``."""
     if getattr(args, "no_report", False):
@@ -67,8 +75,9 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from tlm.config import load_config
-    from tlm.experiments.run import run
+    from tlm.experiments.run import OUTPUTS, parse_outputs, run
 
+    outputs = OUTPUTS if args.outputs is None else parse_outputs(args.outputs)
     overrides = list(args.set or [])
     if args.mode is not None:
         overrides.append(f"mode={args.mode}")
@@ -76,7 +85,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"seed={args.seed}")
     cfg, base = load_config(Path(args.config), overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
-    results = run(cfg, out, base, config_path=str(args.config), overrides=overrides)
+    results = run(cfg, out, base, config_path=str(args.config), overrides=overrides, outputs=outputs,
+                  progress=not args.no_progress)
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -220,7 +230,8 @@ def _cmd_reference(args: argparse.Namespace) -> int:
           f"tolerance {settings.tolerance}")
     image, meta = compute_reference(
         frame, g, settings,
-        progress=lambda k, c, e: print(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}", flush=True),
+        progress=lambda k, c, e: _say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
+        bar=not args.no_progress,
     )
     folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
     state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
@@ -266,10 +277,9 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 
     def progress(scene, mode, results):
         c = results["cycles"]
-        print(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {results['fps']:.2f} fps",
-              flush=True)
+        _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {results['fps']:.2f} fps")
 
-    done = run_thesis(Path(args.config), out, progress)
+    done = run_thesis(Path(args.config), out, progress, bar=not args.no_progress)
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"]))
     sm = done["summary"]
@@ -330,6 +340,11 @@ def _no_report(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
 
 
+def _no_progress(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
+                        "not a terminal)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
@@ -341,6 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
     r.add_argument("--seed", type=int, help="override the seed")
+    r.add_argument("--outputs", metavar="NAMES", help="what the run folder gets besides images/ and results.json: "
+                   "a comma-separated list of aov, radiance, trace (default: all three; 'images' alone: none)")
+    _no_progress(r)
     _no_report(r)
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
@@ -373,6 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
     rf.add_argument("config", help="experiment YAML")
     rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
     rf.add_argument("--force", action="store_true", help="compute again even if cached")
+    _no_progress(rf)
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
@@ -385,6 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
     th.add_argument("--out", help="output folder (default: runs/<config name>)")
+    _no_progress(th)
     _no_report(th)
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "

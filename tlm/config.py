@@ -68,6 +68,9 @@ class RenderConfig:
     )
     batch: int = _f(4, "leaves per ray tested together by the traversal kernel (speed only)",
                     min=1, max=64)
+    batch_rays: int = _f(1 << 17, "eye rays (pixels x spp) a run traces and shades together, pixel by pixel, "
+                         "every pass of a batch before the next (memory only: images and work do not depend on "
+                         "it; peak memory grows with it)", min=1)
 
 
 @dataclass(frozen=True)

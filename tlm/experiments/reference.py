@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -82,12 +83,16 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
     return h.hexdigest()[:20]
 
 
-def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, progress=None) -> tuple[np.ndarray, dict]:
+def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, progress=None,
+                      bar: bool = False) -> tuple[np.ndarray, dict]:
     """Average k-NN photon-map frames over independent maps until converged.
 
+    progress : called ``(round, change, standard error)`` after every round but the first.
+    bar : a progress bar of the rounds on stderr (only when it is a terminal).
     Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
     """
     from scipy.spatial import cKDTree
+    from tqdm import tqdm
 
     cfg = frame.cfg
     idx, tri, pts, n, weight = gather_points(frame, g)
@@ -98,6 +103,8 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
     seeds = np.random.SeedSequence(REFERENCE_SEED).spawn(settings.max_rounds)
     t0 = time.perf_counter()
     converged = False
+    rounds = tqdm(total=settings.max_rounds, desc="reference", unit="round", disable=None if bar else True,
+                  file=sys.stderr, dynamic_ncols=True, leave=False)
     for k, child in enumerate(seeds, start=1):
         seed = int(child.generate_state(1)[0])
         ph = trace_photon_map(frame, settings.photons, seed).photons
@@ -118,11 +125,15 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
             changes.append(0.0)
             errors.append(0.0)
         mean = new
+        rounds.update()
+        if k > 1:
+            rounds.set_postfix_str(f"relative standard error {errors[-1]:.4f} (stop below {settings.tolerance})")
         if progress is not None and k > 1:
             progress(k, changes[-1], errors[-1])
         if k >= settings.min_rounds and errors[-1] < settings.tolerance:
             converged = True
             break
+    rounds.close()
     meta = {
         **asdict(settings),
         "rounds": len(errors) + 1,

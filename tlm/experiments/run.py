@@ -16,6 +16,16 @@ output. Contents::
     radiance/<pass>.npy       float32 (H, W, 3) linear radiance, and composite.npy
     aov/primary.npz           origin, direction, t, triangle, normal of the eye rays
     aov/work.npz              per-pixel work counts, "<pass>.<count>" -> (H, W) int64
+
+Images and ``results.json`` are always written; ``aov/``, ``radiance/`` and ``trace.json``
+are the optional :data:`OUTPUTS` (``tlm run --outputs``; all three by default).
+
+The image is rendered in batches of consecutive pixels, ``render.batch_rays`` eye rays
+each (:func:`~tlm.render.passes.pixel_batches`): every pass of a batch runs before the
+next batch is cast, the cache pairs carried from batch to batch, so the radiance and work
+are exactly those of one whole-image packet while memory stays bounded by the batch. A
+progress bar (``progress=True``, on stderr, only when it is a terminal) follows the
+batches and the timing model.
 """
 
 from __future__ import annotations
@@ -23,8 +33,11 @@ from __future__ import annotations
 import json
 import platform
 import subprocess
+import sys
+import threading
 import time
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +47,7 @@ from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.arch.programs import Programs, load_programs
 from tlm.config import ArchConfig, RunConfig, to_dict
+from tlm.errors import InputError, did_you_mean
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
@@ -43,8 +57,11 @@ from tlm.render.passes import (
     WORK_KEYS,
     Frame,
     GBuffer,
+    ImageGBuffer,
     cast,
     caustic_radius,
+    new_streams,
+    pixel_batches,
     pmap_pass,
     search_radius,
     trace_photon_map,
@@ -74,15 +91,104 @@ class Timer:
         return _Stage()
 
 
+OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
+
+
+def parse_outputs(text: str) -> tuple[str, ...]:
+    """``--outputs`` (``aov,trace``): the optional outputs named, in :data:`OUTPUTS` order.
+
+    ``images`` may be named too (images are always written), so ``--outputs images``
+    writes the images and ``results.json`` alone. An unknown name is an InputError.
+    """
+    names = [n.strip() for n in str(text).split(",") if n.strip()]
+    bad = [n for n in names if n not in (*OUTPUTS, "images")]
+    if bad or not names:
+        raise InputError(f"{text!r}: expected a comma-separated list of {', '.join(('images', *OUTPUTS))}"
+                         + (did_you_mean(bad[0], ("images", *OUTPUTS)) if bad else ""), key="--outputs")
+    return tuple(n for n in OUTPUTS if n in names)
+
+
+def progress_bar(enabled: bool, **kwargs):
+    """A tqdm bar on stderr, drawn only when ``enabled`` and stderr is a terminal."""
+    from tqdm import tqdm
+
+    return tqdm(disable=None if enabled else True, file=sys.stderr, dynamic_ncols=True, **kwargs)
+
+
+class _Ticking:
+    """Redraws a bar every ``every`` seconds (its elapsed time) while a long call runs."""
+
+    def __init__(self, bar, every: float = 0.5):
+        self.bar, self.every = bar, every
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._tick, daemon=True)
+
+    def _tick(self) -> None:
+        while not self.stop.wait(self.every):
+            self.bar.refresh()
+
+    def __enter__(self):
+        if not self.bar.disable:
+            self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        if self.thread.is_alive():
+            self.thread.join()
+
+
+@dataclass
+class Primary:
+    """Each pixel's first eye sample (what ``aov/primary.npz`` holds) and the eye-ray counts.
+
+    Filled batch by batch (:meth:`add`), so a run keeps no G-buffer of the whole image.
+    """
+
+    origin: np.ndarray  # (pixels, 3)
+    direction: np.ndarray  # (pixels, 3)
+    t: np.ndarray  # (pixels,)
+    triangle: np.ndarray  # (pixels,) int64
+    normal: np.ndarray  # (pixels, 3)
+    sees_light: np.ndarray  # (pixels,) bool: the first sample sees a light directly
+    rays: int = 0
+    hits: int = 0
+
+    @classmethod
+    def empty(cls, n: int) -> Primary:
+        return cls(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n, dtype=np.int64),
+                   np.zeros((n, 3)), np.zeros(n, dtype=bool))
+
+    def add(self, frame: Frame, g: GBuffer, at: slice) -> None:
+        """The batch ``g`` of pixels ``at``."""
+        self.origin[at] = g.first(g.origin)
+        self.direction[at] = g.first(g.direction)
+        self.t[at] = g.first(g.t)
+        self.triangle[at] = g.first(g.triangle)
+        self.normal[at] = g.first(g.normal(frame))
+        self.sees_light[at] = g.first(g.sees_light)
+        self.rays += int(g.origin.shape[0])
+        self.hits += int((g.triangle >= 0).sum())
+
+    @property
+    def misses(self) -> int:
+        return self.rays - self.hits
+
+
 @dataclass
 class RenderResult:
-    """Everything a run computed (before it is written out)."""
+    """Everything a run computed (before it is written out).
+
+    ``gbuffer`` is the whole image's G-buffer when it was cast as one batch; after a
+    batched render, an :class:`~tlm.render.passes.ImageGBuffer` that casts it again on
+    first use (``pixels`` and ``spp`` at once). ``primary``: the AOVs and eye-ray counts.
+    """
 
     scene: Scene
     cfg: RunConfig
     plan: Plan
     frame: Frame
-    gbuffer: GBuffer
+    gbuffer: GBuffer | ImageGBuffer
     radiance: dict[str, np.ndarray]  # pass -> (H, W, 3)
     work: dict[str, dict[str, np.ndarray]]  # pass -> count -> (H, W)
     timer: Timer
@@ -90,6 +196,7 @@ class RenderResult:
     error: dict | None = None  # the photon-map frame against its reference
     timing: Timing | None = None  # the timing model's outcome (simulate_run)
     programs: Programs | None = None
+    primary: Primary | None = None
 
     @property
     def accel(self) -> TriangleAccel:
@@ -103,36 +210,64 @@ class RenderResult:
         return out
 
 
-def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None) -> RenderResult:
-    """Render every planned frame of ``cfg`` over the whole image."""
+def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
+           progress: bool = False) -> RenderResult:
+    """Render every planned frame of ``cfg`` over the whole image, in batches of
+    ``render.batch_rays`` eye rays (the module's docstring); ``progress``: a bar on stderr."""
     timer = Timer()
-    with timer.stage("load_scene"):
-        scene = load_scene(cfg.scene, base, cfg.resolution, config_source)
-    the_plan = plan(scene, cfg)
-    with timer.stage("build_bsp"):
-        accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
+    with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
+        with timer.stage("load_scene"):
+            scene = load_scene(cfg.scene, base, cfg.resolution, config_source)
+        the_plan = plan(scene, cfg)
+        bar.set_description(f"build BSP ({scene.n_triangles} triangles)")
+        with timer.stage("build_bsp"):
+            accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
     frame = Frame.create(scene, accel, cfg)
     w, h = scene.camera.width, scene.camera.height
-    pixels = np.arange(w * h, dtype=np.int64)
-    with timer.stage("cast"):
-        g = cast(frame, pixels)
-    radiance, work = {}, {}
+    names = the_plan.run_names
+    batches = pixel_batches(w * h, frame.spp, cfg.render.batch_rays)
     traced = None
-    for name in the_plan.run_names:
-        if name == "pmap":
+    radiance = {name: np.zeros((w * h, 3)) for name in names}
+    work: dict[str, dict[str, np.ndarray]] = {}
+    streams = {name: new_streams(frame) for name in names}  # each pass's cache pairs, batch to batch
+    primary = Primary.empty(w * h)
+    whole: GBuffer | None = None
+    steps = len(batches) * (1 + len(names)) + ("pmap" in names)
+    with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
+        if "pmap" in names:
+            bar.set_postfix_str("photon trace")
             with timer.stage("photon_trace"):
                 traced = trace_photon_map(frame)
-            with timer.stage("pass_pmap"):
-                rad, wk = pmap_pass(frame, g, traced.photons)
-        else:
-            with timer.stage(f"pass_{name}"):
-                rad, wk = PASS_FUNCTIONS[name](frame, g)
-        radiance[name] = rad.reshape(h, w, 3)
-        work[name] = {k: v.reshape(h, w) for k, v in wk.items()}
+            bar.update()
+        for i, at in enumerate(batches):
+            bar.set_postfix_str(f"batch {i + 1}/{len(batches)} cast")
+            with timer.stage("cast"):
+                g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
+            bar.update()
+            for name in names:
+                bar.set_postfix_str(f"batch {i + 1}/{len(batches)} {name}")
+                with timer.stage(f"pass_{name}"):
+                    if name == "pmap":
+                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name])
+                    else:
+                        rad, wk = PASS_FUNCTIONS[name](frame, g, streams[name])
+                radiance[name][at] = rad
+                counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
+                for k, v in wk.items():
+                    counts[k][at] = v
+                bar.update()
+            primary.add(frame, g, at)
+            if len(batches) == 1:
+                whole = g
+            del g
+    radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
+    work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     error = None
     if traced is not None:
         error = photon_error(frame, radiance["pmap"].reshape(-1, 3))
-    return RenderResult(scene, cfg, the_plan, frame, g, radiance, work, timer, traced, error)
+    gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
+    return RenderResult(scene, cfg, the_plan, frame, gbuffer, radiance, work, timer, traced, error,
+                        primary=primary)
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
@@ -145,11 +280,14 @@ def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
     return load_programs(path)
 
 
-def simulate_run(res: RenderResult, programs: Programs) -> Timing:
-    """Run the timing model over the rendered frame's work (the SimPy layer)."""
-    with res.timer.stage("simulate"):
+def simulate_run(res: RenderResult, programs: Programs, progress: bool = False) -> Timing:
+    """Run the timing model over the rendered frame's work (the SimPy layer); ``progress``:
+    a bar on stderr with the elapsed time while it runs."""
+    with res.timer.stage("simulate"), progress_bar(progress, desc="simulate", total=1, unit="run", leave=False,
+                                                   postfix=f"{res.cfg.arch.frames} frames") as bar, _Ticking(bar):
         res.programs = programs
         res.timing = simulate(Functional.of(res), programs, res.cfg.arch)
+        bar.update()
     return res.timing
 
 
@@ -243,7 +381,11 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
             total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
-    g = res.gbuffer
+    if res.primary is not None:
+        pixels, rays, hits = res.primary.t.shape[0], res.primary.rays, res.primary.hits
+    else:  # (a result made by hand, not by render)
+        g = res.gbuffer
+        pixels, rays, hits = g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum())
     warnings = []
     if res.accel.tree.truncated:
         t = res.accel.tree
@@ -267,11 +409,11 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "scene": scene_stats(res.scene, res.accel),
         "plan": res.plan.to_dict(),
         "primary": {
-            "pixels": int(g.pixels.shape[0]),
-            "spp": int(g.spp),
-            "rays": int(g.origin.shape[0]),
-            "hits": int((g.triangle >= 0).sum()),
-            "misses": int((g.triangle < 0).sum()),
+            "pixels": int(pixels),
+            "spp": int(res.gbuffer.spp),
+            "rays": int(rays),
+            "hits": int(hits),
+            "misses": int(rays - hits),
         },
         "work": work,
         "work_keys": list(WORK_KEYS),
@@ -295,35 +437,47 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
 
 
 def write_run(res: RenderResult, out: Path, config_path: str | None = None,
-              overrides: list[str] | None = None) -> dict:
-    """Write the run folder atomically (temporary sibling, then rename)."""
+              overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS) -> dict:
+    """Write the run folder atomically (temporary sibling, then rename).
+
+    outputs : which of :data:`OUTPUTS` to write besides the images and ``results.json``
+    (``trace.json`` also needs the timing model's trace, ``arch.trace``).
+    """
+    outputs = set(outputs)
+    unknown = outputs - set(OUTPUTS)
+    if unknown:
+        raise ValueError(f"outputs {sorted(unknown)} are not among {OUTPUTS}")
     t0 = time.perf_counter()
     with atomic_folder(out, "results.json") as tmp:
         (tmp / "images").mkdir()
-        (tmp / "radiance").mkdir()
-        (tmp / "aov").mkdir()
         composite = res.composite
-        surfaces = ~res.gbuffer.first(res.gbuffer.sees_light)  # lights seen directly would set the exposure
+        h, w = res.scene.camera.height, res.scene.camera.width
+        primary = res.primary if res.primary is not None else _primary_of(res)
+        surfaces = ~primary.sees_light  # lights seen directly would set the exposure
         exposure = res.cfg.render.exposure or auto_exposure(composite.reshape(-1, 3)[surfaces])
+        if "radiance" in outputs:
+            (tmp / "radiance").mkdir()
         for name, rad in [*res.radiance.items(), ("composite", composite)]:
             write_png(tmp / "images" / f"{name}.png", to_srgb8(rad, exposure))
-            np.save(tmp / "radiance" / f"{name}.npy", rad.astype(np.float32))
-        h, w = res.scene.camera.height, res.scene.camera.width
-        g = res.gbuffer
-        np.savez_compressed(
-            tmp / "aov" / "primary.npz",
-            origin=g.first(g.origin).reshape(h, w, 3),
-            direction=g.first(g.direction).reshape(h, w, 3),
-            t=g.first(g.t).reshape(h, w),
-            triangle=g.first(g.triangle).astype(np.int64).reshape(h, w),
-            normal=g.first(g.normal(res.frame)).reshape(h, w, 3),
-        )
-        np.savez_compressed(
-            tmp / "aov" / "work.npz",
-            **{f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()},
-        )
+            if "radiance" in outputs:
+                np.save(tmp / "radiance" / f"{name}.npy", rad.astype(np.float32))
+        del composite, rad  # (50 MB each at 1080p)
+        if "aov" in outputs:
+            (tmp / "aov").mkdir()
+            np.savez_compressed(
+                tmp / "aov" / "primary.npz",
+                origin=primary.origin.reshape(h, w, 3),
+                direction=primary.direction.reshape(h, w, 3),
+                t=primary.t.reshape(h, w),
+                triangle=primary.triangle.reshape(h, w),
+                normal=primary.normal.reshape(h, w, 3),
+            )
+            np.savez_compressed(
+                tmp / "aov" / "work.npz",
+                **{f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()},
+            )
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False))
-        if res.timing is not None and res.timing.trace is not None:
+        if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         res.timer.seconds["write"] = time.perf_counter() - t0
         results = results_dict(res, exposure, config_path, overrides)
@@ -331,17 +485,32 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
     return results
 
 
+def _primary_of(res: RenderResult) -> Primary:
+    """The AOVs of a result's whole-image G-buffer (a result made by hand, not by render)."""
+    g = res.gbuffer
+    primary = Primary.empty(g.pixels.shape[0])
+    primary.add(res.frame, g, slice(0, g.pixels.shape[0]))
+    return primary
+
+
 def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None,
-        overrides: list[str] | None = None) -> dict:
-    """Render and write; returns the results dictionary.
+        overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, progress: bool = False) -> dict:
+    """Render, simulate and write; returns the results dictionary.
 
     ``config_path`` and ``overrides`` (the ``--set`` strings) say where the config came
-    from, for error messages and ``results.json``.
+    from, for error messages and ``results.json``. ``outputs``: which of :data:`OUTPUTS`
+    the folder gets (without ``trace``, the timing model keeps no trace: ``arch.trace``
+    is false in the resolved config). ``progress``: bars on stderr when it is a terminal.
     """
+    outputs = tuple(outputs)
+    if "trace" not in outputs and cfg.arch.trace:
+        cfg = replace(cfg, arch=replace(cfg.arch, trace=False))
     source = f"{config_path} (with --set)" if overrides else config_path
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     programs = programs_for(cfg, base)  # a bad instruction table fails before the render
-    res = render(cfg, base, source)
-    simulate_run(res, programs)
-    return write_run(res, out, config_path, overrides)
-
+    res = render(cfg, base, source, progress=progress)
+    simulate_run(res, programs, progress=progress)
+    with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, _Ticking(bar):
+        results = write_run(res, out, config_path, overrides, outputs)
+        bar.update()
+    return results

@@ -39,7 +39,7 @@ from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
-from tlm.experiments.run import RenderResult, Timer, programs_for, render, simulate_run, write_run
+from tlm.experiments.run import RenderResult, Timer, programs_for, progress_bar, render, simulate_run, write_run
 from tlm.experiments.study import read_study
 from tlm.render.planner import plan
 from tlm.storage import atomic_folder, check_destination, write_rows
@@ -149,24 +149,32 @@ def summarize(rows: list[dict]) -> dict:
     }
 
 
-def run_thesis(path: Path, out: Path, progress=None) -> dict:
-    """Every (scene, mode) of the study: run folders, the comparison CSV and its summary."""
+def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
+    """Every (scene, mode) of the study: run folders, the comparison CSV and its summary.
+
+    progress : called ``(scene, mode, results)`` after each cell; bar : progress bars of
+    the cells, each scene's render and each simulation on stderr (only on a terminal).
+    """
     base, scenes, modes, folder = load_study(Path(path))
     check_destination(out, "thesis_comparison.csv")
     rows: list[dict] = []
     wall: dict[str, float] = {}
-    with atomic_folder(out, "thesis_comparison.csv") as tmp:
+    with atomic_folder(out, "thesis_comparison.csv") as tmp, \
+            progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
         for scene in scenes:
             t0 = time.perf_counter()
+            cells.set_postfix_str(f"{scene}: render")
             big = config_from_dict({**base, "scene": scene, "mode": modes[-1]}, str(path))
             programs = programs_for(big, folder)
-            res = render(big, folder, str(path))
+            res = render(big, folder, str(path), progress=bar)
             for mode in modes:
+                cells.set_postfix_str(f"{scene} {mode}")
                 cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
                 sub = restrict(res, cfg)
-                simulate_run(sub, programs)
+                simulate_run(sub, programs, progress=bar)
                 results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
+                cells.update()
                 if progress is not None:
                     progress(scene, mode, results)
             wall[scene] = round(time.perf_counter() - t0, 3)

@@ -265,6 +265,47 @@ def cast(frame: Frame, pixels: np.ndarray, record: bool = True) -> GBuffer:
     return GBuffer(pixels, frame.spp, o, d, hits, le, seen)
 
 
+def pixel_batches(n_pixels: int, spp: int, batch_rays: int) -> list[slice]:
+    """The image's pixels ``0 .. n_pixels - 1`` cut into runs of consecutive ids, in pixel
+    order, of at most ``batch_rays`` eye rays each (at least one pixel: ``spp`` rays).
+
+    Cast and passed one after another with one :class:`~tlm.kernels.memory.Streams` per
+    pass, the batches give the whole image's radiance and work exactly (a pixel's results
+    never depend on its packet; its misses only on the pixels before it, in order), in
+    memory bounded by the batch instead of the image.
+    """
+    if n_pixels < 0 or spp < 1 or batch_rays < 1:
+        raise ValueError(f"n_pixels (={n_pixels}) must be >= 0, spp (={spp}) and batch_rays (={batch_rays}) >= 1")
+    step = max(1, batch_rays // spp)
+    return [slice(lo, min(lo + step, n_pixels)) for lo in range(0, n_pixels, step)]
+
+
+class ImageGBuffer:
+    """The whole image's :class:`GBuffer` for a render done in several batches.
+
+    A batched render keeps none of its batches' G-buffers (that is the memory it saves):
+    ``pixels`` and ``spp`` are at hand, and any other attribute casts the whole image
+    again (:func:`cast`, the same rays, bit for bit) on first use and keeps it.
+    """
+
+    def __init__(self, frame: Frame, n_pixels: int):
+        self.frame = frame
+        self.pixels = np.arange(n_pixels, dtype=np.int64)
+        self.spp = frame.spp
+        self._whole: GBuffer | None = None
+
+    @property
+    def whole(self) -> GBuffer:
+        if self._whole is None:
+            self._whole = cast(self.frame, self.pixels)
+        return self._whole
+
+    def __getattr__(self, name: str):  # only for what the instance does not hold
+        if name.startswith("__") or name == "_whole":
+            raise AttributeError(name)
+        return getattr(self.whole, name)
+
+
 def shading_normals(frame: Frame, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Interpolated unit shading normals at hits, on the side of the winding's geometric normal."""
     return interpolate(frame.shading, tri, u, v, frame.normals[tri])
