@@ -84,7 +84,9 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         return "No run records its units' busy fractions: no bottleneck to show.", None
     thesis = inputs.of_kind("thesis")
     slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
-    keys = sorted(cells, key=lambda k: (k[0], MODES.index(k[1]) if k[1] in MODES else 9))
+    scene_order = ("ring", "room", "cornell")
+    keys = sorted(cells, key=lambda k: (scene_order.index(k[0]) if k[0] in scene_order else 9, k[0],
+                                        MODES.index(k[1]) if k[1] in MODES else 9))
     grid = np.array([[cells[k][pm] for pm in PMS] for k in keys])
     fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
     ax = fig.add_subplot()
@@ -141,7 +143,7 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.legend(fontsize=7)
     f = save(fig, out, "summary_scaling.png", "Scaling with N pipelines",
              "speed-up of the throughput with the static scheduler; grey: the ideal N")
-    parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n}" for s, n, g in gains)
+    parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n:g}" for s, n, g in gains)
     text = f"<b>Does it scale:</b> {parts} (static tiles; the dynamic scheduler and eq. 5.2 are in §3)."
     return text, f
 
@@ -158,11 +160,11 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     filters = sorted({r["filter"] for r in rows})
     for i, flt in enumerate(filters):
         rs = sorted((r for r in rows if r["filter"] == flt), key=lambda r: r["frame_seconds"])
-        ax.plot([1000 * r["frame_seconds"] for r in rs], [r[err] for r in rs], label=flt,
+        ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=flt,
                 **{**line_style(i), "linestyle": "none"})
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("simulated frame time (ms)")
+    ax.set_xlabel("simulated frame time (s)")
     ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
     ax.legend(fontsize=7)
     f = save(fig, out, "summary_tradeoff.png", "Error against frame time",
@@ -173,9 +175,9 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             best[r["filter"]] = r
     lo = min(best.values(), key=lambda r: r[err])
     text = (f"<b>What quality costs:</b> the lowest error is {lo['filter']}'s, relative MSE {lo[err]:.3g} at "
-            f"{1000 * lo['frame_seconds']:.3g} ms a frame"
+            f"{lo['frame_seconds']:.3g} s a frame"
             + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference") + "; "
-            + ", ".join(f"{k} {v[err]:.3g} at {1000 * v['frame_seconds']:.3g} ms" for k, v in sorted(best.items())
+            + ", ".join(f"{k} {v[err]:.3g} at {v['frame_seconds']:.3g} s" for k, v in sorted(best.items())
                         if v is not lo) + ".")
     return text, f
 

@@ -70,6 +70,21 @@ def _numeric(values: list) -> bool:
     return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
 
 
+def _merge_identical(series: dict[tuple, dict], others: list[str]) -> list[tuple[str, dict]]:
+    """The series in order, those with the same points (to 1e-9) drawn once: a line that hides
+    another would read as one combination. Their labels are joined, "(identical)" added."""
+    merged: list[tuple[list[str], dict]] = []
+    for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
+        label = ", ".join(f"{f.split('.')[-1]}={_fmt(c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
+        for labels, seen in merged:
+            if seen.keys() == pts.keys() and all(math.isclose(seen[k], pts[k], rel_tol=1e-9) for k in pts):
+                labels.append(label)
+                break
+        else:
+            merged.append(([label], pts))
+    return [(labels[0] if len(labels) == 1 else " | ".join(labels) + " (identical)", pts) for labels, pts in merged]
+
+
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     """FPS against ``factor``; one line per combination of the other factors."""
     ok = [r for r in sw.rows if r.get("status") == "ok" and r.get("fps") is not None]
@@ -85,10 +100,9 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
     if len(series) <= MAX_SERIES:
-        for i, (combo, pts) in enumerate(sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]])):
+        for i, (labels, pts) in enumerate(_merge_identical(series, others)):
             vs = [v for v in values if v in pts]
-            label = ", ".join(f"{f.split('.')[-1]}={_fmt(c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
-            ax.plot(xs_of(vs), [pts[v] for v in vs], label=label, **line_style(i))
+            ax.plot(xs_of(vs), [pts[v] for v in vs], label=labels, **line_style(i))
     else:
         med, lo, hi = [], [], []
         for v in values:

@@ -172,9 +172,10 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
                zorder=4)
     front_rows = [sub[j] for j in np.flatnonzero(front)[o]]
-    for j, (x, y, r) in enumerate(zip(fc, fe, front_rows, strict=True)):
-        ax.annotate(_point_name(r), (x, y), xytext=(7, 5 if j % 2 == 0 else -11), textcoords="offset points",
-                    fontsize=6.5)
+    for j, (x, y, r) in enumerate(zip(fc, fe, front_rows, strict=True)):  # numbered, named in the key:
+        ax.annotate(str(j + 1), (x, y), xytext=(6, 4), textcoords="offset points", fontsize=7,  # names would
+                    fontweight="bold")  # overlap where the front's points crowd
+        ax.plot([], [], " ", label=f"{j + 1}: {_point_name(r)}")
     # the photon-count key: one grey marker per size shown
     counts = sorted({int(p) for p in photons[ok] if np.isfinite(p)})
     shown = counts if len(counts) <= 4 else [counts[0], counts[len(counts) // 2], counts[-1]]
@@ -188,8 +189,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
            title=f"{label}: photon-map RMSE against {what}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    caption = (f"{int(ok.sum())} points; marker area grows with the photon count; ringed and named: the "
-               f"{int(front.sum())} points of the Pareto front.")
+    caption = (f"{int(ok.sum())} points; marker area grows with the photon count; ringed and numbered (named in "
+               f"the key): the {int(front.sum())} points of the Pareto front.")
     if cost_key == "wall":
         caption += (" Tracing a photon map is shared by the points that use it, but each point counts it in "
                     "full (its cost if run alone).")
