@@ -535,7 +535,7 @@ def _module_story(requests):
     """Clients post (name, at, misses, cycles, then) to one module process; (name, done) log."""
     import simpy
 
-    from tlm.arch.hardware import Module
+    from tlm.arch.memory import Module
 
     env = simpy.Environment()
     m = Module(env, "mem0", None)
@@ -590,7 +590,8 @@ def test_two_pms_never_work_on_one_module(before):
 def test_the_crossbar_grants_a_module_to_one_pm_at_a_time():
     import simpy
 
-    from tlm.arch.hardware import Crossbar, Module
+    from tlm.arch.crossbar import Crossbar
+    from tlm.arch.memory import Module
     from tlm.config import ArchConfig
 
     class FakePM:

@@ -1,6 +1,6 @@
 """The timing layer's shortcuts give what the general forms they replace give.
 
-The hot paths of the SimPy layer avoid some general machinery: ``hardware._AnyOf`` for
+The hot paths of the SimPy layer avoid some general machinery: ``events._AnyOf`` for
 ``env.any_of``, ``JobSpec.packets`` for numpy scalars, ``Trace.add_work`` for
 ``Trace.slice(**args)``, a unit log spelled out when read, lazily summed packet counts in
 the frame program, and an inlined ``Environment.step``. Each is checked here against the
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import simpy
 
-from tlm.arch.hardware import _AnyOf
+from tlm.arch.events import _AnyOf
 from tlm.arch.program import JobSpec, _PacketSums
 from tlm.arch.units import Trace, Unit, run
 from tlm.arch.work import split

@@ -22,8 +22,11 @@ costing ``context_switch_cycles`` to save and again to restore). Moving a PM to 
 module costs ``swap_cycles`` (*swap*). The Traversal PM waits when the FIFO is full
 (*fifo_full*), the Intersection PM when it is empty (*fifo_empty*).
 
-The units themselves are in :mod:`tlm.arch.hardware`; this module is the control unit
-(frames, stages, tiles, copies) and the simulation. Every cycle of every unit is
+The units themselves are in :mod:`tlm.arch.pm` (the PMs), :mod:`tlm.arch.memory` (the
+modules), :mod:`tlm.arch.crossbar` and :mod:`tlm.arch.fifo`; the schedulers that hand a
+tiled stage's tiles to the pipelines in :mod:`tlm.arch.schedulers`; the order of a
+cycle's events in :mod:`tlm.arch.events`. This module is the control unit (frames,
+stages, copies) and the simulation. Every cycle of every unit is
 accounted by :mod:`tlm.arch.units` (eq. 5.1), and
 :func:`simulate` checks the invariants of every run: every work item issued is retired,
 every FIFO entry pushed is popped, and busy + stall + idle = elapsed for every unit.
@@ -33,14 +36,17 @@ from __future__ import annotations
 
 import gc
 import math
-from collections import deque
 from dataclasses import dataclass, field
 from fractions import Fraction
 
 import simpy
 
+from tlm.arch.crossbar import Crossbar
+from tlm.arch.events import CycleEnd, all_done
+from tlm.arch.fifo import Fifo
 from tlm.arch.functional import Functional
-from tlm.arch.hardware import PM, Crossbar, Fifo, FrameRecord, Job, Model, Module
+from tlm.arch.memory import Module
+from tlm.arch.pm import PM, PM_KINDS, Job
 from tlm.arch.program import (
     PM_TABLE_NAMES,
     PMS,
@@ -54,16 +60,124 @@ from tlm.arch.program import (
 from tlm.arch.programs import Programs
 from tlm.arch.units import Deadlock, Trace, run
 from tlm.config import ArchConfig
+from tlm.registry import SCHEDULERS
+
+# -- the model's state ------------------------------------------------------------------------
+
+@dataclass
+class FrameRecord:
+    """A frame of the stream: its image slot, the cycle it arrived and the cycle it was done."""
+
+    index: int
+    slot: int
+    arrival: int = 0
+    done: int = -1
+
+
+@dataclass
+class Model:
+    """The simulated GPU: every unit, the frames in flight, and the end-of-cycle events."""
+
+    env: simpy.Environment
+    arch: ArchConfig
+    program: FrameProgram
+    trace: Trace | None
+    modules: list[Module] = field(default_factory=list)  # per pipeline: 2 per image in flight
+    xbar: Crossbar | None = None
+    pms: dict[tuple[int, str], PM] = field(default_factory=dict)  # (pipeline, PM name)
+    frames: list[FrameRecord] = field(default_factory=list)
+    fifos: list = field(default_factory=list)
+    compose: int | None = None  # index in ``modules`` of the top-level unit (more than one pipeline)
+    cycle_end: CycleEnd = field(init=False)  # the decisions taken at the end of a cycle (run releases them)
+
+    def __post_init__(self) -> None:
+        self.cycle_end = CycleEnd(self.env)
+
+    def trace_slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
+        if self.trace is not None:
+            self.trace.slice(scope, name, start, end, **args)
+
+    def module(self, pipe: int, slot: int, role: int) -> int:
+        """The index of pipeline ``pipe``'s module ``role`` of image slot ``slot``."""
+        return 2 * (pipe * self.arch.images_in_flight + slot) + role
+
+    def pm(self, pipe: int, name: str) -> PM:
+        return self.pms[(pipe, name)]
+
+
+# -- the control unit -------------------------------------------------------------------------
+
+class _Frame:
+    """One frame in flight, as the control unit and the schedulers see it.
+
+    Holds the frame's record and the words each pipeline sends back to pipeline 0 after
+    a tiled stage (``returns``); :meth:`chain` and :meth:`compose` are what a scheduler
+    (:class:`tlm.arch.schedulers.Scheduler`) does with a tile.
+    """
+
+    def __init__(self, model: Model, rec: FrameRecord):
+        self.model = model
+        self.env = model.env
+        self.rec = rec
+        self.cycle_end = model.cycle_end
+        self.returns = [0] * model.program.pipelines
+
+    def returned(self, pipe: int, words: int) -> None:
+        """Pipeline ``pipe``'s tile leaves ``words`` to send back to pipeline 0 (a fan-in)."""
+        self.returns[pipe] += words
+
+    def chain(self, pipe: int, phases, gate: list) -> simpy.events.Event:
+        """Queue a tile's phases on pipeline ``pipe``'s PMs; the event fires when the last is done.
+
+        The first phase waits for ``gate`` ([(event, cause, what)]); each later phase for its
+        predecessor (a handshake) and for its block copy, if it needs one.
+        """
+        model, rec = self.model, self.rec
+        env = self.env
+        a, b = model.module(pipe, rec.slot, 0), model.module(pipe, rec.slot, 1)
+        prev, prev_name = None, ""
+        for spec in phases:
+            if prev is None:
+                after = list(gate)
+            else:
+                after = [(prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}")]
+            if spec.copy_words:
+                copy_done = env.event()
+                waits = [ev for ev, _, _ in after]
+                after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
+                env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
+            fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
+            if fifo is not None:
+                model.fifos.append(fifo)
+            dones = []
+            for js in spec.jobs:
+                done = env.event()
+                dones.append(done)
+                model.pm(pipe, js.pm).submit(Job(js, rec.index, spec.name, a if js.role == 0 else b, list(after),
+                                                  fifo, done))
+            prev = all_done(env, dones)
+            prev_name = spec.name
+        if prev is None:  # a tile without work still waits for its gate
+            prev = all_done(env, [ev for ev, _, _ in gate])
+        return prev
+
+    def compose(self, pipe: int, tile):
+        """Copy ``tile``'s pixels from pipeline ``pipe``'s module to the top-level unit (a process step)."""
+        model, rec = self.model, self.rec
+        yield from model.xbar.copy(model.module(pipe, rec.slot, 1), [model.compose], WORDS_PER_PIXEL * tile.pixels,
+                                   f"{tile.name} to the image (frame {rec.index})", (rec.index, pipe))
 
 
 def _frame_process(model: Model, rec: FrameRecord):
-    """Submit one frame's stages: shared ones on pipeline 0, tiled ones on every pipeline."""
+    """Submit one frame's stages: shared ones on pipeline 0, tiled ones through the scheduler."""
     env = model.env
     n_pipes = model.program.pipelines
-    returns = [0] * n_pipes  # words each pipeline sends back to pipeline 0 after a tiled stage
+    scheduler = SCHEDULERS[model.program.scheduler]()
+    frame = _Frame(model, rec)
+    returns = frame.returns  # words each pipeline sends back to pipeline 0 after a tiled stage
     prev, prev_name = None, ""
     pending_returns = 0
-    tails = []  # the top-level unit's compose copies
+    tails = []  # the compose copies the frame waits for at its end (a scheduler's)
     for stage in model.program.stages:
         gate = []
         if prev is not None:
@@ -74,133 +188,19 @@ def _frame_process(model: Model, rec: FrameRecord):
                 gate.append((fan_in, "copy", f"results to pipeline 0 for '{stage.name}' of frame {rec.index}"))
                 env.process(_fan_in(model, rec, prev, stage, returns, fan_in))
             (tile,) = stage.tiles
-            prev = _submit_chain(model, rec, 0, tile.phases, gate)
+            prev = frame.chain(0, tile.phases, gate)
             pending_returns = 0
         else:
             fan_out = [env.event() for _ in range(n_pipes)]
             env.process(_fan_out(model, rec, prev, stage, fan_out))
-            if model.program.scheduler == "static":
-                dones = []
-                for p, tile in enumerate(stage.tiles):
-                    first = [*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
-                    chain = _submit_chain(model, rec, p, tile.phases, first)
-                    dones.append(chain)
-                    chain.callbacks.append(lambda _ev, p=p, tile=tile: _returned(returns, p, tile.returns))
-                    if tile.pixels:
-                        tails.append(env.process(_compose(model, rec, p, tile, chain)))
-                prev = _all_done(env, dones)
-            else:
-                queue = _TileQueue(env, stage.tiles)
-                workers = []
-                for p in range(n_pipes):  # the first tiles go out at once, in pipeline order
-                    tile = queue.take()
-                    if tile is None:
-                        break
-                    first = [*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
-                    chain = _submit_chain(model, rec, p, tile.phases, first)
-                    workers.append(env.process(_worker(model, rec, p, queue, tile, chain, returns)))
-                prev = _all_done(env, workers)
+            gates = [[*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
+                     for p in range(n_pipes)]
+            prev, stage_tails = scheduler.run_stage(frame, stage, gates)
+            tails.extend(stage_tails)
             pending_returns = sum(t.returns for t in stage.tiles)
         prev_name = stage.name
-    # static tiles' compose copies run after their chains; dynamic workers copy before they finish
-    yield _all_done(env, [prev, *tails])
+    yield all_done(env, [prev, *tails])
     rec.done = int(env.now)
-
-
-def _returned(returns: list[int], pipe: int, words: int) -> None:
-    returns[pipe] += words
-
-
-def _submit_chain(model: Model, rec: FrameRecord, pipe: int, phases, gate: list) -> simpy.events.Event:
-    """Queue a tile's phases on pipeline ``pipe``'s PMs; the event fires when the last is done.
-
-    The first phase waits for ``gate`` ([(event, cause, what)]); each later phase for its
-    predecessor (a handshake) and for its block copy, if it needs one.
-    """
-    env = model.env
-    a, b = model.module(pipe, rec.slot, 0), model.module(pipe, rec.slot, 1)
-    prev, prev_name = None, ""
-    for spec in phases:
-        if prev is None:
-            after = list(gate)
-        else:
-            after = [(prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}")]
-        if spec.copy_words:
-            copy_done = env.event()
-            waits = [ev for ev, _, _ in after]
-            after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
-            env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
-        fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
-        if fifo is not None:
-            model.fifos.append(fifo)
-        dones = []
-        for js in spec.jobs:
-            done = env.event()
-            dones.append(done)
-            model.pm(pipe, js.pm).submit(Job(js, rec.index, spec.name, a if js.role == 0 else b, list(after),
-                                              fifo, done))
-        prev = _all_done(env, dones)
-        prev_name = spec.name
-    if prev is None:  # a tile without work still waits for its gate
-        prev = _all_done(env, [ev for ev, _, _ in gate])
-    return prev
-
-
-class _TileQueue:
-    """The dynamic scheduler's shared queue of one frame's tiled stage.
-
-    A pipeline that is done with its tile asks for the next one; the requests of a cycle
-    are served together once every other event of the cycle has run, in pipeline order,
-    so which pipeline gets which tile does not depend on the order of same-cycle events.
-    """
-
-    def __init__(self, env: simpy.Environment, tiles):
-        self.env = env
-        self.tiles = deque(tiles)
-        self.waiting: dict[int, simpy.events.Event] = {}
-        self.scheduled = False
-
-    def take(self):
-        return self.tiles.popleft() if self.tiles else None
-
-    def request(self, pipe: int) -> simpy.events.Event:
-        """An event whose value is pipeline ``pipe``'s next tile (None: the queue is empty)."""
-        ev = self.env.event()
-        self.waiting[pipe] = ev
-        if not self.scheduled:
-            dispatch = self.env.event()
-            dispatch._ok, dispatch._value = True, None
-            dispatch.callbacks.append(self._dispatch)
-            self.env.schedule(dispatch, priority=3)  # after the cycle's normal (1) and settling (2) events
-            self.scheduled = True
-        return ev
-
-    def _dispatch(self, _ev) -> None:
-        self.scheduled = False
-        for p in sorted(self.waiting):
-            self.waiting.pop(p).succeed(self.take())
-
-
-def _worker(model: Model, rec: FrameRecord, pipe: int, queue: _TileQueue, tile, chain, returns: list[int]):
-    """The dynamic scheduler: pipeline ``pipe`` takes the next waiting tile when it is free."""
-    while tile is not None:
-        yield chain
-        returns[pipe] += tile.returns
-        if tile.pixels:  # the tile's pixels leave the pipeline's module before it takes the next tile
-            yield from _compose_copy(model, rec, pipe, tile)
-        tile = yield queue.request(pipe)
-        if tile is not None:
-            chain = _submit_chain(model, rec, pipe, tile.phases, [])
-
-
-def _compose(model: Model, rec: FrameRecord, pipe: int, tile, chain):
-    yield chain
-    yield from _compose_copy(model, rec, pipe, tile)
-
-
-def _compose_copy(model: Model, rec: FrameRecord, pipe: int, tile):
-    yield from model.xbar.copy(model.module(pipe, rec.slot, 1), [model.compose], WORDS_PER_PIXEL * tile.pixels,
-                               f"{tile.name} to the image (frame {rec.index})", (rec.index, pipe))
 
 
 def _fan_out(model: Model, rec: FrameRecord, prev, stage: Stage, events: list):
@@ -244,28 +244,6 @@ def _fan_in(model: Model, rec: FrameRecord, prev, stage: Stage, returns: list[in
                 yield from model.xbar.copy(src, [dst], words, f"{stage.name} (frame {rec.index})", (rec.index, p))
         returns[p] = 0
     done.succeed()
-
-
-def _all_done(env: simpy.Environment, events: list) -> simpy.events.Event:
-    """A plain event that fires when every event of ``events`` has (the phase's semaphore).
-
-    Not an ``AllOf``: SimPy strips the callbacks of a condition nested in another
-    condition once the outer one fires, and PMs wait on any-of sets that include it.
-    """
-    done = env.event()
-    waiting = [ev for ev in events if not ev.processed]
-    left = [len(waiting)]
-
-    def one(_ev):
-        left[0] -= 1
-        if left[0] == 0:
-            done.succeed()
-
-    for ev in waiting:
-        ev.callbacks.append(one)
-    if not waiting:
-        done.succeed()
-    return done
 
 
 def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b: int, frame: int, pipe: int):
@@ -365,13 +343,14 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     if n_pipes > 1:  # the top-level unit that composes the tiles into the image
         model.compose = len(model.modules)
         model.modules.append(Module(env, "compose", trace))
-    model.xbar = Crossbar(env, model.modules, arch, trace)
+    model.xbar = Crossbar(env, model.modules, arch, trace, model.cycle_end)
     used = {js.pm for ph in program.phases for js in ph.jobs}
     for p in range(n_pipes):
         for name in PMS:
-            if name == "vertex" and p > 0 and "vertex" in used:
-                continue  # one Vertex PM builds the shared structures (§V.D)
-            model.pms[(p, name)] = PM(model, p, name)
+            kind = PM_KINDS[name]
+            if kind.shared and p > 0 and name in used:
+                continue  # one PM of the kind for the GPU, on pipeline 0 (the Vertex PM, §V.D)
+            model.pms[(p, name)] = kind(model, p)
     done = env.event()
     env.process(_stream(model, done))
     counts: dict = {}
@@ -379,7 +358,8 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     budget = min(arch.max_events, bound)
     why = None if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
-    end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why)
+    end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
+              cycle_end=model.cycle_end)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget

@@ -25,13 +25,12 @@ from __future__ import annotations
 import json
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
-from heapq import heappop
 from operator import itemgetter
 from pathlib import Path
 
 import simpy
-from simpy.events import PENDING
 
+from tlm.arch.events import CycleEnd
 from tlm.storage import write_file
 
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
@@ -262,7 +261,7 @@ class Unit:
 
     def stalled(self, cause: str, start: int, waiting_for: str) -> None:
         """Book a data stall under ``cause`` from ``start`` to now (done by the waiting process)."""
-        now = self.env._now
+        now = self.env.now
         waited = now - start
         self.stats.stall[cause] += waited
         if waited:
@@ -320,43 +319,29 @@ class Handshake:
 
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
-        counts: dict | None = None, why: str | None = None) -> int:
+        counts: dict | None = None, why: str | None = None, cycle_end: CycleEnd | None = None) -> int:
     """Run until ``done`` fires; return the cycle it fired at.
 
     Raises :class:`Deadlock` if the event queue empties first, or if ``max_events`` events
     pass without ``done`` (the message names every blocked unit and what it awaits).
     ``counts``, if given, receives the number of events processed under ``"events"``;
-    ``why``, if given, is what the error says when ``max_events`` pass.
+    ``why``, if given, is what the error says when ``max_events`` pass. ``cycle_end``, if
+    given, holds the model's end-of-cycle events (:class:`tlm.arch.events.CycleEnd`): one
+    is released whenever the current cycle has no other event left, before time moves on.
     """
     budget_why = why or f"{max_events} events passed"
     units = list(units)
     steps = 0
+    step, peek = env.step, env.peek
+    late = () if cycle_end is None else cycle_end.queue  # (the heap itself: empty most of the time)
     try:
-        if type(env).step is simpy.Environment.step:
-            # Environment.step, inlined (the same events in the same order, without a call each)
-            queue = env._queue
-            while done._value is PENDING:
-                if steps >= max_events:
-                    _deadlock(env, units, budget_why)
-                try:
-                    env._now, _, _, event = heappop(queue)
-                except IndexError:
-                    raise simpy.core.EmptySchedule from None
-                callbacks, event.callbacks = event.callbacks, None
-                for callback in callbacks:
-                    callback(event)
-                if not event._ok and not hasattr(event, "_defused"):
-                    exc = type(event._value)(*event._value.args)
-                    exc.__cause__ = event._value
-                    raise exc
-                steps += 1
-        else:  # an environment of its own kind steps its own way
-            step = env.step
-            while not done.triggered:
-                if steps >= max_events:
-                    _deadlock(env, units, budget_why)
-                step()
-                steps += 1
+        while not done.triggered:
+            if steps >= max_events:
+                _deadlock(env, units, budget_why)
+            if late and peek() > env.now:  # the cycle's other events have all run
+                cycle_end.release()
+            step()
+            steps += 1
     except simpy.core.EmptySchedule:
         _deadlock(env, units, "no event is scheduled")
     finally:

@@ -1,0 +1,81 @@
+"""The DDR memory modules: four per pipeline, two per image in flight.
+
+"Modules 0&1 ... image 0 ... 2&3 ... image 1": image slot ``s`` owns a pipeline's
+modules ``2s`` and ``2s+1`` (``Model.module``). The crossbar routes one PM to a module
+at a time (:mod:`tlm.arch.crossbar`); the module serves that PM's page misses, each
+opening a DDR row at ``page_miss_cycles`` (T_ms, reading 19 of docs/architecture.md),
+and its side of the crossbar's block copies (T_norm, ``copy_words_per_cycle``).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import simpy
+from simpy.events import Event, Timeout
+
+from tlm.arch.events import Signal
+from tlm.arch.units import Trace, Unit
+
+
+class Module:
+    """A DDR memory module, a SimPy process of its own: serves page requests and copies.
+
+    Clients post requests (:meth:`request`): the PM the crossbar routes to the module
+    asks for a packet's page misses, the crossbar for its side of a block copy. The
+    module's process (:meth:`_serve`) takes them in order, books the service on its own
+    row (T_ms for page misses, T_norm for copies) and opens the DDR rows
+    (``rows_opened``). The crossbar grants a module to one client at a time, so a
+    request never finds the module busy with another client's service and is served the
+    cycle it is posted: its event (the data are in) fires ``cycles`` later. The process
+    checks the grant on its own timeline (:meth:`_claim`) and raises if it was broken.
+    Its row state is the page the client's cache pair holds (:mod:`tlm.kernels.memory`).
+    """
+
+    def __init__(self, env: simpy.Environment, scope: str, trace: Trace | None):
+        self.env = env
+        self.unit = Unit(env, scope, trace)
+        self.rows_opened = 0
+        self.requests = 0
+        self.client: str | None = None  # the client of the latest service, busy until ``free_at``
+        self.free_at = 0
+        self._mailbox: deque = deque()  # (client, misses, cycles, label, cycle posted) not yet booked
+        self._mail = Signal(env)  # a request was posted (the process waits on it while the mailbox is empty)
+        env.process(self._serve())
+
+    def request(self, client: str, misses: int, cycles: int, label: str = "page misses", then: int = 0) -> Event:
+        """Post a request of ``cycles`` (``misses`` rows opened), served from this cycle on.
+
+        The event fires ``then`` cycles after the service ends: a PM passes the cycles
+        it computes once its data are in, so that one event ends its packet.
+        """
+        self._mailbox.append((client, misses, cycles, label, self.env.now))
+        self._mail.fire()
+        return Timeout(self.env, cycles + then)  # (the service starts now: the module is the client's)
+
+    def _serve(self):
+        mailbox = self._mailbox
+        unit = self.unit
+        while True:
+            if not mailbox:
+                yield self._mail.wait()
+                continue
+            client, misses, cycles, label, start = mailbox.popleft()
+            if start < self.free_at or client != self.client:
+                self._claim(client, start, cycles)
+            else:  # (its client again, after the previous service: the common case, inline)
+                self.free_at = start + cycles
+            self.requests += 1
+            self.rows_opened += misses
+            if misses:
+                unit.account(start, 0, cycles, 0, label)
+            else:
+                unit.account(start, cycles, 0, 0, label)
+
+    def _claim(self, client: str, start: int, cycles: int) -> None:
+        if start < self.free_at and client != self.client:
+            raise AssertionError(f"{self.unit.scope} serves {client} from cycle {start} while it serves "
+                                 f"{self.client} until cycle {self.free_at}: the crossbar grants a module "
+                                 "to one client at a time")
+        if start + cycles > self.free_at:
+            self.client, self.free_at = client, start + cycles
