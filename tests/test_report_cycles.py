@@ -133,11 +133,11 @@ def test_gantt_totals_equal_the_trace_and_the_units_statistics(data):
     pmap = _run(read([data / "pmap"]), "pmap")
     g = gantt(pmap.trace)
     doc = json.loads(pmap.trace.read_text())
-    names = {e["tid"]: e["args"]["name"] for e in doc["traceEvents"] if e["ph"] == "M"}
+    names = {e["tid"]: e["args"]["name"] for e in doc["traceEvents"] if e["name"] == "thread_name"}
     raw: dict[tuple[str, str], int] = defaultdict(int)
     for e in doc["traceEvents"]:
-        if e["ph"] == "X":
-            raw[(names[e["tid"]], "copy" if e["name"].startswith("copy") else e["name"])] += e["dur"]
+        if e["ph"] == "X":  # timestamps are microseconds; the exact cycles are in args
+            raw[(names[e["tid"]], "copy" if e["name"].startswith("copy") else e["name"])] += e["args"]["cycles"]
     units = pmap.results["timing"]["units"]
     elapsed = units["xbar"]["elapsed"]
     assert g.end == elapsed and set(g.rows) == {n.removesuffix(" (preempted)") for n in names.values()} <= set(units)

@@ -118,8 +118,26 @@ def test_eq_5_1_sums_exactly(env):
     assert b["T_norm"] + b["T_ms"] + b["T_ps"] + b["T_ds"] + b["idle"] == end == 69
     doc = json.loads(json.dumps(trace.to_json(600e6)))
     slices = [e for e in doc["traceEvents"] if e["ph"] == "X"]
-    assert [(e["name"], e["ts"], e["dur"]) for e in slices] == [("shade", 0, 62), ("stall: swap", 67, 2)]
+    assert [(e["name"], e["args"]["start_cycle"], e["args"]["cycles"]) for e in slices] == [
+        ("shade", 0, 62), ("stall: swap", 67, 2)]
+    assert [x for e in slices for x in (e["ts"], e["dur"])] == pytest.approx([0, 62 / 600, 67 / 600, 2 / 600])  # us
     assert doc["traceEvents"][0]["args"]["name"] == "pipe0.fragment"
+    assert doc["otherData"]["time_unit"] == "microseconds at the modelled clock"
+
+
+def test_trace_rows_go_pipe_by_pipe():
+    """PMs of pipeline 0 in the thesis's order, its modules, then pipeline 1's, compose and the crossbar last."""
+    trace = Trace()
+    trace.modules_per_pipe = 4
+    for scope in ("xbar", "mem5", "pipe1.traversal", "compose", "mem0", "pipe0.fragment", "pipe0.vertex",
+                  "pipe0.fragment (preempted)", "pipe1.intersection", "mem3", "pipe0.traversal"):
+        trace.slice(scope, "busy", 0, 1)
+    doc = trace.to_json(600e6)
+    names = [e["args"]["name"] for e in doc["traceEvents"] if e["name"] == "thread_name"]
+    assert names == ["pipe0.vertex", "pipe0.traversal", "pipe0.fragment", "pipe0.fragment (preempted)", "mem0",
+                     "mem3", "pipe1.traversal", "pipe1.intersection", "mem5", "compose", "xbar"]
+    sort = {e["tid"]: e["args"]["sort_index"] for e in doc["traceEvents"] if e["name"] == "thread_sort_index"}
+    assert sort == {i: i for i in range(len(names))}
 
 
 def test_deadlock_is_detected_and_named(env):

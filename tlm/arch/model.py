@@ -340,6 +340,8 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     n_pipes = program.pipelines
     per_pipe = 2 * arch.images_in_flight
     model.modules = [Module(env, f"mem{i}", trace) for i in range(per_pipe * n_pipes)]
+    if trace is not None:
+        trace.modules_per_pipe = per_pipe
     if n_pipes > 1:  # the top-level unit that composes the tiles into the image
         model.compose = len(model.modules)
         model.modules.append(Module(env, "compose", trace))

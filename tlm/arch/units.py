@@ -23,6 +23,7 @@ for, when the event queue empties or an event budget passes with work unfinished
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
 from operator import itemgetter
@@ -91,6 +92,24 @@ class Stats:
 
 
 _START_END = itemgetter(1, 2)  # a slice's (start, end)
+_PM_ORDER = ("vertex", "traversal", "intersection", "fragment")
+
+
+def row_order(scope: str, modules_per_pipe: int = 4) -> tuple:
+    """Where a unit's row goes in the trace: pipe by pipe (its PMs, then its memory
+    modules), then the compose unit and the crossbar, then anything else by name."""
+    preempted = scope.endswith(" (preempted)")
+    base = scope.removesuffix(" (preempted)")
+    m = re.fullmatch(r"pipe(\d+)\.(\w+)", base)
+    if m:
+        kind = m[2]
+        rank = _PM_ORDER.index(kind) if kind in _PM_ORDER else len(_PM_ORDER)
+        return (int(m[1]), 0, rank, kind, preempted)
+    m = re.fullmatch(r"mem(\d+)", base)
+    if m:
+        return (int(m[1]) // max(modules_per_pipe, 1), 1, int(m[1]), "", preempted)
+    last = {"compose": 0, "xbar": 1}
+    return (1 << 30, 2, last.get(base, 2), base, preempted)
 
 
 class Trace:
@@ -100,6 +119,7 @@ class Trace:
         self._slices: list[list] = []  # [name, start, end, tid, args]
         self.rows: dict[str, int] = {}
         self._last: dict[int, list] = {}  # each row's latest slice
+        self.modules_per_pipe = 4  # memory modules of a pipeline (the model sets it): rows' order
 
     def slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         """Add a slice; one that continues its row's latest slice of the same name extends it."""
@@ -186,12 +206,31 @@ class Trace:
                 idle.append(["idle", t, end, tid, {}])
         self._slices.extend(idle)
 
-    def to_json(self, clock_hz: float | None = None) -> dict:
-        """The trace document; timestamps are cycles (displayed as microseconds)."""
-        meta = [{"name": "thread_name", "ph": "M", "pid": 0, "tid": tid, "args": {"name": scope}}
-                for scope, tid in self.rows.items()]
-        return {"traceEvents": meta + self.events, "displayTimeUnit": "ns",
-                "otherData": {"time_unit": "clock cycles", "clock_hz": clock_hz}}
+    def to_json(self, clock_hz: float | None = None, modules_per_pipe: int | None = None) -> dict:
+        """The trace document, as Perfetto and chrome://tracing open it.
+
+        Timestamps and durations are microseconds at the modelled clock (``clock_hz``;
+        without one, one cycle is drawn as one microsecond); every slice's ``args`` keep its
+        exact ``start_cycle`` and ``cycles``. Rows go pipe by pipe: each pipeline's PMs in
+        pipeline order (Vertex, Traversal, Intersection, Fragment, a PM's "(preempted)" row
+        after it), then its memory modules (``modules_per_pipe`` to a pipeline), then the
+        top-level compose unit and the crossbar (``thread_sort_index`` and the row ids both
+        follow that order).
+        """
+        per_pipe = modules_per_pipe or self.modules_per_pipe
+        order = sorted(self.rows, key=lambda scope: row_order(scope, per_pipe))
+        tid_of = {self.rows[scope]: i for i, scope in enumerate(order)}
+        meta = []
+        for i, scope in enumerate(order):
+            meta.append({"name": "thread_name", "ph": "M", "pid": 0, "tid": i, "args": {"name": scope}})
+            meta.append({"name": "thread_sort_index", "ph": "M", "pid": 0, "tid": i, "args": {"sort_index": i}})
+        us = 1e6 / clock_hz if clock_hz else 1.0
+        events = [{"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
+                   "args": {**a, "start_cycle": s, "cycles": e - s}}
+                  for n, s, e, tid, a in self._slices]
+        unit = "microseconds at the modelled clock" if clock_hz else "clock cycles (no clock given)"
+        return {"traceEvents": meta + events, "displayTimeUnit": "ns",
+                "otherData": {"time_unit": unit, "clock_hz": clock_hz, "cycles_in": "args.start_cycle, args.cycles"}}
 
     def write(self, path: Path, clock_hz: float | None = None) -> None:
         write_file(path, json.dumps(self.to_json(clock_hz)))

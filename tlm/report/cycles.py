@@ -310,7 +310,11 @@ def gantt(trace_path: Path) -> Gantt:
             continue
         n += 1
         scope = names.get(ev["tid"], f"tid {ev['tid']}")
-        s, d = int(ev["ts"]), int(ev["dur"])
+        a = ev.get("args") or {}
+        if "start_cycle" in a and "cycles" in a:  # exact cycles (timestamps are microseconds)
+            s, d = int(a["start_cycle"]), int(a["cycles"])
+        else:  # a trace written before timestamps were microseconds: they are cycles
+            s, d = int(ev["ts"]), int(ev["dur"])
         end = max(end, s + d)
         name = ev["name"]
         if scope.endswith(" (preempted)"):
