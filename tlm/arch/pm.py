@@ -135,6 +135,13 @@ class PM:
                 return j
         return None
 
+    def _yields_to_older(self, job: Job, frame: int, pending: bool = False) -> bool:
+        """At a packet boundary of a job under way (a packet done, or one ``pending`` to hand
+        on, or the job interrupted): whether an older image's job is ready, so this one is
+        suspended (the thesis's "finishes the ray/pixel operation ... before context switching")."""
+        return (job.next > 0 or pending or job.interrupted) and self.queue[0].frame < frame \
+            and self._higher_ready(job)
+
     def _higher_ready(self, job: Job) -> bool:
         rank = job.frame
         for j in self.queue:
@@ -314,15 +321,10 @@ class Traversal(PM):
     kind = "traversal"
 
     def _packets(self, job: Job, module):
-        packets = job.spec.packets
-        n = len(packets)
-        queue = self.queue
-        frame = job.frame
-        fifo = job.fifo
+        packets, frame, fifo = job.spec.packets, job.frame, job.fifo
         depth = fifo.depth
-        while job.next < n:
-            if (job.next > 0 or job.pending_push or job.interrupted) and queue[0].frame < frame \
-                    and self._higher_ready(job):
+        while job.next < len(packets):
+            if self._yields_to_older(job, frame, job.pending_push):
                 yield from self._suspend(job)
                 return False
             job.interrupted = False
@@ -367,14 +369,9 @@ class Intersection(PM):
     kind = "intersection"
 
     def _packets(self, job: Job, module):
-        packets = job.spec.packets
-        n = len(packets)
-        queue = self.queue
-        frame = job.frame
-        fifo = job.fifo
-        depth = fifo.depth
-        while job.next < n:
-            if (job.next > 0 or job.interrupted) and queue[0].frame < frame and self._higher_ready(job):
+        packets, frame, fifo = job.spec.packets, job.frame, job.fifo
+        while job.next < len(packets):
+            if self._yields_to_older(job, frame):
                 yield from self._suspend(job)
                 return False
             job.interrupted = False
@@ -391,7 +388,7 @@ class Intersection(PM):
             yield self._begin_work(module, norm, misses, flushes)
             if self._end_work(frame):
                 yield self._settle(Priority.SETTLE)
-            fifo.free(max(1, min(int(entries), depth)))  # (Fifo.slots)
+            fifo.free(max(1, min(int(entries), fifo.depth)))  # (Fifo.slots)
             fifo.popped += int(entries)
             job.retired += items
             self.retired += items
