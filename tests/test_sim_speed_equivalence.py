@@ -3,7 +3,7 @@
 The hot paths of the SimPy layer avoid some general machinery: ``events._AnyOf`` for
 ``env.any_of``, ``JobSpec.packets`` for numpy scalars, ``Trace.add_work`` for
 ``Trace.slice(**args)``, a unit log spelled out when read, lazily summed packet counts in
-the frame program, and an inlined ``Environment.step``. Each is checked here against the
+the frame program. Each is checked here against the
 general form on small cases (``tests/test_golden.py`` checks whole runs).
 """
 
