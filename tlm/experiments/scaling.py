@@ -74,7 +74,7 @@ def record(res: dict, cfg: dict) -> dict:
     """What eq. 5.2 needs of one point: its ``results.json`` and resolved config."""
     per_pipe = res["timing"]["pipelines"]
     return {
-        "scene": cfg["scene"], "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
+        "scene": str(res["scene"]["name"]), "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
         "pipelines": int(cfg["arch"]["pipelines"]),
         "T_vert0": int(res["cycles"]["vertex"]),
         "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
