@@ -40,9 +40,8 @@ from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.run import RenderResult, Timer, programs_for, progress_bar, render, simulate_run, write_run
-from tlm.experiments.study import read_study
+from tlm.experiments.study import read_study, run_study
 from tlm.render.planner import plan
-from tlm.storage import atomic_folder, check_destination, write_rows
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -156,17 +155,20 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
     the cells, each scene's render and each simulation on stderr (only on a terminal).
     """
     base, scenes, modes, folder = load_study(Path(path))
-    check_destination(out, "thesis_comparison.csv")
-    rows: list[dict] = []
     wall: dict[str, float] = {}
-    with atomic_folder(out, "thesis_comparison.csv") as tmp, \
-            progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
-        for scene in scenes:
+
+    def summary(rows: list[dict]) -> dict:
+        return {**summarize(rows), "host_seconds": wall}
+
+    with progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
+        def one_scene(scene: str, tmp: Path) -> list[dict]:
+            """A scene's render, then each mode's simulation and run folder: its comparison rows."""
             t0 = time.perf_counter()
             cells.set_postfix_str(f"{scene}: render")
             big = config_from_dict({**base, "scene": scene, "mode": modes[-1]}, str(path))
             programs = programs_for(big, folder)
             res = render(big, folder, str(path), progress=bar)
+            rows = []
             for mode in modes:
                 cells.set_postfix_str(f"{scene} {mode}")
                 cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
@@ -178,11 +180,11 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
                 if progress is not None:
                     progress(scene, mode, results)
             wall[scene] = round(time.perf_counter() - t0, 3)
-        summary = summarize(rows)
-        summary["host_seconds"] = wall
-        write_rows(tmp, "thesis_comparison", rows, COLUMNS)
-        (tmp / "thesis_summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    return {"rows": rows, "summary": summary}
+            return rows
+
+        rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
+                         marker="thesis_comparison.csv", files=lambda rows: {"thesis_summary.json": summary(rows)})
+    return {"rows": rows, "summary": summary(rows)}
 
 
 def _name(scene: str) -> str:
