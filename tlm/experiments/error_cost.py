@@ -42,7 +42,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
@@ -57,7 +56,7 @@ from tlm.experiments.reference import (
     save_reference,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study
+from tlm.experiments.study import read_study, run_study
 from tlm.kernels.traverse import build_accel
 from tlm.registry import ESTIMATORS
 from tlm.render.passes import (
@@ -74,7 +73,7 @@ from tlm.render.passes import (
 )
 from tlm.render.planner import photon_count, plan
 from tlm.scenes.loader import load_scene
-from tlm.storage import atomic_folder, check_destination, write_rows
+from tlm.storage import check_destination
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
@@ -210,8 +209,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     maps: dict[tuple, tuple] = {}
     others: dict[str, dict] = {}  # the non-photon passes' work, per setting they depend on
     geometry = TreeWork.of(accel.tree)
-    rows = []
-    for i, (point, cfg) in enumerate(zip(points, configs, strict=True)):
+    def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
+        i, point, cfg = item
         if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
             raise InputError("a point changes what the reference depends on (scene, max_bounces or reference.*)",
                              source=str(path), key=f"points: {point}")
@@ -245,11 +244,12 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
             **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
         }
-        rows.append(row)
         if progress is not None:
             progress(i, len(points), row)
-    _write(out, rows, str(path), time.perf_counter() - start, cfg0, {"key": key, **ref_meta}, truth_meta)
-    return rows
+        return row
+    return run_study(str(path), out, "rows", [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
+                     one, columns=COLUMNS, config=cfg0, started=start,
+                     files=lambda _rows: {"reference.json": {"key": key, **ref_meta}, "truth.json": truth_meta})
 
 
 def _others_key(cfg: RunConfig, names: tuple[str, ...]) -> str:
@@ -292,14 +292,3 @@ def frame_time(cycles: dict, clock_hz: float) -> dict:
     thr = int(cycles["throughput"])
     return {"throughput_cycles": thr, "latency_cycles": int(cycles["latency"]),
             "frame_seconds": thr / clock_hz, "fps": clock_hz / thr if thr > 0 else None}
-
-
-def _write(out: Path, rows: list[dict], study: str, seconds: float, cfg, ref_meta: dict, truth_meta: dict) -> None:
-    from tlm.experiments.run import provenance
-
-    with atomic_folder(out, "rows.jsonl") as tmp:
-        write_rows(tmp, "rows", rows, COLUMNS)
-        (tmp / "reference.json").write_text(json.dumps(ref_meta, indent=2) + "\n")
-        (tmp / "truth.json").write_text(json.dumps(truth_meta, indent=2, default=str) + "\n")
-        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(cfg), sort_keys=False))
-        (tmp / "provenance.json").write_text(json.dumps(provenance(study, seconds), indent=2) + "\n")

@@ -49,7 +49,7 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
               run_point: Callable[[Any, Path], dict | list[dict] | None], *, columns: Iterable[str] = (),
               marker: str | None = None, config=None, finish: Callable[[list[dict], Path], list[dict]] | None = None,
               files: Callable[[list[dict]], dict[str, Any]] | None = None,
-              progress: Callable[[dict], None] | None = None) -> list[dict]:
+              progress: Callable[[dict], None] | None = None, started: float | None = None) -> list[dict]:
     """Run ``points`` into the folder ``out``; the rows written, in the order computed.
 
     ``run_point(point, folder)`` computes one point (it may write into ``folder``, the
@@ -60,9 +60,10 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
     files (``.json`` values are written as JSON, ``.yaml`` as YAML, a str as text); then
     ``provenance.json``. ``marker`` (default ``<name>.jsonl``) marks an earlier output of
     this study, which may be replaced; the destination is checked before any work.
-    ``progress(row)`` is called after each row.
+    ``progress(row)`` is called after each row. ``started`` (a ``time.perf_counter()``
+    reading) dates the study's start for ``provenance.json`` when its set-up ran before.
     """
-    start = time.perf_counter()
+    start = time.perf_counter() if started is None else started
     marker = marker or f"{name}.jsonl"
     check_destination(out, marker)
     rows: list[dict] = []
