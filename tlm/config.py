@@ -89,8 +89,8 @@ class PhotonConfig:
 
 @dataclass(frozen=True)
 class EstimateConfig:
-    filter: str = _f("mvoxel", "disk (eq. 3.2) | mvoxel (eq. 3.3) | kvoxel (eq. 3.5) | knn (exact reference)",
-                     choices=FILTERS)
+    filter: str = _f("mvoxel", "disk (eq. 3.2) | mvoxel (eq. 3.3) | kvoxel (eq. 3.5) | knn (exact reference) "
+                     "| a registered estimator (tlm.registry)", choices=FILTERS)
     radius: float | None = _f(
         None, "search radius in scene units; null = radius_fraction x the scene's diagonal",
         min_exclusive=0.0,
