@@ -170,10 +170,6 @@ class Primary:
         self.rays += int(g.origin.shape[0])
         self.hits += int((g.triangle >= 0).sum())
 
-    @property
-    def misses(self) -> int:
-        return self.rays - self.hits
-
 
 @dataclass
 class RenderResult:

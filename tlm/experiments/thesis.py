@@ -156,9 +156,11 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
     """
     base, scenes, modes, folder = load_study(Path(path))
     wall: dict[str, float] = {}
+    summary: dict = {}
 
-    def summary(rows: list[dict]) -> dict:
-        return {**summarize(rows), "host_seconds": wall}
+    def summary_file(rows: list[dict]) -> dict:
+        summary.update(summarize(rows), host_seconds=wall)
+        return {"thesis_summary.json": summary}
 
     with progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
         def one_scene(scene: str, tmp: Path) -> list[dict]:
@@ -183,8 +185,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
             return rows
 
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
-                         marker="thesis_comparison.csv", files=lambda rows: {"thesis_summary.json": summary(rows)})
-    return {"rows": rows, "summary": summary(rows)}
+                         marker="thesis_comparison.csv", files=summary_file)
+    return {"rows": rows, "summary": summary}
 
 
 def _name(scene: str) -> str:
