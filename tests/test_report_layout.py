@@ -92,3 +92,12 @@ def test_the_check_finds_overlapping_figures():
     a = {"x": 0, "y": 0, "w": 100, "h": 100, "ok": True, "shown": True}
     assert overlaps([a, {**a, "x": 50, "y": 50}]) == [(0, 1)]
     assert overlaps([a, {**a, "x": 100}]) == []
+
+
+if __name__ == "__main__":  # python -m tests.test_report_layout [PAGE]: the page's height in screens
+    import sys
+
+    path = Path(sys.argv[1] if len(sys.argv) > 1 else COMMITTED).resolve()
+    m = measure(path)
+    print(f"{path}: {m['height']} px = {m['height'] / VIEWPORT['height']:.1f} screens of "
+          f"{VIEWPORT['width']}x{VIEWPORT['height']} before any <details>; {m['height_all_open']} px all open")
