@@ -77,6 +77,27 @@ def test_thesis_study_writes_the_comparison(tmp_path):
     summary = json.loads((out / "thesis_summary.json").read_text())
     assert summary["held_out_cells"] == 12 - 3
     assert summary == {**done["summary"], "host_seconds": summary["host_seconds"]}
+    assert set(summary["per_item"]) == {"ring/rcast", "ring/pmap"}
+    for mode in ("rcast", "pmap"):
+        res = json.loads((out / "ring" / mode / "results.json").read_text())
+        it = summary["per_item"][f"ring/{mode}"]
+        eye = res["work"]["rcast"]
+        passes = res["work"].values()
+        photon_rays = res["photons"]["work"]["rays"] if mode == "pmap" else 0
+        rays = sum(w.get(k, 0) for w in passes for k in ("primary_rays", "secondary_rays", "shadow_rays")) + photon_rays
+        assert eye["primary_rays"] == res["primary"]["rays"] and res["primary"]["pixels"] == it["pixels"] == 24 * 16
+        assert it["rays"] == rays > it["pixels"]
+        assert it["ours"]["trav_cycles_per_ray"] == pytest.approx(res["cycles"]["traversal"] / rays, rel=1e-3)
+        assert it["ours"]["frag_cycles_per_pixel"] == pytest.approx(res["cycles"]["fragment"] / (24 * 16), rel=1e-3)
+        tests = sum(w.get("tri_tests", 0) + w.get("shadow_tri_tests", 0) for w in passes) + \
+            (res["photons"]["work"]["tri_tests"] if mode == "pmap" else 0)
+        assert it["tri_tests"] == tests
+        # the thesis's time over our count: Tisct = 2 cycles per ray + 3 per triangle test
+        col = ("rcast", "pmap").index(mode) * 3
+        tisct = (10.8, 15.4, 26.1, 27.8)[col] * 1e6
+        assert it["thesis"]["tests_per_ray"] == pytest.approx((tisct - 2 * rays) / 3 / rays, rel=1e-3)
+        assert it["thesis"]["vert_cycles_per_triangle"] == pytest.approx((0.378, 0.378, 0.378, 1.34)[col] * 1e6 / 646,
+                                                                         rel=1e-3)
 
 
 def test_summary_counts_slowest_pm_matches():

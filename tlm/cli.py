@@ -271,7 +271,7 @@ def _cmd_params(args: argparse.Namespace) -> int:
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    from tlm.experiments.thesis import describe_rows, run_thesis
+    from tlm.experiments.thesis import describe_items, describe_rows, run_thesis
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
@@ -287,6 +287,9 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
     print(f"median |relative error| over {sm['held_out_cells']} held-out cells: "
           f"{'n/a' if med is None else f'{med:.1%}'}; slowest PM as in the thesis in "
           f"{sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
+    print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
+          "per ray, cycles per pixel, cycles per triangle")
+    print(describe_items(sm["per_item"]))
     print(f"wrote {out}/thesis_comparison.csv")
     _report_after(args, out)
     return 0

@@ -124,6 +124,84 @@ def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]
     return rows
 
 
+# -- per work item: where the cycles of a cell go -------------------------------------------------
+
+RAY_KEYS = ("primary_rays", "secondary_rays", "shadow_rays", "rays")
+TEST_KEYS = ("tri_tests", "shadow_tri_tests")
+
+
+def _sum_keys(work: dict, keys: tuple[str, ...]) -> int:
+    return int(sum(v for k, v in work.items() if k in keys))
+
+
+def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
+    """A cell's PM times per work item, ours beside what the thesis's time implies.
+
+    The thesis gives times, not counts, so its per-item figures divide its time by *our*
+    count of the item (the same pixels, triangles and photons; rays as our scene traces
+    them): ``TTrav`` per traced ray, ``TFrag`` per pixel, ``TVert`` per triangle, and
+    ``Tisct`` as triangle tests per ray, ``(Tisct - 2 rays) / 3 / rays`` (the Intersection
+    PM loads a ray in two cycles and a triangle in three, §IV.A.3; pipeline drains are
+    left out). Ours are the same quotients of our own times and counts, so
+    ``ours / thesis`` of a row is the cell's relative error split into "more items" and
+    "more cycles per item". ``tests_per_leaf`` is ours only: triangles tested per leaf
+    visited, the BSP's leaf size as the rays see it.
+    """
+    work: dict[str, int] = {}
+    for counts in results["work"].values():
+        for k, v in counts.items():
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                work[k] = work.get(k, 0) + v
+    for k, v in ((results.get("photons") or {}).get("work") or {}).items():
+        work[k] = work.get(k, 0) + v
+    rays = _sum_keys(work, RAY_KEYS)
+    tests = _sum_keys(work, TEST_KEYS)
+    leaves = _sum_keys(work, ("leaf_visits", "shadow_leaf_visits"))
+    pixels = int(results["primary"]["pixels"])
+    triangles = int(results["scene"]["triangles"])
+    cyc = results["cycles"]
+    ours = {"TTrav": cyc["traversal"], "Tisct": cyc["intersection"], "TFrag": cyc["fragment"],
+            "TVert": cyc["vertex"]}
+    theirs = {m: (None if thesis_value(scene, mode, m) is None else thesis_value(scene, mode, m) * 1e6)
+              for m in ours}
+
+    def quotients(t: dict) -> dict[str, float | None]:
+        if any(v is None for v in t.values()):
+            return dict.fromkeys(("trav_cycles_per_ray", "tests_per_ray", "frag_cycles_per_pixel",
+                                  "vert_cycles_per_triangle"))
+        return {
+            "trav_cycles_per_ray": round(t["TTrav"] / rays, 3) if rays else None,
+            "tests_per_ray": round((t["Tisct"] - 2 * rays) / 3 / rays, 3) if rays else None,
+            "frag_cycles_per_pixel": round(t["TFrag"] / pixels, 3),
+            "vert_cycles_per_triangle": round(t["TVert"] / triangles, 3),
+        }
+
+    return {
+        "rays": rays, "tri_tests": tests, "pixels": pixels, "triangles": triangles,
+        "eye_hits": int(results["primary"]["hits"]),
+        "tests_per_leaf": round(tests / leaves, 3) if leaves else None,
+        "ours": quotients(ours), "thesis": quotients(theirs),
+    }
+
+
+def describe_items(items: dict[str, dict]) -> str:
+    """The per-item table `tlm thesis` prints: ours (thesis) for each scene-mode."""
+    names = (("trav_cycles_per_ray", "TTrav/ray"), ("tests_per_ray", "tests/ray"),
+             ("frag_cycles_per_pixel", "TFrag/pixel"), ("vert_cycles_per_triangle", "TVert/tri"))
+    lines = [f"{'scene':8s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>17s}" for _, h in names)
+             + f" {'tests/leaf':>10s}"]
+    for key, it in items.items():
+        scene, mode = key.split("/")
+        cells = []
+        for k, _ in names:
+            o, t = it["ours"][k], it["thesis"][k]
+            cells.append(f"{'-' if o is None else f'{o:.4g}':>7s} ({'-' if t is None else f'{t:.4g}':>7s})")
+        leaf = it["tests_per_leaf"]
+        lines.append(f"{scene:8s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>17s}" for c in cells)
+                     + f" {'-' if leaf is None else f'{leaf:.3g}':>10s}")
+    return "\n".join(lines)
+
+
 def summarize(rows: list[dict]) -> dict:
     held = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and not r["calibrated"]]
     fitted = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and r["calibrated"]]
@@ -157,9 +235,10 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
     base, scenes, modes, folder = load_study(Path(path))
     wall: dict[str, float] = {}
     summary: dict = {}
+    items: dict[str, dict] = {}
 
     def summary_file(rows: list[dict]) -> dict:
-        summary.update(summarize(rows), host_seconds=wall)
+        summary.update(summarize(rows), per_item=items, host_seconds=wall)
         return {"thesis_summary.json": summary}
 
     with progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
@@ -178,6 +257,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
                 simulate_run(sub, programs, progress=bar)
                 results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
+                items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
                 cells.update()
                 if progress is not None:
                     progress(scene, mode, results)
