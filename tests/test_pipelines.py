@@ -130,7 +130,8 @@ def test_one_pipeline_is_the_single_pipeline_model(ring):
     are those of that commit's calibration (the table was refitted since).
     """
     cfg, fn, progs, _ = ring
-    progs = progs.with_scales({"vertex": 7.44214, "traversal": 0.570522, "fragment": 2.57008})
+    progs = progs.with_scales({"vertex": 7.44214, "traversal": 0.570522, "fragment": 2.57008},
+                              {"vertex": 0.0, "traversal": 0.0, "fragment": 0.0})
     t = simulate(fn, progs, _with(cfg.arch, packet_size=64, pipelines=1, scheduler="static"))
     assert {k: v for k, v in t.cycles.items() if k != "throughput"} == {
         "vertex": 387755, "traversal": 196092, "intersection": 560966, "fragment": 52415, "latency": 1346159}
@@ -205,7 +206,9 @@ def test_serial_fanout_copies_once_per_pipeline(ring):
     # broadcast: tree and vertices once each; serial: the tree to pipelines 1..3, the vertices to 0..3
     assert s.crossbar["copies"] - b.crossbar["copies"] == (3 - 1) + (4 - 1)
     assert s.units["xbar"]["busy"] > b.units["xbar"]["busy"]
-    assert s.cycles["latency"] >= b.cycles["latency"]
+    # (the latency is not ordered: the serial copies stagger the pipelines, and staggered
+    # tiles queue less for the compose copies; on this frame serial is 1 cycle faster)
+    assert s.units["xbar"]["busy"] - b.units["xbar"]["busy"] >= s.cycles["latency"] - b.cycles["latency"]
 
 
 def _module_overlaps(t):

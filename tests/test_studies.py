@@ -22,6 +22,7 @@ from tlm.experiments.run import render
 from tlm.experiments.thesis import (
     COLUMNS,
     _fit_scale,
+    _fit_scale_and_records,
     calibrate,
     load_study,
     restrict,
@@ -130,16 +131,36 @@ def test_calibrate_fits_and_rewrites_the_table(tmp_path):
     path = _study(tmp_path, scenes=["ring", "cornell"], modes=["rcast"])
     programs, report = calibrate(path, iterations=3)
     assert set(report["cells"]) == {"ring", "cornell"}
-    assert all(programs.scale[p] > 0 for p in ("vertex", "traversal", "fragment"))
+    assert programs.scale["vertex"] > 0 and programs.record_cycles["vertex"] == 0  # a scale alone
+    assert report["fitted"] == ["vertex.scale", "traversal.scale", "fragment.scale", "traversal.record_cycles",
+                                "fragment.record_cycles"]
+    for pm, metric in (("traversal", "TTrav"), ("fragment", "TFrag")):
+        assert programs.scale[pm] >= 0 and programs.record_cycles[pm] >= 0
+        assert programs.scale[pm] + programs.record_cycles[pm] > 0
+        assert all(cells[metric]["ours"] > 0 for cells in report["cells"].values())
     target = tmp_path / "programs.yaml"
     write_calibrated(programs, report, target, "tlm calibrate study.yaml")
     text = target.read_text()
     assert text.startswith(DEFAULT_PATH.read_text().splitlines()[0])  # the documentation is kept
     again = load_programs(target)
     for p in ("vertex", "traversal", "fragment"):
-        assert again.scale[p] == pytest.approx(programs.scale[p], rel=1e-5)
+        assert again.scale[p] == pytest.approx(programs.scale[p], rel=1e-5, abs=1e-12)
+        assert again.record_cycles[p] == pytest.approx(programs.record_cycles[p], rel=1e-5, abs=1e-12)
     assert again.calibration["command"] == "tlm calibrate study.yaml"
-    assert again.jobs == load_programs().jobs  # only the scales change
+    assert again.calibration["fitted"] == report["fitted"]
+    assert again.jobs == load_programs().jobs  # only the free parameters change
+    assert "# per ray traversed" in text  # the comments on the rewritten lines stay
+
+
+def test_fit_of_scale_and_record_cycles_recovers_them():
+    rng = np.random.default_rng(2)
+    n, k, m = rng.uniform(1, 10, 4), rng.uniform(1, 10, 4), rng.uniform(0, 1, 4)
+    y = 0.7 * n + 3.5 * k + m
+    s, c = _fit_scale_and_records(n, k, m, y)
+    assert s == pytest.approx(0.7) and c == pytest.approx(3.5)
+    # never negative: a table that needs less than its records cost gets no per-record cycles
+    s, c = _fit_scale_and_records(n, k, m + 100 * y, y)
+    assert s == 0.0 and c == 0.0
 
 
 def test_granularity_rows_and_the_functional_cache(tmp_path, monkeypatch):

@@ -15,8 +15,8 @@ from pathlib import Path
 from tlm.experiments.thesis import run_thesis
 
 ROOT = Path(__file__).resolve().parents[1]
-MAX_HELD_OUT_MEDIAN = 0.435  # docs/fidelity.md: 43.4% over the 63 held-out cells (thesis/ring, 2026-11-25)
-MIN_SLOWEST_PM_MATCHES = 5  # of 12 scene-modes
+MAX_HELD_OUT_MEDIAN = 0.275  # docs/fidelity.md: 27.4% over the 63 held-out cells (cycles per record, 2026-11-25)
+MIN_SLOWEST_PM_MATCHES = 9  # of 12 scene-modes
 
 
 def test_the_thesis_study_agrees_with_tables_one_to_three_at_least_as_well_as_documented(tmp_path, monkeypatch):

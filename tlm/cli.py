@@ -317,8 +317,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from tlm.arch.programs import DEFAULT_PATH
     from tlm.experiments.thesis import calibrate, write_calibrated
 
-    def progress(it, scales):
-        print(f"  iteration {it}: " + ", ".join(f"{k}.scale {v:.4g}" for k, v in scales.items()), flush=True)
+    def progress(it, params):
+        print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
     programs, report = calibrate(Path(args.config), progress=progress)
     for scene, cells in report["cells"].items():

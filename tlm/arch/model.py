@@ -429,11 +429,17 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
     throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight)
-    # latency over the frames that complete in the steady window (all frames without one);
-    # exact rational means rounded to whole cycles (a float mean is off past 2**53 cycles)
+    # latency over the frames that complete in the steady window and arrived after the
+    # warm-up (the k-th completion: an earlier arrival met the half-empty pipeline of the
+    # fill), all frames without a window; exact rational means rounded to whole cycles
+    # (a float mean is off past 2**53 cycles)
     by_done = sorted(model.frames, key=lambda r: (r.done, r.index))
     window = estimate["window"]
-    steady = by_done[window[0] + 1:window[1] + 1] if window else by_done
+    if window:
+        warm = by_done[window[0]].done
+        steady = [r for r in by_done[window[0] + 1:window[1] + 1] if r.arrival >= warm]
+    else:
+        steady = by_done
     latency_i = round(Fraction(sum(r.done - r.arrival for r in steady), len(steady)))
     estimate["latency_frames"] = sorted(r.index for r in steady)
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]

@@ -7,7 +7,11 @@ every field). Per programmable PM (``vertex``, ``traversal``, ``fragment``) it h
 * ``instructions``: 4-D vector instructions per work item, issued one per cycle;
 * ``flushes``: pipeline flushes per work item (each ``flush_cycles``, thesis: 4);
 * ``misses``: the work key counting the job's page misses (``null``: none), each
-  ``page_miss_cycles`` (thesis: 12).
+  ``page_miss_cycles`` (thesis: 12);
+* ``records`` (optional): the work keys counting the job's records (rays, pixels), each
+  of which costs the PM's ``record_cycles`` on top of its instructions: the per-record part of
+  a program (reading the record, the set-up, the hand-over) whose size the thesis does not
+  give. ``record_cycles`` (default 0) is a second free parameter ``tlm calibrate`` fits.
 
 The fixed-function Intersection PM has ``ray_load_cycles``, ``triangle_cycles`` and
 ``stages`` instead. :meth:`Programs.cost` turns a job's per-packet work counts into
@@ -17,7 +21,7 @@ to the cycles of the whole job whatever the packet size.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +58,7 @@ class JobProgram:
     instructions: dict[str, float]
     flushes: dict[str, float]
     misses: str | None
+    records: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -65,6 +70,7 @@ class Programs:
     jobs: dict[tuple[str, str], JobProgram]  # (pm, job) -> program
     intersection: dict[str, int]
     calibration: dict
+    record_cycles: dict[str, float] = field(default_factory=lambda: dict.fromkeys(PROGRAMMABLE, 0.0))
 
     def cost(self, pm: str, job: str, counts: dict[str, np.ndarray], items: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -84,7 +90,8 @@ class Programs:
                     total += w * np.asarray(v, dtype=np.float64)
             return total
 
-        norm = _exact_rounding(self.scale[pm] * weighted(prog.instructions))
+        norm = _exact_rounding(self.scale[pm] * weighted(prog.instructions)
+                               + self.record_cycles[pm] * weighted(dict.fromkeys(prog.records, 1.0)))
         flushes = _exact_rounding(weighted(prog.flushes))
         misses = np.asarray(counts.get(prog.misses, np.zeros(n)), dtype=np.int64) if prog.misses \
             else np.zeros(n, dtype=np.int64)
@@ -95,17 +102,23 @@ class Programs:
         prog = self.jobs[(pm, job)]
         return float(sum(w * totals.get(k, 0) for k, w in prog.instructions.items()))
 
-    def with_scales(self, scales: dict[str, float]) -> Programs:
-        return Programs(self.source, {**self.scale, **scales}, self.jobs, self.intersection, self.calibration)
+    def record_count(self, pm: str, job: str, totals: dict[str, float]) -> float:
+        """The records of a job's whole work that each cost ``record_cycles`` (for calibration)."""
+        return float(sum(totals.get(k, 0) for k in self.jobs[(pm, job)].records))
+
+    def with_scales(self, scales: dict[str, float], record_cycles: dict[str, float] | None = None) -> Programs:
+        """The table with other free parameters (``record_cycles`` unchanged unless given)."""
+        return Programs(self.source, {**self.scale, **scales}, self.jobs, self.intersection, self.calibration,
+                        {**self.record_cycles, **(record_cycles or {})})
 
     def to_yaml_dict(self) -> dict:
         out: dict = {"calibration": self.calibration}
         for pm in PROGRAMMABLE:
-            out[pm] = {"scale": self.scale[pm]}
+            out[pm] = {"scale": self.scale[pm], "record_cycles": self.record_cycles[pm]}
             for job in JOBS[pm]:
                 p = self.jobs[(pm, job)]
                 out[pm][job] = {"instructions": dict(p.instructions), "flushes": dict(p.flushes),
-                                "misses": p.misses}
+                                "misses": p.misses, **({"records": list(p.records)} if p.records else {})}
         out["intersection"] = dict(self.intersection)
         return out
 
@@ -149,13 +162,14 @@ def load_programs(path: str | Path | None = None) -> Programs:
     raw = read_yaml(p)
     raw = _mapping(raw, source, "(top)")
     _unknown(raw, ("calibration", *PROGRAMMABLE, "intersection"), source, "programs")
-    scale, jobs = {}, {}
+    scale, jobs, record_cycles = {}, {}, {}
     for pm in PROGRAMMABLE:
         if pm not in raw:
             raise InputError("missing section", source=source, key=pm)
         sec = _mapping(raw[pm], source, pm)
-        _unknown(sec, ("scale", *JOBS[pm]), source, pm)
+        _unknown(sec, ("scale", "record_cycles", *JOBS[pm]), source, pm)
         scale[pm] = _number(sec.get("scale", 1.0), source, f"{pm}.scale")
+        record_cycles[pm] = _number(sec.get("record_cycles", 0.0), source, f"{pm}.record_cycles")
         keys = work_keys()
         for job in JOBS[pm]:
             if job not in sec:
@@ -166,7 +180,16 @@ def load_programs(path: str | Path | None = None) -> Programs:
                     if k not in keys:
                         raise InputError(f"unknown work item{did_you_mean(str(k), keys)}", source=source,
                                          key=f"{pm}.{job}.{part}.{k}")
-            _unknown(js, ("instructions", "flushes", "misses"), source, f"{pm}.{job}")
+            _unknown(js, ("instructions", "flushes", "misses", "records"), source, f"{pm}.{job}")
+            raw_items = js.get("records", [])
+            if not isinstance(raw_items, list) or not all(isinstance(k, str) for k in raw_items):
+                raise InputError(f"{raw_items!r} must be a list of work keys", source=source, key=f"{pm}.{job}.records")
+            for k in raw_items:
+                if k not in keys:
+                    raise InputError(f"unknown work item{did_you_mean(k, keys)}", source=source,
+                                     key=f"{pm}.{job}.records.{k}")
+            if len(set(raw_items)) != len(raw_items):
+                raise InputError(f"{raw_items!r} names a key twice", source=source, key=f"{pm}.{job}.records")
             ins = {str(k): _number(v, source, f"{pm}.{job}.instructions.{k}")
                    for k, v in _mapping(js.get("instructions"), source, f"{pm}.{job}.instructions").items()}
             fl = {str(k): _number(v, source, f"{pm}.{job}.flushes.{k}")
@@ -175,13 +198,13 @@ def load_programs(path: str | Path | None = None) -> Programs:
             if misses is not None and (not isinstance(misses, str) or misses not in keys):
                 raise InputError(f"{misses!r} must be a work key or null{did_you_mean(str(misses), keys)}",
                                  source=source, key=f"{pm}.{job}.misses")
-            jobs[(pm, job)] = JobProgram(ins, fl, misses)
+            jobs[(pm, job)] = JobProgram(ins, fl, misses, tuple(raw_items))
     isect = _mapping(raw.get("intersection"), source, "intersection")
     _unknown(isect, FIXED_KEYS, source, "intersection")
     defaults = {"ray_load_cycles": 2, "triangle_cycles": 3, "stages": 11}
     fixed = {k: _number(isect.get(k, defaults[k]), source, f"intersection.{k}", integer=True) for k in FIXED_KEYS}
     calibration = _mapping(raw.get("calibration"), source, "calibration")
-    return Programs(source, scale, jobs, fixed, calibration)
+    return Programs(source, scale, jobs, fixed, calibration, record_cycles)
 
 
 def write_programs(programs: Programs, path: Path, header: str) -> None:

@@ -295,7 +295,8 @@ def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
         "frames": arch.frames,
         "images_in_flight": arch.images_in_flight,
         "memory": arch.memory,
-        "programs": {"source": programs.source, "scale": programs.scale},
+        "programs": {"source": programs.source, "scale": programs.scale,
+                     "record_cycles": programs.record_cycles},
         "simpy_events": tm.events,
         "event_bound": tm.event_budget,  # the liveness bound the run had (model.event_bound)
         **{k: v for k, v in tm.to_dict().items() if k not in ("cycles", "fps", "events")},

@@ -65,6 +65,10 @@ METRICS = ("TVert", "TTrav", "Tisct", "TFrag", "TThru", "FPS")
 PM_METRICS = ("TVert", "TTrav", "Tisct", "TFrag")
 CALIBRATED = {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
 FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
+# PMs whose record_cycles are fitted beside their scale: the thesis's TTrav is nearly the
+# same per traced ray in its three scenes, and its TFrag has a per-pixel part as large as
+# its per-hit part (docs/fidelity.md, "Cycles per record")
+FIT_RECORDS = ("traversal", "fragment")
 COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated")
 
 
@@ -282,12 +286,32 @@ def _fit_scale(n: np.ndarray, m: np.ndarray, y: np.ndarray) -> float:
     return max(float(a @ b) / denom, 0.0) if denom > 0 else 1.0
 
 
-def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs, dict]:
-    """Fit ``vertex.scale``, ``traversal.scale`` and ``fragment.scale`` to the RCast column.
+def _fit_scale_and_records(n: np.ndarray, k: np.ndarray, m: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """argmin over s, c >= 0 of sum(((s n + c k + m - y) / y)^2): a PM's scale and record cycles."""
+    from scipy.optimize import nnls
 
-    The cycles of a PM are ``scale x instructions + (page misses, flushes, swaps, copies,
-    preemption)``; the second part barely depends on the scales, so the fit alternates a
-    closed-form weighted least-squares step with a re-simulation until it settles.
+    a = np.column_stack([n / y, k / y])
+    (scale, cycles), _ = nnls(a, (y - m) / y)
+    return float(scale), float(cycles)
+
+
+def _norm_per_frame(fns: dict, programs: Programs) -> dict[str, dict[str, float]]:
+    """T_norm per frame of every PM and scene under ``programs``."""
+    out: dict[str, dict[str, float]] = {}
+    for s, (fn, cfg) in fns.items():
+        sim = simulate(fn, programs, cfg.arch)
+        out[s] = {pm: sim.units[f"pipe0.{pm}"]["T_norm"] / cfg.arch.frames for pm in FIT_PMS}
+    return out
+
+
+def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs, dict]:
+    """Fit the programs' free parameters to the RCast column.
+
+    ``vertex.scale``, and for the PMs of ``FIT_RECORDS`` their ``scale`` and
+    ``record_cycles`` together. The cycles of a PM are ``scale x instructions +
+    record_cycles x records + (page misses, flushes, swaps, copies, preemption)``; the
+    last part barely depends on the parameters, so the fit alternates a closed-form
+    weighted least-squares step with a re-simulation until it settles.
     """
     base, scenes, _modes, folder = load_study(Path(path))
     unknown = [s for s in scenes if _name(s) not in THESIS]
@@ -300,24 +324,36 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         cfg0 = cfg0 or cfg
         fns[scene] = (Functional.of(render(cfg, folder, str(path))), cfg)
     programs = programs_for(cfg0, folder)
-    programs = programs.with_scales(dict.fromkeys(PROGRAMMABLE, 1.0))
+    ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
+    # T_norm is linear in the parameters: instructions and records per frame, once
+    instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
+    records = _norm_per_frame(fns, programs.with_scales(zeros, ones))
+    programs = programs.with_scales(ones, zeros)
     history = []
     for it in range(iterations):
         sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
-        scales = {}
+        scales, cycles = {}, {}
         for pm, metric in FIT_PMS.items():
             y = np.array([thesis_value(_name(s), "rcast", metric) * 1e6 for s in scenes])
             frames = np.array([fns[s][1].arch.frames for s in scenes], dtype=float)
             norm = np.array([sims[s].units[f"pipe0.{pm}"]["T_norm"] for s in scenes], dtype=float) / frames
-            total = np.array([sims[s].cycles[pm] for s in scenes], dtype=float)
-            n = norm / programs.scale[pm]  # instructions per frame
-            scales[pm] = _fit_scale(n, total - norm, y)
-        history.append({"iteration": it, "scales": scales,
+            other = np.array([sims[s].cycles[pm] for s in scenes], dtype=float) - norm
+            n = np.array([instructions[s][pm] for s in scenes])
+            k = np.array([records[s][pm] for s in scenes])
+            if pm in FIT_RECORDS:
+                scales[pm], cycles[pm] = _fit_scale_and_records(n, k, other, y)
+            else:
+                scales[pm], cycles[pm] = _fit_scale(n, other, y), programs.record_cycles[pm]
+        params = {**{f"{p}.scale": v for p, v in scales.items()},
+                  **{f"{p}.record_cycles": cycles[p] for p in FIT_RECORDS}}
+        history.append({"iteration": it, "parameters": params,
                         "cells": {_name(s): _ours(sims[s].cycles, sims[s].fps) for s in scenes}})
         if progress is not None:
-            progress(it, scales)
-        converged = all(abs(scales[p] - programs.scale[p]) <= 1e-6 * max(scales[p], 1e-12) for p in scales)
-        programs = programs.with_scales(scales)
+            progress(it, params)
+        converged = all(abs(scales[p] - programs.scale[p]) <= 1e-6 * max(scales[p], 1e-12)
+                        and abs(cycles[p] - programs.record_cycles[p]) <= 1e-6 * max(cycles[p], 1e-12)
+                        for p in scales)
+        programs = programs.with_scales(scales, cycles)
         if converged:
             break
     sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
@@ -326,19 +362,30 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         ours = _ours(sims[s].cycles, sims[s].fps)
         cells[_name(s)] = {m: {"thesis": thesis_value(_name(s), "rcast", m), "ours": round(ours[m], 4)}
                            for m in FIT_PMS.values()}
-    report = {"scales": programs.scale, "cells": cells, "iterations": len(history), "history": history}
+    report = {"scales": programs.scale, "record_cycles": programs.record_cycles, "fitted": fitted_parameters(),
+              "cells": cells, "iterations": len(history), "history": history}
     return programs, report
 
 
+def fitted_parameters() -> list[str]:
+    return [f"{pm}.scale" for pm in FIT_PMS] + [f"{pm}.record_cycles" for pm in FIT_RECORDS]
+
+
 def write_calibrated(programs: Programs, report: dict, target: Path, command: str) -> None:
-    """Rewrite the table's ``scale`` values and ``calibration`` block, keeping its comments."""
+    """Rewrite the table's ``scale`` and ``record_cycles`` values and ``calibration`` block, keeping its comments."""
     source = Path(programs.source) if Path(programs.source).exists() else DEFAULT_PATH
     text = source.read_text()
     for pm in PROGRAMMABLE:
-        pattern = re.compile(rf"(^{pm}:\n(?:[ \t]*#.*\n)*  scale: )([^\n#]*)", re.MULTILINE)
-        text, n = pattern.subn(lambda m, pm=pm: m.group(1) + f"{programs.scale[pm]:.6g}", text)
-        if n != 1:
-            raise ValueError(f"{source}: cannot find '{pm}:' followed by its 'scale:' line")
+        section = re.search(rf"^{pm}:\n(?:(?:[ \t].*|)\n)*", text, re.MULTILINE)
+        if section is None:
+            raise ValueError(f"{source}: no '{pm}:' section")
+        body = section.group(0)
+        for name, value in (("scale", programs.scale[pm]), ("record_cycles", programs.record_cycles[pm])):
+            body, n = re.subn(rf"^(  {name}: )[^\n#]*?(?=[ \t]*(?:#|$))", lambda m, v=value: m.group(1) + f"{v:.6g}",
+                              body, count=1, flags=re.MULTILINE)
+            if n != 1 and not (name == "record_cycles" and value == 0):
+                raise ValueError(f"{source}: cannot find '{pm}:' followed by its '{name}:' line")
+        text = text[:section.start()] + body + text[section.end():]
     cells = "\n".join(
         f"    {s}: {{" + ", ".join(f"{m}: [{v['thesis']}, {v['ours']}]" for m, v in c.items()) + "}"
         for s, c in report["cells"].items())
@@ -346,7 +393,7 @@ def write_calibrated(programs: Programs, report: dict, target: Path, command: st
         "calibration:\n"
         f"  command: {json.dumps(command)}\n"
         f"  date: {datetime.date.today().isoformat()}\n"
-        "  fitted: [vertex.scale, traversal.scale, fragment.scale]\n"
+        f"  fitted: [{', '.join(report.get('fitted', fitted_parameters()))}]\n"
         "  cells:  # RCast, millions of cycles: [thesis, ours after the fit]\n"
         f"{cells}\n"
     )
