@@ -131,6 +131,15 @@ def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
     assert html_text.count('data-comparable="no"') == 2
     assert any("32×32 pixels (thesis 320×240)" in n and "2,000 photons (thesis 20,000)" in n for n in section.notes)
     assert MARK_CALIBRATED in html_text and "calibrated cell" in html_text  # the legend
+    # the study's per-item table: every cell of thesis_summary.json's per_item, ours (thesis)
+    start = html_text.index('class="thesis-table per-item"')
+    table = html_text[start:html_text.index("</table>", start)]
+    assert set(re.findall(r"<tr><th>([a-z]+/[a-z]+)</th>", table)) == set(summary["per_item"]) == \
+        {f"{s}/{m}" for s in ("ring", "cornell") for m in ("rcast", "pmap")}
+    it = summary["per_item"]["cornell/pmap"]
+    row = re.search(r"<tr><th>cornell/pmap</th>(.*?)</tr>", table).group(1)
+    assert f"<td>{it['rays']:,}</td>" in row
+    assert f"<td>{fmt(it['ours']['trav_cycles_per_ray'])} ({fmt(it['thesis']['trav_cycles_per_ray'])})</td>" in row
 
 
 def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run, tmp_path):

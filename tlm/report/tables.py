@@ -262,6 +262,36 @@ def table_html(src: Source) -> str:
     return "\n".join(lines)
 
 
+PER_ITEM = (("rays", "rays traced", None), ("trav_cycles_per_ray", "TTrav per ray", "cycles"),
+            ("tests_per_ray", "triangle tests per ray", None), ("frag_cycles_per_pixel", "TFrag per pixel", "cycles"),
+            ("vert_cycles_per_triangle", "TVert per triangle", "cycles"))
+
+
+def per_item_html(label: str, per_item: dict) -> str:
+    """A thesis study's PM times per work item (``thesis_summary.json`` ``per_item``): ours
+    and, in brackets, the thesis's time over our count of the same item."""
+    e = html.escape
+    lines = [f'<table class="thesis-table per-item" data-source="{e(label)}">',
+             f"<caption>Per work item, thesis study {e(label)}: ours (the thesis's time over our count)</caption>",
+             "<thead><tr><th>scene / mode</th>" + "".join(f"<th>{e(h)}</th>" for _, h, _ in PER_ITEM)
+             + "<th>tests per leaf</th></tr></thead>", "<tbody>"]
+    for cell, it in per_item.items():
+        tds = []
+        for key, _, _ in PER_ITEM:
+            if key == "rays":
+                tds.append(f"<td>{it['rays']:,}</td>")
+                continue
+            o, t = it["ours"].get(key), it["thesis"].get(key)
+            tds.append(f"<td>{fmt(o)} ({fmt(t)})</td>")
+        tds.append(f"<td>{fmt(it.get('tests_per_leaf'))}</td>")
+        lines.append(f"<tr><th>{e(cell)}</th>{''.join(tds)}</tr>")
+    lines.append("</tbody></table>")
+    lines.append('<p class="legend">Tests per ray take the Intersection PM at 2 cycles a ray and 3 a triangle '
+                 "(§IV.A.3); where ours and the thesis's agree per item but not in total, the scenes differ "
+                 "in how many items they make.</p>")
+    return "\n".join(lines)
+
+
 LEGEND = (f"Each cell: ours (simulated), the thesis's value, the relative error (ours − thesis) / thesis. "
           f"{MARK_CALIBRATED} calibrated cell (fitted to the thesis, not a prediction); "
           f"{MARK_SLOW_THESIS} slowest PM of the scene-mode in the thesis; {MARK_SLOW_OURS} slowest PM in ours. "
@@ -393,6 +423,9 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
             section.notes.append(f"{scene} figure: drawn for the first {len(drawn)} sources only; "
                                  f"{', '.join(s.label for s in shown[len(drawn):])} are in the tables")
         section.figures.append(_scene_figure(scene, drawn, out, section.notes))
+    for study in inputs.of_kind("thesis"):
+        if study.meta.get("per_item"):
+            parts.append(per_item_html(study.path.name, study.meta["per_item"]))
     parts.append("</div>")
     section.html = "\n".join(parts)
     return section
