@@ -786,21 +786,28 @@ def test_default_programs_table_loads(tmp_path):
 
 def test_a_record_costs_the_pms_record_cycles_on_top_of_its_instructions():
     """T_norm = round(scale x instructions + record_cycles x records), rounded on the running total."""
-    progs = load_programs().with_scales({"traversal": 0.5}, {"traversal": 10.25})
+    progs = load_programs().with_scales({"traversal": 0.5, "fragment": 2.0}, {"traversal": 10.25, "fragment": 7.0})
     counts = {"primary_rays": np.array([4, 0, 3]), "secondary_rays": np.array([1, 2, 0]),
-              "node_visits": np.array([10, 20, 30])}
+              "node_visits": np.array([10, 20, 30]), "shadow_rays": np.array([2, 2, 2])}
     items = np.array([4, 4, 3])
     norm, _, _ = progs.cost("traversal", "rays", counts, items)
     ins = progs.jobs[("traversal", "rays")].instructions
-    raw = 0.5 * (ins["primary_rays"] * counts["primary_rays"] + ins["secondary_rays"] * counts["secondary_rays"]
-                 + ins["node_visits"] * counts["node_visits"]) + 10.25 * (counts["primary_rays"]
-                                                                         + counts["secondary_rays"])
+    instr = 0.5 * (ins["primary_rays"] * counts["primary_rays"] + ins["secondary_rays"] * counts["secondary_rays"]
+                   + ins["node_visits"] * counts["node_visits"])
+    raw = instr + 10.25 * (counts["primary_rays"] + counts["secondary_rays"])
     assert norm.tolist() == np.diff(np.concatenate([[0], np.rint(np.cumsum(raw))])).astype(int).tolist()
     assert int(norm.sum()) == round(raw.sum())
-    # a job without records pays nothing per record; other PMs keep their own
-    shadow_only = progs.with_scales({}, {"traversal": 0.0})
-    a, _, _ = shadow_only.cost("traversal", "rays", counts, items)
-    assert int(norm.sum() - a.sum()) == round(10.25 * 10)
+    without, _, _ = progs.with_scales({}, {"traversal": 0.0}).cost("traversal", "rays", counts, items)
+    assert int(norm.sum() - without.sum()) == round(raw.sum()) - round(instr.sum())
+    # a job without records (the Fragment PM's shadow-ray results) pays nothing per record
+    assert progs.jobs[("fragment", "light")].records == ()
+    light, _, _ = progs.cost("fragment", "light", counts, items)
+    light0, _, _ = progs.with_scales({}, {"fragment": 0.0}).cost("fragment", "light", counts, items)
+    assert light.tolist() == light0.tolist() and light.sum() > 0
+    # the shade job's records are its eye rays: the fragment's own record_cycles, not the traversal's
+    shade, _, _ = progs.cost("fragment", "shade", counts, items)
+    shade0, _, _ = progs.with_scales({}, {"fragment": 0.0}).cost("fragment", "shade", counts, items)
+    assert int(shade.sum() - shade0.sum()) == 7 * 7
     assert progs.record_count("traversal", "rays", {"primary_rays": 7, "secondary_rays": 3, "rays": 100}) == 10
 
 

@@ -93,6 +93,7 @@ def test_thesis_study_writes_the_comparison(tmp_path):
         tests = sum(w.get("tri_tests", 0) + w.get("shadow_tri_tests", 0) for w in passes) + \
             (res["photons"]["work"]["tri_tests"] if mode == "pmap" else 0)
         assert it["tri_tests"] == tests
+        assert it["ours"]["tests_per_ray"] == pytest.approx(tests / rays, rel=1e-3)  # counted, not implied
         # the thesis's time over our count: Tisct = 2 cycles per ray + 3 per triangle test
         col = ("rcast", "pmap").index(mode) * 3
         tisct = (10.8, 15.4, 26.1, 27.8)[col] * 1e6
@@ -150,6 +151,31 @@ def test_calibrate_fits_and_rewrites_the_table(tmp_path):
     assert again.calibration["fitted"] == report["fitted"]
     assert again.jobs == load_programs().jobs  # only the free parameters change
     assert "# per ray traversed" in text  # the comments on the rewritten lines stay
+
+
+def test_calibrate_keeps_the_record_cycles_it_does_not_fit_and_writes_a_missing_line(tmp_path):
+    """A table whose Vertex PM has records of its own: calibrate fits vertex.scale around
+    them and keeps them; a table without a record_cycles line gets one below the scale."""
+    raw = yaml.safe_load(DEFAULT_PATH.read_text())
+    raw["vertex"]["record_cycles"] = 300.0
+    raw["vertex"]["geometry_bsp"]["records"] = ["elements"]
+    del raw["fragment"]["record_cycles"]
+    table = tmp_path / "table.yaml"
+    table.write_text("# a user's table\ncalibration: {}\n" + yaml.safe_dump({k: v for k, v in raw.items()
+                                                                              if k != "calibration"}))
+    path = _study(tmp_path, scenes=["ring", "cornell"], modes=["rcast"])
+    spec = yaml.safe_load(path.read_text())
+    spec["base"]["arch"] = {**spec["base"]["arch"], "programs": str(table)}
+    path.write_text(yaml.safe_dump(spec))
+    programs, report = calibrate(path, iterations=2)
+    assert programs.record_cycles["vertex"] == 300.0
+    assert programs.scale["vertex"] >= 0
+    target = tmp_path / "out.yaml"
+    write_calibrated(programs, report, target, "tlm calibrate study.yaml")
+    again = load_programs(target)
+    assert again.record_cycles == pytest.approx(programs.record_cycles, rel=1e-5, abs=1e-9)
+    assert again.scale == pytest.approx(programs.scale, rel=1e-5, abs=1e-9)
+    assert again.jobs[("vertex", "geometry_bsp")].records == ("elements",)
 
 
 def test_fit_of_scale_and_record_cycles_recovers_them():

@@ -416,7 +416,8 @@ def build_parser() -> argparse.ArgumentParser:
     gr.add_argument("--out", help="output folder (default: runs/<config name>)")
     _no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
-    ca = sub.add_parser("calibrate", help="fit the PM programs' scales to the RCast column of Tables I-III")
+    ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
+                        "to the RCast column of Tables I-III")
     ca.add_argument("config", help="study YAML, e.g. configs/thesis.yaml")
     ca.add_argument("--write", help="table to write (default: the packaged tlm/arch/programs.yaml)")
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")

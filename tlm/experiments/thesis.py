@@ -15,11 +15,11 @@ rel_error, calibrated`` (cycles in millions as in the tables, FPS in frames per
 second), and ``DIR/thesis_summary.json`` the median absolute relative error over the
 held-out cells and, per scene-mode, whether our slowest PM is the thesis's.
 
-``tlm calibrate FILE`` fits the free parameters of the instruction table (the
-``scale`` of each programmable PM) by least squares on the relative error of the RCast
-column's TVert, TTrav and TFrag cells of the three tables (9 cells, 3 parameters) and
-writes the table (by default over the packaged ``tlm/arch/programs.yaml``). Every other
-cell is a prediction.
+``tlm calibrate FILE`` fits the free parameters of the instruction table (the ``scale``
+of each programmable PM, and the ``record_cycles`` of the Traversal and Fragment PMs)
+by least squares on the relative error of the RCast column's TVert, TTrav and TFrag
+cells of the three tables (9 cells, 5 parameters) and writes the table (by default over
+the packaged ``tlm/arch/programs.yaml``). Every other cell is a prediction.
 """
 
 from __future__ import annotations
@@ -143,13 +143,15 @@ def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
 
     The thesis gives times, not counts, so its per-item figures divide its time by *our*
     count of the item (the same pixels, triangles and photons; rays as our scene traces
-    them): ``TTrav`` per traced ray, ``TFrag`` per pixel, ``TVert`` per triangle, and
-    ``Tisct`` as triangle tests per ray, ``(Tisct - 2 rays) / 3 / rays`` (the Intersection
-    PM loads a ray in two cycles and a triangle in three, §IV.A.3; pipeline drains are
-    left out). Ours are the same quotients of our own times and counts, so
-    ``ours / thesis`` of a row is the cell's relative error split into "more items" and
-    "more cycles per item". ``tests_per_leaf`` is ours only: triangles tested per leaf
-    visited, the BSP's leaf size as the rays see it.
+    them): ``TTrav`` per traced ray, ``TFrag`` per pixel, ``TVert`` per triangle (in PMap
+    the Vertex PM's photon work too), and triangle tests per ray implied by ``Tisct``,
+    ``(Tisct - 2 rays) / 3 / rays`` (the Intersection PM loads a ray in two cycles and a
+    triangle in three, §IV.A.3; pipeline drains and page misses are left out). Ours are
+    our times over the same counts, and our counted triangle tests per ray. Both sides
+    divide by our count, so a row's ``ours / thesis`` is its cell's ratio; what the table
+    shows is how the thesis's cost per item compares across scenes and modes (a cost that
+    is the same per item in every scene is a per-item cost). ``tests_per_leaf`` is ours
+    only: triangles tested per leaf visited, the BSP's leaf size as the rays see it.
     """
     work: dict[str, int] = {}
     for counts in results["work"].values():
@@ -169,22 +171,25 @@ def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
     theirs = {m: (None if thesis_value(scene, mode, m) is None else thesis_value(scene, mode, m) * 1e6)
               for m in ours}
 
-    def quotients(t: dict) -> dict[str, float | None]:
+    def quotients(t: dict, tests_per_ray: float | None) -> dict[str, float | None]:
         if any(v is None for v in t.values()):
             return dict.fromkeys(("trav_cycles_per_ray", "tests_per_ray", "frag_cycles_per_pixel",
                                   "vert_cycles_per_triangle"))
         return {
             "trav_cycles_per_ray": round(t["TTrav"] / rays, 3) if rays else None,
-            "tests_per_ray": round((t["Tisct"] - 2 * rays) / 3 / rays, 3) if rays else None,
+            "tests_per_ray": tests_per_ray,
             "frag_cycles_per_pixel": round(t["TFrag"] / pixels, 3),
             "vert_cycles_per_triangle": round(t["TVert"] / triangles, 3),
         }
 
+    implied = None
+    if rays and theirs["Tisct"] is not None:
+        implied = round((theirs["Tisct"] - 2 * rays) / 3 / rays, 3)
     return {
         "rays": rays, "tri_tests": tests, "pixels": pixels, "triangles": triangles,
         "eye_hits": int(results["primary"]["hits"]),
         "tests_per_leaf": round(tests / leaves, 3) if leaves else None,
-        "ours": quotients(ours), "thesis": quotients(theirs),
+        "ours": quotients(ours, round(tests / rays, 3) if rays else None), "thesis": quotients(theirs, implied),
     }
 
 
@@ -192,16 +197,16 @@ def describe_items(items: dict[str, dict]) -> str:
     """The per-item table `tlm thesis` prints: ours (thesis) for each scene-mode."""
     names = (("trav_cycles_per_ray", "TTrav/ray"), ("tests_per_ray", "tests/ray"),
              ("frag_cycles_per_pixel", "TFrag/pixel"), ("vert_cycles_per_triangle", "TVert/tri"))
-    lines = [f"{'scene':8s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>17s}" for _, h in names)
+    lines = [f"{'scene':8s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>21s}" for _, h in names)
              + f" {'tests/leaf':>10s}"]
     for key, it in items.items():
         scene, mode = key.split("/")
         cells = []
         for k, _ in names:
             o, t = it["ours"][k], it["thesis"][k]
-            cells.append(f"{'-' if o is None else f'{o:.4g}':>7s} ({'-' if t is None else f'{t:.4g}':>7s})")
+            cells.append(f"{'-' if o is None else f'{o:.4g}':>9s} ({'-' if t is None else f'{t:.4g}':>9s})")
         leaf = it["tests_per_leaf"]
-        lines.append(f"{scene:8s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>17s}" for c in cells)
+        lines.append(f"{scene:8s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>21s}" for c in cells)
                      + f" {'-' if leaf is None else f'{leaf:.3g}':>10s}")
     return "\n".join(lines)
 
@@ -328,7 +333,9 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     # T_norm is linear in the parameters: instructions and records per frame, once
     instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
     records = _norm_per_frame(fns, programs.with_scales(zeros, ones))
-    programs = programs.with_scales(ones, zeros)
+    # start from unit scales and no cycles per record where those are fitted (a PM
+    # outside FIT_RECORDS keeps the table's record_cycles, a fixed part of its cost)
+    programs = programs.with_scales(ones, dict.fromkeys(FIT_RECORDS, 0.0))
     history = []
     for it in range(iterations):
         sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
@@ -342,8 +349,9 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
             k = np.array([records[s][pm] for s in scenes])
             if pm in FIT_RECORDS:
                 scales[pm], cycles[pm] = _fit_scale_and_records(n, k, other, y)
-            else:
-                scales[pm], cycles[pm] = _fit_scale(n, other, y), programs.record_cycles[pm]
+            else:  # T_norm's record part is fixed here: it joins the rest
+                cycles[pm] = programs.record_cycles[pm]
+                scales[pm] = _fit_scale(n, other + cycles[pm] * k, y)
         params = {**{f"{p}.scale": v for p, v in scales.items()},
                   **{f"{p}.record_cycles": cycles[p] for p in FIT_RECORDS}}
         history.append({"iteration": it, "parameters": params,
@@ -383,7 +391,11 @@ def write_calibrated(programs: Programs, report: dict, target: Path, command: st
         for name, value in (("scale", programs.scale[pm]), ("record_cycles", programs.record_cycles[pm])):
             body, n = re.subn(rf"^(  {name}: )[^\n#]*?(?=[ \t]*(?:#|$))", lambda m, v=value: m.group(1) + f"{v:.6g}",
                               body, count=1, flags=re.MULTILINE)
-            if n != 1 and not (name == "record_cycles" and value == 0):
+            if n != 1 and name == "record_cycles":  # a table without the line: add it below the scale
+                body, n = re.subn(r"^(  scale: [^\n]*\n)",
+                                  lambda m, v=value: m.group(1) + f"  record_cycles: {v:.6g}\n",
+                                  body, count=1, flags=re.MULTILINE)
+            if n != 1:
                 raise ValueError(f"{source}: cannot find '{pm}:' followed by its '{name}:' line")
         text = text[:section.start()] + body + text[section.end():]
     cells = "\n".join(
@@ -397,9 +409,9 @@ def write_calibrated(programs: Programs, report: dict, target: Path, command: st
         "  cells:  # RCast, millions of cycles: [thesis, ours after the fit]\n"
         f"{cells}\n"
     )
-    text, n = re.subn(r"^calibration:\n(?:[ \t]+.*\n)*", block, text, count=1, flags=re.MULTILINE)
-    if n != 1:
-        raise ValueError(f"{source}: no 'calibration:' block")
+    text, n = re.subn(r"^calibration:[^\n]*\n(?:[ \t]+.*\n)*", block, text, count=1, flags=re.MULTILINE)
+    if n != 1:  # a table without the block: it goes at the end
+        text = text + ("" if text.endswith("\n") else "\n") + block
     tmp = target.with_name(target.name + ".tmp")
     tmp.write_text(text)
     tmp.replace(target)

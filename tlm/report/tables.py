@@ -286,9 +286,10 @@ def per_item_html(label: str, per_item: dict) -> str:
         tds.append(f"<td>{fmt(it.get('tests_per_leaf'))}</td>")
         lines.append(f"<tr><th>{e(cell)}</th>{''.join(tds)}</tr>")
     lines.append("</tbody></table>")
-    lines.append('<p class="legend">Tests per ray take the Intersection PM at 2 cycles a ray and 3 a triangle '
-                 "(§IV.A.3); where ours and the thesis's agree per item but not in total, the scenes differ "
-                 "in how many items they make.</p>")
+    lines.append('<p class="legend">Both sides divide by our count of the item, so a row\'s ours / thesis is its '
+                 "cell's ratio; read down a column to see whether the thesis's cost per item is the same in every "
+                 "scene. The thesis's triangle tests per ray are implied by its Tisct at 2 cycles a ray and 3 a "
+                 "triangle (§IV.A.3); ours are counted. In PMap, TVert per triangle includes the photon work.</p>")
     return "\n".join(lines)
 
 
