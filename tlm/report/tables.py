@@ -262,9 +262,8 @@ def table_html(src: Source) -> str:
     return "\n".join(lines)
 
 
-PER_ITEM = (("rays", "rays traced", None), ("trav_cycles_per_ray", "TTrav per ray", "cycles"),
-            ("tests_per_ray", "triangle tests per ray", None), ("frag_cycles_per_pixel", "TFrag per pixel", "cycles"),
-            ("vert_cycles_per_triangle", "TVert per triangle", "cycles"))
+PER_ITEM = (("trav_cycles_per_ray", "TTrav per ray"), ("tests_per_ray", "triangle tests per ray"),
+            ("frag_cycles_per_pixel", "TFrag per pixel"), ("vert_cycles_per_triangle", "TVert per triangle"))
 
 
 def per_item_html(label: str, per_item: dict) -> str:
@@ -273,16 +272,11 @@ def per_item_html(label: str, per_item: dict) -> str:
     e = html.escape
     lines = [f'<table class="thesis-table per-item" data-source="{e(label)}">',
              f"<caption>Per work item, thesis study {e(label)}: ours (the thesis's time over our count)</caption>",
-             "<thead><tr><th>scene / mode</th>" + "".join(f"<th>{e(h)}</th>" for _, h, _ in PER_ITEM)
+             "<thead><tr><th>scene / mode</th><th>rays traced</th>" + "".join(f"<th>{e(h)}</th>" for _, h in PER_ITEM)
              + "<th>tests per leaf</th></tr></thead>", "<tbody>"]
     for cell, it in per_item.items():
-        tds = []
-        for key, _, _ in PER_ITEM:
-            if key == "rays":
-                tds.append(f"<td>{it['rays']:,}</td>")
-                continue
-            o, t = it["ours"].get(key), it["thesis"].get(key)
-            tds.append(f"<td>{fmt(o)} ({fmt(t)})</td>")
+        tds = [f"<td>{it['rays']:,}</td>"]
+        tds += [f"<td>{fmt(it['ours'].get(k))} ({fmt(it['thesis'].get(k))})</td>" for k, _ in PER_ITEM]
         tds.append(f"<td>{fmt(it.get('tests_per_leaf'))}</td>")
         lines.append(f"<tr><th>{e(cell)}</th>{''.join(tds)}</tr>")
     lines.append("</tbody></table>")
