@@ -16,7 +16,7 @@ import numpy as np
 
 MATERIAL_KINDS = ("lambertian", "mirror", "dielectric")
 KIND = {k: i for i, k in enumerate(MATERIAL_KINDS)}  # a material kind's small-integer code
-LIGHT_KINDS = ("quad", "point")
+LIGHT_KINDS = ("quad", "point", "mesh")
 
 
 @dataclass(frozen=True)
@@ -25,6 +25,9 @@ class Material:
 
     kind : 'lambertian' (RGB ``albedo``), 'mirror' (RGB ``reflectance``) or
     'dielectric' (``ior`` and RGB ``transmittance``).
+    emission : RGB radiance ``Le`` leaving the front side (``cross(V1 - V0, V2 - V0)``)
+    of every triangle of the material; non-zero makes those triangles a light (a
+    ``mesh`` :class:`Light` that the loader builds, MTL ``Ke``, glTF ``emissiveFactor``).
     """
 
     name: str
@@ -33,16 +36,26 @@ class Material:
     reflectance: tuple[float, float, float] = (0.0, 0.0, 0.0)
     ior: float = 1.0
     transmittance: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def emits(self) -> bool:
+        return max(self.emission) > 0.0
 
 
 @dataclass(frozen=True)
 class Light:
-    """A quad area light or a point light with RGB power in watts.
+    """A quad area light, a point light or a mesh light, with RGB power in watts.
 
     A quad light is the parallelogram ``corner + a*edge_u + b*edge_v`` (a, b in
     [0, 1]); it emits on the side of ``cross(edge_u, edge_v)`` only, with constant
     radiance ``power / (pi * area)``. A point light emits ``power / (4 pi)`` watts per
-    steradian in every direction.
+    steradian in every direction. A mesh light is the scene's emitting triangles
+    (``ids`` into the scene's triangle list, ``triangles`` their (m, 3, 3) vertices,
+    ``radiance`` (m, 3) each one's ``Le``, on its front side only); unlike the other
+    two it is geometry: eye rays see it where they hit it, and it casts shadows.
+    ``power = pi * sum(Le * area)``. ``name`` says where the light comes from (the
+    emitting materials' names for a mesh light).
     """
 
     kind: str
@@ -51,10 +64,22 @@ class Light:
     corner: tuple[float, float, float] = (0.0, 0.0, 0.0)
     edge_u: tuple[float, float, float] = (0.0, 0.0, 0.0)
     edge_v: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    name: str = ""
+    ids: np.ndarray | None = field(default=None, compare=False, repr=False)
+    triangles: np.ndarray | None = field(default=None, compare=False, repr=False)
+    radiance: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def area(self) -> float:
+        if self.kind == "mesh":
+            return float(self.areas.sum())
         return float(np.linalg.norm(np.cross(self.edge_u, self.edge_v)))
+
+    @property
+    def areas(self) -> np.ndarray:
+        """(m,) areas of a mesh light's triangles."""
+        t = self.triangles
+        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
 
     @property
     def normal(self) -> np.ndarray:
@@ -86,6 +111,11 @@ class Geometry:
     part: np.ndarray
     part_names: tuple[str, ...]
     normals: np.ndarray | None = None  # (n, 3, 3) per-corner shading normals from the file, if it has them
+    # the materials the file defines (OBJ's MTL, glTF's materials), mapped to tlm's kinds
+    # (tlm.scenes.materials), and each triangle's index into them; -1 where the file
+    # gives a triangle none. A scene file's `parts:` and `materials:` override them.
+    materials: tuple[Material, ...] = ()
+    face_material: np.ndarray | None = None  # (n,) int32
 
 
 @dataclass(frozen=True)
@@ -113,7 +143,7 @@ class Scene:
 
     def material_table(self) -> dict[str, np.ndarray]:
         """Per-triangle material arrays: ``kind`` (n,) int8 (:data:`KIND` codes),
-        ``albedo``, ``reflectance``, ``transmittance`` (n, 3) and ``ior`` (n,)."""
+        ``albedo``, ``reflectance``, ``transmittance``, ``emission`` (n, 3) and ``ior`` (n,)."""
         mats = self.materials
         table = {
             "kind": np.array([KIND[m.kind] for m in mats], dtype=np.int8),
@@ -121,6 +151,7 @@ class Scene:
             "reflectance": np.array([m.reflectance for m in mats], dtype=np.float64).reshape(-1, 3),
             "transmittance": np.array([m.transmittance for m in mats], dtype=np.float64).reshape(-1, 3),
             "ior": np.array([m.ior for m in mats], dtype=np.float64),
+            "emission": np.array([m.emission for m in mats], dtype=np.float64).reshape(-1, 3),
         }
         return {k: v[self.material_index] for k, v in table.items()}
 
