@@ -68,8 +68,8 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
     if scene.normals is not None:
         h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
     doc = {
-        "materials": [asdict(m) for m in scene.materials],
-        "lights": [asdict(lt) for lt in scene.lights],
+        "materials": [m.record() for m in scene.materials],
+        "lights": [lt.record() for lt in scene.lights],
         "camera": asdict(scene.camera),
         "max_bounces": cfg.photons.max_bounces,
         # where the photon term is gathered: the eye samples and the specular walks' ends

@@ -49,7 +49,15 @@ import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_point_tree
 from tlm.kernels.memory import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
-from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
+from tlm.kernels.shade import (
+    SPAWN_EPS,
+    face_normals,
+    facing,
+    hash_uniform,
+    point_on_triangles,
+    scatter_specular,
+    triangle_choice,
+)
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.scenes.model import KIND, Light, Scene
 from tlm.scenes.normals import crease_normals, interpolate
@@ -239,15 +247,20 @@ def emit(
     scene_box: tuple[np.ndarray, np.ndarray] | None = None,
     specular_box: tuple[np.ndarray, np.ndarray] | None = None,
     caustic_fraction: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Origins, unit directions, RGB powers (n, 3) and caustic-group flags (n,).
+    with_source: bool = False,
+) -> tuple[np.ndarray, ...]:
+    """Origins, unit directions, RGB powers (n, 3) and caustic-group flags (n,); with
+    ``with_source`` also the triangle each photon leaves (n,) int64 (-1: not geometry).
 
     Each light's photons are split into a *global* group and, when ``specular_box`` is
     given and ``caustic_fraction > 0``, a *caustic* group. A point light aims each group
     at the cone that bounds its target box (the scene's, or the specular objects'), and
     the photons' power is scaled by the cone's share of the sphere, so no photon is
     wasted on empty space (Jensen's projection maps, with boxes for maps). A quad light
-    emits both groups over its cosine-weighted hemisphere.
+    emits both groups over its cosine-weighted hemisphere. A mesh light picks a triangle
+    for each photon in proportion to its power (:func:`triangle_choice`), a uniform
+    point on it and a direction as a quad light does about the triangle's normal; the
+    photon's power is the chosen triangle's power over its probability and the count.
     """
     counts = split_photons(lights, n)
     out: list[tuple[np.ndarray, ...]] = []
@@ -261,28 +274,41 @@ def emit(
             first += m
             u = [hash_uniform(key, ids, -1, li, dim) for dim in range(4)]
             power = np.asarray(light.power, dtype=np.float64) / m
-            if light.kind == "quad":
-                o = (np.asarray(light.corner)[None, :] + u[0][:, None] * np.asarray(light.edge_u)
-                     + u[1][:, None] * np.asarray(light.edge_v))
+            src = np.full(m, -1, dtype=np.int64)
+            if light.kind in ("quad", "mesh"):
+                if light.kind == "quad":
+                    o = (np.asarray(light.corner)[None, :] + u[0][:, None] * np.asarray(light.edge_u)
+                         + u[1][:, None] * np.asarray(light.edge_v))
+                    nl = np.broadcast_to(light.normal, (m, 3)).copy()
+                else:
+                    j, prob = triangle_choice(light, hash_uniform(key, ids, -1, li, 4))
+                    o = point_on_triangles(light.triangles[j], u[0], u[1])
+                    nl = face_normals(light.triangles[j])
+                    src = light.ids[j]
+                    # the triangle's power pi Le A over its probability, shared by the m photons
+                    power = light.radiance[j] * (np.pi * light.areas[j] / (prob * m))[:, None]
                 if group and box is not None:  # uniform in the cone bounding the specular objects
                     axis, cos_max = bounding_cones(o, *box)
                     d = _around(axis, 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
-                    cos_l = np.maximum(0.0, d @ light.normal)  # a quad emits on its normal's side only
+                    # a quad (a triangle) emits on its normal's side only
+                    cos_l = np.maximum(0.0, d @ light.normal if light.kind == "quad" else np.sum(d * nl, axis=1))
                     # flux Le cos dA dw over the cone, sampled with pdf 1 / (A * solid angle)
-                    power = power[None, :] * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
+                    power = np.atleast_2d(power) * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
                 else:
-                    d = _cosine_dirs(np.broadcast_to(light.normal, (m, 3)).copy(), u[2], u[3])
+                    d = _cosine_dirs(nl, u[2], u[3])
             else:
                 pos = np.asarray(light.position, dtype=np.float64)
                 o = np.broadcast_to(pos, (m, 3)).copy()
                 axis, cos_max = bounding_cone(pos, *box) if box is not None else (np.array([0.0, 0, 1]), -1.0)
                 d = _around(np.broadcast_to(axis, (m, 3)).copy(), 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
                 power = power * (1.0 - cos_max) / 2.0  # the cone's share of the sphere
-            out.append((o, d, np.broadcast_to(power, (m, 3)).copy(), np.full(m, group)))
+            out.append((o, d, np.broadcast_to(power, (m, 3)).copy(), np.full(m, group), src))
     if not out:
         empty = np.zeros((0, 3))
-        return empty, empty.copy(), empty.copy(), np.zeros(0, dtype=bool)
-    return tuple(np.concatenate(x) for x in zip(*out, strict=True))  # type: ignore[return-value]
+        arrays = (empty, empty.copy(), empty.copy(), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int64))
+    else:
+        arrays = tuple(np.concatenate(x) for x in zip(*out, strict=True))
+    return arrays if with_source else arrays[:4]
 
 
 def trace_photons(
@@ -321,8 +347,8 @@ def trace_photons(
     flat = scene.triangles.reshape(-1, 3)
     spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
     specular_box = (spec.min(axis=0), spec.max(axis=0)) if spec.shape[0] and caustic_fraction > 0 else None
-    o, d, power, caustic_group = emit(scene.lights, n, key, (flat.min(axis=0), flat.max(axis=0)),
-                                      specular_box, caustic_fraction)
+    o, d, power, caustic_group, source = emit(scene.lights, n, key, (flat.min(axis=0), flat.max(axis=0)),
+                                              specular_box, caustic_fraction, with_source=True)
     split = specular_box is not None  # caustics come from the caustic group only
     n = o.shape[0]
     work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
@@ -333,7 +359,7 @@ def trace_photons(
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
     pid = np.arange(n)  # photon ids still travelling
-    last = np.full(n, -1, dtype=np.int64)  # triangle each photon leaves
+    last = source  # triangle each photon leaves (an emitting triangle, or -1)
     specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
     direct = np.ones(n, dtype=bool)  # straight from the light (index-matched crossings only)
     rec = Recorder(streams.page_words)

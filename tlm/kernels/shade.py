@@ -3,8 +3,11 @@
 * Lambertian direct light: ``L = albedo / pi * sum_lights E``. A point light of power
   ``P`` gives ``E = P / (4 pi) * cos / d**2``; a quad light of power ``P`` and area
   ``A`` has radiance ``Le = P / (pi A)`` and is sampled with ``n x n`` stratified
-  points, ``E ~= Le * A / S * sum cos_x cos_l / d**2``. Each sample is one shadow ray
-  (any-hit), cast only where both cosines are positive.
+  points, ``E ~= Le * A / S * sum cos_x cos_l / d**2``. A mesh light (emitting
+  triangles) is sampled with ``n x n`` points too, stratified over the triangles'
+  power CDF, each uniform on its triangle: ``E ~= 1 / S * sum Le_j cos_x cos_l / d**2 / pdf``
+  with ``pdf = P_j / (P A_j)``. Each sample is one shadow ray (any-hit), cast only
+  where both cosines are positive.
 * Mirror: ``R = D - 2 (D.N) N``. Dielectric: Snell's law with total internal
   reflection (``k < 0``), entering when ``D.N < 0`` for the outward geometric normal,
   and the exact Fresnel reflectance of unpolarised light (:func:`scatter_specular`,
@@ -144,6 +147,44 @@ def _snell(d: np.ndarray, n: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, n
     return t, f
 
 
+def triangle_choice(light: Light, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles of a mesh light picked by ``u`` in [0, 1) in proportion to their power
+    (the sum of RGB ``Le * area``) and each pick's probability: (k,) int64, (k,) float64.
+
+    The hardware would read an alias table (one table read and one compare a sample, as
+    cheap as a quad light's two lerps); the inverse CDF here draws from the same
+    distribution.
+    """
+    w = light.radiance.sum(axis=1) * light.areas
+    cdf = np.cumsum(w)
+    j = np.searchsorted(cdf, u * cdf[-1], side="right")
+    j = np.minimum(j, w.shape[0] - 1)
+    j = np.where(w[j] > 0, j, np.argmax(w))  # never a triangle of zero weight
+    return j, w[j] / cdf[-1]
+
+
+def point_on_triangles(tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Uniform points on triangles (k, 3, 3) from two uniforms each (k,)."""
+    su = np.sqrt(u1)
+    b0, b1 = 1.0 - su, u2 * su
+    return b0[:, None] * tri[:, 0] + b1[:, None] * tri[:, 1] + (1.0 - b0 - b1)[:, None] * tri[:, 2]
+
+
+def surface_emission(emission: np.ndarray | None, normals: np.ndarray, triangle: np.ndarray,
+                     d: np.ndarray) -> np.ndarray | None:
+    """(k, 3) radiance ``Le`` of emitting triangles that rays ``d`` hit on their front
+    side (a mesh light seen directly), zero elsewhere; None when nothing emits.
+
+    emission, normals : (n, 3) per-triangle ``Le`` and unit geometric normals;
+    triangle : (k,) the rays' hit triangles (-1: a miss).
+    """
+    if emission is None:
+        return None
+    t = np.maximum(triangle, 0)
+    front = (triangle >= 0) & (np.sum(normals[t] * d, axis=1) < 0)
+    return np.where(front[:, None], emission[t], 0.0)
+
+
 def emitted(lights: tuple[Light, ...], o: np.ndarray, d: np.ndarray, t_hit: np.ndarray,
             eps: float) -> tuple[np.ndarray, np.ndarray]:
     """Radiance of quad lights seen directly along rays, where nearer than ``t_hit + eps``.
@@ -227,6 +268,20 @@ def direct_light(
             weight = np.full((k, 1), 1.0)
             scale = np.asarray(light.power) / (4.0 * np.pi)
             nl = None
+        elif light.kind == "mesh":
+            # stratified over the power CDF of the emitting triangles, a uniform point on each
+            s = np.arange(g * g)
+            ju = hash_uniform(seed, keys[:, None], 1, li, s[None, :], 0)
+            pick = (s[None, :] + ju) / (g * g)
+            j, prob = triangle_choice(light, pick.ravel())
+            r1 = hash_uniform(seed, keys[:, None], 1, li, s[None, :], 1).ravel()
+            r2 = hash_uniform(seed, keys[:, None], 1, li, s[None, :], 2).ravel()
+            target = point_on_triangles(light.triangles[j], r1, r2).reshape(k, g * g, 3)
+            weight = np.full((k, g * g), 1.0 / (g * g))
+            # Le / pdf per sample, pdf = prob / area: RGB, per sample
+            rgb = (light.radiance[j] * (light.areas[j] / prob)[:, None]).reshape(k, g * g, 3)
+            scale = None
+            nl = face_normals(light.triangles[j]).reshape(k, g * g, 3)
         else:
             s = np.arange(g * g)
             ju = hash_uniform(seed, keys[:, None], 1, li, s[None, :], 0)
@@ -243,7 +298,12 @@ def direct_light(
         dist = np.sqrt(dist2)
         with np.errstate(divide="ignore", invalid="ignore"):
             cos_x = np.sum(dirs * normals[:, None, :], axis=2) / dist
-            cos_l = 1.0 if nl is None else -(dirs @ nl) / dist
+            if nl is None:
+                cos_l = 1.0
+            elif nl.ndim == 1:
+                cos_l = -(dirs @ nl) / dist
+            else:
+                cos_l = -np.sum(dirs * nl, axis=2) / dist
             geo = np.where(dist2 > 0, weight * cos_x * cos_l / dist2, 0.0)
             front = np.sum(dirs * geometric[:, None, :], axis=2) > 0 if geometric is not None else True
         cast = (cos_x > 0) & front & (np.asarray(cos_l) > 0) & (dist2 > 0)
@@ -267,10 +327,12 @@ def direct_light(
             lit[pi, si] = _transmitted(accel, points[pi], dirs[pi, si], rel, triangles[pi], pi, transparent,
                                        batch, work, rec, page_words)
         contrib = np.where(lit > 0, geo[..., None] * lit, 0.0)
+        if scale is None:  # a mesh light: each sample's own Le / pdf
+            contrib = np.where(lit > 0, contrib * rgb, 0.0)
         total = np.zeros((k, 3))
         for j in range(contrib.shape[1]):  # a fixed order per point: packet invariant
             total += contrib[:, j]
-        irradiance += total * scale[None, :]
+        irradiance += total if scale is None else total * scale[None, :]
     return albedo / np.pi * irradiance, work, (None if rec is None else rec.collect())
 
 

@@ -94,6 +94,6 @@ def ray_cast_pixels(frame, g) -> np.ndarray:
 
     cam = frame.scene.camera
     shape = (cam.height, cam.width)
-    light = ndimage.binary_dilation((~g.every(~g.sees_light)).reshape(shape))
+    light = ndimage.binary_dilation((~g.every(~g.sees_emitter)).reshape(shape))
     specular = (g.triangle >= 0) & (frame.kind[np.maximum(g.triangle, 0)] > 0)
     return ~light & g.every(~specular).reshape(shape)

@@ -145,11 +145,16 @@ def _scene_normals(scene: Scene, normals) -> np.ndarray | None:
     return normals
 
 
-def _mesh(mi, name: str, triangles: np.ndarray, normals: np.ndarray | None, bsdf: dict):
-    """A Mitsuba mesh of ``triangles`` (k, 3, 3) with unshared vertices."""
+def _mesh(mi, name: str, triangles: np.ndarray, normals: np.ndarray | None, bsdf: dict,
+          emission: tuple[float, float, float] | None = None):
+    """A Mitsuba mesh of ``triangles`` (k, 3, 3) with unshared vertices; with
+    ``emission`` (RGB radiance) an ``area`` emitter too (one-sided, along the winding's
+    normal, as a mesh light of ours)."""
     k = triangles.shape[0]
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
+    if emission is not None and max(emission) > 0:
+        props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(np.asarray(emission, dtype=np.float64))})
     props["face_normals"] = normals is None
     mesh = mi.Mesh(name, 3 * k, k, props, has_vertex_normals=normals is not None)
     params = mi.traverse(mesh)
@@ -167,6 +172,8 @@ def _extent(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """Bounding box of the triangles, the lights and the eye."""
     pts = [np.asarray(scene.triangles, dtype=np.float64).reshape(-1, 3), np.asarray([scene.camera.eye])]
     for lt in scene.lights:
+        if lt.kind == "mesh":  # its triangles are the scene's
+            continue
         if lt.kind == "point":
             pts.append(np.asarray([lt.position]))
         else:
@@ -198,7 +205,7 @@ def _normalised(scene: Scene) -> Scene:
 
     lights = tuple(replace(lt, position=pt(lt.position), corner=pt(lt.corner), edge_u=vec(lt.edge_u),
                            edge_v=vec(lt.edge_v), power=tuple(float(x) * k * k for x in lt.power))
-                   for lt in scene.lights)
+                   for lt in scene.lights if lt.kind != "mesh")  # a mesh light goes with its material
     camera = replace(scene.camera, eye=(0.0, 0.0, 0.0), target=pt(scene.camera.target))
     triangles = (np.asarray(scene.triangles, dtype=np.float64) - eye) * k
     return replace(scene, triangles=triangles, lights=lights, camera=camera)
@@ -276,7 +283,7 @@ def scene_dict(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
         sel = material_index == m
         material = scene.materials[int(m)]
         doc[f"mesh_{int(m)}"] = _mesh(mi, material.name, tri[sel], None if nrm is None else nrm[sel],
-                                      _bsdf(material))
+                                      _bsdf(material), material.emission)
     for i, light in enumerate(scene.lights):
         if light.kind == "point":
             doc[f"light_{i}"] = {"type": "point", "position": [float(x) for x in light.position],
@@ -321,8 +328,8 @@ def oracle_key(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
         h.update(np.ascontiguousarray(nrm, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(scene.material_index, dtype=np.int64).tobytes())
     doc = {
-        "materials": [asdict(m) for m in scene.materials],
-        "lights": [asdict(lt) for lt in scene.lights],
+        "materials": [m.record() for m in scene.materials],
+        "lights": [lt.record() for lt in scene.lights],
         "camera": asdict(scene.camera),
         "settings": {"integrator": integrator, "spp": int(spp), "max_depth": int(max_depth), "seed": int(seed)},
         "mapping": MAPPING_VERSION,

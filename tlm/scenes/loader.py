@@ -29,9 +29,9 @@ SCENE_KEYS = (
     "lights", "camera", "resolution", "photons", "transform", "extends", "crease_angle",
 )
 MATERIAL_KEYS = {
-    "lambertian": ("type", "albedo"),
-    "mirror": ("type", "reflectance"),
-    "dielectric": ("type", "ior", "transmittance"),
+    "lambertian": ("type", "albedo", "emission"),
+    "mirror": ("type", "reflectance", "emission"),
+    "dielectric": ("type", "ior", "transmittance", "emission"),
 }
 LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power")}
 CAMERA_KEYS = ("eye", "target", "up", "vfov")
@@ -47,8 +47,13 @@ def scenes_dir() -> Path:
 
 
 def list_scenes() -> list[str]:
-    """The built-in names (a file of a subfolder, such as ``thesis/ring``, is named with it)."""
-    return sorted(p.stem for p in scenes_dir().glob("*.yaml"))
+    """The built-in names: every ``.yaml`` under the scenes folder, by its relative path
+    without the suffix (``cornell``, ``thesis/ring``, ``examples/mesh_on_floor``)."""
+    root = scenes_dir()
+    return sorted(
+        p.relative_to(root).with_suffix("").as_posix() for p in root.rglob("*.yaml")
+        if p.is_file() and not any(q.startswith((".", "_")) for q in p.relative_to(root).parts)
+    )
 
 
 def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | None = None) -> Path:
@@ -64,7 +69,11 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
         for cand in ([base / p] if base is not None and not p.is_absolute() else []) + [p]:
             if cand.is_file():
                 return cand
-        raise InputError(f"scene file {ref!r} not found", source=config_source, key="scene")
+        if not p.is_absolute() and (scenes_dir() / p).is_file():
+            return scenes_dir() / p  # thesis/ring.yaml
+        stem = ref[: -len(p.suffix)] if p.suffix in (".yaml", ".yml") else ref
+        raise InputError(f"scene file {ref!r} not found{did_you_mean(stem, list_scenes())}",
+                         source=config_source, key="scene")
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
@@ -129,14 +138,48 @@ def _typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) ->
 def _material(name: str, raw: Any, src: str) -> Material:
     key = f"materials.{name}"
     raw, kind = _typed(raw, src, key, MATERIAL_KEYS)
+    emission = _vec(raw.get("emission", [0.0, 0.0, 0.0]), src, f"{key}.emission", lo=0.0)
     if kind == "lambertian":
-        return Material(name, kind, albedo=_vec(raw.get("albedo"), src, f"{key}.albedo", lo=0.0, hi=1.0))
+        albedo = _vec(raw.get("albedo"), src, f"{key}.albedo", lo=0.0, hi=1.0)
+        return Material(name, kind, albedo=albedo, emission=emission)
     if kind == "mirror":
         refl = _vec(raw.get("reflectance"), src, f"{key}.reflectance", lo=0.0, hi=1.0)
-        return Material(name, kind, reflectance=refl)
+        return Material(name, kind, reflectance=refl, emission=emission)
     ior = _num(raw.get("ior"), src, f"{key}.ior", lo=0.0, lo_exclusive=True)
     trans = _vec(raw.get("transmittance", [1.0, 1.0, 1.0]), src, f"{key}.transmittance", lo=0.0, hi=1.0)
-    return Material(name, kind, ior=ior, transmittance=trans)
+    return Material(name, kind, ior=ior, transmittance=trans, emission=emission)
+
+
+def mesh_light(triangles: np.ndarray, material_index: np.ndarray, materials: tuple[Material, ...]) -> Light | None:
+    """The scene's emitting triangles as one ``mesh`` light, or None when none emits.
+
+    Triangles of zero area are left out (they emit nothing). The power is
+    ``pi * sum(Le * area)``: a Lambertian emitter's radiant exitance is ``pi Le``.
+    """
+    emits = np.array([m.emits for m in materials], dtype=bool)
+    ids = np.flatnonzero(emits[material_index])
+    if ids.shape[0] == 0:
+        return None
+    tri = np.ascontiguousarray(triangles[ids], dtype=np.float64)
+    areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    keep = areas > 0
+    ids, tri, areas = ids[keep], tri[keep], areas[keep]
+    if ids.shape[0] == 0:
+        return None
+    le = np.array([m.emission for m in materials], dtype=np.float64)[material_index[ids]]
+    power = np.pi * (le * areas[:, None]).sum(axis=0)
+    names = [materials[i].name for i in np.unique(material_index[ids])]
+    return Light("mesh", tuple(float(x) for x in power), name=", ".join(names),
+                 ids=ids.astype(np.int64), triangles=tri, radiance=le)
+
+
+def with_mesh_light(scene: Scene) -> Scene:
+    """``scene`` with its mesh light (the emitting triangles) rebuilt from its geometry."""
+    from dataclasses import replace
+
+    lights = tuple(lt for lt in scene.lights if lt.kind != "mesh")
+    light = mesh_light(scene.triangles, scene.material_index, scene.materials)
+    return replace(scene, lights=lights if light is None else (*lights, light))
 
 
 def _light(i: int, raw: Any, src: str) -> Light:
@@ -158,37 +201,11 @@ def _light(i: int, raw: Any, src: str) -> Light:
 
 
 def _geometry(raw: Any, src: str, path: Path) -> Geometry:
-    from tlm.scenes.builders import BUILDERS
+    """``geometry:``, one item (builder, mesh or shape) or a list of them, each with an
+    optional ``transform`` and ``name`` (:mod:`tlm.scenes.compose`)."""
+    from tlm.scenes.compose import compose_geometry
 
-    raw = _mapping(raw, src, "geometry")
-    _keys(raw, ("builder", "params", "mesh"), src, "geometry")
-    if ("builder" in raw) == ("mesh" in raw):
-        raise InputError("give exactly one of 'builder' or 'mesh'", source=src, key="geometry")
-    if "mesh" in raw:
-        mesh = raw["mesh"]
-        if not isinstance(mesh, str):
-            raise InputError(f"{mesh!r} is not a file name", source=src, key="geometry.mesh")
-        mpath = Path(mesh)
-        if not mpath.is_absolute():
-            mpath = path.parent / mpath
-        if not mpath.is_file():
-            raise InputError(f"mesh file {str(mpath)!r} not found", source=src, key="geometry.mesh")
-        from tlm.scenes.meshes import load_mesh
-
-        return load_mesh(mpath)
-    name = raw["builder"]
-    if name not in BUILDERS:
-        raise InputError(
-            f"{name!r} is not a builder ({', '.join(BUILDERS)}){did_you_mean(str(name), BUILDERS)}",
-            source=src, key="geometry.builder",
-        )
-    params = _mapping(raw.get("params") or {}, src, "geometry.params")
-    try:
-        return BUILDERS[name](**params)
-    except TypeError as e:
-        raise InputError(f"bad builder parameter ({e})", source=src, key="geometry.params") from None
-    except ValueError as e:
-        raise InputError(str(e), source=src, key="geometry.params") from None
+    return compose_geometry(raw, src, path)
 
 
 def _check_triangles(tri: np.ndarray, src: str) -> None:
@@ -266,35 +283,8 @@ def load_scene(
     tri = np.asarray(geom.triangles, dtype=np.float64)
     _check_triangles(tri, src)
 
-    materials_raw = _mapping(raw.get("materials") or {}, src, "materials")
-    if not materials_raw:
-        raise InputError("no materials defined", source=src, key="materials")
-    materials = tuple(_material(str(k), v, src) for k, v in materials_raw.items())
-    names = [m.name for m in materials]
-    parts_raw = _mapping(raw.get("parts") or {}, src, "parts")
-    default = raw.get("default_material")
-    if default is not None and default not in names:
-        raise InputError(f"{default!r} is not a material{did_you_mean(str(default), names)}",
-                         source=src, key="default_material")
-    part_material = []
-    for p in parts_raw:
-        if p not in geom.part_names:
-            raise InputError(
-                f"the geometry has no part {p!r} (parts: {', '.join(geom.part_names)})"
-                f"{did_you_mean(str(p), geom.part_names)}",
-                source=src, key=f"parts.{p}",
-            )
-    for p in geom.part_names:
-        m = parts_raw.get(p, default)
-        if m is None:
-            raise InputError(f"part {p!r} has no material and there is no default_material",
-                             source=src, key="parts")
-        if m not in names:
-            raise InputError(f"{m!r} is not a material{did_you_mean(str(m), names)}",
-                             source=src, key=f"parts.{p}")
-        part_material.append(names.index(m))
+    materials, material_index = _assign_materials(raw, geom, src)
     part = np.asarray(geom.part, dtype=np.int32)
-    material_index = np.asarray(part_material, dtype=np.int32)[part]
 
     lights_raw = raw.get("lights") or []
     if not isinstance(lights_raw, list):
@@ -326,6 +316,9 @@ def load_scene(
     scale, translate = 1.0, (0.0, 0.0, 0.0)
     if raw.get("transform") is not None:
         tr = _mapping(raw["transform"], src, "transform")
+        if "rotate" in tr:
+            raise InputError("the scene's transform takes scale and translate; rotate geometry with a "
+                             "geometry item's transform (docs/scenes.md)", source=src, key="transform.rotate")
         _keys(tr, ("scale", "translate"), src, "transform")
         scale = _num(tr.get("scale", 1.0), src, "transform.scale", lo=0.0, lo_exclusive=True)
         translate = _vec(tr.get("translate", [0.0, 0.0, 0.0]), src, "transform.translate")
@@ -353,7 +346,63 @@ def load_scene(
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):
         scene = transform_scene(scene, scale, np.asarray(translate))
-    return scene
+    return with_mesh_light(scene)
+
+
+def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Material, ...], np.ndarray]:
+    """The scene's materials and each triangle's index into them.
+
+    A triangle takes, in order of precedence: its part's material under ``parts:``;
+    the material the mesh file gives it (a ``materials:`` entry of the same name
+    replaces the file's); ``default_material``. The file's materials come first, in the
+    file's order, then the scene file's others.
+    """
+    materials_raw = _mapping(raw.get("materials") or {}, src, "materials")
+    file_mats = tuple(geom.materials)
+    if not materials_raw and not file_mats:
+        raise InputError("no materials defined (and the geometry's file defines none)", source=src, key="materials")
+    yaml_mats = {str(k): _material(str(k), v, src) for k, v in materials_raw.items()}
+    file_names = [m.name for m in file_mats]
+    materials = tuple(yaml_mats.get(m.name, m) for m in file_mats) + tuple(
+        m for k, m in yaml_mats.items() if k not in file_names)
+    names = [m.name for m in materials]
+    parts_raw = _mapping(raw.get("parts") or {}, src, "parts")
+    default = raw.get("default_material")
+    if default is not None and default not in names:
+        raise InputError(f"{default!r} is not a material{did_you_mean(str(default), names)}",
+                         source=src, key="default_material")
+    for p in parts_raw:
+        if p not in geom.part_names:
+            raise InputError(
+                f"the geometry has no part {p!r} (parts: {', '.join(geom.part_names)})"
+                f"{did_you_mean(str(p), geom.part_names)}",
+                source=src, key=f"parts.{p}",
+            )
+    part = np.asarray(geom.part, dtype=np.int32)
+    # per part: the scene file's material, or -1 (the file's material, else the default)
+    part_material = np.full(len(geom.part_names), -1, dtype=np.int32)
+    for i, p in enumerate(geom.part_names):
+        m = parts_raw.get(p)
+        if m is None:
+            continue
+        if m not in names:
+            raise InputError(f"{m!r} is not a material{did_you_mean(str(m), names)}",
+                             source=src, key=f"parts.{p}")
+        part_material[i] = names.index(m)
+    material_index = part_material[part]
+    if geom.face_material is not None and file_mats:
+        # file material j is material j of the scene (the file's come first)
+        face = np.asarray(geom.face_material, dtype=np.int32)
+        material_index = np.where(material_index < 0, face, material_index)
+    unset = material_index < 0
+    if unset.any():
+        if default is None:
+            parts = sorted({geom.part_names[i] for i in np.unique(part[unset])})
+            raise InputError(f"part {parts[0]!r} has no material and there is no default_material"
+                             + (f" ({len(parts)} parts lack one)" if len(parts) > 1 else ""),
+                             source=src, key="parts")
+        material_index = np.where(unset, names.index(default), material_index).astype(np.int32)
+    return materials, np.asarray(material_index, dtype=np.int32)
 
 
 def transform_scene(scene: Scene, scale: float, translate: np.ndarray) -> Scene:
@@ -379,7 +428,8 @@ def transform_scene(scene: Scene, scale: float, translate: np.ndarray) -> Scene:
             edge_u=vec(lt.edge_u),
             edge_v=vec(lt.edge_v),
         )
-        for lt in scene.lights
+        for lt in scene.lights if lt.kind != "mesh"
     )
     cam = replace(scene.camera, eye=pt(scene.camera.eye), target=pt(scene.camera.target))
-    return replace(scene, triangles=scene.triangles * scale + translate, lights=lights, camera=cam)
+    moved = replace(scene, triangles=scene.triangles * scale + translate, lights=lights, camera=cam)
+    return with_mesh_light(moved)

@@ -42,6 +42,13 @@ class Material:
     def emits(self) -> bool:
         return max(self.emission) > 0.0
 
+    def record(self) -> dict:
+        """The material as plain data (for hashes): its fields, ``emission`` only when it emits
+        (so a material's record is what it was before emission existed)."""
+        out = {"name": self.name, "kind": self.kind, "albedo": self.albedo, "reflectance": self.reflectance,
+               "ior": self.ior, "transmittance": self.transmittance}
+        return {**out, "emission": self.emission} if self.emits else out
+
 
 @dataclass(frozen=True)
 class Light:
@@ -68,6 +75,16 @@ class Light:
     ids: np.ndarray | None = field(default=None, compare=False, repr=False)
     triangles: np.ndarray | None = field(default=None, compare=False, repr=False)
     radiance: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    def record(self) -> dict:
+        """The light as plain data (for hashes and results.json): a quad or point light's
+        fields as before mesh lights existed; a mesh light's kind, power, name and
+        triangle count (its triangles and radiance are the scene's geometry and materials)."""
+        if self.kind == "mesh":
+            return {"kind": self.kind, "power": list(self.power), "name": self.name,
+                    "triangles": int(self.ids.shape[0])}
+        return {"kind": self.kind, "power": self.power, "position": self.position, "corner": self.corner,
+                "edge_u": self.edge_u, "edge_v": self.edge_v}
 
     @property
     def area(self) -> float:
