@@ -60,7 +60,7 @@ def _rcast(scene: Scene, **render) -> tuple[np.ndarray, np.ndarray]:
     frame = Frame.create(scene, build_accel(scene.triangles), cfg)
     w, h = scene.camera.width, scene.camera.height
     g = cast(frame, np.arange(w * h))
-    radiance, work = rcast_pass(frame, g)
+    radiance, _ = rcast_pass(frame, g)
     seen = g.every(~g.sees_emitter)
     return radiance.reshape(h, w, 3), seen.reshape(h, w)
 
@@ -94,7 +94,7 @@ def test_triangle_choice_follows_power():
 def test_mesh_light_photons_carry_its_power_from_its_front():
     scene = _box(8, 8, emitter=True)
     (light,) = scene.lights
-    o, d, power, group, source = emit(scene.lights, 20000, photon_key(1), with_source=True)
+    o, d, power, _, source = emit(scene.lights, 20000, photon_key(1), with_source=True)
     np.testing.assert_allclose(power.sum(axis=0), POWER, rtol=1e-9)
     assert set(np.unique(source)) <= set(light.ids.tolist())
     assert np.all(d[:, 1] < 0)  # the emitter faces down: every photon leaves below it

@@ -73,6 +73,48 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _scene_file(path: Path) -> Path | None:
+    """``path`` (resolved) when ``tlm run`` was given a scene file rather than a run config:
+    it has ``geometry`` (or ``extends``) and no ``scene``. None for a config (whose own
+    loading reports its typos). A file that is neither is an InputError saying what to write."""
+    import dataclasses
+
+    from tlm.config import RunConfig, read_yaml
+    from tlm.errors import did_you_mean
+    from tlm.scenes.loader import SCENE_KEYS
+
+    raw = read_yaml(path)
+    if not isinstance(raw, dict) or not raw or "scene" in raw:
+        return None
+    if "geometry" in raw or "extends" in raw:
+        return path.resolve()
+    fields = [f.name for f in dataclasses.fields(RunConfig)]
+    keys = [str(k) for k in raw]
+    # keys both kinds of file have (resolution, photons) say nothing; a near miss of a config
+    # key is a config's typo, which the config's own loading reports
+    if any(k not in SCENE_KEYS and (k in fields or did_you_mean(k, fields)) for k in keys):
+        return None
+    hint = next((f"; {k!r}{did_you_mean(k, SCENE_KEYS)}" for k in keys if did_you_mean(k, SCENE_KEYS)
+                 and k not in SCENE_KEYS), "")
+    what = ("a scene file needs `geometry:` (a builder, a mesh or shapes: docs/scenes.md)"
+            if any(k in SCENE_KEYS for k in keys) else "a scene file has `geometry:` (docs/scenes.md)")
+    what += hint
+    raise InputError(f"neither a run config nor a scene file (keys: {', '.join(keys)}): a config names its "
+                     f"scene, `scene: cornell` or `scene: path/to/scene.yaml` (see 'tlm params'); {what}",
+                     source=str(path))
+
+
+def _scene_file_config(scene: Path, overrides: list[str]):
+    """The default run config of a scene file, as if it were ``{scene: SCENE}``, with ``--set``."""
+    from tlm.config import apply_overrides, config_from_dict
+
+    source = f"(the defaults for scene file {scene})"
+    raw = {"scene": str(scene)}
+    if overrides:
+        raw, source = apply_overrides(raw, overrides), f"{source} (with --set)"
+    return config_from_dict(raw, source)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from tlm.config import load_config
     from tlm.experiments.run import OUTPUTS, parse_outputs, run
@@ -83,7 +125,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"mode={args.mode}")
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
-    cfg, base = load_config(Path(args.config), overrides)
+    scene_file = _scene_file(Path(args.config))
+    if scene_file is None:
+        cfg, base = load_config(Path(args.config), overrides)
+    else:
+        _say(f"{args.config} is a scene file: rendering it with the default settings "
+             f"(a config would say `scene: {args.config}`; see 'tlm params')")
+        cfg, base = _scene_file_config(scene_file, overrides), scene_file.parent
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     results = run(cfg, out, base, config_path=str(args.config), overrides=overrides, outputs=outputs,
                   progress=not args.no_progress)
@@ -97,9 +145,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"  pass {name:8s} photons {ph['emitted']:>8d} stored {ph['stored']:>8d} "
                   f"({ph['caustic']} caustic); {ph['filter']} gathers {w['gathers']}, "
                   f"photons tested {w['photons_tested']}")
+            per = [f"{m} r={ph[key]:.4g} ({ph[f'{key}_rule']}"
+                   + (f", ~{ph[f'{key}_photons']} photons" if f"{key}_photons" in ph else "")
+                   + f"): tested {g['photons_tested_per_gather']:.1f} accepted {g['photons_accepted_per_gather']:.1f}"
+                   for m, key in (("caustic", "caustic_radius"), ("indirect", "radius"), ("photons", "radius"))
+                   if (g := ph.get("gather", {}).get(m))]
+            print(f"    per gather: tested {w['photons_tested_per_gather']:.1f} accepted "
+                  f"{w['photons_accepted_per_gather']:.1f}" + "".join(f"; {x}" for x in per))
             continue
         print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
-              f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d}")
+              f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d} "
+              f"({w['tri_tests_per_ray']:.1f} per ray, {w['tri_tests_per_shadow_ray']:.1f} per shadow ray)")
     for name, why in results["plan"]["left_out"].items():
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:
@@ -153,12 +209,28 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scene_description(name: str) -> str:
+    """A built-in scene's ``description:``, else its first comment line (cheap: no geometry)."""
+    from tlm.config import read_yaml
+    from tlm.scenes.loader import scenes_dir
+
+    path = scenes_dir() / f"{name}.yaml"
+    try:
+        raw = read_yaml(path)
+        if isinstance(raw, dict) and isinstance(raw.get("description"), str):
+            return raw["description"]
+        first = path.read_text(encoding="utf-8").splitlines()[0]
+    except (InputError, OSError, IndexError):
+        return ""
+    return first.lstrip("#").strip() if first.startswith("#") else ""
+
+
 def _cmd_scene(args: argparse.Namespace) -> int:
     from tlm.scenes.loader import list_scenes, load_scene
 
     if args.scene_cmd == "list":
         for name in list_scenes():
-            print(name)
+            print(f"{name:28s} {_scene_description(name)}".rstrip() if args.long else name)
         return 0
     scene = load_scene(args.name, Path.cwd())
     if args.scene_cmd == "show":
@@ -353,7 +425,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 "ray-tracing and photon-mapping GPU (2004).")
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
-    r.add_argument("config", help="experiment YAML (see 'tlm params')")
+    r.add_argument("config", help="experiment YAML (see 'tlm params'), or a scene YAML to render at the "
+                   "default settings")
     r.add_argument("--out", help="run folder (default: runs/<config name>)")
     r.add_argument("--mode", choices=MODES, help="override the mode")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
@@ -383,7 +456,8 @@ def build_parser() -> argparse.ArgumentParser:
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
     ss = s.add_subparsers(dest="scene_cmd", required=True)
-    ss.add_parser("list", help="the built-in scenes")
+    sl = ss.add_parser("list", help="the built-in scenes (names for a config's scene: key)")
+    sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
     sh = ss.add_parser("show", help="triangle count, bounds, materials, lights")
     sh.add_argument("name", help="built-in scene name or scene YAML path")
     se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ)")

@@ -1,0 +1,343 @@
+"""A scene's ``geometry:``: one item, or a list of items merged into one Geometry.
+
+An *item* is a mapping with exactly one source key:
+
+* ``builder: NAME`` with ``params: {...}`` (the thesis's scenes: ``ring``, ``room``, ``cornell``);
+* ``mesh: FILE`` (OBJ, PLY, STL, GLB/glTF, relative to the scene file that names it);
+* ``shape: NAME`` with ``params: {...}``, a primitive needing no file (:data:`SHAPES`):
+  ``plane`` (a floor), ``quad``, ``box``, ``sphere``, ``cylinder``;
+
+and optionally
+
+* ``transform: {scale, rotate, translate}``: scale (a number or ``[sx, sy, sz]``, no
+  zero; a negative one mirrors), then rotate (degrees ``[rx, ry, rz]``: about x, then y,
+  then z, right-handed, i.e. ``p' = Rz Ry Rx S p + t``), then translate; shading normals
+  from a mesh file follow by the inverse transpose, and a mirroring transform reverses
+  each triangle's vertex order so that front faces stay front faces;
+* ``name: N``: the item's part names become ``N`` (an item of one part) or ``N.PART``
+  (an item of several parts, e.g. a builder's).
+
+``geometry: {...}`` (one item) is what scene files always had; ``geometry: [...]`` merges
+the items in list order (triangle ids follow it): triangles, parts, shading normals (an
+item without file normals gets crease normals at the default angle, as the loader would
+give it: parts never span items), the file materials (two files' equal materials become
+one; a different one under a name already used is renamed ``NAME_2``) and
+``face_material`` (re-indexed, -1 kept). A part name that an earlier item already uses is renamed ``PART_2``
+(then ``_3`` ...) unless the item has a ``name``, in which case it is an error. Every
+problem is an :class:`~tlm.errors.InputError` naming the file and the key
+(``geometry[1].transform.scale``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tlm.errors import InputError, did_you_mean
+from tlm.scenes.model import Geometry
+
+__all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "transform_geometry"]
+
+SOURCES = ("builder", "mesh", "shape")
+ITEM_KEYS = ("builder", "mesh", "shape", "params", "transform", "name")
+TRANSFORM_KEYS = ("scale", "rotate", "translate")
+# shape name -> its params and their defaults (None: required)
+SHAPES: dict[str, dict[str, Any]] = {
+    "plane": {"size": [1.0, 1.0], "divisions": [1, 1]},
+    "quad": {"corner": None, "edge_u": None, "edge_v": None, "divisions": [1, 1]},
+    "box": {"min": [-0.5, -0.5, -0.5], "max": [0.5, 0.5, 0.5], "divisions": 1},
+    "sphere": {"center": [0.0, 0.0, 0.0], "radius": 1.0, "segments": 32, "rings": 16},
+    "cylinder": {"center": [0.0, 0.0, 0.0], "radius": 1.0, "height": 1.0, "segments": 32},
+}
+
+
+# The checks of tlm.scenes.loader (_mapping, _keys, _vec, _num), with its messages: the
+# loader imports this module, so this one cannot import it (no import cycles).
+
+
+def _mapping(v: Any, src: str, key: str) -> dict:
+    if not isinstance(v, dict):
+        raise InputError(f"must be a mapping, got {v!r}", source=src, key=key)
+    return v
+
+
+def _keys(d: dict, allowed: tuple[str, ...], src: str, key: str) -> None:
+    for k in d:
+        if k not in allowed:
+            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=src, key=f"{key}.{k}")
+
+
+def _vec(v: Any, src: str, key: str, n: int = 3) -> tuple[float, ...]:
+    ok = isinstance(v, list) and len(v) == n and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
+    )
+    if not ok:
+        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
+    if not all(math.isfinite(x) for x in v):
+        raise InputError(f"{v!r} is not finite", source=src, key=key)
+    return tuple(float(x) for x in v)
+
+
+def _num(v: Any, src: str, key: str, positive: bool = False) -> float:
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
+    if positive and not v > 0:
+        raise InputError(f"{v!r} must be > 0", source=src, key=key)
+    return float(v)
+
+
+def _whole(v: Any, src: str, key: str, lo: int) -> int:
+    if not isinstance(v, int) or isinstance(v, bool) or v < lo:
+        raise InputError(f"{v!r} must be a whole number >= {lo}", source=src, key=key)
+    return int(v)
+
+
+def _ints(v: Any, src: str, key: str, n: int, lo: int) -> list[int]:
+    if not isinstance(v, list) or len(v) != n:
+        raise InputError(f"{v!r} is not a list of {n} whole numbers", source=src, key=key)
+    return [_whole(x, src, key, lo) for x in v]
+
+
+# ---------------------------------------------------------------- transforms
+
+
+def _rotation(axis: int, degrees: float) -> np.ndarray:
+    """Right-handed rotation about x (0), y (1) or z (2); exact at multiples of 90 degrees."""
+    quarter = degrees / 90.0
+    if quarter == round(quarter):
+        c, s = ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[round(quarter) % 4]
+    else:
+        c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    r = np.eye(3)
+    r[i, i], r[i, j], r[j, i], r[j, j] = c, -s, s, c
+    return r
+
+
+def item_transform(raw: Any, src: str, key: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """``transform: {scale, rotate, translate}`` as ``(M, t)`` with ``p' = M p + t``;
+    None when it is absent or the identity."""
+    if raw is None:
+        return None
+    tr = _mapping(raw, src, key)
+    _keys(tr, TRANSFORM_KEYS, src, key)
+    scale = tr.get("scale", 1.0)
+    if isinstance(scale, list):
+        s = np.asarray(_vec(scale, src, f"{key}.scale"))
+    else:
+        s = np.full(3, _num(scale, src, f"{key}.scale"))
+    if np.any(s == 0.0):
+        raise InputError(f"{scale!r} must be non-zero (a negative scale mirrors)", source=src, key=f"{key}.scale")
+    rx, ry, rz = _vec(tr.get("rotate", [0.0, 0.0, 0.0]), src, f"{key}.rotate")
+    t = np.asarray(_vec(tr.get("translate", [0.0, 0.0, 0.0]), src, f"{key}.translate"))
+    m = _rotation(2, rz) @ _rotation(1, ry) @ _rotation(0, rx) @ np.diag(s)
+    if np.array_equal(m, np.eye(3)) and not t.any():
+        return None
+    return m, t
+
+
+def transform_geometry(geom: Geometry, m: np.ndarray, t: np.ndarray) -> Geometry:
+    """``p' = M p + t`` on the triangles; file normals by the inverse transpose; a
+    mirroring ``M`` (negative determinant) reverses each triangle's vertex order."""
+    with np.errstate(over="ignore", invalid="ignore"):  # the caller checks the result is finite
+        tri = np.asarray(geom.triangles, dtype=np.float64) @ m.T + t
+        normals = geom.normals
+        if normals is not None:
+            normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(m)
+            length = np.linalg.norm(normals, axis=2, keepdims=True)
+            normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+        mirrors = np.linalg.det(m / np.abs(m).max()) < 0.0
+    if mirrors:
+        tri = tri[:, [0, 2, 1]]
+        normals = None if normals is None else normals[:, [0, 2, 1]]
+    return replace(geom, triangles=np.ascontiguousarray(tri), normals=normals)
+
+
+# ---------------------------------------------------------------- sources
+
+
+def _params(raw: dict, src: str, key: str) -> dict:
+    return _mapping(raw.get("params") or {}, src, f"{key}.params")
+
+
+def _builder(raw: dict, src: str, key: str) -> Geometry:
+    from tlm.scenes.builders import BUILDERS
+
+    name = raw["builder"]
+    if not isinstance(name, str) or name not in BUILDERS:
+        raise InputError(
+            f"{name!r} is not a builder ({', '.join(BUILDERS)}){did_you_mean(str(name), BUILDERS)}",
+            source=src, key=f"{key}.builder",
+        )
+    params = _params(raw, src, key)
+    try:
+        return BUILDERS[name](**params)
+    except TypeError as e:
+        raise InputError(f"bad builder parameter ({e})", source=src, key=f"{key}.params") from None
+    except ValueError as e:
+        raise InputError(str(e), source=src, key=f"{key}.params") from None
+
+
+def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
+    from tlm.scenes.meshes import load_mesh
+
+    mesh = raw["mesh"]
+    if not isinstance(mesh, str) or not mesh:
+        raise InputError(f"{mesh!r} is not a file name", source=src, key=f"{key}.mesh")
+    if "params" in raw:
+        raise InputError("a mesh takes no params (scale, rotate and move it with transform)",
+                         source=src, key=f"{key}.params")
+    mpath = Path(mesh)
+    if not mpath.is_absolute():
+        mpath = path.parent / mpath
+    if not mpath.is_file():
+        raise InputError(f"mesh file {str(mpath)!r} not found", source=src, key=f"{key}.mesh")
+    return load_mesh(mpath)
+
+
+def _shape(raw: dict, src: str, key: str) -> Geometry:
+    from tlm.scenes import shapes
+
+    kind = raw["shape"]
+    if not isinstance(kind, str) or kind not in SHAPES:
+        raise InputError(f"{kind!r} is not a shape ({', '.join(SHAPES)}){did_you_mean(str(kind), SHAPES)}",
+                         source=src, key=f"{key}.shape")
+    pk = f"{key}.params"
+    given = _params(raw, src, key)
+    _keys(given, tuple(SHAPES[kind]), src, pk)
+    p = {**SHAPES[kind], **given}
+    for name, value in p.items():
+        if value is None:
+            raise InputError(f"a {kind} needs {name}", source=src, key=f"{pk}.{name}")
+    if kind == "plane":  # centred on the origin in y = 0, facing +y
+        w, d = _vec(p["size"], src, f"{pk}.size", n=2)
+        if not (w > 0 and d > 0):
+            raise InputError(f"{p['size']!r} must be positive", source=src, key=f"{pk}.size")
+        nu, nv = _ints(p["divisions"], src, f"{pk}.divisions", 2, 1)
+        tri = shapes.quad((-w / 2, 0.0, d / 2), (w, 0.0, 0.0), (0.0, 0.0, -d), nu, nv)
+    elif kind == "quad":
+        c, u, v = (_vec(p[k], src, f"{pk}.{k}") for k in ("corner", "edge_u", "edge_v"))
+        if not np.linalg.norm(np.cross(u, v)) > 1e-12 * np.linalg.norm(u) * np.linalg.norm(v):
+            raise InputError("edge_u and edge_v span no area", source=src, key=pk)
+        nu, nv = _ints(p["divisions"], src, f"{pk}.divisions", 2, 1)
+        tri = shapes.quad(c, u, v, nu, nv)
+    elif kind == "box":
+        lo, hi = _vec(p["min"], src, f"{pk}.min"), _vec(p["max"], src, f"{pk}.max")
+        if not all(b > a for a, b in zip(lo, hi, strict=True)):
+            raise InputError(f"max {list(hi)} must exceed min {list(lo)} in x, y and z", source=src, key=pk)
+        tri = shapes.aabox(lo, hi, n=_whole(p["divisions"], src, f"{pk}.divisions", 1))
+    elif kind == "sphere":
+        c = _vec(p["center"], src, f"{pk}.center")
+        r = _num(p["radius"], src, f"{pk}.radius", positive=True)
+        tri = shapes.uv_sphere(c, r, _whole(p["segments"], src, f"{pk}.segments", 3),
+                               _whole(p["rings"], src, f"{pk}.rings", 2))
+    else:  # cylinder: base centre, along +y, both caps
+        c = _vec(p["center"], src, f"{pk}.center")
+        r = _num(p["radius"], src, f"{pk}.radius", positive=True)
+        h = _num(p["height"], src, f"{pk}.height", positive=True)
+        tri = shapes.cylinder(c, r, h, _whole(p["segments"], src, f"{pk}.segments", 3))
+    tri = np.ascontiguousarray(tri, dtype=np.float64)
+    return Geometry(triangles=tri, part=np.zeros(len(tri), dtype=np.int32), part_names=(kind,))
+
+
+def _item(raw: Any, src: str, path: Path, key: str) -> tuple[Geometry, str | None]:
+    """One item: its geometry, transformed and with its parts renamed, and its ``name``."""
+    if not isinstance(raw, dict):
+        raise InputError(f"must be a mapping with one of {', '.join(SOURCES)}, got {raw!r}", source=src, key=key)
+    _keys(raw, ITEM_KEYS, src, key)
+    given = [k for k in SOURCES if k in raw]
+    if len(given) != 1:
+        raise InputError(f"give exactly one of 'builder', 'mesh' or 'shape' (got {len(given)})",
+                         source=src, key=key)
+    name = raw.get("name")
+    if name is not None and (not isinstance(name, str) or not name.strip()):
+        raise InputError(f"{name!r} is not a name", source=src, key=f"{key}.name")
+    transform = item_transform(raw.get("transform"), src, f"{key}.transform")
+    if "builder" in raw:
+        geom = _builder(raw, src, key)
+    elif "mesh" in raw:
+        geom = _mesh(raw, src, path, key)
+    else:
+        geom = _shape(raw, src, key)
+    if transform is not None:
+        geom = transform_geometry(geom, *transform)
+        if not np.isfinite(geom.triangles).all():
+            raise InputError("makes vertices non-finite", source=src, key=f"{key}.transform")
+    if name is not None:
+        names = (name,) if len(geom.part_names) == 1 else tuple(f"{name}.{p}" for p in geom.part_names)
+        geom = replace(geom, part_names=names)
+    return geom, name
+
+
+# ---------------------------------------------------------------- merging
+
+
+def compose_geometry(raw: Any, src: str, path: Path) -> Geometry:
+    """The Geometry of a scene's ``geometry:`` value (one item or a list of items);
+    ``src`` and ``path`` are the scene file that names it (mesh paths are relative to it)."""
+    if isinstance(raw, dict):
+        return _item(raw, src, path, "geometry")[0]
+    if not isinstance(raw, list):
+        raise InputError(f"must be a mapping (builder, mesh or shape) or a list of them, got {raw!r}",
+                         source=src, key="geometry")
+    if not raw:
+        raise InputError("an empty list: give at least one builder, mesh or shape", source=src, key="geometry")
+    items = [_item(r, src, path, f"geometry[{i}]") for i, r in enumerate(raw)]
+    return merge([g for g, _ in items], [n for _, n in items], src)
+
+
+def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str | None = None) -> Geometry:
+    """Concatenate geometries in order: parts (renamed where names repeat), normals,
+    file materials and ``face_material`` (offset)."""
+    from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
+
+    names = names or [None] * len(geoms)
+    part_names: list[str] = []
+    parts, materials, face_material = [], [], []
+    for i, (g, item_name) in enumerate(zip(geoms, names, strict=True)):
+        local = []
+        for p in g.part_names:
+            final, k = p, 2
+            while final in part_names or final in local:
+                if item_name is not None:
+                    raise InputError(f"{p!r} is already a part name of an earlier item; give this item another name",
+                                     source=src, key=f"geometry[{i}].name")
+                final, k = f"{p}_{k}", k + 1
+            local.append(final)
+        parts.append(np.asarray(g.part, dtype=np.int32) + len(part_names))
+        part_names.extend(local)
+        index = []  # the item's file materials in the merged list: equal ones shared, a name reused renamed
+        for m in g.materials:
+            same = [j for j, o in enumerate(materials) if o == m]
+            if same:
+                index.append(same[0])
+                continue
+            taken, k, name = {o.name for o in materials}, 2, m.name
+            while name in taken:
+                name, k = f"{m.name}_{k}", k + 1
+            index.append(len(materials))
+            materials.append(replace(m, name=name))
+        fm = (np.full(len(g.triangles), -1, dtype=np.int32) if g.face_material is None
+              else np.asarray(g.face_material, dtype=np.int32))
+        lookup = np.asarray(index + [-1], dtype=np.int32)  # -1 stays -1
+        face_material.append(lookup[np.where(fm >= 0, fm, len(index))])
+    normals = None
+    if any(g.normals is not None for g in geoms):
+        normals = np.concatenate([
+            np.asarray(g.normals, dtype=np.float64) if g.normals is not None
+            else crease_normals(g.triangles, g.part, DEFAULT_CREASE_ANGLE)
+            for g in geoms
+        ])
+    any_file_materials = any(g.face_material is not None for g in geoms)
+    return Geometry(
+        triangles=np.ascontiguousarray(np.concatenate([np.asarray(g.triangles, dtype=np.float64) for g in geoms])),
+        part=np.concatenate(parts).astype(np.int32),
+        part_names=tuple(part_names),
+        normals=normals,
+        materials=tuple(materials),
+        face_material=np.concatenate(face_material) if any_file_materials else None,
+    )
