@@ -247,13 +247,16 @@ def _cmd_scene(args: argparse.Namespace) -> int:
                 {"name": m.name, "type": m.kind, "triangles": int(used[i]),
                  **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
                  **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
-                 **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {})}
+                 **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
+                 **({"emission": list(m.emission)} if m.emits else {})}
                 for i, m in enumerate(scene.materials)
             ],
             "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
             "lights": [
                 {"type": lt.kind, "power": list(lt.power),
                  **({"position": list(lt.position)} if lt.kind == "point" else
+                    {"materials": lt.name, "triangles": int(lt.ids.shape[0]), "area": lt.area}
+                    if lt.kind == "mesh" else
                     {"corner": list(lt.corner), "edge_u": list(lt.edge_u), "edge_v": list(lt.edge_v),
                      "area": lt.area})}
                 for lt in scene.lights

@@ -1,61 +1,56 @@
-"""Mesh files (OBJ, PLY, STL, GLB/GLTF) as named parts, loaded with trimesh.
+"""Mesh files (OBJ, PLY, STL, GLB/GLTF, plain or compressed) as named parts with materials.
 
 `load_mesh` turns a file into a :class:`~tlm.scenes.model.Geometry`. Nothing is
-repaired, merged or dropped: trimesh is called with ``process=False`` so that the
-triangles keep the file's face order and winding (polygons are fan-triangulated by
-trimesh's readers). A file holding one mesh becomes one part named after the file
-stem; a scene (GLB/GLTF, or an OBJ with several ``o`` objects, or several ``g`` groups
-when it has no objects) becomes one part per geometry, named by trimesh's geometry
-name, with each instance's scene-graph transform applied. Every problem is an
-:class:`~tlm.errors.InputError` naming the file.
+repaired, merged or dropped: the triangles keep the file's face order and winding,
+polygons are fan-triangulated from their first corner.
+
+* **OBJ** is read by tlm's own vectorized reader (:mod:`tlm.scenes.objfile`): one part
+  per ``o`` object when the file has any, else one per ``g`` group, else one part named
+  after the file stem (parts in file order, parts of the same name merged); its
+  ``mtllib`` libraries give ``Geometry.materials`` and each face's ``usemtl`` its
+  ``face_material`` (:mod:`tlm.scenes.materials`). A library sits beside the OBJ, plain
+  or compressed like it; a missing library, or a ``usemtl`` naming a material no
+  library defines, is an error. A file without ``mtllib`` has no materials (its
+  ``usemtl`` lines are ignored).
+* **PLY, STL, GLB/GLTF** are read with trimesh (``process=False``). A file holding one
+  mesh becomes one part named after the file stem; a scene (GLB/GLTF) one part per
+  geometry, named by trimesh's geometry name, with each instance's scene-graph
+  transform applied. glTF materials come from the file's JSON (extensions included)
+  and map to tlm's kinds by :func:`tlm.scenes.materials.gltf_material`. A PLY whose
+  faces are triangle strips (element ``tristrips``, ``-1`` restarting a strip) is
+  decoded with alternating winding; the degenerate triangles that stitch strips are
+  dropped.
+* A file ending in ``.gz``, ``.xz`` or ``.bz2`` after its format's suffix
+  (``conference.obj.xz``) is decompressed first (all but ``.gltf``).
+
+Shading normals come from the file (OBJ ``vn`` when every corner has one, PLY
+``nx ny nz``, glTF ``NORMAL``) or are None. No library warning reaches the terminal:
+loading runs under ``warnings.catch_warnings`` and ``np.errstate``. Every problem is an
+:class:`~tlm.errors.InputError` naming the file (and, for OBJ and MTL, the line).
 """
 
 from __future__ import annotations
 
+import io
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import InputError
-from tlm.scenes.model import Geometry
+from tlm.errors import InputError, did_you_mean
+from tlm.scenes.model import Geometry, Material
 
-__all__ = ["SUPPORTED_EXTENSIONS", "load_mesh"]
+__all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_format"]
 
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".glb", ".gltf")
+COMPRESSED_EXTENSIONS = (".gz", ".xz", ".bz2")
+_TAG = "tlm-material-"  # the names given to a glTF file's materials while trimesh reads it
 
 
 def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 200 else text[:197] + "..."
-
-
-def _obj_kwargs(path: Path) -> tuple[dict, list[str]]:
-    """Loader options for an OBJ file and the object (or group) names in file order."""
-    try:
-        text = path.read_text(errors="replace")
-    except OSError:
-        return {}, []
-    objects = re.findall(r"^o[ \t]+(.*?)\s*$", text, flags=re.MULTILINE)
-    groups = re.findall(r"^g[ \t]+(.*?)\s*$", text, flags=re.MULTILINE)
-    kwargs = {"group_material": False, "maintain_order": True, "skip_materials": True}
-    if objects:
-        kwargs["split_objects"] = True
-        return kwargs, objects
-    if groups:
-        kwargs["split_groups"] = True
-        return kwargs, groups
-    # One chunk: split_objects keeps trimesh from splitting at `usemtl` lines.
-    kwargs["split_objects"] = True
-    return kwargs, []
-
-
-def _file_rank(name: str, order: list[str]) -> int:
-    """Position in the file of the object/group a trimesh geometry name comes from."""
-    for i, o in enumerate(order):
-        if name == o or re.fullmatch(re.escape(o) + r"_\d+", name):
-            return i
-    return len(order)
 
 
 def _check_mesh(vertices: np.ndarray, faces: np.ndarray, label: str, source: str) -> None:
@@ -87,45 +82,189 @@ def _check_mesh(vertices: np.ndarray, faces: np.ndarray, label: str, source: str
         )
 
 
+def mesh_format(path: Path) -> tuple[str, str]:
+    """``(format suffix, compression suffix or "")`` of a mesh file name, e.g.
+    ``(".obj", ".xz")`` for ``conference.obj.xz``; an InputError for anything else."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    zext = ""
+    if ext in COMPRESSED_EXTENSIONS:
+        zext, ext = ext, Path(path.stem).suffix.lower()
+    if ext not in SUPPORTED_EXTENSIONS or (zext and ext == ".gltf"):
+        shown = (ext + zext) if zext else (path.suffix or "(none)")
+        raise InputError(
+            f"unsupported mesh extension {shown!r}; supported: {', '.join(SUPPORTED_EXTENSIONS)} "
+            f"(all but .gltf also compressed: {', '.join(COMPRESSED_EXTENSIONS)})",
+            source=str(path),
+        )
+    return ext, zext
+
+
 def load_mesh(path: Path) -> Geometry:
-    """Load a mesh file into named parts.
+    """Load a mesh file into named parts, with the materials the file defines.
 
     Parameters
     ----------
     path : Path
-        An OBJ, PLY, STL, GLB or GLTF file.
+        An OBJ, PLY, STL, GLB or GLTF file, or one of the first four compressed
+        (``.gz``, ``.xz``, ``.bz2`` after the format's suffix).
 
     Returns
     -------
     Geometry
         ``triangles`` (n, 3, 3) float64 in the file's face order (scene geometries in
-        scene-graph order, OBJ objects in file order), ``part`` (n,) int32.
+        scene-graph order, OBJ objects in file order), ``part`` (n,) int32, ``normals``
+        from the file or None, ``materials`` (the file's, mapped to tlm's kinds) and
+        ``face_material`` (n,) int32 into them (-1: the face has none; None when the
+        file defines no materials).
 
     Raises
     ------
     InputError
         Missing file, unsupported extension, unparsable file, no faces (empty mesh,
-        point cloud, path), non-triangle faces, NaN/inf vertices, bad face indices.
+        point cloud, path), non-triangle faces, NaN/inf vertices, bad face indices, a
+        missing or bad material library, an undefined material.
     """
-    import trimesh
-
     path = Path(path)
     src = str(path)
-    ext = path.suffix.lower()
-    if ext not in SUPPORTED_EXTENSIONS:
-        raise InputError(
-            f"unsupported mesh extension {path.suffix or '(none)'!r}; supported: "
-            f"{', '.join(SUPPORTED_EXTENSIONS)}",
-            source=src,
-        )
+    ext, zext = mesh_format(path)
     if not path.is_file():
         raise InputError("mesh file not found", source=src)
+    stem = Path(path.stem).stem if zext else path.stem
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        if ext == ".obj":
+            return _load_obj(path, stem, zext, src)
+        return _load_trimesh(path, ext, zext, stem, src)
+
+
+# ------------------------------------------------------------------ OBJ
+
+
+def _load_obj(path: Path, stem: str, zext: str, src: str) -> Geometry:
+    from tlm.scenes.objfile import read_obj
+
+    obj = read_obj(path, stem)
+    _check_mesh(obj.vertices, obj.faces, "the mesh", src)
+    tri = obj.vertices[obj.faces]
+    normals = None
+    if obj.corner_normals is not None:
+        normals = obj.vertex_normals[obj.corner_normals]
+        normals = _unit_or_none(normals)
+    materials, face_material = _obj_materials(path, obj, zext, src)
+    return Geometry(
+        triangles=np.ascontiguousarray(tri, dtype=np.float64),
+        part=obj.part,
+        part_names=obj.part_names,
+        normals=normals,
+        materials=materials,
+        face_material=face_material,
+    )
+
+
+def _unit_or_none(normals: np.ndarray) -> np.ndarray | None:
+    """Unit per-corner normals, or None when the file's are not finite (the loader then
+    computes crease normals)."""
+    if not np.isfinite(normals).all():
+        return None
+    length = np.linalg.norm(normals, axis=2, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+
+
+def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) -> list[Path]:
+    """The files an ``mtllib`` statement names, found beside the OBJ (plain first, then
+    compressed like the OBJ); a missing one is an error naming the OBJ and the MTL."""
+    folder = obj_path.parent
+
+    def find(name: str) -> Path | None:
+        name = name.replace("\\", "/")
+        for candidate in ([name, name + zext] if zext else [name]):
+            p = folder / candidate
+            if p.is_file():
+                return p
+        return None
+
+    whole = find(text) if text else None
+    if whole is not None:
+        return [whole]
+    words = text.split()
+    if not words:
+        raise InputError(f"line {line}: 'mtllib' names no file", source=src)
+    out = []
+    for word in words:
+        p = find(word)
+        if p is None:
+            looked = folder / word.replace("\\", "/")
+            also = f" or {looked}{zext}" if zext else ""
+            raise InputError(f"line {line}: the material library {word!r} (mtllib) is missing: "
+                             f"no file {looked}{also}", source=src)
+        out.append(p)
+    return out
+
+
+def _obj_materials(path: Path, obj, zext: str, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
+    from tlm.scenes.materials import parse_mtl
+    from tlm.scenes.objfile import read_bytes
+
+    if not obj.mtllibs:
+        return (), None
+    library: dict[str, Material] = {}
+    files: list[str] = []
+    for text, line in obj.mtllibs:
+        for mtl in _library_paths(path, text, line, zext, src):
+            if str(mtl) in files:
+                continue
+            files.append(str(mtl))
+            for m in parse_mtl(read_bytes(mtl).decode("utf-8", "replace"), str(mtl)):
+                library.setdefault(m.name, m)
+    materials = tuple(library.values())
+    index = {m.name: i for i, m in enumerate(materials)}
+    table = np.full(len(obj.material_names) + 1, -1, dtype=np.int32)  # the last: "no usemtl"
+    for k, (name, line) in enumerate(zip(obj.material_names, obj.material_lines, strict=True)):
+        if name not in index:
+            libs = ", ".join(Path(f).name for f in files)
+            raise InputError(f"line {line}: usemtl {name!r}: no material of that name in {libs}"
+                             f"{did_you_mean(name, index)}", source=src)
+        table[k] = index[name]
+    return materials, table[obj.material]
+
+
+# ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
+
+
+def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
+    import trimesh
+
+    from tlm.scenes.materials import gltf_json, gltf_materials, write_glb
+    from tlm.scenes.objfile import read_bytes
+
+    file_materials: tuple[Material, ...] = ()
+    source: object = str(path)
     kwargs: dict = {}
-    order: list[str] = []
-    if ext == ".obj":
-        kwargs, order = _obj_kwargs(path)
+    if zext or ext in (".glb", ".gltf"):
+        data = read_bytes(path)
+        if zext:
+            source = io.BytesIO(data)
+            kwargs = {"file_type": ext[1:]}
+        if ext in (".glb", ".gltf") and data.strip():
+            header = gltf_json(path, data)
+            file_materials = tuple(gltf_materials(header, src))
+            if file_materials:
+                # name each material by its index, so that each geometry's says which it is
+                from tlm.scenes.materials import glb_chunks
+
+                header = dict(header)
+                header["materials"] = [dict(m, name=f"{_TAG}{i}") for i, m in enumerate(header["materials"])]
+                if ext == ".glb":
+                    source = io.BytesIO(write_glb(header, glb_chunks(data, src)[1]))
+                else:
+                    import json
+
+                    source = io.BytesIO(json.dumps(header).encode())
+                    kwargs["resolver"] = trimesh.resolvers.FilePathResolver(str(path))
+                kwargs["file_type"] = ext[1:]
     try:
-        loaded = trimesh.load(str(path), force=None, process=False, **kwargs)
+        loaded = trimesh.load(source, force=None, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything from ValueError to IndexError
         raise InputError(f"cannot parse the {ext[1:].upper()} file: {_one_line(exc)}",
                          source=src) from None
@@ -133,32 +272,37 @@ def load_mesh(path: Path) -> Geometry:
     # (part name, trimesh geometry, 4x4 transform) per instance.
     items: list[tuple[str, object, np.ndarray]] = []
     if isinstance(loaded, trimesh.Scene):
-        nodes = list(loaded.graph.nodes_geometry)
-        for node in nodes:
+        for node in loaded.graph.nodes_geometry:
             transform, geom_name = loaded.graph[node]
             items.append((str(geom_name), loaded.geometry[geom_name], np.asarray(transform)))
-        if order:
-            items.sort(key=lambda it: _file_rank(it[0], order))
     else:
-        items.append((path.stem, loaded, np.eye(4)))
+        items.append((stem, loaded, np.eye(4)))
     if not items:
         raise InputError("the file holds no geometry (empty mesh)", source=src)
 
     names: list[str] = []
     chunks: list[np.ndarray] = []
     part_ids: list[np.ndarray] = []
+    mat_ids: list[np.ndarray] = []
     corner_normals: list[np.ndarray | None] = []
     for name, geom, transform in items:
         label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
-        if not isinstance(geom, trimesh.Trimesh):
-            kind = type(geom).__name__
-            raise InputError(f"{label} is a {kind} without faces, not a triangle mesh",
-                             source=src)
-        vertices = np.asarray(geom.vertices, dtype=np.float64)
-        faces = np.asarray(geom.faces)
+        has_faces = isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
+        strips = _ply_strips(geom) if ext == ".ply" and not has_faces else None
+        if strips is not None:
+            vertices, faces, nrm = strips
+        else:
+            if not isinstance(geom, trimesh.Trimesh):
+                kind = type(geom).__name__
+                raise InputError(f"{label} is a {kind} without faces, not a triangle mesh",
+                                 source=src)
+            vertices = np.asarray(geom.vertices, dtype=np.float64)
+            faces = np.asarray(geom.faces)
+            nrm = None
         _check_mesh(vertices, faces, label, src)
         tri = vertices[faces]
-        nrm = _file_normals(geom, faces)
+        if strips is None:
+            nrm = _file_normals(geom, faces)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
             if nrm is not None:  # normals transform by the inverse transpose
@@ -174,6 +318,7 @@ def load_mesh(path: Path) -> Geometry:
             names.append(name)
         chunks.append(tri)
         part_ids.append(np.full(len(tri), names.index(name), dtype=np.int32))
+        mat_ids.append(np.full(len(tri), _gltf_index(geom, len(file_materials)), dtype=np.int32))
     normals = None
     if all(c is not None for c in corner_normals):  # the file gives every geometry's normals
         normals = np.concatenate(corner_normals)
@@ -184,13 +329,80 @@ def load_mesh(path: Path) -> Geometry:
         part=np.concatenate(part_ids),
         part_names=tuple(names),
         normals=normals,
+        materials=file_materials,
+        face_material=np.concatenate(mat_ids) if file_materials else None,
     )
 
 
+def _gltf_index(geom, n_materials: int) -> int:
+    """Index of the glTF material a trimesh geometry carries (named by ``_TAG``), -1: none."""
+    material = getattr(getattr(geom, "visual", None), "material", None)
+    name = str(getattr(material, "name", None) or "")
+    match = re.fullmatch(re.escape(_TAG) + r"(\d+)", name)
+    if match and int(match.group(1)) < n_materials:
+        return int(match.group(1))
+    return -1
+
+
+def _ply_strips(geom) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """(vertices, faces, corner normals or None) of a PLY whose faces are triangle strips
+    (element ``tristrips``, property ``vertex_indices``, -1 restarting a strip); None
+    for any other PLY. A strip ``v0 v1 v2 v3 ...`` gives ``(v0 v1 v2), (v2 v1 v3),
+    (v2 v3 v4), ...`` (every other one flipped, so all keep one winding); triangles with
+    a repeated vertex (the stitches between strips) are dropped."""
+    raw = (getattr(geom, "metadata", None) or {}).get("_ply_raw") or {}
+    strips = (raw.get("tristrips") or {}).get("data")
+    data = (raw.get("vertex") or {}).get("data")
+    lists = _ply_field(strips, "vertex_indices")
+    xyz = [_ply_field(data, k) for k in "xyz"]
+    if lists is None or any(c is None for c in xyz):
+        return None
+    vertices = np.stack([np.asarray(c, dtype=np.float64).reshape(-1) for c in xyz], axis=1)
+    lists = np.asarray(lists) if not isinstance(lists, list) else lists
+    if getattr(getattr(lists, "dtype", None), "names", None):  # binary: (count, values) records
+        count, values = lists[lists.dtype.names[0]], lists[lists.dtype.names[1]]
+        seqs = [np.asarray(values[i]).reshape(-1)[: int(count[i])] for i in range(len(count))]
+    elif isinstance(lists, np.ndarray) and lists.dtype != object:
+        seqs = [np.asarray(row).reshape(-1) for row in lists.reshape(lists.shape[0], -1)]
+    else:
+        seqs = [np.asarray(row).reshape(-1) for row in lists]
+    flat = np.concatenate([np.r_[s.astype(np.int64), -1] for s in seqs]) if seqs else np.zeros(0, np.int64)
+    # every window of three inside one strip (no -1 among them)
+    faces = np.zeros((0, 3), dtype=np.int64)
+    if flat.shape[0] >= 3:
+        win = np.stack([flat[:-2], flat[1:-1], flat[2:]], axis=1)
+        ok = (win >= 0).all(axis=1)
+        restart = np.flatnonzero(flat < 0)
+        # position of each window within its strip: flip every other one
+        strip_start = np.r_[0, restart + 1]
+        pos = np.arange(win.shape[0]) - strip_start[np.searchsorted(strip_start, np.arange(win.shape[0]),
+                                                                    side="right") - 1]
+        odd = (pos % 2) == 1
+        win[odd] = win[odd][:, [1, 0, 2]]
+        keep = ok & (win[:, 0] != win[:, 1]) & (win[:, 1] != win[:, 2]) & (win[:, 0] != win[:, 2])
+        faces = win[keep]
+    normals = None
+    nxyz = [_ply_field(data, k) for k in ("nx", "ny", "nz")]
+    if all(c is not None for c in nxyz):
+        n = np.stack([np.asarray(c, dtype=np.float64).reshape(-1) for c in nxyz], axis=1)
+        if n.shape == vertices.shape and np.isfinite(n).all() and faces.shape[0] and faces.max() < len(n):
+            normals = n[faces]
+    return vertices, faces, normals
+
+
+def _ply_field(data, key: str):
+    """A property of a PLY element as trimesh keeps it (a dict of arrays for ASCII, a
+    structured array for binary files); None if absent."""
+    if isinstance(data, dict):
+        return data.get(key)
+    names = getattr(getattr(data, "dtype", None), "names", None) or ()
+    return data[key] if key in names else None
+
+
 def _file_normals(geom, faces: np.ndarray) -> np.ndarray | None:
-    """(f, 3, 3) per-corner normals the file gave (OBJ ``vn``, PLY ``nx ny nz``, glTF
-    NORMAL), or None when trimesh would have to compute them (its own would be
-    area-weighted without a crease angle: the loader's crease normals are better)."""
+    """(f, 3, 3) per-corner normals the file gave (PLY ``nx ny nz``, glTF NORMAL), or
+    None when trimesh would have to compute them (its own would be area-weighted
+    without a crease angle: the loader's crease normals are better)."""
     given = geom._cache.cache.get("vertex_normals") if hasattr(geom, "_cache") else None
     if given is None:
         return None

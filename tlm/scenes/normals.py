@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 
 DEFAULT_CREASE_ANGLE = 30.0  # degrees: smooths tessellations finer than ~12 segments per circle
-PAIR_CHUNK = 1 << 22  # (corner, corner) pairs compared per block: bounds memory on large meshes
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -44,12 +43,55 @@ def corner_angles(triangles: np.ndarray) -> np.ndarray:
     return out
 
 
+def _row_hash(pts: np.ndarray, part: np.ndarray) -> np.ndarray:
+    """(m,) uint64 hash of the bits of each ``(x, y, z)`` row and its part."""
+    bits = np.ascontiguousarray(pts).view(np.uint64)
+    h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+    h ^= bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)
+    h ^= bits[:, 2] * np.uint64(0x165667B19E3779F9)
+    h ^= part.astype(np.int64).view(np.uint64) * np.uint64(0x27D4EB2F165667C5)
+    h ^= h >> np.uint64(29)
+    return h
+
+
+def _weld(points: np.ndarray, part: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Group equal ``(part, x, y, z)`` rows (float equality: -0.0 welds to 0.0).
+
+    Returns ``order`` (row indices, grouped, ascending within a group), and each group's
+    ``starts`` and ``sizes`` in ``order``. Rows are grouped by a stable sort of a hash of
+    their bits (equal rows have equal hashes, so they end up in one run), and every run
+    is checked to hold equal rows only; a collision (or a NaN) falls back to an exact
+    lexicographic sort, which groups the same way.
+    """
+    pts = points + 0.0  # -0.0 -> +0.0, so that equal values have equal bits
+    m = pts.shape[0]
+    if np.isfinite(pts).all():
+        h = _row_hash(pts, part)
+        order = np.argsort(h, kind="stable")
+        hs = h[order]
+        starts = np.flatnonzero(np.r_[True, hs[1:] != hs[:-1]])
+        sizes = np.diff(np.r_[starts, m])
+        head = np.repeat(starts, sizes)  # each grouped row's group's first row
+        rows, parts = pts[order], part[order]
+        if np.array_equal(rows, rows[head]) and np.array_equal(parts, parts[head]):
+            return order, starts, sizes
+    order = np.lexsort((pts[:, 2], pts[:, 1], pts[:, 0], part))
+    s = pts[order]
+    p = part[order]
+    new = np.r_[True, (s[1:] != s[:-1]).any(axis=1) | (p[1:] != p[:-1])]
+    starts = np.flatnonzero(new)
+    return order, starts, np.diff(np.r_[starts, m])
+
+
 def crease_normals(triangles: np.ndarray, part: np.ndarray | None = None,
                    crease_angle: float = DEFAULT_CREASE_ANGLE) -> np.ndarray:
     """Per-corner unit shading normals (n, 3, 3) of world-space ``triangles`` (n, 3, 3).
 
     part : (n,) part ids (corners of different parts are never welded); None = one part.
     crease_angle : degrees; faces meeting at a larger angle keep their own normal.
+
+    A corner's sum runs over its welded neighbours in ascending corner order (itself
+    included), one neighbour rank at a time over all corners at once.
     """
     tri = np.asarray(triangles, dtype=np.float64)
     n = tri.shape[0]
@@ -59,31 +101,34 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray | None = None,
     part = np.zeros(n, dtype=np.int64) if part is None else np.asarray(part, dtype=np.int64)
     cos_crease = np.cos(np.radians(min(float(crease_angle), 180.0)))
     weight = corner_angles(tri).reshape(-1)
-    # weld corners by exact position within a part
-    key = np.concatenate([np.repeat(part, 3)[:, None].astype(np.float64), tri.reshape(-1, 3)], axis=1)
-    _, vid = np.unique(key, axis=0, return_inverse=True)
-    vid = vid.reshape(-1)
-    order = np.argsort(vid, kind="stable")
-    sorted_vid = vid[order]
-    starts = np.flatnonzero(np.r_[True, sorted_vid[1:] != sorted_vid[:-1]])
-    sizes = np.diff(np.r_[starts, sorted_vid.shape[0]])
-    corner_face = np.arange(3 * n) // 3
-    acc = np.zeros((3 * n, 3))
-    # every (corner, neighbour) pair of a welded vertex, in blocks of whole vertices
-    pairs = np.cumsum(sizes * sizes)
-    lo = 0
-    while lo < starts.shape[0]:
-        base = pairs[lo - 1] if lo else 0
-        hi = max(int(np.searchsorted(pairs, base + PAIR_CHUNK, side="right")), lo + 1)
-        st, sz = starts[lo:hi], sizes[lo:hi]
-        rep = np.repeat(np.arange(hi - lo), sz * sz)  # vertex of each pair
-        within = np.arange(rep.shape[0]) - np.repeat(np.cumsum(sz * sz) - sz * sz, sz * sz)
-        a = order[st[rep] + within // sz[rep]]  # the corner being shaded
-        b = order[st[rep] + within % sz[rep]]  # a welded neighbour (itself included)
-        fa, fb = corner_face[a], corner_face[b]
-        ok = np.sum(face[fa] * face[fb], axis=1) >= cos_crease
-        np.add.at(acc, a[ok], weight[b[ok], None] * face[fb[ok]])
-        lo = hi
+    # weld corners by exact position within a part; largest groups first, so that the
+    # corners with a j-th neighbour are always a prefix of the (grouped) corner list
+    order, starts, sizes = _weld(tri.reshape(-1, 3), np.repeat(part, 3))
+    big = np.argsort(-sizes, kind="stable")
+    starts, sizes = starts[big], sizes[big]
+    new_starts = np.cumsum(sizes) - sizes
+    within = np.arange(3 * n) - np.repeat(new_starts, sizes)
+    order = order[np.repeat(starts, sizes) + within]
+    head = np.repeat(new_starts, sizes)  # where each grouped corner's group starts
+    per_size = np.bincount(sizes) * np.arange(int(sizes.max()) + 1)  # corners in groups of each size
+    active = np.cumsum(per_size[::-1])[::-1]  # active[j]: corners with a j-th neighbour (1-based)
+    f = face[order // 3]
+    fx, fy, fz = f[:, 0].copy(), f[:, 1].copy(), f[:, 2].copy()
+    w = weight[order]
+    ax, ay, az = np.zeros(3 * n), np.zeros(3 * n), np.zeros(3 * n)
+    # sum over each corner's welded neighbours in ascending corner order (itself included),
+    # the j-th neighbour of every corner at once
+    for j in range(1, active.shape[0]):
+        m = int(active[j])
+        q = head[:m] + (j - 1)
+        bx, by, bz = fx[q], fy[q], fz[q]
+        ok = (fx[:m] * bx + fy[:m] * by) + fz[:m] * bz >= cos_crease  # = np.sum(.., axis=1)
+        wq = np.where(ok, w[q], 0.0)  # a skipped neighbour adds +-0.0: the sum stays the same bits
+        ax[:m] += wq * bx
+        ay[:m] += wq * by
+        az[:m] += wq * bz
+    acc = np.empty((3 * n, 3))
+    acc[order] = np.stack([ax, ay, az], axis=1)
     normals = _unit(acc).reshape(n, 3, 3)
     # a corner whose neighbours cancel (or a sliver with zero angle weights) keeps its face normal
     flat = ~np.any(normals != 0.0, axis=2)

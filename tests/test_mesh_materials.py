@@ -1,0 +1,389 @@
+"""Materials from mesh files (tlm/scenes/materials.py through load_mesh): MTL and glTF
+mapped to tlm's kinds, per-face material indices, the shipped scenes, PLY triangle
+strips, errors, and no library warning reaching the terminal."""
+
+from __future__ import annotations
+
+import lzma
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tlm.errors import InputError
+from tlm.scenes.materials import glb_chunks, parse_mtl, write_glb
+from tlm.scenes.meshes import load_mesh
+from tlm.scenes.model import Material
+
+REPO = Path(__file__).resolve().parents[1]
+MESHES = REPO / "scenes" / "meshes"
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+
+
+def _by_name(g) -> dict[str, Material]:
+    return {m.name: m for m in g.materials}
+
+
+def _usemtl_per_triangle(text: str) -> list[str | None]:
+    """The usemtl in force for each triangle (faces fanned), read line by line."""
+    out, mat = [], None
+    for line in text.splitlines():
+        words = line.split()
+        if words[:1] == ["usemtl"]:
+            mat = line.strip()[6:].strip()
+        elif words[:1] == ["f"]:
+            out += [mat] * (len(words) - 3)
+    return out
+
+
+# ---------------------------------------------------------------- McGuire's boxes
+
+
+def test_cornell_sphere_materials_map_to_jensens_scene():
+    g = load_mesh(MESHES / "CornellBox-Sphere.obj.xz")
+    m = _by_name(g)
+    assert list(m) == ["leftSphere", "rightSphere", "floor", "ceiling", "backWall", "rightWall",
+                       "leftWall", "light"]
+    assert m["leftSphere"] == Material("leftSphere", "mirror", reflectance=(0.95, 0.95, 0.95))
+    assert m["rightSphere"] == Material("rightSphere", "dielectric", ior=2.5, transmittance=(1.0, 1.0, 1.0))
+    assert m["light"] == Material("light", "lambertian", albedo=(0.78, 0.78, 0.78), emission=(10.0, 10.0, 10.0))
+    assert m["light"].emits and not m["floor"].emits
+    assert m["leftWall"] == Material("leftWall", "lambertian", albedo=(0.63, 0.065, 0.05))
+    assert m["rightWall"] == Material("rightWall", "lambertian", albedo=(0.161, 0.133, 0.427))
+    for wall in ("floor", "ceiling", "backWall"):
+        assert m[wall] == Material(wall, "lambertian", albedo=(0.725, 0.71, 0.68))
+
+
+@pytest.mark.parametrize("name", ["CornellBox-Original.obj", "CornellBox-Sphere.obj.xz", "CornellBox-Water.obj.xz"])
+def test_face_materials_follow_the_usemtl_runs(name):
+    data = (MESHES / name).read_bytes()
+    text = (lzma.decompress(data) if name.endswith(".xz") else data).decode()
+    g = load_mesh(MESHES / name)
+    assert g.face_material.dtype == np.int32 and g.face_material.shape == (g.triangles.shape[0],)
+    got = [g.materials[i].name if i >= 0 else None for i in g.face_material]
+    assert got == _usemtl_per_triangle(text)
+    if name != "CornellBox-Original.obj":  # whose blocks' usemtl comes before their g
+        assert [g.part_names[p] for p in g.part] == got  # each group is named after its material
+
+
+def test_cornell_water_and_original():
+    w = _by_name(load_mesh(MESHES / "CornellBox-Water.obj.xz"))
+    assert w["water"] == Material("water", "dielectric", ior=1.33, transmittance=(1.0, 1.0, 1.0))
+    assert w["leftSphere"].kind == "mirror" and w["rightSphere"].kind == "dielectric"
+    o = load_mesh(MESHES / "CornellBox-Original.obj")
+    m = _by_name(o)
+    assert m["light"].emission == (17.0, 12.0, 4.0) and m["light"].albedo == (0.78, 0.78, 0.78)
+    assert {x.kind for x in o.materials} == {"lambertian"}
+    assert o.triangles.shape[0] == 36 and o.normals is None
+
+
+def test_the_conference_room():
+    g = load_mesh(MESHES / "conference.obj.xz")
+    assert g.triangles.shape == (331179, 3, 3)
+    assert len(g.materials) == 35 and {m.kind for m in g.materials} == {"lambertian"}
+    assert not any(m.emits for m in g.materials)
+    assert g.face_material.min() >= 0 and len(np.unique(g.face_material)) == 35
+    assert len(g.part_names) == 41 and g.part_names[:3] == ("mesh0", "mesh1", "mesh2")
+    assert g.normals is None  # no vn: the scene loader computes crease normals
+    # Ks 0.2 over a darker Kd (illum 2) stays Lambertian with Kd
+    assert _by_name(g)["mesh4_SG"].albedo == (0.176471, 0.058824, 0.058824)
+
+
+# ---------------------------------------------------------------- the MTL mapping
+
+
+def _one(text: str) -> Material:
+    (m,) = parse_mtl(text, "t.mtl")
+    return m
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("newmtl a\nKd 0.5 0.6 0.7\nKs 0.9 0.9 0.9\nillum 2\n", Material("a", "lambertian", albedo=(0.5, 0.6, 0.7))),
+    ("newmtl a\nKd 0.1 0.1 0.1\nKs 0.9 0.8 0.7\n", Material("a", "mirror", reflectance=(0.9, 0.8, 0.7))),
+    ("newmtl a\nKd 0.5 0.5 0.5\nKs 0.9 0.8 0.7\nillum 3\n", Material("a", "mirror", reflectance=(0.9, 0.8, 0.7))),
+    ("newmtl a\nKs 1.5 0.5 0.5\nillum 5\n", Material("a", "mirror", reflectance=(1.0, 0.5, 0.5))),
+    ("newmtl a\nKd 0.5 0.5 0.5\nd 0.5\nNi 1.2\n", Material("a", "dielectric", ior=1.2, transmittance=(1.0,) * 3)),
+    ("newmtl a\nKd 0.5 0.5 0.5\nTr 0.25\n", Material("a", "dielectric", ior=1.5, transmittance=(1.0,) * 3)),
+    ("newmtl a\nd 1\nTr 0.5\n", Material("a", "lambertian", albedo=(0.8, 0.8, 0.8))),  # d wins over Tr
+    ("newmtl a\nillum 4\nTf 0.2\nNi 1.7\n", Material("a", "dielectric", ior=1.7, transmittance=(1.0,) * 3)),
+    ("newmtl a\nillum 6\n", Material("a", "dielectric", ior=1.5, transmittance=(1.0,) * 3)),
+    ("newmtl a\nKd 2 0.5 -0\nKe 3 2 1 # glow\n",
+     Material("a", "lambertian", albedo=(1.0, 0.5, 0.0), emission=(3.0, 2.0, 1.0))),
+    ("newmtl a\nKd spectral x.rfl\nKd 0.3\nKa 1 1 1\nmap_Kd x.png\nNs 10\n",
+     Material("a", "lambertian", albedo=(0.3, 0.3, 0.3))),
+    ("newmtl a\nillum 7\nNi 1.33\nKe 1 1 1\n",
+     Material("a", "dielectric", ior=1.33, transmittance=(1.0,) * 3, emission=(1.0, 1.0, 1.0))),
+])
+def test_mtl_mapping_table(text, expected):
+    assert _one(text) == expected
+
+
+def test_mtl_names_order_and_redefinition():
+    mats = parse_mtl("Kd 1 0 0\nnewmtl  two words \nKd 0.1 0.2 0.3\nnewmtl b\nnewmtl two words\nKd 1 1 1\n", "t.mtl")
+    assert [m.name for m in mats] == ["two words", "b"]
+    assert mats[0].albedo == (0.1, 0.2, 0.3)  # the first definition counts
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("newmtl glass\nillum 7\nNi 0\n", ["line 3", "'glass'", "Ni", "not positive"]),
+    ("newmtl glass\nd 0.5\nNi -1.5\n", ["'glass'", "Ni"]),
+    ("newmtl red\nKd 1 nan 0\n", ["line 2", "'red'", "Kd", "not finite"]),
+    ("newmtl red\nKe inf 0 0\n", ["'red'", "Ke", "not finite"]),
+    ("newmtl red\nKs 0.5 -0.1 0\n", ["'red'", "Ks", "negative"]),
+    ("newmtl red\nKd 0.5 0.5\n", ["'red'", "Kd", "3 numbers"]),
+    ("newmtl red\nKd 0.5 zero 0.5\n", ["'red'", "Kd", "'zero'"]),
+    ("newmtl red\nd 1.5\n", ["'red'", "d", "[0, 1]"]),
+    ("newmtl red\nNi nan\n", ["'red'", "Ni", "not finite"]),
+    ("newmtl red\nillum\n", ["'red'", "illum", "no value"]),
+])
+def test_bad_mtl_values_are_one_line_errors(tmp_path, text, words):
+    (tmp_path / "m.mtl").write_text(text)
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\n" + TRI + "f 1 2 3\n")
+    with pytest.raises(InputError) as info:
+        load_mesh(tmp_path / "m.obj")
+    msg = str(info.value)
+    assert "\n" not in msg and str(tmp_path / "m.mtl") in msg
+    for w in words:
+        assert w in msg
+
+
+def test_an_index_of_refraction_is_checked_only_where_it_is_used():
+    assert _one("newmtl wall\nKd 0.5 0.5 0.5\nNi 0\nillum 2\n").kind == "lambertian"
+
+
+def test_a_missing_mtl_names_the_obj_and_the_mtl(tmp_path):
+    (tmp_path / "m.obj").write_text("mtllib gone.mtl\n" + TRI + "f 1 2 3\n")
+    with pytest.raises(InputError) as info:
+        load_mesh(tmp_path / "m.obj")
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(str(tmp_path / "m.obj"))
+    assert "line 1" in msg and str(tmp_path / "gone.mtl") in msg and "missing" in msg
+
+
+def test_an_undefined_usemtl_is_named(tmp_path):
+    (tmp_path / "m.mtl").write_text("newmtl red\nKd 1 0 0\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\n" + TRI + "usemtl red\nf 1 2 3\nusemtl redd\nf 2 4 3\n")
+    with pytest.raises(InputError) as info:
+        load_mesh(tmp_path / "m.obj")
+    msg = str(info.value)
+    assert "\n" not in msg and str(tmp_path / "m.obj") in msg
+    assert "line 8" in msg and "'redd'" in msg and "m.mtl" in msg and "did you mean 'red'" in msg
+
+
+def test_libraries_several_and_with_spaces_and_no_library(tmp_path):
+    (tmp_path / "a.mtl").write_text("newmtl red\nKd 1 0 0\n")
+    (tmp_path / "b.mtl").write_text("newmtl blue\nKd 0 0 1\nnewmtl red\nKd 0 1 0\n")
+    (tmp_path / "my lib.mtl").write_text("newmtl green\nKd 0 1 0\n")
+    (tmp_path / "m.obj").write_text("mtllib a.mtl b.mtl\nmtllib my lib.mtl\n" + TRI +
+                                    "f 1 2 3\nusemtl blue\nf 1 2 3\nusemtl red\nf 2 4 3\nusemtl green\nf 1 2 4\n")
+    g = load_mesh(tmp_path / "m.obj")
+    assert [m.name for m in g.materials] == ["red", "blue", "green"]
+    assert g.materials[0].albedo == (1.0, 0.0, 0.0)  # a.mtl's red, named first
+    assert g.face_material.tolist() == [-1, 1, 0, 2]
+    # no mtllib: no materials, usemtl ignored
+    (tmp_path / "n.obj").write_text(TRI + "usemtl whatever\nf 1 2 3\n")
+    g = load_mesh(tmp_path / "n.obj")
+    assert g.materials == () and g.face_material is None
+
+
+# ---------------------------------------------------------------- glTF
+
+
+def _gltf_scene(tmp_path: Path) -> tuple[dict, bytes]:
+    """A GLB of four boxes side by side (the last without material), materials patched in."""
+    trimesh = pytest.importorskip("trimesh")
+    scene = trimesh.Scene()
+    for i, name in enumerate(("paint", "chrome", "glass", "lamp", "bare")):
+        box = trimesh.creation.box()
+        box.visual = trimesh.visual.TextureVisuals(
+            material=trimesh.visual.material.PBRMaterial(name=name, baseColorFactor=[200, 100, 50, 255]))
+        scene.add_geometry(box, geom_name=name,
+                           transform=trimesh.transformations.translation_matrix([3.0 * i, 0.0, 0.0]))
+    path = tmp_path / "raw.glb"
+    scene.export(path)
+    header, binary = glb_chunks(path.read_bytes())
+    header["materials"] = [
+        {"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.25, 0.125, 1.0], "metallicFactor": 0.0}},
+        {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0], "metallicFactor": 0.8}},
+        {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 1.0, 0.95, 1.0], "metallicFactor": 0.0},
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                        "KHR_materials_ior": {"ior": 1.45}}},
+        {"name": "lamp", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.2, 0.2, 1.0], "metallicFactor": 0.0},
+         "emissiveFactor": [1.0, 0.5, 0.25],
+         "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}},
+    ]
+    order = {m["name"]: i for i, m in enumerate(header["meshes"])}
+    for mesh in header["meshes"]:
+        for prim in mesh["primitives"]:
+            prim.pop("material", None)
+            if mesh["name"] != "bare":
+                prim["material"] = order[mesh["name"]]
+    return header, binary
+
+
+def test_gltf_materials_and_extensions(tmp_path):
+    header, binary = _gltf_scene(tmp_path)
+    (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
+    g = load_mesh(tmp_path / "s.glb")
+    assert g.materials == (
+        Material("paint", "lambertian", albedo=(0.5, 0.25, 0.125)),
+        Material("material_1", "mirror", reflectance=(0.9, 0.8, 0.7)),
+        Material("glass", "dielectric", ior=1.45, transmittance=(0.9, 1.0, 0.95)),
+        Material("lamp", "lambertian", albedo=(0.2, 0.2, 0.2), emission=(4.0, 2.0, 1.0)),
+    )
+    # each box's triangles carry its material (boxes 3 apart in x), the bare one none
+    x = g.triangles[:, :, 0].mean(axis=1)
+    box = np.round(x / 3.0).astype(int)
+    assert g.triangles.shape[0] == 60
+    assert g.face_material.tolist() == [[0, 1, 2, 3, -1][b] for b in box]
+    assert set(g.part_names) == {"paint", "chrome", "glass", "lamp", "bare"}
+
+
+def test_gltf_text_file_with_external_buffer(tmp_path):
+    import base64
+    import json
+
+    header, binary = _gltf_scene(tmp_path)
+    header["buffers"] = [{"byteLength": len(binary), "uri": "s.bin"}]
+    (tmp_path / "s.bin").write_bytes(binary)
+    (tmp_path / "s.gltf").write_text(json.dumps(header))
+    a = load_mesh(tmp_path / "s.gltf")
+    header["buffers"] = [{"byteLength": len(binary),
+                          "uri": "data:application/octet-stream;base64," + base64.b64encode(binary).decode()}]
+    (tmp_path / "t.gltf").write_text(json.dumps(header))
+    b = load_mesh(tmp_path / "t.gltf")
+    (tmp_path / "s.glb").write_bytes(write_glb(*_gltf_scene(tmp_path)))
+    c = load_mesh(tmp_path / "s.glb")
+    for other in (b, c):
+        assert other.materials == a.materials
+        np.testing.assert_array_equal(other.face_material, a.face_material)
+        np.testing.assert_array_equal(other.triangles, a.triangles)
+    assert [m.kind for m in a.materials] == ["lambertian", "mirror", "dielectric", "lambertian"]
+
+
+def test_gltf_metallic_default_and_bad_values(tmp_path):
+    header, binary = _gltf_scene(tmp_path)
+    header["materials"][0] = {"name": "paint"}  # glTF's defaults: white, metallic 1
+    (tmp_path / "d.glb").write_bytes(write_glb(header, binary))
+    assert load_mesh(tmp_path / "d.glb").materials[0] == Material("paint", "mirror", reflectance=(1.0, 1.0, 1.0))
+    header["materials"][2]["extensions"]["KHR_materials_ior"]["ior"] = 0.0
+    (tmp_path / "bad.glb").write_bytes(write_glb(header, binary))
+    with pytest.raises(InputError, match=r"bad\.glb.*'glass'.*ior"):
+        load_mesh(tmp_path / "bad.glb")
+    header["materials"][2]["extensions"]["KHR_materials_ior"]["ior"] = 1.5
+    header["materials"][3]["emissiveFactor"] = [1.0, -1.0, 0.0]
+    (tmp_path / "bad.glb").write_bytes(write_glb(header, binary))
+    with pytest.raises(InputError, match=r"bad\.glb.*'lamp'.*emissiveFactor.*negative"):
+        load_mesh(tmp_path / "bad.glb")
+
+
+def test_meshes_without_materials_have_none(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    for ext in ("ply", "stl"):
+        trimesh.creation.box().export(tmp_path / f"b.{ext}")
+        g = load_mesh(tmp_path / f"b.{ext}")
+        assert g.materials == () and g.face_material is None
+
+
+def test_compressed_ply_stl_glb_load_like_the_plain_files(tmp_path):
+    import bz2
+    import gzip
+
+    header, binary = _gltf_scene(tmp_path)
+    (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
+    trimesh = pytest.importorskip("trimesh")
+    trimesh.creation.icosphere(1).export(tmp_path / "s.ply")
+    trimesh.creation.box().export(tmp_path / "s.stl")
+    for ext, (suffix, pack) in zip(("glb", "ply", "stl"), ((".xz", lzma.compress), (".gz", gzip.compress),
+                                                         (".bz2", bz2.compress)), strict=True):
+        plain = tmp_path / f"s.{ext}"
+        packed = tmp_path / f"s.{ext}{suffix}"
+        packed.write_bytes(pack(plain.read_bytes()))
+        a, b = load_mesh(plain), load_mesh(packed)
+        np.testing.assert_array_equal(a.triangles, b.triangles)
+        assert a.part_names == b.part_names and a.materials == b.materials
+        if a.face_material is not None:
+            np.testing.assert_array_equal(a.face_material, b.face_material)
+    (tmp_path / "s.gltf.gz").write_bytes(b"")
+    with pytest.raises(InputError, match=r"unsupported mesh extension '\.gltf\.gz'"):
+        load_mesh(tmp_path / "s.gltf.gz")
+
+
+# ---------------------------------------------------------------- PLY triangle strips
+
+STRIP_PLY = """ply
+format ascii 1.0
+element vertex 8
+property float x
+property float y
+property float z
+element tristrips 1
+property list int int vertex_indices
+end_header
+0 0 0
+1 0 0
+0 1 0
+1 1 0
+0 2 0
+1 2 0
+5 5 0
+6 5 0
+{strip}
+"""
+
+
+def test_ply_triangle_strips_decode_with_one_winding(tmp_path):
+    # a strip of 4 triangles, a restart, then a strip with a stitching (degenerate) triangle
+    strip = [0, 1, 2, 3, 4, 5, -1, 6, 7, 3, 3, 2]
+    path = tmp_path / "strip.ply"
+    path.write_text(STRIP_PLY.format(strip=f"{len(strip)} " + " ".join(map(str, strip))))
+    g = load_mesh(path)
+    faces = [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 5], [6, 7, 3], [3, 7, 3], [3, 3, 2]]
+    faces = [f for f in faces if len(set(f)) == 3]  # the stitches go
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0], [1, 2, 0], [5, 5, 0], [6, 5, 0]], float)
+    np.testing.assert_array_equal(g.triangles, v[faces])
+    first = g.triangles[:4]  # the first strip, a flat ribbon: every triangle faces +z, as its first
+    normal = np.cross(first[:, 1] - first[:, 0], first[:, 2] - first[:, 0])
+    assert np.all(normal[:, 2] > 0)
+    assert g.part_names == ("strip",)
+
+
+def test_ply_triangle_strips_binary_and_several(tmp_path):
+    import struct
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 2, 0]], dtype="<f4")
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+            "property float z\nelement tristrips {n}\nproperty list uchar int vertex_indices\nend_header\n")
+    for strips, faces in (([[0, 1, 2, 3, -1, 2, 3, 4]], [[0, 1, 2], [2, 1, 3], [2, 3, 4]]),
+                          ([[0, 1, 2, 3], [2, 3, 4, 1]], [[0, 1, 2], [2, 1, 3], [2, 3, 4], [4, 3, 1]])):
+        body = v.tobytes() + b"".join(struct.pack("<B", len(s)) + struct.pack(f"<{len(s)}i", *s) for s in strips)
+        (tmp_path / "s.ply").write_bytes(head.format(n=len(strips)).encode() + body)
+        g = load_mesh(tmp_path / "s.ply")
+        np.testing.assert_array_equal(g.triangles, v.astype(float)[faces])
+
+
+# ---------------------------------------------------------------- no warnings
+
+
+def test_no_library_warning_reaches_the_terminal(tmp_path, capfd, monkeypatch):
+    trimesh = pytest.importorskip("trimesh")
+    (tmp_path / "n.obj").write_text(TRI + "vn 0 0 0\nf 1//1 2//1 3//1\n")  # a zero normal: 0/0
+    (tmp_path / "strip.ply").write_text(STRIP_PLY.format(strip="4 0 1 2 3"))
+    trimesh.creation.box().export(tmp_path / "b.glb")
+    real = trimesh.load
+
+    def noisy(*args, **kwargs):
+        warnings.warn("trimesh says something", RuntimeWarning, stacklevel=1)
+        np.float64(1.0) / np.float64(0.0)  # numpy's divide warning
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(trimesh, "load", noisy)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for name in ("n.obj", "strip.ply", "b.glb"):
+            load_mesh(tmp_path / name)
+        load_mesh(MESHES / "CornellBox-Sphere.obj.xz")
+    assert caught == []
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""

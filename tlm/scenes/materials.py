@@ -1,0 +1,277 @@
+"""Materials from mesh files: Wavefront MTL and glTF 2.0, mapped to tlm's three kinds.
+
+tlm renders three kinds of surface (:class:`~tlm.scenes.model.Material`): Lambertian,
+perfect mirror and smooth dielectric, any of them emitting. A mesh file's material
+models are richer (Phong highlights, metallic-roughness); this module keeps what the
+three kinds can show and says how.
+
+**MTL** (:func:`parse_mtl`). Read: ``newmtl``, ``Kd``, ``Ks``, ``Ke``, ``Tf`` (RGB, or one
+number for grey), ``Ni``, ``d``, ``Tr`` (= 1 - ``d``; ``d`` wins when both are given),
+``illum``, ``Ns``; every other statement (``Ka``, maps, ...) is ignored, and so is a
+colour given as ``spectral`` or ``xyz``.
+
+======================================================  ============  ===================================
+MTL                                                     tlm kind      parameters
+======================================================  ============  ===================================
+``illum`` 4, 6, 7 or 9 (glass), or ``d`` < 1            dielectric    ``ior = Ni`` (1.5 without ``Ni``),
+(``Tr`` > 0)                                                          ``transmittance = (1, 1, 1)``
+``illum`` 3, 5 or 8 (ray-traced reflection), or no      mirror        ``reflectance = Ks`` (clipped to
+``illum`` and a dominant ``Ks`` (max Ks > max Kd)                     [0, 1])
+anything else (``illum`` 0-2: Phong)                    lambertian    ``albedo = Kd`` (clipped to [0, 1];
+                                                                      0.8 grey without ``Kd``)
+``Ke`` > 0, with any of the above                       (same kind)   ``emission = Ke`` (radiance, W/sr/m²)
+======================================================  ============  ===================================
+
+Choices, and why:
+
+* A dielectric's transmittance is 1 (clear glass): ``Tf`` is read and checked but not
+  used. The published scenes write ``Tf`` for their glass as a Phong-era filter that
+  is not the glass's colour: McGuire's ``CornellBox-Sphere`` gives Jensen's clear glass
+  sphere (``illum 7``, ``Ni 2.5``) and its water ``Tf 0.1 0.1 0.1``; read literally that
+  would be smoked glass passing 10% of the light. Mitsuba's and pbrt's OBJ importers
+  treat ``illum 7`` as a clear dielectric too. A tinted glass is a scene file's
+  ``materials:`` override.
+* ``illum`` 0-2 is a Phong model whose ``Ks`` is a highlight (``Ns`` 10-200), not a
+  mirror: the LBNL conference room gives every material ``Ks 0.2`` beside ``Kd`` as low
+  as 0.05, and McGuire's ``CornellBox-Glossy`` ``Ks 0.9`` with ``Ns 40``; those are
+  Lambertian with ``Kd``. Only a file that names no ``illum`` lets a dominant ``Ks``
+  make a mirror.
+* ``Ni`` is used only by dielectrics (exporters write ``Ni`` for every material).
+
+Errors (:class:`~tlm.errors.InputError`, one line naming the MTL file, the line, the
+material and the key): a value that is not a number, NaN or infinite; a negative
+colour; ``d`` or ``Tr`` outside [0, 1]; ``Ni`` <= 0 on a dielectric; a statement with
+too few numbers.
+
+**glTF 2.0** (:func:`gltf_materials`, from the file's JSON, so that extensions count):
+
+==============================================================  ============  =================================
+glTF material                                                   tlm kind      parameters
+==============================================================  ============  =================================
+``KHR_materials_transmission.transmissionFactor`` > 0           dielectric    ``ior`` = ``KHR_materials_ior.ior``
+                                                                              (1.5), ``transmittance`` = base colour
+``pbrMetallicRoughness.metallicFactor`` >= 0.5 (glTF's          mirror        ``reflectance`` = base colour
+default is 1)
+otherwise                                                       lambertian    ``albedo`` = base colour
+``emissiveFactor`` (times ``KHR_materials_emissive_strength``)  (same kind)   ``emission``
+==============================================================  ============  =================================
+
+The base colour is ``baseColorFactor``'s RGB (alpha and textures are ignored). A
+material is named by its ``name``, or ``material_<i>`` (its index) without one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from pathlib import Path
+
+from tlm.errors import InputError
+from tlm.scenes.model import Material
+
+__all__ = [
+    "GLB_MAGIC", "glb_chunks", "gltf_json", "gltf_material", "gltf_materials", "mtl_material",
+    "parse_mtl", "write_glb",
+]
+
+GLASS_ILLUM = (4, 6, 7, 9)
+MIRROR_ILLUM = (3, 5, 8)
+DEFAULT_KD = (0.8, 0.8, 0.8)
+DEFAULT_IOR = 1.5
+GLB_MAGIC = b"glTF"
+_COLOURS = ("Kd", "Ks", "Ke", "Tf")
+_SCALARS = ("Ni", "d", "Tr", "illum", "Ns")
+
+
+def _clip01(c) -> tuple[float, float, float]:
+    return tuple(min(max(float(x), 0.0), 1.0) for x in c)
+
+
+# ------------------------------------------------------------------ MTL
+
+
+def parse_mtl(text: str, source: str) -> list[Material]:
+    """The materials an MTL file defines, in file order (a name defined twice: the
+    first definition counts). ``source`` names the file in errors."""
+    found: list[tuple[str, int, dict]] = []
+    current: dict | None = None
+    name = ""
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        words = line.split()
+        key = words[0]
+        if key == "newmtl":
+            name = line[len("newmtl"):].strip()
+            current = {}
+            found.append((name, number, current))
+            continue
+        if current is None or (key not in _COLOURS and key not in _SCALARS):
+            continue
+        args = words[1:]
+        if key in _COLOURS and args and args[0] in ("spectral", "xyz"):
+            continue
+        if key == "d" and args and args[0] == "-halo":
+            args = args[1:]
+        where = f"line {number}: material {name!r}: {key}"
+        values = []
+        for a in args:
+            try:
+                values.append(float(a))
+            except ValueError:
+                raise InputError(f"{where}: {a!r} is not a number", source=source) from None
+        if not values:
+            raise InputError(f"{where}: no value", source=source)
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(f"{where}: {' '.join(args)} is not finite", source=source)
+        if key in _COLOURS:
+            if len(values) == 1:
+                values = values * 3
+            if len(values) < 3:
+                raise InputError(f"{where}: needs 3 numbers (r g b) or 1, got {len(values)}", source=source)
+            if min(values[:3]) < 0.0:
+                raise InputError(f"{where}: {' '.join(args)} has a negative component", source=source)
+            current[key] = (tuple(values[:3]), number)
+        else:
+            v = values[0]
+            if key in ("d", "Tr") and not 0.0 <= v <= 1.0:
+                raise InputError(f"{where}: {args[0]} is outside [0, 1]", source=source)
+            current[key] = (v, number)
+    seen: set[str] = set()
+    out = []
+    for name, number, props in found:
+        if name in seen:
+            continue
+        seen.add(name)
+        out.append(mtl_material(name, props, source, number))
+    return out
+
+
+def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Material:
+    """Map one MTL material (``props``: key -> (value, line number)) to tlm's kinds,
+    by the module's table."""
+
+    def get(key, default=None):
+        return props[key][0] if key in props else default
+
+    kd = get("Kd", DEFAULT_KD)
+    ks = get("Ks", (0.0, 0.0, 0.0))
+    ke = get("Ke", (0.0, 0.0, 0.0))
+    illum = get("illum")
+    illum = None if illum is None else int(illum)
+    d = get("d")
+    if d is None and "Tr" in props:
+        d = 1.0 - get("Tr")
+    emission = tuple(float(x) for x in ke)
+    if illum in GLASS_ILLUM or (d is not None and d < 1.0):
+        ior = get("Ni", DEFAULT_IOR)
+        if not ior > 0.0:
+            at = props["Ni"][1]
+            raise InputError(f"line {at}: material {name!r}: Ni: {ior:g} is not positive "
+                             "(a dielectric's index of refraction)", source=source)
+        return Material(name, "dielectric", ior=float(ior), transmittance=(1.0, 1.0, 1.0),
+                        emission=emission)
+    if illum in MIRROR_ILLUM or (illum is None and max(ks) > max(kd) and max(ks) > 0.0):
+        return Material(name, "mirror", reflectance=_clip01(ks), emission=emission)
+    return Material(name, "lambertian", albedo=_clip01(kd), emission=emission)
+
+
+# ------------------------------------------------------------------ glTF
+
+
+def glb_chunks(data: bytes, source: str = "") -> tuple[dict, bytes]:
+    """The JSON (parsed) and the BIN chunk (b"" if none) of a binary glTF file."""
+    if len(data) < 20 or data[:4] != GLB_MAGIC:
+        raise InputError("not a binary glTF file (no 'glTF' header)", source=source)
+    length, kind = struct.unpack_from("<II", data, 12)
+    if kind != 0x4E4F534A or 20 + length > len(data):  # "JSON"
+        raise InputError("the binary glTF file's first chunk is not its JSON", source=source)
+    try:
+        header = json.loads(data[20:20 + length])
+    except ValueError as exc:
+        raise InputError(f"the glTF JSON does not parse ({exc})", source=source) from None
+    rest = 20 + length
+    binary = b""
+    if rest + 8 <= len(data):
+        blen, bkind = struct.unpack_from("<II", data, rest)
+        if bkind == 0x004E4942:  # "BIN\0"
+            binary = data[rest + 8: rest + 8 + blen]
+    return header, binary
+
+
+def write_glb(header: dict, binary: bytes = b"") -> bytes:
+    """A binary glTF file from its JSON and BIN chunk (padded as the format wants)."""
+    text = json.dumps(header, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    binary = binary + b"\0" * (-len(binary) % 4)
+    chunks = struct.pack("<II", len(text), 0x4E4F534A) + text
+    if binary:
+        chunks += struct.pack("<II", len(binary), 0x004E4942) + binary
+    return struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks
+
+
+def gltf_json(path: Path, data: bytes | None = None) -> dict:
+    """The JSON of a ``.gltf`` or ``.glb`` file."""
+    path = Path(path)
+    data = path.read_bytes() if data is None else data
+    if data[:4] == GLB_MAGIC:
+        return glb_chunks(data, str(path))[0]
+    try:
+        return json.loads(data)
+    except ValueError as exc:
+        raise InputError(f"the glTF JSON does not parse ({exc})", source=str(path)) from None
+
+
+def _numbers(value, n: int, where: str, source: str, default) -> tuple[float, ...]:
+    if value is None:
+        return tuple(default)
+    seq = value if isinstance(value, list) else [value]
+    try:
+        out = tuple(float(x) for x in seq)
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: {value!r} is not a number", source=source) from None
+    if len(out) < n or not all(math.isfinite(x) for x in out):
+        raise InputError(f"{where}: {value!r} is not {n} finite number{'s' if n > 1 else ''}",
+                         source=source)
+    return out
+
+
+def gltf_material(m: dict, index: int, source: str = "") -> Material:
+    """Map one glTF material (its JSON object) to tlm's kinds, by the module's table."""
+    if not isinstance(m, dict):
+        raise InputError(f"materials[{index}] is not an object", source=source)
+    name = str(m.get("name") or f"material_{index}")
+    at = f"material {name!r}"
+    pbr = m.get("pbrMetallicRoughness") or {}
+    ext = m.get("extensions") or {}
+    base = _numbers(pbr.get("baseColorFactor"), 3, f"{at}: baseColorFactor", source, (1.0, 1.0, 1.0))[:3]
+    metallic = _numbers(pbr.get("metallicFactor"), 1, f"{at}: metallicFactor", source, (1.0,))[0]
+    emissive = _numbers(m.get("emissiveFactor"), 3, f"{at}: emissiveFactor", source, (0.0, 0.0, 0.0))[:3]
+    strength = _numbers((ext.get("KHR_materials_emissive_strength") or {}).get("emissiveStrength"), 1,
+                        f"{at}: emissiveStrength", source, (1.0,))[0]
+    transmission = _numbers((ext.get("KHR_materials_transmission") or {}).get("transmissionFactor"), 1,
+                            f"{at}: transmissionFactor", source, (0.0,))[0]
+    ior = _numbers((ext.get("KHR_materials_ior") or {}).get("ior"), 1, f"{at}: ior", source,
+                   (DEFAULT_IOR,))[0]
+    for key, vals in (("baseColorFactor", base), ("emissiveFactor", emissive),
+                      ("emissiveStrength", (strength,)), ("metallicFactor", (metallic,))):
+        if min(vals) < 0.0:
+            raise InputError(f"{at}: {key}: {list(vals)} has a negative value", source=source)
+    emission = tuple(e * strength for e in emissive)
+    if transmission > 0.0:
+        if not ior > 0.0:
+            raise InputError(f"{at}: KHR_materials_ior: ior {ior:g} is not positive", source=source)
+        return Material(name, "dielectric", ior=ior, transmittance=_clip01(base), emission=emission)
+    if metallic >= 0.5:
+        return Material(name, "mirror", reflectance=_clip01(base), emission=emission)
+    return Material(name, "lambertian", albedo=_clip01(base), emission=emission)
+
+
+def gltf_materials(header: dict, source: str = "") -> list[Material]:
+    """Every material of a glTF file's JSON, by index."""
+    mats = header.get("materials") or []
+    if not isinstance(mats, list):
+        raise InputError("'materials' is not a list", source=source)
+    return [gltf_material(m, i, source) for i, m in enumerate(mats)]

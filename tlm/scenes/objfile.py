@@ -1,0 +1,432 @@
+"""A fast Wavefront OBJ reader: numpy over the file's bytes, no Python loop per line.
+
+:func:`read_obj` reads the statements a renderer needs and ignores the rest:
+
+* ``v x y z [w | r g b]`` positions (the first three numbers), ``vn`` normals;
+  ``vt``, ``vp``, ``s``, ``l``, ``p``, comments and any unknown statement are skipped;
+* ``f`` faces with every corner form (``i``, ``i/j``, ``i//k``, ``i/j/k``), 1-based or
+  negative (relative: ``-1`` is the last vertex defined above the face) indices;
+  a polygon of k corners becomes k - 2 triangles fanned from its first corner
+  ``(0, i, i + 1)``, in file order;
+* ``o`` objects and ``g`` groups (the name is the rest of the line), ``usemtl`` and
+  ``mtllib`` (a library's name may hold spaces: the whole rest of the line when that is
+  one file, otherwise its words).
+
+How it is fast: the line starts come from one ``np.flatnonzero`` over the bytes, a line's
+statement from its first two or three bytes, and the ``v``/``vn``/``f`` lines (gathered
+in runs of consecutive lines, which is how files hold them) are parsed in one
+``np.fromstring`` call each. In a face line, a number that follows a ``/`` continues
+its corner, and its slot (vertex, texture or normal index) grows by the number of
+slashes since the previous number (``i//k``: two). A line that the fast path cannot
+read (an inline comment, a stray character) sends its block through a per-line Python
+reader, which either reads it or raises an :class:`~tlm.errors.InputError` naming the
+line.
+
+Compressed files (``.gz``, ``.xz``, ``.bz2``) are decompressed by :func:`read_bytes`.
+"""
+
+from __future__ import annotations
+
+import bz2
+import gzip
+import lzma
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tlm.errors import InputError
+
+__all__ = ["COMPRESSED_SUFFIXES", "ObjData", "parse_obj", "read_bytes", "read_obj"]
+
+COMPRESSED_SUFFIXES = {".gz": gzip.decompress, ".xz": lzma.decompress, ".bz2": bz2.decompress}
+
+
+@dataclass(frozen=True)
+class ObjData:
+    """What an OBJ file holds, triangulated.
+
+    vertices : (nv, 3) float64, every ``v`` of the file in order.
+    faces : (t, 3) int64 0-based indices into ``vertices``.
+    face_line : (t,) int64 the 1-based line number of each triangle's ``f`` statement.
+    vertex_normals : (nn, 3) float64, every ``vn``.
+    corner_normals : (t, 3) int64 0-based indices into ``vertex_normals``; None unless
+        every corner of every face gives one.
+    part : (t,) int32 into ``part_names``: the ``o`` object of each face when the file
+        has any ``o``, else its ``g`` group, else one part named ``stem``; a face above
+        the first ``o`` (``g``), or one under a nameless one, gets ``stem``; parts with
+        the same name are one part; parts are in the order of their first face.
+    material : (t,) int32 into ``material_names`` (the ``usemtl`` in force, in the order
+        of their first use by a face), -1 for faces above the first ``usemtl``.
+    material_lines : the line number of each material name's first ``usemtl``.
+    mtllibs : ``(file name, line number)`` of every library ``mtllib`` names.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_line: np.ndarray
+    vertex_normals: np.ndarray
+    corner_normals: np.ndarray | None
+    part: np.ndarray
+    part_names: tuple[str, ...]
+    material: np.ndarray
+    material_names: tuple[str, ...]
+    material_lines: tuple[int, ...]
+    mtllibs: tuple[tuple[str, int], ...]
+
+
+def read_bytes(path: Path) -> bytes:
+    """The file's bytes, decompressed when its suffix is ``.gz``, ``.xz`` or ``.bz2``."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read the file ({exc.strerror or exc})", source=str(path)) from None
+    unzip = COMPRESSED_SUFFIXES.get(path.suffix.lower())
+    if unzip is not None:
+        try:
+            data = unzip(data)
+        except Exception as exc:  # OSError, lzma.LZMAError, EOFError, ValueError
+            text = " ".join(str(exc).split()) or type(exc).__name__
+            raise InputError(f"cannot decompress the {path.suffix} file ({text})", source=str(path)) from None
+    return data
+
+
+def read_obj(path: Path, stem: str | None = None) -> ObjData:
+    """Read an OBJ file (plain or compressed); ``stem`` names the single part of a file
+    without ``o``/``g`` (default: the file name without its suffixes)."""
+    path = Path(path)
+    if stem is None:
+        stem = Path(path.stem).stem if path.suffix.lower() in COMPRESSED_SUFFIXES else path.stem
+    return parse_obj(read_bytes(path), str(path), stem)
+
+
+# ------------------------------------------------------------------ helpers
+
+
+def _runs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last element of each run of consecutive integers in sorted ``idx``."""
+    brk = np.flatnonzero(np.diff(idx) != 1)
+    return idx[np.r_[0, brk + 1]], idx[np.r_[brk, idx.shape[0] - 1]]
+
+
+class _Lines:
+    """Line boundaries of a byte string that ends with a newline."""
+
+    def __init__(self, data: bytes):
+        self.data = data
+        buf = np.frombuffer(data + b"\n\n", dtype=np.uint8)  # padded: byte start + 2 exists
+        self.buf = buf
+        self.end = np.flatnonzero(buf[: len(data)] == 10)  # each line's newline
+        self.start = np.empty_like(self.end)
+        if self.end.shape[0]:
+            self.start[0] = 0
+            self.start[1:] = self.end[:-1] + 1
+
+    def text(self, i: int) -> str:
+        return self.data[self.start[i]: self.end[i]].decode("utf-8", "replace").strip()
+
+    def block(self, idx: np.ndarray) -> bytes:
+        """The lines ``idx`` (sorted), newlines included, joined."""
+        if idx.shape[0] == 0:
+            return b""
+        first, last = _runs(idx)
+        s, e, d = self.start, self.end, self.data
+        if first.shape[0] == 1:
+            return d[s[first[0]]: e[last[0]] + 1]
+        return b"".join([d[a:b] for a, b in zip(s[first].tolist(), (e[last] + 1).tolist(), strict=True)])
+
+
+def _strip_comment(line: bytes) -> bytes:
+    cut = line.find(b"#")
+    return line if cut < 0 else line[:cut]
+
+
+def _err(source: str, line: int, message: str) -> InputError:
+    return InputError(f"line {line}: {message}", source=source)
+
+
+def _shown(word: bytes) -> str:
+    text = word.decode("utf-8", "replace")
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
+# ------------------------------------------------------------------ numeric blocks
+
+
+def _vectors_fast(block: bytes, n: int, key: bytes) -> np.ndarray | None:
+    """(n, 3) the first three numbers of each of the ``n`` lines of ``block`` (every
+    line starting with ``key``), or None when the fast path cannot read them."""
+    body = block.replace(key, b" " * len(key))
+    try:
+        values = np.fromstring(body, dtype=np.float64, sep=" ")
+    except ValueError:
+        return None
+    b = np.frombuffer(body, dtype=np.uint8)
+    word = b > 32
+    tok = np.flatnonzero(word[1:] & ~word[:-1]) + 1  # where each number starts
+    if tok.shape[0] != values.shape[0]:
+        return None
+    newline = np.flatnonzero(b == 10)
+    if values.shape[0] == 3 * n:  # the usual case: check that every line holds 3 of them
+        t = tok.reshape(n, 3)
+        if (t[1:, 0] > newline[:-1]).all() and (t[:, 2] < newline).all():
+            return values.reshape(n, 3)
+        return None
+    count = np.bincount(np.searchsorted(newline, tok), minlength=n)
+    if count.shape[0] != n or count.min() < 3:
+        return None
+    first = np.cumsum(count) - count
+    return values[first[:, None] + np.arange(3)]
+
+
+def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np.ndarray:
+    out = np.empty((lines.shape[0], 3))
+    for i, raw in enumerate(block.split(b"\n")[: lines.shape[0]]):
+        words = _strip_comment(raw).split()[1:]
+        if len(words) < 3:
+            raise _err(source, int(lines[i]) + 1,
+                       f"a '{what}' statement needs 3 numbers, got {len(words)}")
+        for j in range(3):
+            try:
+                out[i, j] = float(words[j])
+            except ValueError:
+                raise _err(source, int(lines[i]) + 1,
+                           f"cannot read {_shown(words[j])} as a number in a '{what}' statement") from None
+    return out
+
+
+def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Every corner of the ``n`` face lines of ``block``: its line (0..n-1), vertex index,
+    and normal index (0 where it has none) with a flag; None when the fast path cannot
+    read the block."""
+    body = block.replace(b"f", b" ")
+    try:
+        values = np.fromstring(body.replace(b"/", b" "), dtype=np.int64, sep=" ")
+    except ValueError:
+        return None
+    b = np.frombuffer(body, dtype=np.uint8)
+    digit = (b > 32) & (b != 47)  # bytes of numbers (byte 0, the blanked 'f', is not one)
+    edge = np.flatnonzero(np.diff(digit.view(np.int8)))
+    start, end = edge[0::2] + 1, edge[1::2] + 1  # each number's first byte and the byte after it
+    if start.shape[0] != values.shape[0]:
+        return None
+    # a number after a '/' continues its corner, in the slot after the slashes in between
+    cont = b[start - 1] == 47
+    gap = np.zeros(start.shape[0], dtype=np.int64)
+    gap[1:] = start[1:] - end[:-1]
+    if cont[0]:
+        return None
+    after = np.zeros(start.shape[0], dtype=bool)  # the byte after the previous number is a '/'
+    after[1:] = b[end[:-1]] == 47
+    if (cont != after).any() or (gap[cont] > 2).any():  # "1 /2", "1/ 2", "1///2"
+        return None
+    first = ~cont
+    corner = np.cumsum(first) - 1
+    total = np.cumsum(np.where(cont, gap, 0))
+    slot = total - total[first][corner]
+    if slot.max(initial=0) > 2:
+        return None
+    line = np.searchsorted(np.flatnonzero(b == 10), start[first])
+    vertex = values[first]
+    has_normal = np.zeros(vertex.shape[0], dtype=bool)
+    normal = np.zeros(vertex.shape[0], dtype=np.int64)
+    third = slot == 2
+    has_normal[corner[third]] = True
+    normal[corner[third]] = values[third]
+    return line, vertex, normal, has_normal
+
+
+def _corners_slow(block: bytes, lines: np.ndarray, source: str):
+    line_of, vertex, normal, has_normal = [], [], [], []
+    for i, raw in enumerate(block.split(b"\n")[: lines.shape[0]]):
+        for corner in _strip_comment(raw).split()[1:]:
+            parts = corner.split(b"/")
+            if len(parts) > 3 or not parts[0]:
+                raise _err(source, int(lines[i]) + 1, f"cannot read the face corner {_shown(corner)}")
+            try:
+                idx = [int(p) if p else None for p in parts]
+            except ValueError:
+                raise _err(source, int(lines[i]) + 1,
+                           f"cannot read the face corner {_shown(corner)} (indices are integers)") from None
+            line_of.append(i)
+            vertex.append(idx[0])
+            n = idx[2] if len(idx) == 3 else None
+            normal.append(0 if n is None else n)
+            has_normal.append(n is not None)
+    return (np.array(line_of, dtype=np.int64), np.array(vertex, dtype=np.int64),
+            np.array(normal, dtype=np.int64), np.array(has_normal, dtype=bool))
+
+
+def _resolve(raw: np.ndarray, before: np.ndarray, total: int, corner_line: np.ndarray,
+             what: str, source: str) -> np.ndarray:
+    """0-based indices from OBJ's 1-based (or negative: relative to the ``before``
+    elements defined above the line) ones; a bad one is an error naming its line."""
+    idx = np.where(raw > 0, raw - 1, before + raw)
+    bad = (raw == 0) | (idx < 0) | (idx >= total)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        r = int(raw[k])
+        if r == 0:
+            why = "0 is not an OBJ index (they start at 1)"
+        elif r < 0:
+            why = f"{r} reaches before the first {what} ({int(before[k])} defined above the line)"
+        else:
+            plural = {"vertex": "vertices", "normal": "normals"}[what]
+            why = f"there {'is' if total == 1 else 'are'} only {total} {what if total == 1 else plural}"
+        raise _err(source, int(corner_line[k]) + 1, f"a face references {what} {r}: {why}")
+    return idx
+
+
+def _names(L: _Lines, idx: np.ndarray, keyword: str) -> list[str]:
+    out = []
+    for i in idx.tolist():
+        text = L.text(i)
+        out.append(text[len(keyword):].strip())
+    return out
+
+
+def _current(marks: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Index (into the lines flagged by ``marks``) of the last flagged line above each
+    line ``at``; -1 where none is."""
+    return np.cumsum(marks)[at] - 1
+
+
+# ------------------------------------------------------------------ the reader
+
+
+def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
+    """Parse OBJ text (bytes); ``source`` names the file in errors."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    if not data.endswith(b"\n"):
+        data += b"\n"
+    L = _Lines(data)
+    c0 = L.buf[L.start]
+    if ((c0 == 32) | (c0 == 9)).any():  # indented statements: rare, normalize them first
+        data = b"\n".join(line.lstrip(b" \t") for line in data.split(b"\n"))
+        L = _Lines(data)
+        c0 = L.buf[L.start]
+    c1, c2 = L.buf[L.start + 1], L.buf[L.start + 2]
+    sep1, sep2 = c1 <= 32, c2 <= 32
+    is_v = (c0 == ord("v")) & sep1
+    is_vn = (c0 == ord("v")) & (c1 == ord("n")) & sep2
+    is_f = (c0 == ord("f")) & sep1
+    is_o = (c0 == ord("o")) & sep1
+    is_g = (c0 == ord("g")) & sep1
+    is_use = np.zeros_like(is_v)
+    mtllibs: list[tuple[str, int]] = []
+    for i in np.flatnonzero((c0 == ord("u")) | (c0 == ord("m"))).tolist():
+        text = L.text(i)
+        word = text.split(maxsplit=1)[0] if text else ""
+        if word == "usemtl":
+            is_use[i] = True
+        elif word == "mtllib":
+            mtllibs.append((text[len("mtllib"):].strip(), i + 1))
+
+    v_lines = np.flatnonzero(is_v)
+    vn_lines = np.flatnonzero(is_vn)
+    f_lines = np.flatnonzero(is_f)
+    n_v = v_lines.shape[0]
+
+    block = L.block(v_lines)
+    vertices = _vectors_fast(block, n_v, b"v") if n_v else np.zeros((0, 3))
+    if vertices is None:
+        vertices = _vectors_slow(block, v_lines, "v", source)
+    block = L.block(vn_lines)
+    vnormals = _vectors_fast(block, vn_lines.shape[0], b"vn") if vn_lines.shape[0] else np.zeros((0, 3))
+    if vnormals is None:
+        vnormals = _vectors_slow(block, vn_lines, "vn", source)
+
+    if f_lines.shape[0] == 0:
+        if n_v == 0:
+            raise InputError("the file holds no geometry (empty mesh)", source=source)
+        raise InputError(f"the file has {n_v} vertices but no faces: a point cloud without faces, "
+                         "not a triangle mesh", source=source)
+    block = L.block(f_lines)
+    corners = _corners_fast(block, f_lines.shape[0])
+    if corners is None:
+        corners = _corners_slow(block, f_lines, source)
+    c_line, c_vertex, c_normal, c_has_normal = corners
+    n_f = f_lines.shape[0]
+    count = np.bincount(c_line, minlength=n_f)
+    if count.min() < 3:
+        k = int(np.flatnonzero(count < 3)[0])
+        raise _err(source, int(f_lines[k]) + 1, f"a face needs at least 3 corners, got {int(count[k])}")
+    corner_file_line = f_lines[c_line]
+    v_before = np.cumsum(is_v)[corner_file_line]
+    vertex = _resolve(c_vertex, v_before, n_v, corner_file_line, "vertex", source)
+    normal = None
+    if c_has_normal.all():
+        vn_before = np.cumsum(is_vn)[corner_file_line]
+        normal = _resolve(c_normal, vn_before, vnormals.shape[0], corner_file_line, "normal", source)
+
+    # fan triangulation: (0, i, i + 1) from each face's first corner
+    first = np.cumsum(count) - count
+    n_tri = count - 2
+    face_of = np.repeat(np.arange(n_f), n_tri)
+    j = np.arange(face_of.shape[0]) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
+    a = first[face_of]
+    tri_corner = np.stack([a, a + j + 1, a + j + 2], axis=1)
+    faces = vertex[tri_corner]
+    corner_normals = None if normal is None else normal[tri_corner]
+
+    # parts: o objects, else g groups, else the file stem
+    marks = is_o if is_o.any() else is_g
+    if marks.any():
+        keyword = "o" if is_o.any() else "g"
+        labels = _names(L, np.flatnonzero(marks), keyword)
+        owner = _current(marks, f_lines)
+    else:
+        labels, owner = [], np.full(n_f, -1, dtype=np.int64)
+    part_of_face, part_names = _group(owner, [lb or stem for lb in labels], stem)
+
+    # materials: usemtl names in the order of their first use
+    mat_lines = np.flatnonzero(is_use)
+    use_names = _names(L, mat_lines, "usemtl")
+    mat_owner = _current(is_use, f_lines) if mat_lines.shape[0] else np.full(n_f, -1, dtype=np.int64)
+    mat_of_face, material_names, material_lines = _materials(mat_owner, use_names, mat_lines)
+
+    return ObjData(
+        vertices=vertices,
+        faces=faces,
+        face_line=f_lines[face_of] + 1,
+        vertex_normals=vnormals,
+        corner_normals=corner_normals,
+        part=part_of_face[face_of],
+        part_names=part_names,
+        material=mat_of_face[face_of],
+        material_names=material_names,
+        material_lines=material_lines,
+        mtllibs=tuple(mtllibs),
+    )
+
+
+def _group(owner: np.ndarray, labels: list[str], stem: str) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Part index of each face from the index of its owning statement (-1: none), parts
+    named by ``labels`` (``stem`` for -1), merged by name, in order of first face."""
+    ids, first = np.unique(owner, return_index=True)
+    names: list[str] = []
+    table = np.zeros(ids.shape[0], dtype=np.int32)
+    for k in np.argsort(first, kind="stable").tolist():
+        name = stem if ids[k] < 0 else labels[int(ids[k])]
+        if name not in names:
+            names.append(name)
+        table[k] = names.index(name)
+    return table[np.searchsorted(ids, owner)], tuple(names)
+
+
+def _materials(owner: np.ndarray, labels: list[str], lines: np.ndarray):
+    ids, first = np.unique(owner, return_index=True)
+    names: list[str] = []
+    at: list[int] = []
+    table = np.full(ids.shape[0], -1, dtype=np.int32)
+    for k in np.argsort(first, kind="stable").tolist():
+        if ids[k] < 0:
+            continue
+        name = labels[int(ids[k])]
+        if name not in names:
+            names.append(name)
+            at.append(int(lines[int(ids[k])]) + 1)
+        table[k] = names.index(name)
+    return table[np.searchsorted(ids, owner)], tuple(names), tuple(at)
