@@ -48,20 +48,25 @@ SCALES = {"vertex": 7.44214, "traversal": 0.570522, "fragment": 2.57008}
 # ... and its cycles per record (none then: the parameter came with the refit of 2026-11-25)
 RECORD_CYCLES = {"vertex": 0.0, "traversal": 0.0, "fragment": 0.0}
 
+# the search radii of the rule the file was written with (fractions of the scene's diagonal),
+# pinned: the default became the density rule (estimate.radius_photons)
+OLD_RADII = {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}
+# and the photon trees' depth of then, floor(ln n) (the default became photons.leaf_photons)
+OLD_TREE = {"leaf_photons": None}
 # runs: every frame kind, every gather filter, the three scenes, N and the schedulers
 RUNS = {
     "cornell-pmap-mvoxel": {"scene": "cornell", "mode": "pmap", "resolution": [48, 48],
-                            "photons": {"count": 4000},
+                            "photons": {"count": 4000, **OLD_TREE}, "estimate": OLD_RADII,
                             "arch": {"frames": 2, "packet_size": 64, "trace": False}},
     "cornell-pmap-disk-n4": {"scene": "cornell", "mode": "pmap", "resolution": [32, 32],
-                             "photons": {"count": 3000}, "estimate": {"filter": "disk"},
+                             "photons": {"count": 3000, **OLD_TREE}, "estimate": {"filter": "disk", **OLD_RADII},
                              "arch": {"frames": 3, "pipelines": 4, "trace": False}},
     "ring-pmap-kvoxel-dynamic": {"scene": "ring", "mode": "pmap", "resolution": [40, 30],
-                                 "photons": {"count": 3000}, "estimate": {"filter": "kvoxel"},
+                                 "photons": {"count": 3000, **OLD_TREE}, "estimate": {"filter": "kvoxel", **OLD_RADII},
                                  "arch": {"frames": 2, "pipelines": 3, "scheduler": "dynamic",
                                           "packet_size": 32, "trace": False}},
     "room-pmap-knn": {"scene": "room", "mode": "pmap", "resolution": [32, 24],
-                      "photons": {"count": 3000}, "estimate": {"filter": "knn"},
+                      "photons": {"count": 3000, **OLD_TREE}, "estimate": {"filter": "knn", **OLD_RADII},
                       "arch": {"frames": 2, "trace": False}},
     "room-refract": {"scene": "room", "mode": "refract", "resolution": [64, 48],
                      "arch": {"frames": 4, "packet_size": 128, "trace": False}},

@@ -85,7 +85,9 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     sphere_scene(tmp_path)
     exp = tmp_path / "evc.yaml"
     exp.write_text(json.dumps({
-        "base": {"scene": "furnace.yaml", "reference": {"photons": 6000, "k_nearest": 40, "tolerance": 0.05}},
+        "base": {"scene": "furnace.yaml", "reference": {"photons": 6000, "k_nearest": 40, "tolerance": 0.05},
+                 # fixed radii, so that more photons mean a smaller error (the density rule keeps ~k per gather)
+                 "estimate": {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}},
         "points": [
             {"estimate.filter": ["disk", "mvoxel"], "photons.count": [3000, 12000]},
             {"estimate.filter": ["kvoxel"], "photons.count": [12000], "estimate.k": [2, 8]},
@@ -130,7 +132,9 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     two = mv[2]
     assert two["rmse"] == mv[0]["rmse"] and two["throughput_cycles"] != mv[0]["throughput_cycles"]
     for row, pipes in ((mv[0], 1), (two, 2)):
-        cfg = config_from_dict({"scene": "furnace.yaml", "mode": "pmap", "estimate": {"filter": "mvoxel"},
+        cfg = config_from_dict({"scene": "furnace.yaml", "mode": "pmap",
+                                "estimate": {"filter": "mvoxel", "radius_fraction": 0.04,
+                                             "caustic_radius_fraction": 0.01},
                                 "photons": {"count": 3000}, "arch": {"pipelines": pipes}})
         tm = simulate_run(render(cfg, tmp_path), programs_for(cfg, tmp_path))
         assert (tm.cycles["throughput"], tm.cycles["latency"]) == (row["throughput_cycles"], row["latency_cycles"])

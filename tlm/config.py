@@ -83,7 +83,13 @@ class PhotonConfig:
         min=0.0, max=0.95,
     )
     levels: int | None = _f(
-        None, "photon BSP split levels; null = floor(ln n) of the stored photons", min=0, max=24
+        None, "photon BSP split levels of both maps; null = from leaf_photons, or when that is null too "
+              "floor(ln n) of each map's stored photons (the thesis's depth)", min=0, max=24
+    )
+    leaf_photons: int | None = _f(
+        8, "when levels is null: split each map until its leaves hold about this many photons "
+            "(levels = round(log2(n / leaf_photons))), so a gather tests photons in proportion to the "
+            "radius's, not to the map's size; null = floor(ln n) (the thesis's)", min=1,
     )
 
 
@@ -92,17 +98,31 @@ class EstimateConfig:
     filter: str = _f("mvoxel", "disk (eq. 3.2) | mvoxel (eq. 3.3) | kvoxel (eq. 3.5) | knn (exact reference) "
                      "| a registered estimator (tlm.registry)", choices=FILTERS)
     radius: float | None = _f(
-        None, "search radius in scene units; null = radius_fraction x the scene's diagonal",
-        min_exclusive=0.0,
+        None, "the indirect map's search radius in scene units; null = radius_fraction x the scene's diagonal, "
+        "or when that is null too the density rule (radius_photons)", min_exclusive=0.0,
     )
-    radius_fraction: float = _f(0.04, "indirect-map radius as a fraction of the scene's diagonal when radius is null",
-                                min_exclusive=0.0, max=1.0)
+    radius_fraction: float | None = _f(
+        None, "the indirect map's radius as a fraction of the scene's diagonal when radius is null (the rule "
+        "before the density rule: 0.04; the thesis study 0.02); null = the density rule",
+        min_exclusive=0.0, max=1.0,
+    )
+    radius_photons: int = _f(
+        100, "density rule of the indirect map (radius and radius_fraction null): the radius that holds about "
+        "this many stored photons, the median distance from a fixed sample of 256 of the map's photons to their "
+        "radius_photons-th nearest neighbour (the same map gives the same radius)", min=1, max=100000,
+    )
     caustic_radius: float | None = _f(
-        None, "search radius of the caustic map in scene units; null = caustic_radius_fraction x the diagonal",
-        min_exclusive=0.0,
+        None, "the caustic map's search radius in scene units; null = caustic_radius_fraction x the diagonal, "
+        "or when that is null too the density rule (caustic_radius_photons)", min_exclusive=0.0,
     )
-    caustic_radius_fraction: float = _f(0.01, "caustic radius as a fraction of the scene's diagonal when "
-                                        "caustic_radius is null", min_exclusive=0.0, max=1.0)
+    caustic_radius_fraction: float | None = _f(
+        None, "the caustic map's radius as a fraction of the scene's diagonal when caustic_radius is null (the "
+        "rule before the density rule: 0.01); null = the density rule", min_exclusive=0.0, max=1.0,
+    )
+    caustic_radius_photons: int = _f(
+        8, "density rule of the caustic map: the radius that holds about this many of its stored photons (as "
+        "radius_photons; few, because most caustic photons spread thin and a caustic is sharp)", min=1, max=100000,
+    )
     k: int = _f(8, "voxels sampled by the stochastic k-voxel filter", min=1, max=1024)
     k_nearest: int = _f(50, "photons of the exact k-nearest reference estimate", min=1, max=100000)
     cone_k: float = _f(1.1, "cone filter constant: weight 1 - d / (cone_k r)", min=1.0)

@@ -131,8 +131,10 @@ def ring():
 
 @pytest.fixture(scope="module")
 def cornell():
-    """Cornell box, photon-map mode at 12 x 12 with 500 photons: every stage and pass."""
-    return functional(scene="cornell", mode="pmap", resolution=[12, 12], photons={"count": 500})
+    """Cornell box, photon-map mode at 12 x 12 with 500 photons: every stage and pass (with the
+    fixed-fraction radii it was sized with; the default is the density rule)."""
+    return functional(scene="cornell", mode="pmap", resolution=[12, 12], photons={"count": 500},
+                      estimate={"radius_fraction": 0.04, "caustic_radius_fraction": 0.01})
 
 
 @pytest.fixture(scope="module")

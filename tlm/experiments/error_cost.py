@@ -216,7 +216,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                              source=str(path), key=f"points: {point}")
         n = photon_count(scene, cfg)
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
-                   cfg.photons.caustic_fraction, cfg.photons.levels, cfg.cache.block_words, cfg.cache.pairs)
+                   cfg.photons.caustic_fraction, cfg.photons.levels, cfg.photons.leaf_photons,
+                   cfg.cache.block_words, cfg.cache.pairs)
         frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:
             t0 = time.perf_counter()
@@ -234,7 +235,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         est = cfg.estimate
         row = {
             "point": i, "filter": est.filter, "photons": n, "stored": traced.photons.n,
-            "radius": search_radius(frame) if ESTIMATORS[est.filter].uses_radius else None,
+            "radius": search_radius(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else None,
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             **image_error(radiance, reference),

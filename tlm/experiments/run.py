@@ -51,6 +51,7 @@ from tlm.errors import InputError, did_you_mean
 from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
+from tlm.render import checks
 from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.passes import (
     PASS_FUNCTIONS,
@@ -59,11 +60,10 @@ from tlm.render.passes import (
     GBuffer,
     ImageGBuffer,
     cast,
-    caustic_radius,
     new_streams,
     pixel_batches,
     pmap_pass,
-    search_radius,
+    radii,
     trace_photon_map,
 )
 from tlm.render.planner import Plan, plan
@@ -153,6 +153,7 @@ class Primary:
     sees_light: np.ndarray  # (pixels,) bool: the first sample sees a light directly
     rays: int = 0
     hits: int = 0
+    back: int = 0  # hits on the back of their triangle (all samples)
 
     @classmethod
     def empty(cls, n: int) -> Primary:
@@ -166,9 +167,10 @@ class Primary:
         self.t[at] = g.first(g.t)
         self.triangle[at] = g.first(g.triangle)
         self.normal[at] = g.first(g.normal(frame))
-        self.sees_light[at] = g.first(g.sees_light)
+        self.sees_light[at] = g.first(g.sees_emitter)
         self.rays += int(g.origin.shape[0])
         self.hits += int((g.triangle >= 0).sum())
+        self.back += checks.back_faces(frame.scene, g.triangle, g.direction, frame.kind)
 
 
 @dataclass
@@ -193,6 +195,7 @@ class RenderResult:
     timing: Timing | None = None  # the timing model's outcome (simulate_run)
     programs: Programs | None = None
     primary: Primary | None = None
+    gather_maps: dict | None = None  # the pmap pass's work per photon map (pmap_pass's per_map)
 
     @property
     def accel(self) -> TriangleAccel:
@@ -228,6 +231,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     streams = {name: new_streams(frame) for name in names}  # each pass's cache pairs, batch to batch
     primary = Primary.empty(w * h)
     whole: GBuffer | None = None
+    gather_maps: dict | None = {} if "pmap" in names else None
     steps = len(batches) * (1 + len(names)) + ("pmap" in names)
     with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
         if "pmap" in names:
@@ -244,7 +248,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
                 bar.set_postfix_str(f"batch {i + 1}/{len(batches)} {name}")
                 with timer.stage(f"pass_{name}"):
                     if name == "pmap":
-                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name])
+                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name], per_map=gather_maps)
                     else:
                         rad, wk = PASS_FUNCTIONS[name](frame, g, streams[name])
                 radiance[name][at] = rad
@@ -263,7 +267,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
         error = photon_error(frame, radiance["pmap"].reshape(-1, 3))
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
     return RenderResult(scene, cfg, the_plan, frame, gbuffer, radiance, work, timer, traced, error,
-                        primary=primary)
+                        primary=primary, gather_maps=gather_maps)
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
@@ -371,6 +375,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         if name == "pmap":
             gathers = total["gathers"]
             total["photons_tested_per_gather"] = total["photons_tested"] / gathers if gathers else 0.0
+            total["photons_accepted_per_gather"] = total["photons_accepted"] / gathers if gathers else 0.0
         else:
             rays = total["primary_rays"] + total["secondary_rays"]
             shadow = total["shadow_rays"]
@@ -379,11 +384,17 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
     if res.primary is not None:
-        pixels, rays, hits = res.primary.t.shape[0], res.primary.rays, res.primary.hits
+        pixels, rays, hits, back = res.primary.t.shape[0], res.primary.rays, res.primary.hits, res.primary.back
     else:  # (a result made by hand, not by render)
         g = res.gbuffer
         pixels, rays, hits = g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum())
-    warnings = []
+        back = checks.back_faces(res.scene, g.triangle, g.direction)
+    warnings = [*checks.light_warnings(res.scene, res.accel), *checks.camera_warnings(rays, hits, back),
+                *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
+                                       checks.light_scale(res.scene, res.accel.scale))]
+    if res.photons is not None:
+        st = res.photons.photons.stats()
+        warnings += checks.photon_warnings(st["emitted"], st["stored"])
     if res.accel.tree.truncated:
         t = res.accel.tree
         warnings.append(
@@ -411,6 +422,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             "rays": int(rays),
             "hits": int(hits),
             "misses": int(rays - hits),
+            "back_face_hits": int(back),
         },
         "work": work,
         "work_keys": list(WORK_KEYS),
@@ -418,8 +430,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             **res.photons.photons.stats(),
             "work": res.photons.totals(),
             "filter": res.cfg.estimate.filter,
-            "radius": search_radius(res.frame),
-            "caustic_radius": caustic_radius(res.frame),
+            **radii(res.frame, res.photons.photons),
+            "gather": _per_map(res),
         },
         "cycles": None if res.timing is None else res.timing.cycles,
         "fps": None if res.timing is None else res.timing.fps,
@@ -431,6 +443,17 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "git_revision": _git_revision(),
         "warnings": warnings,
     }
+
+
+def _per_map(res: RenderResult) -> dict:
+    """The pmap pass's gather work per photon map, with the photons tested and accepted per gather
+    (every gather searches both maps)."""
+    gathers = int(res.work["pmap"]["gathers"].sum()) if "pmap" in res.work else 0
+    out = {}
+    for name, tally in (res.gather_maps or {}).items():
+        out[name] = {**tally, **{f"{k}_per_gather": tally[k] / gathers if gathers else 0.0
+                                 for k in ("photons_tested", "photons_accepted")}}
+    return out
 
 
 def write_run(res: RenderResult, out: Path, config_path: str | None = None,

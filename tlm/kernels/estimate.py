@@ -113,6 +113,7 @@ and area 0 give density 0, never NaN.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -650,3 +651,54 @@ def _knn_block(position, power, incoming, kdtree, pts, nrm, kk: int, cone_k: flo
         sums = _per_query(row, (w * power[idx, c]).ravel(), q)
         out.density[sl, c] = np.divide(sums, norm, out=np.zeros(q), where=norm > 0.0)
     out.photons_accepted[sl] = front.sum(axis=1)
+
+
+# ---------------------------------------------------------------- the density rule of the radius
+
+DENSITY_SAMPLE = 256  # stored photons whose k-th neighbour distance sets the density rule's radius
+_DENSITY_CACHE: dict[tuple[int, int, int], tuple[object, float | None]] = {}
+
+
+def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -> float | None:
+    """The search radius that holds about ``k`` of a map's photons: the median, over a fixed
+    sample of the map, of the distance from a photon to its ``k``-th nearest other photon.
+
+    position : (n, 3) the map's photons. The sample is ``min(sample, n)`` photons evenly
+    spaced in storage order (``i * n // s``); the neighbours are found with
+    ``scipy.spatial.cKDTree`` and their distances recomputed in numpy, so the radius
+    depends on the map alone (not on packets, threads or the gather points) and a map
+    scaled by ``s`` gives ``s`` times the radius, up to rounding. ``k`` is capped at
+    ``n - 1``. None when the map holds fewer than 2 photons or the median is 0 (photons
+    stacked on one point): the caller's fallback applies. The result of the last maps
+    asked for is kept (keyed by the array, which must not change in place).
+    """
+    if isinstance(k, bool) or int(k) != k or k < 1:
+        raise ValueError(f"k (={k!r}) must be an integer >= 1")
+    key = (id(position), int(k), int(sample))
+    hit = _DENSITY_CACHE.get(key)
+    if hit is not None and hit[0]() is position:
+        return hit[1]
+    pos = _rows(position, "position")
+    n = pos.shape[0]
+    radius = None
+    if n >= 2:
+        from scipy.spatial import cKDTree
+
+        kk = min(int(k), n - 1)
+        s = min(int(sample), n)
+        at = np.arange(s, dtype=np.int64) * n // s
+        _, idx = cKDTree(pos).query(pos[at], k=kk + 1, workers=1)
+        idx = np.asarray(idx, dtype=np.int64).reshape(s, kk + 1)
+        d2 = ((pos[idx] - pos[at][:, None, :]) ** 2).sum(axis=2)
+        d2 = np.where(idx == at[:, None], np.inf, d2)  # the photon itself is not its neighbour
+        d2.sort(axis=1)
+        med = float(np.median(np.sqrt(d2[:, kk - 1])))
+        radius = med if math.isfinite(med) and med > 0.0 else None
+    try:
+        ref = weakref.ref(position)
+    except TypeError:  # (a list or another object without weak references: not kept)
+        return radius
+    for stale in [c for c, (r, _) in _DENSITY_CACHE.items() if r() is None]:
+        del _DENSITY_CACHE[stale]
+    _DENSITY_CACHE[key] = (ref, radius)
+    return radius

@@ -311,6 +311,17 @@ def emit(
     return arrays if with_source else arrays[:4]
 
 
+def map_levels(n: int, levels: int | None, leaf_photons: int | None) -> int | None:
+    """A photon map's BSP split levels: ``levels``; or, when None, about ``leaf_photons``
+    photons a leaf (``round(log2(n / leaf_photons))``, at least 0, at most 24); or, when
+    both are None, None: the thesis's ``floor(ln n)`` (:func:`~tlm.kernels.bsp.build_point_tree`)."""
+    if levels is not None or leaf_photons is None:
+        return levels
+    if n <= leaf_photons:
+        return 0
+    return int(min(24, max(0, round(np.log2(n / leaf_photons)))))
+
+
 def trace_photons(
     scene: Scene,
     accel: TriangleAccel,
@@ -319,6 +330,7 @@ def trace_photons(
     max_bounces: int = 8,
     russian_roulette: bool = True,
     levels: int | None = None,
+    leaf_photons: int | None = None,
     caustic_fraction: float = 0.5,
     batch: int = 4,
     page_words: int = PAGE_WORDS,
@@ -450,7 +462,8 @@ def trace_photons(
         position = every["position"][sel]
         return PhotonMap(position=position, normal=every["normal"][sel], incoming=every["incoming"][sel],
                          power=every["power"][sel], caustic=every["caustic"][sel],
-                         tree=build_point_tree(position, levels), emitted=n)
+                         tree=build_point_tree(position, map_levels(position.shape[0], levels, leaf_photons)),
+                         emitted=n)
 
     photons = PhotonMaps(one_map(every["caustic"]), one_map(~every["caustic"]), emitted=n)
     return PhotonTrace(photons, work)

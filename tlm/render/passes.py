@@ -51,10 +51,18 @@ import numpy as np
 
 from tlm.config import RunConfig
 from tlm.kernels.camera import primary_rays
-from tlm.kernels.estimate import GATHER_STREAM
+from tlm.kernels.estimate import GATHER_STREAM, density_radius
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
-from tlm.kernels.shade import SPAWN_EPS, direct_light, emitted, face_normals, facing, scatter_specular
+from tlm.kernels.shade import (
+    SPAWN_EPS,
+    direct_light,
+    emitted,
+    face_normals,
+    facing,
+    scatter_specular,
+    surface_emission,
+)
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
 from tlm.registry import ESTIMATORS
 from tlm.render.estimators import Gather
@@ -123,6 +131,7 @@ class Frame:
     reflectance: np.ndarray  # (n, 3)
     transmittance: np.ndarray  # (n, 3)
     ior: np.ndarray  # (n,)
+    emission: np.ndarray | None  # (n, 3) radiance Le of emitting triangles (a mesh light); None: none emits
     eps: float  # spawn epsilon in scene units
     transparent: np.ndarray | None  # (n, 3) transmittance shadow rays pass through (ior 1), None: none
 
@@ -132,6 +141,8 @@ class Frame:
         matched = (table["kind"] == KIND["dielectric"]) & (table["ior"] == 1.0)
         transparent = np.where(matched[:, None], table["transmittance"], 0.0) if matched.any() else None
         shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
+        if not (table["emission"] > 0).any():
+            table["emission"] = None
         return cls(
             scene=scene,
             accel=accel,
@@ -215,7 +226,15 @@ class GBuffer:
     hits: Hits
     light: np.ndarray  # (p * spp, 3) radiance of a quad light seen before the surface
     sees_light: np.ndarray  # (p * spp,) bool
+    surface_light: np.ndarray | None = None  # (p * spp, 3) Le of the emitting triangle hit; None: none emits
     memo: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def sees_emitter(self) -> np.ndarray:
+        """(p * spp,) bool: the sample sees a light directly, a quad light or an emitting triangle."""
+        if self.surface_light is None:
+            return self.sees_light
+        return self.sees_light | (self.surface_light.max(axis=1) > 0)
 
     @property
     def t(self) -> np.ndarray:
@@ -262,7 +281,8 @@ def cast(frame: Frame, pixels: np.ndarray, record: bool = True) -> GBuffer:
     hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True,
                        record=record)
     le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
-    return GBuffer(pixels, frame.spp, o, d, hits, le, seen)
+    return GBuffer(pixels, frame.spp, o, d, hits, le, seen,
+                   surface_emission(frame.emission, frame.normals, hits.triangle, d))
 
 
 def pixel_batches(n_pixels: int, spp: int, batch_rays: int) -> list[slice]:
@@ -359,6 +379,8 @@ def rcast_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tupl
         keys = g.sample_keys[idx] * 64
         radiance[idx] = _shade_lambertian(frame, owner[idx], keys, pts, g.direction[idx], tri,
                                           g.hits.u[idx], g.hits.v[idx], work, rec)
+    if g.surface_light is not None:  # emitting triangles seen directly (not behind a quad light)
+        radiance += np.where(g.sees_light[:, None], 0.0, g.surface_light)
     _charge(rec, streams, work)
     return pixel_mean(frame, radiance), work
 
@@ -472,6 +494,11 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
         le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
         em_s.append(sidx[seen])
         em_r.append(new_w[seen] * le[seen])
+        surf = surface_emission(frame.emission, frame.normals, hits.triangle, new_d)
+        if surf is not None:  # emitting triangles the path meets (it goes on from them)
+            glow = ~seen & (surf.max(axis=1) > 0)
+            em_s.append(sidx[glow])
+            em_r.append(new_w[glow] * surf[glow])
         hit = (hits.triangle >= 0) & ~seen
         kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
         lam = hit & (kind_hit == KIND["lambertian"])
@@ -539,7 +566,7 @@ def sees_a_light(frame: Frame, g: GBuffer) -> np.ndarray:
     """(p,) bool: the pixels with a sample that sees a light, directly or along its mirror
     and glass paths (a highlight): where a few samples carry a light's radiance, hundreds
     of times a wall's, and one more or fewer of them changes the pixel the most."""
-    seen = g.sees_light.copy()
+    seen = g.sees_emitter.copy()
     render = frame.cfg.render
     for kind, depth in (("mirror", render.reflect_depth), ("dielectric", render.refract_depth)):
         if depth and np.any(frame.kind == KIND[kind]):
@@ -591,22 +618,78 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         frame.scene, frame.accel, photon_count(frame.scene, cfg) if n is None else n,
         seed=cfg.seed if seed is None else seed, max_bounces=cfg.photons.max_bounces,
         russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
+        leaf_photons=cfg.photons.leaf_photons,
         caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
         page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
     )
 
 
-def search_radius(frame: Frame) -> float:
-    """The global (indirect) map's fixed search radius r: ``estimate.radius`` or a fraction
-    of the scene diagonal."""
-    est = frame.cfg.estimate
-    return est.radius if est.radius is not None else est.radius_fraction * frame.accel.scale
+# the fractions of the scene's diagonal a map's radius falls back to when the density rule has
+# nothing to measure (a map of fewer than 2 photons): the rule before it
+FALLBACK_FRACTION = {"indirect": 0.04, "caustic": 0.01}
 
 
-def caustic_radius(frame: Frame) -> float:
-    """The caustic map's search radius: ``estimate.caustic_radius`` or a fraction of the diagonal."""
+def _map_of(photons: PhotonMaps | PhotonMap | None, which: str) -> PhotonMap | None:
+    if isinstance(photons, PhotonMaps):
+        return photons.caustic_map if which == "caustic" else photons.indirect_map
+    return photons  # a single map (or None) is gathered alone with either radius
+
+
+def radius_rule(frame: Frame, which: str = "indirect") -> str:
+    """How the ``which`` ("indirect" or "caustic") map's radius is chosen: ``radius`` (the
+    scene units given), ``fraction`` (of the diagonal) or ``density`` (holds about k photons)."""
     est = frame.cfg.estimate
-    return est.caustic_radius if est.caustic_radius is not None else est.caustic_radius_fraction * frame.accel.scale
+    given, fraction = ((est.caustic_radius, est.caustic_radius_fraction) if which == "caustic"
+                       else (est.radius, est.radius_fraction))
+    return "radius" if given is not None else "fraction" if fraction is not None else "density"
+
+
+def _radius(frame: Frame, photons: PhotonMaps | PhotonMap | None, which: str) -> float:
+    est = frame.cfg.estimate
+    given, fraction, k = ((est.caustic_radius, est.caustic_radius_fraction, est.caustic_radius_photons)
+                          if which == "caustic" else (est.radius, est.radius_fraction, est.radius_photons))
+    rule = radius_rule(frame, which)
+    if rule == "radius":
+        return given
+    if rule == "density":
+        m = _map_of(photons, which)
+        if m is None:
+            raise ValueError(f"the {which} map's radius follows the density rule: pass the photon map")
+        r = density_radius(m.position, k)
+        if r is not None:
+            return r
+        fraction = FALLBACK_FRACTION[which]
+    return fraction * frame.accel.scale
+
+
+def search_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None = None) -> float:
+    """The global (indirect) map's fixed search radius r: ``estimate.radius``, else
+    ``radius_fraction`` x the scene diagonal, else the density rule on ``photons``' indirect
+    map (a single map: that map): the radius holding about ``radius_photons`` photons
+    (:func:`tlm.kernels.estimate.density_radius`; 0.04 x the diagonal for a map too small
+    to measure)."""
+    return _radius(frame, photons, "indirect")
+
+
+def caustic_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None = None) -> float:
+    """The caustic map's search radius: ``estimate.caustic_radius``, else
+    ``caustic_radius_fraction`` x the diagonal, else the density rule on the caustic map
+    (``caustic_radius_photons``; 0.01 x the diagonal for a map too small to measure)."""
+    return _radius(frame, photons, "caustic")
+
+
+def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
+    """The search radii a pmap frame used and how each was chosen (``results.json``)."""
+    est = frame.cfg.estimate
+    out = {}
+    for which, key, k in (("indirect", "radius", est.radius_photons),
+                          ("caustic", "caustic_radius", est.caustic_radius_photons)):
+        rule = radius_rule(frame, which)
+        out[key] = _radius(frame, photons, which)
+        out[f"{key}_rule"] = rule
+        if rule == "density":
+            out[f"{key}_photons"] = k
+    return out
 
 
 def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, streams, kdtree, stream: str):
@@ -617,7 +700,7 @@ def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, str
 
 
 def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=None,
-              streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+              streams: Streams | None = None, per_map: dict | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The photon-map frame: ``albedo / pi * density`` at every gather point (:func:`gather_points`).
 
     ``density`` is the reflected flux density by the configured filter: the caustic map's
@@ -627,24 +710,32 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     ``gather_misses``: the photon-leaf stream's misses, gathers in pixel order (the
     caustic map's leaves on a pair of their own, :data:`CAUSTIC_STREAM`; the indirect map's
     on the Fragment PM's ``photons`` pair), ``streams`` as in :func:`rcast_pass`.
+    ``per_map``: a dict to which each map's totals are added (``"caustic"``, ``"indirect"``
+    or, for a single map, ``"photons"`` -> ``photons_tested``, ``photons_accepted``,
+    ``leaves_visited``), the split of the work's sums between the two maps.
     """
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
     radiance = np.zeros((g.origin.shape[0], 3))
     sidx, tri, pts, n, weight = gather_points(frame, g)
-    maps = [(photons, search_radius(frame), kdtree, GATHER_STREAM)] if isinstance(photons, PhotonMap) else [
-        (photons.caustic_map, caustic_radius(frame), None, CAUSTIC_STREAM),
-        (photons.indirect_map, search_radius(frame), None, GATHER_STREAM)]
-    maps = [m for m in maps if m[0].n > 0]
+    maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)] if isinstance(
+        photons, PhotonMap) else [
+        ("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM),
+        ("indirect", photons.indirect_map, search_radius(frame, photons), None, GATHER_STREAM)]
+    maps = [m for m in maps if m[1].n > 0]
     if sidx.shape[0] == 0 or not maps:
         return pixel_mean(frame, radiance), work
     streams = new_streams(frame) if streams is None else streams
     owner = g.owner[sidx]
     keys = g.sample_keys[sidx]
     density = np.zeros((sidx.shape[0], 3))
-    for ph, radius, tree, stream in maps:
+    for name, ph, radius, tree, stream in maps:
         e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
         density += e.density
+        if per_map is not None:
+            tally = per_map.setdefault(name, dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited"), 0))
+            for k in tally:
+                tally[k] += int(getattr(e, k).sum())
         for k in GATHER_KEYS[1:]:
             work[k] += np.bincount(owner, weights=getattr(e, k), minlength=p).astype(np.int64)
     np.add.at(radiance, sidx, weight * frame.albedo[tri] / np.pi * density)

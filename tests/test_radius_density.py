@@ -1,0 +1,186 @@
+"""The density rule of the search radius: the radius that holds about k photons of a map.
+
+A gather then tests and accepts a bounded number of photons whatever the scene's size
+and photon count (the fixed fraction of the diagonal did not: its accepted photons grow
+with the map), the radius follows the scene's scale, and it depends on the map alone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tlm.cli import main
+from tlm.config import EstimateConfig, config_from_dict
+from tlm.experiments.run import render
+from tlm.kernels.estimate import density_radius
+from tlm.render.passes import Frame, caustic_radius, radii, radius_rule, search_radius
+
+REPO = Path(__file__).resolve().parents[1]
+OLD = {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}
+K, KC = EstimateConfig().radius_photons, EstimateConfig().caustic_radius_photons  # the defaults: 100, 8
+
+
+def _render(scene: str, photons: int, estimate: dict | None = None, **extra):
+    raw = {"scene": scene, "mode": "pmap", "resolution": [16, 16], "render": {"spp": 1},
+           "photons": {"count": photons}, "estimate": estimate or {}, **extra}
+    return render(config_from_dict(raw))
+
+
+def _per_gather(res) -> dict[str, tuple[float, float]]:
+    g = int(res.work["pmap"]["gathers"].sum())
+    assert g > 0
+    return {m: (t["photons_tested"] / g, t["photons_accepted"] / g) for m, t in res.gather_maps.items()}
+
+
+# ---------------------------------------------------------------- the kernel
+
+
+def test_uniform_photons_give_the_radius_of_k_photons():
+    """Photons uniform on a unit square: pi r^2 n = k within a few percent."""
+    rng = np.random.default_rng(3)
+    n, k = 40000, 64
+    pos = np.column_stack([rng.random(n), rng.random(n), np.zeros(n)])
+    r = density_radius(pos, k)
+    assert r == pytest.approx(math.sqrt(k / (math.pi * n)), rel=0.06)
+
+
+def test_the_photon_itself_is_not_its_neighbour():
+    pos = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
+    assert density_radius(pos, 1) == 5.0
+    assert density_radius(pos, 50) == 5.0  # k capped at n - 1
+    assert density_radius(pos[:1], 8) is None  # nothing to measure: the caller falls back
+    assert density_radius(np.zeros((0, 3)), 8) is None
+    assert density_radius(np.zeros((5, 3)), 2) is None  # stacked on one point
+
+
+def test_deterministic_and_scale_equivariant():
+    rng = np.random.default_rng(7)
+    pos = rng.random((5000, 3)) * [100.0, 1.0, 50.0]
+    r = density_radius(pos, 32)
+    assert density_radius(pos.copy(), 32) == r  # the same map (not the cached array): the same radius
+    assert density_radius(pos, 32) == r
+    assert density_radius(pos * 1e6, 32) == pytest.approx(r * 1e6, rel=1e-12)
+    assert density_radius(pos + 1e3, 32) == pytest.approx(r, rel=1e-9)
+    with pytest.raises(ValueError):
+        density_radius(pos, 0)
+
+
+# ---------------------------------------------------------------- the config
+
+
+def test_rules_and_their_precedence():
+    res = _render("cornell", 3000)
+    photons = res.photons.photons
+    frame = res.frame
+    diag = frame.accel.scale
+    assert radius_rule(frame, "indirect") == radius_rule(frame, "caustic") == "density"
+    assert search_radius(frame, photons) == density_radius(photons.indirect_map.position, K)
+    assert caustic_radius(frame, photons) == density_radius(photons.caustic_map.position, KC)
+    with pytest.raises(ValueError, match="density rule"):
+        search_radius(frame)
+    for est, want in (({"radius_fraction": 0.02}, (0.02 * diag, None)),
+                      ({"radius": 7.0, "radius_fraction": 0.02, "caustic_radius_fraction": 0.01},
+                       (7.0, 0.01 * diag)),
+                      ({"radius_photons": 16, "caustic_radius": 3.0}, (None, 3.0))):
+        f = Frame.create(res.scene, res.accel, config_from_dict({"scene": "cornell", "estimate": est}))
+        r = radii(f, photons)
+        if want[0] is not None:
+            assert r["radius"] == want[0]
+        if want[1] is not None:
+            assert r["caustic_radius"] == want[1]
+    f = Frame.create(res.scene, res.accel, config_from_dict({"scene": "cornell", "estimate": {"radius_photons": 16}}))
+    assert radii(f, photons)["radius"] == density_radius(photons.indirect_map.position, 16)
+    assert radii(f, photons)["radius"] < radii(frame, photons)["radius"]
+
+
+def test_the_old_rule_pinned_gives_the_old_radii():
+    res = _render("cornell", 3000, OLD)
+    diag = res.frame.accel.scale
+    assert radii(res.frame, res.photons.photons) == {"radius": 0.04 * diag, "radius_rule": "fraction",
+                                                      "caustic_radius": 0.01 * diag,
+                                                      "caustic_radius_rule": "fraction"}
+
+
+# ---------------------------------------------------------------- gathers stay bounded
+
+
+@pytest.mark.parametrize("scene", ["cornell", "room"])
+def test_photons_per_gather_do_not_grow_with_the_map(scene):
+    """8x the photons: the density rule accepts about as many per gather (the fraction rule
+    ~8x as many), and tests a bounded number."""
+    small, large = _render(scene, 4000), _render(scene, 32000)
+    old_small, old_large = _render(scene, 4000, OLD), _render(scene, 32000, OLD)
+    a, b = _per_gather(small)["indirect"], _per_gather(large)["indirect"]
+    assert 0.6 < b[1] / a[1] < 1.6
+    assert 0.15 * K < b[1] < 2 * K  # about radius_photons (fewer: gathers sit where photons are sparser)
+    for res in (small, large):
+        for m, (tested, accepted) in _per_gather(res).items():
+            assert accepted <= tested < 8 * K, (scene, m)
+    old_a, old_b = _per_gather(old_small)["indirect"], _per_gather(old_large)["indirect"]
+    assert old_b[1] / old_a[1] > 3
+
+
+def test_ring_caustic_default_keeps_its_gathers_bounded():
+    res = _render("ring", 6000)
+    (tested, accepted), = _per_gather(res).values()  # the ring's one (caustic) map
+    assert 0 < accepted <= tested < 8 * K
+
+
+def test_a_scaled_scene_gathers_the_same_photons():
+    """Cornell at 1e6 times its size: the radius x 1e6, the same photons accepted, and the
+    same photons tested up to the photon BSP's splits (rounding moves a few photons across)."""
+    base = _render("cornell", 4000)
+    big = _render(str(REPO / "scenes" / "extreme" / "cornell_scale_1e6.yaml"), 4000)
+    rb, rg = radii(base.frame, base.photons.photons), radii(big.frame, big.photons.photons)
+    for key in ("radius", "caustic_radius"):
+        assert rg[key] == pytest.approx(rb[key] * 1e6, rel=1e-9)
+    for m in ("caustic", "indirect"):
+        assert big.gather_maps[m]["photons_accepted"] == base.gather_maps[m]["photons_accepted"]
+        assert big.gather_maps[m]["photons_tested"] == pytest.approx(base.gather_maps[m]["photons_tested"], rel=0.05)
+
+
+def test_independent_of_batches():
+    one = _render("cornell", 3000)
+    many = _render("cornell", 3000, render={"spp": 1, "batch_rays": 37})
+    assert np.array_equal(one.radiance["pmap"], many.radiance["pmap"])
+    assert one.gather_maps == many.gather_maps
+    assert radii(one.frame, one.photons.photons) == radii(many.frame, many.photons.photons)
+
+
+# ---------------------------------------------------------------- results.json and the summary
+
+
+def test_results_and_summary_report_radii_and_work_per_gather(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["run", str(REPO / "configs" / "cornell_pmap.yaml"), "--out", str(out), "--no-progress", "--no-report",
+                 "--outputs", "images", "--set", "resolution=[16,16]", "--set", "photons.count=3000"])
+    assert code == 0
+    text = capsys.readouterr().out
+    r = json.loads((out / "results.json").read_text())
+    ph, w = r["photons"], r["work"]
+    assert ph["radius_rule"] == ph["caustic_radius_rule"] == "density"
+    assert ph["radius_photons"] == K and ph["caustic_radius_photons"] == KC
+    assert ph["radius"] > 0 and ph["caustic_radius"] > 0
+    gathers = w["pmap"]["gathers"]
+    assert set(ph["gather"]) == {"caustic", "indirect"}
+    for k in ("photons_tested", "photons_accepted"):
+        assert sum(m[k] for m in ph["gather"].values()) == w["pmap"][k]
+        for m in ph["gather"].values():
+            assert m[f"{k}_per_gather"] == pytest.approx(m[k] / gathers)
+    assert w["pmap"]["photons_accepted_per_gather"] == pytest.approx(w["pmap"]["photons_accepted"] / gathers)
+    assert w["rcast"]["tri_tests_per_ray"] > 0 and w["rcast"]["tri_tests_per_shadow_ray"] > 0
+    assert "per gather: tested" in text and "caustic r=" in text and f"(density, ~{K} photons)" in text
+    assert "per ray" in text and "per shadow ray" in text
+    assert r["warnings"] == []
+
+
+def test_params_document_the_rule(capsys):
+    assert main(["params"]) == 0
+    text = capsys.readouterr().out
+    for key in ("estimate.radius_photons", "estimate.caustic_radius_photons", "estimate.radius_fraction"):
+        assert key in text

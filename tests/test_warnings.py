@@ -1,0 +1,190 @@
+"""Warnings for mistakes that give no error (tlm/render/checks.py): each fires on a scene
+made to have the mistake, on stderr and in results.json, and none fires on the built-in
+scenes."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tlm.cli import main
+from tlm.kernels.traverse import build_accel
+from tlm.render import checks
+from tlm.scenes.loader import load_scene
+from tlm.scenes.model import Light
+
+REPO = Path(__file__).resolve().parents[1]
+SMALL = ["--set", "resolution=[16,16]", "--set", "photons.count=2000", "--set", "render.spp=1"]
+CORNELL_LIGHT = "corner: [343.0, 548.8, 227.0], power: [1100000.0, 950000.0, 750000.0]"
+MIRROR_CENTRE = "[185.5, 245.0, 169.0]"  # the Cornell box's mirror sphere (radius 80)
+GLASS_CENTRE = "[400.0, 90.0, 130.0]"  # ... and its glass sphere (radius 90)
+
+
+def _scene(tmp_path: Path, name: str, body: str) -> Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(f"extends: cornell\nname: {name}\n{body}")
+    return path
+
+
+def _run(tmp_path: Path, capsys, scene: Path | str, mode: str = "pmap",
+         outputs: str = "images") -> tuple[list[str], list[str]]:
+    """Run the scene; (results.json warnings, stderr warning lines). Exit 0 always."""
+    config = tmp_path / f"run_{Path(str(scene)).stem}.yaml"
+    config.write_text(f"scene: {scene}\nmode: {mode}\n")
+    out = tmp_path / f"out_{Path(str(scene)).stem}"
+    code = main(["run", str(config), "--out", str(out), "--no-progress", "--no-report", "--outputs", outputs,
+                 *SMALL])
+    assert code == 0
+    err = capsys.readouterr().err
+    results = json.loads((out / "results.json").read_text())
+    lines = [ln.removeprefix("tlm: warning: ") for ln in err.splitlines() if ln.startswith("tlm: warning: ")]
+    return results["warnings"], lines
+
+
+def _only(warnings: list[str], start: str) -> str:
+    hits = [w for w in warnings if w.startswith(start)]
+    assert len(hits) == 1, warnings
+    return hits[0]
+
+
+# ---------------------------------------------------------------- lights
+
+
+def test_a_quad_light_facing_away_warns_and_renders_black(tmp_path, capsys):
+    """edge_u and edge_v swapped: the light faces up, out of the box through its ceiling."""
+    scene = _scene(tmp_path, "away", f"lights:\n  - {{type: quad, {CORNELL_LIGHT}, edge_u: [-130.0, 0.0, 0.0], "
+                                     "edge_v: [0.0, 0.0, 105.0]}\n")
+    warnings, stderr = _run(tmp_path, capsys, scene, outputs="radiance")
+    assert stderr == warnings
+    w = _only(warnings, "lights[0] (quad) reaches no surface")
+    assert "cross(edge_u, edge_v)" in w
+    _only(warnings, "the image is black")
+    assert "stored 0 of 2000 emitted photons" in _only(warnings, "the photon map stored")
+    # nearly black: light grazing the ceiling the quad lies in (cos ~ 1e-16), nothing else
+    assert np.load(tmp_path / "out_away" / "radiance" / "composite.npy").max() < 1e-20
+
+
+def test_a_point_light_inside_a_mirror_sphere_is_enclosed(tmp_path, capsys):
+    scene = _scene(tmp_path, "enclosed", f"lights:\n  - {{type: point, position: {MIRROR_CENTRE}, "
+                                         "power: [1.0e6, 1.0e6, 1.0e6]}\n")
+    warnings, _ = _run(tmp_path, capsys, scene)
+    assert "back of an opaque triangle" in _only(warnings, "lights[0] (point) is enclosed")
+    _only(warnings, "the image is black")
+
+
+def test_a_point_light_far_outside_reaches_nothing(tmp_path, capsys):
+    scene = _scene(tmp_path, "far", "lights:\n  - {type: point, position: [278.0, 1.0e7, 279.0], "
+                                    "power: [1.0e6, 1.0e6, 1.0e6]}\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    _only(warnings, "lights[0] (point) reaches no surface")
+
+
+def test_a_point_light_in_a_glass_globe_is_not_enclosed(tmp_path, capsys):
+    """A lamp in a glass sphere lights the box through the glass: no warning."""
+    scene = _scene(tmp_path, "globe", f"lights:\n  - {{type: point, position: {GLASS_CENTRE}, "
+                                      "power: [1.0e6, 1.0e6, 1.0e6]}\n")
+    warnings, _ = _run(tmp_path, capsys, scene)
+    assert warnings == []
+
+
+def test_the_second_light_is_named(tmp_path, capsys):
+    scene = _scene(tmp_path, "two", f"lights:\n  - {{type: quad, {CORNELL_LIGHT}, edge_u: [0.0, 0.0, 105.0], "
+                                    "edge_v: [-130.0, 0.0, 0.0]}\n"
+                                    f"  - {{type: quad, {CORNELL_LIGHT}, edge_u: [-130.0, 0.0, 0.0], "
+                                    "edge_v: [0.0, 0.0, 105.0]}\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    assert len(warnings) == 1 and warnings[0].startswith("lights[1] (quad) reaches no surface")
+
+
+def _ceiling_light(scene, flip: bool) -> Light:
+    ids = np.flatnonzero(scene.part == scene.part_names.index("ceiling"))
+    tri = scene.triangles[ids][:, ::-1] if flip else scene.triangles[ids]
+    return Light("mesh", (1e6, 1e6, 1e6), name="lamp", ids=ids, triangles=tri.copy(),
+                 radiance=np.ones((ids.shape[0], 3)))
+
+
+def test_a_mesh_light_facing_away_warns():
+    """Emissive triangles emit on the side of cross(V1 - V0, V2 - V0): the ceiling wound
+    the other way emits out of the box (its own triangles do not count as hits)."""
+    scene = load_scene("cornell", None, [16, 16])
+    accel = build_accel(scene.triangles)
+    ceiling = _ceiling_light(scene, flip=False)
+    assert checks.probe_light(scene, accel, ceiling)["hits"] > 0
+    away = _ceiling_light(scene, flip=True)
+    assert checks.probe_light(scene, accel, away)["hits"] == 0
+    warnings = checks.light_warnings(replace(scene, lights=(*scene.lights, ceiling, away)), accel)
+    assert len(warnings) == 1 and warnings[0].startswith("lights[2] (mesh 'lamp') reaches no surface")
+
+
+def test_an_emissive_ceiling_scene_does_not_warn(tmp_path, capsys):
+    scene = _scene(tmp_path, "lit_ceiling", "materials:\n  lamp: {type: lambertian, albedo: [0.7, 0.7, 0.7], "
+                                            "emission: [5.0, 5.0, 5.0]}\nparts:\n  ceiling: lamp\nlights: []\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    assert warnings == []
+
+
+# ---------------------------------------------------------------- the camera
+
+
+def test_a_camera_inside_a_block_warns(tmp_path, capsys):
+    scene = _scene(tmp_path, "inside", "camera: {eye: [368.0, 165.0, 351.0], target: [368.0, 165.0, 1000.0], "
+                                       "up: [0.0, 1.0, 0.0], vfov: 39.3}\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    assert "(100%)" in _only(warnings, "the camera may be inside a closed mesh")
+
+
+def test_a_camera_facing_nothing_warns(tmp_path, capsys):
+    scene = _scene(tmp_path, "nothing", "camera: {eye: [278.0, 273.0, -800.0], target: [278.0, 273.0, -1600.0], "
+                                        "up: [0.0, 1.0, 0.0], vfov: 39.3}\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    _only(warnings, "the camera faces nothing")
+    _only(warnings, "the image is black")
+
+
+def test_a_camera_inside_glass_does_not_warn(tmp_path, capsys):
+    scene = _scene(tmp_path, "in_glass", f"camera: {{eye: {GLASS_CENTRE}, target: [278.0, 273.0, 559.0], "
+                                         "up: [0.0, 1.0, 0.0], vfov: 39.3}\n")
+    warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
+    assert not [w for w in warnings if w.startswith("the camera")]
+
+
+# ---------------------------------------------------------------- the thresholds
+
+
+def test_thresholds():
+    assert checks.camera_warnings(100, 0, 0)[0].startswith("the camera faces nothing")
+    assert checks.camera_warnings(100, 80, 40) == []
+    assert checks.camera_warnings(100, 80, 41)[0].startswith("the camera may be inside")
+    assert checks.camera_warnings(0, 0, 0) == []
+    z = np.zeros((2, 2, 3))
+    assert checks.image_warnings({"a": z, "b": z})[0].startswith("the image is black: every pixel")
+    tiny = z.copy()
+    tiny[0, 0, 0] = 1e-30
+    assert checks.image_warnings({"a": tiny}) == []  # no scale: only exact black
+    assert checks.image_warnings({"a": tiny}, scale=0.3)[0].startswith("the image is black: its brightest")
+    tiny[0, 0, 0] = 1e-6
+    assert checks.image_warnings({"a": tiny}, scale=0.3) == []
+    assert checks.photon_warnings(1000, 9)[0].startswith("the photon map stored 9 of 1000")
+    assert checks.photon_warnings(1000, 10) == []
+    assert checks.photon_warnings(0, 0) == []
+
+
+def test_probes_are_deterministic():
+    scene = load_scene("ring", None, [16, 16])
+    accel = build_accel(scene.triangles)
+    a = checks.probe_light(scene, accel, scene.lights[0])
+    assert a == checks.probe_light(scene, accel, scene.lights[0])
+    assert a["rays"] == checks.PROBE_RAYS and 0 < a["hits"] < a["rays"] and a["back"] == 0
+
+
+# ---------------------------------------------------------------- the built-in scenes
+
+
+@pytest.mark.parametrize("name", ["cornell", "ring", "room"])
+def test_no_warning_on_the_built_in_scenes(name, tmp_path, capsys):
+    warnings, stderr = _run(tmp_path, capsys, name)
+    assert warnings == [] and stderr == []

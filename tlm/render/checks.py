@@ -1,0 +1,203 @@
+"""Checks for mistakes that give no error: lights that reach nothing, a camera inside a
+solid or facing nothing, a black image, a photon map that stores almost nothing.
+
+Each check returns warnings, one line each naming the thing (``lights[1] (quad)``, ...);
+:func:`tlm.experiments.run.results_dict` puts them in ``results.json`` ``warnings`` and
+``tlm run`` prints them on stderr. Everything here is deterministic (fixed probe
+patterns, no random numbers), so the warnings of a run repeat exactly.
+
+* :func:`light_warnings`: every light with power is probed with :data:`PROBE_RAYS` rays
+  over the side it emits on (a point light: the sphere; a quad light: the hemisphere of
+  ``cross(edge_u, edge_v)`` from points spread over the quad; a mesh light: the front
+  hemisphere of ``cross(V1 - V0, V2 - V0)`` of its triangles, picked in proportion to
+  their area) through the scene's BSP (:func:`tlm.kernels.traverse.closest_hit`). A
+  light none of whose rays hits a surface (a mesh light's own triangles do not count)
+  reaches nothing; a light all of whose rays that hit, hit the back of an opaque
+  (Lambertian or mirror) triangle sits inside a closed solid (or the geometry around it
+  is wound inside out). Glass does not count: a lamp in a glass globe is lit through it.
+* :func:`camera_warnings`: no eye ray hit anything, or more than
+  :data:`BACK_FACE_LIMIT` of the eye rays' hits are on the back of an opaque triangle
+  (the camera is inside a closed solid: a room's walls, wound to face in, are seen from
+  the front).
+* :func:`image_warnings`: every pixel of the composite is 0, or under
+  :data:`BLACK_LIMIT` of the radiance the lights give at the scene's size
+  (:func:`light_scale`: light that only grazes, as from a quad light facing away from a
+  ceiling it lies in).
+* :func:`photon_warnings`: fewer than :data:`STORED_LIMIT` of the emitted photons were
+  stored.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tlm.kernels.traverse import TriangleAccel, closest_hit
+from tlm.scenes.model import KIND, Light, Scene
+
+PROBE_RAYS = 256  # rays per light
+BACK_FACE_LIMIT = 0.5  # share of the eye rays' hits on back faces above which the camera is inside
+STORED_LIMIT = 0.01  # share of the emitted photons below which the photon map is nearly empty
+BLACK_LIMIT = 1e-12  # brightest pixel, relative to light_scale, below which the image is black
+PROBE_EPS = 1e-5  # probe rays start this far (relative to the scene's diagonal) from the light
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+def light_name(i: int, light: Light) -> str:
+    """``lights[i] (kind 'name')``: how a warning names a light."""
+    name = getattr(light, "name", "") or ""
+    return f"lights[{i}] ({light.kind}{f' {name!r}' if name else ''})"
+
+
+def _fibonacci(n: int, hemisphere: bool) -> np.ndarray:
+    """(n, 3) unit directions spread evenly over the sphere, or the hemisphere z > 0."""
+    i = np.arange(n, dtype=np.float64) + 0.5
+    z = 1.0 - i / n if hemisphere else 1.0 - 2.0 * i / n
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * math.pi * ((i * _GOLDEN) % 1.0)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _around(normals: np.ndarray, local: np.ndarray) -> np.ndarray:
+    """Local directions (z up) turned about unit ``normals`` (k, 3)."""
+    n = normals
+    a = np.where((np.abs(n[:, 0]) < 0.9)[:, None], [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t = np.cross(a, n)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(n, t)
+    return local[:, :1] * t + local[:, 1:2] * b + local[:, 2:3] * n
+
+
+def _spread(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) x 2 points of the unit square, a rank-1 lattice (even, and not aligned with the
+    directions' own pattern)."""
+    i = np.arange(n, dtype=np.float64)
+    return (i + 0.5) / n, (i * 0.7548776662466927 + 0.5) % 1.0
+
+
+def probe_rays(light: Light, n: int = PROBE_RAYS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Origins, unit directions (n, 3) and the triangle each ray leaves (-1: none) of a light's probe."""
+    none = np.full(n, -1, dtype=np.int64)
+    if light.kind == "point":
+        o = np.broadcast_to(np.asarray(light.position, dtype=np.float64), (n, 3)).copy()
+        return o, _fibonacci(n, hemisphere=False), none
+    u, v = _spread(n)
+    if light.kind == "quad":
+        o = (np.asarray(light.corner, dtype=np.float64) + u[:, None] * np.asarray(light.edge_u, dtype=np.float64)
+             + v[:, None] * np.asarray(light.edge_v, dtype=np.float64))
+        normal = np.broadcast_to(light.normal, (n, 3))
+        return o, _around(normal, _fibonacci(n, hemisphere=True)), none
+    if light.kind == "mesh" and getattr(light, "triangles", None) is not None and len(light.triangles):
+        tri = np.asarray(light.triangles, dtype=np.float64)
+        e = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        area = np.linalg.norm(e, axis=1)
+        keep = np.flatnonzero(area > 0)
+        if keep.shape[0] == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3)), none[:0]
+        cum = np.cumsum(area[keep])
+        j = keep[np.minimum(np.searchsorted(cum, (np.arange(n) + 0.5) / n * cum[-1]), keep.shape[0] - 1)]
+        su = np.sqrt(u)
+        b0, b1 = 1.0 - su, v * su
+        t = tri[j]
+        o = b0[:, None] * t[:, 0] + b1[:, None] * t[:, 1] + (1.0 - b0 - b1)[:, None] * t[:, 2]
+        normal = e[j] / area[j, None]
+        ids = getattr(light, "ids", None)
+        src = np.asarray(ids, dtype=np.int64)[j] if ids is not None else none
+        return o, _around(normal, _fibonacci(n, hemisphere=True)), src
+    return np.zeros((0, 3)), np.zeros((0, 3)), none[:0]
+
+
+def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE_RAYS,
+                kind: np.ndarray | None = None) -> dict:
+    """``rays`` traced from the light, how many ``hits`` found a surface (not the light's
+    own triangles) and how many of those hit the ``back`` of an opaque triangle (``kind``:
+    each triangle's material KIND, default the scene's)."""
+    o, d, src = probe_rays(light, n)
+    if o.shape[0] == 0:
+        return {"rays": 0, "hits": 0, "back": 0}
+    eps = PROBE_EPS * max(accel.scale, np.finfo(float).tiny)
+    h = closest_hit(accel, o, d, tmin=eps, ignore=src)
+    tri = h.triangle
+    hit = tri >= 0
+    own = getattr(light, "ids", None)
+    if light.kind == "mesh" and own is not None:
+        hit &= ~np.isin(tri, np.asarray(own, dtype=np.int64))
+    back = back_faces(scene, np.where(hit, tri, -1), d, kind)
+    return {"rays": int(o.shape[0]), "hits": int(hit.sum()), "back": back}
+
+
+def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> list[str]:
+    """One line per light with power that reaches no surface or sits inside a closed solid."""
+    out = []
+    kind = scene.material_table()["kind"] if scene.lights else None
+    for i, light in enumerate(scene.lights):
+        if not any(p > 0.0 for p in light.power):
+            continue  # a light switched off: the black image says so
+        p = probe_light(scene, accel, light, n, kind)
+        if p["rays"] == 0:
+            continue
+        where = {"point": "in every direction", "quad": "over the side of cross(edge_u, edge_v)",
+                 "mesh": "over the front of its triangles (cross(V1 - V0, V2 - V0))"}.get(light.kind, "")
+        if p["hits"] == 0:
+            hint = (" (does cross(edge_u, edge_v) face away from the scene?)" if light.kind == "quad" else
+                    " (are its triangles wound to face away from the scene?)" if light.kind == "mesh" else
+                    " (is it outside the scene?)")
+            out.append(f"{light_name(i, light)} reaches no surface: none of {p['rays']} probe rays {where} "
+                       f"hits the scene{hint}")
+        elif p["back"] == p["hits"]:
+            out.append(f"{light_name(i, light)} is enclosed: all {p['hits']} of its {p['rays']} probe rays that hit "
+                       "the scene hit the back of an opaque triangle (inside a closed mesh, or one wound inside out)")
+    return out
+
+
+def back_faces(scene: Scene, triangle: np.ndarray, direction: np.ndarray, kind: np.ndarray | None = None) -> int:
+    """How many of the rays of ``direction`` (k, 3) that hit ``triangle`` (k,; -1 on a miss)
+    hit the back (the side away from ``cross(V1 - V0, V2 - V0)``) of an opaque triangle
+    (not glass; ``kind``: each triangle's material KIND, default the scene's)."""
+    kind = scene.material_table()["kind"] if kind is None else kind
+    hit = np.flatnonzero(triangle >= 0)
+    hit = hit[kind[triangle[hit]] != KIND["dielectric"]]
+    t = scene.triangles[triangle[hit]]
+    normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return int(((normal * direction[hit]).sum(axis=1) > 0.0).sum())
+
+
+def camera_warnings(rays: int, hits: int, back: int) -> list[str]:
+    """The camera faces nothing (no eye ray hit) or sits inside a closed solid (most hits on back faces)."""
+    if rays > 0 and hits == 0:
+        return [f"the camera faces nothing: none of its {rays} eye rays hits the scene"]
+    if hits > 0 and back > BACK_FACE_LIMIT * hits:
+        return [f"the camera may be inside a closed mesh: {back} of the {hits} eye-ray hits "
+                f"({100.0 * back / hits:.0f}%) are on the back of an opaque triangle"]
+    return []
+
+
+def light_scale(scene: Scene, diagonal: float) -> float:
+    """A radiance the scene's lights give: the brightest light's power (its largest channel)
+    over ``pi diagonal**2`` (W/m^2/sr; about the radiance of a white wall at the scene's size,
+    in the scene's units whatever they are)."""
+    power = max((max(lt.power) for lt in scene.lights), default=0.0)
+    return power / (math.pi * diagonal * diagonal) if diagonal > 0 else 0.0
+
+
+def image_warnings(radiance: dict[str, np.ndarray], scale: float = 0.0) -> list[str]:
+    """The composite (the sum of the passes) is black: every pixel 0, or its brightest pixel
+    under :data:`BLACK_LIMIT` of ``scale`` (:func:`light_scale`; light that only grazes)."""
+    if not radiance:
+        return []
+    top = float(np.max(sum(radiance.values()), initial=0.0))
+    if top == 0.0:
+        return ["the image is black: every pixel of the composite is 0 (no light reaches what the camera sees)"]
+    if top < BLACK_LIMIT * scale:
+        return [f"the image is black: its brightest pixel ({top:.3g}) is under {BLACK_LIMIT:g} of the lights' "
+                f"radiance scale ({scale:.3g}: the brightest light's power / (pi diagonal^2))"]
+    return []
+
+
+def photon_warnings(emitted: int, stored: int) -> list[str]:
+    """Fewer than :data:`STORED_LIMIT` of the emitted photons were stored."""
+    if emitted > 0 and stored < STORED_LIMIT * emitted:
+        return [f"the photon map stored {stored} of {emitted} emitted photons ({100.0 * stored / emitted:.2g}%, "
+                f"under {100 * STORED_LIMIT:g}%): its lights reach few surfaces after a bounce"]
+    return []
