@@ -28,8 +28,7 @@ Choices, and why:
   used. The published scenes write ``Tf`` for their glass as a Phong-era filter that
   is not the glass's colour: McGuire's ``CornellBox-Sphere`` gives Jensen's clear glass
   sphere (``illum 7``, ``Ni 2.5``) and its water ``Tf 0.1 0.1 0.1``; read literally that
-  would be smoked glass passing 10% of the light. Mitsuba's and pbrt's OBJ importers
-  treat ``illum 7`` as a clear dielectric too. A tinted glass is a scene file's
+  would be smoked glass passing 10% of the light. A tinted glass is a scene file's
   ``materials:`` override.
 * ``illum`` 0-2 is a Phong model whose ``Ks`` is a highlight (``Ns`` 10-200), not a
   mirror: the LBNL conference room gives every material ``Ks 0.2`` beside ``Kd`` as low
