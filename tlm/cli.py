@@ -2,21 +2,32 @@
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
 status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
-naming each blocked unit) ends with its message and exit status 1.
+naming each blocked unit) ends with its message and exit status 1, and so does a failure
+of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
+Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
+had half written; a second signal during that clean-up ends the process at once. Anything
+else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
+A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
+as if killed by SIGPIPE).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import time
+import traceback
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import numpy as np
 
 from tlm.arch.units import Deadlock
 from tlm.config import MODES
-from tlm.errors import InputError
+from tlm.errors import InputError, environment_problem
 
 
 def _say(line: str) -> None:
@@ -32,8 +43,11 @@ def _report_after(args: argparse.Namespace, out: Path) -> None:
     if getattr(args, "no_report", False):
         return
     from tlm.report import build_report
+    from tlm.storage import folder_lock
 
-    print(f"report: {build_report([out])}")
+    with folder_lock(out):  # no other run replaces the folder while its report is written
+        path = build_report([out])
+    print(f"report: {path}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -426,6 +440,7 @@ def _no_progress(parser: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
+    p.add_argument("--version", action="version", version=version())
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
     r.add_argument("config", help="experiment YAML (see 'tlm params'), or a scene YAML to render at the "
@@ -523,21 +538,112 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def version() -> str:
+    """``tlm X.Y.Z (Python A.B.C)``: the installed package's version."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+
+    try:
+        v = dist_version("tlm")
+    except PackageNotFoundError:
+        v = "unknown (not installed)"
+    return f"tlm {v} (Python {sys.version.split()[0]})"
+
+
+_SIGNALS: list[int] = []  # the signals received by this command, the first one first
+
+
+def _on_signal(signum, frame) -> None:
+    """SIGINT and SIGTERM: the first raises KeyboardInterrupt, so that what is half written
+    is removed; a second one, during that clean-up, ends the process at once."""
+    if _SIGNALS:
+        os.write(2, b"tlm: interrupted again: stopping now\n")
+        os._exit(128 + _SIGNALS[0])
+    _SIGNALS.append(signum)
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def _signals():
+    """SIGTERM handled as SIGINT is, while the command runs (main thread only)."""
+    _SIGNALS.clear()
+    try:
+        before = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        before = {}
+    try:
+        yield
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
+def save_traceback(exc: BaseException) -> Path | None:
+    """The full traceback of an unexpected exception in a file (the cache's ``tracebacks/``,
+    else the temporary folder); its path, or None when neither can be written."""
+    from tlm.storage import cache_root
+
+    text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
+            + "".join(traceback.format_exception(exc)))
+    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
+    import tempfile
+
+    for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+            return folder / name
+        except OSError:
+            continue
+    return None
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
+        print(parser.format_help(), file=sys.stderr, end="")
+        return 2
     try:
-        args = parser.parse_args(argv)
-        args.argv = argv
-        return args.func(args)
+        with _signals():
+            args = parser.parse_args(argv)
+            args.argv = argv
+            return args.func(args)
+    except SystemExit as e:  # --help, --version
+        return e.code if isinstance(e.code, int) else 0
     except InputError as e:
-        print(f"tlm: error: {e}", file=sys.stderr)
+        print(f"tlm: error: {_one_line(e)}", file=sys.stderr)
         return 2
     except Deadlock as e:  # the model could not finish: nothing is written, no partial numbers
         print(f"tlm: deadlock: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("tlm: interrupted", file=sys.stderr)
-        return 130
+        sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
+        if argv is None and _SIGNALS:  # the process's own command: a second signal during the
+            with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
+                for s in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(s, _on_signal)
+        print("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)", file=sys.stderr)
+        return 128 + sig
+    except BrokenPipeError:  # the reader went away (``| head``): nothing more to say
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # so that the exit's flush does not fail again
+        except (OSError, ValueError, AttributeError):
+            pass
+        return 128 + signal.SIGPIPE
+    except Exception as e:
+        what = environment_problem(e)
+        if what is not None:  # the machine's fault: a full disk, a read-only destination
+            print(f"tlm: error: {' '.join(what.split())}", file=sys.stderr)
+            return 1
+        saved = save_traceback(e)
+        where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
+        print(f"tlm: internal error: {type(e).__name__}: {_one_line(e)} ({where})", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -4,11 +4,15 @@
 mesh, a command-line value. The command line catches it, prints its one-line message
 and exits with status 2; it never shows a traceback. The message always names the
 file, the key and the offending value, so that the line alone says what to fix.
+`EnvironmentFailure` is the machine's fault (a full disk, a read-only destination): one
+line, exit status 1.
 """
 
 from __future__ import annotations
 
 import difflib
+import errno
+import os
 from collections.abc import Iterable
 
 
@@ -24,6 +28,41 @@ class InputError(ValueError):
         if key:
             where += f"{key}: "
         super().__init__(f"{where}{message}")
+
+
+class EnvironmentFailure(OSError):
+    """The machine, not the input, stopped the command: a full disk, a read-only or busy
+    destination. The command line prints its one line and exits with status 1."""
+
+    def __init__(self, message: str, *, source: str | None = None):
+        self.source = source
+        super().__init__(f"{source}: {message}" if source else message)
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+# errors of the machine, not of the input or of tlm: the disk, the file system, the limits
+ENVIRONMENT_ERRNOS = frozenset(getattr(errno, n) for n in (
+    "ENOSPC", "EDQUOT", "EROFS", "EACCES", "EPERM", "EBUSY", "EIO", "EMFILE", "ENFILE", "ENOMEM", "EFBIG",
+    "ETXTBSY", "ENAMETOOLONG", "ESTALE") if hasattr(errno, n))
+
+
+def environment_problem(e: BaseException, filename: bool = True) -> str | None:
+    """What an OSError says about the machine in a few words (``no space left on device``),
+    or None when it is not the machine's fault. numpy's short write (``N requested and M
+    written``, no errno) is a full disk. ``filename``: with the file the OSError names."""
+    if not isinstance(e, OSError):
+        return None
+    if isinstance(e, EnvironmentFailure):
+        return str(e)
+    if e.errno in ENVIRONMENT_ERRNOS:
+        what = (e.strerror or os.strerror(e.errno)).lower()
+        return f"{what}: {e.filename}" if e.filename and filename else what
+    text = str(e)
+    if e.errno is None and "requested and" in text and "written" in text:
+        return f"a write was cut short ({text}): no space left on device?"
+    return None
 
 
 def did_you_mean(word: str, choices: Iterable[str]) -> str:

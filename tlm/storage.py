@@ -13,26 +13,41 @@ folder is removed and an earlier folder of the same name is left as it was.
 An existing destination is replaced only if it is an earlier output of the same kind:
 a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
 folder. Anything else — a file, a folder of other things, the current folder or one of
-its parents — is refused with an :class:`~tlm.errors.InputError`, so ``--out .`` can
-never delete a checkout.
+its parents, a mount point — is refused with an :class:`~tlm.errors.InputError`, so ``--out .``
+can never delete a checkout. A destination whose parent cannot be written (a read-only file
+system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work.
+
+Concurrent writers of one destination (two ``tlm run --out X``) never see each other's
+temporary folders: each has its own (``.<name>.tmp-<pid>``); the swap of the old folder for
+the new one holds a lock on the old one (:func:`folder_lock`); the last to finish wins; and
+what a killed process left (its temporary folder, or the old folder it was swapping out) is
+removed by the next writer once that process is gone.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
+import fcntl
+import hashlib
+import itertools
 import json
 import os
+import re
 import shutil
+import sys
+import time
 from collections.abc import Iterable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError, environment_problem
 
 
 def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
-    """The resolved destination, or an InputError saying why it may not be written."""
+    """The resolved destination, or an InputError saying why it may not be written
+    (an EnvironmentFailure when its parent folder cannot be written)."""
     out = Path(out)
     resolved = out.resolve()
     cwd = Path.cwd().resolve()
@@ -42,10 +57,105 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     if resolved.exists():
         if not resolved.is_dir():
             raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
+        if os.path.ismount(resolved):
+            raise InputError(f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it",
+                             key=key)
         if any(resolved.iterdir()) and not (resolved / marker).is_file():
             raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
                              "refusing to replace it", key=key)
+    parent = resolved.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        pass  # alive (another user's) or unknown
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True  # no /proc: it exists
+    return not stat[stat.rindex(")") + 2:].startswith(("Z", "X"))
+
+
+def clean_stale(folder: Path, name: str = ".+") -> None:
+    """Remove the temporary folders (``.<name>.tmp-<pid>``, ``.<name>.old-<pid>-<n>``) that
+    processes now gone left in ``folder``: a killed writer cannot remove its own."""
+    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(\d+)(?:-\d+)?")
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return
+    for d in entries:
+        m = pattern.fullmatch(d.name)
+        if m and d.is_dir() and not d.is_symlink() and int(m[1]) != os.getpid() and not pid_alive(int(m[1])):
+            shutil.rmtree(d, ignore_errors=True)
+
+
+@contextmanager
+def folder_lock(out: Path) -> Iterator[None]:
+    """An exclusive lock on the folder ``out`` as it is now (``flock`` on the folder itself),
+    held while a writer swaps a new folder in for it, and while a command reads the folder
+    it just wrote (its report), so that no other writer replaces it meanwhile. A folder
+    replaced while this waited for the lock is locked in its turn; no folder, no lock."""
+    out = Path(out)
+    for _ in range(1000):
+        try:
+            fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
+        except FileNotFoundError:
+            time.sleep(0.01)  # (another writer may be between its two renames)
+            if out.exists() or out.is_symlink():
+                continue
+            break
+        except OSError:
+            break  # not a folder, or not ours to open: no lock
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            try:
+                same = os.stat(out).st_ino == os.fstat(fd).st_ino
+            except OSError:
+                same = False
+            if same:
+                yield
+                return
+        finally:
+            os.close(fd)  # releases the lock
+    yield
+
+
+def _swap_in(tmp: Path, out: Path) -> None:
+    """Rename ``tmp`` onto ``out``, the old ``out`` (if any) moved aside first and removed
+    after; retried when another writer put a folder there in between."""
+    for n in itertools.count():
+        old = None
+        if out.exists():
+            old = out.parent / f".{out.name}.old-{os.getpid()}-{n}"
+            try:
+                out.rename(old)
+            except FileNotFoundError:
+                old = None  # another writer moved it first
+        try:
+            tmp.rename(out)
+        except OSError as e:
+            if e.errno in (errno.ENOTEMPTY, errno.EEXIST) and n < 100:
+                if old is not None:
+                    shutil.rmtree(old, ignore_errors=True)
+                continue  # another writer's folder arrived meanwhile: it is replaced in turn
+            if old is not None and not out.exists():
+                with suppress(OSError):
+                    old.rename(out)  # put the old folder back
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return
 
 
 @contextmanager
@@ -59,20 +169,35 @@ def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
     tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
+        clean_stale(out.parent, re.escape(out.name))
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
     except OSError as e:
-        raise InputError(f"cannot create the output folder ({e.strerror})", source=str(out)) from None
+        raise EnvironmentFailure(f"cannot create the output folder ({e.strerror})", source=str(out)) from None
     try:
         yield tmp
         if not (tmp / marker).is_file():
             raise RuntimeError(f"an output folder was written without its {marker}")
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
+        with folder_lock(out):
+            if out.exists():
+                check_destination(out, marker)  # another writer may have put something else there
+            _swap_in(tmp, out)
+    except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
+        _raise_environmental(e, out)
         raise
+
+
+def _raise_environmental(e: BaseException, where: Path) -> None:
+    """An OSError of the machine's (a full disk) as an EnvironmentFailure naming ``where``."""
+    if isinstance(e, EnvironmentFailure) and isinstance(e.__cause__, OSError):
+        e = e.__cause__  # a file of the folder: the folder is named instead of its temporary file
+    elif isinstance(e, EnvironmentFailure):
+        return
+    if isinstance(e, OSError):
+        what = environment_problem(e, filename=False)
+        if what is not None:
+            raise EnvironmentFailure(f"cannot write: {what}", source=str(where)) from e
 
 
 def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
@@ -118,8 +243,10 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
         with open(tmp, mode, **open_kw) as fh:
             yield fh
         os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
+    except BaseException as e:
+        with suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        _raise_environmental(e, path)
         raise
 
 
@@ -152,3 +279,35 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
 def cache_root(kind: str) -> Path:
     """``$TLM_CACHE/<kind>`` (default ``~/.cache/tlm/<kind>``)."""
     return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / kind
+
+
+def file_digest(path: Path) -> dict:
+    """``{"size": bytes, "sha256": hex}`` of a file, for a cache entry's sidecar."""
+    h = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            h.update(chunk)
+            size += len(chunk)
+    return {"size": size, "sha256": h.hexdigest()}
+
+
+def digest_problem(path: Path, digest: object) -> str | None:
+    """Why ``path`` is not the file :func:`file_digest` described (``digest``), or None."""
+    if not isinstance(digest, dict) or not isinstance(digest.get("size"), int):
+        return "its sidecar has no size and checksum"
+    try:
+        size = Path(path).stat().st_size
+    except OSError as e:
+        return f"cannot read it ({e.strerror or e})"
+    if size != digest["size"]:
+        return f"{size} bytes, its sidecar says {digest['size']}"
+    if file_digest(path)["sha256"] != digest.get("sha256"):
+        return "its checksum differs from its sidecar's"
+    return None
+
+
+def warn(message: str) -> None:
+    """A one-line warning on stderr (``tlm: warning: ...``)."""
+    sys.stderr.write(f"tlm: warning: {' '.join(message.split())}\n")
+    sys.stderr.flush()

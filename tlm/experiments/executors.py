@@ -217,6 +217,21 @@ class LocalPool(cf.Executor):
         else:
             job.future.set_exception(error)
 
+    def stop(self) -> list[int]:
+        """The sweep was interrupted: every point cancelled and every worker killed now
+        (SIGKILL: a point a worker runs is not waited for; its half-written folder is a
+        temporary one, removed as a dead process's). Returns the workers' pids."""
+        for job in [*self.waiting, *self.suspects, *self.inflight.values()]:
+            job.future.cancel()
+        self.waiting.clear()
+        self.suspects.clear()
+        processes = list((getattr(self.pool, "_processes", None) or {}).values())
+        for proc in processes:
+            with suppress(Exception):
+                proc.kill()
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        return [proc.pid for proc in processes if proc.pid is not None]
+
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         if cancel_futures:
             for job in [*self.waiting, *self.suspects]:
@@ -254,6 +269,12 @@ def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
     _STARTED = started
     _worker_env(env)
     _exit_with(parent)
+    # tqdm's default lock is a multiprocessing semaphore, which a worker killed by an
+    # interrupted sweep could not unregister (the resource tracker would warn at exit);
+    # a worker's bars are never shown, a thread lock does
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
 
 
 def _run_started(token: int, fn, /, *args, **kwargs):

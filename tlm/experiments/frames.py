@@ -7,7 +7,9 @@ the whole package). Re-simulating a frame under another architecture config then
 reruns only the SimPy layer. Beside each ``.npz`` a JSON sidecar of the same key keeps
 what a result row needs and the timing model does not (work totals, scene statistics,
 the photon-map frame's image error), so a sweep point never has to render to report
-them.
+them, with the size and sha256 of the ``.npz`` (``npz``): a damaged entry (a file cut
+short, zeroed or overwritten) is reported once as a warning naming the file, removed and
+rendered again.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from tlm.config import to_dict
 from tlm.experiments import run
 from tlm.fingerprint import code_fingerprint
 from tlm.scenes.loader import load_scene
-from tlm.storage import cache_root, write_file
+from tlm.storage import cache_root, digest_problem, file_digest, warn, write_file
 
 
 def scene_fingerprint(scene) -> str:
@@ -56,7 +58,7 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/1"
+SUMMARY_FORMAT = "functional-summary/2"  # /2: with the npz's size and sha256
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
@@ -84,13 +86,9 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     path = cache_dir() / f"{key}.npz"
     side = path.with_suffix(".json")
     if use_cache and path.exists() and side.exists():
-        try:
-            summary = json.loads(side.read_text())
-            if summary.get("format") != SUMMARY_FORMAT:
-                raise ValueError(f"{side}: format {summary.get('format')!r}, expected {SUMMARY_FORMAT!r}")
-            return CachedRender(Functional.load(path), summary, True, key)
-        except (ValueError, KeyError, OSError):
-            pass  # an unreadable or outdated entry is recomputed
+        got = _load_entry(path, side, key)
+        if got is not None:
+            return got
     res = run.render(cfg, base, source)
     fn = Functional.of(res)
     full = run.results_dict(res, exposure=0.0, config_path=source)
@@ -99,11 +97,40 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     if use_cache:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            write_file(side, json.dumps(summary, indent=1) + "\n")
-            fn.save(path)
+            fn.save(path)  # the npz first: the sidecar holds its size and checksum
+            write_file(side, json.dumps({**summary, "npz": file_digest(path)}, indent=1) + "\n")
         except OSError:
-            pass  # a read-only cache only costs speed
+            pass  # a read-only (or full) cache only costs speed
     return CachedRender(fn, summary, False, key)
+
+
+def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
+    """The cached entry, or None: outdated (an older format, rendered again quietly) or
+    damaged (a warning naming the file; both files removed, so it is said once)."""
+    try:
+        summary = json.loads(side.read_text())
+        if not isinstance(summary, dict):
+            raise ValueError("not a JSON object")
+    except (OSError, ValueError) as e:  # (UnicodeDecodeError is a ValueError)
+        _damaged(side, path, f"unreadable sidecar ({type(e).__name__})")
+        return None
+    if summary.get("format") != SUMMARY_FORMAT:
+        return None  # an entry of an older tlm: rendered again and replaced
+    problem = digest_problem(path, summary.pop("npz", None))
+    if problem is not None:
+        _damaged(path, side, problem)
+        return None
+    try:
+        return CachedRender(Functional.load(path), summary, True, key)
+    except Exception as e:  # BadZipFile, EOFError, zlib.error, ValueError, KeyError: a damaged file
+        _damaged(path, side, f"{type(e).__name__}: {e}")
+        return None
+
+
+def _damaged(bad: Path, other: Path, why: str) -> None:  # (its callers return None)
+    warn(f"damaged functional cache entry {bad} ({why}): removed, rendering it again")
+    for f in (bad, other):
+        f.unlink(missing_ok=True)
 
 
 def cached_functional(cfg, base: Path | None = None, source: str | None = None, use_cache: bool = True

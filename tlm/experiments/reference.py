@@ -36,7 +36,7 @@ from tlm.config import RunConfig
 from tlm.kernels.estimate import knn_estimate
 from tlm.render.passes import Frame, GBuffer, gather_points, pixel_mean, trace_photon_map
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_root
+from tlm.storage import atomic_folder, cache_root, digest_problem, file_digest, warn
 
 REFERENCE_SEED = 0x5EED
 
@@ -153,15 +153,45 @@ def save_reference(key: str, image: np.ndarray, meta: dict) -> Path:
     final = cache_dir() / key
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
-        (tmp / "meta.json").write_text(json.dumps({"key": key, **meta}, indent=2) + "\n")
+        body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
+        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n")
     return final
 
 
 def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
+    """The cached reference ``key`` and its metadata, or None when there is none.
+
+    A damaged one (``meta.json`` unreadable or of another key, ``reference.npy`` not the
+    file ``meta.json`` describes, or not an array) is reported once as a warning naming
+    the file and removed: it is computed again as if it had never been cached.
+    """
+    import shutil
+
     folder = cache_dir() / key
-    if not (folder / "reference.npy").is_file():
+    npy, side = folder / "reference.npy", folder / "meta.json"
+    if not npy.is_file() and not side.is_file():
         return None
-    return np.load(folder / "reference.npy"), json.loads((folder / "meta.json").read_text())
+    bad, why = side, None
+    try:
+        meta = json.loads(side.read_text())
+        if not isinstance(meta, dict) or meta.get("key") != key:
+            raise ValueError("not the metadata of this reference")
+    except (OSError, ValueError) as e:
+        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
+    if why is None:
+        bad = npy
+        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
+    if why is None:
+        try:
+            image = np.load(npy, allow_pickle=False)
+            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
+                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
+            return image, meta
+        except (OSError, ValueError, EOFError) as e:
+            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
+    warn(f"damaged reference cache entry {bad} ({why}): removed; 'tlm reference' computes it again")
+    shutil.rmtree(folder, ignore_errors=True)
+    return None
 
 
 def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | None]:

@@ -397,16 +397,7 @@ class Outcome:
 
 def _clean_stale(points_dir: Path) -> None:
     """Remove temporary point folders of sweeps that were killed (their process is gone)."""
-    for d in points_dir.glob(".*.tmp-*"):
-        m = re.fullmatch(r"\..+\.tmp-(\d+)", d.name)
-        if m is None:
-            continue
-        try:
-            os.kill(int(m[1]), 0)
-        except ProcessLookupError:
-            shutil.rmtree(d, ignore_errors=True)
-        except OSError:
-            pass  # alive (another user's) or unknown: leave it
+    storage.clean_stale(points_dir)
 
 
 def _done(folder: Path) -> dict | None:
@@ -456,8 +447,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         write_file(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         _clean_stale(points_dir)
         for h in todo:  # a failed point's folder (or an unreadable one) is run again
-            if (points_dir / h).exists():
-                shutil.rmtree(points_dir / h)
+            if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)
+                shutil.rmtree(points_dir / h, ignore_errors=True)
         if pool is not None:
             _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
     if todo:
@@ -522,7 +513,10 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
     except BaseException:
         for f in futures:
             f.cancel()
-        if isinstance(pool, (InProcess, LocalPool)):
+        if isinstance(pool, LocalPool):  # the workers are killed, not waited for
+            _wait_gone(pool.stop())
+            _clean_stale(out / "points")
+        elif isinstance(pool, InProcess):
             pool.shutdown(wait=False, cancel_futures=True)
         else:
             pool.shutdown(wait=False)
@@ -531,6 +525,16 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         if bar is not None:
             bar.close()
     pool.shutdown(wait=True)
+
+
+def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
+    """Wait (a little) until the killed workers ``pids`` are gone, so that their temporary
+    folders can be told from a live process's."""
+    deadline = time.monotonic() + timeout
+    while pids and time.monotonic() < deadline:
+        pids = [pid for pid in pids if storage.pid_alive(pid)]
+        if pids:
+            time.sleep(0.02)
 
 
 def _trim_torn(path: Path) -> None:

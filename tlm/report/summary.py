@@ -8,6 +8,8 @@ hold nothing for it):
    of the elapsed cycles), and whether the thesis names the same PM.
 3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
 4. What does quality cost? Image error against run time of the photon-map filters.
+5. What do the sweeps find? For each sweep, the factor that moves the frame rate most and
+   its best point.
 """
 
 from __future__ import annotations
@@ -182,6 +184,37 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def sweep_findings(inputs: Inputs) -> list[str]:
+    """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
+    of its best value's mean to its worst's) and the point of the highest frame rate."""
+    texts = []
+    for sw in inputs.sweeps:
+        rows = [r for r in sw.rows if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
+        factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
+        if not rows or not factors:
+            continue
+        spread = {}
+        for k in factors:
+            groups = defaultdict(list)
+            for r in rows:
+                groups[repr(r.get(k))].append(r["fps"])
+            means = {v: float(np.mean(fs)) for v, fs in groups.items()}
+            if len(means) > 1 and min(means.values()) > 0:
+                spread[k] = (max(means.values()) / min(means.values()), max(means, key=means.get),
+                             min(means, key=means.get))
+        best = max(rows, key=lambda r: r["fps"])
+        where = ", ".join(f"{k} = {best.get(k)!r}" for k in factors)
+        text = f"<b>Sweep {esc(sw.path.name)}</b> ({len(rows)} of {len(sw.rows)} points ok): "
+        if spread:
+            k = max(spread, key=lambda f: spread[f][0])
+            ratio, hi, lo = spread[k]
+            text += (f"{esc(k)} moves the frame rate most, {ratio:.2f}x between its best value ({esc(hi)}) and "
+                     f"its worst ({esc(lo)}), averaged over the other factors; ")
+        text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+        texts.append(text)
+    return texts
+
+
 def summary_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("summary", "What the model found")
     texts, figs = [], []
@@ -190,10 +223,11 @@ def summary_section(inputs: Inputs, out: Path) -> Section:
         texts.append(text)
         if fig is not None:
             figs.append(fig)
-    sec.lead = "<br>".join(texts)
+    found = sweep_findings(inputs)
+    sec.lead = "<br>".join([*found, *texts])  # a sweep's finding first: it is what its report is for
     sec.figures = figs
     sec.shown = len(figs)
-    if not figs:
-        sec.absent = "the inputs hold no frame rates, busy shares, scaling sweeps or error studies"
+    if not figs and not found:
+        sec.absent = "the inputs hold no frame rates, busy shares, scaling sweeps, sweep points or error studies"
     return sec
 

@@ -13,8 +13,10 @@ Each table is laid out like the thesis's (metrics as rows, modes as columns); a 
 shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
 ``†`` a calibrated cell (:data:`tlm.experiments.thesis.CALIBRATED`: fitted, not a
 prediction), ``▲`` the slowest PM of the scene-mode in the thesis, ``●`` the slowest PM
-in ours. A source whose resolution, photon count, pipeline count or clock differs from
-the thesis's is still shown, marked *not comparable* with the reason.
+in ours. A source whose resolution, photon count, sampling (eye rays per pixel, light
+samples), pipeline count or clock differs from the thesis's is still shown, marked *not
+comparable* with the reason, and its table's summary gives no median relative error: it
+would measure the setting, not the model.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from tlm.report.common import Section, line_style, new_figure, save
 THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
                 "cornell": (320, 320, 120_000, 2604)}
 THESIS_CLOCK_HZ = 600e6
+THESIS_SAMPLING = {"spp": (1, "eye rays per pixel"), "light_samples": (1, "light samples")}  # configs/thesis.yaml
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
@@ -111,6 +114,10 @@ def mismatches(run: Run, scene: str) -> list[str]:
     count = photons_of(run)
     if count is not None and count != n:
         out.append(f"{count:,} photons (thesis {n:,})")
+    render = run.config.get("render") or {}
+    for key, (thesis, what) in THESIS_SAMPLING.items():
+        if render.get(key) is not None and int(render[key]) != thesis:
+            out.append(f"{render[key]} {what} (thesis {thesis})")
     pipelines = (run.config.get("arch") or {}).get("pipelines")
     if pipelines is not None and int(pipelines) != 1:
         out.append(f"{pipelines} pipelines (the tables are one pipeline)")
@@ -258,7 +265,12 @@ def table_html(src: Source) -> str:
         cells = "".join(_cell_html(src, m, metric, slow[m]) for m in MODES)
         lines.append(f"<tr><th>{e(metric)} ({e(UNITS[metric])})</th>{cells}</tr>")
     lines.append("</tbody></table>")
-    lines.append(f'<p class="table-summary">{e(_summary_line(list(src.rows.values())))}.</p>')
+    if src.not_comparable:  # an error against another setting measures the setting, not the model
+        summary = ("no relative error against the thesis: ours is " + "; ".join(src.not_comparable)
+                   + " (n/c: not comparable; a run at the thesis's setting, e.g. configs/thesis.yaml, is)")
+    else:
+        summary = _summary_line(list(src.rows.values()))
+    lines.append(f'<p class="table-summary">{e(summary)}.</p>')
     return "\n".join(lines)
 
 
@@ -370,7 +382,7 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
     order = sorted(range(len(names)), key=lambda i: not names[i].startswith("thesis"))
     handles, names = [handles[i] for i in order], [names[i] for i in order]
     fig.legend(handles, names, loc="outside lower center", ncol=min(3, len(names)), fontsize=7, frameon=False)
-    flag = " (not comparable: other sizes)" if any(s.not_comparable for s in sources) else ""
+    flag = " (not comparable: another setting)" if any(s.not_comparable for s in sources) else ""
     fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours against the thesis{flag}",
                  fontsize=11)
     if dropped:

@@ -1,0 +1,292 @@
+"""Failures end with one line, the right exit status and nothing half written: a bare
+``tlm``, ``--version``, a reader that goes away, a bug (its traceback in a file), a full
+disk, a read-only or mount-point ``--out``, two runs into one folder, temporary folders
+of dead processes.
+
+The full disk is simulated in-process (a writer that raises ENOSPC, numpy's short write)
+everywhere; where this process may mount a tmpfs (root with CAP_SYS_ADMIN), a real small
+file system that fills and a real read-only mount point are tested too.
+"""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tlm.cli as cli
+import tlm.experiments.run as run_mod
+from tlm.cli import main
+from tlm.storage import atomic_folder, folder_lock
+
+REPO = Path(__file__).resolve().parents[1]
+CORNELL = str(REPO / "configs" / "cornell.yaml")
+SMALL = ["--set", "resolution=[24,16]", "--set", "render.light_samples=1", "--no-progress"]
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def leftovers(folder: Path) -> list[str]:
+    """Hidden temporary folders (``.X.tmp-PID``, ``.X.old-PID-N``) anywhere below ``folder``."""
+    return [str(p) for p in folder.rglob(".*") if ".tmp" in p.name or ".old-" in p.name]
+
+
+def one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def dead_pid() -> int:
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
+# ---------------------------------------------------------------- the command line
+
+
+def test_a_bare_tlm_prints_its_usage(capsys):
+    assert main([]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: tlm") and "run" in err and "sweep" in err and "--version" in err
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("tlm 0.") and "Python" in out
+
+
+class ClosedPipe(io.StringIO):
+    def write(self, text):
+        raise BrokenPipeError(errno.EPIPE, "Broken pipe")
+
+
+@pytest.mark.parametrize("argv", [["params"], ["scene", "show", "cornell"], ["scene", "list"]])
+def test_a_reader_that_goes_away_ends_the_command_quietly(argv, monkeypatch, capsys):
+    monkeypatch.setattr(sys, "stdout", ClosedPipe())
+    assert main(argv) == 141
+    assert capsys.readouterr().err == ""
+
+
+def test_head_of_params_in_a_shell():
+    """The real pipe: ``tlm params | head -1`` shows one line and no traceback."""
+    proc = subprocess.run(f"{sys.executable} -m tlm params | head -1", shell=True, capture_output=True, text=True,
+                          cwd=REPO, timeout=120)
+    assert proc.stdout.startswith("scene") and proc.stdout.count("\n") == 1
+    assert proc.stderr == ""
+
+
+def test_a_bug_prints_one_line_and_the_file_of_its_traceback(monkeypatch, capsys, cache):
+    def boom(args):
+        raise RuntimeError("something\nunexpected")
+
+    monkeypatch.setattr(cli, "_cmd_params", boom)
+    assert main(["params"]) == 1
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith("tlm: internal error: RuntimeError: something unexpected (full traceback in ")
+    path = Path(line.split("full traceback in ", 1)[1].rstrip(")"))
+    assert path.parent == cache / "tracebacks"
+    text = path.read_text()
+    assert "Traceback (most recent call last)" in text and "in boom" in text and "tlm 0." in text
+
+
+# ---------------------------------------------------------------- a full disk, a read-only --out
+
+
+@pytest.mark.parametrize("failure", ["errno", "numpy"])
+def test_a_full_disk_is_one_line_exit_1_and_nothing_written(failure, tmp_path, monkeypatch, capsys):
+    """Simulated: the radiance writer fails as a full disk makes it fail (ENOSPC, or
+    numpy's short write with no errno)."""
+    def full(path, *a, **k):
+        if failure == "errno":
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        raise OSError("786432 requested and 4096 written")
+
+    monkeypatch.setattr(np, "save", full)
+    out = tmp_path / "runs" / "r"
+    assert main(["run", CORNELL, "--out", str(out), *SMALL, "--no-report"]) == 1
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith(f"tlm: error: {out}: cannot write: ")
+    assert ("no space left on device" if failure == "errno" else "no space left on device?") in line
+    assert not out.exists() and leftovers(tmp_path / "runs") == []
+
+
+def test_an_unwritable_out_fails_before_the_render(tmp_path, monkeypatch, capsys):
+    """(os.access is what says a folder is read-only; as root, a chmod does not, so it is
+    made to say so here; the real read-only mount is tested below where it can be.)"""
+    rendered = []
+    monkeypatch.setattr(run_mod, "render", lambda *a, **k: rendered.append(1))
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **k: False if Path(p) == ro else real(p, mode, **k))
+    assert main(["run", CORNELL, "--out", str(ro / "r"), *SMALL]) == 1
+    assert one_line(capsys.readouterr().err) == (f"tlm: error: {ro / 'r'}: cannot write into {ro} "
+                                                 "(read-only or not permitted)")
+    assert rendered == []
+
+
+def test_a_mount_point_as_out_is_refused_before_the_render(tmp_path, monkeypatch, capsys):
+    rendered = []
+    monkeypatch.setattr(run_mod, "render", lambda *a, **k: rendered.append(1))
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    real = os.path.ismount
+    monkeypatch.setattr(os.path, "ismount", lambda p: Path(p) == mnt or real(p))
+    assert main(["run", CORNELL, "--out", str(mnt), *SMALL]) == 2
+    assert "is a mount point, which cannot be replaced" in one_line(capsys.readouterr().err)
+    assert rendered == []
+
+
+def _can_mount(folder: Path) -> bool:
+    folder.mkdir(exist_ok=True)
+    try:
+        ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+                            capture_output=True).returncode == 0
+    except OSError:
+        return False
+    if ok:
+        subprocess.run(["umount", str(folder)], check=True)
+    return ok
+
+
+@pytest.fixture
+def tmpfs(tmp_path):
+    """Mounts a tmpfs (``options``) at a new folder; unmounted at the end."""
+    if os.geteuid() != 0 or not _can_mount(tmp_path / "probe"):
+        pytest.skip("mounting a tmpfs needs root with CAP_SYS_ADMIN (the simulated tests above still run)")
+    mounted = []
+
+    def mount(name: str, options: str) -> Path:
+        folder = tmp_path / name
+        folder.mkdir()
+        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], check=True)
+        mounted.append(folder)
+        return folder
+
+    yield mount
+    for folder in mounted:
+        subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_a_real_file_system_that_fills(tmpfs, tmp_path):
+    disk = tmpfs("disk", "size=128k")
+    out = disk / "r"
+    proc = subprocess.run([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(out), *SMALL,
+                           "--set", "resolution=[48,48]"], capture_output=True, text=True, cwd=tmp_path,
+                          env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    line = one_line(proc.stderr)  # (ENOSPC, or numpy's short write: which one depends on the file)
+    assert line.startswith(f"tlm: error: {out}: cannot write: ") and "no space left on device" in line
+    assert list(disk.iterdir()) == []
+
+
+def test_a_real_read_only_mount_point(tmpfs, tmp_path):
+    ro = tmpfs("ro", "ro,size=64k")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    at = subprocess.run([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(ro), *SMALL],
+                        capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert at.returncode == 2 and "is a mount point" in one_line(at.stderr)
+    inside = subprocess.run([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(ro / "r"), *SMALL],
+                            capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert inside.returncode == 1
+    assert one_line(inside.stderr) == f"tlm: error: {ro / 'r'}: cannot write into {ro} (read-only or not permitted)"
+
+
+# ---------------------------------------------------------------- concurrent writers, stale folders
+
+
+def test_a_folder_is_not_swapped_while_another_holds_its_lock(tmp_path):
+    """What a report reading its run folder holds (:func:`folder_lock`): a second writer's
+    swap waits for it, and then replaces the folder whole."""
+    out = tmp_path / "r"
+    with atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("first")
+    events = []
+
+    def second():
+        with atomic_folder(out, "m") as tmp:
+            (tmp / "m").write_text("second")
+        events.append("swapped")
+
+    with folder_lock(out):
+        t = threading.Thread(target=second)
+        t.start()
+        t.join(1.0)
+        events.append("released")  # the first writer's report is done
+        assert (out / "m").read_text() == "first"
+    t.join(30)
+    assert events == ["released", "swapped"]
+    assert (out / "m").read_text() == "second" and leftovers(tmp_path) == []
+
+
+def test_two_runs_into_one_folder_both_succeed(tmp_path):
+    """Two ``tlm run`` (with their reports) into one --out, at once: both exit 0, the folder
+    is one whole run with its report, and no temporary folder is left."""
+    out = tmp_path / "runs" / "same"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    procs = [subprocess.Popen([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(out), *SMALL,
+                               "--seed", str(seed)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for seed in (1, 2)]
+    results = [p.communicate(timeout=600) for p in procs]
+    for p, (_, err) in zip(procs, results):
+        assert p.returncode == 0, err
+        assert "Traceback" not in err
+    assert (out / "results.json").is_file() and (out / "report" / "report.html").is_file()
+    assert leftovers(tmp_path / "runs") == []
+
+
+def test_temporary_folders_of_dead_processes_are_removed(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    dead = dead_pid()
+    for name in (f".r.tmp-{dead}", f".r.old-{dead}-0", f".other.tmp-{dead}"):
+        (runs / name).mkdir()
+        (runs / name / "results.json").write_text("{")
+    alive = runs / f".r.tmp-{os.getppid()}"  # a live process's: kept
+    alive.mkdir()
+    assert main(["run", CORNELL, "--out", str(runs / "r"), *SMALL, "--no-report"]) == 0
+    assert sorted(p.name for p in runs.iterdir()) == sorted([f".other.tmp-{dead}", alive.name, "r"])
+
+
+def test_an_interrupted_writer_leaves_the_old_folder(tmp_path):
+    out = tmp_path / "r"
+    with atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("old")
+    with pytest.raises(KeyboardInterrupt), atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("new")
+        raise KeyboardInterrupt
+    assert (out / "m").read_text() == "old" and leftovers(tmp_path) == []
+
+
+def test_swap_retries_when_another_writer_lands_first(tmp_path, monkeypatch):
+    """A rename onto a folder another writer put there in between (ENOTEMPTY) is retried."""
+    out = tmp_path / "r"
+    rename = Path.rename
+    calls = []
+
+    def racing(self, target):
+        if Path(target) == out and not calls:
+            calls.append(1)
+            out.mkdir()
+            (out / "m").write_text("other writer")
+        return rename(self, target)
+
+    monkeypatch.setattr(Path, "rename", racing)
+    with atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("mine")
+    assert calls == [1]
+    assert (out / "m").read_text() == "mine" and leftovers(tmp_path) == []

@@ -1,0 +1,143 @@
+"""SIGINT and SIGTERM: ``tlm run`` interrupted in each phase, and ``tlm sweep`` (its main
+process alone signalled, as ``kill -INT`` or ``timeout`` do), end with 130 / 143, one
+line, their workers gone and nothing half written; a second signal never hangs them."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+import tlm.experiments.run as run_mod
+import tlm.report as report_mod
+from tlm import storage
+from tlm.cli import main
+from tlm.experiments.sweep import run_sweep
+
+from .test_faults import CORNELL, SMALL, leftovers
+from .test_sweep import _descendants, _running
+
+REPO = Path(__file__).resolve().parents[1]
+PHASES = {  # where in `tlm run` the signal arrives: (module, function)
+    "render": (run_mod, "render"),
+    "simulate": (run_mod, "simulate_run"),
+    "write": (run_mod, "write_png"),
+    "swap": (storage, "_swap_in"),
+    "report": (report_mod, "sections"),
+}
+
+
+@pytest.fixture(autouse=True)
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("phase", list(PHASES))
+def test_a_run_signalled_in_each_phase(phase, sig, tmp_path, monkeypatch, capsys):
+    module, name = PHASES[phase]
+    real = getattr(module, name)
+
+    def signalled(*a, **k):
+        os.kill(os.getpid(), sig)  # (the handler raises at the next instruction)
+        return real(*a, **k)
+
+    monkeypatch.setattr(module, name, signalled)
+    before = signal.getsignal(signal.SIGTERM)
+    runs = tmp_path / "runs"
+    out = runs / "r"
+    assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 128 + sig
+    err = capsys.readouterr().err.strip()
+    assert err == ("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)")
+    if phase == "report":  # the run folder was whole before its report began: it stays, without a report
+        assert (out / "results.json").is_file() and not (out / "report").exists()
+    else:
+        assert not out.exists()
+    assert leftovers(tmp_path) == []
+    assert signal.getsignal(signal.SIGTERM) == before  # main's handlers are gone again
+
+
+def sweep_file(tmp_path: Path, n: int = 8) -> Path:
+    base = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
+            "arch": {"frames": 2, "trace": False, "packet_size": 4}}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": base, "grid": {"arch.page_miss_cycles": list(range(0, 10 * n, 10))}}))
+    return path
+
+
+def rows(out: Path) -> list[dict]:
+    path = out / "sweep.jsonl"
+    return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
+
+
+@pytest.mark.parametrize(("sig", "twice"), [(signal.SIGINT, False), (signal.SIGINT, True), (signal.SIGTERM, False)],
+                         ids=["SIGINT", "SIGINT-twice", "SIGTERM"])
+def test_a_sweep_signalled_stops_its_workers(sig, twice, tmp_path):
+    """Signalled once two points are done (twice: again at once, during the clean-up), the
+    sweep exits 128 + signal with one line, the points not done are not run, its worker
+    processes end, no temporary folder is left, and a rerun resumes."""
+    path, out = sweep_file(tmp_path), tmp_path / "o"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "2",
+                             "--no-report"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    below: set[tuple[int, str]] = set()
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and proc.poll() is None and len(rows(out)) < 2:
+            below |= _descendants(proc.pid)
+            time.sleep(0.01)
+        assert proc.poll() is None, "the sweep ended before it was signalled"
+        below |= _descendants(proc.pid)
+        proc.send_signal(sig)
+        if twice:
+            time.sleep(0.05)
+            if proc.poll() is None:
+                proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)  # (a hang guard, not a timing)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    # (a second signal in the interpreter's last moments, after its handlers are gone, ends it
+    # by the signal itself: -sig here, 128 + sig to a shell all the same)
+    assert proc.returncode == 128 + sig or (twice and proc.returncode == -sig)
+    lines = err.strip().splitlines()
+    assert lines[0] in ("tlm: interrupted", "tlm: terminated (SIGTERM)", "tlm: interrupted again: stopping now")
+    assert len(lines) <= 2 and "Traceback" not in err
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(map(_running, below)):
+        time.sleep(0.05)
+    assert len(below) >= 3 and not [p for p in below if _running(p)]
+    done = {p.name for p in (out / "points").iterdir() if (p / "results.json").is_file()}
+    assert 2 <= len(done) < 8
+    if not twice:  # (a second signal ends the process at once: the next sweep removes what it left)
+        assert leftovers(out) == []
+    again = run_sweep(path, out, jobs=1)
+    assert again.skipped == len(done) and again.ok == 8 - len(done) and again.failed == 0
+    assert leftovers(out) == []
+
+
+def test_two_sweeps_into_one_folder(tmp_path):
+    """Two ``tlm sweep`` of one file into one folder at once: both exit 0 with every point
+    ok, and the folder holds each point once, whole, with its report."""
+    path, out = sweep_file(tmp_path, n=4), tmp_path / "o"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    procs = [subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "1",
+                               "--no-progress"], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    for p in procs:
+        _, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+        assert "Traceback" not in err
+    got = rows(out)
+    assert [r["point"] for r in got] == [0, 1, 2, 3] and {r["status"] for r in got} == {"ok"}
+    assert sorted(p.name for p in (out / "points").iterdir()) == sorted(r["hash"] for r in got)
+    assert all((out / "points" / r["hash"] / "results.json").is_file() for r in got)
+    assert (out / "report" / "report.html").is_file() and leftovers(out) == []
