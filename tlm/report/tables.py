@@ -227,7 +227,16 @@ def _cell_html(src: Source, mode: str, metric: str, slow: tuple[str | None, str 
     cls = ' class="calibrated"' if cal else ""
     return (f'<td data-cell="{cell_id}"{cls}><span class="ours">{e(fmt(row["ours"]))}</span>{ours_mark}<br>'
             f'<span class="thesis">{e(fmt(row["thesis"]))}</span>{thesis_mark}<br>'
-            f'<span class="err">{e(fmt_error(row["rel_error"]))}</span>{cal_mark}</td>')
+            f'{_error_html(src, row)}{cal_mark}</td>')
+
+
+def _error_html(src: Source, row: dict) -> str:
+    """The cell's relative error, or ``n/c`` where ours is another setting than the thesis's
+    (an error against it would measure the setting, not the model)."""
+    if src.not_comparable:
+        why = html.escape("not comparable: ours is " + "; ".join(src.not_comparable), quote=True)
+        return f'<span class="err" title="{why}">n/c</span>'
+    return f'<span class="err">{html.escape(fmt_error(row["rel_error"]))}</span>'
 
 
 def _summary_line(rows: list[dict]) -> str:
