@@ -77,16 +77,18 @@ def rows(out: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
-@pytest.mark.parametrize(("sig", "twice"), [(signal.SIGINT, False), (signal.SIGINT, True), (signal.SIGTERM, False)],
-                         ids=["SIGINT", "SIGINT-twice", "SIGTERM"])
-def test_a_sweep_signalled_stops_its_workers(sig, twice, tmp_path):
+@pytest.mark.parametrize(("sig", "twice", "executor"),
+                         [(signal.SIGINT, False, []), (signal.SIGINT, True, []), (signal.SIGTERM, False, []),
+                          (signal.SIGINT, False, ["--dask", "local"]), (signal.SIGTERM, False, ["--dask", "local"])],
+                         ids=["SIGINT", "SIGINT-twice", "SIGTERM", "dask-SIGINT", "dask-SIGTERM"])
+def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path):
     """Signalled once two points are done (twice: again at once, during the clean-up), the
     sweep exits 128 + signal with one line, the points not done are not run, its worker
     processes end, no temporary folder is left, and a rerun resumes."""
     path, out = sweep_file(tmp_path), tmp_path / "o"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "2",
-                             "--no-report"], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             "--no-report", *executor], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True)
     below: set[tuple[int, str]] = set()
     try:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import ctypes
 import itertools
+import logging
 import multiprocessing
 import os
 import select
@@ -354,9 +355,12 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) ->
     if dask == "local":
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
+        # silence_logs: the workers' own warnings (a task cancelled by a signal, a worker
+        # restarted) would reach the user's terminal as log lines; the sweep says what happened
         cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                                    dashboard_address="127.0.0.1:0",
-                                                   scheduler_kwargs={"dashboard": False}))
+                                                   scheduler_kwargs={"dashboard": False},
+                                                   silence_logs=logging.CRITICAL))
         client = stack.enter_context(Client(cluster))
     else:
         try:
