@@ -436,7 +436,11 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
     (the geometric one where it would send a ray to the wrong side); a new ray starts at
     the hit, ignores the triangle it leaves and accepts hits from ``eps`` on (a relative
     epsilon: the scene's diagonal x SPAWN_EPS), so neither the surface it leaves nor a
-    coplanar neighbour can stop it. Remembered in ``g.memo``: the reflect,
+    coplanar neighbour can stop it. What a path meets while inside glass of index n (it
+    entered a dielectric and has not left it: the floor under a water surface) reaches the
+    eye 1 / n^2 as bright, radiance over n^2 being what a path carries unchanged; the
+    emitted radiance and the ends' weights say so (a path that leaves the glass again is
+    unscaled, so closed glass objects change nothing). Remembered in ``g.memo``: the reflect,
     refract and photon-map passes share one walk. page_words : the pages its reads are
     recorded for (default: the frame's ``cache.block_words``).
     """
@@ -458,6 +462,7 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
     x = g.origin[sidx] + g.t[sidx, None] * d
     u, v = g.hits.u[sidx], g.hits.v[sidx]
     weight = np.ones((sidx.shape[0], 3))
+    medium = np.ones(sidx.shape[0])  # the index of refraction around the path's current point (the eye's: 1)
     owner_of = g.owner
     min_w = frame.cfg.render.min_weight
     for bounce in range(1, depth + 1):
@@ -479,6 +484,11 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
         src = np.r_[np.flatnonzero(take_l), np.flatnonzero(take_r)][order]
         new_d = np.r_[refl[take_l], refr[take_r]][order]
         new_w = np.r_[w_refl[take_l], w_refr[take_r]][order]
+        # a refraction enters the glass (against its outward normal: the medium becomes its
+        # ior) or leaves it (into air); a reflection stays where it is
+        entering = np.sum(d * geo, axis=1) < 0
+        refracted_medium = np.where(entering, np.where(mirror, 1.0, frame.ior[tri]), 1.0)
+        medium = np.r_[medium[take_l], refracted_medium[take_r]][order]
         sidx, tri, x, geo = sidx[src], tri[src], x[src], geo[src]
         if sidx.shape[0] == 0:
             break
@@ -492,23 +502,31 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
             work[name] += np.bincount(owner, weights=c, minlength=p).astype(np.int64)
         _record_rays(frame, rec, hits, owner)
         le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
+        # radiance over n^2 is what a path carries unchanged: seen from the eye (in air), what
+        # lies inside glass of index n is 1 / n^2 as bright (Mitsuba's dielectric alike);
+        # a path that has left the glass again carries its weight unscaled
+        inside = medium != 1.0
+        seen_w = new_w
+        if inside.any():
+            seen_w = new_w.copy()
+            seen_w[inside] /= (medium[inside] ** 2)[:, None]
         em_s.append(sidx[seen])
-        em_r.append(new_w[seen] * le[seen])
+        em_r.append(seen_w[seen] * le[seen])
         surf = surface_emission(frame.emission, frame.normals, hits.triangle, new_d)
         if surf is not None:  # emitting triangles the path meets (it goes on from them)
             glow = ~seen & (surf.max(axis=1) > 0)
             em_s.append(sidx[glow])
-            em_r.append(new_w[glow] * surf[glow])
+            em_r.append(seen_w[glow] * surf[glow])
         hit = (hits.triangle >= 0) & ~seen
         kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
         lam = hit & (kind_hit == KIND["lambertian"])
         pts = origin + hits.t[:, None] * new_d
         for name, val in (("sample", sidx), ("point", pts), ("direction", new_d), ("triangle", hits.triangle),
-                          ("u", hits.u), ("v", hits.v), ("weight", new_w),
+                          ("u", hits.u), ("v", hits.v), ("weight", seen_w),
                           ("bounce", np.full(sidx.shape[0], bounce))):
             ends[name].append(val[lam])
         go = hit & ~lam
-        sidx, tri, d, weight = sidx[go], hits.triangle[go], new_d[go], new_w[go]
+        sidx, tri, d, weight, medium = sidx[go], hits.triangle[go], new_d[go], new_w[go], medium[go]
         x, u, v = pts[go], hits.u[go], hits.v[go]
 
     def cat(parts: list[np.ndarray], shape: tuple, dtype=np.float64) -> np.ndarray:
