@@ -39,6 +39,10 @@ import numpy as np
 
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Geometry
+from tlm.scenes.validate import keys as _keys
+from tlm.scenes.validate import mapping as _mapping
+from tlm.scenes.validate import num
+from tlm.scenes.validate import vec as _vec
 
 __all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "transform_geometry"]
 
@@ -55,39 +59,8 @@ SHAPES: dict[str, dict[str, Any]] = {
 }
 
 
-# The checks of tlm.scenes.loader (_mapping, _keys, _vec, _num), with its messages: the
-# loader imports this module, so this one cannot import it (no import cycles).
-
-
-def _mapping(v: Any, src: str, key: str) -> dict:
-    if not isinstance(v, dict):
-        raise InputError(f"must be a mapping, got {v!r}", source=src, key=key)
-    return v
-
-
-def _keys(d: dict, allowed: tuple[str, ...], src: str, key: str) -> None:
-    for k in d:
-        if k not in allowed:
-            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=src, key=f"{key}.{k}")
-
-
-def _vec(v: Any, src: str, key: str, n: int = 3) -> tuple[float, ...]:
-    ok = isinstance(v, list) and len(v) == n and all(
-        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
-    )
-    if not ok:
-        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
-    if not all(math.isfinite(x) for x in v):
-        raise InputError(f"{v!r} is not finite", source=src, key=key)
-    return tuple(float(x) for x in v)
-
-
 def _num(v: Any, src: str, key: str, positive: bool = False) -> float:
-    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
-    if positive and not v > 0:
-        raise InputError(f"{v!r} must be > 0", source=src, key=key)
-    return float(v)
+    return num(v, src, key, lo=0.0, lo_exclusive=True) if positive else num(v, src, key)
 
 
 def _whole(v: Any, src: str, key: str, lo: int) -> int:

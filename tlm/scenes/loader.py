@@ -12,7 +12,6 @@ infinite vertices, an empty mesh, a resolution that cannot fit in memory.
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 from typing import Any
@@ -23,6 +22,10 @@ from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
+from tlm.scenes.validate import keys as _keys
+from tlm.scenes.validate import mapping as _mapping
+from tlm.scenes.validate import num as _num
+from tlm.scenes.validate import vec as _vec
 
 SCENE_KEYS = (
     "name", "description", "geometry", "materials", "parts", "default_material",
@@ -81,45 +84,6 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
         f"{ref!r} is not a built-in scene ({', '.join(list_scenes())}){did_you_mean(ref, list_scenes())}",
         source=config_source, key="scene",
     )
-
-
-def _mapping(v: Any, src: str, key: str) -> dict:
-    if not isinstance(v, dict):
-        raise InputError(f"must be a mapping, got {v!r}", source=src, key=key)
-    return v
-
-
-def _keys(d: dict, allowed: tuple[str, ...], src: str, key: str) -> None:
-    for k in d:
-        if k not in allowed:
-            where = f"{key}.{k}" if key else str(k)
-            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=src, key=where)
-
-
-def _vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: float | None = None):
-    ok = isinstance(v, list) and len(v) == n and all(
-        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
-    )
-    if not ok:
-        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
-    if not all(math.isfinite(x) for x in v):
-        raise InputError(f"{v!r} is not finite", source=src, key=key)
-    if lo is not None and any(x < lo for x in v):
-        raise InputError(f"{v!r} must be >= {lo}", source=src, key=key)
-    if hi is not None and any(x > hi for x in v):
-        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
-    return tuple(float(x) for x in v)
-
-
-def _num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = None,
-         lo_exclusive: bool = False) -> float:
-    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
-    if lo is not None and (v <= lo if lo_exclusive else v < lo):
-        raise InputError(f"{v!r} must be {'>' if lo_exclusive else '>='} {lo}", source=src, key=key)
-    if hi is not None and v > hi:
-        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
-    return float(v)
 
 
 def _typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) -> tuple[dict, str]:

@@ -1,0 +1,51 @@
+"""Checks of the values read from scene files: each raises a one-line
+:class:`~tlm.errors.InputError` naming the file (``src``), the key and the value.
+Shared by the scene loader and the geometry composer."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from tlm.errors import InputError, did_you_mean
+
+__all__ = ["keys", "mapping", "num", "vec"]
+
+
+def mapping(v: Any, src: str, key: str) -> dict:
+    if not isinstance(v, dict):
+        raise InputError(f"must be a mapping, got {v!r}", source=src, key=key)
+    return v
+
+
+def keys(d: dict, allowed: tuple[str, ...], src: str, key: str) -> None:
+    for k in d:
+        if k not in allowed:
+            where = f"{key}.{k}" if key else str(k)
+            raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=src, key=where)
+
+
+def vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: float | None = None):
+    ok = isinstance(v, list) and len(v) == n and all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
+    )
+    if not ok:
+        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
+    if not all(math.isfinite(x) for x in v):
+        raise InputError(f"{v!r} is not finite", source=src, key=key)
+    if lo is not None and any(x < lo for x in v):
+        raise InputError(f"{v!r} must be >= {lo}", source=src, key=key)
+    if hi is not None and any(x > hi for x in v):
+        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
+    return tuple(float(x) for x in v)
+
+
+def num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = None,
+         lo_exclusive: bool = False) -> float:
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
+    if lo is not None and (v <= lo if lo_exclusive else v < lo):
+        raise InputError(f"{v!r} must be {'>' if lo_exclusive else '>='} {lo}", source=src, key=key)
+    if hi is not None and v > hi:
+        raise InputError(f"{v!r} must be <= {hi}", source=src, key=key)
+    return float(v)
