@@ -88,8 +88,8 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path):
     path, out = sweep_file(tmp_path), tmp_path / "o"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "2",
-                             "--no-report", *executor], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+                             "--no-report", *executor], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
     below: set[tuple[int, str]] = set()
     try:
         deadline = time.monotonic() + 300
