@@ -24,6 +24,7 @@ import pytest
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
 from tlm.cli import main
+from tlm.errors import InputError
 from tlm.storage import atomic_folder, folder_lock
 
 REPO = Path(__file__).resolve().parents[1]
@@ -290,3 +291,36 @@ def test_swap_retries_when_another_writer_lands_first(tmp_path, monkeypatch):
         (tmp / "m").write_text("mine")
     assert calls == [1]
     assert (out / "m").read_text() == "mine" and leftovers(tmp_path) == []
+
+
+def test_a_signal_between_the_two_renames_puts_the_old_folder_back(tmp_path, monkeypatch):
+    """Interrupted after the old folder is moved aside and before the new one is renamed
+    in, the writer puts the old folder back: ``out`` is never left missing."""
+    out = tmp_path / "r"
+    with atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("old")
+    rename = Path.rename
+
+    def interrupted(self, target):
+        if Path(target) == out and ".tmp-" in self.name:
+            raise KeyboardInterrupt
+        return rename(self, target)
+
+    monkeypatch.setattr(Path, "rename", interrupted)
+    with pytest.raises(KeyboardInterrupt), atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("new")
+    monkeypatch.setattr(Path, "rename", rename)
+    assert (out / "m").read_text() == "old" and leftovers(tmp_path) == []
+
+
+def test_a_destination_taken_meanwhile_keeps_the_finished_output(tmp_path):
+    """When the destination turns into something else during the run (a user's own files),
+    the refusal keeps the finished output beside it and names it, instead of deleting it."""
+    out = tmp_path / "r"
+    with pytest.raises(InputError, match=r"kept in .*r\.unsaved-\d+"), atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("finished")
+        out.mkdir()
+        (out / "notes.txt").write_text("the user's")
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("r.unsaved-")]
+    assert len(kept) == 1 and (kept[0] / "m").read_text() == "finished"
+    assert (out / "notes.txt").read_text() == "the user's"

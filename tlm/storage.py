@@ -153,6 +153,11 @@ def _swap_in(tmp: Path, out: Path) -> None:
                 with suppress(OSError):
                     old.rename(out)  # put the old folder back
             raise
+        except BaseException:  # a signal between the two renames: the old folder goes back
+            if old is not None and not out.exists():
+                with suppress(OSError):
+                    old.rename(out)
+            raise
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
         return
@@ -180,7 +185,15 @@ def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
             raise RuntimeError(f"an output folder was written without its {marker}")
         with folder_lock(out):
             if out.exists():
-                check_destination(out, marker)  # another writer may have put something else there
+                try:  # another writer may have put something else there meanwhile
+                    check_destination(out, marker)
+                except InputError as refused:  # the finished output is kept beside it, not thrown away
+                    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}"
+                    try:
+                        tmp.rename(kept)
+                    except OSError:
+                        raise refused from None
+                    raise InputError(f"{refused}; this run's output is kept in {str(kept)!r}") from None
             _swap_in(tmp, out)
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
