@@ -23,6 +23,7 @@ import pytest
 
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
+from tlm import storage
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.storage import atomic_folder, folder_lock
@@ -254,13 +255,18 @@ def test_temporary_folders_of_dead_processes_are_removed(tmp_path, capsys):
     runs = tmp_path / "runs"
     runs.mkdir()
     dead = dead_pid()
-    for name in (f".r.tmp-{dead}", f".r.old-{dead}-0", f".other.tmp-{dead}"):
+    host = storage._host()
+    for name in (f".r.tmp-{dead}", f".r.old-{dead}-0", f".other.tmp-{dead}", f".r.tmp-{host}-{dead}",
+                 f".r.old-{host}-{dead}-1"):
         (runs / name).mkdir()
         (runs / name / "results.json").write_text("{")
     alive = runs / f".r.tmp-{os.getppid()}"  # a live process's: kept
     alive.mkdir()
+    # another machine's writer on a shared disk: its process id means nothing here, kept
+    remote = runs / f".r.tmp-hsomeotherhost-{dead}"
+    remote.mkdir()
     assert main(["run", CORNELL, "--out", str(runs / "r"), *SMALL, "--no-report"]) == 0
-    assert sorted(p.name for p in runs.iterdir()) == sorted([f".other.tmp-{dead}", alive.name, "r"])
+    assert sorted(p.name for p in runs.iterdir()) == sorted([f".other.tmp-{dead}", alive.name, remote.name, "r"])
 
 
 def test_an_interrupted_writer_leaves_the_old_folder(tmp_path):

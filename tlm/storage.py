@@ -18,7 +18,7 @@ can never delete a checkout. A destination whose parent cannot be written (a rea
 system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work.
 
 Concurrent writers of one destination (two ``tlm run --out X``) never see each other's
-temporary folders: each has its own (``.<name>.tmp-<pid>``); the swap of the old folder for
+temporary folders: each has its own (``.<name>.tmp-<host>-<pid>``); the swap of the old folder for
 the new one holds a lock on the old one (:func:`folder_lock`); the last to finish wins; and
 what a killed process left (its temporary folder, or the old folder it was swapping out) is
 removed by the next writer once that process is gone.
@@ -35,6 +35,7 @@ import json
 import os
 import re
 import shutil
+import socket
 import sys
 import time
 from collections.abc import Iterable, Iterator
@@ -86,17 +87,34 @@ def pid_alive(pid: int) -> bool:
     return not stat[stat.rindex(")") + 2:].startswith(("Z", "X"))
 
 
+def _host() -> str:
+    """This machine's name as a temporary folder's names carry it (``h`` and its letters
+    and digits): on a folder shared between machines, a process id alone names no process."""
+    return "h" + (re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "local")
+
+
+def _owner() -> str:
+    """``<host>-<pid>``: the writer a temporary folder belongs to."""
+    return f"{_host()}-{os.getpid()}"
+
+
 def clean_stale(folder: Path, name: str = ".+") -> None:
-    """Remove the temporary folders (``.<name>.tmp-<pid>``, ``.<name>.old-<pid>-<n>``) that
-    processes now gone left in ``folder``: a killed writer cannot remove its own."""
-    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(\d+)(?:-\d+)?")
+    """Remove the temporary folders (``.<name>.tmp-<host>-<pid>``, ``.<name>.old-<host>-<pid>-<n>``)
+    that processes of this machine now gone left in ``folder``: a killed writer cannot
+    remove its own. Another machine's (a shared disk) are left alone: its process ids are
+    not this machine's to check. Names without a host (older writers) count as this machine's."""
+    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)?")
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
         return
+    host = _host()
     for d in entries:
         m = pattern.fullmatch(d.name)
-        if m and d.is_dir() and not d.is_symlink() and int(m[1]) != os.getpid() and not pid_alive(int(m[1])):
+        if not m or (m[1] is not None and m[1] != host):
+            continue
+        pid = int(m[2])
+        if d.is_dir() and not d.is_symlink() and pid != os.getpid() and not pid_alive(pid):
             shutil.rmtree(d, ignore_errors=True)
 
 
@@ -137,7 +155,7 @@ def _swap_in(tmp: Path, out: Path) -> None:
     for n in itertools.count():
         old = None
         if out.exists():
-            old = out.parent / f".{out.name}.old-{os.getpid()}-{n}"
+            old = out.parent / f".{out.name}.old-{_owner()}-{n}"
             try:
                 out.rename(old)
             except FileNotFoundError:
@@ -171,7 +189,7 @@ def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
     replaced); the block must write it.
     """
     out = check_destination(out, marker)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    tmp = out.parent / f".{out.name}.tmp-{_owner()}"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         clean_stale(out.parent, re.escape(out.name))
