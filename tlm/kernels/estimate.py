@@ -113,7 +113,6 @@ and area 0 give density 0, never NaN.
 from __future__ import annotations
 
 import math
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -656,7 +655,6 @@ def _knn_block(position, power, incoming, kdtree, pts, nrm, kk: int, cone_k: flo
 # ---------------------------------------------------------------- the density rule of the radius
 
 DENSITY_SAMPLE = 256  # stored photons whose k-th neighbour distance sets the density rule's radius
-_DENSITY_CACHE: dict[tuple[int, int, int], tuple[object, float | None]] = {}
 
 
 def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -> float | None:
@@ -669,15 +667,11 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
     depends on the map alone (not on packets, threads or the gather points) and a map
     scaled by ``s`` gives ``s`` times the radius, up to rounding. ``k`` is capped at
     ``n - 1``. None when the map holds fewer than 2 photons or the median is 0 (photons
-    stacked on one point): the caller's fallback applies. The result of the last maps
-    asked for is kept (keyed by the array, which must not change in place).
+    stacked on one point): the caller's fallback applies. A map keeps its radii
+    (:meth:`tlm.kernels.photons.PhotonMap.density_radius`): every packet asks again.
     """
     if isinstance(k, bool) or int(k) != k or k < 1:
         raise ValueError(f"k (={k!r}) must be an integer >= 1")
-    key = (id(position), int(k), int(sample))
-    hit = _DENSITY_CACHE.get(key)
-    if hit is not None and hit[0]() is position:
-        return hit[1]
     pos = _rows(position, "position")
     n = pos.shape[0]
     radius = None
@@ -694,11 +688,4 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
         d2.sort(axis=1)
         med = float(np.median(np.sqrt(d2[:, kk - 1])))
         radius = med if math.isfinite(med) and med > 0.0 else None
-    try:
-        ref = weakref.ref(position)
-    except TypeError:  # (a list or another object without weak references: not kept)
-        return radius
-    for stale in [c for c, (r, _) in _DENSITY_CACHE.items() if r() is None]:
-        del _DENSITY_CACHE[stale]
-    _DENSITY_CACHE[key] = (ref, radius)
     return radius

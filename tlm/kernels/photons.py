@@ -43,11 +43,12 @@ with, and a run repeats exactly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_point_tree
+from tlm.kernels.estimate import density_radius
 from tlm.kernels.memory import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.shade import (
     SPAWN_EPS,
@@ -86,10 +87,17 @@ class PhotonMap:
     caustic: np.ndarray
     tree: BSPTree
     emitted: int
+    _radii: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def n(self) -> int:
         return int(self.position.shape[0])
+
+    def density_radius(self, k: int) -> float | None:
+        """:func:`tlm.kernels.estimate.density_radius` of this map, computed once per ``k``."""
+        if k not in self._radii:
+            self._radii[k] = density_radius(self.position, k)
+        return self._radii[k]
 
     def stats(self) -> dict:
         return {

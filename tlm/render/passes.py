@@ -51,7 +51,7 @@ import numpy as np
 
 from tlm.config import RunConfig
 from tlm.kernels.camera import primary_rays
-from tlm.kernels.estimate import GATHER_STREAM, density_radius
+from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
 from tlm.kernels.shade import (
@@ -673,7 +673,7 @@ def _radius(frame: Frame, photons: PhotonMaps | PhotonMap | None, which: str) ->
         m = _map_of(photons, which)
         if m is None:
             raise ValueError(f"the {which} map's radius follows the density rule: pass the photon map")
-        r = density_radius(m.position, k)
+        r = m.density_radius(k)
         if r is not None:
             return r
         fraction = FALLBACK_FRACTION[which]
