@@ -50,9 +50,10 @@ RECORD_CYCLES = {"vertex": 0.0, "traversal": 0.0, "fragment": 0.0}
 
 # the search radii of the rule the file was written with (fractions of the scene's diagonal),
 # pinned: the default became the density rule (estimate.radius_photons)
-OLD_RADII = {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}
-# and the photon trees' depth of then, floor(ln n) (the default became photons.leaf_photons)
-OLD_TREE = {"leaf_photons": None}
+OLD_RADII = {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01, "final_gather": 0}
+# (and no final gathering, estimate.final_gather); the photon trees' depth of then, floor(ln n)
+# (the default became photons.leaf_photons) and the caustic group aimed at one box (photons.aim)
+OLD_TREE = {"leaf_photons": None, "aim": "box"}
 # runs: every frame kind, every gather filter, the three scenes, N and the schedulers
 RUNS = {
     "cornell-pmap-mvoxel": {"scene": "cornell", "mode": "pmap", "resolution": [48, 48],

@@ -82,6 +82,20 @@ class PhotonConfig:
         0.5, "share of each light's photons in the caustic group, aimed at the specular objects (caustic map)",
         min=0.0, max=0.95,
     )
+    caustic_count: int | None = _f(
+        None, "photons of the caustic group, a budget of its own beside count (which is then the global "
+        "group's alone); null = caustic_fraction x count", min=0,
+    )
+    aim: str = _f(
+        "parts", "where the caustic group is aimed: parts = a cone per specular part (cut into boxes of about "
+        "aim_triangles triangles), chosen in proportion to the solid angle it subtends (Jensen's projection "
+        "maps); box = one cone about the box of every mirror and dielectric (the thesis study's)",
+        choices=("parts", "box"),
+    )
+    aim_triangles: int = _f(
+        64, "aim: parts: specular triangles per aiming box (a part larger than this is split along its longest "
+        "axis)", min=1,
+    )
     levels: int | None = _f(
         None, "photon BSP split levels of both maps; null = from leaf_photons, or when that is null too "
               "floor(ln n) of each map's stored photons (the thesis's depth)", min=0, max=24
@@ -122,6 +136,15 @@ class EstimateConfig:
     caustic_radius_photons: int = _f(
         8, "density rule of the caustic map: the radius that holds about this many of its stored photons (as "
         "radius_photons; few, because most caustic photons spread thin and a caustic is sharp)", min=1, max=100000,
+    )
+    final_gather: int = _f(
+        32, "final gathering (Jensen): cosine-weighted rays per gather point (stratified), each hit gathering the "
+        "global map, in place of the indirect map's estimate at the point; 0 = off (the thesis's pipeline)",
+        min=0, max=4096,
+    )
+    final_gather_photons: int = _f(
+        50, "final gathering: the density rule of the global map its rays gather (a radius holding about this "
+        "many photons)", min=1, max=100000,
     )
     k: int = _f(8, "voxels sampled by the stochastic k-voxel filter", min=1, max=1024)
     k_nearest: int = _f(50, "photons of the exact k-nearest reference estimate", min=1, max=100000)

@@ -637,7 +637,8 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         seed=cfg.seed if seed is None else seed, max_bounces=cfg.photons.max_bounces,
         russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
         leaf_photons=cfg.photons.leaf_photons,
-        caustic_fraction=cfg.photons.caustic_fraction, batch=cfg.render.batch,
+        caustic_fraction=cfg.photons.caustic_fraction, caustic_count=cfg.photons.caustic_count,
+        aim=cfg.photons.aim, aim_triangles=cfg.photons.aim_triangles, batch=cfg.render.batch,
         page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
     )
 
