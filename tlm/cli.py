@@ -162,7 +162,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             per = [f"{m} r={ph[key]:.4g} ({ph[f'{key}_rule']}"
                    + (f", ~{ph[f'{key}_photons']} photons" if f"{key}_photons" in ph else "")
                    + f"): tested {g['photons_tested_per_gather']:.1f} accepted {g['photons_accepted_per_gather']:.1f}"
-                   for m, key in (("caustic", "caustic_radius"), ("indirect", "radius"), ("photons", "radius"))
+                   for m, key in (("caustic", "caustic_radius"), ("indirect", "radius"), ("photons", "radius"),
+                                  ("global", "global_radius"))
                    if (g := ph.get("gather", {}).get(m))]
             print(f"    per gather: tested {w['photons_tested_per_gather']:.1f} accepted "
                   f"{w['photons_accepted_per_gather']:.1f}" + "".join(f"; {x}" for x in per))

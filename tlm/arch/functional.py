@@ -1,8 +1,8 @@
 """The seam between the functional layer and the timing model: what a render hands over.
 
-Functional results do not depend on timing (DESIGN.md §6), so a render's work counts
-are kept apart from the SimPy layer: :class:`Functional` holds exactly what the timing
-model reads and can be saved and loaded as one ``.npz``. The cache of these files,
+Functional results do not depend on timing (docs/design.md, "Why the seam makes sweeps
+cheap"), so a render's work counts are kept apart from the SimPy layer: :class:`Functional`
+holds exactly what the timing model reads and can be saved and loaded as one ``.npz``. The cache of these files,
 keyed by what determines them, is :mod:`tlm.experiments.frames`.
 
 The work is typed, one frozen dataclass per kind of work item (after pbrt-v4's
@@ -41,7 +41,8 @@ from tlm.storage import write_atomic
 
 FORMAT = "functional/3"  # the .npz layout (unchanged by the typed classes: old entries load)
 
-RAY_PASSES = ("rcast", "reflect", "refract")  # per-pixel ray passes: RayPassWork
+# per-pixel ray passes: RayPassWork (fgather: the final-gather rays, traced with the photon-map frame)
+RAY_PASSES = ("rcast", "reflect", "refract", "fgather")
 GATHER_PASS = "pmap"  # the photon-map pass: GatherWork
 
 
@@ -314,10 +315,11 @@ class TreeWork:
 
     @classmethod
     def of_maps(cls, photons) -> TreeWork:
-        """Both photon maps' builds (:class:`~tlm.kernels.photons.PhotonMaps`) as one job of
+        """The photon maps' builds (:class:`~tlm.kernels.photons.PhotonMaps` ``gathered``: caustic
+        and indirect, or caustic and global with final gathering) as one job of
         the Vertex PM: level j's work is the two trees' level-j work added (the shallower
         tree's missing levels count as zero), sizes added."""
-        parts = [cls.of(m.tree) for m in photons.maps]
+        parts = [cls.of(m.tree) for m in getattr(photons, "gathered", photons.maps)]
         depth = max(p.n_levels for p in parts)
         levels = {f: sum(np.pad(p.levels[f], (0, depth - p.n_levels)) for p in parts) for f in LEVEL_FIELDS}
         return cls(BuildLevelWork(**{f: np.asarray(v, dtype=np.int64) for f, v in levels.items()}),

@@ -1,6 +1,6 @@
 """The seam between the layers: a run's work, packet by packet, for the timing model.
 
-DESIGN.md §2: a PM process takes a packet of work (rays or pixels), gets the kernels'
+docs/design.md, "Two layers, one seam": a PM process takes a packet of work (rays or pixels), gets the kernels'
 work counts for it, and turns them into cycles. Because every kernel gives exactly the
 same per-ray and per-pixel results and counts whatever packet it runs on (tested bit
 for bit), the counts of a packet are the sums of its pixels' counts in the whole-image

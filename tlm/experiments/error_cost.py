@@ -62,6 +62,7 @@ from tlm.registry import ESTIMATORS
 from tlm.render.passes import (
     GATHER_KEYS,
     PASS_FUNCTIONS,
+    TRACED_BY,
     Frame,
     GBuffer,
     cast,
@@ -77,6 +78,7 @@ from tlm.storage import check_destination
 
 COLUMNS = (
     "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
+    "final_gather", "caustic_photons", "aim",
     "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers",
     "trace_seconds", "gather_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
@@ -216,8 +218,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                              source=str(path), key=f"points: {point}")
         n = photon_count(scene, cfg)
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
-                   cfg.photons.caustic_fraction, cfg.photons.levels, cfg.photons.leaf_photons,
-                   cfg.cache.block_words, cfg.cache.pairs)
+                   cfg.photons.caustic_fraction, cfg.photons.caustic_count, cfg.photons.aim,
+                   cfg.photons.aim_triangles, cfg.estimate.final_gather > 0, cfg.photons.levels,
+                   cfg.photons.leaf_photons, cfg.cache.block_words, cfg.cache.pairs)
         frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:
             t0 = time.perf_counter()
@@ -225,9 +228,10 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         traced, trace_s = maps[map_key]
         t0 = time.perf_counter()
         radiance, work = pmap_pass(frame, g, traced.photons)
-        gather_s = time.perf_counter() - t0
-        fn = frame_functional(frame, g, geometry, others, traced, work)
-        rest = others[_others_key(frame.cfg, tuple(n for n in fn.passes if n != "pmap"))]
+        gather_s = time.perf_counter() - t0  # (with final gathering: its rays too)
+        fg_work = g.memo.pop("fgather_work", None)
+        fn = frame_functional(frame, g, geometry, others, traced, work, fg_work)
+        rest = others[_others_key(frame.cfg, _own_passes(fn.passes))]
         composite = sum((rad for rad, _ in rest.values()), np.zeros_like(radiance)) + radiance
         t0 = time.perf_counter()
         tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
@@ -238,6 +242,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "radius": search_radius(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else None,
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
+            "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),
+            "aim": cfg.photons.aim,
             **image_error(radiance, reference),
             **truth_error(composite, truth_image, keep),
             "truth_spp": truth.spp if truth_image is not None else None,
@@ -260,17 +266,30 @@ def _others_key(cfg: RunConfig, names: tuple[str, ...]) -> str:
     return json.dumps([list(names), keep], sort_keys=True, default=str)
 
 
+def _caustic_photons(cfg: RunConfig, n: int) -> int:
+    """The caustic group's photon budget: ``photons.caustic_count``, else ``caustic_fraction`` x the count
+    (as the trace splits it; 0 in a scene without mirrors or glass, which has no caustic group)."""
+    return cfg.photons.caustic_count if cfg.photons.caustic_count is not None else round(
+        n * cfg.photons.caustic_fraction)
+
+
+def _own_passes(names) -> tuple[str, ...]:
+    """The planned passes computed on their own (not the photon map, nor what it traces)."""
+    return tuple(n for n in names if n != "pmap" and n not in TRACED_BY)
+
+
 def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[str, dict], traced,
-                     pmap_work: dict[str, np.ndarray]) -> Functional:
+                     pmap_work: dict[str, np.ndarray], fg_work: dict[str, np.ndarray] | None = None) -> Functional:
     """The work of the point's whole photon-map frame, as :meth:`Functional.of` builds it for
     ``tlm run``: the passes the planner runs for ``frame.cfg``, in plan order.
 
     ``others`` caches the work of the passes other than the photon map, keyed by what it
     depends on (computed here when missing, once for every point that shares it);
-    ``traced`` is the point's photon trace and ``pmap_work`` its photon-map pass's work.
+    ``traced`` is the point's photon trace and ``pmap_work`` its photon-map pass's work,
+    ``fg_work`` its final-gather rays' (``g.memo["fgather_work"]`` after :func:`pmap_pass`).
     """
     names = tuple(plan(frame.scene, frame.cfg).run_names)
-    rest = tuple(n for n in names if n != "pmap")
+    rest = _own_passes(names)
     key = _others_key(frame.cfg, rest)
     if key not in others:  # (radiance, work) of each pass
         others[key] = {n: PASS_FUNCTIONS[n](frame, g) for n in rest}
@@ -278,6 +297,10 @@ def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[
     with_pmap = "pmap" in names
     if with_pmap:
         work["pmap"] = pmap_work
+    if "fgather" in names:
+        if fg_work is None:
+            raise ValueError("frame_functional: the plan has final gathering: pass its rays' work (fg_work)")
+        work["fgather"] = fg_work
     return Functional(  # the render's dicts, converted to the typed work by Functional
         passes=names,
         work={p: work[p] for p in names},

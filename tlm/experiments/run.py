@@ -60,13 +60,14 @@ from tlm.render.passes import (
     GBuffer,
     ImageGBuffer,
     cast,
+    fgather_pass,
     new_streams,
     pixel_batches,
     pmap_pass,
     radii,
     trace_photon_map,
 )
-from tlm.render.planner import Plan, plan
+from tlm.render.planner import WORK_PASSES, Plan, plan
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, check_destination
@@ -205,7 +206,8 @@ class RenderResult:
     def composite(self) -> np.ndarray:
         out = np.zeros_like(next(iter(self.radiance.values())))
         for name in self.plan.run_names:
-            out = out + self.radiance[name]
+            if name in self.radiance:  # (a work-only pass has no frame)
+                out = out + self.radiance[name]
         return out
 
 
@@ -226,7 +228,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     names = the_plan.run_names
     batches = pixel_batches(w * h, frame.spp, cfg.render.batch_rays)
     traced = None
-    radiance = {name: np.zeros((w * h, 3)) for name in names}
+    radiance = {name: np.zeros((w * h, 3)) for name in names if name not in WORK_PASSES}
     work: dict[str, dict[str, np.ndarray]] = {}
     streams = {name: new_streams(frame) for name in names}  # each pass's cache pairs, batch to batch
     primary = Primary.empty(w * h)
@@ -248,10 +250,14 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
                 bar.set_postfix_str(f"batch {i + 1}/{len(batches)} {name}")
                 with timer.stage(f"pass_{name}"):
                     if name == "pmap":
-                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name], per_map=gather_maps)
+                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name], per_map=gather_maps,
+                                            fg_streams=streams.get("fgather"))
+                    elif name == "fgather":
+                        rad, wk = fgather_pass(frame, g)
                     else:
                         rad, wk = PASS_FUNCTIONS[name](frame, g, streams[name])
-                radiance[name][at] = rad
+                if name in radiance:
+                    radiance[name][at] = rad
                 counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
                 for k, v in wk.items():
                     counts[k][at] = v
@@ -447,10 +453,11 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
 
 def _per_map(res: RenderResult) -> dict:
     """The pmap pass's gather work per photon map, with the photons tested and accepted per gather
-    (every gather searches both maps)."""
-    gathers = int(res.work["pmap"]["gathers"].sum()) if "pmap" in res.work else 0
+    of that map (``gathers``: the caustic and indirect maps are searched at every gather point, the
+    global map at every final-gather ray's hit)."""
     out = {}
     for name, tally in (res.gather_maps or {}).items():
+        gathers = tally.get("gathers", 0)
         out[name] = {**tally, **{f"{k}_per_gather": tally[k] / gathers if gathers else 0.0
                                  for k in ("photons_tested", "photons_accepted")}}
     return out

@@ -32,8 +32,9 @@ already done, and recomputes those whose inputs changed. Output folder::
                              or error.json when the point failed (retried by a rerun)
 
 A point renders nothing that another point rendered: points that differ only in
-``arch`` share one functional result (DESIGN.md §6, :mod:`tlm.arch.functional`). One
-point per functional result goes first; the others follow once it is cached, so two
+``arch`` share one functional result (:mod:`tlm.arch.functional`; docs/design.md, "Why
+the seam makes sweeps cheap"). One point per functional result goes first; the others
+follow once it is cached, so two
 workers never render the same frame. Workers: a local process pool, or Dask. A local
 worker ends itself when the sweep's process dies (a killed sweep leaves none running);
 a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran, if that

@@ -9,7 +9,15 @@ arrays."
 * **Emission.** The photon count is shared among the lights in proportion to their
   power; each photon of light ``l`` carries ``P_l / N_l``. A quad light emits from a
   uniform point on the quad in a cosine-weighted direction about its normal; a point
-  light uniformly over the sphere.
+  light uniformly over the sphere. With mirrors or dielectrics, a *caustic group* of
+  each light's photons (``photons.caustic_fraction`` of them, or a budget of its own,
+  ``photons.caustic_count``, beside ``count``) is aimed at the specular objects, its
+  power divided by the aiming density so the estimate stays unbiased (Jensen's
+  projection maps): ``photons.aim: parts`` cuts each specular part into boxes of at
+  most ``aim_triangles`` triangles (:func:`aim_boxes`) and draws a direction from the
+  mixture of the cones bounding them, a cone in proportion to its solid angle
+  (:func:`cone_mixture`); ``box`` (the thesis study's) one cone about every specular
+  triangle, which wastes most photons when the objects lie apart.
 * **Tracing** runs through the geometry BSP with the same traversal kernel as eye
   rays, all photons of a bounce at once. A Lambertian hit stores the photon (position,
   normal facing the arriving side, RGB power, incoming direction), then Russian
@@ -122,10 +130,20 @@ class PhotonMaps:
     caustic_map: PhotonMap
     indirect_map: PhotonMap
     emitted: int
+    global_map: PhotonMap | None = None  # final gathering's: every diffuse hit of the global group (None: off)
 
     @property
     def maps(self) -> tuple[PhotonMap, PhotonMap]:
         return self.caustic_map, self.indirect_map
+
+    @property
+    def gathered(self) -> tuple[PhotonMap, ...]:
+        """The maps the pipeline keeps and gathers (their trees are built by the Vertex PM):
+        caustic and indirect; with final gathering, caustic and global (the indirect map is
+        then the software's only, for its statistics and the reference)."""
+        if self.global_map is None:
+            return self.maps
+        return self.caustic_map, self.global_map
 
     @property
     def n(self) -> int:
@@ -163,6 +181,8 @@ class PhotonMaps:
             "stored_power": self.power.sum(axis=0).tolist(),
             "tree": self.indirect_map.tree.stats(),
             "caustic_tree": self.caustic_map.tree.stats(),
+            **({} if self.global_map is None else {"global": self.global_map.n,
+                                                   "global_tree": self.global_map.tree.stats()}),
         }
 
 
@@ -248,6 +268,101 @@ def bounding_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nd
     return axis, np.where(inside, -1.0, np.clip(cos, -1.0, 1.0))
 
 
+def _box_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """:func:`box_cones` with the axes as three (m, K) components (no reductions over
+    short axes: the eight corners' dot products and squared lengths are sums of one
+    term per coordinate, ``lo`` or ``hi``, kept on leading axes)."""
+    e = [np.stack([lo[None, :, j] - p[:, j, None], hi[None, :, j] - p[:, j, None]]) for j in range(3)]
+    a = [0.5 * (x[0] + x[1]) for x in e]  # centre - p
+    length = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    inside = (e[0][0] <= 0) & (e[0][1] >= 0) & (e[1][0] <= 0) & (e[1][1] >= 0) & (e[2][0] <= 0) & (e[2][1] >= 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / length
+        a = [np.where(length > 0, x * inv, float(j == 2)) for j, x in enumerate(a)]
+        dot = (a[0] * e[0])[:, None, None] + (a[1] * e[1])[None, :, None] + (a[2] * e[2])[None, None, :]
+        sq = (e[0] * e[0])[:, None, None] + (e[1] * e[1])[None, :, None] + (e[2] * e[2])[None, None, :]
+        cos = (dot / np.sqrt(sq)).reshape((8, *length.shape)).min(axis=0)
+    # a point on a corner (0 / 0) or at the centre is in the box: the whole sphere
+    return tuple(a), np.where(inside, -1.0, np.clip(cos, -1.0, 1.0))
+
+
+def box_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bounding_cone` of every box [lo_k, hi_k] (``lo``, ``hi``: (K, 3)) from every
+    point of ``p`` (m, 3): axes (m, K, 3) and cosines (m, K) (-1 where the point is in the box)."""
+    a, cos = _box_cones(p, lo, hi)
+    return np.stack(a, axis=-1), cos
+
+
+def aim_boxes(triangles: np.ndarray, kind: np.ndarray, part: np.ndarray, aim_triangles: int = 64) -> np.ndarray:
+    """The boxes a caustic group aims at (``photons.aim: parts``): (K, 2, 3) lo/hi.
+
+    The specular triangles (``kind`` != Lambertian, one code a triangle) of each scene
+    part (``part``, one index a triangle; parts in increasing order) are cut recursively
+    at the median of their centroids along the longest axis of their box, until a box
+    holds at most ``aim_triangles`` triangles (depth first, lower half first).
+    """
+    if aim_triangles < 1:
+        raise ValueError(f"aim_triangles (={aim_triangles}) must be >= 1")
+    spec = np.asarray(kind) != KIND["lambertian"]
+    part = np.asarray(part)
+    out: list[np.ndarray] = []
+
+    def cut(tri: np.ndarray) -> None:
+        v = tri.reshape(-1, 3)
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        if tri.shape[0] <= aim_triangles:
+            out.append(np.stack([lo, hi]))
+            return
+        order = np.argsort(tri[:, :, int(np.argmax(hi - lo))].mean(axis=1), kind="stable")
+        half = tri.shape[0] // 2
+        cut(tri[order[:half]])
+        cut(tri[order[half:]])
+
+    for p in np.unique(part[spec]).tolist():
+        cut(triangles[spec & (part == p)])
+    return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
+
+
+CONE_CHUNK = 1 << 13  # photons x boxes a chunk of cone mixture sampling holds (memory and speed only)
+
+
+def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np.ndarray,
+                 u_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Directions from a mixture of the cones bounding ``boxes`` (K, 2, 3) and their 1 / pdf.
+
+    ``o``: the origins, (m, 3), or (1, 3) for one shared by all (a point light); ``u_*``:
+    (m,) uniforms. Cone k (:func:`box_cones`) is picked with probability
+    ``Omega_k / sum Omega`` (``Omega = 2 pi (1 - cos_max)``, its solid angle), the
+    direction is uniform in it; the density of the mixture is ``#{k: d in cone k} / sum
+    Omega``, so where cones overlap a direction is not counted twice. Returns (m, 3) unit
+    directions and (m,) ``sum Omega / #cones holding d`` (steradians).
+    """
+    m = u_pick.shape[0]
+    lo, hi = boxes[:, 0], boxes[:, 1]
+    k_n = boxes.shape[0]
+    d = np.empty((m, 3))
+    inv_pdf = np.empty(m)
+    shared = o.shape[0] == 1
+    if shared:
+        cones = _box_cones(o, lo, hi)
+    step = max(1, CONE_CHUNK // max(k_n, 1))
+    for s in range(0, m, step):
+        e = min(m, s + step)
+        a, cos = cones if shared else _box_cones(o[s:e], lo, hi)  # (1 or e - s, K) each
+        cum = np.cumsum(2.0 * np.pi * (1.0 - cos), axis=1)  # solid angles, summed
+        total = cum[:, -1]
+        pick = np.minimum(np.sum(cum <= (u_pick[s:e] * total)[:, None], axis=1), k_n - 1)
+        row = np.zeros(e - s, dtype=np.int64) if shared else np.arange(e - s)
+        c = cos[row, pick]
+        dd = _around(np.stack([x[row, pick] for x in a], axis=1), 1.0 - u_cos[s:e] * (1.0 - c),
+                     2.0 * np.pi * u_phi[s:e])
+        holds = dd[:, 0, None] * a[0] + dd[:, 1, None] * a[1] + dd[:, 2, None] * a[2] >= cos
+        holds[np.arange(e - s), pick] = True  # the picked cone holds d, whatever the rounding
+        d[s:e] = dd
+        inv_pdf[s:e] = total[row] / holds.sum(axis=1)
+    return d, inv_pdf
+
+
 def emit(
     lights: tuple[Light, ...],
     n: int,
@@ -256,26 +371,51 @@ def emit(
     specular_box: tuple[np.ndarray, np.ndarray] | None = None,
     caustic_fraction: float = 0.0,
     with_source: bool = False,
+    caustic_boxes: np.ndarray | None = None,
+    caustic_count: int | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Origins, unit directions, RGB powers (n, 3) and caustic-group flags (n,); with
     ``with_source`` also the triangle each photon leaves (n,) int64 (-1: not geometry).
 
-    Each light's photons are split into a *global* group and, when ``specular_box`` is
-    given and ``caustic_fraction > 0``, a *caustic* group. A point light aims each group
-    at the cone that bounds its target box (the scene's, or the specular objects'), and
-    the photons' power is scaled by the cone's share of the sphere, so no photon is
-    wasted on empty space (Jensen's projection maps, with boxes for maps). A quad light
-    emits both groups over its cosine-weighted hemisphere. A mesh light picks a triangle
-    for each photon in proportion to its power (:func:`triangle_choice`), a uniform
-    point on it and a direction as a quad light does about the triangle's normal; the
-    photon's power is the chosen triangle's power over its probability and the count.
+    Each light's photons are split into a *global* group and, when ``specular_box`` or
+    ``caustic_boxes`` is given, a *caustic* group: ``caustic_fraction`` of the light's
+    share of ``n`` (the global group the rest); or, with ``caustic_count``, a budget of
+    its own, ``caustic_count`` shared among the lights by power (:func:`split_photons`)
+    beside the global group's ``n`` (``n + caustic_count`` photons in all). Each group
+    carries its light's power over its own count. A point light aims the global group
+    at the cone that bounds the scene's box, and the photons' power is scaled by the
+    cone's share of the sphere, so no photon is wasted on empty space. A quad light
+    emits the global group over its cosine-weighted hemisphere. A mesh light picks a
+    triangle for each photon in proportion to its power (:func:`triangle_choice`), a
+    uniform point on it and a direction as a quad light does about the triangle's
+    normal; the photon's power is the chosen triangle's power over its probability and
+    the count.
+
+    The caustic group is aimed at the specular objects (Jensen's projection maps, with
+    boxes for maps): with ``specular_box`` (``photons.aim: box``), uniformly in the one
+    cone that bounds that box; with ``caustic_boxes`` ((K, 2, 3), :func:`aim_boxes`;
+    ``photons.aim: parts``), from a mixture of the cones bounding each box, picked in
+    proportion to their solid angles (:func:`cone_mixture`). A point light's cones are
+    the same for all its photons; a quad's or a mesh's are those seen from each photon's
+    origin, which emits on its front side only (power times the cosine there). The power
+    is divided by the direction's density (the mixture's, so overlapping cones do not
+    count a direction twice) against the light's (isotropic, or cosine-weighted), so the
+    estimate stays unbiased however the cones are drawn.
     """
     counts = split_photons(lights, n)
+    if caustic_boxes is not None and len(caustic_boxes) == 0:
+        caustic_boxes = None  # nothing to aim at
+    aimed = specular_box is not None or caustic_boxes is not None
+    own = split_photons(lights, caustic_count) if aimed and caustic_count is not None else None
     out: list[tuple[np.ndarray, ...]] = []
     first = 0
     for li, (light, c) in enumerate(zip(lights, counts.tolist(), strict=True)):
-        n_c = round(c * caustic_fraction) if specular_box is not None else 0
-        for group, m, box in ((False, c - n_c, scene_box), (True, n_c, specular_box)):
+        if own is not None:  # a caustic budget of its own beside the global group's
+            n_g, n_c = c, int(own[li])
+        else:
+            n_c = round(c * caustic_fraction) if aimed else 0
+            n_g = c - n_c
+        for group, m, box in ((False, n_g, scene_box), (True, n_c, specular_box)):
             if m == 0:
                 continue
             ids = np.arange(first, first + m)
@@ -295,7 +435,12 @@ def emit(
                     src = light.ids[j]
                     # the triangle's power pi Le A over its probability, shared by the m photons
                     power = light.radiance[j] * (np.pi * light.areas[j] / (prob * m))[:, None]
-                if group and box is not None:  # uniform in the cone bounding the specular objects
+                if group and caustic_boxes is not None:  # a mixture of the cones of the specular parts
+                    d, inv_pdf = cone_mixture(o, caustic_boxes, hash_uniform(key, ids, -1, li, 5), u[2], u[3])
+                    cos_l = np.maximum(0.0, d @ light.normal if light.kind == "quad" else np.sum(d * nl, axis=1))
+                    # flux Le cos dA dw, sampled with pdf (1 / A) (#cones holding d / sum Omega)
+                    power = np.atleast_2d(power) * (cos_l * inv_pdf / np.pi)[:, None]
+                elif group and box is not None:  # uniform in the cone bounding the specular objects
                     axis, cos_max = bounding_cones(o, *box)
                     d = _around(axis, 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
                     # a quad (a triangle) emits on its normal's side only
@@ -307,9 +452,15 @@ def emit(
             else:
                 pos = np.asarray(light.position, dtype=np.float64)
                 o = np.broadcast_to(pos, (m, 3)).copy()
-                axis, cos_max = bounding_cone(pos, *box) if box is not None else (np.array([0.0, 0, 1]), -1.0)
-                d = _around(np.broadcast_to(axis, (m, 3)).copy(), 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
-                power = power * (1.0 - cos_max) / 2.0  # the cone's share of the sphere
+                if group and caustic_boxes is not None:  # a mixture of the cones of the specular parts
+                    d, inv_pdf = cone_mixture(pos[None, :], caustic_boxes, hash_uniform(key, ids, -1, li, 5),
+                                              u[2], u[3])
+                    power = power[None, :] * (inv_pdf / (4.0 * np.pi))[:, None]  # 1 / (4 pi pdf)
+                else:
+                    axis, cos_max = bounding_cone(pos, *box) if box is not None else (np.array([0.0, 0, 1]), -1.0)
+                    d = _around(np.broadcast_to(axis, (m, 3)).copy(), 1.0 - u[2] * (1.0 - cos_max),
+                                2.0 * np.pi * u[3])
+                    power = power * (1.0 - cos_max) / 2.0  # the cone's share of the sphere
             out.append((o, d, np.broadcast_to(power, (m, 3)).copy(), np.full(m, group), src))
     if not out:
         empty = np.zeros((0, 3))
@@ -343,6 +494,7 @@ def trace_photons(
     caustic_count: int | None = None,
     aim: str = "box",
     aim_triangles: int = 64,
+    global_map: bool = False,
     batch: int = 4,
     page_words: int = PAGE_WORDS,
     pairs: int = PAIRS,
@@ -351,9 +503,12 @@ def trace_photons(
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
     With mirrors or dielectrics in the scene, ``caustic_fraction`` of each light's
-    photons form a caustic group aimed at the specular objects, which stores only
-    caustic photons (L S+ D); the global group then stores only indirect ones (a
-    diffuse bounce on the way), so nothing is counted twice. page_words, pairs : the
+    photons (or, with ``caustic_count``, that many photons beside the ``n`` of the
+    global group) form a caustic group aimed at the specular objects (``aim``: "box",
+    one cone about them all; "parts", a mixture of cones about boxes of at most
+    ``aim_triangles`` triangles of each part, :func:`aim_boxes`, :func:`emit`), which
+    stores only caustic photons (L S+ D); the global group then stores only indirect
+    ones (a diffuse bounce on the way), so nothing is counted twice. page_words, pairs : the
     data cache whose misses the photons' reads are charged (the ``cache`` section).
     """
     if n < 0:
@@ -362,6 +517,12 @@ def trace_photons(
         raise ValueError(f"max_bounces (={max_bounces}) must be >= 0")
     if not 0.0 <= caustic_fraction < 1.0:
         raise ValueError(f"caustic_fraction (={caustic_fraction}) must be in [0, 1)")
+    if caustic_count is not None and caustic_count < 0:
+        raise ValueError(f"caustic_count (={caustic_count}) must be >= 0")
+    if aim not in ("parts", "box"):
+        raise ValueError(f"aim (={aim!r}) must be 'parts' or 'box'")
+    if aim_triangles < 1:
+        raise ValueError(f"aim_triangles (={aim_triangles}) must be >= 1")
     streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
     table = scene.material_table()
@@ -369,10 +530,13 @@ def trace_photons(
     trans, ior = table["transmittance"], table["ior"]
     flat = scene.triangles.reshape(-1, 3)
     spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
-    specular_box = (spec.min(axis=0), spec.max(axis=0)) if spec.shape[0] and caustic_fraction > 0 else None
+    aimed = spec.shape[0] > 0 and (caustic_fraction > 0 if caustic_count is None else caustic_count > 0)
+    specular_box = (spec.min(axis=0), spec.max(axis=0)) if aimed and aim == "box" else None
+    boxes = aim_boxes(scene.triangles, kind_of, scene.part, aim_triangles) if aimed and aim == "parts" else None
     o, d, power, caustic_group, source = emit(scene.lights, n, key, (flat.min(axis=0), flat.max(axis=0)),
-                                              specular_box, caustic_fraction, with_source=True)
-    split = specular_box is not None  # caustics come from the caustic group only
+                                              specular_box, caustic_fraction, with_source=True,
+                                              caustic_boxes=boxes, caustic_count=caustic_count)
+    split = aimed  # caustics come from the caustic group only
     n = o.shape[0]
     work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
     work["photons_emitted"][:] = 1
@@ -387,6 +551,8 @@ def trace_photons(
     direct = np.ones(n, dtype=bool)  # straight from the light (index-matched crossings only)
     rec = Recorder(streams.page_words)
     stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
+    # the global map (final gathering): every Lambertian hit of the global group, direct light included
+    full: dict[str, list[np.ndarray]] = {k: [] for k in stored}
     for bounce in range(max_bounces):
         if pid.shape[0] == 0:
             break
@@ -416,7 +582,15 @@ def trace_photons(
         for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
                             ("caustic", specular_only)):
             stored[name].append(value[store])
-        work["stored"][pid[store]] += 1
+        if global_map:  # the maps the final-gather pipeline keeps: caustic and global
+            every_hit = lam & ~group
+            for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
+                                ("caustic", specular_only)):
+                full[name].append(value[every_hit])
+            work["stored"][pid[store & specular_only]] += 1
+            work["stored"][pid[every_hit]] += 1
+        else:
+            work["stored"][pid[store]] += 1
 
         u = [hash_uniform(key, pid, bounce, dim) for dim in range(4)]
         new_d = np.empty_like(d)
@@ -462,19 +636,24 @@ def trace_photons(
     for name, counts in rec.charge(streams, n).items():
         work[_MISS_KEYS[name]] += counts
 
-    def cat(name: str, shape: tuple, dtype=np.float64) -> np.ndarray:
-        parts = stored[name]
-        return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
+    def cat(store: dict[str, list[np.ndarray]], name: str) -> np.ndarray:
+        parts = store[name]
+        if parts:
+            return np.concatenate(parts)
+        return np.zeros(0, dtype=bool) if name == "caustic" else np.zeros((0, 3))
 
-    every = {name: cat(name, (0,) if name == "caustic" else (0, 3), bool if name == "caustic" else np.float64)
-             for name in stored}
-
-    def one_map(sel: np.ndarray) -> PhotonMap:
+    def one_map(every: dict[str, np.ndarray], sel: np.ndarray) -> PhotonMap:
         position = every["position"][sel]
         return PhotonMap(position=position, normal=every["normal"][sel], incoming=every["incoming"][sel],
                          power=every["power"][sel], caustic=every["caustic"][sel],
                          tree=build_point_tree(position, map_levels(position.shape[0], levels, leaf_photons)),
                          emitted=n)
 
-    photons = PhotonMaps(one_map(every["caustic"]), one_map(~every["caustic"]), emitted=n)
+    every = {name: cat(stored, name) for name in stored}
+    whole = None
+    if global_map:
+        full_arrays = {name: cat(full, name) for name in full}
+        whole = one_map(full_arrays, np.ones(full_arrays["position"].shape[0], dtype=bool))
+    photons = PhotonMaps(one_map(every, every["caustic"]), one_map(every, ~every["caustic"]), emitted=n,
+                         global_map=whole)
     return PhotonTrace(photons, work)

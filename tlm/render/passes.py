@@ -45,6 +45,7 @@ each packet from cold pairs).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,12 +55,14 @@ from tlm.kernels.camera import primary_rays
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
+from tlm.kernels.photons import _cosine_dirs as cosine_directions
 from tlm.kernels.shade import (
     SPAWN_EPS,
     direct_light,
     emitted,
     face_normals,
     facing,
+    hash_uniform,
     scatter_specular,
     surface_emission,
 )
@@ -614,19 +617,25 @@ def gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.
     (weight 1) and, when the scene has mirrors or glass, the ends of the reflect and
     refract walks (weighted by their paths). Returns sample indices, triangles, points,
     normals facing the arriving ray and weights (k, 3)."""
+    return _gather_points(frame, g)[:5]  # type: ignore[return-value]
+
+
+def _gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, ...]:
+    """:func:`gather_points` and each point's bounce (0: the eye hit; j: the end of a walk after j)."""
     idx, tri, pts, n = lambertian_hits(frame, g)
-    parts = [(idx, tri, pts, n, np.ones((idx.shape[0], 3)))]
+    parts = [(idx, tri, pts, n, np.ones((idx.shape[0], 3)), np.zeros(idx.shape[0], dtype=np.int64))]
     render = frame.cfg.render
     for kind, depth in (("mirror", render.reflect_depth), ("dielectric", render.refract_depth)):
         if depth == 0 or not np.any(frame.kind == KIND[kind]):
             continue
         e = specular_walk(frame, g, kind, depth).ends
-        parts.append((e.sample, e.triangle, e.point, facing(frame.normals[e.triangle], e.direction), e.weight))
+        parts.append((e.sample, e.triangle, e.point, facing(frame.normals[e.triangle], e.direction), e.weight,
+                      e.bounce))
     if len(parts) == 1:
         return parts[0]
     sample = np.concatenate([q[0] for q in parts])
     order = np.argsort(sample, kind="stable")  # sample-major: the Fragment PM gathers pixel by pixel
-    return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(5))  # type: ignore[return-value]
+    return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(6))
 
 
 def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None) -> PhotonTrace:
@@ -638,7 +647,8 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         russian_roulette=cfg.photons.russian_roulette, levels=cfg.photons.levels,
         leaf_photons=cfg.photons.leaf_photons,
         caustic_fraction=cfg.photons.caustic_fraction, caustic_count=cfg.photons.caustic_count,
-        aim=cfg.photons.aim, aim_triangles=cfg.photons.aim_triangles, batch=cfg.render.batch,
+        aim=cfg.photons.aim, aim_triangles=cfg.photons.aim_triangles, global_map=cfg.estimate.final_gather > 0,
+        batch=cfg.render.batch,
         page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
     )
 
@@ -701,6 +711,13 @@ def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
     """The search radii a pmap frame used and how each was chosen (``results.json``)."""
     est = frame.cfg.estimate
     out = {}
+    if final_gathering(frame, photons):
+        explicit = est.radius is not None or est.radius_fraction is not None
+        out["global_radius"] = global_radius(frame, photons)
+        out["global_radius_rule"] = radius_rule(frame, "indirect") if explicit else "density"
+        if not explicit:
+            out["global_radius_photons"] = est.final_gather_photons
+        out["final_gather"] = est.final_gather
     for which, key, k in (("indirect", "radius", est.radius_photons),
                           ("caustic", "caustic_radius", est.caustic_radius_photons)):
         rule = radius_rule(frame, which)
@@ -718,8 +735,146 @@ def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, str
                       streams, stream, kdtree))
 
 
+def global_radius(frame: Frame, photons: PhotonMaps) -> float:
+    """The global map's search radius (final gathering): ``estimate.radius`` or
+    ``radius_fraction`` when given (as the indirect map's), else the density rule with
+    ``final_gather_photons`` on the global map."""
+    est = frame.cfg.estimate
+    if est.radius is not None or est.radius_fraction is not None:
+        return search_radius(frame, photons)
+    r = photons.global_map.density_radius(est.final_gather_photons) if photons.global_map is not None else None
+    return FALLBACK_FRACTION["indirect"] * frame.accel.scale if r is None else r
+
+
+def final_gathering(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> bool:
+    """Whether the photon-map frame gathers the indirect light by final gathering
+    (``estimate.final_gather`` > 0 and the trace kept a global map)."""
+    return (frame.cfg.estimate.final_gather > 0 and isinstance(photons, PhotonMaps)
+            and photons.global_map is not None)
+
+
+# final-gather rays traced together: their hits and reads are per chunk, so memory is bounded
+# by it, not by the batch's gather points x estimate.final_gather
+FG_CHUNK_RAYS = 1 << 16
+
+
+def _fg_key(seed: int) -> int:
+    return int(np.random.SeedSequence([seed, 0xF16A7]).generate_state(1, dtype=np.uint64)[0] >> 1)
+
+
+def final_gather_directions(normals: np.ndarray, point_keys: np.ndarray, rays: int, seed: int):
+    """``rays`` cosine-weighted unit directions about each unit normal (m, 3), stratified
+    (``rays`` a square: a sqrt x sqrt grid over the two sample dimensions; otherwise strata
+    of the polar dimension), seeded by each point's key and the ray's index, never by its
+    neighbours. Returns the point of each ray (m * rays,), its index (m * rays,) and its
+    direction (m * rays, 3), point-major."""
+    m = normals.shape[0]
+    j = np.repeat(np.arange(m, dtype=np.int64), rays)
+    r = np.tile(np.arange(rays, dtype=np.int64), m)
+    key = _fg_key(seed)
+    x1 = hash_uniform(key, point_keys[j], r, 0)
+    x2 = hash_uniform(key, point_keys[j], r, 1)
+    side = math.isqrt(rays)
+    if side * side == rays:
+        u1, u2 = (r // side + x1) / side, (r % side + x2) / side
+    else:
+        u1, u2 = (r + x1) / rays, x2
+    return j, r, cosine_directions(normals[j], u1, u2)
+
+
+def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.ndarray, n: np.ndarray,
+                        tri: np.ndarray, pkeys: np.ndarray, owner: np.ndarray, p: int, ray_work: dict,
+                        gather_work: dict, ray_streams: Streams, gather_streams: Streams,
+                        per_map: dict | None) -> np.ndarray:
+    """Final gathering at a chunk of gather points (all of their pixels' points): returns
+    each point's gathered flux density (m, 3), pi / N x the sum of the rays' radiance, so
+    that ``albedo / pi`` of it is the reflected indirect radiance, as a map's density."""
+    cfg = frame.cfg
+    rays = cfg.estimate.final_gather
+    j, r, d = final_gather_directions(n, pkeys, rays, cfg.seed)
+    origin, ignore = pts[j], tri[j]
+    w = np.ones((j.shape[0], 3))
+    key = _fg_key(cfg.seed)
+    rec = Recorder(ray_streams.page_words)
+    found: dict[str, list[np.ndarray]] = {k: [] for k in ("j", "r", "x", "n", "w", "tri")}
+    depth = cfg.render.refract_depth
+    for bounce in range(depth + 1):
+        if j.shape[0] == 0:
+            break
+        o = owner[j]
+        hits = closest_hit(frame.accel, origin, d, tmin=frame.eps, ignore=ignore, batch=cfg.render.batch,
+                           record=True)
+        ray_work["secondary_rays"] += np.bincount(o, minlength=p)
+        for name, c in _trace_counts(hits).items():
+            ray_work[name] += np.bincount(o, weights=c, minlength=p).astype(np.int64)
+        _record_rays(frame, rec, hits, o)
+        # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there
+        _, seen = emitted(frame.scene.lights, origin, d, hits.t, frame.eps)
+        hit = (hits.triangle >= 0) & ~seen
+        th = np.maximum(hits.triangle, 0)
+        lam = hit & (frame.kind[th] == KIND["lambertian"])
+        x = origin + hits.t[:, None] * d
+        for name, val in (("j", j), ("r", r), ("x", x), ("n", facing(frame.normals[th], d)), ("w", w),
+                          ("tri", hits.triangle)):
+            found[name].append(val[lam])
+        ray_work["fragments"] += np.bincount(o[lam], minlength=p)
+        rec.add("shading", Accesses.of_words(hits.triangle[lam] * SHADING_WORDS, o[lam], rec.page_words))
+        go = hit & ~lam & (bounce < depth)
+        if not go.any():
+            break
+        # a mirror or glass surface: the path goes on, one branch (glass: reflected with the
+        # Fresnel probability F, the weight unchanged; refracted otherwise, times transmittance)
+        ts, ds = hits.triangle[go], d[go]
+        geo = frame.normals[ts]
+        ns = shading_normals(frame, ts, hits.u[go], hits.v[go])
+        mirror = frame.kind[ts] == KIND["mirror"]
+        refl, refr, f = scatter_specular(ds, ns, geo, np.where(mirror, 1.0, frame.ior[ts]))
+        if not cfg.render.fresnel:
+            f = np.where(f < 1.0, 0.0, 1.0)
+        j, r = j[go], r[go]
+        take_refl = mirror | (hash_uniform(key, pkeys[j], r, 2 + bounce) < f)
+        w = w[go] * np.where(mirror[:, None], frame.reflectance[ts],
+                             np.where(take_refl[:, None], 1.0, frame.transmittance[ts]))
+        ray_work["specular_bounces"] += np.bincount(owner[j], minlength=p)
+        origin, d, ignore = x[go], np.where(take_refl[:, None], refl, refr), ts
+    _charge(rec, ray_streams, ray_work)
+    m = pts.shape[0]
+    flux = np.zeros((m, 3))
+    lj = np.concatenate(found["j"])
+    if lj.shape[0] == 0:
+        return flux
+    lr = np.concatenate(found["r"])
+    order = np.lexsort((lr, lj))  # point-major, ray by ray: the Fragment PM gathers pixel by pixel
+    lj, lr = lj[order], lr[order]
+    lx, ln, lw, lt = (np.concatenate(found[k])[order] for k in ("x", "n", "w", "tri"))
+    e = _estimate(frame, gmap, radius, lx, ln, pkeys[lj] * rays + lr, gather_streams, None, GATHER_STREAM)
+    np.add.at(flux, lj, lw * frame.albedo[lt] / np.pi * e.density)
+    lo = owner[lj]
+    gather_work["gathers"] += np.bincount(lo, minlength=p)
+    for k in GATHER_KEYS[1:]:
+        gather_work[k] += np.bincount(lo, weights=getattr(e, k), minlength=p).astype(np.int64)
+    if per_map is not None:
+        tally = per_map.setdefault("global", dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited",
+                                                            "gathers"), 0))
+        for k in ("photons_tested", "photons_accepted", "leaves_visited"):
+            tally[k] += int(getattr(e, k).sum())
+        tally["gathers"] += int(lj.shape[0])
+    return flux * (np.pi / rays)
+
+
+def fgather_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The final-gather rays' work (a ray pass of the Traversal, Intersection and Fragment
+    PMs: rays, triangle tests, the shading record of each hit), traced by
+    :func:`pmap_pass` of the same packet (which must run first, with ``fg_streams``); its
+    radiance is the photon-map frame's, so this pass's own is zero."""
+    if "fgather_work" not in g.memo:
+        raise ValueError("fgather_pass: run pmap_pass on this packet first (final gathering traces its rays)")
+    return np.zeros((g.pixels.shape[0], 3)), g.memo.pop("fgather_work")
+
+
 def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=None,
-              streams: Streams | None = None, per_map: dict | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+              streams: Streams | None = None, per_map: dict | None = None,
+              fg_streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The photon-map frame: ``albedo / pi * density`` at every gather point (:func:`gather_points`).
 
     ``density`` is the reflected flux density by the configured filter: the caustic map's
@@ -732,34 +887,70 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     ``per_map``: a dict to which each map's totals are added (``"caustic"``, ``"indirect"``
     or, for a single map, ``"photons"`` -> ``photons_tested``, ``photons_accepted``,
     ``leaves_visited``), the split of the work's sums between the two maps.
+
+    With final gathering (:func:`final_gathering`), the indirect map is not gathered: at
+    every gather point ``estimate.final_gather`` stratified cosine-weighted rays (through
+    mirrors and glass, one Fresnel branch each, up to ``render.refract_depth``) reach
+    Lambertian points where the global map (:attr:`PhotonMaps.global_map`, direct light
+    included) is gathered (within :func:`global_radius`, on the indirect map's pair); the
+    point's indirect density is pi / N x the sum of their radiance (Jensen). Those
+    gathers are this pass's work (``per_map["global"]``); the rays' work (a ray pass's
+    keys, charged to ``fg_streams``) is left in ``g.memo["fgather_work"]`` for
+    :func:`fgather_pass`.
     """
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
     radiance = np.zeros((g.origin.shape[0], 3))
-    sidx, tri, pts, n, weight = gather_points(frame, g)
+    fg = final_gathering(frame, photons)
+    if fg:
+        g.memo["fgather_work"] = new_work(p)
+    sidx, tri, pts, n, weight, bounce = _gather_points(frame, g)
     maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)] if isinstance(
         photons, PhotonMap) else [
         ("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM),
         ("indirect", photons.indirect_map, search_radius(frame, photons), None, GATHER_STREAM)]
+    if fg:
+        maps = maps[:1]
     maps = [m for m in maps if m[1].n > 0]
-    if sidx.shape[0] == 0 or not maps:
+    if sidx.shape[0] == 0 or not (maps or fg):
         return pixel_mean(frame, radiance), work
     streams = new_streams(frame) if streams is None else streams
     owner = g.owner[sidx]
     keys = g.sample_keys[sidx]
     density = np.zeros((sidx.shape[0], 3))
+    if fg and photons.global_map.n > 0:
+        fg_streams = new_streams(frame) if fg_streams is None else fg_streams
+        radius = global_radius(frame, photons)
+        pkeys = keys * 64 + bounce
+        # chunks of whole pixels, in pixel order, of at most FG_CHUNK_RAYS rays
+        step = max(1, FG_CHUNK_RAYS // frame.cfg.estimate.final_gather)
+        bounds = np.r_[np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]), sidx.shape[0]]
+        lo = 0
+        while lo < sidx.shape[0]:
+            hi = bounds[np.searchsorted(bounds, lo + step, side="right") - 1]
+            if hi <= lo:  # one pixel's points are more than a chunk: that pixel alone
+                hi = bounds[np.searchsorted(bounds, lo, side="right")]
+            sl = slice(lo, int(hi))
+            density[sl] += _final_gather_chunk(frame, photons.global_map, radius, pts[sl], n[sl], tri[sl],
+                                               pkeys[sl], owner[sl], p, g.memo["fgather_work"], work, fg_streams,
+                                               streams, per_map)
+            lo = hi
     for name, ph, radius, tree, stream in maps:
         e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
         density += e.density
         if per_map is not None:
             tally = per_map.setdefault(name, dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited"), 0))
-            for k in tally:
+            for k in ("photons_tested", "photons_accepted", "leaves_visited"):
                 tally[k] += int(getattr(e, k).sum())
+            tally["gathers"] = tally.get("gathers", 0) + int(sidx.shape[0])
         for k in GATHER_KEYS[1:]:
             work[k] += np.bincount(owner, weights=getattr(e, k), minlength=p).astype(np.int64)
     np.add.at(radiance, sidx, weight * frame.albedo[tri] / np.pi * density)
-    work["gathers"] += np.bincount(owner, minlength=p)
+    if maps:  # (the points' own searches; final gathering's lookups are counted where they land)
+        work["gathers"] += np.bincount(owner, minlength=p)
     return pixel_mean(frame, radiance), work
 
 
 PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass}
+# the passes whose work is traced by another (pmap_pass traces the final-gather rays)
+TRACED_BY = {"fgather": "pmap"}

@@ -16,7 +16,8 @@ from dataclasses import asdict, dataclass
 from tlm.config import MODES, RunConfig
 from tlm.scenes.model import Scene
 
-PASSES = ("rcast", "reflect", "refract", "pmap")
+PASSES = ("rcast", "reflect", "refract", "pmap")  # the frames, one per mode
+WORK_PASSES = ("fgather",)  # passes with work and no frame of their own (final gathering's rays)
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,20 @@ def plan(scene: Scene, cfg: RunConfig) -> Plan:
         decide("refract", "dielectric", cfg.render.refract_depth),
         _decide_pmap(scene, cfg, "pmap" in wanted, kinds),
     )
-    return Plan(passes, tuple(notes))
+    return Plan((*passes, _decide_fgather(cfg, passes[-1])), tuple(notes))
+
+
+def _decide_fgather(cfg: RunConfig, pmap: PassPlan) -> PassPlan:
+    """The final-gather rays (``estimate.final_gather`` per gather point): work of the
+    Traversal, Intersection and Fragment PMs, traced by the pmap pass (no frame of its own:
+    the light they gather is the pmap frame's)."""
+    if not pmap.run:
+        return PassPlan("fgather", False, "no pmap pass: final gathering gathers photons")
+    if cfg.estimate.final_gather == 0:
+        return PassPlan("fgather", False, "estimate.final_gather is 0: the indirect map is gathered at the "
+                        "eye hits (the thesis's pipeline)")
+    return PassPlan("fgather", True, f"estimate.final_gather is {cfg.estimate.final_gather}: rays from every "
+                    "gather point gather the global map where they land")
 
 
 def photon_count(scene: Scene, cfg: RunConfig) -> int:

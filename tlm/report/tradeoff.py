@@ -1,4 +1,4 @@
-"""Section: error against run time (the two curves of DESIGN.md §3).
+"""Section: error against run time (the two curves of docs/design.md, "Error against run time").
 
 (a) From ``tlm error-vs-cost`` folders: the photon-map frame's image RMSE against its
     converged reference, against the simulated frame time (TThru / clock, the
