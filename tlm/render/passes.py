@@ -398,8 +398,9 @@ def _lambertian(frame: Frame, g: GBuffer) -> np.ndarray:
 @dataclass(frozen=True)
 class Ends:
     """Lambertian points where specular paths end: sample index, point, arriving
-    direction, triangle, barycentrics, path weight (k, 3) and bounce (1 = after the first
-    specular surface)."""
+    direction, triangle, barycentrics, path weight (k, 3), bounce (1 = after the first
+    specular surface) and the index of refraction of the medium the point lies in (1: air;
+    the floor under a water surface: the water's)."""
 
     sample: np.ndarray
     point: np.ndarray
@@ -409,6 +410,7 @@ class Ends:
     v: np.ndarray
     weight: np.ndarray
     bounce: np.ndarray
+    medium: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -526,7 +528,7 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
         pts = origin + hits.t[:, None] * new_d
         for name, val in (("sample", sidx), ("point", pts), ("direction", new_d), ("triangle", hits.triangle),
                           ("u", hits.u), ("v", hits.v), ("weight", seen_w),
-                          ("bounce", np.full(sidx.shape[0], bounce))):
+                          ("bounce", np.full(sidx.shape[0], bounce)), ("medium", medium)):
             ends[name].append(val[lam])
         go = hit & ~lam
         sidx, tri, d, weight, medium = sidx[go], hits.triangle[go], new_d[go], new_w[go], medium[go]
@@ -537,7 +539,7 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
 
     walk = Walk(
         emitted_sample=cat(em_s, (0,), np.int64), emitted_radiance=cat(em_r, (0, 3)),
-        ends=Ends(**{name: cat(vals, (0,) if name in ("sample", "triangle", "u", "v", "bounce") else (0, 3),
+        ends=Ends(**{name: cat(vals, (0, 3) if name in ("point", "direction", "weight") else (0,),
                                 np.int64 if name in ("sample", "triangle", "bounce") else np.float64)
                      for name, vals in ends.items()}),
         work=work, reads=list(rec.added),
@@ -621,21 +623,23 @@ def gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, np.ndarray, np.
 
 
 def _gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, ...]:
-    """:func:`gather_points` and each point's bounce (0: the eye hit; j: the end of a walk after j)."""
+    """:func:`gather_points`, each point's bounce (0: the eye hit; j: the end of a walk after j) and
+    the index of refraction of the medium it lies in (:class:`Ends`)."""
     idx, tri, pts, n = lambertian_hits(frame, g)
-    parts = [(idx, tri, pts, n, np.ones((idx.shape[0], 3)), np.zeros(idx.shape[0], dtype=np.int64))]
+    parts = [(idx, tri, pts, n, np.ones((idx.shape[0], 3)), np.zeros(idx.shape[0], dtype=np.int64),
+              np.ones(idx.shape[0]))]
     render = frame.cfg.render
     for kind, depth in (("mirror", render.reflect_depth), ("dielectric", render.refract_depth)):
         if depth == 0 or not np.any(frame.kind == KIND[kind]):
             continue
         e = specular_walk(frame, g, kind, depth).ends
         parts.append((e.sample, e.triangle, e.point, facing(frame.normals[e.triangle], e.direction), e.weight,
-                      e.bounce))
+                      e.bounce, e.medium))
     if len(parts) == 1:
         return parts[0]
     sample = np.concatenate([q[0] for q in parts])
     order = np.argsort(sample, kind="stable")  # sample-major: the Fragment PM gathers pixel by pixel
-    return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(6))
+    return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(7))
 
 
 def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None) -> PhotonTrace:
@@ -783,8 +787,8 @@ def final_gather_directions(normals: np.ndarray, point_keys: np.ndarray, rays: i
 
 
 def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.ndarray, n: np.ndarray,
-                        tri: np.ndarray, pkeys: np.ndarray, owner: np.ndarray, p: int, ray_work: dict,
-                        gather_work: dict, ray_streams: Streams, gather_streams: Streams,
+                        tri: np.ndarray, pkeys: np.ndarray, medium: np.ndarray, owner: np.ndarray, p: int,
+                        ray_work: dict, gather_work: dict, ray_streams: Streams, gather_streams: Streams,
                         per_map: dict | None) -> np.ndarray:
     """Final gathering at a chunk of gather points (all of their pixels' points): returns
     each point's gathered flux density (m, 3), pi / N x the sum of the rays' radiance, so
@@ -794,6 +798,7 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     j, r, d = final_gather_directions(n, pkeys, rays, cfg.seed)
     origin, ignore = pts[j], tri[j]
     w = np.ones((j.shape[0], 3))
+    med = medium[j]  # the index of refraction around each ray
     key = _fg_key(cfg.seed)
     rec = Recorder(ray_streams.page_words)
     found: dict[str, list[np.ndarray]] = {k: [] for k in ("j", "r", "x", "n", "w", "tri")}
@@ -814,7 +819,11 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
         th = np.maximum(hits.triangle, 0)
         lam = hit & (frame.kind[th] == KIND["lambertian"])
         x = origin + hits.t[:, None] * d
-        for name, val in (("j", j), ("r", r), ("x", x), ("n", facing(frame.normals[th], d)), ("w", w),
+        # radiance over n^2 is what a path carries: from a point in a medium of index n_y, a
+        # point in one of index n_x receives (n_x / n_y)^2 of it (the floor under water, seen
+        # from above, 1 / n^2; the walls, seen from under the water, n^2)
+        arrive = w * ((medium[j] / med) ** 2)[:, None]
+        for name, val in (("j", j), ("r", r), ("x", x), ("n", facing(frame.normals[th], d)), ("w", arrive),
                           ("tri", hits.triangle)):
             found[name].append(val[lam])
         ray_work["fragments"] += np.bincount(o[lam], minlength=p)
@@ -831,8 +840,11 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
         refl, refr, f = scatter_specular(ds, ns, geo, np.where(mirror, 1.0, frame.ior[ts]))
         if not cfg.render.fresnel:
             f = np.where(f < 1.0, 0.0, 1.0)
-        j, r = j[go], r[go]
+        j, r, med = j[go], r[go], med[go]
         take_refl = mirror | (hash_uniform(key, pkeys[j], r, 2 + bounce) < f)
+        # a refraction enters the glass (against its outward normal) or leaves it, into air
+        entering = np.sum(ds * geo, axis=1) < 0
+        med = np.where(take_refl, med, np.where(entering, frame.ior[ts], 1.0))
         w = w[go] * np.where(mirror[:, None], frame.reflectance[ts],
                              np.where(take_refl[:, None], 1.0, frame.transmittance[ts]))
         ray_work["specular_bounces"] += np.bincount(owner[j], minlength=p)
@@ -904,7 +916,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     fg = final_gathering(frame, photons)
     if fg:
         g.memo["fgather_work"] = new_work(p)
-    sidx, tri, pts, n, weight, bounce = _gather_points(frame, g)
+    sidx, tri, pts, n, weight, bounce, medium = _gather_points(frame, g)
     maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)] if isinstance(
         photons, PhotonMap) else [
         ("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM),
@@ -932,8 +944,8 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
                 hi = bounds[np.searchsorted(bounds, lo, side="right")]
             sl = slice(lo, int(hi))
             density[sl] += _final_gather_chunk(frame, photons.global_map, radius, pts[sl], n[sl], tri[sl],
-                                               pkeys[sl], owner[sl], p, g.memo["fgather_work"], work, fg_streams,
-                                               streams, per_map)
+                                               pkeys[sl], medium[sl], owner[sl], p, g.memo["fgather_work"], work,
+                                               fg_streams, streams, per_map)
             lo = hi
     for name, ph, radius, tree, stream in maps:
         e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
