@@ -118,6 +118,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree
+from tlm.kernels.engine import engine
 from tlm.kernels.memory import PHOTON_WORDS, Accesses, Streams
 from tlm.kernels.shade import hash_uniform
 
@@ -126,6 +127,7 @@ CHUNK = 1 << 16  # photon tests per block of the gather (bounds memory, keeps da
 QUERY_BLOCK = 16384  # queries traversed together
 PAIR_BUDGET = 1 << 22  # (query, node) pairs at most per traversal level before a block is halved
 _SLACK = 2.0**-40
+JIT_PAIRS = 1 << 16  # the compiled gather's first (query, leaf) pair buffer (grown when a block needs more)
 COPLANAR_TOL = 2.0**-32  # k-voxel: flat splits and disks lying on them, relative to the scene's size
 _GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
@@ -328,6 +330,8 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
     out = _empty(q)
     density = out.density
     norm = math.pi * r * r * (1.0 if cone_k is None else 1.0 - 2.0 / (3.0 * cone_k))
+    if engine() == "numba":
+        return _fixed_radius_jit(lp, pts, nrm, r, cone_k, norm, streams, stream, out)
     todo = [(q0, min(q0 + QUERY_BLOCK, q)) for q0 in range(0, q, QUERY_BLOCK)][::-1]
     while todo:
         q0, q1 = todo.pop()
@@ -347,6 +351,39 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = _per_query(loc, sums[c], m) / norm
+    return out
+
+
+def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, norm: float, streams: Streams,
+                      stream: str, out: Estimate) -> Estimate:
+    """:func:`_fixed_radius` by the compiled kernel (:mod:`tlm.kernels._jit_gather`): the same
+    bits, query blocks in order (their leaf reads charged block by block, as the numpy path's)."""
+    from tlm.kernels._jit_gather import fixed_radius
+
+    tree = lp.tree
+    q = pts.shape[1]
+    pairs = JIT_PAIRS
+    for q0 in range(0, q, QUERY_BLOCK):
+        q1 = min(q0 + QUERY_BLOCK, q)
+        m = q1 - q0
+        sums = np.zeros((3, m))
+        accepted = np.zeros(m, dtype=np.int64)
+        while True:
+            pq, leaf = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
+            need = fixed_radius(tree.split, tree.levels, tree.leaf_offset, lp.pos, lp.inc, lp.pow, lp.first, lp.size,
+                                pts, nrm, q0, q1, r, _SLACK, cone_k is not None,
+                                0.0 if cone_k is None else cone_k * r, pq, leaf, out.node_visits[q0:q1], sums,
+                                accepted)
+            if need <= pairs:
+                break
+            pairs = int(need)
+        pq, leaf = pq[:need], leaf[:need]
+        out.leaves_visited[q0:q1] = np.bincount(pq, minlength=m)
+        out.photons_tested[q0:q1] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
+        out.photons_accepted[q0:q1] = accepted
+        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, pq, leaf, m, stream)
+        if norm > 0.0:
+            out.density[q0:q1] = (sums / norm).T
     return out
 
 

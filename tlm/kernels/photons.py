@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tlm.kernels.bsp import BSPTree, build_point_tree
-from tlm.kernels.estimate import density_radius
+from tlm.kernels.estimate import density_radius, leaf_photons
 from tlm.kernels.memory import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
 from tlm.kernels.shade import (
     SPAWN_EPS,
@@ -95,17 +95,23 @@ class PhotonMap:
     caustic: np.ndarray
     tree: BSPTree
     emitted: int
-    _radii: dict = field(default_factory=dict, compare=False, repr=False)
+    _memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def n(self) -> int:
         return int(self.position.shape[0])
 
+    def prepared(self):
+        """The map in its tree's leaf order (:func:`tlm.kernels.estimate.leaf_photons`), made once."""
+        if "leaf_order" not in self._memo:
+            self._memo["leaf_order"] = leaf_photons(self.position, self.power, self.incoming, self.tree)
+        return self._memo["leaf_order"]
+
     def density_radius(self, k: int) -> float | None:
         """:func:`tlm.kernels.estimate.density_radius` of this map, computed once per ``k``."""
-        if k not in self._radii:
-            self._radii[k] = density_radius(self.position, k)
-        return self._radii[k]
+        if k not in self._memo:
+            self._memo[k] = density_radius(self.position, k)
+        return self._memo[k]
 
     def stats(self) -> dict:
         return {

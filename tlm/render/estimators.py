@@ -33,6 +33,7 @@ class Gather:
     streams: object  # the Fragment PM's address streams (tlm.kernels.memory.Streams) or None
     stream: str  # the stream this map's leaves are charged to
     kdtree: object  # a prebuilt cKDTree of the photons, or None (exact estimators)
+    prepared: object = None  # the map in leaf order (tlm.kernels.estimate.leaf_photons), or None: made here
 
 
 class Estimator:
@@ -61,7 +62,7 @@ class Disk(Estimator):
 
     def __call__(self, g: Gather):
         return estimate.disk_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
-                                      streams=g.streams, stream=g.stream)
+                                      streams=g.streams, stream=g.stream, prepared=g.prepared)
 
 
 @ESTIMATORS.register("mvoxel")
@@ -70,7 +71,8 @@ class MVoxel(Estimator):
 
     def __call__(self, g: Gather):
         return estimate.mvoxel_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
-                                        cone_k=self.cfg.cone_k, streams=g.streams, stream=g.stream)
+                                        cone_k=self.cfg.cone_k, streams=g.streams, stream=g.stream,
+                                        prepared=g.prepared)
 
 
 @ESTIMATORS.register("kvoxel")
@@ -80,7 +82,7 @@ class KVoxel(Estimator):
     def __call__(self, g: Gather):
         return estimate.kvoxel_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
                                         k=self.cfg.k, cone_k=self.cfg.cone_k, seed=self.seed, keys=g.keys,
-                                        streams=g.streams, stream=g.stream)
+                                        streams=g.streams, stream=g.stream, prepared=g.prepared)
 
 
 @ESTIMATORS.register("knn")

@@ -736,7 +736,7 @@ def _estimate(frame: Frame, photons: PhotonMap, radius: float, pts, n, keys, str
     """One map's density at the gather points, by the estimator ``estimate.filter`` names."""
     est = ESTIMATORS[frame.cfg.estimate.filter](frame.cfg.estimate, seed=frame.cfg.seed)
     return est(Gather(photons.position, photons.power, photons.incoming, photons.tree, pts, n, radius, keys,
-                      streams, stream, kdtree))
+                      streams, stream, kdtree, photons.prepared()))
 
 
 def global_radius(frame: Frame, photons: PhotonMaps) -> float:
