@@ -109,7 +109,8 @@ def test_a_damaged_reference_is_removed(file, way, cache, capsys):
 def test_a_pmap_run_with_a_damaged_reference_warns_and_goes_on(tmp_path, cache, capsys):
     """The run measures no error (the reference is gone, its hint says how to compute it)."""
     args = ["run", str(REPO / "configs" / "cornell.yaml"), "--mode", "pmap", "--set", "resolution=[16,12]",
-            "--set", "photons.count=2000", "--no-report", "--no-progress", "--outputs", "images"]
+            "--set", "photons.count=2000", "--no-report", "--no-progress", "--outputs", "images",
+            "--no-reference"]
     assert main([*args, "--out", str(tmp_path / "a")]) == 0
     key = json.loads((tmp_path / "a" / "results.json").read_text())["error"]["reference"]
     folder = cache / "references" / key

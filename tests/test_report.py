@@ -63,7 +63,7 @@ def folders(tmp_path_factory):
     """A run (pmap, with its automatic report), a 2-point sweep over pipelines and a granularity study."""
     root = tmp_path_factory.mktemp("report")
     assert main(["run", "configs/cornell_pmap.yaml", "--out", str(root / "run"), *TINY,
-                 "--set", "photons.count=1500"]) == 0
+                 "--set", "photons.count=1500", "--no-reference"]) == 0
     sweep = root / "sweep.yaml"
     sweep.write_text(yaml.safe_dump({
         "base": {"scene": "ring", "mode": "rcast", "resolution": [32, 32], "render": {"light_samples": 1},

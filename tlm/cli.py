@@ -147,8 +147,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
              f"(a config would say `scene: {args.config}`; see 'tlm params')")
         cfg, base = _scene_file_config(scene_file, overrides), scene_file.parent
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     results = run(cfg, out, base, config_path=str(args.config), overrides=overrides, outputs=outputs,
-                  progress=not args.no_progress)
+                  progress=not args.no_progress, reference=skip is None, say=_say_err)
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -171,6 +172,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
               f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d} "
               f"({w['tri_tests_per_ray']:.1f} per ray, {w['tri_tests_per_shadow_ray']:.1f} per shadow ray)")
+    if results.get("error") is not None:
+        print(_error_line(results["error"], skip))
     for name, why in results["plan"]["left_out"].items():
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:
@@ -189,6 +192,32 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"tlm: warning: {warning}", file=sys.stderr)
     _report_after(args, out)
     return 0
+
+
+def _say_err(line: str) -> None:
+    """A progress line on stderr, above any progress bar."""
+    from tqdm import tqdm
+
+    tqdm.write(f"tlm: {line}", file=sys.stderr)
+    sys.stderr.flush()
+
+
+def _error_line(error: dict, skip: str | None) -> str:
+    """``tlm run``'s line on the photon-map frame's error against its reference."""
+    if not error.get("available"):
+        why = f"skipped ({skip})" if skip else "not measured"
+        return f"  pmap error: {why}: no reference {error['reference']} cached; 'tlm reference CONFIG' computes it"
+    rel = "n/a (black reference)" if error.get("rel_mse") is None else f"{error['rel_mse']:.4g}"
+    ref = (f"{error.get('reference_rounds')} rounds, relative standard error "
+           f"{error.get('reference_standard_error') or 0.0:.4f}")
+    if not error.get("reference_converged"):
+        ref += ", NOT converged"
+    if error.get("reference_seconds") is not None:
+        ref += f", computed now in {error['reference_seconds']:.1f} s"
+    line = f"  pmap error against reference {error['reference']}: relative MSE {rel}, RMSE {error['rmse']:.4g} ({ref})"
+    if error.get("difference_image"):
+        line += f"; {error['difference_image']}"
+    return line
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
@@ -293,14 +322,16 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     from tlm.experiments.reference import (
         ReferenceSettings,
         compute_reference,
+        cycle_length,
         load_reference,
         reference_key,
         save_reference,
     )
     from tlm.kernels.traverse import build_accel
-    from tlm.render.passes import Frame, cast
+    from tlm.render.passes import Frame
     from tlm.scenes.loader import load_scene
 
+    t0 = time.perf_counter()
     cfg, base = load_config(Path(args.config), list(args.set or []))
     scene = load_scene(cfg.scene, base, cfg.resolution, str(args.config))
     settings = ReferenceSettings.from_config(scene, cfg)
@@ -315,18 +346,17 @@ def _cmd_reference(args: argparse.Namespace) -> int:
         print(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
     frame = Frame.create(scene, accel, cfg)
-    g = cast(frame, np.arange(scene.camera.width * scene.camera.height, dtype=np.int64))
     print(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
-          f"tolerance {settings.tolerance}")
+          f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
     image, meta = compute_reference(
-        frame, g, settings,
+        frame, None, settings,
         progress=lambda k, c, e: _say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
         bar=not args.no_progress,
     )
     folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
     state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
     print(f"{state} after {meta['rounds']} rounds (relative standard error "
-          f"{meta['relative_standard_error']:.4f}); wrote {folder}")
+          f"{meta['relative_standard_error']:.4f}) in {time.perf_counter() - t0:.1f} s; wrote {folder}")
     return 0
 
 
@@ -453,6 +483,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, help="override the seed")
     r.add_argument("--outputs", metavar="NAMES", help="what the run folder gets besides images/ and results.json: "
                    "a comma-separated list of aov, radiance, trace (default: all three; 'images' alone: none)")
+    r.add_argument("--no-reference", action="store_true", help="a photon-map run without a cached reference "
+                   "does not compute one (nor its error); default: reference.auto (see 'tlm reference')")
     _no_progress(r)
     _no_report(r)
     r.set_defaults(func=_cmd_run)

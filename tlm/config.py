@@ -138,13 +138,13 @@ class EstimateConfig:
         "radius_photons; few, because most caustic photons spread thin and a caustic is sharp)", min=1, max=100000,
     )
     final_gather: int = _f(
-        32, "final gathering (Jensen): cosine-weighted rays per gather point (stratified), each hit gathering the "
+        16, "final gathering (Jensen): cosine-weighted rays per gather point (stratified), each hit gathering the "
         "global map, in place of the indirect map's estimate at the point; 0 = off (the thesis's pipeline)",
         min=0, max=4096,
     )
     final_gather_photons: int = _f(
-        50, "final gathering: the density rule of the global map its rays gather (a radius holding about this "
-        "many photons)", min=1, max=100000,
+        16, "final gathering: the density rule of the global map its rays gather (a radius holding about this "
+        "many photons: few, because each point averages the lookups of all its rays)", min=1, max=100000,
     )
     k: int = _f(8, "voxels sampled by the stochastic k-voxel filter", min=1, max=1024)
     k_nearest: int = _f(50, "photons of the exact k-nearest reference estimate", min=1, max=100000)
@@ -165,7 +165,15 @@ class ReferenceConfig:
     k_nearest: int = _f(100, "photons of each round's k-nearest estimate", min=1, max=100000)
     tolerance: float = _f(0.02, "stop when the mean's relative standard error is below it", min_exclusive=0.0)
     min_rounds: int = _f(4, "rounds before the tolerance may stop", min=2, max=10000)
-    max_rounds: int = _f(64, "rounds at most (the reference then says it did not converge)", min=2, max=10000)
+    max_rounds: int = _f(128, "rounds at most (the reference then says it did not converge)", min=2, max=10000)
+    spp: int = _f(4, "eye rays per pixel of a cycle of that many rounds (one a round, a new photon map each; "
+                  "at most max_rounds / 2), stratified over the pixel (each cell of a g x g grid once when a "
+                  "square number): cycles average to the pixel's box-filter integral, which every render.spp "
+                  "converges to, so one reference serves every spp; the standard error is over cycles",
+                  min=1, max=4096)
+    auto: bool = _f(True, "'tlm run' of a pmap config computes and caches the reference when none is cached, "
+                    "to print and record the photon frame's error (false, or 'tlm run --no-reference': the "
+                    "error is left out unless a reference is cached)")
 
 
 @dataclass(frozen=True)

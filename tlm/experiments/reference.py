@@ -1,44 +1,68 @@
 """Converged reference images of the photon-mapped term, cached, and image error.
 
 A reference is the exact k-nearest-photon estimate (Jensen's, cone filter) at the
-Lambertian eye hits, averaged over independent photon maps (each round traces a new
-map from a child of one ``SeedSequence``) until the mean's relative standard error —
-the RMS over pixels of the per-pixel standard error of the mean, estimated from the
-spread of the rounds, over the RMS of the mean — falls below ``tolerance``. (The
-change a single round makes shrinks as 1/rounds while the error shrinks only as
-1/sqrt(rounds), so the standard error is the honest stopping rule; the change per
-round is recorded too.) What it converges to is the expectation of the k-NN estimate
-with that many photons per round: the kernel's blur remains (a smaller
+Lambertian points the eye sees (the eye hits and the ends of the mirror and glass walks),
+averaged over independent rounds until the mean's relative standard error — the RMS over
+pixels of the per-pixel standard error of the mean, over the RMS of the mean — falls
+below ``tolerance``. Each round traces a new photon map and casts one new eye ray per
+pixel; rounds come in cycles of ``reference.spp`` rounds whose rays are stratified over
+the pixel (each cell of a ``g x g`` grid once, in an order shifted per pixel; every ray
+uniform in its pixel), all seeded from one ``SeedSequence``. The cycles are independent,
+so the standard error is estimated from their spread and checked after each cycle. The
+mean converges to the box-filter integral over each pixel, which every run converges to
+whatever its ``render.spp`` (a run of ``spp: 1`` samples the pixel's centre, so at edges
+its error includes that aliasing). (The change a cycle makes shrinks as 1/cycles while
+the error shrinks only as 1/sqrt(cycles), so the standard error is the honest stopping
+rule; the change is recorded too.) What it converges to is the expectation of the k-NN
+estimate with that many photons per round: the kernel's blur remains (a smaller
 ``k_nearest`` or more photons per round shrink it). ``meta.json`` records the rounds,
-both measures per round and whether the tolerance was met.
+both measures per cycle and whether the tolerance was met. The k nearest photons are
+found on a numba grid (:mod:`tlm.experiments._reference_jit`), or with a ``cKDTree``
+when ``TLM_KERNELS=numpy``: the same estimate.
 
-References are cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``) in
-``references/<key>/``, keyed by everything the converged image depends on: the scene
-(triangles, materials, lights, camera and resolution), the photon path settings
-(``max_bounces``) and the reference settings. The run's seed, filter, radius and
-photon count are not part of the key: every PMap run of a scene is measured against
-the same reference. Nor is the stopping rule: ``tlm reference`` reuses a cached
-reference that meets the requested tolerance and computes it again otherwise.
+The reference traces with settings of its own (:func:`reference_config`): of the run's
+config only what changes the converged image is read, the rest is fixed (Russian
+roulette, the caustic group's share and aiming, no final gathering, the cone filter's
+constant :data:`CONE_K`), so it is cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``)
+in ``references/<key>/``, keyed (:func:`reference_key`) by the scene (triangles, shading
+normals or parts, materials, lights, camera and resolution), the photons' path length
+(``photons.max_bounces``), where the eye paths gather (``render.reflect_depth`` with
+mirrors, ``refract_depth`` and ``fresnel`` with glass, ``min_weight`` with either) and
+the reference's own ``photons`` and ``k_nearest``. The run's seed, ``render.spp``,
+photon count, filter, radii, final gathering, caustic budget and aiming are not: every
+PMap run of a scene is measured against the same reference. Nor is the way the rounds
+sample the pixel (``reference.spp``: any converges to the pixel's integral), nor the
+stopping rule: ``tlm reference`` reuses a cached reference that meets the requested
+tolerance and computes it again otherwise; ``tlm run`` uses whatever is cached, and
+computes it when nothing is (:func:`ensure_reference`; ``reference.auto``).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from tlm.config import RunConfig
-from tlm.kernels.estimate import knn_estimate
-from tlm.render.passes import Frame, GBuffer, gather_points, pixel_mean, trace_photon_map
+from tlm.config import EstimateConfig, PhotonConfig, RunConfig
+from tlm.kernels.camera import primary_rays
+from tlm.kernels.engine import engine
+from tlm.kernels.estimate import density_radius
+from tlm.kernels.shade import emitted, hash_uniform, surface_emission
+from tlm.kernels.traverse import closest_hit
+from tlm.render.passes import Frame, GBuffer, gather_points, pixel_batches, trace_photon_map
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, cache_root, digest_problem, file_digest, warn
 
 REFERENCE_SEED = 0x5EED
+KEY_VERSION = 2  # 1: keyed by render.spp, the eye samples the run's
+CONE_K = 1.1  # the reference's cone filter constant (Jensen's), whatever the run's estimate.cone_k
+QUERY_BLOCK = 16384  # gather points per k-nearest query (memory: QUERY_BLOCK x k_nearest neighbours)
 
 
 @dataclass(frozen=True)
@@ -47,73 +71,222 @@ class ReferenceSettings:
     k_nearest: int = 100
     tolerance: float = 0.02
     min_rounds: int = 4
-    max_rounds: int = 64
+    max_rounds: int = 128
+    spp: int = 4  # rounds of a cycle, one eye ray per pixel each, stratified over the pixel
 
     @classmethod
     def from_config(cls, scene: Scene, cfg: RunConfig) -> ReferenceSettings:
         r = cfg.reference
         return cls(photons=scene.photons if r.photons is None else r.photons, k_nearest=r.k_nearest,
-                   tolerance=r.tolerance, min_rounds=r.min_rounds, max_rounds=r.max_rounds)
+                   tolerance=r.tolerance, min_rounds=r.min_rounds, max_rounds=r.max_rounds, spp=r.spp)
 
 
 def cache_dir() -> Path:
     return cache_root("references")
 
 
+def _has(scene: Scene, kind: str) -> bool:
+    return any(scene.materials[i].kind == kind for i in np.unique(scene.material_index))
+
+
+def reference_config(cfg: RunConfig, settings: ReferenceSettings) -> RunConfig:
+    """The config a reference traces with: the run's scene, resolution, geometry BSP and
+    what :func:`reference_key` keys; the reference's seed, photons per round and one eye ray a round;
+    the defaults of everything else that could change a photon map or its estimate
+    (Russian roulette, the caustic group and its aiming, no final gathering), so that the
+    run's settings that do not change the converged image cannot change the reference."""
+    r = cfg.render
+    photons = replace(PhotonConfig(), count=settings.photons, max_bounces=cfg.photons.max_bounces,
+                      levels=0)  # (the reference searches a cKDTree: no photon BSP to build)
+    estimate = replace(EstimateConfig(), filter="knn", k_nearest=settings.k_nearest, cone_k=CONE_K)
+    if hasattr(estimate, "final_gather"):
+        estimate = replace(estimate, final_gather=0)
+    render = replace(r, spp=1, exposure=None)  # one eye ray per pixel a round (eye_rays)
+    return replace(cfg, mode="pmap", seed=REFERENCE_SEED, render=render, photons=photons, estimate=estimate)
+
+
 def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> str:
-    """A hash of everything the converged photon-map image depends on."""
+    """A hash of everything the converged photon-map image depends on (the module's docstring)."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(scene.triangles).tobytes())
     h.update(np.ascontiguousarray(scene.material_index).tobytes())
     if scene.normals is not None:
         h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
+    else:  # the renderer's crease normals, which follow the parts
+        h.update(np.ascontiguousarray(scene.part, dtype=np.int64).tobytes())
+    render = cfg.render
+    mirrors, glass = _has(scene, "mirror"), _has(scene, "dielectric")
     doc = {
+        "version": KEY_VERSION,
         "materials": [m.record() for m in scene.materials],
         "lights": [lt.record() for lt in scene.lights],
         "camera": asdict(scene.camera),
         "max_bounces": cfg.photons.max_bounces,
-        # where the photon term is gathered: the eye samples and the specular walks' ends
-        "gather": {"spp": cfg.render.spp, "reflect_depth": cfg.render.reflect_depth,
-                   "refract_depth": cfg.render.refract_depth, "min_weight": cfg.render.min_weight},
+        # where the photon term is gathered: the eye hits and the ends of the specular walks
+        # (what a walk depends on, in a scene that has its surfaces)
+        "gather": {"reflect_depth": render.reflect_depth if mirrors else None,
+                   "refract_depth": render.refract_depth if glass else None,
+                   "fresnel": render.fresnel if glass else None,
+                   "min_weight": render.min_weight if mirrors or glass else None},
         # what the converged image depends on; the stopping rule (tolerance, rounds) only
         # says how close to it the cached mean is, which meta.json records
-        "reference": {"photons": settings.photons, "k_nearest": settings.k_nearest},
+        # (not its spp: any number of eye rays per cycle converges to the pixel's box integral)
+        "reference": {"photons": settings.photons, "k_nearest": settings.k_nearest, "cone_k": CONE_K,
+                      "pixel": "box"},
     }
     h.update(json.dumps(doc, sort_keys=True).encode())
     return h.hexdigest()[:20]
 
 
-def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, progress=None,
-                      bar: bool = False) -> tuple[np.ndarray, dict]:
-    """Average k-NN photon-map frames over independent maps until converged.
+def cycle_length(settings: ReferenceSettings) -> int:
+    """Rounds per cycle: ``spp``, at most half of ``max_rounds`` (two cycles measure a spread)."""
+    return max(1, min(settings.spp, settings.max_rounds // 2))
 
-    progress : called ``(round, change, standard error)`` after every round but the first.
+
+def eye_rays(frame: Frame, pixels: np.ndarray, strata: int, turn: int, seed: int,
+             shift_seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """One eye ray per pixel, for round ``turn`` of a cycle of ``strata`` rounds.
+
+    The ray lies in stratum ``(turn + shift) mod strata`` of the pixel's
+    :func:`~tlm.kernels.camera.primary_rays` with ``strata`` samples (a ``g x g`` grid when
+    ``strata`` is a square, else uniform in the pixel), jittered in it by ``seed``; the
+    shift is a uniform draw per pixel from ``shift_seed``, one per cycle. So every ray is
+    uniform in its pixel, and a cycle visits each of a pixel's strata once. One stratum:
+    uniform in the pixel (a uniformly chosen quarter of the 2 x 2 grid), not its centre.
+    """
+    camera = frame.scene.camera
+    pixels = np.asarray(pixels, dtype=np.int64)
+    grid = max(strata, 4) if strata == 1 else strata
+    o, d = primary_rays(camera, pixels, grid, seed)
+    if strata == 1:
+        pick = np.minimum((hash_uniform(seed, pixels, 0x51) * grid).astype(np.int64), grid - 1)
+    else:
+        shift = np.minimum((hash_uniform(shift_seed, pixels, 0x52) * strata).astype(np.int64), strata - 1)
+        pick = (turn + shift) % strata
+    rows = np.arange(pixels.shape[0], dtype=np.int64) * grid + pick
+    return o[rows], d[rows]
+
+
+def _cast(frame: Frame, o: np.ndarray, d: np.ndarray, pixels: np.ndarray) -> GBuffer:
+    """:func:`tlm.render.passes.cast` of given eye rays, one per pixel (no reads recorded)."""
+    hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True)
+    le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
+    return GBuffer(pixels, 1, o, d, hits, le, seen, surface_emission(frame.emission, frame.normals, hits.triangle, d))
+
+
+def knn_density(kdtree, power: np.ndarray, incoming: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                k_nearest: int, cone_k: float = CONE_K, workers: int = -1) -> np.ndarray:
+    """Jensen's k-nearest estimate with a cone filter, (q, 3) flux densities: the
+    density of :func:`tlm.kernels.estimate.knn_estimate` without its work counts, taking the
+    neighbours' distances as the ``cKDTree`` returns them (sorted) and querying in blocks
+    on ``workers`` threads."""
+    q, n = points.shape[0], kdtree.n
+    out = np.zeros((q, 3))
+    kk = min(int(k_nearest), n)
+    if q == 0 or kk == 0:
+        return out
+    area = (1.0 - 2.0 / (3.0 * cone_k)) * math.pi
+    for q0 in range(0, q, QUERY_BLOCK):
+        q1 = min(q0 + QUERY_BLOCK, q)
+        d, idx = kdtree.query(points[q0:q1], k=kk, workers=workers)
+        d, idx = d.reshape(q1 - q0, kk), idx.reshape(q1 - q0, kk)
+        rk = d[:, -1]
+        front = np.einsum("qkc,qc->qk", incoming[idx], normals[q0:q1]) < 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.where(front & (rk > 0.0)[:, None], 1.0 - d / (cone_k * rk[:, None]), 0.0)
+        sums = np.matmul(w[:, None, :], power[idx])[:, 0]
+        norm = area * rk**2
+        out[q0:q1] = np.divide(sums, norm[:, None], out=np.zeros_like(sums), where=norm[:, None] > 0.0)
+    return out
+
+
+class _Estimator:
+    """A round's photons, ready for k-nearest queries: a numba grid (``TLM_KERNELS``'s
+    engine is numba) or a ``cKDTree`` (numpy), the same estimate either way."""
+
+    def __init__(self, position: np.ndarray, power: np.ndarray, incoming: np.ndarray, k: int):
+        self.power, self.incoming, self.k = power, incoming, k
+        if engine() == "numba":
+            from tlm.experiments._reference_jit import PhotonGrid
+
+            r = density_radius(position, k) if position.shape[0] >= 2 else None
+            cell = 0.6 * r if r else float(np.ptp(position, axis=0).max()) / 64.0
+            self.grid, self.tree = PhotonGrid(position, power, incoming, cell), None
+        else:
+            from scipy.spatial import cKDTree
+
+            self.grid, self.tree = None, cKDTree(position)
+
+    def __call__(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        if self.grid is not None:
+            return self.grid.density(points, normals, self.k, CONE_K)
+        return knn_density(self.tree, self.power, self.incoming, points, normals, self.k)
+
+
+def reference_round(frame: Frame, settings: ReferenceSettings, photon_seed: int, eye_seed: int,
+                    strata: int = 1, turn: int = 0, shift_seed: int = 0) -> np.ndarray:
+    """One round: a photon map of ``photon_seed``, one eye ray per pixel (:func:`eye_rays`);
+    the (pixels, 3) k-NN photon frame. ``frame``'s config is the reference's
+    (:func:`reference_config`)."""
+    cam = frame.scene.camera
+    n_pixels = cam.width * cam.height
+    out = np.zeros((n_pixels, 3))
+    ph = trace_photon_map(frame, settings.photons, photon_seed).photons
+    if ph.n == 0:
+        return out
+    estimate = _Estimator(ph.position, ph.power, ph.incoming, settings.k_nearest)
+    for at in pixel_batches(n_pixels, 1, frame.cfg.render.batch_rays):
+        pixels = np.arange(at.start, at.stop, dtype=np.int64)
+        o, d = eye_rays(frame, pixels, strata, turn, eye_seed, shift_seed)
+        g = _cast(frame, o, d, pixels)
+        idx, tri, pts, n, weight = gather_points(frame, g)
+        samples = np.zeros((pixels.shape[0], 3))
+        if idx.shape[0]:
+            np.add.at(samples, idx, weight * frame.albedo[tri] / np.pi * estimate(pts, n))
+        out[at] = samples
+    return out
+
+
+def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettings, progress=None,
+                      bar: bool = False) -> tuple[np.ndarray, dict]:
+    """Average k-NN photon-map frames over independent rounds until converged.
+
+    Rounds come in cycles of :func:`cycle_length` (``spp``) rounds, each round a new photon
+    map and one eye ray per pixel, a cycle's rays stratified over the pixel
+    (:func:`eye_rays`); cycles are independent, so the standard error is measured over the
+    cycles' means and the stopping rule is checked after each cycle.
+
+    frame : the run's frame (its scene, BSP and config; the reference traces with
+        :func:`reference_config` of it). g : unused (the reference casts its own eye rays
+        every round; kept for callers that pass the run's G-buffer).
+    progress : called ``(round, change, standard error)`` after every cycle but the first.
     bar : a progress bar of the rounds on stderr (only when it is a terminal).
     Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
     """
-    from scipy.spatial import cKDTree
     from tqdm import tqdm
 
-    cfg = frame.cfg
-    idx, tri, pts, n, weight = gather_points(frame, g)
-    mean = np.zeros((g.pixels.shape[0], 3))
+    del g
+    rframe = replace(frame, cfg=reference_config(frame.cfg, settings))
+    strata = cycle_length(settings)
+    max_cycles = max(2, settings.max_rounds // strata)
+    min_cycles = max(2, -(-settings.min_rounds // strata))
+    cam = frame.scene.camera
+    mean = np.zeros((cam.width * cam.height, 3))
     m2 = np.zeros_like(mean)  # Welford's running sum of squared deviations
     changes: list[float] = []
     errors: list[float] = []
-    seeds = np.random.SeedSequence(REFERENCE_SEED).spawn(settings.max_rounds)
     t0 = time.perf_counter()
     converged = False
-    rounds = tqdm(total=settings.max_rounds, desc="reference", unit="round", disable=None if bar else True,
+    rounds = tqdm(total=max_cycles * strata, desc="reference", unit="round", disable=None if bar else True,
                   file=sys.stderr, dynamic_ncols=True, leave=False)
-    for k, child in enumerate(seeds, start=1):
-        seed = int(child.generate_state(1)[0])
-        ph = trace_photon_map(frame, settings.photons, seed).photons
-        samples = np.zeros((g.origin.shape[0], 3))
-        if ph.n and idx.shape[0]:
-            e = knn_estimate(ph.position, ph.power, ph.incoming, pts, n, k_nearest=settings.k_nearest,
-                             cone_k=cfg.estimate.cone_k, kdtree=cKDTree(ph.position))
-            np.add.at(samples, idx, weight * frame.albedo[tri] / np.pi * e.density)
-        frame_k = pixel_mean(frame, samples)
+    for k, child in enumerate(np.random.SeedSequence(REFERENCE_SEED).spawn(max_cycles), start=1):
+        shift_seed = int(child.generate_state(1)[0])
+        frame_k = np.zeros_like(mean)
+        for turn, each in enumerate(child.spawn(strata)):
+            photon_seed, eye_seed = (int(x) for x in each.generate_state(2))
+            frame_k += reference_round(rframe, settings, photon_seed, eye_seed, strata, turn, shift_seed)
+            rounds.update()
+        frame_k /= strata
         delta = frame_k - mean
         new = mean + delta / k
         m2 += delta * (frame_k - new)
@@ -125,22 +298,25 @@ def compute_reference(frame: Frame, g: GBuffer, settings: ReferenceSettings, pro
             changes.append(0.0)
             errors.append(0.0)
         mean = new
-        rounds.update()
         if k > 1:
             rounds.set_postfix_str(f"relative standard error {errors[-1]:.4f} (stop below {settings.tolerance})")
         if progress is not None and k > 1:
-            progress(k, changes[-1], errors[-1])
-        if k >= settings.min_rounds and errors[-1] < settings.tolerance:
+            progress(k * strata, changes[-1], errors[-1])
+        if k >= min_cycles and errors[-1] < settings.tolerance:
             converged = True
             break
     rounds.close()
+    cycles = len(errors) + 1
     meta = {
         **asdict(settings),
-        "rounds": len(errors) + 1,
+        "cone_k": CONE_K,
+        "rounds": cycles * strata,
+        "rounds_per_cycle": strata,
+        "cycles": cycles,
         "relative_standard_error": errors[-1] if errors else None,
         "final_change": changes[-1] if changes else None,
-        "standard_error_per_round": errors,
-        "change_per_round": changes,
+        "standard_error_per_cycle": errors,
+        "change_per_cycle": changes,
         "converged": converged,
         "host_seconds": round(time.perf_counter() - t0, 3),
         "seed": REFERENCE_SEED,
@@ -201,3 +377,66 @@ def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | N
     ref2 = float(np.sum(np.asarray(reference, dtype=np.float64) ** 2))
     sq = float(np.sum(diff**2))
     return {"rmse": float(np.sqrt(np.mean(diff**2))), "rel_mse": sq / ref2 if ref2 > 0 else None}
+
+
+@dataclass
+class Found:
+    """A reference looked up (and perhaps computed) for a frame: ``image`` (pixels, 3) and
+    ``meta`` are None when none is cached and none was computed; ``seconds``: what
+    computing it took now (None: it was cached)."""
+
+    key: str
+    settings: ReferenceSettings
+    image: np.ndarray | None = None
+    meta: dict | None = None
+    seconds: float | None = None
+
+
+def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say=None) -> Found:
+    """The cached reference of ``frame``'s scene and config; with ``compute``, computed and
+    cached when there is none (``say``: called with a line before and after, e.g. to
+    stderr; ``bar``: the rounds' progress bar on stderr, when it is a terminal)."""
+    settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
+    key = reference_key(frame.scene, frame.cfg, settings)
+    found = load_reference(key)
+    if found is not None:
+        return Found(key, settings, found[0].reshape(-1, 3), found[1])
+    if not compute:
+        return Found(key, settings)
+    if say is not None:
+        say(f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
+            f"k = {settings.k_nearest} per round, until the relative standard error is below "
+            f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for every run of this "
+            "scene ('--no-reference' or reference.auto: false skips it)")
+    t0 = time.perf_counter()
+    image, meta = compute_reference(frame, None, settings, bar=bar)
+    cam = frame.scene.camera
+    save_reference(key, image.reshape(cam.height, cam.width, 3), meta)
+    seconds = time.perf_counter() - t0
+    if say is not None:
+        state = "converged" if meta["converged"] else "NOT converged (reference.max_rounds reached)"
+        say(f"reference {key}: {state} after {meta['rounds']} rounds (relative standard error "
+            f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; cached in {cache_dir() / key}")
+    return Found(key, settings, image, meta, seconds)
+
+
+# the difference image's colours: ours below the reference, equal, above (a diverging map)
+DIFFERENCE_COLOURS = ("#2166ac", "#f7f7f7", "#b2182b")
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
+
+
+def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, float]:
+    """(H, W, 3) uint8: the luminance of ``image`` minus ``reference`` (both (H, W, 3)
+    linear radiance) in :data:`DIFFERENCE_COLOURS`, blue below, red above, full colour
+    at ``-scale`` and ``+scale`` (clipped beyond). ``scale``: default the 99th percentile
+    of the absolute difference (1 where that is 0). Returns the image and the scale."""
+    diff = (np.asarray(image, dtype=np.float64) - np.asarray(reference, dtype=np.float64)) @ LUMINANCE
+    if scale is None:
+        scale = float(np.percentile(np.abs(diff), 99)) if diff.size else 0.0
+        scale = scale if scale > 0.0 else 1.0
+    t = np.clip(diff / scale, -1.0, 1.0)[..., None]
+    low, mid, high = (np.array([int(c[i:i + 2], 16) for i in (1, 3, 5)], dtype=np.float64)
+                      for c in DIFFERENCE_COLOURS)
+    rgb = np.where(t < 0, mid + (low - mid) * -t, mid + (high - mid) * t)
+    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8), scale
+

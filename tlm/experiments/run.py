@@ -48,7 +48,7 @@ from tlm.arch.model import Timing, simulate
 from tlm.arch.programs import Programs, load_programs
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.errors import InputError, did_you_mean
-from tlm.experiments.reference import ReferenceSettings, image_error, load_reference, reference_key
+from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
 from tlm.render import checks
@@ -313,18 +313,35 @@ def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
     }
 
 
-def photon_error(frame: Frame, pmap: np.ndarray) -> dict:
-    """The photon-map frame's error against the cached reference, if there is one."""
-    settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
-    key = reference_key(frame.scene, frame.cfg, settings)
-    found = load_reference(key)
-    if found is None:
-        return {"reference": key, "available": False,
+def photon_error(frame: Frame, pmap: np.ndarray, compute: bool = False, progress: bool = False,
+                 say=None) -> dict:
+    """The photon-map frame's error against its converged reference
+    (:mod:`tlm.experiments.reference`): the cached one; with ``compute``, one computed and
+    cached now when none is (``progress``: its bar on stderr; ``say``: a line before and
+    after). ``reference_seconds``: what computing it took, when it was computed now."""
+    found = ensure_reference(frame, compute=compute, bar=progress, say=say)
+    if found.image is None:
+        return {"reference": found.key, "available": False,
                 "hint": "run 'tlm reference CONFIG' to compute and cache it"}
-    image, meta = found
-    return {"reference": key, "available": True, **image_error(pmap, image.reshape(-1, 3)),
+    meta = found.meta
+    return {"reference": found.key, "available": True, **image_error(pmap, found.image),
             "reference_converged": meta.get("converged"), "reference_rounds": meta.get("rounds"),
-            "reference_standard_error": meta.get("relative_standard_error")}
+            "reference_standard_error": meta.get("relative_standard_error"),
+            "reference_seconds": None if found.seconds is None else round(found.seconds, 3)}
+
+
+def _write_difference(res: RenderResult, path: Path) -> None:
+    """``images/pmap_error.png``: the photon-map frame minus its reference (signed colours,
+    :func:`~tlm.experiments.reference.difference_image`), when the error was measured; its
+    file and scale go into ``res.error``."""
+    if not (res.error and res.error.get("available") and "pmap" in res.radiance):
+        return
+    found = load_reference(res.error["reference"])
+    if found is None:  # (removed since the render)
+        return
+    rgb, scale = difference_image(res.radiance["pmap"], found[0].reshape(res.radiance["pmap"].shape))
+    write_png(path, rgb)
+    res.error.update(difference_image=f"images/{path.name}", difference_scale=scale)
 
 
 def _versions() -> dict[str, str]:
@@ -489,6 +506,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             if "radiance" in outputs:
                 np.save(tmp / "radiance" / f"{name}.npy", rad.astype(np.float32))
         del composite, rad  # (50 MB each at 1080p)
+        _write_difference(res, tmp / "images" / "pmap_error.png")
         if "aov" in outputs:
             (tmp / "aov").mkdir()
             np.savez_compressed(
@@ -521,13 +539,17 @@ def _primary_of(res: RenderResult) -> Primary:
 
 
 def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None,
-        overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, progress: bool = False) -> dict:
+        overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, progress: bool = False,
+        reference: bool = False, say=None) -> dict:
     """Render, simulate and write; returns the results dictionary.
 
     ``config_path`` and ``overrides`` (the ``--set`` strings) say where the config came
     from, for error messages and ``results.json``. ``outputs``: which of :data:`OUTPUTS`
     the folder gets (without ``trace``, the timing model keeps no trace: ``arch.trace``
     is false in the resolved config). ``progress``: bars on stderr when it is a terminal.
+    ``reference``: a photon-map frame without a cached reference gets one computed and
+    cached (host stage ``reference``; ``say`` gets a line before and after), so that its
+    error is measured.
     """
     outputs = tuple(outputs)
     if "trace" not in outputs and cfg.arch.trace:
@@ -536,6 +558,10 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     programs = programs_for(cfg, base)  # a bad instruction table fails before the render
     res = render(cfg, base, source, progress=progress)
+    if reference and res.error is not None and not res.error["available"]:
+        with res.timer.stage("reference"):
+            res.error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
+                                     progress=progress, say=say)
     simulate_run(res, programs, progress=progress)
     with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, _Ticking(bar):
         results = write_run(res, out, config_path, overrides, outputs)

@@ -14,6 +14,12 @@ that mode, i.e. the *cumulative* composite (the modes add passes: Refract is ray
   the four panels are directly comparable. A run folder without ``radiance/`` shows
   its ``images/composite.png`` for its own mode only.
 
+A run whose photon-map frame was measured against its converged reference
+(``results.json`` ``error``, :mod:`tlm.experiments.reference`) also gets a figure of
+that frame beside its difference from the reference (``images/pmap_error.png``, written
+by the run: ours minus the reference in luminance, blue below, red above), titled with
+the relative MSE and RMSE, which the section's lead repeats.
+
 A mode whose pass the planner left out for lack of what it needs (no mirror, no
 dielectric, ...) still has an image (the same as the previous mode's) and its panel
 gives the planner's reason; a mode beyond the run's is an empty panel saying it was
@@ -39,6 +45,7 @@ SCENE_TITLE = {"ring": "Scene with ring (Fig. 15)", "room": "Room scene (Fig. 16
                "cornell": "Cornell Box scene (Fig. 17)"}
 MAX_ROWS = 4  # rows (scenes or runs) per figure
 MAX_FIGURES = 6  # image figures in the report; what is beyond is named in a note
+MAX_ERROR_FIGURES = 4  # figures of a run's photon-map frame against its reference
 WRAP = 34
 
 
@@ -168,6 +175,52 @@ def _draw(rows: list[Row], title: str, out: Path, name: str, caption: str):
     return save(fig, out, name, title, caption)
 
 
+def _error_words(error: dict) -> str:
+    rel = "n/a" if error.get("rel_mse") is None else f"{error['rel_mse']:.3g}"
+    return f"relative MSE {rel}, RMSE {error['rmse']:.3g}"
+
+
+def error_figure(run: Run, out: Path):
+    """The run's photon-map frame beside its difference from the reference, or None when
+    the run measured no error or its folder lacks either image."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import LinearSegmentedColormap, Normalize
+
+    from tlm.experiments.reference import DIFFERENCE_COLOURS
+
+    error = run.results.get("error") or {}
+    if not error.get("available"):
+        return None
+    diff_png = run.path / str(error.get("difference_image") or "images/pmap_error.png")
+    frame_png = run.path / "images" / "pmap.png"
+    if not diff_png.is_file() or not frame_png.is_file():
+        return None
+    scale = float(error.get("difference_scale") or 1.0)
+    fig = new_figure(7.0, 3.4)
+    axes = fig.subplots(1, 2)
+    for ax, png, title in ((axes[0], frame_png, "PMap frame (ours)"),
+                           (axes[1], diff_png, "ours − reference (luminance)")):
+        ax.imshow(_read_png(png), interpolation="nearest")
+        ax.set_title(title, fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    cmap = LinearSegmentedColormap.from_list("tlm_difference", DIFFERENCE_COLOURS)
+    bar = fig.colorbar(ScalarMappable(Normalize(-scale, scale), cmap), ax=axes[1], shrink=0.85)
+    bar.set_label("radiance difference", fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    title = f"{run.label}: PMap frame against its converged reference, {_error_words(error)}"
+    state = "converged" if error.get("reference_converged") else "NOT converged"
+    caption = (f"Left: the run's photon-mapped term (images/pmap.png, the run's exposure). Right: its luminance "
+               f"minus the reference's (reference {error.get('reference')}, {state}, "
+               f"{error.get('reference_rounds')} rounds, relative standard error "
+               f"{error.get('reference_standard_error') or 0.0:.3g}), blue where ours is darker, red where "
+               f"brighter, full colour at ±{scale:.3g} (the 99th percentile of |difference|). The reference is "
+               "the pixel's box-filter integral: a run of render.spp 1 samples the pixel's centre, so edges "
+               "show aliasing too.")
+    fig.suptitle(f"{run.label}\nPMap frame against its converged reference: {_error_words(error)}", fontsize=9)
+    return save(fig, out, f"pmap_error_{_slug(run.label)}.png", title, caption)
+
+
 def _slug(text: str) -> str:
     return "".join(ch if ch.isalnum() else "_" for ch in text).strip("_")[:60] or "run"
 
@@ -236,4 +289,31 @@ def images_section(inputs: Inputs, out: Path) -> Section:
                 if p.remark:
                     section.notes.append(f"{row.label}, {MODE_TITLE[p.mode]}: {p.remark}")
         section.figures.append(_draw(rows, title, out, name, caption))
+    _error_figures(section, with_images, out)
     return section
+
+
+def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
+    """Each run's photon-map error: a figure (:func:`error_figure`) and a phrase of the lead."""
+    from tlm.report.html import esc
+
+    said = []
+    for run in runs:
+        error = run.results.get("error")
+        if not error:
+            continue  # no photon-map frame
+        if not error.get("available"):
+            section.notes.append(f"{run.label}: the photon-map frame's error was not measured (no reference "
+                                 "cached when it ran; 'tlm reference CONFIG', then run it again)")
+            continue
+        said.append(f"{esc(run.label)}: {esc(_error_words(error))}")
+        if len(said) > MAX_ERROR_FIGURES:
+            section.notes.append(f"{run.label}: its PMap error figure is left out (at most {MAX_ERROR_FIGURES})")
+            continue
+        fig = error_figure(run, out)
+        if fig is None:
+            section.notes.append(f"{run.label}: no images/pmap.png or images/pmap_error.png: no error figure")
+        else:
+            section.figures.append(fig)
+    if said:
+        section.lead = "PMap frame against its converged reference: " + "; ".join(said) + "."
