@@ -69,12 +69,16 @@ def decide(scene, **cfg):
 
 def test_cornell_pmap_runs_everything():
     p, by = decide(load_scene("cornell"), mode="pmap")
-    assert p.run_names == ["rcast", "reflect", "refract", "pmap"]
+    # the frames, then final gathering's rays (traced by the pmap pass; on by default)
+    assert p.run_names == ["rcast", "reflect", "refract", "pmap", "fgather"]
     assert all(by[n].run for n in PASSES)
     assert p.notes == ()
     d = p.to_dict()
-    assert d["run"] == ["rcast", "reflect", "refract", "pmap"] and d["left_out"] == {}
-    assert set(d["reasons"]) == set(PASSES)
+    assert d["run"] == ["rcast", "reflect", "refract", "pmap", "fgather"] and d["left_out"] == {}
+    assert set(d["reasons"]) == {*PASSES, "fgather"}
+    off, by = decide(load_scene("cornell"), mode="pmap", estimate={"final_gather": 0})
+    assert off.run_names == ["rcast", "reflect", "refract", "pmap"]
+    assert "final_gather is 0" in by["fgather"].reason
     json.dumps(plan_dict(p))  # serialisable
 
 
@@ -94,7 +98,7 @@ def test_room_runs_everything():
 
 @pytest.mark.parametrize("mode,runs", [("rcast", ["rcast"]), ("reflect", ["rcast", "reflect"]),
                                        ("refract", ["rcast", "reflect", "refract"]),
-                                       ("pmap", ["rcast", "reflect", "refract", "pmap"])])
+                                       ("pmap", ["rcast", "reflect", "refract", "pmap", "fgather"])])
 def test_modes_are_cumulative(mode, runs):
     p, by = decide(load_scene("cornell"), mode=mode)
     assert p.run_names == runs
@@ -218,7 +222,7 @@ def test_pmap_runs_on_a_lit_diffuse_box(tmp_path):
     scene = load_scene(str(box_scene(tmp_path, "lambertian")))  # the file sets no photon count
     assert decide(scene, mode="pmap")[1]["pmap"].reason == "photons.count is 0"
     p, _by = decide(scene, mode="pmap", photons={"count": 1000})
-    assert p.run_names == ["rcast", "pmap"]
+    assert p.run_names == ["rcast", "pmap", "fgather"]
 
 
 @pytest.mark.parametrize("bounces", [0, 1])

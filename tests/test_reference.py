@@ -29,7 +29,7 @@ def furnace_config(tmp_path, **extra) -> str:
         "scene": "furnace.yaml",
         "mode": "pmap",
         "photons": {"count": 6000},
-        "estimate": {"radius_fraction": 0.06},
+        "estimate": {"radius_fraction": 0.06, "final_gather": 0},  # the indirect map at the eye hits
         "reference": {"photons": 6000, "k_nearest": 80, "tolerance": 0.05, "max_rounds": 16},
         **extra,
     }
@@ -87,12 +87,13 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     exp.write_text(json.dumps({
         "base": {"scene": "furnace.yaml", "reference": {"photons": 6000, "k_nearest": 40, "tolerance": 0.05},
                  # fixed radii, so that more photons mean a smaller error (the density rule keeps ~k per gather)
-                 "estimate": {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}},
+                 "estimate": {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01, "final_gather": 0}},
         "points": [
             {"estimate.filter": ["disk", "mvoxel"], "photons.count": [3000, 12000]},
             {"estimate.filter": ["kvoxel"], "photons.count": [12000], "estimate.k": [2, 8]},
             {"estimate.filter": ["knn"], "photons.count": [12000], "estimate.k_nearest": [20]},
             {"estimate.filter": ["mvoxel"], "photons.count": [3000], "arch.pipelines": [2]},
+            {"estimate.filter": ["mvoxel"], "photons.count": [3000], "estimate.final_gather": [4]},
         ],
     }))
     out = tmp_path / "evc"
@@ -100,17 +101,24 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     assert main(["error-vs-cost", str(exp), "--out", str(out), "--truth-spp", "256"]) == 0
     with open(out / "rows.csv") as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 8
-    assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn", "mvoxel"]
+    assert len(rows) == 9
+    assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn", "mvoxel",
+                                           "mvoxel"]
+    assert [r["final_gather"] for r in rows] == ["0"] * 8 + ["4"]
     assert {"throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds"} <= set(rows[0])
     jsonl = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines()]
-    assert len(jsonl) == 8
+    assert len(jsonl) == 9
+    fg = jsonl.pop()
     for row in jsonl:
         assert np.isfinite(row["rmse"]) and row["gathers"] == 4 * 24 * 24 and row["gather_seconds"] >= 0
         assert row["throughput_cycles"] > 0 and row["latency_cycles"] > 0 and row["simulate_seconds"] > 0
         assert row["frame_seconds"] == row["throughput_cycles"] / 600e6
         assert row["fps"] == pytest.approx(600e6 / row["throughput_cycles"], rel=1e-12)
     mv = [r for r in jsonl if r["filter"] == "mvoxel"]
+    # final gathering: 4 rays from each of the 4 x 24 x 24 eye hits, each a lookup where it lands
+    # (a closed sphere: every ray lands), and a longer frame than the same map gathered at the eye
+    assert fg["gathers"] == 4 * 4 * 24 * 24 and fg["final_gather"] == 4
+    assert fg["throughput_cycles"] > mv[0]["throughput_cycles"] and np.isfinite(fg["rmse"])
     assert mv[1]["photons_tested"] > mv[0]["photons_tested"]  # more photons, more work
     assert mv[1]["throughput_cycles"] > mv[0]["throughput_cycles"]  # ... and a longer frame
     kv = [r for r in jsonl if r["filter"] == "kvoxel"]
@@ -131,10 +139,10 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     # on its own gives the same cycles, under each point's own arch settings
     two = mv[2]
     assert two["rmse"] == mv[0]["rmse"] and two["throughput_cycles"] != mv[0]["throughput_cycles"]
-    for row, pipes in ((mv[0], 1), (two, 2)):
+    for row, pipes, gather in ((mv[0], 1, 0), (two, 2, 0), (fg, 1, 4)):
         cfg = config_from_dict({"scene": "furnace.yaml", "mode": "pmap",
                                 "estimate": {"filter": "mvoxel", "radius_fraction": 0.04,
-                                             "caustic_radius_fraction": 0.01},
+                                             "caustic_radius_fraction": 0.01, "final_gather": gather},
                                 "photons": {"count": 3000}, "arch": {"pipelines": pipes}})
         tm = simulate_run(render(cfg, tmp_path), programs_for(cfg, tmp_path))
         assert (tm.cycles["throughput"], tm.cycles["latency"]) == (row["throughput_cycles"], row["latency_cycles"])

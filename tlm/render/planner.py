@@ -75,7 +75,9 @@ def plan(scene: Scene, cfg: RunConfig) -> Plan:
         decide("refract", "dielectric", cfg.render.refract_depth),
         _decide_pmap(scene, cfg, "pmap" in wanted, kinds),
     )
-    return Plan((*passes, _decide_fgather(cfg, passes[-1])), tuple(notes))
+    if "pmap" in wanted:  # (final gathering belongs to the photon map: named only in its mode)
+        passes = (*passes, _decide_fgather(cfg, passes[-1]))
+    return Plan(passes, tuple(notes))
 
 
 def _decide_fgather(cfg: RunConfig, pmap: PassPlan) -> PassPlan:
