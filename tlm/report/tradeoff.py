@@ -3,7 +3,9 @@
 (a) From ``tlm error-vs-cost`` folders: the photon-map frame's image RMSE against its
     converged reference, against the simulated frame time (TThru / clock, the
     ``frame_seconds`` column) and against host wall time (photon tracing + gathering,
-    ``trace_seconds + gather_seconds``). One marker and colour per filter; the marker's
+    ``trace_seconds + gather_seconds``). One marker and colour per filter (and final-gather
+    count: ``mvoxel + final gather 16`` is a series of its own; a point's name adds its caustic
+    photon budget); the marker's
     area grows with the photon count; the Pareto front (the points no other point beats
     on both error and time) is drawn as a step line and its points are named.
 (b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
@@ -71,8 +73,14 @@ def _sizes(photons: np.ndarray) -> np.ndarray:
     return 25 + 175 * t
 
 
+def _series(r: dict) -> str:
+    """A row's series (marker and colour): its filter, and its final gathering when on."""
+    fg = _num(r.get("final_gather"))
+    return f"{r.get('filter')}" + (f" + final gather {int(fg)}" if np.isfinite(fg) and fg > 0 else "")
+
+
 def _point_name(r: dict) -> str:
-    f = r.get("filter")
+    f = _series(r)
     extra = ""
     if f == "knn" and r.get("k_nearest") is not None:
         extra = f", k={int(r['k_nearest'])}"
@@ -80,6 +88,9 @@ def _point_name(r: dict) -> str:
         extra = f", k={int(r['k'])}, r={_num(r.get('radius_fraction')):g}"
     elif r.get("radius_fraction") is not None:
         extra = f", r={_num(r.get('radius_fraction')):g}"
+    caustic = _num(r.get("caustic_photons"))
+    if np.isfinite(caustic) and caustic > 0:
+        extra += f", {int(caustic):,} caustic ph"
     return f"{f}, {int(_num(r.get('photons'))):,} ph{extra}"
 
 
@@ -106,9 +117,9 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
         return None
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
-    filters = sorted({str(r.get("filter")) for r, k in zip(rows, ok, strict=True) if k})
+    filters = sorted({_series(r) for r, k in zip(rows, ok, strict=True) if k})
     for i, f in enumerate(filters):
-        m = ok & np.array([str(r.get("filter")) == f for r in rows])
+        m = ok & np.array([_series(r) == f for r in rows])
         ax.scatter(cost[m], truth[m], s=40, c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
                    label=f"{f}: composite vs ground truth", zorder=3)
         mo = m & np.isfinite(own)
@@ -160,11 +171,11 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     front = pareto_front(c, e)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
-    filters = sorted({str(r.get("filter")) for r in sub})
+    filters = sorted({_series(r) for r in sub})
     for i, f in enumerate(filters):
-        m = np.array([str(r.get("filter")) == f for r in sub])
+        m = np.array([_series(r) == f for r in sub])
         ax.scatter(c[m], e[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
-                   alpha=0.85, label=f"filter {f}", zorder=3)
+                   alpha=0.85, label=f"filter {f}", zorder=3)  # (and final gathering)
     o = np.argsort(c[front], kind="stable")
     fc, fe = c[front][o], e[front][o]
     ax.step(fc, fe, where="post", color="black", linestyle="--", linewidth=1.2, zorder=2,
