@@ -24,9 +24,8 @@ WAYS = ("truncated", "zeroed", "garbage")
 
 
 @pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
-    return tmp_path / "cache"
+def _own_cache(cache):  # (tests/conftest.py) every test here has its own
+    return cache
 
 
 def damage(path: Path, way: str) -> None:

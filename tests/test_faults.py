@@ -34,9 +34,8 @@ SMALL = ["--set", "resolution=[24,16]", "--set", "render.light_samples=1", "--no
 
 
 @pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
-    return tmp_path / "cache"
+def _own_cache(cache):  # (tests/conftest.py) every test here has its own
+    return cache
 
 
 def leftovers(folder: Path) -> list[str]:

@@ -176,13 +176,6 @@ def test_ray_cast_matches_mitsuba_direct_on_a_lambertian_box():
     assert inside.sum() >= 4 and np.allclose(ours[inside], le)
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("TLM_CACHE", str(folder))
-    return folder
-
-
 def test_ground_truth_cache_round_trips_and_keys_on_the_scene(cache, monkeypatch):
     scene = box_scene(8, 8)
     image, meta = om.ground_truth(scene, integrator="direct", spp=4)

@@ -174,7 +174,8 @@ def test_results_and_summary_report_radii_and_work_per_gather(tmp_path, capsys):
     # final gathering (the default): the caustic map at the gather points, the global map where
     # the final-gather rays land; each map's work per gather of its own
     assert set(ph["gather"]) == {"caustic", "global"}
-    assert ph["global_radius_rule"] == "density" and ph["global_radius_photons"] == EstimateConfig().final_gather_photons
+    assert ph["global_radius_rule"] == "density"
+    assert ph["global_radius_photons"] == EstimateConfig().final_gather_photons
     assert sum(m["gathers"] for m in ph["gather"].values()) == gathers
     assert ph["gather"]["global"]["gathers"] > ph["gather"]["caustic"]["gathers"]
     for k in ("photons_tested", "photons_accepted"):

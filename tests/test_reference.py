@@ -16,13 +16,6 @@ from tlm.experiments.run import programs_for, render, simulate_run
 from .scenes import sphere_scene
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("TLM_CACHE", str(folder))
-    return folder
-
-
 def furnace_config(tmp_path, **extra) -> str:
     sphere_scene(tmp_path)
     body = {

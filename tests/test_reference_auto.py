@@ -27,13 +27,6 @@ from tlm.scenes.loader import load_scene
 from .scenes import sphere_scene
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("TLM_CACHE", str(folder))
-    return folder
-
-
 def furnace(tmp_path, **extra) -> str:
     sphere_scene(tmp_path)
     body = {"scene": "furnace.yaml", "mode": "pmap", "photons": {"count": 6000},

@@ -84,11 +84,6 @@ def test_not_a_sweep_folder_exits_2(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
-
-
 def test_a_scaling_sweep_end_to_end(tmp_path, cache, capsys):
     sweep = tmp_path / "scaling.yaml"
     sweep.write_text(yaml.safe_dump({

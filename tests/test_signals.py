@@ -35,8 +35,8 @@ PHASES = {  # where in `tlm run` the signal arrives: (module, function)
 
 
 @pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+def _own_cache(cache):  # (tests/conftest.py) every test here has its own
+    return cache
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])

@@ -36,10 +36,8 @@ HOST = ("seconds.functional", "seconds.simulate")
 
 
 @pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("TLM_CACHE", str(folder))
-    return folder
+def _own_cache(cache):  # (tests/conftest.py) every test here has its own
+    return cache
 
 
 def sweep_file(tmp_path: Path, name: str = "sweep.yaml", **body) -> Path:

@@ -202,6 +202,21 @@ def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
     }
 
 
+def _trace_secondary(frame: Frame, origin: np.ndarray, d: np.ndarray, ignore: np.ndarray, owner: np.ndarray,
+                     work: dict[str, np.ndarray], rec: Recorder) -> Hits:
+    """Trace rays that leave surfaces (closest hit from ``eps`` on, ignoring the triangle each
+    leaves), adding one secondary ray each and their traversal work to their pixels ``owner``
+    and their reads to ``rec``."""
+    p = work["secondary_rays"].shape[0]
+    hits = closest_hit(frame.accel, origin, d, tmin=frame.eps, ignore=ignore, batch=frame.cfg.render.batch,
+                       record=True)
+    work["secondary_rays"] += np.bincount(owner, minlength=p)
+    for name, c in _trace_counts(hits).items():
+        work[name] += np.bincount(owner, weights=c, minlength=p).astype(np.int64)
+    _record_rays(frame, rec, hits, owner)
+    return hits
+
+
 def pixel_mean(frame: Frame, values: np.ndarray) -> np.ndarray:
     """(p * spp, 3) per-sample radiance -> (p, 3), each pixel's samples summed in order
     (the box filter; a pixel's value never depends on its packet)."""
@@ -500,12 +515,7 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
         origin = x
         owner = owner_of[sidx]
         work["specular_bounces"] += np.bincount(owner, minlength=p)
-        hits = closest_hit(frame.accel, origin, new_d, tmin=frame.eps, ignore=tri, batch=frame.cfg.render.batch,
-                           record=True)
-        work["secondary_rays"] += np.bincount(owner, minlength=p)
-        for name, c in _trace_counts(hits).items():
-            work[name] += np.bincount(owner, weights=c, minlength=p).astype(np.int64)
-        _record_rays(frame, rec, hits, owner)
+        hits = _trace_secondary(frame, origin, new_d, tri, owner, work, rec)
         le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
         # radiance over n^2 is what a path carries unchanged: seen from the eye (in air), what
         # lies inside glass of index n is 1 / n^2 as bright (Mitsuba's dielectric alike);
@@ -807,12 +817,7 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
         if j.shape[0] == 0:
             break
         o = owner[j]
-        hits = closest_hit(frame.accel, origin, d, tmin=frame.eps, ignore=ignore, batch=cfg.render.batch,
-                           record=True)
-        ray_work["secondary_rays"] += np.bincount(o, minlength=p)
-        for name, c in _trace_counts(hits).items():
-            ray_work[name] += np.bincount(o, weights=c, minlength=p).astype(np.int64)
-        _record_rays(frame, rec, hits, o)
+        hits = _trace_secondary(frame, origin, d, ignore, o, ray_work, rec)
         # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there
         _, seen = emitted(frame.scene.lights, origin, d, hits.t, frame.eps)
         hit = (hits.triangle >= 0) & ~seen
