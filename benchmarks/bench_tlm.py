@@ -6,15 +6,16 @@ SimPy layer, ``simulate(Functional.of(res), load_programs(), arch)``, with the d
 ``ArchConfig`` (packets of 256, 5 frames, two images in flight, trace on, as ``tlm run``
 does). Each layer is timed separately, the best of ``--repeat`` runs. Prints
 
-* the host wall seconds of the render and of the simulation, and the SimPy share of a
-  frame: one frame's simulation (the stream's over ``frames``) against the frame's
-  render plus it (bar: at most 10%). The run renders its frame once and simulates it
-  ``frames`` times (5: the steady-state window of TThru needs two warm-up frames and a
-  drain), so the share of the whole run grows with ``frames`` whatever either layer
-  costs; a stream of distinct frames renders each, and pays the per-frame share. The
-  share of the whole run (render + every simulated frame) is printed beside it: it was
-  the measure of this bar until commit 3e18839, and at the 5 or 6 frames of the
-  steady-state TThru it is above 10% (see benchmarks/README.md);
+* the host wall seconds of the render and of the simulation (also a simulated frame's:
+  the simulation's over ``frames``), and the SimPy share of a frame: one frame's
+  simulation (the stream's over ``frames``) against the frame's render plus it (bar: at
+  most 10%). The run renders its frame once and simulates it ``frames`` times (5: the
+  steady-state window of TThru needs two warm-up frames and a drain), so the share of
+  the whole run grows with ``frames`` whatever either layer costs; a stream of distinct
+  frames renders each, and pays the per-frame share. The share of the whole run (render
+  + every simulated frame) is printed beside it: it was the measure of this bar until
+  commit 3e18839, and at the 5 or 6 frames of the steady-state TThru it is above 10%
+  (see benchmarks/README.md);
 * simulated cycles per wall second: the run's simulated cycles (the cycle the last
   frame is done) over the simulation's seconds, and over render + simulation (bar of
   issue [7 of 7]: at least 60 M over render + simulation; the verdict also gives one
@@ -104,7 +105,7 @@ def main() -> None:
           f"arch: packets of {arch.packet_size}, {arch.frames} frames, {arch.images_in_flight} images in flight, "
           f"memory {arch.memory}, trace {'on' if arch.trace else 'off'}; best of {args.repeat}")
     print(f"  render (functional layer, kernels)  {render_s:9.3f} s")
-    print(f"  simulate (SimPy layer)              {sim_s:9.3f} s")
+    print(f"  simulate (SimPy layer)              {sim_s:9.3f} s  ({sim_s / arch.frames:.3f} s a simulated frame)")
     print(f"    of which the frame program (numpy cost tables) {program_s:.3f} s; "
           f"the event loop without the trace {untraced_s:.3f} s")
     print(f"  SimPy share of wall time            {share:9.2%} of the run, "

@@ -32,7 +32,7 @@ from tlm.config import config_from_dict
 from tlm.kernels.bsp import LevelWork
 from tlm.kernels.photons import PHOTON_WORK
 from tlm.render.passes import GATHER_KEYS, PASS_FUNCTIONS, WORK_KEYS
-from tlm.render.planner import PASSES
+from tlm.render.planner import PASSES, WORK_PASSES
 
 CLASSES = (RayPassWork, GatherWork, PhotonWork, BuildLevelWork)
 
@@ -42,7 +42,7 @@ def res():
     from tlm.experiments.run import render
 
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [12, 10],
-                            "photons": {"count": 600}}, "test")
+                            "photons": {"count": 600}, "estimate": {"final_gather": 0}}, "test")  # the four frames
     return render(cfg)
 
 
@@ -62,7 +62,9 @@ def test_the_fields_are_the_renders_keys_in_order():
 
 
 def test_the_passes_are_the_planners():
-    assert (*RAY_PASSES, GATHER_PASS) == PASSES
+    # the frames, and the work-only passes (final gathering's rays: a ray pass)
+    assert (*(p for p in RAY_PASSES if p not in WORK_PASSES), GATHER_PASS) == PASSES
+    assert set(WORK_PASSES) <= set(RAY_PASSES)
     assert tuple(PASS_FUNCTIONS) == RAY_PASSES
 
 
@@ -99,7 +101,7 @@ def test_a_new_render_key_is_not_dropped_silently():
 
 def test_of_a_render_is_typed_and_keeps_every_count(res, fn):
     assert fn.passes == tuple(res.plan.run_names) == PASSES
-    for p in RAY_PASSES:
+    for p in PASSES[:-1]:  # (the fixture renders without final gathering: the thesis's four frames)
         assert type(fn.work[p]) is RayPassWork and fn.ray_work(p) is fn.work[p]
     assert type(fn.work[GATHER_PASS]) is GatherWork and fn.gather_work is fn.work[GATHER_PASS]
     assert type(fn.photon_work) is PhotonWork and type(fn.geometry.levels) is BuildLevelWork

@@ -15,7 +15,7 @@ from tlm.render.passes import cast, pmap_pass, reflect_pass
 @pytest.fixture(scope="module")
 def result():
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [24, 20],
-                            "photons": {"count": 3000}})
+                            "photons": {"count": 3000}, "estimate": {"final_gather": 0}})  # the four frames
     return render(cfg)
 
 

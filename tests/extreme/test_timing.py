@@ -72,6 +72,9 @@ def arch(**kw):
 def functional(**cfg) -> Functional:
     """The work of a small render, one eye ray per pixel (the workloads below were sized so)."""
     cfg["render"] = {"spp": 1, **cfg.get("render", {})}
+    # (sized for the thesis's pipeline: no final gathering, the caustic photons aimed at one box)
+    cfg["estimate"] = {"final_gather": 0, **cfg.get("estimate", {})}
+    cfg["photons"] = {"aim": "box", **cfg.get("photons", {})}
     return Functional.of(render(config_from_dict(cfg, "test")))
 
 

@@ -97,28 +97,58 @@ class Signal:
     The event exists only while someone waits (or asked to): a :meth:`fire` with none
     made is a no-op, and costs no SimPy event. Once fired, the next :meth:`wait` makes a
     new one. A process's mailbox (a memory module, the crossbar's arbiter) and the FIFO's
-    two conditions (space freed, data arrived) are such signals.
+    two conditions (space freed, data arrived) are such signals. On their hot paths (a
+    request posted, a packet pushed or freed) the FIFO and the modules do what
+    :meth:`fire` and :meth:`wait` do on :attr:`event` themselves, without the call.
     """
 
-    __slots__ = ("_event", "env")
+    __slots__ = ("env", "event")
 
     def __init__(self, env: simpy.Environment):
         self.env = env
-        self._event: Event | None = None
+        self.event: Event | None = None  # the event of :meth:`wait` not yet fired (None: nobody waits)
 
     def wait(self) -> Event:
         """The event the next :meth:`fire` fires (made now if there is none)."""
-        ev = self._event
+        ev = self.event
         if ev is None:
-            ev = self._event = Event(self.env)
+            ev = self.event = Event(self.env)
         return ev
 
     def fire(self) -> None:
         """Fire the event of :meth:`wait`, if one was made since the last fire."""
-        ev = self._event
+        ev = self.event
         if ev is not None:
-            self._event = None
+            self.event = None
             ev.succeed()
+
+
+class Flag(Event):
+    """A plain event (``env.event()``) whose :attr:`triggered` is an attribute rather than a property.
+
+    The model asks its own events whether they have fired on its hot paths: the run loop
+    asks the stream's end after every SimPy event, a PM its jobs' semaphores and block
+    copies, and its queue's wake-up, at every packet boundary and wait. SimPy's
+    ``triggered`` is a property, whose call costs more than the rest of such a check; a
+    flag's is a plain attribute, set by the public :meth:`succeed`, :meth:`fail` and
+    :meth:`trigger` (the only ways an event is triggered) as they trigger it.
+    """
+
+    triggered = False  # (shadows Event.triggered; an instance's own attribute once it is triggered)
+
+    def succeed(self, value=None) -> Event:
+        Event.succeed(self, value)
+        self.triggered = True
+        return self
+
+    def fail(self, exception: BaseException) -> Event:
+        Event.fail(self, exception)
+        self.triggered = True
+        return self
+
+    def trigger(self, event: Event) -> None:
+        Event.trigger(self, event)
+        self.triggered = True
 
 
 def all_done(env: simpy.Environment, events: Iterable[Event]) -> Event:
@@ -127,7 +157,7 @@ def all_done(env: simpy.Environment, events: Iterable[Event]) -> Event:
     Not an ``AllOf``: SimPy strips the callbacks of a condition nested in another
     condition once the outer one fires, and PMs wait on any-of sets that include it.
     """
-    done = env.event()
+    done = Flag(env)
     waiting = [ev for ev in events if not ev.processed]
     left = [len(waiting)]
 
@@ -187,7 +217,7 @@ class _AnyOf(Event):
 
     def __init__(self, env: simpy.Environment, events: list):
         self.env = env
-        self.callbacks = [self._detach]
+        self.callbacks = []  # (its waiter's; the callbacks on ``events`` are taken off first, in _fire)
         self._value = PENDING
         self._events = events
         self._fired = fired = self._fire  # one bound method: appended, and later removed, as itself
@@ -209,6 +239,15 @@ class _AnyOf(Event):
             # that event rather than one event later in the same cycle
             self._ok = True
             self._value = None
+            fired = self._fired  # (self._detach(self), inline: first, as a condition's first callback)
+            for other in self._events:
+                cbs = other.callbacks
+                if cbs:
+                    try:  # noqa: SIM105 - cheaper than contextlib.suppress, on the hot path
+                        cbs.remove(fired)
+                    except ValueError:
+                        pass
+            self._fired = None  # (it refers to the event itself)
             callbacks, self.callbacks = self.callbacks, None
             for callback in callbacks:
                 callback(self)
@@ -216,6 +255,7 @@ class _AnyOf(Event):
             ev._defused = True
             self._ok = False
             self._value = ev._value
+            self.callbacks.insert(0, self._detach)
             self.env.schedule(self)
 
     def _detach(self, _ev: Event) -> None:

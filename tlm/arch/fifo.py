@@ -33,8 +33,8 @@ class Fifo:
         self.queue: deque[int] = deque()  # packets in the FIFO, in order
         self.pushed = 0
         self.popped = 0
-        self._space = Signal(env)  # entries freed
-        self._data = Signal(env)  # a packet entered
+        self.space = Signal(env)  # entries freed (the Traversal PM waits on it while the FIFO is full)
+        self.data = Signal(env)  # a packet entered (the Intersection PM waits on it while it is empty)
 
     def slots(self, entries: int) -> int:
         """The entries a packet of ``entries`` addresses takes."""
@@ -47,7 +47,10 @@ class Fifo:
             return False
         self.level -= slots
         self.queue.append(k)
-        self._data.fire()
+        ev = self.data.event  # (self.data.fire(), inline: once per packet)
+        if ev is not None:
+            self.data.event = None
+            ev.succeed()
         return True
 
     def try_pop(self) -> int | None:
@@ -57,12 +60,15 @@ class Fifo:
     def free(self, slots: int) -> None:
         """The Intersection PM is done with a packet of ``slots`` entries: they are free again."""
         self.level += slots
-        self._space.fire()
+        ev = self.space.event  # (self.space.fire(), inline: once per packet)
+        if ev is not None:
+            self.space.event = None
+            ev.succeed()
 
     def space_freed(self) -> Event:
         """An event that fires when entries are next freed."""
-        return self._space.wait()
+        return self.space.wait()
 
     def data_arrived(self) -> Event:
         """An event that fires when a packet next enters."""
-        return self._data.wait()
+        return self.data.wait()

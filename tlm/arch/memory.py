@@ -49,28 +49,48 @@ class Module:
         The event fires ``then`` cycles after the service ends: a PM passes the cycles
         it computes once its data are in, so that one event ends its packet.
         """
-        self._mailbox.append((client, misses, cycles, label, self.env.now))
-        self._mail.fire()
-        return Timeout(self.env, cycles + then)  # (the service starts now: the module is the client's)
+        env = self.env
+        self._mailbox.append((client, misses, cycles, label, env.now))
+        mail = self._mail
+        ev = mail.event  # (mail.fire(), inline: once per packet with page misses)
+        if ev is not None:
+            mail.event = None
+            ev.succeed()
+        return Timeout(env, cycles + then)  # (the service starts now: the module is the client's)
 
     def _serve(self):
         mailbox = self._mailbox
+        mail = self._mail
         unit = self.unit
+        stats, raw, trace = unit.stats, unit._raw, unit.trace
         while True:
             if not mailbox:
-                yield self._mail.wait()
+                ev = mail.event  # (mail.wait(), inline)
+                if ev is None:
+                    ev = mail.event = Event(self.env)
+                yield ev
                 continue
             client, misses, cycles, label, start = mailbox.popleft()
+            end = start + cycles
             if start < self.free_at or client != self.client:
                 self._claim(client, start, cycles)
             else:  # (its client again, after the previous service: the common case, inline)
-                self.free_at = start + cycles
+                self.free_at = end
             self.requests += 1
             self.rows_opened += misses
-            if misses:
-                unit.account(start, 0, cycles, 0, label)
-            else:
-                unit.account(start, cycles, 0, 0, label)
+            # unit.account(start, norm, ms, 0, label), inline (once per packet with page misses)
+            if misses:  # page misses: T_ms
+                norm, ms = 0, cycles
+                stats.ms += cycles
+            else:  # a copy's words: T_norm
+                norm, ms = cycles, 0
+                stats.norm += cycles
+            raw.extend((label, start, end))
+            if trace is not None and end > start:
+                tid = unit._tid
+                if tid is None:
+                    tid = unit._tid = trace.row(unit.scope)
+                trace.add_work(tid, label, start, end, norm, ms, 0)
 
     def _claim(self, client: str, start: int, cycles: int) -> None:
         if start < self.free_at and client != self.client:

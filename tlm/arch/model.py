@@ -42,7 +42,7 @@ from fractions import Fraction
 import simpy
 
 from tlm.arch.crossbar import Crossbar
-from tlm.arch.events import CycleEnd, all_done
+from tlm.arch.events import CycleEnd, Flag, all_done
 from tlm.arch.fifo import Fifo
 from tlm.arch.functional import Functional
 from tlm.arch.memory import Module
@@ -142,7 +142,7 @@ class _Frame:
             else:
                 after = [(prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}")]
             if spec.copy_words:
-                copy_done = env.event()
+                copy_done = Flag(env)
                 waits = [ev for ev, _, _ in after]
                 after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
                 env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
@@ -184,14 +184,14 @@ def _frame_process(model: Model, rec: FrameRecord):
             gate.append((prev, "handshake", f"semaphore '{prev_name}' of frame {rec.index}"))
         if stage.shared:
             if pending_returns:
-                fan_in = env.event()
+                fan_in = Flag(env)
                 gate.append((fan_in, "copy", f"results to pipeline 0 for '{stage.name}' of frame {rec.index}"))
                 env.process(_fan_in(model, rec, prev, stage, returns, fan_in))
             (tile,) = stage.tiles
             prev = frame.chain(0, tile.phases, gate)
             pending_returns = 0
         else:
-            fan_out = [env.event() for _ in range(n_pipes)]
+            fan_out = [Flag(env) for _ in range(n_pipes)]
             env.process(_fan_out(model, rec, prev, stage, fan_out))
             gates = [[*gate, (fan_out[p], "copy", f"'{stage.name}' data of frame {rec.index}")]
                      for p in range(n_pipes)]
@@ -353,7 +353,7 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
             if kind.shared and p > 0 and name in used:
                 continue  # one PM of the kind for the GPU, on pipeline 0 (the Vertex PM, §V.D)
             model.pms[(p, name)] = kind(model, p)
-    done = env.event()
+    done = Flag(env)  # (the run loop asks it after every event)
     env.process(_stream(model, done))
     counts: dict = {}
     bound = event_bound(program, arch)

@@ -23,10 +23,12 @@ from dataclasses import dataclass, field
 
 from simpy.events import Event, Timeout
 
-from tlm.arch.events import Priority, any_of_class
+from tlm.arch.events import Flag, Priority, Signal, any_of_class
 from tlm.arch.fifo import Fifo
 from tlm.arch.program import JobSpec
 from tlm.arch.units import Unit, _cycles
+
+_SETTLE = Priority.SETTLE  # (an enum member read once: the packet loops pass it on every settle)
 
 
 @dataclass(eq=False)
@@ -49,9 +51,13 @@ class Job:
     waited: int = 0  # how many of ``after`` have fired
 
     label: str = field(init=False, repr=False)  # "frame <frame> <phase>"
+    space_what: str = field(init=False, repr=False)  # what a FIFO-full stall waits for (made once)
+    data_what: str = field(init=False, repr=False)  # what a FIFO-empty stall waits for
 
     def __post_init__(self) -> None:
-        self.label = f"frame {self.frame} {self.phase}"
+        self.label = label = f"frame {self.frame} {self.phase}"
+        self.space_what = f"FIFO space ({label})"
+        self.data_what = f"FIFO data ({label})"
 
     def blocker(self):
         """The first (event, cause, what) of ``after`` not yet fired, or None: ready to run."""
@@ -73,13 +79,18 @@ class PM:
 
     A job's rank is its frame (:meth:`_rank`): the image that arrived first has priority.
     The queue is kept in rank order, so only a job ahead of a running job's frame can
-    preempt it (the hot paths compare ``job.frame`` directly). The base class runs a
-    job's packets one after another (:meth:`_packets`); a PM coupled to the FIFO runs
-    them its own way. ``model`` is the :class:`tlm.arch.model.Model` the PM belongs to.
+    preempt it (the hot paths compare ``job.frame`` directly). Every PM runs a job's
+    packets one after another the same way (:meth:`_packets`); a PM coupled to the FIFO
+    takes each packet's addresses out of it first (:attr:`pops`, its :meth:`_pop` waits
+    while it is empty) or puts them into it after the packet's work (:attr:`pushes`, its
+    :meth:`_push` waits while it is full). ``model`` is the :class:`tlm.arch.model.Model`
+    the PM belongs to.
     """
 
     kind = ""  # the program's name of the PM (tlm.arch.program.PMS)
     shared = False  # one per GPU, on pipeline 0, rather than one per pipeline
+    pops = False  # each packet's addresses come out of the job's FIFO before its work (Intersection)
+    pushes = False  # each packet's addresses go into the job's FIFO after its work (Traversal)
 
     def __init__(self, model, pipe: int):
         self.model = model
@@ -91,7 +102,7 @@ class PM:
         self.queue: list[Job] = []
         self.route: int | None = None  # the module the crossbar routes this PM to
         self.working_on: int | None = None  # that module while a job runs on it
-        self.changed = self.env.event()
+        self.changed = Flag(self.env)  # fires when the queue changes (a job submitted)
         self.unit.waiting_for = "its process to start"  # (an event budget may end before it runs)
         self.issued = 0
         self.retired = 0
@@ -100,8 +111,10 @@ class PM:
         self._page_cycles = model.arch.page_miss_cycles  # (read once per packet: kept at hand)
         self._flush_cycles = model.arch.flush_cycles
         self._scope = self.unit.scope
+        self._stats = self.unit.stats  # (the unit's books, kept at hand for the packet loops)
+        self._raw = self.unit._raw
+        self._trace = model.trace
         self._settle = model.cycle_end.event  # (Priority.SETTLE): an event at the end of the cycle
-        self._working: tuple[int, int, int, int] = (0, 0, 0, 0)  # the packet in work: (start, norm, ms, ps)
         self.env.process(self._loop())
 
     # -- queue ------------------------------------------------------------------------
@@ -126,7 +139,7 @@ class PM:
 
     def _rearm(self) -> None:
         if self.changed.triggered:
-            self.changed = Event(self.env)
+            self.changed = Flag(self.env)
 
     def _ready(self) -> Job | None:
         """The ready job of the highest priority (the queue is kept in priority order)."""
@@ -219,22 +232,81 @@ class PM:
             job.suspended = False
 
     def _packets(self, job: Job, module):
-        """Run ``job``'s packets from its next one, on ``module``: True once done, False if preempted."""
-        packets = job.spec.packets
+        """Run ``job``'s packets from its next one, on ``module``: True once done, False if preempted.
+
+        At each packet boundary an older image's job that is ready preempts this one
+        (:meth:`_yields_to_older`). A packet: (:attr:`pops`) its addresses out of the FIFO;
+        its work, the same for every PM: its page misses served by ``module`` (T_ms), then
+        the PM computes (T_norm and T_ps), one SimPy event in all, booked on the PM's unit
+        as :meth:`Unit.account` books it (eq. 5.1), inline (the model's hot path, once per
+        packet); (:attr:`pushes`) its addresses into the FIFO; (:attr:`pops`) its entries
+        freed. After the work, if a job of an older image is queued, the PM lets the cycle
+        settle first (:attr:`Priority.SETTLE`): that job may become ready this very cycle (a
+        semaphore firing now), and whether it preempts must not depend on the order of the
+        cycle's events. A wait on the FIFO that an older image's job cuts short leaves the
+        job ``interrupted`` (and a Traversal packet done but not pushed ``pending_push``: on
+        its return it pushes without working the packet again).
+        """
+        packets, frame, fifo = job.spec.packets, job.frame, job.fifo
         n = len(packets)
+        pops, pushes = self.pops, self.pushes
+        depth = fifo.depth if pops or pushes else 0
         queue = self.queue
-        frame = job.frame
+        env, unit, scope, trace, stats, raw = self.env, self.unit, self._scope, self._trace, self._stats, self._raw
+        page_cycles, flush_cycles = self._page_cycles, self._flush_cycles
         while job.next < n:
-            if job.next > 0 and queue[0].frame < frame and self._higher_ready(job):
+            if self._yields_to_older(job, frame, job.pending_push):
                 yield from self._suspend(job)
                 return False
-            norm, misses, flushes, items, _ = packets[job.next]
-            yield self._begin_work(module, norm, misses, flushes)
-            if self._end_work(frame):
-                yield self._settle(Priority.SETTLE)
+            job.interrupted = False
+            k = job.next
+            norm, misses, flushes, items, entries = packets[k]
+            if pops:
+                got = fifo.try_pop()
+                if got is None:
+                    got = yield from self._pop(job)
+                    if got is None:
+                        job.interrupted = True  # a priority job became ready while the FIFO was empty
+                        continue
+                if got != k:
+                    raise AssertionError(f"FIFO order broken: packet {got} arrived for {k}")
+            if not job.pending_push:  # the packet's work
+                ms = misses * page_cycles
+                ps = flushes * flush_cycles
+                if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
+                    norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
+                start = env.now
+                yield module.request(scope, misses, ms, "page misses", norm + ps) if ms else Timeout(env, norm + ps)
+                stats.norm += norm
+                stats.ms += ms
+                stats.ps += ps
+                end = start + norm + ms + ps
+                raw.extend(("busy", start, end))
+                if trace is not None and end > start:
+                    tid = unit._tid
+                    if tid is None:
+                        tid = unit._tid = trace.row(scope)
+                    trace.add_work(tid, "busy", start, end, norm, ms, ps)
+                if queue[0].frame < frame:  # an older image's job is queued: let the cycle settle
+                    yield self._settle(_SETTLE)
+            if pushes or pops:
+                slots = entries if entries < depth else depth  # (Fifo.slots: max(1, min(entries, depth)))
+                if slots < 1:
+                    slots = 1
+                if pops:
+                    fifo.free(slots)
+                    fifo.popped += entries
+                elif fifo.try_push(k, slots):
+                    job.pending_push = False
+                    fifo.pushed += entries
+                elif (yield from self._push(job, k, slots)):
+                    fifo.pushed += entries
+                else:
+                    job.interrupted = True  # preempted while the FIFO was full
+                    continue
             job.retired += items
             self.retired += items
-            job.next += 1
+            job.next = k + 1
         return True
 
     def _suspend(self, job: Job):
@@ -246,60 +318,27 @@ class PM:
         self.switches += 1
         self.working_on = None
 
-    # -- a packet's work, the same for every PM: yield _begin_work(...), then _end_work(...) --
-    def _begin_work(self, module, norm: int, misses: int, flushes: int) -> Event:
-        """Start a packet's work: its page misses served by ``module`` (T_ms), then its
-        T_norm and T_ps. The event fires when it is done; :meth:`_end_work` books it."""
-        ms = misses * self._page_cycles
-        ps = flushes * self._flush_cycles
-        if not (type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
-            norm, ms, ps = _cycles(norm, "norm"), _cycles(ms, "ms"), _cycles(ps, "ps")
-        self._working = (self.env.now, norm, ms, ps)
-        if ms:  # the routed module serves the packet's page misses, then the PM computes
-            return module.request(self._scope, misses, ms, then=norm + ps)
-        return Timeout(self.env, norm + ps)
-
-    def _end_work(self, frame: int) -> bool:
-        """Book the packet's work (eq. 5.1); True if the PM must let the cycle settle.
-
-        It must when a job of an older image than ``frame`` is queued: that job may become
-        ready this very cycle (a semaphore firing now), and whether it preempts must not
-        depend on the order of the cycle's events, so the packet-boundary decision waits
-        for an end-of-cycle event (:attr:`Priority.SETTLE`).
-        """
-        start, norm, ms, ps = self._working
-        # unit.account(start, norm, ms, ps, "busy"), inline (the hot path)
-        unit = self.unit
-        stats = unit.stats
-        stats.norm += norm
-        stats.ms += ms
-        stats.ps += ps
-        end = start + norm + ms + ps
-        unit._raw.append(("busy", start, end))
-        trace = unit.trace
-        if trace is not None and end > start:
-            tid = unit._tid
-            if tid is None:
-                tid = unit._tid = trace.row(self._scope)
-            trace.add_work(tid, "busy", start, end, norm, ms, ps)
-        return self.queue[0].frame < frame
-
-    def _fifo_wait(self, job: Job, ready, cause: str, what: str):
-        """Stall (``cause``) until the event ``ready()`` fires or a job of an older image
-        may preempt this one; False, without waiting, if such a job is ready now.
-        ``ready`` is called only when the PM waits (a FIFO event made and never awaited
-        would still fire, one SimPy event more)."""
-        if self.queue[0].frame < job.frame and self._higher_ready(job):  # an older image's job is ready
-            return False
-        env, unit = self.env, self.unit
-        wake = self._any_of(env, [ready(), *self._wake_events(job)])
-        start = env.now
-        unit.waiting_for = what
-        yield wake
-        unit.waiting_for = None
-        unit.stalled(cause, start, what)
-        self._rearm()
-        return True
+    def _fifo_wake(self, job: Job, signal: Signal):
+        """What a wait of ``job`` on its FIFO waits for: the FIFO's ``signal`` (space freed or
+        data arrived), or any event that may make a job of an older image ready (it would
+        preempt this one); None, without waiting, if such a job is ready now. The signal's
+        event is made only when the PM waits (a FIFO event made and never awaited would
+        still fire, one SimPy event more)."""
+        rank = job.frame
+        # _higher_ready(job) and _wake_events(job) in one pass over the older images' jobs
+        waits = []  # their first unfired events, each once (an event is in a list by identity)
+        for j in self.queue:
+            if j.frame >= rank:
+                break
+            b = j.blocker()
+            if b is None:
+                return None  # an older image's job is ready
+            if b[0] not in waits:
+                waits.append(b[0])
+        ready = signal.event  # (signal.wait(), inline)
+        if ready is None:
+            ready = signal.event = Event(self.env)
+        return self._any_of(self.env, [ready, self.changed, *waits])
 
 
 class Vertex(PM):
@@ -319,40 +358,25 @@ class Traversal(PM):
     """
 
     kind = "traversal"
-
-    def _packets(self, job: Job, module):
-        packets, frame, fifo = job.spec.packets, job.frame, job.fifo
-        depth = fifo.depth
-        while job.next < len(packets):
-            if self._yields_to_older(job, frame, job.pending_push):
-                yield from self._suspend(job)
-                return False
-            job.interrupted = False
-            k = job.next
-            norm, misses, flushes, items, entries = packets[k]
-            if not job.pending_push:
-                yield self._begin_work(module, norm, misses, flushes)
-                if self._end_work(frame):
-                    yield self._settle(Priority.SETTLE)
-            slots = max(1, min(int(entries), depth))  # (Fifo.slots)
-            if fifo.try_push(k, slots):
-                job.pending_push = False
-            elif not (yield from self._push(job, k, slots)):
-                job.interrupted = True  # preempted while the FIFO was full
-                continue
-            fifo.pushed += int(entries)
-            job.retired += items
-            self.retired += items
-            job.next += 1
-        return True
+    pushes = True
 
     def _push(self, job: Job, k: int, slots: int):
         """Packet k's addresses did not fit in the FIFO: wait until they do; False if preempted meanwhile."""
         fifo = job.fifo
+        what = job.space_what
+        unit = self.unit
         while True:
             job.pending_push = True
-            if not (yield from self._fifo_wait(job, fifo.space_freed, "fifo_full", f"FIFO space ({job.label})")):
+            wake = self._fifo_wake(job, fifo.space)  # (fifo.space_freed)
+            if wake is None:
                 return False
+            start = self.env.now
+            unit.waiting_for = what
+            yield wake
+            unit.waiting_for = None
+            unit.stalled("fifo_full", start, what)
+            if self.changed.triggered:  # (self._rearm(), inline)
+                self.changed = Flag(self.env)
             if fifo.try_push(k, slots):
                 job.pending_push = False
                 return True
@@ -367,40 +391,24 @@ class Intersection(PM):
     """
 
     kind = "intersection"
-
-    def _packets(self, job: Job, module):
-        packets, frame, fifo = job.spec.packets, job.frame, job.fifo
-        while job.next < len(packets):
-            if self._yields_to_older(job, frame):
-                yield from self._suspend(job)
-                return False
-            job.interrupted = False
-            k = job.next
-            norm, misses, flushes, items, entries = packets[k]
-            got = fifo.try_pop()
-            if got is None:
-                got = yield from self._pop(job)
-                if got is None:
-                    job.interrupted = True  # a priority job became ready while the FIFO was empty
-                    continue
-            if got != k:
-                raise AssertionError(f"FIFO order broken: packet {got} arrived for {k}")
-            yield self._begin_work(module, norm, misses, flushes)
-            if self._end_work(frame):
-                yield self._settle(Priority.SETTLE)
-            fifo.free(max(1, min(int(entries), fifo.depth)))  # (Fifo.slots)
-            fifo.popped += int(entries)
-            job.retired += items
-            self.retired += items
-            job.next += 1
-        return True
+    pops = True
 
     def _pop(self, job: Job):
         """The FIFO was empty: wait for the next packet's addresses; the packet, or None if preempted meanwhile."""
         fifo = job.fifo
+        what = job.data_what
+        unit = self.unit
         while True:
-            if not (yield from self._fifo_wait(job, fifo.data_arrived, "fifo_empty", f"FIFO data ({job.label})")):
+            wake = self._fifo_wake(job, fifo.data)  # (fifo.data_arrived)
+            if wake is None:
                 return None
+            start = self.env.now
+            unit.waiting_for = what
+            yield wake
+            unit.waiting_for = None
+            unit.stalled("fifo_empty", start, what)
+            if self.changed.triggered:  # (self._rearm(), inline)
+                self.changed = Flag(self.env)
             k = fifo.try_pop()
             if k is not None:
                 return k

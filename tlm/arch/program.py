@@ -75,9 +75,15 @@ class JobSpec:
         cheaper to index than numpy scalars. (Computed once: the arrays are not changed.)
         """
         n = self.n
-        cols = [list(map(int, np.asarray(a)[:n].tolist())) for a in (self.norm, self.misses, self.flushes, self.items)]
-        entries = [None] * n if self.entries is None else list(map(int, np.asarray(self.entries)[:n].tolist()))
+        cols = [_python_ints(a, n) for a in (self.norm, self.misses, self.flushes, self.items)]
+        entries = [None] * n if self.entries is None else _python_ints(self.entries, n)
         return list(zip(*cols, entries, strict=True))
+
+
+def _python_ints(a, n: int) -> list[int]:
+    """The first ``n`` values of ``a`` as Python ints (an integer array's ``tolist`` gives them)."""
+    values = np.asarray(a)[:n]
+    return values.tolist() if np.issubdtype(values.dtype, np.integer) else list(map(int, values.tolist()))
 
 
 @dataclass(frozen=True)
@@ -243,7 +249,9 @@ class _PacketSums:
             flat = np.asarray(v[self.idx]).reshape(-1)
             if flat.shape[0] != self.idx.shape[0]:
                 raise ValueError("work arrays of 'sub' differ in length")
-            got = np.add.reduceat(flat.astype(np.int64), self.starts) if flat.shape[0] else np.zeros(0, np.int64)
+            # (no copy of an int64 gather: a second array of the selection's size costs more than the sums)
+            got = np.add.reduceat(flat.astype(np.int64, copy=False), self.starts) if flat.shape[0] \
+                else np.zeros(0, np.int64)
             self.sums[key] = got
         return got
 

@@ -26,7 +26,6 @@ import json
 import re
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
-from operator import itemgetter
 from pathlib import Path
 
 import simpy
@@ -91,7 +90,6 @@ class Stats:
         }
 
 
-_START_END = itemgetter(1, 2)  # a slice's (start, end)
 _PM_ORDER = ("vertex", "traversal", "intersection", "fragment")
 
 
@@ -112,14 +110,41 @@ def row_order(scope: str, modules_per_pipe: int = 4) -> tuple:
     return (1 << 30, 2, last.get(base, 2), base, preempted)
 
 
+_SLICE = 8  # the entries of a slice in Trace._flat: name, start, end, tid, args, T_norm, T_ms, T_ps
+
+
 class Trace:
-    """Chrome trace events: one row per unit, one slice per interval."""
+    """Chrome trace events: one row per unit, one slice per interval.
+
+    The slices are kept flat, :data:`_SLICE` entries each in one list, rather than an
+    object per slice: a run makes tens of thousands of them, and the garbage collector
+    then has one object to look at rather than one per slice (a run's survivors are
+    scanned once after it, and its results collected when they are dropped). A work
+    slice (:meth:`add_work`) keeps its T_norm, T_ms and T_ps as entries of their own,
+    summed in place when the next work continues it; its args dict is made when the
+    slice is first read (:meth:`_slices`). Any other slice has its args dict from the
+    start (and None for the three).
+    """
 
     def __init__(self) -> None:
-        self._slices: list[list] = []  # [name, start, end, tid, args]
+        self._flat: list = []  # the slices: name, start, end, tid, args, norm, ms, ps, name, start, ...
         self.rows: dict[str, int] = {}
-        self._last: dict[int, list] = {}  # each row's latest slice
+        self._last: dict[int, int] = {}  # each row's latest slice: the index of its name in _flat
         self.modules_per_pipe = 4  # memory modules of a pipeline (the model sets it): rows' order
+
+    def _args(self, i: int) -> dict:
+        """The args dict of the slice at ``i`` (a work slice's made from its three counts now)."""
+        flat = self._flat
+        args = flat[i + 4]
+        if args is None:
+            args = flat[i + 4] = {"T_norm": flat[i + 5], "T_ms": flat[i + 6], "T_ps": flat[i + 7]}
+        return args
+
+    def _slices(self):
+        """The slices as (name, start, end, tid, args) tuples, in the order they were added."""
+        flat = self._flat
+        for i in range(0, len(flat), _SLICE):
+            yield flat[i], flat[i + 1], flat[i + 2], flat[i + 3], self._args(i)
 
     def slice(self, scope: str, name: str, start: int, end: int, **args) -> None:
         """Add a slice; one that continues its row's latest slice of the same name extends it."""
@@ -135,10 +160,11 @@ class Trace:
 
     def add(self, tid: int, name: str, start: int, end: int, args: dict) -> None:
         """:meth:`slice` on row ``tid`` (``end > start``), with its args as a dict of its own."""
-        last = self._last.get(tid)
-        if last is not None and last[2] == start and last[0] == name:
-            last[2] = end
-            old_args = last[4]
+        flat = self._flat
+        i = self._last.get(tid)
+        if i is not None and flat[i + 2] == start and flat[i] == name:
+            flat[i + 2] = end
+            old_args = self._args(i)
             for k, v in args.items():
                 old = old_args.get(k)
                 if old is None:
@@ -146,16 +172,21 @@ class Trace:
                 elif type(v) is int and type(old) is int:
                     old_args[k] = old + v
             return
-        event = [name, start, end, tid, args]
-        self._slices.append(event)
-        self._last[tid] = event
+        self._last[tid] = len(flat)
+        flat += (name, start, end, tid, args, None, None, None)
 
     def add_work(self, tid: int, name: str, start: int, end: int, norm: int, ms: int, ps: int) -> None:
         """:meth:`add` of a work slice, args T_norm, T_ms and T_ps (ints), without building them to merge."""
-        last = self._last.get(tid)
-        if last is not None and last[2] == start and last[0] == name:
-            last[2] = end
-            args = last[4]
+        flat = self._flat
+        i = self._last.get(tid)
+        if i is not None and flat[i + 2] == start and flat[i] == name:
+            flat[i + 2] = end
+            args = flat[i + 4]
+            if args is None:  # a work slice not read yet: its counts, summed in place
+                flat[i + 5] += norm
+                flat[i + 6] += ms
+                flat[i + 7] += ps
+                return
             old = args.get("T_norm")
             if old is None:
                 args["T_norm"] = norm
@@ -172,39 +203,60 @@ class Trace:
             elif type(old) is int:
                 args["T_ps"] = old + ps
             return
-        event = [name, start, end, tid, {"T_norm": norm, "T_ms": ms, "T_ps": ps}]
-        self._slices.append(event)
-        self._last[tid] = event
+        self._last[tid] = len(flat)
+        flat += (name, start, end, tid, None, norm, ms, ps)
 
     @property
     def events(self) -> list[dict]:
         """The slices as Chrome trace events ("X": complete events)."""
         return [{"name": n, "ph": "X", "ts": s, "dur": e - s, "pid": 0, "tid": tid, "args": a}
-                for n, s, e, tid, a in self._slices]
+                for n, s, e, tid, a in self._slices()]
 
     def fill_idle(self, end: int) -> None:
         """Idle slices in every gap of every row, up to ``end``."""
-        by_row: dict[int, list[list]] = {}  # (rows in the order of their first slice)
-        for ev in self._slices:
-            row = by_row.get(ev[3])
-            if row is None:
-                by_row[ev[3]] = [ev]
-            else:
-                row.append(ev)
-        idle = []
-        for tid, spans in by_row.items():
-            spans.sort(key=_START_END)
-            t = 0
-            for ev in spans:
-                s = ev[1]
-                if s > t:
-                    idle.append(["idle", t, s, tid, {}])
-                e = ev[2]
-                if e > t:
-                    t = e
-            if end > t:
-                idle.append(["idle", t, end, tid, {}])
-        self._slices.extend(idle)
+        flat = self._flat
+        tids, starts, ends = flat[3::_SLICE], flat[1::_SLICE], flat[2::_SLICE]
+        # one pass over the slices while every row's come in increasing start, as each unit
+        # books them (they are then in the (start, end) order the gaps are found in); a row
+        # out of that order sorts each row's slices first
+        reach: dict[int, int] = {}  # each row's latest end so far (rows in the order of their first slice)
+        latest: dict[int, int] = {}  # each row's latest start
+        gaps: dict[int, list] = {}  # each row's idle slices
+        for tid, s, e in zip(tids, starts, ends, strict=True):
+            t = reach.get(tid)
+            if t is None:
+                t = 0
+                gaps[tid] = []
+            elif s <= latest[tid]:
+                gaps = None  # (a row out of order)
+                break
+            latest[tid] = s
+            if s > t:
+                gaps[tid] += ("idle", t, s, tid, {}, None, None, None)
+            reach[tid] = e if e > t else t
+        if gaps is None:  # sort each row's slices by (start, end), then the same pass
+            by_row: dict[int, list[tuple[int, int]]] = {}
+            for tid, s, e in zip(tids, starts, ends, strict=True):
+                row = by_row.get(tid)
+                if row is None:
+                    by_row[tid] = [(s, e)]
+                else:
+                    row.append((s, e))
+            reach, gaps = {}, {}
+            for tid, spans in by_row.items():
+                spans.sort()
+                t = 0
+                idle = gaps[tid] = []
+                for s, e in spans:
+                    if s > t:
+                        idle += ("idle", t, s, tid, {}, None, None, None)
+                    if e > t:
+                        t = e
+                reach[tid] = t
+        for tid, idle in gaps.items():
+            flat += idle
+            if end > reach[tid]:
+                flat += ("idle", reach[tid], end, tid, {}, None, None, None)
 
     def to_json(self, clock_hz: float | None = None, modules_per_pipe: int | None = None) -> dict:
         """The trace document, as Perfetto and chrome://tracing open it.
@@ -227,7 +279,7 @@ class Trace:
         us = 1e6 / clock_hz if clock_hz else 1.0
         events = [{"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
                    "args": {**a, "start_cycle": s, "cycles": e - s}}
-                  for n, s, e, tid, a in self._slices]
+                  for n, s, e, tid, a in self._slices()]
         unit = "microseconds at the modelled clock" if clock_hz else "clock cycles (no clock given)"
         return {"traceEvents": meta + events, "displayTimeUnit": "ns",
                 "otherData": {"time_unit": unit, "clock_hz": clock_hz, "cycles_in": "args.start_cycle, args.cycles"}}
@@ -249,9 +301,10 @@ class Unit:
         self.stats = Stats()
         self.trace = trace
         self.waiting_for: str | None = None  # what a blocked unit waits for (Deadlock)
-        # what the unit did since :attr:`log` was last read: (label, start, end) per work interval,
-        # ("stall <cause>", start) per stall; :attr:`log` spells it out when it is read
-        self._raw: list[tuple] = []
+        # what the unit did since :attr:`log` was last read, flat, three entries a record: label,
+        # start, end per work interval, "stall <cause>", start, None per stall (no object per
+        # record, as in Trace); :attr:`log` spells it out when it is read
+        self._raw: list = []
         self._log: list[tuple[str, int]] = []
         self._tid: int | None = None  # the unit's row in the trace
 
@@ -261,12 +314,13 @@ class Unit:
         raw = self._raw
         if raw:  # spell out what was recorded since the last read
             log = self._log
-            for e in raw:
-                if len(e) == 2:
-                    log.append(e)
+            it = iter(raw)
+            for label, start, end in zip(it, it, it, strict=True):
+                if end is None:
+                    log.append((label, start))
                 else:
-                    log.append((f"{e[0]} start", e[1]))
-                    log.append((f"{e[0]} end", e[2]))
+                    log.append((f"{label} start", start))
+                    log.append((f"{label} end", end))
             raw.clear()
         return self._log
 
@@ -290,7 +344,7 @@ class Unit:
         stats.ms += ms
         stats.ps += ps
         end = start + norm + ms + ps
-        self._raw.append((label, start, end))
+        self._raw.extend((label, start, end))
         trace = self.trace
         if trace is not None and end > start:
             tid = self._tid
@@ -304,7 +358,7 @@ class Unit:
         waited = now - start
         self.stats.stall[cause] += waited
         if waited:
-            self._raw.append((_STALL_LOG[cause], start))
+            self._raw.extend((_STALL_LOG[cause], start, None))
             trace = self.trace
             if trace is not None:
                 tid = self._tid

@@ -61,7 +61,7 @@ def split(name: str, work: Mapping[str, np.ndarray], packet_size: int) -> Packet
     counts = {}
     for k, v in flat.items():
         # integer sums in item order: exact, and the same as summing each packet alone
-        counts[k] = np.add.reduceat(v.astype(np.int64), starts) if n else np.zeros(0, np.int64)
+        counts[k] = np.add.reduceat(v.astype(np.int64, copy=False), starts) if n else np.zeros(0, np.int64)
     return Packets(name, int(packet_size), sizes.astype(np.int64), counts)
 
 

@@ -810,6 +810,7 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     w = np.ones((j.shape[0], 3))
     med = medium[j]  # the index of refraction around each ray
     key = _fg_key(cfg.seed)
+    lights = tuple(lt for lt in frame.scene.lights if max(lt.power) > 0)
     rec = Recorder(ray_streams.page_words)
     found: dict[str, list[np.ndarray]] = {k: [] for k in ("j", "r", "x", "n", "w", "tri")}
     depth = cfg.render.refract_depth
@@ -818,8 +819,9 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
             break
         o = owner[j]
         hits = _trace_secondary(frame, origin, d, ignore, o, ray_work, rec)
-        # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there
-        _, seen = emitted(frame.scene.lights, origin, d, hits.t, frame.eps)
+        # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there (a
+        # light without power emits nothing and hides nothing: the ray sees what lies behind it)
+        _, seen = emitted(lights, origin, d, hits.t, frame.eps)
         hit = (hits.triangle >= 0) & ~seen
         th = np.maximum(hits.triangle, 0)
         lam = hit & (frame.kind[th] == KIND["lambertian"])
@@ -968,6 +970,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     return pixel_mean(frame, radiance), work
 
 
-PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass}
+PASS_FUNCTIONS = {"rcast": rcast_pass, "reflect": reflect_pass, "refract": refract_pass,
+                  "fgather": fgather_pass}  # (after pmap_pass of the same packet, which traces its rays)
 # the passes whose work is traced by another (pmap_pass traces the final-gather rays)
 TRACED_BY = {"fgather": "pmap"}
