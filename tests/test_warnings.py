@@ -36,8 +36,8 @@ def _run(tmp_path: Path, capsys, scene: Path | str, mode: str = "pmap",
     config = tmp_path / f"run_{Path(str(scene)).stem}.yaml"
     config.write_text(f"scene: {scene}\nmode: {mode}\n")
     out = tmp_path / f"out_{Path(str(scene)).stem}"
-    code = main(["run", str(config), "--out", str(out), "--no-progress", "--no-report", "--outputs", outputs,
-                 *SMALL])
+    code = main(["run", str(config), "--out", str(out), "--no-progress", "--no-report", "--no-reference",
+                 "--outputs", outputs, *SMALL])
     assert code == 0
     err = capsys.readouterr().err
     results = json.loads((out / "results.json").read_text())

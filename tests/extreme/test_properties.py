@@ -217,5 +217,5 @@ def test_random_configs_render_clean(cfg):
         assert "refract" not in res.plan.run_names
     if cfg["mode"] == "pmap" and cfg["photons"]["count"] == 0:
         assert "pmap" not in res.plan.run_names
-    total = sum(res.radiance[n] for n in res.plan.run_names)
+    total = sum(res.radiance[n] for n in res.plan.run_names if n in res.radiance)  # (fgather: work only)
     np.testing.assert_array_equal(res.composite, total)

@@ -46,9 +46,10 @@ TRANSFORMS = {
     "scale-1e-6-offset-1e6": "{scale: 1.0e-6, translate: [1.0e6, -1.0e6, 1.0e6]}",
 }
 SCALE = {"scale-1e-6": 1e-6, "scale-1e6": 1e6, "scale-1e6-offset-1e6": 1e6, "scale-1e-6-offset-1e6": 1e-6}
-PMAP = {"resolution": [32, 32], "photons": {"count": 10000},
-        # the radii of the fixed-fraction rule this calibration was made with (default: the density rule)
-        "estimate": {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}}
+PMAP = {"resolution": [32, 32], "photons": {"count": 10000, "aim": "box"},
+        # the radii of the fixed-fraction rule this calibration was made with (default: the density rule),
+        # the indirect map gathered at the eye and one aiming box (defaults: final gathering, a box per part)
+        "estimate": {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01, "final_gather": 0}}
 
 
 @pytest.fixture(scope="module")

@@ -97,13 +97,13 @@ def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
 def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
     """The render of a smaller mode, cut out of a render of a larger one (same settings)."""
     p = plan(res.scene, cfg)
-    missing = [n for n in p.run_names if n not in res.radiance]
+    missing = [n for n in p.run_names if n not in res.work]
     if missing:
         raise ValueError(f"the render lacks the passes {missing}")
     keep = p.run_names
     pm = "pmap" in keep
     return replace(res, cfg=cfg, plan=p, timer=Timer(dict(res.timer.seconds)),
-                   radiance={k: res.radiance[k] for k in keep},
+                   radiance={k: res.radiance[k] for k in keep if k in res.radiance},  # (fgather: work only)
                    work={k: res.work[k] for k in keep}, photons=res.photons if pm else None,
                    error=res.error if pm else None, timing=None)
 
