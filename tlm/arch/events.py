@@ -239,15 +239,7 @@ class _AnyOf(Event):
             # that event rather than one event later in the same cycle
             self._ok = True
             self._value = None
-            fired = self._fired  # (self._detach(self), inline: first, as a condition's first callback)
-            for other in self._events:
-                cbs = other.callbacks
-                if cbs:
-                    try:  # noqa: SIM105 - cheaper than contextlib.suppress, on the hot path
-                        cbs.remove(fired)
-                    except ValueError:
-                        pass
-            self._fired = None  # (it refers to the event itself)
+            self._detach(self)  # first, as a condition's first callback
             callbacks, self.callbacks = self.callbacks, None
             for callback in callbacks:
                 callback(self)
