@@ -237,7 +237,7 @@ def _around(axis: np.ndarray, cos_t: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def _cosine_dirs(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     """Cosine-weighted unit directions about unit normals ``n`` (k, 3)."""
     return _around(n, np.sqrt(np.maximum(0.0, 1.0 - u1)), 2.0 * np.pi * u2)
 
@@ -454,7 +454,7 @@ def emit(
                     # flux Le cos dA dw over the cone, sampled with pdf 1 / (A * solid angle)
                     power = np.atleast_2d(power) * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
                 else:
-                    d = _cosine_dirs(nl, u[2], u[3])
+                    d = cosine_directions(nl, u[2], u[3])
             else:
                 pos = np.asarray(light.position, dtype=np.float64)
                 o = np.broadcast_to(pos, (m, 3)).copy()
@@ -611,7 +611,7 @@ def trace_photons(
                 survive = a.max(axis=1) > 0
                 scale = a
             power[lam] = power[lam] * scale
-            new_d[lam] = _cosine_dirs(front[lam], u[1][lam], u[2][lam])
+            new_d[lam] = cosine_directions(front[lam], u[1][lam], u[2][lam])
             if split:  # a caustic-group photon has nothing left to give after a diffuse hit
                 survive &= ~group[lam]
             alive[lam] = survive

@@ -54,8 +54,7 @@ from tlm.config import RunConfig
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
-from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
-from tlm.kernels.photons import _cosine_dirs as cosine_directions
+from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, cosine_directions, trace_photons
 from tlm.kernels.shade import (
     SPAWN_EPS,
     direct_light,
@@ -924,12 +923,12 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     if fg:
         g.memo["fgather_work"] = new_work(p)
     sidx, tri, pts, n, weight, bounce, medium = _gather_points(frame, g)
-    maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)] if isinstance(
-        photons, PhotonMap) else [
-        ("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM),
-        ("indirect", photons.indirect_map, search_radius(frame, photons), None, GATHER_STREAM)]
-    if fg:
-        maps = maps[:1]
+    if isinstance(photons, PhotonMap):
+        maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)]
+    else:  # (with final gathering the indirect map is not gathered here: its radius is not needed)
+        maps = [("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM)]
+        if not fg:
+            maps.append(("indirect", photons.indirect_map, search_radius(frame, photons), None, GATHER_STREAM))
     maps = [m for m in maps if m[1].n > 0]
     if sidx.shape[0] == 0 or not (maps or fg):
         return pixel_mean(frame, radiance), work
