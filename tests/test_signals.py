@@ -143,3 +143,35 @@ def test_two_sweeps_into_one_folder(tmp_path):
     assert sorted(p.name for p in (out / "points").iterdir()) == sorted(r["hash"] for r in got)
     assert all((out / "points" / r["hash"] / "results.json").is_file() for r in got)
     assert (out / "report" / "report.html").is_file() and leftovers(out) == []
+
+
+def test_claiming_a_folder_races_safely(tmp_path, monkeypatch):
+    """The race behind ``test_two_sweeps_into_one_folder``, made deterministic: a folder
+    another process is claiming this instant (only the marker's temporary file in it) is
+    not refused, a claim that loses the rename to another claim still succeeds, and a
+    folder with anything else in it and no marker is still refused."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / ".sweep.yaml.tmp4242").write_text("half")  # another sweep writing its marker
+    storage.check_destination(out, "sweep.yaml")
+    (out / "points").mkdir()  # ... but a folder with work in it and no marker is refused
+    with pytest.raises(storage.InputError, match="not an earlier tlm output"):
+        storage.check_destination(out, "sweep.yaml")
+
+    won = tmp_path / "w"
+    rename = os.rename
+
+    def other_wins(src, dst):  # another process claims the folder first
+        if Path(dst) == won:
+            won.mkdir()
+            (won / "sweep.yaml").write_text("theirs")
+        return rename(src, dst)
+
+    monkeypatch.setattr(storage.os, "rename", other_wins)
+    storage.claim_folder(won, "sweep.yaml", "ours")
+    assert (won / "sweep.yaml").read_text() == "ours"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "w"]  # no claim folder left
+    monkeypatch.setattr(storage.os, "rename", rename)
+    fresh = tmp_path / "f" / "g"
+    storage.claim_folder(fresh, "sweep.yaml", "x")
+    assert [p.name for p in fresh.iterdir()] == ["sweep.yaml"]

@@ -61,7 +61,7 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
         if os.path.ismount(resolved):
             raise InputError(f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it",
                              key=key)
-        if any(resolved.iterdir()) and not (resolved / marker).is_file():
+        if not (resolved / marker).is_file() and any(not _claiming(e.name, marker) for e in resolved.iterdir()):
             raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
                              "refusing to replace it", key=key)
     parent = resolved.parent
@@ -70,6 +70,37 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
+
+
+def _claiming(name: str, marker: str) -> bool:
+    """Whether ``name`` is the temporary file of a marker being written (another tlm
+    process claiming the folder this instant, :func:`claim_folder`)."""
+    return name.startswith(f".{marker}.tmp")
+
+
+def claim_folder(out: Path, marker: str, data: str) -> None:
+    """Make ``out`` a tlm output: the folder with ``marker`` in it, atomically.
+
+    A missing folder is created whole, marker inside, by renaming a prepared sibling onto
+    it, so another process never sees it without its marker; a folder that exists (which
+    :func:`check_destination` accepted) gets the marker by an atomic write. Two processes
+    claiming one folder at once both succeed: the second finds the first's marker.
+    """
+    out = Path(out)
+    if not out.exists():
+        tmp = out.with_name(f".{out.name}.claim{os.getpid()}")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        try:
+            write_file(tmp / marker, data)
+            os.rename(tmp, out)
+            return
+        except OSError:
+            if not out.is_dir():  # not a lost race: a real failure
+                raise
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    write_file(out / marker, data)
 
 
 def pid_alive(pid: int) -> bool:

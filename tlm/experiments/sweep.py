@@ -67,7 +67,7 @@ from tlm.errors import InputError
 from tlm.experiments.executors import InProcess, LocalPool, open_executor
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
 from tlm.fingerprint import code_fingerprint
-from tlm.storage import atomic_folder, check_destination, write_file
+from tlm.storage import atomic_folder, check_destination, claim_folder, write_file
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -421,6 +421,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
+    # the folder and its marker appear together: a second sweep into it, started this
+    # instant, finds a tlm output (never a half-made folder that it must refuse)
+    claim_folder(out, MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
     points_dir = out / "points"
 
     by_hash: dict[str, list[Point]] = {}
