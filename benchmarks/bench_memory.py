@@ -1,4 +1,4 @@
-"""Peak resident memory of whole runs: the Cornell photon-map frame and a 1M-triangle mesh at 1080p.
+"""Peak resident memory of whole runs: the Cornell photon-map frame, a 69k-triangle glass mesh, 1M triangles at 1080p.
 
 **Cornell** (issue [7 of 7]): ``tlm run configs/cornell_pmap.yaml`` (320 x 320 pixels,
 120,000 photons, all four passes, the timing model and the report), once as is and once
@@ -11,14 +11,33 @@ an OBJ file with one object per part into a temporary folder and loaded by ``tlm
 mesh loader) rendered at 1920 x 1080 in the RCast and Refract modes with the default
 outputs (images, radiance, AOVs, trace). Bar: at most 4 GiB each. The same scene with
 a blob of about 20k triangles is the reference measured in the same run: the wall time
-ratio 1M / 20k, against the triangle ratio (the aim: less than linear growth).
+ratio 1M / 20k, against the triangle ratio (the aim: less than linear growth). Bars
+(issue 25): the Refract run at most 2 GiB; the RCast run, the reference measured in the
+same run, at most 4 GiB (issue 18).
+
+**Glass** (issue 25): the same Cornell box with a glass blob of 69,120 triangles (a
+subdivided sphere, 70,500 triangles in all) at 320 x 320 in the pmap mode (every pass,
+the scene's 120,000 photons; ``--no-reference``: no photon-map reference is computed),
+beside the same scene in the RCast mode as the reference.
+Bar: the pmap run at most 1 GiB.
+
+**Depth** (``--quick``, what ``tests/test_walk_memory.py`` runs): the refract pass of a
+small glass scene (a 2,400-triangle blob, 48 x 48 pixels, one sample each, every Fresnel
+branch traced: ``render.min_weight`` 0) at two specular depths, 4 and 32, with
+``render.batch_rays`` 512, each in a fresh interpreter: the pass's peak of
+``tracemalloc``'s traced memory less the walk's ends and lights seen (its output, which
+the photon-map pass gathers at: per-batch state that grows with the rays that end).
+Bar: the deep walk, which traces several times the rays, peaks at most 1.5 x the shallow
+one (memory bounded by the batch, whatever the depth).
 
 Each run is ``python -m tlm run`` in a fresh interpreter (``--no-progress``), one after
 another; its peak RSS is the kernel's (``os.wait4``'s ``ru_maxrss``), its wall time the
 parent's clock. Exits 1 if a bar fails.
 
     python benchmarks/bench_memory.py [--config configs/cornell_pmap.yaml] [--set KEY=VALUE ...]
-    python benchmarks/bench_memory.py --large-only [--spp 1 4] [--modes rcast refract]
+    python benchmarks/bench_memory.py --only glass
+    python benchmarks/bench_memory.py --only large [--spp 1 4] [--modes rcast refract]
+    python benchmarks/bench_memory.py --quick
 """
 
 from __future__ import annotations
@@ -37,7 +56,14 @@ import yaml
 from timing import exit_status, verdict
 
 BAR_BYTES = 2 * 1024**3
-LARGE_BAR_BYTES = 4 * 1024**3
+LARGE_BAR_BYTES = {"rcast": 4 * 1024**3, "refract": 2 * 1024**3}  # issue 18's, issue 25's
+GLASS_BAR_BYTES = 1024**3
+GLASS = (240, 145)  # 2 * 240 * 144 = 69,120 triangles
+GLASS_RESOLUTION = [320, 320]
+QUICK = (40, 31)  # 2 * 40 * 30 = 2,400 triangles
+QUICK_DEPTHS = (4, 32)
+QUICK_BATCH_RAYS = 512
+QUICK_RATIO = 1.5
 ROOT = Path(__file__).resolve().parents[1]
 LARGE = (1000, 501)  # blob meridians, latitude bands: 2 * 1000 * 500 = 1,000,000 triangles
 SMALL = (100, 101)  # 2 * 100 * 100 = 20,000 triangles
@@ -77,7 +103,7 @@ def blob(n_seg: int, n_rings: int, center=(400.0, 112.0, 130.0), radius: float =
     return vertices, np.concatenate(faces)
 
 
-def write_scene(folder: Path, name: str, n_seg: int, n_rings: int) -> tuple[Path, int]:
+def write_scene(folder: Path, name: str, n_seg: int, n_rings: int, resolution=RESOLUTION) -> tuple[Path, int]:
     """The Cornell box with a glass blob of ``2 n_seg (n_rings - 1)`` triangles as an OBJ
     mesh and a scene file naming it; returns the scene file and its triangle count."""
     from tlm.scenes.builders import cornell
@@ -99,7 +125,7 @@ def write_scene(folder: Path, name: str, n_seg: int, n_rings: int) -> tuple[Path
     (folder / f"{name}.obj").write_text("\n".join(lines) + "\n")
     raw = yaml.safe_load((scenes_dir() / "cornell.yaml").read_text())
     raw.update(name=name, description=f"Cornell box with a {n}-triangle glass blob", geometry={"mesh": f"{name}.obj"},
-               resolution=RESOLUTION)
+               resolution=list(resolution))
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
     return path, n
@@ -144,28 +170,114 @@ def large_check(args, sets: list[str]) -> None:
                     measured[label] = (rss, wall)
                     print(f"{spp:3d} {mode:8s} {n:>10,d} {rss / 2**20:8.0f} MiB {wall:7.1f} s", flush=True)
                 (rss, wall), (_, wall_small) = measured["large"], measured["small"]
-                verdict(rss <= LARGE_BAR_BYTES, f"spp {spp} {mode}: peak resident memory {rss / 2**20:.0f} MiB "
-                        f"at {n_large:,} triangles (bar: at most {LARGE_BAR_BYTES / 2**30:.0f} GiB)", "  ")
+                bar = LARGE_BAR_BYTES[mode]
+                verdict(rss <= bar, f"spp {spp} {mode}: peak resident memory {rss / 2**20:.0f} MiB "
+                        f"at {n_large:,} triangles (bar: at most {bar / 2**30:.0f} GiB)", "  ")
                 ratio, tri_ratio = wall / wall_small, n_large / n_small
                 print(f"  spp {spp} {mode}: wall time {ratio:.2f}x for {tri_ratio:.1f}x the triangles "
                       f"({'less than' if ratio < tri_ratio else 'NOT less than'} linear)")
 
 
+def glass_check(args, sets: list[str]) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        env = dict(os.environ, TLM_CACHE=str(folder / "cache"))
+        scene, n = write_scene(folder, "glass", *GLASS, resolution=GLASS_RESOLUTION)
+        print(f"glass scene: the Cornell box with a {2 * GLASS[0] * (GLASS[1] - 1):,}-triangle glass blob "
+              f"({n:,} triangles), {GLASS_RESOLUTION[0]}x{GLASS_RESOLUTION[1]}, one run at a time")
+        measured = {}
+        for mode in ("rcast", "pmap"):
+            config = folder / f"glass_{mode}.yaml"
+            config.write_text(yaml.safe_dump({"scene": str(scene), "mode": mode}))
+            cmd = [sys.executable, "-m", "tlm", "run", str(config), "--out", str(folder / "run"), "--no-report",
+                   "--no-progress", "--no-reference", *sets]  # (the render, not a reference's hundred rounds)
+            measured[mode] = peak_rss(cmd, env)
+            shutil.rmtree(folder / "run")
+            print(f"  {mode:8s} peak RSS {measured[mode][0] / 2**20:8.0f} MiB   {measured[mode][1]:6.1f} s wall"
+                  f"{'   (the reference)' if mode == 'rcast' else ''}", flush=True)
+        rss = measured["pmap"][0]
+        verdict(rss <= GLASS_BAR_BYTES, f"pmap: peak resident memory {rss / 2**20:.0f} MiB at {n:,} triangles, "
+                f"{rss / measured['rcast'][0]:.2f}x the RCast run's (bar: at most {GLASS_BAR_BYTES / 2**30:.0f} GiB)",
+                "  ")
+
+
+def walk_peak(scene: Path, depth: int) -> None:
+    """(In a fresh interpreter) the refract pass of ``scene`` at ``depth``: prints its traced
+    peak less the walk's output, the rays it traced and that output's bytes."""
+    import tracemalloc
+
+    from tlm.config import config_from_dict
+    from tlm.kernels.traverse import build_accel
+    from tlm.render import passes
+    from tlm.scenes.loader import load_scene
+
+    sc = load_scene(str(scene))
+    cfg = config_from_dict({"resolution": [sc.camera.width, sc.camera.height], "mode": "refract",
+                            "render": {"spp": 1, "refract_depth": depth, "min_weight": 0.0,
+                                       "batch_rays": QUICK_BATCH_RAYS}})
+    frame = passes.Frame.create(sc, build_accel(sc.triangles), cfg)
+    g = passes.cast(frame, np.arange(sc.camera.width * sc.camera.height))
+    passes.refract_pass(frame, passes.cast(frame, np.arange(4)))  # compile and warm what the pass runs
+    tracemalloc.start()
+    base = tracemalloc.get_traced_memory()[0]
+    _, work = passes.refract_pass(frame, g)
+    peak = tracemalloc.get_traced_memory()[1] - base
+    tracemalloc.stop()
+    out = sum(a.nbytes for w in g.memo.values() if isinstance(w, passes.Walk)
+              for a in (w.emitted_sample, w.emitted_radiance, *vars(w.ends).values()))
+    print(peak - out, int(work["secondary_rays"].sum()), out)
+
+
+def quick_check(args) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        scene, _ = write_scene(Path(tmp), "quick", *QUICK, resolution=(48, 48))
+        print(f"depth: the refract pass of the Cornell box with a {2 * QUICK[0] * (QUICK[1] - 1):,}-triangle glass "
+              f"blob, 48x48, 1 spp, render.min_weight 0, render.batch_rays {QUICK_BATCH_RAYS}")
+        rows = {}
+        for depth in QUICK_DEPTHS:
+            out = subprocess.run([sys.executable, __file__, "--walk-peak", str(scene), str(depth)], cwd=ROOT,
+                                 check=True, capture_output=True, text=True).stdout.split()
+            peak, rays, kept = (int(x) for x in out[-3:])
+            rows[depth] = (peak, rays)
+            print(f"  refract_depth {depth:3d}: {rays:8,d} rays traced, peak {peak / 2**20:7.2f} MiB "
+                  f"(the walk's ends, {kept / 2**20:.2f} MiB, left out)", flush=True)
+    (p0, r0), (p1, r1) = rows[QUICK_DEPTHS[0]], rows[QUICK_DEPTHS[1]]
+    verdict(r1 >= 4 * r0, f"the deep walk traces {r1 / r0:.1f}x the rays of the shallow one (at least 4x: a real test)",
+            "  ")
+    verdict(p1 <= QUICK_RATIO * p0, f"the deep walk peaks at {p1 / p0:.2f}x the shallow one's memory "
+            f"(bar: at most {QUICK_RATIO}x)", "  ")
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["--walk-peak"]:
+        sys.path.insert(0, str(ROOT))
+        walk_peak(Path(sys.argv[2]), int(sys.argv[3]))
+        return
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", type=Path, default=ROOT / "configs" / "cornell_pmap.yaml",
                     help="the Cornell check's config")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="passed to every tlm run")
-    ap.add_argument("--large-only", action="store_true", help="only the 1M-triangle 1080p runs")
+    ap.add_argument("--only", choices=["cornell", "glass", "large"], nargs="+",
+                    help="only these checks (default: all three)")
+    ap.add_argument("--large-only", action="store_true", help="only the 1M-triangle 1080p runs (--only large)")
+    ap.add_argument("--quick", action="store_true",
+                    help="only the depth check: a small glass walk's memory at two depths (seconds)")
     ap.add_argument("--spp", type=int, nargs="+", default=[1],
                     help="eye rays per pixel of the large runs (default: 1, the thesis's ray casting)")
     ap.add_argument("--modes", nargs="+", default=["rcast", "refract"], choices=["rcast", "refract"],
                     help="modes of the large runs")
     args = ap.parse_args()
     sets = [a for kv in args.set for a in ("--set", kv)]
-    if not args.large_only:
+    if args.quick:
+        quick_check(args)
+        exit_status()
+    only = set(args.only or (["large"] if args.large_only else ["cornell", "glass", "large"]))
+    if "cornell" in only:
         cornell_check(args, sets)
-    large_check(args, sets)
+    if "glass" in only:
+        glass_check(args, sets)
+    if "large" in only:
+        large_check(args, sets)
     exit_status()
 
 

@@ -2,7 +2,7 @@
 
 Renders the frame of ``--scene`` in ``--mode`` (default: Cornell, photon mapping) once
 with ``tlm.experiments.run.render`` (the functional layer: the kernels), then runs the
-SimPy layer, ``simulate(Functional.of(res), load_programs(), arch)``, with the default
+SimPy layer, ``simulate(res.functional(), load_programs(), arch)``, with the default
 ``ArchConfig`` (packets of 256, 5 frames, two images in flight, trace on, as ``tlm run``
 does). Each layer is timed separately, the best of ``--repeat`` runs. Prints
 
@@ -41,9 +41,8 @@ from dataclasses import replace
 
 from timing import best_of, exit_status, verdict
 
-from tlm.arch.functional import Functional
+from tlm.arch.costs import load_programs
 from tlm.arch.model import PMS, frame_program, simulate, simulate_program
-from tlm.arch.programs import load_programs
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
 
@@ -88,11 +87,11 @@ def main() -> None:
     res = holder["res"]
 
     def do_simulate():
-        holder["tm"] = simulate(Functional.of(res), programs, arch)
+        holder["tm"] = simulate(res.functional(), programs, arch)
 
     sim_s = best_of(do_simulate, args.repeat)
     tm = holder["tm"]
-    fn = Functional.of(res)
+    fn = res.functional()
     program_s = best_of(lambda: frame_program(fn, programs, arch), args.repeat)
     program = frame_program(fn, programs, arch)
     untraced = replace(arch, trace=False)

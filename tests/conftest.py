@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import pytest
 
+COLLECTED = pytest.StashKey[list]()  # every test the session collected, before -m / -k deselect any
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(session, config, items):
+    """Keep the whole collection (tests/test_fast_tier.py reads the tier from it, marks applied)."""
+    session.stash[COLLECTED] = list(items)
+
 
 @pytest.fixture
 def cache(tmp_path, monkeypatch):

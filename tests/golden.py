@@ -32,9 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.arch.functional import Functional
+from tlm.arch.costs import load_programs
 from tlm.arch.model import simulate
-from tlm.arch.programs import load_programs
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
@@ -120,7 +119,7 @@ def _ints(d: dict) -> dict:
 def _run(raw: dict) -> dict:
     cfg = config_from_dict({"seed": 0, **raw})
     res = render(cfg)
-    tm = simulate(Functional.of(res), load_programs().with_scales(SCALES, RECORD_CYCLES), cfg.arch)
+    tm = simulate(res.functional(), load_programs().with_scales(SCALES, RECORD_CYCLES), cfg.arch)
     out = {
         "radiance": {name: digest(rad) for name, rad in sorted(res.radiance.items())},
         "work": {name: {k: int(v.sum()) for k, v in sorted(wk.items())} for name, wk in sorted(res.work.items())},

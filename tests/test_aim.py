@@ -131,6 +131,7 @@ def _power_by_cell(tr, n_group: int, lo, hi, g: int) -> tuple[np.ndarray, np.nda
     return s, s2 - s * s / n_group, counts
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, n_group", [("ring", 60000), (THESIS_RING, 60000), ("cornell", 40000),
                                            ("cornell-sphere", 30000)])
 def test_parts_and_box_agree_within_the_noise(name, n_group):
@@ -160,6 +161,7 @@ def test_parts_and_box_agree_within_the_noise(name, n_group):
 # ---------------------------------------------------------------- efficient
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, least", [(THESIS_RING, 2.5), ("ring", 1.8)])
 def test_parts_store_more_of_the_caustic_group(name, least):
     """Share of the caustic group stored in the caustic map (20,000 photons, seed 0):
@@ -175,6 +177,7 @@ def test_parts_store_more_of_the_caustic_group(name, least):
 # ---------------------------------------------------------------- caustic_count
 
 
+@pytest.mark.slow
 def test_caustic_count_is_a_budget_of_its_own():
     scene, accel = _scene("room")  # a quad light and a point light
     flat = scene.triangles.reshape(-1, 3)
@@ -227,6 +230,7 @@ BEFORE = {"ring": "48c821d3193c9da0", THESIS_RING: "32cf811553b52a90", "cornell"
           "cornell-sphere": "e1eb28c4f97d75e1", "room": "a2dae29df1263133"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(BEFORE))
 def test_box_emits_as_before(name, monkeypatch):
     scene = load_scene(name)

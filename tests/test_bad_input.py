@@ -299,6 +299,7 @@ def run_argv(tmp_path: Path, case: Case) -> list[str]:
     return ["run", str(tmp_path / case.config_path), "--out", str(tmp_path / "out"), *case.argv]
 
 
+@pytest.mark.slow
 def test_base_inputs_are_valid(tmp_path, capsys):
     """The unbroken scene and config render (so each case breaks exactly one thing)."""
     write_inputs(tmp_path, Case())
@@ -311,6 +312,7 @@ def test_base_inputs_are_valid(tmp_path, capsys):
     capsys.readouterr()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
 def test_bad_run(tmp_path, capsys, name):
     case = CASES[name]
@@ -318,6 +320,7 @@ def test_bad_run(tmp_path, capsys, name):
     run_and_check(tmp_path, capsys, run_argv(tmp_path, case), case.expect)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", [n for n, c in CASES.items() if c.show])
 def test_bad_scene_show(tmp_path, capsys, name):
     case = CASES[name]

@@ -273,6 +273,7 @@ def test_leaves_hold_exactly_the_overlapping_triangles(seed, levels):
         assert set(items.tolist()) == set(np.flatnonzero(overlap).tolist()), k
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cornell", "ring", "room"])
 def test_scene_leaves_follow_the_split_rule(name):
     """Thesis scenes (axis-aligned, coplanar geometry): membership per the x<s / x>=s rule.
@@ -309,6 +310,7 @@ def test_random_soup_follows_split_rule_too(seed, levels):
     assert leaf_sets(tree) == expected
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [2, 5, None])
 def test_leaf_items_ascending_stable(levels):
     tri = random_soup(7, 400, size=0.25)

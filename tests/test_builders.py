@@ -186,6 +186,7 @@ def test_closed_solids_face_outward():
             assert vol > 0, name
 
 
+@pytest.mark.slow
 def test_room_surfaces_face_inward():
     g = room()
     lo, hi = _bounds(g.triangles)
@@ -218,6 +219,7 @@ def test_counts_follow_params(builder, params, expected):
     assert builder(**params).triangles.shape[0] == expected
 
 
+@pytest.mark.slow
 def test_room_count_formula():
     p = {"grid_x": 5, "grid_y": 3, "grid_z": 6, "glass_seg": 8, "glass_rings": 4, "vase_seg": 6,
          "leg_seg": 5, "sofa_div": 1, "furniture_div": 1}

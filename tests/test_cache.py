@@ -112,6 +112,7 @@ def arrays(rs):
     return a[:, 0], a[:, 0] + a[:, 1], a[:, 2]
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(ranges, pages, states)
 def test_page_spans_give_the_misses_of_the_full_stream(rs, page_words, state):
@@ -134,6 +135,7 @@ def test_page_spans_give_the_misses_of_the_full_stream(rs, page_words, state):
     assert end == want_end
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, OWNERS - 1), ranges), max_size=8), pages, states)
 def test_compacted_steps_in_owner_order_give_the_full_owner_major_stream(steps, page_words, state):
@@ -190,6 +192,7 @@ def test_compact_keeps_the_largest_word_of_each_run():
         Streams(0)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.integers(0, 60), max_size=40), st.lists(st.integers(0, 40), max_size=4), pages, states)
 def test_any_split_with_the_state_carried_is_the_whole_stream(stream, cuts, page_words, state):
@@ -265,6 +268,7 @@ def test_two_streams_on_one_pair_evict_each_other_by_hand():
 STREAMS = ("nodes", "indices", "vertices")
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.tuples(st.sampled_from(STREAMS), st.integers(0, OWNERS - 1), ranges), max_size=8),
        pages, st.sampled_from([1, 2, 4]), st.lists(st.integers(0, OWNERS), max_size=3))

@@ -49,6 +49,7 @@ def without_seconds(summary: dict) -> dict:
     return {k: v for k, v in summary.items() if k != "host_seconds"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("way", WAYS)
 @pytest.mark.parametrize("file", ["npz", "json"])
 def test_a_damaged_functional_entry_is_rendered_again(file, way, capsys):
@@ -105,6 +106,7 @@ def test_a_damaged_reference_is_removed(file, way, cache, capsys):
     np.testing.assert_array_equal(load_reference(key)[0], image)
 
 
+@pytest.mark.slow
 def test_a_pmap_run_with_a_damaged_reference_warns_and_goes_on(tmp_path, cache, capsys):
     """The run measures no error (the reference is gone, its hint says how to compute it)."""
     args = ["run", str(REPO / "configs" / "cornell.yaml"), "--mode", "pmap", "--set", "resolution=[16,12]",

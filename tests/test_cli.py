@@ -55,6 +55,7 @@ def flatten(d: dict, prefix: str = "") -> dict:
 # ---------------------------------------------------------------- run folder
 
 
+@pytest.mark.slow
 def test_run_folder_layout(cornell_run):
     out, _ = cornell_run
     files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
@@ -70,6 +71,7 @@ def test_run_folder_layout(cornell_run):
     assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
 
 
+@pytest.mark.slow
 def test_resolved_config_has_every_parameter(cornell_run):
     out, _ = cornell_run
     resolved = yaml.safe_load((out / "config.resolved.yaml").read_text())
@@ -83,6 +85,7 @@ def test_resolved_config_has_every_parameter(cornell_run):
     assert to_dict(config_from_dict(resolved)) == resolved
 
 
+@pytest.mark.slow
 def test_results_json(cornell_run):
     _out, results = cornell_run
     assert results["seed"] == 0 and results["mode"] == "refract"
@@ -115,6 +118,7 @@ def test_results_json(cornell_run):
     assert results["warnings"] == []
 
 
+@pytest.mark.slow
 def test_images_are_valid_nonblank_pngs(cornell_run):
     out, _ = cornell_run
     for name in ("rcast", "reflect", "refract", "composite"):
@@ -132,6 +136,7 @@ def test_images_are_valid_nonblank_pngs(cornell_run):
         assert px.max() > 0 and px.std() > 0, name
 
 
+@pytest.mark.slow
 def test_radiance_arrays(cornell_run):
     out, _ = cornell_run
     rad = {}
@@ -154,6 +159,7 @@ def test_radiance_arrays(cornell_run):
     assert inner.any() and not np.any(inner & both)
 
 
+@pytest.mark.slow
 def test_primary_aov(cornell_run):
     out, _ = cornell_run
     with np.load(out / "aov" / "primary.npz") as z:
@@ -185,6 +191,7 @@ def test_primary_aov(cornell_run):
     assert np.nanmean(np.where(hit, p[..., 1], np.nan)[:4]) > np.nanmean(np.where(hit, p[..., 1], np.nan)[-4:])
 
 
+@pytest.mark.slow
 def test_work_aov_matches_results(cornell_run):
     out, results = cornell_run
     with np.load(out / "aov" / "work.npz") as z:
@@ -196,6 +203,7 @@ def test_work_aov_matches_results(cornell_run):
         assert int(a.sum()) == results["work"][p][k], key
 
 
+@pytest.mark.slow
 def test_stdout_summary(tmp_path, capsys):
     code = main(["run", RING, "--out", str(tmp_path / "r"), "--set", "resolution=[32,24]"])
     assert code == 0
@@ -235,6 +243,7 @@ def test_a_stream_too_short_for_a_steady_throughput_warns(tmp_path, capsys):
     assert 8 * timing["simpy_events"] < timing["event_bound"] <= 200_000_000
 
 
+@pytest.mark.slow
 def test_mode_rcast(tmp_path, capsys):
     out = tmp_path / "rc"
     results = run(out, "--mode", "rcast", capsys=capsys)
@@ -252,6 +261,7 @@ def test_mode_rcast(tmp_path, capsys):
     assert yaml.safe_load((out / "config.resolved.yaml").read_text())["mode"] == "rcast"
 
 
+@pytest.mark.slow
 def test_seed_and_determinism(tmp_path, cornell_run):
     base, base_results = cornell_run
     again = run(tmp_path / "again", "--seed", "0")
@@ -279,6 +289,7 @@ def test_seed_and_determinism(tmp_path, cornell_run):
         (tmp_path / "seed7" / "images" / "composite.png").read_bytes()
 
 
+@pytest.mark.slow
 def test_an_earlier_run_folder_is_replaced(tmp_path):
     out = tmp_path / "run"
     run(out, "--mode", "rcast")
@@ -316,12 +327,14 @@ def test_export_into_a_missing_folder(tmp_path, capsys):
     assert err.startswith("tlm: error:") and "does not exist" in err
 
 
+@pytest.mark.slow
 def test_default_out_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert main(["run", CORNELL, "--mode", "rcast", "--set", "resolution=[16,16]"]) == 0
     assert (tmp_path / "runs" / "cornell" / "results.json").is_file()
 
 
+@pytest.mark.slow
 def test_relative_scene_path_in_config(tmp_path):
     """A config's scene path is relative to the config file."""
     (tmp_path / "scenes").mkdir()
@@ -435,6 +448,7 @@ def test_params(capsys):
         assert key in keys
 
 
+@pytest.mark.slow
 def test_python_dash_m(tmp_path):
     """``python -m tlm`` is the same entry point (smoke test in a subprocess)."""
     import subprocess

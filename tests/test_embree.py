@@ -63,6 +63,7 @@ def traced(request):
     return request.param, scene, accel, es, o, d, hits, ref
 
 
+@pytest.mark.slow
 def test_primary_rays_agree_with_embree(traced):
     name, scene, _, _, o, d, hits, ref = traced
     tri_e = ref["primID"].astype(np.int64)
@@ -89,6 +90,7 @@ def test_primary_rays_agree_with_embree(traced):
         assert (q @ e2) / det == pytest.approx(hits.t[i], rel=1e-4)
 
 
+@pytest.mark.slow
 def test_primary_general_path_agrees_with_embree(traced):
     """The same eye rays through the general (per-ray origin) path."""
     name, _, accel, _, o, d, _, ref = traced
@@ -119,6 +121,7 @@ def test_primary_normals_and_barycentrics(traced):
     np.testing.assert_allclose(hits.v[same], ref["v"][same], atol=2e-3)
 
 
+@pytest.mark.slow
 def test_shadow_rays_agree_with_embree(traced):
     name, scene, accel, es, o, d, hits, _ = traced
     hit = np.flatnonzero(hits.triangle >= 0)

@@ -92,6 +92,7 @@ def hard_rays(scene, n: int, seed: int):
     return o, d, tmin, tmax, ignore
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("record", [False, True])
 def test_hard_rays(scene_accel, monkeypatch, record):
     scene, accel = scene_accel
@@ -102,6 +103,7 @@ def test_hard_rays(scene_accel, monkeypatch, record):
     assert s.occluded.mean() > 0.3
 
 
+@pytest.mark.slow
 def test_eye_rays_with_a_shared_origin(scene_accel, monkeypatch):
     scene, accel = scene_accel
     w, h = scene.camera.width, scene.camera.height
@@ -115,6 +117,7 @@ def test_eye_rays_with_a_shared_origin(scene_accel, monkeypatch):
             run(monkeypatch, engine, closest_hit, accel, o2, d, shared_origin=True)
 
 
+@pytest.mark.slow
 def test_tmax_at_the_hit_runs_the_float64_fallback(scene_accel, monkeypatch):
     """tmax equal to the float64 hit distance: float32 accepts what the check refuses,
     so the float64 fallback decides (checked to run under numpy, then compared)."""
@@ -138,6 +141,7 @@ def test_tmax_at_the_hit_runs_the_float64_fallback(scene_accel, monkeypatch):
     assert_same(monkeypatch, any_hit, accel, o, d, tmax=tmax, record=True)
 
 
+@pytest.mark.slow
 def test_origins_float32_cannot_hold(scene_accel, monkeypatch):
     _, accel = scene_accel
     centre = 0.5 * (accel.tree.lo[0] + accel.tree.hi[0])
@@ -163,6 +167,7 @@ def test_empty_and_missing_packets(scene_accel, monkeypatch):
     assert (inverted.triangle == -1).all()
 
 
+@pytest.mark.slow
 def test_deep_trees_and_small_buffers_rerun(monkeypatch):
     """A deep tree and tiny starting buffers: every buffer overflows, the kernel reruns
     with larger ones, and the answers still equal numpy's."""

@@ -248,6 +248,7 @@ def fixed(kind: str, *args, **kw) -> est.Estimate:
 # ---------------------------------------------------------------- brute force
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind,cone", FIXED)
 @pytest.mark.parametrize("levels", [None, 0, 3])
 def test_fixed_radius_equals_brute_force(kind, cone, levels):
@@ -262,6 +263,7 @@ def test_fixed_radius_equals_brute_force(kind, cone, levels):
         finite_nonneg(e)
 
 
+@pytest.mark.slow
 def test_knn_equals_brute_force():
     pos, power, inc = cube_map(2000, 3)
     pts, nrm = cube_queries(150, 4)
@@ -276,6 +278,7 @@ def test_knn_equals_brute_force():
     np.testing.assert_array_equal(e2.density, brute_knn(pos, power, inc, pts, nrm, 7)[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", [1, 3, 8])
 def test_kvoxel_equals_reference(k):
     pos, power, inc = cube_map(4000, 5)
@@ -313,6 +316,7 @@ def scattered_z_splits(tree, pos) -> int:
     return count
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", [1, 4, 8])
 def test_kvoxel_layers_equal_reference(k):
     """Photons on a plane, off it by rounding: the splits along z scatter them (layers)."""
@@ -334,6 +338,7 @@ def test_kvoxel_layers_equal_reference(k):
     finite_nonneg(e)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k", [1, 4, 8, 16])
 def test_kvoxel_unbiased_on_traced_plane(k):
     """Regression: with every z split on the plane, one voxel held one layer's photons only.
@@ -356,6 +361,7 @@ def test_kvoxel_unbiased_on_traced_plane(k):
     finite_nonneg(kv)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tilt", [0.0, 1e-9, 1e-6, 1e-3])
 def test_kvoxel_unbiased_on_traced_box(tilt):
     """Photons and queries on the six faces of a box, rounded off them by ~1e-13, faces
@@ -424,6 +430,7 @@ def planes():
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["disk", "mvoxel", "knn"])
 def test_uniform_density(planes, kind):
     expect = 3.0
@@ -438,6 +445,7 @@ def test_uniform_density(planes, kind):
         assert err[200_000] < 0.15
 
 
+@pytest.mark.slow
 def test_kvoxel_converges_to_mvoxel(planes):
     """At a fixed depth the k voxels fill with photons and eq. 3.5 approaches eq. 3.3.
 
@@ -631,6 +639,7 @@ def assert_same(a: est.Estimate, b: est.Estimate, idx=slice(None), misses: bool 
         np.testing.assert_array_equal(getattr(a, name)[idx], getattr(b, name), err_msg=name)
 
 
+@pytest.mark.slow
 def test_packet_invariance(monkeypatch):
     pos, power, inc = cube_map(6000, 21)
     tree = build_point_tree(pos)
@@ -755,6 +764,7 @@ def test_gather_misses_are_those_of_the_photon_leaf_stream():
     assert np.all(knn.gather_misses == 0)  # the cKDTree reference: no hardware leaves
 
 
+@pytest.mark.slow
 def test_gather_misses_of_packets_in_order_with_the_state_carried():
     pos, power, inc = cube_map(6000, 53)
     tree = build_point_tree(pos)

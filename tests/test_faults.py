@@ -82,6 +82,7 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(argv, monkeypatch, cap
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_head_of_params_in_a_shell():
     """The real pipe: ``tlm params | head -1`` shows one line and no traceback."""
     proc = subprocess.run(f"{sys.executable} -m tlm params | head -1", shell=True, capture_output=True, text=True,
@@ -107,6 +108,7 @@ def test_a_bug_prints_one_line_and_the_file_of_its_traceback(monkeypatch, capsys
 # ---------------------------------------------------------------- a full disk, a read-only --out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("failure", ["errno", "numpy"])
 def test_a_full_disk_is_one_line_exit_1_and_nothing_written(failure, tmp_path, monkeypatch, capsys):
     """Simulated: the radiance writer fails as a full disk makes it fail (ENOSPC, or
@@ -183,6 +185,7 @@ def tmpfs(tmp_path):
         subprocess.run(["umount", str(folder)], check=False)
 
 
+@pytest.mark.slow
 def test_a_real_file_system_that_fills(tmpfs, tmp_path):
     disk = tmpfs("disk", "size=128k")
     out = disk / "r"
@@ -195,6 +198,7 @@ def test_a_real_file_system_that_fills(tmpfs, tmp_path):
     assert list(disk.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_real_read_only_mount_point(tmpfs, tmp_path):
     ro = tmpfs("ro", "ro,size=64k")
     env = {**os.environ, "PYTHONPATH": str(REPO)}
@@ -210,6 +214,7 @@ def test_a_real_read_only_mount_point(tmpfs, tmp_path):
 # ---------------------------------------------------------------- concurrent writers, stale folders
 
 
+@pytest.mark.slow
 def test_a_folder_is_not_swapped_while_another_holds_its_lock(tmp_path):
     """What a report reading its run folder holds (:func:`folder_lock`): a second writer's
     swap waits for it, and then replaces the folder whole."""
@@ -234,6 +239,7 @@ def test_a_folder_is_not_swapped_while_another_holds_its_lock(tmp_path):
     assert (out / "m").read_text() == "second" and leftovers(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_two_runs_into_one_folder_both_succeed(tmp_path):
     """Two ``tlm run`` (with their reports) into one --out, at once: both exit 0, the folder
     is one whole run with its report, and no temporary folder is left."""
@@ -250,6 +256,7 @@ def test_two_runs_into_one_folder_both_succeed(tmp_path):
     assert leftovers(tmp_path / "runs") == []
 
 
+@pytest.mark.slow
 def test_temporary_folders_of_dead_processes_are_removed(tmp_path, capsys):
     runs = tmp_path / "runs"
     runs.mkdir()

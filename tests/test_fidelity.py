@@ -106,6 +106,7 @@ def _with_material(scene, name, material):
     return replace(scene, materials=mats)
 
 
+@pytest.mark.slow
 def test_index_matched_glass_is_indistinguishable_from_no_object():
     """Cornell with its glass sphere at IOR 1 and transmittance 1 against Cornell without
     the sphere, whole composite with the photon map: their difference is the two images'
@@ -130,6 +131,7 @@ def test_index_matched_glass_is_indistinguishable_from_no_object():
     assert o.mean() / a.mean() < 0.95
 
 
+@pytest.mark.slow
 def test_photons_crossing_index_matched_glass_stay_direct():
     """Only index-matched glass between the light and the walls: no caustic is stored (a
     photon that crossed it is still direct light, the ray-cast frame's)."""
@@ -140,6 +142,7 @@ def test_photons_crossing_index_matched_glass_stay_direct():
     assert traced.photons.caustic_map.n == 0 and traced.photons.indirect_map.n > 0
 
 
+@pytest.mark.slow
 def test_aimed_caustic_photons_carry_the_unaimed_caustic_power():
     """The caustic group of a quad light is aimed at the specular objects with weight
     cos * solid angle / pi: the caustic map's power is the one photons emitted over the

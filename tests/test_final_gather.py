@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tlm.arch.functional import Functional
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
 from tlm.kernels.photons import trace_photons
@@ -39,6 +38,7 @@ def _frame(path, scene, accel, **estimate):
     return Frame.create(scene, accel, cfg)
 
 
+@pytest.mark.slow
 def test_furnace_final_gather_finds_the_indirect_half(furnace):
     """Inside a closed sphere of albedo 0.5 lit from its centre, every surface's radiance is 1,
     so the rays gather 1 everywhere and the indirect half is 0.5 (the estimator without
@@ -98,6 +98,7 @@ def _cornell(**over):
     return config_from_dict(raw)
 
 
+@pytest.mark.slow
 def test_plan_and_work_of_final_gathering():
     on = render(_cornell(estimate={"final_gather": 4}))
     off = render(_cornell(estimate={"final_gather": 0}))
@@ -113,11 +114,11 @@ def test_plan_and_work_of_final_gathering():
     # the composite is the frames' sum, the same quantity either way (the photon maps differ)
     assert abs(on.radiance["pmap"].mean() / off.radiance["pmap"].mean() - 1) < 0.1
     # the timing model charges the rays (Traversal, Intersection PMs) and their hits (Fragment PM)
+    from tlm.arch.costs import load_programs
     from tlm.arch.model import simulate
-    from tlm.arch.programs import load_programs
 
-    t_on = simulate(Functional.of(on), load_programs(), on.cfg.arch)
-    t_off = simulate(Functional.of(off), load_programs(), off.cfg.arch)
+    t_on = simulate(on.functional(), load_programs(), on.cfg.arch)
+    t_off = simulate(off.functional(), load_programs(), off.cfg.arch)
     for pm in ("traversal", "intersection"):
         assert t_on.cycles[pm] > t_off.cycles[pm], pm
     # (the Fragment PM shades the rays' hits and gathers where they land, but each lookup of
@@ -126,6 +127,7 @@ def test_plan_and_work_of_final_gathering():
     assert fg["fragments"].sum() > 0
 
 
+@pytest.mark.slow
 def test_final_gathering_does_not_depend_on_the_batch():
     """Chunks of whole pixels in pixel order: radiance and work (misses included) are the
     whole image's whatever the batch of eye rays."""

@@ -44,6 +44,7 @@ def _pmap(furnace, n, filt, radius_fraction=0.04):
     return rad, work
 
 
+@pytest.mark.slow
 def test_direct_light_is_half(furnace):
     path, scene, accel, g, _ = furnace
     frame = Frame.create(scene, accel, config_from_dict({"scene": str(path)}))
@@ -53,6 +54,7 @@ def test_direct_light_is_half(furnace):
     np.testing.assert_allclose(rad, 0.5, rtol=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("filt", FILTERS)
 def test_every_estimator_finds_the_indirect_half(furnace, filt):
     rad, work = _pmap(furnace, 160000, filt)
@@ -61,6 +63,7 @@ def test_every_estimator_finds_the_indirect_half(furnace, filt):
     assert np.all(work["gathers"] == furnace[3].spp)  # every sample of every pixel gathers
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("filt", FILTERS)
 def test_error_falls_as_photons_grow(furnace, filt):
     few, _ = _pmap(furnace, 10000, filt)

@@ -21,6 +21,7 @@ from tests import golden
 GOLDEN = golden.load()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(GOLDEN))
 def test_same_as_golden(name, tmp_path, monkeypatch):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))  # render, never read a cache

@@ -194,6 +194,7 @@ def test_reference_sanity():
     assert ref.tri.tolist() == [0, -1]
 
 
+@pytest.mark.slow
 def test_brute_force_matches_reference(case):
     seed, tri, o, d, ref = case
     t, k, u, v = brute_force(o, d, tri)
@@ -202,6 +203,7 @@ def test_brute_force_matches_reference(case):
     print(f"seed {seed}: brute force disagrees (explained) on {n_bad} rays")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", LEVELS)
 def test_closest_hit_matches_reference(case, levels):
     seed, tri, o, d, ref = case
@@ -230,6 +232,7 @@ def test_any_hit_matches_reference(case, levels):
     assert differ.mean() <= 0.002
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, 1, 4, None])
 def test_tmin_tmax_window(case, levels):
     seed, tri, o, d, _ = case
@@ -261,6 +264,7 @@ def test_tmin_tmax_window(case, levels):
     assert np.all(h2.t > h0.t[hit0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, 2, None])
 def test_ignore_never_returns_the_ignored_triangle(case, levels):
     _, tri, o, d, _ref = case
@@ -353,6 +357,7 @@ def test_rays_parallel_to_triangles(levels):
     check_against_reference(ref, h2.t, h2.triangle, h2.u, h2.v, max_bad=0.05)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, 1, 2, 5, None])
 def test_zero_direction_components(levels):
     """Axis-parallel rays with +0.0 and -0.0 components agree with the reference, and
@@ -543,6 +548,7 @@ coord = st.floats(min_value=-10.0, max_value=10.0, allow_nan=False, allow_infini
 vec3 = st.tuples(coord, coord, coord)
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # subnormal d: see below
 @settings(max_examples=150, deadline=None, derandomize=True)
 @given(
@@ -575,6 +581,7 @@ def test_single_ray_property(tris, o, d, levels):
         assert h.t[0] == pytest.approx(ref.t[0], rel=1e-6, abs=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, 1, 3, None])
 def test_shared_origin_path(levels):
     """Eye-ray path (one origin for all rays) against the reference."""

@@ -19,6 +19,7 @@ from tlm.scenes.loader import list_scenes, load_scene, resolve_scene_path
 LADDER = ("cornell-box", "cornell-sphere", "cornell-water", "conference")
 
 
+@pytest.mark.slow
 def test_the_ladder_is_built_in_and_listed():
     assert set(LADDER) <= set(list_scenes())
     out = subprocess.run([sys.executable, "-m", "tlm", "scene", "list"], capture_output=True, text=True, check=True)
@@ -54,6 +55,7 @@ def test_cornell_boxes_take_materials_and_light_from_the_mtl(name):
             assert water.kind == "dielectric" and water.ior == 1.33
 
 
+@pytest.mark.slow
 def test_cornell_box_ray_cast_against_mitsuba_direct():
     pytest.importorskip("mitsuba")
     from tlm.kernels.traverse import build_accel
@@ -77,6 +79,7 @@ def test_cornell_box_ray_cast_against_mitsuba_direct():
     assert err > 0, err
 
 
+@pytest.mark.slow
 def test_cornell_sphere_photon_map_from_the_files_light():
     res = render(config_from_dict({"scene": "cornell-sphere", "mode": "pmap", "resolution": [40, 32],
                                    "photons": {"count": 40000}}))

@@ -46,6 +46,7 @@ def _assert_same(a, b) -> None:
     assert (a.primary.rays, a.primary.hits) == (b.primary.rays, b.primary.hits)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("mode", "extra"), [
     ("refract", {}),  # four jittered eye rays per pixel, Fresnel-split glass, shadow rays
     ("pmap", {"estimate": {"filter": "kvoxel"}, "render": {"spp": 1}}),  # both photon maps' gathers
@@ -68,6 +69,7 @@ def test_batches_give_the_whole_image_bit_for_bit(mode, extra):
     assert batched.gbuffer.pixels.shape == whole.gbuffer.pixels.shape
 
 
+@pytest.mark.slow
 def test_batches_of_one_pixel_and_the_written_aovs(tmp_path):
     whole = _render("reflect", 1 << 20, render={"spp": 1})
     single = _render("reflect", 1, render={"spp": 1})  # one pixel a batch (fewer rays than spp: still one)
@@ -129,6 +131,7 @@ def test_default_outputs_are_everything(tmp_path, config, capsys):
             "results.json", "config.resolved.yaml"} <= files
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("names", "present", "absent"), [
     ("aov,trace", {"aov/primary.npz", "aov/work.npz", "trace.json"}, {"radiance"}),
     ("radiance", {"radiance/composite.npy", "radiance/reflect.npy"}, {"aov", "trace.json"}),
@@ -178,6 +181,7 @@ def test_no_bars_when_stderr_is_not_a_terminal(tmp_path, config, capsys):
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_bars_on_a_terminal_unless_no_progress(tmp_path, config, monkeypatch):
     term = _Terminal()
     monkeypatch.setattr("sys.stderr", term)
@@ -190,6 +194,7 @@ def test_bars_on_a_terminal_unless_no_progress(tmp_path, config, monkeypatch):
     assert term.getvalue() == ""
 
 
+@pytest.mark.slow
 def test_reference_and_thesis_bars_follow_the_terminal(tmp_path, monkeypatch, capsys):
     cfg = config_from_dict({**SMALL, "mode": "pmap", "resolution": [8, 6], "render": {"spp": 1}})
     res = render(cfg)

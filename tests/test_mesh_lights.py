@@ -105,6 +105,7 @@ def test_mesh_light_photons_carry_its_power_from_its_front():
     assert abs(cos.mean() - 2.0 / 3.0) < 0.01
 
 
+@pytest.mark.slow
 def test_mesh_light_photon_map_matches_the_quad_lights():
     quad, mesh = _box(8, 8, emitter=False), _box(8, 8, emitter=True)
     stored = []
@@ -115,6 +116,7 @@ def test_mesh_light_photon_map_matches_the_quad_lights():
     np.testing.assert_allclose(stored[1], stored[0], rtol=0.03)
 
 
+@pytest.mark.slow
 def test_mesh_light_renders_as_the_quad_light_it_replaces():
     quad, quad_light = _rcast(_box(32, 32, emitter=False), light_samples=16)
     mesh, mesh_light = _rcast(_box(32, 32, emitter=True), light_samples=16)
@@ -174,6 +176,7 @@ def test_negative_emission_is_a_one_line_error(tmp_path):
         load_scene(str(tmp_path / "bad.yaml"))
 
 
+@pytest.mark.slow
 def test_mesh_light_against_mitsuba_direct():
     pytest.importorskip("mitsuba")
     from tlm.oracle import mitsuba as om

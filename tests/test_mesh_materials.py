@@ -78,6 +78,7 @@ def test_cornell_water_and_original():
     assert o.triangles.shape[0] == 36 and o.normals is None
 
 
+@pytest.mark.slow
 def test_the_conference_room():
     g = load_mesh(MESHES / "conference.obj.xz")
     assert g.triangles.shape == (331179, 3, 3)

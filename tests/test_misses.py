@@ -23,8 +23,9 @@ from tlm.config import config_from_dict
 from tlm.kernels import shade, traverse
 from tlm.kernels.memory import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
+from tlm.kernels.work import MISS_KEYS
 from tlm.render import passes
-from tlm.render.passes import MISS_KEYS, WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
+from tlm.render.passes import WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
 from tlm.scenes.loader import load_scene
 
 W, H = 24, 20
@@ -141,6 +142,7 @@ def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int, pairs:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("page_words", "pairs"), [(1024, 4), (16, 4), (1024, 1), (16, 1)])
 @pytest.mark.parametrize("f", PASSES, ids=lambda f: f.__name__)
 def test_misses_are_those_of_the_full_streams(frame, gbuffer, monkeypatch, f, page_words, pairs):
@@ -170,6 +172,7 @@ def test_eye_rays_must_be_recorded(frame):
 # ---------------------------------------------------------------- packets in order
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("page_words", "pairs", "sizes"), [(1024, 4, (1, 7, 64)), (32, 4, (1, 7, 64)),
                                                           (1024, 1, (5, 64)), (64, 1, (5, 64))])
 def test_packets_in_pixel_order_give_the_whole_image(frame, gbuffer, page_words, pairs, sizes):
@@ -207,6 +210,7 @@ def with_cache(frame, **cache):
                                                             "cache": cache}))
 
 
+@pytest.mark.slow
 def test_one_pair_misses_more_and_two_are_as_many_as_four(frame, gbuffer):
     runs = {pairs: {f.__name__: f(with_cache(frame, pairs=pairs), gbuffer)[1] for f in PASSES}
             for pairs in (1, 2, 3, 4)}
@@ -242,6 +246,7 @@ def test_smaller_blocks_miss_more(frame, gbuffer):
     assert total[64] > total[1024]
 
 
+@pytest.mark.slow
 def test_the_photon_tracer_and_the_gather_follow_the_cache_section(frame, gbuffer):
     settings = {"thesis": {}, "one_pair": {"pairs": 1}, "small": {"block_words": 64},
                 "both": {"pairs": 1, "block_words": 64}}
@@ -282,6 +287,7 @@ def assert_touched_matches_counts(accel, res) -> None:
     np.testing.assert_array_equal(np.bincount(owner, weights=size, minlength=r).astype(np.int64), c.tri_tests)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("first_only", [False, True])
 def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
     """Rays whose float32 answer fails its check are traversed again in float64; their
@@ -350,6 +356,7 @@ def test_touched_matches_counts_in_the_passes(frame, gbuffer, monkeypatch):
         assert_touched_matches_counts(frame.accel, res)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("page_words", "pairs"), [(1024, 4), (32, 1)])
 def test_packets_in_order_with_samples_and_fresnel_branches(page_words, pairs):
     """The default rendering (4 jittered samples per pixel, glass split by Fresnel, the

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 import yaml
 
+from tlm.arch.costs import DEFAULT_PATH, load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import (
     PMS,
@@ -34,7 +35,6 @@ from tlm.arch.model import (
     simulate_program,
     steady_throughput,
 )
-from tlm.arch.programs import DEFAULT_PATH, load_programs
 from tlm.arch.units import STALL_CAUSES, Deadlock
 from tlm.config import config_from_dict
 from tlm.errors import InputError
@@ -319,6 +319,7 @@ def test_fifo_full():
     assert t.frames[0]["done"] == 21
 
 
+@pytest.mark.slow
 def test_the_fifo_depth_matters_between_balanced_pms_at_fine_packets():
     """Cornell RCast at its 7 BSP levels, 128x128 (Traversal 27.9 M and Intersection 33.6 M
     cycles, within 17%): at packets of one ray a 1-entry FIFO makes the Intersection PM
@@ -327,14 +328,13 @@ def test_the_fifo_depth_matters_between_balanced_pms_at_fine_packets():
     full size)."""
     import dataclasses
 
-    from tlm.arch.functional import Functional
     from tlm.arch.model import simulate
     from tlm.config import config_from_dict
     from tlm.experiments.run import render
 
     cfg = config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [128, 128],
                             "render": {"light_samples": 1}}, "fifo")
-    fn = Functional.of(render(cfg))
+    fn = render(cfg).functional()
 
     def thru(packet_size, depth):
         a = dataclasses.replace(cfg.arch, packet_size=packet_size, fifo_depth=depth, trace=False)
@@ -669,7 +669,7 @@ def ring():
 
     cfg = config_from_dict({"scene": "ring", "mode": "rcast", "resolution": [32, 24], "render": {"spp": 1},
                             "arch": {"frames": 2}}, "test")
-    return cfg, Functional.of(render(cfg)), load_programs()
+    return cfg, render(cfg).functional(), load_programs()
 
 
 def _with(a, **kw):
@@ -750,6 +750,7 @@ def _table(tmp_path, edit):
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("edit", "key", "what"), [
     (lambda r: r["vertex"]["geometry_bsp"].update(instructoins={}), "vertex.geometry_bsp.instructoins",
      "unknown key (did you mean 'instructions'?)"),

@@ -142,6 +142,7 @@ def test_line_endings_comments_tabs_indents_and_other_statements():
     assert got.faces.tolist() == [[0, 1, 2], [2, 1, 0]]
 
 
+@pytest.mark.slow
 def test_random_files_match_the_reference_reader():
     rng = np.random.default_rng(7)
     for trial in range(20):
@@ -253,6 +254,7 @@ def test_a_corrupt_compressed_file_is_an_input_error(tmp_path):
         load_mesh(path)
 
 
+@pytest.mark.slow
 def test_the_shipped_meshes_are_the_published_files():
     """Decompressed, the shipped OBJ files have the published files' SHA-256."""
     import hashlib
@@ -274,6 +276,7 @@ def test_the_shipped_meshes_are_the_published_files():
         assert hashlib.sha256(data).hexdigest() == digest, name
 
 
+@pytest.mark.slow
 def test_shipped_cornell_boxes_match_the_reference_reader():
     for name in ("CornellBox-Original.obj", "CornellBox-Sphere.obj.xz", "CornellBox-Water.obj.xz"):
         data = (MESHES / name).read_bytes()
@@ -342,6 +345,7 @@ def _meshes_for_normals():
     yield "random-one-part", tri, None
 
 
+@pytest.mark.slow
 def test_crease_normals_are_bit_for_bit_the_original():
     for name, tri, part in _meshes_for_normals():
         for angle in (30.0, 0.0, 5.0, 89.0, 180.0):
@@ -350,6 +354,7 @@ def test_crease_normals_are_bit_for_bit_the_original():
             assert a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64)), (name, angle)
 
 
+@pytest.mark.slow
 def test_crease_normals_weld_exactly_on_a_hash_collision(monkeypatch):
     """The hash is checked against the positions: with every hash equal (a collision
     everywhere) the welding falls back to the exact sort and gives the same normals."""

@@ -255,6 +255,7 @@ def test_error_metrics():
 CORNELL_DIRECT_BAR = 0.03
 
 
+@pytest.mark.slow
 def test_cornell_ray_cast_matches_mitsuba_direct_at_matched_samples():
     from tlm.experiments.run import render
 
@@ -273,6 +274,7 @@ def test_cornell_ray_cast_matches_mitsuba_direct_at_matched_samples():
     assert om.mean_normalised_rel_rmse(ours[:, ::-1], theirs, keep & keep[:, ::-1]) > 5 * CORNELL_DIRECT_BAR
 
 
+@pytest.mark.slow
 def test_point_light_caustics_come_from_the_particle_tracer(cache):
     """The ring's cardioid is a point light's caustic through a mirror: no eye path reaches
     it, so Mitsuba's path tracer leaves the floor inside the ring dark; the composite truth

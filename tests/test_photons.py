@@ -63,6 +63,7 @@ def test_first_hits_are_not_stored_and_bounce_limit(tmp_path):
     assert np.all(np.sum(three.photons.normal * three.photons.incoming, axis=1) <= 0)
 
 
+@pytest.mark.slow
 def test_same_seed_same_map_other_seed_other_map(tmp_path):
     scene = load_scene(str(sphere_scene(tmp_path)))
     accel = build_accel(scene.triangles)
@@ -76,6 +77,7 @@ def test_same_seed_same_map_other_seed_other_map(tmp_path):
     assert a.photons.n != c.photons.n or not np.array_equal(a.photons.position, c.photons.position)
 
 
+@pytest.mark.slow
 def test_russian_roulette_is_unbiased(tmp_path):
     """Mean stored power with and without Russian roulette agree within 3 sigma."""
     scene = load_scene(str(sphere_scene(tmp_path, n_seg=24, n_rings=12)))
@@ -93,6 +95,7 @@ def test_russian_roulette_is_unbiased(tmp_path):
     assert abs(m_no - expected) / expected < 0.02
 
 
+@pytest.mark.slow
 def test_caustic_group_stores_only_caustics():
     scene = load_scene("cornell")
     accel = build_accel(scene.triangles)
@@ -104,6 +107,7 @@ def test_caustic_group_stores_only_caustics():
     assert none.photons.caustic.any()
 
 
+@pytest.mark.slow
 def test_photon_misses_are_those_of_the_photon_major_streams(monkeypatch):
     """Each photon's page misses, all its bounces: the full word streams of its rays (node
     heap and leaf indices for the Traversal PM, vertices for the Intersection PM), photon

@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 import simpy
 
-from tlm.arch.functional import Functional
-from tlm.arch.model import PMS, simulate, simulate_program, steady_throughput
-from tlm.arch.program import (
+from tlm.arch.costs import load_programs
+from tlm.arch.frame_program import (
     FanOut,
     FrameProgram,
     JobSpec,
@@ -25,10 +24,11 @@ from tlm.arch.program import (
     grid_shape,
     image_tiles,
 )
-from tlm.arch.programs import load_programs
+from tlm.arch.model import PMS, simulate, simulate_program, steady_throughput
 from tlm.config import config_from_dict
 from tlm.experiments.frames import render_key
-from tlm.render.passes import MISS_KEYS, PASS_FUNCTIONS, cast, pmap_pass
+from tlm.kernels.work import MISS_KEYS
+from tlm.render.passes import PASS_FUNCTIONS, cast, pmap_pass
 
 EQ_TERMS = ("T_norm", "T_ms", "T_ps", "T_ds", "idle")
 
@@ -48,7 +48,7 @@ def ring(tmp_path_factory):
     cfg = config_from_dict({"scene": str(scene), "mode": "refract", "resolution": [32, 24], "render": {"spp": 1},
                             "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
     res = render(cfg)
-    return cfg, Functional.of(res), load_programs(), res
+    return cfg, res.functional(), load_programs(), res
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def cornell_pmap():
 
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [24, 24], "photons": {"count": 3000},
                             "arch": {"frames": 2, "packet_size": 32, "trace": False}}, "test")
-    return cfg, Functional.of(render(cfg)), load_programs()
+    return cfg, render(cfg).functional(), load_programs()
 
 
 # -- tiling ---------------------------------------------------------------------------------------
@@ -101,6 +101,7 @@ def _totals(prog):
     return items, norm, jobs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", ["static", "dynamic"])
 @pytest.mark.parametrize("n", [2, 3, 4, 16, 64])
 def test_work_is_conserved_over_tiles(ring, cornell_pmap, n, scheduler):
@@ -144,6 +145,7 @@ def test_one_pipeline_is_the_single_pipeline_model(ring):
 
 # -- the simulation -------------------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", ["static", "dynamic"])
 @pytest.mark.parametrize("n", [2, 4, 64])
 def test_pipelines_finish_and_account_every_cycle(ring, cornell_pmap, n, scheduler):
@@ -166,6 +168,7 @@ def test_pipelines_finish_and_account_every_cycle(ring, cornell_pmap, n, schedul
             assert t.cycles[k] == max(p[k] for p in t.pipelines)
 
 
+@pytest.mark.slow
 def test_more_pipelines_are_faster(ring):
     """This small frame is Vertex-bound (its throughput is the one Vertex PM's); the per-pipeline
     PMs and the latency shrink with N."""
@@ -225,6 +228,7 @@ def _module_overlaps(t):
     return bad
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fanout", ["broadcast", "serial"])
 @pytest.mark.parametrize("scheduler", ["static", "dynamic"])
 def test_a_module_never_has_two_clients(cornell_pmap, fanout, scheduler):
@@ -242,7 +246,7 @@ def cornell_tiles():
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [32, 24], "photons": {"count": 3000},
                             "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
     res = render(cfg)
-    fn = Functional.of(res)
+    fn = res.functional()
     # with final gathering (the default): its rays are a ray pass of their own, tiled as the others
     assert res.plan.run_names == ["rcast", "reflect", "refract", "pmap", "fgather"]
     assert fn.work["fgather"]["secondary_rays"].sum() > 0
@@ -283,6 +287,7 @@ def _charged_by_the_render(alone):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", ["static", "dynamic"])
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 7, 16, 64])
 def test_the_programs_tiles_rendered_alone_compose_the_image(cornell_tiles, n, scheduler):
@@ -341,6 +346,7 @@ def _assert_partition(tiles, bounds, w, h):
     assert (painted == 1).all()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("w", "h"), [(1, 1), (3, 5), (7, 1), (1, 9), (15, 9), (31, 23), (33, 65)])
 def test_static_and_dynamic_tilings_partition_odd_images(w, h):
     """Static: N tiles; dynamic: N x tiles_per_pipeline; for every N in 1..64 (more tiles than
@@ -361,9 +367,10 @@ def odd_frame():
 
     cfg = config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [15, 9], "render": {"light_samples": 1},
                             "arch": {"frames": 2, "packet_size": 8, "trace": False}}, "test")
-    return cfg, Functional.of(render(cfg)), load_programs()
+    return cfg, render(cfg).functional(), load_programs()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", ["static", "dynamic"])
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 7, 16, 64])
 def test_the_frame_programs_tiles_partition_the_image(odd_frame, n, scheduler):
@@ -438,6 +445,7 @@ def _random_program(rng, n_pipes, scheduler, tiles):
     return FrameProgram(tuple(stages), {}, n_pipes, scheduler)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(300))
 def test_random_programs_finish_without_a_module_shared(seed):
     """Random small programs (1-3 pipelines, both schedulers and fan-outs, FIFOs of 1-4, 1 or 2
@@ -457,6 +465,7 @@ def test_random_programs_finish_without_a_module_shared(seed):
         assert sum(u[k] for k in EQ_TERMS) == u["elapsed"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("n", "scheduler", "fanout"), [(2, "dynamic", "serial"), (3, "dynamic", "broadcast"),
                                                         (4, "static", "serial"), (1, "static", "broadcast")])
 def test_real_frames_do_not_depend_on_the_order_of_same_cycle_events(cornell_pmap, n, scheduler, fanout, monkeypatch):
@@ -490,6 +499,7 @@ def test_the_crossbar_serves_same_cycle_copies_by_frame_and_pipeline(env, monkey
     assert starts[1][1] == starts[0][1] + 3  # 6 words at 2 per cycle, one copy at a time
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("pipelines", "scheduler"), [(1, "static"), (4, "static"), (4, "dynamic")])
 def test_the_steady_state_throughput_does_not_depend_on_the_stream_length(cornell_pmap, pipelines, scheduler):
     """From the shortest stream with a steady window (5 frames) on, a longer stream gives the

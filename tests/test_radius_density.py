@@ -74,6 +74,7 @@ def test_deterministic_and_scale_equivariant():
 # ---------------------------------------------------------------- the config
 
 
+@pytest.mark.slow
 def test_rules_and_their_precedence():
     res = _render("cornell", 3000)
     photons = res.photons.photons
@@ -110,6 +111,7 @@ def test_the_old_rule_pinned_gives_the_old_radii():
 # ---------------------------------------------------------------- gathers stay bounded
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", ["cornell", "room"])
 def test_photons_per_gather_do_not_grow_with_the_map(scene):
     """8x the photons: the density rule accepts about as many per gather (the fraction rule
@@ -132,6 +134,7 @@ def test_ring_caustic_default_keeps_its_gathers_bounded():
     assert 0 < accepted <= tested < 8 * K
 
 
+@pytest.mark.slow
 def test_a_scaled_scene_gathers_the_same_photons():
     """Cornell at 1e6 times its size: the radius x 1e6, the same photons accepted, and the
     same photons tested up to the photon BSP's splits (rounding moves a few photons across)."""
@@ -147,6 +150,7 @@ def test_a_scaled_scene_gathers_the_same_photons():
         assert big.gather_maps[m]["photons_tested"] == pytest.approx(base.gather_maps[m]["photons_tested"], rel=0.05)
 
 
+@pytest.mark.slow
 def test_independent_of_batches():
     one = _render("cornell", 3000)
     many = _render("cornell", 3000, render={"spp": 1, "batch_rays": 37})
@@ -158,6 +162,7 @@ def test_independent_of_batches():
 # ---------------------------------------------------------------- results.json and the summary
 
 
+@pytest.mark.slow
 def test_results_and_summary_report_radii_and_work_per_gather(tmp_path, capsys):
     out = tmp_path / "run"
     code = main(["run", str(REPO / "configs" / "cornell_pmap.yaml"), "--out", str(out), "--no-progress", "--no-report",

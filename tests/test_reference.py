@@ -31,6 +31,7 @@ def furnace_config(tmp_path, **extra) -> str:
     return str(path)
 
 
+@pytest.mark.slow
 def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
     cfg = furnace_config(tmp_path)
     out = tmp_path / "run"
@@ -74,6 +75,7 @@ def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
     assert more["rmse"] < error["rmse"]
 
 
+@pytest.mark.slow
 def test_error_vs_cost_rows(tmp_path, cache, capsys):
     sphere_scene(tmp_path)
     exp = tmp_path / "evc.yaml"
@@ -157,13 +159,15 @@ def test_bad_experiment_files(tmp_path, capsys, body, expect):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("filt", ["disk", "mvoxel", "kvoxel", "knn"])
 def test_pmap_pass_is_packet_invariant_and_repeats(filt):
     from tlm.config import config_from_dict
     from tlm.kernels.memory import Streams
     from tlm.kernels.photons import trace_photons
     from tlm.kernels.traverse import build_accel
-    from tlm.render.passes import MISS_KEYS, Frame, cast, pmap_pass
+    from tlm.kernels.work import MISS_KEYS
+    from tlm.render.passes import Frame, cast, pmap_pass
     from tlm.scenes.loader import load_scene
 
     scene = load_scene("cornell", resolution=[40, 40])

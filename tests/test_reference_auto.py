@@ -48,6 +48,7 @@ def references(cache) -> list[str]:
     return sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
 
 
+@pytest.mark.slow
 def test_a_pmap_run_computes_its_reference_once_and_every_run_reuses_it(tmp_path, cache, capsys):
     cfg = furnace(tmp_path)
     first = run(cfg, tmp_path / "a")
@@ -78,6 +79,7 @@ def test_a_pmap_run_computes_its_reference_once_and_every_run_reuses_it(tmp_path
     assert references(cache) == sorted([error["reference"], other["reference"]])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", [["--no-reference"], ["--set", "reference.auto=false"]])
 def test_opting_out_computes_nothing_and_says_so(tmp_path, cache, capsys, how):
     res = run(furnace(tmp_path), tmp_path / "a", *how)
@@ -184,6 +186,7 @@ def test_the_difference_image_is_signed():
     assert difference_image(ref, ref)[1] == 1.0  # no difference: a unit scale, all white
 
 
+@pytest.mark.slow
 def test_the_report_shows_the_error(tmp_path, cache):
     from tlm.report import build_report
 

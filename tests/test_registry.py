@@ -124,6 +124,7 @@ def test_rows_are_written_once_as_csv_and_jsonl(tmp_path):
     assert [json.loads(x) for x in (tmp_path / "r.jsonl").read_text().splitlines()] == rows
 
 
+@pytest.mark.slow
 def test_the_registries_load_their_providers_lazily():
     """The base layer names its providers by module path; asking for the names imports them."""
     import subprocess

@@ -88,6 +88,7 @@ def combined(folders):
     return out / "report.html"
 
 
+@pytest.mark.slow
 def test_run_writes_its_report(folders):
     page = folders / "run" / "report" / "report.html"
     assert page.is_file()
@@ -99,6 +100,7 @@ def test_run_writes_its_report(folders):
     assert linked == {p.name for p in pngs}, "every PNG is on the page and every linked PNG exists"
 
 
+@pytest.mark.slow
 def test_every_figure_is_drawn(combined):
     pngs = sorted(combined.parent.glob("*.png"))
     assert len(pngs) >= 8
@@ -107,6 +109,7 @@ def test_every_figure_is_drawn(combined):
         assert nonblank(p) > 0.02, f"{p.name} is blank"
 
 
+@pytest.mark.slow
 def test_page_references_only_files_that_exist(combined):
     refs = parse(combined)
     assert refs.ids == list(SECTIONS)
@@ -123,6 +126,7 @@ def test_page_references_only_files_that_exist(combined):
     assert text.count("data:image/png;base64,") == len(list(combined.parent.glob("*.png")))
 
 
+@pytest.mark.slow
 def test_sections_say_why_they_are_empty(combined):
     text = combined.read_text(encoding="utf-8")
     # no error-vs-cost study among the inputs: section 6 has the granularity curve and says so for (a)
@@ -133,6 +137,7 @@ def test_sections_say_why_they_are_empty(combined):
     assert "error-vs-cost" in tradeoff
 
 
+@pytest.mark.slow
 def test_provenance_names_every_run(combined, folders):
     text = combined.read_text(encoding="utf-8")
     prov = text[text.index('id="provenance"'):]
@@ -146,6 +151,7 @@ def test_provenance_names_every_run(combined, folders):
     assert gran["versions"]["numpy"] in prov
 
 
+@pytest.mark.slow
 def test_scaling_section_fits_the_sweep(combined):
     text = combined.read_text(encoding="utf-8")
     scaling = text[text.index('id="scaling"'):text.index('id="sweeps"')]
@@ -159,6 +165,7 @@ def test_no_report_flag(tmp_path):
     assert not (tmp_path / "r" / "report").exists()
 
 
+@pytest.mark.slow
 def test_report_again_replaces_the_report(folders, tmp_path):
     out = tmp_path / "rep"
     first = build_report([folders / "gran"], out)
@@ -168,6 +175,7 @@ def test_report_again_replaces_the_report(folders, tmp_path):
     assert not (out / "stale.png").exists()
 
 
+@pytest.mark.slow
 def test_folder_of_folders(folders, tmp_path):
     """``tlm report runs/`` reads every tlm folder one level down."""
     build_report([folders], tmp_path / "all")
@@ -183,6 +191,7 @@ def test_folder_of_folders(folders, tmp_path):
     assert page.is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv, words", [
     (["report", "{tmp}/nothing"], "is not a folder"),
     (["report", "{tmp}"], "holds no tlm output"),
@@ -219,6 +228,7 @@ window.addEventListener('load', () => {
 </script>"""
 
 
+@pytest.mark.slow
 def test_page_loads_in_headless_chromium(combined, tmp_path):
     """Chromium opens the page without a failed load, and decodes every embedded figure."""
     page = tmp_path / "check.html"
@@ -237,6 +247,7 @@ def test_page_loads_in_headless_chromium(combined, tmp_path):
         assert bad not in done.stderr, done.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_the_combined_report_reads_in_a_few_screens(combined):
     """Runs, sweeps and studies together: the summary first, the page within the screen budget."""
     check_layout(combined)

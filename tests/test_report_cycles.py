@@ -83,6 +83,7 @@ def _run(inputs: Inputs, name: str) -> Run:
 
 # -- where the cycles go ---------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_cycles_section_draws_both_figures_of_a_run(data, tmp_path):
     inputs = read([data / "pmap"])
     sec = cycles_section(inputs, tmp_path)
@@ -180,6 +181,7 @@ def test_merge_and_pixel_resolution():
     assert ps.tolist() == [0, 500] and pe.tolist() == [10, 1000]
 
 
+@pytest.mark.slow
 def test_many_units_and_a_run_without_trace(data, tmp_path):
     quiet = tmp_path / "quiet"
     shutil.copytree(data / "wide", quiet, ignore=shutil.ignore_patterns("trace.json"))
@@ -235,6 +237,7 @@ def test_pareto_front_on_hand_made_rows():
     assert pareto_front([], []).tolist() == []
 
 
+@pytest.mark.slow
 def test_tradeoff_section_draws_both_curves(data, tmp_path):
     inputs = read([data / "evc", data / "gran"])
     sec = tradeoff_section(inputs, tmp_path)
@@ -251,6 +254,7 @@ def test_tradeoff_section_draws_both_curves(data, tmp_path):
     assert "drawn hollow at" in sec.figures[-1].caption
 
 
+@pytest.mark.slow
 def test_tradeoff_notes_rows_without_simulated_time_and_absent_inputs(data, tmp_path):
     (evc,) = read([data / "evc"]).of_kind("error-vs-cost")
     old = Study("error-vs-cost", evc.path, [{k: v for k, v in r.items() if k != "frame_seconds"} for r in evc.rows])
@@ -263,6 +267,7 @@ def test_tradeoff_notes_rows_without_simulated_time_and_absent_inputs(data, tmp_
     assert sec.absent and "error-vs-cost" in sec.absent and not sec.figures
 
 
+@pytest.mark.slow
 def test_an_unreadable_trace_is_a_note(data, tmp_path):
     broken = tmp_path / "broken"
     shutil.copytree(data / "pmap", broken)

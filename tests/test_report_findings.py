@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 
+import pytest
 import yaml
 
 from tlm.experiments.sweep import run_sweep
@@ -14,6 +15,7 @@ BASE = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {
         "arch": {"frames": 2, "trace": False}}
 
 
+@pytest.mark.slow
 def test_a_sweeps_first_screen_names_its_finding(tmp_path, monkeypatch):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
     path = tmp_path / "sweep.yaml"

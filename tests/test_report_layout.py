@@ -73,6 +73,7 @@ def check_layout(page_path: Path, max_screens: int = MAX_SCREENS) -> dict:
     return m
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not COMMITTED.is_file(), reason="plots/report.html is not committed (tlm plots writes it)")
 def test_the_committed_report_reads_in_a_few_screens():
     m = check_layout(COMMITTED)
@@ -80,6 +81,7 @@ def test_the_committed_report_reads_in_a_few_screens():
         assert question in m["summaryText"], question  # every question answered from the committed runs
 
 
+@pytest.mark.slow
 def test_the_check_fails_on_a_long_page(tmp_path):
     page = tmp_path / "long.html"
     page.write_text('<!DOCTYPE html><html><body><section id="summary">x</section><details>y</details>'

@@ -84,6 +84,7 @@ def rows_only(folder: Path, spec: dict, new_rows: list[dict]) -> Path:
 # ------------------------------------------------------------ idle fraction per PM, static against dynamic
 
 
+@pytest.mark.slow
 def test_idle_points_are_the_rows(sweeps):
     notes: list[str] = []
     groups = idle_points(read([sweeps / "sc"]).sweeps[0], notes)
@@ -106,6 +107,7 @@ def test_idle_points_are_the_rows(sweeps):
     assert any(p["idle"]["traversal"] > 0 for p in g["points"] if p["pipelines"] > 1)
 
 
+@pytest.mark.slow
 def test_idle_figure_and_table_in_the_report(sweeps, tmp_path):
     page = build_report([sweeps / "sc"], tmp_path / "rep")
     nonblank(tmp_path / "rep" / "idle_sc_ring.png")
@@ -125,6 +127,7 @@ def test_idle_figure_and_table_in_the_report(sweeps, tmp_path):
     assert "sweeps" in page.read_text() and "idle_sc_ring.png" not in section(page, "sweeps")
 
 
+@pytest.mark.slow
 def test_idle_without_columns_says_why(sweeps, tmp_path):
     old = tmp_path / "old"
     shutil.copytree(sweeps / "sc", old)
@@ -186,6 +189,7 @@ def test_levels_balance_is_the_rows(sweeps):
         assert (s["best_level"], s["best_fps"]) == (best["bsp.levels"], best["fps"])
 
 
+@pytest.mark.slow
 def test_levels_figure_and_table_in_the_report(sweeps, tmp_path):
     page = build_report([sweeps / "bsp"], tmp_path / "rep")
     nonblank(tmp_path / "rep" / "bsp_balance_bsp.png")
@@ -203,6 +207,7 @@ def test_levels_figure_and_table_in_the_report(sweeps, tmp_path):
     assert not list((tmp_path / "rep2").glob("bsp_balance_*.png"))
 
 
+@pytest.mark.slow
 def test_levels_without_the_data_says_why(sweeps, tmp_path):
     blind = tmp_path / "blind"
     shutil.copytree(sweeps / "bsp", blind)
@@ -223,6 +228,23 @@ def test_levels_without_the_data_says_why(sweeps, tmp_path):
 # ------------------------------------------------------------ tlm plots: the idle figure reaches plots/, once
 
 
+def test_plots_runs_every_step_and_needs_a_folder_to_report(tmp_path):
+    """The fast part of the test below: every step in order, its argv filled in and without
+    its own report; an unknown ``--only`` step, or no step's folder at all, is bad input."""
+    called = []
+    with pytest.raises(InputError, match="no step's folder exists"):
+        regenerate(Path("configs"), tmp_path, tmp_path / "plots", run_command=lambda argv: called.append(argv) or 0,
+                   say=lambda _: None)
+    assert [argv[:-1] for argv in called] == [[a.format(configs="configs", runs=tmp_path) for a in argv]
+                                              for _, argv in STEPS]
+    assert {argv[-1] for argv in called} == {"--no-report"}
+    eq52 = next(argv for argv in called if argv[0] == "scaling")
+    assert eq52[1:1 + len(SCALING)] == [str(tmp_path / s) for s in SCALING]
+    with pytest.raises(InputError, match="unknown step 'nope'"):
+        regenerate(Path("configs"), tmp_path, tmp_path / "plots", ["nope"], run_command=called.append)
+
+
+@pytest.mark.slow
 def test_plots_report_draws_the_scaling_sweeps_idle_once(sweeps, tmp_path):
     runs = tmp_path / "runs"
     runs.mkdir()
@@ -253,6 +275,7 @@ def test_scaling_sweeps_must_be_sweeps(sweeps, tmp_path):
                                                                          rows(sweeps / "sc")[0]["hash"]])
 
 
+@pytest.mark.slow
 def test_a_torn_last_row_is_left_out_and_a_corrupt_one_refused(sweeps, tmp_path):
     """A sweep killed while writing a row leaves it cut off: the report reads the others."""
     torn = tmp_path / "torn"
@@ -271,6 +294,7 @@ def test_a_torn_last_row_is_left_out_and_a_corrupt_one_refused(sweeps, tmp_path)
     assert not (tmp_path / "rep2").exists()
 
 
+@pytest.mark.slow
 def test_a_scaling_study_alone_brings_its_sweeps_idle_figure(sweeps, tmp_path):
     """`tlm report` of a scaling study's folder draws the idle fractions of the sweeps it
     recorded in eq52.json (and only notes their absence when they are gone)."""

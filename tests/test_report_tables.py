@@ -90,6 +90,7 @@ def _as_run(run: Run, kind: str, label: str, **results) -> Run:
 
 # -- Tables I-III ----------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
     section = tables_section(read([study]), tmp_path)
     assert section.absent is None and section.key == "tables"
@@ -144,6 +145,7 @@ def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
     assert f"<td>{fmt(it['ours']['trav_cycles_per_ray'])} ({fmt(it['thesis']['trav_cycles_per_ray'])})</td>" in row
 
 
+@pytest.mark.slow
 def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run, tmp_path):
     inputs = read([study])
     cells = {r.label: r for r in inputs.runs}
@@ -172,6 +174,7 @@ def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run
     assert "ours" in _cell(section.html, "ring/refract/TVert") and "ours" not in _cell(section.html, "ring/pmap/TVert")
 
 
+@pytest.mark.slow
 def test_tables_are_bounded_and_say_what_they_leave_out(study, tmp_path):
     cell = next(r for r in read([study]).runs if r.label == "ring/pmap")
     points = [_as_run(cell, "sweep-point", f"sweep #{i}") for i in range(MAX_TABLES_PER_SCENE + 2)]
@@ -181,6 +184,7 @@ def test_tables_are_bounded_and_say_what_they_leave_out(study, tmp_path):
     assert len(left) == 1 and f"sweep #{MAX_TABLES_PER_SCENE}" in left[0] and "sweep #0" not in left[0]
 
 
+@pytest.mark.slow
 def test_sweep_points_are_not_tabled_beside_a_thesis_study(study, tmp_path):
     inputs = read([study])
     cell = next(r for r in inputs.runs if r.label == "ring/pmap")
@@ -206,6 +210,7 @@ def test_tables_absent_without_thesis_scenes(study, tmp_path):
 
 # -- image sets ------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_images_of_a_study_show_left_out_passes(study, tmp_path):
     section = images_section(read([study]), tmp_path)
     assert section.absent is None and section.key == "images"
@@ -219,6 +224,7 @@ def test_images_of_a_study_show_left_out_passes(study, tmp_path):
     assert not any("Cornell" in n and "left out" in n for n in section.notes)
 
 
+@pytest.mark.slow
 def test_images_of_a_run_are_cumulative_composites(ring_run, tmp_path):
     inputs = read([ring_run])
     section = images_section(inputs, tmp_path)
@@ -269,6 +275,7 @@ def test_peers_show_quoted_figures_the_thesis_row_and_ours(study, ring_run, tmp_
     assert f"Refract {inputs.runs[-1].results['fps']:.3g}" in run_line
 
 
+@pytest.mark.slow
 def test_peers_absent_or_bounded(study, tmp_path):
     section = peers_section(Inputs([]), tmp_path)
     assert section.absent and "frame rate" in section.absent and not section.figures

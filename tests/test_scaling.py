@@ -84,6 +84,7 @@ def test_not_a_sweep_folder_exits_2(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_a_scaling_sweep_end_to_end(tmp_path, cache, capsys):
     sweep = tmp_path / "scaling.yaml"
     sweep.write_text(yaml.safe_dump({
@@ -138,6 +139,7 @@ def _copy(small_sweep: Path, tmp_path: Path, depth: int | None = 16) -> tuple[Pa
     return folder, lines
 
 
+@pytest.mark.slow
 def test_points_of_a_mixed_group_exit_2_naming_the_sweep(tmp_path, small_sweep, capsys):
     folder, _ = _copy(small_sweep, tmp_path, depth=None)
     assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 2
@@ -146,6 +148,7 @@ def test_points_of_a_mixed_group_exit_2_naming_the_sweep(tmp_path, small_sweep, 
     assert not (tmp_path / "eq").exists()
 
 
+@pytest.mark.slow
 def test_a_torn_last_row_is_left_out(tmp_path, small_sweep, capsys):
     """A sweep killed while writing a row leaves it cut off: the finished rows are fitted."""
     folder, lines = _copy(small_sweep, tmp_path)

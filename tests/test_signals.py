@@ -39,6 +39,7 @@ def _own_cache(cache):  # (tests/conftest.py) every test here has its own
     return cache
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 @pytest.mark.parametrize("phase", list(PHASES))
 def test_a_run_signalled_in_each_phase(phase, sig, tmp_path, monkeypatch, capsys):
@@ -77,6 +78,7 @@ def rows(out: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("sig", "twice", "executor"),
                          [(signal.SIGINT, False, []), (signal.SIGINT, True, []), (signal.SIGTERM, False, []),
                           (signal.SIGINT, False, ["--dask", "local"]), (signal.SIGTERM, False, ["--dask", "local"])],
@@ -126,6 +128,7 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path):
     assert leftovers(out) == []
 
 
+@pytest.mark.slow
 def test_two_sweeps_into_one_folder(tmp_path):
     """Two ``tlm sweep`` of one file into one folder at once: both exit 0 with every point
     ok, and the folder holds each point once, whole, with its report."""

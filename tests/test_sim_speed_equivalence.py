@@ -16,9 +16,8 @@ import pytest
 import simpy
 
 from tlm.arch.events import _AnyOf
-from tlm.arch.program import JobSpec, _PacketSums
+from tlm.arch.frame_program import JobSpec, _PacketSums, split
 from tlm.arch.units import Trace, Unit, run
-from tlm.arch.work import split
 
 
 def _any_of_story(make, seed: int) -> list:

@@ -92,6 +92,7 @@ def _story(seed: int, in_order: bool):
     return ops, max(ends) + 3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("in_order", [True, False])
 @pytest.mark.parametrize("seed", range(12))
 def test_flat_trace_is_the_list_trace(seed, in_order):

@@ -10,9 +10,8 @@ import pytest
 import yaml
 
 import tlm.experiments.run as run_mod
-from tlm.arch.functional import Functional
+from tlm.arch.costs import DEFAULT_PATH, load_programs
 from tlm.arch.model import simulate
-from tlm.arch.programs import DEFAULT_PATH, load_programs
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.errors import InputError
@@ -41,13 +40,14 @@ def _study(tmp_path, **extra) -> str:
     return path
 
 
+@pytest.mark.slow
 def test_restrict_equals_rendering_the_smaller_mode():
     big = render(config_from_dict({**TINY, "scene": "cornell", "mode": "pmap"}))
     small_cfg = config_from_dict({**TINY, "scene": "cornell", "mode": "reflect"})
     direct = render(small_cfg)
     cut = restrict(big, small_cfg)
     assert cut.plan.run_names == direct.plan.run_names == ["rcast", "reflect"]
-    a, b = Functional.of(cut), Functional.of(direct)
+    a, b = cut.functional(), direct.functional()
     for p in a.passes:
         for k in a.work[p]:
             np.testing.assert_array_equal(a.work[p][k], b.work[p][k], err_msg=f"{p}.{k}")
@@ -204,6 +204,7 @@ def test_granularity_rows_and_the_functional_cache(tmp_path, monkeypatch):
     assert [r["throughput"] for r in again] == [r["throughput"] for r in rows]
 
 
+@pytest.mark.slow
 def test_cached_functional_simulates_like_a_fresh_render(tmp_path, monkeypatch):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path))
     cfg = config_from_dict({**TINY, "scene": "ring", "mode": "pmap"})

@@ -20,7 +20,7 @@ import yaml
 import tlm.experiments.run as run_mod
 import tlm.experiments.sweep as sweep_mod
 import tlm.fingerprint as fingerprint
-from tlm.arch.programs import DEFAULT_PATH
+from tlm.arch.costs import DEFAULT_PATH
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.experiments.frames import cache_dir, cached_render
@@ -57,6 +57,7 @@ def without_host(rows: list[dict]) -> list[dict]:
 # ---------------------------------------------------------------- the sweep file
 
 
+@pytest.mark.slow
 def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
     assert expand({"a": [1, 2], "b": ["x", "y"]}, {"c": [7, 8], "d": [0, 1]}) == [
         {"a": a, "b": b, "c": c, "d": d} for a in (1, 2) for b in ("x", "y") for c, d in ((7, 0), (8, 1))]
@@ -127,6 +128,7 @@ def test_bad_executor_options_exit_2(tmp_path, capsys, args, key):
 # ---------------------------------------------------------------- running
 
 
+@pytest.mark.slow
 def test_local_pool_and_dask_give_identical_rows(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, grid={"arch.pipelines": [1, 2], "arch.page_miss_cycles": [0, 48]},
                       zip={"seed": [0, 1]})
@@ -144,6 +146,7 @@ def test_local_pool_and_dask_give_identical_rows(tmp_path, monkeypatch):
         {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 48}
 
 
+@pytest.mark.slow
 def test_a_local_dask_cluster_does_not_need_port_8787(tmp_path, capfd):
     """Another cluster (or anything) on the dashboard's usual port: no warning about it."""
     taken = socket.socket()
@@ -178,6 +181,7 @@ def test_utilization_averages_the_pipelines_of_a_kind():
     }
 
 
+@pytest.mark.slow
 def test_rows_folders_and_the_csv(tmp_path):
     path = sweep_file(tmp_path, set={"arch.trace": True}, grid={"arch.page_miss_cycles": [0, 12, 48]})
     done = run_sweep(path, tmp_path / "o", jobs=1)
@@ -214,6 +218,7 @@ def test_rows_folders_and_the_csv(tmp_path):
     assert row["cycles.throughput"] == alone["cycles"]["throughput"]
 
 
+@pytest.mark.slow
 def test_points_that_differ_only_in_arch_render_once(tmp_path, monkeypatch):
     calls = []
     render = run_mod.render
@@ -231,6 +236,7 @@ def test_points_that_differ_only_in_arch_render_once(tmp_path, monkeypatch):
     assert sorted(r["functional_cached"] for r in again.rows) == [False] * 2 + [True] * 4
 
 
+@pytest.mark.slow
 def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
     # 50 SimPy events cannot finish a frame: the model raises Deadlock at simulate time
     path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]}, zip={"arch.max_events": [50, 10**8]})
@@ -266,6 +272,7 @@ def ends_its_worker(task):
     return RUN_POINT(task)
 
 
+@pytest.mark.slow
 def test_a_point_that_kills_its_worker_fails_and_the_others_run(tmp_path, monkeypatch, capsys):
     """A point that ends its worker (a crash, an OOM kill) breaks the local process pool.
     The pool is replaced; the points in flight run again alone, so that the one whose
@@ -292,6 +299,7 @@ def test_a_point_that_kills_its_worker_fails_and_the_others_run(tmp_path, monkey
     assert [r["status"] for r in jsonl(out / "sweep.jsonl")] == ["ok"] * 5
 
 
+@pytest.mark.slow
 def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48], "arch.fifo_depth": [1, 16]})
     out = tmp_path / "o"
@@ -320,6 +328,7 @@ def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
     assert len(list((out / "points").iterdir())) == 7
 
 
+@pytest.mark.slow
 def test_changed_input_files_run_the_points_again(tmp_path):
     """The point key covers the content of the files the config names: the programs table,
     the scene file and the mesh it names. A rerun after a change to one computes the points
@@ -374,6 +383,7 @@ def test_a_resumed_sweep_never_appends_to_a_torn_row(tmp_path, monkeypatch):
     assert [json.loads(line)["point"] for line in seen[0].splitlines()] == [0, 2]
 
 
+@pytest.mark.slow
 def test_a_killed_point_leaves_nothing_half_written(tmp_path, monkeypatch):
     path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 48, 96]})
     out = tmp_path / "o"
@@ -425,6 +435,7 @@ def _running(process: tuple[int, str]) -> bool:
     return fields is not None and fields[19] == process[1] and fields[0] not in "ZX"
 
 
+@pytest.mark.slow
 def test_resume_after_a_killed_process(tmp_path, monkeypatch):
     """A sweep killed (SIGKILL) with two workers: its processes (the workers, the fork server)
     end soon after it instead of running the queued points, and a rerun resumes."""
@@ -468,6 +479,7 @@ def test_resume_after_a_killed_process(tmp_path, monkeypatch):
     assert [r["point"] for r in jsonl(out / "sweep.jsonl")] == list(range(8))
 
 
+@pytest.mark.slow
 def test_photon_map_points_carry_the_image_error(tmp_path, cache):
     sphere_scene(tmp_path)
     base = {"scene": "furnace.yaml", "mode": "pmap", "photons": {"count": 3000},

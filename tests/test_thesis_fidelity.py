@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from tlm.experiments.thesis import run_thesis
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -19,6 +21,7 @@ MAX_HELD_OUT_MEDIAN = 0.275  # docs/fidelity.md: 27.4% over the 63 held-out cell
 MIN_SLOWEST_PM_MATCHES = 9  # of 12 scene-modes
 
 
+@pytest.mark.slow
 def test_the_thesis_study_agrees_with_tables_one_to_three_at_least_as_well_as_documented(tmp_path, monkeypatch):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
     s = run_thesis(ROOT / "configs" / "thesis.yaml", tmp_path / "thesis")["summary"]

@@ -19,11 +19,10 @@ import pytest
 import simpy
 
 from tlm.arch import events, pm
+from tlm.arch.costs import load_programs
 from tlm.arch.events import CycleEnd, Priority, Signal, _AnyOf, any_of_class
-from tlm.arch.functional import Functional
+from tlm.arch.frame_program import PMS, FrameProgram, JobSpec, PhaseSpec, Stage, Tile
 from tlm.arch.model import simulate, simulate_program
-from tlm.arch.program import PMS, FrameProgram, JobSpec, PhaseSpec, Stage, Tile
-from tlm.arch.programs import load_programs
 from tlm.arch.schedulers import Static
 from tlm.arch.units import Unit, run
 from tlm.config import config_from_dict
@@ -136,9 +135,10 @@ def cornell_pmap():
 
     cfg = config_from_dict({"scene": "cornell", "mode": "pmap", "resolution": [24, 24], "photons": {"count": 3000},
                             "arch": {"frames": 3, "packet_size": 16, "trace": False}}, "test")
-    return cfg, Functional.of(render(cfg)), load_programs()
+    return cfg, render(cfg).functional(), load_programs()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("pipelines", "scheduler"), [(1, "static"), (3, "static"), (2, "dynamic"), (3, "dynamic")])
 def test_the_public_any_of_gives_the_same_cycles(cornell_pmap, monkeypatch, pipelines, scheduler):
     """Two images in flight, preemption on (16 cycles to save or restore), FIFOs of 4: the
@@ -174,6 +174,7 @@ def _reversed_event(self, priority):
     return ev
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("pipelines", "scheduler"), [(2, "static"), (3, "dynamic")])
 def test_no_result_depends_on_the_order_of_end_of_cycle_events(cornell_pmap, monkeypatch, pipelines, scheduler):
     """Same-cycle events in reverse order, the end-of-cycle ones of each priority too (the
@@ -257,6 +258,56 @@ def test_a_scheduler_is_one_class_the_model_dispatches_to(monkeypatch):
         t = simulate_program(FrameProgram((geometry, Stage("px", False, tiles)), {}, 2, name), a)
         by[name] = [t.model.pm(p, "fragment").unit.stats.norm for p in range(2)]
     assert by == {"static": [40, 10], "mirror": [10, 40]}
+
+
+def test_the_program_is_the_one_source_of_pipelines_and_scheduler():
+    """A program cut for two static tiles runs on two pipelines under its scheduler, whatever
+    ``arch.pipelines`` and ``arch.scheduler`` say: the model reads them in the program alone
+    (frame_program read them in the arch config to cut it)."""
+    geometry = Stage("g", True, (Tile("g", (PhaseSpec("g", (_job("vertex", 0, [3]),), 0),)),))
+    tiles = (Tile("big", (PhaseSpec("f", (_job("fragment", 1, [40]),), 0),)),
+             Tile("small", (PhaseSpec("f", (_job("fragment", 1, [10]),), 0),)))
+    prog = FrameProgram((geometry, Stage("px", False, tiles)), {}, 2, "static")
+    runs = [simulate_program(prog, _arch(frames=1, images_in_flight=1, **kw))
+            for kw in ({"pipelines": 2, "scheduler": "static"}, {"pipelines": 1, "scheduler": "dynamic"},
+                       {"pipelines": 4, "scheduler": "dynamic", "tiles_per_pipeline": 3})]
+    for t in runs:
+        assert sorted({p for p, _ in t.model.pms}) == [0, 1]
+        assert [t.model.pm(p, "fragment").unit.stats.norm for p in range(2)] == [40, 10]
+        assert len(t.pipelines) == 2 and t.to_dict()["scheduler"] == "static"
+        assert (t.cycles, t.units) == (runs[0].cycles, runs[0].units)
+
+
+def test_units_report_their_own_results():
+    """Each PM, memory module and the crossbar closes its books and reports them; the
+    model's results are those reports. A PM that waits for a job at the end is idle to the end."""
+    geometry = Stage("g", True, (Tile("g", (PhaseSpec("g", (_job("vertex", 0, [3, 4]),), 0),)),))
+    tiles = (Tile("t0", (PhaseSpec("f", (_job("fragment", 1, [5]),), 6),), pixels=2),
+             Tile("t1", (PhaseSpec("f", (_job("fragment", 1, [7, 1]),), 0),), pixels=2))
+    t = simulate_program(FrameProgram((geometry, Stage("px", False, tiles)), {}, 2, "static"),
+                         _arch(pipelines=2, frames=1, images_in_flight=1))
+    model, end = t.model, max(f["done"] for f in t.frames)
+    vertex = model.pm(0, "vertex").close(end)
+    assert (vertex.scope, vertex.pipe, vertex.kind) == ("pipe0.vertex", 0, "vertex")
+    assert (vertex.issued, vertex.retired, vertex.queued, vertex.norm, vertex.preemptions) == (2, 2, 0, 7, 0)
+    assert vertex.breakdown == t.units["pipe0.vertex"] and vertex.breakdown["idle"] == end - 7
+    frag1 = model.pm(1, "fragment").close(end)
+    assert (frag1.issued, frag1.norm, frag1.own) == (2, 8, t.pipelines[1]["fragment"])
+    xbar = model.xbar.close(end)
+    assert xbar.breakdown == t.units["xbar"]
+    assert {"swaps": xbar.swaps, "copies": xbar.copies, "words_copied": xbar.words_copied} == \
+        {k: t.crossbar[k] for k in ("swaps", "copies", "words_copied")}
+    # tile 0's copy of 6 words, then each tile's 2 pixels to the compose unit
+    assert (xbar.swaps, xbar.copies, xbar.words_copied) == (0, 3, 10)
+    assert xbar.breakdown["T_norm"] == sum(-(-w // model.arch.copy_words_per_cycle) for w in (6, 2, 2))
+    for m in model.modules:
+        r = m.close(end)
+        assert r.breakdown == t.units[r.scope] and (r.requests, r.rows_opened) == (m.requests, m.rows_opened)
+    assert list(t.units) == [*(pm.unit.scope for pm in model.pms.values()),
+                             *(m.unit.scope for m in model.modules), "xbar"]
+    model.pm(0, "vertex").unit.stats.idle += 1  # a cycle booked twice: the report names the unit
+    with pytest.raises(AssertionError, match=r"^pipe0\.vertex: busy 7 \+ stall 0 \+ idle"):
+        model.pm(0, "vertex").close(end)
 
 
 def test_the_dynamic_tile_queue_dispatches_at_the_end_of_the_cycle():

@@ -13,7 +13,8 @@ import pytest
 from tlm.config import config_from_dict
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
-from tlm.render.passes import MISS_KEYS, WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
+from tlm.kernels.work import MISS_KEYS
+from tlm.render.passes import WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
 from tlm.scenes.loader import load_scene
 
 COUNT_FIELDS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
@@ -159,6 +160,7 @@ def test_inner_rays_invariance(cornell, inner_rays, batch):
         assert_same_hits(full, one, [i])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size", [1, 7, 5000, None])
 @pytest.mark.parametrize("batch", [1, 2, 5])
 def test_any_hit_invariance(cornell, size, batch):
@@ -331,6 +333,7 @@ def check_touched(accel, res, o, d, tmin, tmax):
             assert a <= b
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("batch", [1, 4])
 def test_record_primary(cornell, full_hits, batch):
     _, accel, o, d = cornell
@@ -342,6 +345,7 @@ def test_record_primary(cornell, full_hits, batch):
     check_touched(accel, occ, o[idx], d[idx], 0.0, np.inf)
 
 
+@pytest.mark.slow
 def test_record_inner_rays(cornell, inner_rays):
     _, accel, _, _ = cornell
     o, d, tmin, tmax, ignore = (a[:500] for a in inner_rays)

@@ -7,7 +7,7 @@ import json
 import pytest
 import simpy
 
-from tlm.arch.units import STALL_CAUSES, Deadlock, Handshake, Trace, Unit, run
+from tlm.arch.units import STALL_CAUSES, Deadlock, Trace, Unit, run
 
 
 @pytest.fixture
@@ -19,14 +19,14 @@ def test_handshake_stall(env):
     """The Traversal PM cannot start before the Vertex PM has built the tree."""
     trace = Trace()
     vertex, traversal = Unit(env, "pipe0.vertex", trace), Unit(env, "pipe0.traversal", trace)
-    hs = Handshake(env)
+    tree = env.event()  # the controller's semaphore: the tree of image 0 is built
 
     def build():
         yield from vertex.work(5, label="build")
-        hs.produce(("tree", 0))
+        tree.succeed()
 
     def traverse():
-        yield from traversal.stall("handshake", hs.ready(("tree", 0)), "the tree of image 0")
+        yield from traversal.stall("handshake", tree, "the tree of image 0")
         yield from traversal.work(3, label="traverse")
 
     env.process(build())
@@ -40,11 +40,11 @@ def test_handshake_stall(env):
         "fractions": {"busy": 0.375, "stalled": 0.625, "idle": 0.0},
     }
     assert vertex.stats.breakdown(8)["idle"] == 3
-    # a handshake already produced does not stall
+    # a semaphore already fired does not stall
     late = Unit(env, "pipe0.fragment")
 
     def after():
-        yield from late.stall("handshake", hs.ready(("tree", 0)), "the tree")
+        yield from late.stall("handshake", tree, "the tree")
         yield from late.work(1)
 
     done = env.process(after())
@@ -142,14 +142,14 @@ def test_trace_rows_go_pipe_by_pipe():
 
 def test_deadlock_is_detected_and_named(env):
     a, b = Unit(env, "pipe0.vertex"), Unit(env, "pipe0.fragment")
-    hs = Handshake(env)
+    made = {a.scope: env.event(), b.scope: env.event()}  # each unit's semaphore
 
-    def wait(unit, key, what):
-        yield from unit.stall("handshake", hs.ready(key), what)
-        hs.produce(unit.scope)
+    def wait(unit, other, what):
+        yield from unit.stall("handshake", made[other.scope], what)
+        made[unit.scope].succeed()
 
-    env.process(wait(a, "pipe0.fragment", "the fragments of image 0"))
-    done = env.process(wait(b, "pipe0.vertex", "the rays of image 0"))
+    env.process(wait(a, b, "the fragments of image 0"))
+    done = env.process(wait(b, a, "the rays of image 0"))
     with pytest.raises(Deadlock) as err:
         run(env, done, [a, b])
     msg = str(err.value)
@@ -183,15 +183,10 @@ def test_cycles_are_whole_numbers(env, bad):
         env.run()
 
 
-def test_unknown_stall_cause_and_double_produce(env):
+def test_unknown_stall_cause(env):
     unit = Unit(env, "u")
     with pytest.raises(ValueError, match="stall cause"):
         next(unit.stall("coffee", env.timeout(1), "x"))
-    hs = Handshake(env)
-    hs.produce("k")
-    assert hs.is_ready("k") and not hs.is_ready("other")
-    with pytest.raises(RuntimeError, match="produced twice"):
-        hs.produce("k")
 
 
 def test_booked_idle_must_close_the_sum():

@@ -184,6 +184,7 @@ def test_probes_are_deterministic():
 # ---------------------------------------------------------------- the built-in scenes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["cornell", "ring", "room"])
 def test_no_warning_on_the_built_in_scenes(name, tmp_path, capsys):
     warnings, stderr = _run(tmp_path, capsys, name)

@@ -1,0 +1,67 @@
+"""tlm: a transaction-level model of J. Ling's 2004 ray-tracing and photon-mapping GPU.
+
+The package's Python API is :mod:`tlm.api`, whose names read from here too
+(``tlm.load_config``, ``tlm.render_image``, ``tlm.simulate``, ``tlm.run``, ``tlm.sweep``, ...;
+docs/api.md walks through them). They are imported on first use, so that importing a
+module of the package (``tlm.config``, a worker's ``tlm.experiments.sweep``) does not
+load every layer above it. No name of the API is that of a subpackage (``tlm.render``,
+``tlm.report``, ``tlm.scenes``), which would hide it once imported.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from tlm.api import (  # the names of __all__, for type checkers
+        MODES,
+        OUTPUTS,
+        Config,
+        Deadlock,
+        InputError,
+        calibrate,
+        error_vs_cost,
+        export_scene,
+        extreme,
+        granularity,
+        list_scenes,
+        load_config,
+        load_scene,
+        params,
+        parse_outputs,
+        plots,
+        reference,
+        render_image,
+        run,
+        run_sweep,
+        scaling,
+        scene_description,
+        scene_file,
+        scene_info,
+        simulate,
+        sweep,
+        thesis,
+        to_srgb,
+        write_calibration,
+        write_report,
+    )
+
+__all__ = [
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "calibrate", "error_vs_cost", "export_scene",
+    "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
+    "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
+    "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",
+]
+
+
+def __getattr__(name: str) -> Any:
+    """``tlm.<name>``: the API's name, imported on first use (PEP 562)."""
+    if name in __all__:
+        from tlm import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'tlm' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

@@ -1,4 +1,5 @@
-"""Command line: ``tlm run | sweep | scene | params``. Argument parsing and printing only.
+"""Command line: ``tlm run | sweep | scene | params | ...``. Argument parsing and printing only:
+every command calls :mod:`tlm.api` and prints what it returns.
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
 status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
@@ -23,11 +24,9 @@ import traceback
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-import numpy as np
-
-from tlm.arch.units import Deadlock
-from tlm.config import MODES
-from tlm.errors import InputError, environment_problem
+from tlm import api
+from tlm.api import MODES, Deadlock, InputError
+from tlm.errors import environment_problem
 
 
 def _say(line: str) -> None:
@@ -42,44 +41,30 @@ def _report_after(args: argparse.Namespace, out: Path) -> None:
     """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``."""
     if getattr(args, "no_report", False):
         return
-    from tlm.report import build_report
-    from tlm.storage import folder_lock
-
-    with folder_lock(out):  # no other run replaces the folder while its report is written
-        path = build_report([out])
-    print(f"report: {path}")
+    # no other run replaces the folder while its report is written
+    print(f"report: {api.write_report([out], lock=True)}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from tlm.report import build_report
-
-    dirs = [Path(d) for d in args.dirs]
-    if args.out is None and len(dirs) > 1:
-        raise InputError("several folders: name the report folder", key="--out")
-    path = build_report(dirs, Path(args.out) if args.out else None, args.title)
-    print(f"wrote {path}")
+    print(f"wrote {api.write_report(args.dirs, args.out or None, args.title)}")
     return 0
 
 
 def _cmd_plots(args: argparse.Namespace) -> int:
-    from tlm.report.regenerate import regenerate
-
-    page = regenerate(Path(args.configs), Path(args.runs), Path(args.out), args.only, run_command=main,
-                      say=lambda line: print(line, flush=True))
+    page = api.plots(args.configs, args.runs, args.out, args.only, run_command=main,
+                     say=lambda line: print(line, flush=True))
     print(f"wrote {page}")
     return 0
 
 
 def _cmd_extreme(args: argparse.Namespace) -> int:
-    from tlm.experiments.extreme import run_extreme
-
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(row: dict) -> None:
         print(f"  {'pass' if row['passed'] else 'FAIL'}  {row['category']:10s} {row['case']:24s} {row['measured']}",
               flush=True)
 
-    rows = run_extreme(Path(args.config), out, progress)
+    rows = api.extreme(args.config, out, progress=progress)
     failed = [r["case"] for r in rows if not r["passed"]]
     print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
           + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
@@ -87,69 +72,21 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _scene_file(path: Path) -> Path | None:
-    """``path`` (resolved) when ``tlm run`` was given a scene file rather than a run config:
-    it has ``geometry`` (or ``extends``) and no ``scene``. None for a config (whose own
-    loading reports its typos). A file that is neither is an InputError saying what to write."""
-    import dataclasses
-
-    from tlm.config import RunConfig, read_yaml
-    from tlm.errors import did_you_mean
-    from tlm.scenes.loader import SCENE_KEYS
-
-    raw = read_yaml(path)
-    if not isinstance(raw, dict) or not raw or "scene" in raw:
-        return None
-    if "geometry" in raw or "extends" in raw:
-        return path.resolve()
-    fields = [f.name for f in dataclasses.fields(RunConfig)]
-    keys = [str(k) for k in raw]
-    # keys both kinds of file have (resolution, photons) say nothing; a near miss of a config
-    # key is a config's typo, which the config's own loading reports
-    if any(k not in SCENE_KEYS and (k in fields or did_you_mean(k, fields)) for k in keys):
-        return None
-    hint = next((f"; {k!r}{did_you_mean(k, SCENE_KEYS)}" for k in keys if did_you_mean(k, SCENE_KEYS)
-                 and k not in SCENE_KEYS), "")
-    what = ("a scene file needs `geometry:` (a builder, a mesh or shapes: docs/scenes.md)"
-            if any(k in SCENE_KEYS for k in keys) else "a scene file has `geometry:` (docs/scenes.md)")
-    what += hint
-    raise InputError(f"neither a run config nor a scene file (keys: {', '.join(keys)}): a config names its "
-                     f"scene, `scene: cornell` or `scene: path/to/scene.yaml` (see 'tlm params'); {what}",
-                     source=str(path))
-
-
-def _scene_file_config(scene: Path, overrides: list[str]):
-    """The default run config of a scene file, as if it were ``{scene: SCENE}``, with ``--set``."""
-    from tlm.config import apply_overrides, config_from_dict
-
-    source = f"(the defaults for scene file {scene})"
-    raw = {"scene": str(scene)}
-    if overrides:
-        raw, source = apply_overrides(raw, overrides), f"{source} (with --set)"
-    return config_from_dict(raw, source)
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
-    from tlm.config import load_config
-    from tlm.experiments.run import OUTPUTS, parse_outputs, run
-
-    outputs = OUTPUTS if args.outputs is None else parse_outputs(args.outputs)
     overrides = list(args.set or [])
     if args.mode is not None:
         overrides.append(f"mode={args.mode}")
     if args.seed is not None:
         overrides.append(f"seed={args.seed}")
-    scene_file = _scene_file(Path(args.config))
-    if scene_file is None:
-        cfg, base = load_config(Path(args.config), overrides)
-    else:
+    outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
+    if api.scene_file(args.config) is not None:
         _say(f"{args.config} is a scene file: rendering it with the default settings "
              f"(a config would say `scene: {args.config}`; see 'tlm params')")
-        cfg, base = _scene_file_config(scene_file, overrides), scene_file.parent
+    cfg = api.load_config(args.config, overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
-    results = run(cfg, out, base, config_path=str(args.config), overrides=overrides, outputs=outputs,
-                  progress=not args.no_progress, reference=skip is None, say=_say_err)
+    results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
+                      say=_say_err)
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -221,10 +158,8 @@ def _error_line(error: dict, skip: str | None) -> str:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from tlm.experiments.sweep import run_sweep
-
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
-    done = run_sweep(Path(args.config), out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress)
+    done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress)
     for row in done.rows:
         if row["status"] != "ok":
             print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
@@ -236,12 +171,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_scaling(args: argparse.Namespace) -> int:
-    from tlm.experiments.scaling import analyse
-    from tlm.report.scaling import plot_scaling
-
     dirs = [Path(d) for d in args.sweeps]
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
-    done = analyse(dirs, out, plot=plot_scaling)
+    done = api.scaling(dirs, out)
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1 "
           f"(N = {done['fits'][0]['pipelines']}):")
     for f in done["fits"]:
@@ -253,116 +185,39 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     return 0
 
 
-def _scene_description(name: str) -> str:
-    """A built-in scene's ``description:``, else its first comment line (cheap: no geometry)."""
-    from tlm.config import read_yaml
-    from tlm.scenes.loader import scenes_dir
-
-    path = scenes_dir() / f"{name}.yaml"
-    try:
-        raw = read_yaml(path)
-        if isinstance(raw, dict) and isinstance(raw.get("description"), str):
-            return raw["description"]
-        first = path.read_text(encoding="utf-8").splitlines()[0]
-    except (InputError, OSError, IndexError):
-        return ""
-    return first.lstrip("#").strip() if first.startswith("#") else ""
-
-
 def _cmd_scene(args: argparse.Namespace) -> int:
-    from tlm.scenes.loader import list_scenes, load_scene
-
     if args.scene_cmd == "list":
-        for name in list_scenes():
-            print(f"{name:28s} {_scene_description(name)}".rstrip() if args.long else name)
+        for name in api.list_scenes():
+            print(f"{name:28s} {api.scene_description(name)}".rstrip() if args.long else name)
         return 0
-    scene = load_scene(args.name, Path.cwd())
+    scene = api.load_scene(args.name)
     if args.scene_cmd == "show":
-        lo, hi = scene.bounds()
-        used = np.bincount(scene.material_index, minlength=len(scene.materials))
-        info = {
-            "name": scene.name,
-            "source": scene.source,
-            "triangles": scene.n_triangles,
-            "bounds": {"min": lo.tolist(), "max": hi.tolist()},
-            "resolution": [scene.camera.width, scene.camera.height],
-            "photons": scene.photons,
-            "materials": [
-                {"name": m.name, "type": m.kind, "triangles": int(used[i]),
-                 **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
-                 **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
-                 **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
-                 **({"emission": list(m.emission)} if m.emits else {})}
-                for i, m in enumerate(scene.materials)
-            ],
-            "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
-            "lights": [
-                {"type": lt.kind, "power": list(lt.power),
-                 **({"position": list(lt.position)} if lt.kind == "point" else
-                    {"materials": lt.name, "triangles": int(lt.ids.shape[0]), "area": lt.area}
-                    if lt.kind == "mesh" else
-                    {"corner": list(lt.corner), "edge_u": list(lt.edge_u), "edge_v": list(lt.edge_v),
-                     "area": lt.area})}
-                for lt in scene.lights
-            ],
-            "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
-                       "up": list(scene.camera.up), "vfov": scene.camera.vfov},
-        }
-        print(json.dumps(info, indent=2))
+        print(json.dumps(api.scene_info(scene), indent=2))
         return 0
-    from tlm.scenes.export import export_triangles
-
-    export_triangles(scene, Path(args.file))
+    api.export_scene(scene, args.file)
     print(f"wrote {args.file} ({scene.n_triangles} triangles)")
     return 0
 
 
 def _cmd_reference(args: argparse.Namespace) -> int:
-    from tlm.config import load_config
-    from tlm.experiments.reference import (
-        ReferenceSettings,
-        compute_reference,
-        cycle_length,
-        load_reference,
-        reference_key,
-        save_reference,
-    )
-    from tlm.kernels.traverse import build_accel
-    from tlm.render.passes import Frame
-    from tlm.scenes.loader import load_scene
-
     t0 = time.perf_counter()
-    cfg, base = load_config(Path(args.config), list(args.set or []))
-    scene = load_scene(cfg.scene, base, cfg.resolution, str(args.config))
-    settings = ReferenceSettings.from_config(scene, cfg)
-    key = reference_key(scene, cfg, settings)
-    cached = None if args.force else load_reference(key)
-    if cached is not None:
-        err = cached[1].get("relative_standard_error")
-        if cached[1].get("converged") and err is not None and err <= settings.tolerance:
-            print(f"reference {key} is cached, relative standard error {err:.4f} <= {settings.tolerance} "
-                  "(use --force to compute it again)")
-            return 0
-        print(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
-    accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
-    frame = Frame.create(scene, accel, cfg)
-    print(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
-          f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
-    image, meta = compute_reference(
-        frame, None, settings,
+    made = api.reference(
+        api.load_config(args.config, list(args.set or [])), force=args.force, say=print,
         progress=lambda k, c, e: _say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
         bar=not args.no_progress,
     )
-    folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
+    meta = made.meta
+    if not made.computed:
+        print(f"reference {made.key} is cached, relative standard error {meta['relative_standard_error']:.4f} "
+              f"<= {made.settings.tolerance} (use --force to compute it again)")
+        return 0
     state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
     print(f"{state} after {meta['rounds']} rounds (relative standard error "
-          f"{meta['relative_standard_error']:.4f}) in {time.perf_counter() - t0:.1f} s; wrote {folder}")
+          f"{meta['relative_standard_error']:.4f}) in {time.perf_counter() - t0:.1f} s; wrote {made.folder}")
     return 0
 
 
 def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
-    from tlm.experiments.error_cost import Truth, run_error_vs_cost
-
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(i: int, n: int, row: dict) -> None:
@@ -376,22 +231,20 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"error-vs-cost: {message}", flush=True)
 
-    rows = run_error_vs_cost(Path(args.config), out, progress=progress, truth=Truth(spp=args.truth_spp), note=note)
+    rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note)
     print(f"wrote {out} ({len(rows)} rows)")
     _report_after(args, out)
     return 0
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
-    from tlm.config import describe
-
-    for key, default, help_text in describe():
+    for key, default, help_text in api.params():
         print(f"{key:24s} {default!r:>10s}  {help_text}")
     return 0
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    from tlm.experiments.thesis import describe_items, describe_rows, run_thesis
+    from tlm.experiments.thesis import describe_items, describe_rows
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
@@ -399,7 +252,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
         c = results["cycles"]
         _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {results['fps']:.2f} fps")
 
-    done = run_thesis(Path(args.config), out, progress, bar=not args.no_progress)
+    done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress)
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"]))
     sm = done["summary"]
@@ -416,15 +269,13 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 
 
 def _cmd_granularity(args: argparse.Namespace) -> int:
-    from tlm.experiments.granularity import run_granularity
-
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(size, tm, secs):
         print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
               f"{tm.events:>9d} events, {secs:7.2f} s", flush=True)
 
-    rows = run_granularity(Path(args.config), out, progress)
+    rows = api.granularity(args.config, out, progress=progress)
     for r in rows:
         print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
               f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
@@ -434,20 +285,16 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from tlm.arch.programs import DEFAULT_PATH
-    from tlm.experiments.thesis import calibrate, write_calibrated
-
     def progress(it, params):
         print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
-    programs, report = calibrate(Path(args.config), progress=progress)
+    programs, report = api.calibrate(args.config, progress=progress)
     for scene, cells in report["cells"].items():
         print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
     if args.dry_run:
         return 0
-    target = Path(args.write) if args.write else DEFAULT_PATH
     command = "tlm calibrate " + " ".join(sys.argv[2:]) if args.argv is None else "tlm " + " ".join(args.argv)
-    write_calibrated(programs, report, target, command)
+    target = api.write_calibration(programs, report, args.write or None, command)
     print(f"wrote {target}")
     return 0
 
@@ -492,7 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(resumable)")
     sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml")
     sw.add_argument("--out", help="output folder (default: runs/<config name>)")
-    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPU count; 1 = in this process)")
+    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPU count; 1 = in this process); "
+                    "a point that leaves render.threads null gets max(1, CPUs // workers) kernel threads, so "
+                    "--jobs x render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "

@@ -142,6 +142,7 @@ def check_references(caches: list[Path]) -> None:
 # ---------------------------------------------------------------- reruns
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 def test_rerun_gives_identical_bytes_and_numbers(tmp_path, monkeypatch, mode):
     """Four runs of one config: two in this process and one in a fresh interpreter with
@@ -207,6 +208,7 @@ ARCHS = [  # packet sizes 1 pixel, a prime, a power of two, the whole 24 x 24 fr
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 def test_architecture_changes_timing_only(tmp_path, monkeypatch, mode):
     """Packet size, N and scheduler change the timing sections and nothing else: images,
@@ -283,6 +285,7 @@ def strip(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in SWEEP_HOST_COLUMNS} for r in rows]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("executor", ["pool", "dask"])
 def test_executors_give_identical_points_and_rows(in_process, executor):
     """One sweep in this process (jobs=1) and in a process pool (jobs=2) or on a local

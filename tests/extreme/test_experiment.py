@@ -31,6 +31,7 @@ def committed(tmp_path_factory):
     return out, rows
 
 
+@pytest.mark.slow
 def test_committed_cases_all_behave_as_expected(committed):
     out, rows = committed
     wrong = {r["case"]: r["measured"] for r in rows if not r["passed"]}
@@ -44,6 +45,7 @@ def test_committed_cases_all_behave_as_expected(committed):
     assert (out / "extreme.csv").is_file() and (out / "provenance.json").is_file()
 
 
+@pytest.mark.slow
 def test_committed_bad_input_cases_write_nothing(committed):
     out, rows = committed
     for r in rows:
@@ -64,6 +66,7 @@ def _case(name, checks, **config):
             "checks": checks}
 
 
+@pytest.mark.slow
 def test_the_runner_reports_a_wrong_expectation(tmp_path, capsys):
     """Expectations that are false must come out as 'not as expected', and the CLI exits 1."""
     path = _write(tmp_path, [

@@ -351,6 +351,7 @@ def test_degenerate_triangles_on_the_edges_of_a_closed_box(levels):
         assert np.all(k >= degenerate.shape[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, 3, None])
 def test_sliver_fan_covers_its_quad(levels):
     """A unit square tiled by a fan of 2000 slivers from one corner (angles ~8e-4 rad,
@@ -484,6 +485,7 @@ def silhouette_rays() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return tri, outside, targets - outside
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("levels", [0, None])
 def test_silhouette_rays_are_packet_invariant(levels):
     """A ray's closest hit and any-hit answer are the same alone as inside a packet, even

@@ -92,6 +92,7 @@ def test_coincident_photons_analytic(where):
 # ---------------------------------------------------------------- one plane, one line
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("offset", [0.0, 1e6])
 def test_photons_on_one_plane_give_the_grid_density(offset):
     """A regular 200 x 200 grid of photons (spacing h = 0.01, power p each) lying exactly
@@ -275,6 +276,7 @@ def test_tiny_radius_never_nan(filt, radius):
     assert np.all(e.density == 0.0), e.density
 
 
+@pytest.mark.slow
 def test_k_equals_one():
     """k = 1: the k-voxel filter samples only the voxel holding x; per query it is
     noisy, but unbiased: over 2000 queries of a uniform plane map (density 1) its mean
@@ -352,6 +354,7 @@ def test_one_channel_light():
         assert res.radiance[name][..., 0].max() > 0.0, name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("count", [1, 2, 3, 7])
 @pytest.mark.parametrize("filt", ["disk", "mvoxel", "kvoxel", "knn"])
 def test_tiny_photon_counts_render(count, filt):
@@ -380,6 +383,7 @@ def test_zero_power_map_through_the_pmap_pass():
     assert np.all(rad == 0.0) and all(int(v.sum()) == 0 for v in work.values())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("filt", "est_cfg"),
     [

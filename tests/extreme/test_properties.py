@@ -57,6 +57,7 @@ def soup_and_rays(draw):
     return tri, o, d
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")
 @FAST
 @given(case=soup_and_rays(), levels=LEVELS)
@@ -88,6 +89,7 @@ def test_closest_hit_agrees_with_brute_force(case, levels):
         assert explained(ref, h.triangle)[mismatch].all()
 
 
+@pytest.mark.slow
 @FAST
 @given(case=soup_and_rays(), keep=st.lists(st.booleans(), min_size=24, max_size=24), batch=st.integers(1, 6))
 def test_one_leaf_packets_are_invariant(case, keep, batch):
@@ -131,6 +133,7 @@ def closed_shape_and_rays(draw):
     return tri, o, target - o
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, derandomize=True)
 @given(case=closed_shape_and_rays(), levels=LEVELS)
 def test_a_ray_alone_equals_the_ray_in_its_packet(case, levels):
@@ -197,6 +200,7 @@ configs = st.fixed_dictionaries({
 })
 
 
+@pytest.mark.slow
 @settings(max_examples=50, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(cfg=configs)
 def test_random_configs_render_clean(cfg):

@@ -78,6 +78,7 @@ def pmap_runs(folder):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(TRANSFORMS))
 def test_ray_traced_frames_do_not_change(refract_runs, name):
     """Same plan, same primary triangles on >= 99.9% of pixels, hit distances scaled by
@@ -95,6 +96,7 @@ def test_ray_traced_frames_do_not_change(refract_runs, name):
     assert rel_rms(res.composite, ref.composite) <= 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(TRANSFORMS))
 def test_ray_traced_work_does_not_change(refract_runs, name):
     """The work the timing model will charge (rays, node and leaf visits, triangle
@@ -109,6 +111,7 @@ def test_ray_traced_work_does_not_change(refract_runs, name):
             assert abs(a - b) <= 0.01 * max(b, 100), (p, k, a, b)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(TRANSFORMS))
 def test_photon_map_does_not_change(pmap_runs, name):
     """Same photons emitted, stored count within 0.5%, stored power / s**2 within 1%,
@@ -135,6 +138,7 @@ def noise(pmap_runs):
             for f in ("disk", "mvoxel", "kvoxel", "knn")}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("filt", ["disk", "mvoxel", "knn", "kvoxel"])
 @pytest.mark.parametrize("name", list(TRANSFORMS))
 def test_photon_frame_does_not_change(pmap_runs, noise, name, filt):
@@ -156,6 +160,7 @@ def test_photon_frame_does_not_change(pmap_runs, noise, name, filt):
 WORK_CASES = [(name, filt) for name in TRANSFORMS for filt in ("disk", "mvoxel", "knn", "kvoxel")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("name", "filt"), WORK_CASES)
 def test_gather_work_does_not_change(pmap_runs, name, filt):
     """The gather's work (photons tested, leaves visited), what the timing model will

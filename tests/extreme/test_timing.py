@@ -40,6 +40,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tlm.arch.costs import load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import (
     PMS,
@@ -51,7 +52,6 @@ from tlm.arch.model import (
     simulate,
     simulate_program,
 )
-from tlm.arch.programs import load_programs
 from tlm.arch.units import STALL_CAUSES, Deadlock
 from tlm.config import FANOUTS, MEMORY_READINGS, SCHEDULERS, config_from_dict
 from tlm.experiments.run import render
@@ -75,7 +75,7 @@ def functional(**cfg) -> Functional:
     # (sized for the thesis's pipeline: no final gathering, the caustic photons aimed at one box)
     cfg["estimate"] = {"final_gather": 0, **cfg.get("estimate", {})}
     cfg["photons"] = {"aim": "box", **cfg.get("photons", {})}
-    return Functional.of(render(config_from_dict(cfg, "test")))
+    return render(config_from_dict(cfg, "test")).functional()
 
 
 def job(pm, norm, role=0, entries=None, misses=None):
@@ -326,6 +326,7 @@ def ti_phase(draw):
         draw(st.one_of(st.integers(1, 8), st.just(10**9)))
 
 
+@pytest.mark.slow
 @settings(max_examples=80, deadline=None, derandomize=True)
 @given(case=ti_phase())
 def test_fifo_of_any_depth_is_a_tandem_queue_with_blocking(case):
@@ -353,6 +354,7 @@ def test_fifo_of_any_depth_is_a_tandem_queue_with_blocking(case):
 DEPTHS = (1, 2, 4, 64, 1024, 10**9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("packet_size", [1, 16])
 @pytest.mark.parametrize("scene", ["ring", "cornell"])
 def test_fifo_depth_one_on_real_frames(scenes, scene, packet_size):
@@ -401,6 +403,7 @@ def program_misses(fn: Functional, a) -> dict[str, int]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("miss_cycles", [0, 10**6])
 @pytest.mark.parametrize("scene", ["ring", "cornell"])
 def test_memory_latency_zero_and_huge(scenes, scene, miss_cycles):
@@ -436,6 +439,7 @@ LATENCIES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", list(LATENCIES))
 @pytest.mark.parametrize("scene", ["ring", "cornell"])
 def test_one_frame_never_gets_faster_when_a_latency_grows(scenes, scene, key):
@@ -460,6 +464,7 @@ def test_one_frame_never_gets_faster_when_a_latency_grows(scenes, scene, key):
         assert runs[-1].units["xbar"]["T_norm"] == runs[-1].crossbar["words_copied"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cost", [0, 1, 16, 10**6])
 @pytest.mark.parametrize("key", ["swap_cycles", "context_switch_cycles"])
 def test_swap_and_context_switch_costs_are_exact(cornell, key, cost):
@@ -518,6 +523,7 @@ def check_pipelines(t, fn, a, frames):
     return prog
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 @pytest.mark.parametrize("n", [1, 64])
 @pytest.mark.parametrize("scene", ["ring", "cornell"])
@@ -535,6 +541,7 @@ def test_one_and_sixty_four_pipelines(scenes, scene, n, scheduler):
     check_pipelines(simulate(fn, PROGRAMS, a), fn, a, 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scheduler", SCHEDULERS)
 @pytest.mark.parametrize("scene", ["tiny", "speck"])
 def test_more_pipelines_than_pixels(scenes, scene, scheduler):
@@ -574,6 +581,7 @@ def overlap_bound(fn: Functional, a) -> int:
     return sum(min(job_busy(ph.jobs[0], a), job_busy(ph.jobs[1], a)) for ph in prog.phases if len(ph.jobs) == 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", ["ring", "cornell", "tiny", "speck"])
 def test_whole_frame_packet_within_the_overlap_bound(scenes, scene):
     """One frame, one image, one pipeline; packets of 1 (the reference), 2, 16, the whole
@@ -619,6 +627,7 @@ VERTEX_BOUND = PROGRAMS.with_scales({"vertex": 7.54194, "traversal": 0.576575, "
                                     {"vertex": 0.0, "traversal": 0.0, "fragment": 0.0})
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", ["ring", "cornell"])
 def test_whole_frame_packet_in_a_stream(scenes, scene):
     """Six frames (a steady-state window), two images in flight: packets of 1 against one
@@ -701,6 +710,7 @@ EVENT_BOUND = 2_000_000  # far above any fuzzed run (they take < 30,000 events)
 UNIT = re.compile(r"(pipe\d+\.(?:vertex|traversal|intersection|fragment)) waits for \S.*")
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(cfg=ARCH, work=st.sampled_from(["ring 8x8", "ring 8x6 refract, 1 cache pair of 64 words",
                                        "cornell 6x6 pmap, 2 cache pairs", "cornell 1x1 pmap"]),

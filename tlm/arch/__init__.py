@@ -1,9 +1,10 @@
 """The timing layer: the thesis GPU's units as SimPy processes, in integer clock cycles.
 
 This package never changes a result of the functional layer (``tlm.kernels``); it turns
-the work the kernels report into cycles. The seam is :mod:`tlm.arch.functional` and
-:mod:`tlm.arch.work` (a run's work cut into packets of any size), the frame program
-:mod:`tlm.arch.program` (Figs. 13 and 14 as stages, tiles and phases). The hardware:
+the work the kernels report into cycles. The seam is :mod:`tlm.arch.functional`; the
+frame program :mod:`tlm.arch.frame_program` (Figs. 13 and 14 as stages, tiles and
+phases, the work cut into packets of any size) prices its jobs with the PM programs'
+instruction costs, :mod:`tlm.arch.costs` (the table ``programs.yaml``). The hardware:
 :mod:`tlm.arch.pm` (the Vertex, Traversal, Intersection and Fragment PMs),
 :mod:`tlm.arch.memory` (the DDR modules), :mod:`tlm.arch.crossbar` (swaps, block copies
 and their arbiter) and :mod:`tlm.arch.fifo` (Traversal to Intersection), each made of

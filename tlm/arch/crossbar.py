@@ -10,6 +10,8 @@ the cycle (:attr:`tlm.arch.events.Priority.ARBITER`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import simpy
 from simpy.events import Event
 
@@ -17,6 +19,17 @@ from tlm.arch.events import CycleEnd, Priority, Signal
 from tlm.arch.memory import Module
 from tlm.arch.units import Trace, Unit
 from tlm.config import ArchConfig
+
+
+@dataclass(frozen=True)
+class CrossbarResult:
+    """What the crossbar reports when the run ends (:meth:`Crossbar.close`)."""
+
+    scope: str  # xbar
+    breakdown: dict  # eq. 5.1 over the run (units.Stats.breakdown): its copies are its T_norm
+    swaps: int  # PMs re-routed to another module
+    copies: int  # block copies
+    words_copied: int
 
 
 class Crossbar:
@@ -47,6 +60,10 @@ class Crossbar:
         self._asked = Signal(env)  # a copy was asked for (the arbiter waits on it while no copy waits)
         self._released: Event | None = None  # fires when the granted copy is done
         env.process(self._arbiter())
+
+    def close(self, end: int) -> CrossbarResult:
+        """The crossbar's books at cycle ``end``: its breakdown and what it swapped and copied."""
+        return CrossbarResult(self.unit.scope, self.unit.breakdown(end), self.swaps, self.copies, self.words_copied)
 
     def route(self, pm, module: int) -> None:
         """Grant ``module`` to ``pm`` (one to one): the PM it leaves, if any, is released."""

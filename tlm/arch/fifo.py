@@ -36,6 +36,11 @@ class Fifo:
         self.space = Signal(env)  # entries freed (the Traversal PM waits on it while the FIFO is full)
         self.data = Signal(env)  # a packet entered (the Intersection PM waits on it while it is empty)
 
+    @property
+    def drained(self) -> bool:
+        """Every address pushed was popped and every entry is free again (a run that finished)."""
+        return self.pushed == self.popped and self.level == self.depth and not self.queue
+
     def slots(self, entries: int) -> int:
         """The entries a packet of ``entries`` addresses takes."""
         # a packet without addresses still passes its end-of-packet marker

@@ -10,12 +10,23 @@ and its side of the crossbar's block copies (T_norm, ``copy_words_per_cycle``).
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 
 import simpy
 from simpy.events import Event, Timeout
 
 from tlm.arch.events import Signal
 from tlm.arch.units import Trace, Unit
+
+
+@dataclass(frozen=True)
+class ModuleResult:
+    """What a memory module reports when the run ends (:meth:`Module.close`)."""
+
+    scope: str  # mem<i>, or compose
+    breakdown: dict  # eq. 5.1 over the run (units.Stats.breakdown): page misses T_ms, copies T_norm
+    requests: int  # services: packets' page misses and sides of block copies
+    rows_opened: int  # DDR rows opened (the page misses served)
 
 
 class Module:
@@ -42,6 +53,10 @@ class Module:
         self._mailbox: deque = deque()  # (client, misses, cycles, label, cycle posted) not yet booked
         self._mail = Signal(env)  # a request was posted (the process waits on it while the mailbox is empty)
         env.process(self._serve())
+
+    def close(self, end: int) -> ModuleResult:
+        """The module's books at cycle ``end``: its breakdown, its services and the rows they opened."""
+        return ModuleResult(self.unit.scope, self.unit.breakdown(end), self.requests, self.rows_opened)
 
     def request(self, client: str, misses: int, cycles: int, label: str = "page misses", then: int = 0) -> Event:
         """Post a request of ``cycles`` (``misses`` rows opened), served from this cycle on.

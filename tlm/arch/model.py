@@ -1,6 +1,6 @@
 """The thesis GPU as SimPy processes: PMs, memory modules, the crossbar, two images.
 
-``arch.pipelines`` pipelines (``pipe0``..), each of Processing Modules that are
+The frame program's pipelines (``pipe0``..), each of Processing Modules that are
 :class:`PM` processes: Vertex (pipeline 0 only), Traversal, Ray-Triangle Intersection
 (fixed function) and Fragment; four memory modules per pipeline (``mem4p``..``mem4p+3``,
 :class:`Module`, serving the page misses of the PM routed to them); the crossbar
@@ -41,13 +41,11 @@ from fractions import Fraction
 
 import simpy
 
+from tlm.arch.costs import Programs
 from tlm.arch.crossbar import Crossbar
 from tlm.arch.events import CycleEnd, Flag, all_done
 from tlm.arch.fifo import Fifo
-from tlm.arch.functional import Functional
-from tlm.arch.memory import Module
-from tlm.arch.pm import PM, PM_KINDS, Job
-from tlm.arch.program import (
+from tlm.arch.frame_program import (
     PM_TABLE_NAMES,
     PMS,
     WORDS_PER_PIXEL,
@@ -57,7 +55,9 @@ from tlm.arch.program import (
     Stage,
     frame_program,
 )
-from tlm.arch.programs import Programs
+from tlm.arch.functional import Functional
+from tlm.arch.memory import Module
+from tlm.arch.pm import PM, PM_KINDS, Job
 from tlm.arch.units import Deadlock, Trace, run
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
@@ -319,7 +319,15 @@ def simulate(fn: Functional, programs: Programs, arch: ArchConfig) -> Timing:
 
 
 def simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
-    """Run a frame program (from :func:`frame_program`, or built by hand in tests)."""
+    """Run a frame program (from :func:`frame_program`, or built by hand in tests).
+
+    The program is the one source of how a frame is laid out: its pipelines, its
+    scheduler and its tiles (and its packets) are what run. :func:`frame_program` read
+    ``arch.pipelines``, ``arch.scheduler``, ``arch.tiles_per_pipeline`` and
+    ``arch.packet_size`` to build it; the model reads the rest of ``arch`` (the stream,
+    the images in flight, the FIFO, the cycles of swaps, copies and misses) and never
+    those four.
+    """
     # The run allocates a great many short-lived objects (events, log entries, trace slices)
     # and next to no garbage cycles: Python's cycle collector, triggered by the allocations
     # alone, would scan the growing trace again and again for nothing. It is off while the
@@ -389,18 +397,11 @@ def event_bound(program: FrameProgram, arch: ArchConfig) -> int:
 def _results(model: Model, program: FrameProgram, end: int, events: int, trace: Trace | None) -> Timing:
     arch = model.arch
     nf = arch.frames
-    units = {}
     checks = {}
-    all_units = [*(pm.unit for pm in model.pms.values()), *(m.unit for m in model.modules), model.xbar.unit]
-    for pm in model.pms.values():  # the PMs wait for a job at the end: that wait is idle too
-        if pm.idle_since is not None:
-            pm.unit.stats.idle += end - pm.idle_since
-            pm.idle_since = None
-    for u in all_units:
-        try:  # a PM's booked idle must close the sum; another unit's is the rest of elapsed
-            units[u.scope] = u.stats.breakdown(end)
-        except AssertionError as exc:
-            raise AssertionError(f"{u.scope}: {exc}") from None
+    # every unit closes its books and reports them (a PM's idle wait for a job is booked to the end)
+    pms = [pm.close(end) for pm in model.pms.values()]
+    xbar = model.xbar.close(end)
+    units = {r.scope: r.breakdown for r in (*pms, *(m.close(end) for m in model.modules), xbar)}
     checks["busy + stall + idle = elapsed"] = True
     expected = dict.fromkeys(PMS, 0)
     expected_norm = dict.fromkeys(PMS, 0)
@@ -409,19 +410,19 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
             expected[js.pm] += int(js.items.sum()) * nf
             expected_norm[js.pm] += int(js.norm.sum()) * nf
     for name in PMS:
-        pms = [pm for (_, n), pm in model.pms.items() if n == name]
-        issued = sum(pm.issued for pm in pms)
-        retired = sum(pm.retired for pm in pms)
-        left = sum(len(pm.queue) for pm in pms)
+        kind = [r for r in pms if r.kind == name]
+        issued = sum(r.issued for r in kind)
+        retired = sum(r.retired for r in kind)
+        left = sum(r.queued for r in kind)
         if issued != expected[name] or retired != issued or left:
             raise AssertionError(f"{name} PMs: {issued} work items issued, {retired} retired, "
                                  f"{expected[name]} expected, {left} jobs left")
-        norm = sum(pm.unit.stats.norm for pm in pms)
+        norm = sum(r.norm for r in kind)
         if norm != expected_norm[name]:
             raise AssertionError(f"{name} PMs: T_norm {norm} != the program's {expected_norm[name]}")
     checks["every work item issued is retired"] = True
     for fifo in model.fifos:
-        if fifo.pushed != fifo.popped or fifo.level != fifo.depth or fifo.queue:
+        if not fifo.drained:
             raise AssertionError(f"a FIFO ended with {fifo.pushed} addresses pushed, {fifo.popped} popped")
     checks["every FIFO entry pushed is popped"] = True
     checks["T_norm equals the programs' cycles"] = True
@@ -443,10 +444,8 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     latency_i = round(Fraction(sum(r.done - r.arrival for r in steady), len(steady)))
     estimate["latency_frames"] = sorted(r.index for r in steady)
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]
-    for (p, name), pm in model.pms.items():
-        s = pm.unit.stats
-        own = s.busy + s.stall["swap"] + s.stall["copy"] + s.stall["preemption"]
-        per_pipe[p][name] = round(Fraction(own, nf))
+    for r in pms:
+        per_pipe[r.pipe][r.kind] = round(Fraction(r.own, nf))
     # a PM kind's cycles: its slowest pipeline's (the one the frame waits for)
     cycles = {name: max(pp[name] for pp in per_pipe) for name in PMS}
     cycles["throughput"] = throughput_i
@@ -458,8 +457,8 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     if trace is not None:
         trace.fill_idle(end)
     frames = [{"frame": r.index, "slot": r.slot, "arrival": r.arrival, "done": r.done} for r in model.frames]
-    xb = {"swaps": model.xbar.swaps, "copies": model.xbar.copies, "words_copied": model.xbar.words_copied,
-          "preemptions": {pm.unit.scope: pm.switches for pm in model.pms.values()}}
+    xb = {"swaps": xbar.swaps, "copies": xbar.copies, "words_copied": xbar.words_copied,
+          "preemptions": {r.scope: r.preemptions for r in pms}}
     return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe,
                   throughput_estimate=estimate)
 

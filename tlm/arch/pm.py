@@ -14,7 +14,7 @@ and again to restore). What differs is the unit:
   packet's addresses out of the FIFO before testing them, waiting while it is empty;
 * :class:`Fragment` shades, estimates radiance and emits photons.
 
-:data:`PM_KINDS` maps the program's PM names (``tlm.arch.program.PMS``) to the classes.
+:data:`PM_KINDS` maps the program's PM names (``tlm.arch.frame_program.PMS``) to the classes.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from simpy.events import Event, Timeout
 
 from tlm.arch.events import Flag, Priority, Signal, any_of_class
 from tlm.arch.fifo import Fifo
-from tlm.arch.program import JobSpec
+from tlm.arch.frame_program import JobSpec
 from tlm.arch.units import Unit, _cycles
 
 _SETTLE = Priority.SETTLE  # (an enum member read once: the packet loops pass it on every settle)
@@ -74,6 +74,22 @@ class Job:
         return None
 
 
+@dataclass(frozen=True)
+class PMResult:
+    """What a PM reports when the run ends (:meth:`PM.close`): its books, closed."""
+
+    scope: str  # pipe<p>.<kind>
+    pipe: int
+    kind: str  # the program's name of the PM (tlm.arch.frame_program.PMS)
+    breakdown: dict  # eq. 5.1 over the run (units.Stats.breakdown), idle booked to the end
+    issued: int  # work items of the jobs submitted to it
+    retired: int  # work items it finished
+    queued: int  # jobs still in its queue (none in a run that finished)
+    norm: int  # T_norm, its instruction cycles
+    own: int  # its busy cycles and its swap, copy and preemption stalls: the cycles a frame costs it
+    preemptions: int  # jobs it suspended for an older image's
+
+
 class PM:
     """A Processing Module: takes jobs of both images, the priority image's first.
 
@@ -87,7 +103,7 @@ class PM:
     the PM belongs to.
     """
 
-    kind = ""  # the program's name of the PM (tlm.arch.program.PMS)
+    kind = ""  # the program's name of the PM (tlm.arch.frame_program.PMS)
     shared = False  # one per GPU, on pipeline 0, rather than one per pipeline
     pops = False  # each packet's addresses come out of the job's FIFO before its work (Intersection)
     pushes = False  # each packet's addresses go into the job's FIFO after its work (Traversal)
@@ -116,6 +132,21 @@ class PM:
         self._trace = model.trace
         self._settle = model.cycle_end.event  # (Priority.SETTLE): an event at the end of the cycle
         self.env.process(self._loop())
+
+    def close(self, end: int) -> PMResult:
+        """Close the PM's books at cycle ``end`` and report them.
+
+        A PM that waits for a job when the run ends has been idle since it began to wait:
+        that wait is booked now, so busy + stall + idle = elapsed closes (checked by
+        :meth:`tlm.arch.units.Unit.breakdown`).
+        """
+        stats = self.unit.stats
+        if self.idle_since is not None:
+            stats.idle += end - self.idle_since
+            self.idle_since = None
+        own = stats.busy + stats.stall["swap"] + stats.stall["copy"] + stats.stall["preemption"]
+        return PMResult(self.unit.scope, self.pipe, self.kind, self.unit.breakdown(end), self.issued, self.retired,
+                        len(self.queue), stats.norm, own, self.switches)
 
     # -- queue ------------------------------------------------------------------------
     @staticmethod
@@ -341,6 +372,24 @@ class PM:
         return self._any_of(self.env, [ready, self.changed, *waits])
 
 
+    def _fifo_stall(self, job: Job, signal: Signal, cause: str, what: str):
+        """One wait of ``job`` on its FIFO's ``signal``, booked as a ``cause`` stall (*fifo_full*
+        or *fifo_empty*): True once something woke the PM (the FIFO may have room or data
+        now, or an older image's job may be ready), False without waiting if an older
+        image's job is ready now (it preempts this one)."""
+        wake = self._fifo_wake(job, signal)
+        if wake is None:
+            return False
+        unit = self.unit
+        start = self.env.now
+        unit.waiting_for = what
+        yield wake
+        unit.waiting_for = None
+        unit.stalled(cause, start, what)
+        if self.changed.triggered:  # (self._rearm(), inline)
+            self.changed = Flag(self.env)
+        return True
+
 class Vertex(PM):
     """The Vertex PM: builds the frame's shared structures (the BSP trees), on pipeline 0 only."""
 
@@ -363,23 +412,12 @@ class Traversal(PM):
     def _push(self, job: Job, k: int, slots: int):
         """Packet k's addresses did not fit in the FIFO: wait until they do; False if preempted meanwhile."""
         fifo = job.fifo
-        what = job.space_what
-        unit = self.unit
-        while True:
-            job.pending_push = True
-            wake = self._fifo_wake(job, fifo.space)  # (fifo.space_freed)
-            if wake is None:
-                return False
-            start = self.env.now
-            unit.waiting_for = what
-            yield wake
-            unit.waiting_for = None
-            unit.stalled("fifo_full", start, what)
-            if self.changed.triggered:  # (self._rearm(), inline)
-                self.changed = Flag(self.env)
+        job.pending_push = True
+        while (yield from self._fifo_stall(job, fifo.space, "fifo_full", job.space_what)):  # (fifo.space_freed)
             if fifo.try_push(k, slots):
                 job.pending_push = False
                 return True
+        return False
 
 
 class Intersection(PM):
@@ -396,22 +434,11 @@ class Intersection(PM):
     def _pop(self, job: Job):
         """The FIFO was empty: wait for the next packet's addresses; the packet, or None if preempted meanwhile."""
         fifo = job.fifo
-        what = job.data_what
-        unit = self.unit
-        while True:
-            wake = self._fifo_wake(job, fifo.data)  # (fifo.data_arrived)
-            if wake is None:
-                return None
-            start = self.env.now
-            unit.waiting_for = what
-            yield wake
-            unit.waiting_for = None
-            unit.stalled("fifo_empty", start, what)
-            if self.changed.triggered:  # (self._rearm(), inline)
-                self.changed = Flag(self.env)
+        while (yield from self._fifo_stall(job, fifo.data, "fifo_empty", job.data_what)):  # (fifo.data_arrived)
             k = fifo.try_pop()
             if k is not None:
                 return k
+        return None
 
 
 class Fragment(PM):
@@ -421,4 +448,4 @@ class Fragment(PM):
 
 
 PM_KINDS: dict[str, type[PM]] = {cls.kind: cls for cls in (Vertex, Traversal, Intersection, Fragment)}
-"""The PM class of each of the program's PM names, in pipeline order (``tlm.arch.program.PMS``)."""
+"""The PM class of each of the program's PM names, in pipeline order (``tlm.arch.frame_program.PMS``)."""

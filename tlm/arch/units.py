@@ -14,10 +14,9 @@ Whatever is neither is idle, so busy + stall + idle = elapsed for every unit, al
 SimPy time is an integer number of clock cycles: durations are checked to be
 non-negative integers, never float seconds. A :class:`Trace` collects one slice per
 work or stall interval in the Chrome trace-event format (``trace.json``, opens in
-ui.perfetto.dev). :class:`Handshake` holds a unit until the data it needs has been
-produced (the thesis's semaphores in the memory controller). :func:`run` runs a model
-to completion or raises :class:`Deadlock`, naming every blocked unit and what it waits
-for, when the event queue empties or an event budget passes with work unfinished.
+ui.perfetto.dev). :func:`run` runs a model to completion or raises :class:`Deadlock`,
+naming every blocked unit and what it waits for, when the event queue empties or an
+event budget passes with work unfinished.
 """
 
 from __future__ import annotations
@@ -329,6 +328,17 @@ class Unit:
         self._raw.clear()
         self._log = value
 
+    def breakdown(self, end: int) -> dict:
+        """The unit's eq. 5.1 breakdown over cycles 0 .. ``end`` (:meth:`Stats.breakdown`).
+
+        The component that owns the unit reports it when the run ends; a sum that does not
+        close raises an AssertionError naming the unit.
+        """
+        try:
+            return self.stats.breakdown(end)
+        except AssertionError as exc:
+            raise AssertionError(f"{self.scope}: {exc}") from None
+
     def work(self, norm: int, ms: int = 0, ps: int = 0, label: str = "busy") -> Generator:
         """Spend ``norm`` instruction, ``ms`` page-miss and ``ps`` flush cycles."""
         if not (type(norm) is int and type(ms) is int and type(ps) is int and norm >= 0 and ms >= 0 and ps >= 0):
@@ -380,35 +390,6 @@ class Unit:
     def delay(self, cause: str, cycles: int, what: str) -> Generator:
         """A fixed data stall (a swap's re-route, a block copy, a context switch)."""
         yield from self.stall(cause, self.env.timeout(_cycles(cycles, what)), what)
-
-
-class Handshake:
-    """The memory controller's semaphores: named data items produced once, awaited by any.
-
-    ``produce(key)`` marks the item ready; ``ready(key)`` is an event that fires when it
-    is (at once if it already is).
-    """
-
-    def __init__(self, env: simpy.Environment):
-        self.env = env
-        self._events: dict[object, simpy.events.Event] = {}
-
-    def _event(self, key: object) -> simpy.events.Event:
-        if key not in self._events:
-            self._events[key] = self.env.event()
-        return self._events[key]
-
-    def produce(self, key: object) -> None:
-        ev = self._event(key)
-        if ev.triggered:
-            raise RuntimeError(f"{key!r} was produced twice")
-        ev.succeed()
-
-    def ready(self, key: object) -> simpy.events.Event:
-        return self._event(key)
-
-    def is_ready(self, key: object) -> bool:
-        return key in self._events and self._events[key].triggered
 
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,

@@ -47,6 +47,7 @@ from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import InputError
+from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import (
     ReferenceSettings,
     compute_reference,
@@ -57,7 +58,6 @@ from tlm.experiments.reference import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
-from tlm.kernels.traverse import build_accel
 from tlm.registry import ESTIMATORS
 from tlm.render.passes import (
     GATHER_KEYS,
@@ -65,7 +65,6 @@ from tlm.render.passes import (
     TRACED_BY,
     Frame,
     GBuffer,
-    cast,
     diffuse_pixels,
     pmap_pass,
     search_radius,
@@ -73,7 +72,6 @@ from tlm.render.passes import (
     trace_photon_map,
 )
 from tlm.render.planner import photon_count, plan
-from tlm.scenes.loader import load_scene
 from tlm.storage import check_destination
 
 COLUMNS = (
@@ -185,25 +183,25 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     for cfg in configs:
         if cfg.arch.programs not in programs:
             programs[cfg.arch.programs] = programs_for(cfg, folder)
-    scene = load_scene(cfg0.scene, folder, cfg0.resolution, str(path))
-    accel = build_accel(scene.triangles, levels=cfg0.bsp.levels, memory_factor=cfg0.bsp.memory_factor)
-    g = cast(Frame.create(scene, accel, cfg0), np.arange(scene.camera.width * scene.camera.height))
+    frame0 = load_frame(cfg0, folder, str(path))
+    scene, accel = frame0.scene, frame0.accel
+    g = cast_image(frame0)
 
     settings = ReferenceSettings.from_config(scene, cfg0)
     key = reference_key(scene, cfg0, settings)
     found = load_reference(key)
     if found is None:
-        image, meta = compute_reference(Frame.create(scene, accel, cfg0), g, settings)
+        image, meta = compute_reference(frame0, g, settings)
         save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
         found = load_reference(key)
     reference, ref_meta = found
     reference = reference.reshape(-1, 3)
-    truth_image, truth_meta = truth.load(Frame.create(scene, accel, cfg0), g, note)
+    truth_image, truth_meta = truth.load(frame0, g, note)
     keep = None
     if truth_image is not None:
         from tlm.oracle.mitsuba import away_from_lights
 
-        keep = away_from_lights(sees_a_light(Frame.create(scene, accel, cfg0), g).reshape(truth_image.shape[:2]))
+        keep = away_from_lights(sees_a_light(frame0, g).reshape(truth_image.shape[:2]))
         truth_meta["pixels_compared"] = float(keep.mean())
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")

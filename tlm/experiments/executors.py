@@ -344,6 +344,22 @@ def _mp_context():
     return ctx
 
 
+def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
+    """The ``render.threads`` of a point whose config leaves it null, so that the local
+    workers' kernel threads share the CPUs without oversubscribing them: the CPUs
+    available over the worker processes (:func:`open_executor`'s), at least one. None (the
+    worker's own CPUs) for one worker and for a remote Dask cluster, whose machines are
+    not this one."""
+    from tlm.kernels.threads import available
+
+    if dask not in (None, "local"):
+        return None
+    workers = min(jobs, points)
+    if workers <= 1:
+        return None
+    return max(1, available() // workers)
+
+
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
     client's; no more workers than ``points``."""

@@ -90,7 +90,7 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
         if got is not None:
             return got
     res = run.render(cfg, base, source)
-    fn = Functional.of(res)
+    fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS},
                "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()}}
@@ -153,6 +153,7 @@ def functional_key(cfg_dict: dict, scene_fingerprint: str, code_version: str) ->
     """Hash of what the work counts depend on: the config without ``arch``, the scene."""
     keep = {k: v for k, v in cfg_dict.items() if k not in ("arch", "reference")}
     keep.setdefault("render", {})
-    keep["render"] = {k: v for k, v in keep["render"].items() if k != "exposure"}
+    # (not what changes only brightness or speed: the exposure, the kernels' threads)
+    keep["render"] = {k: v for k, v in keep["render"].items() if k not in ("exposure", "threads")}
     blob = json.dumps({"cfg": keep, "scene": scene_fingerprint, "code": code_version}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()[:24]

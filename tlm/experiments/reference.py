@@ -440,3 +440,47 @@ def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | No
     rgb = np.where(t < 0, mid + (low - mid) * -t, mid + (high - mid) * t)
     return np.clip(np.rint(rgb), 0, 255).astype(np.uint8), scale
 
+
+
+@dataclass
+class Made:
+    """What :func:`make_reference` did: the reference ``key`` and its ``settings``, its
+    ``meta`` (rounds, standard error, converged), whether it was ``computed`` now (False: a
+    cached one met the tolerance) and the ``folder`` that holds it."""
+
+    key: str
+    settings: ReferenceSettings
+    meta: dict
+    computed: bool
+    folder: Path
+
+
+def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
+                   say=None, progress=None, bar: bool = False) -> Made:
+    """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
+    one when it is converged within ``reference.tolerance`` (and not ``force``), else
+    computed now and cached.
+
+    ``say``: called with a line when a cached reference misses the tolerance and before
+    computing; ``progress``: called ``(round, change, relative standard error)`` after each
+    round (:func:`compute_reference`); ``bar``: the rounds' progress bar on stderr.
+    """
+    from tlm.experiments.loading import load_frame
+    from tlm.scenes.loader import load_scene
+
+    say = say or (lambda line: None)
+    scene = load_scene(cfg.scene, base, cfg.resolution, source)
+    settings = ReferenceSettings.from_config(scene, cfg)
+    key = reference_key(scene, cfg, settings)
+    cached = None if force else load_reference(key)
+    if cached is not None:
+        err = cached[1].get("relative_standard_error")
+        if cached[1].get("converged") and err is not None and err <= settings.tolerance:
+            return Made(key, settings, cached[1], False, cache_dir() / key)
+        say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
+    frame = load_frame(cfg, scene=scene)
+    say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
+        f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
+    image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar)
+    folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
+    return Made(key, settings, meta, True, folder)

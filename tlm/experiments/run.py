@@ -31,24 +31,24 @@ batches and the timing model.
 from __future__ import annotations
 
 import json
-import platform
-import subprocess
-import sys
-import threading
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from tlm.arch.costs import Programs, load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
-from tlm.arch.programs import Programs, load_programs
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.errors import InputError, did_you_mean
+from tlm.experiments.progress import Ticking, Timer, progress_bar
+from tlm.experiments.provenance import git_revision, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
+from tlm.kernels import threads
+from tlm.kernels.memory import Deferred, Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel, build_accel
 from tlm.render import checks
@@ -72,26 +72,6 @@ from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, check_destination
 
-
-@dataclass
-class Timer:
-    """Host wall seconds per named stage."""
-
-    seconds: dict[str, float] = field(default_factory=dict)
-
-    def stage(self, name: str):
-        timer = self
-
-        class _Stage:
-            def __enter__(self):
-                self.t0 = time.perf_counter()
-
-            def __exit__(self, *exc):
-                timer.seconds[name] = timer.seconds.get(name, 0.0) + time.perf_counter() - self.t0
-
-        return _Stage()
-
-
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 
 
@@ -107,36 +87,6 @@ def parse_outputs(text: str) -> tuple[str, ...]:
         raise InputError(f"{text!r}: expected a comma-separated list of {', '.join(('images', *OUTPUTS))}"
                          + (did_you_mean(bad[0], ("images", *OUTPUTS)) if bad else ""), key="--outputs")
     return tuple(n for n in OUTPUTS if n in names)
-
-
-def progress_bar(enabled: bool, **kwargs):
-    """A tqdm bar on stderr, drawn only when ``enabled`` and stderr is a terminal."""
-    from tqdm import tqdm
-
-    return tqdm(disable=None if enabled else True, file=sys.stderr, dynamic_ncols=True, **kwargs)
-
-
-class _Ticking:
-    """Redraws a bar every ``every`` seconds (its elapsed time) while a long call runs."""
-
-    def __init__(self, bar, every: float = 0.5):
-        self.bar, self.every = bar, every
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self._tick, daemon=True)
-
-    def _tick(self) -> None:
-        while not self.stop.wait(self.every):
-            self.bar.refresh()
-
-    def __enter__(self):
-        if not self.bar.disable:
-            self.thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self.stop.set()
-        if self.thread.is_alive():
-            self.thread.join()
 
 
 @dataclass
@@ -163,24 +113,38 @@ class Primary:
 
     def add(self, frame: Frame, g: GBuffer, at: slice) -> None:
         """The batch ``g`` of pixels ``at``."""
-        self.origin[at] = g.first(g.origin)
-        self.direction[at] = g.first(g.direction)
-        self.t[at] = g.first(g.t)
-        self.triangle[at] = g.first(g.triangle)
-        self.normal[at] = g.first(g.normal(frame))
-        self.sees_light[at] = g.first(g.sees_emitter)
-        self.rays += int(g.origin.shape[0])
-        self.hits += int((g.triangle >= 0).sum())
-        self.back += checks.back_faces(frame.scene, g.triangle, g.direction, frame.kind)
+        self.put(Primary.part(frame, g), at)
+
+    @staticmethod
+    def part(frame: Frame, g: GBuffer) -> dict:
+        """What :meth:`put` keeps of the batch ``g`` (small: one sample a pixel, and counts)."""
+        return {"origin": g.first(g.origin), "direction": g.first(g.direction), "t": g.first(g.t),
+                "triangle": g.first(g.triangle), "normal": g.first(g.normal(frame)),
+                "sees_light": g.first(g.sees_emitter), "rays": int(g.origin.shape[0]),
+                "hits": int((g.triangle >= 0).sum()),
+                "back": checks.back_faces(frame.scene, g.triangle, g.direction, frame.kind)}
+
+    def put(self, part: dict, at: slice) -> None:
+        """A batch's :meth:`part`, of pixels ``at``."""
+        for k in ("origin", "direction", "t", "triangle", "normal", "sees_light"):
+            getattr(self, k)[at] = part[k]
+        self.rays += part["rays"]
+        self.hits += part["hits"]
+        self.back += part["back"]
 
 
 @dataclass
 class RenderResult:
     """Everything a run computed (before it is written out).
 
-    ``gbuffer`` is the whole image's G-buffer when it was cast as one batch; after a
-    batched render, an :class:`~tlm.render.passes.ImageGBuffer` that casts it again on
-    first use (``pixels`` and ``spp`` at once). ``primary``: the AOVs and eye-ray counts.
+    ``radiance`` and ``work`` hold each pass's (H, W, 3) linear radiance and (H, W) work
+    counts; :attr:`composite`, :attr:`aov` and :meth:`work_totals` are the views a run
+    folder writes. ``gbuffer`` is the whole image's G-buffer when it was cast as one batch;
+    after a batched render, an :class:`~tlm.render.passes.ImageGBuffer` that casts it
+    again on first use (``pixels`` and ``spp`` at once). ``primary``: the AOVs and
+    eye-ray counts. ``timing`` and ``programs`` are set by :func:`simulate_render`, which
+    returns a new result; ``base``: where the config's relative paths start (the
+    instruction table of ``arch.programs``), when the caller knew it.
     """
 
     scene: Scene
@@ -197,10 +161,32 @@ class RenderResult:
     programs: Programs | None = None
     primary: Primary | None = None
     gather_maps: dict | None = None  # the pmap pass's work per photon map (pmap_pass's per_map)
+    base: Path | None = None
 
     @property
     def accel(self) -> TriangleAccel:
         return self.frame.accel
+
+    @property
+    def aov(self) -> dict[str, np.ndarray]:
+        """Each pixel's first eye sample, as ``aov/primary.npz`` holds it: ``origin``,
+        ``direction``, ``normal`` (H, W, 3), ``t`` (H, W; inf on a miss) and ``triangle``
+        (H, W; -1 on a miss)."""
+        primary = self.primary if self.primary is not None else _primary_of(self)
+        h, w = self.scene.camera.height, self.scene.camera.width
+        return {"origin": primary.origin.reshape(h, w, 3), "direction": primary.direction.reshape(h, w, 3),
+                "t": primary.t.reshape(h, w), "triangle": primary.triangle.reshape(h, w),
+                "normal": primary.normal.reshape(h, w, 3)}
+
+    def functional(self) -> Functional:
+        """The work the timing model reads: :meth:`Functional.of` over what the render
+        produced (each planned pass's work, the geometry BSP, the photon trace)."""
+        return Functional.of({p: self.work[p] for p in self.plan.run_names}, self.accel.tree, self.photons,
+                             self.scene.camera.width)
+
+    def work_totals(self) -> dict[str, dict[str, int]]:
+        """Each pass's work counts summed over the image: pass -> count -> int."""
+        return {name: {k: int(v.sum()) for k, v in counts.items()} for name, counts in self.work.items()}
 
     @property
     def composite(self) -> np.ndarray:
@@ -214,7 +200,29 @@ class RenderResult:
 def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
            progress: bool = False) -> RenderResult:
     """Render every planned frame of ``cfg`` over the whole image, in batches of
-    ``render.batch_rays`` eye rays (the module's docstring); ``progress``: a bar on stderr."""
+    ``render.batch_rays`` eye rays (the module's docstring); ``progress``: a bar on stderr.
+
+    The kernels run on ``render.threads`` threads (null: the CPUs available), with the
+    bits of one (:mod:`tlm.kernels.threads`)."""
+    with threads.using(cfg.render.threads):
+        return _render(cfg, base, config_source, progress)
+
+
+def _render(cfg: RunConfig, base: Path | None, config_source: str | None, progress: bool) -> RenderResult:
+    """:func:`render` on the calling thread's kernel threads.
+
+    On one thread the batches run one after the other, every pass charging its cache
+    pairs (one :class:`~tlm.kernels.memory.Streams` per pass, carried batch to batch).
+    On several, the image is cut into smaller batches (:func:`batches_for`; a pixel's
+    results never depend on its batch) and whole batches run at once, on forked worker
+    processes (:data:`BATCH_WORKERS`) or on the threads' pool
+    (:func:`tlm.kernels.threads.ordered`): each pass charges cold pairs of its own
+    (:class:`~tlm.kernels.memory.Deferred`), and this thread takes the batches in pixel
+    order, settles each pass's charges on the carried pairs (the misses of the batches
+    charged in order) and copies the batch into the image, while the next batches run;
+    at most a window of batches is in flight, so memory stays bounded by the batch. The
+    stages' seconds are then summed over the threads.
+    """
     timer = Timer()
     with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
         with timer.stage("load_scene"):
@@ -226,7 +234,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     frame = Frame.create(scene, accel, cfg)
     w, h = scene.camera.width, scene.camera.height
     names = the_plan.run_names
-    batches = pixel_batches(w * h, frame.spp, cfg.render.batch_rays)
+    batches = batches_for(w * h, frame.spp, cfg.render.batch_rays, threads.current())
     traced = None
     radiance = {name: np.zeros((w * h, 3)) for name in names if name not in WORK_PASSES}
     work: dict[str, dict[str, np.ndarray]] = {}
@@ -241,31 +249,44 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
             with timer.stage("photon_trace"):
                 traced = trace_photon_map(frame)
             bar.update()
-        for i, at in enumerate(batches):
-            bar.set_postfix_str(f"batch {i + 1}/{len(batches)} cast")
-            with timer.stage("cast"):
-                g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
-            bar.update()
+        concurrent = threads.current() > 1 and len(batches) > 1
+        if concurrent:
+            _warm(frame, traced)
+
+        def one(i: int) -> _Batch:
+            return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
+                              Timer() if concurrent else timer, None if concurrent else bar, i, len(batches))
+
+        if concurrent and BATCH_WORKERS == "processes" and threads.can_fork():
+            done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
+        else:
+            done_batches = threads.ordered(one, range(len(batches)))
+        for i, done in enumerate(done_batches):
+            at, g = batches[i], done.g
+            arrays = None
+            if done.portable:
+                arrays = {f"{name}.{k}": v for name, (_, wk) in done.out.items() for k, v in wk.items()}
             for name in names:
-                bar.set_postfix_str(f"batch {i + 1}/{len(batches)} {name}")
-                with timer.stage(f"pass_{name}"):
-                    if name == "pmap":
-                        rad, wk = pmap_pass(frame, g, traced.photons, streams=streams[name], per_map=gather_maps,
-                                            fg_streams=streams.get("fgather"))
-                    elif name == "fgather":
-                        rad, wk = fgather_pass(frame, g)
-                    else:
-                        rad, wk = PASS_FUNCTIONS[name](frame, g, streams[name])
+                if concurrent:
+                    streams[name].settle(done.deferred[name], arrays)
+                rad, wk = done.out[name]
                 if name in radiance:
                     radiance[name][at] = rad
                 counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
                 for k, v in wk.items():
                     counts[k][at] = v
-                bar.update()
-            primary.add(frame, g, at)
+            _merge_tallies(gather_maps, done.per_map)
+            if concurrent:
+                for k, s in done.timer.seconds.items():
+                    timer.seconds[k] = timer.seconds.get(k, 0.0) + s
+                bar.update(1 + len(names))
+            if isinstance(g, dict):  # (a batch from another process: its primary part)
+                primary.put(g, at)
+            else:
+                primary.add(frame, g, at)
             if len(batches) == 1:
                 whole = g
-            del g
+            del g, done
     radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
     work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     error = None
@@ -274,6 +295,106 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
     return RenderResult(scene, cfg, the_plan, frame, gbuffer, radiance, work, timer, traced, error,
                         primary=primary, gather_maps=gather_maps)
+
+
+BATCHES_PER_THREAD = 3  # batches per thread when whole batches run at once: they differ in cost
+MIN_BATCH_RAYS = 1024  # ... but none under this many eye rays (a batch's fixed cost in Python)
+
+
+def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
+    """The render's pixel batches (:func:`~tlm.render.passes.pixel_batches`): of
+    ``batch_rays`` eye rays on one thread; on several, smaller ones, about
+    :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / n_threads`` eye rays
+    (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and balance,
+    and the batches in flight (twice the threads) hold about two batches of one thread's
+    memory. The cuts never change the results."""
+    if n_threads > 1:
+        share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
+        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // n_threads)))
+    return pixel_batches(n_pixels, spp, batch_rays)
+
+
+@dataclass
+class _Batch:
+    """One batch's G-buffer (from another process: its :meth:`Primary.part`) and passes:
+    pass -> (radiance, work); with ``deferred`` pairs, the work's misses as charged on
+    cold pairs (settled in the calling thread; ``portable``: naming the arrays
+    ``"<pass>.<count>"``, :meth:`~tlm.kernels.memory.Deferred.portable`)."""
+
+    g: GBuffer | dict
+    out: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
+    deferred: dict[str, Deferred] | None
+    per_map: dict | None
+    timer: Timer
+    portable: bool = False
+
+
+# where whole batches run at once on several threads: "processes" (forked from the render
+# after the photon trace: the frame, its BSP and the photon maps are the parent's pages, and
+# no interpreter lock is shared) or "threads" (one process; numpy and the compiled kernels
+# release the lock, the Python between them does not)
+BATCH_WORKERS = "threads"
+
+
+def _portable(frame: Frame, done: _Batch) -> _Batch:
+    """A batch run in a worker process, for the way back: small and named."""
+    ids = {id(v): f"{name}.{k}" for name, (_, wk) in done.out.items() for k, v in wk.items()}
+    return replace(done, g=Primary.part(frame, done.g), portable=True,
+                   deferred={name: d.portable(ids) for name, d in done.deferred.items()})
+
+
+def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTrace | None,
+               streams: dict[str, Streams], deferred: bool, tally: bool, timer: Timer, bar, i: int,
+               n: int) -> _Batch:
+    """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
+    ``deferred``, on cold :class:`~tlm.kernels.memory.Deferred` pairs like them (a batch on
+    a worker thread: its per-map tallies are its own too)."""
+    pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
+    per_map: dict | None = {} if tally else None
+    if bar is not None:
+        bar.set_postfix_str(f"batch {i + 1}/{n} cast")
+    with timer.stage("cast"):
+        g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
+    if bar is not None:
+        bar.update()
+    out = {}
+    for name in names:
+        if bar is not None:
+            bar.set_postfix_str(f"batch {i + 1}/{n} {name}")
+        with timer.stage(f"pass_{name}"):
+            if name == "pmap":
+                out[name] = pmap_pass(frame, g, traced.photons, streams=pairs[name], per_map=per_map,
+                                      fg_streams=pairs.get("fgather"))
+            elif name == "fgather":
+                out[name] = fgather_pass(frame, g)
+            else:
+                out[name] = PASS_FUNCTIONS[name](frame, g, pairs[name])
+        if bar is not None:
+            bar.update()
+    return _Batch(g, out, pairs if deferred else None, per_map, timer)
+
+
+def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
+    """Make what the passes build on first use (the compiled traversal's layout, the photon
+    maps in leaf order, their radii) before batches run at once, so no two threads build it."""
+    cast(frame, np.zeros(1, dtype=np.int64))
+    if traced is not None:
+        photons = traced.photons
+        for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
+                  getattr(photons, "global_map", photons)):
+            if m is not None and m.n > 0:
+                m.prepared()
+        radii(frame, photons)
+
+
+def _merge_tallies(into: dict | None, tallies: dict | None) -> None:
+    """Add a batch's per-map gather totals (pmap_pass's ``per_map``) to the render's, in order."""
+    if into is None or tallies is None:
+        return
+    for name, tally in tallies.items():
+        dst = into.setdefault(name, {})
+        for k, v in tally.items():
+            dst[k] = dst.get(k, 0) + v
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
@@ -286,15 +407,25 @@ def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
     return load_programs(path)
 
 
-def simulate_run(res: RenderResult, programs: Programs, progress: bool = False) -> Timing:
-    """Run the timing model over the rendered frame's work (the SimPy layer); ``progress``:
-    a bar on stderr with the elapsed time while it runs."""
-    with res.timer.stage("simulate"), progress_bar(progress, desc="simulate", total=1, unit="run", leave=False,
-                                                   postfix=f"{res.cfg.arch.frames} frames") as bar, _Ticking(bar):
-        res.programs = programs
-        res.timing = simulate(Functional.of(res), programs, res.cfg.arch)
+def simulate_run(res: RenderResult, programs: Programs, progress: bool = False, timer: Timer | None = None
+                 ) -> Timing:
+    """The timing model's outcome over the rendered frame's work (the SimPy layer) under
+    ``res.cfg.arch``; ``res`` is left as it is. ``progress``: a bar on stderr with the
+    elapsed time while it runs; ``timer``: gets the stage ``simulate``."""
+    timer = Timer() if timer is None else timer
+    with timer.stage("simulate"), progress_bar(progress, desc="simulate", total=1, unit="run", leave=False,
+                                               postfix=f"{res.cfg.arch.frames} frames") as bar, Ticking(bar):
+        timing = simulate(res.functional(), programs, res.cfg.arch)
         bar.update()
-    return res.timing
+    return timing
+
+
+def simulate_render(res: RenderResult, programs: Programs, progress: bool = False) -> RenderResult:
+    """``res`` simulated: a new result with its ``timing``, its ``programs`` and the stage
+    ``simulate`` in its host seconds (``res`` itself is left as it is)."""
+    timer = Timer(dict(res.timer.seconds))
+    timing = simulate_run(res, programs, progress, timer)
+    return replace(res, timer=timer, timing=timing, programs=programs)
 
 
 def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
@@ -342,34 +473,6 @@ def _write_difference(res: RenderResult, path: Path) -> None:
     rgb, scale = difference_image(res.radiance["pmap"], found[0].reshape(res.radiance["pmap"].shape))
     write_png(path, rgb)
     res.error.update(difference_image=f"images/{path.name}", difference_scale=scale)
-
-
-def _versions() -> dict[str, str]:
-    import importlib.metadata as md
-
-    out = {"python": platform.python_version(), "platform": platform.platform()}
-    for pkg in ("tlm", "numpy", "scipy", "simpy", "trimesh", "pyyaml", "pillow"):
-        try:
-            out[pkg] = md.version(pkg)
-        except md.PackageNotFoundError:
-            out[pkg] = "not installed"
-    return out
-
-
-def _git_revision() -> str | None:
-    try:
-        here = Path(__file__).resolve().parent
-        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
-                             text=True, timeout=5, check=False)
-        return out.stdout.strip() or None
-    except (OSError, subprocess.SubprocessError):
-        return None
-
-
-def provenance(study: str | None, host_seconds: float | None) -> dict:
-    """What a study folder records of where it came from (``provenance.json``)."""
-    return {"study": study, "versions": _versions(), "git_revision": _git_revision(),
-            "host_seconds": None if host_seconds is None else round(host_seconds, 3)}
 
 
 def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
@@ -462,8 +565,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "image": {"exposure": exposure},
         "error": res.error,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
-        "versions": _versions(),
-        "git_revision": _git_revision(),
+        "versions": versions(),
+        "git_revision": git_revision(),
         "warnings": warnings,
     }
 
@@ -560,10 +663,11 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     res = render(cfg, base, source, progress=progress)
     if reference and res.error is not None and not res.error["available"]:
         with res.timer.stage("reference"):
-            res.error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
-                                     progress=progress, say=say)
-    simulate_run(res, programs, progress=progress)
-    with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, _Ticking(bar):
+            error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
+                                 progress=progress, say=say)
+        res = replace(res, error=error)
+    res = simulate_render(res, programs, progress=progress)
+    with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
         results = write_run(res, out, config_path, overrides, outputs)
         bar.update()
     return results

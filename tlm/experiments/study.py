@@ -25,7 +25,7 @@ import yaml
 
 from tlm.config import read_yaml, to_dict
 from tlm.errors import InputError
-from tlm.experiments.run import provenance
+from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, write_file, write_rows
 
 

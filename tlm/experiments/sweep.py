@@ -64,10 +64,11 @@ import yaml
 from tlm import storage
 from tlm.config import config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
-from tlm.experiments.executors import InProcess, LocalPool, open_executor
+from tlm.experiments.executors import InProcess, LocalPool, kernel_threads, open_executor
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
+from tlm.experiments.provenance import git_revision, versions
 from tlm.fingerprint import code_fingerprint
-from tlm.storage import atomic_folder, check_destination, claim_folder, write_file
+from tlm.storage import atomic_folder, check_destination, claim_folder
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -121,7 +122,9 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
     The files and the code are part of the key so that a rerun after a change to either
     computes its points again instead of reusing results of other inputs or other code.
     """
-    body = {"config": resolved, "code": code_fingerprint()}
+    # render.threads changes the speed alone (bit-identical results): a point keeps its key
+    render = {k: v for k, v in resolved.get("render", {}).items() if k != "threads"}
+    body = {"config": {**resolved, "render": render} if "render" in resolved else resolved, "code": code_fingerprint()}
     if inputs is not None:
         body["inputs"] = inputs
     blob = json.dumps(body, sort_keys=True, separators=(",", ":"))
@@ -135,7 +138,7 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None) -> di
     Loads the scene and the programs table (an InputError names ``source``). ``seen``
     keeps what was loaded, for the next point: points of one sweep share most of them.
     """
-    from tlm.arch.programs import DEFAULT_PATH
+    from tlm.arch.costs import DEFAULT_PATH
     from tlm.experiments.run import programs_for
 
     seen = {} if seen is None else seen
@@ -395,6 +398,19 @@ class Outcome:
     seconds: float
     out: Path
 
+    @property
+    def table(self):
+        """The rows as a pandas DataFrame, one row per point in point order, the columns as in
+        ``sweep.csv`` (:data:`FIRST_COLUMNS`, then every other field as it first appears:
+        the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``, utilization, host seconds)."""
+        import pandas as pd
+
+        rows = sorted(self.rows, key=lambda r: r["point"])
+        cols = list(FIRST_COLUMNS)
+        for r in rows:
+            cols.extend(k for k in r if k not in cols)
+        return pd.DataFrame(rows, columns=cols)
+
 
 def _clean_stale(points_dir: Path) -> None:
     """Remove temporary point folders of sweeps that were killed (their process is gone)."""
@@ -409,6 +425,14 @@ def _done(folder: Path) -> dict | None:
         return None
 
 
+def _with_threads(config: dict, threads: int | None) -> dict:
+    """``config`` with ``render.threads`` set to ``threads`` where the config leaves it null."""
+    render = config.get("render", {})
+    if threads is None or render.get("threads") is not None:
+        return config
+    return {**config, "render": {**render, "threads": threads}}
+
+
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
               progress: bool = False) -> Outcome:
     """Run every point of the sweep file ``path`` not already done in ``out``."""
@@ -421,9 +445,6 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
-    # the folder and its marker appear together: a second sweep into it, started this
-    # instant, finds a tlm output (never a half-made folder that it must refuse)
-    claim_folder(out, MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
     points_dir = out / "points"
 
     by_hash: dict[str, list[Point]] = {}
@@ -439,16 +460,20 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             todo.append(h)
     skipped = sum(len(by_hash[h]) for h in records)
 
-    from tlm.experiments.run import _git_revision, _versions
-
-    provenance = {"versions": _versions(), "git_revision": _git_revision()}
-    tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
-                     str(points_dir / h), provenance) for h in todo}
+    provenance = {"versions": versions(), "git_revision": git_revision()}
+    # --jobs x render.threads <= the CPUs: a point that leaves render.threads null gets its
+    # worker's share of them (its key does not depend on it: config_hash)
+    share = kernel_threads(jobs, dask, len(todo))
+    tasks = {h: Task(h, _with_threads(by_hash[h][0].config, share), by_hash[h][0].factors, str(sweep.folder),
+                     str(sweep.path), str(points_dir / h), provenance) for h in todo}
 
     with ExitStack() as stack:
         pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
+        # the folder and its marker appear together, before anything else is written in it
+        # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
+        # into it, started this instant, finds a tlm output, never a half-made folder
+        claim_folder(out, MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         points_dir.mkdir(parents=True, exist_ok=True)
-        write_file(out / MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
         _clean_stale(points_dir)
         for h in todo:  # a failed point's folder (or an unreadable one) is run again
             if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)

@@ -34,12 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from tlm.arch.functional import Functional
+from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
-from tlm.arch.programs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
-from tlm.experiments.run import RenderResult, Timer, programs_for, progress_bar, render, simulate_run, write_run
+from tlm.experiments.run import RenderResult, Timer, programs_for, progress_bar, render, simulate_render, write_run
 from tlm.experiments.study import read_study, run_study
 from tlm.render.planner import plan
 
@@ -263,7 +262,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
                 cells.set_postfix_str(f"{scene} {mode}")
                 cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
                 sub = restrict(res, cfg)
-                simulate_run(sub, programs, progress=bar)
+                sub = simulate_render(sub, programs, progress=bar)
                 results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
                 items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
@@ -327,7 +326,7 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     for scene in scenes:
         cfg = config_from_dict({**base, "scene": scene, "mode": "rcast"}, str(path))
         cfg0 = cfg0 or cfg
-        fns[scene] = (Functional.of(render(cfg, folder, str(path))), cfg)
+        fns[scene] = (render(cfg, folder, str(path)).functional(), cfg)
     programs = programs_for(cfg0, folder)
     ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
     # T_norm is linear in the parameters: instructions and records per frame, once

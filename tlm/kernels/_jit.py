@@ -221,16 +221,21 @@ def _lossy(x0, x1, x2, y0, y1, y2):
     return not (e0 <= lim and e1 <= lim and e2 <= lim)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
           split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size,
-          eps32, eps_check, eps64, first_only, shared, record,
+          eps32, eps_check, eps64, first_only, shared, shared_o32, record,
           level_cap, leaf_cap, node_cap):
     """Every ray of a packet, start to finish (see :func:`tlm.kernels.traverse._traverse`).
 
     o, d : (r, 3) float64 (after ``_prepare``: rescaled, subnormals flushed); tmin, tmax,
     ignore : (r,). The layout arrays are :class:`Layout`'s. ``*_cap`` size the buffers:
     the widest level list, and the visited leaves and entered nodes of all rays.
+    ``shared``: the float32 test takes the packet's one origin, ``shared_o32`` (3,)
+    float32, the first ray's ``o - origin`` as the numpy engine does (the origins are equal
+    as float32 values, but a zero's sign may differ); given by the caller, so that a
+    chunk of the packet (:mod:`tlm.kernels.threads`) tests exactly as the whole does.
+    Compiled ``nogil``: threads run chunks of a packet at once.
 
     Returns ``status`` (``OK`` or which buffer overflowed: rerun with it doubled), then
     ``t, u, v`` (r,) float64, ``slot`` (r,) int64 (the accel's slot; -1: none),
@@ -256,13 +261,7 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
     lo0, lo1, lo2 = root_lo[0], root_lo[1], root_lo[2]
     hi0, hi1, hi2 = root_hi[0], root_hi[1], root_hi[2]
-    if shared and r > 0:  # the float32 test takes the first ray's origin, as the numpy
-        # engine does (the origins are equal as float32 values, but a zero's sign may differ)
-        sx32 = np.float32(o[0, 0] - origin[0])
-        sy32 = np.float32(o[0, 1] - origin[1])
-        sz32 = np.float32(o[0, 2] - origin[2])
-    else:
-        sx32 = sy32 = sz32 = np.float32(0.0)
+    sx32, sy32, sz32 = shared_o32[0], shared_o32[1], shared_o32[2]  # (used when shared)
     for i in range(r):
         # the root clip (_clip_root): slabs, a zero component inside or outside its slab
         ta = tmin[i]

@@ -26,12 +26,13 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm, q0, q1, radius, slack,
                  cone, span, pair_query, pair_leaf, visits, sums, accepted):
     """Queries ``q0:q1``: fills ``visits`` (m,), ``sums`` (3, m) (the weighted power, not yet
     divided by the filter's area), ``accepted`` (m,) and the pairs; returns the pairs' count
-    (more than the buffer holds: nothing is valid, run again with that many)."""
+    (more than the buffer holds: nothing is valid, run again with that many). Compiled
+    ``nogil``: threads run blocks of queries at once (:mod:`tlm.kernels.threads`)."""
     r2 = radius * radius
     cap = pair_query.shape[0]
     n_pairs = 0

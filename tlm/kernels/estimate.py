@@ -227,14 +227,16 @@ def _empty(q: int) -> Estimate:
 GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.kernels.memory.PM_STREAMS)
 
 
-def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, m: int,
-                   stream: str = GATHER_STREAM) -> np.ndarray:
-    """Misses (m,) of reading the photons of leaf ``leaf[i]`` for query ``query[i]`` (in
-    ``[0, m)``), pairs in order, on the pair of ``stream`` (default: the Fragment PM's
-    ``photons``; the caustic map's leaves are read as ``caustic_photons``)."""
+def _charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np.ndarray, into: np.ndarray,
+                   stream: str = GATHER_STREAM) -> None:
+    """Add to ``into`` (m,) the misses of reading the photons of leaf ``leaf[i]`` for query
+    ``query[i]`` (in ``[0, m)``), pairs in order, on the pair of ``stream`` (default: the
+    Fragment PM's ``photons``; the caustic map's leaves are read as ``caustic_photons``).
+    ``into`` is a block of the estimate's ``gather_misses``, where a
+    :class:`~tlm.kernels.memory.Deferred` ``streams`` corrects them later."""
     first = lp.first[leaf] * PHOTON_WORDS
     acc = Accesses.of_ranges(first, first + lp.size[leaf] * PHOTON_WORDS, query, streams.page_words)
-    return streams.charge(stream, acc, m)
+    streams.charge(stream, acc, into.shape[0], into)
 
 
 def _per_query(index: np.ndarray, values: np.ndarray, q: int) -> np.ndarray:
@@ -347,7 +349,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         out.leaves_visited[q0:q1] = np.bincount(loc, minlength=m)
         out.photons_tested[q0:q1] = np.bincount(loc, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[q0:q1] = np.bincount(loc, weights=acc, minlength=m)
-        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, loc, leaf, m, stream)  # blocks run in order
+        _charge_leaves(streams, lp, loc, leaf, out.gather_misses[q0:q1], stream)  # blocks run in order
         if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = _per_query(loc, sums[c], m) / norm
@@ -357,34 +359,67 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
 def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, norm: float, streams: Streams,
                       stream: str, out: Estimate) -> Estimate:
     """:func:`_fixed_radius` by the compiled kernel (:mod:`tlm.kernels._jit_gather`): the same
-    bits, query blocks in order (their leaf reads charged block by block, as the numpy path's)."""
-    from tlm.kernels._jit_gather import fixed_radius
+    bits, query blocks in order (their leaf reads charged block by block, as the numpy path's).
 
-    tree = lp.tree
+    On several threads (:mod:`tlm.kernels.threads`) each block's queries are cut into
+    chunks gathered at once; a chunk's (query, leaf) pairs are query-major, so joined in
+    order they are the block's, and the block is charged in this thread, in order, while
+    the next blocks' chunks run.
+    """
+    from tlm.kernels import threads
+
     q = pts.shape[1]
-    pairs = JIT_PAIRS
-    for q0 in range(0, q, QUERY_BLOCK):
-        q1 = min(q0 + QUERY_BLOCK, q)
+    blocks = [(q0, min(q0 + QUERY_BLOCK, q)) for q0 in range(0, q, QUERY_BLOCK)]
+    chunks = [(q0, q1, a, b) for q0, q1 in blocks for a, b in threads.spans(q1 - q0, GATHER_MIN_CHUNK)]
+    per_query = [JIT_PAIRS / QUERY_BLOCK]  # pairs a query needs, as seen so far (buffer sizes only)
+    results = threads.ordered(
+        lambda c: _gather_chunk(lp, pts, nrm, r, cone_k, c[0] + c[2], c[0] + c[3], per_query), chunks)
+    at = 0
+    for q0, q1 in blocks:
         m = q1 - q0
-        sums = np.zeros((3, m))
-        accepted = np.zeros(m, dtype=np.int64)
-        while True:
-            pq, leaf = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
-            need = fixed_radius(tree.split, tree.levels, tree.leaf_offset, lp.pos, lp.inc, lp.pow, lp.first, lp.size,
-                                pts, nrm, q0, q1, r, _SLACK, cone_k is not None,
-                                0.0 if cone_k is None else cone_k * r, pq, leaf, out.node_visits[q0:q1], sums,
-                                accepted)
-            if need <= pairs:
-                break
-            pairs = int(need)
-        pq, leaf = pq[:need], leaf[:need]
+        parts = []
+        while at < len(chunks) and chunks[at][0] == q0:
+            visits, accepted, sums, pq, leaf = next(results)
+            parts.append((visits, accepted, sums, pq + chunks[at][2], leaf))  # the query's place in the block
+            at += 1
+        visits, accepted, sums, pq, leaf = (np.concatenate(col, axis=-1) for col in zip(*parts, strict=True))
+        out.node_visits[q0:q1] = visits
         out.leaves_visited[q0:q1] = np.bincount(pq, minlength=m)
         out.photons_tested[q0:q1] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[q0:q1] = accepted
-        out.gather_misses[q0:q1] = _charge_leaves(streams, lp, pq, leaf, m, stream)
+        _charge_leaves(streams, lp, pq, leaf, out.gather_misses[q0:q1], stream)
         if norm > 0.0:
             out.density[q0:q1] = (sums / norm).T
     return out
+
+
+GATHER_MIN_CHUNK = 512  # queries per chunk at the least when a block is split between threads
+
+
+def _gather_chunk(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, a: int, b: int,
+                  per_query: list[float]):
+    """The compiled gather of queries ``a:b``: ``visits, accepted`` (m,), ``sums`` (3, m) and
+    the (query, leaf) pairs in order (the query numbered from ``a``), its pair buffer grown
+    until it holds them (``per_query``: the pairs per query to size it by, raised by a chunk that
+    needed more, so that the next chunks do not run twice)."""
+    from tlm.kernels._jit_gather import fixed_radius
+
+    tree = lp.tree
+    m = b - a
+    visits = np.zeros(m, dtype=np.int64)
+    sums = np.zeros((3, m))
+    accepted = np.zeros(m, dtype=np.int64)
+    pairs = max(int(per_query[0] * m) + 1, 64)
+    while True:
+        pq, leaf = np.empty(pairs, dtype=np.int64), np.empty(pairs, dtype=np.int64)
+        need = fixed_radius(tree.split, tree.levels, tree.leaf_offset, lp.pos, lp.inc, lp.pow, lp.first, lp.size,
+                            pts, nrm, a, b, r, _SLACK, cone_k is not None, 0.0 if cone_k is None else cone_k * r,
+                            pq, leaf, visits, sums, accepted)
+        if need <= pairs:
+            break
+        pairs = int(need)
+        per_query[0] = max(per_query[0], 1.25 * need / m)
+    return visits, accepted, sums, pq[:need], leaf[:need]
 
 
 # ---------------------------------------------------------------- the filters
@@ -620,7 +655,7 @@ def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, r
         out.photons_tested[sl] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
         out.photons_accepted[sl] = np.bincount(pq, weights=acc, minlength=m)
         out.probe_tests[sl] = PROBES + np.bincount(xrow // PROBES, minlength=m)
-        out.gather_misses[sl] = _charge_leaves(streams, lp, pq, leaf, m, stream)  # blocks run in order
+        _charge_leaves(streams, lp, pq, leaf, out.gather_misses[sl], stream)  # blocks run in order
         if r > 0.0:
             area = norm * frac
             share = mult / k

@@ -55,9 +55,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tlm.kernels import threads
 from tlm.kernels.bsp import BSPTree, build_point_tree
 from tlm.kernels.estimate import density_radius, leaf_photons
-from tlm.kernels.memory import PAGE_WORDS, PAIRS, Recorder, Streams, traversal_accesses
+from tlm.kernels.memory import PAGE_WORDS, PAIRS, Deferred, Recorder, Streams, traversal_accesses
 from tlm.kernels.shade import (
     SPAWN_EPS,
     face_normals,
@@ -68,14 +69,13 @@ from tlm.kernels.shade import (
     triangle_choice,
 )
 from tlm.kernels.traverse import TriangleAccel, closest_hit
+from tlm.kernels.work import PHOTON_WORK, PhotonWork, stream_keys
 from tlm.scenes.model import KIND, Light, Scene
 from tlm.scenes.normals import crease_normals, interpolate
 
-PHOTON_WORK = (
-    "photons_emitted", "rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests",
-    "bounces", "stored", "absorbed", "lost", "trav_misses", "isect_misses",
-)
-_MISS_KEYS = {"nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses"}
+_MISS_KEYS = stream_keys(PhotonWork)  # each stream's work key (tlm.kernels.work)
+STORED = ("position", "normal", "incoming", "power", "caustic")  # what a stored photon holds
+PHOTON_MIN_CHUNK = 4096  # photons a chunk traces at the least when they are cut between threads
 
 
 @dataclass(frozen=True)
@@ -329,7 +329,7 @@ def aim_boxes(triangles: np.ndarray, kind: np.ndarray, part: np.ndarray, aim_tri
     return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
 
 
-CONE_CHUNK = 1 << 13  # photons x boxes a chunk of cone mixture sampling holds (memory and speed only)
+CONE_CHUNK = 1 << 16  # photons x boxes a chunk of cone mixture sampling holds (memory and speed only)
 
 
 def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np.ndarray,
@@ -352,7 +352,8 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
     if shared:
         cones = _box_cones(o, lo, hi)
     step = max(1, CONE_CHUNK // max(k_n, 1))
-    for s in range(0, m, step):
+
+    def chunk(s: int) -> None:  # photons s .. e - 1, each on its own: chunks run on the threads
         e = min(m, s + step)
         a, cos = cones if shared else _box_cones(o[s:e], lo, hi)  # (1 or e - s, K) each
         cum = np.cumsum(2.0 * np.pi * (1.0 - cos), axis=1)  # solid angles, summed
@@ -366,6 +367,9 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
         holds[np.arange(e - s), pick] = True  # the picked cone holds d, whatever the rounding
         d[s:e] = dd
         inv_pdf[s:e] = total[row] / holds.sum(axis=1)
+
+    for _ in threads.ordered(chunk, range(0, m, step)):
+        pass
     return d, inv_pdf
 
 
@@ -505,6 +509,7 @@ def trace_photons(
     page_words: int = PAGE_WORDS,
     pairs: int = PAIRS,
     fresnel: bool = True,
+    batch_rays: int | None = None,
 ) -> PhotonTrace:
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
@@ -516,6 +521,10 @@ def trace_photons(
     stores only caustic photons (L S+ D); the global group then stores only indirect
     ones (a diffuse bounce on the way), so nothing is counted twice. page_words, pairs : the
     data cache whose misses the photons' reads are charged (the ``cache`` section).
+    batch_rays : the most rays a chunk of photons traces and keeps the reads of (the
+    render's ``render.batch_rays``): photons go in chunks of at most ``batch_rays //
+    max_bounces``, each through all its bounces and charged before the next, so memory
+    does not grow with the bounces (None: no bound; the maps and work are the same).
     """
     if n < 0:
         raise ValueError(f"photons (={n}) must be >= 0")
@@ -544,103 +553,137 @@ def trace_photons(
                                               caustic_boxes=boxes, caustic_count=caustic_count)
     split = aimed  # caustics come from the caustic group only
     n = o.shape[0]
-    work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
-    work["photons_emitted"][:] = 1
     normals = face_normals(scene.triangles)
     shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
     matched = (kind_of == KIND["dielectric"]) & (ior == 1.0)  # index-matched: light crosses unchanged
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
-    pid = np.arange(n)  # photon ids still travelling
-    last = source  # triangle each photon leaves (an emitting triangle, or -1)
-    specular_only = np.ones(n, dtype=bool)  # every bounce so far was specular
-    direct = np.ones(n, dtype=bool)  # straight from the light (index-matched crossings only)
-    rec = Recorder(streams.page_words)
-    stored: dict[str, list[np.ndarray]] = {k: [] for k in ("position", "normal", "incoming", "power", "caustic")}
-    # the global map (final gathering): every Lambertian hit of the global group, direct light included
-    full: dict[str, list[np.ndarray]] = {k: [] for k in stored}
-    for bounce in range(max_bounces):
-        if pid.shape[0] == 0:
-            break
-        rel = eps / np.linalg.norm(d, axis=1)
-        hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch, record=True)
-        for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last,
-                                            streams.page_words).items():
-            rec.add(name, acc, pid)
-        for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
-            work[name][pid] += getattr(hits.counts, name)
-        work["rays"][pid] += 1
-        hit = hits.triangle >= 0
-        work["lost"][pid[~hit]] += 1
-        pid, o, d, power = pid[hit], o[hit], d[hit], power[hit]
-        tri, specular_only, direct = hits.triangle[hit], specular_only[hit], direct[hit]
-        group = caustic_group[pid]
-        x = o + hits.t[hit, None] * d
-        work["bounces"][pid] += 1
-        kind = kind_of[tri]
-        n_geo = normals[tri]
-        front = facing(n_geo, d)
+    work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
+    work["photons_emitted"][:] = 1
+    emitted = (o, d, power, source)
 
-        lam = kind == KIND["lambertian"]
-        store = lam & ~direct  # the first hit is direct light: the ray-cast frame's
-        if split:
-            store &= specular_only == group
-        for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
-                            ("caustic", specular_only)):
-            stored[name].append(value[store])
-        if global_map:  # the maps the final-gather pipeline keeps: caustic and global
-            every_hit = lam & ~group
+    def trace(span: tuple[int, int]):
+        """Photons ``lo .. hi - 1``, every bounce, as traced with all the others (their
+        random numbers are hashed by photon and bounce): their work (owner: the photon
+        from ``lo``), what each bounce stored, in photon order, and the pairs charged."""
+        lo, hi = span
+        m = hi - lo
+        work = {k: np.zeros(m, dtype=np.int64) for k in PHOTON_WORK if k != "photons_emitted"}
+        o, d, power, last = (x[lo:hi] for x in emitted)  # last: the triangle each photon leaves
+        pid = np.arange(m)  # photons still travelling (from lo)
+        specular_only = np.ones(m, dtype=bool)  # every bounce so far was specular
+        direct = np.ones(m, dtype=bool)  # straight from the light (index-matched crossings only)
+        rec = Recorder(streams.page_words)
+        stored: dict[str, list[np.ndarray]] = {k: [] for k in STORED}  # bounce by bounce
+        # the global map (final gathering): every Lambertian hit of the global group, direct light included
+        full: dict[str, list[np.ndarray]] = {k: [] for k in STORED}
+        for bounce in range(max_bounces):
+            if pid.shape[0] == 0:
+                break
+            rel = eps / np.linalg.norm(d, axis=1)
+            hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch, record=True)
+            for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last,
+                                                streams.page_words).items():
+                rec.add(name, acc, pid)
+            for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
+                work[name][pid] += getattr(hits.counts, name)
+            work["rays"][pid] += 1
+            hit = hits.triangle >= 0
+            work["lost"][pid[~hit]] += 1
+            pid, o, d, power = pid[hit], o[hit], d[hit], power[hit]
+            tri, specular_only, direct = hits.triangle[hit], specular_only[hit], direct[hit]
+            group = caustic_group[lo + pid]
+            x = o + hits.t[hit, None] * d
+            work["bounces"][pid] += 1
+            kind = kind_of[tri]
+            n_geo = normals[tri]
+            front = facing(n_geo, d)
+
+            lam = kind == KIND["lambertian"]
+            store = lam & ~direct  # the first hit is direct light: the ray-cast frame's
+            if split:
+                store &= specular_only == group
             for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
                                 ("caustic", specular_only)):
-                full[name].append(value[every_hit])
-            work["stored"][pid[store & specular_only]] += 1
-            work["stored"][pid[every_hit]] += 1
-        else:
-            work["stored"][pid[store]] += 1
-
-        u = [hash_uniform(key, pid, bounce, dim) for dim in range(4)]
-        new_d = np.empty_like(d)
-        alive = np.ones(pid.shape[0], dtype=bool)
-        if lam.any():
-            a = albedo[tri[lam]]
-            if russian_roulette:
-                p = a.max(axis=1)
-                survive = u[0][lam] < p
-                scale = np.where(survive[:, None], a / np.where(p > 0, p, 1.0)[:, None], 0.0)
+                stored[name].append(value[store])
+            if global_map:  # the maps the final-gather pipeline keeps: caustic and global
+                every_hit = lam & ~group
+                for name, value in (("position", x), ("normal", front), ("incoming", d), ("power", power),
+                                    ("caustic", specular_only)):
+                    full[name].append(value[every_hit])
+                work["stored"][pid[store & specular_only]] += 1
+                work["stored"][pid[every_hit]] += 1
             else:
-                survive = a.max(axis=1) > 0
-                scale = a
-            power[lam] = power[lam] * scale
-            new_d[lam] = cosine_directions(front[lam], u[1][lam], u[2][lam])
-            if split:  # a caustic-group photon has nothing left to give after a diffuse hit
-                survive &= ~group[lam]
-            alive[lam] = survive
-            work["absorbed"][pid[lam][~survive]] += 1
-        spec = ~lam
-        if spec.any():
-            ns = interpolate(shading, tri[spec], hits.u[hit][spec], hits.v[hit][spec], n_geo[spec])
-            mir = kind[spec] == KIND["mirror"]
-            refl, refr, f = scatter_specular(d[spec], ns, n_geo[spec], np.where(mir, 1.0, ior[tri[spec]]))
-            # a mirror reflects (power x reflectance); a dielectric reflects with probability F
-            # (Russian roulette on the Fresnel term: power unchanged) or refracts (x transmittance)
-            if not fresnel:  # Snell only: glass reflects only totally
-                f = np.where(f < 1.0, 0.0, 1.0)
-            go_refl = mir | (u[3][spec] < f)
-            new_d[spec] = np.where(go_refl[:, None], refl, refr)
-            ps = power[spec]
-            ps[mir] *= refl_of[tri[spec][mir]]
-            through = ~go_refl
-            ps[through] *= trans[tri[spec][through]]
-            power[spec] = ps
-        crossing = matched[tri]
-        specular_only = specular_only & ~lam
-        direct = direct & crossing
-        keep = alive & (power.max(axis=1) > 0)
-        pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
-        last, specular_only, direct = tri[keep], specular_only[keep], direct[keep]
+                work["stored"][pid[store]] += 1
 
-    for name, counts in rec.charge(streams, n).items():
-        work[_MISS_KEYS[name]] += counts
+            u = [hash_uniform(key, lo + pid, bounce, dim) for dim in range(4)]
+            new_d = np.empty_like(d)
+            alive = np.ones(pid.shape[0], dtype=bool)
+            if lam.any():
+                a = albedo[tri[lam]]
+                if russian_roulette:
+                    p = a.max(axis=1)
+                    survive = u[0][lam] < p
+                    scale = np.where(survive[:, None], a / np.where(p > 0, p, 1.0)[:, None], 0.0)
+                else:
+                    survive = a.max(axis=1) > 0
+                    scale = a
+                power[lam] = power[lam] * scale
+                new_d[lam] = cosine_directions(front[lam], u[1][lam], u[2][lam])
+                if split:  # a caustic-group photon has nothing left to give after a diffuse hit
+                    survive &= ~group[lam]
+                alive[lam] = survive
+                work["absorbed"][pid[lam][~survive]] += 1
+            spec = ~lam
+            if spec.any():
+                ns = interpolate(shading, tri[spec], hits.u[hit][spec], hits.v[hit][spec], n_geo[spec])
+                mir = kind[spec] == KIND["mirror"]
+                refl, refr, f = scatter_specular(d[spec], ns, n_geo[spec], np.where(mir, 1.0, ior[tri[spec]]))
+                # a mirror reflects (power x reflectance); a dielectric reflects with probability F
+                # (Russian roulette on the Fresnel term: power unchanged) or refracts (x transmittance)
+                if not fresnel:  # Snell only: glass reflects only totally
+                    f = np.where(f < 1.0, 0.0, 1.0)
+                go_refl = mir | (u[3][spec] < f)
+                new_d[spec] = np.where(go_refl[:, None], refl, refr)
+                ps = power[spec]
+                ps[mir] *= refl_of[tri[spec][mir]]
+                through = ~go_refl
+                ps[through] *= trans[tri[spec][through]]
+                power[spec] = ps
+            crossing = matched[tri]
+            specular_only = specular_only & ~lam
+            direct = direct & crossing
+            keep = alive & (power.max(axis=1) > 0)
+            pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
+            last, specular_only, direct = tri[keep], specular_only[keep], direct[keep]
+
+        pairs = Deferred.like(streams) if concurrent else streams
+        rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
+        return work, stored, full, pairs
+
+    spans = threads.spans(n, PHOTON_MIN_CHUNK)
+    if batch_rays is not None:  # chunks of at most batch_rays rays, all bounces
+        most = max(1, batch_rays // max(1, max_bounces))
+        spans = [(x, min(hi, x + most)) for lo, hi in spans for x in range(lo, hi, most)]
+    # (on one thread the chunks run in order, each charged to the pairs as it comes)
+    concurrent = len(spans) > 1 and threads.current() > 1
+    stored: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}  # bounce -> chunks' photons
+    full: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}
+    traced = (threads.forked(trace, spans, threads.current()) if concurrent and threads.can_fork()
+              else threads.ordered(trace, spans))
+    for (lo, hi), (part, got, got_full, pairs) in zip(spans, traced, strict=True):
+        if concurrent:
+            streams.settle(pairs)  # the chunks' reads in photon order: photon-major, as one trace's
+        for k, v in part.items():
+            work[k][lo:hi] = v
+        for into, add in ((stored, got), (full, got_full)):
+            for name, per_bounce in add.items():
+                for bounce, value in enumerate(per_bounce):
+                    if bounce == len(into[name]):
+                        into[name].append([])
+                    into[name][bounce].append(value)
+    stored = {name: [v for chunks in per_bounce for v in chunks] for name, per_bounce in stored.items()}
+    full = {name: [v for chunks in per_bounce for v in chunks] for name, per_bounce in full.items()}
 
     def cat(store: dict[str, list[np.ndarray]], name: str) -> np.ndarray:
         parts = store[name]

@@ -354,15 +354,47 @@ def _loop_numpy(accel, o, d, inv, ta, tb, o_t, d_t, tmin_t, tmax_t, ignore, reco
 JIT_BUFFERS = (1 << 12, 8, 16)
 
 
+# rays per chunk at the least when a packet is split between threads (a chunk's call
+# allocates its buffers: shorter chunks would spend more time there than tracing)
+JIT_MIN_CHUNK = 2048
+
+
 def _jit_trace(*args):
     from tlm.kernels import _jit
 
     return _jit.trace(*args)
 
 
-def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin):
-    """The whole of :func:`_traverse` for prepared rays, compiled (:func:`tlm.kernels._jit.trace`)."""
+def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, record, first_only,
+               shared_origin, a: int, b: int):
+    """The compiled kernel on rays ``a:b`` (its buffers grown until they hold them):
+    ``t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids``."""
     from tlm.kernels import _jit
+
+    tree, lay = accel.tree, accel.jit_layout
+    widest, leaves, nodes = JIT_BUFFERS
+    r = b - a
+    caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
+    while True:
+        status, *out = _jit_trace(
+            o[a:b], d[a:b], tmin[a:b], tmax[a:b], ignore[a:b], has_ignore, tree.lo[0], tree.hi[0],
+            accel.soa64.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back,
+            lay.soa64, lay.ids, lay.size, np.float32(EDGE_EPS[np.dtype(np.float32)]), EDGE_EPS[np.dtype(np.float32)],
+            EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32, record, *caps)
+        if status == _jit.OK:
+            return out
+        caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
+
+
+def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin):
+    """The whole of :func:`_traverse` for prepared rays, compiled (:func:`tlm.kernels._jit.trace`).
+
+    On several threads (:mod:`tlm.kernels.threads`) the rays are cut into contiguous
+    chunks traced at once and joined in order: every output is per ray (the recorded
+    nodes and leaves ray-major), and the shared origin is the packet's first ray's for
+    every chunk, so the result is the one-call result bit for bit.
+    """
+    from tlm.kernels import threads
 
     tree, lay = accel.tree, accel.jit_layout
     r = o.shape[0]
@@ -373,17 +405,20 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     outside = (ignore < 0) | (ignore > np.iinfo(np.int32).max)
     if outside.any():
         ignore = np.where(outside, -1, ignore)
-    widest, leaves, nodes = JIT_BUFFERS
-    caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
-    while True:
-        status, t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = _jit_trace(
-            o, d, tmin, tmax, ignore, bool((ignore >= 0).any()), tree.lo[0], tree.hi[0], accel.soa64.origin,
-            tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back, lay.soa64,
-            lay.ids, lay.size, np.float32(EDGE_EPS[np.dtype(np.float32)]), EDGE_EPS[np.dtype(np.float32)],
-            EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, record, *caps)
-        if status == _jit.OK:
-            break
-        caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
+    has_ignore = bool((ignore >= 0).any())
+    # the float32 test of shared-origin rays takes the packet's first origin (the kernel's docstring)
+    shared_o32 = np.zeros(3, dtype=np.float32)
+    if shared_origin and r > 0:
+        with np.errstate(over="ignore"):
+            shared_o32 = np.array([np.float32(o[0, k] - accel.soa64.origin[k]) for k in range(3)], dtype=np.float32)
+    parts = threads.chunked(
+        lambda a, b: _jit_chunk(accel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, record, first_only,
+                                shared_origin, a, b), r, JIT_MIN_CHUNK)
+    if len(parts) == 1:
+        t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = parts[0]
+    else:
+        t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = (
+            np.concatenate(col) for col in zip(*parts, strict=True))
     counts = Counts(node_visits, cnt, leaf_visits, tri_tests)
     touched = None
     if record:

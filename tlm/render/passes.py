@@ -46,7 +46,7 @@ each packet from cold pairs).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -66,53 +66,12 @@ from tlm.kernels.shade import (
     surface_emission,
 )
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
+from tlm.kernels.work import GATHER_KEYS, STREAM_KEYS, WORK_KEYS  # the work schema, declared once
 from tlm.registry import ESTIMATORS
 from tlm.render.estimators import Gather
 from tlm.render.planner import photon_count
 from tlm.scenes.model import KIND, Scene
 from tlm.scenes.normals import crease_normals, interpolate
-
-WORK_KEYS = (
-    "primary_rays",  # eye rays traced
-    "secondary_rays",  # reflected / refracted rays traced
-    "shadow_rays",  # shadow rays traced (any-hit)
-    "shadow_hits",  # shadow rays that found an occluder
-    "node_visits",  # traversal of the eye and secondary rays: inner nodes entered
-    "leaves_crossed",  # ... leaves on the rays' lists
-    "leaf_visits",  # ... leaves tested before stopping
-    "tri_tests",  # ... ray-triangle tests (the Intersection PM)
-    "shadow_node_visits",  # the same four for the shadow rays, which the thesis
-    "shadow_leaves_crossed",  # traces in passes of their own
-    "shadow_leaf_visits",
-    "shadow_tri_tests",
-    "fragments",  # Lambertian points shaded
-    "specular_bounces",  # mirror reflections, refractions and total internal reflections
-    "trav_misses",  # page misses of the eye and secondary rays: node heap + leaf indices
-    "isect_misses",  # ... triangle vertex data (the Intersection PM)
-    "shadow_trav_misses",  # the same two for the shadow rays, on pairs of their own
-    "shadow_isect_misses",
-    "frag_misses",  # ... shading records read per fragment (the Fragment PM)
-)
-GATHER_KEYS = (
-    "gathers",  # radiance estimates made (Lambertian eye hits)
-    "node_visits",  # photon BSP: inner nodes on the search lists (Fig. 8)
-    "leaves_visited",  # photon BSP leaves searched
-    "photons_tested",  # photons compared against the search radius
-    "photons_accepted",  # photons inside it, from the front, that were filtered
-    "gather_misses",  # page misses reading the searched leaves' photons (0 for knn)
-)
-# the keys that depend on the accesses before the pixel (the pairs' carried state): equal
-# for a pixel only when the pixels before it ran too, in order, with one Streams
-MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
-             "gather_misses")
-# each stream of a pass and the work key its misses go to (the pairs they take:
-# tlm.kernels.memory.PM_STREAMS; streams sharing a pair always go to one key)
-STREAM_KEYS = {
-    "nodes": "trav_misses", "indices": "trav_misses", "vertices": "isect_misses",
-    "shadow_nodes": "shadow_trav_misses", "shadow_indices": "shadow_trav_misses",
-    "shadow_vertices": "shadow_isect_misses", "shading": "frag_misses",
-}
-
 
 # the caustic map's leaf reads: a stream not in tlm.kernels.memory.PM_STREAMS, so a pair of its own
 # (the two maps' gathers of consecutive packets then miss as the whole image's do)
@@ -186,9 +145,9 @@ def _record_rays(frame: Frame, rec: Recorder, hits: Hits, owners: np.ndarray | N
 
 
 def _charge(rec: Recorder, streams: Streams, work: dict[str, np.ndarray]) -> None:
-    """Charge the recorded streams, pixel-major, to ``streams``; add the misses to ``work``."""
-    for name, counts in rec.charge(streams, work["fragments"].shape[0]).items():
-        work[STREAM_KEYS[name]] += counts
+    """Charge the recorded streams, pixel-major, to ``streams``; add the misses to ``work``
+    (later corrected there when ``streams`` is a :class:`~tlm.kernels.memory.Deferred`)."""
+    rec.charge(streams, work["fragments"].shape[0], {name: work[STREAM_KEYS[name]] for name, _ in rec.added})
 
 
 def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
@@ -202,17 +161,18 @@ def _trace_counts(hits: Hits) -> dict[str, np.ndarray]:
 
 
 def _trace_secondary(frame: Frame, origin: np.ndarray, d: np.ndarray, ignore: np.ndarray, owner: np.ndarray,
-                     work: dict[str, np.ndarray], rec: Recorder) -> Hits:
+                     work: dict[str, np.ndarray], rec: Recorder | None) -> Hits:
     """Trace rays that leave surfaces (closest hit from ``eps`` on, ignoring the triangle each
     leaves), adding one secondary ray each and their traversal work to their pixels ``owner``
-    and their reads to ``rec``."""
+    and their reads to ``rec`` (None: not recorded)."""
     p = work["secondary_rays"].shape[0]
     hits = closest_hit(frame.accel, origin, d, tmin=frame.eps, ignore=ignore, batch=frame.cfg.render.batch,
-                       record=True)
+                       record=rec is not None)
     work["secondary_rays"] += np.bincount(owner, minlength=p)
     for name, c in _trace_counts(hits).items():
         work[name] += np.bincount(owner, weights=c, minlength=p).astype(np.int64)
-    _record_rays(frame, rec, hits, owner)
+    if rec is not None:
+        _record_rays(frame, rec, hits, owner)
     return hits
 
 
@@ -348,12 +308,59 @@ def shading_normals(frame: Frame, tri: np.ndarray, u: np.ndarray, v: np.ndarray)
     return interpolate(frame.shading, tri, u, v, frame.normals[tri])
 
 
+def ray_budget(frame: Frame) -> int:
+    """Rays a pass traces and keeps the reads of together: ``render.batch_rays``, the eye rays
+    of a batch. The shadow rays of shaded points (:func:`_shade_lambertian`) and the rays of
+    a specular walk, all its bounces (:func:`specular_walk`), go in runs of whole pixels of
+    at most this many, so a pass holds no more than the batch's cast, whatever the number
+    of lights or the specular depth (a pixel whose own rays are more goes alone)."""
+    return frame.cfg.render.batch_rays
+
+
+def _pixel_runs(owner: np.ndarray, size: int) -> list[np.ndarray]:
+    """``owner``'s indices in runs of whole owners (pixels), owners in order, each run of at
+    most ``size`` indices (an owner with more alone); an owner's indices keep their order."""
+    k = owner.shape[0]
+    if k <= size:
+        return [np.arange(k)]
+    order = np.argsort(owner, kind="stable")
+    counts = np.bincount(owner)
+    ends = np.cumsum(counts)
+    runs, lo = [], 0
+    while lo < counts.shape[0]:
+        base = ends[lo] - counts[lo]
+        hi = max(lo + 1, int(np.searchsorted(ends, base + size, side="right")))
+        runs.append(order[base:ends[hi - 1]])
+        lo = hi
+    return [r for r in runs if r.shape[0]]
+
+
 def _shade_lambertian(frame: Frame, owner: np.ndarray, keys: np.ndarray, points: np.ndarray,
                       d: np.ndarray, tri: np.ndarray, u: np.ndarray, v: np.ndarray,
                       work: dict[str, np.ndarray], rec: Recorder) -> np.ndarray:
     """Direct light (k, 3) at Lambertian hits (the caller weights it); records fragment and
     shadow work and reads (the shadow rays' and one shading record per fragment) under the
-    pixels ``owner``."""
+    pixels ``owner``.
+
+    The points are shaded in runs of whole pixels of at most :func:`ray_budget` shadow rays
+    (one per light sample), so the shadow rays' traversal buffers stay within the batch's.
+    A point's light and work do not depend on its run, and a pixel's reads keep their order
+    (all of a pixel's points are in one run), so the misses are those of one run."""
+    per_point = sum(1 if light.kind == "point" else frame.cfg.render.light_samples for light in frame.scene.lights)
+    runs = _pixel_runs(owner, max(1, ray_budget(frame) // max(1, per_point)))
+    if len(runs) == 1:
+        return _shade_run(frame, owner, keys, points, d, tri, u, v, work, rec)
+    radiance = np.zeros((owner.shape[0], 3))
+    for run in runs:
+        radiance[run] = _shade_run(frame, owner[run], keys[run], points[run], d[run], tri[run], u[run], v[run],
+                                   work, rec)
+    return radiance
+
+
+def _shade_run(frame: Frame, owner: np.ndarray, keys: np.ndarray, points: np.ndarray,
+               d: np.ndarray, tri: np.ndarray, u: np.ndarray, v: np.ndarray,
+               work: dict[str, np.ndarray], rec: Recorder) -> np.ndarray:
+    """:func:`_shade_lambertian` of one run of points."""
     geo = frame.normals[tri]
     towards = np.sum(geo * d, axis=1) > 0  # the ray meets the back of the winding
     n_geo = np.where(towards[:, None], -geo, geo)
@@ -434,16 +441,204 @@ class Walk:
     ``emitted`` (sample, radiance) lights seen along the way (already weighted), ``ends``
     the Lambertian points the paths reach, ``work`` the rays' work per pixel and
     ``reads`` their traversal reads (stream name, accesses with owner = packet pixel).
+    The walk a packet keeps (:func:`specular_walk`) holds no reads: :func:`_walk_pass`
+    charges them piece by piece (:func:`walk_pieces`), and a piece's walk holds its own
+    (and no work: the pieces of a packet add to one work dict).
     """
 
     emitted_sample: np.ndarray
     emitted_radiance: np.ndarray
     ends: Ends
-    work: dict[str, np.ndarray]
+    work: dict[str, np.ndarray] | None
     reads: list
 
 
-def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_words: int | None = None) -> Walk:
+WALK_WORK = ("secondary_rays", "node_visits", "leaves_crossed", "leaf_visits", "tri_tests", "specular_bounces")
+
+
+@dataclass
+class _Piece:
+    """A run of a packet's pixels (``lo`` .. ``hi - 1``) on its specular walk: the bounce its
+    paths take next, their state (``sidx`` sample, ``tri`` triangle at the current point,
+    ``x`` point, ``d`` arriving direction, ``u``, ``v``, ``weight``, ``medium``; in sample
+    order) and what the bounces so far found: reads (a :class:`Recorder`'s), ends (one dict
+    of :class:`Ends` fields per bounce) and lights seen (sample, radiance), in that order."""
+
+    lo: int
+    hi: int
+    bounce: int
+    state: dict[str, np.ndarray]
+    rec: Recorder
+    ends: list = field(default_factory=list)
+    emitted: list = field(default_factory=list)
+
+    def cut(self, m: int, spp: int) -> tuple[_Piece, _Piece]:
+        """The pixels before ``m`` and from ``m`` on, each with its paths and findings."""
+        below = self.state["sidx"] < m * spp
+        rec_a, rec_b = Recorder(self.rec.page_words), Recorder(self.rec.page_words)
+        for name, acc in self.rec.added:
+            a = acc.owner < m
+            rec_a.added.append((name, Accesses(acc.words[a], acc.owner[a], acc.page_words)))
+            rec_b.added.append((name, Accesses(acc.words[~a], acc.owner[~a], acc.page_words)))
+        halves = []
+        for keep, (lo, hi), rec in ((below, (self.lo, m), rec_a), (~below, (m, self.hi), rec_b)):
+            halves.append(_Piece(lo, hi, self.bounce, {k: v[keep] for k, v in self.state.items()}, rec))
+        for e in self.ends:
+            a = e["sample"] < m * spp
+            halves[0].ends.append({k: v[a] for k, v in e.items()})
+            halves[1].ends.append({k: v[~a] for k, v in e.items()})
+        for s, r in self.emitted:
+            a = s < m * spp
+            halves[0].emitted.append((s[a], r[a]))
+            halves[1].emitted.append((s[~a], r[~a]))
+        return halves[0], halves[1]
+
+    def walk(self, reads: bool) -> Walk:
+        """What the piece found, bounce by bounce."""
+        return Walk(
+            emitted_sample=_cat([s for s, _ in self.emitted], (0,), np.int64),
+            emitted_radiance=_cat([r for _, r in self.emitted], (0, 3)),
+            ends=Ends(**{name: _cat([e[name] for e in self.ends], *_END_SHAPE[name])
+                         for name in Ends.__dataclass_fields__}),
+            work=None, reads=list(self.rec.added) if reads else [],
+        )
+
+
+_END_SHAPE = {name: ((0, 3) if name in ("point", "direction", "weight") else (0,),
+                     np.int64 if name in ("sample", "triangle", "bounce") else np.float64)
+              for name in Ends.__dataclass_fields__}
+
+
+def _cat(parts: list[np.ndarray], shape: tuple, dtype=np.float64) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
+
+
+def _branches(frame: Frame, st: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The rays a bounce traces from the paths' current points: a mirror's reflection, glass's
+    Fresnel reflection and refraction (each sample's reflection before its refraction; a
+    branch whose weight falls below ``render.min_weight`` is not traced). Returns each ray's
+    sample, the triangle it leaves, origin, direction, weight and medium, in sample order."""
+    tri, d, weight, medium = st["tri"], st["d"], st["weight"], st["medium"]
+    kind = frame.kind[tri]
+    geo = frame.normals[tri]
+    n_sh = shading_normals(frame, tri, st["u"], st["v"])
+    mirror = kind == KIND["mirror"]
+    refl, refr, f = scatter_specular(d, n_sh, geo, np.where(mirror, 1.0, frame.ior[tri]))
+    if not frame.cfg.render.fresnel:  # Snell only: glass refracts all but what it reflects totally
+        f = np.where(f < 1.0, 0.0, 1.0)
+    w_refl = np.where(mirror[:, None], weight * frame.reflectance[tri], weight * f[:, None])
+    w_refr = np.where(mirror[:, None], 0.0, weight * (1.0 - f)[:, None] * frame.transmittance[tri])
+    # the branches, each sample's reflection before its refraction
+    min_w = max(frame.cfg.render.min_weight, np.finfo(float).tiny)
+    take_l = w_refl.max(axis=1) >= min_w
+    take_r = w_refr.max(axis=1) >= min_w
+    order = np.argsort(np.r_[np.flatnonzero(take_l) * 2, np.flatnonzero(take_r) * 2 + 1], kind="stable")
+    src = np.r_[np.flatnonzero(take_l), np.flatnonzero(take_r)][order]
+    # a refraction enters the glass (against its outward normal: the medium becomes its
+    # ior) or leaves it (into air); a reflection stays where it is
+    entering = np.sum(d * geo, axis=1) < 0
+    refracted_medium = np.where(entering, np.where(mirror, 1.0, frame.ior[tri]), 1.0)
+    return {"sidx": st["sidx"][src], "tri": tri[src], "x": st["x"][src],
+            "d": np.r_[refl[take_l], refr[take_r]][order], "weight": np.r_[w_refl[take_l], w_refr[take_r]][order],
+            "medium": np.r_[medium[take_l], refracted_medium[take_r]][order]}
+
+
+def _bounce(frame: Frame, g: GBuffer, piece: _Piece, rays: dict[str, np.ndarray], work: dict[str, np.ndarray],
+            record: bool) -> None:
+    """Trace one bounce's ``rays`` (:func:`_branches`) of ``piece``: lights and emitting
+    triangles they see, Lambertian points where they end; the rest is the piece's new state."""
+    sidx, origin, new_d, new_w, medium = rays["sidx"], rays["x"], rays["d"], rays["weight"], rays["medium"]
+    bounce = piece.bounce
+    owner = g.owner[sidx]
+    work["specular_bounces"] += np.bincount(owner, minlength=work["specular_bounces"].shape[0])
+    hits = _trace_secondary(frame, origin, new_d, rays["tri"], owner, work, piece.rec if record else None)
+    le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
+    # radiance over n^2 is what a path carries unchanged: seen from the eye (in air), what
+    # lies inside glass of index n is 1 / n^2 as bright (Mitsuba's dielectric alike);
+    # a path that has left the glass again carries its weight unscaled
+    inside = medium != 1.0
+    seen_w = new_w
+    if inside.any():
+        seen_w = new_w.copy()
+        seen_w[inside] /= (medium[inside] ** 2)[:, None]
+    piece.emitted.append((sidx[seen], seen_w[seen] * le[seen]))
+    surf = surface_emission(frame.emission, frame.normals, hits.triangle, new_d)
+    if surf is not None:  # emitting triangles the path meets (it goes on from them)
+        glow = ~seen & (surf.max(axis=1) > 0)
+        piece.emitted.append((sidx[glow], seen_w[glow] * surf[glow]))
+    hit = (hits.triangle >= 0) & ~seen
+    kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
+    lam = hit & (kind_hit == KIND["lambertian"])
+    pts = origin + hits.t[:, None] * new_d
+    piece.ends.append({name: val[lam] for name, val in (
+        ("sample", sidx), ("point", pts), ("direction", new_d), ("triangle", hits.triangle), ("u", hits.u),
+        ("v", hits.v), ("weight", seen_w), ("bounce", np.full(sidx.shape[0], bounce)), ("medium", medium))})
+    go = hit & ~lam
+    piece.state = {"sidx": sidx[go], "tri": hits.triangle[go], "x": pts[go], "d": new_d[go], "u": hits.u[go],
+                   "v": hits.v[go], "weight": new_w[go], "medium": medium[go]}
+    piece.bounce += 1
+
+
+def walk_pieces(frame: Frame, g: GBuffer, first_kind: str, depth: int, work: dict[str, np.ndarray],
+                page_words: int | None = None, record: bool = True):
+    """The walk of :func:`specular_walk` in pieces: runs of the packet's pixels, in pixel
+    order, each followed through all its bounces and holding the paths and reads of at
+    most :func:`ray_budget` rays (a single pixel whose paths are more goes alone).
+
+    A piece starts as the whole packet; before a bounce that would take its rays over the
+    budget it is cut in two at a pixel (each half with its paths and what they found so far)
+    and the first half goes on first. A path's rays do not depend on the other paths, so the
+    pieces together are the walk of the whole packet, ray for ray; their reads, charged
+    piece by piece in pixel order, are the packet's pixel-major stream. Yields each piece's
+    :class:`Walk` (its reads when ``record``, recorded for ``page_words``-word pages; none
+    otherwise) and adds the rays' work per pixel to ``work`` (:data:`WALK_WORK`)."""
+    page_words = frame.cfg.cache.block_words if page_words is None else page_words
+    budget = ray_budget(frame)
+    spp = g.spp
+    start = (g.triangle >= 0) & ~g.sees_light
+    start &= frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind]
+    sidx = np.flatnonzero(start)
+    d = g.direction[sidx]
+    state = {"sidx": sidx, "tri": g.triangle[sidx], "x": g.origin[sidx] + g.t[sidx, None] * d, "d": d,
+             "u": g.hits.u[sidx], "v": g.hits.v[sidx], "weight": np.ones((sidx.shape[0], 3)),
+             # the index of refraction around the path's current point (the eye's: 1)
+             "medium": np.ones(sidx.shape[0])}
+    stack = [_Piece(0, g.pixels.shape[0], 1, state, Recorder(page_words))]
+    while stack:
+        piece = stack.pop()
+        while piece.bounce <= depth and piece.state["sidx"].shape[0]:
+            rays = _branches(frame, piece.state)
+            n = rays["sidx"].shape[0]
+            if n == 0:
+                break
+            pix = rays["sidx"] // spp  # (non-decreasing: paths stay in sample order)
+            traced = int(work["secondary_rays"][piece.lo:piece.hi].sum())
+            if traced + n > budget and pix[0] != pix[-1]:
+                m = int(pix[n // 2])
+                if m == pix[0]:
+                    m = int(pix[np.searchsorted(pix, m, side="right")])
+                first, second = piece.cut(m, spp)
+                stack += [second, first]
+                piece = None
+                break
+            _bounce(frame, g, piece, rays, work, record)
+        if piece is not None:
+            yield piece.walk(record)
+
+
+def _join_walk(pieces: list[Walk], work: dict[str, np.ndarray]) -> Walk:
+    """The pieces' walks as the packet's, without reads: pieces in pixel order, each
+    bounce by bounce, so each sample's lights and ends are in the order one walk of the
+    whole packet finds them (what the passes' sums and the gather points' order follow)."""
+    return Walk(
+        emitted_sample=_cat([w.emitted_sample for w in pieces], (0,), np.int64),
+        emitted_radiance=_cat([w.emitted_radiance for w in pieces], (0, 3)),
+        ends=Ends(**{name: _cat([getattr(w.ends, name) for w in pieces], *_END_SHAPE[name])
+                     for name in Ends.__dataclass_fields__}),
+        work=work, reads=[])
+
+
+def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int) -> Walk:
     """Eye paths whose first surface is of ``first_kind``, followed ``depth`` specular bounces.
 
     Mirrors reflect (times reflectance). Glass splits every path in two, Whitted's way:
@@ -459,102 +654,22 @@ def specular_walk(frame: Frame, g: GBuffer, first_kind: str, depth: int, page_wo
     entered a dielectric and has not left it: the floor under a water surface) reaches the
     eye 1 / n^2 as bright, radiance over n^2 being what a path carries unchanged; the
     emitted radiance and the ends' weights say so (a path that leaves the glass again is
-    unscaled, so closed glass objects change nothing). Remembered in ``g.memo``: the reflect,
-    refract and photon-map passes share one walk. page_words : the pages its reads are
-    recorded for (default: the frame's ``cache.block_words``).
+    unscaled, so closed glass objects change nothing).
+
+    Traced in pieces of at most :func:`ray_budget` rays (:func:`walk_pieces`), so the
+    memory it takes is the batch's whatever the depth. Remembered in ``g.memo`` without
+    its reads: the reflect, refract and photon-map passes share one walk (the first of
+    them to need it, :func:`_walk_pass`, traces it and charges its reads piece by piece).
     """
-    page_words = frame.cfg.cache.block_words if page_words is None else page_words
-    key = (first_kind, depth, frame.cfg.render.min_weight, frame.cfg.render.fresnel, page_words)
-    if key in g.memo:
-        return g.memo[key]
-    p = g.pixels.shape[0]
-    work = {k: np.zeros(p, dtype=np.int64) for k in ("secondary_rays", "node_visits", "leaves_crossed",
-                                                     "leaf_visits", "tri_tests", "specular_bounces")}
-    rec = Recorder(page_words)
-    em_s, em_r = [], []
-    ends: dict[str, list[np.ndarray]] = {f: [] for f in Ends.__dataclass_fields__}
-    start = (g.triangle >= 0) & ~g.sees_light
-    start &= frame.kind[np.maximum(g.triangle, 0)] == KIND[first_kind]
-    sidx = np.flatnonzero(start)
-    tri = g.triangle[sidx]
-    d = g.direction[sidx]
-    x = g.origin[sidx] + g.t[sidx, None] * d
-    u, v = g.hits.u[sidx], g.hits.v[sidx]
-    weight = np.ones((sidx.shape[0], 3))
-    medium = np.ones(sidx.shape[0])  # the index of refraction around the path's current point (the eye's: 1)
-    owner_of = g.owner
-    min_w = frame.cfg.render.min_weight
-    for bounce in range(1, depth + 1):
-        if sidx.shape[0] == 0:
-            break
-        kind = frame.kind[tri]
-        geo = frame.normals[tri]
-        n_sh = shading_normals(frame, tri, u, v)
-        mirror = kind == KIND["mirror"]
-        refl, refr, f = scatter_specular(d, n_sh, geo, np.where(mirror, 1.0, frame.ior[tri]))
-        if not frame.cfg.render.fresnel:  # Snell only: glass refracts all but what it reflects totally
-            f = np.where(f < 1.0, 0.0, 1.0)
-        w_refl = np.where(mirror[:, None], weight * frame.reflectance[tri], weight * f[:, None])
-        w_refr = np.where(mirror[:, None], 0.0, weight * (1.0 - f)[:, None] * frame.transmittance[tri])
-        # the branches, each sample's reflection before its refraction
-        take_l = w_refl.max(axis=1) >= max(min_w, np.finfo(float).tiny)
-        take_r = w_refr.max(axis=1) >= max(min_w, np.finfo(float).tiny)
-        order = np.argsort(np.r_[np.flatnonzero(take_l) * 2, np.flatnonzero(take_r) * 2 + 1], kind="stable")
-        src = np.r_[np.flatnonzero(take_l), np.flatnonzero(take_r)][order]
-        new_d = np.r_[refl[take_l], refr[take_r]][order]
-        new_w = np.r_[w_refl[take_l], w_refr[take_r]][order]
-        # a refraction enters the glass (against its outward normal: the medium becomes its
-        # ior) or leaves it (into air); a reflection stays where it is
-        entering = np.sum(d * geo, axis=1) < 0
-        refracted_medium = np.where(entering, np.where(mirror, 1.0, frame.ior[tri]), 1.0)
-        medium = np.r_[medium[take_l], refracted_medium[take_r]][order]
-        sidx, tri, x, geo = sidx[src], tri[src], x[src], geo[src]
-        if sidx.shape[0] == 0:
-            break
-        origin = x
-        owner = owner_of[sidx]
-        work["specular_bounces"] += np.bincount(owner, minlength=p)
-        hits = _trace_secondary(frame, origin, new_d, tri, owner, work, rec)
-        le, seen = emitted(frame.scene.lights, origin, new_d, hits.t, frame.eps)
-        # radiance over n^2 is what a path carries unchanged: seen from the eye (in air), what
-        # lies inside glass of index n is 1 / n^2 as bright (Mitsuba's dielectric alike);
-        # a path that has left the glass again carries its weight unscaled
-        inside = medium != 1.0
-        seen_w = new_w
-        if inside.any():
-            seen_w = new_w.copy()
-            seen_w[inside] /= (medium[inside] ** 2)[:, None]
-        em_s.append(sidx[seen])
-        em_r.append(seen_w[seen] * le[seen])
-        surf = surface_emission(frame.emission, frame.normals, hits.triangle, new_d)
-        if surf is not None:  # emitting triangles the path meets (it goes on from them)
-            glow = ~seen & (surf.max(axis=1) > 0)
-            em_s.append(sidx[glow])
-            em_r.append(seen_w[glow] * surf[glow])
-        hit = (hits.triangle >= 0) & ~seen
-        kind_hit = frame.kind[np.maximum(hits.triangle, 0)]
-        lam = hit & (kind_hit == KIND["lambertian"])
-        pts = origin + hits.t[:, None] * new_d
-        for name, val in (("sample", sidx), ("point", pts), ("direction", new_d), ("triangle", hits.triangle),
-                          ("u", hits.u), ("v", hits.v), ("weight", seen_w),
-                          ("bounce", np.full(sidx.shape[0], bounce)), ("medium", medium)):
-            ends[name].append(val[lam])
-        go = hit & ~lam
-        sidx, tri, d, weight, medium = sidx[go], hits.triangle[go], new_d[go], new_w[go], medium[go]
-        x, u, v = pts[go], hits.u[go], hits.v[go]
+    key = _walk_key(frame, first_kind, depth)
+    if key not in g.memo:
+        work = {k: np.zeros(g.pixels.shape[0], dtype=np.int64) for k in WALK_WORK}
+        g.memo[key] = _join_walk(list(walk_pieces(frame, g, first_kind, depth, work, record=False)), work)
+    return g.memo[key]
 
-    def cat(parts: list[np.ndarray], shape: tuple, dtype=np.float64) -> np.ndarray:
-        return np.concatenate(parts) if parts else np.zeros(shape, dtype=dtype)
 
-    walk = Walk(
-        emitted_sample=cat(em_s, (0,), np.int64), emitted_radiance=cat(em_r, (0, 3)),
-        ends=Ends(**{name: cat(vals, (0, 3) if name in ("point", "direction", "weight") else (0,),
-                                np.int64 if name in ("sample", "triangle", "bounce") else np.float64)
-                     for name, vals in ends.items()}),
-        work=work, reads=list(rec.added),
-    )
-    g.memo[key] = walk
-    return walk
+def _walk_key(frame: Frame, first_kind: str, depth: int) -> tuple:
+    return ("walk", first_kind, depth, frame.cfg.render.min_weight, frame.cfg.render.fresnel)
 
 
 def _walk_pass(frame: Frame, g: GBuffer, first_kind: str, depth: int, streams: Streams | None):
@@ -562,25 +677,32 @@ def _walk_pass(frame: Frame, g: GBuffer, first_kind: str, depth: int, streams: S
 
     Its reads are charged pixel-major: a pixel's rays bounce by bounce, then the shadow
     rays and shading records of the points they reach; packets in pixel order with a
-    carried ``streams`` give the misses of the whole image.
+    carried ``streams`` give the misses of the whole image. The walk goes piece by piece
+    (:func:`walk_pieces`): each piece's ends are shaded and its reads charged before the
+    next is traced, so the pass holds one piece's reads, whatever the depth.
     """
     p = g.pixels.shape[0]
     work = new_work(p)
     streams = new_streams(frame) if streams is None else streams
-    walk = specular_walk(frame, g, first_kind, depth, streams.page_words)
-    for k, v in walk.work.items():
-        work[k] += v
-    rec = Recorder(streams.page_words)
-    rec.added = list(walk.reads)
+    walk_work = {k: np.zeros(p, dtype=np.int64) for k in WALK_WORK}
     radiance = np.zeros((g.origin.shape[0], 3))
-    np.add.at(radiance, walk.emitted_sample, walk.emitted_radiance)
-    e = walk.ends
-    if e.sample.shape[0]:
-        keys = g.sample_keys[e.sample] * 64 + e.bounce
-        direct = _shade_lambertian(frame, g.owner[e.sample], keys, e.point, e.direction, e.triangle, e.u, e.v,
-                                   work, rec)
-        np.add.at(radiance, e.sample, direct * e.weight)
-    _charge(rec, streams, work)
+    kept = []
+    for piece in walk_pieces(frame, g, first_kind, depth, walk_work, streams.page_words):
+        rec = Recorder(streams.page_words)
+        rec.added = piece.reads
+        np.add.at(radiance, piece.emitted_sample, piece.emitted_radiance)
+        e = piece.ends
+        if e.sample.shape[0]:
+            keys = g.sample_keys[e.sample] * 64 + e.bounce
+            direct = _shade_lambertian(frame, g.owner[e.sample], keys, e.point, e.direction, e.triangle, e.u, e.v,
+                                       work, rec)
+            np.add.at(radiance, e.sample, direct * e.weight)
+        _charge(rec, streams, work)
+        kept.append(replace(piece, reads=[]))
+        del rec, piece
+    for k, v in walk_work.items():
+        work[k] += v
+    g.memo.setdefault(_walk_key(frame, first_kind, depth), _join_walk(kept, walk_work))
     return pixel_mean(frame, radiance), work
 
 
@@ -661,7 +783,7 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         leaf_photons=cfg.photons.leaf_photons,
         caustic_fraction=cfg.photons.caustic_fraction, caustic_count=cfg.photons.caustic_count,
         aim=cfg.photons.aim, aim_triangles=cfg.photons.aim_triangles, global_map=cfg.estimate.final_gather > 0,
-        batch=cfg.render.batch,
+        batch=cfg.render.batch, batch_rays=ray_budget(frame),
         page_words=cfg.cache.block_words, pairs=cfg.cache.pairs, fresnel=cfg.render.fresnel,
     )
 
@@ -870,7 +992,7 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     lo = owner[lj]
     gather_work["gathers"] += np.bincount(lo, minlength=p)
     for k in GATHER_KEYS[1:]:
-        gather_work[k] += np.bincount(lo, weights=getattr(e, k), minlength=p).astype(np.int64)
+        _add_per_pixel(gather_work, k, lo, e, gather_streams)
     if per_map is not None:
         tally = per_map.setdefault("global", dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited",
                                                             "gathers"), 0))
@@ -878,6 +1000,15 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
             tally[k] += int(getattr(e, k).sum())
         tally["gathers"] += int(lj.shape[0])
     return flux * (np.pi / rays)
+
+
+def _add_per_pixel(work: dict, k: str, owner: np.ndarray, e, streams: Streams) -> None:
+    """Add the gathers' count ``k`` of ``e`` to their pixels ``owner`` (the misses through
+    ``streams.fold``, which a :class:`~tlm.kernels.memory.Deferred` corrects later)."""
+    if k == "gather_misses":
+        streams.fold(e.gather_misses, owner, work[k])
+    else:
+        work[k] += np.bincount(owner, weights=getattr(e, k), minlength=work[k].shape[0]).astype(np.int64)
 
 
 def fgather_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -962,7 +1093,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
                 tally[k] += int(getattr(e, k).sum())
             tally["gathers"] = tally.get("gathers", 0) + int(sidx.shape[0])
         for k in GATHER_KEYS[1:]:
-            work[k] += np.bincount(owner, weights=getattr(e, k), minlength=p).astype(np.int64)
+            _add_per_pixel(work, k, owner, e, streams)
     np.add.at(radiance, sidx, weight * frame.albedo[tri] / np.pi * density)
     if maps:  # (the points' own searches; final gathering's lookups are counted where they land)
         work["gathers"] += np.bincount(owner, minlength=p)

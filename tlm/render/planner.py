@@ -11,7 +11,7 @@ scene without lights renders primary visibility only (black), and the planner sa
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
 from tlm.scenes.model import Scene
@@ -110,7 +110,3 @@ def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) ->
         return PassPlan("pmap", False, f"photons.max_bounces is {cfg.photons.max_bounces}: a photon's first hit "
                         "is direct light (the ray-cast frame's), so the map would store nothing")
     return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
-
-
-def plan_dict(p: Plan) -> dict:
-    return {"passes": [asdict(x) for x in p.passes], **p.to_dict()}

@@ -17,6 +17,12 @@ The fixed-function Intersection PM has ``ray_load_cycles``, ``triangle_cycles`` 
 ``stages`` instead. :meth:`Programs.cost` turns a job's per-packet work counts into
 per-packet cycles; T_norm is rounded on the running total, so the packets of a job sum
 to the cycles of the whole job whatever the packet size.
+
+Which work items a job may price, and which it must, come from the work schema
+(:mod:`tlm.kernels.work`): a job prices only the items of the work it reads (and the
+timing model's own ``items``, ``elements``, ``stream_restarts``), and names every item
+the schema says it charges (weight 0 where it costs nothing). A table that does not is a
+one-line :class:`~tlm.errors.InputError` naming the file and the key.
 """
 
 from __future__ import annotations
@@ -25,11 +31,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from tlm.config import read_yaml
 from tlm.errors import InputError, did_you_mean
-from tlm.storage import write_file
+from tlm.kernels import work
 
 DEFAULT_PATH = Path(__file__).with_name("programs.yaml")
 PROGRAMMABLE = ("vertex", "traversal", "fragment")
@@ -39,18 +44,20 @@ JOBS = {
     "fragment": ("shade", "light", "photons", "gather"),
 }
 FIXED_KEYS = ("ray_load_cycles", "triangle_cycles", "stages")
-MISS_KEYS = ("trav_misses", "isect_misses", "shadow_trav_misses", "shadow_isect_misses", "frag_misses",
-             "gather_misses")
 
 
-def work_keys() -> tuple[str, ...]:
-    """Every work item a program may price: the fields of the seam's work classes
-    (:mod:`tlm.arch.functional`) and the model's own (``items``, ``elements``, ``stream_restarts``)."""
-    from tlm.arch.functional import BuildLevelWork, GatherWork, PhotonWork, RayPassWork
+def _check_schema() -> None:
+    """Every unit the work schema (:mod:`tlm.kernels.work`) names is a job of this table or
+    a fixed-function unit, and every job charges some work."""
+    jobs = {f"{pm}.{job}" for pm, names in JOBS.items() for job in names}
+    named = set(work.units())
+    for unit in named - jobs - set(work.FIXED_UNITS):
+        raise ImportError(f"tlm.kernels.work names the unit {unit!r}, which is no job of {sorted(jobs)}")
+    for unit in jobs - named:
+        raise ImportError(f"the job {unit!r} charges no work item of tlm.kernels.work")
 
-    extra = ("items", "elements", "stream_restarts", "photons_emitted")
-    return tuple(dict.fromkeys((*RayPassWork.KEYS, *GatherWork.KEYS, *PhotonWork.KEYS, *BuildLevelWork.KEYS,
-                                *MISS_KEYS, *extra)))
+
+_check_schema()
 
 
 @dataclass(frozen=True)
@@ -97,11 +104,6 @@ class Programs:
             else np.zeros(n, dtype=np.int64)
         return norm, flushes, misses
 
-    def instruction_count(self, pm: str, job: str, totals: dict[str, float]) -> float:
-        """Unscaled instructions of a job's whole work (for calibration)."""
-        prog = self.jobs[(pm, job)]
-        return float(sum(w * totals.get(k, 0) for k, w in prog.instructions.items()))
-
     def record_count(self, pm: str, job: str, totals: dict[str, float]) -> float:
         """The records of a job's whole work that each cost ``record_cycles`` (for calibration)."""
         return float(sum(totals.get(k, 0) for k in self.jobs[(pm, job)].records))
@@ -110,17 +112,6 @@ class Programs:
         """The table with other free parameters (``record_cycles`` unchanged unless given)."""
         return Programs(self.source, {**self.scale, **scales}, self.jobs, self.intersection, self.calibration,
                         {**self.record_cycles, **(record_cycles or {})})
-
-    def to_yaml_dict(self) -> dict:
-        out: dict = {"calibration": self.calibration}
-        for pm in PROGRAMMABLE:
-            out[pm] = {"scale": self.scale[pm], "record_cycles": self.record_cycles[pm]}
-            for job in JOBS[pm]:
-                p = self.jobs[(pm, job)]
-                out[pm][job] = {"instructions": dict(p.instructions), "flushes": dict(p.flushes),
-                                "misses": p.misses, **({"records": list(p.records)} if p.records else {})}
-        out["intersection"] = dict(self.intersection)
-        return out
 
 
 def _exact_rounding(x: np.ndarray) -> np.ndarray:
@@ -170,10 +161,10 @@ def load_programs(path: str | Path | None = None) -> Programs:
         _unknown(sec, ("scale", "record_cycles", *JOBS[pm]), source, pm)
         scale[pm] = _number(sec.get("scale", 1.0), source, f"{pm}.scale")
         record_cycles[pm] = _number(sec.get("record_cycles", 0.0), source, f"{pm}.record_cycles")
-        keys = work_keys()
         for job in JOBS[pm]:
             if job not in sec:
                 raise InputError("missing job program", source=source, key=f"{pm}.{job}")
+            keys = work.job_keys(f"{pm}.{job}")  # the work it reads (tlm.kernels.work)
             js = _mapping(sec.get(job), source, f"{pm}.{job}")
             for part in ("instructions", "flushes"):
                 for k in _mapping(js.get(part), source, f"{pm}.{job}.{part}"):
@@ -198,6 +189,12 @@ def load_programs(path: str | Path | None = None) -> Programs:
             if misses is not None and (not isinstance(misses, str) or misses not in keys):
                 raise InputError(f"{misses!r} must be a work key or null{did_you_mean(str(misses), keys)}",
                                  source=source, key=f"{pm}.{job}.misses")
+            priced = {*ins, *fl, *raw_items, misses}
+            for item in work.job_items(f"{pm}.{job}"):
+                if item.name not in priced:
+                    raise InputError(f"does not price the work item {item.name!r}, which this job charges "
+                                     f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing)",
+                                     source=source, key=f"{pm}.{job}")
             jobs[(pm, job)] = JobProgram(ins, fl, misses, tuple(raw_items))
     isect = _mapping(raw.get("intersection"), source, "intersection")
     _unknown(isect, FIXED_KEYS, source, "intersection")
@@ -205,9 +202,3 @@ def load_programs(path: str | Path | None = None) -> Programs:
     fixed = {k: _number(isect.get(k, defaults[k]), source, f"intersection.{k}", integer=True) for k in FIXED_KEYS}
     calibration = _mapping(raw.get("calibration"), source, "calibration")
     return Programs(source, scale, jobs, fixed, calibration, record_cycles)
-
-
-def write_programs(programs: Programs, path: Path, header: str) -> None:
-    """Write a table (``tlm calibrate``), keeping the documentation header."""
-    body = yaml.safe_dump(programs.to_yaml_dict(), sort_keys=False, default_flow_style=False)
-    write_file(path, header + body)

@@ -31,14 +31,14 @@ so the work (and the image) does not depend on the tiling.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
+from tlm.arch.costs import Programs
 from tlm.arch.functional import RAY_PASSES, Functional, PhotonWork, RayPassWork, TreeWork, WorkArrays
-from tlm.arch.programs import Programs
-from tlm.arch.work import split
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
 
@@ -125,10 +125,16 @@ class Stage:
 
 @dataclass(frozen=True)
 class FrameProgram:
+    """One frame's stages, and the pipelines and the scheduler its tiles were cut for.
+
+    The model reads the pipelines and the scheduler here, never in the arch config: a
+    static program has one tile per pipeline, and its tiles only make sense on them.
+    """
+
     stages: tuple[Stage, ...]
     left_out: dict[str, str]  # what was not built, and why
-    pipelines: int = 1
-    scheduler: str = "static"
+    pipelines: int = 1  # pipelines that run the tiled stages (the model builds their PMs and modules)
+    scheduler: str = "static"  # the registered scheduler that hands the tiles to them (tlm.registry.SCHEDULERS)
     tiling: dict = field(default_factory=dict)  # rows, cols and tile bounds of the image tiles
 
     @classmethod
@@ -140,6 +146,52 @@ class FrameProgram:
     def phases(self) -> tuple[PhaseSpec, ...]:
         """Every phase of every tile, in program order."""
         return tuple(ph for st in self.stages for t in st.tiles for ph in t.phases)
+
+
+# -- packets ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Packets:
+    """Work cut into packets: consecutive runs of ``packet_size`` items in row-major order
+    (pixels; photons in emission order), the last one possibly short.
+
+    sizes : (packets,) int64, items per packet.
+    counts : work key -> (packets,) int64, the packet's summed work.
+    """
+
+    name: str
+    packet_size: int
+    sizes: np.ndarray
+    counts: dict[str, np.ndarray]
+
+    @property
+    def n(self) -> int:
+        return int(self.sizes.shape[0])
+
+
+def split(name: str, work: Mapping[str, np.ndarray], packet_size: int) -> Packets:
+    """Cut per-item work (arrays of any shape, read row-major) into packets.
+
+    The seam's promise (docs/design.md, "Two layers, one seam"): every kernel gives the
+    same per-ray and per-pixel results and counts whatever packet it runs on, so a
+    packet's counts are the sums of its items' counts in the whole-image run, and the
+    timing model cuts the work into packets of any size after the kernels ran once.
+    ``work``: a render's dict, or one of the seam's typed work classes
+    (:class:`~tlm.arch.functional.RayPassWork`, ..., which read as mappings).
+    """
+    if isinstance(packet_size, bool) or not isinstance(packet_size, (int, np.integer)) or packet_size < 1:
+        raise ValueError(f"packet_size (={packet_size!r}) must be a whole number >= 1")
+    flat = {k: np.asarray(v).reshape(-1) for k, v in work.items()}
+    n = next(iter(flat.values())).shape[0] if flat else 0
+    if any(v.shape[0] != n for v in flat.values()):
+        raise ValueError(f"work arrays of {name!r} differ in length")
+    starts = np.arange(0, n, packet_size, dtype=np.int64)
+    sizes = np.diff(np.append(starts, n))
+    counts = {}
+    for k, v in flat.items():
+        # integer sums in item order: exact, and the same as summing each packet alone
+        counts[k] = np.add.reduceat(v.astype(np.int64, copy=False), starts) if n else np.zeros(0, np.int64)
+    return Packets(name, int(packet_size), sizes.astype(np.int64), counts)
 
 
 # -- tiling ----------------------------------------------------------------------------------
@@ -390,5 +442,5 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
     return FrameProgram(tuple(stages), left_out, n_pipes, arch.scheduler, tiling)
 
 
-__all__ = ["PMS", "PM_TABLE_NAMES", "FanOut", "FrameProgram", "JobSpec", "PhaseSpec", "Stage", "Tile",
-           "frame_program", "grid_shape", "image_tiles"]
+__all__ = ["PMS", "PM_TABLE_NAMES", "FanOut", "FrameProgram", "JobSpec", "Packets", "PhaseSpec", "Stage", "Tile",
+           "frame_program", "grid_shape", "image_tiles", "split"]

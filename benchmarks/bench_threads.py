@@ -1,0 +1,133 @@
+"""Whole-frame render time against ``render.threads``, and the same bits at every count.
+
+For each config (default: ``configs/cornell_pmap.yaml`` and the conference room,
+``configs/conference.yaml``), renders the whole frame with
+``tlm.experiments.run.render`` (load, BSP build, photon trace, every pass of every
+batch: what ``tlm run`` spends before the timing model) at ``render.threads`` = 1, 2,
+... up to ``--max-threads`` (default: the CPUs available to the process), all in this
+one run, one thread count after the other. A first, untimed render at the smallest
+resolution loads the compiled kernels. Prints, per thread count, the wall seconds (the
+best of ``--repeat``), the speed-up over one thread and the parallel efficiency
+(speed-up / threads), and the seconds of the stages (BSP build, photon trace, the ray
+passes, the photon-map pass; the passes' summed over the workers when whole batches run
+at once, so they exceed the wall seconds there).
+
+Checks that the radiance of every frame and every work count are byte-identical to
+one thread's at every count (FAIL and exit 1 otherwise), and the bar of issue 25: two
+threads at least ``1.8x`` one thread on the whole frame. The bar means something only
+on a machine with two idle cores or more; on a busy or a two-core machine shared with
+other work it says what the machine had to spare, not what the code does.
+
+Resolution: by default a fraction of the configs' own that renders in about a minute at
+one thread on a current core (``--quick``: 64 x 64, seconds; ``--full``: the configs' own
+resolution, minutes at one thread for Cornell, over ten for the conference room).
+
+    python benchmarks/bench_threads.py [--configs configs/cornell_pmap.yaml ...]
+                                       [--max-threads N | --threads 1 2 4 16] [--repeat 1]
+                                       [--quick | --full]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import time
+from pathlib import Path
+
+import numpy as np
+from timing import exit_status, verdict
+
+from tlm.config import load_config
+from tlm.experiments.run import render
+from tlm.kernels.threads import available
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = [ROOT / "configs" / "cornell_pmap.yaml", ROOT / "configs" / "conference.yaml"]
+SPEEDUP_BAR = 1.8  # issue 25: two threads at least 1.8x one thread on the whole frame
+# the default resolutions: a whole frame in about a minute at one thread
+DEFAULT_RESOLUTION = {"cornell_pmap": [160, 160], "conference": [128, 128]}
+QUICK_RESOLUTION = [64, 64]
+STAGES = {"build": ("build_bsp",), "photons": ("photon_trace",), "cast+rays": ("cast", "pass_rcast", "pass_reflect",
+                                                                              "pass_refract"),
+          "pmap": ("pass_pmap", "pass_fgather")}
+
+
+def digest(res) -> str:
+    """A hash of every frame's radiance and every work count, in a fixed order."""
+    h = hashlib.sha256()
+    for name in sorted(res.radiance):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(res.radiance[name]).tobytes())
+    for name in sorted(res.work):
+        for k in sorted(res.work[name]):
+            h.update(f"{name}.{k}".encode())
+            h.update(np.ascontiguousarray(res.work[name][k]).tobytes())
+    return h.hexdigest()[:16]
+
+
+def timed(path: Path, overrides: list[str], threads: int):
+    """(wall seconds, the result) of one whole-frame render on ``threads`` threads."""
+    cfg, base = load_config(path, [*overrides, f"render.threads={threads}"])
+    t0 = time.perf_counter()
+    res = render(cfg, base)
+    return time.perf_counter() - t0, res
+
+
+def bench(path: Path, overrides: list[str], counts: list[int], repeat: int) -> bool:
+    """Print one config's table; returns whether every count gave one thread's bits."""
+    print(f"\n{path.name} ({', '.join(overrides) or 'as configured'})")
+    print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'efficiency':>10}  "
+          + " ".join(f"{s:>9}" for s in STAGES) + "  digest")
+    first = None
+    same = True
+    for n in counts:
+        best, res = None, None
+        for _ in range(repeat):
+            seconds, got = timed(path, overrides, n)
+            if best is None or seconds < best:
+                best, res = seconds, got
+        d = digest(res)
+        if first is None:
+            first = (best, d)
+        speedup = first[0] / best
+        stages = [sum(res.timer.seconds.get(k, 0.0) for k in keys) for keys in STAGES.values()]
+        print(f"{n:>7} {best:>8.2f} {speedup:>7.2f}x {speedup / n:>10.2f}  "
+              + " ".join(f"{s:>9.2f}" for s in stages) + f"  {d}{'' if d == first[1] else '  DIFFERS'}")
+        same &= d == first[1]
+        if n == 2:
+            verdict(speedup >= SPEEDUP_BAR, f"{path.name}: 2 threads {speedup:.2f}x one thread "
+                    f"(bar: at least {SPEEDUP_BAR}x; {available()} CPUs available)", indent="  ")
+    verdict(same, f"{path.name}: radiance and work byte-identical at {', '.join(map(str, counts))} threads",
+            indent="  ")
+    return same
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--configs", nargs="+", type=Path, default=CONFIGS)
+    ap.add_argument("--max-threads", type=int, default=available(),
+                    help="the largest thread count (default: the CPUs available)")
+    ap.add_argument("--threads", type=int, nargs="+", help="these thread counts instead (1 is added first)")
+    ap.add_argument("--repeat", type=int, default=1, help="renders per thread count (the best is kept)")
+    size = ap.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help=f"{QUICK_RESOLUTION[0]} x {QUICK_RESOLUTION[1]} pixels")
+    size.add_argument("--full", action="store_true", help="the configs' own resolution")
+    args = ap.parse_args()
+    if args.max_threads < 1 or args.repeat < 1:
+        ap.error("--max-threads and --repeat must be >= 1")
+    counts = list(range(1, args.max_threads + 1))
+    if args.threads:
+        if min(args.threads) < 1:
+            ap.error("--threads must be >= 1")
+        counts = [1, *sorted(set(args.threads) - {1})]
+    print(f"{available()} CPUs available; threads {counts[0]}..{counts[-1]}")
+    for path in args.configs:
+        res = QUICK_RESOLUTION if args.quick else DEFAULT_RESOLUTION.get(path.stem, [128, 128])
+        overrides = [] if args.full else [f"resolution=[{res[0]},{res[1]}]"]
+        timed(path, ["resolution=[8,8]"], 1)  # loads the compiled kernels (and the scene's caches)
+        bench(path, overrides, counts, args.repeat)
+    exit_status()
+
+
+if __name__ == "__main__":
+    main()

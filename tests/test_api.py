@@ -1,0 +1,231 @@
+"""The Python API (tlm/api.py, re-exported by tlm): the walkthrough of docs/api.md runs as
+written, the entry points are typed and documented, bad input raises the InputError the
+command line turns into exit status 2, and the command line reaches the layers below only
+through the API."""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import re
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+import tlm
+from tlm import api
+from tlm.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "api.md"
+SMALL = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"spp": 1, "light_samples": 1}}
+
+
+def doc_blocks() -> list[str]:
+    """The ```python blocks of docs/api.md, in order."""
+    return re.findall(r"^```python\n(.*?)^```", DOC.read_text(), re.S | re.M)
+
+
+def test_the_walkthrough_in_docs_api_md_runs(tmp_path, monkeypatch, cache):
+    """Every code block of docs/api.md, in order, in one namespace (as a notebook runs them),
+    writing under tmp_path (the walkthrough's ``tempfile.mkdtemp``)."""
+    monkeypatch.chdir(ROOT)  # the walkthrough reads configs/cornell.yaml
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    blocks = doc_blocks()
+    assert len(blocks) >= 7
+    ns: dict = {"__name__": "docs_api"}
+    for i, block in enumerate(blocks):
+        exec(compile(block, f"{DOC} (python block {i})", "exec"), ns)
+    assert ns["work"].parent == tmp_path
+    assert (ns["work"] / "run" / "results.json").is_file()
+    assert (ns["work"] / "pipelines" / "sweep.csv").is_file()
+    rows = ns["rows"]
+    assert isinstance(rows, pd.DataFrame) and len(rows) == 2
+    assert list(rows.columns[:4]) == ["point", "hash", "status", "error"]
+    assert (rows["cycles.throughput"] > 0).all()
+
+
+def test_the_package_re_exports_the_api():
+    assert sorted(tlm.__all__) == sorted(api.__all__)
+    for name in api.__all__:
+        assert getattr(tlm, name) is getattr(api, name)
+    assert set(api.__all__) <= set(dir(tlm))
+    with pytest.raises(AttributeError, match="no attribute 'nonesuch'"):
+        tlm.nonesuch  # noqa: B018
+
+
+def test_no_api_name_is_hidden_by_a_subpackage():
+    """``import tlm.render`` sets ``tlm.render`` to the subpackage: an API name equal to a
+    module's would be the function only until then."""
+    import tlm.experiments.run  # (imports tlm.render, tlm.scenes, ...)
+    import tlm.report
+
+    modules = {p.stem if p.is_file() else p.name for p in (ROOT / "tlm").iterdir()}
+    assert not set(api.__all__) & modules
+    assert tlm.render_image is api.render_image and inspect.ismodule(tlm.render)
+
+
+def test_every_entry_point_is_typed_and_documented():
+    for name in api.__all__:
+        obj = getattr(api, name)
+        if not inspect.isfunction(obj):
+            continue
+        sig = inspect.signature(obj)
+        assert obj.__doc__, name
+        assert sig.return_annotation is not inspect.Signature.empty, name
+        untyped = [p for p in sig.parameters.values() if p.annotation is inspect.Parameter.empty]
+        assert not untyped, f"{name}: {untyped}"
+
+
+def test_a_missing_config_is_the_input_error_the_cli_exits_2_on(tmp_path, capsys):
+    missing = tmp_path / "nope.yaml"
+    with pytest.raises(tlm.InputError, match="file not found") as info:
+        tlm.load_config(missing)
+    assert str(missing) in str(info.value)
+    assert main(["run", str(missing), "--out", str(tmp_path / "o")]) == 2
+    assert capsys.readouterr().err.strip() == f"tlm: error: {' '.join(str(info.value).split())}"
+    with pytest.raises(tlm.InputError):
+        tlm.render_image(missing)
+    with pytest.raises(tlm.InputError):
+        tlm.run(missing, tmp_path / "o")
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_keys_values_and_overrides_name_what_is_wrong():
+    with pytest.raises(tlm.InputError, match=r"render\.spp.*>= 1"):
+        tlm.load_config({**SMALL, "render": {"spp": 0}})
+    with pytest.raises(tlm.InputError, match="rendr"):
+        tlm.load_config({**SMALL, "rendr": {}})
+    with pytest.raises(tlm.InputError, match=r"arch\.pipelines"):
+        tlm.load_config(SMALL, {"arch.pipelines": -1})
+    with pytest.raises(tlm.InputError, match="mapping or a list"):
+        tlm.load_config(SMALL, "mode=pmap")
+    with pytest.raises(tlm.InputError, match="--outputs"):
+        tlm.parse_outputs("images,aovs")
+
+
+def test_configs_load_from_files_mappings_and_scene_files(tmp_path):
+    cfg = tlm.load_config(ROOT / "configs" / "cornell.yaml", ["mode=rcast"], base=tmp_path)
+    assert cfg.mode == "rcast" and cfg.base == ROOT / "configs" and cfg.overrides == ("mode=rcast",)
+    assert cfg.label.endswith("cornell.yaml (with --set)") and not cfg.scene_file
+    more = cfg.updated({"render.spp": 2, "arch.pipelines": 2})
+    assert (more.render.spp, more.arch.pipelines, cfg.render.spp) == (2, 2, cfg.settings.render.spp)
+    assert more.overrides == ("mode=rcast", "render.spp=2", "arch.pipelines=2")
+    assert tlm.load_config(more) is more
+    d = tlm.load_config(SMALL, base=tmp_path)
+    assert (d.source, d.base, d.label, d.resolution) == (None, tmp_path, "(dict)", [16, 16])
+    assert tlm.load_config(d.settings, base=tmp_path).settings == d.settings
+    scene = tmp_path / "box.yaml"
+    scene.write_text("extends: cornell\n")
+    sc = tlm.load_config(scene)
+    assert sc.scene_file and sc.scene == str(scene.resolve()) and sc.base == tmp_path
+    assert tlm.scene_file(scene) == scene.resolve() and tlm.scene_file(ROOT / "configs" / "cornell.yaml") is None
+
+
+def test_render_simulate_and_run_agree(tmp_path, cache):
+    cfg = tlm.load_config(SMALL, base=tmp_path)
+    res = tlm.render_image(cfg)
+    assert res.base == tmp_path and res.timing is None
+    assert res.aov["t"].shape == (16, 16) and res.work["rcast"]["tri_tests"].shape == (16, 16)
+    assert res.work_totals()["rcast"]["primary_rays"] == 16 * 16
+    timing = tlm.simulate(res)
+    assert res.timing is None  # simulate returns the timing, the render is left as it is
+    same = tlm.simulate(res, cfg.arch)
+    other = tlm.simulate(res, {"arch.page_miss_cycles": 48})
+    assert same.cycles == timing.cycles and other.cycles != timing.cycles
+    with pytest.raises(tlm.InputError, match="pipelines"):
+        tlm.simulate(res, {"pipelines": 0})
+    results = tlm.run(cfg, tmp_path / "run", outputs=[])
+    assert results["cycles"] == timing.cycles
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.resolved.yaml", "images", "results.json"]
+
+
+def test_scenes_are_listed_shown_and_exported(tmp_path):
+    assert "cornell" in tlm.list_scenes()
+    assert tlm.scene_description("cornell").startswith("Cornell box")
+    info = tlm.scene_info("cornell")
+    assert info["triangles"] == 2604 and info["resolution"] == [320, 320]
+    scene = tlm.export_scene("cornell", tmp_path / "c.obj")
+    assert scene.n_triangles == 2604 and (tmp_path / "c.obj").stat().st_size > 0
+
+
+def _tlm_imports(path: Path) -> list[tuple[str, str]]:
+    """(module, name) of every ``from tlm... import name`` of ``path`` (anywhere in it)."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "tlm":
+            out.extend((node.module, a.name) for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.extend((a.name, "") for a in node.names if a.name.split(".")[0] == "tlm")
+    return out
+
+
+def test_the_cli_reaches_the_layers_below_only_through_the_api():
+    """tlm/cli.py parses and prints: besides the API it imports only the error helpers, the
+    cache folder (for a traceback's file) and the thesis tables' text formatting."""
+    allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.experiments.thesis"}
+    used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
+    assert used <= allowed, used - allowed
+    thesis = {n for m, n in _tlm_imports(ROOT / "tlm" / "cli.py") if m == "tlm.experiments.thesis"}
+    assert thesis <= {"describe_rows", "describe_items"}
+    commands = [n for n in ast.walk(ast.parse((ROOT / "tlm" / "cli.py").read_text()))
+                if isinstance(n, ast.FunctionDef) and n.name.startswith("_cmd_")]
+    assert len(commands) >= 13
+    for fn in commands:  # every command calls the API
+        calls = {ast.unparse(c.func) for c in ast.walk(fn) if isinstance(c, ast.Call)}
+        assert any(c.startswith("api.") for c in calls), fn.name
+
+
+@pytest.mark.parametrize("module", ["tlm/api.py", "tlm/cli.py", *sorted(
+    str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
+def test_no_private_name_is_imported_from_another_module(module):
+    """Progress bars, the timer and provenance have modules of their own: the experiments
+    (the sweep's workers among them), the API and the CLI import public names only."""
+    private = [f"{m}.{n}" for m, n in _tlm_imports(ROOT / module) if n.startswith("_") and not n.startswith("__")]
+    assert private == []
+
+
+def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():
+    from tlm.experiments.progress import Ticking, Timer, progress_bar
+
+    timer = Timer()
+    for _ in range(2):
+        with timer.stage("a"):
+            pass
+    with timer.stage("b"):
+        sum(range(1000))
+    assert set(timer.seconds) == {"a", "b"} and all(s >= 0.0 for s in timer.seconds.values())
+    with progress_bar(False, total=2) as bar, Ticking(bar, every=0.001) as ticking:
+        bar.update(2)
+    assert bar.disable and not ticking.thread.is_alive() and ticking.stop.is_set()
+
+
+def test_provenance_names_the_versions_and_the_revision():
+    from tlm.experiments.provenance import PACKAGES, git_revision, provenance, versions
+
+    v = versions()
+    assert {"python", "platform", *PACKAGES} <= set(v) and v["tlm"] != "not installed"
+    rev = git_revision()
+    assert rev is None or re.fullmatch(r"[0-9a-f]{40}", rev)
+    p = provenance("study.yaml", 1.23456)
+    assert (p["study"], p["host_seconds"], p["git_revision"]) == ("study.yaml", 1.235, rev)
+
+
+def test_a_frame_is_loaded_built_and_cast_in_one_call(tmp_path):
+    from tlm.experiments.loading import cast_image, load_frame
+    from tlm.experiments.progress import Timer
+
+    cfg = tlm.load_config(SMALL, base=tmp_path)
+    timer = Timer()
+    frame = load_frame(cfg.settings, cfg.base, cfg.label, timer=timer)
+    assert set(timer.seconds) == {"load_scene", "build_bsp"}
+    assert frame.scene.n_triangles == 2604 and frame.cfg is cfg.settings
+    again = load_frame(cfg.settings, scene=frame.scene, timer=(t2 := Timer()))
+    assert set(t2.seconds) == {"build_bsp"} and again.scene is frame.scene
+    g = cast_image(frame)
+    assert g.pixels.shape[0] == 16 * 16 and (g.triangle >= 0).any()
+    typo = tlm.load_config({**SMALL, "scene": "cornel"})  # (the scene is read when the frame is made)
+    with pytest.raises(tlm.InputError, match="cornel"):
+        load_frame(typo.settings)

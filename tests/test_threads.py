@@ -1,0 +1,226 @@
+"""``render.threads``: the kernels on several threads give the bits of one thread.
+
+Renders (radiance, work counts, photon maps, simulated cycles) and kernel calls (hits,
+counts, the nodes and leaves touched, gathers) are compared byte for byte at 1, 2 and 3
+threads. The kernels' smallest chunks are lowered here so that the small test inputs
+are really cut into many chunks (cuts in odd places, uneven chunks), as a full frame is.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from tlm.arch.costs import load_programs
+from tlm.arch.model import simulate
+from tlm.config import config_from_dict
+from tlm.errors import InputError
+from tlm.experiments import run
+from tlm.experiments.run import render
+from tlm.kernels import estimate, photons, threads, traverse
+from tlm.kernels.bsp import build_point_tree
+from tlm.kernels.memory import Accesses, Deferred, Streams
+from tlm.kernels.traverse import any_hit, build_accel, closest_hit
+
+
+@pytest.fixture
+def small_chunks(monkeypatch):
+    """Chunks of a few rays or queries, gather blocks of a few hundred queries, photon
+    chunks of a few hundred photons, and (on several threads) batches of a few dozen
+    pixels, cut at other pixels for every thread count, that run at once."""
+    monkeypatch.setattr(traverse, "JIT_MIN_CHUNK", 37)
+    monkeypatch.setattr(estimate, "GATHER_MIN_CHUNK", 23)
+    monkeypatch.setattr(estimate, "QUERY_BLOCK", 301)
+    monkeypatch.setattr(photons, "PHOTON_MIN_CHUNK", 700)
+    monkeypatch.setattr(photons, "CONE_CHUNK", 3000)
+    monkeypatch.setattr(run, "MIN_BATCH_RAYS", 16)
+
+
+def _cfg(scene: str, mode: str, **over):
+    raw = {"scene": scene, "mode": mode, "resolution": [24, 20], "photons": {"count": 5000},
+           "render": {"spp": 1, "batch_rays": 200}, "arch": {"frames": 2, "trace": False}}
+    for k, v in over.items():
+        raw.setdefault(k, {}).update(v)
+    return raw
+
+
+def _render(raw: dict, n: int):
+    raw = {**raw, "render": {**raw["render"], "threads": n}}
+    res = render(config_from_dict(raw))
+    tm = simulate(res.functional(), load_programs(), res.cfg.arch)
+    return res, tm
+
+
+def _same_render(a, b) -> None:
+    (ra, ta), (rb, tb) = a, b
+    assert ra.radiance.keys() == rb.radiance.keys()
+    for name in ra.radiance:
+        assert ra.radiance[name].tobytes() == rb.radiance[name].tobytes(), name
+    assert ra.work.keys() == rb.work.keys()
+    for name in ra.work:
+        for k in ra.work[name]:
+            assert np.array_equal(ra.work[name][k], rb.work[name][k]), (name, k)
+    assert ra.gather_maps == rb.gather_maps
+    if ra.photons is not None:
+        maps_a, maps_b = ra.photons.photons, rb.photons.photons
+        assert (maps_a.global_map is None) == (maps_b.global_map is None)
+        for ma, mb in zip((*maps_a.maps, maps_a.global_map), (*maps_b.maps, maps_b.global_map), strict=True):
+            if ma is None:
+                continue
+            for k in ("position", "normal", "incoming", "power", "caustic"):
+                assert getattr(ma, k).tobytes() == getattr(mb, k).tobytes(), k
+            assert ma.tree.split.tobytes() == mb.tree.split.tobytes()
+        for k, v in ra.photons.work.items():
+            assert np.array_equal(v, rb.photons.work[k]), k
+    assert ta.cycles == tb.cycles
+    assert [f["done"] for f in ta.frames] == [f["done"] for f in tb.frames]
+
+
+@pytest.mark.parametrize("scene, mode, over", [
+    pytest.param("cornell", "pmap", {"estimate": {"final_gather": 4}},  # mirror, glass sphere, final gathering
+                 marks=pytest.mark.slow),
+    ("cornell-water", "refract", {}),  # a glass (water) surface over most of the image
+])
+@pytest.mark.parametrize("workers", ["processes", "threads"])
+def test_renders_are_bit_identical_for_any_thread_count(small_chunks, monkeypatch, workers, scene, mode, over):
+    monkeypatch.setattr(run, "BATCH_WORKERS", workers)  # where whole batches run at once
+    raw = _cfg(scene, mode, **over)
+    one = _render(raw, 1)
+    if mode == "pmap":
+        assert one[0].plan.runs("fgather") and one[0].work["fgather"]["secondary_rays"].sum() > 0
+    assert one[0].work["rcast"]["primary_rays"].sum() == 24 * 20
+    for n in (2, 3):
+        _same_render(one, _render(raw, n))
+
+
+def _rays(rng, r: int):
+    o = rng.random((r, 3)) * 1.4 - 0.2
+    d = rng.normal(size=(r, 3))
+    d[::17, 0] = 0.0  # axis-parallel rays too
+    return o, d
+
+
+def _same_traversal(a, b) -> None:
+    for f in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
+        assert np.array_equal(getattr(a.counts, f), getattr(b.counts, f)), f
+    for f in ("node_ptr", "node_ids", "leaf_ptr", "leaf_ids"):
+        x, y = getattr(a.touched, f), getattr(b.touched, f)
+        assert x.dtype == y.dtype and np.array_equal(x, y), f
+
+
+def test_kernels_are_bit_identical_for_any_thread_count(small_chunks):
+    rng = np.random.default_rng(5)
+    accel = build_accel(rng.random((800, 3, 3)))
+    o, d = _rays(rng, 5000)
+    ignore = rng.integers(-1, 800, 5000)
+    eye = np.broadcast_to(np.array([0.5, 0.5, -1.0]), (3000, 3))
+    eye_d = rng.normal(size=(3000, 3)) * [0.3, 0.3, 0.0] + [0.0, 0.0, 1.0]
+    out = {}
+    for n in (1, 3):
+        with threads.using(n):
+            out[n] = (closest_hit(accel, o, d, tmin=1e-6, ignore=ignore, record=True),
+                      any_hit(accel, o, d, tmax=0.4, record=True),
+                      closest_hit(accel, eye, eye_d, record=True, shared_origin=True))
+    for a, b in zip(out[1], out[3], strict=True):
+        _same_traversal(a, b)
+    for a, b in ((out[1][0], out[3][0]), (out[1][2], out[3][2])):
+        assert a.t.tobytes() == b.t.tobytes() and a.u.tobytes() == b.u.tobytes() and a.v.tobytes() == b.v.tobytes()
+        assert np.array_equal(a.triangle, b.triangle)
+    assert np.array_equal(out[1][1].occluded, out[3][1].occluded)
+    assert out[1][0].counts.leaf_visits.sum() > 0 and out[1][1].occluded.any() and (out[1][2].triangle >= 0).any()
+
+    # the m-voxel and disk gathers: densities, counts and the leaf reads' misses (cache pairs carried)
+    pos = rng.random((20000, 3))
+    power = rng.random((20000, 3)) * 1e-3
+    inc = rng.normal(size=(20000, 3))
+    tree = build_point_tree(pos, levels=9)
+    pts = rng.random((2000, 3))
+    nrm = rng.normal(size=(2000, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    got = {}
+    for n in (1, 3):
+        with threads.using(n):
+            s = Streams(64, 4)
+            got[n] = (estimate.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.05, streams=s),
+                      estimate.disk_estimate(pos, power, inc, tree, pts, nrm, 0.08, streams=s))
+    for a, b in zip(got[1], got[3], strict=True):
+        assert a.density.tobytes() == b.density.tobytes()
+        for k in ("node_visits", "leaves_visited", "photons_tested", "photons_accepted", "gather_misses"):
+            assert np.array_equal(getattr(a, k), getattr(b, k)), k
+    assert got[1][0].photons_accepted.sum() > 0 and got[1][0].gather_misses.sum() > 0
+
+
+def test_spans_cover_in_order():
+    assert threads.spans(10, 100, threads=4) == [(0, 10)]
+    assert threads.spans(1000, 10, threads=1) == [(0, 1000)]
+    s = threads.spans(1003, 10, threads=3)
+    assert len(s) == 3 * threads.CHUNKS_PER_THREAD and s[0][0] == 0 and s[-1][1] == 1003
+    assert all(a[1] == b[0] for a, b in itertools.pairwise(s))
+    assert list(threads.ordered(lambda x: x * x, range(50), threads=3)) == [x * x for x in range(50)]
+
+
+@pytest.mark.parametrize("value, says", [(0, "must be >= 1"), (-2, "must be >= 1"), ("two", "is not"),
+                                         (1.5, "is not"), (True, "is not")])
+def test_bad_threads_is_an_input_error(value, says):
+    with pytest.raises(InputError) as e:
+        config_from_dict({"scene": "cornell", "render": {"threads": value}}, "t.yaml")
+    assert "render.threads" in str(e.value) and says in str(e.value)
+
+
+def test_threads_do_not_enter_the_keys():
+    from tlm.config import to_dict
+    from tlm.experiments.frames import functional_key
+    from tlm.experiments.sweep import config_hash
+
+    a = to_dict(config_from_dict({"scene": "cornell", "render": {"threads": 1}}))
+    b = to_dict(config_from_dict({"scene": "cornell", "render": {"threads": 7}}))
+    c = to_dict(config_from_dict({"scene": "cornell"}))
+    assert len({functional_key(x, "s", "c") for x in (a, b, c)}) == 1
+    assert len({config_hash(x) for x in (a, b, c)}) == 1
+    assert config_hash(to_dict(config_from_dict({"scene": "cornell", "render": {"batch_rays": 7}}))) != config_hash(c)
+
+
+def test_sweep_workers_share_the_cpus(monkeypatch):
+    from tlm.experiments import executors
+    from tlm.experiments.sweep import _with_threads
+
+    monkeypatch.setattr(threads, "available", lambda: 16)
+    assert executors.kernel_threads(4, None, 10) == 4
+    assert executors.kernel_threads(4, "local", 2) == 8  # no more workers than points
+    assert executors.kernel_threads(32, None, 40) == 1
+    assert executors.kernel_threads(1, None, 10) is None  # one worker: all the CPUs
+    assert executors.kernel_threads(4, "tcp://host:8786", 10) is None  # another machine's CPUs
+    assert _with_threads({"render": {"threads": None}}, 4)["render"]["threads"] == 4
+    assert _with_threads({"render": {"threads": 3}}, 4)["render"]["threads"] == 3  # set in the config: kept
+    assert _with_threads({"render": {"threads": None}}, None)["render"]["threads"] is None
+
+
+def test_deferred_packets_settled_in_order_give_the_carried_misses():
+    """Packets charged on cold pairs (:class:`Deferred`) and settled in order on one carried
+    :class:`Streams` give the misses (per owner, per stream) and the end states of the
+    packets charged in order: random streams on shared and own pairs, pages of a few words
+    (runs that continue across packets and calls, armed prefetches), empty charges."""
+    rng = np.random.default_rng(1)
+    for _ in range(400):
+        pw, pairs, owners = int(rng.choice([4, 8, 16])), int(rng.choice([1, 2, 4])), 6
+        packets = [[[(str(name), Accesses.of_words(int(rng.integers(0, 5)) * pw
+                                                   + np.cumsum(rng.integers(0, pw, k)),
+                                                   np.sort(rng.integers(0, owners, k)), pw))
+                     for name in rng.permutation(["nodes", "indices", "vertices"])[:rng.integers(1, 4)]
+                     for k in [int(rng.integers(0, 6))]]
+                    for _ in range(int(rng.integers(0, 4)))] for _ in range(int(rng.integers(1, 5)))]
+        carried, settled = Streams(pw, pairs), Streams(pw, pairs)
+        for calls in packets:
+            got = []
+            for pairs_of in (carried, Deferred.like(settled)):
+                t, i = np.zeros(owners, np.int64), np.zeros(owners, np.int64)
+                for parts in calls:
+                    pairs_of.charge_owner_major(parts, owners, {"nodes": t, "indices": t, "vertices": i})
+                if isinstance(pairs_of, Deferred):
+                    settled.settle(pairs_of)
+                got.append((t, i))
+            assert all(np.array_equal(a, b) for a, b in zip(*got, strict=True))
+        live = {k: v for k, v in carried.states.items() if v.page >= 0}
+        assert live == {k: v for k, v in settled.states.items() if v.page >= 0}

@@ -1,0 +1,493 @@
+"""tlm's Python API: what the ``tlm`` command does, as functions that return data.
+
+Every ``tlm`` subcommand is a call of this module (``tlm/cli.py`` only parses the
+arguments and prints what these return), and a notebook uses the same calls (the
+walkthrough: docs/api.md)::
+
+    import tlm
+
+    cfg = tlm.load_config("configs/cornell.yaml", {"resolution": [64, 64]})
+    res = tlm.render_image(cfg)                  # images, AOVs and work counts
+    timing = tlm.simulate(res)                   # the timing model under cfg's arch
+    wider = tlm.simulate(res, {"pipelines": 4})  # the same work on other hardware
+    rows = tlm.sweep("configs/sweep_fifo.yaml", "runs/fifo")   # a pandas DataFrame
+
+Bad input of any kind raises :class:`InputError`, whose message names the file, the
+key and the value (``tlm`` prints it on one line and exits with status 2); a timing
+model that cannot finish raises :class:`Deadlock`.
+
+The heavy layers (the kernels, the timing model, the report) are imported when a
+function first needs them, so that importing tlm, and every ``tlm`` command, stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from tlm.arch.units import Deadlock
+from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, read_yaml, to_dict
+from tlm.errors import InputError, did_you_mean
+
+if TYPE_CHECKING:
+    import numpy as np
+    import pandas as pd
+
+    from tlm.arch.costs import Programs
+    from tlm.arch.model import Timing
+    from tlm.config import ArchConfig
+    from tlm.experiments.reference import Made
+    from tlm.experiments.run import RenderResult
+    from tlm.experiments.sweep import Outcome
+    from tlm.scenes.model import Scene
+
+__all__ = [
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "calibrate", "error_vs_cost", "export_scene",
+    "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
+    "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
+    "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",
+]
+
+OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (tlm.experiments.run.OUTPUTS)
+
+Overrides = Mapping[str, Any] | Iterable[str]  # {"render.spp": 2} or ["render.spp=2"]
+
+
+# ---------------------------------------------------------------- configs
+
+
+@dataclass(frozen=True)
+class Config:
+    """A checked run config (:class:`~tlm.config.RunConfig`, every parameter with its
+    default: ``tlm params``) and where it came from.
+
+    Its settings read as attributes (``cfg.render.spp``, ``cfg.scene``, ``cfg.arch``).
+    ``base``: the folder the config's relative paths (``scene``, ``arch.programs``) start
+    from; ``source``: the file it was read from (None for a mapping), named in error
+    messages and in ``results.json``; ``overrides``: the ``dotted.key=value`` strings
+    applied to it; ``scene_file``: it is a scene file's default config (``tlm run
+    SCENE.yaml``).
+    """
+
+    settings: RunConfig
+    base: Path
+    source: str | None = None
+    overrides: tuple[str, ...] = ()
+    scene_file: bool = False
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_") or name == "settings":  # (copy and pickle look for these first)
+            raise AttributeError(name)
+        return getattr(self.settings, name)
+
+    @property
+    def label(self) -> str:
+        """What error messages call the config: its file ("(dict)" for a mapping), with
+        " (with --set)" after overrides."""
+        source = "(dict)" if self.source is None else self.source
+        return f"{source} (with --set)" if self.overrides else source
+
+    def updated(self, overrides: Overrides) -> Config:
+        """A copy with the dotted keys of ``overrides`` set, checked again (an InputError
+        names a bad key or value)."""
+        more = _override_strings(overrides)
+        config = replace(self, overrides=(*self.overrides, *more))
+        return replace(config, settings=config_from_dict(apply_overrides(to_dict(self.settings), more), config.label))
+
+
+def _override_strings(overrides: Overrides | None) -> list[str]:
+    """``dotted.key=value`` strings, from a mapping (values written as JSON, which YAML reads) or as given."""
+    if overrides is None:
+        return []
+    if isinstance(overrides, Mapping):
+        return [f"{k}={json.dumps(v)}" for k, v in overrides.items()]
+    if isinstance(overrides, str):
+        raise InputError(f"{overrides!r}: overrides are a mapping or a list of dotted.key=value strings",
+                         key="overrides")
+    return [str(o) for o in overrides]
+
+
+def scene_file(path: str | Path) -> Path | None:
+    """``path`` (resolved) when it is a scene file rather than a run config: it has
+    ``geometry`` (or ``extends``) and no ``scene``. None for a run config (whose own loading
+    reports its typos). A file that is neither is an InputError saying what to write."""
+    import dataclasses
+
+    from tlm.scenes.loader import SCENE_KEYS
+
+    path = Path(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict) or not raw or "scene" in raw:
+        return None
+    if "geometry" in raw or "extends" in raw:
+        return path.resolve()
+    fields = [f.name for f in dataclasses.fields(RunConfig)]
+    keys = [str(k) for k in raw]
+    # keys both kinds of file have (resolution, photons) say nothing; a near miss of a config
+    # key is a config's typo, which the config's own loading reports
+    if any(k not in SCENE_KEYS and (k in fields or did_you_mean(k, fields)) for k in keys):
+        return None
+    hint = next((f"; {k!r}{did_you_mean(k, SCENE_KEYS)}" for k in keys if did_you_mean(k, SCENE_KEYS)
+                 and k not in SCENE_KEYS), "")
+    what = ("a scene file needs `geometry:` (a builder, a mesh or shapes: docs/scenes.md)"
+            if any(k in SCENE_KEYS for k in keys) else "a scene file has `geometry:` (docs/scenes.md)")
+    what += hint
+    raise InputError(f"neither a run config nor a scene file (keys: {', '.join(keys)}): a config names its "
+                     f"scene, `scene: cornell` or `scene: path/to/scene.yaml` (see 'tlm params'); {what}",
+                     source=str(path))
+
+
+def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, overrides: Overrides | None = None,
+                *, base: str | Path | None = None) -> Config:
+    """A run config, checked: from a YAML file (a run config, or a scene file, which renders
+    at the default settings), a mapping of its keys, or a config already made.
+
+    ``overrides``: dotted keys to set, ``{"render.spp": 2}`` or ``["render.spp=2"]`` (as
+    ``tlm run --set``). ``base``: where a mapping's relative paths start (default: the
+    working folder; a file's own folder for a file). A missing file, a YAML error, an
+    unknown key or a value out of range raise :class:`InputError` naming it.
+    """
+    more = _override_strings(overrides)
+    if isinstance(config, Config):
+        return config.updated(more) if more else config
+    if isinstance(config, RunConfig):
+        out = Config(config, Path(base) if base is not None else Path.cwd())
+        return out.updated(more) if more else out
+    if isinstance(config, Mapping):
+        raw = apply_overrides(dict(config), more) if more else dict(config)
+        source = "(dict) (with --set)" if more else "(dict)"
+        return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
+                      tuple(more))
+    path = Path(config)
+    scene = scene_file(path)
+    if scene is None:
+        from tlm.config import load_config as load_run_config
+
+        settings, folder = load_run_config(path, more)
+        return Config(settings, folder, str(config), tuple(more))
+    source = f"(the defaults for scene file {scene})"
+    raw: dict[str, Any] = {"scene": str(scene)}
+    if more:
+        raw, source = apply_overrides(raw, more), f"{source} (with --set)"
+    return Config(config_from_dict(raw, source), scene.parent, str(config), tuple(more), scene_file=True)
+
+
+def params() -> list[tuple[str, Any, str]]:
+    """Every config parameter: (dotted key, default, meaning), as ``tlm params`` lists them."""
+    return describe()
+
+
+# ---------------------------------------------------------------- scenes
+
+
+def list_scenes() -> list[str]:
+    """The built-in scene names (what a config's ``scene:`` may name)."""
+    from tlm.scenes.loader import list_scenes as names
+
+    return names()
+
+
+def scene_description(name: str) -> str:
+    """A built-in scene's ``description:``, else its first comment line ("" when it has
+    neither; cheap: reads no geometry)."""
+    from tlm.scenes.loader import scenes_dir
+
+    path = scenes_dir() / f"{name}.yaml"
+    try:
+        raw = read_yaml(path)
+        if isinstance(raw, dict) and isinstance(raw.get("description"), str):
+            return raw["description"]
+        first = path.read_text(encoding="utf-8").splitlines()[0]
+    except (InputError, OSError, IndexError):
+        return ""
+    return first.lstrip("#").strip() if first.startswith("#") else ""
+
+
+def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
+    """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
+    default the working folder), at its own resolution or ``[width, height]``."""
+    from tlm.scenes.loader import load_scene as load
+
+    return load(str(scene), Path(base) if base is not None else Path.cwd(), resolution)
+
+
+def _scene(scene: Scene | str | Path) -> Scene:
+    return load_scene(scene) if isinstance(scene, (str, Path)) else scene
+
+
+def scene_info(scene: Scene | str | Path) -> dict:
+    """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
+    parts, lights and camera of a scene (or of the scene named)."""
+    import numpy as np
+
+    scene = _scene(scene)
+    lo, hi = scene.bounds()
+    used = np.bincount(scene.material_index, minlength=len(scene.materials))
+    return {
+        "name": scene.name,
+        "source": scene.source,
+        "triangles": scene.n_triangles,
+        "bounds": {"min": lo.tolist(), "max": hi.tolist()},
+        "resolution": [scene.camera.width, scene.camera.height],
+        "photons": scene.photons,
+        "materials": [
+            {"name": m.name, "type": m.kind, "triangles": int(used[i]),
+             **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
+             **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
+             **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
+             **({"emission": list(m.emission)} if m.emits else {})}
+            for i, m in enumerate(scene.materials)
+        ],
+        "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
+        "lights": [
+            {"type": lt.kind, "power": list(lt.power),
+             **({"position": list(lt.position)} if lt.kind == "point" else
+                {"materials": lt.name, "triangles": int(lt.ids.shape[0]), "area": lt.area}
+                if lt.kind == "mesh" else
+                {"corner": list(lt.corner), "edge_u": list(lt.edge_u), "edge_v": list(lt.edge_v),
+                 "area": lt.area})}
+            for lt in scene.lights
+        ],
+        "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
+                   "up": list(scene.camera.up), "vfov": scene.camera.vfov},
+    }
+
+
+def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
+    """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``;
+    returns the scene."""
+    from tlm.scenes.export import export_triangles
+
+    scene = _scene(scene)
+    export_triangles(scene, Path(file))
+    return scene
+
+
+# ---------------------------------------------------------------- one experiment
+
+
+def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: bool = False) -> RenderResult:
+    """Render every frame ``config`` plans (its ``mode``) over the whole image.
+
+    The result (a :class:`~tlm.experiments.run.RenderResult`) holds each pass's
+    ``radiance`` ((H, W, 3) linear, float64) and ``work`` (pass -> count -> (H, W) int64),
+    the ``composite``, the eye rays' ``aov`` and ``work_totals()``, the ``scene``, the
+    ``plan`` (passes run and left out), the photon map (``photons``) and the photon-map
+    frame's ``error`` against its cached reference.
+    ``progress``: a bar on stderr when it is a terminal.
+    """
+    from tlm.experiments import run as runs
+
+    cfg = load_config(config)
+    return replace(runs.render(cfg.settings, cfg.base, cfg.label, progress=progress), base=cfg.base)
+
+
+def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
+    """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
+    ``exposure`` (default: the 99.5th percentile of luminance to 1, as ``tlm run`` does for
+    its images, though a run leaves out the pixels that see a light directly), clipped."""
+    from tlm.render.image import auto_exposure, to_srgb8
+
+    scale = auto_exposure(radiance.reshape(-1, 3)) if exposure is None else exposure
+    return to_srgb8(radiance, scale)
+
+
+def _arch_overrides(arch: Mapping[str, Any]) -> dict[str, Any]:
+    return {k if k.startswith("arch.") else f"arch.{k}": v for k, v in arch.items()}
+
+
+def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None = None, *,
+             programs: Programs | str | Path | None = None, progress: bool = False) -> Timing:
+    """The timing model's outcome for the work of ``result`` (a :func:`render_image`): cycles per
+    PM, ``throughput`` and ``latency`` (``.cycles``), ``.fps``, and every unit's busy, stall
+    and idle cycles (``.to_dict()``).
+
+    ``arch``: the architecture to simulate, an :class:`~tlm.config.ArchConfig` or keys of
+    ``arch`` to change (``{"pipelines": 4}``); default the render's own. The render is not
+    repeated: only the timing model runs. ``programs``: an instruction-cost table or its
+    path; default ``arch.programs`` (relative to the config's folder).
+    """
+    from tlm.arch.costs import Programs, load_programs
+    from tlm.config import ArchConfig
+    from tlm.experiments import run as runs
+
+    cfg = result.cfg
+    if isinstance(arch, ArchConfig):
+        cfg = replace(cfg, arch=arch)
+    elif arch is not None:
+        cfg = config_from_dict(apply_overrides(to_dict(cfg), _override_strings(_arch_overrides(arch))),
+                               "(simulate: arch)")
+    if isinstance(programs, Programs):
+        table = programs
+    elif programs is not None:
+        table = load_programs(Path(programs))
+    else:
+        table = runs.programs_for(cfg, result.base)
+    return runs.simulate_run(replace(result, cfg=cfg) if cfg is not result.cfg else result, table, progress)
+
+
+def parse_outputs(text: str) -> tuple[str, ...]:
+    """``tlm run --outputs`` (``"aov,trace"``): the optional outputs named, in :data:`OUTPUTS`
+    order (``"images"``: none of them); an unknown name is an :class:`InputError`."""
+    from tlm.experiments.run import parse_outputs as parse
+
+    return parse(text)
+
+
+def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
+        outputs: str | Iterable[str] | None = None, progress: bool = False, reference: bool | None = None,
+        say: Callable[[str], None] | None = None) -> dict:
+    """Render, simulate and write the run folder ``out``, as ``tlm run`` does; returns what
+    ``results.json`` holds.
+
+    ``outputs``: which of :data:`OUTPUTS` the folder gets besides its images and
+    ``results.json`` (``"aov,trace"`` or a list; ``"images"`` or ``[]``: none; default all).
+    ``reference``: compute the photon-map frame's reference when none is cached (default
+    the config's ``reference.auto``); ``say`` gets a line before and after computing it.
+    A destination that is not a tlm folder, or bad input, fails before any work.
+    """
+    from tlm.experiments import run as runs
+
+    cfg = load_config(config)
+    if outputs is None:
+        chosen = runs.OUTPUTS
+    elif isinstance(outputs, str):
+        chosen = runs.parse_outputs(outputs)
+    else:
+        names = list(outputs)
+        chosen = runs.parse_outputs(",".join(names)) if names else ()
+    auto = cfg.settings.reference.auto if reference is None else reference
+    return runs.run(cfg.settings, Path(out), cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
+                    outputs=chosen, progress=progress, reference=auto, say=say)
+
+
+def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = False,
+              say: Callable[[str], None] | None = None, progress: Callable[[int, float, float], None] | None = None,
+              bar: bool = False) -> Made:
+    """The converged photon-map reference of ``config``'s scene, as ``tlm reference``
+    computes it: the cached one when it meets ``reference.tolerance`` (unless ``force``),
+    else computed and cached. Returns its ``key``, ``settings``, ``meta``, whether it was
+    ``computed`` now and its ``folder``; ``say`` gets a line before computing, ``progress``
+    ``(round, change, relative standard error)`` after each round, ``bar`` a bar on stderr."""
+    from tlm.experiments.reference import make_reference
+
+    cfg = load_config(config)
+    return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
+
+
+# ---------------------------------------------------------------- many experiments
+
+
+def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
+              progress: bool = False) -> Outcome:
+    """Run every point of the sweep file ``path`` not already done in ``out`` (``tlm sweep``);
+    returns the rows (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok,
+    failed, skipped and rendered. ``jobs``: worker processes (default the CPU count; 1: in
+    this process); ``dask``: ``"local"`` or a scheduler's address."""
+    from tlm.experiments.sweep import run_sweep as run_all
+
+    return run_all(Path(path), Path(out), jobs=jobs, dask=dask, progress=progress)
+
+
+def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
+          progress: bool = False) -> pd.DataFrame:
+    """Run the sweep file ``path`` into ``out`` (:func:`run_sweep`) and return its rows as a
+    pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
+    (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
+    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress).table
+
+
+def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
+    """Fit eq. 5.2 to sweeps over ``arch.pipelines`` (``tlm scaling``): the fits, a table and
+    a figure per scene in ``out``."""
+    from tlm.experiments.scaling import analyse
+    from tlm.report.scaling import plot_scaling
+
+    return analyse([Path(d) for d in sweeps], Path(out), plot=plot_scaling)
+
+
+def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
+           bar: bool = False) -> dict:
+    """Tables I-III (``tlm thesis``): every scene and mode of the study file beside the
+    thesis; returns ``rows`` and ``summary``. ``progress`` gets ``(scene, mode, results)``."""
+    from tlm.experiments.thesis import run_thesis
+
+    return run_thesis(Path(path), Path(out), progress, bar=bar)
+
+
+def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
+              ) -> tuple[Programs, dict]:
+    """Fit the PM programs' free parameters to the RCast column of Tables I-III (``tlm
+    calibrate``); returns the fitted table and the fit's report (``report["cells"]``)."""
+    from tlm.experiments.thesis import calibrate as fit
+
+    return fit(Path(path), progress=progress)
+
+
+def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
+                      command: str = "") -> Path:
+    """Write a :func:`calibrate` fit into the instruction table ``target`` (default the
+    packaged one), keeping its comments; returns the path written."""
+    from tlm.arch.costs import DEFAULT_PATH
+    from tlm.experiments.thesis import write_calibrated
+
+    target = Path(target) if target is not None else DEFAULT_PATH
+    write_calibrated(programs, report, target, command)
+    return target
+
+
+def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
+    """Cycle error of coarse packets against one ray per packet (``tlm granularity``)."""
+    from tlm.experiments.granularity import run_granularity
+
+    return run_granularity(Path(path), Path(out), progress)
+
+
+def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
+                  progress: Callable[[int, int, dict], None] | None = None,
+                  note: Callable[[str], None] | None = None) -> list[dict]:
+    """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
+    one row per point; ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none)."""
+    from tlm.experiments.error_cost import Truth, run_error_vs_cost
+
+    return run_error_vs_cost(Path(path), Path(out), progress=progress, truth=Truth(spp=truth_spp), note=note)
+
+
+def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
+    """The stiff and extreme cases, expected against measured (``tlm extreme``): one row a case."""
+    from tlm.experiments.extreme import run_extreme
+
+    return run_extreme(Path(path), Path(out), progress)
+
+
+# ---------------------------------------------------------------- reports
+
+
+def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
+           lock: bool = False) -> Path:
+    """The self-contained HTML report of run, sweep or study folders (``tlm report``);
+    returns the path of ``report.html`` (default folder: ``DIR/report`` of the one folder).
+    ``lock``: hold the folder's lock meanwhile, so no other run replaces it."""
+    from tlm.report import build_report
+
+    dirs = [Path(d) for d in dirs]
+    if out is None and len(dirs) > 1:
+        raise InputError("several folders: name the report folder", key="--out")
+    if not lock:
+        return build_report(dirs, Path(out) if out is not None else None, title)
+    from tlm.storage import folder_lock
+
+    with folder_lock(dirs[0]):
+        return build_report(dirs, Path(out) if out is not None else None, title)
+
+
+def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
+          run_command: Callable[[list[str]], int], say: Callable[[str], None] = print) -> Path:
+    """Every committed experiment of ``configs`` and their report into ``out`` (``tlm
+    plots``); ``run_command`` runs one step's argv (``tlm.cli.main``)."""
+    from tlm.report.regenerate import regenerate
+
+    return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)

@@ -1,0 +1,168 @@
+"""The compiled kernels on several threads, with the bits of one (``render.threads``).
+
+The kernels of :mod:`tlm.kernels._jit` (traversal) and :mod:`tlm.kernels._jit_gather`
+(the fixed-radius gather) are compiled with ``nogil=True``, so Python threads run them
+on several cores at once. Every one of them computes each ray's or query's result from
+that ray or query alone (random numbers are hashed per pixel, sample, photon and bounce,
+never drawn per thread), so the work is cut into contiguous *chunks* of rays, photons or
+gather points, the chunks run on a pool, and their outputs are joined in chunk order:
+the per-ray values, counts and memory lists are those of one call on the whole array,
+whatever the number of threads or where the cuts fall. Nothing is summed across chunks
+in an order that depends on the threads (floating-point sums stay inside a ray or a
+query, in the kernel's own order), and what is carried from one chunk to the next, the
+cache pairs' state (:class:`~tlm.kernels.memory.Streams`), is charged afterwards in the
+calling thread, chunk after chunk.
+
+The number of threads is a setting of the calling thread (:func:`using`, which
+:func:`tlm.experiments.run.render` enters with ``render.threads``); outside it, and inside
+a pool's worker (no nesting), the kernels run on one thread.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import itertools
+import os
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+CHUNKS_PER_THREAD = 4  # chunks per thread: rays differ in cost, so a few each balance the load
+
+_THREADS: contextvars.ContextVar[int] = contextvars.ContextVar("tlm_threads", default=1)
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def available() -> int:
+    """The CPUs this process may run on (its affinity mask; the CPU count where there is none)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # (no affinity on this platform)
+        return max(1, os.cpu_count() or 1)
+
+
+def current() -> int:
+    """The threads the kernels called from this thread use (1 outside :func:`using`)."""
+    return _THREADS.get()
+
+
+@contextlib.contextmanager
+def using(n: int | None):
+    """Run the kernels called inside the block on ``n`` threads (None: :func:`available`)."""
+    n = available() if n is None else int(n)
+    if n < 1:
+        raise ValueError(f"threads (={n}) must be >= 1")
+    token = _THREADS.set(n)
+    try:
+        yield n
+    finally:
+        _THREADS.reset(token)
+
+
+def _forget_pools() -> None:
+    """In a forked child: the parent's pools' threads are not there, so start afresh."""
+    global _POOLS_LOCK
+    _POOLS.clear()
+    _POOLS_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pools)
+
+
+def _pool(n: int) -> ThreadPoolExecutor:
+    with _POOLS_LOCK:
+        pool = _POOLS.get(n)
+        if pool is None:
+            pool = _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"tlm-kernel-{n}")
+        return pool
+
+
+def spans(n_items: int, min_chunk: int, threads: int | None = None) -> list[tuple[int, int]]:
+    """Contiguous ``(start, stop)`` chunks covering ``range(n_items)`` in order: about
+    :data:`CHUNKS_PER_THREAD` per thread, none shorter than ``min_chunk`` items (the
+    kernels' per-call cost), one chunk when the work is small or there is one thread."""
+    threads = current() if threads is None else threads
+    if threads <= 1 or n_items <= min_chunk:
+        return [(0, n_items)]
+    count = max(1, min(threads * CHUNKS_PER_THREAD, n_items // max(1, min_chunk)))
+    cuts = [n_items * k // count for k in range(count + 1)]
+    return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
+
+
+def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None) -> Iterator[R]:
+    """``fn(item)`` of every item, yielded in the items' order, computed on ``threads`` workers.
+
+    At most twice ``threads`` calls are in flight (submitted, not yet taken), so what the
+    caller does with a result (charging cache pairs, copying into the output) overlaps
+    the next chunks' work while memory stays bounded. One thread: plain calls, in order.
+    The workers run with one thread each, so kernels they call do not split again.
+    """
+    threads = current() if threads is None else threads
+    items = list(items)
+    if threads <= 1 or len(items) <= 1:
+        for item in items:
+            yield fn(item)
+        return
+    pool = _pool(threads)
+    window = 2 * threads
+    pending = []
+    nxt = 0
+    one = contextvars.copy_context()
+    one.run(_THREADS.set, 1)
+    while nxt < len(items) or pending:
+        while nxt < len(items) and len(pending) < window:
+            pending.append(pool.submit(one.copy().run, fn, items[nxt]))
+            nxt += 1
+        yield pending.pop(0).result()
+
+
+_FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
+
+
+def can_fork() -> bool:
+    """Whether worker processes can be forked here (not on Windows, nor macOS's default)."""
+    import multiprocessing
+
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
+def _call_forked(item):
+    with using(1):  # (a worker's kernels do not split again)
+        return _FORKED(item)
+
+
+def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator[R]:
+    """:func:`ordered` on ``processes`` forked worker processes instead of threads: no
+    interpreter lock is shared, so the Python and numpy between the kernels run at once
+    too. The workers are forked when the call starts, so ``fn`` (any callable: it is not
+    pickled) and what it reads (a frame, its BSP, photon maps) are the caller's, page for
+    page; the items and results are pickled. At most twice ``processes`` calls are in
+    flight. Only where :func:`can_fork`."""
+    import multiprocessing
+
+    global _FORKED
+    items = list(items)
+    _FORKED = fn
+    try:
+        with multiprocessing.get_context("fork").Pool(processes) as pool:
+            pending = []
+            nxt = 0
+            while nxt < len(items) or pending:
+                while nxt < len(items) and len(pending) < 2 * processes:
+                    pending.append(pool.apply_async(_call_forked, (items[nxt],)))
+                    nxt += 1
+                yield pending.pop(0).get()
+    finally:
+        _FORKED = None
+
+
+def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:
+    """``fn(start, stop)`` of the :func:`spans` of ``n_items``, the results in chunk order."""
+    return list(ordered(lambda s: fn(*s), spans(n_items, min_chunk)))
