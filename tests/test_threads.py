@@ -9,6 +9,7 @@ are really cut into many chunks (cuts in odd places, uneven chunks), as a full f
 from __future__ import annotations
 
 import itertools
+import os
 
 import numpy as np
 import pytest
@@ -85,6 +86,8 @@ def _same_render(a, b) -> None:
 ])
 @pytest.mark.parametrize("workers", ["processes", "threads"])
 def test_renders_are_bit_identical_for_any_thread_count(small_chunks, monkeypatch, workers, scene, mode, over):
+    if workers == "processes" and os.environ.get("TLM_FORK_WORKERS") != "1":
+        pytest.skip("forked workers are opt-in (TLM_FORK_WORKERS=1; threads.can_fork says why)")
     monkeypatch.setattr(run, "BATCH_WORKERS", workers)  # where whole batches run at once
     raw = _cfg(scene, mode, **over)
     one = _render(raw, 1)

@@ -221,18 +221,12 @@ def _scene(scene: Scene | str | Path) -> Scene:
 def scene_info(scene: Scene | str | Path) -> dict:
     """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
     parts, lights and camera of a scene (or of the scene named)."""
-    import numpy as np
+    from tlm.experiments.run import scene_head
 
     scene = _scene(scene)
-    lo, hi = scene.bounds()
-    used = np.bincount(scene.material_index, minlength=len(scene.materials))
+    head, used = scene_head(scene, lambda lo, hi: {"min": lo.tolist(), "max": hi.tolist()})
     return {
-        "name": scene.name,
-        "source": scene.source,
-        "triangles": scene.n_triangles,
-        "bounds": {"min": lo.tolist(), "max": hi.tolist()},
-        "resolution": [scene.camera.width, scene.camera.height],
-        "photons": scene.photons,
+        **head,
         "materials": [
             {"name": m.name, "type": m.kind, "triangles": int(used[i]),
              **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),

@@ -333,7 +333,7 @@ class _Batch:
 # after the photon trace: the frame, its BSP and the photon maps are the parent's pages, and
 # no interpreter lock is shared) or "threads" (one process; numpy and the compiled kernels
 # release the lock, the Python between them does not)
-BATCH_WORKERS = "threads"
+BATCH_WORKERS = "processes"  # (where threads.can_fork: opt-in, TLM_FORK_WORKERS=1)
 
 
 def _portable(frame: Frame, done: _Batch) -> _Batch:
@@ -475,16 +475,20 @@ def _write_difference(res: RenderResult, path: Path) -> None:
     res.error.update(difference_image=f"images/{path.name}", difference_scale=scale)
 
 
-def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
+def scene_head(scene: Scene, bounds) -> tuple[dict, np.ndarray]:
+    """What every description of a scene starts with (name, source, triangles, its bounds
+    as ``bounds(lo, hi)`` gives them, resolution, photons), and the triangles of each
+    material."""
     lo, hi = scene.bounds()
     used = np.bincount(scene.material_index, minlength=len(scene.materials))
+    return {"name": scene.name, "source": scene.source, "triangles": scene.n_triangles, "bounds": bounds(lo, hi),
+            "resolution": [scene.camera.width, scene.camera.height], "photons": scene.photons}, used
+
+
+def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
+    head, used = scene_head(scene, lambda lo, hi: [lo.tolist(), hi.tolist()])
     return {
-        "name": scene.name,
-        "source": scene.source,
-        "triangles": scene.n_triangles,
-        "bounds": [lo.tolist(), hi.tolist()],
-        "resolution": [scene.camera.width, scene.camera.height],
-        "photons": scene.photons,
+        **head,
         "materials": {
             m.name: {"kind": m.kind, "triangles": int(used[i])} for i, m in enumerate(scene.materials)
         },

@@ -127,10 +127,17 @@ _FORKED: Callable | None = None  # what the forked workers of :func:`forked` cal
 
 
 def can_fork() -> bool:
-    """Whether worker processes can be forked here (not on Windows, nor macOS's default)."""
+    """Whether batches and photon chunks run on forked worker processes: only when asked
+    (``TLM_FORK_WORKERS=1``) and where fork exists (not on Windows, nor macOS's default).
+
+    Off by default: the render forks from a process that already runs threads (the
+    kernels' pool, a progress bar's monitor, numba's), and a child can inherit a lock that
+    one of them held at the fork; a ``tlm run`` and the test suite were seen to hang so
+    (2026-11-27). Threads give the same bits, with less speed-up (the interpreter lock).
+    """
     import multiprocessing
 
-    return "fork" in multiprocessing.get_all_start_methods()
+    return os.environ.get("TLM_FORK_WORKERS") == "1" and "fork" in multiprocessing.get_all_start_methods()
 
 
 def _call_forked(item):
