@@ -18,8 +18,9 @@ import yaml
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.experiments.reference import ReferenceSettings, compute_reference
-from tlm.experiments.run import Primary, parse_outputs, render, write_run
+from tlm.experiments.run import parse_outputs, render, write_run
 from tlm.experiments.thesis import run_thesis
+from tlm.render.batches import Primary
 from tlm.render.passes import GBuffer, ImageGBuffer, cast, pixel_batches
 
 SMALL = {"scene": "cornell", "resolution": [23, 17], "photons": {"count": 1500},
@@ -27,8 +28,9 @@ SMALL = {"scene": "cornell", "resolution": [23, 17], "photons": {"count": 1500},
 
 
 def _render(mode: str, batch_rays: int, **extra):
+    # (one thread: several would cut the image into more batches, tests/test_threads.py)
     return render(config_from_dict({**SMALL, "mode": mode, **extra,
-                                    "render": {**extra.get("render", {}), "batch_rays": batch_rays}}))
+                                    "render": {**extra.get("render", {}), "batch_rays": batch_rays, "threads": 1}}))
 
 
 def _assert_same(a, b) -> None:

@@ -1,9 +1,9 @@
 """The package's layers import one way, and no modules import each other in a circle.
 
 Layers, bottom to top (docs/architecture.md, "Layers"): the base (errors, the config
-schema, storage, the code fingerprint, the registries) -> scenes -> kernels (with the
-memory/cache address streams) -> render -> oracle -> arch (the timing model) ->
-experiments -> report -> the API and the cli (and the package's ``__init__``, which
+schema, storage, the code fingerprint, the registries, host progress) -> scenes ->
+kernels (with the memory/cache address streams) -> render -> oracle -> arch (the timing
+model) -> experiments -> report -> the API and the cli (and the package's ``__init__``, which
 re-exports the API). A module may import its own layer and those below it,
 never one above, whether at the top of the file or inside a function; and the import
 graph of tlm's modules has no cycle. Like a build farm's dependency check, this reads
@@ -20,7 +20,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("tlm.errors", "tlm.config", "tlm.storage", "tlm.fingerprint", "tlm.registry"),
+    ("tlm.errors", "tlm.config", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),

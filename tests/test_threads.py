@@ -18,12 +18,12 @@ from tlm.arch.costs import load_programs
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict
 from tlm.errors import InputError
-from tlm.experiments import run
 from tlm.experiments.run import render
 from tlm.kernels import estimate, photons, threads, traverse
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.memory import Accesses, Deferred, Streams
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
+from tlm.render import batches
 
 
 @pytest.fixture
@@ -36,7 +36,7 @@ def small_chunks(monkeypatch):
     monkeypatch.setattr(estimate, "QUERY_BLOCK", 301)
     monkeypatch.setattr(photons, "PHOTON_MIN_CHUNK", 700)
     monkeypatch.setattr(photons, "CONE_CHUNK", 3000)
-    monkeypatch.setattr(run, "MIN_BATCH_RAYS", 16)
+    monkeypatch.setattr(batches, "MIN_BATCH_RAYS", 16)
 
 
 def _cfg(scene: str, mode: str, **over):
@@ -88,7 +88,7 @@ def _same_render(a, b) -> None:
 def test_renders_are_bit_identical_for_any_thread_count(small_chunks, monkeypatch, workers, scene, mode, over):
     if workers == "processes" and os.environ.get("TLM_FORK_WORKERS") != "1":
         pytest.skip("forked workers are opt-in (TLM_FORK_WORKERS=1; threads.can_fork says why)")
-    monkeypatch.setattr(run, "BATCH_WORKERS", workers)  # where whole batches run at once
+    monkeypatch.setattr(batches, "BATCH_WORKERS", workers)  # where whole batches run at once
     raw = _cfg(scene, mode, **over)
     one = _render(raw, 1)
     if mode == "pmap":

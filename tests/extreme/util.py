@@ -56,7 +56,7 @@ def render_scene(scene: Scene, **cfg) -> RenderResult:
     """``tlm.experiments.run.render`` on an in-memory scene (the loader is bypassed)."""
     settings = {"spp": 1, **cfg.pop("render", {})}  # one eye ray through each pixel's centre unless asked
     config = config_from_dict({"scene": scene.name, "render": settings, **cfg})
-    with mock.patch("tlm.experiments.run.load_scene", return_value=scene):
+    with mock.patch("tlm.experiments.loading.load_scene", return_value=scene):
         return render(config)
 
 

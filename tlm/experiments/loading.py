@@ -2,7 +2,7 @@
 
 Every command that renders starts with this one sequence (``tlm run``, ``tlm reference``,
 ``tlm error-vs-cost``); :func:`load_frame` is it, with the host seconds of its two costly
-stages booked in a :class:`~tlm.experiments.progress.Timer` and a progress bar told which
+stages booked in a :class:`~tlm.progress.Timer` and a progress bar told which
 stage it is in.
 """
 
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import RunConfig
-from tlm.experiments.progress import Timer
 from tlm.kernels.traverse import build_accel
+from tlm.progress import Timer
 from tlm.render.passes import Frame, GBuffer, cast
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene

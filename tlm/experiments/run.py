@@ -21,11 +21,11 @@ Images and ``results.json`` are always written; ``aov/``, ``radiance/`` and ``tr
 are the optional :data:`OUTPUTS` (``tlm run --outputs``; all three by default).
 
 The image is rendered in batches of consecutive pixels, ``render.batch_rays`` eye rays
-each (:func:`~tlm.render.passes.pixel_batches`): every pass of a batch runs before the
-next batch is cast, the cache pairs carried from batch to batch, so the radiance and work
-are exactly those of one whole-image packet while memory stays bounded by the batch. A
-progress bar (``progress=True``, on stderr, only when it is a terminal) follows the
-batches and the timing model.
+each, by the render's batch loop (:func:`~tlm.render.batches.render_batches`): every
+pass of a batch runs before the next batch is cast, the cache pairs carried from batch
+to batch, so the radiance and work are exactly those of one whole-image packet while
+memory stays bounded by the batch. A progress bar (``progress=True``, on stderr, only
+when it is a terminal) follows the batches and the timing model.
 """
 
 from __future__ import annotations
@@ -44,31 +44,18 @@ from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.errors import InputError, did_you_mean
-from tlm.experiments.progress import Ticking, Timer, progress_bar
+from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import git_revision, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
 from tlm.kernels import threads
-from tlm.kernels.memory import Deferred, Streams
 from tlm.kernels.photons import PhotonTrace
-from tlm.kernels.traverse import TriangleAccel, build_accel
+from tlm.kernels.traverse import TriangleAccel
+from tlm.progress import Ticking, Timer, progress_bar
 from tlm.render import checks
+from tlm.render.batches import Primary, render_batches
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.passes import (
-    PASS_FUNCTIONS,
-    WORK_KEYS,
-    Frame,
-    GBuffer,
-    ImageGBuffer,
-    cast,
-    fgather_pass,
-    new_streams,
-    pixel_batches,
-    pmap_pass,
-    radii,
-    trace_photon_map,
-)
-from tlm.render.planner import WORK_PASSES, Plan, plan
-from tlm.scenes.loader import load_scene
+from tlm.render.passes import WORK_KEYS, Frame, GBuffer, ImageGBuffer, radii
+from tlm.render.planner import Plan, plan
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, check_destination
 
@@ -87,50 +74,6 @@ def parse_outputs(text: str) -> tuple[str, ...]:
         raise InputError(f"{text!r}: expected a comma-separated list of {', '.join(('images', *OUTPUTS))}"
                          + (did_you_mean(bad[0], ("images", *OUTPUTS)) if bad else ""), key="--outputs")
     return tuple(n for n in OUTPUTS if n in names)
-
-
-@dataclass
-class Primary:
-    """Each pixel's first eye sample (what ``aov/primary.npz`` holds) and the eye-ray counts.
-
-    Filled batch by batch (:meth:`add`), so a run keeps no G-buffer of the whole image.
-    """
-
-    origin: np.ndarray  # (pixels, 3)
-    direction: np.ndarray  # (pixels, 3)
-    t: np.ndarray  # (pixels,)
-    triangle: np.ndarray  # (pixels,) int64
-    normal: np.ndarray  # (pixels, 3)
-    sees_light: np.ndarray  # (pixels,) bool: the first sample sees a light directly
-    rays: int = 0
-    hits: int = 0
-    back: int = 0  # hits on the back of their triangle (all samples)
-
-    @classmethod
-    def empty(cls, n: int) -> Primary:
-        return cls(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n, dtype=np.int64),
-                   np.zeros((n, 3)), np.zeros(n, dtype=bool))
-
-    def add(self, frame: Frame, g: GBuffer, at: slice) -> None:
-        """The batch ``g`` of pixels ``at``."""
-        self.put(Primary.part(frame, g), at)
-
-    @staticmethod
-    def part(frame: Frame, g: GBuffer) -> dict:
-        """What :meth:`put` keeps of the batch ``g`` (small: one sample a pixel, and counts)."""
-        return {"origin": g.first(g.origin), "direction": g.first(g.direction), "t": g.first(g.t),
-                "triangle": g.first(g.triangle), "normal": g.first(g.normal(frame)),
-                "sees_light": g.first(g.sees_emitter), "rays": int(g.origin.shape[0]),
-                "hits": int((g.triangle >= 0).sum()),
-                "back": checks.back_faces(frame.scene, g.triangle, g.direction, frame.kind)}
-
-    def put(self, part: dict, at: slice) -> None:
-        """A batch's :meth:`part`, of pixels ``at``."""
-        for k in ("origin", "direction", "t", "triangle", "normal", "sees_light"):
-            getattr(self, k)[at] = part[k]
-        self.rays += part["rays"]
-        self.hits += part["hits"]
-        self.back += part["back"]
 
 
 @dataclass
@@ -199,202 +142,25 @@ class RenderResult:
 
 def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
            progress: bool = False) -> RenderResult:
-    """Render every planned frame of ``cfg`` over the whole image, in batches of
-    ``render.batch_rays`` eye rays (the module's docstring); ``progress``: a bar on stderr.
+    """Render every planned frame of ``cfg`` over the whole image: its frame loaded
+    (:func:`~tlm.experiments.loading.load_frame`), its passes planned and rendered in
+    batches of ``render.batch_rays`` eye rays (:func:`~tlm.render.batches.render_batches`),
+    the photon-map frame measured against its cached reference; ``progress``: bars on
+    stderr.
 
     The kernels run on ``render.threads`` threads (null: the CPUs available), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
     with threads.using(cfg.render.threads):
-        return _render(cfg, base, config_source, progress)
-
-
-def _render(cfg: RunConfig, base: Path | None, config_source: str | None, progress: bool) -> RenderResult:
-    """:func:`render` on the calling thread's kernel threads.
-
-    On one thread the batches run one after the other, every pass charging its cache
-    pairs (one :class:`~tlm.kernels.memory.Streams` per pass, carried batch to batch).
-    On several, the image is cut into smaller batches (:func:`batches_for`; a pixel's
-    results never depend on its batch) and whole batches run at once, on forked worker
-    processes (:data:`BATCH_WORKERS`) or on the threads' pool
-    (:func:`tlm.kernels.threads.ordered`): each pass charges cold pairs of its own
-    (:class:`~tlm.kernels.memory.Deferred`), and this thread takes the batches in pixel
-    order, settles each pass's charges on the carried pairs (the misses of the batches
-    charged in order) and copies the batch into the image, while the next batches run;
-    at most a window of batches is in flight, so memory stays bounded by the batch. The
-    stages' seconds are then summed over the threads.
-    """
-    timer = Timer()
-    with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
-        with timer.stage("load_scene"):
-            scene = load_scene(cfg.scene, base, cfg.resolution, config_source)
-        the_plan = plan(scene, cfg)
-        bar.set_description(f"build BSP ({scene.n_triangles} triangles)")
-        with timer.stage("build_bsp"):
-            accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
-    frame = Frame.create(scene, accel, cfg)
-    w, h = scene.camera.width, scene.camera.height
-    names = the_plan.run_names
-    batches = batches_for(w * h, frame.spp, cfg.render.batch_rays, threads.current())
-    traced = None
-    radiance = {name: np.zeros((w * h, 3)) for name in names if name not in WORK_PASSES}
-    work: dict[str, dict[str, np.ndarray]] = {}
-    streams = {name: new_streams(frame) for name in names}  # each pass's cache pairs, batch to batch
-    primary = Primary.empty(w * h)
-    whole: GBuffer | None = None
-    gather_maps: dict | None = {} if "pmap" in names else None
-    steps = len(batches) * (1 + len(names)) + ("pmap" in names)
-    with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
-        if "pmap" in names:
-            bar.set_postfix_str("photon trace")
-            with timer.stage("photon_trace"):
-                traced = trace_photon_map(frame)
-            bar.update()
-        concurrent = threads.current() > 1 and len(batches) > 1
-        if concurrent:
-            _warm(frame, traced)
-
-        def one(i: int) -> _Batch:
-            return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
-                              Timer() if concurrent else timer, None if concurrent else bar, i, len(batches))
-
-        if concurrent and BATCH_WORKERS == "processes" and threads.can_fork():
-            done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
-        else:
-            done_batches = threads.ordered(one, range(len(batches)))
-        for i, done in enumerate(done_batches):
-            at, g = batches[i], done.g
-            arrays = None
-            if done.portable:
-                arrays = {f"{name}.{k}": v for name, (_, wk) in done.out.items() for k, v in wk.items()}
-            for name in names:
-                if concurrent:
-                    streams[name].settle(done.deferred[name], arrays)
-                rad, wk = done.out[name]
-                if name in radiance:
-                    radiance[name][at] = rad
-                counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
-                for k, v in wk.items():
-                    counts[k][at] = v
-            _merge_tallies(gather_maps, done.per_map)
-            if concurrent:
-                for k, s in done.timer.seconds.items():
-                    timer.seconds[k] = timer.seconds.get(k, 0.0) + s
-                bar.update(1 + len(names))
-            if isinstance(g, dict):  # (a batch from another process: its primary part)
-                primary.put(g, at)
-            else:
-                primary.add(frame, g, at)
-            if len(batches) == 1:
-                whole = g
-            del g, done
-    radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
-    work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
-    error = None
-    if traced is not None:
-        error = photon_error(frame, radiance["pmap"].reshape(-1, 3))
-    gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
-    return RenderResult(scene, cfg, the_plan, frame, gbuffer, radiance, work, timer, traced, error,
-                        primary=primary, gather_maps=gather_maps)
-
-
-BATCHES_PER_THREAD = 3  # batches per thread when whole batches run at once: they differ in cost
-MIN_BATCH_RAYS = 1024  # ... but none under this many eye rays (a batch's fixed cost in Python)
-
-
-def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
-    """The render's pixel batches (:func:`~tlm.render.passes.pixel_batches`): of
-    ``batch_rays`` eye rays on one thread; on several, smaller ones, about
-    :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / n_threads`` eye rays
-    (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and balance,
-    and the batches in flight (twice the threads) hold about two batches of one thread's
-    memory. The cuts never change the results."""
-    if n_threads > 1:
-        share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
-        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // n_threads)))
-    return pixel_batches(n_pixels, spp, batch_rays)
-
-
-@dataclass
-class _Batch:
-    """One batch's G-buffer (from another process: its :meth:`Primary.part`) and passes:
-    pass -> (radiance, work); with ``deferred`` pairs, the work's misses as charged on
-    cold pairs (settled in the calling thread; ``portable``: naming the arrays
-    ``"<pass>.<count>"``, :meth:`~tlm.kernels.memory.Deferred.portable`)."""
-
-    g: GBuffer | dict
-    out: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
-    deferred: dict[str, Deferred] | None
-    per_map: dict | None
-    timer: Timer
-    portable: bool = False
-
-
-# where whole batches run at once on several threads: "processes" (forked from the render
-# after the photon trace: the frame, its BSP and the photon maps are the parent's pages, and
-# no interpreter lock is shared) or "threads" (one process; numpy and the compiled kernels
-# release the lock, the Python between them does not)
-BATCH_WORKERS = "processes"  # (where threads.can_fork: opt-in, TLM_FORK_WORKERS=1)
-
-
-def _portable(frame: Frame, done: _Batch) -> _Batch:
-    """A batch run in a worker process, for the way back: small and named."""
-    ids = {id(v): f"{name}.{k}" for name, (_, wk) in done.out.items() for k, v in wk.items()}
-    return replace(done, g=Primary.part(frame, done.g), portable=True,
-                   deferred={name: d.portable(ids) for name, d in done.deferred.items()})
-
-
-def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTrace | None,
-               streams: dict[str, Streams], deferred: bool, tally: bool, timer: Timer, bar, i: int,
-               n: int) -> _Batch:
-    """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
-    ``deferred``, on cold :class:`~tlm.kernels.memory.Deferred` pairs like them (a batch on
-    a worker thread: its per-map tallies are its own too)."""
-    pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
-    per_map: dict | None = {} if tally else None
-    if bar is not None:
-        bar.set_postfix_str(f"batch {i + 1}/{n} cast")
-    with timer.stage("cast"):
-        g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
-    if bar is not None:
-        bar.update()
-    out = {}
-    for name in names:
-        if bar is not None:
-            bar.set_postfix_str(f"batch {i + 1}/{n} {name}")
-        with timer.stage(f"pass_{name}"):
-            if name == "pmap":
-                out[name] = pmap_pass(frame, g, traced.photons, streams=pairs[name], per_map=per_map,
-                                      fg_streams=pairs.get("fgather"))
-            elif name == "fgather":
-                out[name] = fgather_pass(frame, g)
-            else:
-                out[name] = PASS_FUNCTIONS[name](frame, g, pairs[name])
-        if bar is not None:
-            bar.update()
-    return _Batch(g, out, pairs if deferred else None, per_map, timer)
-
-
-def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
-    """Make what the passes build on first use (the compiled traversal's layout, the photon
-    maps in leaf order, their radii) before batches run at once, so no two threads build it."""
-    cast(frame, np.zeros(1, dtype=np.int64))
-    if traced is not None:
-        photons = traced.photons
-        for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
-                  getattr(photons, "global_map", photons)):
-            if m is not None and m.n > 0:
-                m.prepared()
-        radii(frame, photons)
-
-
-def _merge_tallies(into: dict | None, tallies: dict | None) -> None:
-    """Add a batch's per-map gather totals (pmap_pass's ``per_map``) to the render's, in order."""
-    if into is None or tallies is None:
-        return
-    for name, tally in tallies.items():
-        dst = into.setdefault(name, {})
-        for k, v in tally.items():
-            dst[k] = dst.get(k, 0) + v
+        timer = Timer()
+        with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
+            frame = load_frame(cfg, base, config_source, timer, bar)
+        the_plan = plan(frame.scene, cfg)
+        done = render_batches(frame, the_plan.run_names, timer, progress)
+        error = None
+        if done.photons is not None:
+            error = photon_error(frame, done.radiance["pmap"].reshape(-1, 3))
+    return RenderResult(frame.scene, cfg, the_plan, frame, done.gbuffer, done.radiance, done.work, timer,
+                        done.photons, error, primary=done.primary, gather_maps=done.gather_maps)
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:

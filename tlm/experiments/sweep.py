@@ -272,6 +272,8 @@ class Task:
     source: str  # the sweep file, for messages
     out: str  # the point's folder
     provenance: dict  # versions and git revision of the submitting host
+    threads: int | None = None  # render.threads where the config leaves it null (the worker's
+    # share of the CPUs: speed only, so config.resolved.yaml keeps the config as written)
 
 
 def run_point(task: Task) -> dict:
@@ -286,7 +288,7 @@ def run_point(task: Task) -> dict:
     stage = "functional"
     t0 = time.perf_counter()
     try:
-        cfg = config_from_dict(task.config, task.source)
+        cfg = config_from_dict(_with_threads(task.config, task.threads), task.source)
         folder = Path(task.folder)
         got = cached_render(cfg, folder, task.source)
         t1 = time.perf_counter()
@@ -464,8 +466,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # --jobs x render.threads <= the CPUs: a point that leaves render.threads null gets its
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
-    tasks = {h: Task(h, _with_threads(by_hash[h][0].config, share), by_hash[h][0].factors, str(sweep.folder),
-                     str(sweep.path), str(points_dir / h), provenance) for h in todo}
+    tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
+                     str(points_dir / h), provenance, threads=share) for h in todo}
 
     with ExitStack() as stack:
         pool = open_executor(stack, jobs, dask, len(todo)) if todo else None

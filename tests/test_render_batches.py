@@ -1,0 +1,79 @@
+"""The render's batch loop (:mod:`tlm.render.batches`) on a frame of its own.
+
+What the loop promises beside the passes: by default the passes the planner runs, in
+order; the whole image's radiance (for the passes that make one), work and primary AOVs
+whatever the batches; the stages it books; and batch cuts that cover the image in
+pixel order. Whole renders through ``tlm run`` are the other tests' concern.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from tlm.config import config_from_dict
+from tlm.experiments.loading import load_frame
+from tlm.progress import Timer
+from tlm.render.batches import MIN_BATCH_RAYS, batches_for, render_batches
+from tlm.render.passes import GBuffer, ImageGBuffer
+from tlm.render.planner import WORK_PASSES, plan
+
+
+def _frame(mode: str, batch_rays: int):
+    raw = {"scene": "cornell", "mode": mode, "resolution": [12, 9], "photons": {"count": 800},
+           "render": {"spp": 2, "threads": 1, "batch_rays": batch_rays}}
+    return load_frame(config_from_dict(raw))
+
+
+@pytest.fixture(scope="module")
+def reflect_frames():
+    return _frame("reflect", 1 << 20), _frame("reflect", 2 * 10)  # one batch; 11 of ten pixels
+
+
+def test_the_loop_renders_the_planned_passes_and_books_their_stages(reflect_frames):
+    frame = reflect_frames[0]
+    timer = Timer()
+    done = render_batches(frame, timer=timer)
+    names = plan(frame.scene, frame.cfg).run_names
+    assert list(done.work) == names and "reflect" in names
+    assert list(done.radiance) == [n for n in names if n not in WORK_PASSES]
+    assert all(r.shape == (9, 12, 3) for r in done.radiance.values())
+    assert done.work["rcast"]["primary_rays"].shape == (9, 12) and done.work["rcast"]["primary_rays"].sum() == 216
+    assert done.primary.rays == 216 and done.primary.triangle.shape == (108,)
+    assert {"cast", *(f"pass_{n}" for n in names)} <= set(timer.seconds)
+    assert isinstance(done.gbuffer, GBuffer) and done.photons is None and done.gather_maps is None
+    only = render_batches(frame, ["rcast"])
+    assert list(only.work) == ["rcast"]
+    np.testing.assert_array_equal(only.radiance["rcast"], done.radiance["rcast"])
+
+
+def test_batches_give_the_one_batch_render_bit_for_bit(reflect_frames):
+    whole, cut = (render_batches(f) for f in reflect_frames)
+    assert isinstance(cut.gbuffer, ImageGBuffer)
+    for name in whole.radiance:
+        assert whole.radiance[name].tobytes() == cut.radiance[name].tobytes(), name
+    for name, counts in whole.work.items():
+        for k, v in counts.items():
+            np.testing.assert_array_equal(v, cut.work[name][k], err_msg=f"{name}.{k}")
+    assert cut.work["rcast"]["trav_misses"].sum() > 0  # (the carried cache pairs: misses in pixel order)
+    for f in ("origin", "direction", "t", "triangle", "normal", "sees_light"):
+        np.testing.assert_array_equal(getattr(whole.primary, f), getattr(cut.primary, f), err_msg=f)
+    assert (whole.primary.rays, whole.primary.hits) == (cut.primary.rays, cut.primary.hits)
+
+
+@pytest.mark.parametrize("n_pixels, spp, batch_rays, n_threads", [
+    (108, 2, 20, 1), (1000, 1, 1 << 20, 1), (100_000, 4, 131_072, 2), (100_000, 1, 131_072, 8), (50, 3, 7, 3)])
+def test_batch_cuts_cover_the_image_in_pixel_order(n_pixels, spp, batch_rays, n_threads):
+    cuts = batches_for(n_pixels, spp, batch_rays, n_threads)
+    assert cuts[0].start == 0 and cuts[-1].stop == n_pixels
+    assert all(a.stop == b.start for a, b in itertools.pairwise(cuts))
+    rays = [(c.stop - c.start) * spp for c in cuts]
+    if n_threads == 1:
+        assert max(rays) <= max(batch_rays, spp)
+    else:  # smaller batches, that run at once, but none under MIN_BATCH_RAYS (bar the last and one pixel)
+        assert max(rays) <= max(spp, min(batch_rays, max(MIN_BATCH_RAYS, batch_rays // n_threads)))
+        assert all(r >= min(MIN_BATCH_RAYS, batch_rays) - spp for r in rays[:-1])
+    if n_pixels * spp >= 3 * n_threads * MIN_BATCH_RAYS and n_threads > 1:
+        assert len(cuts) >= n_threads  # enough batches for every thread

@@ -1,0 +1,65 @@
+"""A scene's triangles exported as PLY or OBJ (:mod:`tlm.scenes.export`): face ``i`` is
+triangle id ``i`` with the renderer's own vertex positions (and, in PLY, its material)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from tlm.errors import InputError
+from tlm.scenes.export import export_triangles
+from tlm.scenes.model import Camera, Material, Scene
+
+
+def _scene() -> Scene:
+    """Three triangles, two materials; coordinates that a short decimal would round."""
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                    [[0.1, 0.2, 0.3], [1 / 3, 2 / 3, 1e-17], [-5.5, 7.25, 1e6]],
+                    [[2.0, 2.0, 2.0], [3.0, 2.0, 2.0], [2.0, 3.0, 2.0]]])
+    materials = (Material("white", "lambertian", albedo=(0.7, 0.7, 0.7)), Material("mirror", "mirror"))
+    camera = Camera((0.0, 0.0, -5.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0, 8, 8)
+    return Scene("tiny", tri, np.array([1, 0, 1], dtype=np.int32), materials, np.zeros(3, dtype=np.int32),
+                 ("all",), (), camera, 0)
+
+
+def test_ply_holds_every_triangle_in_id_order_with_its_material(tmp_path):
+    scene = _scene()
+    export_triangles(scene, tmp_path / "t.PLY")  # the suffix is read case-blind
+    data = (tmp_path / "t.PLY").read_bytes()
+    head, _, body = data.partition(b"end_header\n")
+    lines = head.decode().splitlines()
+    assert lines[:2] == ["ply", "format binary_little_endian 1.0"] and "element vertex 9" in lines
+    assert "element face 3" in lines and "property int material" in lines
+    verts = np.frombuffer(body[: 9 * 3 * 8], dtype="<f8").reshape(3, 3, 3)
+    assert np.array_equal(verts, scene.triangles)  # bit for bit
+    faces = np.frombuffer(body[9 * 3 * 8:], dtype=[("k", "u1"), ("v", "<i4", 3), ("m", "<i4")])
+    assert faces["k"].tolist() == [3, 3, 3]
+    assert faces["v"].tolist() == [[0, 1, 2], [3, 4, 5], [6, 7, 8]]
+    assert faces["m"].tolist() == [1, 0, 1]
+
+
+def test_obj_round_trips_the_positions_exactly(tmp_path):
+    scene = _scene()
+    export_triangles(scene, tmp_path / "t.obj")
+    lines = (tmp_path / "t.obj").read_text().splitlines()
+    assert lines[0].startswith("# tlm scene tiny")
+    v = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("v ")])
+    f = [[int(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("f ")]
+    assert np.array_equal(v.reshape(3, 3, 3), scene.triangles)
+    assert f == [[1, 2, 3], [4, 5, 6], [7, 8, 9]]  # OBJ counts from 1
+
+
+@pytest.mark.parametrize("name, says", [
+    ("t.stl", "unsupported format '.stl': use .ply or .obj"),
+    ("t", "unsupported format '(none)'"),
+    ("missing/t.ply", "does not exist"),
+    ("folder.ply", "is a folder; name a .ply or .obj file"),
+])
+def test_a_bad_destination_is_an_input_error_naming_it(tmp_path, name, says):
+    (tmp_path / "folder.ply").mkdir()
+    with pytest.raises(InputError, match=f"^{re.escape(str(tmp_path / name))}: ") as e:
+        export_triangles(_scene(), tmp_path / name)
+    assert says in str(e.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.ply"]  # nothing written

@@ -1,0 +1,290 @@
+"""The batch render loop: every planned pass of a frame over the whole image, in batches.
+
+The image is rendered in batches of consecutive pixels, ``render.batch_rays`` eye rays
+each (:func:`~tlm.render.passes.pixel_batches`): every pass of a batch runs before the
+next batch is cast, the cache pairs carried from batch to batch, so the radiance and work
+are exactly those of one whole-image packet while memory stays bounded by the batch.
+:func:`render_batches` is the loop; it returns what the passes computed
+(:class:`Rendered`: radiance, work, the primary AOVs, the photon trace and the gather
+tallies). Loading the frame before it and measuring, simulating and writing after it
+belong to the experiments (:mod:`tlm.experiments.run`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from tlm.kernels import threads
+from tlm.kernels.memory import Deferred, Streams
+from tlm.kernels.photons import PhotonTrace
+from tlm.progress import Timer, progress_bar
+from tlm.render import checks
+from tlm.render.passes import (
+    PASS_FUNCTIONS,
+    Frame,
+    GBuffer,
+    ImageGBuffer,
+    cast,
+    fgather_pass,
+    new_streams,
+    pixel_batches,
+    pmap_pass,
+    radii,
+    trace_photon_map,
+)
+from tlm.render.planner import WORK_PASSES, plan
+
+
+@dataclass
+class Primary:
+    """Each pixel's first eye sample (what ``aov/primary.npz`` holds) and the eye-ray counts.
+
+    Filled batch by batch (:meth:`add`), so a render keeps no G-buffer of the whole image.
+    """
+
+    origin: np.ndarray  # (pixels, 3)
+    direction: np.ndarray  # (pixels, 3)
+    t: np.ndarray  # (pixels,)
+    triangle: np.ndarray  # (pixels,) int64
+    normal: np.ndarray  # (pixels, 3)
+    sees_light: np.ndarray  # (pixels,) bool: the first sample sees a light directly
+    rays: int = 0
+    hits: int = 0
+    back: int = 0  # hits on the back of their triangle (all samples)
+
+    @classmethod
+    def empty(cls, n: int) -> Primary:
+        return cls(np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n), np.zeros(n, dtype=np.int64),
+                   np.zeros((n, 3)), np.zeros(n, dtype=bool))
+
+    def add(self, frame: Frame, g: GBuffer, at: slice) -> None:
+        """The batch ``g`` of pixels ``at``."""
+        self.put(Primary.part(frame, g), at)
+
+    @staticmethod
+    def part(frame: Frame, g: GBuffer) -> dict:
+        """What :meth:`put` keeps of the batch ``g`` (small: one sample a pixel, and counts)."""
+        return {"origin": g.first(g.origin), "direction": g.first(g.direction), "t": g.first(g.t),
+                "triangle": g.first(g.triangle), "normal": g.first(g.normal(frame)),
+                "sees_light": g.first(g.sees_emitter), "rays": int(g.origin.shape[0]),
+                "hits": int((g.triangle >= 0).sum()),
+                "back": checks.back_faces(frame.scene, g.triangle, g.direction, frame.kind)}
+
+    def put(self, part: dict, at: slice) -> None:
+        """A batch's :meth:`part`, of pixels ``at``."""
+        for k in ("origin", "direction", "t", "triangle", "normal", "sees_light"):
+            getattr(self, k)[at] = part[k]
+        self.rays += part["rays"]
+        self.hits += part["hits"]
+        self.back += part["back"]
+
+
+@dataclass
+class Rendered:
+    """What :func:`render_batches` computed over the whole image.
+
+    ``radiance``: each pass's (H, W, 3) linear radiance (a work-only pass has none);
+    ``work``: each pass's (H, W) work counts; ``primary``: the AOVs and eye-ray counts;
+    ``gbuffer``: the whole image's G-buffer when it was cast as one batch, else an
+    :class:`~tlm.render.passes.ImageGBuffer` that casts it again on first use;
+    ``photons``: the photon trace, when the pmap pass ran; ``gather_maps``: the pmap
+    pass's work per photon map (``pmap_pass``'s ``per_map``), when it ran.
+    """
+
+    radiance: dict[str, np.ndarray]  # pass -> (H, W, 3)
+    work: dict[str, dict[str, np.ndarray]]  # pass -> count -> (H, W)
+    primary: Primary
+    gbuffer: GBuffer | ImageGBuffer
+    photons: PhotonTrace | None = None
+    gather_maps: dict | None = None
+
+
+def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Timer | None = None,
+                   progress: bool = False) -> Rendered:
+    """Render ``passes`` (by default those the planner runs for the frame's scene and
+    config, in order) over the whole image of ``frame``, in batches (the module's
+    docstring). ``timer``: gets the stages ``photon_trace``, ``cast`` and
+    ``pass_<name>``; ``progress``: a bar on stderr that follows the batches.
+
+    The kernels run on ``render.threads`` threads (null: the CPUs available), with the
+    bits of one (:mod:`tlm.kernels.threads`). On one thread the batches run one after the
+    other, every pass charging its cache pairs (one :class:`~tlm.kernels.memory.Streams`
+    per pass, carried batch to batch). On several, the image is cut into smaller batches
+    (:func:`batches_for`; a pixel's results never depend on its batch) and whole batches
+    run at once, on forked worker processes (:data:`BATCH_WORKERS`) or on the threads'
+    pool (:func:`tlm.kernels.threads.ordered`): each pass charges cold pairs of its own
+    (:class:`~tlm.kernels.memory.Deferred`), and the calling thread takes the batches in
+    pixel order, settles each pass's charges on the carried pairs (the misses of the
+    batches charged in order) and copies the batch into the image, while the next
+    batches run; at most a window of batches is in flight, so memory stays bounded by
+    the batch. The stages' seconds are then summed over the threads.
+    """
+    timer = Timer() if timer is None else timer
+    names = tuple(plan(frame.scene, frame.cfg).run_names if passes is None else passes)
+    with threads.using(frame.cfg.render.threads):
+        return _render_batches(frame, names, timer, progress)
+
+
+def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress: bool) -> Rendered:
+    """:func:`render_batches` on the calling thread's kernel threads."""
+    w, h = frame.scene.camera.width, frame.scene.camera.height
+    batches = batches_for(w * h, frame.spp, frame.cfg.render.batch_rays, threads.current())
+    traced = None
+    radiance = {name: np.zeros((w * h, 3)) for name in names if name not in WORK_PASSES}
+    work: dict[str, dict[str, np.ndarray]] = {}
+    streams = {name: new_streams(frame) for name in names}  # each pass's cache pairs, batch to batch
+    primary = Primary.empty(w * h)
+    whole: GBuffer | None = None
+    gather_maps: dict | None = {} if "pmap" in names else None
+    steps = len(batches) * (1 + len(names)) + ("pmap" in names)
+    with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
+        if "pmap" in names:
+            bar.set_postfix_str("photon trace")
+            with timer.stage("photon_trace"):
+                traced = trace_photon_map(frame)
+            bar.update()
+        concurrent = threads.current() > 1 and len(batches) > 1
+        if concurrent:
+            _warm(frame, traced)
+
+        def one(i: int) -> _Batch:
+            return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
+                              Timer() if concurrent else timer, None if concurrent else bar, i, len(batches))
+
+        if concurrent and BATCH_WORKERS == "processes" and threads.can_fork():
+            done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
+        else:
+            done_batches = threads.ordered(one, range(len(batches)))
+        for i, done in enumerate(done_batches):
+            at, g = batches[i], done.g
+            arrays = None
+            if done.portable:
+                arrays = {f"{name}.{k}": v for name, (_, wk) in done.out.items() for k, v in wk.items()}
+            for name in names:
+                if concurrent:
+                    streams[name].settle(done.deferred[name], arrays)
+                rad, wk = done.out[name]
+                if name in radiance:
+                    radiance[name][at] = rad
+                counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
+                for k, v in wk.items():
+                    counts[k][at] = v
+            _merge_tallies(gather_maps, done.per_map)
+            if concurrent:
+                for k, s in done.timer.seconds.items():
+                    timer.seconds[k] = timer.seconds.get(k, 0.0) + s
+                bar.update(1 + len(names))
+            if isinstance(g, dict):  # (a batch from another process: its primary part)
+                primary.put(g, at)
+            else:
+                primary.add(frame, g, at)
+            if len(batches) == 1:
+                whole = g
+            del g, done
+    radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
+    work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
+    gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
+    return Rendered(radiance, work, primary, gbuffer, traced, gather_maps)
+
+
+BATCHES_PER_THREAD = 3  # batches per thread when whole batches run at once: they differ in cost
+MIN_BATCH_RAYS = 1024  # ... but none under this many eye rays (a batch's fixed cost in Python)
+
+
+def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
+    """The render's pixel batches (:func:`~tlm.render.passes.pixel_batches`): of
+    ``batch_rays`` eye rays on one thread; on several, smaller ones, about
+    :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / n_threads`` eye rays
+    (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and balance,
+    and the batches in flight (twice the threads) hold about two batches of one thread's
+    memory. The cuts never change the results."""
+    if n_threads > 1:
+        share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
+        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // n_threads)))
+    return pixel_batches(n_pixels, spp, batch_rays)
+
+
+@dataclass
+class _Batch:
+    """One batch's G-buffer (from another process: its :meth:`Primary.part`) and passes:
+    pass -> (radiance, work); with ``deferred`` pairs, the work's misses as charged on
+    cold pairs (settled in the calling thread; ``portable``: naming the arrays
+    ``"<pass>.<count>"``, :meth:`~tlm.kernels.memory.Deferred.portable`)."""
+
+    g: GBuffer | dict
+    out: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
+    deferred: dict[str, Deferred] | None
+    per_map: dict | None
+    timer: Timer
+    portable: bool = False
+
+
+# where whole batches run at once on several threads: "processes" (forked from the render
+# after the photon trace: the frame, its BSP and the photon maps are the parent's pages, and
+# no interpreter lock is shared) or "threads" (one process; numpy and the compiled kernels
+# release the lock, the Python between them does not)
+BATCH_WORKERS = "processes"  # (where threads.can_fork: opt-in, TLM_FORK_WORKERS=1)
+
+
+def _portable(frame: Frame, done: _Batch) -> _Batch:
+    """A batch run in a worker process, for the way back: small and named."""
+    ids = {id(v): f"{name}.{k}" for name, (_, wk) in done.out.items() for k, v in wk.items()}
+    return replace(done, g=Primary.part(frame, done.g), portable=True,
+                   deferred={name: d.portable(ids) for name, d in done.deferred.items()})
+
+
+def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTrace | None,
+               streams: dict[str, Streams], deferred: bool, tally: bool, timer: Timer, bar, i: int,
+               n: int) -> _Batch:
+    """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
+    ``deferred``, on cold :class:`~tlm.kernels.memory.Deferred` pairs like them (a batch on
+    a worker thread: its per-map tallies are its own too)."""
+    pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
+    per_map: dict | None = {} if tally else None
+    if bar is not None:
+        bar.set_postfix_str(f"batch {i + 1}/{n} cast")
+    with timer.stage("cast"):
+        g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
+    if bar is not None:
+        bar.update()
+    out = {}
+    for name in names:
+        if bar is not None:
+            bar.set_postfix_str(f"batch {i + 1}/{n} {name}")
+        with timer.stage(f"pass_{name}"):
+            if name == "pmap":
+                out[name] = pmap_pass(frame, g, traced.photons, streams=pairs[name], per_map=per_map,
+                                      fg_streams=pairs.get("fgather"))
+            elif name == "fgather":
+                out[name] = fgather_pass(frame, g)
+            else:
+                out[name] = PASS_FUNCTIONS[name](frame, g, pairs[name])
+        if bar is not None:
+            bar.update()
+    return _Batch(g, out, pairs if deferred else None, per_map, timer)
+
+
+def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
+    """Make what the passes build on first use (the compiled traversal's layout, the photon
+    maps in leaf order, their radii) before batches run at once, so no two threads build it."""
+    cast(frame, np.zeros(1, dtype=np.int64))
+    if traced is not None:
+        photons = traced.photons
+        for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
+                  getattr(photons, "global_map", photons)):
+            if m is not None and m.n > 0:
+                m.prepared()
+        radii(frame, photons)
+
+
+def _merge_tallies(into: dict | None, tallies: dict | None) -> None:
+    """Add a batch's per-map gather totals (pmap_pass's ``per_map``) to the render's, in order."""
+    if into is None or tallies is None:
+        return
+    for name, tally in tallies.items():
+        dst = into.setdefault(name, {})
+        for k, v in tally.items():
+            dst[k] = dst.get(k, 0) + v
