@@ -20,9 +20,16 @@ a tie of signed zeros, as the SIMD minimum does.
 Layout: the float32 constants are one (16, m') stack whose every leaf starts on a
 multiple of :data:`PAD` slots and is padded with NaN slots (rejected by every test),
 so the vectorized slot loop never runs a scalar remainder; ``back`` maps a padded slot
-to the accel's slot. Buffers are sized up front; a ray that would overflow one stops
-the kernel with a status, and the caller reruns it with larger buffers (no array is
-reallocated inside the loops, which would cost reference counting per ray).
+to the accel's slot. Rays of one shared origin (eye rays) test from a second stack
+whose ray-independent rows (``T.N``, ``E2 x T``, ``-E1 x T`` for the packet's origin,
+:func:`shared_stack`) are computed once per origin (the caller keeps the last one),
+with the same operations, so a slot costs
+about a third fewer operations and the same bits; the slot loops of the two cases are
+separate functions, as one loop holding both formulas evaluates both in every lane.
+Each ray's ``1/d`` is divided once for the root clip and every level. Buffers are
+sized up front; a ray that would overflow one stops the kernel with a status, and the
+caller reruns it with larger buffers (no array is reallocated inside the loops, which
+would cost reference counting per ray).
 """
 
 from __future__ import annotations
@@ -101,71 +108,9 @@ def _mx(a, b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _linear(ax, ay, az, tx, ty, tz, dx, dy, dz):
-    """``(A x T).D`` as the numpy shared-origin path evaluates it: ``K = A x T``, then
-    ``(dx kx + dy ky) + dz kz``."""
-    kx = ay * tz - az * ty
-    ky = az * tx - ax * tz
-    kz = ax * ty - ay * tx
-    out = dx * kx
-    out = out + dy * ky
-    return out + dz * kz
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, keys):
-    """:func:`closest_slots` for one ray and the padded slots ``s0:s1``: ``(slot, t)``
-    (a padded slot; -1 and inf when nothing is hit). Scalars are float32; ``ign`` is a
-    triangle id or -1. Among equal distances the lowest slot wins.
-
-    The slot loop is branch-free with unsigned indices, so LLVM vectorizes it (numba
-    adds a negative-index wraparound to signed ones, and LLVM then gathers lane by lane).
-    ``keys`` (scratch) gets the bits of ``t' = t - tmin`` of an accepted pair and
-    0xFFFFFFFF of a rejected one.
-    """
-    one = np.float32(1.0)
-    ign32 = np.int32(ign)
-    u0 = np.uint64(s0)
-    best_hi = _REJECT
-    for j in range(np.uint64(s1 - s0)):
-        s = u0 + j
-        rdet = dx * soa[12, s]
-        rdet = rdet + dy * soa[13, s]
-        rdet = rdet + dz * soa[14, s]
-        rdet = one / rdet
-        tx = ox - soa[0, s]
-        ty = oy - soa[1, s]
-        tz = oz - soa[2, s]
-        t = tx * soa[9, s]
-        t = t + ty * soa[10, s]
-        t = t + tz * soa[11, s]
-        t = t * rdet
-        if shared:  # u and v as linear forms in D (the numpy shared-origin path)
-            u = _linear(soa[6, s], soa[7, s], soa[8, s], tx, ty, tz, dx, dy, dz) * rdet  # (E2 x T).D
-            v = _linear(soa[3, s], soa[4, s], soa[5, s], tx, ty, tz, dx, dy, dz) * rdet  # (-E1 x T).D
-        else:
-            cx = ty * dz - tz * dy
-            cy = tz * dx - tx * dz
-            cz = tx * dy - ty * dx
-            u = cx * soa[6, s]
-            u = u + cy * soa[7, s]
-            u = u + cz * soa[8, s]
-            u = u * rdet
-            v = cx * soa[3, s]
-            v = v + cy * soa[4, s]
-            v = v + cz * soa[5, s]
-            v = v * rdet
-        w = one - (u + v)
-        w = _mn(w, _mn(u, v))
-        w = w + eps
-        tp = t - tmin
-        w = _mn(w, tp)
-        # rejected: w NaN or negative (its sign bit), or the ray's ignored triangle
-        bad = (w != w) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
-            np.float32(soa[15, s]).view(np.int32) == ign32)
-        key = _REJECT if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
-        keys[j] = key
-        best_hi = min(best_hi, key)
+def _pick(keys, n, best_hi, s0, tmin, tmax):
+    """The end of a leaf's float32 test: ``(slot, t)`` of the lowest key (the lowest
+    slot among equal ones), or -1 and inf when nothing is accepted before ``tmax``."""
     if best_hi >= _NO_HIT:  # nothing accepted, or only at t' = inf
         return -1, np.float32(np.inf)
     best = 0
@@ -175,6 +120,119 @@ def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, shared, k
     if not tb < tmax:
         return -1, np.float32(np.inf)
     return s0 + best, tb
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _dot(ax, ay, az, bx, by, bz):
+    """``(ax bx + ay by) + az bz``, in that order (the numpy engine's sums)."""
+    out = ax * bx
+    out = out + ay * by
+    return out + az * bz
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _key(u, v, tp, idbits, ign32, eps):
+    """A pair's key from ``u, v`` and ``t' = t - tmin``: the bits of ``t'`` if accepted,
+    0xFFFFFFFF if rejected (``w`` NaN or negative, or the ray's ignored triangle)."""
+    one = np.float32(1.0)
+    w = one - (u + v)
+    w = _mn(w, _mn(u, v))
+    w = w + eps
+    w = _mn(w, tp)
+    bad = (w != w) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
+        np.float32(idbits).view(np.int32) == ign32)
+    return _REJECT if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, keys):
+    """:func:`closest_slots` for one ray and the padded slots ``s0:s1``: ``(slot, t)``
+    (a padded slot; -1 and inf when nothing is hit). Scalars are float32; ``ign`` is a
+    triangle id or -1. Among equal distances the lowest slot wins.
+
+    The slot loop is branch-free with unsigned indices, so LLVM vectorizes it (numba
+    adds a negative-index wraparound to signed ones, and LLVM then gathers lane by lane).
+    ``keys`` (scratch) gets the bits of ``t' = t - tmin`` of an accepted pair and
+    0xFFFFFFFF of a rejected one. Rays of a shared origin take :func:`_leaf32_shared`
+    (the same values with the ray-independent part computed once): one loop each, as a
+    loop holding both formulas computes both in every lane.
+    """
+    one = np.float32(1.0)
+    ign32 = np.int32(ign)
+    u0 = np.uint64(s0)
+    best_hi = _REJECT
+    for j in range(np.uint64(s1 - s0)):
+        s = u0 + j
+        rdet = one / _dot(dx, dy, dz, soa[12, s], soa[13, s], soa[14, s])
+        tx = ox - soa[0, s]
+        ty = oy - soa[1, s]
+        tz = oz - soa[2, s]
+        t = _dot(tx, ty, tz, soa[9, s], soa[10, s], soa[11, s]) * rdet
+        cx = ty * dz - tz * dy
+        cy = tz * dx - tx * dz
+        cz = tx * dy - ty * dx
+        u = _dot(cx, cy, cz, soa[6, s], soa[7, s], soa[8, s]) * rdet
+        v = _dot(cx, cy, cz, soa[3, s], soa[4, s], soa[5, s]) * rdet
+        key = _key(u, v, t - tmin, soa[15, s], ign32, eps)
+        keys[j] = key
+        best_hi = min(best_hi, key)
+    return _pick(keys, s1 - s0, best_hi, s0, tmin, tmax)
+
+
+# rows of the shared-origin stack (:func:`_shared_rows`)
+_S_NN, _S_T, _S_U, _S_V, _S_ID, _S_ROWS = 0, 3, 4, 7, 10, 11
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _shared_rows(soa, ox, oy, oz, pre, s0, s1):
+    """The ray-independent part of the shared-origin test for the padded slots
+    ``s0:s1``, into ``pre``: ``-N``, ``T.N``, ``E2 x T``, ``-E1 x T`` and the id bits
+    (``T = o - v0`` for the packet's one float32 origin), each as the per-ray formula
+    of the numpy shared-origin path computes it, so the values are the same bits."""
+    for s in range(s0, s1):
+        tx = ox - soa[0, s]
+        ty = oy - soa[1, s]
+        tz = oz - soa[2, s]
+        t = tx * soa[9, s]
+        t = t + ty * soa[10, s]
+        pre[_S_T, s] = t + tz * soa[11, s]
+        for k, a in ((_S_U, 6), (_S_V, 3)):  # K = A x T of A = E2 (for u), -E1 (for v)
+            ax, ay, az = soa[a, s], soa[a + 1, s], soa[a + 2, s]
+            pre[k, s] = ay * tz - az * ty
+            pre[k + 1, s] = az * tx - ax * tz
+            pre[k + 2, s] = ax * ty - ay * tx
+        for k in range(3):
+            pre[_S_NN + k, s] = soa[12 + k, s]
+        pre[_S_ID, s] = soa[15, s]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def shared_stack(soa32, o32):
+    """The rows of :func:`_shared_rows` for every padded slot, the packet's float32
+    origin ``o32`` (3,): read by every chunk of every packet of that origin."""
+    pre = np.empty((_S_ROWS, soa32.shape[1]), dtype=np.float32)
+    _shared_rows(soa32, o32[0], o32[1], o32[2], pre, 0, soa32.shape[1])
+    return pre
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leaf32_shared(dx, dy, dz, tmin, tmax, ign, pre, s0, s1, eps, keys):
+    """:func:`_leaf32` for a ray of the packet's shared origin, from the rows of
+    :func:`_shared_rows`: ``u`` and ``v`` are linear forms in ``D``, ``(K.D) / det``
+    evaluated as ``(dx kx + dy ky) + dz kz`` (the numpy shared-origin path), and ``T.N``
+    is the same for every ray."""
+    best_hi = _REJECT
+    ign32 = np.int32(ign)
+    for j in range(np.uint64(s1 - s0)):  # (unsigned slots, as in _leaf32)
+        s = np.uint64(s0) + j
+        rdet = np.float32(1.0) / _dot(dx, dy, dz, pre[_S_NN, s], pre[_S_NN + 1, s], pre[_S_NN + 2, s])
+        t = pre[_S_T, s] * rdet
+        u = _dot(dx, dy, dz, pre[_S_U, s], pre[_S_U + 1, s], pre[_S_U + 2, s]) * rdet
+        v = _dot(dx, dy, dz, pre[_S_V, s], pre[_S_V + 1, s], pre[_S_V + 2, s]) * rdet
+        key = _key(u, v, t - tmin, pre[_S_ID, s], ign32, eps)
+        keys[j] = key
+        best_hi = min(best_hi, key)
+    return _pick(keys, s1 - s0, best_hi, s0, tmin, tmax)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -223,7 +281,7 @@ def _lossy(x0, x1, x2, y0, y1, y2):
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
-          split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size,
+          split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size, pre,
           eps32, eps_check, eps64, first_only, shared, shared_o32, record,
           level_cap, leaf_cap, node_cap):
     """Every ray of a packet, start to finish (see :func:`tlm.kernels.traverse._traverse`).
@@ -234,7 +292,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     ``shared``: the float32 test takes the packet's one origin, ``shared_o32`` (3,)
     float32, the first ray's ``o - origin`` as the numpy engine does (the origins are equal
     as float32 values, but a zero's sign may differ); given by the caller, so that a
-    chunk of the packet (:mod:`tlm.kernels.threads`) tests exactly as the whole does.
+    chunk of the packet (:mod:`tlm.kernels.threads`) tests exactly as the whole does;
+    ``pre`` is :func:`shared_stack` of that origin (unused otherwise).
     Compiled ``nogil``: threads run chunks of a packet at once.
 
     Returns ``status`` (``OK`` or which buffer overflowed: rerun with it doubled), then
@@ -266,6 +325,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         # the root clip (_clip_root): slabs, a zero component inside or outside its slab
         ta = tmin[i]
         tb = tmax[i]
+        # 1/d once per ray for the clip and every level (inf of a zero: never used)
+        ic0, ic1, ic2 = 1.0 / d[i, 0], 1.0 / d[i, 1], 1.0 / d[i, 2]
         for k in range(3):
             oc = o[i, k]
             dc = d[i, k]
@@ -276,7 +337,7 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
                 near = -np.inf if inside else np.inf
                 far = np.inf if inside else -np.inf
             else:
-                ic = 1.0 / dc
+                ic = ic0 if k == 0 else (ic1 if k == 1 else ic2)
                 t0 = (lo - oc) * ic
                 t1 = (hi - oc) * ic
                 near = _mn(t0, t1)
@@ -295,7 +356,7 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             axis = j % 3
             oc = o[i, axis]
             dc = d[i, axis]
-            ic = 1.0 / dc
+            ic = ic0 if axis == 0 else (ic1 if axis == 1 else ic2)
             node_visits[i] += m
             if record:
                 if n_node_out + m > node_cap:
@@ -357,9 +418,11 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         for e in range(m):
             leaf = lnode[cur + e] - leaf_offset
             slot, pt = -1, np.float32(np.inf)
-            if last32[leaf] > first32[leaf]:
-                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32,
-                                   first32[leaf], last32[leaf], eps32, shared, keys)
+            s0, s1 = first32[leaf], last32[leaf]
+            if s1 > s0 and shared:
+                slot, pt = _leaf32_shared(dx32, dy32, dz32, t0, t1, ign, pre, s0, s1, eps32, keys)
+            elif s1 > s0:
+                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
             if first_only:
                 if slot >= 0:
                     best = slot

@@ -169,8 +169,17 @@ def _prepare(origins, directions, tmin, tmax, ignore):
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
     tmin = np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0)
     tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
-    d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
-    tiny = np.abs(d) < np.finfo(np.float64).tiny
+    mag = np.abs(d)
+    with np.errstate(invalid="ignore"):
+        # every row's largest component in [2**-32, 2**32] (its sum of three, rounded,
+        # at least 2**-30): no row is rescaled, and the row maxima need not be formed
+        plain = r > 0 and mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30
+    if plain:
+        scale = np.zeros(r, dtype=np.intc)
+    else:
+        d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
+        mag = np.abs(d)
+    tiny = mag < np.finfo(np.float64).tiny
     if tiny.any():  # a subnormal component (negligible beside the row's largest) is a zero
         d = np.where(tiny, 0.0, d)
     if ignore is None:
@@ -365,7 +374,7 @@ def _jit_trace(*args):
     return _jit.trace(*args)
 
 
-def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, record, first_only,
+def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, pre, record, first_only,
                shared_origin, a: int, b: int):
     """The compiled kernel on rays ``a:b`` (its buffers grown until they hold them):
     ``t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids``."""
@@ -379,11 +388,29 @@ def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, share
         status, *out = _jit_trace(
             o[a:b], d[a:b], tmin[a:b], tmax[a:b], ignore[a:b], has_ignore, tree.lo[0], tree.hi[0],
             accel.soa64.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back,
-            lay.soa64, lay.ids, lay.size, np.float32(EDGE_EPS[np.dtype(np.float32)]), EDGE_EPS[np.dtype(np.float32)],
-            EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32, record, *caps)
+            lay.soa64, lay.ids, lay.size, pre, np.float32(EDGE_EPS[np.dtype(np.float32)]),
+            EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32,
+            record, *caps)
         if status == _jit.OK:
             return out
         caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
+
+
+_NO_STACK = np.empty((0, 0), dtype=np.float32)  # the kernel's ``pre`` where no origin is shared
+
+
+def _shared_stack(accel: TriangleAccel, o32: np.ndarray) -> np.ndarray:
+    """The ray-independent rows of the shared-origin test for the float32 origin
+    ``o32`` (:func:`tlm.kernels._jit.shared_stack`), kept on the accel for the last
+    origin: the eye rays of a frame share one, and every chunk and batch reads it."""
+    from tlm.kernels import _jit
+
+    key = o32.tobytes()
+    last = accel.__dict__.get("_shared_stack")
+    if last is None or last[0] != key:
+        last = (key, _jit.shared_stack(accel.jit_layout.soa32, o32))
+        accel.__dict__["_shared_stack"] = last  # one assignment: threads see either pair whole
+    return last[1]
 
 
 def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin):
@@ -411,8 +438,9 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     if shared_origin and r > 0:
         with np.errstate(over="ignore"):
             shared_o32 = np.array([np.float32(o[0, k] - accel.soa64.origin[k]) for k in range(3)], dtype=np.float32)
+    pre = _shared_stack(accel, shared_o32) if shared_origin and r > 0 else _NO_STACK
     parts = threads.chunked(
-        lambda a, b: _jit_chunk(accel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, record, first_only,
+        lambda a, b: _jit_chunk(accel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, pre, record, first_only,
                                 shared_origin, a, b), r, JIT_MIN_CHUNK)
     if len(parts) == 1:
         t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = parts[0]
@@ -449,7 +477,8 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     """
     tree = accel.tree
     o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
-    if shared_origin and o.shape[0] > 0:  # one origin as the float32 test sees it
+    # one origin as the float32 test sees it (equal float64 rows are: the quick test)
+    if shared_origin and o.shape[0] > 0 and not (o == o[:1]).all():
         with np.errstate(over="ignore"):
             o32 = (o - accel.soa64.origin).astype(np.float32)
         if not (o32 == o32[:1]).all():
