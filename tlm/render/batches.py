@@ -114,9 +114,10 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
     other, every pass charging its cache pairs (one :class:`~tlm.kernels.memory.Streams`
     per pass, carried batch to batch). On several, the image is cut into smaller batches
     (:func:`batches_for`; a pixel's results never depend on its batch) and whole batches
-    run at once, on forked worker processes (:data:`BATCH_WORKERS`) or on the threads'
-    pool (:func:`tlm.kernels.threads.ordered`): each pass charges cold pairs of its own
-    (:class:`~tlm.kernels.memory.Deferred`), and the calling thread takes the batches in
+    run at once, on the threads' pool (:func:`tlm.kernels.threads.ordered`), or on forked
+    worker processes where asked (:data:`BATCH_WORKERS`, :func:`tlm.kernels.threads.can_fork`):
+    each pass charges cold pairs of its own (:class:`~tlm.kernels.memory.Deferred`), and
+    the calling thread takes the batches in
     pixel order, settles each pass's charges on the carried pairs (the misses of the
     batches charged in order) and copies the batch into the image, while the next
     batches run; at most a window of batches is in flight, so memory stays bounded by
