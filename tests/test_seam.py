@@ -342,3 +342,12 @@ def test_pickled_work_is_validated_again(fn):
     back = pickle.loads(pickle.dumps(fn))
     assert back == fn and type(back.work["rcast"]) is RayPassWork
     assert not back.work["rcast"].tri_tests.flags.writeable
+
+
+def test_a_scale_too_large_for_a_float_is_a_one_line_error(tmp_path):
+    """An integer beyond float64 (``scale: 1e400`` written out) is no number of cycles: a
+    one-line InputError naming the key, not an overflow inside the check."""
+    path = _table(tmp_path, lambda r: r["vertex"].update(scale=10**400))
+    with pytest.raises(InputError) as err:
+        load_programs(path)
+    assert str(err.value).startswith(f"{path}: vertex.scale: ") and "must be a number >= 0" in str(err.value)

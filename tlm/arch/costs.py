@@ -121,7 +121,10 @@ def _exact_rounding(x: np.ndarray) -> np.ndarray:
 
 
 def _number(v, source: str, key: str, integer: bool = False) -> float:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v >= 0
+    try:  # (an integer too large for a float is no number of cycles either)
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(float(v)) and v >= 0
+    except OverflowError:
+        ok = False
     if integer:
         ok = ok and float(v).is_integer()
     if not ok:

@@ -116,14 +116,19 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     nxt = 0
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
-    while nxt < len(items) or pending:
-        while nxt < len(items) and len(pending) < window:
-            pending.append(pool.submit(one.copy().run, fn, items[nxt]))
-            nxt += 1
-        yield pending.pop(0).result()
+    try:
+        while nxt < len(items) or pending:
+            while nxt < len(items) and len(pending) < window:
+                pending.append(pool.submit(one.copy().run, fn, items[nxt]))
+                nxt += 1
+            yield pending.pop(0).result()
+    finally:  # an error, Ctrl-C or a caller that stops: what has not started never runs
+        for f in pending:
+            f.cancel()
 
 
 _FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
+_FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
 
 
 def can_fork() -> bool:
@@ -137,7 +142,16 @@ def can_fork() -> bool:
     """
     import multiprocessing
 
-    return os.environ.get("TLM_FORK_WORKERS") == "1" and "fork" in multiprocessing.get_all_start_methods()
+    return (os.environ.get("TLM_FORK_WORKERS") == "1" and "fork" in multiprocessing.get_all_start_methods()
+            and not multiprocessing.current_process().daemon)  # (a daemon, e.g. a Dask worker, may not fork)
+
+
+def _forked_init() -> None:
+    """A forked worker leaves Ctrl-C to the render that forked it (which ends the pool)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _call_forked(item):
@@ -151,23 +165,31 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     too. The workers are forked when the call starts, so ``fn`` (any callable: it is not
     pickled) and what it reads (a frame, its BSP, photon maps) are the caller's, page for
     page; the items and results are pickled. At most twice ``processes`` calls are in
-    flight. Only where :func:`can_fork`."""
+    flight. Only where :func:`can_fork`. A worker that dies (killed, out of memory) fails
+    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang."""
     import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
 
     global _FORKED
     items = list(items)
-    _FORKED = fn
-    try:
-        with multiprocessing.get_context("fork").Pool(processes) as pool:
-            pending = []
-            nxt = 0
-            while nxt < len(items) or pending:
-                while nxt < len(items) and len(pending) < 2 * processes:
-                    pending.append(pool.apply_async(_call_forked, (items[nxt],)))
-                    nxt += 1
-                yield pending.pop(0).get()
-    finally:
-        _FORKED = None
+    with _FORK_LOCK:
+        _FORKED = fn
+        try:
+            with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
+                                     initializer=_forked_init) as pool:
+                pending = []
+                nxt = 0
+                try:
+                    while nxt < len(items) or pending:
+                        while nxt < len(items) and len(pending) < 2 * processes:
+                            pending.append(pool.submit(_call_forked, items[nxt]))
+                            nxt += 1
+                        yield pending.pop(0).result()
+                finally:
+                    for f in pending:
+                        f.cancel()
+        finally:
+            _FORKED = None
 
 
 def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:
