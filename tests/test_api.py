@@ -188,7 +188,7 @@ def test_no_private_name_is_imported_from_another_module(module):
 
 
 def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():
-    from tlm.experiments.progress import Ticking, Timer, progress_bar
+    from tlm.progress import Ticking, Timer, progress_bar
 
     timer = Timer()
     for _ in range(2):
@@ -215,7 +215,7 @@ def test_provenance_names_the_versions_and_the_revision():
 
 def test_a_frame_is_loaded_built_and_cast_in_one_call(tmp_path):
     from tlm.experiments.loading import cast_image, load_frame
-    from tlm.experiments.progress import Timer
+    from tlm.progress import Timer
 
     cfg = tlm.load_config(SMALL, base=tmp_path)
     timer = Timer()

@@ -38,8 +38,9 @@ from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.config import MODES, RunConfig, config_from_dict
 from tlm.errors import InputError
-from tlm.experiments.run import RenderResult, Timer, programs_for, progress_bar, render, simulate_render, write_run
+from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.study import read_study, run_study
+from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 
 # Tables I-III: millions of cycles (FPS in frames per second).
