@@ -16,7 +16,7 @@ import pytest
 from tlm.config import config_from_dict
 from tlm.experiments.loading import load_frame
 from tlm.progress import Timer
-from tlm.render.batches import MIN_BATCH_RAYS, batches_for, render_batches
+from tlm.render.batches import MIN_BATCH_RAYS, _put_counts, batches_for, render_batches
 from tlm.render.passes import GBuffer, ImageGBuffer
 from tlm.render.planner import WORK_PASSES, plan
 
@@ -73,7 +73,22 @@ def test_batch_cuts_cover_the_image_in_pixel_order(n_pixels, spp, batch_rays, n_
     if n_threads == 1:
         assert max(rays) <= max(batch_rays, spp)
     else:  # smaller batches, that run at once, but none under MIN_BATCH_RAYS (bar the last and one pixel)
-        assert max(rays) <= max(spp, min(batch_rays, max(MIN_BATCH_RAYS, batch_rays // n_threads)))
+        # (the window of twice the threads' batches in flight holds about one batch_rays)
+        assert max(rays) <= max(spp, min(batch_rays, max(MIN_BATCH_RAYS, batch_rays // (2 * n_threads))))
         assert all(r >= min(MIN_BATCH_RAYS, batch_rays) - spp for r in rays[:-1])
     if n_pixels * spp >= 3 * n_threads * MIN_BATCH_RAYS and n_threads > 1:
         assert len(cuts) >= n_threads  # enough batches for every thread
+
+
+def test_image_counts_are_int32_until_a_count_does_not_fit(reflect_frames):
+    done = render_batches(reflect_frames[1])
+    assert all(v.dtype == np.int32 for counts in done.work.values() for v in counts.values())
+    counts: dict[str, np.ndarray] = {}
+    _put_counts(counts, "k", np.array([1, 2]), slice(0, 2), 6)
+    assert counts["k"].dtype == np.int32
+    big = np.iinfo(np.int32).max + 1
+    _put_counts(counts, "k", np.array([big, 3]), slice(2, 4), 6)  # widened, the earlier counts kept
+    _put_counts(counts, "k", np.array([4, 5]), slice(4, 6), 6)
+    assert counts["k"].dtype == np.int64 and counts["k"].tolist() == [1, 2, big, 3, 4, 5]
+    _put_counts(counts, "neg", np.array([-big - 1]), slice(0, 1), 1)  # (below int32 too)
+    assert counts["neg"].dtype == np.int64 and counts["neg"][0] == -big - 1

@@ -264,7 +264,7 @@ def test_replace_with_dicts_gives_typed_work(fn):
 
 @pytest.mark.parametrize("bad, match", [
     ({"tri_tests": np.zeros(4)}, "int64"),  # float
-    ({"tri_tests": np.zeros(4, dtype=np.int32)}, "int64"),  # the constructor does not convert
+    ({"tri_tests": np.zeros(4, dtype=np.int16)}, "int64"),  # the constructor does not convert
     ({"tri_tests": np.zeros((2, 2), dtype=np.int64)}, "1-D"),
     ({"tri_tests": np.zeros(5, dtype=np.int64)}, "5 pixels"),
     ({"tri_tests": np.array([0, -1, 0, 0])}, "negative"),
@@ -276,9 +276,14 @@ def test_work_arrays_are_validated(bad, match):
 
 
 def test_from_mapping_converts_integers_and_shapes_but_not_floats():
-    w = {k: np.zeros((2, 2), dtype=np.int32) for k in GatherWork.KEYS}
+    w = {k: np.zeros((2, 2), dtype=np.int16) for k in GatherWork.KEYS}
     g = GatherWork.from_mapping(w)
     assert g.n == 4 and all(v.dtype == np.int64 and v.ndim == 1 for v in g.values())
+    # int32, what a render keeps where the counts fit, is kept (not copied to int64)
+    w32 = {k: np.arange(4, dtype=np.int32).reshape(2, 2) for k in GatherWork.KEYS}
+    g32 = GatherWork.from_mapping(w32)
+    assert all(v.dtype == np.int32 and v.ndim == 1 for v in g32.values())
+    assert g32 == GatherWork.from_mapping({k: v.astype(np.int64) for k, v in w32.items()})
     with pytest.raises(ValueError, match="integers"):
         GatherWork.from_mapping({**w, "gathers": np.zeros(4)})
     assert GatherWork.zeros(3) == GatherWork.from_mapping({k: [0, 0, 0] for k in GatherWork.KEYS})

@@ -53,14 +53,14 @@ class Layout:
     first: np.ndarray  # (leaves,) int64: a leaf's first padded slot
     last: np.ndarray  # (leaves,) int64: past its last padded slot (a multiple of PAD on)
     back: np.ndarray  # (m',) int64: the accel's slot of a padded slot (-1: padding)
-    soa64: np.ndarray  # (15, m) float64: v0, -E1, E2, N, -N of the accel's slots
+    soa64: np.ndarray  # (9, m) float64: v0, -E1, E2 of the accel's slots (eq. 3.6's inputs)
     ids: np.ndarray  # (m,) int64: triangle id of the accel's slots
     size: np.ndarray  # (leaves,) int64: triangles per leaf (the Intersection PM's work)
 
 
 def layout(accel) -> Layout:
     """Build the :class:`Layout` of an accel (once per accel: it is cached there)."""
-    soa, soa64 = accel.soa, accel.soa64
+    soa = accel.constants(np.float32)
     ids = soa.ids
     if ids.shape[0] and ids.max() > np.iinfo(np.int32).max:
         raise ValueError("more than 2**31 triangles")
@@ -82,7 +82,9 @@ def layout(accel) -> Layout:
     soa32[15, dst] = ids[src].astype(np.int32).view(np.float32)
     back = np.full(m2, -1, dtype=np.int64)
     back[dst] = src
-    soa64_rows = np.ascontiguousarray(np.concatenate([soa64.v0, soa64.e1n, soa64.e2, soa64.n, soa64.nn]))
+    del soa
+    soa64 = accel.constants(np.float64)
+    soa64_rows = np.ascontiguousarray(np.concatenate([soa64.v0, soa64.e1n, soa64.e2]))  # (what _exact reads)
     return Layout(soa32, first, first + padded, back, soa64_rows, np.ascontiguousarray(ids, dtype=np.int64),
                   size)
 

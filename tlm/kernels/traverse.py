@@ -61,12 +61,17 @@ class TriangleAccel:
     ``soa`` (float32, the test datapath) and ``soa64`` (float64, exact hit values)
     hold one slot per (leaf, triangle) entry, in ``tree.items`` order, so a leaf
     ``k``'s triangles are slots ``leaf_first[k]:leaf_last[k]``. Vertices are stored
-    relative to ``soa.origin``, the centre of the root box.
+    relative to ``origin``, the centre of the root box.
+
+    Both are computed from ``triangles`` on first use and kept: the numpy engine reads
+    them. The compiled engine reads only its own padded copy (:attr:`jit_layout`), which
+    is built from the triangles without keeping them, so a frame rendered by it holds
+    the constants once (a slot is about 200 bytes there, not 450).
     """
 
     tree: BSPTree
-    soa: TriangleSoA
-    soa64: TriangleSoA
+    triangles: np.ndarray  # (n, 3, 3) float64, the scene's (not copied)
+    origin: np.ndarray  # (3,) float64: the centre of the root box
     leaf_first: np.ndarray
     leaf_last: np.ndarray
     n_triangles: int
@@ -75,6 +80,24 @@ class TriangleAccel:
     @property
     def leaf_size(self) -> np.ndarray:
         return self.leaf_last - self.leaf_first
+
+    def constants(self, dtype: type = np.float64) -> TriangleSoA:
+        """The leaf-ordered constants in ``dtype`` (computed anew: :attr:`soa` and
+        :attr:`soa64` keep theirs)."""
+        cached = self.__dict__.get("soa64" if np.dtype(dtype) == np.float64 else "soa")
+        if cached is not None:
+            return cached
+        return TriangleSoA.from_triangles(self.triangles, origin=self.origin, dtype=dtype).take(self.tree.items)
+
+    @functools.cached_property
+    def soa(self) -> TriangleSoA:
+        """float32 constants (the test datapath), one per slot."""
+        return self.constants(np.float32)
+
+    @functools.cached_property
+    def soa64(self) -> TriangleSoA:
+        """float64 constants (exact hit values), one per slot."""
+        return self.constants(np.float64)
 
     @functools.cached_property
     def jit_layout(self):
@@ -91,11 +114,9 @@ def build_accel(
     tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     tree = build_triangle_tree(tri, levels=levels, memory_factor=memory_factor)
     centre = 0.5 * (tree.lo[0] + tree.hi[0])
-    soa64 = TriangleSoA.from_triangles(tri, origin=centre).take(tree.items)
-    soa = TriangleSoA.from_triangles(tri, origin=centre, dtype=np.float32).take(tree.items)
     first, last = tree.leaf_ranges()
     scale = float(np.linalg.norm(tree.hi[0] - tree.lo[0]))
-    return TriangleAccel(tree, soa, soa64, first.copy(), last.copy(), tri.shape[0], scale)
+    return TriangleAccel(tree, tri, centre, first.copy(), last.copy(), tri.shape[0], scale)
 
 
 @dataclass(frozen=True)
@@ -387,7 +408,7 @@ def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, share
     while True:
         status, *out = _jit_trace(
             o[a:b], d[a:b], tmin[a:b], tmax[a:b], ignore[a:b], has_ignore, tree.lo[0], tree.hi[0],
-            accel.soa64.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back,
+            accel.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back,
             lay.soa64, lay.ids, lay.size, pre, np.float32(EDGE_EPS[np.dtype(np.float32)]),
             EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32,
             record, *caps)
@@ -437,7 +458,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     shared_o32 = np.zeros(3, dtype=np.float32)
     if shared_origin and r > 0:
         with np.errstate(over="ignore"):
-            shared_o32 = np.array([np.float32(o[0, k] - accel.soa64.origin[k]) for k in range(3)], dtype=np.float32)
+            shared_o32 = np.array([np.float32(o[0, k] - accel.origin[k]) for k in range(3)], dtype=np.float32)
     pre = _shared_stack(accel, shared_o32) if shared_origin and r > 0 else _NO_STACK
     parts = threads.chunked(
         lambda a, b: _jit_chunk(accel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, pre, record, first_only,
@@ -480,7 +501,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     # one origin as the float32 test sees it (equal float64 rows are: the quick test)
     if shared_origin and o.shape[0] > 0 and not (o == o[:1]).all():
         with np.errstate(over="ignore"):
-            o32 = (o - accel.soa64.origin).astype(np.float32)
+            o32 = (o - accel.origin).astype(np.float32)
         if not (o32 == o32[:1]).all():
             raise ValueError("shared_origin=True but the rays do not share one origin")
     if not exact64 and engine() == "numba":
@@ -488,7 +509,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     r = o.shape[0]
     ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)
     soa, soa64 = accel.soa, accel.soa64
-    o_local = o - soa64.origin
+    o_local = o - accel.origin
     dt = np.float64 if exact64 else np.float32
     with np.errstate(over="ignore"):  # beyond float32's range: inf (such rays go to float64, below)
         o_t = np.ascontiguousarray(o_local.T, dtype=dt)

@@ -7,7 +7,7 @@ work item the kernels hand each other is declared once): one table of :class:`It
 per kind of work, each item with what it counts and which units of the hardware charge
 it, and the typed arrays that hold it, one frozen dataclass per kind (structures of
 arrays: each field one count per pixel, photon or BSP level, an ``(items,)`` int64
-array):
+array, or int32 where a render keeps counts that fit in it):
 
 * :class:`RayPassWork`: per pixel, a ray pass (``rcast``, ``reflect``, ``refract``,
   and ``fgather``, the final-gather rays traced with the photon-map frame);
@@ -119,9 +119,9 @@ def _item_fields(items: tuple[Item, ...]):
 
 
 class WorkArrays(Mapping):
-    """Base of the typed work classes: equal-length ``(items,)`` int64 arrays, one per item.
+    """Base of the typed work classes: equal-length ``(items,)`` int64 (or int32) arrays, one per item.
 
-    Validated at construction (every field a 1-D int64 array, all of one length, no
+    Validated at construction (every field a 1-D int64 or int32 array, all of one length, no
     negative count); the arrays are stored as read-only views. Reads as a read-only
     mapping from item name to array (``KEYS`` in declaration order), as the program
     table prices work by name (``w["tri_tests"]``, ``w.items()``); the timing model
@@ -139,8 +139,8 @@ class WorkArrays(Mapping):
             where = f"{type(self).__name__}.{k}"
             if not isinstance(v, np.ndarray):
                 raise ValueError(f"{where}: expected a numpy array, got {type(v).__name__}")
-            if v.dtype != np.int64 or v.ndim != 1:
-                raise ValueError(f"{where}: expected a 1-D int64 array (one count per {self.ITEM}), "
+            if v.dtype not in (np.int64, np.int32) or v.ndim != 1:
+                raise ValueError(f"{where}: expected a 1-D int64 or int32 array (one count per {self.ITEM}), "
                                  f"got {v.dtype} of shape {v.shape}")
             if n is None:
                 n = v.shape[0]
@@ -158,7 +158,9 @@ class WorkArrays(Mapping):
     def from_mapping(cls, work: Mapping[str, np.ndarray], what: str | None = None):
         """From a render's dict (key -> integer array of any shape, read row-major).
 
-        The keys must be exactly :attr:`KEYS`; integer arrays are converted to int64.
+        The keys must be exactly :attr:`KEYS`; int32 and int64 arrays are kept as they
+        are (a render keeps per-pixel counts in int32 where they fit), other integer and
+        boolean arrays are converted to int64. Whoever sums them widens to int64.
         """
         what = what or cls.__name__
         if isinstance(work, cls):
@@ -172,7 +174,7 @@ class WorkArrays(Mapping):
         arrays = {}
         for k in cls.KEYS:
             v = np.asarray(work[k])
-            if v.dtype != np.int64:
+            if v.dtype not in (np.int64, np.int32):
                 if not (np.issubdtype(v.dtype, np.integer) or (v.dtype == np.bool_)):
                     raise ValueError(f"{what}.{k}: work counts must be integers, got {v.dtype}")
                 v = v.astype(np.int64)

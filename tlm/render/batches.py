@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tlm.kernels import threads
+from tlm.kernels import _malloc, threads
 from tlm.kernels.memory import Deferred, Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.progress import Timer, progress_bar
@@ -87,7 +87,8 @@ class Rendered:
     """What :func:`render_batches` computed over the whole image.
 
     ``radiance``: each pass's (H, W, 3) linear radiance (a work-only pass has none);
-    ``work``: each pass's (H, W) work counts; ``primary``: the AOVs and eye-ray counts;
+    ``work``: each pass's (H, W) work counts (int32 where they fit, else int64);
+    ``primary``: the AOVs and eye-ray counts;
     ``gbuffer``: the whole image's G-buffer when it was cast as one batch, else an
     :class:`~tlm.render.passes.ImageGBuffer` that casts it again on first use;
     ``photons``: the photon trace, when the pmap pass ran; ``gather_maps``: the pmap
@@ -120,8 +121,9 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
     the calling thread takes the batches in
     pixel order, settles each pass's charges on the carried pairs (the misses of the
     batches charged in order) and copies the batch into the image, while the next
-    batches run; at most a window of batches is in flight, so memory stays bounded by
-    the batch. The stages' seconds are then summed over the threads.
+    batches run; at most a window of batches is in flight, and they are cut so that the
+    window holds about ``render.batch_rays`` eye rays, so memory stays bounded by the batch.
+    The stages' seconds are then summed over the threads.
     """
     timer = Timer() if timer is None else timer
     names = tuple(plan(frame.scene, frame.cfg).run_names if passes is None else passes)
@@ -150,6 +152,7 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
         concurrent = threads.current() > 1 and len(batches) > 1
         if concurrent:
             _warm(frame, traced)
+        _malloc.trim()  # (the photon trace's and the kernels' layout's freed blocks)
 
         def one(i: int) -> _Batch:
             return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
@@ -170,9 +173,9 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
                 rad, wk = done.out[name]
                 if name in radiance:
                     radiance[name][at] = rad
-                counts = work.setdefault(name, {k: np.zeros(w * h, dtype=np.int64) for k in wk})
+                counts = work.setdefault(name, {})
                 for k, v in wk.items():
-                    counts[k][at] = v
+                    _put_counts(counts, k, v, at, w * h)
             _merge_tallies(gather_maps, done.per_map)
             if concurrent:
                 for k, s in done.timer.seconds.items():
@@ -185,10 +188,28 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
             if len(batches) == 1:
                 whole = g
             del g, done
+            _malloc.trim()  # (a batch's freed blocks, in every thread's arena: memory stays the batch's)
     radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
     work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
     return Rendered(radiance, work, primary, gbuffer, traced, gather_maps)
+
+
+_INT32 = np.iinfo(np.int32)
+
+
+def _put_counts(counts: dict[str, np.ndarray], key: str, values: np.ndarray, at: slice, n: int) -> None:
+    """Copy a batch's counts of ``key`` into the image's (``n`` pixels): int32 while every
+    count fits (half the memory of int64: 19 counts a pixel a pass are 160 MiB a pass at
+    1080p), int64 from the first batch with one that does not (the earlier batches' counts
+    widened). The counts are the same integers either way."""
+    fits = values.shape[0] == 0 or (int(values.min()) >= _INT32.min and int(values.max()) <= _INT32.max)
+    image = counts.get(key)
+    if image is None:
+        image = counts[key] = np.zeros(n, dtype=np.int32 if fits else np.int64)
+    elif not fits and image.dtype != np.int64:
+        image = counts[key] = image.astype(np.int64)
+    image[at] = values
 
 
 BATCHES_PER_THREAD = 3  # batches per thread when whole batches run at once: they differ in cost
@@ -198,13 +219,14 @@ MIN_BATCH_RAYS = 1024  # ... but none under this many eye rays (a batch's fixed 
 def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
     """The render's pixel batches (:func:`~tlm.render.passes.pixel_batches`): of
     ``batch_rays`` eye rays on one thread; on several, smaller ones, about
-    :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / n_threads`` eye rays
-    (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and balance,
-    and the batches in flight (twice the threads) hold about two batches of one thread's
-    memory. The cuts never change the results."""
+    :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / (2 n_threads)`` eye
+    rays (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and
+    balance, and the batches in flight (twice the threads: :func:`tlm.kernels.threads.ordered`)
+    hold about one batch of one thread: ``render.batch_rays`` bounds the render's memory
+    whatever the threads. The cuts never change the results."""
     if n_threads > 1:
         share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
-        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // n_threads)))
+        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // (2 * n_threads))))
     return pixel_batches(n_pixels, spp, batch_rays)
 
 
