@@ -38,3 +38,15 @@ def test_write_png_writes_the_pixels_exactly(tmp_path):
     with Image.open(tmp_path / "a.png") as im:
         assert im.format == "PNG" and im.mode == "RGB" and im.size == (7, 3)
         assert np.array_equal(np.asarray(im), rgb[:, ::-1])
+
+
+def test_to_srgb8_in_blocks_is_the_whole_image_conversion(monkeypatch):
+    from tlm.render import image
+
+    rng = np.random.default_rng(3)
+    lin = rng.random((7, 5, 3)) * 2.0
+    lin[0, 0, 0], lin[3, 2, 1], lin[6, 4, 2] = np.nan, np.inf, -0.5
+    whole = to_srgb8(lin, 0.8)
+    monkeypatch.setattr(image, "SRGB_BLOCK", 4)  # blocks that cut pixels apart
+    assert np.array_equal(image.to_srgb8(lin, 0.8), whole)
+    assert image.to_srgb8(np.zeros((0, 3, 3)), 1.0).shape == (0, 3, 3)

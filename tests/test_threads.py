@@ -165,6 +165,17 @@ def test_spans_cover_in_order():
     assert list(threads.ordered(lambda x: x * x, range(50), threads=3)) == [x * x for x in range(50)]
 
 
+def test_calls_in_flight_share_the_memory_budget():
+    """A worker of ``ordered`` is told how many calls may be in flight (twice the threads),
+    and a pass there takes that part of ``render.batch_rays`` as its ray budget."""
+    from tlm.render.passes import ray_budget
+
+    frame = type("F", (), {"cfg": config_from_dict({"scene": "cornell", "render": {"batch_rays": 1200}})})()
+    assert threads.share() == 1 and ray_budget(frame) == 1200
+    assert set(threads.ordered(lambda _: (threads.share(), ray_budget(frame)), range(9), threads=3)) == {(6, 200)}
+    assert list(threads.ordered(lambda _: threads.share(), range(2), threads=1)) == [1, 1]  # (plain calls)
+
+
 @pytest.mark.parametrize("value, says", [(0, "must be >= 1"), (-2, "must be >= 1"), ("two", "is not"),
                                          (1.5, "is not"), (True, "is not")])
 def test_bad_threads_is_an_input_error(value, says):

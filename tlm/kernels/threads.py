@@ -35,6 +35,7 @@ R = TypeVar("R")
 CHUNKS_PER_THREAD = 4  # chunks per thread: rays differ in cost, so a few each balance the load
 
 _THREADS: contextvars.ContextVar[int] = contextvars.ContextVar("tlm_threads", default=1)
+_SHARE: contextvars.ContextVar[int] = contextvars.ContextVar("tlm_share", default=1)
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
 
@@ -50,6 +51,13 @@ def available() -> int:
 def current() -> int:
     """The threads the kernels called from this thread use (1 outside :func:`using`)."""
     return _THREADS.get()
+
+
+def share() -> int:
+    """How many calls of :func:`ordered` may be in flight beside this one (1 outside a
+    worker): a call that bounds its memory by a budget (``render.batch_rays``) takes this
+    part of it, so the calls in flight together hold about one budget."""
+    return _SHARE.get()
 
 
 @contextlib.contextmanager
@@ -101,8 +109,9 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
 
     At most twice ``threads`` calls are in flight (submitted, not yet taken), so what the
     caller does with a result (charging cache pairs, copying into the output) overlaps
-    the next chunks' work while memory stays bounded. One thread: plain calls, in order.
-    The workers run with one thread each, so kernels they call do not split again.
+    the next chunks' work while memory stays bounded (:func:`share` says so to the calls).
+    One thread: plain calls, in order. The workers run with one thread each, so kernels
+    they call do not split again.
     """
     threads = current() if threads is None else threads
     items = list(items)
@@ -116,6 +125,7 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     nxt = 0
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
+    one.run(_SHARE.set, _SHARE.get() * window)
     try:
         while nxt < len(items) or pending:
             while nxt < len(items) and len(pending) < window:

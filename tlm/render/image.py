@@ -17,11 +17,23 @@ def auto_exposure(radiance: np.ndarray, percentile: float = 99.5) -> float:
     return 1.0 / level if level > 0 and np.isfinite(level) else 1.0
 
 
+SRGB_BLOCK = 1 << 16  # values converted together: the temporaries of a block, not of the image
+
+
 def to_srgb8(radiance: np.ndarray, exposure: float) -> np.ndarray:
-    """(H, W, 3) linear radiance -> (H, W, 3) uint8 sRGB, clipped."""
-    x = np.clip(np.nan_to_num(radiance * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.round(s * 255.0).astype(np.uint8)
+    """(H, W, 3) linear radiance -> (H, W, 3) uint8 sRGB, clipped.
+
+    Converted in blocks of :data:`SRGB_BLOCK` values (each value on its own), so a
+    1080p frame needs no whole-image float64 temporaries."""
+    radiance = np.asarray(radiance)
+    flat = radiance.reshape(-1)
+    out = np.empty(flat.shape[0], dtype=np.uint8)
+    for a in range(0, flat.shape[0], SRGB_BLOCK):
+        b = min(a + SRGB_BLOCK, flat.shape[0])
+        x = np.clip(np.nan_to_num(flat[a:b] * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+        out[a:b] = np.round(s * 255.0).astype(np.uint8)
+    return out.reshape(radiance.shape)
 
 
 def write_png(path: Path, rgb8: np.ndarray) -> None:

@@ -51,6 +51,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from tlm.config import RunConfig
+from tlm.kernels import threads
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
@@ -310,11 +311,14 @@ def shading_normals(frame: Frame, tri: np.ndarray, u: np.ndarray, v: np.ndarray)
 
 def ray_budget(frame: Frame) -> int:
     """Rays a pass traces and keeps the reads of together: ``render.batch_rays``, the eye rays
-    of a batch. The shadow rays of shaded points (:func:`_shade_lambertian`) and the rays of
-    a specular walk, all its bounces (:func:`specular_walk`), go in runs of whole pixels of
-    at most this many, so a pass holds no more than the batch's cast, whatever the number
-    of lights or the specular depth (a pixel whose own rays are more goes alone)."""
-    return frame.cfg.render.batch_rays
+    of a batch (on a worker of whole batches run at once, its share of them,
+    :func:`tlm.kernels.threads.share`). The shadow rays of shaded points
+    (:func:`_shade_lambertian`) and the rays of a specular walk, all its bounces
+    (:func:`specular_walk`), go in runs of whole pixels of at most this many, so a pass
+    holds no more than the batch's cast, whatever the number of lights or the specular
+    depth (a pixel whose own rays are more goes alone), and the passes in flight on the
+    threads no more than one batch's."""
+    return max(1, frame.cfg.render.batch_rays // threads.share())
 
 
 def _pixel_runs(owner: np.ndarray, size: int) -> list[np.ndarray]:
