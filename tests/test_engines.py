@@ -188,6 +188,35 @@ def test_deep_trees_and_small_buffers_rerun(monkeypatch):
     assert {1, 2, 3} <= set(seen) and seen[-1] == 0  # each buffer overflowed once at least
 
 
+def test_buffers_learned_on_the_accel_spare_the_reruns(monkeypatch):
+    """After a call whose buffers overflowed, the accel keeps what a ray needed, and the
+    next calls start with buffers that hold it: one call each, the same answers."""
+    monkeypatch.setenv("TLM_KERNELS", "numba")
+    scene = load_scene("room")
+    accel = build_accel(scene.triangles)
+    o, d, tmin, tmax, ignore = hard_rays(scene, 600, seed=5)
+    monkeypatch.setattr(traverse, "JIT_BUFFERS", (1 << 12, 1, 1))
+    seen = []
+    real = traverse._jit_trace
+
+    def spy(*args):
+        out = real(*args)
+        seen.append(out[0])
+        return out
+
+    monkeypatch.setattr(traverse, "_jit_trace", spy)
+    closest_hit(accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore)  # (not recorded: nothing to learn)
+    assert "_jit_per_ray" not in accel.__dict__ and seen == [0]
+    first = closest_hit(accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore, record=True)
+    assert len(seen) > 2 and set(seen[1:-1]) <= {2, 3} and seen[-1] == 0  # overflowed, then held
+    leaves, nodes = accel.__dict__["_jit_per_ray"]
+    assert leaves * 600 >= first.counts.leaf_visits.sum() and nodes * 600 >= first.counts.node_visits.sum()
+    seen.clear()
+    again = closest_hit(accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore, record=True)
+    assert seen == [0]
+    assert as_bytes(again) == as_bytes(first)
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

@@ -379,8 +379,8 @@ def _loop_numpy(accel, o, d, inv, ta, tb, o_t, d_t, tmin_t, tmax_t, ignore, reco
 
 
 # the compiled kernel's starting buffers: the widest level list (entries), and the
-# visited leaves and entered nodes per ray; one that overflows is doubled and the
-# packet rerun
+# visited leaves and entered nodes per ray (or what earlier calls on the accel needed,
+# _learn); one that overflows is doubled and the packet rerun
 JIT_BUFFERS = (1 << 12, 8, 16)
 
 
@@ -403,6 +403,9 @@ def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, share
 
     tree, lay = accel.tree, accel.jit_layout
     widest, leaves, nodes = JIT_BUFFERS
+    learned = accel.__dict__.get("_jit_per_ray") if record else None  # (leaves, nodes) a ray took before
+    if learned is not None:
+        leaves, nodes = max(leaves, learned[0]), max(nodes, learned[1])
     r = b - a
     caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
     while True:
@@ -413,8 +416,22 @@ def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, share
             EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32,
             record, *caps)
         if status == _jit.OK:
+            if record and r:
+                _learn(accel, int(out[6].sum()), int(out[4].sum()), r)
             return out
         caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
+
+
+def _learn(accel: TriangleAccel, leaves: int, nodes: int, r: int) -> None:
+    """Keep on the accel the recorded leaves and nodes per ray a call needed (with a
+    quarter to spare; never less than before), so the next calls size their buffers
+    for the scene's rays and seldom trace a chunk again (the long photon rays of a large
+    scene overflowed the starting buffers three times a chunk). Only sizes: no result
+    depends on them."""
+    before = accel.__dict__.get("_jit_per_ray", (0, 0))
+    need = (-(-5 * leaves // (4 * r)), -(-5 * nodes // (4 * r)))
+    if need[0] > before[0] or need[1] > before[1]:
+        accel.__dict__["_jit_per_ray"] = (max(need[0], before[0]), max(need[1], before[1]))  # (one assignment)
 
 
 _NO_STACK = np.empty((0, 0), dtype=np.float32)  # the kernel's ``pre`` where no origin is shared
