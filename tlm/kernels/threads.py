@@ -138,6 +138,7 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
 
 
 _FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
+_FORKED_SHARE = 1  # their :func:`share` (the calls in flight: twice the processes)
 _FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
 
 
@@ -165,8 +166,12 @@ def _forked_init() -> None:
 
 
 def _call_forked(item):
-    with using(1):  # (a worker's kernels do not split again)
-        return _FORKED(item)
+    token = _SHARE.set(_FORKED_SHARE)
+    try:
+        with using(1):  # (a worker's kernels do not split again)
+            return _FORKED(item)
+    finally:
+        _SHARE.reset(token)
 
 
 def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator[R]:
@@ -180,10 +185,10 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    global _FORKED
+    global _FORKED, _FORKED_SHARE
     items = list(items)
     with _FORK_LOCK:
-        _FORKED = fn
+        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * 2 * processes
         try:
             with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
                                      initializer=_forked_init) as pool:
@@ -199,7 +204,7 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
                     for f in pending:
                         f.cancel()
         finally:
-            _FORKED = None
+            _FORKED, _FORKED_SHARE = None, 1
 
 
 def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:
