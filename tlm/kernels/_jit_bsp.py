@@ -11,7 +11,8 @@ centre-of-mass sums, then the stable left/right storage into ``P'``), written as
   label produce (``P`` is sorted by node).
 
 The splits themselves (``s`` from the sums, clamped to the node) stay in numpy: they
-are per node, not per element.
+are per node, not per element. Compiled ``nogil``: the photon maps' trees are built on
+threads at once (:func:`tlm.kernels.photons.trace_photons`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from numba import njit
 from tlm.kernels._jit import _mn, _mx
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def level_sums(items, label, lo_col, hi_col, nlo, nhi, nodes, points):
     """Elements and summed masses per node: ``bincount(label)``, ``bincount(label, c)``."""
     counts = np.zeros(nodes, dtype=np.int64)
@@ -42,7 +43,7 @@ def level_sums(items, label, lo_col, hi_col, nlo, nhi, nodes, points):
     return counts, sums
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def level_partition(items, label, lo_col, hi_col, s, nodes, points, capacity):
     """``P'``: every node's left elements (``x_lo < s``), then its right ones
     (``x_hi >= s``; for points the others), in buffer order.

@@ -699,10 +699,11 @@ def trace_photons(
                          emitted=n)
 
     every = {name: cat(stored, name) for name in stored}
-    whole = None
+    maps = [(every, every["caustic"]), (every, ~every["caustic"])]
     if global_map:
         full_arrays = {name: cat(full, name) for name in full}
-        whole = one_map(full_arrays, np.ones(full_arrays["position"].shape[0], dtype=bool))
-    photons = PhotonMaps(one_map(every, every["caustic"]), one_map(every, ~every["caustic"]), emitted=n,
-                         global_map=whole)
+        maps.append((full_arrays, np.ones(full_arrays["position"].shape[0], dtype=bool)))
+    # the maps' trees are built at once on the threads (each on its own: the same trees)
+    caustic, indirect, *whole = threads.ordered(lambda m: one_map(*m), maps)
+    photons = PhotonMaps(caustic, indirect, emitted=n, global_map=whole[0] if whole else None)
     return PhotonTrace(photons, work)
