@@ -7,7 +7,9 @@ tests a batch of leaves ahead and discards the excess), and no (slot, ray) block
 materialized. Every floating-point operation is the numpy version's, in the same order
 and precision: float32 for the block test (:func:`intersect.closest_slots`), float64
 for the intervals, the check (:func:`intersect.check`) and the fallback
-(:func:`intersect.closest_slots64`). numba compiles without fast-math, so nothing is
+(:func:`intersect.closest_slots64`); where an operand provably is not NaN, numpy's
+NaN-propagating minimum and maximum are the plain ones, one instruction each (the same
+values: :func:`_key`, :func:`_lists`). numba compiles without fast-math, so nothing is
 reassociated or fused into an FMA. Hits, work counts and the memory touched are
 therefore bit-identical to the numpy path, which stays the reference
 (``TLM_KERNELS=numpy``); tests compare the two and a golden file pins both.
@@ -133,15 +135,29 @@ def _dot(ax, ay, az, bx, by, bz):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _lt_min(a, b):
+    """``a if a < b else b``: :func:`_mn` where neither operand is NaN (one instruction
+    on x86, whose minimum returns its second operand on a NaN or a tie)."""
+    return a if a < b else b
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _key(u, v, tp, idbits, ign32, eps):
     """A pair's key from ``u, v`` and ``t' = t - tmin``: the bits of ``t'`` if accepted,
-    0xFFFFFFFF if rejected (``w`` NaN or negative, or the ray's ignored triangle)."""
+    0xFFFFFFFF if rejected (``w`` NaN or negative, or the ray's ignored triangle), where
+    ``w = min(min(1 - (u + v), min(u, v)) + eps, t')`` with :func:`_mn`'s minimum.
+
+    :func:`_mn` propagates a NaN operand, so ``w`` is NaN exactly when ``1 - (u + v)``
+    (NaN where ``u`` or ``v`` is) or ``t'`` is, and ``+ eps`` (finite) makes no NaN;
+    without a NaN, :func:`_mn` is :func:`_lt_min`. So ``w`` is computed with
+    :func:`_lt_min` and the NaN test is one unordered compare of ``1 - (u + v)`` and
+    ``t'``: the same key for every input, in fewer vector operations."""
     one = np.float32(1.0)
-    w = one - (u + v)
-    w = _mn(w, _mn(u, v))
+    w1 = one - (u + v)
+    w = _lt_min(w1, _lt_min(u, v))
     w = w + eps
-    w = _mn(w, tp)
-    bad = (w != w) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
+    w = _lt_min(w, tp)
+    bad = (w1 != w1) | (tp != tp) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
         np.float32(idbits).view(np.int32) == ign32)
     return _REJECT if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
 
@@ -281,6 +297,95 @@ def _lossy(x0, x1, x2, y0, y1, y2):
     return not (e0 <= lim and e1 <= lim and e2 <= lim)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _lists(lnode, la, lb, split, levels, level_cap, o0, o1, o2, d0, d1, d2, ic0, ic1, ic2, ta, tb, record,
+           node_ids, n_node_out, node_cap):
+    """Phase 1 for one ray (:func:`tlm.kernels.traverse._leaf_lists`): the level lists,
+    near child first, from the root interval ``ta <= tb`` (neither NaN). Returns
+    ``status, cur, m, visits, n_node_out``: the last list is ``m`` entries from ``cur``
+    in ``lnode, la, lb`` (two halves of ``level_cap``), ``visits`` the nodes entered.
+
+    No interval in a list is NaN (an entry is kept only where its ``a <= b``), so
+    ``_mn(b, ts)`` is ``b if b < ts else ts`` and ``_mx(a, ts)`` is ``a if a > ts
+    else ts`` (the same values, a NaN ``ts`` included); indices are unsigned (no
+    negative-index wraparound); the side of the near child is the level's.
+    """
+    cur = 0
+    m = 1
+    visits = 0
+    lnode[0] = 0
+    la[0] = ta
+    lb[0] = tb
+    axis = 0
+    for _ in range(levels):
+        if axis == 0:
+            oc, dc, ic = o0, d0, ic0
+        elif axis == 1:
+            oc, dc, ic = o1, d1, ic1
+        else:
+            oc, dc, ic = o2, d2, ic2
+        axis = axis + 1 if axis < 2 else 0
+        visits += m
+        if record:
+            if n_node_out + m > node_cap:
+                return FULL_NODES, cur, m, visits, n_node_out
+            for e in range(m):
+                node_ids[np.uint64(n_node_out + e)] = lnode[np.uint64(cur + e)]
+            n_node_out += m
+        if 2 * m > level_cap:
+            return FULL_LEVEL, cur, m, visits, n_node_out
+        nxt = level_cap - cur
+        k = nxt
+        if dc == 0.0:
+            for e in range(m):
+                p = np.uint64(cur + e)
+                node = lnode[p]
+                a = la[p]
+                b = lb[p]
+                near_right = oc >= split[np.uint64(node)]
+                left = 2 * node + 1
+                if a <= b:
+                    q = np.uint64(k)
+                    lnode[q] = left + (1 if near_right else 0)
+                    la[q] = a
+                    lb[q] = b
+                    k += 1
+                if np.inf <= b:
+                    q = np.uint64(k)
+                    lnode[q] = left + (0 if near_right else 1)
+                    la[q] = np.inf
+                    lb[q] = b
+                    k += 1
+        else:
+            nr = 1 if dc < 0.0 else 0
+            for e in range(m):
+                p = np.uint64(cur + e)
+                node = lnode[p]
+                a = la[p]
+                b = lb[p]
+                ts = (split[np.uint64(node)] - oc) * ic
+                near_b = b if b < ts else ts
+                far_a = a if a > ts else ts
+                left = 2 * node + 1
+                if a <= near_b:
+                    q = np.uint64(k)
+                    lnode[q] = left + nr
+                    la[q] = a
+                    lb[q] = near_b
+                    k += 1
+                if far_a <= b:
+                    q = np.uint64(k)
+                    lnode[q] = left + (1 - nr)
+                    la[q] = far_a
+                    lb[q] = b
+                    k += 1
+        m = k - nxt
+        cur = nxt
+        if m == 0:
+            break
+    return OK, cur, m, visits, n_node_out
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
           split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size, pre,
@@ -349,59 +454,13 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         if not ta <= tb:
             continue
         # phase 1: the level lists, near child first (_leaf_lists)
-        cur = 0
-        m = 1
-        lnode[0] = 0
-        la[0] = ta
-        lb[0] = tb
-        for j in range(levels):
-            axis = j % 3
-            oc = o[i, axis]
-            dc = d[i, axis]
-            ic = ic0 if axis == 0 else (ic1 if axis == 1 else ic2)
-            node_visits[i] += m
-            if record:
-                if n_node_out + m > node_cap:
-                    return FULL_NODES, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
-                        tri_tests, node_ids, leaf_ids
-                for e in range(m):
-                    node_ids[n_node_out + e] = lnode[cur + e]
-                n_node_out += m
-            if 2 * m > level_cap:
-                return FULL_LEVEL, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
-                    tri_tests, node_ids, leaf_ids
-            nxt = level_cap - cur
-            k = 0
-            flat = dc == 0.0
-            for e in range(m):
-                node = lnode[cur + e]
-                a = la[cur + e]
-                b = lb[cur + e]
-                s = split[node]
-                if flat:
-                    near_right = oc >= s
-                    near_b = b
-                    far_a = np.inf
-                else:
-                    ts = (s - oc) * ic
-                    near_right = dc < 0.0
-                    near_b = _mn(b, ts)
-                    far_a = _mx(a, ts)
-                left = 2 * node + 1
-                if a <= near_b:
-                    lnode[nxt + k] = left + (1 if near_right else 0)
-                    la[nxt + k] = a
-                    lb[nxt + k] = near_b
-                    k += 1
-                if far_a <= b:
-                    lnode[nxt + k] = left + (0 if near_right else 1)
-                    la[nxt + k] = far_a
-                    lb[nxt + k] = b
-                    k += 1
-            m = k
-            cur = nxt
-            if m == 0:
-                break
+        status, cur, m, visits, n_node_out = _lists(
+            lnode, la, lb, split, levels, level_cap, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
+            ic0, ic1, ic2, ta, tb, record, node_ids, n_node_out, node_cap)
+        node_visits[i] = visits
+        if status != OK:
+            return status, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
+                tri_tests, node_ids, leaf_ids
         cnt[i] = m
         if m == 0:
             continue
