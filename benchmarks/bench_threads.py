@@ -8,7 +8,7 @@ batch: what ``tlm run`` spends before the timing model) at ``render.threads`` = 
 one run, one thread count after the other. A first, untimed render at the smallest
 resolution loads the compiled kernels. Prints, per thread count, the wall seconds (the
 best of ``--repeat``), the speed-up over one thread and the parallel efficiency
-(speed-up / threads), and the seconds of the stages (BSP build, photon trace, the ray
+(speed-up / threads), and the seconds of the stages (scene load, BSP build, photon trace, the ray
 passes, the photon-map pass; the passes' summed over the workers when whole batches run
 at once, so they exceed the wall seconds there).
 
@@ -16,7 +16,9 @@ Checks that the radiance of every frame and every work count are byte-identical 
 one thread's at every count (FAIL and exit 1 otherwise), and the bar of issue 25: two
 threads at least ``1.8x`` one thread on the whole frame. The bar means something only
 on a machine with two idle cores or more; on a busy or a two-core machine shared with
-other work it says what the machine had to spare, not what the code does.
+other work it says what the machine had to spare, not what the code does: so the bench
+first prints how fast as many busy-loop processes as the largest thread count run at
+once against one alone (:func:`spare_cores`).
 
 Resolution: by default a fraction of the configs' own that renders in about a minute at
 one thread on a current core (``--quick``: 64 x 64, seconds; ``--full``: the configs' own
@@ -47,7 +49,7 @@ SPEEDUP_BAR = 1.8  # issue 25: two threads at least 1.8x one thread on the whole
 # the default resolutions: a whole frame in about a minute at one thread
 DEFAULT_RESOLUTION = {"cornell_pmap": [160, 160], "conference": [128, 128]}
 QUICK_RESOLUTION = [64, 64]
-STAGES = {"build": ("build_bsp",), "photons": ("photon_trace",), "cast+rays": ("cast", "pass_rcast", "pass_reflect",
+STAGES = {"load": ("load_scene",), "build": ("build_bsp",), "photons": ("photon_trace",), "cast+rays": ("cast", "pass_rcast", "pass_reflect",
                                                                               "pass_refract"),
           "pmap": ("pass_pmap", "pass_fgather")}
 
@@ -63,6 +65,27 @@ def digest(res) -> str:
             h.update(f"{name}.{k}".encode())
             h.update(np.ascontiguousarray(res.work[name][k]).tobytes())
     return h.hexdigest()[:16]
+
+
+def _spin(_=None) -> float:
+    """Seconds of a fixed pure-Python busy loop (no memory traffic, no lock)."""
+    t0 = time.perf_counter()
+    s = 0
+    for i in range(10_000_000):
+        s += i
+    return time.perf_counter() - t0
+
+
+def spare_cores(n: int) -> float:
+    """How fast ``n`` busy-loop processes at once run against one alone (1.0: ``n``
+    whole cores to spare; less: the machine is shared or its cores are not whole)."""
+    import multiprocessing
+
+    alone = min(_spin() for _ in range(2))
+    with multiprocessing.get_context("spawn").Pool(n) as pool:
+        pool.map(_spin, range(n))  # (the workers start)
+        together = max(pool.map(_spin, range(n)))
+    return alone / together
 
 
 def timed(path: Path, overrides: list[str], threads: int):
@@ -121,6 +144,9 @@ def main() -> None:
             ap.error("--threads must be >= 1")
         counts = [1, *sorted(set(args.threads) - {1})]
     print(f"{available()} CPUs available; threads {counts[0]}..{counts[-1]}")
+    if counts[-1] > 1:
+        print(f"the machine: {counts[-1]} busy-loop processes at once each ran at "
+              f"{spare_cores(counts[-1]):.2f}x one alone's speed (1.00: the cores are there to spare)")
     for path in args.configs:
         res = QUICK_RESOLUTION if args.quick else DEFAULT_RESOLUTION.get(path.stem, [128, 128])
         overrides = [] if args.full else [f"resolution=[{res[0]},{res[1]}]"]
