@@ -8,9 +8,9 @@ batch: what ``tlm run`` spends before the timing model) at ``render.threads`` = 
 one run, one thread count after the other. A first, untimed render at the smallest
 resolution loads the compiled kernels. Prints, per thread count, the wall seconds (the
 best of ``--repeat``), the speed-up over one thread and the parallel efficiency
-(speed-up / threads), and the seconds of the stages (scene load, BSP build, photon trace, the ray
-passes, the photon-map pass; the passes' summed over the workers when whole batches run
-at once, so they exceed the wall seconds there).
+(speed-up / threads), and the seconds of the stages (scene load, BSP build, photon
+trace, the ray passes, the photon-map pass; the passes' summed over the workers when
+whole batches run at once, so they exceed the wall seconds there).
 
 Checks that the radiance of every frame and every work count are byte-identical to
 one thread's at every count (FAIL and exit 1 otherwise), and the bar of issue 25: two
@@ -49,8 +49,8 @@ SPEEDUP_BAR = 1.8  # issue 25: two threads at least 1.8x one thread on the whole
 # the default resolutions: a whole frame in about a minute at one thread
 DEFAULT_RESOLUTION = {"cornell_pmap": [160, 160], "conference": [128, 128]}
 QUICK_RESOLUTION = [64, 64]
-STAGES = {"load": ("load_scene",), "build": ("build_bsp",), "photons": ("photon_trace",), "cast+rays": ("cast", "pass_rcast", "pass_reflect",
-                                                                              "pass_refract"),
+STAGES = {"load": ("load_scene",), "build": ("build_bsp",), "photons": ("photon_trace",),
+          "cast+rays": ("cast", "pass_rcast", "pass_reflect", "pass_refract"),
           "pmap": ("pass_pmap", "pass_fgather")}
 
 
