@@ -41,7 +41,7 @@ def _assert_same(a, b) -> None:
     for name in a.work:
         assert list(a.work[name]) == list(b.work[name])
         for k, v in a.work[name].items():
-            assert v.dtype == b.work[name][k].dtype == np.int64
+            assert v.dtype == b.work[name][k].dtype == np.int32
             np.testing.assert_array_equal(v, b.work[name][k], err_msg=f"{name}.{k}")
     for f in ("origin", "direction", "t", "triangle", "normal", "sees_light"):
         np.testing.assert_array_equal(getattr(a.primary, f), getattr(b.primary, f), err_msg=f)
