@@ -167,15 +167,10 @@ def test_empty_and_missing_packets(scene_accel, monkeypatch):
     assert (inverted.triangle == -1).all()
 
 
-@pytest.mark.slow
-def test_deep_trees_and_small_buffers_rerun(monkeypatch):
-    """A deep tree and tiny starting buffers: every buffer overflows, the kernel reruns
-    with larger ones, and the answers still equal numpy's."""
-    scene = load_scene("room")
-    accel = build_accel(scene.triangles, levels=13)
-    o, d, tmin, tmax, ignore = hard_rays(scene, 1500, seed=3)
-    monkeypatch.setattr(traverse, "JIT_BUFFERS", (2, 1, 1))
-    seen = []
+@pytest.fixture
+def statuses(monkeypatch) -> list[int]:
+    """The status of every call of the compiled kernel (0: done; else the buffer that overflowed)."""
+    seen: list[int] = []
     real = traverse._jit_trace
 
     def spy(*args):
@@ -184,11 +179,23 @@ def test_deep_trees_and_small_buffers_rerun(monkeypatch):
         return out
 
     monkeypatch.setattr(traverse, "_jit_trace", spy)
+    return seen
+
+
+@pytest.mark.slow
+def test_deep_trees_and_small_buffers_rerun(monkeypatch, statuses):
+    """A deep tree and tiny starting buffers: every buffer overflows, the kernel reruns
+    with larger ones, and the answers still equal numpy's."""
+    scene = load_scene("room")
+    accel = build_accel(scene.triangles, levels=13)
+    o, d, tmin, tmax, ignore = hard_rays(scene, 1500, seed=3)
+    monkeypatch.setattr(traverse, "JIT_BUFFERS", (2, 1, 1))
+    seen = statuses
     assert_same(monkeypatch, closest_hit, accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore, record=True)
     assert {1, 2, 3} <= set(seen) and seen[-1] == 0  # each buffer overflowed once at least
 
 
-def test_buffers_learned_on_the_accel_spare_the_reruns(monkeypatch):
+def test_buffers_learned_on_the_accel_spare_the_reruns(monkeypatch, statuses):
     """After a call whose buffers overflowed, the accel keeps what a ray needed, and the
     next calls start with buffers that hold it: one call each, the same answers."""
     monkeypatch.setenv("TLM_KERNELS", "numba")
@@ -196,15 +203,7 @@ def test_buffers_learned_on_the_accel_spare_the_reruns(monkeypatch):
     accel = build_accel(scene.triangles)
     o, d, tmin, tmax, ignore = hard_rays(scene, 600, seed=5)
     monkeypatch.setattr(traverse, "JIT_BUFFERS", (1 << 12, 1, 1))
-    seen = []
-    real = traverse._jit_trace
-
-    def spy(*args):
-        out = real(*args)
-        seen.append(out[0])
-        return out
-
-    monkeypatch.setattr(traverse, "_jit_trace", spy)
+    seen = statuses
     closest_hit(accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore)  # (not recorded: nothing to learn)
     assert "_jit_per_ray" not in accel.__dict__ and seen == [0]
     first = closest_hit(accel, o, d, tmin=tmin, tmax=tmax, ignore=ignore, record=True)
