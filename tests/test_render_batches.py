@@ -92,3 +92,29 @@ def test_image_counts_are_int32_until_a_count_does_not_fit(reflect_frames):
     assert counts["k"].dtype == np.int64 and counts["k"].tolist() == [1, 2, big, 3, 4, 5]
     _put_counts(counts, "neg", np.array([-big - 1]), slice(0, 1), 1)  # (below int32 too)
     assert counts["neg"].dtype == np.int64 and counts["neg"][0] == -big - 1
+
+
+def test_freed_memory_is_given_back_where_glibc_allows(monkeypatch):
+    """``release_memory`` (glibc's malloc_trim, called between stages and batches) returns
+    freed heap blocks, which the allocator tuning keeps otherwise; it leaves the allocator
+    alone when asked to (``TLM_NO_MALLOPT=1``)."""
+    import ctypes.util
+    import platform
+
+    from tlm.kernels import _malloc, release_memory
+
+    def rss_mib() -> float:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * 4096 / 2**20
+
+    if not (platform.system() == "Linux" and platform.libc_ver()[0] == "glibc" and ctypes.util.find_library("c")
+            and _malloc.TUNED):
+        pytest.skip("glibc's allocator, tuned, is what this checks")
+    blocks = [np.ones(1 << 17) for _ in range(160)]  # 160 blocks of 1 MiB: heap, not mmap
+    held = rss_mib()
+    del blocks
+    assert rss_mib() > held - 40  # (freed, but kept by the tuned allocator)
+    assert release_memory() is True
+    assert rss_mib() < held - 100  # given back
+    monkeypatch.setenv("TLM_NO_MALLOPT", "1")
+    assert release_memory() is False

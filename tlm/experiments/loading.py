@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import RunConfig
-from tlm.kernels import _malloc
+from tlm.kernels import release_memory
 from tlm.kernels.traverse import build_accel
 from tlm.progress import Timer
 from tlm.render.passes import Frame, GBuffer, cast
@@ -36,7 +36,7 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
         bar.set_description(f"build BSP ({scene.n_triangles} triangles)")
     with timer.stage("build_bsp"):
         accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
-    _malloc.trim()  # (the build's freed blocks)
+    release_memory()  # (the build's freed blocks)
     return Frame.create(scene, accel, cfg)
 
 

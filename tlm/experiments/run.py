@@ -47,7 +47,7 @@ from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import git_revision, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
-from tlm.kernels import _malloc, threads
+from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
 from tlm.progress import Ticking, Timer, progress_bar
@@ -183,7 +183,7 @@ def simulate_run(res: RenderResult, programs: Programs, progress: bool = False, 
                                                postfix=f"{res.cfg.arch.frames} frames") as bar, Ticking(bar):
         timing = simulate(res.functional(), programs, res.cfg.arch)
         bar.update()
-    _malloc.trim()  # (the model's freed blocks, before the outputs are written)
+    release_memory()  # (the model's freed blocks, before the outputs are written)
     return timing
 
 

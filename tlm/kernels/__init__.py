@@ -6,3 +6,4 @@ timing layer can turn work into cycles per packet.
 """
 
 from tlm.kernels import _malloc  # noqa: F401  (allocator tuning, speed only)
+from tlm.kernels._malloc import trim as release_memory  # noqa: F401  (freed blocks back to the system)

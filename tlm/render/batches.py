@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from tlm.kernels import _malloc, threads
+from tlm.kernels import release_memory, threads
 from tlm.kernels.memory import Deferred, Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.progress import Timer, progress_bar
@@ -152,7 +152,7 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
         concurrent = threads.current() > 1 and len(batches) > 1
         if concurrent:
             _warm(frame, traced)
-        _malloc.trim()  # (the photon trace's and the kernels' layout's freed blocks)
+        release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
 
         def one(i: int) -> _Batch:
             return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
@@ -188,7 +188,7 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
             if len(batches) == 1:
                 whole = g
             del g, done
-            _malloc.trim()  # (a batch's freed blocks, in every thread's arena: memory stays the batch's)
+            release_memory()  # (a batch's freed blocks, in every thread's arena: memory stays the batch's)
     radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
     work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
