@@ -63,7 +63,7 @@ def digest(res) -> str:
     for name in sorted(res.work):
         for k in sorted(res.work[name]):
             h.update(f"{name}.{k}".encode())
-            h.update(np.ascontiguousarray(res.work[name][k]).tobytes())
+            h.update(np.ascontiguousarray(res.work[name][k], dtype=np.int64).tobytes())  # (the counts, not their width)
     return h.hexdigest()[:16]
 
 

@@ -216,6 +216,16 @@ def test_buffers_learned_on_the_accel_spare_the_reruns(monkeypatch, statuses):
     assert as_bytes(again) == as_bytes(first)
 
 
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+def test_prepare_builds_what_the_engine_reads(monkeypatch, engine):
+    monkeypatch.setenv("TLM_KERNELS", engine)
+    accel = build_accel(load_scene("cornell").triangles)
+    assert not {"jit_layout", "soa", "soa64"} & set(accel.__dict__)  # (built on first use)
+    assert accel.prepare() is accel
+    built = {"jit_layout"} if engine == "numba" else {"soa", "soa64"}
+    assert {"jit_layout", "soa", "soa64"} & set(accel.__dict__) == built
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

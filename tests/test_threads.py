@@ -174,6 +174,7 @@ def test_calls_in_flight_share_the_memory_budget():
     assert threads.share() == 1 and ray_budget(frame) == 1200
     assert set(threads.ordered(lambda _: (threads.share(), ray_budget(frame)), range(9), threads=3)) == {(6, 200)}
     assert list(threads.ordered(lambda _: threads.share(), range(2), threads=1)) == [1, 1]  # (plain calls)
+    assert set(threads.ordered(lambda _: threads.share(), range(2), threads=3)) == {2}  # (two calls: two shares)
     if threads.can_fork():  # (opt-in: TLM_FORK_WORKERS=1) forked workers are told the same
         assert set(threads.forked(lambda _: threads.share(), range(5), 2)) == {4}
 

@@ -267,7 +267,8 @@ def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: b
     """Render every frame ``config`` plans (its ``mode``) over the whole image.
 
     The result (a :class:`~tlm.experiments.run.RenderResult`) holds each pass's
-    ``radiance`` ((H, W, 3) linear, float64) and ``work`` (pass -> count -> (H, W) int64),
+    ``radiance`` ((H, W, 3) linear, float64) and ``work`` (pass -> count -> (H, W) int32,
+    int64 for a count that does not fit),
     the ``composite``, the eye rays' ``aov`` and ``work_totals()``, the ``scene``, the
     ``plan`` (passes run and left out), the photon map (``photons``) and the photon-map
     frame's ``error`` against its cached reference.

@@ -15,7 +15,7 @@ output. Contents::
     images/composite.png
     radiance/<pass>.npy       float32 (H, W, 3) linear radiance, and composite.npy
     aov/primary.npz           origin, direction, t, triangle, normal of the eye rays
-    aov/work.npz              per-pixel work counts, "<pass>.<count>" -> (H, W) int64
+    aov/work.npz              per-pixel work counts, "<pass>.<count>" -> (H, W) int32 (int64 where one does not fit)
 
 Images and ``results.json`` are always written; ``aov/``, ``radiance/`` and ``trace.json``
 are the optional :data:`OUTPUTS` (``tlm run --outputs``; all three by default).

@@ -661,6 +661,7 @@ def trace_photons(
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
         return work, stored, full, pairs
 
+    accel.prepare()  # (the kernel's constants, built here before the chunks run on threads)
     spans = threads.spans(n, PHOTON_MIN_CHUNK)
     if batch_rays is not None:  # chunks of at most batch_rays rays, all bounces
         most = max(1, batch_rays // max(1, max_bounces))

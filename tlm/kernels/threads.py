@@ -125,7 +125,7 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     nxt = 0
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
-    one.run(_SHARE.set, _SHARE.get() * window)
+    one.run(_SHARE.set, _SHARE.get() * min(window, len(items)))  # (the calls that can be in flight)
     try:
         while nxt < len(items) or pending:
             while nxt < len(items) and len(pending) < window:
@@ -188,7 +188,7 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     global _FORKED, _FORKED_SHARE
     items = list(items)
     with _FORK_LOCK:
-        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * 2 * processes
+        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * min(2 * processes, max(1, len(items)))
         try:
             with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
                                      initializer=_forked_init) as pool:

@@ -63,10 +63,11 @@ class TriangleAccel:
     ``k``'s triangles are slots ``leaf_first[k]:leaf_last[k]``. Vertices are stored
     relative to ``origin``, the centre of the root box.
 
-    Both are computed from ``triangles`` on first use and kept: the numpy engine reads
-    them. The compiled engine reads only its own padded copy (:attr:`jit_layout`), which
-    is built from the triangles without keeping them, so a frame rendered by it holds
-    the constants once (a slot is about 200 bytes there, not 450).
+    Both are computed from ``triangles`` (the scene's array, not a copy: a scene is
+    never changed in place) on first use and kept: the numpy engine reads them. The
+    compiled engine reads only its own padded copy (:attr:`jit_layout`), which is built
+    from the triangles without keeping them, so a frame rendered by it holds the
+    constants once (a slot is about 200 bytes there, not 450).
     """
 
     tree: BSPTree
@@ -105,6 +106,16 @@ class TriangleAccel:
         from tlm.kernels import _jit
 
         return _jit.layout(self)
+
+    def prepare(self) -> TriangleAccel:
+        """Build what the selected engine reads (:attr:`jit_layout`, or :attr:`soa` and
+        :attr:`soa64`) now, on the calling thread, before threads trace at once (a
+        ``cached_property`` is not built under a lock: two threads could each build it)."""
+        if engine() == "numba":
+            self.jit_layout  # noqa: B018
+        else:
+            self.soa, self.soa64  # noqa: B018
+        return self
 
 
 def build_accel(
@@ -416,18 +427,21 @@ def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, share
             EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32,
             record, *caps)
         if status == _jit.OK:
-            if record and r:
+            if record and r >= LEARN_MIN_RAYS:
                 _learn(accel, int(out[6].sum()), int(out[4].sum()), r)
             return out
         caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
 
 
+LEARN_MIN_RAYS = 256  # a call of fewer rays (a tail, one pixel) says too little about the rest
+
+
 def _learn(accel: TriangleAccel, leaves: int, nodes: int, r: int) -> None:
-    """Keep on the accel the recorded leaves and nodes per ray a call needed (with a
-    quarter to spare; never less than before), so the next calls size their buffers
-    for the scene's rays and seldom trace a chunk again (the long photon rays of a large
-    scene overflowed the starting buffers three times a chunk). Only sizes: no result
-    depends on them."""
+    """Keep on the accel the recorded leaves and nodes per ray a call of at least
+    :data:`LEARN_MIN_RAYS` rays needed (with a quarter to spare; never less than
+    before), so the next calls size their buffers for the scene's rays and seldom trace
+    a chunk again (the long photon rays of a large scene overflowed the starting buffers
+    three times a chunk). Only sizes: no result depends on them."""
     before = accel.__dict__.get("_jit_per_ray", (0, 0))
     need = (-(-5 * leaves // (4 * r)), -(-5 * nodes // (4 * r)))
     if need[0] > before[0] or need[1] > before[1]:

@@ -200,8 +200,8 @@ _INT32 = np.iinfo(np.int32)
 
 def _put_counts(counts: dict[str, np.ndarray], key: str, values: np.ndarray, at: slice, n: int) -> None:
     """Copy a batch's counts of ``key`` into the image's (``n`` pixels): int32 while every
-    count fits (half the memory of int64: 19 counts a pixel a pass are 160 MiB a pass at
-    1080p), int64 from the first batch with one that does not (the earlier batches' counts
+    count fits (half the memory of int64: 19 counts a pixel a pass are about 150 MiB a pass
+    at 1080p), int64 from the first batch with one that does not (the earlier batches' counts
     widened). The counts are the same integers either way."""
     fits = values.shape[0] == 0 or (int(values.min()) >= _INT32.min and int(values.max()) <= _INT32.max)
     image = counts.get(key)
