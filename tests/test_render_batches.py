@@ -95,7 +95,7 @@ def test_image_counts_are_int32_until_a_count_does_not_fit(reflect_frames):
 
 
 def test_freed_memory_is_given_back_where_glibc_allows(monkeypatch):
-    """``release_memory`` (glibc's malloc_trim, called between stages and batches) returns
+    """``release_memory`` (glibc's malloc_trim, called between the render's stages) returns
     freed heap blocks, which the allocator tuning keeps otherwise; it leaves the allocator
     alone when asked to (``TLM_NO_MALLOPT=1``)."""
     import ctypes.util

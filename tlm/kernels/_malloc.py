@@ -8,10 +8,11 @@ reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1`` to leave the
 allocator alone.
 
 The price is memory the process holds after the arrays are gone: the freed blocks of a
-stage (the BSP build's, a batch's, each worker thread's arena) stay resident, and on a
-1M-triangle 1080p frame they were about 1 GiB beside 1.8 GiB of live arrays
+stage (the BSP build's, the photon trace's, each worker thread's arena) stay resident,
+and on a 1M-triangle 1080p frame they were about 1 GiB beside 1.8 GiB of live arrays
 (2026-11-28). :func:`trim` gives the freed pages back; the render calls it between
-stages and batches, not per packet, so the kernels still reuse their blocks.
+stages (after the BSP build, the photon trace and the timing model), not per batch or
+packet, so the kernels and the batches still reuse their blocks.
 """
 
 from __future__ import annotations

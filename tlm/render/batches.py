@@ -187,8 +187,8 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
                 primary.add(frame, g, at)
             if len(batches) == 1:
                 whole = g
-            del g, done
-            release_memory()  # (a batch's freed blocks, in every thread's arena: memory stays the batch's)
+            del g, done  # (no release_memory per batch: the batches reuse each other's blocks, and giving
+            # them back made the 1080p Refract run 18% slower for the same peak, 2026-11-28)
     radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
     work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
