@@ -18,15 +18,8 @@ import math
 import numpy as np
 import pytest
 
-from tlm.kernels.photons import (
-    aim_boxes,
-    bounding_cone,
-    box_cones,
-    emit,
-    photon_key,
-    split_photons,
-    trace_photons,
-)
+from tlm.kernels.emission import aim_boxes, bounding_cone, box_cones, emit, photon_key, split_photons
+from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import KIND, Light

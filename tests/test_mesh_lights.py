@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from tlm.config import config_from_dict
-from tlm.kernels.photons import emit, photon_key, trace_photons
+from tlm.kernels.emission import emit, photon_key
+from tlm.kernels.photons import trace_photons
 from tlm.kernels.shade import face_normals, triangle_choice
 from tlm.kernels.traverse import build_accel
 from tlm.render.passes import Frame, cast, rcast_pass

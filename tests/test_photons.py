@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from tlm.kernels import photons as photons_module
+from tlm.kernels.emission import bounding_cone, emit, photon_key, split_photons
 from tlm.kernels.memory import page_misses, span_addresses
-from tlm.kernels.photons import bounding_cone, emit, photon_key, split_photons, trace_photons
+from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Light

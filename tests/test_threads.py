@@ -20,7 +20,7 @@ from tlm.arch.model import simulate
 from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.run import render
-from tlm.kernels import estimate, photons, threads, traverse
+from tlm.kernels import emission, estimate, photons, threads, traverse
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.memory import Accesses, Deferred, Streams
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
@@ -36,7 +36,7 @@ def small_chunks(monkeypatch):
     monkeypatch.setattr(estimate, "GATHER_MIN_CHUNK", 23)
     monkeypatch.setattr(estimate, "QUERY_BLOCK", 301)
     monkeypatch.setattr(photons, "PHOTON_MIN_CHUNK", 700)
-    monkeypatch.setattr(photons, "CONE_CHUNK", 3000)
+    monkeypatch.setattr(emission, "CONE_CHUNK", 3000)
     monkeypatch.setattr(batches, "MIN_BATCH_RAYS", 16)
 
 

@@ -61,8 +61,11 @@ class Layout:
 
 
 def layout(accel) -> Layout:
-    """Build the :class:`Layout` of an accel (once per accel: it is cached there)."""
-    soa = accel.constants(np.float32)
+    """Build the :class:`Layout` of an accel (once per accel: it is cached there).
+
+    The float32 rows are the float64 constants rounded (as :class:`TriangleSoA` makes
+    its float32 copy), so the constants are computed once."""
+    soa = accel.constants(np.float64)
     ids = soa.ids
     if ids.shape[0] and ids.max() > np.iinfo(np.int32).max:
         raise ValueError("more than 2**31 triangles")
@@ -80,13 +83,11 @@ def layout(accel) -> Layout:
     soa32 = np.full((16, m2), np.nan, dtype=np.float32)
     soa32[15] = np.array([-2], dtype=np.int32).view(np.float32)[0]  # no triangle's id
     for k, rows in enumerate((soa.v0, soa.e1n, soa.e2, soa.n, soa.nn)):
-        soa32[3 * k : 3 * k + 3, dst] = rows[:, src]
+        soa32[3 * k : 3 * k + 3, dst] = rows[:, src].astype(np.float32)
     soa32[15, dst] = ids[src].astype(np.int32).view(np.float32)
     back = np.full(m2, -1, dtype=np.int64)
     back[dst] = src
-    del soa
-    soa64 = accel.constants(np.float64)
-    soa64_rows = np.ascontiguousarray(np.concatenate([soa64.v0, soa64.e1n, soa64.e2]))  # (what _exact reads)
+    soa64_rows = np.ascontiguousarray(np.concatenate([soa.v0, soa.e1n, soa.e2]))  # (what _exact reads)
     return Layout(soa32, first, first + padded, back, soa64_rows, np.ascontiguousarray(ids, dtype=np.int64),
                   size)
 

@@ -53,9 +53,10 @@ import numpy as np
 from tlm.config import RunConfig
 from tlm.kernels import threads
 from tlm.kernels.camera import primary_rays
+from tlm.kernels.emission import cosine_directions
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
-from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, cosine_directions, trace_photons
+from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
 from tlm.kernels.shade import (
     SPAWN_EPS,
     direct_light,

@@ -1,0 +1,305 @@
+"""Photon emission (thesis §III.A, Fig. 4): where the photons of the photon map start.
+
+The photon count is shared among the lights in proportion to their
+power; each photon of light ``l`` carries ``P_l / N_l``. A quad light emits from a
+uniform point on the quad in a cosine-weighted direction about its normal; a point
+light uniformly over the sphere. With mirrors or dielectrics, a *caustic group* of
+each light's photons (``photons.caustic_fraction`` of them, or a budget of its own,
+``photons.caustic_count``, beside ``count``) is aimed at the specular objects, its
+power divided by the aiming density so the estimate stays unbiased (Jensen's
+projection maps): ``photons.aim: parts`` cuts each specular part into boxes of at
+most ``aim_triangles`` triangles (:func:`aim_boxes`) and draws a direction from the
+mixture of the cones bounding them, a cone in proportion to its solid angle
+(:func:`cone_mixture`); ``box`` (the thesis study's) one cone about every specular
+triangle, which wastes most photons when the objects lie apart.
+
+Random numbers: a counter-based hash (:func:`tlm.kernels.shade.hash_uniform`) keyed by
+:func:`photon_key` of the run's seed and indexed by (photon, light, dimension), so every
+photon's start is the same whichever photons it is emitted with. Tracing them is
+:mod:`tlm.kernels.photons`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tlm.kernels import threads
+from tlm.kernels.shade import face_normals, hash_uniform, point_on_triangles, triangle_choice
+from tlm.scenes.model import KIND, Light
+
+
+def photon_key(seed: int) -> int:
+    """The hash key of a run's photon streams, from a SeedSequence of its seed."""
+    return int(np.random.SeedSequence([seed, 0x9E0704]).generate_state(1, dtype=np.uint64)[0] >> 1)
+
+
+def split_photons(lights: tuple[Light, ...], n: int) -> np.ndarray:
+    """Photons per light in proportion to power (largest remainder), (len(lights),) int."""
+    weight = np.array([sum(lt.power) for lt in lights], dtype=np.float64)
+    if n <= 0 or weight.sum() <= 0:
+        return np.zeros(len(lights), dtype=np.int64)
+    share = weight / weight.sum() * n
+    count = np.floor(share).astype(np.int64)
+    rest = n - int(count.sum())
+    order = np.argsort(-(share - count), kind="stable")
+    count[order[:rest]] += 1
+    return count
+
+
+def _frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents completing unit normals ``n`` (k, 3) to an orthonormal frame."""
+    a = np.where(np.abs(n[:, :1]) > 0.9, np.array([[0.0, 1.0, 0.0]]), np.array([[1.0, 0.0, 0.0]]))
+    t = np.cross(n, a)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return t, np.cross(n, t)
+
+
+def _around(axis: np.ndarray, cos_t: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit directions at polar cosine ``cos_t`` and azimuth ``phi`` about unit ``axis``."""
+    t, b = _frame(axis)
+    s = np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+    d = (s * np.cos(phi))[:, None] * t + (s * np.sin(phi))[:, None] * b + cos_t[:, None] * axis
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Cosine-weighted unit directions about unit normals ``n`` (k, 3)."""
+    return _around(n, np.sqrt(np.maximum(0.0, 1.0 - u1)), 2.0 * np.pi * u2)
+
+
+def bounding_cone(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """Axis and cosine of the half-angle of a cone from ``p`` holding the box [lo, hi].
+
+    A point inside the box sees all of it: the whole sphere (cosine -1).
+    """
+    if np.all(p >= lo) and np.all(p <= hi):
+        return np.array([0.0, 0.0, 1.0]), -1.0
+    centre = 0.5 * (lo + hi)
+    axis = centre - p
+    axis /= np.linalg.norm(axis)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    to = corners - p
+    cos = (to @ axis) / np.linalg.norm(to, axis=1)
+    return axis, float(max(-1.0, min(cos.min(), 1.0)))
+
+
+def bounding_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bounding_cone` of every point of ``p`` (m, 3): axes (m, 3) and cosines (m,)."""
+    centre = 0.5 * (lo + hi)
+    axis = centre[None, :] - p
+    length = np.linalg.norm(axis, axis=1, keepdims=True)
+    axis = np.divide(axis, length, out=np.tile([0.0, 0.0, 1.0], (p.shape[0], 1)), where=length > 0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    to = corners[None, :, :] - p[:, None, :]
+    dist = np.linalg.norm(to, axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = np.sum(to * axis[:, None, :], axis=2) / dist
+    cos = np.where(dist > 0, cos, -1.0).min(axis=1)
+    inside = np.all((p >= lo) & (p <= hi), axis=1)
+    return axis, np.where(inside, -1.0, np.clip(cos, -1.0, 1.0))
+
+
+def _box_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """:func:`box_cones` with the axes as three (m, K) components (no reductions over
+    short axes: the eight corners' dot products and squared lengths are sums of one
+    term per coordinate, ``lo`` or ``hi``, kept on leading axes)."""
+    e = [np.stack([lo[None, :, j] - p[:, j, None], hi[None, :, j] - p[:, j, None]]) for j in range(3)]
+    a = [0.5 * (x[0] + x[1]) for x in e]  # centre - p
+    length = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    inside = (e[0][0] <= 0) & (e[0][1] >= 0) & (e[1][0] <= 0) & (e[1][1] >= 0) & (e[2][0] <= 0) & (e[2][1] >= 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / length
+        a = [np.where(length > 0, x * inv, float(j == 2)) for j, x in enumerate(a)]
+        dot = (a[0] * e[0])[:, None, None] + (a[1] * e[1])[None, :, None] + (a[2] * e[2])[None, None, :]
+        sq = (e[0] * e[0])[:, None, None] + (e[1] * e[1])[None, :, None] + (e[2] * e[2])[None, None, :]
+        cos = (dot / np.sqrt(sq)).reshape((8, *length.shape)).min(axis=0)
+    # a point on a corner (0 / 0) or at the centre is in the box: the whole sphere
+    return tuple(a), np.where(inside, -1.0, np.clip(cos, -1.0, 1.0))
+
+
+def box_cones(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bounding_cone` of every box [lo_k, hi_k] (``lo``, ``hi``: (K, 3)) from every
+    point of ``p`` (m, 3): axes (m, K, 3) and cosines (m, K) (-1 where the point is in the box)."""
+    a, cos = _box_cones(p, lo, hi)
+    return np.stack(a, axis=-1), cos
+
+
+def aim_boxes(triangles: np.ndarray, kind: np.ndarray, part: np.ndarray, aim_triangles: int = 64) -> np.ndarray:
+    """The boxes a caustic group aims at (``photons.aim: parts``): (K, 2, 3) lo/hi.
+
+    The specular triangles (``kind`` != Lambertian, one code a triangle) of each scene
+    part (``part``, one index a triangle; parts in increasing order) are cut recursively
+    at the median of their centroids along the longest axis of their box, until a box
+    holds at most ``aim_triangles`` triangles (depth first, lower half first).
+    """
+    if aim_triangles < 1:
+        raise ValueError(f"aim_triangles (={aim_triangles}) must be >= 1")
+    spec = np.asarray(kind) != KIND["lambertian"]
+    part = np.asarray(part)
+    out: list[np.ndarray] = []
+
+    def cut(tri: np.ndarray) -> None:
+        v = tri.reshape(-1, 3)
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        if tri.shape[0] <= aim_triangles:
+            out.append(np.stack([lo, hi]))
+            return
+        order = np.argsort(tri[:, :, int(np.argmax(hi - lo))].mean(axis=1), kind="stable")
+        half = tri.shape[0] // 2
+        cut(tri[order[:half]])
+        cut(tri[order[half:]])
+
+    for p in np.unique(part[spec]).tolist():
+        cut(triangles[spec & (part == p)])
+    return np.array(out, dtype=np.float64).reshape(-1, 2, 3)
+
+
+CONE_CHUNK = 1 << 16  # photons x boxes a chunk of cone mixture sampling holds (memory and speed only)
+
+
+def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np.ndarray,
+                 u_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Directions from a mixture of the cones bounding ``boxes`` (K, 2, 3) and their 1 / pdf.
+
+    ``o``: the origins, (m, 3), or (1, 3) for one shared by all (a point light); ``u_*``:
+    (m,) uniforms. Cone k (:func:`box_cones`) is picked with probability
+    ``Omega_k / sum Omega`` (``Omega = 2 pi (1 - cos_max)``, its solid angle), the
+    direction is uniform in it; the density of the mixture is ``#{k: d in cone k} / sum
+    Omega``, so where cones overlap a direction is not counted twice. Returns (m, 3) unit
+    directions and (m,) ``sum Omega / #cones holding d`` (steradians).
+    """
+    m = u_pick.shape[0]
+    lo, hi = boxes[:, 0], boxes[:, 1]
+    k_n = boxes.shape[0]
+    d = np.empty((m, 3))
+    inv_pdf = np.empty(m)
+    shared = o.shape[0] == 1
+    if shared:
+        cones = _box_cones(o, lo, hi)
+    step = max(1, CONE_CHUNK // max(k_n, 1))
+
+    def chunk(s: int) -> None:  # photons s .. e - 1, each on its own: chunks run on the threads
+        e = min(m, s + step)
+        a, cos = cones if shared else _box_cones(o[s:e], lo, hi)  # (1 or e - s, K) each
+        cum = np.cumsum(2.0 * np.pi * (1.0 - cos), axis=1)  # solid angles, summed
+        total = cum[:, -1]
+        pick = np.minimum(np.sum(cum <= (u_pick[s:e] * total)[:, None], axis=1), k_n - 1)
+        row = np.zeros(e - s, dtype=np.int64) if shared else np.arange(e - s)
+        c = cos[row, pick]
+        dd = _around(np.stack([x[row, pick] for x in a], axis=1), 1.0 - u_cos[s:e] * (1.0 - c),
+                     2.0 * np.pi * u_phi[s:e])
+        holds = dd[:, 0, None] * a[0] + dd[:, 1, None] * a[1] + dd[:, 2, None] * a[2] >= cos
+        holds[np.arange(e - s), pick] = True  # the picked cone holds d, whatever the rounding
+        d[s:e] = dd
+        inv_pdf[s:e] = total[row] / holds.sum(axis=1)
+
+    for _ in threads.ordered(chunk, range(0, m, step)):
+        pass
+    return d, inv_pdf
+
+
+def emit(
+    lights: tuple[Light, ...],
+    n: int,
+    key: int,
+    scene_box: tuple[np.ndarray, np.ndarray] | None = None,
+    specular_box: tuple[np.ndarray, np.ndarray] | None = None,
+    caustic_fraction: float = 0.0,
+    with_source: bool = False,
+    caustic_boxes: np.ndarray | None = None,
+    caustic_count: int | None = None,
+) -> tuple[np.ndarray, ...]:
+    """Origins, unit directions, RGB powers (n, 3) and caustic-group flags (n,); with
+    ``with_source`` also the triangle each photon leaves (n,) int64 (-1: not geometry).
+
+    Each light's photons are split into a *global* group and, when ``specular_box`` or
+    ``caustic_boxes`` is given, a *caustic* group: ``caustic_fraction`` of the light's
+    share of ``n`` (the global group the rest); or, with ``caustic_count``, a budget of
+    its own, ``caustic_count`` shared among the lights by power (:func:`split_photons`)
+    beside the global group's ``n`` (``n + caustic_count`` photons in all). Each group
+    carries its light's power over its own count. A point light aims the global group
+    at the cone that bounds the scene's box, and the photons' power is scaled by the
+    cone's share of the sphere, so no photon is wasted on empty space. A quad light
+    emits the global group over its cosine-weighted hemisphere. A mesh light picks a
+    triangle for each photon in proportion to its power (:func:`triangle_choice`), a
+    uniform point on it and a direction as a quad light does about the triangle's
+    normal; the photon's power is the chosen triangle's power over its probability and
+    the count.
+
+    The caustic group is aimed at the specular objects (Jensen's projection maps, with
+    boxes for maps): with ``specular_box`` (``photons.aim: box``), uniformly in the one
+    cone that bounds that box; with ``caustic_boxes`` ((K, 2, 3), :func:`aim_boxes`;
+    ``photons.aim: parts``), from a mixture of the cones bounding each box, picked in
+    proportion to their solid angles (:func:`cone_mixture`). A point light's cones are
+    the same for all its photons; a quad's or a mesh's are those seen from each photon's
+    origin, which emits on its front side only (power times the cosine there). The power
+    is divided by the direction's density (the mixture's, so overlapping cones do not
+    count a direction twice) against the light's (isotropic, or cosine-weighted), so the
+    estimate stays unbiased however the cones are drawn.
+    """
+    counts = split_photons(lights, n)
+    if caustic_boxes is not None and len(caustic_boxes) == 0:
+        caustic_boxes = None  # nothing to aim at
+    aimed = specular_box is not None or caustic_boxes is not None
+    own = split_photons(lights, caustic_count) if aimed and caustic_count is not None else None
+    out: list[tuple[np.ndarray, ...]] = []
+    first = 0
+    for li, (light, c) in enumerate(zip(lights, counts.tolist(), strict=True)):
+        if own is not None:  # a caustic budget of its own beside the global group's
+            n_g, n_c = c, int(own[li])
+        else:
+            n_c = round(c * caustic_fraction) if aimed else 0
+            n_g = c - n_c
+        for group, m, box in ((False, n_g, scene_box), (True, n_c, specular_box)):
+            if m == 0:
+                continue
+            ids = np.arange(first, first + m)
+            first += m
+            u = [hash_uniform(key, ids, -1, li, dim) for dim in range(4)]
+            power = np.asarray(light.power, dtype=np.float64) / m
+            src = np.full(m, -1, dtype=np.int64)
+            if light.kind in ("quad", "mesh"):
+                if light.kind == "quad":
+                    o = (np.asarray(light.corner)[None, :] + u[0][:, None] * np.asarray(light.edge_u)
+                         + u[1][:, None] * np.asarray(light.edge_v))
+                    nl = np.broadcast_to(light.normal, (m, 3)).copy()
+                else:
+                    j, prob = triangle_choice(light, hash_uniform(key, ids, -1, li, 4))
+                    o = point_on_triangles(light.triangles[j], u[0], u[1])
+                    nl = face_normals(light.triangles[j])
+                    src = light.ids[j]
+                    # the triangle's power pi Le A over its probability, shared by the m photons
+                    power = light.radiance[j] * (np.pi * light.areas[j] / (prob * m))[:, None]
+                if group and caustic_boxes is not None:  # a mixture of the cones of the specular parts
+                    d, inv_pdf = cone_mixture(o, caustic_boxes, hash_uniform(key, ids, -1, li, 5), u[2], u[3])
+                    cos_l = np.maximum(0.0, d @ light.normal if light.kind == "quad" else np.sum(d * nl, axis=1))
+                    # flux Le cos dA dw, sampled with pdf (1 / A) (#cones holding d / sum Omega)
+                    power = np.atleast_2d(power) * (cos_l * inv_pdf / np.pi)[:, None]
+                elif group and box is not None:  # uniform in the cone bounding the specular objects
+                    axis, cos_max = bounding_cones(o, *box)
+                    d = _around(axis, 1.0 - u[2] * (1.0 - cos_max), 2.0 * np.pi * u[3])
+                    # a quad (a triangle) emits on its normal's side only
+                    cos_l = np.maximum(0.0, d @ light.normal if light.kind == "quad" else np.sum(d * nl, axis=1))
+                    # flux Le cos dA dw over the cone, sampled with pdf 1 / (A * solid angle)
+                    power = np.atleast_2d(power) * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
+                else:
+                    d = cosine_directions(nl, u[2], u[3])
+            else:
+                pos = np.asarray(light.position, dtype=np.float64)
+                o = np.broadcast_to(pos, (m, 3)).copy()
+                if group and caustic_boxes is not None:  # a mixture of the cones of the specular parts
+                    d, inv_pdf = cone_mixture(pos[None, :], caustic_boxes, hash_uniform(key, ids, -1, li, 5),
+                                              u[2], u[3])
+                    power = power[None, :] * (inv_pdf / (4.0 * np.pi))[:, None]  # 1 / (4 pi pdf)
+                else:
+                    axis, cos_max = bounding_cone(pos, *box) if box is not None else (np.array([0.0, 0, 1]), -1.0)
+                    d = _around(np.broadcast_to(axis, (m, 3)).copy(), 1.0 - u[2] * (1.0 - cos_max),
+                                2.0 * np.pi * u[3])
+                    power = power * (1.0 - cos_max) / 2.0  # the cone's share of the sphere
+            out.append((o, d, np.broadcast_to(power, (m, 3)).copy(), np.full(m, group), src))
+    if not out:
+        empty = np.zeros((0, 3))
+        arrays = (empty, empty.copy(), empty.copy(), np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int64))
+    else:
+        arrays = tuple(np.concatenate(x) for x in zip(*out, strict=True))
+    return arrays if with_source else arrays[:4]
