@@ -20,6 +20,7 @@ import numpy as np
 
 from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
+from tlm.scenes import cache
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 from tlm.scenes.validate import keys as _keys
@@ -292,7 +293,7 @@ def load_scene(
     if normals is not None and not np.isfinite(normals).all():
         raise InputError("the mesh's vertex normals are not finite", source=str(geom_path), key="geometry.mesh")
     if normals is None or "crease_angle" in raw:  # the scene's crease angle overrides the file's normals
-        normals = crease_normals(tri, geom.part, crease)
+        normals = cache.crease_normals(tri, geom.part, crease, crease_normals)
     scene = Scene(
         name=str(raw.get("name", path.stem)),
         triangles=tri,

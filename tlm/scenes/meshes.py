@@ -126,22 +126,31 @@ def load_mesh(path: Path) -> Geometry:
         missing or bad material library, an undefined material.
     """
     path = Path(path)
+    mesh_format(path)  # (an unsupported suffix is an error before anything is read)
+    if not path.is_file():
+        raise InputError("mesh file not found", source=str(path))
+    from tlm.scenes import cache
+
+    return cache.mesh(path, _parse)
+
+
+def _parse(path: Path) -> tuple[Geometry, list[Path] | None]:
+    """The file's geometry and the other files its parse read (None: it cannot name them,
+    a ``.gltf``'s buffers), for :func:`tlm.scenes.cache.mesh`."""
     src = str(path)
     ext, zext = mesh_format(path)
-    if not path.is_file():
-        raise InputError("mesh file not found", source=src)
     stem = Path(path.stem).stem if zext else path.stem
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         if ext == ".obj":
             return _load_obj(path, stem, zext, src)
-        return _load_trimesh(path, ext, zext, stem, src)
+        return _load_trimesh(path, ext, zext, stem, src), (None if ext == ".gltf" else [])
 
 
 # ------------------------------------------------------------------ OBJ
 
 
-def _load_obj(path: Path, stem: str, zext: str, src: str) -> Geometry:
+def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, list[Path]]:
     from tlm.scenes.objfile import read_obj
 
     obj = read_obj(path, stem)
@@ -151,7 +160,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> Geometry:
     if obj.corner_normals is not None:
         normals = obj.vertex_normals[obj.corner_normals]
         normals = _unit_or_none(normals)
-    materials, face_material = _obj_materials(path, obj, zext, src)
+    materials, face_material, libraries = _obj_materials(path, obj, zext, src)
     return Geometry(
         triangles=np.ascontiguousarray(tri, dtype=np.float64),
         part=obj.part,
@@ -159,7 +168,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> Geometry:
         normals=normals,
         materials=materials,
         face_material=face_material,
-    )
+    ), libraries
 
 
 def _unit_or_none(normals: np.ndarray) -> np.ndarray | None:
@@ -202,12 +211,14 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     return out
 
 
-def _obj_materials(path: Path, obj, zext: str, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
+def _obj_materials(path: Path, obj, zext: str, src: str
+                   ) -> tuple[tuple[Material, ...], np.ndarray | None, list[Path]]:
+    """The OBJ's materials, each face's index into them, and the libraries read."""
     from tlm.scenes.materials import parse_mtl
     from tlm.scenes.objfile import read_bytes
 
     if not obj.mtllibs:
-        return (), None
+        return (), None, []
     library: dict[str, Material] = {}
     files: list[str] = []
     for text, line in obj.mtllibs:
@@ -226,7 +237,7 @@ def _obj_materials(path: Path, obj, zext: str, src: str) -> tuple[tuple[Material
             raise InputError(f"line {line}: usemtl {name!r}: no material of that name in {libs}"
                              f"{did_you_mean(name, index)}", source=src)
         table[k] = index[name]
-    return materials, table[obj.material]
+    return materials, table[obj.material], [Path(f) for f in files]
 
 
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)

@@ -1,0 +1,202 @@
+"""The scene cache (tlm/scenes/cache.py): parsed meshes and crease normals kept on disk,
+the same bits as a fresh parse, and parsed again whenever a file they came from changed,
+an entry is damaged or the cache cannot be written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tlm.errors import InputError
+from tlm.scenes import cache as scache
+from tlm.scenes import meshes
+from tlm.scenes.loader import load_scene
+from tlm.scenes.normals import crease_normals
+
+REPO = Path(__file__).resolve().parents[1]
+OBJ = """mtllib box.mtl
+o left
+usemtl red
+v 0 0 0
+v 1 0 0
+v 0 1 0
+v 1 1 0
+f 1 2 3
+f 2 4 3
+o right
+usemtl white
+vn 0 0 1
+f 1//1 3//1 2//1
+"""
+MTL = "newmtl red\nKd 0.6 0.1 0.1\nnewmtl white\nKd 0.7 0.7 0.7\n"
+
+
+@pytest.fixture
+def small(monkeypatch, cache):
+    """Every mesh and normals cached, however small; returns a counter of the parses."""
+    monkeypatch.setattr(scache, "MIN_TRIANGLES", 0)
+    calls = []
+    parse = meshes._parse
+
+    def counted(path):
+        calls.append(Path(path).name)
+        return parse(path)
+
+    monkeypatch.setattr(meshes, "_parse", counted)
+    return calls
+
+
+def _box(folder: Path, name: str = "box.obj", mtl: str = MTL) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "box.mtl").write_text(mtl)
+    (folder / name).write_text(OBJ)
+    return folder / name
+
+
+def _same(a, b) -> None:
+    assert a.triangles.dtype == b.triangles.dtype and np.array_equal(a.triangles, b.triangles)
+    assert a.part.dtype == b.part.dtype and np.array_equal(a.part, b.part)
+    assert a.part_names == b.part_names and a.materials == b.materials
+    for x, y in ((a.normals, b.normals), (a.face_material, b.face_material)):
+        assert (x is None) == (y is None)
+        if x is not None:
+            assert x.dtype == y.dtype and np.array_equal(x, y)
+
+
+def test_a_mesh_is_parsed_once_and_read_back_with_the_same_bits(tmp_path, small):
+    path = _box(tmp_path / "a")
+    first = meshes.load_mesh(path)
+    again = meshes.load_mesh(path)
+    assert small == ["box.obj"]  # the second load read the cache
+    _same(first, again)
+    assert again.materials[0].albedo == (0.6, 0.1, 0.1)
+
+
+def test_the_shipped_scenes_meshes_read_back_the_same(small):
+    for name in ("CornellBox-Sphere.obj.xz", "CornellBox-Water.obj.xz"):
+        path = REPO / "scenes" / "meshes" / name
+        _same(meshes._parse(path)[0], meshes.load_mesh(path))
+        _same(meshes._parse(path)[0], meshes.load_mesh(path))
+    assert small.count("CornellBox-Water.obj.xz") == 3  # two direct parses, one load; the other load: cache
+
+
+def test_a_changed_material_library_is_parsed_again(tmp_path, small):
+    path = _box(tmp_path / "a")
+    meshes.load_mesh(path)
+    (tmp_path / "a" / "box.mtl").write_text(MTL.replace("Kd 0.6 0.1 0.1", "Kd 0.2 0.3 0.4"))
+    got = meshes.load_mesh(path)
+    assert small == ["box.obj", "box.obj"]
+    assert got.materials[0].albedo == (0.2, 0.3, 0.4)
+
+
+def test_the_same_obj_beside_another_library_or_under_another_name_is_its_own(tmp_path, small):
+    meshes.load_mesh(_box(tmp_path / "a"))
+    other = meshes.load_mesh(_box(tmp_path / "b", mtl=MTL.replace("Kd 0.7 0.7 0.7", "Kd 0.1 0.9 0.1")))
+    assert {m.name: m.albedo for m in other.materials}["white"] == (0.1, 0.9, 0.1)
+    gone = tmp_path / "c"
+    _box(gone)
+    (gone / "box.mtl").unlink()
+    with pytest.raises(InputError, match=r"box\.mtl"):  # the missing library is found, not the cached one
+        meshes.load_mesh(gone / "box.obj")
+    # a file without o/g names its one part after the file: the name is part of the key
+    (tmp_path / "plain.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    shutil.copy(tmp_path / "plain.obj", tmp_path / "other.obj")
+    assert meshes.load_mesh(tmp_path / "plain.obj").part_names == ("plain",)
+    assert meshes.load_mesh(tmp_path / "other.obj").part_names == ("other",)
+
+
+@pytest.mark.parametrize("way", ["cut", "zeroed", "sidecar"])
+def test_a_damaged_entry_is_said_once_removed_and_parsed_again(tmp_path, small, cache, capsys, way):
+    path = _box(tmp_path / "a")
+    first = meshes.load_mesh(path)
+    npz = next((cache / "scenes").glob("mesh-*.npz"))
+    if way == "cut":
+        npz.write_bytes(npz.read_bytes()[:100])
+    elif way == "zeroed":
+        npz.write_bytes(b"\0" * npz.stat().st_size)
+    else:
+        npz.with_suffix(".json").write_text("{not json")
+    got = meshes.load_mesh(path)
+    _same(first, got)
+    err = capsys.readouterr().err
+    assert "damaged scene cache entry" in err and str(cache / "scenes") in err
+    assert small == ["box.obj", "box.obj"]
+    meshes.load_mesh(path)  # the entry written again: no second warning
+    assert small == ["box.obj", "box.obj"] and "damaged" not in capsys.readouterr().err
+
+
+def test_an_entry_with_arrays_that_do_not_match_is_damaged(tmp_path, small, cache, capsys):
+    path = _box(tmp_path / "a")
+    first = meshes.load_mesh(path)
+    npz = next((cache / "scenes").glob("mesh-*.npz"))
+    side = npz.with_suffix(".json")
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["part"] = arrays["part"][:1]
+    np.savez(npz, **arrays)
+    meta = json.loads(side.read_text())
+    meta["npz"] = scache.file_digest(npz)  # a consistent sidecar: only the shapes are wrong
+    side.write_text(json.dumps(meta))
+    _same(first, meshes.load_mesh(path))
+    assert "mismatched shapes" in capsys.readouterr().err
+
+
+def test_a_cache_that_cannot_be_written_only_costs_speed(tmp_path, small, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("TLM_CACHE", str(blocker))  # (mkdir under a file fails, as read-only does)
+    path = _box(tmp_path / "a")
+    _same(meshes.load_mesh(path), meshes.load_mesh(path))
+    assert small == ["box.obj", "box.obj"]
+
+
+def test_small_meshes_and_gltf_with_outside_buffers_are_not_kept(tmp_path, cache, monkeypatch):
+    meshes.load_mesh(_box(tmp_path / "a"))  # 3 triangles: under MIN_TRIANGLES
+    assert not (cache / "scenes").exists() or not any((cache / "scenes").iterdir())
+    monkeypatch.setattr(scache, "MIN_TRIANGLES", 0)
+    import trimesh
+
+    trimesh.creation.box().export(tmp_path / "cube.gltf")  # a .gltf and its .bin
+    meshes.load_mesh(tmp_path / "cube.gltf")
+    assert not list((cache / "scenes").glob("mesh-*")) if (cache / "scenes").exists() else True
+    trimesh.creation.box().export(tmp_path / "cube.glb")
+    meshes.load_mesh(tmp_path / "cube.glb")
+    assert len(list((cache / "scenes").glob("mesh-*.npz"))) == 1
+
+
+def test_crease_normals_are_kept_per_triangles_parts_and_angle(small, cache):
+    tri = load_scene("cornell-sphere").triangles
+    part = np.arange(tri.shape[0]) % 3
+    computed = []
+
+    def compute(t, p, a):
+        computed.append(a)
+        return crease_normals(t, p, a)
+
+    a = scache.crease_normals(tri, part, 30.0, compute)
+    b = scache.crease_normals(tri, part, 30.0, compute)
+    assert computed == [30.0] and a.dtype == b.dtype and np.array_equal(a, b)
+    assert np.array_equal(a, crease_normals(tri, part, 30.0))
+    scache.crease_normals(tri, part, 60.0, compute)  # another angle
+    scache.crease_normals(tri, part // 2, 30.0, compute)  # other parts
+    moved = tri + 1.0
+    c = scache.crease_normals(moved, part, 30.0, compute)  # other triangles
+    assert computed == [30.0, 60.0, 30.0, 30.0]
+    assert np.array_equal(c, crease_normals(moved, part, 30.0))
+
+
+def test_a_large_scene_loads_from_the_cache_with_the_same_bits(cache):
+    """The conference room (331k triangles, 35 materials): the second load reads both entries."""
+    first = load_scene("conference")
+    kinds = sorted(p.name.split("-")[0] for p in (cache / "scenes").glob("*.npz"))
+    assert kinds == ["mesh", "normals"]
+    again = load_scene("conference")
+    for name in ("triangles", "normals", "material_index", "part"):
+        x, y = getattr(first, name), getattr(again, name)
+        assert x.dtype == y.dtype and np.array_equal(x, y), name
+    assert first.materials == again.materials and first.part_names == again.part_names
+    assert first.lights == again.lights
