@@ -8,9 +8,14 @@ batch: what ``tlm run`` spends before the timing model) at ``render.threads`` = 
 one run, one thread count after the other. A first, untimed render at the smallest
 resolution loads the compiled kernels. Prints, per thread count, the wall seconds (the
 best of ``--repeat``), the speed-up over one thread and the parallel efficiency
-(speed-up / threads), and the seconds of the stages (scene load, BSP build, photon
-trace, the ray passes, the photon-map pass; the passes' summed over the workers when
-whole batches run at once, so they exceed the wall seconds there).
+(speed-up / threads), the cores the render kept busy (the process's CPU seconds over
+the wall seconds: near the thread count when the code runs on every thread all the
+time, whatever the cores' speed; the CPU seconds beside it grow over one thread's when
+the cores run slower together, shared or contended), and the seconds of the stages
+(scene load, BSP build, photon trace, the ray passes, the photon-map pass; the passes'
+summed over the workers when whole batches run at once, so they exceed the wall
+seconds there). The scene load reads the scene cache (:mod:`tlm.scenes.cache`), as
+every run after a scene's first does.
 
 Checks that the radiance of every frame and every work count are byte-identical to
 one thread's at every count (FAIL and exit 1 otherwise), and the bar of issue 25: two
@@ -89,32 +94,33 @@ def spare_cores(n: int) -> float:
 
 
 def timed(path: Path, overrides: list[str], threads: int):
-    """(wall seconds, the result) of one whole-frame render on ``threads`` threads."""
+    """(wall seconds, the result, CPU seconds of the process) of one whole-frame render
+    on ``threads`` threads."""
     cfg, base = load_config(path, [*overrides, f"render.threads={threads}"])
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     res = render(cfg, base)
-    return time.perf_counter() - t0, res
+    return time.perf_counter() - t0, res, time.process_time() - c0
 
 
 def bench(path: Path, overrides: list[str], counts: list[int], repeat: int) -> bool:
     """Print one config's table; returns whether every count gave one thread's bits."""
     print(f"\n{path.name} ({', '.join(overrides) or 'as configured'})")
-    print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'efficiency':>10}  "
+    print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'efficiency':>10} {'cores busy':>10} {'CPU s':>7}  "
           + " ".join(f"{s:>9}" for s in STAGES) + "  digest")
     first = None
     same = True
     for n in counts:
-        best, res = None, None
+        best, res, cpu = None, None, 0.0
         for _ in range(repeat):
-            seconds, got = timed(path, overrides, n)
+            seconds, got, used = timed(path, overrides, n)
             if best is None or seconds < best:
-                best, res = seconds, got
+                best, res, cpu = seconds, got, used
         d = digest(res)
         if first is None:
             first = (best, d)
         speedup = first[0] / best
         stages = [sum(res.timer.seconds.get(k, 0.0) for k in keys) for keys in STAGES.values()]
-        print(f"{n:>7} {best:>8.2f} {speedup:>7.2f}x {speedup / n:>10.2f}  "
+        print(f"{n:>7} {best:>8.2f} {speedup:>7.2f}x {speedup / n:>10.2f} {cpu / best:>10.2f} {cpu:>7.2f}  "
               + " ".join(f"{s:>9.2f}" for s in stages) + f"  {d}{'' if d == first[1] else '  DIFFERS'}")
         same &= d == first[1]
         if n == 2:
@@ -150,7 +156,7 @@ def main() -> None:
     for path in args.configs:
         res = QUICK_RESOLUTION if args.quick else DEFAULT_RESOLUTION.get(path.stem, [128, 128])
         overrides = [] if args.full else [f"resolution=[{res[0]},{res[1]}]"]
-        timed(path, ["resolution=[8,8]"], 1)  # loads the compiled kernels (and the scene's caches)
+        timed(path, ["resolution=[8,8]"], 1)  # loads the compiled kernels (and fills the scene cache)
         bench(path, overrides, counts, args.repeat)
     exit_status()
 

@@ -345,3 +345,33 @@ def test_fixed_radius_gather_is_the_same_compiled(monkeypatch, filt):
                 assert np.array_equal(getattr(out["numpy"], f), getattr(out["numba"], f)), (levels, radius, f)
             assert out["numba"].photons_accepted.sum() > 0 or radius < 1e-6
     assert _jit_gather.fixed_radius is not None
+
+
+@pytest.mark.parametrize("page_words", [1, 4, 6, 1024])
+def test_stream_compaction_is_the_same_compiled(monkeypatch, page_words):
+    """Accesses.of_csr, of_ranges and compact (tlm/kernels/_jit_memory.py against the numpy
+    code): the same words and owners, element for element, on streams with empty owners and
+    ranges, ranges over several pages, owners that repeat and come back, int32 and int64 words."""
+    from tlm.kernels.memory import Accesses, compact
+
+    rng = np.random.default_rng(page_words)
+    for trial in range(40):
+        n = int(rng.integers(0, 60))
+        words = rng.integers(0, 8 * page_words + 3, n).astype(np.int32 if trial % 2 else np.int64)
+        if trial % 3 == 0:
+            words = np.sort(words)
+        cuts = np.sort(rng.integers(0, n + 1, int(rng.integers(0, 12))))
+        ptr = np.concatenate([[0], cuts, [n]])
+        owner = np.sort(rng.integers(0, 5, n)) if trial % 4 else rng.integers(0, 3, n)
+        first = rng.integers(0, 6 * page_words, n)
+        last = first + rng.integers(-2, 3 * page_words + 2, n)
+        got = {}
+        for engine in ("numpy", "numba"):
+            monkeypatch.setenv("TLM_KERNELS", engine)
+            csr = Accesses.of_csr(words, ptr, page_words)
+            ranges = Accesses.of_ranges(first, last, owner, page_words)
+            plain = Accesses.of_ranges(first, last, None, page_words)
+            got[engine] = [(a.dtype.str, a.tobytes()) for a in
+                           (*compact(words, owner, page_words), csr.words, csr.owner, ranges.words, ranges.owner,
+                            plain.words, plain.owner)]
+        assert got["numpy"] == got["numba"], (trial, page_words)

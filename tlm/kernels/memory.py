@@ -93,6 +93,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tlm.kernels.engine import engine
+
 PAGE_WORDS = 1024  # a cache block: 1024 x 128-bit words
 WORD_BYTES = 16  # 128 bits
 PAIRS = 4  # cache block pairs of a programmable PM
@@ -188,6 +190,15 @@ def span_addresses(first: np.ndarray, last: np.ndarray, words_per_item: int = 1)
         return np.zeros(0, dtype=np.int64)
     starts = np.repeat(first - (np.cumsum(length) - length), length)
     return starts + np.arange(total, dtype=np.int64)
+
+
+def _jit():
+    """The compiled compaction (:mod:`tlm.kernels._jit_memory`), None with ``TLM_KERNELS=numpy``."""
+    if engine() != "numba":
+        return None
+    from tlm.kernels import _jit_memory
+
+    return _jit_memory
 
 
 def _pages(words: np.ndarray, page_words: int) -> np.ndarray:
@@ -286,6 +297,9 @@ def compact(words: np.ndarray, owner: np.ndarray, page_words: int = PAGE_WORDS) 
     owner = np.asarray(owner, dtype=np.int64).reshape(-1)
     if words.shape[0] < 2:
         return words, owner
+    jit = _jit()
+    if jit is not None:
+        return jit.compact(words, owner, np.int64(page_words), jit.shift_of(page_words))
     start = _run_starts(words, page_words, owner)
     if start.shape[0] == words.shape[0]:
         return words, owner
@@ -312,6 +326,17 @@ class Accesses:
     @classmethod
     def of_ranges(cls, first, last, owner, page_words: int = PAGE_WORDS) -> Accesses:
         """The words ``[first, last)`` of each range, ranges in order (:func:`page_spans`)."""
+        jit = _jit()
+        if jit is not None:
+            if page_words <= 0:
+                raise ValueError(f"page_words (={page_words}) must be > 0")
+            first = np.ascontiguousarray(first, dtype=np.int64).reshape(-1)
+            last = np.ascontiguousarray(last, dtype=np.int64).reshape(-1)
+            if first.shape != last.shape:
+                raise ValueError(f"first ({first.shape[0]}) and last ({last.shape[0]}) differ in length")
+            owner = (np.arange(first.shape[0], dtype=np.int64) if owner is None else
+                     np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), first.shape)))
+            return cls(*jit.range_runs(first, last, owner, np.int64(page_words), jit.shift_of(page_words)), page_words)
         _, hi, owner = _spans(first, last, owner, page_words)  # a span's last word is its largest
         return cls(*compact(hi, owner, page_words), page_words)
 
@@ -322,6 +347,9 @@ class Accesses:
         ptr = np.asarray(ptr, dtype=np.int64)
         if words.shape[0] == 0:
             return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), page_words)
+        jit = _jit()
+        if jit is not None:
+            return cls(*jit.csr_runs(words, ptr, np.int64(page_words), jit.shift_of(page_words)), page_words)
         first = ptr[:-1][ptr[1:] > ptr[:-1]]
         start = _run_starts(words, page_words, bounds=first)
         owner = np.searchsorted(ptr, start, side="right") - 1

@@ -1,0 +1,105 @@
+"""The compaction of address streams (:class:`tlm.kernels.memory.Accesses`) compiled with numba.
+
+Each function returns what its numpy counterpart in :mod:`tlm.kernels.memory` returns,
+element for element (int64 words and owners): a *run* is consecutive accesses of one
+owner to one page, and becomes one access at its largest word, owned by the run's owner.
+
+* :func:`compact`: :func:`tlm.kernels.memory.compact` (runs of a word stream);
+* :func:`csr_runs`: ``Accesses.of_csr`` (owner ``i``'s words ``words[ptr[i]:ptr[i+1]]``);
+* :func:`range_runs`: ``Accesses.of_ranges`` (each range ``[first, last)`` cut at page
+  boundaries, a span's last word its largest, then compacted).
+
+Integer arithmetic only, so nothing can differ but the speed: one pass instead of
+numpy's temporaries, and ``nogil``, so the threads of a render (:mod:`tlm.kernels.threads`)
+run it at once. ``TLM_KERNELS=numpy`` runs the numpy code, the reference
+(tests/test_engines.py compares the two).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _page(w, page_words, shift):
+    """The page of word ``w``: a shift for a power-of-two page (``shift`` >= 0)."""
+    if shift >= 0:
+        return w >> shift
+    return w // page_words
+
+
+def shift_of(page_words: int) -> int:
+    """log2 of a power-of-two page, else -1 (the functions below then divide)."""
+    return page_words.bit_length() - 1 if page_words > 0 and page_words & (page_words - 1) == 0 else -1
+
+
+@njit(cache=True, nogil=True)
+def compact(words, owner, page_words, shift):
+    n = words.shape[0]
+    out_w = np.empty(n, dtype=np.int64)
+    out_o = np.empty(n, dtype=np.int64)
+    k = -1
+    page = np.int64(0)
+    for j in range(n):
+        w = np.int64(words[j])
+        p = _page(w, page_words, shift)
+        o = np.int64(owner[j])
+        if k < 0 or p != page or o != out_o[k]:
+            k += 1
+            out_w[k] = w
+            out_o[k] = o
+            page = p
+        elif w > out_w[k]:
+            out_w[k] = w
+    return out_w[: k + 1].copy(), out_o[: k + 1].copy()
+
+
+@njit(cache=True, nogil=True)
+def csr_runs(words, ptr, page_words, shift):
+    n = words.shape[0]
+    out_w = np.empty(n, dtype=np.int64)
+    out_o = np.empty(n, dtype=np.int64)
+    k = -1
+    for i in range(ptr.shape[0] - 1):
+        page = np.int64(0)
+        for j in range(ptr[i], ptr[i + 1]):
+            w = np.int64(words[j])
+            p = _page(w, page_words, shift)
+            if j == ptr[i] or p != page:
+                k += 1
+                out_w[k] = w
+                out_o[k] = i
+                page = p
+            elif w > out_w[k]:
+                out_w[k] = w
+    return out_w[: k + 1].copy(), out_o[: k + 1].copy()
+
+
+@njit(cache=True, nogil=True)
+def range_runs(first, last, owner, page_words, shift):
+    m = first.shape[0]
+    total = 0
+    for i in range(m):
+        if last[i] > first[i]:
+            total += _page(last[i] - 1, page_words, shift) - _page(first[i], page_words, shift) + 1
+    out_w = np.empty(total, dtype=np.int64)
+    out_o = np.empty(total, dtype=np.int64)
+    k = -1
+    page = np.int64(0)
+    for i in range(m):
+        f = np.int64(first[i])
+        hi = np.int64(last[i]) - 1
+        if hi < f:
+            continue
+        o = np.int64(owner[i])
+        for p in range(_page(f, page_words, shift), _page(hi, page_words, shift) + 1):
+            w = min(hi, p * page_words + (page_words - 1))
+            if k < 0 or p != page or o != out_o[k]:
+                k += 1
+                out_w[k] = w
+                out_o[k] = o
+                page = p
+            elif w > out_w[k]:
+                out_w[k] = w
+    return out_w[: k + 1].copy(), out_o[: k + 1].copy()
