@@ -375,3 +375,26 @@ def test_stream_compaction_is_the_same_compiled(monkeypatch, page_words):
                            (*compact(words, owner, page_words), csr.words, csr.owner, ranges.words, ranges.owner,
                             plain.words, plain.owner)]
         assert got["numpy"] == got["numba"], (trial, page_words)
+
+
+@pytest.mark.parametrize("page_words", [1, 2, 6, 1024])
+def test_page_misses_are_the_same_compiled(monkeypatch, page_words):
+    """page_misses (tlm/kernels/_jit_memory.py against the numpy code): the same misses and
+    state after, from every kind of state before (empty, on the stream's first page, armed or
+    not, on the page before it), on streams that walk pages forward, skip and come back."""
+    from tlm.kernels.memory import PairState, page_misses
+
+    rng = np.random.default_rng(page_words)
+    for trial in range(60):
+        n = int(rng.integers(0, 50))
+        steps = rng.integers(-2, 3 * page_words, n) if trial % 2 else rng.integers(0, page_words, n)
+        words = np.abs(np.cumsum(steps) + int(rng.integers(0, 4 * page_words))).astype(np.int64)
+        first = int(words[0]) // page_words if n else 0
+        state = [None, PairState(), PairState(first, bool(trial % 3)), PairState(first - 1, True),
+                 PairState(first + 1, False)][trial % 5]
+        got = {}
+        for engine in ("numpy", "numba"):
+            monkeypatch.setenv("TLM_KERNELS", engine)
+            miss, after = page_misses(words, state, page_words)
+            got[engine] = (miss.dtype.str, miss.tobytes(), after)
+        assert got["numpy"] == got["numba"], (trial, page_words)

@@ -1,4 +1,4 @@
-"""The compaction of address streams (:class:`tlm.kernels.memory.Accesses`) compiled with numba.
+"""Address streams compiled with numba: their compaction (:class:`tlm.kernels.memory.Accesses`) and misses.
 
 Each function returns what its numpy counterpart in :mod:`tlm.kernels.memory` returns,
 element for element (int64 words and owners): a *run* is consecutive accesses of one
@@ -7,7 +7,9 @@ owner to one page, and becomes one access at its largest word, owned by the run'
 * :func:`compact`: :func:`tlm.kernels.memory.compact` (runs of a word stream);
 * :func:`csr_runs`: ``Accesses.of_csr`` (owner ``i``'s words ``words[ptr[i]:ptr[i+1]]``);
 * :func:`range_runs`: ``Accesses.of_ranges`` (each range ``[first, last)`` cut at page
-  boundaries, a span's last word its largest, then compacted).
+  boundaries, a span's last word its largest, then compacted);
+* :func:`page_misses`: :func:`tlm.kernels.memory.page_misses` (which accesses of a pair's
+  stream miss, and the pair's state after it).
 
 Integer arithmetic only, so nothing can differ but the speed: one pass instead of
 numpy's temporaries, and ``nogil``, so the threads of a render (:mod:`tlm.kernels.threads`)
@@ -103,3 +105,25 @@ def range_runs(first, last, owner, page_words, shift):
             elif w > out_w[k]:
                 out_w[k] = w
     return out_w[: k + 1].copy(), out_o[: k + 1].copy()
+
+
+@njit(cache=True, nogil=True)
+def page_misses(words, state_page, state_armed, page_words, shift):
+    """:func:`tlm.kernels.memory.page_misses`: the miss of each access and the state after."""
+    n = words.shape[0]
+    miss = np.zeros(n, dtype=np.bool_)
+    half = page_words // 2
+    prev_page, prev_armed = np.int64(state_page), state_armed
+    page, armed = np.int64(state_page), state_armed
+    for i in range(n):
+        w = words[i]
+        p = _page(w, page_words, shift)
+        if i == 0 or p != page:
+            if i > 0:
+                prev_page, prev_armed = page, armed
+            armed = i == 0 and p == state_page and state_armed  # a prefetch issued before stays issued
+            page = p
+            miss[i] = not (p == prev_page or (p == prev_page + 1 and prev_armed and prev_page >= 0))
+        if w - p * page_words > half:
+            armed = True
+    return miss, page, armed

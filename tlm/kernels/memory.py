@@ -146,6 +146,11 @@ def page_misses(
         return np.zeros(0, dtype=bool), state
     if page_words <= 0:
         raise ValueError(f"page_words (={page_words}) must be > 0")
+    jit = _jit()
+    if jit is not None:
+        miss, last, armed = jit.page_misses(np.ascontiguousarray(a), np.int64(state.page), bool(state.armed),
+                                            np.int64(page_words), jit.shift_of(page_words))
+        return miss, PairState(int(last), bool(armed))
     page = a // page_words
     offset = a - page * page_words
     start = np.flatnonzero(np.concatenate([[True], page[1:] != page[:-1]]))
