@@ -59,7 +59,9 @@ thing the knob can show until a phase reads more streams (its rays, the stack, t
 FIFO's triangle addresses are not modelled as memory streams); the config stops at 4,
 the thesis's eight blocks, since more pairs could only show no change.
 
-Everything is vectorized over the stream: consecutive accesses to one page form a run,
+Everything is vectorized over the stream (the compaction and :func:`page_misses` also
+compiled, :mod:`tlm.kernels._jit_memory`, unless ``TLM_KERNELS=numpy``; the same
+results): consecutive accesses to one page form a run,
 and a run is a miss unless it continues its predecessor onto the prefetched next page.
 The state at the end of a stream (its last page and whether the prefetch is armed) can
 be carried into the next stream of the same pair (a prefetch issued before stays issued
