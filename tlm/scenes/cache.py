@@ -49,10 +49,12 @@ def cache_dir() -> Path:
     return cache_root("scenes")
 
 
-def _key(*parts: bytes | str) -> str:
+def _key(*parts: str | np.ndarray) -> str:
+    """24 hex digits of sha256 over the parts, each with its length (an array's bytes are
+    hashed where they lie, not copied)."""
     h = hashlib.sha256()
     for p in (FORMAT, code_fingerprint(), *parts):
-        b = p.encode() if isinstance(p, str) else p
+        b = p.encode() if isinstance(p, str) else memoryview(np.ascontiguousarray(p)).cast("B")
         h.update(len(b).to_bytes(8, "little"))
         h.update(b)
     return h.hexdigest()[:24]
@@ -103,7 +105,7 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray, crease_angle: float,
     if tri.shape[0] < MIN_TRIANGLES:
         return compute(tri, part, crease_angle)
     part64 = np.ascontiguousarray(part, dtype=np.int64)
-    key = _key("crease", repr(float(crease_angle)), repr(tri.shape), tri.tobytes(), part64.tobytes())
+    key = _key("crease", repr(float(crease_angle)), repr(tri.shape), tri, part64)
     npz, side = cache_dir() / f"normals-{key}.npz", cache_dir() / f"normals-{key}.json"
     if npz.exists() and side.exists() and _read_entry(npz, side) is not None:
         got = _arrays(npz, side)
