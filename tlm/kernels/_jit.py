@@ -28,7 +28,14 @@ whose ray-independent rows (``T.N``, ``E2 x T``, ``-E1 x T`` for the packet's or
 with the same operations, so a slot costs
 about a third fewer operations and the same bits; the slot loops of the two cases are
 separate functions, as one loop holding both formulas evaluates both in every lane.
-Each ray's ``1/d`` is divided once for the root clip and every level. Buffers are
+Each ray's ``1/d`` is divided once for the root clip and every level. Without
+``record``, phase 1 walks the tree depth first (the leaves in the order of the level
+lists; the lists themselves are formed only to record the nodes level by level). An
+any-hit ray (``first_only``) tests a leaf by a loop that keeps only the lowest key
+(:func:`_leaf32_min`); only the leaf that has a hit is tested again for its slot.
+The hot loops are written out in :func:`trace` or in functions that LLVM keeps free
+of numba's reference counting (an inlined function's array arguments can cost two
+atomic operations per call). Buffers are
 sized up front; a ray that would overflow one stops the kernel with a status, and the
 caller reruns it with larger buffers (no array is reallocated inside the loops, which
 would cost reference counting per ray).
@@ -143,7 +150,7 @@ def _lt_min(a, b):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _key(u, v, tp, idbits, ign32, eps):
+def _key(u, v, tp, idbits, ign32, eps, reject=_REJECT):
     """A pair's key from ``u, v`` and ``t' = t - tmin``: the bits of ``t'`` if accepted,
     0xFFFFFFFF if rejected (``w`` NaN or negative, or the ray's ignored triangle), where
     ``w = min(min(1 - (u + v), min(u, v)) + eps, t')`` with :func:`_mn`'s minimum.
@@ -160,7 +167,32 @@ def _key(u, v, tp, idbits, ign32, eps):
     w = _lt_min(w, tp)
     bad = (w1 != w1) | (tp != tp) | (np.float32(w).view(np.uint32) >= np.uint32(0x80000000)) | (
         np.float32(idbits).view(np.int32) == ign32)
-    return _REJECT if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
+    return reject if bad else np.float32(tp).view(np.uint32)  # tp >= +0: bits order as values
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, s, eps, reject=_REJECT):
+    """The key (:func:`_key`) of one ray and the padded slot ``s`` (float32 scalars).
+
+    ``1/det`` is ``-1 / (D.N)`` from the ``N`` rows, where the numpy engine divides
+    ``1 / (D.(-N))``: products and sums are symmetric in the sign under
+    round-to-nearest, so ``D.(-N)`` is ``-(D.N)`` bit for bit unless it is zero (then
+    a sum's zero may keep its sign), and ``1 / -x`` is ``-1 / x``. Where ``D.N`` is a
+    zero of either sign, ``1/det`` is an infinity and ``u`` and ``v`` are infinities or
+    NaN whatever its sign: ``w`` is NaN or -inf (an infinite ``u + v`` makes ``1 - (u +
+    v)`` the opposite one, a -inf ``u`` or ``v`` is the minimum), so the pair is rejected
+    either way. The ``-N`` rows are not read (three loads a slot fewer)."""
+    rdet = np.float32(-1.0) / _dot(dx, dy, dz, soa[9, s], soa[10, s], soa[11, s])
+    tx = ox - soa[0, s]
+    ty = oy - soa[1, s]
+    tz = oz - soa[2, s]
+    t = _dot(tx, ty, tz, soa[9, s], soa[10, s], soa[11, s]) * rdet
+    cx = ty * dz - tz * dy
+    cy = tz * dx - tx * dz
+    cz = tx * dy - ty * dx
+    u = _dot(cx, cy, cz, soa[6, s], soa[7, s], soa[8, s]) * rdet
+    v = _dot(cx, cy, cz, soa[3, s], soa[4, s], soa[5, s]) * rdet
+    return _key(u, v, t - tmin, soa[15, s], ign32, eps, reject)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -176,26 +208,28 @@ def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, keys):
     (the same values with the ray-independent part computed once): one loop each, as a
     loop holding both formulas computes both in every lane.
     """
-    one = np.float32(1.0)
     ign32 = np.int32(ign)
     u0 = np.uint64(s0)
     best_hi = _REJECT
     for j in range(np.uint64(s1 - s0)):
-        s = u0 + j
-        rdet = one / _dot(dx, dy, dz, soa[12, s], soa[13, s], soa[14, s])
-        tx = ox - soa[0, s]
-        ty = oy - soa[1, s]
-        tz = oz - soa[2, s]
-        t = _dot(tx, ty, tz, soa[9, s], soa[10, s], soa[11, s]) * rdet
-        cx = ty * dz - tz * dy
-        cy = tz * dx - tx * dz
-        cz = tx * dy - ty * dx
-        u = _dot(cx, cy, cz, soa[6, s], soa[7, s], soa[8, s]) * rdet
-        v = _dot(cx, cy, cz, soa[3, s], soa[4, s], soa[5, s]) * rdet
-        key = _key(u, v, t - tmin, soa[15, s], ign32, eps)
+        key = _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, u0 + j, eps)
         keys[j] = key
         best_hi = min(best_hi, key)
     return _pick(keys, s1 - s0, best_hi, s0, tmin, tmax)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _leaf32_min(ox, oy, oz, dx, dy, dz, tmin, ign, soa, s0, s1, eps, reject):
+    """The lowest key of :func:`_leaf32`'s slots, without storing the keys (so no
+    run-time overlap checks of a store against the 13 rows it reads). ``reject`` is
+    ``_REJECT`` read at run time: a constant one lets LLVM fold the minimum with the
+    key's select into a form it does not vectorize."""
+    ign32 = np.int32(ign)
+    u0 = np.uint64(s0)
+    best_hi = reject
+    for j in range(np.uint64(s1 - s0)):
+        best_hi = min(best_hi, _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, u0 + j, eps, reject))
+    return best_hi
 
 
 # rows of the shared-origin stack (:func:`_shared_rows`)
@@ -298,95 +332,6 @@ def _lossy(x0, x1, x2, y0, y1, y2):
     return not (e0 <= lim and e1 <= lim and e2 <= lim)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _lists(lnode, la, lb, split, levels, level_cap, o0, o1, o2, d0, d1, d2, ic0, ic1, ic2, ta, tb, record,
-           node_ids, n_node_out, node_cap):
-    """Phase 1 for one ray (:func:`tlm.kernels.traverse._leaf_lists`): the level lists,
-    near child first, from the root interval ``ta <= tb`` (neither NaN). Returns
-    ``status, cur, m, visits, n_node_out``: the last list is ``m`` entries from ``cur``
-    in ``lnode, la, lb`` (two halves of ``level_cap``), ``visits`` the nodes entered.
-
-    No interval in a list is NaN (an entry is kept only where its ``a <= b``), so
-    ``_mn(b, ts)`` is ``b if b < ts else ts`` and ``_mx(a, ts)`` is ``a if a > ts
-    else ts`` (the same values, a NaN ``ts`` included); indices are unsigned (no
-    negative-index wraparound); the side of the near child is the level's.
-    """
-    cur = 0
-    m = 1
-    visits = 0
-    lnode[0] = 0
-    la[0] = ta
-    lb[0] = tb
-    axis = 0
-    for _ in range(levels):
-        if axis == 0:
-            oc, dc, ic = o0, d0, ic0
-        elif axis == 1:
-            oc, dc, ic = o1, d1, ic1
-        else:
-            oc, dc, ic = o2, d2, ic2
-        axis = axis + 1 if axis < 2 else 0
-        visits += m
-        if record:
-            if n_node_out + m > node_cap:
-                return FULL_NODES, cur, m, visits, n_node_out
-            for e in range(m):
-                node_ids[np.uint64(n_node_out + e)] = lnode[np.uint64(cur + e)]
-            n_node_out += m
-        if 2 * m > level_cap:
-            return FULL_LEVEL, cur, m, visits, n_node_out
-        nxt = level_cap - cur
-        k = nxt
-        if dc == 0.0:
-            for e in range(m):
-                p = np.uint64(cur + e)
-                node = lnode[p]
-                a = la[p]
-                b = lb[p]
-                near_right = oc >= split[np.uint64(node)]
-                left = 2 * node + 1
-                if a <= b:
-                    q = np.uint64(k)
-                    lnode[q] = left + (1 if near_right else 0)
-                    la[q] = a
-                    lb[q] = b
-                    k += 1
-                if np.inf <= b:
-                    q = np.uint64(k)
-                    lnode[q] = left + (0 if near_right else 1)
-                    la[q] = np.inf
-                    lb[q] = b
-                    k += 1
-        else:
-            nr = 1 if dc < 0.0 else 0
-            for e in range(m):
-                p = np.uint64(cur + e)
-                node = lnode[p]
-                a = la[p]
-                b = lb[p]
-                ts = (split[np.uint64(node)] - oc) * ic
-                near_b = b if b < ts else ts
-                far_a = a if a > ts else ts
-                left = 2 * node + 1
-                if a <= near_b:
-                    q = np.uint64(k)
-                    lnode[q] = left + nr
-                    la[q] = a
-                    lb[q] = near_b
-                    k += 1
-                if far_a <= b:
-                    q = np.uint64(k)
-                    lnode[q] = left + (1 - nr)
-                    la[q] = far_a
-                    lb[q] = b
-                    k += 1
-        m = k - nxt
-        cur = nxt
-        if m == 0:
-            break
-    return OK, cur, m, visits, n_node_out
-
-
 @njit(cache=True, error_model="numpy", nogil=True)
 def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
           split, levels, leaf_offset, soa32, first32, last32, back, soa64, ids, size, pre,
@@ -425,7 +370,14 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     lnode = np.empty(2 * level_cap, dtype=np.int64)  # two halves: this level, the next
     la = np.empty(2 * level_cap)
     lb = np.empty(2 * level_cap)
-    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
+    ray9 = np.empty(9)  # a ray's o, d, 1/d (phase 1 without record)
+    st_node = np.empty(levels + 1, dtype=np.int64)  # its stack of far children
+    st_a = np.empty(levels + 1)
+    st_b = np.empty(levels + 1)
+    st_depth = np.empty(levels + 1, dtype=np.int64)
+    st_axis = np.empty(levels + 1, dtype=np.int64)
+    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD) + 1, dtype=np.uint32)
+    keys[keys.shape[0] - 1] = _REJECT  # (read by every any-hit leaf: see _leaf32_min)
     lo0, lo1, lo2 = root_lo[0], root_lo[1], root_lo[2]
     hi0, hi1, hi2 = root_hi[0], root_hi[1], root_hi[2]
     sx32, sy32, sz32 = shared_o32[0], shared_o32[1], shared_o32[2]  # (used when shared)
@@ -454,10 +406,159 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             tb = _mn(tb, far)
         if not ta <= tb:
             continue
-        # phase 1: the level lists, near child first (_leaf_lists)
-        status, cur, m, visits, n_node_out = _lists(
-            lnode, la, lb, split, levels, level_cap, o[i, 0], o[i, 1], o[i, 2], d[i, 0], d[i, 1], d[i, 2],
-            ic0, ic1, ic2, ta, tb, record, node_ids, n_node_out, node_cap)
+        # phase 1 (_leaf_lists): the crossed leaves, near child first, from the root
+        # interval ta <= tb (neither NaN): m leaves from cur in lnode (their exits in
+        # lb), visits the inner nodes entered. Written out here, not in a function of
+        # its own: numba counts references to the arrays an inlined function takes, an
+        # atomic increment and decrement per array and ray that LLVM keeps around the
+        # loops. No interval is NaN (a child is entered only where its a <= b), so
+        # _mn(b, ts) is ``b if b < ts else ts`` and _mx(a, ts) is ``a if a > ts else
+        # ts`` (the same values, a NaN ts included); indices are unsigned (no
+        # negative-index wraparound); the side of the near child is the level's.
+        status = OK
+        cur = 0
+        m = 1
+        visits = 0
+        if not record:
+            # depth first, near child first, with a stack of the far children still
+            # to enter: the level lists put a node's children (near, far) where the
+            # node was, so the leaves come in this order, with the same intervals (a
+            # child's from its parent's by the same operations) and the same inner
+            # nodes entered, each once; only the leaves are stored (from 0), not the
+            # lists of the levels between. (With record the nodes are recorded level
+            # by level, as the numpy engine orders them: the lists are formed there.)
+            ray9[0], ray9[1], ray9[2] = o[i, 0], o[i, 1], o[i, 2]
+            ray9[3], ray9[4], ray9[5] = d[i, 0], d[i, 1], d[i, 2]
+            ray9[6], ray9[7], ray9[8] = ic0, ic1, ic2
+            m = 0
+            sp = 0
+            node = 0
+            a = ta
+            b = tb
+            depth = 0
+            axis = 0
+            while True:
+                if depth == levels:  # a leaf: onto the list, then the next pushed far child
+                    if m >= 2 * level_cap:
+                        status = FULL_LEVEL
+                        break
+                    lnode[np.uint64(m)] = node
+                    lb[np.uint64(m)] = b
+                    m += 1
+                    if sp == 0:
+                        break
+                    sp -= 1
+                    q = np.uint64(sp)
+                    node, a, b, depth, axis = st_node[q], st_a[q], st_b[q], st_depth[q], st_axis[q]
+                    continue
+                visits += 1
+                ua = np.uint64(axis)
+                oc, dc, ic = ray9[ua], ray9[ua + np.uint64(3)], ray9[ua + np.uint64(6)]
+                left = 2 * node + 1
+                sp_node = split[np.uint64(node)]
+                if dc == 0.0:
+                    nr = 1 if oc >= sp_node else 0
+                    near_b = b
+                    far_a = np.inf
+                    keep_near = a <= b
+                    keep_far = np.inf <= b
+                else:
+                    nr = 1 if dc < 0.0 else 0
+                    ts = (sp_node - oc) * ic
+                    near_b = b if b < ts else ts
+                    far_a = a if a > ts else ts
+                    keep_near = a <= near_b
+                    keep_far = far_a <= b
+                depth += 1
+                axis = axis + 1 if axis < 2 else 0
+                if keep_near:
+                    if keep_far:
+                        q = np.uint64(sp)
+                        st_node[q], st_a[q], st_b[q], st_depth[q], st_axis[q] = left + (1 - nr), far_a, b, depth, axis
+                        sp += 1
+                    node = left + nr
+                    b = near_b
+                elif keep_far:
+                    node = left + (1 - nr)
+                    a = far_a
+                else:
+                    if sp == 0:
+                        break
+                    sp -= 1
+                    q = np.uint64(sp)
+                    node, a, b, depth, axis = st_node[q], st_a[q], st_b[q], st_depth[q], st_axis[q]
+        else:  # the level lists, in two halves of lnode, la, lb (level_cap each)
+            lnode[0] = 0
+            la[0] = ta
+            lb[0] = tb
+            axis = 0
+            for _ in range(levels):
+                if axis == 0:
+                    oc, dc, ic = o[i, 0], d[i, 0], ic0
+                elif axis == 1:
+                    oc, dc, ic = o[i, 1], d[i, 1], ic1
+                else:
+                    oc, dc, ic = o[i, 2], d[i, 2], ic2
+                axis = axis + 1 if axis < 2 else 0
+                visits += m
+                if n_node_out + m > node_cap:
+                    status = FULL_NODES
+                    break
+                for e in range(m):
+                    node_ids[np.uint64(n_node_out + e)] = lnode[np.uint64(cur + e)]
+                n_node_out += m
+                if 2 * m > level_cap:
+                    status = FULL_LEVEL
+                    break
+                nxt = level_cap - cur
+                kk = nxt
+                if dc == 0.0:
+                    for e in range(m):
+                        p = np.uint64(cur + e)
+                        node = lnode[p]
+                        a = la[p]
+                        b = lb[p]
+                        near_right = oc >= split[np.uint64(node)]
+                        left = 2 * node + 1
+                        if a <= b:
+                            q = np.uint64(kk)
+                            lnode[q] = left + (1 if near_right else 0)
+                            la[q] = a
+                            lb[q] = b
+                            kk += 1
+                        if np.inf <= b:
+                            q = np.uint64(kk)
+                            lnode[q] = left + (0 if near_right else 1)
+                            la[q] = np.inf
+                            lb[q] = b
+                            kk += 1
+                else:
+                    nr = 1 if dc < 0.0 else 0
+                    for e in range(m):
+                        p = np.uint64(cur + e)
+                        node = lnode[p]
+                        a = la[p]
+                        b = lb[p]
+                        ts = (split[np.uint64(node)] - oc) * ic
+                        near_b = b if b < ts else ts
+                        far_a = a if a > ts else ts
+                        left = 2 * node + 1
+                        if a <= near_b:
+                            q = np.uint64(kk)
+                            lnode[q] = left + nr
+                            la[q] = a
+                            lb[q] = near_b
+                            kk += 1
+                        if far_a <= b:
+                            q = np.uint64(kk)
+                            lnode[q] = left + (1 - nr)
+                            la[q] = far_a
+                            lb[q] = b
+                            kk += 1
+                m = kk - nxt
+                cur = nxt
+                if m == 0:
+                    break
         node_visits[i] = visits
         if status != OK:
             return status, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
@@ -478,11 +579,17 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         best = -1  # padded slot
         best_t = np.inf
         for e in range(m):
-            leaf = lnode[cur + e] - leaf_offset
+            leaf = np.uint64(lnode[np.uint64(cur + e)] - leaf_offset)  # (unsigned: no wraparound)
             slot, pt = -1, np.float32(np.inf)
             s0, s1 = first32[leaf], last32[leaf]
             if s1 > s0 and shared:
                 slot, pt = _leaf32_shared(dx32, dy32, dz32, t0, t1, ign, pre, s0, s1, eps32, keys)
+            elif s1 > s0 and first_only:
+                # any hit: the lowest key first; the slot only where the leaf has a hit
+                reject = keys[keys.shape[0] - 1]
+                hi = _leaf32_min(ox32, oy32, oz32, dx32, dy32, dz32, t0, ign, soa32, s0, s1, eps32, reject)
+                if hi < _NO_HIT and np.uint32(hi).view(np.float32) + t0 < t1:
+                    slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
             elif s1 > s0:
                 slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
             if first_only:
@@ -539,8 +646,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             return FULL_LEAVES, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
                 tri_tests, node_ids, leaf_ids
         for e in range(last + 1):
-            leaf = lnode[cur + e] - leaf_offset
-            tests += size[leaf]
+            leaf = lnode[np.uint64(cur + e)] - leaf_offset
+            tests += size[np.uint64(leaf)]
             if record:
                 leaf_ids[n_leaf_out + e] = leaf
         tri_tests[i] = tests
