@@ -20,7 +20,7 @@ from tlm.arch.model import simulate
 from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.run import render
-from tlm.kernels import emission, estimate, photons, threads, traverse
+from tlm.kernels import bsp, emission, estimate, photons, threads, traverse
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.memory import Accesses, Deferred, Streams
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
@@ -38,6 +38,7 @@ def small_chunks(monkeypatch):
     monkeypatch.setattr(photons, "PHOTON_MIN_CHUNK", 700)
     monkeypatch.setattr(emission, "CONE_CHUNK", 3000)
     monkeypatch.setattr(batches, "MIN_BATCH_RAYS", 16)
+    monkeypatch.setattr(bsp, "GROUP_MIN_ELEMENTS", 40)
 
 
 def _cfg(scene: str, mode: str, **over):
@@ -154,6 +155,36 @@ def test_kernels_are_bit_identical_for_any_thread_count(small_chunks):
         for k in ("node_visits", "leaves_visited", "photons_tested", "photons_accepted", "gather_misses"):
             assert np.array_equal(getattr(a, k), getattr(b, k)), k
     assert got[1][0].photons_accepted.sum() > 0 and got[1][0].gather_misses.sum() > 0
+
+
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+def test_trees_are_the_same_for_any_thread_count(monkeypatch, engine):
+    """A level of the BSP build cut into groups of whole nodes, one per thread (the compiled
+    engine): the same tree, byte for byte, for points, triangles with the expansion pass and
+    a tree cut short where the reserved memory runs out; and the levels were cut."""
+    monkeypatch.setenv("TLM_KERNELS", engine)
+    monkeypatch.setattr(bsp, "GROUP_MIN_ELEMENTS", 50)
+    cut = []
+    real = bsp._node_groups
+    monkeypatch.setattr(bsp, "_node_groups", lambda starts, n: cut.append(len(real(starts, n))) or real(starts, n))
+    rng = np.random.default_rng(9)
+    pts = np.concatenate([rng.random((6000, 3)), np.repeat(rng.random((5, 3)), 400, axis=0)])  # coincident clumps
+    tri = rng.random((3000, 1, 3)) + rng.normal(scale=0.03, size=(3000, 3, 3))
+    trees = {}
+    for n in (1, 2, 3):
+        with threads.using(n):
+            trees[n] = (bsp.build_point_tree(pts, levels=11), bsp.build_triangle_tree(tri),
+                        bsp.build_triangle_tree(tri, levels=14, memory_factor=1.5))
+    for n in (2, 3):
+        for a, b in zip(trees[1], trees[n], strict=True):
+            assert a.levels == b.levels and a.truncated == b.truncated and a.work == b.work
+            for k in ("first", "last", "split", "lo", "hi", "items"):
+                assert getattr(a, k).tobytes() == getattr(b, k).tobytes(), (n, k)
+    assert trees[1][2].truncated
+    if engine == "numba":
+        assert max(cut) == 3 and 1 in cut  # levels cut for three threads (and the root's, not)
+    else:
+        assert cut == []  # (the numpy reference builds each level whole)
 
 
 def test_spans_cover_in_order():

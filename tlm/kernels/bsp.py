@@ -36,11 +36,13 @@ the split outside the region being divided).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from tlm.kernels import threads
 from tlm.kernels.engine import engine
 
 
@@ -131,6 +133,28 @@ def _check_levels(levels: int | None, n: int) -> int:
     return int(levels)
 
 
+GROUP_MIN_ELEMENTS = 1 << 15  # a level's elements a thread's group of nodes holds at least
+
+
+def _node_groups(starts: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """The buffer ``0 .. n`` cut into ranges of whole nodes (``starts``: each node's
+    first element, ascending), about equal, one per thread of :func:`threads.current`
+    (one range on one thread, or for a level of fewer elements or nodes)."""
+    parts = min(threads.current(), n // GROUP_MIN_ELEMENTS, starts.shape[0])
+    if parts <= 1:
+        return [(0, n)]
+    cuts = starts[np.minimum(np.searchsorted(starts, n * np.arange(1, parts) // parts), starts.shape[0] - 1)]
+    bounds = np.unique(np.concatenate([[0], cuts, [n]]))
+    return [(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+
+
+def _each(kernel, groups: list[tuple[int, int]], before: tuple, after: tuple) -> None:
+    """``kernel(*before, lo, hi, *after)`` of every group ``(lo, hi)``, on the threads
+    when there are several."""
+    for _ in threads.ordered(lambda g: kernel(*before, *g, *after), groups):
+        pass
+
+
 def _build(
     key_lo: np.ndarray,
     key_hi: np.ndarray,
@@ -172,9 +196,13 @@ def _build(
         nodes = 1 << j
         nlo = lo[k0 : k0 + nodes, axis]
         nhi = hi[k0 : k0 + nodes, axis]
-        if jit is not None:  # the same passes, compiled (tlm/kernels/_jit_bsp.py)
-            counts, sums = jit.level_sums(items, label, lo_cols[axis], hi_cols[axis], nlo, nhi, nodes, points)
+        if jit is not None:  # the same passes, compiled (tlm/kernels/_jit_bsp.py), in groups of whole nodes
             n_in = items.shape[0]
+            groups = _node_groups(first[k0 : k0 + nodes], n_in)
+            counts = np.zeros(nodes, dtype=np.int64)
+            sums = np.zeros(nodes)
+            _each(jit.level_sums, groups, (items, label, lo_cols[axis], hi_cols[axis], nlo, nhi),
+                  (counts, sums, points))
         else:
             x_lo = lo_cols[axis][items]
             x_hi = x_lo if points else hi_cols[axis][items]
@@ -192,10 +220,20 @@ def _build(
         s = np.minimum(np.maximum(s, nlo), nhi)  # rounding never leaves the node
         # passes 2 and 3: left child's elements, then the right child's, stable
         if jit is not None:
-            n_out, new_items, new_label, n_left, n_right = jit.level_partition(
-                items, label, lo_cols[axis], hi_cols[axis], s, nodes, points, capacity)
+            side = np.empty(n_in, dtype=np.uint8)
+            n_left = np.zeros(nodes, dtype=np.int64)
+            n_right = np.zeros(nodes, dtype=np.int64)
+            _each(jit.level_sides, groups, (items, label, lo_cols[axis], hi_cols[axis], s),
+                  (side, n_left, n_right, points))
+            n_out = int(n_left.sum() + n_right.sum())
             if n_out > capacity:
                 break  # the expansion would overflow the reserved memory: stop here
+            put_left = np.cumsum(n_left + n_right) - (n_left + n_right)
+            put_right = put_left + n_left
+            new_items = np.empty(n_out, dtype=np.int64)
+            new_label = np.empty(n_out, dtype=np.int64)
+            _each(jit.level_write, groups, (items, label, side), (put_left, put_right, new_items, new_label))
+            del side
             items, label = new_items, new_label  # swap P <=> P'
             child_counts = np.empty(2 * nodes, dtype=np.int64)
             child_counts[0::2], child_counts[1::2] = n_left, n_right
