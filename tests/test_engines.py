@@ -401,3 +401,23 @@ def test_page_misses_are_the_same_compiled(monkeypatch, page_words):
             miss, after = page_misses(words, state, page_words)
             got[engine] = (miss.dtype.str, miss.tobytes(), after)
         assert got["numpy"] == got["numba"], (trial, page_words)
+
+
+def test_stream_compaction_refuses_what_numpy_would(monkeypatch):
+    """The compiled compaction reads no bounds it is not given: owners of another length, a
+    ``ptr`` that does not rise from 0 to the words, a page of no words are errors on both
+    engines; a numpy integer page size works on both."""
+    from tlm.kernels.memory import Accesses, PairState, compact, page_misses
+
+    words = np.array([3, 4, 9, 1], dtype=np.int64)
+    for engine in ("numpy", "numba"):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        with pytest.raises(ValueError):
+            compact(words, np.array([0, 1]), 4)
+        for ptr in ([0, 2, 5], [1, 4], [0, 3, 2, 4]):
+            with pytest.raises(ValueError, match="ptr"):
+                Accesses.of_csr(words, np.array(ptr), 4)
+        with pytest.raises(ValueError, match="page_words"):
+            Accesses.of_ranges(words, words + 2, None, 0)
+        miss, after = page_misses(words, PairState(), np.int64(4))
+        assert miss.tolist() == [True, False, True, True] and after == PairState(0, False)  # (4: armed next page)

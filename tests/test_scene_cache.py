@@ -109,21 +109,41 @@ def test_the_same_obj_beside_another_library_or_under_another_name_is_its_own(tm
     assert meshes.load_mesh(tmp_path / "other.obj").part_names == ("other",)
 
 
-@pytest.mark.parametrize("way", ["cut", "zeroed", "sidecar"])
+def _rewrite(npz: Path, **change) -> None:
+    """The entry with some members replaced (``meta``: a dict, written as the cache does)."""
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    for k, v in change.items():
+        arrays[k] = np.frombuffer(json.dumps(v).encode(), dtype=np.uint8) if k == "meta" else v
+    np.savez(npz, **arrays)
+
+
+def _meta(npz: Path) -> dict:
+    with np.load(npz) as z:
+        return json.loads(z["meta"].tobytes().decode())
+
+
+@pytest.mark.parametrize("way", ["cut", "zeroed", "flipped", "meta"])
 def test_a_damaged_entry_is_said_once_removed_and_parsed_again(tmp_path, small, cache, capsys, way):
     path = _box(tmp_path / "a")
     first = meshes.load_mesh(path)
     npz = next((cache / "scenes").glob("mesh-*.npz"))
+    data = bytearray(npz.read_bytes())
     if way == "cut":
-        npz.write_bytes(npz.read_bytes()[:100])
+        npz.write_bytes(data[:100])
     elif way == "zeroed":
-        npz.write_bytes(b"\0" * npz.stat().st_size)
+        npz.write_bytes(b"\0" * len(data))
+    elif way == "flipped":  # one byte of the triangles' data: the zip's CRC-32 no longer matches
+        at = data.find(np.ascontiguousarray(first.triangles).tobytes()[:24])
+        assert at > 0
+        data[at + 3] ^= 0x40
+        npz.write_bytes(bytes(data))
     else:
-        npz.with_suffix(".json").write_text("{not json")
+        _rewrite(npz, meta={**_meta(npz), "materials": [7]})  # valid JSON, not what an entry holds
     got = meshes.load_mesh(path)
     _same(first, got)
     err = capsys.readouterr().err
-    assert "damaged scene cache entry" in err and str(cache / "scenes") in err
+    assert "damaged scene cache entry" in err and str(cache / "scenes") in err and "removed" in err
     assert small == ["box.obj", "box.obj"]
     meshes.load_mesh(path)  # the entry written again: no second warning
     assert small == ["box.obj", "box.obj"] and "damaged" not in capsys.readouterr().err
@@ -133,16 +153,46 @@ def test_an_entry_with_arrays_that_do_not_match_is_damaged(tmp_path, small, cach
     path = _box(tmp_path / "a")
     first = meshes.load_mesh(path)
     npz = next((cache / "scenes").glob("mesh-*.npz"))
-    side = npz.with_suffix(".json")
     with np.load(npz) as z:
-        arrays = {k: z[k] for k in z.files}
-    arrays["part"] = arrays["part"][:1]
-    np.savez(npz, **arrays)
-    meta = json.loads(side.read_text())
-    meta["npz"] = scache.file_digest(npz)  # a consistent sidecar: only the shapes are wrong
-    side.write_text(json.dumps(meta))
+        part = z["part"]
+    _rewrite(npz, part=part[:1])  # a whole zip: only the shapes are wrong
     _same(first, meshes.load_mesh(path))
     assert "mismatched shapes" in capsys.readouterr().err
+
+
+def test_a_library_the_lookup_would_now_find_first_is_parsed_again(tmp_path, small):
+    """The lookup of the libraries runs again before an entry is used: a plain library
+    beside a compressed OBJ is found before the compressed one, and a ``mtllib`` line read
+    as two names becomes one file once a file of the whole line's name exists."""
+    import lzma
+
+    folder = tmp_path / "z"
+    folder.mkdir()
+    (folder / "box.obj.xz").write_bytes(lzma.compress(OBJ.encode()))
+    (folder / "box.mtl.xz").write_bytes(lzma.compress(MTL.encode()))
+    assert meshes.load_mesh(folder / "box.obj.xz").materials[0].albedo == (0.6, 0.1, 0.1)
+    (folder / "box.mtl").write_text(MTL.replace("Kd 0.6 0.1 0.1", "Kd 0.0 0.0 0.9"))
+    assert meshes.load_mesh(folder / "box.obj.xz").materials[0].albedo == (0.0, 0.0, 0.9)
+    assert small == ["box.obj.xz", "box.obj.xz"]
+
+    two = tmp_path / "two"
+    two.mkdir()
+    (two / "x").write_text("newmtl red\nKd 0.6 0.1 0.1\n")
+    (two / "y.mtl").write_text("newmtl white\nKd 0.7 0.7 0.7\n")
+    (two / "m.obj").write_text(OBJ.replace("mtllib box.mtl", "mtllib x y.mtl"))
+    assert [m.name for m in meshes.load_mesh(two / "m.obj").materials] == ["red", "white"]
+    (two / "x y.mtl").write_text(MTL.replace("Kd 0.6 0.1 0.1", "Kd 0.3 0.3 0.3"))
+    assert meshes.load_mesh(two / "m.obj").materials[0].albedo == (0.3, 0.3, 0.3)
+    assert small[2:] == ["m.obj", "m.obj"]
+
+
+def test_another_numpy_or_trimesh_is_another_entry(tmp_path, small, monkeypatch):
+    path = _box(tmp_path / "a")
+    meshes.load_mesh(path)
+    meshes.load_mesh(path)
+    monkeypatch.setattr(scache, "_versions", lambda: "numpy=0 trimesh=0")
+    meshes.load_mesh(path)
+    assert small == ["box.obj", "box.obj"]
 
 
 def test_a_cache_that_cannot_be_written_only_costs_speed(tmp_path, small, monkeypatch):

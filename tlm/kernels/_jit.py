@@ -9,7 +9,7 @@ and precision: float32 for the block test (:func:`intersect.closest_slots`), flo
 for the intervals, the check (:func:`intersect.check`) and the fallback
 (:func:`intersect.closest_slots64`); where an operand provably is not NaN, numpy's
 NaN-propagating minimum and maximum are the plain ones, one instruction each (the same
-values: :func:`_key`, :func:`_lists`). numba compiles without fast-math, so nothing is
+values: :func:`_key`, phase 1 in :func:`trace`). numba compiles without fast-math, so nothing is
 reassociated or fused into an FMA. Hits, work counts and the memory touched are
 therefore bit-identical to the numpy path, which stays the reference
 (``TLM_KERNELS=numpy``); tests compare the two and a golden file pins both.

@@ -33,6 +33,7 @@ def _page(w, page_words, shift):
 
 def shift_of(page_words: int) -> int:
     """log2 of a power-of-two page, else -1 (the functions below then divide)."""
+    page_words = int(page_words)
     return page_words.bit_length() - 1 if page_words > 0 and page_words & (page_words - 1) == 0 else -1
 
 
@@ -91,9 +92,9 @@ def range_runs(first, last, owner, page_words, shift):
     page = np.int64(0)
     for i in range(m):
         f = np.int64(first[i])
-        hi = np.int64(last[i]) - 1
-        if hi < f:
+        if last[i] <= f:
             continue
+        hi = np.int64(last[i]) - 1
         o = np.int64(owner[i])
         for p in range(_page(f, page_words, shift), _page(hi, page_words, shift) + 1):
             w = min(hi, p * page_words + (page_words - 1))

@@ -215,18 +215,23 @@ def _pages(words: np.ndarray, page_words: int) -> np.ndarray:
     return words // page_words
 
 
-def _spans(first, last, owner, page_words: int):
-    """Per (range, page) span of the non-empty ranges: its first and last word, its owner."""
+def _ranges(first, last, owner, page_words: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``first``, ``last`` and ``owner`` (default: each range's index) as checked,
+    contiguous int64 arrays of one length."""
     if page_words <= 0:
         raise ValueError(f"page_words (={page_words}) must be > 0")
-    first = np.asarray(first, dtype=np.int64).reshape(-1)
-    last = np.asarray(last, dtype=np.int64).reshape(-1)
+    first = np.ascontiguousarray(first, dtype=np.int64).reshape(-1)
+    last = np.ascontiguousarray(last, dtype=np.int64).reshape(-1)
     if first.shape != last.shape:
         raise ValueError(f"first ({first.shape[0]}) and last ({last.shape[0]}) differ in length")
     if owner is None:
-        owner = np.arange(first.shape[0], dtype=np.int64)
-    else:
-        owner = np.broadcast_to(np.asarray(owner, dtype=np.int64), first.shape)
+        return first, last, np.arange(first.shape[0], dtype=np.int64)
+    return first, last, np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), first.shape))
+
+
+def _spans(first, last, owner, page_words: int):
+    """Per (range, page) span of the non-empty ranges: its first and last word, its owner."""
+    first, last, owner = _ranges(first, last, owner, page_words)
     keep = last > first
     if not keep.all():
         first, last, owner = first[keep], last[keep], owner[keep]
@@ -302,10 +307,14 @@ def compact(words: np.ndarray, owner: np.ndarray, page_words: int = PAGE_WORDS) 
     """
     words = np.asarray(words, dtype=np.int64).reshape(-1)
     owner = np.asarray(owner, dtype=np.int64).reshape(-1)
+    if owner.shape != words.shape:
+        raise ValueError(f"words ({words.shape[0]}) and owner ({owner.shape[0]}) differ in length")
     if words.shape[0] < 2:
         return words, owner
     jit = _jit()
     if jit is not None:
+        if page_words <= 0:
+            raise ValueError(f"page_words (={page_words}) must be > 0")
         return jit.compact(words, owner, np.int64(page_words), jit.shift_of(page_words))
     start = _run_starts(words, page_words, owner)
     if start.shape[0] == words.shape[0]:
@@ -335,14 +344,7 @@ class Accesses:
         """The words ``[first, last)`` of each range, ranges in order (:func:`page_spans`)."""
         jit = _jit()
         if jit is not None:
-            if page_words <= 0:
-                raise ValueError(f"page_words (={page_words}) must be > 0")
-            first = np.ascontiguousarray(first, dtype=np.int64).reshape(-1)
-            last = np.ascontiguousarray(last, dtype=np.int64).reshape(-1)
-            if first.shape != last.shape:
-                raise ValueError(f"first ({first.shape[0]}) and last ({last.shape[0]}) differ in length")
-            owner = (np.arange(first.shape[0], dtype=np.int64) if owner is None else
-                     np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), first.shape)))
+            first, last, owner = _ranges(first, last, owner, page_words)
             return cls(*jit.range_runs(first, last, owner, np.int64(page_words), jit.shift_of(page_words)), page_words)
         _, hi, owner = _spans(first, last, owner, page_words)  # a span's last word is its largest
         return cls(*compact(hi, owner, page_words), page_words)
@@ -354,8 +356,12 @@ class Accesses:
         ptr = np.asarray(ptr, dtype=np.int64)
         if words.shape[0] == 0:
             return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), page_words)
+        if ptr.ndim != 1 or ptr.shape[0] < 1 or ptr[0] != 0 or ptr[-1] != words.shape[0] or np.any(ptr[1:] < ptr[:-1]):
+            raise ValueError(f"ptr must rise from 0 to the {words.shape[0]} words")
         jit = _jit()
         if jit is not None:
+            if page_words <= 0:
+                raise ValueError(f"page_words (={page_words}) must be > 0")
             return cls(*jit.csr_runs(words, ptr, np.int64(page_words), jit.shift_of(page_words)), page_words)
         first = ptr[:-1][ptr[1:] > ptr[:-1]]
         start = _run_starts(words, page_words, bounds=first)

@@ -6,21 +6,25 @@ point, and again for the key of every cached frame (``benchmarks/bench_load.py``
 measures both ways). Both results are kept under ``$TLM_CACHE/scenes`` (default
 ``~/.cache/tlm/scenes``), keyed by what determines them, bit for bit:
 
-* a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`) and
-  the name and sha256 of the mesh file. Its sidecar lists every other file the parse
-  read (an OBJ's MTL libraries, by their path from the mesh's folder) with their sizes
-  and sha256; an entry whose files beside this mesh differ is parsed again and
-  replaced. A file whose parse reads files it cannot name (a ``.gltf`` with external
-  buffers) is not cached.
+* a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`), the
+  versions of numpy and trimesh (which parses PLY, STL and GLB), and the name and sha256
+  of the mesh file. The entry keeps what names the other files the parse read (an OBJ's
+  ``mtllib`` statements) and those files' paths and sha256: before an entry is used, the
+  lookup of those files runs again beside this mesh (so a library that appeared where the
+  lookup looks first, or one that changed or went missing, means a new parse). A file
+  whose parse can read files the lookup cannot name (any ``.gltf``, a ``.glb`` with
+  external buffers) is not cached.
 * **crease normals** (:func:`crease_normals`): the code, the crease angle and the bytes
   of the world-space triangles and their parts, so a transform, another part map or
   another angle is another entry.
 
 Only geometry of at least :data:`MIN_TRIANGLES` triangles is kept (smaller parses take
-less time than the read back). The entries are written atomically (concurrent loads of
-one scene leave one whole entry); a damaged entry (cut short, zeroed, overwritten) is
-reported once as a warning naming the file, removed and computed again; a cache that
-cannot be written (read-only, full) only costs speed.
+less time than the read back). An entry is one ``.npz`` (its arrays and a ``meta``
+member, JSON), written atomically, so concurrent loads of one scene leave one whole entry
+of one writer; a damaged entry (cut short, zeroed, overwritten: the zip's CRC-32 of every
+member, the arrays' shapes, the metadata) is reported as a warning naming the file,
+removed and computed again; a cache that cannot be written (read-only, full) only costs
+speed.
 """
 
 from __future__ import annotations
@@ -29,24 +33,37 @@ import hashlib
 import json
 import os
 from collections.abc import Callable
-from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
 
+from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Geometry, Material
-from tlm.storage import cache_root, digest_problem, file_digest, warn, write_atomic, write_file
+from tlm.storage import cache_root, digest_problem, file_digest, warn, write_atomic
 
 __all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh"]
 
-FORMAT = "tlm-scene-cache/1"
+FORMAT = "tlm-scene-cache/2"  # /2: one file an entry (its metadata inside)
 MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) again: it is quicker
 
 
 def cache_dir() -> Path:
     """``$TLM_CACHE/scenes`` (default ``~/.cache/tlm/scenes``)."""
     return cache_root("scenes")
+
+
+def _versions() -> str:
+    """The versions of the libraries a parse runs (numpy; trimesh for PLY, STL, GLB)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = []
+    for name in ("numpy", "trimesh"):
+        try:
+            out.append(f"{name}={version(name)}")
+        except PackageNotFoundError:
+            out.append(f"{name}=none")
+    return " ".join(out)
 
 
 def _key(*parts: str | np.ndarray) -> str:
@@ -60,40 +77,53 @@ def _key(*parts: str | np.ndarray) -> str:
     return h.hexdigest()[:24]
 
 
-def mesh(path: Path, parse: Callable[[Path], tuple[Geometry, list[Path] | None]]) -> Geometry:
-    """The :class:`Geometry` of the mesh file ``path``: from the cache when its file and
-    every file its parse read are those of the entry, else ``parse(path)`` (which returns
-    the geometry and the other files it read, None when it cannot name them), cached."""
+Parse = Callable[[Path], tuple[Geometry, list | None]]
+Resolve = Callable[[Path, list], list[Path]]
+
+
+def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
+    """The :class:`Geometry` of the mesh file ``path``: from the cache when the entry's
+    other files are still what ``resolve`` finds beside this file, unchanged; else
+    ``parse(path)``, cached.
+
+    parse : the geometry and what names the other files its parse reads (JSON-able: an
+        OBJ's ``mtllib`` statements; ``[]``: none), or None when it cannot name them all.
+    resolve : ``resolve(path, names)``, the files ``names`` means beside ``path``, in the
+        order the parse reads them (an :class:`~tlm.errors.InputError` when one is missing).
+    """
     path = Path(path)
     try:
         digest = file_digest(path)
     except OSError:
         return parse(path)[0]  # (the parse says what is wrong with the file)
-    key = _key("mesh", path.name, digest["sha256"], str(digest["size"]))  # (the name: a part's, the format)
-    npz, side = cache_dir() / f"mesh-{key}.npz", cache_dir() / f"mesh-{key}.json"
-    if npz.exists() and side.exists():
-        meta = _read_entry(npz, side)
-        if meta is not None and _deps_unchanged(path.parent, meta.get("deps")):
-            got = _geometry(npz, side, meta)
-            if got is not None:
-                return got
-    geom, deps = parse(path)
-    if deps is None or geom.triangles.shape[0] < MIN_TRIANGLES:
+    # (the name: a part's, the format's)
+    key = _key("mesh", _versions(), path.name, digest["sha256"], str(digest["size"]))
+    entry = cache_dir() / f"mesh-{key}.npz"
+    if entry.exists():
+        got = _read(entry)
+        if got is not None and _libraries_unchanged(path, got[1], resolve):
+            geom = _geometry(entry, *got)
+            if geom is not None:
+                return geom
+    geom, names = parse(path)
+    if names is None or geom.triangles.shape[0] < MIN_TRIANGLES:
         return geom
     try:
-        dep_meta = [{"path": os.path.relpath(p, path.parent), **file_digest(Path(p))} for p in deps]
-    except OSError:
+        deps = [{"path": os.path.relpath(p, path.parent), **file_digest(Path(p))} for p in resolve(path, names)]
+        if file_digest(path) != digest:
+            return geom  # (the file changed while it was parsed: not kept under its old digest)
+    except (OSError, InputError):
         return geom
     arrays = {"triangles": geom.triangles, "part": geom.part}
     if geom.normals is not None:
         arrays["normals"] = geom.normals
     if geom.face_material is not None:
         arrays["face_material"] = geom.face_material
-    meta = {"part_names": list(geom.part_names), "deps": dep_meta,
+    meta = {"part_names": list(geom.part_names), "names": names, "deps": deps,
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission}
                           for m in geom.materials]}
-    _write_entry(npz, side, arrays, meta)
+    _write(entry, arrays, meta)
     return geom
 
 
@@ -106,60 +136,53 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray, crease_angle: float,
         return compute(tri, part, crease_angle)
     part64 = np.ascontiguousarray(part, dtype=np.int64)
     key = _key("crease", repr(float(crease_angle)), repr(tri.shape), tri, part64)
-    npz, side = cache_dir() / f"normals-{key}.npz", cache_dir() / f"normals-{key}.json"
-    if npz.exists() and side.exists() and _read_entry(npz, side) is not None:
-        got = _arrays(npz, side)
-        if got is not None and got.get("normals") is not None and got["normals"].shape == tri.shape:
-            return got["normals"]
+    entry = cache_dir() / f"normals-{key}.npz"
+    if entry.exists():
+        got = _read(entry)
         if got is not None:
-            _damaged(npz, side, "it holds no normals of the triangles' shape")
+            normals = got[0].get("normals")
+            if normals is not None and normals.shape == tri.shape and normals.dtype == np.float64:
+                return normals
+            _damaged(entry, "it holds no normals of the triangles' shape")
     normals = compute(tri, part, crease_angle)
-    _write_entry(npz, side, {"normals": normals}, {})
+    _write(entry, {"normals": normals}, {})
     return normals
 
 
 # ------------------------------------------------------------------ entries
 
 
-def _read_entry(npz: Path, side: Path) -> dict | None:
-    """The sidecar's metadata, or None (an older format, quietly; damaged: a warning)."""
+def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
+    """An entry's arrays and metadata, or None: of an older format (quietly) or damaged
+    (a warning; removed)."""
     try:
-        meta = json.loads(side.read_text())
+        with np.load(entry, allow_pickle=False) as z:  # (zip: every member's CRC-32 is checked as it is read)
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(arrays.pop("meta").tobytes().decode())
         if not isinstance(meta, dict):
-            raise ValueError("not a JSON object")
-    except (OSError, ValueError) as e:
-        _damaged(side, npz, f"unreadable sidecar ({type(e).__name__})")
+            raise ValueError("its metadata is not a JSON object")
+    except Exception as e:  # BadZipFile, EOFError, zlib.error, KeyError, ValueError: a damaged file
+        _damaged(entry, f"{type(e).__name__}: {e}")
         return None
     if meta.get("format") != FORMAT:
-        return None
-    problem = digest_problem(npz, meta.get("npz"))
-    if problem is not None:
-        _damaged(npz, side, problem)
-        return None
-    return meta
+        return None  # (another format cannot be under this key: the key hashes FORMAT)
+    return arrays, meta
 
 
-def _deps_unchanged(folder: Path, deps: object) -> bool:
-    """Whether every file the entry's parse read (by its path from the mesh's ``folder``)
-    is, beside this mesh file, the file it was."""
-    if not isinstance(deps, list):
-        return False
-    return all(isinstance(d, dict) and digest_problem(folder / str(d.get("path")), d) is None for d in deps)
-
-
-def _arrays(npz: Path, side: Path) -> dict[str, np.ndarray] | None:
+def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> bool:
+    """Whether the lookup of the entry's other files beside ``path`` finds the same paths,
+    and each is the file it was."""
+    deps = meta.get("deps")
     try:
-        with np.load(npz, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except Exception as e:  # BadZipFile, EOFError, zlib.error, ValueError: a damaged file
-        _damaged(npz, side, f"{type(e).__name__}: {e}")
-        return None
+        now = [os.path.relpath(p, path.parent) for p in resolve(path, meta.get("names") or [])]
+    except (InputError, OSError, TypeError, ValueError):
+        return False  # (a library missing now: the parse says so)
+    if not isinstance(deps, list) or now != [d.get("path") if isinstance(d, dict) else None for d in deps]:
+        return False
+    return all(digest_problem(path.parent / d["path"], d) is None for d in deps)
 
 
-def _geometry(npz: Path, side: Path, meta: dict) -> Geometry | None:
-    got = _arrays(npz, side)
-    if got is None:
-        return None
+def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict) -> Geometry | None:
     try:
         tri, part = got["triangles"], got["part"]
         n = tri.shape[0]
@@ -170,26 +193,28 @@ def _geometry(npz: Path, side: Path, meta: dict) -> Geometry | None:
         names = tuple(str(s) for s in meta["part_names"])
         if not ok:
             raise ValueError("arrays of mismatched shapes")
-    except (KeyError, TypeError, ValueError) as e:
-        _damaged(npz, side, f"{type(e).__name__}: {e}")
+    except (AttributeError, IndexError, KeyError, TypeError, ValueError) as e:
+        _damaged(entry, f"{type(e).__name__}: {e}")
         return None
     return Geometry(triangles=tri, part=part, part_names=names, normals=got.get("normals"),
                     materials=materials, face_material=got.get("face_material"))
 
 
-def _write_entry(npz: Path, side: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
-    """The arrays, then the sidecar with their size and checksum; nothing on an OSError."""
+def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
+    """The arrays and the metadata as one file, atomically; nothing on an OSError."""
+    blob = np.frombuffer(json.dumps({"format": FORMAT, **meta}).encode(), dtype=np.uint8)
     try:
-        npz.parent.mkdir(parents=True, exist_ok=True)
-        with write_atomic(npz, "wb") as fh:
-            np.savez(fh, **arrays)
-        write_file(side, json.dumps({"format": FORMAT, **meta, "npz": file_digest(npz)}, indent=1) + "\n")
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        with write_atomic(entry, "wb") as fh:
+            np.savez(fh, meta=blob, **arrays)
     except OSError:
         pass  # a read-only (or full) cache only costs speed
 
 
-def _damaged(bad: Path, other: Path, why: str) -> None:
-    warn(f"damaged scene cache entry {bad} ({why}): removed, computing it again")
-    for f in (bad, other):
-        with suppress(OSError):  # (a read-only cache: computed again every time, said every time)
-            f.unlink(missing_ok=True)
+def _damaged(entry: Path, why: str) -> None:
+    try:
+        entry.unlink(missing_ok=True)
+        done = "removed, computing it again"
+    except OSError:  # (a read-only cache: computed again every time, said every time)
+        done = "computing it again (it could not be removed)"
+    warn(f"damaged scene cache entry {entry} ({why}): {done}")

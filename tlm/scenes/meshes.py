@@ -131,12 +131,14 @@ def load_mesh(path: Path) -> Geometry:
         raise InputError("mesh file not found", source=str(path))
     from tlm.scenes import cache
 
-    return cache.mesh(path, _parse)
+    return cache.mesh(path, _parse, _libraries)
 
 
-def _parse(path: Path) -> tuple[Geometry, list[Path] | None]:
-    """The file's geometry and the other files its parse read (None: it cannot name them,
-    a ``.gltf``'s buffers), for :func:`tlm.scenes.cache.mesh`."""
+def _parse(path: Path) -> tuple[Geometry, list | None]:
+    """The file's geometry and what names the other files its parse read, for
+    :func:`tlm.scenes.cache.mesh`: an OBJ's ``mtllib`` statements (``[text, line]``),
+    ``[]`` for a file that reads no other, None where the parse can read files that
+    :func:`_libraries` cannot name (a ``.gltf``'s buffers, a ``.glb`` with external ones)."""
     src = str(path)
     ext, zext = mesh_format(path)
     stem = Path(path.stem).stem if zext else path.stem
@@ -144,13 +146,37 @@ def _parse(path: Path) -> tuple[Geometry, list[Path] | None]:
         warnings.simplefilter("ignore")
         if ext == ".obj":
             return _load_obj(path, stem, zext, src)
-        return _load_trimesh(path, ext, zext, stem, src), (None if ext == ".gltf" else [])
+        geom = _load_trimesh(path, ext, zext, stem, src)
+    if ext == ".gltf" or (ext == ".glb" and _external_buffers(path)):
+        return geom, None
+    return geom, []
+
+
+def _external_buffers(path: Path) -> bool:
+    """Whether a GLB's JSON names a buffer or an image by a URI (a file beside it)."""
+    from tlm.scenes.materials import gltf_json
+    from tlm.scenes.objfile import read_bytes
+
+    header = gltf_json(path, read_bytes(path))
+    return any(isinstance(x, dict) and "uri" in x for key in ("buffers", "images") for x in header.get(key) or [])
+
+
+def _libraries(path: Path, names: list) -> list[Path]:
+    """The material libraries an OBJ's ``mtllib`` statements (``[text, line]``) name beside
+    it, in the order :func:`_obj_materials` reads them (an InputError when one is missing)."""
+    zext = mesh_format(path)[1]
+    out: list[Path] = []
+    for text, line in names:
+        for mtl in _library_paths(path, text, line, zext, str(path)):
+            if mtl not in out:
+                out.append(mtl)
+    return out
 
 
 # ------------------------------------------------------------------ OBJ
 
 
-def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, list[Path]]:
+def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, list]:
     from tlm.scenes.objfile import read_obj
 
     obj = read_obj(path, stem)
@@ -160,7 +186,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
     if obj.corner_normals is not None:
         normals = obj.vertex_normals[obj.corner_normals]
         normals = _unit_or_none(normals)
-    materials, face_material, libraries = _obj_materials(path, obj, zext, src)
+    materials, face_material = _obj_materials(path, obj, zext, src)
     return Geometry(
         triangles=np.ascontiguousarray(tri, dtype=np.float64),
         part=obj.part,
@@ -168,7 +194,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
         normals=normals,
         materials=materials,
         face_material=face_material,
-    ), libraries
+    ), [[text, line] for text, line in obj.mtllibs]
 
 
 def _unit_or_none(normals: np.ndarray) -> np.ndarray | None:
@@ -211,14 +237,12 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     return out
 
 
-def _obj_materials(path: Path, obj, zext: str, src: str
-                   ) -> tuple[tuple[Material, ...], np.ndarray | None, list[Path]]:
-    """The OBJ's materials, each face's index into them, and the libraries read."""
+def _obj_materials(path: Path, obj, zext: str, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
     from tlm.scenes.materials import parse_mtl
     from tlm.scenes.objfile import read_bytes
 
     if not obj.mtllibs:
-        return (), None, []
+        return (), None
     library: dict[str, Material] = {}
     files: list[str] = []
     for text, line in obj.mtllibs:
@@ -237,7 +261,7 @@ def _obj_materials(path: Path, obj, zext: str, src: str
             raise InputError(f"line {line}: usemtl {name!r}: no material of that name in {libs}"
                              f"{did_you_mean(name, index)}", source=src)
         table[k] = index[name]
-    return materials, table[obj.material], [Path(f) for f in files]
+    return materials, table[obj.material]
 
 
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
