@@ -421,3 +421,23 @@ def test_stream_compaction_refuses_what_numpy_would(monkeypatch):
             Accesses.of_ranges(words, words + 2, None, 0)
         miss, after = page_misses(words, PairState(), np.int64(4))
         assert miss.tolist() == [True, False, True, True] and after == PairState(0, False)  # (4: armed next page)
+
+
+def test_hash_uniform_is_the_same_compiled(monkeypatch):
+    """The random numbers (tlm/kernels/_jit_hash.py against the numpy code): the same bits for
+    negative and huge keys, seeds near 2**64, scalar keys broadcast, two-dimensional keys, and
+    below the size where the numpy code runs anyway."""
+    from tlm.kernels import shade
+
+    rng = np.random.default_rng(4)
+    a = rng.integers(-(2**62), 2**62, 5000)
+    b = rng.integers(0, 1000, 5000)
+    cases = [(12345, a, 3, 0), (2**64 - 5, a, b), (-7, a.reshape(50, 100), b.reshape(50, 100), -1),
+             (0, np.zeros(300, np.int64) + 5, 2), (1, a[:10], 4)]
+    for case in cases:
+        got = {}
+        for engine in ("numpy", "numba"):
+            monkeypatch.setenv("TLM_KERNELS", engine)
+            got[engine] = shade.hash_uniform(*case)
+        assert got["numpy"].shape == got["numba"].shape and got["numpy"].tobytes() == got["numba"].tobytes()
+        assert ((got["numba"] >= 0) & (got["numba"] < 1)).all()

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tlm.kernels.engine import engine
 from tlm.kernels.memory import PAGE_WORDS, Accesses, Recorder, traversal_accesses
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit, closest_hit
 from tlm.scenes.model import Light
@@ -44,9 +45,21 @@ def _mix(x: np.ndarray) -> np.ndarray:
     return x ^ (x >> np.uint64(31))
 
 
+HASH_MIN_COMPILED = 64  # fewer numbers than this: the numpy code (a compiled call's fixed cost)
+
+
 def hash_uniform(seed: int, *keys: np.ndarray | int) -> np.ndarray:
-    """Uniform [0, 1) numbers, one per element of the broadcast ``keys``."""
+    """Uniform [0, 1) numbers, one per element of the broadcast ``keys`` (compiled,
+    :mod:`tlm.kernels._jit_hash`, unless ``TLM_KERNELS=numpy``: the same numbers)."""
     arrays = np.broadcast_arrays(*[np.asarray(k, dtype=np.int64) for k in keys])
+    if arrays and arrays[0].size >= HASH_MIN_COMPILED and engine() == "numba":
+        from tlm.kernels import _jit_hash
+
+        shape = arrays[0].shape
+        stacked = np.empty((len(arrays), arrays[0].size), dtype=np.int64)
+        for row, a in zip(stacked, arrays, strict=True):
+            row[:] = a.reshape(-1)
+        return _jit_hash.hash_uniform(np.uint64(seed & 0xFFFFFFFFFFFFFFFF), stacked).reshape(shape)
     h = _mix(np.full(arrays[0].shape, np.uint64(seed & 0xFFFFFFFFFFFFFFFF)) + _GOLD)
     for k in arrays:
         h = _mix(h ^ (k.astype(np.uint64) * _GOLD))
