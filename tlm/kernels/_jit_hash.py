@@ -13,9 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_GOLD = np.uint64(0x9E3779B97F4A7C15)
+from tlm.kernels.shade import _GOLD, _M1, _M2  # (the numpy code's constants)
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -29,6 +29,7 @@ speed.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -53,6 +54,7 @@ def cache_dir() -> Path:
     return cache_root("scenes")
 
 
+@functools.cache
 def _versions() -> str:
     """The versions of the libraries a parse runs (numpy; trimesh for PLY, STL, GLB)."""
     from importlib.metadata import PackageNotFoundError, version

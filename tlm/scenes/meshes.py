@@ -186,7 +186,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
     if obj.corner_normals is not None:
         normals = obj.vertex_normals[obj.corner_normals]
         normals = _unit_or_none(normals)
-    materials, face_material = _obj_materials(path, obj, zext, src)
+    materials, face_material = _obj_materials(path, obj, src)
     return Geometry(
         triangles=np.ascontiguousarray(tri, dtype=np.float64),
         part=obj.part,
@@ -237,21 +237,17 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     return out
 
 
-def _obj_materials(path: Path, obj, zext: str, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
+def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
     from tlm.scenes.materials import parse_mtl
     from tlm.scenes.objfile import read_bytes
 
     if not obj.mtllibs:
         return (), None
     library: dict[str, Material] = {}
-    files: list[str] = []
-    for text, line in obj.mtllibs:
-        for mtl in _library_paths(path, text, line, zext, src):
-            if str(mtl) in files:
-                continue
-            files.append(str(mtl))
-            for m in parse_mtl(read_bytes(mtl).decode("utf-8", "replace"), str(mtl)):
-                library.setdefault(m.name, m)
+    files = _libraries(path, obj.mtllibs)  # (the lookup the scene cache reruns: tlm.scenes.cache)
+    for mtl in files:
+        for m in parse_mtl(read_bytes(mtl).decode("utf-8", "replace"), str(mtl)):
+            library.setdefault(m.name, m)
     materials = tuple(library.values())
     index = {m.name: i for i, m in enumerate(materials)}
     table = np.full(len(obj.material_names) + 1, -1, dtype=np.int32)  # the last: "no usemtl"
