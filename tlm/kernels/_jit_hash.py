@@ -13,7 +13,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tlm.kernels.shade import _GOLD, _M1, _M2  # (the numpy code's constants)
+# tlm.kernels.shade's constants (not imported: shade imports this module, and the layers'
+# import graph has no cycle; tests/test_engines.py compares the numbers)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLD = np.uint64(0x9E3779B97F4A7C15)
 
 
 @njit(cache=True, nogil=True, inline="always")
