@@ -229,6 +229,32 @@ def test_prepare_builds_what_the_engine_reads(monkeypatch, engine):
     assert {"jit_layout", "soa", "soa64"} & set(accel.__dict__) == built
 
 
+@pytest.mark.parametrize("memory_factor", [20.0, 1.3])
+def test_the_compiled_layout_holds_the_numpy_constants(scene_accel, memory_factor):
+    """Every padded slot of the compiled kernel's copy holds the float32 and float64
+    constants the numpy engine tests (``soa``, ``soa64``) of the slot it maps back to,
+    leaves start on a multiple of PAD slots, and padding is NaN with no triangle's id."""
+    from tlm.kernels import _jit
+
+    scene, _ = scene_accel
+    accel = build_accel(scene.triangles, memory_factor=memory_factor)  # (slots shared by leaves at 20)
+    lay, s32, s64 = accel.jit_layout, accel.soa, accel.soa64
+    real = lay.back >= 0
+    assert (lay.first % _jit.PAD == 0).all() and (lay.last - lay.first == -(-lay.size // _jit.PAD) * _jit.PAD).all()
+    assert (lay.size == accel.leaf_last - accel.leaf_first).all() and lay.back.shape == (lay.soa32.shape[1],)
+    want32 = np.concatenate([s32.v0, s32.e1n, s32.e2, s32.n, s32.nn])[:, lay.back[real]]
+    assert lay.soa32[:15, real].tobytes() == want32.tobytes()
+    assert lay.soa32[15, real].view(np.int32).tolist() == s32.ids[lay.back[real]].tolist()
+    assert np.isnan(lay.soa32[:15, ~real]).all() and (lay.soa32[15, ~real].view(np.int32) == -2).all()
+    assert lay.soa64.tobytes() == np.concatenate([s64.v0, s64.e1n, s64.e2]).tobytes()
+    assert lay.ids.tolist() == s64.ids.tolist()
+    for leaf in range(lay.size.shape[0]):  # a leaf's slots in order, then its padding
+        got = lay.back[lay.first[leaf]:lay.last[leaf]]
+        n = int(lay.size[leaf])
+        assert got[:n].tolist() == list(range(accel.leaf_first[leaf], accel.leaf_last[leaf]))
+        assert (got[n:] == -1).all()
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

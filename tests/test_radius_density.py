@@ -200,3 +200,41 @@ def test_params_document_the_rule(capsys):
     text = capsys.readouterr().out
     for key in ("estimate.radius_photons", "estimate.caustic_radius_photons", "estimate.radius_fraction"):
         assert key in text
+
+
+def test_the_radii_made_before_the_batches_are_the_ones_the_batches_ask_for(monkeypatch):
+    """``density_requests`` (what ``_warm`` computes at once on the threads before the
+    batches) lists each radius the frame's ``radii`` asks for, and nothing else: with final
+    gathering or without, each rule, each map."""
+    import dataclasses
+
+    import tlm.kernels.photons as photon_module
+    from tlm.render.passes import density_requests
+
+    def fresh(photons):  # the maps without the radii the render kept
+        return dataclasses.replace(photons, **{name: dataclasses.replace(m, _memo={}) for name in
+                                               ("caustic_map", "indirect_map", "global_map")
+                                               if (m := getattr(photons, name)) is not None})
+
+    real = photon_module.density_radius
+    asked = []
+    monkeypatch.setattr(photon_module, "density_radius", lambda pos, k: asked.append((pos.shape[0], k)) or real(pos, k))
+    seen = 0
+    for fg in (0, 3):
+        res = _render("cornell", 3000, {"final_gather": fg})
+        for est in ({}, {"radius_fraction": 0.02}, {"caustic_radius": 3.0, "radius_photons": 16},
+                    {"radius": 7.0, "final_gather_photons": 24}, {"caustic_radius_photons": 5}):
+            f = Frame.create(res.scene, res.accel, config_from_dict(
+                {"scene": "cornell", "mode": "pmap", "estimate": {"final_gather": fg, **est}}))
+            photons = fresh(res.photons.photons)
+            requests = density_requests(f, photons)
+            assert len({(id(m), k) for m, k in requests}) == len(requests)  # (each once)
+            asked.clear()
+            want = radii(f, fresh(photons))  # what the frame asks for, from maps with no radii kept
+            assert sorted(asked) == sorted((m.n, k) for m, k in requests), est
+            for m, k in requests:
+                m.density_radius(k)
+            asked.clear()
+            assert radii(f, photons) == want and asked == []  # every radius was made: only looked up
+            seen += bool(requests)
+    assert seen >= 6

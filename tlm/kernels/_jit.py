@@ -70,12 +70,22 @@ class Layout:
 def layout(accel) -> Layout:
     """Build the :class:`Layout` of an accel (once per accel: it is cached there).
 
-    The float32 rows are the float64 constants rounded (as :class:`TriangleSoA` makes
-    its float32 copy), so the constants are computed once."""
-    soa = accel.constants(np.float64)
-    ids = soa.ids
-    if ids.shape[0] and ids.max() > np.iinfo(np.int32).max:
+    The constants are those of :class:`~tlm.kernels.intersect.TriangleSoA` (the same
+    operations, per triangle), gathered once into the slots: the float32 rows are the
+    float64 ones rounded (as :class:`TriangleSoA` makes its float32 copy), so each is
+    computed once, and a triangle's values are the same in every leaf that holds it."""
+    tri = np.asarray(accel.triangles, dtype=np.float64).reshape(-1, 3, 3)
+    items = np.asarray(accel.tree.items, dtype=np.int64)
+    if tri.shape[0] and tri.shape[0] - 1 > np.iinfo(np.int32).max:
         raise ValueError("more than 2**31 triangles")
+    n_tri = tri.shape[0]
+    # per triangle, as TriangleSoA.from_triangles: v0 (from the origin), -E1, E2, N, -N
+    rows = np.empty((15, n_tri))
+    e1 = tri[:, 1] - tri[:, 0]
+    e2 = tri[:, 2] - tri[:, 0]
+    n = np.cross(e1, e2)
+    for k, a in enumerate((tri[:, 0] - accel.origin, -e1, e2, n, -n)):
+        rows[3 * k : 3 * k + 3] = a.T
     lf, ll = accel.leaf_first, accel.leaf_last
     size = (ll - lf).astype(np.int64)
     padded = (size + PAD - 1) // PAD * PAD
@@ -84,19 +94,22 @@ def layout(accel) -> Layout:
     m2 = int(padded.sum())
     # where each accel slot goes: its leaf's padded start + its place in the leaf
     leaf_of = np.repeat(np.arange(size.shape[0]), size)
-    src = np.concatenate([np.arange(a, b) for a, b in zip(lf.tolist(), ll.tolist(), strict=True)]
-                         or [np.zeros(0, np.int64)]).astype(np.int64)
-    dst = first[leaf_of] + (np.arange(src.shape[0]) - np.repeat(np.cumsum(size) - size, size))
-    soa32 = np.full((16, m2), np.nan, dtype=np.float32)
-    soa32[15] = np.array([-2], dtype=np.int32).view(np.float32)[0]  # no triangle's id
-    for k, rows in enumerate((soa.v0, soa.e1n, soa.e2, soa.n, soa.nn)):
-        soa32[3 * k : 3 * k + 3, dst] = rows[:, src].astype(np.float32)
-    soa32[15, dst] = ids[src].astype(np.int32).view(np.float32)
+    within = np.arange(leaf_of.shape[0]) - np.repeat(np.cumsum(size) - size, size)
+    src = lf[leaf_of].astype(np.int64) + within
+    dst = first[leaf_of] + within
+    # the triangle of each padded slot; padding reads an extra NaN column (rejected by every test)
+    tri_of = np.full(m2, n_tri, dtype=np.int64)
+    tri_of[dst] = items[src]
+    rows32 = np.empty((16, n_tri + 1), dtype=np.float32)
+    rows32[:15, :n_tri] = rows
+    rows32[:15, n_tri] = np.nan
+    rows32[15, :n_tri] = np.arange(n_tri, dtype=np.int32).view(np.float32)  # the triangle's id bits
+    rows32[15, n_tri] = np.array([-2], dtype=np.int32).view(np.float32)[0]  # no triangle's id
+    soa32 = np.take(rows32, tri_of, axis=1)
     back = np.full(m2, -1, dtype=np.int64)
     back[dst] = src
-    soa64_rows = np.ascontiguousarray(np.concatenate([soa.v0, soa.e1n, soa.e2]))  # (what _exact reads)
-    return Layout(soa32, first, first + padded, back, soa64_rows, np.ascontiguousarray(ids, dtype=np.int64),
-                  size)
+    soa64_rows = np.take(rows[:9], items, axis=1)  # (v0, -E1, E2 of the accel's slots: what _exact reads)
+    return Layout(soa32, first, first + padded, back, soa64_rows, items.copy(), size)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -753,7 +753,10 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
         kk = min(int(k), n - 1)
         s = min(int(sample), n)
         at = np.arange(s, dtype=np.int64) * n // s
-        _, idx = cKDTree(pos).query(pos[at], k=kk + 1, workers=1)
+        # (an unbalanced tree without shrunk boxes: built in under half the time, for 256
+        # queries; the neighbours' distances are the same, recomputed below)
+        tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
+        _, idx = tree.query(pos[at], k=kk + 1, workers=1)
         idx = np.asarray(idx, dtype=np.int64).reshape(s, kk + 1)
         d2 = ((pos[idx] - pos[at][:, None, :]) ** 2).sum(axis=2)
         d2 = np.where(idx == at[:, None], np.inf, d2)  # the photon itself is not its neighbour

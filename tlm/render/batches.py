@@ -28,6 +28,7 @@ from tlm.render.passes import (
     GBuffer,
     ImageGBuffer,
     cast,
+    density_requests,
     fgather_pass,
     new_streams,
     pixel_batches,
@@ -296,11 +297,14 @@ def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
     cast(frame, np.zeros(1, dtype=np.int64))
     if traced is not None:
         photons = traced.photons
-        for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
-                  getattr(photons, "global_map", photons)):
-            if m is not None and m.n > 0:
-                m.prepared()
-        radii(frame, photons)
+        # each map's leaf order and density radii are built at once on the threads (numpy's
+        # gathers and scipy's tree build run without the interpreter lock), each by one thread
+        tasks = [m.prepared for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
+                                      getattr(photons, "global_map", photons)) if m is not None and m.n > 0]
+        tasks += [(lambda m=m, k=k: m.density_radius(k)) for m, k in density_requests(frame, photons)]
+        for _ in threads.ordered(lambda task: task(), tasks):
+            pass
+        radii(frame, photons)  # (every radius now made: only looked up)
 
 
 def _merge_tallies(into: dict | None, tallies: dict | None) -> None:

@@ -847,6 +847,22 @@ def caustic_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None = None) 
     return _radius(frame, photons, "caustic")
 
 
+def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap) -> list[tuple[PhotonMap, int]]:
+    """The ``(map, k)`` whose density radius (:meth:`PhotonMap.density_radius`) the pmap
+    frame's radii ask for (:func:`radii`, :func:`global_radius`, :func:`_radius`): the
+    maps that follow the density rule, with their photon counts, each map once per ``k``."""
+    est = frame.cfg.estimate
+    out = []
+    if final_gathering(frame, photons) and est.radius is None and est.radius_fraction is None:
+        out.append((photons.global_map, est.final_gather_photons))
+    for which, k in (("indirect", est.radius_photons), ("caustic", est.caustic_radius_photons)):
+        m = _map_of(photons, which)
+        if radius_rule(frame, which) == "density" and m is not None:
+            out.append((m, k))
+    seen = set()
+    return [(m, k) for m, k in out if not ((id(m), k) in seen or seen.add((id(m), k)))]
+
+
 def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
     """The search radii a pmap frame used and how each was chosen (``results.json``)."""
     est = frame.cfg.estimate
