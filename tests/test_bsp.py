@@ -469,3 +469,15 @@ def test_level_work_adds_up(kind):
         n_in = w.elements_out
     assert n_in == tree.items.shape[0]
     assert tree.items.shape[0] <= tree.capacity
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 5000])
+def test_bounds_are_numpys_reduction_over_the_rows(n):
+    from tlm.kernels.bsp import bounds
+
+    rng = np.random.default_rng(n)
+    p = rng.normal(size=(n, 3)) * [1.0, 1e-300, 1e300]
+    p[rng.random((n, 3)) < 0.1] = np.inf
+    lo, hi = bounds(p)
+    assert lo.tolist() == p.min(axis=0).tolist() and hi.tolist() == p.max(axis=0).tolist()
+    assert lo.shape == hi.shape == (3,) and lo.dtype == hi.dtype == np.float64

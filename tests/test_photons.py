@@ -157,3 +157,26 @@ def test_bad_arguments(bad):
     args = {"n": 10} | bad
     with pytest.raises(ValueError, match=next(iter(bad))):
         trace_photons(scene, accel, **args)
+
+
+def test_a_frames_tables_give_the_trace_made_from_the_scene():
+    """trace_photons takes a render's face normals, shading normals and material table
+    (made once per frame) and traces what it traces when it makes them itself."""
+    from tlm.config import config_from_dict
+    from tlm.render.passes import Frame, trace_photon_map
+
+    scene = load_scene("ring")
+    accel = build_accel(scene.triangles)
+    frame = Frame.create(scene, accel, config_from_dict({"scene": "ring", "mode": "pmap",
+                                                         "photons": {"count": 3000, "max_bounces": 4}}))
+    given = trace_photon_map(frame)
+    made = trace_photons(scene, accel, 3000, seed=frame.cfg.seed, max_bounces=4,
+                         **{k: v for k, v in vars(frame.cfg.photons).items()
+                            if k in ("russian_roulette", "levels", "leaf_photons", "caustic_fraction",
+                                     "caustic_count", "aim", "aim_triangles")},
+                         global_map=frame.cfg.estimate.final_gather > 0, batch=frame.cfg.render.batch,
+                         page_words=frame.cfg.cache.block_words, pairs=frame.cfg.cache.pairs,
+                         fresnel=frame.cfg.render.fresnel)
+    assert given.totals() == made.totals() and given.photons.n == made.photons.n > 0
+    for a, b in zip(given.photons.gathered, made.photons.gathered, strict=True):
+        assert a.position.tobytes() == b.position.tobytes() and a.power.tobytes() == b.power.tobytes()

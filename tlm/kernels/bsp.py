@@ -303,6 +303,14 @@ def _build(
     )
 
 
+def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(points.min(axis=0), points.max(axis=0))`` of (n, 3) points (n >= 1), the same
+    values: column by column, several times faster than numpy's reduction over the rows
+    of an (n, 3) array (a serial step of every render that holds the other threads)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return (np.array([p[:, k].min() for k in range(3)]), np.array([p[:, k].max() for k in range(3)]))
+
+
 def build_point_tree(points: np.ndarray, levels: int | None = None) -> BSPTree:
     """Algorithm 1 over points (photons): every point ends in exactly one leaf.
 
@@ -314,7 +322,7 @@ def build_point_tree(points: np.ndarray, levels: int | None = None) -> BSPTree:
     if n == 0:
         root_lo = root_hi = np.zeros(3)
     else:
-        root_lo, root_hi = p.min(axis=0), p.max(axis=0)
+        root_lo, root_hi = bounds(p)
     return _build(p, p, root_lo, root_hi, levels, capacity=max(n, 1))
 
 
@@ -331,11 +339,12 @@ def build_triangle_tree(
     levels = _check_levels(levels, n)
     if not memory_factor >= 1.0:
         raise ValueError(f"memory_factor (={memory_factor}) must be >= 1")
-    tmin = tri.min(axis=1)
-    tmax = tri.max(axis=1)
+    # each triangle's box (tri.min(axis=1), tri.max(axis=1): the same values, faster)
+    tmin = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
+    tmax = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
     if n == 0:
         root_lo = root_hi = np.zeros(3)
     else:
-        root_lo, root_hi = tmin.min(axis=0), tmax.max(axis=0)
+        root_lo, root_hi = bounds(tmin)[0], bounds(tmax)[1]
     capacity = math.floor(memory_factor * max(n, 1))
     return _build(tmin, tmax, root_lo, root_hi, levels, capacity=capacity)

@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tlm.kernels import threads
-from tlm.kernels.bsp import BSPTree, build_point_tree
+from tlm.kernels.bsp import BSPTree, bounds, build_point_tree
 from tlm.kernels.emission import aim_boxes, cosine_directions, emit, photon_key
 from tlm.kernels.estimate import density_radius, leaf_photons
 from tlm.kernels.memory import PAGE_WORDS, PAIRS, Deferred, Recorder, Streams, traversal_accesses
@@ -216,6 +216,9 @@ def trace_photons(
     pairs: int = PAIRS,
     fresnel: bool = True,
     batch_rays: int | None = None,
+    normals: np.ndarray | None = None,
+    shading: np.ndarray | None = None,
+    table: dict[str, np.ndarray] | None = None,
 ) -> PhotonTrace:
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
@@ -231,6 +234,9 @@ def trace_photons(
     render's ``render.batch_rays``): photons go in chunks of at most ``batch_rays //
     max_bounces``, each through all its bounces and charged before the next, so memory
     does not grow with the bounces (None: no bound; the maps and work are the same).
+    normals, shading, table : the scene's unit face normals (:func:`face_normals`), corner
+    shading normals and :meth:`~tlm.scenes.model.Scene.material_table` when the caller has
+    them already (a render's frame), so they are not made again (None: made here).
     """
     if n < 0:
         raise ValueError(f"photons (={n}) must be >= 0")
@@ -246,21 +252,22 @@ def trace_photons(
         raise ValueError(f"aim_triangles (={aim_triangles}) must be >= 1")
     streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
-    table = scene.material_table()
+    table = scene.material_table() if table is None else table
     kind_of, albedo, refl_of = table["kind"], table["albedo"], table["reflectance"]
     trans, ior = table["transmittance"], table["ior"]
     flat = scene.triangles.reshape(-1, 3)
     spec = scene.triangles[kind_of != KIND["lambertian"]].reshape(-1, 3)
     aimed = spec.shape[0] > 0 and (caustic_fraction > 0 if caustic_count is None else caustic_count > 0)
-    specular_box = (spec.min(axis=0), spec.max(axis=0)) if aimed and aim == "box" else None
+    specular_box = bounds(spec) if aimed and aim == "box" else None
     boxes = aim_boxes(scene.triangles, kind_of, scene.part, aim_triangles) if aimed and aim == "parts" else None
-    o, d, power, caustic_group, source = emit(scene.lights, n, key, (flat.min(axis=0), flat.max(axis=0)),
+    o, d, power, caustic_group, source = emit(scene.lights, n, key, bounds(flat),
                                               specular_box, caustic_fraction, with_source=True,
                                               caustic_boxes=boxes, caustic_count=caustic_count)
     split = aimed  # caustics come from the caustic group only
     n = o.shape[0]
-    normals = face_normals(scene.triangles)
-    shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
+    normals = face_normals(scene.triangles) if normals is None else normals
+    if shading is None:
+        shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
     matched = (kind_of == KIND["dielectric"]) & (ior == 1.0)  # index-matched: light crosses unchanged
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
