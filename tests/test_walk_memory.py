@@ -8,7 +8,8 @@
   photon-map frame gathers at the same points;
 * each piece traces at most the budget, unless it is a single pixel;
 * the photon tracer goes in chunks of photons of at most ``batch_rays`` rays, all
-  bounces: the maps (order included), work and misses are those of one chunk;
+  bounces (but at least ``PHOTON_MIN_BATCH`` photons): the maps (order included), work
+  and misses are those of one chunk;
 * ``benchmarks/bench_memory.py --quick``: a deep walk (8x the rays of a shallow one)
   peaks at about the shallow one's memory, each measured in a fresh interpreter.
 """
@@ -103,7 +104,11 @@ def test_pieces_hold_at_most_the_budget(scene):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("pairs", "global_map"), [(4, False), (1, True)])
-def test_photon_chunks_are_bit_identical(scene, pairs, global_map):
+def test_photon_chunks_are_bit_identical(scene, pairs, global_map, monkeypatch):
+    from tlm.kernels import photons
+
+    monkeypatch.setattr(photons, "PHOTON_MIN_BATCH", 1)  # (chunks of 100 photons, not the floor's one)
+    assert len(photons.photon_spans(3000, 8, 800)) == 30
     accel = build_accel(scene.triangles)
     one = trace_photons(scene, accel, 3000, pairs=pairs, global_map=global_map, page_words=64)
     chunked = trace_photons(scene, accel, 3000, pairs=pairs, global_map=global_map, page_words=64, batch_rays=800)
@@ -126,3 +131,18 @@ def test_deep_walk_memory_does_not_grow_with_depth():
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stdout + run.stderr
     assert run.stdout.count("PASS:") == 2, run.stdout
+
+
+def test_photon_chunks_hold_the_budget_but_at_least_the_floor():
+    from tlm.kernels.photons import PHOTON_MIN_BATCH, photon_spans
+
+    def sizes(n, bounces, budget):
+        spans = photon_spans(n, bounces, budget)
+        assert spans[0][0] == 0 and spans[-1][1] == n and all(a[1] == b[0] for a, b in zip(spans, spans[1:]))
+        return [b - a for a, b in spans]
+
+    assert max(sizes(100_000, 8, 1 << 17)) == (1 << 17) // 8  # the budget's photons, all bounces
+    assert max(sizes(100_000, 8, 2731)) == PHOTON_MIN_BATCH  # a small budget: the floor
+    assert max(sizes(100_000, 0, 10_000)) == 10_000  # (no bounces: the rays of one)
+    assert sizes(100_000, 8, None) == [100_000]
+    assert sizes(10, 8, 16) == [10]

@@ -71,7 +71,8 @@ class RenderConfig:
     batch_rays: int = _f(1 << 17, "eye rays (pixels x spp) a run traces and shades together, pixel by pixel, "
                          "every pass of a batch before the next; also the most shadow rays, and mirror and glass "
                          "rays (all bounces of a pixel run), traced together within a pass, so the specular "
-                         "depth does not raise the peak (memory only: images and work do not depend on it; peak "
+                         "depth does not raise the peak, and the photons' rays of a chunk, all bounces (at least "
+                         "4,096 photons a chunk) (memory only: images and work do not depend on it; peak "
                          "memory grows with it)", min=1)
     threads: int | None = _f(None, "threads the kernels run on (traversal, gathers, photon tracing); null = the "
                              "CPUs available to the process (in a sweep of several --jobs: their share of them); "

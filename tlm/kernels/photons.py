@@ -59,6 +59,24 @@ from tlm.scenes.normals import crease_normals, interpolate
 _MISS_KEYS = stream_keys(PhotonWork)  # each stream's work key (tlm.kernels.work)
 STORED = ("position", "normal", "incoming", "power", "caustic")  # what a stored photon holds
 PHOTON_MIN_CHUNK = 4096  # photons a chunk traces at the least when they are cut between threads
+# photons a chunk holds at the least whatever ``render.batch_rays``: each chunk has a fixed
+# cost (its kernel calls, bounce by bounce, and its charges), so a small budget (chunks of a
+# few hundred photons) traced the conference room's photons several times slower
+# (benchmarks/bench_photon_chunks.py); 4,096 photons of 8 bounces record the reads of at
+# most 32k rays
+PHOTON_MIN_BATCH = 4096
+
+
+def photon_spans(n: int, max_bounces: int, batch_rays: int | None) -> list[tuple[int, int]]:
+    """The chunks ``(start, stop)`` the photons ``0 .. n - 1`` are traced in, in order: cut
+    between the threads (:func:`tlm.kernels.threads.spans`), then into chunks of at most
+    ``batch_rays // max_bounces`` photons (all bounces of ``batch_rays`` rays), but of at
+    least :data:`PHOTON_MIN_BATCH` photons (None: no bound)."""
+    spans = threads.spans(n, PHOTON_MIN_CHUNK)
+    if batch_rays is not None:  # chunks of at most batch_rays rays, all bounces
+        most = max(PHOTON_MIN_BATCH, batch_rays // max(1, max_bounces))
+        spans = [(x, min(hi, x + most)) for lo, hi in spans for x in range(lo, hi, most)]
+    return spans
 
 
 @dataclass(frozen=True)
@@ -232,8 +250,9 @@ def trace_photons(
     data cache whose misses the photons' reads are charged (the ``cache`` section).
     batch_rays : the most rays a chunk of photons traces and keeps the reads of (the
     render's ``render.batch_rays``): photons go in chunks of at most ``batch_rays //
-    max_bounces``, each through all its bounces and charged before the next, so memory
-    does not grow with the bounces (None: no bound; the maps and work are the same).
+    max_bounces`` (but at least :data:`PHOTON_MIN_BATCH`, :func:`photon_spans`), each
+    through all its bounces and charged before the next, so memory does not grow with the
+    bounces (None: no bound; the maps and work are the same).
     normals, shading, table : the scene's unit face normals (:func:`face_normals`), corner
     shading normals and :meth:`~tlm.scenes.model.Scene.material_table` when the caller has
     them already (a render's frame), so they are not made again (None: made here).
@@ -375,10 +394,7 @@ def trace_photons(
         return work, stored, full, pairs
 
     accel.prepare()  # (the kernel's constants, built here before the chunks run on threads)
-    spans = threads.spans(n, PHOTON_MIN_CHUNK)
-    if batch_rays is not None:  # chunks of at most batch_rays rays, all bounces
-        most = max(1, batch_rays // max(1, max_bounces))
-        spans = [(x, min(hi, x + most)) for lo, hi in spans for x in range(lo, hi, most)]
+    spans = photon_spans(n, max_bounces, batch_rays)
     # (on one thread the chunks run in order, each charged to the pairs as it comes)
     concurrent = len(spans) > 1 and threads.current() > 1
     stored: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}  # bounce -> chunks' photons
