@@ -255,6 +255,32 @@ def test_the_compiled_layout_holds_the_numpy_constants(scene_accel, memory_facto
         assert (got[n:] == -1).all()
 
 
+def test_the_compiled_ray_checks_are_numpys():
+    """``_prepare``'s one-pass checks of the directions and the shared-origin test, against
+    the numpy expressions they replace, on zeros of both signs, subnormals, the limits
+    2**32 and 2**-30, infinities and NaN."""
+    from tlm.kernels import _jit
+
+    specials = np.array([0.0, -0.0, 5e-324, -2.2e-308, np.finfo(float).tiny, 1.0, -3.5, 2.0**32, -(2.0**32),
+                         np.nextafter(2.0**32, 0), 2.0**-30, np.nextafter(2.0**-30, 0), 2.0**-31, 1e300,
+                         np.inf, -np.inf, np.nan])
+    rng = np.random.default_rng(5)
+    for _ in range(3000):
+        n = int(rng.integers(1, 5))
+        d = specials[rng.integers(0, specials.shape[0], size=(n, 3))]
+        mix = rng.random((n, 3)) < 0.5  # and ordinary values of every scale
+        d[mix] = rng.normal(size=int(mix.sum())) * 10.0 ** rng.integers(-12, 12, size=int(mix.sum()))
+        mag = np.abs(d)
+        with np.errstate(invalid="ignore", over="ignore"):
+            plain = bool(mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30)
+        assert _jit.direction_checks(d) == (plain, bool((mag < np.finfo(float).tiny).any())), d
+        o = np.repeat(d[:1], n, axis=0)
+        if rng.random() < 0.5:
+            o[rng.integers(0, n)] = d[-1]
+        assert _jit.same_rows(o) == bool((o == o[:1]).all()), o
+    assert _jit.same_rows(np.zeros((0, 3))) and not _jit.same_rows(np.full((1, 3), np.nan))
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import subprocess
 import sys
 from pathlib import Path
@@ -138,7 +139,7 @@ def test_photon_chunks_hold_the_budget_but_at_least_the_floor():
 
     def sizes(n, bounces, budget):
         spans = photon_spans(n, bounces, budget)
-        assert spans[0][0] == 0 and spans[-1][1] == n and all(a[1] == b[0] for a, b in zip(spans, spans[1:]))
+        assert spans[0][0] == 0 and spans[-1][1] == n and all(a[1] == b[0] for a, b in itertools.pairwise(spans))
         return [b - a for a, b in spans]
 
     assert max(sizes(100_000, 8, 1 << 17)) == (1 << 17) // 8  # the budget's photons, all bounces

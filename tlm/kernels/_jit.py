@@ -668,3 +668,32 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             n_leaf_out += last + 1
     return OK, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, tri_tests, \
         node_ids[:n_node_out], leaf_ids[:n_leaf_out]
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def direction_checks(d):
+    """What :func:`tlm.kernels.traverse._prepare` asks of the directions ``d`` (r, 3)
+    float64 (r >= 1), in one pass: ``plain``, every row's largest magnitude below 2**32
+    and its sum of three magnitudes, ``(|x| + |y|) + |z|``, at least 2**-30 (numpy's
+    ``mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30``: a
+    NaN anywhere makes it False); and ``tiny``, some magnitude below float64's smallest
+    normal (a subnormal or a zero; NaN is not)."""
+    bad = 0  # (counts, without branches: the loop vectorizes)
+    tiny = 0
+    lim = np.finfo(np.float64).tiny
+    for i in range(d.shape[0]):
+        a, b, c = abs(d[i, 0]), abs(d[i, 1]), abs(d[i, 2])
+        ok = (a < 2.0**32) & (b < 2.0**32) & (c < 2.0**32) & ((a + b) + c >= 2.0**-30)
+        bad += np.int64(not ok)
+        tiny += np.int64((a < lim) | (b < lim) | (c < lim))
+    return bad == 0, tiny > 0
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def same_rows(o):
+    """Whether every row of ``o`` (r, 3) equals the first (``(o == o[:1]).all()``: a NaN
+    equals nothing, -0.0 equals 0.0), stopping at the first that does not."""
+    for i in range(1, o.shape[0]):
+        if not ((o[i, 0] == o[0, 0]) and (o[i, 1] == o[0, 1]) and (o[i, 2] == o[0, 2])):
+            return False
+    return o.shape[0] == 0 or ((o[0, 0] == o[0, 0]) and (o[0, 1] == o[0, 1]) and (o[0, 2] == o[0, 2]))

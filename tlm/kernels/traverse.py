@@ -201,24 +201,41 @@ def _prepare(origins, directions, tmin, tmax, ignore):
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
     tmin = np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0)
     tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
-    mag = np.abs(d)
-    with np.errstate(invalid="ignore"):
-        # every row's largest component in [2**-32, 2**32] (its sum of three, rounded,
-        # at least 2**-30): no row is rescaled, and the row maxima need not be formed
-        plain = r > 0 and mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30
+    # every row's largest component in [2**-32, 2**32] (its sum of three, rounded, at
+    # least 2**-30): no row is rescaled, and the row maxima need not be formed; and
+    # whether a component is subnormal (or zero). Compiled: one pass, no temporaries
+    compiled = r > 0 and engine() == "numba"
+    if compiled:
+        from tlm.kernels import _jit
+
+        plain, any_tiny = _jit.direction_checks(d)
+    else:
+        mag = np.abs(d)
+        with np.errstate(invalid="ignore"):
+            plain = r > 0 and mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30
     if plain:
         scale = np.zeros(r, dtype=np.intc)
     else:
         d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
+    if not plain or not compiled:
         mag = np.abs(d)
-    tiny = mag < np.finfo(np.float64).tiny
-    if tiny.any():  # a subnormal component (negligible beside the row's largest) is a zero
-        d = np.where(tiny, 0.0, d)
+        any_tiny = bool((mag < np.finfo(np.float64).tiny).any())
+    if any_tiny:  # a subnormal component (negligible beside the row's largest) is a zero
+        d = np.where(np.abs(d) < np.finfo(np.float64).tiny, 0.0, d)
     if ignore is None:
         ignore = np.full(r, -1, dtype=np.int64)
     else:
         ignore = np.ascontiguousarray(np.broadcast_to(np.asarray(ignore, dtype=np.int64), (r,)))
     return o, d, tmin, tmax, ignore, scale
+
+
+def _same_rows(o: np.ndarray) -> bool:
+    """``(o == o[:1]).all()`` (compiled under the numba engine: one pass, stopping early)."""
+    if engine() == "numba":
+        from tlm.kernels import _jit
+
+        return bool(_jit.same_rows(o))
+    return bool((o == o[:1]).all())
 
 
 def _clip_root(tree: BSPTree, o, d, tmin, tmax):
@@ -530,7 +547,7 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     tree = accel.tree
     o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
     # one origin as the float32 test sees it (equal float64 rows are: the quick test)
-    if shared_origin and o.shape[0] > 0 and not (o == o[:1]).all():
+    if shared_origin and o.shape[0] > 0 and not _same_rows(o):
         with np.errstate(over="ignore"):
             o32 = (o - accel.origin).astype(np.float32)
         if not (o32 == o32[:1]).all():
