@@ -31,8 +31,9 @@ separate functions, as one loop holding both formulas evaluates both in every la
 Each ray's ``1/d`` is divided once for the root clip and every level. Without
 ``record``, phase 1 walks the tree depth first (the leaves in the order of the level
 lists; the lists themselves are formed only to record the nodes level by level). An
-any-hit ray (``first_only``) tests a leaf by a loop that keeps only the lowest key
-(:func:`_leaf32_min`); only the leaf that has a hit is tested again for its slot.
+any-hit ray (``first_only``) runs its leaves through a filter first, one loop over
+all their vectors (:func:`_scan`: never false on a leaf with a hit), and tests in
+full (:func:`_leaf32`) only a leaf that passes; the first with a hit stops it.
 The hot loops are written out in :func:`trace` or in functions that LLVM keeps free
 of numba's reference counting (an inlined function's array arguments can cost two
 atomic operations per call). Buffers are
@@ -232,17 +233,54 @@ def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, keys):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _leaf32_min(ox, oy, oz, dx, dy, dz, tmin, ign, soa, s0, s1, eps, reject):
-    """The lowest key of :func:`_leaf32`'s slots, without storing the keys (so no
-    run-time overlap checks of a store against the 13 rows it reads). ``reject`` is
-    ``_REJECT`` read at run time: a constant one lets LLVM fold the minimum with the
-    key's select into a form it does not vectorize."""
-    ign32 = np.int32(ign)
-    u0 = np.uint64(s0)
-    best_hi = reject
-    for j in range(np.uint64(s1 - s0)):
-        best_hi = min(best_hi, _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, u0 + j, eps, reject))
-    return best_hi
+def _scan(ox, oy, oz, dx, dy, dz, tmin, tmax, soa, fs, fe, k, n, eps):
+    """The any-hit filter: the first of the leaves ``k:n`` (``k < n``; padded slots
+    ``fs[j]:fe[j]``, none empty) that may hold an accepted slot of ``t < tmax``, or
+    ``n``. One loop over the leaves' vectors of 8 slots, going on to the next
+    leaf at a leaf's end (no loop to set up and leave per leaf).
+
+    A slot passes where ``w`` (:func:`_key`, the same operations) has its sign bit clear
+    and ``t' + tmin < tmax``: :func:`_key` and :func:`_pick`'s test without the NaN and
+    ignored-id tests. A slot whose key is accepted before ``tmax`` passes (its ``w`` is
+    this ``w``, and its ``t'`` is not NaN); one that passes with a rejected key is the
+    ray's ignored triangle or has a NaN ``1 - (u + v)`` and a number ``t'`` (a zero
+    ``D.N``): both rare. So a leaf with a hit is never skipped, and the leaf found is
+    tested in full (:func:`_leaf32`), which decides."""
+    one = np.float32(1.0)
+    sign = np.uint32(0x80000000)
+    uk = np.uint64(k)
+    un = np.uint64(n)
+    s = np.uint64(fs[uk])
+    end = np.uint64(fe[uk])
+    while True:
+        hit = False
+        for lane in range(PAD):
+            q = s + np.uint64(lane)
+            rdet = np.float32(-1.0) / _dot(dx, dy, dz, soa[9, q], soa[10, q], soa[11, q])
+            tx = ox - soa[0, q]
+            ty = oy - soa[1, q]
+            tz = oz - soa[2, q]
+            t = _dot(tx, ty, tz, soa[9, q], soa[10, q], soa[11, q]) * rdet
+            cx = ty * dz - tz * dy
+            cy = tz * dx - tx * dz
+            cz = tx * dy - ty * dx
+            u = _dot(cx, cy, cz, soa[6, q], soa[7, q], soa[8, q]) * rdet
+            v = _dot(cx, cy, cz, soa[3, q], soa[4, q], soa[5, q]) * rdet
+            tp = t - tmin
+            w = _lt_min(one - (u + v), _lt_min(u, v))
+            w = _lt_min(w + eps, tp)
+            hit = hit | ((np.float32(w).view(np.uint32) < sign) & (tp + tmin < tmax))
+        if hit:
+            return np.int64(uk)
+        s = s + np.uint64(PAD)
+        at_end = s == end
+        uk = uk + np.uint64(1 if at_end else 0)
+        if uk == un:
+            return n
+        s0 = np.uint64(fs[uk])
+        s1 = np.uint64(fe[uk])
+        s = s0 if at_end else s
+        end = s1 if at_end else end
 
 
 # rows of the shared-origin stack (:func:`_shared_rows`)
@@ -389,8 +427,14 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     st_b = np.empty(levels + 1)
     st_depth = np.empty(levels + 1, dtype=np.int64)
     st_axis = np.empty(levels + 1, dtype=np.int64)
-    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD) + 1, dtype=np.uint32)
-    keys[keys.shape[0] - 1] = _REJECT  # (read by every any-hit leaf: see _leaf32_min)
+    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
+    # an any-hit ray's non-empty leaves (their padded slots, their place in its list),
+    # and the triangle tests up to each leaf of its list
+    fs = np.empty(2 * level_cap, dtype=np.int64)
+    fe = np.empty(2 * level_cap, dtype=np.int64)
+    fi = np.empty(2 * level_cap, dtype=np.int64)
+    fcum = np.empty(2 * level_cap, dtype=np.int64)
+    any_list = first_only and not shared and not record  # (phase 1 lists them)
     lo0, lo1, lo2 = root_lo[0], root_lo[1], root_lo[2]
     hi0, hi1, hi2 = root_hi[0], root_hi[1], root_hi[2]
     sx32, sy32, sz32 = shared_o32[0], shared_o32[1], shared_o32[2]  # (used when shared)
@@ -450,6 +494,8 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             b = tb
             depth = 0
             axis = 0
+            ne = 0  # (an any-hit ray's list of non-empty leaves, made here: see phase 2)
+            tests = 0
             while True:
                 if depth == levels:  # a leaf: onto the list, then the next pushed far child
                     if m >= 2 * level_cap:
@@ -457,6 +503,14 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
                         break
                     lnode[np.uint64(m)] = node
                     lb[np.uint64(m)] = b
+                    if any_list:
+                        leaf = np.uint64(node - leaf_offset)
+                        s0, s1 = first32[leaf], last32[leaf]
+                        q = np.uint64(ne)
+                        fs[q], fe[q], fi[q] = s0, s1, m
+                        ne += 1 if s1 > s0 else 0  # (an empty leaf is overwritten: no branch)
+                        tests += size[leaf]
+                        fcum[np.uint64(m)] = tests  # (the triangle tests of leaves 0..m)
                     m += 1
                     if sp == 0:
                         break
@@ -591,18 +645,39 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
         last = m - 1
         best = -1  # padded slot
         best_t = np.inf
-        for e in range(m):
+        if first_only and not shared:
+            # any hit: the non-empty leaves in order (listed by phase 1 without record),
+            # filtered in one loop (_scan); a leaf that passes is tested in full, and
+            # the first with a hit stops the ray
+            if record:
+                ne = 0
+                tests = 0
+            for e in range(m if record else 0):
+                leaf = np.uint64(lnode[np.uint64(cur + e)] - leaf_offset)
+                s0, s1 = first32[leaf], last32[leaf]
+                q = np.uint64(ne)
+                fs[q], fe[q], fi[q] = s0, s1, e
+                ne += 1 if s1 > s0 else 0  # (an empty leaf is overwritten: no branch)
+                tests += size[leaf]
+                fcum[np.uint64(e)] = tests  # (the triangle tests of leaves 0..e)
+            k = 0
+            while k < ne:
+                k = _scan(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, soa32, fs, fe, k, ne, eps32)
+                if k >= ne:
+                    break
+                q = np.uint64(k)
+                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, fs[q], fe[q], eps32, keys)
+                if slot >= 0:
+                    best = slot
+                    last = fi[q]
+                    break
+                k += 1
+        for e in range(m if not (first_only and not shared) else 0):
             leaf = np.uint64(lnode[np.uint64(cur + e)] - leaf_offset)  # (unsigned: no wraparound)
             slot, pt = -1, np.float32(np.inf)
             s0, s1 = first32[leaf], last32[leaf]
             if s1 > s0 and shared:
                 slot, pt = _leaf32_shared(dx32, dy32, dz32, t0, t1, ign, pre, s0, s1, eps32, keys)
-            elif s1 > s0 and first_only:
-                # any hit: the lowest key first; the slot only where the leaf has a hit
-                reject = keys[keys.shape[0] - 1]
-                hi = _leaf32_min(ox32, oy32, oz32, dx32, dy32, dz32, t0, ign, soa32, s0, s1, eps32, reject)
-                if hi < _NO_HIT and np.uint32(hi).view(np.float32) + t0 < t1:
-                    slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
             elif s1 > s0:
                 slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
             if first_only:
@@ -654,6 +729,9 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
                 t, u, v = _exact(ox, oy, oz, dx, dy, dz, soa64, sb)
                 t_out[i], u_out[i], v_out[i], slot_out[i] = t, u, v, sb
         leaf_visits[i] = last + 1
+        if first_only and not shared and not record:
+            tri_tests[i] = fcum[np.uint64(last)]
+            continue
         tests = 0
         if record and n_leaf_out + last + 1 > leaf_cap:
             return FULL_LEAVES, t_out, u_out, v_out, slot_out, node_visits, cnt, leaf_visits, \
