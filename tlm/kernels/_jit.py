@@ -196,6 +196,14 @@ def _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, s, eps, reject=_REJECT):
     NaN whatever its sign: ``w`` is NaN or -inf (an infinite ``u + v`` makes ``1 - (u +
     v)`` the opposite one, a -inf ``u`` or ``v`` is the minimum), so the pair is rejected
     either way. The ``-N`` rows are not read (three loads a slot fewer)."""
+    t, u, v = _slot_tuv(ox, oy, oz, dx, dy, dz, soa, s)
+    return _key(u, v, t - tmin, soa[15, s], ign32, eps, reject)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _slot_tuv(ox, oy, oz, dx, dy, dz, soa, s):
+    """``t, u, v`` of one ray and the padded slot ``s`` in float32 (the operations of
+    :func:`_slot_key`, which :func:`_scan` repeats: one copy of them)."""
     rdet = np.float32(-1.0) / _dot(dx, dy, dz, soa[9, s], soa[10, s], soa[11, s])
     tx = ox - soa[0, s]
     ty = oy - soa[1, s]
@@ -206,7 +214,7 @@ def _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, s, eps, reject=_REJECT):
     cz = tx * dy - ty * dx
     u = _dot(cx, cy, cz, soa[6, s], soa[7, s], soa[8, s]) * rdet
     v = _dot(cx, cy, cz, soa[3, s], soa[4, s], soa[5, s]) * rdet
-    return _key(u, v, t - tmin, soa[15, s], ign32, eps, reject)
+    return t, u, v
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -255,17 +263,7 @@ def _scan(ox, oy, oz, dx, dy, dz, tmin, tmax, soa, fs, fe, k, n, eps):
     while True:
         hit = False
         for lane in range(PAD):
-            q = s + np.uint64(lane)
-            rdet = np.float32(-1.0) / _dot(dx, dy, dz, soa[9, q], soa[10, q], soa[11, q])
-            tx = ox - soa[0, q]
-            ty = oy - soa[1, q]
-            tz = oz - soa[2, q]
-            t = _dot(tx, ty, tz, soa[9, q], soa[10, q], soa[11, q]) * rdet
-            cx = ty * dz - tz * dy
-            cy = tz * dx - tx * dz
-            cz = tx * dy - ty * dx
-            u = _dot(cx, cy, cz, soa[6, q], soa[7, q], soa[8, q]) * rdet
-            v = _dot(cx, cy, cz, soa[3, q], soa[4, q], soa[5, q]) * rdet
+            t, u, v = _slot_tuv(ox, oy, oz, dx, dy, dz, soa, s + np.uint64(lane))
             tp = t - tmin
             w = _lt_min(one - (u + v), _lt_min(u, v))
             w = _lt_min(w + eps, tp)
