@@ -478,6 +478,8 @@ def test_bounds_are_numpys_reduction_over_the_rows(n):
     rng = np.random.default_rng(n)
     p = rng.normal(size=(n, 3)) * [1.0, 1e-300, 1e300]
     p[rng.random((n, 3)) < 0.1] = np.inf
+    p[rng.random((n, 3)) < 0.1] = 0.0  # (zeros of both signs: equal values, a zero's sign may differ)
+    p[rng.random((n, 3)) < 0.1] = -0.0
     lo, hi = bounds(p)
     assert lo.tolist() == p.min(axis=0).tolist() and hi.tolist() == p.max(axis=0).tolist()
     assert lo.shape == hi.shape == (3,) and lo.dtype == hi.dtype == np.float64

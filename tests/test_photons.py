@@ -179,4 +179,5 @@ def test_a_frames_tables_give_the_trace_made_from_the_scene():
                          fresnel=frame.cfg.render.fresnel)
     assert given.totals() == made.totals() and given.photons.n == made.photons.n > 0
     for a, b in zip(given.photons.gathered, made.photons.gathered, strict=True):
-        assert a.position.tobytes() == b.position.tobytes() and a.power.tobytes() == b.power.tobytes()
+        for f in ("position", "normal", "incoming", "power", "caustic"):
+            assert getattr(a, f).tobytes() == getattr(b, f).tobytes(), f

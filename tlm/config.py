@@ -71,9 +71,9 @@ class RenderConfig:
     batch_rays: int = _f(1 << 17, "eye rays (pixels x spp) a run traces and shades together, pixel by pixel, "
                          "every pass of a batch before the next; also the most shadow rays, and mirror and glass "
                          "rays (all bounces of a pixel run), traced together within a pass, so the specular "
-                         "depth does not raise the peak, and the photons' rays of a chunk, all bounces (at least "
-                         "4,096 photons a chunk) (memory only: images and work do not depend on it; peak "
-                         "memory grows with it)", min=1)
+                         "depth does not raise the peak; and the photons a chunk traces through all their bounces "
+                         "(batch_rays / photons.max_bounces photons, or 4,096 where that is more) (memory only: "
+                         "images and work do not depend on it; peak memory grows with it)", min=1)
     threads: int | None = _f(None, "threads the kernels run on (traversal, gathers, photon tracing); null = the "
                              "CPUs available to the process (in a sweep of several --jobs: their share of them); "
                              "speed only: images, work and cycles are bit-identical for every count", min=1)

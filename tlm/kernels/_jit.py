@@ -31,7 +31,7 @@ separate functions, as one loop holding both formulas evaluates both in every la
 Each ray's ``1/d`` is divided once for the root clip and every level. Without
 ``record``, phase 1 walks the tree depth first (the leaves in the order of the level
 lists; the lists themselves are formed only to record the nodes level by level). An
-any-hit ray (``first_only``) runs its leaves through a filter first, one loop over
+any-hit ray (``first_only``, not of a shared origin) runs its leaves through a filter first, one loop over
 all their vectors (:func:`_scan`: never false on a leaf with a hit), and tests in
 full (:func:`_leaf32`) only a leaf that passes; the first with a hit stops it.
 The hot loops are written out in :func:`trace` or in functions that LLVM keeps free

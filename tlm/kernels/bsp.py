@@ -304,9 +304,11 @@ def _build(
 
 
 def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(points.min(axis=0), points.max(axis=0))`` of (n, 3) points (n >= 1), the same
-    values: column by column, several times faster than numpy's reduction over the rows
-    of an (n, 3) array (a serial step of every render that holds the other threads)."""
+    """``(points.min(axis=0), points.max(axis=0))`` of (n, 3) points (n >= 1), equal
+    values (where a column's extreme is a zero held as both 0.0 and -0.0, its sign may
+    differ: the box is the same), column by column, several times faster than numpy's
+    reduction over the rows of an (n, 3) array (a serial step of every render that holds
+    the other threads)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     return (np.array([p[:, k].min() for k in range(3)]), np.array([p[:, k].max() for k in range(3)]))
 
@@ -345,6 +347,7 @@ def build_triangle_tree(
     if n == 0:
         root_lo = root_hi = np.zeros(3)
     else:
-        root_lo, root_hi = bounds(tmin)[0], bounds(tmax)[1]
+        root_lo = np.array([tmin[:, k].min() for k in range(3)])  # (bounds, one side each)
+        root_hi = np.array([tmax[:, k].max() for k in range(3)])
     capacity = math.floor(memory_factor * max(n, 1))
     return _build(tmin, tmax, root_lo, root_hi, levels, capacity=capacity)

@@ -59,19 +59,22 @@ from tlm.scenes.normals import crease_normals, interpolate
 _MISS_KEYS = stream_keys(PhotonWork)  # each stream's work key (tlm.kernels.work)
 STORED = ("position", "normal", "incoming", "power", "caustic")  # what a stored photon holds
 PHOTON_MIN_CHUNK = 4096  # photons a chunk traces at the least when they are cut between threads
-# photons a chunk holds at the least whatever ``render.batch_rays``: each chunk has a fixed
-# cost (its kernel calls, bounce by bounce, and its charges), so a small budget (chunks of a
-# few hundred photons) traced the conference room's photons several times slower
-# (benchmarks/bench_photon_chunks.py); 4,096 photons of 8 bounces record the reads of at
-# most 32k rays
+# the photons a chunk may hold whatever ``render.batch_rays``: chunks of at most
+# max(PHOTON_MIN_BATCH, batch_rays // max_bounces) photons (the last of a thread's span
+# shorter). Each chunk has a fixed cost (its kernel calls, bounce by bounce, and its
+# charges), so a small budget (chunks of a few hundred photons) traced the conference
+# room's photons 3.3x slower (benchmarks/bench_photon_chunks.py). The price: a chunk may
+# hold the reads of up to 4,096 x max_bounces rays (32k at 8 bounces) whatever the
+# budget, and twice the threads' chunks are in flight at once
 PHOTON_MIN_BATCH = 4096
 
 
 def photon_spans(n: int, max_bounces: int, batch_rays: int | None) -> list[tuple[int, int]]:
     """The chunks ``(start, stop)`` the photons ``0 .. n - 1`` are traced in, in order: cut
     between the threads (:func:`tlm.kernels.threads.spans`), then into chunks of at most
-    ``batch_rays // max_bounces`` photons (all bounces of ``batch_rays`` rays), but of at
-    least :data:`PHOTON_MIN_BATCH` photons (None: no bound)."""
+    ``max(PHOTON_MIN_BATCH, batch_rays // max_bounces)`` photons (all bounces of
+    ``batch_rays`` rays, unless that is fewer than :data:`PHOTON_MIN_BATCH` photons; the
+    last chunk of a thread's span may be shorter; None: no bound)."""
     spans = threads.spans(n, PHOTON_MIN_CHUNK)
     if batch_rays is not None:  # chunks of at most batch_rays rays, all bounces
         most = max(PHOTON_MIN_BATCH, batch_rays // max(1, max_bounces))
@@ -250,7 +253,7 @@ def trace_photons(
     data cache whose misses the photons' reads are charged (the ``cache`` section).
     batch_rays : the most rays a chunk of photons traces and keeps the reads of (the
     render's ``render.batch_rays``): photons go in chunks of at most ``batch_rays //
-    max_bounces`` (but at least :data:`PHOTON_MIN_BATCH`, :func:`photon_spans`), each
+    max_bounces`` (or of :data:`PHOTON_MIN_BATCH` where that is more, :func:`photon_spans`), each
     through all its bounces and charged before the next, so memory does not grow with the
     bounces (None: no bound; the maps and work are the same).
     normals, shading, table : the scene's unit face normals (:func:`face_normals`), corner

@@ -862,8 +862,11 @@ def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap) -> list[tupl
         m = _map_of(photons, which)
         if radius_rule(frame, which) == "density" and m is not None:
             out.append((m, k))
-    seen = set()
-    return [(m, k) for m, k in out if not ((id(m), k) in seen or seen.add((id(m), k)))]
+    once = []
+    for m, k in out:
+        if not any(m is m2 and k == k2 for m2, k2 in once):
+            once.append((m, k))
+    return once
 
 
 def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
