@@ -205,6 +205,7 @@ def _prepare(origins, directions, tmin, tmax, ignore):
     # least 2**-30): no row is rescaled, and the row maxima need not be formed; and
     # whether a component is subnormal (or zero). Compiled: one pass, no temporaries
     compiled = r > 0 and engine() == "numba"
+    mag = None  # (the magnitudes, where numpy formed them)
     if compiled:
         from tlm.kernels import _jit
 
@@ -217,8 +218,8 @@ def _prepare(origins, directions, tmin, tmax, ignore):
         scale = np.zeros(r, dtype=np.intc)
     else:
         d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
-    if not plain or not compiled:
         mag = np.abs(d)
+    if mag is not None:
         any_tiny = bool((mag < np.finfo(np.float64).tiny).any())
     if any_tiny:  # a subnormal component (negligible beside the row's largest) is a zero
         d = np.where(np.abs(d) < np.finfo(np.float64).tiny, 0.0, d)
