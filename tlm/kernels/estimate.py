@@ -113,7 +113,7 @@ and area 0 give density 0, never NaN.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -156,6 +156,9 @@ class LeafPhotons:
 
     pos, inc, pow : (3, n) float64 position, incoming direction, power of photon slot ``i``
         (``tree.items[i]``). first, size : (leaves,) int64 slot range of each leaf.
+    pairs : radius -> the (query, leaf) pairs per query the compiled gather's buffers are
+        sized by (:func:`_gather_chunk`: learned from earlier calls at that radius, so the
+        next calls, a render's batches, seldom gather a chunk twice; sizes only).
     """
 
     tree: BSPTree
@@ -164,6 +167,7 @@ class LeafPhotons:
     pow: np.ndarray
     first: np.ndarray
     size: np.ndarray
+    pairs: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 def leaf_photons(position: np.ndarray, power: np.ndarray, incoming: np.ndarray, tree: BSPTree) -> LeafPhotons:
@@ -371,7 +375,9 @@ def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None,
     q = pts.shape[1]
     blocks = [(q0, min(q0 + QUERY_BLOCK, q)) for q0 in range(0, q, QUERY_BLOCK)]
     chunks = [(q0, q1, a, b) for q0, q1 in blocks for a, b in threads.spans(q1 - q0, GATHER_MIN_CHUNK)]
-    per_query = [JIT_PAIRS / QUERY_BLOCK]  # pairs a query needs, as seen so far (buffer sizes only)
+    # pairs a query needs, as seen so far at this radius (buffer sizes only; a float the
+    # chunks raise, one assignment each: threads see one value or the other)
+    per_query = lp.pairs.setdefault(float(r), [JIT_PAIRS / QUERY_BLOCK])
     results = threads.ordered(
         lambda c: _gather_chunk(lp, pts, nrm, r, cone_k, c[0] + c[2], c[0] + c[3], per_query), chunks)
     at = 0
