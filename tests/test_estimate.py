@@ -788,3 +788,17 @@ def test_gather_misses_of_packets_in_order_with_the_state_carried():
             if kind != "knn":  # cold pairs per packet miss where the packets start
                 assert cold[kind] >= e.gather_misses.sum() > 0, (kind, page_words)
                 assert cold[kind] > e.gather_misses.sum() or page_words < 1024, kind
+
+
+def test_leaf_order_rows_are_the_gathered_rows():
+    """The map in leaf order holds row ``c`` of slot ``i`` = column ``c`` of photon
+    ``tree.items[i]``, each (3, n) array C-contiguous (what the compiled gather reads)."""
+    rng = np.random.default_rng(3)
+    pos, power, inc = (rng.normal(size=(2000, 3)) for _ in range(3))
+    tree = build_point_tree(pos, 6)
+    lp = est.leaf_photons(pos, power, inc, tree)
+    for got, a in ((lp.pos, pos), (lp.pow, power), (lp.inc, inc)):
+        assert got.flags.c_contiguous and got.shape == (3, 2000)
+        assert got.tobytes() == np.ascontiguousarray(a[tree.items].T).tobytes()
+    empty = est.leaf_photons(pos[:0], power[:0], inc[:0], build_point_tree(pos[:0], 0))
+    assert empty.pos.shape == (3, 0)

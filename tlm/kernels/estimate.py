@@ -181,12 +181,22 @@ def leaf_photons(position: np.ndarray, power: np.ndarray, incoming: np.ndarray, 
     first, last = tree.leaf_ranges()
     return LeafPhotons(
         tree=tree,
-        pos=np.ascontiguousarray(position[items].T),
-        inc=np.ascontiguousarray(incoming[items].T),
-        pow=np.ascontiguousarray(power[items].T),
+        pos=_leaf_rows(position, items),
+        inc=_leaf_rows(incoming, items),
+        pow=_leaf_rows(power, items),
         first=first.astype(np.int64),
         size=(last - first).astype(np.int64),
     )
+
+
+def _leaf_rows(a: np.ndarray, items: np.ndarray) -> np.ndarray:
+    """``a[items].T`` (a: (n, 3)) as one C-contiguous (3, m) array, each row gathered
+    straight from its column (``np.ascontiguousarray(a[items].T)`` makes the same values
+    through an (m, 3) copy: 6-7x slower on 455k photons)."""
+    out = np.empty((3, items.shape[0]), dtype=a.dtype)
+    for c in range(3):
+        np.take(a[:, c], items, out=out[c])
+    return out
 
 
 # ---------------------------------------------------------------- helpers

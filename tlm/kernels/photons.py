@@ -424,10 +424,11 @@ def trace_photons(
             return np.concatenate(parts)
         return np.zeros(0, dtype=bool) if name == "caustic" else np.zeros((0, 3))
 
-    def one_map(every: dict[str, np.ndarray], sel: np.ndarray) -> PhotonMap:
-        position = every["position"][sel]
-        return PhotonMap(position=position, normal=every["normal"][sel], incoming=every["incoming"][sel],
-                         power=every["power"][sel], caustic=every["caustic"][sel],
+    def one_map(every: dict[str, np.ndarray], sel: np.ndarray | None) -> PhotonMap:
+        """The map of the photons ``sel`` selects (None: all of them, the arrays themselves)."""
+        position, normal, incoming, power, caustic = (
+            every[k] if sel is None else every[k][sel] for k in ("position", "normal", "incoming", "power", "caustic"))
+        return PhotonMap(position=position, normal=normal, incoming=incoming, power=power, caustic=caustic,
                          tree=build_point_tree(position, map_levels(position.shape[0], levels, leaf_photons)),
                          emitted=n)
 
@@ -435,7 +436,7 @@ def trace_photons(
     maps = [(every, every["caustic"]), (every, ~every["caustic"])]
     if global_map:
         full_arrays = {name: cat(full, name) for name in full}
-        maps.append((full_arrays, np.ones(full_arrays["position"].shape[0], dtype=bool)))
+        maps.append((full_arrays, None))  # (every photon: no copy)
     # the maps' trees are built at once on the threads (each on its own: the same trees)
     caustic, indirect, *whole = threads.ordered(lambda m: one_map(*m), maps)
     photons = PhotonMaps(caustic, indirect, emitted=n, global_map=whole[0] if whole else None)
