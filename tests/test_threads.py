@@ -325,3 +325,26 @@ def test_forked_workers_only_where_asked_and_never_in_a_daemon(monkeypatch):
     assert threads.can_fork() == ("fork" in multiprocessing.get_all_start_methods())
     monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
     assert not threads.can_fork()
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_background_runs_on_a_worker_and_hands_back_its_outcome(n):
+    """``threads.background``: on several threads the call runs on a pool worker (whose
+    kernels do not split again) while the caller goes on; on one, in the caller. Its result
+    and its error come back through ``result()``."""
+    import threading
+
+    seen = {}
+
+    def job():
+        seen["thread"], seen["threads"] = threading.current_thread(), threads.current()
+        return 42
+
+    def fails():
+        raise ValueError("no layout")
+
+    with threads.using(n):
+        assert threads.background(job).result() == 42
+        assert (seen["thread"] is threading.main_thread()) == (n == 1) and seen["threads"] == 1
+        with pytest.raises(ValueError, match="no layout"):
+            threads.background(fails).result()

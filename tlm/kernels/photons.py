@@ -282,6 +282,9 @@ def trace_photons(
     aimed = spec.shape[0] > 0 and (caustic_fraction > 0 if caustic_count is None else caustic_count > 0)
     specular_box = bounds(spec) if aimed and aim == "box" else None
     boxes = aim_boxes(scene.triangles, kind_of, scene.part, aim_triangles) if aimed and aim == "parts" else None
+    # the kernel's constants, built before the chunks run on threads (a cached property: by
+    # one thread), on a worker while the photons are emitted
+    prepared = threads.background(accel.prepare)
     o, d, power, caustic_group, source = emit(scene.lights, n, key, bounds(flat),
                                               specular_box, caustic_fraction, with_source=True,
                                               caustic_boxes=boxes, caustic_count=caustic_count)
@@ -396,7 +399,7 @@ def trace_photons(
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
         return work, stored, full, pairs
 
-    accel.prepare()  # (the kernel's constants, built here before the chunks run on threads)
+    prepared.result()
     spans = photon_spans(n, max_bounces, batch_rays)
     # (on one thread the chunks run in order, each charged to the pairs as it comes)
     concurrent = len(spans) > 1 and threads.current() > 1

@@ -26,7 +26,7 @@ import itertools
 import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TypeVar
 
 T = TypeVar("T")
@@ -135,6 +135,24 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     finally:  # an error, Ctrl-C or a caller that stops: what has not started never runs
         for f in pending:
             f.cancel()
+
+
+def background(fn: Callable[[], R]) -> Future:
+    """``fn()`` started on a worker of the pool (its kernels on one thread), while the
+    caller goes on (with the other workers, for its own :func:`ordered` calls); the caller
+    takes the result, or the error, from the future's ``result()`` before it needs it.
+    On one thread, ``fn()`` is called now and the future holds its outcome."""
+    n = current()
+    if n <= 1:
+        done: Future = Future()
+        try:
+            done.set_result(fn())
+        except Exception as e:  # (raised again by result(), where the caller takes it)
+            done.set_exception(e)
+        return done
+    one = contextvars.copy_context()
+    one.run(_THREADS.set, 1)
+    return _pool(n).submit(one.run, fn)
 
 
 _FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
