@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import RunConfig
-from tlm.kernels import release_memory
+from tlm.kernels import release_memory, threads
 from tlm.kernels.traverse import build_accel
 from tlm.progress import Timer
 from tlm.render.passes import Frame, GBuffer, cast
@@ -34,10 +34,11 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
     if bar is not None:
         bar.set_description(f"build BSP ({scene.n_triangles} triangles)")
+    tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)
     with timer.stage("build_bsp"):
         accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
     release_memory()  # (the build's freed blocks)
-    return Frame.create(scene, accel, cfg)
+    return Frame.create(scene, accel, cfg, tables.result())
 
 
 def cast_image(frame: Frame) -> GBuffer:

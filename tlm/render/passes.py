@@ -98,24 +98,25 @@ class Frame:
     eps: float  # spawn epsilon in scene units
     transparent: np.ndarray | None  # (n, 3) transmittance shadow rays pass through (ior 1), None: none
 
-    @classmethod
-    def create(cls, scene: Scene, accel: TriangleAccel, cfg: RunConfig) -> Frame:
+    @staticmethod
+    def tables(scene: Scene) -> dict:
+        """What a frame holds of ``scene`` beside its BSP: the material table, face and
+        shading normals, the transmittance shadow rays pass through (made while the BSP
+        is built: :func:`tlm.experiments.loading.load_frame`)."""
         table = scene.material_table()
         matched = (table["kind"] == KIND["dielectric"]) & (table["ior"] == 1.0)
         transparent = np.where(matched[:, None], table["transmittance"], 0.0) if matched.any() else None
         shading = scene.normals if scene.normals is not None else crease_normals(scene.triangles, scene.part)
         if not (table["emission"] > 0).any():
             table["emission"] = None
-        return cls(
-            scene=scene,
-            accel=accel,
-            cfg=cfg,
-            normals=face_normals(scene.triangles),
-            shading=shading,
-            eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
-            transparent=transparent,
-            **table,
-        )
+        return {**table, "normals": face_normals(scene.triangles), "shading": shading, "transparent": transparent}
+
+    @classmethod
+    def create(cls, scene: Scene, accel: TriangleAccel, cfg: RunConfig, tables: dict | None = None) -> Frame:
+        """The frame of ``scene``, its BSP and ``cfg`` (``tables``: :meth:`tables` of the
+        scene, when made already)."""
+        return cls(scene=scene, accel=accel, cfg=cfg, eps=SPAWN_EPS * max(accel.scale, np.finfo(float).tiny),
+                   **(cls.tables(scene) if tables is None else tables))
 
     @property
     def spp(self) -> int:
