@@ -239,3 +239,43 @@ def test_the_radii_made_before_the_batches_are_the_ones_the_batches_ask_for(monk
             assert radii(f, photons) == want and asked == []  # every radius was made: only looked up
             seen += bool(requests)
     assert seen >= 6
+
+
+def test_a_warm_photon_trace_makes_what_the_batches_read(monkeypatch):
+    """``trace_photon_map(warm=True)`` (a render whose batches run at once) makes, with the
+    maps' trees, each map's leaf order and every density radius the frame asks for: the
+    same maps, radii and leaf order as a cold trace makes later, and the frame's radii are
+    then only looked up."""
+    import tlm.kernels.photons as photon_module
+    from tlm.kernels import threads
+    from tlm.render.passes import density_requests, trace_photon_map
+
+    res = _render("cornell", 3000, {"final_gather": 3})
+    asked = []
+    real = photon_module.density_radius
+    monkeypatch.setattr(photon_module, "density_radius", lambda pos, k: asked.append(k) or real(pos, k))
+    seen = 0
+    for est in ({"final_gather": 3}, {"final_gather": 0}, {"final_gather": 3, "radius_fraction": 0.02},
+                {"final_gather": 0, "caustic_radius_photons": 5}):
+        f = Frame.create(res.scene, res.accel, config_from_dict(
+            {"scene": "cornell", "mode": "pmap", "photons": {"count": 3000}, "estimate": est}))
+        cold = trace_photon_map(f).photons
+        with threads.using(2):
+            warm = trace_photon_map(f, warm=True).photons
+        requests = density_requests(f, warm)
+        assert requests and len(requests) == len(density_requests(f, cold))
+        names = ("caustic_map", "indirect_map", "global_map")
+        for name in names:
+            a, b = getattr(warm, name), getattr(cold, name)
+            assert (a is None) == (b is None) and (a is None or a.position.tobytes() == b.position.tobytes())
+            if a is not None:
+                assert "leaf_order" in a._memo and "leaf_order" not in b._memo
+                assert a.prepared().pos.tobytes() == b.prepared().pos.tobytes()
+        for m, k in requests:
+            assert k in m._memo  # made with the maps
+        asked.clear()
+        from_warm = radii(f, warm)
+        assert asked == []  # every radius made with the maps: only looked up
+        assert from_warm == radii(f, cold) and len(asked) == len(requests)  # (the cold maps make theirs now)
+        seen += len(asked)
+    assert seen >= 4

@@ -41,6 +41,7 @@ with, and a run repeats exactly.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -240,6 +241,8 @@ def trace_photons(
     normals: np.ndarray | None = None,
     shading: np.ndarray | None = None,
     table: dict[str, np.ndarray] | None = None,
+    prepare: bool = False,
+    radii: Sequence[tuple[str, int]] = (),
 ) -> PhotonTrace:
     """Emit ``n`` photons, trace them through the scene and build the photon BSP.
 
@@ -259,6 +262,10 @@ def trace_photons(
     normals, shading, table : the scene's unit face normals (:func:`face_normals`), corner
     shading normals and :meth:`~tlm.scenes.model.Scene.material_table` when the caller has
     them already (a render's frame), so they are not made again (None: made here).
+    prepare, radii : what a render needs of the maps before its batches run at once, made
+    with the maps' trees on the threads: each map in leaf order (:meth:`PhotonMap.prepared`)
+    and the density radii ``(map, k)`` (:meth:`PhotonMap.density_radius`; map: "caustic",
+    "indirect" or "global", the last only with ``global_map``). The same values as made later.
     """
     if n < 0:
         raise ValueError(f"photons (={n}) must be >= 0")
@@ -436,11 +443,30 @@ def trace_photons(
                          emitted=n)
 
     every = {name: cat(stored, name) for name in stored}
-    maps = [(every, every["caustic"]), (every, ~every["caustic"])]
+    sources = {"caustic": (every, every["caustic"]), "indirect": (every, ~every["caustic"])}
     if global_map:
-        full_arrays = {name: cat(full, name) for name in full}
-        maps.append((full_arrays, None))  # (every photon: no copy)
-    # the maps' trees are built at once on the threads (each on its own: the same trees)
-    caustic, indirect, *whole = threads.ordered(lambda m: one_map(*m), maps)
-    photons = PhotonMaps(caustic, indirect, emitted=n, global_map=whole[0] if whole else None)
+        sources["global"] = ({name: cat(full, name) for name in full}, None)  # (every photon: no copy)
+    size = {name: a["position"].shape[0] if sel is None else int(np.count_nonzero(sel))
+            for name, (a, sel) in sources.items()}
+
+    def build(name: str) -> PhotonMap:
+        m = one_map(*sources[name])
+        if prepare:
+            m.prepared()
+        return m
+
+    def radius(name: str, k: int) -> float | None:  # (the positions alone: not waiting for the tree)
+        a, sel = sources[name]
+        return density_radius(a["position"] if sel is None else a["position"][sel], k)
+
+    # the maps' trees are built at once on the threads, each on its own (the same trees), the
+    # largest first; beside them, the density radii asked for (from the positions alone)
+    wanted = list(dict.fromkeys((name, k) for name, k in radii if name in sources))
+    tasks = [(build, (name,)) for name in sorted(sources, key=lambda x: -size[x])]
+    tasks += [(radius, nk) for nk in sorted(wanted, key=lambda nk: -size[nk[0]])]
+    made = dict(zip([args for _, args in tasks], threads.ordered(lambda t: t[0](*t[1]), tasks), strict=True))
+    for name, k in wanted:
+        made[(name,)]._memo[k] = made[(name, k)]  # (what PhotonMap.density_radius keeps)
+    photons = PhotonMaps(made[("caustic",)], made[("indirect",)], emitted=n,
+                         global_map=made[("global",)] if global_map else None)
     return PhotonTrace(photons, work)

@@ -145,12 +145,12 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
     gather_maps: dict | None = {} if "pmap" in names else None
     steps = len(batches) * (1 + len(names)) + ("pmap" in names)
     with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
+        concurrent = threads.current() > 1 and len(batches) > 1
         if "pmap" in names:
             bar.set_postfix_str("photon trace")
-            with timer.stage("photon_trace"):
-                traced = trace_photon_map(frame)
+            with timer.stage("photon_trace"):  # (when batches run at once: with what they read)
+                traced = trace_photon_map(frame, warm=concurrent)
             bar.update()
-        concurrent = threads.current() > 1 and len(batches) > 1
         if concurrent:
             _warm(frame, traced)
         release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
@@ -293,12 +293,14 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
 
 def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
     """Make what the passes build on first use (the compiled traversal's layout, the photon
-    maps in leaf order, their radii) before batches run at once, so no two threads build it."""
+    maps in leaf order, their radii) before batches run at once, so no two threads build it.
+    A photon trace asked to warm (:func:`trace_photon_map`) made the maps' part already, with
+    the trees: then it is only looked up here."""
     cast(frame, np.zeros(1, dtype=np.int64))
     if traced is not None:
         photons = traced.photons
-        # each map's leaf order and density radii are built at once on the threads (numpy's
-        # gathers and scipy's tree build run without the interpreter lock), each by one thread
+        # each map's leaf order and density radii (where not made yet) at once on the threads
+        # (numpy's gathers and scipy's tree build run without the interpreter lock), each by one thread
         tasks = [m.prepared for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
                                       getattr(photons, "global_map", photons)) if m is not None and m.n > 0]
         tasks += [(lambda m=m, k=k: m.density_radius(k)) for m, k in density_requests(frame, photons)]

@@ -779,8 +779,11 @@ def _gather_points(frame: Frame, g: GBuffer) -> tuple[np.ndarray, ...]:
     return tuple(np.concatenate([q[i] for q in parts])[order] for i in range(7))
 
 
-def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None) -> PhotonTrace:
-    """The frame's photon maps by its ``photons.*`` settings (``n``, ``seed``: overrides)."""
+def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None, warm: bool = False) -> PhotonTrace:
+    """The frame's photon maps by its ``photons.*`` settings (``n``, ``seed``: overrides).
+    ``warm``: with each map in leaf order and the density radii the frame asks for
+    (:func:`density_wanted`), made with the maps' trees on the threads (before batches run
+    at once: :func:`tlm.render.batches.render_batches`)."""
     cfg = frame.cfg
     return trace_photons(
         frame.scene, frame.accel, photon_count(frame.scene, cfg) if n is None else n,
@@ -794,6 +797,7 @@ def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None
         normals=frame.normals, shading=frame.shading,
         table={"kind": frame.kind, "albedo": frame.albedo, "reflectance": frame.reflectance,
                "transmittance": frame.transmittance, "ior": frame.ior},
+        prepare=warm, radii=density_wanted(frame) if warm else (),
     )
 
 
@@ -851,21 +855,29 @@ def caustic_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None = None) 
     return _radius(frame, photons, "caustic")
 
 
-def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap) -> list[tuple[PhotonMap, int]]:
-    """The ``(map, k)`` whose density radius (:meth:`PhotonMap.density_radius`) the pmap
-    frame's radii ask for (:func:`radii`, :func:`global_radius`, :func:`_radius`): the
-    maps that follow the density rule, with their photon counts, each map once per ``k``."""
+def density_wanted(frame: Frame) -> list[tuple[str, int]]:
+    """The ``(map, k)`` whose density radius the pmap frame's radii ask for (:func:`radii`,
+    :func:`global_radius`, :func:`_radius`), from its settings alone: map "global" (final
+    gathering's map, when the trace keeps one), "indirect" or "caustic" (the one map of a
+    trace without the split stands for both: :func:`density_requests`)."""
     est = frame.cfg.estimate
     out = []
-    if final_gathering(frame, photons) and est.radius is None and est.radius_fraction is None:
-        out.append((photons.global_map, est.final_gather_photons))
+    if est.final_gather > 0 and est.radius is None and est.radius_fraction is None:
+        out.append(("global", est.final_gather_photons))
     for which, k in (("indirect", est.radius_photons), ("caustic", est.caustic_radius_photons)):
-        m = _map_of(photons, which)
-        if radius_rule(frame, which) == "density" and m is not None:
-            out.append((m, k))
-    once = []
-    for m, k in out:
-        if not any(m is m2 and k == k2 for m2, k2 in once):
+        if radius_rule(frame, which) == "density":
+            out.append((which, k))
+    return out
+
+
+def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap) -> list[tuple[PhotonMap, int]]:
+    """:func:`density_wanted` of ``photons``' maps: the ``(map, k)`` whose density radius
+    (:meth:`PhotonMap.density_radius`) the pmap frame's radii ask for, each map once per ``k``."""
+    once: list[tuple[PhotonMap, int]] = []
+    for which, k in density_wanted(frame):
+        m = (photons.global_map if final_gathering(frame, photons) else None) if which == "global" else _map_of(
+            photons, which)
+        if m is not None and not any(m is m2 and k == k2 for m2, k2 in once):
             once.append((m, k))
     return once
 
