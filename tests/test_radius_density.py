@@ -270,7 +270,8 @@ def test_a_warm_photon_trace_makes_what_the_batches_read(monkeypatch):
             assert (a is None) == (b is None) and (a is None or a.position.tobytes() == b.position.tobytes())
             if a is not None:
                 assert "leaf_order" in a._memo and "leaf_order" not in b._memo
-                assert a.prepared().pos.tobytes() == b.prepared().pos.tobytes()
+                for row in ("pos", "inc", "pow", "first", "size"):
+                    assert getattr(a.prepared(), row).tobytes() == getattr(b.prepared(), row).tobytes(), row
         for m, k in requests:
             assert k in m._memo  # made with the maps
         asked.clear()
