@@ -402,12 +402,14 @@ def test_fixed_radius_gather_is_the_same_compiled(monkeypatch, filt):
     assert _jit_gather.fixed_radius is not None
 
 
-def test_gather_buffers_learned_on_the_map_spare_the_reruns(monkeypatch):
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_gather_buffers_learned_on_the_map_spare_the_reruns(monkeypatch, n_threads):
     """After a gather whose pair buffers overflowed, the map in leaf order keeps the pairs a
     query needed at that radius, and the next gathers at that radius (a render's next
     batches) start with buffers that hold them: each chunk runs once, the same answers as a
-    map that learned nothing. Another radius starts from the default again."""
-    from tlm.kernels import _jit_gather, estimate
+    map that learned nothing. A chunk of a few queries teaches nothing (a dense spot would
+    size every later buffer), and another radius starts from the default again."""
+    from tlm.kernels import _jit_gather, estimate, threads
     from tlm.kernels.bsp import build_point_tree
 
     monkeypatch.setenv("TLM_KERNELS", "numba")
@@ -416,12 +418,12 @@ def test_gather_buffers_learned_on_the_map_spare_the_reruns(monkeypatch):
     power = rng.uniform(0.0, 1.0, (4000, 3))
     inc = rng.normal(size=(4000, 3))
     inc /= np.linalg.norm(inc, axis=1, keepdims=True)
-    pts = rng.uniform(-1.0, 1.0, (900, 3))
-    nrm = rng.normal(size=(900, 3))
+    pts = rng.uniform(-1.0, 1.0, (1800, 3))
+    nrm = rng.normal(size=(1800, 3))
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     tree = build_point_tree(pos, 9)
-    monkeypatch.setattr(estimate, "QUERY_BLOCK", 300)  # three blocks a call
-    monkeypatch.setattr(estimate, "JIT_PAIRS", 300)  # one pair a query to start with: too few
+    monkeypatch.setattr(estimate, "QUERY_BLOCK", 600)  # three blocks a call, of GATHER_MIN_CHUNK queries or more
+    monkeypatch.setattr(estimate, "JIT_PAIRS", 600)  # one pair a query to start with: too few
     calls = []
     kernel = _jit_gather.fixed_radius
 
@@ -433,20 +435,25 @@ def test_gather_buffers_learned_on_the_map_spare_the_reruns(monkeypatch):
     monkeypatch.setattr(_jit_gather, "fixed_radius", spy)
     lp = estimate.leaf_photons(pos, power, inc, tree)
 
-    def gather(prepared, radius):
+    def gather(prepared, radius, at=pts, normals=nrm):
         calls.clear()
-        return estimate.disk_estimate(pos, power, inc, tree, pts, nrm, radius, prepared=prepared)
+        return estimate.disk_estimate(pos, power, inc, tree, at, normals, radius, prepared=prepared)
 
-    first = gather(lp, 0.3)
-    assert any(calls) and 0.3 in lp.pairs  # the default buffer was too small: learned
-    again = gather(lp, 0.3)
-    assert calls == [False] * 3  # one run a block
-    fresh = gather(estimate.leaf_photons(pos, power, inc, tree), 0.3)
-    for f in ("density", "node_visits", "leaves_visited", "photons_tested", "photons_accepted", "gather_misses"):
-        assert np.array_equal(getattr(again, f), getattr(first, f)) and np.array_equal(
-            getattr(again, f), getattr(fresh, f)), f
-    gather(lp, 0.6)
-    assert any(calls)  # (a radius not seen yet: from the default)
+    with threads.using(n_threads):
+        first = gather(lp, 0.3)
+        assert any(calls) and 0.3 in lp.pairs  # the default buffer was too small: learned
+        again = gather(lp, 0.3)
+        assert calls and not any(calls)  # each chunk once
+        fresh = gather(estimate.leaf_photons(pos, power, inc, tree), 0.3)
+        for f in ("density", "node_visits", "leaves_visited", "photons_tested", "photons_accepted",
+                  "gather_misses"):
+            assert np.array_equal(getattr(again, f), getattr(first, f)) and np.array_equal(
+                getattr(again, f), getattr(fresh, f)), f
+        learned = lp.pairs[0.3][0]
+        gather(lp, 0.3, np.zeros((3, 3)), nrm[:3])  # three queries at the centre: overflows, learns nothing
+        assert any(calls) and lp.pairs[0.3][0] == learned
+        gather(lp, 0.6)
+        assert any(calls)  # (a radius not seen yet: from the default)
 
 
 @pytest.mark.parametrize("page_words", [1, 4, 6, 1024])

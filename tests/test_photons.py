@@ -181,3 +181,15 @@ def test_a_frames_tables_give_the_trace_made_from_the_scene():
     for a, b in zip(given.photons.gathered, made.photons.gathered, strict=True):
         for f in ("position", "normal", "incoming", "power", "caustic"):
             assert getattr(a, f).tobytes() == getattr(b, f).tobytes(), f
+
+
+@pytest.mark.parametrize("radii, global_map", [((("glass", 8),), False), ((("global", 8),), False)])
+def test_radii_of_a_map_the_trace_does_not_make_are_refused(radii, global_map):
+    """``trace_photons(radii=...)`` names maps the trace makes ("caustic", "indirect", and
+    "global" with ``global_map``): another name is an error before anything is traced."""
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    with pytest.raises(ValueError, match=r"radii: no '(glass|global)' map"):
+        trace_photons(scene, accel, 100, radii=radii, global_map=global_map)
+    made = trace_photons(scene, accel, 500, radii=(("indirect", 8), ("indirect", 8)), prepare=True)
+    assert 8 in made.photons.indirect_map._memo and "leaf_order" in made.photons.caustic_map._memo

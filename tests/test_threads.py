@@ -348,3 +348,15 @@ def test_background_runs_on_a_worker_and_hands_back_its_outcome(n):
         assert (seen["thread"] is threading.main_thread()) == (n == 1) and seen["threads"] == 1
         with pytest.raises(ValueError, match="no layout"):
             threads.background(fails).result()
+
+
+def test_the_numpy_engine_is_bit_identical_for_any_thread_count(small_chunks, monkeypatch):
+    """The reference engine (``TLM_KERNELS=numpy``) too: whole batches test their blocks on
+    several threads at once, each in scratch of its own (a shared one was overwritten under
+    another thread's block, and the images changed from run to run)."""
+    monkeypatch.setenv("TLM_KERNELS", "numpy")
+    monkeypatch.setattr(batches, "BATCH_WORKERS", "threads")
+    raw = _cfg("cornell-water", "refract")
+    one = _render(raw, 1)
+    for n in (2, 2, 3):
+        _same_render(one, _render(raw, n))

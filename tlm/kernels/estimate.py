@@ -385,8 +385,8 @@ def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None,
     q = pts.shape[1]
     blocks = [(q0, min(q0 + QUERY_BLOCK, q)) for q0 in range(0, q, QUERY_BLOCK)]
     chunks = [(q0, q1, a, b) for q0, q1 in blocks for a, b in threads.spans(q1 - q0, GATHER_MIN_CHUNK)]
-    # pairs a query needs, as seen so far at this radius (buffer sizes only; a float the
-    # chunks raise, one assignment each: threads see one value or the other)
+    # pairs a query needs, as seen so far at this radius (buffer sizes only: no result depends
+    # on them; threads may lose one another's raise, and a chunk then runs twice)
     per_query = lp.pairs.setdefault(float(r), [JIT_PAIRS / QUERY_BLOCK])
     results = threads.ordered(
         lambda c: _gather_chunk(lp, pts, nrm, r, cone_k, c[0] + c[2], c[0] + c[3], per_query), chunks)
@@ -434,7 +434,8 @@ def _gather_chunk(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, a: 
         if need <= pairs:
             break
         pairs = int(need)
-        per_query[0] = max(per_query[0], 1.25 * need / m)
+        if m >= GATHER_MIN_CHUNK:  # (a few queries in a dense spot would size every later buffer)
+            per_query[0] = max(per_query[0], 1.25 * need / m)
     return visits, accepted, sums, pq[:need], leaf[:need]
 
 

@@ -32,6 +32,7 @@ are then recomputed in float64 from eq. 3.6 for that one triangle (:func:`exact`
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,7 +123,18 @@ class _Workspace:
         return self.flat[: k * size].reshape(k, m, r), self.key[:size].reshape(m, r)
 
 
-_WS = _Workspace()
+_LOCAL = threading.local()
+
+
+def _workspace() -> _Workspace:
+    """This thread's scratch: threads test blocks at once (``render.threads``), and a
+    shared one would be overwritten under another thread's block."""
+    ws = getattr(_LOCAL, "ws", None)
+    if ws is None:
+        ws = _LOCAL.ws = _Workspace()
+    return ws
+
+
 _NO_HIT = np.uint64(0x7F800000) << np.uint64(32)  # float32 +inf in the high word
 
 
@@ -173,7 +185,7 @@ def closest_slots(
     def col(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         return a[0, sl, None], a[1, sl, None], a[2, sl, None]
 
-    (tx, ty, tz, cx, cy, cz, rdet, t, tmp, dfx, dfy, dfz, u, v), key = _WS.views(m, r)  # unpacks axis 0
+    (tx, ty, tz, cx, cy, cz, rdet, t, tmp, dfx, dfy, dfz, u, v), key = _workspace().views(m, r)  # unpacks axis 0
     mul, add, sub, mn = np.multiply, np.add, np.subtract, np.minimum
     np.copyto(dfx, dx)  # D spread over the block: full-by-full products are faster
     np.copyto(dfy, dy)

@@ -279,6 +279,10 @@ def trace_photons(
         raise ValueError(f"aim (={aim!r}) must be 'parts' or 'box'")
     if aim_triangles < 1:
         raise ValueError(f"aim_triangles (={aim_triangles}) must be >= 1")
+    for name, _ in radii:
+        if name not in ("caustic", "indirect", "global") or (name == "global" and not global_map):
+            raise ValueError(f"radii: no {name!r} map to measure (the maps: 'caustic', 'indirect', "
+                             f"and 'global' with global_map)")
     streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
     table = scene.material_table() if table is None else table
@@ -461,7 +465,7 @@ def trace_photons(
 
     # the maps' trees are built at once on the threads, each on its own (the same trees), the
     # largest first; beside them, the density radii asked for (from the positions alone)
-    wanted = list(dict.fromkeys((name, k) for name, k in radii if name in sources))
+    wanted = list(dict.fromkeys(radii))
     tasks = [(build, (name,)) for name in sorted(sources, key=lambda x: -size[x])]
     tasks += [(radius, nk) for nk in sorted(wanted, key=lambda nk: -size[nk[0]])]
     made = dict(zip([args for _, args in tasks], threads.ordered(lambda t: t[0](*t[1]), tasks), strict=True))

@@ -152,6 +152,7 @@ def background(fn: Callable[[], R]) -> Future:
         return done
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
+    one.run(_SHARE.set, _SHARE.get() * 2)  # (a budget is shared with the caller's own calls)
     return _pool(n).submit(one.run, fn)
 
 

@@ -109,8 +109,9 @@ class TriangleAccel:
 
     def prepare(self) -> TriangleAccel:
         """Build what the selected engine reads (:attr:`jit_layout`, or :attr:`soa` and
-        :attr:`soa64`) now, on the calling thread, before threads trace at once (a
-        ``cached_property`` is not built under a lock: two threads could each build it)."""
+        :attr:`soa64`) now, by one thread (the caller's, or a worker's: the photon trace
+        builds it while it emits), before threads trace at once (a ``cached_property`` is
+        not built under a lock: two threads could each build it)."""
         if engine() == "numba":
             self.jit_layout  # noqa: B018
         else:
