@@ -21,10 +21,10 @@ both ways give byte-identical radiance and work (exits 1 otherwise).
 from __future__ import annotations
 
 import argparse
-import hashlib
 from pathlib import Path
 
 import numpy as np
+from bench_threads import digest  # (radiance and work, hashed in a fixed order)
 from timing import exit_status, verdict
 
 from tlm.config import load_config
@@ -32,16 +32,6 @@ from tlm.experiments.run import render
 from tlm.kernels import _jit_gather, estimate
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def digest(res) -> str:
-    h = hashlib.sha256()
-    for name in sorted(res.radiance):
-        h.update(np.ascontiguousarray(res.radiance[name]).tobytes())
-    for name in sorted(res.work):
-        for k in sorted(res.work[name]):
-            h.update(np.ascontiguousarray(res.work[name][k]).tobytes())
-    return h.hexdigest()[:16]
 
 
 def main() -> None:
