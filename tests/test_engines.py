@@ -547,3 +547,60 @@ def test_hash_uniform_is_the_same_compiled(monkeypatch):
             got[engine] = shade.hash_uniform(*case)
         assert got["numpy"].shape == got["numba"].shape and got["numpy"].tobytes() == got["numba"].tobytes()
         assert ((got["numba"] >= 0) & (got["numba"] < 1)).all()
+
+
+def _cone_cases():
+    """(origins, boxes, three uniforms) reaching every branch of the cones: origins on a
+    box's corners, at its centres, inside it and far out, one shared origin (a point
+    light), one box, flat boxes, no photon, picks at 0 and just below 1, and cones so
+    narrow that the picked one need not hold its own draw (it counts all the same)."""
+    rng = np.random.default_rng(11)
+    lo = rng.uniform(-1, 1, (37, 3))
+    boxes = np.stack([lo, lo + rng.uniform(0, 0.5, (37, 3))], axis=1)
+    m = 3000
+    o = rng.uniform(-2, 2, (m, 3))
+    o[:10], o[10:20], o[20:30] = boxes[:10, 0], boxes[:10].mean(axis=1), boxes[:10, 1]
+    o[30:40] = boxes[:10, 0] + 0.25 * (boxes[:10, 1] - boxes[:10, 0])  # inside
+    u = [rng.uniform(size=m) for _ in range(3)]
+    u[0][:5], u[0][5:10] = 0.0, np.nextafter(1.0, 0.0)
+    flat = boxes.copy()
+    flat[:, 1, 2] = flat[:, 0, 2]
+    tiny = boxes.copy()  # cones so narrow that a draw's rounding can leave its own cone
+    tiny[:, 1] = tiny[:, 0] + 1e-7
+    return [(o, boxes, *u), (o[:1], boxes, *u), (np.array([[5.0, 5.0, 5.0]]), boxes[:1], *u), (o, flat, *u),
+            (o[:0], boxes, *(x[:0] for x in u)), (o[100:], tiny, *(x[100:] for x in u))]
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_cone_mixture_is_the_same_compiled(monkeypatch, case):
+    """The caustic group's cone mixture (tlm/kernels/_jit_cones.py against the numpy
+    code): the same directions and densities, as bytes, at one thread and at three."""
+    from tlm.kernels import threads
+    from tlm.kernels.emission import cone_mixture
+
+    args = _cone_cases()[case]
+    got = {}
+    for engine, n in (("numpy", 1), ("numba", 1), ("numba", 3)):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        with threads.using(n):
+            got[engine, n] = [x.tobytes() for x in cone_mixture(*args)]
+    assert got["numba", 1] == got["numpy", 1] and got["numba", 3] == got["numpy", 1]
+
+
+def test_emission_aimed_at_parts_is_the_same_compiled(monkeypatch):
+    """Photons of a quad light and of a point light aimed at the glass sphere's parts
+    (``photons.aim: parts``) emitted with either engine: the same bytes."""
+    from tlm.kernels.emission import aim_boxes, emit, photon_key
+    from tlm.scenes.model import Light
+
+    scene = load_scene("cornell")
+    boxes = aim_boxes(scene.triangles, scene.material_table()["kind"], scene.part, 8)
+    assert len(boxes) > 4
+    point = Light(kind="point", position=(0.0, 1.5, 0.0), power=(10.0, 10.0, 10.0))
+    lights = (*scene.lights, point)
+    got = {}
+    for engine in ("numpy", "numba"):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        got[engine] = [x.tobytes() for x in emit(lights, 4000, photon_key(3), None, None, 0.5, with_source=True,
+                                                 caustic_boxes=boxes)]
+    assert got["numba"] == got["numpy"]

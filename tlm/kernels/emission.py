@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from tlm.kernels import threads
+from tlm.kernels.engine import engine
 from tlm.kernels.shade import face_normals, hash_uniform, point_on_triangles, triangle_choice
 from tlm.scenes.model import KIND, Light
 
@@ -155,6 +156,9 @@ def aim_boxes(triangles: np.ndarray, kind: np.ndarray, part: np.ndarray, aim_tri
 
 
 CONE_CHUNK = 1 << 16  # photons x boxes a chunk of cone mixture sampling holds (memory and speed only)
+# photons x boxes a chunk of the compiled cone mixture holds (memory and speed only): their
+# cones, 32 bytes each, between the pick and the count of the cones holding the draw
+CONE_CHUNK_COMPILED = 1 << 17
 
 
 def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np.ndarray,
@@ -174,6 +178,9 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
     d = np.empty((m, 3))
     inv_pdf = np.empty(m)
     shared = o.shape[0] == 1
+    if k_n and engine() == "numba":
+        _cone_mixture_compiled(o, lo, hi, u_pick, u_cos, u_phi, d, inv_pdf)
+        return d, inv_pdf
     if shared:
         cones = _box_cones(o, lo, hi)
     step = max(1, CONE_CHUNK // max(k_n, 1))
@@ -196,6 +203,31 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
     for _ in threads.ordered(chunk, range(0, m, step)):
         pass
     return d, inv_pdf
+
+
+def _cone_mixture_compiled(o, lo, hi, u_pick, u_cos, u_phi, d, inv_pdf) -> None:
+    """:func:`cone_mixture` with the cones compiled (:mod:`tlm.kernels._jit_cones`: the
+    same bits), into ``d`` and ``inv_pdf``; chunks of photons run on the threads."""
+    from tlm.kernels import _jit_cones
+
+    m, k_n = u_pick.shape[0], lo.shape[0]
+    o = np.ascontiguousarray(o, dtype=np.float64)
+    box = np.ascontiguousarray(np.concatenate([lo.T, hi.T]), dtype=np.float64)  # (6, K): a row per coordinate
+    # chunks of at most CONE_CHUNK_COMPILED photons x boxes, four a thread at least (speed only:
+    # each photon's numbers are its own)
+    step = max(1, min(CONE_CHUNK_COMPILED // k_n, -(-m // (4 * threads.current()))))
+
+    def chunk(s: int) -> None:
+        e = min(m, s + step)
+        oc = o if o.shape[0] == 1 else o[s:e]
+        cones = np.empty((oc.shape[0], 4, k_n))  # each origin's cones, between the two calls
+        pick, axis, c, total = _jit_cones.cone_pick(oc, box, u_pick[s:e], cones)
+        dd = _around(axis, 1.0 - u_cos[s:e] * (1.0 - c), 2.0 * np.pi * u_phi[s:e])
+        d[s:e] = dd
+        inv_pdf[s:e] = total / _jit_cones.cones_holding(cones, dd, pick)
+
+    for _ in threads.ordered(chunk, range(0, m, step)):
+        pass
 
 
 def emit(
