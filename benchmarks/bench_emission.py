@@ -8,7 +8,8 @@ the compiled code (``tlm/kernels/_jit_cones.py``) walks the boxes photon by phot
 with the threads at once. For each scene (default: the built-in ``cornell``, and the
 Cornell box with the 69k-triangle glass blob of ``bench_memory.py``, 2,064 boxes), this
 bench emits the scene's photons (its own count, the defaults' caustic fraction and
-boxes) with each engine at each thread count, engines alternated ``--rounds`` times,
+boxes: all of ``emit``, of which the cone mixture is most) with each engine at each
+thread count, engines alternated ``--rounds`` times after one untimed emission of each,
 and prints the median seconds and the ratio numpy / compiled (paired, per round). It
 checks that every engine and thread count gives the bytes of numpy's one-thread
 emission (FAIL and exit 1 otherwise).
@@ -31,7 +32,7 @@ from timing import exit_status, verdict
 from tlm.config import PhotonConfig
 from tlm.kernels import threads
 from tlm.kernels.bsp import bounds
-from tlm.kernels.emission import aim_boxes, cone_mixture, emit, photon_key
+from tlm.kernels.emission import aim_boxes, emit, photon_key
 from tlm.scenes.loader import load_scene
 
 
@@ -39,6 +40,40 @@ def emission(scene, boxes, fraction: float):
     """What the photon trace emits for ``scene`` (its photon count, aimed at ``boxes``)."""
     return emit(scene.lights, scene.photons, photon_key(0), bounds(scene.triangles.reshape(-1, 3)), None,
                 fraction, with_source=True, caustic_boxes=boxes)
+
+
+def bench_scene(name: str, tmp: Path, defaults: PhotonConfig, counts: list[int], rounds: int) -> None:
+    """One scene's table, and the verdict on its bytes."""
+    if name == "glass":
+        path, _ = write_scene(tmp, "glass", *GLASS)
+        scene = load_scene(str(path))
+    else:
+        scene = load_scene(name)
+    boxes = aim_boxes(scene.triangles, scene.material_table()["kind"], scene.part, defaults.aim_triangles)
+    print(f"\n{name}: {scene.triangles.shape[0]:,} triangles, {scene.photons:,} photons "
+          f"(caustic fraction {defaults.caustic_fraction}), {len(boxes):,} boxes of at most "
+          f"{defaults.aim_triangles} specular triangles")
+    # the reference, numpy on one thread; then one untimed emission with the compiled code
+    # (numba loads its functions on the first call)
+    os.environ["TLM_KERNELS"] = "numpy"
+    with threads.using(1):
+        reference = [x.tobytes() for x in emission(scene, boxes, defaults.caustic_fraction)]
+    os.environ["TLM_KERNELS"] = "numba"
+    same = [x.tobytes() for x in emission(scene, boxes, defaults.caustic_fraction)] == reference
+    print(f"{'threads':>7} {'numpy s':>8} {'compiled s':>10} {'numpy / compiled':>17}")
+    for n in counts:
+        times: dict[str, list[float]] = {"numpy": [], "numba": []}
+        with threads.using(n):
+            for _ in range(rounds):
+                for engine in ("numpy", "numba"):
+                    os.environ["TLM_KERNELS"] = engine
+                    t0 = time.perf_counter()
+                    got = [x.tobytes() for x in emission(scene, boxes, defaults.caustic_fraction)]
+                    times[engine].append(time.perf_counter() - t0)
+                    same = same and got == reference
+        ratio = np.median(np.array(times["numpy"]) / np.array(times["numba"]))
+        print(f"{n:7d} {np.median(times['numpy']):8.3f} {np.median(times['numba']):10.3f} {ratio:16.2f}x")
+    verdict(same, f"{name}: both engines emit numpy's one-thread bytes at every thread count")
 
 
 def main() -> None:
@@ -51,39 +86,15 @@ def main() -> None:
         ap.error("--rounds and --threads must be >= 1")
     defaults = PhotonConfig()
     old = os.environ.get("TLM_KERNELS")
-    os.environ["TLM_KERNELS"] = "numba"  # (the compiled functions load before any timing)
-    cone_mixture(np.zeros((1, 3)), np.array([[[1.0, 1, 1], [2, 2, 2]]]), *np.full((3, 2), 0.5))
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.scenes:
-            if name == "glass":
-                path, _ = write_scene(Path(tmp), "glass", *GLASS)
-                scene = load_scene(str(path))
-            else:
-                scene = load_scene(name)
-            boxes = aim_boxes(scene.triangles, scene.material_table()["kind"], scene.part, defaults.aim_triangles)
-            print(f"\n{name}: {scene.triangles.shape[0]:,} triangles, {scene.photons:,} photons "
-                  f"(caustic fraction {defaults.caustic_fraction}), {len(boxes):,} boxes of at most "
-                  f"{defaults.aim_triangles} specular triangles")
-            print(f"{'threads':>7} {'numpy s':>8} {'compiled s':>10} {'numpy / compiled':>17}")
-            reference, same = None, True
-            for n in args.threads:
-                times: dict[str, list[float]] = {"numpy": [], "numba": []}
-                with threads.using(n):
-                    for _ in range(args.rounds):
-                        for engine in ("numpy", "numba"):
-                            os.environ["TLM_KERNELS"] = engine
-                            t0 = time.perf_counter()
-                            got = [x.tobytes() for x in emission(scene, boxes, defaults.caustic_fraction)]
-                            times[engine].append(time.perf_counter() - t0)
-                            reference = got if reference is None else reference
-                            same = same and got == reference
-                ratio = np.median(np.array(times["numpy"]) / np.array(times["numba"]))
-                print(f"{n:7d} {np.median(times['numpy']):8.3f} {np.median(times['numba']):10.3f} {ratio:16.2f}x")
-            verdict(same, f"{name}: both engines emit numpy's one-thread bytes at every thread count")
-    if old is None:
-        os.environ.pop("TLM_KERNELS", None)
-    else:
-        os.environ["TLM_KERNELS"] = old
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for name in args.scenes:
+                bench_scene(name, Path(tmp), defaults, args.threads, args.rounds)
+    finally:
+        if old is None:
+            os.environ.pop("TLM_KERNELS", None)
+        else:
+            os.environ["TLM_KERNELS"] = old
     exit_status()
 
 

@@ -552,8 +552,10 @@ def test_hash_uniform_is_the_same_compiled(monkeypatch):
 def _cone_cases():
     """(origins, boxes, three uniforms) reaching every branch of the cones: origins on a
     box's corners, at its centres, inside it and far out, one shared origin (a point
-    light), one box, flat boxes, no photon, picks at 0 and just below 1, and cones so
-    narrow that the picked one need not hold its own draw (it counts all the same)."""
+    light), one box, flat boxes, boxes of one point (cones of no solid angle, cosines
+    rounded past 1), no photon, picks at 0, just below 1 and at 1, cones so narrow that
+    the picked one need not hold its own draw (it counts all the same), coordinates so
+    small or so large that corners' lengths underflow or overflow, and NaN boxes."""
     rng = np.random.default_rng(11)
     lo = rng.uniform(-1, 1, (37, 3))
     boxes = np.stack([lo, lo + rng.uniform(0, 0.5, (37, 3))], axis=1)
@@ -562,16 +564,21 @@ def _cone_cases():
     o[:10], o[10:20], o[20:30] = boxes[:10, 0], boxes[:10].mean(axis=1), boxes[:10, 1]
     o[30:40] = boxes[:10, 0] + 0.25 * (boxes[:10, 1] - boxes[:10, 0])  # inside
     u = [rng.uniform(size=m) for _ in range(3)]
-    u[0][:5], u[0][5:10] = 0.0, np.nextafter(1.0, 0.0)
+    u[0][:5], u[0][5:10], u[0][10:15] = 0.0, np.nextafter(1.0, 0.0), 1.0
     flat = boxes.copy()
     flat[:, 1, 2] = flat[:, 0, 2]
     tiny = boxes.copy()  # cones so narrow that a draw's rounding can leave its own cone
     tiny[:, 1] = tiny[:, 0] + 1e-7
+    point = boxes.copy()
+    point[:, 1] = point[:, 0]
+    nan = boxes.copy()  # (no scene gives one: numpy's NaN rule in the corners' minimum)
+    nan[3, 1, 0] = nan[7, 0, 2] = np.nan
     return [(o, boxes, *u), (o[:1], boxes, *u), (np.array([[5.0, 5.0, 5.0]]), boxes[:1], *u), (o, flat, *u),
-            (o[:0], boxes, *(x[:0] for x in u)), (o[100:], tiny, *(x[100:] for x in u))]
+            (o[:0], boxes, *(x[:0] for x in u)), (o[100:], tiny, *(x[100:] for x in u)), (o, point, *u),
+            (o * 1e-300, boxes * 1e-300, *u), (o * 1e300, boxes * 1e300, *u), (o, nan, *u)]
 
 
-@pytest.mark.parametrize("case", range(6))
+@pytest.mark.parametrize("case", range(10))
 def test_cone_mixture_is_the_same_compiled(monkeypatch, case):
     """The caustic group's cone mixture (tlm/kernels/_jit_cones.py against the numpy
     code): the same directions and densities, as bytes, at one thread and at three."""
@@ -582,7 +589,7 @@ def test_cone_mixture_is_the_same_compiled(monkeypatch, case):
     got = {}
     for engine, n in (("numpy", 1), ("numba", 1), ("numba", 3)):
         monkeypatch.setenv("TLM_KERNELS", engine)
-        with threads.using(n):
+        with threads.using(n), np.errstate(all="ignore"):  # (the huge coordinates overflow)
             got[engine, n] = [x.tobytes() for x in cone_mixture(*args)]
     assert got["numba", 1] == got["numpy", 1] and got["numba", 3] == got["numpy", 1]
 
@@ -604,3 +611,18 @@ def test_emission_aimed_at_parts_is_the_same_compiled(monkeypatch):
         got[engine] = [x.tobytes() for x in emit(lights, 4000, photon_key(3), None, None, 0.5, with_source=True,
                                                  caustic_boxes=boxes)]
     assert got["numba"] == got["numpy"]
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_cone_mixture_refuses_origins_that_are_not_one_or_one_a_photon(monkeypatch, engine):
+    """Two origins for five photons (or boxes not (K, 2, 3)) is a ValueError with either
+    engine, before anything is computed (the compiled code does not check its indices)."""
+    from tlm.kernels.emission import cone_mixture
+
+    monkeypatch.setenv("TLM_KERNELS", engine)
+    u = np.full(5, 0.5)
+    boxes = np.array([[[0.0, 0, 0], [1, 1, 1]]])
+    with pytest.raises(ValueError, match="origins"):
+        cone_mixture(np.zeros((2, 3)), boxes, u, u, u)
+    with pytest.raises(ValueError, match="boxes"):
+        cone_mixture(np.zeros((1, 3)), boxes[0], u, u, u)

@@ -9,12 +9,14 @@ photons took 11 s. Here :func:`cone_pick` computes each photon's cones box by bo
 LLVM vectorizes: :func:`_cone` is branch-free), keeps them (32 bytes a cone) for
 :func:`cones_holding`, and the threads run the chunks at once (``nogil``).
 
-The values are the numpy code's, bit for bit: each box's cone is computed with the same
-operations in the same order (corner vectors ``lo - p`` and ``hi - p``, the centre's
-direction times ``1 / length``, each corner's ``dot / sqrt(sq)``, the least of the
-eight in numpy's order with its NaN rule, clipped to [-1, 1], -1 inside the box); the
-solid angles are summed one after another (``np.cumsum``); a cone holds a direction
-where ``(d0 a0 + d1 a1) + d2 a2 >= cos``. numba compiles without fast-math (nothing is
+From float64 inputs (what :func:`~tlm.kernels.emission.emit` passes; the numpy code,
+which computes in its inputs' type, runs for any other) the values are the numpy
+code's, bit for bit, but for the sign of a NaN (from a NaN box, which no scene gives):
+each box's cone is computed with the same operations in the same order (corner
+vectors ``lo - p`` and ``hi - p``, the centre's direction times ``1 / length``, each
+corner's ``dot / sqrt(sq)``, the least of the eight in numpy's order with its NaN rule,
+clipped to [-1, 1], -1 inside the box); the solid angles are summed one after another
+(``np.cumsum``); a cone holds a direction where ``(d0 a0 + d1 a1) + d2 a2 >= cos``. numba compiles without fast-math (nothing is
 reassociated or fused). The direction in the picked cone is drawn between the two
 calls by the numpy code (:func:`~tlm.kernels.emission._around`: its sine and cosine
 are numpy's). ``TLM_KERNELS=numpy`` runs the numpy code, the reference
@@ -35,8 +37,9 @@ _TWO_PI = 2.0 * np.pi  # (the numpy code's ``2.0 * np.pi * (1.0 - cos)`` multipl
 def _cone(px, py, pz, box, k):
     """The cone from ``p`` bounding box ``k`` of ``box`` (6, K: the low corners' x, y,
     z, then the high ones'): its unit axis and the cosine of its half-angle (-1 where
-    ``p`` is in the closed box), as ``_box_cones`` computes them. Branch-free (selects),
-    so that a loop over the boxes vectorizes."""
+    ``p`` is in the closed box), as ``_box_cones`` computes them. Written with selects,
+    which LLVM keeps branch-free (:func:`_mn`'s tests too), so that a loop over the boxes
+    vectorizes."""
     e00 = box[0, k] - px
     e01 = box[3, k] - px
     e10 = box[1, k] - py

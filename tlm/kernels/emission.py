@@ -173,12 +173,16 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
     directions and (m,) ``sum Omega / #cones holding d`` (steradians).
     """
     m = u_pick.shape[0]
+    if o.ndim != 2 or o.shape[1] != 3 or o.shape[0] not in (1, m) or boxes.ndim != 3 or boxes.shape[1:] != (2, 3):
+        raise ValueError(f"cone_mixture: origins {o.shape} and boxes {boxes.shape} for {m} photons "
+                         f"(expected (1, 3) or ({m}, 3), and (K, 2, 3))")
     lo, hi = boxes[:, 0], boxes[:, 1]
     k_n = boxes.shape[0]
     d = np.empty((m, 3))
     inv_pdf = np.empty(m)
     shared = o.shape[0] == 1
-    if k_n and engine() == "numba":
+    # (float64 only: the numpy code computes in its inputs' type; emit's are float64)
+    if k_n and o.dtype == np.float64 and boxes.dtype == np.float64 and engine() == "numba":
         _cone_mixture_compiled(o, lo, hi, u_pick, u_cos, u_phi, d, inv_pdf)
         return d, inv_pdf
     if shared:
@@ -207,13 +211,15 @@ def cone_mixture(o: np.ndarray, boxes: np.ndarray, u_pick: np.ndarray, u_cos: np
 
 def _cone_mixture_compiled(o, lo, hi, u_pick, u_cos, u_phi, d, inv_pdf) -> None:
     """:func:`cone_mixture` with the cones compiled (:mod:`tlm.kernels._jit_cones`: the
-    same bits), into ``d`` and ``inv_pdf``; chunks of photons run on the threads."""
+    same values from float64 inputs), into ``d`` and ``inv_pdf``; chunks of photons run
+    on the threads."""
     from tlm.kernels import _jit_cones
 
     m, k_n = u_pick.shape[0], lo.shape[0]
-    o = np.ascontiguousarray(o, dtype=np.float64)
-    box = np.ascontiguousarray(np.concatenate([lo.T, hi.T]), dtype=np.float64)  # (6, K): a row per coordinate
-    # chunks of at most CONE_CHUNK_COMPILED photons x boxes, four a thread at least (speed only:
+    o = np.ascontiguousarray(o)
+    box = np.ascontiguousarray(np.concatenate([lo.T, hi.T]))  # (6, K): a row per coordinate
+    u_pick = np.ascontiguousarray(u_pick, dtype=np.float64)
+    # chunks of at most CONE_CHUNK_COMPILED photons x boxes, about four a thread (speed only:
     # each photon's numbers are its own)
     step = max(1, min(CONE_CHUNK_COMPILED // k_n, -(-m // (4 * threads.current()))))
 
