@@ -10,17 +10,18 @@ LLVM vectorizes: :func:`_cone` is branch-free), keeps them (32 bytes a cone) for
 :func:`cones_holding`, and the threads run the chunks at once (``nogil``).
 
 From float64 inputs (what :func:`~tlm.kernels.emission.emit` passes; the numpy code,
-which computes in its inputs' type, runs for any other) the values are the numpy
-code's, bit for bit, but for the sign of a NaN (from a NaN box, which no scene gives):
-each box's cone is computed with the same operations in the same order (corner
-vectors ``lo - p`` and ``hi - p``, the centre's direction times ``1 / length``, each
-corner's ``dot / sqrt(sq)``, the least of the eight in numpy's order with its NaN rule,
-clipped to [-1, 1], -1 inside the box); the solid angles are summed one after another
-(``np.cumsum``); a cone holds a direction where ``(d0 a0 + d1 a1) + d2 a2 >= cos``. numba compiles without fast-math (nothing is
-reassociated or fused). The direction in the picked cone is drawn between the two
-calls by the numpy code (:func:`~tlm.kernels.emission._around`: its sine and cosine
-are numpy's). ``TLM_KERNELS=numpy`` runs the numpy code, the reference
-(tests/test_engines.py compares the two; ``benchmarks/bench_emission.py`` times them).
+which computes in its inputs' type, runs for any other) the values are the numpy code's,
+bit for bit, but for the sign of a NaN (from a NaN box, which no scene gives): each
+box's cone is computed with the same operations in the same order (corner vectors
+``lo - p`` and ``hi - p``, the centre's direction times ``1 / length``, each corner's
+``dot / sqrt(sq)``, the least of the eight in numpy's order with its NaN rule, clipped
+to [-1, 1], -1 inside the box); the solid angles are summed one after another
+(``np.cumsum``); a cone holds a direction where ``(d0 a0 + d1 a1) + d2 a2 >= cos``.
+numba compiles without fast-math (nothing is reassociated or fused). The direction in
+the picked cone is drawn between the two calls by the numpy code
+(:func:`~tlm.kernels.emission._around`: its sine and cosine are numpy's).
+``TLM_KERNELS=numpy`` runs the numpy code, the reference (tests/test_engines.py compares
+the two; ``benchmarks/bench_emission.py`` times them).
 """
 
 from __future__ import annotations
