@@ -132,6 +132,8 @@ def main() -> None:
     ap.add_argument("--scenes", nargs="+", default=["cornell", "ring", "room"])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
+    if args.repeat < 1:
+        ap.error("--repeat must be >= 1")
     print(f"{'scene':8s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
           f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'paired':>8s} {'numpy/embree':>13s}")
     verdicts = []
