@@ -595,7 +595,7 @@ def test_cone_mixture_is_the_same_compiled(monkeypatch, case):
 
 
 def test_emission_aimed_at_parts_is_the_same_compiled(monkeypatch):
-    """Photons of a quad light and of a point light aimed at the glass sphere's parts
+    """Photons of a quad light and of a point light aimed at the Cornell box's specular parts
     (``photons.aim: parts``) emitted with either engine: the same bytes."""
     from tlm.kernels.emission import aim_boxes, emit, photon_key
     from tlm.scenes.model import Light
