@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from contextlib import contextmanager
 
 import numpy as np
 from timing import best_of, exit_status, verdict
@@ -57,13 +58,13 @@ def shadow_rays(scene, accel, hits, o, d):
 BARS = (("issue [7 of 7]", 10.0), ("issue 25", 2.0))
 
 
-def engine_time(engine: str, fn, repeat: int) -> float:
-    """Best time of ``fn`` with ``TLM_KERNELS=engine``."""
+@contextmanager
+def kernels(engine: str):
+    """``TLM_KERNELS=engine`` inside the block, restored after it."""
     old = os.environ.get("TLM_KERNELS")
     os.environ["TLM_KERNELS"] = engine
     try:
-        fn()  # the first call of the compiled kernel loads it
-        return best_of(fn, repeat)
+        yield
     finally:
         if old is None:
             del os.environ["TLM_KERNELS"]
@@ -71,13 +72,18 @@ def engine_time(engine: str, fn, repeat: int) -> float:
             os.environ["TLM_KERNELS"] = old
 
 
+def engine_time(engine: str, fn, repeat: int) -> float:
+    """Best time of ``fn`` with ``TLM_KERNELS=engine``."""
+    with kernels(engine):
+        fn()  # the first call of the compiled kernel loads it
+        return best_of(fn, repeat)
+
+
 def alternated(ours, theirs, repeat: int) -> tuple[float, float, float]:
     """``ours`` (tlm's compiled kernel) and ``theirs`` (Embree) timed one after the other,
     ``repeat`` times: the best time of each and the median of the per-round ratios
     ours / theirs (a machine that slows down for a while slows both of a round)."""
-    old = os.environ.get("TLM_KERNELS")
-    os.environ["TLM_KERNELS"] = "numba"
-    try:
+    with kernels("numba"):
         ours()  # the first call of the compiled kernel loads it
         theirs()
         a, b = [], []
@@ -86,11 +92,6 @@ def alternated(ours, theirs, repeat: int) -> tuple[float, float, float]:
                 t0 = time.perf_counter()
                 fn()
                 into.append(time.perf_counter() - t0)
-    finally:
-        if old is None:
-            del os.environ["TLM_KERNELS"]
-        else:
-            os.environ["TLM_KERNELS"] = old
     return min(a), min(b), float(np.median(np.array(a) / np.array(b)))
 
 
