@@ -626,3 +626,101 @@ def test_cone_mixture_refuses_origins_that_are_not_one_or_one_a_photon(monkeypat
         cone_mixture(np.zeros((2, 3)), boxes, u, u, u)
     with pytest.raises(ValueError, match="boxes"):
         cone_mixture(np.zeros((1, 3)), boxes[0], u, u, u)
+
+
+def _photon_scenes():
+    """Scenes for the compiled photon bounce, each with what some of its branches need:
+    the Cornell box as it is (a mirror, glass, three Lambertian colours); the same with a
+    black wall (Russian roulette's zero albedo), a mirror that reflects no green, glass
+    of index 2.4 (total internal reflection) and shading normals reversed, zero (the
+    geometric normal's fallback) or random on the specular triangles; with index-matched
+    glass (photons cross it and stay direct light) and a black mirror (paths that end with
+    no power); with the mirror and the glass made white Lambertian (diffuse bounces about
+    normals of every direction: both tangent frames); and the refined water of cornell-water."""
+    import dataclasses
+
+    from tlm.scenes.normals import crease_normals
+
+    box = load_scene("cornell")
+    mats = {m.name: m for m in box.materials}
+    hard_mats = {**mats, "red": dataclasses.replace(mats["red"], albedo=(0.0, 0.0, 0.0)),
+                 "chrome": dataclasses.replace(mats["chrome"], reflectance=(0.9, 0.0, 0.5)),
+                 "glass": dataclasses.replace(mats["glass"], ior=2.4)}
+    normals = crease_normals(box.triangles, box.part)
+    spec = np.flatnonzero(box.material_table()["kind"] != 0)
+    rng = np.random.default_rng(5)
+    normals[spec[0::5]] *= -1.0
+    normals[spec[1::5]] = 0.0
+    odd = rng.standard_normal((spec[2::5].shape[0], 3, 3))
+    normals[spec[2::5]] = odd / np.linalg.norm(odd, axis=2, keepdims=True)
+    hard = dataclasses.replace(box, materials=tuple(hard_mats[m.name] for m in box.materials), normals=normals)
+    matched = dataclasses.replace(box, materials=tuple(
+        dataclasses.replace(m, ior=1.0) if m.kind == "dielectric" else
+        dataclasses.replace(m, reflectance=(0.0, 0.0, 0.0)) if m.kind == "mirror" else m for m in box.materials))
+    matte = dataclasses.replace(box, materials=tuple(
+        m if m.kind == "lambertian" else dataclasses.replace(mats["white"], name=m.name) for m in box.materials))
+    return {"cornell": box, "hard": hard, "matched": matched, "matte": matte, "water": load_scene("cornell-water")}
+
+
+@pytest.mark.parametrize(("name", "options"), [
+    ("cornell", {"global_map": True, "aim": "parts"}),
+    ("hard", {}),
+    ("hard", {"russian_roulette": False, "fresnel": False, "global_map": True}),
+    ("matched", {"caustic_fraction": 0.0, "max_bounces": 12}),
+    ("matte", {"global_map": True}),
+    ("water", {"caustic_fraction": 0.3}),
+])
+def test_photon_trace_is_the_same_compiled(monkeypatch, name, options):
+    """The photon trace with the compiled bounce (tlm/kernels/_jit_photons.py) against the
+    numpy code: the same maps (every stored photon's position, normal, incoming direction,
+    power and caustic flag, the global map's too) and the same work per photon, as bytes,
+    at one thread and at three."""
+    from tlm.kernels import threads
+    from tlm.kernels.photons import trace_photons
+
+    scene = _photon_scenes()[name]
+    accel = build_accel(scene.triangles)
+    got = {}
+    for engine, n in (("numpy", 1), ("numba", 1), ("numba", 3)):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        with threads.using(n), np.errstate(all="ignore"):
+            trace = trace_photons(scene, accel, 6000, seed=11, batch_rays=12000, **options)
+        maps = [m for m in (*trace.photons.maps, trace.photons.global_map) if m is not None]
+        got[engine, n] = ([getattr(m, k).tobytes() for m in maps for k in ("position", "normal", "incoming", "power",
+                                                                             "caustic")],
+                          {k: v.tobytes() for k, v in trace.work.items()})
+        assert trace.photons.n > 0
+    assert got["numba", 1] == got["numpy", 1]
+    assert got["numba", 3] == got["numpy", 1]
+
+
+def test_photon_bounce_optics_are_numpys():
+    """The compiled bounce's Fresnel term, Snell direction and clip (tlm/kernels/_jit_photons.py)
+    against the numpy code, one ray at a time, where the scenes seldom go: incidence at exactly
+    0 and 90 degrees, total internal reflection at its bound (sin^2 t = 1), signed zeros, a
+    zero direction, infinities and NaNs (np.nan_to_num's and np.clip's rules)."""
+    from tlm.kernels import _jit_photons
+    from tlm.kernels.shade import _snell, fresnel_dielectric
+
+    special = [0.0, -0.0, 1.0, 0.5, 1e-300, np.nextafter(1.0, 0.0), 2.0, -1.0, np.inf, -np.inf, np.nan]
+    etas = [1.0, 1.5, 1 / 1.5, 0.5, 2.0, 0.0, 1e300, np.inf, np.nan]
+    for eta in etas:
+        bound = float(np.sqrt(1.0 - 1.0 / (eta * eta))) if 1 < eta < np.inf else 0.25  # sin^2 t = 1
+        for cos_i in [*special, bound]:
+            with np.errstate(all="ignore"):
+                f, cos_t = fresnel_dielectric(np.array([cos_i]), np.array([eta]))
+                got = _jit_photons._fresnel(cos_i, eta)
+            assert np.array(got).tobytes() == np.concatenate([f, cos_t]).tobytes(), (cos_i, eta)
+    rng = np.random.default_rng(2)
+    n = np.array([0.0, 0.0, 1.0])
+    dirs = [np.array(x) for x in ([0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.6, 0.0, -0.8],
+                                  [0.0, -0.0, 1.0], [np.inf, 0.0, -1.0], [np.nan, 0.0, -1.0])]
+    dirs += list(rng.standard_normal((40, 3)) / np.linalg.norm(rng.standard_normal((40, 3)), axis=1, keepdims=True))
+    for d in dirs:
+        for eta in etas:
+            with np.errstate(all="ignore"):
+                t, f = _snell(d[None], n[None], np.array([eta]))
+                got = _jit_photons._snell(*d, *n, eta)
+            assert np.array(got).tobytes() == np.concatenate([t[0], f]).tobytes(), (d, eta)
+    for x in special:
+        assert np.array([_jit_photons._clip(x, 0.0, 1.0)]).tobytes() == np.clip(np.array([x]), 0.0, 1.0).tobytes(), x

@@ -49,6 +49,7 @@ import numpy as np
 from tlm.kernels import threads
 from tlm.kernels.bsp import BSPTree, bounds, build_point_tree
 from tlm.kernels.emission import aim_boxes, cosine_directions, emit, photon_key
+from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius, leaf_photons
 from tlm.kernels.memory import PAGE_WORDS, PAIRS, Deferred, Recorder, Streams, traversal_accesses
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
@@ -307,6 +308,14 @@ def trace_photons(
     matched = (kind_of == KIND["dielectric"]) & (ior == 1.0)  # index-matched: light crosses unchanged
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
+    compiled = engine() == "numba" and n > 0
+    if compiled:
+        from tlm.kernels import _jit_photons
+
+        seed64 = np.uint64(key & 0xFFFFFFFFFFFFFFFF)
+        caustic_group = np.ascontiguousarray(caustic_group, dtype=bool)
+        shading = np.ascontiguousarray(shading, dtype=np.float64)
+        normals = np.ascontiguousarray(normals, dtype=np.float64)
     work = {k: np.zeros(n, dtype=np.int64) for k in PHOTON_WORK}
     work["photons_emitted"][:] = 1
     emitted = (o, d, power, source)
@@ -326,14 +335,31 @@ def trace_photons(
         stored: dict[str, list[np.ndarray]] = {k: [] for k in STORED}  # bounce by bounce
         # the global map (final gathering): every Lambertian hit of the global group, direct light included
         full: dict[str, list[np.ndarray]] = {k: [] for k in STORED}
+        rel = None  # the spawn offsets of the rays (made by the compiled bounce)
         for bounce in range(max_bounces):
             if pid.shape[0] == 0:
                 break
-            rel = eps / np.linalg.norm(d, axis=1)
+            if rel is None:
+                rel = eps / np.linalg.norm(d, axis=1)
             hits = closest_hit(accel, o, d, tmin=rel, ignore=last, batch=batch, record=True)
             for name, acc in traversal_accesses(hits.touched, accel.leaf_first, accel.leaf_last,
                                                 streams.page_words).items():
                 rec.add(name, acc, pid)
+            if compiled:  # the rest of the bounce in one call (the numpy code below, bit for bit)
+                phi = 2.0 * np.pi * hash_uniform(key, lo + pid, bounce, 2)  # (numpy's cos and sin)
+                c = hits.counts
+                (pid, o, d, power, last, specular_only, direct, rel), got, got_full = _jit_photons.bounce(
+                    seed64, lo, bounce, pid, o, d, power, specular_only, direct,
+                    hits.triangle, hits.t, hits.u, hits.v,
+                    (c.node_visits, c.leaves_crossed, c.leaf_visits, c.tri_tests), np.cos(phi), np.sin(phi),
+                    caustic_group, kind_of, normals, shading, albedo, refl_of, trans, ior, matched,
+                    KIND["lambertian"], KIND["mirror"], split, global_map, russian_roulette, fresnel, eps,
+                    (work["node_visits"], work["leaves_crossed"], work["leaf_visits"], work["tri_tests"]),
+                    work["rays"], work["lost"], work["bounces"], work["stored"], work["absorbed"])
+                for into, values in ((stored, got), (full, got_full if global_map else ())):
+                    for name, value in zip(STORED, values, strict=False):
+                        into[name].append(value)
+                continue
             for name in ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests"):
                 work[name][pid] += getattr(hits.counts, name)
             work["rays"][pid] += 1
@@ -405,6 +431,7 @@ def trace_photons(
             keep = alive & (power.max(axis=1) > 0)
             pid, o, d, power = pid[keep], x[keep], new_d[keep], power[keep]
             last, specular_only, direct = tri[keep], specular_only[keep], direct[keep]
+            rel = None
 
         pairs = Deferred.like(streams) if concurrent else streams
         rec.charge(pairs, m, {name: work[_MISS_KEYS[name]] for name, _ in rec.added})
