@@ -724,3 +724,36 @@ def test_photon_bounce_optics_are_numpys():
             assert np.array(got).tobytes() == np.concatenate([t[0], f]).tobytes(), (d, eta)
     for x in special:
         assert np.array([_jit_photons._clip(x, 0.0, 1.0)]).tobytes() == np.clip(np.array([x]), 0.0, 1.0).tobytes(), x
+
+
+@pytest.mark.parametrize(("scene", "over"), [
+    ("tinted", []),  # the Cornell box's mirror (tinted: each channel its own) and glass sphere
+    ("cornell-water", ["render.fresnel=false"]),  # rays into and out of water: the medium's index
+])
+def test_final_gathering_is_the_same_compiled(monkeypatch, tmp_path, scene, over):
+    """The photon-map frame with final gathering, its rays' bounces compiled
+    (tlm/kernels/_jit_fgather.py) against the numpy code: the same radiance and work of
+    every pass, as bytes, at one thread and at three; and some rays went through a
+    mirror or glass before their gather."""
+    from pathlib import Path
+
+    from tlm.config import load_config
+    from tlm.experiments.run import render
+
+    if scene == "tinted":
+        text = (Path(__file__).parents[1] / "scenes" / "cornell.yaml").read_text()
+        assert "reflectance: [0.9, 0.9, 0.9]" in text
+        scene = tmp_path / "tinted.yaml"
+        scene.write_text(text.replace("reflectance: [0.9, 0.9, 0.9]", "reflectance: [0.9, 0.2, 0.5]"))
+    got = {}
+    for engine, n in (("numpy", 1), ("numba", 1), ("numba", 3)):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        cfg, base = load_config(Path(__file__).parents[1] / "configs" / "cornell_pmap.yaml",
+                                [f"scene={scene}", "resolution=[24,24]", "estimate.final_gather=4",
+                                 "photons.count=20000", f"render.threads={n}", *over])
+        res = render(cfg, base)
+        got[engine, n] = ({k: v.tobytes() for k, v in res.radiance.items()},
+                          {f"{p}.{k}": v.tobytes() for p, wk in res.work.items() for k, v in wk.items()})
+        assert res.work["fgather"]["specular_bounces"].sum() > 0
+    assert got["numba", 1] == got["numpy", 1]
+    assert got["numba", 3] == got["numpy", 1]

@@ -103,6 +103,51 @@ def _reflect(d0, d1, d2, n0, n1, n2):
     return d0 - k * n0, d1 - k * n1, d2 - k * n2
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _shading_normal(shading, tri, u, v, g0, g1, g2):
+    """:func:`tlm.scenes.normals.interpolate` at one hit: the unit interpolated shading normal
+    of triangle ``tri`` at barycentrics ``(u, v)``, turned to the geometric normal ``g``'s
+    side; ``g`` where the interpolation vanishes."""
+    w0 = (1.0 - u) - v
+    s0 = (w0 * shading[tri, 0, 0] + u * shading[tri, 1, 0]) + v * shading[tri, 2, 0]
+    s1 = (w0 * shading[tri, 0, 1] + u * shading[tri, 1, 1]) + v * shading[tri, 2, 1]
+    s2 = (w0 * shading[tri, 0, 2] + u * shading[tri, 1, 2]) + v * shading[tri, 2, 2]
+    length = np.sqrt(_dot(s0, s1, s2, s0, s1, s2))
+    if length > 0:
+        s0, s1, s2 = s0 / length, s1 / length, s2 / length
+    else:
+        s0, s1, s2 = 0.0, 0.0, 0.0
+    if _dot(s0, s1, s2, g0, g1, g2) < 0.0:
+        s0, s1, s2 = -s0, -s1, -s2
+    if not (s0 != 0.0 or s1 != 0.0 or s2 != 0.0):
+        return g0, g1, g2
+    return s0, s1, s2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _scatter_specular(d0, d1, d2, s0, s1, s2, g0, g1, g2, index):
+    """:func:`tlm.kernels.shade.scatter_specular` of one ray (shading normal ``s``, geometric
+    ``g``, the dielectric's index; 1.0 for a mirror): the reflected direction, the refracted
+    one, ``F``, and whether the ray arrives on the side ``g`` points to."""
+    front = _dot(d0, d1, d2, g0, g1, g2) < 0.0
+    if front:
+        m0, m1, m2 = g0, g1, g2
+        n0, n1, n2 = s0, s1, s2
+    else:
+        m0, m1, m2 = -g0, -g1, -g2
+        n0, n1, n2 = -s0, -s1, -s2
+    if _dot(d0, d1, d2, n0, n1, n2) >= 0.0:
+        n0, n1, n2 = m0, m1, m2
+    r0, r1, r2 = _reflect(d0, d1, d2, n0, n1, n2)
+    if _dot(r0, r1, r2, m0, m1, m2) <= 0.0:
+        r0, r1, r2 = _reflect(d0, d1, d2, m0, m1, m2)
+    eta = 1.0 / index if front else index
+    q0, q1, q2, f = _snell(d0, d1, d2, n0, n1, n2, eta)
+    if _dot(q0, q1, q2, m0, m1, m2) >= 0.0:
+        q0, q1, q2, f = _snell(d0, d1, d2, m0, m1, m2, eta)
+    return r0, r1, r2, q0, q1, q2, f, front
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
            h_triangle, h_t, h_u, h_v, h_counts, cos_phi, sin_phi,
@@ -247,41 +292,10 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
             if not survive:
                 w_absorbed[p] += 1
         else:
-            # the interpolated shading normal (tlm.scenes.normals.interpolate), turned to the
-            # geometric normal's side; the geometric one where it vanishes
-            u, v = h_u[i], h_v[i]
-            w0 = (1.0 - u) - v
-            s0 = (w0 * shading[tri, 0, 0] + u * shading[tri, 1, 0]) + v * shading[tri, 2, 0]
-            s1 = (w0 * shading[tri, 0, 1] + u * shading[tri, 1, 1]) + v * shading[tri, 2, 1]
-            s2 = (w0 * shading[tri, 0, 2] + u * shading[tri, 1, 2]) + v * shading[tri, 2, 2]
-            length = np.sqrt(_dot(s0, s1, s2, s0, s1, s2))
-            if length > 0:
-                s0, s1, s2 = s0 / length, s1 / length, s2 / length
-            else:
-                s0, s1, s2 = 0.0, 0.0, 0.0
-            if _dot(s0, s1, s2, g0, g1, g2) < 0.0:
-                s0, s1, s2 = -s0, -s1, -s2
-            if not (s0 != 0.0 or s1 != 0.0 or s2 != 0.0):
-                s0, s1, s2 = g0, g1, g2
+            s0, s1, s2 = _shading_normal(shading, tri, h_u[i], h_v[i], g0, g1, g2)
             is_mirror = kind == mirror
             index = 1.0 if is_mirror else ior[tri]
-            # scatter_specular: sides by the geometric normal
-            front = _dot(d0, d1, d2, g0, g1, g2) < 0.0
-            if front:
-                m0, m1, m2 = g0, g1, g2
-                n0, n1, n2 = s0, s1, s2
-            else:
-                m0, m1, m2 = -g0, -g1, -g2
-                n0, n1, n2 = -s0, -s1, -s2
-            if _dot(d0, d1, d2, n0, n1, n2) >= 0.0:
-                n0, n1, n2 = m0, m1, m2
-            r0, r1, r2 = _reflect(d0, d1, d2, n0, n1, n2)
-            if _dot(r0, r1, r2, m0, m1, m2) <= 0.0:
-                r0, r1, r2 = _reflect(d0, d1, d2, m0, m1, m2)
-            eta = 1.0 / index if front else index
-            q0, q1, q2, f = _snell(d0, d1, d2, n0, n1, n2, eta)
-            if _dot(q0, q1, q2, m0, m1, m2) >= 0.0:
-                q0, q1, q2, f = _snell(d0, d1, d2, m0, m1, m2, eta)
+            r0, r1, r2, q0, q1, q2, f, _ = _scatter_specular(d0, d1, d2, s0, s1, s2, g0, g1, g2, index)
             if not fresnel:
                 f = 0.0 if f < 1.0 else 1.0
             go_reflect = is_mirror or _uniform(start, lo + p, bounce_no, 3) < f

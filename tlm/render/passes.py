@@ -54,6 +54,7 @@ from tlm.config import RunConfig
 from tlm.kernels import threads
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.emission import cosine_directions
+from tlm.kernels.engine import engine
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
@@ -975,6 +976,11 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     rec = Recorder(ray_streams.page_words)
     found: dict[str, list[np.ndarray]] = {k: [] for k in ("j", "r", "x", "n", "w", "tri")}
     depth = cfg.render.refract_depth
+    compiled = engine() == "numba"
+    if compiled:
+        from tlm.kernels import _jit_fgather
+
+        seed64 = np.uint64(key & 0xFFFFFFFFFFFFFFFF)
     for bounce in range(depth + 1):
         if j.shape[0] == 0:
             break
@@ -983,6 +989,16 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
         # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there (a
         # light without power emits nothing and hides nothing: the ray sees what lies behind it)
         _, seen = emitted(lights, origin, d, hits.t, frame.eps)
+        if compiled:  # the rest of the bounce in one call (the numpy code below, bit for bit)
+            got, (j, r, med, w, origin, d, ignore) = _jit_fgather.fg_bounce(
+                seed64, bounce, bounce >= depth, j, r, owner, pkeys, medium, med, w, origin, d,
+                hits.triangle, hits.t, hits.u, hits.v, seen, frame.kind, frame.normals, frame.shading,
+                frame.reflectance, frame.transmittance, frame.ior, KIND["lambertian"], KIND["mirror"],
+                cfg.render.fresnel, ray_work["fragments"], ray_work["specular_bounces"])
+            for name, val in zip(("j", "r", "x", "n", "w", "tri"), got, strict=True):
+                found[name].append(val)
+            rec.add("shading", Accesses.of_words(got[5] * SHADING_WORDS, owner[got[0]], rec.page_words))
+            continue
         hit = (hits.triangle >= 0) & ~seen
         th = np.maximum(hits.triangle, 0)
         lam = hit & (frame.kind[th] == KIND["lambertian"])
