@@ -757,3 +757,28 @@ def test_final_gathering_is_the_same_compiled(monkeypatch, tmp_path, scene, over
         assert res.work["fgather"]["specular_bounces"].sum() > 0
     assert got["numba", 1] == got["numpy", 1]
     assert got["numba", 3] == got["numpy", 1]
+
+
+def test_directions_about_axes_are_the_same_compiled(monkeypatch):
+    """Directions about axes (tlm.kernels.emission._around: emission, diffuse bounces, final
+    gathering) compiled against the numpy code, as bytes: random axes and cosines, axes at and
+    about |x| = 0.9 (where the tangent frame changes), along +-x, y and z, cosines of -1, 0, 1 and
+    just over 1 (no sine left), and a NaN."""
+    from tlm.kernels.emission import _around
+
+    rng = np.random.default_rng(4)
+    axis = rng.standard_normal((500, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    edge = np.array([[0.9, np.sqrt(1 - 0.81), 0.0], [np.nextafter(0.9, 1), 0.0, np.sqrt(1 - 0.81)],
+                     [-0.9, 0.0, np.sqrt(1 - 0.81)], [1.0, 0, 0], [-1.0, 0, 0], [0, 1.0, 0], [0, 0, -1.0],
+                     [np.nan, 0, 1.0]])
+    axis = np.concatenate([axis, edge])
+    cos_t = rng.uniform(-1, 1, axis.shape[0])
+    cos_t[:6] = [-1.0, 0.0, 1.0, np.nextafter(1.0, 2.0), -0.0, 1e-300]
+    phi = rng.uniform(0, 2 * np.pi, axis.shape[0])
+    got = {}
+    for engine in ("numpy", "numba"):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        with np.errstate(all="ignore"):
+            got[engine] = _around(axis, cos_t, phi).tobytes()
+    assert got["numba"] == got["numpy"]

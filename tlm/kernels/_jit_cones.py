@@ -18,8 +18,8 @@ box's cone is computed with the same operations in the same order (corner vector
 to [-1, 1], -1 inside the box); the solid angles are summed one after another
 (``np.cumsum``); a cone holds a direction where ``(d0 a0 + d1 a1) + d2 a2 >= cos``.
 numba compiles without fast-math (nothing is reassociated or fused). The direction in
-the picked cone is drawn between the two calls by the numpy code
-(:func:`~tlm.kernels.emission._around`: its sine and cosine are numpy's).
+the picked cone is drawn between the two calls by :func:`~tlm.kernels.emission._around`
+(compiled too, :func:`tlm.kernels._jit_photons.around`; its sine and cosine are numpy's).
 ``TLM_KERNELS=numpy`` runs the numpy code, the reference (tests/test_engines.py compares
 the two; ``benchmarks/bench_emission.py`` times them).
 """

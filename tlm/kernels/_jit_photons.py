@@ -104,6 +104,47 @@ def _reflect(d0, d1, d2, n0, n1, n2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _direction_about(n0, n1, n2, cos_t, cos_phi, sin_phi):
+    """:func:`tlm.kernels.emission._around` of one direction: the unit direction at polar
+    cosine ``cos_t`` and azimuth ``phi`` (its cosine and sine given) about the unit axis
+    ``n``, in the tangent frame of ``_frame`` (``cross(n, e)`` normalised, ``e`` the y axis
+    where ``|n_x| > 0.9``, else the x axis; then ``cross(n, t)``)."""
+    if abs(n0) > 0.9:
+        e0, e1, e2 = 0.0, 1.0, 0.0
+    else:
+        e0, e1, e2 = 1.0, 0.0, 0.0
+    t0 = n1 * e2 - n2 * e1
+    t1 = n2 * e0 - n0 * e2
+    t2 = n0 * e1 - n1 * e0
+    length = np.sqrt(_dot(t0, t1, t2, t0, t1, t2))
+    t0, t1, t2 = t0 / length, t1 / length, t2 / length
+    b0 = n1 * t2 - n2 * t1
+    b1 = n2 * t0 - n0 * t2
+    b2 = n0 * t1 - n1 * t0
+    s = np.sqrt(_mx(0.0, 1.0 - cos_t * cos_t))
+    sc = s * cos_phi
+    ss = s * sin_phi
+    v0 = (sc * t0 + ss * b0) + cos_t * n0
+    v1 = (sc * t1 + ss * b1) + cos_t * n1
+    v2 = (sc * t2 + ss * b2) + cos_t * n2
+    length = np.sqrt(_dot(v0, v1, v2, v0, v1, v2))
+    return v0 / length, v1 / length, v2 / length
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def around(axis, cos_t, cos_phi, sin_phi):
+    """:func:`tlm.kernels.emission._around` compiled: (k, 3) unit directions about the unit
+    axes ``axis`` (k, 3), from float64 inputs, the numpy code's bits (the sines and cosines
+    of the azimuths are the caller's, numpy's)."""
+    k = axis.shape[0]
+    out = np.empty((k, 3))
+    for i in range(k):
+        out[i, 0], out[i, 1], out[i, 2] = _direction_about(axis[i, 0], axis[i, 1], axis[i, 2], cos_t[i],
+                                                           cos_phi[i], sin_phi[i])
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _shading_normal(shading, tri, u, v, g0, g1, g2):
     """:func:`tlm.scenes.normals.interpolate` at one hit: the unit interpolated shading normal
     of triangle ``tri`` at barycentrics ``(u, v)``, turned to the geometric normal ``g``'s
@@ -264,28 +305,9 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
                 survive = most > 0
                 c0, c1, c2 = a0, a1, a2
             p0, p1, p2 = p0 * c0, p1 * c1, p2 * c2
-            # cosine_directions about the facing normal (emission._around, _frame)
+            # cosine_directions about the facing normal (emission._around)
             cos_t = np.sqrt(_mx(0.0, 1.0 - _uniform(start, lo + p, bounce_no, 1)))
-            if abs(f0) > 0.9:
-                e0, e1, e2 = 0.0, 1.0, 0.0
-            else:
-                e0, e1, e2 = 1.0, 0.0, 0.0
-            t0 = f1 * e2 - f2 * e1
-            t1 = f2 * e0 - f0 * e2
-            t2 = f0 * e1 - f1 * e0
-            length = np.sqrt(_dot(t0, t1, t2, t0, t1, t2))
-            t0, t1, t2 = t0 / length, t1 / length, t2 / length
-            b0 = f1 * t2 - f2 * t1
-            b1 = f2 * t0 - f0 * t2
-            b2 = f0 * t1 - f1 * t0
-            s = np.sqrt(_mx(0.0, 1.0 - cos_t * cos_t))
-            sc = s * cos_phi[i]
-            ss = s * sin_phi[i]
-            v0 = (sc * t0 + ss * b0) + cos_t * f0
-            v1 = (sc * t1 + ss * b1) + cos_t * f1
-            v2 = (sc * t2 + ss * b2) + cos_t * f2
-            length = np.sqrt(_dot(v0, v1, v2, v0, v1, v2))
-            nd0, nd1, nd2 = v0 / length, v1 / length, v2 / length
+            nd0, nd1, nd2 = _direction_about(f0, f1, f2, cos_t, cos_phi[i], sin_phi[i])
             if split:
                 survive = survive and not group
             alive = survive
