@@ -189,6 +189,16 @@ def _scatter_specular(d0, d1, d2, s0, s1, s2, g0, g1, g2, index):
     return r0, r1, r2, q0, q1, q2, f, front
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _put(pos, nrm, inc, pw, caus, row, x0, x1, x2, n0, n1, n2, d0, d1, d2, p0, p1, p2, caustic):
+    """Row ``row`` of a map's photons: position, normal, incoming direction, power, caustic."""
+    pos[row, 0], pos[row, 1], pos[row, 2] = x0, x1, x2
+    nrm[row, 0], nrm[row, 1], nrm[row, 2] = n0, n1, n2
+    inc[row, 0], inc[row, 1], inc[row, 2] = d0, d1, d2
+    pw[row, 0], pw[row, 1], pw[row, 2] = p0, p1, p2
+    caus[row] = caustic
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
            h_triangle, h_t, h_u, h_v, h_counts, cos_phi, sin_phi,
@@ -269,20 +279,13 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
         if split:
             store = store and spec_only == group
         if store:
-            s_pos[stored, 0], s_pos[stored, 1], s_pos[stored, 2] = x0, x1, x2
-            s_nrm[stored, 0], s_nrm[stored, 1], s_nrm[stored, 2] = f0, f1, f2
-            s_inc[stored, 0], s_inc[stored, 1], s_inc[stored, 2] = d0, d1, d2
-            s_pow[stored, 0], s_pow[stored, 1], s_pow[stored, 2] = p0, p1, p2
-            s_caus[stored] = spec_only
+            _put(s_pos, s_nrm, s_inc, s_pow, s_caus, stored, x0, x1, x2, f0, f1, f2, d0, d1, d2, p0, p1, p2, spec_only)
             stored += 1
         if global_map:
             every_hit = lam and not group
             if every_hit:
-                g_pos[every, 0], g_pos[every, 1], g_pos[every, 2] = x0, x1, x2
-                g_nrm[every, 0], g_nrm[every, 1], g_nrm[every, 2] = f0, f1, f2
-                g_inc[every, 0], g_inc[every, 1], g_inc[every, 2] = d0, d1, d2
-                g_pow[every, 0], g_pow[every, 1], g_pow[every, 2] = p0, p1, p2
-                g_caus[every] = spec_only
+                _put(g_pos, g_nrm, g_inc, g_pow, g_caus, every, x0, x1, x2, f0, f1, f2, d0, d1, d2, p0, p1, p2,
+                     spec_only)
                 every += 1
                 w_stored[p] += 1
             if store and spec_only:
