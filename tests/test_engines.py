@@ -674,31 +674,42 @@ def test_photon_trace_is_the_same_compiled(monkeypatch, name, options):
     """The photon trace with the compiled bounce (tlm/kernels/_jit_photons.py) against the
     numpy code: the same maps (every stored photon's position, normal, incoming direction,
     power and caustic flag, the global map's too) and the same work per photon, as bytes,
-    at one thread and at three."""
-    from tlm.kernels import threads
+    at one thread and at three; and at one thread, every bounce's rays as traced (origins,
+    directions, the spawn offsets and the triangles they leave, which seldom change a hit)."""
+    from tlm.kernels import photons, threads
     from tlm.kernels.photons import trace_photons
 
     scene = _photon_scenes()[name]
     accel = build_accel(scene.triangles)
-    got = {}
-    for engine, n in (("numpy", 1), ("numba", 1), ("numba", 3)):
+    got, rays = {}, {}
+
+    def recording(accel, o, d, tmin, ignore, **kw):
+        rays[key].append(b"".join(np.ascontiguousarray(a).tobytes() for a in (o, d, tmin, ignore)))
+        return closest_hit(accel, o, d, tmin=tmin, ignore=ignore, **kw)
+
+    monkeypatch.setattr(photons, "closest_hit", recording)
+    for key in (("numpy", 1), ("numba", 1), ("numba", 3)):
+        engine, n = key
+        rays[key] = []
         monkeypatch.setenv("TLM_KERNELS", engine)
         with threads.using(n), np.errstate(all="ignore"):
             trace = trace_photons(scene, accel, 6000, seed=11, batch_rays=12000, **options)
         maps = [m for m in (*trace.photons.maps, trace.photons.global_map) if m is not None]
-        got[engine, n] = ([getattr(m, k).tobytes() for m in maps for k in ("position", "normal", "incoming", "power",
-                                                                             "caustic")],
-                          {k: v.tobytes() for k, v in trace.work.items()})
+        got[key] = ([getattr(m, k).tobytes() for m in maps for k in ("position", "normal", "incoming", "power",
+                                                                       "caustic")],
+                    {k: v.tobytes() for k, v in trace.work.items()})
         assert trace.photons.n > 0
     assert got["numba", 1] == got["numpy", 1]
     assert got["numba", 3] == got["numpy", 1]
+    assert len(rays["numpy", 1]) > 2 and rays["numba", 1] == rays["numpy", 1]
 
 
 def test_photon_bounce_optics_are_numpys():
     """The compiled bounce's Fresnel term, Snell direction and clip (tlm/kernels/_jit_photons.py)
     against the numpy code, one ray at a time, where the scenes seldom go: incidence at exactly
-    0 and 90 degrees, total internal reflection at its bound (sin^2 t = 1), signed zeros, a
-    zero direction, infinities and NaNs (np.nan_to_num's and np.clip's rules)."""
+    0 and 90 degrees, total internal reflection at its bound (sin^2 t = 1), signed zeros (a dot
+    product of three -0.0 products is +0.0, as np.sum's), a zero direction, infinities and NaNs
+    (np.nan_to_num's and np.clip's rules)."""
     from tlm.kernels import _jit_photons
     from tlm.kernels.shade import _snell, fresnel_dielectric
 
@@ -714,7 +725,8 @@ def test_photon_bounce_optics_are_numpys():
     rng = np.random.default_rng(2)
     n = np.array([0.0, 0.0, 1.0])
     dirs = [np.array(x) for x in ([0.0, 0.0, -1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.6, 0.0, -0.8],
-                                  [0.0, -0.0, 1.0], [np.inf, 0.0, -1.0], [np.nan, 0.0, -1.0])]
+                                  [0.0, -0.0, 1.0], [np.inf, 0.0, -1.0], [np.nan, 0.0, -1.0],
+                                  [-1.0, -0.0, -0.0], [-0.0, -1.0, -0.0])]  # (d . n: three -0.0 products)
     dirs += list(rng.standard_normal((40, 3)) / np.linalg.norm(rng.standard_normal((40, 3)), axis=1, keepdims=True))
     for d in dirs:
         for eta in etas:
@@ -724,6 +736,42 @@ def test_photon_bounce_optics_are_numpys():
             assert np.array(got).tobytes() == np.concatenate([t[0], f]).tobytes(), (d, eta)
     for x in special:
         assert np.array([_jit_photons._clip(x, 0.0, 1.0)]).tobytes() == np.clip(np.array([x]), 0.0, 1.0).tobytes(), x
+
+
+def test_photon_bounce_scatter_is_numpys():
+    """The compiled bounces' specular scatter and shading normal (tlm/kernels/_jit_photons.py)
+    against shade.scatter_specular and normals.interpolate, one ray at a time: directions
+    along and against the normals and grazing them, with signed zeros (three products of
+    -0.0 sum to +0.0 in np.sum), shading normals reversed, zero and random, mirrors and
+    glass of several indices."""
+    from tlm.kernels import _jit_photons
+    from tlm.kernels.shade import scatter_specular
+    from tlm.scenes.normals import interpolate
+
+    rng = np.random.default_rng(8)
+    unit = rng.standard_normal((300, 3))
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    axes = [np.array(x) for x in ([1.0, 0, 0], [-1.0, -0.0, -0.0], [0, 0, 1.0], [0.0, -0.0, -1.0], [-0.0, 1.0, 0.0])]
+    dirs = axes + list(unit[:60])
+    geo = axes + list(unit[60:80])
+    for k, d in enumerate(dirs):
+        for g in geo:
+            for s in (g, -g, np.zeros(3), unit[80 + k % 200]):
+                for index in (1.0, 1.5, 1 / 1.33, 2.4):
+                    refl, refr, f = scatter_specular(d[None], s[None], g[None], np.array([index]))
+                    got = _jit_photons._scatter_specular(*d, *s, *g, index)
+                    want = np.concatenate([refl[0], refr[0], f, [np.sum(d * g) < 0.0]])
+                    assert np.array(got, dtype=np.float64).tobytes() == want.tobytes(), (d, s, g, index)
+    shading = rng.standard_normal((4, 3, 3))
+    shading[1] = 0.0
+    shading[2, :, 2] = -0.0
+    shading[3] *= np.array([[1.0], [-1.0], [1.0]])
+    for tri in range(4):
+        for u, v in ((0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.5, 0.5), (0.2, 0.3), (-0.0, 1.0)):
+            for g in geo:
+                want = interpolate(shading, np.array([tri]), np.array([u]), np.array([v]), g[None])
+                got = _jit_photons._shading_normal(shading, tri, u, v, *g)
+                assert np.array(got).tobytes() == want[0].tobytes(), (tri, u, v, g)
 
 
 @pytest.mark.parametrize(("scene", "over"), [
@@ -781,4 +829,61 @@ def test_directions_about_axes_are_the_same_compiled(monkeypatch):
         monkeypatch.setenv("TLM_KERNELS", engine)
         with np.errstate(all="ignore"):
             got[engine] = _around(axis, cos_t, phi).tobytes()
+    assert got["numba"] == got["numpy"]
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_photon_trace_refuses_tables_not_of_the_scene(monkeypatch, engine):
+    """Normals, shading normals or a material table of another length than the scene's
+    triangles are a ValueError naming them, with either engine (the compiled bounce reads
+    them by triangle id without a bounds check)."""
+    from tlm.kernels.photons import trace_photons
+    from tlm.kernels.shade import face_normals
+
+    monkeypatch.setenv("TLM_KERNELS", engine)
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    short = face_normals(scene.triangles)[:-1]
+    with pytest.raises(ValueError, match="normals has 2603 rows; the scene has 2604 triangles"):
+        trace_photons(scene, accel, 100, normals=short)
+    table = {k: v[:10] for k, v in scene.material_table().items()}
+    with pytest.raises(ValueError, match=r"table\['kind'\] has 10 rows"):
+        trace_photons(scene, accel, 100, table=table)
+
+
+@pytest.mark.parametrize(("last", "fresnel"), [(False, True), (False, False), (True, True)])
+def test_final_gather_bounce_is_the_same_compiled(monkeypatch, last, fresnel):
+    """One bounce of final-gather rays (tlm.kernels.shade.final_gather_bounce) with either
+    engine, every output as bytes: the gathers (point, facing normal, weight through a change
+    of medium, triangle), the rays that go on (their medium, weight through a tinted mirror
+    or glass, origin, direction and the triangle they leave) and the per-pixel counts; rays
+    from random points in the Cornell box, some of them seeing a light first."""
+    from tlm.kernels.shade import face_normals, final_gather_bounce
+    from tlm.scenes.normals import crease_normals
+
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    mats = scene.material_table()
+    table = {"kind": mats["kind"], "normals": face_normals(scene.triangles), "ior": mats["ior"],
+             "shading": crease_normals(scene.triangles, scene.part),
+             "reflectance": mats["reflectance"] * np.array([1.0, 0.3, 0.6]), "transmittance": mats["transmittance"]}
+    rng = np.random.default_rng(6)
+    n, points, pixels = 6000, 900, 300
+    lo, hi = scene.bounds()
+    origin = lo + rng.random((n, 3)) * (hi - lo)
+    d = rng.standard_normal((n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    hits = closest_hit(accel, origin, d)
+    j, r = rng.integers(0, points, n), rng.integers(0, 16, n)
+    owner, pkeys = rng.integers(0, pixels, points), rng.integers(0, 1 << 40, points)
+    medium = rng.choice([1.0, 1.33, 1.5], points)
+    med, w, seen = rng.choice([1.0, 1.33, 1.5], n), rng.random((n, 3)), rng.random(n) < 0.2
+    got = {}
+    for engine in ("numpy", "numba"):
+        monkeypatch.setenv("TLM_KERNELS", engine)
+        counts = (np.zeros(pixels, dtype=np.int64), np.zeros(pixels, dtype=np.int64))
+        found, going = final_gather_bounce(12345, 1, last, j, r, owner, pkeys, medium, med, w, origin, d, hits,
+                                           seen, table, fresnel, *counts)
+        got[engine] = [np.ascontiguousarray(a).tobytes() for a in (*found, *going, *counts)]
+        assert found[0].shape[0] > 100 and (going[0].shape[0] == 0) == last
     assert got["numba"] == got["numpy"]

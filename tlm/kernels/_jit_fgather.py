@@ -1,4 +1,4 @@
-"""One bounce of the final-gather rays (``tlm.render.passes._final_gather_chunk``) compiled with numba.
+"""One bounce of the final-gather rays (:func:`tlm.kernels.shade.final_gather_bounce`) compiled with numba.
 
 After a bounce's rays are traced and the lights they see are found, the numpy code picks
 the rays that end on a Lambertian surface (a gather there: its point, normal, the weight
@@ -11,8 +11,9 @@ without the lock (``nogil``).
 Every floating-point operation is the numpy code's, in its order (the helpers of
 :mod:`tlm.kernels._jit_photons`, which the photon trace's bounce shares), and the random
 numbers are the same hash, so the gathers, their weights and the paths are the numpy
-code's, bit for bit. ``TLM_KERNELS=numpy`` runs the numpy code, the reference
-(tests/test_engines.py compares the two).
+code's, bit for bit (but for the sign or payload of a NaN, from a NaN input).
+``TLM_KERNELS=numpy`` runs the numpy code, the reference (tests/test_engines.py compares
+the two).
 """
 
 from __future__ import annotations

@@ -9,16 +9,18 @@ faster on two threads, the passes 1.8x). :func:`bounce` does all of it in one ca
 photon by photon, without the lock (``nogil``): the threads' chunks run at once.
 
 Every floating-point operation is the numpy code's, in its order, so the photons, their
-paths and their work are the numpy code's, bit for bit (numba compiles without fast-math:
-nothing is reassociated or fused): dot products and norms summed x, y, then z
-(``np.sum`` over three columns), numpy's ``maximum`` (:func:`~tlm.kernels._jit._mx`, a
-NaN wins, the second operand on a tie), ``np.clip`` (a NaN stays, ``x`` on a tie),
-``np.nan_to_num``, the cross products of ``np.cross``. The random numbers are the same
-hash (:mod:`tlm.kernels._jit_hash`). The one exception is the azimuth of a diffuse
-bounce: its sine and cosine are numpy's, computed by the caller (on every photon of the
-bounce, before the kernel), so that they are the reference's wherever numpy's ``sin``
-and ``cos`` differ from the C library's (numpy's AVX-512 code). ``TLM_KERNELS=numpy``
-runs the numpy code, the reference (tests/test_engines.py compares the two).
+paths and their work are the numpy code's, bit for bit (but for the sign or payload of a
+NaN, from a NaN input, which no scene gives). numba compiles without fast-math: nothing
+is reassociated or fused. Dot products and norms are summed from +0.0, then x, y, z
+(``np.sum`` over three columns: three products of -0.0 sum to +0.0); numpy's ``maximum``
+(:func:`~tlm.kernels._jit._mx`: a NaN wins, the second operand on a tie), ``np.clip`` (a
+NaN stays, ``x`` on a tie), ``np.nan_to_num`` and the cross products of ``np.cross`` are
+written out. The random numbers are the same hash (:mod:`tlm.kernels._jit_hash`). The
+one exception is the azimuth of a diffuse bounce: its sine and cosine are numpy's,
+computed by the caller (on every photon of the bounce, before the kernel), so that they
+are the reference's wherever numpy's ``sin`` and ``cos`` differ from the C library's
+(numpy's AVX-512 code). ``TLM_KERNELS=numpy`` runs the numpy code, the reference
+(tests/test_engines.py compares the two).
 """
 
 from __future__ import annotations
@@ -56,7 +58,8 @@ def _clip(x, lo, hi):
 
 @njit(cache=True, nogil=True, inline="always")
 def _dot(a0, a1, a2, b0, b1, b2):
-    return (a0 * b0 + a1 * b1) + a2 * b2
+    """``np.sum(a * b, axis=1)`` of one row: from +0.0 (LLVM keeps the ``0.0 +``), x, y, then z."""
+    return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -134,8 +137,8 @@ def _direction_about(n0, n1, n2, cos_t, cos_phi, sin_phi):
 @njit(cache=True, nogil=True, error_model="numpy")
 def around(axis, cos_t, cos_phi, sin_phi):
     """:func:`tlm.kernels.emission._around` compiled: (k, 3) unit directions about the unit
-    axes ``axis`` (k, 3), from float64 inputs, the numpy code's bits (the sines and cosines
-    of the azimuths are the caller's, numpy's)."""
+    axes ``axis`` (k, 3), from float64 inputs, the numpy code's bits but for the sign or
+    payload of a NaN (the sines and cosines of the azimuths are the caller's, numpy's)."""
     k = axis.shape[0]
     out = np.empty((k, 3))
     for i in range(k):

@@ -57,8 +57,9 @@ def _frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _around(axis: np.ndarray, cos_t: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """Unit directions at polar cosine ``cos_t`` and azimuth ``phi`` about unit ``axis``
-    (compiled from float64 inputs unless ``TLM_KERNELS=numpy``: the same bits; the sines
-    and cosines stay numpy's, :func:`tlm.kernels._jit_photons.around`)."""
+    (compiled from float64 inputs unless ``TLM_KERNELS=numpy``: the same bits, but for the
+    sign or payload of a NaN; the sines and cosines stay numpy's,
+    :func:`tlm.kernels._jit_photons.around`)."""
     if (engine() == "numba" and axis.dtype == np.float64 and cos_t.dtype == np.float64 and phi.dtype == np.float64
             and axis.ndim == 2 and axis.shape[1] == 3 and cos_t.shape == phi.shape == axis.shape[:1]):
         from tlm.kernels import _jit_photons

@@ -220,6 +220,13 @@ def map_levels(n: int, levels: int | None, leaf_photons: int | None) -> int | No
     return int(min(24, max(0, round(np.log2(n / leaf_photons)))))
 
 
+def _of_the_scene(scene: Scene, name: str, a: np.ndarray) -> None:
+    """A per-triangle array a caller gave: one row per triangle of ``scene`` (the compiled
+    bounce reads them by triangle id, without a bounds check), or a ValueError naming it."""
+    if a.shape[0] != scene.n_triangles:
+        raise ValueError(f"{name} has {a.shape[0]} rows; the scene has {scene.n_triangles} triangles")
+
+
 def trace_photons(
     scene: Scene,
     accel: TriangleAccel,
@@ -287,6 +294,8 @@ def trace_photons(
     streams = Streams(page_words, pairs)  # checks them before any tracing
     key = photon_key(seed)
     table = scene.material_table() if table is None else table
+    for k in ("kind", "albedo", "reflectance", "transmittance", "ior"):
+        _of_the_scene(scene, f"table[{k!r}]", table[k])
     kind_of, albedo, refl_of = table["kind"], table["albedo"], table["reflectance"]
     trans, ior = table["transmittance"], table["ior"]
     flat = scene.triangles.reshape(-1, 3)
@@ -309,6 +318,8 @@ def trace_photons(
     eps = SPAWN_EPS * max(accel.scale, np.finfo(float).tiny)
 
     compiled = engine() == "numba" and n > 0
+    for name, a in (("normals", normals), ("shading", shading)):
+        _of_the_scene(scene, name, a)
     if compiled:
         from tlm.kernels import _jit_photons
 

@@ -28,7 +28,8 @@ import numpy as np
 from tlm.kernels.engine import engine
 from tlm.kernels.memory import PAGE_WORDS, Accesses, Recorder, traversal_accesses
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit, closest_hit
-from tlm.scenes.model import Light
+from tlm.scenes.model import KIND, Light
+from tlm.scenes.normals import interpolate
 
 TRAVERSAL_COUNTS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
 SPAWN_EPS = 1e-5  # relative to the scene diagonal: above float32 test error
@@ -158,6 +159,65 @@ def _snell(d: np.ndarray, n: np.ndarray, eta: np.ndarray) -> tuple[np.ndarray, n
     length = np.linalg.norm(t, axis=1, keepdims=True)
     t = np.divide(t, length, out=d.copy(), where=length > 0)
     return t, f
+
+
+
+def final_gather_bounce(key: int, bounce: int, last: bool, j: np.ndarray, r: np.ndarray, owner: np.ndarray,
+                        pkeys: np.ndarray, medium: np.ndarray, med: np.ndarray, w: np.ndarray, origin: np.ndarray,
+                        d: np.ndarray, hits, seen: np.ndarray, table: dict[str, np.ndarray], fresnel: bool,
+                        fragments: np.ndarray, specular_bounces: np.ndarray):
+    """Final-gather rays ``(j, r)`` (gather point, ray index) of bounce ``bounce`` after their
+    trace (``hits``; ``seen``: a light nearer than the hit, where the ray ends): the rays that
+    end on a Lambertian surface, gathered there, and the rays that go on through a mirror or
+    glass (one branch: glass reflects with the Fresnel probability by the ray's own hash,
+    ``key`` and dimension ``2 + bounce``; ``last``: none goes on).
+
+    owner, pkeys, medium : per gather point (its pixel, hash key and index of refraction).
+    med, w, origin, d : per ray (the index around it, the weight its path carries, its origin
+    and direction). table : the frame's per-triangle ``kind``, ``normals`` (unit geometric),
+    ``shading`` (corner normals), ``reflectance``, ``transmittance`` and ``ior``.
+    fragments, specular_bounces : per pixel, added to (a gather; a bounce that goes on).
+
+    Returns the gathers ``(j, r, point, normal facing the arriving side, weight as it arrives:
+    w (n_point / n_ray)^2, triangle)`` and the rays that go on ``(j, r, med, w, origin,
+    direction, the triangle each leaves)``. Compiled unless ``TLM_KERNELS=numpy``
+    (:mod:`tlm.kernels._jit_fgather`: the same bits).
+    """
+    kind, normals, ior = table["kind"], table["normals"], table["ior"]
+    if engine() == "numba":
+        from tlm.kernels import _jit_fgather
+
+        return _jit_fgather.fg_bounce(
+            np.uint64(key & 0xFFFFFFFFFFFFFFFF), bounce, last, j, r, owner, pkeys, medium, med, w, origin, d,
+            hits.triangle, hits.t, hits.u, hits.v, seen, kind, normals, table["shading"], table["reflectance"],
+            table["transmittance"], ior, KIND["lambertian"], KIND["mirror"], fresnel, fragments, specular_bounces)
+    hit = (hits.triangle >= 0) & ~seen
+    th = np.maximum(hits.triangle, 0)
+    lam = hit & (kind[th] == KIND["lambertian"])
+    x = origin + hits.t[:, None] * d
+    # radiance over n^2 is what a path carries: from a point in a medium of index n_y, a
+    # point in one of index n_x receives (n_x / n_y)^2 of it (the floor under water, seen
+    # from above, 1 / n^2; the walls, seen from under the water, n^2)
+    arrive = w * ((medium[j] / med) ** 2)[:, None]
+    found = tuple(val[lam] for val in (j, r, x, facing(normals[th], d), arrive, hits.triangle))
+    fragments += np.bincount(owner[found[0]], minlength=fragments.shape[0])
+    go = hit & ~lam & (not last)
+    ts, ds = hits.triangle[go], d[go]
+    geo = normals[ts]
+    ns = interpolate(table["shading"], ts, hits.u[go], hits.v[go], geo)
+    mirror = kind[ts] == KIND["mirror"]
+    refl, refr, f = scatter_specular(ds, ns, geo, np.where(mirror, 1.0, ior[ts]))
+    if not fresnel:
+        f = np.where(f < 1.0, 0.0, 1.0)
+    j, r, med = j[go], r[go], med[go]
+    take_refl = mirror | (hash_uniform(key, pkeys[j], r, 2 + bounce) < f)
+    # a refraction enters the glass (against its outward normal) or leaves it, into air
+    entering = np.sum(ds * geo, axis=1) < 0
+    med = np.where(take_refl, med, np.where(entering, ior[ts], 1.0))
+    w = w[go] * np.where(mirror[:, None], table["reflectance"][ts],
+                         np.where(take_refl[:, None], 1.0, table["transmittance"][ts]))
+    specular_bounces += np.bincount(owner[j], minlength=specular_bounces.shape[0])
+    return found, (j, r, med, w, x[go], np.where(take_refl[:, None], refl, refr), ts)
 
 
 def triangle_choice(light: Light, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -54,7 +54,6 @@ from tlm.config import RunConfig
 from tlm.kernels import threads
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.emission import cosine_directions
-from tlm.kernels.engine import engine
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
@@ -64,6 +63,7 @@ from tlm.kernels.shade import (
     emitted,
     face_normals,
     facing,
+    final_gather_bounce,
     hash_uniform,
     scatter_specular,
     surface_emission,
@@ -976,11 +976,8 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     rec = Recorder(ray_streams.page_words)
     found: dict[str, list[np.ndarray]] = {k: [] for k in ("j", "r", "x", "n", "w", "tri")}
     depth = cfg.render.refract_depth
-    compiled = engine() == "numba"
-    if compiled:
-        from tlm.kernels import _jit_fgather
-
-        seed64 = np.uint64(key & 0xFFFFFFFFFFFFFFFF)
+    table = {"kind": frame.kind, "normals": frame.normals, "shading": frame.shading, "ior": frame.ior,
+             "reflectance": frame.reflectance, "transmittance": frame.transmittance}
     for bounce in range(depth + 1):
         if j.shape[0] == 0:
             break
@@ -989,50 +986,13 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
         # a light seen is direct light, the ray-cast frame's (shadow rays): the ray ends there (a
         # light without power emits nothing and hides nothing: the ray sees what lies behind it)
         _, seen = emitted(lights, origin, d, hits.t, frame.eps)
-        if compiled:  # the rest of the bounce in one call (the numpy code below, bit for bit)
-            got, (j, r, med, w, origin, d, ignore) = _jit_fgather.fg_bounce(
-                seed64, bounce, bounce >= depth, j, r, owner, pkeys, medium, med, w, origin, d,
-                hits.triangle, hits.t, hits.u, hits.v, seen, frame.kind, frame.normals, frame.shading,
-                frame.reflectance, frame.transmittance, frame.ior, KIND["lambertian"], KIND["mirror"],
-                cfg.render.fresnel, ray_work["fragments"], ray_work["specular_bounces"])
-            for name, val in zip(("j", "r", "x", "n", "w", "tri"), got, strict=True):
-                found[name].append(val)
-            rec.add("shading", Accesses.of_words(got[5] * SHADING_WORDS, owner[got[0]], rec.page_words))
-            continue
-        hit = (hits.triangle >= 0) & ~seen
-        th = np.maximum(hits.triangle, 0)
-        lam = hit & (frame.kind[th] == KIND["lambertian"])
-        x = origin + hits.t[:, None] * d
-        # radiance over n^2 is what a path carries: from a point in a medium of index n_y, a
-        # point in one of index n_x receives (n_x / n_y)^2 of it (the floor under water, seen
-        # from above, 1 / n^2; the walls, seen from under the water, n^2)
-        arrive = w * ((medium[j] / med) ** 2)[:, None]
-        for name, val in (("j", j), ("r", r), ("x", x), ("n", facing(frame.normals[th], d)), ("w", arrive),
-                          ("tri", hits.triangle)):
-            found[name].append(val[lam])
-        ray_work["fragments"] += np.bincount(o[lam], minlength=p)
-        rec.add("shading", Accesses.of_words(hits.triangle[lam] * SHADING_WORDS, o[lam], rec.page_words))
-        go = hit & ~lam & (bounce < depth)
-        if not go.any():
-            break
-        # a mirror or glass surface: the path goes on, one branch (glass: reflected with the
-        # Fresnel probability F, the weight unchanged; refracted otherwise, times transmittance)
-        ts, ds = hits.triangle[go], d[go]
-        geo = frame.normals[ts]
-        ns = shading_normals(frame, ts, hits.u[go], hits.v[go])
-        mirror = frame.kind[ts] == KIND["mirror"]
-        refl, refr, f = scatter_specular(ds, ns, geo, np.where(mirror, 1.0, frame.ior[ts]))
-        if not cfg.render.fresnel:
-            f = np.where(f < 1.0, 0.0, 1.0)
-        j, r, med = j[go], r[go], med[go]
-        take_refl = mirror | (hash_uniform(key, pkeys[j], r, 2 + bounce) < f)
-        # a refraction enters the glass (against its outward normal) or leaves it, into air
-        entering = np.sum(ds * geo, axis=1) < 0
-        med = np.where(take_refl, med, np.where(entering, frame.ior[ts], 1.0))
-        w = w[go] * np.where(mirror[:, None], frame.reflectance[ts],
-                             np.where(take_refl[:, None], 1.0, frame.transmittance[ts]))
-        ray_work["specular_bounces"] += np.bincount(owner[j], minlength=p)
-        origin, d, ignore = x[go], np.where(take_refl[:, None], refl, refr), ts
+        # the gathers (rays that end on a Lambertian surface) and the rays that go on (mirrors, glass)
+        got, (j, r, med, w, origin, d, ignore) = final_gather_bounce(
+            key, bounce, bounce >= depth, j, r, owner, pkeys, medium, med, w, origin, d, hits, seen, table,
+            cfg.render.fresnel, ray_work["fragments"], ray_work["specular_bounces"])
+        for name, val in zip(("j", "r", "x", "n", "w", "tri"), got, strict=True):
+            found[name].append(val)
+        rec.add("shading", Accesses.of_words(got[5] * SHADING_WORDS, owner[got[0]], rec.page_words))
     _charge(rec, ray_streams, ray_work)
     m = pts.shape[0]
     flux = np.zeros((m, 3))
