@@ -211,10 +211,10 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
     """Scatter the photons ``pid`` (from ``lo``) at their hits of bounce ``bounce_no``:
     what the loop body of ``trace_photons``'s chunk does after its ``closest_hit``.
 
-    seed : the photons' hash key (uint64). pid, o, d, power, specular_only,
-    direct : the travelling photons (chunk index, origin, direction, RGB power, every
-    bounce so far specular, straight from the light). h_* : their hits (h_counts: node
-    visits, leaves crossed, leaf visits and triangle tests, a tuple of 4 arrays). cos_phi, sin_phi : the
+    seed : the photons' hash key (uint64). pid, o, d, power, specular_only, direct : the
+    travelling photons (chunk index, origin, direction, RGB power, every bounce so far
+    specular, straight from the light). h_* : their hits (h_counts: node visits, leaves
+    crossed, leaf visits and triangle tests, a tuple of 4 arrays). cos_phi, sin_phi : the
     cosine and sine of ``2 pi u2`` (numpy's) of every photon of ``pid``. The tables are
     the scene's (per triangle); lambertian, mirror : their kind codes. eps : the spawn
     offset (the next bounce's ``tmin`` is ``eps / |d|``). w_* : the chunk's work, added to
