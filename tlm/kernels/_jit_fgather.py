@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from tlm.kernels._jit_hash import _GOLD, _mix
-from tlm.kernels._jit_photons import _dot, _scatter_specular, _shading_normal, _uniform
+from tlm.kernels._jit_hash import _GOLD, _mix, uniform3
+from tlm.kernels._jit_photons import _facing, _scatter_specular, _shading_normal
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -89,10 +89,7 @@ def fg_bounce(seed, bounce_no, last, j, r, owner, pkeys, medium, med, w, origin,
             q = q * q  # (``** 2``: numpy squares)
             f_j[a], f_r[a], f_tri[a] = jj, r[i], tri
             f_x[a, 0], f_x[a, 1], f_x[a, 2] = x0, x1, x2
-            if _dot(g0, g1, g2, d0, d1, d2) > 0:  # (facing: turned to the arriving side)
-                f_n[a, 0], f_n[a, 1], f_n[a, 2] = -g0, -g1, -g2
-            else:
-                f_n[a, 0], f_n[a, 1], f_n[a, 2] = g0, g1, g2
+            f_n[a, 0], f_n[a, 1], f_n[a, 2] = _facing(g0, g1, g2, d0, d1, d2)
             f_w[a, 0], f_w[a, 1], f_w[a, 2] = w[i, 0] * q, w[i, 1] * q, w[i, 2] * q
             fragments[owner[jj]] += 1
             a += 1
@@ -104,7 +101,7 @@ def fg_bounce(seed, bounce_no, last, j, r, owner, pkeys, medium, med, w, origin,
         r0, r1, r2, q0, q1, q2, f, entering = _scatter_specular(d0, d1, d2, s0, s1, s2, g0, g1, g2, index)
         if not fresnel:
             f = 0.0 if f < 1.0 else 1.0
-        take_refl = is_mirror or _uniform(start, pkeys[jj], r[i], 2 + bounce_no) < f
+        take_refl = is_mirror or uniform3(start, pkeys[jj], r[i], 2 + bounce_no) < f
         g_j[b], g_r[b], g_tri[b] = jj, r[i], tri
         if take_refl:
             g_med[b] = med[i]

@@ -27,16 +27,28 @@ def _mix(x):
     return x ^ (x >> np.uint64(31))
 
 
+_SCALE = 1.0 / 9007199254740992.0  # 2**-53: a hash's top 53 bits as a float in [0, 1)
+
+
 @njit(cache=True, nogil=True)
 def hash_uniform(seed, keys):
     """``seed`` (uint64), ``keys`` (k, n) int64: n numbers in [0, 1)."""
     k, n = keys.shape
     out = np.empty(n)
     start = _mix(seed + _GOLD)
-    scale = 1.0 / 9007199254740992.0  # 2**-53
     for i in range(n):
         h = start
         for j in range(k):
             h = _mix(h ^ (np.uint64(keys[j, i]) * _GOLD))
-        out[i] = np.float64(h >> np.uint64(11)) * scale
+        out[i] = np.float64(h >> np.uint64(11)) * _SCALE
     return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def uniform3(start, a, b, c):
+    """One number of :func:`hash_uniform` with the three keys ``(a, b, c)``, from ``start``
+    (``_mix(seed + _GOLD)``, made once per call by the compiled bounces that use it)."""
+    h = _mix(start ^ (np.uint64(a) * _GOLD))
+    h = _mix(h ^ (np.uint64(b) * _GOLD))
+    h = _mix(h ^ (np.uint64(c) * _GOLD))
+    return np.float64(h >> np.uint64(11)) * _SCALE

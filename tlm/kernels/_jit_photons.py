@@ -29,19 +29,9 @@ import numpy as np
 from numba import njit
 
 from tlm.kernels._jit import _mx
-from tlm.kernels._jit_hash import _GOLD, _mix
+from tlm.kernels._jit_hash import _GOLD, _mix, uniform3
 
-_SCALE = 1.0 / 9007199254740992.0  # 2**-53: a hash's top 53 bits as a float in [0, 1)
 _BIG = np.finfo(np.float64).max  # np.nan_to_num's stand-in for an infinity
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _uniform(start, photon, bounce, dim):
-    """:func:`tlm.kernels.shade.hash_uniform` of the keys (photon, bounce, dim)."""
-    h = _mix(start ^ (np.uint64(photon) * _GOLD))
-    h = _mix(h ^ (np.uint64(bounce) * _GOLD))
-    h = _mix(h ^ (np.uint64(dim) * _GOLD))
-    return np.float64(h >> np.uint64(11)) * _SCALE
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -60,6 +50,15 @@ def _clip(x, lo, hi):
 def _dot(a0, a1, a2, b0, b1, b2):
     """``np.sum(a * b, axis=1)`` of one row: from +0.0 (LLVM keeps the ``0.0 +``), x, y, then z."""
     return ((0.0 + a0 * b0) + a1 * b1) + a2 * b2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _facing(g0, g1, g2, d0, d1, d2):
+    """:func:`tlm.kernels.shade.facing` of one ray: the normal ``g`` turned to face the side
+    a ray of direction ``d`` arrives from."""
+    if _dot(g0, g1, g2, d0, d1, d2) > 0:
+        return -g0, -g1, -g2
+    return g0, g1, g2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -271,9 +270,7 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
         x2 = o[i, 2] + t * d2
         p0, p1, p2 = power[i, 0], power[i, 1], power[i, 2]
         g0, g1, g2 = normals[tri, 0], normals[tri, 1], normals[tri, 2]
-        f0, f1, f2 = g0, g1, g2  # (facing: turned to the arriving side)
-        if _dot(g0, g1, g2, d0, d1, d2) > 0:
-            f0, f1, f2 = -g0, -g1, -g2
+        f0, f1, f2 = _facing(g0, g1, g2, d0, d1, d2)
         kind = kind_of[tri]
         lam = kind == lambertian
         spec_only = specular_only[i]
@@ -301,7 +298,7 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
             a0, a1, a2 = albedo[tri, 0], albedo[tri, 1], albedo[tri, 2]
             most = _mx(_mx(a0, a1), a2)
             if russian_roulette:
-                survive = _uniform(start, lo + p, bounce_no, 0) < most
+                survive = uniform3(start, lo + p, bounce_no, 0) < most
                 if survive:
                     q = most if most > 0 else 1.0
                     c0, c1, c2 = a0 / q, a1 / q, a2 / q
@@ -312,7 +309,7 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
                 c0, c1, c2 = a0, a1, a2
             p0, p1, p2 = p0 * c0, p1 * c1, p2 * c2
             # cosine_directions about the facing normal (emission._around)
-            cos_t = np.sqrt(_mx(0.0, 1.0 - _uniform(start, lo + p, bounce_no, 1)))
+            cos_t = np.sqrt(_mx(0.0, 1.0 - uniform3(start, lo + p, bounce_no, 1)))
             nd0, nd1, nd2 = _direction_about(f0, f1, f2, cos_t, cos_phi[i], sin_phi[i])
             if split:
                 survive = survive and not group
@@ -326,7 +323,7 @@ def bounce(seed, lo, bounce_no, pid, o, d, power, specular_only, direct,
             r0, r1, r2, q0, q1, q2, f, _ = _scatter_specular(d0, d1, d2, s0, s1, s2, g0, g1, g2, index)
             if not fresnel:
                 f = 0.0 if f < 1.0 else 1.0
-            go_reflect = is_mirror or _uniform(start, lo + p, bounce_no, 3) < f
+            go_reflect = is_mirror or uniform3(start, lo + p, bounce_no, 3) < f
             if go_reflect:
                 nd0, nd1, nd2 = r0, r1, r2
             else:
