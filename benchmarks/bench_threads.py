@@ -5,10 +5,13 @@ For each config (default: ``configs/cornell_pmap.yaml`` and the conference room,
 ``tlm.experiments.run.render`` (load, BSP build, photon trace, every pass of every
 batch: what ``tlm run`` spends before the timing model) at ``render.threads`` = 1, 2,
 ... up to ``--max-threads`` (default: the CPUs available to the process), all in this
-one run, one thread count after the other. A first, untimed render at the smallest
-resolution loads the compiled kernels. Prints, per thread count, the wall seconds (the
-best of ``--repeat``), the speed-up over one thread and the parallel efficiency
-(speed-up / threads), the cores the render kept busy (the process's CPU seconds over
+one run: ``--repeat`` rounds (default 3), each at every thread count, ascending in one
+round and descending in the next. A first, untimed render at the smallest resolution
+loads the compiled kernels. Prints, per thread count, the wall seconds (the best of the
+rounds), the speed-up of the best times, the *paired* speed-up (the median over the
+rounds of each round's one-thread time over its own: a machine that slows down for a
+while slows both of a pair) and the parallel efficiency
+(paired speed-up / threads), the cores the render kept busy (the process's CPU seconds over
 the wall seconds: near the thread count when the code runs on every thread all the
 time, whatever the cores' speed; the CPU seconds beside it grow over one thread's when
 the cores run slower together, shared or contended), and the seconds of the stages
@@ -19,18 +22,18 @@ every run after a scene's first does.
 
 Checks that the radiance of every frame and every work count are byte-identical to
 one thread's at every count (FAIL and exit 1 otherwise), and the bar of issue 25: two
-threads at least ``1.8x`` one thread on the whole frame. The bar means something only
+threads at least ``1.8x`` one thread on the whole frame, paired. The bar means something only
 on a machine with two idle cores or more; on a busy or a two-core machine shared with
 other work it says what the machine had to spare, not what the code does: so the bench
 first prints how fast as many busy-loop processes as the largest thread count run at
-once against one alone (:func:`spare_cores`).
+once against one alone (:func:`spare_cores`), and again at the end.
 
 Resolution: by default a fraction of the configs' own that renders in about a minute at
 one thread on a current core (``--quick``: 64 x 64, seconds; ``--full``: the configs' own
 resolution, minutes at one thread for Cornell, over ten for the conference room).
 
     python benchmarks/bench_threads.py [--configs configs/cornell_pmap.yaml ...]
-                                       [--max-threads N | --threads 1 2 4 16] [--repeat 1]
+                                       [--max-threads N | --threads 1 2 4 16] [--repeat 3]
                                        [--quick | --full]
 """
 
@@ -103,29 +106,39 @@ def timed(path: Path, overrides: list[str], threads: int):
 
 
 def bench(path: Path, overrides: list[str], counts: list[int], repeat: int) -> bool:
-    """Print one config's table; returns whether every count gave one thread's bits."""
-    print(f"\n{path.name} ({', '.join(overrides) or 'as configured'})")
-    print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'efficiency':>10} {'cores busy':>10} {'CPU s':>7}  "
-          + " ".join(f"{s:>9}" for s in STAGES) + "  digest")
-    first = None
-    same = True
-    for n in counts:
-        best, res, cpu = None, None, 0.0
-        for _ in range(repeat):
+    """Print one config's table; returns whether every render gave one thread's bits.
+
+    ``repeat`` rounds, each rendering at every thread count, in ascending order in even
+    rounds and descending in odd ones, so that a machine that slows down or speeds up for
+    a while weighs on both ends of a pair. The speed-up of a count is the best one-thread
+    time over its best time; ``paired`` is the median over the rounds of the round's own
+    ratio (as ``bench_raytrace.py`` pairs tlm with Embree), which the bar reads."""
+    print(f"\n{path.name} ({', '.join(overrides) or 'as configured'}; {repeat} round{'s' * (repeat > 1)})")
+    print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'paired':>7} {'efficiency':>10} {'cores busy':>10} "
+          f"{'CPU s':>7}  " + " ".join(f"{s:>9}" for s in STAGES) + "  digest")
+    runs: dict[int, list[tuple[float, float, str, list[float]]]] = {n: [] for n in counts}
+    for r in range(repeat):
+        for n in counts if r % 2 == 0 else counts[::-1]:
             seconds, got, used = timed(path, overrides, n)
-            if best is None or seconds < best:
-                best, res, cpu = seconds, got, used
-        d = digest(res)
-        if first is None:
-            first = (best, d)
-        speedup = first[0] / best
-        stages = [sum(res.timer.seconds.get(k, 0.0) for k in keys) for keys in STAGES.values()]
-        print(f"{n:>7} {best:>8.2f} {speedup:>7.2f}x {speedup / n:>10.2f} {cpu / best:>10.2f} {cpu:>7.2f}  "
-              + " ".join(f"{s:>9.2f}" for s in stages) + f"  {d}{'' if d == first[1] else '  DIFFERS'}")
-        same &= d == first[1]
+            stages = [sum(got.timer.seconds.get(k, 0.0) for k in keys) for keys in STAGES.values()]
+            runs[n].append((seconds, used, digest(got), stages))
+            del got  # (a whole frame's arrays: one at a time)
+    first = runs[counts[0]][0][2]
+    same = True
+    one = min(runs[1])[0]
+    for n in counts:
+        best, cpu, _, stages = min(runs[n])
+        digests = {d for _, _, d, _ in runs[n]}
+        same &= digests == {first}
+        speedup = one / best
+        paired = float(np.median([a[0] / b[0] for a, b in zip(runs[1], runs[n], strict=True)]))
+        print(f"{n:>7} {best:>8.2f} {speedup:>7.2f}x {paired:>6.2f}x {paired / n:>10.2f} {cpu / best:>10.2f} "
+              f"{cpu:>7.2f}  " + " ".join(f"{s:>9.2f}" for s in stages)
+              + f"  {' '.join(sorted(digests))}{'' if digests == {first} else '  DIFFERS'}")
         if n == 2:
-            verdict(speedup >= SPEEDUP_BAR, f"{path.name}: 2 threads {speedup:.2f}x one thread "
-                    f"(bar: at least {SPEEDUP_BAR}x; {available()} CPUs available)", indent="  ")
+            verdict(paired >= SPEEDUP_BAR, f"{path.name}: 2 threads {paired:.2f}x one thread (median of "
+                    f"{repeat} paired round{'s' * (repeat > 1)}; best times {speedup:.2f}x; bar: at least "
+                    f"{SPEEDUP_BAR}x; {available()} CPUs available)", indent="  ")
     verdict(same, f"{path.name}: radiance and work byte-identical at {', '.join(map(str, counts))} threads",
             indent="  ")
     return same
@@ -137,7 +150,8 @@ def main() -> None:
     ap.add_argument("--max-threads", type=int, default=available(),
                     help="the largest thread count (default: the CPUs available)")
     ap.add_argument("--threads", type=int, nargs="+", help="these thread counts instead (1 is added first)")
-    ap.add_argument("--repeat", type=int, default=1, help="renders per thread count (the best is kept)")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="rounds: renders per thread count, alternating the order (default 3)")
     size = ap.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help=f"{QUICK_RESOLUTION[0]} x {QUICK_RESOLUTION[1]} pixels")
     size.add_argument("--full", action="store_true", help="the configs' own resolution")
@@ -158,6 +172,9 @@ def main() -> None:
         overrides = [] if args.full else [f"resolution=[{res[0]},{res[1]}]"]
         timed(path, ["resolution=[8,8]"], 1)  # loads the compiled kernels (and fills the scene cache)
         bench(path, overrides, counts, args.repeat)
+    if counts[-1] > 1:
+        print(f"\nthe machine after: {counts[-1]} busy-loop processes at once each ran at "
+              f"{spare_cores(counts[-1]):.2f}x one alone's speed")
     exit_status()
 
 

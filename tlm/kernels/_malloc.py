@@ -7,8 +7,20 @@ the arithmetic. Raising the mmap and trim thresholds keeps such blocks in the he
 reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1`` to leave the
 allocator alone.
 
+Every thread allocates from the one (main) arena. By default glibc gives each thread
+its own, whose heaps are at most 64 MiB: there a larger array is a fresh ``mmap``
+whatever the threshold, so the render's worker threads page-faulted anew where one
+thread reused its blocks. On the conference room at 256x256 on two threads
+(2026-11-28, ``getrusage`` around ``render``), an arena per thread took 165-226k minor
+page faults and 1.3-1.5 s of system time a frame (one thread: 90-100k, 0.5-0.6 s); one
+arena 128-130k and 0.8-1.1 s (one thread: 119k, 0.6 s). The trim threshold, the free
+space at the heap's top kept, is half the mmap threshold (it was twice): with one arena
+and the old one, the two threads' interleaved blocks held the 1M-triangle Refract frame
+at 2,003-2,009 MiB (1,914 MiB with an arena per thread), and at 1,919 MiB with this one
+(``benchmarks/bench_memory.py --only large``).
+
 The price is memory the process holds after the arrays are gone: the freed blocks of a
-stage (the BSP build's, the photon trace's, each worker thread's arena) stay resident,
+stage (the BSP build's, the photon trace's, the batches') stay resident,
 and on a 1M-triangle 1080p frame they were about 1 GiB beside 1.8 GiB of live arrays
 (2026-11-28). :func:`trim` gives the freed pages back; the render calls it between
 stages (after the BSP build, the photon trace and the timing model), not per batch or
@@ -23,7 +35,9 @@ import os
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
+_M_ARENA_MAX = -8
 _THRESHOLD = 256 << 20  # arrays up to 256 MiB come from the heap and stay there
+_M_ARENA_MAX_VALUE = 1  # one arena for every thread (see above)
 
 
 def tune_allocator() -> bool:
@@ -40,7 +54,8 @@ def tune_allocator() -> bool:
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     ok = mallopt(_M_MMAP_THRESHOLD, _THRESHOLD) == 1
-    ok &= mallopt(_M_TRIM_THRESHOLD, 2 * _THRESHOLD) == 1
+    ok &= mallopt(_M_TRIM_THRESHOLD, _THRESHOLD // 2) == 1
+    ok &= mallopt(_M_ARENA_MAX, _M_ARENA_MAX_VALUE) == 1
     return bool(ok)
 
 
