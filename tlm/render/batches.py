@@ -215,6 +215,7 @@ def _put_counts(counts: dict[str, np.ndarray], key: str, values: np.ndarray, at:
 
 BATCHES_PER_THREAD = 3  # batches per thread when whole batches run at once: they differ in cost
 MIN_BATCH_RAYS = 1024  # ... but none under this many eye rays (a batch's fixed cost in Python)
+TAIL_HALVING = True  # ... and the last batches cut in halving pieces, so the threads end together
 
 
 def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
@@ -224,11 +225,32 @@ def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> lis
     rays (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and
     balance, and the batches in flight (twice the threads: :func:`tlm.kernels.threads.ordered`)
     hold about one batch of one thread: ``render.batch_rays`` bounds the render's memory
-    whatever the threads. The cuts never change the results."""
-    if n_threads > 1:
-        share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
-        batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // (2 * n_threads))))
-    return pixel_batches(n_pixels, spp, batch_rays)
+    whatever the threads. The pixels of the last ``n_threads`` batches are cut again, in
+    rounds of one piece per thread whose size halves from round to round (at least
+    :data:`MIN_BATCH_RAYS` eye rays, bar a pixel's), so that a thread that takes the last
+    piece keeps the others waiting for a small one only: the threads finish closer
+    together (guided self-scheduling). The cuts never change the results."""
+    if n_threads <= 1:
+        return pixel_batches(n_pixels, spp, batch_rays)
+    share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
+    batch_rays = min(batch_rays, max(MIN_BATCH_RAYS, min(share, batch_rays // (2 * n_threads))))
+    cuts = pixel_batches(n_pixels, spp, batch_rays)
+    if not TAIL_HALVING or len(cuts) <= n_threads:
+        return cuts
+    step = cuts[0].stop - cuts[0].start  # pixels of a batch: no piece is larger
+    least = min(step, max(1, -(-MIN_BATCH_RAYS // spp)))  # ... nor smaller, bar the last
+    lo, hi = cuts[-n_threads].start, n_pixels
+    piece = step
+    tail = []
+    while lo < hi:
+        piece = max(least, piece // 2)
+        for _ in range(n_threads):
+            take = min(hi - lo, step) if hi - lo < piece + least else piece  # (no sliver left)
+            tail.append(slice(lo, lo + take))
+            lo += take
+            if lo == hi:
+                break
+    return cuts[:-n_threads] + tail
 
 
 @dataclass
