@@ -226,8 +226,8 @@ def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> lis
     balance, and the batches in flight (twice the threads: :func:`tlm.kernels.threads.ordered`)
     hold about one batch of one thread: ``render.batch_rays`` bounds the render's memory
     whatever the threads. The pixels of the last ``n_threads`` batches are cut again, in
-    rounds of one piece per thread whose size halves from round to round (at least
-    :data:`MIN_BATCH_RAYS` eye rays, bar a pixel's), so that a thread that takes the last
+    rounds of one piece per thread whose size halves from round to round (none under
+    :data:`MIN_BATCH_RAYS` eye rays or a batch, but the last), so that a thread that takes the last
     piece keeps the others waiting for a small one only: the threads finish closer
     together (guided self-scheduling). The cuts never change the results."""
     if n_threads <= 1:
