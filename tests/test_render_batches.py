@@ -78,7 +78,7 @@ def test_batch_cuts_cover_the_image_in_pixel_order(n_pixels, spp, batch_rays, n_
         assert all(r >= min(MIN_BATCH_RAYS, batch_rays) - spp for r in rays[:-1])
     if n_pixels * spp >= 3 * n_threads * MIN_BATCH_RAYS and n_threads > 1:
         assert len(cuts) >= n_threads  # enough batches for every thread
-    if n_threads > 1 and rays[0] >= 2 * MIN_BATCH_RAYS and len(cuts) > n_threads:
+    if n_threads > 1 and rays[0] >= 2 * MIN_BATCH_RAYS and cuts[0].stop - cuts[0].start >= 2 and len(cuts) > n_threads:
         assert max(rays[-n_threads:]) <= rays[0] // 2  # the threads end on small pieces
 
 

@@ -3,21 +3,28 @@
 The kernels allocate many short-lived arrays of one to a few megabytes per packet. By
 default glibc serves each of them with a fresh ``mmap`` and returns it on ``free``, so
 every allocation touches new pages (a page fault per 4 KiB), which costs as much as
-the arithmetic. Raising the mmap and trim thresholds keeps such blocks in the heap for
-reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1`` to leave the
+the arithmetic. Raising the mmap threshold and setting the trim threshold keeps such
+blocks in the heap for reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1`` to leave the
 allocator alone.
 
 Every thread allocates from the one (main) arena. By default glibc gives each thread
 its own, whose heaps are at most 64 MiB: there a larger array is a fresh ``mmap``
 whatever the threshold, so the render's worker threads page-faulted anew where one
-thread reused its blocks. On the conference room at 256x256 on two threads
-(2026-11-28, ``getrusage`` around ``render``), an arena per thread took 165-226k minor
-page faults and 1.3-1.5 s of system time a frame (one thread: 90-100k, 0.5-0.6 s); one
-arena 128-130k and 0.8-1.1 s (one thread: 119k, 0.6 s). The trim threshold, the free
-space at the heap's top kept, is half the mmap threshold (it was twice): with one arena
-and the old one, the two threads' interleaved blocks held the 1M-triangle Refract frame
-at 2,003-2,009 MiB (1,914 MiB with an arena per thread), and at 1,919 MiB with this one
-(``benchmarks/bench_memory.py --only large``).
+thread reused its blocks. On the conference room at 256x256 on two threads, five rounds
+alternating the two settings, each render in its own process (2026-11-28, scratch,
+``getrusage`` around ``render``): an arena per thread took 142-196k minor page faults
+and 1.10-1.69 s of system time a frame, one arena 107-165k and 0.89-1.33 s (one thread,
+separate runs: 90-100k and 0.5-0.6 s; 119k and 0.6 s). The setting reaches the threads
+whose first allocation comes after :mod:`tlm.kernels` is imported (the render's pools'):
+glibc keeps an arena that a thread made before, and hands the arenas out in turn to new
+threads, so in a process whose threads allocated before the import (a notebook's, say)
+some of them may still map their large arrays afresh.
+
+The trim threshold, the free space at the heap's top kept, is half the mmap threshold
+(it was twice): a freed block between the two at the heap's top goes back to the system
+at once. With one arena and the old threshold, the two threads' interleaved blocks held
+the 1M-triangle Refract frame at 2,003-2,009 MiB (1,914 MiB with an arena per thread),
+and at 1,919 MiB with this one (``benchmarks/bench_memory.py --only large``).
 
 The price is memory the process holds after the arrays are gone: the freed blocks of a
 stage (the BSP build's, the photon trace's, the batches') stay resident,
@@ -36,7 +43,7 @@ import os
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
 _M_ARENA_MAX = -8
-_THRESHOLD = 256 << 20  # arrays up to 256 MiB come from the heap and stay there
+_THRESHOLD = 256 << 20  # arrays up to 256 MiB come from the heap (freed: kept, but a top over half of this)
 _M_ARENA_MAX_VALUE = 1  # one arena for every thread (see above)
 
 
