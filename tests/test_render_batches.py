@@ -163,7 +163,9 @@ def test_a_worker_thread_allocates_large_arrays_from_the_tuned_heap():
     size = 96 << 20
 
     def mapped(**env) -> list[int]:
-        out = subprocess.run([sys.executable, "-c", _THREAD_MAPPED], env={**os.environ, **env}, check=True,
+        own = {k: v for k, v in os.environ.items()  # (glibc's own settings from the environment left out)
+               if not k.startswith("MALLOC_") and k not in ("GLIBC_TUNABLES", "TLM_NO_MALLOPT")}
+        out = subprocess.run([sys.executable, "-c", _THREAD_MAPPED], env={**own, **env}, check=True,
                              capture_output=True, text=True).stdout
         return [int(x) for x in out.split()]
 
