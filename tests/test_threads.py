@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -194,6 +195,30 @@ def test_spans_cover_in_order():
     assert len(s) == 3 * threads.CHUNKS_PER_THREAD and s[0][0] == 0 and s[-1][1] == 1003
     assert all(a[1] == b[0] for a, b in itertools.pairwise(s))
     assert list(threads.ordered(lambda x: x * x, range(50), threads=3)) == [x * x for x in range(50)]
+
+
+@pytest.mark.parametrize("weighed", [True, False])
+def test_light_calls_run_behind_a_heavy_one(weighed):
+    """With weights, the window of ``ordered`` holds calls by weight: the eight light calls
+    all start while the caller waits for the heavy first one. By count (twice the two
+    threads: four calls in flight), three do."""
+    started, seen = [], []
+
+    def call(i: int) -> int:
+        if i == 0:  # the heavy one: waits until the light ones have started (at most 5 s; 0.5 by count)
+            deadline = time.monotonic() + (5.0 if weighed else 0.5)
+            while len(started) < 8 and time.monotonic() < deadline:
+                time.sleep(0.005)
+            seen.append(len(started))
+        else:
+            started.append(i)
+        return i
+
+    weights = [4, 1, 1, 1, 1, 1, 1, 1, 1] if weighed else None
+    assert list(threads.ordered(call, range(9), threads=2, weights=weights)) == list(range(9))
+    assert seen == [8 if weighed else 3]
+    with pytest.raises(ValueError, match="weights"):
+        list(threads.ordered(call, range(3), threads=2, weights=[1, 0, 1]))
 
 
 def test_calls_in_flight_share_the_memory_budget():

@@ -22,9 +22,11 @@ some of them may still map their large arrays afresh.
 
 The trim threshold, the free space at the heap's top kept, is half the mmap threshold
 (it was twice): a freed block between the two at the heap's top goes back to the system
-at once. With one arena and the old threshold, the two threads' interleaved blocks held
-the 1M-triangle Refract frame at 2,003-2,009 MiB (1,914 MiB with an arena per thread),
-and at 1,919 MiB with this one (``benchmarks/bench_memory.py --only large``).
+at once. The 1M-triangle Refract frame on two threads peaked at 2,003 and 2,009 MiB
+with one arena and the old threshold, at 1,915 - 1,998 MiB with this one (five runs),
+and at 1,914 and 1,970 MiB with an arena per thread and the old one
+(``benchmarks/bench_memory.py --only large``: the peak varies by about 90 MiB from run
+to run).
 
 The price is memory the process holds after the arrays are gone: the freed blocks of a
 stage (the BSP build's, the photon trace's, the batches') stay resident,

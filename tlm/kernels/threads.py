@@ -104,14 +104,18 @@ def spans(n_items: int, min_chunk: int, threads: int | None = None) -> list[tupl
     return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
 
 
-def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None) -> Iterator[R]:
+def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None,
+            weights: Iterable[float] | None = None) -> Iterator[R]:
     """``fn(item)`` of every item, yielded in the items' order, computed on ``threads`` workers.
 
     At most twice ``threads`` calls are in flight (submitted, not yet taken), so what the
     caller does with a result (charging cache pairs, copying into the output) overlaps
     the next chunks' work while memory stays bounded (:func:`share` says so to the calls).
-    One thread: plain calls, in order. The workers run with one thread each, so kernels
-    they call do not split again.
+    With ``weights`` (one per item, > 0: what a call holds, say its eye rays) the window
+    holds calls of at most twice ``threads`` times the largest weight in all instead, so
+    light items (the render's last pieces) keep the workers busy behind a heavy one that
+    the caller waits for. One thread: plain calls, in order. The workers run with one
+    thread each, so kernels they call do not split again.
     """
     threads = current() if threads is None else threads
     items = list(items)
@@ -121,19 +125,27 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
         return
     pool = _pool(threads)
     window = 2 * threads
-    pending = []
+    weight = [1.0] * len(items) if weights is None else [float(w) for w in weights]
+    if len(weight) != len(items) or not all(w > 0 for w in weight):
+        raise ValueError(f"weights: one > 0 per item ({len(items)}), got {len(weight)}")
+    limit = window * max(weight)  # (equal weights: ``window`` calls)
+    pending: list[tuple[Future, float]] = []
+    held = 0.0
     nxt = 0
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
-    one.run(_SHARE.set, _SHARE.get() * min(window, len(items)))  # (the calls that can be in flight)
+    one.run(_SHARE.set, _SHARE.get() * min(window, len(items)))  # (the calls of full weight in flight)
     try:
         while nxt < len(items) or pending:
-            while nxt < len(items) and len(pending) < window:
-                pending.append(pool.submit(one.copy().run, fn, items[nxt]))
+            while nxt < len(items) and (not pending or held + weight[nxt] <= limit):
+                pending.append((pool.submit(one.copy().run, fn, items[nxt]), weight[nxt]))
+                held += weight[nxt]
                 nxt += 1
-            yield pending.pop(0).result()
+            future, w = pending.pop(0)
+            held -= w
+            yield future.result()
     finally:  # an error, Ctrl-C or a caller that stops: what has not started never runs
-        for f in pending:
+        for f, _ in pending:
             f.cancel()
 
 

@@ -162,7 +162,8 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
         if concurrent and BATCH_WORKERS == "processes" and threads.can_fork():
             done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
         else:
-            done_batches = threads.ordered(one, range(len(batches)))
+            # (weighed by pixels: the last, small pieces run behind a slow batch, in the same memory)
+            done_batches = threads.ordered(one, range(len(batches)), weights=[b.stop - b.start for b in batches])
         for i, done in enumerate(done_batches):
             at, g = batches[i], done.g
             arrays = None
