@@ -4,8 +4,8 @@ The kernels allocate many short-lived arrays of one to a few megabytes per packe
 default glibc serves each of them with a fresh ``mmap`` and returns it on ``free``, so
 every allocation touches new pages (a page fault per 4 KiB), which costs as much as
 the arithmetic. Raising the mmap threshold and setting the trim threshold keeps such
-blocks in the heap for reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1`` to leave the
-allocator alone.
+blocks in the heap for reuse. This changes nothing but speed; set ``TLM_NO_MALLOPT=1``
+to leave the allocator alone.
 
 Every thread allocates from the one (main) arena. By default glibc gives each thread
 its own, whose heaps are at most 64 MiB: there a larger array is a fresh ``mmap``

@@ -127,7 +127,8 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     window = 2 * threads
     weight = [1.0] * len(items) if weights is None else [float(w) for w in weights]
     if len(weight) != len(items) or not all(w > 0 for w in weight):
-        raise ValueError(f"weights: one > 0 per item ({len(items)}), got {len(weight)}")
+        raise ValueError(f"weights must be one number > 0 per item: {len(weight)} for {len(items)} items, "
+                         f"the smallest {min(weight, default=0.0)}")
     limit = window * max(weight)  # (equal weights: ``window`` calls)
     pending: list[tuple[Future, float]] = []
     held = 0.0

@@ -224,13 +224,14 @@ def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> lis
     ``batch_rays`` eye rays on one thread; on several, smaller ones, about
     :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / (2 n_threads)`` eye
     rays (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and
-    balance, and the batches in flight (twice the threads: :func:`tlm.kernels.threads.ordered`)
-    hold about one batch of one thread: ``render.batch_rays`` bounds the render's memory
-    whatever the threads. The pixels of the last ``n_threads`` batches are cut again, in
-    rounds of one piece per thread whose size halves from round to round (none under
-    :data:`MIN_BATCH_RAYS` eye rays or a batch, but the last), so that a thread that takes the last
-    piece keeps the others waiting for a small one only: the threads finish closer
-    together (guided self-scheduling). The cuts never change the results."""
+    balance, and the batches in flight (twice the threads' worth of batches, weighed by
+    their pixels: :func:`tlm.kernels.threads.ordered`) hold about one batch of one
+    thread: ``render.batch_rays`` bounds the render's memory whatever the threads. The
+    pixels of the last ``n_threads`` batches are cut again, in rounds of one piece per
+    thread whose size halves from round to round (none under :data:`MIN_BATCH_RAYS` eye
+    rays or a batch, but the last), so that a thread that takes the last piece keeps the
+    others waiting for a small one only: the threads finish closer together (guided
+    self-scheduling). The cuts never change the results."""
     if n_threads <= 1:
         return pixel_batches(n_pixels, spp, batch_rays)
     share = -(-n_pixels * spp // (BATCHES_PER_THREAD * n_threads))
