@@ -140,6 +140,20 @@ def test_trace_rows_go_pipe_by_pipe():
     assert sort == {i: i for i in range(len(names))}
 
 
+
+@pytest.mark.parametrize("n", [0, 1, 4095, 4097, 9000])
+def test_trace_file_is_the_document_written_event_by_event(tmp_path, n):
+    """``write`` streams the events (never the whole document, or its text, at once) and
+    writes the text ``json.dumps`` makes of ``to_json``: chunk seams, no slice, one slice."""
+    trace = Trace()
+    for k in range(n):
+        trace.slice(f"pipe{k % 2}.traversal" if k % 3 else "mem1", "work", 3 * k, 3 * k + 2, tris=k)
+    for hz in (None, 600e6):
+        trace.write(tmp_path / "trace.json", hz)
+        text = (tmp_path / "trace.json").read_text()
+        assert text == json.dumps(trace.to_json(hz))
+        assert len(json.loads(text)["traceEvents"]) == n + 2 * len(trace.rows)
+
 def test_deadlock_is_detected_and_named(env):
     a, b = Unit(env, "pipe0.vertex"), Unit(env, "pipe0.fragment")
     made = {a.scope: env.event(), b.scope: env.event()}  # each unit's semaphore

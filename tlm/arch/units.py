@@ -30,7 +30,7 @@ from pathlib import Path
 import simpy
 
 from tlm.arch.events import CycleEnd
-from tlm.storage import write_file
+from tlm.storage import write_atomic
 
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
 
@@ -268,23 +268,48 @@ class Trace:
         top-level compose unit and the crossbar (``thread_sort_index`` and the row ids both
         follow that order).
         """
+        events, rest = self._document(clock_hz, modules_per_pipe)
+        return {"traceEvents": list(events), **rest}
+
+    def _document(self, clock_hz: float | None, modules_per_pipe: int | None):
+        """The events of :meth:`to_json`'s document, one at a time (the rows' metadata,
+        then the slices), and its other keys."""
         per_pipe = modules_per_pipe or self.modules_per_pipe
         order = sorted(self.rows, key=lambda scope: row_order(scope, per_pipe))
         tid_of = {self.rows[scope]: i for i, scope in enumerate(order)}
-        meta = []
-        for i, scope in enumerate(order):
-            meta.append({"name": "thread_name", "ph": "M", "pid": 0, "tid": i, "args": {"name": scope}})
-            meta.append({"name": "thread_sort_index", "ph": "M", "pid": 0, "tid": i, "args": {"sort_index": i}})
         us = 1e6 / clock_hz if clock_hz else 1.0
-        events = [{"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
-                   "args": {**a, "start_cycle": s, "cycles": e - s}}
-                  for n, s, e, tid, a in self._slices()]
+
+        def events():
+            for i, scope in enumerate(order):
+                yield {"name": "thread_name", "ph": "M", "pid": 0, "tid": i, "args": {"name": scope}}
+                yield {"name": "thread_sort_index", "ph": "M", "pid": 0, "tid": i, "args": {"sort_index": i}}
+            for n, s, e, tid, a in self._slices():
+                yield {"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
+                       "args": {**a, "start_cycle": s, "cycles": e - s}}
+
         unit = "microseconds at the modelled clock" if clock_hz else "clock cycles (no clock given)"
-        return {"traceEvents": meta + events, "displayTimeUnit": "ns",
-                "otherData": {"time_unit": unit, "clock_hz": clock_hz, "cycles_in": "args.start_cycle, args.cycles"}}
+        other = {"time_unit": unit, "clock_hz": clock_hz, "cycles_in": "args.start_cycle, args.cycles"}
+        return events(), {"displayTimeUnit": "ns", "otherData": other}
 
     def write(self, path: Path, clock_hz: float | None = None) -> None:
-        write_file(path, json.dumps(self.to_json(clock_hz)))
+        """:meth:`to_json`'s document as ``path``, the same text as ``json.dumps`` of it,
+        written event by event (a run of millions of slices never holds the document,
+        or its text, whole: at 1080p they were about 250 MB at the run's peak)."""
+        events, rest = self._document(clock_hz, None)
+        with write_atomic(path, "w") as fh:
+            fh.write('{"traceEvents": [')
+            sep, chunk = "", []
+            for ev in events:
+                chunk.append(json.dumps(ev))
+                if len(chunk) == 4096:
+                    fh.write(sep + ", ".join(chunk))
+                    sep, chunk = ", ", []
+            if chunk:
+                fh.write(sep + ", ".join(chunk))
+            fh.write("]")
+            for key, value in rest.items():
+                fh.write(f", {json.dumps(key)}: {json.dumps(value)}")
+            fh.write("}")
 
 
 _STALL_LOG = {cause: f"stall {cause}" for cause in STALL_CAUSES}  # a stall's log entry
