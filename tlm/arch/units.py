@@ -293,8 +293,8 @@ class Trace:
 
     def write(self, path: Path, clock_hz: float | None = None) -> None:
         """:meth:`to_json`'s document as ``path``, the same text as ``json.dumps`` of it,
-        written event by event (a run of millions of slices never holds the document,
-        or its text, whole: at 1080p they were about 250 MB at the run's peak)."""
+        written event by event: the event dicts and the text are never held whole (at
+        1080p they were about 280 MiB, at the run's peak)."""
         events, rest = self._document(clock_hz, None)
         with write_atomic(path, "w") as fh:
             fh.write('{"traceEvents": [')
