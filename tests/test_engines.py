@@ -887,3 +887,27 @@ def test_final_gather_bounce_is_the_same_compiled(monkeypatch, last, fresnel):
         got[engine] = [np.ascontiguousarray(a).tobytes() for a in (*found, *going, *counts)]
         assert found[0].shape[0] > 100 and (going[0].shape[0] == 0) == last
     assert got["numba"] == got["numpy"]
+
+
+def test_gather_order_is_a_morton_curve():
+    """The compiled gather takes its queries along a Morton curve over their box: a
+    permutation of the queries whose interleaved cell codes never decrease (ties in
+    index order), whatever NaN or flat extents the points have."""
+    from tlm.kernels._jit_gather import MORTON_BITS, morton_order
+
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-5.0, 5.0, (3, 3000))
+    pts[2, :] = 1.0  # a flat axis: every z in cell 0
+    pts[0, 207] = np.nan  # (the 8th query)
+    order = morton_order(pts, 200, 2200)
+    assert np.array_equal(np.sort(order), np.arange(2000))
+    p = pts[:, 200:2200]
+    lo = np.nanmin(p, axis=1, keepdims=True)
+    ext = np.nanmax(p, axis=1, keepdims=True) - lo
+    cells = (1 << MORTON_BITS) - 1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.nan_to_num((p - lo) * np.where(ext > 0, cells / ext, 0.0)).astype(np.int64)
+    code = sum(((g[axis] >> b) & 1) << (3 * b + axis) for axis in range(3) for b in range(MORTON_BITS))
+    assert np.array_equal(order, np.argsort(code, kind="stable"))
+    assert np.all(np.diff(code[order]) >= 0)
+    assert morton_order(pts, 5, 5).shape == (0,) and np.array_equal(morton_order(pts, 5, 6), [0])

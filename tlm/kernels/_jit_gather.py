@@ -1,6 +1,10 @@
 """The fixed-radius photon gather compiled with numba, one query at a time: the fast path of
 :func:`tlm.kernels.estimate._fixed_radius` (the disk and m-voxel filters).
 
+The queries of a call are gathered in Morton order (:func:`morton_order`), so the nodes and
+photons one query reads are mostly in cache from its predecessor; each query's results
+are its own whatever the order, and go back to their places, the pairs in query order.
+
 For each query the photon BSP is walked depth first, left child before right, which
 reaches the leaves in the order of Fig. 8's level-by-level node lists (each level's list
 keeps a node's left child before its right one) and enters the same inner nodes; then
@@ -32,15 +36,32 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
     """Queries ``q0:q1``: fills ``visits`` (m,), ``sums`` (3, m) (the weighted power, not yet
     divided by the filter's area), ``accepted`` (m,) and the pairs; returns the pairs' count
     (more than the buffer holds: nothing is valid, run again with that many). Compiled
-    ``nogil``: threads run blocks of queries at once (:mod:`tlm.kernels.threads`)."""
+    ``nogil``: threads run blocks of queries at once (:mod:`tlm.kernels.threads`).
+
+    The queries are taken in :func:`morton_order`: a query's nodes and photons are mostly
+    its predecessor's, still in cache (a final gather's queries, in their own order,
+    scatter over the scene, and read their nodes and photons from memory). Each query's
+    values are its own, whatever the order, and its pairs are put back in query order."""
     r2 = radius * radius
     cap = pair_query.shape[0]
+    m = q1 - q0
     n_pairs = 0
     stack = np.empty(levels + 1, dtype=np.int64)
-    for q in range(q0, q1):
-        i = q - q0
-        px, py, pz = pts[0, q], pts[1, q], pts[2, q]
-        nx, ny, nz = nrm[0, q], nrm[1, q], nrm[2, q]
+    order = morton_order(pts, q0, q1)
+    # the queries' points and normals in that order (read in one pass), and what each
+    # gathers (written back to query order in one pass at the end)
+    at = np.empty((6, m))
+    for k in range(m):
+        q = q0 + order[k]
+        at[0, k], at[1, k], at[2, k] = pts[0, q], pts[1, q], pts[2, q]
+        at[3, k], at[4, k], at[5, k] = nrm[0, q], nrm[1, q], nrm[2, q]
+    got_sums = np.empty((3, m))
+    got_counts = np.empty((3, m), dtype=np.int64)  # visits, accepted, pairs
+    got = np.empty(cap, dtype=np.int64)  # the leaves, in the order gathered
+    for k in range(m):
+        before = n_pairs
+        px, py, pz = at[0, k], at[1, k], at[2, k]
+        nx, ny, nz = at[3, k], at[4, k], at[5, k]
         lo0 = px - (radius + slack * (abs(px) + radius))
         lo1 = py - (radius + slack * (abs(py) + radius))
         lo2 = pz - (radius + slack * (abs(pz) + radius))
@@ -61,9 +82,9 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
             if node < leaf_offset:  # an inner node on the list
                 vis += 1
                 depth_of = 0
-                k = node + 1
-                while k > 1:
-                    k >>= 1
+                e = node + 1
+                while e > 1:
+                    e >>= 1
                     depth_of += 1
                 axis = depth_of % 3
                 d = split[node]
@@ -82,8 +103,7 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
                 continue
             leaf = node - leaf_offset
             if n_pairs < cap:
-                pair_query[n_pairs] = i
-                pair_leaf[n_pairs] = leaf
+                got[n_pairs] = leaf
             n_pairs += 1
             s0 = 0.0
             s1 = 0.0
@@ -113,9 +133,85 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
             total0 += s0
             total1 += s1
             total2 += s2
-        visits[i] = vis
-        accepted[i] = acc
-        sums[0, i] = total0
-        sums[1, i] = total1
-        sums[2, i] = total2
+        got_counts[0, k], got_counts[1, k], got_counts[2, k] = vis, acc, n_pairs - before
+        got_sums[0, k], got_sums[1, k], got_sums[2, k] = total0, total1, total2
+    for k in range(m):
+        i = order[k]
+        visits[i], accepted[i] = got_counts[0, k], got_counts[1, k]
+        sums[0, i], sums[1, i], sums[2, i] = got_sums[0, k], got_sums[1, k], got_sums[2, k]
+    if n_pairs > cap:
+        return n_pairs
+    # the pairs in query order: query i's from where the queries before it end
+    begin = np.empty(m, dtype=np.int64)
+    for k in range(m):
+        begin[order[k]] = got_counts[2, k]
+    n = 0
+    for i in range(m):
+        c = begin[i]
+        begin[i] = n
+        n += c
+    j = 0
+    for k in range(m):
+        i = order[k]
+        to = begin[i]
+        for _ in range(got_counts[2, k]):
+            pair_query[to] = i
+            pair_leaf[to] = got[j]
+            to += 1
+            j += 1
     return n_pairs
+
+
+MORTON_BITS = 10  # bits per axis of the gather's query order: a grid of 1024^3 cells over the queries
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def morton_order(pts, q0, q1):
+    """The order of the points ``pts[:, q0:q1]`` along a Morton curve over their bounding
+    box (:data:`MORTON_BITS` per axis, x lowest; equal codes in index order): indices
+    from 0. Only an order, for the cache (a NaN coordinate's cell is 0)."""
+    m = q1 - q0
+    cells = (1 << MORTON_BITS) - 1
+    lo = np.empty(3)
+    scale = np.empty(3)
+    for axis in range(3):
+        a = np.inf
+        b = -np.inf
+        for q in range(q0, q1):
+            x = pts[axis, q]
+            if x < a:
+                a = x
+            if x > b:
+                b = x
+        lo[axis] = a
+        scale[axis] = cells / (b - a) if b > a and b - a < np.inf else 0.0
+    code = np.zeros(m, dtype=np.uint32)
+    for i in range(m):
+        c = np.uint32(0)
+        for axis in range(3):
+            f = (pts[axis, q0 + i] - lo[axis]) * scale[axis]
+            g = np.uint32(min(max(f, 0.0), cells)) if f == f else np.uint32(0)
+            g = (g | (g << np.uint32(16))) & np.uint32(0x030000FF)
+            g = (g | (g << np.uint32(8))) & np.uint32(0x0300F00F)
+            g = (g | (g << np.uint32(4))) & np.uint32(0x030C30C3)
+            g = (g | (g << np.uint32(2))) & np.uint32(0x09249249)
+            c |= g << np.uint32(axis)
+        code[i] = c
+    # a stable radix sort, MORTON_BITS bits a pass, the lowest first
+    order = np.arange(m)
+    spare = np.empty(m, dtype=np.int64)
+    buckets = 1 << MORTON_BITS
+    count = np.empty(buckets + 1, dtype=np.int64)
+    for p in range(3):
+        shift = np.uint32(MORTON_BITS * p)
+        count[:] = 0
+        for i in range(m):
+            count[((code[order[i]] >> shift) & np.uint32(buckets - 1)) + 1] += 1
+        for b in range(buckets):
+            count[b + 1] += count[b]
+        for i in range(m):
+            d = (code[order[i]] >> shift) & np.uint32(buckets - 1)
+            spare[count[d]] = order[i]
+            count[d] += 1
+        order, spare = spare, order
+    return order
