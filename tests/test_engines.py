@@ -911,3 +911,12 @@ def test_gather_order_is_a_morton_curve():
     assert np.array_equal(order, np.argsort(code, kind="stable"))
     assert np.all(np.diff(code[order]) >= 0)
     assert morton_order(pts, 5, 5).shape == (0,) and np.array_equal(morton_order(pts, 5, 6), [0])
+    # ties (many points share a cell) in index order; an infinite coordinate: its axis all in cell 0
+    grid = np.ascontiguousarray(rng.integers(0, 4, (3, 500)).astype(np.float64))
+    codes = sum(((grid[axis].astype(np.int64) * 341 >> b) & 1) << (3 * b + axis)
+                for axis in range(3) for b in range(MORTON_BITS))
+    assert np.array_equal(morton_order(grid, 0, 500), np.argsort(codes, kind="stable"))
+    grid[1, 9] = np.inf
+    codes = sum(((grid[axis].astype(np.int64) * 341 >> b) & 1) << (3 * b + axis)
+                for axis in (0, 2) for b in range(MORTON_BITS))
+    assert np.array_equal(morton_order(grid, 0, 500), np.argsort(codes, kind="stable"))

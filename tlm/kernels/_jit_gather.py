@@ -57,7 +57,7 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
         at[3, k], at[4, k], at[5, k] = nrm[0, q], nrm[1, q], nrm[2, q]
     got_sums = np.empty((3, m))
     got_counts = np.empty((3, m), dtype=np.int64)  # visits, accepted, pairs
-    got = np.empty(cap, dtype=np.int64)  # the leaves, in the order gathered
+    # (the leaves go to pair_query first, in the order gathered, then to their places)
     for k in range(m):
         before = n_pairs
         px, py, pz = at[0, k], at[1, k], at[2, k]
@@ -103,7 +103,7 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
                 continue
             leaf = node - leaf_offset
             if n_pairs < cap:
-                got[n_pairs] = leaf
+                pair_query[n_pairs] = leaf
             n_pairs += 1
             s0 = 0.0
             s1 = 0.0
@@ -152,24 +152,26 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
         n += c
     j = 0
     for k in range(m):
-        i = order[k]
-        to = begin[i]
+        to = begin[order[k]]
         for _ in range(got_counts[2, k]):
-            pair_query[to] = i
-            pair_leaf[to] = got[j]
+            pair_leaf[to] = pair_query[j]
             to += 1
             j += 1
+    for i in range(m):
+        for to in range(begin[i], begin[i + 1] if i + 1 < m else n_pairs):
+            pair_query[to] = i
     return n_pairs
 
 
-MORTON_BITS = 10  # bits per axis of the gather's query order: a grid of 1024^3 cells over the queries
+MORTON_BITS = 10  # bits per axis of the gather's query order (1024^3 cells): fixed, the bit-spreading masks are for 10
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def morton_order(pts, q0, q1):
     """The order of the points ``pts[:, q0:q1]`` along a Morton curve over their bounding
     box (:data:`MORTON_BITS` per axis, x lowest; equal codes in index order): indices
-    from 0. Only an order, for the cache (a NaN coordinate's cell is 0)."""
+    from 0. Only an order, for the cache: a NaN coordinate's cell is 0, and so is every
+    cell of an axis with an infinite coordinate or an extent that overflows."""
     m = q1 - q0
     cells = (1 << MORTON_BITS) - 1
     lo = np.empty(3)
