@@ -13,7 +13,13 @@ a while slows both of a round), then PASS/FAIL of the paired ratio against two b
 primary and shadow rays on Cornell: at least 1/10 of Embree's rate (issue [7 of 7]) and
 at least 1/2 (issue 25, item 2: vectorizable inner loops). Exits 1 if a bar fails.
 
-    python benchmarks/bench_raytrace.py [--scenes cornell ring room] [--repeat 5]
+Beside the rates, tlm's work per ray (its own counts, which Embree does not report):
+inner nodes entered, leaves whose triangles were tested, and triangles tested. The
+bars are judged on the tree the thesis's rule builds (``floor(ln n)`` levels);
+``--levels`` adds rows for other depths of the same scene, so the share of the ratio
+that is the tree's (leaves of ~40 triangles against Embree's BVH) can be read off.
+
+    python benchmarks/bench_raytrace.py [--scenes cornell ring room] [--repeat 5] [--levels 8 10]
 """
 
 from __future__ import annotations
@@ -95,14 +101,20 @@ def alternated(ours, theirs, repeat: int) -> tuple[float, float, float]:
     return min(a), min(b), float(np.median(np.array(a) / np.array(b)))
 
 
-def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float, float, float]]:
-    """(kind, rays, tlm seconds, tlm-numpy seconds, Embree seconds, paired ratio tlm / Embree)
-    per kind of ray."""
+def per_ray(counts) -> tuple[float, float, float]:
+    """tlm's mean work per ray: inner nodes entered, leaves tested, triangles tested."""
+    return tuple(float(np.mean(c)) for c in (counts.node_visits, counts.leaf_visits, counts.tri_tests))
+
+
+def bench_scene(name: str, repeat: int, levels: int | None = None) -> tuple[int, list[tuple]]:
+    """The tree's levels, and per kind of ray: (kind, rays, tlm seconds, tlm-numpy seconds,
+    Embree seconds, paired ratio tlm / Embree, tlm's work per ray (:func:`per_ray`)).
+    ``levels``: the tree's depth (None: the thesis's rule)."""
     from embreex import rtcore_scene as rtcs
     from embreex.mesh_construction import TriangleMesh
 
     scene = load_scene(name)
-    accel = build_accel(scene.triangles)
+    accel = build_accel(scene.triangles, levels=levels)
     w, h = scene.camera.width, scene.camera.height
     o, d = primary_rays(scene.camera, np.arange(w * h))
     emb = rtcs.EmbreeScene()
@@ -114,7 +126,7 @@ def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float, fl
         return closest_hit(accel, o, d, shared_origin=True)
 
     ours, theirs, ratio = alternated(primary, lambda: emb.run(o32, d32), repeat)
-    rows = [("primary", o.shape[0], ours, engine_time("numpy", primary, repeat), theirs, ratio)]
+    rows = [("primary", o.shape[0], ours, engine_time("numpy", primary, repeat), theirs, ratio, per_ray(hits.counts))]
     so, sd, sign, rel = shadow_rays(scene, accel, hits, o, d)
     # embreex's run() has no tnear: Embree's rays start at tmin and end at tmax
     so32 = (so + rel[:, None] * sd).astype(np.float32)
@@ -124,26 +136,34 @@ def bench_scene(name: str, repeat: int) -> list[tuple[str, int, float, float, fl
         return any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
 
     ours, theirs, ratio = alternated(shadow, lambda: emb.run(so32, sd32, dists=ones, query="OCCLUDED"), repeat)
-    rows.append(("shadow", so.shape[0], ours, engine_time("numpy", shadow, repeat), theirs, ratio))
-    return rows
+    rows.append(("shadow", so.shape[0], ours, engine_time("numpy", shadow, repeat), theirs, ratio,
+                 per_ray(shadow().counts)))
+    return accel.tree.levels, rows
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=["cornell", "ring", "room"])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--levels", type=int, nargs="+", default=[],
+                    help="also time trees of these depths (the bars: the thesis's rule only)")
     args = ap.parse_args()
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
-    print(f"{'scene':8s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
-          f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'paired':>8s} {'numpy/embree':>13s}")
+    if any(v < 1 for v in args.levels):
+        ap.error("--levels must be >= 1")
+    print(f"{'scene':8s} {'levels':>6s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
+          f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'paired':>8s} {'numpy/embree':>13s} "
+          f"{'nodes/ray':>10s} {'leaves/ray':>11s} {'tests/ray':>10s}")
     verdicts = []
-    for name in args.scenes:
-        for kind, n, t_ours, t_np, t_emb, ratio in bench_scene(name, args.repeat):
-            print(f"{name:8s} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_np / 1e6:14.3f} "
+    for name, depth in ((name, depth) for name in args.scenes for depth in [None, *args.levels]):
+        levels, rows = bench_scene(name, args.repeat, depth)
+        for kind, n, t_ours, t_np, t_emb, ratio, (nodes, leaves, tests) in rows:
+            print(f"{name:8s} {levels:6d} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_np / 1e6:14.3f} "
                   f"{n / t_emb / 1e6:15.3f} {'1/' + format(t_ours / t_emb, '.1f'):>11s} "
-                  f"{'1/' + format(ratio, '.1f'):>8s} {'1/' + format(t_np / t_emb, '.1f'):>13s}")
-            if name == "cornell":
+                  f"{'1/' + format(ratio, '.1f'):>8s} {'1/' + format(t_np / t_emb, '.1f'):>13s} "
+                  f"{nodes:10.1f} {leaves:11.2f} {tests:10.1f}")
+            if name == "cornell" and depth is None:
                 for issue, bar in BARS:
                     verdicts.append((ratio <= bar, f"Cornell {kind} rays at 1/{ratio:.1f} of Embree's rate "
                                      f"(paired; bar of {issue}: at least 1/{bar:g})"))
