@@ -29,8 +29,6 @@ import math
 import numpy as np
 from numba import njit
 
-from tlm.kernels._jit_order import SPREAD_BITS, radix_order30, spread10
-
 
 @njit(cache=True, error_model="numpy", nogil=True)
 def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm, q0, q1, radius, slack,
@@ -165,7 +163,7 @@ def fixed_radius(split, levels, leaf_offset, pos, inc, pw, first, size, pts, nrm
     return n_pairs
 
 
-MORTON_BITS = SPREAD_BITS  # bits per axis of the gather's query order (1024^3 cells): fixed by spread10's masks
+MORTON_BITS = 10  # bits per axis of the gather's query order (1024^3 cells): fixed, the bit-spreading masks are for 10
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -195,6 +193,27 @@ def morton_order(pts, q0, q1):
         for axis in range(3):
             f = (pts[axis, q0 + i] - lo[axis]) * scale[axis]
             g = np.uint32(min(max(f, 0.0), cells)) if f == f else np.uint32(0)
-            c |= spread10(g) << np.uint32(axis)
+            g = (g | (g << np.uint32(16))) & np.uint32(0x030000FF)
+            g = (g | (g << np.uint32(8))) & np.uint32(0x0300F00F)
+            g = (g | (g << np.uint32(4))) & np.uint32(0x030C30C3)
+            g = (g | (g << np.uint32(2))) & np.uint32(0x09249249)
+            c |= g << np.uint32(axis)
         code[i] = c
-    return radix_order30(code)
+    # a stable radix sort, MORTON_BITS bits a pass, the lowest first
+    order = np.arange(m)
+    spare = np.empty(m, dtype=np.int64)
+    buckets = 1 << MORTON_BITS
+    count = np.empty(buckets + 1, dtype=np.int64)
+    for p in range(3):
+        shift = np.uint32(MORTON_BITS * p)
+        count[:] = 0
+        for i in range(m):
+            count[((code[order[i]] >> shift) & np.uint32(buckets - 1)) + 1] += 1
+        for b in range(buckets):
+            count[b + 1] += count[b]
+        for i in range(m):
+            d = (code[order[i]] >> shift) & np.uint32(buckets - 1)
+            spare[count[d]] = order[i]
+            count[d] += 1
+        order, spare = spare, order
+    return order

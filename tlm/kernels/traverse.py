@@ -469,30 +469,6 @@ def _learn(accel: TriangleAccel, leaves: int, nodes: int, r: int) -> None:
 
 _NO_STACK = np.empty((0, 0), dtype=np.float32)  # the kernel's ``pre`` where no origin is shared
 
-# A call's rays are traced in the order of their direction and origin
-# (:func:`tlm.kernels._jit_order.ray_order`) when they do not share an origin, are at least
-# RAY_ORDER_MIN_RAYS, and the accel's float32 rows take at least RAY_ORDER_MIN_BYTES: rays
-# of a large scene's final gather or photon trace, in their own order, scatter over the
-# tree and read its leaves from memory (the conference room's rows are 43 MiB); in that
-# order a ray mostly reads what the one before it read (the conference room's calls of
-# 8,192 final-gather rays took 0.70-0.77x their time, its frame 0.94x on one thread).
-# Rows that stay in a cache gain nothing (a 69k-triangle
-# glass blob's 7 MiB: the same frame time), and the order costs memory while a call's
-# results go back to their places (the permuted rays and a second copy of the results:
-# that frame's peak grew by 62 MiB), hence the floor. Only the speed and the memory depend
-# on these: each ray's results and reads are its own, and go back to their places.
-RAY_ORDER_MIN_RAYS = 256
-RAY_ORDER_MIN_BYTES = 16 << 20
-
-
-def _ray_order(accel: TriangleAccel, o: np.ndarray, d: np.ndarray, shared_origin: bool) -> np.ndarray | None:
-    """The order the compiled kernel takes the rays ``o``, ``d`` in (None: their own)."""
-    from tlm.kernels import _jit_order
-
-    if shared_origin or o.shape[0] < RAY_ORDER_MIN_RAYS or accel.jit_layout.soa32.nbytes < RAY_ORDER_MIN_BYTES:
-        return None
-    return _jit_order.ray_order(o, d, accel.tree.lo[0], accel.tree.hi[0])
-
 
 def _shared_stack(accel: TriangleAccel, o32: np.ndarray) -> np.ndarray:
     """The ray-independent rows of the shared-origin test for the float32 origin
@@ -508,31 +484,13 @@ def _shared_stack(accel: TriangleAccel, o32: np.ndarray) -> np.ndarray:
     return last[1]
 
 
-def _unorder(order, t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids):
-    """The kernel's outputs for rays taken in ``order`` (the ``k``-th is ray ``order[k]``),
-    back in ray order: the per-ray arrays, and the recorded nodes and leaves ray-major."""
-    from tlm.kernels import _jit_order
-
-    per_ray = []
-    for a in (t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests):
-        back = np.empty_like(a)
-        back[order] = a
-        per_ray.append(back)
-    # (without record the kernel returns no lists: empty arrays, nothing to move)
-    node_ids = _jit_order.csr_unorder(node_ids, node_visits, order) if node_ids.shape[0] else node_ids
-    leaf_ids = _jit_order.csr_unorder(leaf_ids, leaf_visits, order) if leaf_ids.shape[0] else leaf_ids
-    return (*per_ray, node_ids, leaf_ids)
-
-
 def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin):
     """The whole of :func:`_traverse` for prepared rays, compiled (:func:`tlm.kernels._jit.trace`).
 
     On several threads (:mod:`tlm.kernels.threads`) the rays are cut into contiguous
     chunks traced at once and joined in order: every output is per ray (the recorded
     nodes and leaves ray-major), and the shared origin is the packet's first ray's for
-    every chunk, so the result is the one-call result bit for bit. Rays that do not share an
-    origin may be traced in another order (:func:`_ray_order`), and their results and reads
-    put back in theirs, so that order changes no result either.
+    every chunk, so the result is the one-call result bit for bit.
     """
     from tlm.kernels import threads
 
@@ -552,9 +510,6 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
         with np.errstate(over="ignore"):
             shared_o32 = np.array([np.float32(o[0, k] - accel.origin[k]) for k in range(3)], dtype=np.float32)
     pre = _shared_stack(accel, shared_o32) if shared_origin and r > 0 else _NO_STACK
-    order = _ray_order(accel, o, d, shared_origin)
-    if order is not None:
-        o, d, tmin, tmax, ignore = (a[order] for a in (o, d, tmin, tmax, ignore))
     parts = threads.chunked(
         lambda a, b: _jit_chunk(accel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, pre, record, first_only,
                                 shared_origin, a, b), r, JIT_MIN_CHUNK)
@@ -563,9 +518,6 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     else:
         t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = (
             np.concatenate(col) for col in zip(*parts, strict=True))
-    if order is not None:
-        t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids = _unorder(
-            order, t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids)
     counts = Counts(node_visits, cnt, leaf_visits, tri_tests)
     touched = None
     if record:
