@@ -150,8 +150,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.repeat < 1:
         ap.error("--repeat must be >= 1")
-    if any(v < 1 for v in args.levels):
-        ap.error("--levels must be >= 1")
+    if any(not 0 <= v <= 24 for v in args.levels):
+        ap.error("--levels must be between 0 and 24 (the BSP builder's range)")
     print(f"{'scene':8s} {'levels':>6s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
           f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'paired':>8s} {'numpy/embree':>13s} "
           f"{'nodes/ray':>10s} {'leaves/ray':>11s} {'tests/ray':>10s}")
