@@ -28,13 +28,24 @@ other work it says what the machine had to spare, not what the code does: so the
 first prints how fast as many busy-loop processes as the largest thread count run at
 once against one alone (:func:`spare_cores`), and again at the end.
 
+``--ceiling`` adds, in every round and for every thread count ``n`` above one, ``n``
+one-thread renders of the same frame at once, each in a process of its own (spawned and
+warmed up first, then started together): the most any threading of this work gets from
+this machine's cores, whatever they are, as the processes share nothing but the machine
+(its caches, memory and host). The bench prints that *ceiling* (``n`` frames in the
+slowest process's wall seconds against one frame alone, paired per round) and the
+threads' speed-up as a share of it (the median over the rounds of ``n`` processes'
+slowest wall seconds over ``n`` times the ``n``-thread render's: 1.00, the threads do
+the work as fast as ``n`` separate processes; less, the code's own overhead). Each
+process's frame must give one thread's bits too.
+
 Resolution: by default a fraction of the configs' own that renders in about a minute at
 one thread on a current core (``--quick``: 64 x 64, seconds; ``--full``: the configs' own
 resolution, minutes at one thread for Cornell, over ten for the conference room).
 
     python benchmarks/bench_threads.py [--configs configs/cornell_pmap.yaml ...]
                                        [--max-threads N | --threads 1 2 4 16] [--repeat 3]
-                                       [--quick | --full]
+                                       [--quick | --full] [--ceiling]
 """
 
 from __future__ import annotations
@@ -105,24 +116,61 @@ def timed(path: Path, overrides: list[str], threads: int):
     return time.perf_counter() - t0, res, time.process_time() - c0
 
 
-def bench(path: Path, overrides: list[str], counts: list[int], repeat: int) -> bool:
+def _one_process(path: Path, overrides: list[str], start, out) -> None:
+    """A process of :func:`processes`: warms up, waits at ``start`` (a barrier), renders
+    the frame on one thread and puts (wall seconds, CPU seconds, digest) on ``out``."""
+    timed(path, ["resolution=[8,8]"], 1)  # (loads the compiled kernels, as the bench's own warm-up)
+    start.wait()
+    seconds, got, used = timed(path, overrides, 1)
+    out.put((seconds, used, digest(got)))
+
+
+def processes(path: Path, overrides: list[str], n: int) -> list[tuple[float, float, str]]:
+    """``(wall seconds, CPU seconds, digest)`` of ``n`` one-thread renders of the frame run
+    at once, each in a spawned process of its own, started together after their warm-up."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("spawn")
+    start, out = ctx.Barrier(n + 1), ctx.Queue()
+    procs = [ctx.Process(target=_one_process, args=(path, overrides, start, out)) for _ in range(n)]
+    for p in procs:
+        p.start()
+    try:
+        start.wait(timeout=600)
+        got = [out.get(timeout=3600) for _ in range(n)]
+    finally:
+        for p in procs:
+            p.join(timeout=60)
+            if p.is_alive():
+                p.terminate()
+    if any(p.exitcode != 0 for p in procs):
+        raise RuntimeError(f"{path.name}: a one-thread render process failed (exit codes "
+                           f"{[p.exitcode for p in procs]})")
+    return got
+
+
+def bench(path: Path, overrides: list[str], counts: list[int], repeat: int, ceiling: bool = False) -> bool:
     """Print one config's table; returns whether every render gave one thread's bits.
 
     ``repeat`` rounds, each rendering at every thread count, in ascending order in even
     rounds and descending in odd ones, so that a machine that slows down or speeds up for
     a while weighs on both ends of a pair. The speed-up of a count is the best one-thread
     time over its best time; ``paired`` is the median over the rounds of the round's own
-    ratio (as ``bench_raytrace.py`` pairs tlm with Embree), which the bar reads."""
+    ratio (as ``bench_raytrace.py`` pairs tlm with Embree), which the bar reads. With
+    ``ceiling``, each round also runs :func:`processes` after every count above one."""
     print(f"\n{path.name} ({', '.join(overrides) or 'as configured'}; {repeat} round{'s' * (repeat > 1)})")
     print(f"{'threads':>7} {'seconds':>8} {'speed-up':>8} {'paired':>7} {'efficiency':>10} {'cores busy':>10} "
           f"{'CPU s':>7}  " + " ".join(f"{s:>9}" for s in STAGES) + "  digest")
     runs: dict[int, list[tuple[float, float, str, list[float]]]] = {n: [] for n in counts}
+    alone: dict[int, list[list[tuple[float, float, str]]]] = {n: [] for n in counts[1:]}  # (ceiling)
     for r in range(repeat):
         for n in counts if r % 2 == 0 else counts[::-1]:
             seconds, got, used = timed(path, overrides, n)
             stages = [sum(got.timer.seconds.get(k, 0.0) for k in keys) for keys in STAGES.values()]
             runs[n].append((seconds, used, digest(got), stages))
             del got  # (a whole frame's arrays: one at a time)
+            if ceiling and n > 1:
+                alone[n].append(processes(path, overrides, n))
     first = runs[counts[0]][0][2]
     same = True
     one = min(runs[1])[0]
@@ -141,6 +189,18 @@ def bench(path: Path, overrides: list[str], counts: list[int], repeat: int) -> b
                     f"{SPEEDUP_BAR}x; {available()} CPUs available)", indent="  ")
     verdict(same, f"{path.name}: radiance and work byte-identical at {', '.join(map(str, counts))} threads",
             indent="  ")
+    for n, rounds in alone.items() if ceiling else ():
+        slowest = [max(w for w, _, _ in procs) for procs in rounds]
+        cap = float(np.median([n * a[0] / w for a, w in zip(runs[1], slowest, strict=True)]))
+        share = float(np.median([w / (n * b[0]) for b, w in zip(runs[n], slowest, strict=True)]))
+        cpu = float(np.median([np.mean([c for _, c, _ in procs]) for procs in rounds]))
+        print(f"  ceiling: {n} one-thread renders at once, in {n} processes: the slowest {min(slowest):.2f} s "
+              f"(best of {len(rounds)}; CPU seconds each {cpu:.2f}, median): {n} frames {cap:.2f}x as fast as one "
+              f"alone, paired; {n} threads {share:.2f} of that")
+        digests = {d for procs in rounds for _, _, d in procs}
+        same &= digests == {first}
+        verdict(digests == {first}, f"{path.name}: each of the {n} processes' frames byte-identical to one "
+                f"thread's ({' '.join(sorted(digests))})", indent="  ")
     return same
 
 
@@ -155,6 +215,9 @@ def main() -> None:
     size = ap.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help=f"{QUICK_RESOLUTION[0]} x {QUICK_RESOLUTION[1]} pixels")
     size.add_argument("--full", action="store_true", help="the configs' own resolution")
+    ap.add_argument("--ceiling", action="store_true",
+                    help="also run N one-thread renders at once in N processes per thread count N (the "
+                         "machine's ceiling for this work)")
     args = ap.parse_args()
     if args.max_threads < 1 or args.repeat < 1:
         ap.error("--max-threads and --repeat must be >= 1")
@@ -171,7 +234,7 @@ def main() -> None:
         res = QUICK_RESOLUTION if args.quick else DEFAULT_RESOLUTION.get(path.stem, [128, 128])
         overrides = [] if args.full else [f"resolution=[{res[0]},{res[1]}]"]
         timed(path, ["resolution=[8,8]"], 1)  # loads the compiled kernels (and fills the scene cache)
-        bench(path, overrides, counts, args.repeat)
+        bench(path, overrides, counts, args.repeat, args.ceiling)
     if counts[-1] > 1:
         print(f"\nthe machine after: {counts[-1]} busy-loop processes at once each ran at "
               f"{spare_cores(counts[-1]):.2f}x one alone's speed")

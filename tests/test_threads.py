@@ -385,3 +385,23 @@ def test_the_numpy_engine_is_bit_identical_for_any_thread_count(small_chunks, mo
     one = _render(raw, 1)
     for n in (2, 2, 3):
         _same_render(one, _render(raw, n))
+
+
+@pytest.mark.slow
+def test_the_thread_bench_ceiling_renders_the_same_frame_in_each_process(monkeypatch):
+    """``bench_threads.py --ceiling``: the one-thread renders that run at once in processes
+    of their own (the machine's ceiling for the work) render the frame the bench renders,
+    bit for bit, and each reports its own wall and CPU seconds."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_threads
+
+    path = Path(__file__).resolve().parents[1] / "configs" / "cornell.yaml"
+    overrides = ["resolution=[12,10]"]
+    _, res, _ = bench_threads.timed(path, overrides, 1)
+    got = bench_threads.processes(path, overrides, 2)
+    assert len(got) == 2
+    assert {d for _, _, d in got} == {bench_threads.digest(res)}
+    assert all(w > 0 and c > 0 for w, c, _ in got)
+    # a process of another frame gives another digest: the comparison is of the frame
+    other = bench_threads.processes(path, ["resolution=[10,12]"], 1)
+    assert other[0][2] != bench_threads.digest(res)
