@@ -405,3 +405,62 @@ def test_the_thread_bench_ceiling_renders_the_same_frame_in_each_process(monkeyp
     # a process of another frame gives another digest: the comparison is of the frame
     other = bench_threads.processes(path, ["resolution=[10,12]"], 1)
     assert other[0][2] != bench_threads.digest(res)
+
+
+def _cgroups(tmp_path: Path, files: dict[str, str], self_lines: str) -> tuple[Path, Path]:
+    """A control-group tree under ``tmp_path`` (``files``: path -> text) and a
+    ``/proc/self/cgroup`` that places the process in it."""
+    root = tmp_path / "cgroup"
+    root.mkdir()
+    for rel, text in files.items():
+        f = root / rel
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text(text)
+    me = tmp_path / "self_cgroup"
+    me.write_text(self_lines)
+    return root, me
+
+
+@pytest.mark.parametrize("files, self_lines, cpus", [
+    ({"cpu.max": "max 100000\n"}, "0::/\n", None),  # cgroup v2, no quota
+    ({"cpu.max": "150000 100000\n"}, "0::/\n", 2),  # 1.5 CPUs: 2
+    ({"cpu.max": "800000 100000\n", "a/b/cpu.max": "100000 100000\n"}, "0::/a/b\n", 1),  # the smallest on the path
+    ({"a/cpu.max": "300000 100000\n", "a/b/cpu.max": "max 100000\n"}, "0::/a/b\n", 3),  # a parent's quota holds
+    ({"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}, "3:cpu,cpuacct:/\n", None),  # v1, none
+    ({"cpu,cpuacct/docker/x/cpu.cfs_quota_us": "250000\n", "cpu,cpuacct/docker/x/cpu.cfs_period_us": "100000\n"},
+     "5:memory:/docker/x\n4:cpu,cpuacct:/docker/x\n", 3),  # v1 in a container's group
+    ({"cpu.max": "lots 100000\n", "cpu/cpu.cfs_quota_us": "50000\n"}, "0::/\n", None),  # not understood: no guess
+    ({}, "", None),  # no control groups at all
+])
+def test_the_cpu_quota_is_read_from_the_control_groups(tmp_path, files, self_lines, cpus):
+    root, me = _cgroups(tmp_path, files, self_lines)
+    assert threads.quota_cpus(root, me) == cpus
+
+
+def test_the_cpus_available_stay_within_the_quota(monkeypatch, tmp_path):
+    """A container's CPU quota caps the default of ``render.threads`` and of a sweep's ``--jobs``."""
+    from tlm.experiments import sweep
+
+    mask = len(os.sched_getaffinity(0))
+    root, me = _cgroups(tmp_path, {"cpu.max": "100000 100000\n"}, "0::/\n")
+    monkeypatch.setattr(threads, "CGROUP_ROOT", root)
+    monkeypatch.setattr(threads, "SELF_CGROUP", me)
+    assert threads.available() == 1
+    with threads.using(None) as n:
+        assert n == 1 == threads.current()
+    seen = []
+
+    def no_pool(stack, jobs, dask, points):
+        seen.append(jobs)
+        raise KeyboardInterrupt  # (stops the sweep before it writes anything)
+
+    monkeypatch.setattr(sweep, "open_executor", no_pool)
+    path = tmp_path / "sweep.yaml"
+    path.write_text("base: {scene: cornell, mode: rcast, resolution: [8, 8]}\ngrid: {arch.page_miss_cycles: [0, 12]}\n")
+    with pytest.raises(KeyboardInterrupt):
+        sweep.run_sweep(path, tmp_path / "out")
+    assert seen == [1]
+    (root / "cpu.max").write_text(f"{100000 * (mask + 5)} 100000\n")  # a quota above the mask: the mask
+    assert threads.available() == mask
+    (root / "cpu.max").write_text("max 100000\n")
+    assert threads.available() == mask

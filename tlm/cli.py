@@ -339,9 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "(resumable)")
     sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml")
     sw.add_argument("--out", help="output folder (default: runs/<config name>)")
-    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPU count; 1 = in this process); "
-                    "a point that leaves render.threads null gets max(1, CPUs // workers) kernel threads, so "
-                    "--jobs x render.threads stays within the CPUs")
+    sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
+                    "render.threads; 1 = in this process); a point that leaves render.threads null gets "
+                    "max(1, CPUs // workers) kernel threads, so --jobs x render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "

@@ -75,7 +75,8 @@ class RenderConfig:
                          "(batch_rays / photons.max_bounces photons, or 4,096 where that is more) (memory only: "
                          "images and work do not depend on it; peak memory grows with it)", min=1)
     threads: int | None = _f(None, "threads the kernels run on (traversal, gathers, photon tracing); null = the "
-                             "CPUs available to the process (in a sweep of several --jobs: their share of them); "
+                             "CPUs available to the process (its affinity, within a container's CPU quota; in a "
+                             "sweep of several --jobs: their share of them); "
                              "speed only: images, work and cycles are bit-identical for every count", min=1)
 
 

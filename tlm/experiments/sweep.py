@@ -47,7 +47,6 @@ import concurrent.futures as cf
 import hashlib
 import itertools
 import json
-import os
 import re
 import shutil
 import sys
@@ -440,7 +439,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     """Run every point of the sweep file ``path`` not already done in ``out``."""
     t_start = time.perf_counter()
     if jobs is None:
-        jobs = os.cpu_count() or 1
+        from tlm.kernels.threads import available
+
+        jobs = available()  # (the affinity mask and a container's CPU quota, as render.threads)
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
     sweep = load_sweep(Path(path))  # loads every distinct programs table and scene

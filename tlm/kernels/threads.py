@@ -27,6 +27,7 @@ import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
 from typing import TypeVar
 
 T = TypeVar("T")
@@ -40,12 +41,82 @@ _POOLS: dict[int, ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
 
 
+CGROUP_ROOT = Path("/sys/fs/cgroup")  # where Linux mounts the control groups
+SELF_CGROUP = Path("/proc/self/cgroup")  # this process's control groups
+
+
 def available() -> int:
-    """The CPUs this process may run on (its affinity mask; the CPU count where there is none)."""
+    """The CPUs this process may run on: its affinity mask (the CPU count where there is
+    none), and no more than a CPU quota of its control groups allows (:func:`quota_cpus`:
+    a container limited to 2 CPUs of a 64-core machine sees 64 CPUs in its mask, and 64
+    threads there would wait their turns, each costing more CPU time, not less)."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # (no affinity on this platform)
-        return max(1, os.cpu_count() or 1)
+        cpus = max(1, os.cpu_count() or 1)
+    quota = quota_cpus()
+    return cpus if quota is None else max(1, min(cpus, quota))
+
+
+def _ancestors(path: str) -> list[str]:
+    """``a/b/c`` -> ``["a/b/c", "a/b", "a", ""]``: a control group and those above it."""
+    parts = [x for x in path.strip().split("/") if x]
+    return ["/".join(parts[:k]) for k in range(len(parts), -1, -1)]
+
+
+def quota_cpus(root: Path | None = None, self_cgroup: Path | None = None) -> int | None:
+    """The CPUs a CPU quota of this process's control groups allows, rounded up (1.5 CPUs:
+    2), the smallest along its groups' paths; None where no quota is set or none can be
+    read (not Linux, no control groups). cgroup v2: ``cpu.max`` (``"<quota> <period>"``,
+    ``max``: none); v1: ``cpu.cfs_quota_us`` over ``cpu.cfs_period_us`` (-1: none). The
+    groups are read from ``self_cgroup`` (default :data:`SELF_CGROUP`) under ``root``
+    (default :data:`CGROUP_ROOT`); a container sees its own group as the root."""
+    root = CGROUP_ROOT if root is None else Path(root)
+    self_cgroup = SELF_CGROUP if self_cgroup is None else Path(self_cgroup)
+    try:
+        lines = self_cgroup.read_text().splitlines()
+    except (OSError, UnicodeDecodeError):
+        lines = []
+    v2 = [""]  # (the root's own files: read even where the process's groups are not known)
+    v1 = {("cpu", ""), ("cpu,cpuacct", "")}
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        _, controllers, path = parts
+        if controllers == "":
+            v2 += _ancestors(path)
+        elif "cpu" in controllers.split(","):
+            for mount in {controllers, "cpu", "cpu,cpuacct"}:
+                v1 |= {(mount, a) for a in _ancestors(path)}
+    limits = []
+    for group in dict.fromkeys(v2):
+        fields = _read(root / group / "cpu.max").split()
+        if len(fields) == 2 and fields[0] != "max":
+            limits.append(_cpus(fields[0], fields[1]))
+    for mount, group in sorted(v1):
+        limits.append(_cpus(_read(root / mount / group / "cpu.cfs_quota_us"),
+                            _read(root / mount / group / "cpu.cfs_period_us")))
+    limits = [n for n in limits if n is not None]
+    return min(limits) if limits else None
+
+
+def _read(path: Path) -> str:
+    """A control-group file's text, stripped; empty where it cannot be read."""
+    try:
+        return path.read_text().strip()
+    except (OSError, UnicodeDecodeError):
+        return ""
+
+
+def _cpus(quota: str, period: str) -> int | None:
+    """``ceil(quota / period)`` of two integers' texts, both > 0; None otherwise (no quota,
+    or a file not there or not understood: never a guess)."""
+    try:
+        q, t = int(quota), int(period)
+    except ValueError:
+        return None
+    return -(-q // t) if q > 0 and t > 0 else None
 
 
 def current() -> int:
