@@ -380,8 +380,9 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
               progress: bool = False) -> Outcome:
     """Run every point of the sweep file ``path`` not already done in ``out`` (``tlm sweep``);
     returns the rows (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok,
-    failed, skipped and rendered. ``jobs``: worker processes (default the CPU count; 1: in
-    this process); ``dask``: ``"local"`` or a scheduler's address."""
+    failed, skipped and rendered. ``jobs``: worker processes (default the CPUs available to
+    the process, within a container's CPU quota, as for ``render.threads``; 1: in this
+    process); ``dask``: ``"local"`` or a scheduler's address."""
     from tlm.experiments.sweep import run_sweep as run_all
 
     return run_all(Path(path), Path(out), jobs=jobs, dask=dask, progress=progress)
