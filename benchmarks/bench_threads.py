@@ -117,17 +117,36 @@ def timed(path: Path, overrides: list[str], threads: int):
 
 
 def _one_process(path: Path, overrides: list[str], start, out) -> None:
-    """A process of :func:`processes`: warms up, waits at ``start`` (a barrier), renders
-    the frame on one thread and puts (wall seconds, CPU seconds, digest) on ``out``."""
+    """A process of :func:`processes`: warms up, says so on ``out``, waits at ``start`` (a
+    barrier), renders the frame on one thread and puts (wall seconds, CPU seconds, digest)
+    on ``out``."""
     timed(path, ["resolution=[8,8]"], 1)  # (loads the compiled kernels, as the bench's own warm-up)
+    out.put(None)
     start.wait()
     seconds, got, used = timed(path, overrides, 1)
     out.put((seconds, used, digest(got)))
 
 
+def _take(out, procs, n: int, what: str) -> list:
+    """``n`` messages from ``out``, or a RuntimeError as soon as a process has failed."""
+    import queue
+
+    got = []
+    while len(got) < n:
+        try:
+            got.append(out.get(timeout=1.0))
+        except queue.Empty:
+            failed = [p.exitcode for p in procs if p.exitcode not in (None, 0)]
+            if failed or all(p.exitcode is not None for p in procs):
+                raise RuntimeError(f"a one-thread render process failed {what} (exit codes "
+                                   f"{[p.exitcode for p in procs]})") from None
+    return got
+
+
 def processes(path: Path, overrides: list[str], n: int) -> list[tuple[float, float, str]]:
     """``(wall seconds, CPU seconds, digest)`` of ``n`` one-thread renders of the frame run
-    at once, each in a spawned process of its own, started together after their warm-up."""
+    at once, each in a spawned process of its own, started together after their warm-up;
+    a RuntimeError (at once, not at a timeout) where a process fails."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("spawn")
@@ -136,17 +155,15 @@ def processes(path: Path, overrides: list[str], n: int) -> list[tuple[float, flo
     for p in procs:
         p.start()
     try:
-        start.wait(timeout=600)
-        got = [out.get(timeout=3600) for _ in range(n)]
+        _take(out, procs, n, f"warming up on {path.name}")
+        start.wait(timeout=60)
+        return _take(out, procs, n, f"rendering {path.name}")
     finally:
         for p in procs:
-            p.join(timeout=60)
+            p.join(timeout=5)
             if p.is_alive():
                 p.terminate()
-    if any(p.exitcode != 0 for p in procs):
-        raise RuntimeError(f"{path.name}: a one-thread render process failed (exit codes "
-                           f"{[p.exitcode for p in procs]})")
-    return got
+                p.join()
 
 
 def bench(path: Path, overrides: list[str], counts: list[int], repeat: int, ceiling: bool = False) -> bool:

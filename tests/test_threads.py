@@ -405,6 +405,11 @@ def test_the_thread_bench_ceiling_renders_the_same_frame_in_each_process(monkeyp
     # a process of another frame gives another digest: the comparison is of the frame
     other = bench_threads.processes(path, ["resolution=[10,12]"], 1)
     assert other[0][2] != bench_threads.digest(res)
+    # a process that fails says so at once (a config that is not there), not at a timeout
+    t0 = time.perf_counter()
+    with pytest.raises(RuntimeError, match="failed warming up"):
+        bench_threads.processes(path.with_name("no_such_config.yaml"), overrides, 2)
+    assert time.perf_counter() - t0 < 60
 
 
 def _cgroups(tmp_path: Path, files: dict[str, str], self_lines: str) -> tuple[Path, Path]:
