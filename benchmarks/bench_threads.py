@@ -122,22 +122,29 @@ def _one_process(path: Path, overrides: list[str], start, out) -> None:
     on ``out``."""
     timed(path, ["resolution=[8,8]"], 1)  # (loads the compiled kernels, as the bench's own warm-up)
     out.put(None)
-    start.wait()
+    start.wait(timeout=600)  # (a bench that is gone leaves no process waiting for ever)
     seconds, got, used = timed(path, overrides, 1)
     out.put((seconds, used, digest(got)))
 
 
 def _take(out, procs, n: int, what: str) -> list:
-    """``n`` messages from ``out``, or a RuntimeError as soon as a process has failed."""
+    """``n`` messages from ``out``, or a RuntimeError as soon as a process has failed (or
+    all have ended without them)."""
     import queue
 
     got = []
     while len(got) < n:
         try:
             got.append(out.get(timeout=1.0))
+            continue
         except queue.Empty:
-            failed = [p.exitcode for p in procs if p.exitcode not in (None, 0)]
-            if failed or all(p.exitcode is not None for p in procs):
+            pass
+        failed = any(p.exitcode not in (None, 0) for p in procs)
+        if failed or all(p.exitcode is not None for p in procs):
+            try:  # (what a process put just before it ended)
+                while len(got) < n:
+                    got.append(out.get(timeout=0.5))
+            except queue.Empty:
                 raise RuntimeError(f"a one-thread render process failed {what} (exit codes "
                                    f"{[p.exitcode for p in procs]})") from None
     return got
@@ -146,24 +153,33 @@ def _take(out, procs, n: int, what: str) -> list:
 def processes(path: Path, overrides: list[str], n: int) -> list[tuple[float, float, str]]:
     """``(wall seconds, CPU seconds, digest)`` of ``n`` one-thread renders of the frame run
     at once, each in a spawned process of its own, started together after their warm-up;
-    a RuntimeError (at once, not at a timeout) where a process fails."""
+    a RuntimeError (at once, not at a timeout) where a process fails. The processes are
+    daemons: they end with the bench."""
     import multiprocessing
+    import threading
 
     ctx = multiprocessing.get_context("spawn")
     start, out = ctx.Barrier(n + 1), ctx.Queue()
-    procs = [ctx.Process(target=_one_process, args=(path, overrides, start, out)) for _ in range(n)]
+    procs = [ctx.Process(target=_one_process, args=(path, overrides, start, out), daemon=True) for _ in range(n)]
     for p in procs:
         p.start()
     try:
         _take(out, procs, n, f"warming up on {path.name}")
-        start.wait(timeout=60)
+        try:
+            start.wait(timeout=60)
+        except threading.BrokenBarrierError:
+            raise RuntimeError(f"a one-thread render process of {path.name} did not reach the start (exit codes "
+                               f"{[p.exitcode for p in procs]})") from None
         return _take(out, procs, n, f"rendering {path.name}")
     finally:
+        for p in procs:  # (every one stopped first, then each waited for)
+            if p.is_alive() and p.exitcode is None:
+                p.join(timeout=0.1)
         for p in procs:
-            p.join(timeout=5)
             if p.is_alive():
                 p.terminate()
-                p.join()
+        for p in procs:
+            p.join()
 
 
 def bench(path: Path, overrides: list[str], counts: list[int], repeat: int, ceiling: bool = False) -> bool:

@@ -434,6 +434,10 @@ def _cgroups(tmp_path: Path, files: dict[str, str], self_lines: str) -> tuple[Pa
     ({"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}, "3:cpu,cpuacct:/\n", None),  # v1, none
     ({"cpu,cpuacct/docker/x/cpu.cfs_quota_us": "250000\n", "cpu,cpuacct/docker/x/cpu.cfs_period_us": "100000\n"},
      "5:memory:/docker/x\n4:cpu,cpuacct:/docker/x\n", 3),  # v1 in a container's group
+    ({"cpu,cpuacct/cpu.cfs_quota_us": "200000\n", "cpu,cpuacct/cpu.cfs_period_us": "100000\n"},
+     "4:cpu,cpuacct:/docker/x\n", 2),  # v1 in Docker: the container's group mounted as the root
+    ({"cpu.max": "200000 100000\n"}, "0::/system.slice/docker-x.scope\n", 2),  # v2 likewise
+    ({"cpu.max": "300000 100000\n", "../cpu.max": "100000 100000\n"}, "0::/../x\n", 3),  # no path leaves the mount
     ({"cpu.max": "lots 100000\n", "cpu/cpu.cfs_quota_us": "50000\n"}, "0::/\n", None),  # not understood: no guess
     ({}, "", None),  # no control groups at all
 ])
@@ -446,10 +450,12 @@ def test_the_cpus_available_stay_within_the_quota(monkeypatch, tmp_path):
     """A container's CPU quota caps the default of ``render.threads`` and of a sweep's ``--jobs``."""
     from tlm.experiments import sweep
 
-    mask = len(os.sched_getaffinity(0))
-    root, me = _cgroups(tmp_path, {"cpu.max": "100000 100000\n"}, "0::/\n")
+    root, me = _cgroups(tmp_path, {}, "")
     monkeypatch.setattr(threads, "CGROUP_ROOT", root)
     monkeypatch.setattr(threads, "SELF_CGROUP", me)
+    mask = threads.available()  # (no quota: the affinity mask, or the CPU count)
+    (root / "cpu.max").write_text("100000 100000\n")
+    (me).write_text("0::/\n")
     assert threads.available() == 1
     with threads.using(None) as n:
         assert n == 1 == threads.current()

@@ -59,8 +59,12 @@ def available() -> int:
 
 
 def _ancestors(path: str) -> list[str]:
-    """``a/b/c`` -> ``["a/b/c", "a/b", "a", ""]``: a control group and those above it."""
+    """``a/b/c`` -> ``["a/b/c", "a/b", "a", ""]``: a control group and those above it
+    (only ``""``, the root as this process sees it, for a group outside its namespace's
+    root, ``/../x``: no path leaves the mount)."""
     parts = [x for x in path.strip().split("/") if x]
+    if any(x in (".", "..") for x in parts):
+        return [""]
     return ["/".join(parts[:k]) for k in range(len(parts), -1, -1)]
 
 
@@ -70,7 +74,8 @@ def quota_cpus(root: Path | None = None, self_cgroup: Path | None = None) -> int
     read (not Linux, no control groups). cgroup v2: ``cpu.max`` (``"<quota> <period>"``,
     ``max``: none); v1: ``cpu.cfs_quota_us`` over ``cpu.cfs_period_us`` (-1: none). The
     groups are read from ``self_cgroup`` (default :data:`SELF_CGROUP`) under ``root``
-    (default :data:`CGROUP_ROOT`); a container sees its own group as the root."""
+    (default :data:`CGROUP_ROOT`, where Linux mounts them; a controller mounted elsewhere is
+    not read); a container sees its own group as the root."""
     root = CGROUP_ROOT if root is None else Path(root)
     self_cgroup = SELF_CGROUP if self_cgroup is None else Path(self_cgroup)
     try:
