@@ -475,3 +475,43 @@ def test_the_cpus_available_stay_within_the_quota(monkeypatch, tmp_path):
     assert threads.available() == mask
     (root / "cpu.max").write_text("max 100000\n")
     assert threads.available() == mask
+
+
+def test_a_dask_workers_points_share_its_machines_cpus(monkeypatch):
+    """On a Dask cluster the sweep cannot size a point's threads (the machines are not its
+    own): a point sizes itself on its worker, the CPUs over the task slots of every worker
+    on that machine; outside a worker, nothing changes."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    from tlm.experiments.executors import dask_worker_threads
+
+    assert dask_worker_threads() is None  # (not in a worker)
+    monkeypatch.setattr(threads, "available", lambda: 16)
+    with LocalCluster(n_workers=2, threads_per_worker=3, processes=False, dashboard_address="127.0.0.1:0",
+                      scheduler_kwargs={"dashboard": False}, silence_logs=logging.CRITICAL) as cluster, \
+            Client(cluster) as client:
+        assert client.submit(dask_worker_threads, pure=False).result() == 16 // 6  # two workers of 3 slots here
+
+
+def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeypatch, tmp_path):
+    from tlm.experiments import sweep
+
+    seen = []
+
+    def render_nothing(cfg, folder, source):
+        seen.append(cfg.render.threads)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(sweep, "cached_render", render_nothing)
+    monkeypatch.setattr(sweep, "dask_worker_threads", lambda: 3)
+    base = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8]}
+    task = sweep.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "p"), {}, threads=None)
+    assert sweep.run_point(task)["status"] == "failed"
+    task = sweep.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "q"), {}, threads=2)
+    sweep.run_point(task)
+    task = sweep.Task("h", {**base, "render": {"threads": 5}}, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "r"),
+                      {}, threads=None)
+    sweep.run_point(task)
+    assert seen == [3, 2, 5]  # the worker's share; the sweep's; the config's own

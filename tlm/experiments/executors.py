@@ -348,8 +348,8 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     """The ``render.threads`` of a point whose config leaves it null, so that the local
     workers' kernel threads share the CPUs without oversubscribing them: the CPUs
     available over the worker processes (:func:`open_executor`'s), at least one. None (the
-    worker's own CPUs) for one worker and for a remote Dask cluster, whose machines are
-    not this one."""
+    worker's own CPUs) for one worker, and for a remote Dask cluster, whose machines are
+    not this one: there each point sizes itself (:func:`dask_worker_threads`)."""
     from tlm.kernels.threads import available
 
     if dask not in (None, "local"):
@@ -358,6 +358,41 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     if workers <= 1:
         return None
     return max(1, available() // workers)
+
+
+def dask_worker_threads() -> int | None:
+    """In a Dask worker: the ``render.threads`` of a point whose config leaves it null (the
+    sweep could not size it: the workers' machines are not the sweep's), the CPUs
+    available here over the task slots of every worker on this machine (their ``nthreads``
+    summed, as the scheduler lists them), at least one: the points that run at once on a
+    machine share its CPUs. A worker of 32 threads on a 32-core machine runs 32 points at
+    once, each on one thread, where each would otherwise take all 32. None outside a Dask
+    worker; where the scheduler cannot be asked, this worker's own slots alone."""
+    if "distributed" not in sys.modules:  # (not imported: not a Dask worker)
+        return None
+    from urllib.parse import urlparse
+
+    from distributed import get_client, get_worker
+
+    from tlm.kernels.threads import available
+
+    try:
+        worker = get_worker()
+    except ValueError:  # (not in a worker's task)
+        return None
+    slots = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
+    try:
+        host = urlparse(worker.address).hostname
+        client = get_client()
+        try:
+            listed = client.scheduler_info(n_workers=-1)["workers"]
+        except TypeError:  # (an older distributed lists every worker without being asked)
+            listed = client.scheduler_info()["workers"]
+        on_host = [int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host]
+        slots = max(slots, sum(on_host))
+    except (OSError, KeyError, ValueError, AttributeError):  # (speed only: this worker's slots will do)
+        pass
+    return max(1, available() // slots)
 
 
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:

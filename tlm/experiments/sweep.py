@@ -63,7 +63,7 @@ import yaml
 from tlm import storage
 from tlm.config import config_from_dict, read_yaml, to_dict
 from tlm.errors import InputError
-from tlm.experiments.executors import InProcess, LocalPool, kernel_threads, open_executor
+from tlm.experiments.executors import InProcess, LocalPool, dask_worker_threads, kernel_threads, open_executor
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
 from tlm.experiments.provenance import git_revision, versions
 from tlm.fingerprint import code_fingerprint
@@ -287,7 +287,8 @@ def run_point(task: Task) -> dict:
     stage = "functional"
     t0 = time.perf_counter()
     try:
-        cfg = config_from_dict(_with_threads(task.config, task.threads), task.source)
+        threads = task.threads if task.threads is not None else dask_worker_threads()
+        cfg = config_from_dict(_with_threads(task.config, threads), task.source)
         folder = Path(task.folder)
         got = cached_render(cfg, folder, task.source)
         t1 = time.perf_counter()
