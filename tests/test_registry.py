@@ -135,3 +135,31 @@ def test_the_registries_load_their_providers_lazily():
             "assert 'tlm.render.estimators' in sys.modules")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "mvoxel" in out
+
+
+def test_threads_that_ask_while_the_providers_load_wait_for_them(tmp_path, monkeypatch):
+    """Two threads ask a registry at once (a Dask worker running two points): the one that
+    comes while the other imports the providers waits and sees every name, where it saw an
+    empty registry marked loaded (``arch.scheduler: 'static' is not one of ...``)."""
+    import threading
+    import time
+
+    (tmp_path / "slow_provider_reg.py").write_text(
+        "from tlm.registry import Registry\nTHINGS = Registry('thing', ('slow_provider_mod',), 'tlm.no-such-group')\n")
+    (tmp_path / "slow_provider_mod.py").write_text(
+        "import time\ntime.sleep(0.5)\nfrom slow_provider_reg import THINGS\n\n\n"
+        "@THINGS.register('slow')\nclass Slow:\n    pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from slow_provider_reg import THINGS
+
+    seen = {}
+
+    def ask(who):
+        seen[who] = THINGS.names()
+
+    first = threading.Thread(target=ask, args=("first",))
+    first.start()
+    time.sleep(0.1)  # (the first is inside the provider's import)
+    ask("second")
+    first.join()
+    assert seen == {"first": ("slow",), "second": ("slow",)}

@@ -21,6 +21,7 @@ own package can add one without editing tlm. docs/architecture.md shows both.
 from __future__ import annotations
 
 import importlib
+import threading
 from collections.abc import Callable, Iterator
 from importlib.metadata import entry_points
 
@@ -36,6 +37,7 @@ class Registry:
         self.group = group  # entry-point group of other packages' classes
         self._classes: dict[str, type] = {}
         self._loaded = False
+        self._lock = threading.RLock()  # (threads that ask at once wait for one load)
 
     def register(self, name: str) -> Callable[[type], type]:
         """Class decorator: the class is what the config value ``name`` selects."""
@@ -50,15 +52,22 @@ class Registry:
         return add
 
     def _load(self) -> None:
+        """Import the providers and the entry points' classes, once. A thread that asks
+        while another loads waits for it (a Dask worker runs several points at once: one
+        that saw a registry marked loaded but still empty rejected ``arch.scheduler:
+        static``); the registry is marked loaded only when it is."""
         if self._loaded:
             return
-        self._loaded = True
-        for module in self.providers:
-            importlib.import_module(module)
-        for ep in entry_points(group=self.group):
-            cls = ep.load()
-            if ep.name not in self._classes:
-                self.register(ep.name)(cls)
+        with self._lock:
+            if self._loaded:
+                return
+            for module in self.providers:
+                importlib.import_module(module)
+            for ep in entry_points(group=self.group):
+                cls = ep.load()
+                if ep.name not in self._classes:
+                    self.register(ep.name)(cls)
+            self._loaded = True
 
     def names(self) -> tuple[str, ...]:
         """The registered names, built-in ones first in the order they were registered."""
