@@ -68,18 +68,24 @@ def main() -> None:
         folder = Path(tmp)
         env = {**os.environ, "TLM_CACHE": str(folder / "cache")}  # (the worker's cache: this run's alone)
         log = open(folder / "cluster.log", "w")  # noqa: SIM115 (open while the cluster runs)
-        daemons = [subprocess.Popen(["dask", "scheduler", "--port", str(port), "--no-dashboard"], stdout=log,
-                                    stderr=subprocess.STDOUT, env=env)]
+        daemons = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                     "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env)]
         try:
-            time.sleep(3)
             daemons.append(subprocess.Popen(["dask", "worker", address, "--nthreads", str(args.slots), "--nworkers",
                                              "1", "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env))
+            from distributed import Client
+
+            with Client(address, timeout=60) as client:  # (the scheduler up, and the worker joined)
+                client.wait_for_workers(1, timeout=120)
             print(f"{cpus} CPUs available; one Dask worker of {args.slots} task slots; {args.points} points a sweep, "
                   f"cornell pmap {args.resolution} x {args.resolution}")
             # an untimed sweep first: the worker loads tlm and the compiled kernels once
             warm = sweep_file(folder, "warm", None, [10**6, 10**6 + 1], 16)
-            subprocess.run([sys.executable, "-m", "tlm", "sweep", str(warm), "--out", str(folder / "out_warm"),
-                            "--dask", address, "--no-progress"], capture_output=True, env=env, timeout=3600, check=True)
+            done = subprocess.run([sys.executable, "-m", "tlm", "sweep", str(warm), "--out", str(folder / "out_warm"),
+                                   "--dask", address, "--no-progress"], capture_output=True, text=True, env=env,
+                                  timeout=3600)
+            if done.returncode != 0:
+                raise SystemExit(f"the warm-up sweep failed ({done.returncode}): {done.stdout}{done.stderr}")
             seconds: dict[str, list[float]] = {"null": [], str(cpus): []}
             seed = 1
             for r in range(args.repeat):
@@ -98,9 +104,13 @@ def main() -> None:
                     seconds[name].append(wall)
                     print(f"  round {r + 1}: render.threads {name:>4}: {wall:6.2f} s", flush=True)
         finally:
-            for p in reversed(daemons):
+            for p in reversed(daemons):  # (the worker, then the scheduler; each killed if it lingers)
                 p.terminate()
-                p.wait(timeout=30)
+                try:
+                    p.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
             log.close()
     ratio = float(np.median(np.array(seconds["null"]) / np.array(seconds[str(cpus)])))
     print(f"points that size their threads: {min(seconds['null']):.2f} s (best), each point on every CPU: "

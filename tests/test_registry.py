@@ -163,3 +163,20 @@ def test_threads_that_ask_while_the_providers_load_wait_for_them(tmp_path, monke
     ask("second")
     first.join()
     assert seen == {"first": ("slow",), "second": ("slow",)}
+
+
+def test_a_provider_that_asks_its_own_registry_while_it_loads_gets_what_is_there(tmp_path, monkeypatch):
+    """A provider module that asks its registry during its own import gets the names
+    registered so far (no deadlock, no second load), and every later question all of them."""
+    (tmp_path / "self_asking_reg.py").write_text(
+        "from tlm.registry import Registry\nTHINGS = Registry('thing', ('self_asking_mod',), 'tlm.no-such-group')\n")
+    (tmp_path / "self_asking_mod.py").write_text(
+        "from self_asking_reg import THINGS\n\n\n@THINGS.register('a')\nclass A:\n    pass\n\n\n"
+        "SEEN = THINGS.names()\n\n\n@THINGS.register('b')\nclass B:\n    pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from self_asking_reg import THINGS
+
+    assert THINGS.names() == ("a", "b")
+    import self_asking_mod
+
+    assert self_asking_mod.SEEN == ("a",)

@@ -483,16 +483,30 @@ def test_a_dask_workers_points_share_its_machines_cpus(monkeypatch):
     on that machine; outside a worker, nothing changes."""
     import logging
 
+    import distributed
     from distributed import Client, LocalCluster
 
+    from tlm.experiments import executors
     from tlm.experiments.executors import dask_worker_threads
 
     assert dask_worker_threads() is None  # (not in a worker)
     monkeypatch.setattr(threads, "available", lambda: 16)
+    monkeypatch.setattr(executors, "_SLOTS", {})
     with LocalCluster(n_workers=2, threads_per_worker=3, processes=False, dashboard_address="127.0.0.1:0",
                       scheduler_kwargs={"dashboard": False}, silence_logs=logging.CRITICAL) as cluster, \
             Client(cluster) as client:
-        assert client.submit(dask_worker_threads, pure=False).result() == 16 // 6  # two workers of 3 slots here
+        for address in client.scheduler_info(n_workers=-1)["workers"]:  # (each worker asks the scheduler once)
+            got = client.submit(dask_worker_threads, pure=False, workers=[address]).result()
+            assert got == 16 // 6  # two workers of 3 slots here
+
+        def unreachable(*args, **kwargs):
+            raise RuntimeError("no scheduler")
+
+        monkeypatch.setattr(distributed, "get_client", unreachable)
+        got = client.map(lambda _: dask_worker_threads(), range(8), pure=False)
+        assert set(client.gather(got)) == {16 // 6}  # what the scheduler said, kept: not asked again
+        executors._SLOTS.clear()
+        assert client.submit(dask_worker_threads, pure=False).result() == 16 // 3  # unreachable: its own slots
 
 
 def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeypatch, tmp_path):

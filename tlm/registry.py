@@ -27,6 +27,8 @@ from importlib.metadata import entry_points
 
 from tlm.errors import InputError, did_you_mean
 
+_LOAD_LOCK = threading.RLock()  # held while a registry imports its providers (see Registry._load)
+
 
 class Registry:
     """Named classes of one kind, filled by :meth:`register` and by its provider modules."""
@@ -37,7 +39,7 @@ class Registry:
         self.group = group  # entry-point group of other packages' classes
         self._classes: dict[str, type] = {}
         self._loaded = False
-        self._lock = threading.RLock()  # (threads that ask at once wait for one load)
+        self._loading = False  # (set while this registry's providers are imported)
 
     def register(self, name: str) -> Callable[[type], type]:
         """Class decorator: the class is what the config value ``name`` selects."""
@@ -58,16 +60,20 @@ class Registry:
         static``); the registry is marked loaded only when it is."""
         if self._loaded:
             return
-        with self._lock:
-            if self._loaded:
+        with _LOAD_LOCK:  # (one lock for every registry: no two threads wait on each other's)
+            if self._loaded or self._loading:  # (a provider asking its own registry: what it has so far)
                 return
-            for module in self.providers:
-                importlib.import_module(module)
-            for ep in entry_points(group=self.group):
-                cls = ep.load()
-                if ep.name not in self._classes:
-                    self.register(ep.name)(cls)
-            self._loaded = True
+            self._loading = True
+            try:
+                for module in self.providers:
+                    importlib.import_module(module)
+                for ep in entry_points(group=self.group):
+                    cls = ep.load()
+                    if ep.name not in self._classes:
+                        self.register(ep.name)(cls)
+                self._loaded = True
+            finally:
+                self._loading = False
 
     def names(self) -> tuple[str, ...]:
         """The registered names, built-in ones first in the order they were registered."""

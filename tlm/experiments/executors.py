@@ -360,18 +360,22 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     return max(1, available() // workers)
 
 
+_SLOTS: dict[str, tuple[float, int]] = {}  # a Dask worker's address -> (when asked, slots on its machine)
+SLOTS_TTL = 60.0  # seconds a worker keeps what the scheduler said (a point asks once a minute at most)
+
+
 def dask_worker_threads() -> int | None:
     """In a Dask worker: the ``render.threads`` of a point whose config leaves it null (the
     sweep could not size it: the workers' machines are not the sweep's), the CPUs
     available here over the task slots of every worker on this machine (their ``nthreads``
-    summed, as the scheduler lists them), at least one: the points that run at once on a
-    machine share its CPUs. A worker of 32 threads on a 32-core machine runs 32 points at
-    once, each on one thread, where each would otherwise take all 32. None outside a Dask
-    worker; where the scheduler cannot be asked, this worker's own slots alone."""
+    summed, the machine as the scheduler names it for this worker), at least one: the
+    points that run at once on a machine share its CPUs. A worker of 32 threads on a
+    32-core machine runs 32 points at once, each on one thread, where each would
+    otherwise take all 32. None outside a Dask worker. Where the scheduler cannot be asked
+    (or says something not understood), this worker's own slots; what it said is kept for
+    :data:`SLOTS_TTL` seconds. Speed only: no error leaves it."""
     if "distributed" not in sys.modules:  # (not imported: not a Dask worker)
         return None
-    from urllib.parse import urlparse
-
     from distributed import get_client, get_worker
 
     from tlm.kernels.threads import available
@@ -380,18 +384,24 @@ def dask_worker_threads() -> int | None:
         worker = get_worker()
     except ValueError:  # (not in a worker's task)
         return None
-    slots = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
-    try:
-        host = urlparse(worker.address).hostname
-        client = get_client()
+    own = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
+    now = time.monotonic()
+    kept = _SLOTS.get(worker.address)
+    if kept is not None and now - kept[0] < SLOTS_TTL:
+        slots = kept[1]
+    else:
+        slots = own
         try:
-            listed = client.scheduler_info(n_workers=-1)["workers"]
-        except TypeError:  # (an older distributed lists every worker without being asked)
-            listed = client.scheduler_info()["workers"]
-        on_host = [int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host]
-        slots = max(slots, sum(on_host))
-    except (OSError, KeyError, ValueError, AttributeError):  # (speed only: this worker's slots will do)
-        pass
+            client = get_client(timeout=5)
+            try:
+                listed = client.scheduler_info(n_workers=-1)["workers"]
+            except TypeError:  # (an older distributed lists every worker without being asked)
+                listed = client.scheduler_info()["workers"]
+            host = listed[worker.address]["host"]  # (the scheduler's own name of this machine)
+            slots = max(own, sum(int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host))
+        except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
+            slots = own
+        _SLOTS[worker.address] = (now, slots)
     return max(1, available() // slots)
 
 
