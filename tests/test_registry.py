@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import importlib
 import json
 import shutil
 import sys
@@ -137,6 +138,16 @@ def test_the_registries_load_their_providers_lazily():
     assert "mvoxel" in out
 
 
+def _registry_of(tmp_path, monkeypatch, name: str, provider: str) -> Registry:
+    """A registry in module ``<name>_reg`` whose one provider is module ``<name>_mod`` of
+    source ``provider`` (``{IMPORT}``: the line that imports the registry as ``THINGS``)."""
+    (tmp_path / f"{name}_reg.py").write_text(
+        f"from tlm.registry import Registry\nTHINGS = Registry('thing', ('{name}_mod',), 'tlm.no-such-group')\n")
+    (tmp_path / f"{name}_mod.py").write_text(provider.replace("{IMPORT}", f"from {name}_reg import THINGS"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return importlib.import_module(f"{name}_reg").THINGS
+
+
 def test_threads_that_ask_while_the_providers_load_wait_for_them(tmp_path, monkeypatch):
     """Two threads ask a registry at once (a Dask worker running two points): the one that
     comes while the other imports the providers waits and sees every name, where it saw an
@@ -144,18 +155,14 @@ def test_threads_that_ask_while_the_providers_load_wait_for_them(tmp_path, monke
     import threading
     import time
 
-    (tmp_path / "slow_provider_reg.py").write_text(
-        "from tlm.registry import Registry\nTHINGS = Registry('thing', ('slow_provider_mod',), 'tlm.no-such-group')\n")
-    (tmp_path / "slow_provider_mod.py").write_text(
-        "import time\ntime.sleep(0.5)\nfrom slow_provider_reg import THINGS\n\n\n"
-        "@THINGS.register('slow')\nclass Slow:\n    pass\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    from slow_provider_reg import THINGS
+    things = _registry_of(tmp_path, monkeypatch, "slow_provider",
+                          "import time\ntime.sleep(0.5)\n{IMPORT}\n\n\n"
+                          "@THINGS.register('slow')\nclass Slow:\n    pass\n")
 
     seen = {}
 
     def ask(who):
-        seen[who] = THINGS.names()
+        seen[who] = things.names()
 
     first = threading.Thread(target=ask, args=("first",))
     first.start()
@@ -168,15 +175,10 @@ def test_threads_that_ask_while_the_providers_load_wait_for_them(tmp_path, monke
 def test_a_provider_that_asks_its_own_registry_while_it_loads_gets_what_is_there(tmp_path, monkeypatch):
     """A provider module that asks its registry during its own import gets the names
     registered so far (no deadlock, no second load), and every later question all of them."""
-    (tmp_path / "self_asking_reg.py").write_text(
-        "from tlm.registry import Registry\nTHINGS = Registry('thing', ('self_asking_mod',), 'tlm.no-such-group')\n")
-    (tmp_path / "self_asking_mod.py").write_text(
-        "from self_asking_reg import THINGS\n\n\n@THINGS.register('a')\nclass A:\n    pass\n\n\n"
-        "SEEN = THINGS.names()\n\n\n@THINGS.register('b')\nclass B:\n    pass\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    from self_asking_reg import THINGS
-
-    assert THINGS.names() == ("a", "b")
+    things = _registry_of(tmp_path, monkeypatch, "self_asking",
+                          "{IMPORT}\n\n\n@THINGS.register('a')\nclass A:\n    pass\n\n\n"
+                          "SEEN = THINGS.names()\n\n\n@THINGS.register('b')\nclass B:\n    pass\n")
+    assert things.names() == ("a", "b")
     import self_asking_mod
 
     assert self_asking_mod.SEEN == ("a",)
