@@ -10,6 +10,8 @@ not given). With ``output=1`` it returns a dict with ``primID`` (-1 on a miss),
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -173,3 +175,32 @@ def test_shadow_rays_agree_with_embree(traced):
         agree_total += int(agree.sum())
     assert total > 0
     assert agree_total / total >= 0.999
+
+
+def test_the_raytrace_bench_walk_floor_walks_the_same_tree_and_tests_nothing(monkeypatch):
+    """``bench_raytrace.py``'s walk floor (:func:`free_leaves`): the compiled kernel on the
+    copy enters the same inner nodes as on the accel, reaches the end of each ray's walk
+    (every crossed leaf listed, as the unoccluded rays do on the accel), and tests no
+    triangle, so the floor times the walk alone; the accel itself keeps its leaves."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    monkeypatch.setenv("TLM_KERNELS", "numba")
+    import bench_raytrace
+
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    o, d = primary_rays(scene.camera, np.arange(0, scene.camera.width * scene.camera.height, 7))
+    hits = closest_hit(accel, o, d, shared_origin=True)
+    so, sd, sign, rel = bench_raytrace.shadow_rays(scene, accel, hits, o, d)
+    full = any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
+    walk = bench_raytrace.free_leaves(accel)
+    floor = any_hit(walk, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
+    assert full.occluded.any() and not floor.occluded.any()
+    assert (floor.counts.node_visits == full.counts.node_visits).all()
+    free = ~full.occluded
+    assert (floor.counts.leaf_visits[free] == full.counts.leaf_visits[free]).all()
+    assert (floor.counts.leaf_visits[~free] >= full.counts.leaf_visits[~free]).all()
+    assert not floor.counts.tri_tests.any() and full.counts.tri_tests.all()
+    eye = closest_hit(walk, o, d, shared_origin=True)
+    assert (eye.triangle < 0).all() and (eye.counts.node_visits == hits.counts.node_visits).all()
+    again = any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
+    assert (again.occluded == full.occluded).all() and (again.counts.tri_tests == full.counts.tri_tests).all()
