@@ -25,7 +25,8 @@ lists the crossed leaves, the checks and the Python around the kernel, with tria
 tests that cost nothing. Its paired ratio against Embree is the best any faster leaf
 test could reach on this tree; for Cornell the bench prints what the bar of 1/2 leaves
 the leaf tests (twice Embree's time less the floor, the median of the rounds) against
-what they take now (the kernel's time less the floor).
+what they take now (the kernel's time less the floor). The ``spread`` columns are each
+engine's median round over its best: how far the machine's speed moved under each.
 
     python benchmarks/bench_raytrace.py [--scenes cornell ring room] [--repeat 5] [--levels 8 10]
 """
@@ -120,6 +121,10 @@ class Paired:
         """The median of the rounds' ratios ``times`` / Embree's."""
         return float(np.median(times / self.theirs))
 
+    def spread(self, times: np.ndarray) -> float:
+        """The median round over the best one: how much the machine's speed moved."""
+        return float(np.median(times) / times.min())
+
     def leaf_seconds(self) -> float:
         """What the leaf tests take: the median of the rounds' kernel less floor."""
         return float(np.median(self.ours - self.floor))
@@ -203,7 +208,7 @@ def main() -> None:
         ap.error("--levels must be between 0 and 24 (the BSP builder's range)")
     print(f"{'scene':8s} {'levels':>6s} {'rays':>8s} {'kind':8s} {'tlm Mrays/s':>12s} {'numpy Mrays/s':>14s} "
           f"{'embree Mrays/s':>15s} {'tlm/embree':>11s} {'paired':>8s} {'walk floor':>11s} {'numpy/embree':>13s} "
-          f"{'nodes/ray':>10s} {'leaves/ray':>11s} {'tests/ray':>10s}")
+          f"{'nodes/ray':>10s} {'leaves/ray':>11s} {'tests/ray':>10s} {'spread tlm':>11s} {'spread embree':>14s}")
     verdicts, budgets = [], []
     for name, depth in ((name, depth) for name in args.scenes for depth in [None, *args.levels]):
         levels, rows = bench_scene(name, args.repeat, depth)
@@ -213,7 +218,8 @@ def main() -> None:
             print(f"{name:8s} {levels:6d} {n:8d} {kind:8s} {n / t_ours / 1e6:12.3f} {n / t_np / 1e6:14.3f} "
                   f"{n / t_emb / 1e6:15.3f} {'1/' + format(t_ours / t_emb, '.1f'):>11s} "
                   f"{'1/' + format(ratio, '.1f'):>8s} {'1/' + format(times.ratio(times.floor), '.1f'):>11s} "
-                  f"{'1/' + format(t_np / t_emb, '.1f'):>13s} {nodes:10.1f} {leaves:11.2f} {tests:10.1f}")
+                  f"{'1/' + format(t_np / t_emb, '.1f'):>13s} {nodes:10.1f} {leaves:11.2f} {tests:10.1f} "
+                  f"{times.spread(times.ours):11.2f} {times.spread(times.theirs):14.2f}")
             if name == "cornell" and depth is None:
                 for issue, bar in BARS:
                     verdicts.append((ratio <= bar, f"Cornell {kind} rays at 1/{ratio:.1f} of Embree's rate "
