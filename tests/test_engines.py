@@ -281,6 +281,28 @@ def test_the_compiled_ray_checks_are_numpys():
     assert _jit.same_rows(np.zeros((0, 3))) and not _jit.same_rows(np.full((1, 3), np.nan))
 
 
+def test_the_compiled_id_passes_are_numpys():
+    """``_traverse_jit``'s one-pass flags of the ignored ids and its triangle ids of the
+    hit slots, against the numpy expressions they replace: ids at int32's limits, -1 and
+    below, none, and slots of an accel with no triangles."""
+    from tlm.kernels import _jit
+
+    top = np.iinfo(np.int32).max
+    specials = np.array([-(2**40), -2, -1, 0, 1, 7, top - 1, top, top + 1, 2**40], dtype=np.int64)
+    rng = np.random.default_rng(6)
+    for n in [0, *rng.integers(1, 9, size=3000)]:
+        ig = specials[rng.integers(0, specials.shape[0], size=n)]
+        outside = (ig < 0) | (ig > top)
+        has, remap = _jit.ignore_flags(ig)
+        assert has == bool((np.where(outside, -1, ig) >= 0).any()), ig
+        assert remap == bool((np.where(outside, -1, ig) != ig).any()), ig
+    ids = rng.integers(0, 1000, size=50)
+    slot = rng.integers(-1, 50, size=2000)
+    assert np.array_equal(_jit.triangles_of(slot, ids), np.where(slot >= 0, ids[np.maximum(slot, 0)], -1))
+    none = np.full(5, -1, dtype=np.int64)
+    assert np.array_equal(_jit.triangles_of(none, np.zeros(0, dtype=np.int64)), none)
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

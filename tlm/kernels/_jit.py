@@ -773,3 +773,32 @@ def same_rows(o):
         if not ((o[i, 0] == o[0, 0]) and (o[i, 1] == o[0, 1]) and (o[i, 2] == o[0, 2])):
             return False
     return o.shape[0] == 0 or ((o[0, 0] == o[0, 0]) and (o[0, 1] == o[0, 1]) and (o[0, 2] == o[0, 2]))
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def ignore_flags(ignore):
+    """What :func:`tlm.kernels.traverse._traverse_jit` asks of the ignored triangle ids
+    ``ignore`` (r,) int64, in one pass: ``has``, some id a triangle can have (0 up to
+    int32's largest: the kernel compares ids as int32), and ``remap``, some id outside
+    that range other than -1 (numpy's ``((ignore < -1) | (ignore > 2**31 - 1)).any()``:
+    those become -1, none; -1 already is)."""
+    has = 0  # (counts, without branches: the loop vectorizes)
+    remap = 0
+    top = np.int64(np.iinfo(np.int32).max)
+    for i in range(ignore.shape[0]):
+        x = ignore[i]
+        has += np.int64((x >= 0) & (x <= top))
+        remap += np.int64((x < -1) | (x > top))
+    return has > 0, remap > 0
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def triangles_of(slot, ids):
+    """The triangle id of each accel slot ``slot`` (r,) int64 (-1: no hit) through
+    ``ids`` (m,): numpy's ``np.where(slot >= 0, ids[np.maximum(slot, 0)], -1)``, in one
+    pass (``ids`` is not read where no slot is)."""
+    out = np.empty(slot.shape[0], dtype=np.int64)
+    for i in range(slot.shape[0]):
+        s = slot[i]
+        out[i] = ids[s] if s >= 0 else -1
+    return out

@@ -200,8 +200,12 @@ def _prepare(origins, directions, tmin, tmax, ignore):
     r = o.shape[0]
     if d.shape[0] != r:
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
-    tmin = np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0)
-    tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,)))
+    tmin, tmax = np.asarray(tmin, dtype=np.float64), np.asarray(tmax, dtype=np.float64)
+    if tmin.ndim == 0:  # (one value for every ray: filled, not broadcast and copied)
+        tmin = np.full(r, np.maximum(tmin, 0.0))
+    else:
+        tmin = np.maximum(np.broadcast_to(tmin, (r,)), 0.0)
+    tmax = np.full(r, tmax) if tmax.ndim == 0 else _per_ray(tmax, r)
     # every row's largest component in [2**-32, 2**32] (its sum of three, rounded, at
     # least 2**-30): no row is rescaled, and the row maxima need not be formed; and
     # whether a component is subnormal (or zero). Compiled: one pass, no temporaries
@@ -227,8 +231,17 @@ def _prepare(origins, directions, tmin, tmax, ignore):
     if ignore is None:
         ignore = np.full(r, -1, dtype=np.int64)
     else:
-        ignore = np.ascontiguousarray(np.broadcast_to(np.asarray(ignore, dtype=np.int64), (r,)))
+        ignore = _per_ray(np.asarray(ignore, dtype=np.int64), r)
     return o, d, tmin, tmax, ignore, scale
+
+
+def _per_ray(a: np.ndarray, r: int) -> np.ndarray:
+    """``a`` as one contiguous value per ray: itself where it already is (read, never
+    written, by the kernels; a broadcast view would be read-only, which the compiled
+    engine copies), else broadcast to ``(r,)`` and copied."""
+    if a.shape == (r,):
+        return np.ascontiguousarray(a)
+    return np.ascontiguousarray(np.broadcast_to(a, (r,)))
 
 
 def _same_rows(o: np.ndarray) -> bool:
@@ -492,7 +505,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     nodes and leaves ray-major), and the shared origin is the packet's first ray's for
     every chunk, so the result is the one-call result bit for bit.
     """
-    from tlm.kernels import threads
+    from tlm.kernels import _jit, threads
 
     tree, lay = accel.tree, accel.jit_layout
     r = o.shape[0]
@@ -500,10 +513,9 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
     # the kernel compares ids as int32 (ids are < 2**31): an ignore outside that range
     # can match no triangle, as in the numpy engine, so it becomes -1 (none)
-    outside = (ignore < 0) | (ignore > np.iinfo(np.int32).max)
-    if outside.any():
-        ignore = np.where(outside, -1, ignore)
-    has_ignore = bool((ignore >= 0).any())
+    has_ignore, remap = _jit.ignore_flags(ignore)
+    if remap:
+        ignore = np.where((ignore < 0) | (ignore > np.iinfo(np.int32).max), -1, ignore)
     # the float32 test of shared-origin rays takes the packet's first origin (the kernel's docstring)
     shared_o32 = np.zeros(3, dtype=np.float32)
     if shared_origin and r > 0:
@@ -527,11 +539,9 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
         leaf_ptr = np.zeros(r + 1, dtype=np.int64)
         np.cumsum(leaf_visits, out=leaf_ptr[1:])
         touched = Touched(node_ptr, node_ids.astype(id_type), leaf_ptr, leaf_ids)
-    found = slot >= 0
     if first_only:
-        return Occlusion(found, counts, touched)
-    triangle = lay.ids[np.maximum(slot, 0)] if lay.ids.shape[0] else np.zeros(r, dtype=np.int64)
-    triangle = np.where(found, triangle, -1)
+        return Occlusion(slot >= 0, counts, touched)
+    triangle = _jit.triangles_of(slot, lay.ids)  # (-1 where no slot: no triangles, nothing found)
     if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
         t = unscale_t(t, scale)
         far = np.isinf(t)
