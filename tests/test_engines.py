@@ -303,6 +303,51 @@ def test_the_compiled_id_passes_are_numpys():
     assert np.array_equal(_jit.triangles_of(none, np.zeros(0, dtype=np.int64)), none)
 
 
+@pytest.mark.parametrize("engine", ["numba", "numpy"])
+def test_the_rays_limits_and_ids_in_every_form(monkeypatch, engine):
+    """``_prepare``'s per-ray ``tmin``, ``tmax`` and ``ignore``, from a value, a 0-d
+    array, a list, a float32 array, a strided view, a (1,) array and one per ray: the
+    values the broadcast and copy gave (bit for bit: NaN, -0.0, an id below -1 or past
+    int32), the same answers from both queries in both forms, and the caller's arrays
+    left as they were (a per-ray array is now passed on, no longer copied)."""
+    monkeypatch.setenv("TLM_KERNELS", engine)
+    scene = load_scene("cornell")
+    accel = build_accel(scene.triangles)
+    o, d = primary_rays(scene.camera, np.arange(0, scene.camera.width * scene.camera.height, 97))
+    r = o.shape[0]
+    rng = np.random.default_rng(7)
+    limits = [0.0, -0.0, 3, np.nan, np.inf, np.array(0.25), np.float32(0.5), np.array([0.0]) if r == 1 else None,
+              rng.random(r) * 0.1, list(rng.random(r)), rng.random(2 * r)[::2], rng.random(r).astype(np.float32)]
+    ids = [None, -1, np.array(5), rng.integers(-3, 3000, size=r), rng.integers(-(2**40), 2**40, size=r),
+           list(rng.integers(-1, 3000, size=r)), rng.integers(0, 3000, size=2 * r)[::2]]
+    bits = np.ndarray.tobytes
+    for k in range(len(limits) * 2):
+        tmin = limits[k % len(limits)]
+        tmax = limits[(k * 5 + 3) % len(limits)]
+        ignore = ids[k % len(ids)]
+        if tmin is None or tmax is None:
+            continue
+        tmax = np.inf if isinstance(tmax, float) and tmax == 0.0 else tmax
+        kept = [np.array(a, copy=True) for a in (tmin, tmax, 0 if ignore is None else ignore)]
+        _, _, t0, t1, ig, _ = traverse._prepare(o, d, tmin, tmax, ignore)
+        assert bits(t0) == bits(np.maximum(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (r,)), 0.0))
+        assert bits(t1) == bits(np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (r,))))
+        want = np.full(r, -1) if ignore is None else np.broadcast_to(np.asarray(ignore, dtype=np.int64), (r,))
+        assert bits(ig) == bits(np.ascontiguousarray(want))
+        if isinstance(tmin, np.ndarray) and tmin.ndim == 1:
+            tmin_copy = np.array(tmin)
+        else:
+            tmin_copy = tmin
+        hits = closest_hit(accel, o, d, tmin, tmax, ignore)
+        again = closest_hit(accel, o, d, tmin_copy, np.array(tmax, dtype=np.float64),
+                            None if ignore is None else np.array(ignore, dtype=np.int64))
+        assert bits(hits.t) == bits(again.t) and (hits.triangle == again.triangle).all()
+        occ = any_hit(accel, o, d, tmin, tmax, ignore)
+        assert (occ.occluded == (hits.triangle >= 0)).all()
+        for was, now in zip(kept, (tmin, tmax, 0 if ignore is None else ignore), strict=True):
+            assert bits(np.asarray(was)) == bits(np.asarray(now))
+
+
 def test_unknown_engine_is_refused(monkeypatch):
     monkeypatch.setenv("TLM_KERNELS", "cuda")
     with pytest.raises(ValueError, match="TLM_KERNELS"):

@@ -792,11 +792,12 @@ def ignore_flags(ignore):
     return has > 0, remap > 0
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True, boundscheck=True)
 def triangles_of(slot, ids):
     """The triangle id of each accel slot ``slot`` (r,) int64 (-1: no hit) through
     ``ids`` (m,): numpy's ``np.where(slot >= 0, ids[np.maximum(slot, 0)], -1)``, in one
-    pass (``ids`` is not read where no slot is)."""
+    pass (``ids`` is not read where no slot is; a slot past its end raises IndexError,
+    as numpy's indexing does)."""
     out = np.empty(slot.shape[0], dtype=np.int64)
     for i in range(slot.shape[0]):
         s = slot[i]
