@@ -259,7 +259,7 @@ def test_the_compiled_ray_checks_are_numpys():
     """``_prepare``'s one-pass checks of the directions and the shared-origin test, against
     the numpy expressions they replace, on zeros of both signs, subnormals, the limits
     2**32 and 2**-30, infinities and NaN."""
-    from tlm.kernels import _jit
+    from tlm.kernels import _jit_rays
 
     specials = np.array([0.0, -0.0, 5e-324, -2.2e-308, np.finfo(float).tiny, 1.0, -3.5, 2.0**32, -(2.0**32),
                          np.nextafter(2.0**32, 0), 2.0**-30, np.nextafter(2.0**-30, 0), 2.0**-31, 1e300,
@@ -273,19 +273,19 @@ def test_the_compiled_ray_checks_are_numpys():
         mag = np.abs(d)
         with np.errstate(invalid="ignore", over="ignore"):
             plain = bool(mag.max() < 2.0**32 and (mag[:, 0] + mag[:, 1] + mag[:, 2]).min() >= 2.0**-30)
-        assert _jit.direction_checks(d) == (plain, bool((mag < np.finfo(float).tiny).any())), d
+        assert _jit_rays.direction_checks(d) == (plain, bool((mag < np.finfo(float).tiny).any())), d
         o = np.repeat(d[:1], n, axis=0)
         if rng.random() < 0.5:
             o[rng.integers(0, n)] = d[-1]
-        assert _jit.same_rows(o) == bool((o == o[:1]).all()), o
-    assert _jit.same_rows(np.zeros((0, 3))) and not _jit.same_rows(np.full((1, 3), np.nan))
+        assert _jit_rays.same_rows(o) == bool((o == o[:1]).all()), o
+    assert _jit_rays.same_rows(np.zeros((0, 3))) and not _jit_rays.same_rows(np.full((1, 3), np.nan))
 
 
 def test_the_compiled_id_passes_are_numpys():
     """``_traverse_jit``'s one-pass flags of the ignored ids and its triangle ids of the
     hit slots, against the numpy expressions they replace: ids at int32's limits, -1 and
     below, none, and slots of an accel with no triangles."""
-    from tlm.kernels import _jit
+    from tlm.kernels import _jit_rays
 
     top = np.iinfo(np.int32).max
     specials = np.array([-(2**40), -2, -1, 0, 1, 7, top - 1, top, top + 1, 2**40], dtype=np.int64)
@@ -293,14 +293,14 @@ def test_the_compiled_id_passes_are_numpys():
     for n in [0, *rng.integers(1, 9, size=3000)]:
         ig = specials[rng.integers(0, specials.shape[0], size=n)]
         outside = (ig < 0) | (ig > top)
-        has, remap = _jit.ignore_flags(ig)
+        has, remap = _jit_rays.ignore_flags(ig)
         assert has == bool((np.where(outside, -1, ig) >= 0).any()), ig
         assert remap == bool((np.where(outside, -1, ig) != ig).any()), ig
     ids = rng.integers(0, 1000, size=50)
     slot = rng.integers(-1, 50, size=2000)
-    assert np.array_equal(_jit.triangles_of(slot, ids), np.where(slot >= 0, ids[np.maximum(slot, 0)], -1))
+    assert np.array_equal(_jit_rays.triangles_of(slot, ids), np.where(slot >= 0, ids[np.maximum(slot, 0)], -1))
     none = np.full(5, -1, dtype=np.int64)
-    assert np.array_equal(_jit.triangles_of(none, np.zeros(0, dtype=np.int64)), none)
+    assert np.array_equal(_jit_rays.triangles_of(none, np.zeros(0, dtype=np.int64)), none)
 
 
 @pytest.mark.parametrize("engine", ["numba", "numpy"])

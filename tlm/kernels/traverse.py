@@ -212,9 +212,9 @@ def _prepare(origins, directions, tmin, tmax, ignore):
     compiled = r > 0 and engine() == "numba"
     mag = None  # (the magnitudes, where numpy formed them)
     if compiled:
-        from tlm.kernels import _jit
+        from tlm.kernels import _jit_rays
 
-        plain, any_tiny = _jit.direction_checks(d)
+        plain, any_tiny = _jit_rays.direction_checks(d)
     else:
         mag = np.abs(d)
         with np.errstate(invalid="ignore"):
@@ -247,9 +247,9 @@ def _per_ray(a: np.ndarray, r: int) -> np.ndarray:
 def _same_rows(o: np.ndarray) -> bool:
     """``(o == o[:1]).all()`` (compiled under the numba engine: one pass, stopping early)."""
     if engine() == "numba":
-        from tlm.kernels import _jit
+        from tlm.kernels import _jit_rays
 
-        return bool(_jit.same_rows(o))
+        return bool(_jit_rays.same_rows(o))
     return bool((o == o[:1]).all())
 
 
@@ -505,7 +505,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     nodes and leaves ray-major), and the shared origin is the packet's first ray's for
     every chunk, so the result is the one-call result bit for bit.
     """
-    from tlm.kernels import _jit, threads
+    from tlm.kernels import _jit_rays, threads
 
     tree, lay = accel.tree, accel.jit_layout
     r = o.shape[0]
@@ -513,7 +513,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
     # the kernel compares ids as int32 (ids are < 2**31): an ignore outside that range
     # can match no triangle, as in the numpy engine, so it becomes -1 (none)
-    has_ignore, remap = _jit.ignore_flags(ignore)
+    has_ignore, remap = _jit_rays.ignore_flags(ignore)
     if remap:
         ignore = np.where((ignore < 0) | (ignore > np.iinfo(np.int32).max), -1, ignore)
     # the float32 test of shared-origin rays takes the packet's first origin (the kernel's docstring)
@@ -541,7 +541,7 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
         touched = Touched(node_ptr, node_ids.astype(id_type), leaf_ptr, leaf_ids)
     if first_only:
         return Occlusion(slot >= 0, counts, touched)
-    triangle = _jit.triangles_of(slot, lay.ids)  # (-1 where no slot: no triangles, nothing found)
+    triangle = _jit_rays.triangles_of(slot, lay.ids)  # (-1 where no slot: no triangles, nothing found)
     if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
         t = unscale_t(t, scale)
         far = np.isinf(t)
