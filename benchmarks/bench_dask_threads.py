@@ -23,8 +23,8 @@ ratio of the rounds. Measures speed only; the images do not depend on the thread
 from __future__ import annotations
 
 import argparse
+import json
 import os
-import socket
 import subprocess
 import sys
 import tempfile
@@ -37,10 +37,18 @@ import yaml
 from tlm.kernels.threads import available
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def scheduler_address(file: Path, scheduler: subprocess.Popen, timeout: float = 120.0) -> str:
+    """The address the scheduler bound (``--port 0``: a free port, chosen by the scheduler itself
+    when it binds, so no other process can take it in between), read from its scheduler file."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if scheduler.poll() is not None:
+            raise SystemExit(f"the Dask scheduler exited ({scheduler.returncode}) before it wrote {file}")
+        try:
+            return json.loads(file.read_text())["address"]
+        except (FileNotFoundError, json.JSONDecodeError, KeyError):  # (not written yet, or half written)
+            time.sleep(0.2)
+    raise SystemExit(f"the Dask scheduler wrote no address to {file} in {timeout:.0f} s")
 
 
 def sweep_file(folder: Path, name: str, threads: int | None, seeds: list[int], resolution: int) -> Path:
@@ -62,15 +70,15 @@ def main() -> None:
     if min(args.slots, args.points, args.repeat, args.resolution) < 1:
         ap.error("--slots, --points, --repeat and --resolution must be >= 1")
     cpus = available()
-    port = free_port()
-    address = f"tcp://127.0.0.1:{port}"
     with tempfile.TemporaryDirectory(prefix="tlm-dask-bench-") as tmp:
         folder = Path(tmp)
         env = {**os.environ, "TLM_CACHE": str(folder / "cache")}  # (the worker's cache: this run's alone)
         log = open(folder / "cluster.log", "w")  # noqa: SIM115 (open while the cluster runs)
-        daemons = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                                     "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env)]
+        file = folder / "scheduler.json"
+        daemons = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--scheduler-file",
+                                     str(file), "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env)]
         try:
+            address = scheduler_address(file, daemons[0])
             daemons.append(subprocess.Popen(["dask", "worker", address, "--nthreads", str(args.slots), "--nworkers",
                                              "1", "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env))
             from distributed import Client
