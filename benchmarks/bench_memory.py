@@ -208,22 +208,23 @@ def walk_peak(scene: Path, depth: int) -> None:
 
     from tlm.config import config_from_dict
     from tlm.kernels.traverse import build_accel
-    from tlm.render import passes
+    from tlm.render import frame as render_frame
+    from tlm.render import passes, walk
     from tlm.scenes.loader import load_scene
 
     sc = load_scene(str(scene))
     cfg = config_from_dict({"resolution": [sc.camera.width, sc.camera.height], "mode": "refract",
                             "render": {"spp": 1, "refract_depth": depth, "min_weight": 0.0,
                                        "batch_rays": QUICK_BATCH_RAYS}})
-    frame = passes.Frame.create(sc, build_accel(sc.triangles), cfg)
-    g = passes.cast(frame, np.arange(sc.camera.width * sc.camera.height))
-    passes.refract_pass(frame, passes.cast(frame, np.arange(4)))  # compile and warm what the pass runs
+    frame = render_frame.Frame.create(sc, build_accel(sc.triangles), cfg)
+    g = render_frame.cast(frame, np.arange(sc.camera.width * sc.camera.height))
+    passes.refract_pass(frame, render_frame.cast(frame, np.arange(4)))  # compile and warm what the pass runs
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     _, work = passes.refract_pass(frame, g)
     peak = tracemalloc.get_traced_memory()[1] - base
     tracemalloc.stop()
-    out = sum(a.nbytes for w in g.memo.values() if isinstance(w, passes.Walk)
+    out = sum(a.nbytes for w in g.memo.values() if isinstance(w, walk.Walk)
               for a in (w.emitted_sample, w.emitted_radiance, *vars(w.ends).values()))
     print(peak - out, int(work["secondary_rays"].sum()), out)
 

@@ -27,7 +27,8 @@ from timing import exit_status, verdict
 from tlm.config import load_config
 from tlm.experiments.loading import load_frame
 from tlm.kernels import photons as photon_module
-from tlm.render.passes import photon_count, trace_photon_map
+from tlm.render.planner import photon_count
+from tlm.render.pmap import trace_photon_map
 
 ROOT = Path(__file__).resolve().parents[1]
 

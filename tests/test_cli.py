@@ -16,7 +16,7 @@ from tlm.cli import main
 from tlm.config import config_from_dict, describe, to_dict
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.traverse import build_accel, closest_hit
-from tlm.render.passes import WORK_KEYS
+from tlm.kernels.work import WORK_KEYS
 from tlm.scenes.loader import load_scene
 
 REPO = Path(__file__).resolve().parents[1]

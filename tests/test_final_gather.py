@@ -10,15 +10,10 @@ from tlm.config import config_from_dict
 from tlm.experiments.run import render
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import (
-    Frame,
-    cast,
-    fgather_pass,
-    final_gather_directions,
-    gather_points,
-    pmap_pass,
-)
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import fgather_pass, gather_points
 from tlm.render.planner import plan
+from tlm.render.pmap import final_gather_directions, pmap_pass
 from tlm.scenes.loader import load_scene
 
 from .scenes import sphere_scene

@@ -14,7 +14,9 @@ import pytest
 from tlm.config import config_from_dict
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import Frame, cast, pmap_pass, rcast_pass
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import rcast_pass
+from tlm.render.pmap import pmap_pass
 from tlm.scenes.loader import load_scene
 
 from .scenes import sphere_scene

@@ -61,7 +61,8 @@ def test_cornell_box_ray_cast_against_mitsuba_direct():
     from tlm.kernels.traverse import build_accel
     from tlm.oracle import mitsuba as om
     from tlm.oracle.masks import smooth_pixels
-    from tlm.render.passes import Frame, cast, rcast_pass
+    from tlm.render.frame import Frame, cast
+    from tlm.render.passes import rcast_pass
 
     scene = load_scene("cornell-box", resolution=[48, 48])
     s = 3

@@ -21,7 +21,7 @@ from tlm.experiments.reference import ReferenceSettings, compute_reference
 from tlm.experiments.run import parse_outputs, render, write_run
 from tlm.experiments.thesis import run_thesis
 from tlm.render.batches import Primary
-from tlm.render.passes import GBuffer, ImageGBuffer, cast, pixel_batches
+from tlm.render.frame import GBuffer, ImageGBuffer, cast, pixel_batches
 
 SMALL = {"scene": "cornell", "resolution": [23, 17], "photons": {"count": 1500},
          "arch": {"frames": 2, "packet_size": 32, "trace": False}}

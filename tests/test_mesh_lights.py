@@ -15,7 +15,8 @@ from tlm.kernels.emission import emit, photon_key
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.shade import face_normals, triangle_choice
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import Frame, cast, rcast_pass
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import rcast_pass
 from tlm.scenes.builders import cornell
 from tlm.scenes.loader import load_scene, transform_scene, with_mesh_light
 from tlm.scenes.model import Camera, Light, Material, Scene

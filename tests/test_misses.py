@@ -23,9 +23,11 @@ from tlm.config import config_from_dict
 from tlm.kernels import shade, traverse
 from tlm.kernels.memory import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
-from tlm.kernels.work import MISS_KEYS
-from tlm.render import passes
-from tlm.render.passes import WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
+from tlm.kernels.work import MISS_KEYS, WORK_KEYS
+from tlm.render import frame as render_frame
+from tlm.render import pmap
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import rcast_pass, reflect_pass, refract_pass
 from tlm.scenes.loader import load_scene
 
 W, H = 24, 20
@@ -70,7 +72,7 @@ class Capture:
     def __init__(self, monkeypatch):
         self.rays = []  # touched of each closest_hit call (bounces in order)
         self.shade = []  # (keys, triangles, touched of its shadow rays, shadow rays per point)
-        real_closest, real_direct, real_any = passes.closest_hit, passes.direct_light, shade.any_hit
+        real_closest, real_direct, real_any = render_frame.closest_hit, render_frame.direct_light, shade.any_hit
 
         def closest(*args, **kw):
             h = real_closest(*args, **kw)
@@ -90,8 +92,8 @@ class Capture:
             self._shadow.append(occ.touched)
             return occ
 
-        monkeypatch.setattr(passes, "closest_hit", closest)
-        monkeypatch.setattr(passes, "direct_light", direct)
+        monkeypatch.setattr(render_frame, "closest_hit", closest)
+        monkeypatch.setattr(render_frame, "direct_light", direct)
         monkeypatch.setattr(shade, "any_hit", anyhit)
 
 
@@ -138,7 +140,7 @@ def brute_force(frame, g, cap: Capture, work, eye: bool, page_words: int, pairs:
         key = np.concatenate([np.full(r[4].shape[0], r[5]) for r in rows])
         miss, _ = page_misses(words, page_words=page_words)
         for name in np.unique(key).tolist():
-            out[passes.STREAM_KEYS[name]] += np.bincount(owner[miss & (key == name)], minlength=p)
+            out[render_frame.STREAM_KEYS[name]] += np.bincount(owner[miss & (key == name)], minlength=p)
     return out
 
 
@@ -251,7 +253,7 @@ def test_the_photon_tracer_and_the_gather_follow_the_cache_section(frame, gbuffe
     settings = {"thesis": {}, "one_pair": {"pairs": 1}, "small": {"block_words": 64},
                 "both": {"pairs": 1, "block_words": 64}}
     frames = {name: with_cache(frame, **c) for name, c in settings.items()}
-    traced = {name: passes.trace_photon_map(fr, n=3000) for name, fr in frames.items()}
+    traced = {name: pmap.trace_photon_map(fr, n=3000) for name, fr in frames.items()}
     thesis = traced["thesis"]
     for t in traced.values():  # the same photons, whatever the cache
         np.testing.assert_array_equal(t.photons.position, thesis.photons.position)
@@ -260,17 +262,17 @@ def test_the_photon_tracer_and_the_gather_follow_the_cache_section(frame, gbuffe
     assert np.all(w1["trav_misses"] >= w["trav_misses"]) and w1["trav_misses"].sum() > w["trav_misses"].sum()
     ws = traced["small"].work
     assert ws["trav_misses"].sum() > w["trav_misses"].sum() and ws["isect_misses"].sum() > w["isect_misses"].sum()
-    gather = {name: passes.pmap_pass(fr, gbuffer, thesis.photons)[1]["gather_misses"] for name, fr in frames.items()}
+    gather = {name: pmap.pmap_pass(fr, gbuffer, thesis.photons)[1]["gather_misses"] for name, fr in frames.items()}
     assert gather["thesis"].sum() > 0
     # the Fragment PM's photon-leaf stream is the only one of its pass: pairs do not matter
     np.testing.assert_array_equal(gather["one_pair"], gather["thesis"])
     np.testing.assert_array_equal(gather["both"], gather["small"])
     assert gather["small"].sum() > gather["thesis"].sum()
     # packets in pixel order with one carried Streams of the section: the whole frame's
-    streams, parts = passes.new_streams(frames["both"]), []
+    streams, parts = render_frame.new_streams(frames["both"]), []
     for s0 in range(0, W * H, 97):
         g = cast(frame, np.arange(s0, min(s0 + 97, W * H)))
-        parts.append(passes.pmap_pass(frames["both"], g, thesis.photons, streams=streams)[1]["gather_misses"])
+        parts.append(pmap.pmap_pass(frames["both"], g, thesis.photons, streams=streams)[1]["gather_misses"])
     np.testing.assert_array_equal(np.concatenate(parts), gather["both"])
 
 
@@ -335,7 +337,7 @@ def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
 def test_touched_matches_counts_in_the_passes(frame, gbuffer, monkeypatch):
     """Every ray a pass traces (eye, secondary, shadow) records as many leaves as it visited."""
     seen = []
-    real_closest, real_any = passes.closest_hit, shade.any_hit
+    real_closest, real_any = render_frame.closest_hit, shade.any_hit
 
     def closest(*args, **kw):
         h = real_closest(*args, **kw)
@@ -347,7 +349,7 @@ def test_touched_matches_counts_in_the_passes(frame, gbuffer, monkeypatch):
         seen.append(h)
         return h
 
-    monkeypatch.setattr(passes, "closest_hit", closest)
+    monkeypatch.setattr(render_frame, "closest_hit", closest)
     monkeypatch.setattr(shade, "any_hit", anyhit)
     for f in PASSES:
         f(frame, gbuffer)
@@ -367,18 +369,18 @@ def test_packets_in_order_with_samples_and_fresnel_branches(page_words, pairs):
                       config_from_dict({"resolution": [W, H], "mode": "pmap", "photons": {"count": 3000},
                                         "cache": {"block_words": page_words, "pairs": pairs}}))
     assert fr.spp == 4 and fr.cfg.render.fresnel
-    photons = passes.trace_photon_map(fr).photons
+    photons = pmap.trace_photon_map(fr).photons
     assert photons.caustic_map.n > 0 and photons.indirect_map.n > 0
 
     def run(g, streams):
         out = {f.__name__: f(fr, g, streams[f.__name__]) for f in PASSES}
-        out["pmap"] = passes.pmap_pass(fr, g, photons, streams=streams["pmap"])
+        out["pmap"] = pmap.pmap_pass(fr, g, photons, streams=streams["pmap"])
         return out
 
     names = [f.__name__ for f in PASSES] + ["pmap"]
-    whole = run(cast(fr, np.arange(W * H)), {n: passes.new_streams(fr) for n in names})
+    whole = run(cast(fr, np.arange(W * H)), {n: render_frame.new_streams(fr) for n in names})
     assert whole["refract_pass"][1]["secondary_rays"].max() > 2  # some pixel's path split at the glass
-    streams = {n: passes.new_streams(fr) for n in names}
+    streams = {n: render_frame.new_streams(fr) for n in names}
     parts = [run(cast(fr, np.arange(s0, min(s0 + 7, W * H))), streams) for s0 in range(0, W * H, 7)]
     for n in names:
         np.testing.assert_array_equal(np.concatenate([p[n][0] for p in parts]), whole[n][0], err_msg=n)

@@ -22,7 +22,8 @@ from tlm.errors import InputError
 from tlm.kernels.traverse import build_accel
 from tlm.oracle import mitsuba as om
 from tlm.oracle.masks import ray_cast_pixels, smooth_pixels
-from tlm.render.passes import Frame, cast, rcast_pass
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import rcast_pass
 from tlm.scenes.builders import cornell
 from tlm.scenes.loader import load_scene, transform_scene
 from tlm.scenes.model import Camera, Light, Material, Scene

@@ -163,7 +163,8 @@ def test_a_frames_tables_give_the_trace_made_from_the_scene():
     """trace_photons takes a render's face normals, shading normals and material table
     (made once per frame) and traces what it traces when it makes them itself."""
     from tlm.config import config_from_dict
-    from tlm.render.passes import Frame, trace_photon_map
+    from tlm.render.frame import Frame
+    from tlm.render.pmap import trace_photon_map
 
     scene = load_scene("ring")
     accel = build_accel(scene.triangles)

@@ -28,7 +28,9 @@ from tlm.arch.model import PMS, simulate, simulate_program, steady_throughput
 from tlm.config import config_from_dict
 from tlm.experiments.frames import render_key
 from tlm.kernels.work import MISS_KEYS
-from tlm.render.passes import PASS_FUNCTIONS, cast, pmap_pass
+from tlm.render.frame import cast
+from tlm.render.passes import PASS_FUNCTIONS
+from tlm.render.pmap import pmap_pass
 
 EQ_TERMS = ("T_norm", "T_ms", "T_ps", "T_ds", "idle")
 

@@ -18,7 +18,8 @@ from tlm.cli import main
 from tlm.config import EstimateConfig, config_from_dict
 from tlm.experiments.run import render
 from tlm.kernels.estimate import density_radius
-from tlm.render.passes import Frame, caustic_radius, radii, radius_rule, search_radius
+from tlm.render.frame import Frame
+from tlm.render.pmap import caustic_radius, radii, radius_rule, search_radius
 
 REPO = Path(__file__).resolve().parents[1]
 OLD = {"radius_fraction": 0.04, "caustic_radius_fraction": 0.01}
@@ -209,7 +210,7 @@ def test_the_radii_made_before_the_batches_are_the_ones_the_batches_ask_for(monk
     import dataclasses
 
     import tlm.kernels.photons as photon_module
-    from tlm.render.passes import density_requests
+    from tlm.render.pmap import density_requests
 
     def fresh(photons):  # the maps without the radii the render kept
         return dataclasses.replace(photons, **{name: dataclasses.replace(m, _memo={}) for name in
@@ -248,7 +249,7 @@ def test_a_warm_photon_trace_makes_what_the_batches_read(monkeypatch):
     then only looked up."""
     import tlm.kernels.photons as photon_module
     from tlm.kernels import threads
-    from tlm.render.passes import density_requests, trace_photon_map
+    from tlm.render.pmap import density_requests, trace_photon_map
 
     res = _render("cornell", 3000, {"final_gather": 3})
     asked = []

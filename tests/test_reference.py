@@ -167,7 +167,8 @@ def test_pmap_pass_is_packet_invariant_and_repeats(filt):
     from tlm.kernels.photons import trace_photons
     from tlm.kernels.traverse import build_accel
     from tlm.kernels.work import MISS_KEYS
-    from tlm.render.passes import Frame, cast, pmap_pass
+    from tlm.render.frame import Frame, cast
+    from tlm.render.pmap import pmap_pass
     from tlm.scenes.loader import load_scene
 
     scene = load_scene("cornell", resolution=[40, 40])

@@ -17,7 +17,7 @@ from tlm.config import config_from_dict
 from tlm.experiments.loading import load_frame
 from tlm.progress import Timer
 from tlm.render.batches import MIN_BATCH_RAYS, _put_counts, batches_for, render_batches
-from tlm.render.passes import GBuffer, ImageGBuffer
+from tlm.render.frame import GBuffer, ImageGBuffer
 from tlm.render.planner import WORK_PASSES, plan
 
 

@@ -224,7 +224,7 @@ def test_light_calls_run_behind_a_heavy_one(weighed):
 def test_calls_in_flight_share_the_memory_budget():
     """A worker of ``ordered`` is told how many calls may be in flight (twice the threads),
     and a pass there takes that part of ``render.batch_rays`` as its ray budget."""
-    from tlm.render.passes import ray_budget
+    from tlm.render.frame import ray_budget
 
     frame = type("F", (), {"cfg": config_from_dict({"scene": "cornell", "render": {"batch_rays": 1200}})})()
     assert threads.share() == 1 and ray_budget(frame) == 1200

@@ -13,8 +13,9 @@ import pytest
 from tlm.config import config_from_dict
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
-from tlm.kernels.work import MISS_KEYS
-from tlm.render.passes import WORK_KEYS, Frame, cast, rcast_pass, reflect_pass, refract_pass
+from tlm.kernels.work import MISS_KEYS, WORK_KEYS
+from tlm.render.frame import Frame, cast
+from tlm.render.passes import rcast_pass, reflect_pass, refract_pass
 from tlm.scenes.loader import load_scene
 
 COUNT_FIELDS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
@@ -417,7 +418,8 @@ def test_shadow_ray_work_is_kept_apart():
     shadow rays' traversal is counted under shadow_* (the thesis traces them in passes
     of their own)."""
     from tlm.config import config_from_dict
-    from tlm.render.passes import Frame, cast, rcast_pass
+    from tlm.render.frame import Frame, cast
+    from tlm.render.passes import rcast_pass
 
     scene = load_scene("cornell", resolution=[32, 32])
     accel = build_accel(scene.triangles)

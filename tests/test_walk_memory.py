@@ -1,7 +1,7 @@
 """Memory bounded by the batch, whatever the specular depth (issue 25, item 3).
 
 * the specular walk goes in pieces of whole pixels of at most ``render.batch_rays`` rays
-  (:func:`~tlm.render.passes.walk_pieces`), and shaded points in runs of at most that many
+  (:func:`~tlm.render.walk.walk_pieces`), and shaded points in runs of at most that many
   shadow rays: a render with a small budget (many pieces and runs) gives the radiance,
   work and page misses of one piece, bit for bit, with 4 pairs and with 1 (the node heap
   and the leaf indices on one pair, where a pixel's order of reads matters most), and the
@@ -28,8 +28,9 @@ import pytest
 from tlm.config import config_from_dict
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
-from tlm.render import passes
-from tlm.render.passes import Frame, cast
+from tlm.render import frame as render_frame
+from tlm.render import passes, pmap, walk
+from tlm.render.frame import Frame, cast
 from tlm.scenes.loader import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,19 +54,19 @@ def test_small_budget_is_bit_identical(scene, page_words, pairs):
     big = frame_with(scene, 1 << 20, block_words=page_words, pairs=pairs)
     small = dataclasses.replace(big, cfg=dataclasses.replace(
         big.cfg, render=dataclasses.replace(big.cfg.render, batch_rays=23)))
-    photons = passes.trace_photon_map(big).photons
+    photons = pmap.trace_photon_map(big).photons
     pixels = np.arange(W * H)
     # the small budget does cut the walk and the shading (else the test shows nothing)
-    work = {k: np.zeros(W * H, dtype=np.int64) for k in passes.WALK_WORK}
-    pieces = list(passes.walk_pieces(small, cast(small, pixels), "dielectric", small.cfg.render.refract_depth, work))
+    work = {k: np.zeros(W * H, dtype=np.int64) for k in walk.WALK_WORK}
+    pieces = list(walk.walk_pieces(small, cast(small, pixels), "dielectric", small.cfg.render.refract_depth, work))
     assert len(pieces) > 5
-    assert len(passes._pixel_runs(np.repeat(np.arange(W * H), 3), 23 // 4)) > 5
+    assert len(render_frame._pixel_runs(np.repeat(np.arange(W * H), 3), 23 // 4)) > 5
     out = {}
     for label, fr in (("big", big), ("small", small)):
         g = cast(fr, pixels)
-        res = {f.__name__: f(fr, g, passes.new_streams(fr))
+        res = {f.__name__: f(fr, g, render_frame.new_streams(fr))
                for f in (passes.rcast_pass, passes.reflect_pass, passes.refract_pass)}
-        res["pmap"] = passes.pmap_pass(fr, g, photons, streams=passes.new_streams(fr))
+        res["pmap"] = pmap.pmap_pass(fr, g, photons, streams=render_frame.new_streams(fr))
         res["gather"] = passes.gather_points(fr, g)
         out[label] = res
     assert out["big"]["refract_pass"][1]["secondary_rays"].max() > 2  # paths split at the glass
@@ -83,9 +84,9 @@ def test_pieces_hold_at_most_the_budget(scene):
     fr = dataclasses.replace(fr, cfg=dataclasses.replace(
         fr.cfg, render=dataclasses.replace(fr.cfg.render, refract_depth=12, min_weight=0.0)))
     g = cast(fr, np.arange(W * H))
-    work = {k: np.zeros(W * H, dtype=np.int64) for k in passes.WALK_WORK}
+    work = {k: np.zeros(W * H, dtype=np.int64) for k in walk.WALK_WORK}
     traced, seen = 0, []
-    for piece in passes.walk_pieces(fr, g, "dielectric", 12, work):
+    for piece in walk.walk_pieces(fr, g, "dielectric", 12, work):
         rays = int(work["secondary_rays"].sum()) - traced
         traced += rays
         owners = np.unique(np.concatenate([acc.owner for _, acc in piece.reads]))
@@ -97,9 +98,9 @@ def test_pieces_hold_at_most_the_budget(scene):
     # and the whole walk, in one piece, traced the same rays
     whole = dataclasses.replace(fr, cfg=dataclasses.replace(
         fr.cfg, render=dataclasses.replace(fr.cfg.render, batch_rays=1 << 20)))
-    again = {k: np.zeros(W * H, dtype=np.int64) for k in passes.WALK_WORK}
-    assert len(list(passes.walk_pieces(whole, cast(whole, np.arange(W * H)), "dielectric", 12, again))) == 1
-    for k in passes.WALK_WORK:
+    again = {k: np.zeros(W * H, dtype=np.int64) for k in walk.WALK_WORK}
+    assert len(list(walk.walk_pieces(whole, cast(whole, np.arange(W * H)), "dielectric", 12, again))) == 1
+    for k in walk.WALK_WORK:
         np.testing.assert_array_equal(again[k], work[k], err_msg=k)
 
 

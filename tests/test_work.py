@@ -9,7 +9,9 @@ from tlm.arch.frame_program import split
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
 from tlm.kernels.memory import Streams
-from tlm.render.passes import cast, pmap_pass, reflect_pass
+from tlm.render.frame import cast
+from tlm.render.passes import reflect_pass
+from tlm.render.pmap import pmap_pass
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,8 @@ from tlm.kernels import estimate as est
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
-from tlm.render.passes import Frame, cast, pmap_pass
+from tlm.render.frame import Frame, cast
+from tlm.render.pmap import pmap_pass
 from tlm.scenes.model import Light, Material
 from tlm.scenes.shapes import aabox, uv_sphere
 

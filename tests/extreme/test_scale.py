@@ -33,7 +33,8 @@ import pytest
 
 from tlm.config import config_from_dict
 from tlm.experiments.run import render
-from tlm.render.passes import Frame, pmap_pass
+from tlm.render.frame import Frame
+from tlm.render.pmap import pmap_pass
 
 from .util import assert_clean, cornell_copy, rel_rms
 

@@ -58,20 +58,12 @@ from tlm.experiments.reference import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
+from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
-from tlm.render.passes import (
-    GATHER_KEYS,
-    PASS_FUNCTIONS,
-    TRACED_BY,
-    Frame,
-    GBuffer,
-    diffuse_pixels,
-    pmap_pass,
-    search_radius,
-    sees_a_light,
-    trace_photon_map,
-)
+from tlm.render.frame import Frame, GBuffer
+from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, sees_a_light
 from tlm.render.planner import photon_count, plan
+from tlm.render.pmap import pmap_pass, search_radius, trace_photon_map
 from tlm.storage import check_destination
 
 COLUMNS = (

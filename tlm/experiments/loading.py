@@ -1,4 +1,4 @@
-"""A config's frame: its scene loaded, its BSP built, its :class:`~tlm.render.passes.Frame` made.
+"""A config's frame: its scene loaded, its BSP built, its :class:`~tlm.render.frame.Frame` made.
 
 Every command that renders starts with this one sequence (``tlm run``, ``tlm reference``,
 ``tlm error-vs-cost``); :func:`load_frame` is it, with the host seconds of its two costly
@@ -16,7 +16,7 @@ from tlm.config import RunConfig
 from tlm.kernels import release_memory, threads
 from tlm.kernels.traverse import build_accel
 from tlm.progress import Timer
-from tlm.render.passes import Frame, GBuffer, cast
+from tlm.render.frame import Frame, GBuffer, cast
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Scene
 

@@ -55,7 +55,9 @@ from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
 from tlm.kernels.shade import emitted, hash_uniform, surface_emission
 from tlm.kernels.traverse import closest_hit
-from tlm.render.passes import Frame, GBuffer, gather_points, pixel_batches, trace_photon_map
+from tlm.render.frame import Frame, GBuffer, pixel_batches
+from tlm.render.passes import gather_points
+from tlm.render.pmap import trace_photon_map
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, cache_root, digest_problem, file_digest, warn
 
@@ -168,7 +170,7 @@ def eye_rays(frame: Frame, pixels: np.ndarray, strata: int, turn: int, seed: int
 
 
 def _cast(frame: Frame, o: np.ndarray, d: np.ndarray, pixels: np.ndarray) -> GBuffer:
-    """:func:`tlm.render.passes.cast` of given eye rays, one per pixel (no reads recorded)."""
+    """:func:`tlm.render.frame.cast` of given eye rays, one per pixel (no reads recorded)."""
     hits = closest_hit(frame.accel, o, d, tmin=0.0, batch=frame.cfg.render.batch, shared_origin=True)
     le, seen = emitted(frame.scene.lights, o, d, hits.t, frame.eps)
     return GBuffer(pixels, 1, o, d, hits, le, seen, surface_emission(frame.emission, frame.normals, hits.triangle, d))

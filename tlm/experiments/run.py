@@ -50,12 +50,14 @@ from tlm.experiments.reference import difference_image, ensure_reference, image_
 from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
+from tlm.kernels.work import WORK_KEYS
 from tlm.progress import Ticking, Timer, progress_bar
 from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
+from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.passes import WORK_KEYS, Frame, GBuffer, ImageGBuffer, radii
 from tlm.render.planner import Plan, plan
+from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, check_destination
 
@@ -83,7 +85,7 @@ class RenderResult:
     ``radiance`` and ``work`` hold each pass's (H, W, 3) linear radiance and (H, W) work
     counts; :attr:`composite`, :attr:`aov` and :meth:`work_totals` are the views a run
     folder writes. ``gbuffer`` is the whole image's G-buffer when it was cast as one batch;
-    after a batched render, an :class:`~tlm.render.passes.ImageGBuffer` that casts it
+    after a batched render, an :class:`~tlm.render.frame.ImageGBuffer` that casts it
     again on first use (``pixels`` and ``spp`` at once). ``primary``: the AOVs and
     eye-ray counts. ``timing`` and ``programs`` are set by :func:`simulate_render`, which
     returns a new result; ``base``: where the config's relative paths start (the

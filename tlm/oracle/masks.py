@@ -87,7 +87,7 @@ def ray_cast_pixels(frame, g) -> np.ndarray:
     mirror or glass (the ray-cast frame leaves those to the Reflect and Refract frames, by
     the thesis's pass structure; Mitsuba's direct integrator shows the light reflected there).
 
-    frame, g : the :class:`~tlm.render.passes.Frame` and :class:`~tlm.render.passes.GBuffer`
+    frame, g : the :class:`~tlm.render.frame.Frame` and :class:`~tlm.render.frame.GBuffer`
     of a whole image.
     """
     from scipy import ndimage

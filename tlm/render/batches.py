@@ -1,7 +1,7 @@
 """The batch render loop: every planned pass of a frame over the whole image, in batches.
 
 The image is rendered in batches of consecutive pixels, ``render.batch_rays`` eye rays
-each (:func:`~tlm.render.passes.pixel_batches`): every pass of a batch runs before the
+each (:func:`~tlm.render.frame.pixel_batches`): every pass of a batch runs before the
 next batch is cast, the cache pairs carried from batch to batch, so the radiance and work
 are exactly those of one whole-image packet while memory stays bounded by the batch.
 :func:`render_batches` is the loop; it returns what the passes computed
@@ -22,21 +22,10 @@ from tlm.kernels.memory import Deferred, Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.progress import Timer, progress_bar
 from tlm.render import checks
-from tlm.render.passes import (
-    PASS_FUNCTIONS,
-    Frame,
-    GBuffer,
-    ImageGBuffer,
-    cast,
-    density_requests,
-    fgather_pass,
-    new_streams,
-    pixel_batches,
-    pmap_pass,
-    radii,
-    trace_photon_map,
-)
+from tlm.render.frame import Frame, GBuffer, ImageGBuffer, cast, new_streams, pixel_batches
+from tlm.render.passes import PASS_FUNCTIONS, fgather_pass
 from tlm.render.planner import WORK_PASSES, plan
+from tlm.render.pmap import density_requests, pmap_pass, radii, trace_photon_map
 
 
 @dataclass
@@ -91,7 +80,7 @@ class Rendered:
     ``work``: each pass's (H, W) work counts (int32 where they fit, else int64);
     ``primary``: the AOVs and eye-ray counts;
     ``gbuffer``: the whole image's G-buffer when it was cast as one batch, else an
-    :class:`~tlm.render.passes.ImageGBuffer` that casts it again on first use;
+    :class:`~tlm.render.frame.ImageGBuffer` that casts it again on first use;
     ``photons``: the photon trace, when the pmap pass ran; ``gather_maps``: the pmap
     pass's work per photon map (``pmap_pass``'s ``per_map``), when it ran.
     """
@@ -220,7 +209,7 @@ TAIL_HALVING = True  # ... and the last batches cut in halving pieces, so the th
 
 
 def batches_for(n_pixels: int, spp: int, batch_rays: int, n_threads: int) -> list[slice]:
-    """The render's pixel batches (:func:`~tlm.render.passes.pixel_batches`): of
+    """The render's pixel batches (:func:`~tlm.render.frame.pixel_batches`): of
     ``batch_rays`` eye rays on one thread; on several, smaller ones, about
     :data:`BATCHES_PER_THREAD` per thread and at most ``batch_rays / (2 n_threads)`` eye
     rays (none under :data:`MIN_BATCH_RAYS`), so that whole batches run at once and

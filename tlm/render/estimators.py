@@ -1,7 +1,7 @@
 """Radiance estimators of the photon-map pass, selected by ``estimate.filter``.
 
 Each estimator is a class registered in :data:`tlm.registry.ESTIMATORS` under the YAML
-value that selects it; :func:`tlm.render.passes.pmap_pass` calls it once per photon map
+value that selects it; :func:`tlm.render.pmap.pmap_pass` calls it once per photon map
 (the caustic map, then the indirect map) with the gather points. The estimate kernels
 themselves (eqs. 3.2–3.5 and the exact reference) are in :mod:`tlm.kernels.estimate`;
 a class here only chooses the kernel and hands it the config's knobs. docs/architecture.md
