@@ -37,18 +37,28 @@ import yaml
 from tlm.kernels.threads import available
 
 
-def scheduler_address(file: Path, scheduler: subprocess.Popen, timeout: float = 120.0) -> str:
+def scheduler_address(file: Path, scheduler: subprocess.Popen, log: Path, timeout: float = 120.0) -> str:
     """The address the scheduler bound (``--port 0``: a free port, chosen by the scheduler itself
-    when it binds, so no other process can take it in between), read from its scheduler file."""
+    when it binds, so no other process can take it in between), read from its scheduler file.
+    A scheduler that exits first, or writes no address in ``timeout`` seconds, stops the bench
+    with the last lines of its ``log`` (which goes with the bench's temporary folder)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         if scheduler.poll() is not None:
-            raise SystemExit(f"the Dask scheduler exited ({scheduler.returncode}) before it wrote {file}")
+            raise SystemExit(f"the Dask scheduler exited ({scheduler.returncode}) before it wrote {file}:\n"
+                             + _tail(log))
         try:
             return json.loads(file.read_text())["address"]
         except (FileNotFoundError, json.JSONDecodeError, KeyError):  # (not written yet, or half written)
             time.sleep(0.2)
-    raise SystemExit(f"the Dask scheduler wrote no address to {file} in {timeout:.0f} s")
+    raise SystemExit(f"the Dask scheduler wrote no address to {file} in {timeout:.0f} s:\n" + _tail(log))
+
+
+def _tail(log: Path, lines: int = 20) -> str:
+    try:
+        return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
+    except OSError as e:
+        return f"(its log {log} cannot be read: {e})"
 
 
 def sweep_file(folder: Path, name: str, threads: int | None, seeds: list[int], resolution: int) -> Path:
@@ -75,10 +85,12 @@ def main() -> None:
         env = {**os.environ, "TLM_CACHE": str(folder / "cache")}  # (the worker's cache: this run's alone)
         log = open(folder / "cluster.log", "w")  # noqa: SIM115 (open while the cluster runs)
         file = folder / "scheduler.json"
+        # (port 0 for the scheduler and for its HTTP server, which --no-dashboard still starts: no fixed port)
         daemons = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--scheduler-file",
-                                     str(file), "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env)]
+                                     str(file), "--no-dashboard", "--dashboard-address", "127.0.0.1:0"],
+                                    stdout=log, stderr=subprocess.STDOUT, env=env)]
         try:
-            address = scheduler_address(file, daemons[0])
+            address = scheduler_address(file, daemons[0], folder / "cluster.log")
             daemons.append(subprocess.Popen(["dask", "worker", address, "--nthreads", str(args.slots), "--nworkers",
                                              "1", "--no-dashboard"], stdout=log, stderr=subprocess.STDOUT, env=env))
             from distributed import Client

@@ -21,7 +21,7 @@ array, or int32 where a render keeps counts that fit in it):
 
 Everything else derives from these tables: the render's key tuples
 (:data:`WORK_KEYS`, :data:`GATHER_KEYS`, :data:`PHOTON_WORK`, which
-:mod:`tlm.render.passes` and :mod:`tlm.kernels.photons` fill as dicts), the page-miss
+:mod:`tlm.render.passes`, :mod:`tlm.render.pmap` and :mod:`tlm.kernels.photons` fill as dicts), the page-miss
 keys and the address stream each charges (:data:`MISS_KEYS`, :func:`stream_keys`), the
 work the timing model holds (:mod:`tlm.arch.functional` converts a render's dicts to
 these classes strictly: a key missing or unknown is an error), and the check of a PM
@@ -352,7 +352,7 @@ def stream_keys(cls: type[WorkArrays]) -> dict[str, str]:
     return {s: i.name for i in cls.ITEMS for s in i.streams}
 
 
-STREAM_KEYS = stream_keys(RayPassWork)  # the ray passes' streams (tlm.render.passes charges them)
+STREAM_KEYS = stream_keys(RayPassWork)  # the ray passes' streams (tlm.render.frame.charge charges them)
 
 
 def pass_work_class(name: str) -> type[WorkArrays]:

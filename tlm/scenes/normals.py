@@ -16,7 +16,7 @@ glTF vertex normals) and are otherwise computed here with a *crease angle*
   degenerate triangle (no face normal) keeps zero normals, for which the renderer falls
   back to the geometric normal.
 
-The renderer (:mod:`tlm.render.passes`) interpolates the corner normals with the hit's
+The renderer (:func:`tlm.render.frame.shading_normals`) interpolates the corner normals with the hit's
 barycentrics and uses the result for shading and for the mirror and Snell directions;
 the geometric normal still decides sides and offsets (:mod:`tlm.kernels.shade`).
 """
