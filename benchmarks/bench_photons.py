@@ -32,7 +32,8 @@ from scipy.spatial import cKDTree
 from timing import best_of, exit_status, verdict
 
 from tlm.kernels.bsp import build_point_tree
-from tlm.kernels.estimate import disk_estimate, knn_estimate, kvoxel_estimate, leaf_photons, mvoxel_estimate
+from tlm.kernels.estimate import disk_estimate, knn_estimate, leaf_photons, mvoxel_estimate
+from tlm.kernels.kvoxel import kvoxel_estimate
 
 
 def on_box_faces(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from tlm.kernels import estimate as est
+from tlm.kernels import kvoxel
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.memory import Streams, page_misses, span_addresses
 from tlm.kernels.shade import hash_uniform
@@ -285,13 +286,13 @@ def test_kvoxel_equals_reference(k):
     pts, nrm = cube_queries(80, 6, 0.05, 0.95)
     tree = build_point_tree(pos)
     keys = np.arange(80, dtype=np.int64) * 7919 + 11
-    e = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=k, cone_k=CONE, seed=42, keys=keys)
+    e = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=k, cone_k=CONE, seed=42, keys=keys)
     ref, counts = kvoxel_reference(pos, power, inc, tree, pts, nrm, 0.1, k, CONE, 42, keys)
     close(e.density, ref)
     np.testing.assert_array_equal(e.leaves_visited, counts["leaves"])
     np.testing.assert_array_equal(e.photons_tested, counts["tested"])
     np.testing.assert_array_equal(e.photons_accepted, counts["accepted"])
-    assert np.all(e.node_visits == k * tree.levels) and np.all(e.probe_tests == est.PROBES)
+    assert np.all(e.node_visits == k * tree.levels) and np.all(e.probe_tests == kvoxel.PROBES)
     np.testing.assert_array_equal(e.node_visits, counts["nodes"])
     np.testing.assert_array_equal(e.probe_tests, counts["probes"])
     assert np.all(e.leaves_visited <= k)
@@ -327,13 +328,13 @@ def test_kvoxel_layers_equal_reference(k):
     pts[:, 2] = 0.5 + np.random.default_rng(32).uniform(-1e-13, 1e-13, 60)
     pts[-10:] += [0.0, 0.0, 1e-3]  # off the plane: a disk that does not lie on the splits
     keys = np.arange(60, dtype=np.int64) * 131 + 3
-    e = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=k, cone_k=CONE, seed=5, keys=keys)
+    e = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=k, cone_k=CONE, seed=5, keys=keys)
     ref, counts = kvoxel_reference(pos, power, inc, tree, pts, nrm, 0.1, k, CONE, 5, keys)
     close(e.density, ref)
     for name, key in (("leaves_visited", "leaves"), ("photons_tested", "tested"),
                       ("photons_accepted", "accepted"), ("node_visits", "nodes"), ("probe_tests", "probes")):
         np.testing.assert_array_equal(getattr(e, name), counts[key], err_msg=name)
-    assert np.all(e.node_visits[:-10] > k * tree.levels) and np.all(e.probe_tests[:-10] > est.PROBES)
+    assert np.all(e.node_visits[:-10] > k * tree.levels) and np.all(e.probe_tests[:-10] > kvoxel.PROBES)
     np.testing.assert_array_equal(e.node_visits[-10:], k * tree.levels)
     finite_nonneg(e)
 
@@ -353,7 +354,7 @@ def test_kvoxel_unbiased_on_traced_plane(k):
     pts[:, 2] = 0.5 + np.random.default_rng(35).uniform(-1e-13, 1e-13, 400)
     args = (pos, power, inc, tree, pts, nrm, 0.05)
     mv = est.mvoxel_estimate(*args, cone_k=CONE)
-    kv = est.kvoxel_estimate(*args, k=k, cone_k=CONE, seed=6)
+    kv = kvoxel.kvoxel_estimate(*args, k=k, cone_k=CONE, seed=6)
     assert abs(kv.density.mean() / mv.density.mean() - 1.0) < 0.03, kv.density.mean() / mv.density.mean()
     assert abs(mv.density.mean() / 3.0 - 1.0) < 0.03
     # the layers' leaves are searched by the m-voxel filter too
@@ -389,7 +390,7 @@ def test_kvoxel_unbiased_on_traced_box(tilt):
     inside = np.all((pts > 0.1) & (pts < 0.9) | (np.abs(nrm) > 0.5), axis=1)  # away from edges
     args = (pos[0], power, inc, tree, pts[inside], nrm[inside], 0.06)
     mv = est.mvoxel_estimate(*args, cone_k=CONE).density.sum(axis=1)
-    kv = est.kvoxel_estimate(*args, k=8, cone_k=CONE, seed=7).density.sum(axis=1)
+    kv = kvoxel.kvoxel_estimate(*args, k=8, cone_k=CONE, seed=7).density.sum(axis=1)
     assert abs(kv.mean() / mv.mean() - 1.0) < 0.03, kv.mean() / mv.mean()
 
 
@@ -398,7 +399,7 @@ def test_kvoxel_one_voxel_is_mvoxel():
     pos, power, inc = cube_map(2000, 7)
     pts, nrm = cube_queries(100, 8, 0.2, 0.8)
     tree = build_point_tree(pos, 0)
-    kv = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=5, cone_k=CONE)
+    kv = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=5, cone_k=CONE)
     mv = est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, cone_k=CONE)
     np.testing.assert_array_equal(kv.density, mv.density)
 
@@ -419,13 +420,13 @@ def planes():
         out[n] = {
             "disk": est.disk_estimate(*args, prepared=lp),
             "mvoxel": est.mvoxel_estimate(*args, cone_k=CONE, prepared=lp),
-            "kvoxel": est.kvoxel_estimate(*args, k=8, cone_k=CONE, seed=1, prepared=lp),
+            "kvoxel": kvoxel.kvoxel_estimate(*args, k=8, cone_k=CONE, seed=1, prepared=lp),
             "knn": est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=50, cone_k=CONE),
         }
         # the same depth at both counts (the default, floor(ln n), is 9 for 20k photons)
         tree9 = build_point_tree(pos, 9)
         args9 = (pos, power, inc, tree9, pts, nrm, 0.05)
-        out[n]["kvoxel9"] = est.kvoxel_estimate(*args9, k=8, cone_k=CONE, seed=1)
+        out[n]["kvoxel9"] = kvoxel.kvoxel_estimate(*args9, k=8, cone_k=CONE, seed=1)
         out[n]["mvoxel9"] = est.mvoxel_estimate(*args9, cone_k=CONE)
     return out
 
@@ -472,7 +473,7 @@ def all_estimates(pos, power, inc, tree, pts, nrm, r, k=4):
     return {
         "disk": est.disk_estimate(pos, power, inc, tree, pts, nrm, r),
         "mvoxel": est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, r, cone_k=CONE),
-        "kvoxel": est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, r, k=k, cone_k=CONE, seed=3),
+        "kvoxel": kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, r, k=k, cone_k=CONE, seed=3),
         "knn": est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=5, cone_k=CONE),
     }
 
@@ -604,7 +605,7 @@ def test_invalid_arguments():
     with pytest.raises(ValueError):
         est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, cone_k=0.5)
     with pytest.raises(ValueError):
-        est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=0)
+        kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, k=0)
     with pytest.raises(ValueError):
         est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=0)
     with pytest.raises(ValueError):
@@ -625,7 +626,7 @@ def run_all(pos, power, inc, tree, pts, nrm, keys, streams=None):
     return {
         "disk": est.disk_estimate(pos, power, inc, tree, pts, nrm, 0.08, streams=streams["disk"]),
         "mvoxel": est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, cone_k=CONE, streams=streams["mvoxel"]),
-        "kvoxel": est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, k=6, seed=9, keys=keys,
+        "kvoxel": kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.08, k=6, seed=9, keys=keys,
                                       streams=streams["kvoxel"]),
         "knn": est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=20),
     }
@@ -674,10 +675,10 @@ def test_packet_invariance_with_layers(monkeypatch):
     keys = np.arange(300, dtype=np.int64) * 17 + 1
 
     def run(idx):
-        return est.kvoxel_estimate(pos, power, inc, tree, pts[idx], nrm[idx], 0.08, k=6, seed=9, keys=keys[idx])
+        return kvoxel.kvoxel_estimate(pos, power, inc, tree, pts[idx], nrm[idx], 0.08, k=6, seed=9, keys=keys[idx])
 
     full = run(np.arange(300))
-    assert np.any(full.probe_tests > est.PROBES)
+    assert np.any(full.probe_tests > kvoxel.PROBES)
     rng = np.random.default_rng(43)
     for idx in (rng.permutation(300)[:71], rng.permutation(300), np.array([7])):
         assert_same(full, run(idx), idx)
@@ -690,8 +691,8 @@ def test_prepared_is_the_same():
     tree = build_point_tree(pos)
     pts, nrm = cube_queries(100, 25)
     lp = est.leaf_photons(pos, power, inc, tree)
-    a = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1)
-    b = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, prepared=lp)
+    a = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1)
+    b = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, prepared=lp)
     assert_same(a, b)
 
 
@@ -752,11 +753,11 @@ def test_gather_misses_are_those_of_the_photon_leaf_stream():
             want = np.bincount(np.concatenate(owner)[miss], minlength=pts.shape[0])
             np.testing.assert_array_equal(e.gather_misses, want)
             assert want.sum() > (0 if page_words == 1024 else pts.shape[0])
-    kv = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(64))
+    kv = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(64))
     assert np.all(kv.gather_misses <= 2 * kv.photons_tested) and kv.gather_misses.sum() > 0
     assert np.all(kv.gather_misses[kv.photons_tested == 0] == 0)
     # every query's leaves on a page of their own: one miss per leaf (read once each)
-    one = est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(1))
+    one = kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, 0.1, streams=Streams(1))
     full = kv.photons_tested > 0
     assert np.all(one.gather_misses[full] >= 1)
     assert np.all(one.gather_misses <= 2 * kv.photons_tested)

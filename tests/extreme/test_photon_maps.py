@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from tlm.kernels import estimate as est
+from tlm.kernels import kvoxel
 from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.photons import trace_photons
 from tlm.kernels.traverse import build_accel
@@ -38,7 +39,7 @@ def estimates(pos, power, inc, pts, nrm, r, levels=None, k=8, k_nearest=50, keys
     out = {
         "disk": est.disk_estimate(pos, power, inc, tree, pts, nrm, r),
         "mvoxel": est.mvoxel_estimate(pos, power, inc, tree, pts, nrm, r, cone_k=CONE),
-        "kvoxel": est.kvoxel_estimate(pos, power, inc, tree, pts, nrm, r, k=k, cone_k=CONE, keys=keys),
+        "kvoxel": kvoxel.kvoxel_estimate(pos, power, inc, tree, pts, nrm, r, k=k, cone_k=CONE, keys=keys),
         "knn": est.knn_estimate(pos, power, inc, pts, nrm, k_nearest=k_nearest, cone_k=CONE),
     }
     for name, e in out.items():
@@ -83,7 +84,7 @@ def test_coincident_photons_analytic(where):
     for name in ("disk", "mvoxel"):
         np.testing.assert_array_equal(e[name].photons_accepted, n)
     assert np.all(e["knn"].density[0] == 0.0)
-    many = est.kvoxel_estimate(pos, power, inc, build_point_tree(pos), np.concatenate([q, tiles(x0, 100)]),
+    many = kvoxel.kvoxel_estimate(pos, power, inc, build_point_tree(pos), np.concatenate([q, tiles(x0, 100)]),
                                tiles(UP, 103), r, k=8, cone_k=CONE, keys=np.arange(103))
     assert np.isfinite(many.density).all()
     assert set(np.unique(many.photons_accepted).tolist()) <= {0, n}
@@ -273,7 +274,7 @@ def test_tiny_radius_never_nan(filt, radius):
         elif filt == "mvoxel":
             e = est.mvoxel_estimate(pos, power, inc, tree, q, n, radius)
         else:
-            e = est.kvoxel_estimate(pos, power, inc, tree, q, n, radius)
+            e = kvoxel.kvoxel_estimate(pos, power, inc, tree, q, n, radius)
     assert np.all(e.density == 0.0), e.density
 
 

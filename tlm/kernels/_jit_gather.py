@@ -17,7 +17,7 @@ densities and work counts are bit-identical to the numpy path (``TLM_KERNELS=num
 which stays the reference (tests/test_engines.py compares the two).
 
 The (query, leaf) pairs are returned too, in order, for the page misses of the leaves'
-reads (:func:`tlm.kernels.estimate._charge_leaves`). Their buffer is sized by the caller;
+reads (:func:`tlm.kernels.estimate.charge_leaves`). Their buffer is sized by the caller;
 a block that would overflow it returns how many pairs it needed instead, and the caller
 runs it again with a larger buffer.
 """

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tlm.kernels import estimate
+from tlm.kernels import estimate, kvoxel
 from tlm.registry import ESTIMATORS
 
 
@@ -80,7 +80,7 @@ class KVoxel(Estimator):
     """eqs. 3.4/3.5: the stochastic k-voxel filter (k photons drawn per searched voxel)."""
 
     def __call__(self, g: Gather):
-        return estimate.kvoxel_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
+        return kvoxel.kvoxel_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
                                         k=self.cfg.k, cone_k=self.cfg.cone_k, seed=self.seed, keys=g.keys,
                                         streams=g.streams, stream=g.stream, prepared=g.prepared)
 
