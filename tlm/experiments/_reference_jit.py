@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+import tlm.kernels  # noqa: F401  (numba's cache stamps of the compiled files, before these are decorated)
+
 MAX_CELLS = 1 << 22  # cells of the grid at most (its size grows until they fit)
 
 

@@ -1,0 +1,107 @@
+"""numba's on-disk cache of the compiled kernels follows an edit of any compiled file.
+
+numba keys a cached function on its own file only, so a kernel inlining a helper of another
+file kept the helper's old code after an edit (:mod:`tlm.kernels._numba_cache`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from numba.core.dispatcher import Dispatcher
+
+from tlm.kernels import _numba_cache
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def compiled_modules() -> list:
+    names = [f"tlm.{p.parent.name}.{p.stem}" for p in _numba_cache.compiled_sources()]
+    return [importlib.import_module(n) for n in names]
+
+
+def test_every_cached_kernel_is_stamped_with_all_compiled_files():
+    assert _numba_cache.install(), "numba's caching module no longer has the locators this wraps"
+    stamp = ("tlm-kernels", _numba_cache.package_stamp())
+    checked = []
+    for module in compiled_modules():
+        for name, obj in vars(module).items():
+            if isinstance(obj, Dispatcher) and obj.__module__ == module.__name__ and obj._cache.__class__.__name__ \
+                    != "NullCache":
+                assert obj._cache._impl.locator.get_source_stamp() == stamp, f"{module.__name__}.{name}"
+                checked.append(name)
+    # the kernels that call across files among them (fg_bounce -> _jit_photons, level_sums -> _jit)
+    assert {"fg_bounce", "level_sums", "trace", "bounce", "hash_uniform"} <= set(checked)
+    assert len(checked) >= 20
+
+
+def test_the_stamp_follows_every_files_content_not_its_time(tmp_path):
+    a, b = tmp_path / "_jit_a.py", tmp_path / "_jit_b.py"
+    a.write_text("x = 1\n")
+    b.write_text("y = 2\n")
+    first = _numba_cache.stamp_of((a, b))
+    os.utime(a, (1, 1))  # a checkout or a copy that keeps the content keeps the stamp
+    assert _numba_cache.stamp_of((a, b)) == first
+    b.write_text("y = 3\n")  # the other file's edit changes it
+    assert _numba_cache.stamp_of((a, b)) != first
+    b.write_text("y = 2\n")
+    assert _numba_cache.stamp_of((a, b)) == first
+    a.write_text("x = 1\n\n")
+    assert _numba_cache.stamp_of((a, b)) != first
+
+
+def test_the_compiled_sources_are_the_kernels_and_the_reference():
+    names = {p.name for p in _numba_cache.compiled_sources()}
+    assert {"_jit.py", "_jit_photons.py", "_jit_fgather.py", "_jit_bsp.py", "_reference_jit.py"} <= names
+    assert all(n.startswith("_jit") or n.endswith("_jit.py") for n in names)
+
+
+PROBE = """from numba import njit
+
+from tlm.kernels._jit import _mn
+
+
+@njit(cache=True)
+def probe(a, b):
+    return _mn(a, b)
+"""
+
+RUN = """import sys
+sys.path.insert(0, {root!r})
+import tlm
+assert tlm.__file__.startswith({root!r}), tlm.__file__
+from tlm.kernels._jit_probe import probe
+print(probe(1.0, 2.0))
+"""
+
+
+@pytest.mark.slow
+def test_an_edit_of_a_helper_recompiles_the_kernel_that_inlines_it(tmp_path):
+    """A copy of the package with a cached kernel inlining ``_jit._mn`` (another file): run,
+    edit ``_mn`` alone, run again. numba's own stamps would load the first build (1.0)."""
+    root = tmp_path / "copy"
+    shutil.copytree(REPO / "tlm", root / "tlm", ignore=shutil.ignore_patterns("__pycache__"))
+    (root / "tlm" / "kernels" / "_jit_probe.py").write_text(PROBE)
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+
+    def run() -> str:
+        done = subprocess.run([sys.executable, "-c", RUN.format(root=str(root))], capture_output=True, text=True,
+                              env=env, cwd=tmp_path, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    assert run() == "1.0"
+    cached = list((root / "tlm" / "kernels" / "__pycache__").glob("_jit_probe.probe-*.nbi"))
+    assert cached, "the probe's build was cached (else the second run proves nothing)"
+    jit = root / "tlm" / "kernels" / "_jit.py"
+    source = jit.read_text()
+    body = '    if a != a:\n        return a\n    if a < b:\n        return a\n    return b\n'
+    assert source.count(body) == 1
+    jit.write_text(source.replace(body, "    return b\n"))  # _mn edited: now the second operand
+    assert run() == "2.0"

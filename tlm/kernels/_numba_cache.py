@@ -1,0 +1,89 @@
+"""numba's on-disk cache of tlm's compiled kernels, keyed on all of their source files.
+
+numba keys a cached function (``@njit(cache=True)``) on its own source file only: a kernel
+that calls or inlines a compiled helper of another file keeps running the helper's old
+code after that file is edited, until its own file changes (numba's documented
+limitation, "changes in symbols defined in another file are not recognized"). tlm's
+kernels do call across files (``_jit_fgather`` -> ``_jit_photons`` and ``_jit_hash``,
+``_jit_bsp``, ``_jit_cones`` and ``_jit_photons`` -> ``_jit``), so an edit of a helper
+could leave an editable install, or a checkout's ``__pycache__``, computing with the
+helper as it was: images and work that match neither the new source nor the tests.
+
+:func:`install` wraps numba's source-file cache locators so that every function defined
+in one of :func:`compiled_sources` is stamped with :func:`package_stamp`, a hash of the
+content of *all* of them: an edit of any one recompiles every kernel on its next call
+(the compile the first run after an install does anyway). Functions in any other file,
+tlm's or not, keep numba's own stamp. ``tlm.kernels`` installs it on import, before any
+compiled module is imported (numba picks a function's locator when it is decorated).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1]  # tlm/
+# the files whose compiled functions may call each other's: tlm/kernels/_jit*.py and the
+# reference's compiled estimate (tlm/experiments/_reference_jit.py)
+SOURCES = (("kernels", "_jit*.py"), ("experiments", "_*jit.py"))
+
+
+def compiled_sources(package: Path = PACKAGE) -> tuple[Path, ...]:
+    """The package's files of compiled functions, in name order."""
+    return tuple(sorted(p.resolve() for folder, pattern in SOURCES for p in (package / folder).glob(pattern)))
+
+
+def stamp_of(paths: tuple[Path, ...]) -> str:
+    """A hash of the files' names and contents, in the given order (no modification times:
+    a checkout or a copy that keeps the content keeps the stamp)."""
+    h = hashlib.sha256()
+    for p in paths:
+        data = p.read_bytes()
+        h.update(f"{p.name}\0{len(data)}\0".encode())
+        h.update(data)
+    return h.hexdigest()
+
+
+@functools.cache
+def package_stamp() -> str:
+    """:func:`stamp_of` the package's :func:`compiled_sources`, once per process."""
+    return stamp_of(compiled_sources())
+
+
+@functools.cache
+def _covered() -> frozenset[str]:
+    return frozenset(str(p) for p in compiled_sources())
+
+
+class _PackageStamp:
+    """Mixed into a numba locator: tlm's compiled files get the package's stamp."""
+
+    _py_file: str
+
+    def get_source_stamp(self):
+        try:
+            mine = str(Path(getattr(self, "_py_file", "")).resolve()) in _covered()
+        except OSError:
+            mine = False
+        if mine:
+            return ("tlm-kernels", package_stamp())
+        return super().get_source_stamp()  # type: ignore[misc]
+
+
+def install() -> bool:
+    """Wrap numba's source-file locators (once; idempotent). False where numba is missing or
+    its caching module lacks what this needs (then numba's own stamps stand)."""
+    try:
+        from numba.core import caching
+    except ImportError:
+        return False
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # (numba 0.6x: private)
+    mixin = getattr(caching, "_SourceFileBackedLocatorMixin", None)
+    if impl is None or mixin is None or not isinstance(getattr(impl, "_locator_classes", None), list):
+        return False
+    classes = impl._locator_classes
+    for i, cls in enumerate(classes):
+        if isinstance(cls, type) and issubclass(cls, mixin) and not issubclass(cls, _PackageStamp):
+            classes[i] = type(f"Tlm{cls.__name__}", (_PackageStamp, cls), {"__module__": __name__})
+    return True
