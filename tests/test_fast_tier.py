@@ -1,9 +1,10 @@
 """The fast tier (``pytest -m "not slow"``) touches every module of tlm.
 
 The tier is the suite less the tests marked ``slow`` (whole-scene renders, sweeps,
-studies, subprocess runs): under a minute here, against about ten for the whole suite,
-which CI still runs. A tier that skips a module would let a change to it pass the quick
-check unseen, so this test asks, for every ``tlm/**/*.py``, whether some test of the
+studies, subprocess runs): under a minute here, against about eleven for the whole suite
+in one process (six to seven in one process per core, as CI runs it), which CI still
+runs. A tier that skips a module would let a change to it pass the quick check unseen,
+so this test asks, for every ``tlm/**/*.py``, whether some test of the
 tier *itself* uses it. It reads the tests' source (``ast``), not a coverage trace
 (running the tier under coverage would cost the tier's own time again), and counts
 only what a test names:
