@@ -56,15 +56,43 @@ def test_the_stamp_follows_every_files_content_not_its_time(tmp_path):
     assert _numba_cache.stamp_of((a, b)) != first
 
 
-def test_the_compiled_sources_are_the_kernels_and_the_reference():
-    names = {p.name for p in _numba_cache.compiled_sources()}
-    assert {"_jit.py", "_jit_photons.py", "_jit_fgather.py", "_jit_bsp.py", "_reference_jit.py"} <= names
-    assert all(n.startswith("_jit") or n.endswith("_jit.py") for n in names)
+def test_every_file_with_a_cached_function_is_covered_and_takes_njit_from_here():
+    """A new compiled file outside the patterns, or one decorating with numba's own njit
+    before the wrapping is in place, would be keyed on itself alone again."""
+    covered = set(_numba_cache.compiled_sources())
+    assert {"_jit.py", "_jit_photons.py", "_jit_fgather.py", "_jit_bsp.py", "_reference_jit.py"} <= {
+        p.name for p in covered}
+    cached = set()
+    for path in (REPO / "tlm").rglob("*.py"):
+        text = path.read_text()
+        if "cache=True" in text and path.name != "_numba_cache.py":
+            cached.add(path.resolve())
+            assert "from tlm.kernels._numba_cache import" in text, path
+            assert "from numba import njit" not in text and "numba.njit" not in text, path
+    assert cached == covered
 
 
-PROBE = """from numba import njit
+def test_an_edited_file_changes_the_stamp_in_the_same_process(tmp_path, monkeypatch):
+    """Edited, then reloaded in one process: the reloaded functions get a new stamp."""
+    files = (tmp_path / "_jit_a.py", tmp_path / "_jit_b.py")
+    for f in files:
+        f.write_text("x = 1\n")
+    monkeypatch.setattr(_numba_cache, "compiled_sources", lambda: files)
+    first = _numba_cache.package_stamp()
+    assert _numba_cache.package_stamp() == first
+    files[1].write_text("x = 22\n")
+    assert _numba_cache.package_stamp() != first
 
-from tlm.kernels._jit import _mn
+
+def test_importing_the_kernels_package_does_not_import_numba():
+    code = "import sys, tlm.kernels, tlm.kernels.bsp; print('numba' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+PROBE = """from tlm.kernels._jit import _mn
+from tlm.kernels._numba_cache import njit
 
 
 @njit(cache=True)

@@ -13,9 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
-import tlm.kernels  # noqa: F401  (numba's cache stamps of the compiled files, before these are decorated)
+from tlm.kernels._numba_cache import njit, prange  # (numba's, with the cache stamped on every compiled file)
 
 MAX_CELLS = 1 << 22  # cells of the grid at most (its size grows until they fit)
 

@@ -5,10 +5,5 @@ results, the work it did (node visits, leaf visits, triangle tests, ...), so tha
 timing layer can turn work into cycles per packet.
 """
 
-from tlm.kernels import (
-    _malloc,  # noqa: F401  (allocator tuning, speed only)
-    _numba_cache,
-)
+from tlm.kernels import _malloc  # noqa: F401  (allocator tuning, speed only)
 from tlm.kernels._malloc import trim as release_memory  # noqa: F401  (freed blocks back to the system)
-
-_numba_cache.install()  # (before any compiled module is imported: their cache stamps)

@@ -47,7 +47,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 PAD = 8  # slots per AVX2 vector of float32
 _NO_HIT = np.uint32(0x7F800000)  # float32 +inf

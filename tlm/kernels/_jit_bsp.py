@@ -23,9 +23,8 @@ several.
 
 from __future__ import annotations
 
-from numba import njit
-
 from tlm.kernels._jit import _mn, _mx
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

@@ -27,9 +27,9 @@ the two; ``benchmarks/bench_emission.py`` times them).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from tlm.kernels._jit import _mn
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 _TWO_PI = 2.0 * np.pi  # (the numpy code's ``2.0 * np.pi * (1.0 - cos)`` multiplies left to right)
 

@@ -19,10 +19,10 @@ the two).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from tlm.kernels._jit_hash import _GOLD, _mix, uniform3
 from tlm.kernels._jit_photons import _facing, _scatter_specular, _shading_normal
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

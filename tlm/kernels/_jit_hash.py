@@ -11,7 +11,8 @@ runs the numpy code, the reference (tests/test_engines.py compares the two).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 # tlm.kernels.shade's constants (not imported: shade imports this module, and the layers'
 # import graph has no cycle; tests/test_engines.py compares the numbers)

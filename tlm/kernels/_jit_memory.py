@@ -22,7 +22,8 @@ run it at once. ``TLM_KERNELS=numpy`` runs the numpy code, the reference
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
 @njit(cache=True, nogil=True, inline="always")

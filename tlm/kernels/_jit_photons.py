@@ -26,10 +26,10 @@ are the reference's wherever numpy's ``sin`` and ``cos`` differ from the C libra
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from tlm.kernels._jit import _mx
 from tlm.kernels._jit_hash import _GOLD, _mix, uniform3
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 _BIG = np.finfo(np.float64).max  # np.nan_to_num's stand-in for an infinity
 

@@ -9,7 +9,8 @@ the numpy expression it replaces returns (the tests compare them on edge cases).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

@@ -1,4 +1,4 @@
-"""numba's on-disk cache of tlm's compiled kernels, keyed on all of their source files.
+"""numba's ``njit`` for tlm's compiled modules, with the on-disk cache keyed on all of them.
 
 numba keys a cached function (``@njit(cache=True)``) on its own source file only: a kernel
 that calls or inlines a compiled helper of another file keeps running the helper's old
@@ -9,19 +9,31 @@ kernels do call across files (``_jit_fgather`` -> ``_jit_photons`` and ``_jit_ha
 could leave an editable install, or a checkout's ``__pycache__``, computing with the
 helper as it was: images and work that match neither the new source nor the tests.
 
-:func:`install` wraps numba's source-file cache locators so that every function defined
-in one of :func:`compiled_sources` is stamped with :func:`package_stamp`, a hash of the
-content of *all* of them: an edit of any one recompiles every kernel on its next call
-(the compile the first run after an install does anyway). Functions in any other file,
-tlm's or not, keep numba's own stamp. ``tlm.kernels`` installs it on import, before any
-compiled module is imported (numba picks a function's locator when it is decorated).
+Importing this module wraps numba's source-file cache locators (:func:`install`) so that
+every function defined in one of :func:`compiled_sources` is stamped with
+:func:`package_stamp`, a hash of the content of *all* of them: an edit of any one
+recompiles every kernel on its next call (the compile the first run after an install
+does anyway). Functions in any other file, tlm's or not, keep numba's own stamp. The
+compiled modules take ``njit`` (and ``prange``) from here, so the wrapping is in place
+before their functions are decorated (numba picks a function's locator then), and
+importing the rest of :mod:`tlm.kernels` does not import numba.
+
+Not covered: a package run from a zip file (no files to hash: numba's own stamps), and
+``NUMBA_CACHE_LOCATOR_CLASSES``, which names numba's classes and so bypasses the wrapping.
+``tests/test_numba_cache.py`` checks that every file of tlm with a cached function is
+one of :func:`compiled_sources` and takes ``njit`` from here.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import os
 from pathlib import Path
+
+from numba import njit, prange
+
+__all__ = ["compiled_sources", "install", "njit", "package_stamp", "prange", "stamp_of"]
 
 PACKAGE = Path(__file__).resolve().parents[1]  # tlm/
 # the files whose compiled functions may call each other's: tlm/kernels/_jit*.py and the
@@ -45,10 +57,20 @@ def stamp_of(paths: tuple[Path, ...]) -> str:
     return h.hexdigest()
 
 
-@functools.cache
+@functools.lru_cache(maxsize=4)
+def _stamp(key: tuple) -> str:
+    return stamp_of(tuple(Path(name) for name, _, _ in key))
+
+
 def package_stamp() -> str:
-    """:func:`stamp_of` the package's :func:`compiled_sources`, once per process."""
-    return stamp_of(compiled_sources())
+    """:func:`stamp_of` the package's :func:`compiled_sources`, hashed again only when a
+    file's size or modification time moved (an edit, then ``importlib.reload``, in one
+    process: the reloaded functions get the new stamp, as numba's own stamp does)."""
+    key = []
+    for p in compiled_sources():
+        st = os.stat(p)
+        key.append((str(p), st.st_mtime_ns, st.st_size))
+    return _stamp(tuple(key))
 
 
 @functools.cache
@@ -58,8 +80,6 @@ def _covered() -> frozenset[str]:
 
 class _PackageStamp:
     """Mixed into a numba locator: tlm's compiled files get the package's stamp."""
-
-    _py_file: str
 
     def get_source_stamp(self):
         try:
@@ -72,12 +92,10 @@ class _PackageStamp:
 
 
 def install() -> bool:
-    """Wrap numba's source-file locators (once; idempotent). False where numba is missing or
-    its caching module lacks what this needs (then numba's own stamps stand)."""
-    try:
-        from numba.core import caching
-    except ImportError:
-        return False
+    """Wrap numba's source-file locators (once; idempotent). False where numba's caching
+    module lacks what this needs (then numba's own stamps stand: the test fails)."""
+    from numba.core import caching
+
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # (numba 0.6x: private)
     mixin = getattr(caching, "_SourceFileBackedLocatorMixin", None)
     if impl is None or mixin is None or not isinstance(getattr(impl, "_locator_classes", None), list):
@@ -87,3 +105,6 @@ def install() -> bool:
         if isinstance(cls, type) and issubclass(cls, mixin) and not issubclass(cls, _PackageStamp):
             classes[i] = type(f"Tlm{cls.__name__}", (_PackageStamp, cls), {"__module__": __name__})
     return True
+
+
+install()

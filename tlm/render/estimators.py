@@ -81,8 +81,8 @@ class KVoxel(Estimator):
 
     def __call__(self, g: Gather):
         return kvoxel.kvoxel_estimate(g.position, g.power, g.incoming, g.tree, g.points, g.normals, g.radius,
-                                        k=self.cfg.k, cone_k=self.cfg.cone_k, seed=self.seed, keys=g.keys,
-                                        streams=g.streams, stream=g.stream, prepared=g.prepared)
+                                      k=self.cfg.k, cone_k=self.cfg.cone_k, seed=self.seed, keys=g.keys,
+                                      streams=g.streams, stream=g.stream, prepared=g.prepared)
 
 
 @ESTIMATORS.register("knn")
