@@ -234,13 +234,14 @@ def test_the_compiled_layout_holds_the_numpy_constants(scene_accel, memory_facto
     """Every padded slot of the compiled kernel's copy holds the float32 and float64
     constants the numpy engine tests (``soa``, ``soa64``) of the slot it maps back to,
     leaves start on a multiple of PAD slots, and padding is NaN with no triangle's id."""
-    from tlm.kernels import _jit
+    from tlm.kernels import _jit_leaf
 
     scene, _ = scene_accel
     accel = build_accel(scene.triangles, memory_factor=memory_factor)  # (slots shared by leaves at 20)
     lay, s32, s64 = accel.jit_layout, accel.soa, accel.soa64
     real = lay.back >= 0
-    assert (lay.first % _jit.PAD == 0).all() and (lay.last - lay.first == -(-lay.size // _jit.PAD) * _jit.PAD).all()
+    pad = _jit_leaf.PAD
+    assert (lay.first % pad == 0).all() and (lay.last - lay.first == -(-lay.size // pad) * pad).all()
     assert (lay.size == accel.leaf_last - accel.leaf_first).all() and lay.back.shape == (lay.soa32.shape[1],)
     want32 = np.concatenate([s32.v0, s32.e1n, s32.e2, s32.n, s32.nn])[:, lay.back[real]]
     assert lay.soa32[:15, real].tobytes() == want32.tobytes()

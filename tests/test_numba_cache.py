@@ -91,7 +91,7 @@ def test_importing_the_kernels_package_does_not_import_numba():
     assert done.stdout.strip() == "False"
 
 
-PROBE = """from tlm.kernels._jit import _mn
+PROBE = """from tlm.kernels._jit_leaf import _mn
 from tlm.kernels._numba_cache import njit
 
 
@@ -111,7 +111,7 @@ print(probe(1.0, 2.0))
 
 @pytest.mark.slow
 def test_an_edit_of_a_helper_recompiles_the_kernel_that_inlines_it(tmp_path):
-    """A copy of the package with a cached kernel inlining ``_jit._mn`` (another file): run,
+    """A copy of the package with a cached kernel inlining ``_jit_leaf._mn`` (another file): run,
     edit ``_mn`` alone, run again. numba's own stamps would load the first build (1.0)."""
     root = tmp_path / "copy"
     shutil.copytree(REPO / "tlm", root / "tlm", ignore=shutil.ignore_patterns("__pycache__"))
@@ -127,7 +127,7 @@ def test_an_edit_of_a_helper_recompiles_the_kernel_that_inlines_it(tmp_path):
     assert run() == "1.0"
     cached = list((root / "tlm" / "kernels" / "__pycache__").glob("_jit_probe.probe-*.nbi"))
     assert cached, "the probe's build was cached (else the second run proves nothing)"
-    jit = root / "tlm" / "kernels" / "_jit.py"
+    jit = root / "tlm" / "kernels" / "_jit_leaf.py"
     source = jit.read_text()
     body = '    if a != a:\n        return a\n    if a < b:\n        return a\n    return b\n'
     assert source.count(body) == 1

@@ -23,7 +23,7 @@ several.
 
 from __future__ import annotations
 
-from tlm.kernels._jit import _mn, _mx
+from tlm.kernels._jit_leaf import _mn, _mx
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 

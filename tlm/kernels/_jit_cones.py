@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tlm.kernels._jit import _mn
+from tlm.kernels._jit_leaf import _mn
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 _TWO_PI = 2.0 * np.pi  # (the numpy code's ``2.0 * np.pi * (1.0 - cos)`` multiplies left to right)

@@ -13,7 +13,7 @@ paths and their work are the numpy code's, bit for bit (but for the sign or payl
 NaN, from a NaN input, which no scene gives). numba compiles without fast-math: nothing
 is reassociated or fused. Dot products and norms are summed from +0.0, then x, y, z
 (``np.sum`` over three columns: three products of -0.0 sum to +0.0); numpy's ``maximum``
-(:func:`~tlm.kernels._jit._mx`: a NaN wins, the second operand on a tie), ``np.clip`` (a
+(:func:`~tlm.kernels._jit_leaf._mx`: a NaN wins, the second operand on a tie), ``np.clip`` (a
 NaN stays, ``x`` on a tie), ``np.nan_to_num`` and the cross products of ``np.cross`` are
 written out. The random numbers are the same hash (:mod:`tlm.kernels._jit_hash`). The
 one exception is the azimuth of a diffuse bounce: its sine and cosine are numpy's,
@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from tlm.kernels._jit import _mx
 from tlm.kernels._jit_hash import _GOLD, _mix, uniform3
+from tlm.kernels._jit_leaf import _mx
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 _BIG = np.finfo(np.float64).max  # np.nan_to_num's stand-in for an infinity

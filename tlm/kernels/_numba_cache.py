@@ -5,7 +5,7 @@ that calls or inlines a compiled helper of another file keeps running the helper
 code after that file is edited, until its own file changes (numba's documented
 limitation, "changes in symbols defined in another file are not recognized"). tlm's
 kernels do call across files (``_jit_fgather`` -> ``_jit_photons`` and ``_jit_hash``,
-``_jit_bsp``, ``_jit_cones`` and ``_jit_photons`` -> ``_jit``), so an edit of a helper
+``_jit``, ``_jit_bsp``, ``_jit_cones`` and ``_jit_photons`` -> ``_jit_leaf``), so an edit of a helper
 could leave an editable install, or a checkout's ``__pycache__``, computing with the
 helper as it was: images and work that match neither the new source nor the tests.
 

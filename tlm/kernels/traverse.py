@@ -485,14 +485,14 @@ _NO_STACK = np.empty((0, 0), dtype=np.float32)  # the kernel's ``pre`` where no 
 
 def _shared_stack(accel: TriangleAccel, o32: np.ndarray) -> np.ndarray:
     """The ray-independent rows of the shared-origin test for the float32 origin
-    ``o32`` (:func:`tlm.kernels._jit.shared_stack`), kept on the accel for the last
+    ``o32`` (:func:`tlm.kernels._jit_leaf.shared_stack`), kept on the accel for the last
     origin: the eye rays of a frame share one, and every chunk and batch reads it."""
-    from tlm.kernels import _jit
+    from tlm.kernels import _jit_leaf
 
     key = o32.tobytes()
     last = accel.__dict__.get("_shared_stack")
     if last is None or last[0] != key:
-        last = (key, _jit.shared_stack(accel.jit_layout.soa32, o32))
+        last = (key, _jit_leaf.shared_stack(accel.jit_layout.soa32, o32))
         accel.__dict__["_shared_stack"] = last  # one assignment: threads see either pair whole
     return last[1]
 
