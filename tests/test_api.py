@@ -106,6 +106,42 @@ def test_bad_keys_values_and_overrides_name_what_is_wrong():
         tlm.parse_outputs("images,aovs")
 
 
+def test_a_notebook_s_values_read_as_their_plain_equivalents():
+    """numpy scalars and arrays (a loop over ``np.arange``), tuples and paths are what YAML
+    would give: the same config as plain numbers, lists and strings."""
+    np = pytest.importorskip("numpy")
+    plain = tlm.load_config({**SMALL, "render": {"spp": 2}, "arch": {"clock_hz": 3e8}})
+    cfg = tlm.load_config({**SMALL, "resolution": (16, np.int32(16)), "render": {"spp": np.int64(2)},
+                           "arch": {"clock_hz": np.float32(3e8)}})
+    assert cfg.settings == plain.settings and type(cfg.render.spp) is int
+    assert tlm.load_config({**SMALL, "resolution": np.array([16, 16])}).settings == tlm.load_config(SMALL).settings
+    path = tlm.load_config({**SMALL, "scene": ROOT / "scenes" / "cornell.yaml"})
+    assert path.scene == str(ROOT / "scenes" / "cornell.yaml")
+    over = tlm.load_config(SMALL, {"render.spp": np.int64(3), "arch.frames": np.uint8(2), "resolution": (8, 8)})
+    assert (over.render.spp, over.arch.frames, over.resolution) == (3, 2, [8, 8])
+    # a NaN override is named as the NaN it is (JSON's NaN would read as the string 'NaN')
+    with pytest.raises(tlm.InputError, match=r"arch\.clock_hz: nan is not finite"):
+        tlm.load_config(SMALL, {"arch.clock_hz": float("nan")})
+    with pytest.raises(tlm.InputError, match="not a value a config holds"):
+        tlm.load_config(SMALL, {"render.spp": object()})
+
+
+def test_what_is_not_a_config_a_render_or_radiance_is_named():
+    for bad in (None, 5, [1, 2], b"cfg.yaml"):
+        with pytest.raises(tlm.InputError, match="is not a config"):
+            tlm.load_config(bad)
+        with pytest.raises(tlm.InputError, match="is not a config"):
+            tlm.render_image(bad)
+    with pytest.raises(tlm.InputError, match="NoneType is not a render"):
+        tlm.simulate(None)
+    for bad in ([[1.0, 2.0]], [[1, 2], [3, 4]], "x"):
+        with pytest.raises(tlm.InputError, match="not RGB radiance"):
+            tlm.to_srgb(bad)
+    assert tlm.to_srgb([[0.5, 0.5, 0.5]], exposure=1.0).shape == (1, 3)
+    with pytest.raises(tlm.InputError, match=r"reference\.min_rounds: 10 is more than reference\.max_rounds \(2\)"):
+        tlm.load_config({**SMALL, "reference": {"min_rounds": 10, "max_rounds": 2}})
+
+
 def test_configs_load_from_files_mappings_and_scene_files(tmp_path):
     cfg = tlm.load_config(ROOT / "configs" / "cornell.yaml", ["mode=rcast"], base=tmp_path)
     assert cfg.mode == "rcast" and cfg.base == ROOT / "configs" and cfg.overrides == ("mode=rcast",)
@@ -137,6 +173,8 @@ def test_render_simulate_and_run_agree(tmp_path, cache):
     assert same.cycles == timing.cycles and other.cycles != timing.cycles
     with pytest.raises(tlm.InputError, match="pipelines"):
         tlm.simulate(res, {"pipelines": 0})
+    with pytest.raises(tlm.InputError, match="arch is an ArchConfig or a mapping"):
+        tlm.simulate(res, "pipelines=2")
     results = tlm.run(cfg, tmp_path / "run", outputs=[])
     assert results["cycles"] == timing.cycles
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.resolved.yaml", "images", "results.json"]

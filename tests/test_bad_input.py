@@ -109,6 +109,16 @@ CASES: dict[str, Case] = {
     "config-yaml-syntax": Case(config="scene: scene.yaml\nmode: [rcast\n", expect=("cfg.yaml", "YAML syntax error")),
     "config-yaml-tab": Case(config="scene: scene.yaml\nrender:\n\treflect_depth: 2\n", expect=("cfg.yaml", "YAML")),
     "config-not-mapping": Case(config="- scene\n- mode\n", expect=("cfg.yaml", "mapping")),
+    # an empty file is not all the defaults by mistake (a Cornell render at 320x320)
+    "config-empty": Case(config="", expect=("cfg.yaml", "is empty")),
+    "config-comments-only": Case(config="# scene: ring\n\n", expect=("cfg.yaml", "is empty")),
+    # a key given twice: PyYAML keeps the last silently, so a second section would undo the first
+    "config-duplicate-section": Case(config="scene: scene.yaml\nrender: {spp: 1}\nmode: rcast\nrender:\n"
+                                            "  light_samples: 1\n",
+                                     expect=("cfg.yaml", "line 4", "duplicate key 'render'", "first at line 2")),
+    "config-duplicate-nested": Case(config="scene: scene.yaml\nrender: {light_samples: 1, light_samples: 4}\n",
+                                    expect=("cfg.yaml", "duplicate key 'light_samples'")),
+    "set-duplicate-key": Case(argv=["--set", "render={spp: 1, spp: 2}"], expect=("--set", "render")),
     # a binary file where YAML text is expected (a PNG header, a UTF-16 file): one line, not a traceback
     "config-binary": Case(extra={"bin.yaml": b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR"}, config_path="bin.yaml",
                           expect=("bin.yaml", "not a UTF-8 text file", "0x89")),
@@ -166,6 +176,8 @@ CASES: dict[str, Case] = {
     # ---- the scene file
     "scene-yaml-syntax": Case(scene="geometry: {builder: ring\n", expect=("scene.yaml", "YAML syntax error"),
                               show=True),
+    "scene-duplicate-lights": Case(scene=yaml.safe_dump(BASE_SCENE, sort_keys=False) + "lights: []\n",
+                                   expect=("scene.yaml", "duplicate key 'lights'"), show=True),
     "scene-unknown-key": Case(scene=setter("camra", {}), expect=("scene.yaml", "camra", "did you mean 'camera'"),
                               show=True),
     "scene-unknown-material-type": Case(scene=setter("materials.floor.type", "glossy"),
@@ -215,6 +227,15 @@ CASES: dict[str, Case] = {
                                   show=True),
     "scene-bad-builder-param": Case(scene=setter("geometry.params", {"n_seg": -3}),
                                     expect=("scene.yaml", "geometry.params", "n_seg"), show=True),
+    # a tessellation larger than the machine: refused before it is allocated (not an out-of-memory kill)
+    "scene-huge-builder": Case(scene=setter("geometry.params", {"n_seg": 10**9}),
+                               expect=("scene.yaml", "geometry.params", "GiB", "more than this machine"), show=True),
+    "scene-huge-shape": Case(scene=setter("geometry", [{"shape": "sphere", "params": {"segments": 10**5,
+                                                                                      "rings": 10**5}}]),
+                             expect=("scene.yaml", "geometry[0].params", "19,999,800,000 triangles", "GiB"),
+                             show=True),
+    "set-huge-photon-count": Case(config=setter("mode", "pmap"), argv=["--set", "photons.count=10000000000000"],
+                                  expect=("--set", "photons.count", "10,000,000,000,000 photons", "GiB")),
     "scene-unknown-builder-param": Case(scene=setter("geometry.params", {"segments": 10}),
                                         expect=("scene.yaml", "geometry.params", "segments"), show=True),
     # ---- meshes

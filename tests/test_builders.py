@@ -264,6 +264,25 @@ def test_shape_counts_and_orientation(tris, count, volume):
         assert _volume(tris) == pytest.approx(volume)
 
 
+@pytest.mark.parametrize("make", [
+    lambda: shapes.uv_sphere((1, 2, 3), 2.0, 12, 6),
+    lambda: shapes.torus((0, 0, 0), 3.0, 1.0, 10, 6),
+    lambda: shapes.cylinder((0, 0, 0), 1.0, 2.0, 9),
+    lambda: shapes.cylinder((0, 0, 0), 1.0, 2.0, 9, bottom=False),
+    lambda: shapes.tube((0, 0, 0), 0.5, 1.0, 2.0, 7),
+    lambda: shapes.quad((0, 0, 0), (1, 0, 0), (0, 1, 0), nu=3, nv=2),
+])
+def test_a_tessellation_is_checked_against_the_machine_at_its_exact_count(monkeypatch, make):
+    """The count checked before anything is allocated is the count made: so a shape of
+    exactly what fits passes and one triangle more is refused, naming its size."""
+    n = len(make())
+    monkeypatch.setattr(shapes, "machine_memory", lambda: n * shapes.TRIANGLE_BYTES)
+    assert len(make()) == n
+    monkeypatch.setattr(shapes, "machine_memory", lambda: n * shapes.TRIANGLE_BYTES - 1)
+    with pytest.raises(ValueError, match=f"makes {n:,} triangles"):
+        make()
+
+
 def test_closed_shapes_have_positive_volume():
     assert _volume(shapes.uv_sphere((0, 0, 0), 1.0, 32, 16)) == pytest.approx(
         4 / 3 * np.pi, rel=0.02)

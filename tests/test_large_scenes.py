@@ -153,6 +153,21 @@ def test_outputs_choose_what_a_run_writes(tmp_path, config, capsys, names, prese
     assert json.loads((out / "results.json").read_text())["cycles"]["throughput"] > 0
 
 
+def test_a_trace_asked_for_by_name_is_written_though_the_config_turns_it_off(tmp_path, config, capsys):
+    """``--outputs trace`` against ``arch.trace: false`` (configs/sweep_fifo.yaml sets it):
+    the trace asked for is written, and the run records the change as an override; without
+    ``--outputs`` the config's false holds."""
+    out = tmp_path / "run"
+    assert main(["run", config, "--out", str(out), "--outputs", "trace", "--set", "arch.trace=false",
+                 "--no-report"]) == 0
+    assert (out / "trace.json").is_file()
+    assert yaml.safe_load((out / "config.resolved.yaml").read_text())["arch"]["trace"] is True
+    assert json.loads((out / "results.json").read_text())["overrides"][-1] == "arch.trace=true"
+    off = tmp_path / "off"
+    assert main(["run", config, "--out", str(off), "--set", "arch.trace=false", "--no-report"]) == 0
+    assert not (off / "trace.json").exists() and (off / "aov" / "primary.npz").is_file()
+
+
 @pytest.mark.parametrize("bad", ["aov,foo", "aovs", ",", "all"])
 def test_an_unknown_output_is_exit_2_in_one_line(tmp_path, config, capsys, bad):
     out = tmp_path / "run"

@@ -116,6 +116,16 @@ def test_bad_sweep_files_exit_2_and_write_nothing(tmp_path, capsys, body, key):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_sweep_file_with_a_key_given_twice_exits_2(tmp_path, capsys):
+    """Two ``grid:`` sections: PyYAML would keep the second and sweep half the points."""
+    path = tmp_path / "twice.yaml"
+    path.write_text(yaml.safe_dump({"base": BASE}) + "grid: {seed: [0, 1]}\ngrid: {arch.fifo_depth: [1, 2]}\n")
+    assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "duplicate key 'grid'" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize("args, key", [(["--jobs", "0"], "--jobs"), (["--dask", "nowhere"], "--dask")])
 def test_bad_executor_options_exit_2(tmp_path, capsys, args, key):
     path = sweep_file(tmp_path, grid={"seed": [0]})

@@ -23,13 +23,14 @@ function first needs them, so that importing tlm, and every ``tlm`` command, sta
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from tlm.arch.units import Deadlock
-from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, read_yaml, to_dict
+from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.errors import InputError, did_you_mean
 
 if TYPE_CHECKING:
@@ -98,12 +99,26 @@ class Config:
         return replace(config, settings=config_from_dict(apply_overrides(to_dict(self.settings), more), config.label))
 
 
+def _yaml_text(value: Any) -> str:
+    """An override's value as YAML text: JSON (which YAML reads) of its :func:`plain` form,
+    a non-finite float as YAML's ``.nan``/``.inf`` (JSON's ``NaN`` would read as a string),
+    so that the checks name the value itself."""
+    value = plain(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return ".nan" if value != value else (".inf" if value > 0 else "-.inf")
+    try:
+        return json.dumps(value)
+    except TypeError:
+        raise InputError(f"{value!r} is not a value a config holds (a number, a string, a bool, null, "
+                         "or lists and mappings of them)", key="overrides") from None
+
+
 def _override_strings(overrides: Overrides | None) -> list[str]:
     """``dotted.key=value`` strings, from a mapping (values written as JSON, which YAML reads) or as given."""
     if overrides is None:
         return []
     if isinstance(overrides, Mapping):
-        return [f"{k}={json.dumps(v)}" for k, v in overrides.items()]
+        return [f"{k}={_yaml_text(v)}" for k, v in overrides.items()]
     if isinstance(overrides, str):
         raise InputError(f"{overrides!r}: overrides are a mapping or a list of dotted.key=value strings",
                          key="overrides")
@@ -161,6 +176,9 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         source = "(dict) (with --set)" if more else "(dict)"
         return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
                       tuple(more))
+    if not isinstance(config, (str, Path)):
+        raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
+                         "a RunConfig or a Config", key="config")
     path = Path(config)
     scene = scene_file(path)
     if scene is None:
@@ -284,8 +302,14 @@ def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
     """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
     ``exposure`` (default: the 99.5th percentile of luminance to 1, as ``tlm run`` does for
     its images, though a run leaves out the pixels that see a light directly), clipped."""
+    import numpy as np
+
     from tlm.render.image import auto_exposure, to_srgb8
 
+    radiance = np.asarray(radiance)
+    if radiance.ndim < 1 or radiance.shape[-1] != 3 or not np.issubdtype(radiance.dtype, np.number):
+        raise InputError(f"an array of shape {radiance.shape} and dtype {radiance.dtype} is not RGB radiance: "
+                         "give (..., 3) numbers, as a RenderResult's radiance", key="radiance")
     scale = auto_exposure(radiance.reshape(-1, 3)) if exposure is None else exposure
     return to_srgb8(radiance, scale)
 
@@ -309,6 +333,11 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     from tlm.config import ArchConfig
     from tlm.experiments import run as runs
 
+    if not isinstance(result, runs.RenderResult):
+        raise InputError(f"{type(result).__name__} is not a render: give what render_image returns", key="result")
+    if not (arch is None or isinstance(arch, (ArchConfig, Mapping))):
+        raise InputError(f"{arch!r}: arch is an ArchConfig or a mapping of its keys ({{'pipelines': 2}})",
+                         key="arch")
     cfg = result.cfg
     if isinstance(arch, ArchConfig):
         cfg = replace(cfg, arch=arch)
@@ -339,7 +368,9 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     ``results.json`` holds.
 
     ``outputs``: which of :data:`OUTPUTS` the folder gets besides its images and
-    ``results.json`` (``"aov,trace"`` or a list; ``"images"`` or ``[]``: none; default all).
+    ``results.json`` (``"aov,trace"`` or a list; ``"images"`` or ``[]``: none; default all,
+    the trace only where the config's ``arch.trace`` is true; named here, the trace is
+    written whatever ``arch.trace`` says, and the run's overrides record ``arch.trace=true``).
     ``reference``: compute the photon-map frame's reference when none is cached (default
     the config's ``reference.auto``); ``say`` gets a line before and after computing it.
     A destination that is not a tlm folder, or bad input, fails before any work.
@@ -354,6 +385,8 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     else:
         names = list(outputs)
         chosen = runs.parse_outputs(",".join(names)) if names else ()
+    if outputs is not None and "trace" in chosen and not cfg.arch.trace:
+        cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
     return runs.run(cfg.settings, Path(out), cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
                     outputs=chosen, progress=progress, reference=auto, say=say)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 import types
 import typing
@@ -289,7 +290,11 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
         if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
             v = float(v)
         values[name] = v
-    return cls(**values)
+    out = cls(**values)
+    if isinstance(out, ReferenceConfig) and out.min_rounds > out.max_rounds:
+        raise InputError(f"{out.min_rounds} is more than {prefix}.max_rounds ({out.max_rounds})", source=source,
+                         key=f"{prefix}.min_rounds")
+    return out
 
 
 def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
@@ -318,8 +323,33 @@ def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
         raise InputError(f"{v!r} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
 
 
+class DuplicateKeyError(yaml.constructor.ConstructorError):
+    """A mapping names one key twice (YAML forbids it; PyYAML would keep the last silently)."""
+
+
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6'."""
+    """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6', and
+    refuses a key given twice in one mapping (:class:`DuplicateKeyError`), which PyYAML
+    would read as the last one, dropping the first (a second ``render:`` section would
+    silently undo the first). Keys that a merge (``<<: *anchor``) brings in may be set
+    again, as YAML allows."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            first: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    mark = first.setdefault(key, key_node.start_mark)
+                except TypeError:  # (an unhashable key: the constructor's own error names it)
+                    continue
+                if mark is not key_node.start_mark:
+                    raise DuplicateKeyError(
+                        None, None, f"duplicate key {key!r} (first at line {mark.line + 1}): give each key once",
+                        key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
@@ -359,7 +389,8 @@ def read_yaml(path: Path) -> Any:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise InputError(f"YAML syntax error{where}: {problem}", source=str(path)) from None
+        what = "YAML error" if isinstance(e, DuplicateKeyError) else "YAML syntax error"
+        raise InputError(f"{what}{where}: {problem}", source=str(path)) from None
 
 
 def deep_merge(base: dict, over: dict) -> dict:
@@ -401,8 +432,9 @@ def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[
         raw = read_yaml(Path(path))
         source = str(path)
         base = Path(path).resolve().parent
-        if raw is None:
-            raw = {}
+        if raw is None or raw == {}:  # (an empty file, or comments only: not the defaults by mistake)
+            raise InputError("is empty (nothing but comments or blanks): write the settings to change, e.g. "
+                             "`scene: cornell` (the defaults: 'tlm params')", source=source)
         if not isinstance(raw, dict):
             raise InputError(f"must be a mapping of keys, got {type(raw).__name__}", source=source)
     if overrides:
@@ -411,8 +443,25 @@ def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[
     return _build(RunConfig, raw, source, ""), base
 
 
+def plain(value: Any) -> Any:
+    """``value`` as YAML would give it: numpy scalars and arrays as Python numbers and lists,
+    tuples as lists, paths as strings, throughout mappings and lists. What a notebook
+    passes for a config's values (``np.int64(2)`` from ``np.arange``, ``(16, 16)``, a
+    ``Path``) then reads as its plain equivalent; anything else is left to the checks."""
+    if isinstance(value, dict):
+        return {plain(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if hasattr(value, "dtype") and hasattr(value, "tolist"):  # (numpy, without importing it here)
+        return plain(value.tolist())
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return value
+
+
 def config_from_dict(raw: dict, source: str = "(dict)") -> RunConfig:
-    return _build(RunConfig, raw, source, "")
+    """A run config from a mapping of its keys (:func:`plain` values), checked."""
+    return _build(RunConfig, plain(raw), source, "")
 
 
 def to_dict(cfg: Any) -> dict:

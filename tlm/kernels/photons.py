@@ -60,6 +60,9 @@ from tlm.scenes.normals import crease_normals, interpolate
 
 _MISS_KEYS = stream_keys(PhotonWork)  # each stream's work key (tlm.kernels.work)
 STORED = ("position", "normal", "incoming", "power", "caustic")  # what a stored photon holds
+# what every emitted photon holds at once, at the least, while the photons are traced: its
+# origin, direction and power (float64), its source light and its work counts (int64)
+PHOTON_BYTES = 9 * 8 + 8 + 8 * len(PHOTON_WORK)
 PHOTON_MIN_CHUNK = 4096  # photons a chunk traces at the least when they are cut between threads
 # the photons a chunk may hold whatever ``render.batch_rays``: chunks of at most
 # max(PHOTON_MIN_BATCH, batch_rays // max_bounces) photons (the last of a thread's span

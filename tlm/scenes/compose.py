@@ -186,6 +186,18 @@ def _shape(raw: dict, src: str, key: str) -> Geometry:
     for name, value in p.items():
         if value is None:
             raise InputError(f"a {kind} needs {name}", source=src, key=f"{pk}.{name}")
+    try:
+        tri = _tessellate(shapes, kind, p, src, pk)
+    except InputError:
+        raise
+    except ValueError as e:  # (a tessellation too large for the machine: shapes.check_triangle_count)
+        raise InputError(str(e), source=src, key=pk) from None
+    tri = np.ascontiguousarray(tri, dtype=np.float64)
+    return Geometry(triangles=tri, part=np.zeros(len(tri), dtype=np.int32), part_names=(kind,))
+
+
+def _tessellate(shapes, kind: str, p: dict, src: str, pk: str) -> np.ndarray:
+    """The triangles of shape ``kind`` with its parameters ``p`` (defaults filled in)."""
     if kind == "plane":  # centred on the origin in y = 0, facing +y
         w, d = _vec(p["size"], src, f"{pk}.size", n=2)
         if not (w > 0 and d > 0):
@@ -213,8 +225,7 @@ def _shape(raw: dict, src: str, key: str) -> Geometry:
         r = _num(p["radius"], src, f"{pk}.radius", positive=True)
         h = _num(p["height"], src, f"{pk}.height", positive=True)
         tri = shapes.cylinder(c, r, h, _whole(p["segments"], src, f"{pk}.segments", 3))
-    tri = np.ascontiguousarray(tri, dtype=np.float64)
-    return Geometry(triangles=tri, part=np.zeros(len(tri), dtype=np.int32), part_names=(kind,))
+    return tri
 
 
 def _item(raw: Any, src: str, path: Path, key: str) -> tuple[Geometry, str | None]:

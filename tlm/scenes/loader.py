@@ -23,6 +23,7 @@ from tlm.errors import InputError, did_you_mean
 from tlm.scenes import cache
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
+from tlm.scenes.shapes import machine_memory
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num as _num
@@ -192,10 +193,7 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
     if width <= 0 or height <= 0:
         raise InputError(f"[{width}, {height}] must be positive", source=src, key=key)
     need = width * height * BYTES_PER_PIXEL
-    try:
-        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        total = 1 << 36
+    total = machine_memory()
     if need > total:
         raise InputError(
             f"[{width}, {height}] needs about {need / 2**30:.0f} GiB, more than this machine's "

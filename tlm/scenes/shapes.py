@@ -13,14 +13,19 @@ sphere, cylinder, torus and thick ring band are thin wrappers around it.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 __all__ = [
+    "TRIANGLE_BYTES",
     "aabox",
     "box",
+    "check_triangle_count",
     "cylinder",
     "grid",
     "lathe",
+    "machine_memory",
     "oriented_box",
     "patch",
     "quad",
@@ -119,10 +124,37 @@ def grid(points: np.ndarray) -> np.ndarray:
     return np.stack([a, b], axis=2).reshape(-1, 3, 3)
 
 
+# a run's memory per triangle at the least: its float64 vertices (72 bytes), the BSP's slots
+# and the kernels' padded float32 and float64 rows, the shading and material tables
+TRIANGLE_BYTES = 512
+
+
+def machine_memory() -> int:
+    """This machine's physical memory in bytes (64 GiB where it cannot be read)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 1 << 36
+
+
+def check_triangle_count(n: int, what: str) -> None:
+    """A ValueError when ``n`` triangles (of ``what``, named in it) cannot fit in this
+    machine's memory at :data:`TRIANGLE_BYTES` each: said before a tessellation is
+    allocated, so an impossible size is an error, not an out-of-memory kill."""
+    total = machine_memory()
+    if n * TRIANGLE_BYTES > total:
+        raise ValueError(f"{what} makes {n:,} triangles, about {n * TRIANGLE_BYTES / 2**30:,.0f} GiB to render, "
+                         f"more than this machine's {total / 2**30:.0f} GiB")
+
+
 def _check_div(**divs: int) -> None:
     for name, n in divs.items():
         if int(n) != n or n < 1:
             raise ValueError(f"{name} must be a positive integer, got {n!r}")
+    count = 2
+    for n in divs.values():
+        count *= int(n)
+    check_triangle_count(count, " x ".join(f"{name} = {int(n)}" for name, n in divs.items()))
 
 
 def quad(corner, edge_u, edge_v, nu: int = 1, nv: int = 1) -> np.ndarray:
@@ -328,6 +360,9 @@ def lathe(
     pole = r == 0
     if np.any(pole[1:-1]) or (closed and np.any(pole)):
         raise ValueError("zero radius is allowed only at the ends of an open profile")
+    ring_r = np.append(r, r[0]) if closed else r
+    sides = int(np.count_nonzero(ring_r[:-1] > 0)) + int(np.count_nonzero(ring_r[1:] > 0))  # (a pole: a fan)
+    check_triangle_count(sides * int(n_seg), f"n_seg = {int(n_seg)} around a profile of {r.size} points")
     c, ax = _vec3(center, "center"), _unit(axis)
     e1, e2 = _frame(ax)
     t = phase + 2.0 * np.pi * np.arange(n_seg) / n_seg
