@@ -291,12 +291,14 @@ def test_seed_and_determinism(tmp_path, cornell_run):
 
 @pytest.mark.slow
 def test_an_earlier_run_folder_is_replaced(tmp_path):
+    """The run's own files are replaced; what the user added to the folder is kept."""
     out = tmp_path / "run"
     run(out, "--mode", "rcast")
-    (out / "stale.txt").write_text("old")  # an earlier run folder, with something added
+    (out / "notes.txt").write_text("mine")  # an earlier run folder, with something added
+    (out / "results.json").write_text("{}")
     run(out, "--mode", "rcast")
-    assert not (out / "stale.txt").exists()
-    assert (out / "results.json").is_file()
+    assert (out / "notes.txt").read_text() == "mine"
+    assert json.loads((out / "results.json").read_text())["mode"] == "rcast"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
 
 

@@ -325,6 +325,48 @@ def test_a_signal_between_the_two_renames_puts_the_old_folder_back(tmp_path, mon
     assert (out / "m").read_text() == "old" and leftovers(tmp_path) == []
 
 
+def test_the_user_s_own_files_in_a_replaced_folder_are_kept(tmp_path, monkeypatch):
+    """A writer that names what it owns carries everything else of the folder it replaces
+    (notes, an analysis folder, hidden files) into the new one; what it owns is replaced
+    (an old output the new one lacks is gone). Interrupted at the swap, the old folder and
+    every user file are back where they were."""
+    out = tmp_path / "r"
+    with atomic_folder(out, "m", owned=("m", "trace")) as tmp:
+        (tmp / "m").write_text("old")
+        (tmp / "trace").write_text("old trace")
+    (out / "notes.md").write_text("my analysis")
+    (out / "analysis").mkdir()
+    (out / "analysis" / "fig.py").write_text("x")
+    (out / ".ipynb_checkpoints").mkdir()
+    with atomic_folder(out, "m", owned=("m", "trace")) as tmp:
+        (tmp / "m").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == [".ipynb_checkpoints", "analysis", "m", "notes.md"]
+    assert (out / "notes.md").read_text() == "my analysis" and (out / "analysis" / "fig.py").read_text() == "x"
+    assert (out / "m").read_text() == "new" and leftovers(tmp_path) == []
+    rename = Path.rename
+
+    def interrupted(self, target):
+        if Path(target) == out and ".tmp-" in self.name:
+            raise KeyboardInterrupt
+        return rename(self, target)
+
+    monkeypatch.setattr(Path, "rename", interrupted)
+    with pytest.raises(KeyboardInterrupt), atomic_folder(out, "m", owned=("m",)) as tmp:
+        (tmp / "m").write_text("newer")
+    monkeypatch.setattr(Path, "rename", rename)
+    assert sorted(p.name for p in out.iterdir()) == [".ipynb_checkpoints", "analysis", "m", "notes.md"]
+    assert (out / "m").read_text() == "new" and leftovers(tmp_path) == []
+
+
+def test_a_run_into_its_own_earlier_folder_keeps_the_user_s_files(tmp_path):
+    out = tmp_path / "run"
+    assert main(["run", CORNELL, "--out", str(out), *SMALL, "--no-report"]) == 0
+    (out / "notes.md").write_text("my analysis")
+    assert main(["run", CORNELL, "--out", str(out), *SMALL, "--no-report", "--outputs", "images"]) == 0
+    assert (out / "notes.md").read_text() == "my analysis"
+    assert not (out / "trace.json").exists() and not (out / "aov").exists()  # (the new run's outputs only)
+
+
 def test_a_destination_taken_meanwhile_keeps_the_finished_output(tmp_path):
     """When the destination turns into something else during the run (a user's own files),
     the refusal keeps the finished output beside it and names it, instead of deleting it."""

@@ -37,6 +37,37 @@ def test_a_row_and_a_config_per_run(tmp_path):
     assert yaml.safe_load(config.replace("&lt;", "<").replace("&gt;", ">")) == {"scene": "ring", "note": "<1>"}
 
 
+def test_a_modified_checkout_and_the_code_fingerprint_are_shown(tmp_path):
+    runs = [_run(0, git_modified=True, code_fingerprint="93731cd52fc7e465"),
+            _run(1, git_modified=False, code_fingerprint="93731cd52fc7e465"),
+            _run(2, git_revision=None, git_modified=None, code_fingerprint="0a0b")]
+    rows = _cells(provenance_section(Inputs([], runs=runs), tmp_path).html)
+    assert [r[4] for r in rows] == ["0123456789ab (modified, code 93731cd52fc7e465)",
+                                    "0123456789ab (code 93731cd52fc7e465)", "not recorded (code 0a0b)"]
+
+
+def test_code_state_names_tlm_s_own_checkout_only(tmp_path, monkeypatch):
+    """The revision is tlm's checkout's, "modified" when a tracked file differs from it, and
+    nothing where tlm is not its checkout's ``tlm/`` (a copy in a site-packages inside some
+    other git project must not record that project's commit)."""
+    import subprocess
+
+    from tlm.experiments import provenance as prov
+
+    state = prov.code_state()
+    assert set(state) == {"git_revision", "git_modified", "code_fingerprint"} and len(state["code_fingerprint"]) == 16
+    if state["git_revision"] is not None:
+        assert state["git_revision"] == prov.git_revision() and isinstance(state["git_modified"], bool)
+    other = tmp_path / "project"
+    (other / "tlm").mkdir(parents=True)
+    subprocess.run(["git", "init", "-q", str(other)], check=True)
+    subprocess.run(["git", "-C", str(other), "-c", "user.name=u", "-c", "user.email=u@x", "commit", "-q",
+                    "--allow-empty", "-m", "the project's own commit"], check=True)
+    monkeypatch.setattr(prov, "__file__", str(other / "venv" / "tlm" / "experiments" / "provenance.py"))
+    (other / "venv" / "tlm" / "experiments").mkdir(parents=True)
+    assert prov.git_revision() is None and prov.code_state()["git_modified"] is None
+
+
 def test_configs_past_the_limit_are_left_to_their_folders(tmp_path):
     runs = [_run(i) for i in range(MAX_CONFIGS + 2)]
     sec = provenance_section(Inputs([], runs=runs), tmp_path)

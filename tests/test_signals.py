@@ -65,6 +65,40 @@ def test_a_run_signalled_in_each_phase(phase, sig, tmp_path, monkeypatch, capsys
     assert signal.getsignal(signal.SIGTERM) == before  # main's handlers are gone again
 
 
+def _wrapped_interrupt(sig):
+    """What a signal does when it arrives while a compiled numba kernel calls back into
+    Python: the handler's KeyboardInterrupt comes out as a SystemError caused by it."""
+    def render(*a, **k):
+        try:
+            os.kill(os.getpid(), sig)
+        except KeyboardInterrupt as e:
+            raise SystemError("CPUDispatcher(<function trace>) returned a result with an exception set") from e
+    return render
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupt_a_kernel_wrapped_is_still_an_interrupt(sig, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(run_mod, "render", _wrapped_interrupt(sig))
+    out = tmp_path / "runs" / "r"
+    assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 128 + sig
+    assert capsys.readouterr().err.strip() == ("tlm: interrupted" if sig == signal.SIGINT
+                                               else "tlm: terminated (SIGTERM)")
+    assert not out.exists() and leftovers(tmp_path) == []
+
+
+def test_a_sweep_point_interrupted_inside_a_kernel_stops_the_sweep(tmp_path, monkeypatch, capsys):
+    """Not a failed point that the sweep goes on after: the sweep stops with 130 and keeps
+    no row or error for the point."""
+    import tlm.experiments.sweep as sweep_mod
+
+    monkeypatch.setattr(sweep_mod, "cached_render", _wrapped_interrupt(signal.SIGINT))
+    out = tmp_path / "sw"
+    assert main(["sweep", str(sweep_file(tmp_path, 2)), "--out", str(out), "--jobs", "1", "--no-progress",
+                 "--no-report"]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "tlm: interrupted"
+    assert rows(out) == [] and not list(out.rglob("error.json"))
+
+
 def sweep_file(tmp_path: Path, n: int = 8) -> Path:
     base = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
             "arch": {"frames": 2, "trace": False, "packet_size": 4}}

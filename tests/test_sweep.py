@@ -338,6 +338,25 @@ def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
     assert len(list((out / "points").iterdir())) == 7
 
 
+def test_a_point_folder_holding_something_else_is_run_again(tmp_path, monkeypatch):
+    """A point's ``results.json`` that parses but is not that point's (emptied to ``{}``,
+    another run written into the folder, the results of another point) is run again, as a
+    damaged one is, never read as done (it used to end the resume in a KeyError)."""
+    path = sweep_file(tmp_path, grid={"arch.page_miss_cycles": [0, 12, 24]})
+    out = tmp_path / "o"
+    first = run_sweep(path, out, jobs=1)
+    h = [r["hash"] for r in first.rows]
+    (out / "points" / h[0] / "results.json").write_text("{}\n")
+    (out / "points" / h[1] / "results.json").write_text((out / "points" / h[2] / "results.json").read_text())
+    ran = []
+    point = sweep_mod.run_point
+    monkeypatch.setattr(sweep_mod, "run_point", lambda task: ran.append(task.hash) or point(task))
+    again = run_sweep(path, out, jobs=1)
+    assert sorted(ran) == sorted(h[:2]) and (again.ok, again.failed, again.skipped) == (2, 0, 1)
+    assert without_host(jsonl(out / "sweep.jsonl")) == [
+        {**r, "functional_cached": r["functional_cached"] or r["hash"] in h[:2]} for r in without_host(first.rows)]
+
+
 @pytest.mark.slow
 def test_changed_input_files_run_the_points_again(tmp_path):
     """The point key covers the content of the files the config names: the programs table,

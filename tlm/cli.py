@@ -26,7 +26,7 @@ from pathlib import Path
 
 from tlm import api
 from tlm.api import MODES, Deadlock, InputError
-from tlm.errors import environment_problem
+from tlm.errors import environment_problem, interrupted_by
 
 
 def _say(line: str) -> None:
@@ -306,6 +306,13 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message.replace("\n", " "), source=self.prog)
 
 
+def _folder_name(text: str) -> str:
+    """``--out``: a folder's path; an empty one is refused (not read as the default)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path names no folder (leave --out out for the default)")
+    return text
+
+
 def _no_report(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
 
@@ -323,7 +330,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", help="render one experiment into a run folder")
     r.add_argument("config", help="experiment YAML (see 'tlm params'), or a scene YAML to render at the "
                    "default settings")
-    r.add_argument("--out", help="run folder (default: runs/<config name>)")
+    r.add_argument("--out", type=_folder_name, help="run folder (default: runs/<config name>)")
     r.add_argument("--mode", choices=MODES, help="override the mode")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
@@ -338,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
     sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml")
-    sw.add_argument("--out", help="output folder (default: runs/<config name>)")
+    sw.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
                     "render.threads; 1 = in this process); a point that leaves render.threads null gets "
                     "max(1, CPUs // workers) kernel threads, so --jobs x render.threads stays within the CPUs")
@@ -351,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
                         "(Figs. 18-20)")
     sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
-    sc.add_argument("--out", help="output folder (default: runs/eq52_<first sweep folder's name>)")
+    sc.add_argument("--out", type=_folder_name, help="output folder (default: runs/eq52_<first sweep folder's name>)")
     _no_report(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
@@ -372,7 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points)")
-    ev.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ev.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
                          "measured against (computed once and cached; needs pip install -e '.[oracle]'); 0: none")
@@ -380,14 +387,14 @@ def build_parser() -> argparse.ArgumentParser:
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
-    th.add_argument("--out", help="output folder (default: runs/<config name>)")
+    th.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_progress(th)
     _no_report(th)
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml")
-    gr.add_argument("--out", help="output folder (default: runs/<config name>)")
+    gr.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
@@ -399,19 +406,20 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
                         "or error-vs-cost folders")
     rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
-    rp.add_argument("--out", help="report folder (default: DIR/report; required for several folders)")
+    rp.add_argument("--out", type=_folder_name,
+                    help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", help="the page's title")
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml")
-    ex.add_argument("--out", help="output folder (default: runs/<config name>)")
+    ex.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
     pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
-    pl.add_argument("--out", default="plots", help="report folder (default: plots)")
+    pl.add_argument("--out", type=_folder_name, default="plots", help="report folder (default: plots)")
     pl.add_argument("--only", nargs="+", metavar="STEP", help="run only these steps (thesis, scaling_ring, ..., "
                     "cornell_pmap); the report reads every step's folder that exists")
     pl.set_defaults(func=_cmd_plots)
@@ -484,6 +492,17 @@ def _one_line(e: BaseException) -> str:
     return " ".join(str(e).split()) or type(e).__name__
 
 
+def _interrupted(argv: list[str] | None) -> int:
+    """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal."""
+    sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
+    if argv is None and _SIGNALS:  # the process's own command: a second signal during the
+        with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
+            for s in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(s, _on_signal)
+    print("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)", file=sys.stderr)
+    return 128 + sig
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
@@ -503,13 +522,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tlm: deadlock: {e}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
-        if argv is None and _SIGNALS:  # the process's own command: a second signal during the
-            with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
-                for s in (signal.SIGINT, signal.SIGTERM):
-                    signal.signal(s, _on_signal)
-        print("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)", file=sys.stderr)
-        return 128 + sig
+        return _interrupted(argv)
     except BrokenPipeError:  # the reader went away (``| head``): nothing more to say
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
@@ -518,6 +531,8 @@ def main(argv: list[str] | None = None) -> int:
             pass
         return 128 + signal.SIGPIPE
     except Exception as e:
+        if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
+            return _interrupted(argv)
         what = environment_problem(e)
         if what is not None:  # the machine's fault: a full disk, a read-only destination
             print(f"tlm: error: {' '.join(what.split())}", file=sys.stderr)

@@ -65,6 +65,20 @@ def environment_problem(e: BaseException, filename: bool = True) -> str | None:
     return None
 
 
+def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (Ctrl-C, or SIGTERM, which the command line turns into one) in
+    ``e``'s chain of causes and contexts, where something wrapped it: a signal that arrives
+    while a compiled numba kernel calls back into Python ends as a ``SystemError`` caused by
+    the interrupt. None where the chain holds none: ``e`` is an error of its own."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ' (did you mean X?)' when a close match exists, else ''."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

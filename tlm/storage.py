@@ -38,7 +38,7 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
@@ -67,6 +67,8 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     parent = resolved.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
+    if not parent.is_dir():  # (a file where a folder on the way should be: the user's path, not the machine)
+        raise InputError(f"{str(out)!r} cannot be made: {str(parent)!r} is a file, not a folder", key=key)
     if not os.access(parent, os.W_OK | os.X_OK):
         raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
@@ -212,12 +214,40 @@ def _swap_in(tmp: Path, out: Path) -> None:
         return
 
 
+_OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work
+
+
+def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
+    """Move the entries of the folder ``out`` that its writer does not own (``owned``: the
+    names an output of this kind may hold) and ``tmp`` does not hold into ``tmp``: the
+    user's own files beside an output survive its replacement. The names moved."""
+    moved: list[str] = []
+    try:
+        entries = sorted(os.listdir(out))
+    except OSError:
+        return moved
+    try:
+        for name in entries:
+            if (name in owned or _OURS.match(name) or (tmp / name).exists() or (tmp / name).is_symlink()):
+                continue
+            (out / name).rename(tmp / name)
+            moved.append(name)
+    except BaseException:  # (what was moved goes back before the new folder is dropped)
+        for name in moved:
+            with suppress(OSError):
+                (tmp / name).rename(out / name)
+        raise
+    return moved
+
+
 @contextmanager
-def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
+def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
 
     ``marker`` is the file that marks an earlier output of this kind (it may be
-    replaced); the block must write it.
+    replaced); the block must write it. ``owned``: the names such an output may hold;
+    where given, whatever else an earlier ``out`` holds (a user's notes, an analysis
+    folder) is carried into the new one, not removed with the old output.
     """
     out = check_destination(out, marker)
     tmp = out.parent / f".{out.name}.tmp-{_owner()}"
@@ -243,7 +273,14 @@ def atomic_folder(out: Path, marker: str) -> Iterator[Path]:
                     except OSError:
                         raise refused from None
                     raise InputError(f"{refused}; this run's output is kept in {str(kept)!r}") from None
-            _swap_in(tmp, out)
+            moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
+            try:
+                _swap_in(tmp, out)
+            except BaseException:  # (the user's files go back where they were)
+                for name in moved:
+                    with suppress(OSError):
+                        (tmp / name).rename(out / name)
+                raise
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
         _raise_environmental(e, out)

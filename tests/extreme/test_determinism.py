@@ -39,6 +39,8 @@ HOST_FIELDS = (
     "host_seconds",  # wall seconds per stage of this host, this moment
     "versions",  # Python, platform and package versions of the interpreter that ran
     "git_revision",  # HEAD of the checkout: others commit to it while the suite runs
+    "git_modified",  # whether the checkout differs from HEAD: others edit it while the suite runs
+    "code_fingerprint",  # the package's content: the same edits
 )
 # a sweep point's results.json has one more, inside its "functional" section:
 POINT_HOST_FIELDS = ("functional.render_host_seconds",)  # the render's seconds per stage

@@ -28,7 +28,7 @@ from contextlib import ExitStack, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
-from tlm.errors import InputError
+from tlm.errors import InputError, interrupted_by
 
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
@@ -55,6 +55,8 @@ class InProcess(cf.Executor):
         try:
             f.set_result(fn(*args))
         except Exception as e:  # KeyboardInterrupt goes through: the sweep stops
+            if (stop := interrupted_by(e)) is not None:  # (also where a kernel wrapped it)
+                raise stop from e
             f.set_exception(e)
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:

@@ -1,4 +1,5 @@
-"""Where a result came from: the versions of tlm and its libraries, and tlm's git revision.
+"""Where a result came from: the versions of tlm and its libraries, tlm's git revision
+(and whether the checkout was modified from it) and the fingerprint of tlm's code.
 
 ``results.json`` of a run, every sweep point's row and a study's ``provenance.json``
 record them, so that a number can be traced to the code that produced it.
@@ -26,18 +27,48 @@ def versions() -> dict[str, str]:
     return out
 
 
-def git_revision() -> str | None:
-    """The commit of tlm's checkout (None outside a git checkout, or without git)."""
+def _git(*args: str, cwd: Path) -> str | None:
+    """``git args`` in ``cwd``: its output, stripped; None where git fails or is missing."""
     try:
-        here = Path(__file__).resolve().parent
-        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
-                             text=True, timeout=5, check=False)
-        return out.stdout.strip() or None
+        out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=5, check=False)
     except (OSError, subprocess.SubprocessError):
         return None
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def _checkout() -> Path | None:
+    """The git checkout tlm runs from, where tlm's package is that checkout's ``tlm/``; None
+    for an installed copy (a site-packages inside another git project must not lend tlm its
+    project's commit)."""
+    here = Path(__file__).resolve().parents[1]
+    top = _git("rev-parse", "--show-toplevel", cwd=here)
+    if top is None or (Path(top).resolve() / "tlm") != here:
+        return None
+    return Path(top)
+
+
+def git_revision() -> str | None:
+    """The commit of tlm's checkout (None outside tlm's own git checkout, or without git)."""
+    top = _checkout()
+    return None if top is None else (_git("rev-parse", "HEAD", cwd=top) or None)
+
+
+def code_state() -> dict:
+    """What code a result came from: ``git_revision`` (:func:`git_revision`),
+    ``git_modified`` (whether tracked files of the checkout differ from that commit: the
+    result is then not the commit's; None outside a checkout) and ``code_fingerprint``
+    (:func:`tlm.fingerprint.code_fingerprint`, the package's content: the same for the
+    same code, in a checkout or installed, edited or not)."""
+    from tlm.fingerprint import code_fingerprint
+
+    top = _checkout()
+    rev = None if top is None else (_git("rev-parse", "HEAD", cwd=top) or None)
+    status = None if rev is None else _git("status", "--porcelain", "--untracked-files=no", cwd=top)
+    return {"git_revision": rev, "git_modified": None if status is None else bool(status),
+            "code_fingerprint": code_fingerprint()}
 
 
 def provenance(study: str | None, host_seconds: float | None) -> dict:
     """What a study folder records of where it came from (``provenance.json``)."""
-    return {"study": study, "versions": versions(), "git_revision": git_revision(),
+    return {"study": study, "versions": versions(), **code_state(),
             "host_seconds": None if host_seconds is None else round(host_seconds, 3)}

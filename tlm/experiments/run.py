@@ -45,7 +45,7 @@ from tlm.arch.model import Timing, simulate
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
-from tlm.experiments.provenance import git_revision, versions
+from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
 from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PHOTON_BYTES, PhotonTrace
@@ -63,6 +63,9 @@ from tlm.scenes.shapes import machine_memory
 from tlm.storage import atomic_folder, check_destination
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
+# what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
+# in a folder a run replaces is the user's and is kept (tlm.storage.atomic_folder)
+RUN_FILES = ("results.json", "config.resolved.yaml", "images", "radiance", "aov", "trace.json", "report")
 
 
 def parse_outputs(text: str) -> tuple[str, ...]:
@@ -352,7 +355,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "error": res.error,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
         "versions": versions(),
-        "git_revision": git_revision(),
+        **code_state(),
         "warnings": warnings,
     }
 
@@ -381,7 +384,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
     if unknown:
         raise ValueError(f"outputs {sorted(unknown)} are not among {OUTPUTS}")
     t0 = time.perf_counter()
-    with atomic_folder(out, "results.json") as tmp:
+    with atomic_folder(out, "results.json", owned=RUN_FILES) as tmp:
         (tmp / "images").mkdir()
         composite = res.composite
         h, w = res.scene.camera.height, res.scene.camera.width

@@ -62,15 +62,16 @@ import yaml
 
 from tlm import storage
 from tlm.config import config_from_dict, read_yaml, to_dict
-from tlm.errors import InputError
+from tlm.errors import InputError, interrupted_by
 from tlm.experiments.executors import InProcess, LocalPool, dask_worker_threads, kernel_threads, open_executor
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
-from tlm.experiments.provenance import git_revision, versions
+from tlm.experiments.provenance import code_state, versions
 from tlm.fingerprint import code_fingerprint
 from tlm.storage import atomic_folder, check_destination, claim_folder
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
+POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
 FIRST_COLUMNS = ("point", "hash", "status", "error")
 
 
@@ -303,7 +304,7 @@ def run_point(task: Task) -> dict:
             if timing.trace is not None:
                 timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
             results = {
-                "tlm": "sweep-point/1", "hash": task.hash, "sweep": task.source, "factors": task.factors,
+                "tlm": POINT_FORMAT, "hash": task.hash, "sweep": task.source, "factors": task.factors,
                 "seed": cfg.seed, "mode": cfg.mode,
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 "cycles": timing.cycles, "fps": timing.fps,
@@ -315,6 +316,8 @@ def run_point(task: Task) -> dict:
             (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
         return {"status": "ok", "results": results}
     except Exception as e:
+        if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
+            raise stop from e
         error = _error_record(e, stage, traceback.format_exc())
         write_error(task, error)
         return {"status": "failed", "error": error}
@@ -420,11 +423,16 @@ def _clean_stale(points_dir: Path) -> None:
 
 
 def _done(folder: Path) -> dict | None:
-    """A finished point's record from its folder, or None (not run, failed, or unreadable)."""
+    """A finished point's record from its folder, or None (not run, failed, unreadable, or
+    a ``results.json`` that is not this point's: another run written there, an edited file)."""
     try:
-        return {"status": "ok", "results": json.loads((folder / "results.json").read_text())}
+        results = json.loads((folder / "results.json").read_text())
     except (OSError, ValueError):
         return None
+    if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
+            and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
+        return None
+    return {"status": "ok", "results": results}
 
 
 def _with_threads(config: dict, threads: int | None) -> dict:
@@ -464,7 +472,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             todo.append(h)
     skipped = sum(len(by_hash[h]) for h in records)
 
-    provenance = {"versions": versions(), "git_revision": git_revision()}
+    provenance = {"versions": versions(), **code_state()}
     # --jobs x render.threads <= the CPUs: a point that leaves render.threads null gets its
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
@@ -584,6 +592,8 @@ def _record(f: cf.Future, task: Task) -> dict:
     try:
         return f.result()
     except Exception as e:  # a worker process that died, a Dask KilledWorker, an unpicklable result
+        if (stop := interrupted_by(e)) is not None:
+            raise stop from e
         error = _error_record(e, "worker", "".join(traceback.format_exception(e)))
         with suppress(OSError, InputError):  # the row still says what happened
             write_error(task, error)

@@ -32,14 +32,22 @@ def _versions(v: dict | None) -> str:
     return ", ".join(f"{k} {v[k]}" for k in VERSIONS if k in v)
 
 
+def _code(r: dict) -> str:
+    """A result's code: its git revision (12 digits), "modified" where the checkout differed
+    from it, and the package's fingerprint (:func:`tlm.experiments.provenance.code_state`)."""
+    rev = str(r.get("git_revision") or "not recorded")[:12]
+    more = (["modified"] if r.get("git_modified") else []) + (
+        [f"code {r['code_fingerprint']}"] if r.get("code_fingerprint") else [])
+    return f"{rev} ({', '.join(more)})" if more else rev
+
+
 def _run_row(run: Run) -> list[str]:
     r = run.results
     host = _seconds(r.get("host_seconds"))
     render = (r.get("functional") or {}).get("render_host_seconds")
     if render:
         host = f"{host} (+ {_seconds(render)} render, {'cached' if r['functional'].get('cached') else 'this point'})"
-    return [run.label, run.kind, str(run.path), str(r.get("seed")), str(r.get("git_revision") or "not recorded")[:12],
-            _versions(r.get("versions")), str(host)]
+    return [run.label, run.kind, str(run.path), str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
 
 
 def provenance_section(inputs: Inputs, out: Path) -> Section:
@@ -58,7 +66,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     for st in inputs.studies:
         p = st.meta.get("provenance")
         line = (f"{st.kind} folder {st.path}: " + (
-            f"study {p.get('study')}, git {str(p.get('git_revision'))[:12]}, {_versions(p.get('versions'))}, "
+            f"study {p.get('study')}, git {_code(p)}, {_versions(p.get('versions'))}, "
             f"host {p.get('host_seconds')} s" if p else
             "no provenance.json (written by an older tlm); its runs' folders, when it has them, record theirs"))
         if st.kind == "thesis" and st.meta.get("host_seconds"):
