@@ -122,3 +122,24 @@ def test_a_pmap_run_with_a_damaged_reference_warns_and_goes_on(tmp_path, cache, 
     err = capsys.readouterr().err
     assert f"tlm: warning: damaged reference cache entry {folder / 'meta.json'}" in err and "Traceback" not in err
     assert json.loads((tmp_path / "b" / "results.json").read_text())["error"]["available"] is False
+
+
+def test_a_reference_the_cache_cannot_keep_still_measures_the_run(tmp_path, cache, monkeypatch, capsys):
+    """A read-only (or full) cache: the reference computed for the run is used by it and
+    said not to be cached; the run does not fail after computing it."""
+    import tlm.experiments.reference as reference
+    from tlm.errors import EnvironmentFailure
+
+    def refused(key, image, meta):
+        raise EnvironmentFailure("cannot write into the cache (read-only or not permitted)", source=str(cache))
+
+    monkeypatch.setattr(reference, "save_reference", refused)
+    out = tmp_path / "r"
+    assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--mode", "pmap", "--set", "resolution=[12,8]",
+                 "--set", "photons.count=1500", "--set", "reference.photons=1500", "--set", "reference.max_rounds=4",
+                 "--set", "reference.min_rounds=2", "--set", "reference.spp=1", "--no-report", "--no-progress",
+                 "--outputs", "images", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "not cached (" in err and "read-only" in err and "used by this run only" in err and "Traceback" not in err
+    assert json.loads((out / "results.json").read_text())["error"]["available"] is True
+    assert not (cache / "references").exists() or not any((cache / "references").iterdir())

@@ -174,12 +174,13 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     dirs = [Path(d) for d in args.sweeps]
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
     done = api.scaling(dirs, out)
-    print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1 "
-          f"(N = {done['fits'][0]['pipelines']}):")
+    for note in done["notes"]:
+        _say_err(f"note: {note}")
+    print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
     for f in done["fits"]:
         print(f"  {f['scene']:8s} {f['mode']:7s} {f['scheduler']:8s} {f['target']:10s} A {f['A']:8.4g}  "
               f"B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:6.1%}; slowest-pipeline variant: "
-              f"max |error| {f['slowest']['max_abs_rel_error']:6.1%}")
+              f"max |error| {f['slowest']['max_abs_rel_error']:6.1%} (N = {f['pipelines']})")
     print(f"wrote {out}")
     _report_after(args, out)
     return 0

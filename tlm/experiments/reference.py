@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import EstimateConfig, PhotonConfig, RunConfig
+from tlm.errors import EnvironmentFailure
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
@@ -413,12 +414,15 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     t0 = time.perf_counter()
     image, meta = compute_reference(frame, None, settings, bar=bar)
     cam = frame.scene.camera
-    save_reference(key, image.reshape(cam.height, cam.width, 3), meta)
+    try:
+        where = f"cached in {save_reference(key, image.reshape(cam.height, cam.width, 3), meta)}"
+    except (EnvironmentFailure, OSError) as e:  # (a read-only or full cache: this run still gets its error)
+        where = f"not cached ({' '.join(str(e).split())}): used by this run only"
     seconds = time.perf_counter() - t0
     if say is not None:
         state = "converged" if meta["converged"] else "NOT converged (reference.max_rounds reached)"
         say(f"reference {key}: {state} after {meta['rounds']} rounds (relative standard error "
-            f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; cached in {cache_dir() / key}")
+            f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; {where}")
     return Found(key, settings, image, meta, seconds)
 
 

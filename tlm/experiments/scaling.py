@@ -40,18 +40,33 @@ COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "an
            "analytical_slowest", "rel_error_slowest", "T_vert0", "sum_max_per_N", "speedup")
 
 
-def collect(sweep_dir: Path) -> list[dict]:
+def collect(sweep_dir: Path, notes: list[str] | None = None) -> list[dict]:
     """One record per finished point of the sweep in ``sweep_dir`` (each names the folder).
 
     A last row cut off while written (a killed sweep) is left out; any other row that is
-    not JSON, or a finished point whose folder is gone, is an InputError.
+    not JSON, or a finished point whose folder is gone, is an InputError. Rows of points
+    its ``sweep.yaml`` does not list (an earlier sweep's, left by a rerun cut short) are
+    left out; a sweep with points that have no row yet (interrupted, or still running) is
+    fitted from those it has, and ``notes`` gets a line saying so.
     """
     sweep_dir = Path(sweep_dir)
     rows_path = sweep_dir / "sweep.jsonl"
     if not rows_path.is_file():
         raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
+    try:
+        spec = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+    except (OSError, ValueError, yaml.YAMLError):
+        spec = {}
+    planned = {str(p.get("hash")) for p in (spec.get("points") if isinstance(spec, dict) else None) or []
+               if isinstance(p, dict)}
+    rows = [(n, row) for n, row in read_jsonl(rows_path, " (the file is corrupt: rerun 'tlm sweep' into this folder)")
+            if not planned or str(row.get("hash")) in planned]
+    if planned and notes is not None and len({str(r.get("hash")) for _, r in rows}) < len(planned):
+        done = len({str(r.get("hash")) for _, r in rows})
+        notes.append(f"{sweep_dir}: {done} of its {len(planned)} points have a row (the sweep was interrupted or "
+                     "is still running; the same 'tlm sweep' command finishes it): fitted from those")
     records = []
-    for n, row in read_jsonl(rows_path, " (the file is corrupt: rerun 'tlm sweep' into this folder)"):
+    for n, row in rows:
         if row.get("status") != "ok":
             continue
         folder = sweep_dir / "points" / str(row.get("hash"))
@@ -150,7 +165,8 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     ``plot`` (:func:`tlm.report.scaling.plot_scaling`, passed down by the CLI), a figure per
     scene as ``scaling_<scene>.png``."""
     check_destination(out, "eq52.json")
-    records = [r for d in sweep_dirs for r in collect(d)]
+    notes: list[str] = []
+    records = [r for d in sweep_dirs for r in collect(d, notes)]
     fits = fit(records)
     table, summary = [], []
     for (scene, mode, sched, target), f in fits.items():
@@ -167,5 +183,6 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
     sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
     run_study(", ".join(str(d) for d in sweep_dirs), out, "eq52", [None], figures, columns=COLUMNS,
-              marker="eq52.json", files=lambda _rows: {"eq52.json": {"fits": summary, "sweeps": sweeps}})
-    return {"fits": summary, "rows": table}
+              marker="eq52.json", files=lambda _rows: {"eq52.json": {"fits": summary, "sweeps": sweeps,
+                                                                    "notes": notes}})
+    return {"fits": summary, "rows": table, "notes": notes}

@@ -491,6 +491,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)
                 shutil.rmtree(points_dir / h, ignore_errors=True)
         if pool is not None:
+            # the rows of this sweep's points done already, in place of an earlier sweep's: while
+            # it runs (and when it is cut short) the folder's rows are this sweep's only
+            write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
             _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
     if todo:
         _clean_stale(points_dir)  # what workers that died (or were ended) left half written

@@ -72,8 +72,21 @@ class Run:
 class Sweep:
     path: Path
     spec: dict  # sweep.yaml
-    rows: list[dict]  # sweep.jsonl
+    rows: list[dict]  # sweep.jsonl: the rows of the points sweep.yaml lists
     runs: list[Run]  # its finished points, in point order
+
+    @property
+    def planned(self) -> int:
+        """The points sweep.yaml lists (the rows, for a sweep.yaml that lists none)."""
+        return len(self.spec.get("points") or []) or len(self.rows)
+
+    @property
+    def unfinished(self) -> str:
+        """"" for a sweep with a row for every point; else what the report says of the
+        points without one (an interrupted sweep, or one still running)."""
+        missing = self.planned - len(self.rows)
+        return (f"; {missing} of its {self.planned} points not run yet (the sweep was interrupted or is still "
+                f"running: the same 'tlm sweep' command finishes it)") if missing > 0 else ""
 
 
 @dataclass
@@ -206,6 +219,9 @@ def read(dirs: list[Path]) -> Inputs:
         elif kind == "sweep":
             spec = _yaml(folder / "sweep.yaml") or {}
             rows = _jsonl(folder / "sweep.jsonl") if (folder / "sweep.jsonl").is_file() else []
+            planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
+            if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
+                rows = [r for r in rows if str(r.get("hash")) in planned]
             runs = []
             for row in sorted(rows, key=lambda r: r.get("point", 0)):
                 point = folder / "points" / str(row.get("hash"))

@@ -204,7 +204,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                              min(means, key=means.get))
         best = max(rows, key=lambda r: r["fps"])
         where = ", ".join(f"{k} = {best.get(k)!r}" for k in factors)
-        text = f"<b>Sweep {esc(sw.path.name)}</b> ({len(rows)} of {len(sw.rows)} points ok): "
+        text = f"<b>Sweep {esc(sw.path.name)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
         if spread:
             k = max(spread, key=lambda f: spread[f][0])
             ratio, hi, lo = spread[k]

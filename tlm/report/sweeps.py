@@ -130,7 +130,8 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax.legend(fontsize=7)
     name = f"sweep_{sw.path.name}_{factor.replace('.', '_')}.png"
     return save(fig, out, name, f"{sw.path.name}: FPS against {factor}",
-                f"{len(ok)} finished points of {len(sw.rows)}; {sw.spec.get('description') or ''}".strip())
+                f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
+                f"{sw.spec.get('description') or ''}".strip())
 
 
 def _key(v):
@@ -312,7 +313,10 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         desc = sw.spec.get("description")
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         html.append(f"<h3>{esc(sw.path.name)}</h3><p>{esc(desc or '')} {len(sw.rows)} points, "
-                    f"{failed} failed; sweep file {esc(sw.spec.get('sweep'))}.</p>")
+                    f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.</p>")
+        if sw.unfinished:
+            sec.notes.append(f"{sw.path.name}: {len(sw.rows)} of its {sw.planned} points have a row: the figures "
+                             "show those only")
         html.append(table(sw))
         for factor in factors_of(sw):
             fig = factor_figure(sw, factor, out, sec.notes)
