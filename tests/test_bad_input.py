@@ -112,6 +112,13 @@ CASES: dict[str, Case] = {
     # an empty file is not all the defaults by mistake (a Cornell render at 320x320)
     "config-empty": Case(config="", expect=("cfg.yaml", "is empty")),
     "config-comments-only": Case(config="# scene: ring\n\n", expect=("cfg.yaml", "is empty")),
+    "set-empty-key": Case(argv=["--set", "=3"], expect=("--set", "'=3'", "empty")),
+    "set-empty-key-part": Case(argv=["--set", "render..spp=3"], expect=("--set", "'render..spp=3'", "empty part")),
+    "seed-flag-and-set": Case(argv=["--set", "seed=5", "--seed", "7"], expect=("--seed", "--set seed=5", "give one")),
+    "mode-flag-and-set": Case(argv=["--set", "mode=pmap", "--mode", "rcast"], expect=("--mode", "--set mode=pmap")),
+    # a run config where a scene file is named (a config's neighbour shadowing a built-in scene's name)
+    "scene-is-a-run-config": Case(config=setter("scene", "other.yaml"), extra={"other.yaml": "scene: cornell\n"},
+                                  expect=("other.yaml", "is a run config", "scene: cornell")),
     # a key given twice: PyYAML keeps the last silently, so a second section would undo the first
     "config-duplicate-section": Case(config="scene: scene.yaml\nrender: {spp: 1}\nmode: rcast\nrender:\n"
                                             "  light_samples: 1\n",
@@ -126,6 +133,11 @@ CASES: dict[str, Case] = {
                          expect=("u16.yaml", "not a UTF-8 text file")),
     "scene-binary": Case(config=setter("scene", "bin_scene.yaml"), extra={"bin_scene.yaml": b"name: \xff\xfe\x00"},
                          expect=("bin_scene.yaml", "not a UTF-8 text file", "0xff")),
+    # a cost table whose scale makes more cycles than an int64 holds (was an internal error)
+    "programs-absurd-scale": Case(config=setter("arch.programs", "progs.yaml"), extra={"progs.yaml": yaml.safe_dump(
+        {**(lambda t: {**t, "vertex": {**t["vertex"], "scale": 1e20}})(yaml.safe_load(
+            (Path(__file__).resolve().parents[1] / "tlm" / "arch" / "programs.yaml").read_text()))})},
+        expect=("progs.yaml", "vertex.", "64-bit cycle count")),
     "programs-binary": Case(config=setter("arch.programs", "progs.yaml"), extra={"progs.yaml": b"\x00\x9f\x92\x96"},
                             expect=("progs.yaml", "not a UTF-8 text file", "0x9f")),
     "config-unknown-top-key": Case(config=setter("mdoe", "rcast"),
@@ -239,6 +251,14 @@ CASES: dict[str, Case] = {
     "scene-unknown-builder-param": Case(scene=setter("geometry.params", {"segments": 10}),
                                         expect=("scene.yaml", "geometry.params", "segments"), show=True),
     # ---- meshes
+    # finite numbers whose products overflow (an infinite light power in results.json, warnings)
+    "scene-emission-huge": Case(scene=setter("materials.floor.emission", [1e308, 1e308, 1e308]),
+                                expect=("scene.yaml", "materials.floor.emission", "beyond"), show=True),
+    "scene-power-huge": Case(scene=setter("lights.0.power", [1e31, 1.0, 1.0]),
+                             expect=("scene.yaml", "lights[0].power", "beyond"), show=True),
+    "mesh-far-vertex-obj": Case(scene=mesh_scene("far.obj"),
+                                extra={"far.obj": "v 0 0 0\nv 1e35 0 0\nv 0 1 0\nf 1 2 3\n"},
+                                expect=("scene.yaml", "geometry", "beyond"), show=True),
     "mesh-nan-vertex-obj": Case(scene=mesh_scene("bad.obj"),
                                 extra={"bad.obj": "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n"},
                                 expect=("bad.obj", "NaN"), show=True),

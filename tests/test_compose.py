@@ -226,7 +226,7 @@ def test_a_plane_is_a_floor_facing_up():
     ([{**BOX, "transform": {"rotate": [0, 90]}}], "geometry[0].transform.rotate", "3 numbers"),
     ([{**BOX, "transform": {"move": [0, 1, 0]}}], "geometry[0].transform.move", "unknown key"),
     ([{**BOX, "transform": {"translate": [0, float("nan"), 0]}}], "geometry[0].transform.translate", "finite"),
-    ([{**BOX, "transform": {"scale": 1e308}}], "geometry[0].transform", "non-finite"),
+    ([{**BOX, "transform": {"scale": 1e308}}], "geometry[0].transform.scale", "beyond"),
     ([{"shape": "spehre"}], "geometry[0].shape", "did you mean 'sphere'"),
     ([{"shape": "box", "params": {"size": 1}}], "geometry[0].params.size", "unknown key"),
     ([{"shape": "box", "params": {"min": [0, 0, 0], "max": [1, 0, 1]}}], "geometry[0].params", "must exceed"),

@@ -399,7 +399,7 @@ def test_deadlock_intersection_waits_for_fifo_data():
 
 
 def test_event_budget():
-    with pytest.raises(Deadlock, match="5 events passed"):
+    with pytest.raises(Deadlock, match=r"arch\.max_events = 5 events passed, the cap the config sets"):
         simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
 
 

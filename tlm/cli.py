@@ -74,10 +74,13 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     overrides = list(args.set or [])
-    if args.mode is not None:
-        overrides.append(f"mode={args.mode}")
-    if args.seed is not None:
-        overrides.append(f"seed={args.seed}")
+    for flag, value in (("mode", args.mode), ("seed", args.seed)):
+        if value is None:
+            continue
+        twice = [o for o in overrides if o.partition("=")[0].strip() == flag]
+        if twice:  # (which one was meant: neither is dropped silently)
+            raise InputError(f"--{flag} {value} and --set {twice[-1]} both set {flag}: give one", key=f"--{flag}")
+        overrides.append(f"{flag}={value}")
     outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
     if api.scene_file(args.config) is not None:
         _say(f"{args.config} is a scene file: rendering it with the default settings "

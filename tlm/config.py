@@ -408,6 +408,8 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set") -> d
         if "=" not in item:
             raise InputError(f"{item!r} is not of the form dotted.key=value", source=source)
         key, _, text = item.partition("=")
+        if not all(part.strip() for part in key.split(".")):
+            raise InputError(f"{item!r}: the dotted key before '=' is empty or has an empty part", source=source)
         try:
             value = parse_yaml(text)
         except yaml.YAMLError:

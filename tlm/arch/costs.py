@@ -98,8 +98,9 @@ class Programs:
             return total
 
         norm = _exact_rounding(self.scale[pm] * weighted(prog.instructions)
-                               + self.record_cycles[pm] * weighted(dict.fromkeys(prog.records, 1.0)))
-        flushes = _exact_rounding(weighted(prog.flushes))
+                               + self.record_cycles[pm] * weighted(dict.fromkeys(prog.records, 1.0)),
+                               self.source, f"{pm}.{job}")
+        flushes = _exact_rounding(weighted(prog.flushes), self.source, f"{pm}.{job}")
         misses = np.asarray(counts.get(prog.misses, np.zeros(n)), dtype=np.int64) if prog.misses \
             else np.zeros(n, dtype=np.int64)
         return norm, flushes, misses
@@ -114,9 +115,17 @@ class Programs:
                         {**self.record_cycles, **(record_cycles or {})})
 
 
-def _exact_rounding(x: np.ndarray) -> np.ndarray:
-    """Integers whose running sums are the rounded running sums of ``x``."""
-    c = np.rint(np.cumsum(x)).astype(np.int64)
+MAX_CYCLES = 2.0**62  # what a job's cycles may add up to (int64, with room for the model's sums)
+
+
+def _exact_rounding(x: np.ndarray, source: str | None = None, key: str | None = None) -> np.ndarray:
+    """Integers whose running sums are the rounded running sums of ``x``; an InputError
+    naming the table (``source``, ``key``) where they would not fit a 64-bit cycle count."""
+    total = np.cumsum(x)
+    if total.size and not total[-1] < MAX_CYCLES:  # (a table's absurd scale: 1e20 cycles an instruction)
+        raise InputError(f"the table's costs make {total[-1]:.3g} cycles of this run's work, more than a 64-bit "
+                         f"cycle count holds ({MAX_CYCLES:.3g})", source=source, key=key)
+    c = np.rint(total).astype(np.int64)
     return np.diff(np.concatenate([[0], c]))
 
 

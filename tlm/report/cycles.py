@@ -517,7 +517,10 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
         if fig is not None:
             sec.figures.append(fig)
         if run.trace is None:
-            sec.notes.append(f"{run.label}: no trace.json (arch.trace was false), so no timeline.")
+            traced = ((run.config or {}).get("arch") or {}).get("trace")
+            why = ("arch.trace was false" if traced is False else
+                   "the run wrote one, and it is gone from the folder" if traced else "none was written")
+            sec.notes.append(f"{run.label}: no trace.json ({why}), so no timeline.")
             continue
         try:
             fig = gantt_figure(run, out, f"{slug}_timeline.png", sec.notes)

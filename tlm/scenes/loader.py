@@ -24,6 +24,7 @@ from tlm.scenes import cache
 from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 from tlm.scenes.shapes import machine_memory
+from tlm.scenes.validate import MAX_MAGNITUDE
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num as _num
@@ -187,6 +188,12 @@ def _check_triangles(tri: np.ndarray, src: str) -> None:
             f"{tri[i].tolist()})",
             source=src, key="geometry",
         )
+    far = (np.abs(tri) > MAX_MAGNITUDE).any(axis=(1, 2))
+    if far.any():  # (a transform's scale on a mesh's coordinates: each finite, their product not)
+        i = int(np.flatnonzero(far)[0])
+        raise InputError(f"{int(far.sum())} triangle(s) have a coordinate beyond +-{MAX_MAGNITUDE:g}, where the "
+                         f"kernels' products overflow (first: triangle {i}, {tri[i].tolist()})",
+                         source=src, key="geometry")
 
 
 def check_resolution(width: int, height: int, src: str, key: str = "resolution") -> None:
@@ -212,6 +219,9 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     """
     src = str(path)
     raw = _mapping(read_yaml(path), src, "")
+    if "scene" in raw and "geometry" not in raw and "extends" not in raw:  # (a run config named as a scene)
+        raise InputError(f"is a run config (it names `scene: {raw['scene']}`), not a scene file: a config's `scene:` "
+                         "names a built-in scene or a scene file (with `geometry:`)", source=src)
     _keys(raw, SCENE_KEYS, src, "")
     if "extends" not in raw:
         return raw, path

@@ -9,7 +9,12 @@ from typing import Any
 
 from tlm.errors import InputError, did_you_mean
 
-__all__ = ["keys", "mapping", "num", "vec"]
+__all__ = ["MAX_MAGNITUDE", "keys", "mapping", "num", "vec"]
+
+# the largest magnitude of a scene's numbers (coordinates, powers, emission, scales): far past
+# any scene (a room scaled by 1e6 is 1e7), and products of a few such numbers, which the
+# kernels form (areas, powers, determinants), stay finite in float64
+MAX_MAGNITUDE = 1e30
 
 
 def mapping(v: Any, src: str, key: str) -> dict:
@@ -33,6 +38,9 @@ def vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: flo
         raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
     if not all(math.isfinite(x) for x in v):
         raise InputError(f"{v!r} is not finite", source=src, key=key)
+    if any(abs(x) > MAX_MAGNITUDE for x in v):
+        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, where products of the scene's numbers overflow",
+                         source=src, key=key)
     if lo is not None and any(x < lo for x in v):
         raise InputError(f"{v!r} must be >= {lo}", source=src, key=key)
     if hi is not None and any(x > hi for x in v):
@@ -44,6 +52,9 @@ def num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = 
          lo_exclusive: bool = False) -> float:
     if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
         raise InputError(f"{v!r} is not a finite number", source=src, key=key)
+    if abs(v) > MAX_MAGNITUDE:
+        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, where products of the scene's numbers overflow",
+                         source=src, key=key)
     if lo is not None and (v <= lo if lo_exclusive else v < lo):
         raise InputError(f"{v!r} must be {'>' if lo_exclusive else '>='} {lo}", source=src, key=key)
     if hi is not None and v > hi:
