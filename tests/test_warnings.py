@@ -189,3 +189,60 @@ def test_probes_are_deterministic():
 def test_no_warning_on_the_built_in_scenes(name, tmp_path, capsys):
     warnings, stderr = _run(tmp_path, capsys, name)
     assert warnings == [] and stderr == []
+
+
+# ---------------------------------------------------------------- settings with no effect
+
+
+def test_a_setting_the_run_does_not_use_is_named(tmp_path, capsys):
+    """A knob set away from its default that this run never reads (the k of a filter that
+    samples no k voxels, a fraction under a radius given in scene units, the dynamic
+    scheduler's tiles under the static one) is a warning, not taken silently."""
+    config = tmp_path / "knobs.yaml"
+    config.write_text("scene: cornell\nmode: pmap\nestimate: {filter: mvoxel, k: 16, radius: 20.0, "
+                      "radius_fraction: 0.02}\narch: {scheduler: static, tiles_per_pipeline: 8}\n")
+    out = tmp_path / "out"
+    assert main(["run", str(config), "--out", str(out), "--no-progress", "--no-report", "--no-reference",
+                 "--outputs", "images", *SMALL]) == 0
+    err = capsys.readouterr().err
+    results = json.loads((out / "results.json").read_text())
+    inert = [w for w in results["warnings"] if "has no effect in this run" in w]
+    assert inert == [
+        "estimate.k = 16 has no effect in this run: estimate.filter is 'mvoxel': only 'kvoxel' samples k voxels",
+        "estimate.radius_fraction = 0.02 has no effect in this run: estimate.radius is set, and comes first",
+        "arch.tiles_per_pipeline = 8 has no effect in this run: arch.scheduler is 'static' (one tile a pipeline): "
+        "only 'dynamic' queues tiles"]
+    assert all(f"tlm: warning: {w}" in err for w in inert)
+
+
+def test_inert_settings_follow_the_filter_the_mode_and_the_scheduler():
+    from tlm.config import config_from_dict
+    from tlm.render.planner import inert_changes, inert_settings
+
+    kv = inert_settings(config_from_dict({"mode": "pmap", "estimate": {"filter": "kvoxel"}}))
+    assert "estimate.k" not in kv and "estimate.k_nearest" in kv and "estimate.cone_k" not in kv
+    knn = inert_settings(config_from_dict({"mode": "pmap", "estimate": {"filter": "knn", "final_gather": 0}}))
+    assert "estimate.k_nearest" not in knn and "estimate.k" in knn and "estimate.final_gather_photons" in knn
+    disk = inert_settings(config_from_dict({"mode": "pmap", "estimate": {"filter": "disk"}}))
+    assert "estimate.cone_k" in disk
+    dyn = inert_settings(config_from_dict({"mode": "pmap", "arch": {"scheduler": "dynamic"}}))
+    assert "arch.tiles_per_pipeline" not in dyn
+    rcast = inert_settings(config_from_dict({"mode": "rcast"}))
+    assert rcast["photons.count"].startswith("the photon-map pass does not run (mode 'rcast'")
+    # a config holding photon settings for --mode pmap is not warned about in its own mode
+    assert inert_changes(config_from_dict({"mode": "refract", "photons": {"count": 200000}})) == []
+    assert inert_changes(config_from_dict({"mode": "pmap"})) == []  # the defaults: nothing to say
+
+
+def test_a_sweep_factor_that_changes_nothing_is_warned_about(tmp_path, capsys):
+    from tlm.experiments.sweep import load_sweep
+
+    path = tmp_path / "sw.yaml"
+    path.write_text("base: {scene: cornell, mode: rcast}\ngrid: {photons.count: [1000, 2000], "
+                    "arch.fifo_depth: [1, 16]}\n")
+    assert load_sweep(path).inert_factors() == [
+        f"{path}: the factor photons.count changes nothing in any point: the photon-map pass does not run "
+        "(mode 'rcast' does not include the pmap (photon-map) pass)"]
+    path.write_text("base: {scene: cornell, mode: pmap}\n"
+                    "zip: {estimate.filter: [mvoxel, kvoxel], estimate.k: [4, 8]}\n")
+    assert load_sweep(path).inert_factors() == []  # (k matters in the kvoxel point)

@@ -56,7 +56,7 @@ from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.planner import Plan, photon_count, plan
+from tlm.render.planner import Plan, inert_changes, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
 from tlm.scenes.shapes import machine_memory
@@ -310,6 +310,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
     if res.photons is not None:
         st = res.photons.photons.stats()
         warnings += checks.photon_warnings(st["emitted"], st["stored"])
+    warnings += inert_changes(res.cfg)
     if res.accel.tree.truncated:
         t = res.accel.tree
         warnings.append(

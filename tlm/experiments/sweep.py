@@ -67,7 +67,7 @@ from tlm.experiments.executors import InProcess, LocalPool, dask_worker_threads,
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
 from tlm.experiments.provenance import code_state, versions
 from tlm.fingerprint import code_fingerprint
-from tlm.storage import atomic_folder, check_destination, claim_folder
+from tlm.storage import atomic_folder, check_destination, claim_folder, warn
 
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -104,6 +104,21 @@ class Sweep:
     @property
     def factors(self) -> list[str]:
         return [*self.grid, *self.zip]
+
+    def inert_factors(self) -> list[str]:
+        """A warning line per factor that changes nothing in any point
+        (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
+        filter, ``photons.count`` in mode rcast): its points would be the same run."""
+        from tlm.render.planner import inert_settings
+
+        inert = [inert_settings(config_from_dict(p.config, str(self.path))) for p in self.points]
+        lines = []
+        for factor in self.factors:
+            whys = {i.get(factor) for i in inert}
+            if inert and None not in whys:
+                lines.append(f"{self.path}: the factor {factor} changes nothing in any point: "
+                             f"{'; '.join(sorted(whys))}")
+        return lines
 
     def to_dict(self) -> dict:
         return {
@@ -454,6 +469,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
     sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
+    for line in sweep.inert_factors():
+        warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once

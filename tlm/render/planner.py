@@ -11,6 +11,7 @@ scene without lights renders primary visibility only (black), and the planner sa
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
@@ -110,3 +111,56 @@ def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) ->
         return PassPlan("pmap", False, f"photons.max_bounces is {cfg.photons.max_bounces}: a photon's first hit "
                         "is direct light (the ray-cast frame's), so the map would store nothing")
     return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
+
+
+def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, str]:
+    """The config's keys whose value changes nothing in a run of ``cfg``, each with why:
+    what a user who set (or swept) one should be told, since the run takes it silently.
+
+    ``pmap_reason``: why the photon-map pass does not run (the plan's reason), or None when
+    it runs; by default judged from ``cfg.mode`` alone (a pass the mode does not ask for
+    never runs). Only the built-in filters are judged; a registered one uses what it reads.
+    """
+    out: dict[str, str] = {}
+    if pmap_reason is None and cfg.mode != "pmap":
+        pmap_reason = f"mode {cfg.mode!r} does not include the pmap (photon-map) pass"
+    if pmap_reason is not None:
+        why = f"the photon-map pass does not run ({pmap_reason})"
+        for section in ("photons", "estimate", "reference"):
+            for name in dataclasses.asdict(getattr(cfg, section)):
+                out[f"{section}.{name}"] = why
+    else:
+        est = cfg.estimate
+        if est.filter in ("disk", "mvoxel", "knn") and est.filter != "kvoxel":
+            out["estimate.k"] = f"estimate.filter is {est.filter!r}: only 'kvoxel' samples k voxels"
+        if est.filter in ("disk", "mvoxel", "kvoxel"):
+            out["estimate.k_nearest"] = f"estimate.filter is {est.filter!r}: only 'knn' takes the k nearest photons"
+        if est.filter == "disk":
+            out["estimate.cone_k"] = "estimate.filter is 'disk', which weighs every photon alike (no cone)"
+        if est.final_gather == 0:
+            out["estimate.final_gather_photons"] = "estimate.final_gather is 0 (no final gathering)"
+        for prefix in ("", "caustic_"):
+            if getattr(est, f"{prefix}radius") is not None:
+                for name in (f"{prefix}radius_fraction", f"{prefix}radius_photons"):
+                    out[f"estimate.{name}"] = f"estimate.{prefix}radius is set, and comes first"
+            elif getattr(est, f"{prefix}radius_fraction") is not None:
+                out[f"estimate.{prefix}radius_photons"] = f"estimate.{prefix}radius_fraction is set, and comes first"
+    if cfg.arch.scheduler == "static":
+        out["arch.tiles_per_pipeline"] = "arch.scheduler is 'static' (one tile a pipeline): only 'dynamic' queues tiles"
+    return out
+
+
+def inert_changes(cfg: RunConfig) -> list[str]:
+    """:func:`inert_settings` of the keys ``cfg`` sets away from their defaults, for a run
+    whose photon-map pass runs, or whose photon sections are left aside (a config may hold
+    them for ``--mode pmap``, and the plan says why the pass is left out): one warning
+    line each (``estimate.k = 16 has no effect in this run: ...``)."""
+    defaults = dataclasses.asdict(RunConfig())
+    lines = []
+    settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (the photon sections judged as if run)
+    for key, why in settings.items():
+        section, name = key.split(".", 1)
+        value = getattr(getattr(cfg, section), name)
+        if value != defaults[section][name]:
+            lines.append(f"{key} = {value!r} has no effect in this run: {why}")
+    return lines
