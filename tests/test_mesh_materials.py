@@ -279,6 +279,35 @@ def test_gltf_metallic_default_and_bad_values(tmp_path):
         load_mesh(tmp_path / "bad.glb")
 
 
+def test_broken_gltf_references_and_truncation_are_named(tmp_path):
+    """What a library would report as "list index out of range" or a failed reshape is
+    named: the reference, the table it misses, the bytes an accessor needs."""
+    import copy
+
+    header, binary = _gltf_scene(tmp_path)
+    cases = [
+        (lambda h: h["meshes"][1]["primitives"][0].update(material=9),
+         r"meshes\[1\]\.primitives\[0\]\.material = 9 names no entry of 'materials' \(it has 4\)"),
+        (lambda h: h["meshes"][0]["primitives"][0].update(indices=99),
+         r"meshes\[0\]\.primitives\[0\]\.indices = 99 names no entry of 'accessors'"),
+        (lambda h: h["nodes"][0].update(mesh=42), r"nodes\[0\]\.mesh = 42 names no entry of 'meshes'"),
+        (lambda h: h["accessors"][0].update(count=10**9), r"accessors\[0\]\.count = 1000000000 needs [\d,]+ bytes"),
+        (lambda h: h.update(meshes=[]), "the glTF has no meshes"),
+    ]
+    for change, words in cases:
+        broken = copy.deepcopy(header)
+        change(broken)
+        (tmp_path / "b.glb").write_bytes(write_glb(broken, binary))
+        with pytest.raises(InputError, match=r"b\.glb: " + words):
+            load_mesh(tmp_path / "b.glb")
+    whole = write_glb(header, binary)
+    for cut in (12, len(whole) // 2):
+        (tmp_path / "cut.glb").write_bytes(whole[:cut])
+        with pytest.raises(InputError, match=f"cut\\.glb: the binary glTF file is truncated: its header says "
+                                             f"{len(whole):,} bytes, the file has {cut:,}"):
+            load_mesh(tmp_path / "cut.glb")
+
+
 def test_meshes_without_materials_have_none(tmp_path):
     trimesh = pytest.importorskip("trimesh")
     for ext in ("ply", "stl"):

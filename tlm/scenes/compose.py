@@ -167,6 +167,8 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
     mpath = Path(mesh)
     if not mpath.is_absolute():
         mpath = path.parent / mpath
+    if mpath.is_dir():
+        raise InputError(f"{str(mpath)!r} is a folder, not a mesh file", source=src, key=f"{key}.mesh")
     if not mpath.is_file():
         raise InputError(f"mesh file {str(mpath)!r} not found", source=src, key=f"{key}.mesh")
     return load_mesh(mpath)

@@ -62,10 +62,12 @@ def list_scenes() -> list[str]:
     )
 
 
-def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | None = None) -> Path:
+def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | None = None,
+                       key: str = "scene") -> Path:
     """A built-in name (``cornell``) or a path, tried relative to ``base`` then the cwd.
 
-    ``config_source`` names the file the reference came from, for error messages.
+    ``config_source`` names the file the reference came from and ``key`` the key that
+    gave it (``scene``, a scene file's ``extends``), for error messages.
     """
     looks_like_path = ref.endswith((".yaml", ".yml")) or "/" in ref or os.sep in ref
     if looks_like_path and not ref.endswith((".yaml", ".yml")) and (scenes_dir() / f"{ref}.yaml").is_file():
@@ -79,13 +81,13 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
             return scenes_dir() / p  # thesis/ring.yaml
         stem = ref[: -len(p.suffix)] if p.suffix in (".yaml", ".yml") else ref
         raise InputError(f"scene file {ref!r} not found{did_you_mean(stem, list_scenes())}",
-                         source=config_source, key="scene")
+                         source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
     raise InputError(
         f"{ref!r} is not a built-in scene ({', '.join(list_scenes())}){did_you_mean(ref, list_scenes())}",
-        source=config_source, key="scene",
+        source=config_source, key=key,
     )
 
 
@@ -228,7 +230,7 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
         raise InputError(f"{ref!r} must be a scene name or a scene file path", source=src, key="extends")
-    base_path = resolve_scene_path(ref, path.parent, src)
+    base_path = resolve_scene_path(ref, path.parent, src, key="extends")
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")

@@ -182,8 +182,12 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Mat
 
 def glb_chunks(data: bytes, source: str = "") -> tuple[dict, bytes]:
     """The JSON (parsed) and the BIN chunk (b"" if none) of a binary glTF file."""
-    if len(data) < 20 or data[:4] != GLB_MAGIC:
+    if data[:4] != GLB_MAGIC:
         raise InputError("not a binary glTF file (no 'glTF' header)", source=source)
+    total = struct.unpack_from("<I", data, 8)[0] if len(data) >= 12 else None
+    if len(data) < 20 or (total is not None and total > len(data)):
+        said = f"its header says {total:,} bytes" if total is not None else "its header is cut"
+        raise InputError(f"the binary glTF file is truncated: {said}, the file has {len(data):,}", source=source)
     length, kind = struct.unpack_from("<II", data, 12)
     if kind != 0x4E4F534A or 20 + length > len(data):  # "JSON"
         raise InputError("the binary glTF file's first chunk is not its JSON", source=source)
@@ -221,6 +225,60 @@ def gltf_json(path: Path, data: bytes | None = None) -> dict:
         return json.loads(data)
     except ValueError as exc:
         raise InputError(f"the glTF JSON does not parse ({exc})", source=str(path)) from None
+
+
+# bytes of a glTF accessor's component type, and components of its element type
+_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+def check_gltf(header: dict, source: str) -> None:
+    """The references of a glTF's JSON, before a library reads it: every mesh, material,
+    accessor and buffer view a primitive, node or accessor names exists, an accessor fits
+    its buffer view, and there is a mesh. An InputError names the first that does not
+    (a library would say "list index out of range" or fail to reshape)."""
+    def count(table: str) -> int:
+        v = header.get(table)
+        return len(v) if isinstance(v, list) else 0
+
+    def ref(where: str, value, table: str) -> None:
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < count(table):
+            raise InputError(f"{where} = {value!r} names no entry of {table!r} (it has {count(table)})",
+                             source=source)
+
+    def entries(table: str) -> list:
+        v = header.get(table)
+        return [e if isinstance(e, dict) else {} for e in v] if isinstance(v, list) else []
+
+    if not count("meshes"):
+        raise InputError("the glTF has no meshes: nothing to render", source=source)
+    for i, node in enumerate(entries("nodes")):
+        if "mesh" in node:
+            ref(f"nodes[{i}].mesh", node["mesh"], "meshes")
+    for i, mesh in enumerate(entries("meshes")):
+        prims = mesh.get("primitives")
+        for j, prim in enumerate(prims if isinstance(prims, list) else []):
+            where = f"meshes[{i}].primitives[{j}]"
+            prim = prim if isinstance(prim, dict) else {}
+            if "material" in prim:
+                ref(f"{where}.material", prim["material"], "materials")
+            if "indices" in prim:
+                ref(f"{where}.indices", prim["indices"], "accessors")
+            attrs = prim.get("attributes")
+            for name, a in (attrs.items() if isinstance(attrs, dict) else ()):
+                ref(f"{where}.attributes.{name}", a, "accessors")
+    views = entries("bufferViews")
+    for i, acc in enumerate(entries("accessors")):
+        if "bufferView" not in acc:
+            continue
+        ref(f"accessors[{i}].bufferView", acc["bufferView"], "bufferViews")
+        size = _COMPONENT_BYTES.get(acc.get("componentType"), 0) * _TYPE_COMPONENTS.get(acc.get("type"), 0)
+        n, offset, length = acc.get("count"), acc.get("byteOffset", 0), views[acc["bufferView"]].get("byteLength")
+        if size and all(isinstance(x, int) and not isinstance(x, bool) for x in (n, offset, length)):
+            need = offset + n * size
+            if n < 0 or need > length:
+                raise InputError(f"accessors[{i}].count = {n} needs {need:,} bytes of bufferViews"
+                                 f"[{acc['bufferView']}], which holds {length:,}", source=source)
 
 
 def _numbers(value, n: int, where: str, source: str, default) -> tuple[float, ...]:

@@ -266,7 +266,7 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
 def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
     import trimesh
 
-    from tlm.scenes.materials import gltf_json, gltf_materials, write_glb
+    from tlm.scenes.materials import check_gltf, gltf_json, gltf_materials, write_glb
     from tlm.scenes.objfile import read_bytes
 
     file_materials: tuple[Material, ...] = ()
@@ -279,6 +279,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             kwargs = {"file_type": ext[1:]}
         if ext in (".glb", ".gltf") and data.strip():
             header = gltf_json(path, data)
+            check_gltf(header, src)
             file_materials = tuple(gltf_materials(header, src))
             if file_materials:
                 # name each material by its index, so that each geometry's says which it is
