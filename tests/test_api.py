@@ -119,6 +119,8 @@ def test_a_notebook_s_values_read_as_their_plain_equivalents():
     assert path.scene == str(ROOT / "scenes" / "cornell.yaml")
     over = tlm.load_config(SMALL, {"render.spp": np.int64(3), "arch.frames": np.uint8(2), "resolution": (8, 8)})
     assert (over.render.spp, over.arch.frames, over.resolution) == (3, 2, [8, 8])
+    # a path beyond the BMP survives the override's JSON (not as two lone surrogates)
+    assert tlm.load_config(SMALL, {"scene": "s\U0001f642.yaml"}).scene == "s\U0001f642.yaml"
     # a NaN override is named as the NaN it is (JSON's NaN would read as the string 'NaN')
     with pytest.raises(tlm.InputError, match=r"arch\.clock_hz: nan is not finite"):
         tlm.load_config(SMALL, {"arch.clock_hz": float("nan")})

@@ -246,6 +246,10 @@ CASES: dict[str, Case] = {
                                                                                       "rings": 10**5}}]),
                              expect=("scene.yaml", "geometry[0].params", "19,999,800,000 triangles", "GiB"),
                              show=True),
+    "set-huge-caustic-count": Case(config=setter("mode", "pmap"),
+                                   argv=["--set", "photons.count=1000", "--set",
+                                         "photons.caustic_count=10000000000000"],
+                                   expect=("--set", "photons.count + photons.caustic_count", "10,000,000,001,000")),
     "set-huge-photon-count": Case(config=setter("mode", "pmap"), argv=["--set", "photons.count=10000000000000"],
                                   expect=("--set", "photons.count", "10,000,000,000,000 photons", "GiB")),
     "scene-unknown-builder-param": Case(scene=setter("geometry.params", {"segments": 10}),
@@ -420,3 +424,28 @@ def test_bad_command_line_arguments(tmp_path, capsys, argv):
     lines = cap.err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("tlm: error: "), cap.err
     assert argv[1] in lines[0]
+
+
+@pytest.mark.parametrize("text", [
+    "a: &a {x: 1}\nb: {<<: *a, x: 2}\n",
+    "a: &a {x: 1}\nb: {<<: [*a], x: 2, y: 3}\n",
+    # an anchored mapping that merges, merged later by a sibling of its parent (PyYAML flattens
+    # it in place first) and merged twice
+    "base: &base {x: 1}\nsec:\n  sub: &s\n    <<: *base\n    x: 2\nother:\n  <<: *s\n",
+    "base: &base {x: 1}\npoints: [&p1 {<<: *base, x: 2}]\nother: {<<: *p1}\nmore: {<<: *p1, y: 3}\n",
+    "a: {<<: &m {x: 1, y: 2}, x: 3}\nb: {<<: *m}\n",
+    "a: &a {x: 1}\nb: &b {<<: *a, x: 2}\nc: {<<: *b}\nd: {<<: *b}\n",
+])
+def test_merge_keys_may_be_set_again_as_yaml_allows(text):
+    from tlm.config import parse_yaml
+
+    assert parse_yaml(text) == yaml.safe_load(text)
+
+
+@pytest.mark.parametrize("text", ["a: 1\na: 2\n", "a: {x: 1, x: 2}\n", "a: &a {x: 1}\nb: {<<: *a, y: 1, y: 2}\n",
+                                  "l: [{q: 1, q: 2}]\n"])
+def test_a_key_given_twice_in_one_mapping_is_refused(text):
+    from tlm.config import DuplicateKeyError, parse_yaml
+
+    with pytest.raises(DuplicateKeyError, match="duplicate key"):
+        parse_yaml(text)

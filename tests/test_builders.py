@@ -271,6 +271,8 @@ def test_shape_counts_and_orientation(tris, count, volume):
     lambda: shapes.cylinder((0, 0, 0), 1.0, 2.0, 9, bottom=False),
     lambda: shapes.tube((0, 0, 0), 0.5, 1.0, 2.0, 7),
     lambda: shapes.quad((0, 0, 0), (1, 0, 0), (0, 1, 0), nu=3, nv=2),
+    lambda: shapes.aabox((0, 0, 0), (1, 2, 3), n=3),
+    lambda: shapes.aabox((0, 0, 0), (1, 2, 3), n=2, omit=("bottom", "top")),
 ])
 def test_a_tessellation_is_checked_against_the_machine_at_its_exact_count(monkeypatch, make):
     """The count checked before anything is allocated is the count made: so a shape of
@@ -281,6 +283,14 @@ def test_a_tessellation_is_checked_against_the_machine_at_its_exact_count(monkey
     monkeypatch.setattr(shapes, "machine_memory", lambda: n * shapes.TRIANGLE_BYTES - 1)
     with pytest.raises(ValueError, match=f"makes {n:,} triangles"):
         make()
+
+
+def test_a_huge_sphere_or_torus_is_refused_before_its_profile_is_made():
+    """(np.arange of 10**12 rings would itself need 7 TiB.)"""
+    for make in (lambda: shapes.uv_sphere((0, 0, 0), 1.0, 8, 10**12),
+                 lambda: shapes.torus((0, 0, 0), 2.0, 1.0, 8, 10**12)):
+        with pytest.raises(ValueError, match="more than this machine's"):
+            make()
 
 
 def test_closed_shapes_have_positive_volume():

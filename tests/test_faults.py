@@ -358,6 +358,32 @@ def test_the_user_s_own_files_in_a_replaced_folder_are_kept(tmp_path, monkeypatc
     assert (out / "m").read_text() == "new" and leftovers(tmp_path) == []
 
 
+def test_a_user_file_that_cannot_be_moved_keeps_both_folders(tmp_path, monkeypatch):
+    """A user's entry that cannot be carried over (a read-only folder of theirs, a mount
+    point) leaves the earlier folder as it was, every user file in it, and keeps the
+    finished output beside it, named: neither is thrown away."""
+    out = tmp_path / "r"
+    with atomic_folder(out, "m", owned=("m",)) as tmp:
+        (tmp / "m").write_text("old")
+    (out / "a_notes.md").write_text("mine")
+    (out / "b_locked").mkdir()
+    rename = Path.rename
+
+    def refused(self, target):
+        if self.name == "b_locked" and ".tmp-" in str(target):
+            raise OSError(errno.EACCES, "Permission denied", str(self))
+        return rename(self, target)
+
+    monkeypatch.setattr(Path, "rename", refused)
+    with (pytest.raises(storage.EnvironmentFailure, match=r"cannot carry .*b_locked.* kept in .*r\.unsaved-"),
+          atomic_folder(out, "m", owned=("m",)) as tmp):
+        (tmp / "m").write_text("new")
+    monkeypatch.setattr(Path, "rename", rename)
+    assert sorted(p.name for p in out.iterdir()) == ["a_notes.md", "b_locked", "m"] and (out / "m").read_text() == "old"
+    (kept,) = tmp_path.glob("r.unsaved-*")
+    assert (kept / "m").read_text() == "new" and sorted(p.name for p in kept.iterdir()) == ["m"]
+
+
 def test_a_run_into_its_own_earlier_folder_keeps_the_user_s_files(tmp_path):
     out = tmp_path / "run"
     assert main(["run", CORNELL, "--out", str(out), *SMALL, "--no-report"]) == 0

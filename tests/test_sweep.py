@@ -156,6 +156,43 @@ def test_local_pool_and_dask_give_identical_rows(tmp_path, monkeypatch):
         {r["cycles.throughput"] for r in local.rows if r["arch.page_miss_cycles"] == 48}
 
 
+HANG = """
+import gc, sys
+from contextlib import ExitStack
+
+if __name__ == "__main__":
+    import distributed.utils as du
+    from tlm.errors import InputError
+    from tlm.experiments import executors
+    start = du.LoopRunner._start_unlocked
+    def collected(self, *a, **k):  # (what the collector does by chance there: the hang's trigger)
+        gc.collect()
+        return start(self, *a, **k)
+    du.LoopRunner._start_unlocked = collected
+    with ExitStack() as stack:
+        try:
+            executors.open_executor(stack, 1, "nowhere", 1)
+        except InputError:
+            pass
+    with ExitStack() as stack:
+        executors.open_executor(stack, 1, "local", 1)
+    print("started")
+"""
+
+
+def test_a_failed_dask_address_never_hangs_the_next_cluster(tmp_path):
+    """A Client whose address failed is garbage with its loop runner started; collected
+    while distributed starts the next cluster's loop (under the lock its __del__ takes),
+    it hung the process (seen in the suite: the local-cluster test after the bad-address
+    one). The executor collects it first."""
+    script = tmp_path / "hang.py"
+    script.write_text(HANG)
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=120)  # (a hang guard, not a timing)
+    assert done.returncode == 0 and done.stdout.strip() == "started", done.stderr[-2000:]
+
+
 @pytest.mark.slow
 def test_a_local_dask_cluster_does_not_need_port_8787(tmp_path, capfd):
     """Another cluster (or anything) on the dashboard's usual port: no warning about it."""

@@ -107,7 +107,7 @@ def _yaml_text(value: Any) -> str:
     if isinstance(value, float) and not math.isfinite(value):
         return ".nan" if value != value else (".inf" if value > 0 else "-.inf")
     try:
-        return json.dumps(value)
+        return json.dumps(value, ensure_ascii=False)  # (YAML reads JSON's surrogate escapes as two characters)
     except TypeError:
         raise InputError(f"{value!r} is not a value a config holds (a number, a string, a bool, null, "
                          "or lists and mappings of them)", key="overrides") from None

@@ -334,8 +334,12 @@ class _Loader(yaml.SafeLoader):
     silently undo the first). Keys that a merge (``<<: *anchor``) brings in may be set
     again, as YAML allows."""
 
-    def construct_mapping(self, node, deep=False):
-        if isinstance(node, yaml.MappingNode):
+    def flatten_mapping(self, node):
+        # (checked before PyYAML's flattening rewrites the node in place with its merged keys,
+        # and once per node: a node merged twice is already flattened the second time)
+        checked = self.__dict__.setdefault("_checked", set())
+        if id(node) not in checked:
+            checked.add(id(node))
             first: dict = {}
             for key_node, _ in node.value:
                 if key_node.tag == "tag:yaml.org,2002:merge":
@@ -349,7 +353,7 @@ class _Loader(yaml.SafeLoader):
                     raise DuplicateKeyError(
                         None, None, f"duplicate key {key!r} (first at line {mark.line + 1}): give each key once",
                         key_node.start_mark)
-        return super().construct_mapping(node, deep=deep)
+        super().flatten_mapping(node)
 
 
 _Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}

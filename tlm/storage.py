@@ -267,24 +267,46 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
                 try:  # another writer may have put something else there meanwhile
                     check_destination(out, marker)
                 except InputError as refused:  # the finished output is kept beside it, not thrown away
-                    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}"
-                    try:
-                        tmp.rename(kept)
-                    except OSError:
+                    kept = _keep_beside(tmp, out)
+                    if kept is None:
                         raise refused from None
                     raise InputError(f"{refused}; this run's output is kept in {str(kept)!r}") from None
-            moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
+            try:
+                moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
+            except OSError as e:  # a file of the user's that cannot be moved (a read-only folder of theirs)
+                kept = _keep_beside(tmp, out)
+                if kept is None:
+                    raise
+                raise EnvironmentFailure(
+                    f"cannot carry {e.filename!r} into the new output ({e.strerror}), so the folder is left as it "
+                    f"was; this run's output is kept in {str(kept)!r}", source=str(out)) from None
             try:
                 _swap_in(tmp, out)
             except BaseException:  # (the user's files go back where they were)
+                back = True
                 for name in moved:
-                    with suppress(OSError):
+                    try:
                         (tmp / name).rename(out / name)
+                    except OSError:
+                        back = False
+                if not back:  # (never removed with the temporary folder: it is kept beside, whole)
+                    _keep_beside(tmp, out)
                 raise
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
         _raise_environmental(e, out)
         raise
+
+
+def _keep_beside(tmp: Path, out: Path) -> Path | None:
+    """Rename the finished temporary folder ``tmp`` to ``OUT.unsaved-PID`` beside ``out``
+    (kept, not removed, when it cannot take ``out``'s place); its path, or None."""
+    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}"
+    try:
+        tmp.rename(kept)
+    except OSError:
+        return None
+    return kept
 
 
 def _raise_environmental(e: BaseException, where: Path) -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import ctypes
+import gc
 import itertools
 import logging
 import multiprocessing
@@ -24,7 +25,7 @@ import threading
 import time
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import ExitStack, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -407,6 +408,23 @@ def dask_worker_threads() -> int | None:
     return max(1, available() // slots)
 
 
+@contextmanager
+def _sigint_ignored():
+    """SIGINT ignored while the block starts processes, which inherit it: a Ctrl-C at the
+    terminal, which signals the whole process group, then reaches the sweep alone, which
+    ends the cluster, and no worker prints its own traceback (a page of them, before). A
+    no-op off the main thread."""
+    try:
+        before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
     client's; no more workers than ``points``."""
@@ -415,15 +433,21 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) ->
     jobs = min(jobs, points)
     from distributed import Client, LocalCluster
 
+    # a Client left unreachable earlier (one whose connection failed: the constructor raised
+    # with its loop started) is collected now: collected by chance while distributed starts
+    # the next one's loop, its __del__ re-enters that loop's lock and the process hangs
+    gc.collect()
+
     if dask == "local":
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
         # silence_logs: the workers' own warnings (a task cancelled by a signal, a worker
         # restarted) would reach the user's terminal as log lines; the sweep says what happened
-        cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
-                                                   dashboard_address="127.0.0.1:0",
-                                                   scheduler_kwargs={"dashboard": False},
-                                                   silence_logs=logging.CRITICAL))
+        with _sigint_ignored():  # (the workers start with Ctrl-C ignored: the sweep stops them)
+            cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                                       dashboard_address="127.0.0.1:0",
+                                                       scheduler_kwargs={"dashboard": False},
+                                                       silence_logs=logging.CRITICAL))
         client = stack.enter_context(Client(cluster))
     else:
         try:

@@ -58,6 +58,7 @@ from tlm.kernels.shade import emitted, hash_uniform, surface_emission
 from tlm.kernels.traverse import closest_hit
 from tlm.render.frame import Frame, GBuffer, pixel_batches
 from tlm.render.passes import gather_points
+from tlm.render.planner import check_photon_memory
 from tlm.render.pmap import trace_photon_map
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, cache_root, digest_problem, file_digest, warn
@@ -269,6 +270,7 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     from tqdm import tqdm
 
     del g
+    check_photon_memory(settings.photons, "reference.photons")  # (before the first round)
     rframe = replace(frame, cfg=reference_config(frame.cfg, settings))
     strata = cycle_length(settings)
     max_cycles = max(2, settings.max_rounds // strata)

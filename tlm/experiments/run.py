@@ -48,7 +48,7 @@ from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
 from tlm.kernels import release_memory, threads
-from tlm.kernels.photons import PHOTON_BYTES, PhotonTrace
+from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
 from tlm.kernels.work import WORK_KEYS
 from tlm.progress import Ticking, Timer, progress_bar
@@ -56,10 +56,9 @@ from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.planner import Plan, inert_changes, photon_count, plan
+from tlm.render.planner import Plan, check_photon_memory, inert_changes, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.scenes.shapes import machine_memory
 from tlm.storage import atomic_folder, check_destination
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
@@ -161,24 +160,18 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
         with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
             frame = load_frame(cfg, base, config_source, timer, bar)
         the_plan = plan(frame.scene, cfg)
-        if "pmap" in the_plan.run_names:
-            _check_photon_memory(photon_count(frame.scene, cfg), cfg, config_source)
+        if "pmap" in the_plan.run_names:  # (the global group and the caustic group's own budget)
+            check_photon_memory(photon_count(frame.scene, cfg) + (cfg.photons.caustic_count or 0),
+                                "photons.count" if cfg.photons.caustic_count is None else
+                                "photons.count + photons.caustic_count", config_source,
+                                " (the scene's photons)" if cfg.photons.count is None and
+                                cfg.photons.caustic_count is None else "")
         done = render_batches(frame, the_plan.run_names, timer, progress)
         error = None
         if done.photons is not None:
             error = photon_error(frame, done.radiance["pmap"].reshape(-1, 3))
     return RenderResult(frame.scene, cfg, the_plan, frame, done.gbuffer, done.radiance, done.work, timer,
                         done.photons, error, primary=done.primary, gather_maps=done.gather_maps)
-
-
-def _check_photon_memory(n: int, cfg: RunConfig, source: str | None) -> None:
-    """An InputError when ``n`` photons cannot be traced in this machine's memory at
-    :data:`~tlm.kernels.photons.PHOTON_BYTES` each (before any is emitted)."""
-    need, total = n * PHOTON_BYTES, machine_memory()
-    if need > total:
-        whose = "" if cfg.photons.count is not None else " (the scene's photons)"
-        raise InputError(f"{n:,} photons{whose} need at least {need / 2**30:,.0f} GiB to trace, more than this "
-                         f"machine's {total / 2**30:.0f} GiB", source=source, key="photons.count")
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:

@@ -15,6 +15,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
+from tlm.errors import InputError
 from tlm.scenes.model import Scene
 
 PASSES = ("rcast", "reflect", "refract", "pmap")  # the frames, one per mode
@@ -96,6 +97,19 @@ def _decide_fgather(cfg: RunConfig, pmap: PassPlan) -> PassPlan:
 
 def photon_count(scene: Scene, cfg: RunConfig) -> int:
     return scene.photons if cfg.photons.count is None else cfg.photons.count
+
+
+def check_photon_memory(n: int, key: str, source: str | None = None, whose: str = "") -> None:
+    """An InputError (naming ``key`` of ``source``) when ``n`` photons cannot be traced in
+    this machine's memory at :data:`~tlm.kernels.photons.PHOTON_BYTES` each: said before
+    any is emitted, not as an out-of-memory error deep in the tracer."""
+    from tlm.kernels.photons import PHOTON_BYTES
+    from tlm.scenes.shapes import machine_memory
+
+    need, total = n * PHOTON_BYTES, machine_memory()
+    if need > total:
+        raise InputError(f"{n:,} photons{whose} need at least {need / 2**30:,.0f} GiB to trace, more than this "
+                         f"machine's {total / 2**30:.0f} GiB", source=source, key=key)
 
 
 def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) -> PassPlan:

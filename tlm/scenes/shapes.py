@@ -151,10 +151,6 @@ def _check_div(**divs: int) -> None:
     for name, n in divs.items():
         if int(n) != n or n < 1:
             raise ValueError(f"{name} must be a positive integer, got {n!r}")
-    count = 2
-    for n in divs.values():
-        count *= int(n)
-    check_triangle_count(count, " x ".join(f"{name} = {int(n)}" for name, n in divs.items()))
 
 
 def quad(corner, edge_u, edge_v, nu: int = 1, nv: int = 1) -> np.ndarray:
@@ -171,6 +167,7 @@ def quad(corner, edge_u, edge_v, nu: int = 1, nv: int = 1) -> np.ndarray:
     (2 * nu * nv, 3, 3) float64 array, normals along ``cross(edge_u, edge_v)``.
     """
     _check_div(nu=nu, nv=nv)
+    check_triangle_count(2 * int(nu) * int(nv), f"nu = {int(nu)} x nv = {int(nv)}")
     c, u, v = _vec3(corner, "corner"), _vec3(edge_u, "edge_u"), _vec3(edge_v, "edge_v")
     a = np.linspace(0.0, 1.0, nu + 1)[:, None, None]
     b = np.linspace(0.0, 1.0, nv + 1)[None, :, None]
@@ -195,6 +192,7 @@ def patch(p00, p10, p11, p01, nu: int = 1, nv: int = 1) -> np.ndarray:
     (2 * nu * nv, 3, 3) float64 array.
     """
     _check_div(nu=nu, nv=nv)
+    check_triangle_count(2 * int(nu) * int(nv), f"nu = {int(nu)} x nv = {int(nv)}")
     c = [_vec3(p, "corner") for p in (p00, p10, p11, p01)]
     a = np.linspace(0.0, 1.0, nu + 1)[:, None, None]
     b = np.linspace(0.0, 1.0, nv + 1)[None, :, None]
@@ -231,6 +229,8 @@ def box(corners, n: int = 1, omit: tuple[str, ...] = ()) -> np.ndarray:
     bad = set(omit) - set(_BOX_FACES)
     if bad:
         raise ValueError(f"unknown box faces {sorted(bad)}; expected some of {_BOX_FACES}")
+    faces = len(set(_BOX_FACES) - set(omit))
+    check_triangle_count(2 * int(n) * int(n) * faces, f"n = {int(n)} divisions a side of {faces} faces")
     # Signed volume (divergence theorem) with the ring taken as given: if negative,
     # the ring runs the other way and every face must be flipped.
     quads = {
@@ -405,6 +405,8 @@ def uv_sphere(center, radius: float, n_seg: int, n_rings: int, axis=(0.0, 1.0, 0
     """
     if int(n_rings) != n_rings or n_rings < 2:
         raise ValueError(f"n_rings must be an integer >= 2, got {n_rings!r}")
+    if int(n_seg) == n_seg and n_seg >= 3:  # (before the rings are made; lathe checks n_seg itself)
+        check_triangle_count(2 * int(n_seg) * (int(n_rings) - 1), f"n_seg = {int(n_seg)} x n_rings = {int(n_rings)}")
     phi = np.pi * np.arange(n_rings + 1) / n_rings
     r = radius * np.sin(phi)
     r[0] = r[-1] = 0.0
@@ -504,6 +506,8 @@ def torus(
         raise ValueError(f"torus needs 0 < r < R, got R={R}, r={r}")
     if int(n_minor) != n_minor or n_minor < 3:
         raise ValueError(f"n_minor must be an integer >= 3, got {n_minor!r}")
+    if int(n_major) == n_major and n_major >= 3:  # (before the profile is made; lathe checks n_major itself)
+        check_triangle_count(2 * int(n_major) * int(n_minor), f"n_major = {int(n_major)} x n_minor = {int(n_minor)}")
     phi = 2.0 * np.pi * np.arange(n_minor) / n_minor
     return lathe(R + r * np.cos(phi), r * np.sin(phi), n_major, center, axis, closed=True)
 
