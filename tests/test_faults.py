@@ -305,12 +305,9 @@ def test_swap_retries_when_another_writer_lands_first(tmp_path, monkeypatch):
     assert (out / "m").read_text() == "mine" and leftovers(tmp_path) == []
 
 
-def test_a_signal_between_the_two_renames_puts_the_old_folder_back(tmp_path, monkeypatch):
-    """Interrupted after the old folder is moved aside and before the new one is renamed
-    in, the writer puts the old folder back: ``out`` is never left missing."""
-    out = tmp_path / "r"
-    with atomic_folder(out, "m") as tmp:
-        (tmp / "m").write_text("old")
+def _interrupt_the_swap(monkeypatch, out: Path):
+    """Path.rename patched to be interrupted (a signal) as the new folder is renamed onto
+    ``out``, after the old one was moved aside; returns the real rename, to restore."""
     rename = Path.rename
 
     def interrupted(self, target):
@@ -319,6 +316,16 @@ def test_a_signal_between_the_two_renames_puts_the_old_folder_back(tmp_path, mon
         return rename(self, target)
 
     monkeypatch.setattr(Path, "rename", interrupted)
+    return rename
+
+
+def test_a_signal_between_the_two_renames_puts_the_old_folder_back(tmp_path, monkeypatch):
+    """Interrupted after the old folder is moved aside and before the new one is renamed
+    in, the writer puts the old folder back: ``out`` is never left missing."""
+    out = tmp_path / "r"
+    with atomic_folder(out, "m") as tmp:
+        (tmp / "m").write_text("old")
+    rename = _interrupt_the_swap(monkeypatch, out)
     with pytest.raises(KeyboardInterrupt), atomic_folder(out, "m") as tmp:
         (tmp / "m").write_text("new")
     monkeypatch.setattr(Path, "rename", rename)
@@ -343,14 +350,7 @@ def test_the_user_s_own_files_in_a_replaced_folder_are_kept(tmp_path, monkeypatc
     assert sorted(p.name for p in out.iterdir()) == [".ipynb_checkpoints", "analysis", "m", "notes.md"]
     assert (out / "notes.md").read_text() == "my analysis" and (out / "analysis" / "fig.py").read_text() == "x"
     assert (out / "m").read_text() == "new" and leftovers(tmp_path) == []
-    rename = Path.rename
-
-    def interrupted(self, target):
-        if Path(target) == out and ".tmp-" in self.name:
-            raise KeyboardInterrupt
-        return rename(self, target)
-
-    monkeypatch.setattr(Path, "rename", interrupted)
+    rename = _interrupt_the_swap(monkeypatch, out)
     with pytest.raises(KeyboardInterrupt), atomic_folder(out, "m", owned=("m",)) as tmp:
         (tmp / "m").write_text("newer")
     monkeypatch.setattr(Path, "rename", rename)
