@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -176,7 +177,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         source = "(dict) (with --set)" if more else "(dict)"
         return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
                       tuple(more))
-    if not isinstance(config, (str, Path)):
+    if not isinstance(config, (str, os.PathLike)):
         raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
                          "a RunConfig or a Config", key="config")
     path = Path(config)
