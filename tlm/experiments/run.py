@@ -161,11 +161,11 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
             frame = load_frame(cfg, base, config_source, timer, bar)
         the_plan = plan(frame.scene, cfg)
         if "pmap" in the_plan.run_names:  # (the global group and the caustic group's own budget)
-            check_photon_memory(photon_count(frame.scene, cfg) + (cfg.photons.caustic_count or 0),
-                                "photons.count" if cfg.photons.caustic_count is None else
-                                "photons.count + photons.caustic_count", config_source,
-                                " (the scene's photons)" if cfg.photons.count is None and
-                                cfg.photons.caustic_count is None else "")
+            ph = cfg.photons
+            caustic = ph.caustic_count is not None
+            check_photon_memory(photon_count(frame.scene, cfg) + (ph.caustic_count or 0),
+                                "photons.count + photons.caustic_count" if caustic else "photons.count",
+                                config_source, " (the scene's photons)" if ph.count is None and not caustic else "")
         done = render_batches(frame, the_plan.run_names, timer, progress)
         error = None
         if done.photons is not None:

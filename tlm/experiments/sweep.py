@@ -100,6 +100,9 @@ class Sweep:
     zip: dict[str, list]
     folder: Path  # where relative paths in the configs start
     points: list[Point] = field(default_factory=list)
+    # per point, the settings it never reads and why (tlm.render.planner.inert_settings of
+    # the config load_sweep checked)
+    inert: list[dict[str, str]] = field(default_factory=list)
 
     @property
     def factors(self) -> list[str]:
@@ -109,13 +112,10 @@ class Sweep:
         """A warning line per factor that changes nothing in any point
         (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
         filter, ``photons.count`` in mode rcast): its points would be the same run."""
-        from tlm.render.planner import inert_settings
-
-        inert = [inert_settings(config_from_dict(p.config, str(self.path))) for p in self.points]
         lines = []
         for factor in self.factors:
-            whys = {i.get(factor) for i in inert}
-            if inert and None not in whys:
+            whys = {i.get(factor) for i in self.inert}
+            if self.inert and None not in whys:
                 lines.append(f"{self.path}: the factor {factor} changes nothing in any point: "
                              f"{'; '.join(sorted(whys))}")
         return lines
@@ -264,13 +264,16 @@ def load_sweep(path: Path) -> Sweep:
             point = _assign(point, k, v)
         shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
         configs.append((i, factors, config_from_dict(point, f"{src} (point {i}: {shown})")))
+    from tlm.render.planner import inert_settings
+
+    inert = [inert_settings(cfg) for _, _, cfg in configs]
     # every config is checked before any file it names is loaded
     points, seen = [], {}
     for i, factors, cfg in configs:
         inputs = point_inputs(cfg, folder, f"{src} (point {i})", seen)
         resolved = to_dict(cfg)
         points.append(Point(i, factors, resolved, config_hash(resolved, inputs), inputs["functional"]))
-    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points)
+    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
 
 
 # ---------------------------------------------------------------- one point (runs in a worker)
