@@ -252,6 +252,11 @@ CASES: dict[str, Case] = {
                                    expect=("--set", "photons.count + photons.caustic_count", "10,000,000,001,000")),
     "set-huge-photon-count": Case(config=setter("mode", "pmap"), argv=["--set", "photons.count=10000000000000"],
                                   expect=("--set", "photons.count", "10,000,000,000,000 photons", "GiB")),
+    # the reference a pmap run computes (none can be cached at that size): said with the run's own check
+    "set-huge-reference-photons": Case(config=setter("mode", "pmap"),
+                                       argv=["--set", "photons.count=1000",
+                                             "--set", "reference.photons=10000000000000"],
+                                       expect=("--set", "reference.photons", "10,000,000,000,000 photons", "GiB")),
     "scene-unknown-builder-param": Case(scene=setter("geometry.params", {"segments": 10}),
                                         expect=("scene.yaml", "geometry.params", "segments"), show=True),
     # ---- meshes
@@ -449,3 +454,20 @@ def test_a_key_given_twice_in_one_mapping_is_refused(text):
 
     with pytest.raises(DuplicateKeyError, match="duplicate key"):
         parse_yaml(text)
+
+
+def test_a_reference_too_large_for_memory_is_refused_before_the_render(tmp_path, capsys, monkeypatch, cache):
+    """The run checks the photons of the reference it will compute with its own, before rendering
+    anything; a run that finds its reference cached, or computes none (``--no-reference``), does not."""
+    import tlm.experiments.run as runs
+
+    def no_render(*a, **k):
+        raise AssertionError("rendered before the reference's photons were checked")
+
+    write_inputs(tmp_path, Case(config=setter("mode", "pmap")))
+    monkeypatch.setattr(runs, "render_batches", no_render)
+    argv = ["run", str(tmp_path / "cfg.yaml"), "--out", str(tmp_path / "out"), "--set", "photons.count=1000",
+            "--set", "reference.photons=10000000000000"]
+    run_and_check(tmp_path, capsys, argv, ("reference.photons", "GiB"))
+    assert main([*argv, "--no-reference"]) == 1  # no reference, no check: on to the render
+    assert "rendered before" in capsys.readouterr().err

@@ -146,12 +146,14 @@ class RenderResult:
 
 
 def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
-           progress: bool = False) -> RenderResult:
+           progress: bool = False, reference: bool = False) -> RenderResult:
     """Render every planned frame of ``cfg`` over the whole image: its frame loaded
     (:func:`~tlm.experiments.loading.load_frame`), its passes planned and rendered in
     batches of ``render.batch_rays`` eye rays (:func:`~tlm.render.batches.render_batches`),
     the photon-map frame measured against its cached reference; ``progress``: bars on
-    stderr.
+    stderr; ``reference``: the photon-map frame's reference will be computed when none is
+    cached (:func:`run`), so its photons are checked against memory before the render too,
+    when none is cached.
 
     The kernels run on ``render.threads`` threads (null: the CPUs available), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
@@ -166,6 +168,9 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
             check_photon_memory(photon_count(frame.scene, cfg) + (ph.caustic_count or 0),
                                 "photons.count + photons.caustic_count" if caustic else "photons.count",
                                 config_source, " (the scene's photons)" if ph.count is None and not caustic else "")
+            found = ensure_reference(frame) if reference else None
+            if found is not None and found.image is None:  # (to be computed: said now, not after the render)
+                check_photon_memory(found.settings.photons, "reference.photons", config_source)
         done = render_batches(frame, the_plan.run_names, timer, progress)
         error = None
         if done.photons is not None:
@@ -443,7 +448,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     source = f"{config_path} (with --set)" if overrides else config_path
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     programs = programs_for(cfg, base)  # a bad instruction table fails before the render
-    res = render(cfg, base, source, progress=progress)
+    res = render(cfg, base, source, progress=progress, reference=reference)
     if reference and res.error is not None and not res.error["available"]:
         with res.timer.stage("reference"):
             error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
