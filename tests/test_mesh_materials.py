@@ -417,3 +417,71 @@ def test_no_library_warning_reaches_the_terminal(tmp_path, capfd, monkeypatch):
     assert caught == []
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+# ---------------------------------------------------------------- what is not rendered
+
+
+def test_what_a_file_gives_a_material_and_tlm_does_not_render_is_kept():
+    text = ("newmtl wood\nKd 0.5 0.3 0.1\nmap_Kd wood.png\nbump -bm 0.5 n.png\nmap_Kd again.png\nKa 1 1 1\n"
+            "newmtl metal\nKd 0.5 0.5 0.5\nPm 1\nPr 0.2\nnewmtl plain\nKd 0.8 0.8 0.8\nNs 10\nKs 0.1 0.1 0.1\n")
+    wood, metal, plain = parse_mtl(text, "t.mtl")
+    assert wood.ignored == ("map_Kd", "bump") and metal.ignored == ("Pm", "Pr") and plain.ignored == ()
+    assert wood == Material("wood", "lambertian", albedo=(0.5, 0.3, 0.1))  # (not part of the value)
+
+
+def test_what_a_gltf_material_leaves_unrendered_is_kept():
+    from tlm.scenes.materials import gltf_material
+
+    m = gltf_material({"name": "x", "normalTexture": {"index": 1}, "alphaMode": "BLEND",
+                       "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.5], "metallicFactor": 0,
+                                                "baseColorTexture": {"index": 0}},
+                       "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1},
+                                      "KHR_materials_transmission": {"transmissionFactor": 0,
+                                                                     "transmissionTexture": {"index": 2}}}}, 0)
+    assert m.ignored == ("normalTexture", "baseColorTexture", "KHR_materials_clearcoat", "transmissionTexture",
+                         "alpha", "alphaMode")
+    plain = gltf_material({"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0},
+                           "alphaMode": "OPAQUE", "extensions": {"KHR_materials_ior": {"ior": 1.3}}}, 0)
+    assert plain.ignored == ()
+    with pytest.raises(InputError, match="extensions is not an object"):
+        gltf_material({"extensions": [1]}, 0, "f.gltf")
+
+
+def test_a_run_warns_of_the_textures_of_the_materials_it_shows(tmp_path):
+    """One line, naming the materials on the image's triangles whose file gives them maps;
+    a material the scene file replaces, or one no triangle uses, is not named."""
+    from tlm import api
+    from tlm.render.checks import material_warnings
+
+    (tmp_path / "t.obj").write_text("mtllib t.mtl\n" + TRI + "usemtl wood\nf 1 2 3\nusemtl stone\nf 2 4 3\n")
+    (tmp_path / "t.mtl").write_text("newmtl wood\nKd 0.5 0.3 0.1\nmap_Kd w.png\nbump n.png\n"
+                                    "newmtl stone\nKd 0.5 0.5 0.5\nmap_Kd s.png\n"
+                                    "newmtl unused\nKd 1 1 1\nmap_Ks u.png\n")
+    head = ("geometry: {mesh: t.obj}\nlights: [{type: point, position: [0.3, 0.3, 1], power: [10, 10, 10]}]\n"
+            "camera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], vfov: 40}\nresolution: [8, 8]\n")
+    (tmp_path / "s.yaml").write_text(head)
+    (line,) = material_warnings(api.load_scene(tmp_path / "s.yaml"))
+    assert line.startswith("2 materials of the mesh files ('wood', 'stone') use what tlm does not render: "
+                           "map_Kd, bump;"), line
+    (tmp_path / "s.yaml").write_text(head + "materials: {wood: {type: lambertian, albedo: [0.5, 0.3, 0.1]}}\n")
+    scene = api.load_scene(tmp_path / "s.yaml")
+    assert material_warnings(scene) == ["1 material of the mesh file ('stone') uses what tlm does not render: "
+                                        "map_Kd; it renders with its constant colour (a scene file's materials: "
+                                        "entry of the same name replaces it)"]
+    assert api.scene_info(scene)["materials"][1]["ignored"] == ["map_Kd"]
+    results = api.run(tmp_path / "s.yaml", tmp_path / "out")
+    assert [w for w in results["warnings"] if "does not render" in w] == material_warnings(scene)
+
+
+def test_items_sharing_a_material_share_what_it_leaves_unrendered():
+    from tlm.scenes.compose import merge
+    from tlm.scenes.model import Geometry
+
+    tri = np.zeros((1, 3, 3))
+    plain = Material("wood", "lambertian", albedo=(0.5, 0.3, 0.1))
+    mapped = Material("wood", "lambertian", albedo=(0.5, 0.3, 0.1), ignored=("map_Kd",))
+    geoms = [Geometry(tri, np.zeros(1, np.int32), (n,), materials=(m,), face_material=np.zeros(1, np.int32))
+             for n, m in (("a", plain), ("b", mapped))]
+    g = merge(geoms)
+    assert len(g.materials) == 1 and g.materials[0].ignored == ("map_Kd",) and g.face_material.tolist() == [0, 0]

@@ -61,6 +61,7 @@ def _same(a, b) -> None:
     assert a.triangles.dtype == b.triangles.dtype and np.array_equal(a.triangles, b.triangles)
     assert a.part.dtype == b.part.dtype and np.array_equal(a.part, b.part)
     assert a.part_names == b.part_names and a.materials == b.materials
+    assert [m.ignored for m in a.materials] == [m.ignored for m in b.materials]  # (not part of ==)
     for x, y in ((a.normals, b.normals), (a.face_material, b.face_material)):
         assert (x is None) == (y is None)
         if x is not None:
@@ -74,6 +75,15 @@ def test_a_mesh_is_parsed_once_and_read_back_with_the_same_bits(tmp_path, small)
     assert small == ["box.obj"]  # the second load read the cache
     _same(first, again)
     assert again.materials[0].albedo == (0.6, 0.1, 0.1)
+
+
+def test_what_a_material_leaves_unrendered_is_read_back(tmp_path, small):
+    path = _box(tmp_path / "a", mtl=MTL.replace("Kd 0.6 0.1 0.1", "Kd 0.6 0.1 0.1\nmap_Kd red.png\nbump n.png"))
+    first = meshes.load_mesh(path)
+    again = meshes.load_mesh(path)
+    assert small == ["box.obj"]
+    assert [m.ignored for m in again.materials] == [("map_Kd", "bump"), ()]
+    _same(first, again)
 
 
 def test_the_shipped_scenes_meshes_read_back_the_same(small):

@@ -251,7 +251,8 @@ def scene_info(scene: Scene | str | Path) -> dict:
              **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
              **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
              **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
-             **({"emission": list(m.emission)} if m.emits else {})}
+             **({"emission": list(m.emission)} if m.emits else {}),
+             **({"ignored": list(m.ignored)} if m.ignored else {})}  # (not rendered: checks.material_warnings)
             for i, m in enumerate(scene.materials)
         ],
         "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},

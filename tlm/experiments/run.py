@@ -302,7 +302,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         g = res.gbuffer
         pixels, rays, hits = g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum())
         back = checks.back_faces(res.scene, g.triangle, g.direction)
-    warnings = [*checks.light_warnings(res.scene, res.accel), *checks.camera_warnings(rays, hits, back),
+    warnings = [*checks.material_warnings(res.scene), *checks.light_warnings(res.scene, res.accel),
+                *checks.camera_warnings(rays, hits, back),
                 *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
                                        checks.light_scale(res.scene, res.accel.scale))]
     if res.photons is not None:

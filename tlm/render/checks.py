@@ -23,6 +23,9 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   :data:`BLACK_LIMIT` of the radiance the lights give at the scene's size
   (:func:`light_scale`: light that only grazes, as from a quad light facing away from a
   ceiling it lies in).
+* :func:`material_warnings`: materials the image shows whose mesh file gives them what
+  tlm does not render (texture and bump maps, alpha, unknown glTF extensions:
+  :attr:`~tlm.scenes.model.Material.ignored`), in one line.
 * :func:`photon_warnings`: fewer than :data:`STORED_LIMIT` of the emitted photons were
   stored.
 """
@@ -149,6 +152,23 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
             out.append(f"{light_name(i, light)} is enclosed: all {p['hits']} of its {p['rays']} probe rays that hit "
                        "the scene hit the back of an opaque triangle (inside a closed mesh, or one wound inside out)")
     return out
+
+
+def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
+    """One line naming the materials on the scene's triangles whose mesh file gives them
+    what tlm does not render (:attr:`~tlm.scenes.model.Material.ignored`: the first
+    ``shown`` by name) and what that is."""
+    used = [scene.materials[i] for i in np.unique(scene.material_index)]
+    hit = [m for m in used if m.ignored]
+    if not hit:
+        return []
+    what = ", ".join(dict.fromkeys(k for m in hit for k in m.ignored))
+    names = ", ".join(repr(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown else "")
+    many = len(hit) > 1
+    return [f"{len(hit)} material{'s' if many else ''} of the mesh file{'s' if many else ''} ({names}) "
+            f"{'use' if many else 'uses'} what tlm does not render: {what}; "
+            f"{'each renders' if many else 'it renders'} with its constant colour (a scene file's "
+            "materials: entry of the same name replaces it)"]
 
 
 def back_faces(scene: Scene, triangle: np.ndarray, direction: np.ndarray, kind: np.ndarray | None = None) -> int:

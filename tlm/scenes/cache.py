@@ -123,7 +123,8 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         arrays["face_material"] = geom.face_material
     meta = {"part_names": list(geom.part_names), "names": names, "deps": deps,
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
-                           "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission}
+                           "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
+                           "ignored": m.ignored}
                           for m in geom.materials]}
     _write(entry, arrays, meta)
     return geom

@@ -299,7 +299,9 @@ def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str
         index = []  # the item's file materials in the merged list: equal ones shared, a name reused renamed
         for m in g.materials:
             same = [j for j, o in enumerate(materials) if o == m]
-            if same:
+            if same:  # (what each file's leaves unrendered, together)
+                o = materials[same[0]]
+                materials[same[0]] = replace(o, ignored=tuple(dict.fromkeys((*o.ignored, *m.ignored))))
                 index.append(same[0])
                 continue
             taken, k, name = {o.name for o in materials}, 2, m.name

@@ -8,7 +8,11 @@ three kinds can show and says how.
 **MTL** (:func:`parse_mtl`). Read: ``newmtl``, ``Kd``, ``Ks``, ``Ke``, ``Tf`` (RGB, or one
 number for grey), ``Ni``, ``d``, ``Tr`` (= 1 - ``d``; ``d`` wins when both are given),
 ``illum``, ``Ns``; every other statement (``Ka``, maps, ...) is ignored, and so is a
-colour given as ``spectral`` or ``xyz``.
+colour given as ``spectral`` or ``xyz``. Of those, the ones that change how a surface
+looks (texture and bump maps: ``map_*``, ``bump``, ``disp``, ``decal``, ``refl``,
+``norm``; the PBR extension's ``Pr``, ``Pm``, ``Ps``, ``Pc``, ``Pcr``, ``aniso``,
+``anisor``) are kept in :attr:`Material.ignored`, and a run that renders such a material
+warns of them (:func:`tlm.render.checks.material_warnings`).
 
 ======================================================  ============  ===================================
 MTL                                                     tlm kind      parameters
@@ -56,7 +60,10 @@ otherwise                                                       lambertian    ``
 ==============================================================  ============  =================================
 
 The base colour is ``baseColorFactor``'s RGB (alpha and textures are ignored). A
-material is named by its ``name``, or ``material_<i>`` (its index) without one.
+material is named by its ``name``, or ``material_<i>`` (its index) without one. What is
+ignored and changes the look (every ``*Texture``, an alpha below 1 or an ``alphaMode``
+other than ``OPAQUE``, any extension besides the three above) is kept in
+:attr:`Material.ignored`, for the run's warning, as for MTL.
 """
 
 from __future__ import annotations
@@ -81,6 +88,10 @@ DEFAULT_IOR = 1.5
 GLB_MAGIC = b"glTF"
 _COLOURS = ("Kd", "Ks", "Ke", "Tf")
 _SCALARS = ("Ni", "d", "Tr", "illum", "Ns")
+# statements read past that change a surface's look (the run warns of them: Material.ignored)
+_MTL_LOOKS = ("bump", "disp", "decal", "refl", "norm", "Pr", "Pm", "Ps", "Pc", "Pcr", "aniso", "anisor")
+_GLTF_READ = ("KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior")
+_IGNORED = "ignored"  # (the key of a material's ignored statements among its MTL properties)
 
 
 def _clip01(c) -> tuple[float, float, float]:
@@ -106,6 +117,11 @@ def parse_mtl(text: str, source: str) -> list[Material]:
             name = line[len("newmtl"):].strip()
             current = {}
             found.append((name, number, current))
+            continue
+        if current is not None and (key.startswith("map_") or key in _MTL_LOOKS):
+            seen_keys = current.setdefault(_IGNORED, ((), number))[0]
+            if key not in seen_keys:
+                current[_IGNORED] = ((*seen_keys, key), number)
             continue
         if current is None or (key not in _COLOURS and key not in _SCALARS):
             continue
@@ -164,6 +180,7 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Mat
     if d is None and "Tr" in props:
         d = 1.0 - get("Tr")
     emission = tuple(float(x) for x in ke)
+    ignored = get(_IGNORED, ())
     if illum in GLASS_ILLUM or (d is not None and d < 1.0):
         ior = get("Ni", DEFAULT_IOR)
         if not ior > 0.0:
@@ -171,10 +188,10 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Mat
             raise InputError(f"line {at}: material {name!r}: Ni: {ior:g} is not positive "
                              "(a dielectric's index of refraction)", source=source)
         return Material(name, "dielectric", ior=float(ior), transmittance=(1.0, 1.0, 1.0),
-                        emission=emission)
+                        emission=emission, ignored=ignored)
     if illum in MIRROR_ILLUM or (illum is None and max(ks) > max(kd) and max(ks) > 0.0):
-        return Material(name, "mirror", reflectance=_clip01(ks), emission=emission)
-    return Material(name, "lambertian", albedo=_clip01(kd), emission=emission)
+        return Material(name, "mirror", reflectance=_clip01(ks), emission=emission, ignored=ignored)
+    return Material(name, "lambertian", albedo=_clip01(kd), emission=emission, ignored=ignored)
 
 
 # ------------------------------------------------------------------ glTF
@@ -303,6 +320,9 @@ def gltf_material(m: dict, index: int, source: str = "") -> Material:
     at = f"material {name!r}"
     pbr = m.get("pbrMetallicRoughness") or {}
     ext = m.get("extensions") or {}
+    for key, value in (("pbrMetallicRoughness", pbr), ("extensions", ext)):
+        if not isinstance(value, dict):
+            raise InputError(f"{at}: {key} is not an object", source=source)
     base = _numbers(pbr.get("baseColorFactor"), 3, f"{at}: baseColorFactor", source, (1.0, 1.0, 1.0))[:3]
     metallic = _numbers(pbr.get("metallicFactor"), 1, f"{at}: metallicFactor", source, (1.0,))[0]
     emissive = _numbers(m.get("emissiveFactor"), 3, f"{at}: emissiveFactor", source, (0.0, 0.0, 0.0))[:3]
@@ -317,13 +337,32 @@ def gltf_material(m: dict, index: int, source: str = "") -> Material:
         if min(vals) < 0.0:
             raise InputError(f"{at}: {key}: {list(vals)} has a negative value", source=source)
     emission = tuple(e * strength for e in emissive)
+    ignored = _gltf_ignored(m, pbr, ext)
     if transmission > 0.0:
         if not ior > 0.0:
             raise InputError(f"{at}: KHR_materials_ior: ior {ior:g} is not positive", source=source)
-        return Material(name, "dielectric", ior=ior, transmittance=_clip01(base), emission=emission)
+        return Material(name, "dielectric", ior=ior, transmittance=_clip01(base), emission=emission,
+                        ignored=ignored)
     if metallic >= 0.5:
-        return Material(name, "mirror", reflectance=_clip01(base), emission=emission)
-    return Material(name, "lambertian", albedo=_clip01(base), emission=emission)
+        return Material(name, "mirror", reflectance=_clip01(base), emission=emission, ignored=ignored)
+    return Material(name, "lambertian", albedo=_clip01(base), emission=emission, ignored=ignored)
+
+
+def _gltf_ignored(m: dict, pbr: dict, ext: dict) -> tuple[str, ...]:
+    """What of a glTF material changes its look and is not rendered (the module's docstring)."""
+    out = [k for k in (*m, *pbr) if k.endswith("Texture")]
+    for name, body in ext.items():
+        if name not in _GLTF_READ:
+            out.append(name)
+        elif isinstance(body, dict):
+            out += [k for k in body if k.endswith("Texture")]
+    factor = pbr.get("baseColorFactor")
+    alpha = float(factor[3]) if isinstance(factor, list) and len(factor) > 3 else 1.0
+    if alpha < 1.0:
+        out.append("alpha")
+    if m.get("alphaMode", "OPAQUE") != "OPAQUE":
+        out.append("alphaMode")
+    return tuple(dict.fromkeys(out))
 
 
 def gltf_materials(header: dict, source: str = "") -> list[Material]:

@@ -37,6 +37,10 @@ class Material:
     ior: float = 1.0
     transmittance: tuple[float, float, float] = (0.0, 0.0, 0.0)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # what the mesh file gives the material that tlm does not render (MTL ``map_Kd``, ``bump``;
+    # glTF ``baseColorTexture``, ``alpha``), for the run's warning (tlm.render.checks); not part
+    # of the material's value (equality, hashes)
+    ignored: tuple[str, ...] = field(default=(), compare=False)
 
     @property
     def emits(self) -> bool:
