@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
@@ -404,3 +405,44 @@ def test_a_destination_taken_meanwhile_keeps_the_finished_output(tmp_path):
     kept = [p for p in tmp_path.iterdir() if p.name.startswith("r.unsaved-")]
     assert len(kept) == 1 and (kept[0] / "m").read_text() == "finished"
     assert (out / "notes.txt").read_text() == "the user's"
+
+
+def test_a_folder_is_shared_by_one_identity_and_refused_to_another(tmp_path):
+    """storage.sharing: processes of one identity (one sweep's points) share a folder; another
+    identity is refused while any holds it, naming the process; the last holder's file goes
+    on the way out, and a file whose holders ended (no lock on it) is stale and removed."""
+    out = tmp_path / "o"
+    out.mkdir()
+    with storage.sharing(out, "a", "sweep"):
+        with storage.sharing(out, "a", "sweep"):  # (a second open file: as another process's)
+            pass
+        assert (out / ".tlm-running-a").is_file()  # the first holder still holds it
+        refused = rf"another sweep of other points is writing into .*process {os.getpid()}"
+        with pytest.raises(InputError, match=refused), storage.sharing(out, "b", "sweep"):
+            pytest.fail("a second identity got the folder")
+    assert not (out / ".tlm-running-a").exists()
+    (out / ".tlm-running-dead").write_text(f"{dead_pid()}\n")  # left by a killed process: no lock on it
+    with storage.sharing(out, "b", "sweep"):
+        assert not (out / ".tlm-running-dead").exists()
+    assert [p.name for p in out.iterdir()] == [".tlm-lock"]
+
+
+def test_a_sweep_of_other_points_is_refused_while_one_runs_into_its_folder(tmp_path, capsys):
+    """Two different sweeps into one folder at once: the second is refused (exit 2, one line)
+    and leaves the first's folder as it was; once the first ends, it runs."""
+    base = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": {"light_samples": 1},
+            "arch": {"frames": 2, "trace": False}}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": base, "grid": {"arch.page_miss_cycles": [0, 12]}}))
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "sweep.yaml").write_text("theirs")  # another sweep's folder, that sweep running
+    with storage.sharing(out, "theirs", "sweep"):
+        assert main(["sweep", str(path), "--out", str(out), "--jobs", "1", "--no-progress", "--no-report"]) == 2
+        line = one_line(capsys.readouterr().err)
+        assert line.startswith("tlm: error: --out: another sweep of other points is writing into") and "process" in line
+        assert sorted(p.name for p in out.iterdir()) == [".tlm-lock", ".tlm-running-theirs", "sweep.yaml"]
+        assert (out / "sweep.yaml").read_text() == "theirs"
+    assert main(["sweep", str(path), "--out", str(out), "--jobs", "1", "--no-progress", "--no-report"]) == 0
+    assert "theirs" not in (out / "sweep.yaml").read_text()
+    assert not list(out.glob(".tlm-running-*"))

@@ -80,13 +80,15 @@ def _claiming(name: str, marker: str) -> bool:
     return name.startswith(f".{marker}.tmp")
 
 
-def claim_folder(out: Path, marker: str, data: str) -> None:
+def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bool:
     """Make ``out`` a tlm output: the folder with ``marker`` in it, atomically.
 
     A missing folder is created whole, marker inside, by renaming a prepared sibling onto
     it, so another process never sees it without its marker; a folder that exists (which
     :func:`check_destination` accepted) gets the marker by an atomic write. Two processes
     claiming one folder at once both succeed: the second finds the first's marker.
+    ``existing=False``: a folder that exists (or that another process made first) is left
+    as it is, its marker the caller's to write (:func:`sharing`). Whether this made it.
     """
     out = Path(out)
     if not out.exists():
@@ -96,13 +98,76 @@ def claim_folder(out: Path, marker: str, data: str) -> None:
         try:
             write_file(tmp / marker, data)
             os.rename(tmp, out)
-            return
+            return True
         except OSError:
             if not out.is_dir():  # not a lost race: a real failure
                 raise
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-    write_file(out / marker, data)
+    if existing:
+        write_file(out / marker, data)
+    return False
+
+
+_GUARD = ".tlm-lock"
+_RUNNING = ".tlm-running-"
+
+
+@contextmanager
+def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
+    """Hold the existing folder ``out`` for the processes of one ``identity`` (a sweep's
+    points) while the block runs: an :class:`InputError` if a process of another identity
+    holds it. Processes of one identity share it (two runs of one sweep cooperate).
+
+    Each holder keeps a shared ``flock`` on ``.tlm-running-<identity>`` (with its pid);
+    a newcomer, under an exclusive lock on ``.tlm-lock``, tries an exclusive lock on
+    every other identity's file: one it gets is stale (its processes ended, the kernel
+    released their locks) and is removed; one it cannot get is held. The last holder of
+    an identity removes its file on the way out."""
+    out = Path(out)
+    guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
+    mine_path = out / f"{_RUNNING}{identity}"
+    mine = None
+    try:
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        try:
+            for other in sorted(out.glob(f"{_RUNNING}*")):
+                if other.name != mine_path.name:
+                    _claim_stale(other, what)
+            mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
+            fcntl.flock(mine, fcntl.LOCK_SH)
+            os.pwrite(mine, f"{os.getpid():<12d}\n".encode(), 0)
+        finally:
+            fcntl.flock(guard, fcntl.LOCK_UN)
+        yield
+    finally:
+        if mine is not None:
+            fcntl.flock(guard, fcntl.LOCK_EX)
+            with suppress(OSError):
+                fcntl.flock(mine, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (no other holder of this identity)
+                mine_path.unlink(missing_ok=True)
+            os.close(mine)
+        os.close(guard)
+
+
+def _claim_stale(path: Path, what: str) -> None:
+    """Remove another identity's running file whose holders ended; an InputError naming
+    the process when one still holds it (:func:`sharing`, under its guard)."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            pid = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+            raise InputError(f"another {what} of other points is writing into {str(path.parent)!r} "
+                             f"(process {pid or '?'}): wait for it to end, or give another folder",
+                             key="--out") from None
+        path.unlink(missing_ok=True)
+    finally:
+        os.close(fd)
 
 
 def pid_alive(pid: int) -> bool:

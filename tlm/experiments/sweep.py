@@ -120,6 +120,11 @@ class Sweep:
                              f"{'; '.join(sorted(whys))}")
         return lines
 
+    def identity(self) -> str:
+        """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
+        identity may run into one folder at once, two of others may not (storage.sharing)."""
+        return hashlib.sha256("\n".join(p.hash for p in self.points).encode()).hexdigest()[:16]
+
     def to_dict(self) -> dict:
         return {
             "tlm": "sweep/1", "sweep": str(self.path), "description": self.description,
@@ -499,27 +504,34 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
                      str(points_dir / h), provenance, threads=share) for h in todo}
 
-    with ExitStack() as stack:
-        pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
-        # the folder and its marker appear together, before anything else is written in it
-        # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
-        # into it, started this instant, finds a tlm output, never a half-made folder
-        claim_folder(out, MARKER, yaml.safe_dump(sweep.to_dict(), sort_keys=False))
-        points_dir.mkdir(parents=True, exist_ok=True)
-        _clean_stale(points_dir)
-        for h in todo:  # a failed point's folder (or an unreadable one) is run again
-            if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)
-                shutil.rmtree(points_dir / h, ignore_errors=True)
-        if pool is not None:
-            # the rows of this sweep's points done already, in place of an earlier sweep's: while
-            # it runs (and when it is cut short) the folder's rows are this sweep's only
-            write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
-            _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
-    if todo:
-        _clean_stale(points_dir)  # what workers that died (or were ended) left half written
+    with ExitStack() as held:  # (the folder, held until the last row is written)
+        with ExitStack() as stack:
+            pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
+            # the folder and its marker appear together, before anything else is written in it
+            # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
+            # into it, started this instant, finds a tlm output, never a half-made folder. A
+            # sweep of other points running into it refuses this one (storage.sharing); one of
+            # the same points shares it
+            marker = yaml.safe_dump(sweep.to_dict(), sort_keys=False)
+            made = claim_folder(out, MARKER, marker, existing=False)
+            held.enter_context(storage.sharing(out, sweep.identity(), "sweep"))
+            if not made:
+                storage.write_file(out / MARKER, marker)
+            points_dir.mkdir(parents=True, exist_ok=True)
+            _clean_stale(points_dir)
+            for h in todo:  # a failed point's folder (or an unreadable one) is run again
+                if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)
+                    shutil.rmtree(points_dir / h, ignore_errors=True)
+            if pool is not None:
+                # the rows of this sweep's points done already, in place of an earlier sweep's: while
+                # it runs (and when it is cut short) the folder's rows are this sweep's only
+                write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
+                _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+        if todo:
+            _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
-    rows = [point_row(p, records[p.hash]) for p in sweep.points]
-    write_rows(out, rows)
+        rows = [point_row(p, records[p.hash]) for p in sweep.points]
+        write_rows(out, rows)
     computed = [r for r in rows if r["hash"] in tasks]
     failed = sum(r["status"] != "ok" for r in computed)
     renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
