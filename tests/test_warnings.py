@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from tlm.cli import main
-from tlm.kernels.traverse import build_accel
+from tlm.kernels.traverse import build_accel, closest_hit
 from tlm.render import checks
 from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Light
@@ -68,19 +68,52 @@ def test_a_quad_light_facing_away_warns_and_renders_black(tmp_path, capsys):
     assert np.load(tmp_path / "out_away" / "radiance" / "composite.npy").max() < 1e-20
 
 
-def test_a_point_light_inside_a_mirror_sphere_is_enclosed(tmp_path, capsys):
+def test_a_point_light_inside_a_mirror_sphere_lights_only_back_faces(tmp_path, capsys):
     scene = _scene(tmp_path, "enclosed", f"lights:\n  - {{type: point, position: {MIRROR_CENTRE}, "
                                          "power: [1.0e6, 1.0e6, 1.0e6]}\n")
     warnings, _ = _run(tmp_path, capsys, scene)
-    assert "back of an opaque triangle" in _only(warnings, "lights[0] (point) is enclosed")
+    assert "inside a closed mesh" in _only(warnings, "lights[0] (point) lights only back faces")
     _only(warnings, "the image is black")
 
 
-def test_a_point_light_far_outside_reaches_nothing(tmp_path, capsys):
+def test_a_point_light_far_outside_the_box_lights_only_its_outside(tmp_path, capsys):
+    """The box fills a sliver of the light's sphere (the spread rays all miss it); the aimed
+    ones find its walls' backs (they face in)."""
     scene = _scene(tmp_path, "far", "lights:\n  - {type: point, position: [278.0, 1.0e7, 279.0], "
                                     "power: [1.0e6, 1.0e6, 1.0e6]}\n")
     warnings, _ = _run(tmp_path, capsys, scene, mode="rcast")
-    _only(warnings, "lights[0] (point) reaches no surface")
+    assert "outside a room whose walls face in" in _only(warnings, "lights[0] (point) lights only back faces")
+    _only(warnings, "the image is black")
+
+
+def _lone_object(tmp_path: Path, light: str, size: float = 1.0, far: float = 1.0) -> Path:
+    """A small sphere (radius 0.1 size) lit by ``light``, the camera in front of it."""
+    path = tmp_path / "lone.yaml"
+    path.write_text(f"geometry: [{{shape: sphere, params: {{radius: {0.1 * size}, segments: 24, rings: 12}}, "
+                    f"transform: {{translate: [0, 0, {far}]}}}}]\n"
+                    "materials: {m: {type: lambertian, albedo: [0.7, 0.7, 0.7]}}\ndefault_material: m\n"
+                    f"lights: [{light}]\n"
+                    f"camera: {{eye: [0, 0, {far - 1.0 * size}], target: [0, 0, {far}], vfov: 30}}\n"
+                    "resolution: [16, 16]\n")
+    return path
+
+
+@pytest.mark.parametrize(("light", "size", "far"), [
+    ("{type: point, position: [2, 4, -4], power: [200, 200, 200]}", 1.0, 1.0),  # a lone model
+    ("{type: point, position: [3.0e6, 4.0e6, 0], power: [1.0e15, 1.0e15, 1.0e15]}", 1.0e6, 1.0e8),  # far out
+], ids=["small", "far-from-the-origin"])
+def test_a_lone_object_a_light_reaches_gets_no_light_warning(tmp_path, capsys, light, size, far):
+    """The object fills under 1/256 of the light's sphere: every spread ray misses it, and
+    the rays aimed at its triangles find it (they once warned "reaches no surface"); far from
+    the origin, the probes start where the coordinates' precision allows, not a fraction of
+    the scene's size away."""
+    scene = load_scene(str(_lone_object(tmp_path, light, size, far)), None, [16, 16])
+    accel = build_accel(scene.triangles)
+    o, d, _, _ = checks.probe_rays(scene.lights[0])
+    assert (closest_hit(accel, o, d, tmin=1e-9 * size).triangle < 0).all()  # (the spread ones alone miss)
+    assert checks.probe_light(scene, accel, scene.lights[0])["hits"] > 0
+    warnings, _ = _run(tmp_path, capsys, tmp_path / "lone.yaml", mode="rcast")
+    assert warnings == []
 
 
 def test_a_point_light_in_a_glass_globe_is_not_enclosed(tmp_path, capsys):
@@ -178,7 +211,7 @@ def test_probes_are_deterministic():
     accel = build_accel(scene.triangles)
     a = checks.probe_light(scene, accel, scene.lights[0])
     assert a == checks.probe_light(scene, accel, scene.lights[0])
-    assert a["rays"] == checks.PROBE_RAYS and 0 < a["hits"] < a["rays"] and a["back"] == 0
+    assert a["rays"] == 2 * checks.PROBE_RAYS and 0 < a["hits"] < a["rays"] and a["back"] == 0  # (spread, aimed)
 
 
 # ---------------------------------------------------------------- the built-in scenes
@@ -246,3 +279,18 @@ def test_a_sweep_factor_that_changes_nothing_is_warned_about(tmp_path, capsys):
     path.write_text("base: {scene: cornell, mode: pmap}\n"
                     "zip: {estimate.filter: [mvoxel, kvoxel], estimate.k: [4, 8]}\n")
     assert load_sweep(path).inert_factors() == []  # (k matters in the kvoxel point)
+
+
+def test_a_light_close_to_a_huge_surface_finds_it(tmp_path, capsys):
+    """A floor 1e8 across, a point light 3 above it: the probes start where the light's
+    coordinates' precision allows, not 1e-5 of the scene's diagonal (1,400) away, past the floor."""
+    (tmp_path / "floor.obj").write_text("v -5e7 0 -5e7\nv 5e7 0 -5e7\nv 5e7 0 5e7\nv -5e7 0 5e7\nf 1 4 3 2\n")
+    path = tmp_path / "floor.yaml"
+    path.write_text("geometry: {mesh: floor.obj}\nmaterials: {m: {type: lambertian, albedo: [0.7, 0.7, 0.7]}}\n"
+                    "default_material: m\nlights: [{type: point, position: [0, 3, 0], power: [100, 100, 100]}]\n"
+                    "camera: {eye: [0, 10, -10], target: [0, 0, 0], vfov: 40}\nresolution: [16, 16]\n")
+    scene = load_scene(str(path), None, [16, 16])
+    p = checks.probe_light(scene, build_accel(scene.triangles), scene.lights[0])
+    assert p["hits"] > 0 and p["back"] == 0
+    warnings, _ = _run(tmp_path, capsys, path, mode="rcast")
+    assert warnings == []

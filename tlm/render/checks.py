@@ -7,14 +7,21 @@ Each check returns warnings, one line each naming the thing (``lights[1] (quad)`
 patterns, no random numbers), so the warnings of a run repeat exactly.
 
 * :func:`light_warnings`: every light with power is probed with :data:`PROBE_RAYS` rays
-  over the side it emits on (a point light: the sphere; a quad light: the hemisphere of
-  ``cross(edge_u, edge_v)`` from points spread over the quad; a mesh light: the front
-  hemisphere of ``cross(V1 - V0, V2 - V0)`` of its triangles, picked in proportion to
-  their area) through the scene's BSP (:func:`tlm.kernels.traverse.closest_hit`). A
-  light none of whose rays hits a surface (a mesh light's own triangles do not count)
-  reaches nothing; a light all of whose rays that hit, hit the back of an opaque
-  (Lambertian or mirror) triangle sits inside a closed solid (or the geometry around it
-  is wound inside out). Glass does not count: a lamp in a glass globe is lit through it.
+  spread over the side it emits on (a point light: the sphere; a quad light: the
+  hemisphere of ``cross(edge_u, edge_v)`` from points spread over the quad; a mesh light:
+  the front hemisphere of ``cross(V1 - V0, V2 - V0)`` of its triangles, picked in
+  proportion to their area), and with as many aimed at the centres of triangles spread
+  over the scene's list (those on that side), through the scene's BSP
+  (:func:`tlm.kernels.traverse.closest_hit`). The aimed rays find what the spread ones
+  miss: an object that fills a small part of the light's sphere (a lone model under a
+  point light; a scene far from its light). A light none of whose rays hits a surface (a
+  mesh light's own triangles do not count) reaches nothing; a light all of whose rays
+  that hit, hit the back of an opaque (Lambertian or mirror) triangle lights only back
+  faces: it sits inside a closed solid, outside a room whose walls face in, or the
+  geometry around it is wound inside out. Glass does not count: a lamp in a glass globe
+  is lit through it. The rays start :data:`PROBE_EPS` times the light's size from it (a
+  point light: where its position's precision allows), so that a light close to a large
+  surface still finds it.
 * :func:`camera_warnings`: no eye ray hit anything, or more than
   :data:`BACK_FACE_LIMIT` of the eye rays' hits are on the back of an opaque triangle
   (the camera is inside a closed solid: a room's walls, wound to face in, are seen from
@@ -43,7 +50,9 @@ PROBE_RAYS = 256  # rays per light
 BACK_FACE_LIMIT = 0.5  # share of the eye rays' hits on back faces above which the camera is inside
 STORED_LIMIT = 0.01  # share of the emitted photons below which the photon map is nearly empty
 BLACK_LIMIT = 1e-12  # brightest pixel, relative to light_scale, below which the image is black
-PROBE_EPS = 1e-5  # probe rays start this far (relative to the scene's diagonal) from the light
+PROBE_EPS = 1e-5  # probe rays start this far (relative to the light's size) from the light
+GRAZING = 1e-6  # cosine to a light's normal under which an aimed probe ray counts as in its plane
+_PRECISION = 1e-12  # ... and at least this far relative to the largest coordinate they start from
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
@@ -79,25 +88,29 @@ def _spread(n: int) -> tuple[np.ndarray, np.ndarray]:
     return (i + 0.5) / n, (i * 0.7548776662466927 + 0.5) % 1.0
 
 
-def probe_rays(light: Light, n: int = PROBE_RAYS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Origins, unit directions (n, 3) and the triangle each ray leaves (-1: none) of a light's probe."""
+def probe_rays(light: Light, n: int = PROBE_RAYS
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """Origins, unit directions (n, 3), the triangle each ray leaves (-1: none) and the unit
+    normal of the side each origin emits on (None for a point light) of a light's spread
+    probe."""
     none = np.full(n, -1, dtype=np.int64)
+    empty = (np.zeros((0, 3)), np.zeros((0, 3)), none[:0], None)
     if light.kind == "point":
         o = np.broadcast_to(np.asarray(light.position, dtype=np.float64), (n, 3)).copy()
-        return o, _fibonacci(n, hemisphere=False), none
+        return o, _fibonacci(n, hemisphere=False), none, None
     u, v = _spread(n)
     if light.kind == "quad":
         o = (np.asarray(light.corner, dtype=np.float64) + u[:, None] * np.asarray(light.edge_u, dtype=np.float64)
              + v[:, None] * np.asarray(light.edge_v, dtype=np.float64))
         normal = np.broadcast_to(light.normal, (n, 3))
-        return o, _around(normal, _fibonacci(n, hemisphere=True)), none
+        return o, _around(normal, _fibonacci(n, hemisphere=True)), none, normal
     if light.kind == "mesh" and getattr(light, "triangles", None) is not None and len(light.triangles):
         tri = np.asarray(light.triangles, dtype=np.float64)
         e = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         area = np.linalg.norm(e, axis=1)
         keep = np.flatnonzero(area > 0)
         if keep.shape[0] == 0:
-            return np.zeros((0, 3)), np.zeros((0, 3)), none[:0]
+            return empty
         cum = np.cumsum(area[keep])
         j = keep[np.minimum(np.searchsorted(cum, (np.arange(n) + 0.5) / n * cum[-1]), keep.shape[0] - 1)]
         su = np.sqrt(u)
@@ -107,19 +120,52 @@ def probe_rays(light: Light, n: int = PROBE_RAYS) -> tuple[np.ndarray, np.ndarra
         normal = e[j] / area[j, None]
         ids = getattr(light, "ids", None)
         src = np.asarray(ids, dtype=np.int64)[j] if ids is not None else none
-        return o, _around(normal, _fibonacci(n, hemisphere=True)), src
-    return np.zeros((0, 3)), np.zeros((0, 3)), none[:0]
+        return o, _around(normal, _fibonacci(n, hemisphere=True)), src, normal
+    return empty
+
+
+def aimed_rays(scene: Scene, light: Light, n: int = PROBE_RAYS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Origins, unit directions and left triangles (as :func:`probe_rays`) of rays from the
+    light's probe origins to the centres of up to ``n`` triangles spread evenly over the
+    scene's list: those in front of the side the origin emits on (a cosine above
+    :data:`GRAZING`), and not the light's own."""
+    o, _, src, normal = probe_rays(light, n)
+    tri = scene.triangles
+    m = min(n, tri.shape[0])
+    if o.shape[0] == 0 or m == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3)), src[:0]
+    pick = np.unique(np.linspace(0.0, tri.shape[0] - 1, m).round().astype(np.int64))
+    k = np.arange(pick.shape[0]) % o.shape[0]
+    d = tri[pick].mean(axis=1) - o[k]
+    length = np.linalg.norm(d, axis=1)
+    keep = length > 0.0
+    if normal is not None:  # (in front, not grazing: a centre in the light's own plane is not lit)
+        keep &= (d * normal[k]).sum(axis=1) > GRAZING * length
+    own = getattr(light, "ids", None)
+    if own is not None:
+        keep &= ~np.isin(pick, np.asarray(own, dtype=np.int64))
+    return o[k][keep], d[keep] / length[keep, None], src[k][keep]
+
+
+def light_size(light: Light) -> float:
+    """A light's length scale: the square root of its area (0 for a point light)."""
+    if light.kind == "point" or (light.kind == "mesh" and getattr(light, "triangles", None) is None):
+        return 0.0
+    return float(np.sqrt(max(light.area, 0.0)))
 
 
 def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE_RAYS,
                 kind: np.ndarray | None = None) -> dict:
-    """``rays`` traced from the light, how many ``hits`` found a surface (not the light's
-    own triangles) and how many of those hit the ``back`` of an opaque triangle (``kind``:
-    each triangle's material KIND, default the scene's)."""
-    o, d, src = probe_rays(light, n)
+    """``rays`` traced from the light (:func:`probe_rays` and :func:`aimed_rays`), how many
+    ``hits`` found a surface (not the light's own triangles) and how many of those hit the
+    ``back`` of an opaque triangle (``kind``: each triangle's material KIND, default the
+    scene's)."""
+    spread = probe_rays(light, n)
+    aimed = aimed_rays(scene, light, n)
+    o, d, src = (np.concatenate([spread[i], aimed[i]]) for i in range(3))
     if o.shape[0] == 0:
         return {"rays": 0, "hits": 0, "back": 0}
-    eps = PROBE_EPS * max(accel.scale, np.finfo(float).tiny)
+    eps = max(PROBE_EPS * light_size(light), _PRECISION * float(np.abs(o).max()), np.finfo(float).tiny)
     h = closest_hit(accel, o, d, tmin=eps, ignore=src)
     tri = h.triangle
     hit = tri >= 0
@@ -131,7 +177,7 @@ def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE
 
 
 def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> list[str]:
-    """One line per light with power that reaches no surface or sits inside a closed solid."""
+    """One line per light with power that reaches no surface or lights only back faces."""
     out = []
     kind = scene.material_table()["kind"] if scene.lights else None
     for i, light in enumerate(scene.lights):
@@ -146,11 +192,12 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
             hint = (" (does cross(edge_u, edge_v) face away from the scene?)" if light.kind == "quad" else
                     " (are its triangles wound to face away from the scene?)" if light.kind == "mesh" else
                     " (is it outside the scene?)")
-            out.append(f"{light_name(i, light)} reaches no surface: none of {p['rays']} probe rays {where} "
-                       f"hits the scene{hint}")
+            out.append(f"{light_name(i, light)} reaches no surface: none of its {p['rays']} probe rays (spread "
+                       f"{where}, and aimed at the scene's triangles on that side) hits the scene{hint}")
         elif p["back"] == p["hits"]:
-            out.append(f"{light_name(i, light)} is enclosed: all {p['hits']} of its {p['rays']} probe rays that hit "
-                       "the scene hit the back of an opaque triangle (inside a closed mesh, or one wound inside out)")
+            out.append(f"{light_name(i, light)} lights only back faces: all {p['hits']} of its {p['rays']} probe "
+                       "rays that hit the scene hit the back of an opaque triangle (is it inside a closed mesh, "
+                       "outside a room whose walls face in, or is the geometry wound inside out?)")
     return out
 
 
