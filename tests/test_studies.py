@@ -273,3 +273,23 @@ def test_a_flush_probability_from_a_programs_table(tmp_path):
     assert flushes.tolist() == [0, 1, 0, 1, 0, 2]
     _, default, _ = load_programs().cost("traversal", "rays", {"leaf_visits": visits}, items)
     assert default.tolist() == visits.tolist()  # the default: one flush per leaf visit
+
+
+def test_a_study_rerun_into_its_folder_keeps_the_user_s_files(tmp_path, cache):
+    """As a rerun of ``tlm run`` does: the study's own files are replaced (an output it no
+    longer writes goes), a user's notes and analysis folder are carried into the new folder."""
+    study = tmp_path / "g.yaml"
+    base = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": {"light_samples": 1, "spp": 1},
+            "arch": {"frames": 2, "trace": False}}
+    study.write_text(yaml.safe_dump({"base": base, "packet_sizes": [1, 64]}))
+    out = tmp_path / "g"
+    assert main(["granularity", str(study), "--out", str(out)]) == 0
+    (out / "notes.md").write_text("mine")
+    (out / "analysis").mkdir()
+    (out / "analysis" / "fit.py").write_text("mine")
+    (out / "granularity.csv").write_text("stale")  # the study's own: replaced
+    mine = set((out / ".tlm-files").read_text().split())
+    assert {"granularity.jsonl", "granularity.csv", "provenance.json", "report", ".tlm-files"} <= mine
+    assert main(["granularity", str(study), "--out", str(out), "--no-report"]) == 0
+    assert (out / "notes.md").read_text() == "mine" and (out / "analysis" / "fit.py").read_text() == "mine"
+    assert (out / "granularity.csv").read_text() != "stale" and not (out / "report").exists()

@@ -11,11 +11,18 @@ A study file is a YAML mapping with a ``base`` run config (a mapping), an option
 frame, so every study rejects a non-mapping, an unknown key or a bad ``base`` with
 the same one-line errors (file and key named, exit status 2 through the CLI).
 Result rows go through :func:`tlm.storage.write_rows`, as every experiment's do.
+
+A study folder lists what the study wrote in it (``.tlm-files``, its top-level names,
+and ``report``, which the command writes after it); a rerun into the folder replaces
+those and carries everything else (a user's notes, an analysis folder) into the new
+output, as a rerun of ``tlm run`` does. A folder written before the list existed is
+replaced whole.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -67,7 +74,7 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
     marker = marker or f"{name}.jsonl"
     check_destination(out, marker)
     rows: list[dict] = []
-    with atomic_folder(out, marker) as tmp:
+    with atomic_folder(out, marker, owned=_owned(Path(out))) as tmp:
         for point in points:
             got = run_point(point, tmp)
             for row in [] if got is None else [got] if isinstance(got, dict) else got:
@@ -83,7 +90,20 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
             write_file(tmp / fname, _text(fname, value))
         write_file(tmp / "provenance.json",
                    json.dumps(provenance(source, time.perf_counter() - start), indent=2) + "\n")
+        write_file(tmp / MANIFEST, "".join(f"{n}\n" for n in sorted({*os.listdir(tmp), MANIFEST, "report"})))
     return rows
+
+
+MANIFEST = ".tlm-files"  # the names a study wrote in its folder (the module's docstring)
+
+
+def _owned(out: Path) -> set[str] | None:
+    """The names an earlier study in ``out`` wrote (its :data:`MANIFEST`), which a rerun
+    replaces; None (replace everything) for a folder without one."""
+    try:
+        return {n for n in (out / MANIFEST).read_text().splitlines() if n}
+    except (OSError, UnicodeDecodeError):
+        return None
 
 
 def _text(name: str, value: Any) -> str:
