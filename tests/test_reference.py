@@ -100,6 +100,8 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     assert [r["filter"] for r in rows] == ["disk", "disk", "mvoxel", "mvoxel", "kvoxel", "kvoxel", "knn", "mvoxel",
                                            "mvoxel"]
     assert [r["final_gather"] for r in rows] == ["0"] * 8 + ["4"]
+    assert rows[4]["factors"] == "estimate.filter=kvoxel; photons.count=12000; estimate.k=2"  # (the point's own)
+    assert rows[7]["factors"] == "estimate.filter=mvoxel; photons.count=3000; arch.pipelines=2"
     assert {"throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds"} <= set(rows[0])
     jsonl = [json.loads(line) for line in (out / "rows.jsonl").read_text().splitlines()]
     assert len(jsonl) == 9
@@ -149,11 +151,18 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     ({"base": {}, "points": [{"estimate.radius": [-1.0]}]}, "estimate.radius"),
     ({"base": {}, "grid": {}}, "grid"),
     ({"base": {"mdoe": "pmap"}, "points": [{"estimate.k": [1]}]}, "mdoe"),
+    # what every point takes from the base: refused, not silently the base's (nor an internal error)
+    ({"base": {}, "points": [{"estimate.k": [1]}, {"bsp.levels": [0, 8]}]}, "points[1].bsp.levels: a point cannot"),
+    ({"base": {}, "points": [{"scene": ["ring"]}]}, "points[0].scene: a point cannot vary scene"),
+    ({"base": {}, "points": [{"mode": ["rcast"]}]}, "every point is a photon-map frame"),
+    ({"base": {}, "points": [{"render.spp": [1, 4]}]}, "the base's eye rays"),
+    ({"base": {}, "points": [{"resolution": [[8, 8]]}]}, "points[0].resolution"),
 ])
 def test_bad_experiment_files(tmp_path, capsys, body, expect):
     exp = tmp_path / "bad.yaml"
     exp.write_text(json.dumps(body))
-    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "out")]) == 2
+    # (no ground truth: a check that let a point through would not then render one for minutes)
+    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "out"), "--truth-spp", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("tlm: error:") and "bad.yaml" in err[0] and expect in err[0]
     assert not (tmp_path / "out").exists()
@@ -202,3 +211,20 @@ def test_pmap_pass_is_packet_invariant_and_repeats(filt):
                    for s0 in range(0, 1600, 13))
         assert cold > work["gather_misses"].sum()  # a cold pair per packet misses more
     assert np.isfinite(full).all() and full.max() > 0
+
+
+def test_error_vs_cost_refuses_a_point_off_the_reference_before_any_work(tmp_path, cache, capsys, monkeypatch):
+    """A point that changes what the reference depends on is refused before the reference or
+    any point is computed (it was refused when its turn came, hours into a study)."""
+    import tlm.experiments.error_cost as ec
+
+    monkeypatch.setattr(ec, "compute_reference", lambda *a, **k: pytest.fail("computed before the check"))
+    exp = tmp_path / "evc.yaml"
+    exp.write_text(json.dumps({"base": {"resolution": [8, 8], "photons": {"count": 500}},
+                               "points": [{"estimate.filter": ["disk"]}, {"photons.max_bounces": [2]}]}))
+    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "out"), "--truth-spp", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "points: {'photons.max_bounces': 2}: the point changes what the reference depends on" in err
+    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "out"), "--truth-spp", "-5"]) == 2
+    assert "--truth-spp: -5 is not a count" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -14,10 +14,14 @@ planner leaves out, e.g. ``photons.count: 0``, simulates the other passes). The 
 ``throughput_cycles`` and ``latency_cycles``, ``frame_seconds`` (throughput cycles /
 ``arch.clock_hz``), ``fps`` and ``simulate_seconds`` (host seconds of the simulation).
 
-The eye rays are cast once; the other passes' work is computed once per setting of what
-it depends on (everything but ``photons``, ``estimate`` and ``arch``); each photon map
-(one per photon count, seed and tracing setting) is traced once and shared by every
-filter, radius and k that uses it.
+The scene, its BSP and the eye rays are the base's, cast once: a point may not vary
+``scene``, ``mode`` (every point is a photon-map frame), ``resolution``, ``bsp.*`` or
+``render.spp`` (:data:`FIXED`), nor what the reference depends on (all refused, naming
+the point's key, before any work). The other passes' work is computed once per setting of
+what it depends on (everything but ``photons``, ``estimate`` and ``arch``); each photon
+map (one per photon count, seed and tracing setting) is traced once and shared by every
+filter, radius and k that uses it. A row's ``factors`` names the point's own settings
+(``photons.count=30000; estimate.filter=disk``).
 
 File format::
 
@@ -67,12 +71,26 @@ from tlm.render.pmap import pmap_pass, search_radius, trace_photon_map
 from tlm.storage import check_destination
 
 COLUMNS = (
-    "point", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
+    "point", "factors", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
     "final_gather", "caustic_photons", "aim",
     "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers",
     "trace_seconds", "gather_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
+
+
+# what every point shares with the base (the module's docstring): key -> what it is
+FIXED = {"scene": "every point renders the base's scene", "mode": "every point is a photon-map frame",
+         "resolution": "every point renders the base's resolution", "bsp": "every point traces the base's BSP",
+         "render.spp": "every point shares the base's eye rays"}
+
+
+def _check_factor(key: str, source: str, where: str) -> None:
+    """An InputError for a point key every point takes from the base (:data:`FIXED`)."""
+    why = FIXED.get("bsp" if key.startswith("bsp.") else key)
+    if why is not None:
+        raise InputError(f"a point cannot vary {key}: {why}; set it under base, and run one experiment per value",
+                         source=source, key=where)
 
 
 def expand(points: Any, source: str) -> list[dict[str, Any]]:
@@ -89,6 +107,7 @@ def expand(points: Any, source: str) -> list[dict[str, Any]]:
         keys = list(grid)
         values = []
         for k in keys:
+            _check_factor(str(k), source, f"points[{i}].{k}")
             v = grid[k]
             v = v if isinstance(v, list) else [v]
             if not v:
@@ -165,6 +184,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     one. ``note`` receives one-line messages (the ground truth computed, or missing).
     """
     truth = Truth() if truth is None else truth
+    if not isinstance(truth.spp, int) or isinstance(truth.spp, bool) or truth.spp < 0:
+        raise InputError(f"{truth.spp!r} is not a count of samples per pixel (0: no ground truth)", key="--truth-spp")
     start = time.perf_counter()
     base, points, folder = load_experiment(Path(path))
     check_destination(out, "rows.jsonl")  # before any work
@@ -181,6 +202,12 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
 
     settings = ReferenceSettings.from_config(scene, cfg0)
     key = reference_key(scene, cfg0, settings)
+    for point, cfg in zip(points, configs, strict=True):  # (before any work: the reference's too)
+        if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
+            raise InputError("the point changes what the reference depends on (photons.max_bounces, the "
+                             "render's specular depths and Fresnel settings, reference.*): every point is measured "
+                             "against the base's reference; run one experiment per value", source=str(path),
+                             key=f"points: {point}")
     found = load_reference(key)
     if found is None:
         image, meta = compute_reference(frame0, g, settings)
@@ -203,9 +230,6 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     geometry = TreeWork.of(accel.tree)
     def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
         i, point, cfg = item
-        if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
-            raise InputError("a point changes what the reference depends on (scene, max_bounces or reference.*)",
-                             source=str(path), key=f"points: {point}")
         n = photon_count(scene, cfg)
         map_key = (n, cfg.seed, cfg.photons.max_bounces, cfg.photons.russian_roulette,
                    cfg.photons.caustic_fraction, cfg.photons.caustic_count, cfg.photons.aim,
@@ -228,7 +252,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         simulate_s = time.perf_counter() - t0
         est = cfg.estimate
         row = {
-            "point": i, "filter": est.filter, "photons": n, "stored": traced.photons.n,
+            "point": i, "factors": factors_text(point),
+            "filter": est.filter, "photons": n, "stored": traced.photons.n,
             "radius": search_radius(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else None,
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
@@ -247,6 +272,11 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     return run_study(str(path), out, "rows", [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                      one, columns=COLUMNS, config=cfg0, started=start,
                      files=lambda _rows: {"reference.json": {"key": key, **ref_meta}, "truth.json": truth_meta})
+
+
+def factors_text(point: dict[str, Any]) -> str:
+    """A row's ``factors``: the point's own settings, ``key=value`` joined by ``; ``."""
+    return "; ".join(f"{k}={v if isinstance(v, str) else json.dumps(v)}" for k, v in point.items())
 
 
 def _others_key(cfg: RunConfig, names: tuple[str, ...]) -> str:

@@ -91,7 +91,16 @@ def _point_name(r: dict) -> str:
     caustic = _num(r.get("caustic_photons"))
     if np.isfinite(caustic) and caustic > 0:
         extra += f", {int(caustic):,} caustic ph"
+    for item in str(r.get("factors") or "").split("; "):  # the point's other settings (render.light_samples=4)
+        key = item.split("=", 1)[0]
+        if item and key not in _NAMED:
+            extra += f", {item}"
     return f"{f}, {int(_num(r.get('photons'))):,} ph{extra}"
+
+
+# the point settings the name above gives already
+_NAMED = ("estimate.filter", "photons.count", "estimate.radius_fraction", "estimate.k", "estimate.k_nearest",
+          "photons.caustic_count")
 
 
 def study_names(studies: list[Study]) -> list[str]:
