@@ -22,7 +22,10 @@ expects. The file::
 ``same_image`` compares the composite radiance with another case's (relative RMS,
 0 = bitwise); ``compare`` a number of ``results.json`` (a dotted key) with the same
 number of another case (``op``: ``==``, ``<=``, ``>=``, ``<``, ``>``, or ``~`` with
-``rel``: within that relative difference). A case that
+``rel``: within that relative difference); ``value`` takes ``min``, ``max`` (numbers)
+and ``equals``. Every check's keys and values are checked before any case runs: a
+misspelt key, a value of the wrong type or a case named that is not an earlier one that
+runs is an input error. A case that
 expects an error passes when its run fails with an input error whose one line holds
 the text, and leaves no folder. Output: ``cases/<name>/`` (each run folder),
 ``extreme.csv`` and ``extreme.jsonl`` (one row per case: category, expectation,
@@ -42,14 +45,103 @@ from typing import Any
 import numpy as np
 
 from tlm.config import config_from_dict, deep_merge
-from tlm.errors import InputError
+from tlm.errors import InputError, did_you_mean
 from tlm.experiments.study import read_study, run_study
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
 CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
 OPS = {"==": operator.eq, "<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt, "~": None}
 CASE_KEYS = ("name", "category", "expect", "config", "checks")
+WORDS = ("finite", "invariants")  # the checks written as a bare word, without settings
+CHECK_KEYS = {  # the keys of each check written as a mapping, its own name first
+    "same_image": ("same_image", "rel_rms"),
+    "value": ("value", "min", "max", "equals"),
+    "compare": ("compare", "case", "op", "rel"),
+    "error": ("error",),
+}
+TEXT_KEYS = ("same_image", "value", "compare", "case", "error")  # non-empty text
+NUMBER_KEYS = ("rel_rms", "rel", "min", "max")  # finite numbers; rel_rms and rel >= 0, min and max may be null
 
+
+def _is_number(x: Any) -> bool:
+    """A real number (not a bool)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
+def _what(x: Any) -> str:
+    """A value of results.json in a few words."""
+    if isinstance(x, dict):
+        return "a mapping"
+    if isinstance(x, list):
+        return "a list"
+    return "null" if x is None else repr(x)
+
+
+def _kind(check: Any) -> str | None:
+    """The kind of a check (one of CHECKS), or None when it names none or more than one."""
+    if isinstance(check, str):
+        return check if check in CHECKS else None
+    kinds = [k for k in check if k in CHECKS] if isinstance(check, dict) else []
+    return kinds[0] if len(kinds) == 1 else None
+
+
+def _equals_ok(x: Any) -> bool:
+    """``equals`` may be text, true/false, null, a finite number or a list of them."""
+    if isinstance(x, list):
+        return all(_equals_ok(v) for v in x)
+    if _is_number(x):
+        return math.isfinite(x) if isinstance(x, float) else True
+    return x is None or isinstance(x, (str, bool))
+
+
+def _check_check(chk: Any, src: str, key: str, earlier: set[str], ran: set[str]) -> str:
+    """The kind of the check ``chk`` at ``key`` of ``src``, its keys and values checked: a case it
+    names must be one of ``earlier`` and one that ``ran`` (not one that expects an error)."""
+    kind = _kind(chk)
+    if kind is None:
+        if isinstance(chk, dict) and len([k for k in chk if k in CHECKS]) > 1:
+            raise InputError(f"holds more than one check ({', '.join(k for k in chk if k in CHECKS)}): "
+                             "write each as a check of its own", source=src, key=key)
+        word = chk if isinstance(chk, str) else (str(next(iter(chk))) if isinstance(chk, dict) and chk else "")
+        raise InputError(f"{chk!r} is not a check ({', '.join(CHECKS)}){did_you_mean(word, CHECKS)}", source=src,
+                         key=key)
+    if isinstance(chk, str):
+        return kind
+    if kind in WORDS:
+        raise InputError(f"{kind!r} takes no settings: write it as the word {kind}", source=src, key=key)
+    allowed = CHECK_KEYS[kind]
+    for k in chk:
+        if k not in allowed:
+            hint = did_you_mean(str(k), allowed) or f" (a {kind} check takes {', '.join(allowed)})"
+            raise InputError(f"unknown key {k!r}{hint}", source=src, key=key)
+    if kind == "compare" and "case" not in chk:
+        raise InputError("missing key 'case' (the earlier case to compare with)", source=src, key=key)
+    for k, v in chk.items():
+        if k in TEXT_KEYS and (not isinstance(v, str) or not v):
+            raise InputError(f"{v!r} is not a non-empty text", source=src, key=f"{key}.{k}")
+        if k in NUMBER_KEYS and not (v is None and k in ("min", "max")):
+            if not _is_number(v):
+                raise InputError(f"{v!r} is not a number", source=src, key=f"{key}.{k}")
+            if isinstance(v, float) and not math.isfinite(v):
+                raise InputError(f"{v!r} is not finite", source=src, key=f"{key}.{k}")
+            if k in ("rel_rms", "rel") and v < 0:
+                raise InputError(f"{v!r} must be >= 0", source=src, key=f"{key}.{k}")
+        if k == "equals" and not _equals_ok(v):
+            raise InputError(f"{v!r} is not text, true/false, null, a finite number or a list of them", source=src,
+                             key=f"{key}.{k}")
+    if kind == "compare":
+        op = chk.get("op", "==")
+        if not isinstance(op, str) or op not in OPS:
+            raise InputError(f"op {op!r} is not one of {', '.join(OPS)}", source=src, key=f"{key}.op")
+        if "rel" in chk and op != "~":
+            raise InputError(f"rel applies to op '~' only, not {op!r}", source=src, key=f"{key}.rel")
+    if kind in ("same_image", "compare"):
+        other = chk["case"] if kind == "compare" else chk["same_image"]
+        if other not in earlier:
+            raise InputError(f"{other!r} is not an earlier case", source=src, key=key)
+        if other not in ran:
+            raise InputError(f"{other!r} expects an error, so it has no results to compare with", source=src, key=key)
+    return kind
 
 
 def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
@@ -58,7 +150,8 @@ def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
     cases = raw.get("cases")
     if not isinstance(cases, list) or not cases:
         raise InputError("must be a non-empty list of cases", source=src, key="cases")
-    names: set[str] = set()
+    names: set[str] = set()  # the cases so far
+    ran: set[str] = set()  # those of them that run (expect no error): their results can be compared
     for i, c in enumerate(cases):
         where = f"cases[{i}]"
         if not isinstance(c, dict):
@@ -74,29 +167,20 @@ def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
             raise InputError(f"{name!r} must be a folder name", source=src, key=f"{where}.name")
         if name in names:
             raise InputError(f"{name!r} is used twice", source=src, key=f"{where}.name")
-        names.add(name)
         if not isinstance(c["config"], dict):
             raise InputError("must be a run config mapping", source=src, key=f"{where}.config")
         if not isinstance(c["checks"], list) or not c["checks"]:
             raise InputError("must be a non-empty list", source=src, key=f"{where}.checks")
         expects_error = False
         for j, chk in enumerate(c["checks"]):
-            kind = chk if isinstance(chk, str) else (next(iter(chk)) if isinstance(chk, dict) and chk else None)
-            if kind not in CHECKS:
-                raise InputError(f"{chk!r} is not a check ({', '.join(CHECKS)})", source=src,
-                                 key=f"{where}.checks[{j}]")
-            if kind in ("same_image", "compare"):
-                other = chk.get("case") if kind == "compare" else chk["same_image"]
-                if other not in names:
-                    raise InputError(f"{other!r} is not an earlier case", source=src, key=f"{where}.checks[{j}]")
-            if kind == "compare" and chk.get("op", "==") not in OPS:
-                raise InputError(f"op {chk.get('op')!r} is not one of {', '.join(OPS)}", source=src,
-                                 key=f"{where}.checks[{j}]")
+            kind = _check_check(chk, src, f"{where}.checks[{j}]", names, ran)
             expects_error |= kind == "error"
         if expects_error and len(c["checks"]) != 1:
             raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
         if not expects_error:  # a case that should run must have a valid config now
             config_from_dict(deep_merge(base, c["config"]), f"{src} ({where})")
+            ran.add(name)
+        names.add(name)
     return base, cases, Path(path).resolve().parent
 
 
@@ -141,7 +225,10 @@ def judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]]
 
 
 def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]]) -> tuple[bool, str]:
-    kind = check if isinstance(check, str) else next(iter(check))
+    kind = _kind(check)
+    other = check.get("case" if kind == "compare" else "same_image") if kind in ("compare", "same_image") else None
+    if other is not None and other not in done:
+        return False, f"case {other!r} has no results (its run failed)"
     if kind == "finite":
         bad_images = [p.name for p in sorted((folder / "radiance").glob("*.npy")) if not np.isfinite(np.load(p)).all()]
         bad_numbers = sum(1 for v in _numbers(results) if not math.isfinite(v))
@@ -163,6 +250,8 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
         return err <= tol, f"relative RMS {err:.3g} against {check['same_image']} (tolerance {tol:g})"
     if kind == "value":
         v = _get(results, check["value"])
+        if (check.get("min") is not None or check.get("max") is not None) and not _is_number(v):
+            return False, f"{check['value']} is {_what(v)}, not a number"
         ok = (check.get("min") is None or v >= check["min"]) and (check.get("max") is None or v <= check["max"])
         if "equals" in check:
             ok = ok and v == check["equals"]
@@ -171,6 +260,8 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
         _, theirs = done[check["case"]]
         a, b = _get(results, check["compare"]), _get(theirs, check["compare"])
         op = check.get("op", "==")
+        if op != "==" and not (_is_number(a) and _is_number(b)):
+            return False, f"{check['compare']}: {_what(a)} against {_what(b)} ({check['case']}), not numbers"
         if op == "~":
             rel = float(check.get("rel", 0.0))
             err = abs(a - b) / abs(b) if b else math.inf
