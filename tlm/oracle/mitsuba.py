@@ -348,12 +348,44 @@ def save_ground_truth(key: str, image: np.ndarray, meta: dict) -> Path:
 
 
 def load_ground_truth(key: str) -> tuple[np.ndarray, dict] | None:
-    """The cached image (float64) and its metadata, or None."""
+    """The cached image (float64) and its metadata, or None when there is none.
+
+    A damaged entry (``meta.json`` missing, unreadable or of another key; ``image.npy``
+    missing, unreadable, cut short, or not the (height, width, 3) floats ``meta.json``
+    describes) is reported once as a warning naming the file and removed: it is rendered
+    again as if it had never been cached (as the references' and the scenes' caches do).
+    """
+    import shutil
+
+    from tlm.storage import warn
+
     folder = cache_dir() / key
-    if not ((folder / "image.npy").is_file() and (folder / "meta.json").is_file()):
+    npy, side = folder / "image.npy", folder / "meta.json"
+    if not npy.is_file() and not side.is_file():
         return None
-    image = np.load(folder / "image.npy").astype(np.float64)
-    return image, json.loads((folder / "meta.json").read_text())
+    bad, why = side, None
+    try:
+        meta = json.loads(side.read_text())
+        if not isinstance(meta, dict) or meta.get("key") != key:
+            raise ValueError("not the metadata of this image")
+    except (OSError, ValueError) as e:
+        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
+    if why is None:
+        bad = npy
+        try:
+            image = np.load(npy, allow_pickle=False)
+            size = (meta.get("height"), meta.get("width"))
+            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
+                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
+            if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
+                raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
+                                 f"{size[1]}x{size[0]}")
+            return image.astype(np.float64), meta
+        except (OSError, ValueError, EOFError) as e:
+            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
+    warn(f"damaged Mitsuba ground-truth cache entry {bad} ({why}): removed; it is rendered again when next needed")
+    shutil.rmtree(folder, ignore_errors=True)
+    return None
 
 
 def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_depth: int = -1, seed: int = 0,

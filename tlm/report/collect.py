@@ -17,11 +17,19 @@ extreme            ``tlm extreme``                             ``extreme.jsonl``
 
 Every run folder found (a run, a thesis cell ``<scene>/<mode>``, a sweep point) becomes
 a :class:`Run`; the study tables are kept as rows.
+
+A file the sections read is checked here for what they need of it (its columns or keys,
+numbers where they compute): a damaged one, empty, cut off (a study's tables are written
+whole; only ``sweep.jsonl`` is appended to, its last row perhaps cut off by a killed sweep)
+or of another shape, is an :class:`~tlm.errors.InputError` naming the file, before any
+report is written. A sweep row "ok" whose point's ``results.json`` is gone is read as
+``status: missing``.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -121,9 +129,130 @@ def _json(path: Path) -> Any:
         raise InputError(f"cannot read: {e}", source=str(path)) from None
 
 
-def _jsonl(path: Path) -> list[dict]:
-    """The rows (a last row cut off by a killed process left out; any other bad row refused)."""
-    return [row for _, row in read_jsonl(path)]
+def _whole_file(path: Path) -> str:
+    """The text of a file tlm writes whole (atomically, a study's table): an :class:`InputError`
+    for one that is empty or cut off, a damaged copy, not a study with no rows."""
+    try:
+        with open(path, newline="") as f:
+            text = f.read()
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read: {e}", source=str(path)) from None
+    if not text.strip():
+        raise InputError("is empty: a damaged copy (tlm writes it whole, with at least its header line); "
+                         "copy it again or run the study again", source=str(path))
+    if not text.endswith(("\n", "\r")):
+        raise InputError("is cut off (its last line has no end): a damaged copy (tlm writes it whole); "
+                         "copy it again or run the study again", source=str(path))
+    return text
+
+
+def _study_jsonl(path: Path) -> list[tuple[int, dict]]:
+    """A study's rows with their line numbers. The file is written whole, so a last row cut
+    off is damage, not a row a killed process was appending (as in ``sweep.jsonl``, whose
+    :func:`~tlm.storage.read_jsonl` leaves it out)."""
+    try:
+        with open(path, "rb") as f:
+            last = f.read(1) if f.seek(0, 2) and f.seek(-1, 2) >= 0 else b""  # (the last byte; none if empty)
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", source=str(path)) from None
+    if last not in (b"", b"\n"):
+        raise InputError("is cut off (its last row has no end): a damaged copy (tlm writes it whole); "
+                         "copy it again or run the study again", source=str(path))
+    return read_jsonl(path)
+
+
+# -- what the sections need of the files they read ------------------------------------------------------------
+
+def _number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+# a check: (test, what the value should be)
+PRESENT = (lambda v: True, "present")
+TEXT = (lambda v: isinstance(v, str), "text")
+NUMBER = (_number, "a number")
+NUMBER_OR_NONE = (lambda v: v is None or _number(v), "a number or empty")
+POSITIVE = (lambda v: _number(v) and v > 0, "a positive number")
+BOOL = (lambda v: isinstance(v, bool), "true or false")
+MAPPING = (lambda v: isinstance(v, dict), "a mapping")
+MAPPING_OR_NONE = (lambda v: v is None or isinstance(v, dict), "a mapping")
+LIST_OR_NONE = (lambda v: v is None or isinstance(v, list), "a list")
+
+THESIS_COLUMNS = {"scene": PRESENT, "mode": PRESENT, "metric": PRESENT, "thesis": NUMBER_OR_NONE,
+                  "ours": NUMBER_OR_NONE, "rel_error": NUMBER_OR_NONE}
+SCALING_COLUMNS = {"scene": PRESENT, "mode": PRESENT, "scheduler": PRESENT, "target": PRESENT,
+                   "pipelines": POSITIVE, "simulated": POSITIVE, "analytical": NUMBER, "speedup": NUMBER}
+SCALING_OPTIONAL = {"analytical_slowest": NUMBER}
+EXTREME_KEYS = {"case": PRESENT, "category": PRESENT, "expect": PRESENT, "measured": PRESENT, "passed": BOOL,
+                "seconds": NUMBER}
+ERROR_COST_KEYS = {"filter": TEXT}
+ERROR_COST_OPTIONAL = {"rel_mse": NUMBER_OR_NONE, "truth_rel_mse": NUMBER_OR_NONE, "frame_seconds": NUMBER_OR_NONE}
+SWEEP_ROW_OPTIONAL = {"point": (lambda v: isinstance(v, int) and not isinstance(v, bool), "a point number")}
+FIT_KEYS = {"scene": PRESENT, "mode": PRESENT, "scheduler": PRESENT, "target": PRESENT, "A": NUMBER, "B": NUMBER,
+            "max_abs_rel_error": NUMBER}
+FIT_SLOWEST_KEYS = {"A": NUMBER, "B": NUMBER, "max_abs_rel_error": NUMBER}
+PER_ITEM_KEYS = {"rays": NUMBER, "ours": MAPPING, "thesis": MAPPING}
+PER_ITEM_OPTIONAL = {"tests_per_leaf": NUMBER_OR_NONE}
+
+
+def _check(record: Any, path: Path, where: str | None, what: str, required: dict, optional: dict | None = None) -> None:
+    """An :class:`InputError` naming ``path`` (and ``where`` in it: a line, a key) unless
+    ``record`` is a mapping with every ``required`` key and every key (of ``required`` and
+    of ``optional`` where present) of the value its check wants."""
+    if not isinstance(record, dict):
+        raise InputError(f"is {type(record).__name__} {_short(record)}, not {what}", source=str(path), key=where)
+    missing = [k for k in required if k not in record]
+    if missing:
+        raise InputError(f"has no {', '.join(repr(k) for k in missing)}: not {what}", source=str(path), key=where)
+    for k, (ok, want) in {**(optional or {}), **required}.items():
+        if k in record and not ok(record[k]):
+            raise InputError(f"{k!r} is {_short(record[k])}, not {want} ({what})", source=str(path), key=where)
+
+
+def _short(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _rows_checked(path: Path, rows: list[tuple[int, dict]], what: str, required: dict,
+                  optional: dict | None = None) -> list[dict]:
+    for n, row in rows:
+        _check(row, path, f"line {n}", what, required, optional)
+    return [row for _, row in rows]
+
+
+def _thesis_summary(path: Path) -> dict:
+    """``thesis_summary.json``: a mapping; its ``per_item`` and ``slowest_pm`` mappings of cells."""
+    summary = _json(path)
+    _check(summary, path, None, "a tlm thesis summary", {}, {
+        "per_item": MAPPING_OR_NONE, "slowest_pm": MAPPING_OR_NONE,
+        "median_abs_rel_error_held_out": NUMBER_OR_NONE})
+    for cell, it in (summary.get("per_item") or {}).items():
+        _check(it, path, f"per_item: {cell}", "a cell's counts per work item", PER_ITEM_KEYS, PER_ITEM_OPTIONAL)
+        for side in ("ours", "thesis"):
+            for k, v in it[side].items():
+                if not NUMBER_OR_NONE[0](v):
+                    raise InputError(f"{k!r} is {_short(v)}, not a number or empty", source=str(path),
+                                     key=f"per_item: {cell}: {side}")
+    for cell, it in (summary.get("slowest_pm") or {}).items():
+        _check(it, path, f"slowest_pm: {cell}", "a cell's slowest PM", {})
+    return summary
+
+
+def _eq52(path: Path, rows: list[dict]) -> dict:
+    """``eq52.json``: a mapping, its ``fits`` a list of fits (A, B and the error of each group)."""
+    meta = _json(path)
+    _check(meta, path, None, "a tlm eq. 5.2 file", {}, {"fits": LIST_OR_NONE, "sweeps": LIST_OR_NONE})
+    slowest = any("analytical_slowest" in r for r in rows)  # (the figure then draws each fit's slowest variant)
+    for i, f in enumerate(meta.get("fits") or []):
+        _check(f, path, f"fits[{i}]", "an eq. 5.2 fit", {**FIT_KEYS, **({"slowest": MAPPING} if slowest else {})},
+               {"slowest": MAPPING})
+        if "slowest" in f:
+            _check(f["slowest"], path, f"fits[{i}]: slowest", "an eq. 5.2 fit", FIT_SLOWEST_KEYS)
+    for s in meta.get("sweeps") or []:
+        if not isinstance(s, str):
+            raise InputError(f"{_short(s)} is not a folder's path", source=str(path), key="sweeps")
+    return meta
 
 
 def _yaml(path: Path) -> Any:
@@ -138,8 +267,10 @@ def _run(folder: Path, label: str, kind: str) -> Run:
     if not isinstance(results, dict) or "timing" not in results or "scene" not in results:
         raise InputError("is not a tlm results file (no 'timing' or 'scene')", source=str(folder / "results.json"))
     cfg_path = folder / "config.resolved.yaml"
-    config = _yaml(cfg_path) if cfg_path.is_file() else {}
-    return Run(folder, label, kind, results, config or {})
+    config = (_yaml(cfg_path) if cfg_path.is_file() else {}) or {}
+    if not isinstance(config, dict):
+        raise InputError(f"is {type(config).__name__} {_short(config)}, not a tlm config", source=str(cfg_path))
+    return Run(folder, label, kind, results, config)
 
 
 def kind_of(folder: Path) -> str | None:
@@ -161,7 +292,11 @@ def kind_of(folder: Path) -> str | None:
     return None
 
 
-def _csv_rows(path: Path) -> list[dict]:
+def _csv_rows(path: Path, what: str, required: dict, optional: dict | None = None) -> list[dict]:
+    """The rows of a study's CSV table, values as numbers, booleans or None where they read
+    as such: an :class:`InputError` naming the file for one that is empty or cut off, lacks a
+    ``required`` column, has a row of more or fewer cells than its header, or a value not of
+    its column's kind."""
     def value(v: str):
         if v == "":
             return None
@@ -172,8 +307,22 @@ def _csv_rows(path: Path) -> list[dict]:
         except ValueError:
             return v
 
-    with open(path, newline="") as f:
-        return [{k: value(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    reader = csv.DictReader(io.StringIO(_whole_file(path), newline=""))
+    try:
+        header = reader.fieldnames or []
+        missing = [k for k in required if k not in header]
+        if missing:
+            raise InputError(f"has no {', '.join(repr(k) for k in missing)} column{'s' if len(missing) > 1 else ''}: "
+                             f"not {what}", source=str(path))
+        rows = []
+        for row in reader:
+            if None in row or None in row.values():
+                raise InputError(f"has {'more' if None in row else 'fewer'} cells than its header's {len(header)} "
+                                 "columns: a damaged table", source=str(path), key=f"line {reader.line_num}")
+            rows.append((reader.line_num, {k: value(v) for k, v in row.items()}))
+    except csv.Error as e:
+        raise InputError(f"is not a CSV table ({e})", source=str(path), key=f"line {reader.line_num}") from None
+    return _rows_checked(path, rows, what, required, optional)
 
 
 def read(dirs: list[Path]) -> Inputs:
@@ -208,9 +357,9 @@ def read(dirs: list[Path]) -> Inputs:
             run.label = unique(f"{folder.name}: {run.scene}/{run.mode}")
             inputs.runs.append(run)
         elif kind == "thesis":
-            rows = _csv_rows(folder / "thesis_comparison.csv")
+            rows = _csv_rows(folder / "thesis_comparison.csv", "a row of a tlm thesis comparison", THESIS_COLUMNS)
             summary_path = folder / "thesis_summary.json"
-            summary = _json(summary_path) if summary_path.is_file() else {}
+            summary = _thesis_summary(summary_path) if summary_path.is_file() else {}
             inputs.studies.append(Study("thesis", folder, rows, summary))
             for cell in sorted(folder.glob("*/*/results.json")):
                 run = _run(cell.parent, "", "thesis")
@@ -218,11 +367,22 @@ def read(dirs: list[Path]) -> Inputs:
                 inputs.runs.append(run)
         elif kind == "sweep":
             spec = _yaml(folder / "sweep.yaml") or {}
-            rows = _jsonl(folder / "sweep.jsonl") if (folder / "sweep.jsonl").is_file() else []
+            _check(spec, folder / "sweep.yaml", None, "a tlm sweep's record", {},
+                   {"points": LIST_OR_NONE, "grid": MAPPING_OR_NONE, "zip": MAPPING_OR_NONE})
+            rows = []
+            if (folder / "sweep.jsonl").is_file():  # (appended point by point: a last row cut off is left out)
+                rows = _rows_checked(folder / "sweep.jsonl", read_jsonl(folder / "sweep.jsonl"), "a tlm sweep's row",
+                                     {}, SWEEP_ROW_OPTIONAL)
             planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
             if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
                 rows = [r for r in rows if str(r.get("hash")) in planned]
             runs = []
+            for i, row in enumerate(rows if (folder / "points").is_dir() else []):  # (rows alone: no results)
+                point = folder / "points" / str(row.get("hash"))
+                if row.get("status") == "ok" and not (point / "results.json").is_file():
+                    # a point whose results are gone is not ok ('tlm scaling' refuses the sweep): the report says so
+                    rows[i] = {**row, "status": "missing", "error": f"its results.json is missing "
+                               f"({point / 'results.json'}): the same 'tlm sweep' command runs it again"}
             for row in sorted(rows, key=lambda r: r.get("point", 0)):
                 point = folder / "points" / str(row.get("hash"))
                 if row.get("status") != "ok" or not (point / "results.json").is_file():
@@ -240,16 +400,24 @@ def read(dirs: list[Path]) -> Inputs:
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:
     if kind == "scaling":
-        rows = _csv_rows(folder / "eq52.csv") if (folder / "eq52.csv").is_file() else []
-        inputs.studies.append(Study("scaling", folder, rows, _json(folder / "eq52.json")))
+        rows = (_csv_rows(folder / "eq52.csv", "a row of a tlm eq. 5.2 table", SCALING_COLUMNS, SCALING_OPTIONAL)
+                if (folder / "eq52.csv").is_file() else [])
+        inputs.studies.append(Study("scaling", folder, rows, _eq52(folder / "eq52.json", rows)))
     elif kind == "granularity":
-        inputs.studies.append(Study("granularity", folder, _jsonl(folder / "granularity.jsonl")))
+        path = folder / "granularity.jsonl"
+        inputs.studies.append(Study("granularity", folder, [row for _, row in _study_jsonl(path)]))
     elif kind == "extreme":
-        inputs.studies.append(Study("extreme", folder, _jsonl(folder / "extreme.jsonl")))
+        path = folder / "extreme.jsonl"
+        inputs.studies.append(Study("extreme", folder, _rows_checked(path, _study_jsonl(path),
+                                                                     "a tlm extreme case's row", EXTREME_KEYS)))
     elif kind == "error-vs-cost":
-        inputs.studies.append(Study("error-vs-cost", folder, _jsonl(folder / "rows.jsonl"),
-                                    {"reference": _json(folder / "reference.json")}))
+        path = folder / "rows.jsonl"
+        rows = _rows_checked(path, _study_jsonl(path), "a tlm error-vs-cost row", ERROR_COST_KEYS, ERROR_COST_OPTIONAL)
+        inputs.studies.append(Study("error-vs-cost", folder, rows, {"reference": _json(folder / "reference.json")}))
     study = inputs.studies[-1]
     for name, key, load in (("config.resolved.yaml", "config", _yaml), ("provenance.json", "provenance", _json)):
         if (folder / name).is_file():
             study.meta[key] = load(folder / name)
+    if not isinstance(study.meta.get("provenance", {}), dict):
+        raise InputError(f"is {_short(study.meta['provenance'])}, not a tlm provenance record",
+                         source=str(folder / "provenance.json"))
