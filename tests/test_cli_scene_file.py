@@ -6,9 +6,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 import yaml
 
 from tlm.cli import main
+from tlm.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "scenes" / "examples" / "mesh_on_floor.yaml"
@@ -88,3 +90,42 @@ def test_unknown_scene_lists_the_subfolders(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "thesis/ring" in err and "thesis/room" in err and "examples/mesh_on_floor" in err
+
+
+def test_a_scene_extending_a_mesh_scene_from_another_folder_keeps_its_mesh(tmp_path):
+    """A one-item geometry that adds only a transform or a name merges into the base's, whose
+    mesh path stays relative to the base (it was looked for beside the extending file)."""
+    import numpy as np
+
+    from tlm.api import load_scene
+
+    base, child = tmp_path / "base", tmp_path / "child"
+    base.mkdir()
+    child.mkdir()
+    (base / "pawn.obj").write_bytes((EXAMPLE.parent / "pawn.obj").read_bytes())
+    (base / "b.yaml").write_text("geometry: {mesh: pawn.obj, name: pawn}\n"
+                                 "materials: {m: {type: lambertian, albedo: [0.7, 0.7, 0.7]}}\ndefault_material: m\n"
+                                 "lights: [{type: point, position: [2, 4, -4], power: [200, 200, 200]}]\n"
+                                 "camera: {eye: [0, 0.6, -3], target: [0, 0.5, 0], vfov: 30}\nresolution: [16, 16]\n")
+    (child / "big.yaml").write_text("extends: ../base/b.yaml\ngeometry: {transform: {scale: 2}, name: big}\n")
+    (child / "box.yaml").write_text("extends: cornell-box\ngeometry: {transform: {translate: [0, 0.5, 0]}}\n")
+    pawn, big = load_scene(base / "b.yaml"), load_scene(child / "big.yaml")
+    assert np.array_equal(big.triangles, pawn.triangles * 2) and big.part_names == ("big",)
+    box, original = load_scene(child / "box.yaml"), load_scene("cornell-box")
+    assert np.allclose(box.triangles, original.triangles + [0.0, 0.5, 0.0])
+    (child / "own.yaml").write_text("extends: ../base/b.yaml\ngeometry: {mesh: pawn.obj}\n")  # its own: beside it
+    with pytest.raises(InputError, match=r"own\.yaml: geometry\.mesh: mesh file .*child/pawn\.obj' not found"):
+        load_scene(child / "own.yaml")
+
+
+def test_a_material_given_another_type_by_extends_is_replaced_whole(tmp_path):
+    from tlm.api import load_scene
+
+    (tmp_path / "a.yaml").write_text("extends: cornell\n"
+                                     "materials: {glass: {type: mirror, reflectance: [0.9, 0.9, 0.9]}}\n")
+    scene = load_scene(tmp_path / "a.yaml")
+    glass = next(m for m in scene.materials if m.name == "glass")
+    assert glass.kind == "mirror" and glass.reflectance == (0.9, 0.9, 0.9)
+    (tmp_path / "b.yaml").write_text("extends: cornell\nmaterials: {glass: {ior: 1.0}}\n")  # the same type: merged
+    glass = next(m for m in load_scene(tmp_path / "b.yaml").materials if m.name == "glass")
+    assert glass.kind == "dielectric" and glass.ior == 1.0

@@ -217,7 +217,10 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
 
     ``extends: NAME_OR_PATH`` starts from another scene file; this file's keys replace
     the base's, and mappings (``materials``, ``parts``, ``camera``, a material's fields)
-    merge key by key, so ``materials: {glass: {ior: 1.0}}`` changes one number.
+    merge key by key, so ``materials: {glass: {ior: 1.0}}`` changes one number. A material
+    given another ``type`` is replaced whole (a mirror takes none of a glass's fields). A
+    one-item ``geometry`` that names no ``mesh`` merges into the base's, whose mesh path
+    stays relative to the base.
     """
     src = str(path)
     raw = _mapping(read_yaml(path), src, "")
@@ -235,8 +238,15 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
     base, geom_path = _read_scene(base_path, (*seen, path.resolve()))
-    if "geometry" in raw:
-        geom_path = path
+    geometry = raw.get("geometry")
+    if "geometry" in raw and not (isinstance(geometry, dict) and isinstance(base.get("geometry"), dict)
+                                  and "mesh" not in geometry):
+        geom_path = path  # (this file names the geometry's mesh, or replaces the geometry)
+    mats, base_mats = raw.get("materials"), base.get("materials")
+    if isinstance(mats, dict) and isinstance(base_mats, dict):
+        retyped = {k for k, v in mats.items() if isinstance(v, dict) and "type" in v
+                   and isinstance(base_mats.get(k), dict) and base_mats[k].get("type") != v["type"]}
+        base = {**base, "materials": {k: v for k, v in base_mats.items() if k not in retyped}}
     return deep_merge(base, raw), geom_path
 
 
