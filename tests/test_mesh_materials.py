@@ -163,10 +163,18 @@ def test_a_missing_mtl_names_the_obj_and_the_mtl(tmp_path):
 
 
 def test_an_undefined_usemtl_is_named(tmp_path):
+    """The mesh loads with a placeholder (the scene file may supply it); a scene that does not
+    is the error, naming the OBJ, the line and the library."""
+    from tlm import api
+
     (tmp_path / "m.mtl").write_text("newmtl red\nKd 1 0 0\n")
     (tmp_path / "m.obj").write_text("mtllib m.mtl\n" + TRI + "usemtl red\nf 1 2 3\nusemtl redd\nf 2 4 3\n")
+    placeholder = load_mesh(tmp_path / "m.obj").materials[1]
+    assert placeholder.name == "redd" and "line 8" in placeholder.undefined
+    (tmp_path / "s.yaml").write_text("geometry: {mesh: m.obj}\ncamera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], "
+                                     "vfov: 40}\nresolution: [8, 8]\n")
     with pytest.raises(InputError) as info:
-        load_mesh(tmp_path / "m.obj")
+        api.load_scene(tmp_path / "s.yaml")
     msg = str(info.value)
     assert "\n" not in msg and str(tmp_path / "m.obj") in msg
     assert "line 8" in msg and "'redd'" in msg and "m.mtl" in msg and "did you mean 'red'" in msg
@@ -485,3 +493,46 @@ def test_items_sharing_a_material_share_what_it_leaves_unrendered():
              for n, m in (("a", plain), ("b", mapped))]
     g = merge(geoms)
     assert len(g.materials) == 1 and g.materials[0].ignored == ("map_Kd",) and g.face_material.tolist() == [0, 0]
+
+
+def test_a_materials_entry_replaces_the_material_of_that_name_in_every_mesh_file(tmp_path):
+    """Two files both name 'light' (the second is renamed light_2 in the merge): the scene
+    file's entry replaces both, as one material; light_2 kept its Ke before."""
+    from tlm import api
+
+    (tmp_path / "two.yaml").write_text(
+        f"geometry: [{{mesh: {MESHES / 'CornellBox-Original.obj'}}}, {{mesh: {MESHES / 'CornellBox-Sphere.obj.xz'}, "
+        "transform: {translate: [3, 0, 0]}}]\n"
+        "materials: {light: {type: lambertian, albedo: [0.5, 0.5, 0.5], emission: [1, 1, 1]}}\n"
+        "camera: {eye: [1.5, 1, 6], target: [1.5, 1, 0], vfov: 40}\nresolution: [8, 8]\n")
+    scene = api.load_scene(tmp_path / "two.yaml")
+    names = [m.name for m in scene.materials]
+    assert names.count("light") == 1 and "light_2" not in names
+    light = scene.materials[names.index("light")]
+    assert light.emission == (1.0, 1.0, 1.0)
+    emitting = {scene.materials[i].name for i in np.unique(scene.material_index) if scene.materials[i].emits}
+    assert emitting == {"light"} and (scene.material_index == names.index("light")).sum() == 4  # 2 + 2 triangles
+    assert "rightWall_2" in names  # (a material no entry replaces keeps its renamed name)
+
+
+def test_a_usemtl_the_library_lacks_takes_the_scene_file_s_material_or_the_default(tmp_path):
+    """McGuire's CornellBox-Glossy names a 'light' its MTL does not define: a scene file that
+    gives it (materials:, or default_material) loads; one that gives neither is the error."""
+    from tlm import api
+
+    (tmp_path / "g.obj").write_text("mtllib g.mtl\n" + TRI + "usemtl floor\nf 1 2 3\nusemtl light\nf 2 4 3\n")
+    (tmp_path / "g.mtl").write_text("newmtl floor\nKd 0.5 0.5 0.5\n")
+    head = ("geometry: {mesh: g.obj}\ncamera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], vfov: 40}\n"
+            "resolution: [8, 8]\n")
+    (tmp_path / "s.yaml").write_text(head)
+    with pytest.raises(InputError, match=r"g\.obj: line 8: usemtl 'light': no material of that name in g\.mtl: "
+                                         r"give it under materials: in the scene file \(or set default_material\)"):
+        api.load_scene(tmp_path / "s.yaml")
+    (tmp_path / "s.yaml").write_text(head + "materials: {light: {type: lambertian, albedo: [1, 1, 1], "
+                                            "emission: [5, 5, 5]}}\n")
+    scene = api.load_scene(tmp_path / "s.yaml")
+    assert [m.name for m in scene.materials] == ["floor", "light"] and scene.material_index.tolist() == [0, 1]
+    assert scene.materials[1].emission == (5.0, 5.0, 5.0) and scene.lights[0].kind == "mesh"
+    (tmp_path / "s.yaml").write_text(head + "default_material: floor\n")
+    scene = api.load_scene(tmp_path / "s.yaml")
+    assert [m.name for m in scene.materials] == ["floor"] and scene.material_index.tolist() == [0, 0]

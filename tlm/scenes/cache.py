@@ -124,7 +124,7 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
     meta = {"part_names": list(geom.part_names), "names": names, "deps": deps,
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
-                           "ignored": m.ignored}
+                           "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined}
                           for m in geom.materials]}
     _write(entry, arrays, meta)
     return geom

@@ -308,7 +308,7 @@ def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str
             while name in taken:
                 name, k = f"{m.name}_{k}", k + 1
             index.append(len(materials))
-            materials.append(replace(m, name=name))
+            materials.append(replace(m, name=name, alias=m.alias or (m.name if name != m.name else "")))
         fm = (np.full(len(g.triangles), -1, dtype=np.int32) if g.face_material is None
               else np.asarray(g.face_material, dtype=np.int32))
         lookup = np.asarray(index + [-1], dtype=np.int32)  # -1 stays -1

@@ -339,17 +339,31 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
 
     A triangle takes, in order of precedence: its part's material under ``parts:``;
     the material the mesh file gives it (a ``materials:`` entry of the same name
-    replaces the file's); ``default_material``. The file's materials come first, in the
-    file's order, then the scene file's others.
+    replaces the file's: of the name its file gives it, where two files name one and the
+    second's was renamed ``NAME_2``); ``default_material``. The file's materials come
+    first, in the file's order, then the scene file's others. A material a file's faces
+    name but its libraries do not define (``Material.undefined``) takes the scene file's
+    entry of that name, else its faces take ``default_material``, else it is the error.
     """
     materials_raw = _mapping(raw.get("materials") or {}, src, "materials")
     file_mats = tuple(geom.materials)
     if not materials_raw and not file_mats:
         raise InputError("no materials defined (and the geometry's file defines none)", source=src, key="materials")
     yaml_mats = {str(k): _material(str(k), v, src) for k, v in materials_raw.items()}
-    file_names = [m.name for m in file_mats]
-    materials = tuple(yaml_mats.get(m.name, m) for m in file_mats) + tuple(
-        m for k, m in yaml_mats.items() if k not in file_names)
+    chosen: list[Material] = []
+    remap = np.full(len(file_mats) + 1, -1, dtype=np.int32)  # file material -> scene material (the last: none)
+    undefined: dict[int, str] = {}  # scene material -> why its file's faces name it and no library defines it
+    for j, m in enumerate(file_mats):
+        name = m.name if m.name in yaml_mats else m.alias if m.alias in yaml_mats else None
+        pick = yaml_mats[name] if name is not None else m
+        if name is not None and any(c is pick for c in chosen):  # (one entry replaces every file's of its name)
+            remap[j] = next(i for i, c in enumerate(chosen) if c is pick)
+            continue
+        remap[j] = len(chosen)
+        if name is None and m.undefined:
+            undefined[len(chosen)] = m.undefined
+        chosen.append(pick)
+    materials = tuple(chosen) + tuple(m for m in yaml_mats.values() if not any(c is m for c in chosen))
     names = [m.name for m in materials]
     parts_raw = _mapping(raw.get("parts") or {}, src, "parts")
     default = raw.get("default_material")
@@ -376,9 +390,17 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
         part_material[i] = names.index(m)
     material_index = part_material[part]
     if geom.face_material is not None and file_mats:
-        # file material j is material j of the scene (the file's come first)
-        face = np.asarray(geom.face_material, dtype=np.int32)
+        face = remap[np.asarray(geom.face_material, dtype=np.int32)]  # (-1, "none", indexes remap's last)
         material_index = np.where(material_index < 0, face, material_index)
+    missing = [i for i in undefined if (material_index == i).any()]
+    if default is not None and names.index(default) in undefined:
+        missing = [names.index(default)]
+        default = None
+    if missing and default is None:
+        raise InputError(f"{undefined[missing[0]]}: give it under materials: in the scene file (or set "
+                         "default_material)")
+    for i in missing:
+        material_index = np.where(material_index == i, -1, material_index)
     unset = material_index < 0
     if unset.any():
         if default is None:
@@ -387,6 +409,11 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
                              + (f" ({len(parts)} parts lack one)" if len(parts) > 1 else ""),
                              source=src, key="parts")
         material_index = np.where(unset, names.index(default), material_index).astype(np.int32)
+    if undefined:  # (the placeholders, now on no triangle, left out)
+        kept = [i for i in range(len(materials)) if i not in undefined]
+        new = np.full(len(materials), -1, dtype=np.int32)
+        new[kept] = np.arange(len(kept), dtype=np.int32)
+        materials, material_index = tuple(materials[i] for i in kept), new[material_index]
     return materials, np.asarray(material_index, dtype=np.int32)
 
 

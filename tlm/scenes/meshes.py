@@ -9,9 +9,12 @@ polygons are fan-triangulated from their first corner.
   after the file stem (parts in file order, parts of the same name merged); its
   ``mtllib`` libraries give ``Geometry.materials`` and each face's ``usemtl`` its
   ``face_material`` (:mod:`tlm.scenes.materials`). A library sits beside the OBJ, plain
-  or compressed like it; a missing library, or a ``usemtl`` naming a material no
-  library defines, is an error. A file without ``mtllib`` has no materials (its
-  ``usemtl`` lines are ignored).
+  or compressed like it; a missing library is an error. A ``usemtl`` naming a material
+  no library defines (McGuire's ``CornellBox-Glossy`` names a ``light`` its MTL lacks)
+  gives a placeholder material whose ``Material.undefined`` says so: the scene file
+  supplies it (a ``materials:`` entry of that name, or ``default_material``), or loading
+  the scene is that error. A file without ``mtllib`` has no materials (its ``usemtl``
+  lines are ignored).
 * **PLY, STL, GLB/GLTF** are read with trimesh (``process=False``). A file holding one
   mesh becomes one part named after the file stem; a scene (GLB/GLTF) one part per
   geometry, named by trimesh's geometry name, with each instance's scene-graph
@@ -252,10 +255,11 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
     index = {m.name: i for i, m in enumerate(materials)}
     table = np.full(len(obj.material_names) + 1, -1, dtype=np.int32)  # the last: "no usemtl"
     for k, (name, line) in enumerate(zip(obj.material_names, obj.material_lines, strict=True)):
-        if name not in index:
+        if name not in index:  # (a placeholder the scene file may replace: tlm.scenes.loader)
             libs = ", ".join(Path(f).name for f in files)
-            raise InputError(f"line {line}: usemtl {name!r}: no material of that name in {libs}"
-                             f"{did_you_mean(name, index)}", source=src)
+            why = f"{src}: line {line}: usemtl {name!r}: no material of that name in {libs}{did_you_mean(name, index)}"
+            index[name] = len(materials)
+            materials = (*materials, Material(name, "lambertian", albedo=(0.8, 0.8, 0.8), undefined=why))
         table[k] = index[name]
     return materials, table[obj.material]
 

@@ -41,6 +41,13 @@ class Material:
     # glTF ``baseColorTexture``, ``alpha``), for the run's warning (tlm.render.checks); not part
     # of the material's value (equality, hashes)
     ignored: tuple[str, ...] = field(default=(), compare=False)
+    # a mesh file's material renamed where two files name one (tlm.scenes.compose.merge): the
+    # name its file gives it, by which a scene file's materials: entry still replaces it
+    alias: str = field(default="", compare=False)
+    # a material a mesh file's faces name (OBJ usemtl) that its libraries do not define: why
+    # (the line), for the error when the scene file gives it neither a materials: entry nor a
+    # default_material (tlm.scenes.loader); its values are a placeholder
+    undefined: str = field(default="", compare=False)
 
     @property
     def emits(self) -> bool:
