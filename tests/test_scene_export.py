@@ -63,3 +63,23 @@ def test_a_bad_destination_is_an_input_error_naming_it(tmp_path, name, says):
         export_triangles(_scene(), tmp_path / name)
     assert says in str(e.value)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.ply"]  # nothing written
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".ply"])
+def test_a_folder_that_takes_no_file_is_one_line(tmp_path, suffix, capsys, monkeypatch):
+    """/proc takes no new file (the open fails with ENOENT): one line, exit 1, not an internal error."""
+    import tlm.storage as storage
+    from tlm.cli import main
+
+    real = open
+
+    def no_file(path, *a, **k):  # (as /proc answers: what is not there cannot be made)
+        if str(path).startswith(str(tmp_path)):
+            raise FileNotFoundError(2, "No such file or directory", str(path))
+        return real(path, *a, **k)
+
+    monkeypatch.setattr(storage, "open", no_file, raising=False)
+    assert main(["scene", "export", "ring", str(tmp_path / f"x{suffix}")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"tlm: error: {tmp_path / f'x{suffix}'}: cannot write it (No such file or directory)"
+    assert list(tmp_path.iterdir()) == []

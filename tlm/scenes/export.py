@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
 from tlm.storage import write_atomic, write_file
 
@@ -34,6 +34,16 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply or .obj file", source=str(path))
+    try:
+        _write(scene, path, suffix, verts, faces)
+    except EnvironmentFailure:
+        raise
+    except OSError as e:  # (a folder that takes no files: /proc, a special file system)
+        raise EnvironmentFailure(f"cannot write it ({e.strerror or e})", source=str(path)) from None
+
+
+def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.ndarray) -> None:
+    n = faces.shape[0]
     if suffix == ".ply":
         header = (
             "ply\nformat binary_little_endian 1.0\n"
