@@ -25,6 +25,7 @@ from tlm.arch.functional import Functional
 from tlm.config import to_dict
 from tlm.experiments import run
 from tlm.fingerprint import code_fingerprint
+from tlm.render.planner import inert_changes
 from tlm.scenes.loader import load_scene
 from tlm.storage import cache_root, digest_problem, file_digest, warn, write_file
 
@@ -58,7 +59,7 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/2"  # /2: with the npz's size and sha256
+SUMMARY_FORMAT = "functional-summary/3"  # /2: with the npz's size and sha256; /3: warnings without the settings unused
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
@@ -92,6 +93,10 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     res = run.render(cfg, base, source)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
+    # the render's own warnings: not this config's unused settings, which another config of the
+    # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep)
+    inert = set(inert_changes(cfg))
+    full["warnings"] = [w for w in full["warnings"] if w not in inert]
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS},
                "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()}}
     if use_cache:

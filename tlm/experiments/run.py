@@ -280,6 +280,16 @@ def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
     }
 
 
+def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
+    """The simulated stream's warning: too few frames for a steady-state throughput."""
+    est = None if timing is None else timing.throughput_estimate
+    if not est or est["steady"]:
+        return []
+    return [f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
+            f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
+            "cycles.throughput is the stream's elapsed cycles per frame"]
+
+
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,
                  overrides: list[str] | None = None) -> dict:
     work = {}
@@ -316,13 +326,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
             f"{res.cfg.bsp.memory_factor:g}x the triangle list"
         )
-    est = None if res.timing is None else res.timing.throughput_estimate
-    if est and not est["steady"]:
-        warnings.append(
-            f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
-            f"{est['min_frames']} frames with arch.images_in_flight={res.cfg.arch.images_in_flight}): "
-            "cycles.throughput is the stream's elapsed cycles per frame"
-        )
+    warnings += stream_warnings(res.timing, res.cfg)
     return {
         "tlm": "results/1",
         "config": config_path,

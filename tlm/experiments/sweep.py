@@ -306,7 +306,8 @@ def run_point(task: Task) -> dict:
     ...}`` after writing ``error.json``: an exception never leaves the worker.
     """
     from tlm.arch.model import simulate  # the timing layer is imported where it runs
-    from tlm.experiments.run import programs_for, timing_dict
+    from tlm.experiments.run import programs_for, stream_warnings, timing_dict
+    from tlm.render.planner import inert_changes
 
     stage = "functional"
     t0 = time.perf_counter()
@@ -330,6 +331,8 @@ def run_point(task: Task) -> dict:
                 "tlm": POINT_FORMAT, "hash": task.hash, "sweep": task.source, "factors": task.factors,
                 "seed": cfg.seed, "mode": cfg.mode,
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
+                # the render's warnings, and this point's own (what it sets and never reads; its stream)
+                "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg)],
                 "cycles": timing.cycles, "fps": timing.fps,
                 "timing": timing_dict(timing, cfg.arch, programs),
                 "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},

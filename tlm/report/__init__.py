@@ -3,7 +3,8 @@
 :func:`build_report` reads any tlm output folders (:mod:`tlm.report.collect`), draws
 every section's figures as PNG files with matplotlib and writes ``report.html``, which
 embeds them. First, unnumbered, what the model found (:mod:`tlm.report.summary`: frame
-rates, the bottleneck PM, scaling with N, error against run time); then the sections:
+rates, the bottleneck PM, scaling with N, error against run time), under the warnings
+the runs recorded (:mod:`tlm.report.warnings`); then the sections:
 
 1. Tables I-III, ours against the thesis (:mod:`tlm.report.tables`)
 2. image sets in the style of Figs. 15-17 (:mod:`tlm.report.images`)
@@ -31,6 +32,7 @@ from tlm.errors import InputError
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section
 from tlm.report.html import esc, page
+from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder
 
 MARKER = "report.html"
@@ -111,6 +113,6 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
         from tlm.report.summary import summary_section
 
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
-                    summary=summary_section(inputs, tmp))
+                    summary=summary_section(inputs, tmp), notice=warnings_html(inputs))
         (tmp / MARKER).write_text(text, encoding="utf-8")
     return Path(out) / MARKER

@@ -74,9 +74,11 @@ def section_html(i: int | None, s: Section, folder: Path) -> str:
     return "\n".join(parts)
 
 
-def page(title: str, intro: str, sections: list[Section], folder: Path, summary: Section | None = None) -> str:
+def page(title: str, intro: str, sections: list[Section], folder: Path, summary: Section | None = None,
+         notice: str = "") -> str:
     """The whole page; ``folder`` holds the sections' PNG files. ``summary``, when given,
-    comes first, unnumbered: what the model found, on the first screen."""
+    comes first, unnumbered: what the model found, on the first screen; ``notice`` (HTML:
+    the runs' warnings) under it, open."""
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
@@ -86,6 +88,8 @@ def page(title: str, intro: str, sections: list[Section], folder: Path, summary:
     ]
     if summary is not None:
         parts.append('<div class="summary">' + section_html(None, summary, folder) + "</div>")
+    if notice:
+        parts.append(notice)
     parts.append("<nav><ol>" + "".join(f'<li><a href="#{esc(s.key)}">{esc(s.title)}</a></li>' for s in sections)
                  + "</ol></nav>")
     parts.append(details("About these inputs", intro))

@@ -1,0 +1,66 @@
+"""The warnings the runs recorded appear at the top of the report (tlm/report/warnings.py):
+each once, with the runs that recorded it; none, no block."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import yaml
+
+from tlm.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+SMALL = ["--set", "resolution=[8,8]", "--set", "render.spp=1", "--set", "render.light_samples=1", "--no-progress"]
+
+
+def _html(folder: Path) -> str:
+    return (folder / "report" / "report.html").read_text()
+
+
+def test_a_run_s_warnings_head_its_report(tmp_path, cache):
+    out = tmp_path / "short"
+    assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--out", str(out), "--set", "arch.frames=2",
+                 "--outputs", "images", *SMALL]) == 0
+    (line,) = json.loads((out / "results.json").read_text())["warnings"]
+    page = _html(out)
+    assert "<strong>Warnings.</strong> The run recorded 1 warning" in page
+    assert line.replace("'", "&#x27;") in page and page.index("Warnings.</strong>") < page.index("<nav>")
+    calm = tmp_path / "calm"
+    assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--out", str(calm), "--outputs", "images",
+                 *SMALL]) == 0
+    assert json.loads((calm / "results.json").read_text())["warnings"] == []
+    assert 'class="warnings"' not in _html(calm)
+
+
+def test_a_sweep_s_points_warnings_are_listed_once(tmp_path, cache):
+    """A warning every point recorded is one line saying so; one some recorded names them."""
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"base": {"scene": "cornell", "mode": "rcast", "resolution": [8, 8],
+                                              "render": {"light_samples": 1, "spp": 1},
+                                              "arch": {"trace": False}},
+                                     "grid": {"arch.frames": [2, 5], "arch.page_miss_cycles": [0, 12]}}))
+    out = tmp_path / "sw"
+    assert main(["sweep", str(sweep), "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
+    page = _html(out)
+    assert "<strong>Warnings.</strong> 2 of the 4 runs recorded 1 warning" in page
+    assert page.count("arch.frames=2 is too short") == 1 and "(2 of 4 runs: " in page
+
+
+def test_a_sweep_point_s_warnings_are_its_own(tmp_path, cache):
+    """Points that share one render (they differ in arch only) each get their own unused-setting
+    and stream warnings, not those of the point that rendered the frame."""
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text(yaml.safe_dump({"base": {"scene": "cornell", "mode": "rcast", "resolution": [8, 8],
+                                              "render": {"light_samples": 1, "spp": 1},
+                                              "arch": {"trace": False, "tiles_per_pipeline": 3}},
+                                     "grid": {"arch.scheduler": ["dynamic", "static"], "arch.frames": [5, 2]}}))
+    out = tmp_path / "sw"
+    assert main(["sweep", str(sweep), "--out", str(out), "--jobs", "1", "--no-progress", "--no-report"]) == 0
+    rows = [json.loads(line) for line in (out / "sweep.jsonl").read_text().splitlines()]
+    got = {}
+    for row in rows:
+        results = json.loads((out / "points" / row["hash"] / "results.json").read_text())
+        got[(row["arch.scheduler"], row["arch.frames"])] = [w.split(" ", 1)[0] for w in results["warnings"]]
+    assert got == {("dynamic", 5): [], ("dynamic", 2): ["arch.frames=2"], ("static", 5): ["arch.tiles_per_pipeline"],
+                   ("static", 2): ["arch.tiles_per_pipeline", "arch.frames=2"]}
