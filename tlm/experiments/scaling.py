@@ -14,7 +14,12 @@ frame in the stream). The fit is exact at N = 1, as the thesis asks, and least s
 over the other N. Eq. 5.2 divides the sum over the pipelines by N: it assumes tiles of
 equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
 pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a static
-tiling of an uneven image waits for. :func:`analyse` writes ``eq52.csv`` (per point:
+tiling of an uneven image waits for. The points of one group must differ in N alone: a
+group whose points' resolved configs differ in any other key (a sweep that zips
+``arch.pipelines`` with ``arch.page_miss_cycles``, or two sweeps of different bases) is
+refused, naming the key, since the fit would read that key's effect as the pipelines'
+(the keys that leave the cycles as they are, :data:`NO_EFFECT`, may differ). Failed
+points are left out, each named in the notes. :func:`analyse` writes ``eq52.csv`` (per point:
 simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
 largest error, per group), ``provenance.json`` and one figure per scene
 (``scaling_<scene>.png``): simulated and analytical T_tot against N, and the speed-up
@@ -36,18 +41,28 @@ from tlm.experiments.study import run_study
 from tlm.storage import check_destination, read_jsonl
 
 TARGETS = ("latency", "throughput")
+# the keys of a point's resolved config that eq. 5.2's groups may differ in: the groups' own
+# keys and N, and the keys that by their definition ('tlm params') leave the cycles as they
+# are (a cap on events, the trace, the clock that turns cycles into FPS, the kernels' threads
+# and batches, the photon-map reference)
+GROUP_KEYS = frozenset({"scene", "mode", "arch.scheduler", "arch.pipelines"})
+NO_EFFECT = frozenset({"arch.max_events", "arch.trace", "arch.clock_hz", "render.threads", "render.batch",
+                       "render.batch_rays"})
+NO_EFFECT_PREFIXES = ("reference.",)
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
            "analytical_slowest", "rel_error_slowest", "T_vert0", "sum_max_per_N", "speedup")
 
 
-def collect(sweep_dir: Path, notes: list[str] | None = None) -> list[dict]:
+def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] | None = None) -> list[dict]:
     """One record per finished point of the sweep in ``sweep_dir`` (each names the folder).
 
     A last row cut off while written (a killed sweep) is left out; any other row that is
     not JSON, or a finished point whose folder is gone, is an InputError. Rows of points
     its ``sweep.yaml`` does not list (an earlier sweep's, left by a rerun cut short) are
     left out; a sweep with points that have no row yet (interrupted, or still running) is
-    fitted from those it has, and ``notes`` gets a line saying so.
+    fitted from those it has, and ``notes`` gets a line saying so. A point that failed
+    (``status`` not ok) is left out, and ``notes`` gets a line naming it; ``failed`` (a list)
+    gets ``point P (its factors)`` of each.
     """
     sweep_dir = Path(sweep_dir)
     rows_path = sweep_dir / "sweep.jsonl"
@@ -57,8 +72,9 @@ def collect(sweep_dir: Path, notes: list[str] | None = None) -> list[dict]:
         spec = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
     except (OSError, ValueError, yaml.YAMLError):
         spec = {}
-    planned = {str(p.get("hash")) for p in (spec.get("points") if isinstance(spec, dict) else None) or []
-               if isinstance(p, dict)}
+    points = [p for p in (spec.get("points") if isinstance(spec, dict) else None) or [] if isinstance(p, dict)]
+    planned = {str(p.get("hash")) for p in points}
+    factors = {str(p.get("hash")): p.get("factors") for p in points}
     rows = [(n, row) for n, row in read_jsonl(rows_path, " (the file is corrupt: rerun 'tlm sweep' into this folder)")
             if not planned or str(row.get("hash")) in planned]
     if planned and notes is not None and len({str(r.get("hash")) for _, r in rows}) < len(planned):
@@ -68,6 +84,11 @@ def collect(sweep_dir: Path, notes: list[str] | None = None) -> list[dict]:
     records = []
     for n, row in rows:
         if row.get("status") != "ok":
+            what = f"point {row.get('point')} ({_factors_text(factors.get(str(row.get('hash'))), row)})"
+            if notes is not None:
+                notes.append(f"{sweep_dir}: {what} failed ({_short(row.get('error'))}): left out of the fit")
+            if failed is not None:
+                failed.append(f"{sweep_dir}: {what}")
             continue
         folder = sweep_dir / "points" / str(row.get("hash"))
         try:
@@ -85,10 +106,42 @@ def collect(sweep_dir: Path, notes: list[str] | None = None) -> list[dict]:
     return records
 
 
+def _factors_text(factors, row: dict) -> str:
+    """A failed point's factors (``arch.pipelines = 8, arch.max_events = 20``), from ``sweep.yaml``
+    where it lists them, else its N from the row."""
+    if isinstance(factors, dict) and factors:
+        return ", ".join(f"{k} = {v}" for k, v in factors.items())
+    return f"N = {row['arch.pipelines']}" if "arch.pipelines" in row else "factors unknown"
+
+
+def _short(error, limit: int = 120) -> str:
+    """A failed point's error on one short line."""
+    text = " ".join(str(error).split()) if error else "no error recorded"
+    return text if len(text) <= limit else text[:limit - 4].rsplit(" ", 1)[0] + " ..."
+
+
+def settings(cfg: dict) -> dict[str, str]:
+    """The keys of a resolved config that must be equal across one group's points (every key
+    but :data:`GROUP_KEYS` and :data:`NO_EFFECT`), dotted, each with its value as JSON text."""
+    flat: dict[str, str] = {}
+
+    def walk(node, prefix: str) -> None:
+        for k, v in node.items():
+            key = f"{prefix}{k}"
+            if isinstance(v, dict) and v:
+                walk(v, f"{key}.")
+            elif key not in GROUP_KEYS and key not in NO_EFFECT and not key.startswith(NO_EFFECT_PREFIXES):
+                flat[key] = json.dumps(v, sort_keys=True, default=str)
+
+    walk(cfg if isinstance(cfg, dict) else {}, "")
+    return flat
+
+
 def record(res: dict, cfg: dict) -> dict:
     """What eq. 5.2 needs of one point: its ``results.json`` and resolved config."""
     per_pipe = res["timing"]["pipelines"]
     return {
+        "settings": settings(cfg),
         "scene": str(res["scene"]["name"]), "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
         "pipelines": int(cfg["arch"]["pipelines"]),
         "T_vert0": int(res["cycles"]["vertex"]),
@@ -107,10 +160,18 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     """
     points = [{**p, "sum_max": p["max_max"] * p["pipelines"]} for p in points] if slowest else points
     by_n = {p["pipelines"]: p for p in points}
+    other = differing(points)
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
-        raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ in "
-                         "another key, so fit them from separate sweeps", source=source, key="arch.pipelines")
+        why = f"in {describe_differing(other, points)}" if other else "another key"
+        raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ {why}, "
+                         "so fit them from separate sweeps", source=source, key="arch.pipelines")
+    if other:
+        raise InputError(f"the points of one scene, mode and scheduler differ in more than N "
+                         f"({describe_differing(other, points)}): eq. 5.2 would read the effect of "
+                         f"{'that key' if len(other) == 1 else 'those keys'} as the pipelines'; fit points that "
+                         f"differ in arch.pipelines alone (a sweep per value of {', '.join(other)})",
+                         source=source, key=", ".join(other))
     if len(by_n) < 2:
         raise InputError(f"eq. 5.2 needs at least two values of N, the group has {sorted(by_n)}",
                          source=source, key="arch.pipelines")
@@ -133,6 +194,33 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
                      "T_vert0": v, "sum_max_per_N": round(p["sum_max"] / n), "speedup": round(t1 / p[target], 4)})
     worst = max(abs(r["rel_error"]) for r in rows)
     return {"A": a, "B": b, "max_abs_rel_error": worst, "rows": rows}
+
+
+def differing(points: list[dict]) -> dict[str, list[tuple[int, str]]]:
+    """The settings (:func:`settings`) the points do not all share: each key with every
+    point's (N, value); empty where a point has no ``settings`` (a record made by hand)."""
+    if not points or any("settings" not in p for p in points):
+        return {}
+    keys = sorted({k for p in points for k in p["settings"]})
+    out = {}
+    for k in keys:
+        values = [(p["pipelines"], p["settings"].get(k, "(not set)")) for p in points]
+        if len({v for _, v in values}) > 1:
+            out[k] = sorted(values)
+    return out
+
+
+def describe_differing(other: dict[str, list[tuple[int, str]]], points: list[dict], most: int = 6) -> str:
+    """``arch.page_miss_cycles = 0 at N = 1, 100 at N = 2``: the keys of :func:`differing`, with
+    each value at its N (with the distinct values alone where N repeats)."""
+    unique_n = len({p["pipelines"] for p in points}) == len(points)
+    parts = []
+    for key, values in other.items():
+        shown = ([f"{v} at N = {n}" for n, v in values] if unique_n
+                 else sorted({v for _, v in values}, key=lambda v: (len(v), v)))
+        more = ", ..." if len(shown) > most else ""
+        parts.append(f"{key} = {', '.join(shown[:most])}{more}")
+    return "; ".join(parts)
 
 
 def fit_both(points: list[dict], target: str, source: str | None = None) -> dict:
@@ -166,8 +254,21 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     scene as ``scaling_<scene>.png``."""
     check_destination(out, "eq52.json")
     notes: list[str] = []
-    records = [r for d in sweep_dirs for r in collect(d, notes)]
-    fits = fit(records)
+    unique: dict[Path, Path] = {}  # the same folder given twice (or by two paths) is read once
+    for d in map(Path, sweep_dirs):
+        if d.resolve() in unique:
+            notes.append(f"{d}: given twice (the same folder as {unique[d.resolve()]}): read once")
+        else:
+            unique[d.resolve()] = d
+    sweep_dirs = list(unique.values())
+    failed: list[str] = []
+    records = [r for d in sweep_dirs for r in collect(d, notes, failed)]
+    try:
+        fits = fit(records)
+    except InputError as e:
+        if not failed:
+            raise
+        raise InputError(f"{e} (left out, as they failed: {'; '.join(failed)})") from None
     table, summary = [], []
     for (scene, mode, sched, target), f in fits.items():
         summary.append({"scene": scene, "mode": mode, "scheduler": sched, "target": target, "A": f["A"],
