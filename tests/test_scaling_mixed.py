@@ -100,7 +100,7 @@ def test_a_failed_point_is_left_out_with_a_note(tmp_path, capsys):
     sw = fake_sweep(tmp_path / "sw", [({"arch.pipelines": n, "arch.max_events": e}, _config(n, max_events=e),
                                        "ok" if n < 8 else "failed") for n, e in ((1, 10 ** 8), (2, 10 ** 8),
                                                                                  (4, 10 ** 8), (8, 20))])
-    assert main(["scaling", str(sw), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
+    assert main(["scaling", str(sw), "--out", str(tmp_path / "eq")]) == 0
     captured = capsys.readouterr()
     meta = json.loads((tmp_path / "eq" / "eq52.json").read_text())
     assert {tuple(f["pipelines"]) for f in meta["fits"]} == {(1, 2, 4)}
@@ -109,6 +109,7 @@ def test_a_failed_point_is_left_out_with_a_note(tmp_path, capsys):
     assert note.startswith(f"{sw}: point 3 (arch.pipelines = 8, arch.max_events = 20) failed (Deadlock: ")
     assert note.endswith("left out of the fit")
     assert f"tlm: note: {note}" in captured.err
+    assert f"eq: {note}" in (tmp_path / "eq" / "report" / "report.html").read_text()  # (the report says it too)
 
 
 def test_a_fit_that_misses_a_failed_point_says_it_failed(tmp_path, capsys):

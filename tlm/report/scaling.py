@@ -231,6 +231,8 @@ def _slug(text: str) -> str:
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
     sources: list[tuple[str, dict]] = [(s.path.name, _fits_of_study(s)) for s in inputs.of_kind("scaling")]
+    for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
+        sec.notes.extend(f"{st.path.name}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
     idle_sweeps = []
     for sw in inputs.sweeps:
         if not _varies_pipelines(sw):
