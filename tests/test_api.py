@@ -179,6 +179,10 @@ def test_render_simulate_and_run_agree(tmp_path, cache):
         tlm.simulate(res, "pipelines=2")
     results = tlm.run(cfg, tmp_path / "run", outputs=[])
     assert results["cycles"] == timing.cycles
+    assert res.warnings == results["warnings"]  # (the render's: what tlm run warns of, but the stream's)
+    unread = tlm.render_image(cfg.updated({"estimate.k": 9}))
+    assert unread.warnings == ["estimate.k = 9 has no effect in this run: estimate.filter is 'mvoxel': only "
+                               "'kvoxel' samples k voxels"]
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.resolved.yaml", "images", "results.json"]
 
 

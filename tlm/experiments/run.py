@@ -132,6 +132,14 @@ class RenderResult:
         return Functional.of({p: self.work[p] for p in self.plan.run_names}, self.accel.tree, self.photons,
                              self.scene.camera.width)
 
+    @property
+    def warnings(self) -> list[str]:
+        """What ``tlm run`` warns of for this render (``results.json`` ``warnings``, one line
+        each: a light that reaches nothing, a black image, textures not rendered, a setting
+        never read, ...; :func:`run_warnings`), but the simulated stream's, which
+        :func:`stream_warnings` gives from a :class:`~tlm.arch.model.Timing`."""
+        return run_warnings(self)
+
     def work_totals(self) -> dict[str, dict[str, int]]:
         """Each pass's work counts summed over the image: pass -> count -> int."""
         return {name: {k: int(v.sum()) for k, v in counts.items()} for name, counts in self.work.items()}
@@ -280,6 +288,35 @@ def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
     }
 
 
+def _eye_hits(res: RenderResult) -> tuple[int, int, int, int]:
+    """Pixels, eye rays, their hits and their hits on the back of an opaque triangle."""
+    if res.primary is not None:
+        return res.primary.t.shape[0], res.primary.rays, res.primary.hits, res.primary.back
+    g = res.gbuffer  # (a result made by hand, not by render)
+    back = checks.back_faces(res.scene, g.triangle, g.direction)
+    return g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum()), back
+
+
+def run_warnings(res: RenderResult) -> list[str]:
+    """What gives no error but a wrong picture (:mod:`tlm.render.checks`), a setting the run
+    never reads, a BSP cut short: ``results.json`` ``warnings`` but the simulated stream's
+    (:func:`stream_warnings`), one line each."""
+    _, rays, hits, back = _eye_hits(res)
+    warnings = [*checks.material_warnings(res.scene), *checks.light_warnings(res.scene, res.accel),
+                *checks.camera_warnings(rays, hits, back),
+                *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
+                                       checks.light_scale(res.scene, res.accel.scale))]
+    if res.photons is not None:
+        st = res.photons.photons.stats()
+        warnings += checks.photon_warnings(st["emitted"], st["stored"])
+    warnings += inert_changes(res.cfg)
+    if res.accel.tree.truncated:
+        t = res.accel.tree
+        warnings.append(f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
+                        f"{res.cfg.bsp.memory_factor:g}x the triangle list")
+    return warnings
+
+
 def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     """The simulated stream's warning: too few frames for a steady-state throughput."""
     est = None if timing is None else timing.throughput_estimate
@@ -306,27 +343,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             total["leaf_visits_per_ray"] = total["leaf_visits"] / rays if rays else 0.0
             total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
-    if res.primary is not None:
-        pixels, rays, hits, back = res.primary.t.shape[0], res.primary.rays, res.primary.hits, res.primary.back
-    else:  # (a result made by hand, not by render)
-        g = res.gbuffer
-        pixels, rays, hits = g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum())
-        back = checks.back_faces(res.scene, g.triangle, g.direction)
-    warnings = [*checks.material_warnings(res.scene), *checks.light_warnings(res.scene, res.accel),
-                *checks.camera_warnings(rays, hits, back),
-                *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
-                                       checks.light_scale(res.scene, res.accel.scale))]
-    if res.photons is not None:
-        st = res.photons.photons.stats()
-        warnings += checks.photon_warnings(st["emitted"], st["stored"])
-    warnings += inert_changes(res.cfg)
-    if res.accel.tree.truncated:
-        t = res.accel.tree
-        warnings.append(
-            f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
-            f"{res.cfg.bsp.memory_factor:g}x the triangle list"
-        )
-    warnings += stream_warnings(res.timing, res.cfg)
+    pixels, rays, hits, back = _eye_hits(res)
+    warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg)
     return {
         "tlm": "results/1",
         "config": config_path,
