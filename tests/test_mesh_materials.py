@@ -271,6 +271,27 @@ def test_gltf_text_file_with_external_buffer(tmp_path):
     assert [m.kind for m in a.materials] == ["lambertian", "mirror", "dielectric", "lambertian"]
 
 
+@pytest.mark.parametrize("materials", [True, False], ids=["with-materials", "without"])
+def test_gltf_buffer_names_are_percent_decoded_and_a_missing_one_is_named(tmp_path, materials):
+    """Blender writes 'my%20model.bin' for 'my model.bin' (glTF URIs are RFC 3986)."""
+    import json
+
+    header, binary = _gltf_scene(tmp_path)
+    if not materials:
+        header.pop("materials")
+        for mesh in header["meshes"]:
+            for prim in mesh["primitives"]:
+                prim.pop("material", None)
+    (tmp_path / "my model ü.bin").write_bytes(binary)
+    header["buffers"] = [{"byteLength": len(binary), "uri": "my%20model%20%C3%BC.bin"}]
+    (tmp_path / "s.gltf").write_text(json.dumps(header))
+    assert load_mesh(tmp_path / "s.gltf").triangles.shape == (60, 3, 3)
+    header["buffers"] = [{"byteLength": len(binary), "uri": "gone%20away.bin"}]
+    (tmp_path / "s.gltf").write_text(json.dumps(header))
+    with pytest.raises(InputError, match=r"s\.gltf: buffers\[0\]\.uri 'gone%20away\.bin': no file .*gone away\.bin$"):
+        load_mesh(tmp_path / "s.gltf")
+
+
 def test_gltf_metallic_default_and_bad_values(tmp_path):
     header, binary = _gltf_scene(tmp_path)
     header["materials"][0] = {"name": "paint"}  # glTF's defaults: white, metallic 1

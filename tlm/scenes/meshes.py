@@ -267,6 +267,32 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
 
 
+def _buffer_files(header: dict, path: Path, src: str) -> list | None:
+    """A ``.gltf``'s ``buffers`` with each file name (``uri``, RFC 3986) percent-decoded where
+    the file is there by its decoded name (Blender writes ``my%20model.bin``); None when no
+    name changes. An InputError names a buffer whose file is missing."""
+    from urllib.parse import unquote
+
+    buffers = header.get("buffers")
+    if not isinstance(buffers, list):
+        return None
+    out, changed = [], False
+    for i, b in enumerate(buffers):
+        uri = b.get("uri") if isinstance(b, dict) else None
+        if not isinstance(uri, str) or uri.startswith("data:"):
+            out.append(b)
+            continue
+        plain = unquote(uri)
+        if not (path.parent / uri).is_file() and (path.parent / plain).is_file():
+            out.append({**b, "uri": plain})
+            changed = True
+            continue
+        if not (path.parent / uri).is_file():
+            raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / plain}", source=src)
+        out.append(b)
+    return out if changed else None
+
+
 def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
     import trimesh
 
@@ -285,12 +311,16 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             header = gltf_json(path, data)
             check_gltf(header, src)
             file_materials = tuple(gltf_materials(header, src))
-            if file_materials:
+            buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
+            if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
+                header = {**header, "buffers": buffers}
+            if file_materials or buffers is not None:
                 # name each material by its index, so that each geometry's says which it is
                 from tlm.scenes.materials import glb_chunks
 
                 header = dict(header)
-                header["materials"] = [dict(m, name=f"{_TAG}{i}") for i, m in enumerate(header["materials"])]
+                if file_materials:
+                    header["materials"] = [dict(m, name=f"{_TAG}{i}") for i, m in enumerate(header["materials"])]
                 if ext == ".glb":
                     source = io.BytesIO(write_glb(header, glb_chunks(data, src)[1]))
                 else:
