@@ -460,12 +460,33 @@ def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None 
 
 def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
                       command: str = "") -> Path:
-    """Write a :func:`calibrate` fit into the instruction table ``target`` (default the
-    packaged one), keeping its comments; returns the path written."""
+    """Write a :func:`calibrate` fit into the instruction table ``target``, keeping its
+    comments; returns the path written.
+
+    ``target`` defaults to the table the study uses (its ``arch.programs``, else the
+    packaged ``tlm/arch/programs.yaml``). Refused with a one-line
+    :class:`~tlm.errors.InputError`, nothing written: an empty path, a folder, a path whose
+    folder does not exist, and the packaged table from a fit whose ``report`` says it is
+    not comparable with the thesis (``report["not_comparable"]``: its parameters would
+    measure that setting, not the model; name another file)."""
     from tlm.arch.costs import DEFAULT_PATH
     from tlm.experiments.thesis import write_calibrated
 
-    target = Path(target) if target is not None else DEFAULT_PATH
+    if target is not None and not str(target).strip():
+        raise InputError("an empty path names no table (leave it out for the study's own table)", key="--write")
+    if target is None:
+        used = Path(programs.source)
+        target = used if used.is_file() else DEFAULT_PATH
+    target = Path(target)
+    if target.is_dir():
+        raise InputError("is a folder, not a table file", source=str(target), key="--write")
+    if not target.parent.is_dir():
+        raise InputError(f"its folder {target.parent} does not exist", source=str(target), key="--write")
+    differ = report.get("not_comparable") or {}
+    if differ and target.resolve() == DEFAULT_PATH.resolve():
+        why = "; ".join(f"{s} is {', '.join(w)}" for s, w in differ.items())
+        raise InputError(f"not written: the packaged table is fitted to the thesis's setting only, and this study's "
+                         f"is not ({why}); name another file with --write", source=str(target))
     write_calibrated(programs, report, target, command)
     return target
 
@@ -518,7 +539,10 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
 def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
           run_command: Callable[[list[str]], int], say: Callable[[str], None] = print) -> Path:
     """Every committed experiment of ``configs`` and their report into ``out`` (``tlm
-    plots``); ``run_command`` runs one step's argv (``tlm.cli.main``)."""
+    plots``). ``run_command`` runs one step's argv and returns its exit status (the CLI's
+    step runner: 1 when its results report failures, an exception on bad input or a bug).
+    Steps that return 1 are said and the rest run; the report is written, then
+    :class:`~tlm.errors.StepsFailed` names them."""
     from tlm.report.regenerate import regenerate
 
     return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)

@@ -51,8 +51,27 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_plots(args: argparse.Namespace) -> int:
-    page = api.plots(args.configs, args.runs, args.out, args.only, run_command=main,
-                     say=lambda line: print(line, flush=True))
+    from tlm.errors import StepsFailed
+
+    def step(argv: list[str]) -> int:
+        """One step's command: its exit status (1: its results report failures, as a model that
+        cannot finish does); bad input and any other error propagate and stop ``tlm plots``."""
+        sub = build_parser().parse_args(argv)
+        sub.argv = argv
+        try:
+            return sub.func(sub)
+        except Deadlock as e:
+            print(f"tlm: deadlock: {e}", file=sys.stderr, flush=True)
+            return 1
+
+    only = list(dict.fromkeys(args.only)) if args.only else None  # (--only a --only b: both)
+    try:
+        page = api.plots(args.configs, args.runs, args.out, only, run_command=step,
+                         say=lambda line: print(line, flush=True))
+    except StepsFailed as e:
+        print(f"wrote {e.page}")
+        print(f"tlm: plots: {e}", file=sys.stderr)
+        return 1
     print(f"wrote {page}")
     return 0
 
@@ -215,10 +234,14 @@ def _cmd_reference(args: argparse.Namespace) -> int:
         print(f"reference {made.key} is cached, relative standard error {meta['relative_standard_error']:.4f} "
               f"<= {made.settings.tolerance} (use --force to compute it again)")
         return 0
-    state = "converged" if meta["converged"] else "NOT converged (max_rounds reached)"
-    print(f"{state} after {meta['rounds']} rounds (relative standard error "
-          f"{meta['relative_standard_error']:.4f}) in {time.perf_counter() - t0:.1f} s; wrote {made.folder}")
-    return 0
+    ok = bool(meta["converged"])
+    state = "converged" if ok else "NOT converged (max_rounds reached)"
+    err = f"relative standard error {meta['relative_standard_error']:.4f}"
+    if not ok:
+        err += f" > tolerance {made.settings.tolerance}"
+    print(f"{state} after {meta['rounds']} rounds ({err}) in {time.perf_counter() - t0:.1f} s; wrote {made.folder}"
+          + ("" if ok else " (raise reference.max_rounds, or reference.tolerance; exit status 1)"))
+    return 0 if ok else 1  # (a result to act on, as a failed sweep point or extreme case is)
 
 
 def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
@@ -260,10 +283,13 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"]))
     sm = done["summary"]
-    med = sm["median_abs_rel_error_held_out"]
-    print(f"median |relative error| over {sm['held_out_cells']} held-out cells: "
-          f"{'n/a' if med is None else f'{med:.1%}'}; slowest PM as in the thesis in "
-          f"{sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
+    med, withheld = sm["median_abs_rel_error_held_out"], sm.get("median_withheld")
+    if med is not None:  # (over the comparable scenes' cells only: thesis.summarize)
+        median = f"median |relative error| over {sm['held_out_cells_compared']} held-out cells: {med:.1%}"
+        median += f" ({withheld})" if withheld else ""
+    else:
+        median = f"no median |relative error| ({withheld or 'no cell with a thesis value'})"
+    print(f"{median}; slowest PM as in the thesis in {sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
     print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"]))
@@ -295,11 +321,17 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     programs, report = api.calibrate(args.config, progress=progress)
     for scene, cells in report["cells"].items():
         print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
-    if args.dry_run:
-        return 0
-    command = "tlm calibrate " + " ".join(sys.argv[2:]) if args.argv is None else "tlm " + " ".join(args.argv)
-    target = api.write_calibration(programs, report, args.write or None, command)
-    print(f"wrote {target}")
+    differ = report.get("not_comparable") or {}
+    warning = ("tlm: warning: a fit to another setting than the thesis's measures the setting, not the model: "
+               + "; ".join(f"{s} is {', '.join(w)}" for s, w in differ.items())) if differ else None
+    if not args.dry_run:
+        command = "tlm calibrate " + " ".join(sys.argv[2:]) if args.argv is None else "tlm " + " ".join(args.argv)
+        # (refused, nothing written, for the packaged table from such a fit: api.write_calibration)
+        target = api.write_calibration(programs, report, args.write, command)
+    if warning:
+        print(warning, file=sys.stderr)
+    if not args.dry_run:
+        print(f"wrote {target}")
     return 0
 
 
@@ -314,6 +346,20 @@ def _folder_name(text: str) -> str:
     """``--out``: a folder's path; an empty one is refused (not read as the default)."""
     if not text.strip():
         raise argparse.ArgumentTypeError("an empty path names no folder (leave --out out for the default)")
+    return text
+
+
+def _table_file(text: str) -> str:
+    """``calibrate --write``: a table file's path, checked before the fit (a folder, or a
+    file in a folder that does not exist, would fail only after it)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path names no table (leave --write out for the study's own "
+                                         "table)")
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a table file")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"the folder of {text} does not exist")
     return text
 
 
@@ -375,7 +421,11 @@ def build_parser() -> argparse.ArgumentParser:
     se.add_argument("name", help="built-in scene name or scene YAML path")
     se.add_argument("file", help="output .ply or .obj")
     s.set_defaults(func=_cmd_scene)
-    rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config")
+    rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config",
+                        description="Compute and cache the converged photon-map reference of a config. Exit "
+                        "status 0 when it is converged (or cached so), 1 when it stopped at reference.max_rounds "
+                        "without reaching reference.tolerance (cached all the same; the line says so), 2 for "
+                        "bad input.")
     rf.add_argument("config", help="experiment YAML")
     rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
     rf.add_argument("--force", action="store_true", help="compute again even if cached")
@@ -390,7 +440,8 @@ def build_parser() -> argparse.ArgumentParser:
     _no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
-    th.add_argument("config", help="study YAML (base, scenes, modes), e.g. configs/thesis.yaml")
+    th.add_argument("config", help="study YAML (base, scenes, modes; without base every cell runs at the default "
+                    "settings, not the thesis's), e.g. configs/thesis.yaml")
     th.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_progress(th)
     _no_report(th)
@@ -403,8 +454,12 @@ def build_parser() -> argparse.ArgumentParser:
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
                         "to the RCast column of Tables I-III")
-    ca.add_argument("config", help="study YAML, e.g. configs/thesis.yaml")
-    ca.add_argument("--write", help="table to write (default: the packaged tlm/arch/programs.yaml)")
+    ca.add_argument("config", help="study YAML with at least two of the thesis's scenes and mode rcast, e.g. "
+                    "configs/thesis.yaml")
+    ca.add_argument("--write", type=_table_file, metavar="TABLE",
+                    help="table to write (default: the study's own, its base.arch.programs, else the packaged "
+                    "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
+                    "than the thesis's)")
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
     ca.set_defaults(func=_cmd_calibrate)
     rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
@@ -424,8 +479,10 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
     pl.add_argument("--out", type=_folder_name, default="plots", help="report folder (default: plots)")
-    pl.add_argument("--only", nargs="+", metavar="STEP", help="run only these steps (thesis, scaling_ring, ..., "
-                    "cornell_pmap); the report reads every step's folder that exists")
+    pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps (thesis, "
+                    "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
+                    "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
+                    "the report still run, and tlm plots then exits 1")
     pl.set_defaults(func=_cmd_plots)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)

@@ -83,3 +83,14 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ' (did you mean X?)' when a close match exists, else ''."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+class StepsFailed(Exception):
+    """Steps exited with status 1 (their results report failures); the report was written
+    all the same, to ``page``."""
+
+    def __init__(self, page, steps: list[str]):
+        self.page = page
+        self.steps = steps
+        super().__init__(f"step{'s' if len(steps) > 1 else ''} {', '.join(steps)} reported failures (exit status 1, "
+                         f"see above); the report was written all the same: {page}")

@@ -2,9 +2,23 @@
 
 An experiment file (``configs/thesis.yaml``)::
 
-    base: {render: {light_samples: 1}}   # a run config applied to every cell
-    scenes: [ring, room, cornell]        # the thesis's three scenes
+    base: {render: {light_samples: 1, spp: 1}}   # a run config applied to every cell
+    scenes: [thesis/ring, thesis/room, cornell]   # the thesis's three scenes
     modes: [rcast, reflect, refract, pmap]
+
+Every key is optional, as in every study file (:func:`tlm.experiments.study.read_study`):
+without ``base`` each cell runs at the default settings (``tlm params``: the scene's own
+resolution, 4 eye rays and 4 light samples per pixel, not the thesis's 1 and 1), without
+``scenes`` the thesis's three, without ``modes`` all four. A scene may be listed once,
+and no two scenes may share a file name (each writes the folder ``DIR/<name>``).
+
+Which table a scene is set beside is its file's name (``ring``, ``room``, ``cornell``);
+whether it *is* the thesis's scene is its file (:data:`THESIS_SCENES`: the built-in
+``thesis/ring``, ``thesis/room`` and ``cornell``). :func:`mismatches` is the one rule of
+comparability (that scene, and the thesis's resolution, photons, sampling, one pipeline,
+600 MHz): the summary's medians, the report's tables and ``tlm calibrate``'s refusal to
+overwrite the packaged table all follow it. A scene that is not comparable keeps its
+cells in the CSV but gives no median: it would measure the setting, not the model.
 
 ``tlm thesis FILE --out DIR`` renders every scene once in the last (largest) mode; the
 modes are cumulative, so each smaller mode's frames are a subset of that render and
@@ -13,19 +27,27 @@ each with its own simulation). Then ``DIR/thesis_comparison.csv`` has one row pe
 (scene, mode, metric) with the columns ``scene, mode, metric, thesis, ours,
 rel_error, calibrated`` (cycles in millions as in the tables, FPS in frames per
 second), and ``DIR/thesis_summary.json`` the median absolute relative error over the
-held-out cells and, per scene-mode, whether our slowest PM is the thesis's.
+held-out cells of the comparable scenes (``not_comparable``: why the others are left out;
+``median_withheld``: the same in words) and, per scene-mode, whether our slowest PM is
+the thesis's.
 
 ``tlm calibrate FILE`` fits the free parameters of the instruction table (the ``scale``
 of each programmable PM, and the ``record_cycles`` of the Traversal and Fragment PMs)
 by least squares on the relative error of the RCast column's TVert, TTrav and TFrag
-cells of the three tables (9 cells, 5 parameters) and writes the table (by default over
-the packaged ``tlm/arch/programs.yaml``). Every other cell is a prediction.
+cells of the three tables (9 cells, 5 parameters) and writes the table (by default the one
+the study uses: its ``base.arch.programs``, else the packaged ``tlm/arch/programs.yaml``).
+Every other cell is a prediction. It needs at least two of the tables' scenes (one gives
+one cell per PM, fewer than the Traversal and Fragment PMs' two parameters each) and the
+``rcast`` mode among the study's modes (the others are not fitted). Its report's
+``not_comparable`` says how the study's setting is not the thesis's: such a fit is never
+written over the packaged table (:func:`tlm.api.write_calibration`).
 """
 
 from __future__ import annotations
 
 import datetime
 import json
+import math
 import re
 import time
 from dataclasses import replace
@@ -36,12 +58,13 @@ import numpy as np
 
 from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
-from tlm.config import MODES, RunConfig, config_from_dict
+from tlm.config import MODES, RunConfig, config_from_dict, to_dict
 from tlm.errors import InputError
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.study import read_study, run_study
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
+from tlm.scenes.loader import resolve_scene_path, scenes_dir
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -71,10 +94,99 @@ FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
 FIT_RECORDS = ("traversal", "fragment")
 COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated")
 
+# The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
+THESIS_SCENES = {"ring": "thesis/ring", "room": "thesis/room", "cornell": "cornell"}
+# The thesis's stated sizes (Tables I-III headings; the thesis scenes' defaults):
+# width, height, photons, triangles.
+THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
+                "cornell": (320, 320, 120_000, 2604)}
+THESIS_CLOCK_HZ = 600e6
+THESIS_SAMPLING = {"spp": (1, "eye rays per pixel"), "light_samples": (1, "light samples")}  # configs/thesis.yaml
+
 
 def thesis_value(scene: str, mode: str, metric: str) -> float | None:
     table = THESIS.get(scene)
     return None if table is None else table[metric][MODES.index(mode)]
+
+
+def table_of(source: str | Path | None) -> str | None:
+    """The table (``ring``, ``room``, ``cornell``) whose scene the scene file ``source`` is,
+    judged by the file, not its name: the built-in files of :data:`THESIS_SCENES` (a user's
+    ``cornell.yaml``, or the built-in caustic showcase ``ring``, is none). A file that is
+    not on this machine (a folder written by another installation) is judged by its place
+    under a ``scenes`` folder. None: not one of the thesis's scenes."""
+    if not source:
+        return None
+    p = Path(source)
+    root = scenes_dir()
+    for table, name in THESIS_SCENES.items():
+        builtin = root / f"{name}.yaml"
+        if p.exists():
+            if p.resolve() == builtin.resolve():
+                return table
+            continue
+        tail = ("scenes", *f"{name}.yaml".split("/"))
+        if p.parts[-len(tail):] == tail or p.parts[-len(tail):] == ("_scenes", *tail[1:]):
+            return table
+    return None
+
+
+def _scene_label(source: str) -> str:
+    """A scene file as a user names it: a built-in one by its name, any other by its path."""
+    try:
+        return Path(source).resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
+    except (ValueError, OSError):
+        return str(source)
+
+
+def mismatches(table: str, *, source: str | None = None, resolution: list[int] | None = None,
+               photons: int | None = None, spp: int | None = None, light_samples: int | None = None,
+               pipelines: int | None = None, clock_hz: float | None = None) -> list[str]:
+    """How a frame set beside ``table`` differs from the thesis's (empty: comparable).
+
+    The one rule of comparability: the scene file ``source`` must be the thesis's scene
+    of that table (:func:`table_of`), and the resolution, the photons emitted (None: no
+    photon pass), the eye rays and light samples per pixel, the pipelines and the clock
+    the thesis's. A value given as None is not judged. Each entry says what ours is, in
+    a few words (``16×16 pixels (thesis 320×320)``)."""
+    w, h, n, _ = THESIS_SIZES[table]
+    out = []
+    if source is not None and table_of(source) != table:
+        out.append(f"the scene {_scene_label(source)} (the thesis's is {THESIS_SCENES[table]})")
+    if resolution and [int(resolution[0]), int(resolution[1])] != [w, h]:
+        out.append(f"{resolution[0]}×{resolution[1]} pixels (thesis {w}×{h})")
+    if photons is not None and int(photons) != n:
+        out.append(f"{int(photons):,} photons (thesis {n:,})")
+    for key, value in (("spp", spp), ("light_samples", light_samples)):
+        thesis, what = THESIS_SAMPLING[key]
+        if value is not None and int(value) != thesis:
+            out.append(f"{value} {what} (thesis {thesis})")
+    if pipelines is not None and int(pipelines) != 1:
+        out.append(f"{pipelines} pipelines (the tables are one pipeline)")
+    if clock_hz is not None and not math.isclose(float(clock_hz), THESIS_CLOCK_HZ):
+        out.append(f"clock {float(clock_hz) / 1e6:g} MHz (thesis 600 MHz)")
+    return out
+
+
+def photons_of(results: dict, config: dict) -> int | None:
+    """The photons a run emitted (None when its photon pass did not run)."""
+    if "pmap" not in (results.get("plan") or {}).get("run", []):
+        return None
+    emitted = (results.get("photons") or {}).get("emitted")
+    if emitted is not None:
+        return int(emitted)
+    count = (config.get("photons") or {}).get("count")
+    return int(count) if count is not None else (results.get("scene") or {}).get("photons")
+
+
+def run_mismatches(table: str, results: dict, config: dict) -> list[str]:
+    """:func:`mismatches` of a run folder: its ``results.json`` and resolved config, as dicts."""
+    scene = results.get("scene") or {}
+    render = config.get("render") or {}
+    return mismatches(table, source=scene.get("source"), resolution=scene.get("resolution"),
+                      photons=photons_of(results, config), spp=render.get("spp"),
+                      light_samples=render.get("light_samples"), pipelines=(config.get("arch") or {}).get("pipelines"),
+                      clock_hz=(results.get("timing") or {}).get("clock_hz"))
 
 
 def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
@@ -82,16 +194,28 @@ def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
     for key in ("scene", "mode"):
         if key in base:
             raise InputError(f"is set by '{key}s', not in base", source=src, key=f"base.{key}")
-    scenes = raw.get("scenes", list(THESIS))
+    scenes = raw.get("scenes", list(THESIS_SCENES.values()))
     modes = raw.get("modes", list(MODES))
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) for s in scenes):
         raise InputError(f"{scenes!r} must be a non-empty list of scene names or paths", source=src, key="scenes")
     if not isinstance(modes, list) or not modes or any(m not in MODES for m in modes):
         raise InputError(f"{modes!r} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
+    folder = Path(path).resolve().parent
     for s in scenes:
         for m in modes:
             config_from_dict({**base, "scene": s, "mode": m}, f"{src} (scene {s}, mode {m})")
-    return base, scenes, sorted(set(modes), key=MODES.index), Path(path).resolve().parent
+    files: dict[Path, str] = {}
+    names: dict[str, str] = {}
+    for s in scenes:  # each scene writes DIR/<name> and its rows: one scene, one name
+        file = resolve_scene_path(s, folder, src, "scenes").resolve()
+        if file in files:
+            raise InputError(f"{files[file]!r} and {s!r} are the same scene (list it once)" if files[file] != s
+                             else f"{s!r} is listed twice (list it once)", source=src, key="scenes")
+        if _name(s) in names:
+            raise InputError(f"{names[_name(s)]!r} and {s!r} would both write the folder and the rows of "
+                             f"scene {_name(s)!r} (a study lists one of them)", source=src, key="scenes")
+        files[file], names[_name(s)] = s, s
+    return base, scenes, sorted(set(modes), key=MODES.index), folder
 
 
 def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
@@ -211,9 +335,26 @@ def describe_items(items: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
-def summarize(rows: list[dict]) -> dict:
-    held = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and not r["calibrated"]]
-    fitted = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and r["calibrated"]]
+def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = None) -> dict:
+    """The medians of |relative error| and the slowest PMs of comparison rows.
+
+    ``not_comparable``: scene -> how ours differs from the thesis's setting
+    (:func:`mismatches`); those scenes' cells count in no median (an error against another
+    setting measures the setting, not the model). ``held_out_cells`` and
+    ``calibrated_cells`` count every cell with a thesis value, ``*_compared`` those the
+    medians are over; ``median_withheld`` says in words what was left out and why (None:
+    nothing)."""
+    nc = {s: list(w) for s, w in (not_comparable or {}).items() if w}
+    known = [r for r in rows if r["rel_error"] is not None]
+    compared = [r for r in known if str(r["scene"]) not in nc]
+    held = [abs(r["rel_error"]) for r in compared if not r["calibrated"]]
+    fitted = [abs(r["rel_error"]) for r in compared if r["calibrated"]]
+    withheld = None
+    left = {s: w for s, w in nc.items() if any(str(r["scene"]) == s for r in known)}
+    if left:
+        what = "; ".join(f"{s} is {', '.join(w)}" for s, w in left.items())
+        withheld = (f"{', '.join(left)} left out, not comparable with the thesis: {what}" if compared
+                    else f"not comparable with the thesis: {what}")
     slowest = {}
     cells: dict[tuple[str, str], dict[str, dict]] = {}
     for r in rows:
@@ -225,10 +366,14 @@ def summarize(rows: list[dict]) -> dict:
         ours = max(PM_METRICS, key=lambda k: m[k]["ours"])
         slowest[f"{scene}/{mode}"] = {"thesis": theirs, "ours": ours, "match": theirs == ours}
     return {
-        "held_out_cells": len(held),
+        "held_out_cells": sum(not r["calibrated"] for r in known),
         "median_abs_rel_error_held_out": float(np.median(held)) if held else None,
-        "calibrated_cells": len(fitted),
+        "calibrated_cells": sum(bool(r["calibrated"]) for r in known),
         "median_abs_rel_error_calibrated": float(np.median(fitted)) if fitted else None,
+        "held_out_cells_compared": len(held),
+        "calibrated_cells_compared": len(fitted),
+        "not_comparable": nc,
+        "median_withheld": withheld,
         "slowest_pm": slowest,
         "slowest_pm_matches": sum(v["match"] for v in slowest.values()),
         "scene_modes": len(slowest),
@@ -245,9 +390,10 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
     wall: dict[str, float] = {}
     summary: dict = {}
     items: dict[str, dict] = {}
+    differ: dict[str, list[str]] = {}  # scene -> how its cells differ from the thesis's setting
 
     def summary_file(rows: list[dict]) -> dict:
-        summary.update(summarize(rows), per_item=items, host_seconds=wall)
+        summary.update(summarize(rows, differ), per_item=items, host_seconds=wall)
         return {"thesis_summary.json": summary}
 
     with progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
@@ -267,6 +413,9 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
                 results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
                 items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
+                if _name(scene) in THESIS:
+                    seen = differ.setdefault(_name(scene), [])
+                    seen.extend(m for m in run_mismatches(_name(scene), results, to_dict(cfg)) if m not in seen)
                 cells.update()
                 if progress is not None:
                     progress(scene, mode, results)
@@ -317,18 +466,38 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     record_cycles x records + (page misses, flushes, swaps, copies, preemption)``; the
     last part barely depends on the parameters, so the fit alternates a closed-form
     weighted least-squares step with a re-simulation until it settles.
+
+    Refused (:class:`~tlm.errors.InputError`, before any render): a study without the
+    ``rcast`` mode (the only column fitted), a scene without a thesis table, and fewer
+    than two scenes (one cell per PM cannot fix a scale and a record cost: the fit would
+    be one of infinitely many exact ones). The report's ``not_comparable`` (scene -> how
+    ours differs, :func:`mismatches`; empty: the thesis's setting) says whether the fit
+    is one to the thesis's setting.
     """
-    base, scenes, _modes, folder = load_study(Path(path))
+    base, scenes, modes, folder = load_study(Path(path))
+    if "rcast" not in modes:
+        raise InputError(f"{modes!r} has no rcast: calibrate fits the RCast column only (the other modes' cells "
+                         "are predictions)", source=str(path), key="modes")
     unknown = [s for s in scenes if _name(s) not in THESIS]
     if unknown:
         raise InputError(f"{unknown} have no thesis table to calibrate against", source=str(path), key="scenes")
+    if len(scenes) < 2:
+        raise InputError(f"{scenes!r}: one scene gives one RCast cell per PM, too few for the Traversal and Fragment "
+                         "PMs' two parameters each (scale, record_cycles): list at least two of the thesis's scenes "
+                         f"({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
+    cfgs = {s: config_from_dict({**base, "scene": s, "mode": "rcast"}, str(path)) for s in scenes}
+    cfg0 = cfgs[scenes[0]]
+    programs = programs_for(cfg0, folder)  # a bad instruction table fails before the renders
     fns = {}
-    cfg0 = None
+    differ: dict[str, list[str]] = {}
     for scene in scenes:
-        cfg = config_from_dict({**base, "scene": scene, "mode": "rcast"}, str(path))
-        cfg0 = cfg0 or cfg
-        fns[scene] = (render(cfg, folder, str(path)).functional(), cfg)
-    programs = programs_for(cfg0, folder)
+        cfg = cfgs[scene]
+        res = render(cfg, folder, str(path))
+        fns[scene] = (res.functional(), cfg)
+        cam = res.scene.camera
+        differ[_name(scene)] = mismatches(_name(scene), source=res.scene.source, resolution=[cam.width, cam.height],
+                                          spp=cfg.render.spp, light_samples=cfg.render.light_samples,
+                                          pipelines=cfg.arch.pipelines, clock_hz=cfg.arch.clock_hz)
     ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
     # T_norm is linear in the parameters: instructions and records per frame, once
     instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
@@ -371,7 +540,8 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         cells[_name(s)] = {m: {"thesis": thesis_value(_name(s), "rcast", m), "ours": round(ours[m], 4)}
                            for m in FIT_PMS.values()}
     report = {"scales": programs.scale, "record_cycles": programs.record_cycles, "fitted": fitted_parameters(),
-              "cells": cells, "iterations": len(history), "history": history}
+              "cells": cells, "iterations": len(history), "history": history,
+              "not_comparable": {s: w for s, w in differ.items() if w}}
     return programs, report
 
 

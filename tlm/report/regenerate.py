@@ -8,6 +8,13 @@ Each step is a tlm command over a file in ``configs/``; a sweep skips the points
 finished before, and the functional cache spares renders that were done before, so a
 second call redoes only the simulations and the report. ``--only`` runs a subset of
 the steps (the report still reads every step's folder that exists).
+
+A step that exits with status 1 has run and reports failures among its results (a case
+of ``tlm extreme`` that differs from its expectation, a sweep point that failed, a model
+that cannot finish): it is said, the other steps and the report still run, and
+:class:`StepsFailed` (``tlm plots``: exit status 1) names such steps at the end. Any
+other status, or bad input (an :class:`~tlm.errors.InputError` out of the step), stops
+the command at that step.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from tlm.errors import InputError
+from tlm.errors import InputError, StepsFailed
 
 SCALING = ("scaling_ring", "scaling_room", "scaling_cornell")  # the sweeps the eq52 step fits
 SWEEPS = (*SCALING, "design_space", "bsp_levels", "sweep_fifo")
@@ -40,8 +47,11 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
                run_command: Callable[[list[str]], int], say=print) -> Path:
     """Run the steps (all, or ``only``), then the report of their folders into ``out``.
 
-    ``run_command`` runs one step's argv and returns its exit status: ``tlm.cli.main``
-    for ``tlm plots`` (the CLI hands itself down, so the report layer never imports it).
+    ``run_command`` runs one step's argv and returns its exit status, 1 where the step's
+    results report failures; it raises on an error (the CLI hands down its command runner,
+    so the report layer never imports it). Steps that return 1 are recorded and the rest
+    run; the report is written, then :class:`StepsFailed` names them. Another status, or an
+    InputError of the step, stops at that step.
     """
     from tlm.report import build_report
 
@@ -49,15 +59,27 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
     for n in only or []:
         if n not in names:
             raise InputError(f"unknown step {n!r} (steps: {', '.join(names)})", key="--only")
+    failed = []
     for name, argv in STEPS:
         if only and name not in only:
             continue
         argv = [a.format(configs=configs, runs=runs) for a in argv] + ["--no-report"]
         say(f"== {name}: tlm {' '.join(argv)}")
-        if run_command(argv) != 0:
-            raise InputError(f"step {name} failed (see above)", key="tlm plots")
+        try:
+            status = run_command(argv)
+        except InputError as e:
+            raise InputError(f"step {name} stopped on bad input: {e}", key="tlm plots") from None
+        if status == 1:  # a result: failures among the step's results, said above
+            say(f"== {name}: exit status 1 (its results report failures, see above); the other steps and the "
+                "report still run")
+            failed.append(name)
+        elif status != 0:
+            raise InputError(f"step {name} failed with exit status {status} (see above)", key="tlm plots")
     dirs = [runs / n for n in REPORTED if (runs / n).is_dir()]
     if not dirs:
         raise InputError(f"no step's folder exists under {runs}", key="--runs")
     fitted = [runs / n for n in SCALING if (runs / n).is_dir()]
-    return build_report(dirs, out, "tlm: the committed experiments", scaling_sweeps=fitted)
+    page = build_report(dirs, out, "tlm: the committed experiments", scaling_sweeps=fitted)
+    if failed:
+        raise StepsFailed(page, failed)
+    return page

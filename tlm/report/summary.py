@@ -22,6 +22,7 @@ import numpy as np
 from tlm.report.collect import Inputs
 from tlm.report.common import Figure, Section, bar_style, line_style, new_figure, save
 from tlm.report.html import esc
+from tlm.report.tables import study_summaries
 
 MODES = ("rcast", "reflect", "refract", "pmap")
 MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
@@ -57,18 +58,25 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_yscale("log")
     ax.set_ylabel("frames per second")
     ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, 1.18), frameon=False)
-    f = save(fig, out, "summary_fps.png", "Frames per second", "bars: ours at the simulated clock; "
-             "black ticks: the thesis's Tables I–III")
+    f = save(fig, out, "summary_fps.png", "Frames per second", "bars: ours at the simulated clock"
+             + (f" (thesis study {thesis[0].path.name}, the first of {len(thesis)})" if len(thesis) > 1 else "")
+             + "; black ticks: the thesis's Tables I–III")
     best = max(ours, key=ours.get)
     worst = min(ours, key=ours.get)
     text = (f"<b>How fast:</b> from {ours[worst]:.3g} FPS ({esc(worst[0])} {MODE_NAMES.get(worst[1], worst[1])}) "
             f"to {ours[best]:.3g} FPS ({esc(best[0])} {MODE_NAMES.get(best[1], best[1])}) at one pipeline.")
-    if thesis:
-        s = thesis[0].meta
-        med = s.get("median_abs_rel_error_held_out")
+    said = []  # every thesis study's median, judged as the tables judge it (none where not comparable)
+    summaries = study_summaries(inputs)
+    for study, s in summaries:
+        med, why = s["median_abs_rel_error_held_out"], s["median_withheld"]
         if med is not None:
-            text += (f" Against Tables I–III: median |relative error| {100 * med:.0f}% over "
-                     f"{s.get('held_out_cells')} held-out cells.")
+            words = (f"median |relative error| {100 * med:.0f}% over {s['held_out_cells_compared']} held-out cells"
+                     + (f" ({why})" if why else ""))
+        else:
+            words = f"no median |relative error| ({why or 'no cell with a thesis value'})"
+        said.append(f"{'thesis study ' + study.path.name + ': ' if len(summaries) > 1 else ''}{words}")
+    if said:
+        text += f" Against Tables I–III: {esc('; '.join(said))}."
     return text, f
 
 

@@ -4,8 +4,8 @@ Where the rows come from:
 
 * a ``tlm thesis`` folder (a :class:`~tlm.report.collect.Study` of kind ``thesis``): its
   ``thesis_comparison.csv``, one source per (study, scene);
-* otherwise every run folder and sweep point whose scene is a thesis scene (ring, room,
-  cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs whose resolved
+* otherwise every run folder and sweep point whose scene is named as a thesis table's
+  (ring, room, cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs whose resolved
   configs agree except for ``mode`` fill the columns of one table; every other run
   (every sweep point) is a source of its own.
 
@@ -13,31 +13,37 @@ Each table is laid out like the thesis's (metrics as rows, modes as columns); a 
 shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
 ``†`` a calibrated cell (:data:`tlm.experiments.thesis.CALIBRATED`: fitted, not a
 prediction), ``▲`` the slowest PM of the scene-mode in the thesis, ``●`` the slowest PM
-in ours. A source whose resolution, photon count, sampling (eye rays per pixel, light
-samples), pipeline count or clock differs from the thesis's is still shown, marked *not
-comparable* with the reason, and its table's summary gives no median relative error: it
-would measure the setting, not the model.
+in ours. A source whose scene is not the thesis's (judged by its file: the built-in
+``ring`` is not the thesis's ``thesis/ring``) or whose resolution, photon count, sampling
+(eye rays per pixel, light samples), pipeline count or clock differs from the thesis's is
+still shown, marked *not comparable* with the reason (the one rule,
+:func:`tlm.experiments.thesis.mismatches`); neither its table's summary, nor its study's
+line, nor the report's first screen gives a median relative error for it, nor does its
+figure annotate its errors: they would measure the setting, not the model.
 """
 
 from __future__ import annotations
 
 import html
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from tlm.config import MODES
-from tlm.experiments.thesis import CALIBRATED, METRICS, PM_METRICS, THESIS, _ours, comparison_rows, summarize
+from tlm.experiments.thesis import (
+    CALIBRATED,
+    METRICS,
+    PM_METRICS,
+    THESIS,
+    THESIS_SIZES,
+    _ours,
+    comparison_rows,
+    run_mismatches,
+    summarize,
+)
 from tlm.report.collect import Inputs, Run, Study
 from tlm.report.common import Section, line_style, new_figure, save
 
-# The thesis's stated sizes (Tables I-III headings; the built-in scenes' defaults):
-# width, height, photons, triangles.
-THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
-                "cornell": (320, 320, 120_000, 2604)}
-THESIS_CLOCK_HZ = 600e6
-THESIS_SAMPLING = {"spp": (1, "eye rays per pixel"), "light_samples": (1, "light samples")}  # configs/thesis.yaml
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
@@ -93,38 +99,10 @@ def _study_cells(inputs: Inputs, study: Study) -> list[Run]:
     return [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
 
 
-def photons_of(run: Run) -> int | None:
-    """The photons a run emitted (None when its photon pass did not run)."""
-    if "pmap" not in (run.results.get("plan") or {}).get("run", []):
-        return None
-    emitted = (run.results.get("photons") or {}).get("emitted")
-    if emitted is not None:
-        return int(emitted)
-    count = (run.config.get("photons") or {}).get("count")
-    return int(count) if count is not None else run.results["scene"].get("photons")
-
-
 def mismatches(run: Run, scene: str) -> list[str]:
-    """How ``run`` differs from the setting of the thesis's table for ``scene`` (empty: none)."""
-    w, h, n, _ = THESIS_SIZES[scene]
-    out = []
-    res = run.results["scene"].get("resolution")
-    if res and [int(res[0]), int(res[1])] != [w, h]:
-        out.append(f"{res[0]}×{res[1]} pixels (thesis {w}×{h})")
-    count = photons_of(run)
-    if count is not None and count != n:
-        out.append(f"{count:,} photons (thesis {n:,})")
-    render = run.config.get("render") or {}
-    for key, (thesis, what) in THESIS_SAMPLING.items():
-        if render.get(key) is not None and int(render[key]) != thesis:
-            out.append(f"{render[key]} {what} (thesis {thesis})")
-    pipelines = (run.config.get("arch") or {}).get("pipelines")
-    if pipelines is not None and int(pipelines) != 1:
-        out.append(f"{pipelines} pipelines (the tables are one pipeline)")
-    clock = (run.results.get("timing") or {}).get("clock_hz")
-    if clock is not None and not math.isclose(float(clock), THESIS_CLOCK_HZ):
-        out.append(f"clock {float(clock) / 1e6:g} MHz (thesis 600 MHz)")
-    return out
+    """How ``run`` differs from the setting of the thesis's table for ``scene`` (empty: none):
+    :func:`tlm.experiments.thesis.mismatches`, the one rule, of its results and config."""
+    return run_mismatches(scene, run.results, run.config)
 
 
 def _config_key(run: Run) -> str:
@@ -188,7 +166,12 @@ def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]
 
 def _judge(src: Source) -> None:
     if not src.runs:
-        src.unknown = "its run folders are missing, so its resolution and photon count are unknown"
+        judged = src.study.meta.get("not_comparable") if src.study is not None else None
+        if isinstance(judged, dict):  # (judged by the same rule when the study ran)
+            why = judged.get(src.scene)
+            src.not_comparable = [str(w) for w in why] if isinstance(why, list) else []
+        else:
+            src.unknown = "its run folders are missing, so its resolution and photon count are unknown"
         return
     seen: list[str] = []
     for run in src.runs:
@@ -196,6 +179,25 @@ def _judge(src: Source) -> None:
             if m not in seen:
                 seen.append(m)
     src.not_comparable = seen
+
+
+def study_summaries(inputs: Inputs, sources: dict[str, list[Source]] | None = None) -> list[tuple[Study, dict]]:
+    """Each thesis study's :func:`~tlm.experiments.thesis.summarize` over its rows of the
+    thesis's tables, its scenes judged as their tables are (:func:`collect_sources`): a
+    scene not comparable with the thesis counts in no median. The study lines of this
+    section and the report's first screen both quote it."""
+    if not inputs.of_kind("thesis"):
+        return []
+    if sources is None:
+        sources = collect_sources(inputs, [])
+    out = []
+    for study in inputs.of_kind("thesis"):
+        rows = [r for r in study.rows if str(r["scene"]) in THESIS]
+        if rows:
+            differ = {src.scene: src.not_comparable for srcs in sources.values() for src in srcs
+                      if src.study is study and src.not_comparable}
+            out.append((study, summarize(rows, differ)))
+    return out
 
 
 # -- HTML ---------------------------------------------------------------------------------------
@@ -240,13 +242,23 @@ def _error_html(src: Source, row: dict) -> str:
 
 
 def _summary_line(rows: list[dict]) -> str:
-    s = summarize(rows)
+    return _line(summarize(rows))
+
+
+def _line(s: dict) -> str:
+    """A :func:`~tlm.experiments.thesis.summarize` in words: the medians (of the comparable
+    scenes' cells; where there is none, why) and the slowest-PM count."""
     parts = []
     if s["median_abs_rel_error_held_out"] is not None:
-        parts.append(f"median |relative error| over the {s['held_out_cells']} held-out cells "
+        parts.append(f"median |relative error| over the {s['held_out_cells_compared']} held-out cells "
                      f"{s['median_abs_rel_error_held_out']:.1%}")
     if s["median_abs_rel_error_calibrated"] is not None:
-        parts.append(f"over the {s['calibrated_cells']} calibrated cells {s['median_abs_rel_error_calibrated']:.1%}")
+        parts.append(f"over the {s['calibrated_cells_compared']} calibrated cells "
+                     f"{s['median_abs_rel_error_calibrated']:.1%}")
+    if s["median_withheld"] and parts:
+        parts[-1] += f" ({s['median_withheld']})"
+    elif s["median_withheld"]:
+        parts.append(f"no median |relative error| ({s['median_withheld']})")
     if s["scene_modes"]:
         parts.append(f"slowest PM as in the thesis in {s['slowest_pm_matches']} of {s['scene_modes']} scene-modes")
     return "; ".join(parts) if parts else "no cell with a thesis value"
@@ -347,7 +359,7 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
                       markeredgecolor="black", markeredgewidth=0.4,
                       label=f"ours: {src.label}" if first.setdefault(("o", i), True) else None)
             first[("o", i)] = False
-            if row["rel_error"] is not None:
+            if row["rel_error"] is not None and not src.not_comparable:  # (n/c: no error, as in its table)
                 axis.annotate(f"{row['rel_error']:+.0%}", (x, o), xytext=(2, 0), textcoords="offset points",
                               fontsize=5.5, rotation=90, va="bottom", ha="left", color="#333")
 
@@ -391,14 +403,18 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
     order = sorted(range(len(names)), key=lambda i: not names[i].startswith("thesis"))
     handles, names = [handles[i] for i in order], [names[i] for i in order]
     fig.legend(handles, names, loc="outside lower center", ncol=min(3, len(names)), fontsize=7, frameon=False)
-    flag = " (not comparable: another setting)" if any(s.not_comparable for s in sources) else ""
+    flag = ""
+    if any(s.not_comparable for s in sources):
+        flag = (" (not comparable: another setting, no errors shown)" if all(s.not_comparable for s in sources)
+                else " (some sources not comparable: no errors on them)")
     fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours against the thesis{flag}",
                  fontsize=11)
     if dropped:
         notes.append(f"{scene} figure: values that cannot go on a log axis left out: {', '.join(dropped)}")
     caption = (f"Simulated cycles per PM and throughput (left, millions of cycles per frame) and frame rate (right) "
                f"of the {scene} scene per mode: hollow circles the thesis's Table {TABLE_NUMBER[scene]} "
-               "(diamonds: calibrated cells), filled markers ours, annotated with the relative error.")
+               "(diamonds: calibrated cells), filled markers ours, annotated with the relative error (none on a source "
+               "not comparable with the thesis: it would measure the setting, not the model).")
     return save(fig, out, f"tables_{scene}.png", f"Table {TABLE_NUMBER[scene]} ({scene}): ours against the thesis",
                 caption)
 
@@ -415,11 +431,9 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
                           "among the inputs")
         return section
     parts = ['<div class="tlm-tables">', STYLE]
-    for study in inputs.of_kind("thesis"):
-        rows = [r for r in study.rows if str(r["scene"]) in THESIS]
-        if rows:
-            parts.append(f'<p class="study-summary">Thesis study {html.escape(study.path.name)}: '
-                         f"{html.escape(_summary_line(rows))}.</p>")
+    for study, summary in study_summaries(inputs, sources):
+        parts.append(f'<p class="study-summary">Thesis study {html.escape(study.path.name)}: '
+                     f"{html.escape(_line(summary))}.</p>")
     parts.append(f'<p class="legend">{html.escape(LEGEND)}</p>')
     for scene, srcs in sources.items():
         shown = srcs[:MAX_TABLES_PER_SCENE]
