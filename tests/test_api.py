@@ -273,3 +273,18 @@ def test_a_frame_is_loaded_built_and_cast_in_one_call(tmp_path):
     typo = tlm.load_config({**SMALL, "scene": "cornel"})  # (the scene is read when the frame is made)
     with pytest.raises(tlm.InputError, match="cornel"):
         load_frame(typo.settings)
+
+
+def test_what_is_not_a_scene_or_a_file_is_named(tmp_path):
+    """The scene calls take a Scene, a built-in name or a path; anything else is an InputError
+    naming the argument (it was an AttributeError deep inside), and an unknown built-in name
+    has no description rather than an empty one."""
+    for call in (lambda: tlm.scene_info(5), lambda: tlm.scene_info(None), lambda: tlm.export_scene(5, "x.obj")):
+        with pytest.raises(tlm.InputError, match=r"^scene: .* is not a scene: give a Scene"):
+            call()
+    with pytest.raises(tlm.InputError, match=r"^file: None is not a file path"):
+        tlm.export_scene("ring", None)
+    with pytest.raises(tlm.InputError, match=r"'cornel' is not a built-in scene .*\(did you mean 'cornell'\?\)"):
+        tlm.scene_description("cornel")
+    assert tlm.scene_description("cornell") and tlm.scene_info(tlm.load_scene("ring"))["triangles"] > 0
+    assert tlm.export_scene(Path("ring"), tmp_path / "r.obj").name == "ring"  # (a Path names a built-in scene too)

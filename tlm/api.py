@@ -214,6 +214,10 @@ def scene_description(name: str) -> str:
     neither; cheap: reads no geometry)."""
     from tlm.scenes.loader import scenes_dir
 
+    names = list_scenes()
+    if not isinstance(name, str) or name not in names:
+        raise InputError(f"{name!r} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
+                         key="scene")
     path = scenes_dir() / f"{name}.yaml"
     try:
         raw = read_yaml(path)
@@ -234,7 +238,14 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
 
 
 def _scene(scene: Scene | str | Path) -> Scene:
-    return load_scene(scene) if isinstance(scene, (str, Path)) else scene
+    from tlm.scenes.model import Scene
+
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(scene)
+    if not isinstance(scene, Scene):
+        raise InputError(f"{scene!r} is not a scene: give a Scene, a built-in scene's name or a scene file's path",
+                         key="scene")
+    return scene
 
 
 def scene_info(scene: Scene | str | Path) -> dict:
@@ -276,6 +287,8 @@ def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     from tlm.scenes.export import export_triangles
 
     scene = _scene(scene)
+    if not isinstance(file, (str, os.PathLike)):
+        raise InputError(f"{file!r} is not a file path (.ply or .obj)", key="file")
     export_triangles(scene, Path(file))
     return scene
 
