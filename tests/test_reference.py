@@ -59,8 +59,9 @@ def test_pmap_run_without_then_with_a_reference(tmp_path, cache, capsys):
     assert "cached" in capsys.readouterr().out
     # the stopping rule is not part of the key: a stricter tolerance recomputes the same
     # reference, and a run with other round limits still finds it
-    assert main(["reference", cfg, "--set", "reference.tolerance=0.03"]) == 0
-    assert "does not meet tolerance" in capsys.readouterr().out
+    assert main(["reference", cfg, "--set", "reference.tolerance=0.03"]) == 1  # (max_rounds before 0.03: exit 1)
+    printed = capsys.readouterr().out
+    assert "does not meet tolerance" in printed and "NOT converged (max_rounds reached)" in printed
     assert [p.name for p in (cache / "references").iterdir()] == [folder.name]
 
     assert main(["run", cfg, "--out", str(out)]) == 0

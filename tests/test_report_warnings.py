@@ -64,3 +64,21 @@ def test_a_sweep_point_s_warnings_are_its_own(tmp_path, cache):
         got[(row["arch.scheduler"], row["arch.frames"])] = [w.split(" ", 1)[0] for w in results["warnings"]]
     assert got == {("dynamic", 5): [], ("dynamic", 2): ["arch.frames=2"], ("static", 5): ["arch.tiles_per_pipeline"],
                    ("static", 2): ["arch.tiles_per_pipeline", "arch.frames=2"]}
+
+
+def test_warnings_are_grouped_counted_and_escaped():
+    from tlm.report.collect import Inputs, Run
+    from tlm.report.warnings import SHOWN_RUNS, recorded, warnings_html
+
+    def run(i: int, warnings: list[str]) -> Run:
+        return Run(Path(f"r{i}"), f"r{i}", "run", {"warnings": warnings}, {})
+
+    many = [run(i, ["a <b> & c", "frames too short"] if i % 2 else ["frames too short"]) for i in range(10)]
+    inputs = Inputs([Path(".")], runs=many)
+    assert recorded(inputs) == [("frames too short", [f"r{i}" for i in range(10)]),
+                                ("a <b> & c", [f"r{i}" for i in range(1, 10, 2)])]
+    page = warnings_html(inputs)
+    assert "10 of the 10 runs recorded 2 warnings" in page and "a &lt;b&gt; &amp; c" in page
+    assert "frames too short<span class=\"note\"> (every run)</span>" in page
+    assert f"(5 of 10 runs: {', '.join(f'r{i}' for i in range(1, 2 * SHOWN_RUNS, 2))} and 1 more)" in page
+    assert warnings_html(Inputs([Path(".")], runs=[run(0, [])])) == ""

@@ -233,7 +233,7 @@ def test_rows_folders_and_the_csv(tmp_path):
     path = sweep_file(tmp_path, set={"arch.trace": True}, grid={"arch.page_miss_cycles": [0, 12, 48]})
     done = run_sweep(path, tmp_path / "o", jobs=1)
     out = tmp_path / "o"
-    table = pd.read_csv(out / "sweep.csv")
+    table = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
     assert len(table) == 3 and list(table["point"]) == [0, 1, 2]
     assert list(table.columns[:5]) == ["point", "hash", "status", "error", "arch.page_miss_cycles"]
     for pm in ("vertex", "traversal", "intersection", "fragment"):
@@ -291,7 +291,7 @@ def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
     assert main(["sweep", str(path), "--out", str(out), "--jobs", "2"]) == 1
     printed = capsys.readouterr().out
     assert "2 ok, 2 failed, 0 skipped" in printed and printed.count("Deadlock") == 2
-    rows = pd.read_csv(out / "sweep.csv")
+    rows = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
     assert list(rows["status"]) == ["failed", "ok", "failed", "ok"]
     failed = rows[rows["status"] == "failed"]
     assert failed["error"].str.startswith("Deadlock: the model cannot finish").all()
@@ -330,7 +330,7 @@ def test_a_point_that_kills_its_worker_fails_and_the_others_run(tmp_path, monkey
     monkeypatch.setattr(sweep_mod, "run_point", ends_its_worker)
     assert main(["sweep", str(path), "--out", str(out), "--jobs", "2", "--no-progress"]) == 1
     assert "4 ok, 1 failed, 0 skipped" in capsys.readouterr().out
-    rows = pd.read_csv(out / "sweep.csv")
+    rows = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
     assert list(rows["status"]) == ["ok", "ok", "failed", "ok", "ok"]
     assert rows["error"][2].startswith("WorkerDied: its worker process died 2 times running this point")
     assert rows["error"][2].endswith("(exit code 3, exit code 3)")
@@ -368,7 +368,7 @@ def test_resume_runs_only_the_missing_points(tmp_path, monkeypatch):
     other = run_sweep(sweep_file(tmp_path, "other.yaml", set={"arch.fifo_depth": 16},
                                  grid={"arch.page_miss_cycles": [12, 24]}), out, jobs=1)
     assert (other.ok, other.skipped) == (1, 1)
-    table = pd.read_csv(out / "sweep.csv")
+    table = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
     assert list(table["arch.page_miss_cycles"]) == [12, 24] and "arch.fifo_depth" not in table.columns
     assert table["hash"][0] == next(r["hash"] for r in first.rows
                                     if (r["arch.page_miss_cycles"], r["arch.fifo_depth"]) == (12, 16))
@@ -421,7 +421,7 @@ def test_a_changed_sweep_cut_short_leaves_only_its_own_rows(tmp_path, monkeypatc
     shared = {r["hash"] for r in first.rows} & set(mine)  # 12: done by the first sweep, skipped
     rows = jsonl(out / "sweep.jsonl")
     assert {r["hash"] for r in rows} == shared | set(done) and len(rows) == 3
-    assert set(pd.read_csv(out / "sweep.csv")["hash"]) <= set(mine)
+    assert set(pd.read_csv(out / "sweep.csv", dtype={"hash": str})["hash"]) <= set(mine)
     report = build_report([out], tmp_path / "rep")
     assert "1 of its 4 points not run yet" in report.read_text()
     notes: list[str] = []
