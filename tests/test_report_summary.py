@@ -8,6 +8,8 @@ from pathlib import Path
 from tlm.report.collect import Inputs, Run, Study, Sweep
 from tlm.report.summary import PMS, summary_section, sweep_findings
 
+REPO = Path(__file__).resolve().parents[1]
+
 
 def _run(scene: str, mode: str, fps: float, busy: dict[str, float] | None = None) -> Run:
     units = {f"pipe0.{pm}": {"fractions": {"busy": b}} for pm, b in (busy or {}).items()}
@@ -65,3 +67,38 @@ def test_a_sweep_finding_names_the_factor_that_moves_the_frame_rate_most(tmp_pat
     sec = summary_section(Inputs([], sweeps=[sweep]), tmp_path)
     assert sec.lead.startswith(text + "<br>") and sec.absent is None and sec.figures == []
     assert sweep_findings(Inputs([], sweeps=[Sweep(Path("s"), {}, rows, [])])) == []  # no factors: no finding
+
+
+def test_a_sweep_whose_factors_change_nothing_says_so(tmp_path):
+    """A tie everywhere names no best value and no best point ('best static, worst static')."""
+    rows = [{"status": "ok", "arch.scheduler": s, "fps": 414.0} for s in ("static", "dynamic")]
+    sweep = Sweep(Path("sw"), {"grid": {"arch.scheduler": ["static", "dynamic"]}}, rows, [])
+    (text,) = sweep_findings(Inputs([], sweeps=[sweep]))
+    assert text == "<b>Sweep sw</b> (2 of 2 points ok): no factor changes the frame rate: every point runs at 414 FPS."
+
+
+def test_granularity_and_extreme_studies_are_answered(tmp_path):
+    from tlm.report.summary import study_findings
+
+    gran = Study("granularity", Path("g"), [
+        {"packet_size": 1, "simulate_seconds": 2.0, "max_abs_rel_error": 0.0},
+        {"packet_size": 64, "simulate_seconds": 0.1, "max_abs_rel_error": 0.004},
+        {"packet_size": 4096, "simulate_seconds": 0.01, "max_abs_rel_error": 0.2}])
+    ext = Study("extreme", Path("x"), [{"case": "a", "passed": True}, {"case": "b", "passed": False}])
+    found = study_findings(Inputs([], studies=[gran, ext]))
+    assert found == ["<b>Granularity g:</b> packets of 64 stay within 1% of the cycles of packets of 1 (error 0.40%), "
+                     "in 0.1 s of simulation against 2 s.",
+                     "<b>Extreme cases x:</b> 1 of 2 as expected; <strong>not as expected: b</strong> (§8)."]
+    sec = summary_section(Inputs([], studies=[gran, ext]), tmp_path)
+    assert sec.lead.startswith(found[0]) and sec.absent is None
+
+
+def test_a_folder_given_twice_is_read_once(tmp_path, cache):
+    from tlm.cli import main
+
+    out = tmp_path / "r"
+    assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--out", str(out), "--mode", "rcast",
+                 "--set", "resolution=[8,8]",
+                 "--set", "render.spp=1", "--outputs", "images", "--no-report", "--no-progress"]) == 0
+    assert main(["report", str(out), str(tmp_path / "." / "r"), "--out", str(tmp_path / "rep")]) == 0
+    assert f"Inputs: {out}: 1 runs, 0 sweeps" in (tmp_path / "rep" / "report.html").read_text()

@@ -74,7 +74,10 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     recorded in their ``eq52.json`` that still exist and are not inputs themselves.
     """
     t0 = time.perf_counter()
-    dirs = [Path(d) for d in dirs]
+    once: dict[Path, Path] = {}  # (a folder given twice is read once)
+    for d in dirs:
+        once.setdefault(Path(d).resolve(), Path(d))
+    dirs = list(once.values())
     inputs = read(dirs)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}

@@ -9,7 +9,9 @@ hold nothing for it):
 3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
 4. What does quality cost? Image error against run time of the photon-map filters.
 5. What do the sweeps find? For each sweep, the factor that moves the frame rate most and
-   its best point.
+   its best point (or that none moves it).
+6. What do the granularity and extreme studies find? The coarsest packet within 1% of the
+   reference's cycles; the cases not as expected.
 """
 
 from __future__ import annotations
@@ -207,7 +209,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             for r in rows:
                 groups[repr(r.get(k))].append(r["fps"])
             means = {v: float(np.mean(fs)) for v, fs in groups.items()}
-            if len(means) > 1 and min(means.values()) > 0:
+            if len(means) > 1 and min(means.values()) > 0 and max(means.values()) > min(means.values()):
                 spread[k] = (max(means.values()) / min(means.values()), max(means, key=means.get),
                              min(means, key=means.get))
         best = max(rows, key=lambda r: r["fps"])
@@ -218,8 +220,42 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             ratio, hi, lo = spread[k]
             text += (f"{esc(k)} moves the frame rate most, {ratio:.2f}x between its best value ({esc(hi)}) and "
                      f"its worst ({esc(lo)}), averaged over the other factors; ")
-        text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+            text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+        elif len({r["fps"] for r in rows}) == 1:  # (a tie everywhere: no best value, no best point)
+            text += f"no factor changes the frame rate: every point runs at {best['fps']:.3g} FPS."
+        else:
+            text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
         texts.append(text)
+    return texts
+
+
+def study_findings(inputs: Inputs) -> list[str]:
+    """The granularity and extreme studies, in words: the coarsest packet within 1% of the
+    reference and what it saves; the cases not as expected."""
+    from tlm.report.tradeoff import granularity_points
+
+    texts = []
+    for st in inputs.of_kind("granularity"):
+        size, secs, err = granularity_points(st)
+        ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
+        if ok.sum() < 2:
+            continue
+        size, secs, err = size[ok], secs[ok], np.abs(err[ok])
+        within = np.flatnonzero(err <= 0.01)
+        ref = int(np.argmin(size))
+        if within.size:
+            i = within[np.argmax(size[within])]
+            texts.append(f"<b>Granularity {esc(st.path.name)}:</b> packets of {int(size[i]):,} stay within 1% "
+                         f"of the cycles of packets of {int(size[ref]):,} (error {err[i]:.2%}), in "
+                         f"{secs[i]:.3g} s of simulation against {secs[ref]:.3g} s.")
+        else:
+            texts.append(f"<b>Granularity {esc(st.path.name)}:</b> every packet size above {int(size[ref]):,} is "
+                         f"more than 1% off its cycles (the least, {err[err > 0].min():.2%}).")
+    for st in inputs.of_kind("extreme"):
+        failed = [str(r["case"]) for r in st.rows if not r["passed"]]
+        texts.append(f"<b>Extreme cases {esc(st.path.name)}:</b> {len(st.rows) - len(failed)} of {len(st.rows)} as "
+                     "expected" + (f"; <strong>not as expected: {esc(', '.join(failed))}</strong> (§8)." if failed
+                                   else "."))
     return texts
 
 
@@ -231,11 +267,12 @@ def summary_section(inputs: Inputs, out: Path) -> Section:
         texts.append(text)
         if fig is not None:
             figs.append(fig)
-    found = sweep_findings(inputs)
-    sec.lead = "<br>".join([*found, *texts])  # a sweep's finding first: it is what its report is for
+    found = sweep_findings(inputs) + study_findings(inputs)
+    sec.lead = "<br>".join([*found, *texts])  # a sweep's or a study's finding first: it is what its report is for
     sec.figures = figs
     sec.shown = len(figs)
     if not figs and not found:
-        sec.absent = "the inputs hold no frame rates, busy shares, scaling sweeps, sweep points or error studies"
+        sec.absent = ("the inputs hold no frame rates, busy shares, scaling sweeps, sweep points, error, "
+                      "granularity or extreme studies")
     return sec
 

@@ -266,9 +266,9 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
                    linewidths=1.5, zorder=4)
         for x, yy, p in zip(secs, y, size, strict=True):
             ax.annotate(f"{int(p)}", (x, yy), xytext=(5, 4), textcoords="offset points", fontsize=7)
-    caption = ("Each point is one packet size (labelled; 1 = one ray or pixel per packet, the fine reference). "
-               "Error: the largest |relative error| of any PM's cycles, TThru or the latency against the "
-               "smallest packet size.")
+    caption = ("Each point is one packet size (labelled; 1 = one ray or pixel per packet, the finest). Error: "
+               "the largest |relative error| of any PM's cycles, TThru or the latency against the study's "
+               "smallest packet size, its reference.")
     if log_y:
         ax.set_yscale("log")
         ax.axhline(floor, color="0.4", linestyle=":", linewidth=1.0,
