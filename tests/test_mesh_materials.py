@@ -557,3 +557,34 @@ def test_a_usemtl_the_library_lacks_takes_the_scene_file_s_material_or_the_defau
     (tmp_path / "s.yaml").write_text(head + "default_material: floor\n")
     scene = api.load_scene(tmp_path / "s.yaml")
     assert [m.name for m in scene.materials] == ["floor"] and scene.material_index.tolist() == [0, 0]
+
+
+def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_of(tmp_path):
+    """tlm takes the camera and the lights from the scene file, and emits from a triangle's
+    front only: what a glTF holds of these is named in the run's warnings, not dropped silently."""
+    from tlm import api
+    from tlm.render.checks import file_warnings, material_warnings
+
+    header, binary = _gltf_scene(tmp_path)
+    header["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.1}}] * 2
+    header["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 50},
+                                                               {"type": "spot", "intensity": 5},
+                                                               {"type": "point", "intensity": 1}]}}
+    header["materials"][3]["doubleSided"] = True  # the emissive "lamp"
+    header["materials"][0]["doubleSided"] = True  # not emissive: both sides shade alike, nothing lost
+    (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
+    g = load_mesh(tmp_path / "s.glb")
+    path = str(tmp_path / "s.glb")
+    assert g.notes == (f"{path}: its 2 cameras are not used (the scene file's camera: is)",
+                       f"{path}: its punctual lights (2 point, 1 spot, KHR_lights_punctual) are not used: give them "
+                       "under lights: in the scene file (tlm has point and quad lights, and emissive materials)")
+    assert g.materials[3].ignored == ("doubleSided emission",) and g.materials[0].ignored == ()
+    (tmp_path / "s.yaml").write_text("geometry: [{mesh: s.glb}, {mesh: s.glb, transform: {translate: [0, 9, 0]}}]\n"
+                                     "camera: {eye: [6, 2, 12], target: [6, 0, 0], vfov: 40}\nresolution: [8, 8]\n"
+                                     "default_material: grey\n"
+                                     "materials: {grey: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n")
+    scene = api.load_scene(tmp_path / "s.yaml")
+    assert file_warnings(scene) == list(g.notes)  # (two items of one file: said once)
+    assert "doubleSided emission" in material_warnings(scene)[0]
+    (tmp_path / "plain.glb").write_bytes(write_glb(*_gltf_scene(tmp_path)))
+    assert load_mesh(tmp_path / "plain.glb").notes == ()

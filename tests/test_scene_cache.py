@@ -62,6 +62,7 @@ def _same(a, b) -> None:
     assert a.part.dtype == b.part.dtype and np.array_equal(a.part, b.part)
     assert a.part_names == b.part_names and a.materials == b.materials
     assert [m.ignored for m in a.materials] == [m.ignored for m in b.materials]  # (not part of ==)
+    assert a.notes == b.notes
     for x, y in ((a.normals, b.normals), (a.face_material, b.face_material)):
         assert (x is None) == (y is None)
         if x is not None:
@@ -260,3 +261,20 @@ def test_a_large_scene_loads_from_the_cache_with_the_same_bits(cache):
         assert x.dtype == y.dtype and np.array_equal(x, y), name
     assert first.materials == again.materials and first.part_names == again.part_names
     assert first.lights == again.lights
+
+
+def test_a_glb_s_notes_are_read_back(tmp_path, small):
+    import trimesh
+
+    from tlm.scenes.materials import glb_chunks, write_glb
+
+    box = trimesh.creation.box()
+    path = tmp_path / "b.glb"
+    box.export(path)
+    header, binary = glb_chunks(path.read_bytes())
+    header["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.1}}]
+    path.write_bytes(write_glb(header, binary))
+    first = meshes.load_mesh(path)
+    again = meshes.load_mesh(path)
+    assert small == ["b.glb"] and again.notes == (f"{path}: its camera is not used (the scene file's camera: is)",)
+    _same(first, again)

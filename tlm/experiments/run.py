@@ -302,7 +302,8 @@ def run_warnings(res: RenderResult) -> list[str]:
     never reads, a BSP cut short: ``results.json`` ``warnings`` but the simulated stream's
     (:func:`stream_warnings`), one line each."""
     _, rays, hits, back = _eye_hits(res)
-    warnings = [*checks.material_warnings(res.scene), *checks.light_warnings(res.scene, res.accel),
+    warnings = [*checks.file_warnings(res.scene), *checks.material_warnings(res.scene),
+                *checks.light_warnings(res.scene, res.accel),
                 *checks.camera_warnings(rays, hits, back),
                 *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
                                        checks.light_scale(res.scene, res.accel.scale))]

@@ -30,6 +30,8 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   :data:`BLACK_LIMIT` of the radiance the lights give at the scene's size
   (:func:`light_scale`: light that only grazes, as from a quad light facing away from a
   ceiling it lies in).
+* :func:`file_warnings`: what the mesh files hold that tlm does not use (a glTF's cameras
+  and ``KHR_lights_punctual`` lights), a line each.
 * :func:`material_warnings`: materials the image shows whose mesh file gives them what
   tlm does not render (texture and bump maps, alpha, unknown glTF extensions:
   :attr:`~tlm.scenes.model.Material.ignored`), in one line.
@@ -199,6 +201,12 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
                        "rays that hit the scene hit the back of an opaque triangle (is it inside a closed mesh, "
                        "outside a room whose walls face in, or is the geometry wound inside out?)")
     return out
+
+
+def file_warnings(scene: Scene) -> list[str]:
+    """What the scene's mesh files hold that tlm does not use (a glTF's cameras and punctual
+    lights: ``Geometry.notes``), one line each naming the file."""
+    return [str(n) for n in scene.extra.get("notes") or []]
 
 
 def material_warnings(scene: Scene, shown: int = 3) -> list[str]:

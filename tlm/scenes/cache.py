@@ -121,7 +121,7 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         arrays["normals"] = geom.normals
     if geom.face_material is not None:
         arrays["face_material"] = geom.face_material
-    meta = {"part_names": list(geom.part_names), "names": names, "deps": deps,
+    meta = {"part_names": list(geom.part_names), "names": names, "deps": deps, "notes": list(geom.notes),
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
                            "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined}
@@ -199,7 +199,11 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict) -> Geometry |
     except (AttributeError, IndexError, KeyError, TypeError, ValueError) as e:
         _damaged(entry, f"{type(e).__name__}: {e}")
         return None
-    return Geometry(triangles=tri, part=part, part_names=names, normals=got.get("normals"),
+    notes = meta.get("notes", [])
+    if not (isinstance(notes, list) and all(isinstance(n, str) for n in notes)):
+        _damaged(entry, "notes: not a list of lines")
+        return None
+    return Geometry(triangles=tri, part=part, part_names=names, normals=got.get("normals"), notes=tuple(notes),
                     materials=materials, face_material=got.get("face_material"))
 
 

@@ -328,4 +328,5 @@ def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str
         normals=normals,
         materials=tuple(materials),
         face_material=np.concatenate(face_material) if any_file_materials else None,
+        notes=tuple(dict.fromkeys(n for g in geoms for n in g.notes)),
     )

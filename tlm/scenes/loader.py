@@ -326,7 +326,7 @@ def load_scene(
         photons=photons,
         source=src,
         extra={"description": str(raw.get("description", "")), "crease_angle": crease,
-               "normals": "file" if normals is geom.normals else "crease"},
+               "normals": "file" if normals is geom.normals else "crease", "notes": list(geom.notes)},
         normals=normals,
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):

@@ -62,7 +62,8 @@ otherwise                                                       lambertian    ``
 The base colour is ``baseColorFactor``'s RGB (alpha and textures are ignored). A
 material is named by its ``name``, or ``material_<i>`` (its index) without one. What is
 ignored and changes the look (every ``*Texture``, an alpha below 1 or an ``alphaMode``
-other than ``OPAQUE``, any extension besides the three above) is kept in
+other than ``OPAQUE``, any extension besides the three above, ``doubleSided`` on an
+emissive material: tlm's emitters emit from their front only) is kept in
 :attr:`Material.ignored`, for the run's warning, as for MTL.
 """
 
@@ -362,7 +363,13 @@ def _gltf_ignored(m: dict, pbr: dict, ext: dict) -> tuple[str, ...]:
         out.append("alpha")
     if m.get("alphaMode", "OPAQUE") != "OPAQUE":
         out.append("alphaMode")
+    if m.get("doubleSided") is True and any(float(e) > 0 for e in (m.get("emissiveFactor") or []) if _real(e)):
+        out.append("doubleSided emission")  # (a tlm emitter emits from its front only)
     return tuple(dict.fromkeys(out))
+
+
+def _real(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def gltf_materials(header: dict, source: str = "") -> list[Material]:

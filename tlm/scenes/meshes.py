@@ -37,6 +37,7 @@ from __future__ import annotations
 import io
 import re
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -300,6 +301,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     from tlm.scenes.objfile import read_bytes
 
     file_materials: tuple[Material, ...] = ()
+    header: dict | None = None  # (a glTF's JSON)
     source: object = str(path)
     kwargs: dict = {}
     if zext or ext in (".glb", ".gltf"):
@@ -397,7 +399,29 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         normals=normals,
         materials=file_materials,
         face_material=np.concatenate(mat_ids) if file_materials else None,
+        notes=_gltf_notes(header, src) if header is not None else (),
     )
+
+
+def _gltf_notes(header: dict, src: str) -> tuple[str, ...]:
+    """A glTF's cameras and punctual lights, which tlm does not use (the scene file gives the
+    camera and the lights): a line each, for the run's warning."""
+    out = []
+    cameras = header.get("cameras")
+    if isinstance(cameras, list) and cameras:
+        n = len(cameras)
+        out.append(f"{src}: its {f'{n} cameras are' if n > 1 else 'camera is'} not used (the scene file's "
+                   "camera: is)")
+    ext = header.get("extensions")
+    lights = ((ext.get("KHR_lights_punctual") or {}).get("lights") if isinstance(ext, dict) else None) or []
+    if isinstance(lights, list) and lights:
+        kinds = ", ".join(f"{n} {k}" for k, n in sorted(
+            Counter(str(lt.get("type")) if isinstance(lt, dict) else "?" for lt in lights).items()))
+        many = len(lights) > 1
+        out.append(f"{src}: its punctual light{'s' if many else ''} ({kinds}, KHR_lights_punctual) "
+                   f"{'are' if many else 'is'} not used: give {'them' if many else 'it'} under lights: in the scene "
+                   "file (tlm has point and quad lights, and emissive materials)")
+    return tuple(out)
 
 
 def _gltf_index(geom, n_materials: int) -> int:

@@ -144,6 +144,9 @@ class Geometry:
     # gives a triangle none. A scene file's `parts:` and `materials:` override them.
     materials: tuple[Material, ...] = ()
     face_material: np.ndarray | None = None  # (n,) int32
+    # what the file holds that tlm does not use, one line each naming the file (a glTF's
+    # cameras and punctual lights): the run warns of them (tlm.render.checks.file_warnings)
+    notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
