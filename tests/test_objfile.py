@@ -369,3 +369,16 @@ def test_crease_normals_weld_exactly_on_a_hash_collision(monkeypatch):
     monkeypatch.setattr(fast_normals, "_row_hash", collide)
     got = fast_normals.crease_normals(tri, part, 30.0)
     assert calls and np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
+def test_a_concave_polygon_is_named_in_the_notes(tmp_path):
+    """A U-shaped face fanned from its first corner covers its notch, with a triangle facing
+    back: the mesh's notes name it (the run warns); convex polygons and triangles give none."""
+    u = "v 0 0 0\nv 3 0 0\nv 3 2 0\nv 2 2 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\n"
+    (tmp_path / "u.obj").write_text(u + "f 1 2 3 4 5 6 7 8\nf 1 2 3\n")
+    (tmp_path / "quads.obj").write_text(u + "f 1 2 3 8\nf 2 3 4 5 6\nf 1 2 3\n")  # (convex, star from corner 1)
+    note = load_mesh(tmp_path / "u.obj").notes
+    assert note == (f"{tmp_path / 'u.obj'}: 1 polygon is not convex (first at line 9): fanned from its first "
+                    "corner, it covers another area than the face, with triangles facing back; split such faces "
+                    "into triangles in the file",)
+    assert load_mesh(tmp_path / "quads.obj").notes == ()

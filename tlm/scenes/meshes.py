@@ -8,7 +8,9 @@ polygons are fan-triangulated from their first corner.
   per ``o`` object when the file has any, else one per ``g`` group, else one part named
   after the file stem (parts in file order, parts of the same name merged); its
   ``mtllib`` libraries give ``Geometry.materials`` and each face's ``usemtl`` its
-  ``face_material`` (:mod:`tlm.scenes.materials`). A library sits beside the OBJ, plain
+  ``face_material`` (:mod:`tlm.scenes.materials`). A polygon its fan does not cover (a
+  concave face: one fan triangle faces back) is named in ``Geometry.notes``, which the
+  run warns of. A library sits beside the OBJ, plain
   or compressed like it; a missing library is an error. A ``usemtl`` naming a material
   no library defines (McGuire's ``CornellBox-Glossy`` names a ``light`` its MTL lacks)
   gives a placeholder material whose ``Material.undefined`` says so: the scene file
@@ -198,7 +200,34 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
         normals=normals,
         materials=materials,
         face_material=face_material,
+        notes=_concave_note(tri, obj.face_line, src),
     ), [[text, line] for text, line in obj.mtllibs]
+
+
+def _concave_note(tri: np.ndarray, face_line: np.ndarray, src: str) -> tuple[str, ...]:
+    """A line naming the polygons (faces of more than 3 corners) that their fan from the
+    first corner does not cover: one of its triangles faces against the polygon's vector
+    area (a concave polygon, a U or an L, whose fan overlaps itself and fills its notch)."""
+    line = np.asarray(face_line)
+    if line.shape[0] < 2:
+        return ()
+    poly = np.flatnonzero(np.r_[line[1:] == line[:-1], False] | np.r_[False, line[1:] == line[:-1]])
+    if poly.shape[0] == 0:
+        return ()
+    t = np.asarray(tri[poly], dtype=np.float64)
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])  # twice each fan triangle's vector area
+    lines, which = np.unique(line[poly], return_inverse=True)
+    area = np.zeros((lines.shape[0], 3))
+    np.add.at(area, which, n)  # twice the polygon's vector area (the fan's sum)
+    dot = np.einsum("ij,ij->i", n, area[which])
+    back = dot < -1e-9 * np.linalg.norm(n, axis=1) * np.linalg.norm(area[which], axis=1)
+    if not back.any():
+        return ()
+    bad = np.unique(line[poly][back])
+    k = bad.shape[0]
+    return (f"{src}: {k} polygon{'s are' if k > 1 else ' is'} not convex (first at line {int(bad[0])}): fanned from "
+            f"{'their' if k > 1 else 'its'} first corner, {'they cover' if k > 1 else 'it covers'} another area "
+            "than the face, with triangles facing back; split such faces into triangles in the file",)
 
 
 def _unit_or_none(normals: np.ndarray) -> np.ndarray | None:
