@@ -82,3 +82,10 @@ def test_warnings_are_grouped_counted_and_escaped():
     assert "frames too short<span class=\"note\"> (every run)</span>" in page
     assert f"(5 of 10 runs: {', '.join(f'r{i}' for i in range(1, 2 * SHOWN_RUNS, 2))} and 1 more)" in page
     assert warnings_html(Inputs([Path(".")], runs=[run(0, [])])) == ""
+
+
+def test_an_empty_report_title_is_refused(tmp_path, capsys):
+    """--title '' was silently the default title."""
+    assert main(["report", str(tmp_path), "--title", " "]) == 2
+    assert capsys.readouterr().err.strip() == ("tlm: error: tlm report: argument --title: an empty title: give one, "
+                                               "or leave --title out for the default")

@@ -349,6 +349,13 @@ def _folder_name(text: str) -> str:
     return text
 
 
+def _title(text: str) -> str:
+    """``report --title``: a title with something in it (an empty one was the default's)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty title: give one, or leave --title out for the default")
+    return text
+
+
 def _table_file(text: str) -> str:
     """``calibrate --write``: a table file's path, checked before the fit (a folder, or a
     file in a folder that does not exist, would fail only after it)."""
@@ -467,7 +474,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
     rp.add_argument("--out", type=_folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
-    rp.add_argument("--title", help="the page's title")
+    rp.add_argument("--title", type=_title, help="the page's title (default: tlm report: and the folders' names)")
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
