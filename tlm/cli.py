@@ -218,7 +218,10 @@ def _cmd_scene(args: argparse.Namespace) -> int:
         print(json.dumps(api.scene_info(scene), indent=2))
         return 0
     api.export_scene(scene, args.file)
-    print(f"wrote {args.file} ({scene.n_triangles} triangles)")
+    also = (f" and {Path(args.file).with_suffix('.mtl')} ({len(scene.materials)} materials)"
+            if Path(args.file).suffix.lower() == ".obj" else "")
+    print(f"wrote {args.file} ({scene.n_triangles} triangles){also}; the scene file's lights, camera and "
+          "resolution are not in it")
     return 0
 
 

@@ -1,6 +1,13 @@
 """Export a scene's world-space triangles, in triangle-id order, as PLY or OBJ.
 
-The PLY file also carries each face's material index (property ``material``).
+The PLY file also carries each face's material index (property ``material``). The OBJ
+file carries the parts (``o``) and the materials (``usemtl``, in an MTL library of the
+same stem written beside it: ``Kd`` for a Lambertian material, ``Ks`` and ``illum 3``
+for a mirror, ``Ni``, ``Tf`` and ``illum 7`` for a dielectric, ``Ke`` for emission), so
+that tlm reads the OBJ back as the same triangles, parts and materials (but a
+dielectric's transmittance: tlm's MTL reading takes glass as clear,
+:mod:`tlm.scenes.materials`). The scene file's lights, camera and resolution are not in
+either file.
 
 Each triangle is written with its own three vertices (no welding), so face ``i`` of
 the file is triangle id ``i`` of every AOV and BSP leaf, exactly, and the vertex
@@ -61,7 +68,37 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
             f.write(verts.astype("<f8").tobytes())
             f.write(face_rec.tobytes())
     else:
-        lines = [f"# tlm scene {scene.name}: face i is triangle id i"]
+        library = path.with_suffix(".mtl")
+        lines = [f"# tlm scene {scene.name}: face i is triangle id i", f"mtllib {library.name}"]
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
-        lines += [f"f {a + 1} {a + 2} {a + 3}" for a in range(0, 3 * n, 3)]
+        part, mat = np.asarray(scene.part), np.asarray(scene.material_index)
+        starts = np.flatnonzero(np.r_[True, (part[1:] != part[:-1]) | (mat[1:] != mat[:-1])])
+        ends = np.r_[starts[1:], n]
+        last_part = None
+        for s, e in zip(starts.tolist(), ends.tolist(), strict=True):  # (one o and usemtl per run)
+            if part[s] != last_part:
+                lines.append(f"o {scene.part_names[part[s]]}")
+                last_part = part[s]
+            lines.append(f"usemtl {scene.materials[mat[s]].name}")
+            lines += [f"f {a + 1} {a + 2} {a + 3}" for a in range(3 * s, 3 * e, 3)]
+        write_file(library, mtl_text(scene))
         write_file(path, "\n".join(lines) + "\n")
+
+
+def mtl_text(scene: Scene) -> str:
+    """The scene's materials as an MTL library (the module's docstring)."""
+    def rgb(c) -> str:
+        return " ".join(repr(float(x)) for x in c)
+
+    out = [f"# tlm scene {scene.name}: its materials"]
+    for m in scene.materials:
+        out.append(f"newmtl {m.name}")
+        if m.kind == "lambertian":
+            out += [f"Kd {rgb(m.albedo)}", "Ks 0.0 0.0 0.0", "illum 1"]
+        elif m.kind == "mirror":
+            out += ["Kd 0.0 0.0 0.0", f"Ks {rgb(m.reflectance)}", "illum 3"]
+        else:
+            out += [f"Ni {float(m.ior)!r}", f"Tf {rgb(m.transmittance)}", "illum 7"]
+        if m.emits:
+            out.append(f"Ke {rgb(m.emission)}")
+    return "\n".join(out) + "\n"
