@@ -478,6 +478,45 @@ def file_digest(path: Path) -> dict:
     return {"size": size, "sha256": h.hexdigest()}
 
 
+def cached_image(folder: Path, name: str, key: str, what: str, again: str):
+    """The image ``folder/name`` (an (H, W, 3) float ``.npy``) and ``folder/meta.json`` of
+    the cache entry ``key``, or None when there is none. A damaged entry (``meta.json``
+    unreadable or of another key; the image not the file ``meta.json`` describes, by its
+    ``npy`` digest and its ``height`` and ``width`` where given, or not (H, W, 3) floats) is
+    reported once as a warning naming the file (``what``: the entry's kind; ``again``: what
+    computes it again) and removed, so it is computed again as if never cached."""
+    import numpy as np
+
+    npy, side = folder / name, folder / "meta.json"
+    if not npy.is_file() and not side.is_file():
+        return None
+    bad, why = side, None
+    try:
+        meta = json.loads(side.read_text())
+        if not isinstance(meta, dict) or meta.get("key") != key:
+            raise ValueError("not the metadata of this entry")
+    except (OSError, ValueError) as e:
+        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
+    if why is None:
+        bad = npy
+        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
+    if why is None:
+        try:
+            image = np.load(npy, allow_pickle=False)
+            size = (meta.get("height"), meta.get("width"))
+            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
+                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
+            if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
+                raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
+                                 f"{size[1]}x{size[0]}")
+            return image, meta
+        except (OSError, ValueError, EOFError) as e:
+            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
+    warn(f"damaged {what} cache entry {bad} ({why}): removed; {again}")
+    shutil.rmtree(folder, ignore_errors=True)
+    return None
+
+
 def digest_problem(path: Path, digest: object) -> str | None:
     """Why ``path`` is not the file :func:`file_digest` described (``digest``), or None."""
     if not isinstance(digest, dict) or not isinstance(digest.get("size"), int):

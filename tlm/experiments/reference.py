@@ -61,7 +61,7 @@ from tlm.render.passes import gather_points
 from tlm.render.planner import check_photon_memory
 from tlm.render.pmap import trace_photon_map
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_root, digest_problem, file_digest, warn
+from tlm.storage import atomic_folder, cache_root, cached_image, file_digest
 
 REFERENCE_SEED = 0x5EED
 KEY_VERSION = 2  # 1: keyed by render.spp, the eye samples the run's
@@ -346,33 +346,7 @@ def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
     file ``meta.json`` describes, or not an array) is reported once as a warning naming
     the file and removed: it is computed again as if it had never been cached.
     """
-    import shutil
-
-    folder = cache_dir() / key
-    npy, side = folder / "reference.npy", folder / "meta.json"
-    if not npy.is_file() and not side.is_file():
-        return None
-    bad, why = side, None
-    try:
-        meta = json.loads(side.read_text())
-        if not isinstance(meta, dict) or meta.get("key") != key:
-            raise ValueError("not the metadata of this reference")
-    except (OSError, ValueError) as e:
-        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
-    if why is None:
-        bad = npy
-        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
-    if why is None:
-        try:
-            image = np.load(npy, allow_pickle=False)
-            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
-                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
-            return image, meta
-        except (OSError, ValueError, EOFError) as e:
-            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
-    warn(f"damaged reference cache entry {bad} ({why}): removed; 'tlm reference' computes it again")
-    shutil.rmtree(folder, ignore_errors=True)
-    return None
+    return cached_image(cache_dir() / key, "reference.npy", key, "reference", "'tlm reference' computes it again")
 
 
 def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | None]:

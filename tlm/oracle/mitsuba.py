@@ -355,37 +355,11 @@ def load_ground_truth(key: str) -> tuple[np.ndarray, dict] | None:
     describes) is reported once as a warning naming the file and removed: it is rendered
     again as if it had never been cached (as the references' and the scenes' caches do).
     """
-    import shutil
+    from tlm.storage import cached_image
 
-    from tlm.storage import warn
-
-    folder = cache_dir() / key
-    npy, side = folder / "image.npy", folder / "meta.json"
-    if not npy.is_file() and not side.is_file():
-        return None
-    bad, why = side, None
-    try:
-        meta = json.loads(side.read_text())
-        if not isinstance(meta, dict) or meta.get("key") != key:
-            raise ValueError("not the metadata of this image")
-    except (OSError, ValueError) as e:
-        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
-    if why is None:
-        bad = npy
-        try:
-            image = np.load(npy, allow_pickle=False)
-            size = (meta.get("height"), meta.get("width"))
-            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
-                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
-            if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
-                raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
-                                 f"{size[1]}x{size[0]}")
-            return image.astype(np.float64), meta
-        except (OSError, ValueError, EOFError) as e:
-            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
-    warn(f"damaged Mitsuba ground-truth cache entry {bad} ({why}): removed; it is rendered again when next needed")
-    shutil.rmtree(folder, ignore_errors=True)
-    return None
+    found = cached_image(cache_dir() / key, "image.npy", key, "Mitsuba ground-truth", "it is rendered again "
+                         "when next needed")
+    return None if found is None else (found[0].astype(np.float64), found[1])
 
 
 def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_depth: int = -1, seed: int = 0,
