@@ -425,6 +425,7 @@ def test_a_folder_is_shared_by_one_identity_and_refused_to_another(tmp_path):
     with storage.sharing(out, "b", "sweep"):
         assert not (out / ".tlm-running-dead").exists()
     assert [p.name for p in out.iterdir()] == [".tlm-lock"]
+    storage.check_destination(out, "sweep.yaml")  # (a folder holding only the lock file is still ours to claim)
 
 
 def test_a_sweep_of_other_points_is_refused_while_one_runs_into_its_folder(tmp_path, capsys):

@@ -158,6 +158,9 @@ def test_error_vs_cost_rows(tmp_path, cache, capsys):
     ({"base": {}, "points": [{"mode": ["rcast"]}]}, "every point is a photon-map frame"),
     ({"base": {}, "points": [{"render.spp": [1, 4]}]}, "the base's eye rays"),
     ({"base": {}, "points": [{"resolution": [[8, 8]]}]}, "points[0].resolution"),
+    # ... also given as a whole section (the point's resolved settings against the base's)
+    ({"base": {}, "points": [{"render": [{"spp": 1}]}]}, "a point cannot vary render.spp"),
+    ({"base": {}, "points": [{"bsp": [{"levels": 3}]}]}, "a point cannot vary bsp"),
 ])
 def test_bad_experiment_files(tmp_path, capsys, body, expect):
     exp = tmp_path / "bad.yaml"

@@ -91,6 +91,9 @@ def test_granularity_and_extreme_studies_are_answered(tmp_path):
                      "<b>Extreme cases x:</b> 1 of 2 as expected; <strong>not as expected: b</strong> (§8)."]
     sec = summary_section(Inputs([], studies=[gran, ext]), tmp_path)
     assert sec.lead.startswith(found[0]) and sec.absent is None
+    far = Study("granularity", Path("f"), [{**r, "max_abs_rel_error": r["max_abs_rel_error"] * 10} for r in gran.rows])
+    assert study_findings(Inputs([], studies=[far])) == [
+        "<b>Granularity f:</b> every packet size above 1 is more than 1% off its cycles (the least, 4.00%)."]
 
 
 def test_a_folder_given_twice_is_read_once(tmp_path, cache):

@@ -64,9 +64,10 @@ def test_a_fit_group_whose_points_differ_in_another_key_is_refused_naming_it():
 
 
 def test_keys_that_leave_the_cycles_as_they_are_may_differ():
-    """A cap on events, the trace, the clock, the kernels' threads and batches, the reference."""
+    """A cap on events, the trace, the clock, the kernels' threads and batches, the images' exposure,
+    the reference."""
     recs = [record(_results(n), {**_config(n, max_events=10 ** 6 * n, trace=n > 1, clock_hz=1e8 * n),
-                                 "render": {"threads": n, "batch": n, "batch_rays": 1024 * n},
+                                 "render": {"threads": n, "batch": n, "batch_rays": 1024 * n, "exposure": 0.5 * n},
                                  "reference": {"tolerance": 0.01 * n}}) for n in (1, 2, 4)]
     fits = fit(recs)
     assert {k[:3] for k in fits} == {("cornell", "rcast", "static")}

@@ -274,7 +274,7 @@ def _cmd_params(args: argparse.Namespace) -> int:
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    from tlm.experiments.thesis import describe_items, describe_rows
+    from tlm.experiments.thesis import describe_items, describe_rows, median_words
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
@@ -286,13 +286,8 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"]))
     sm = done["summary"]
-    med, withheld = sm["median_abs_rel_error_held_out"], sm.get("median_withheld")
-    if med is not None:  # (over the comparable scenes' cells only: thesis.summarize)
-        median = f"median |relative error| over {sm['held_out_cells_compared']} held-out cells: {med:.1%}"
-        median += f" ({withheld})" if withheld else ""
-    else:
-        median = f"no median |relative error| ({withheld or 'no cell with a thesis value'})"
-    print(f"{median}; slowest PM as in the thesis in {sm['slowest_pm_matches']} of {sm['scene_modes']} scene-modes")
+    print(f"{median_words(sm)}; slowest PM as in the thesis in {sm['slowest_pm_matches']} of {sm['scene_modes']} "
+          "scene-modes")
     print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"]))

@@ -76,8 +76,9 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
 
 def _claiming(name: str, marker: str) -> bool:
     """Whether ``name`` is the temporary file of a marker being written (another tlm
-    process claiming the folder this instant, :func:`claim_folder`)."""
-    return name.startswith(f".{marker}.tmp")
+    process claiming the folder this instant, :func:`claim_folder`), or a lock file of
+    :func:`sharing` (a sweep refused, or killed, before it wrote its marker leaves one)."""
+    return name.startswith((f".{marker}.tmp", _RUNNING)) or name == _GUARD
 
 
 def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bool:
@@ -168,6 +169,17 @@ def _claim_stale(path: Path, what: str) -> None:
         path.unlink(missing_ok=True)
     finally:
         os.close(fd)
+
+
+def distinct_folders(dirs: Iterable[str | Path], notes: list[str] | None = None) -> list[Path]:
+    """``dirs`` with a folder given twice (or by two paths) kept once, in order; ``notes``
+    gets a line for each repeat."""
+    unique: dict[Path, Path] = {}
+    for d in map(Path, dirs):
+        first = unique.setdefault(d.resolve(), d)
+        if first is not d and notes is not None:
+            notes.append(f"{d}: given twice (the same folder as {first}): read once")
+    return list(unique.values())
 
 
 def pid_alive(pid: int) -> bool:

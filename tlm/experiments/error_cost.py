@@ -124,9 +124,18 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
 def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
     raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
+    shared = _fixed(config_from_dict(base, src))
     for p in points:  # check every point before any work starts
-        config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})")
+        mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})"))
+        for key, value in mine.items():  # (a whole section given, render: {spp: 1}, is caught here)
+            if value != shared[key]:
+                _check_factor(key, src, f"points: {p}")
     return base, points, Path(path).resolve().parent
+
+
+def _fixed(cfg: RunConfig) -> dict[str, Any]:
+    """The settings of :data:`FIXED` of a resolved config (the mode as the study runs it)."""
+    return {"scene": cfg.scene, "resolution": cfg.resolution, "bsp": cfg.bsp, "render.spp": cfg.render.spp}
 
 
 @dataclass(frozen=True)

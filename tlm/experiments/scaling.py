@@ -38,7 +38,7 @@ import yaml
 
 from tlm.errors import InputError
 from tlm.experiments.study import run_study
-from tlm.storage import check_destination, read_jsonl
+from tlm.storage import check_destination, distinct_folders, read_jsonl
 
 TARGETS = ("latency", "throughput")
 # the keys of a point's resolved config that eq. 5.2's groups may differ in: the groups' own
@@ -47,7 +47,7 @@ TARGETS = ("latency", "throughput")
 # and batches, the photon-map reference)
 GROUP_KEYS = frozenset({"scene", "mode", "arch.scheduler", "arch.pipelines"})
 NO_EFFECT = frozenset({"arch.max_events", "arch.trace", "arch.clock_hz", "render.threads", "render.batch",
-                       "render.batch_rays"})
+                       "render.batch_rays", "render.exposure"})
 NO_EFFECT_PREFIXES = ("reference.",)
 COLUMNS = ("scene", "mode", "scheduler", "pipelines", "target", "simulated", "analytical", "rel_error",
            "analytical_slowest", "rel_error_slowest", "T_vert0", "sum_max_per_N", "speedup")
@@ -254,13 +254,7 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     scene as ``scaling_<scene>.png``."""
     check_destination(out, "eq52.json")
     notes: list[str] = []
-    unique: dict[Path, Path] = {}  # the same folder given twice (or by two paths) is read once
-    for d in map(Path, sweep_dirs):
-        if d.resolve() in unique:
-            notes.append(f"{d}: given twice (the same folder as {unique[d.resolve()]}): read once")
-        else:
-            unique[d.resolve()] = d
-    sweep_dirs = list(unique.values())
+    sweep_dirs = distinct_folders(sweep_dirs, notes)
     failed: list[str] = []
     records = [r for d in sweep_dirs for r in collect(d, notes, failed)]
     try:

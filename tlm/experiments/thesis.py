@@ -111,24 +111,43 @@ def thesis_value(scene: str, mode: str, metric: str) -> float | None:
 
 def table_of(source: str | Path | None) -> str | None:
     """The table (``ring``, ``room``, ``cornell``) whose scene the scene file ``source`` is,
-    judged by the file, not its name: the built-in files of :data:`THESIS_SCENES` (a user's
+    judged by the file, not its name: a file with the bytes of a built-in file of
+    :data:`THESIS_SCENES`, wherever it is (another checkout's, a copy; a user's
     ``cornell.yaml``, or the built-in caustic showcase ``ring``, is none). A file that is
-    not on this machine (a folder written by another installation) is judged by its place
-    under a ``scenes`` folder. None: not one of the thesis's scenes."""
+    not on this machine (a folder written elsewhere) is judged by its place under a
+    ``scenes`` folder. None: not one of the thesis's scenes."""
     if not source:
         return None
     p = Path(source)
     root = scenes_dir()
+    here = p.is_file()
     for table, name in THESIS_SCENES.items():
         builtin = root / f"{name}.yaml"
-        if p.exists():
-            if p.resolve() == builtin.resolve():
+        if here:
+            if _same_scene_file(p, builtin):
                 return table
             continue
         tail = ("scenes", *f"{name}.yaml".split("/"))
         if p.parts[-len(tail):] == tail or p.parts[-len(tail):] == ("_scenes", *tail[1:]):
             return table
     return None
+
+
+def _same_scene_file(p: Path, builtin: Path, depth: int = 0) -> bool:
+    """Whether the scene file ``p`` has the bytes of ``builtin``, and so has the file its
+    ``extends:`` names (relative to each), down the chain."""
+    import yaml
+
+    try:
+        data = p.read_bytes()
+        if data != builtin.read_bytes():
+            return False
+        ref = (yaml.safe_load(data) or {}).get("extends")
+    except (OSError, ValueError, AttributeError, yaml.YAMLError):
+        return False
+    if not isinstance(ref, str) or depth > 8 or not (ref.endswith(".yaml") or "/" in ref):
+        return True  # (no extends, or a built-in name: the same scene either way)
+    return _same_scene_file(p.parent / ref, builtin.parent / ref, depth + 1)
 
 
 def _scene_label(source: str) -> str:
@@ -333,6 +352,16 @@ def describe_items(items: dict[str, dict]) -> str:
         lines.append(f"{scene:8s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>21s}" for c in cells)
                      + f" {'-' if leaf is None else f'{leaf:.3g}':>10s}")
     return "\n".join(lines)
+
+
+def median_words(s: dict) -> str:
+    """A :func:`summarize`'s held-out median in words, as every place that quotes it says it:
+    over how many cells, or why there is none (scenes not comparable, no thesis value)."""
+    med, why = s["median_abs_rel_error_held_out"], s.get("median_withheld")
+    if med is None:
+        return f"no median |relative error| ({why or 'no cell with a thesis value'})"
+    return (f"median |relative error| over the {s['held_out_cells_compared']} held-out cells: {med:.1%}"
+            + (f" ({why})" if why else ""))
 
 
 def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = None) -> dict:

@@ -33,7 +33,7 @@ from tlm.report.collect import Inputs, read
 from tlm.report.common import Section
 from tlm.report.html import esc, page
 from tlm.report.warnings import warnings_html
-from tlm.storage import atomic_folder
+from tlm.storage import atomic_folder, distinct_folders
 
 MARKER = "report.html"
 # subfolders of a report's folder that the report does not draw but keeps when it is
@@ -74,10 +74,7 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     recorded in their ``eq52.json`` that still exist and are not inputs themselves.
     """
     t0 = time.perf_counter()
-    once: dict[Path, Path] = {}  # (a folder given twice is read once)
-    for d in dirs:
-        once.setdefault(Path(d).resolve(), Path(d))
-    dirs = list(once.values())
+    dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     inputs = read(dirs)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}

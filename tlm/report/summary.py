@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.experiments.thesis import median_words
 from tlm.report.collect import Inputs
 from tlm.report.common import Figure, Section, bar_style, line_style, new_figure, save
 from tlm.report.html import esc
@@ -70,12 +71,7 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     said = []  # every thesis study's median, judged as the tables judge it (none where not comparable)
     summaries = study_summaries(inputs)
     for study, s in summaries:
-        med, why = s["median_abs_rel_error_held_out"], s["median_withheld"]
-        if med is not None:
-            words = (f"median |relative error| {100 * med:.0f}% over {s['held_out_cells_compared']} held-out cells"
-                     + (f" ({why})" if why else ""))
-        else:
-            words = f"no median |relative error| ({why or 'no cell with a thesis value'})"
+        words = median_words(s)
         said.append(f"{'thesis study ' + study.path.name + ': ' if len(summaries) > 1 else ''}{words}")
     if said:
         text += f" Against Tables I–III: {esc('; '.join(said))}."
@@ -241,16 +237,17 @@ def study_findings(inputs: Inputs) -> list[str]:
         if ok.sum() < 2:
             continue
         size, secs, err = size[ok], secs[ok], np.abs(err[ok])
-        within = np.flatnonzero(err <= 0.01)
         ref = int(np.argmin(size))
+        within = np.flatnonzero((err <= 0.01) & (size > size[ref]))  # (the reference itself is not a finding)
         if within.size:
             i = within[np.argmax(size[within])]
             texts.append(f"<b>Granularity {esc(st.path.name)}:</b> packets of {int(size[i]):,} stay within 1% "
                          f"of the cycles of packets of {int(size[ref]):,} (error {err[i]:.2%}), in "
                          f"{secs[i]:.3g} s of simulation against {secs[ref]:.3g} s.")
         else:
+            coarser = err[size > size[ref]]
             texts.append(f"<b>Granularity {esc(st.path.name)}:</b> every packet size above {int(size[ref]):,} is "
-                         f"more than 1% off its cycles (the least, {err[err > 0].min():.2%}).")
+                         f"more than 1% off its cycles (the least, {coarser.min():.2%}).")
     for st in inputs.of_kind("extreme"):
         failed = [str(r["case"]) for r in st.rows if not r["passed"]]
         texts.append(f"<b>Extreme cases {esc(st.path.name)}:</b> {len(st.rows) - len(failed)} of {len(st.rows)} as "

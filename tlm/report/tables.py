@@ -38,6 +38,7 @@ from tlm.experiments.thesis import (
     THESIS_SIZES,
     _ours,
     comparison_rows,
+    median_words,
     run_mismatches,
     summarize,
 )
@@ -248,20 +249,13 @@ def _summary_line(rows: list[dict]) -> str:
 def _line(s: dict) -> str:
     """A :func:`~tlm.experiments.thesis.summarize` in words: the medians (of the comparable
     scenes' cells; where there is none, why) and the slowest-PM count."""
-    parts = []
-    if s["median_abs_rel_error_held_out"] is not None:
-        parts.append(f"median |relative error| over the {s['held_out_cells_compared']} held-out cells "
-                     f"{s['median_abs_rel_error_held_out']:.1%}")
+    parts = [median_words(s)]
     if s["median_abs_rel_error_calibrated"] is not None:
         parts.append(f"over the {s['calibrated_cells_compared']} calibrated cells "
                      f"{s['median_abs_rel_error_calibrated']:.1%}")
-    if s["median_withheld"] and parts:
-        parts[-1] += f" ({s['median_withheld']})"
-    elif s["median_withheld"]:
-        parts.append(f"no median |relative error| ({s['median_withheld']})")
     if s["scene_modes"]:
         parts.append(f"slowest PM as in the thesis in {s['slowest_pm_matches']} of {s['scene_modes']} scene-modes")
-    return "; ".join(parts) if parts else "no cell with a thesis value"
+    return "; ".join(parts)
 
 
 def table_html(src: Source) -> str:

@@ -93,14 +93,14 @@ def _point_name(r: dict) -> str:
         extra += f", {int(caustic):,} caustic ph"
     for item in str(r.get("factors") or "").split("; "):  # the point's other settings (render.light_samples=4)
         key = item.split("=", 1)[0]
-        if item and key not in _NAMED:
+        if item and key not in _NAMED and not item.endswith("=null"):  # (null: the default, nothing to tell)
             extra += f", {item}"
     return f"{f}, {int(_num(r.get('photons'))):,} ph{extra}"
 
 
 # the point settings the name above gives already
 _NAMED = ("estimate.filter", "photons.count", "estimate.radius_fraction", "estimate.k", "estimate.k_nearest",
-          "photons.caustic_count")
+          "photons.caustic_count", "estimate.final_gather")
 
 
 def study_names(studies: list[Study]) -> list[str]:
