@@ -456,6 +456,8 @@ def test_what_a_file_gives_a_material_and_tlm_does_not_render_is_kept():
             "newmtl metal\nKd 0.5 0.5 0.5\nPm 1\nPr 0.2\nnewmtl plain\nKd 0.8 0.8 0.8\nNs 10\nKs 0.1 0.1 0.1\n")
     wood, metal, plain = parse_mtl(text, "t.mtl")
     assert wood.ignored == ("map_Kd", "bump") and metal.ignored == ("Pm", "Pr") and plain.ignored == ()
+    (xyz,) = parse_mtl("newmtl x\nKd xyz 0.5 0.5 0.5\nKs spectral f.rfl\n", "t.mtl")  # (colours not read either)
+    assert xyz.ignored == ("Kd xyz", "Ks spectral") and xyz.albedo == (0.8, 0.8, 0.8)
     assert wood == Material("wood", "lambertian", albedo=(0.5, 0.3, 0.1))  # (not part of the value)
 
 

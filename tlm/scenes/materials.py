@@ -11,8 +11,9 @@ number for grey), ``Ni``, ``d``, ``Tr`` (= 1 - ``d``; ``d`` wins when both are g
 colour given as ``spectral`` or ``xyz``. Of those, the ones that change how a surface
 looks (texture and bump maps: ``map_*``, ``bump``, ``disp``, ``decal``, ``refl``,
 ``norm``; the PBR extension's ``Pr``, ``Pm``, ``Ps``, ``Pc``, ``Pcr``, ``aniso``,
-``anisor``) are kept in :attr:`Material.ignored`, and a run that renders such a material
-warns of them (:func:`tlm.render.checks.material_warnings`).
+``anisor``; a colour given as ``spectral`` or ``xyz``) are kept in
+:attr:`Material.ignored`, and a run that renders such a material warns of them
+(:func:`tlm.render.checks.material_warnings`).
 
 ======================================================  ============  ===================================
 MTL                                                     tlm kind      parameters
@@ -119,15 +120,15 @@ def parse_mtl(text: str, source: str) -> list[Material]:
             current = {}
             found.append((name, number, current))
             continue
-        if current is not None and (key.startswith("map_") or key in _MTL_LOOKS):
-            seen_keys = current.setdefault(_IGNORED, ((), number))[0]
-            if key not in seen_keys:
-                current[_IGNORED] = ((*seen_keys, key), number)
-            continue
-        if current is None or (key not in _COLOURS and key not in _SCALARS):
-            continue
         args = words[1:]
-        if key in _COLOURS and args and args[0] in ("spectral", "xyz"):
+        unread = key if key.startswith("map_") or key in _MTL_LOOKS else (
+            f"{key} {args[0]}" if key in _COLOURS and args and args[0] in ("spectral", "xyz") else None)
+        if current is not None and unread is not None:  # (a colour in spectral or xyz: not read either)
+            seen_keys = current.setdefault(_IGNORED, ((), number))[0]
+            if unread not in seen_keys:
+                current[_IGNORED] = ((*seen_keys, unread), number)
+            continue
+        if current is None or (key not in _COLOURS and key not in _SCALARS) or unread is not None:
             continue
         if key == "d" and args and args[0] == "-halo":
             args = args[1:]
