@@ -590,3 +590,19 @@ def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_o
     assert "doubleSided emission" in material_warnings(scene)[0]
     (tmp_path / "plain.glb").write_bytes(write_glb(*_gltf_scene(tmp_path)))
     assert load_mesh(tmp_path / "plain.glb").notes == ()
+
+
+def test_malformed_punctual_lights_and_dark_double_sided_emitters(tmp_path):
+    """KHR_lights_punctual that is not an object is no note (it was an internal error); a
+    doubleSided material whose emission is 0 (emissive strength 0) is nothing lost."""
+    for bad in ([{"type": "point"}], "x"):
+        header, binary = _gltf_scene(tmp_path)
+        header["extensions"] = {"KHR_lights_punctual": bad}
+        (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
+        assert load_mesh(tmp_path / "s.glb").notes == ()
+    header, binary = _gltf_scene(tmp_path)
+    lamp = header["materials"][3]
+    lamp["doubleSided"] = True
+    lamp["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = 0.0
+    (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
+    assert load_mesh(tmp_path / "s.glb").materials[3].ignored == ()

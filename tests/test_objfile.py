@@ -382,3 +382,7 @@ def test_a_concave_polygon_is_named_in_the_notes(tmp_path):
                     "corner, it covers another area than the face, with triangles facing back; split such faces "
                     "into triangles in the file",)
     assert load_mesh(tmp_path / "quads.obj").notes == ()
+    # a convex face with corners along an edge (slivers of no area, their sign rounding noise): no note
+    (tmp_path / "coll.obj").write_text("v 0 0 0\nv .1 .2 .3\nv .3 .6 .9\nv .7 1.4 2.1\nv 1 2 3\nv 1 3 3\nv 0 1 0\n"
+                                       "f 1 2 3 4 5 6 7\n")
+    assert load_mesh(tmp_path / "coll.obj").notes == ()

@@ -288,3 +288,13 @@ def test_peers_absent_or_bounded(study, tmp_path):
     left = [n for n in section.notes if "left out of the figure" in n]
     assert len(left) == 1 and f"r{MAX_OURS_ROWS}," in left[0] and "ours: r0," not in left[0]
     assert section.html.count('<tr class="ours">') == MAX_OURS_ROWS
+
+
+def test_a_study_of_calibrated_cells_only_denies_no_median():
+    """Only calibrated cells: their median, not 'no median (no cell with a thesis value)' too."""
+    from tlm.report.tables import _line
+
+    s = {"median_abs_rel_error_held_out": None, "median_abs_rel_error_calibrated": 0.04, "median_withheld": None,
+         "held_out_cells_compared": 0, "calibrated_cells_compared": 4, "scene_modes": 1, "slowest_pm_matches": 1}
+    assert _line(s) == ("median |relative error| over the 4 calibrated cells 4.0%; slowest PM as in the thesis in 1 "
+                        "of 1 scene-modes")

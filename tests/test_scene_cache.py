@@ -278,3 +278,20 @@ def test_a_glb_s_notes_are_read_back(tmp_path, small):
     again = meshes.load_mesh(path)
     assert small == ["b.glb"] and again.notes == (f"{path}: its camera is not used (the scene file's camera: is)",)
     _same(first, again)
+
+
+def test_a_cached_note_names_the_file_it_is_read_for(tmp_path, small):
+    """The entry is keyed by the file's name and bytes, not its folder: a copy elsewhere reads
+    it back, and its notes (and an undefined usemtl's line) name the copy, not the first file."""
+    u = "mtllib box.mtl\nv 0 0 0\nv 3 0 0\nv 3 2 0\nv 2 2 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\n"
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "box.mtl").write_text(MTL)
+        (tmp_path / folder / "u.obj").write_text(u + "usemtl red\nf 1 2 3 4 5 6 7 8\nusemtl gone\nf 1 2 3\n")
+    first = meshes.load_mesh(tmp_path / "a" / "u.obj")
+    again = meshes.load_mesh(tmp_path / "b" / "u.obj")
+    assert small == ["u.obj"]  # (the second from the cache)
+    (note,) = again.notes
+    assert note.startswith(f"{tmp_path / 'b' / 'u.obj'}: 1 polygon is not convex") and "/a/" not in note
+    assert again.materials[-1].undefined.startswith(f"{tmp_path / 'b' / 'u.obj'}: line 12: usemtl 'gone'")
+    assert first.notes[0].startswith(str(tmp_path / "a" / "u.obj"))

@@ -110,3 +110,27 @@ def test_an_obj_export_reads_back_as_the_same_triangles_parts_and_materials(tmp_
     assert [m.name for m in a.materials] == [m.name for m in b.materials]
     if any(m.emits for m in a.materials):  # (an emissive material's light comes back with it)
         assert [lt.kind for lt in b.lights] == ["mesh"]
+
+
+def test_an_obj_export_refuses_what_its_mtl_cannot_hold_or_would_overwrite(tmp_path):
+    """A material name with '#' (an MTL comment) or spaces at its ends would read back as
+    another name; a library tlm did not write (a published scene's, beside its OBJ) would be
+    replaced. Both refused, nothing written; tlm's own library is replaced."""
+    from dataclasses import replace
+
+    from tlm.api import load_scene
+
+    scene = load_scene("cornell-box")
+    for bad in ("m#1", " pad", "two\nlines"):
+        odd = replace(scene, materials=(replace(scene.materials[0], name=bad), *scene.materials[1:]))
+        with pytest.raises(InputError, match=r"cannot be named in an MTL library"):
+            export_triangles(odd, tmp_path / "x.obj")
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "x.mtl").write_text("# Morgan McGuire's library\nnewmtl light\n")
+    with pytest.raises(InputError, match=r"x\.mtl beside it is not a library tlm wrote"):
+        export_triangles(scene, tmp_path / "x.obj")
+    assert (tmp_path / "x.mtl").read_text().startswith("# Morgan")
+    (tmp_path / "x.mtl").unlink()
+    export_triangles(scene, tmp_path / "x.obj")
+    export_triangles(scene, tmp_path / "x.obj")  # (its own library: replaced)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.mtl", "x.obj"]

@@ -85,12 +85,14 @@ FIXED = {"scene": "every point renders the base's scene", "mode": "every point i
          "render.spp": "every point shares the base's eye rays"}
 
 
-def _check_factor(key: str, source: str, where: str) -> None:
-    """An InputError for a point key every point takes from the base (:data:`FIXED`)."""
+def _check_factor(key: str, source: str, where: str, section: str | None = None) -> None:
+    """An InputError for a point key every point takes from the base (:data:`FIXED`);
+    ``section``: the point gave that key's whole section, which replaces the base's."""
     why = FIXED.get("bsp" if key.startswith("bsp.") else key)
     if why is not None:
-        raise InputError(f"a point cannot vary {key}: {why}; set it under base, and run one experiment per value",
-                         source=source, key=where)
+        how = (f" (the point's {section}: replaces the base's whole section: give {section}.<key> for what it "
+               "changes)") if section else "; set it under base, and run one experiment per value"
+        raise InputError(f"a point cannot vary {key}: {why}{how}", source=source, key=where)
 
 
 def expand(points: Any, source: str) -> list[dict[str, Any]]:
@@ -129,7 +131,8 @@ def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
         mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})"))
         for key, value in mine.items():  # (a whole section given, render: {spp: 1}, is caught here)
             if value != shared[key]:
-                _check_factor(key, src, f"points: {p}")
+                given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
+                _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None)
     return base, points, Path(path).resolve().parent
 
 
@@ -214,9 +217,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     for point, cfg in zip(points, configs, strict=True):  # (before any work: the reference's too)
         if reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg)) != key:
             raise InputError("the point changes what the reference depends on (photons.max_bounces, the "
-                             "render's specular depths and Fresnel settings, reference.*): every point is measured "
-                             "against the base's reference; run one experiment per value", source=str(path),
-                             key=f"points: {point}")
+                             "render's specular depths and Fresnel settings, reference.photons, reference.k_nearest): "
+                             "every point is measured against the base's reference; run one experiment per value",
+                             source=str(path), key=f"points: {point}")
     found = load_reference(key)
     if found is None:
         image, meta = compute_reference(frame0, g, settings)

@@ -249,13 +249,15 @@ def _summary_line(rows: list[dict]) -> str:
 def _line(s: dict) -> str:
     """A :func:`~tlm.experiments.thesis.summarize` in words: the medians (of the comparable
     scenes' cells; where there is none, why) and the slowest-PM count."""
-    parts = [median_words(s)]
+    only_calibrated = s["median_abs_rel_error_held_out"] is None and s["median_abs_rel_error_calibrated"] is not None
+    parts = [] if only_calibrated else [median_words(s)]  # (cells all calibrated: no held-out median to deny)
     if s["median_abs_rel_error_calibrated"] is not None:
-        parts.append(f"over the {s['calibrated_cells_compared']} calibrated cells "
+        parts.append(f"{'median |relative error| ' if only_calibrated else ''}over the "
+                     f"{s['calibrated_cells_compared']} calibrated cells "
                      f"{s['median_abs_rel_error_calibrated']:.1%}")
     if s["scene_modes"]:
         parts.append(f"slowest PM as in the thesis in {s['slowest_pm_matches']} of {s['scene_modes']} scene-modes")
-    return "; ".join(parts)
+    return "; ".join(parts) if parts else "no cell with a thesis value"
 
 
 def table_html(src: Source) -> str:

@@ -104,7 +104,7 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
     if entry.exists():
         got = _read(entry)
         if got is not None and _libraries_unchanged(path, got[1], resolve):
-            geom = _geometry(entry, *got)
+            geom = _geometry(entry, *got, path=path)
             if geom is not None:
                 return geom
     geom, names = parse(path)
@@ -121,10 +121,12 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         arrays["normals"] = geom.normals
     if geom.face_material is not None:
         arrays["face_material"] = geom.face_material
-    meta = {"part_names": list(geom.part_names), "names": names, "deps": deps, "notes": list(geom.notes),
+    here = str(path)  # (the lines that name the file name it as {mesh}: the entry serves a copy elsewhere too)
+    meta = {"part_names": list(geom.part_names), "names": names, "deps": deps,
+            "notes": [n.replace(here, _HERE) for n in geom.notes],
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
-                           "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined}
+                           "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined.replace(here, _HERE)}
                           for m in geom.materials]}
     _write(entry, arrays, meta)
     return geom
@@ -185,13 +187,18 @@ def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> bool:
     return all(digest_problem(path.parent / d["path"], d) is None for d in deps)
 
 
-def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict) -> Geometry | None:
+_HERE = "{mesh}"  # a cached line's place for the path of the file it was read for
+
+
+def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | None = None) -> Geometry | None:
     try:
         tri, part = got["triangles"], got["part"]
         n = tri.shape[0]
         ok = (tri.ndim == 3 and tri.shape[1:] == (3, 3) and part.shape == (n,)
               and all(got[k].shape[0] == n for k in ("normals", "face_material") if k in got))
-        materials = tuple(Material(**{k: tuple(v) if isinstance(v, list) else v for k, v in m.items()})
+        here = str(path) if path is not None else _HERE
+        materials = tuple(Material(**{k: tuple(v) if isinstance(v, list) else v.replace(_HERE, here)
+                                      if k == "undefined" else v for k, v in m.items()})
                           for m in meta["materials"])
         names = tuple(str(s) for s in meta["part_names"])
         if not ok:
@@ -203,6 +210,7 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict) -> Geometry |
     if not (isinstance(notes, list) and all(isinstance(n, str) for n in notes)):
         _damaged(entry, "notes: not a list of lines")
         return None
+    notes = [n.replace(_HERE, str(path) if path is not None else _HERE) for n in notes]
     return Geometry(triangles=tri, part=part, part_names=names, normals=got.get("normals"), notes=tuple(notes),
                     materials=materials, face_material=got.get("face_material"))
 

@@ -41,6 +41,8 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply or .obj file", source=str(path))
+    if suffix == ".obj":
+        _check_library(scene, path.with_suffix(".mtl"))
     try:
         _write(scene, path, suffix, verts, faces)
     except EnvironmentFailure:
@@ -85,12 +87,36 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
         write_file(path, "\n".join(lines) + "\n")
 
 
+def _check_library(scene: Scene, library: Path) -> None:
+    """An InputError when the OBJ's MTL library cannot be written as tlm reads it back: a
+    material name an MTL file cannot hold (a ``#`` starts a comment there; spaces at its
+    ends are trimmed), or a file of that name that tlm did not write (a published scene's
+    library beside its OBJ), which it would replace."""
+    for m in scene.materials:
+        if not m.name or "#" in m.name or m.name != m.name.strip() or any(c in m.name for c in "\r\n"):
+            raise InputError(f"material {m.name!r} cannot be named in an MTL library (a '#' starts a comment; "
+                             "spaces at its ends, or a line break, do not survive): rename it in the scene file",
+                             source=str(library.with_suffix(".obj")))
+    if library.exists():
+        try:
+            with open(library, "rb") as f:
+                ours = f.read(len(_MTL_HEAD)) == _MTL_HEAD.encode()
+        except OSError:
+            ours = False
+        if not ours:
+            raise InputError(f"{library.name} beside it is not a library tlm wrote, and the export would replace it: "
+                             "name another .obj file", source=str(library.with_suffix(".obj")))
+
+
+_MTL_HEAD = "# tlm scene "  # (the first line of a library tlm writes)
+
+
 def mtl_text(scene: Scene) -> str:
     """The scene's materials as an MTL library (the module's docstring)."""
     def rgb(c) -> str:
         return " ".join(repr(float(x)) for x in c)
 
-    out = [f"# tlm scene {scene.name}: its materials"]
+    out = [f"{_MTL_HEAD}{scene.name}: its materials"]
     for m in scene.materials:
         out.append(f"newmtl {m.name}")
         if m.kind == "lambertian":

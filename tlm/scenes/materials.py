@@ -339,7 +339,7 @@ def gltf_material(m: dict, index: int, source: str = "") -> Material:
         if min(vals) < 0.0:
             raise InputError(f"{at}: {key}: {list(vals)} has a negative value", source=source)
     emission = tuple(e * strength for e in emissive)
-    ignored = _gltf_ignored(m, pbr, ext)
+    ignored = _gltf_ignored(m, pbr, ext, emits=max(emission) > 0.0)
     if transmission > 0.0:
         if not ior > 0.0:
             raise InputError(f"{at}: KHR_materials_ior: ior {ior:g} is not positive", source=source)
@@ -350,7 +350,7 @@ def gltf_material(m: dict, index: int, source: str = "") -> Material:
     return Material(name, "lambertian", albedo=_clip01(base), emission=emission, ignored=ignored)
 
 
-def _gltf_ignored(m: dict, pbr: dict, ext: dict) -> tuple[str, ...]:
+def _gltf_ignored(m: dict, pbr: dict, ext: dict, emits: bool = False) -> tuple[str, ...]:
     """What of a glTF material changes its look and is not rendered (the module's docstring)."""
     out = [k for k in (*m, *pbr) if k.endswith("Texture")]
     for name, body in ext.items():
@@ -364,13 +364,9 @@ def _gltf_ignored(m: dict, pbr: dict, ext: dict) -> tuple[str, ...]:
         out.append("alpha")
     if m.get("alphaMode", "OPAQUE") != "OPAQUE":
         out.append("alphaMode")
-    if m.get("doubleSided") is True and any(float(e) > 0 for e in (m.get("emissiveFactor") or []) if _real(e)):
+    if m.get("doubleSided") is True and emits:
         out.append("doubleSided emission")  # (a tlm emitter emits from its front only)
     return tuple(dict.fromkeys(out))
-
-
-def _real(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def gltf_materials(header: dict, source: str = "") -> list[Material]:

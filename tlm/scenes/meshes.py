@@ -219,8 +219,9 @@ def _concave_note(tri: np.ndarray, face_line: np.ndarray, src: str) -> tuple[str
     lines, which = np.unique(line[poly], return_inverse=True)
     area = np.zeros((lines.shape[0], 3))
     np.add.at(area, which, n)  # twice the polygon's vector area (the fan's sum)
-    dot = np.einsum("ij,ij->i", n, area[which])
-    back = dot < -1e-9 * np.linalg.norm(n, axis=1) * np.linalg.norm(area[which], axis=1)
+    a = area[which]
+    dot = np.einsum("ij,ij->i", n, a)
+    back = dot < -1e-6 * np.einsum("ij,ij->i", a, a)  # (against the face's area: a sliver's sign is noise)
     if not back.any():
         return ()
     bad = np.unique(line[poly][back])
@@ -442,7 +443,8 @@ def _gltf_notes(header: dict, src: str) -> tuple[str, ...]:
         out.append(f"{src}: its {f'{n} cameras are' if n > 1 else 'camera is'} not used (the scene file's "
                    "camera: is)")
     ext = header.get("extensions")
-    lights = ((ext.get("KHR_lights_punctual") or {}).get("lights") if isinstance(ext, dict) else None) or []
+    punctual = ext.get("KHR_lights_punctual") if isinstance(ext, dict) else None
+    lights = (punctual.get("lights") if isinstance(punctual, dict) else None) or []
     if isinstance(lights, list) and lights:
         kinds = ", ".join(f"{n} {k}" for k, n in sorted(
             Counter(str(lt.get("type")) if isinstance(lt, dict) else "?" for lt in lights).items()))
