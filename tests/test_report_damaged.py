@@ -144,3 +144,8 @@ def test_a_damaged_ground_truth_is_a_warning_removed_and_rendered_again(cache, c
     (entry / "meta.json").unlink()  # half an entry would block the new one's write: removed as well
     assert om.load_ground_truth("k0") is None and not entry.exists()
     assert "meta.json" in capsys.readouterr().err
+    om.save_ground_truth("k0", image, meta)  # bytes changed but still an array of that shape: its checksum says so
+    raw = bytearray(npy.read_bytes())
+    raw[-1] ^= 0x01
+    npy.write_bytes(bytes(raw))
+    assert om.load_ground_truth("k0") is None and "checksum differs" in capsys.readouterr().err

@@ -339,11 +339,15 @@ def oracle_key(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
 
 
 def save_ground_truth(key: str, image: np.ndarray, meta: dict) -> Path:
-    """Write ``image.npy`` (float32) and ``meta.json`` atomically into the cache."""
+    """Write ``image.npy`` (float32) and ``meta.json`` (with the image's size and checksum)
+    atomically into the cache."""
+    from tlm.storage import file_digest
+
     final = cache_dir() / key
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "image.npy", np.asarray(image, dtype=np.float32))
-        (tmp / "meta.json").write_text(json.dumps({"key": key, **meta}, indent=2) + "\n")
+        body = {"key": key, **meta, "npy": file_digest(tmp / "image.npy")}
+        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n")
     return final
 
 
@@ -351,9 +355,10 @@ def load_ground_truth(key: str) -> tuple[np.ndarray, dict] | None:
     """The cached image (float64) and its metadata, or None when there is none.
 
     A damaged entry (``meta.json`` missing, unreadable or of another key; ``image.npy``
-    missing, unreadable, cut short, or not the (height, width, 3) floats ``meta.json``
-    describes) is reported once as a warning naming the file and removed: it is rendered
-    again as if it had never been cached (as the references' and the scenes' caches do).
+    missing, unreadable, cut short, not the bytes its size and checksum in ``meta.json``
+    say, or not the (height, width, 3) floats ``meta.json`` describes) is reported once as
+    a warning naming the file and removed: it is rendered again as if it had never been
+    cached (as the references' and the scenes' caches do).
     """
     from tlm.storage import cached_image
 
