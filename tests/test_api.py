@@ -11,6 +11,7 @@ import re
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -284,6 +285,12 @@ def test_what_is_not_a_scene_or_a_file_is_named(tmp_path):
             call()
     with pytest.raises(tlm.InputError, match=r"^file: None is not a file path"):
         tlm.export_scene("ring", None)
+    for exposure in (-1.0, float("nan"), True, "2"):  # (a black image for no reason of the scene's)
+        with pytest.raises(tlm.InputError, match=r"^exposure: .* is not a finite number >= 0"):
+            tlm.to_srgb(np.ones((2, 2, 3)), exposure)
+    with pytest.raises(tlm.InputError, match=r"^radiance: the radiance holds no finite value"):
+        tlm.to_srgb(np.full((2, 2, 3), np.nan))
+    assert tlm.to_srgb(np.zeros((2, 2, 3))).max() == 0 and tlm.to_srgb(np.ones((2, 2, 3)), 0.0).max() == 0
     with pytest.raises(tlm.InputError, match=r"'cornel' is not a built-in scene .*\(did you mean 'cornell'\?\)"):
         tlm.scene_description("cornel")
     assert tlm.scene_description("cornell") and tlm.scene_info(tlm.load_scene("ring"))["triangles"] > 0

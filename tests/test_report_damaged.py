@@ -93,6 +93,8 @@ DAMAGE = {  # (folder, file, new content from the old, what the error says)
     "sweep-points-number": ("sweep", "sweep.yaml", lambda t: yaml.safe_dump({**yaml.safe_load(t), "points": 5}),
                             "'points' is 5, not a list"),
     "evc-only-row-cut-off": ("evc", "rows.jsonl", lambda t: t[:len(t) // 2], "is cut off"),
+    "evc-rows-empty": ("evc", "rows.jsonl", lambda _: "", "is empty"),
+    "extreme-rows-empty": ("extreme", "extreme.jsonl", lambda _: "", "is empty"),
 }
 
 

@@ -316,7 +316,11 @@ def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: b
 def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
     """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
     ``exposure`` (default: the 99.5th percentile of luminance to 1, as ``tlm run`` does for
-    its images, though a run leaves out the pixels that see a light directly), clipped."""
+    its images, though a run leaves out the pixels that see a light directly), clipped.
+    An exposure that is not a finite number >= 0, or radiance with no finite value (nothing
+    to expose), is an InputError: the image would be black for no reason of the scene's."""
+    import math
+
     import numpy as np
 
     from tlm.render.image import auto_exposure, to_srgb8
@@ -325,6 +329,12 @@ def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
     if radiance.ndim < 1 or radiance.shape[-1] != 3 or not np.issubdtype(radiance.dtype, np.number):
         raise InputError(f"an array of shape {radiance.shape} and dtype {radiance.dtype} is not RGB radiance: "
                          "give (..., 3) numbers, as a RenderResult's radiance", key="radiance")
+    if exposure is not None and (isinstance(exposure, bool) or not isinstance(exposure, (int, float))
+                                 or not math.isfinite(exposure) or exposure < 0):
+        raise InputError(f"{exposure!r} is not a finite number >= 0 (None: automatic)", key="exposure")
+    if radiance.size and not np.isfinite(radiance).any():
+        raise InputError("the radiance holds no finite value (all NaN or infinite): nothing to expose",
+                         key="radiance")
     scale = auto_exposure(radiance.reshape(-1, 3)) if exposure is None else exposure
     return to_srgb8(radiance, scale)
 

@@ -155,7 +155,10 @@ def _study_jsonl(path: Path) -> list[tuple[int, dict]]:
             last = f.read(1) if f.seek(0, 2) and f.seek(-1, 2) >= 0 else b""  # (the last byte; none if empty)
     except OSError as e:
         raise InputError(f"cannot read: {e.strerror or e}", source=str(path)) from None
-    if last not in (b"", b"\n"):
+    if last == b"":  # (every study has a row a point: an empty table is a damaged copy)
+        raise InputError("is empty: a damaged copy (tlm writes a row for every point); copy it again or run the "
+                         "study again", source=str(path))
+    if last != b"\n":
         raise InputError("is cut off (its last row has no end): a damaged copy (tlm writes it whole); "
                          "copy it again or run the study again", source=str(path))
     return read_jsonl(path)
