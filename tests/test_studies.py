@@ -54,6 +54,9 @@ def test_restrict_equals_rendering_the_smaller_mode():
     for p in cut.radiance:
         np.testing.assert_array_equal(cut.radiance[p], direct.radiance[p])
     assert cut.photons is None
+    # its host seconds: the shared stages and its own passes, not those it leaves out
+    assert set(cut.timer.seconds) == set(direct.timer.seconds) == {"load_scene", "build_bsp", "cast", "pass_rcast",
+                                                                    "pass_reflect"}
 
 
 def test_thesis_study_writes_the_comparison(tmp_path):

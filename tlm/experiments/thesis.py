@@ -238,14 +238,17 @@ def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
 
 
 def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
-    """The render of a smaller mode, cut out of a render of a larger one (same settings)."""
+    """The render of a smaller mode, cut out of a render of a larger one (same settings); its
+    host seconds are the shared stages' and its own passes' (not the passes it leaves out)."""
     p = plan(res.scene, cfg)
     missing = [n for n in p.run_names if n not in res.work]
     if missing:
         raise ValueError(f"the render lacks the passes {missing}")
     keep = p.run_names
     pm = "pmap" in keep
-    return replace(res, cfg=cfg, plan=p, timer=Timer(dict(res.timer.seconds)),
+    seconds = {k: v for k, v in res.timer.seconds.items()
+               if not (k.startswith("pass_") and k[len("pass_"):] not in keep) and (pm or k != "photon_trace")}
+    return replace(res, cfg=cfg, plan=p, timer=Timer(seconds),
                    radiance={k: res.radiance[k] for k in keep if k in res.radiance},  # (fgather: work only)
                    work={k: res.work[k] for k in keep}, photons=res.photons if pm else None,
                    error=res.error if pm else None, timing=None)
