@@ -242,6 +242,24 @@ def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():
     with timer.stage("b"):
         sum(range(1000))
     assert set(timer.seconds) == {"a", "b"} and all(s >= 0.0 for s in timer.seconds.values())
+    # a stage on several threads at once (the render's batches): its wall time, not the sum of theirs
+    import threading
+    import time
+
+    started = threading.Barrier(4)
+
+    def batch():
+        with timer.stage("pass"):
+            started.wait()
+            time.sleep(0.2)
+
+    t0 = time.perf_counter()
+    threads = [threading.Thread(target=batch) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert 0.2 <= timer.seconds["pass"] <= time.perf_counter() - t0  # (the sum would be >= 0.8)
     with progress_bar(False, total=2) as bar, Ticking(bar, every=0.001) as ticking:
         bar.update(2)
     assert bar.disable and not ticking.thread.is_alive() and ticking.stop.is_set()

@@ -14,12 +14,18 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+_STAGES = threading.Lock()  # (a Timer's stages may be entered on several threads at once)
+
 
 @dataclass
 class Timer:
-    """Host wall seconds per named stage (a stage entered twice adds up)."""
+    """Host wall seconds per named stage (a stage entered twice adds up). A stage that
+    runs on several threads at once (the render's batches) counts the wall time while any
+    of them runs, not the sum of their times: a stage never holds more seconds than
+    passed."""
 
     seconds: dict[str, float] = field(default_factory=dict)
+    _open: dict[str, tuple[int, float]] = field(default_factory=dict, repr=False, compare=False)
 
     def stage(self, name: str):
         """A context manager that adds the wall seconds of its block to stage ``name``."""
@@ -27,10 +33,18 @@ class Timer:
 
         class _Stage:
             def __enter__(self):
-                self.t0 = time.perf_counter()
+                with _STAGES:
+                    n, since = timer._open.get(name, (0, time.perf_counter()))
+                    timer._open[name] = (n + 1, since)
 
             def __exit__(self, *exc):
-                timer.seconds[name] = timer.seconds.get(name, 0.0) + time.perf_counter() - self.t0
+                with _STAGES:
+                    n, since = timer._open[name]
+                    if n > 1:
+                        timer._open[name] = (n - 1, since)
+                        return
+                    del timer._open[name]
+                    timer.seconds[name] = timer.seconds.get(name, 0.0) + time.perf_counter() - since
 
         return _Stage()
 
