@@ -105,6 +105,9 @@ def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
     ({"zip": {"arch.programs": ["missing.yaml"]}}, "arch.programs"),
     ({"base": "missing.yaml", "grid": {"seed": [0]}}, "base"),
     ({"description": "no factors"}, "grid"),
+    # render.threads changes no result: its points would be one run with other labels
+    ({"grid": {"render.threads": [1, 2], "arch.pipelines": [1, 2]}}, "differ only in render.threads (render"),
+    ({"zip": {"render": [{"threads": 1}, {"threads": 2}]}}, "points 0 and 1 differ only in render"),
 ])
 def test_bad_sweep_files_exit_2_and_write_nothing(tmp_path, capsys, body, key):
     path = tmp_path / "bad.yaml"

@@ -278,7 +278,24 @@ def load_sweep(path: Path) -> Sweep:
         inputs = point_inputs(cfg, folder, f"{src} (point {i})", seen)
         resolved = to_dict(cfg)
         points.append(Point(i, factors, resolved, config_hash(resolved, inputs), inputs["functional"]))
+    _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
+
+
+def _one_run_one_row(points: list[Point], src: str) -> None:
+    """An InputError when points of other factor values are one run (one key): only
+    ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
+    same results), so a sweep over it would run its first value and label the others' rows
+    with values never run."""
+    first: dict[str, Point] = {}
+    for p in points:
+        other = first.setdefault(p.hash, p)
+        if other is not p and other.factors != p.factors:
+            differ = [k for k in p.factors if p.factors[k] != other.factors.get(k)]
+            raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
+                             f"(render.threads changes no result, only the host's speed), so they would be one run "
+                             "with two labels: give render.threads under set:, and time thread counts with "
+                             "benchmarks/bench_threads.py", source=src, key=", ".join(differ))
 
 
 # ---------------------------------------------------------------- one point (runs in a worker)
