@@ -163,7 +163,7 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     other = differing(points)
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
-        why = f"in {describe_differing(other, points)}" if other else "another key"
+        why = f"in {describe_differing(other, points)}" if other else "in another key"
         raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ {why}, "
                          "so fit them from separate sweeps", source=source, key="arch.pipelines")
     if other:
