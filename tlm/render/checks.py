@@ -126,12 +126,14 @@ def probe_rays(light: Light, n: int = PROBE_RAYS
     return empty
 
 
-def aimed_rays(scene: Scene, light: Light, n: int = PROBE_RAYS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def aimed_rays(scene: Scene, light: Light, n: int = PROBE_RAYS, spread=None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Origins, unit directions and left triangles (as :func:`probe_rays`) of rays from the
     light's probe origins to the centres of up to ``n`` triangles spread evenly over the
     scene's list: those in front of the side the origin emits on (a cosine above
-    :data:`GRAZING`), and not the light's own."""
-    o, _, src, normal = probe_rays(light, n)
+    :data:`GRAZING`), and not the light's own. ``spread``: the light's :func:`probe_rays`,
+    when the caller has them."""
+    o, _, src, normal = probe_rays(light, n) if spread is None else spread
     tri = scene.triangles
     m = min(n, tri.shape[0])
     if o.shape[0] == 0 or m == 0:
@@ -163,7 +165,7 @@ def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE
     ``back`` of an opaque triangle (``kind``: each triangle's material KIND, default the
     scene's)."""
     spread = probe_rays(light, n)
-    aimed = aimed_rays(scene, light, n)
+    aimed = aimed_rays(scene, light, n, spread)
     o, d, src = (np.concatenate([spread[i], aimed[i]]) for i in range(3))
     if o.shape[0] == 0:
         return {"rays": 0, "hits": 0, "back": 0}
