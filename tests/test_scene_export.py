@@ -52,10 +52,10 @@ def test_obj_round_trips_the_positions_exactly(tmp_path):
 
 
 @pytest.mark.parametrize("name, says", [
-    ("t.stl", "unsupported format '.stl': use .ply or .obj"),
+    ("t.stl", "unsupported format '.stl': use .ply, .obj or .yaml"),
     ("t", "unsupported format '(none)'"),
     ("missing/t.ply", "does not exist"),
-    ("folder.ply", "is a folder; name a .ply or .obj file"),
+    ("folder.ply", "is a folder; name a .ply, .obj or .yaml file"),
 ])
 def test_a_bad_destination_is_an_input_error_naming_it(tmp_path, name, says):
     (tmp_path / "folder.ply").mkdir()
@@ -134,3 +134,81 @@ def test_an_obj_export_refuses_what_its_mtl_cannot_hold_or_would_overwrite(tmp_p
     export_triangles(scene, tmp_path / "x.obj")
     export_triangles(scene, tmp_path / "x.obj")  # (its own library: replaced)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.mtl", "x.obj"]
+
+
+@pytest.mark.parametrize("name", ["cornell", "ring", "cornell-box", "cornell-water", "examples/mesh_on_floor",
+                                  "extreme/cornell_scale_1e-6"])
+def test_a_scene_file_export_loads_as_the_same_scene(tmp_path, name):
+    """``.yaml``: the scene file, its OBJ and MTL. tlm reads it back as the scene: the same
+    triangles, materials (glass's transmittance too, which the MTL alone loses) and
+    per-triangle materials, parts, lights (quad, point, the mesh light of the emitting
+    materials), camera, resolution and photons, bit for bit; the shading normals from the
+    OBJ's ``vn`` (no crease angle), to within the rounding of their renormalization."""
+    from tlm.api import export_scene, load_scene
+
+    a = load_scene(name)
+    export_scene(a, tmp_path / "s.yaml")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.mtl", "s.obj", "s.yaml"]
+    b = load_scene(tmp_path / "s.yaml")
+    assert np.array_equal(a.triangles, b.triangles)
+    assert a.materials == b.materials and np.array_equal(a.material_index, b.material_index)
+    assert a.part_names == b.part_names and np.array_equal(a.part, b.part)
+    assert a.lights == b.lights and a.camera == b.camera and a.photons == b.photons
+    for la, lb in zip(a.lights, b.lights, strict=True):
+        if la.kind == "mesh":
+            assert np.array_equal(la.ids, lb.ids) and np.array_equal(la.radiance, lb.radiance)
+    assert b.extra["normals"] == "file"
+    assert np.abs(a.normals - b.normals).max() <= 4 * np.finfo(float).eps
+    assert (a.name, a.extra["description"]) == (b.name, b.extra["description"])
+
+
+def test_a_scene_file_export_renders_the_original_image(tmp_path, capsys):
+    """``tlm scene export cornell s.yaml`` then a photon-map render of each: the same image
+    (the normals' last bits aside: within 1e-12 of the brightest pixel)."""
+    from tlm.api import render_image
+    from tlm.cli import main
+
+    assert main(["scene", "export", "cornell", str(tmp_path / "s.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"wrote {tmp_path / 's.yaml'} (the scene file: 1 light besides emitting materials, ")
+    assert f"{tmp_path / 's.obj'} (2604 triangles) and {tmp_path / 's.mtl'} (5 materials)" in out
+    cfg = {"resolution": [24, 24], "mode": "pmap", "photons": {"count": 2000}}
+    a = render_image({**cfg, "scene": "cornell"}).composite
+    b = render_image({**cfg, "scene": str(tmp_path / "s.yaml")}).composite
+    assert a.max() > 0 and np.abs(a - b).max() <= 1e-12 * a.max()
+
+
+def test_an_obj_export_carries_the_shading_normals(tmp_path):
+    """Every corner's normal as a ``vn`` (faces ``f a//a ...``); read back as the file's
+    normals, so a re-read OBJ needs no crease angle to shade as the scene did."""
+    from tlm.api import load_scene
+
+    a = load_scene("ring")
+    export_triangles(a, tmp_path / "s.obj")
+    lines = (tmp_path / "s.obj").read_text().splitlines()
+    vn = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("vn ")])
+    assert np.array_equal(vn.reshape(-1, 3, 3), a.normals)
+    assert next(ln for ln in lines if ln.startswith("f ")) == "f 1//1 2//2 3//3"
+    (tmp_path / "back.yaml").write_text("geometry: {mesh: s.obj}\ncamera: {eye: [0, 1, 5], target: [0, 1, 0], "
+                                        "vfov: 40}\nresolution: [8, 8]\ndefault_material: m\n"
+                                        "materials: {m: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n")
+    assert load_scene(tmp_path / "back.yaml").extra["normals"] == "file"
+
+
+def test_a_scene_file_export_replaces_only_files_tlm_wrote(tmp_path):
+    """The OBJ and the scene file a ``.yaml`` export writes: a user's file of either name
+    is refused, one line naming it, and nothing is written; tlm's own are replaced."""
+    from tlm.api import load_scene
+
+    scene = load_scene("cornell-box")
+    for mine in ("s.obj", "s.yaml"):
+        (tmp_path / mine).write_text("# my own file\n")
+        with pytest.raises(InputError, match=rf"^{re.escape(str(tmp_path / 's.yaml'))}: {re.escape(mine)} exists "
+                                             r"and is not a (mesh|scene file) tlm wrote"):
+            export_triangles(scene, tmp_path / "s.yaml")
+        assert sorted(p.name for p in tmp_path.iterdir()) == [mine]
+        assert (tmp_path / mine).read_text() == "# my own file\n"
+        (tmp_path / mine).unlink()
+    export_triangles(scene, tmp_path / "s.yaml")
+    export_triangles(scene, tmp_path / "s.yaml")  # (its own files: replaced)
+    assert load_scene(tmp_path / "s.yaml").materials == scene.materials

@@ -282,13 +282,14 @@ def scene_info(scene: Scene | str | Path) -> dict:
 
 
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
-    """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``;
-    returns the scene."""
+    """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
+    or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
+    :mod:`tlm.scenes.export`); returns the scene."""
     from tlm.scenes.export import export_triangles
 
     scene = _scene(scene)
     if not isinstance(file, (str, os.PathLike)):
-        raise InputError(f"{file!r} is not a file path (.ply or .obj)", key="file")
+        raise InputError(f"{file!r} is not a file path (.ply, .obj or .yaml)", key="file")
     export_triangles(scene, Path(file))
     return scene
 

@@ -218,10 +218,17 @@ def _cmd_scene(args: argparse.Namespace) -> int:
         print(json.dumps(api.scene_info(scene), indent=2))
         return 0
     api.export_scene(scene, args.file)
-    also = (f" and {Path(args.file).with_suffix('.mtl')} ({len(scene.materials)} materials)"
-            if Path(args.file).suffix.lower() == ".obj" else "")
-    print(f"wrote {args.file} ({scene.n_triangles} triangles){also}; the scene file's lights, camera and "
-          "resolution are not in it")
+    file = Path(args.file)
+    mtl = f"{file.with_suffix('.mtl')} ({len(scene.materials)} materials)"
+    if file.suffix.lower() == ".yaml":
+        lights = sum(1 for lt in scene.lights if lt.kind != "mesh")
+        print(f"wrote {file} (the scene file: {lights} light{'s' if lights != 1 else ''} besides emitting "
+              f"materials, the camera, {scene.camera.width}x{scene.camera.height}, {scene.photons} photons), "
+              f"{file.with_suffix('.obj')} ({scene.n_triangles} triangles) and {mtl}")
+        return 0
+    also = f" and {mtl}" if file.suffix.lower() == ".obj" else ""
+    print(f"wrote {file} ({scene.n_triangles} triangles){also}; the scene file's lights, camera and "
+          "resolution are not in it (export to a .yaml file for all of them)")
     return 0
 
 
@@ -422,9 +429,10 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
     sh = ss.add_parser("show", help="triangle count, bounds, materials, lights")
     sh.add_argument("name", help="built-in scene name or scene YAML path")
-    se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ)")
+    se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ), or the whole "
+                       "scene as a scene file (.yaml, with its OBJ and MTL beside it)")
     se.add_argument("name", help="built-in scene name or scene YAML path")
-    se.add_argument("file", help="output .ply or .obj")
+    se.add_argument("file", help="output .ply, .obj or .yaml")
     s.set_defaults(func=_cmd_scene)
     rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config",
                         description="Compute and cache the converged photon-map reference of a config. Exit "

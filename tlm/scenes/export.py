@@ -1,13 +1,22 @@
-"""Export a scene's world-space triangles, in triangle-id order, as PLY or OBJ.
+"""Export a scene's world-space triangles, in triangle-id order, as PLY or OBJ, or the
+whole scene as a scene file (``.yaml``) with its OBJ and MTL beside it.
 
 The PLY file also carries each face's material index (property ``material``). The OBJ
-file carries the parts (``o``) and the materials (``usemtl``, in an MTL library of the
-same stem written beside it: ``Kd`` for a Lambertian material, ``Ks`` and ``illum 3``
-for a mirror, ``Ni``, ``Tf`` and ``illum 7`` for a dielectric, ``Ke`` for emission), so
-that tlm reads the OBJ back as the same triangles, parts and materials (but a
-dielectric's transmittance: tlm's MTL reading takes glass as clear,
-:mod:`tlm.scenes.materials`). The scene file's lights, camera and resolution are not in
-either file.
+file carries the parts (``o``), the shading normals (``vn``, one per triangle corner:
+the normals the renderer uses, so that a re-read file needs no crease angle) and the
+materials (``usemtl``, in an MTL library of the same stem written beside it: ``Kd`` for
+a Lambertian material, ``Ks`` and ``illum 3`` for a mirror, ``Ni``, ``Tf`` and ``illum
+7`` for a dielectric, ``Ke`` for emission), so that tlm reads the OBJ back as the same
+triangles, parts, normals and materials (but a dielectric's transmittance: tlm's MTL
+reading takes glass as clear, :mod:`tlm.scenes.materials`). The scene's lights, camera
+and resolution are in neither file.
+
+A ``.yaml`` target writes the scene file that closes the round trip (:func:`scene_yaml`):
+``geometry: {mesh: STEM.obj}``, every material under ``materials:`` with its exact values
+(which replace the MTL's of the same name on reading, glass's transmittance included),
+the quad and point lights (a mesh light is its emitting materials), the camera, the
+resolution and the photon count. ``tlm run`` on it renders what the original scene
+renders. Floats are written as Python's ``repr``, which reads back to the same bits.
 
 Each triangle is written with its own three vertices (no welding), so face ``i`` of
 the file is triangle id ``i`` of every AOV and BSP leaf, exactly, and the vertex
@@ -24,14 +33,14 @@ from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
 from tlm.storage import write_atomic, write_file
 
-FORMATS = (".ply", ".obj")
+FORMATS = (".ply", ".obj", ".yaml")
 
 
 def export_triangles(scene: Scene, path: Path) -> None:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
-        raise InputError(f"unsupported format {suffix or '(none)'!r}: use {' or '.join(FORMATS)}",
+        raise InputError(f"unsupported format {suffix or '(none)'!r}: use {', '.join(FORMATS[:-1])} or {FORMATS[-1]}",
                          source=str(path))
     tri = scene.triangles
     n = tri.shape[0]
@@ -40,11 +49,18 @@ def export_triangles(scene: Scene, path: Path) -> None:
     if not path.parent.is_dir():
         raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
     if path.is_dir():
-        raise InputError("is a folder; name a .ply or .obj file", source=str(path))
-    if suffix == ".obj":
+        raise InputError("is a folder; name a .ply, .obj or .yaml file", source=str(path))
+    if suffix in (".obj", ".yaml"):
         _check_library(scene, path.with_suffix(".mtl"))
+    if suffix == ".yaml":
+        for other in (path.with_suffix(".obj"), path):
+            _check_ours(other, path, "scene file" if other == path else "mesh")
     try:
-        _write(scene, path, suffix, verts, faces)
+        if suffix == ".yaml":
+            _write(scene, path.with_suffix(".obj"), ".obj", verts, faces)
+            write_file(path, scene_yaml(scene, path.with_suffix(".obj").name))
+        else:
+            _write(scene, path, suffix, verts, faces)
     except EnvironmentFailure:
         raise
     except OSError as e:  # (a folder that takes no files: /proc, a special file system)
@@ -71,8 +87,15 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
             f.write(face_rec.tobytes())
     else:
         library = path.with_suffix(".mtl")
-        lines = [f"# tlm scene {scene.name}: face i is triangle id i", f"mtllib {library.name}"]
+        lines = [f"{_MTL_HEAD}{scene.name}: face i is triangle id i", f"mtllib {library.name}"]
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
+        normals = scene.normals
+        if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
+            corners = np.asarray(normals, dtype=np.float64).reshape(-1, 3).tolist()
+            lines += [f"vn {x!r} {y!r} {z!r}" for x, y, z in corners]
+            face_line = "f {0}//{0} {1}//{1} {2}//{2}".format
+        else:
+            face_line = "f {} {} {}".format
         part, mat = np.asarray(scene.part), np.asarray(scene.material_index)
         starts = np.flatnonzero(np.r_[True, (part[1:] != part[:-1]) | (mat[1:] != mat[:-1])])
         ends = np.r_[starts[1:], n]
@@ -82,7 +105,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
                 lines.append(f"o {scene.part_names[part[s]]}")
                 last_part = part[s]
             lines.append(f"usemtl {scene.materials[mat[s]].name}")
-            lines += [f"f {a + 1} {a + 2} {a + 3}" for a in range(3 * s, 3 * e, 3)]
+            lines += [face_line(a + 1, a + 2, a + 3) for a in range(3 * s, 3 * e, 3)]
         write_file(library, mtl_text(scene))
         write_file(path, "\n".join(lines) + "\n")
 
@@ -97,18 +120,75 @@ def _check_library(scene: Scene, library: Path) -> None:
             raise InputError(f"material {m.name!r} cannot be named in an MTL library (a '#' starts a comment; "
                              "spaces at its ends, or a line break, do not survive): rename it in the scene file",
                              source=str(library.with_suffix(".obj")))
-    if library.exists():
-        try:
-            with open(library, "rb") as f:
-                ours = f.read(len(_MTL_HEAD)) == _MTL_HEAD.encode()
-        except OSError:
-            ours = False
-        if not ours:
-            raise InputError(f"{library.name} beside it is not a library tlm wrote, and the export would replace it: "
-                             "name another .obj file", source=str(library.with_suffix(".obj")))
+    if library.exists() and not _written_by_tlm(library):
+        raise InputError(f"{library.name} beside it is not a library tlm wrote, and the export would replace it: "
+                         "name another .obj file", source=str(library.with_suffix(".obj")))
 
 
-_MTL_HEAD = "# tlm scene "  # (the first line of a library tlm writes)
+_MTL_HEAD = "# tlm scene "  # (the first line of a library, OBJ or scene file tlm writes)
+
+
+def _written_by_tlm(path: Path) -> bool:
+    """Whether the file starts as every file tlm exports does."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(_MTL_HEAD)) == _MTL_HEAD.encode()
+    except OSError:
+        return False
+
+
+def _check_ours(path: Path, target: Path, what: str) -> None:
+    """An InputError when ``path``, which exporting ``target`` would replace, exists and
+    is not a file tlm wrote (a published scene's OBJ, a user's scene file)."""
+    if path.exists() and not _written_by_tlm(path):
+        raise InputError(f"{path.name} exists and is not a {what} tlm wrote; the export would replace it: "
+                         "name another .yaml file", source=str(target))
+
+
+def _floats(values) -> list[float]:
+    return [float(x) for x in values]
+
+
+def scene_yaml(scene: Scene, mesh: str) -> str:
+    """The scene file of ``scene`` whose geometry is the OBJ ``mesh`` (a name beside it),
+    as the module's docstring says."""
+    import yaml
+
+    mats = {}
+    for m in scene.materials:
+        entry: dict = {"type": m.kind}
+        if m.kind == "lambertian":
+            entry["albedo"] = _floats(m.albedo)
+        elif m.kind == "mirror":
+            entry["reflectance"] = _floats(m.reflectance)
+        else:
+            entry.update(ior=float(m.ior), transmittance=_floats(m.transmittance))
+        if m.emits:
+            entry["emission"] = _floats(m.emission)
+        mats[m.name] = entry
+    lights = []
+    for light in scene.lights:
+        if light.kind == "point":
+            lights.append({"type": "point", "position": _floats(light.position), "power": _floats(light.power)})
+        elif light.kind == "quad":
+            lights.append({"type": "quad", "corner": _floats(light.corner), "edge_u": _floats(light.edge_u),
+                           "edge_v": _floats(light.edge_v), "power": _floats(light.power)})
+    cam = scene.camera
+    doc = {
+        "name": scene.name,
+        "description": str(scene.extra.get("description", "")),
+        "geometry": {"mesh": mesh},
+        "materials": mats,
+        "lights": lights,
+        "camera": {"eye": _floats(cam.eye), "target": _floats(cam.target), "up": _floats(cam.up),
+                   "vfov": float(cam.vfov)},
+        "resolution": [int(cam.width), int(cam.height)],
+        "photons": int(scene.photons),
+    }
+    name = " ".join(scene.name.splitlines())
+    head = (f"{_MTL_HEAD}{name}: written by tlm scene export, with {mesh} and its MTL library beside it.\n"
+            "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.\n")
+    return head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
 
 
 def mtl_text(scene: Scene) -> str:
