@@ -276,7 +276,8 @@ def test_a_glb_s_notes_are_read_back(tmp_path, small):
     path.write_bytes(write_glb(header, binary))
     first = meshes.load_mesh(path)
     again = meshes.load_mesh(path)
-    assert small == ["b.glb"] and again.notes == (f"{path}: its camera is not used (the scene file's camera: is)",)
+    assert small == ["b.glb"] and again.notes == (f"{path}: not imported from its cameras: cameras[0] (on no node "
+                                                  "of the glTF's scene)",)
     _same(first, again)
 
 

@@ -30,8 +30,9 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   :data:`BLACK_LIMIT` of the radiance the lights give at the scene's size
   (:func:`light_scale`: light that only grazes, as from a quad light facing away from a
   ceiling it lies in).
-* :func:`file_warnings`: what the mesh files hold that tlm does not use (a glTF's cameras
-  and ``KHR_lights_punctual`` lights), a line each.
+* :func:`file_warnings`: what the mesh files hold that tlm does not use (a glTF's spot and
+  directional lights, its orthographic cameras, ...), and which of a glTF's point lights and
+  camera the scene imported or left for the scene file's ``lights:`` and ``camera:``, a line each.
 * :func:`material_warnings`: materials the image shows whose mesh file gives them what
   tlm does not render (texture and bump maps, alpha, unknown glTF extensions:
   :attr:`~tlm.scenes.model.Material.ignored`), in one line.
@@ -206,8 +207,10 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
 
 
 def file_warnings(scene: Scene) -> list[str]:
-    """What the scene's mesh files hold that tlm does not use (a glTF's cameras and punctual
-    lights: ``Geometry.notes``), one line each naming the file."""
+    """What the scene's mesh files hold that tlm does not use (``Geometry.notes``: a glTF's
+    spot and directional lights, its orthographic cameras, ...) and what of a glTF's point
+    lights and camera the scene imported or did not use (:func:`tlm.scenes.loader.load_scene`),
+    one line each naming the file."""
     return [str(n) for n in scene.extra.get("notes") or []]
 
 

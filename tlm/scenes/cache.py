@@ -8,8 +8,10 @@ measures both ways). Both results are kept under ``$TLM_CACHE/scenes`` (default
 
 * a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`), the
   versions of numpy and trimesh (which parses PLY, STL and GLB), and the name and sha256
-  of the mesh file. The entry keeps what names the other files the parse read (an OBJ's
-  ``mtllib`` statements) and those files' paths and sha256: before an entry is used, the
+  of the mesh file. The entry keeps the file's notes and a glTF's imported point lights and
+  camera (``Geometry.imports``, read back as the file's they are read for), and what names
+  the other files the parse read (an OBJ's ``mtllib`` statements) and those files' paths
+  and sha256: before an entry is used, the
   lookup of those files runs again beside this mesh (so a library that appeared where the
   lookup looks first, or one that changed or went missing, means a new parse). A file
   whose parse can read files the lookup cannot name (any ``.gltf``, a ``.glb`` with
@@ -40,7 +42,7 @@ import numpy as np
 
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
-from tlm.scenes.model import Geometry, Material
+from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
 from tlm.storage import cache_root, digest_problem, file_digest, warn, write_atomic
 
 __all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh"]
@@ -127,7 +129,13 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
                            "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined.replace(here, _HERE)}
-                          for m in geom.materials]}
+                          for m in geom.materials],
+            # (a file's own lights and camera: its source is the file read, so it is not kept)
+            "imports": [{"lights": [{"power": lt.power, "position": lt.position, "name": lt.name} for lt in i.lights],
+                         "camera": None if i.camera is None else {k: getattr(i.camera, k)
+                                                                  for k in ("eye", "target", "up", "vfov")},
+                         "camera_name": i.camera_name, "aspect": i.aspect}
+                        for i in geom.imports]}
     _write(entry, arrays, meta)
     return geom
 
@@ -201,6 +209,7 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | 
                                       if k == "undefined" else v for k, v in m.items()})
                           for m in meta["materials"])
         names = tuple(str(s) for s in meta["part_names"])
+        imports = tuple(_imported(i, str(path) if path is not None else _HERE) for i in meta.get("imports", []))
         if not ok:
             raise ValueError("arrays of mismatched shapes")
     except (AttributeError, IndexError, KeyError, TypeError, ValueError) as e:
@@ -212,7 +221,24 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | 
         return None
     notes = [n.replace(_HERE, str(path) if path is not None else _HERE) for n in notes]
     return Geometry(triangles=tri, part=part, part_names=names, normals=got.get("normals"), notes=tuple(notes),
-                    materials=materials, face_material=got.get("face_material"))
+                    materials=materials, face_material=got.get("face_material"), imports=imports)
+
+
+def _imported(meta: dict, source: str) -> Imported:
+    """A cached file's lights and camera (a KeyError, TypeError or ValueError where the entry
+    does not hold them as :func:`mesh` writes them)."""
+    def vec(v) -> tuple[float, float, float]:
+        if not (isinstance(v, list) and len(v) == 3):
+            raise ValueError(f"{v!r} is not 3 numbers")
+        return tuple(float(x) for x in v)
+
+    lights = tuple(Light("point", vec(lt["power"]), position=vec(lt["position"]), name=str(lt["name"]))
+                   for lt in meta["lights"])
+    cam = meta["camera"]
+    camera = None if cam is None else Camera(vec(cam["eye"]), vec(cam["target"]), vec(cam["up"]),
+                                             float(cam["vfov"]), 0, 0)
+    aspect = meta["aspect"]
+    return Imported(source, lights, camera, str(meta["camera_name"]), None if aspect is None else float(aspect))
 
 
 def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:

@@ -13,7 +13,9 @@ and optionally
   zero; a negative one mirrors), then rotate (degrees ``[rx, ry, rz]``: about x, then y,
   then z, right-handed, i.e. ``p' = Rz Ry Rx S p + t``), then translate; shading normals
   from a mesh file follow by the inverse transpose, and a mirroring transform reverses
-  each triangle's vertex order so that front faces stay front faces;
+  each triangle's vertex order so that front faces stay front faces; a glTF's imported
+  point lights and camera (``Geometry.imports``) move with the triangles (a light's power
+  stays);
 * ``name: N``: the item's part names become ``N`` (an item of one part) or ``N.PART``
   (an item of several parts, e.g. a builder's).
 
@@ -21,10 +23,11 @@ and optionally
 the items in list order (triangle ids follow it): triangles, parts, shading normals (an
 item without file normals gets crease normals at the default angle, as the loader would
 give it: parts never span items), the file materials (two files' equal materials become
-one; a different one under a name already used is renamed ``NAME_2``) and
-``face_material`` (re-indexed, -1 kept). A part name that an earlier item already uses is renamed ``PART_2``
-(then ``_3`` ...) unless the item has a ``name``, in which case it is an error. Every
-problem is an :class:`~tlm.errors.InputError` naming the file and the key
+one; a different one under a name already used is renamed ``NAME_2``),
+``face_material`` (re-indexed, -1 kept) and the files' imported lights and cameras (in
+order). A part name that an earlier item already uses is renamed ``PART_2`` (then ``_3``
+...) unless the item has a ``name``, in which case it is an error. Every problem is an
+:class:`~tlm.errors.InputError` naming the file and the key
 (``geometry[1].transform.scale``).
 """
 
@@ -38,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.model import Geometry
+from tlm.scenes.model import Geometry, Imported
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num
@@ -127,7 +130,32 @@ def transform_geometry(geom: Geometry, m: np.ndarray, t: np.ndarray) -> Geometry
     if mirrors:
         tri = tri[:, [0, 2, 1]]
         normals = None if normals is None else normals[:, [0, 2, 1]]
-    return replace(geom, triangles=np.ascontiguousarray(tri), normals=normals)
+    imports = tuple(_transform_imported(i, m, t) for i in geom.imports)
+    return replace(geom, triangles=np.ascontiguousarray(tri), normals=normals, imports=imports)
+
+
+def _transform_imported(imp: Imported, m: np.ndarray, t: np.ndarray) -> Imported:
+    """A mesh file's lights and camera moved as its triangles are (``p' = M p + t``): a light's
+    position and the camera's eye; the view direction and up by ``M`` (the target one unit in
+    front of the new eye). A light's power stays (as the glTF spec has a node's scale leave its
+    light's intensity)."""
+    def pt(p) -> tuple[float, float, float]:
+        with np.errstate(over="ignore", invalid="ignore"):  # (the loader checks the result is finite)
+            return tuple(float(x) for x in m @ np.asarray(p, dtype=np.float64) + t)
+
+    def unit(v) -> tuple[float, float, float]:
+        with np.errstate(over="ignore", invalid="ignore"):
+            d = m @ np.asarray(v, dtype=np.float64)
+            return tuple(float(x) for x in d / np.linalg.norm(d))
+
+    lights = tuple(replace(lt, position=pt(lt.position)) for lt in imp.lights)
+    cam = imp.camera
+    if cam is not None:
+        eye = pt(cam.eye)
+        fwd = unit(np.subtract(cam.target, cam.eye))
+        cam = replace(cam, eye=eye, target=tuple(float(e + f) for e, f in zip(eye, fwd, strict=True)),
+                      up=unit(cam.up))
+    return replace(imp, lights=lights, camera=cam)
 
 
 # ---------------------------------------------------------------- sources
@@ -329,4 +357,5 @@ def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str
         materials=tuple(materials),
         face_material=np.concatenate(face_material) if any_file_materials else None,
         notes=tuple(dict.fromkeys(n for g in geoms for n in g.notes)),
+        imports=tuple(i for g in geoms for i in g.imports),
     )

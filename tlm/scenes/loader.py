@@ -2,8 +2,11 @@
 
 A scene file names its geometry (a built-in builder or a mesh that trimesh loads),
 maps the geometry's parts to materials, and lists the lights, the camera, the
-resolution and the default photon count. The built-in scenes are the files in the
-repository's ``scenes/`` folder (shipped inside the wheel as ``tlm/_scenes``).
+resolution and the default photon count. A glTF of the geometry gives its point lights
+when the scene file (with its ``extends:``) has no ``lights:`` key, and its first
+perspective camera when it has no ``camera:`` key; a line each says which. The built-in
+scenes are the files in the repository's ``scenes/`` folder (shipped inside the wheel as
+``tlm/_scenes``).
 
 Every problem is an :class:`~tlm.errors.InputError` naming the file, the key and the
 value: unknown keys (with a "did you mean"), wrong types, unknown materials, NaN or
@@ -13,6 +16,7 @@ infinite vertices, an empty mesh, a resolution that cannot fit in memory.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +25,7 @@ import numpy as np
 from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes import cache
-from tlm.scenes.model import Camera, Geometry, Light, Material, Scene
+from tlm.scenes.model import Camera, Geometry, Imported, Light, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 from tlm.scenes.shapes import machine_memory
 from tlm.scenes.validate import MAX_MAGNITUDE
@@ -271,22 +275,8 @@ def load_scene(
     materials, material_index = _assign_materials(raw, geom, src)
     part = np.asarray(geom.part, dtype=np.int32)
 
-    lights_raw = raw.get("lights") or []
-    if not isinstance(lights_raw, list):
-        raise InputError(f"must be a list, got {lights_raw!r}", source=src, key="lights")
-    lights = tuple(_light(i, v, src) for i, v in enumerate(lights_raw))
-
-    cam_raw = _mapping(raw.get("camera"), src, "camera")
-    _keys(cam_raw, CAMERA_KEYS, src, "camera")
-    eye = _vec(cam_raw.get("eye"), src, "camera.eye")
-    target = _vec(cam_raw.get("target"), src, "camera.target")
-    up = _vec(cam_raw.get("up", [0.0, 1.0, 0.0]), src, "camera.up")
-    vfov = _num(cam_raw.get("vfov"), src, "camera.vfov", lo=0.0, hi=179.0, lo_exclusive=True)
-    fwd = np.subtract(target, eye)
-    if not np.linalg.norm(fwd) > 0:
-        raise InputError("eye and target coincide", source=src, key="camera")
-    if not np.linalg.norm(np.cross(fwd, up)) > 1e-12 * np.linalg.norm(fwd) * np.linalg.norm(up):
-        raise InputError(f"up {list(up)} is parallel to the view direction", source=src, key="camera.up")
+    lights, notes = _lights(raw, geom, src)
+    view, camera_notes = _camera(raw, geom, src)
 
     res = resolution if resolution is not None else raw.get("resolution")
     res_src = (config_source or "(config)") if resolution is not None else src
@@ -307,7 +297,8 @@ def load_scene(
         _keys(tr, ("scale", "translate"), src, "transform")
         scale = _num(tr.get("scale", 1.0), src, "transform.scale", lo=0.0, lo_exclusive=True)
         translate = _vec(tr.get("translate", [0.0, 0.0, 0.0]), src, "transform.translate")
-    camera = Camera(eye, target, up, vfov, res[0], res[1])
+    camera = replace(view, width=res[0], height=res[1])
+    notes += camera_notes + _aspect_note(geom, res, "camera" in raw)
     crease = _num(raw.get("crease_angle", DEFAULT_CREASE_ANGLE), src, "crease_angle", lo=0.0, hi=180.0)
     normals = geom.normals
     if normals is not None and not np.isfinite(normals).all():
@@ -326,12 +317,124 @@ def load_scene(
         photons=photons,
         source=src,
         extra={"description": str(raw.get("description", "")), "crease_angle": crease,
-               "normals": "file" if normals is geom.normals else "crease", "notes": list(geom.notes)},
+               "normals": "file" if normals is geom.normals else "crease",
+               "notes": [*geom.notes, *notes]},
         normals=normals,
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):
         scene = transform_scene(scene, scale, np.asarray(translate))
     return with_mesh_light(scene)
+
+
+def _grouped(geom: Geometry) -> dict[str, list[Imported]]:
+    """The geometry's imports by mesh file (two items of one file: two entries)."""
+    out: dict[str, list[Imported]] = {}
+    for imp in geom.imports:
+        out.setdefault(imp.source, []).append(imp)
+    return out
+
+
+def _imported_lights(imps: list[Imported]) -> str:
+    """``N point light(s) (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], ...)`` of a file's imports."""
+    names = list(dict.fromkeys(lt.name.removeprefix(f"{Path(imps[0].source).name} ") for i in imps
+                               for lt in i.lights))
+    n = sum(len(i.lights) for i in imps)
+    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    items = f", in each of its {len(imps)} geometry items" if len(imps) > 1 else ""
+    return f"{f'{n} point lights' if n > 1 else 'point light'} ({shown}{items})"
+
+
+def _lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], list[str]]:
+    """The scene's lights: the scene file's ``lights:`` when it gives the key (itself or through
+    ``extends``), else the mesh files' point lights (:attr:`Geometry.imports`); and a line per
+    mesh file with point lights saying which it is."""
+    notes = []
+    if "lights" in raw:
+        lights_raw = raw.get("lights") or []
+        if not isinstance(lights_raw, list):
+            raise InputError(f"must be a list, got {lights_raw!r}", source=src, key="lights")
+        for file, imps in _grouped(geom).items():
+            if any(i.lights for i in imps):
+                k = sum(len(i.lights) for i in imps)
+                notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} not used: the scene "
+                             f"file gives lights: (leave lights: out to import {'them' if k > 1 else 'it'})")
+        return tuple(_light(i, v, src) for i, v in enumerate(lights_raw)), notes
+    lights = []
+    for file, imps in _grouped(geom).items():
+        if not any(i.lights for i in imps):
+            continue
+        for lt in (lt for i in imps for lt in i.lights):
+            where = lt.name.removeprefix(f"{Path(file).name} ")
+            p = np.asarray(lt.position)
+            if not (np.isfinite(p).all() and np.abs(p).max() <= MAX_MAGNITUDE):
+                raise InputError(f"{where}: its position {list(lt.position)} (with the geometry item's transform) "
+                                 f"is not finite or is beyond +-{MAX_MAGNITUDE:g}", source=file)
+            if not max(lt.power) <= MAX_MAGNITUDE:
+                raise InputError(f"{where}: its power {list(lt.power)} W is beyond {MAX_MAGNITUDE:g}", source=file)
+            lights.append(lt)
+        k = sum(len(i.lights) for i in imps)
+        notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} imported as "
+                     f"{'tlm point lights' if k > 1 else 'a tlm point light'} (power 4 pi x intensity x color W): the "
+                     "scene file gives no lights:")
+    return tuple(lights), notes
+
+
+def _camera(raw: dict, geom: Geometry, src: str) -> tuple[Camera, list[str]]:
+    """The scene's camera (its width and height 0: the resolution gives them): the scene file's
+    ``camera:`` when it gives the key, else the first mesh file's perspective camera
+    (:attr:`Geometry.imports`, in the geometry's order); and a line per mesh file with a
+    perspective camera saying whether it is used."""
+    files = [i for i in geom.imports if i.camera is not None]
+    if "camera" not in raw and files:
+        first = files[0]
+        cam = first.camera
+        where = first.camera_name
+        if not cam.vfov <= 179.0:
+            raise InputError(f"{where}: its yfov ({cam.vfov:.4g} degrees) is over tlm's 179 degrees",
+                             source=first.source)
+        for p in (cam.eye, cam.target, cam.up):
+            if not (np.isfinite(p).all() and np.abs(p).max() <= MAX_MAGNITUDE):
+                raise InputError(f"{where}: its eye {list(cam.eye)}, view direction or up (with the geometry item's "
+                                 f"transform) is not finite or is beyond +-{MAX_MAGNITUDE:g}", source=first.source)
+        fwd = np.subtract(cam.target, cam.eye)
+        if not (np.linalg.norm(fwd) > 0 and np.linalg.norm(np.cross(fwd, cam.up))
+                > 1e-12 * np.linalg.norm(fwd) * np.linalg.norm(cam.up)):
+            raise InputError(f"{where}: the geometry item's transform leaves it no view direction or up",
+                             source=first.source)
+        notes = [f"{first.source}: its camera {where} is the scene's camera (vfov {cam.vfov:.6g} degrees): the "
+                 "scene file gives no camera:"]
+        notes += [f"{i.source}: its camera {i.camera_name} is not used: the scene's camera is {first.source}'s "
+                  f"{first.camera_name}" for i in files[1:] if (i.source, i.camera_name) != (first.source, where)]
+        return cam, list(dict.fromkeys(notes))
+    if "camera" not in raw:
+        raise InputError("missing: give camera: {eye, target, vfov} (no mesh file of the geometry has a perspective "
+                         "camera to import)", source=src, key="camera")
+    cam_raw = _mapping(raw.get("camera"), src, "camera")
+    _keys(cam_raw, CAMERA_KEYS, src, "camera")
+    eye = _vec(cam_raw.get("eye"), src, "camera.eye")
+    target = _vec(cam_raw.get("target"), src, "camera.target")
+    up = _vec(cam_raw.get("up", [0.0, 1.0, 0.0]), src, "camera.up")
+    vfov = _num(cam_raw.get("vfov"), src, "camera.vfov", lo=0.0, hi=179.0, lo_exclusive=True)
+    fwd = np.subtract(target, eye)
+    if not np.linalg.norm(fwd) > 0:
+        raise InputError("eye and target coincide", source=src, key="camera")
+    if not np.linalg.norm(np.cross(fwd, up)) > 1e-12 * np.linalg.norm(fwd) * np.linalg.norm(up):
+        raise InputError(f"up {list(up)} is parallel to the view direction", source=src, key="camera.up")
+    notes = [f"{i.source}: its camera {i.camera_name} is not used: the scene file gives camera: (leave camera: out "
+             "to import it)" for i in files]
+    return Camera(eye, target, up, vfov, 0, 0), list(dict.fromkeys(notes))
+
+
+def _aspect_note(geom: Geometry, res: list[int], given: bool) -> list[str]:
+    """A line when the imported camera's ``aspectRatio`` is not the resolution's."""
+    first = next((i for i in geom.imports if i.camera is not None), None)
+    if given or first is None or first.aspect is None:
+        return []
+    ratio = res[0] / res[1]
+    if abs(first.aspect - ratio) <= 1e-3 * ratio:
+        return []
+    return [f"{first.source}: its camera {first.camera_name} has aspectRatio {first.aspect:.6g}, not the "
+            f"resolution's {ratio:.6g} ({res[0]}x{res[1]}): the horizontal field of view follows the resolution"]
 
 
 def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Material, ...], np.ndarray]:

@@ -21,7 +21,12 @@ polygons are fan-triangulated from their first corner.
   mesh becomes one part named after the file stem; a scene (GLB/GLTF) one part per
   geometry, named by trimesh's geometry name, with each instance's scene-graph
   transform applied. glTF materials come from the file's JSON (extensions included)
-  and map to tlm's kinds by :func:`tlm.scenes.materials.gltf_material`. A PLY whose
+  and map to tlm's kinds by :func:`tlm.scenes.materials.gltf_material`. Its
+  ``KHR_lights_punctual`` point lights and its first perspective camera, placed by the
+  nodes of its scene, are ``Geometry.imports`` (:func:`tlm.scenes.gltf_imports.gltf_imports`; the scene file
+  decides whether they are used: :mod:`tlm.scenes.loader`); what of its lights and cameras
+  is not imported (spot and directional lights, orthographic cameras, ...) is named in
+  ``Geometry.notes``. A PLY whose
   faces are triangle strips (element ``tristrips``, ``-1`` restarting a strip) is
   decoded with alternating winding; the degenerate triangles that stitch strips are
   dropped.
@@ -39,13 +44,13 @@ from __future__ import annotations
 import io
 import re
 import warnings
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.model import Geometry, Material
+from tlm.scenes.gltf_imports import gltf_imports
+from tlm.scenes.model import Geometry, Imported, Material
 
 __all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_format"]
 
@@ -332,6 +337,8 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
 
     file_materials: tuple[Material, ...] = ()
     header: dict | None = None  # (a glTF's JSON)
+    imported: Imported | None = None  # (a glTF's lights and camera)
+    notes: tuple[str, ...] = ()
     source: object = str(path)
     kwargs: dict = {}
     if zext or ext in (".glb", ".gltf"):
@@ -342,17 +349,24 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         if ext in (".glb", ".gltf") and data.strip():
             header = gltf_json(path, data)
             check_gltf(header, src)
+            imported, notes = gltf_imports(header, src)
             file_materials = tuple(gltf_materials(header, src))
             buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
-            if file_materials or buffers is not None:
+            nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
+            cameras = any(isinstance(n, dict) and "camera" in n for n in nodes)
+            if file_materials or buffers is not None or cameras:
                 # name each material by its index, so that each geometry's says which it is
                 from tlm.scenes.materials import glb_chunks
 
                 header = dict(header)
                 if file_materials:
                     header["materials"] = [dict(m, name=f"{_TAG}{i}") for i, m in enumerate(header["materials"])]
+                if cameras:  # (trimesh drops the mesh of a camera's node, of every one up to its first perspective
+                    # camera's; tlm reads the cameras itself: gltf_imports)
+                    header["nodes"] = [{k: v for k, v in n.items() if k != "camera"} if isinstance(n, dict) else n
+                                       for n in nodes]
                 if ext == ".glb":
                     source = io.BytesIO(write_glb(header, glb_chunks(data, src)[1]))
                 else:
@@ -429,30 +443,9 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         normals=normals,
         materials=file_materials,
         face_material=np.concatenate(mat_ids) if file_materials else None,
-        notes=_gltf_notes(header, src) if header is not None else (),
+        notes=notes,
+        imports=() if imported is None else (imported,),
     )
-
-
-def _gltf_notes(header: dict, src: str) -> tuple[str, ...]:
-    """A glTF's cameras and punctual lights, which tlm does not use (the scene file gives the
-    camera and the lights): a line each, for the run's warning."""
-    out = []
-    cameras = header.get("cameras")
-    if isinstance(cameras, list) and cameras:
-        n = len(cameras)
-        out.append(f"{src}: its {f'{n} cameras are' if n > 1 else 'camera is'} not used (the scene file's "
-                   "camera: is)")
-    ext = header.get("extensions")
-    punctual = ext.get("KHR_lights_punctual") if isinstance(ext, dict) else None
-    lights = (punctual.get("lights") if isinstance(punctual, dict) else None) or []
-    if isinstance(lights, list) and lights:
-        kinds = ", ".join(f"{n} {k}" for k, n in sorted(
-            Counter(str(lt.get("type")) if isinstance(lt, dict) else "?" for lt in lights).items()))
-        many = len(lights) > 1
-        out.append(f"{src}: its punctual light{'s' if many else ''} ({kinds}, KHR_lights_punctual) "
-                   f"{'are' if many else 'is'} not used: give {'them' if many else 'it'} under lights: in the scene "
-                   "file (tlm has point and quad lights, and emissive materials)")
-    return tuple(out)
 
 
 def _gltf_index(geom, n_materials: int) -> int:

@@ -128,6 +128,29 @@ class Camera:
 
 
 @dataclass(frozen=True)
+class Imported:
+    """What a mesh file gives besides its triangles that a scene can take: a glTF's point
+    lights (``KHR_lights_punctual``) and its first perspective camera, in the geometry's
+    space (an item's ``transform`` moves them with its triangles). The scene takes the
+    lights when its file gives no ``lights:``, the camera when it gives no ``camera:``
+    (:func:`tlm.scenes.loader.load_scene`).
+
+    source : the mesh file's path.
+    lights : ``point`` lights, each named ``FILE KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``.
+    camera : ``eye``, ``target`` (one unit in front of the eye), ``up``, ``vfov``; its
+        ``width`` and ``height`` are 0 (the scene's resolution gives them). None: none.
+    camera_name : ``cameras[i] 'NAME' at nodes[n]``.
+    aspect : the camera's ``aspectRatio``, when the file gives one.
+    """
+
+    source: str
+    lights: tuple[Light, ...] = ()
+    camera: Camera | None = None
+    camera_name: str = ""
+    aspect: float | None = None
+
+
+@dataclass(frozen=True)
 class Geometry:
     """Triangles as named parts, as a builder or a mesh loader returns them.
 
@@ -145,8 +168,12 @@ class Geometry:
     materials: tuple[Material, ...] = ()
     face_material: np.ndarray | None = None  # (n,) int32
     # what the file holds that tlm does not use, one line each naming the file (a glTF's
-    # cameras and punctual lights): the run warns of them (tlm.render.checks.file_warnings)
+    # spot and directional lights, its orthographic cameras): the run warns of them
+    # (tlm.render.checks.file_warnings)
     notes: tuple[str, ...] = ()
+    # the lights and camera of the files (a glTF's point lights and first perspective camera),
+    # one entry per item of the geometry that has any (tlm.scenes.loader decides whether they are used)
+    imports: tuple[Imported, ...] = ()
 
 
 @dataclass(frozen=True)

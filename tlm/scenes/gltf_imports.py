@@ -1,0 +1,284 @@
+"""A glTF's point lights and first perspective camera, placed by the nodes of its scene
+(:func:`gltf_imports`): what :func:`tlm.scenes.meshes.load_mesh` gives a scene as
+``Geometry.imports`` (the scene file decides whether they are used:
+:mod:`tlm.scenes.loader`), and a line each on what of the file's lights and cameras is not
+imported.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from tlm.errors import InputError
+from tlm.scenes.model import Camera, Imported, Light
+
+__all__ = ["gltf_imports"]
+
+_PUNCTUAL = "KHR_lights_punctual"
+_SHOWN = 4  # entries a note names before "and N more"
+
+
+def _listed(items: list[str]) -> str:
+    return ", ".join(items[:_SHOWN]) + (f" and {len(items) - _SHOWN} more" if len(items) > _SHOWN else "")
+
+
+def _numbers(value, n: int, where: str, src: str) -> np.ndarray:
+    """``n`` finite numbers (a list of them; one number for ``n == 1``), else an InputError
+    naming the file and ``where``."""
+    seq = value if isinstance(value, list) else [value]
+    ok = len(seq) == n and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in seq)
+    if not ok:
+        what = "a number" if n == 1 else f"a list of {n} numbers"
+        raise InputError(f"{where}: {value!r} is not {what}", source=src)
+    try:
+        out = np.array([float(x) for x in seq], dtype=np.float64)
+    except OverflowError:
+        out = np.full(n, np.inf)
+    if not np.isfinite(out).all():
+        raise InputError(f"{where}: {value!r} is not finite", source=src)
+    return out
+
+
+def _node_matrix(node: dict, i: int, src: str) -> np.ndarray:
+    """A node's local transform as trimesh composes it for the triangles: ``matrix`` (column
+    major), then ``translation``, ``rotation`` (a quaternion x, y, z, w; normalized) and
+    ``scale`` (T R S, as the glTF spec has it)."""
+    m = np.eye(4)
+    if "matrix" in node:
+        m = _numbers(node["matrix"], 16, f"nodes[{i}].matrix", src).reshape(4, 4).T
+    if "translation" in node:
+        t = np.eye(4)
+        t[:3, 3] = _numbers(node["translation"], 3, f"nodes[{i}].translation", src)
+        m = m @ t
+    if "rotation" in node:
+        q = _numbers(node["rotation"], 4, f"nodes[{i}].rotation", src)
+        norm = float(np.dot(q, q))
+        if not norm > 0.0:
+            raise InputError(f"nodes[{i}].rotation: {node['rotation']!r} is no rotation (a zero quaternion)",
+                             source=src)
+        x, y, z, w = q / np.sqrt(norm)
+        r = np.eye(4)
+        r[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        m = m @ r
+    if "scale" in node:
+        m = m @ np.diag([*_numbers(node["scale"], 3, f"nodes[{i}].scale", src), 1.0])
+    return m
+
+
+def _scene_walk(header: dict, nodes: list, src: str) -> dict[int, tuple[int, ...]]:
+    """The nodes of the glTF's scene (``scene``, else ``scenes[0]``; a file without ``scenes``:
+    every node no node names as a child), each with its path from its root (root first), in
+    depth-first file order. A node reached twice (a second parent, a cycle) is an error: glTF's
+    nodes form trees."""
+    scenes = header.get("scenes")
+    if isinstance(scenes, list) and scenes:
+        k = header.get("scene", 0)
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(scenes):
+            raise InputError(f"scene = {k!r} names no entry of 'scenes' (it has {len(scenes)})", source=src)
+        scene = scenes[k] if isinstance(scenes[k], dict) else {}
+        roots = scene.get("nodes") or []
+        where = f"scenes[{k}].nodes"
+    else:
+        children = {c for n in nodes if isinstance(n, dict) for c in (n.get("children") or [])
+                    if isinstance(c, int)}
+        roots = [i for i in range(len(nodes)) if i not in children]
+        where = "nodes"
+    if not isinstance(roots, list):
+        raise InputError(f"{where}: {roots!r} is not a list of node indices", source=src)
+    paths: dict[int, tuple[int, ...]] = {}
+    stack = [(r, (), where) for r in reversed(roots)]  # (depth first without recursion: a deep rig is no error)
+    while stack:
+        i, parent, named = stack.pop()
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < len(nodes):
+            raise InputError(f"{named} names {i!r}, no entry of 'nodes' (it has {len(nodes)})", source=src)
+        if i in paths:
+            raise InputError(f"{named} names nodes[{i}], which the scene reaches twice (glTF's nodes form trees)",
+                             source=src)
+        paths[i] = (*parent, i)
+        kids = nodes[i].get("children") if isinstance(nodes[i], dict) else None
+        if kids is not None and not isinstance(kids, list):
+            raise InputError(f"nodes[{i}].children: {kids!r} is not a list of node indices", source=src)
+        stack += [(c, paths[i], f"nodes[{i}].children") for c in reversed(kids or [])]
+    return paths
+
+
+def _world(path: tuple[int, ...], nodes: list, src: str) -> np.ndarray:
+    """The world transform of the last node of ``path``: its local transform composed with
+    every parent's (root first)."""
+    m = np.eye(4)
+    for i in path:
+        m = m @ _node_matrix(nodes[i] if isinstance(nodes[i], dict) else {}, i, src)
+    if not np.isfinite(m).all():
+        raise InputError(f"nodes[{path[-1]}]: its world transform (with its parents') is not finite", source=src)
+    return m
+
+
+def _entries(table, where: str, src: str) -> list[dict]:
+    if table is None:
+        return []
+    if not isinstance(table, list):
+        raise InputError(f"{where}: {table!r} is not a list", source=src)
+    for i, e in enumerate(table):
+        if not isinstance(e, dict):
+            raise InputError(f"{where}[{i}]: {e!r} is not an object", source=src)
+    return table
+
+
+def _label(entry: dict, where: str) -> str:
+    name = entry.get("name")
+    return f"{where} {name!r}" if isinstance(name, str) and name else where
+
+
+def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray]:
+    """A KHR_lights_punctual light's type and its RGB radiant intensity (``intensity * color``,
+    candela for a point light); an InputError for a malformed one."""
+    where = f"{_PUNCTUAL}.lights[{i}]"
+    kind = light.get("type")
+    if kind not in ("point", "spot", "directional"):
+        raise InputError(f"{where}.type: {kind!r} is not 'point', 'spot' or 'directional'", source=src)
+    intensity = _numbers(light.get("intensity", 1.0), 1, f"{where}.intensity", src)[0]
+    color = _numbers(light.get("color", [1.0, 1.0, 1.0]), 3, f"{where}.color", src)
+    if intensity < 0.0:
+        raise InputError(f"{where}.intensity: {light['intensity']!r} is negative", source=src)
+    if (color < 0.0).any():
+        raise InputError(f"{where}.color: {light['color']!r} has a negative value", source=src)
+    if "range" in light and not _numbers(light["range"], 1, f"{where}.range", src)[0] > 0.0:
+        raise InputError(f"{where}.range: {light['range']!r} must be > 0", source=src)
+    return kind, intensity * color
+
+
+def _camera_entry(camera: dict, i: int, src: str) -> tuple[str, float | None, float | None]:
+    """A glTF camera's type, and a perspective camera's ``yfov`` (radians) and
+    ``aspectRatio`` (None when not given); an InputError for a malformed one."""
+    where = f"cameras[{i}]"
+    kind = camera.get("type")
+    if kind not in ("perspective", "orthographic"):
+        raise InputError(f"{where}.type: {kind!r} is not 'perspective' or 'orthographic'", source=src)
+    if kind != "perspective":
+        return kind, None, None
+    p = camera.get("perspective")
+    if not isinstance(p, dict):
+        raise InputError(f"{where}.perspective: {p!r} is not an object", source=src)
+    if "yfov" not in p:
+        raise InputError(f"{where}.perspective.yfov: missing (the vertical field of view, radians)", source=src)
+    yfov = _numbers(p["yfov"], 1, f"{where}.perspective.yfov", src)[0]
+    if not 0.0 < yfov < math.pi:
+        raise InputError(f"{where}.perspective.yfov: {p['yfov']!r} must be > 0 and < pi (radians)", source=src)
+    aspect = None
+    if "aspectRatio" in p:
+        aspect = _numbers(p["aspectRatio"], 1, f"{where}.perspective.aspectRatio", src)[0]
+        if not aspect > 0.0:
+            raise InputError(f"{where}.perspective.aspectRatio: {p['aspectRatio']!r} must be > 0", source=src)
+    return kind, float(yfov), aspect
+
+
+def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ...]]:
+    """A glTF's point lights and first perspective camera (:class:`~tlm.scenes.model.Imported`,
+    None when it has neither) and a line each on what of its lights and cameras is not
+    imported (spot and directional lights, a light or camera on no node of the scene,
+    orthographic cameras, perspective ones after the first, a point light's ``range``).
+
+    A point light becomes a tlm point light of power ``4 pi * intensity * color`` (its
+    intensity is in candela: ``intensity * color`` W/sr) at the world position of each node
+    of the scene that names it. The camera is the first node (in ``nodes`` order) of the scene
+    with a perspective camera: its eye the node's world position, looking down its -Z with
+    +Y up, ``vfov`` = ``yfov`` in degrees. Malformed entries (a type, intensity, colour,
+    range or yfov that is not a number, NaN, negative or out of range; a node's light or
+    camera index out of range; a NaN or zero-quaternion transform on the way to a light or
+    camera) are an InputError naming the file and the entry."""
+    ext = header.get("extensions")
+    punctual = ext.get(_PUNCTUAL) if isinstance(ext, dict) else None
+    # (an extension that is not an object holds no lights: nothing to import, nothing to say)
+    lights = _entries(punctual.get("lights"), f"{_PUNCTUAL}.lights", src) if isinstance(punctual, dict) else []
+    cameras = _entries(header.get("cameras"), "cameras", src)
+    nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
+    light_kind = [_light_entry(lt, i, src) for i, lt in enumerate(lights)]
+    camera_kind = [_camera_entry(c, i, src) for i, c in enumerate(cameras)]
+    on_light: dict[int, int] = {}  # node -> its light
+    on_camera: dict[int, int] = {}  # node -> its camera
+    for n, node in enumerate(nodes):
+        if not isinstance(node, dict):
+            continue
+        if "camera" in node:
+            c = node["camera"]
+            if isinstance(c, bool) or not isinstance(c, int) or not 0 <= c < len(cameras):
+                raise InputError(f"nodes[{n}].camera = {c!r} names no entry of 'cameras' (it has {len(cameras)})",
+                                 source=src)
+            on_camera[n] = c
+        node_ext = node.get("extensions")
+        ref = node_ext.get(_PUNCTUAL) if isinstance(node_ext, dict) else None
+        if ref is not None:
+            k = ref.get("light") if isinstance(ref, dict) else ref
+            if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(lights):
+                raise InputError(f"nodes[{n}].extensions.{_PUNCTUAL}.light = {k!r} names no entry of "
+                                 f"{_PUNCTUAL}.lights (it has {len(lights)})", source=src)
+            on_light[n] = k
+    if not lights and not cameras:
+        return None, ()
+    paths = _scene_walk(header, nodes, src) if on_light or on_camera else {}
+    file = Path(src).name
+    out: list[Light] = []
+    placed: set[int] = set()
+    ranged: list[str] = []
+    for n in sorted(on_light):
+        k = on_light[n]
+        if n not in paths:
+            continue
+        placed.add(k)
+        kind, radiant = light_kind[k]
+        if kind != "point":
+            continue
+        position = _world(paths[n], nodes, src)[:3, 3]
+        label = f"{_label(lights[k], f'{_PUNCTUAL}.lights[{k}]')} at nodes[{n}]"
+        out.append(Light("point", tuple(float(x) for x in 4.0 * math.pi * radiant),
+                         position=tuple(float(x) for x in position), name=f"{file} {label}"))
+        if "range" in lights[k]:
+            ranged.append(f"{_label(lights[k], f'lights[{k}]')} (range {lights[k]['range']:g})")
+    camera, camera_name, aspect = None, "", None
+    skipped: list[str] = []
+    for n in sorted(on_camera):
+        c = on_camera[n]
+        kind, yfov, ratio = camera_kind[c]
+        label = f"{_label(cameras[c], f'cameras[{c}]')} at nodes[{n}]"
+        if n not in paths:
+            skipped.append(f"{label} (on no node of the glTF's scene)")
+        elif kind != "perspective":
+            skipped.append(f"{label} (orthographic: tlm's camera is a pinhole)")
+        elif camera is not None:
+            skipped.append(f"{label} (a perspective camera after the first)")
+        else:
+            w = _world(paths[n], nodes, src)
+            fwd, up = w[:3, :3] @ [0.0, 0.0, -1.0], w[:3, :3] @ [0.0, 1.0, 0.0]
+            lf, lu = np.linalg.norm(fwd), np.linalg.norm(up)
+            if not (lf > 0 and lu > 0 and np.linalg.norm(np.cross(fwd, up)) > 1e-12 * lf * lu):
+                raise InputError(f"nodes[{n}]: its world transform (with its parents') leaves the camera no view "
+                                 "direction and up (a zero scale)", source=src)
+            eye = w[:3, 3]
+            camera = Camera(tuple(float(x) for x in eye), tuple(float(x) for x in eye + fwd / lf),
+                            tuple(float(x) for x in up / lu), math.degrees(yfov), 0, 0)
+            camera_name, aspect = label, ratio
+    unused = [c for c in range(len(cameras)) if c not in on_camera.values()]
+    skipped += [f"{_label(cameras[c], f'cameras[{c}]')} (on no node of the glTF's scene)" for c in unused]
+    notes = []
+    left = [f"{_label(lights[k], f'lights[{k}]')} ({kind})" if kind != "point" else
+            f"{_label(lights[k], f'lights[{k}]')} (point, on no node of the glTF's scene)"
+            for k, (kind, _) in enumerate(light_kind) if kind != "point" or k not in placed]
+    if left:
+        kinds = any(kind != "point" for kind, _ in light_kind)
+        notes.append(f"{src}: not imported from its {_PUNCTUAL} lights: {_listed(left)}" + (
+            ": tlm has point, quad and mesh lights (give such a light under lights: in the scene file, or an "
+            "emissive material)" if kinds else ""))
+    ranged = list(dict.fromkeys(ranged))  # (a light on two nodes: named once)
+    if ranged:
+        notes.append(f"{src}: the range of its point light{'s' if len(ranged) > 1 else ''} {_listed(ranged)} is not "
+                     "modelled: a tlm point light reaches every distance (falling off as 1/d^2)")
+    if skipped:
+        notes.append(f"{src}: not imported from its cameras: {_listed(skipped)}")
+    if not out and camera is None:
+        return None, tuple(notes)
+    return Imported(src, tuple(out), camera, camera_name, aspect), tuple(notes)
