@@ -138,3 +138,60 @@ def test_a_sweep_with_a_failed_point_and_extreme_both_run(tmp_path, capsys, cach
     assert "steps sweep_fifo, extreme reported failures" in err
     assert stale.read_text().startswith("<!DOCTYPE html>")
     assert (tmp_path / "runs" / "sweep_fifo" / "sweep.jsonl").is_file()
+
+
+# ------------------------------------------------------------------ a stopped run's report folder
+
+
+def test_bad_input_says_the_report_left_in_out_is_an_earlier_one(tmp_path, capsys):
+    """A step stopped on bad input writes no report: the report an earlier 'tlm plots' left in
+    --out stays as it was (nothing of it is removed), and the one error line says it is that
+    earlier one, with its date, not of this run."""
+    configs = _configs(tmp_path)  # no extreme.yaml
+    stale = _stale(tmp_path)
+    assert _plots(tmp_path, configs, "extreme") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("tlm: error: tlm plots: step extreme stopped on bad input: "), err
+    assert err[0].endswith(f"; no report written: {stale} is the report of an earlier 'tlm plots' (written "
+                           f"{_written(stale)}), not of this one"), err[0]
+    assert stale.read_text() == "stale"
+
+
+def _written(page: Path) -> str:
+    import datetime
+
+    return datetime.datetime.fromtimestamp(page.stat().st_mtime).isoformat(sep=" ", timespec="seconds")
+
+
+def test_the_steps_that_ran_before_the_bad_input_are_named(tmp_path):
+    def run(argv):
+        if argv[0] == "granularity":
+            raise plots_module.InputError("a bad packet size", source="g.yaml", key="packet_sizes")
+        return 0
+
+    def plots():
+        with pytest.raises(plots_module.InputError) as e:
+            regenerate(Path("configs"), tmp_path / "runs", tmp_path / "plots", ["thesis", "eq52", "tlm_granularity"],
+                       run_command=run, say=lambda line: None)
+        return str(e.value)
+
+    bad = "tlm plots: step tlm_granularity stopped on bad input: g.yaml: packet_sizes: a bad packet size"
+    assert plots() == bad  # (no earlier report: nothing more to say)
+    stale = _stale(tmp_path)
+    assert plots() == (f"{bad}; no report written: {stale} is the report of an earlier 'tlm plots' (written "
+                       f"{_written(stale)}), not of this one; the steps that ran before it (thesis, eq52) have "
+                       "rewritten their folders since")
+
+
+def test_an_internal_error_says_the_report_left_in_out_is_an_earlier_one(tmp_path, capsys, monkeypatch, cache):
+    def bug(args):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(tlm.cli, "_cmd_run", bug)
+    stale = _stale(tmp_path)
+    assert _plots(tmp_path, _configs(tmp_path), "cornell_pmap") == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0] == (f"tlm: plots: no report written: {stale} is the report of an earlier 'tlm plots' (written "
+                      f"{_written(stale)}), not of this one"), err
+    assert err[1].startswith("tlm: internal error: ZeroDivisionError: a bug") and len(err) == 2
+    assert stale.read_text() == "stale"

@@ -19,6 +19,7 @@ import yaml
 import tlm.report.tables as tables_mod
 from tlm.cli import main
 from tlm.config import config_from_dict
+from tlm.errors import InputError
 from tlm.experiments.run import run as run_experiment
 from tlm.experiments.thesis import load_study
 from tlm.report.collect import Inputs, Study, read
@@ -143,6 +144,23 @@ def test_two_scenes_of_one_name_are_one_line_error(tmp_path, cache, capsys, scen
     assert len(err) == 1 and err[0].startswith(f"tlm: error: {path}: scenes: ")
     assert all(n in err[0] for n in named), err[0]
     assert not out.exists()
+
+
+@pytest.mark.parametrize("modes, named", [
+    (["rcast", "rcast"], "'rcast' is listed twice"),
+    (["reflect", "rcast", "pmap", "reflect", "pmap"], "'reflect', 'pmap' are listed twice"),
+])
+def test_a_mode_listed_twice_is_a_one_line_error(tmp_path, capsys, modes, named):
+    """A mode given twice is refused as a scene given twice is (it was run once, the second
+    silently dropped), before any render, and by calibrate too (the same study reader)."""
+    out = tmp_path / "out"
+    path = _study(tmp_path, ["cornell"], modes=modes)
+    assert main(["thesis", str(path), "--out", str(out), "--no-progress", "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"tlm: error: {path}: modes: {named} (list each mode once)"]
+    assert not out.exists()
+    with pytest.raises(InputError, match=r"modes: .* listed twice"):
+        load_study(path)
 
 
 def test_a_study_file_s_defaults_are_documented_and_the_thesis_s(tmp_path, capsys):

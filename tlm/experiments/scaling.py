@@ -14,20 +14,32 @@ frame in the stream). The fit is exact at N = 1, as the thesis asks, and least s
 over the other N. Eq. 5.2 divides the sum over the pipelines by N: it assumes tiles of
 equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
 pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a static
-tiling of an uneven image waits for. The points of one group must differ in N alone: a
+tiling of an uneven image waits for.
+
+A group's scene is the scene *file* its points rendered, judged by the file's bytes (and
+those of the files its ``extends:`` chain names), as :func:`tlm.experiments.thesis.table_of`
+judges a thesis scene (:func:`scene_identity`): two copies of one file are one scene, two
+files that share a ``name`` (a modified copy of ``cornell.yaml``, the built-in ``ring``
+beside ``thesis/ring``) are two groups, each named by its file where the name alone would
+not tell them apart (:func:`groups`). The points of one group must differ in N alone: a
 group whose points' resolved configs differ in any other key (a sweep that zips
 ``arch.pipelines`` with ``arch.page_miss_cycles``, or two sweeps of different bases) is
 refused, naming the key, since the fit would read that key's effect as the pipelines'
 (the keys that leave the cycles as they are, :data:`NO_EFFECT`, may differ). Failed
-points are left out, each named in the notes. :func:`analyse` writes ``eq52.csv`` (per point:
+points are left out, each named in the notes; so is a point whose stream was too short
+for a steady state (``throughput_steady`` false: its TThru includes the fill and drain),
+which is fitted all the same. :func:`analyse` writes ``eq52.csv`` (per point:
 simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, the
-largest error, per group), ``provenance.json`` and one figure per scene
+largest error, per group; ``fitted_from``: per sweep folder, the hashes of the points
+its ``sweep.yaml`` listed and of those fitted, which :func:`out_of_date` compares with
+the folder as it is later), ``provenance.json`` and one figure per scene
 (``scaling_<scene>.png``): simulated and analytical T_tot against N, and the speed-up
 T(1) / T(N), for each scheduler.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from collections import defaultdict
@@ -62,7 +74,8 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
     left out; a sweep with points that have no row yet (interrupted, or still running) is
     fitted from those it has, and ``notes`` gets a line saying so. A point that failed
     (``status`` not ok) is left out, and ``notes`` gets a line naming it; ``failed`` (a list)
-    gets ``point P (its factors)`` of each.
+    gets ``point P (its factors)`` of each. A point whose stream had no steady state
+    (:func:`unsteady`) is kept, and ``notes`` gets a line naming it.
     """
     sweep_dir = Path(sweep_dir)
     rows_path = sweep_dir / "sweep.jsonl"
@@ -100,10 +113,23 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
         except (OSError, ValueError, yaml.YAMLError) as e:
             raise InputError(f"point {row.get('point')}: cannot read its folder ({e})", source=str(rows_path),
                              key=f"line {n}") from None
-        records.append({**record(res, cfg), "sweep": str(sweep_dir)})
+        rec = {**record(res, cfg), "sweep": str(sweep_dir), "hash": str(row.get("hash"))}
+        records.append(rec)
+        if notes is not None and rec["steady"] is False:
+            notes.append(f"{sweep_dir}: point {row.get('point')} "
+                         f"({_factors_text(factors.get(str(row.get('hash'))), row)}): {unsteady(rec)}")
     if not records:
         raise InputError("has no finished point", source=str(rows_path))
     return records
+
+
+def unsteady(rec: dict) -> str:
+    """The note on a point (a :func:`record`) whose stream was too short for a steady state."""
+    need = f"; a steady window needs at least {rec['min_frames']} frames" if rec.get("min_frames") else ""
+    frames = f"of {rec['frames']} frames " if rec.get("frames") else ""
+    return (f"its stream {frames}was too short for a steady state (throughput_steady false{need}): its TThru and "
+            "latency are measured over the whole stream, fill and drain included, and the fit reads them as the "
+            "steady state's (raise arch.frames)")
 
 
 def _factors_text(factors, row: dict) -> str:
@@ -137,12 +163,51 @@ def settings(cfg: dict) -> dict[str, str]:
     return flat
 
 
+def scene_identity(source) -> str:
+    """The scene file ``source`` (a point's ``scene.source``) as eq. 5.2's groups tell scenes
+    apart: a digest of its bytes and of those of the files its ``extends:`` chain names (a
+    built-in name there is the same scene for every file that names it), the rule of
+    :func:`tlm.experiments.thesis.table_of`. A file that is not on this machine (a sweep
+    written elsewhere) is told by its path."""
+    return _identity(Path(str(source)), 0) if source else "(no scene file recorded)"
+
+
+def _identity(path: Path, depth: int) -> str:
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return f"path {path}"
+    digest = hashlib.sha256(data)
+    try:
+        ref = (yaml.safe_load(data) or {}).get("extends")
+    except (ValueError, AttributeError, yaml.YAMLError):
+        ref = None
+    if isinstance(ref, str) and depth < 8 and (ref.endswith(".yaml") or "/" in ref):
+        digest.update(_identity(path.parent / ref, depth + 1).encode())
+    return f"sha256 {digest.hexdigest()[:16]}"
+
+
+def scene_label(source) -> str:
+    """A scene file as a user names it: a built-in one by its name (``thesis/ring``), any
+    other by its path."""
+    from tlm.scenes.loader import scenes_dir
+
+    try:
+        return Path(str(source)).resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
+    except (ValueError, OSError):
+        return str(source)
+
+
 def record(res: dict, cfg: dict) -> dict:
     """What eq. 5.2 needs of one point: its ``results.json`` and resolved config."""
     per_pipe = res["timing"]["pipelines"]
+    source = res["scene"].get("source")
+    estimate = res["timing"].get("throughput_estimate") or {}
     return {
         "settings": settings(cfg),
-        "scene": str(res["scene"]["name"]), "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
+        "scene": str(res["scene"]["name"]), "scene_file": source, "scene_id": scene_identity(source),
+        "steady": estimate.get("steady"), "frames": estimate.get("frames"), "min_frames": estimate.get("min_frames"),
+        "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
         "pipelines": int(cfg["arch"]["pipelines"]),
         "T_vert0": int(res["cycles"]["vertex"]),
         "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
@@ -234,15 +299,42 @@ def fit_both(points: list[dict], target: str, source: str | None = None) -> dict
     return f
 
 
-def fit(records: list[dict]) -> dict[tuple, dict]:
-    """Eq. 5.2 per (scene, mode, scheduler) and target; an error names the group's sweep folders."""
-    groups: dict[tuple, list[dict]] = defaultdict(list)
+def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
+    """The points of :func:`record` by (scene, mode, scheduler), the scene told by its file
+    (:func:`scene_identity`; a record without one, made by hand, by its name). The scene is
+    named by its ``name`` where no other file of the records has that name, else by its file
+    (:func:`scene_label`), so two scenes of one name get two names."""
+    def ident(r: dict) -> str:
+        return str(r.get("scene_id") or r["scene"])
+
+    files: dict[str, dict[str, str]] = defaultdict(dict)  # name -> identity -> a file of it
     for r in records:
-        groups[(r["scene"], r["mode"], r["scheduler"])].append(r)
+        files[r["scene"]].setdefault(ident(r), str(r.get("scene_file") or r["scene"]))
+    labels: dict[tuple[str, str], str] = {}
+    for name, ids in files.items():
+        for i, file in ids.items():
+            labels[name, i] = name if len(ids) == 1 else scene_label(file)
+    taken = defaultdict(list)
+    for key, label in labels.items():
+        taken[label].append(key)
+    for label, keys in taken.items():  # (two files a label does not tell apart: their digests do)
+        if len(keys) > 1:
+            for key in keys:
+                labels[key] = f"{label} [{key[1]}]"
+    out: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
+    for r in records:
+        out[(labels[r["scene"], ident(r)], r["mode"], r["scheduler"])].append(r)
+    return dict(sorted(out.items()))
+
+
+def fit(records: list[dict]) -> dict[tuple, dict]:
+    """Eq. 5.2 per (scene, mode, scheduler) (:func:`groups`) and target; an error names the
+    group's sweep folders."""
     fits = {}
-    for key, pts in sorted(groups.items()):
+    for key, pts in groups(records).items():
         sweeps = sorted({r["sweep"] for r in pts if r.get("sweep")})
-        source = f"{', '.join(sweeps)} ({'/'.join(key)})" if sweeps else None
+        group = "/".join(key) if "/" not in key[0] else f"{key[0]}: {key[1]}/{key[2]}"
+        source = f"{', '.join(sweeps)} ({group})" if sweeps else None
         for target in TARGETS:
             fits[(*key, target)] = fit_both(pts, target, source)
     return fits
@@ -264,20 +356,85 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
             raise
         raise InputError(f"{e} (left out, as they failed: {'; '.join(failed)})") from None
     table, summary = [], []
+    files = {scene: pts[0].get("scene_file") for (scene, _, _), pts in groups(records).items()}
     for (scene, mode, sched, target), f in fits.items():
-        summary.append({"scene": scene, "mode": mode, "scheduler": sched, "target": target, "A": f["A"],
-                        "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
-                        "pipelines": [r["pipelines"] for r in f["rows"]]})
+        summary.append({"scene": scene, "scene_file": files.get(scene), "mode": mode, "scheduler": sched,
+                        "target": target, "A": f["A"], "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"],
+                        "slowest": f["slowest"], "pipelines": [r["pipelines"] for r in f["rows"]]})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
 
     def figures(_point, tmp: Path) -> list[dict]:
         for scene in sorted({k[0] for k in fits} if plot else ()):
-            plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{scene}.png")
+            plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{file_slug(scene)}.png")
         return table
 
-    # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM
+    # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM,
+    # and which of their points (out_of_date: the report says when a sweep holds other points later)
     sweeps = [os.path.relpath(Path(d).resolve(), Path(out).resolve()) for d in sweep_dirs]
+    fitted_from = [{"sweep": rel, "planned": sweep_points(d)[0],
+                    "points": sorted({r["hash"] for r in records if r["sweep"] == str(d)})}
+                   for rel, d in zip(sweeps, sweep_dirs, strict=True)]
     run_study(", ".join(str(d) for d in sweep_dirs), out, "eq52", [None], figures, columns=COLUMNS,
               marker="eq52.json", files=lambda _rows: {"eq52.json": {"fits": summary, "sweeps": sweeps,
-                                                                    "notes": notes}})
+                                                                    "fitted_from": fitted_from, "notes": notes}})
     return {"fits": summary, "rows": table, "notes": notes}
+
+
+def file_slug(text: str) -> str:
+    """``text`` (a scene's name, or its file's path) as a part of a file name."""
+    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_.")[:60] or "scene"
+
+
+def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:
+    """The hashes of the points the sweep in ``sweep_dir`` lists (its ``sweep.yaml``; none
+    where it lists none) and of those of them finished (a row ok and a ``results.json``),
+    each sorted. A ``sweep.jsonl`` that is not JSON is an InputError."""
+    sweep_dir = Path(sweep_dir)
+    try:
+        spec = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+    except (OSError, ValueError, yaml.YAMLError):
+        spec = {}
+    points = (spec.get("points") if isinstance(spec, dict) else None) or []
+    planned = sorted({str(p.get("hash")) for p in points if isinstance(p, dict)})
+    rows = read_jsonl(sweep_dir / "sweep.jsonl") if (sweep_dir / "sweep.jsonl").is_file() else []
+    done = {str(r.get("hash")) for _, r in rows if isinstance(r, dict) and r.get("status") == "ok"
+            and (not planned or str(r.get("hash")) in planned)}
+    return planned, sorted(h for h in done if (sweep_dir / "points" / h / "results.json").is_file())
+
+
+def out_of_date(folder: Path, meta: dict) -> list[str]:
+    """What a ``tlm scaling`` folder's fit no longer shows: a line per sweep it was fitted
+    from (``eq52.json``'s ``fitted_from``) that now lists other points (run again into its
+    folder with another base, other factors, other inputs or another tlm) or has finished
+    other points than those fitted. A sweep that is gone is left to the caller; a folder of an
+    older tlm, which did not record its points, gets a line saying that this cannot be told."""
+    fitted = meta.get("fitted_from")
+    if fitted is None:
+        return (["its eq52.json does not record which points it was fitted from (written by an older tlm): "
+                 "whether its sweeps hold other points now cannot be told; run 'tlm scaling' again to know"]
+                if meta.get("sweeps") else [])
+    out = []
+    for entry in fitted:
+        sweep = Path(os.path.normpath(Path(folder) / entry["sweep"]))  # (relative to the folder; absolute stays)
+        if not (sweep / "sweep.jsonl").is_file():
+            continue
+        try:
+            planned, done = sweep_points(sweep)
+        except InputError as e:
+            out.append(f"whether its sweep {sweep} holds other points now cannot be told ({e})")
+            continue
+        then_planned, then_done = set(entry.get("planned") or []), set(entry.get("points") or [])
+        rerun = "run 'tlm scaling' again to fit the sweep as it is"
+        if planned and then_planned and set(planned) != then_planned:
+            new = len(set(planned) - then_planned)
+            out.append(f"out of date: its sweep {sweep} now holds other points than it was fitted from ({new} of "
+                       f"its {len(planned)} points are new: the sweep was run again with another base, other "
+                       f"factors, other inputs or another tlm); this fit is of the earlier points, not of those "
+                       f"the sweep holds now; {rerun}")
+        elif set(done) != then_done:
+            more, less = len(set(done) - then_done), len(then_done - set(done))
+            what = "; ".join(w for w in (f"{more} finished since" if more else "",
+                                         f"{less} of the fitted ones no longer finished" if less else "") if w)
+            out.append(f"out of date: its sweep {sweep} has other finished points than it was fitted from "
+                       f"({what}); {rerun}")
+    return out

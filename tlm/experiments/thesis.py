@@ -9,8 +9,8 @@ An experiment file (``configs/thesis.yaml``)::
 Every key is optional, as in every study file (:func:`tlm.experiments.study.read_study`):
 without ``base`` each cell runs at the default settings (``tlm params``: the scene's own
 resolution, 4 eye rays and 4 light samples per pixel, not the thesis's 1 and 1), without
-``scenes`` the thesis's three, without ``modes`` all four. A scene may be listed once,
-and no two scenes may share a file name (each writes the folder ``DIR/<name>``).
+``scenes`` the thesis's three, without ``modes`` all four. A scene or a mode may be listed
+once, and no two scenes may share a file name (each writes the folder ``DIR/<name>``).
 
 Which table a scene is set beside is its file's name (``ring``, ``room``, ``cornell``);
 whether it *is* the thesis's scene is its file (:data:`THESIS_SCENES`: the built-in
@@ -219,6 +219,10 @@ def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
         raise InputError(f"{scenes!r} must be a non-empty list of scene names or paths", source=src, key="scenes")
     if not isinstance(modes, list) or not modes or any(m not in MODES for m in modes):
         raise InputError(f"{modes!r} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
+    twice = sorted({m for m in modes if modes.count(m) > 1}, key=MODES.index)
+    if twice:  # (each mode writes DIR/<scene>/<mode> and its rows once: a second one would be dropped)
+        raise InputError(f"{', '.join(repr(m) for m in twice)} {'is' if len(twice) == 1 else 'are'} listed twice "
+                         "(list each mode once)", source=src, key="modes")
     folder = Path(path).resolve().parent
     for s in scenes:
         for m in modes:

@@ -180,6 +180,7 @@ BOOL = (lambda v: isinstance(v, bool), "true or false")
 MAPPING = (lambda v: isinstance(v, dict), "a mapping")
 MAPPING_OR_NONE = (lambda v: v is None or isinstance(v, dict), "a mapping")
 LIST_OR_NONE = (lambda v: v is None or isinstance(v, list), "a list")
+TEXTS = (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of texts")
 
 THESIS_COLUMNS = {"scene": PRESENT, "mode": PRESENT, "metric": PRESENT, "thesis": NUMBER_OR_NONE,
                   "ours": NUMBER_OR_NONE, "rel_error": NUMBER_OR_NONE}
@@ -194,6 +195,7 @@ SWEEP_ROW_OPTIONAL = {"point": (lambda v: isinstance(v, int) and not isinstance(
 FIT_KEYS = {"scene": PRESENT, "mode": PRESENT, "scheduler": PRESENT, "target": PRESENT, "A": NUMBER, "B": NUMBER,
             "max_abs_rel_error": NUMBER}
 FIT_SLOWEST_KEYS = {"A": NUMBER, "B": NUMBER, "max_abs_rel_error": NUMBER}
+FITTED_FROM_KEYS = {"sweep": TEXT, "planned": TEXTS, "points": TEXTS}
 PER_ITEM_KEYS = {"rays": NUMBER, "ours": MAPPING, "thesis": MAPPING}
 PER_ITEM_OPTIONAL = {"tests_per_leaf": NUMBER_OR_NONE}
 
@@ -243,9 +245,11 @@ def _thesis_summary(path: Path) -> dict:
 
 
 def _eq52(path: Path, rows: list[dict]) -> dict:
-    """``eq52.json``: a mapping, its ``fits`` a list of fits (A, B and the error of each group)."""
+    """``eq52.json``: a mapping, its ``fits`` a list of fits (A, B and the error of each group),
+    its ``fitted_from`` (where given: an older tlm wrote none) the points of each sweep fitted."""
     meta = _json(path)
-    _check(meta, path, None, "a tlm eq. 5.2 file", {}, {"fits": LIST_OR_NONE, "sweeps": LIST_OR_NONE})
+    _check(meta, path, None, "a tlm eq. 5.2 file", {}, {"fits": LIST_OR_NONE, "sweeps": LIST_OR_NONE,
+                                                        "fitted_from": LIST_OR_NONE})
     slowest = any("analytical_slowest" in r for r in rows)  # (the figure then draws each fit's slowest variant)
     for i, f in enumerate(meta.get("fits") or []):
         _check(f, path, f"fits[{i}]", "an eq. 5.2 fit", {**FIT_KEYS, **({"slowest": MAPPING} if slowest else {})},
@@ -255,6 +259,8 @@ def _eq52(path: Path, rows: list[dict]) -> dict:
     for s in meta.get("sweeps") or []:
         if not isinstance(s, str):
             raise InputError(f"{_short(s)} is not a folder's path", source=str(path), key="sweeps")
+    for i, f in enumerate(meta.get("fitted_from") or []):
+        _check(f, path, f"fitted_from[{i}]", "the points of a sweep an eq. 5.2 fit was made from", FITTED_FROM_KEYS)
     return meta
 
 

@@ -14,11 +14,15 @@ of ``tlm extreme`` that differs from its expectation, a sweep point that failed,
 that cannot finish): it is said, the other steps and the report still run, and
 :class:`StepsFailed` (``tlm plots``: exit status 1) names such steps at the end. Any
 other status, or bad input (an :class:`~tlm.errors.InputError` out of the step), stops
-the command at that step.
+the command at that step. A command stopped so writes no report, and the report an
+earlier ``tlm plots`` left in ``out`` stays as it was (a command that fails leaves its
+destination alone; ``plots/`` is the committed report the README shows): the error then
+says that the report there is the earlier one, with its date (:func:`earlier_report`).
 """
 
 from __future__ import annotations
 
+import datetime
 from collections.abc import Callable
 from pathlib import Path
 
@@ -43,6 +47,19 @@ STEPS: tuple[tuple[str, list[str]], ...] = (
 REPORTED = tuple(name for name, _ in STEPS if name not in SCALING)
 
 
+def earlier_report(out: Path, ran: list[str] | tuple[str, ...] = ()) -> str | None:
+    """What a ``tlm plots`` that stopped before its report says of the report folder ``out``:
+    None where it holds no report, else that its report is an earlier run's (with its date),
+    not of this one; ``ran``: the steps that finished before it stopped."""
+    page = Path(out) / "report.html"
+    try:
+        when = datetime.datetime.fromtimestamp(page.stat().st_mtime).isoformat(sep=" ", timespec="seconds")
+    except OSError:
+        return None
+    since = f"; the steps that ran before it ({', '.join(ran)}) have rewritten their folders since" if ran else ""
+    return f"no report written: {page} is the report of an earlier 'tlm plots' (written {when}), not of this one{since}"
+
+
 def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = None, *,
                run_command: Callable[[list[str]], int], say=print) -> Path:
     """Run the steps (all, or ``only``), then the report of their folders into ``out``.
@@ -51,8 +68,21 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
     results report failures; it raises on an error (the CLI hands down its command runner,
     so the report layer never imports it). Steps that return 1 are recorded and the rest
     run; the report is written, then :class:`StepsFailed` names them. Another status, or an
-    InputError of the step, stops at that step.
+    InputError of the step, stops at that step; its error says so of a report an earlier
+    run left in ``out`` (:func:`earlier_report`).
     """
+    ran: list[str] = []
+    try:
+        return _regenerate(configs, runs, out, only, run_command, say, ran)
+    except InputError as e:
+        earlier = earlier_report(out, ran)
+        if earlier is None:
+            raise
+        raise InputError(f"{e}; {earlier}") from None
+
+
+def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, run_command, say,
+                ran: list[str]) -> Path:
     from tlm.report import build_report
 
     names = [n for n, _ in STEPS]
@@ -75,6 +105,7 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
             failed.append(name)
         elif status != 0:
             raise InputError(f"step {name} failed with exit status {status} (see above)", key="tlm plots")
+        ran.append(name)
     dirs = [runs / n for n in REPORTED if (runs / n).is_dir()]
     if not dirs:
         raise InputError(f"no step's folder exists under {runs}", key="--runs")

@@ -4,7 +4,11 @@ Simulated frame latency and throughput against the number of pipelines N, beside
 eq. 5.2 (and its slowest-pipeline variant), for the static and the dynamic scheduler,
 and the speed-up TThru(1) / TThru(N). The fits come from ``tlm scaling`` folders
 (``eq52.json`` and ``eq52.csv``) and from every sweep given to the report that varies
-``arch.pipelines`` (fitted here with :mod:`tlm.experiments.scaling`).
+``arch.pipelines`` (fitted here with :mod:`tlm.experiments.scaling`: a scene is its file,
+and a point without a steady state is named in the notes). A ``tlm scaling`` folder whose
+sweep holds other points now than those it was fitted from (run again with another base,
+or finished since: :func:`tlm.experiments.scaling.out_of_date`) is said to be out of date,
+in the notes and on its figures.
 
 Beside them, per scene of every such sweep (and of the sweeps a scaling study was
 fitted from, ``Inputs.scaling_sweeps``), the idle fraction of each PM kind against N,
@@ -95,12 +99,15 @@ def _fits_of_study(study) -> dict[tuple, dict]:
 
 
 def _fits_of_sweep(sweep, notes: list[str]) -> dict[tuple, dict]:
-    records = [eq52.record(r.results, r.config) for r in sweep.runs]  # read once by collect.read
-    groups = defaultdict(list)
-    for r in records:
-        groups[(r["scene"], r["mode"], r["scheduler"])].append(r)
+    records = []
+    for run in sweep.runs:  # (read once by collect.read)
+        rec = eq52.record(run.results, run.config)
+        records.append(rec)
+        if rec["steady"] is False:
+            factors = ", ".join(f"{k} = {v}" for k, v in run.factors.items())
+            notes.append(f"{run.label}{f' ({factors})' if factors else ''}: {eq52.unsteady(rec)}")
     fits = {}
-    for key, pts in sorted(groups.items()):
+    for key, pts in eq52.groups(records).items():
         for target in eq52.TARGETS:
             try:
                 fits[(*key, target)] = eq52.fit_both(pts, target)
@@ -231,8 +238,13 @@ def _slug(text: str) -> str:
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
     sources: list[tuple[str, dict]] = [(s.path.name, _fits_of_study(s)) for s in inputs.of_kind("scaling")]
+    stale: dict[str, str] = {}  # a scaling folder -> why its fit no longer shows its sweeps
     for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
         sec.notes.extend(f"{st.path.name}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
+        old = eq52.out_of_date(st.path, st.meta)
+        sec.notes.extend(f"{st.path.name}: {n}" for n in old)
+        if any(n.startswith("out of date") for n in old):
+            stale[st.path.name] = "Out of date: its sweep holds other points now (see the notes). "
     idle_sweeps = []
     for sw in inputs.sweeps:
         if not _varies_pipelines(sw):
@@ -251,10 +263,11 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
     for name, fits in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
-            file = f"scaling_{name}_{scene}.png"
+            file = f"scaling_{_slug(name)}_{eq52.file_slug(scene)}.png"
             plot_scaling(scene, mine, out / file, name)
             worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
-            sec.figures.append(Figure(file, f"{scene}: scaling from {name}",
+            sec.figures.append(Figure(file, f"{scene}: scaling from {name}{' (out of date)' if name in stale else ''}",
+                                             stale.get(name, "") +
                                              "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                              "least squares elsewhere; dotted: the slowest-pipeline variant. "
                                              f"Largest |error| of eq. 5.2: {worst}."))
