@@ -72,15 +72,6 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         print(f"wrote {e.page}")
         print(f"tlm: plots: {e}", file=sys.stderr)
         return 1
-    except InputError:  # (its line says so of an earlier report in --out)
-        raise
-    except BaseException:  # stopped before its report (a bug, a full disk, Ctrl-C): an earlier one is not its own
-        from tlm.report.regenerate import earlier_report
-
-        earlier = earlier_report(Path(args.out))
-        if earlier is not None:
-            print(f"tlm: plots: {earlier}", file=sys.stderr, flush=True)
-        raise
     print(f"wrote {page}")
     return 0
 

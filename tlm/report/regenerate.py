@@ -23,6 +23,7 @@ says that the report there is the earlier one, with its date (:func:`earlier_rep
 from __future__ import annotations
 
 import datetime
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -79,6 +80,14 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
         if earlier is None:
             raise
         raise InputError(f"{e}; {earlier}") from None
+    except StepsFailed:
+        raise
+    except BaseException:  # stopped before its report (a bug, a full disk, Ctrl-C): an earlier one is not its own
+        earlier = earlier_report(out, ran)
+        if earlier is not None:
+            sys.stderr.write(f"tlm: plots: {earlier}\n")
+            sys.stderr.flush()
+        raise
 
 
 def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, run_command, say,
