@@ -9,6 +9,7 @@ next to the results. ``--set dotted.key=value`` overrides go through the same ch
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import os
@@ -260,40 +261,115 @@ def _type_name(tp: Any) -> str:
     return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
 
 
+_SCHEMA: dict[type, tuple[dict[str, Any], dict[str, dataclasses.Field]]] = {}
+
+
+def _schema(cls: type) -> tuple[dict[str, Any], dict[str, dataclasses.Field]]:
+    """A section's type hints and fields by name, worked out once per class (resolving the
+    string annotations is most of the cost of checking a config: a sweep checks one per point)."""
+    got = _SCHEMA.get(cls)
+    if got is None:
+        got = _SCHEMA[cls] = typing.get_type_hints(cls), {f.name: f for f in dataclasses.fields(cls)}
+    return got
+
+
+_ABSENT = object()  # a plain key the raw mapping leaves out: the section's default
+
+
 def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
         raise InputError(f"must be a mapping, got {raw!r}", source=source, key=prefix or "(top)")
-    hints = typing.get_type_hints(cls)
-    fields = {f.name: f for f in dataclasses.fields(cls)}
+    hints, fields = _schema(cls)
     for key in raw:
         if key not in fields:
             where = f"{prefix}.{key}" if prefix else str(key)
             raise InputError(f"unknown key{did_you_mean(str(key), fields)}", source=source, key=where)
     values = {}
     for name, f in fields.items():
-        key = f"{prefix}.{name}" if prefix else name
-        tp = hints[name]
-        if dataclasses.is_dataclass(tp):
-            values[name] = _build(tp, raw.get(name), source, key)
-            continue
-        if name not in raw:
-            continue
-        v = raw[name]
-        if not _type_ok(v, tp):
-            kind = _type_name(tp)
-            raise InputError(f"{v!r} is not {'an' if kind[0] in 'aeiou' else 'a'} {kind}", source=source, key=key)
-        if isinstance(v, float) and not math.isfinite(v):
-            raise InputError(f"{v!r} is not finite", source=source, key=key)
-        _check_range(v, f.metadata, source, key)
-        if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
-            v = float(v)
-        values[name] = v
+        v = _field(f, hints[name], raw, source, f"{prefix}.{name}" if prefix else name)
+        if v is not _ABSENT:
+            values[name] = v
     out = cls(**values)
+    _across(out, source, prefix)
+    return out
+
+
+def _across(out: Any, source: str, prefix: str) -> None:
+    """The checks across a section's fields, once each field passed its own."""
     if isinstance(out, ReferenceConfig) and out.min_rounds > out.max_rounds:
         raise InputError(f"{out.min_rounds} is more than {prefix}.max_rounds ({out.max_rounds})", source=source,
                          key=f"{prefix}.min_rounds")
+
+
+def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> Any:
+    """The checked value of field ``f`` (type ``tp``, dotted ``key``) of the mapping ``raw``;
+    _ABSENT where ``raw`` leaves a plain field out."""
+    name = f.name
+    if dataclasses.is_dataclass(tp):
+        return _build(tp, raw.get(name), source, key)
+    if name not in raw:
+        return _ABSENT
+    v = raw[name]
+    if not _type_ok(v, tp):
+        kind = _type_name(tp)
+        raise InputError(f"{v!r} is not {'an' if kind[0] in 'aeiou' else 'a'} {kind}", source=source, key=key)
+    if isinstance(v, float) and not math.isfinite(v):
+        raise InputError(f"{v!r} is not finite", source=source, key=key)
+    _check_range(v, f.metadata, source, key)
+    if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
+        v = float(v)
+    return v
+
+
+def run_config_field(name: str, raw: dict, source: str = "(dict)") -> Any:
+    """RunConfig's top-level field ``name`` (a section, or ``scene``, ``mode``, ...) checked
+    from ``raw[name]`` alone (:func:`plain` values), as :func:`config_from_dict` checks it,
+    the same InputError included; its default where ``raw`` leaves it out.
+
+    A RunConfig is the product of its fields: ``RunConfig(**{name: run_config_field(name,
+    raw) for every field})`` is ``config_from_dict(raw)`` when every key of ``raw`` is a
+    field (RunConfig has no check across its fields; :mod:`tlm.experiments.sweep` checks a
+    sweep's points field by field, each field's values once).
+    """
+    hints, fields = _schema(RunConfig)
+    f = fields[name]
+    v = _field(f, hints[name], raw, source, name)
+    if v is _ABSENT:
+        v = f.default_factory() if f.default is dataclasses.MISSING else f.default
+    return v
+
+
+def is_leaf(key: str) -> bool:
+    """Whether the dotted ``key`` is a plain field of one of RunConfig's sections
+    (``arch.fifo_depth``; not ``seed``, ``arch`` or ``arch.nothing``)."""
+    parts = key.split(".")
+    if len(parts) != 2:
+        return False
+    hints, _ = _schema(RunConfig)
+    section = hints.get(parts[0])
+    if not dataclasses.is_dataclass(section):
+        return False
+    inner, fields = _schema(section)
+    return parts[1] in fields and not dataclasses.is_dataclass(inner[parts[1]])
+
+
+def check_leaf(key: str, value: Any, source: str = "(dict)") -> Any:
+    """The section field ``key`` (:func:`is_leaf`) set to ``value`` (a :func:`plain` value),
+    checked alone as :func:`config_from_dict` checks it (the same InputError): the value
+    its section then holds."""
+    section, name = key.split(".")
+    inner, fields = _schema(_schema(RunConfig)[0][section])
+    return _field(fields[name], inner[name], {name: value}, source, key)
+
+
+def with_leaves(section: str, value: Any, changes: dict[str, Any], source: str = "(dict)") -> Any:
+    """The section ``value`` (RunConfig's field ``section``) with ``changes``, field names to
+    values from :func:`check_leaf`, after the checks across the section's fields (the same
+    InputError as :func:`config_from_dict`'s): the section of a config that sets those fields."""
+    out = dataclasses.replace(value, **changes)
+    _across(out, source, section)
     return out
 
 
@@ -471,15 +547,40 @@ def config_from_dict(raw: dict, source: str = "(dict)") -> RunConfig:
 
 
 def to_dict(cfg: Any) -> dict:
-    """The resolved config as plain data (every parameter, defaults included)."""
-    return dataclasses.asdict(cfg)
+    """The resolved config as plain data (every parameter, defaults included): what
+    ``dataclasses.asdict`` gives (new dicts and lists throughout), without its deep copy of
+    every number and string."""
+    return _plain_copy(cfg)
+
+
+_ATOMS = (str, int, float, bool, type(None))  # (deepcopy gives them back as they are)
+_NAMES: dict[type, tuple[str, ...]] = {}  # a dataclass's field names
+
+
+def _plain_copy(obj: Any) -> Any:
+    """dataclasses.asdict's walk (a dataclass instance to a dict of its fields, lists, tuples
+    and dicts copied, anything else deep-copied), atoms returned as they are."""
+    if type(obj) in _ATOMS:
+        return obj
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        names = _NAMES.get(type(obj))
+        if names is None:
+            names = _NAMES[type(obj)] = tuple(f.name for f in dataclasses.fields(obj))
+        return {name: _plain_copy(getattr(obj, name)) for name in names}
+    if isinstance(obj, tuple) and hasattr(obj, "_fields"):  # a namedtuple
+        return type(obj)(*[_plain_copy(v) for v in obj])
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_plain_copy(v) for v in obj)
+    if isinstance(obj, dict):
+        return type(obj)((_plain_copy(k), _plain_copy(v)) for k, v in obj.items())
+    return copy.deepcopy(obj)
 
 
 def describe(cls: type = RunConfig, prefix: str = "") -> list[tuple[str, Any, str]]:
     """(dotted key, default, help) for every parameter: the documentation of the schema."""
     out = []
-    hints = typing.get_type_hints(cls)
-    for f in dataclasses.fields(cls):
+    hints, fields = _schema(cls)
+    for f in fields.values():
         key = f"{prefix}{f.name}"
         if dataclasses.is_dataclass(hints[f.name]):
             out.extend(describe(hints[f.name], key + "."))

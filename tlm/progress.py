@@ -12,9 +12,18 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 _STAGES = threading.Lock()  # (a Timer's stages may be entered on several threads at once)
+_ENTERED = threading.local()  # per thread: the (timer, stage) it is in, innermost last
+
+
+def _entered() -> list[tuple[Timer, str]]:
+    stack = getattr(_ENTERED, "stack", None)
+    if stack is None:
+        stack = _ENTERED.stack = []
+    return stack
 
 
 @dataclass
@@ -22,10 +31,23 @@ class Timer:
     """Host wall seconds per named stage (a stage entered twice adds up). A stage that
     runs on several threads at once (the render's batches) counts the wall time while any
     of them runs, not the sum of their times: a stage never holds more seconds than
-    passed."""
+    passed. Part of a stage's block may be booked to another stage instead
+    (:func:`booked_apart`)."""
 
     seconds: dict[str, float] = field(default_factory=dict)
     _open: dict[str, tuple[int, float]] = field(default_factory=dict, repr=False, compare=False)
+
+    def _enter(self, name: str, now: float) -> None:
+        n, since = self._open.get(name, (0, now))
+        self._open[name] = (n + 1, since)
+
+    def _leave(self, name: str, now: float) -> None:
+        n, since = self._open[name]
+        if n > 1:
+            self._open[name] = (n - 1, since)
+            return
+        del self._open[name]
+        self.seconds[name] = self.seconds.get(name, 0.0) + now - since
 
     def stage(self, name: str):
         """A context manager that adds the wall seconds of its block to stage ``name``."""
@@ -34,19 +56,46 @@ class Timer:
         class _Stage:
             def __enter__(self):
                 with _STAGES:
-                    n, since = timer._open.get(name, (0, time.perf_counter()))
-                    timer._open[name] = (n + 1, since)
+                    timer._enter(name, time.perf_counter())
+                _entered().append((timer, name))
 
             def __exit__(self, *exc):
+                _entered().pop()
                 with _STAGES:
-                    n, since = timer._open[name]
-                    if n > 1:
-                        timer._open[name] = (n - 1, since)
-                        return
-                    del timer._open[name]
-                    timer.seconds[name] = timer.seconds.get(name, 0.0) + time.perf_counter() - since
+                    timer._leave(name, time.perf_counter())
 
         return _Stage()
+
+
+@contextmanager
+def booked_apart(stage: str, within: str):
+    """A block inside stage ``within`` whose wall seconds go to stage ``stage`` instead.
+
+    When the calling thread's innermost stage (:meth:`Timer.stage`) is ``within``, the
+    block leaves it and enters ``stage`` of the same Timer, at one instant, and on the way
+    out leaves ``stage`` and enters ``within`` again: the block's time is booked once, to
+    ``stage``, and ``within`` keeps the rest (each stage still counts the wall time while
+    any of its blocks runs). Elsewhere (no stage, or another one) it does nothing. The
+    photon-map pass books its final gathering so (:func:`tlm.render.pmap.pmap_pass`).
+    """
+    stack = _entered()
+    if not stack or stack[-1][1] != within:
+        yield
+        return
+    timer = stack[-1][0]
+    with _STAGES:
+        now = time.perf_counter()
+        timer._leave(within, now)
+        timer._enter(stage, now)
+    stack.append((timer, stage))
+    try:
+        yield
+    finally:
+        stack.pop()
+        with _STAGES:
+            now = time.perf_counter()
+            timer._leave(stage, now)
+            timer._enter(within, now)
 
 
 def progress_bar(enabled: bool, **kwargs):

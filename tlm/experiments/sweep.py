@@ -44,9 +44,11 @@ point kills its worker again when run alone (:class:`LocalPool`).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import dataclasses
 import hashlib
 import itertools
 import json
+import os
 import re
 import shutil
 import sys
@@ -61,7 +63,17 @@ from typing import Any
 import yaml
 
 from tlm import storage
-from tlm.config import config_from_dict, read_yaml, to_dict
+from tlm.config import (
+    RunConfig,
+    check_leaf,
+    config_from_dict,
+    is_leaf,
+    plain,
+    read_yaml,
+    run_config_field,
+    to_dict,
+    with_leaves,
+)
 from tlm.errors import InputError, interrupted_by
 from tlm.experiments.executors import InProcess, LocalPool, dask_worker_threads, kernel_threads, open_executor
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached, render_key
@@ -69,6 +81,7 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.fingerprint import code_fingerprint
 from tlm.storage import atomic_folder, check_destination, claim_folder, warn
 
+_SCALARS = (str, int, float, bool, type(None))
 SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
@@ -84,7 +97,7 @@ class Point:
 
     index: int
     factors: dict[str, Any]  # dotted key -> value
-    config: dict  # to_dict of the resolved RunConfig
+    config: dict  # to_dict of the resolved RunConfig (its sections shared with other points: read, never written)
     hash: str  # 16 hex digits of sha256 over ``config``, its input files and tlm's code (config_hash)
     functional: str = ""  # the functional key of its frame: points of one key share one render
 
@@ -132,6 +145,31 @@ class Sweep:
             "points": [{"point": p.index, "hash": p.hash, "factors": p.factors} for p in self.points],
         }
 
+    def marker(self) -> str:
+        """``sweep.yaml``'s text: ``yaml.safe_dump(self.to_dict(), sort_keys=False)``.
+
+        Where every factor value is a plain scalar (a string, number, bool or null: no YAML
+        anchors between points), the points' lines are put together from each factor
+        value's line and each hash, as that dump writes them, without a dump per point."""
+        head = self.to_dict()
+        del head["points"]
+        lines = {}  # (key, value's id) -> its lines in a point's factors (the values live as long as the points)
+        resolver = yaml.resolver.Resolver()  # (a hash that reads as a number is quoted, as the dump quotes it)
+        str_tag = "tag:yaml.org,2002:str"
+        out = [yaml.safe_dump(head, sort_keys=False), "points:\n"]
+        for p in self.points:
+            shown = p.hash if resolver.resolve(yaml.ScalarNode, p.hash, (True, False)) == str_tag else f"'{p.hash}'"
+            out.append(f"- point: {p.index}\n  hash: {shown}\n  factors:\n")
+            for k, v in p.factors.items():
+                line = lines.get((k, id(v)))
+                if line is None:
+                    if type(v) not in _SCALARS:  # (a list or a mapping: the dump's own, anchors and all)
+                        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+                    text = yaml.safe_dump([{"factors": {k: v}}], sort_keys=False)
+                    line = lines[k, id(v)] = text[text.index("\n") + 1:]
+                out.append(line)
+        return "".join(out)
+
 
 def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
     """The point's key: sha256 of the resolved config's canonical JSON, of the fingerprints
@@ -151,12 +189,15 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
-def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None) -> dict[str, str]:
+def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work: Any = None) -> dict[str, str]:
     """Fingerprints of the files ``cfg`` names: its frame's functional key (the scene's
     content) and the sha256 of the programs table's bytes.
 
     Loads the scene and the programs table (an InputError names ``source``). ``seen``
     keeps what was loaded, for the next point: points of one sweep share most of them.
+    ``work``: what names the config's frame in ``seen``, where the caller has it (any value
+    that the resolved config less ``arch`` decides, and that decides it); by default that
+    config's JSON.
     """
     from tlm.arch.costs import DEFAULT_PATH
     from tlm.experiments.run import programs_for
@@ -170,7 +211,8 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None) -> di
             raise InputError(str(e), source=source) from None
         path = DEFAULT_PATH if table is None else folder / table  # an absolute table stays itself
         seen["programs", table] = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
-    work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
+    if work is None:
+        work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
     if ("functional", work) not in seen:
         seen["functional", work] = render_key(cfg, folder, source)
     return {"functional": seen["functional", work], "programs": seen["programs", table]}
@@ -210,6 +252,121 @@ def expand(grid: dict[str, list], zipped: dict[str, list]) -> list[dict[str, Any
     columns = list(zip(*zipped.values())) if zipped else [()]
     return [{**dict(zip(grid, combo)), **dict(zip(zipped, col))}
             for combo in itertools.product(*grid.values()) for col in columns]
+
+
+def _expand_both(grid: dict[str, list], zipped: dict[str, list]) -> tuple[list[dict[str, Any]], list[tuple]]:
+    """:func:`expand`, and beside each point the index of each factor's value in its list
+    (the grid's keys, then the zip's)."""
+    columns = list(zip(*zipped.values())) if zipped else [()]
+    factors, indices = [], []
+    for combo in itertools.product(*(range(len(v)) for v in grid.values())):
+        values = {k: grid[k][j] for k, j in zip(grid, combo)}
+        for c in range(len(columns)):
+            factors.append({**values, **dict(zip(zipped, columns[c]))})
+            indices.append(combo + (c,) * len(zipped))
+    return factors, indices
+
+
+@dataclass(frozen=True)
+class _Field:
+    """One top-level field of a point's resolved config (a section, ``scene``, ``mode``, ...)."""
+
+    name: str
+    value: Any  # as RunConfig holds it
+    resolved: Any  # as to_dict gives it (shared by the points of this value: read, never written)
+    full: str  # its canonical JSON (sorted keys, no spaces)
+    keyed: str  # '"name":' and its JSON in the point's key (config_hash: render.threads left out)
+
+
+def _field(name: str, value: Any) -> _Field:
+    resolved = to_dict(value)
+    full = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+    keyed = full
+    if name == "render":
+        keyed = json.dumps({k: v for k, v in resolved.items() if k != "threads"}, sort_keys=True,
+                           separators=(",", ":"))
+    return _Field(name, value, resolved, full, f"{json.dumps(name)}:{keyed}")
+
+
+def _config(fields: dict[str, _Field]) -> RunConfig:
+    return RunConfig(**{name: f.value for name, f in fields.items()})
+
+
+class _Checked:
+    """The points' configs checked field by field, each value once.
+
+    A top-level field's raw value (a section, ``scene``, ``seed``, ...) is the base (with
+    ``set``) with the factors under that field's key assigned: it depends on those factors'
+    values alone, so each combination of them is checked once (:func:`run_config_field`)
+    and its JSON made once, not once per point. Where every factor under a section names
+    one of its plain fields (``arch.fifo_depth``), each factor value is checked once alone
+    (:func:`check_leaf`) and a combination is the base's section with them
+    (:func:`with_leaves`, which makes the checks across the section's fields)."""
+
+    def __init__(self, fixed: dict, keys: list[str], values: list[list]):
+        self.fixed, self.keys, self.values = fixed, keys, values
+        names = [f.name for f in dataclasses.fields(RunConfig)]
+        owner = [k.split(".")[0] for k in keys]
+        # a key that is no field: every point fails the check (of its first key, point 0 first)
+        self.sound = all(o in names for o in owner)
+        under = {name: [i for i, o in enumerate(owner) if o == name] for name in names}
+        # the fields the factors leave as the base has them; the others' slots (RunConfig's order)
+        self.template: dict[str, _Field | None] = {
+            name: None if under[name] else _field(name, self._value(name, [])) for name in names}
+        self.varying = [(name, under[name], {}) for name in names if under[name]]
+        self.leaves = {name: all(is_leaf(keys[i]) for i in at) for name, at, _ in self.varying}
+        self.base = {name: self._value(name, []) for name, _, _ in self.varying if self.leaves[name]}
+        self.leaf: dict[tuple[int, int], Any] = {}  # (factor, value index) -> its checked value, or _REFUSED
+
+    def _value(self, name: str, at: list[int], index: tuple = ()) -> Any:
+        raw = {name: self.fixed[name]} if name in self.fixed else {}
+        for i in at:
+            raw = _assign(raw, self.keys[i], self.values[i][index[i]])
+        return run_config_field(name, plain(raw))
+
+    def _leaf(self, i: int, j: int) -> Any:
+        if (i, j) not in self.leaf:
+            try:
+                self.leaf[i, j] = check_leaf(self.keys[i], plain(self.values[i][j]))
+            except Exception:
+                self.leaf[i, j] = _REFUSED
+        return self.leaf[i, j]
+
+    def _check(self, name: str, at: list[int], index: tuple) -> _Field | None:
+        try:
+            if not self.leaves[name]:
+                return _field(name, self._value(name, at, index))
+            changes = {}
+            for i in at:
+                value = self._leaf(i, index[i])
+                if value is _REFUSED:
+                    return None
+                changes[self.keys[i].split(".")[1]] = value
+            return _field(name, with_leaves(name, self.base[name], changes))
+        except Exception:  # (the point's whole check, run again, says what and where)
+            return None
+
+    def point(self, index: tuple) -> dict[str, _Field] | None:
+        """The point's fields (in RunConfig's order) by the index of each factor's value, or
+        None where the checks refuse one (or where a factor's key is no field)."""
+        if not self.sound:
+            return None
+        fields = dict(self.template)
+        for name, at, cache in self.varying:
+            key = tuple(index[i] for i in at)
+            got = cache.get(key, _REFUSED)
+            if got is _REFUSED:
+                got = cache[key] = self._check(name, at, index)
+            if got is None:
+                return None
+            fields[name] = got
+        return fields
+
+    def of(self, cfg: RunConfig) -> dict[str, _Field]:
+        return {name: _field(name, getattr(cfg, name)) for name in self.template}
+
+
+_REFUSED = object()
 
 
 def load_sweep(path: Path) -> Sweep:
@@ -262,22 +419,46 @@ def load_sweep(path: Path) -> Sweep:
     for k, v in settings.items():
         fixed = _assign(fixed, k, v)
     config_from_dict(fixed, f"{src} (base with set)")
-    configs = []
-    for i, factors in enumerate(expand(grid, zipped)):
-        point = fixed
-        for k, v in factors.items():
-            point = _assign(point, k, v)
-        shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
-        configs.append((i, factors, config_from_dict(point, f"{src} (point {i}: {shown})")))
+    factors_list, indices = _expand_both(grid, zipped)
+    checked = _Checked(fixed, [*grid, *zipped], [*grid.values(), *zipped.values()])
+    rows = []
+    for i, (factors, index) in enumerate(zip(factors_list, indices)):
+        fields = checked.point(index)
+        if fields is None:  # a value the checks refuse: the point's own check says which, as ever
+            point = fixed
+            for k, v in factors.items():
+                point = _assign(point, k, v)
+            shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
+            fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
+        rows.append((i, factors, fields))
     from tlm.render.planner import inert_settings
 
-    inert = [inert_settings(cfg) for _, _, cfg in configs]
+    inert, known = [], {}
+    for _, _, fields in rows:
+        # (what inert_settings reads: the mode, the photon-map sections, arch.scheduler)
+        key = (fields["mode"].full, fields["photons"].full, fields["estimate"].full, fields["reference"].full,
+               fields["arch"].value.scheduler)
+        if key not in known:
+            known[key] = inert_settings(_config(fields))
+        inert.append(known[key])
     # every config is checked before any file it names is loaded
-    points, seen = [], {}
-    for i, factors, cfg in configs:
-        inputs = point_inputs(cfg, folder, f"{src} (point {i})", seen)
-        resolved = to_dict(cfg)
-        points.append(Point(i, factors, resolved, config_hash(resolved, inputs), inputs["functional"]))
+    points, seen, known = [], {}, {}
+    head = '{"code":' + json.dumps(code_fingerprint()) + ',"config":{'
+    order = sorted(checked.template)  # (the key's JSON sorts its keys)
+    # the config less arch, as the JSON of its fields: those the factors leave, then the others
+    same = tuple(f.full for name, f in checked.template.items() if f is not None and name != "arch")
+    other = [name for name, f in checked.template.items() if f is None and name != "arch"]
+    for i, factors, fields in rows:
+        work = (same, *[fields[name].full for name in other])
+        key = (fields["arch"].value.programs, work)  # what point_inputs reads
+        if key not in known:
+            inputs = point_inputs(_config(fields), folder, f"{src} (point {i})", seen, work)
+            known[key] = inputs, json.dumps(inputs, sort_keys=True, separators=(",", ":"))
+        inputs, shown = known[key]
+        # config_hash(resolved, inputs), its JSON put together from the fields' own
+        blob = f'{head}{",".join([fields[name].keyed for name in order])}}},"inputs":{shown}}}'
+        points.append(Point(i, factors, {name: f.resolved for name, f in fields.items()},
+                            hashlib.sha256(blob.encode()).hexdigest()[:16], inputs["functional"]))
     _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
 
@@ -478,6 +659,14 @@ def _done(folder: Path) -> dict | None:
     return {"status": "ok", "results": results}
 
 
+def _listed(folder: Path) -> set[str]:
+    """The names in ``folder`` (none where it is missing or unreadable)."""
+    try:
+        return set(os.listdir(folder))
+    except OSError:
+        return set()
+
+
 def _with_threads(config: dict, threads: int | None) -> dict:
     """``config`` with ``render.threads`` set to ``threads`` where the config leaves it null."""
     render = config.get("render", {})
@@ -509,8 +698,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         by_hash.setdefault(p.hash, []).append(p)
     records: dict[str, dict] = {}
     todo: list[str] = []
+    present = _listed(points_dir)  # (a point with no folder is not done: no read of it)
     for h in by_hash:
-        rec = _done(points_dir / h)
+        rec = _done(points_dir / h) if h in present else None
         if rec is not None:
             records[h] = rec
         else:
@@ -522,7 +712,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
-                     str(points_dir / h), provenance, threads=share) for h in todo}
+                     os.path.join(points_dir, h), provenance, threads=share) for h in todo}
 
     with ExitStack() as held:  # (the folder, held until the last row is written)
         with ExitStack() as stack:
@@ -532,15 +722,16 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             # into it, started this instant, finds a tlm output, never a half-made folder. A
             # sweep of other points running into it refuses this one (storage.sharing); one of
             # the same points shares it
-            marker = yaml.safe_dump(sweep.to_dict(), sort_keys=False)
+            marker = sweep.marker()
             made = claim_folder(out, MARKER, marker, existing=False)
             held.enter_context(storage.sharing(out, sweep.identity(), "sweep"))
             if not made:
                 storage.write_file(out / MARKER, marker)
             points_dir.mkdir(parents=True, exist_ok=True)
             _clean_stale(points_dir)
+            present = _listed(points_dir)
             for h in todo:  # a failed point's folder (or an unreadable one) is run again
-                if (points_dir / h).exists():  # (another sweep into this folder may be replacing it)
+                if h in present:  # (another sweep into this folder may be replacing it)
                     shutil.rmtree(points_dir / h, ignore_errors=True)
             if pool is not None:
                 # the rows of this sweep's points done already, in place of an earlier sweep's: while

@@ -211,7 +211,8 @@ def fgather_pass(frame: Frame, g: GBuffer, streams: Streams | None = None) -> tu
     """The final-gather rays' work (a ray pass of the Traversal, Intersection and Fragment
     PMs: rays, triangle tests, the shading record of each hit), traced by
     :func:`~tlm.render.pmap.pmap_pass` of the same packet (which must run first, with ``fg_streams``); its
-    radiance is the photon-map frame's, so this pass's own is zero."""
+    radiance is the photon-map frame's, so this pass's own is zero. Its host seconds
+    (``pass_fgather``) are the final gathering's, which pmap_pass books to this pass's stage."""
     if "fgather_work" not in g.memo:
         raise ValueError("fgather_pass: run pmap_pass on this packet first (final gathering traces its rays)")
     return np.zeros((g.pixels.shape[0], 3)), g.memo.pop("fgather_work")

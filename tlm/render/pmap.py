@@ -31,6 +31,7 @@ from tlm.kernels.shade import (
     hash_uniform,
 )
 from tlm.kernels.work import GATHER_KEYS  # the work schema, declared once
+from tlm.progress import booked_apart
 from tlm.registry import ESTIMATORS
 from tlm.render.estimators import Gather
 from tlm.render.frame import (
@@ -200,6 +201,11 @@ def final_gathering(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> boo
             and photons.global_map is not None)
 
 
+# the host-seconds stages of the pmap and fgather passes (tlm.render.batches times pass <name> as
+# the stage pass_<name>): final gathering runs in the pmap pass, and its seconds are the fgather
+# pass's (tlm.progress.booked_apart)
+PMAP_STAGE, FGATHER_STAGE = "pass_pmap", "pass_fgather"
+
 # final-gather rays traced together: their hits and reads are per chunk, so memory is bounded
 # by it, not by the batch's gather points x estimate.final_gather
 FG_CHUNK_RAYS = 1 << 16
@@ -322,7 +328,10 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     point's indirect density is pi / N x the sum of their radiance (Jensen). Those
     gathers are this pass's work (``per_map["global"]``); the rays' work (a ray pass's
     keys, charged to ``fg_streams``) is left in ``g.memo["fgather_work"]`` for
-    :func:`~tlm.render.passes.fgather_pass`.
+    :func:`~tlm.render.passes.fgather_pass`. The final gathering's host seconds (its rays
+    and their gathers) are that pass's too: run inside the stage ``pass_pmap`` of a
+    :class:`~tlm.progress.Timer` (as :mod:`tlm.render.batches` runs the pass), they go to
+    its stage ``pass_fgather`` instead.
     """
     p = g.pixels.shape[0]
     work = {k: np.zeros(p, dtype=np.int64) for k in GATHER_KEYS}
@@ -345,22 +354,23 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     keys = g.sample_keys[sidx]
     density = np.zeros((sidx.shape[0], 3))
     if fg and photons.global_map.n > 0:
-        fg_streams = new_streams(frame) if fg_streams is None else fg_streams
-        radius = global_radius(frame, photons)
-        pkeys = keys * 64 + bounce
-        # chunks of whole pixels, in pixel order, of at most FG_CHUNK_RAYS rays
-        step = max(1, FG_CHUNK_RAYS // frame.cfg.estimate.final_gather)
-        bounds = np.r_[np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]), sidx.shape[0]]
-        lo = 0
-        while lo < sidx.shape[0]:
-            hi = bounds[np.searchsorted(bounds, lo + step, side="right") - 1]
-            if hi <= lo:  # one pixel's points are more than a chunk: that pixel alone
-                hi = bounds[np.searchsorted(bounds, lo, side="right")]
-            sl = slice(lo, int(hi))
-            density[sl] += _final_gather_chunk(frame, photons.global_map, radius, pts[sl], n[sl], tri[sl],
-                                               pkeys[sl], medium[sl], owner[sl], p, g.memo["fgather_work"], work,
-                                               fg_streams, streams, per_map)
-            lo = hi
+        with booked_apart(FGATHER_STAGE, within=PMAP_STAGE):  # (the rays and their gathers: the fgather pass's)
+            fg_streams = new_streams(frame) if fg_streams is None else fg_streams
+            radius = global_radius(frame, photons)
+            pkeys = keys * 64 + bounce
+            # chunks of whole pixels, in pixel order, of at most FG_CHUNK_RAYS rays
+            step = max(1, FG_CHUNK_RAYS // frame.cfg.estimate.final_gather)
+            bounds = np.r_[np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]), sidx.shape[0]]
+            lo = 0
+            while lo < sidx.shape[0]:
+                hi = bounds[np.searchsorted(bounds, lo + step, side="right") - 1]
+                if hi <= lo:  # one pixel's points are more than a chunk: that pixel alone
+                    hi = bounds[np.searchsorted(bounds, lo, side="right")]
+                sl = slice(lo, int(hi))
+                density[sl] += _final_gather_chunk(frame, photons.global_map, radius, pts[sl], n[sl], tri[sl],
+                                                   pkeys[sl], medium[sl], owner[sl], p, g.memo["fgather_work"],
+                                                   work, fg_streams, streams, per_map)
+                lo = hi
     for name, ph, radius, tree, stream in maps:
         e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
         density += e.density

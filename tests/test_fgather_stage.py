@@ -1,0 +1,115 @@
+"""Final gathering's host seconds are the fgather pass's (``host_seconds.pass_fgather``),
+not the photon-map pass's, in which it runs; booked once (tlm.progress.booked_apart)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import tlm.render.pmap as pmap_mod
+from tlm.config import config_from_dict
+from tlm.experiments.run import render
+from tlm.progress import Timer, booked_apart
+
+TINY = {"scene": "cornell", "mode": "pmap", "resolution": [16, 16],
+        "render": {"spp": 1, "threads": 1, "light_samples": 1}, "photons": {"count": 4000}}
+
+
+def test_a_block_booked_apart_leaves_its_stage():
+    timer = Timer()
+    t0 = time.perf_counter()
+    with timer.stage("pass_pmap"):
+        time.sleep(0.02)
+        t1 = time.perf_counter()
+        with booked_apart("pass_fgather", within="pass_pmap"):
+            time.sleep(0.05)
+            with booked_apart("pass_fgather", within="pass_pmap"):  # (not within pass_pmap now: nothing)
+                time.sleep(0.01)
+        t2 = time.perf_counter()
+        time.sleep(0.02)
+    t3 = time.perf_counter()
+    s = dict(timer.seconds)
+    assert 0.06 <= s["pass_fgather"] <= t2 - t1 and s["pass_pmap"] >= 0.04, s
+    # booked once: the two add up to the stage's wall time (the hand-overs at one instant each)
+    assert t3 - t0 - 0.01 <= s["pass_pmap"] + s["pass_fgather"] <= t3 - t0, s
+    with timer.stage("reference"), booked_apart("pass_fgather", within="pass_pmap"):  # another stage: its own
+        time.sleep(0.01)
+    assert timer.seconds["reference"] >= 0.01 and timer.seconds["pass_fgather"] == s["pass_fgather"]
+    with booked_apart("pass_fgather", within="pass_pmap"):  # no stage at all: nothing booked
+        pass
+    assert set(timer.seconds) == {"pass_pmap", "pass_fgather", "reference"}
+
+
+def test_a_stage_on_two_threads_counts_the_wall_time_while_either_runs_it():
+    """Thread A in pmap, the middle of it booked apart; thread B in pmap meanwhile: pmap
+    holds the wall time while one of them is in pmap (A's ends and B's whole), fgather A's
+    middle."""
+    timer = Timer()
+    go, done = threading.Event(), threading.Event()
+    b_span = []
+
+    def b():
+        go.wait(10)
+        t = time.perf_counter()
+        with timer.stage("pass_pmap"):
+            time.sleep(0.03)
+        b_span.append(time.perf_counter() - t)
+        done.set()
+
+    other = threading.Thread(target=b, daemon=True)  # (a failing test never waits on it)
+    other.start()
+    t0 = time.perf_counter()
+    with timer.stage("pass_pmap"):
+        time.sleep(0.02)
+        t1 = time.perf_counter()
+        with booked_apart("pass_fgather", within="pass_pmap"):
+            go.set()
+            done.wait(10)
+            time.sleep(0.01)
+        t2 = time.perf_counter()
+        time.sleep(0.02)
+    t3 = time.perf_counter()
+    other.join()
+    s = timer.seconds
+    assert 0.04 <= s["pass_fgather"] <= t2 - t1, s
+    a_ends = (t1 - t0) + (t3 - t2)
+    assert 0.07 <= s["pass_pmap"] <= a_ends + b_span[0] + 0.01, (s, a_ends, b_span)  # (0.01: the clocks' reads)
+
+
+def _timed_chunks(monkeypatch) -> list[float]:
+    """The wall seconds of every final-gather chunk the render runs."""
+    spent: list[float] = []
+    chunk = pmap_mod._final_gather_chunk
+
+    def timed(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return chunk(*args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - t0)
+
+    monkeypatch.setattr(pmap_mod, "_final_gather_chunk", timed)
+    return spent
+
+
+def test_final_gathering_is_booked_to_the_fgather_pass(monkeypatch):
+    spent = _timed_chunks(monkeypatch)
+    cfg = config_from_dict({**TINY, "estimate": {"final_gather": 4}})
+    t0 = time.perf_counter()
+    res = render(cfg)
+    wall = time.perf_counter() - t0
+    s = res.timer.seconds
+    assert spent and "fgather" in res.plan.run_names
+    # every chunk's rays and gathers are in the fgather stage, and the pmap stage holds the rest
+    assert s["pass_fgather"] >= sum(spent) > 0, (s, sum(spent))
+    assert s["pass_pmap"] > 0
+    assert s["pass_pmap"] + s["pass_fgather"] <= wall
+    assert sum(s.values()) <= wall  # (one thread: the stages one after the other, none counted twice)
+
+
+def test_no_final_gathering_no_fgather_seconds(monkeypatch):
+    spent = _timed_chunks(monkeypatch)
+    cfg = config_from_dict({**TINY, "estimate": {"final_gather": 0}})
+    res = render(cfg)
+    assert not spent and "fgather" not in res.plan.run_names
+    assert "pass_fgather" not in res.timer.seconds and res.timer.seconds["pass_pmap"] > 0
