@@ -23,11 +23,14 @@ REPO = Path(__file__).resolve().parents[1]
 CORNELL = str(REPO / "configs" / "cornell.yaml")
 RING = str(REPO / "configs" / "ring.yaml")
 RES = "resolution=[48,48]"
+# packets of 16: at 48x48, packets of 256 are coarse enough for the run to warn of them (docs/architecture.md,
+# "Packet size"), and these tests want a run with nothing to warn of
+FINE = "arch.packet_size=16"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def run(out: Path, *extra: str, config: str = CORNELL, capsys=None) -> dict:
-    code = main(["run", config, "--out", str(out), "--set", RES, *extra])
+    code = main(["run", config, "--out", str(out), "--set", RES, "--set", FINE, *extra])
     assert code == 0
     if capsys is not None:
         err = capsys.readouterr().err
@@ -205,7 +208,7 @@ def test_work_aov_matches_results(cornell_run):
 
 @pytest.mark.slow
 def test_stdout_summary(tmp_path, capsys):
-    code = main(["run", RING, "--out", str(tmp_path / "r"), "--set", "resolution=[32,24]"])
+    code = main(["run", RING, "--out", str(tmp_path / "r"), "--set", "resolution=[32,24]", "--set", FINE])
     assert code == 0
     cap = capsys.readouterr()
     assert cap.err == ""
@@ -232,7 +235,7 @@ def test_a_deadlock_is_one_line_and_writes_nothing(tmp_path, capsys):
 def test_a_stream_too_short_for_a_steady_throughput_warns(tmp_path, capsys):
     out = tmp_path / "short"
     code = main(["run", RING, "--out", str(out), "--mode", "rcast", "--no-report",
-                 "--set", "resolution=[16,12]", "--set", "arch.frames=2"])
+                 "--set", "resolution=[16,12]", "--set", "arch.frames=2", "--set", FINE])
     err = capsys.readouterr().err
     assert code == 0
     assert err.startswith("tlm: warning: arch.frames=2 is too short for a steady-state throughput (at least 5")

@@ -403,6 +403,21 @@ def test_event_budget():
         simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
 
 
+def test_the_event_cap_is_named_for_what_it_is(monkeypatch):
+    """A run stopped by arch.max_events is MaxEventsReached (a cap the config sets, to raise
+    if the run is only long), not a model that stopped making progress; a Deadlock still,
+    for what reports a run that could not finish. Past the liveness bound it is a Deadlock."""
+    from tlm.arch import model
+    from tlm.arch.units import MaxEventsReached
+
+    with pytest.raises(MaxEventsReached, match=r"arch\.max_events = 5 events passed.*raise it"):
+        simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
+    monkeypatch.setattr(model, "event_bound", lambda program, arch: 7)
+    with pytest.raises(Deadlock) as err:
+        simulate_program(SWAP_PROGRAM, arch(frames=3))
+    assert type(err.value) is Deadlock and "it makes no progress" in str(err.value)
+
+
 def test_the_liveness_bound_follows_the_program():
     """64 events per packet, job and tile, per frame, plus 100 000; it caps ``max_events``."""
     from tlm.arch import model
@@ -528,10 +543,21 @@ def test_steady_throughput_window(done, k, value, window):
     assert (v, est["window"], est["steady"]) == (value, window, True)
 
 
-@pytest.mark.parametrize(("done", "k", "value"), [([7], 1, 7), ([7], 2, 7), ([6, 9], 2, 4), ([3, 9, 12, 20], 2, 5)])
+@pytest.mark.parametrize(("done", "k", "value"), [([7], 2, 7), ([6, 9], 2, 4), ([3, 9, 12, 20], 2, 5)])
 def test_steady_throughput_short_stream_is_elapsed_per_frame(done, k, value):
     v, est = steady_throughput(done, k)
     assert (v, est["steady"], est["min_frames"]) == (value, False, 3 * k - 1)
+
+
+def test_one_image_in_flight_one_frame_is_already_steady():
+    """With one image in flight every frame runs alone from the same state (each PM keeps
+    the one module of its role), so the first frame's time is the steady value: no
+    "too short" warning for arch.frames = 1."""
+    v, est = steady_throughput([7], 1)
+    assert (v, est["steady"], est["window"]) == (7, True, None)
+    fn_frames = [simulate_program(SWAP_PROGRAM, arch(frames=f, images_in_flight=1)) for f in (1, 2, 5)]
+    assert {t.cycles["throughput"] for t in fn_frames} == {14}
+    assert all(t.throughput_estimate["steady"] for t in fn_frames)
 
 
 def _module_story(requests):

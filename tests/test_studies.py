@@ -207,6 +207,47 @@ def test_granularity_rows_and_the_functional_cache(tmp_path, monkeypatch):
     assert [r["throughput"] for r in again] == [r["throughput"] for r in rows]
 
 
+def test_granularity_takes_a_run_config_file_as_its_base(tmp_path, monkeypatch):
+    """``base: run.yaml`` (relative to the study file), as a sweep's base may be: the same
+    study as the inline mapping, the base's own paths relative to the base file."""
+    from tlm.experiments.granularity import load_granularity
+
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    (tmp_path / "configs" / "scenes").mkdir(parents=True)
+    (tmp_path / "configs" / "scenes" / "box.yaml").write_text("extends: cornell\n")
+    base = {**TINY, "scene": "scenes/box.yaml", "mode": "rcast", "arch": {"frames": 2}}
+    (tmp_path / "configs" / "run.yaml").write_text(yaml.safe_dump(base))
+    (tmp_path / "g.yaml").write_text(yaml.safe_dump({"base": "configs/run.yaml", "packet_sizes": [64, 1]}))
+    (tmp_path / "configs" / "inline.yaml").write_text(yaml.safe_dump({"base": base, "packet_sizes": [1, 64]}))
+    by_file, inline = load_granularity(tmp_path / "g.yaml"), load_granularity(tmp_path / "configs" / "inline.yaml")
+    assert by_file == inline and by_file[1] == [1, 64] and by_file[2] == tmp_path / "configs"
+    rows = run_granularity(tmp_path / "g.yaml", tmp_path / "out")
+    assert [r["packet_size"] for r in rows] == [1, 64] and rows[0]["max_abs_rel_error"] == 0.0
+
+
+@pytest.mark.parametrize(("body", "says"), [
+    ({"base": "nowhere.yaml", "packet_sizes": [1]}, "'nowhere.yaml': file not found (relative to the study file)"),
+    ({"base": "run.yaml", "packet_sizes": []}, "must be a non-empty list"),
+])
+def test_a_bad_granularity_base_file_exits_2(tmp_path, capsys, body, says):
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump({"scene": "cornell", "mode": "rcast"}))
+    path = tmp_path / "g.yaml"
+    path.write_text(yaml.safe_dump(body))
+    assert main(["granularity", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and says in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_granularity_base_file_that_is_no_run_config_names_that_file(tmp_path, capsys):
+    (tmp_path / "run.yaml").write_text(yaml.safe_dump({"scene": "cornell", "arch": {"packet_size": 0}}))
+    path = tmp_path / "g.yaml"
+    path.write_text(yaml.safe_dump({"base": "run.yaml", "packet_sizes": [1]}))
+    assert main(["granularity", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(tmp_path / "run.yaml") in err[0] and "arch.packet_size" in err[0]
+
+
 @pytest.mark.slow
 def test_cached_functional_simulates_like_a_fresh_render(tmp_path, monkeypatch):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path))

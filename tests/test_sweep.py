@@ -288,22 +288,22 @@ def test_points_that_differ_only_in_arch_render_once(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_a_failing_point_is_recorded_and_the_sweep_goes_on(tmp_path, capsys):
-    # 50 SimPy events cannot finish a frame: the model raises Deadlock at simulate time
+    # 50 SimPy events cannot finish a frame: the model raises MaxEventsReached (a Deadlock) at simulate time
     path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]}, zip={"arch.max_events": [50, 10**8]})
     out = tmp_path / "o"
     assert main(["sweep", str(path), "--out", str(out), "--jobs", "2"]) == 1
     printed = capsys.readouterr().out
-    assert "2 ok, 2 failed, 0 skipped" in printed and printed.count("Deadlock") == 2
+    assert "2 ok, 2 failed, 0 skipped" in printed and printed.count("MaxEventsReached") == 2
     rows = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
     assert list(rows["status"]) == ["failed", "ok", "failed", "ok"]
     failed = rows[rows["status"] == "failed"]
-    assert failed["error"].str.startswith("Deadlock: the model cannot finish").all()
+    assert failed["error"].str.startswith("MaxEventsReached: the model cannot finish").all()
     assert failed["cycles.throughput"].isna().all() and rows["cycles.throughput"].notna().sum() == 2
     for h in failed["hash"]:
         folder = out / "points" / h
         assert sorted(p.name for p in folder.iterdir()) == ["config.resolved.yaml", "error.json"]
         err = json.loads((folder / "error.json").read_text())
-        assert err["type"] == "Deadlock" and err["stage"] == "simulate" and "Traceback" in err["traceback"]
+        assert err["type"] == "MaxEventsReached" and err["stage"] == "simulate" and "Traceback" in err["traceback"]
     # a rerun skips what is done and retries what failed
     again = run_sweep(path, out, jobs=1)
     assert (again.ok, again.failed, again.skipped) == (0, 2, 2)
@@ -428,9 +428,10 @@ def test_a_changed_sweep_cut_short_leaves_only_its_own_rows(tmp_path, monkeypatc
     report = build_report([out], tmp_path / "rep")
     assert "1 of its 4 points not run yet" in report.read_text()
     notes: list[str] = []
-    assert len(collect(out, notes)) == 3 and notes == [
+    assert len(collect(out, notes)) == 3 and notes[0] == (
         f"{out}: 3 of its 4 points have a row (the sweep was interrupted or is still running; the same 'tlm sweep' "
-        "command finishes it): fitted from those"]
+        "command finishes it): fitted from those")
+    assert len(notes) == 4 and all("too short for a steady state" in n for n in notes[1:])  # (arch.frames: 2)
 
 
 @pytest.mark.slow

@@ -18,7 +18,10 @@ from tlm.scenes.loader import load_scene
 from tlm.scenes.model import Light
 
 REPO = Path(__file__).resolve().parents[1]
-SMALL = ["--set", "resolution=[16,16]", "--set", "photons.count=2000", "--set", "render.spp=1"]
+# (packets of 16: a 16x16 frame in packets of 256 is one packet a phase, whose hand-overs put its
+# cycles 20-35% off packets of one, and the run rightly warns of that: not what these tests are about)
+SMALL = ["--set", "resolution=[16,16]", "--set", "photons.count=2000", "--set", "render.spp=1",
+         "--set", "arch.packet_size=16"]
 CORNELL_LIGHT = "corner: [343.0, 548.8, 227.0], power: [1100000.0, 950000.0, 750000.0]"
 MIRROR_CENTRE = "[185.5, 245.0, 169.0]"  # the Cornell box's mirror sphere (radius 80)
 GLASS_CENTRE = "[400.0, 90.0, 130.0]"  # ... and its glass sphere (radius 90)
@@ -265,6 +268,102 @@ def test_inert_settings_follow_the_filter_the_mode_and_the_scheduler():
     # a config holding photon settings for --mode pmap is not warned about in its own mode
     assert inert_changes(config_from_dict({"mode": "refract", "photons": {"count": 200000}})) == []
     assert inert_changes(config_from_dict({"mode": "pmap"})) == []  # the defaults: nothing to say
+
+
+@pytest.mark.parametrize(("arch", "cache", "key", "why"), [
+    ({"fanout": "serial"}, {}, "arch.fanout = 'serial'", "arch.pipelines is 1 (no other pipeline to copy to)"),
+    ({"images_in_flight": 1, "context_switch_cycles": 0}, {}, "arch.context_switch_cycles = 0",
+     "arch.images_in_flight is 1 (a PM never has an older image's job to switch to)"),
+    ({}, {"pairs": 2}, "cache.pairs = 2", "a PM phase reads at most 2 cached streams, so 2 or more pairs give each a "
+                                          "pair of its own, as the default 4 does"),
+    ({}, {"pairs": 3}, "cache.pairs = 3", "a PM phase reads at most 2 cached streams"),
+])
+def test_timing_settings_that_cannot_change_cycles_are_named(arch, cache, key, why):
+    """Copies to other pipelines with one pipeline, context switches with one image in
+    flight, cache pairs beyond a phase's streams: each changes no cycle
+    (test_inert_timing_settings_change_no_cycle), and the run says so; where the same key
+    can matter (two pipelines, two images, one pair), it says nothing."""
+    from tlm.config import config_from_dict
+    from tlm.render.planner import inert_changes
+
+    lines = inert_changes(config_from_dict({"arch": arch, "cache": cache}))
+    assert len(lines) == 1 and lines[0].startswith(f"{key} has no effect in this run: {why}")
+    where_it_matters = {"fanout": {"pipelines": 2}, "context_switch_cycles": {"images_in_flight": 2}}
+    for k in arch:
+        if k in where_it_matters:
+            assert inert_changes(config_from_dict({"arch": {**arch, **where_it_matters[k]}})) == []
+    if cache:
+        assert inert_changes(config_from_dict({"cache": {"pairs": 1}})) == []
+
+
+def test_inert_timing_settings_change_no_cycle():
+    """What those warnings claim, simulated: the same cycles (and work) at the inert value as
+    at the default, and each value warned of."""
+    from tlm.arch.costs import load_programs
+    from tlm.arch.model import simulate
+    from tlm.config import config_from_dict
+    from tlm.experiments.run import render
+    from tlm.render.planner import inert_changes
+
+    cfg = config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [12, 12], "render": {"spp": 1},
+                            "arch": {"frames": 2, "packet_size": 16, "trace": False}}, "test")
+    fn, programs = render(cfg).functional(), load_programs()
+
+    def same(**kw):
+        changed = replace(cfg, arch=replace(cfg.arch, **kw))
+        default = replace(cfg.arch, **{k: v for k, v in kw.items() if k == "images_in_flight"})
+        assert simulate(fn, programs, changed.arch).cycles == simulate(fn, programs, default).cycles
+        return inert_changes(changed)
+
+    assert len(same(fanout="serial")) == 1
+    assert len(same(images_in_flight=1, context_switch_cycles=0)) == 1
+    two = replace(cfg, cache=replace(cfg.cache, pairs=2))
+    assert render(two).work_totals() == render(cfg).work_totals() and len(inert_changes(two)) == 1
+
+
+def test_what_only_the_run_can_tell_is_warned_of(tmp_path, capsys):
+    """A 4x4 image cut for 32 pipelines (a 4x8 grid: 16 tiles without a pixel), one image in
+    flight and one frame (already the steady value: no "too short" warning), the serial
+    fan-out (32 pipelines: it matters) and a FIFO depth no packet of 16 pixels can feel."""
+    out = tmp_path / "o"
+    assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--out", str(out), "--no-progress", "--no-report",
+                 "--no-reference", "--outputs", "images", "--mode", "rcast", "--set", "resolution=[4,4]",
+                 "--set", "render.spp=1", "--set", "arch.pipelines=32", "--set", "arch.images_in_flight=1",
+                 "--set", "arch.frames=1", "--set", "arch.fanout=serial", "--set", "arch.fifo_depth=2048"]) == 0
+    err = capsys.readouterr().err
+    warnings = json.loads((out / "results.json").read_text())["warnings"]
+    assert warnings == [
+        "arch.pipelines = 32: 16 of the 32 image tiles have no pixels (a 4x4 image cut into a 4x8 grid): a pipeline "
+        "given one has no pixel work in it",
+        "arch.fifo_depth = 2048 has no effect in this run: every Traversal/Intersection phase's packets fit in 1024 "
+        "FIFO entries together: the FIFO never fills"]
+    assert all(f"tlm: warning: {w}" in err for w in warnings)
+
+
+def test_a_coarse_packet_is_warned_of_and_its_estimate_holds(tmp_path, capsys, monkeypatch):
+    """Cornell refract at 32x32, one image in flight, packets of 256: four packets per ray
+    pass, whose hand-overs add about a fifth to TThru (timing.granularity.share); tlm run
+    says so, and tlm granularity measures about as much against packets of one (the
+    estimate is an upper bound of what packets add to a frame alone in the model)."""
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    config = tmp_path / "c.yaml"
+    run_cfg = {"scene": "cornell", "mode": "refract", "resolution": [32, 32],
+               "arch": {"frames": 2, "images_in_flight": 1, "trace": False}}
+    config.write_text(json.dumps(run_cfg))
+    out = tmp_path / "r"
+    assert main(["run", str(config), "--out", str(out), "--no-progress", "--no-report", "--no-reference",
+                 "--outputs", "images"]) == 0
+    results = json.loads((out / "results.json").read_text())
+    share = results["timing"]["granularity"]["share"]
+    (line,) = [w for w in results["warnings"] if w.startswith("arch.packet_size = 256 is coarse for this frame: ")]
+    assert f"about {share:.0%} of cycles.throughput" in line and f"tlm: warning: {line}" in capsys.readouterr().err
+    study = tmp_path / "g.yaml"
+    study.write_text(json.dumps({"base": run_cfg, "packet_sizes": [1, 256]}))
+    assert main(["granularity", str(study), "--out", str(tmp_path / "g"), "--no-report"]) == 0
+    fine, coarse = (json.loads(x) for x in (tmp_path / "g" / "granularity.jsonl").read_text().splitlines())
+    assert coarse["throughput"] == results["cycles"]["throughput"] and coarse["granularity_share"] == share
+    assert 0.5 * share < coarse["rel_error_throughput"] <= share / (1 - share)
+    assert fine["granularity_share"] < 0.01
 
 
 def test_a_sweep_factor_that_changes_nothing_is_warned_about(tmp_path, capsys):

@@ -39,6 +39,7 @@ import math
 from dataclasses import dataclass, field
 from fractions import Fraction
 
+import numpy as np
 import simpy
 
 from tlm.arch.costs import Programs
@@ -58,7 +59,7 @@ from tlm.arch.frame_program import (
 from tlm.arch.functional import Functional
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
-from tlm.arch.units import Deadlock, Trace, run
+from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
 
@@ -294,6 +295,7 @@ class Timing:
     model: Model | None = None  # the simulated units (their logs), for tests and inspection
     throughput_estimate: dict = field(default_factory=dict)  # how TThru was measured (steady_throughput)
     event_budget: int = 0  # the liveness bound the run had: min(arch.max_events, event_bound(...))
+    granularity: dict = field(default_factory=dict)  # the packets' fill and drain (granularity_estimate)
 
     def to_dict(self) -> dict:
         return {
@@ -310,6 +312,7 @@ class Timing:
             "scheduler": self.program.scheduler,
             "tiling": self.program.tiling,
             "throughput_estimate": self.throughput_estimate,
+            "granularity": self.granularity,
         }
 
 
@@ -370,7 +373,7 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
            "is only long)") if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
-              cycle_end=model.cycle_end)
+              cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget
@@ -461,7 +464,73 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     xb = {"swaps": xbar.swaps, "copies": xbar.copies, "words_copied": xbar.words_copied,
           "preemptions": {r.scope: r.preemptions for r in pms}}
     return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe,
-                  throughput_estimate=estimate)
+                  throughput_estimate=estimate,
+                  granularity=granularity_estimate(program, arch, throughput_i, cycles[slowest]))
+
+
+def fill_and_drain(program: FrameProgram, arch: ArchConfig) -> list[int]:
+    """Per tile of the tiled stages, in program order: the cycles its packets add to its
+    Traversal/Intersection phases over what the same work would take in packets of one.
+
+    A phase starts when the previous phase of its frame is done, so within a T/I phase
+    the Intersection PM waits for the Traversal PM's first packet (the fill) and the
+    Traversal PM has nothing left while the Intersection PM tests the last one (the
+    drain). With packet k costing t_k on the Traversal PM and i_k on the Intersection PM
+    (instructions, misses and flushes), the phase takes at least max over k of
+    (t_1 + .. + t_k) + (i_k + .. + i_n) (a two-machine flow shop), while its work in
+    packets of one takes at least max over the packet boundaries j = 0 .. n of
+    (t_1 + .. + t_j) + (i_{j+1} + .. + i_n): the difference, at most the phase's largest
+    i_k, summed over the tile's phases, is the tile's share. It is the packets' cost of whole hand-overs alone,
+    not the imbalance of the two PMs within a phase (which packets of one have as well),
+    computed from the program without a simulation; the FIFO's depth and the other image
+    in flight are not in it (docs/architecture.md, "Packet size").
+    """
+    page, flush = arch.page_miss_cycles, arch.flush_cycles
+    out = []
+    for stage in program.stages:
+        if stage.shared:
+            continue
+        for tile in stage.tiles:
+            extra = 0
+            for ph in tile.phases:
+                if len(ph.jobs) != 2 or not ph.jobs[0].n:
+                    continue
+                t, i = (js.norm.astype(np.int64) + js.misses.astype(np.int64) * page
+                        + js.flushes.astype(np.int64) * flush for js in ph.jobs)
+                done_t = np.cumsum(t)  # t_1 + .. + t_k
+                left_i = np.cumsum(i[::-1])[::-1]  # i_k + .. + i_n
+                packets = int((done_t + left_i).max())
+                ones = max(int(done_t[-1]), int(left_i[0]), int((done_t[:-1] + left_i[1:]).max()) if t.size > 1 else 0)
+                extra += packets - ones
+            out.append(extra)
+    return out
+
+
+def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: int, slowest: int) -> dict:
+    """A cheap estimate of how much the packet size adds to TThru (results.json
+    ``timing.granularity``), from :func:`fill_and_drain`.
+
+    ``fill_drain_cycles``: the fill and drain per frame of the pipeline that has most
+    (a pinned scheduler's tile p runs on one pipeline, as the static one's; the dynamic
+    one's tiles go where a pipeline is free, so the mean over the pipelines);
+    ``over_slowest_pm``: TThru minus the slowest PM's cycles, which TThru in packets of one cannot go below either
+    (the per-PM cycles hardly move with the packet size), so the packets cannot have
+    added more (with two images in flight the other image's work fills the gaps of a
+    run bound by one PM); ``share``: the smaller of the two over TThru. Measured against
+    ``tlm granularity`` in docs/architecture.md ("Packet size"), where ``tlm run``'s
+    warning threshold (:data:`tlm.experiments.run.GRANULARITY_WARNING`) comes from.
+    """
+    per_tile = fill_and_drain(program, arch)
+    if not per_tile:
+        fd = 0
+    elif SCHEDULERS[program.scheduler].pinned and len(per_tile) % program.pipelines == 0:
+        n = program.pipelines  # (every tiled stage has one tile per pipeline, in pipeline order)
+        fd = max(sum(per_tile[p::n]) for p in range(n))
+    else:
+        fd = round(Fraction(sum(per_tile), program.pipelines))
+    over = max(0, throughput - slowest)
+    share = round(min(fd, over) / throughput, 4) if throughput > 0 else 0.0
+    return {"fill_drain_cycles": fd, "over_slowest_pm": over, "share": share}
 
 
 def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
@@ -473,10 +542,13 @@ def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
     f <= F - k: the last k - 1 completions drain with fewer images in flight. The first
     k completions are the warm-up. The gaps alternate with two images (short, long),
     so the window spans a whole number of periods: from d[k-1] over m * k gaps,
-    m = (F - 2k + 1) // k, which needs F >= 3k - 1 frames (5 for the thesis's two images;
-    one image runs its frames back to back and needs 2). A shorter stream has no steady
-    window: its TThru is the stream's elapsed cycles per frame (``done[-1] / F``, fill
-    and drain included), and the estimate says so (``steady: false``).
+    m = (F - 2k + 1) // k, which needs F >= 3k - 1 frames (5 for the thesis's two images).
+    One image runs its frames back to back, each alone from the same state (the frame
+    program gives each PM one module role, so a PM never moves and nothing carries over:
+    every frame takes the same cycles), so one frame is already its steady value; two or
+    more give the window over every gap. A shorter stream has no steady window: its TThru
+    is the stream's elapsed cycles per frame (``done[-1] / F``, fill and drain included),
+    and the estimate says so (``steady: false``).
     """
     f, k = len(done), in_flight
     d = sorted(done)
@@ -485,10 +557,13 @@ def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
         a, b = k - 1, k - 1 + m * k
         value = round(Fraction(d[b] - d[a], b - a))
         return value, {"steady": True, "frames": f, "window": [a, b], "estimator": "steady-state window"}
+    if k == 1 and f == 1:
+        return d[0], {"steady": True, "frames": 1, "window": None,
+                      "estimator": "the one frame (one image in flight: every frame takes the same cycles)"}
     value = round(Fraction(d[-1], f))
     return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k - 1,
                    "estimator": "elapsed cycles per frame (stream too short for a steady-state window)"}
 
 
-__all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "PhaseSpec", "Timing", "frame_program",
-           "simulate", "simulate_program", "steady_throughput"]
+__all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "MaxEventsReached", "PhaseSpec", "Timing",
+           "frame_program", "granularity_estimate", "simulate", "simulate_program", "steady_throughput"]

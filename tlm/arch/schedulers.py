@@ -42,6 +42,7 @@ class Scheduler:
     """How a tiled stage's tiles go to the pipelines."""
 
     name = ""
+    pinned = False  # each stage's tile p runs on one fixed pipeline, the same for every stage (static tiles)
 
     def tiles(self, arch) -> int:
         """The number of tiles a tiled stage is cut into under ``arch`` (ArchConfig)."""
@@ -68,6 +69,8 @@ class Static(Scheduler):
     Pipeline ``p`` runs tile ``p``; its pixels go to the top-level unit once it is done,
     while the next stage may start.
     """
+
+    pinned = True
 
     def tiles(self, arch) -> int:
         return arch.pipelines

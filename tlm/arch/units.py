@@ -39,6 +39,13 @@ class Deadlock(RuntimeError):
     """The model cannot finish: the message names each blocked unit and what it awaits."""
 
 
+class MaxEventsReached(Deadlock):
+    """The run was stopped unfinished at ``arch.max_events`` events, the cap the config sets:
+    not a model that stopped making progress (the liveness bound's :class:`Deadlock`), so a
+    run that is only long finishes with the cap raised. A :class:`Deadlock` still, for
+    whatever reports a model that could not finish (nothing written, exit status 1)."""
+
+
 def _cycles(value: int, what: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
         raise ValueError(f"{what} (={value!r}) must be a whole number of cycles >= 0")
@@ -418,15 +425,18 @@ class Unit:
 
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
-        counts: dict | None = None, why: str | None = None, cycle_end: CycleEnd | None = None) -> int:
+        counts: dict | None = None, why: str | None = None, cycle_end: CycleEnd | None = None,
+        capped: type[Deadlock] = Deadlock) -> int:
     """Run until ``done`` fires; return the cycle it fired at.
 
     Raises :class:`Deadlock` if the event queue empties first, or if ``max_events`` events
     pass without ``done`` (the message names every blocked unit and what it awaits).
     ``counts``, if given, receives the number of events processed under ``"events"``;
-    ``why``, if given, is what the error says when ``max_events`` pass. ``cycle_end``, if
-    given, holds the model's end-of-cycle events (:class:`tlm.arch.events.CycleEnd`): one
-    is released whenever the current cycle has no other event left, before time moves on.
+    ``why``, if given, is what the error says when ``max_events`` pass, and ``capped`` the
+    error raised then (:class:`MaxEventsReached` when ``max_events`` is the config's cap).
+    ``cycle_end``, if given, holds the model's end-of-cycle events
+    (:class:`tlm.arch.events.CycleEnd`): one is released whenever the current cycle has no
+    other event left, before time moves on.
     """
     budget_why = why or f"{max_events} events passed"
     units = list(units)
@@ -436,7 +446,7 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     try:
         while not done.triggered:
             if steps >= max_events:
-                _deadlock(env, units, budget_why)
+                _deadlock(env, units, budget_why, capped)
             if late and peek() > env.now:  # the cycle's other events have all run
                 cycle_end.release()
             step()
@@ -449,7 +459,7 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     return int(env.now)
 
 
-def _deadlock(env: simpy.Environment, units: list[Unit], why: str) -> None:
+def _deadlock(env: simpy.Environment, units: list[Unit], why: str, error: type[Deadlock] = Deadlock) -> None:
     blocked = [f"{u.scope} waits for {u.waiting_for}" for u in units if u.waiting_for]
     detail = "; ".join(blocked) if blocked else "no unit is waiting (a process ended early)"
-    raise Deadlock(f"the model cannot finish at cycle {int(env.now)} ({why}): {detail}")
+    raise error(f"the model cannot finish at cycle {int(env.now)} ({why}): {detail}")

@@ -4,15 +4,21 @@ One packet per ray or pixel is the fine reference; coarser packets need fewer Si
 events but blur the coupling of the PMs (a packet is the unit of transfer through the
 FIFO, of preemption and of hand-over). An experiment file::
 
-    base: {scene: cornell, mode: rcast, arch: {frames: 2}}   # a run config
+    base: {scene: cornell, mode: rcast, arch: {frames: 2}}   # a run config, or a run config file
     packet_sizes: [1, 16, 256, 4096, 1000000]                # 1 is the reference
+
+``base`` may name a run config file (``base: cornell.yaml``, relative to the study file),
+as a sweep's may; the paths in it (its scene, ``arch.programs``) are then relative to
+that file, as they are for ``tlm run`` of it.
 
 renders the frame once (its work comes from the functional cache when an identical
 render was cached: only the SimPy layer reruns), simulates it at every packet size,
 and writes ``granularity.csv`` and ``granularity.jsonl``: per packet size the cycles
 (per PM, throughput, latency), the relative error of each against the reference, the
-largest of them, the host wall seconds of the simulation and its SimPy events; beside
-them ``config.resolved.yaml`` and ``provenance.json`` (versions, git revision, host seconds).
+largest of them, the run's own estimate of what the packets add (``granularity_share``,
+results.json ``timing.granularity.share``, on which ``tlm run`` warns), the host wall
+seconds of the simulation and its SimPy events; beside them ``config.resolved.yaml`` and
+``provenance.json`` (versions, git revision, host seconds).
 Images do not depend on the packet size (the functional layer never sees it).
 """
 
@@ -23,7 +29,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from tlm.arch.model import simulate
-from tlm.config import config_from_dict
+from tlm.config import config_from_dict, read_yaml
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
 from tlm.experiments.run import programs_for
@@ -32,18 +38,39 @@ from tlm.storage import check_destination
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
-           "simulate_seconds", "simpy_events", "reference")
+           "granularity_share", "simulate_seconds", "simpy_events", "reference")
+KEYS = ("packet_sizes",)  # the study's own keys, beside base and description
 
 
 def load_granularity(path: Path):
-    raw, base, src = read_study(path, ("packet_sizes",))
+    """``(config, packet sizes in increasing order, the folder its relative paths start at)``
+    of the study file ``path``; InputError names the file and the key."""
+    path = Path(path)
+    src = str(path)
+    folder = path.resolve().parent
+    raw = read_yaml(path)
+    if isinstance(raw, dict) and isinstance(raw.get("base"), str):  # a run config file, as a sweep's base
+        for key in raw:
+            if key not in ("base", *KEYS, "description"):
+                raise InputError(f"unknown key (expected base, {', '.join(KEYS)}, description)", source=src,
+                                 key=str(key))
+        file = folder / raw["base"]
+        if not file.is_file():
+            raise InputError(f"{raw['base']!r}: file not found (relative to the study file)", source=src, key="base")
+        base, base_src, folder = read_yaml(file), str(file), file.resolve().parent
+        if base is None:
+            base = {}
+        if not isinstance(base, dict):
+            raise InputError("must be a run config mapping", source=base_src)
+    else:
+        raw, base, base_src = read_study(path, KEYS)
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):
         raise InputError(f"{sizes!r} must be a non-empty list of whole numbers >= 1", source=src,
                          key="packet_sizes")
-    cfg = config_from_dict(base, src)
-    return cfg, sorted(set(sizes)), Path(path).resolve().parent
+    cfg = config_from_dict(base, base_src)
+    return cfg, sorted(set(sizes)), folder
 
 
 def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
@@ -60,7 +87,7 @@ def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
         if progress is not None:
             progress(size, tm, secs)
         return {"packet_size": size, **{m: tm.cycles[m] for m in METRICS}, "simulate_seconds": round(secs, 4),
-                "simpy_events": tm.events}
+                "simpy_events": tm.events, "granularity_share": tm.granularity["share"]}
 
     def relative(raw: list[dict], _folder: Path) -> list[dict]:
         ref = raw[0]  # the smallest packet size is the reference
@@ -70,6 +97,7 @@ def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
             rows.append({"packet_size": r["packet_size"], **{m: r[m] for m in METRICS},
                          **{k: round(v, 6) for k, v in errs.items()},
                          "max_abs_rel_error": round(max(abs(v) for v in errs.values()), 6),
+                         "granularity_share": r["granularity_share"],
                          "simulate_seconds": r["simulate_seconds"], "simpy_events": r["simpy_events"],
                          "reference": sizes[0]})
         return rows

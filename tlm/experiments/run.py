@@ -52,6 +52,7 @@ from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
 from tlm.kernels.work import WORK_KEYS
 from tlm.progress import Ticking, Timer, progress_bar
+from tlm.registry import SCHEDULERS
 from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
@@ -318,14 +319,91 @@ def run_warnings(res: RenderResult) -> list[str]:
     return warnings
 
 
+GRANULARITY_WARNING = 0.05  # timing.granularity.share from which a run warns (docs/architecture.md, "Packet size")
+
+
 def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
-    """The simulated stream's warning: too few frames for a steady-state throughput."""
-    est = None if timing is None else timing.throughput_estimate
-    if not est or est["steady"]:
+    """The simulated stream's warnings, one line each: too few frames for a steady-state
+    throughput; packets so coarse that their fill and drain at the phase boundaries is a
+    large share of TThru (:func:`~tlm.arch.model.granularity_estimate`, from
+    :data:`GRANULARITY_WARNING` on); image tiles without pixels; and what only the run can
+    tell of a setting changed from its default that it never read (:func:`timing_inert`)."""
+    if timing is None:
         return []
-    return [f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
-            f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
-            "cycles.throughput is the stream's elapsed cycles per frame"]
+    lines = []
+    est = timing.throughput_estimate
+    if est and not est["steady"]:
+        lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
+                     f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
+                     "cycles.throughput is the stream's elapsed cycles per frame")
+    share = (timing.granularity or {}).get("share", 0.0)
+    if share >= GRANULARITY_WARNING:
+        lines.append(f"arch.packet_size = {cfg.arch.packet_size} is coarse for this frame: the Traversal and "
+                     f"Intersection PMs' fill and drain of whole packets at its phase boundaries is about "
+                     f"{share:.0%} of cycles.throughput (timing.granularity), and the cycles may be as far from "
+                     "those of one ray per packet: measure it with 'tlm granularity', or lower arch.packet_size")
+    tiling = timing.program.tiling or {}
+    bounds = tiling.get("tiles") or []
+    empty = sum(1 for x0, y0, x1, y1 in bounds if x0 == x1 or y0 == y1)
+    if empty:
+        width, height = max(b[2] for b in bounds), max(b[3] for b in bounds)
+        queue = "" if SCHEDULERS[timing.program.scheduler].pinned else f" of the {timing.program.scheduler} queue"
+        lines.append(f"arch.pipelines = {cfg.arch.pipelines}: {empty} of the {len(bounds)} image tiles{queue} have "
+                     f"no pixels (a {width}x{height} image cut into a {tiling['rows']}x{tiling['cols']} grid): a "
+                     "pipeline given one has no pixel work in it")
+    lines += [f"{key} = {getattr(cfg.arch, key.split('.', 1)[1])!r} has no effect in this run: {why}"
+              for key, why in timing_inert(timing, cfg.arch).items()]
+    return lines
+
+
+def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
+    """The arch keys set away from their defaults that this simulated run provably never
+    read, each with why (the keys whose inertness the config alone shows are
+    :func:`~tlm.render.planner.inert_timing_settings`'):
+
+    * ``arch.swap_cycles`` when no PM moved to another module (the value is read at a
+      swap only);
+    * ``arch.context_switch_cycles`` with two images in flight when no PM was preempted
+      (read at a preemption only);
+    * ``arch.fifo_depth`` when every Traversal/Intersection job's FIFO behaves alike at
+      this depth and the default's: every packet carries at least as many triangle
+      addresses as the larger depth (each enters an empty FIFO alone at either), or the
+      job's packets all fit in the smaller one together (the FIFO never fills).
+    """
+    default = ArchConfig()
+    out: dict[str, str] = {}
+    xb = timing.crossbar or {}
+    if arch.swap_cycles != default.swap_cycles and xb.get("swaps") == 0:
+        out["arch.swap_cycles"] = "no PM moved to another module (timing.crossbar.swaps is 0)"
+    if (arch.context_switch_cycles != default.context_switch_cycles and arch.images_in_flight > 1
+            and not any((xb.get("preemptions") or {}).values())):
+        out["arch.context_switch_cycles"] = "no PM was preempted (timing.crossbar.preemptions are 0)"
+    if arch.fifo_depth != default.fifo_depth:
+        lo, hi = sorted((arch.fifo_depth, default.fifo_depth))
+        ways = {_fifo_alike(np.asarray(ph.jobs[0].entries, dtype=np.int64), lo, hi)
+                for ph in timing.program.phases if len(ph.jobs) == 2 and ph.jobs[0].entries is not None}
+        if ways and None not in ways:
+            out["arch.fifo_depth"] = {
+                frozenset({"alone"}): f"every packet carries at least {hi} triangle addresses, so it enters an "
+                                      f"empty FIFO alone at depth {lo} and at {hi} (lower arch.packet_size to see "
+                                      "the depth)",
+                frozenset({"together"}): f"every Traversal/Intersection phase's packets fit in {lo} FIFO entries "
+                                         "together: the FIFO never fills"}.get(
+                frozenset(ways), f"each Traversal/Intersection phase's packets either all carry at least {hi} "
+                                 f"triangle addresses or fit in {lo} FIFO entries together")
+    return out
+
+
+def _fifo_alike(entries: np.ndarray, lo: int, hi: int) -> str | None:
+    """Why a job's FIFO, its packets carrying ``entries`` triangle addresses, behaves alike
+    at the depths ``lo`` and ``hi`` (a packet takes min(entries, depth) entries, at least
+    one): ``"alone"``, every packet fills the FIFO at both, so each enters it empty;
+    ``"together"``, all of them fit at both at once, so it never fills; None: neither."""
+    if entries.size and int(entries.min()) >= hi:
+        return "alone"
+    if int(np.clip(entries, 1, lo).sum()) <= lo:
+        return "together"
+    return None
 
 
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,

@@ -164,14 +164,45 @@ def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, 
     return out
 
 
+def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
+    """The timing model's and the cache's keys that cannot change a run of ``cfg`` at the
+    value it gives them, each with why: the copies to other pipelines with one pipeline,
+    the context switch with one image in flight (no older image to switch to), and more
+    cache pairs than a PM phase has cached streams (each stream has a pair of its own at
+    any of those values, as at the default).
+
+    Kept apart from :func:`inert_settings`, whose answer a sweep reuses for every point of
+    the same mode, photon sections and scheduler (``tlm.experiments.sweep``): these depend
+    on other keys. What only the simulated run can tell (the FIFO's depth, empty tiles, a
+    swap or context switch that never happened) is :func:`tlm.experiments.run.stream_warnings`'.
+    """
+    from tlm.kernels.memory import PM_STREAMS
+
+    out: dict[str, str] = {}
+    arch = cfg.arch
+    if arch.pipelines == 1:
+        out["arch.fanout"] = "arch.pipelines is 1 (no other pipeline to copy to)"
+    if arch.images_in_flight == 1:
+        out["arch.context_switch_cycles"] = ("arch.images_in_flight is 1 (a PM never has an older image's job "
+                                             "to switch to)")
+    streams = max(len(names) for names in PM_STREAMS.values())
+    default_pairs = RunConfig().cache.pairs
+    if min(cfg.cache.pairs, default_pairs) >= streams:
+        out["cache.pairs"] = (f"a PM phase reads at most {streams} cached streams, so {streams} or more pairs give "
+                              f"each a pair of its own, as the default {default_pairs} does")
+    return out
+
+
 def inert_changes(cfg: RunConfig) -> list[str]:
-    """:func:`inert_settings` of the keys ``cfg`` sets away from their defaults, for a run
-    whose photon-map pass runs, or whose photon sections are left aside (a config may hold
-    them for ``--mode pmap``, and the plan says why the pass is left out): one warning
-    line each (``estimate.k = 16 has no effect in this run: ...``)."""
+    """:func:`inert_settings` and :func:`inert_timing_settings` of the keys ``cfg`` sets
+    away from their defaults, for a run whose photon-map pass runs, or whose photon
+    sections are left aside (a config may hold them for ``--mode pmap``, and the plan says
+    why the pass is left out): one warning line each (``estimate.k = 16 has no effect in
+    this run: ...``)."""
     defaults = dataclasses.asdict(RunConfig())
     lines = []
     settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (the photon sections judged as if run)
+    settings.update(inert_timing_settings(cfg))
     for key, why in settings.items():
         section, name = key.split(".", 1)
         value = getattr(getattr(cfg, section), name)
