@@ -113,3 +113,44 @@ def test_no_final_gathering_no_fgather_seconds(monkeypatch):
     res = render(cfg)
     assert not spent and "fgather" not in res.plan.run_names
     assert "pass_fgather" not in res.timer.seconds and res.timer.seconds["pass_pmap"] > 0
+
+
+def test_batches_at_once_count_each_stage_once(monkeypatch):
+    """Two threads run whole batches at once (``render.batch_rays`` small): they share the
+    run's timer, so no stage holds more seconds than the render took. Each final-gather
+    chunk here also waits 0.3 s, on both threads at once: pass_fgather holds about half of
+    those waits (the wall time while any ran), where the batches' stages summed, as before,
+    held them all and more (pass_fgather 52.7 s in a 41.6 s run of configs/cornell_pmap.yaml)."""
+    from tlm.render import batches
+
+    chunk = pmap_mod._final_gather_chunk
+    calls: list[float] = []
+
+    def slow(*args, **kwargs):
+        time.sleep(0.3)
+        calls.append(0.3)
+        return chunk(*args, **kwargs)
+
+    monkeypatch.setattr(pmap_mod, "_final_gather_chunk", slow)
+    cfg = config_from_dict({**TINY, "resolution": [32, 32], "estimate": {"final_gather": 4},
+                            "render": {**TINY["render"], "threads": 2, "batch_rays": 128}})
+    assert len(batches.batches_for(32 * 32, 1, 128, 2)) > 1
+    t0 = time.perf_counter()
+    res = render(cfg)
+    wall = time.perf_counter() - t0
+    s = res.timer.seconds
+    assert len(calls) >= 4 and {"cast", "pass_rcast", "pass_pmap", "pass_fgather"} <= set(s)
+    assert s["pass_fgather"] < 0.8 * sum(calls), (s, calls)
+    assert max(s.values()) <= wall, (s, wall)
+    assert s["pass_pmap"] + s["pass_fgather"] <= wall, (s, wall)
+
+
+def test_timers_of_blocks_run_elsewhere_add_as_their_union():
+    """Forked workers' timers (their spans on the one monotonic clock) add the wall time
+    while any of them ran: overlapping spans once, apart ones each."""
+    mine = Timer(seconds={"cast": 1.0}, spans={"cast": [(0.0, 1.0)]})
+    a = Timer(seconds={"cast": 2.0, "pass_x": 1.0}, spans={"cast": [(0.5, 2.5)], "pass_x": [(3.0, 4.0)]})
+    b = Timer(seconds={"cast": 1.0, "pass_x": 1.0}, spans={"cast": [(2.0, 3.0)], "pass_x": [(5.0, 6.0)]})
+    mine.add_spans([a])
+    mine.add_spans([b])
+    assert mine.seconds == {"cast": 3.0, "pass_x": 2.0}

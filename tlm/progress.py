@@ -9,6 +9,7 @@ a result; a bar is drawn only when asked for and stderr is a terminal.
 
 from __future__ import annotations
 
+import math
 import sys
 import threading
 import time
@@ -35,6 +36,9 @@ class Timer:
     (:func:`booked_apart`)."""
 
     seconds: dict[str, float] = field(default_factory=dict)
+    # each stage's closed spans (perf_counter start, end), kept to merge timers of blocks that
+    # ran at once elsewhere (:meth:`add_spans`: a forked worker's batches)
+    spans: dict[str, list[tuple[float, float]]] = field(default_factory=dict, repr=False, compare=False)
     _open: dict[str, tuple[int, float]] = field(default_factory=dict, repr=False, compare=False)
 
     def _enter(self, name: str, now: float) -> None:
@@ -48,6 +52,23 @@ class Timer:
             return
         del self._open[name]
         self.seconds[name] = self.seconds.get(name, 0.0) + now - since
+        self.spans.setdefault(name, []).append((since, now))
+
+    def add_spans(self, others: list[Timer]) -> None:
+        """Add the stages of timers whose blocks ran at once (forked workers, on the same
+        monotonic clock) as the wall time while any of them ran: per stage, the length of
+        the union of their spans, less what this timer already counts of it."""
+        names = {n for t in others for n in t.spans}
+        for name in sorted(names):
+            mine = self.spans.get(name, [])
+            spans = sorted([*mine, *(sp for t in others for sp in t.spans.get(name, []))])
+            total, end = 0.0, -math.inf
+            for a, b in spans:
+                if b > end:
+                    total += b - max(a, end)
+                    end = b
+            self.seconds[name] = self.seconds.get(name, 0.0) + total - sum(b - a for a, b in _merged(mine))
+            self.spans[name] = spans
 
     def stage(self, name: str):
         """A context manager that adds the wall seconds of its block to stage ``name``."""
@@ -65,6 +86,17 @@ class Timer:
                     timer._leave(name, time.perf_counter())
 
         return _Stage()
+
+
+def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Spans as disjoint ones covering the same time."""
+    out: list[tuple[float, float]] = []
+    for a, b in sorted(spans):
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out
 
 
 @contextmanager

@@ -144,11 +144,13 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
             _warm(frame, traced)
         release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
 
-        def one(i: int) -> _Batch:
-            return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
-                              Timer() if concurrent else timer, None if concurrent else bar, i, len(batches))
+        forked = concurrent and BATCH_WORKERS == "processes" and threads.can_fork()
 
-        if concurrent and BATCH_WORKERS == "processes" and threads.can_fork():
+        def one(i: int) -> _Batch:  # (threads share the run's timer, which counts a stage's wall time once)
+            return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
+                              Timer() if forked else timer, None if concurrent else bar, i, len(batches))
+
+        if forked:
             done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
         else:
             # (weighed by pixels: the last, small pieces run behind a slow batch, in the same memory)
@@ -168,9 +170,9 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
                 for k, v in wk.items():
                     _put_counts(counts, k, v, at, w * h)
             _merge_tallies(gather_maps, done.per_map)
+            if forked:
+                timer.add_spans([done.timer])  # (the union of the workers' spans: wall time, not a sum)
             if concurrent:
-                for k, s in done.timer.seconds.items():
-                    timer.seconds[k] = timer.seconds.get(k, 0.0) + s
                 bar.update(1 + len(names))
             if isinstance(g, dict):  # (a batch from another process: its primary part)
                 primary.put(g, at)
