@@ -133,6 +133,9 @@ CASES: dict[str, Case] = {
                          expect=("u16.yaml", "not a UTF-8 text file")),
     "scene-binary": Case(config=setter("scene", "bin_scene.yaml"), extra={"bin_scene.yaml": b"name: \xff\xfe\x00"},
                          expect=("bin_scene.yaml", "not a UTF-8 text file", "0xff")),
+    # a clock past a terahertz (a typo: 6e29 FPS was printed) and a cache block too small to prefetch from
+    "clock-absurd": Case(argv=["--set", "arch.clock_hz=1e30"], expect=("arch.clock_hz", "1e+30", "1000000000000")),
+    "block-of-two-words": Case(argv=["--set", "cache.block_words=2"], expect=("cache.block_words", "2", ">= 3")),
     # a cost table whose scale makes more cycles than an int64 holds (was an internal error)
     "programs-absurd-scale": Case(config=setter("arch.programs", "progs.yaml"), extra={"progs.yaml": yaml.safe_dump(
         {**(lambda t: {**t, "vertex": {**t["vertex"], "scale": 1e20}})(yaml.safe_load(

@@ -165,7 +165,8 @@ class CacheConfig:
     pairs: int = _f(4, "cache block pairs per programmable PM (thesis: 8 blocks = 4 pairs); a PM phase's k-th "
                     "stream takes pair k mod pairs (1: node heap and leaf indices share one)", min=1, max=4)
     block_words: int = _f(1024, "128-bit words per cache block, the page a miss fetches (thesis: 1024); "
-                          "the next block is prefetched past its middle", min=2, max=1 << 20)
+                          "the next block is prefetched past its middle (at least 3 words: in a block of 2 no "
+                          "word is past it, so nothing would be prefetched)", min=3, max=1 << 20)
 
 
 @dataclass(frozen=True)
@@ -187,10 +188,11 @@ class ReferenceConfig:
 
 @dataclass(frozen=True)
 class ArchConfig:
-    clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles",
-                         min_exclusive=0.0)
+    clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles "
+                         "(at most 1e12: a terahertz)", min_exclusive=0.0, max=1e12)
     frames: int = _f(5, "frames in the simulated stream (the same image, two in flight); TThru is measured "
-                     "over the steady state, which needs at least 3 x images_in_flight - 1 frames", min=1, max=10000)
+                     "over the steady state, which needs at least 5 frames with two images in flight (one "
+                     "frame with one)", min=1, max=10000)
     images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
                                min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",
