@@ -122,7 +122,8 @@ class EstimateConfig:
                      "| a registered estimator (tlm.registry)", choices=FILTERS)
     radius: float | None = _f(
         None, "the indirect map's search radius in scene units; null = radius_fraction x the scene's diagonal, "
-        "or when that is null too the density rule (radius_photons)", min_exclusive=0.0,
+        "or when that is null too the density rule (radius_photons); at most 1e150 (the estimate divides by "
+        "pi r^2, which overflows past 7.6e153)", min_exclusive=0.0, max=1e150,
     )
     radius_fraction: float | None = _f(
         None, "the indirect map's radius as a fraction of the scene's diagonal when radius is null (the rule "
@@ -136,7 +137,8 @@ class EstimateConfig:
     )
     caustic_radius: float | None = _f(
         None, "the caustic map's search radius in scene units; null = caustic_radius_fraction x the diagonal, "
-        "or when that is null too the density rule (caustic_radius_photons)", min_exclusive=0.0,
+        "or when that is null too the density rule (caustic_radius_photons); at most 1e150", min_exclusive=0.0,
+        max=1e150,
     )
     caustic_radius_fraction: float | None = _f(
         None, "the caustic map's radius as a fraction of the scene's diagonal when caustic_radius is null (the "

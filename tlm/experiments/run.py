@@ -60,7 +60,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, check_destination
+from tlm.storage import atomic_folder, check_destination, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -180,6 +180,8 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
             found = ensure_reference(frame) if reference else None
             if found is not None and found.image is None:  # (to be computed: said now, not after the render)
                 check_photon_memory(found.settings.photons, "reference.photons", config_source)
+        for line in checks.branching_warning(cfg, frame.scene):  # (said before a render that may not end)
+            warn(line)
         done = render_batches(frame, the_plan.run_names, timer, progress)
         error = None
         if done.photons is not None:
@@ -312,6 +314,9 @@ def run_warnings(res: RenderResult) -> list[str]:
         st = res.photons.photons.stats()
         warnings += checks.photon_warnings(st["emitted"], st["stored"])
     warnings += inert_changes(res.cfg)
+    warnings += checks.branching_warning(res.cfg, res.scene)
+    if "pmap" in res.plan.run_names:
+        warnings += checks.radius_warnings(res.cfg, res.accel.scale)
     if res.accel.tree.truncated:
         t = res.accel.tree
         warnings.append(f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "

@@ -50,7 +50,8 @@ object get the misses of one call.
 Randomness comes from :func:`~tlm.kernels.shade.hash_uniform` keyed by the query's key
 (``keys``; the default ``arange(q)`` depends on the position in the packet, so pass
 stable keys, e.g. pixel ids, when invariance matters). Radius 0, empty maps or leaves
-and area 0 give density 0, never NaN.
+and area 0 give density 0, never NaN; a radius whose area ``pi r**2`` overflows float64
+(over :data:`MAX_RADIUS`, 7.6e153) is refused (:func:`check_radius`).
 """
 
 from __future__ import annotations
@@ -60,6 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tlm.errors import InputError
 from tlm.kernels.bsp import BSPTree
 from tlm.kernels.engine import engine
 from tlm.kernels.memory import PHOTON_WORDS, Accesses, Streams
@@ -148,10 +150,25 @@ def _rows(a: np.ndarray, what: str) -> np.ndarray:
     return a
 
 
-def check_radius(radius: float) -> float:
+MAX_RADIUS = math.sqrt(np.finfo(np.float64).max / math.pi)  # 7.6e153: pi r**2, the estimate's area, overflows past it
+CAUSTIC_STREAM = "caustic_photons"  # the caustic map's leaf reads (tlm.render.pmap.CAUSTIC_STREAM)
+
+
+def check_radius(radius: float, stream: str | None = None) -> float:
+    """``radius`` as a float: finite and >= 0 (else ValueError), and with a finite area
+    ``pi r**2``, which the estimate divides by (else an InputError naming the config key:
+    ``estimate.caustic_radius`` for the caustic map's ``stream``, ``estimate.radius`` for the
+    others; both when ``stream`` is not given): past :data:`MAX_RADIUS` every density
+    would be 0."""
     r = float(radius)
     if not (math.isfinite(r) and r >= 0.0):
         raise ValueError(f"radius (={radius!r}) must be finite and >= 0")
+    if not math.isfinite(math.pi * r * r):
+        key = ("estimate.radius or estimate.caustic_radius" if stream is None else
+               "estimate.caustic_radius" if stream == CAUSTIC_STREAM else "estimate.radius")
+        raise InputError(f"{r:g}: the photon-map estimate divides by the search area pi r^2, which overflows float64 "
+                         f"for a radius over {MAX_RADIUS:.2g}, so every density would be 0: give a radius of a few "
+                         "hundredths of the scene's diagonal (or radius_fraction)", key=key)
     return r
 
 
@@ -280,7 +297,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
                   stream: str = GATHER_STREAM) -> Estimate:
     lp, pts, nrm = gather_inputs(position, power, incoming, tree, points, normals, prepared)
     streams = Streams() if streams is None else streams
-    r = check_radius(radius)
+    r = check_radius(radius, stream)
     q = pts.shape[1]
     out = empty_estimate(q)
     density = out.density

@@ -20,8 +20,9 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   faces: it sits inside a closed solid, outside a room whose walls face in, or the
   geometry around it is wound inside out. Glass does not count: a lamp in a glass globe
   is lit through it. The rays start :data:`PROBE_EPS` times the light's size from it (a
-  point light: where its position's precision allows), so that a light close to a large
-  surface still finds it.
+  point light: a few ulps of its position), so that a light close to a large surface
+  still finds it, and never more than :data:`PROBE_EPS` times the scene's diagonal from
+  it (:func:`probe_eps`).
 * :func:`camera_warnings`: no eye ray hit anything, or more than
   :data:`BACK_FACE_LIMIT` of the eye rays' hits are on the back of an opaque triangle
   (the camera is inside a closed solid: a room's walls, wound to face in, are seen from
@@ -38,6 +39,12 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   :attr:`~tlm.scenes.model.Material.ignored`), in one line.
 * :func:`photon_warnings`: fewer than :data:`STORED_LIMIT` of the emitted photons were
   stored.
+* :func:`scene_warnings` (with :func:`file_warnings`): the scene lies so far from the
+  origin for its size that float64 rounds its positions to over :data:`COARSE_LIMIT` of
+  its extent; a material emits only on triangles of zero area.
+* :func:`branching_warning`: ``render.min_weight`` 0 lets a mirror and glass walk spawn
+  more than :data:`BRANCH_LIMIT` rays an eye ray (for the run to say before it renders).
+* :func:`radius_warnings`: a search radius given in scene units over the scene's diagonal.
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ import math
 
 import numpy as np
 
+from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.scenes.model import KIND, Light, Scene
 
@@ -55,7 +63,12 @@ STORED_LIMIT = 0.01  # share of the emitted photons below which the photon map i
 BLACK_LIMIT = 1e-12  # brightest pixel, relative to light_scale, below which the image is black
 PROBE_EPS = 1e-5  # probe rays start this far (relative to the light's size) from the light
 GRAZING = 1e-6  # cosine to a light's normal under which an aimed probe ray counts as in its plane
-_PRECISION = 1e-12  # ... and at least this far relative to the largest coordinate they start from
+COARSE_LIMIT = SPAWN_EPS / 10  # float64's spacing at the scene's coordinates, relative to its extent, above
+# which its positions are rounded coarsely (moved by translate [t, t, t], 32x32, 16 samples a pixel, 4 a light:
+# 10% of cornell-box's pixels change by over 1% at 1.1e-6 and 2% at 5.5e-7, its shadow rays stopping on its
+# mesh light's own triangles at grazing angles; 2.5% of cornell's at 1.3e-4, 27% at 2.1e-3)
+PROBE_ULPS = 16  # ... a point light's: this many float64 ulps of the largest coordinate they start from;
+# either way never more than PROBE_EPS x the scene's diagonal (rays that start past a far scene skip it)
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
@@ -159,6 +172,23 @@ def light_size(light: Light) -> float:
     return float(np.sqrt(max(light.area, 0.0)))
 
 
+def probe_eps(light: Light, accel: TriangleAccel, origins: np.ndarray) -> float:
+    """How far from the light its probe rays (from ``origins``) start: :data:`PROBE_EPS` x
+    the light's size (a point light: :data:`PROBE_ULPS` float64 ulps of the largest
+    coordinate, so that a light on a surface skips it), and never more than
+    :data:`PROBE_EPS` x the scene's diagonal (``accel.scale``), so that the rays of a scene
+    far from the origin (a box 1 unit wide at x = 1e12, where an ulp is 1.2e-4) do not
+    start past its walls."""
+    size = light_size(light)
+    if size > 0.0:
+        eps = PROBE_EPS * size
+    else:
+        eps = PROBE_ULPS * float(np.finfo(float).eps) * float(np.abs(origins).max(initial=0.0))
+    if accel.scale > 0.0:
+        eps = min(eps, PROBE_EPS * accel.scale)
+    return max(eps, float(np.finfo(float).tiny))
+
+
 def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE_RAYS,
                 kind: np.ndarray | None = None) -> dict:
     """``rays`` traced from the light (:func:`probe_rays` and :func:`aimed_rays`), how many
@@ -170,8 +200,7 @@ def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE
     o, d, src = (np.concatenate([spread[i], aimed[i]]) for i in range(3))
     if o.shape[0] == 0:
         return {"rays": 0, "hits": 0, "back": 0}
-    eps = max(PROBE_EPS * light_size(light), _PRECISION * float(np.abs(o).max()), np.finfo(float).tiny)
-    h = closest_hit(accel, o, d, tmin=eps, ignore=src)
+    h = closest_hit(accel, o, d, tmin=probe_eps(light, accel, o), ignore=src)
     tri = h.triangle
     hit = tri >= 0
     own = getattr(light, "ids", None)
@@ -210,8 +239,65 @@ def file_warnings(scene: Scene) -> list[str]:
     """What the scene's mesh files hold that tlm does not use (``Geometry.notes``: a glTF's
     spot and directional lights, its orthographic cameras, ...) and what of a glTF's point
     lights and camera the scene imported or did not use (:func:`tlm.scenes.loader.load_scene`),
-    one line each naming the file."""
-    return [str(n) for n in scene.extra.get("notes") or []]
+    one line each naming the file; then what the scene's files ask for that renders coarsely
+    or not at all (:func:`scene_warnings`)."""
+    return [str(n) for n in scene.extra.get("notes") or []] + scene_warnings(scene)
+
+
+def scene_warnings(scene: Scene) -> list[str]:
+    """One line each: the scene lies so far from the origin for its size that float64
+    rounds its positions coarsely (:func:`coordinate_warnings`), and a material whose
+    emission lies only on triangles of zero area (:func:`emission_warnings`)."""
+    return coordinate_warnings(scene) + emission_warnings(scene)
+
+
+def coordinate_spacing(scene: Scene) -> tuple[float, float, float]:
+    """``(largest, spacing, extent)``: the largest coordinate magnitude of the triangles, the
+    camera's eye and the quad and point lights, float64's spacing there (``np.spacing``) and
+    the diagonal of the triangles' box."""
+    lo, hi = scene.bounds()
+    pts = [lo, hi, np.asarray(scene.camera.eye, dtype=np.float64)]
+    pts += [np.asarray(lt.position if lt.kind == "point" else lt.corner, dtype=np.float64)
+            for lt in scene.lights if lt.kind in ("point", "quad")]
+    largest = float(np.abs(np.array(pts)).max())
+    return largest, float(np.spacing(largest)), float(np.linalg.norm(hi - lo))
+
+
+def coordinate_warnings(scene: Scene) -> list[str]:
+    """A line when float64's spacing at the scene's largest coordinate is over
+    :data:`COARSE_LIMIT` of its extent (:func:`coordinate_spacing`): its points are rounded
+    to within a tenth of the distance rays skip from the surface they leave and stop short
+    of a light (:data:`~tlm.kernels.shade.SPAWN_EPS` of the diagonal), so that a shadow
+    ray may stop on the surface it leaves or the light it aims at, and edges move."""
+    largest, spacing, extent = coordinate_spacing(scene)
+    if not (extent > 0.0 and spacing > COARSE_LIMIT * extent):
+        return []
+    return [f"the scene lies far from the origin for its size: float64 positions at its largest coordinate "
+            f"({largest:.3g}) are {spacing:.3g} apart, {spacing / extent:.2g} of its extent ({extent:.3g}, the "
+            f"diagonal of its triangles' box), over {COARSE_LIMIT:g} (a tenth of the {SPAWN_EPS:g} of the "
+            "diagonal that rays skip from the surface they leave and stop short of a light): shadows and edges "
+            "may change, grazing light first (bring it nearer the origin: transform: {translate})"]
+
+
+def emission_warnings(scene: Scene, shown: int = 3) -> list[str]:
+    """One line per emitting material none of whose triangles has area (zero-area triangles
+    emit nothing: :func:`tlm.scenes.loader.mesh_light` leaves them out), naming its parts
+    (the first ``shown``) and its triangle count."""
+    out = []
+    tri = scene.triangles
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    for i, m in enumerate(scene.materials):
+        on = scene.material_index == i
+        if not m.emits or not on.any() or (area[on] > 0.0).any():
+            continue
+        parts = [scene.part_names[p] for p in np.unique(scene.part[on])]
+        names = ", ".join(repr(p) for p in parts[:shown]) + (f" and {len(parts) - shown} more"
+                                                              if len(parts) > shown else "")
+        k = int(on.sum())
+        out.append(f"material {m.name!r} emits (emission {list(m.emission)}) only on {k} triangle"
+                   f"{'s' if k > 1 else ''} of zero area (part{'s' if len(parts) > 1 else ''} {names}): a triangle "
+                   "without area emits nothing, so no light comes from it")
+    return out
 
 
 def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
@@ -281,3 +367,76 @@ def photon_warnings(emitted: int, stored: int) -> list[str]:
         return [f"the photon map stored {stored} of {emitted} emitted photons ({100.0 * stored / emitted:.2g}%, "
                 f"under {100 * STORED_LIMIT:g}%): its lights reach few surfaces after a bounce"]
     return []
+
+
+BRANCH_LIMIT = 2**12  # rays one eye ray's mirror and glass walk may spawn, over which min_weight 0 is warned of
+
+
+def walk_rays(depth: int) -> int:
+    """The most rays one eye ray's specular walk of ``depth`` bounces traces when every
+    glass hit splits a path in two (its Fresnel reflection and refraction, both traced)
+    and no branch is pruned: ``2 + 4 + ... + 2**depth``."""
+    return 2 ** (depth + 1) - 2
+
+
+def branching_warning(cfg, scene: Scene | None = None) -> list[str]:
+    """A line when ``render.min_weight`` is 0 (no branch is pruned) and a specular walk the
+    run's mode traces (the reflect pass's from ``reflect`` on, ``render.reflect_depth``;
+    the refract pass's from ``refract`` on, ``render.refract_depth``; the photon-map pass
+    gathers at the ends of both) may spawn more than :data:`BRANCH_LIMIT` rays per eye ray
+    (:func:`walk_rays`). Nothing with ``render.fresnel: false`` (one ray a path) or, given
+    ``scene``, without glass (a mirror does not split a path; the reflect walk counts only
+    with mirrors). ``cfg``: the run's :class:`~tlm.config.RunConfig`; its resolution, else
+    the scene's, sizes the frame's total."""
+    from tlm.config import MODES, RenderConfig
+
+    r = cfg.render
+    if r.min_weight > 0.0 or not r.fresnel:
+        return []
+    kinds = scene.kinds_present() if scene is not None else None
+    if kinds is not None and "dielectric" not in kinds:
+        return []
+    level = MODES.index(cfg.mode)
+    walks = [(key, depth) for key, depth, need, lowest in (
+        ("render.reflect_depth", r.reflect_depth, "mirror", 1),
+        ("render.refract_depth", r.refract_depth, "dielectric", 2))
+        if level >= lowest and (kinds is None or need in kinds)]
+    if not walks:
+        return []
+    key, depth = max(walks, key=lambda w: w[1])
+    rays = walk_rays(depth)
+    if rays <= BRANCH_LIMIT:
+        return []
+    res = cfg.resolution or ([scene.camera.width, scene.camera.height] if scene is not None else None)
+    frame = (f", {rays * res[0] * res[1] * r.spp:.2g} for this {res[0]}x{res[1]} frame at render.spp = {r.spp}"
+             if res else "")
+    return [f"render.min_weight = 0 with {key} = {depth}: every glass hit splits a path in two (its Fresnel "
+            f"reflection and refraction) and no branch is pruned, so one eye ray may spawn up to {rays:,} rays "
+            f"(2^(depth + 1) - 2){frame}: the render may not finish, its memory growing; a render.min_weight above "
+            f"0 prunes the branches whose weight falls under it (six glass slabs, 16x16 pixels: min_weight 0 traced "
+            f"16 million rays in 32 s at refract_depth 18, 1.9 times more a level; the default "
+            f"{RenderConfig().min_weight:g}, 76,012 rays in 3 s at depth 64)"]
+
+
+def radius_warnings(cfg, diagonal: float) -> list[str]:
+    """A line per search radius the config gives in scene units (``estimate.radius``,
+    ``estimate.caustic_radius``) that is larger than the scene's ``diagonal``: every gather
+    then takes every photon it reaches, the whole map, and divides their power by
+    ``pi r**2``; past ``sqrt(max / pi)`` (about 7.6e153) that area is infinite and the
+    estimate 0 (:func:`tlm.kernels.estimate.check_radius` refuses it). Nothing with the
+    k-nearest filter (``knn``: no fixed radius) or before the photon-map pass
+    (``mode: pmap``)."""
+    est = cfg.estimate
+    if cfg.mode != "pmap" or est.filter == "knn" or not diagonal > 0.0:
+        return []
+    out = []
+    for key, r in (("estimate.radius", est.radius), ("estimate.caustic_radius", est.caustic_radius)):
+        if r is None or not r > diagonal:
+            continue
+        area = math.pi * r * r
+        what = (f"pi r^2 = {area:.3g}, so the estimate is the map's power over that area" if math.isfinite(area)
+                else "pi r^2 overflows float64 to infinity, so the estimate is 0")
+        out.append(f"{key} = {r:g} is {r / diagonal:.3g} times the scene's diagonal ({diagonal:.3g}): every gather "
+                   f"takes every photon of the map within reach and {what} (a radius of a few hundredths of the "
+                   "diagonal, or radius_fraction, is the usual choice)")
+    return out

@@ -10,11 +10,14 @@ scenes are the files in the repository's ``scenes/`` folder (shipped inside the 
 
 Every problem is an :class:`~tlm.errors.InputError` naming the file, the key and the
 value: unknown keys (with a "did you mean"), wrong types, unknown materials, NaN or
-infinite vertices, an empty mesh, a resolution that cannot fit in memory.
+infinite vertices, an empty mesh, a resolution that cannot fit in memory, a scene (its
+transform applied) too large or too small for the float32 ray-triangle test
+(:func:`check_float32_range`).
 """
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -181,25 +184,108 @@ def _geometry(raw: Any, src: str, path: Path) -> Geometry:
     return compose_geometry(raw, src, path)
 
 
-def _check_triangles(tri: np.ndarray, src: str) -> None:
+def _check_triangles(tri: np.ndarray, src: str, key: str = "geometry") -> None:
     if tri.ndim != 3 or tri.shape[1:] != (3, 3):
-        raise InputError(f"triangles have shape {tri.shape}, expected (n, 3, 3)", source=src, key="geometry")
+        raise InputError(f"triangles have shape {tri.shape}, expected (n, 3, 3)", source=src, key=key)
     if tri.shape[0] == 0:
-        raise InputError("the geometry has no triangles", source=src, key="geometry")
+        raise InputError("the geometry has no triangles", source=src, key=key)
     bad = ~np.isfinite(tri).all(axis=(1, 2))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(
             f"{int(bad.sum())} triangle(s) have NaN or infinite vertices (first: triangle {i}, "
             f"{tri[i].tolist()})",
-            source=src, key="geometry",
+            source=src, key=key,
         )
     far = (np.abs(tri) > MAX_MAGNITUDE).any(axis=(1, 2))
     if far.any():  # (a transform's scale on a mesh's coordinates: each finite, their product not)
         i = int(np.flatnonzero(far)[0])
-        raise InputError(f"{int(far.sum())} triangle(s) have a coordinate beyond +-{MAX_MAGNITUDE:g}, where the "
-                         f"kernels' products overflow (first: triangle {i}, {tri[i].tolist()})",
-                         source=src, key="geometry")
+        raise InputError(f"{int(far.sum())} triangle(s) have a coordinate beyond +-{MAX_MAGNITUDE:g}, the bound "
+                         f"that keeps products of the scene's numbers finite in float64 (first: triangle {i}, "
+                         f"{tri[i].tolist()})", source=src, key=key)
+
+
+# The ray-triangle test decides which triangle a ray hits first in float32 (the Intersection
+# PM's datapath: tlm.kernels.intersect.closest_slots and its compiled twin), from
+# N = E1 x E2 (degree 2 in the scene's lengths) and T.N = (O - V0).N (degree 3); a float32
+# miss is never checked in float64. |T.N| <= |O - V0| |N|, so a scene is in range when
+#  * its extent R (the diagonal of the box around its triangles, camera eye and lights: every
+#    ray starts in it) times its largest |N| stays under float32's largest number, with a
+#    margin of F32_MARGIN (the Cornell box renders exactly up to R x |N| = 3.6e38 and not
+#    at 1.7e39: scales 3e10 and 5e10); and
+#  * its triangles' extent L times their median |N| (of those with area: a degenerate or
+#    tiny triangle among others is legal) stays above float32's smallest normal number,
+#    below which T.N loses bits (the Cornell box renders exactly down to L x median |N| =
+#    5.5e-42 and not at 2.0e-43: scales 3e-16 and 1e-16).
+# So the Cornell box (R x max |N| = 1.35e7, L x median |N| = 2.0e5) loads at scales from
+# 3.9e-15 to 2.9e9 (tests/test_float32_range.py).
+F32_MAX = float(np.finfo(np.float32).max)
+F32_TINY = float(np.finfo(np.float32).tiny)
+F32_MARGIN = 1024.0
+SIZE_HI = F32_MAX / F32_MARGIN  # the largest extent x |E1 x E2| a scene may have (3.3e35)
+SIZE_LO = F32_TINY  # the smallest extent x median |E1 x E2| (1.2e-38)
+
+
+def float32_sizes(scene: Scene) -> dict[str, float]:
+    """The lengths the float32 triangle test's range depends on (see :data:`SIZE_HI`):
+    ``extent`` (R: the diagonal of the box around the triangles, the camera's eye and the
+    quad and point lights), ``largest`` (the largest ``|E1 x E2|``, twice a triangle's
+    area), ``span`` (L: the diagonal of the triangles' box) and ``median`` (the median
+    ``|E1 x E2|`` of the triangles with area; 0 when none has any)."""
+    tri = scene.triangles
+    flat = tri.reshape(-1, 3)
+    pts = [flat.min(axis=0), flat.max(axis=0), np.asarray(scene.camera.eye, dtype=np.float64)]
+    for lt in scene.lights:
+        if lt.kind == "point":
+            pts.append(np.asarray(lt.position, dtype=np.float64))
+        elif lt.kind == "quad":
+            c, u, v = (np.asarray(x, dtype=np.float64) for x in (lt.corner, lt.edge_u, lt.edge_v))
+            pts += [c, c + u, c + v, c + u + v]
+    pts = np.array(pts)
+    n = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = n[n > 0.0]
+    return {"extent": float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))),
+            "largest": float(n.max(initial=0.0)),
+            "span": float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))),
+            "median": float(np.median(area)) if area.shape[0] else 0.0}
+
+
+def _two_digits(x: float, up: bool) -> float:
+    """``x`` rounded to two significant digits, up or down."""
+    e = math.floor(math.log10(x)) - 1
+    m = x / 10.0**e
+    return (math.ceil(m - 1e-9) if up else math.floor(m + 1e-9)) * 10.0**e
+
+
+def check_float32_range(scene: Scene, src: str, key: str, scale: float = 1.0) -> None:
+    """An InputError naming ``src`` and ``key`` when the float32 ray-triangle test cannot
+    handle the scene's sizes (:data:`SIZE_HI`, :data:`SIZE_LO`), with the
+    ``transform: {scale}`` that brings it in range (``scale``: the scene file's)."""
+    s = float32_sizes(scene)
+    big, small = s["extent"] * s["largest"], s["span"] * s["median"]
+    if not (big > SIZE_HI or 0.0 < small < SIZE_LO):
+        return
+    # a scale f multiplies both products by f**3
+    most = (SIZE_HI / big) ** (1.0 / 3.0) if big > 0.0 else math.inf
+    least = (SIZE_LO / small) ** (1.0 / 3.0) if small > 0.0 else 0.0
+    if big > SIZE_HI:
+        what = (f"the scene is too large for the float32 ray-triangle test: its extent {s['extent']:.3g} (the "
+                f"diagonal of the box around its triangles, camera eye and lights) times its largest triangle's "
+                f"|E1 x E2| (twice its area, {s['largest']:.3g}) is {big:.3g}, over {SIZE_HI:.3g} (float32's "
+                f"largest number / {F32_MARGIN:g}), where the test's T.N = (O - V0).(E1 x E2) overflows float32")
+        fix = _two_digits(scale * most, up=False)
+        bound = f"scale it down: transform: {{scale: {fix:.2g}}} or less"
+    else:
+        what = (f"the scene is too small for the float32 ray-triangle test: its extent {s['span']:.3g} (the "
+                f"diagonal of the box around its triangles) times its triangles' median |E1 x E2| (twice the "
+                f"area, {s['median']:.3g}) is {small:.3g}, under {SIZE_LO:.3g} (float32's smallest normal "
+                f"number), where the test's T.N = (O - V0).(E1 x E2) loses its precision")
+        fix = _two_digits(scale * least, up=True)
+        bound = f"scale it up: transform: {{scale: {fix:.2g}}} or more"
+    if least > most:
+        bound = ("no scale brings it in range: its extent (camera and lights included) is too large for the size "
+                 "of its triangles")
+    raise InputError(f"{what}: {bound}", source=src, key=key)
 
 
 def check_resolution(width: int, height: int, src: str, key: str = "resolution") -> None:
@@ -323,6 +409,9 @@ def load_scene(
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):
         scene = transform_scene(scene, scale, np.asarray(translate))
+        _check_triangles(scene.triangles, src, "transform")  # (each number finite, their product not)
+    # the final geometry, transform applied
+    check_float32_range(scene, src, "transform.scale" if raw.get("transform") is not None else "geometry", scale)
     return with_mesh_light(scene)
 
 

@@ -12,8 +12,11 @@ from tlm.errors import InputError, did_you_mean
 __all__ = ["MAX_MAGNITUDE", "keys", "mapping", "num", "vec"]
 
 # the largest magnitude of a scene's numbers (coordinates, powers, emission, scales): far past
-# any scene (a room scaled by 1e6 is 1e7), and products of a few such numbers, which the
-# kernels form (areas, powers, determinants), stay finite in float64
+# any scene (a room scaled by 1e6 is 1e7), so that products of up to ten such numbers, which
+# the float64 code forms (areas, powers, determinants, power x scale^2), stay finite. It is
+# not where the kernels overflow: the float32 ray-triangle test's range is far narrower (a
+# scene's extent cubed under ~3.4e38), and tlm.scenes.loader.check_float32_range checks the
+# final geometry against it
 MAX_MAGNITUDE = 1e30
 
 
@@ -39,7 +42,8 @@ def vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: flo
     if not all(math.isfinite(x) for x in v):
         raise InputError(f"{v!r} is not finite", source=src, key=key)
     if any(abs(x) > MAX_MAGNITUDE for x in v):
-        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, where products of the scene's numbers overflow",
+        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
+                         "numbers finite in float64",
                          source=src, key=key)
     if lo is not None and any(x < lo for x in v):
         raise InputError(f"{v!r} must be >= {lo}", source=src, key=key)
@@ -53,7 +57,8 @@ def num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = 
     if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
         raise InputError(f"{v!r} is not a finite number", source=src, key=key)
     if abs(v) > MAX_MAGNITUDE:
-        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, where products of the scene's numbers overflow",
+        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
+                         "numbers finite in float64",
                          source=src, key=key)
     if lo is not None and (v <= lo if lo_exclusive else v < lo):
         raise InputError(f"{v!r} must be {'>' if lo_exclusive else '>='} {lo}", source=src, key=key)
