@@ -36,7 +36,7 @@ def test_the_section_is_declared_with_the_thesis_defaults(capsys):
     ({"pairs": 5}, ("cache.pairs", "5", "<= 4")),
     ({"pairs": 2.5}, ("cache.pairs", "2.5")),
     ({"block_words": 1.5}, ("cache.block_words", "1.5")),
-    ({"block_words": 1}, ("cache.block_words", "1", ">= 2")),
+    ({"block_words": 1}, ("cache.block_words", "1", ">= 3")),
     ({"block_words": "big"}, ("cache.block_words", "'big'")),
     ({"pair": 2}, ("cache.pair", "unknown key", "did you mean 'pairs'")),
     (7, ("cache", "7")),

@@ -31,7 +31,9 @@ from tlm.storage import atomic_folder, folder_lock
 
 REPO = Path(__file__).resolve().parents[1]
 CORNELL = str(REPO / "configs" / "cornell.yaml")
-SMALL = ["--set", "resolution=[24,16]", "--set", "render.light_samples=1", "--no-progress"]
+# (packets of 16: at 256 a frame this small warns of coarse packets, and these runs want stderr to hold what they test)
+SMALL = ["--set", "resolution=[24,16]", "--set", "render.light_samples=1", "--set", "arch.packet_size=16",
+         "--no-progress"]
 
 
 @pytest.fixture(autouse=True)

@@ -52,7 +52,7 @@ def test_obj_round_trips_the_positions_exactly(tmp_path):
 
 
 @pytest.mark.parametrize("name, says", [
-    ("t.stl", "unsupported format '.stl': use .ply, .obj or .yaml"),
+    ("t.stl", "unsupported format '.stl': use .ply, .obj, .yaml or .yml"),
     ("t", "unsupported format '(none)'"),
     ("missing/t.ply", "does not exist"),
     ("folder.ply", "is a folder; name a .ply, .obj or .yaml file"),
@@ -212,3 +212,16 @@ def test_a_scene_file_export_replaces_only_files_tlm_wrote(tmp_path):
     export_triangles(scene, tmp_path / "s.yaml")
     export_triangles(scene, tmp_path / "s.yaml")  # (its own files: replaced)
     assert load_scene(tmp_path / "s.yaml").materials == scene.materials
+
+
+@pytest.mark.parametrize("name", ["s.yml", "S.YAML"])
+def test_a_scene_file_export_takes_every_suffix_a_scene_file_may_have(tmp_path, name, capsys, monkeypatch):
+    """``.yml`` as ``.yaml``, and a suffix in capitals, which ``tlm scene show`` then reads as
+    a file, not as a built-in scene's name."""
+    from tlm.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["scene", "export", "cornell-box", name]) == 0
+    capsys.readouterr()
+    assert main(["scene", "show", name]) == 0
+    assert '"triangles": 36' in capsys.readouterr().out

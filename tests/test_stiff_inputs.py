@@ -137,7 +137,7 @@ def test_the_branching_warning_is_said_before_the_render_and_kept(tmp_path, caps
     assert code == 0
     said = [i for i, line in enumerate(err) if line.startswith("tlm: warning: render.min_weight = 0 with "
                                                                "render.refract_depth = 12")]
-    assert said and said[0] == 0, err  # (the first line of the run: before the render's own)
+    assert said == [0], err  # (the first line of the run, before the render's own; said once, not again at the end)
     assert sum(w.startswith("render.min_weight = 0 with render.refract_depth = 12") for w in warnings) == 1
 
 

@@ -14,7 +14,8 @@ walkthrough: docs/api.md)::
 
 Bad input of any kind raises :class:`InputError`, whose message names the file, the
 key and the value (``tlm`` prints it on one line and exits with status 2); a timing
-model that cannot finish raises :class:`Deadlock`.
+model that cannot finish raises :class:`Deadlock` (:class:`MaxEventsReached` when it stopped at
+``arch.max_events``).
 
 The heavy layers (the kernels, the timing model, the report) are imported when a
 function first needs them, so that importing tlm, and every ``tlm`` command, stays fast.
@@ -30,7 +31,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tlm.arch.units import Deadlock
+from tlm.arch.units import Deadlock, MaxEventsReached
 from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.errors import InputError, did_you_mean
 
@@ -47,7 +48,8 @@ if TYPE_CHECKING:
     from tlm.scenes.model import Scene
 
 __all__ = [
-    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "calibrate", "error_vs_cost", "export_scene",
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "calibrate", "error_vs_cost",
+    "export_scene",
     "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
     "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
     "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",

@@ -24,7 +24,7 @@ import traceback
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from tlm import api
+from tlm import api, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.errors import environment_problem, interrupted_by
 
@@ -93,6 +93,7 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
+    storage.SAID.clear()
     overrides = list(args.set or [])
     for flag, value in (("mode", args.mode), ("seed", args.seed)):
         if value is None:
@@ -147,8 +148,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
         print(f"  {results['fps']:.2f} frames per second")
     print(f"wrote {out} ({time.perf_counter() - t0:.2f} s)")  # (wall: the stages may overlap on threads)
-    for warning in results["warnings"]:
-        print(f"tlm: warning: {warning}", file=sys.stderr)
+    for warning in results["warnings"]:  # (less those said during the run: a render that may not end says why first)
+        if " ".join(warning.split()) not in storage.SAID:
+            print(f"tlm: warning: {warning}", file=sys.stderr)
     _report_after(args, out)
     return 0
 
@@ -220,7 +222,7 @@ def _cmd_scene(args: argparse.Namespace) -> int:
     api.export_scene(scene, args.file)
     file = Path(args.file)
     mtl = f"{file.with_suffix('.mtl')} ({len(scene.materials)} materials)"
-    if file.suffix.lower() == ".yaml":
+    if file.suffix.lower() in (".yaml", ".yml"):
         lights = sum(1 for lt in scene.lights if lt.kind != "mesh")
         print(f"wrote {file} (the scene file: {lights} light{'s' if lights != 1 else ''} besides emitting "
               f"materials, the camera, {scene.camera.width}x{scene.camera.height}, {scene.photons} photons), "

@@ -544,7 +544,12 @@ def digest_problem(path: Path, digest: object) -> str | None:
     return None
 
 
+SAID: set[str] = set()  # the lines warn() said (a command clears it, to print a run's warnings once)
+
+
 def warn(message: str) -> None:
-    """A one-line warning on stderr (``tlm: warning: ...``)."""
-    sys.stderr.write(f"tlm: warning: {' '.join(message.split())}\n")
+    """A one-line warning on stderr (``tlm: warning: ...``), recorded in :data:`SAID`."""
+    line = " ".join(message.split())
+    SAID.add(line)
+    sys.stderr.write(f"tlm: warning: {line}\n")
     sys.stderr.flush()

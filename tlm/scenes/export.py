@@ -1,5 +1,5 @@
 """Export a scene's world-space triangles, in triangle-id order, as PLY or OBJ, or the
-whole scene as a scene file (``.yaml``) with its OBJ and MTL beside it.
+whole scene as a scene file (``.yaml`` or ``.yml``) with its OBJ and MTL beside it.
 
 The PLY file also carries each face's material index (property ``material``). The OBJ
 file carries the parts (``o``), the shading normals (``vn``, one per triangle corner:
@@ -7,8 +7,9 @@ the normals the renderer uses, so that a re-read file needs no crease angle) and
 materials (``usemtl``, in an MTL library of the same stem written beside it: ``Kd`` for
 a Lambertian material, ``Ks`` and ``illum 3`` for a mirror, ``Ni``, ``Tf`` and ``illum
 7`` for a dielectric, ``Ke`` for emission), so that tlm reads the OBJ back as the same
-triangles, parts, normals and materials (but a dielectric's transmittance: tlm's MTL
-reading takes glass as clear, :mod:`tlm.scenes.materials`). The scene's lights, camera
+triangles, parts and materials, and the normals to within the rounding of their
+renormalization on reading (but a dielectric's transmittance: tlm's MTL reading takes glass
+as clear, :mod:`tlm.scenes.materials`). The scene's lights, camera
 and resolution are in neither file.
 
 A ``.yaml`` target writes the scene file that closes the round trip (:func:`scene_yaml`):
@@ -33,7 +34,7 @@ from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
 from tlm.storage import write_atomic, write_file
 
-FORMATS = (".ply", ".obj", ".yaml")
+FORMATS = (".ply", ".obj", ".yaml", ".yml")
 
 
 def export_triangles(scene: Scene, path: Path) -> None:
@@ -50,13 +51,14 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply, .obj or .yaml file", source=str(path))
-    if suffix in (".obj", ".yaml"):
+    scene_file = suffix in (".yaml", ".yml")
+    if suffix == ".obj" or scene_file:
         _check_library(scene, path.with_suffix(".mtl"))
-    if suffix == ".yaml":
+    if scene_file:
         for other in (path.with_suffix(".obj"), path):
             _check_ours(other, path, "scene file" if other == path else "mesh")
     try:
-        if suffix == ".yaml":
+        if scene_file:
             _write(scene, path.with_suffix(".obj"), ".obj", verts, faces)
             write_file(path, scene_yaml(scene, path.with_suffix(".obj").name))
         else:

@@ -76,8 +76,9 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
     ``config_source`` names the file the reference came from and ``key`` the key that
     gave it (``scene``, a scene file's ``extends``), for error messages.
     """
-    looks_like_path = ref.endswith((".yaml", ".yml")) or "/" in ref or os.sep in ref
-    if looks_like_path and not ref.endswith((".yaml", ".yml")) and (scenes_dir() / f"{ref}.yaml").is_file():
+    yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
+    looks_like_path = yaml_file or "/" in ref or os.sep in ref
+    if looks_like_path and not yaml_file and (scenes_dir() / f"{ref}.yaml").is_file():
         return scenes_dir() / f"{ref}.yaml"  # a built-in scene of a subfolder: thesis/ring
     if looks_like_path:
         p = Path(ref)
@@ -86,7 +87,7 @@ def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | 
                 return cand
         if not p.is_absolute() and (scenes_dir() / p).is_file():
             return scenes_dir() / p  # thesis/ring.yaml
-        stem = ref[: -len(p.suffix)] if p.suffix in (".yaml", ".yml") else ref
+        stem = ref[: -len(p.suffix)] if p.suffix.lower() in (".yaml", ".yml") else ref
         raise InputError(f"scene file {ref!r} not found{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
