@@ -269,20 +269,17 @@ def check_float32_range(scene: Scene, src: str, key: str, scale: float = 1.0) ->
     # a scale f multiplies both products by f**3
     most = (SIZE_HI / big) ** (1.0 / 3.0) if big > 0.0 else math.inf
     least = (SIZE_LO / small) ** (1.0 / 3.0) if small > 0.0 else 0.0
-    if big > SIZE_HI:
-        what = (f"the scene is too large for the float32 ray-triangle test: its extent {s['extent']:.3g} (the "
-                f"diagonal of the box around its triangles, camera eye and lights) times its largest triangle's "
-                f"|E1 x E2| (twice its area, {s['largest']:.3g}) is {big:.3g}, over {SIZE_HI:.3g} (float32's "
-                f"largest number / {F32_MARGIN:g}), where the test's T.N = (O - V0).(E1 x E2) overflows float32")
-        fix = _two_digits(scale * most, up=False)
-        bound = f"scale it down: transform: {{scale: {fix:.2g}}} or less"
-    else:
-        what = (f"the scene is too small for the float32 ray-triangle test: its extent {s['span']:.3g} (the "
-                f"diagonal of the box around its triangles) times its triangles' median |E1 x E2| (twice the "
-                f"area, {s['median']:.3g}) is {small:.3g}, under {SIZE_LO:.3g} (float32's smallest normal "
-                f"number), where the test's T.N = (O - V0).(E1 x E2) loses its precision")
-        fix = _two_digits(scale * least, up=True)
-        bound = f"scale it up: transform: {{scale: {fix:.2g}}} or more"
+    large = big > SIZE_HI
+    extent, box, of, size, product, limit, effect, bound = (
+        (s["extent"], "triangles, camera eye and lights", "largest triangle's |E1 x E2| (twice its area",
+         s["largest"], big, f"over {SIZE_HI:.3g} (float32's largest number / {F32_MARGIN:g})", "overflows float32",
+         f"scale it down: transform: {{scale: {_two_digits(scale * most, up=False):.2g}}} or less") if large else
+        (s["span"], "triangles", "triangles' median |E1 x E2| (twice the area", s["median"], small,
+         f"under {SIZE_LO:.3g} (float32's smallest normal number)", "loses its precision",
+         f"scale it up: transform: {{scale: {_two_digits(scale * least, up=True):.2g}}} or more"))
+    what = (f"the scene is too {'large' if large else 'small'} for the float32 ray-triangle test: its extent "
+            f"{extent:.3g} (the diagonal of the box around its {box}) times its {of}, {size:.3g}) is {product:.3g}, "
+            f"{limit}, where the test's T.N = (O - V0).(E1 x E2) {effect}")
     if least > most:
         bound = ("no scale brings it in range: its extent (camera and lights included) is too large for the size "
                  "of its triangles")
