@@ -4,7 +4,7 @@ Writes in a temporary folder a sweep of Cornell RCast (an inline base config) wh
 takes 10 values of each of its factors, as many factors as the size needs:
 ``arch.pipelines`` (1..10), ``arch.page_miss_cycles``, ``cache.block_words`` (10
 functional results: 10 scene loads), then ``arch.fifo_depth`` (10^4) and
-``arch.flush_cycles`` (10^5). Times ``tlm.experiments.sweep.load_sweep`` on it: every
+``arch.flush_cycles`` (10^5). Times ``tlm.experiments.sweep_file.load_sweep`` on it: every
 point's config checked, the scenes and the programs table it names loaded, every point's
 key computed, which ``tlm sweep`` does before it runs a point (best of ``--repeat``).
 ``--until-first-point`` also times ``run_sweep`` up to where it would start the first
@@ -77,7 +77,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["TLM_CACHE"] = str(Path(tmp) / "cache")  # (nothing is rendered; a cache of its own all the same)
-        from tlm.experiments.sweep import load_sweep
+        from tlm.experiments.sweep_file import load_sweep
         from tlm.fingerprint import code_fingerprint
 
         code_fingerprint()  # (read once per process: not any size's)

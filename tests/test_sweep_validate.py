@@ -1,7 +1,7 @@
 """Checking a sweep's points: each factor value checked once, the same keys, the same refusals.
 
 ``load_sweep`` checks a point's config field by field, each combination of factor values
-under a field once (tlm.experiments.sweep._Checked), and puts each point's key together
+under a field once (tlm.experiments.sweep_file._Checked), and puts each point's key together
 from its fields' JSON. These tests hold it to what checking every point's whole config
 did: the same point hashes (the keys of finished points and of resumes), the same first
 error, word for word, and the same ``sweep.yaml``.
@@ -17,11 +17,11 @@ from pathlib import Path
 import pytest
 import yaml
 
-import tlm.experiments.sweep as sweep_mod
+import tlm.experiments.sweep_file as sweep_mod
 import tlm.fingerprint as fingerprint
 from tlm.config import config_from_dict
 from tlm.errors import InputError
-from tlm.experiments.sweep import Point, Sweep, _assign, expand, load_sweep
+from tlm.experiments.sweep_file import Point, Sweep, _assign, expand, load_sweep
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
         "arch": {"frames": 2, "trace": False, "packet_size": 32}}

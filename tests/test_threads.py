@@ -246,7 +246,7 @@ def test_bad_threads_is_an_input_error(value, says):
 def test_threads_do_not_enter_the_keys():
     from tlm.config import to_dict
     from tlm.experiments.frames import functional_key
-    from tlm.experiments.sweep import config_hash
+    from tlm.experiments.sweep_file import config_hash
 
     a = to_dict(config_from_dict({"scene": "cornell", "render": {"threads": 1}}))
     b = to_dict(config_from_dict({"scene": "cornell", "render": {"threads": 7}}))

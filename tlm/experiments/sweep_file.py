@@ -1,0 +1,436 @@
+"""The sweep file (``tlm sweep FILE``, :mod:`tlm.experiments.sweep`): read, expanded into
+points and checked, every point's config resolved and keyed.
+
+:func:`load_sweep` checks the file and every point's config before any point runs, and
+loads the scenes and programs tables the points name: a point's key (:func:`config_hash`)
+is the hash of its resolved config, of the content of the files it names and of tlm's
+code. The checks run once per value, not once per point (:class:`_Checked`): a sweep of
+10^5 points is checked in seconds (``benchmarks/bench_sweep_validate.py``), with the keys
+and messages of the whole-config check.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tlm.config import (
+    RunConfig,
+    check_leaf,
+    config_from_dict,
+    is_leaf,
+    plain,
+    read_yaml,
+    run_config_field,
+    to_dict,
+    with_leaves,
+)
+from tlm.errors import InputError
+from tlm.experiments.frames import render_key
+from tlm.fingerprint import code_fingerprint
+
+_SCALARS = (str, int, float, bool, type(None))
+SWEEP_KEYS = ("description", "base", "set", "grid", "zip")
+
+
+@dataclass(frozen=True)
+class Point:
+    """One point: its factor values and its resolved config."""
+
+    index: int
+    factors: dict[str, Any]  # dotted key -> value
+    config: dict  # to_dict of the resolved RunConfig (its sections shared with other points: read, never written)
+    hash: str  # 16 hex digits of sha256 over ``config``, its input files and tlm's code (config_hash)
+    functional: str = ""  # the functional key of its frame: points of one key share one render
+
+
+@dataclass(frozen=True)
+class Sweep:
+    path: Path
+    description: str | None
+    base: dict  # the base run config as written (before ``set``)
+    base_file: str | None
+    set: dict[str, Any]
+    grid: dict[str, list]
+    zip: dict[str, list]
+    folder: Path  # where relative paths in the configs start
+    points: list[Point] = field(default_factory=list)
+    # per point, the settings it never reads and why (tlm.render.planner.inert_settings of
+    # the config load_sweep checked)
+    inert: list[dict[str, str]] = field(default_factory=list)
+
+    @property
+    def factors(self) -> list[str]:
+        return [*self.grid, *self.zip]
+
+    def inert_factors(self) -> list[str]:
+        """A warning line per factor that changes nothing in any point
+        (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
+        filter, ``photons.count`` in mode rcast): its points would be the same run."""
+        lines = []
+        for factor in self.factors:
+            whys = {i.get(factor) for i in self.inert}
+            if self.inert and None not in whys:
+                lines.append(f"{self.path}: the factor {factor} changes nothing in any point: "
+                             f"{'; '.join(sorted(whys))}")
+        return lines
+
+    def identity(self) -> str:
+        """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
+        identity may run into one folder at once, two of others may not (storage.sharing)."""
+        return hashlib.sha256("\n".join(p.hash for p in self.points).encode()).hexdigest()[:16]
+
+    def to_dict(self) -> dict:
+        return {
+            "tlm": "sweep/1", "sweep": str(self.path), "description": self.description,
+            "base_file": self.base_file, "base": self.base, "set": self.set, "grid": self.grid, "zip": self.zip,
+            "points": [{"point": p.index, "hash": p.hash, "factors": p.factors} for p in self.points],
+        }
+
+    def marker(self) -> str:
+        """``sweep.yaml``'s text: ``yaml.safe_dump(self.to_dict(), sort_keys=False)``.
+
+        Where every factor value is a plain scalar (a string, number, bool or null: no YAML
+        anchors between points), the points' lines are put together from each factor
+        value's line and each hash, as that dump writes them, without a dump per point."""
+        head = self.to_dict()
+        del head["points"]
+        lines = {}  # (key, value's id) -> its lines in a point's factors (the values live as long as the points)
+        resolver = yaml.resolver.Resolver()  # (a hash that reads as a number is quoted, as the dump quotes it)
+        str_tag = "tag:yaml.org,2002:str"
+        out = [yaml.safe_dump(head, sort_keys=False), "points:\n"]
+        for p in self.points:
+            shown = p.hash if resolver.resolve(yaml.ScalarNode, p.hash, (True, False)) == str_tag else f"'{p.hash}'"
+            out.append(f"- point: {p.index}\n  hash: {shown}\n  factors:\n")
+            for k, v in p.factors.items():
+                line = lines.get((k, id(v)))
+                if line is None:
+                    if type(v) not in _SCALARS:  # (a list or a mapping: the dump's own, anchors and all)
+                        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+                    text = yaml.safe_dump([{"factors": {k: v}}], sort_keys=False)
+                    line = lines[k, id(v)] = text[text.index("\n") + 1:]
+                out.append(line)
+        return "".join(out)
+
+
+def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
+    """The point's key: sha256 of the resolved config's canonical JSON, of the fingerprints
+    of its input files and of tlm's code, 16 hex digits.
+
+    ``inputs`` (:func:`point_inputs`) holds the content of what the config names by path
+    only: the scene and its meshes (through the functional key) and the programs table.
+    The files and the code are part of the key so that a rerun after a change to either
+    computes its points again instead of reusing results of other inputs or other code.
+    """
+    return _key([_keyed(name, resolved[name]) for name in sorted(resolved)],
+                None if inputs is None else _json(inputs))
+
+
+def _json(value: Any) -> str:
+    """Canonical JSON: sorted keys, no spaces."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+
+
+def _keyed(name: str, resolved: Any) -> str:
+    """A top-level field of a resolved config as the point's key holds it: ``"name":`` and
+    its JSON, less ``render.threads`` (it changes the speed alone, bit-identical results: a
+    point keeps its key)."""
+    if name == "render" and isinstance(resolved, dict):
+        resolved = {k: v for k, v in resolved.items() if k != "threads"}
+    return f"{json.dumps(name)}:{_json(resolved)}"
+
+
+def _key(keyed: list[str], inputs: str | None) -> str:
+    """16 hex digits of sha256 over ``{"code": ..., "config": {fields}, "inputs": ...}`` (keys
+    sorted): the fields' :func:`_keyed` texts in the order of their names, the inputs' JSON."""
+    more = "" if inputs is None else f',"inputs":{inputs}'
+    blob = f'{{"code":{json.dumps(code_fingerprint())},"config":{{{",".join(keyed)}}}{more}}}'
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work: Any = None) -> dict[str, str]:
+    """Fingerprints of the files ``cfg`` names: its frame's functional key (the scene's
+    content) and the sha256 of the programs table's bytes.
+
+    Loads the scene and the programs table (an InputError names ``source``). ``seen``
+    keeps what was loaded, for the next point: points of one sweep share most of them.
+    ``work``: what names the config's frame in ``seen``, where the caller has it (any value
+    that the resolved config less ``arch`` decides, and that decides it); by default that
+    config's JSON.
+    """
+    from tlm.arch.costs import DEFAULT_PATH
+    from tlm.experiments.run import programs_for
+
+    seen = {} if seen is None else seen
+    table = cfg.arch.programs
+    if ("programs", table) not in seen:
+        try:
+            programs_for(cfg, folder)
+        except InputError as e:  # the table's own message, and which point names it
+            raise InputError(str(e), source=source) from None
+        path = DEFAULT_PATH if table is None else folder / table  # an absolute table stays itself
+        seen["programs", table] = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    if work is None:
+        work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
+    if ("functional", work) not in seen:
+        seen["functional", work] = render_key(cfg, folder, source)
+    return {"functional": seen["functional", work], "programs": seen["programs", table]}
+
+
+def _assign(raw: dict, key: str, value: Any) -> dict:
+    """A copy of ``raw`` with the dotted ``key`` set to ``value`` (sections created as needed)."""
+    out = dict(raw)
+    node = out
+    parts = key.split(".")
+    for p in parts[:-1]:
+        child = node.get(p)
+        node[p] = child = dict(child) if isinstance(child, dict) else {}
+        node = child
+    node[parts[-1]] = value
+    return out
+
+
+def _dotted_keys(section: Any, name: str, src: str, lists: bool) -> dict[str, Any]:
+    if section is None:
+        return {}
+    if not isinstance(section, dict):
+        raise InputError(f"must be a mapping of dotted keys, got {section!r}", source=src, key=name)
+    for k, v in section.items():
+        if not isinstance(k, str) or not k or any(not p for p in k.split(".")):
+            raise InputError(f"{k!r} is not a dotted config key", source=src, key=name)
+        if lists:
+            if not isinstance(v, list):
+                raise InputError(f"{v!r} is not a list of values", source=src, key=f"{name}.{k}")
+            if not v:
+                raise InputError("has no values", source=src, key=f"{name}.{k}")
+    return dict(section)
+
+
+def expand(grid: dict[str, list], zipped: dict[str, list]) -> list[dict[str, Any]]:
+    """product(grid) x zip, as {dotted key: value}; the grid's first key varies slowest, zip fastest."""
+    return _expand_both(grid, zipped)[0]
+
+
+def _expand_both(grid: dict[str, list], zipped: dict[str, list]) -> tuple[list[dict[str, Any]], list[tuple]]:
+    """:func:`expand`, and beside each point the index of each factor's value in its list
+    (the grid's keys, then the zip's)."""
+    columns = list(zip(*zipped.values())) if zipped else [()]
+    factors, indices = [], []
+    for combo in itertools.product(*(range(len(v)) for v in grid.values())):
+        values = {k: grid[k][j] for k, j in zip(grid, combo)}
+        for c in range(len(columns)):
+            factors.append({**values, **dict(zip(zipped, columns[c]))})
+            indices.append(combo + (c,) * len(zipped))
+    return factors, indices
+
+
+@dataclass(frozen=True)
+class _Field:
+    """One top-level field of a point's resolved config (a section, ``scene``, ``mode``, ...)."""
+
+    name: str
+    value: Any  # as RunConfig holds it
+    resolved: Any  # as to_dict gives it (shared by the points of this value: read, never written)
+    full: str  # its canonical JSON (sorted keys, no spaces)
+    keyed: str  # '"name":' and its JSON in the point's key (config_hash: render.threads left out)
+
+
+def _field(name: str, value: Any) -> _Field:
+    resolved = to_dict(value)
+    return _Field(name, value, resolved, _json(resolved), _keyed(name, resolved))
+
+
+def _config(fields: dict[str, _Field]) -> RunConfig:
+    return RunConfig(**{name: f.value for name, f in fields.items()})
+
+
+class _Checked:
+    """The points' configs checked field by field, each value once.
+
+    A top-level field's raw value (a section, ``scene``, ``seed``, ...) is the base (with
+    ``set``) with the factors under that field's key assigned: it depends on those factors'
+    values alone, so each combination of them is checked once (:func:`run_config_field`)
+    and its JSON made once, not once per point. Where every factor under a section names
+    one of its plain fields (``arch.fifo_depth``), each factor value is checked once alone
+    (:func:`check_leaf`) and a combination is the base's section with them
+    (:func:`with_leaves`, which makes the checks across the section's fields)."""
+
+    def __init__(self, fixed: dict, keys: list[str], values: list[list]):
+        self.fixed, self.keys, self.values = fixed, keys, values
+        names = [f.name for f in dataclasses.fields(RunConfig)]
+        owner = [k.split(".")[0] for k in keys]
+        # a key that is no field: every point fails the check (of its first key, point 0 first)
+        self.sound = all(o in names for o in owner)
+        under = {name: [i for i, o in enumerate(owner) if o == name] for name in names}
+        # the fields the factors leave as the base has them; the others' slots (RunConfig's order)
+        self.template: dict[str, _Field | None] = {
+            name: None if under[name] else _field(name, self._value(name, [])) for name in names}
+        self.varying = [(name, under[name], {}) for name in names if under[name]]
+        self.leaves = {name: all(is_leaf(keys[i]) for i in at) for name, at, _ in self.varying}
+        self.base = {name: self._value(name, []) for name, _, _ in self.varying if self.leaves[name]}
+        self.leaf: dict[tuple[int, int], Any] = {}  # (factor, value index) -> its checked value, or _REFUSED
+
+    def _value(self, name: str, at: list[int], index: tuple = ()) -> Any:
+        raw = {name: self.fixed[name]} if name in self.fixed else {}
+        for i in at:
+            raw = _assign(raw, self.keys[i], self.values[i][index[i]])
+        return run_config_field(name, plain(raw))
+
+    def _leaf(self, i: int, j: int) -> Any:
+        if (i, j) not in self.leaf:
+            try:
+                self.leaf[i, j] = check_leaf(self.keys[i], plain(self.values[i][j]))
+            except Exception:
+                self.leaf[i, j] = _REFUSED
+        return self.leaf[i, j]
+
+    def _check(self, name: str, at: list[int], index: tuple) -> _Field | None:
+        try:
+            if not self.leaves[name]:
+                return _field(name, self._value(name, at, index))
+            changes = {}
+            for i in at:
+                value = self._leaf(i, index[i])
+                if value is _REFUSED:
+                    return None
+                changes[self.keys[i].split(".")[1]] = value
+            return _field(name, with_leaves(name, self.base[name], changes))
+        except Exception:  # (the point's whole check, run again, says what and where)
+            return None
+
+    def point(self, index: tuple) -> dict[str, _Field] | None:
+        """The point's fields (in RunConfig's order) by the index of each factor's value, or
+        None where the checks refuse one (or where a factor's key is no field)."""
+        if not self.sound:
+            return None
+        fields = dict(self.template)
+        for name, at, cache in self.varying:
+            key = tuple(index[i] for i in at)
+            got = cache.get(key, _REFUSED)
+            if got is _REFUSED:
+                got = cache[key] = self._check(name, at, index)
+            if got is None:
+                return None
+            fields[name] = got
+        return fields
+
+    def of(self, cfg: RunConfig) -> dict[str, _Field]:
+        return {name: _field(name, getattr(cfg, name)) for name in self.template}
+
+
+_REFUSED = object()
+
+
+def load_sweep(path: Path) -> Sweep:
+    """Read and check a sweep file and every point's config, and load the scenes and programs
+    tables the points name (their content is part of the points' keys); InputError names the
+    file and key."""
+    path = Path(path)
+    src = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise InputError(f"must be a mapping with {', '.join(SWEEP_KEYS)}", source=src)
+    for key in raw:
+        if key not in SWEEP_KEYS:
+            raise InputError(f"unknown key (expected {', '.join(SWEEP_KEYS)})", source=src, key=str(key))
+    description = raw.get("description")
+    if description is not None and not isinstance(description, str):
+        raise InputError(f"{description!r} is not a string", source=src, key="description")
+    folder = path.resolve().parent
+    base, base_file, base_src = raw.get("base"), None, src
+    if isinstance(base, str):
+        file = folder / base
+        if not file.is_file():
+            raise InputError(f"{base!r}: file not found (relative to the sweep file)", source=src, key="base")
+        base_file, base_src, folder = base, str(file), file.resolve().parent
+        base = read_yaml(file)
+    if base is None:
+        base = {}
+    if not isinstance(base, dict):
+        raise InputError("must be a run config mapping or the path of a run config file", source=src, key="base")
+    config_from_dict(base, base_src)  # the base alone, so its errors name its own file
+
+    settings = _dotted_keys(raw.get("set"), "set", src, lists=False)
+    grid = _dotted_keys(raw.get("grid"), "grid", src, lists=True)
+    zipped = _dotted_keys(raw.get("zip"), "zip", src, lists=True)
+    if not grid and not zipped:
+        raise InputError("needs at least one factor under 'grid' or 'zip'", source=src)
+    lengths = {k: len(v) for k, v in zipped.items()}
+    if len(set(lengths.values())) > 1:
+        raise InputError(f"lists of unequal length ({', '.join(f'{k}: {n}' for k, n in lengths.items())})",
+                         source=src, key="zip")
+    seen: dict[str, str] = {}
+    for name, section in (("set", settings), ("grid", grid), ("zip", zipped)):
+        for k in section:
+            for other, where in seen.items():
+                if k == other or k.startswith(other + ".") or other.startswith(k + "."):
+                    raise InputError(f"overlaps {where}.{other}", source=src, key=f"{name}.{k}")
+            seen[k] = name
+
+    fixed = dict(base)
+    for k, v in settings.items():
+        fixed = _assign(fixed, k, v)
+    config_from_dict(fixed, f"{src} (base with set)")
+    factors_list, indices = _expand_both(grid, zipped)
+    checked = _Checked(fixed, [*grid, *zipped], [*grid.values(), *zipped.values()])
+    rows = []
+    for i, (factors, index) in enumerate(zip(factors_list, indices)):
+        fields = checked.point(index)
+        if fields is None:  # a value the checks refuse: the point's own check says which, as ever
+            point = fixed
+            for k, v in factors.items():
+                point = _assign(point, k, v)
+            shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
+            fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
+        rows.append((i, factors, fields))
+    from tlm.render.planner import inert_settings
+
+    inert, known = [], {}
+    for _, _, fields in rows:
+        # (what inert_settings reads: the mode, the photon-map sections, arch.scheduler)
+        key = (fields["mode"].full, fields["photons"].full, fields["estimate"].full, fields["reference"].full,
+               fields["arch"].value.scheduler)
+        if key not in known:
+            known[key] = inert_settings(_config(fields))
+        inert.append(known[key])
+    # every config is checked before any file it names is loaded
+    points, seen, known = [], {}, {}
+    order = sorted(checked.template)  # (the key's JSON sorts its keys)
+    # the config less arch, as the JSON of its fields: those the factors leave, then the others
+    same = tuple(f.full for name, f in checked.template.items() if f is not None and name != "arch")
+    other = [name for name, f in checked.template.items() if f is None and name != "arch"]
+    for i, factors, fields in rows:
+        work = (same, *[fields[name].full for name in other])
+        key = (fields["arch"].value.programs, work)  # what point_inputs reads
+        if key not in known:
+            inputs = point_inputs(_config(fields), folder, f"{src} (point {i})", seen, work)
+            known[key] = inputs, _json(inputs)
+        inputs, shown = known[key]
+        # config_hash(resolved, inputs), from the fields' own JSON
+        points.append(Point(i, factors, {name: f.resolved for name, f in fields.items()},
+                            _key([fields[name].keyed for name in order], shown), inputs["functional"]))
+    _one_run_one_row(points, src)
+    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
+
+
+def _one_run_one_row(points: list[Point], src: str) -> None:
+    """An InputError when points of other factor values are one run (one key): only
+    ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
+    same results), so a sweep over it would run its first value and label the others' rows
+    with values never run."""
+    first: dict[str, Point] = {}
+    for p in points:
+        other = first.setdefault(p.hash, p)
+        if other is not p and other.factors != p.factors:
+            differ = [k for k in p.factors if p.factors[k] != other.factors.get(k)]
+            raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
+                             f"(render.threads changes no result, only the host's speed), so they would be one run "
+                             "with two labels: give render.threads under set:, and time thread counts with "
+                             "benchmarks/bench_threads.py", source=src, key=", ".join(differ))
