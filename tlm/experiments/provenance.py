@@ -7,6 +7,7 @@ record them, so that a number can be traced to the code that produced it.
 
 from __future__ import annotations
 
+import hashlib
 import platform
 import subprocess
 from pathlib import Path
@@ -72,3 +73,41 @@ def provenance(study: str | None, host_seconds: float | None) -> dict:
     """What a study folder records of where it came from (``provenance.json``)."""
     return {"study": study, "versions": versions(), **code_state(),
             "host_seconds": None if host_seconds is None else round(host_seconds, 3)}
+
+
+def scene_identity(source) -> str:
+    """The scene file ``source`` (a run's ``scene.source``) as a digest of its bytes and of
+    those of the files its ``extends:`` chain names (a built-in name there is the same scene
+    for every file that names it): two copies of one file are one scene. A file that is not
+    on this machine (a folder written elsewhere) is told by its path. Eq. 5.2's groups
+    (:mod:`tlm.experiments.scaling`) and the thesis's scenes
+    (:func:`tlm.experiments.thesis.table_of`) are told apart so."""
+    return _identity(Path(str(source)), 0) if source else "(no scene file recorded)"
+
+
+def _identity(path: Path, depth: int) -> str:
+    import yaml
+
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return f"path {path}"
+    digest = hashlib.sha256(data)
+    try:
+        ref = (yaml.safe_load(data) or {}).get("extends")
+    except (ValueError, AttributeError, yaml.YAMLError):
+        ref = None
+    if isinstance(ref, str) and depth < 8 and (ref.endswith(".yaml") or "/" in ref):
+        digest.update(_identity(path.parent / ref, depth + 1).encode())
+    return f"sha256 {digest.hexdigest()[:16]}"
+
+
+def scene_label(source) -> str:
+    """A scene file as a user names it: a built-in one by its name (``thesis/ring``), any
+    other by its path."""
+    from tlm.scenes.loader import scenes_dir
+
+    try:
+        return Path(str(source)).resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
+    except (ValueError, OSError):
+        return str(source)

@@ -39,7 +39,6 @@ T(1) / T(N), for each scheduler.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from collections import defaultdict
@@ -49,6 +48,7 @@ from pathlib import Path
 import yaml
 
 from tlm.errors import InputError
+from tlm.experiments.provenance import scene_identity, scene_label
 from tlm.experiments.study import run_study
 from tlm.storage import check_destination, distinct_folders, read_jsonl
 
@@ -161,41 +161,6 @@ def settings(cfg: dict) -> dict[str, str]:
 
     walk(cfg if isinstance(cfg, dict) else {}, "")
     return flat
-
-
-def scene_identity(source) -> str:
-    """The scene file ``source`` (a point's ``scene.source``) as eq. 5.2's groups tell scenes
-    apart: a digest of its bytes and of those of the files its ``extends:`` chain names (a
-    built-in name there is the same scene for every file that names it), the rule of
-    :func:`tlm.experiments.thesis.table_of`. A file that is not on this machine (a sweep
-    written elsewhere) is told by its path."""
-    return _identity(Path(str(source)), 0) if source else "(no scene file recorded)"
-
-
-def _identity(path: Path, depth: int) -> str:
-    try:
-        data = path.read_bytes()
-    except OSError:
-        return f"path {path}"
-    digest = hashlib.sha256(data)
-    try:
-        ref = (yaml.safe_load(data) or {}).get("extends")
-    except (ValueError, AttributeError, yaml.YAMLError):
-        ref = None
-    if isinstance(ref, str) and depth < 8 and (ref.endswith(".yaml") or "/" in ref):
-        digest.update(_identity(path.parent / ref, depth + 1).encode())
-    return f"sha256 {digest.hexdigest()[:16]}"
-
-
-def scene_label(source) -> str:
-    """A scene file as a user names it: a built-in one by its name (``thesis/ring``), any
-    other by its path."""
-    from tlm.scenes.loader import scenes_dir
-
-    try:
-        return Path(str(source)).resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
-    except (ValueError, OSError):
-        return str(source)
 
 
 def record(res: dict, cfg: dict) -> dict:

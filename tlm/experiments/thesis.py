@@ -60,6 +60,7 @@ from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.config import MODES, RunConfig, config_from_dict, to_dict
 from tlm.errors import InputError
+from tlm.experiments.provenance import scene_identity, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.study import read_study, run_study
 from tlm.progress import Timer, progress_bar
@@ -124,38 +125,13 @@ def table_of(source: str | Path | None) -> str | None:
     for table, name in THESIS_SCENES.items():
         builtin = root / f"{name}.yaml"
         if here:
-            if _same_scene_file(p, builtin):
+            if scene_identity(p) == scene_identity(builtin):
                 return table
             continue
         tail = ("scenes", *f"{name}.yaml".split("/"))
         if p.parts[-len(tail):] == tail or p.parts[-len(tail):] == ("_scenes", *tail[1:]):
             return table
     return None
-
-
-def _same_scene_file(p: Path, builtin: Path, depth: int = 0) -> bool:
-    """Whether the scene file ``p`` has the bytes of ``builtin``, and so has the file its
-    ``extends:`` names (relative to each), down the chain."""
-    import yaml
-
-    try:
-        data = p.read_bytes()
-        if data != builtin.read_bytes():
-            return False
-        ref = (yaml.safe_load(data) or {}).get("extends")
-    except (OSError, ValueError, AttributeError, yaml.YAMLError):
-        return False
-    if not isinstance(ref, str) or depth > 8 or not (ref.endswith(".yaml") or "/" in ref):
-        return True  # (no extends, or a built-in name: the same scene either way)
-    return _same_scene_file(p.parent / ref, builtin.parent / ref, depth + 1)
-
-
-def _scene_label(source: str) -> str:
-    """A scene file as a user names it: a built-in one by its name, any other by its path."""
-    try:
-        return Path(source).resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
-    except (ValueError, OSError):
-        return str(source)
 
 
 def mismatches(table: str, *, source: str | None = None, resolution: list[int] | None = None,
@@ -171,7 +147,7 @@ def mismatches(table: str, *, source: str | None = None, resolution: list[int] |
     w, h, n, _ = THESIS_SIZES[table]
     out = []
     if source is not None and table_of(source) != table:
-        out.append(f"the scene {_scene_label(source)} (the thesis's is {THESIS_SCENES[table]})")
+        out.append(f"the scene {scene_label(source)} (the thesis's is {THESIS_SCENES[table]})")
     if resolution and [int(resolution[0]), int(resolution[1])] != [w, h]:
         out.append(f"{resolution[0]}×{resolution[1]} pixels (thesis {w}×{h})")
     if photons is not None and int(photons) != n:
