@@ -252,7 +252,8 @@ def _scene(scene: Scene | str | Path) -> Scene:
 
 def scene_info(scene: Scene | str | Path) -> dict:
     """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
-    parts, lights and camera of a scene (or of the scene named)."""
+    parts, lights and camera of a scene (or of the scene named), and ``notes``: the lines
+    on what its mesh files gave that was imported or left out, which a run warns of."""
     from tlm.experiments.run import scene_head
 
     scene = _scene(scene)
@@ -280,6 +281,7 @@ def scene_info(scene: Scene | str | Path) -> dict:
         ],
         "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
                    "up": list(scene.camera.up), "vfov": scene.camera.vfov},
+        "notes": [str(n) for n in scene.extra.get("notes") or []],
     }
 
 

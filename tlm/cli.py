@@ -429,7 +429,8 @@ def build_parser() -> argparse.ArgumentParser:
     ss = s.add_subparsers(dest="scene_cmd", required=True)
     sl = ss.add_parser("list", help="the built-in scenes (names for a config's scene: key)")
     sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
-    sh = ss.add_parser("show", help="triangle count, bounds, materials, lights")
+    sh = ss.add_parser("show", help="triangle count, bounds, materials, lights, camera, and notes on what the mesh "
+                       "files gave that was imported or left out")
     sh.add_argument("name", help="built-in scene name or scene YAML path")
     se = ss.add_parser("export", help="world-space triangles in triangle-id order (PLY or OBJ), or the whole "
                        "scene as a scene file (.yaml, with its OBJ and MTL beside it)")

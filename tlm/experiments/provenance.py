@@ -8,6 +8,7 @@ record them, so that a number can be traced to the code that produced it.
 from __future__ import annotations
 
 import hashlib
+import os
 import platform
 import subprocess
 from pathlib import Path
@@ -78,11 +79,51 @@ def provenance(study: str | None, host_seconds: float | None) -> dict:
 def scene_identity(source) -> str:
     """The scene file ``source`` (a run's ``scene.source``) as a digest of its bytes and of
     those of the files its ``extends:`` chain names (a built-in name there is the same scene
-    for every file that names it): two copies of one file are one scene. A file that is not
+    for every file that names it), and of the files its geometry's meshes are read from (each
+    mesh file, an OBJ's MTL libraries, a glTF's buffers: :func:`tlm.scenes.meshes.mesh_files`,
+    by their content and, for the libraries and buffers, their names beside the mesh): two
+    copies of one scene file with copies of its meshes, in the same places relative to it, are
+    one scene, wherever they are; the same scene file beside other mesh contents is another.
+    A scene without mesh files keeps the digest of its scene files alone. A file that is not
     on this machine (a folder written elsewhere) is told by its path. Eq. 5.2's groups
     (:mod:`tlm.experiments.scaling`) and the thesis's scenes
     (:func:`tlm.experiments.thesis.table_of`) are told apart so."""
-    return _identity(Path(str(source)), 0) if source else "(no scene file recorded)"
+    if not source:
+        return "(no scene file recorded)"
+    path = Path(str(source))
+    ident = _identity(path, 0)
+    meshes = _mesh_lines(path) if ident.startswith("sha256 ") else []
+    if not meshes:
+        return ident
+    digest = hashlib.sha256(ident.encode())
+    for line in meshes:
+        digest.update(f"{line}\n".encode())
+    return f"sha256 {digest.hexdigest()[:16]}"
+
+
+def _mesh_lines(path: Path) -> list[str]:
+    """A line per mesh file of the scene file ``path``'s geometry, in its order: the digests of
+    the files a load of it reads (:func:`tlm.scenes.meshes.mesh_files`: the mesh's content, the
+    others' with their paths relative to the mesh), or that it is missing or unreadable."""
+    from tlm.errors import InputError
+    from tlm.scenes.compose import mesh_paths
+    from tlm.scenes.meshes import mesh_files
+
+    try:
+        paths = mesh_paths(path)
+    except (InputError, OSError, ValueError):
+        return []  # (a scene file that does not load: its bytes tell it)
+    out = []
+    for i, mesh in enumerate(paths):
+        try:
+            files = mesh_files(mesh)
+        except (InputError, OSError, ValueError) as e:
+            out.append(f"mesh {i}: {'missing' if not mesh.is_file() else f'unreadable ({type(e).__name__})'}")
+            continue
+        parts = [f"{files[0][1]['sha256']} {files[0][1]['size']}"]
+        parts += [f"{os.path.relpath(f, mesh.parent)} {d['sha256']} {d['size']}" for f, d in files[1:]]
+        out.append(f"mesh {i}: " + "; ".join(parts))
+    return out
 
 
 def _identity(path: Path, depth: int) -> str:

@@ -17,8 +17,9 @@ pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a stat
 tiling of an uneven image waits for.
 
 A group's scene is the scene *file* its points rendered, judged by the file's bytes (and
-those of the files its ``extends:`` chain names), as :func:`tlm.experiments.thesis.table_of`
-judges a thesis scene (:func:`scene_identity`): two copies of one file are one scene, two
+those of the files its ``extends:`` chain names, and of the mesh files its geometry reads),
+as :func:`tlm.experiments.thesis.table_of` judges a thesis scene (:func:`scene_identity`):
+two copies of one file (and of its meshes) are one scene, two
 files that share a ``name`` (a modified copy of ``cornell.yaml``, the built-in ``ring``
 beside ``thesis/ring``) are two groups, each named by its file where the name alone would
 not tell them apart (:func:`groups`). The points of one group must differ in N alone: a

@@ -15,7 +15,9 @@ measures both ways). Both results are kept under ``$TLM_CACHE/scenes`` (default
   lookup of those files runs again beside this mesh (so a library that appeared where the
   lookup looks first, or one that changed or went missing, means a new parse). A file
   whose parse can read files the lookup cannot name (any ``.gltf``, a ``.glb`` with
-  external buffers) is not cached.
+  external buffers) is not cached. :func:`mesh_files` names the files a load reads, with
+  their digests, from the entry's names (a parse, kept, where there is none), for a scene
+  file's identity (:func:`tlm.experiments.provenance.scene_identity`).
 * **crease normals** (:func:`crease_normals`): the code, the crease angle and the bytes
   of the world-space triangles and their parts, so a transform, another part map or
   another angle is another entry.
@@ -45,7 +47,7 @@ from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
 from tlm.storage import cache_root, digest_problem, file_digest, warn, write_atomic
 
-__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh"]
+__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files"]
 
 FORMAT = "tlm-scene-cache/2"  # /2: one file an entry (its metadata inside)
 MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) again: it is quicker
@@ -100,24 +102,27 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         digest = file_digest(path)
     except OSError:
         return parse(path)[0]  # (the parse says what is wrong with the file)
-    # (the name: a part's, the format's)
-    key = _key("mesh", _versions(), path.name, digest["sha256"], str(digest["size"]))
-    entry = cache_dir() / f"mesh-{key}.npz"
+    entry = _mesh_entry(path, digest)
     if entry.exists():
         got = _read(entry)
         if got is not None and _libraries_unchanged(path, got[1], resolve):
             geom = _geometry(entry, *got, path=path)
             if geom is not None:
                 return geom
+    return _kept(path, parse, resolve, digest, entry)[0]
+
+
+def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path) -> tuple[Geometry, list | None]:
+    """``parse(path)``, kept as the entry ``entry`` when it is large enough and names its other files."""
     geom, names = parse(path)
     if names is None or geom.triangles.shape[0] < MIN_TRIANGLES:
-        return geom
+        return geom, names
     try:
         deps = [{"path": os.path.relpath(p, path.parent), **file_digest(Path(p))} for p in resolve(path, names)]
         if file_digest(path) != digest:
-            return geom  # (the file changed while it was parsed: not kept under its old digest)
+            return geom, names  # (the file changed while it was parsed: not kept under its old digest)
     except (OSError, InputError):
-        return geom
+        return geom, names
     arrays = {"triangles": geom.triangles, "part": geom.part}
     if geom.normals is not None:
         arrays["normals"] = geom.normals
@@ -137,7 +142,43 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
                          "camera_name": i.camera_name, "aspect": i.aspect}
                         for i in geom.imports]}
     _write(entry, arrays, meta)
-    return geom
+    return geom, names
+
+
+def _mesh_entry(path: Path, digest: dict) -> Path:
+    """Where the entry of the mesh file ``path`` (of :func:`~tlm.storage.file_digest` ``digest``) is."""
+    # (the name: a part's, the format's)
+    key = _key("mesh", _versions(), path.name, digest["sha256"], str(digest["size"]))
+    return cache_dir() / f"mesh-{key}.npz"
+
+
+def mesh_files(path: Path, parse: Parse, resolve: Resolve) -> list[tuple[Path, dict]]:
+    """The mesh file ``path`` and the other files a load of it reads (``resolve`` of what names
+    them: from its entry when it has one, else from ``parse``), each with its
+    :func:`~tlm.storage.file_digest`, the digest an entry is keyed by and checks its other files
+    by. An OSError or :class:`~tlm.errors.InputError` where a file cannot be read; a ValueError
+    where the parse cannot name them (:func:`mesh`'s ``parse``)."""
+    path = Path(path)
+    digest = file_digest(path)
+    entry = _mesh_entry(path, digest)
+    names = _names(entry)
+    if names is None:  # (parsed, and kept as a load keeps it: the next time, and the next load, read the entry)
+        names = _kept(path, parse, resolve, digest, entry)[1]
+    if names is None:
+        raise ValueError(f"{path}: its parse cannot name the files it reads")
+    return [(path, digest), *((Path(p), file_digest(Path(p))) for p in resolve(path, names))]
+
+
+def _names(entry: Path) -> list | None:
+    """What names the other files of a mesh entry's parse (its metadata alone is read); None
+    where there is no entry or it cannot be read (a load reports a damaged one)."""
+    try:
+        with np.load(entry, allow_pickle=False) as z:
+            meta = json.loads(z["meta"].tobytes().decode())
+    except Exception:  # (FileNotFoundError, BadZipFile, KeyError, ValueError, ...)
+        return None
+    ok = isinstance(meta, dict) and meta.get("format") == FORMAT and isinstance(meta.get("names"), list)
+    return meta["names"] if ok else None
 
 
 def crease_normals(triangles: np.ndarray, part: np.ndarray, crease_angle: float,

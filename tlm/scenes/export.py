@@ -1,7 +1,10 @@
 """Export a scene's world-space triangles, in triangle-id order, as PLY or OBJ, or the
 whole scene as a scene file (``.yaml`` or ``.yml``) with its OBJ and MTL beside it.
 
-The PLY file also carries each face's material index (property ``material``). The OBJ
+The PLY file also carries each face's material index (property ``material``) and each
+material's name (a header line ``comment tlm material K "NAME"``, the name as a JSON
+string), so that tlm reads it back with each face's material named, for the scene file's
+``materials:`` to give (a PLY holds no material's values: :mod:`tlm.scenes.plyfile`). The OBJ
 file carries the parts (``o``), the shading normals (``vn``, one per triangle corner:
 the normals the renderer uses, so that a re-read file needs no crease angle) and the
 materials (``usemtl``, in an MTL library of the same stem written beside it: ``Kd`` for
@@ -26,6 +29,7 @@ positions are the ones the renderer uses.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -72,9 +76,12 @@ def export_triangles(scene: Scene, path: Path) -> None:
 def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.ndarray) -> None:
     n = faces.shape[0]
     if suffix == ".ply":
+        from tlm.scenes.plyfile import NAME_COMMENT
+
+        names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
         header = (
             "ply\nformat binary_little_endian 1.0\n"
-            f"comment tlm scene {scene.name}: face i is triangle id i\n"
+            f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{names}"
             f"element vertex {3 * n}\nproperty double x\nproperty double y\nproperty double z\n"
             f"element face {n}\nproperty list uchar int vertex_indices\n"
             "property int material\nend_header\n"
@@ -89,7 +96,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
             f.write(face_rec.tobytes())
     else:
         library = path.with_suffix(".mtl")
-        lines = [f"{_MTL_HEAD}{scene.name}: face i is triangle id i", f"mtllib {library.name}"]
+        lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", f"mtllib {library.name}"]
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
         normals = scene.normals
         if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
@@ -147,6 +154,11 @@ def _check_ours(path: Path, target: Path, what: str) -> None:
                          "name another .yaml file", source=str(target))
 
 
+def _one_line(name: str) -> str:
+    """A scene's name as a comment line can hold it (its line breaks as spaces)."""
+    return " ".join(name.splitlines())
+
+
 def _floats(values) -> list[float]:
     return [float(x) for x in values]
 
@@ -187,8 +199,8 @@ def scene_yaml(scene: Scene, mesh: str) -> str:
         "resolution": [int(cam.width), int(cam.height)],
         "photons": int(scene.photons),
     }
-    name = " ".join(scene.name.splitlines())
-    head = (f"{_MTL_HEAD}{name}: written by tlm scene export, with {mesh} and its MTL library beside it.\n"
+    head = (f"{_MTL_HEAD}{_one_line(scene.name)}: written by tlm scene export, with {mesh} and its MTL library "
+            "beside it.\n"
             "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.\n")
     return head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
 
@@ -198,7 +210,7 @@ def mtl_text(scene: Scene) -> str:
     def rgb(c) -> str:
         return " ".join(repr(float(x)) for x in c)
 
-    out = [f"{_MTL_HEAD}{scene.name}: its materials"]
+    out = [f"{_MTL_HEAD}{_one_line(scene.name)}: its materials"]
     for m in scene.materials:
         out.append(f"newmtl {m.name}")
         if m.kind == "lambertian":

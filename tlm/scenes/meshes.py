@@ -29,7 +29,10 @@ polygons are fan-triangulated from their first corner.
   ``Geometry.notes``. A PLY whose
   faces are triangle strips (element ``tristrips``, ``-1`` restarting a strip) is
   decoded with alternating winding; the degenerate triangles that stitch strips are
-  dropped.
+  dropped. A PLY's face property ``material`` (or ``material_index``) gives each face's
+  material, a placeholder named by the file's header or by its index that the scene file
+  supplies; a PLY's polygons are fanned from their first corner in file order; its colours
+  are named in ``Geometry.notes`` (:mod:`tlm.scenes.plyfile`).
 * A file ending in ``.gz``, ``.xz`` or ``.bz2`` after its format's suffix
   (``conference.obj.xz``) is decompressed first (all but ``.gltf``).
 
@@ -52,7 +55,7 @@ from tlm.errors import InputError, did_you_mean
 from tlm.scenes.gltf_imports import gltf_imports
 from tlm.scenes.model import Geometry, Imported, Material
 
-__all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_format"]
+__all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_files", "mesh_format"]
 
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".glb", ".gltf")
 COMPRESSED_EXTENSIONS = (".gz", ".xz", ".bz2")
@@ -161,6 +164,37 @@ def _parse(path: Path) -> tuple[Geometry, list | None]:
     if ext == ".gltf" or (ext == ".glb" and _external_buffers(path)):
         return geom, None
     return geom, []
+
+
+def mesh_files(path: Path) -> list[tuple[Path, dict]]:
+    """The files a load of the mesh file ``path`` reads, each with its
+    :func:`~tlm.storage.file_digest` (the digest the scene cache keys a mesh by): the file,
+    then an OBJ's material libraries (found as :func:`load_mesh` finds them:
+    :func:`tlm.scenes.cache.mesh_files`) or a glTF's buffer files. A glTF's images (textures)
+    are not among them: tlm does not render them. An :class:`~tlm.errors.InputError` or an
+    OSError where one cannot be read."""
+    from tlm.storage import file_digest
+
+    path = Path(path)
+    ext = mesh_format(path)[0]
+    if ext == ".obj":
+        from tlm.scenes import cache
+
+        return cache.mesh_files(path, _parse, _libraries)
+    out = [(path, file_digest(path))]
+    if ext in (".glb", ".gltf"):
+        from urllib.parse import unquote
+
+        from tlm.scenes.materials import gltf_json
+        from tlm.scenes.objfile import read_bytes
+
+        for b in gltf_json(path, read_bytes(path)).get("buffers") or []:
+            uri = b.get("uri") if isinstance(b, dict) else None
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                file = path.parent / uri
+                file = file if file.is_file() else path.parent / unquote(uri)  # (as the load finds it: _buffer_files)
+                out.append((file, file_digest(file)))
+    return out
 
 
 def _external_buffers(path: Path) -> bool:
@@ -341,6 +375,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     notes: tuple[str, ...] = ()
     source: object = str(path)
     kwargs: dict = {}
+    data: bytes | None = None
     if zext or ext in (".glb", ".gltf"):
         data = read_bytes(path)
         if zext:
@@ -392,6 +427,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     if not items:
         raise InputError("the file holds no geometry (empty mesh)", source=src)
 
+    if ext == ".ply":
+        from tlm.scenes import plyfile
+
+        head = plyfile.header(path, data)
     names: list[str] = []
     chunks: list[np.ndarray] = []
     part_ids: list[np.ndarray] = []
@@ -401,8 +440,13 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
         has_faces = isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
         strips = _ply_strips(geom) if ext == ".ply" and not has_faces else None
+        polys = plyfile.polygons(geom, src) if ext == ".ply" and has_faces else None
+        face_of = None  # (a PLY's face of each triangle: None, triangle i is face i)
         if strips is not None:
             vertices, faces, nrm = strips
+        elif polys is not None:
+            vertices, faces, nrm, face_of, short = polys
+            notes += short
         else:
             if not isinstance(geom, trimesh.Trimesh):
                 kind = type(geom).__name__
@@ -413,7 +457,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             nrm = None
         _check_mesh(vertices, faces, label, src)
         tri = vertices[faces]
-        if strips is None:
+        if strips is None and polys is None:
             nrm = _file_normals(geom, faces)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
@@ -431,6 +475,11 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         chunks.append(tri)
         part_ids.append(np.full(len(tri), names.index(name), dtype=np.int32))
         mat_ids.append(np.full(len(tri), _gltf_index(geom, len(file_materials)), dtype=np.int32))
+        if ext == ".ply":  # (one mesh: its faces' materials, and what it holds that tlm does not render)
+            notes += plyfile.colour_notes(geom, src)
+            got = plyfile.face_materials(geom, src, head, face_of) if has_faces else None
+            if got is not None:
+                file_materials, mat_ids[-1] = got
     normals = None
     if all(c is not None for c in corner_normals):  # the file gives every geometry's normals
         normals = np.concatenate(corner_normals)
@@ -505,12 +554,10 @@ def _ply_strips(geom) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None
 
 
 def _ply_field(data, key: str):
-    """A property of a PLY element as trimesh keeps it (a dict of arrays for ASCII, a
-    structured array for binary files); None if absent."""
-    if isinstance(data, dict):
-        return data.get(key)
-    names = getattr(getattr(data, "dtype", None), "names", None) or ()
-    return data[key] if key in names else None
+    """A property of a PLY element as trimesh keeps it (:func:`tlm.scenes.plyfile.field`)."""
+    from tlm.scenes.plyfile import field
+
+    return field(data, key)
 
 
 def _file_normals(geom, faces: np.ndarray) -> np.ndarray | None:

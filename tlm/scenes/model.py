@@ -44,7 +44,8 @@ class Material:
     # a mesh file's material renamed where two files name one (tlm.scenes.compose.merge): the
     # name its file gives it, by which a scene file's materials: entry still replaces it
     alias: str = field(default="", compare=False)
-    # a material a mesh file's faces name (OBJ usemtl) that its libraries do not define: why
+    # a material a mesh file's faces name (OBJ usemtl) that its libraries do not define, or a PLY's
+    # face material (tlm.scenes.plyfile: a PLY holds no material's values): why
     # (the line), for the error when the scene file gives it neither a materials: entry nor a
     # default_material (tlm.scenes.loader); its values are a placeholder
     undefined: str = field(default="", compare=False)
