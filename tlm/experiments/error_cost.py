@@ -2,10 +2,14 @@
 
 An experiment file names a base run config and a union of grids over dotted config
 keys; every point renders the photon-map frame of the base scene and records its
-error against the converged reference (:mod:`tlm.experiments.reference`, computed
-and cached first if missing) beside its cost: the gather's work (node visits, leaves
-visited, photons tested and accepted), host seconds (photon tracing and gathering) and
-the simulated time of the whole photon-map frame. That frame is what ``tlm run``
+error against the converged reference (:mod:`tlm.experiments.reference`) beside its
+cost. The reference is found as ``tlm reference`` finds it (:func:`study_reference`):
+the cached one when it meets the base's ``reference.tolerance``, else computed first
+with the base's reference settings and cached. One that still misses the tolerance
+(``reference.max_rounds`` reached) is used all the same, with a warning, and every
+row's ``reference_converged`` (and ``reference.json``'s) is false. The cost: the
+gather's work (node visits, leaves visited, photons tested and accepted), host seconds
+(photon tracing and gathering) and the simulated time of the whole photon-map frame. That frame is what ``tlm run``
 simulates in pmap mode: the passes the planner runs (ray cast, and reflect and refract
 when the scene has mirrors or glass), the point's photon trace (its work and photon
 tree) and its photon-map pass, through the timing model (:func:`tlm.arch.model.simulate`
@@ -32,7 +36,8 @@ File format::
       - {estimate.filter: [kvoxel], estimate.k: [4, 8, 16], ...}
 
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
-pandas), ``reference.json`` (the reference used), ``config.resolved.yaml`` and
+pandas), ``reference.json`` (the reference used: its metadata, ``reference_converged``
+and whether it was ``computed`` by this study), ``config.resolved.yaml`` and
 ``provenance.json`` (versions, git revision, host seconds).
 """
 
@@ -68,12 +73,13 @@ from tlm.render.frame import Frame, GBuffer
 from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, sees_a_light
 from tlm.render.planner import photon_count, plan
 from tlm.render.pmap import pmap_pass, search_radius, trace_photon_map
-from tlm.storage import check_destination
+from tlm.storage import check_destination, warn
 
 COLUMNS = (
     "point", "factors", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
     "final_gather", "caustic_photons", "aim",
-    "rmse", "rel_mse", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp", *GATHER_KEYS[1:], "gathers",
+    "rmse", "rel_mse", "reference_converged", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp",
+    *GATHER_KEYS[1:], "gathers",
     "trace_seconds", "gather_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
@@ -220,12 +226,15 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                              "render's specular depths and Fresnel settings, reference.photons, reference.k_nearest): "
                              "every point is measured against the base's reference; run one experiment per value",
                              source=str(path), key=f"points: {point}")
-    found = load_reference(key)
-    if found is None:
-        image, meta = compute_reference(frame0, g, settings)
-        save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
-        found = load_reference(key)
-    reference, ref_meta = found
+    reference, ref_meta, computed = study_reference(frame0, settings, key, note)
+    converged = meets_tolerance(ref_meta, settings)
+    if not converged:
+        err = ref_meta.get("relative_standard_error")
+        warn(f"error-vs-cost: the photon-map reference {key} is NOT converged: relative standard error "
+             f"{'n/a' if err is None else f'{err:.4f}'} after {ref_meta.get('rounds')} rounds, above the base's "
+             f"reference.tolerance {settings.tolerance}; every row's rmse and rel_mse include its noise "
+             "(reference_converged: false in the rows and reference.json); raise the base's reference.max_rounds "
+             "(or reference.tolerance)")
     reference = reference.reshape(-1, 3)
     truth_image, truth_meta = truth.load(frame0, g, note)
     keep = None
@@ -271,7 +280,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),
             "aim": cfg.photons.aim,
-            **image_error(radiance, reference),
+            **image_error(radiance, reference), "reference_converged": converged,
             **truth_error(composite, truth_image, keep),
             "truth_spp": truth.spp if truth_image is not None else None,
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
@@ -283,7 +292,45 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         return row
     return run_study(str(path), out, "rows", [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                      one, columns=COLUMNS, config=cfg0, started=start,
-                     files=lambda _rows: {"reference.json": {"key": key, **ref_meta}, "truth.json": truth_meta})
+                     files=lambda _rows: {"reference.json": {"key": key, **ref_meta, "reference_converged": converged,
+                                                             "computed": computed},
+                                          "truth.json": truth_meta})
+
+
+def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether a reference's ``meta`` says it converged within ``settings.tolerance`` (the test
+    ``tlm reference`` applies to a cached one: :func:`tlm.experiments.reference.make_reference`)."""
+    err = meta.get("relative_standard_error")
+    return bool(meta.get("converged")) and err is not None and err <= settings.tolerance
+
+
+# the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
+RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
+
+
+def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
+                    note=None) -> tuple[np.ndarray, dict, bool]:
+    """The reference the study measures against, as ``tlm reference`` gets it: the cached
+    one when it meets the base's ``reference.tolerance`` (:func:`meets_tolerance`), else
+    computed now with the base's settings and cached (``note`` says so when one was cached).
+    A cached one that misses the tolerance but was computed with the base's own stopping rule
+    (:data:`RULE`) is kept: computing it again would repeat the same rounds (fixed seeds) to the
+    same image. Returns the image, its metadata and whether it was computed now."""
+    found = load_reference(key)
+    if found is not None and not meets_tolerance(found[1], settings):
+        meta = found[1]
+        if any(meta.get(k) != getattr(settings, k) for k in RULE):
+            if note is not None:
+                note(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it "
+                     "again with the base's reference settings")
+            found = None
+    if found is not None:
+        return found[0], found[1], False
+    cam = frame.scene.camera
+    image, meta = compute_reference(frame, None, settings)
+    save_reference(key, image.reshape(cam.height, cam.width, 3), meta)
+    found = load_reference(key)
+    return found[0], found[1], True
 
 
 def factors_text(point: dict[str, Any]) -> str:

@@ -3,7 +3,8 @@
 ``numba`` (the default when numba imports) runs the traversal and the BSP builder's
 per-element passes compiled (:mod:`tlm.kernels._jit`, :mod:`tlm.kernels._jit_bsp`);
 ``numpy`` runs the vectorized numpy reference. Both give bit-identical results
-(``tests/test_engines.py`` compares them).
+(``tests/test_engines.py`` compares them). Unset or empty is the default; any other
+value is refused as bad input.
 """
 
 from __future__ import annotations
@@ -11,14 +12,19 @@ from __future__ import annotations
 import functools
 import os
 
+from tlm.errors import InputError
+
 ENGINES = ("numba", "numpy")
 
 
 def engine() -> str:
-    """``numba`` or ``numpy``, from ``TLM_KERNELS`` (default: numba if it imports)."""
-    name = os.environ.get("TLM_KERNELS", "").strip().lower()
+    """``numba`` or ``numpy``, from ``TLM_KERNELS`` (default: numba if it imports); any
+    other value is an :class:`~tlm.errors.InputError` naming the variable (exit status 2)."""
+    raw = os.environ.get("TLM_KERNELS", "")
+    name = raw.strip().lower()
     if name and name not in ENGINES:
-        raise ValueError(f"TLM_KERNELS={name!r}: expected one of {', '.join(ENGINES)}")
+        raise InputError(f"{raw!r} is not an engine: expected {' or '.join(ENGINES)} (unset or empty: numba "
+                         "where it imports, else numpy)", source="environment", key="TLM_KERNELS")
     if name == "numpy" or not numba_available():
         return "numpy"
     return "numba"

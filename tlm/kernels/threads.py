@@ -138,7 +138,10 @@ def share() -> int:
 
 @contextlib.contextmanager
 def using(n: int | None):
-    """Run the kernels called inside the block on ``n`` threads (None: :func:`available`)."""
+    """Run the kernels called inside the block on ``n`` threads (None: :func:`available`).
+    ``TLM_FORK_WORKERS`` is checked here (:func:`fork_workers`), so a bad value is refused
+    at one thread too, where it is not read."""
+    fork_workers()
     n = available() if n is None else int(n)
     if n < 1:
         raise ValueError(f"threads (={n}) must be >= 1")
@@ -250,9 +253,23 @@ _FORKED_SHARE = 1  # their :func:`share` (the calls in flight: twice the process
 _FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
 
 
+def fork_workers() -> bool:
+    """``TLM_FORK_WORKERS``: ``1`` asks for forked workers (:func:`can_fork`), ``0``, empty or
+    unset does not; any other value (``yes``, ``true``, ``2``) is an
+    :class:`~tlm.errors.InputError` naming the variable (exit status 2), never taken as off."""
+    raw = os.environ.get("TLM_FORK_WORKERS", "")
+    if raw.strip() not in ("", "0", "1"):
+        from tlm.errors import InputError
+
+        raise InputError(f"{raw!r} is not 0 or 1 (1: forked worker processes; 0, empty or unset: threads)",
+                         source="environment", key="TLM_FORK_WORKERS")
+    return raw.strip() == "1"
+
+
 def can_fork() -> bool:
     """Whether batches and photon chunks run on forked worker processes: only when asked
-    (``TLM_FORK_WORKERS=1``) and where fork exists (not on Windows, nor macOS's default).
+    (``TLM_FORK_WORKERS=1``, :func:`fork_workers`) and where fork exists (not on Windows,
+    nor macOS's default).
 
     Off by default: the render forks from a process that already runs threads (the
     kernels' pool, a progress bar's monitor, numba's), and a child can inherit a lock that
@@ -261,7 +278,7 @@ def can_fork() -> bool:
     """
     import multiprocessing
 
-    return (os.environ.get("TLM_FORK_WORKERS") == "1" and "fork" in multiprocessing.get_all_start_methods()
+    return (fork_workers() and "fork" in multiprocessing.get_all_start_methods()
             and not multiprocessing.current_process().daemon)  # (a daemon, e.g. a Dask worker, may not fork)
 
 

@@ -46,6 +46,9 @@ MATERIAL_KEYS = {
     "mirror": ("type", "reflectance", "emission"),
     "dielectric": ("type", "ior", "transmittance", "emission"),
 }
+# the key each material type cannot do without, and what it takes (the others have defaults)
+MATERIAL_REQUIRED = {"lambertian": ("albedo", "[r, g, b] in [0, 1]"), "mirror": ("reflectance", "[r, g, b] in [0, 1]"),
+                     "dielectric": ("ior", "a number > 0")}
 LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power")}
 CAMERA_KEYS = ("eye", "target", "up", "vfov")
 BYTES_PER_PIXEL = 4096  # generous bound on every per-pixel buffer of a run, all passes
@@ -115,6 +118,9 @@ def _typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) ->
 def _material(name: str, raw: Any, src: str) -> Material:
     key = f"materials.{name}"
     raw, kind = _typed(raw, src, key, MATERIAL_KEYS)
+    need, what = MATERIAL_REQUIRED[kind]  # (missing also where extends: gave the base's material another type)
+    if need not in raw:
+        raise InputError(f"required for type {kind}: {what}", source=src, key=f"{key}.{need}")
     emission = _vec(raw.get("emission", [0.0, 0.0, 0.0]), src, f"{key}.emission", lo=0.0)
     if kind == "lambertian":
         albedo = _vec(raw.get("albedo"), src, f"{key}.albedo", lo=0.0, hi=1.0)

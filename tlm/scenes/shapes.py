@@ -5,7 +5,11 @@ three vertices, xyz) and never emits a zero-area triangle. The winding is
 counter-clockwise seen from outside: ``cross(v1 - v0, v2 - v0)`` points out of a
 closed solid, and along ``cross(edge_u, edge_v)`` for a flat patch. Triangle counts are
 exact functions of the tessellation arguments (given in each docstring), so that the
-builders can hit a prescribed total.
+builders can hit a prescribed total. A tessellation too large for the machine is refused
+before it is made (:func:`check_triangle_count`); the primitives a scene file's ``shape:``
+items use (:func:`quad`, :func:`box` and :func:`aabox`, :func:`uv_sphere`,
+:func:`cylinder`) name its size by the scene file's keys (``divisions``, ``segments``,
+``rings``), the others by their own parameters.
 
 Most round shapes are made by `lathe`, a surface of revolution of a 2-D profile; the
 sphere, cylinder, torus and thick ring band are thin wrappers around it.
@@ -167,7 +171,7 @@ def quad(corner, edge_u, edge_v, nu: int = 1, nv: int = 1) -> np.ndarray:
     (2 * nu * nv, 3, 3) float64 array, normals along ``cross(edge_u, edge_v)``.
     """
     _check_div(nu=nu, nv=nv)
-    check_triangle_count(2 * int(nu) * int(nv), f"nu = {int(nu)} x nv = {int(nv)}")
+    check_triangle_count(2 * int(nu) * int(nv), f"divisions = [{int(nu)}, {int(nv)}]")
     c, u, v = _vec3(corner, "corner"), _vec3(edge_u, "edge_u"), _vec3(edge_v, "edge_v")
     a = np.linspace(0.0, 1.0, nu + 1)[:, None, None]
     b = np.linspace(0.0, 1.0, nv + 1)[None, :, None]
@@ -230,7 +234,7 @@ def box(corners, n: int = 1, omit: tuple[str, ...] = ()) -> np.ndarray:
     if bad:
         raise ValueError(f"unknown box faces {sorted(bad)}; expected some of {_BOX_FACES}")
     faces = len(set(_BOX_FACES) - set(omit))
-    check_triangle_count(2 * int(n) * int(n) * faces, f"n = {int(n)} divisions a side of {faces} faces")
+    check_triangle_count(2 * int(n) * int(n) * faces, f"divisions = {int(n)} (a side, on each of {faces} faces)")
     # Signed volume (divergence theorem) with the ring taken as given: if negative,
     # the ring runs the other way and every face must be flipped.
     quads = {
@@ -406,7 +410,8 @@ def uv_sphere(center, radius: float, n_seg: int, n_rings: int, axis=(0.0, 1.0, 0
     if int(n_rings) != n_rings or n_rings < 2:
         raise ValueError(f"n_rings must be an integer >= 2, got {n_rings!r}")
     if int(n_seg) == n_seg and n_seg >= 3:  # (before the rings are made; lathe checks n_seg itself)
-        check_triangle_count(2 * int(n_seg) * (int(n_rings) - 1), f"n_seg = {int(n_seg)} x n_rings = {int(n_rings)}")
+        check_triangle_count(2 * int(n_seg) * (int(n_rings) - 1),
+                             f"a sphere of segments = {int(n_seg)} and rings = {int(n_rings)}")
     phi = np.pi * np.arange(n_rings + 1) / n_rings
     r = radius * np.sin(phi)
     r[0] = r[-1] = 0.0
@@ -438,6 +443,9 @@ def cylinder(
     -------
     ((2 + bottom + top) * n_seg, 3, 3) float64 array, outward winding.
     """
+    sides = 2 + bool(bottom) + bool(top)  # (triangles a segment: the wall's two, a cap's one)
+    if int(n_seg) == n_seg and n_seg >= 3 and radius > 0:  # (the count lathe makes; it checks n_seg itself)
+        check_triangle_count(sides * int(n_seg), f"a cylinder of segments = {int(n_seg)} ({sides} triangles a segment)")
     r = [radius, radius]
     h = [0.0, height]
     if bottom:
