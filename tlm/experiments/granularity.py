@@ -15,8 +15,9 @@ renders the frame once (its work comes from the functional cache when an identic
 render was cached: only the SimPy layer reruns), simulates it at every packet size,
 and writes ``granularity.csv`` and ``granularity.jsonl``: per packet size the cycles
 (per PM, throughput, latency), the relative error of each against the reference, the
-largest of them, the run's own estimate of what the packets add (``granularity_share``,
-results.json ``timing.granularity.share``, on which ``tlm run`` warns), the host wall
+largest of them, the run's own estimate of how far the packets move TThru from packets
+of one, over TThru (``granularity_share``, results.json ``timing.granularity.share``,
+negative where they are faster; ``tlm run`` warns from 5% either way), the host wall
 seconds of the simulation and its SimPy events; beside them ``config.resolved.yaml`` and
 ``provenance.json`` (versions, git revision, host seconds).
 Images do not depend on the packet size (the functional layer never sees it).

@@ -57,7 +57,7 @@ from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, to_srgb8, write_png
-from tlm.render.planner import Plan, check_photon_memory, inert_changes, photon_count, plan
+from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, check_destination, warn
@@ -324,13 +324,14 @@ def run_warnings(res: RenderResult) -> list[str]:
     return warnings
 
 
-GRANULARITY_WARNING = 0.05  # timing.granularity.share from which a run warns (docs/architecture.md, "Packet size")
+# |timing.granularity.share| from which a run warns (docs/architecture.md, "Packet size")
+GRANULARITY_WARNING = 0.05
 
 
 def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     """The simulated stream's warnings, one line each: too few frames for a steady-state
-    throughput; packets so coarse that their fill and drain at the phase boundaries is a
-    large share of TThru (:func:`~tlm.arch.model.granularity_estimate`, from
+    throughput; packets so coarse that they move TThru from that of packets of one by a
+    large share, either way (:func:`~tlm.arch.model.granularity_estimate`, from
     :data:`GRANULARITY_WARNING` on); image tiles without pixels; and what only the run can
     tell of a setting changed from its default that it never read (:func:`timing_inert`)."""
     if timing is None:
@@ -342,11 +343,15 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
                      f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
                      "cycles.throughput is the stream's elapsed cycles per frame")
     share = (timing.granularity or {}).get("share", 0.0)
-    if share >= GRANULARITY_WARNING:
-        lines.append(f"arch.packet_size = {cfg.arch.packet_size} is coarse for this frame: the Traversal and "
-                     f"Intersection PMs' fill and drain of whole packets at its phase boundaries is about "
-                     f"{share:.0%} of cycles.throughput (timing.granularity), and the cycles may be as far from "
-                     "those of one ray per packet: measure it with 'tlm granularity', or lower arch.packet_size")
+    if abs(share) >= GRANULARITY_WARNING:
+        how = ("whole packets add about {:.0%} of cycles.throughput to what packets of one ray would take (the "
+               "Traversal and Intersection PMs' fill and drain of whole packets at the phase boundaries)"
+               if share > 0 else
+               "packets of one ray would take about {:.0%} of cycles.throughput more (entering the FIFO one by "
+               "one, they leave the Traversal PM waiting for room more often: a whole packet enters at once, as "
+               "into a deeper FIFO)").format(abs(share))
+        lines.append(f"arch.packet_size = {cfg.arch.packet_size} is coarse for this frame: {how} "
+                     "(timing.granularity): measure it with 'tlm granularity', or lower arch.packet_size")
     tiling = timing.program.tiling or {}
     bounds = tiling.get("tiles") or []
     empty = sum(1 for x0, y0, x1, y1 in bounds if x0 == x1 or y0 == y1)
@@ -359,6 +364,25 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     lines += [f"{key} = {getattr(cfg.arch, key.split('.', 1)[1])!r} has no effect in this run: {why}"
               for key, why in timing_inert(timing, cfg.arch).items()]
     return lines
+
+
+def inert_timing_changes(timing: Timing, cfg: RunConfig) -> dict[str, str]:
+    """The timing model's and the cache's keys ``cfg`` changes from their defaults that this
+    simulated run never read, each with why: those the config alone shows
+    (:func:`~tlm.render.planner.inert_timing_settings`) and those only the run can tell
+    (:func:`timing_inert`). A sweep point records them (``results.json`` ``inert``), and
+    the sweep names a factor that every point it ran agrees on
+    (:meth:`tlm.experiments.sweep_file.Sweep.unread_factors`)."""
+    defaults = RunConfig()
+    out = {key: why for key, why in inert_timing_settings(cfg).items()
+           if _value(cfg, key) != _value(defaults, key)}
+    out.update(timing_inert(timing, cfg.arch))
+    return out
+
+
+def _value(cfg: RunConfig, key: str):
+    section, name = key.split(".", 1)
+    return getattr(getattr(cfg, section), name)
 
 
 def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:

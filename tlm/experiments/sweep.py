@@ -54,7 +54,7 @@ import time
 import traceback
 from collections import deque
 from contextlib import ExitStack, suppress
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -101,7 +101,7 @@ def run_point(task: Task) -> dict:
     ...}`` after writing ``error.json``: an exception never leaves the worker.
     """
     from tlm.arch.model import simulate  # the timing layer is imported where it runs
-    from tlm.experiments.run import programs_for, stream_warnings, timing_dict
+    from tlm.experiments.run import inert_timing_changes, programs_for, stream_warnings, timing_dict
     from tlm.render.planner import inert_changes
 
     stage = "functional"
@@ -128,6 +128,9 @@ def run_point(task: Task) -> dict:
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 # the render's warnings, and this point's own (what it sets and never reads; its stream)
                 "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg)],
+                # the timing keys it changed from their defaults and never read, with why (for the
+                # sweep's own line on a factor no point read: Sweep.unread_factors)
+                "inert": inert_timing_changes(timing, cfg),
                 "cycles": timing.cycles, "fps": timing.fps,
                 "timing": timing_dict(timing, cfg.arch, programs),
                 "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},
@@ -223,6 +226,9 @@ class Outcome:
     renders: int  # points whose functional result was rendered, not read from the cache
     seconds: float
     out: Path
+    # the sweep's own warnings, also on stderr: its factors that no point read (Sweep.inert_factors,
+    # before the points run; Sweep.unread_factors, after)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def table(self):
@@ -283,7 +289,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
     sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
-    for line in sweep.inert_factors():
+    said = sweep.inert_factors()
+    for line in said:
         warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
@@ -343,7 +350,12 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     computed = [r for r in rows if r["hash"] in tasks]
     failed = sum(r["status"] != "ok" for r in computed)
     renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
-    return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out)
+    unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
+                                   if records[p.hash]["status"] == "ok"])
+    for line in unread:
+        warn(line)
+    return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
+                   [*said, *unread])
 
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],

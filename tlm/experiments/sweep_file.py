@@ -82,6 +82,38 @@ class Sweep:
                              f"{'; '.join(sorted(whys))}")
         return lines
 
+    def unread_factors(self, done: list[tuple[Point, dict]]) -> list[str]:
+        """A warning line per factor that no point read, judged after the points ran: the
+        timing model's keys a point changed from their defaults and never read are in its
+        ``results.json`` ``inert`` (:func:`tlm.experiments.run.inert_timing_changes`:
+        ``arch.swap_cycles`` where no PM moved, ``arch.context_switch_cycles`` with one
+        image in flight, ...). A factor gets a line when every point in ``done`` (``(point,
+        its results)``, the points that ran and did not fail) names it there or holds it at
+        its default (a run the others then equal), and one names it at least; not the
+        factors :meth:`inert_factors` named before the points ran."""
+        if not done:
+            return []
+        said = {f for f in self.factors if self.inert and all(f in i for i in self.inert)}
+        defaults = to_dict(RunConfig())
+        lines = []
+        for factor in self.factors:
+            if factor in said:
+                continue
+            whys: set[str] = set()
+            for point, results in done:
+                inert = results.get("inert")
+                why = inert.get(factor) if isinstance(inert, dict) else None
+                if why is not None:
+                    whys.add(str(why))
+                elif not _at_default(point.config, defaults, factor):
+                    whys.clear()
+                    break
+            if whys:
+                where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
+                lines.append(f"{self.path}: the factor {factor} changed nothing in {where} that ran: "
+                             f"{'; '.join(sorted(whys))}")
+        return lines
+
     def identity(self) -> str:
         """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
         identity may run into one folder at once, two of others may not (storage.sharing)."""
@@ -118,6 +150,16 @@ class Sweep:
                     line = lines[k, id(v)] = text[text.index("\n") + 1:]
                 out.append(line)
         return "".join(out)
+
+
+def _at_default(config: dict, defaults: dict, dotted: str) -> bool:
+    """Whether the resolved ``config`` holds the key ``dotted`` at its default."""
+    here, there = config, defaults
+    for part in dotted.split("."):
+        if not (isinstance(here, dict) and isinstance(there, dict) and part in here and part in there):
+            return False
+        here, there = here[part], there[part]
+    return here == there
 
 
 def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
