@@ -6,7 +6,8 @@ status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units
 naming each blocked unit) ends with its message and exit status 1, and so does a failure
 of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
 Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
-had half written; a second signal during that clean-up ends the process at once. Anything
+had half written; a second signal during that clean-up ends the process at once, with one
+line of its own (and none from multiprocessing: its semaphores are released first). Anything
 else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
 A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
 as if killed by SIGPIPE).
@@ -522,9 +523,21 @@ _SIGNALS: list[int] = []  # the signals received by this command, the first one 
 
 def _on_signal(signum, frame) -> None:
     """SIGINT and SIGTERM: the first raises KeyboardInterrupt, so that what is half written
-    is removed; a second one, during that clean-up, ends the process at once."""
+    is removed; a second one, during that clean-up, ends the process at once, with its one
+    line (at a terminal, a line of its own), once its multiprocessing semaphores are
+    released (else the resource tracker reports them leaked, on the same stderr); a third,
+    during that release, ends it without waiting for the release."""
+    if len(_SIGNALS) > 1:
+        os._exit(128 + _SIGNALS[0])
     if _SIGNALS:
-        os.write(2, b"tlm: interrupted again: stopping now\n")
+        _SIGNALS.append(signum)
+        line = b"tlm: interrupted again: stopping now\n"
+        with suppress(OSError):  # (at a terminal on a line of its own, not after the ^C echoed or a progress bar)
+            os.write(2, b"\n" + line if os.isatty(2) else line)
+        executors = sys.modules.get("tlm.experiments.executors")  # (imported by a sweep, with its pools)
+        if executors is not None:
+            with suppress(Exception):
+                executors.release_semaphores()
         os._exit(128 + _SIGNALS[0])
     _SIGNALS.append(signum)
     raise KeyboardInterrupt

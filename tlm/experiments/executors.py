@@ -23,6 +23,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, contextmanager, suppress
@@ -110,6 +111,15 @@ class LocalPool(cf.Executor):
         self.tokens = itertools.count()
         self.settled = 0  # points whose future was set
         self.blind = 0  # breaks in a row with no point started
+        if self.context.get_start_method() == "forkserver":
+            # the fork server started with SIGINT ignored, so that the workers forked from it
+            # ignore it from their first instruction (they get the server's first handlers):
+            # a Ctrl-C at the terminal, which signals the whole process group, reaches the
+            # sweep alone, which kills them; no idle worker prints a KeyboardInterrupt's traceback
+            from multiprocessing import forkserver
+
+            with _sigint_ignored():
+                forkserver.ensure_running()
         self._new()
 
     def _new(self) -> None:
@@ -267,10 +277,13 @@ _STARTED = None  # in a local worker: the queue on which it says which point it 
 
 
 def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
-    """A local worker's set-up: the sweep's ``TLM_*`` variables, an end with the sweep's
-    process, and the queue on which it says which point it starts."""
+    """A local worker's set-up: the sweep's ``TLM_*`` variables, SIGINT ignored, an end with
+    the sweep's process, and the queue on which it says which point it starts."""
     global _STARTED
     _STARTED = started
+    # Ctrl-C ignored: the sweep's process ends its workers (those of the fork server ignore it
+    # from their start already: LocalPool; under spawn, from here on)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _worker_env(env)
     _exit_with(parent)
     # tqdm's default lock is a multiprocessing semaphore, which a worker killed by an
@@ -289,6 +302,33 @@ def _run_started(token: int, fn, /, *args, **kwargs):
     """
     _STARTED.put((token, os.getpid()))
     return fn(*args, **kwargs)
+
+
+def release_semaphores() -> None:
+    """Unlink this process's multiprocessing semaphores now (a local pool's queues' locks)
+    and tell the resource tracker, as multiprocessing's finalizers do at a normal exit: for
+    a process about to end with ``os._exit``, which runs none. Without this the tracker, the
+    last to hold their names, unlinks them itself and prints "resource_tracker: There appear
+    to be N leaked semaphore objects to clean up at shutdown" and a line of its source.
+
+    The semaphores are found by their finalizers (``multiprocessing.util``'s registry, where
+    a named ``SemLock`` enters itself with ``SemLock._cleanup``); a finalizer runs once, so
+    an exit after this does not run it again. Meant for a signal handler: it waits for
+    nothing but the tracker's lock, which is held only while a message is written. Where
+    this thread holds it (the signal came during one of the tracker's own calls) the
+    tracker warns that it is called reentrantly and still writes the message; that
+    warning is not shown."""
+    synchronize, util = sys.modules.get("multiprocessing.synchronize"), sys.modules.get("multiprocessing.util")
+    registry = getattr(util, "_finalizer_registry", None)
+    if synchronize is None or registry is None:  # (no semaphore made)
+        return
+    cleanup = synchronize.SemLock._cleanup
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for finalizer in list(registry.values()):
+            if getattr(finalizer, "_callback", None) is cleanup:
+                with suppress(Exception):
+                    finalizer()
 
 
 def _worker_env(env: dict[str, str]) -> None:
