@@ -435,6 +435,25 @@ def _fifo_alike(entries: np.ndarray, lo: int, hi: int) -> str | None:
     return None
 
 
+PHOTON_SECTIONS = ("photons.", "estimate.", "reference.")  # read by the photon-map pass (and its reference) alone
+
+
+def unread_overrides(res: RenderResult, overrides: list[str] | None) -> list[str]:
+    """A ``--set`` of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
+    pass is left out: one line each. :func:`~tlm.render.planner.inert_changes` judges those
+    sections as if the pass ran, since a config file may hold them for ``--mode pmap``; a
+    key given on the command line was asked for this run."""
+    if "pmap" in res.plan.run_names:
+        return []
+    why = {p.name: p.reason for p in res.plan.passes if not p.run}.get("pmap", "the photon-map pass is not run")
+    lines = []
+    for item in overrides or []:
+        key = item.split("=", 1)[0].strip()
+        if key.startswith(PHOTON_SECTIONS):
+            lines.append(f"--set {item.strip()} has no effect in this run: the photon-map pass is left out ({why})")
+    return lines
+
+
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,
                  overrides: list[str] | None = None) -> dict:
     work = {}
@@ -452,7 +471,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
     pixels, rays, hits, back = _eye_hits(res)
-    warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg)
+    warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg) + unread_overrides(res, overrides)
     return {
         "tlm": "results/1",
         "config": config_path,
