@@ -80,3 +80,19 @@ def test_an_unknown_engine_is_an_input_error_naming_the_variable(monkeypatch):
         monkeypatch.setenv("TLM_KERNELS", ok)
         assert engine.engine() in engine.ENGINES
 
+
+
+@pytest.mark.parametrize(("var", "value"), [("TLM_KERNELS", "foo"), ("TLM_FORK_WORKERS", "yes")])
+def test_a_sweep_refuses_a_bad_setting_once_before_any_point(tmp_path, cache, capsys, monkeypatch, var, value):
+    """A sweep failed every point with the setting's line and exited 1; it is refused once,
+    exit 2, with nothing written."""
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text("base: {scene: cornell, mode: rcast, resolution: [8, 8]}\ngrid: {seed: [1, 2]}\n")
+    monkeypatch.setenv(var, value)
+    from tlm.cli import main
+
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sw"), "--jobs", "1", "--no-progress",
+                 "--no-report"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"tlm: error: environment: {var}: {value!r} is not")
+    assert not (tmp_path / "sw").exists()

@@ -288,6 +288,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         jobs = available()  # (the affinity mask and a container's CPU quota, as render.threads)
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
+    from tlm.kernels.engine import engine
+    from tlm.kernels.threads import fork_workers
+
+    engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point)
     sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
     said = sweep.inert_factors()
     for line in said:
