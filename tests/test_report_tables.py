@@ -298,3 +298,29 @@ def test_a_study_of_calibrated_cells_only_denies_no_median():
          "held_out_cells_compared": 0, "calibrated_cells_compared": 4, "scene_modes": 1, "slowest_pm_matches": 1}
     assert _line(s) == ("median |relative error| over the 4 calibrated cells 4.0%; slowest PM as in the thesis in 1 "
                         "of 1 scene-modes")
+
+
+def test_a_report_judges_each_thesis_cell_once(tmp_path, monkeypatch):
+    """The tables and the report's first screen quote one judgement of a thesis study's cells
+    (judging a cell reads its scene files): each cell is judged once, and both say why the
+    study is not comparable."""
+    import tlm.report.tables as tables_mod
+    from tlm.report.collect import Study
+    from tlm.report.summary import summary_section
+    from tlm.scenes.loader import scenes_dir
+
+    judged = []
+    judge = tables_mod.run_mismatches
+    monkeypatch.setattr(tables_mod, "run_mismatches", lambda table, *rest: judged.append(table) or judge(table, *rest))
+    root = tmp_path / "study"
+    scene = {"name": "cornell", "source": str(scenes_dir() / "cornell.yaml"), "resolution": [16, 16]}
+    cell = Run(root / "cornell" / "rcast", "cornell/rcast", "thesis", {"scene": scene, "mode": "rcast"}, {})
+    rows = [{"scene": "cornell", "mode": "rcast", "metric": m, "thesis": 10.0, "ours": 11.0, "rel_error": 0.1,
+             "calibrated": False} for m in (*PM_METRICS, "TThru", "FPS")]
+    inputs = Inputs([], runs=[cell], studies=[Study("thesis", root, rows)])
+    tables = tables_section(inputs, tmp_path)
+    summary = summary_section(inputs, tmp_path)
+    assert judged == ["cornell"]
+    said = "no median |relative error| (not comparable with the thesis: cornell is 16×16 pixels (thesis 320×320))"
+    assert said in tables.html and said in summary.lead
+    assert [f.file for f in tables.figures] == ["tables_cornell.png"]

@@ -117,6 +117,9 @@ class Inputs:
     # fitted (its idle fractions per PM are drawn; not fitted again, not shown as sweeps)
     scaling_sweeps: list[Sweep] = field(default_factory=list)
     scaling_missing: list[str] = field(default_factory=list)  # sweeps a scaling study recorded, now gone
+    # what a section worked out that another quotes, kept so that it is worked out once
+    # (the thesis tables' sources: :func:`tlm.report.tables.collect_sources`)
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]

@@ -30,7 +30,7 @@ from matplotlib.ticker import NullLocator
 from tlm.errors import InputError
 from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import Figure, Section, colour, marker, new_figure
+from tlm.report.common import Figure, Section, colour, marker, new_figure, write_png
 from tlm.report.html import esc
 from tlm.report.sweeps import PMS, factors_of
 
@@ -82,7 +82,7 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
         ax.xaxis.set_minor_locator(NullLocator())
     axes[2].set_yticks(ns, [str(n) for n in ns])
     axes[2].yaxis.set_minor_locator(NullLocator())
-    fig.savefig(path, dpi=110)
+    write_png(fig, path)
 
 
 def _fits_of_study(study) -> dict[tuple, dict]:
@@ -208,7 +208,7 @@ def plot_idle(scene: str, pms: list[str], points: list[dict], path: Path, source
            title=f"{scene}: idle fraction per PM, {' against '.join(scheds)}{where}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=len(scheds))
-    fig.savefig(path, dpi=110)
+    write_png(fig, path)
 
 
 def _left(yes: bool) -> str:

@@ -113,7 +113,20 @@ def _config_key(run: Run) -> str:
 
 
 def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
-    """Sources per thesis scene, in input order; what cannot be tabled goes to ``notes``."""
+    """Sources per thesis scene, in input order; what cannot be tabled goes to ``notes``.
+
+    Worked out once per ``inputs`` (the tables and the report's first screen both judge
+    the same sources, and judging a run reads its scene files): a later call returns the
+    same sources and adds the same notes."""
+    memo = inputs.memo.get("tables.sources")
+    if memo is None:
+        said: list[str] = []
+        memo = inputs.memo["tables.sources"] = (_collect_sources(inputs, said), said)
+    notes.extend(memo[1])
+    return memo[0]
+
+
+def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
     by_scene: dict[str, list[Source]] = {s: [] for s in THESIS}
     in_study: set[Path] = set()
     for study in inputs.of_kind("thesis"):
