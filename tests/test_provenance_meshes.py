@@ -10,10 +10,9 @@ import shutil
 
 import pytest
 
-from tlm.experiments.provenance import scene_identity
+from tlm.experiments.provenance import mesh_paths, scene_identity
 from tlm.scenes import cache as scache
 from tlm.scenes import meshes
-from tlm.scenes.compose import mesh_paths
 from tlm.scenes.meshes import mesh_files
 from tlm.storage import file_digest
 

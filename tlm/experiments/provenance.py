@@ -106,7 +106,6 @@ def _mesh_lines(path: Path) -> list[str]:
     the files a load of it reads (:func:`tlm.scenes.meshes.mesh_files`: the mesh's content, the
     others' with their paths relative to the mesh), or that it is missing or unreadable."""
     from tlm.errors import InputError
-    from tlm.scenes.compose import mesh_paths
     from tlm.scenes.meshes import mesh_files
 
     try:
@@ -124,6 +123,21 @@ def _mesh_lines(path: Path) -> list[str]:
         parts += [f"{os.path.relpath(f, mesh.parent)} {d['sha256']} {d['size']}" for f, d in files[1:]]
         out.append(f"mesh {i}: " + "; ".join(parts))
     return out
+
+
+def mesh_paths(scene: Path) -> list[Path]:
+    """The mesh files the geometry of the scene file ``scene`` names (its ``extends:`` chain
+    merged, as the loader merges it: a mesh path is relative to the file that names it), in
+    the geometry's order, found as the loader finds them (whether they are there or not). An
+    :class:`~tlm.errors.InputError` where the scene file cannot be read."""
+    from tlm.scenes.compose import mesh_path
+    from tlm.scenes.loader import _read_scene
+
+    raw, geom_path = _read_scene(Path(scene), ())
+    geometry = raw.get("geometry")
+    items = [geometry] if isinstance(geometry, dict) else geometry if isinstance(geometry, list) else []
+    return [mesh_path(i["mesh"], geom_path) for i in items
+            if isinstance(i, dict) and isinstance(i.get("mesh"), str) and i["mesh"]]
 
 
 def _identity(path: Path, depth: int) -> str:

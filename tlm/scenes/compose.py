@@ -47,7 +47,7 @@ from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num
 from tlm.scenes.validate import vec as _vec
 
-__all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_paths",
+__all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_path",
            "transform_geometry"]
 
 SOURCES = ("builder", "mesh", "shape")
@@ -193,7 +193,7 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
     if "params" in raw:
         raise InputError("a mesh takes no params (scale, rotate and move it with transform)",
                          source=src, key=f"{key}.params")
-    mpath = _mesh_path(mesh, path)
+    mpath = mesh_path(mesh, path)
     if mpath.is_dir():
         raise InputError(f"{str(mpath)!r} is a folder, not a mesh file", source=src, key=f"{key}.mesh")
     if not mpath.is_file():
@@ -201,24 +201,10 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
     return load_mesh(mpath)
 
 
-def _mesh_path(mesh: str, path: Path) -> Path:
+def mesh_path(mesh: str, path: Path) -> Path:
     """An item's ``mesh:`` file, relative to the scene file ``path`` that names it."""
     mpath = Path(mesh)
     return mpath if mpath.is_absolute() else path.parent / mpath
-
-
-def mesh_paths(scene: Path) -> list[Path]:
-    """The mesh files the geometry of the scene file ``scene`` names (its ``extends:`` chain
-    merged, as the loader merges it: a mesh path is relative to the file that names it), in
-    the geometry's order, found as the loader finds them (whether they are there or not). An
-    :class:`~tlm.errors.InputError` where the scene file cannot be read."""
-    from tlm.scenes.loader import _read_scene
-
-    raw, geom_path = _read_scene(Path(scene), ())
-    geometry = raw.get("geometry")
-    items = [geometry] if isinstance(geometry, dict) else geometry if isinstance(geometry, list) else []
-    return [_mesh_path(i["mesh"], geom_path) for i in items
-            if isinstance(i, dict) and isinstance(i.get("mesh"), str) and i["mesh"]]
 
 
 def _shape(raw: dict, src: str, key: str) -> Geometry:
