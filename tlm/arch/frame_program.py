@@ -31,9 +31,10 @@ so the work (and the image) does not depend on the tiling.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
+from itertools import pairwise
 
 import numpy as np
 
@@ -179,19 +180,32 @@ def split(name: str, work: Mapping[str, np.ndarray], packet_size: int) -> Packet
     ``work``: a render's dict, or one of the seam's typed work classes
     (:class:`~tlm.arch.functional.RayPassWork`, ..., which read as mappings).
     """
-    if isinstance(packet_size, bool) or not isinstance(packet_size, (int, np.integer)) or packet_size < 1:
-        raise ValueError(f"packet_size (={packet_size!r}) must be a whole number >= 1")
+    _check_packet_size(packet_size)
     flat = {k: np.asarray(v).reshape(-1) for k, v in work.items()}
     n = next(iter(flat.values())).shape[0] if flat else 0
     if any(v.shape[0] != n for v in flat.values()):
         raise ValueError(f"work arrays of {name!r} differ in length")
-    starts = np.arange(0, n, packet_size, dtype=np.int64)
-    sizes = np.diff(np.append(starts, n))
+    starts, sizes = _starts_and_sizes(n, packet_size)
     counts = {}
     for k, v in flat.items():
-        # integer sums in item order: exact, and the same as summing each packet alone
-        counts[k] = np.add.reduceat(v.astype(np.int64, copy=False), starts) if n else np.zeros(0, np.int64)
-    return Packets(name, int(packet_size), sizes.astype(np.int64), counts)
+        # integer sums in item order: exact, and the same as summing each packet alone (packets of one: the
+        # items themselves, without reduceat's cost per packet)
+        if packet_size == 1:
+            counts[k] = v.astype(np.int64)
+        else:
+            counts[k] = np.add.reduceat(v.astype(np.int64, copy=False), starts) if n else np.zeros(0, np.int64)
+    return Packets(name, int(packet_size), sizes, counts)
+
+
+def _check_packet_size(packet_size) -> None:
+    if isinstance(packet_size, bool) or not isinstance(packet_size, (int, np.integer)) or packet_size < 1:
+        raise ValueError(f"packet_size (={packet_size!r}) must be a whole number >= 1")
+
+
+def _starts_and_sizes(n: int, packet_size: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first item of each packet of ``n`` items and its items (the last packet possibly short), int64."""
+    starts = np.arange(0, n, packet_size, dtype=np.int64)
+    return starts, np.diff(np.append(starts, n)).astype(np.int64)
 
 
 # -- tiling ----------------------------------------------------------------------------------
@@ -287,9 +301,10 @@ class _PacketSums:
     costs read a few of the many work keys.
     """
 
-    def __init__(self, work: WorkArrays, idx: np.ndarray, packet_size: int):
+    def __init__(self, work: WorkArrays, idx: np.ndarray, packet_size: int, starts: np.ndarray | None = None):
         self.work, self.idx = work, idx
-        self.starts = np.arange(0, idx.shape[0], packet_size, dtype=np.int64)
+        self.ones = packet_size == 1  # packets of one: the sums are the items' own values
+        self.starts = _starts_and_sizes(int(idx.shape[0]), packet_size)[0] if starts is None else starts
         self.sums: dict[str, np.ndarray] = {}
 
     def get(self, key: str, default=None):
@@ -302,8 +317,11 @@ class _PacketSums:
             if flat.shape[0] != self.idx.shape[0]:
                 raise ValueError("work arrays of 'sub' differ in length")
             # (no copy of an int64 gather: a second array of the selection's size costs more than the sums)
-            got = np.add.reduceat(flat.astype(np.int64, copy=False), self.starts) if flat.shape[0] \
-                else np.zeros(0, np.int64)
+            if self.ones:  # (the gather is a new array: nothing else holds it)
+                got = flat.astype(np.int64, copy=False)
+            else:
+                got = np.add.reduceat(flat.astype(np.int64, copy=False), self.starts) if flat.shape[0] \
+                    else np.zeros(0, np.int64)
             self.sums[key] = got
         return got
 
@@ -320,8 +338,10 @@ class _Builder:
 
     def packets(self, work: WorkArrays, idx: np.ndarray):
         """The work of items ``idx`` in packets: (its counts, lazily per key, as ``split`` gives them; sizes)."""
-        p = split("sub", {"items": idx}, self.arch.packet_size)
-        return _PacketSums(work, idx, p.packet_size), p.sizes
+        size = self.arch.packet_size
+        _check_packet_size(size)
+        starts, sizes = _starts_and_sizes(int(idx.shape[0]), size)
+        return _PacketSums(work, idx, size, starts), sizes
 
     def ti(self, name: str, t_kind: str, work: WorkArrays, idx: np.ndarray, trace: TraceFields,
            copy_words: int, copy_to: int | None = None) -> PhaseSpec:
@@ -342,36 +362,91 @@ class _Builder:
 
     def pixel_tile(self, idx: np.ndarray, passes: list[str], with_gather: bool) -> list[PhaseSpec]:
         """The ray passes and the gather of the pixels ``idx`` (row-major)."""
-        phases = []
+        return list(self.pixel_phases(idx, passes, with_gather))
+
+    def pixel_phases(self, idx: np.ndarray, passes: list[str], with_gather: bool,
+                     ti_only: bool = False) -> Iterator[PhaseSpec]:
+        """:meth:`pixel_tile`'s phases, each built when it is asked for; with ``ti_only``
+        its Traversal/Intersection phases alone (no other phase is built)."""
         for name in passes:
             w: RayPassWork = self.fn.ray_work(name)
-            rays = (w.primary_rays + w.secondary_rays)[idx]
+            rays = w.primary_rays[idx] + w.secondary_rays[idx]
             sel = idx[rays > 0]
+            del rays
             if not sel.size:
                 continue
             # a secondary pass receives the Fragment PM's new rays (towards the Traversal PM's module)
-            phases.append(self.ti(f"{name}.rays", "rays", w, sel, RAY_TRACE,
-                                  WORDS_PER_RAY * int(w.secondary_rays[sel].sum()), 0))
-            phases.append(self.f(f"{name}.shade", "shade", w, sel))
+            yield self.ti(f"{name}.rays", "rays", w, sel, RAY_TRACE,
+                          WORDS_PER_RAY * int(w.secondary_rays[sel].sum()), 0)
+            if not ti_only:
+                yield self.f(f"{name}.shade", "shade", w, sel)
             ssel = idx[w.shadow_rays[idx] > 0]
             if ssel.size:
-                phases.append(self.ti(f"{name}.shadow", "shadow", w, ssel, SHADOW_TRACE,
-                                      WORDS_PER_RAY * int(w.shadow_rays[ssel].sum())))
-                phases.append(self.f(f"{name}.light", "light", w, ssel))
-        g = self.fn.gather_work if with_gather else None
+                yield self.ti(f"{name}.shadow", "shadow", w, ssel, SHADOW_TRACE,
+                              WORDS_PER_RAY * int(w.shadow_rays[ssel].sum()))
+                if not ti_only:
+                    yield self.f(f"{name}.light", "light", w, ssel)
+        g = self.fn.gather_work if with_gather and not ti_only else None
         if g is not None:
             gsel = idx[g.gathers[idx] > 0]
             if gsel.size:
-                phases.append(self.f("pmap.gather", "gather", g, gsel))
-        return phases
+                yield self.f("pmap.gather", "gather", g, gsel)
 
     def photon_chunk(self, idx: np.ndarray) -> tuple[list[PhaseSpec], int]:
         pw: PhotonWork = self.fn.photon_work
-        phases = [self.ti("photons.trace", "photons", pw, idx, PHOTON_TRACE, 0)]
+        phases = [self.photon_trace(idx)]
         stored_sel = idx[pw.bounces[idx] > 0]
         if stored_sel.size:
             phases.append(self.f("photons.store", "photons", pw, stored_sel))
         return phases, WORDS_PER_PHOTON * int(pw.stored[idx].sum())
+
+    def photon_trace(self, idx: np.ndarray) -> PhaseSpec:
+        """The Traversal/Intersection phase of the photons ``idx`` (a chunk of the photon list)."""
+        return self.ti("photons.trace", "photons", self.fn.photon_work, idx, PHOTON_TRACE, 0)
+
+
+def _ray_passes(fn: Functional, left_out: dict[str, str]) -> list[str]:
+    """The ray passes of the frame program, in order; what it leaves out, and why, into ``left_out``."""
+    passes = []
+    for name in RAY_PASSES:
+        if name not in fn.passes:
+            left_out[f"{name} frames"] = "the plan does not render this pass"
+            continue
+        w = fn.ray_work(name)
+        if not (w.primary_rays + w.secondary_rays).any():
+            left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
+            continue
+        passes.append(name)
+        if not w.shadow_rays.any():
+            left_out[f"{name} shadow frames"] = "no shadow ray (no light, or no Lambertian hit)"
+    return passes
+
+
+def _with_pmap(fn: Functional) -> bool:
+    """Whether the frame has the photon stages (a photon-map pass, its photons and their tree)."""
+    return fn.gather_work is not None and fn.photon_work is not None and fn.photon_tree is not None
+
+
+def _photon_chunks(n: int, n_tiles: int) -> list[np.ndarray]:
+    """The photon list cut into ``n_tiles`` chunks (the photon stage's tiles), in order."""
+    edges = _edges(n, n_tiles)
+    return [np.arange(lo, hi, dtype=np.int64) for lo, hi in pairwise(edges)]
+
+
+def ti_phases(fn: Functional, programs: Programs, arch: ArchConfig) -> Iterator[Iterator[PhaseSpec]]:
+    """Per tile of ``frame_program(fn, programs, arch)``'s tiled stages, in program order:
+    its Traversal/Intersection phases, the same :class:`PhaseSpec` s, each built when it is
+    asked for; no other phase, and no shared stage, is built (what the coarse-packet
+    estimate reads of the program in packets of one: ``tlm.arch.model.fine_ti_cycles``)."""
+    b = _Builder(fn, programs, arch)
+    n_tiles = SCHEDULERS[arch.scheduler]().tiles(arch)
+    passes = _ray_passes(fn, {})
+    if _with_pmap(fn):
+        for idx in _photon_chunks(fn.photon_work.n, n_tiles):
+            yield iter((b.photon_trace(idx),) if idx.size else ())
+    tiles_idx, _ = image_tiles(fn.width, fn.height, n_tiles)
+    for idx in tiles_idx:
+        yield b.pixel_phases(idx, passes, False, ti_only=True)
 
 
 def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> FrameProgram:
@@ -390,20 +465,9 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
     # every pipeline's Traversal PM reads the tree, its Intersection PM the vertices
     geometry_out = (FanOut("tree", b.tree_words, 0, 0), FanOut("vertices", b.vertex_words, 0, 1))
 
-    passes = []
-    for name in RAY_PASSES:
-        if name not in fn.passes:
-            left_out[f"{name} frames"] = "the plan does not render this pass"
-            continue
-        w = fn.ray_work(name)
-        if not (w.primary_rays + w.secondary_rays).any():
-            left_out[f"{name} frames"] = "no ray of this pass: no eye path meets its material"
-            continue
-        passes.append(name)
-        if not w.shadow_rays.any():
-            left_out[f"{name} shadow frames"] = "no shadow ray (no light, or no Lambertian hit)"
+    passes = _ray_passes(fn, left_out)
 
-    with_pmap = fn.gather_work is not None and fn.photon_work is not None and fn.photon_tree is not None
+    with_pmap = _with_pmap(fn)
     pixel_out = geometry_out
     if with_pmap:
         pw = fn.photon_work
@@ -416,9 +480,8 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
         shared.append(PhaseSpec("photons.emit", (_programmable(programs, "vertex", "photon_emit", 0, emit_counts,
                                                                emit.sizes),), 0))
         stages.append(Stage("geometry", True, (Tile("geometry", tuple(shared)),)))
-        chunks = [np.arange(lo, hi, dtype=np.int64) for lo, hi in zip(_edges(n, n_tiles)[:-1], _edges(n, n_tiles)[1:])]
         tiles = []
-        for i, idx in enumerate(chunks):
+        for i, idx in enumerate(_photon_chunks(n, n_tiles)):
             phases, returns = b.photon_chunk(idx) if idx.size else ([], 0)
             tiles.append(Tile(f"photons {i}", tuple(phases), 0, returns))
         stages.append(Stage("photons", False, tuple(tiles),
@@ -443,4 +506,4 @@ def frame_program(fn: Functional, programs: Programs, arch: ArchConfig) -> Frame
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "FanOut", "FrameProgram", "JobSpec", "Packets", "PhaseSpec", "Stage", "Tile",
-           "frame_program", "grid_shape", "image_tiles", "split"]
+           "frame_program", "grid_shape", "image_tiles", "split", "ti_phases"]

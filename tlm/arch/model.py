@@ -55,12 +55,14 @@ from tlm.arch.frame_program import (
     PhaseSpec,
     Stage,
     frame_program,
+    ti_phases,
 )
 from tlm.arch.functional import Functional
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
 from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run
 from tlm.config import ArchConfig
+from tlm.kernels.engine import engine
 from tlm.registry import SCHEDULERS
 
 # -- the model's state ------------------------------------------------------------------------
@@ -320,15 +322,16 @@ def simulate(fn: Functional, programs: Programs, arch: ArchConfig) -> Timing:
     """Run the stream of ``arch.frames`` frames of ``fn`` through the model.
 
     ``timing.granularity`` compares the frame's packets with packets of one ray, pixel or
-    photon (:func:`granularity_estimate`, from the frame program in packets of one,
-    built after the run: only its Traversal/Intersection phases are read).
+    photon (:func:`granularity_estimate`, after the run, with :func:`fine_ti_cycles`: the
+    Traversal/Intersection phases of the frame program in packets of one, built one at a
+    time and dropped once their flow shop is known; no other phase of it is built).
     """
     program = frame_program(fn, programs, arch)
     timing = simulate_program(program, arch)
-    fine = program if arch.packet_size == 1 else frame_program(fn, programs, replace(arch, packet_size=1))
+    fine = None if arch.packet_size == 1 else fine_ti_cycles(fn, programs, arch)
     slowest = timing.throughput_estimate["slowest_pm"]
     timing.granularity = granularity_estimate(program, arch, timing.cycles["throughput"], timing.cycles[slowest],
-                                              fine)
+                                              program if fine is None else fine)
     return timing
 
 
@@ -541,7 +544,7 @@ def fill_and_drain(program: FrameProgram, arch: ArchConfig) -> list[int]:
     return _per_tile(program, extra)
 
 
-FLOW_SHOP_CHUNK = 1 << 16  # packets whose cycles flow_shop holds as Python ints at a time
+FLOW_SHOP_CHUNK = 1 << 16  # packets whose cycles the Python flow_shop holds as Python ints at a time
 
 
 def flow_shop(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: int) -> int:
@@ -556,11 +559,31 @@ def flow_shop(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: i
     order); the Intersection PM tests packet k once it is in the FIFO and packet k - 1 is
     tested. With one image in flight this is the simulated phase's length exactly (no
     other job shares the two PMs); with two, the other image's jobs fill some of its
-    waits. A Python loop over the packets (0.3 microseconds each here), their cycles made
-    Python ints :data:`FLOW_SHOP_CHUNK` at a time, and of the cycles they were tested at
-    only the last ``depth`` + 1 kept between chunks (a packet takes an entry at least, so
-    none waits for one further back).
+    waits. Compiled (:func:`tlm.kernels._jit_flow.flow_shop`) unless ``TLM_KERNELS=numpy``,
+    which runs :func:`flow_shop_python`, the reference: the same cycles either way.
     """
+    n = int(t.shape[0])
+    if int(i.shape[0]) != n or (entries is not None and int(np.shape(entries)[0]) != n):
+        raise ValueError(f"flow_shop: {n} packets' traversal cycles, {int(i.shape[0])} intersection cycles"
+                         + ("" if entries is None else f", {int(np.shape(entries)[0])} entries"))
+    if n == 0:
+        return 0
+    if engine() != "numba":
+        return flow_shop_python(t, i, entries, depth)
+    from tlm.kernels import _jit_flow
+
+    t64 = np.ascontiguousarray(t, dtype=np.int64)
+    i64 = np.ascontiguousarray(i, dtype=np.int64)
+    e64 = t64 if entries is None else np.ascontiguousarray(entries, dtype=np.int64)  # (not read without entries)
+    return int(_jit_flow.flow_shop(t64, i64, e64, entries is not None, int(depth)))
+
+
+def flow_shop_python(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: int) -> int:
+    """:func:`flow_shop` as a Python loop over the packets (0.3 microseconds each here),
+    their cycles made Python ints :data:`FLOW_SHOP_CHUNK` at a time, and of the cycles
+    they were tested at only the last ``depth`` + 1 kept between chunks (a packet takes
+    an entry at least, so none waits for one further back). The reference of the
+    compiled one, run with ``TLM_KERNELS=numpy``."""
     n = int(t.shape[0])
     if n == 0:
         return 0
@@ -589,22 +612,36 @@ def flow_shop(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: i
     return last
 
 
+def _phase_cycles(ph: PhaseSpec, arch: ArchConfig) -> int | None:
+    """A Traversal/Intersection phase's cycles alone (:func:`flow_shop`, at ``arch.fifo_depth``);
+    None for any other phase."""
+    costs = _ti_costs(ph, arch)
+    return None if costs is None else flow_shop(*costs, ph.jobs[0].entries, arch.fifo_depth)
+
+
 def ti_cycles(program: FrameProgram, arch: ArchConfig) -> list[int]:
     """Per tile of the tiled stages, in program order: its Traversal/Intersection phases'
     cycles, each phase alone (:func:`flow_shop`, at ``arch.fifo_depth``)."""
-    def phase(ph: PhaseSpec) -> int | None:
-        costs = _ti_costs(ph, arch)
-        return None if costs is None else flow_shop(*costs, ph.jobs[0].entries, arch.fifo_depth)
+    return _per_tile(program, lambda ph: _phase_cycles(ph, arch))
 
-    return _per_tile(program, phase)
+
+def fine_ti_cycles(fn: Functional, programs: Programs, arch: ArchConfig) -> list[int]:
+    """:func:`ti_cycles` of ``frame_program(fn, programs, replace(arch, packet_size=1))``,
+    without that program: its Traversal/Intersection phases alone, built one at a time
+    (:func:`tlm.arch.frame_program.ti_phases`, the same phases) and each dropped once its
+    flow shop is known, so at most one phase's per-ray costs are held."""
+    one = replace(arch, packet_size=1)
+    return [sum(c for ph in phases if (c := _phase_cycles(ph, one)) is not None)
+            for phases in ti_phases(fn, programs, one)]
 
 
 def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: int, slowest: int,
-                         fine: FrameProgram | None = None) -> dict:
+                         fine: FrameProgram | list[int] | None = None) -> dict:
     """A cheap estimate of how far the packet size moves TThru from packets of one
     (results.json ``timing.granularity``), without simulating packets of one.
 
-    ``change_cycles`` (with ``fine``, the same frame's program in packets of one): the
+    ``change_cycles`` (with ``fine``, the same frame's program in packets of one, or its
+    :func:`ti_cycles` per tile as :func:`fine_ti_cycles` gives them): the
     Traversal/Intersection phases' cycles per frame in these packets minus in packets of
     one (:func:`ti_cycles`, summed over the tiles of the busiest pipeline as in
     :func:`fill_and_drain`'s total): positive where whole packets hand over late at the
@@ -629,8 +666,17 @@ def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: in
     if fine is None:
         moved = min(fd, over)
     else:
-        change = 0 if fine is program else (_busiest(ti_cycles(program, arch), program)
-                                            - _busiest(ti_cycles(fine, arch), fine))
+        if fine is program:
+            change = 0
+        elif isinstance(fine, FrameProgram):
+            change = _busiest(ti_cycles(program, arch), program) - _busiest(ti_cycles(fine, arch), fine)
+        else:
+            fine = list(fine)
+            coarse = ti_cycles(program, arch)
+            if len(fine) != len(coarse):
+                raise ValueError(f"granularity_estimate: {len(fine)} tiles' cycles in packets of one for the "
+                                 f"program's {len(coarse)} tiles")
+            change = _busiest(coarse, program) - _busiest(fine, program)
         out["change_cycles"] = change
         moved = min(change, over)
     out["over_slowest_pm"] = over
@@ -671,5 +717,5 @@ def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "MaxEventsReached", "PhaseSpec", "Timing",
-           "fill_and_drain", "flow_shop", "frame_program", "granularity_estimate", "simulate", "simulate_program",
-           "steady_throughput", "ti_cycles"]
+           "fill_and_drain", "fine_ti_cycles", "flow_shop", "flow_shop_python", "frame_program", "granularity_estimate",
+           "simulate", "simulate_program", "steady_throughput", "ti_cycles"]
