@@ -24,6 +24,17 @@ import numpy as np
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _slots(entries, k, has_entries, depth):
+    """Packet k's FIFO entries: ``max(1, min(entries[k], depth))``, one where ``has_entries`` is false."""
+    if not has_entries:
+        return np.int64(1)
+    s = np.int64(entries[k])
+    if s < 1:
+        return np.int64(1)
+    return depth if s > depth else s
+
+
 @njit(cache=True, nogil=True)
 def flow_shop(t, i, entries, has_entries, depth):
     """The cycles from the phase's start to its last packet tested (0 without packets).
@@ -44,25 +55,9 @@ def flow_shop(t, i, entries, has_entries, depth):
     pushed = np.int64(0)  # the cycle the Traversal PM put the previous packet in
     last = np.int64(0)  # the cycle the previous packet was tested
     for k in range(n):
-        if has_entries:
-            s = np.int64(entries[k])
-            if s < 1:
-                s = np.int64(1)
-            elif s > depth:
-                s = depth
-        else:
-            s = np.int64(1)
-        ends += s
+        ends += _slots(entries, k, has_entries, depth)
         while before < ends - depth:
-            if has_entries:
-                sw = np.int64(entries[w])
-                if sw < 1:
-                    sw = np.int64(1)
-                elif sw > depth:
-                    sw = depth
-            else:
-                sw = np.int64(1)
-            before += sw
+            before += _slots(entries, w, has_entries, depth)
             w += 1
         pushed += t[k]  # worked
         room = tested[w % ring]
