@@ -24,7 +24,8 @@ from tlm.scenes.loader import load_scene
 REPO = Path(__file__).resolve().parents[1]
 CORNELL = REPO / "scenes" / "cornell.yaml"
 SMALL = ["--set", "resolution=[16,16]", "--set", "render.spp=1", "--set", "render.light_samples=1",
-         "--set", "photons.count=2000", "--set", "arch.packet_size=16"]
+         "--set", "arch.packet_size=16"]
+PHOTONS = ["--set", "photons.count=2000"]  # (pmap runs only: a --set of it elsewhere is warned of)
 
 
 def _moved(tmp_path: Path, name: str, transform: str) -> Path:
@@ -38,7 +39,7 @@ def _run(tmp_path: Path, capsys, scene: Path, mode: str, *more: str) -> tuple[in
     stderr lines and the output folder."""
     out = tmp_path / f"out_{scene.stem}"
     code = main(["run", str(scene), "--out", str(out), "--mode", mode, "--no-progress", "--no-report",
-                 "--no-reference", "--outputs", "images", *SMALL, *more])
+                 "--no-reference", "--outputs", "images", *SMALL, *(PHOTONS if mode == "pmap" else []), *more])
     err = capsys.readouterr().err.splitlines()
     results = out / "results.json"
     return code, json.loads(results.read_text())["warnings"] if results.exists() else None, err, out

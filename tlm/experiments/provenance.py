@@ -131,9 +131,9 @@ def mesh_paths(scene: Path) -> list[Path]:
     the geometry's order, found as the loader finds them (whether they are there or not). An
     :class:`~tlm.errors.InputError` where the scene file cannot be read."""
     from tlm.scenes.compose import mesh_path
-    from tlm.scenes.loader import _read_scene
+    from tlm.scenes.loader import read_scene_tree
 
-    raw, geom_path = _read_scene(Path(scene), ())
+    raw, geom_path = read_scene_tree(Path(scene), ())
     geometry = raw.get("geometry")
     items = [geometry] if isinstance(geometry, dict) else geometry if isinstance(geometry, list) else []
     return [mesh_path(i["mesh"], geom_path) for i in items

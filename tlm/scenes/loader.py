@@ -305,7 +305,7 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
         )
 
 
-def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
+def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     """The scene file's mapping with its ``extends:`` chain merged in, and the file whose
     ``geometry`` it uses (a mesh path is relative to the file that names it).
 
@@ -331,7 +331,7 @@ def _read_scene(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
-    base, geom_path = _read_scene(base_path, (*seen, path.resolve()))
+    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()))
     geometry = raw.get("geometry")
     if "geometry" in raw and not (isinstance(geometry, dict) and isinstance(base.get("geometry"), dict)
                                   and "mesh" not in geometry):
@@ -355,7 +355,7 @@ def load_scene(
     """
     path = resolve_scene_path(ref, base, config_source)
     src = str(path)
-    raw, geom_path = _read_scene(path, ())
+    raw, geom_path = read_scene_tree(path, ())
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
     geom = _geometry(raw["geometry"], str(geom_path), geom_path)
