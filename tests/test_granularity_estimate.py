@@ -13,10 +13,12 @@ import pytest
 
 import tlm
 import tlm.arch.frame_program as frame_programs
+import tlm.arch.granularity as granularity
 import tlm.arch.model as model
 from tlm.arch.costs import load_programs
 from tlm.arch.frame_program import FrameProgram, JobSpec, PhaseSpec, Stage, Tile, split, ti_phases
-from tlm.arch.model import fine_ti_cycles, flow_shop, flow_shop_python, frame_program, simulate_program, ti_cycles
+from tlm.arch.granularity import fine_ti_cycles, flow_shop, flow_shop_python, ti_cycles
+from tlm.arch.model import frame_program, simulate_program
 from tlm.config import config_from_dict
 from tlm.experiments.run import GRANULARITY_WARNING, stream_warnings
 
@@ -67,7 +69,7 @@ def test_flow_shop_edges(monkeypatch):
     rng = np.random.default_rng(3)
     t, i, entries = rng.integers(1, 50, 500), rng.integers(1, 50, 500), rng.integers(0, 30, 500)
     whole = {depth: flow_shop_python(t, i, entries, depth) for depth in (1, 4, 40, 10**6)}
-    monkeypatch.setattr(model, "FLOW_SHOP_CHUNK", 7)
+    monkeypatch.setattr(granularity, "FLOW_SHOP_CHUNK", 7)
     assert {depth: flow_shop_python(t, i, entries, depth) for depth in whole} == whole
     with pytest.raises(ValueError, match=r"3 packets' traversal cycles, 2 intersection cycles"):
         flow_shop(t[:3], i[:2], None, 4)

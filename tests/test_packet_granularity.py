@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from tlm.arch.frame_program import FrameProgram, JobSpec, PhaseSpec, Stage, Tile
-from tlm.arch.model import fill_and_drain, simulate_program
+from tlm.arch.granularity import fill_and_drain
+from tlm.arch.model import simulate_program
 from tlm.config import config_from_dict
 from tlm.experiments.run import GRANULARITY_WARNING, stream_warnings
 

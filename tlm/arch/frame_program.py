@@ -437,7 +437,7 @@ def ti_phases(fn: Functional, programs: Programs, arch: ArchConfig) -> Iterator[
     """Per tile of ``frame_program(fn, programs, arch)``'s tiled stages, in program order:
     its Traversal/Intersection phases, the same :class:`PhaseSpec` s, each built when it is
     asked for; no other phase, and no shared stage, is built (what the coarse-packet
-    estimate reads of the program in packets of one: ``tlm.arch.model.fine_ti_cycles``)."""
+    estimate reads of the program in packets of one: ``tlm.arch.granularity.fine_ti_cycles``)."""
     b = _Builder(fn, programs, arch)
     n_tiles = SCHEDULERS[arch.scheduler]().tiles(arch)
     passes = _ray_passes(fn, {})

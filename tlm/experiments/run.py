@@ -331,7 +331,7 @@ GRANULARITY_WARNING = 0.05
 def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     """The simulated stream's warnings, one line each: too few frames for a steady-state
     throughput; packets so coarse that they move TThru from that of packets of one by a
-    large share, either way (:func:`~tlm.arch.model.granularity_estimate`, from
+    large share, either way (:func:`~tlm.arch.granularity.granularity_estimate`, from
     :data:`GRANULARITY_WARNING` on); image tiles without pixels; and what only the run can
     tell of a setting changed from its default that it never read (:func:`timing_inert`)."""
     if timing is None:

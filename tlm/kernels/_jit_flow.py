@@ -1,6 +1,6 @@
 """The two-machine flow shop of a Traversal/Intersection phase, compiled with numba.
 
-:func:`flow_shop` returns what ``tlm.arch.model.flow_shop``'s Python loop returns (the
+:func:`flow_shop` returns what ``tlm.arch.granularity.flow_shop``'s Python loop returns (the
 reference, run with ``TLM_KERNELS=numpy``), cycle for cycle: packet k costs ``t[k]`` on
 the Traversal PM and ``i[k]`` on the Intersection PM and takes ``max(1, min(entries[k],
 depth))`` entries of the FIFO (one each where ``has_entries`` is false). The Traversal PM
