@@ -22,6 +22,7 @@ import signal
 import sys
 import time
 import traceback
+import weakref
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
@@ -519,6 +520,18 @@ def version() -> str:
 
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
+_BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
+
+
+def _bars_drawn() -> list:
+    """The progress bars (tqdm's) drawn and not yet closed: a closed or disabled bar is ``disable``."""
+    tqdm_std = sys.modules.get("tqdm.std")  # (none before a command made one)
+    if tqdm_std is None:
+        return []
+    try:
+        return [b for b in list(tqdm_std.tqdm._instances) if not b.disable]
+    except Exception:  # (the set changed while copied: a bar made or closed on another thread)
+        return []
 
 
 def _on_signal(signum, frame) -> None:
@@ -540,6 +553,7 @@ def _on_signal(signum, frame) -> None:
                 executors.release_semaphores()
         os._exit(128 + _SIGNALS[0])
     _SIGNALS.append(signum)
+    _BARS[:] = [weakref.ref(b) for b in _bars_drawn()]
     raise KeyboardInterrupt
 
 
@@ -547,6 +561,7 @@ def _on_signal(signum, frame) -> None:
 def _signals():
     """SIGTERM handled as SIGINT is, while the command runs (main thread only)."""
     _SIGNALS.clear()
+    _BARS.clear()
     try:
         before = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:  # not the main thread
@@ -589,8 +604,27 @@ def _interrupted(argv: list[str] | None) -> int:
         with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
             for s in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(s, _on_signal)
-    print("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)", file=sys.stderr)
+    line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
+    print(_line_break(sig) + line, file=sys.stderr)
     return 128 + sig
+
+
+def _line_break(sig: int) -> str:
+    """``"\n"`` where stderr is a terminal and its cursor is not at the start of a line, so
+    that the interrupted line is a line of its own: after the ``^C`` the terminal echoed
+    (SIGINT), or after a progress bar still drawn. Nothing where a bar drawn when the signal
+    came has been closed since (its close ends its line: tqdm writes ``\n``, or ``\r`` after
+    clearing it), and nothing through a pipe or into a file."""
+    try:
+        if not sys.stderr.isatty():
+            return ""
+    except (AttributeError, ValueError):  # (no stderr, or a closed one)
+        return ""
+    if _bars_drawn():
+        return "\n"
+    if any((bar := ref()) is None or bar.disable for ref in _BARS):  # (one collected was closed by its __del__)
+        return ""
+    return "\n" if sig == signal.SIGINT else ""
 
 
 def main(argv: list[str] | None = None) -> int:

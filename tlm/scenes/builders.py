@@ -7,6 +7,12 @@ parameters the triangle counts are exactly those of the test scenes in J. Ling's
 thesis: ring 646, room 7812, cornell 2604. Every count is a closed-form function of
 the parameters, written out in each docstring.
 
+A parameter that is not a number of the right kind, or out of its range, raises
+:class:`BuilderParamError` (a ValueError) naming the keyword, which is also the scene
+file's key under ``params:``; a geometry whose triangles could not fit in this machine's
+memory is refused before any is made (:func:`shapes.check_triangle_count`), naming the
+keywords that make it so.
+
 Conventions: +y is up; surfaces that bound a room face into it; solids face out; a
 solid resting on a surface touches it but never shares a coplanar face with it (its
 bottom face is left out, or it stands a hair above); no two parts overlap.
@@ -14,6 +20,8 @@ bottom face is left out, or it stands a hair above); no two parts overlap.
 
 from __future__ import annotations
 
+import inspect
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -21,7 +29,18 @@ import numpy as np
 from tlm.scenes import shapes
 from tlm.scenes.model import Geometry
 
-__all__ = ["BUILDERS", "cornell", "ring", "room"]
+__all__ = ["BUILDERS", "BuilderParamError", "cornell", "ring", "room"]
+
+
+class BuilderParamError(ValueError):
+    """One parameter's refusal. ``key`` is the keyword, which is also the key a scene file
+    writes under ``params:``; ``reason`` is what a scene file's error line says after that
+    key (the value and what it must be). ``str()`` names the keyword, for Python callers."""
+
+    def __init__(self, key: str, value, must: str):
+        self.key = key
+        self.reason = f"{value!r} {must}"
+        super().__init__(f"{key} {must}, got {value!r}")
 
 
 class _Parts:
@@ -48,16 +67,55 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
 
+def _is_finite(value) -> bool:
+    """A finite number (a Python int of any size is one; np.isfinite refuses those beyond int64)."""
+    return _is_number(value) and (isinstance(value, (int, np.integer)) or math.isfinite(value))
+
+
 def _positive_int(name: str, value, minimum: int = 1) -> int:
-    if not _is_number(value) or not np.isfinite(value) or int(value) != value or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if not _is_finite(value) or int(value) != value or value < minimum:
+        raise BuilderParamError(name, value, f"must be a whole number >= {minimum}")
     return int(value)
 
 
 def _positive(name: str, value) -> float:
-    if not _is_number(value) or not np.isfinite(value) or not value > 0:
-        raise ValueError(f"{name} must be a positive number, got {value!r}")
+    if not _is_finite(value) or not value > 0:
+        raise BuilderParamError(name, value, "must be a positive number")
     return float(value)
+
+
+def _finite(name: str, value) -> float:
+    if not _is_finite(value):
+        raise BuilderParamError(name, value, "must be a finite number")
+    return float(value)
+
+
+def _check_size(builder: Callable[..., Geometry], terms: list[tuple[int, dict[str, float]]]) -> None:
+    """Refuse, before anything is made, a tessellation that cannot fit in this machine's memory
+    (:func:`shapes.check_triangle_count`), naming the parameters that make it too large as a
+    scene file writes them (its keys under ``params:`` are the keywords). ``terms``: the
+    closed-form count's terms, each with the keywords and values it depends on (none for a
+    constant). Named are as few terms as leave the rest small enough to fit: first those with
+    a value away from its default, then the others, each the largest first."""
+    total = sum(n for n, _ in terms)
+    fits = shapes.machine_memory() // shapes.TRIANGLE_BYTES
+    if total <= fits:
+        return
+    defaults = {k: p.default for k, p in inspect.signature(builder).parameters.items()}
+    named: dict[str, float] = {}
+    rest = total
+    for n, keys in sorted((t for t in terms if t[1]),
+                          key=lambda t: (all(v == defaults[k] for k, v in t[1].items()), -t[0])):
+        if rest <= fits:
+            break
+        named.update(keys)
+        rest -= n
+    given = [f"{k} = {v}" for k, v in named.items()]
+    what = f"{builder.__name__} with " + (f"{', '.join(given[:-1])} and {given[-1]}" if len(given) > 1 else given[0])
+    if total.bit_length() > 900:  # (beyond what the GiB of check_triangle_count's line can be computed in)
+        raise ValueError(f"{what} makes a {len(str(total))}-digit number of triangles, more than this machine's "
+                         f"{shapes.machine_memory() / 2**30:.0f} GiB can hold")
+    shapes.check_triangle_count(total, what)
 
 
 # --------------------------------------------------------------------------- cornell
@@ -134,13 +192,20 @@ def cornell(
     r_mirror = _positive("mirror_radius", mirror_radius)
     r_glass = _positive("glass_radius", glass_radius)
     if r_mirror > 140.0:
-        raise ValueError(f"mirror_radius {r_mirror} mm would reach the tall block (max 140)")
+        raise BuilderParamError("mirror_radius", mirror_radius,
+                                "must be at most 140 mm (it would reach the tall block)")
     if r_glass > 110.0:
-        raise ValueError(f"glass_radius {r_glass} mm would reach a block (max 110)")
-    _positive_int("mirror_seg", mirror_seg, 3)
-    _positive_int("glass_seg", glass_seg, 3)
-    _positive_int("mirror_rings", mirror_rings, 2)
-    _positive_int("glass_rings", glass_rings, 2)
+        raise BuilderParamError("glass_radius", glass_radius, "must be at most 110 mm (it would reach a block)")
+    ms = _positive_int("mirror_seg", mirror_seg, 3)
+    gs = _positive_int("glass_seg", glass_seg, 3)
+    mr = _positive_int("mirror_rings", mirror_rings, 2)
+    gr = _positive_int("glass_rings", glass_rings, 2)
+    _check_size(cornell, [
+        (10 * n * n, {"wall_div": n}),
+        (20 * m * m, {"block_div": m}),
+        (2 * ms * (mr - 1), {"mirror_seg": ms, "mirror_rings": mr}),
+        (2 * gs * (gr - 1), {"glass_seg": gs, "glass_rings": gr}),
+    ])
     p = _Parts()
     for name, q in (
         ("floor", CORNELL_FLOOR),
@@ -154,9 +219,9 @@ def cornell(
     p.add("tall_block", _block(CORNELL_TALL_TOP, m))
     top = np.mean(CORNELL_SHORT_TOP, axis=0)
     mirror_center = top + [0.0, r_mirror, 0.0]
-    p.add("mirror_object", shapes.uv_sphere(mirror_center, r_mirror, mirror_seg, mirror_rings))
+    p.add("mirror_object", shapes.uv_sphere(mirror_center, r_mirror, ms, mr))
     glass_center = np.array([400.0, r_glass, 130.0])
-    p.add("glass_object", shapes.uv_sphere(glass_center, r_glass, glass_seg, glass_rings))
+    p.add("glass_object", shapes.uv_sphere(glass_center, r_glass, gs, gr))
     return p.geometry()
 
 
@@ -210,7 +275,8 @@ def ring(
         Radius in cm of a glass sphere resting on the floor at ``(glass_x, glass_z)``
         (part ``glass``); 0 (the default) leaves it out.
     glass_seg, glass_rings : int
-        The glass sphere's `shapes.uv_sphere` tessellation.
+        The glass sphere's `shapes.uv_sphere` tessellation (checked also when the
+        sphere is left out).
     glass_x, glass_z : float
         Where the glass sphere stands; it must lie on the floor and clear the ring.
 
@@ -228,32 +294,40 @@ def ring(
     t = _positive("thickness", thickness)
     h = _positive("height", height)
     cell = _positive("floor_cell", floor_cell)
+    if not _is_finite(floor_back) or not 0.0 < floor_back < 1.0:
+        raise BuilderParamError("floor_back", floor_back, "must lie in (0, 1)")
+    # (the glass sphere's parameters are checked even when glass_radius = 0 leaves it out)
+    rg = 0.0 if _is_number(glass_radius) and glass_radius == 0 else _positive("glass_radius", glass_radius)
+    gs = _positive_int("glass_seg", glass_seg, 3)
+    gr = _positive_int("glass_rings", glass_rings, 2)
+    gx, gz = _finite("glass_x", glass_x), _finite("glass_z", glass_z)
     if not t < r_out:
-        raise ValueError(f"thickness {t} must be smaller than radius {r_out}")
+        raise ValueError(f"thickness = {t} must be smaller than radius = {r_out}")
+    _check_size(ring, [
+        (2 * nx * nz, {"floor_nx": nx, "floor_nz": nz}),
+        (8 * n, {"n_seg": n}),
+        (2 * gs * (gr - 1) if rg else 0, {"glass_radius": glass_radius, "glass_seg": gs, "glass_rings": gr}),
+    ])
     sx, sz = nx * cell, nz * cell
     # Floor: centred in x; in z, floor_back (default 40 %) of the depth lies behind the ring (+z).
-    if not 0.0 < floor_back < 1.0:
-        raise ValueError(f"floor_back must lie in (0, 1), got {floor_back!r}")
     z_back = floor_back * sz
     if sx / 2.0 < r_out or z_back < r_out:
         raise ValueError(
-            f"the floor ({sx} x {sz} cm, reaching {z_back} cm behind the ring) does not hold "
-            f"a ring of radius {r_out} cm"
+            f"the floor (floor_nx * floor_cell = {sx} cm wide, floor_back * floor_nz * floor_cell = {z_back} cm "
+            f"behind the ring) does not hold a ring of radius = {r_out} cm"
         )
     corner = (-sx / 2.0, 0.0, z_back)
     p = _Parts()
     p.add("floor", shapes.quad(corner, (sx, 0.0, 0.0), (0.0, 0.0, -sz), nu=nx, nv=nz))
     p.add("ring", shapes.tube((0.0, 0.0, 0.0), r_out - t, r_out, h, n))
-    if glass_radius:
-        rg = _positive("glass_radius", glass_radius)
-        _positive_int("glass_seg", glass_seg, 3)
-        _positive_int("glass_rings", glass_rings, 2)
-        gx, gz = float(glass_x), float(glass_z)
+    if rg:
+        sphere = f"the glass sphere of glass_radius = {rg} at glass_x = {gx}, glass_z = {gz}"
         if np.hypot(gx, gz) < r_out + rg:
-            raise ValueError(f"the glass sphere at ({gx}, {gz}) would touch the ring")
+            raise ValueError(f"{sphere} would touch the ring of radius = {r_out}")
         if not (-sx / 2.0 + rg <= gx <= sx / 2.0 - rg and z_back - sz + rg <= gz <= z_back - rg):
-            raise ValueError(f"the glass sphere at ({gx}, {gz}) does not stand on the floor")
-        p.add("glass", shapes.uv_sphere((gx, rg, gz), rg, glass_seg, glass_rings))
+            raise ValueError(f"{sphere} does not stand on the floor (x {-sx / 2.0} to {sx / 2.0}, "
+                             f"z {z_back - sz} to {z_back})")
+        p.add("glass", shapes.uv_sphere((gx, rg, gz), rg, gs, gr))
     return p.geometry()
 
 
@@ -364,8 +438,17 @@ def room(
     vase_seg = _positive_int("vase_seg", vase_seg, 3)
     sd = _positive_int("sofa_div", sofa_div)
     fd = _positive_int("furniture_div", furniture_div)
-    _positive_int("glass_seg", glass_seg, 3)
-    _positive_int("glass_rings", glass_rings, 2)
+    gs = _positive_int("glass_seg", glass_seg, 3)
+    gr = _positive_int("glass_rings", glass_rings, 2)
+    _check_size(room, [
+        (4 * (gx * gz + gx * gy + gz * gy), {"grid_x": gx, "grid_y": gy, "grid_z": gz}),
+        (2 * gs * (gr - 1), {"glass_seg": gs, "glass_rings": gr}),
+        (24 * vase_seg, {"vase_seg": vase_seg}),
+        (8 * leg_seg, {"leg_seg": leg_seg}),
+        (60 * sd * sd, {"sofa_div": sd}),
+        (70 * fd * fd, {"furniture_div": fd}),
+        (1256, {}),
+    ])
     W, H, D = 5.0, 2.6, 6.0
     p = _Parts()
 
@@ -440,7 +523,7 @@ def room(
     # Glass on the table: a sphere resting on it and a vase 1 mm above it (so that its
     # bottom is not coplanar with the table top).
     r = 0.11
-    glass = [shapes.uv_sphere((2.6, top_y1 + r, 3.85), r, glass_seg, glass_rings)]
+    glass = [shapes.uv_sphere((2.6, top_y1 + r, 3.85), r, gs, gr)]
     prof_r = [0.0, 0.05, 0.062, 0.075, 0.066, 0.042, 0.034, 0.04, 0.034, 0.028, 0.036,
               0.06, 0.045, 0.0]
     prof_h = [0.0, 0.0, 0.03, 0.10, 0.17, 0.22, 0.26, 0.29, 0.295, 0.26, 0.22, 0.10,

@@ -167,7 +167,7 @@ def _params(raw: dict, src: str, key: str) -> dict:
 
 
 def _builder(raw: dict, src: str, key: str) -> Geometry:
-    from tlm.scenes.builders import BUILDERS
+    from tlm.scenes.builders import BUILDERS, BuilderParamError
 
     name = raw["builder"]
     if not isinstance(name, str) or name not in BUILDERS:
@@ -178,6 +178,8 @@ def _builder(raw: dict, src: str, key: str) -> Geometry:
     params = _params(raw, src, key)
     try:
         return BUILDERS[name](**params)
+    except BuilderParamError as e:  # one parameter's refusal: named by its key (geometry[0].params.glass_seg)
+        raise InputError(e.reason, source=src, key=f"{key}.params.{e.key}") from None
     except TypeError as e:
         raise InputError(f"bad builder parameter ({e})", source=src, key=f"{key}.params") from None
     except ValueError as e:
