@@ -15,7 +15,9 @@ each command in a fresh interpreter:
 and, in this process, :func:`tlm.report.build_report` of the folder after a first build (the
 report's own work) beside matplotlib's bare cost of one figure (an empty axes on a
 ``new_figure()`` saved with ``savefig`` at the report's DPI), one after the other in each
-round, and each section's part of the build.
+round, and each section's part of the build (the folder read afresh in each round and the
+parts run in one :func:`tlm.experiments.provenance.identities_remembered` scope, as a build
+runs them: the first part to judge a thesis cell computes its scene files' identities).
 
 Each time is given as wall seconds and CPU seconds (the process's, or the child's), the best
 of the rounds; each ratio is the median over the rounds of that round's ratio of CPU seconds
@@ -118,6 +120,7 @@ def main() -> None:
 
     sys.path.insert(0, str(ROOT))  # (this repository's tlm, in this process too)
     import tlm.report
+    from tlm.experiments.provenance import identities_remembered
     from tlm.report.collect import read
     from tlm.report.common import DPI
 
@@ -147,13 +150,15 @@ def main() -> None:
             t.setdefault("figure", []).append(min((in_process(lambda: empty_figure(tmp / "empty.png"))
                                                    for _ in range(3)), key=lambda wc: wc[1]))
             t.setdefault("build", []).append(in_process(lambda: tlm.report.build_report([run], tmp / "again")))
-        inputs = read([run])
         for _ in range(args.repeat):
-            for name in PARTS:
-                out = tmp / f"part_{name}"
-                out.mkdir(exist_ok=True)
-                make = getattr(importlib.import_module(f"tlm.report.{name}"), f"{name}_section")
-                t.setdefault(f"part {name}", []).append(in_process(lambda make=make, out=out: make(inputs, out)))
+            inputs = read([run])  # (afresh each round, as a build reads it: no section's memo carried over)
+            with identities_remembered():  # (as in a build: one scope for all its parts)
+                for name in PARTS:
+                    out = tmp / f"part_{name}"
+                    out.mkdir(exist_ok=True)
+                    make = getattr(importlib.import_module(f"tlm.report.{name}"), f"{name}_section")
+                    t.setdefault(f"part {name}", []).append(
+                        in_process(lambda make=make, out=out, inputs=inputs: make(inputs, out)))
 
     def best(key: str) -> str:
         return f"{min(w for w, _ in t[key]):6.2f} s wall {min(c for _, c in t[key]):6.2f} s CPU"

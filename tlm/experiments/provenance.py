@@ -7,6 +7,8 @@ record them, so that a number can be traced to the code that produced it.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import hashlib
 import os
 import platform
@@ -76,6 +78,31 @@ def provenance(study: str | None, host_seconds: float | None) -> dict:
             "host_seconds": None if host_seconds is None else round(host_seconds, 3)}
 
 
+# the identities computed inside identities_remembered(), by scene file (None: outside, none kept)
+_REMEMBERED: contextvars.ContextVar[dict | None] = contextvars.ContextVar("tlm_scene_identities", default=None)
+
+
+@contextlib.contextmanager
+def identities_remembered():
+    """Inside, :func:`scene_identity` computes the identity of a scene file once and gives it
+    again to every later call for the same file, as long as the file keeps its modification
+    time and size (keyed by the path as given, the path resolved, and those two). A report
+    (:func:`tlm.report.build_report`) or a thesis study judges every cell of a scene by its
+    file (:func:`tlm.experiments.thesis.table_of`) and the built-in files beside it: each is
+    digested, its YAML parsed and its meshes read, once rather than once a cell. The mesh files
+    are not watched: the scope is meant for one piece of work that does not change them (a
+    change to a mesh inside is seen after it). A scope inside another shares the outer's
+    identities; another thread keeps none unless it opens its own scope."""
+    if _REMEMBERED.get() is not None:
+        yield
+        return
+    token = _REMEMBERED.set({})
+    try:
+        yield
+    finally:
+        _REMEMBERED.reset(token)
+
+
 def scene_identity(source) -> str:
     """The scene file ``source`` (a run's ``scene.source``) as a digest of its bytes and of
     those of the files its ``extends:`` chain names (a built-in name there is the same scene
@@ -91,6 +118,21 @@ def scene_identity(source) -> str:
     if not source:
         return "(no scene file recorded)"
     path = Path(str(source))
+    memo = _REMEMBERED.get()
+    if memo is None:
+        return _scene_identity(path)
+    try:
+        st = path.stat()
+        key = (str(path), str(path.resolve()), st.st_mtime_ns, st.st_size)
+    except OSError:  # (not on this machine: told by its path, at no cost)
+        return _scene_identity(path)
+    if key not in memo:
+        memo[key] = _scene_identity(path)
+    return memo[key]
+
+
+def _scene_identity(path: Path) -> str:
+    """:func:`scene_identity` of the scene file ``path``, computed."""
     ident = _identity(path, 0)
     meshes = _mesh_lines(path) if ident.startswith("sha256 ") else []
     if not meshes:

@@ -60,7 +60,7 @@ from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.config import MODES, RunConfig, config_from_dict, to_dict
 from tlm.errors import InputError
-from tlm.experiments.provenance import scene_identity, scene_label
+from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.study import read_study, run_study
 from tlm.progress import Timer, progress_bar
@@ -121,11 +121,11 @@ def table_of(source: str | Path | None) -> str | None:
         return None
     p = Path(source)
     root = scenes_dir()
-    here = p.is_file()
+    mine = scene_identity(p) if p.is_file() else None  # (once, not once a table)
     for table, name in THESIS_SCENES.items():
         builtin = root / f"{name}.yaml"
-        if here:
-            if scene_identity(p) == scene_identity(builtin):
+        if mine is not None:
+            if mine == scene_identity(builtin):
                 return table
             continue
         tail = ("scenes", *f"{name}.yaml".split("/"))
@@ -408,7 +408,9 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
         summary.update(summarize(rows, differ), per_item=items, host_seconds=wall)
         return {"thesis_summary.json": summary}
 
-    with progress_bar(bar, desc="thesis", total=len(scenes) * len(modes), unit="cell") as cells:
+    # (each cell is judged by its scene file: the identities of that file and of the built-in ones, once)
+    with identities_remembered(), progress_bar(bar, desc="thesis", total=len(scenes) * len(modes),
+                                               unit="cell") as cells:
         def one_scene(scene: str, tmp: Path) -> list[dict]:
             """A scene's render, then each mode's simulation and run folder: its comparison rows."""
             t0 = time.perf_counter()

@@ -73,6 +73,14 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     (their eq. 5.2 fits are the study's). By default, the sweeps the scaling studies
     recorded in their ``eq52.json`` that still exist and are not inputs themselves.
     """
+    from tlm.experiments.provenance import identities_remembered
+
+    with identities_remembered():  # (a scene file's identity, which judges each thesis cell, computed once)
+        return _build_report(dirs, out, title, scaling_sweeps)
+
+
+def _build_report(dirs: list[Path], out: Path | None, title: str | None,
+                  scaling_sweeps: list[Path] | None) -> Path:
     t0 = time.perf_counter()
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     inputs = read(dirs)

@@ -4,7 +4,9 @@ Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slo
 PM, host seconds; a failed point with its error) and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
 factors (up to :data:`MAX_SERIES`; more are drawn as their median with the min-max
-band, and a note says so).
+band, and a note says so). Combinations that draw the same line are drawn once, one label
+naming them all; the legend is under the plot, its labels wrapped to the figure's width,
+and the figure grows by its height, so that no label squeezes the plot.
 
 A sweep over ``bsp.levels`` also gets the thesis's balance claim ("floor(ln n) levels,
 with n denoting the number of photons and/or triangles, yields good performance balance"
@@ -18,6 +20,7 @@ of the best FPS (:func:`levels_balance`).
 from __future__ import annotations
 
 import math
+import textwrap
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -33,6 +36,15 @@ MAX_SERIES = 8
 MAX_ROWS = 200
 PMS = ("vertex", "traversal", "intersection", "fragment")
 LEVELS = "bsp.levels"
+FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its legend
+LEGEND_FONT = 7  # points
+# the legend under a figure: characters of a label per inch of the figure's width (DejaVu Sans at
+# LEGEND_FONT points, digits and lower case about 4.5 pt wide, less the marker and the padding), the
+# height of a line of text and the gap between entries, and the legend's frame and the space above it
+LEGEND_CHARS_PER_INCH = 14
+LEGEND_LINE_IN = 0.125
+LEGEND_GAP_IN = 0.05
+LEGEND_PAD_IN = 0.3
 
 
 def _fmt(v: Any) -> str:
@@ -70,19 +82,56 @@ def _numeric(values: list) -> bool:
     return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
 
 
+def _combo_label(others: list[str], combo: tuple) -> str:
+    return ", ".join(f"{f.split('.')[-1]}={_fmt(c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
+
+
+def _alternatives(values: list) -> str:
+    """``1, 16, 256 or 4096``."""
+    texts = [_fmt(v) for v in values]
+    return texts[0] if len(texts) == 1 else ", ".join(texts[:-1]) + " or " + texts[-1]
+
+
+def _group_label(others: list[str], combos: list[tuple]) -> str:
+    """The legend label of combinations of the other factors that draw one line.
+
+    One combination: ``levels=7, fifo_depth=16``. Several that are every combination of
+    some values of each factor: each factor once, ``levels=7; fifo_depth=1, 16, 256 or 4096
+    (identical)``; any other set: the combinations joined by `` | ``, ``(identical)`` added."""
+    if len(combos) == 1:
+        return _combo_label(others, combos[0])
+    values = [sorted({c[i] for c in combos}, key=_order) for i in range(len(others))]
+    if math.prod(len(v) for v in values) == len(set(combos)):
+        return "; ".join(f"{f.split('.')[-1]}={_alternatives(v)}" for f, v in zip(others, values, strict=True)) \
+            + " (identical)"
+    return " | ".join(_combo_label(others, c) for c in combos) + " (identical)"
+
+
 def _merge_identical(series: dict[tuple, dict], others: list[str]) -> list[tuple[str, dict]]:
     """The series in order, those with the same points (to 1e-9) drawn once: a line that hides
-    another would read as one combination. Their labels are joined, "(identical)" added."""
-    merged: list[tuple[list[str], dict]] = []
+    another would read as one combination. Their label names them all (:func:`_group_label`)."""
+    merged: list[tuple[list[tuple], dict]] = []
     for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
-        label = ", ".join(f"{f.split('.')[-1]}={_fmt(c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
-        for labels, seen in merged:
+        for combos, seen in merged:
             if seen.keys() == pts.keys() and all(math.isclose(seen[k], pts[k], rel_tol=1e-9) for k in pts):
-                labels.append(label)
+                combos.append(combo)
                 break
         else:
-            merged.append(([label], pts))
-    return [(labels[0] if len(labels) == 1 else " | ".join(labels) + " (identical)", pts) for labels, pts in merged]
+            merged.append(([combo], pts))
+    return [(_group_label(others, combos), pts) for combos, pts in merged]
+
+
+def _legend_below(fig, ax, width: float, height: float) -> None:
+    """The axes' legend under the plot, across the figure: labels wrapped to the figure's
+    width, and the figure ``width`` x ``height`` inches made taller by the legend's height,
+    so that the plot keeps about the size it has without a legend and no label, however long
+    (many identical combinations), squeezes it (matplotlib's constrained layout gives up with
+    a warning when the decorations leave the axes no room)."""
+    handles, labels = ax.get_legend_handles_labels()
+    wrapped = [textwrap.fill(label, max(20, int(width * LEGEND_CHARS_PER_INCH))) for label in labels]
+    lines = sum(w.count("\n") + 1 for w in wrapped)
+    fig.set_size_inches(width, height + LEGEND_PAD_IN + lines * LEGEND_LINE_IN + len(wrapped) * LEGEND_GAP_IN)
+    fig.legend(handles, wrapped, loc="outside lower center", fontsize=LEGEND_FONT)
 
 
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
@@ -96,7 +145,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     series: dict[tuple, dict] = defaultdict(dict)
     for r in ok:
         series[tuple(_key(r.get(f)) for f in others)][_key(r.get(factor))] = r["fps"]
-    fig = new_figure(7, 4.5)
+    fig = new_figure(*FACTOR_SIZE)
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
     if len(series) <= MAX_SERIES:
@@ -127,7 +176,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax.set(xlabel=factor, ylabel="simulated frames per second (FPS)",
            title=f"{sw.path.name}: simulated FPS against {factor}")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    _legend_below(fig, ax, *FACTOR_SIZE)
     name = f"sweep_{sw.path.name}_{factor.replace('.', '_')}.png"
     return save(fig, out, name, f"{sw.path.name}: FPS against {factor}",
                 f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
