@@ -6,6 +6,13 @@ references and a sweep's finished points: a cached result is always one that the
 code in hand would produce. (A narrower key, over the files one believes matter, is
 what let an edit of ``arch/functional.py`` or ``experiments/run.py`` reuse stale
 work counts before.)
+
+It is the same for one commit in a checkout and installed from its wheel: the folders the
+wheel adds to the package from outside it (pyproject.toml's ``force-include``: the
+repository's ``scenes/`` as ``tlm/_scenes``), which a checkout keeps beside ``tlm/``, are
+not read. Those are data, not code, and every key that depends on a scene hashes the
+scene's own content (the functional key, the reference's, the scene cache's entries).
+:func:`added` tells them: a top-level folder of the package whose name starts with ``_``.
 """
 
 from __future__ import annotations
@@ -18,9 +25,18 @@ ROOT = Path(__file__).resolve().parent
 _CODE: str | None = None
 
 
+def added(root: Path, f: Path) -> bool:
+    """Whether ``f`` is in a folder the wheel adds to the package (``_scenes/``): a folder
+    directly in ``root`` whose name starts with ``_``."""
+    parts = f.relative_to(root).parts
+    return len(parts) > 1 and parts[0].startswith("_")
+
+
 def package_files(root: Path = ROOT) -> list[Path]:
-    """The files the fingerprint reads, sorted by their path below ``root``."""
-    files = [f for pat in ("*.py", "*.yaml") for f in root.rglob(pat) if "__pycache__" not in f.parts]
+    """The files the fingerprint reads, sorted by their path below ``root``: every ``.py``
+    and ``.yaml`` but those of ``__pycache__`` and of the folders the wheel adds (:func:`added`)."""
+    files = [f for pat in ("*.py", "*.yaml") for f in root.rglob(pat)
+             if "__pycache__" not in f.parts and not added(root, f)]
     return sorted(files, key=lambda f: f.relative_to(root).as_posix())
 
 

@@ -4,7 +4,8 @@
   :func:`write_file` the same for a ready ``str`` or ``bytes``.
 * :func:`atomic_folder` — an output folder (a run, a sweep, a study).
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
-* :func:`cache_root` — where the caches live (``$TLM_CACHE``, default ``~/.cache/tlm``).
+* :func:`cache_root` — where the caches live (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
+  else ``~/.cache/tlm``), and the one line said when one of them cannot be written.
 
 For a folder, everything is written into a temporary sibling folder, which is renamed onto the
 destination only when the block finished; on any error (or Ctrl-C) the temporary
@@ -36,7 +37,9 @@ import os
 import re
 import shutil
 import socket
+import stat
 import sys
+import threading
 import time
 from collections.abc import Collection, Iterable, Iterator
 from contextlib import contextmanager, suppress
@@ -326,7 +329,11 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
     where given, whatever else an earlier ``out`` holds (a user's notes, an analysis
     folder) is carried into the new one, not removed with the old output.
     """
-    out = check_destination(out, marker)
+    try:
+        out = check_destination(out, marker)
+    except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, :func:`cache_failed`)
+        _note_cache_write(out, e)
+        raise
     tmp = out.parent / f".{out.name}.tmp-{_owner()}"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -334,6 +341,7 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir()
     except OSError as e:
+        _note_cache_write(out, e)
         raise EnvironmentFailure(f"cannot create the output folder ({e.strerror})", source=str(out)) from None
     try:
         yield tmp
@@ -371,6 +379,7 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
                 raise
     except BaseException as e:
         shutil.rmtree(tmp, ignore_errors=True)
+        _note_cache_write(out, e)
         _raise_environmental(e, out)
         raise
 
@@ -444,6 +453,7 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     except BaseException as e:
         with suppress(OSError):
             tmp.unlink(missing_ok=True)
+        _note_cache_write(path, e)
         _raise_environmental(e, path)
         raise
 
@@ -474,9 +484,142 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
             w.writerow({k: json.dumps(v) if isinstance(v, (list, dict)) else v for k, v in r.items()})
 
 
+def cache_home() -> Path:
+    """The folder of tlm's caches: ``$TLM_CACHE``; else ``$XDG_CACHE_HOME/tlm`` where
+    ``XDG_CACHE_HOME`` is set to an absolute path (the XDG spec has a relative one ignored);
+    else ``~/.cache/tlm``. An empty variable counts as unset."""
+    if own := os.environ.get("TLM_CACHE"):
+        return Path(own)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        return Path(xdg) / "tlm"
+    return Path.home() / ".cache" / "tlm"
+
+
+# tlm's caches that a run writes to: their names in a warning, and what a cache that
+# cannot be written costs (the tracebacks' folder, which falls back to the temporary
+# folder, and numba's, which says its own line, are not among them)
+CACHES = {
+    "functional": ("functional", "every frame is rendered again, even for sweep points that differ only in arch.*"),
+    "scenes": ("scene", "large meshes are parsed again on every load"),
+    "references": ("reference", "photon-map references are computed again by every run"),
+    "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
+}
+CACHE_WARNING = "cannot write tlm's "  # how each line of cache_warnings() starts
+_CACHE_LOCK = threading.Lock()
+_CACHE_CHECKED: set[Path] = set()  # the cache folders looked at in this process
+_CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> its line (said once a process)
+_CACHE_SAID: set[str] = set()  # the lines said on stderr in this process
+_CACHE_HELD = 0  # > 0: the lines are kept, not said (a sweep point: its sweep says them once)
+
+
 def cache_root(kind: str) -> Path:
-    """``$TLM_CACHE/<kind>`` (default ``~/.cache/tlm/<kind>``)."""
-    return Path(os.environ.get("TLM_CACHE") or Path.home() / ".cache" / "tlm") / kind
+    """``<cache_home()>/<kind>``: the folder of one of tlm's caches.
+
+    The first call in a process for a cache of :data:`CACHES` checks that the folder can be
+    written (or made); where it cannot, one line says so (:func:`cache_failed`): a cache
+    that cannot be written costs speed only, never a result, but the user is told which.
+    """
+    folder = cache_home() / kind
+    if kind in CACHES and folder not in _CACHE_CHECKED:
+        with _CACHE_LOCK:
+            _CACHE_CHECKED.add(folder)
+        why = cache_problem(folder)
+        if why is not None:
+            cache_failed(folder, why)
+    return folder
+
+
+def cache_problem(folder: Path) -> str | None:
+    """Why nothing can be written into ``folder`` (nor the folder made), or None. Looked at,
+    not tried: nothing is created (``os.access``, which a root user's read-only mount fails too)."""
+    p = Path(folder)
+    while True:
+        try:
+            st = p.stat()
+            break
+        except (FileNotFoundError, NotADirectoryError):
+            if p.parent == p:
+                return f"{p} does not exist"
+            p = p.parent
+        except OSError as e:
+            return f"{p}: {(e.strerror or str(e)).lower()}"
+    if not stat.S_ISDIR(st.st_mode):
+        return f"{p} is a file, not a folder"
+    if os.access(p, os.W_OK | os.X_OK):
+        return None
+    try:
+        read_only = bool(os.statvfs(p).f_flag & os.ST_RDONLY)
+    except OSError:
+        read_only = False
+    return f"{p} is on a read-only file system" if read_only else f"{p} is not writable (permission denied)"
+
+
+def cache_failed(path: Path, why: str) -> None:
+    """Say, once a process per cache folder, that one of tlm's caches (the one ``path`` is
+    in or under) cannot be written, why, and what that costs; nothing for a path in none."""
+    path = Path(path)
+    home = cache_home()
+    kind = next((k for k in CACHES if path == home / k or home / k in path.parents), None)
+    if kind is None:
+        return
+    folder = home / kind
+    name, cost = CACHES[kind]
+    with _CACHE_LOCK:
+        if folder in _CACHE_LINES:
+            return
+        line = f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
+        _CACHE_LINES[folder] = line
+        held = _CACHE_HELD > 0
+    if not held:
+        say_cache_warning(line)
+
+
+def say_cache_warning(line: str) -> bool:
+    """:func:`warn` a line of :func:`cache_warnings` (this process's or a worker's) unless this
+    process said it already; whether it was said now."""
+    with _CACHE_LOCK:
+        if line in _CACHE_SAID:
+            return False
+        _CACHE_SAID.add(line)
+    warn(line)
+    return True
+
+
+def cache_warnings() -> list[str]:
+    """The lines of this process on the caches of :func:`cache_home` it cannot write
+    (:func:`cache_failed`), said or held."""
+    home = cache_home()
+    with _CACHE_LOCK:
+        return [line for folder, line in _CACHE_LINES.items() if folder.parent == home]
+
+
+@contextmanager
+def cache_warnings_held() -> Iterator[None]:
+    """While the block runs, a cache that cannot be written is noted (:func:`cache_warnings`),
+    not said: a sweep's point, whose sweep says each line once for all its workers."""
+    global _CACHE_HELD
+    with _CACHE_LOCK:
+        _CACHE_HELD += 1
+    try:
+        yield
+    finally:
+        with _CACHE_LOCK:
+            _CACHE_HELD -= 1
+
+
+def _note_cache_write(path: Path, e: BaseException) -> None:
+    """A write under one of the caches failed (:func:`write_atomic`, :func:`atomic_folder`):
+    said once (a full disk, a folder :func:`cache_problem` could not tell was read-only)."""
+    if isinstance(e, EnvironmentFailure):
+        why = str(e)
+    elif isinstance(e, OSError):
+        why = environment_problem(e, filename=False) or (e.strerror or str(e)).lower()
+    elif isinstance(e, InputError):  # (check_destination's: a file, or something else, in the way)
+        why = str(e).removeprefix(f"{e.key}: ") if e.key else str(e)
+    else:
+        return
+    cache_failed(path, why)
 
 
 def file_digest(path: Path) -> dict:

@@ -23,8 +23,9 @@ when ``TLM_KERNELS=numpy``: the same estimate.
 The reference traces with settings of its own (:func:`reference_config`): of the run's
 config only what changes the converged image is read, the rest is fixed (Russian
 roulette, the caustic group's share and aiming, no final gathering, the cone filter's
-constant :data:`CONE_K`), so it is cached under ``$TLM_CACHE`` (default ``~/.cache/tlm``)
-in ``references/<key>/``, keyed (:func:`reference_key`) by the scene (triangles, shading
+constant :data:`CONE_K`), so it is cached in tlm's cache folder (``$TLM_CACHE``, else
+``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``: :func:`tlm.storage.cache_home`) in
+``references/<key>/``, keyed (:func:`reference_key`) by the scene (triangles, shading
 normals or parts, materials, lights, camera and resolution), the photons' path length
 (``photons.max_bounces``), where the eye paths gather (``render.reflect_depth`` with
 mirrors, ``refract_depth`` and ``fresnel`` with glass, ``min_weight`` with either) and
@@ -35,6 +36,11 @@ sample the pixel (``reference.spp``: any converges to the pixel's integral), nor
 stopping rule: ``tlm reference`` reuses a cached reference that meets the requested
 tolerance and computes it again otherwise; ``tlm run`` uses whatever is cached, and
 computes it when nothing is (:func:`ensure_reference`; ``reference.auto``).
+
+A cache that cannot be written (a read-only ``~/.cache``) loses no reference: ``tlm run``
+uses the one it computed for that run only, and ``tlm reference`` keeps it in the
+temporary folder (``<tmp>/tlm-cache-<uid>/references/<key>``), says where, and exits as
+it would have with a writable cache.
 """
 
 from __future__ import annotations
@@ -42,7 +48,9 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -50,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import EstimateConfig, PhotonConfig, RunConfig
-from tlm.errors import EnvironmentFailure
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
@@ -61,7 +69,7 @@ from tlm.render.passes import gather_points
 from tlm.render.planner import check_photon_memory
 from tlm.render.pmap import trace_photon_map
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_root, cached_image, file_digest
+from tlm.storage import atomic_folder, cache_problem, cache_root, cached_image, file_digest, warn
 
 REFERENCE_SEED = 0x5EED
 KEY_VERSION = 2  # 1: keyed by render.spp, the eye samples the run's
@@ -329,9 +337,14 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     return mean, meta
 
 
-def save_reference(key: str, image: np.ndarray, meta: dict) -> Path:
-    """Write ``reference.npy`` and ``meta.json`` atomically into the cache."""
-    final = cache_dir() / key
+def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = None) -> Path:
+    """Write ``reference.npy`` and ``meta.json`` atomically into the cache (or ``root``):
+    an :class:`~tlm.errors.EnvironmentFailure` naming why where its folder cannot be written."""
+    folder = cache_dir() if root is None else Path(root)
+    final = folder / key
+    why = cache_problem(folder)
+    if why is not None:
+        raise EnvironmentFailure(f"cannot write: {why}", source=str(final))
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
         body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
@@ -392,7 +405,8 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     cam = frame.scene.camera
     try:
         where = f"cached in {save_reference(key, image.reshape(cam.height, cam.width, 3), meta)}"
-    except (EnvironmentFailure, OSError) as e:  # (a read-only or full cache: this run still gets its error)
+    except (EnvironmentFailure, OSError, InputError) as e:  # (a read-only or full cache: this run still gets
+        # its error; InputError: something in the way of the entry's folder, storage.check_destination)
         where = f"not cached ({' '.join(str(e).split())}): used by this run only"
     seconds = time.perf_counter() - t0
     if say is not None:
@@ -464,5 +478,29 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
         f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
     image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar)
-    folder = save_reference(key, image.reshape(scene.camera.height, scene.camera.width, 3), meta)
+    image = image.reshape(scene.camera.height, scene.camera.width, 3)
+    try:
+        folder = save_reference(key, image, meta)
+    except (EnvironmentFailure, OSError, InputError) as e:  # (the rounds' result is not thrown away)
+        folder = _kept_elsewhere(key, image, meta, e)
     return Made(key, settings, meta, True, folder)
+
+
+def kept_root() -> Path:
+    """Where ``tlm reference`` keeps a reference its cache cannot take: a cache folder of
+    this user's in the temporary folder (``TLM_CACHE`` set to it reads the reference)."""
+    return Path(tempfile.gettempdir()) / f"tlm-cache-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+
+
+def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseException) -> Path:
+    """The reference ``key``, which the cache could not take (``error``), written into
+    :func:`kept_root` instead, and one warning line that says so; ``error`` itself where
+    that cannot be written either."""
+    root = kept_root()
+    try:
+        folder = save_reference(key, image, meta, root / "references")
+    except (EnvironmentFailure, OSError, InputError):
+        raise error from None
+    warn(f"reference {key}: not cached ({' '.join(str(error).split())}): kept in {folder} instead, "
+         f"which later runs read with TLM_CACHE={root}")
+    return folder

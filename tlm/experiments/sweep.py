@@ -110,7 +110,8 @@ def run_point(task: Task) -> dict:
         threads = task.threads if task.threads is not None else dask_worker_threads()
         cfg = config_from_dict(_with_threads(task.config, threads), task.source)
         folder = Path(task.folder)
-        got = cached_render(cfg, folder, task.source)
+        with storage.cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
+            got = cached_render(cfg, folder, task.source)
         t1 = time.perf_counter()
         stage = "simulate"
         programs = programs_for(cfg, folder)
@@ -127,7 +128,8 @@ def run_point(task: Task) -> dict:
                 "seed": cfg.seed, "mode": cfg.mode,
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 # the render's warnings, and this point's own (what it sets and never reads; its stream)
-                "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg)],
+                "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg),
+                             *storage.cache_warnings()],  # (the caches this worker could not write)
                 # the timing keys it changed from their defaults and never read, with why (for the
                 # sweep's own line on a factor no point read: Sweep.unread_factors)
                 "inert": inert_timing_changes(timing, cfg),
@@ -358,8 +360,23 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                                    if records[p.hash]["status"] == "ok"])
     for line in unread:
         warn(line)
+    caches = _cache_lines([records[h] for h in tasks], storage.cache_warnings())
     return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
-                   [*said, *unread])
+                   [*said, *unread, *caches])
+
+
+def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
+    """The lines on tlm's caches that could not be written: this process's (``here``, most
+    said as they were met) and the points' (their workers keep them: :func:`run_point`),
+    each once; those not said yet are said now."""
+    lines = list(here)
+    for rec in records:
+        for line in (rec.get("results") or {}).get("warnings") or []:
+            if isinstance(line, str) and line.startswith(storage.CACHE_WARNING) and line not in lines:
+                lines.append(line)
+    for line in lines:
+        storage.say_cache_warning(line)
+    return lines
 
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],

@@ -18,6 +18,13 @@ compiled modules take ``njit`` (and ``prange``) from here, so the wrapping is in
 before their functions are decorated (numba picks a function's locator then), and
 importing the rest of :mod:`tlm.kernels` does not import numba.
 
+Where no folder can hold the compiled code (a read-only install, no writable ``~/.cache``,
+``NUMBA_CACHE_DIR`` unset: numba raises "no locator available" when the function is
+decorated), tlm's compiled files are cached in ``numba/`` of tlm's own cache folder
+(:func:`tlm.storage.cache_home`: ``$TLM_CACHE`` may point somewhere writable) where that
+can be written, else compiled without the on-disk cache: the same code, compiled again in
+each process. That is said once a process, one line on stderr (:func:`njit`).
+
 Not covered: a package run from a zip file (no files to hash: numba's own stamps), and
 ``NUMBA_CACHE_LOCATOR_CLASSES``, which names numba's classes and so bypasses the wrapping.
 ``tests/test_numba_cache.py`` checks that every file of tlm with a cached function is
@@ -28,10 +35,12 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import inspect
 import os
 from pathlib import Path
 
-from numba import njit, prange
+from numba import njit as _numba_njit
+from numba import prange
 
 __all__ = ["compiled_sources", "install", "njit", "package_stamp", "prange", "stamp_of"]
 
@@ -82,29 +91,109 @@ class _PackageStamp:
     """Mixed into a numba locator: tlm's compiled files get the package's stamp."""
 
     def get_source_stamp(self):
-        try:
-            mine = str(Path(getattr(self, "_py_file", "")).resolve()) in _covered()
-        except OSError:
-            mine = False
-        if mine:
+        if _mine(getattr(self, "_py_file", "")):
             return ("tlm-kernels", package_stamp())
         return super().get_source_stamp()  # type: ignore[misc]
 
 
+def _mine(py_file: str) -> bool:
+    try:
+        return str(Path(py_file).resolve()) in _covered()
+    except OSError:
+        return False
+
+
+def _tlm_cache_locator(caching) -> type:
+    """A locator of the last resort, for tlm's compiled files only: ``<tlm's cache>/numba``
+    (:func:`tlm.storage.cache_home`), where numba's own folders cannot be written."""
+
+    class TlmCacheRootLocator(_PackageStamp, caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        def __init__(self, py_func, py_file):
+            from tlm.storage import cache_home
+
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = str(cache_home() / "numba" / self.get_suitable_cache_subpath(py_file))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not _mine(py_file):
+                return None
+            return super().from_function(py_func, py_file)  # (None where its folder cannot be written)
+
+    return TlmCacheRootLocator
+
+
 def install() -> bool:
-    """Wrap numba's source-file locators (once; idempotent). False where numba's caching
-    module lacks what this needs (then numba's own stamps stand: the test fails)."""
+    """Wrap numba's source-file locators, and add tlm's cache folder as the last one
+    (once; idempotent). False where numba's caching module lacks what this needs (then
+    numba's own stamps stand: the test fails)."""
     from numba.core import caching
 
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # (numba 0.6x: private)
     mixin = getattr(caching, "_SourceFileBackedLocatorMixin", None)
-    if impl is None or mixin is None or not isinstance(getattr(impl, "_locator_classes", None), list):
+    if impl is None or mixin is None or not isinstance(getattr(impl, "_locator_classes", None), list) \
+            or not isinstance(getattr(caching, "_CacheLocator", None), type):
         return False
     classes = impl._locator_classes
     for i, cls in enumerate(classes):
         if isinstance(cls, type) and issubclass(cls, mixin) and not issubclass(cls, _PackageStamp):
             classes[i] = type(f"Tlm{cls.__name__}", (_PackageStamp, cls), {"__module__": __name__})
+    if not any(getattr(cls, "__name__", "") == "TlmCacheRootLocator" for cls in classes):
+        classes.append(_tlm_cache_locator(caching))
     return True
+
+
+_UNCACHED: list[str] = []  # the line said when a function found no folder for its compiled code
+
+
+def njit(*args, **kwargs):
+    """numba's ``njit``. With ``cache=True`` where no folder can hold the compiled code
+    (numba raises "no locator available" as it decorates), the function is compiled
+    without the on-disk cache instead (the same code, compiled in each process again),
+    said once a process (:func:`tlm.storage.warn`)."""
+    if not kwargs.get("cache"):
+        return _numba_njit(*args, **kwargs)
+    if args and inspect.isfunction(args[0]):  # (njit(f, cache=True))
+        return _cached_or_not(args[0], args[1:], kwargs)
+    return lambda func: _cached_or_not(func, args, kwargs)
+
+
+def _cached_or_not(func, args: tuple, kwargs: dict):
+    try:
+        return _numba_njit(*args, **kwargs)(func)
+    except RuntimeError as e:
+        if "no locator available" not in str(e):
+            raise
+    if not _UNCACHED:
+        _UNCACHED.append(_uncached_line(inspect.getfile(func)))
+        from tlm.storage import warn
+
+        warn(_UNCACHED[0])
+    return _numba_njit(*args, **{**kwargs, "cache": False})(func)
+
+
+def _uncached_line(py_file: str) -> str:
+    """Where numba looked for a folder to write the compiled code of ``py_file`` in, and what to do."""
+    from numba.core import config
+
+    from tlm.storage import cache_home
+
+    places = [f"NUMBA_CACHE_DIR={config.CACHE_DIR}" if config.CACHE_DIR else "NUMBA_CACHE_DIR unset",
+              str(Path(py_file).parent / "__pycache__")]
+    try:
+        from numba.misc.appdirs import AppDirs
+
+        places.append(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+    except Exception:  # (numba's private helper moved: the line names the others)
+        pass
+    if _mine(py_file):
+        places.append(str(cache_home() / "numba"))
+    return (f"numba cannot write its compiled kernels anywhere ({', '.join(places)}: none can be written): "
+            "they are compiled again in each process; set NUMBA_CACHE_DIR to a writable folder")
 
 
 install()
