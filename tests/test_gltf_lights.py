@@ -1,5 +1,5 @@
-"""A glTF's KHR_lights_punctual point lights and its first perspective camera become the
-scene's lights and camera when the scene file gives no lights: / camera: (tlm/scenes/meshes.py
+"""A glTF's KHR_lights_punctual point, spot and directional lights and its first perspective
+camera become the scene's lights and camera when the scene file gives no lights: / camera: (tlm/scenes/meshes.py
 and tlm/scenes/gltf_imports.py read them, tlm/scenes/compose.py moves them with the item's
 transform, tlm/scenes/loader.py decides which are used, tlm/scenes/cache.py keeps them); what
 is not imported, and what is, is named in the run's warnings; a malformed light or camera is
@@ -91,16 +91,23 @@ def test_point_lights_take_their_nodes_world_positions_and_4_pi_intensity_color(
     glb = _scene_glb(tmp_path)
     scene = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\n")))
     power = tuple(4.0 * math.pi * 5.0 * c for c in (1.0, 0.5, 0.25))
-    assert [lt.kind for lt in scene.lights] == ["point", "point"]  # (the lamp on two nodes; the spot not)
+    assert [lt.kind for lt in scene.lights] == ["point", "point", "spot"]  # (the lamp on two nodes, the spot)
     assert np.allclose(scene.lights[0].position, (1.0, 4.0, 3.0)) and np.allclose(scene.lights[0].power, power)
     assert np.allclose(scene.lights[1].position, (0.0, 5.0, 0.0)) and np.allclose(scene.lights[1].power, power)
     assert scene.lights[0].name == "s.glb KHR_lights_punctual.lights[0] 'lamp' at nodes[2]"
+    # the spot (white, intensity 9, glTF's default cones 0 and pi / 4) on an unmoved node: at the
+    # origin, shining down the node's -z
+    spot = scene.lights[2]
+    assert spot.name == "s.glb KHR_lights_punctual.lights[1] 'beam' at nodes[5]"
+    assert spot.position == (0.0, 0.0, 0.0) and spot.direction == (0.0, 0.0, -1.0)
+    assert spot.power == pytest.approx((4.0 * math.pi * 9.0,) * 3, rel=1e-15)
+    assert (spot.inner_angle, spot.outer_angle) == (0.0, 45.0)
     notes = file_warnings(scene)
-    assert (f"{glb}: not imported from its KHR_lights_punctual lights: lights[1] 'beam' (spot): tlm has point, quad "
-            "and mesh lights (give such a light under lights: in the scene file, or an emissive material)") in notes
-    assert (f"{glb}: its 2 point lights (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3]) are imported as tlm point lights (power 4 pi x "
-            "intensity x color W): the scene file gives no lights:") in notes
+    assert not any("not imported from its KHR_lights_punctual lights" in n for n in notes)
+    assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
+            "imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
+            "lights:") in notes
 
 
 def test_the_first_perspective_camera_looks_down_its_nodes_minus_z(tmp_path):
@@ -134,27 +141,32 @@ def test_a_scene_file_without_a_camera_needs_one_from_its_meshes(tmp_path):
 
 
 def test_the_items_transform_moves_lights_and_camera_and_the_scenes_scales_power(tmp_path):
-    """p' = Ry(90) 2 p + (0, 0, 1): the lamp (1, 4, 3) to (6, 8, -1), the eye (0, 1, 10) to
-    (20, 2, 1), the view direction -x to +z; the power stays (a glTF node's scale leaves its light's
-    intensity). The scene's transform scales power by scale^2, as for every light."""
+    """p' = Ry(90) 2 p + (0, 0, 1): the lamp (1, 4, 3) to (6, 8, -1), the spot (0, 0, 0) to
+    (0, 0, 1) and its direction -z to -x, the eye (0, 1, 10) to (20, 2, 1), the view direction -x
+    to +z; the power stays (a glTF node's scale leaves its light's intensity). The scene's
+    transform scales power by scale^2, as for every light, and turns no direction."""
     _scene_glb(tmp_path)
     item = "geometry: {mesh: s.glb, transform: {scale: 2, rotate: [0, 90, 0], translate: [0, 0, 1]}}\n"
     scene = load_scene(str(_yaml(tmp_path, item)))
     plain = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\n", "plain.yaml")))
     assert np.allclose(scene.lights[0].position, (6.0, 8.0, -1.0))
     assert scene.lights[0].power == plain.lights[0].power
+    assert np.allclose(scene.lights[2].position, (0.0, 0.0, 1.0)) and scene.lights[2].power == plain.lights[2].power
+    np.testing.assert_allclose(scene.lights[2].direction, (-1.0, 0.0, 0.0), atol=1e-15)
     assert np.allclose(scene.camera.eye, (20.0, 2.0, 1.0)) and np.allclose(scene.camera.target, (20.0, 2.0, 2.0))
     assert np.allclose(scene.camera.up, (0.0, 1.0, 0.0))
     whole = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\ntransform: {scale: 3, translate: [1, 0, 0]}\n",
                                  "whole.yaml")))
     assert np.allclose(whole.lights[0].position, (4.0, 12.0, 9.0))
     assert np.allclose(whole.lights[0].power, np.multiply(plain.lights[0].power, 9.0))
+    assert whole.lights[2].direction == (0.0, 0.0, -1.0) and np.allclose(whole.lights[2].position, (1.0, 0.0, 0.0))
     assert np.allclose(whole.camera.eye, (1.0, 3.0, 30.0))
     two = load_scene(str(_yaml(tmp_path, "geometry: [{mesh: s.glb}, {mesh: s.glb, transform: {translate: [0, 0, 50]}}]"
                                          "\n", "two.yaml")))
-    assert [lt.position[2] for lt in two.lights] == pytest.approx([3.0, 0.0, 53.0, 50.0])
+    assert [lt.position[2] for lt in two.lights] == pytest.approx([3.0, 0.0, 0.0, 53.0, 50.0, 50.0])
     assert np.allclose(two.camera.eye, plain.camera.eye)  # (the first item's camera)
-    assert any("its 4 point lights (" in n and ", in each of its 2 geometry items)" in n for n in file_warnings(two))
+    assert any("its 6 lights (4 point and 2 spot: " in n and ", in each of its 2 geometry items)" in n
+               for n in file_warnings(two))
 
 
 def test_the_scene_files_lights_and_camera_come_first(tmp_path):
@@ -165,9 +177,9 @@ def test_the_scene_files_lights_and_camera_come_first(tmp_path):
     scene = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\n" + own)))
     assert [lt.position for lt in scene.lights] == [(0.0, 9.0, 0.0)] and scene.camera.eye == (0.0, 0.0, 6.0)
     notes = file_warnings(scene)
-    assert (f"{glb}: its 2 point lights (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3]) are not used: the scene file gives lights: (leave "
-            "lights: out to import them)") in notes
+    assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
+            "not used: the scene file gives lights: (leave lights: out to import them)") in notes
     assert (f"{glb}: its camera cameras[0] at nodes[4] is not used: the scene file gives camera: (leave "
             "camera: out to import it)") in notes
     assert not any("imported as" in n or "is the scene's camera" in n for n in notes)
@@ -180,17 +192,20 @@ def test_the_scene_files_lights_and_camera_come_first(tmp_path):
 
 def test_range_aspect_ratio_and_unplaced_entries_are_named(tmp_path):
     ranged = {**LAMP, "range": 4.0}
-    glb = _glb(tmp_path, [ranged, {"type": "point"}, {"type": "directional"}],
+    glb = _glb(tmp_path, [ranged, {"type": "point"}, {"type": "directional"}, {"type": "spot", "range": 2.0},
+                          {"type": "spot"}],
                [_perspective(aspectRatio=1.5), _perspective(0.9)],
                (_on(0, translation=[0, 2, 0]), {"camera": 0, "translation": [0, 0, 5]}, {"camera": 1},
-                _on(2)), (1, 2, 3, 4))
+                _on(2), _on(3, translation=[0, 3, 0])), (1, 2, 3, 4, 5))
     scene = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\n")))
+    assert [lt.kind for lt in scene.lights] == ["point", "directional", "spot"]
+    sun = scene.lights[1]
+    assert sun.direction == (0.0, 0.0, -1.0) and sun.irradiance == (1.0, 1.0, 1.0)  # (a node's -z; 1 lux, white)
     notes = file_warnings(scene)
     assert (f"{glb}: not imported from its KHR_lights_punctual lights: lights[1] (point, on no node of the glTF's "
-            "scene), lights[2] (directional): tlm has point, quad and mesh lights (give such a light under lights: "
-            "in the scene file, or an emissive material)") in notes
-    assert (f"{glb}: the range of its point light lights[0] 'lamp' (range 4) is not modelled: a tlm point light "
-            "reaches every distance (falling off as 1/d^2)") in notes
+            "scene), lights[4] (spot, on no node of the glTF's scene)") in notes
+    assert (f"{glb}: the range of its point and spot lights lights[0] 'lamp' (range 4), lights[3] (range 2) is not "
+            "modelled: a tlm point or spot light reaches every distance (falling off as 1/d^2)") in notes
     assert f"{glb}: not imported from its cameras: cameras[1] at nodes[3] (a perspective camera after the first)" \
         in notes
     assert (f"{glb}: its camera cameras[0] at nodes[2] has aspectRatio 1.5, not the resolution's 1 (16x16): the "
@@ -213,7 +228,8 @@ def test_imported_lights_and_camera_survive_a_cache_hit(tmp_path, monkeypatch, c
     assert parsed == ["s.glb"] and list(cache.glob("scenes/mesh-*.npz"))
     (a,), (b,) = first.imports, again.imports
     assert a.source == str(tmp_path / "a" / "s.glb") and b.source == str(tmp_path / "b" / "s.glb")
-    assert b.lights == a.lights and len(b.lights) == 2 and b.camera == a.camera is not None
+    assert b.lights == a.lights and [lt.kind for lt in b.lights] == ["point", "point", "spot"]
+    assert b.lights[2].direction == (0.0, 0.0, -1.0) and b.camera == a.camera is not None
     assert (b.camera_name, b.aspect) == (a.camera_name, a.aspect) == ("cameras[0] at nodes[4]", None)
     assert again.notes == tuple(n.replace(str(tmp_path / "a"), str(tmp_path / "b")) for n in first.notes)
     scene = load_scene(str(_yaml(tmp_path / "b", "geometry: {mesh: s.glb}\n")))
@@ -302,8 +318,9 @@ def test_an_imported_camera_wider_than_179_degrees_is_an_error(tmp_path):
 
 def test_gltf_imports_reads_a_header_without_a_mesh():
     """The import from the JSON alone: a point light two nodes down (the parent's scale moves
-    it, leaves its power) and a perspective camera turned 90 degrees about y (it looks down
-    the world's -x); a spot light is named in a note, not imported."""
+    it, leaves its power), a spot light at the origin (white, intensity 1 by default) shining
+    down its node's -z, and a perspective camera turned 90 degrees about y (it looks down the
+    world's -x); nothing is left out, so there are no notes."""
     header = {
         "extensions": {"KHR_lights_punctual": {"lights": [LAMP, {"type": "spot", "name": "cone"}]}},
         "cameras": [{"type": "perspective", "perspective": {"yfov": math.pi / 2}}],
@@ -312,9 +329,12 @@ def test_gltf_imports_reads_a_header_without_a_mesh():
         "scenes": [{"nodes": [0, 2, 3]}], "scene": 0,
     }
     imp, notes = gltf_imports(header, "h.gltf")
-    (light,) = imp.lights
-    assert light.position == pytest.approx((1.0, 6.0, 0.0))
+    light, spot = imp.lights  # (and nothing else: no entry but the lights themselves)
+    assert light.kind == "point" and light.position == pytest.approx((1.0, 6.0, 0.0))
     assert light.power == pytest.approx(tuple(4 * math.pi * 5.0 * c for c in (1.0, 0.5, 0.25)))
+    assert spot.kind == "spot" and spot.name == "h.gltf KHR_lights_punctual.lights[1] 'cone' at nodes[2]"
+    assert spot.position == (0.0, 0.0, 0.0) and spot.direction == (0.0, 0.0, -1.0)
+    assert spot.power == pytest.approx((4 * math.pi,) * 3) and (spot.inner_angle, spot.outer_angle) == (0.0, 45.0)
     assert imp.camera.vfov == pytest.approx(90.0)
     assert np.subtract(imp.camera.target, imp.camera.eye) == pytest.approx((-1.0, 0.0, 0.0))
-    assert len(notes) == 1 and "lights[1] 'cone' (spot)" in notes[0]
+    assert notes == ()

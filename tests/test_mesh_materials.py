@@ -562,9 +562,10 @@ def test_a_usemtl_the_library_lacks_takes_the_scene_file_s_material_or_the_defau
 
 
 def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_of(tmp_path):
-    """tlm imports a glTF's point lights and perspective camera on nodes of its scene, and emits
-    from a triangle's front only: what a glTF holds of these that is not imported (lights and
-    cameras on no node, a spot light) is named in the run's warnings, not dropped silently."""
+    """tlm imports a glTF's point, spot and directional lights and perspective camera on nodes
+    of its scene, and emits from a triangle's front only: what a glTF holds of these that is not
+    imported (lights of every kind and cameras on no node) is named in the run's warnings, not
+    dropped silently."""
     from tlm import api
     from tlm.render.checks import file_warnings, material_warnings
 
@@ -572,7 +573,8 @@ def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_o
     header["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.1}}] * 2
     header["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 50},
                                                                {"type": "spot", "intensity": 5},
-                                                               {"type": "point", "intensity": 1}]}}
+                                                               {"type": "point", "intensity": 1},
+                                                               {"type": "directional", "intensity": 2}]}}
     header["materials"][3]["doubleSided"] = True  # the emissive "lamp"
     header["materials"][0]["doubleSided"] = True  # not emissive: both sides shade alike, nothing lost
     (tmp_path / "s.glb").write_bytes(write_glb(header, binary))
@@ -580,9 +582,10 @@ def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_o
     path = str(tmp_path / "s.glb")
     nowhere = "on no node of the glTF's scene"  # (the header's lights and cameras: no node names them)
     assert g.notes == (f"{path}: not imported from its KHR_lights_punctual lights: lights[0] (point, {nowhere}), "
-                       f"lights[1] (spot), lights[2] (point, {nowhere}): tlm has point, quad and mesh lights (give "
-                       "such a light under lights: in the scene file, or an emissive material)",
+                       f"lights[1] (spot, {nowhere}), lights[2] (point, {nowhere}), lights[3] (directional, "
+                       f"{nowhere})",
                        f"{path}: not imported from its cameras: cameras[0] ({nowhere}), cameras[1] ({nowhere})")
+    assert g.imports == ()  # (nothing placed: nothing imported)
     assert g.materials[3].ignored == ("doubleSided emission",) and g.materials[0].ignored == ()
     (tmp_path / "s.yaml").write_text("geometry: [{mesh: s.glb}, {mesh: s.glb, transform: {translate: [0, 9, 0]}}]\n"
                                      "camera: {eye: [6, 2, 12], target: [6, 0, 0], vfov: 40}\nresolution: [8, 8]\n"

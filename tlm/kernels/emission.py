@@ -1,17 +1,23 @@
 """Photon emission (thesis §III.A, Fig. 4): where the photons of the photon map start.
 
-The photon count is shared among the lights in proportion to their
-power; each photon of light ``l`` carries ``P_l / N_l``. A quad light emits from a
-uniform point on the quad in a cosine-weighted direction about its normal; a point
-light uniformly over the sphere. With mirrors or dielectrics, a *caustic group* of
-each light's photons (``photons.caustic_fraction`` of them, or a budget of its own,
+The photon count is shared among the lights in proportion to the power they emit
+(:attr:`~tlm.scenes.model.Light.flux`); each photon of light ``l`` carries ``P_l / N_l``. A
+quad light emits from a uniform point on the quad in a cosine-weighted direction about its
+normal; a point light uniformly over the sphere; a spot light within its outer cone in
+proportion to its falloff (:func:`spot_directions`), so its photons carry equal parts of the
+flux it emits; a directional light from uniform points on the disc that covers the scene's
+bounding sphere, perpendicular to its direction and just outside the sphere
+(:data:`~tlm.scenes.model.DISC_MARGIN`), each photon ``irradiance x pi R^2 / N``. With
+mirrors or dielectrics, a *caustic group* of each light's photons
+(``photons.caustic_fraction`` of them, or a budget of its own,
 ``photons.caustic_count``, beside ``count``) is aimed at the specular objects, its
 power divided by the aiming density so the estimate stays unbiased (Jensen's
 projection maps): ``photons.aim: parts`` cuts each specular part into boxes of at
 most ``aim_triangles`` triangles (:func:`aim_boxes`) and draws a direction from the
 mixture of the cones bounding them, a cone in proportion to its solid angle
 (:func:`cone_mixture`); ``box`` (the thesis study's) one cone about every specular
-triangle, which wastes most photons when the objects lie apart.
+triangle, which wastes most photons when the objects lie apart. A spot's caustic
+photons are drawn again while they fall outside its outer cone (:func:`spot_aimed`).
 
 Random numbers: a counter-based hash (:func:`tlm.kernels.shade.hash_uniform`) keyed by
 :func:`photon_key` of the run's seed and indexed by (photon, light, dimension), so every
@@ -21,12 +27,14 @@ photon's start is the same whichever photons it is emitted with. Tracing them is
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from tlm.kernels import threads
 from tlm.kernels.engine import engine
 from tlm.kernels.shade import face_normals, hash_uniform, point_on_triangles, triangle_choice
-from tlm.scenes.model import KIND, Light
+from tlm.scenes.model import DISC_MARGIN, KIND, Light, bounding_sphere, directional_power, spot_falloff
 
 
 def photon_key(seed: int) -> int:
@@ -34,9 +42,14 @@ def photon_key(seed: int) -> int:
     return int(np.random.SeedSequence([seed, 0x9E0704]).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
-def split_photons(lights: tuple[Light, ...], n: int) -> np.ndarray:
-    """Photons per light in proportion to power (largest remainder), (len(lights),) int."""
-    weight = np.array([sum(lt.power) for lt in lights], dtype=np.float64)
+def split_photons(lights: tuple[Light, ...], n: int, box: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> np.ndarray:
+    """Photons per light in proportion to the power it emits (:attr:`~tlm.scenes.model.Light.flux`:
+    a spot's is less than its ``power``; a directional light's, given the scene's ``box``, its
+    irradiance over the disc covering the box's bounding sphere, as :func:`emit` emits it)
+    (largest remainder), (len(lights),) int."""
+    weight = np.array([sum(directional_power(lt.irradiance, *box)) if lt.kind == "directional" and box is not None
+                       else sum(lt.flux) for lt in lights], dtype=np.float64)
     if n <= 0 or weight.sum() <= 0:
         return np.zeros(len(lights), dtype=np.int64)
     share = weight / weight.sum() * n
@@ -244,6 +257,130 @@ def _cone_mixture_compiled(o, lo, hi, u_pick, u_cos, u_phi, d, inv_pdf) -> None:
         pass
 
 
+def spot_directions(axis: np.ndarray, cos_inner: float, cos_outer: float, u_cos: np.ndarray,
+                    u_phi: np.ndarray) -> np.ndarray:
+    """Unit directions about a spot's unit ``axis`` drawn in proportion to its falloff
+    (:func:`~tlm.scenes.model.spot_falloff`), so that every photon carries the same power: the
+    inner cap (uniform in the cosine) with probability ``(1 - ci) / S``, else the ring between
+    the cones with the cosine ``co + (ci - co) v**(1/3)`` (the density of the falloff's square),
+    where ``S = 1 - ci + (ci - co) / 3``."""
+    ci, co = cos_inner, cos_outer
+    total = (1.0 - ci) + (ci - co) / 3.0
+    p_in = (1.0 - ci) / total
+    inner = u_cos < p_in
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c_in = 1.0 - (u_cos / p_in) * (1.0 - ci)
+        c_ring = co + (ci - co) * np.cbrt((u_cos - p_in) / (1.0 - p_in))
+    cos_t = np.where(inner, c_in, c_ring)
+    return _around(np.broadcast_to(axis, (u_cos.shape[0], 3)).copy(), cos_t, 2.0 * np.pi * u_phi)
+
+
+def cap_overlap(cos_a: np.ndarray, cos_b: float, cos_g: np.ndarray) -> np.ndarray:
+    """The solid angle (steradians) the spherical caps of half-angles ``a`` (one a cap, (K,))
+    and ``b`` share, their axes ``g`` apart, from the cosines: 0 when they are apart, the
+    smaller cap when one holds the other, ``4 pi`` less the two caps' complements when those
+    are apart, else Mazonka's closed form (2012, "Solid angle of conical surfaces, polyhedral
+    cones, and intersecting spherical caps", eq. 41)."""
+    a, g = np.arccos(np.clip(cos_a, -1.0, 1.0)), np.arccos(np.clip(cos_g, -1.0, 1.0))
+    b = math.acos(min(1.0, max(-1.0, cos_b)))
+    ca, cb, cg = np.cos(a), math.cos(b), np.cos(g)
+    sa, sb, sg = np.sin(a), math.sin(b), np.sin(g)
+    with np.errstate(divide="ignore", invalid="ignore"):  # (the cases that divide by 0 are the others)
+        x0 = np.arccos(np.clip((cg - ca * cb) / (sa * sb), -1.0, 1.0))
+        x1 = np.arccos(np.clip((cb - cg * ca) / (sg * sa), -1.0, 1.0))
+        x2 = np.arccos(np.clip((ca - cg * cb) / (sg * sb), -1.0, 1.0))
+        part = 2.0 * (np.pi - x0 - ca * x1 - cb * x2)
+    cap_a, cap_b = 2.0 * np.pi * (1.0 - ca), 2.0 * np.pi * (1.0 - cb)
+    return np.where(g >= a + b, 0.0, np.where(g <= np.abs(a - b), np.minimum(cap_a, cap_b),
+                                              np.where(g >= 2.0 * np.pi - a - b, cap_a + cap_b - 4.0 * np.pi,
+                                                       np.clip(part, 0.0, np.minimum(cap_a, cap_b)))))
+
+
+SPOT_DRAWS = 32  # draws a spot's caustic photon may take to fall inside its outer cone
+
+
+def spot_aimed(pos: np.ndarray, axis: np.ndarray, cos_outer: float, key: int, ids: np.ndarray, li: int,
+               u_cos: np.ndarray, u_phi: np.ndarray, boxes: np.ndarray | None = None,
+               box: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A spot's caustic directions, drawn inside its outer cone only: from the mixture of the
+    cones bounding ``boxes`` (:func:`cone_mixture`; ``photons.aim: parts``) or uniformly in the
+    cone bounding ``box`` (``aim: box``), a photon drawing again (its own hash dimensions 6, 7,
+    8, then 9, 10, 11, ...) while its direction is outside the outer cone, at most
+    :data:`SPOT_DRAWS` times (one still outside then carries nothing). Returns the (m, 3)
+    directions and their (m,) 1 / density: the aiming's ``1 / pdf`` times ``P / (1 - (1 -
+    P)^SPOT_DRAWS)``, where ``P = sum_k Omega(cone_k and outer cone) / sum_k Omega(cone_k)``
+    (:func:`cap_overlap`) is the chance that a draw falls inside, so the spot's estimate stays
+    unbiased. When no cone meets the outer cone the first draws are kept (they carry
+    nothing)."""
+    m = ids.shape[0]
+    if boxes is not None:
+        cone_axes, cone_cos = (x[0] for x in box_cones(pos[None, :], boxes[:, 0], boxes[:, 1]))
+
+        def draw(sel: np.ndarray, u_pick: np.ndarray, uc: np.ndarray, uf: np.ndarray):
+            return cone_mixture(pos[None, :], boxes, u_pick, uc, uf)
+    else:
+        a, c = bounding_cone(pos, *box)
+        cone_axes, cone_cos = a[None, :], np.array([c])
+
+        def draw(sel: np.ndarray, u_pick: np.ndarray, uc: np.ndarray, uf: np.ndarray):
+            return (_around(np.broadcast_to(a, (sel.shape[0], 3)).copy(), 1.0 - uc * (1.0 - c), 2.0 * np.pi * uf),
+                    np.full(sel.shape[0], 2.0 * np.pi * (1.0 - c)))
+
+    every = np.arange(m)
+    d, inv_pdf = draw(every, hash_uniform(key, ids, -1, li, 5), u_cos, u_phi)
+    share = float(cap_overlap(cone_cos, cos_outer, cone_axes @ axis).sum() / (2.0 * np.pi * (1.0 - cone_cos)).sum())
+    if not share > 0.0:
+        return d, inv_pdf
+    left = np.flatnonzero(d @ axis <= cos_outer)
+    for r in range(1, SPOT_DRAWS):
+        if left.size == 0:
+            break
+        dim = 6 + 3 * (r - 1)
+        u = [hash_uniform(key, ids[left], -1, li, dim + k) for k in range(3)]
+        dd, ip = draw(left, *u)
+        d[left], inv_pdf[left] = dd, ip
+        left = left[dd @ axis <= cos_outer]
+    inside = -math.expm1(SPOT_DRAWS * math.log1p(-min(share, 1.0)))  # 1 - (1 - P)^SPOT_DRAWS
+    return d, inv_pdf * (share / inside)
+
+
+def disc_mixture(plane: np.ndarray, t: np.ndarray, b: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                 u_pick: np.ndarray, u_r: np.ndarray, u_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points on the plane through ``plane`` spanned by the unit ``t`` and ``b``, from a mixture
+    of the discs about the projections of ``centres`` (K, 3) of ``radii`` (K,), a disc picked in
+    proportion to its area and the point uniform on it; and their 1 / density
+    (``pi sum r^2 / #discs holding the point``: where discs overlap a point is not counted
+    twice). A directional light's caustic photons start there."""
+    m = u_pick.shape[0]
+    x = (centres - plane) @ t
+    y = (centres - plane) @ b
+    cum = np.cumsum(radii * radii)
+    total = float(cum[-1])
+    pick = np.minimum(np.searchsorted(cum, u_pick * total, side="right"), radii.shape[0] - 1)
+    r = radii[pick] * np.sqrt(u_r)
+    px = x[pick] + r * np.cos(2.0 * np.pi * u_phi)
+    py = y[pick] + r * np.sin(2.0 * np.pi * u_phi)
+    holds = np.zeros(m, dtype=np.int64)
+    step = max(1, CONE_CHUNK // max(radii.shape[0], 1))
+    for s in range(0, m, step):  # (photons x discs in chunks: memory only)
+        e = min(m, s + step)
+        inside = (px[s:e, None] - x[None, :]) ** 2 + (py[s:e, None] - y[None, :]) ** 2 <= (radii * radii)[None, :]
+        inside[np.arange(e - s), pick[s:e]] = True  # the picked disc holds the point, whatever the rounding
+        holds[s:e] = inside.sum(axis=1)
+    o = plane[None, :] + px[:, None] * t[None, :] + py[:, None] * b[None, :]
+    return o, math.pi * total / holds
+
+
+def _directional_frame(light: Light, box: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, ...]:
+    """A directional light's unit direction ``w``, two unit tangents ``t``, ``b`` and the centre
+    of its photons' disc: on the side the light comes from, :data:`~tlm.scenes.model.DISC_MARGIN`
+    beyond the sphere around ``box``; and the sphere's radius."""
+    w = light.axis
+    t, b = _frame(w[None, :])
+    centre, radius = bounding_sphere(*box)
+    return w, t[0], b[0], centre - w * radius * (1.0 + DISC_MARGIN), radius
+
+
 def emit(
     lights: tuple[Light, ...],
     n: int,
@@ -270,7 +407,9 @@ def emit(
     triangle for each photon in proportion to its power (:func:`triangle_choice`), a
     uniform point on it and a direction as a quad light does about the triangle's
     normal; the photon's power is the chosen triangle's power over its probability and
-    the count.
+    the count. A spot light emits the global group in proportion to its falloff
+    (:func:`spot_directions`: equal powers, its flux over the count); a directional light
+    from the disc that covers the sphere around ``scene_box`` (required), along its direction.
 
     The caustic group is aimed at the specular objects (Jensen's projection maps, with
     boxes for maps): with ``specular_box`` (``photons.aim: box``), uniformly in the one
@@ -281,13 +420,20 @@ def emit(
     origin, which emits on its front side only (power times the cosine there). The power
     is divided by the direction's density (the mixture's, so overlapping cones do not
     count a direction twice) against the light's (isotropic, or cosine-weighted), so the
-    estimate stays unbiased however the cones are drawn.
+    estimate stays unbiased however the cones are drawn. A spot aims as a point light does,
+    but a photon whose direction falls outside its outer cone draws again (:func:`spot_aimed`:
+    up to :data:`SPOT_DRAWS` times, its density corrected for it), and its photons' power is
+    times its falloff in their direction. A
+    directional light's caustic group starts on the discs the specular objects' bounding
+    spheres cast on its photons' plane: the one disc of ``specular_box``'s sphere, or a
+    mixture of the discs of ``caustic_boxes`` in proportion to their areas
+    (:func:`disc_mixture`), the power its irradiance over the density of the start.
     """
-    counts = split_photons(lights, n)
+    counts = split_photons(lights, n, scene_box)
     if caustic_boxes is not None and len(caustic_boxes) == 0:
         caustic_boxes = None  # nothing to aim at
     aimed = specular_box is not None or caustic_boxes is not None
-    own = split_photons(lights, caustic_count) if aimed and caustic_count is not None else None
+    own = split_photons(lights, caustic_count, scene_box) if aimed and caustic_count is not None else None
     out: list[tuple[np.ndarray, ...]] = []
     first = 0
     for li, (light, c) in enumerate(zip(lights, counts.tolist(), strict=True)):
@@ -330,6 +476,37 @@ def emit(
                     power = np.atleast_2d(power) * (cos_l * 2.0 * (1.0 - cos_max))[:, None]
                 else:
                     d = cosine_directions(nl, u[2], u[3])
+            elif light.kind == "directional":
+                if scene_box is None:
+                    raise ValueError("emit: a directional light's photons need the scene's box (scene_box)")
+                w, t, b, plane, radius = _directional_frame(light, scene_box)
+                e0 = np.asarray(light.irradiance, dtype=np.float64)
+                d = np.broadcast_to(w, (m, 3)).copy()
+                if group and caustic_boxes is not None:  # a mixture of the discs the specular parts cast
+                    lo, hi = caustic_boxes[:, 0], caustic_boxes[:, 1]
+                    o, inv_pdf = disc_mixture(plane, t, b, 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo, axis=1),
+                                              hash_uniform(key, ids, -1, li, 5), u[0], u[1])
+                    power = e0[None, :] * (inv_pdf / m)[:, None]  # irradiance over the sampled density
+                else:  # the disc covering the sphere around the scene (or around the specular objects)
+                    c, r = (bounding_sphere(*box) if group else (plane, radius))
+                    if group:  # (the specular objects' disc, on the scene's plane)
+                        c = plane + ((c - plane) @ t) * t + ((c - plane) @ b) * b
+                    rr = r * np.sqrt(u[0])
+                    phi = 2.0 * np.pi * u[1]
+                    o = c[None, :] + (rr * np.cos(phi))[:, None] * t[None, :] + (rr * np.sin(phi))[:, None] * b[None, :]
+                    power = e0 * (np.pi * r * r / m)
+            elif light.kind == "spot":
+                pos = np.asarray(light.position, dtype=np.float64)
+                o = np.broadcast_to(pos, (m, 3)).copy()
+                axis = light.axis
+                ci, co = light.cone_cosines
+                if group:  # aimed as a point light's, inside the outer cone only, weighted by the falloff
+                    d, inv_pdf = spot_aimed(pos, axis, co, key, ids, li, u[2], u[3], boxes=caustic_boxes,
+                                            box=None if caustic_boxes is not None else box)
+                    power = power[None, :] * (spot_falloff(d @ axis, ci, co) * inv_pdf / (4.0 * np.pi))[:, None]
+                else:  # in proportion to the falloff: each photon an equal part of the flux it emits
+                    d = spot_directions(axis, ci, co, u[2], u[3])
+                    power = np.asarray(light.flux, dtype=np.float64) / m
             else:
                 pos = np.asarray(light.position, dtype=np.float64)
                 o = np.broadcast_to(pos, (m, 3)).copy()

@@ -1,7 +1,11 @@
 """The Fragment PM's arithmetic: direct light with shadow rays, mirror and Snell directions.
 
 * Lambertian direct light: ``L = albedo / pi * sum_lights E``. A point light of power
-  ``P`` gives ``E = P / (4 pi) * cos / d**2``; a quad light of power ``P`` and area
+  ``P`` gives ``E = P / (4 pi) * cos / d**2``; a spot light the same times its falloff
+  (:func:`~tlm.scenes.model.spot_falloff`) at the angle between its axis and the point (no
+  shadow ray outside its outer cone); a directional light of irradiance ``E0`` gives
+  ``E = E0 * cos``, its shadow ray going the other way along its direction, out of the scene
+  (twice the scene's diagonal long); a quad light of power ``P`` and area
   ``A`` has radiance ``Le = P / (pi A)`` and is sampled with ``n x n`` stratified
   points, ``E ~= Le * A / S * sum cos_x cos_l / d**2``. A mesh light (emitting
   triangles) is sampled with ``n x n`` points too, stratified over the triangles'
@@ -28,7 +32,7 @@ import numpy as np
 from tlm.kernels.engine import engine
 from tlm.kernels.memory import PAGE_WORDS, Accesses, Recorder, traversal_accesses
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit, closest_hit
-from tlm.scenes.model import KIND, Light
+from tlm.scenes.model import KIND, Light, spot_falloff
 from tlm.scenes.normals import interpolate
 
 TRAVERSAL_COUNTS = ("node_visits", "leaves_crossed", "leaf_visits", "tri_tests")
@@ -336,11 +340,20 @@ def direct_light(
             ("shadow_rays", "shadow_hits", *(f"shadow_{c}" for c in TRAVERSAL_COUNTS))}
     g = round(np.sqrt(samples))
     for li, light in enumerate(lights):
-        if light.kind == "point":
+        far = False  # a directional light: no distance falloff, the shadow ray leaves the scene
+        if light.kind in ("point", "spot"):
             target = np.broadcast_to(np.asarray(light.position), (k, 1, 3))
             weight = np.full((k, 1), 1.0)
             scale = np.asarray(light.power) / (4.0 * np.pi)
             nl = None
+        elif light.kind == "directional":
+            # a point on the shadow ray twice the scene's diagonal away: past every triangle
+            reach = 2.0 * accel.scale if accel.scale > 0 else 1.0
+            target = (points - reach * light.axis[None, :])[:, None, :]
+            weight = np.full((k, 1), 1.0)
+            scale = np.asarray(light.irradiance, dtype=np.float64)
+            nl = None
+            far = True
         elif light.kind == "mesh":
             # stratified over the power CDF of the emitting triangles, a uniform point on each
             s = np.arange(g * g)
@@ -370,6 +383,9 @@ def direct_light(
         dist2 = np.sum(dirs * dirs, axis=2)
         dist = np.sqrt(dist2)
         with np.errstate(divide="ignore", invalid="ignore"):
+            if light.kind == "spot":  # the falloff about its axis of the direction from the light to the point
+                ci, co = light.cone_cosines
+                weight = np.where(dist2 > 0, spot_falloff(-(dirs @ light.axis) / dist, ci, co), 0.0)
             cos_x = np.sum(dirs * normals[:, None, :], axis=2) / dist
             if nl is None:
                 cos_l = 1.0
@@ -377,9 +393,14 @@ def direct_light(
                 cos_l = -(dirs @ nl) / dist
             else:
                 cos_l = -np.sum(dirs * nl, axis=2) / dist
-            geo = np.where(dist2 > 0, weight * cos_x * cos_l / dist2, 0.0)
+            if far:  # E = irradiance x cos
+                geo = np.where(dist2 > 0, weight * cos_x, 0.0)
+            else:
+                geo = np.where(dist2 > 0, weight * cos_x * cos_l / dist2, 0.0)
             front = np.sum(dirs * geometric[:, None, :], axis=2) > 0 if geometric is not None else True
         cast = (cos_x > 0) & front & (np.asarray(cos_l) > 0) & (dist2 > 0)
+        if light.kind == "spot":
+            cast &= weight > 0  # (outside its outer cone a spot sends nothing: no shadow ray)
         pi, si = np.nonzero(cast)
         if pi.shape[0] == 0:
             continue

@@ -45,7 +45,17 @@ The mapping, and why:
   a light lying on a surface (Cornell's, on its ceiling) then sits just in front of it
   instead of z-fighting with it. (The rectangle still blocks rays from behind, ours
   lets them through: no built-in scene has a light that anything sees from behind.) A
-  point light -> ``point`` with intensity ``power / (4 pi)`` W/sr.
+  point light -> ``point`` with intensity ``power / (4 pi)`` W/sr. A spot light -> ``spot``
+  at its position looking along its direction, intensity ``power / (4 pi)`` W/sr,
+  ``cutoff_angle`` its outer cone angle and ``beam_width`` its inner one. The two agree
+  within the inner cone (the full intensity) and outside the outer one (nothing), **not
+  between**: Mitsuba's falloff there is linear in the angle, ``(outer - angle) / (outer -
+  inner)``, tlm's is the glTF spec's, ``((cos - cos outer) / (cos inner - cos outer))^2``
+  (:func:`tlm.scenes.model.spot_falloff`), which falls faster; a comparison leaves out the
+  pixels lit through the ring between the cones (``tests/test_spot_directional.py``). A
+  directional light -> ``directional`` with its direction and irradiance (Mitsuba's
+  ``irradiance`` is ours: W per unit area on a surface facing it; it does not scale with
+  the frame's lengths).
 * **Camera.** ``perspective`` with ``fov`` = ``vfov`` on the ``y`` axis and
   ``to_world`` = ``look_at(eye, target, up)``: Mitsuba's image is then ours, row 0 at
   the top, not mirrored (checked on the Cornell box: the red wall on the left). The
@@ -174,8 +184,10 @@ def _extent(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     for lt in scene.lights:
         if lt.kind == "mesh":  # its triangles are the scene's
             continue
-        if lt.kind == "point":
+        if lt.kind in ("point", "spot"):
             pts.append(np.asarray([lt.position]))
+        elif lt.kind == "directional":  # (at infinity: no point of the scene)
+            continue
         else:
             c = np.asarray(lt.corner)
             pts.append(np.asarray([c, c + lt.edge_u, c + lt.edge_v, c + np.add(lt.edge_u, lt.edge_v)]))
@@ -203,6 +215,7 @@ def _normalised(scene: Scene) -> Scene:
     def vec(v):
         return tuple(float(x) for x in np.asarray(v, dtype=np.float64) * k)
 
+    # (a directional light's irradiance does not change; its power, irradiance x the area of a disc, does)
     lights = tuple(replace(lt, position=pt(lt.position), corner=pt(lt.corner), edge_u=vec(lt.edge_u),
                            edge_v=vec(lt.edge_v), power=tuple(float(x) * k * k for x in lt.power))
                    for lt in scene.lights if lt.kind != "mesh")  # a mesh light goes with its material
@@ -227,6 +240,21 @@ def _quad_light(mi, light, offset: float) -> dict | None:
         "emitter": {"type": "area", "radiance": _rgb(radiance)},
         "bsdf": {"type": "diffuse", "reflectance": _rgb((0.0, 0.0, 0.0))},
     }
+
+
+def _spot_light(mi, light) -> dict:
+    """Mitsuba's ``spot`` for a spot light: at its position, looking along its axis, intensity
+    ``power / (4 pi)``, ``cutoff_angle`` its outer cone angle and ``beam_width`` its inner one
+    (Mitsuba's falloff between them is linear in the angle, not tlm's: see the module's docstring)."""
+    axis = light.axis
+    up = np.array([0.0, 1.0, 0.0]) if abs(axis[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    pos = np.asarray(light.position, dtype=np.float64)
+    return {"type": "spot",
+            "to_world": mi.ScalarTransform4f().look_at(origin=[float(x) for x in pos],
+                                                      target=[float(x) for x in pos + axis],
+                                                      up=[float(x) for x in up]),
+            "intensity": _rgb(np.asarray(light.power, dtype=np.float64) / (4.0 * math.pi)),
+            "cutoff_angle": float(light.outer_angle), "beam_width": float(light.inner_angle)}
 
 
 def _check_settings(integrator: str, spp: int, max_depth: int, seed: int) -> None:
@@ -292,6 +320,11 @@ def scene_dict(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
             quad = _quad_light(mi, light, LIGHT_OFFSET * diag)
             if quad is not None:
                 doc[f"light_{i}"] = quad
+        elif light.kind == "spot":
+            doc[f"light_{i}"] = _spot_light(mi, light)
+        elif light.kind == "directional":
+            doc[f"light_{i}"] = {"type": "directional", "direction": [float(x) for x in light.axis],
+                                 "irradiance": _rgb(np.asarray(light.irradiance, dtype=np.float64))}
         else:
             raise InputError(f"light kind {light.kind!r} has no Mitsuba mapping", key=f"lights[{i}]")
     return doc
@@ -418,14 +451,15 @@ PTRACER_FACTOR = 4  # light paths per pixel of the particle tracer, per sample o
 
 
 def needs_light_tracing(scene: Scene) -> bool:
-    """Whether the path tracer misses light the scene has: caustics of a point light.
+    """Whether the path tracer misses light the scene has: caustics of a point, spot or
+    directional light.
 
-    A path traced from the eye reaches a point light only by a shadow ray from a diffuse
-    point; a path that meets a mirror or glass after the diffuse point can never hit a
-    delta light, so the caustics a point light casts through mirrors and glass (the
+    A path traced from the eye reaches such a light (a delta light) only by a shadow ray from
+    a diffuse point; a path that meets a mirror or glass after the diffuse point can never hit
+    a delta light, so the caustics a point light casts through mirrors and glass (the
     ring's cardioid, the room's) are missing from Mitsuba's ``path`` image.
     """
-    point = any(light.kind == "point" for light in scene.lights)
+    point = any(light.kind in ("point", "spot", "directional") for light in scene.lights)
     return point and any(m.kind != "lambertian" for m in scene.materials)
 
 

@@ -7,11 +7,14 @@ Each check returns warnings, one line each naming the thing (``lights[1] (quad)`
 patterns, no random numbers), so the warnings of a run repeat exactly.
 
 * :func:`light_warnings`: every light with power is probed with :data:`PROBE_RAYS` rays
-  spread over the side it emits on (a point light: the sphere; a quad light: the
+  spread over the side it emits on (a point light: the sphere; a spot: its outer cone; a
+  directional light: parallel rays along its direction from the disc covering the scene's
+  bounding sphere; a quad light: the
   hemisphere of ``cross(edge_u, edge_v)`` from points spread over the quad; a mesh light:
   the front hemisphere of ``cross(V1 - V0, V2 - V0)`` of its triangles, picked in
   proportion to their area), and with as many aimed at the centres of triangles spread
-  over the scene's list (those on that side), through the scene's BSP
+  over the scene's list (those on that side; a spot's: those in its outer cone; a
+  directional light's: along its direction, from outside the scene), through the scene's BSP
   (:func:`tlm.kernels.traverse.closest_hit`). The aimed rays find what the spread ones
   miss: an object that fills a small part of the light's sphere (a lone model under a
   point light; a scene far from its light). A light none of whose rays hits a surface (a
@@ -31,8 +34,8 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   :data:`BLACK_LIMIT` of the radiance the lights give at the scene's size
   (:func:`light_scale`: light that only grazes, as from a quad light facing away from a
   ceiling it lies in).
-* :func:`file_warnings`: what the mesh files hold that tlm does not use (a glTF's spot and
-  directional lights, its orthographic cameras, ...), and which of a glTF's point lights and
+* :func:`file_warnings`: what the mesh files hold that tlm does not use (a glTF's lights on
+  no node of its scene, its orthographic cameras, ...), and which of a glTF's lights and
   camera the scene imported or left for the scene file's ``lights:`` and ``camera:``, a line each.
 * :func:`material_warnings`: materials the image shows whose mesh file gives them what
   tlm does not render (texture and bump maps, alpha, unknown glTF extensions:
@@ -55,7 +58,7 @@ import numpy as np
 
 from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import TriangleAccel, closest_hit
-from tlm.scenes.model import KIND, Light, Scene
+from tlm.scenes.model import DISC_MARGIN, KIND, Light, Scene, bounding_sphere
 
 PROBE_RAYS = 256  # rays per light
 BACK_FACE_LIMIT = 0.5  # share of the eye rays' hits on back faces above which the camera is inside
@@ -104,17 +107,50 @@ def _spread(n: int) -> tuple[np.ndarray, np.ndarray]:
     return (i + 0.5) / n, (i * 0.7548776662466927 + 0.5) % 1.0
 
 
-def probe_rays(light: Light, n: int = PROBE_RAYS
+def _cap(n: int, cos_max: float) -> np.ndarray:
+    """(n, 3) unit directions spread evenly over the cap z >= ``cos_max`` of the sphere."""
+    i = np.arange(n, dtype=np.float64) + 0.5
+    z = 1.0 - i / n * (1.0 - cos_max)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * math.pi * ((i * _GOLDEN) % 1.0)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _far(light: Light, box: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, float]:
+    """A directional light's unit direction and how far back along it its probe rays start
+    (past the sphere around ``box``)."""
+    _, radius = bounding_sphere(*box)
+    return light.axis, 2.0 * radius
+
+
+def probe_rays(light: Light, n: int = PROBE_RAYS, box: tuple[np.ndarray, np.ndarray] | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """Origins, unit directions (n, 3), the triangle each ray leaves (-1: none) and the unit
-    normal of the side each origin emits on (None for a point light) of a light's spread
-    probe."""
+    normal of the side each origin emits on (None for a point, spot or directional light) of a
+    light's spread probe. A spot's directions spread over its outer cone; a directional light's
+    rays (``box``: the scene's triangles' box, which it needs) start on the disc that covers the
+    box's bounding sphere (as its photons do) and travel along its direction."""
     none = np.full(n, -1, dtype=np.int64)
     empty = (np.zeros((0, 3)), np.zeros((0, 3)), none[:0], None)
-    if light.kind == "point":
+    if light.kind in ("point", "spot"):
         o = np.broadcast_to(np.asarray(light.position, dtype=np.float64), (n, 3)).copy()
+        if light.kind == "spot":
+            return o, _around(np.broadcast_to(light.axis, (n, 3)), _cap(n, light.cone_cosines[1])), none, None
         return o, _fibonacci(n, hemisphere=False), none, None
     u, v = _spread(n)
+    if light.kind == "directional":
+        if box is None:
+            return empty
+        w = light.axis
+        centre, radius = bounding_sphere(*box)
+        a = np.where(abs(w[0]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        t = np.cross(a, w)
+        t /= np.linalg.norm(t)
+        b = np.cross(w, t)
+        rr, phi = radius * np.sqrt(u), 2.0 * math.pi * v
+        o = (centre - w * radius * (1.0 + DISC_MARGIN) + (rr * np.cos(phi))[:, None] * t
+             + (rr * np.sin(phi))[:, None] * b)
+        return o, np.broadcast_to(w, (n, 3)).copy(), none, None
     if light.kind == "quad":
         o = (np.asarray(light.corner, dtype=np.float64) + u[:, None] * np.asarray(light.edge_u, dtype=np.float64)
              + v[:, None] * np.asarray(light.edge_v, dtype=np.float64))
@@ -147,16 +183,22 @@ def aimed_rays(scene: Scene, light: Light, n: int = PROBE_RAYS, spread=None
     scene's list: those in front of the side the origin emits on (a cosine above
     :data:`GRAZING`), and not the light's own. ``spread``: the light's :func:`probe_rays`,
     when the caller has them."""
-    o, _, src, normal = probe_rays(light, n) if spread is None else spread
+    o, _, src, normal = probe_rays(light, n, scene.bounds()) if spread is None else spread
     tri = scene.triangles
     m = min(n, tri.shape[0])
     if o.shape[0] == 0 or m == 0:
         return np.zeros((0, 3)), np.zeros((0, 3)), src[:0]
     pick = np.unique(np.linspace(0.0, tri.shape[0] - 1, m).round().astype(np.int64))
     k = np.arange(pick.shape[0]) % o.shape[0]
+    if light.kind == "directional":  # towards each centre along the light's direction, from outside the scene
+        w, back = _far(light, scene.bounds())
+        start = tri[pick].mean(axis=1) - back * w
+        return start, np.broadcast_to(w, start.shape).copy(), src[k]
     d = tri[pick].mean(axis=1) - o[k]
     length = np.linalg.norm(d, axis=1)
     keep = length > 0.0
+    if light.kind == "spot":  # (the centres in its outer cone)
+        keep &= (d @ light.axis) > light.cone_cosines[1] * length
     if normal is not None:  # (in front, not grazing: a centre in the light's own plane is not lit)
         keep &= (d * normal[k]).sum(axis=1) > GRAZING * length
     own = getattr(light, "ids", None)
@@ -167,7 +209,8 @@ def aimed_rays(scene: Scene, light: Light, n: int = PROBE_RAYS, spread=None
 
 def light_size(light: Light) -> float:
     """A light's length scale: the square root of its area (0 for a point light)."""
-    if light.kind == "point" or (light.kind == "mesh" and getattr(light, "triangles", None) is None):
+    if light.kind in ("point", "spot", "directional") or (light.kind == "mesh"
+                                                          and getattr(light, "triangles", None) is None):
         return 0.0
     return float(np.sqrt(max(light.area, 0.0)))
 
@@ -195,7 +238,7 @@ def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE
     ``hits`` found a surface (not the light's own triangles) and how many of those hit the
     ``back`` of an opaque triangle (``kind``: each triangle's material KIND, default the
     scene's)."""
-    spread = probe_rays(light, n)
+    spread = probe_rays(light, n, scene.bounds())
     aimed = aimed_rays(scene, light, n, spread)
     o, d, src = (np.concatenate([spread[i], aimed[i]]) for i in range(3))
     if o.shape[0] == 0:
@@ -221,10 +264,13 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
         if p["rays"] == 0:
             continue
         where = {"point": "in every direction", "quad": "over the side of cross(edge_u, edge_v)",
-                 "mesh": "over the front of its triangles (cross(V1 - V0, V2 - V0))"}.get(light.kind, "")
+                 "mesh": "over the front of its triangles (cross(V1 - V0, V2 - V0))",
+                 "spot": "over its outer cone", "directional": "along its direction over the scene's width"
+                 }.get(light.kind, "")
         if p["hits"] == 0:
             hint = (" (does cross(edge_u, edge_v) face away from the scene?)" if light.kind == "quad" else
                     " (are its triangles wound to face away from the scene?)" if light.kind == "mesh" else
+                    " (does its direction point away from the scene?)" if light.kind == "spot" else
                     " (is it outside the scene?)")
             out.append(f"{light_name(i, light)} reaches no surface: none of its {p['rays']} probe rays (spread "
                        f"{where}, and aimed at the scene's triangles on that side) hits the scene{hint}")
@@ -237,7 +283,7 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
 
 def file_warnings(scene: Scene) -> list[str]:
     """What the scene's mesh files hold that tlm does not use (``Geometry.notes``: a glTF's
-    spot and directional lights, its orthographic cameras, ...) and what of a glTF's point
+    lights on no node of its scene, its orthographic cameras, ...) and what of a glTF's
     lights and camera the scene imported or did not use (:func:`tlm.scenes.loader.load_scene`),
     one line each naming the file; then what the scene's files ask for that renders coarsely
     or not at all (:func:`scene_warnings`)."""
@@ -253,12 +299,12 @@ def scene_warnings(scene: Scene) -> list[str]:
 
 def coordinate_spacing(scene: Scene) -> tuple[float, float, float]:
     """``(largest, spacing, extent)``: the largest coordinate magnitude of the triangles, the
-    camera's eye and the quad and point lights, float64's spacing there (``np.spacing``) and
+    camera's eye and the quad, point and spot lights, float64's spacing there (``np.spacing``) and
     the diagonal of the triangles' box."""
     lo, hi = scene.bounds()
     pts = [lo, hi, np.asarray(scene.camera.eye, dtype=np.float64)]
-    pts += [np.asarray(lt.position if lt.kind == "point" else lt.corner, dtype=np.float64)
-            for lt in scene.lights if lt.kind in ("point", "quad")]
+    pts += [np.asarray(lt.corner if lt.kind == "quad" else lt.position, dtype=np.float64)
+            for lt in scene.lights if lt.kind in ("point", "quad", "spot")]
     largest = float(np.abs(np.array(pts)).max())
     return largest, float(np.spacing(largest)), float(np.linalg.norm(hi - lo))
 

@@ -32,7 +32,7 @@ from tlm.kernels.shade import (
 )
 from tlm.kernels.traverse import Hits, TriangleAccel, closest_hit
 from tlm.kernels.work import STREAM_KEYS, WORK_KEYS  # the work schema, declared once
-from tlm.scenes.model import KIND, Scene
+from tlm.scenes.model import DELTA_KINDS, KIND, Scene
 from tlm.scenes.normals import crease_normals, interpolate
 
 
@@ -308,7 +308,8 @@ def shade_lambertian(frame: Frame, owner: np.ndarray, keys: np.ndarray, points: 
     (one per light sample), so the shadow rays' traversal buffers stay within the batch's.
     A point's light and work do not depend on its run, and a pixel's reads keep their order
     (all of a pixel's points are in one run), so the misses are those of one run."""
-    per_point = sum(1 if light.kind == "point" else frame.cfg.render.light_samples for light in frame.scene.lights)
+    per_point = sum(1 if light.kind in DELTA_KINDS else frame.cfg.render.light_samples
+                    for light in frame.scene.lights)
     runs = _pixel_runs(owner, max(1, ray_budget(frame) // max(1, per_point)))
     if len(runs) == 1:
         return _shade_run(frame, owner, keys, points, d, tri, u, v, work, rec)

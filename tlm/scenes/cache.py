@@ -8,8 +8,8 @@ measures both ways). Both results are kept under ``$TLM_CACHE/scenes`` (default
 
 * a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`), the
   versions of numpy and trimesh (which parses PLY, STL and GLB), and the name and sha256
-  of the mesh file. The entry keeps the file's notes and a glTF's imported point lights and
-  camera (``Geometry.imports``, read back as the file's they are read for), and what names
+  of the mesh file. The entry keeps the file's notes and a glTF's imported point, spot and
+  directional lights and camera (``Geometry.imports``, read back as the file's they are read for), and what names
   the other files the parse read (an OBJ's ``mtllib`` statements) and those files' paths
   and sha256: before an entry is used, the
   lookup of those files runs again beside this mesh (so a library that appeared where the
@@ -49,7 +49,7 @@ from tlm.storage import cache_root, digest_problem, file_digest, warn, write_ato
 
 __all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files"]
 
-FORMAT = "tlm-scene-cache/2"  # /2: one file an entry (its metadata inside)
+FORMAT = "tlm-scene-cache/3"  # /2: one file an entry (its metadata inside); /3: imported lights of every kind
 MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) again: it is quicker
 
 
@@ -136,7 +136,7 @@ def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path)
                            "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined.replace(here, _HERE)}
                           for m in geom.materials],
             # (a file's own lights and camera: its source is the file read, so it is not kept)
-            "imports": [{"lights": [{"power": lt.power, "position": lt.position, "name": lt.name} for lt in i.lights],
+            "imports": [{"lights": [_light_record(lt) for lt in i.lights],
                          "camera": None if i.camera is None else {k: getattr(i.camera, k)
                                                                   for k in ("eye", "target", "up", "vfov")},
                          "camera_name": i.camera_name, "aspect": i.aspect}
@@ -265,6 +265,16 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | 
                     materials=materials, face_material=got.get("face_material"), imports=imports)
 
 
+_IMPORTED_KINDS = ("point", "spot", "directional")  # what Imported.lights holds
+
+
+def _light_record(lt: Light) -> dict:
+    """An imported light's fields as JSON (:func:`_imported` reads them back)."""
+    return {"kind": lt.kind, "power": lt.power, "position": lt.position, "name": lt.name,
+            "direction": lt.direction, "inner_angle": lt.inner_angle, "outer_angle": lt.outer_angle,
+            "irradiance": lt.irradiance}
+
+
 def _imported(meta: dict, source: str) -> Imported:
     """A cached file's lights and camera (a KeyError, TypeError or ValueError where the entry
     does not hold them as :func:`mesh` writes them)."""
@@ -273,8 +283,15 @@ def _imported(meta: dict, source: str) -> Imported:
             raise ValueError(f"{v!r} is not 3 numbers")
         return tuple(float(x) for x in v)
 
-    lights = tuple(Light("point", vec(lt["power"]), position=vec(lt["position"]), name=str(lt["name"]))
-                   for lt in meta["lights"])
+    def light(lt: dict) -> Light:
+        kind = str(lt["kind"])
+        if kind not in _IMPORTED_KINDS:
+            raise ValueError(f"light kind {kind!r} is not one a glTF's import gives")
+        return Light(kind, vec(lt["power"]), position=vec(lt["position"]), name=str(lt["name"]),
+                     direction=vec(lt["direction"]), inner_angle=float(lt["inner_angle"]),
+                     outer_angle=float(lt["outer_angle"]), irradiance=vec(lt["irradiance"]))
+
+    lights = tuple(light(lt) for lt in meta["lights"])
     cam = meta["camera"]
     camera = None if cam is None else Camera(vec(cam["eye"]), vec(cam["target"]), vec(cam["up"]),
                                              float(cam["vfov"]), 0, 0)

@@ -14,8 +14,10 @@ and optionally
   then z, right-handed, i.e. ``p' = Rz Ry Rx S p + t``), then translate; shading normals
   from a mesh file follow by the inverse transpose, and a mirroring transform reverses
   each triangle's vertex order so that front faces stay front faces; a glTF's imported
-  point lights and camera (``Geometry.imports``) move with the triangles (a light's power
-  stays);
+  lights and camera (``Geometry.imports``) move with the triangles: a light's position as a
+  vertex, a spot's or directional light's direction by ``M`` alone, made unit length again
+  (under a non-uniform scale it turns as the triangles' edges do; its power, a spot's cone
+  angles and a directional light's irradiance stay);
 * ``name: N``: the item's part names become ``N`` (an item of one part) or ``N.PART``
   (an item of several parts, e.g. a builder's).
 
@@ -41,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.model import Geometry, Imported
+from tlm.scenes.model import Geometry, Imported, Light, unit_vector
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num
@@ -137,9 +139,10 @@ def transform_geometry(geom: Geometry, m: np.ndarray, t: np.ndarray) -> Geometry
 
 def _transform_imported(imp: Imported, m: np.ndarray, t: np.ndarray) -> Imported:
     """A mesh file's lights and camera moved as its triangles are (``p' = M p + t``): a light's
-    position and the camera's eye; the view direction and up by ``M`` (the target one unit in
-    front of the new eye). A light's power stays (as the glTF spec has a node's scale leave its
-    light's intensity)."""
+    position and the camera's eye; a spot's or directional light's direction, the view
+    direction and up by ``M`` and made unit again (the target one unit in front of the new
+    eye). A light's power stays (as the glTF spec has a node's scale leave its light's
+    intensity)."""
     def pt(p) -> tuple[float, float, float]:
         with np.errstate(over="ignore", invalid="ignore"):  # (the loader checks the result is finite)
             return tuple(float(x) for x in m @ np.asarray(p, dtype=np.float64) + t)
@@ -149,7 +152,16 @@ def _transform_imported(imp: Imported, m: np.ndarray, t: np.ndarray) -> Imported
             d = m @ np.asarray(v, dtype=np.float64)
             return tuple(float(x) for x in d / np.linalg.norm(d))
 
-    lights = tuple(replace(lt, position=pt(lt.position)) for lt in imp.lights)
+    def light(lt: Light) -> Light:
+        if lt.kind not in ("spot", "directional"):
+            return replace(lt, position=pt(lt.position))
+        with np.errstate(over="ignore", invalid="ignore"):
+            u = unit_vector(m @ np.asarray(lt.direction, dtype=np.float64))
+        # (NaN where M leaves it none, which only a product beyond float64 can: the loader names it)
+        return replace(lt, position=pt(lt.position), direction=(math.nan,) * 3 if u is None
+                       else tuple(float(x) for x in u))
+
+    lights = tuple(light(lt) for lt in imp.lights)
     cam = imp.camera
     if cam is not None:
         eye = pt(cam.eye)

@@ -187,6 +187,13 @@ def scene_yaml(scene: Scene, mesh: str) -> str:
         elif light.kind == "quad":
             lights.append({"type": "quad", "corner": _floats(light.corner), "edge_u": _floats(light.edge_u),
                            "edge_v": _floats(light.edge_v), "power": _floats(light.power)})
+        elif light.kind == "spot":
+            lights.append({"type": "spot", "position": _floats(light.position), "direction": _floats(light.direction),
+                           "power": _floats(light.power), "inner_cone_angle": float(light.inner_angle),
+                           "outer_cone_angle": float(light.outer_angle)})
+        elif light.kind == "directional":
+            lights.append({"type": "directional", "direction": _floats(light.direction),
+                           "irradiance": _floats(light.irradiance)})
     cam = scene.camera
     doc = {
         "name": scene.name,

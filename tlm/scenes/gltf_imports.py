@@ -1,6 +1,6 @@
-"""A glTF's point lights and first perspective camera, placed by the nodes of its scene
-(:func:`gltf_imports`): what :func:`tlm.scenes.meshes.load_mesh` gives a scene as
-``Geometry.imports`` (the scene file decides whether they are used:
+"""A glTF's point, spot and directional lights and first perspective camera, placed by the
+nodes of its scene (:func:`gltf_imports`): what :func:`tlm.scenes.meshes.load_mesh` gives a
+scene as ``Geometry.imports`` (the scene file decides whether they are used:
 :mod:`tlm.scenes.loader`), and a line each on what of the file's lights and cameras is not
 imported.
 """
@@ -134,9 +134,10 @@ def _label(entry: dict, where: str) -> str:
     return f"{where} {name!r}" if isinstance(name, str) and name else where
 
 
-def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray]:
-    """A KHR_lights_punctual light's type and its RGB radiant intensity (``intensity * color``,
-    candela for a point light); an InputError for a malformed one."""
+def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray, tuple[float, float]]:
+    """A KHR_lights_punctual light's type, its RGB ``intensity * color`` (candela for a point or
+    spot light, lux for a directional one) and a spot's inner and outer cone angles in degrees
+    (glTF's defaults 0 and pi / 4; (0, 0) for other kinds); an InputError for a malformed one."""
     where = f"{_PUNCTUAL}.lights[{i}]"
     kind = light.get("type")
     if kind not in ("point", "spot", "directional"):
@@ -149,7 +150,25 @@ def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray]:
         raise InputError(f"{where}.color: {light['color']!r} has a negative value", source=src)
     if "range" in light and not _numbers(light["range"], 1, f"{where}.range", src)[0] > 0.0:
         raise InputError(f"{where}.range: {light['range']!r} must be > 0", source=src)
-    return kind, intensity * color
+    cone = (0.0, 0.0)
+    if kind == "spot":
+        spot = light.get("spot", {})
+        if not isinstance(spot, dict):
+            raise InputError(f"{where}.spot: {spot!r} is not an object", source=src)
+        given = spot.get("innerConeAngle", 0.0), spot.get("outerConeAngle", math.pi / 4.0)
+        inner = float(_numbers(given[0], 1, f"{where}.spot.innerConeAngle", src)[0])
+        outer = float(_numbers(given[1], 1, f"{where}.spot.outerConeAngle", src)[0])
+        if not 0.0 < outer <= math.pi / 2.0:
+            raise InputError(f"{where}.spot.outerConeAngle: {given[1]!r} must be > 0 and <= pi / 2 (radians)",
+                             source=src)
+        if not 0.0 <= inner < outer:
+            raise InputError(f"{where}.spot.innerConeAngle: {given[0]!r} must be >= 0 and less than outerConeAngle "
+                             f"({given[1]!r} radians)", source=src)
+        cone = (math.degrees(inner), math.degrees(outer))
+        if not math.cos(math.radians(cone[0])) > math.cos(math.radians(cone[1])):
+            raise InputError(f"{where}.spot: innerConeAngle {given[0]!r} and outerConeAngle {given[1]!r} are too "
+                             "close: their cosines are equal in float64", source=src)
+    return kind, intensity * color, cone
 
 
 def _camera_entry(camera: dict, i: int, src: str) -> tuple[str, float | None, float | None]:
@@ -178,19 +197,30 @@ def _camera_entry(camera: dict, i: int, src: str) -> tuple[str, float | None, fl
 
 
 def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ...]]:
-    """A glTF's point lights and first perspective camera (:class:`~tlm.scenes.model.Imported`,
-    None when it has neither) and a line each on what of its lights and cameras is not
-    imported (spot and directional lights, a light or camera on no node of the scene,
-    orthographic cameras, perspective ones after the first, a point light's ``range``).
+    """A glTF's point, spot and directional lights and first perspective camera
+    (:class:`~tlm.scenes.model.Imported`, None when it has neither) and a line each on what of
+    its lights and cameras is not imported (a light or camera on no node of the scene,
+    orthographic cameras, perspective ones after the first, a point or spot light's ``range``).
 
-    A point light becomes a tlm point light of power ``4 pi * intensity * color`` (its
-    intensity is in candela: ``intensity * color`` W/sr) at the world position of each node
-    of the scene that names it. The camera is the first node (in ``nodes`` order) of the scene
-    with a perspective camera: its eye the node's world position, looking down its -Z with
-    +Y up, ``vfov`` = ``yfov`` in degrees. Malformed entries (a type, intensity, colour,
-    range or yfov that is not a number, NaN, negative or out of range; a node's light or
+    Each node of the scene that names a light gives a tlm light at the node's world position
+    (its intensity is in candela for a point or spot light, lux for a directional one):
+
+    * a point light: power ``4 pi * intensity * color`` (``intensity * color`` W/sr);
+    * a spot light: the same power (the intensity on its axis), shining down the node's -Z,
+      its ``spot.innerConeAngle`` and ``outerConeAngle`` (radians; default 0 and pi / 4) in
+      degrees;
+    * a directional light: irradiance ``intensity * color`` (W per unit area) travelling down
+      the node's -Z; its power is set by the scene's loader (from the scene's bounds).
+
+    A geometry item's transform moves the lights' positions and turns their directions
+    (:mod:`tlm.scenes.compose`). The camera is the first node (in ``nodes`` order) of the
+    scene with a perspective camera: its eye the node's world position, looking down its -Z
+    with +Y up, ``vfov`` = ``yfov`` in degrees. Malformed
+    entries (a type, intensity, colour, range, cone angle or yfov that is not a number, NaN,
+    negative or out of range, an inner cone angle not below the outer; a node's light or
     camera index out of range; a NaN or zero-quaternion transform on the way to a light or
-    camera) are an InputError naming the file and the entry."""
+    camera; a zero scale on the way to a spot or directional light or the camera) are an
+    InputError naming the file and the entry."""
     ext = header.get("extensions")
     punctual = ext.get(_PUNCTUAL) if isinstance(ext, dict) else None
     # (an extension that is not an object holds no lights: nothing to import, nothing to say)
@@ -224,21 +254,34 @@ def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ..
     file = Path(src).name
     out: list[Light] = []
     placed: set[int] = set()
-    ranged: list[str] = []
+    ranged: list[tuple[str, str]] = []  # (the light and its range, its kind)
     for n in sorted(on_light):
         k = on_light[n]
         if n not in paths:
             continue
         placed.add(k)
-        kind, radiant = light_kind[k]
-        if kind != "point":
-            continue
-        position = _world(paths[n], nodes, src)[:3, 3]
+        kind, radiant, cone = light_kind[k]
+        w = _world(paths[n], nodes, src)
+        position = tuple(float(x) for x in w[:3, 3])
         label = f"{_label(lights[k], f'{_PUNCTUAL}.lights[{k}]')} at nodes[{n}]"
-        out.append(Light("point", tuple(float(x) for x in 4.0 * math.pi * radiant),
-                         position=tuple(float(x) for x in position), name=f"{file} {label}"))
-        if "range" in lights[k]:
-            ranged.append(f"{_label(lights[k], f'lights[{k}]')} (range {lights[k]['range']:g})")
+        name = f"{file} {label}"
+        if kind == "point":
+            out.append(Light("point", tuple(float(x) for x in 4.0 * math.pi * radiant), position=position, name=name))
+        else:
+            axis = w[:3, :3] @ [0.0, 0.0, -1.0]  # (the node's -Z: where a spot shines, a directional light travels)
+            length = float(np.linalg.norm(axis))
+            if not (length > 0.0 and np.isfinite(axis / length).all()):
+                raise InputError(f"nodes[{n}]: its world transform (with its parents') leaves the {kind} light "
+                                 f"{_label(lights[k], f'lights[{k}]')} no direction (a zero scale)", source=src)
+            direction = tuple(float(x) for x in axis / length)
+            if kind == "spot":
+                out.append(Light("spot", tuple(float(x) for x in 4.0 * math.pi * radiant), position=position,
+                                 direction=direction, inner_angle=cone[0], outer_angle=cone[1], name=name))
+            else:  # (lux read as W per unit area; its power is set by the scene's loader, from the scene's box)
+                out.append(Light("directional", (0.0, 0.0, 0.0), position=position, direction=direction,
+                                 irradiance=tuple(float(x) for x in radiant), name=name))
+        if "range" in lights[k] and kind != "directional":
+            ranged.append((f"{_label(lights[k], f'lights[{k}]')} (range {lights[k]['range']:g})", kind))
     camera, camera_name, aspect = None, "", None
     skipped: list[str] = []
     for n in sorted(on_camera):
@@ -265,18 +308,16 @@ def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ..
     unused = [c for c in range(len(cameras)) if c not in on_camera.values()]
     skipped += [f"{_label(cameras[c], f'cameras[{c}]')} (on no node of the glTF's scene)" for c in unused]
     notes = []
-    left = [f"{_label(lights[k], f'lights[{k}]')} ({kind})" if kind != "point" else
-            f"{_label(lights[k], f'lights[{k}]')} (point, on no node of the glTF's scene)"
-            for k, (kind, _) in enumerate(light_kind) if kind != "point" or k not in placed]
+    left = [f"{_label(lights[k], f'lights[{k}]')} ({kind}, on no node of the glTF's scene)"
+            for k, (kind, _, _) in enumerate(light_kind) if k not in placed]
     if left:
-        kinds = any(kind != "point" for kind, _ in light_kind)
-        notes.append(f"{src}: not imported from its {_PUNCTUAL} lights: {_listed(left)}" + (
-            ": tlm has point, quad and mesh lights (give such a light under lights: in the scene file, or an "
-            "emissive material)" if kinds else ""))
+        notes.append(f"{src}: not imported from its {_PUNCTUAL} lights: {_listed(left)}")
     ranged = list(dict.fromkeys(ranged))  # (a light on two nodes: named once)
     if ranged:
-        notes.append(f"{src}: the range of its point light{'s' if len(ranged) > 1 else ''} {_listed(ranged)} is not "
-                     "modelled: a tlm point light reaches every distance (falling off as 1/d^2)")
+        what = " and ".join(k for k in ("point", "spot") if any(kind == k for _, kind in ranged))
+        notes.append(f"{src}: the range of its {what} light{'s' if len(ranged) > 1 else ''} "
+                     f"{_listed([r for r, _ in ranged])} is not modelled: a tlm {what.replace(' and ', ' or ')} light "
+                     "reaches every distance (falling off as 1/d^2)")
     if skipped:
         notes.append(f"{src}: not imported from its cameras: {_listed(skipped)}")
     if not out and camera is None:

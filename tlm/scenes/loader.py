@@ -28,7 +28,7 @@ import numpy as np
 from tlm.config import deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes import cache
-from tlm.scenes.model import Camera, Geometry, Imported, Light, Material, Scene
+from tlm.scenes.model import Camera, Geometry, Imported, Light, Material, Scene, directional_power, unit_vector
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 from tlm.scenes.shapes import machine_memory
 from tlm.scenes.validate import MAX_MAGNITUDE
@@ -49,8 +49,26 @@ MATERIAL_KEYS = {
 # the key each material type cannot do without, and what it takes (the others have defaults)
 MATERIAL_REQUIRED = {"lambertian": ("albedo", "[r, g, b] in [0, 1]"), "mirror": ("reflectance", "[r, g, b] in [0, 1]"),
                      "dielectric": ("ior", "a number > 0")}
-LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power")}
+LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power"),
+              "spot": ("type", "position", "direction", "power", "intensity", "inner_cone_angle", "outer_cone_angle"),
+              "directional": ("type", "direction", "irradiance")}
+_POWER = "[r, g, b] in W, each >= 0"
+_POINT = "[x, y, z]"
+_DIRECTION = "[x, y, z], not zero"
+# the keys each light type cannot do without, and what they take (a spot's power may be given as intensity)
+LIGHT_REQUIRED = {
+    "point": (("position", _POINT), ("power", _POWER)),
+    "quad": (("corner", _POINT), ("edge_u", "[x, y, z]"), ("edge_v", "[x, y, z]"), ("power", _POWER)),
+    "spot": (("position", _POINT), ("direction", _DIRECTION + " (the way it shines)"),
+             ("power", f"{_POWER} (4 pi x its intensity), or intensity: [r, g, b] in W/sr")),
+    "directional": (("direction", _DIRECTION + " (the way its light travels)"),
+                    ("irradiance", "[r, g, b] in W per unit area, each >= 0")),
+}
+SPOT_ANGLES = (0.0, 45.0)  # a spot's default inner_cone_angle and outer_cone_angle (degrees; glTF's 0 and pi / 4)
 CAMERA_KEYS = ("eye", "target", "up", "vfov")
+# the camera's keys without a default, and what they take
+CAMERA_REQUIRED = (("eye", "[x, y, z], where the camera is"), ("target", "[x, y, z], the point seen at the image's "
+                   "centre"), ("vfov", "the vertical field of view in degrees, in (0, 179]"))
 BYTES_PER_PIXEL = 4096  # generous bound on every per-pixel buffer of a run, all passes
 
 
@@ -157,17 +175,63 @@ def mesh_light(triangles: np.ndarray, material_index: np.ndarray, materials: tup
 
 
 def with_mesh_light(scene: Scene) -> Scene:
-    """``scene`` with its mesh light (the emitting triangles) rebuilt from its geometry."""
+    """``scene`` with its mesh light (the emitting triangles) rebuilt from its geometry, and its
+    directional lights' power set from its triangles' box (:func:`~tlm.scenes.model.directional_power`)."""
     from dataclasses import replace
 
     lights = tuple(lt for lt in scene.lights if lt.kind != "mesh")
+    if any(lt.kind == "directional" for lt in lights):
+        lo, hi = scene.bounds()
+        lights = tuple(replace(lt, power=directional_power(lt.irradiance, lo, hi)) if lt.kind == "directional"
+                       else lt for lt in lights)
     light = mesh_light(scene.triangles, scene.material_index, scene.materials)
     return replace(scene, lights=lights if light is None else (*lights, light))
+
+
+def unit_direction(v: tuple[float, float, float], src: str, key: str) -> tuple[float, float, float]:
+    """``v`` itself, or an InputError when it is no direction (zero: it has no length,
+    :func:`~tlm.scenes.model.unit_vector`)."""
+    if unit_vector(v) is None:
+        raise InputError(f"{list(v)} is no direction (it has no length)", source=src, key=key)
+    return tuple(float(x) for x in v)
+
+
+def _spot(raw: dict, key: str, src: str) -> Light:
+    position = _vec(raw.get("position"), src, f"{key}.position")
+    direction = unit_direction(_vec(raw.get("direction"), src, f"{key}.direction"), src, f"{key}.direction")
+    if "power" in raw and "intensity" in raw:
+        raise InputError("give power or intensity, not both (power = 4 pi x intensity)", source=src, key=key)
+    if "intensity" in raw:
+        power = tuple(4.0 * math.pi * x for x in _vec(raw["intensity"], src, f"{key}.intensity", lo=0.0))
+    else:
+        power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
+    inner = _num(raw.get("inner_cone_angle", SPOT_ANGLES[0]), src, f"{key}.inner_cone_angle", lo=0.0, hi=90.0)
+    outer = _num(raw.get("outer_cone_angle", SPOT_ANGLES[1]), src, f"{key}.outer_cone_angle", lo=0.0, hi=90.0,
+                 lo_exclusive=True)
+    if not inner < outer:
+        raise InputError(f"{inner:g} must be less than outer_cone_angle ({outer:g} degrees"
+                         f"{'' if 'outer_cone_angle' in raw else ', the default'})", source=src,
+                         key=f"{key}.inner_cone_angle")
+    light = Light("spot", power, position=position, direction=direction, inner_angle=inner, outer_angle=outer)
+    ci, co = light.cone_cosines
+    if not ci > co:
+        raise InputError(f"inner_cone_angle {inner:g} and outer_cone_angle {outer:g} are too close: their cosines "
+                         "are equal in float64", source=src, key=key)
+    return light
 
 
 def _light(i: int, raw: Any, src: str) -> Light:
     key = f"lights[{i}]"
     raw, kind = _typed(raw, src, key, LIGHT_KEYS)
+    for need, what in LIGHT_REQUIRED[kind]:
+        if need not in raw and not (kind == "spot" and need == "power" and "intensity" in raw):
+            raise InputError(f"required for type {kind}: {what}", source=src, key=f"{key}.{need}")
+    if kind == "spot":
+        return _spot(raw, key, src)
+    if kind == "directional":
+        direction = unit_direction(_vec(raw.get("direction"), src, f"{key}.direction"), src, f"{key}.direction")
+        irradiance = _vec(raw.get("irradiance"), src, f"{key}.irradiance", lo=0.0)
+        return Light("directional", (0.0, 0.0, 0.0), direction=direction, irradiance=irradiance)
     power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
     if kind == "point":
         return Light(kind, power, position=_vec(raw.get("position"), src, f"{key}.position"))
@@ -236,14 +300,14 @@ SIZE_LO = F32_TINY  # the smallest extent x median |E1 x E2| (1.2e-38)
 def float32_sizes(scene: Scene) -> dict[str, float]:
     """The lengths the float32 triangle test's range depends on (see :data:`SIZE_HI`):
     ``extent`` (R: the diagonal of the box around the triangles, the camera's eye and the
-    quad and point lights), ``largest`` (the largest ``|E1 x E2|``, twice a triangle's
+    quad, point and spot lights), ``largest`` (the largest ``|E1 x E2|``, twice a triangle's
     area), ``span`` (L: the diagonal of the triangles' box) and ``median`` (the median
     ``|E1 x E2|`` of the triangles with area; 0 when none has any)."""
     tri = scene.triangles
     flat = tri.reshape(-1, 3)
     pts = [flat.min(axis=0), flat.max(axis=0), np.asarray(scene.camera.eye, dtype=np.float64)]
     for lt in scene.lights:
-        if lt.kind == "point":
+        if lt.kind in ("point", "spot"):
             pts.append(np.asarray(lt.position, dtype=np.float64))
         elif lt.kind == "quad":
             c, u, v = (np.asarray(x, dtype=np.float64) for x in (lt.corner, lt.edge_u, lt.edge_v))
@@ -370,6 +434,9 @@ def load_scene(
 
     res = resolution if resolution is not None else raw.get("resolution")
     res_src = (config_source or "(config)") if resolution is not None else src
+    if res is None and "resolution" not in raw:
+        raise InputError("required: [width, height] in whole pixels (or the config's resolution)", source=src,
+                         key="resolution")
     whole = isinstance(res, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in res)
     if not (whole and len(res) == 2):
         raise InputError(f"{res!r} is not [width, height] in whole pixels", source=res_src, key="resolution")
@@ -427,20 +494,66 @@ def _grouped(geom: Geometry) -> dict[str, list[Imported]]:
     return out
 
 
+_KIND_ORDER = ("point", "spot", "directional")
+
+
+def _kinds(imps: list[Imported]) -> list[str]:
+    """The kinds of a file's imported lights, in order."""
+    return [lt.kind for i in imps for lt in i.lights]
+
+
 def _imported_lights(imps: list[Imported]) -> str:
-    """``N point light(s) (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], ...)`` of a file's imports."""
+    """``N point light(s) (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], ...)`` of a file's imports
+    (``N lights (1 point and 1 spot: ...)`` of several kinds)."""
     names = list(dict.fromkeys(lt.name.removeprefix(f"{Path(imps[0].source).name} ") for i in imps
                                for lt in i.lights))
-    n = sum(len(i.lights) for i in imps)
+    kinds = _kinds(imps)
+    n = len(kinds)
     shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
     items = f", in each of its {len(imps)} geometry items" if len(imps) > 1 else ""
-    return f"{f'{n} point lights' if n > 1 else 'point light'} ({shown}{items})"
+    counts = [(k, kinds.count(k)) for k in _KIND_ORDER if k in kinds]
+    if len(counts) == 1:
+        return f"{f'{n} {kinds[0]} lights' if n > 1 else f'{kinds[0]} light'} ({shown}{items})"
+    listed = [f"{c} {k}" for k, c in counts]
+    return f"{n} lights ({', '.join(listed[:-1])} and {listed[-1]}: {shown}{items})"
+
+
+def _imported_as(imps: list[Imported]) -> str:
+    """``a tlm point light (power 4 pi x intensity x color W)``: what a file's imported lights become."""
+    kinds = _kinds(imps)
+    present = [k for k in _KIND_ORDER if k in kinds]
+    if len(present) == 1:
+        what = f"tlm {present[0]} lights" if len(kinds) > 1 else f"a tlm {present[0]} light"
+    else:
+        what = "tlm lights of their kinds"
+    units = []
+    if "point" in present or "spot" in present:
+        units.append("power 4 pi x intensity x color W")
+    if "directional" in present:
+        units.append("irradiance intensity x color W per unit area")
+    return f"{what} ({'; '.join(units)})"
+
+
+def _placed(lt: Light, where: str, file: str) -> Light:
+    """An imported light, checked (its position and direction as the geometry item's transform
+    left them: :mod:`tlm.scenes.compose`)."""
+    p = np.asarray(lt.position)
+    if not (np.isfinite(p).all() and np.abs(p).max() <= MAX_MAGNITUDE):
+        raise InputError(f"{where}: its position {list(lt.position)} (with the geometry item's transform) "
+                         f"is not finite or is beyond +-{MAX_MAGNITUDE:g}", source=file)
+    if not max(lt.power) <= MAX_MAGNITUDE:
+        raise InputError(f"{where}: its power {list(lt.power)} W is beyond {MAX_MAGNITUDE:g}", source=file)
+    if not max(lt.irradiance) <= MAX_MAGNITUDE:
+        raise InputError(f"{where}: its irradiance {list(lt.irradiance)} is beyond {MAX_MAGNITUDE:g}", source=file)
+    if lt.kind in ("spot", "directional") and unit_vector(lt.direction) is None:
+        raise InputError(f"{where}: the geometry item's transform leaves it no direction", source=file)
+    return lt
 
 
 def _lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], list[str]]:
     """The scene's lights: the scene file's ``lights:`` when it gives the key (itself or through
-    ``extends``), else the mesh files' point lights (:attr:`Geometry.imports`); and a line per
-    mesh file with point lights saying which it is."""
+    ``extends``), else the mesh files' point, spot and directional lights
+    (:attr:`Geometry.imports`); and a line per mesh file with such lights saying which it is."""
     notes = []
     if "lights" in raw:
         lights_raw = raw.get("lights") or []
@@ -448,7 +561,7 @@ def _lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], lis
             raise InputError(f"must be a list, got {lights_raw!r}", source=src, key="lights")
         for file, imps in _grouped(geom).items():
             if any(i.lights for i in imps):
-                k = sum(len(i.lights) for i in imps)
+                k = len(_kinds(imps))
                 notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} not used: the scene "
                              f"file gives lights: (leave lights: out to import {'them' if k > 1 else 'it'})")
         return tuple(_light(i, v, src) for i, v in enumerate(lights_raw)), notes
@@ -457,18 +570,10 @@ def _lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], lis
         if not any(i.lights for i in imps):
             continue
         for lt in (lt for i in imps for lt in i.lights):
-            where = lt.name.removeprefix(f"{Path(file).name} ")
-            p = np.asarray(lt.position)
-            if not (np.isfinite(p).all() and np.abs(p).max() <= MAX_MAGNITUDE):
-                raise InputError(f"{where}: its position {list(lt.position)} (with the geometry item's transform) "
-                                 f"is not finite or is beyond +-{MAX_MAGNITUDE:g}", source=file)
-            if not max(lt.power) <= MAX_MAGNITUDE:
-                raise InputError(f"{where}: its power {list(lt.power)} W is beyond {MAX_MAGNITUDE:g}", source=file)
-            lights.append(lt)
-        k = sum(len(i.lights) for i in imps)
+            lights.append(_placed(lt, lt.name.removeprefix(f"{Path(file).name} "), file))
+        k = len(_kinds(imps))
         notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} imported as "
-                     f"{'tlm point lights' if k > 1 else 'a tlm point light'} (power 4 pi x intensity x color W): the "
-                     "scene file gives no lights:")
+                     f"{_imported_as(imps)}: the scene file gives no lights:")
     return tuple(lights), notes
 
 
@@ -504,6 +609,9 @@ def _camera(raw: dict, geom: Geometry, src: str) -> tuple[Camera, list[str]]:
                          "camera to import)", source=src, key="camera")
     cam_raw = _mapping(raw.get("camera"), src, "camera")
     _keys(cam_raw, CAMERA_KEYS, src, "camera")
+    for need, what in CAMERA_REQUIRED:
+        if need not in cam_raw:
+            raise InputError(f"required: {what}", source=src, key=f"camera.{need}")
     eye = _vec(cam_raw.get("eye"), src, "camera.eye")
     target = _vec(cam_raw.get("target"), src, "camera.target")
     up = _vec(cam_raw.get("up", [0.0, 1.0, 0.0]), src, "camera.up")

@@ -22,11 +22,11 @@ polygons are fan-triangulated from their first corner.
   geometry, named by trimesh's geometry name, with each instance's scene-graph
   transform applied. glTF materials come from the file's JSON (extensions included)
   and map to tlm's kinds by :func:`tlm.scenes.materials.gltf_material`. Its
-  ``KHR_lights_punctual`` point lights and its first perspective camera, placed by the
-  nodes of its scene, are ``Geometry.imports`` (:func:`tlm.scenes.gltf_imports.gltf_imports`; the scene file
-  decides whether they are used: :mod:`tlm.scenes.loader`); what of its lights and cameras
-  is not imported (spot and directional lights, orthographic cameras, ...) is named in
-  ``Geometry.notes``. A PLY whose
+  ``KHR_lights_punctual`` point, spot and directional lights and its first perspective
+  camera, placed by the nodes of its scene, are ``Geometry.imports``
+  (:func:`tlm.scenes.gltf_imports.gltf_imports`; the scene file decides whether they are
+  used: :mod:`tlm.scenes.loader`); what of its lights and cameras is not imported (lights and
+  cameras on no node of its scene, orthographic cameras, ...) is named in ``Geometry.notes``. A PLY whose
   faces are triangle strips (element ``tristrips``, ``-1`` restarting a strip) is
   decoded with alternating winding; the degenerate triangles that stitch strips are
   dropped. A PLY's face property ``material`` (or ``material_index``) gives each face's

@@ -10,13 +10,49 @@ materials.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 MATERIAL_KINDS = ("lambertian", "mirror", "dielectric")
 KIND = {k: i for i, k in enumerate(MATERIAL_KINDS)}  # a material kind's small-integer code
-LIGHT_KINDS = ("quad", "point", "mesh")
+LIGHT_KINDS = ("quad", "point", "mesh", "spot", "directional")
+# the kinds that are a point or a direction, not an area: one shadow ray a shaded point, never seen
+DELTA_KINDS = ("point", "spot", "directional")
+# a directional light's photons start on a disc this much (relative to the bounding sphere's
+# radius) beyond the sphere, so that they start outside the scene
+DISC_MARGIN = 0.01
+
+
+def spot_falloff(cos_angle, cos_inner: float, cos_outer: float):
+    """The glTF spec's recommended spot-light falloff (KHR_lights_punctual, "Inner and Outer Cone
+    Angles"): 1 within the inner cone, 0 outside the outer one, between them the square of the
+    cosine's linear interpolation, ``((cos - cos_outer) / (cos_inner - cos_outer))**2``. Numbers or
+    arrays of cosines."""
+    x = (np.asarray(cos_angle, dtype=np.float64) - cos_outer) / (cos_inner - cos_outer)
+    x = np.clip(x, 0.0, 1.0)
+    return x * x
+
+
+def unit_vector(v) -> np.ndarray | None:
+    """``v`` (3,) scaled to unit length (by its largest component first, so that a vector of
+    tiny or huge components keeps its direction), or None when it has none (zero, not finite)."""
+    a = np.asarray(v, dtype=np.float64)
+    with np.errstate(over="ignore", under="ignore", invalid="ignore", divide="ignore"):
+        big = float(np.abs(a).max())
+        if not (big > 0.0 and np.isfinite(big)):
+            return None
+        u = a / big
+        u = u / np.linalg.norm(u)
+    return u if np.isfinite(u).all() else None
+
+
+def bounding_sphere(lo, hi) -> tuple[np.ndarray, float]:
+    """The centre and radius of the sphere around the box [lo, hi]: the box's centre and half its
+    diagonal (a directional light's photons cover it)."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    return 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
 
 
 @dataclass(frozen=True)
@@ -64,7 +100,8 @@ class Material:
 
 @dataclass(frozen=True)
 class Light:
-    """A quad area light, a point light or a mesh light, with RGB power in watts.
+    """A quad area light, a point light, a mesh light, a spot light or a directional light,
+    with RGB power in watts.
 
     A quad light is the parallelogram ``corner + a*edge_u + b*edge_v`` (a, b in
     [0, 1]); it emits on the side of ``cross(edge_u, edge_v)`` only, with constant
@@ -75,6 +112,16 @@ class Light:
     two it is geometry: eye rays see it where they hit it, and it casts shadows.
     ``power = pi * sum(Le * area)``. ``name`` says where the light comes from (the
     emitting materials' names for a mesh light).
+
+    A spot light at ``position`` shines along ``direction`` (any length; :attr:`axis` is it
+    made unit): ``power / (4 pi)`` W/sr
+    (the intensity of a point light of that power) within ``inner_angle`` degrees of the
+    axis, nothing beyond ``outer_angle``, and between them :func:`spot_falloff` (glTF's). It
+    emits :attr:`flux` watts, less than ``power``. A directional light sends ``irradiance``
+    (W per unit area, on a surface facing it) along ``direction`` from infinitely
+    far; its ``power`` is that irradiance times the area of the disc that covers the
+    triangles' bounding sphere (:func:`directional_power`, which the scene loader sets), the
+    power its photons carry into the scene.
     """
 
     kind: str
@@ -84,6 +131,10 @@ class Light:
     edge_u: tuple[float, float, float] = (0.0, 0.0, 0.0)
     edge_v: tuple[float, float, float] = (0.0, 0.0, 0.0)
     name: str = ""
+    direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inner_angle: float = 0.0
+    outer_angle: float = 0.0
+    irradiance: tuple[float, float, float] = (0.0, 0.0, 0.0)
     ids: np.ndarray | None = field(default=None, compare=False, repr=False)
     triangles: np.ndarray | None = field(default=None, compare=False, repr=False)
     radiance: np.ndarray | None = field(default=None, compare=False, repr=False)
@@ -91,12 +142,43 @@ class Light:
     def record(self) -> dict:
         """The light as plain data (for hashes and results.json): a quad or point light's
         fields as before mesh lights existed; a mesh light's kind, power, name and
-        triangle count (its triangles and radiance are the scene's geometry and materials)."""
+        triangle count (its triangles and radiance are the scene's geometry and materials);
+        a spot's kind, power, position, direction and cone angles; a directional light's
+        kind, power, irradiance and direction."""
         if self.kind == "mesh":
             return {"kind": self.kind, "power": list(self.power), "name": self.name,
                     "triangles": int(self.ids.shape[0])}
+        if self.kind == "spot":
+            return {"kind": self.kind, "power": self.power, "position": self.position, "direction": self.direction,
+                    "inner_angle": self.inner_angle, "outer_angle": self.outer_angle}
+        if self.kind == "directional":
+            return {"kind": self.kind, "power": self.power, "irradiance": self.irradiance,
+                    "direction": self.direction}
         return {"kind": self.kind, "power": self.power, "position": self.position, "corner": self.corner,
                 "edge_u": self.edge_u, "edge_v": self.edge_v}
+
+    @property
+    def axis(self) -> np.ndarray:
+        """A spot's or directional light's ``direction`` made unit (:func:`unit_vector`)."""
+        u = unit_vector(self.direction)
+        if u is None:
+            raise ValueError(f"{self.kind} light {self.name!r}: direction {list(self.direction)} has no length")
+        return u
+
+    @property
+    def cone_cosines(self) -> tuple[float, float]:
+        """A spot's ``(cos inner_angle, cos outer_angle)``."""
+        return math.cos(math.radians(self.inner_angle)), math.cos(math.radians(self.outer_angle))
+
+    @property
+    def flux(self) -> tuple[float, float, float]:
+        """The RGB watts the light emits: its ``power``, but for a spot ``power / (4 pi)``
+        times the solid angle its falloff weighs, ``2 pi (1 - cos_i + (cos_i - cos_o) / 3)``."""
+        if self.kind != "spot":
+            return self.power
+        ci, co = self.cone_cosines
+        share = 0.5 * ((1.0 - ci) + (ci - co) / 3.0)
+        return tuple(float(p) * share for p in self.power)
 
     @property
     def area(self) -> float:
@@ -116,6 +198,13 @@ class Light:
         return n / np.linalg.norm(n)
 
 
+def directional_power(irradiance, lo, hi) -> tuple[float, float, float]:
+    """A directional light's power in a scene whose triangles' box is [lo, hi]: ``irradiance``
+    times ``pi R^2``, the area of the disc covering the box's bounding sphere (of radius R)."""
+    _, r = bounding_sphere(lo, hi)
+    return tuple(float(e) * math.pi * r * r for e in irradiance)
+
+
 @dataclass(frozen=True)
 class Camera:
     """Pinhole look-at camera; ``vfov`` is the vertical field of view in degrees."""
@@ -130,14 +219,17 @@ class Camera:
 
 @dataclass(frozen=True)
 class Imported:
-    """What a mesh file gives besides its triangles that a scene can take: a glTF's point
-    lights (``KHR_lights_punctual``) and its first perspective camera, in the geometry's
+    """What a mesh file gives besides its triangles that a scene can take: a glTF's point, spot
+    and directional lights (``KHR_lights_punctual``) and its first perspective camera, in the geometry's
     space (an item's ``transform`` moves them with its triangles). The scene takes the
     lights when its file gives no ``lights:``, the camera when it gives no ``camera:``
     (:func:`tlm.scenes.loader.load_scene`).
 
     source : the mesh file's path.
-    lights : ``point`` lights, each named ``FILE KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``.
+    lights : ``point``, ``spot`` and ``directional`` lights, each named ``FILE
+        KHR_lights_punctual.lights[i] 'NAME' at nodes[n]`` (a spot's or directional light's
+        ``direction`` unit length; an item's transform turns it); a directional light's power
+        is 0 until the scene's loader knows the scene's bounds.
     camera : ``eye``, ``target`` (one unit in front of the eye), ``up``, ``vfov``; its
         ``width`` and ``height`` are 0 (the scene's resolution gives them). None: none.
     camera_name : ``cameras[i] 'NAME' at nodes[n]``.
@@ -169,10 +261,10 @@ class Geometry:
     materials: tuple[Material, ...] = ()
     face_material: np.ndarray | None = None  # (n,) int32
     # what the file holds that tlm does not use, one line each naming the file (a glTF's
-    # spot and directional lights, its orthographic cameras): the run warns of them
+    # lights on no node, its orthographic cameras): the run warns of them
     # (tlm.render.checks.file_warnings)
     notes: tuple[str, ...] = ()
-    # the lights and camera of the files (a glTF's point lights and first perspective camera),
+    # the lights and camera of the files (a glTF's punctual lights and first perspective camera),
     # one entry per item of the geometry that has any (tlm.scenes.loader decides whether they are used)
     imports: tuple[Imported, ...] = ()
 
