@@ -201,6 +201,57 @@ def params() -> list[tuple[str, Any, str]]:
     return describe()
 
 
+def configs_dir() -> Path:
+    """Where the built-in experiments are: the repository's ``configs/``, shipped inside
+    the wheel as ``tlm/_configs``."""
+    from tlm.config import configs_dir as folder
+
+    return folder()
+
+
+def list_experiments() -> list[str]:
+    """The built-in experiments' names (``cornell``, ``cornell_pmap``, ``thesis``, ...: the
+    files of :func:`configs_dir`), as ``tlm config list`` lists them."""
+    from tlm.config import list_experiments as names
+
+    return names()
+
+
+def experiment_path(ref: str | Path, command: str = "run") -> Path:
+    """The experiment file that ``tlm COMMAND REF`` runs: ``ref`` when it exists, else the
+    built-in experiment named ``ref``; an :class:`InputError` otherwise (a path that does
+    not exist names the built-in experiment of its file name, which is not taken in its
+    place; a name that is none lists them)."""
+    from tlm.config import experiment_path as find
+
+    return find(os.fspath(ref), command, list_scenes())
+
+
+def experiment_command(name: str) -> str:
+    """The ``tlm`` command that runs the built-in experiment ``name`` (``run``, ``sweep``,
+    ``thesis``, ``extreme``, ...)."""
+    from tlm.config import experiment_command as command
+
+    return command(name)
+
+
+def experiment_description(name: str) -> str:
+    """A built-in experiment's description (its ``description:``, else its first comment
+    sentence)."""
+    from tlm.config import experiment_description as description
+
+    return description(name)
+
+
+def export_experiment(name: str, file: str | Path) -> list[Path]:
+    """Copy the built-in experiment ``name`` into ``file`` (``.yaml``) to edit it, and a
+    sweep's base config beside it where it names one (``tlm config export``); returns the
+    files written. A file that exists with other contents is not overwritten."""
+    from tlm.config import export_experiment as export
+
+    return export(name, file)
+
+
 # ---------------------------------------------------------------- scenes
 
 
@@ -212,8 +263,9 @@ def list_scenes() -> list[str]:
 
 
 def scene_description(name: str) -> str:
-    """A built-in scene's ``description:``, else its first comment line ("" when it has
-    neither; cheap: reads no geometry)."""
+    """A built-in scene's ``description:``, else the first sentence of its leading comment
+    lines, which may run over several ("" when it has neither; cheap: reads no geometry)."""
+    from tlm.config import comment_description
     from tlm.scenes.loader import scenes_dir
 
     names = list_scenes()
@@ -225,10 +277,9 @@ def scene_description(name: str) -> str:
         raw = read_yaml(path)
         if isinstance(raw, dict) and isinstance(raw.get("description"), str):
             return raw["description"]
-        first = path.read_text(encoding="utf-8").splitlines()[0]
-    except (InputError, OSError, IndexError):
+        return comment_description(path.read_text(encoding="utf-8"))
+    except (InputError, OSError, UnicodeDecodeError):
         return ""
-    return first.lstrip("#").strip() if first.startswith("#") else ""
 
 
 def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
@@ -501,6 +552,53 @@ def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None 
     return fit(Path(path), progress=progress)
 
 
+def _package_dir() -> Path:
+    """The folder of the tlm package that runs (site-packages/tlm in an installed copy)."""
+    return Path(__file__).resolve().parent
+
+
+def in_checkout(package: str | Path) -> bool:
+    """Whether the tlm package folder ``package`` is a checkout's (a source tree: a
+    ``pyproject.toml`` or ``.git`` beside it) rather than an installed copy (inside a
+    ``site-packages`` or ``dist-packages`` folder, or with neither beside it)."""
+    package = Path(package)
+    if {part.lower() for part in package.parts} & {"site-packages", "dist-packages"}:
+        return False
+    return (package.parent / "pyproject.toml").is_file() or (package.parent / ".git").exists()
+
+
+def _refuse_installed(target: Path) -> None:
+    """An InputError, nothing written, where the default table ``target`` lies inside the
+    package of an installed copy (its packaged ``tlm/arch/programs.yaml``): a calibration
+    there would change the table of every user of that installation, and the fingerprint
+    of its code (every cached result of it would be stale)."""
+    package = _package_dir()
+    if not in_checkout(package) and Path(target).resolve().is_relative_to(package):
+        raise InputError(f"not written: the table is inside the installed tlm package ({package}, not a checkout), "
+                         "where a fit would change it for every user of this installation: name a table with "
+                         "--write FILE, or fit and print only with --dry-run", source=str(target))
+
+
+def calibration_table(path: str | Path, target: str | Path | None = None) -> Path:
+    """The instruction table that :func:`write_calibration` writes for a :func:`calibrate`
+    of the study ``path``: ``target``, else the study's own table (its
+    ``base.arch.programs``), else the packaged ``tlm/arch/programs.yaml``. Refused with an
+    :class:`InputError` before any fit, as :func:`write_calibration` refuses it: that
+    default table inside the package of an installed copy (:func:`in_checkout`)."""
+    from tlm.arch.costs import DEFAULT_PATH
+    from tlm.experiments.run import programs_for
+    from tlm.experiments.thesis import load_study
+
+    if target is not None:  # (named: written where it is named, an installed package's folder included)
+        return Path(target)
+    base, scenes, _, folder = load_study(Path(path))
+    used = Path(programs_for(config_from_dict({**base, "scene": scenes[0], "mode": "rcast"}, str(path)),
+                             folder).source)
+    target = used if used.is_file() else DEFAULT_PATH
+    _refuse_installed(target)
+    return target
+
+
 def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
                       command: str = "") -> Path:
     """Write a :func:`calibrate` fit into the instruction table ``target``, keeping its
@@ -509,14 +607,16 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
     ``target`` defaults to the table the study uses (its ``arch.programs``, else the
     packaged ``tlm/arch/programs.yaml``). Refused with a one-line
     :class:`~tlm.errors.InputError`, nothing written: an empty path, a folder, a path whose
-    folder does not exist, and the packaged table from a fit whose ``report`` says it is
+    folder does not exist, the packaged table from a fit whose ``report`` says it is
     not comparable with the thesis (``report["not_comparable"]``: its parameters would
-    measure that setting, not the model; name another file)."""
+    measure that setting, not the model; name another file), and, unless ``target`` names
+    it, a table inside the package of an installed copy (:func:`in_checkout`)."""
     from tlm.arch.costs import DEFAULT_PATH
     from tlm.experiments.thesis import write_calibrated
 
     if target is not None and not str(target).strip():
         raise InputError("an empty path names no table (leave it out for the study's own table)", key="--write")
+    named = target is not None
     if target is None:
         used = Path(programs.source)
         target = used if used.is_file() else DEFAULT_PATH
@@ -525,6 +625,8 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
         raise InputError("is a folder, not a table file", source=str(target), key="--write")
     if not target.parent.is_dir():
         raise InputError(f"its folder {target.parent} does not exist", source=str(target), key="--write")
+    if not named:
+        _refuse_installed(target)
     differ = report.get("not_comparable") or {}
     if differ and target.resolve() == DEFAULT_PATH.resolve():
         why = "; ".join(f"{s} is {', '.join(w)}" for s, w in differ.items())

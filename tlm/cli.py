@@ -59,7 +59,7 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         """One step's command: its exit status (1: its results report failures, as a model that
         cannot finish does); bad input and any other error propagate and stop ``tlm plots``."""
         sub = build_parser().parse_args(argv)
-        sub.argv = argv
+        sub.argv = argv  # (its file is the one in --configs: a name is not looked up among the built-in ones)
         try:
             return sub.func(sub)
         except Deadlock as e:
@@ -67,8 +67,11 @@ def _cmd_plots(args: argparse.Namespace) -> int:
             return 1
 
     only = list(dict.fromkeys(args.only)) if args.only else None  # (--only a --only b: both)
+    configs = args.configs
+    if configs is None:  # ./configs (a checkout's root), else the built-in experiments (an installed copy)
+        configs = "configs" if Path("configs").is_dir() else str(api.configs_dir())
     try:
-        page = api.plots(args.configs, args.runs, args.out, only, run_command=step,
+        page = api.plots(configs, args.runs, args.out, only, run_command=step,
                          say=lambda line: print(line, flush=True))
     except StepsFailed as e:
         print(f"wrote {e.page}")
@@ -91,6 +94,40 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
           + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
     _report_after(args, out)
     return 1 if failed else 0
+
+
+# the commands whose positional ``config`` is an experiment file or a built-in experiment's name
+EXPERIMENT_ARGS = ("run", "sweep", "reference", "error-vs-cost", "thesis", "granularity", "calibrate", "extreme")
+
+
+def _experiment_arg(args: argparse.Namespace) -> None:
+    """``args.config`` of an experiment command as the file it names: the path given when it
+    exists, else the built-in experiment of that name (said on stderr, with its file);
+    anything else is an InputError (:func:`tlm.api.experiment_path`)."""
+    if getattr(args, "cmd", None) not in EXPERIMENT_ARGS:
+        return
+    path = api.experiment_path(args.config, args.cmd)
+    if str(path) != args.config:
+        _say_err(f"{args.config}: the built-in experiment {path}")
+        args.config = str(path)
+
+
+def _cmd_config(args: argparse.Namespace) -> int:
+    if args.config_cmd == "list":
+        names = api.list_experiments()
+        if not args.long:
+            print("\n".join(names))
+            return 0
+        runs = {name: f"tlm {api.experiment_command(name)} {name}" for name in names}
+        wide, wider = max(map(len, names), default=0), max(map(len, runs.values()), default=0)
+        for name in names:
+            print(f"{name:{wide}s}  {runs[name]:{wider}s}  {api.experiment_description(name)}".rstrip())
+        return 0
+    written = api.export_experiment(args.name, args.file)
+    also = "".join(f" and {p} (its base config, which it names)" for p in written[1:])
+    print(f"wrote {written[0]} (a copy of the built-in experiment {args.name}){also}; "
+          f"run it: tlm {api.experiment_command(args.name)} {written[0]}")
+    return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -214,8 +251,15 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
 
 def _cmd_scene(args: argparse.Namespace) -> int:
     if args.scene_cmd == "list":
-        for name in api.list_scenes():
-            print(f"{name:28s} {api.scene_description(name)}".rstrip() if args.long else name)
+        names = api.list_scenes()
+        # a scene whose description starts "Bad input" is one on purpose: a test of an error message
+        hidden = [] if args.all else [n for n in names if api.scene_description(n).startswith("Bad input")]
+        for name in names:
+            if name not in hidden:
+                print(f"{name:28s} {api.scene_description(name)}".rstrip() if args.long else name)
+        if hidden:  # (on stderr: stdout stays the names a config may give)
+            _say_err(f"scene list: {len(hidden)} scenes of bad input on purpose (tests of tlm's error messages: "
+                     f"{', '.join(hidden)}) left out; --all lists them")
         return 0
     scene = api.load_scene(args.name)
     if args.scene_cmd == "show":
@@ -327,6 +371,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     def progress(it, params):
         print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
+    if not args.dry_run:  # (a table it may not write is refused before the fit, not after it)
+        api.calibration_table(args.config, args.write)
     programs, report = api.calibrate(args.config, progress=progress)
     for scene, cells in report["cells"].items():
         print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
@@ -394,8 +440,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=version())
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
-    r.add_argument("config", help="experiment YAML (see 'tlm params'), or a scene YAML to render at the "
-                   "default settings")
+    r.add_argument("config", help="experiment YAML (see 'tlm params'), a built-in experiment's name ('tlm config "
+                   "list'), or a scene YAML to render at the default settings")
     r.add_argument("--out", type=_folder_name, help="run folder (default: runs/<config name>)")
     r.add_argument("--mode", choices=MODES, help="override the mode")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
@@ -431,6 +477,8 @@ def build_parser() -> argparse.ArgumentParser:
     ss = s.add_subparsers(dest="scene_cmd", required=True)
     sl = ss.add_parser("list", help="the built-in scenes (names for a config's scene: key)")
     sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
+    sl.add_argument("--all", action="store_true", help="also the scenes of bad input on purpose (tests of the "
+                    "error messages: a description that starts 'Bad input')")
     sh = ss.add_parser("show", help="triangle count, bounds, materials, lights, camera, and notes on what the mesh "
                        "files gave that was imported or left out")
     sh.add_argument("name", help="built-in scene name or scene YAML path")
@@ -459,7 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes; without base every cell runs at the default "
-                    "settings, not the thesis's), e.g. configs/thesis.yaml")
+                    "settings, not the thesis's), e.g. configs/thesis.yaml, or a built-in experiment's name: thesis")
     th.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_progress(th)
     _no_report(th)
@@ -489,12 +537,13 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
-    ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml")
+    ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
     ex.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
-    pl.add_argument("--configs", default="configs", help="folder of the experiment files (default: configs)")
+    pl.add_argument("--configs", help="folder of the experiment files (default: ./configs where it exists, else "
+                    "the built-in experiments: 'tlm config list')")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
     pl.add_argument("--out", type=_folder_name, default="plots", help="report folder (default: plots)")
     pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps (thesis, "
@@ -502,6 +551,18 @@ def build_parser() -> argparse.ArgumentParser:
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
     pl.set_defaults(func=_cmd_plots)
+    co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
+                        "tlm), or copy one out to edit")
+    cs = co.add_subparsers(dest="config_cmd", required=True)
+    cl = cs.add_parser("list", help="the built-in experiments: names that the commands taking an experiment file "
+                       "take instead (tlm run cornell_pmap)")
+    cl.add_argument("-l", "--long", action="store_true", help="with the command that runs each one and its "
+                    "description")
+    ce = cs.add_parser("export", help="copy a built-in experiment into a file to edit (a sweep's base config "
+                       "beside it too)")
+    ce.add_argument("name", help="built-in experiment name ('tlm config list')")
+    ce.add_argument("file", help="output .yaml")
+    co.set_defaults(func=_cmd_config)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
     return p
@@ -636,6 +697,7 @@ def main(argv: list[str] | None = None) -> int:
         with _signals():
             args = parser.parse_args(argv)
             args.argv = argv
+            _experiment_arg(args)
             return args.func(args)
     except SystemExit as e:  # --help, --version
         return e.code if isinstance(e.code, int) else 0

@@ -18,18 +18,29 @@ and resolution are in neither file.
 A ``.yaml`` target writes the scene file that closes the round trip (:func:`scene_yaml`):
 ``geometry: {mesh: STEM.obj}``, every material under ``materials:`` with its exact values
 (which replace the MTL's of the same name on reading, glass's transmittance included),
-the quad and point lights (a mesh light is its emitting materials), the camera, the
+the quad, point, spot and directional lights (a mesh light is its emitting materials; a
+directional light's irradiance: its power follows the scene's bounds), the camera, the
 resolution and the photon count. ``tlm run`` on it renders what the original scene
 renders. Floats are written as Python's ``repr``, which reads back to the same bits.
 
 Each triangle is written with its own three vertices (no welding), so face ``i`` of
 the file is triangle id ``i`` of every AOV and BSP leaf, exactly, and the vertex
 positions are the ones the renderer uses.
+
+Every file written (OBJ, MTL, PLY and scene file) carries, below its first line, the
+notices of the mesh files the scene's geometry comes from (:func:`notices`), as comment
+lines: a published mesh's licence asks for its attribution to go with every copy (the
+Cornell boxes are CC BY 3.0: ``scenes/meshes/COPYRIGHT-cornellbox.txt``). A mesh's notice
+is the ``COPYRIGHT-<name>.txt`` beside it whose ``<name>`` begins the mesh file's name
+(letters and digits compared, any case: ``CornellBox-Water.obj.xz`` and
+``COPYRIGHT-cornellbox.txt``); a mesh that tlm exported carries its notices in its own
+header, and they are passed on.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -61,27 +72,125 @@ def export_triangles(scene: Scene, path: Path) -> None:
     if scene_file:
         for other in (path.with_suffix(".obj"), path):
             _check_ours(other, path, "scene file" if other == path else "mesh")
+    told = notices(scene)
     try:
         if scene_file:
-            _write(scene, path.with_suffix(".obj"), ".obj", verts, faces)
-            write_file(path, scene_yaml(scene, path.with_suffix(".obj").name))
+            _write(scene, path.with_suffix(".obj"), ".obj", verts, faces, told)
+            write_file(path, scene_yaml(scene, path.with_suffix(".obj").name, told))
         else:
-            _write(scene, path, suffix, verts, faces)
+            _write(scene, path, suffix, verts, faces, told)
     except EnvironmentFailure:
         raise
     except OSError as e:  # (a folder that takes no files: /proc, a special file system)
         raise EnvironmentFailure(f"cannot write it ({e.strerror or e})", source=str(path)) from None
 
 
-def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.ndarray) -> None:
+_NOTICE = "Notice of the mesh "  # (the first line of a mesh's notice in a file tlm exports)
+_BODY = "  "  # (its other lines start so)
+
+
+def notices(scene: Scene) -> list[str]:
+    """The notices of the mesh files ``scene``'s geometry comes from (the module's
+    docstring), as lines to write as comments: for each notice its title line (``Notice of
+    the mesh M (its COPYRIGHT-x.txt), to keep with every copy:``) and its text's lines,
+    each indented by two spaces (blank lines and a leading ``#`` left out). Empty for a
+    scene that is not from a scene file, or whose meshes carry none."""
+    try:
+        files = _mesh_files(Path(scene.source))
+    except (InputError, OSError, ValueError):  # (not a scene file: a Scene made in Python)
+        return []
+    out: list[str] = []
+    for mesh in files:
+        block = _notice_of(mesh)
+        if block and not _holds(out, block):
+            out += block
+    return out
+
+
+def _holds(lines: list[str], block: list[str]) -> bool:
+    return any(lines[i:i + len(block)] == block for i in range(len(lines) - len(block) + 1))
+
+
+def _mesh_files(source: Path) -> list[Path]:
+    """The mesh files the scene file ``source`` names (its ``extends`` chain followed)."""
+    from tlm.scenes.compose import mesh_path
+    from tlm.scenes.loader import read_scene_tree
+
+    if not source.is_file():
+        return []
+    raw, geom_path = read_scene_tree(source, ())
+    items = raw.get("geometry")
+    items = items if isinstance(items, list) else [items]
+    return [mesh_path(item["mesh"], Path(geom_path)) for item in items
+            if isinstance(item, dict) and isinstance(item.get("mesh"), str) and item["mesh"]]
+
+
+def _alnum(text: str) -> str:
+    return re.sub(r"[^0-9a-z]", "", text.lower())
+
+
+def _notice_of(mesh: Path) -> list[str]:
+    """The notice lines of one mesh file: its COPYRIGHT file's, else those its own header
+    carries when tlm exported it."""
+    if not mesh.is_file():
+        return []
+    name = _alnum(mesh.name)
+    found = sorted((p for p in mesh.parent.glob("COPYRIGHT-*.txt")
+                    if _alnum(p.stem[len("COPYRIGHT-"):]) and name.startswith(_alnum(p.stem[len("COPYRIGHT-"):]))),
+                   key=lambda p: -len(p.name))
+    if found:
+        text = found[0].read_text(encoding="utf-8", errors="replace")
+        body = [line.strip().removeprefix("#").strip() for line in text.splitlines()]
+        body = [f"{_BODY}{line}" for line in body if line]
+        changed = f"{_BODY}(Changed: this file holds the mesh's triangles as tlm loads them, not the file itself.)"
+        return [f"{_NOTICE}{mesh.name} (its {found[0].name}), to keep with every copy:", *body, changed] if body else []
+    return _notices_in_header(mesh)
+
+
+def _notices_in_header(mesh: Path) -> list[str]:
+    """The notice lines in the header of a mesh file tlm exported (OBJ: ``#`` lines before the
+    first statement; PLY: ``comment`` lines before ``end_header``); none in another file."""
+    try:
+        with open(mesh, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError:
+        return []
+    if head.startswith(_MTL_HEAD.encode()):
+        prefix, lines = "# ", head.decode("utf-8", "replace").splitlines()
+        lines = lines[:next((i for i, line in enumerate(lines) if not line.startswith("#")), len(lines))]
+    elif head.startswith(b"ply") and b"\ncomment tlm scene " in head.split(b"end_header", 1)[0]:
+        prefix, lines = "comment ", head.split(b"end_header", 1)[0].decode("utf-8", "replace").splitlines()
+    else:
+        return []
+    out, inside = [], False
+    for line in lines:
+        text = line[len(prefix):] if line.startswith(prefix) else None
+        if text is not None and text.startswith(_NOTICE):
+            inside = True
+        elif text is None or not text.startswith(_BODY):
+            inside = False
+        if inside:
+            out.append(text)
+    return out
+
+
+def _comments(prefix: str, lines: list[str]) -> str:
+    """``lines`` as comment lines of a file (``# `` or PLY's ``comment ``), each ending in a newline."""
+    return "".join(f"{prefix}{line}\n" for line in lines)
+
+
+def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.ndarray,
+           told: list[str] | tuple[str, ...] = ()) -> None:
     n = faces.shape[0]
+    told = list(told)
     if suffix == ".ply":
         from tlm.scenes.plyfile import NAME_COMMENT
 
         names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
         header = (
             "ply\nformat binary_little_endian 1.0\n"
-            f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{names}"
+            f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{_comments('comment ', told)}"
+            f"{names}"
             f"element vertex {3 * n}\nproperty double x\nproperty double y\nproperty double z\n"
             f"element face {n}\nproperty list uchar int vertex_indices\n"
             "property int material\nend_header\n"
@@ -96,7 +205,8 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
             f.write(face_rec.tobytes())
     else:
         library = path.with_suffix(".mtl")
-        lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", f"mtllib {library.name}"]
+        lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", *(f"# {t}" for t in told),
+                 f"mtllib {library.name}"]
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
         normals = scene.normals
         if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
@@ -115,7 +225,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
                 last_part = part[s]
             lines.append(f"usemtl {scene.materials[mat[s]].name}")
             lines += [face_line(a + 1, a + 2, a + 3) for a in range(3 * s, 3 * e, 3)]
-        write_file(library, mtl_text(scene))
+        write_file(library, mtl_text(scene, told))
         write_file(path, "\n".join(lines) + "\n")
 
 
@@ -163,9 +273,10 @@ def _floats(values) -> list[float]:
     return [float(x) for x in values]
 
 
-def scene_yaml(scene: Scene, mesh: str) -> str:
+def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
     """The scene file of ``scene`` whose geometry is the OBJ ``mesh`` (a name beside it),
-    as the module's docstring says."""
+    as the module's docstring says; ``told``: the notice lines below its first lines
+    (default: :func:`notices` of the scene)."""
     import yaml
 
     mats = {}
@@ -209,15 +320,18 @@ def scene_yaml(scene: Scene, mesh: str) -> str:
     head = (f"{_MTL_HEAD}{_one_line(scene.name)}: written by tlm scene export, with {mesh} and its MTL library "
             "beside it.\n"
             "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.\n")
+    head += _comments("# ", notices(scene) if told is None else told)
     return head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
 
 
-def mtl_text(scene: Scene) -> str:
-    """The scene's materials as an MTL library (the module's docstring)."""
+def mtl_text(scene: Scene, told: list[str] | None = None) -> str:
+    """The scene's materials as an MTL library (the module's docstring); ``told``: the
+    notice lines below its first line (default: :func:`notices` of the scene)."""
     def rgb(c) -> str:
         return " ".join(repr(float(x)) for x in c)
 
-    out = [f"{_MTL_HEAD}{_one_line(scene.name)}: its materials"]
+    out = [f"{_MTL_HEAD}{_one_line(scene.name)}: its materials",
+           *(f"# {t}" for t in (notices(scene) if told is None else told))]
     for m in scene.materials:
         out.append(f"newmtl {m.name}")
         if m.kind == "lambertian":
