@@ -161,7 +161,14 @@ def scene_file(path: str | Path) -> Path | None:
 def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, overrides: Overrides | None = None,
                 *, base: str | Path | None = None) -> Config:
     """A run config, checked: from a YAML file (a run config, or a scene file, which renders
-    at the default settings), a mapping of its keys, or a config already made.
+    at the default settings), a built-in experiment's name (``"cornell"``, as ``tlm run
+    cornell`` takes it: :func:`experiment_path`), a mapping of its keys, or a config
+    already made.
+
+    A path that exists always wins over a built-in experiment; a name is the packaged file,
+    which ``source`` then names. A path that does not exist is not replaced by the built-in
+    experiment of its file name (``configs/cornell.yaml`` outside a checkout): its
+    :class:`InputError` names that experiment instead.
 
     ``overrides``: dotted keys to set, ``{"render.spp": 2}`` or ``["render.spp=2"]`` (as
     ``tlm run --set``). ``base``: where a mapping's relative paths start (default: the
@@ -182,18 +189,21 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     if not isinstance(config, (str, os.PathLike)):
         raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
                          "a RunConfig or a Config", key="config")
-    path = Path(config)
+    path, given = Path(config), str(config)
+    if not given.strip() or not path.exists():  # (a built-in experiment's name, else the command line's error)
+        path = experiment_path(config)
+        given = str(path)
     scene = scene_file(path)
     if scene is None:
         from tlm.config import load_config as load_run_config
 
         settings, folder = load_run_config(path, more)
-        return Config(settings, folder, str(config), tuple(more))
+        return Config(settings, folder, given, tuple(more))
     source = f"(the defaults for scene file {scene})"
     raw: dict[str, Any] = {"scene": str(scene)}
     if more:
         raw, source = apply_overrides(raw, more), f"{source} (with --set)"
-    return Config(config_from_dict(raw, source), scene.parent, str(config), tuple(more), scene_file=True)
+    return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True)
 
 
 def params() -> list[tuple[str, Any, str]]:

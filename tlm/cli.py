@@ -456,7 +456,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
-    sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml")
+    sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml, or a built-in "
+                    "experiment's name: sweep_fifo")
     sw.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
                     "render.threads; 1 = in this process); a point that leaves render.threads null gets "
@@ -492,13 +493,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "status 0 when it is converged (or cached so), 1 when it stopped at reference.max_rounds "
                         "without reaching reference.tolerance (cached all the same; the line says so), 2 for "
                         "bad input.")
-    rf.add_argument("config", help="experiment YAML")
+    rf.add_argument("config", help="experiment YAML, or a built-in experiment's name: cornell_pmap")
     rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
     rf.add_argument("--force", action="store_true", help="compute again even if cached")
     _no_progress(rf)
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
-    ev.add_argument("config", help="experiment YAML (base config and grids of points)")
+    ev.add_argument("config", help="experiment YAML (base config and grids of points), e.g. "
+                    "configs/error_vs_cost.yaml, or a built-in experiment's name: error_vs_cost")
     ev.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
@@ -514,14 +516,15 @@ def build_parser() -> argparse.ArgumentParser:
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
-    gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml")
+    gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml, or a "
+                    "built-in experiment's name: tlm_granularity")
     gr.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     _no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
                         "to the RCast column of Tables I-III")
     ca.add_argument("config", help="study YAML with at least two of the thesis's scenes and mode rcast, e.g. "
-                    "configs/thesis.yaml")
+                    "configs/thesis.yaml, or a built-in experiment's name: thesis")
     ca.add_argument("--write", type=_table_file, metavar="TABLE",
                     help="table to write (default: the study's own, its base.arch.programs, else the packaged "
                     "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "

@@ -1,8 +1,8 @@
 """Stiff and extreme cases as an experiment: each case, the behaviour expected, the result measured.
 
-``tlm extreme configs/extreme.yaml --out runs/extreme`` runs every case through the
-normal pipeline (render, simulate, write a run folder) and checks what the case
-expects. The file::
+``tlm extreme extreme --out runs/extreme`` (the built-in experiment, ``configs/extreme.yaml``
+in a checkout; or a file of your own) runs every case through the normal pipeline (render,
+simulate, write a run folder) and checks what the case expects. The file::
 
     description: ...
     base: {resolution: [32, 32], arch: {frames: 1}}   # merged under every case's config
@@ -10,7 +10,7 @@ expects. The file::
       - name: cornell-ior1                              # unique; the case's folder name
         category: shading
         expect: the IOR-1 sphere vanishes               # the behaviour, in words
-        config: {scene: ../scenes/extreme/cornell_ior1.yaml, mode: refract}
+        config: {scene: extreme/cornell_ior1, mode: refract}  # a built-in scene, or a scene file's path
         checks:                                         # what is measured and judged
           - finite                                      # every image finite, no NaN number
           - invariants                                  # the timing model's invariants hold

@@ -49,7 +49,7 @@ from pathlib import Path
 import yaml
 
 from tlm.errors import InputError
-from tlm.experiments.provenance import scene_identity, scene_label
+from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.study import run_study
 from tlm.storage import check_destination, distinct_folders, read_jsonl
 
@@ -314,7 +314,8 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     notes: list[str] = []
     sweep_dirs = distinct_folders(sweep_dirs, notes)
     failed: list[str] = []
-    records = [r for d in sweep_dirs for r in collect(d, notes, failed)]
+    with identities_remembered():  # (every point of a scene names one scene file: digested once, not once a point)
+        records = [r for d in sweep_dirs for r in collect(d, notes, failed)]
     try:
         fits = fit(records)
     except InputError as e:

@@ -3,8 +3,10 @@
 :func:`scene_dict` maps a :class:`~tlm.scenes.model.Scene` onto a dictionary for
 ``mitsuba.load_dict``, :func:`render` renders it (variant ``scalar_rgb``: RGB, CPU,
 single precision, no JIT, so it runs wherever Mitsuba's wheel installs; it uses every
-core), :func:`ground_truth` caches converged images under ``$TLM_CACHE/oracle/<key>/``
-and :func:`flip`, :func:`rel_mse` and :func:`mean_normalised_rel_rmse` measure an image
+core), :func:`ground_truth` caches converged images in ``oracle/<key>/`` of tlm's cache
+folder (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
+:func:`tlm.storage.cache_home`; a cache that cannot be written loses no image, see
+:func:`ground_truth`) and :func:`flip`, :func:`rel_mse` and :func:`mean_normalised_rel_rmse` measure an image
 against one. Mitsuba is optional: it is imported on first use (a missing package is a
 one-line :class:`~tlm.errors.InputError`), and that use sets Mitsuba's process-wide
 variant to ``scalar_rgb``.
@@ -89,7 +91,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder, cache_root
 
@@ -344,7 +346,7 @@ def render(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, seed
 
 
 def cache_dir() -> Path:
-    """``$TLM_CACHE/oracle`` (default ``~/.cache/tlm/oracle``)."""
+    """``oracle`` in tlm's cache folder (:func:`tlm.storage.cache_home`)."""
     return cache_root("oracle")
 
 
@@ -407,6 +409,11 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     With ``compute=False`` a missing image is not rendered: the result is None.
     ``meta.json`` holds the key, the settings, the Mitsuba version, the variant, the
     image size and the render's wall seconds.
+
+    A cache that cannot be written (read-only, full, a file in the way) loses no image: the
+    one rendered is returned all the same (as float32, as a cached one is), for this run
+    only, and :mod:`tlm.storage` says once on stderr which cache could not be written and
+    what that costs (every run renders it again); no traceback.
     """
     _check_settings(integrator, spp, max_depth, seed)
     key = oracle_key(scene, integrator=integrator, spp=spp, max_depth=max_depth, seed=seed, normals=normals)
@@ -428,7 +435,11 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
         "mapping": MAPPING_VERSION,
         "seconds": round(time.perf_counter() - t0, 3),
     }
-    save_ground_truth(key, image, meta)
+    try:
+        save_ground_truth(key, image, meta)
+    except (EnvironmentFailure, OSError, InputError):  # (a read-only or full cache, or something in the way of
+        # the entry's folder: storage.check_destination; said once by storage.cache_failed)
+        return np.asarray(image, dtype=np.float32).astype(np.float64), {"key": key, **meta}
     return load_ground_truth(key)
 
 

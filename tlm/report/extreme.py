@@ -31,5 +31,6 @@ def extreme_section(inputs: Inputs, out: Path) -> Section:
         parts.append("</table>")
     sec.html = "\n".join(parts)
     if not parts:
-        sec.absent = "no 'tlm extreme' folder among the inputs (tlm extreme configs/extreme.yaml)"
+        sec.absent = ("no 'tlm extreme' folder among the inputs ('tlm extreme extreme' runs the built-in cases, "
+                      "from any folder)")
     return sec

@@ -289,5 +289,5 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec.html = "\n".join(tables)
     if not sec.figures:
         sec.absent = ("no 'tlm scaling' folder and no sweep over arch.pipelines among the inputs "
-                      "(e.g. 'tlm sweep configs/scaling_ring.yaml')")
+                      "(e.g. 'tlm sweep scaling_ring', the built-in experiment)")
     return sec

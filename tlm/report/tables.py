@@ -297,7 +297,8 @@ def table_html(src: Source) -> str:
     lines.append("</tbody></table>")
     if src.not_comparable:  # an error against another setting measures the setting, not the model
         summary = ("no relative error against the thesis: ours is " + "; ".join(src.not_comparable)
-                   + " (n/c: not comparable; a run at the thesis's setting, e.g. configs/thesis.yaml, is)")
+                   + " (n/c: not comparable; a run at the thesis's setting is, e.g. the built-in experiment's: "
+                   "'tlm thesis thesis')")
     else:
         summary = _summary_line(list(src.rows.values()))
     lines.append(f'<p class="table-summary">{e(summary)}.</p>')

@@ -3,8 +3,9 @@
 The conference room (331,179 triangles) spends about 1.1 s in tlm's OBJ reader and
 0.7 s in its crease normals on every load, on one core: every ``tlm run``, every sweep
 point, and again for the key of every cached frame (``benchmarks/bench_load.py``
-measures both ways). Both results are kept under ``$TLM_CACHE/scenes`` (default
-``~/.cache/tlm/scenes``), keyed by what determines them, bit for bit:
+measures both ways). Both results are kept in ``scenes/`` of tlm's cache folder
+(``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
+:func:`tlm.storage.cache_home`), keyed by what determines them, bit for bit:
 
 * a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`), the
   versions of numpy and trimesh (which parses PLY, STL and GLB), and the name and sha256
@@ -54,7 +55,7 @@ MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) agai
 
 
 def cache_dir() -> Path:
-    """``$TLM_CACHE/scenes`` (default ``~/.cache/tlm/scenes``)."""
+    """``scenes`` in tlm's cache folder (:func:`tlm.storage.cache_home`)."""
     return cache_root("scenes")
 
 
