@@ -319,6 +319,21 @@ def test_a_spots_caustic_photons_are_weighted_by_its_falloff(aim):
     assert (est[under & (exact == 0)] == 0).all()
 
 
+@pytest.mark.parametrize("aim", ["box", "parts"])
+def test_a_spots_caustic_photons_at_objects_wholly_inside_its_cone(aim):
+    """A glass block wholly inside a spot's outer cone (the usual way to light one): every
+    draw falls inside the cone (the chance P is 1, or a rounding above), so none is drawn
+    again and every caustic photon carries a finite, positive power (this raised a math
+    domain error: log1p(-1))."""
+    spot = Light("spot", (40.0, 40.0, 40.0), position=(0.0, 3.0, 0.0), direction=(0.0, -1.0, 0.0),
+                 inner_angle=15.0, outer_angle=40.0)
+    lo, hi = np.array([-0.3, 0.001, -0.3]), np.array([0.3, 0.6, 0.3])
+    kw = {"specular_box": (lo, hi)} if aim == "box" else {"caustic_boxes": np.array([[lo, hi]])}
+    _, d, power, caustic = emit((spot,), 20_000, photon_key(5), BOX, caustic_fraction=0.5, **kw)
+    assert caustic.any() and (d[caustic] @ spot.axis > spot.cone_cosines[1]).all()
+    assert np.isfinite(power).all() and (power[caustic] > 0).all()
+
+
 def _down_cone_grid(outer: float, n: int = 1000):
     """Directions on a fine (theta, phi) grid of the cone of half-angle ``outer`` degrees about
     -y, and each one's solid angle."""

@@ -621,7 +621,8 @@ def list_experiments() -> list[str]:
 
 def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[str, ...] = ()) -> Path:
     """The experiment file a command was given: ``ref`` itself when it exists (a path that
-    exists always wins), else the built-in experiment named ``ref`` (``cornell_pmap``: the
+    exists always wins, but for a folder named as a built-in experiment: ``extreme`` run
+    where a folder ``extreme/`` is), else the built-in experiment named ``ref`` (``cornell_pmap``: the
     packaged ``cornell_pmap.yaml``). Anything else is an InputError: a name that is no
     built-in experiment lists them; a path that does not exist whose file name is a
     built-in experiment's (``configs/cornell.yaml`` outside a checkout) names the command
@@ -631,9 +632,9 @@ def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[st
     if not ref.strip():
         raise InputError("an empty name names no experiment file", key="config")
     path = Path(ref)
-    if path.exists():
-        return path
     names = list_experiments()
+    if path.exists() and not (path.is_dir() and ref in names):  # (a folder of that name does not hide one)
+        return path
     yaml_file = ref.lower().endswith((".yaml", ".yml"))
     scene = (f"; {ref} is a built-in scene, not an experiment: a config names it (`scene: {ref}`), e.g. "
              f"tlm run cornell --set scene={ref}") if ref in scenes else ""

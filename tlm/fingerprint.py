@@ -9,10 +9,10 @@ work counts before.)
 
 It is the same for one commit in a checkout and installed from its wheel: the folders the
 wheel adds to the package from outside it (pyproject.toml's ``force-include``: the
-repository's ``scenes/`` as ``tlm/_scenes``), which a checkout keeps beside ``tlm/``, are
-not read. Those are data, not code, and every key that depends on a scene hashes the
-scene's own content (the functional key, the reference's, the scene cache's entries).
-:func:`added` tells them: a top-level folder of the package whose name starts with ``_``.
+repository's ``scenes/`` as ``tlm/_scenes`` and ``configs/`` as ``tlm/_configs``), which
+a checkout keeps beside ``tlm/``, are not read. Those are data, not code, and every key
+that depends on a scene hashes the scene's own content (the functional key, the reference's, the scene cache's entries).
+:func:`added` tells them: a top-level folder of the package named in :data:`ADDED`.
 """
 
 from __future__ import annotations
@@ -22,6 +22,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
 
+# the folders pyproject.toml's force-include adds to the wheel's package (data, not code);
+# any other folder of the package is code and is hashed, whatever its name
+ADDED = ("_scenes", "_configs")
 _CODE: str | None = None
 
 
@@ -29,7 +32,7 @@ def added(root: Path, f: Path) -> bool:
     """Whether ``f`` is in a folder the wheel adds to the package (``_scenes/``): a folder
     directly in ``root`` whose name starts with ``_``."""
     parts = f.relative_to(root).parts
-    return len(parts) > 1 and parts[0].startswith("_")
+    return len(parts) > 1 and parts[0] in ADDED
 
 
 def package_files(root: Path = ROOT) -> list[Path]:

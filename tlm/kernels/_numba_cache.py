@@ -37,6 +37,7 @@ import functools
 import hashlib
 import inspect
 import os
+import threading
 from pathlib import Path
 
 from numba import njit as _numba_njit
@@ -148,6 +149,7 @@ def install() -> bool:
 
 
 _UNCACHED: list[str] = []  # the line said when a function found no folder for its compiled code
+_UNCACHED_LOCK = threading.Lock()
 
 
 def njit(*args, **kwargs):
@@ -168,11 +170,12 @@ def _cached_or_not(func, args: tuple, kwargs: dict):
     except RuntimeError as e:
         if "no locator available" not in str(e):
             raise
-    if not _UNCACHED:
-        _UNCACHED.append(_uncached_line(inspect.getfile(func)))
-        from tlm.storage import warn
+    with _UNCACHED_LOCK:  # (said once, though two threads import compiled modules at once)
+        if not _UNCACHED:
+            _UNCACHED.append(_uncached_line(inspect.getfile(func)))
+            from tlm.storage import warn
 
-        warn(_UNCACHED[0])
+            warn(_UNCACHED[0])
     return _numba_njit(*args, **{**kwargs, "cache": False})(func)
 
 

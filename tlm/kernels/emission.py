@@ -340,7 +340,9 @@ def spot_aimed(pos: np.ndarray, axis: np.ndarray, cos_outer: float, key: int, id
         dd, ip = draw(left, *u)
         d[left], inv_pdf[left] = dd, ip
         left = left[dd @ axis <= cos_outer]
-    inside = -math.expm1(SPOT_DRAWS * math.log1p(-min(share, 1.0)))  # 1 - (1 - P)^SPOT_DRAWS
+    if share >= 1.0:  # (the aim cones wholly inside the outer cone: every first draw is inside it)
+        return d, inv_pdf
+    inside = -math.expm1(SPOT_DRAWS * math.log1p(-share))  # 1 - (1 - P)^SPOT_DRAWS
     return d, inv_pdf * (share / inside)
 
 

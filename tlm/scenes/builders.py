@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import sys
 from collections.abc import Callable
 
 import numpy as np
@@ -39,8 +40,16 @@ class BuilderParamError(ValueError):
 
     def __init__(self, key: str, value, must: str):
         self.key = key
-        self.reason = f"{value!r} {must}"
-        super().__init__(f"{key} {must}, got {value!r}")
+        shown = _shown(value)
+        self.reason = f"{shown} {must}"
+        super().__init__(f"{key} {must}, got {shown}")
+
+
+def _shown(value) -> str:
+    """``repr`` of a value, a whole number of more than 30 digits by its digit count."""
+    if isinstance(value, int) and not isinstance(value, bool) and len(str(abs(value))) > 30:
+        return f"a {len(str(abs(value)))}-digit number"
+    return repr(value)
 
 
 class _Parts:
@@ -78,16 +87,23 @@ def _positive_int(name: str, value, minimum: int = 1) -> int:
     return int(value)
 
 
+def _real(name: str, value) -> float:
+    """A finite number as a float (a whole number beyond 1.8e308 cannot be one)."""
+    if abs(value) > sys.float_info.max:
+        raise BuilderParamError(name, value, f"is too large (at most {sys.float_info.max:.3g})")
+    return float(value)
+
+
 def _positive(name: str, value) -> float:
     if not _is_finite(value) or not value > 0:
         raise BuilderParamError(name, value, "must be a positive number")
-    return float(value)
+    return _real(name, value)
 
 
 def _finite(name: str, value) -> float:
     if not _is_finite(value):
         raise BuilderParamError(name, value, "must be a finite number")
-    return float(value)
+    return _real(name, value)
 
 
 def _check_size(builder: Callable[..., Geometry], terms: list[tuple[int, dict[str, float]]]) -> None:
