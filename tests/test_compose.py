@@ -242,7 +242,8 @@ def test_a_plane_is_a_floor_facing_up():
     ([{"mesh": "nothere.obj"}], "geometry[0].mesh", "not found"),
     ([{"mesh": "pawn.obj", "name": 3}], "geometry[0].name", "3"),
     ([{"builder": "rng"}], "geometry[0].builder", "did you mean 'ring'"),
-    ([{"builder": "ring", "params": {"segments": 3}}], "geometry[0].params", "segments"),
+    ([{"builder": "ring", "params": {"segments": 3}}], "geometry[0].params.segments",
+     "unknown parameter of builder ring; its parameters: n_seg, radius, "),
 ])
 def test_errors_name_the_file_and_key(raw, key, words):
     msg = error(raw)

@@ -60,7 +60,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, check_destination, warn
+from tlm.storage import atomic_folder, cache_warnings, check_destination, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -527,6 +527,9 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
 
     outputs : which of :data:`OUTPUTS` to write besides the images and ``results.json``
     (``trace.json`` also needs the timing model's trace, ``arch.trace``).
+
+    ``results.json`` ``warnings`` end with the lines on tlm's caches that this process
+    could not write (:func:`tlm.storage.cache_warnings`), as a sweep point's do.
     """
     outputs = set(outputs)
     unknown = outputs - set(OUTPUTS)
@@ -567,6 +570,8 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         res.timer.seconds["write"] = time.perf_counter() - t0
         results = results_dict(res, exposure, config_path, overrides)
+        # the caches this process could not write (said on stderr when met; a sweep's points record them too)
+        results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
         (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     return results
 

@@ -27,7 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tlm.scenes import shapes
+from tlm.scenes import shapes, validate
 from tlm.scenes.model import Geometry
 
 __all__ = ["BUILDERS", "BuilderParamError", "cornell", "ring", "room"]
@@ -40,16 +40,11 @@ class BuilderParamError(ValueError):
 
     def __init__(self, key: str, value, must: str):
         self.key = key
-        shown = _shown(value)
+        shown = validate.shown(value)
         self.reason = f"{shown} {must}"
         super().__init__(f"{key} {must}, got {shown}")
 
 
-def _shown(value) -> str:
-    """``repr`` of a value, a whole number of more than 30 digits by its digit count."""
-    if isinstance(value, int) and not isinstance(value, bool) and len(str(abs(value))) > 30:
-        return f"a {len(str(abs(value)))}-digit number"
-    return repr(value)
 
 
 class _Parts:
@@ -126,12 +121,9 @@ def _check_size(builder: Callable[..., Geometry], terms: list[tuple[int, dict[st
             break
         named.update(keys)
         rest -= n
-    given = [f"{k} = {v}" for k, v in named.items()]
+    given = [f"{k} = {validate.shown(v)}" for k, v in named.items()]
     what = f"{builder.__name__} with " + (f"{', '.join(given[:-1])} and {given[-1]}" if len(given) > 1 else given[0])
-    if total.bit_length() > 900:  # (beyond what the GiB of check_triangle_count's line can be computed in)
-        raise ValueError(f"{what} makes a {len(str(total))}-digit number of triangles, more than this machine's "
-                         f"{shapes.machine_memory() / 2**30:.0f} GiB can hold")
-    shapes.check_triangle_count(total, what)
+    shapes.check_triangle_count(total, what)  # (a count past 900 bits named by its digits)
 
 
 # --------------------------------------------------------------------------- cornell

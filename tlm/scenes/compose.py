@@ -35,6 +35,7 @@ order). A part name that an earlier item already uses is renamed ``PART_2`` (the
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -46,8 +47,7 @@ from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Geometry, Imported, Light, unit_vector
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
-from tlm.scenes.validate import num
-from tlm.scenes.validate import vec as _vec
+from tlm.scenes.validate import num, shown, vec
 
 __all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_path",
            "transform_geometry"]
@@ -69,15 +69,19 @@ def _num(v: Any, src: str, key: str, positive: bool = False) -> float:
     return num(v, src, key, lo=0.0, lo_exclusive=True) if positive else num(v, src, key)
 
 
+def _vec(v: Any, src: str, key: str, n: int = 3) -> tuple[float, ...]:
+    return vec(v, src, key, n=n)
+
+
 def _whole(v: Any, src: str, key: str, lo: int) -> int:
     if not isinstance(v, int) or isinstance(v, bool) or v < lo:
-        raise InputError(f"{v!r} must be a whole number >= {lo}", source=src, key=key)
+        raise InputError(f"{shown(v)} must be a whole number >= {lo}", source=src, key=key)
     return int(v)
 
 
 def _ints(v: Any, src: str, key: str, n: int, lo: int) -> list[int]:
     if not isinstance(v, list) or len(v) != n:
-        raise InputError(f"{v!r} is not a list of {n} whole numbers", source=src, key=key)
+        raise InputError(f"{shown(v)} is not a list of {n} whole numbers", source=src, key=key)
     return [_whole(x, src, key, lo) for x in v]
 
 
@@ -188,8 +192,14 @@ def _builder(raw: dict, src: str, key: str) -> Geometry:
             source=src, key=f"{key}.builder",
         )
     params = _params(raw, src, key)
+    builder = BUILDERS[name]
+    known = tuple(inspect.signature(builder).parameters)
+    for k in params:
+        if k not in known:
+            raise InputError(f"unknown parameter of builder {name}{did_you_mean(str(k), known)}; its parameters: "
+                             f"{', '.join(known)}", source=src, key=f"{key}.params.{k}")
     try:
-        return BUILDERS[name](**params)
+        return builder(**params)
     except BuilderParamError as e:  # one parameter's refusal: named by its key (geometry[0].params.glass_seg)
         raise InputError(e.reason, source=src, key=f"{key}.params.{e.key}") from None
     except TypeError as e:
@@ -250,7 +260,7 @@ def _tessellate(shapes, kind: str, p: dict, src: str, pk: str) -> np.ndarray:
     if kind == "plane":  # centred on the origin in y = 0, facing +y
         w, d = _vec(p["size"], src, f"{pk}.size", n=2)
         if not (w > 0 and d > 0):
-            raise InputError(f"{p['size']!r} must be positive", source=src, key=f"{pk}.size")
+            raise InputError(f"{shown(p['size'])} must be positive", source=src, key=f"{pk}.size")
         nu, nv = _ints(p["divisions"], src, f"{pk}.divisions", 2, 1)
         tri = shapes.quad((-w / 2, 0.0, d / 2), (w, 0.0, 0.0), (0.0, 0.0, -d), nu, nv)
     elif kind == "quad":

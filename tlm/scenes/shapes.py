@@ -17,9 +17,12 @@ sphere, cylinder, torus and thick ring band are thin wrappers around it.
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
+
+from tlm.scenes.validate import digit_count
 
 __all__ = [
     "TRIANGLE_BYTES",
@@ -144,16 +147,35 @@ def machine_memory() -> int:
 def check_triangle_count(n: int, what: str) -> None:
     """A ValueError when ``n`` triangles (of ``what``, named in it) cannot fit in this
     machine's memory at :data:`TRIANGLE_BYTES` each: said before a tessellation is
-    allocated, so an impossible size is an error, not an out-of-memory kill."""
-    total = machine_memory()
-    if n * TRIANGLE_BYTES > total:
-        raise ValueError(f"{what} makes {n:,} triangles, about {n * TRIANGLE_BYTES / 2**30:,.0f} GiB to render, "
-                         f"more than this machine's {total / 2**30:.0f} GiB")
+    allocated, so an impossible size is an error, not an out-of-memory kill. A count too
+    large for its GiB to be a float (a whole number of hundreds of digits) is said in digits."""
+    n, total = int(n), machine_memory()
+    if n * TRIANGLE_BYTES <= total:
+        return
+    if n.bit_length() > 900:  # (its GiB beyond a float: counted in digits, as tlm.scenes.builders does)
+        raise ValueError(f"{what} makes {digit_count(n)} of triangles, more than this machine's "
+                         f"{total / 2**30:.0f} GiB can hold")
+    raise ValueError(f"{what} makes {n:,} triangles, about {n * TRIANGLE_BYTES / 2**30:,.0f} GiB to render, "
+                     f"more than this machine's {total / 2**30:.0f} GiB")
+
+
+def _say(n) -> str:
+    """A whole number as an error line names it: its digits, or, past the 900 bits whose
+    triangle count :func:`check_triangle_count` says in digits, how many digits it has."""
+    n = int(n)
+    return str(n) if n.bit_length() <= 900 else digit_count(n)
+
+
+def _whole(n, lo: int) -> bool:
+    """Whether ``n`` is a whole number >= ``lo`` (an int, or a finite float of a whole value)."""
+    if isinstance(n, (float, np.floating)) and not math.isfinite(n):
+        return False
+    return int(n) == n and n >= lo
 
 
 def _check_div(**divs: int) -> None:
     for name, n in divs.items():
-        if int(n) != n or n < 1:
+        if not _whole(n, 1):
             raise ValueError(f"{name} must be a positive integer, got {n!r}")
 
 
@@ -171,7 +193,7 @@ def quad(corner, edge_u, edge_v, nu: int = 1, nv: int = 1) -> np.ndarray:
     (2 * nu * nv, 3, 3) float64 array, normals along ``cross(edge_u, edge_v)``.
     """
     _check_div(nu=nu, nv=nv)
-    check_triangle_count(2 * int(nu) * int(nv), f"divisions = [{int(nu)}, {int(nv)}]")
+    check_triangle_count(2 * int(nu) * int(nv), f"divisions = [{_say(nu)}, {_say(nv)}]")
     c, u, v = _vec3(corner, "corner"), _vec3(edge_u, "edge_u"), _vec3(edge_v, "edge_v")
     a = np.linspace(0.0, 1.0, nu + 1)[:, None, None]
     b = np.linspace(0.0, 1.0, nv + 1)[None, :, None]
@@ -196,7 +218,7 @@ def patch(p00, p10, p11, p01, nu: int = 1, nv: int = 1) -> np.ndarray:
     (2 * nu * nv, 3, 3) float64 array.
     """
     _check_div(nu=nu, nv=nv)
-    check_triangle_count(2 * int(nu) * int(nv), f"nu = {int(nu)} x nv = {int(nv)}")
+    check_triangle_count(2 * int(nu) * int(nv), f"nu = {_say(nu)} x nv = {_say(nv)}")
     c = [_vec3(p, "corner") for p in (p00, p10, p11, p01)]
     a = np.linspace(0.0, 1.0, nu + 1)[:, None, None]
     b = np.linspace(0.0, 1.0, nv + 1)[None, :, None]
@@ -234,7 +256,7 @@ def box(corners, n: int = 1, omit: tuple[str, ...] = ()) -> np.ndarray:
     if bad:
         raise ValueError(f"unknown box faces {sorted(bad)}; expected some of {_BOX_FACES}")
     faces = len(set(_BOX_FACES) - set(omit))
-    check_triangle_count(2 * int(n) * int(n) * faces, f"divisions = {int(n)} (a side, on each of {faces} faces)")
+    check_triangle_count(2 * int(n) * int(n) * faces, f"divisions = {_say(n)} (a side, on each of {faces} faces)")
     # Signed volume (divergence theorem) with the ring taken as given: if negative,
     # the ring runs the other way and every face must be flipped.
     quads = {
@@ -357,7 +379,7 @@ def lathe(
     h = np.asarray(heights, dtype=np.float64)
     if r.ndim != 1 or r.shape != h.shape or r.size < 2:
         raise ValueError("radii and heights must be 1-D of the same length >= 2")
-    if int(n_seg) != n_seg or n_seg < 3:
+    if not _whole(n_seg, 3):
         raise ValueError(f"n_seg must be an integer >= 3, got {n_seg!r}")
     if np.any(r < 0) or not np.all(np.isfinite(r)) or not np.all(np.isfinite(h)):
         raise ValueError("profile radii must be finite and >= 0")
@@ -366,7 +388,7 @@ def lathe(
         raise ValueError("zero radius is allowed only at the ends of an open profile")
     ring_r = np.append(r, r[0]) if closed else r
     sides = int(np.count_nonzero(ring_r[:-1] > 0)) + int(np.count_nonzero(ring_r[1:] > 0))  # (a pole: a fan)
-    check_triangle_count(sides * int(n_seg), f"n_seg = {int(n_seg)} around a profile of {r.size} points")
+    check_triangle_count(sides * int(n_seg), f"n_seg = {_say(n_seg)} around a profile of {r.size} points")
     c, ax = _vec3(center, "center"), _unit(axis)
     e1, e2 = _frame(ax)
     t = phase + 2.0 * np.pi * np.arange(n_seg) / n_seg
@@ -407,11 +429,12 @@ def uv_sphere(center, radius: float, n_seg: int, n_rings: int, axis=(0.0, 1.0, 0
     -------
     (2 * n_seg * (n_rings - 1), 3, 3) float64 array, outward winding.
     """
-    if int(n_rings) != n_rings or n_rings < 2:
+    if not _whole(n_rings, 2):
         raise ValueError(f"n_rings must be an integer >= 2, got {n_rings!r}")
-    if int(n_seg) == n_seg and n_seg >= 3:  # (before the rings are made; lathe checks n_seg itself)
-        check_triangle_count(2 * int(n_seg) * (int(n_rings) - 1),
-                             f"a sphere of segments = {int(n_seg)} and rings = {int(n_rings)}")
+    if not _whole(n_seg, 3):  # (said before the rings are made, as lathe would say it)
+        raise ValueError(f"n_seg must be an integer >= 3, got {n_seg!r}")
+    check_triangle_count(2 * int(n_seg) * (int(n_rings) - 1),
+                         f"a sphere of segments = {_say(n_seg)} and rings = {_say(n_rings)}")
     phi = np.pi * np.arange(n_rings + 1) / n_rings
     r = radius * np.sin(phi)
     r[0] = r[-1] = 0.0
@@ -444,8 +467,9 @@ def cylinder(
     ((2 + bottom + top) * n_seg, 3, 3) float64 array, outward winding.
     """
     sides = 2 + bool(bottom) + bool(top)  # (triangles a segment: the wall's two, a cap's one)
-    if int(n_seg) == n_seg and n_seg >= 3 and radius > 0:  # (the count lathe makes; it checks n_seg itself)
-        check_triangle_count(sides * int(n_seg), f"a cylinder of segments = {int(n_seg)} ({sides} triangles a segment)")
+    if _whole(n_seg, 3) and radius > 0:  # (the count lathe makes; it checks n_seg itself)
+        check_triangle_count(sides * int(n_seg),
+                             f"a cylinder of segments = {_say(n_seg)} ({sides} triangles a segment)")
     r = [radius, radius]
     h = [0.0, height]
     if bottom:
@@ -512,10 +536,11 @@ def torus(
     """
     if not 0 < r < R:
         raise ValueError(f"torus needs 0 < r < R, got R={R}, r={r}")
-    if int(n_minor) != n_minor or n_minor < 3:
+    if not _whole(n_minor, 3):
         raise ValueError(f"n_minor must be an integer >= 3, got {n_minor!r}")
-    if int(n_major) == n_major and n_major >= 3:  # (before the profile is made; lathe checks n_major itself)
-        check_triangle_count(2 * int(n_major) * int(n_minor), f"n_major = {int(n_major)} x n_minor = {int(n_minor)}")
+    if not _whole(n_major, 3):  # (said before the profile is made)
+        raise ValueError(f"n_major must be an integer >= 3, got {n_major!r}")
+    check_triangle_count(2 * int(n_major) * int(n_minor), f"n_major = {_say(n_major)} x n_minor = {_say(n_minor)}")
     phi = 2.0 * np.pi * np.arange(n_minor) / n_minor
     return lathe(R + r * np.cos(phi), r * np.sin(phi), n_major, center, axis, closed=True)
 

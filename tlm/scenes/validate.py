@@ -9,7 +9,7 @@ from typing import Any
 
 from tlm.errors import InputError, did_you_mean
 
-__all__ = ["MAX_MAGNITUDE", "keys", "mapping", "num", "vec"]
+__all__ = ["MAX_MAGNITUDE", "digit_count", "digits", "keys", "mapping", "num", "shown", "vec"]
 
 # the largest magnitude of a scene's numbers (coordinates, powers, emission, scales): far past
 # any scene (a room scaled by 1e6 is 1e7), so that products of up to ten such numbers, which
@@ -18,6 +18,42 @@ __all__ = ["MAX_MAGNITUDE", "keys", "mapping", "num", "vec"]
 # scene's extent cubed under ~3.4e38), and tlm.scenes.loader.check_float32_range checks the
 # final geometry against it
 MAX_MAGNITUDE = 1e30
+
+
+def digits(n: int) -> int:
+    """How many decimal digits ``abs(n)`` has (counted without ``str``, which Python refuses
+    past 4300 digits: a YAML hexadecimal whole number has no such bound)."""
+    n = abs(int(n))
+    d = max(1, int(n.bit_length() * 0.30102999566398120))  # (log10 2: d is the count or one short)
+    while n >= 10**d:
+        d += 1
+    return d
+
+
+def digit_count(n: int) -> str:
+    """``n`` named by its count of digits: 'a 401-digit number', 'an 802-digit number', 'a
+    negative 401-digit number'."""
+    d = digits(n)
+    if n < 0:
+        return f"a negative {d}-digit number"
+    lead = str(d)[:(len(str(d)) - 1) % 3 + 1]  # (the part said before 'thousand')
+    return f"{'an' if lead.startswith('8') or lead in ('11', '18') else 'a'} {d}-digit number"
+
+
+def shown(v: Any) -> str:
+    """``repr`` of a value as an error line names it, a whole number past 900 bits (float64
+    holds none past 1024) by its count of digits, in a list too."""
+    if isinstance(v, list):
+        return f"[{', '.join(shown(x) for x in v)}]"
+    if isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 900:
+        return digit_count(v)
+    return repr(v)
+
+
+def _beyond(x: Any) -> bool:
+    """A whole number past the bound (checked before ``math.isfinite``, which a whole number
+    past float64 makes raise OverflowError)."""
+    return isinstance(x, int) and not isinstance(x, bool) and abs(x) > MAX_MAGNITUDE
 
 
 def mapping(v: Any, src: str, key: str) -> dict:
@@ -38,11 +74,11 @@ def vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: flo
         isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
     )
     if not ok:
-        raise InputError(f"{v!r} is not a list of {n} numbers", source=src, key=key)
-    if not all(math.isfinite(x) for x in v):
+        raise InputError(f"{shown(v)} is not a list of {n} numbers", source=src, key=key)
+    if not any(_beyond(x) for x in v) and not all(math.isfinite(x) for x in v):
         raise InputError(f"{v!r} is not finite", source=src, key=key)
     if any(abs(x) > MAX_MAGNITUDE for x in v):
-        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
+        raise InputError(f"{shown(v)} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
                          "numbers finite in float64",
                          source=src, key=key)
     if lo is not None and any(x < lo for x in v):
@@ -54,10 +90,10 @@ def vec(v: Any, src: str, key: str, n: int = 3, lo: float | None = None, hi: flo
 
 def num(v: Any, src: str, key: str, lo: float | None = None, hi: float | None = None,
          lo_exclusive: bool = False) -> float:
-    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-        raise InputError(f"{v!r} is not a finite number", source=src, key=key)
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not (_beyond(v) or math.isfinite(v)):
+        raise InputError(f"{shown(v)} is not a finite number", source=src, key=key)
     if abs(v) > MAX_MAGNITUDE:
-        raise InputError(f"{v!r} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
+        raise InputError(f"{shown(v)} is beyond +-{MAX_MAGNITUDE:g}, the bound that keeps products of the scene's "
                          "numbers finite in float64",
                          source=src, key=key)
     if lo is not None and (v <= lo if lo_exclusive else v < lo):
