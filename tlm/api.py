@@ -6,11 +6,15 @@ walkthrough: docs/api.md)::
 
     import tlm
 
-    cfg = tlm.load_config("configs/cornell.yaml", {"resolution": [64, 64]})
+    cfg = tlm.load_config("cornell", {"resolution": [64, 64]})  # a built-in experiment, or a YAML file
     res = tlm.render_image(cfg)                  # images, AOVs and work counts
     timing = tlm.simulate(res)                   # the timing model under cfg's arch
     wider = tlm.simulate(res, {"pipelines": 4})  # the same work on other hardware
-    rows = tlm.sweep("configs/sweep_fifo.yaml", "runs/fifo")   # a pandas DataFrame
+    rows = tlm.sweep("sweep_fifo", "runs/fifo")  # a pandas DataFrame
+
+A study (:func:`sweep`, :func:`thesis`, :func:`error_vs_cost`, ...) takes its experiment
+file's path or a built-in experiment's name (``tlm config list``), as its ``tlm`` command
+does (:func:`experiment_path`).
 
 Bad input of any kind raises :class:`InputError`, whose message names the file, the
 key and the value (``tlm`` prints it on one line and exits with status 2); a timing
@@ -165,7 +169,8 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     cornell`` takes it: :func:`experiment_path`), a mapping of its keys, or a config
     already made.
 
-    A path that exists always wins over a built-in experiment; a name is the packaged file,
+    A file that exists always wins over a built-in experiment (a folder of a built-in
+    experiment's name does not hide it, as on the command line); a name is the packaged file,
     which ``source`` then names. A path that does not exist is not replaced by the built-in
     experiment of its file name (``configs/cornell.yaml`` outside a checkout): its
     :class:`InputError` names that experiment instead.
@@ -190,7 +195,8 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
                          "a RunConfig or a Config", key="config")
     path, given = Path(config), str(config)
-    if not given.strip() or not path.exists():  # (a built-in experiment's name, else the command line's error)
+    if not given.strip() or not path.is_file():  # (a built-in experiment's name, else the command line's error;
+        # a folder named as a built-in experiment does not hide it, as on the command line)
         path = experiment_path(config)
         given = str(path)
     scene = scene_file(path)
@@ -515,21 +521,33 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
 # ---------------------------------------------------------------- many experiments
 
 
+def _experiment_file(path: str | Path, command: str) -> Path:
+    """The experiment file a study function was given, as ``tlm COMMAND PATH`` takes it
+    (:func:`experiment_path`): ``path`` where it exists, else the built-in experiment of
+    that name; an :class:`InputError` otherwise, and for what is neither a path nor a name."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"{path!r} is not an experiment: give an experiment file's path or a built-in "
+                         "experiment's name ('tlm config list')", key="path")
+    return experiment_path(path, command)
+
+
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
               progress: bool = False) -> Outcome:
-    """Run every point of the sweep file ``path`` not already done in ``out`` (``tlm sweep``);
-    returns the rows (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok,
-    failed, skipped and rendered. ``jobs``: worker processes (default the CPUs available to
+    """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
+    :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
+    (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
+    and rendered. ``jobs``: worker processes (default the CPUs available to
     the process, within a container's CPU quota, as for ``render.threads``; 1: in this
     process); ``dask``: ``"local"`` or a scheduler's address."""
     from tlm.experiments.sweep import run_sweep as run_all
 
-    return run_all(Path(path), Path(out), jobs=jobs, dask=dask, progress=progress)
+    return run_all(_experiment_file(path, "sweep"), Path(out), jobs=jobs, dask=dask, progress=progress)
 
 
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
           progress: bool = False) -> pd.DataFrame:
-    """Run the sweep file ``path`` into ``out`` (:func:`run_sweep`) and return its rows as a
+    """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
+    (:func:`run_sweep`) and return its rows as a
     pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
     (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
     return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress).table
@@ -546,20 +564,22 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
 
 def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
            bar: bool = False) -> dict:
-    """Tables I-III (``tlm thesis``): every scene and mode of the study file beside the
-    thesis; returns ``rows`` and ``summary``. ``progress`` gets ``(scene, mode, results)``."""
+    """Tables I-III (``tlm thesis``): every scene and mode of the study file ``path`` (or the
+    built-in study of that name, ``"thesis"``) beside the thesis; returns ``rows`` and
+    ``summary``. ``progress`` gets ``(scene, mode, results)``."""
     from tlm.experiments.thesis import run_thesis
 
-    return run_thesis(Path(path), Path(out), progress, bar=bar)
+    return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar)
 
 
 def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
               ) -> tuple[Programs, dict]:
     """Fit the PM programs' free parameters to the RCast column of Tables I-III (``tlm
-    calibrate``); returns the fitted table and the fit's report (``report["cells"]``)."""
+    calibrate``) of the study file ``path`` (or the built-in study of that name); returns the
+    fitted table and the fit's report (``report["cells"]``)."""
     from tlm.experiments.thesis import calibrate as fit
 
-    return fit(Path(path), progress=progress)
+    return fit(_experiment_file(path, "calibrate"), progress=progress)
 
 
 def _package_dir() -> Path:
@@ -591,7 +611,7 @@ def _refuse_installed(target: Path) -> None:
 
 def calibration_table(path: str | Path, target: str | Path | None = None) -> Path:
     """The instruction table that :func:`write_calibration` writes for a :func:`calibrate`
-    of the study ``path``: ``target``, else the study's own table (its
+    of the study ``path`` (a file, or a built-in study's name): ``target``, else the study's own table (its
     ``base.arch.programs``), else the packaged ``tlm/arch/programs.yaml``. Refused with an
     :class:`InputError` before any fit, as :func:`write_calibration` refuses it: that
     default table inside the package of an installed copy (:func:`in_checkout`)."""
@@ -601,7 +621,8 @@ def calibration_table(path: str | Path, target: str | Path | None = None) -> Pat
 
     if target is not None:  # (named: written where it is named, an installed package's folder included)
         return Path(target)
-    base, scenes, _, folder = load_study(Path(path))
+    path = _experiment_file(path, "calibrate")
+    base, scenes, _, folder = load_study(path)
     used = Path(programs_for(config_from_dict({**base, "scene": scenes[0], "mode": "rcast"}, str(path)),
                              folder).source)
     target = used if used.is_file() else DEFAULT_PATH
@@ -647,27 +668,31 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
 
 
 def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
-    """Cycle error of coarse packets against one ray per packet (``tlm granularity``)."""
+    """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
+    study file ``path`` (or the built-in study of that name)."""
     from tlm.experiments.granularity import run_granularity
 
-    return run_granularity(Path(path), Path(out), progress)
+    return run_granularity(_experiment_file(path, "granularity"), Path(out), progress)
 
 
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
                   note: Callable[[str], None] | None = None) -> list[dict]:
     """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
-    one row per point; ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none)."""
+    one row per point of the experiment file ``path`` (or the built-in experiment of that
+    name); ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none)."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
-    return run_error_vs_cost(Path(path), Path(out), progress=progress, truth=Truth(spp=truth_spp), note=note)
+    return run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
+                             truth=Truth(spp=truth_spp), note=note)
 
 
 def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
-    """The stiff and extreme cases, expected against measured (``tlm extreme``): one row a case."""
+    """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
+    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case."""
     from tlm.experiments.extreme import run_extreme
 
-    return run_extreme(Path(path), Path(out), progress)
+    return run_extreme(_experiment_file(path, "extreme"), Path(out), progress)
 
 
 # ---------------------------------------------------------------- reports

@@ -5,7 +5,9 @@ keys; every point renders the photon-map frame of the base scene and records its
 error against the converged reference (:mod:`tlm.experiments.reference`) beside its
 cost. The reference is found as ``tlm reference`` finds it (:func:`study_reference`):
 the cached one when it meets the base's ``reference.tolerance``, else computed first
-with the base's reference settings and cached. One that still misses the tolerance
+with the base's reference settings and cached (where the cache cannot take it, kept where
+``tlm reference`` keeps it, ``<tmp>/tlm-cache-<uid>``, with one line that says so, and the
+study goes on). One that still misses the tolerance
 (``reference.max_rounds`` reached) is used all the same, with a warning, and every
 row's ``reference_converged`` (and ``reference.json``'s) is false. The cost: the
 gather's work (node visits, leaves visited, photons tested and accepted), host seconds
@@ -55,12 +57,13 @@ import numpy as np
 from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import (
     ReferenceSettings,
     compute_reference,
     image_error,
+    kept_root,
     load_reference,
     reference_key,
     save_reference,
@@ -73,7 +76,7 @@ from tlm.render.frame import Frame, GBuffer
 from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, sees_a_light
 from tlm.render.planner import photon_count, plan
 from tlm.render.pmap import pmap_pass, search_radius, trace_photon_map
-from tlm.storage import check_destination, warn
+from tlm.storage import cache_problem, cached_image, check_destination, warn
 
 COLUMNS = (
     "point", "factors", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
@@ -171,8 +174,10 @@ class Truth:
         diffuse = diffuse_pixels(frame, g).reshape(scene.camera.height, scene.camera.width)
         found = oracle.composite_truth(scene, diffuse, spp=self.spp, compute=False)
         if found is None:
-            if progress is not None:
-                progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp (computed once, then cached)")
+            if progress is not None:  # (a cache that cannot be written: tlm.storage has said which, and why)
+                kept = ("computed for this run only: its cache cannot be written" if cache_problem(oracle.cache_dir())
+                        else "computed once, then cached")
+                progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp ({kept})")
             found = oracle.composite_truth(scene, diffuse, spp=self.spp)
         image, meta = found
         return np.asarray(image, dtype=np.float64), {"available": True, **meta}
@@ -315,7 +320,8 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     computed now with the base's settings and cached (``note`` says so when one was cached).
     A cached one that misses the tolerance but was computed with the base's own stopping rule
     (:data:`RULE`) is kept: computing it again would repeat the same rounds (fixed seeds) to the
-    same image. Returns the image, its metadata and whether it was computed now."""
+    same image. One computed now that the cache cannot take is not lost (:func:`_uncached_reference`).
+    Returns the image, its metadata and whether it was computed now."""
     found = load_reference(key)
     if found is not None and not meets_tolerance(found[1], settings):
         meta = found[1]
@@ -328,9 +334,35 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
         return found[0], found[1], False
     cam = frame.scene.camera
     image, meta = compute_reference(frame, None, settings)
-    save_reference(key, image.reshape(cam.height, cam.width, 3), meta)
+    image = image.reshape(cam.height, cam.width, 3)
+    try:
+        save_reference(key, image, meta)
+    except (EnvironmentFailure, OSError, InputError) as e:  # (a cache that cannot take it: the study goes on)
+        return *_uncached_reference(key, image, meta, e), True
     found = load_reference(key)
     return found[0], found[1], True
+
+
+def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseException) -> tuple[np.ndarray, dict]:
+    """The reference ``key`` the cache could not take (``error``), kept as ``tlm reference``
+    keeps it (in :func:`~tlm.experiments.reference.kept_root`, which ``TLM_CACHE`` set to it
+    reads), with one warning line that says where; used by this study only, and said so, where
+    that cannot be written either. The image as a cached one reads back (float32), and its
+    metadata."""
+    why = " ".join(str(error).split())
+    root = kept_root()
+    try:
+        folder = save_reference(key, image, meta, root / "references")
+    except (EnvironmentFailure, OSError, InputError) as e:
+        warn(f"reference {key}: not cached ({why}), nor kept in {root} ({' '.join(str(e).split())}): used by "
+             "this study only")
+    else:
+        warn(f"reference {key}: not cached ({why}): kept in {folder} instead, which later runs read with "
+             f"TLM_CACHE={root}")
+        kept = cached_image(folder, "reference.npy", key, "reference", "the next study computes it again")
+        if kept is not None:  # (what a later run reads from there: reference.json the same as a cached one's)
+            return kept
+    return image.astype(np.float32), {"key": key, **meta}
 
 
 def factors_text(point: dict[str, Any]) -> str:

@@ -90,13 +90,15 @@ def list_scenes() -> list[str]:
     )
 
 
-def resolve_scene_path(ref: str, base: Path | None = None, config_source: str | None = None,
+def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_source: str | None = None,
                        key: str = "scene") -> Path:
-    """A built-in name (``cornell``) or a path, tried relative to ``base`` then the cwd.
+    """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`), tried
+    relative to ``base`` then the cwd.
 
     ``config_source`` names the file the reference came from and ``key`` the key that
     gave it (``scene``, a scene file's ``extends``), for error messages.
     """
+    ref = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
     looks_like_path = yaml_file or "/" in ref or os.sep in ref
     if looks_like_path and not yaml_file and (scenes_dir() / f"{ref}.yaml").is_file():
@@ -410,9 +412,10 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
 
 
 def load_scene(
-    ref: str, base: Path | None = None, resolution: list[int] | None = None, config_source: str | None = None
+    ref: str | os.PathLike, base: Path | None = None, resolution: list[int] | None = None,
+    config_source: str | None = None,
 ) -> Scene:
-    """Load a built-in scene by name or a scene file by path.
+    """Load a built-in scene by name or a scene file by path (a ``str`` or a :class:`~pathlib.Path`).
 
     ``resolution`` overrides the scene's; ``config_source`` names the file (or
     ``--set``) that gave ``ref`` and ``resolution``, for error messages.
