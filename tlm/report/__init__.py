@@ -112,15 +112,16 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
         if inputs.scaling_sweeps:
             kinds += " (and, for the scaling section only, " + ", ".join(
                 esc(sw.path) for sw in inputs.scaling_sweeps) + ")"
-        n_fig = sum(len(s.figures) for s in secs)
+        from tlm.report.summary import summary_section
+
+        summary = summary_section(inputs, tmp)
+        n_fig = len(summary.figures) + sum(len(s.figures) for s in secs)  # (every figure the page embeds)
         studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
         intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "
                  f"{len(inputs.studies)} studies ({esc(studies)})."
                  f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
                  f"in {time.perf_counter() - t0:.1f} s. Each figure links to its PNG file.</p>")
-        from tlm.report.summary import summary_section
-
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
-                    summary=summary_section(inputs, tmp), notice=warnings_html(inputs))
+                    summary=summary, notice=warnings_html(inputs))
         (tmp / MARKER).write_text(text, encoding="utf-8")
     return Path(out) / MARKER

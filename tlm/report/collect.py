@@ -373,6 +373,7 @@ def read(dirs: list[Path]) -> Inputs:
             summary_path = folder / "thesis_summary.json"
             summary = _thesis_summary(summary_path) if summary_path.is_file() else {}
             inputs.studies.append(Study("thesis", folder, rows, summary))
+            _study_records(inputs.studies[-1], folder)
             for cell in sorted(folder.glob("*/*/results.json")):
                 run = _run(cell.parent, "", "thesis")
                 run.label = unique(f"{run.scene}/{run.mode}")
@@ -426,7 +427,11 @@ def _study(inputs: Inputs, folder: Path, kind: str) -> None:
         path = folder / "rows.jsonl"
         rows = _rows_checked(path, _study_jsonl(path), "a tlm error-vs-cost row", ERROR_COST_KEYS, ERROR_COST_OPTIONAL)
         inputs.studies.append(Study("error-vs-cost", folder, rows, {"reference": _json(folder / "reference.json")}))
-    study = inputs.studies[-1]
+    _study_records(inputs.studies[-1], folder)
+
+
+def _study_records(study: Study, folder: Path) -> None:
+    """A study folder's resolved config and ``provenance.json``, where it has them, into ``study.meta``."""
     for name, key, load in (("config.resolved.yaml", "config", _yaml), ("provenance.json", "provenance", _json)):
         if (folder / name).is_file():
             study.meta[key] = load(folder / name)

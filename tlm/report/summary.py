@@ -3,7 +3,8 @@
 Four questions, each answered from whatever the inputs hold (and saying so when they
 hold nothing for it):
 
-1. How fast? Frames per second per scene and mode, ours beside the thesis's (Tables I–III).
+1. How fast? Frames per second per scene and mode, ours beside the thesis's (Tables I–III):
+   the thesis study's frames when there is one (the other runs' frame rates in words).
 2. What limits it? The bottleneck PM of each scene-mode and its utilisation (busy share
    of the elapsed cycles), and whether the thesis names the same PM.
 3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
@@ -36,10 +37,13 @@ SIZE = (5.4, 3.1)
 
 def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     thesis = inputs.of_kind("thesis")
+    others: list = []  # (with a thesis study) the runs with a frame rate that the figure does not draw
     if thesis:
         rows = [r for r in thesis[0].rows if r["metric"] == "FPS"]
         ours = {(r["scene"], r["mode"]): r["ours"] for r in rows}
         theirs = {(r["scene"], r["mode"]): r["thesis"] for r in rows}
+        others = sorted((r for r in inputs.runs if r.kind == "run" and isinstance(r.results.get("fps"), int | float)
+                         and r.results["fps"] > 0), key=lambda r: r.results["fps"])
     else:
         ours = {(r.scene, r.mode): r.results.get("fps") for r in inputs.runs if r.kind == "run"}
         theirs = {}
@@ -61,13 +65,26 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_yscale("log")
     ax.set_ylabel("frames per second")
     ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, 1.18), frameon=False)
-    f = save(fig, out, "summary_fps.png", "Frames per second", "bars: ours at the simulated clock"
-             + (f" (thesis study {thesis[0].path.name}, the first of {len(thesis)})" if len(thesis) > 1 else "")
-             + "; black ticks: the thesis's Tables I–III")
+    which = (f"the thesis study {thesis[0].path.name}" + (f" (the first of {len(thesis)})" if len(thesis) > 1 else "")
+             if thesis else "")
+    f = save(fig, out, "summary_fps.png", "Frames per second",
+             (f"bars: ours, the frames of {which}, at the simulated clock" if thesis
+              else "bars: ours at the simulated clock")
+             + "; black ticks: the thesis's Tables I–III"
+             + (f"; {_count(len(others), 'other run')} among the inputs not drawn ("
+                + ("its frame rate is" if len(others) == 1 else "their frame rates are") + " in the text)"
+                if others else ""))
     best = max(ours, key=ours.get)
     worst = min(ours, key=ours.get)
-    text = (f"<b>How fast:</b> from {ours[worst]:.3g} FPS ({esc(worst[0])} {MODE_NAMES.get(worst[1], worst[1])}) "
+    text = (f"<b>How fast:</b> {'in the frames of ' + esc(which) + ', ' if thesis else ''}"
+            f"from {ours[worst]:.3g} FPS ({esc(worst[0])} {MODE_NAMES.get(worst[1], worst[1])}) "
             f"to {ours[best]:.3g} FPS ({esc(best[0])} {MODE_NAMES.get(best[1], best[1])}) at one pipeline.")
+    if others:  # (not drawn beside the thesis's cells, but not left unsaid)
+        said_runs = [f"{esc(r.label)} {r.results['fps']:.3g} FPS" for r in others]
+        if len(said_runs) > 4:
+            said_runs = [said_runs[0], f"… {len(said_runs) - 2} more …", said_runs[-1]]
+        text += (f" The {_count(len(others), 'other run')} among the inputs, not in the figure: "
+                 f"{'; '.join(said_runs)}.")
     said = []  # every thesis study's median, judged as the tables judge it (none where not comparable)
     summaries = study_summaries(inputs)
     for study, s in summaries:
@@ -76,6 +93,10 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     if said:
         text += f" Against Tables I–III: {esc('; '.join(said))}."
     return text, f
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}{'s' * (n != 1)}"
 
 
 def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
@@ -156,6 +177,18 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def _gather_rays(r: dict) -> int:
+    """The final-gather rays of an error-vs-cost row (0: none)."""
+    fg = r.get("final_gather")
+    return int(fg) if isinstance(fg, int | float) and not isinstance(fg, bool) and np.isfinite(fg) and fg > 0 else 0
+
+
+def _series(r: dict) -> str:
+    """An error-vs-cost row's series: its filter, and its final gathering when on."""
+    n = _gather_rays(r)
+    return f"{r['filter']}" + (f" + final gather ({n} rays)" if n else "")
+
+
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     studies = inputs.of_kind("error-vs-cost")
     rows = [r for st in studies for r in st.rows]
@@ -165,10 +198,11 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         return "No error-against-cost study among the inputs: no error to show.", None
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
-    filters = sorted({r["filter"] for r in rows})
-    for i, flt in enumerate(filters):
-        rs = sorted((r for r in rows if r["filter"] == flt), key=lambda r: r["frame_seconds"])
-        ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=flt,
+    series = [_series(r) for r in sorted(rows, key=lambda r: (str(r["filter"]), _gather_rays(r)))]
+    series = list(dict.fromkeys(series))  # (a filter with final gathering is a series of its own, after it)
+    for i, name in enumerate(series):
+        rs = sorted((r for r in rows if _series(r) == name), key=lambda r: r["frame_seconds"])
+        ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=name,
                 **{**line_style(i), "linestyle": "none"})
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -176,17 +210,20 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
     ax.legend(fontsize=7)
     f = save(fig, out, "summary_tradeoff.png", "Error against frame time",
-             "each point: one photon count, radius or k of a filter; lower left is better")
+             "each point: one photon count, radius or k of a filter (with final gathering, when on, a series "
+             "of its own); lower left is better")
     best = {}
     for r in rows:
-        if r["filter"] not in best or r[err] < best[r["filter"]][err]:
-            best[r["filter"]] = r
+        if _series(r) not in best or r[err] < best[_series(r)][err]:
+            best[_series(r)] = r
     lo = min(best.values(), key=lambda r: r[err])
-    text = (f"<b>What quality costs:</b> the lowest error is {lo['filter']}'s, relative MSE {lo[err]:.3g} at "
+    gather = _gather_rays(lo)
+    text = (f"<b>What quality costs:</b> the lowest error is {esc(lo['filter'])}'s"
+            + (f" with final gathering ({gather} rays)" if gather else "") + f", relative MSE {lo[err]:.3g} at "
             f"{lo['frame_seconds']:.3g} s a frame"
             + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference") + "; "
-            + ", ".join(f"{k} {v[err]:.3g} at {v['frame_seconds']:.3g} s" for k, v in sorted(best.items())
-                        if v is not lo) + ".")
+            + ", ".join(f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
+                        if k in best and best[k] is not lo) + ".")
     return text, f
 
 

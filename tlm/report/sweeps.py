@@ -25,6 +25,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from tlm.kernels.bsp import default_levels
@@ -156,7 +157,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
         med, lo, hi = [], [], []
         for v in values:
             ys = sorted(pts[v] for pts in series.values() if v in pts)
-            med.append(ys[len(ys) // 2])
+            med.append(float(np.median(ys)))  # (the mean of the two middle values when their count is even)
             lo.append(ys[0])
             hi.append(ys[-1])
         ax.fill_between(xs_of(values), lo, hi, color="0.8", hatch="///", edgecolor="0.5",

@@ -110,19 +110,23 @@ def study_names(studies: list[Study]) -> list[str]:
 
 
 def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label: str | None = None):
-    """Relative MSE against host wall time, twice per point: the photon-map frame against our
-    converged reference (the estimator's noise and blur at this photon path model) and the
-    whole composite against the independent ground truth (Mitsuba's path tracer: what a
-    researcher should trust). The gap between the two is the model's bias."""
+    """Image RMSE (linear radiance, the same units for both) against host wall time, twice per
+    point: the whole composite against the independent ground truth (Mitsuba's path tracer,
+    over the pixels away from the lights seen directly: ``truth_rmse``) and the photon-map
+    frame alone against our converged reference (the estimator's noise and blur: ``rmse``).
+    The two are errors of different images, so their gap is not the model's bias alone.
+    (Not their relative MSEs: each is over its own image's energy, and the composite's direct
+    light makes its denominator larger, so the composite's could sit below the photon frame's
+    while its error in radiance is larger.)"""
     rows = study.rows
     label = label or study.path.name
-    own = np.array([_num(r.get("rel_mse")) for r in rows])
-    truth = np.array([_num(r.get("truth_rel_mse")) for r in rows])
+    own = np.array([_num(r.get("rmse")) for r in rows])
+    truth = np.array([_num(r.get("truth_rmse")) for r in rows])
     cost = np.array([_num(r.get("trace_seconds")) + _num(r.get("gather_seconds")) for r in rows])
     ok = np.isfinite(truth) & np.isfinite(cost)
     if not ok.any():
         notes.append(f"{label}: no row was measured against a ground truth ('tlm error-vs-cost' with Mitsuba "
-                     "installed, pip install -e '.[oracle]'): no bias against run time.")
+                     "installed, pip install -e '.[oracle]'): no error against the ground truth.")
         return None
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
@@ -133,21 +137,24 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                    label=f"{f}: composite vs ground truth", zorder=3)
         mo = m & np.isfinite(own)
         ax.scatter(cost[mo], own[mo], s=40, facecolors="none", edgecolors=colour(i), marker=marker(i),
-                   linewidths=1.0, label=f"{f}: photon frame vs own reference", zorder=3)
+                   linewidths=1.0, label=f"{f}: photon frame alone vs own reference", zorder=3)
         for x, a, b in zip(cost[mo], own[mo], truth[mo], strict=True):
             ax.plot([x, x], [a, b], color=colour(i), linewidth=0.6, alpha=0.5, zorder=2)
     _log_if_decades(ax, "x", cost[ok])
     ax.set_yscale("log")
-    ax.set(xlabel="host wall time: photon tracing + gathering (s)", ylabel="relative MSE",
-           title=f"{label}: error against our reference and against the ground truth")
+    ax.set(xlabel="host wall time: photon tracing + gathering (s)", ylabel="image RMSE (linear radiance)",
+           title=f"{label}: RMSE vs the ground truth and vs our reference")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     spp = next((r.get("truth_spp") for r in rows if r.get("truth_spp")), None)
-    caption = ("Filled: the whole composite against Mitsuba 3's path tracer" + (f" ({spp} spp)" if spp else "")
-               + "; hollow: the photon-map frame against our own converged k-NN reference; a vertical line "
-               "joins a point's two errors. The own reference shows the estimator's noise and blur; the "
-               "ground truth adds what the model leaves out or gets wrong (bias).")
-    return save(fig, out, name, f"{label}: bias against wall time", caption)
+    caption = ("Image RMSE in linear radiance. Filled: the whole composite (every planned frame) against "
+               "Mitsuba 3's path tracer" + (f" ({spp} spp)" if spp else "") + ", over the pixels away from the "
+               "lights seen directly; hollow: the photon-map frame alone against our own converged k-NN "
+               "reference, over every pixel; a vertical line joins a point's two errors. They are errors of "
+               "different images: the gap holds the other frames' error and what the model leaves out or gets "
+               "wrong, not the model's bias alone.")
+    return save(fig, out, name, f"{label}: error against the ground truth and against our reference, "
+                "against wall time", caption)
 
 
 def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[str], label: str | None = None):
