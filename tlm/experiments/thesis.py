@@ -371,8 +371,8 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     cells: dict[tuple[str, str], dict[str, dict]] = {}
     for r in rows:
         cells.setdefault((r["scene"], r["mode"]), {})[r["metric"]] = r
-    for (scene, mode), m in cells.items():
-        if any(m[k]["thesis"] is None for k in PM_METRICS):
+    for (scene, mode), m in cells.items():  # (a cell without every PM's two values has no slowest PM to name)
+        if any(k not in m or m[k]["thesis"] is None or m[k]["ours"] is None for k in PM_METRICS):
             continue
         theirs = max(PM_METRICS, key=lambda k: m[k]["thesis"])
         ours = max(PM_METRICS, key=lambda k: m[k]["ours"])

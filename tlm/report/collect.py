@@ -31,13 +31,16 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from tlm.config import MODES
 from tlm.errors import InputError
+from tlm.experiments.thesis import METRICS, PM_METRICS
 from tlm.storage import read_jsonl
 
 
@@ -185,8 +188,11 @@ MAPPING_OR_NONE = (lambda v: v is None or isinstance(v, dict), "a mapping")
 LIST_OR_NONE = (lambda v: v is None or isinstance(v, list), "a list")
 TEXTS = (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of texts")
 
-THESIS_COLUMNS = {"scene": PRESENT, "mode": PRESENT, "metric": PRESENT, "thesis": NUMBER_OR_NONE,
-                  "ours": NUMBER_OR_NONE, "rel_error": NUMBER_OR_NONE}
+FINITE = (lambda v: _number(v) and math.isfinite(v), "a finite number")
+FINITE_OR_NONE = (lambda v: v is None or FINITE[0](v), "a finite number or empty")
+THESIS_COLUMNS = {"scene": PRESENT, "mode": (lambda v: v in MODES, f"a mode ({', '.join(MODES)})"),
+                  "metric": (lambda v: v in METRICS, f"a metric ({', '.join(METRICS)})"), "thesis": FINITE_OR_NONE,
+                  "ours": FINITE, "rel_error": FINITE_OR_NONE, "calibrated": BOOL}
 SCALING_COLUMNS = {"scene": PRESENT, "mode": PRESENT, "scheduler": PRESENT, "target": PRESENT,
                    "pipelines": POSITIVE, "simulated": POSITIVE, "analytical": NUMBER, "speedup": NUMBER}
 SCALING_OPTIONAL = {"analytical_slowest": NUMBER}
@@ -309,6 +315,11 @@ def _csv_rows(path: Path, what: str, required: dict, optional: dict | None = Non
     as such: an :class:`InputError` naming the file for one that is empty or cut off, lacks a
     ``required`` column, has a row of more or fewer cells than its header, or a value not of
     its column's kind."""
+    return [row for _, row in _csv_lines(path, what, required, optional)]
+
+
+def _csv_lines(path: Path, what: str, required: dict, optional: dict | None = None) -> list[tuple[int, dict]]:
+    """:func:`_csv_rows` with the line number of each row."""
     def value(v: str):
         if v == "":
             return None
@@ -334,7 +345,42 @@ def _csv_rows(path: Path, what: str, required: dict, optional: dict | None = Non
             rows.append((reader.line_num, {k: value(v) for k, v in row.items()}))
     except csv.Error as e:
         raise InputError(f"is not a CSV table ({e})", source=str(path), key=f"line {reader.line_num}") from None
-    return _rows_checked(path, rows, what, required, optional)
+    _rows_checked(path, rows, what, required, optional)
+    return rows
+
+
+def _thesis_rows(path: Path) -> list[dict]:
+    """``thesis_comparison.csv``: its columns checked (:data:`THESIS_COLUMNS`), then its cells:
+    ``tlm thesis`` writes one row of each metric (:data:`~tlm.experiments.thesis.METRICS`)
+    for every scene-mode it ran, its relative error empty exactly where the thesis has no
+    value. A table with no rows, a metric twice in a cell, a cell without a row of each PM
+    (its slowest PM) or of FPS (the first screen's frame rates), or an error without a thesis
+    value (or the other way round) is a damaged or edited copy: an :class:`InputError`. (A
+    cell without its TThru row shows "–" there in the tables.)"""
+    what = "a row of a tlm thesis comparison"
+    lines = _csv_lines(path, what, THESIS_COLUMNS)
+    if not lines:
+        raise InputError("has a header but no rows: a damaged copy (tlm thesis writes a row for every metric of "
+                         "every cell); copy it again or run the study again", source=str(path))
+    cells: dict[tuple[str, str], dict[str, int]] = {}
+    for n, row in lines:
+        if (row["thesis"] is None) != (row["rel_error"] is None):
+            has, lacks = ("thesis", "rel_error") if row["rel_error"] is None else ("rel_error", "thesis")
+            raise InputError(f"has a {has!r} but an empty {lacks!r}: an edited or damaged row (tlm thesis writes "
+                             "the error exactly where the thesis has a value)", source=str(path), key=f"line {n}")
+        cell, metric = (str(row["scene"]), str(row["mode"])), str(row["metric"])
+        seen = cells.setdefault(cell, {})
+        if metric in seen:
+            raise InputError(f"repeats the {metric} row of {cell[0]}/{cell[1]} (first on line {seen[metric]}): "
+                             "an edited or damaged table", source=str(path), key=f"line {n}")
+        seen[metric] = n
+    for (scene, mode), seen in cells.items():
+        missing = [m for m in (*PM_METRICS, "FPS") if m not in seen]
+        if missing:
+            raise InputError(f"has no {', '.join(missing)} row{'s' if len(missing) > 1 else ''} for {scene}/{mode}: "
+                             f"an edited or damaged table (tlm thesis writes every metric, {', '.join(METRICS)}, "
+                             "of every cell); copy it again or run the study again", source=str(path))
+    return [row for _, row in lines]
 
 
 def read(dirs: list[Path]) -> Inputs:
@@ -369,7 +415,7 @@ def read(dirs: list[Path]) -> Inputs:
             run.label = unique(f"{folder.name}: {run.scene}/{run.mode}")
             inputs.runs.append(run)
         elif kind == "thesis":
-            rows = _csv_rows(folder / "thesis_comparison.csv", "a row of a tlm thesis comparison", THESIS_COLUMNS)
+            rows = _thesis_rows(folder / "thesis_comparison.csv")
             summary_path = folder / "thesis_summary.json"
             summary = _thesis_summary(summary_path) if summary_path.is_file() else {}
             inputs.studies.append(Study("thesis", folder, rows, summary))

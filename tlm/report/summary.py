@@ -22,8 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config import ArchConfig
 from tlm.experiments.thesis import median_words
-from tlm.report.collect import Inputs
+from tlm.report.collect import Inputs, Run
 from tlm.report.common import Figure, Section, bar_style, line_style, new_figure, save
 from tlm.report.html import esc
 from tlm.report.tables import study_summaries
@@ -35,17 +36,45 @@ PM_METRIC = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "
 SIZE = (5.4, 3.1)
 
 
+def _configured(config: dict) -> int:
+    """A config's ``arch.pipelines`` (where it has none: the default, one)."""
+    arch = config.get("arch") if isinstance(config, dict) else None
+    n = arch.get("pipelines") if isinstance(arch, dict) else None
+    return n if isinstance(n, int) and not isinstance(n, bool) and n > 0 else ArchConfig().pipelines
+
+
+def _pipelines(run: Run) -> int:
+    """How many pipelines ``run`` simulated: its results' per-pipeline cycles, else its
+    config's ``arch.pipelines``."""
+    per_pipe = run.results.get("pipelines")
+    return len(per_pipe) if isinstance(per_pipe, list) and per_pipe else _configured(run.config)
+
+
 def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     thesis = inputs.of_kind("thesis")
-    others: list = []  # (with a thesis study) the runs with a frame rate that the figure does not draw
+    others: list = []  # the runs with a frame rate that the figure does not draw
+    pipes: dict[tuple, int] = {}  # (scene, mode) drawn -> its pipelines
+    fast = [r for r in inputs.runs if r.kind == "run" and isinstance(r.results.get("fps"), int | float)
+            and not isinstance(r.results.get("fps"), bool) and r.results["fps"] > 0]
     if thesis:
         rows = [r for r in thesis[0].rows if r["metric"] == "FPS"]
         ours = {(r["scene"], r["mode"]): r["ours"] for r in rows}
         theirs = {(r["scene"], r["mode"]): r["thesis"] for r in rows}
-        others = sorted((r for r in inputs.runs if r.kind == "run" and isinstance(r.results.get("fps"), int | float)
-                         and r.results["fps"] > 0), key=lambda r: r.results["fps"])
+        cells = {(r.path.parent.name, r.path.name): _pipelines(r) for r in inputs.runs
+                 if r.kind == "thesis" and r.path.parent.parent == thesis[0].path}
+        study = _configured(thesis[0].meta.get("config") or {})  # (a cell whose folder is not there)
+        pipes = {k: cells.get((str(k[0]), str(k[1])), study) for k in ours}
+        others = sorted(fast, key=lambda r: r.results["fps"])
     else:
-        ours = {(r.scene, r.mode): r.results.get("fps") for r in inputs.runs if r.kind == "run"}
+        ours, drawn = {}, {}
+        for r in fast:  # (a second run of a scene-mode has no bar of its own: it is said in the text)
+            if (r.scene, r.mode) in drawn:
+                others.append(r)
+            else:
+                drawn[(r.scene, r.mode)] = r
+        ours = {k: r.results["fps"] for k, r in drawn.items()}
+        pipes = {k: _pipelines(r) for k, r in drawn.items()}
+        others.sort(key=lambda r: r.results["fps"])
         theirs = {}
     ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
     if not ours:
@@ -76,11 +105,19 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                 if others else ""))
     best = max(ours, key=ours.get)
     worst = min(ours, key=ours.get)
+    every = {*(pipes.get(k) for k in ours), *(_pipelines(r) for r in others)}
+    one = len(every) == 1  # (every frame rate said at the same count: said once, at the end)
+
+    def cell(k: tuple) -> str:
+        return f"{esc(str(k[0]))} {MODE_NAMES.get(k[1], k[1])}{'' if one else ', ' + _count(pipes[k], 'pipeline')}"
+
+    n_one = next(iter(every)) if one else None
     text = (f"<b>How fast:</b> {'in the frames of ' + esc(which) + ', ' if thesis else ''}"
-            f"from {ours[worst]:.3g} FPS ({esc(worst[0])} {MODE_NAMES.get(worst[1], worst[1])}) "
-            f"to {ours[best]:.3g} FPS ({esc(best[0])} {MODE_NAMES.get(best[1], best[1])}) at one pipeline.")
+            f"from {ours[worst]:.3g} FPS ({cell(worst)}) to {ours[best]:.3g} FPS ({cell(best)})"
+            + (f" at {'one pipeline' if n_one == 1 else f'{n_one} pipelines'}." if one else "."))
     if others:  # (not drawn beside the thesis's cells, but not left unsaid)
-        said_runs = [f"{esc(r.label)} {r.results['fps']:.3g} FPS" for r in others]
+        said_runs = [f"{esc(r.label)} {r.results['fps']:.3g} FPS"
+                     + ("" if one else f" ({_count(_pipelines(r), 'pipeline')})") for r in others]
         if len(said_runs) > 4:
             said_runs = [said_runs[0], f"… {len(said_runs) - 2} more …", said_runs[-1]]
         text += (f" The {_count(len(others), 'other run')} among the inputs, not in the figure: "
