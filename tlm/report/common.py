@@ -18,6 +18,7 @@ import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 from matplotlib.mathtext import MathTextParser
@@ -54,6 +55,92 @@ def line_style(i: int) -> dict:
 def bar_style(i: int) -> dict:
     """Keyword arguments of ``ax.bar`` for series ``i``: colour and hatch differ, black edge."""
     return {"color": colour(i), "hatch": hatch(i), "edgecolor": "black", "linewidth": 0.6}
+
+
+def legend_below(ax, fontsize: float = 7, ncol: int = 1):
+    """The legend of ``ax`` under the axes (below the x label), where it covers no data.
+
+    With the figure's constrained layout the axes shrink to leave it room."""
+    return ax.legend(fontsize=fontsize, ncol=ncol, loc="upper center", bbox_to_anchor=(0.5, -0.14),
+                     borderaxespad=0.0)
+
+
+def log_ticks(ax, axis: str = "x") -> None:
+    """Tick labels of a log ``axis`` that do not run into each other: no labels on the minor
+    ticks; over fewer than two decades the major ticks are at 1, 2 and 5 times the powers of
+    ten, so that the axis still has several labels. Call it once the data are drawn."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator, NullFormatter
+
+    a = ax.xaxis if axis == "x" else ax.yaxis
+    lo, hi = ax.get_xlim() if axis == "x" else ax.get_ylim()
+    if lo > 0 and hi > 0 and abs(np.log10(hi / lo)) < 2:
+        a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        a.set_major_formatter(LogFormatterSciNotation(base=10, labelOnlyBase=False))
+    a.set_minor_formatter(NullFormatter())
+
+
+def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
+    """Place each annotation of ``texts`` (in order) at the first of ``offsets`` (offset
+    points from its point, the first one above or right) where it covers no marker and no
+    label placed before it (its own point's markers aside); ``va`` follows the offset's sign (bottom above, top below).
+
+    The figure is laid out first, as :func:`write_png` lays it out, so that the boxes
+    compared are those drawn. Where no offset is free, the label keeps the first offset,
+    or with ``hide`` is hidden; the hidden labels are returned."""
+    if not texts:
+        return []
+    fig.set_dpi(DPI)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        with contextlib.suppress(ValueError):
+            engine.execute(fig)
+    points = []  # markers in display coordinates, with their radius in pixels
+    px = fig.dpi / 72
+    for a in fig.axes:
+        for line in a.get_lines():
+            if line.get_marker() in (None, "", " ", "None", "none") or not len(line.get_xydata()):
+                continue
+            r = line.get_markersize() * px / 2 + 1
+            points.extend((x, y, r) for x, y in a.transData.transform(line.get_xydata()))
+        for coll in a.collections:
+            offs = np.asarray(coll.get_offsets())
+            sizes = coll.get_sizes()
+            if not offs.size or not len(sizes):
+                continue
+            xy = coll.get_offset_transform().transform(offs)
+            for k, (x, y) in enumerate(xy):
+                points.append((x, y, np.sqrt(sizes[k % len(sizes)]) * px / 2 + 1))
+
+    def free(box, placed, own) -> bool:  # (its own point's markers may touch it)
+        if any(box.x0 - r < x < box.x1 + r and box.y0 - r < y < box.y1 + r and abs(x - own[0]) + abs(y - own[1]) > 1
+               for x, y, r in points):
+            return False
+        return not any(box.overlaps(b) for b in placed)
+
+    def put(t, off) -> None:
+        t.set_position(off)
+        t.set_va("bottom" if off[1] > 0 else "top" if off[1] < 0 else "center")
+        if t.get_ha() != "center":
+            t.set_ha("left" if off[0] >= 0 else "right")
+
+    placed, hidden = [], []
+    for t in texts:
+        own = t.axes.transData.transform(t.xy)
+        for off in offsets:
+            put(t, off)
+            box = t.get_window_extent(renderer)
+            if free(box, placed, own):
+                break
+        else:
+            put(t, offsets[0])
+            if hide:
+                t.set_visible(False)
+                hidden.append(t)
+                continue
+            box = t.get_window_extent(renderer)
+        placed.append(box)
+    return hidden
 
 
 def new_figure(width: float = 7.0, height: float = 4.5) -> MplFigure:

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
@@ -169,6 +169,8 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
         lo_v, hi_v = min(values), max(values)
         if lo_v > 0 and hi_v / lo_v >= 100:
             ax.set_xscale("log")
+        elif all(float(v).is_integer() for v in values):  # (an integer factor: no 5.5 levels)
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     else:
         ax.set_xticks(range(len(values)), [_fmt(v) for v in values])
     fps = [r["fps"] for r in ok]

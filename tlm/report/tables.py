@@ -43,7 +43,7 @@ from tlm.experiments.thesis import (
     summarize,
 )
 from tlm.report.collect import Inputs, Run, Study
-from tlm.report.common import Section, line_style, new_figure, save
+from tlm.report.common import Section, line_style, new_figure, save, untangle
 
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
@@ -370,10 +370,12 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
                       label=f"ours: {src.label}" if first.setdefault(("o", i), True) else None)
             first[("o", i)] = False
             if row["rel_error"] is not None and not src.not_comparable:  # (n/c: no error, as in its table)
-                axis.annotate(f"{row['rel_error']:+.0%}", (x, o), xytext=(2, 0), textcoords="offset points",
-                              fontsize=5.5, rotation=90, va="bottom", ha="left", color="#333")
+                notes_drawn.append(axis.annotate(f"{row['rel_error']:+.0%}", (x, o), xytext=(0, 4),
+                                                 textcoords="offset points", fontsize=6.5, va="bottom",
+                                                 ha="center", color="#333"))
 
     first: dict = {}
+    notes_drawn: list = []  # the relative-error labels
     ticks, labels = [], []
     for mi, mode in enumerate(MODES):
         base = mi * group
@@ -403,7 +405,9 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
     axf.grid(axis="y", which="major", linewidth=0.4, color="#bbb")
     for a in (ax, axf):
         lo, hi = a.get_ylim()
-        a.set_ylim(lo, hi * 3.0)  # room for the error labels above the highest marker
+        a.set_ylim(lo / 1.6, hi * 3.0)  # room for the error labels above the highest marker and below the lowest
+    ax.set_xlim(-0.7, len(MODES) * group - 1.3)
+    axf.set_xlim(-0.5, len(MODES) - 0.5 + step * (len(sources) + 1))  # (the labels stay inside the panel)
     handles, names = [], []
     for a in (ax, axf):
         for hnd, name in zip(*a.get_legend_handles_labels()):
@@ -419,11 +423,15 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
                 else " (some sources not comparable: no errors on them)")
     fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours against the thesis{flag}",
                  fontsize=11)
+    for t in notes_drawn:  # (the y limits leave them room: the layout ignores them)
+        t.set_in_layout(False)
+    untangle(fig, notes_drawn, ((0, 4), (0, -4)))
     if dropped:
         notes.append(f"{scene} figure: values that cannot go on a log axis left out: {', '.join(dropped)}")
     caption = (f"Simulated cycles per PM and throughput (left, millions of cycles per frame) and frame rate (right) "
                f"of the {scene} scene per mode: hollow circles the thesis's Table {TABLE_NUMBER[scene]} "
-               "(diamonds: calibrated cells), filled markers ours, annotated with the relative error (none on a source "
+               "(diamonds: calibrated cells), filled markers ours, annotated with the relative error, above the "
+               "marker or, where that would cover another, below it (none on a source "
                "not comparable with the thesis: it would measure the setting, not the model).")
     return save(fig, out, f"tables_{scene}.png", f"Table {TABLE_NUMBER[scene]} ({scene}): ours against the thesis",
                 caption)

@@ -25,7 +25,7 @@ import numpy as np
 import yaml
 
 from tlm.report.collect import Inputs, Study
-from tlm.report.common import Section, colour, linestyle, marker, new_figure, save
+from tlm.report.common import Section, colour, linestyle, log_ticks, marker, new_figure, save, untangle
 
 
 def pareto_front(cost, error) -> np.ndarray:
@@ -51,10 +51,15 @@ def pareto_front(cost, error) -> np.ndarray:
     return on
 
 
+# where a Pareto number may go around its point (offset points), tried in this order
+PARETO_OFFSETS = ((6, 4), (-6, 4), (6, -4), (-6, -4), (0, 10), (0, -10), (12, 0), (-12, 0))
+
+
 def _log_if_decades(ax, axis: str, values) -> None:
     v = np.asarray([x for x in values if x is not None and np.isfinite(x) and x > 0], dtype=float)
     if v.size and v.max() / v.min() >= 10:
         (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
+        log_ticks(ax, axis)
 
 
 def _num(v) -> float:
@@ -199,9 +204,10 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
                zorder=4)
     front_rows = [sub[j] for j in np.flatnonzero(front)[o]]
+    numbers = []
     for j, (x, y, r) in enumerate(zip(fc, fe, front_rows, strict=True)):  # numbered, named in the key:
-        ax.annotate(str(j + 1), (x, y), xytext=(6, 4), textcoords="offset points", fontsize=7,  # names would
-                    fontweight="bold")  # overlap where the front's points crowd
+        numbers.append(ax.annotate(str(j + 1), (x, y), xytext=(6, 4), textcoords="offset points", fontsize=7,
+                                   fontweight="bold"))  # (names would overlap where the front's points crowd)
         ax.plot([], [], " ", label=f"{j + 1}: {_point_name(r)}")
     # the photon-count key: one grey marker per size shown
     counts = sorted({int(p) for p in photons[ok] if np.isfinite(p)})
@@ -216,8 +222,12 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
            title=f"{label}: photon-map RMSE against {what}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
     caption = (f"{int(ok.sum())} points; marker area grows with the photon count; ringed and numbered (named in "
                f"the key): the {int(front.sum())} points of the Pareto front.")
+    if hidden:
+        caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
+                    "their number would cover another number or a marker (the key names them).")
     if cost_key == "wall":
         caption += (" Tracing a photon map is shared by the points that use it, but each point counts it in "
                     "full (its cost if run alone).")
