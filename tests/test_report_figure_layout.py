@@ -40,3 +40,19 @@ def test_a_log_axis_of_under_two_decades_labels_no_minor_tick_and_no_label_overl
     assert len(boxes) >= 3  # (1, 2 and 5 times the powers of ten: still several labels)
     assert all(a.x1 <= b.x0 for a, b in itertools.pairwise(boxes)), [(b.x0, b.x1) for b in boxes]
     plt.close(fig)
+
+
+def test_the_summary_tradeoff_figure_labels_no_minor_tick(tmp_path, monkeypatch):
+    """summary_tradeoff.png set its own log axes and labelled their minor ticks, which ran into
+    each other over a decade and a half of frame times (the regenerated plots/)."""
+    from tests.test_report_honest_captions import _evc_rows, capture
+    from tlm.report import summary as summary_mod
+    from tlm.report.collect import Inputs, Study
+    from tlm.report.summary import summary_section
+
+    figs = capture(monkeypatch, summary_mod)
+    summary_section(Inputs([], studies=[Study("error-vs-cost", tmp_path / "ec", _evc_rows())]), tmp_path)
+    (ax,) = figs[-1].axes
+    figs[-1].canvas.draw()
+    for axis in (ax.xaxis, ax.yaxis):
+        assert not any(t.get_text() for t in axis.get_minorticklabels() if t.get_visible())

@@ -25,7 +25,7 @@ import numpy as np
 from tlm.config import ArchConfig
 from tlm.experiments.thesis import median_words
 from tlm.report.collect import Inputs, Run
-from tlm.report.common import Figure, Section, bar_style, line_style, new_figure, save
+from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
 from tlm.report.tables import study_summaries
 
@@ -243,6 +243,8 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                 **{**line_style(i), "linestyle": "none"})
     ax.set_xscale("log")
     ax.set_yscale("log")
+    log_ticks(ax, "x")  # (no minor tick labels running into each other)
+    log_ticks(ax, "y")
     ax.set_xlabel("simulated frame time (s)")
     ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
     ax.legend(fontsize=7)
