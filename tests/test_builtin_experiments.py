@@ -16,7 +16,7 @@ import yaml
 
 import tlm.api
 import tlm.arch.costs as costs
-import tlm.config
+import tlm.builtin
 import tlm.scenes.export as export
 from tlm.cli import main
 from tlm.errors import InputError
@@ -41,7 +41,7 @@ def packaged(tmp_path, monkeypatch):
     package folder of its own (tlm/_configs), and a working folder without configs/."""
     folder = tmp_path / "site-packages" / "tlm" / "_configs"
     shutil.copytree(CONFIGS, folder)
-    monkeypatch.setattr(tlm.config, "configs_dir", lambda: folder)
+    monkeypatch.setattr(tlm.builtin, "configs_dir", lambda: folder)
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
@@ -55,21 +55,21 @@ def test_the_experiments_ship_in_the_wheel():
     """pyproject's wheel maps configs/ to tlm/_configs, where configs_dir looks first."""
     project = tomllib.loads((REPO / "pyproject.toml").read_text())
     assert project["tool"]["hatch"]["build"]["targets"]["wheel"]["force-include"]["configs"] == "tlm/_configs"
-    assert tlm.config.configs_dir() == CONFIGS  # (a checkout: no tlm/_configs)
-    assert {"cornell", "cornell_pmap", "thesis", "extreme", "sweep_fifo"} <= set(tlm.config.list_experiments())
+    assert tlm.builtin.configs_dir() == CONFIGS  # (a checkout: no tlm/_configs)
+    assert {"cornell", "cornell_pmap", "thesis", "extreme", "sweep_fifo"} <= set(tlm.builtin.list_experiments())
 
 
 def test_a_name_is_the_built_in_experiment_and_a_path_that_exists_wins(packaged):
-    assert tlm.config.experiment_path("cornell_pmap") == packaged / "cornell_pmap.yaml"
-    assert tlm.config.experiment_path("cornell") == packaged / "cornell.yaml"  # (the experiment: scene cornell)
+    assert tlm.builtin.experiment_path("cornell_pmap") == packaged / "cornell_pmap.yaml"
+    assert tlm.builtin.experiment_path("cornell") == packaged / "cornell.yaml"  # (the experiment: scene cornell)
     Path("cornell").write_text("scene: ring\n")  # a file of that name here: it is the one run
-    assert tlm.config.experiment_path("cornell") == Path("cornell")
-    assert tlm.config.experiment_path(str(CONFIGS / "cornell.yaml")) == CONFIGS / "cornell.yaml"
+    assert tlm.builtin.experiment_path("cornell") == Path("cornell")
+    assert tlm.builtin.experiment_path(str(CONFIGS / "cornell.yaml")) == CONFIGS / "cornell.yaml"
 
 
 def test_in_the_checkout_a_path_is_taken_as_given(monkeypatch):
     monkeypatch.chdir(REPO)
-    assert tlm.config.experiment_path("configs/cornell.yaml") == Path("configs/cornell.yaml")
+    assert tlm.builtin.experiment_path("configs/cornell.yaml") == Path("configs/cornell.yaml")
 
 
 def test_a_missing_path_of_a_built_in_name_is_not_replaced_by_it(packaged, capsys):
@@ -116,9 +116,9 @@ def test_run_by_name_equals_the_run_of_the_checkouts_file(packaged, tmp_path, ca
 def test_relative_paths_of_a_packaged_experiment_stay_in_the_package(packaged):
     """A sweep's `base: cornell.yaml` is the packaged one; the extreme cases' scenes are
     built-in names, found from any folder."""
-    sweep = load_sweep(tlm.config.experiment_path("sweep_fifo"))
+    sweep = load_sweep(tlm.builtin.experiment_path("sweep_fifo"))
     assert sweep.folder == packaged and sweep.base_file == "cornell.yaml"
-    _, cases, _ = load_cases(tlm.config.experiment_path("extreme"))
+    _, cases, _ = load_cases(tlm.builtin.experiment_path("extreme"))
     scenes = [c["config"]["scene"] for c in cases if "scene" in c["config"]]
     assert "extreme/cornell_ior10" in scenes and "extreme/bad_scale_zero" in scenes
     for scene in scenes:
@@ -140,7 +140,7 @@ def test_plots_takes_the_built_in_experiments_where_there_is_no_configs_folder(p
 
 def test_config_list(packaged, capsys):
     assert main(["config", "list"]) == 0
-    assert capsys.readouterr().out.split() == tlm.config.list_experiments()
+    assert capsys.readouterr().out.split() == tlm.builtin.list_experiments()
     assert main(["config", "list", "-l"]) == 0
     lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
     assert " tlm sweep sweep_fifo " in lines["sweep_fifo"] and "FIFO depth x packet size" in lines["sweep_fifo"]
@@ -152,7 +152,7 @@ def test_config_export_copies_the_bytes_and_a_sweeps_base(packaged, capsys):
     assert main(["config", "export", "cornell_pmap", "mine.yaml"]) == 0
     assert "wrote mine.yaml (a copy of the built-in experiment cornell_pmap)" in capsys.readouterr().out
     assert Path("mine.yaml").read_bytes() == (CONFIGS / "cornell_pmap.yaml").read_bytes()
-    assert tlm.config.export_experiment("sweep_fifo", "fifo.yaml") == [Path("fifo.yaml"), Path("cornell.yaml")]
+    assert tlm.builtin.export_experiment("sweep_fifo", "fifo.yaml") == [Path("fifo.yaml"), Path("cornell.yaml")]
     assert Path("cornell.yaml").read_bytes() == (CONFIGS / "cornell.yaml").read_bytes()
     assert load_sweep(Path("fifo.yaml")).folder == Path.cwd().resolve()
     Path("mine.yaml").write_text("scene: ring\n")  # edited since: not overwritten
@@ -162,7 +162,7 @@ def test_config_export_copies_the_bytes_and_a_sweeps_base(packaged, capsys):
     for name, file, what in (("nothing", "x.yaml", "is not a built-in experiment"), ("cornell", "x.txt", ".yaml"),
                              ("cornell", "no/x.yaml", "does not exist")):
         with pytest.raises(InputError, match=what):
-            tlm.config.export_experiment(name, file)
+            tlm.builtin.export_experiment(name, file)
 
 
 # ---------------------------------------------------------------- tlm calibrate on an installed copy

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from tlm import fingerprint
-from tlm.config import experiment_path, list_experiments
+from tlm.builtin import experiment_path, list_experiments
 from tlm.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]

@@ -220,7 +220,7 @@ def params() -> list[tuple[str, Any, str]]:
 def configs_dir() -> Path:
     """Where the built-in experiments are: the repository's ``configs/``, shipped inside
     the wheel as ``tlm/_configs``."""
-    from tlm.config import configs_dir as folder
+    from tlm.builtin import configs_dir as folder
 
     return folder()
 
@@ -228,7 +228,7 @@ def configs_dir() -> Path:
 def list_experiments() -> list[str]:
     """The built-in experiments' names (``cornell``, ``cornell_pmap``, ``thesis``, ...: the
     files of :func:`configs_dir`), as ``tlm config list`` lists them."""
-    from tlm.config import list_experiments as names
+    from tlm.builtin import list_experiments as names
 
     return names()
 
@@ -238,7 +238,7 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
     built-in experiment named ``ref``; an :class:`InputError` otherwise (a path that does
     not exist names the built-in experiment of its file name, which is not taken in its
     place; a name that is none lists them)."""
-    from tlm.config import experiment_path as find
+    from tlm.builtin import experiment_path as find
 
     return find(os.fspath(ref), command, list_scenes())
 
@@ -246,7 +246,7 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
 def experiment_command(name: str) -> str:
     """The ``tlm`` command that runs the built-in experiment ``name`` (``run``, ``sweep``,
     ``thesis``, ``extreme``, ...)."""
-    from tlm.config import experiment_command as command
+    from tlm.builtin import experiment_command as command
 
     return command(name)
 
@@ -254,7 +254,7 @@ def experiment_command(name: str) -> str:
 def experiment_description(name: str) -> str:
     """A built-in experiment's description (its ``description:``, else its first comment
     sentence)."""
-    from tlm.config import experiment_description as description
+    from tlm.builtin import experiment_description as description
 
     return description(name)
 
@@ -263,7 +263,7 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
     """Copy the built-in experiment ``name`` into ``file`` (``.yaml``) to edit it, and a
     sweep's base config beside it where it names one (``tlm config export``); returns the
     files written. A file that exists with other contents is not overwritten."""
-    from tlm.config import export_experiment as export
+    from tlm.builtin import export_experiment as export
 
     return export(name, file)
 
@@ -281,7 +281,7 @@ def list_scenes() -> list[str]:
 def scene_description(name: str) -> str:
     """A built-in scene's ``description:``, else the first sentence of its leading comment
     lines, which may run over several ("" when it has neither; cheap: reads no geometry)."""
-    from tlm.config import comment_description
+    from tlm.builtin import comment_description
     from tlm.scenes.loader import scenes_dir
 
     names = list_scenes()

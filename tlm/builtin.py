@@ -1,0 +1,134 @@
+"""The built-in experiments: the repository's ``configs/``, shipped inside the wheel as
+``tlm/_configs``, found by name (``tlm run cornell_pmap``, ``tlm.load_config("cornell")``),
+listed, described and copied out to edit (``tlm config list|export``)."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+from tlm.config import read_yaml
+from tlm.errors import InputError, did_you_mean
+
+# the command that takes an experiment file, by the first of its keys found here (a study's
+# own keys: tlm.experiments.*); a file with none of them is a run config ('tlm run')
+EXPERIMENT_COMMANDS = (("cases", "extreme"), ("packet_sizes", "granularity"), ("points", "error-vs-cost"),
+                       ("scenes", "thesis"), ("modes", "thesis"), ("grid", "sweep"), ("zip", "sweep"))
+
+
+def configs_dir() -> Path:
+    """Where the built-in experiment files are: inside the wheel (``tlm/_configs``), or the
+    repository's ``configs/`` (as :func:`tlm.scenes.loader.scenes_dir` finds the scenes)."""
+    packaged = Path(__file__).resolve().parent / "_configs"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[1] / "configs"
+
+
+def list_experiments() -> list[str]:
+    """The built-in experiments' names: the ``.yaml`` files of :func:`configs_dir`, without
+    the suffix (``cornell``, ``cornell_pmap``, ``thesis``, ``sweep_fifo``)."""
+    root = configs_dir()
+    if not root.is_dir():
+        return []
+    return sorted(p.stem for p in root.glob("*.yaml") if p.is_file() and not p.name.startswith((".", "_")))
+
+
+def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[str, ...] = ()) -> Path:
+    """The experiment file a command was given: ``ref`` itself when it exists (a path that
+    exists always wins, but for a folder named as a built-in experiment: ``extreme`` run
+    where a folder ``extreme/`` is), else the built-in experiment named ``ref`` (``cornell_pmap``: the
+    packaged ``cornell_pmap.yaml``). Anything else is an InputError: a name that is no
+    built-in experiment lists them; a path that does not exist whose file name is a
+    built-in experiment's (``configs/cornell.yaml`` outside a checkout) names the command
+    that runs the built-in one (``tlm COMMAND cornell``), and the packaged file is not
+    taken in its place. ``scenes``: the built-in scene names, for a hint when ``ref`` is
+    one of them (a config names a scene: it is no experiment)."""
+    if not ref.strip():
+        raise InputError("an empty name names no experiment file", key="config")
+    path = Path(ref)
+    names = list_experiments()
+    if path.exists() and not (path.is_dir() and ref in names):  # (a folder of that name does not hide one)
+        return path
+    yaml_file = ref.lower().endswith((".yaml", ".yml"))
+    scene = (f"; {ref} is a built-in scene, not an experiment: a config names it (`scene: {ref}`), e.g. "
+             f"tlm run cornell --set scene={ref}") if ref in scenes else ""
+    if not (yaml_file or "/" in ref or os.sep in ref):
+        if ref in names:
+            return configs_dir() / f"{ref}.yaml"
+        listed = ", ".join(names) if names else "none installed"
+        raise InputError(f"neither a file nor a built-in experiment (built-in: {listed}; 'tlm config list -l' "
+                         f"says what each one is){did_you_mean(ref, names)}{scene}", source=ref)
+    stem = path.stem if yaml_file else path.name
+    if stem in names and not scene:
+        raise InputError(f"not found here; the built-in experiment of that name: tlm {command} {stem} "
+                         "('tlm config export' copies it out to edit)", source=ref)
+    raise InputError(f"file not found{scene}", source=ref)
+
+
+def experiment_command(name: str) -> str:
+    """The ``tlm`` command that takes the built-in experiment ``name`` (``run``, ``sweep``,
+    ``thesis``, ...): by its keys (:data:`EXPERIMENT_COMMANDS`)."""
+    raw = read_yaml(experiment_path(name))
+    keys = raw if isinstance(raw, dict) else {}
+    return next((command for key, command in EXPERIMENT_COMMANDS if key in keys), "run")
+
+
+def comment_description(text: str) -> str:
+    """The first sentence of a YAML file's leading comment lines (joined; up to the first
+    ``.`` that ends a line or is followed by a space), "" when it starts with none."""
+    words = []
+    for line in text.splitlines():
+        if not line.startswith("#") or not line.lstrip("#").strip():
+            break
+        words.append(line.lstrip("#").strip())
+    joined = " ".join(words)
+    end = re.search(r"\.(?=\s|$)", joined)
+    return joined[: end.end()] if end else joined
+
+
+def experiment_description(name: str) -> str:
+    """A built-in experiment's ``description:`` (a study's or a sweep's), else the first
+    sentence of its leading comment (:func:`comment_description`)."""
+    path = experiment_path(name)
+    raw = read_yaml(path)
+    if isinstance(raw, dict) and isinstance(raw.get("description"), str):
+        return raw["description"]
+    return comment_description(path.read_text(encoding="utf-8"))
+
+
+def export_experiment(name: str, file: str | Path) -> list[Path]:
+    """Copy the built-in experiment ``name`` to ``file`` (a ``.yaml`` path, to edit and run);
+    returns the files written. A sweep whose ``base:`` is a run config file beside it gets
+    that file beside ``file`` too, when no file of that name is there, so that the copy
+    runs as it is. Refused (InputError, nothing written): a name that is no built-in
+    experiment, a file that is not ``.yaml``, a folder that does not exist, and a file
+    that exists with other contents (a copy edited before is not overwritten)."""
+    from tlm.storage import write_file
+
+    names = list_experiments()
+    if name not in names:
+        raise InputError(f"{name!r} is not a built-in experiment ({', '.join(names)}){did_you_mean(name, names)}",
+                         key="name")
+    file = Path(file)
+    if file.suffix.lower() not in (".yaml", ".yml"):
+        raise InputError("name a .yaml file to copy the experiment into", source=str(file))
+    if file.is_dir():
+        raise InputError("is a folder; name a .yaml file", source=str(file))
+    if not file.parent.is_dir():
+        raise InputError(f"folder {str(file.parent)!r} does not exist", source=str(file))
+    source = configs_dir() / f"{name}.yaml"
+    copies = [(source, file)]
+    raw = read_yaml(source)
+    base = raw.get("base") if isinstance(raw, dict) else None
+    if isinstance(base, str) and not Path(base).is_absolute():
+        beside = file.parent / base
+        if not beside.exists() and (source.parent / base).is_file():
+            copies.append((source.parent / base, beside))
+    for src, dst in copies:
+        if dst.exists() and (dst.is_dir() or dst.read_bytes() != src.read_bytes()):
+            raise InputError("exists with other contents: name another file (or remove it)", source=str(dst))
+    for src, dst in copies:
+        write_file(dst, src.read_bytes())
+    return [dst for _, dst in copies]
