@@ -11,7 +11,8 @@ study goes on). One that still misses the tolerance
 (``reference.max_rounds`` reached) is used all the same, with a warning, and every
 row's ``reference_converged`` (and ``reference.json``'s) is false. The cost: the
 gather's work (node visits, leaves visited, photons tested and accepted), host seconds
-(photon tracing and gathering) and the simulated time of the whole photon-map frame. That frame is what ``tlm run``
+(photon tracing and gathering, one-off work excluded: below) and the simulated time of the whole
+photon-map frame. That frame is what ``tlm run``
 simulates in pmap mode: the passes the planner runs (ray cast, and reflect and refract
 when the scene has mirrors or glass), the point's photon trace (its work and photon
 tree) and its photon-map pass, through the timing model (:func:`tlm.arch.model.simulate`
@@ -28,6 +29,21 @@ what it depends on (everything but ``photons``, ``estimate`` and ``arch``); each
 map (one per photon count, seed and tracing setting) is traced once and shared by every
 filter, radius and k that uses it. A row's ``factors`` names the point's own settings
 (``photons.count=30000; estimate.filter=disk``).
+
+Host seconds: a row's ``trace_seconds`` is its photon maps' making: their trace, their leaf
+order (which every gather reads) and the density radii the point's radius rule asks for; made
+once, each is counted in full by every row that uses it (the same trace seconds on every row
+that shares a map: its cost if run alone). ``gather_seconds`` is its photon-map pass; both with
+the kernels warm. What a process pays once, whichever point first needs it, is charged to no
+row: numba compiling the kernels (or loading them from its on-disk cache), the first imports
+of the modules they use, and the eye paths' walks through mirrors and glass to the gather
+points (computed once for the base's eye rays, as the ray cast is).
+Before its first row, each distinct setting is warmed up (:class:`WarmUp`: a trace of at most
+:data:`WARM_PHOTONS` photons gathered at :data:`WARM_PIXELS` pixels, and the walks of the whole
+image), untimed; numba compilation that still falls inside a row's timed work (one its warm-up
+missed) is measured (:class:`CompileClock`) and taken out of it. Each row's
+``one_off_seconds`` says how much was excluded on its account: its warm-up, and the compilation
+taken out of its own trace and gather; their sum is the study's whole one-off cost.
 
 File format::
 
@@ -47,7 +63,9 @@ from __future__ import annotations
 
 import itertools
 import json
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -70,12 +88,19 @@ from tlm.experiments.reference import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
+from tlm.kernels.photons import PhotonMaps
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
-from tlm.render.frame import Frame, GBuffer
-from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, sees_a_light
+from tlm.render.frame import Frame, GBuffer, cast
+from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, gather_points_full, sees_a_light
 from tlm.render.planner import photon_count, plan
-from tlm.render.pmap import pmap_pass, search_radius, trace_photon_map
+from tlm.render.pmap import (
+    density_requests,
+    final_gathering,
+    pmap_pass,
+    search_radius,
+    trace_photon_map,
+)
 from tlm.storage import cache_problem, cached_image, check_destination, warn
 
 COLUMNS = (
@@ -83,7 +108,7 @@ COLUMNS = (
     "final_gather", "caustic_photons", "aim",
     "rmse", "rel_mse", "reference_converged", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp",
     *GATHER_KEYS[1:], "gathers",
-    "trace_seconds", "gather_seconds",
+    "trace_seconds", "gather_seconds", "one_off_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
 
@@ -251,9 +276,13 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
 
-    maps: dict[tuple, tuple] = {}
+    maps: dict[tuple, tuple] = {}  # map key -> (the trace, its seconds without compilation)
+    density_s: dict[tuple, float] = {}  # (id of a map in maps, k) -> seconds of its density radius
     others: dict[str, dict] = {}  # the non-photon passes' work, per setting they depend on
     geometry = TreeWork.of(accel.tree)
+    warm = WarmUp(frame0, g)
+    clock = CompileClock()
+
     def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
         i, point, cfg = item
         n = photon_count(scene, cfg)
@@ -261,14 +290,33 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                    cfg.photons.caustic_fraction, cfg.photons.caustic_count, cfg.photons.aim,
                    cfg.photons.aim_triangles, cfg.estimate.final_gather > 0, cfg.photons.levels,
                    cfg.photons.leaf_photons, cfg.cache.block_words, cfg.cache.pairs)
+        one_off = warm(cfg)  # (untimed: what the point's settings are the first to need)
         frame = Frame.create(scene, accel, cfg)
-        if map_key not in maps:
+        if map_key not in maps:  # (the trace, and the maps in the leaf order every gather reads them in)
             t0 = time.perf_counter()
-            maps[map_key] = (trace_photon_map(frame), time.perf_counter() - t0)
+            traced = trace_photon_map(frame)
+            for m in gathered_maps(frame, traced.photons):
+                m.prepared()
+            t1 = time.perf_counter()
+            compiling = clock.within(t0, t1)
+            one_off += compiling
+            maps[map_key] = (traced, t1 - t0 - compiling)
         traced, trace_s = maps[map_key]
+        for m, k in density_requests(frame, traced.photons):  # (each density radius the point asks for)
+            if (id(m), k) not in density_s:  # (made once; counted by every point that asks for it)
+                t0 = time.perf_counter()
+                m.density_radius(k)
+                t1 = time.perf_counter()
+                compiling = clock.within(t0, t1)
+                one_off += compiling
+                density_s[(id(m), k)] = t1 - t0 - compiling
+            trace_s += density_s[(id(m), k)]
         t0 = time.perf_counter()
         radiance, work = pmap_pass(frame, g, traced.photons)
-        gather_s = time.perf_counter() - t0  # (with final gathering: its rays too)
+        t1 = time.perf_counter()
+        compiling = clock.within(t0, t1)
+        one_off += compiling
+        gather_s = t1 - t0 - compiling  # (with final gathering: its rays too)
         fg_work = g.memo.pop("fgather_work", None)
         fn = frame_functional(frame, g, geometry, others, traced, work, fg_work)
         rest = others[_others_key(frame.cfg, _own_passes(fn.passes))]
@@ -290,16 +338,107 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "truth_spp": truth.spp if truth_image is not None else None,
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
+            "one_off_seconds": round(one_off, 4),
             **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
         }
         if progress is not None:
             progress(i, len(points), row)
         return row
-    return run_study(str(path), out, "rows", [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
-                     one, columns=COLUMNS, config=cfg0, started=start,
-                     files=lambda _rows: {"reference.json": {"key": key, **ref_meta, "reference_converged": converged,
-                                                             "computed": computed},
-                                          "truth.json": truth_meta})
+    with clock.running():
+        return run_study(str(path), out, "rows",
+                         [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
+                         one, columns=COLUMNS, config=cfg0, started=start,
+                         files=lambda _rows: {"reference.json": {"key": key, **ref_meta,
+                                                                 "reference_converged": converged,
+                                                                 "computed": computed},
+                                              "truth.json": truth_meta})
+
+
+# the warm-up of a point's settings (:class:`WarmUp`): its photon trace of at most this many photons
+# (and caustic photons), gathered at this many of the image's pixels, spread over it
+WARM_PHOTONS = 1000
+WARM_PIXELS = 64
+
+
+class WarmUp:
+    """Runs each distinct setting's one-off work before its first row is timed: its photon
+    trace and photon-map pass at a small size (:data:`WARM_PHOTONS` photons, gathered at
+    :data:`WARM_PIXELS` pixels of ``frame``'s image: numba compiles or loads the kernels they
+    call, and the modules they import are imported) and the walks of the whole image's eye
+    paths through mirrors and glass (``g``'s, kept in ``g.memo``, which every row's gather
+    reads). Calling it with a config returns the host seconds that took (0 for a setting
+    warmed up before)."""
+
+    def __init__(self, frame: Frame, g: GBuffer):
+        self.frame, self.g = frame, g
+        cam = frame.scene.camera
+        pixels = np.unique(np.linspace(0, cam.width * cam.height - 1, min(WARM_PIXELS, cam.width * cam.height))
+                           .astype(np.int64))
+        self.pixels = pixels
+        self.small: GBuffer | None = None  # (cast at the first warm-up: its seconds are one-off too)
+        self.done: set[str] = set()  # the settings warmed up
+        self.walked: set[str] = set()  # the render settings whose walks g.memo holds
+
+    def __call__(self, cfg: RunConfig) -> float:
+        key = json.dumps({k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference")},
+                         sort_keys=True, default=str)
+        if key in self.done:
+            return 0.0
+        t0 = time.perf_counter()
+        scene, accel = self.frame.scene, self.frame.accel
+        if self.small is None:
+            self.small = cast(self.frame, self.pixels)
+        ph = cfg.photons
+        small = replace(cfg, photons=replace(ph, count=min(photon_count(scene, cfg), WARM_PHOTONS),
+                                             caustic_count=None if ph.caustic_count is None
+                                             else min(ph.caustic_count, WARM_PHOTONS)))
+        frame = Frame.create(scene, accel, small)
+        pmap_pass(frame, self.small, trace_photon_map(frame).photons)
+        self.small.memo.pop("fgather_work", None)
+        render = json.dumps(to_dict(cfg)["render"], sort_keys=True, default=str)  # (what the walks depend on)
+        if render not in self.walked:
+            gather_points_full(Frame.create(scene, accel, cfg), self.g)  # (the walks, kept in g.memo)
+            self.walked.add(render)
+        self.done.add(key)
+        return time.perf_counter() - t0
+
+
+class CompileClock:
+    """The spans of host time in which numba compiled a kernel or loaded one from its on-disk
+    cache (its global compiler lock asked for and held: numba's ``numba:compiler_lock``
+    event), from any thread, while :meth:`running`; :meth:`within` sums them over a window."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._since = 0.0
+        self.spans: list[tuple[float, float]] = []
+
+    @contextmanager
+    def running(self):
+        from numba.core import event
+
+        class Listener(event.Listener):
+            def on_start(_self, _event):
+                with self._lock:
+                    if self._depth == 0:
+                        self._since = time.perf_counter()
+                    self._depth += 1
+
+            def on_end(_self, _event):
+                with self._lock:
+                    self._depth -= 1
+                    if self._depth == 0:
+                        self.spans.append((self._since, time.perf_counter()))
+
+        with event.install_listener("numba:compiler_lock", Listener()):
+            yield self
+
+    def within(self, start: float, end: float) -> float:
+        """Seconds of compilation between ``start`` and ``end`` (``time.perf_counter()`` readings)."""
+        with self._lock:
+            spans = list(self.spans) + ([(self._since, end)] if self._depth else [])
+        return sum(max(0.0, min(end, b) - max(start, a)) for a, b in spans)
 
 
 def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
@@ -382,6 +521,17 @@ def _caustic_photons(cfg: RunConfig, n: int) -> int:
     (as the trace splits it; 0 in a scene without mirrors or glass, which has no caustic group)."""
     return cfg.photons.caustic_count if cfg.photons.caustic_count is not None else round(
         n * cfg.photons.caustic_fraction)
+
+
+def gathered_maps(frame: Frame, photons) -> list:
+    """The photon maps the frame's photon-map pass gathers (each needs its leaf order,
+    :meth:`~tlm.kernels.photons.PhotonMap.prepared`): a single map; else the caustic map and
+    the indirect one, or the global one with final gathering; none that is empty."""
+    if not isinstance(photons, PhotonMaps):
+        found = [photons]
+    else:
+        found = [photons.caustic_map, photons.global_map if final_gathering(frame, photons) else photons.indirect_map]
+    return [m for m in found if m is not None and m.n > 0]
 
 
 def _own_passes(names) -> tuple[str, ...]:

@@ -3,9 +3,10 @@
 (a) From ``tlm error-vs-cost`` folders: the photon-map frame's image RMSE against its
     converged reference, against the simulated frame time (TThru / clock, the
     ``frame_seconds`` column) and against host wall time (photon tracing + gathering,
-    ``trace_seconds + gather_seconds``). One marker and colour per filter (and final-gather
-    count: ``mvoxel + final gather 16`` is a series of its own; a point's name adds its caustic
-    photon budget); the marker's
+    ``trace_seconds + gather_seconds``, with the kernels warm: the captions give the one-off
+    work left out, the rows' ``one_off_seconds``, :func:`wall_time_caption`). One marker and
+    colour per filter (and final-gather count: ``mvoxel + final gather 16`` is a series of its
+    own; a point's name adds its caustic photon budget); the marker's
     area grows with the photon count; the Pareto front (the points no other point beats
     on both error and time) is drawn as a step line and its points are named.
 (b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
@@ -114,6 +115,31 @@ def study_names(studies: list[Study]) -> list[str]:
     return [f"{s.path.parent.name}/{n}" if names.count(n) > 1 else n for s, n in zip(studies, names, strict=True)]
 
 
+def wall_time_caption(rows: list[dict]) -> str:
+    """What an error-vs-cost study's host wall time holds, and the one-off work it leaves out:
+    how many seconds in all (the rows' ``one_off_seconds``) and which rows' settings needed
+    the most of it; for a study written before that column, what its first rows may hold."""
+    one_off = np.array([_num(r.get("one_off_seconds")) for r in rows])
+    if not np.isfinite(one_off).any():
+        return ("Host wall time: the point's photon trace (a map shared by several points is counted in full by "
+                "each: its cost if run alone) and its gather. This study was written before one-off work was kept "
+                "apart: the first point to trace a photon map or run a filter may include numba compiling (or "
+                "loading) the kernels and the first imports, paid once per process, and the first point to gather "
+                "a map the making of its leaf order and density radii (seconds: such a point sits that much too "
+                "far right); run 'tlm error-vs-cost' again.")
+    total = float(np.nansum(one_off))
+    order = [int(j) for j in np.argsort(-np.where(np.isfinite(one_off), one_off, -1.0), kind="stable")[:3]
+             if np.isfinite(one_off[j]) and one_off[j] > 0]
+    named = [f"{rows[j].get('point', j)} ({one_off[j]:.3g} s)" for j in order]
+    most = (f"; most of it for the settings of row{'s' if len(named) > 1 else ''} "
+            f"{', '.join(named[:-1]) + ' and ' if len(named) > 1 else ''}{named[-1]} of rows.csv" if named else "")
+    return ("Host wall time: the point's photon maps (trace, leaf order, density radii) and its gather, with the "
+            "kernels warm; a map shared by several points is counted in full by each (its cost if run alone). "
+            "One-off work (numba compiling or loading the kernels, the first imports, the eye paths' walks "
+            "through mirrors and glass), paid once per study by whichever point needs it first, is charged to "
+            f"no point: {total:.3g} s in all, left out of every point's time{most} (each row's one_off_seconds).")
+
+
 def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label: str | None = None):
     """Image RMSE (linear radiance, the same units for both) against host wall time, twice per
     point: the whole composite against the independent ground truth (Mitsuba's path tracer,
@@ -157,7 +183,7 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                "lights seen directly; hollow: the photon-map frame alone against our own converged k-NN "
                "reference, over every pixel; a vertical line joins a point's two errors. They are errors of "
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
-               "wrong, not the model's bias alone.")
+               "wrong, not the model's bias alone. " + wall_time_caption(rows))
     return save(fig, out, name, f"{label}: error against the ground truth and against our reference, "
                 "against wall time", caption)
 
@@ -229,8 +255,7 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
         caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
                     "their number would cover another number or a marker (the key names them).")
     if cost_key == "wall":
-        caption += (" Tracing a photon map is shared by the points that use it, but each point counts it in "
-                    "full (its cost if run alone).")
+        caption += " " + wall_time_caption(rows)
     else:
         caption += (" The frame is the whole photon-map frame (ray cast and the other planned passes, photon "
                     "tracing, the photon-map pass) through the timing model.")
