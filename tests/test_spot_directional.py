@@ -348,13 +348,13 @@ def _down_cone_grid(outer: float, n: int = 1000):
 @pytest.mark.parametrize("outer", [30.0, 4.0])
 def test_a_spots_caustic_photons_fall_inside_its_outer_cone_with_unbiased_power(aim, outer):
     """A spot straight down, aimed at two boxes whose cones its outer cone cuts (30 degrees:
-    38% (aim: box) and 58% (parts) of the draws fall inside it; 4 degrees: 0.7% and 1.9%, so
-    that most photons use up their emission.SPOT_DRAWS draws): a photon is left outside the
-    outer cone only when it used every draw (as often as (1 - P)^SPOT_DRAWS of them, P the
-    chance of a draw falling inside, found here on a grid of the cone), and the caustic group's
-    power is the spot's power over 4 pi times its falloff integrated over the directions inside
-    the boxes' cones (on the grid), within 5 standard errors."""
-    from tlm.kernels.emission import SPOT_DRAWS, bounding_cone, box_cones
+    38% (aim: box) and 58% (parts) of the boxes' cones lie inside it; 4 degrees: 0.7% and
+    1.9%): its caustic photons are drawn where the two cones overlap (emission.spot_aimed), so
+    none is left outside the outer cone, however narrow (at 4 degrees most were, when the draws
+    were made in the boxes' cones and redrawn up to emission.SPOT_DRAWS times), and the caustic
+    group's power is the spot's power over 4 pi times its falloff integrated over the
+    directions inside the boxes' cones (on the grid), within 5 standard errors."""
+    from tlm.kernels.emission import bounding_cone, box_cones
 
     spot = Light("spot", (30.0, 30.0, 30.0), position=(0.0, 1.5, 0.0), direction=(0.0, -1.0, 0.0),
                  inner_angle=outer / 3.0, outer_angle=outer)
@@ -369,14 +369,11 @@ def test_a_spots_caustic_photons_fall_inside_its_outer_cone_with_unbiased_power(
         axes, coss = (x[0] for x in box_cones(pos[None, :], boxes[:, 0], boxes[:, 1]))
     grid, dw = _down_cone_grid(outer)
     holds = grid @ axes.T >= coss[None, :]  # (directions x cones)
-    share = (holds * dw[:, None]).sum() / (2.0 * np.pi * (1.0 - coss)).sum()  # P
     exact = 30.0 / (4.0 * np.pi) * (spot_falloff(grid @ spot.axis, *spot.cone_cosines) * holds.any(axis=1) * dw).sum()
     _, d, power, caustic = emit((spot,), 40_000, photon_key(11), BOX, caustic_fraction=0.5, **kw)
     m = int(caustic.sum())
     outside = (d[caustic] @ spot.axis <= co).sum()
-    miss = (1.0 - share) ** SPOT_DRAWS
-    assert outside <= m * miss + 5.0 * math.sqrt(m * miss) + 1  # (none outside, but those out of draws)
-    assert (outside > m // 2) == (outer == 4.0)  # (in the narrow cone, most use up their draws)
+    assert outside == 0  # (drawn inside the overlap: none outside, even in the narrow cone)
     assert (power[caustic][d[caustic] @ spot.axis <= co] == 0).all()
     total = power[caustic, 0].sum()
     error = power[caustic, 0].std() * math.sqrt(m)

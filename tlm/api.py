@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     from tlm.experiments.reference import Made
     from tlm.experiments.run import RenderResult
     from tlm.experiments.sweep import Outcome
-    from tlm.scenes.model import Light, Scene
+    from tlm.scenes.model import Scene
 
 __all__ = [
     "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "calibrate", "error_vs_cost",
@@ -342,29 +342,11 @@ def scene_info(scene: Scene | str | Path) -> dict:
             for i, m in enumerate(scene.materials)
         ],
         "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
-        "lights": [_light_info(lt) for lt in scene.lights],
+        "lights": [lt.info() for lt in scene.lights],
         "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
                    "up": list(scene.camera.up), "vfov": scene.camera.vfov},
         "notes": [str(n) for n in scene.extra.get("notes") or []],
     }
-
-
-def _light_info(lt: Light) -> dict:
-    """A light as ``tlm scene show`` lists it: its type, power (W) and its kind's own fields
-    (a spot's cone angles in degrees, as a scene file gives them)."""
-    own: dict[str, Any]
-    if lt.kind == "point":
-        own = {"position": list(lt.position)}
-    elif lt.kind == "spot":
-        own = {"position": list(lt.position), "direction": list(lt.direction),
-               "inner_cone_angle": lt.inner_angle, "outer_cone_angle": lt.outer_angle}
-    elif lt.kind == "directional":  # (its power: the irradiance over the disc covering the scene)
-        own = {"direction": list(lt.direction), "irradiance": list(lt.irradiance)}
-    elif lt.kind == "mesh":
-        own = {"materials": lt.name, "triangles": int(lt.ids.shape[0]), "area": lt.area}
-    else:
-        own = {"corner": list(lt.corner), "edge_u": list(lt.edge_u), "edge_v": list(lt.edge_v), "area": lt.area}
-    return {"type": lt.kind, "power": list(lt.power), **own}
 
 
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:

@@ -40,15 +40,19 @@ computes it when nothing is (:func:`ensure_reference`; ``reference.auto``).
 A cache that cannot be written (a read-only ``~/.cache``) loses no reference: ``tlm run``
 uses the one it computed for that run only, and ``tlm reference`` keeps it in the
 temporary folder (``<tmp>/tlm-cache-<uid>/references/<key>``), says where, and exits as
-it would have with a writable cache.
+it would have with a writable cache. That folder is made for this user alone, and one made
+by someone else first (a link, another user's folder, one others may write) is not written
+into (:func:`private_folder`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
 import os
+import stat
 import sys
 import tempfile
 import time
@@ -345,6 +349,8 @@ def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = 
     why = cache_problem(folder)
     if why is not None:
         raise EnvironmentFailure(f"cannot write: {why}", source=str(final))
+    if root is not None:  # (a folder outside the cache: kept_root()'s, in a temporary folder others write too)
+        private_folder(folder, final)
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
         body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
@@ -488,8 +494,46 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
 
 def kept_root() -> Path:
     """Where ``tlm reference`` keeps a reference its cache cannot take: a cache folder of
-    this user's in the temporary folder (``TLM_CACHE`` set to it reads the reference)."""
+    this user's in the temporary folder (``TLM_CACHE`` set to it reads the reference), which
+    :func:`save_reference` makes private (:func:`private_folder`)."""
     return Path(tempfile.gettempdir()) / f"tlm-cache-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+
+
+def private_folder(folder: Path, final: Path) -> None:
+    """Make ``folder`` this user's only before anything is written into it: each of its
+    folders below the temporary folder (``folder`` itself where it is not in it) is made with
+    mode 0700 where it is absent, and one that exists must be a folder, not a symbolic link,
+    owned by this user, that neither its group nor others may write. Another user can make
+    ``<tmp>/tlm-cache-<uid>`` first (a folder of theirs, or a link to one) to read or replace
+    what tlm keeps there: an :class:`~tlm.errors.EnvironmentFailure` naming ``final``, the
+    folder and why, and nothing is written."""
+    folder = Path(folder)
+    tmp = Path(tempfile.gettempdir())
+    chain = [*(p for p in reversed(folder.parents) if tmp in p.parents), folder] if tmp in folder.parents else [folder]
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    try:
+        chain[0].parent.mkdir(parents=True, exist_ok=True)
+        for p in chain:
+            with contextlib.suppress(FileExistsError):
+                os.mkdir(p, 0o700)
+            st = os.lstat(p)
+            if stat.S_ISLNK(st.st_mode):
+                why = f"is a symbolic link (to {os.readlink(p)})"
+            elif not stat.S_ISDIR(st.st_mode):
+                why = "is not a folder"
+            elif uid is not None and st.st_uid != uid:
+                why = f"belongs to user {st.st_uid}, not to this user ({uid})"
+            elif st.st_mode & 0o022:
+                why = f"may be written by its group or others (mode {stat.S_IMODE(st.st_mode):o})"
+            else:
+                continue
+            raise EnvironmentFailure(f"not written: {p} {why}, so another user could read or replace what is kept "
+                                     "there; remove it (or 'chmod go-w' a folder of your own), or set TMPDIR to a "
+                                     "folder of your own", source=str(final))
+    except EnvironmentFailure:
+        raise
+    except OSError as e:
+        raise EnvironmentFailure(f"cannot write: {' '.join(str(e).split())}", source=str(final)) from None
 
 
 def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseException) -> Path:
@@ -499,7 +543,8 @@ def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseExceptio
     root = kept_root()
     try:
         folder = save_reference(key, image, meta, root / "references")
-    except (EnvironmentFailure, OSError, InputError):
+    except (EnvironmentFailure, OSError, InputError) as e:
+        warn(f"reference {key}: not kept in {root} either ({' '.join(str(e).split())})")
         raise error from None
     warn(f"reference {key}: not cached ({' '.join(str(error).split())}): kept in {folder} instead, "
          f"which later runs read with TLM_CACHE={root}")

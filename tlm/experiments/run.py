@@ -280,13 +280,16 @@ def scene_head(scene: Scene, bounds) -> tuple[dict, np.ndarray]:
 
 
 def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
+    """``results.json`` ``scene``: :func:`scene_head`, each material's kind and triangles, each
+    light as ``tlm scene show`` lists it (its type, power and its kind's own fields, so that two
+    runs whose spot cones or sun directions differ differ here too) and the BSP's statistics."""
     head, used = scene_head(scene, lambda lo, hi: [lo.tolist(), hi.tolist()])
     return {
         **head,
         "materials": {
             m.name: {"kind": m.kind, "triangles": int(used[i])} for i, m in enumerate(scene.materials)
         },
-        "lights": [{"type": lt.kind, "power": list(lt.power)} for lt in scene.lights],
+        "lights": [lt.info() for lt in scene.lights],
         "bsp": accel.tree.stats(),
     }
 

@@ -157,6 +157,25 @@ class Light:
         return {"kind": self.kind, "power": self.power, "position": self.position, "corner": self.corner,
                 "edge_u": self.edge_u, "edge_v": self.edge_v}
 
+    def info(self) -> dict:
+        """The light as ``tlm scene show`` lists it (and a run's ``results.json``): its type,
+        power (W) and its kind's own fields (a spot's cone angles in degrees, as a scene file
+        gives them; a directional light's power is its irradiance over the disc covering the scene)."""
+        own: dict
+        if self.kind == "point":
+            own = {"position": list(self.position)}
+        elif self.kind == "spot":
+            own = {"position": list(self.position), "direction": list(self.direction),
+                   "inner_cone_angle": self.inner_angle, "outer_cone_angle": self.outer_angle}
+        elif self.kind == "directional":
+            own = {"direction": list(self.direction), "irradiance": list(self.irradiance)}
+        elif self.kind == "mesh":
+            own = {"materials": self.name, "triangles": int(self.ids.shape[0]), "area": self.area}
+        else:
+            own = {"corner": list(self.corner), "edge_u": list(self.edge_u), "edge_v": list(self.edge_v),
+                   "area": self.area}
+        return {"type": self.kind, "power": list(self.power), **own}
+
     @property
     def axis(self) -> np.ndarray:
         """A spot's or directional light's ``direction`` made unit (:func:`unit_vector`)."""
