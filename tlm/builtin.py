@@ -67,6 +67,42 @@ def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[st
     raise InputError(f"file not found{scene}", source=ref)
 
 
+def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, bool]:
+    """The run config file an experiment file's ``base: NAME`` names (a sweep's), and whether
+    it is a built-in one: as ``tlm run NAME`` finds its config (:func:`experiment_path`),
+    but relative to ``folder``, the experiment file's (``src``; ``beside``: what it is, for
+    the messages: ``sweep file``). A path that exists wins (a folder named as a built-in
+    experiment does not hide it); else a name without ``.yaml`` and ``/`` is the built-in
+    experiment of that name (``base: cornell``: the packaged ``cornell.yaml``). Anything else
+    is an InputError naming ``src`` and the key ``base``: a path whose file name is a
+    built-in experiment's (``base: cornell.yaml`` with no such file in ``folder``) names
+    ``base: cornell``, which is not taken in its place, as on the command line."""
+    if not base.strip():
+        raise InputError("an empty name names no run config file", source=src, key="base")
+    names = list_experiments()
+    file = folder / base
+    if file.is_file():
+        return file, False
+    if file.is_dir() and base not in names:  # (a folder named as a built-in experiment does not hide it)
+        raise InputError(f"{base!r} is a folder: name a run config file", source=src, key="base")
+    yaml_file = base.lower().endswith((".yaml", ".yml"))
+    export = "'tlm config export NAME FILE.yaml' copies one out to edit"
+    if not (yaml_file or "/" in base or os.sep in base):
+        if base in names:
+            return configs_dir() / f"{base}.yaml", True
+        raise InputError(f"{base!r}: neither a file (relative to the {beside}) nor a built-in experiment "
+                         f"('tlm config list -l' lists them; {export}){did_you_mean(base, names)}",
+                         source=src, key="base")
+    stem = Path(base).stem if yaml_file else Path(base).name
+    if stem in names:
+        raise InputError(f"{base!r}: file not found (relative to the {beside}); the built-in experiment of that "
+                         f"name: base: {stem} ('tlm config export {stem} FILE.yaml' copies it out to edit)",
+                         source=src, key="base")
+    raise InputError(f"{base!r}: file not found (relative to the {beside}); a built-in experiment is named "
+                     f"without .yaml (base: cornell; 'tlm config list -l' lists them; {export})",
+                     source=src, key="base")
+
+
 def experiment_command(name: str) -> str:
     """The ``tlm`` command that takes the built-in experiment ``name`` (``run``, ``sweep``,
     ``thesis``, ...): by its keys (:data:`EXPERIMENT_COMMANDS`)."""

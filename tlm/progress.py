@@ -9,7 +9,10 @@ a result; a bar is drawn only when asked for and stderr is a terminal.
 
 from __future__ import annotations
 
+import bisect
+import functools
 import math
+import os
 import sys
 import threading
 import time
@@ -130,11 +133,95 @@ def booked_apart(stage: str, within: str):
             timer._enter(within, now)
 
 
-def progress_bar(enabled: bool, **kwargs):
-    """A tqdm bar on stderr, drawn only when ``enabled`` and stderr is a terminal."""
+# the size a bar takes on a terminal that reports none (0 x 0: a pty whose size was never
+# set, as under `script` and on some CI runners), where $COLUMNS and $LINES do not give one
+FALLBACK_SIZE = (80, 24)
+# a sweep's bar shows no time left until this fraction of the points it runs is done, and then
+# the time left at the rate of the last half of the time (progress_bar's eta_after): a frame's
+# first point renders it, and grid order runs the points of a factor's first value together,
+# so the first points' rate says little of the others'
+SWEEP_ETA_AFTER = 0.1
+# tqdm's default bar, written out (its time left is {remaining})
+_BAR = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}<{remaining}, {rate_fmt}{postfix}]"
+
+
+def terminal_shape(fp) -> tuple[int | None, int | None]:
+    """The (columns, rows) a bar on ``fp`` may use, as tqdm's ``dynamic_ncols`` gives them
+    (the terminal's size less one: a full line would wrap), read again at each redraw so
+    that the bar follows a resized window. A terminal that reports 0 columns or 0 rows
+    takes $COLUMNS / $LINES where they are whole numbers > 0, else :data:`FALLBACK_SIZE`
+    (tqdm's own reading takes 0 x 0 as -1 x -1, and draws nothing). (None, None) where
+    ``fp`` is no terminal."""
+    try:
+        size = os.get_terminal_size(fp.fileno())
+    except (AttributeError, OSError, ValueError):
+        return None, None
+    shape = []
+    for got, name, fallback in zip(size, ("COLUMNS", "LINES"), FALLBACK_SIZE):
+        if got <= 0:
+            given = os.environ.get(name, "").strip()
+            got = int(given) if given.isdigit() and int(given) > 0 else fallback
+        shape.append(got - 1)
+    return shape[0], shape[1]
+
+
+@functools.cache
+def _bar_class():
+    """tqdm's bar, sized by :func:`terminal_shape`, that may hold back its time left and
+    take it from the recent rate (``eta_after``: :func:`progress_bar`)."""
     from tqdm import tqdm
 
-    return tqdm(disable=None if enabled else True, file=sys.stderr, dynamic_ncols=True, **kwargs)
+    class Bar(tqdm):
+        def __init__(self, *args, eta_after: float = 0.0, **kwargs):
+            self.eta_after = eta_after
+            self.seen: list[tuple[float, float]] = []  # (when, steps done then) at each update
+            cols, rows = terminal_shape(kwargs.get("file") or sys.stderr)
+            super().__init__(*args, ncols=cols, nrows=rows, dynamic_ncols=False, **kwargs)
+            self.dynamic_ncols = terminal_shape  # (read at each redraw, as tqdm's own)
+
+        def update(self, n=1):
+            out = super().update(n)
+            if self.eta_after > 0 and not self.disable:
+                self.seen.append((self._time(), self.n))  # (one append: a redraw on another thread reads it)
+            return out
+
+        @property
+        def format_dict(self):
+            d = super().format_dict
+            if self.disable or not self.eta_after > 0 or not self.total:
+                return d
+            rate = self.recent_rate(d["elapsed"])
+            if rate is None:  # (the rate shown: the mean since the bar began)
+                d["bar_format"] = (d["bar_format"] or _BAR).replace("{remaining}", "?")
+            d["rate"] = rate
+            return d
+
+        def recent_rate(self, elapsed: float) -> float | None:
+            """Steps per second over the last half of the time since the bar began, once
+            ``eta_after`` of its steps are done and a step was done in that half; else None."""
+            done = self.n - self.initial
+            if done < max(1, math.ceil(self.eta_after * (self.total - self.initial))) or elapsed <= 0:
+                return None
+            seen = self.seen
+            k = bisect.bisect_right(seen, self.start_t + elapsed / 2, key=lambda e: e[0])  # (those in the first half)
+            recent = self.n - (seen[k - 1][1] if k else self.initial)
+            return recent / (elapsed / 2) if recent > 0 else None
+
+    return Bar
+
+
+def progress_bar(enabled: bool, eta_after: float = 0.0, **kwargs):
+    """A tqdm bar on stderr, drawn only when ``enabled`` and stderr is a terminal, as wide
+    as the terminal (:func:`terminal_shape`: 80 columns where it reports none).
+
+    ``eta_after`` > 0, a fraction of the steps the bar is to count (``total`` less
+    ``initial``, the steps done before): until that many are done (at least one) the time
+    left reads ``?``; from then on the rate, and the time left (the steps left at that
+    rate), are the steps done in the last half of the time since the bar began over that
+    half, not tqdm's moving average of the last few steps. The first steps drop out of it
+    as the bar goes on (a sweep's first points render their frames), and one slow step does
+    not swing it; while no step was done in the last half, the time left reads ``?``."""
+    return _bar_class()(disable=None if enabled else True, file=sys.stderr, eta_after=eta_after, **kwargs)
 
 
 class Ticking:

@@ -21,6 +21,7 @@ from typing import Any
 
 import yaml
 
+from tlm.builtin import EXPERIMENT_COMMANDS, base_path
 from tlm.config import (
     RunConfig,
     check_leaf,
@@ -388,11 +389,16 @@ def load_sweep(path: Path) -> Sweep:
     folder = path.resolve().parent
     base, base_file, base_src = raw.get("base"), None, src
     if isinstance(base, str):
-        file = folder / base
-        if not file.is_file():
-            raise InputError(f"{base!r}: file not found (relative to the sweep file)", source=src, key="base")
-        base_file, base_src, folder = base, str(file), file.resolve().parent
+        file, builtin = base_path(base, folder, src, "sweep file")
+        base_file, base_src = base, str(file)
+        if not builtin:  # (a built-in run config names its scene by name: the sweep's paths start at its folder)
+            folder = file.resolve().parent
         base = read_yaml(file)
+        command = next((c for key, c in EXPERIMENT_COMMANDS if key in base), "run") if isinstance(base, dict) else "run"
+        if command != "run":
+            raise InputError(f"{base_file!r} is an experiment of 'tlm {command}', not a run config: name a run config "
+                             "file, or a built-in run config ('tlm config list -l' says which command takes each one)",
+                             source=src, key="base")
     if base is None:
         base = {}
     if not isinstance(base, dict):
