@@ -18,7 +18,8 @@ from tlm.kernels.traverse import build_accel
 from tlm.render.frame import Frame, cast
 from tlm.render.passes import rcast_pass
 from tlm.scenes.builders import cornell
-from tlm.scenes.loader import load_scene, transform_scene, with_mesh_light
+from tlm.scenes.lights import with_mesh_light
+from tlm.scenes.loader import load_scene, transform_scene
 from tlm.scenes.model import Camera, Light, Material, Scene
 
 LIGHT_Y = 548.3  # half a millimetre below the ceiling: the emitter is geometry, it must not z-fight

@@ -1,0 +1,244 @@
+"""The scene's lights: a scene file's ``lights:`` list checked and built, the point, spot and
+directional lights of its mesh files used when it gives no ``lights:``, and the ``mesh`` light
+of its emitting triangles.
+
+:func:`scene_lights` reads the ``lights:`` list (each item a ``point``, ``quad``, ``spot`` or
+``directional`` light of :data:`LIGHT_KEYS`), or, without the key, takes the lights the
+geometry's mesh files import (:attr:`~tlm.scenes.model.Geometry.imports`), with a line per
+mesh file saying which. Every problem is an :class:`~tlm.errors.InputError` naming the
+file, the key and the value. The scene loader (:mod:`tlm.scenes.loader`) calls it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tlm.errors import InputError, did_you_mean
+from tlm.scenes.model import Geometry, Imported, Light, Material, Scene, directional_power, unit_vector
+from tlm.scenes.validate import MAX_MAGNITUDE
+from tlm.scenes.validate import keys as _keys
+from tlm.scenes.validate import mapping as _mapping
+from tlm.scenes.validate import num as _num
+from tlm.scenes.validate import vec as _vec
+
+LIGHT_KEYS = {"quad": ("type", "corner", "edge_u", "edge_v", "power"), "point": ("type", "position", "power"),
+              "spot": ("type", "position", "direction", "power", "intensity", "inner_cone_angle", "outer_cone_angle"),
+              "directional": ("type", "direction", "irradiance")}
+_POWER = "[r, g, b] in W, each >= 0"
+_POINT = "[x, y, z]"
+_DIRECTION = "[x, y, z], not zero"
+# the keys each light type cannot do without, and what they take (a spot's power may be given as intensity)
+LIGHT_REQUIRED = {
+    "point": (("position", _POINT), ("power", _POWER)),
+    "quad": (("corner", _POINT), ("edge_u", "[x, y, z]"), ("edge_v", "[x, y, z]"), ("power", _POWER)),
+    "spot": (("position", _POINT), ("direction", _DIRECTION + " (the way it shines)"),
+             ("power", f"{_POWER} (4 pi x its intensity), or intensity: [r, g, b] in W/sr")),
+    "directional": (("direction", _DIRECTION + " (the way its light travels)"),
+                    ("irradiance", "[r, g, b] in W per unit area, each >= 0")),
+}
+SPOT_ANGLES = (0.0, 45.0)  # a spot's default inner_cone_angle and outer_cone_angle (degrees; glTF's 0 and pi / 4)
+
+
+def typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) -> tuple[dict, str]:
+    """A mapping with a ``type`` among ``allowed``'s keys and only that type's keys (a light's:
+    :data:`LIGHT_KEYS`; a material's: the loader's ``MATERIAL_KEYS``)."""
+    raw = _mapping(raw, src, key)
+    kind = raw.get("type")
+    if kind not in allowed:
+        raise InputError(
+            f"type {kind!r} is not one of {', '.join(allowed)}{did_you_mean(str(kind), allowed)}",
+            source=src, key=key,
+        )
+    _keys(raw, allowed[kind], src, key)
+    return raw, kind
+
+
+def mesh_light(triangles: np.ndarray, material_index: np.ndarray, materials: tuple[Material, ...]) -> Light | None:
+    """The scene's emitting triangles as one ``mesh`` light, or None when none emits.
+
+    Triangles of zero area are left out (they emit nothing). The power is
+    ``pi * sum(Le * area)``: a Lambertian emitter's radiant exitance is ``pi Le``.
+    """
+    emits = np.array([m.emits for m in materials], dtype=bool)
+    ids = np.flatnonzero(emits[material_index])
+    if ids.shape[0] == 0:
+        return None
+    tri = np.ascontiguousarray(triangles[ids], dtype=np.float64)
+    areas = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    keep = areas > 0
+    ids, tri, areas = ids[keep], tri[keep], areas[keep]
+    if ids.shape[0] == 0:
+        return None
+    le = np.array([m.emission for m in materials], dtype=np.float64)[material_index[ids]]
+    power = np.pi * (le * areas[:, None]).sum(axis=0)
+    names = [materials[i].name for i in np.unique(material_index[ids])]
+    return Light("mesh", tuple(float(x) for x in power), name=", ".join(names),
+                 ids=ids.astype(np.int64), triangles=tri, radiance=le)
+
+
+def with_mesh_light(scene: Scene) -> Scene:
+    """``scene`` with its mesh light (the emitting triangles) rebuilt from its geometry, and its
+    directional lights' power set from its triangles' box (:func:`~tlm.scenes.model.directional_power`)."""
+    from dataclasses import replace
+
+    lights = tuple(lt for lt in scene.lights if lt.kind != "mesh")
+    if any(lt.kind == "directional" for lt in lights):
+        lo, hi = scene.bounds()
+        lights = tuple(replace(lt, power=directional_power(lt.irradiance, lo, hi)) if lt.kind == "directional"
+                       else lt for lt in lights)
+    light = mesh_light(scene.triangles, scene.material_index, scene.materials)
+    return replace(scene, lights=lights if light is None else (*lights, light))
+
+
+def unit_direction(v: tuple[float, float, float], src: str, key: str) -> tuple[float, float, float]:
+    """``v`` itself, or an InputError when it is no direction (zero: it has no length,
+    :func:`~tlm.scenes.model.unit_vector`)."""
+    if unit_vector(v) is None:
+        raise InputError(f"{list(v)} is no direction (it has no length)", source=src, key=key)
+    return tuple(float(x) for x in v)
+
+
+def _spot(raw: dict, key: str, src: str) -> Light:
+    position = _vec(raw.get("position"), src, f"{key}.position")
+    direction = unit_direction(_vec(raw.get("direction"), src, f"{key}.direction"), src, f"{key}.direction")
+    if "power" in raw and "intensity" in raw:
+        raise InputError("give power or intensity, not both (power = 4 pi x intensity)", source=src, key=key)
+    if "intensity" in raw:
+        power = tuple(4.0 * math.pi * x for x in _vec(raw["intensity"], src, f"{key}.intensity", lo=0.0))
+    else:
+        power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
+    inner = _num(raw.get("inner_cone_angle", SPOT_ANGLES[0]), src, f"{key}.inner_cone_angle", lo=0.0, hi=90.0)
+    outer = _num(raw.get("outer_cone_angle", SPOT_ANGLES[1]), src, f"{key}.outer_cone_angle", lo=0.0, hi=90.0,
+                 lo_exclusive=True)
+    if not inner < outer:
+        raise InputError(f"{inner:g} must be less than outer_cone_angle ({outer:g} degrees"
+                         f"{'' if 'outer_cone_angle' in raw else ', the default'})", source=src,
+                         key=f"{key}.inner_cone_angle")
+    light = Light("spot", power, position=position, direction=direction, inner_angle=inner, outer_angle=outer)
+    ci, co = light.cone_cosines
+    if not ci > co:
+        raise InputError(f"inner_cone_angle {inner:g} and outer_cone_angle {outer:g} are too close: their cosines "
+                         "are equal in float64", source=src, key=key)
+    return light
+
+
+def _light(i: int, raw: Any, src: str) -> Light:
+    key = f"lights[{i}]"
+    raw, kind = typed(raw, src, key, LIGHT_KEYS)
+    for need, what in LIGHT_REQUIRED[kind]:
+        if need not in raw and not (kind == "spot" and need == "power" and "intensity" in raw):
+            raise InputError(f"required for type {kind}: {what}", source=src, key=f"{key}.{need}")
+    if kind == "spot":
+        return _spot(raw, key, src)
+    if kind == "directional":
+        direction = unit_direction(_vec(raw.get("direction"), src, f"{key}.direction"), src, f"{key}.direction")
+        irradiance = _vec(raw.get("irradiance"), src, f"{key}.irradiance", lo=0.0)
+        return Light("directional", (0.0, 0.0, 0.0), direction=direction, irradiance=irradiance)
+    power = _vec(raw.get("power"), src, f"{key}.power", lo=0.0)
+    if kind == "point":
+        return Light(kind, power, position=_vec(raw.get("position"), src, f"{key}.position"))
+    light = Light(
+        kind, power,
+        corner=_vec(raw.get("corner"), src, f"{key}.corner"),
+        edge_u=_vec(raw.get("edge_u"), src, f"{key}.edge_u"),
+        edge_v=_vec(raw.get("edge_v"), src, f"{key}.edge_v"),
+    )
+    size = np.linalg.norm(light.edge_u) * np.linalg.norm(light.edge_v)
+    if not light.area > 1e-12 * size or size == 0.0:
+        raise InputError("edge_u and edge_v span no area", source=src, key=key)
+    return light
+
+
+def _grouped(geom: Geometry) -> dict[str, list[Imported]]:
+    """The geometry's imports by mesh file (two items of one file: two entries)."""
+    out: dict[str, list[Imported]] = {}
+    for imp in geom.imports:
+        out.setdefault(imp.source, []).append(imp)
+    return out
+
+
+_KIND_ORDER = ("point", "spot", "directional")
+
+
+def _kinds(imps: list[Imported]) -> list[str]:
+    """The kinds of a file's imported lights, in order."""
+    return [lt.kind for i in imps for lt in i.lights]
+
+
+def _imported_lights(imps: list[Imported]) -> str:
+    """``N point light(s) (KHR_lights_punctual.lights[0] 'lamp' at nodes[2], ...)`` of a file's imports
+    (``N lights (1 point and 1 spot: ...)`` of several kinds)."""
+    names = list(dict.fromkeys(lt.name.removeprefix(f"{Path(imps[0].source).name} ") for i in imps
+                               for lt in i.lights))
+    kinds = _kinds(imps)
+    n = len(kinds)
+    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    items = f", in each of its {len(imps)} geometry items" if len(imps) > 1 else ""
+    counts = [(k, kinds.count(k)) for k in _KIND_ORDER if k in kinds]
+    if len(counts) == 1:
+        return f"{f'{n} {kinds[0]} lights' if n > 1 else f'{kinds[0]} light'} ({shown}{items})"
+    listed = [f"{c} {k}" for k, c in counts]
+    return f"{n} lights ({', '.join(listed[:-1])} and {listed[-1]}: {shown}{items})"
+
+
+def _imported_as(imps: list[Imported]) -> str:
+    """``a tlm point light (power 4 pi x intensity x color W)``: what a file's imported lights become."""
+    kinds = _kinds(imps)
+    present = [k for k in _KIND_ORDER if k in kinds]
+    if len(present) == 1:
+        what = f"tlm {present[0]} lights" if len(kinds) > 1 else f"a tlm {present[0]} light"
+    else:
+        what = "tlm lights of their kinds"
+    units = []
+    if "point" in present or "spot" in present:
+        units.append("power 4 pi x intensity x color W")
+    if "directional" in present:
+        units.append("irradiance intensity x color W per unit area")
+    return f"{what} ({'; '.join(units)})"
+
+
+def _placed(lt: Light, where: str, file: str) -> Light:
+    """An imported light, checked (its position and direction as the geometry item's transform
+    left them: :mod:`tlm.scenes.compose`)."""
+    p = np.asarray(lt.position)
+    if not (np.isfinite(p).all() and np.abs(p).max() <= MAX_MAGNITUDE):
+        raise InputError(f"{where}: its position {list(lt.position)} (with the geometry item's transform) "
+                         f"is not finite or is beyond +-{MAX_MAGNITUDE:g}", source=file)
+    if not max(lt.power) <= MAX_MAGNITUDE:
+        raise InputError(f"{where}: its power {list(lt.power)} W is beyond {MAX_MAGNITUDE:g}", source=file)
+    if not max(lt.irradiance) <= MAX_MAGNITUDE:
+        raise InputError(f"{where}: its irradiance {list(lt.irradiance)} is beyond {MAX_MAGNITUDE:g}", source=file)
+    if lt.kind in ("spot", "directional") and unit_vector(lt.direction) is None:
+        raise InputError(f"{where}: the geometry item's transform leaves it no direction", source=file)
+    return lt
+
+
+def scene_lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], list[str]]:
+    """The scene's lights: the scene file's ``lights:`` when it gives the key (itself or through
+    ``extends``), else the mesh files' point, spot and directional lights
+    (:attr:`Geometry.imports`); and a line per mesh file with such lights saying which it is."""
+    notes = []
+    if "lights" in raw:
+        lights_raw = raw.get("lights") or []
+        if not isinstance(lights_raw, list):
+            raise InputError(f"must be a list, got {lights_raw!r}", source=src, key="lights")
+        for file, imps in _grouped(geom).items():
+            if any(i.lights for i in imps):
+                k = len(_kinds(imps))
+                notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} not used: the scene "
+                             f"file gives lights: (leave lights: out to import {'them' if k > 1 else 'it'})")
+        return tuple(_light(i, v, src) for i, v in enumerate(lights_raw)), notes
+    lights = []
+    for file, imps in _grouped(geom).items():
+        if not any(i.lights for i in imps):
+            continue
+        for lt in (lt for i in imps for lt in i.lights):
+            lights.append(_placed(lt, lt.name.removeprefix(f"{Path(file).name} "), file))
+        k = len(_kinds(imps))
+        notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} imported as "
+                     f"{_imported_as(imps)}: the scene file gives no lights:")
+    return tuple(lights), notes
