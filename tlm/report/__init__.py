@@ -19,6 +19,10 @@ the runs recorded (:mod:`tlm.report.warnings`); then the sections:
 
 A section the inputs have nothing for still appears, saying why. The report folder is
 written whole or not at all (a temporary sibling renamed into place).
+
+Every section names a scene by its file (:func:`tlm.report.collect.scene_label`: the built-in
+``room`` and ``thesis/room`` are two scenes, though both files say ``name: room``), and the
+inputs' paragraph says so where two scenes share a name (:func:`scenes_note`).
 """
 
 from __future__ import annotations
@@ -55,6 +59,20 @@ def sections(inputs: Inputs, out: Path) -> list[Section]:
     order = (tables_section, images_section, scaling_section, sweeps_section, cycles_section, tradeoff_section,
              peers_section, extreme_section, provenance_section)
     return [make(inputs, out) for make in order]
+
+
+def scenes_note(inputs: Inputs) -> str:
+    """A paragraph saying how the report names scenes, where two scenes of the inputs share the
+    name in their files (the built-in ``room`` and ``thesis/room`` both say ``name: room``); ""
+    where none do."""
+    shared = inputs.shared_names()
+    if not shared:
+        return ""
+    each = "; ".join(f"{esc(repr(name))} is the name in the files of {esc(' and '.join(labels))}"
+                     for name, labels in shared)
+    return ("<p>Scenes are named by their files throughout (a built-in scene by its path under scenes/ without "
+            ".yaml: thesis/room is scenes/thesis/room.yaml; another by the path its config gave), not by the "
+            f"name inside the file, which different scenes here share: {each}.</p>")
 
 
 def default_out(dirs: list[Path]) -> Path:
@@ -121,6 +139,7 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
                  f"{len(inputs.studies)} studies ({esc(studies)})."
                  f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
                  f"in {time.perf_counter() - t0:.1f} s. Each figure links to its PNG file.</p>")
+        intro += scenes_note(inputs)
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
                     summary=summary, notice=warnings_html(inputs))
         (tmp / MARKER).write_text(text, encoding="utf-8")

@@ -32,6 +32,7 @@ import csv
 import io
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -54,10 +55,35 @@ class Run:
     results: dict  # results.json
     config: dict  # config.resolved.yaml
     factors: dict[str, Any] = field(default_factory=dict)  # a sweep point's factor values
+    named: str = ""  # the scene's name in the report where :func:`read` set it (see :attr:`scene_label`)
 
     @property
     def scene(self) -> str:
+        """The scene's ``name`` in its file: two files may share it (the built-in ``room`` and
+        ``thesis/room`` are both named ``room``); the report names scenes by :attr:`scene_label`."""
         return str(self.results["scene"]["name"])
+
+    @property
+    def scene_label(self) -> str:
+        """The scene as the report names it, one name for one scene file (:func:`scene_label`):
+        a built-in scene by its name under ``scenes/`` (``thesis/room``, ``room``), another by
+        the path its config gave."""
+        if self.named:
+            return self.named
+        scene = self.results.get("scene") or {}
+        return scene_label(self.config.get("scene"), scene.get("source"), scene.get("name"))
+
+    @property
+    def factors_text(self) -> str:
+        """A sweep point's factor values, ``bsp.levels = 7, cache.pairs = 2`` ("" for another run);
+        a scene factor by the scene's name in the report."""
+        return ", ".join(f"{k} = {self.scene_label if k == 'scene' else _value_text(v)}"
+                         for k, v in self.factors.items())
+
+    @property
+    def title(self) -> str:
+        """The run's label, and a sweep point's factor values: the point a figure shows."""
+        return f"{self.label} ({self.factors_text})" if self.factors else self.label
 
     @property
     def mode(self) -> str:
@@ -77,6 +103,110 @@ class Run:
     def radiance(self) -> Path | None:
         p = self.path / "radiance"
         return p if p.is_dir() else None
+
+
+def _value_text(v: Any) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+SCENE_FOLDERS = ("scenes", "_scenes")  # the built-in scenes' folder in a checkout, and in the wheel
+
+
+def _builtin_under(source: str, names: list[str] | None = None) -> str | None:
+    """The built-in name of the scene file ``source`` (posix text): its path under this
+    installation's scenes folder, or, for a file of another checkout (a run made elsewhere),
+    under a ``scenes`` folder where that path is a built-in name here (``names``: the
+    built-in names; None: that second test is not made). None: neither."""
+    from tlm.scenes.loader import scenes_dir
+
+    p = Path(source)
+    if not p.is_absolute() or p.suffix.lower() not in (".yaml", ".yml"):
+        return None
+    try:
+        return p.resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
+    except (ValueError, OSError):
+        pass
+    if names is None:
+        return None
+    parts = p.parts
+    for i in range(len(parts) - 2, -1, -1):
+        if parts[i] in SCENE_FOLDERS:
+            tail = Path(*parts[i + 1:]).with_suffix("").as_posix()
+            return tail if tail in names else None
+    return None
+
+
+def _same_builtin(source: str) -> str | None:
+    """The built-in name of a scene file on this machine under a ``scenes`` folder whose
+    built-in file of that name here is the same scene (:func:`~tlm.experiments.provenance.scene_identity`:
+    the same bytes, the same ``extends:`` chain), else None."""
+    from tlm.experiments.provenance import scene_identity
+    from tlm.scenes.loader import list_scenes, scenes_dir
+
+    tail = _builtin_under(source, list_scenes())
+    if tail is None or not Path(source).is_file():
+        return None
+    mine = scenes_dir() / f"{tail}{Path(source).suffix}"
+    return tail if mine.is_file() and scene_identity(source) == scene_identity(mine) else None
+
+
+def scene_label(ref: Any, source: Any, name: Any = None) -> str:
+    """A scene as the report names it, so that one name means one scene file throughout.
+
+    ``ref``: the run config's ``scene`` (what the user wrote); ``source``: the scene file the
+    run loaded (``results.json`` ``scene.source``); ``name``: the scene's ``name`` in its file.
+    A built-in scene is named by its path under ``scenes/`` without ``.yaml`` (``room`` is
+    ``scenes/room.yaml``, ``thesis/room`` is ``scenes/thesis/room.yaml``, though both files say
+    ``name: room``), wherever the run was made (a path to a file of another checkout's
+    ``scenes`` folder too, where that file is the built-in one here); another scene file by
+    the path its config gave (relative to that config), or, without a config, by its file's
+    path. The ``name`` alone only where neither is known."""
+    src = str(source).replace("\\", "/") if source else ""
+    if isinstance(ref, str) and ref.strip():
+        r = ref.strip().replace("\\", "/")
+        if not r.lower().endswith((".yaml", ".yml")) and not r.startswith("/") and src.endswith(f"/{r}.yaml"):
+            return r  # a built-in name: the loader takes one without .yaml as built-in first
+        builtin = _builtin_under(src) if src else None
+        if builtin is not None:
+            return builtin
+        n = len(Path(r).parts)  # thesis/ring.yaml: the built-in file (the loader's last resort), of another checkout
+        if (not r.startswith(("/", ".")) and src.endswith(f"/{r}") and len(Path(src).parts) > n
+                and Path(src).parts[-n - 1] in SCENE_FOLDERS):
+            return r.rsplit(".", 1)[0]
+        same = _same_builtin(src)  # (a path to a built-in file of another checkout: ../scenes/room.yaml)
+        return same if same is not None else r
+    if src:
+        from tlm.scenes.loader import list_scenes
+
+        return _builtin_under(src, list_scenes()) or src
+    return str(name) if name is not None else "(scene unknown)"
+
+
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.~/-])/[^\s:;,'\"()<>]*[^\s:;,'\"()<>.]")  # (not a sentence's full stop)
+
+
+def shown_path(path: str, folder: Path | None = None) -> str:
+    """An absolute path a run recorded (on the machine it ran on, in a temporary checkout
+    perhaps) as the report shows it: a built-in scene file by its place in the repository
+    (``scenes/extreme/bad_scale_zero.yaml``), a file in ``folder`` (the run's or study's
+    folder) relative to it, one under the current folder relative to that; else as given."""
+    from tlm.scenes.loader import list_scenes
+
+    p = Path(path)
+    builtin = _builtin_under(path, list_scenes())
+    if builtin is not None:
+        return f"scenes/{builtin}{p.suffix}"
+    for base in ([Path(folder)] if folder is not None else []) + [Path.cwd()]:
+        try:
+            return p.relative_to(base.resolve()).as_posix() or "."
+        except (ValueError, OSError):
+            continue
+    return path
+
+
+def shown_paths(text: str, folder: Path | None = None) -> str:
+    """``text`` (a recorded message) with each absolute path in it as :func:`shown_path` shows it."""
+    return _ABSOLUTE_PATH.sub(lambda m: shown_path(m.group(0), folder), text)
 
 
 @dataclass
@@ -126,6 +256,41 @@ class Inputs:
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]
+
+    def _all_runs(self) -> list[Run]:
+        return [*self.runs, *(r for sw in self.scaling_sweeps for r in sw.runs)]
+
+    def scene_of_file(self, source: Any, name: Any = None) -> str:
+        """The report's name (:func:`scene_label`) of the scene file ``source``: that of the runs
+        that loaded it, else one made from its path (``name``: the scene's name in its file)."""
+        if source:
+            for r in self._all_runs():
+                if str((r.results.get("scene") or {}).get("source")) == str(source):
+                    return r.scene_label
+        return scene_label(None, source, name)
+
+    def study_scene(self, study: Study, scene: Any) -> str:
+        """A study table's scene (its rows name it by the name in its file, or eq. 5.2's label)
+        as the report names it: by the scene file of the study's cells, or of its fits."""
+        scene = str(scene)
+        if study.kind == "thesis":
+            root = study.path.resolve()
+            for r in self.runs:
+                if r.kind == "thesis" and r.scene == scene and r.path.resolve().parent.parent == root:
+                    return r.scene_label
+        if study.kind == "scaling":
+            for f in study.meta.get("fits") or []:
+                if str(f.get("scene")) == scene and f.get("scene_file"):
+                    return self.scene_of_file(f["scene_file"], scene)
+        return scene
+
+    def shared_names(self) -> list[tuple[str, list[str]]]:
+        """The scenes' names in their files that two or more scenes of the inputs share, each
+        with the report's names of those scenes: ``[("room", ["room", "thesis/room"])]``."""
+        names: dict[str, set[str]] = {}
+        for r in self._all_runs():
+            names.setdefault(r.scene, set()).add(r.scene_label)
+        return [(n, sorted(labels)) for n, labels in sorted(names.items()) if len(labels) > 1]
 
 
 def _json(path: Path) -> Any:
@@ -409,10 +574,12 @@ def read(dirs: list[Path]) -> Inputs:
         labels.add(out)
         return out
 
+    labelled: list[tuple[Run, Any]] = []  # each run and how its label reads, given its scene's name
+
     for folder, kind in folders:
         if kind == "run":
             run = _run(folder, "", "run")
-            run.label = unique(f"{folder.name}: {run.scene}/{run.mode}")
+            labelled.append((run, lambda r, name=folder.name: f"{name}: {r.scene_label}/{r.mode}"))
             inputs.runs.append(run)
         elif kind == "thesis":
             rows = _thesis_rows(folder / "thesis_comparison.csv")
@@ -422,7 +589,7 @@ def read(dirs: list[Path]) -> Inputs:
             _study_records(inputs.studies[-1], folder)
             for cell in sorted(folder.glob("*/*/results.json")):
                 run = _run(cell.parent, "", "thesis")
-                run.label = unique(f"{run.scene}/{run.mode}")
+                labelled.append((run, lambda r: f"{r.scene_label}/{r.mode}"))
                 inputs.runs.append(run)
         elif kind == "sweep":
             spec = _yaml(folder / "sweep.yaml") or {}
@@ -448,13 +615,32 @@ def read(dirs: list[Path]) -> Inputs:
                     continue
                 run = _run(point, "", "sweep-point")
                 run.factors = dict(run.results.get("factors") or {})
-                run.label = unique(f"{folder.name} #{row.get('point')}")
+                text = f"{folder.name} #{row.get('point')}"
+                labelled.append((run, lambda r, text=text: text))
                 runs.append(run)
             inputs.sweeps.append(Sweep(folder, spec, rows, runs))
             inputs.runs.extend(runs)
         else:
             _study(inputs, folder, kind)
+    name_scenes(inputs.runs)
+    for run, label in labelled:
+        run.label = unique(label(run))
     return inputs
+
+
+def name_scenes(runs: list[Run]) -> None:
+    """Fix each run's :attr:`Run.scene_label`: where two scene files that are not built-in
+    would get one name (the same path written in two configs, relative to two folders), each
+    is named by its file's path instead."""
+    files: dict[str, set[str]] = {}
+    for r in runs:
+        files.setdefault(r.scene_label, set()).add(str((r.results.get("scene") or {}).get("source")))
+    for r in runs:
+        label = r.scene_label
+        if label.lower().endswith((".yaml", ".yml")) and len(files[label]) > 1:
+            r.named = str(r.results["scene"].get("source"))
+        else:
+            r.named = label
 
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:

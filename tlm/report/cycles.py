@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import re
+import textwrap
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,7 +108,7 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
     if thesis:
         by_scene: dict[str, list[Run]] = defaultdict(list)
         for r in thesis:
-            by_scene[r.scene].append(r)
+            by_scene[r.scene_label].append(r)
         picks = [max(rs, key=_throughput) for rs in by_scene.values()]
         chosen += picks
         if len(picks) < len(thesis):
@@ -222,8 +223,8 @@ def breakdown_figure(run: Run, out: Path, name: str):
                    label=f"TThru (frame period): {bd.throughput / scale:.4g}")
     ax.set_xticks(x, bd.labels, fontsize=8)
     ax.set_ylim(0, 1.06 * max(top, bd.throughput) / scale or 1.0)
-    ax.set(xlabel="Processing Module", ylabel=f"{unit} per frame",
-           title=f"{run.label}: eq. 5.1 breakdown per PM")
+    ax.set(xlabel="Processing Module", ylabel=f"{unit} per frame")
+    _title(ax, f"{run.label}: eq. 5.1 breakdown per PM", run)
     ax.grid(True, axis="y", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     caption = (f"Cycles per frame (totals over {bd.frames} simulated frames / {bd.frames}); each bar reaches the "
@@ -231,7 +232,20 @@ def breakdown_figure(run: Run, out: Path, name: str):
     caption += (f"Bars: {bd.aggregate}." if bd.aggregate else "Bars: every PM of every pipeline.")
     if empty:
         caption += f" No cycles (not drawn): {', '.join(SEGMENT_LABELS[s] for s in empty)}."
-    return save(fig, out, name, f"{run.label}: where the cycles go (eq. 5.1)", caption)
+    return save(fig, out, name, f"{run.title}: where the cycles go (eq. 5.1)", _point(run) + caption)
+
+
+def _title(ax, title: str, run: Run) -> None:
+    """The axes' title: ``title``, and under it a sweep point's factor values (which point)."""
+    if run.factors:
+        ax.set_title(f"{title}\n{textwrap.fill(run.factors_text, 90)}", fontsize=10)
+    else:
+        ax.set_title(title)
+
+
+def _point(run: Run) -> str:
+    """The caption's first words for a sweep point: which point of which sweep it is."""
+    return f"Sweep point {run.label}: {run.factors_text}. " if run.factors else ""
 
 
 # -- (b) the timeline ------------------------------------------------------------------------
@@ -466,7 +480,8 @@ def gantt_figure(run: Run, out: Path, name: str, notes: list[str]):
     ax.set_yticks(range(len(rows)), list(reversed(rows)), fontsize=7)
     ax.set_ylim(-0.6, len(rows) - 0.4)
     ax.set_xlim(0, g.end * k)
-    ax.set(xlabel=xlabel, title=f"{run.label}: busy, stalled and idle over time")
+    ax.set(xlabel=xlabel)
+    _title(ax, f"{run.label}: busy, stalled and idle over time", run)
     if clock:
         top = ax.secondary_xaxis("top", functions=(lambda t: t / k / 1e6, lambda c: c * 1e6 * k))
         top.set_xlabel("million cycles", fontsize=8)
@@ -484,7 +499,7 @@ def gantt_figure(run: Run, out: Path, name: str, notes: list[str]):
         caption += (f" {g.rects()} spans are more than the picture can show: each of {BINS} columns of a row "
                     f"shows the state other than idle that fills most of it (idle only where nothing else "
                     f"happens).")
-    return save(fig, out, name, f"{run.label}: timeline of every unit", caption)
+    return save(fig, out, name, f"{run.title}: timeline of every unit", _point(run) + caption)
 
 
 # -- the section -----------------------------------------------------------------------------

@@ -1,14 +1,17 @@
 """Section: the stiff and extreme cases of ``tlm extreme``, expected against measured.
 
 One table per ``tlm extreme`` folder, grouped by category: the case, the behaviour it
-expects, what was measured, and whether that is what was expected.
+expects, what was measured, and whether that is what was expected. A path in what was
+measured (a bad-input case's error names the scene file, as it was on the machine that ran
+it) is shown as :func:`tlm.report.collect.shown_path` shows it: a built-in scene file by its
+place in the repository, a file of the study's folder relative to it.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from tlm.report.collect import Inputs
+from tlm.report.collect import Inputs, shown_paths
 from tlm.report.common import Section
 from tlm.report.html import esc
 
@@ -25,8 +28,9 @@ def extreme_section(inputs: Inputs, out: Path) -> Section:
                      '<th class="l">measured</th><th class="l">result</th><th>host s</th></tr>')
         for r in sorted(st.rows, key=lambda r: r["category"]):
             verdict = "as expected" if r["passed"] else "<strong>NOT as expected</strong>"
+            measured = shown_paths(str(r["measured"]), st.path)  # (no path of the machine that ran it)
             parts.append(f'<tr><td class="l">{esc(r["category"])}</td><td class="l">{esc(r["case"])}</td>'
-                         f'<td class="l">{esc(r["expect"])}</td><td class="l">{esc(r["measured"])}</td>'
+                         f'<td class="l">{esc(r["expect"])}</td><td class="l">{esc(measured)}</td>'
                          f'<td class="l">{verdict}</td><td>{r["seconds"]:.2f}</td></tr>')
         parts.append("</table>")
     sec.html = "\n".join(parts)

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import MODES
+from tlm.experiments.thesis import THESIS_SCENES
 from tlm.render.image import to_srgb8
 from tlm.render.planner import PASSES
 from tlm.report.collect import Inputs, Run
@@ -61,6 +62,18 @@ class Row:
     label: str
     resolution: str
     panels: list[Panel] = field(default_factory=list)
+
+
+def scene_title(run: Run) -> str:
+    """The run's scene as the report names it (its file: ``thesis/room``), with the thesis's
+    title and figure where it is the thesis's scene (``thesis/room: Room scene (Fig. 16)``); a
+    scene that only shares the name of one (the built-in ``room``) says that it is not that one."""
+    label = run.scene_label
+    if run.scene not in SCENE_TITLE:
+        return label
+    if THESIS_SCENES.get(run.scene) == label:
+        return f"{label}: {SCENE_TITLE[run.scene]}"
+    return f"{label}, not the thesis's {SCENE_TITLE[run.scene]}"
 
 
 def _read_png(path: Path) -> np.ndarray:
@@ -235,14 +248,14 @@ def images_section(inputs: Inputs, out: Path) -> Section:
         root = study.path.resolve()
         cells = [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
         in_study.update(r.path.resolve() for r in cells)
-        order = list(SCENE_TITLE)
-        scenes = sorted(dict.fromkeys(r.scene for r in cells), key=lambda s: (order.index(s) if s in order else 9, s))
+        order = list(THESIS_SCENES.values())
+        scenes = sorted(dict.fromkeys(r.scene_label for r in cells),
+                        key=lambda s: (order.index(s) if s in order else 9, s))
         rows = []
         for scene in scenes:
-            by_mode = {r.mode: r for r in cells if r.scene == scene}
+            by_mode = {r.mode: r for r in cells if r.scene_label == scene}
             any_run = next(iter(by_mode.values()))
-            rows.append(Row(SCENE_TITLE.get(scene, scene), _resolution(any_run),
-                            study_panels(by_mode, study.path.name)))
+            rows.append(Row(scene_title(any_run), _resolution(any_run), study_panels(by_mode, study.path.name)))
         if not rows:
             section.notes.append(f"thesis study {study.path.name}: no cell folders, so no images")
             continue
@@ -271,7 +284,7 @@ def images_section(inputs: Inputs, out: Path) -> Section:
         many = len(with_images) > MAX_ROWS
         title = "Runs: image sets by mode" + (f" ({n})" if many else "")
         if len(part) == 1:
-            title = f"{SCENE_TITLE.get(part[0].scene, part[0].scene)}: image set by mode, {part[0].label}"
+            title = f"{scene_title(part[0])}: image set by mode, {part[0].label}"
         jobs.append((rows, title, f"images_runs{'_' + str(n) if many else ''}.png",
                      "Each panel is the cumulative composite of its mode (the sum of the passes run up to it), "
                      "rebuilt from the run's linear radiance and tone-mapped with the run's one exposure."))

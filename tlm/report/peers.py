@@ -22,6 +22,7 @@ from tlm.config import MODES
 from tlm.experiments.thesis import THESIS
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import Section, bar_style, colour, marker, new_figure, save
+from tlm.report.tables import SCENE_TITLE, TABLE_NUMBER
 
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
 MAX_OURS_ROWS = 12
@@ -69,6 +70,12 @@ THESIS_SIZES = {"ring": "320×240, 20,000 photons", "room": "320×240, 80,000 ph
                 "cornell": "320×320, 120,000 photons"}
 
 
+def _thesis_row(table: str) -> str:
+    """The thesis's own frame rates of one of its tables, named by the table, not by a scene
+    name of ours (its room is our ``thesis/room``, not the built-in ``room``)."""
+    return f"thesis, Table {TABLE_NUMBER[table]}: {SCENE_TITLE[table]}"
+
+
 @dataclass
 class OursRow:
     label: str
@@ -102,10 +109,10 @@ def ours_rows(inputs: Inputs, notes: list[str]) -> list[OursRow]:
             notes.append(f"{run.label}: no simulated FPS in results.json, left out")
             continue
         src = owner.get(run.path.resolve(), run.label)
-        key = (src, run.scene)
+        key = (src, run.scene_label)  # (the scene by its file: the built-in room is not thesis/room)
         if key not in rows:
             label = f"ours: {src}"
-            rows[key] = OursRow(label, run.scene, label if src == run.label else f"{label}, {run.scene}")
+            rows[key] = OursRow(label, run.scene_label, label if src == run.label else f"{label}, {run.scene_label}")
         rows[key].add(run)
     return list(rows.values())
 
@@ -150,7 +157,7 @@ def _chart(rows: list[OursRow], out: Path):
             ax.plot([fps[i]], [y + _offset(i)], marker=_mode_marker(i), markersize=7, linestyle="none",
                     markerfacecolor="white", markeredgecolor=_mode_colour(i), markeredgewidth=1.4)
         values += list(fps)
-        labels.append(f"thesis: {scene} ({THESIS_SIZES[scene].split(',')[0]})")
+        labels.append(f"{_thesis_row(scene)} ({THESIS_SIZES[scene].split(',')[0]})")
         y += 1
     ax.axhline(y - 0.5, color="#999", linewidth=0.6)
     for row in rows:
@@ -201,8 +208,9 @@ def _html(rows: list[OursRow]) -> str:
                    f"<td>{e(p.quoted)}</td><td>{e(fps)}</td></tr>")
     for scene, table in THESIS.items():
         fps = ", ".join(f"{MODE_TITLE[m]} {v:g}" for m, v in zip(MODES, table["FPS"]))
-        out.append(f'<tr class="thesis"><td>{e(f"thesis: {scene}")}</td><td>{e(THESIS_SOURCE)}</td>'
-                   f"<td>{e(f'{scene} scene, {THESIS_SIZES[scene]}')}</td><td>FPS row</td><td>{e(fps)}</td></tr>")
+        what = f"the thesis's {SCENE_TITLE[scene]}, {THESIS_SIZES[scene]}"
+        out.append(f'<tr class="thesis"><td>{e(_thesis_row(scene))}</td><td>{e(THESIS_SOURCE)}</td>'
+                   f"<td>{e(what)}</td><td>FPS row</td><td>{e(fps)}</td></tr>")
     for row in rows:
         fps = ", ".join(f"{MODE_TITLE[m]} {_fps_text(row.fps[m])}" for m in MODES if m in row.fps)
         out.append(f'<tr class="ours"><td>{e(row.label)}</td><td>this simulation (results.json fps)</td>'

@@ -32,7 +32,7 @@ from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import Figure, Section, colour, legend_below, marker, new_figure, write_png
 from tlm.report.html import esc
-from tlm.report.sweeps import PMS, factors_of
+from tlm.report.sweeps import PMS, factors_of, named_rows
 
 # one colour per PM kind (the yellow of the palette is too faint for a thin line); the
 # scheduler is the line style: static solid, dynamic dashed, any other dotted
@@ -99,16 +99,21 @@ def _fits_of_study(study) -> dict[tuple, dict]:
     return fits
 
 
-def _fits_of_sweep(sweep, notes: list[str]) -> dict[tuple, dict]:
+def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None) -> dict[tuple, dict]:
+    """Eq. 5.2 fitted over the sweep's points; ``names`` is given each group's scene (eq. 5.2's
+    label) as the report names it (the scene of the group's points)."""
     records = []
     for run in sweep.runs:  # (read once by collect.read)
         rec = eq52.record(run.results, run.config)
+        rec["report_name"] = run.scene_label
         records.append(rec)
         if rec["steady"] is False:
             factors = ", ".join(f"{k} = {v}" for k, v in run.factors.items())
             notes.append(f"{run.label}{f' ({factors})' if factors else ''}: {eq52.unsteady(rec)}")
     fits = {}
     for key, pts in eq52.groups(records).items():
+        if names is not None:
+            names[key[0]] = pts[0]["report_name"]
         for target in eq52.TARGETS:
             try:
                 fits[(*key, target)] = eq52.fit_both(pts, target)
@@ -136,7 +141,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
     cannot be drawn is said in ``notes``.
     """
     name = sw.path.name
-    ok = [r for r in sw.rows if r.get("status") == "ok"]
+    ok = [r for r in named_rows(sw) if r.get("status") == "ok"]
     if not ok:
         notes.append(f"{name}: no idle fractions to draw: no finished point")
         return {}
@@ -238,7 +243,10 @@ def _slug(text: str) -> str:
 
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
-    sources: list[tuple[str, dict]] = [(s.path.name, _fits_of_study(s)) for s in inputs.of_kind("scaling")]
+    # (folder, fits, each fit's scene, eq. 5.2's label, as the report names scenes: by the scene's file)
+    sources: list[tuple[str, dict, dict[str, str]]] = [
+        (s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits})
+        for s in inputs.of_kind("scaling") for fits in [_fits_of_study(s)]]
     stale: dict[str, str] = {}  # a scaling folder -> why its fit no longer shows its sweeps
     for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
         sec.notes.extend(f"{st.path.name}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
@@ -254,20 +262,22 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
         if not sw.runs:
             sec.notes.append(f"{sw.path.name}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
-        sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes)))
+        names: dict[str, str] = {}
+        sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes, names), names))
     sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
         else:
             sec.notes.append(f"{sw.path.name}: does not vary arch.pipelines, no idle figure")
-    for name, fits in sources:
+    for name, fits, named in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
-            file = f"scaling_{_slug(name)}_{eq52.file_slug(scene)}.png"
-            plot_scaling(scene, mine, out / file, name)
+            file = f"scaling_{_slug(name)}_{eq52.file_slug(scene)}.png"  # (eq. 5.2's name: the file keeps its name)
+            shown = named.get(scene, scene)
+            plot_scaling(shown, mine, out / file, name)
             worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
-            sec.figures.append(Figure(file, f"{scene}: scaling from {name}{' (out of date)' if name in stale else ''}",
+            sec.figures.append(Figure(file, f"{shown}: scaling from {name}{' (out of date)' if name in stale else ''}",
                                              stale.get(name, "") +
                                              "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                              "least squares elsewhere; dotted: the slowest-pipeline variant. "

@@ -23,10 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import ArchConfig
-from tlm.experiments.thesis import median_words
+from tlm.experiments.thesis import THESIS_SCENES, median_words
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
+from tlm.report.sweeps import named_rows
 from tlm.report.tables import study_summaries
 
 MODES = ("rcast", "reflect", "refract", "pmap")
@@ -58,20 +59,22 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             and not isinstance(r.results.get("fps"), bool) and r.results["fps"] > 0]
     if thesis:
         rows = [r for r in thesis[0].rows if r["metric"] == "FPS"]
-        ours = {(r["scene"], r["mode"]): r["ours"] for r in rows}
-        theirs = {(r["scene"], r["mode"]): r["thesis"] for r in rows}
         cells = {(r.path.parent.name, r.path.name): _pipelines(r) for r in inputs.runs
                  if r.kind == "thesis" and r.path.parent.parent == thesis[0].path}
         study = _configured(thesis[0].meta.get("config") or {})  # (a cell whose folder is not there)
-        pipes = {k: cells.get((str(k[0]), str(k[1])), study) for k in ours}
+        pipes = {(r["scene"], r["mode"]): cells.get((str(r["scene"]), str(r["mode"])), study) for r in rows}
+        named = {s: inputs.study_scene(thesis[0], s) for s, _ in pipes}  # (the scene by its file, as in §1)
+        ours = {(named[r["scene"]], r["mode"]): r["ours"] for r in rows}
+        theirs = {(named[r["scene"]], r["mode"]): r["thesis"] for r in rows}
+        pipes = {(named[s], m): n for (s, m), n in pipes.items()}
         others = sorted(fast, key=lambda r: r.results["fps"])
     else:
         ours, drawn = {}, {}
         for r in fast:  # (a second run of a scene-mode has no bar of its own: it is said in the text)
-            if (r.scene, r.mode) in drawn:
+            if (r.scene_label, r.mode) in drawn:
                 others.append(r)
             else:
-                drawn[(r.scene, r.mode)] = r
+                drawn[(r.scene_label, r.mode)] = r
         ours = {k: r.results["fps"] for k, r in drawn.items()}
         pipes = {k: _pipelines(r) for k, r in drawn.items()}
         others.sort(key=lambda r: r.results["fps"])
@@ -79,8 +82,7 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
     if not ours:
         return "No run or thesis study among the inputs: no frame rate to show.", None
-    scenes = sorted({s for s, _ in ours}, key=lambda s: ("ring", "room", "cornell").index(s)
-                    if s in ("ring", "room", "cornell") else 9)
+    scenes = sorted({s for s, _ in ours}, key=_scene_order)
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
     width = 0.8 / 4
@@ -132,27 +134,34 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def _scene_order(label: str) -> tuple:
+    """The thesis's scenes first, in the order of its tables (ring, room, Cornell), then the others."""
+    order = list(THESIS_SCENES.values())
+    return (order.index(label) if label in order else len(order), label)
+
+
 def _count(n: int, what: str) -> str:
     return f"{n} {what}{'s' * (n != 1)}"
 
 
 def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     cells: dict[tuple[str, str], dict[str, float]] = {}
+    cell_of: dict[tuple[str, str], str] = {}  # a cell of the thesis's scenes: its key in the study's summary
     for r in inputs.runs:
-        if r.kind != "thesis" and not (r.kind == "run" and (r.scene, r.mode) not in cells):
+        if r.kind != "thesis" and not (r.kind == "run" and (r.scene_label, r.mode) not in cells):
             continue
         units = (r.results.get("timing") or {}).get("units") or {}
         busy = {pm: units[f"pipe0.{pm}"]["fractions"]["busy"] for pm in PMS
                 if f"pipe0.{pm}" in units and "fractions" in units[f"pipe0.{pm}"]}
         if len(busy) == len(PMS):
-            cells[(r.scene, r.mode)] = busy
+            cells[(r.scene_label, r.mode)] = busy
+            if THESIS_SCENES.get(r.scene) == r.scene_label:  # (the thesis's scene: its slowest PM is known)
+                cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
     if not cells:
         return "No run records its units' busy fractions: no bottleneck to show.", None
     thesis = inputs.of_kind("thesis")
     slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
-    scene_order = ("ring", "room", "cornell")
-    keys = sorted(cells, key=lambda k: (scene_order.index(k[0]) if k[0] in scene_order else 9, k[0],
-                                        MODES.index(k[1]) if k[1] in MODES else 9))
+    keys = sorted(cells, key=lambda k: (_scene_order(k[0]), MODES.index(k[1]) if k[1] in MODES else 9))
     grid = np.array([[cells[k][pm] for pm in PMS] for k in keys])
     fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
     ax = fig.add_subplot()
@@ -161,7 +170,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         for j, pm in enumerate(PMS):
             v = grid[i, j]
             mark = ""
-            if slowest.get(f"{k[0]}/{k[1]}", {}).get("thesis") == PM_METRIC[pm]:
+            if k in cell_of and slowest.get(cell_of[k], {}).get("thesis") == PM_METRIC[pm]:
                 mark = " ▲"
             ax.text(j, i, f"{100 * v:.0f}%{mark}", ha="center", va="center", fontsize=7,
                     color="white" if v > 0.55 else "black", fontweight="bold" if j == grid[i].argmax() else None)
@@ -188,12 +197,14 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     if not rows:
         return "No eq. 5.2 study among the inputs: no scaling to show.", None
     by = defaultdict(list)
-    for r in rows:
-        by[r["scene"]].append(r)
+    for st in inputs.of_kind("scaling"):
+        for r in st.rows:
+            if r.get("target") == "throughput" and r.get("scheduler") == "static":
+                by[inputs.study_scene(st, r["scene"])].append(r)  # (the scene by its file, as in §3)
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
     top_n, gains = 1, []
-    for i, (scene, rs) in enumerate(sorted(by.items())):
+    for i, (scene, rs) in enumerate(sorted(by.items(), key=lambda kv: _scene_order(kv[0]))):
         rs = sorted(rs, key=lambda r: r["pipelines"])
         ref = rs[0]["simulated"]
         n = [r["pipelines"] for r in rs]
@@ -271,7 +282,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
     of its best value's mean to its worst's) and the point of the highest frame rate."""
     texts = []
     for sw in inputs.sweeps:
-        rows = [r for r in sw.rows if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
+        rows = [r for r in named_rows(sw) if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
         factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
         if not rows or not factors:
             continue

@@ -4,9 +4,12 @@ Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slo
 PM, host seconds; a failed point with its error) and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
 factors (up to :data:`MAX_SERIES`; more are drawn as their median with the min-max
-band, and a note says so). Combinations that draw the same line are drawn once, one label
-naming them all; the legend is under the plot, its labels wrapped to the figure's width,
-and the figure grows by its height, so that no label squeezes the plot.
+band, and a note says so). A factor that is not a number (a scene, a mode) is a category:
+its values are points side by side (the median and a min-max bar beyond
+:data:`MAX_SERIES`), never joined by a line. A point's scene is named as the report names
+scenes, by its file (:func:`named_rows`). Combinations that draw the same line are drawn
+once, one label naming them all; the legend is under the plot, its labels wrapped to the
+figure's width, and the figure grows by its height, so that no label squeezes the plot.
 
 A sweep over ``bsp.levels`` also gets the thesis's balance claim ("floor(ln n) levels,
 with n denoting the number of photons and/or triangles, yields good performance balance"
@@ -58,10 +61,23 @@ def factors_of(sw: Sweep) -> list[str]:
     return [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
 
 
+def named_rows(sw: Sweep) -> list[dict]:
+    """The sweep's rows with a point's ``scene`` as the report names scenes (the scene file's
+    name under ``scenes/``, :attr:`~tlm.report.collect.Run.scene_label`), not as its config
+    wrote it: the sweep's ``room`` and a thesis study's ``room`` may be two files. A row
+    without a results folder keeps what its config wrote."""
+    by_hash = {r.path.name: r for r in sw.runs}
+    out = []
+    for r in sw.rows:
+        run = by_hash.get(str(r.get("hash")))
+        out.append({**r, "scene": run.scene_label} if run is not None and "scene" in r else r)
+    return out
+
+
 def table(sw: Sweep) -> str:
     factors = factors_of(sw)
     head = ["point", *factors, "status", "FPS", "TThru (M cycles)", "slowest PM", "host s"]
-    rows = sorted(sw.rows, key=lambda r: r.get("point", 0))
+    rows = sorted(named_rows(sw), key=lambda r: r.get("point", 0))
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     for r in rows[:MAX_ROWS]:
         if r.get("status") == "ok":
@@ -136,8 +152,11 @@ def _legend_below(fig, ax, width: float, height: float) -> None:
 
 
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
-    """FPS against ``factor``; one line per combination of the other factors."""
-    ok = [r for r in sw.rows if r.get("status") == "ok" and r.get("fps") is not None]
+    """FPS against ``factor``; one line per combination of the other factors. A factor of
+    numbers is an axis of numbers and its points are joined by lines; any other factor (a
+    scene, a mode: categories, with no order or distance between them) is drawn as points
+    at its categories, the combinations side by side, with no line between categories."""
+    ok = [r for r in named_rows(sw) if r.get("status") == "ok" and r.get("fps") is not None]
     others = [f for f in factors_of(sw) if f != factor]
     values = sorted({_key(r.get(factor)) for r in ok}, key=_order)
     if len(values) < 2:
@@ -150,9 +169,15 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
     if len(series) <= MAX_SERIES:
-        for i, (labels, pts) in enumerate(_merge_identical(series, others)):
+        lines = _merge_identical(series, others)
+        for i, (labels, pts) in enumerate(lines):
             vs = [v for v in values if v in pts]
-            ax.plot(xs_of(vs), [pts[v] for v in vs], label=labels, **line_style(i))
+            if numeric:
+                ax.plot(xs_of(vs), [pts[v] for v in vs], label=labels, **line_style(i))
+            else:  # (categories: points side by side at each, no line across)
+                dx = _dodge(i, len(lines))
+                ax.plot([x + dx for x in xs_of(vs)], [pts[v] for v in vs], label=labels,
+                        **{**line_style(i), "linestyle": "none", "markersize": 7})
     else:
         med, lo, hi = [], [], []
         for v in values:
@@ -160,9 +185,14 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             med.append(float(np.median(ys)))  # (the mean of the two middle values when their count is even)
             lo.append(ys[0])
             hi.append(ys[-1])
-        ax.fill_between(xs_of(values), lo, hi, color="0.8", hatch="///", edgecolor="0.5",
-                        label=f"min-max over {len(series)} combinations of {', '.join(others)}")
-        ax.plot(xs_of(values), med, label="median", **line_style(0))
+        spread = f"min-max over {len(series)} combinations of {', '.join(others)}"
+        if numeric:
+            ax.fill_between(xs_of(values), lo, hi, color="0.8", hatch="///", edgecolor="0.5", label=spread)
+            ax.plot(xs_of(values), med, label="median", **line_style(0))
+        else:  # (categories: the median as a point, the range as a bar through it, no line across)
+            ax.errorbar(xs_of(values), med, yerr=[np.subtract(med, lo), np.subtract(hi, med)], fmt="none",
+                        ecolor="0.35", elinewidth=6, alpha=0.45, label=spread)
+            ax.plot(xs_of(values), med, label="median", **{**line_style(0), "linestyle": "none", "markersize": 7})
         notes.append(f"{sw.path.name}: FPS against {factor} shows the median and range over {len(series)} "
                      f"combinations of the other factors (more than {MAX_SERIES} lines)")
     if numeric:
@@ -173,6 +203,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     else:
         ax.set_xticks(range(len(values)), [_fmt(v) for v in values])
+        ax.set_xlim(-0.5, len(values) - 0.5)
     fps = [r["fps"] for r in ok]
     if min(fps) > 0 and max(fps) / min(fps) >= 100:
         ax.set_yscale("log")
@@ -181,9 +212,20 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax.grid(True, which="both", alpha=0.3)
     _legend_below(fig, ax, *FACTOR_SIZE)
     name = f"sweep_{sw.path.name}_{factor.replace('.', '_')}.png"
+    drawn = "" if numeric else (
+        f" The factor {factor} is a category, not a number: its values are drawn as points, "
+        + ("each combination of the other factors beside the others, " if len(series) <= MAX_SERIES
+           else "the median and the min-max range over the other factors' combinations, ")
+        + "and no line joins two values.")
+    caption = (f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
+               f"{sw.spec.get('description') or ''}").strip().rstrip(";")
     return save(fig, out, name, f"{sw.path.name}: FPS against {factor}",
-                f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
-                f"{sw.spec.get('description') or ''}".strip())
+                f"{caption.rstrip('.')}.{drawn}" if drawn else caption)
+
+
+def _dodge(i: int, n: int) -> float:
+    """The offset of series ``i`` of ``n`` at a category: side by side, within +-0.3 of it."""
+    return 0.0 if n < 2 else (i - (n - 1) / 2) * min(0.6 / (n - 1), 0.15)
 
 
 def _key(v):
@@ -223,7 +265,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
     triangles: dict[str, set[int]] = defaultdict(set)
     series: dict[tuple, list[dict]] = defaultdict(list)
     unusable = []
-    for r in sorted(sw.rows, key=lambda r: r.get("point", 0)):
+    for r in sorted(named_rows(sw), key=lambda r: r.get("point", 0)):
         if r.get("status") != "ok":
             continue
         run = by_hash.get(str(r.get("hash")))

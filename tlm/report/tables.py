@@ -35,6 +35,7 @@ from tlm.experiments.thesis import (
     METRICS,
     PM_METRICS,
     THESIS,
+    THESIS_SCENES,
     THESIS_SIZES,
     _ours,
     comparison_rows,
@@ -42,7 +43,7 @@ from tlm.experiments.thesis import (
     run_mismatches,
     summarize,
 )
-from tlm.report.collect import Inputs, Run, Study
+from tlm.report.collect import Inputs, Run, Study, shown_paths
 from tlm.report.common import Section, line_style, new_figure, save, untangle
 
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
@@ -80,9 +81,18 @@ class Source:
     not_comparable: list[str] = field(default_factory=list)  # why ours is not the thesis's setting
     unknown: str | None = None  # why comparability cannot be told
 
+    named: str = ""  # the scene as the report names it (its file), where no run tells it
+
     @property
     def modes(self) -> list[str]:
         return [m for m in MODES if any(k[0] == m for k in self.rows)]
+
+    @property
+    def scene_label(self) -> str:
+        """Our scene as the report names scenes (by its file: ``thesis/room``, not ``room``):
+        the scenes of its runs, else the name its study knew it by."""
+        labels = list(dict.fromkeys(r.scene_label for r in self.runs))
+        return ", ".join(labels) if labels else self.named or self.scene
 
     def slowest(self, mode: str) -> tuple[str | None, str | None]:
         """The slowest PM of ``mode`` in the thesis and in ours (None: no such cell)."""
@@ -137,10 +147,11 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
             scenes.setdefault(str(row["scene"]), []).append(row)
         for scene, rows in scenes.items():
             if scene not in THESIS:
-                notes.append(f"{study.path.name}: scene {scene!r} has no table in the thesis, left out of the tables")
+                notes.append(f"{study.path.name}: scene {inputs.study_scene(study, scene)!r} has no table in the "
+                             "thesis, left out of the tables")
                 continue
             src = Source(f"thesis study {study.path.name}", scene, study=study,
-                         runs=[r for r in cells if r.scene == scene])
+                         runs=[r for r in cells if r.scene == scene], named=_study_scene(study, scene))
             for row in rows:
                 src.rows[(str(row["mode"]), str(row["metric"]))] = row
             _judge(src)
@@ -178,18 +189,28 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
     return {s: v for s, v in by_scene.items() if v}
 
 
+def _study_scene(study: Study, scene: str) -> str:
+    """A thesis study's scene named by its file when the study's cells are gone: the entry of
+    the study's config (``scenes:``) whose built-in file is the one the thesis table's scene is."""
+    scenes = (study.meta.get("config") or {}).get("scenes") if isinstance(study.meta.get("config"), dict) else None
+    if isinstance(scenes, list) and THESIS_SCENES.get(scene) in scenes:
+        return THESIS_SCENES[scene]
+    return ""
+
+
 def _judge(src: Source) -> None:
     if not src.runs:
         judged = src.study.meta.get("not_comparable") if src.study is not None else None
         if isinstance(judged, dict):  # (judged by the same rule when the study ran)
             why = judged.get(src.scene)
-            src.not_comparable = [str(w) for w in why] if isinstance(why, list) else []
+            src.not_comparable = [shown_paths(str(w)) for w in why] if isinstance(why, list) else []
         else:
             src.unknown = "its run folders are missing, so its resolution and photon count are unknown"
         return
     seen: list[str] = []
     for run in src.runs:
         for m in mismatches(run, src.scene):
+            m = shown_paths(m)  # (a scene file of the machine that ran it: by its place in the repository)
             if m not in seen:
                 seen.append(m)
     src.not_comparable = seen
@@ -206,9 +227,10 @@ def study_summaries(inputs: Inputs, sources: dict[str, list[Source]] | None = No
         sources = collect_sources(inputs, [])
     out = []
     for study in inputs.of_kind("thesis"):
-        rows = [r for r in study.rows if str(r["scene"]) in THESIS]
-        if rows:
-            differ = {src.scene: src.not_comparable for srcs in sources.values() for src in srcs
+        named = {s: inputs.study_scene(study, s) for s in {str(r["scene"]) for r in study.rows}}
+        rows = [{**r, "scene": named[str(r["scene"])]} for r in study.rows if str(r["scene"]) in THESIS]
+        if rows:  # (the scenes by their files, as the tables name them: its words name them so)
+            differ = {named[src.scene]: src.not_comparable for srcs in sources.values() for src in srcs
                       if src.study is study and src.not_comparable}
             out.append((study, summarize(rows, differ)))
     return out
@@ -278,8 +300,8 @@ def table_html(src: Source) -> str:
     e = html.escape
     w, h, n, tris = THESIS_SIZES[src.scene]
     slow = {m: src.slowest(m) for m in MODES}
-    head = (f"Table {TABLE_NUMBER[src.scene]}. {SCENE_TITLE[src.scene]} ({src.scene}; thesis: {tris:,} triangles, "
-            f"{w}×{h} pixels, {n:,} photons). Ours: {src.label}")
+    head = (f"Table {TABLE_NUMBER[src.scene]}. {SCENE_TITLE[src.scene]} (thesis: {tris:,} triangles, "
+            f"{w}×{h} pixels, {n:,} photons). Ours: {src.label}, scene {src.scene_label}")
     flag = ""
     if src.not_comparable:
         flag = (f' <span class="not-comparable">Not comparable: ours is '
@@ -309,15 +331,18 @@ PER_ITEM = (("trav_cycles_per_ray", "TTrav per ray"), ("tests_per_ray", "triangl
             ("frag_cycles_per_pixel", "TFrag per pixel"), ("vert_cycles_per_triangle", "TVert per triangle"))
 
 
-def per_item_html(label: str, per_item: dict) -> str:
+def per_item_html(label: str, per_item: dict, names: dict[str, str] | None = None) -> str:
     """A thesis study's PM times per work item (``thesis_summary.json`` ``per_item``): ours
-    and, in brackets, the thesis's time over our count of the same item."""
+    and, in brackets, the thesis's time over our count of the same item. ``names``: each
+    scene's name in the study (``room``) as the report names it (``thesis/room``)."""
     e = html.escape
     lines = [f'<table class="thesis-table per-item" data-source="{e(label)}">',
              f"<caption>Per work item, thesis study {e(label)}: ours (the thesis's time over our count)</caption>",
              "<thead><tr><th>scene / mode</th><th>rays traced</th>" + "".join(f"<th>{e(h)}</th>" for _, h in PER_ITEM)
              + "<th>tests per leaf</th></tr></thead>", "<tbody>"]
     for cell, it in per_item.items():
+        scene, _, mode = str(cell).rpartition("/")
+        cell = f"{(names or {}).get(scene, scene)}/{mode}" if scene else cell
         tds = [f"<td>{it['rays']:,}</td>"]
         tds += [f"<td>{fmt(it['ours'].get(k))} ({fmt(it['thesis'].get(k))})</td>" for k, _ in PER_ITEM]
         tds.append(f"<td>{fmt(it.get('tests_per_leaf'))}</td>")
@@ -367,7 +392,7 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
             axis.plot([x0, x], [t, o], color=style["color"], linewidth=0.6, linestyle=":")
             axis.plot([x], [o], linestyle="none", marker=style["marker"], color=style["color"], markersize=5,
                       markeredgecolor="black", markeredgewidth=0.4,
-                      label=f"ours: {src.label}" if first.setdefault(("o", i), True) else None)
+                      label=f"ours: {src.label} ({src.scene_label})" if first.setdefault(("o", i), True) else None)
             first[("o", i)] = False
             if row["rel_error"] is not None and not src.not_comparable:  # (n/c: no error, as in its table)
                 notes_drawn.append(axis.annotate(f"{row['rel_error']:+.0%}", (x, o), xytext=(0, 4),
@@ -421,20 +446,27 @@ def _scene_figure(scene: str, sources: list[Source], out: Path, notes: list[str]
     if any(s.not_comparable for s in sources):
         flag = (" (not comparable: another setting, no errors shown)" if all(s.not_comparable for s in sources)
                 else " (some sources not comparable: no errors on them)")
-    fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours against the thesis{flag}",
-                 fontsize=11)
+    fig.suptitle(f"Table {TABLE_NUMBER[scene]}, {SCENE_TITLE[scene]}: ours ({_our_scenes(sources)}) against the "
+                 f"thesis{flag}", fontsize=11)
     for t in notes_drawn:  # (the y limits leave them room: the layout ignores them)
         t.set_in_layout(False)
     untangle(fig, notes_drawn, ((0, 4), (0, -4)))
     if dropped:
-        notes.append(f"{scene} figure: values that cannot go on a log axis left out: {', '.join(dropped)}")
+        notes.append(f"Table {TABLE_NUMBER[scene]} figure: values that cannot go on a log axis left out: "
+                     f"{', '.join(dropped)}")
     caption = (f"Simulated cycles per PM and throughput (left, millions of cycles per frame) and frame rate (right) "
-               f"of the {scene} scene per mode: hollow circles the thesis's Table {TABLE_NUMBER[scene]} "
+               f"per mode, ours of {_our_scenes(sources)}: hollow circles the thesis's Table {TABLE_NUMBER[scene]} "
                "(diamonds: calibrated cells), filled markers ours, annotated with the relative error, above the "
                "marker or, where that would cover another, below it (none on a source "
                "not comparable with the thesis: it would measure the setting, not the model).")
-    return save(fig, out, f"tables_{scene}.png", f"Table {TABLE_NUMBER[scene]} ({scene}): ours against the thesis",
+    return save(fig, out, f"tables_{scene}.png",
+                f"Table {TABLE_NUMBER[scene]} ({SCENE_TITLE[scene]}): ours ({_our_scenes(sources)}) against the thesis",
                 caption)
+
+
+def _our_scenes(sources: list[Source]) -> str:
+    """The scenes of ``sources``, as the report names them (their files)."""
+    return ", ".join(dict.fromkeys(s.scene_label for s in sources))
 
 
 # -- section ------------------------------------------------------------------------------------
@@ -457,23 +489,26 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
         shown = srcs[:MAX_TABLES_PER_SCENE]
         if len(srcs) > len(shown):
             rest = ", ".join(s.label for s in srcs[len(shown):])
-            section.notes.append(f"{scene}: {len(srcs) - len(shown)} more sources left out of the tables and the "
-                                 f"figure (at most {MAX_TABLES_PER_SCENE} per scene): {rest}")
+            section.notes.append(f"Table {TABLE_NUMBER[scene]}: {len(srcs) - len(shown)} more sources left out of the "
+                                 f"tables and the figure (at most {MAX_TABLES_PER_SCENE} per table): {rest}")
         for src in shown:
             parts.append(table_html(src))
             if src.not_comparable:
-                section.notes.append(f"{scene} ({src.label}) is not comparable with the thesis: ours is "
-                                     f"{'; '.join(src.not_comparable)}")
+                section.notes.append(f"{src.scene_label} ({src.label}) is not comparable with the thesis's Table "
+                                     f"{TABLE_NUMBER[scene]}: ours is {'; '.join(src.not_comparable)}")
             elif src.unknown:
-                section.notes.append(f"{scene} ({src.label}): comparability unknown, {src.unknown}")
+                section.notes.append(f"{src.scene_label} ({src.label}), beside the thesis's Table "
+                                     f"{TABLE_NUMBER[scene]}: comparability unknown, {src.unknown}")
         drawn = shown[:MAX_FIGURE_SOURCES]
         if len(shown) > len(drawn):
-            section.notes.append(f"{scene} figure: drawn for the first {len(drawn)} sources only; "
+            section.notes.append(f"Table {TABLE_NUMBER[scene]} figure: drawn for the first {len(drawn)} sources only; "
                                  f"{', '.join(s.label for s in shown[len(drawn):])} are in the tables")
         section.figures.append(_scene_figure(scene, drawn, out, section.notes))
     for study in inputs.of_kind("thesis"):
         if study.meta.get("per_item"):
-            parts.append(per_item_html(study.path.name, study.meta["per_item"]))
+            names = {str(c).rpartition("/")[0]: inputs.study_scene(study, str(c).rpartition("/")[0])
+                     for c in study.meta["per_item"]}
+            parts.append(per_item_html(study.path.name, study.meta["per_item"], names))
     parts.append("</div>")
     section.html = "\n".join(parts)
     return section
