@@ -5,8 +5,9 @@ points in the tlm process itself (:class:`InProcess`, for a debugger); otherwise
 local pool of worker processes (:class:`LocalPool`), forked from a fresh server
 process, that end with the sweep's process and outlive the death of one of their own;
 or a Dask cluster (``--dask local`` starts a ``LocalCluster``, ``--dask tcp://HOST:PORT``
-connects to a scheduler). All are ``concurrent.futures`` executors: the sweep submits a
-point and reads its future.
+connects to a scheduler), through a :class:`DaskPool` that says when the cluster itself
+fails the sweep (its scheduler lost, no worker for :data:`NO_WORKERS_WAIT` seconds). All
+are ``concurrent.futures`` executors: the sweep submits a point and reads its future.
 """
 
 from __future__ import annotations
@@ -30,9 +31,13 @@ from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
-from tlm.errors import InputError, interrupted_by
+from tlm.errors import EnvironmentFailure, InputError, interrupted_by
 
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+DASK_POLL = 1.0  # seconds between a sweep's checks of its Dask scheduler while it waits for points
+NO_WORKERS_WAIT = 300.0  # seconds a sweep waits while its Dask scheduler has no worker, then stops
+WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler about its workers
+ASK_TIMEOUT = 30.0  # seconds the scheduler gets to answer one
 PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
@@ -478,6 +483,8 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) ->
     # the next one's loop, its __del__ re-enters that loop's lock and the process hangs
     gc.collect()
 
+    quiet = _Quiet()  # (DaskPool.trouble silences distributed's logs)
+    stack.callback(quiet.restore)  # restored once the client has closed
     if dask == "local":
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
@@ -494,6 +501,110 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) ->
             client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
         except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
-    return client.get_executor(pure=False)
+        return DaskPool(client, dask, remote=True, quiet=quiet)
+    return DaskPool(client, "local", remote=False, quiet=quiet)
+
+
+class _Quiet:
+    """distributed's loggers silenced (:meth:`now`) and put back as they were (:meth:`restore`)."""
+
+    def __init__(self) -> None:
+        self.levels: dict[str, int] = {}
+
+    def now(self) -> None:
+        for name in ["distributed", *logging.root.manager.loggerDict]:  # (dask's config sets its children's)
+            if (name == "distributed" or name.startswith("distributed.")) and name not in self.levels:
+                self.levels[name] = logging.getLogger(name).level
+                logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+    def restore(self) -> None:
+        for name, level in self.levels.items():
+            logging.getLogger(name).setLevel(level)
+        self.levels.clear()
+
+
+class SweepStopped(EnvironmentFailure):
+    """The cluster, not a point, stopped the sweep (its Dask scheduler lost, or without
+    workers too long): one line, exit status 1; the points done are kept, and a rerun
+    into the folder runs the others."""
+
+
+class DaskPool(cf.Executor):
+    """A Dask client's executor that can say when the cluster itself has failed the sweep.
+
+    ``remote``: the scheduler is another process's (``--dask tcp://...``): its workers may
+    be other machines, with other caches and other file systems. :meth:`trouble` is asked
+    while the sweep waits: a point cancelled that the sweep did not cancel means the client
+    lost its scheduler (distributed cancels every future then, and the points would
+    otherwise be recorded as failed with an empty ``CancelledError``), and a scheduler with
+    no worker for :data:`NO_WORKERS_WAIT` seconds would keep the sweep waiting forever.
+    """
+
+    def __init__(self, client, address: str, remote: bool, quiet: _Quiet | None = None) -> None:
+        self.client = client
+        self.quiet = _Quiet() if quiet is None else quiet
+        self.address = address
+        self.remote = remote
+        self.executor = client.get_executor(pure=False)
+        self.workerless_since: float | None = None
+        self.asked = -float("inf")  # when the scheduler was last asked for its workers
+
+    def submit(self, fn, /, *args, **kwargs):
+        return self.executor.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        with suppress(Exception):  # (a client whose scheduler is gone cannot cancel anything)
+            self.executor.shutdown(wait=wait)
+
+    def trouble(self, cancelled: bool) -> str | None:
+        """Why the sweep cannot go on on this cluster, or None. ``cancelled``: a point's
+        future came back cancelled (the sweep had cancelled none)."""
+        status = getattr(self.client, "status", "running")
+        if status != "running":
+            return self._quiet(f"lost the Dask scheduler {self.address} (the connection to it closed)")
+        if cancelled:
+            return self._quiet(f"the Dask scheduler {self.address} cancelled the sweep's points (its connection "
+                               "was lost, or the cluster restarted)")
+        now = time.monotonic()
+        if now - self.asked < WORKERS_POLL:
+            return None
+        self.asked = now
+        try:
+            workers = len(self.client.nthreads(callback_timeout=ASK_TIMEOUT))
+            why = "has had no worker"
+        except Exception as e:  # (a scheduler that does not answer: the same bounded wait)
+            if getattr(self.client, "status", "running") != "running":
+                return self._quiet(f"lost the Dask scheduler {self.address} ({type(e).__name__}: {e})")
+            workers, why = 0, f"has not answered ({type(e).__name__}: {e})"
+        if workers:
+            self.workerless_since = None
+            return None
+        if self.workerless_since is None:
+            self.workerless_since = now
+        if now - self.workerless_since >= NO_WORKERS_WAIT:
+            return self._quiet(f"the Dask scheduler {self.address} {why} for {now - self.workerless_since:.0f} s")
+        return None
+
+    def _quiet(self, reason: str) -> str:
+        # the client's own log lines on the lost connection (a page of traceback) would follow
+        # the sweep's line: tlm says what happened
+        self.quiet.now()
+        return reason
+
+
+def dask_worker_where() -> str | None:
+    """In a Dask worker's task: ``the Dask worker ADDRESS on host NAME``, for the messages of
+    a point that failed there; None elsewhere."""
+    if "distributed" not in sys.modules:
+        return None
+    from distributed import get_worker
+
+    try:
+        worker = get_worker()
+    except ValueError:  # (not in a worker's task)
+        return None
+    import socket
+
+    return f"the Dask worker {worker.address} on host {socket.gethostname()}"
 
 

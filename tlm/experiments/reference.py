@@ -53,7 +53,6 @@ import json
 import math
 import os
 import stat
-import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, replace
@@ -68,6 +67,7 @@ from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
 from tlm.kernels.shade import emitted, hash_uniform, surface_emission
 from tlm.kernels.traverse import closest_hit
+from tlm.progress import progress_bar
 from tlm.render.frame import Frame, GBuffer, pixel_batches
 from tlm.render.passes import gather_points
 from tlm.render.planner import check_photon_memory
@@ -279,8 +279,6 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     bar : a progress bar of the rounds on stderr (only when it is a terminal).
     Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
     """
-    from tqdm import tqdm
-
     del g
     check_photon_memory(settings.photons, "reference.photons")  # (before the first round)
     rframe = replace(frame, cfg=reference_config(frame.cfg, settings))
@@ -294,8 +292,7 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     errors: list[float] = []
     t0 = time.perf_counter()
     converged = False
-    rounds = tqdm(total=max_cycles * strata, desc="reference", unit="round", disable=None if bar else True,
-                  file=sys.stderr, dynamic_ncols=True, leave=False)
+    rounds = progress_bar(bar, total=max_cycles * strata, desc="reference", unit="round", leave=False)
     for k, child in enumerate(np.random.SeedSequence(REFERENCE_SEED).spawn(max_cycles), start=1):
         shift_seed = int(child.generate_state(1)[0])
         frame_k = np.zeros_like(mean)

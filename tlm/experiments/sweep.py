@@ -39,7 +39,10 @@ follow once it is cached, so two
 workers never render the same frame. Workers: a local process pool, or Dask. A local
 worker ends itself when the sweep's process dies (a killed sweep leaves none running);
 a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran, if that
-point kills its worker again when run alone (:class:`LocalPool`).
+point kills its worker again when run alone (:class:`LocalPool`). A Dask worker checks
+first that it sees the sweep's folder and input files (and, a remote one, that it runs
+the sweep's code: :func:`_check_worker_sees`); a lost scheduler stops the sweep with one
+line (:class:`~tlm.experiments.executors.DaskPool`).
 """
 
 from __future__ import annotations
@@ -49,7 +52,6 @@ import json
 import os
 import re
 import shutil
-import sys
 import time
 import traceback
 from collections import deque
@@ -65,10 +67,21 @@ from tlm.config import (
     config_from_dict,
 )
 from tlm.errors import InputError, interrupted_by
-from tlm.experiments.executors import InProcess, LocalPool, dask_worker_threads, kernel_threads, open_executor
+from tlm.experiments.executors import (
+    DASK_POLL,
+    DaskPool,
+    InProcess,
+    LocalPool,
+    SweepStopped,
+    dask_worker_threads,
+    dask_worker_where,
+    kernel_threads,
+    open_executor,
+)
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
+from tlm.progress import SWEEP_ETA_AFTER, progress_bar
 from tlm.storage import atomic_folder, check_destination, claim_folder, warn
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -88,10 +101,14 @@ class Task:
     factors: dict[str, Any]
     folder: str  # where relative paths start
     source: str  # the sweep file, for messages
-    out: str  # the point's folder
+    out: str  # the point's folder (absolute: a Dask worker's working folder is not the sweep's)
     provenance: dict  # versions and git revision of the submitting host
     threads: int | None = None  # render.threads where the config leaves it null (the worker's
     # share of the CPUs: speed only, so config.resolved.yaml keeps the config as written)
+    inputs: tuple[str, ...] = ()  # the files of the sweep's folders it reads (absolute): a Dask
+    # worker checks that it sees them, and the sweep's output folder, before it runs the point
+    code: str | None = None  # a remote Dask worker's tlm must have this code fingerprint (the
+    # sweep's, part of the point's hash): another version's cycles would be filed under it
 
 
 def run_point(task: Task) -> dict:
@@ -106,7 +123,10 @@ def run_point(task: Task) -> dict:
 
     stage = "functional"
     t0 = time.perf_counter()
+    where = dask_worker_where()  # (None but in a Dask worker)
     try:
+        if where is not None:
+            _check_worker_sees(task, where)
         threads = task.threads if task.threads is not None else dask_worker_threads()
         cfg = config_from_dict(_with_threads(task.config, threads), task.source)
         folder = Path(task.folder)
@@ -140,13 +160,50 @@ def run_point(task: Task) -> dict:
                 **task.provenance,
             }
             (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
-        return {"status": "ok", "results": results}
+        return {"status": "ok", "results": results, "worker": where}
     except Exception as e:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
             raise stop from e
         error = _error_record(e, stage, traceback.format_exc())
-        write_error(task, error)
-        return {"status": "failed", "error": error}
+        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker)):  # (they say where)
+            error["message"] = f"{error['message']} (on {where})"
+        if task.code is None:  # (this machine's worker)
+            write_error(task, error)
+        elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
+            with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
+                write_error(task, error)
+        return {"status": "failed", "error": error, "worker": where}
+
+
+class PathNotOnWorker(OSError):
+    """A Dask worker does not see a file or folder of the sweep at the path the sweep gives."""
+
+
+class OtherCodeOnWorker(RuntimeError):
+    """A remote Dask worker runs a tlm whose code is not the sweep's."""
+
+
+def _check_worker_sees(task: Task, where: str) -> None:
+    """In a Dask worker: a remote one runs the sweep's tlm code (else :class:`OtherCodeOnWorker`),
+    and the sweep's output folder and the input files the point reads are there at the
+    sweep's paths (a worker on another machine sees them only on a shared file system; else
+    :class:`PathNotOnWorker`), each named with the worker's address and host."""
+    if task.code is not None:
+        from tlm.fingerprint import code_fingerprint
+
+        if code_fingerprint() != task.code:
+            raise OtherCodeOnWorker(
+                f"{where} runs other tlm code (code fingerprint {code_fingerprint()}, the sweep's {task.code}): "
+                "install the sweep's tlm on the workers, and restart them after an update of it")
+    sweep_dir = Path(task.out).parent.parent
+    if not (sweep_dir / MARKER).is_file():
+        raise PathNotOnWorker(f"the sweep's output folder {sweep_dir} is not there on {where}: the workers "
+                              "write the point folders into it, so they must see it at that path (a shared "
+                              "file system)")
+    for path in task.inputs:
+        if not os.access(path, os.R_OK):
+            raise PathNotOnWorker(f"cannot read {path} on {where}: the workers must see the sweep's "
+                                  "files at the paths the sweep gives (a shared file system)")
 
 
 def _error_record(e: BaseException, stage: str, tb: str) -> dict:
@@ -272,6 +329,22 @@ def _listed(folder: Path) -> set[str]:
         return set()
 
 
+def _inputs(config: dict, folder: Path, source: str) -> tuple[str, ...]:
+    """The files a point's config names that are not tlm's own (those a worker has in its
+    own install): its scene file and its programs table, absolute."""
+    from tlm.scenes.loader import resolve_scene_path, scenes_dir
+
+    found = []
+    with suppress(InputError, OSError):  # (checked when the sweep was loaded)
+        scene = Path(resolve_scene_path(config["scene"], folder, source))
+        if not scene.resolve().is_relative_to(scenes_dir().resolve()):
+            found.append(os.path.abspath(scene))
+    table = (config.get("arch") or {}).get("programs")
+    if table is not None:
+        found.append(os.path.abspath(folder / table))  # (an absolute table stays itself)
+    return tuple(found)
+
+
 def _with_threads(config: dict, threads: int | None) -> dict:
     """``config`` with ``render.threads`` set to ``threads`` where the config leaves it null."""
     render = config.get("render", {})
@@ -321,8 +394,11 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # --jobs x render.threads <= the CPUs: a point that leaves render.threads null gets its
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
+    where = os.path.abspath(points_dir)  # (a Dask worker's working folder is not this one)
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
-                     os.path.join(points_dir, h), provenance, threads=share) for h in todo}
+                     os.path.join(where, h), provenance, threads=share,
+                     inputs=_inputs(by_hash[h][0].config, sweep.folder, str(sweep.path)),
+                     code=provenance["code_fingerprint"] if dask not in (None, "local") else None) for h in todo}
 
     with ExitStack() as held:  # (the folder, held until the last row is written)
         with ExitStack() as stack:
@@ -382,8 +458,6 @@ def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],
               records: dict[str, dict], out: Path, progress: bool, total: int, skipped: int) -> None:
     """Run the tasks: one per functional key first, the rest of its group once it is cached."""
-    from tqdm import tqdm
-
     groups: dict[str, deque[str]] = {}
     for h in tasks:
         groups.setdefault(fkeys[h], deque()).append(h)
@@ -399,22 +473,30 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
             if not everything:
                 break
 
+    # a remote cluster's workers have caches of their own: this machine's says nothing of them
+    remote = isinstance(pool, DaskPool) and pool.remote
     bar = None
     try:
         for key in groups:
-            release(key, everything=is_cached(key))
-        bar = tqdm(total=total, initial=skipped, disable=None if progress else True, file=sys.stderr,
-                   unit="point", desc="sweep", dynamic_ncols=True)
+            release(key, everything=is_cached(key) and not remote)
+        bar = progress_bar(progress, eta_after=SWEEP_ETA_AFTER, total=total, initial=skipped, unit="point",
+                           desc="sweep")
         failed = 0
         _trim_torn(out / "sweep.jsonl")
         with open(out / "sweep.jsonl", "a") as jsonl:
             while futures:
                 if isinstance(pool, (InProcess, LocalPool)):
                     pool.run_next()
-                done, _ = cf.wait(list(futures), return_when=cf.FIRST_COMPLETED)
+                done, _ = cf.wait(list(futures), timeout=DASK_POLL if isinstance(pool, DaskPool) else None,
+                                  return_when=cf.FIRST_COMPLETED)
+                cancelled = [f for f in done if f.cancelled()]  # (by the cluster: the sweep cancelled none)
                 for f in done:
+                    if f in cancelled:
+                        continue
                     h = futures.pop(f)
                     record = _record(f, tasks[h])
+                    if remote:
+                        record = _seen_here(record, tasks[h])
                     records[h] = record
                     for p in by_hash[h]:
                         jsonl.write(json.dumps(point_row(p, record)) + "\n")
@@ -427,6 +509,13 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                     bar.update(len(by_hash[h]))
                     if failed:
                         bar.set_postfix(failed=failed)
+                if isinstance(pool, DaskPool):  # the cluster itself gone (or without workers): a line, not rows
+                    why = pool.trouble(cancelled=bool(cancelled))
+                    if why is not None:
+                        finished = sum(len(by_hash[h]) for h, r in records.items() if r["status"] == "ok")
+                        raise SweepStopped(
+                            f"{why}: the sweep stopped with {finished} of {total} points done, kept in {out}; "
+                            "run it again into that folder to run the others")
     except BaseException:
         for f in futures:
             f.cancel()
@@ -461,6 +550,26 @@ def _trim_torn(path: Path) -> None:
         data = f.read()
         if data and not data.endswith(b"\n"):
             f.truncate(data.rfind(b"\n") + 1)
+
+
+def _seen_here(record: dict, task: Task) -> dict:
+    """A remote worker's point as this machine sees it: a point its worker wrote where this
+    machine does not see it (its own disk, not a shared one) failed, with where it went;
+    a failed point's ``error.json`` written here where its worker could not."""
+    if record["status"] != "ok":
+        if not (Path(task.out) / "error.json").is_file():
+            with suppress(OSError, InputError):
+                write_error(task, record["error"])
+        return record
+    if (Path(task.out) / "results.json").is_file():
+        return record
+    where = record.get("worker") or "its Dask worker"
+    error = _error_record(PathNotOnWorker(
+        f"{where} wrote {task.out}, which this machine does not see: the workers must write the sweep's "
+        "output folder on a file system this machine reads"), "worker", "")
+    with suppress(OSError, InputError):
+        write_error(task, error)
+    return {"status": "failed", "error": error}
 
 
 def _record(f: cf.Future, task: Task) -> dict:
