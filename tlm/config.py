@@ -9,8 +9,11 @@ next to the results. ``--set dotted.key=value`` overrides go through the same ch
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import copy
 import dataclasses
+import hashlib
 import math
 import os
 import re
@@ -457,9 +460,23 @@ def parse_yaml(text: str) -> Any:
 
 
 def read_yaml(path: Path) -> Any:
-    """Read a YAML file; a missing file or a syntax error is an InputError naming it."""
+    """Read a YAML file; a missing file or a syntax error is an InputError naming it.
+
+    Inside :func:`noting_reads`, the read is noted: ``("yaml", path, sha256 of the text,
+    the mapping's ``extends``)`` (what a memo of a load that reads it checks)."""
+    text = read_text(path)
+    data = yaml_from_text(text, path)
+    if _READS.get() is not None:
+        extends = data.get("extends") if isinstance(data, dict) else None
+        note_read(("yaml", str(path), text_digest(text), extends if isinstance(extends, str) else None))
+    return data
+
+
+def read_text(path: Path) -> str:
+    """A UTF-8 text file's text, as :func:`read_yaml` reads it; a missing or unreadable file
+    is an InputError naming it."""
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        return Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError("file not found", source=str(path)) from None
     except UnicodeDecodeError as e:
@@ -467,6 +484,15 @@ def read_yaml(path: Path) -> Any:
                          source=str(path)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
+
+
+def text_digest(text: str) -> str:
+    """The sha256 of a text (as :func:`read_text` gave it): what a memo keys a file's content by."""
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+def yaml_from_text(text: str, path: Path) -> Any:
+    """The data of the YAML text read from ``path``; a syntax error is an InputError naming it."""
     try:
         return parse_yaml(text)
     except yaml.YAMLError as e:
@@ -475,6 +501,35 @@ def read_yaml(path: Path) -> Any:
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         what = "YAML error" if isinstance(e, DuplicateKeyError) else "YAML syntax error"
         raise InputError(f"{what}{where}: {problem}", source=str(path)) from None
+
+
+# the files read inside noting_reads(), in their order (None: outside, none noted)
+_READS: contextvars.ContextVar[list | None] = contextvars.ContextVar("tlm_reads", default=None)
+
+
+@contextlib.contextmanager
+def noting_reads():
+    """Inside, :func:`read_yaml` and the mesh loads (:func:`tlm.scenes.cache.mesh`) note the
+    files they read in the list this yields, each a tuple whose first item names its kind
+    (``"yaml"``, ``"mesh"``): what a memo of the load checks before it is used again
+    (:func:`tlm.experiments.frames.render_key`). A scope inside another notes into its own
+    list and the outer's."""
+    outer = _READS.get()
+    mine: list = []
+    token = _READS.set(mine)
+    try:
+        yield mine
+    finally:
+        _READS.reset(token)
+        if outer is not None:
+            outer.extend(mine)
+
+
+def note_read(record: tuple) -> None:
+    """Note a file read (a tuple, its kind first) in the :func:`noting_reads` scope, if any."""
+    reads = _READS.get()
+    if reads is not None:
+        reads.append(record)
 
 
 def deep_merge(base: dict, over: dict) -> dict:

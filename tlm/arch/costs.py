@@ -27,12 +27,15 @@ one-line :class:`~tlm.errors.InputError` naming the file and the key.
 
 from __future__ import annotations
 
+import copy
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from tlm.config import read_yaml
+from tlm.config import read_text, text_digest, yaml_from_text
 from tlm.errors import InputError, did_you_mean
 from tlm.kernels import work
 
@@ -156,13 +159,39 @@ def _unknown(raw: dict, allowed, source: str, prefix: str) -> None:
             raise InputError(f"unknown key{did_you_mean(str(k), allowed)}", source=source, key=f"{prefix}.{k}")
 
 
+MEMO_SIZE = 8  # the tables one process remembers (the least recently used goes)
+_MEMO: OrderedDict[tuple[str, str], Programs] = OrderedDict()  # (source, sha256 of the text) -> table
+_MEMO_LOCK = threading.Lock()
+
+
 def load_programs(path: str | Path | None = None) -> Programs:
-    """Read and check an instruction-cost table (default: the calibrated one)."""
+    """Read and check an instruction-cost table (default: the calibrated one).
+
+    A table read before in this process (:data:`MEMO_SIZE` of them, the least recently used
+    forgotten) is not parsed again while its file holds the same text: it is remembered by the
+    path as given and the sha256 of the text, so an edited file is read again. Each call
+    returns its own copy, which the caller may change."""
     p = Path(path) if path is not None else DEFAULT_PATH
     source = str(p)
     if not p.is_file():
         raise InputError("file not found", source=source, key="arch.programs")
-    raw = read_yaml(p)
+    text = read_text(p)
+    key = (source, text_digest(text))
+    with _MEMO_LOCK:
+        got = _MEMO.get(key)
+        if got is not None:
+            _MEMO.move_to_end(key)
+    if got is None:
+        got = _parse_programs(yaml_from_text(text, p), source)
+        with _MEMO_LOCK:
+            _MEMO[key] = got
+            while len(_MEMO) > MEMO_SIZE:
+                _MEMO.popitem(last=False)
+    return copy.deepcopy(got)  # (the remembered table stays as it was read)
+
+
+def _parse_programs(raw, source: str) -> Programs:
+    """The checked table of the YAML data ``raw`` read from ``source``."""
     raw = _mapping(raw, source, "(top)")
     _unknown(raw, ("calibration", *PROGRAMMABLE, "intersection"), source, "programs")
     scale, jobs, record_cycles = {}, {}, {}

@@ -10,23 +10,33 @@ the photon-map frame's image error), so a sweep point never has to render to rep
 them, with the size and sha256 of the ``.npz`` (``npz``): a damaged entry (a file cut
 short, zeroed or overwritten) is reported once as a warning naming the file, removed and
 rendered again.
+
+A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
+remembers its fingerprint while the files the load read are unchanged, so the points of a
+sweep that differ only in ``arch`` do not load it again each.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+import os
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from tlm.arch.functional import Functional
-from tlm.config import to_dict
+from tlm.config import noting_reads, read_text, text_digest, to_dict
+from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.fingerprint import code_fingerprint
 from tlm.render.planner import inert_changes
-from tlm.scenes.loader import load_scene
+from tlm.scenes.loader import load_scene, resolve_scene_path
+from tlm.scenes.meshes import mesh_files
 from tlm.storage import cache_root, digest_problem, file_digest, warn, write_file
 
 
@@ -63,9 +73,119 @@ SUMMARY_FORMAT = "functional-summary/3"  # /2: with the npz's size and sha256; /
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
-    """The cache key of ``cfg``'s frame (loads the scene: a bad scene is an InputError)."""
-    scene = load_scene(cfg.scene, base, cfg.resolution, source)
-    return functional_key(to_dict(cfg), scene_fingerprint(scene), code_fingerprint())
+    """The cache key of ``cfg``'s frame (loads the scene, or remembers it: :func:`scene_key`;
+    a bad scene is an InputError)."""
+    return functional_key(to_dict(cfg), scene_key(cfg.scene, base, cfg.resolution, source), code_fingerprint())
+
+
+MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
+_SCENE_KEYS: OrderedDict[tuple, tuple[str, list]] = OrderedDict()  # inputs -> (fingerprint, checks)
+_MEMO_LOCK = threading.Lock()
+
+
+def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None, source: str | None = None
+              ) -> str:
+    """:func:`scene_fingerprint` of :func:`~tlm.scenes.loader.load_scene` ``(ref, base,
+    resolution, source)``, remembered: the points of a sweep that differ only in ``arch``
+    share a frame, and its key no longer loads the scene at each point.
+
+    It is remembered (:data:`MEMO_SIZE` scenes, the least recently used forgotten) by the
+    arguments but ``source`` (which only names the config in an error), the working folder,
+    the scene file they name and the code (:func:`~tlm.fingerprint.code_fingerprint`), with
+    every file the load read (:func:`tlm.config.noting_reads`): the scene file and its
+    ``extends:`` chain by the sha256 of their text and the file each ``extends:`` finds now,
+    each mesh file with the files its load read beside it (an OBJ's material libraries, as the
+    load finds them now; a glTF's buffers) by their sha256. A remembered fingerprint is given
+    again only while all of them are as they were, so a file edited between two sweeps of one
+    process (even to the same size and modification time) is read again. A load that read a
+    file it cannot check this way is not remembered. Only the fingerprint (a string) is kept,
+    not the :class:`~tlm.scenes.model.Scene`, so no caller can change what is remembered."""
+    path = resolve_scene_path(ref, base, source)  # (a missing scene: load_scene's own error)
+    # (not ``source``: it names the config in a load's errors, and a remembered load had none)
+    key = (os.fspath(ref), None if base is None else str(base),
+           None if resolution is None else tuple(resolution), os.getcwd(), str(path), code_fingerprint())
+    try:
+        hash(key)
+    except TypeError:  # (a resolution of other items than numbers: load_scene says what is wrong)
+        return scene_fingerprint(load_scene(ref, base, resolution, source))
+    with _MEMO_LOCK:
+        hit = _SCENE_KEYS.get(key)
+    if hit is not None and _unchanged(hit[1]):
+        with _MEMO_LOCK:
+            if key in _SCENE_KEYS:
+                _SCENE_KEYS.move_to_end(key)
+        return hit[0]
+    with noting_reads() as reads:
+        scene = load_scene(ref, base, resolution, source)
+    fingerprint = scene_fingerprint(scene)
+    checks = _checks(reads)
+    with _MEMO_LOCK:
+        _SCENE_KEYS.pop(key, None)
+        if checks is not None:
+            _SCENE_KEYS[key] = (fingerprint, checks)
+            while len(_SCENE_KEYS) > MEMO_SIZE:
+                _SCENE_KEYS.popitem(last=False)
+    return fingerprint
+
+
+def _checks(reads: list) -> list | None:
+    """For each file read that :func:`tlm.config.noting_reads` noted, what tells it now (a
+    function of no argument) and what it told then; None where one cannot be told so."""
+    out, seen = [], set()
+    try:
+        for read in reads:
+            said = repr(read[:4])  # (a file read twice the same: one mesh placed twice)
+            if said in seen:
+                continue
+            seen.add(said)
+            if read[0] == "yaml":  # (its text's digest as it was parsed)
+                _, path, digest, extends = read
+                out.append((functools.partial(_text_digest, path), digest))
+                if extends is not None:
+                    find = functools.partial(_found, extends, Path(path).parent, path)
+                    out.append((find, find()))
+            elif read[0] == "mesh":
+                _, path, digest, names, resolve = read
+                if digest is None:
+                    return None
+                if names is not None:  # (an OBJ: its libraries found again beside it; [] for PLY, STL, GLB)
+                    files = functools.partial(_mesh_and_libraries, Path(path), names, resolve)
+                else:  # (a glTF's buffers: tlm.scenes.meshes.mesh_files)
+                    files = functools.partial(_listed, Path(path))
+                now = files()
+                if now[0] != (path, digest):  # (the file changed while it was loaded)
+                    return None
+                out.append((files, now))
+            else:
+                return None
+    except (OSError, InputError, ValueError):
+        return None
+    return out
+
+
+def _text_digest(path: str) -> str:
+    return text_digest(read_text(Path(path)))
+
+
+def _found(ref: str, folder: Path, src: str) -> str:
+    """The scene file an ``extends: ref`` in ``src`` finds now (as the loader looks for it)."""
+    return str(resolve_scene_path(ref, folder, src, key="extends"))
+
+
+def _mesh_and_libraries(path: Path, names: list, resolve) -> list:
+    return [(str(p), file_digest(p)) for p in (path, *resolve(path, names))]
+
+
+def _listed(path: Path) -> list:
+    return [(str(p), d) for p, d in mesh_files(path)]
+
+
+def _unchanged(checks: list) -> bool:
+    """Whether every file a remembered load read tells what it told then."""
+    try:
+        return all(tell() == then for tell, then in checks)
+    except (OSError, InputError, ValueError):  # (a file gone or unreadable: the load says so)
+        return False
 
 
 def is_cached(key: str) -> bool:

@@ -1,8 +1,9 @@
 """Parsed mesh files and crease normals on disk, so that a large scene is parsed once.
 
 The conference room (331,179 triangles) spends about 1.1 s in tlm's OBJ reader and
-0.7 s in its crease normals on every load, on one core: every ``tlm run``, every sweep
-point, and again for the key of every cached frame (``benchmarks/bench_load.py``
+0.7 s in its crease normals on every load, on one core: every ``tlm run``, every render
+of a sweep, and the key of a cached frame in each process of a sweep (a process remembers
+it after: :func:`tlm.experiments.frames.scene_key`) (``benchmarks/bench_load.py``
 measures both ways). Both results are kept in ``scenes/`` of tlm's cache folder
 (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
 :func:`tlm.storage.cache_home`), keyed by what determines them, bit for bit:
@@ -43,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config import note_read
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
@@ -91,7 +93,8 @@ Resolve = Callable[[Path, list], list[Path]]
 def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
     """The :class:`Geometry` of the mesh file ``path``: from the cache when the entry's
     other files are still what ``resolve`` finds beside this file, unchanged; else
-    ``parse(path)``, cached.
+    ``parse(path)``, cached. Inside :func:`tlm.config.noting_reads` the load is noted as
+    ``("mesh", path, its digest, what names its other files, resolve)``.
 
     parse : the geometry and what names the other files its parse reads (JSON-able: an
         OBJ's ``mtllib`` statements; ``[]``: none), or None when it cannot name them all.
@@ -102,6 +105,7 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
     try:
         digest = file_digest(path)
     except OSError:
+        note_read(("mesh", str(path), None, None, resolve))  # (not to be remembered)
         return parse(path)[0]  # (the parse says what is wrong with the file)
     entry = _mesh_entry(path, digest)
     if entry.exists():
@@ -109,8 +113,11 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         if got is not None and _libraries_unchanged(path, got[1], resolve):
             geom = _geometry(entry, *got, path=path)
             if geom is not None:
+                note_read(("mesh", str(path), digest, got[1].get("names"), resolve))
                 return geom
-    return _kept(path, parse, resolve, digest, entry)[0]
+    geom, names = _kept(path, parse, resolve, digest, entry)
+    note_read(("mesh", str(path), digest, names, resolve))
+    return geom
 
 
 def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path) -> tuple[Geometry, list | None]:
