@@ -87,8 +87,12 @@ def test_a_long_irregular_label_is_wrapped_under_the_plot(tmp_path):
     png = tmp_path / "rep" / "sweep_odd_arch_packet_size.png"
     h, w = plot_size(png)
     assert h > 250 and w > 550, f"{png.name}: the plot is {w} x {h} pixels"
-    plain = tmp_path / "rep" / "sweep_odd_seed.png"  # (4 lines, median band) for comparison
+    # for comparison: the same sweep with every combination identical, one line of one short label
+    same = sweep_folder(tmp_path / "same", lambda p, f, s: 300.0 + p)
+    build_quietly(same, tmp_path / "rep_same")
+    plain = tmp_path / "rep_same" / "sweep_same_arch_packet_size.png"
     assert plain.is_file()
+    assert abs(plot_size(plain)[0] - h) <= 2  # (the plot keeps its size: the legend is below it)
     assert imread(png).shape[0] > imread(plain).shape[0]  # the figure grew by the legend's lines
 
 

@@ -286,8 +286,10 @@ class Outcome:
     seconds: float
     out: Path
     # the sweep's own warnings, also on stderr: its factors that no point read (Sweep.inert_factors,
-    # before the points run; Sweep.unread_factors, after)
+    # before the points run; Sweep.unread_factors, after); point folders that are not its points
     warnings: list[str] = field(default_factory=list)
+    # folders in points/ that are not this sweep's points (an earlier run of other code or config)
+    other_folders: int = 0
 
     @property
     def table(self):
@@ -327,6 +329,23 @@ def _listed(folder: Path) -> set[str]:
         return set(os.listdir(folder))
     except OSError:
         return set()
+
+
+def other_folders(points_dir: Path, hashes) -> int:
+    """The folders in ``points_dir`` that are none of ``hashes`` (this sweep's points): those an
+    earlier run into the folder left, of other tlm code or another config (a point's hash holds
+    the code's fingerprint, its resolved config and its input files' content). One listing, names
+    only; a writer's hidden temporary folders are not counted."""
+    return sum(not n.startswith(".") and n not in hashes for n in _listed(points_dir))
+
+
+def other_folders_line(n: int, points_dir: Path) -> str:
+    """The line that says what ``n`` folders of :func:`other_folders` are."""
+    its = "them" if n != 1 else "it"
+    return (f"{n} point folder{'s' if n != 1 else ''} in {points_dir} {'are' if n != 1 else 'is'} not this "
+            "sweep's: left by an earlier run into the folder of other tlm code or another config (an edit "
+            f"under tlm/ or to an input file changes every point's hash); nothing reads {its}, and removing "
+            f"{its} changes no result (sweep.yaml lists this sweep's hashes)")
 
 
 def _inputs(config: dict, folder: Path, source: str) -> tuple[str, ...]:
@@ -437,8 +456,12 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     for line in unread:
         warn(line)
     caches = _cache_lines([records[h] for h in tasks], storage.cache_warnings())
+    other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
+    stale = [other_folders_line(other, points_dir)] if other else []
+    for line in stale:
+        warn(line)
     return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
-                   [*said, *unread, *caches])
+                   [*said, *unread, *caches, *stale], other)
 
 
 def _cache_lines(records: list[dict], here: list[str]) -> list[str]:

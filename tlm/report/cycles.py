@@ -17,7 +17,9 @@ Two figures per run shown:
 
 The number of runs is bounded (:data:`MAX_RUNS`): every ``tlm run`` folder, for a
 thesis study the slowest mode of each scene, for a sweep the fewest and the most
-pipelines of each combination of its other factors; a note names what was left out.
+pipelines of each combination of its other factors, or its first and last point if it
+does not vary ``arch.pipelines``; a note counts what was left out and names a few
+(:data:`NAMED`).
 """
 
 from __future__ import annotations
@@ -40,6 +42,8 @@ from tlm.report.common import Section, new_figure, save
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
 MAX_RUNS = 8  # runs shown (breakdown + timeline each)
+NAMED = 8  # a note names up to this many runs; of more, the first NAMED_SOME and how many more
+NAMED_SOME = 4
 MAX_GANTT_ROWS = 30  # more units: the first and the last pipeline (and the shared units) only
 MAX_RECTS = 20000  # more merged slices than this: draw at pixel resolution
 BINS = 1600  # pixel columns of the timeline at pixel resolution
@@ -90,19 +94,28 @@ def _pipelines(run: Run) -> int:
     return int(run.factors.get("arch.pipelines") or (run.config.get("arch") or {}).get("pipelines") or 1)
 
 
+def _some(items: list[str]) -> str:
+    """``items`` joined by commas: all of up to :data:`NAMED`, else the first :data:`NAMED_SOME`
+    and how many more (a sweep of hundreds of points is not a note of hundreds of labels)."""
+    if len(items) <= NAMED:
+        return ", ".join(items)
+    return f"{', '.join(items[:NAMED_SOME])} and {len(items) - NAMED_SOME} more"
+
+
 def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[str]]:
     """The runs this section draws, and notes on which were chosen and why.
 
     Every ``tlm run`` folder; of a thesis study, the slowest mode (largest TThru) of each
     scene; of a sweep, the fewest and the most pipelines of each combination of its other
     factors (its first and last point if it does not vary ``arch.pipelines``). At most
-    ``limit`` in all, in that order.
+    ``limit`` in all, in that order. A note that names runs names a few of many
+    (:func:`_some`) and counts them all.
     """
     timed = [r for r in inputs.runs if (r.results.get("timing") or {}).get("units")]
     notes = []
     untimed = [r.label for r in inputs.runs if r not in timed]
     if untimed:
-        notes.append(f"No timing results (not simulated), left out: {', '.join(untimed)}.")
+        notes.append(f"No timing results (not simulated), {len(untimed)} left out: {_some(untimed)}.")
     chosen = [r for r in timed if r.kind == "run"]
     thesis = [r for r in timed if r.kind == "thesis"]
     if thesis:
@@ -120,11 +133,12 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
         points = [r for r in sw.runs if id(r) in in_sweep]
         if not points:
             continue
-        groups: dict[tuple, list[Run]] = defaultdict(list)
-        for r in points:
-            groups[tuple(sorted((k, repr(v)) for k, v in r.factors.items() if k != "arch.pipelines"))].append(r)
-        picks = []
         varies = any("arch.pipelines" in r.factors for r in points)
+        groups: dict[tuple, list[Run]] = defaultdict(list)
+        for r in points:  # (a sweep that does not vary the pipelines: one group, the whole sweep)
+            key = tuple(sorted((k, repr(v)) for k, v in r.factors.items() if k != "arch.pipelines")) if varies else ()
+            groups[key].append(r)
+        picks = []
         for rs in groups.values():
             ends = [min(rs, key=_pipelines), max(rs, key=_pipelines)] if varies else [rs[0], rs[-1]]
             picks += [r for i, r in enumerate(ends) if r not in ends[:i]]
@@ -133,10 +147,10 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
             why = ("the fewest and the most pipelines of each combination of the other factors" if varies
                    else "its first and last point")
             notes.append(f"Sweep {sw.path.name}: {len(picks)} of {len(points)} points are shown, {why} "
-                         f"({', '.join(f'{r.label} [{_factors(r)}]' for r in picks)}).")
+                         f"({_some([f'{r.label} [{_factors(r)}]' for r in picks])}).")
     if len(chosen) > limit:
         left = chosen[limit:]
-        notes.append(f"At most {limit} runs are drawn; left out: {', '.join(r.label for r in left)}.")
+        notes.append(f"At most {limit} runs are drawn; {len(left)} left out: {_some([r.label for r in left])}.")
         chosen = chosen[:limit]
     return chosen, notes
 

@@ -3,13 +3,18 @@
 Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slowest
 PM, host seconds; a failed point with its error) and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
-factors (up to :data:`MAX_SERIES`; more are drawn as their median with the min-max
-band, and a note says so). A factor that is not a number (a scene, a mode) is a category:
-its values are points side by side (the median and a min-max bar beyond
-:data:`MAX_SERIES`), never joined by a line. A point's scene is named as the report names
-scenes, by its file (:func:`named_rows`). Combinations that draw the same line are drawn
-once, one label naming them all; the legend is under the plot, its labels wrapped to the
+factors. Combinations that draw the same line are drawn once, one label naming them all,
+and the lines are counted after that: up to :data:`MAX_SERIES` distinct lines are drawn
+as lines (40 combinations that draw 2 lines are 2 lines); more are drawn as the median
+over the combinations with the min-max band, and the caption and a note say what the
+band is. A factor that is not a number (a scene, a mode) is a category: its values are
+points side by side (the median and a min-max bar beyond :data:`MAX_SERIES` distinct
+lines), never joined by a line. A point's scene is named as the report names scenes, by
+its file (:func:`named_rows`). The legend is under the plot, its labels wrapped to the
 figure's width, and the figure grows by its height, so that no label squeezes the plot.
+A sweep folder's ``points/`` may also hold point folders that are not its points (an
+earlier run of other code or another config into the folder: a point's hash holds both);
+the section counts them (:func:`other_point_folders`).
 
 A sweep over ``bsp.levels`` also gets the thesis's balance claim ("floor(ln n) levels,
 with n denoting the number of photons and/or triangles, yields good performance balance"
@@ -23,6 +28,7 @@ of the best FPS (:func:`levels_balance`).
 from __future__ import annotations
 
 import math
+import os
 import textwrap
 from collections import defaultdict
 from pathlib import Path
@@ -38,6 +44,7 @@ from tlm.report.html import esc
 
 MAX_SERIES = 8
 MAX_ROWS = 200
+LABEL_COMBOS = 3  # a legend label of more than MAX_SERIES identical combinations (no product) names this many
 PMS = ("vertex", "traversal", "intersection", "fragment")
 LEVELS = "bsp.levels"
 FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its legend
@@ -114,19 +121,26 @@ def _group_label(others: list[str], combos: list[tuple]) -> str:
 
     One combination: ``levels=7, fifo_depth=16``. Several that are every combination of
     some values of each factor: each factor once, ``levels=7; fifo_depth=1, 16, 256 or 4096
-    (identical)``; any other set: the combinations joined by `` | ``, ``(identical)`` added."""
+    (identical)``; any other set: the combinations joined by `` | ``, ``(identical)`` added,
+    the first :data:`LABEL_COMBOS` and how many more where they are more than :data:`MAX_SERIES`."""
     if len(combos) == 1:
         return _combo_label(others, combos[0])
     values = [sorted({c[i] for c in combos}, key=_order) for i in range(len(others))]
     if math.prod(len(v) for v in values) == len(set(combos)):
         return "; ".join(f"{f.split('.')[-1]}={_alternatives(v)}" for f, v in zip(others, values, strict=True)) \
             + " (identical)"
+    if len(combos) > MAX_SERIES:  # (the table above lists every point)
+        return (" | ".join(_combo_label(others, c) for c in combos[:LABEL_COMBOS])
+                + f" and {len(combos) - LABEL_COMBOS} more combinations (identical)")
     return " | ".join(_combo_label(others, c) for c in combos) + " (identical)"
 
 
-def _merge_identical(series: dict[tuple, dict], others: list[str]) -> list[tuple[str, dict]]:
+def _merge_identical(series: dict[tuple, dict], others: list[str],
+                     limit: int | None = None) -> list[tuple[str, dict]] | None:
     """The series in order, those with the same points (to 1e-9) drawn once: a line that hides
-    another would read as one combination. Their label names them all (:func:`_group_label`)."""
+    another would read as one combination. Their label names them all (:func:`_group_label`).
+    None when there are more than ``limit`` distinct lines (found as soon as there are: a
+    sweep of thousands of distinct combinations is not compared pair by pair)."""
     merged: list[tuple[list[tuple], dict]] = []
     for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
         for combos, seen in merged:
@@ -134,6 +148,8 @@ def _merge_identical(series: dict[tuple, dict], others: list[str]) -> list[tuple
                 combos.append(combo)
                 break
         else:
+            if limit is not None and len(merged) == limit:
+                return None
             merged.append(([combo], pts))
     return [(_group_label(others, combos), pts) for combos, pts in merged]
 
@@ -152,10 +168,13 @@ def _legend_below(fig, ax, width: float, height: float) -> None:
 
 
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
-    """FPS against ``factor``; one line per combination of the other factors. A factor of
-    numbers is an axis of numbers and its points are joined by lines; any other factor (a
-    scene, a mode: categories, with no order or distance between them) is drawn as points
-    at its categories, the combinations side by side, with no line between categories."""
+    """FPS against ``factor``; one line per combination of the other factors, combinations
+    that draw the same line drawn once (:func:`_merge_identical`); more than
+    :data:`MAX_SERIES` distinct lines are drawn as the median over the combinations and the
+    min-max band (the caption says so). A factor of numbers is an axis of numbers and its
+    points are joined by lines; any other factor (a scene, a mode: categories, with no
+    order or distance between them) is drawn as points at its categories, the lines side
+    by side, with no line between categories."""
     ok = [r for r in named_rows(sw) if r.get("status") == "ok" and r.get("fps") is not None]
     others = [f for f in factors_of(sw) if f != factor]
     values = sorted({_key(r.get(factor)) for r in ok}, key=_order)
@@ -168,8 +187,9 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     fig = new_figure(*FACTOR_SIZE)
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
-    if len(series) <= MAX_SERIES:
-        lines = _merge_identical(series, others)
+    lines = _merge_identical(series, others, limit=MAX_SERIES)
+    combos = f"{len(series)} combinations of {', '.join(others)}" if len(series) > 1 else ""
+    if lines is not None:
         for i, (labels, pts) in enumerate(lines):
             vs = [v for v in values if v in pts]
             if numeric:
@@ -178,6 +198,8 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                 dx = _dodge(i, len(lines))
                 ax.plot([x + dx for x in xs_of(vs)], [pts[v] for v in vs], label=labels,
                         **{**line_style(i), "linestyle": "none", "markersize": 7})
+        drawn = (f" The {combos} draw {len(lines)} distinct line{'s' if len(lines) > 1 else ''}: identical ones "
+                 "are drawn once, their label naming them all." if len(lines) < len(series) else "")
     else:
         med, lo, hi = [], [], []
         for v in values:
@@ -185,7 +207,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             med.append(float(np.median(ys)))  # (the mean of the two middle values when their count is even)
             lo.append(ys[0])
             hi.append(ys[-1])
-        spread = f"min-max over {len(series)} combinations of {', '.join(others)}"
+        spread = f"min-max over {combos}"
         if numeric:
             ax.fill_between(xs_of(values), lo, hi, color="0.8", hatch="///", edgecolor="0.5", label=spread)
             ax.plot(xs_of(values), med, label="median", **line_style(0))
@@ -193,8 +215,13 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             ax.errorbar(xs_of(values), med, yerr=[np.subtract(med, lo), np.subtract(hi, med)], fmt="none",
                         ecolor="0.35", elinewidth=6, alpha=0.45, label=spread)
             ax.plot(xs_of(values), med, label="median", **{**line_style(0), "linestyle": "none", "markersize": 7})
-        notes.append(f"{sw.path.name}: FPS against {factor} shows the median and range over {len(series)} "
-                     f"combinations of the other factors (more than {MAX_SERIES} lines)")
+        notes.append(f"{sw.path.name}: FPS against {factor} shows the median and the min-max range over the "
+                     f"{combos}: they draw more than {MAX_SERIES} distinct lines")
+        band = "band" if numeric else "bar"
+        drawn = (f" The {combos} draw more than {MAX_SERIES} distinct lines: the {band} at each value of {factor} "
+                 f"spans the lowest to the highest FPS of those combinations there, the "
+                 f"{'line' if numeric else 'point'} is their median (the mean of the two middle values when their "
+                 "count is even, a value no point need have).")
     if numeric:
         lo_v, hi_v = min(values), max(values)
         if lo_v > 0 and hi_v / lo_v >= 100:
@@ -212,11 +239,11 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax.grid(True, which="both", alpha=0.3)
     _legend_below(fig, ax, *FACTOR_SIZE)
     name = f"sweep_{sw.path.name}_{factor.replace('.', '_')}.png"
-    drawn = "" if numeric else (
-        f" The factor {factor} is a category, not a number: its values are drawn as points, "
-        + ("each combination of the other factors beside the others, " if len(series) <= MAX_SERIES
-           else "the median and the min-max range over the other factors' combinations, ")
-        + "and no line joins two values.")
+    if not numeric:
+        drawn += (f" The factor {factor} is a category, not a number: its values are drawn as points, "
+                  + ("each line beside the others, " if lines is not None
+                     else "the median and the min-max range over the other factors' combinations, ")
+                  + "and no line joins two values.")
     caption = (f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
                f"{sw.spec.get('description') or ''}").strip().rstrip(";")
     return save(fig, out, name, f"{sw.path.name}: FPS against {factor}",
@@ -400,14 +427,42 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
                 f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).")
 
 
+def other_point_folders(sw: Sweep) -> int:
+    """The folders in the sweep's ``points/`` that are not its points: those of an earlier run into
+    the folder of other code or another config (a point's hash holds the code's fingerprint, the
+    resolved config and its input files' content), which a rerun leaves there. Names only (one
+    listing); the hidden temporary folders of a writer are not counted."""
+    planned = {str(p.get("hash")) for p in sw.spec.get("points") or [] if isinstance(p, dict)}
+    planned = planned or {str(r.get("hash")) for r in sw.rows}
+    try:
+        names = os.listdir(sw.path / "points")
+    except OSError:
+        return 0
+    return sum(not n.startswith(".") and n not in planned for n in names)
+
+
+def other_folders_text(n: int, points: Path) -> str:
+    """What a sweep's ``points/`` holding ``n`` folders of no point of it means (the report's
+    note, and ``tlm sweep``'s line after its points)."""
+    return (f"{n} point folder{'s' if n != 1 else ''} in {points} {'are' if n != 1 else 'is'} not "
+            "this sweep's: left by an earlier run into the folder of other tlm code or another config "
+            "(an edit under tlm/ or to an input file changes every point's hash); nothing reads "
+            f"{'them' if n != 1 else 'it'}, and removing {'them' if n != 1 else 'it'} changes no result "
+            "(sweep.yaml lists this sweep's hashes)")
+
+
 def sweeps_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("sweeps", "Sweeps: the points and the frame rate against each factor")
     html = []
     for sw in inputs.sweeps:
         desc = sw.spec.get("description")
         failed = sum(r.get("status") != "ok" for r in sw.rows)
+        other = other_point_folders(sw)
+        stale = f" {other_folders_text(other, Path(sw.path.name) / 'points')}." if other else ""
         html.append(f"<h3>{esc(sw.path.name)}</h3><p>{esc(desc or '')} {len(sw.rows)} points, "
-                    f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.</p>")
+                    f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.{esc(stale)}</p>")
+        if other:
+            sec.notes.append(f"{sw.path.name}: {other_folders_text(other, Path(sw.path.name) / 'points')}")
         if sw.unfinished:
             sec.notes.append(f"{sw.path.name}: {len(sw.rows)} of its {sw.planned} points have a row: the figures "
                              "show those only")
