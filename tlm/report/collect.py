@@ -157,10 +157,12 @@ def scene_label(ref: Any, source: Any, name: Any = None) -> str:
     run loaded (``results.json`` ``scene.source``); ``name``: the scene's ``name`` in its file.
     A built-in scene is named by its path under ``scenes/`` without ``.yaml`` (``room`` is
     ``scenes/room.yaml``, ``thesis/room`` is ``scenes/thesis/room.yaml``, though both files say
-    ``name: room``), wherever the run was made (a path to a file of another checkout's
-    ``scenes`` folder too, where that file is the built-in one here); another scene file by
-    the path its config gave (relative to that config), or, without a config, by its file's
-    path. The ``name`` alone only where neither is known."""
+    ``name: room``), wherever the run was made: a path to a file of another checkout's
+    ``scenes`` folder too, where that file is not on this machine (a run made elsewhere) or is
+    the same scene as the built-in one here (:func:`_same_builtin`); another scene file by the
+    path its config gave (relative to that config: a user's own, edited ``scenes/cornell.yaml``
+    that a config names ``cornell.yaml`` is ``cornell.yaml``, not the built-in ``cornell``), or,
+    without a config, by its file's path. The ``name`` alone only where neither is known."""
     src = str(source).replace("\\", "/") if source else ""
     if isinstance(ref, str) and ref.strip():
         r = ref.strip().replace("\\", "/")
@@ -169,12 +171,14 @@ def scene_label(ref: Any, source: Any, name: Any = None) -> str:
         builtin = _builtin_under(src) if src else None
         if builtin is not None:
             return builtin
+        same = _same_builtin(src)  # (a path to a built-in file of another checkout: ../scenes/room.yaml)
+        if same is not None:
+            return same
         n = len(Path(r).parts)  # thesis/ring.yaml: the built-in file (the loader's last resort), of another checkout
         if (not r.startswith(("/", ".")) and src.endswith(f"/{r}") and len(Path(src).parts) > n
-                and Path(src).parts[-n - 1] in SCENE_FOLDERS):
-            return r.rsplit(".", 1)[0]
-        same = _same_builtin(src)  # (a path to a built-in file of another checkout: ../scenes/room.yaml)
-        return same if same is not None else r
+                and Path(src).parts[-n - 1] in SCENE_FOLDERS and not Path(src).is_file()):
+            return r.rsplit(".", 1)[0]  # (a file on this machine is that only where its content is: a user's
+        return r  # own scenes/cornell.yaml, edited, is not the built-in cornell)
     if src:
         from tlm.scenes.loader import list_scenes
 
@@ -629,18 +633,62 @@ def read(dirs: list[Path]) -> Inputs:
 
 
 def name_scenes(runs: list[Run]) -> None:
-    """Fix each run's :attr:`Run.scene_label`: where two scene files that are not built-in
-    would get one name (the same path written in two configs, relative to two folders), each
-    is named by its file's path instead."""
+    """Fix each run's :attr:`Run.scene_label` so that one name stands for one scene file.
+
+    Where two scene files that are not built-in would get one name (the same path written in
+    two configs, relative to two folders), each is named by its file's path instead
+    (:func:`file_name`). Where a built-in name stands for two scene files on this machine of
+    different content (:func:`~tlm.experiments.provenance.scene_identity`: the built-in ``cornell``
+    of this installation, and that of another checkout with an edited ``scenes/cornell.yaml``),
+    the file that is this installation's built-in one keeps the name and each other is named
+    by its path. A file that is not on this machine (a run made elsewhere) cannot be told
+    apart by its content: it keeps the name (the built-in file of the checkout that ran it)."""
+    labels: dict[tuple, str] = {}  # (each distinct reference and file worked out once: a sweep's points share one)
     files: dict[str, set[str]] = {}
     for r in runs:
-        files.setdefault(r.scene_label, set()).add(str((r.results.get("scene") or {}).get("source")))
-    for r in runs:
-        label = r.scene_label
-        if label.lower().endswith((".yaml", ".yml")) and len(files[label]) > 1:
-            r.named = str(r.results["scene"].get("source"))
+        scene = r.results.get("scene") or {}
+        key = (str(r.config.get("scene")), str(scene.get("source")), str(scene.get("name")))
+        if key not in labels:
+            r.named = ""
+            labels[key] = r.scene_label
+        r.named = labels[key]
+        files.setdefault(r.named, set()).add(str(scene.get("source")))
+    renamed: dict[tuple[str, str], str] = {}
+    for label, sources in files.items():
+        if len(sources) < 2:
+            continue
+        if label.lower().endswith((".yaml", ".yml")):
+            renamed.update({(label, src): file_name(src) for src in sources})
         else:
-            r.named = label
+            renamed.update({(label, src): file_name(src) for src in _other_files(label, sources)})
+    if renamed:
+        for r in runs:
+            r.named = renamed.get((r.named, str((r.results.get("scene") or {}).get("source"))), r.named)
+
+
+def _other_files(label: str, sources: set[str]) -> list[str]:
+    """Of the scene files ``sources`` that the name ``label`` stands for, those that are another
+    scene: none where the ones on this machine are all one scene (by content); else each file on
+    this machine that is not the same scene as this installation's built-in ``label``."""
+    from tlm.experiments.provenance import scene_identity
+    from tlm.scenes.loader import scenes_dir
+
+    here = {src: scene_identity(src) for src in sources if src != "None" and Path(src).is_file()}
+    if len(set(here.values())) < 2:
+        return []
+    builtin = next((scenes_dir() / f"{label}{ext}" for ext in (".yaml", ".yml")
+                    if (scenes_dir() / f"{label}{ext}").is_file()), None)
+    mine = scene_identity(builtin) if builtin is not None else None
+    return sorted(src for src, ident in here.items() if ident != mine)
+
+
+def file_name(source: str) -> str:
+    """A scene file the report names by its path: relative to the current folder where it lies
+    under it (a user's project: ``scenes/cornell.yaml``), else as the run recorded it."""
+    try:
+        return Path(source).relative_to(Path.cwd().resolve()).as_posix()
+    except (ValueError, OSError):
+        return source
 
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:

@@ -29,6 +29,17 @@ HATCHES = ("", "///", "...", "xxx", "\\\\\\", "+++", "ooo", "---")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 2)), (0, (3, 1, 1, 1, 1, 1)))
 DPI = 110
+NAMED = 8  # a note names up to this many items (runs, points); of more, the first NAMED_SOME and how many more
+NAMED_SOME = 4
+
+
+def some(items: list[str]) -> str:
+    """``items`` joined by commas: all of up to :data:`NAMED`, else the first :data:`NAMED_SOME`
+    and how many more (a sweep of hundreds of points is not a note of hundreds of labels):
+    ``A1 #4, A1 #5, A1 #6, A1 #7 and 192 more``. The note says how many there are in all."""
+    if len(items) <= NAMED:
+        return ", ".join(items)
+    return f"{', '.join(items[:NAMED_SOME])} and {len(items) - NAMED_SOME} more"
 
 
 def colour(i: int) -> str:

@@ -19,7 +19,7 @@ The number of runs is bounded (:data:`MAX_RUNS`): every ``tlm run`` folder, for 
 thesis study the slowest mode of each scene, for a sweep the fewest and the most
 pipelines of each combination of its other factors, or its first and last point if it
 does not vary ``arch.pipelines``; a note counts what was left out and names a few
-(:data:`NAMED`).
+(:data:`~tlm.report.common.NAMED`).
 """
 
 from __future__ import annotations
@@ -37,13 +37,11 @@ from matplotlib.path import Path as MplPath
 
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
-from tlm.report.common import Section, new_figure, save
+from tlm.report.common import Section, new_figure, save, some
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
 MAX_RUNS = 8  # runs shown (breakdown + timeline each)
-NAMED = 8  # a note names up to this many runs; of more, the first NAMED_SOME and how many more
-NAMED_SOME = 4
 MAX_GANTT_ROWS = 30  # more units: the first and the last pipeline (and the shared units) only
 MAX_RECTS = 20000  # more merged slices than this: draw at pixel resolution
 BINS = 1600  # pixel columns of the timeline at pixel resolution
@@ -94,14 +92,6 @@ def _pipelines(run: Run) -> int:
     return int(run.factors.get("arch.pipelines") or (run.config.get("arch") or {}).get("pipelines") or 1)
 
 
-def _some(items: list[str]) -> str:
-    """``items`` joined by commas: all of up to :data:`NAMED`, else the first :data:`NAMED_SOME`
-    and how many more (a sweep of hundreds of points is not a note of hundreds of labels)."""
-    if len(items) <= NAMED:
-        return ", ".join(items)
-    return f"{', '.join(items[:NAMED_SOME])} and {len(items) - NAMED_SOME} more"
-
-
 def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[str]]:
     """The runs this section draws, and notes on which were chosen and why.
 
@@ -109,13 +99,13 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
     scene; of a sweep, the fewest and the most pipelines of each combination of its other
     factors (its first and last point if it does not vary ``arch.pipelines``). At most
     ``limit`` in all, in that order. A note that names runs names a few of many
-    (:func:`_some`) and counts them all.
+    (:func:`~tlm.report.common.some`) and counts them all.
     """
     timed = [r for r in inputs.runs if (r.results.get("timing") or {}).get("units")]
     notes = []
     untimed = [r.label for r in inputs.runs if r not in timed]
     if untimed:
-        notes.append(f"No timing results (not simulated), {len(untimed)} left out: {_some(untimed)}.")
+        notes.append(f"No timing results (not simulated), {len(untimed)} left out: {some(untimed)}.")
     chosen = [r for r in timed if r.kind == "run"]
     thesis = [r for r in timed if r.kind == "thesis"]
     if thesis:
@@ -147,10 +137,10 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
             why = ("the fewest and the most pipelines of each combination of the other factors" if varies
                    else "its first and last point")
             notes.append(f"Sweep {sw.path.name}: {len(picks)} of {len(points)} points are shown, {why} "
-                         f"({_some([f'{r.label} [{_factors(r)}]' for r in picks])}).")
+                         f"({some([f'{r.label} [{_factors(r)}]' for r in picks])}).")
     if len(chosen) > limit:
         left = chosen[limit:]
-        notes.append(f"At most {limit} runs are drawn; {len(left)} left out: {_some([r.label for r in left])}.")
+        notes.append(f"At most {limit} runs are drawn; {len(left)} left out: {some([r.label for r in left])}.")
         chosen = chosen[:limit]
     return chosen, notes
 

@@ -19,10 +19,13 @@ the section counts them (:func:`other_point_folders`).
 A sweep over ``bsp.levels`` also gets the thesis's balance claim ("floor(ln n) levels,
 with n denoting the number of photons and/or triangles, yields good performance balance"
 of the Traversal and Intersection PMs) tested: Ttrav / Tisct (the rows' cycles.traversal
-over cycles.intersection) and the simulated FPS against the levels, one line per scene,
-a vertical marker at each scene's floor(ln n) (n from the points' results.json) and a
-table of the ratio and FPS there, the level whose ratio is closest to 1 and the level
-of the best FPS (:func:`levels_balance`).
+over cycles.intersection) and the simulated FPS against the levels, one line per scene
+and combination of the other factors (those that draw the same line drawn once, and
+counted after that against :data:`MAX_SERIES`, :func:`levels_lines`), a vertical marker
+at each scene's floor(ln n) (n from the points' results.json) and a table of the ratio
+and FPS there, the level whose ratio is closest to 1 and the level of the best FPS
+(:func:`levels_balance`). A note that names points or series names a few of many and
+counts them all (:func:`~tlm.report.common.some`).
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormat
 
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import Figure, Section, line_style, new_figure, save
+from tlm.report.common import NAMED, Figure, Section, line_style, new_figure, save, some
 from tlm.report.html import esc
 
 MAX_SERIES = 8
@@ -48,6 +51,7 @@ LABEL_COMBOS = 3  # a legend label of more than MAX_SERIES identical combination
 PMS = ("vertex", "traversal", "intersection", "fragment")
 LEVELS = "bsp.levels"
 FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its legend
+LEVELS_SIZE = (13.0, 4.8)  # inches, the BSP-levels figure without its legend
 LEGEND_FONT = 7  # points
 # the legend under a figure: characters of a label per inch of the figure's width (DejaVu Sans at
 # LEGEND_FONT points, digits and lower case about 4.5 pt wide, less the marker and the padding), the
@@ -135,23 +139,40 @@ def _group_label(others: list[str], combos: list[tuple]) -> str:
     return " | ".join(_combo_label(others, c) for c in combos) + " (identical)"
 
 
+def _same(a, b) -> bool:
+    """Two values of a line the same to 1e-9 (both missing, or both not a number: the same)."""
+    if a is None or b is None:
+        return a is None and b is None
+    if math.isnan(a) or math.isnan(b):
+        return math.isnan(a) and math.isnan(b)
+    return math.isclose(a, b, rel_tol=1e-9)
+
+
+def _merge_groups(series: dict[tuple, dict], limit: int | None = None) -> list[tuple[list[tuple], dict]] | None:
+    """The series in the order of their combinations, those with the same points (:func:`_same`)
+    together: each distinct line once, with every combination that draws it. None when there
+    are more than ``limit`` distinct lines (found as soon as there are: a sweep of thousands
+    of distinct combinations is not compared pair by pair)."""
+    merged: list[tuple[list[tuple], dict]] = []
+    for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
+        for combos, seen in merged:
+            if seen.keys() == pts.keys() and all(_same(seen[k], pts[k]) for k in pts):
+                combos.append(combo)
+                break
+        else:
+            if limit is not None and len(merged) >= limit:
+                return None
+            merged.append(([combo], pts))
+    return merged
+
+
 def _merge_identical(series: dict[tuple, dict], others: list[str],
                      limit: int | None = None) -> list[tuple[str, dict]] | None:
     """The series in order, those with the same points (to 1e-9) drawn once: a line that hides
     another would read as one combination. Their label names them all (:func:`_group_label`).
-    None when there are more than ``limit`` distinct lines (found as soon as there are: a
-    sweep of thousands of distinct combinations is not compared pair by pair)."""
-    merged: list[tuple[list[tuple], dict]] = []
-    for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
-        for combos, seen in merged:
-            if seen.keys() == pts.keys() and all(math.isclose(seen[k], pts[k], rel_tol=1e-9) for k in pts):
-                combos.append(combo)
-                break
-        else:
-            if limit is not None and len(merged) == limit:
-                return None
-            merged.append(([combo], pts))
-    return [(_group_label(others, combos), pts) for combos, pts in merged]
+    None when there are more than ``limit`` distinct lines (:func:`_merge_groups`)."""
+    merged = _merge_groups(series, limit)
+    return None if merged is None else [(_group_label(others, combos), pts) for combos, pts in merged]
 
 
 def _legend_below(fig, ax, width: float, height: float) -> None:
@@ -312,15 +333,16 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
             "ratio": trav / isct, "fps": r.get("fps"), "throughput": r.get("cycles.throughput"),
             "truncated": bool(bsp.get("truncated"))})
     if unusable:
-        notes.append(f"{name}: points {', '.join(unusable)} left out of the BSP-levels balance: no level, or no "
+        notes.append(f"{name}: {_points(unusable)} left out of the BSP-levels balance: no level, or no "
                      "traversal and intersection cycles")
     if not series:
         notes.append(f"{name}: no BSP-levels balance: no finished point with cycles.traversal and "
                      "cycles.intersection")
         return {}, []
-    truncated = [str(p["point"]) for pts in series.values() for p in pts if p["truncated"]]
+    truncated = [str(p["point"]) for p in sorted((p for pts in series.values() for p in pts if p["truncated"]),
+                                                 key=lambda p: _order(p["point"]))]  # (in point order)
     if truncated:
-        notes.append(f"{name}: points {', '.join(truncated)} built a shallower BSP tree than their level asks "
+        notes.append(f"{name}: {_points(truncated)} built a shallower BSP tree than their level asks "
                      "(results.json scene.bsp.truncated); they are drawn at the level asked")
     for scene, ns in sorted(triangles.items()):
         if len(ns) > 1:
@@ -332,14 +354,14 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
                      "is unknown and not marked")
     out: dict[tuple, list[dict]] = {}
     summary = []
+    shared, single = [], []  # the series with no balance curve, and why
     for key, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
         levels = [p["level"] for p in pts]
         if len(set(levels)) != len(levels):
-            notes.append(f"{name}: {_series_label(key, others)}: no balance curve, several points share a level "
-                         "(they differ in a factor the report cannot tell apart)")
+            shared.append(_series_label(key, others))
             continue
         if len(pts) < 2:
-            notes.append(f"{name}: {_series_label(key, others)}: one level only, no balance curve")
+            single.append(_series_label(key, others))
             continue
         pts.sort(key=lambda p: p["level"])
         out[key] = pts
@@ -354,7 +376,26 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
                         "ratio_at_floor": at["ratio"] if at else None, "fps_at_floor": at["fps"] if at else None,
                         "closest_level": close["level"], "closest_ratio": close["ratio"],
                         "best_level": best["level"] if best else None, "best_fps": best["fps"] if best else None})
+    if shared:
+        notes.append(f"{name}: {_curves(shared)}: no balance curve, several points share a level "
+                     "(they differ in a factor the report cannot tell apart)")
+    if single:
+        notes.append(f"{name}: {_curves(single)}: one level only, no balance curve")
     return out, summary
+
+
+def _points(numbers: list[str]) -> str:
+    """``point 3``, ``points 3, 5``, or of many ``200 points (0, 1, 2, 3 and 196 more)``."""
+    if len(numbers) == 1:
+        return f"point {numbers[0]}"
+    if len(numbers) <= NAMED:
+        return f"points {', '.join(numbers)}"
+    return f"{len(numbers)} points ({some(numbers)})"
+
+
+def _curves(labels: list[str]) -> str:
+    """The series named by ``labels``: one by its label, of many their count and a few."""
+    return labels[0] if len(labels) == 1 else f"{len(labels)} series ({some(labels)})"
 
 
 def _series_label(key: tuple, others: list[str]) -> str:
@@ -385,19 +426,50 @@ def levels_table(summary: list[dict]) -> str:
     return "\n".join(out)
 
 
-def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict], out: Path) -> Figure:
-    """Ttrav / Tisct (log) and FPS against the BSP levels, one line per series, a dotted
-    vertical line at each scene's floor(ln n) and a horizontal line at ratio 1."""
-    fig = new_figure(13, 4.8)
+def levels_lines(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict],
+                 limit: int = MAX_SERIES) -> list[tuple[str, dict]] | None:
+    """The lines of the BSP-levels figure: the series of ``summary`` (:func:`levels_balance`),
+    those of one scene with the same points (each level's Ttrav / Tisct and FPS, to 1e-9)
+    drawn once, their label naming every combination of the other factors that draws it
+    (:func:`_group_label`), as in the FPS figures. Each line is ``(label, the summary of its
+    first series)``; None when they are more than ``limit`` distinct lines (counted after
+    the merge: 100 combinations that draw 5 curves are 5 lines)."""
+    others = [f for f in factors_of(sw) if f not in (LEVELS, "scene")]
+    by_scene: dict[Any, dict[tuple, dict]] = defaultdict(dict)
+    of_key = {}
+    for s in summary:
+        pts = series[s["key"]]
+        of_key[s["key"]] = s
+        by_scene[s["scene"]][s["key"][1:]] = {**{(p["level"], "ratio"): p["ratio"] for p in pts},
+                                              **{(p["level"], "fps"): p["fps"] for p in pts}}
+    lines: list[tuple[str, dict]] = []
+    for scene, combos_of in by_scene.items():
+        merged = _merge_groups(combos_of, limit - len(lines))
+        if merged is None:
+            return None
+        for combos, _ in merged:
+            first = of_key[(scene, *combos[0])]
+            lines.append((first["label"] if len(combos) == 1 else f"{scene} ({_group_label(others, combos)})", first))
+    return lines
+
+
+def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict], out: Path,
+                  lines: list[tuple[str, dict]] | None = None) -> Figure:
+    """Ttrav / Tisct (log) and FPS against the BSP levels, one line per distinct series
+    (``lines``, :func:`levels_lines`; by default one per series), a dotted vertical line at
+    each scene's floor(ln n) and a horizontal line at ratio 1."""
+    if lines is None:
+        lines = [(s["label"], s) for s in summary]
+    fig = new_figure(*LEVELS_SIZE)
     ratio_ax, fps_ax = fig.subplots(1, 2)
     scenes = sorted({k[0] for k in series})
     marked = set()
-    for i, s in enumerate(summary):
+    for i, (label, s) in enumerate(lines):
         pts = series[s["key"]]
         style = line_style(i)
         levels = [p["level"] for p in pts]
-        ratio_ax.plot(levels, [p["ratio"] for p in pts], label=s["label"], **style)
-        fps_ax.plot(levels, [math.nan if p["fps"] is None else p["fps"] for p in pts], label=s["label"], **style)
+        ratio_ax.plot(levels, [p["ratio"] for p in pts], label=label, **style)
+        fps_ax.plot(levels, [math.nan if p["fps"] is None else p["fps"] for p in pts], label=label, **style)
         if s["floor_ln"] is not None and s["scene"] not in marked:
             marked.add(s["scene"])
             for ax in (ratio_ax, fps_ax):
@@ -418,13 +490,17 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
         ax.set_xticks(levels, [str(v) for v in levels])
         ax.set_xlabel("BSP levels (bsp.levels)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    where = ", ".join(f"{s['scene']} {s['floor_ln']}" for s in summary if s["floor_ln"] is not None)
+    _legend_below(fig, ratio_ax, *LEVELS_SIZE)  # (one legend for both panels, under them: a label naming many
+    # combinations would cover the lines inside a panel)
+    where = ", ".join(dict.fromkeys(f"{s['scene']} {s['floor_ln']}" for s in summary if s["floor_ln"] is not None))
+    merged = (f" The {len(summary)} series (scenes times the other factors' values) draw {len(lines)} distinct "
+              f"line{'s' if len(lines) > 1 else ''}: identical ones are drawn once, their label naming them all."
+              if len(lines) < len(summary) else "")
     return save(fig, out, f"bsp_balance_{sw.path.name}.png",
                 f"{sw.path.name}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
                 "The thesis: floor(ln n) levels balance the Traversal and Intersection PMs. Left: the slowest "
                 "pipeline's Traversal over Intersection cycles per frame (1 = balanced, dashed); right: the "
-                f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).")
+                f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).{merged}")
 
 
 def other_point_folders(sw: Sweep) -> int:
@@ -478,11 +554,13 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
                             "(Ttrav / Tisct = cycles.traversal / cycles.intersection of the rows; closest to 1 "
                             "in |ln ratio|; FPS as simulated).</p>")
                 html.append(levels_table(summary))
-                if len(summary) <= MAX_SERIES:
-                    sec.figures.append(levels_figure(sw, series, summary, out))
+                lines = levels_lines(sw, series, summary)
+                if lines is not None:
+                    sec.figures.append(levels_figure(sw, series, summary, out, lines))
                 else:
                     sec.notes.append(f"{sw.path.name}: no BSP-levels figure: {len(summary)} curves (scenes times "
-                                     f"the other factors' values), more than {MAX_SERIES}; the table lists them")
+                                     f"the other factors' values) draw more than {MAX_SERIES} distinct lines; the "
+                                     "table lists them")
     sec.html = "\n".join(html)
     if not inputs.sweeps:
         sec.absent = "no sweep folder among the inputs"

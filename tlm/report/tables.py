@@ -44,7 +44,7 @@ from tlm.experiments.thesis import (
     summarize,
 )
 from tlm.report.collect import Inputs, Run, Study, shown_paths
-from tlm.report.common import Section, line_style, new_figure, save, untangle
+from tlm.report.common import Section, line_style, new_figure, save, some, untangle
 
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
@@ -55,7 +55,7 @@ MARK_CALIBRATED = "†"
 MARK_SLOW_THESIS = "▲"
 MARK_SLOW_OURS = "●"
 
-MAX_TABLES_PER_SCENE = 4  # sources shown as tables per scene; the rest are named in a note
+MAX_TABLES_PER_SCENE = 4  # sources shown as tables per scene; a note counts the rest and names a few
 MAX_FIGURE_SOURCES = 4  # sources drawn in a scene's figure
 
 
@@ -161,14 +161,16 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
     if skipped:
         notes.append(f"{len(skipped)} sweep points of thesis scenes are not tabled: a thesis study is among the "
                      "inputs (sweep points are tabled only without one)")
+    no_table: dict[str, list[str]] = {}  # a scene with no thesis table: the runs of it left out
+    no_cycles: list[str] = []
     for run in inputs.runs:
         if run.path.resolve() in in_study or (skipped and run.kind == "sweep-point"):
             continue
         if run.scene not in THESIS:
-            notes.append(f"{run.label}: scene {run.scene!r} has no table in the thesis, left out of the tables")
+            no_table.setdefault(run.scene, []).append(run.label)
             continue
         if not run.results.get("cycles") or run.results.get("fps") is None:
-            notes.append(f"{run.label}: no simulated cycles in results.json, left out of the tables")
+            no_cycles.append(run.label)
             continue
         rows = comparison_rows(run.scene, run.mode, _ours(run.results["cycles"], run.results["fps"]))
         key = (run.scene, _config_key(run))
@@ -182,6 +184,14 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
         src.runs.append(run)
         for row in rows:
             src.rows[(run.mode, row["metric"])] = row
+    for scene, labels in no_table.items():  # (a sweep of hundreds of points: one note, its count and a few labels)
+        notes.append(f"{labels[0]}: scene {scene!r} has no table in the thesis, left out of the tables"
+                     if len(labels) == 1 else f"scene {scene!r} has no table in the thesis: {len(labels)} runs of "
+                     f"it left out of the tables ({some(labels)})")
+    if no_cycles:
+        notes.append(f"{no_cycles[0]}: no simulated cycles in results.json, left out of the tables"
+                     if len(no_cycles) == 1 else f"{len(no_cycles)} runs with no simulated cycles in results.json "
+                     f"left out of the tables ({some(no_cycles)})")
     for sources in by_scene.values():
         for src in sources:
             if src.study is None:
@@ -488,7 +498,7 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
     for scene, srcs in sources.items():
         shown = srcs[:MAX_TABLES_PER_SCENE]
         if len(srcs) > len(shown):
-            rest = ", ".join(s.label for s in srcs[len(shown):])
+            rest = some([s.label for s in srcs[len(shown):]])
             section.notes.append(f"Table {TABLE_NUMBER[scene]}: {len(srcs) - len(shown)} more sources left out of the "
                                  f"tables and the figure (at most {MAX_TABLES_PER_SCENE} per table): {rest}")
         for src in shown:
