@@ -325,3 +325,80 @@ def test_a_point_written_where_this_machine_does_not_see_it_fails_with_the_path(
         assert row["error"].startswith("PathNotOnWorker: the Dask worker tcp://127.0.0.1:"), row["error"]
         assert f"wrote {folder}, which this machine does not see" in row["error"]
         assert (Path(folder) / "error.json").is_file()
+
+
+@pytest.mark.slow
+def test_a_worker_whose_builtin_scene_differs_refuses_the_point(cluster, tmp_path):
+    """The code fingerprint leaves out scenes/: a worker whose built-in cornell.yaml differs (same
+    tlm code) rendered its own scene, and the sweep filed its cycles, "ok", under this machine's
+    point hash. Now it refuses the point, naming both frame keys and its scene file."""
+    from distributed import Client
+
+    from tlm.experiments.sweep_file import load_sweep
+    from tlm.scenes.loader import scenes_dir
+
+    other = tmp_path / "workers_scenes"
+    shutil.copytree(scenes_dir(), other)
+    text = (other / "cornell.yaml").read_text()
+    assert "params: {}" in text
+    (other / "cornell.yaml").write_text(text.replace("params: {}", "params: {wall_div: 2}"))
+
+    def scenes_at(folder):  # (nested: sent to the workers by value) their install's scenes/, or None: tlm's
+        from pathlib import Path
+
+        import tlm.scenes.loader as loader
+
+        if folder is None:
+            loader.scenes_dir = loader._tlm_scenes_dir
+        else:
+            loader._tlm_scenes_dir = loader.scenes_dir
+            loader.scenes_dir = lambda: Path(folder)
+
+    path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]})
+    mine = load_sweep(path).points[0].functional
+    with Client(cluster.address, timeout=30) as client:
+        client.run(scenes_at, str(other))
+        try:
+            done = run_sweep(path, tmp_path / "o", dask=cluster.address)
+        finally:
+            client.run(scenes_at, None)
+    assert (done.ok, done.failed) == (0, 2)
+    for row in done.rows:
+        assert row["error"].startswith("OtherInputsOnWorker: the Dask worker tcp://127.0.0.1:"), row["error"]
+        assert f"the sweep's {mine}; its scene file {other / 'cornell.yaml'})" in row["error"], row["error"]
+        assert not (tmp_path / "o" / "points" / row["hash"] / "results.json").exists()
+    again = run_sweep(path, tmp_path / "o", dask=cluster.address)  # (the workers' own scenes/ again)
+    assert (again.ok, again.failed) == (2, 0)
+    for row in again.rows:
+        results = json.loads((tmp_path / "o" / "points" / row["hash"] / "results.json").read_text())
+        assert results["functional"]["key"] == mine
+
+
+@pytest.mark.slow
+def test_a_worker_that_reads_another_programs_table_refuses_the_point(cluster, tmp_path, monkeypatch):
+    """The table at the sweep's path holds other text where the workers read it (a disk of their
+    own; here: edited after the sweep read it): its cycles would be filed under the hash of the
+    table the sweep read."""
+    from tlm.arch.costs import DEFAULT_PATH
+    from tlm.config import text_digest
+
+    table = tmp_path / "table.yaml"
+    shutil.copy(DEFAULT_PATH, table)
+    read = table.read_text()
+    path = sweep_file(tmp_path, base={**BASE, "arch": {**BASE["arch"], "programs": "table.yaml"}},
+                      grid={"arch.fifo_depth": [1, 16]})
+    opened = sweep_mod.open_executor
+
+    def open_then_edit(*args):
+        pool = opened(*args)
+        table.write_text(read + "\n# the workers' copy\n")  # (after the sweep read it, before a worker does)
+        return pool
+
+    monkeypatch.setattr(sweep_mod, "open_executor", open_then_edit)
+    done = run_sweep(path, tmp_path / "o", dask=cluster.address)
+    assert (done.ok, done.failed) == (0, 2)
+    theirs, ours = text_digest(table.read_text())[:16], text_digest(read)[:16]
+    for row in done.rows:
+        assert row["error"].startswith("OtherInputsOnWorker: the Dask worker tcp://127.0.0.1:"), row["error"]
+        assert f"reads another programs table at {table} (its text's sha256 {theirs}, the sweep's {ours})" \
+            in row["error"], row["error"]

@@ -37,13 +37,18 @@ that shares a map: its cost if run alone). ``gather_seconds`` is its photon-map 
 the kernels warm. What a process pays once, whichever point first needs it, is charged to no
 row: numba compiling the kernels (or loading them from its on-disk cache), the first imports
 of the modules they use, and the eye paths' walks through mirrors and glass to the gather
-points (computed once for the base's eye rays, as the ray cast is).
-Before its first row, each distinct setting is warmed up (:class:`WarmUp`: a trace of at most
-:data:`WARM_PHOTONS` photons gathered at :data:`WARM_PIXELS` pixels, and the walks of the whole
-image), untimed; numba compilation that still falls inside a row's timed work (one its warm-up
-missed) is measured (:class:`CompileClock`) and taken out of it. Each row's
-``one_off_seconds`` says how much was excluded on its account: its warm-up, and the compilation
-taken out of its own trace and gather; their sum is the study's whole one-off cost.
+points (computed once per render setting for the base's eye rays, as the ray cast is).
+Before its first row, each setting of what selects the kernels (:func:`warm_key`: the filter,
+final gathering, the caustic group and a density rule each on or off, the aim, the render
+settings; not photon counts, radii, ``k`` or seeds) is warmed up (:class:`WarmUp`: a trace of
+at most :data:`WARM_PHOTONS` photons gathered at :data:`WARM_PIXELS` pixels, and the walks of
+the whole image), untimed; numba compilation and first imports that still fall inside a row's timed work
+(what its warm-up missed) are measured (:class:`CompileClock`) and taken out of it. Each row's
+``one_off_seconds`` is what was excluded on its account: the seconds in which numba compiled or
+loaded a kernel, or a module was imported for the first time, during its warm-up and its timed
+trace and gather, and the walks' seconds where its warm-up made them. The warm-ups' own small
+traces and gathers are no row's work and are in no column; nor is what the study does before
+its first row (the reference, the eye rays' cast).
 
 File format::
 
@@ -63,10 +68,12 @@ from __future__ import annotations
 
 import itertools
 import json
+import sys
 import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from importlib.util import resolve_name
 from pathlib import Path
 from typing import Any
 
@@ -280,8 +287,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     density_s: dict[tuple, float] = {}  # (id of a map in maps, k) -> seconds of its density radius
     others: dict[str, dict] = {}  # the non-photon passes' work, per setting they depend on
     geometry = TreeWork.of(accel.tree)
-    warm = WarmUp(frame0, g)
     clock = CompileClock()
+    warm = WarmUp(frame0, g, clock)
 
     def one(item: tuple[int, dict, RunConfig], _folder: Path) -> dict:
         i, point, cfg = item
@@ -290,7 +297,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                    cfg.photons.caustic_fraction, cfg.photons.caustic_count, cfg.photons.aim,
                    cfg.photons.aim_triangles, cfg.estimate.final_gather > 0, cfg.photons.levels,
                    cfg.photons.leaf_photons, cfg.cache.block_words, cfg.cache.pairs)
-        one_off = warm(cfg)  # (untimed: what the point's settings are the first to need)
+        one_off = warm(cfg)  # (untimed: what the point's settings are the first to need, its one-off part)
         frame = Frame.create(scene, accel, cfg)
         if map_key not in maps:  # (the trace, and the maps in the leaf order every gather reads them in)
             t0 = time.perf_counter()
@@ -298,25 +305,25 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             for m in gathered_maps(frame, traced.photons):
                 m.prepared()
             t1 = time.perf_counter()
-            compiling = clock.within(t0, t1)
-            one_off += compiling
-            maps[map_key] = (traced, t1 - t0 - compiling)
+            once = clock.within(t0, t1)
+            one_off += once
+            maps[map_key] = (traced, t1 - t0 - once)
         traced, trace_s = maps[map_key]
         for m, k in density_requests(frame, traced.photons):  # (each density radius the point asks for)
             if (id(m), k) not in density_s:  # (made once; counted by every point that asks for it)
                 t0 = time.perf_counter()
                 m.density_radius(k)
                 t1 = time.perf_counter()
-                compiling = clock.within(t0, t1)
-                one_off += compiling
-                density_s[(id(m), k)] = t1 - t0 - compiling
+                once = clock.within(t0, t1)
+                one_off += once
+                density_s[(id(m), k)] = t1 - t0 - once
             trace_s += density_s[(id(m), k)]
         t0 = time.perf_counter()
         radiance, work = pmap_pass(frame, g, traced.photons)
         t1 = time.perf_counter()
-        compiling = clock.within(t0, t1)
-        one_off += compiling
-        gather_s = t1 - t0 - compiling  # (with final gathering: its rays too)
+        once = clock.within(t0, t1)
+        one_off += once
+        gather_s = t1 - t0 - once  # (with final gathering: its rays too)
         fg_work = g.memo.pop("fgather_work", None)
         fn = frame_functional(frame, g, geometry, others, traced, work, fg_work)
         rest = others[_others_key(frame.cfg, _own_passes(fn.passes))]
@@ -360,31 +367,57 @@ WARM_PHOTONS = 1000
 WARM_PIXELS = 64
 
 
-class WarmUp:
-    """Runs each distinct setting's one-off work before its first row is timed: its photon
-    trace and photon-map pass at a small size (:data:`WARM_PHOTONS` photons, gathered at
-    :data:`WARM_PIXELS` pixels of ``frame``'s image: numba compiles or loads the kernels they
-    call, and the modules they import are imported) and the walks of the whole image's eye
-    paths through mirrors and glass (``g``'s, kept in ``g.memo``, which every row's gather
-    reads). Calling it with a config returns the host seconds that took (0 for a setting
-    warmed up before)."""
+def warm_key(cfg: RunConfig) -> str:
+    """What a point's warm-up is keyed on (:class:`WarmUp`): what selects the kernels its trace
+    and gather call and the code paths they take. That is its config less ``arch``,
+    ``reference`` and ``seed``, with each number of its ``photons``, ``estimate`` and ``cache``
+    sections told only as null, zero or more than zero (photon counts, radii, ``k``: the same
+    kernels take every value; a zero or a null turns a map, final gathering or a density rule on
+    or off). The filter, the aim and every other named or true/false setting are kept, and the
+    ``render`` section whole."""
+    keep = {k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference", "seed")}
+    for section in ("photons", "estimate", "cache"):
+        keep[section] = {k: _sign(v) for k, v in keep.get(section, {}).items()}
+    return json.dumps(keep, sort_keys=True, default=str)
 
-    def __init__(self, frame: Frame, g: GBuffer):
-        self.frame, self.g = frame, g
+
+def _sign(v: Any) -> Any:
+    """A number as null, zero or more than zero (``"0"``, ``"+"``; the sections :func:`warm_key`
+    reads hold none below zero); any other value as it is."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return v
+    return "0" if v == 0 else "+"
+
+
+class WarmUp:
+    """Runs each distinct setting's one-off work before its first row is timed (a setting:
+    :func:`warm_key`, so rows that differ only in photon counts, radii or seeds share one): a
+    photon trace and photon-map pass at a small size (:data:`WARM_PHOTONS` photons, gathered at
+    :data:`WARM_PIXELS` pixels of ``frame``'s image: numba compiles or loads the kernels they
+    call, and the modules they import are imported) and the walks of the whole image's eye paths
+    through mirrors and glass (``g``'s, kept in ``g.memo``, which every row's gather reads; once
+    per ``render`` setting). Calling it with a config returns the one-off seconds it took: the
+    compilation and first imports within it (``clock``, :meth:`CompileClock.within`) and the
+    walks; 0 for a setting warmed up before. Its own small trace and gather are one-off for
+    no one: their seconds are in no row's columns."""
+
+    def __init__(self, frame: Frame, g: GBuffer, clock: CompileClock):
+        self.frame, self.g, self.clock = frame, g, clock
         cam = frame.scene.camera
         pixels = np.unique(np.linspace(0, cam.width * cam.height - 1, min(WARM_PIXELS, cam.width * cam.height))
                            .astype(np.int64))
         self.pixels = pixels
-        self.small: GBuffer | None = None  # (cast at the first warm-up: its seconds are one-off too)
-        self.done: set[str] = set()  # the settings warmed up
+        self.small: GBuffer | None = None  # (cast at the first warm-up)
+        self.done: set[str] = set()  # the settings warmed up (warm_key)
         self.walked: set[str] = set()  # the render settings whose walks g.memo holds
+        self.walk_seconds = 0.0  # the walks' seconds, less the compilation and imports within them
 
     def __call__(self, cfg: RunConfig) -> float:
-        key = json.dumps({k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference")},
-                         sort_keys=True, default=str)
+        key = warm_key(cfg)
         if key in self.done:
             return 0.0
         t0 = time.perf_counter()
+        walks = 0.0
         scene, accel = self.frame.scene, self.frame.accel
         if self.small is None:
             self.small = cast(self.frame, self.pixels)
@@ -397,16 +430,22 @@ class WarmUp:
         self.small.memo.pop("fgather_work", None)
         render = json.dumps(to_dict(cfg)["render"], sort_keys=True, default=str)  # (what the walks depend on)
         if render not in self.walked:
+            w0 = time.perf_counter()
             gather_points_full(Frame.create(scene, accel, cfg), self.g)  # (the walks, kept in g.memo)
+            w1 = time.perf_counter()
+            walks = w1 - w0 - self.clock.within(w0, w1)
+            self.walk_seconds += walks
             self.walked.add(render)
         self.done.add(key)
-        return time.perf_counter() - t0
+        return self.clock.within(t0, time.perf_counter()) + walks
 
 
 class CompileClock:
     """The spans of host time in which numba compiled a kernel or loaded one from its on-disk
-    cache (its global compiler lock asked for and held: numba's ``numba:compiler_lock``
-    event), from any thread, while :meth:`running`; :meth:`within` sums them over a window."""
+    cache (its global compiler lock asked for and held: numba's ``numba:compiler_lock`` event),
+    or an ``import`` statement imported a module not imported before (its first import, with
+    what that imports), from any thread, while :meth:`running`; :meth:`within` gives the
+    seconds of a window that any of them covered (overlapping spans counted once)."""
 
     def __init__(self):
         self._lock = threading.Lock()
@@ -414,31 +453,78 @@ class CompileClock:
         self._since = 0.0
         self.spans: list[tuple[float, float]] = []
 
+    def _start(self) -> None:
+        with self._lock:
+            if self._depth == 0:
+                self._since = time.perf_counter()
+            self._depth += 1
+
+    def _end(self) -> None:
+        with self._lock:
+            self._depth -= 1
+            if self._depth == 0:
+                self.spans.append((self._since, time.perf_counter()))
+
     @contextmanager
     def running(self):
+        import builtins
+
         from numba.core import event
 
+        clock = self
+
         class Listener(event.Listener):
-            def on_start(_self, _event):
-                with self._lock:
-                    if self._depth == 0:
-                        self._since = time.perf_counter()
-                    self._depth += 1
+            def on_start(self, _event):
+                clock._start()
 
-            def on_end(_self, _event):
-                with self._lock:
-                    self._depth -= 1
-                    if self._depth == 0:
-                        self.spans.append((self._since, time.perf_counter()))
+            def on_end(self, _event):
+                clock._end()
 
-        with event.install_listener("numba:compiler_lock", Listener()):
-            yield self
+        real = builtins.__import__
+
+        def timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002 (__import__'s)
+            try:
+                first = _first_import(name, globals, fromlist, level)
+            except Exception:  # (a module's own __getattr__ that fails: the import itself says so)
+                first = True
+            if not first:
+                return real(name, globals, locals, fromlist, level)
+            self._start()
+            try:
+                return real(name, globals, locals, fromlist, level)
+            finally:
+                self._end()
+
+        builtins.__import__ = timed_import
+        try:
+            with event.install_listener("numba:compiler_lock", Listener()):
+                yield self
+        finally:
+            if builtins.__import__ is timed_import:
+                builtins.__import__ = real
 
     def within(self, start: float, end: float) -> float:
-        """Seconds of compilation between ``start`` and ``end`` (``time.perf_counter()`` readings)."""
+        """Seconds between ``start`` and ``end`` (``time.perf_counter()`` readings) in which numba
+        compiled or a module was imported for the first time."""
         with self._lock:
             spans = list(self.spans) + ([(self._since, end)] if self._depth else [])
         return sum(max(0.0, min(end, b) - max(start, a)) for a, b in spans)
+
+
+def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:
+    """Whether an ``import`` statement's call of ``__import__`` may import a module that is not
+    imported yet (a module, or a submodule its ``from ... import`` names, not in ``sys.modules``;
+    ``scope``: the importing module's globals). It imports nothing itself: it runs inside
+    ``__import__``."""
+    if level:
+        try:
+            name = resolve_name("." * level + name, (scope or {}).get("__package__") or None)
+        except (ImportError, ValueError, TypeError):
+            return True
+    module = sys.modules.get(name)
+    if module is None:
+        return True
+    return any(not hasattr(module, f) and f"{name}.{f}" not in sys.modules for f in fromlist or () if f != "*")
 
 
 def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:

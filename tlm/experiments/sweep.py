@@ -41,7 +41,8 @@ worker ends itself when the sweep's process dies (a killed sweep leaves none run
 a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran, if that
 point kills its worker again when run alone (:class:`LocalPool`). A Dask worker checks
 first that it sees the sweep's folder and input files (and, a remote one, that it runs
-the sweep's code: :func:`_check_worker_sees`); a lost scheduler stops the sweep with one
+the sweep's code: :func:`_check_worker_sees`, and reads the content the sweep read:
+:func:`_check_worker_inputs`); a lost scheduler stops the sweep with one
 line (:class:`~tlm.experiments.executors.DaskPool`).
 """
 
@@ -109,6 +110,10 @@ class Task:
     # worker checks that it sees them, and the sweep's output folder, before it runs the point
     code: str | None = None  # a remote Dask worker's tlm must have this code fingerprint (the
     # sweep's, part of the point's hash): another version's cycles would be filed under it
+    functional: str = ""  # the functional key of the point's frame as the sweep computed it (part of
+    # its hash: the scene's content), which a remote Dask worker's own must equal
+    programs: str | None = None  # the sha256 of the text of the point's arch.programs table as the sweep
+    # read it (None: tlm's own table, part of the code), which a remote Dask worker's must equal
 
 
 def run_point(task: Task) -> dict:
@@ -130,6 +135,8 @@ def run_point(task: Task) -> dict:
         threads = task.threads if task.threads is not None else dask_worker_threads()
         cfg = config_from_dict(_with_threads(task.config, threads), task.source)
         folder = Path(task.folder)
+        if where is not None and task.code is not None:
+            _check_worker_inputs(task, cfg, folder, where)
         with storage.cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
             got = cached_render(cfg, folder, task.source)
         t1 = time.perf_counter()
@@ -165,7 +172,8 @@ def run_point(task: Task) -> dict:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
             raise stop from e
         error = _error_record(e, stage, traceback.format_exc())
-        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker)):  # (they say where)
+        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker, OtherInputsOnWorker)):
+            # (those say where)
             error["message"] = f"{error['message']} (on {where})"
         if task.code is None:  # (this machine's worker)
             write_error(task, error)
@@ -181,6 +189,12 @@ class PathNotOnWorker(OSError):
 
 class OtherCodeOnWorker(RuntimeError):
     """A remote Dask worker runs a tlm whose code is not the sweep's."""
+
+
+class OtherInputsOnWorker(RuntimeError):
+    """A remote Dask worker reads other content than the sweep did for a point: its scene (a
+    built-in scene file of its own install, a file or mesh at the sweep's path on a disk of its
+    own) or its programs table."""
 
 
 def _check_worker_sees(task: Task, where: str) -> None:
@@ -204,6 +218,34 @@ def _check_worker_sees(task: Task, where: str) -> None:
         if not os.access(path, os.R_OK):
             raise PathNotOnWorker(f"cannot read {path} on {where}: the workers must see the sweep's "
                                   "files at the paths the sweep gives (a shared file system)")
+
+
+def _check_worker_inputs(task: Task, cfg, folder: Path, where: str) -> None:
+    """On a remote Dask worker, before the point renders: the programs table it reads holds the
+    text the sweep read (the sha256 in ``task.programs``), and its point's frame has the
+    functional key the sweep computed (``task.functional``: the scene file and its meshes as this
+    worker reads them; a built-in scene is its own install's), else :class:`OtherInputsOnWorker`.
+    The point's hash holds both, so a point of other content would be filed under this one's."""
+    from tlm.config import read_text, text_digest
+    from tlm.experiments.frames import render_key
+
+    fix = "the workers must see the sweep's files as this machine does"
+    if task.programs is not None and cfg.arch.programs is not None:
+        table = folder / cfg.arch.programs  # (an absolute table stays itself)
+        here = text_digest(read_text(table))
+        if here != task.programs:
+            raise OtherInputsOnWorker(
+                f"{where} reads another programs table at {table} (its text's sha256 {here[:16]}, the sweep's "
+                f"{task.programs[:16]}): the file differs there; {fix}")
+    if task.functional:
+        key = render_key(cfg, folder, task.source)  # (remembered: cached_render's own call reads it back)
+        if key != task.functional:
+            from tlm.scenes.loader import resolve_scene_path
+
+            scene = resolve_scene_path(cfg.scene, folder, task.source)
+            raise OtherInputsOnWorker(
+                f"{where} sees other inputs for this point (its frame key {key}, the sweep's {task.functional}; "
+                f"its scene file {scene}): the scene file or its meshes differ there; {fix}")
 
 
 def _error_record(e: BaseException, stage: str, tb: str) -> dict:
@@ -364,6 +406,22 @@ def _inputs(config: dict, folder: Path, source: str) -> tuple[str, ...]:
     return tuple(found)
 
 
+def _table_digest(config: dict, folder: Path, seen: dict[str, str | None]) -> str | None:
+    """The sha256 of the text of the point's ``arch.programs`` table (None for tlm's own, part of
+    the code; or for one unreadable since the sweep was loaded: its worker's load says why),
+    each table read once (``seen``)."""
+    from tlm.config import read_text, text_digest
+
+    table = (config.get("arch") or {}).get("programs")
+    if table is None:
+        return None
+    if table not in seen:
+        seen[table] = None
+        with suppress(InputError, OSError):
+            seen[table] = text_digest(read_text(folder / table))  # (an absolute table stays itself)
+    return seen[table]
+
+
 def _with_threads(config: dict, threads: int | None) -> dict:
     """``config`` with ``render.threads`` set to ``threads`` where the config leaves it null."""
     render = config.get("render", {})
@@ -414,10 +472,14 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
     where = os.path.abspath(points_dir)  # (a Dask worker's working folder is not this one)
+    remote = dask not in (None, "local")  # (its workers check that they run the sweep's code and read its inputs)
+    tables: dict[str, str | None] = {}  # arch.programs -> the sha256 of its text (each table read once)
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
                      os.path.join(where, h), provenance, threads=share,
                      inputs=_inputs(by_hash[h][0].config, sweep.folder, str(sweep.path)),
-                     code=provenance["code_fingerprint"] if dask not in (None, "local") else None) for h in todo}
+                     code=provenance["code_fingerprint"] if remote else None, functional=fkeys[h],
+                     programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None)
+             for h in todo}
 
     with ExitStack() as held:  # (the folder, held until the last row is written)
         with ExitStack() as stack:

@@ -116,9 +116,11 @@ def study_names(studies: list[Study]) -> list[str]:
 
 
 def wall_time_caption(rows: list[dict]) -> str:
-    """What an error-vs-cost study's host wall time holds, and the one-off work it leaves out:
-    how many seconds in all (the rows' ``one_off_seconds``) and which rows' settings needed
-    the most of it; for a study written before that column, what its first rows may hold."""
+    """What an error-vs-cost study's host wall time holds, and the one-off work it leaves out
+    (numba compiling or loading kernels and first imports while the points were warmed up and
+    timed, and the eye paths' walks: :class:`tlm.experiments.error_cost.WarmUp`): how many seconds
+    in all (the rows' ``one_off_seconds``) and which rows' settings needed the most of it; for a
+    study written before that column, what its first rows may hold."""
     one_off = np.array([_num(r.get("one_off_seconds")) for r in rows])
     if not np.isfinite(one_off).any():
         return ("Host wall time: the point's photon trace (a map shared by several points is counted in full by "
@@ -135,9 +137,11 @@ def wall_time_caption(rows: list[dict]) -> str:
             f"{', '.join(named[:-1]) + ' and ' if len(named) > 1 else ''}{named[-1]} of rows.csv" if named else "")
     return ("Host wall time: the point's photon maps (trace, leaf order, density radii) and its gather, with the "
             "kernels warm; a map shared by several points is counted in full by each (its cost if run alone). "
-            "One-off work (numba compiling or loading the kernels, the first imports, the eye paths' walks "
-            "through mirrors and glass), paid once per study by whichever point needs it first, is charged to "
-            f"no point: {total:.3g} s in all, left out of every point's time{most} (each row's one_off_seconds).")
+            "One-off work is charged to no point: the seconds in which numba compiled or loaded a kernel or a "
+            "module was imported for the first time, while the points were warmed up and timed, and the eye "
+            "paths' walks through mirrors and glass (once per render setting), paid by whichever point needed "
+            f"them first: {total:.3g} s in all, left out of every point's time{most} (each row's one_off_seconds). "
+            "The warm-ups' own small traces and gathers are in neither the points' times nor that total.")
 
 
 def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label: str | None = None):
