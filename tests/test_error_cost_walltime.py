@@ -76,7 +76,8 @@ def test_the_first_traces_compilation_is_charged_to_no_row(tmp_path, cache, monk
     traces = {n: {r["trace_seconds"] for r in rows if r["photons"] == n} for n in COUNTS}
     assert all(len(t) == 1 for t in traces.values())  # (a map's trace: the same on each row that shares it)
     assert max(r["trace_seconds"] + r["gather_seconds"] for r in rows) < c / 2  # (before: the first map's >= c)
-    assert rows[0]["one_off_seconds"] >= c  # (said, on the row whose settings needed it first)
+    assert rows[0]["one_off_seconds"] >= 0.9 * c  # (said, on the row whose settings needed it first; c is
+    # timed around the compile, one_off_seconds inside numba's compiler lock)
 
 
 def test_a_compile_inside_a_timed_gather_is_taken_out_of_it(tmp_path, cache, monkeypatch):

@@ -62,3 +62,26 @@ def test_one_old_point_folder_is_said_in_the_singular(tmp_path, monkeypatch, cap
     done = run_sweep(path, out, jobs=1)
     assert done.other_folders == 1
     assert f"1 point folder in {out / 'points'} is not this sweep's: " in capsys.readouterr().err
+
+
+def test_a_sweep_cut_short_removes_what_its_dead_workers_left_half_written(tmp_path, monkeypatch):
+    """A sweep interrupted (or stopped by its cluster) while a worker killed mid-point had left a
+    temporary point folder: the folder goes when the sweep ends, as after a whole run (a Dask
+    worker killed as its cluster closed left one behind, which only the next sweep removed)."""
+    import tlm.experiments.sweep as sweep_mod
+    from tlm.storage import pid_alive
+
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": BASE, "grid": {"arch.page_miss_cycles": [0, 12]}}))
+    out = tmp_path / "o"
+    dead = next(p for p in range(999_999, 900_000, -1) if not pid_alive(p))
+    left = out / "points" / f".{'a' * 16}.tmp-{dead}"  # (no host: this machine's, as older writers named it)
+
+    def killed_mid_point(*_args, **_kwargs):
+        left.mkdir()  # (a worker killed while it wrote a point)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_mod, "_dispatch", killed_mid_point)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(path, out, jobs=1)
+    assert not left.exists()

@@ -482,29 +482,35 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
              for h in todo}
 
     with ExitStack() as held:  # (the folder, held until the last row is written)
-        with ExitStack() as stack:
-            pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
-            # the folder and its marker appear together, before anything else is written in it
-            # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
-            # into it, started this instant, finds a tlm output, never a half-made folder. A
-            # sweep of other points running into it refuses this one (storage.sharing); one of
-            # the same points shares it
-            marker = sweep.marker()
-            made = claim_folder(out, MARKER, marker, existing=False)
-            held.enter_context(storage.sharing(out, sweep.identity(), "sweep"))
-            if not made:
-                storage.write_file(out / MARKER, marker)
-            points_dir.mkdir(parents=True, exist_ok=True)
-            _clean_stale(points_dir)
-            present = _listed(points_dir)
-            for h in todo:  # a failed point's folder (or an unreadable one) is run again
-                if h in present:  # (another sweep into this folder may be replacing it)
-                    shutil.rmtree(points_dir / h, ignore_errors=True)
-            if pool is not None:
-                # the rows of this sweep's points done already, in place of an earlier sweep's: while
-                # it runs (and when it is cut short) the folder's rows are this sweep's only
-                write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
-                _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+        try:
+            with ExitStack() as stack:
+                pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
+                # the folder and its marker appear together, before anything else is written in it
+                # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
+                # into it, started this instant, finds a tlm output, never a half-made folder. A
+                # sweep of other points running into it refuses this one (storage.sharing); one of
+                # the same points shares it
+                marker = sweep.marker()
+                made = claim_folder(out, MARKER, marker, existing=False)
+                held.enter_context(storage.sharing(out, sweep.identity(), "sweep"))
+                if not made:
+                    storage.write_file(out / MARKER, marker)
+                points_dir.mkdir(parents=True, exist_ok=True)
+                _clean_stale(points_dir)
+                present = _listed(points_dir)
+                for h in todo:  # a failed point's folder (or an unreadable one) is run again
+                    if h in present:  # (another sweep into this folder may be replacing it)
+                        shutil.rmtree(points_dir / h, ignore_errors=True)
+                if pool is not None:
+                    # the rows of this sweep's points done already, in place of an earlier sweep's: while
+                    # it runs (and when it is cut short) the folder's rows are this sweep's only
+                    write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
+                    _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+        except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
+            # executor closed; what one killed mid-point left half written goes, as after a run)
+            if todo:
+                _clean_stale(points_dir)
+            raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
