@@ -639,7 +639,9 @@ def _signals():
 
 def save_traceback(exc: BaseException) -> Path | None:
     """The full traceback of an unexpected exception in a file (the cache's ``tracebacks/``,
-    else the temporary folder); its path, or None when neither can be written."""
+    else the temporary folder); its path, or None when neither can be written. The file is
+    made new, for this user alone (0600): a file or link already at its name (another user's,
+    in the shared temporary folder) is not written through."""
     from tlm.storage import cache_root
 
     text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
@@ -650,7 +652,9 @@ def save_traceback(exc: BaseException) -> Path | None:
     for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):
         try:
             folder.mkdir(parents=True, exist_ok=True)
-            (folder / name).write_text(text)
+            fd = os.open(folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
             return folder / name
         except OSError:
             continue
