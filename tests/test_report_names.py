@@ -214,3 +214,12 @@ def test_a_recorded_path_of_the_machine_that_ran_it_is_not_shown(tmp_path):
     assert ELSEWHERE not in html and f"{folder.resolve()}/cases/own-file" not in html
     assert "input error: scenes/extreme/bad_scale_zero.yaml: transform.scale: 0.0 must be &gt; 0.0" in html
     assert "input error: cases/own-file/scene.yaml: extends itself" in html
+
+
+def test_a_recorded_built_in_scene_path_is_shown_by_its_place_in_the_repository():
+    from tlm.report.names import shown_paths
+    from tlm.scenes.loader import scenes_dir
+
+    bad = scenes_dir() / "extreme" / "bad_scale_zero.yaml"
+    said = f"{bad}: geometry[0].transform.scale: 0 is not > 0."
+    assert shown_paths(said) == "scenes/extreme/bad_scale_zero.yaml: geometry[0].transform.scale: 0 is not > 0."

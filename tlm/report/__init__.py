@@ -20,7 +20,7 @@ the runs recorded (:mod:`tlm.report.warnings`); then the sections:
 A section the inputs have nothing for still appears, saying why. The report folder is
 written whole or not at all (a temporary sibling renamed into place).
 
-Every section names a scene by its file (:func:`tlm.report.collect.scene_label`: the built-in
+Every section names a scene by its file (:func:`tlm.report.names.scene_label`: the built-in
 ``room`` and ``thesis/room`` are two scenes, though both files say ``name: room``), and the
 inputs' paragraph says so where two scenes share a name (:func:`scenes_note`).
 """

@@ -32,7 +32,6 @@ import csv
 import io
 import json
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,6 +41,7 @@ import yaml
 from tlm.config import MODES
 from tlm.errors import InputError
 from tlm.experiments.thesis import METRICS, PM_METRICS
+from tlm.report.names import name_scenes, scene_label
 from tlm.storage import read_jsonl
 
 
@@ -107,110 +107,6 @@ class Run:
 
 def _value_text(v: Any) -> str:
     return f"{v:.4g}" if isinstance(v, float) else str(v)
-
-
-SCENE_FOLDERS = ("scenes", "_scenes")  # the built-in scenes' folder in a checkout, and in the wheel
-
-
-def _builtin_under(source: str, names: list[str] | None = None) -> str | None:
-    """The built-in name of the scene file ``source`` (posix text): its path under this
-    installation's scenes folder, or, for a file of another checkout (a run made elsewhere),
-    under a ``scenes`` folder where that path is a built-in name here (``names``: the
-    built-in names; None: that second test is not made). None: neither."""
-    from tlm.scenes.loader import scenes_dir
-
-    p = Path(source)
-    if not p.is_absolute() or p.suffix.lower() not in (".yaml", ".yml"):
-        return None
-    try:
-        return p.resolve().relative_to(scenes_dir().resolve()).with_suffix("").as_posix()
-    except (ValueError, OSError):
-        pass
-    if names is None:
-        return None
-    parts = p.parts
-    for i in range(len(parts) - 2, -1, -1):
-        if parts[i] in SCENE_FOLDERS:
-            tail = Path(*parts[i + 1:]).with_suffix("").as_posix()
-            return tail if tail in names else None
-    return None
-
-
-def _same_builtin(source: str) -> str | None:
-    """The built-in name of a scene file on this machine under a ``scenes`` folder whose
-    built-in file of that name here is the same scene (:func:`~tlm.experiments.provenance.scene_identity`:
-    the same bytes, the same ``extends:`` chain), else None."""
-    from tlm.experiments.provenance import scene_identity
-    from tlm.scenes.loader import list_scenes, scenes_dir
-
-    tail = _builtin_under(source, list_scenes())
-    if tail is None or not Path(source).is_file():
-        return None
-    mine = scenes_dir() / f"{tail}{Path(source).suffix}"
-    return tail if mine.is_file() and scene_identity(source) == scene_identity(mine) else None
-
-
-def scene_label(ref: Any, source: Any, name: Any = None) -> str:
-    """A scene as the report names it, so that one name means one scene file throughout.
-
-    ``ref``: the run config's ``scene`` (what the user wrote); ``source``: the scene file the
-    run loaded (``results.json`` ``scene.source``); ``name``: the scene's ``name`` in its file.
-    A built-in scene is named by its path under ``scenes/`` without ``.yaml`` (``room`` is
-    ``scenes/room.yaml``, ``thesis/room`` is ``scenes/thesis/room.yaml``, though both files say
-    ``name: room``), wherever the run was made: a path to a file of another checkout's
-    ``scenes`` folder too, where that file is not on this machine (a run made elsewhere) or is
-    the same scene as the built-in one here (:func:`_same_builtin`); another scene file by the
-    path its config gave (relative to that config: a user's own, edited ``scenes/cornell.yaml``
-    that a config names ``cornell.yaml`` is ``cornell.yaml``, not the built-in ``cornell``), or,
-    without a config, by its file's path. The ``name`` alone only where neither is known."""
-    src = str(source).replace("\\", "/") if source else ""
-    if isinstance(ref, str) and ref.strip():
-        r = ref.strip().replace("\\", "/")
-        if not r.lower().endswith((".yaml", ".yml")) and not r.startswith("/") and src.endswith(f"/{r}.yaml"):
-            return r  # a built-in name: the loader takes one without .yaml as built-in first
-        builtin = _builtin_under(src) if src else None
-        if builtin is not None:
-            return builtin
-        same = _same_builtin(src)  # (a path to a built-in file of another checkout: ../scenes/room.yaml)
-        if same is not None:
-            return same
-        n = len(Path(r).parts)  # thesis/ring.yaml: the built-in file (the loader's last resort), of another checkout
-        if (not r.startswith(("/", ".")) and src.endswith(f"/{r}") and len(Path(src).parts) > n
-                and Path(src).parts[-n - 1] in SCENE_FOLDERS and not Path(src).is_file()):
-            return r.rsplit(".", 1)[0]  # (a file on this machine is that only where its content is: a user's
-        return r  # own scenes/cornell.yaml, edited, is not the built-in cornell)
-    if src:
-        from tlm.scenes.loader import list_scenes
-
-        return _builtin_under(src, list_scenes()) or src
-    return str(name) if name is not None else "(scene unknown)"
-
-
-_ABSOLUTE_PATH = re.compile(r"(?<![\w.~/-])/[^\s:;,'\"()<>]*[^\s:;,'\"()<>.]")  # (not a sentence's full stop)
-
-
-def shown_path(path: str, folder: Path | None = None) -> str:
-    """An absolute path a run recorded (on the machine it ran on, in a temporary checkout
-    perhaps) as the report shows it: a built-in scene file by its place in the repository
-    (``scenes/extreme/bad_scale_zero.yaml``), a file in ``folder`` (the run's or study's
-    folder) relative to it, one under the current folder relative to that; else as given."""
-    from tlm.scenes.loader import list_scenes
-
-    p = Path(path)
-    builtin = _builtin_under(path, list_scenes())
-    if builtin is not None:
-        return f"scenes/{builtin}{p.suffix}"
-    for base in ([Path(folder)] if folder is not None else []) + [Path.cwd()]:
-        try:
-            return p.relative_to(base.resolve()).as_posix() or "."
-        except (ValueError, OSError):
-            continue
-    return path
-
-
-def shown_paths(text: str, folder: Path | None = None) -> str:
-    """``text`` (a recorded message) with each absolute path in it as :func:`shown_path` shows it."""
-    return _ABSOLUTE_PATH.sub(lambda m: shown_path(m.group(0), folder), text)
 
 
 @dataclass
@@ -630,65 +526,6 @@ def read(dirs: list[Path]) -> Inputs:
     for run, label in labelled:
         run.label = unique(label(run))
     return inputs
-
-
-def name_scenes(runs: list[Run]) -> None:
-    """Fix each run's :attr:`Run.scene_label` so that one name stands for one scene file.
-
-    Where two scene files that are not built-in would get one name (the same path written in
-    two configs, relative to two folders), each is named by its file's path instead
-    (:func:`file_name`). Where a built-in name stands for two scene files on this machine of
-    different content (:func:`~tlm.experiments.provenance.scene_identity`: the built-in ``cornell``
-    of this installation, and that of another checkout with an edited ``scenes/cornell.yaml``),
-    the file that is this installation's built-in one keeps the name and each other is named
-    by its path. A file that is not on this machine (a run made elsewhere) cannot be told
-    apart by its content: it keeps the name (the built-in file of the checkout that ran it)."""
-    labels: dict[tuple, str] = {}  # (each distinct reference and file worked out once: a sweep's points share one)
-    files: dict[str, set[str]] = {}
-    for r in runs:
-        scene = r.results.get("scene") or {}
-        key = (str(r.config.get("scene")), str(scene.get("source")), str(scene.get("name")))
-        if key not in labels:
-            r.named = ""
-            labels[key] = r.scene_label
-        r.named = labels[key]
-        files.setdefault(r.named, set()).add(str(scene.get("source")))
-    renamed: dict[tuple[str, str], str] = {}
-    for label, sources in files.items():
-        if len(sources) < 2:
-            continue
-        if label.lower().endswith((".yaml", ".yml")):
-            renamed.update({(label, src): file_name(src) for src in sources})
-        else:
-            renamed.update({(label, src): file_name(src) for src in _other_files(label, sources)})
-    if renamed:
-        for r in runs:
-            r.named = renamed.get((r.named, str((r.results.get("scene") or {}).get("source"))), r.named)
-
-
-def _other_files(label: str, sources: set[str]) -> list[str]:
-    """Of the scene files ``sources`` that the name ``label`` stands for, those that are another
-    scene: none where the ones on this machine are all one scene (by content); else each file on
-    this machine that is not the same scene as this installation's built-in ``label``."""
-    from tlm.experiments.provenance import scene_identity
-    from tlm.scenes.loader import scenes_dir
-
-    here = {src: scene_identity(src) for src in sources if src != "None" and Path(src).is_file()}
-    if len(set(here.values())) < 2:
-        return []
-    builtin = next((scenes_dir() / f"{label}{ext}" for ext in (".yaml", ".yml")
-                    if (scenes_dir() / f"{label}{ext}").is_file()), None)
-    mine = scene_identity(builtin) if builtin is not None else None
-    return sorted(src for src, ident in here.items() if ident != mine)
-
-
-def file_name(source: str) -> str:
-    """A scene file the report names by its path: relative to the current folder where it lies
-    under it (a user's project: ``scenes/cornell.yaml``), else as the run recorded it."""
-    try:
-        return Path(source).relative_to(Path.cwd().resolve()).as_posix()
-    except (ValueError, OSError):
-        return source
 
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:

@@ -3,7 +3,7 @@
 One table per ``tlm extreme`` folder, grouped by category: the case, the behaviour it
 expects, what was measured, and whether that is what was expected. A path in what was
 measured (a bad-input case's error names the scene file, as it was on the machine that ran
-it) is shown as :func:`tlm.report.collect.shown_path` shows it: a built-in scene file by its
+it) is shown as :func:`tlm.report.names.shown_path` shows it: a built-in scene file by its
 place in the repository, a file of the study's folder relative to it.
 """
 
@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tlm.report.collect import Inputs, shown_paths
+from tlm.report.collect import Inputs
 from tlm.report.common import Section
 from tlm.report.html import esc
+from tlm.report.names import shown_paths
 
 
 def extreme_section(inputs: Inputs, out: Path) -> Section:

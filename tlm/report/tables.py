@@ -43,8 +43,9 @@ from tlm.experiments.thesis import (
     run_mismatches,
     summarize,
 )
-from tlm.report.collect import Inputs, Run, Study, shown_paths
+from tlm.report.collect import Inputs, Run, Study
 from tlm.report.common import Section, line_style, new_figure, save, some, untangle
+from tlm.report.names import shown_paths
 
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
