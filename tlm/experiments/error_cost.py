@@ -95,7 +95,6 @@ from tlm.experiments.reference import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
-from tlm.kernels.photons import PhotonMaps
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
 from tlm.render.frame import Frame, GBuffer, cast
@@ -103,7 +102,7 @@ from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, gather_
 from tlm.render.planner import photon_count, plan
 from tlm.render.pmap import (
     density_requests,
-    final_gathering,
+    gathered_maps,
     pmap_pass,
     search_radius,
     trace_photon_map,
@@ -302,7 +301,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         if map_key not in maps:  # (the trace, and the maps in the leaf order every gather reads them in)
             t0 = time.perf_counter()
             traced = trace_photon_map(frame)
-            for m in gathered_maps(frame, traced.photons):
+            for m in gathered_maps(frame, traced.photons).values():
                 m.prepared()
             t1 = time.perf_counter()
             once = clock.within(t0, t1)
@@ -607,17 +606,6 @@ def _caustic_photons(cfg: RunConfig, n: int) -> int:
     (as the trace splits it; 0 in a scene without mirrors or glass, which has no caustic group)."""
     return cfg.photons.caustic_count if cfg.photons.caustic_count is not None else round(
         n * cfg.photons.caustic_fraction)
-
-
-def gathered_maps(frame: Frame, photons) -> list:
-    """The photon maps the frame's photon-map pass gathers (each needs its leaf order,
-    :meth:`~tlm.kernels.photons.PhotonMap.prepared`): a single map; else the caustic map and
-    the indirect one, or the global one with final gathering; none that is empty."""
-    if not isinstance(photons, PhotonMaps):
-        found = [photons]
-    else:
-        found = [photons.caustic_map, photons.global_map if final_gathering(frame, photons) else photons.indirect_map]
-    return [m for m in found if m is not None and m.n > 0]
 
 
 def _own_passes(names) -> tuple[str, ...]:

@@ -9,7 +9,9 @@ point and final gathering (eqs. 3.2-3.5).
   :func:`tlm.render.passes.gather_points` (the Lambertian eye hits and the ends of the
   mirror and glass paths) with the configured filter, or with final gathering
   (:func:`final_gathering`: rays from each point to where the global map is gathered),
-  whose rays' work :func:`tlm.render.passes.fgather_pass` reports as a pass of its own.
+  whose rays' work :func:`tlm.render.passes.fgather_pass` reports as a pass of its own;
+* :func:`gathered_maps` says which maps that pass gathers (the one rule: the pass and
+  :mod:`tlm.experiments.error_cost`, which times their leaf order with the trace, ask it).
 
 Work and page misses follow the rules of :mod:`tlm.render.passes`: the gathers' photon-leaf
 reads in pixel order, the caustic map's on a pair of its own (:data:`CAUSTIC_STREAM`).
@@ -201,6 +203,26 @@ def final_gathering(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> boo
             and photons.global_map is not None)
 
 
+def gathered_maps(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> dict[str, PhotonMap]:
+    """The photon maps :func:`pmap_pass` gathers for ``frame`` from ``photons``, by the names
+    of its ``per_map`` tallies: a single :class:`PhotonMap` alone (``"photons"``); else the
+    caustic map (``"caustic"``) and the indirect one (``"indirect"``), or, with final
+    gathering (:func:`final_gathering`), the global one in its place (``"global"``, gathered
+    where the final-gather rays land); none that holds no photon (and none for ``None``).
+    Every gather reads a map in its leaf order (:meth:`PhotonMap.prepared`): these are the
+    maps whose leaf order a frame needs (:mod:`tlm.experiments.error_cost` times it with
+    the trace). The one rule: :func:`pmap_pass` gathers exactly these."""
+    if photons is None:
+        return {}
+    if not isinstance(photons, PhotonMaps):
+        found = {"photons": photons}
+    elif final_gathering(frame, photons):
+        found = {"caustic": photons.caustic_map, "global": photons.global_map}
+    else:
+        found = {"caustic": photons.caustic_map, "indirect": photons.indirect_map}
+    return {name: m for name, m in found.items() if m is not None and m.n > 0}
+
+
 # the host-seconds stages of the pmap and fgather passes (tlm.render.batches times pass <name> as
 # the stage pass_<name>): final gathering runs in the pmap pass, and its seconds are the fgather
 # pass's (tlm.progress.booked_apart)
@@ -311,7 +333,8 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
 
     ``density`` is the reflected flux density by the configured filter: the caustic map's
     within :func:`caustic_radius` plus the indirect map's within :func:`search_radius`
-    (a single :class:`PhotonMap` is gathered alone with the latter). ``kdtree``: optional
+    (a single :class:`PhotonMap` is gathered alone with the latter); the maps gathered are
+    those of :func:`gathered_maps`, an empty one never. ``kdtree``: optional
     prebuilt ``cKDTree`` of a single map's positions for the exact k-nearest estimate.
     ``gather_misses``: the photon-leaf stream's misses, gathers in pixel order (the
     caustic map's leaves on a pair of their own, :data:`CAUSTIC_STREAM`; the indirect map's
@@ -340,20 +363,17 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     if fg:
         g.memo["fgather_work"] = new_work(p)
     sidx, tri, pts, n, weight, bounce, medium = gather_points_full(frame, g)
-    if isinstance(photons, PhotonMap):
-        maps = [("photons", photons, search_radius(frame, photons), kdtree, GATHER_STREAM)]
-    else:  # (with final gathering the indirect map is not gathered here: its radius is not needed)
-        maps = [("caustic", photons.caustic_map, caustic_radius(frame, photons), None, CAUSTIC_STREAM)]
-        if not fg:
-            maps.append(("indirect", photons.indirect_map, search_radius(frame, photons), None, GATHER_STREAM))
-    maps = [m for m in maps if m[1].n > 0]
+    gathered = gathered_maps(frame, photons)  # (the global map's gathers are the final-gather rays', below)
+    maps = [(name, m, caustic_radius(frame, photons) if name == "caustic" else search_radius(frame, photons),
+             kdtree if name == "photons" else None, CAUSTIC_STREAM if name == "caustic" else GATHER_STREAM)
+            for name, m in gathered.items() if name != "global"]
     if sidx.shape[0] == 0 or not (maps or fg):
         return pixel_mean(frame, radiance), work
     streams = new_streams(frame) if streams is None else streams
     owner = g.owner[sidx]
     keys = g.sample_keys[sidx]
     density = np.zeros((sidx.shape[0], 3))
-    if fg and photons.global_map.n > 0:
+    if "global" in gathered:
         with booked_apart(FGATHER_STAGE, within=PMAP_STAGE):  # (the rays and their gathers: the fgather pass's)
             fg_streams = new_streams(frame) if fg_streams is None else fg_streams
             radius = global_radius(frame, photons)
