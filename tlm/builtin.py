@@ -103,6 +103,36 @@ def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, boo
                      source=src, key="base")
 
 
+def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, str, Path]:
+    """The run config an experiment file's ``base:`` gives (a sweep's, a granularity
+    study's): ``(the mapping, the source its errors name, the folder its relative paths
+    start at)``. A mapping is the experiment file's own (``src``, ``folder``); none is
+    ``{}``; a string names a run config file or a built-in run config (:func:`base_path`,
+    relative to ``folder``, the experiment file's; ``beside``: what that file is, for the
+    messages). A file's relative paths start at its own folder; a built-in run config's at
+    ``folder`` (it names its scene by name). A sweep or a study (a file or a built-in one)
+    is refused as a base, and so is anything but a mapping or a string: InputError naming
+    ``src`` and the key ``base``."""
+    if isinstance(base, str):
+        file, builtin = base_path(base, folder, src, beside)
+        raw = read_yaml(file)
+        command = next((c for key, c in EXPERIMENT_COMMANDS if key in raw), "run") if isinstance(raw, dict) else "run"
+        if command != "run":
+            raise InputError(f"{base!r} is an experiment of 'tlm {command}', not a run config: name a run config "
+                             "file, or a built-in run config ('tlm config list -l' says which command takes each one)",
+                             source=src, key="base")
+        if raw is None:
+            raw = {}
+        if not isinstance(raw, dict):
+            raise InputError(f"must be a run config mapping, got {type(raw).__name__}", source=str(file))
+        return raw, str(file), folder if builtin else file.resolve().parent
+    if base is None:
+        return {}, src, folder
+    if not isinstance(base, dict):
+        raise InputError("must be a run config mapping or the path of a run config file", source=src, key="base")
+    return base, src, folder
+
+
 def experiment_command(name: str) -> str:
     """The ``tlm`` command that takes the built-in experiment ``name`` (``run``, ``sweep``,
     ``thesis``, ...): by its keys (:data:`EXPERIMENT_COMMANDS`)."""

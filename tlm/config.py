@@ -217,8 +217,9 @@ class ArchConfig:
     tiles_per_pipeline: int = _f(4, "tiles per pipeline in the dynamic scheduler's queue", min=1, max=4096)
     fanout: str = _f("broadcast", "copies of shared structures to the pipelines: broadcast (the crossbar writes "
                      "every pipeline's module at once) | serial (one copy per pipeline)", choices=FANOUTS)
-    programs: str | None = _f(None, "instruction-cost table (YAML, relative to the config); null = the "
-                              "calibrated default tlm/arch/programs.yaml")
+    programs: str | None = _f(None, "instruction-cost table (YAML, relative to the file that names it; "
+                              "--set: to the working folder); null = the calibrated default "
+                              "tlm/arch/programs.yaml")
     max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock (a cap: a run "
                                       "also stops past 64 events per packet, job and tile of its program)", min=1)
     trace: bool = _f(True, "write trace.json (Chrome trace events, opens in ui.perfetto.dev)")
@@ -540,8 +541,36 @@ def deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
-def apply_overrides(raw: dict, overrides: list[str], source: str = "--set") -> dict:
-    """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping."""
+# the dotted keys whose values are file paths, each relative to the file that wrote it (the
+# command line's: relative to the working folder); a scene path is looked for there and in the
+# working folder (tlm.scenes.loader.resolve_scene_path)
+PATH_KEYS = ("arch.programs",)
+
+
+def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:
+    """``value``, given to the dotted ``key`` (a key of :data:`PATH_KEYS`, or a section
+    above one: ``arch: {programs: ...}``) by a file in ``folder`` (the command line: the
+    working folder), with each relative path of :data:`PATH_KEYS` in it made to name the
+    same file from elsewhere: absolute, or relative to the folder ``to`` when given (where
+    the config's other relative paths start). Anything else is returned as it is."""
+    for path_key in PATH_KEYS:
+        if key == path_key:
+            if not isinstance(value, str) or not value or Path(value).is_absolute():
+                return value
+            target = os.path.abspath(os.path.join(folder, value))
+            return target if to is None else os.path.relpath(target, to)
+        if path_key.startswith(key + ".") and isinstance(value, dict):
+            child = path_key[len(key) + 1:].split(".")[0]
+            if child in value:
+                value = {**value, child: paths_from(f"{key}.{child}", value[child], folder, to)}
+    return value
+
+
+def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd: Path | None = None) -> dict:
+    """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping.
+    ``cwd``: where the strings were given (the command line's working folder): a relative
+    path they give to a key of :data:`PATH_KEYS` is made absolute from there
+    (:func:`paths_from`), not left relative to the config's folder."""
     raw = dict(raw)
     for item in overrides:
         if "=" not in item:
@@ -554,6 +583,8 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set") -> d
         except yaml.YAMLError:
             raise InputError(f"cannot parse value {text!r}", source=source, key=key) from None
         parts = key.strip().split(".")
+        if cwd is not None:
+            value = paths_from(".".join(parts), value, cwd)
         node = raw
         for p in parts[:-1]:
             child = node.get(p)
@@ -578,8 +609,8 @@ def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[
                              "`scene: cornell` (the defaults: 'tlm params')", source=source)
         if not isinstance(raw, dict):
             raise InputError(f"must be a mapping of keys, got {type(raw).__name__}", source=source)
-    if overrides:
-        raw = apply_overrides(raw, overrides)
+    if overrides:  # (command-line paths: relative to the working folder, not to the config's)
+        raw = apply_overrides(raw, overrides, cwd=Path.cwd())
         source = f"{source} (with --set)"
     return _build(RunConfig, raw, source, ""), base
 

@@ -7,9 +7,10 @@ FIFO, of preemption and of hand-over). An experiment file::
     base: {scene: cornell, mode: rcast, arch: {frames: 2}}   # a run config, or a run config file
     packet_sizes: [1, 16, 256, 4096, 1000000]                # 1 is the reference
 
-``base`` may name a run config file (``base: cornell.yaml``, relative to the study file),
-as a sweep's may; the paths in it (its scene, ``arch.programs``) are then relative to
-that file, as they are for ``tlm run`` of it.
+``base`` may name a run config as a sweep's may (:func:`tlm.builtin.read_base`): a file
+(``base: run.yaml``, relative to the study file), whose paths (its scene,
+``arch.programs``) are then relative to that file, as they are for ``tlm run`` of it, or a
+built-in run config (``base: cornell``, from a study file in any folder).
 
 renders the frame once (its work comes from the functional cache when an identical
 render was cached: only the SimPy layer reruns), simulates it at every packet size,
@@ -30,11 +31,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from tlm.arch.model import simulate
-from tlm.config import config_from_dict, read_yaml
+from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study, run_study
+from tlm.experiments.study import read_study_base, run_study
 from tlm.storage import check_destination
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
@@ -48,23 +49,7 @@ def load_granularity(path: Path):
     of the study file ``path``; InputError names the file and the key."""
     path = Path(path)
     src = str(path)
-    folder = path.resolve().parent
-    raw = read_yaml(path)
-    if isinstance(raw, dict) and isinstance(raw.get("base"), str):  # a run config file, as a sweep's base
-        for key in raw:
-            if key not in ("base", *KEYS, "description"):
-                raise InputError(f"unknown key (expected base, {', '.join(KEYS)}, description)", source=src,
-                                 key=str(key))
-        file = folder / raw["base"]
-        if not file.is_file():
-            raise InputError(f"{raw['base']!r}: file not found (relative to the study file)", source=src, key="base")
-        base, base_src, folder = read_yaml(file), str(file), file.resolve().parent
-        if base is None:
-            base = {}
-        if not isinstance(base, dict):
-            raise InputError("must be a run config mapping", source=base_src)
-    else:
-        raw, base, base_src = read_study(path, KEYS)
+    raw, base, base_src, folder = read_study_base(path, KEYS)
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):

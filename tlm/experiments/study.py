@@ -9,7 +9,9 @@ files of the study's own. A study supplies its points and what one point compute
 A study file is a YAML mapping with a ``base`` run config (a mapping), an optional
 ``description`` and the study's own keys. :func:`read_study` reads it and checks that
 frame, so every study rejects a non-mapping, an unknown key or a bad ``base`` with
-the same one-line errors (file and key named, exit status 2 through the CLI).
+the same one-line errors (file and key named, exit status 2 through the CLI);
+:func:`read_study_base` reads a study whose ``base`` may also name a run config file or
+a built-in run config, as a sweep's may (``tlm granularity``).
 Result rows go through :func:`tlm.storage.write_rows`, as every experiment's do.
 
 A study folder lists what the study wrote in it (``.tlm-files``, its top-level names,
@@ -36,8 +38,9 @@ from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, write_file, write_rows
 
 
-def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
-    """``(raw, base, source)`` of the study file ``path`` whose own keys are ``keys``."""
+def _study_frame(path: Path, keys: tuple[str, ...]) -> tuple[dict, str]:
+    """``(raw, source)`` of the study file ``path``: a mapping of ``base``, ``keys`` and
+    ``description`` (InputError otherwise)."""
     raw = read_yaml(path)
     src = str(path)
     allowed = ("base", *keys, "description")
@@ -46,10 +49,29 @@ def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
     for key in raw:
         if key not in allowed:
             raise InputError(f"unknown key (expected {', '.join(allowed)})", source=src, key=str(key))
+    return raw, src
+
+
+def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
+    """``(raw, base, source)`` of the study file ``path`` whose own keys are ``keys``."""
+    raw, src = _study_frame(path, keys)
     base = raw.get("base") or {}
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
     return raw, base, src
+
+
+def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str, Path]:
+    """:func:`read_study` of a study whose ``base`` may also name a run config as a sweep's
+    may (:func:`tlm.builtin.read_base`): a file relative to the study file, or a built-in
+    run config's name (``base: cornell``). ``(raw, base, the source the base's errors name,
+    the folder its relative paths start at)``: a base file's own folder, else the study
+    file's."""
+    from tlm.builtin import read_base
+
+    raw, src = _study_frame(path, keys)
+    base, base_src, folder = read_base(raw.get("base"), Path(path).resolve().parent, src, "study file")
+    return raw, base, base_src, folder
 
 
 def run_study(source: str, out: Path, name: str, points: Iterable[Any],

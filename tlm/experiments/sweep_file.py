@@ -21,12 +21,13 @@ from typing import Any
 
 import yaml
 
-from tlm.builtin import EXPERIMENT_COMMANDS, base_path
+from tlm.builtin import read_base
 from tlm.config import (
     RunConfig,
     check_leaf,
     config_from_dict,
     is_leaf,
+    paths_from,
     plain,
     read_yaml,
     run_config_field,
@@ -387,22 +388,8 @@ def load_sweep(path: Path) -> Sweep:
     if description is not None and not isinstance(description, str):
         raise InputError(f"{description!r} is not a string", source=src, key="description")
     folder = path.resolve().parent
-    base, base_file, base_src = raw.get("base"), None, src
-    if isinstance(base, str):
-        file, builtin = base_path(base, folder, src, "sweep file")
-        base_file, base_src = base, str(file)
-        if not builtin:  # (a built-in run config names its scene by name: the sweep's paths start at its folder)
-            folder = file.resolve().parent
-        base = read_yaml(file)
-        command = next((c for key, c in EXPERIMENT_COMMANDS if key in base), "run") if isinstance(base, dict) else "run"
-        if command != "run":
-            raise InputError(f"{base_file!r} is an experiment of 'tlm {command}', not a run config: name a run config "
-                             "file, or a built-in run config ('tlm config list -l' says which command takes each one)",
-                             source=src, key="base")
-    if base is None:
-        base = {}
-    if not isinstance(base, dict):
-        raise InputError("must be a run config mapping or the path of a run config file", source=src, key="base")
+    base_file = raw.get("base") if isinstance(raw.get("base"), str) else None
+    base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file")
     config_from_dict(base, base_src)  # the base alone, so its errors name its own file
 
     settings = _dotted_keys(raw.get("set"), "set", src, lists=False)
@@ -422,19 +409,28 @@ def load_sweep(path: Path) -> Sweep:
                     raise InputError(f"overlaps {where}.{other}", source=src, key=f"{name}.{k}")
             seen[k] = name
 
+    # a path the sweep file gives (arch.programs) is relative to the sweep file, where a base
+    # file in another folder starts the config's other relative paths: it is given from there
+    here = path.resolve().parent
+
+    def moved(k: str, v: Any) -> Any:
+        return v if folder == here else paths_from(k, v, here, folder)
+
     fixed = dict(base)
     for k, v in settings.items():
-        fixed = _assign(fixed, k, v)
+        fixed = _assign(fixed, k, moved(k, v))
     config_from_dict(fixed, f"{src} (base with set)")
     factors_list, indices = _expand_both(grid, zipped)
-    checked = _Checked(fixed, [*grid, *zipped], [*grid.values(), *zipped.values()])
+    factor_keys = [*grid, *zipped]
+    checked = _Checked(fixed, factor_keys, [[moved(k, v) for v in values]
+                                            for k, values in zip(factor_keys, [*grid.values(), *zipped.values()])])
     rows = []
     for i, (factors, index) in enumerate(zip(factors_list, indices)):
         fields = checked.point(index)
         if fields is None:  # a value the checks refuse: the point's own check says which, as ever
             point = fixed
             for k, v in factors.items():
-                point = _assign(point, k, v)
+                point = _assign(point, k, moved(k, v))
             shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
             fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
         rows.append((i, factors, fields))
