@@ -24,8 +24,11 @@ and combination of the other factors (those that draw the same line drawn once, 
 counted after that against :data:`MAX_SERIES`, :func:`levels_lines`), a vertical marker
 at each scene's floor(ln n) (n from the points' results.json) and a table of the ratio
 and FPS there, the level whose ratio is closest to 1 and the level of the best FPS
-(:func:`levels_balance`). A note that names points or series names a few of many and
-counts them all (:func:`~tlm.report.common.some`).
+(:func:`levels_balance`). Points of one series at one level that measured the same (``bsp.levels:
+null`` asks for floor(ln n), which the sweep may ask for by number too) are shown once, a note
+counting the repeats (:func:`_one_per_level`); the points table gives each point's Ttrav / Tisct.
+A note that names points or series names a few of many and counts them all
+(:func:`~tlm.report.common.some`).
 """
 
 from __future__ import annotations
@@ -85,18 +88,30 @@ def named_rows(sw: Sweep) -> list[dict]:
     return out
 
 
+def _ratio_text(r: dict) -> str:
+    """A row's Ttrav / Tisct (cycles.traversal / cycles.intersection), "" where it has none."""
+    trav, isct = r.get("cycles.traversal"), r.get("cycles.intersection")
+    return f"{trav / isct:.4f}" if isinstance(trav, int | float) and isinstance(isct, int | float) and isct else ""
+
+
 def table(sw: Sweep) -> str:
+    """The sweep's points, one row each (the first :data:`MAX_ROWS`); a sweep over ``bsp.levels``
+    also gets each point's Ttrav / Tisct, so that every point of its BSP-levels balance is shown
+    as a number (its table summarises each series in one row, and its figure may be left out)."""
     factors = factors_of(sw)
-    head = ["point", *factors, "status", "FPS", "TThru (M cycles)", "slowest PM", "host s"]
+    ratio = LEVELS in factors
+    head = ["point", *factors, "status", "FPS", "TThru (M cycles)", *(["Ttrav / Tisct"] if ratio else []),
+            "slowest PM", "host s"]
     rows = sorted(named_rows(sw), key=lambda r: r.get("point", 0))
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     for r in rows[:MAX_ROWS]:
         if r.get("status") == "ok":
             slow = max(PMS, key=lambda p: r.get(f"cycles.{p}") or 0)
-            cells = [_fmt(r.get("fps")), f"{(r.get('cycles.throughput') or 0) / 1e6:.4g}", slow,
+            cells = [_fmt(r.get("fps")), f"{(r.get('cycles.throughput') or 0) / 1e6:.4g}",
+                     *([_ratio_text(r)] if ratio else []), slow,
                      _fmt(round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3))]
         else:
-            cells = [f"failed: {r.get('error')}", "", "", ""]
+            cells = [f"failed: {r.get('error')}", "", "", "", *([""] if ratio else [])]
         vals = [str(r.get("point")), *(_fmt(r.get(f)) for f in factors), str(r.get("status")), *cells]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
@@ -331,7 +346,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
         series[(scene, *(_key(r.get(f)) for f in others))].append({
             "point": r.get("point"), "level": int(level), "traversal": trav, "intersection": isct,
             "ratio": trav / isct, "fps": r.get("fps"), "throughput": r.get("cycles.throughput"),
-            "truncated": bool(bsp.get("truncated"))})
+            "truncated": bool(bsp.get("truncated")), "asked": r.get(LEVELS)})
     if unusable:
         notes.append(f"{name}: {_points(unusable)} left out of the BSP-levels balance: no level, or no "
                      "traversal and intersection cycles")
@@ -355,11 +370,13 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
     out: dict[tuple, list[dict]] = {}
     summary = []
     shared, single = [], []  # the series with no balance curve, and why
+    repeats: list[dict] = []  # points that measured what another of their series measured at their level
     for key, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
-        levels = [p["level"] for p in pts]
-        if len(set(levels)) != len(levels):
+        pts, again = _one_per_level(pts)
+        if pts is None:
             shared.append(_series_label(key, others))
             continue
+        repeats += again
         if len(pts) < 2:
             single.append(_series_label(key, others))
             continue
@@ -376,12 +393,37 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
                         "ratio_at_floor": at["ratio"] if at else None, "fps_at_floor": at["fps"] if at else None,
                         "closest_level": close["level"], "closest_ratio": close["ratio"],
                         "best_level": best["level"] if best else None, "best_fps": best["fps"] if best else None})
+    if repeats:
+        numbers = [str(p["point"]) for p in sorted(repeats, key=lambda p: _order(p["point"]))]
+        null = ", bsp.levels null being the builder's floor(ln n)" if any(p["asked"] is None for p in repeats) else ""
+        notes.append(f"{name}: {_points(numbers)} left out of the BSP-levels balance as repeats: each measured the "
+                     f"same Ttrav, Tisct, FPS and TThru as the point of its series at its level{null} "
+                     "(that point is shown)")
     if shared:
-        notes.append(f"{name}: {_curves(shared)}: no balance curve, several points share a level "
-                     "(they differ in a factor the report cannot tell apart)")
+        notes.append(f"{name}: {_curves(shared)}: no balance curve, several points share a level with different "
+                     "cycles or FPS (they differ in a factor the report cannot tell apart)")
     if single:
         notes.append(f"{name}: {_curves(single)}: one level only, no balance curve")
     return out, summary
+
+
+def _one_per_level(pts: list[dict]) -> tuple[list[dict] | None, list[dict]]:
+    """A series' points one per level, and the points left out as repeats: points of one level
+    that measured the same (traversal and intersection cycles, FPS, TThru, to 1e-9: ``bsp.levels:
+    null`` builds the tree of its floor(ln n), which the sweep may also ask for by number) are
+    one, the one asked for by number kept. ``(None, [])`` where points of one level differ."""
+    by_level: dict[int, list[dict]] = defaultdict(list)
+    for p in pts:
+        by_level[p["level"]].append(p)
+    kept, again = [], []
+    for same_level in by_level.values():
+        first = min(same_level, key=lambda p: (p["asked"] is None, _order(p["point"])))
+        if not all(_same(p[k], first[k]) for p in same_level for k in ("traversal", "intersection", "fps",
+                                                                         "throughput")):
+            return None, []
+        kept.append(first)
+        again += [p for p in same_level if p is not first]
+    return kept, again
 
 
 def _points(numbers: list[str]) -> str:

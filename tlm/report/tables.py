@@ -5,9 +5,9 @@ Where the rows come from:
 * a ``tlm thesis`` folder (a :class:`~tlm.report.collect.Study` of kind ``thesis``): its
   ``thesis_comparison.csv``, one source per (study, scene);
 * otherwise every run folder and sweep point whose scene is named as a thesis table's
-  (ring, room, cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs whose resolved
-  configs agree except for ``mode`` fill the columns of one table; every other run
-  (every sweep point) is a source of its own.
+  (ring, room, cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs of one
+  scene file whose resolved configs agree except for ``mode`` fill the columns of one table
+  (:func:`_config_key`); every other run (every sweep point) is a source of its own.
 
 Each table is laid out like the thesis's (metrics as rows, modes as columns); a cell
 shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
@@ -118,9 +118,14 @@ def mismatches(run: Run, scene: str) -> list[str]:
 
 
 def _config_key(run: Run) -> str:
+    """What runs of one table share: their resolved configs but ``mode``, and their scene file
+    as the report names it (:attr:`~tlm.report.collect.Run.scene_label`, one name for one file).
+    The config's ``scene`` is the path its config file gave, relative to that file: two configs
+    in two folders that both say ``scene: room.yaml`` name two files."""
     if not run.config:
         return f"path:{run.path.resolve()}"
-    return json.dumps({k: v for k, v in run.config.items() if k != "mode"}, sort_keys=True, default=str)
+    return json.dumps({"scene file": run.scene_label, **{k: v for k, v in run.config.items() if k != "mode"}},
+                      sort_keys=True, default=str)
 
 
 def collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]]:
