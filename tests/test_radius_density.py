@@ -244,12 +244,12 @@ def test_the_radii_made_before_the_batches_are_the_ones_the_batches_ask_for(monk
 
 def test_a_warm_photon_trace_makes_what_the_batches_read(monkeypatch):
     """``trace_photon_map(warm=True)`` (a render whose batches run at once) makes, with the
-    maps' trees, each map's leaf order and every density radius the frame asks for: the
+    maps' trees, each gathered map's leaf order and every density radius the frame asks for: the
     same maps, radii and leaf order as a cold trace makes later, and the frame's radii are
     then only looked up."""
     import tlm.kernels.photons as photon_module
     from tlm.kernels import threads
-    from tlm.render.pmap import density_requests, trace_photon_map
+    from tlm.render.pmap import density_requests, gathered_maps, trace_photon_map
 
     res = _render("cornell", 3000, {"final_gather": 3})
     asked = []
@@ -266,11 +266,13 @@ def test_a_warm_photon_trace_makes_what_the_batches_read(monkeypatch):
         requests = density_requests(f, warm)
         assert requests and len(requests) == len(density_requests(f, cold))
         names = ("caustic_map", "indirect_map", "global_map")
+        gathered = list(gathered_maps(f, warm).values())
         for name in names:
             a, b = getattr(warm, name), getattr(cold, name)
             assert (a is None) == (b is None) and (a is None or a.position.tobytes() == b.position.tobytes())
             if a is not None:
-                assert "leaf_order" in a._memo and "leaf_order" not in b._memo
+                # (only the maps the frame gathers: with final gathering not the indirect map)
+                assert ("leaf_order" in a._memo) == any(a is m for m in gathered) and "leaf_order" not in b._memo
                 for row in ("pos", "inc", "pow", "first", "size"):
                     assert getattr(a.prepared(), row).tobytes() == getattr(b.prepared(), row).tobytes(), row
         for m, k in requests:

@@ -73,6 +73,13 @@ PHOTON_MIN_CHUNK = 4096  # photons a chunk traces at the least when they are cut
 # budget, and twice the threads' chunks are in flight at once
 PHOTON_MIN_BATCH = 4096
 
+# the maps the pipeline keeps and gathers, by whether the trace keeps a global map (final
+# gathering's): the Vertex PM builds their trees (:attr:`PhotonMaps.gathered`) and a trace asked to
+# ``prepare`` puts them in leaf order; with a global map the indirect map is the software's only (its
+# statistics and the reference), never gathered (:func:`tlm.render.pmap.gathered_maps`, the render's
+# rule, says which of them a frame gathers: not an empty one)
+PIPELINE_MAPS = {False: ("caustic", "indirect"), True: ("caustic", "global")}
+
 
 def photon_spans(n: int, max_bounces: int, batch_rays: int | None) -> list[tuple[int, int]]:
     """The chunks ``(start, stop)`` the photons ``0 .. n - 1`` are traced in, in order: cut
@@ -153,12 +160,11 @@ class PhotonMaps:
 
     @property
     def gathered(self) -> tuple[PhotonMap, ...]:
-        """The maps the pipeline keeps and gathers (their trees are built by the Vertex PM):
-        caustic and indirect; with final gathering, caustic and global (the indirect map is
-        then the software's only, for its statistics and the reference)."""
-        if self.global_map is None:
-            return self.maps
-        return self.caustic_map, self.global_map
+        """The maps the pipeline keeps and gathers (:data:`PIPELINE_MAPS`; their trees are
+        built by the Vertex PM: :meth:`tlm.arch.functional.TreeWork.of_maps`): caustic and
+        indirect; with final gathering, caustic and global (the indirect map is then the
+        software's only, for its statistics and the reference)."""
+        return tuple(getattr(self, f"{name}_map") for name in PIPELINE_MAPS[self.global_map is not None])
 
     @property
     def n(self) -> int:
@@ -274,9 +280,11 @@ def trace_photons(
     shading normals and :meth:`~tlm.scenes.model.Scene.material_table` when the caller has
     them already (a render's frame), so they are not made again (None: made here).
     prepare, radii : what a render needs of the maps before its batches run at once, made
-    with the maps' trees on the threads: each map in leaf order (:meth:`PhotonMap.prepared`)
-    and the density radii ``(map, k)`` (:meth:`PhotonMap.density_radius`; map: "caustic",
-    "indirect" or "global", the last only with ``global_map``). The same values as made later.
+    with the maps' trees on the threads: each map the pipeline gathers in leaf order
+    (:meth:`PhotonMap.prepared`; :data:`PIPELINE_MAPS`: not the indirect map with
+    ``global_map``, which nothing gathers) and the density radii ``(map, k)``
+    (:meth:`PhotonMap.density_radius`; map: "caustic", "indirect" or "global", the last
+    only with ``global_map``). The same values as made later.
     """
     if n < 0:
         raise ValueError(f"photons (={n}) must be >= 0")
@@ -496,7 +504,7 @@ def trace_photons(
 
     def build(name: str) -> PhotonMap:
         m = one_map(*sources[name])
-        if prepare:
+        if prepare and name in PIPELINE_MAPS[bool(global_map)]:
             m.prepared()
         return m
 

@@ -25,7 +25,7 @@ from tlm.render import checks
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer, cast, new_streams, pixel_batches
 from tlm.render.passes import PASS_FUNCTIONS, fgather_pass
 from tlm.render.planner import WORK_PASSES, plan
-from tlm.render.pmap import density_requests, pmap_pass, radii, trace_photon_map
+from tlm.render.pmap import density_requests, gathered_maps, pmap_pass, radii, trace_photon_map
 
 
 @dataclass
@@ -308,16 +308,18 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
 
 def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
     """Make what the passes build on first use (the compiled traversal's layout, the photon
-    maps in leaf order, their radii) before batches run at once, so no two threads build it.
-    A photon trace asked to warm (:func:`trace_photon_map`) made the maps' part already, with
-    the trees: then it is only looked up here."""
+    maps they gather in leaf order, the maps' radii) before batches run at once, so no two
+    threads build it. Only the maps the frame gathers (:func:`gathered_maps`) are put in
+    leaf order: nothing else reads a map's leaf order (with final gathering the indirect map
+    is never gathered, without it the global map). A photon trace asked to warm
+    (:func:`trace_photon_map`) made the maps' part already, with the trees: then it is only
+    looked up here."""
     cast(frame, np.zeros(1, dtype=np.int64))
     if traced is not None:
         photons = traced.photons
-        # each map's leaf order and density radii (where not made yet) at once on the threads
-        # (numpy's gathers and scipy's tree build run without the interpreter lock), each by one thread
-        tasks = [m.prepared for m in (getattr(photons, "caustic_map", None), getattr(photons, "indirect_map", None),
-                                      getattr(photons, "global_map", photons)) if m is not None and m.n > 0]
+        # each gathered map's leaf order and the density radii (where not made yet) at once on the
+        # threads (numpy's gathers and scipy's tree build run without the interpreter lock), each by one thread
+        tasks = [m.prepared for m in gathered_maps(frame, photons).values()]
         tasks += [(lambda m=m, k=k: m.density_radius(k)) for m, k in density_requests(frame, photons)]
         for _ in threads.ordered(lambda task: task(), tasks):
             pass
