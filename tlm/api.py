@@ -100,10 +100,13 @@ class Config:
 
     def updated(self, overrides: Overrides) -> Config:
         """A copy with the dotted keys of ``overrides`` set, checked again (an InputError
-        names a bad key or value)."""
+        names a bad key or value). A relative ``arch.programs`` among them is relative to the
+        working folder, as ``tlm run --set`` takes it (the copy holds it as an absolute
+        path), not to :attr:`base`."""
         more = _override_strings(overrides)
         config = replace(self, overrides=(*self.overrides, *more))
-        return replace(config, settings=config_from_dict(apply_overrides(to_dict(self.settings), more), config.label))
+        raw = apply_overrides(to_dict(self.settings), more, cwd=Path.cwd())
+        return replace(config, settings=config_from_dict(raw, config.label))
 
 
 def _yaml_text(value: Any) -> str:
@@ -177,8 +180,11 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
 
     ``overrides``: dotted keys to set, ``{"render.spp": 2}`` or ``["render.spp=2"]`` (as
     ``tlm run --set``). ``base``: where a mapping's relative paths start (default: the
-    working folder; a file's own folder for a file). A missing file, a YAML error, an
-    unknown key or a value out of range raise :class:`InputError` naming it.
+    working folder; a file's own folder for a file). A relative ``arch.programs`` given in
+    ``overrides`` is relative to the working folder whatever the config (a file, a scene
+    file, a mapping with its ``base``, a built-in name), as ``--set`` takes it; the config
+    then holds it as an absolute path. A missing file, a YAML error, an unknown key or a
+    value out of range raise :class:`InputError` naming it.
     """
     more = _override_strings(overrides)
     if isinstance(config, Config):
@@ -187,7 +193,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         out = Config(config, Path(base) if base is not None else Path.cwd())
         return out.updated(more) if more else out
     if isinstance(config, Mapping):
-        raw = apply_overrides(dict(config), more) if more else dict(config)
+        raw = apply_overrides(dict(config), more, cwd=Path.cwd()) if more else dict(config)
         source = "(dict) (with --set)" if more else "(dict)"
         return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
                       tuple(more))
@@ -208,7 +214,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     source = f"(the defaults for scene file {scene})"
     raw: dict[str, Any] = {"scene": str(scene)}
     if more:
-        raw, source = apply_overrides(raw, more), f"{source} (with --set)"
+        raw, source = apply_overrides(raw, more, cwd=Path.cwd()), f"{source} (with --set)"
     return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True)
 
 
@@ -419,9 +425,10 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     and idle cycles (``.to_dict()``).
 
     ``arch``: the architecture to simulate, an :class:`~tlm.config.ArchConfig` or keys of
-    ``arch`` to change (``{"pipelines": 4}``); default the render's own. The render is not
-    repeated: only the timing model runs. ``programs``: an instruction-cost table or its
-    path; default ``arch.programs`` (relative to the config's folder).
+    ``arch`` to change (``{"pipelines": 4}``; a relative ``programs`` among them is relative
+    to the working folder); default the render's own. The render is not repeated: only the
+    timing model runs. ``programs``: an instruction-cost table or its path (relative to the
+    working folder); default ``arch.programs`` (relative to the config's folder).
     """
     from tlm.arch.costs import Programs, load_programs
     from tlm.config import ArchConfig
@@ -436,7 +443,7 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     if isinstance(arch, ArchConfig):
         cfg = replace(cfg, arch=arch)
     elif arch is not None:
-        cfg = config_from_dict(apply_overrides(to_dict(cfg), _override_strings(_arch_overrides(arch))),
+        cfg = config_from_dict(apply_overrides(to_dict(cfg), _override_strings(_arch_overrides(arch)), cwd=Path.cwd()),
                                "(simulate: arch)")
     if isinstance(programs, Programs):
         table = programs
