@@ -1,5 +1,6 @@
-"""Where a result came from: the versions of tlm and its libraries, tlm's git revision
-(and whether the checkout was modified from it) and the fingerprint of tlm's code.
+"""Where a result came from: the versions of tlm and its libraries, which kernels ran (the
+compiled numba ones or the numpy ones, ``TLM_KERNELS``), tlm's git revision (and whether the
+checkout was modified from it) and the fingerprint of tlm's code.
 
 ``results.json`` of a run, every sweep point's row and a study's ``provenance.json``
 record them, so that a number can be traced to the code that produced it.
@@ -15,12 +16,18 @@ import platform
 import subprocess
 from pathlib import Path
 
-PACKAGES = ("tlm", "numpy", "scipy", "simpy", "trimesh", "pyyaml", "pillow")  # whose versions are recorded
+# whose versions are recorded: tlm and the libraries that compute, compile or draw its results
+PACKAGES = ("tlm", "numpy", "scipy", "numba", "simpy", "trimesh", "pyyaml", "pillow", "matplotlib")
 
 
 def versions() -> dict[str, str]:
-    """Python's, the platform's and :data:`PACKAGES`' versions ("not installed" for one missing)."""
+    """Python's, the platform's and :data:`PACKAGES`' versions ("not installed" for one missing),
+    and ``kernels``: the engine of the kernels that run here, ``numba`` (compiled) or ``numpy``
+    (:func:`tlm.kernels.engine.engine`, from ``TLM_KERNELS``; an unknown value is refused as
+    bad input). The images do not depend on it; host seconds do."""
     import importlib.metadata as md
+
+    from tlm.kernels.engine import engine
 
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for pkg in PACKAGES:
@@ -28,6 +35,7 @@ def versions() -> dict[str, str]:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
+    out["kernels"] = engine()
     return out
 
 

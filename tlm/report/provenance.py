@@ -16,7 +16,7 @@ from tlm.report.collect import Inputs, Run
 from tlm.report.common import Section
 from tlm.report.html import esc
 
-VERSIONS = ("tlm", "python", "numpy", "simpy", "scipy", "trimesh")
+VERSIONS = ("tlm", "python", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")  # (kernels: numba or numpy)
 MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
 
 

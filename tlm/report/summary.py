@@ -9,8 +9,9 @@ hold nothing for it):
    of the elapsed cycles), and whether the thesis names the same PM.
 3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
 4. What does quality cost? Image error against run time of the photon-map filters.
-5. What do the sweeps find? For each sweep, the factor that moves the frame rate most and
-   its best point (or that none moves it).
+5. What do the sweeps find? For each sweep, the factor that moves the frame rate most (its
+   values compared like with like: within the combinations of the other factors that
+   finished with each of them) and its best point (or that none moves it).
 6. What do the granularity and extreme studies find? The coarsest packet within 1% of the
    reference's cycles; the cases not as expected.
 """
@@ -277,37 +278,103 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def _moves_with(rows: list[dict], k: str, factors: list[str]) -> list[str]:
+    """The other factors whose value each value of ``k`` fixes in ``rows`` (a sweep's rows,
+    the failed ones too), and that take more than one value: they move together with ``k``
+    (a ``zip:``), so that ``k``'s effect cannot be told from theirs."""
+    out = []
+    for j in factors:
+        if j == k:
+            continue
+        seen: dict[str, set[str]] = defaultdict(set)
+        for r in rows:
+            seen[repr(r.get(k))].add(repr(r.get(j)))
+        if all(len(v) == 1 for v in seen.values()) and len(set().union(*seen.values())) > 1:
+            out.append(j)
+    return out
+
+
+def _effect(ok: list[dict], k: str, held: list[str]) -> dict | None:
+    """``k``'s effect on the frame rate among the ``ok`` rows, like with like: a row belongs to
+    the combination of its values of the factors ``held``; only the combinations that finished
+    with every value ``k`` takes among ``ok`` count. Each value's mean is over those
+    combinations (a combination's rows of one value: their mean). None where ``k`` takes one
+    value; else ``values`` (repr -> that mean, {} where no combination is complete), ``used``
+    (the rows counted) and ``same`` (whether some combination finished with two values of
+    ``k`` or more, and every such combination ran at one frame rate across them: ``k``
+    changes nothing between the points that differ only in it)."""
+    values = {repr(r.get(k)) for r in ok}
+    if len(values) < 2:
+        return None
+    combos: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in ok:
+        combos[tuple(repr(r.get(j)) for j in held)][repr(r.get(k))].append(float(r["fps"]))
+    complete = [c for c in combos.values() if set(c) == values]
+    used = sum(len(fs) for c in complete for fs in c.values())
+    per = {v: float(np.mean([np.mean(c[v]) for c in complete])) for v in values} if complete else {}
+    pairs = [c for c in combos.values() if len(c) > 1]
+    same = bool(pairs) and all(len({f for fs in c.values() for f in fs}) == 1 for c in pairs)
+    return {"values": per, "used": used, "same": same}
+
+
 def sweep_findings(inputs: Inputs) -> list[str]:
     """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
-    of its best value's mean to its worst's) and the point of the highest frame rate."""
+    of its best value's mean to its worst's) and the point of the highest frame rate.
+
+    A factor is judged like with like: its values are compared in the combinations of the
+    other factors' values that finished (status ok) with every one of its values, so that a
+    failed point does not weigh one value's mean with other points than another's. The text
+    says how many ok points were left out for that, names the factors that move together with
+    it (a ``zip:``: their effect cannot be told from its own), the factors that change nothing
+    between points that differ only in them, and those that cannot be compared like with like
+    (no combination finished with each of their values)."""
     texts = []
     for sw in inputs.sweeps:
-        rows = [r for r in named_rows(sw) if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
+        every = named_rows(sw)
+        rows = [r for r in every if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
         factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
         if not rows or not factors:
             continue
-        spread = {}
+        spread, nothing, apart, along, left = {}, [], [], {}, {}
         for k in factors:
-            groups = defaultdict(list)
-            for r in rows:
-                groups[repr(r.get(k))].append(r["fps"])
-            means = {v: float(np.mean(fs)) for v, fs in groups.items()}
-            if len(means) > 1 and min(means.values()) > 0 and max(means.values()) > min(means.values()):
+            along[k] = _moves_with(every, k, factors)
+            eff = _effect(rows, k, [j for j in factors if j != k and j not in along[k]])
+            if eff is None:
+                continue
+            means = eff["values"]
+            if eff["same"]:
+                nothing.append(k)
+            elif not means:
+                apart.append(k)
+            elif min(means.values()) > 0 and max(means.values()) > min(means.values()):
                 spread[k] = (max(means.values()) / min(means.values()), max(means, key=means.get),
                              min(means, key=means.get))
+                left[k] = len(rows) - eff["used"]
         best = max(rows, key=lambda r: r["fps"])
         where = ", ".join(f"{k} = {best.get(k)!r}" for k in factors)
         text = f"<b>Sweep {esc(sw.path.name)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
+        notes = ""
+        if nothing:
+            notes += (f"{esc(', '.join(nothing))} {'changes' if len(nothing) == 1 else 'change'} nothing between "
+                      f"points that differ only in {'it' if len(nothing) == 1 else 'them'}; ")
+        if apart:
+            notes += (f"{esc(', '.join(apart))} cannot be compared like with like (no values of the other factors "
+                      f"finished with each of {'its' if len(apart) == 1 else 'their'} values); ")
         if spread:
             k = max(spread, key=lambda f: spread[f][0])
             ratio, hi, lo = spread[k]
-            text += (f"{esc(k)} moves the frame rate most, {ratio:.2f}x between its best value ({esc(hi)}) and "
-                     f"its worst ({esc(lo)}), averaged over the other factors; ")
-            text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+            text += f"{esc(k)} moves the frame rate most"
+            if along[k]:
+                text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
+            text += f", {ratio:.2f}x between its best value ({esc(hi)}) and its worst ({esc(lo)}), averaged over "
+            text += ("the other factors; " if not left[k] else
+                     f"the other factors' values that finished with each of its values ({left[k]} of the {len(rows)} "
+                     f"ok points left out for that); ")
+            text += notes + f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
         elif len({r["fps"] for r in rows}) == 1:  # (a tie everywhere: no best value, no best point)
             text += f"no factor changes the frame rate: every point runs at {best['fps']:.3g} FPS."
         else:
-            text += f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+            text += notes + f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
         texts.append(text)
     return texts
 
