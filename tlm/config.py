@@ -230,7 +230,8 @@ class RunConfig:
     scene: str = _f("cornell", "built-in scene name or path to a scene YAML (relative to the config)")
     mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)",
                    choices=MODES)
-    seed: int = _f(0, "seed of every random stream (SeedSequence)", min=0)
+    seed: int = _f(0, "seed of every random stream (SeedSequence); at most 2**64 - 1, the kernels' 64-bit hash key",
+                   min=0, max=2**64 - 1)
     resolution: list[int] | None = _f(
         None, "[width, height] in pixels; null = the scene's", length=2
     )

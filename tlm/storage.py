@@ -18,11 +18,13 @@ its parents, a mount point — is refused with an :class:`~tlm.errors.InputError
 can never delete a checkout. A destination whose parent cannot be written (a read-only file
 system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work.
 
-Concurrent writers of one destination (two ``tlm run --out X``) never see each other's
-temporary folders: each has its own (``.<name>.tmp-<host>-<pid>``); the swap of the old folder for
-the new one holds a lock on the old one (:func:`folder_lock`); the last to finish wins; and
-what a killed process left (its temporary folder, or the old folder it was swapping out) is
-removed by the next writer once that process is gone.
+Concurrent writers of one destination (two ``tlm run --out X``, or two threads of one process
+calling ``tlm.run`` into one folder) never see each other's temporary folders: each has its own
+(``.<name>.tmp-<host>-<pid>-<n>``, ``n`` counting the writers of the process); the swap of the
+old folder for the new one holds a lock on the old one (:func:`folder_lock`); the last to finish
+wins; and what a killed process left (its temporary folder, or the old folder it was swapping out)
+is removed by the next writer once that process is gone. A process never removes a temporary
+folder one of its own writers is using (:func:`clean_stale`).
 """
 
 from __future__ import annotations
@@ -96,7 +98,7 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     """
     out = Path(out)
     if not out.exists():
-        tmp = out.with_name(f".{out.name}.claim{os.getpid()}")
+        tmp = out.with_name(f".{out.name}.claim{os.getpid()}{_thread_tag()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         try:
@@ -207,16 +209,62 @@ def _host() -> str:
 
 
 def _owner() -> str:
-    """``<host>-<pid>``: the writer a temporary folder belongs to."""
+    """``<host>-<pid>``: the process a temporary folder belongs to."""
     return f"{_host()}-{os.getpid()}"
 
 
+_LIVE_LOCK = threading.Lock()
+_LIVE: set[str] = set()  # the names of the temporary folders this process's writers are using now
+_WRITERS = itertools.count()  # (numbers the writers of this process; under _LIVE_LOCK)
+
+
+def _writer() -> str:
+    """``<host>-<pid>-<n>``: one writer of a folder, ``n`` counting this process's writers, so
+    that two threads (or two writers of one thread) never share a temporary folder."""
+    with _LIVE_LOCK:
+        n = next(_WRITERS)
+    return f"{_owner()}-{n}"
+
+
+def _thread_tag() -> str:
+    """What a temporary file's name adds for the thread writing it: nothing in the main thread,
+    ``-t<id>`` in any other, so two threads writing one file never share its temporary file."""
+    if threading.current_thread() is threading.main_thread():
+        return ""
+    return f"-t{threading.get_native_id()}"
+
+
+def _hold(name: str) -> None:
+    """Note the temporary folder ``name`` as in use by this process (:func:`clean_stale` keeps it)."""
+    with _LIVE_LOCK:
+        _LIVE.add(name)
+
+
+def _release(name: str) -> None:
+    """The temporary folder ``name`` is no longer in use (it was renamed or removed)."""
+    with _LIVE_LOCK:
+        _LIVE.discard(name)
+
+
+def _forget_live() -> None:
+    """In a forked child: the parent's folders carry the parent's pid, and its lock may be held."""
+    global _LIVE_LOCK
+    _LIVE_LOCK = threading.Lock()
+    _LIVE.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_live)
+
+
 def clean_stale(folder: Path, name: str = ".+") -> None:
-    """Remove the temporary folders (``.<name>.tmp-<host>-<pid>``, ``.<name>.old-<host>-<pid>-<n>``)
+    """Remove the temporary folders (``.<name>.tmp-<host>-<pid>-<n>``, ``.<name>.old-<host>-<pid>-<n>-<m>``)
     that processes of this machine now gone left in ``folder``: a killed writer cannot
     remove its own. Another machine's (a shared disk) are left alone: its process ids are
-    not this machine's to check. Names without a host (older writers) count as this machine's."""
-    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)?")
+    not this machine's to check. Names without a host (older writers) count as this machine's.
+    Of this process's own names, those none of its writers is using now are removed (left by an
+    earlier process of the same id); one a writer (another thread) is using is never touched."""
+    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
@@ -226,9 +274,16 @@ def clean_stale(folder: Path, name: str = ".+") -> None:
         m = pattern.fullmatch(d.name)
         if not m or (m[1] is not None and m[1] != host):
             continue
+        if not d.is_dir() or d.is_symlink():
+            continue
         pid = int(m[2])
-        if d.is_dir() and not d.is_symlink() and pid != os.getpid() and not pid_alive(pid):
-            shutil.rmtree(d, ignore_errors=True)
+        if pid == os.getpid():
+            with _LIVE_LOCK:
+                if d.name in _LIVE:
+                    continue
+        elif pid_alive(pid):
+            continue
+        shutil.rmtree(d, ignore_errors=True)
 
 
 @contextmanager
@@ -262,13 +317,27 @@ def folder_lock(out: Path) -> Iterator[None]:
     yield
 
 
-def _swap_in(tmp: Path, out: Path) -> None:
+def _swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:
     """Rename ``tmp`` onto ``out``, the old ``out`` (if any) moved aside first and removed
-    after; retried when another writer put a folder there in between."""
+    after; retried when another writer put a folder there in between. ``writer``: the
+    :func:`_writer` the names of the old folders carry (a new one when not given)."""
+    writer = writer or _writer()
+    held: list[str] = []
+    try:
+        _swap_tries(tmp, out, writer, held)
+    finally:
+        for name in held:
+            _release(name)
+
+
+def _swap_tries(tmp: Path, out: Path, writer: str, held: list[str]) -> None:
+    """:func:`_swap_in`'s loop; ``held`` gets the old folders' names it noted as in use."""
     for n in itertools.count():
         old = None
         if out.exists():
-            old = out.parent / f".{out.name}.old-{_owner()}-{n}"
+            old = out.parent / f".{out.name}.old-{writer}-{n}"
+            _hold(old.name)
+            held.append(old.name)
             try:
                 out.rename(old)
             except FileNotFoundError:
@@ -334,11 +403,22 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
     except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, :func:`cache_failed`)
         _note_cache_write(out, e)
         raise
-    tmp = out.parent / f".{out.name}.tmp-{_owner()}"
+    writer = _writer()
+    tmp = out.parent / f".{out.name}.tmp-{writer}"
+    _hold(tmp.name)  # (before it exists: no other thread's clean_stale may take it for a leftover)
+    try:
+        yield from _atomic_folder(out, marker, owned, tmp, writer)
+    finally:
+        _release(tmp.name)
+
+
+def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: Path,
+                   writer: str) -> Iterator[Path]:
+    """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``."""
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         clean_stale(out.parent, re.escape(out.name))
-        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(tmp, ignore_errors=True)  # (an earlier process's of the same id and number)
         tmp.mkdir()
     except OSError as e:
         _note_cache_write(out, e)
@@ -366,7 +446,7 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
                     f"cannot carry {e.filename!r} into the new output ({e.strerror}), so the folder is left as it "
                     f"was; this run's output is kept in {str(kept)!r}", source=str(out)) from None
             try:
-                _swap_in(tmp, out)
+                _swap_in(tmp, out, writer)
             except BaseException:  # (the user's files go back where they were)
                 back = True
                 for name in moved:
@@ -386,8 +466,9 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
 
 def _keep_beside(tmp: Path, out: Path) -> Path | None:
     """Rename the finished temporary folder ``tmp`` to ``OUT.unsaved-PID`` beside ``out``
-    (kept, not removed, when it cannot take ``out``'s place); its path, or None."""
-    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}"
+    (kept, not removed, when it cannot take ``out``'s place; ``-t<id>`` added in a thread
+    other than the main one); its path, or None."""
+    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}{_thread_tag()}"
     try:
         tmp.rename(kept)
     except OSError:
@@ -440,12 +521,13 @@ def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
 def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     """An open file that replaces ``path`` when the block succeeds.
 
-    The data go to a hidden sibling (``.<name>.tmp<pid>``, so concurrent writers of one
-    path never share it) that is renamed onto ``path`` at the end; on any error the
-    sibling is removed and ``path`` is left as it was.
+    The data go to a hidden sibling (``.<name>.tmp<pid>``, ``-t<id>`` added in a thread other
+    than the main one, so concurrent writers of one path, processes or threads, never share
+    it) that is renamed onto ``path`` at the end; on any error the sibling is removed and
+    ``path`` is left as it was.
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}{_thread_tag()}")
     try:
         with open(tmp, mode, **open_kw) as fh:
             yield fh

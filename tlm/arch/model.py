@@ -285,9 +285,41 @@ def _stream(model: Model, done: simpy.events.Event):
     done.succeed()
 
 
+NOT_KEPT = ("timing.model: this Timing was pickled (or deep-copied), which keeps every figure and to_dict() "
+            "but not the live SimPy model (its units and their logs); call tlm.simulate again for the model")
+
+
+class ModelNotKept:
+    """What ``timing.model`` is in a :class:`Timing` that was pickled or deep-copied: the live
+    SimPy model (its environment, its units' process generators) cannot be pickled, so it is
+    left out; reading anything of it raises an ``AttributeError`` saying so (:data:`NOT_KEPT`)."""
+
+    __slots__ = ()
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)  # (the protocols of copy and pickle ask for these)
+        raise AttributeError(NOT_KEPT)
+
+    def __repr__(self) -> str:
+        return "<the model of a pickled Timing: not kept>"
+
+    def __reduce__(self) -> str:
+        return "MODEL_NOT_KEPT"  # (the one instance, by name)
+
+
+MODEL_NOT_KEPT = ModelNotKept()
+
+
 @dataclass
 class Timing:
-    """The outcome of one simulation: cycles per frame, per-unit breakdowns, the trace."""
+    """The outcome of one simulation: cycles per frame, per-unit breakdowns, the trace.
+
+    A Timing pickles (a process pool can return it) and deep-copies without its ``model``:
+    every other field, so every figure and :meth:`to_dict`, is kept; ``model`` becomes
+    :data:`MODEL_NOT_KEPT`, whose attributes raise an error that says so. A shallow copy
+    (``copy.copy``) keeps the model.
+    """
 
     cycles: dict
     fps: float
@@ -321,6 +353,17 @@ class Timing:
             "throughput_estimate": self.throughput_estimate,
             "granularity": self.granularity,
         }
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        if state.get("model") is not None:
+            state["model"] = MODEL_NOT_KEPT  # (its SimPy generators cannot be pickled)
+        return state
+
+    def __copy__(self) -> Timing:
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        return new
 
 
 def simulate(fn: Functional, programs: Programs, arch: ArchConfig) -> Timing:
