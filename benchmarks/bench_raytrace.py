@@ -148,21 +148,22 @@ class Paired:
         return float(bar * self.theirs[k] - self.floor[k])
 
 
-def alternated(ours, floor, theirs, repeat: int) -> Paired:
+def alternated(ours, floor, theirs, repeat: int) -> tuple[Paired, object]:
     """``ours`` (tlm's compiled kernel), ``floor`` (the same on emptied leaves) and
     ``theirs`` (Embree) timed one after the other, ``repeat`` rounds (a machine that
-    slows down for a while slows all three of a round)."""
+    slows down for a while slows all three of a round). Returns the :class:`Paired`
+    times and what the untimed first call of ``ours`` returned (the rays' hits and
+    counts: every call of it traces the same rays to the same result)."""
     fns = (ours, floor, theirs)
     times = [[] for _ in fns]
     with kernels("numba"):
-        for fn in fns:
-            fn()  # the first call of the compiled kernel loads it
+        first = [fn() for fn in fns]  # the first call of the compiled kernel loads it
         for _ in range(repeat):
             for fn, into in zip(fns, times, strict=True):
                 t0 = time.perf_counter()
                 fn()
                 into.append(time.perf_counter() - t0)
-    return Paired(*(np.array(t) for t in times))
+    return Paired(*(np.array(t) for t in times)), first[0]
 
 
 def per_ray(counts) -> tuple[float, float, float]:
@@ -186,12 +187,12 @@ def bench_scene(name: str, repeat: int, levels: int | None = None) -> tuple[int,
     TriangleMesh(emb, scene.triangles.astype(np.float32))
     o32, d32 = o.astype(np.float32), d.astype(np.float32)
     emb.run(o32[:16], d32[:16])  # build Embree's BVH outside the timing
-    hits = closest_hit(accel, o, d, shared_origin=True)
     def primary():
         return closest_hit(accel, o, d, shared_origin=True)
 
-    times = alternated(primary, lambda: closest_hit(walk, o, d, shared_origin=True), lambda: emb.run(o32, d32),
-                       repeat)
+    # (the eye rays' hits, which the shadow rays start from, and their counts: the untimed first call's)
+    times, hits = alternated(primary, lambda: closest_hit(walk, o, d, shared_origin=True),
+                             lambda: emb.run(o32, d32), repeat)
     rows = [("primary", o.shape[0], times, engine_time("numpy", primary, repeat), per_ray(hits.counts))]
     so, sd, sign, rel = shadow_rays(scene, accel, hits, o, d)
     # embreex's run() has no tnear: Embree's rays start at tmin and end at tmax
@@ -201,9 +202,9 @@ def bench_scene(name: str, repeat: int, levels: int | None = None) -> tuple[int,
     def shadow():
         return any_hit(accel, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign)
 
-    times = alternated(shadow, lambda: any_hit(walk, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign),
-                       lambda: emb.run(so32, sd32, dists=ones, query="OCCLUDED"), repeat)
-    rows.append(("shadow", so.shape[0], times, engine_time("numpy", shadow, repeat), per_ray(shadow().counts)))
+    times, occluded = alternated(shadow, lambda: any_hit(walk, so, sd, tmin=rel, tmax=1.0 - rel, ignore=sign),
+                                 lambda: emb.run(so32, sd32, dists=ones, query="OCCLUDED"), repeat)
+    rows.append(("shadow", so.shape[0], times, engine_time("numpy", shadow, repeat), per_ray(occluded.counts)))
     return accel.tree.levels, rows
 
 
