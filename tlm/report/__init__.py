@@ -34,7 +34,7 @@ from pathlib import Path
 
 from tlm.errors import InputError
 from tlm.report.collect import Inputs, read
-from tlm.report.common import Section
+from tlm.report.common import Section, forget_names
 from tlm.report.html import esc, page
 from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder, distinct_folders
@@ -125,14 +125,17 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
         for name in KEPT_FOLDERS:  # what others wrote into the report's folder stays
             if (out / name).is_dir():
                 shutil.copytree(out / name, tmp / name)
-        secs = sections(inputs, tmp)
+        try:
+            secs = sections(inputs, tmp)
+            from tlm.report.summary import summary_section
+
+            summary = summary_section(inputs, tmp)
+        finally:
+            forget_names(tmp)  # (the figures are written: their names need no record now)
         kinds = ", ".join(f"{esc(d)}" for d in dirs)
         if inputs.scaling_sweeps:
             kinds += " (and, for the scaling section only, " + ", ".join(
                 esc(sw.path) for sw in inputs.scaling_sweeps) + ")"
-        from tlm.report.summary import summary_section
-
-        summary = summary_section(inputs, tmp)
         n_fig = len(summary.figures) + sum(len(s.figures) for s in secs)  # (every figure the page embeds)
         studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
         intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "

@@ -10,11 +10,19 @@ drawn once (``Figure.savefig`` alone draws a laid-out figure twice, once without
 run the layout), and one mathtext parser serves every figure, so that a tick label parsed
 for one figure (``10^2`` on a log axis) is not parsed again for the next (the parser keeps
 the last 50). The pixels are those ``savefig`` writes.
+
+Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_`` and ``-``
+and the one ``.`` of ``.png``, so that it works unquoted in a shell, in a URL and in LaTeX's
+``\\includegraphics``; and one name is one figure within a report (two figures that would get
+the same name do not overwrite each other: the later gets a suffix from its key).
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import re
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +37,8 @@ HATCHES = ("", "///", "...", "xxx", "\\\\\\", "+++", "ooo", "---")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 2)), (0, (3, 1, 1, 1, 1, 1)))
 DPI = 110
+NAME_PART = 60  # a part of a figure's file name (a folder's name, a run's label) keeps this many characters
+NAME_MAX = 120  # a figure's file name, suffix and ".png" included, is at most this many characters
 NAMED = 8  # a note names up to this many items (runs, points); of more, the first NAMED_SOME and how many more
 NAMED_SOME = 4
 
@@ -213,7 +223,75 @@ def write_png(fig: MplFigure, path: Path) -> None:
     fig.savefig(path, dpi=DPI)
 
 
-def save(fig: MplFigure, out: Path, name: str, title: str, caption: str = "") -> Figure:
-    """Write ``fig`` as ``out/name`` (PNG, :func:`write_png`) and return its record."""
-    write_png(fig, Path(out) / name)
-    return Figure(name, title, caption)
+# the figure names taken in each report folder (its absolute path): name -> the key of the figure that took it
+_TAKEN: dict[str, dict[str, str]] = {}
+
+
+def _name_part(text) -> str:
+    """``text`` as a part of a file name: accents dropped (é is e), every run of other characters than
+    ASCII letters, digits and ``-`` one ``_``, no ``_`` or ``-`` at either end, at most :data:`NAME_PART`
+    characters. Text with none of those characters is ``x`` and 8 hex digits of its hash."""
+    text = str(text)
+    folded = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
+    part = re.sub(r"[^A-Za-z0-9-]+", "_", folded).strip("_-")[:NAME_PART].rstrip("_-")
+    if not part and text.strip():
+        part = "x" + hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+    return part
+
+
+def figure_name(out: Path, *parts, key: str | None = None) -> str:
+    """The file name of a figure the report writes into the folder ``out``, made from ``parts``
+    (``"sweep"``, a sweep folder's name, a factor; a last part ending in ``.png`` loses it), and
+    taken for the figure ``key`` (what tells it from any other: a folder's full path and the
+    factor; by default the parts).
+
+    The name is the parts (:func:`_name_part`, empty ones left out) joined by ``_``, then ``.png``:
+    ``sweep_odd_sweep_x_y_2_e_arch_fifo_depth.png`` for ``odd sweep (x&y)#2 é`` and ``arch.fifo_depth``.
+    It is unique within the folder: where a figure of another key took that name (and its file is
+    there), this one gets ``_`` and 8 hex digits of its key's hash, so a report written again from
+    the same inputs gives every figure the same name. The same key gets the same name again."""
+    parts = [str(p) for p in parts]
+    if parts and parts[-1].lower().endswith(".png"):
+        parts[-1] = parts[-1][:-4]
+    key = "\n".join(parts) if key is None else str(key)
+    stem = "_".join(p for p in map(_name_part, parts) if p) or "figure"
+    stem = stem[:NAME_MAX - 4 - 9].rstrip("_-")  # (room for "_" and 8 hex digits, and ".png")
+    folder = Path(out)
+    taken = _TAKEN.setdefault(str(folder.absolute()), {})
+    tag = hashlib.sha1(key.encode("utf-8")).hexdigest()[:8]
+    candidates = [stem, f"{stem}_{tag}", *(f"{stem}_{tag}_{i}" for i in range(2, 1000))]
+    for name in (f"{c}.png" for c in candidates):
+        other = taken.get(name)
+        if other is None or other == key or not (folder / name).exists():  # (a name of an earlier report
+            taken[name] = key  # written into this folder, whose file is gone, is free)
+            return name
+    raise RuntimeError(f"no free file name for the figure {key!r} in {folder}")
+
+
+def forget_names(out: Path) -> None:
+    """Forget the figure names taken in the report folder ``out`` (:func:`figure_name`), once the
+    report in it is written: a long session writing many reports keeps no record of them."""
+    _TAKEN.pop(str(Path(out).absolute()), None)
+
+
+@dataclass(frozen=True)
+class FigureName:
+    """What a figure's file name is made of (:func:`figure_name`): its ``parts`` and its ``key``."""
+
+    parts: tuple
+    key: str | None = None
+
+
+def save(fig: MplFigure, out: Path, name: str | FigureName, title: str, caption: str = "") -> Figure:
+    """Write ``fig`` into ``out`` (PNG, :func:`write_png`) and return its record. Its file name is
+    :func:`figure_name` of ``name`` (a file name, or its parts and key); a plain file name's key is
+    ``name``, ``title`` and ``caption``: two figures that differ in them are two files."""
+    if isinstance(name, FigureName):
+        parts, key = tuple(name.parts), name.key
+    else:
+        parts, key = (name,), None
+    if key is None:
+        key = "\n".join((*map(str, parts), title, caption))
+    file = figure_name(out, *parts, key=key)
+    write_png(fig, Path(out) / file)
+    return Figure(file, title, caption)

@@ -37,7 +37,7 @@ from matplotlib.path import Path as MplPath
 
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
-from tlm.report.common import Section, new_figure, save, some
+from tlm.report.common import FigureName, Section, new_figure, save, some
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
@@ -203,7 +203,7 @@ def breakdown(run: Run, few: int = FEW_PIPELINES) -> Breakdown:
                      _throughput(run), aggregate)
 
 
-def breakdown_figure(run: Run, out: Path, name: str):
+def breakdown_figure(run: Run, out: Path, name: str | FigureName):
     bd = breakdown(run)
     if not bd.labels:
         return None
@@ -438,7 +438,7 @@ def _gantt_rows(run: Run, g: Gantt) -> tuple[list[str], str | None]:
                   f"are left out to keep the rows readable.")
 
 
-def gantt_figure(run: Run, out: Path, name: str, notes: list[str]):
+def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
     g = gantt(run.trace)
     if not g.rows or g.end <= 0:
         notes.append(f"{run.label}: trace.json has no slices; no timeline.")
@@ -508,10 +508,6 @@ def gantt_figure(run: Run, out: Path, name: str, notes: list[str]):
 
 # -- the section -----------------------------------------------------------------------------
 
-def _slug(label: str) -> str:
-    return re.sub(r"[^A-Za-z0-9]+", "_", label).strip("_")[:60] or "run"
-
-
 def cycles_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("cycles", "Where the cycles go")
     if not inputs.runs:
@@ -523,9 +519,9 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
         sec.absent = "none of the runs has timing results"
         return sec
     for i, run in enumerate(runs):
-        slug = f"cycles_{i:02d}_{_slug(run.label)}"
+        slug = ("cycles", f"{i:02d}", run.label)  # (cycles_00_<label>_breakdown.png)
         try:
-            fig = breakdown_figure(run, out, f"{slug}_breakdown.png")
+            fig = breakdown_figure(run, out, FigureName((*slug, "breakdown"), "\n".join((*slug, "breakdown"))))
         except (KeyError, TypeError, ValueError) as e:
             sec.notes.append(f"{run.label}: its timing results lack the eq. 5.1 terms ({type(e).__name__}: {e}); "
                              f"no breakdown.")
@@ -542,7 +538,7 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.append(f"{run.label}: no trace.json ({why}), so no timeline.")
             continue
         try:
-            fig = gantt_figure(run, out, f"{slug}_timeline.png", sec.notes)
+            fig = gantt_figure(run, out, FigureName((*slug, "timeline"), "\n".join((*slug, "timeline"))), sec.notes)
         except (OSError, KeyError, TypeError, ValueError) as e:
             sec.notes.append(f"{run.label}: trace.json cannot be read ({type(e).__name__}: {e}); no timeline.")
             fig = None

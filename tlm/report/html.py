@@ -1,8 +1,9 @@
 """The report page: one self-contained HTML file.
 
 Every figure is embedded (a base64 PNG) and also links to its PNG file beside the page,
-so the page opens anywhere on its own and the figures stay usable one by one. The page
-references nothing else: no scripts, no style sheets, no fonts from the network.
+so the page opens anywhere on its own and the figures stay usable one by one (the link is the
+file's name, percent-encoded). The page references nothing else: no scripts, no style sheets,
+no fonts from the network.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import base64
 import html
 from pathlib import Path
+from urllib.parse import quote
 
 from tlm.report.common import Section
 
@@ -39,7 +41,7 @@ def esc(x) -> str:
 def figure_html(folder: Path, file: str, title: str, caption: str) -> str:
     data = base64.b64encode((Path(folder) / file).read_bytes()).decode("ascii")
     cap = f"<strong>{esc(title)}.</strong> {esc(caption)}" if caption else f"<strong>{esc(title)}</strong>"
-    return (f'<figure><a href="{esc(file)}"><img alt="{esc(title)}" src="data:image/png;base64,{data}"></a>'
+    return (f'<figure><a href="{esc(quote(file))}"><img alt="{esc(title)}" src="data:image/png;base64,{data}"></a>'
             f"<figcaption>{cap}</figcaption></figure>")
 
 

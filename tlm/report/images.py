@@ -39,7 +39,7 @@ from tlm.experiments.thesis import THESIS_SCENES
 from tlm.render.image import to_srgb8
 from tlm.render.planner import PASSES
 from tlm.report.collect import Inputs, Run
-from tlm.report.common import Section, new_figure, save
+from tlm.report.common import FigureName, Section, new_figure, save
 
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
 SCENE_TITLE = {"ring": "Scene with ring (Fig. 15)", "room": "Room scene (Fig. 16)",
@@ -157,7 +157,7 @@ def run_panels(run: Run) -> list[Panel]:
     return panels
 
 
-def _draw(rows: list[Row], title: str, out: Path, name: str, caption: str):
+def _draw(rows: list[Row], title: str, out: Path, name: FigureName, caption: str):
     ncols = len(MODES)
     fig = new_figure(2.3 * ncols + 0.4, 2.55 * len(rows) + 0.5)
     axes = fig.subplots(len(rows), ncols, squeeze=False)
@@ -231,18 +231,14 @@ def error_figure(run: Run, out: Path):
                "the pixel's box-filter integral: a run of render.spp 1 samples the pixel's centre, so edges "
                "show aliasing too.")
     fig.suptitle(f"{run.label}\nPMap frame against its converged reference: {_error_words(error)}", fontsize=9)
-    return save(fig, out, f"pmap_error_{_slug(run.label)}.png", title, caption)
-
-
-def _slug(text: str) -> str:
-    return "".join(ch if ch.isalnum() else "_" for ch in text).strip("_")[:60] or "run"
+    return save(fig, out, FigureName(("pmap_error", run.label), f"pmap_error\n{run.label}"), title, caption)
 
 
 def images_section(inputs: Inputs, out: Path) -> Section:
     """Figs. 15-17 style image sets: per thesis study one figure, per run one row."""
     out = Path(out)
     section = Section("images", "Image sets (Figs. 15–17): RCast, Reflect, Refract, PMap")
-    jobs: list[tuple[list[Row], str, str, str]] = []  # rows, title, file name, caption
+    jobs: list[tuple[list[Row], str, FigureName, str]] = []  # rows, title, file name, caption
     in_study: set[Path] = set()
     for study in inputs.of_kind("thesis"):
         root = study.path.resolve()
@@ -262,8 +258,10 @@ def images_section(inputs: Inputs, out: Path) -> Section:
         for k in range(0, len(rows), MAX_ROWS):
             part = rows[k:k + MAX_ROWS]
             suffix = f" ({k // MAX_ROWS + 1})" if len(rows) > MAX_ROWS else ""
+            number = (str(k // MAX_ROWS + 1),) if suffix else ()
             jobs.append((part, f"Thesis study {study.path.name}: image sets by mode{suffix}",
-                         f"images_{_slug(study.path.name)}{'_' + str(k // MAX_ROWS + 1) if suffix else ''}.png",
+                         FigureName(("images", study.path.name, *number),
+                                    "\n".join(("images", str(study.path.absolute()), *number))),
                          "Each panel is the cumulative composite of its mode as written by the study "
                          "(images/composite.png of the cell, tone-mapped with that cell's own exposure)."))
     runs = [r for r in inputs.runs if r.kind == "run" and r.path.resolve() not in in_study]
@@ -285,7 +283,8 @@ def images_section(inputs: Inputs, out: Path) -> Section:
         title = "Runs: image sets by mode" + (f" ({n})" if many else "")
         if len(part) == 1:
             title = f"{scene_title(part[0])}: image set by mode, {part[0].label}"
-        jobs.append((rows, title, f"images_runs{'_' + str(n) if many else ''}.png",
+        number = (str(n),) if many else ()
+        jobs.append((rows, title, FigureName(("images_runs", *number), "\n".join(("images_runs", *number))),
                      "Each panel is the cumulative composite of its mode (the sum of the passes run up to it), "
                      "rebuilt from the run's linear radiance and tone-mapped with the run's one exposure."))
     if not jobs:

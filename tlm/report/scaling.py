@@ -30,7 +30,7 @@ from matplotlib.ticker import NullLocator
 from tlm.errors import InputError
 from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import Figure, Section, colour, legend_below, marker, new_figure, write_png
+from tlm.report.common import Figure, Section, colour, figure_name, legend_below, marker, new_figure, write_png
 from tlm.report.html import esc
 from tlm.report.sweeps import PMS, factors_of, named_rows
 
@@ -237,15 +237,11 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     return "\n".join(out)
 
 
-def _slug(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_")[:60] or "scene"
-
-
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
-    # (folder, fits, each fit's scene, eq. 5.2's label, as the report names scenes: by the scene's file)
-    sources: list[tuple[str, dict, dict[str, str]]] = [
-        (s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits})
+    # (folder, fits, each fit's scene, eq. 5.2's label, as the report names scenes: by the scene's file; the folder)
+    sources: list[tuple[str, dict, dict[str, str], Path]] = [
+        (s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits}, s.path)
         for s in inputs.of_kind("scaling") for fits in [_fits_of_study(s)]]
     stale: dict[str, str] = {}  # a scaling folder -> why its fit no longer shows its sweeps
     for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
@@ -263,17 +259,18 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.append(f"{sw.path.name}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         names: dict[str, str] = {}
-        sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes, names), names))
+        sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes, names), names, sw.path))
     sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
         else:
             sec.notes.append(f"{sw.path.name}: does not vary arch.pipelines, no idle figure")
-    for name, fits, named in sources:
+    for name, fits, named, where in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
-            file = f"scaling_{_slug(name)}_{eq52.file_slug(scene)}.png"  # (eq. 5.2's name: the file keeps its name)
+            # (eq. 5.2's name of the scene: the file keeps its name)
+            file = figure_name(out, "scaling", name, scene, key=f"scaling\n{where.absolute()}\n{scene}")
             shown = named.get(scene, scene)
             plot_scaling(shown, mine, out / file, name)
             worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
@@ -288,7 +285,8 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
         many_modes = len({mode for _, mode in groups}) > 1
         for (scene, mode), g in groups.items():
             label = f"{scene}/{mode}" if many_modes else scene
-            file = f"idle_{_slug(sw.path.name)}_{_slug(scene)}{'_' + _slug(mode) if many_modes else ''}.png"
+            file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
+                               key="\n".join(("idle", str(sw.path.absolute()), scene, mode)))
             plot_idle(label, g["pms"], g["points"], out / file, sw.path.name)
             sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.path.name}",
                                       "Idle: no job to run (neither working nor stalled), as a fraction of the "

@@ -45,7 +45,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormat
 
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import NAMED, Figure, Section, line_style, new_figure, save, some
+from tlm.report.common import NAMED, Figure, FigureName, Section, line_style, new_figure, save, some
 from tlm.report.html import esc
 
 MAX_SERIES = 8
@@ -274,7 +274,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
            title=f"{sw.path.name}: simulated FPS against {factor}")
     ax.grid(True, which="both", alpha=0.3)
     _legend_below(fig, ax, *FACTOR_SIZE)
-    name = f"sweep_{sw.path.name}_{factor.replace('.', '_')}.png"
+    name = FigureName(("sweep", sw.path.name, factor), f"{sw.path.absolute()}\n{factor}")  # sweep_<folder>_<factor>.png
     if not numeric:
         drawn += (f" The factor {factor} is a category, not a number: its values are drawn as points, "
                   + ("each line beside the others, " if lines is not None
@@ -538,7 +538,7 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
     merged = (f" The {len(summary)} series (scenes times the other factors' values) draw {len(lines)} distinct "
               f"line{'s' if len(lines) > 1 else ''}: identical ones are drawn once, their label naming them all."
               if len(lines) < len(summary) else "")
-    return save(fig, out, f"bsp_balance_{sw.path.name}.png",
+    return save(fig, out, FigureName(("bsp_balance", sw.path.name), str(sw.path.absolute())),
                 f"{sw.path.name}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
                 "The thesis: floor(ln n) levels balance the Traversal and Intersection PMs. Left: the slowest "
                 "pipeline's Traversal over Intersection cycles per frame (1 = balanced, dashed); right: the "
