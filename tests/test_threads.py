@@ -461,7 +461,7 @@ def test_the_cpus_available_stay_within_the_quota(monkeypatch, tmp_path):
         assert n == 1 == threads.current()
     seen = []
 
-    def no_pool(stack, jobs, dask, points):
+    def no_pool(stack, jobs, dask, points, dask_wait=None):
         seen.append(jobs)
         raise KeyboardInterrupt  # (stops the sweep before it writes anything)
 

@@ -521,25 +521,28 @@ def _experiment_file(path: str | Path, command: str) -> Path:
 
 
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-              progress: bool = False) -> Outcome:
+              progress: bool = False, dask_wait: float | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
     :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
     (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
     and rendered. ``jobs``: worker processes (default the CPUs available to
     the process, within a container's CPU quota, as for ``render.threads``; 1: in this
-    process); ``dask``: ``"local"`` or a scheduler's address."""
+    process); ``dask``: ``"local"`` or a scheduler's address; ``dask_wait`` (with ``dask``): the
+    seconds the sweep waits while the scheduler has no worker before it stops (``tlm sweep
+    --dask-wait``; default 300)."""
     from tlm.experiments.sweep import run_sweep as run_all
 
-    return run_all(_experiment_file(path, "sweep"), Path(out), jobs=jobs, dask=dask, progress=progress)
+    return run_all(_experiment_file(path, "sweep"), Path(out), jobs=jobs, dask=dask, progress=progress,
+                   dask_wait=dask_wait)
 
 
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-          progress: bool = False) -> pd.DataFrame:
+          progress: bool = False, dask_wait: float | None = None) -> pd.DataFrame:
     """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
     (:func:`run_sweep`) and return its rows as a
     pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
     (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
-    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress).table
+    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait).table
 
 
 def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:

@@ -222,7 +222,8 @@ def _error_line(error: dict, skip: str | None) -> str:
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
-    done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress)
+    done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
+                         dask_wait=args.dask_wait)
     for row in done.rows:
         if row["status"] != "ok":
             print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
@@ -464,6 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "max(1, CPUs // workers) kernel threads, so --jobs x render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
+    sw.add_argument("--dask-wait", type=float, metavar="SECONDS", help="with --dask: how long the sweep waits while "
+                    "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
+                    "(default: 300)")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
                     "not a terminal)")
     _no_report(sw)

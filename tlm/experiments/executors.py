@@ -6,8 +6,9 @@ local pool of worker processes (:class:`LocalPool`), forked from a fresh server
 process, that end with the sweep's process and outlive the death of one of their own;
 or a Dask cluster (``--dask local`` starts a ``LocalCluster``, ``--dask tcp://HOST:PORT``
 connects to a scheduler), through a :class:`DaskPool` that says when the cluster itself
-fails the sweep (its scheduler lost, no worker for :data:`NO_WORKERS_WAIT` seconds). All
-are ``concurrent.futures`` executors: the sweep submits a point and reads its future.
+fails the sweep (its scheduler lost, no worker for ``--dask-wait`` seconds, by default
+:data:`NO_WORKERS_WAIT`). All are ``concurrent.futures`` executors: the sweep submits a
+point and reads its future.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import itertools
 import logging
 import multiprocessing
 import os
+import queue
 import select
 import signal
 import sys
@@ -35,8 +37,9 @@ from tlm.errors import EnvironmentFailure, InputError, interrupted_by
 
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 DASK_POLL = 1.0  # seconds between a sweep's checks of its Dask scheduler while it waits for points
-NO_WORKERS_WAIT = 300.0  # seconds a sweep waits while its Dask scheduler has no worker, then stops
-WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler about its workers
+NO_WORKERS_WAIT = 300.0  # seconds a sweep waits while its Dask scheduler has no worker, then stops (--dask-wait)
+WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler about its workers (at most: a
+# shorter wait asks twice within it)
 ASK_TIMEOUT = 30.0  # seconds the scheduler gets to answer one
 PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
@@ -99,7 +102,10 @@ class LocalPool(cf.Executor):
     (SIGTERM) while another point ran beside it; a point whose worker died
     ``MAX_DEATHS`` times, the last time running it alone, fails with
     :class:`WorkerDied`. ``MAX_BLIND`` breaks in a row with no point started fail the
-    points they held. The points are waited for in this process's thread (:meth:`run_next`).
+    points they held. The points are waited for in this process's thread (:meth:`run_next`),
+    each pool future as it finishes (:attr:`finished`, fed by its done-callback), at a
+    constant cost per point (``cf.wait`` on every future in flight cost a time quadratic in
+    the points).
 
     Workers are forked from a fresh server process (``forkserver``), never from this
     one: this process may hold threads (the progress bar's monitor, a Dask client's
@@ -112,6 +118,8 @@ class LocalPool(cf.Executor):
         self.waiting: deque[_Job] = deque()  # not handed to the pool yet
         self.suspects: deque[_Job] = deque()  # started when the pool broke: each runs alone next
         self.inflight: dict[cf.Future, _Job] = {}  # the pool's futures
+        self.finished: queue.SimpleQueue[cf.Future] = queue.SimpleQueue()  # the pool's futures as they finish
+        # (those of a pool replaced since, no longer in inflight, are passed over)
         self.alone: _Job | None = None  # the suspect in flight: nothing else runs beside it
         self.tokens = itertools.count()
         self.settled = 0  # points whose future was set
@@ -146,7 +154,9 @@ class LocalPool(cf.Executor):
         pool if it broke meanwhile."""
         settled = self.settled
         while self.settled == settled and self.inflight:
-            done, _ = cf.wait(list(self.inflight), return_when=cf.FIRST_COMPLETED)
+            done = [f for f in self._finished() if f in self.inflight]
+            if not done:  # (a replaced pool's)
+                continue
             if any(_broke(f) for f in done):
                 self._replace()
             else:
@@ -155,6 +165,15 @@ class LocalPool(cf.Executor):
                     self._settle(self.inflight.pop(f), f)
                 self.blind = 0
             self._pump()
+
+    def _finished(self) -> list[cf.Future]:
+        """The pool futures that finished since the last call, waiting for one if none has."""
+        done = [self.finished.get()]
+        while True:
+            try:
+                done.append(self.finished.get_nowait())
+            except queue.Empty:
+                return done
 
     def _pump(self) -> None:
         """Hand points to the pool: a suspect alone once nothing else is in flight, else every waiting one."""
@@ -174,6 +193,7 @@ class LocalPool(cf.Executor):
                 self._replace()
                 continue
             self.inflight[f] = job
+            f.add_done_callback(self.finished.put)
             self.processes.update(getattr(self.pool, "_processes", None) or {})
 
     def _replace(self) -> None:
@@ -470,9 +490,11 @@ def _sigint_ignored():
         signal.signal(signal.SIGINT, before)
 
 
-def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) -> cf.Executor:
+def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
+                  dask_wait: float | None = None) -> cf.Executor:
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
-    client's; no more workers than ``points``."""
+    client's; no more workers than ``points``. ``dask_wait``: the seconds a Dask sweep
+    waits while its scheduler has no worker (None: :data:`NO_WORKERS_WAIT`)."""
     if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
         return InProcess() if jobs == 1 else LocalPool(min(jobs, points))
     jobs = min(jobs, points)
@@ -501,8 +523,8 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int) ->
             client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
         except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
-        return DaskPool(client, dask, remote=True, quiet=quiet)
-    return DaskPool(client, "local", remote=False, quiet=quiet)
+        return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
+    return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait)
 
 
 class _Quiet:
@@ -537,15 +559,18 @@ class DaskPool(cf.Executor):
     while the sweep waits: a point cancelled that the sweep did not cancel means the client
     lost its scheduler (distributed cancels every future then, and the points would
     otherwise be recorded as failed with an empty ``CancelledError``), and a scheduler with
-    no worker for :data:`NO_WORKERS_WAIT` seconds would keep the sweep waiting forever.
+    no worker for ``wait`` seconds (``--dask-wait``; None: :data:`NO_WORKERS_WAIT`) would keep
+    the sweep waiting forever.
     """
 
-    def __init__(self, client, address: str, remote: bool, quiet: _Quiet | None = None) -> None:
+    def __init__(self, client, address: str, remote: bool, quiet: _Quiet | None = None,
+                 wait: float | None = None) -> None:
         self.client = client
         self.quiet = _Quiet() if quiet is None else quiet
         self.address = address
         self.remote = remote
         self.executor = client.get_executor(pure=False)
+        self.wait = NO_WORKERS_WAIT if wait is None else wait
         self.workerless_since: float | None = None
         self.asked = -float("inf")  # when the scheduler was last asked for its workers
 
@@ -566,7 +591,7 @@ class DaskPool(cf.Executor):
             return self._quiet(f"the Dask scheduler {self.address} cancelled the sweep's points (its connection "
                                "was lost, or the cluster restarted)")
         now = time.monotonic()
-        if now - self.asked < WORKERS_POLL:
+        if now - self.asked < min(WORKERS_POLL, self.wait / 2):  # (a short wait is not overrun by a poll)
             return None
         self.asked = now
         try:
@@ -581,8 +606,9 @@ class DaskPool(cf.Executor):
             return None
         if self.workerless_since is None:
             self.workerless_since = now
-        if now - self.workerless_since >= NO_WORKERS_WAIT:
-            return self._quiet(f"the Dask scheduler {self.address} {why} for {now - self.workerless_since:.0f} s")
+        if now - self.workerless_since >= self.wait:
+            return self._quiet(f"the Dask scheduler {self.address} {why} for {now - self.workerless_since:.0f} s "
+                               f"(--dask-wait: {self.wait:g} s)")
         return None
 
     def _quiet(self, reason: str) -> str:

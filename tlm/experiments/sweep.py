@@ -50,7 +50,10 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import json
+import math
+import numbers
 import os
+import queue
 import re
 import shutil
 import time
@@ -431,8 +434,10 @@ def _with_threads(config: dict, threads: int | None) -> dict:
 
 
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
-              progress: bool = False) -> Outcome:
-    """Run every point of the sweep file ``path`` not already done in ``out``."""
+              progress: bool = False, dask_wait: float | None = None) -> Outcome:
+    """Run every point of the sweep file ``path`` not already done in ``out``. ``dask_wait``
+    (with ``dask`` only): the seconds the sweep waits while its Dask scheduler has no worker
+    before it stops (:class:`SweepStopped`); None: :data:`~tlm.experiments.executors.NO_WORKERS_WAIT`."""
     t_start = time.perf_counter()
     if jobs is None:
         from tlm.kernels.threads import available
@@ -440,6 +445,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         jobs = available()  # (the affinity mask and a container's CPU quota, as render.threads)
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
+    if dask_wait is not None:
+        dask_wait = _wait_seconds(dask_wait, dask)
     from tlm.kernels.engine import engine
     from tlm.kernels.threads import fork_workers
 
@@ -484,7 +491,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     with ExitStack() as held:  # (the folder, held until the last row is written)
         try:
             with ExitStack() as stack:
-                pool = open_executor(stack, jobs, dask, len(todo)) if todo else None
+                pool = open_executor(stack, jobs, dask, len(todo), dask_wait) if todo else None
                 # the folder and its marker appear together, before anything else is written in it
                 # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
                 # into it, started this instant, finds a tlm output, never a half-made folder. A
@@ -532,6 +539,17 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                    [*said, *unread, *caches, *stale], other)
 
 
+def _wait_seconds(value: Any, dask: str | None) -> float:
+    """``--dask-wait``: a finite number of seconds > 0, for a sweep on Dask."""
+    if dask is None:
+        raise InputError(f"{value}: a wait for Dask workers, but the sweep does not run on Dask (give --dask "
+                         "local or --dask tcp://HOST:PORT, or leave --dask-wait out)", key="--dask-wait")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
+        raise InputError(f"{value!r} is not a wait: give the seconds a sweep waits while its Dask scheduler has no "
+                         "worker, a finite number > 0", key="--dask-wait")
+    return float(value)
+
+
 def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
     """The lines on tlm's caches that could not be written: this process's (``here``, most
     said as they were met) and the points' (their workers keep them: :func:`run_point`),
@@ -548,19 +566,26 @@ def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],
               records: dict[str, dict], out: Path, progress: bool, total: int, skipped: int) -> None:
-    """Run the tasks: one per functional key first, the rest of its group once it is cached."""
+    """Run the tasks: one per functional key first, the rest of its group once it is cached.
+
+    A point's future, once done, enters the queue ``finished`` (its done-callback): the loop
+    takes the points as they finish, at a constant cost each, where ``cf.wait`` on every
+    future in flight cost the sweep a time quadratic in its points."""
     groups: dict[str, deque[str]] = {}
     for h in tasks:
         groups.setdefault(fkeys[h], deque()).append(h)
     futures: dict[cf.Future, str] = {}
+    finished: queue.SimpleQueue[cf.Future] = queue.SimpleQueue()
 
     def submit(h: str) -> None:
-        futures[pool.submit(run_point, tasks[h])] = h
+        f = pool.submit(run_point, tasks[h])
+        futures[f] = h
+        f.add_done_callback(finished.put)
 
     def release(key: str, everything: bool) -> None:
-        queue = groups[key]
-        while queue:
-            submit(queue.popleft())
+        group = groups[key]
+        while group:
+            submit(group.popleft())
             if not everything:
                 break
 
@@ -578,8 +603,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
             while futures:
                 if isinstance(pool, (InProcess, LocalPool)):
                     pool.run_next()
-                done, _ = cf.wait(list(futures), timeout=DASK_POLL if isinstance(pool, DaskPool) else None,
-                                  return_when=cf.FIRST_COMPLETED)
+                done = _taken(finished, DASK_POLL if isinstance(pool, DaskPool) else None)
                 cancelled = [f for f in done if f.cancelled()]  # (by the cluster: the sweep cancelled none)
                 for f in done:
                     if f in cancelled:
@@ -603,9 +627,9 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                 if isinstance(pool, DaskPool):  # the cluster itself gone (or without workers): a line, not rows
                     why = pool.trouble(cancelled=bool(cancelled))
                     if why is not None:
-                        finished = sum(len(by_hash[h]) for h, r in records.items() if r["status"] == "ok")
+                        n_done = sum(len(by_hash[h]) for h, r in records.items() if r["status"] == "ok")
                         raise SweepStopped(
-                            f"{why}: the sweep stopped with {finished} of {total} points done, kept in {out}; "
+                            f"{why}: the sweep stopped with {n_done} of {total} points done, kept in {out}; "
                             "run it again into that folder to run the others")
     except BaseException:
         for f in futures:
@@ -622,6 +646,20 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         if bar is not None:
             bar.close()
     pool.shutdown(wait=True)
+
+
+def _taken(finished: queue.SimpleQueue, timeout: float | None) -> list[cf.Future]:
+    """The futures in ``finished``, in the order they finished: waiting for the first up to
+    ``timeout`` seconds (None: until one comes; none in that time: an empty list)."""
+    try:
+        done = [finished.get(timeout=timeout)]
+    except queue.Empty:
+        return []
+    while True:
+        try:
+            done.append(finished.get_nowait())
+        except queue.Empty:
+            return done
 
 
 def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
