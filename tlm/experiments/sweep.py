@@ -16,8 +16,10 @@ Points are product(grid) x zip: every combination of the grid with every zip col
 zip varying fastest. Any config key may be a factor by its dotted path, and every
 point's config goes through the run config's checks before any point runs
 (:mod:`tlm.experiments.sweep_file` reads, checks and keys the points). Relative
-paths in the configs (``scene``, ``arch.programs``) start at the base config's folder
-when ``base`` is a file, else at the sweep file's folder.
+paths in the base config (``scene``, ``arch.programs``) start at its folder when
+``base`` is a file, else at the sweep file's folder; an ``arch.programs`` the sweep
+file itself gives (``set``, ``grid``, ``zip``) starts at the sweep file's folder, and a
+``scene`` it gives is looked for from the base config's folder, then the working folder.
 
 A point is keyed by the hash of its resolved config, of the content of the files it
 names (the scene and its meshes, through the functional key; the programs table) and
