@@ -16,7 +16,10 @@ a folder holding the ``marker`` file (``results.json`` for a run folder), or an 
 folder. Anything else — a file, a folder of other things, the current folder or one of
 its parents, a mount point — is refused with an :class:`~tlm.errors.InputError`, so ``--out .``
 can never delete a checkout. A destination whose parent cannot be written (a read-only file
-system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work.
+system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work. A destination that
+turns into such a thing while the block runs (another program's folder, a file) keeps the finished
+output beside it, in a folder of its own (``OUT.unsaved-<pid>``, else ``-2``, ``-3``, ...), which the
+error names (:func:`_keep_beside`).
 
 Concurrent writers of one destination (two ``tlm run --out X``, or two threads of one process
 calling ``tlm.run`` into one folder) never see each other's temporary folders: each has its own
@@ -216,6 +219,7 @@ def _owner() -> str:
 _LIVE_LOCK = threading.Lock()
 _LIVE: set[str] = set()  # the names of the temporary folders this process's writers are using now
 _WRITERS = itertools.count()  # (numbers the writers of this process; under _LIVE_LOCK)
+_FILES: set[str] = set()  # the temporary files this process's write_atomic blocks are writing now
 
 
 def _writer() -> str:
@@ -251,6 +255,7 @@ def _forget_live() -> None:
     global _LIVE_LOCK
     _LIVE_LOCK = threading.Lock()
     _LIVE.clear()
+    _FILES.clear()
 
 
 if hasattr(os, "register_at_fork"):
@@ -415,6 +420,7 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
 def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: Path,
                    writer: str) -> Iterator[Path]:
     """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``."""
+    leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         clean_stale(out.parent, re.escape(out.name))
@@ -448,32 +454,54 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
             try:
                 _swap_in(tmp, out, writer)
             except BaseException:  # (the user's files go back where they were)
-                back = True
+                stuck = []
                 for name in moved:
                     try:
                         (tmp / name).rename(out / name)
                     except OSError:
-                        back = False
-                if not back:  # (never removed with the temporary folder: it is kept beside, whole)
-                    _keep_beside(tmp, out)
+                        stuck.append(name)
+                if stuck:  # (never removed with the temporary folder: it is kept beside, whole, and named)
+                    kept = _keep_beside(tmp, out)
+                    where = f"kept in {str(kept)!r}"
+                    if kept is None:  # (left where they are, not removed, and said)
+                        leave = True
+                        where = f"left in {str(tmp)!r}, which the next output written to {str(out)!r} removes"
+                    warn(f"{out}: the new output could not take its place and {', '.join(map(repr, stuck))} "
+                         f"could not be moved back into it: they and this run's output are {where}")
                 raise
     except BaseException as e:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if not leave:
+            shutil.rmtree(tmp, ignore_errors=True)
         _note_cache_write(out, e)
         _raise_environmental(e, out)
         raise
 
 
 def _keep_beside(tmp: Path, out: Path) -> Path | None:
-    """Rename the finished temporary folder ``tmp`` to ``OUT.unsaved-PID`` beside ``out``
-    (kept, not removed, when it cannot take ``out``'s place; ``-t<id>`` added in a thread
-    other than the main one); its path, or None."""
-    kept = out.parent / f"{out.name}.unsaved-{os.getpid()}{_thread_tag()}"
-    try:
-        tmp.rename(kept)
-    except OSError:
-        return None
-    return kept
+    """Rename the finished temporary folder ``tmp`` to a name of its own beside ``out`` (kept,
+    not removed, when it cannot take ``out``'s place): ``OUT.unsaved-PID`` (``-t<id>`` added in
+    a thread other than the main one), else the first of ``OUT.unsaved-PID-2``, ``-3``, ... that
+    is free: a name is taken by making it (an empty folder, which the rename then replaces), so
+    an earlier kept output, or anything else of that name, is never replaced. Its path, or None."""
+    base = f"{out.name}.unsaved-{os.getpid()}{_thread_tag()}"
+    for n in range(1, 10_000):
+        kept = out.parent / (base if n == 1 else f"{base}-{n}")
+        try:
+            kept.mkdir()
+        except FileExistsError:
+            continue  # (kept earlier, or someone else's)
+        except OSError:
+            return None
+        try:
+            tmp.rename(kept)
+        except OSError as e:
+            with suppress(OSError):
+                kept.rmdir()
+            if e.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                continue  # (filled meanwhile by someone else)
+            return None
+        return kept
+    return None
 
 
 def _raise_environmental(e: BaseException, where: Path) -> None:
@@ -522,12 +550,13 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     """An open file that replaces ``path`` when the block succeeds.
 
     The data go to a hidden sibling (``.<name>.tmp<pid>``, ``-t<id>`` added in a thread other
-    than the main one, so concurrent writers of one path, processes or threads, never share
-    it) that is renamed onto ``path`` at the end; on any error the sibling is removed and
-    ``path`` is left as it was.
+    than the main one, ``-<n>`` added while another block of this process writes that one (a
+    block within a block, or two generators of one thread), so concurrent writers of one path,
+    processes or threads, never share it) that is renamed onto ``path`` at the end; on any error
+    the sibling is removed and ``path`` is left as it was.
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}{_thread_tag()}")
+    tmp = _temporary_file(path)
     try:
         with open(tmp, mode, **open_kw) as fh:
             yield fh
@@ -538,6 +567,22 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
         _note_cache_write(path, e)
         _raise_environmental(e, path)
         raise
+    finally:
+        with _LIVE_LOCK:
+            _FILES.discard(os.path.abspath(tmp))
+
+
+def _temporary_file(path: Path) -> Path:
+    """The temporary file of a :func:`write_atomic` of ``path``: the first of ``.<name>.tmp<pid>``
+    (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now."""
+    base = f".{path.name}.tmp{os.getpid()}{_thread_tag()}"
+    with _LIVE_LOCK:
+        tmp, n = path.with_name(base), 1
+        while os.path.abspath(tmp) in _FILES:
+            n += 1
+            tmp = path.with_name(f"{base}-{n}")
+        _FILES.add(os.path.abspath(tmp))
+    return tmp
 
 
 def write_file(path: Path, data: str | bytes) -> None:
