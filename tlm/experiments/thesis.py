@@ -66,6 +66,7 @@ from tlm.experiments.study import read_study, run_study
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 from tlm.scenes.loader import resolve_scene_path, scenes_dir
+from tlm.storage import write_file
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -596,9 +597,7 @@ def write_calibrated(programs: Programs, report: dict, target: Path, command: st
     text, n = re.subn(r"^calibration:[^\n]*\n(?:[ \t]+.*\n)*", block, text, count=1, flags=re.MULTILINE)
     if n != 1:  # a table without the block: it goes at the end
         text = text + ("" if text.endswith("\n") else "\n") + block
-    tmp = target.with_name(target.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(target)
+    write_file(target, text)  # (atomically, through a hidden temporary file of its own)
 
 
 def describe_rows(rows: list[dict[str, Any]]) -> str:
