@@ -20,7 +20,8 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress"),
+    ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress",
+     "tlm.whole_imports"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),

@@ -23,12 +23,18 @@ model that cannot finish raises :class:`Deadlock` (:class:`MaxEventsReached` whe
 
 The heavy layers (the kernels, the timing model, the report) are imported when a
 function first needs them, so that importing tlm, and every ``tlm`` command, stays fast.
+A Ctrl-C (SIGINT) that arrives while one of those imports runs (numba, scipy, ... in the first
+render of a session) is held until that import is complete, then raised as the
+KeyboardInterrupt it would have been (:func:`tlm.whole_imports.imports_whole`): Python does not undo a
+half-finished import, and a package left half-imported fails in every later call of the
+process.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
@@ -38,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 from tlm.arch.units import Deadlock, MaxEventsReached
 from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.errors import InputError, did_you_mean
+from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:
     import numpy as np
@@ -90,6 +97,14 @@ class Config:
         if name.startswith("_") or name == "settings":  # (copy and pickle look for these first)
             raise AttributeError(name)
         return getattr(self.settings, name)
+
+    def __repr__(self) -> str:
+        """One line (a notebook shows it for ``cfg``): where it came from, its overrides and
+        the settings that name the run; every setting: ``cfg.settings`` or ``tlm.config.to_dict(cfg.settings)``."""
+        shown = list(self.overrides[:4]) + ([f"... {len(self.overrides) - 4} more"] if len(self.overrides) > 4 else [])
+        more = f", overrides=[{', '.join(shown)}]" if shown else ""
+        return (f"Config(source={self.source!r}{more}, scene={self.settings.scene!r}, mode={self.settings.mode!r}, "
+                f"resolution={self.settings.resolution!r}, seed={self.settings.seed!r})")
 
     @property
     def label(self) -> str:
@@ -165,6 +180,7 @@ def scene_file(path: str | Path) -> Path | None:
                      source=str(path))
 
 
+@imports_whole
 def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, overrides: Overrides | None = None,
                 *, base: str | Path | None = None) -> Config:
     """A run config, checked: from a YAML file (a run config, or a scene file, which renders
@@ -304,12 +320,15 @@ def scene_description(name: str) -> str:
         return ""
 
 
+@imports_whole
 def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
     """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
     default the working folder), at its own resolution or ``[width, height]``."""
     from tlm.scenes.loader import load_scene as load
 
-    return load(str(scene), Path(base) if base is not None else Path.cwd(), resolution)
+    # (a numpy array or a tuple reads as the list it holds, as in load_config)
+    return load(str(scene), Path(base) if base is not None else Path.cwd(),
+                None if resolution is None else plain(resolution), config_source="(load_scene)")
 
 
 def _scene(scene: Scene | str | Path) -> Scene:
@@ -323,6 +342,7 @@ def _scene(scene: Scene | str | Path) -> Scene:
     return scene
 
 
+@imports_whole
 def scene_info(scene: Scene | str | Path) -> dict:
     """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
     parts, lights and camera of a scene (or of the scene named), and ``notes``: the lines
@@ -355,6 +375,7 @@ def scene_info(scene: Scene | str | Path) -> dict:
     }
 
 
+@imports_whole
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
     or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
@@ -371,6 +392,7 @@ def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
 # ---------------------------------------------------------------- one experiment
 
 
+@imports_whole
 def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: bool = False) -> RenderResult:
     """Render every frame ``config`` plans (its ``mode``) over the whole image.
 
@@ -388,25 +410,32 @@ def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: b
     return replace(runs.render(cfg.settings, cfg.base, cfg.label, progress=progress), base=cfg.base)
 
 
+@imports_whole
 def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
     """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
     ``exposure`` (default: the 99.5th percentile of luminance to 1, as ``tlm run`` does for
     its images, though a run leaves out the pixels that see a light directly), clipped.
-    An exposure that is not a finite number >= 0, or radiance with no finite value (nothing
-    to expose), is an InputError: the image would be black for no reason of the scene's."""
-    import math
-
+    ``exposure`` is any real number (a numpy scalar too, ``np.percentile``'s); one that is not a
+    finite number >= 0, radiance that is not real numbers, or radiance with no finite value
+    (nothing to expose), is an InputError: the image would be black for no reason of the scene's."""
     import numpy as np
 
     from tlm.render.image import auto_exposure, to_srgb8
 
     radiance = np.asarray(radiance)
-    if radiance.ndim < 1 or radiance.shape[-1] != 3 or not np.issubdtype(radiance.dtype, np.number):
+    if radiance.ndim < 1 or radiance.shape[-1] != 3 or radiance.dtype.kind not in "iuf":
         raise InputError(f"an array of shape {radiance.shape} and dtype {radiance.dtype} is not RGB radiance: "
-                         "give (..., 3) numbers, as a RenderResult's radiance", key="radiance")
-    if exposure is not None and (isinstance(exposure, bool) or not isinstance(exposure, (int, float))
-                                 or not math.isfinite(exposure) or exposure < 0):
-        raise InputError(f"{exposure!r} is not a finite number >= 0 (None: automatic)", key="exposure")
+                         "give (..., 3) real numbers, as a RenderResult's radiance", key="radiance")
+    if exposure is not None:
+        value = math.nan  # (numpy's bool is not a numbers.Real)
+        if not isinstance(exposure, bool) and isinstance(exposure, numbers.Real):
+            try:
+                value = float(exposure)
+            except OverflowError:  # (an int past float's range)
+                value = math.inf
+        if not math.isfinite(value) or value < 0:
+            raise InputError(f"{exposure!r} is not a finite number >= 0 (None: automatic)", key="exposure")
+        exposure = value
     if radiance.size and not np.isfinite(radiance).any():
         raise InputError("the radiance holds no finite value (all NaN or infinite): nothing to expose",
                          key="radiance")
@@ -418,6 +447,7 @@ def _arch_overrides(arch: Mapping[str, Any]) -> dict[str, Any]:
     return {k if k.startswith("arch.") else f"arch.{k}": v for k, v in arch.items()}
 
 
+@imports_whole
 def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None = None, *,
              programs: Programs | str | Path | None = None, progress: bool = False) -> Timing:
     """The timing model's outcome for the work of ``result`` (a :func:`render_image`): cycles per
@@ -439,9 +469,12 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     if not (arch is None or isinstance(arch, (ArchConfig, Mapping))):
         raise InputError(f"{arch!r}: arch is an ArchConfig or a mapping of its keys ({{'pipelines': 2}})",
                          key="arch")
+    if not (programs is None or isinstance(programs, (Programs, str, os.PathLike))):
+        raise InputError(f"{programs!r} is not an instruction-cost table: give its path or a Programs (None: the "
+                         "config's arch.programs)", key="programs")
     cfg = result.cfg
-    if isinstance(arch, ArchConfig):
-        cfg = replace(cfg, arch=arch)
+    if isinstance(arch, ArchConfig):  # (checked as the mapping is: its keys' types and ranges)
+        cfg = config_from_dict({**to_dict(cfg), "arch": to_dict(arch)}, "(simulate: arch)")
     elif arch is not None:
         cfg = config_from_dict(apply_overrides(to_dict(cfg), _override_strings(_arch_overrides(arch)), cwd=Path.cwd()),
                                "(simulate: arch)")
@@ -462,6 +495,7 @@ def parse_outputs(text: str) -> tuple[str, ...]:
     return parse(text)
 
 
+@imports_whole
 def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
         outputs: str | Iterable[str] | None = None, progress: bool = False, reference: bool | None = None,
         say: Callable[[str], None] | None = None) -> dict:
@@ -478,6 +512,7 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     """
     from tlm.experiments import run as runs
 
+    out = _folder(out)
     cfg = load_config(config)
     if outputs is None:
         chosen = runs.OUTPUTS
@@ -489,10 +524,11 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     if outputs is not None and "trace" in chosen and not cfg.arch.trace:
         cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
-    return runs.run(cfg.settings, Path(out), cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
+    return runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
                     outputs=chosen, progress=progress, reference=auto, say=say)
 
 
+@imports_whole
 def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = False,
               say: Callable[[str], None] | None = None, progress: Callable[[int, float, float], None] | None = None,
               bar: bool = False) -> Made:
@@ -510,6 +546,13 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
 # ---------------------------------------------------------------- many experiments
 
 
+def _folder(out: Any, key: str = "out") -> Path:
+    """``out`` as the path of a folder to write; an InputError for what is not a path."""
+    if not isinstance(out, (str, os.PathLike)):
+        raise InputError(f"{out!r} is not a folder's path: name the folder to write", key=key)
+    return Path(out)
+
+
 def _experiment_file(path: str | Path, command: str) -> Path:
     """The experiment file a study function was given, as ``tlm COMMAND PATH`` takes it
     (:func:`experiment_path`): ``path`` where it exists, else the built-in experiment of
@@ -520,6 +563,7 @@ def _experiment_file(path: str | Path, command: str) -> Path:
     return experiment_path(path, command)
 
 
+@imports_whole
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
@@ -532,10 +576,16 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     --dask-wait``; default 300)."""
     from tlm.experiments.sweep import run_sweep as run_all
 
-    return run_all(_experiment_file(path, "sweep"), Path(out), jobs=jobs, dask=dask, progress=progress,
+    if jobs is not None:
+        if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):
+            raise InputError(f"{jobs!r} is not a whole number of worker processes (None: the CPUs available)",
+                             key="jobs")
+        jobs = int(jobs)
+    return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
                    dask_wait=dask_wait)
 
 
+@imports_whole
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
           progress: bool = False, dask_wait: float | None = None) -> pd.DataFrame:
     """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
@@ -545,6 +595,7 @@ def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: s
     return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait).table
 
 
+@imports_whole
 def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     """Fit eq. 5.2 to sweeps over ``arch.pipelines`` (``tlm scaling``): the fits, a table and
     a figure per scene in ``out``."""
@@ -554,6 +605,7 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     return analyse([Path(d) for d in sweeps], Path(out), plot=plot_scaling)
 
 
+@imports_whole
 def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
            bar: bool = False) -> dict:
     """Tables I-III (``tlm thesis``): every scene and mode of the study file ``path`` (or the
@@ -564,6 +616,7 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
     return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar)
 
 
+@imports_whole
 def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
               ) -> tuple[Programs, dict]:
     """Fit the PM programs' free parameters to the RCast column of Tables I-III (``tlm
@@ -601,6 +654,7 @@ def _refuse_installed(target: Path) -> None:
                          "--write FILE, or fit and print only with --dry-run", source=str(target))
 
 
+@imports_whole
 def calibration_table(path: str | Path, target: str | Path | None = None) -> Path:
     """The instruction table that :func:`write_calibration` writes for a :func:`calibrate`
     of the study ``path`` (a file, or a built-in study's name): ``target``, else the study's own table (its
@@ -622,6 +676,7 @@ def calibration_table(path: str | Path, target: str | Path | None = None) -> Pat
     return target
 
 
+@imports_whole
 def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
                       command: str = "") -> Path:
     """Write a :func:`calibrate` fit into the instruction table ``target``, keeping its
@@ -659,6 +714,7 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
     return target
 
 
+@imports_whole
 def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
     """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
     study file ``path`` (or the built-in study of that name)."""
@@ -667,6 +723,7 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
     return run_granularity(_experiment_file(path, "granularity"), Path(out), progress)
 
 
+@imports_whole
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
                   note: Callable[[str], None] | None = None) -> list[dict]:
@@ -679,6 +736,7 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                              truth=Truth(spp=truth_spp), note=note)
 
 
+@imports_whole
 def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
     """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
     name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case."""
@@ -690,6 +748,7 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 # ---------------------------------------------------------------- reports
 
 
+@imports_whole
 def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
            lock: bool = False) -> Path:
     """The self-contained HTML report of run, sweep or study folders (``tlm report``);
@@ -708,6 +767,7 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
         return build_report(dirs, Path(out) if out is not None else None, title)
 
 
+@imports_whole
 def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
           run_command: Callable[[list[str]], int], say: Callable[[str], None] = print) -> Path:
     """Every committed experiment of ``configs`` and their report into ``out`` (``tlm

@@ -1,0 +1,177 @@
+"""Ctrl-C during the first API call of a process, while numba (and the other layers tlm
+imports on first use) is being imported: the interrupt is held until the import is whole,
+then raised, so that every later call of the process works (a half-finished import is not
+undone by Python: numba left half imported failed every later render with ``module 'numba'
+has no attribute 'core'``). Each test runs a fresh Python process, where a hook on the
+import system sends SIGINT at the moment a named module is first looked for: a moment of
+the first call chosen exactly, not by a timer."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from tlm import api
+from tlm.whole_imports import imports_whole
+
+pytest.importorskip("numba")
+
+REPO = Path(__file__).resolve().parents[1]
+
+HOOK = textwrap.dedent("""
+    import json, os, signal, sys
+
+    TARGET, TIMES = sys.argv[1], int(sys.argv[2])
+    seen = []
+
+    class Hook:  # SIGINT (TIMES of them) when TARGET is first looked for, from inside its import
+        def find_spec(self, name, path=None, target=None):
+            if name == TARGET and not seen:
+                seen.append(name)
+                for _ in range(TIMES):
+                    signal.raise_signal(signal.SIGINT)
+            return None
+
+    sys.meta_path.insert(0, Hook())
+    import tlm
+
+    SMALL = {"mode": "reflect", "resolution": [16, 16], "render.spp": 1, "render.light_samples": 1}
+    report = {"numba_before": "numba" in sys.modules}
+""")
+
+RENDER = HOOK + textwrap.dedent("""
+    cfg = tlm.load_config("cornell", SMALL)
+    try:
+        tlm.render_image(cfg)
+        report["first"] = "finished"
+    except KeyboardInterrupt:
+        report["first"] = "interrupted"
+    report["target_whole"] = TARGET in sys.modules
+    report["seen"] = bool(seen)
+    for call in ("second", "third"):
+        try:
+            res = tlm.render_image(cfg)
+            report[call] = float(res.composite.sum())
+        except BaseException as e:
+            report[call] = f"{type(e).__name__}: {e}"
+    print(json.dumps(report))
+""")
+
+
+def _run(script: str, *args: str, cwd: Path, cache: Path) -> dict:
+    env = {**os.environ, "TLM_CACHE": str(cache), "PYTHONPATH": str(REPO)}
+    env.pop("TLM_KERNELS", None)  # (the default: numba)
+    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}
+
+
+# moments of numba's import, early to late, and of tlm's own compiled modules after it
+@pytest.mark.parametrize("target", [
+    "numba.core.types",
+    pytest.param("numba.core.typing.templates", marks=pytest.mark.slow),
+    pytest.param("numba.np.arraymath", marks=pytest.mark.slow),
+    pytest.param("tlm.kernels._jit_bsp", marks=pytest.mark.slow),
+])
+def test_a_ctrl_c_during_the_first_renders_imports_leaves_the_process_working(target, tmp_path):
+    out = _run(RENDER, target, "1", cwd=tmp_path, cache=tmp_path / "cache")
+    assert out["numba_before"] is False  # (else the first call imports no numba: the test would test nothing)
+    assert out["seen"] is True
+    assert out["first"] == "interrupted"  # the Ctrl-C still stops the call ...
+    assert out["target_whole"] is True  # ... once the import it came in is complete
+    assert isinstance(out["second"], float), out["second"]  # and every later call works, with one image
+    assert out["third"] == out["second"]
+
+
+def test_a_second_ctrl_c_during_the_import_says_to_restart(tmp_path):
+    """Two Ctrl-C in one import: the second goes through (the user insists), the import is left
+    half done, and the next call says in one line that the process must be restarted, rather
+    than an AttributeError deep in numba."""
+    out = _run(RENDER, "numba.core.types", "2", cwd=tmp_path, cache=tmp_path / "cache")
+    assert out["first"] == "interrupted" and out["target_whole"] is False
+    for call in ("second", "third"):
+        assert out[call].startswith("RuntimeError: a Ctrl-C (pressed twice) interrupted the import of numba"), out
+        assert "restart the Python process" in out[call] and "\n" not in out[call]
+
+
+SWEEP = HOOK + textwrap.dedent("""
+    from pathlib import Path
+    Path("s.yaml").write_text("base: {scene: cornell, mode: reflect, resolution: [16, 16], "
+                              "render: {spp: 1, light_samples: 1}}\\ngrid:\\n  arch.pipelines: [1, 2]\\n")
+    try:
+        tlm.run_sweep("s.yaml", "sw", jobs=1)
+        report["first"] = "finished"
+    except KeyboardInterrupt:
+        report["first"] = "interrupted"
+    report["target_whole"] = TARGET in sys.modules
+    outcome = tlm.run_sweep("s.yaml", "sw", jobs=1)
+    report["second"] = [[r["status"], r["error"]] for r in outcome.rows]
+    print(json.dumps(report))
+""")
+
+
+@pytest.mark.slow
+def test_a_sweep_in_this_process_interrupted_during_its_imports_runs_again(tmp_path):
+    out = _run(SWEEP, "numba.core.types", "1", cwd=tmp_path, cache=tmp_path / "cache")
+    assert out["numba_before"] is False
+    assert out["first"] == "interrupted" and out["target_whole"] is True
+    assert [status for status, _ in out["second"]] == ["ok", "ok"], out["second"]
+
+
+CLI = HOOK + textwrap.dedent("""
+    from tlm.cli import main
+    rc = main(["run", "cornell", "--out", "r", "--no-report", "--set", "mode=reflect", "--set",
+               "resolution=[16,16]", "--set", "render.spp=1", "--set", "render.light_samples=1"])
+    report.update(rc=rc, target_whole=TARGET in sys.modules, out=os.path.exists("r"))
+    print(json.dumps(report))
+""")
+
+
+def test_tlm_run_interrupted_during_the_import_exits_130_once_it_is_whole(tmp_path):
+    out = _run(CLI, "numba.core.types", "1", cwd=tmp_path, cache=tmp_path / "cache")
+    assert out["rc"] == 128 + signal.SIGINT and out["out"] is False
+    assert out["stderr"].rstrip().endswith("tlm: interrupted")
+    assert out["target_whole"] is True
+
+
+def test_a_ctrl_c_outside_an_import_is_not_held(tmp_path, monkeypatch):
+    """In this process: the handler of an API call passes a Ctrl-C outside an import on at
+    once, holds one inside an import (a module of tmp_path's) to its end, and is taken down
+    when the call ends; off the main thread a call works and installs nothing."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # (a test runner's worker may ignore it)
+    try:
+        (tmp_path / "tlm_test_slow_import.py").write_text(
+            "import signal\nsignal.raise_signal(signal.SIGINT)\nWHOLE = True\n")
+        monkeypatch.syspath_prepend(str(tmp_path))
+        reached = []
+
+        @imports_whole
+        def call(import_it: bool) -> None:
+            if import_it:
+                import tlm_test_slow_import  # noqa: F401
+            else:
+                signal.raise_signal(signal.SIGINT)
+            reached.append(import_it)
+
+        with pytest.raises(KeyboardInterrupt):
+            call(False)
+        assert reached == [] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        with pytest.raises(KeyboardInterrupt):
+            call(True)
+        assert sys.modules["tlm_test_slow_import"].WHOLE is True and reached == [True]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        with ThreadPoolExecutor(1) as pool:  # (signal.signal is refused there: the call runs as it is)
+            assert pool.submit(api.load_config, {"scene": "cornell"}).result().scene == "cornell"
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        sys.modules.pop("tlm_test_slow_import", None)
+        signal.signal(signal.SIGINT, before)
