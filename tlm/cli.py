@@ -48,7 +48,7 @@ def _report_after(args: argparse.Namespace, out: Path) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    print(f"wrote {api.write_report(args.dirs, args.out or None, args.title)}")
+    print(f"wrote {api.write_report(args.dirs, args.out or None, args.title, formats=args.formats, dpi=args.dpi)}")
     return 0
 
 
@@ -541,6 +541,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", type=_folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", type=_title, help="the page's title (default: tlm report: and the folders' names)")
+    rp.add_argument("--formats", metavar="LIST",
+                    help="the files each figure is written as, separated by commas: png, pdf, svg (default: png; "
+                    "the PNG always, as the page embeds it; a PDF or SVG is beside its PNG, of the same stem, and "
+                    "linked from its caption)")
+    rp.add_argument("--dpi", metavar="N",
+                    help="the PNG's dots per inch, from 50 to 1200 (default: 110)")
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")

@@ -1,10 +1,12 @@
 """``tlm report``: the figures and tables researchers read, in one self-contained page.
 
 :func:`build_report` reads any tlm output folders (:mod:`tlm.report.collect`), draws
-every section's figures as PNG files with matplotlib and writes ``report.html``, which
-embeds them. First, unnumbered, what the model found (:mod:`tlm.report.summary`: frame
-rates, the bottleneck PM, scaling with N, error against run time), under the warnings
-the runs recorded (:mod:`tlm.report.warnings`); then the sections:
+every section's figures as PNG files with matplotlib (and, where asked, as PDF and SVG
+files beside them: :func:`tlm.report.common.figure_output`) and writes ``report.html``,
+which embeds the PNGs and links every file. First, unnumbered, what the model found
+(:mod:`tlm.report.summary`: frame rates, the bottleneck PM, scaling with N, error against
+run time), under the warnings the runs recorded (:mod:`tlm.report.warnings`); then the
+sections:
 
 1. Tables I-III, ours against the thesis (:mod:`tlm.report.tables`)
 2. image sets in the style of Figs. 15-17 (:mod:`tlm.report.images`)
@@ -34,7 +36,7 @@ from pathlib import Path
 
 from tlm.errors import InputError
 from tlm.report.collect import Inputs, read
-from tlm.report.common import Section, forget_names
+from tlm.report.common import Section, current_output, figure_output, forget_names
 from tlm.report.html import esc, page
 from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder, distinct_folders
@@ -75,6 +77,14 @@ def scenes_note(inputs: Inputs) -> str:
             f"name inside the file, which different scenes here share: {each}.</p>")
 
 
+def linked(formats) -> str:
+    """What the page says of each figure's files: ``Each figure links to its PNG file.``, or with
+    ``pdf`` and ``svg`` its PNG, PDF and SVG files."""
+    names = [f.upper() for f in formats]
+    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+    return f"Each figure links to its {listed} file{'s' * (len(names) > 1)}."
+
+
 def default_out(dirs: list[Path]) -> Path:
     """``DIR/report`` for one folder; several folders need ``--out``."""
     if len(dirs) == 1:
@@ -83,8 +93,14 @@ def default_out(dirs: list[Path]) -> Path:
 
 
 def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
-                 scaling_sweeps: list[Path] | None = None) -> Path:
+                 scaling_sweeps: list[Path] | None = None, *, formats=None, dpi: int | None = None) -> Path:
     """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``.
+
+    ``formats``: the files each figure is written as, ``png`` and any of ``pdf`` and ``svg``
+    (names, or ``"pdf,svg"``; the PNG always, as the page embeds it); ``dpi``: the PNG's
+    resolution, from 50 to 1200. None: what :func:`~tlm.report.common.figure_output` set around
+    the call, by default the PNG alone at 110 dpi. A bad value raises an
+    :class:`~tlm.errors.InputError` before anything is read or written.
 
     ``scaling_sweeps``: sweep folders that a scaling study among ``dirs`` was fitted from;
     the scaling section draws their idle fractions per PM, and no other section reads them
@@ -93,7 +109,8 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     """
     from tlm.experiments.provenance import identities_remembered
 
-    with identities_remembered():  # (a scene file's identity, which judges each thesis cell, computed once)
+    # (the files set for every figure; a scene file's identity, which judges each thesis cell, computed once)
+    with figure_output(formats, dpi), identities_remembered():
         return _build_report(dirs, out, title, scaling_sweeps)
 
 
@@ -141,7 +158,7 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
         intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "
                  f"{len(inputs.studies)} studies ({esc(studies)})."
                  f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
-                 f"in {time.perf_counter() - t0:.1f} s. Each figure links to its PNG file.</p>")
+                 f"in {time.perf_counter() - t0:.1f} s. {linked(current_output().formats)}</p>")
         intro += scenes_note(inputs)
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
                     summary=summary, notice=warnings_html(inputs))

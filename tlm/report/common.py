@@ -11,6 +11,18 @@ run the layout), and one mathtext parser serves every figure, so that a tick lab
 for one figure (``10^2`` on a log axis) is not parsed again for the next (the parser keeps
 the last 50). The pixels are those ``savefig`` writes.
 
+The report's figure files are set by :func:`figure_output` (``tlm report --formats --dpi``):
+the PNG at ``dpi`` (default :data:`DPI`), and where asked a PDF and an SVG beside it, of the
+same stem. They are saved from the one laid-out figure (one draw per file, no second layout),
+so that the three files show one layout. Their text stays text: the PDF embeds its fonts as
+TrueType (``pdf.fonttype`` 42; matplotlib's default, Type 3 fonts, is flagged by some
+publishers' PDF checks), and the SVG keeps each label a ``<text>`` element (``svg.fonttype``
+``none``), editable and searchable, in the font the figure names (DejaVu Sans, with generic
+``sans-serif`` after it): a viewer without that font draws the text in another, of other
+widths, where glyphs as paths (``path``) would look the same everywhere but could not be
+edited. Neither file records the time it was written, so a report written again from the
+same inputs writes the same PDF and SVG files, byte for byte.
+
 Every figure's file name is made by :func:`figure_name`: ASCII letters, digits, ``_`` and ``-``
 and the one ``.`` of ``.png``, so that it works unquoted in a shell, in a URL and in LaTeX's
 ``\\includegraphics``; and one name is one figure within a report (two figures that would get
@@ -20,23 +32,31 @@ the same name do not overwrite each other: the later gets a suffix from its key)
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import hashlib
+import math
 import re
 import unicodedata
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 from matplotlib.mathtext import MathTextParser
+
+from tlm.errors import InputError
 
 # Okabe-Ito colours, ordered so that neighbours differ in luminance (greyscale-safe)
 COLOURS = ("#000000", "#E69F00", "#0072B2", "#F0E442", "#D55E00", "#56B4E9", "#009E73", "#CC79A7")
 HATCHES = ("", "///", "...", "xxx", "\\\\\\", "+++", "ooo", "---")
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 LINESTYLES = ("-", "--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 2)), (0, (3, 1, 1, 1, 1, 1)))
-DPI = 110
+DPI = 110  # the PNG's resolution by default (``tlm report --dpi``)
+DPI_MIN, DPI_MAX = 50, 1200  # the resolutions ``--dpi`` accepts
+FORMATS = ("png", "pdf", "svg")  # the files a figure can be written as; the PNG always (the page embeds it)
 NAME_PART = 60  # a part of a figure's file name (a folder's name, a run's label) keeps this many characters
 NAME_MAX = 120  # a figure's file name, suffix and ".png" included, is at most this many characters
 NAMED = 8  # a note names up to this many items (runs, points); of more, the first NAMED_SOME and how many more
@@ -100,17 +120,102 @@ def log_ticks(ax, axis: str = "x") -> None:
     a.set_minor_formatter(NullFormatter())
 
 
+@dataclass(frozen=True)
+class Output:
+    """The files each figure of a report is written as: ``formats`` (``png`` first, then any of
+    ``pdf`` and ``svg``) and the PNG's ``dpi``."""
+
+    formats: tuple[str, ...] = ("png",)
+    dpi: int = DPI
+
+    def extra(self) -> tuple[str, ...]:
+        """The formats written beside the PNG."""
+        return tuple(f for f in self.formats if f != "png")
+
+
+def parse_formats(formats: str | Iterable[str] | None) -> tuple[str, ...]:
+    """The formats ``formats`` names (names, or one comma-separated string: ``"pdf,svg"``), in the
+    order of :data:`FORMATS`, ``png`` first whether named or not (a name given twice is one; None:
+    the PNG alone). A ValueError names an empty or unknown format and the allowed ones."""
+    names: list[str] = []
+    if isinstance(formats, str) and not formats.strip():
+        raise ValueError(f"no format named: the formats are {', '.join(FORMATS)}, separated by commas")
+    if formats is not None:
+        for item in formats.split(",") if isinstance(formats, str) else list(formats):
+            name = str(item).strip().lower()
+            if not name:
+                raise ValueError(f"an empty format in {formats!r}: the formats are {', '.join(FORMATS)}, "
+                                 "separated by commas")
+            if name not in FORMATS:
+                raise ValueError(f"unknown format {str(item).strip()!r}: the formats are {', '.join(FORMATS)}")
+            names.append(name)
+    return ("png", *(f for f in FORMATS[1:] if f in names))
+
+
+def parse_dpi(dpi) -> int:
+    """``dpi`` (a number, or its text) as a whole number of dots per inch from :data:`DPI_MIN` to
+    :data:`DPI_MAX`; None: :data:`DPI`. A ValueError names another value and the range."""
+    if dpi is None:
+        return DPI
+    text = str(dpi).strip()
+    try:
+        number = float(text)
+    except ValueError:
+        number = math.nan
+    if isinstance(dpi, bool) or not math.isfinite(number) or number != int(number):
+        raise ValueError(f"{text!r} is not a whole number of dots per inch (from {DPI_MIN} to {DPI_MAX})")
+    if not DPI_MIN <= int(number) <= DPI_MAX:
+        raise ValueError(f"{int(number)} dots per inch is out of range: from {DPI_MIN} to {DPI_MAX}")
+    return int(number)
+
+
+def output(formats: str | Iterable[str] | None = None, dpi=None) -> Output:
+    """The checked :class:`Output` of ``formats`` (:func:`parse_formats`) and ``dpi``
+    (:func:`parse_dpi`). A bad value is an :class:`InputError` naming the option
+    (``--formats``, ``--dpi``), the value and what is allowed."""
+    try:
+        chosen = parse_formats(formats)
+    except ValueError as e:
+        raise InputError(str(e), key="--formats") from None
+    try:
+        return Output(chosen, parse_dpi(dpi))
+    except ValueError as e:
+        raise InputError(str(e), key="--dpi") from None
+
+
+_OUTPUT: contextvars.ContextVar[Output | None] = contextvars.ContextVar("tlm_report_output", default=None)
+
+
+def current_output() -> Output:
+    """The :class:`Output` the figures are written as now (:func:`figure_output`)."""
+    return _OUTPUT.get() or Output()
+
+
+@contextlib.contextmanager
+def figure_output(formats: str | Iterable[str] | None = None, dpi=None):
+    """Within it, every figure is written as ``formats`` with its PNG at ``dpi`` (:func:`output`,
+    checked first: a bad value raises before anything is written); None keeps what is set around it
+    (by default the PNG alone at :data:`DPI`)."""
+    now = current_output()
+    chosen = output(formats if formats is not None else now.formats, dpi if dpi is not None else now.dpi)
+    token = _OUTPUT.set(chosen)
+    try:
+        yield chosen
+    finally:
+        _OUTPUT.reset(token)
+
+
 def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
     """Place each annotation of ``texts`` (in order) at the first of ``offsets`` (offset
     points from its point, the first one above or right) where it covers no marker and no
     label placed before it (its own point's markers aside); ``va`` follows the offset's sign (bottom above, top below).
 
-    The figure is laid out first, as :func:`write_png` lays it out, so that the boxes
-    compared are those drawn. Where no offset is free, the label keeps the first offset,
-    or with ``hide`` is hidden; the hidden labels are returned."""
+    The figure is laid out first, as :func:`write_png` lays it out (at the PNG's resolution), so
+    that the boxes compared are those drawn. Where no offset is free, the label keeps the first
+    offset, or with ``hide`` is hidden; the hidden labels are returned."""
     if not texts:
         return []
-    fig.set_dpi(DPI)
+    fig.set_dpi(current_output().dpi)
     renderer = FigureCanvasAgg(fig).get_renderer()
     engine = fig.get_layout_engine()
     if engine is not None:
@@ -170,7 +275,8 @@ def new_figure(width: float = 7.0, height: float = 4.5) -> MplFigure:
 
 @dataclass
 class Figure:
-    """One PNG of the report: ``file`` is relative to the report folder."""
+    """One figure of the report: ``file`` (its PNG) is relative to the report folder; a PDF or SVG
+    of it, where the report writes them (:func:`figure_output`), is beside it, of the same stem."""
 
     file: str
     title: str
@@ -204,14 +310,22 @@ class Section:
 _MATHTEXT = MathTextParser("path")
 
 
-def write_png(fig: MplFigure, path: Path) -> None:
-    """Write ``fig`` as the PNG ``path`` at :data:`DPI`, laid out once and drawn once.
+# how the vector files keep their text as text (see the module's notes)
+VECTOR_RC = {"pdf.fonttype": 42, "svg.fonttype": "none"}
 
-    The same pixels as ``fig.savefig(path, dpi=DPI)``: the figure's Agg canvas at ``DPI``
-    is the one ``savefig`` would draw on, and its layout engine runs on it as ``savefig``
-    runs it (in a first draw that outputs nothing, which this skips). The engine is then
-    taken off the figure, as ``savefig`` takes it off for its second draw."""
-    fig.set_dpi(DPI)
+
+def write_png(fig: MplFigure, path: Path) -> None:
+    """Write ``fig`` as the PNG ``path`` at the resolution set (:func:`figure_output`, by default
+    :data:`DPI`), laid out once and drawn once, and beside it each other format set (``path``
+    with the suffix ``.pdf``, ``.svg``), drawn once each from the same layout.
+
+    The PNG holds the same pixels as ``fig.savefig(path, dpi=dpi)``: the figure's Agg canvas at
+    ``dpi`` is the one ``savefig`` would draw on, and its layout engine runs on it as ``savefig``
+    runs it (in a first draw that outputs nothing, which this skips). The engine is then taken
+    off the figure, as ``savefig`` takes it off for its second draw, so the PDF and SVG are
+    drawn with the layout the PNG has (an image in them keeps the PNG's resolution)."""
+    out = current_output()
+    fig.set_dpi(out.dpi)
     canvas = FigureCanvasAgg(fig)
     canvas.get_renderer().mathtext_parser = _MATHTEXT
     engine = fig.get_layout_engine()
@@ -220,7 +334,13 @@ def write_png(fig: MplFigure, path: Path) -> None:
             with contextlib.suppress(ValueError):
                 engine.execute(fig)
         fig.set_layout_engine(None)
-    fig.savefig(path, dpi=DPI)
+    path = Path(path)
+    fig.savefig(path, dpi=out.dpi)
+    for fmt in out.extra():
+        # no date in either file, and the SVG's element ids from its name (by default they are random)
+        meta = {"CreationDate": None} if fmt == "pdf" else {"Date": None}
+        with matplotlib.rc_context({**VECTOR_RC, "svg.hashsalt": path.stem}):
+            fig.savefig(path.with_suffix(f".{fmt}"), dpi=out.dpi, format=fmt, metadata=meta)
 
 
 # the figure names taken in each report folder (its absolute path): name -> the key of the figure that took it
@@ -283,9 +403,10 @@ class FigureName:
 
 
 def save(fig: MplFigure, out: Path, name: str | FigureName, title: str, caption: str = "") -> Figure:
-    """Write ``fig`` into ``out`` (PNG, :func:`write_png`) and return its record. Its file name is
-    :func:`figure_name` of ``name`` (a file name, or its parts and key); a plain file name's key is
-    ``name``, ``title`` and ``caption``: two figures that differ in them are two files."""
+    """Write ``fig`` into ``out`` (PNG, and the other formats set: :func:`write_png`) and return its
+    record. Its file name is :func:`figure_name` of ``name`` (a file name, or its parts and key); a
+    plain file name's key is ``name``, ``title`` and ``caption``: two figures that differ in them are
+    two files."""
     if isinstance(name, FigureName):
         parts, key = tuple(name.parts), name.key
     else:

@@ -2,8 +2,9 @@
 
 Every figure is embedded (a base64 PNG) and also links to its PNG file beside the page,
 so the page opens anywhere on its own and the figures stay usable one by one (the link is the
-file's name, percent-encoded). The page references nothing else: no scripts, no style sheets,
-no fonts from the network.
+file's name, percent-encoded). Where the report also wrote the figure as PDF or SVG
+(``tlm report --formats``), its caption ends with a link to each of those files. The page
+references nothing else: no scripts, no style sheets, no fonts from the network.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import html
 from pathlib import Path
 from urllib.parse import quote
 
-from tlm.report.common import Section
+from tlm.report.common import Section, current_output
 
 CSS = """
 body { font-family: sans-serif; margin: 2em auto; max-width: 72em; color: #111; line-height: 1.4; }
@@ -27,6 +28,7 @@ figcaption { font-size: .85em; color: #333; }
 table { border-collapse: collapse; margin: .8em 0; font-size: .85em; }
 th, td { border: 1px solid #aaa; padding: .25em .5em; text-align: right; vertical-align: top; }
 th { background: #eee; } td.l, th.l { text-align: left; }
+.alt { white-space: nowrap; }
 .absent { font-style: italic; color: #444; } .note { font-size: .9em; color: #333; }
 pre { background: #f6f6f6; padding: .6em; overflow-x: auto; font-size: .8em; }
 details { margin: .4em 0; } summary { cursor: pointer; }
@@ -38,9 +40,19 @@ def esc(x) -> str:
     return html.escape(str(x), quote=True)
 
 
+def other_files(folder: Path, file: str) -> str:
+    """Links to the figure ``file``'s PDF and SVG files (of the same stem), those of the formats set
+    (:func:`~tlm.report.common.figure_output`) that are beside it; "" where none are."""
+    stem = Path(file).with_suffix("")
+    links = [f'<a href="{esc(quote(str(stem.with_suffix("." + fmt))))}">{fmt.upper()}</a>'
+             for fmt in current_output().extra() if (Path(folder) / stem.with_suffix("." + fmt)).is_file()]
+    return f' <span class="alt">[{" ".join(links)}]</span>' if links else ""
+
+
 def figure_html(folder: Path, file: str, title: str, caption: str) -> str:
     data = base64.b64encode((Path(folder) / file).read_bytes()).decode("ascii")
     cap = f"<strong>{esc(title)}.</strong> {esc(caption)}" if caption else f"<strong>{esc(title)}</strong>"
+    cap += other_files(folder, file)
     return (f'<figure><a href="{esc(quote(file))}"><img alt="{esc(title)}" src="data:image/png;base64,{data}"></a>'
             f"<figcaption>{cap}</figcaption></figure>")
 
