@@ -181,9 +181,9 @@ def test_the_difference_image_is_signed():
     ours = np.array([[[2.0] * 3, [1.0] * 3], [[0.0] * 3, [1.5] * 3]])
     rgb, scale = difference_image(ours, ref, scale=1.0)
     assert scale == 1.0
-    assert rgb[0, 0].tolist() == [0xB2, 0x18, 0x2B] and rgb[1, 0].tolist() == [0x21, 0x66, 0xAC]
-    assert rgb[0, 1].tolist() == [0xF7, 0xF7, 0xF7] and rgb[1, 1, 0] > rgb[1, 1, 2]  # half red
-    assert difference_image(ref, ref)[1] == 1.0  # no difference: a unit scale, all white
+    assert rgb[0, 0].tolist() == [0xFE, 0xE8, 0x38] and rgb[1, 0].tolist() == [0x00, 0x22, 0x4E]
+    assert rgb[0, 1].tolist() == [0x7D, 0x7D, 0x7D] and rgb[1, 1, 0] > rgb[1, 1, 2]  # half way to yellow
+    assert difference_image(ref, ref)[1] == 1.0  # no difference: a unit scale, all neutral grey
 
 
 @pytest.mark.slow

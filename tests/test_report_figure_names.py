@@ -65,7 +65,8 @@ def test_two_sweeps_of_one_name_get_a_figure_each(tmp_path):
     assert files[0] == "sweep_sw_arch_packet_size.png"
     assert re.fullmatch(r"sweep_sw_arch_packet_size_[0-9a-f]{8}\.png", files[1]), files[1]
     # sweep a's figure shows sweep a: the figure of a report of sweep a alone, not sweep b's
-    (own,) = sweeps_section(read([a]), tmp_path / "only_a").figures
+    c = sweep_folder(tmp_path / "c" / "sw", 5.0)  # (a third sweep named alike: sweep a is "a/sw" there too)
+    own, _ = sweeps_section(read([a, c]), tmp_path / "only_a").figures
     assert both.figures[0].title == own.title
     assert np.array_equal(pixels(tmp_path / "both" / files[0]), pixels(tmp_path / "only_a" / own.file))
     assert not np.array_equal(pixels(tmp_path / "both" / files[0]), pixels(tmp_path / "both" / files[1]))

@@ -419,14 +419,19 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     return Found(key, settings, image, meta, seconds)
 
 
-# the difference image's colours: ours below the reference, equal, above (a diverging map)
-DIFFERENCE_COLOURS = ("#2166ac", "#f7f7f7", "#b2182b")
+# the difference image's colours at -scale, 0 and +scale: ours below the reference, equal, above. Cividis's two
+# ends and a neutral grey between them: their grey (0.299 R + 0.587 G + 0.114 B, as a greyscale print takes it)
+# is 0.11, 0.49 and 0.86 and changes linearly between them, so a greyscale print keeps the sign
+DIFFERENCE_COLOURS = ("#00224e", "#7d7d7d", "#fee838")
+# the colours of the difference images written before 2026-11-29 (blue, white, red: alike in grey), which
+# the report still reads back (tlm.report.images.error_figure)
+DIFFERENCE_COLOURS_BEFORE = ("#2166ac", "#f7f7f7", "#b2182b")
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
 
 
 def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | None = None) -> tuple[np.ndarray, float]:
     """(H, W, 3) uint8: the luminance of ``image`` minus ``reference`` (both (H, W, 3)
-    linear radiance) in :data:`DIFFERENCE_COLOURS`, blue below, red above, full colour
+    linear radiance) in :data:`DIFFERENCE_COLOURS`, dark blue below, light yellow above, full colour
     at ``-scale`` and ``+scale`` (clipped beyond). ``scale``: default the 99th percentile
     of the absolute difference (1 where that is 0). Returns the image and the scale."""
     diff = (np.asarray(image, dtype=np.float64) - np.asarray(reference, dtype=np.float64)) @ LUMINANCE

@@ -348,8 +348,25 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
 
 
 def file_slug(text: str) -> str:
-    """``text`` (a scene's name, or its file's path) as a part of a file name."""
-    return "".join(ch if ch.isalnum() or ch in "-." else "_" for ch in text).strip("_.")[:60] or "scene"
+    """``text`` (a scene's name, or its file's path) as a part of a file name, in ASCII only (letters,
+    digits, ``-``, ``.`` and ``_``), so that it works unquoted in a shell, in a URL and in LaTeX: each
+    other ASCII character is ``_`` (``my scene`` is ``my_scene``); a letter with an accent loses it and
+    any other character is ``_``, and then the name ends in ``_`` and 8 hex digits of the text's hash, so
+    that ``café`` (``cafe_`` and its hash) is not ``cafe``, nor ``cafè``. At most 60 characters."""
+    import hashlib
+    import unicodedata
+
+    def ascii_of(ch: str) -> str:
+        if ch.isascii():
+            return ch if ch.isalnum() or ch in "-." else "_"
+        folded = unicodedata.normalize("NFKD", ch).encode("ascii", "ignore").decode("ascii")
+        return "".join(c for c in folded if c.isalnum()) or "_"
+
+    slug = "".join(map(ascii_of, text)).strip("_.")
+    if text.isascii():
+        return slug[:60] or "scene"
+    tag = hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+    return f"{slug[:60 - 9].rstrip('_.') or 'scene'}_{tag}"
 
 
 def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:

@@ -41,7 +41,7 @@ import yaml
 from tlm.config import MODES
 from tlm.errors import InputError
 from tlm.experiments.thesis import METRICS, PM_METRICS
-from tlm.report.names import name_scenes, scene_label
+from tlm.report.names import name_scenes, path_labels, scene_label
 from tlm.storage import read_jsonl
 
 
@@ -115,6 +115,12 @@ class Sweep:
     spec: dict  # sweep.yaml
     rows: list[dict]  # sweep.jsonl: the rows of the points sweep.yaml lists
     runs: list[Run]  # its finished points, in point order
+    # how the report names it: its folder's name, or where two sweeps of the report share that name, the
+    # shortest tail of its path that tells it from the other (``a/sw``, ``b/sw``; :func:`read` sets it)
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        self.label = self.label or self.path.name
 
     @property
     def planned(self) -> int:
@@ -502,7 +508,7 @@ def read(dirs: list[Path]) -> Inputs:
             planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
             if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
                 rows = [r for r in rows if str(r.get("hash")) in planned]
-            runs = []
+            runs, sweep_runs = [], []
             for i, row in enumerate(rows if (folder / "points").is_dir() else []):  # (rows alone: no results)
                 point = folder / "points" / str(row.get("hash"))
                 if row.get("status") == "ok" and not (point / "results.json").is_file():
@@ -515,13 +521,16 @@ def read(dirs: list[Path]) -> Inputs:
                     continue
                 run = _run(point, "", "sweep-point")
                 run.factors = dict(run.results.get("factors") or {})
-                text = f"{folder.name} #{row.get('point')}"
-                labelled.append((run, lambda r, text=text: text))
+                sweep_runs.append((run, row.get("point")))
                 runs.append(run)
             inputs.sweeps.append(Sweep(folder, spec, rows, runs))
+            labelled.extend((run, lambda r, sw=inputs.sweeps[-1], point=point: f"{sw.label} #{point}")
+                            for run, point in sweep_runs)
             inputs.runs.extend(runs)
         else:
             _study(inputs, folder, kind)
+    for sw, label in zip(inputs.sweeps, path_labels([sw.path for sw in inputs.sweeps]), strict=True):
+        sw.label = label  # (before the labels of its points, which name it)
     name_scenes(inputs.runs)
     for run, label in labelled:
         run.label = unique(label(run))

@@ -136,7 +136,7 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
         if len(picks) < len(points):
             why = ("the fewest and the most pipelines of each combination of the other factors" if varies
                    else "its first and last point")
-            notes.append(f"Sweep {sw.path.name}: {len(picks)} of {len(points)} points are shown, {why} "
+            notes.append(f"Sweep {sw.label}: {len(picks)} of {len(points)} points are shown, {why} "
                          f"({some([f'{r.label} [{_factors(r)}]' for r in picks])}).")
     if len(chosen) > limit:
         left = chosen[limit:]

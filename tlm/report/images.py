@@ -16,9 +16,14 @@ that mode, i.e. the *cumulative* composite (the modes add passes: Refract is ray
 
 A run whose photon-map frame was measured against its converged reference
 (``results.json`` ``error``, :mod:`tlm.experiments.reference`) also gets a figure of
-that frame beside its difference from the reference (``images/pmap_error.png``, written
-by the run: ours minus the reference in luminance, blue below, red above), titled with
-the relative MSE and RMSE, which the section's lead repeats.
+that frame beside its difference from the reference (ours minus the reference in
+luminance), titled with the relative MSE and RMSE, which the section's lead repeats. The
+difference is read back from the run's ``images/pmap_error.png`` (the blue and red of a
+run written before 2026-11-29 too) and drawn in
+:data:`tlm.experiments.reference.DIFFERENCE_COLOURS`, with its colour bar: dark blue
+where ours is darker, neutral grey where equal, light yellow where brighter. Its grey
+rises from one end to the other, so a greyscale print still tells the two signs apart
+(darker than the grey of zero: ours darker).
 
 A mode whose pass the planner left out for lack of what it needs (no mirror, no
 dielectric, ...) still has an image (the same as the previous mode's) and its panel
@@ -48,6 +53,7 @@ MAX_ROWS = 4  # rows (scenes or runs) per figure
 MAX_FIGURES = 6  # image figures in the report; what is beyond is named in a note
 MAX_ERROR_FIGURES = 4  # figures of a run's photon-map frame against its reference
 WRAP = 34
+ON_MAP = 2.0  # a difference image's pixel lies on its map's colours within this (0-255 units; rounding: 0.87)
 
 
 @dataclass
@@ -193,41 +199,79 @@ def _error_words(error: dict) -> str:
     return f"relative MSE {rel}, RMSE {error['rmse']:.3g}"
 
 
+def signed_difference(rgb: np.ndarray, colours: tuple[str, ...]) -> np.ndarray | None:
+    """(H, W) in [-1, 1]: the difference (over its scale) that each pixel of ``rgb`` ((H, W, 3)
+    uint8) stands for in the piecewise-linear map of ``colours`` (evenly spaced from -1 to +1, as
+    :func:`~tlm.experiments.reference.difference_image` draws them): the nearest point of the map.
+    None where a pixel lies further than :data:`ON_MAP` from the map (an image drawn in other colours)."""
+    stops = np.array([[int(c[i:i + 2], 16) for i in (1, 3, 5)] for c in colours], dtype=np.float64)
+    px = np.asarray(rgb, dtype=np.float64).reshape(-1, 3)
+    n = len(stops) - 1
+    best, where = np.full(len(px), np.inf), np.zeros(len(px))
+    for k in range(n):
+        step = stops[k + 1] - stops[k]
+        s = np.clip((px - stops[k]) @ step / (step @ step), 0.0, 1.0)
+        gap = np.linalg.norm(px - stops[k] - s[:, None] * step, axis=1)
+        closer = gap < best
+        best[closer], where[closer] = gap[closer], -1.0 + 2.0 * (k + s[closer]) / n
+    if not len(px) or best.max() > ON_MAP:
+        return None
+    return where.reshape(np.shape(rgb)[:2])
+
+
 def error_figure(run: Run, out: Path):
     """The run's photon-map frame beside its difference from the reference, or None when
-    the run measured no error or its folder lacks either image."""
-    from matplotlib.cm import ScalarMappable
+    the run measured no error or its folder lacks either image. The difference is read back
+    from the run's difference image (:func:`signed_difference`) and drawn in
+    :data:`~tlm.experiments.reference.DIFFERENCE_COLOURS` (a run's of before 2026-11-29, in
+    blue and red, too), whose grey rises from -scale to +scale, with its colour bar; an
+    image not in the run's difference colours is shown as written, without a bar, and the
+    caption says so."""
     from matplotlib.colors import LinearSegmentedColormap, Normalize
 
-    from tlm.experiments.reference import DIFFERENCE_COLOURS
+    from tlm.experiments.reference import DIFFERENCE_COLOURS, DIFFERENCE_COLOURS_BEFORE
 
     error = run.results.get("error") or {}
     if not error.get("available"):
         return None
-    diff_png = run.path / str(error.get("difference_image") or "images/pmap_error.png")
+    diff_name = str(error.get("difference_image") or "images/pmap_error.png")
+    diff_png = run.path / diff_name
     frame_png = run.path / "images" / "pmap.png"
     if not diff_png.is_file() or not frame_png.is_file():
         return None
     scale = float(error.get("difference_scale") or 1.0)
+    written = _read_png(diff_png)
+    signed = signed_difference(written, DIFFERENCE_COLOURS)
+    if signed is None:  # (a run written before the colours changed)
+        signed = signed_difference(written, DIFFERENCE_COLOURS_BEFORE)
     fig = new_figure(7.0, 3.4)
     axes = fig.subplots(1, 2)
-    for ax, png, title in ((axes[0], frame_png, "PMap frame (ours)"),
-                           (axes[1], diff_png, "ours − reference (luminance)")):
-        ax.imshow(_read_png(png), interpolation="nearest")
+    axes[0].imshow(_read_png(frame_png), interpolation="nearest")
+    if signed is None:
+        axes[1].imshow(written, interpolation="nearest")
+    else:
+        cmap = LinearSegmentedColormap.from_list("tlm_difference", DIFFERENCE_COLOURS)
+        shown = axes[1].imshow(signed * scale, cmap=cmap, norm=Normalize(-scale, scale), interpolation="nearest")
+        bar = fig.colorbar(shown, ax=axes[1], shrink=0.85)
+        bar.set_label("radiance difference", fontsize=8)
+        bar.ax.tick_params(labelsize=7)
+    for ax, title in ((axes[0], "PMap frame (ours)"), (axes[1], "ours − reference (luminance)")):
         ax.set_title(title, fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
-    cmap = LinearSegmentedColormap.from_list("tlm_difference", DIFFERENCE_COLOURS)
-    bar = fig.colorbar(ScalarMappable(Normalize(-scale, scale), cmap), ax=axes[1], shrink=0.85)
-    bar.set_label("radiance difference", fontsize=8)
-    bar.ax.tick_params(labelsize=7)
     title = f"{run.label}: PMap frame against its converged reference, {_error_words(error)}"
     state = "converged" if error.get("reference_converged") else "NOT converged"
+    drawn = (f"{diff_name} as the run wrote it: its colours are not those of "
+             "tlm's difference image, so they are not read back and no colour bar is drawn"
+             if signed is None else
+             f"read back from {diff_name} and drawn dark blue where ours is "
+             f"darker, neutral grey where equal, light yellow where brighter, full colour at ±{scale:.3g} (the "
+             "99th percentile of |difference|); the grey rises from one end to the other, so a greyscale print "
+             "keeps the sign")
     caption = (f"Left: the run's photon-mapped term (images/pmap.png, the run's exposure). Right: its luminance "
                f"minus the reference's (reference {error.get('reference')}, {state}, "
                f"{error.get('reference_rounds')} rounds, relative standard error "
-               f"{error.get('reference_standard_error') or 0.0:.3g}), blue where ours is darker, red where "
-               f"brighter, full colour at ±{scale:.3g} (the 99th percentile of |difference|). The reference is "
+               f"{error.get('reference_standard_error') or 0.0:.3g}), {drawn}. The reference is "
                "the pixel's box-filter integral: a run of render.spp 1 samples the pixel's centre, so edges "
                "show aliasing too.")
     fig.suptitle(f"{run.label}\nPMap frame against its converged reference: {_error_words(error)}", fontsize=9)

@@ -170,3 +170,33 @@ def file_name(source: str) -> str:
         return Path(source).relative_to(Path.cwd().resolve()).as_posix()
     except (ValueError, OSError):
         return source
+
+
+def path_labels(paths: list[Path]) -> list[str]:
+    """A label for each folder of ``paths`` that tells it from the others: its name where no other
+    folder has that name, else the shortest tail of its path that no other folder's path has
+    (``a/sw`` and ``b/sw`` for ``coll/a/sw`` and ``coll/b/sw``; the whole absolute path for one
+    whose path ends another's), and where two paths are one folder (read twice) the later
+    ``(2)``, ``(3)``... as a run's label gets. The paths are compared as absolute ones."""
+    import os
+
+    parts = [Path(os.path.abspath(p)).parts for p in paths]
+
+    def tail(i: int, k: int) -> str:
+        return Path(*parts[i][-k:]).as_posix()
+
+    labels: list[str] = []
+    for i, mine in enumerate(parts):
+        others = [j for j, theirs in enumerate(parts) if theirs[-1:] == mine[-1:] and theirs != mine]
+        k = 1
+        while k < len(mine) and any(tail(j, k) == tail(i, k) for j in others):
+            k += 1
+        labels.append(tail(i, k) if others else (mine[-1] if mine else str(paths[i])))
+    seen: set[str] = set()
+    for i, label in enumerate(labels):
+        out, n = label, 2
+        while out in seen:
+            out, n = f"{label} ({n})", n + 1
+        seen.add(out)
+        labels[i] = out
+    return labels

@@ -102,7 +102,7 @@ def ours_rows(inputs: Inputs, notes: list[str]) -> list[OursRow]:
                 owner[r.path.resolve()] = f"study {study.path.name}"
     for sweep in inputs.sweeps:
         for r in sweep.runs:
-            owner[r.path.resolve()] = f"sweep {sweep.path.name}"
+            owner[r.path.resolve()] = f"sweep {sweep.label}"
     rows: dict[tuple[str, str], OursRow] = {}
     for run in inputs.runs:
         if run.results.get("fps") is None:

@@ -118,7 +118,7 @@ def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None)
             try:
                 fits[(*key, target)] = eq52.fit_both(pts, target)
             except InputError as e:
-                notes.append(f"{sweep.path.name}: {'/'.join(key)} {target} not fitted: {e}")
+                notes.append(f"{sweep.label}: {'/'.join(key)} {target} not fitted: {e}")
     return fits
 
 
@@ -256,7 +256,7 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             continue
         idle_sweeps.append(sw)
         if not sw.runs:
-            sec.notes.append(f"{sw.path.name}: no finished point with a results folder: eq. 5.2 not fitted")
+            sec.notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         names: dict[str, str] = {}
         sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes, names), names, sw.path))
@@ -265,7 +265,7 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
         else:
-            sec.notes.append(f"{sw.path.name}: does not vary arch.pipelines, no idle figure")
+            sec.notes.append(f"{sw.label}: does not vary arch.pipelines, no idle figure")
     for name, fits, named, where in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
@@ -288,12 +288,12 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
                                key="\n".join(("idle", str(sw.path.absolute()), scene, mode)))
             plot_idle(label, g["pms"], g["points"], out / file, sw.path.name)
-            sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.path.name}",
+            sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.label}",
                                       "Idle: no job to run (neither working nor stalled), as a fraction of the "
                                       "stream's elapsed cycles, averaged over the pipelines' PMs of each kind (one "
                                       "Vertex PM, pipeline 0's); the row's idle.<pm>. Solid, filled markers: static "
                                       "tiling; dashed, open markers: the dynamic scheduler."))
-            tables.append(idle_table(f"{label} ({sw.path.name}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
+            tables.append(idle_table(f"{label} ({sw.label}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
                                      "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
     sec.html = "\n".join(tables)
     if not sec.figures:

@@ -352,7 +352,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                 left[k] = len(rows) - eff["used"]
         best = max(rows, key=lambda r: r["fps"])
         where = ", ".join(f"{k} = {best.get(k)!r}" for k in factors)
-        text = f"<b>Sweep {esc(sw.path.name)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
+        text = f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
         notes = ""
         if nothing:
             notes += (f"{esc(', '.join(nothing))} {'changes' if len(nothing) == 1 else 'change'} nothing between "

@@ -251,7 +251,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             ax.errorbar(xs_of(values), med, yerr=[np.subtract(med, lo), np.subtract(hi, med)], fmt="none",
                         ecolor="0.35", elinewidth=6, alpha=0.45, label=spread)
             ax.plot(xs_of(values), med, label="median", **{**line_style(0), "linestyle": "none", "markersize": 7})
-        notes.append(f"{sw.path.name}: FPS against {factor} shows the median and the min-max range over the "
+        notes.append(f"{sw.label}: FPS against {factor} shows the median and the min-max range over the "
                      f"{combos}: they draw more than {MAX_SERIES} distinct lines")
         band = "band" if numeric else "bar"
         drawn = (f" The {combos} draw more than {MAX_SERIES} distinct lines: the {band} at each value of {factor} "
@@ -271,7 +271,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     if min(fps) > 0 and max(fps) / min(fps) >= 100:
         ax.set_yscale("log")
     ax.set(xlabel=factor, ylabel="simulated frames per second (FPS)",
-           title=f"{sw.path.name}: simulated FPS against {factor}")
+           title=f"{sw.label}: simulated FPS against {factor}")
     ax.grid(True, which="both", alpha=0.3)
     _legend_below(fig, ax, *FACTOR_SIZE)
     name = FigureName(("sweep", sw.path.name, factor), f"{sw.path.absolute()}\n{factor}")  # sweep_<folder>_<factor>.png
@@ -282,7 +282,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                   + "and no line joins two values.")
     caption = (f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
                f"{sw.spec.get('description') or ''}").strip().rstrip(";")
-    return save(fig, out, name, f"{sw.path.name}: FPS against {factor}",
+    return save(fig, out, name, f"{sw.label}: FPS against {factor}",
                 f"{caption.rstrip('.')}.{drawn}" if drawn else caption)
 
 
@@ -322,7 +322,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
     sweep has no point at that level; closest means the smallest |ln ratio|, best the
     highest FPS, the fewer levels on a tie. What cannot be used is said in ``notes``.
     """
-    name = sw.path.name
+    name = sw.label
     others = [f for f in factors_of(sw) if f not in (LEVELS, "scene")]
     by_hash = {r.path.name: r for r in sw.runs}
     triangles: dict[str, set[int]] = defaultdict(set)
@@ -525,8 +525,8 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
     ratio_ax.yaxis.set_minor_formatter(NullFormatter())
     ratio_ax.set_ylim(min(*ratios, 1.0) / 1.25, max(*ratios, 1.0) * 1.25)
     ratio_ax.set(ylabel="Ttrav / Tisct (cycles.traversal / cycles.intersection)",
-                 title=f"{sw.path.name}: traversal against intersection")
-    fps_ax.set(ylabel="simulated frames per second (FPS)", title=f"{sw.path.name}: FPS")
+                 title=f"{sw.label}: traversal against intersection")
+    fps_ax.set(ylabel="simulated frames per second (FPS)", title=f"{sw.label}: FPS")
     levels = sorted({p["level"] for pts in series.values() for p in pts})
     for ax in (ratio_ax, fps_ax):
         ax.set_xticks(levels, [str(v) for v in levels])
@@ -539,7 +539,7 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
               f"line{'s' if len(lines) > 1 else ''}: identical ones are drawn once, their label naming them all."
               if len(lines) < len(summary) else "")
     return save(fig, out, FigureName(("bsp_balance", sw.path.name), str(sw.path.absolute())),
-                f"{sw.path.name}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
+                f"{sw.label}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
                 "The thesis: floor(ln n) levels balance the Traversal and Intersection PMs. Left: the slowest "
                 "pipeline's Traversal over Intersection cycles per frame (1 = balanced, dashed); right: the "
                 f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).{merged}")
@@ -569,6 +569,13 @@ def other_folders_text(n: int, points: Path) -> str:
             "(sweep.yaml lists this sweep's hashes)")
 
 
+def _shown_folder(sw: Sweep) -> Path:
+    """The sweep's folder as a note names it: by its label where that is a tail of its path (``a/sw``),
+    else by its name (a folder read twice, labelled ``sw (2)``)."""
+    label = Path(sw.label)
+    return label if Path(os.path.abspath(sw.path)).parts[-len(label.parts):] == label.parts else Path(sw.path.name)
+
+
 def sweeps_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("sweeps", "Sweeps: the points and the frame rate against each factor")
     html = []
@@ -576,13 +583,13 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         desc = sw.spec.get("description")
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         other = other_point_folders(sw)
-        stale = f" {other_folders_text(other, Path(sw.path.name) / 'points')}." if other else ""
-        html.append(f"<h3>{esc(sw.path.name)}</h3><p>{esc(desc or '')} {len(sw.rows)} points, "
+        stale = f" {other_folders_text(other, _shown_folder(sw) / 'points')}." if other else ""
+        html.append(f"<h3>{esc(sw.label)}</h3><p>{esc(desc or '')} {len(sw.rows)} points, "
                     f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.{esc(stale)}</p>")
         if other:
-            sec.notes.append(f"{sw.path.name}: {other_folders_text(other, Path(sw.path.name) / 'points')}")
+            sec.notes.append(f"{sw.label}: {other_folders_text(other, _shown_folder(sw) / 'points')}")
         if sw.unfinished:
-            sec.notes.append(f"{sw.path.name}: {len(sw.rows)} of its {sw.planned} points have a row: the figures "
+            sec.notes.append(f"{sw.label}: {len(sw.rows)} of its {sw.planned} points have a row: the figures "
                              "show those only")
         html.append(table(sw))
         for factor in factors_of(sw):
@@ -592,7 +599,7 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         if LEVELS in factors_of(sw):
             series, summary = levels_balance(sw, sec.notes)
             if summary:
-                html.append(f"<p>{esc(sw.path.name)}: the BSP depth against the thesis's floor(ln n) "
+                html.append(f"<p>{esc(sw.label)}: the BSP depth against the thesis's floor(ln n) "
                             "(Ttrav / Tisct = cycles.traversal / cycles.intersection of the rows; closest to 1 "
                             "in |ln ratio|; FPS as simulated).</p>")
                 html.append(levels_table(summary))
@@ -600,7 +607,7 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
                 if lines is not None:
                     sec.figures.append(levels_figure(sw, series, summary, out, lines))
                 else:
-                    sec.notes.append(f"{sw.path.name}: no BSP-levels figure: {len(summary)} curves (scenes times "
+                    sec.notes.append(f"{sw.label}: no BSP-levels figure: {len(summary)} curves (scenes times "
                                      f"the other factors' values) draw more than {MAX_SERIES} distinct lines; the "
                                      "table lists them")
     sec.html = "\n".join(html)
