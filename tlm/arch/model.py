@@ -354,6 +354,20 @@ class Timing:
             "granularity": self.granularity,
         }
 
+    def __repr__(self) -> str:
+        """Three lines (a notebook cell that shows one): throughput and latency cycles per
+        frame and the frames per second, each PM's cycles per frame, the pipelines, the
+        frames and the SimPy events. Reads no ``model``, so a pickled Timing shows too."""
+        cyc = self.cycles
+        pms = ", ".join(f"{k} {v:,}" for k, v in cyc.items() if k not in ("throughput", "latency"))
+        pipes, frames = self.program.pipelines, len(self.frames)
+        fps = f"{self.fps:,.1f}" if self.fps >= 1 else f"{self.fps:.3g}"  # (a big frame's 0.00123 fps)
+        return (f"Timing: throughput {cyc['throughput']:,} cycles per frame, latency {cyc['latency']:,}, "
+                f"{fps} fps\n"
+                f"  cycles per PM: {pms}\n"
+                f"  {pipes} pipeline{'s' if pipes != 1 else ''}, {frames} frame{'s' if frames != 1 else ''}, "
+                f"{self.events:,} SimPy events")
+
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
         if state.get("model") is not None:

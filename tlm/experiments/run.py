@@ -145,6 +145,34 @@ class RenderResult:
         """Each pass's work counts summed over the image: pass -> count -> int."""
         return {name: {k: int(v.sum()) for k, v in counts.items()} for name, counts in self.work.items()}
 
+    # the work counts a repr shows for each pass, those it has and are not 0 (work_totals(): all)
+    _REPR_COUNTS = ("primary_rays", "secondary_rays", "shadow_rays", "tri_tests", "gathers", "photons_tested")
+
+    def __repr__(self) -> str:
+        """A few lines (a notebook cell that shows a result): the scene and its triangles,
+        the resolution, the mode, each pass run with its main work totals (those not 0),
+        the photons traced, and the timing model's throughput when simulated."""
+        name = self.scene.name if len(self.scene.name) <= 40 else self.scene.name[:37] + "..."
+        cam = self.scene.camera
+        lines = [f"RenderResult: scene {name!r}, {self.scene.n_triangles:,} triangles, {cam.width}x{cam.height}, "
+                 f"mode {self.cfg.mode!r}, passes run:"]
+        for p in self.plan.run_names:
+            counts = self.work.get(p, {})
+            shown = [(k, int(counts[k].sum())) for k in self._REPR_COUNTS if k in counts]
+            lines.append(f"  {p}: " + (", ".join(f"{k} {v:,}" for k, v in shown if v) or "no work"))
+        if self.photons is not None:
+            maps = self.photons.photons
+            stored = [f"{m.n:,} {what}" for m, what in ((maps.caustic_map, "caustic"), (maps.indirect_map, "indirect"),
+                                                        (maps.global_map, "global")) if m is not None]
+            lines.append(f"  photons: {maps.emitted:,} emitted; stored {', '.join(stored)}")
+        if self.timing is None:
+            lines.append("  not simulated: timing is None (tlm.simulate(result) returns a Timing)")
+        else:
+            fps = self.timing.fps
+            lines.append(f"  simulated: throughput {self.timing.cycles['throughput']:,} cycles per frame, "
+                         + (f"{fps:,.1f} fps" if fps >= 1 else f"{fps:.3g} fps"))
+        return "\n".join(lines)
+
     @property
     def composite(self) -> np.ndarray:
         out = np.zeros_like(next(iter(self.radiance.values())))
