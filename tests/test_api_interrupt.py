@@ -175,3 +175,55 @@ def test_a_ctrl_c_outside_an_import_is_not_held(tmp_path, monkeypatch):
     finally:
         sys.modules.pop("tlm_test_slow_import", None)
         signal.signal(signal.SIGINT, before)
+
+
+def _a_frame_gone():
+    """The frame of a call that has ended (on no stack now)."""
+    return sys._getframe()
+
+
+def test_a_handler_a_ctrl_c_left_behind_is_replaced(tmp_path, monkeypatch):
+    """A Ctrl-C that lands while a call ends can leave its handler installed (before it is put
+    back). The next call does not take it for an outer call's: it installs its own, over the
+    handler the stale one replaced, so a Ctrl-C in its import is still held to the import's end;
+    a call inside another still leaves the holding to the outer one."""
+    from tlm.whole_imports import HeldInterrupt
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        (tmp_path / "tlm_test_late_import.py").write_text(
+            "import signal\nsignal.raise_signal(signal.SIGINT)\nWHOLE = True\n")
+        monkeypatch.syspath_prepend(str(tmp_path))
+        for active in (False, True):  # (ended, or cut off before it could say so)
+            stale = HeldInterrupt(signal.default_int_handler, _a_frame_gone())  # (its call's frame: ended)
+            stale.active = active
+            signal.signal(signal.SIGINT, stale)
+            seen = []
+
+            @imports_whole
+            def call(seen=seen) -> None:
+                seen.append(signal.getsignal(signal.SIGINT))
+                import tlm_test_late_import  # noqa: F401
+
+            with pytest.raises(KeyboardInterrupt):
+                call()
+            assert isinstance(seen[0], HeldInterrupt) and seen[0] is not stale, active
+            assert sys.modules.pop("tlm_test_late_import").WHOLE is True
+            assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+        inner_seen = []
+
+        @imports_whole
+        def inner() -> None:
+            inner_seen.append(signal.getsignal(signal.SIGINT))
+
+        @imports_whole
+        def outer() -> None:
+            inner_seen.append(signal.getsignal(signal.SIGINT))
+            inner()
+
+        outer()
+        assert isinstance(inner_seen[0], HeldInterrupt) and inner_seen[1] is inner_seen[0]
+    finally:
+        sys.modules.pop("tlm_test_late_import", None)
+        signal.signal(signal.SIGINT, before)

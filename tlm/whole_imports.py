@@ -88,18 +88,24 @@ class HeldInterrupt:
                 if frame is not None and _importing(frame, self.entry):
                     continue
                 self.held = False
-                signal.pthread_kill(self.main, signal.SIGINT)  # (this handler passes it on: no import now)
+                if hasattr(signal, "pthread_kill"):  # (this handler passes it on: no import now)
+                    signal.pthread_kill(self.main, signal.SIGINT)
+                else:  # (no pthread_kill: the same signal, simulated in the main thread)
+                    _thread.interrupt_main(signal.SIGINT)
                 return
 
     def close(self, failed: BaseException | None) -> None:
         """The call ended: the handler it replaced back, the Ctrl-C still held raised now,
         and the modules an interrupt that went through left half imported noted."""
-        with self.lock:
-            self.active = False
-            held, self.held = self.held, False
-        self.entry = None
-        if signal.getsignal(signal.SIGINT) is self:
-            signal.signal(signal.SIGINT, self.before)
+        held = False
+        try:
+            with self.lock:
+                self.active = False
+                held, self.held = self.held, False
+        finally:  # (the handler put back even if a Ctrl-C lands here; one left behind is found stale: :func:`_outer`)
+            if signal.getsignal(signal.SIGINT) is self:
+                signal.signal(signal.SIGINT, self.before)
+            self.entry = None
         if failed is not None and self.orphans is not None:
             _LEFT_HALF.update(_orphans() - self.orphans)
         if held:
@@ -116,6 +122,17 @@ def check_imports() -> None:
                            "import again: restart the Python process (in a notebook, restart its kernel)")
 
 
+def _outer(handler: HeldInterrupt) -> bool:
+    """Whether ``handler`` is an API call's that is still running around this one (its call's
+    frame on this thread's stack), not one a Ctrl-C at the wrong moment left installed."""
+    frame = sys._getframe(1)
+    while frame is not None:
+        if frame is handler.entry:
+            return handler.active
+        frame = frame.f_back
+    return False
+
+
 def imports_whole(function: Callable) -> Callable:
     """``function`` with a Ctrl-C that arrives during an import held to the import's end
     (:class:`HeldInterrupt`; in the main thread, where SIGINT has a Python handler)."""
@@ -124,15 +141,16 @@ def imports_whole(function: Callable) -> Callable:
     def call(*args: Any, **kwargs: Any) -> Any:
         check_imports()
         before = signal.getsignal(signal.SIGINT)
+        if isinstance(before, HeldInterrupt) and not _outer(before):  # (left behind: the handler it replaced)
+            before = before.before
         if isinstance(before, HeldInterrupt) or not callable(before):  # (an outer API call holds; or no handler)
             return function(*args, **kwargs)
-        held = HeldInterrupt(before, sys._getframe())
-        try:
-            signal.signal(signal.SIGINT, held)
-        except ValueError:  # not the main thread: a Ctrl-C interrupts the main thread, not this one's imports
+        if threading.current_thread() is not threading.main_thread():  # (a Ctrl-C interrupts the main thread)
             return function(*args, **kwargs)
+        held = HeldInterrupt(before, sys._getframe())
         failed = None
         try:
+            signal.signal(signal.SIGINT, held)
             return function(*args, **kwargs)
         except BaseException as e:
             failed = e
