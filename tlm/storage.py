@@ -4,6 +4,8 @@
   :func:`write_file` the same for a ready ``str`` or ``bytes``.
 * :func:`atomic_folder` — an output folder (a run, a sweep, a study).
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
+* :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
+  number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``.
 * :func:`cache_root` — where the caches live (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
   else ``~/.cache/tlm``), and the one line said when one of them cannot be written.
 
@@ -38,6 +40,7 @@ import fcntl
 import hashlib
 import itertools
 import json
+import math
 import os
 import re
 import shutil
@@ -591,24 +594,55 @@ def write_file(path: Path, data: str | bytes) -> None:
         fh.write(data)
 
 
+def json_text(value, **dumps_kw) -> str:
+    """``json.dumps(value, **dumps_kw)`` as strict JSON: a float that is not finite (``inf``,
+    ``-inf``, ``nan``; a numpy float too) anywhere in ``value``, or returned by ``default``, is
+    written as null. Python's ``json`` would write ``Infinity`` or ``NaN``, which JSON does not
+    have, and which JavaScript, jq and many other readers refuse. Reading back is unchanged:
+    ``json.loads`` reads null as None (and still reads the ``Infinity`` of files written before)."""
+    default = dumps_kw.pop("default", None)
+    if default is not None:
+        dumps_kw["default"] = lambda o: _finite(default(o))
+    try:
+        return json.dumps(value, allow_nan=False, **dumps_kw)
+    except ValueError as e:
+        if "Out of range float values" not in str(e):
+            raise  # (a circular reference)
+    return json.dumps(_finite(value), allow_nan=False, **dumps_kw)
+
+
+def _finite(value):
+    """``value`` with every float in it that is not finite replaced by None (mappings, lists
+    and tuples copied; anything else as it is)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
 def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[str] = ()) -> None:
     """Result rows as ``folder/<name>.jsonl`` (one JSON object a line) and ``<name>.csv``.
 
-    The CSV's columns are ``columns`` first, then every other key of the rows in the
-    order it first appears; a list or mapping value is written as JSON in its cell.
-    Both files are written atomically.
+    The CSV's columns are ``columns`` first (a column no row has is there too, its cells
+    empty), then every other key of the rows in the order it first appears; a list or mapping
+    value is written as JSON in its cell. The JSON is strict (:func:`json_text`: a number that
+    is not finite is null), and such a number's CSV cell is empty, as null's. Both files are
+    written atomically.
     """
     rows = list(rows)
     cols = list(columns)
     for r in rows:
         cols.extend(k for k in r if k not in cols)
     folder = Path(folder)
-    write_file(folder / f"{name}.jsonl", "".join(json.dumps(r) + "\n" for r in rows))
+    write_file(folder / f"{name}.jsonl", "".join(json_text(r) + "\n" for r in rows))
     with write_atomic(folder / f"{name}.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=cols)
         w.writeheader()
         for r in rows:
-            w.writerow({k: json.dumps(v) if isinstance(v, (list, dict)) else v for k, v in r.items()})
+            w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else _finite(v) for k, v in r.items()})
 
 
 def cache_home() -> Path:

@@ -30,7 +30,6 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -60,7 +59,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_warnings, check_destination, warn
+from tlm.storage import atomic_folder, cache_warnings, check_destination, json_text, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -603,7 +602,8 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         results = results_dict(res, exposure, config_path, overrides)
         # the caches this process could not write (said on stderr when met; a sweep's points record them too)
         results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
-        (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+        # (strict JSON: an fps of no cycles to time, inf here, is written as null)
+        (tmp / "results.json").write_text(json_text(results, indent=2) + "\n")
     return results
 
 

@@ -171,7 +171,7 @@ def run_point(task: Task) -> dict:
                 "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6)},
                 **task.provenance,
             }
-            (tmp / "results.json").write_text(json.dumps(results, indent=2) + "\n")
+            (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n")  # (strict: inf as null)
         return {"status": "ok", "results": results, "worker": where}
     except Exception as e:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
@@ -262,7 +262,7 @@ def write_error(task: Task, error: dict) -> None:
     with atomic_folder(Path(task.out), "error.json") as tmp:
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
         body = {"hash": task.hash, "factors": task.factors, **error}
-        (tmp / "error.json").write_text(json.dumps(body, indent=2) + "\n")
+        (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
 
 
 # ---------------------------------------------------------------- rows
@@ -278,8 +278,15 @@ def point_row(point: Point, record: dict) -> dict:
         err = record["error"]
         row["error"] = f"{err['type']}: {err['message']}".replace("\n", " ")
         return row
-    res = record["results"]
-    row.update({f"cycles.{k}": v for k, v in res["cycles"].items()})
+    row.update(result_fields(record["results"]))
+    return row
+
+
+def result_fields(res: dict) -> dict[str, Any]:
+    """An ok point's fields of its row, from its ``results.json``: cycles, fps, SimPy events,
+    whether TThru is steady, utilization, the image error (where there is a reference), whether
+    the frame was cached, host seconds."""
+    row: dict[str, Any] = {f"cycles.{k}": v for k, v in res["cycles"].items()}
     row["fps"] = res["fps"]
     row["simpy_events"] = res["timing"]["simpy_events"]
     # whether cycles.throughput is a steady-state TThru (false: a stream too short for one)
@@ -293,6 +300,31 @@ def point_row(point: Point, record: dict) -> dict:
     row["seconds.functional"] = res["host_seconds"]["functional"]
     row["seconds.simulate"] = res["host_seconds"]["simulate"]
     return row
+
+
+def result_columns() -> list[str]:
+    """The columns every ok point's row has after its factors, ``scene`` and ``mode``, in its
+    order: those :func:`result_fields` makes of a result of the model's shape (every PM of
+    :data:`~tlm.arch.frame_program.PMS` in ``cycles`` and in the units, no image error), its values
+    empty. ``sweep.csv`` has them whatever the points' outcome: empty cells for a failed point."""
+    from tlm.arch.frame_program import PMS
+
+    units = {f"pipe0.{pm}": {"busy": 0, "stalled": 0, "idle": 0, "elapsed": 0} for pm in PMS}
+    shape = {"cycles": dict.fromkeys((*PMS, "throughput", "latency")), "fps": None,
+             "timing": {"simpy_events": None, "throughput_estimate": {}, "units": units},
+             "error": None, "functional": {"cached": None}, "host_seconds": {"functional": None, "simulate": None}}
+    return list(result_fields(shape))
+
+
+def columns(rows: list[dict]) -> list[str]:
+    """The columns of ``sweep.csv`` and :attr:`Outcome.table`: :data:`FIRST_COLUMNS`, every other
+    field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ...), then those of
+    :func:`result_columns` no row has (all of them when no point is ok)."""
+    cols = list(FIRST_COLUMNS)
+    for r in rows:
+        cols.extend(k for k in r if k not in cols)
+    cols.extend(k for k in result_columns() if k not in cols)
+    return cols
 
 
 def utilization(units: dict) -> dict[str, float]:
@@ -314,8 +346,11 @@ def utilization(units: dict) -> dict[str, float]:
 
 
 def write_rows(out: Path, rows: list[dict]) -> None:
-    """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point, the union of their columns."""
-    storage.write_rows(out, "sweep", sorted(rows, key=lambda r: r["point"]), FIRST_COLUMNS)
+    """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point; the CSV's columns are
+    :func:`columns` (an ok point's result columns even when no point is ok), the JSONL's
+    objects hold their own fields only."""
+    rows = sorted(rows, key=lambda r: r["point"])
+    storage.write_rows(out, "sweep", rows, columns(rows))
 
 
 # ---------------------------------------------------------------- the sweep
@@ -341,15 +376,13 @@ class Outcome:
     @property
     def table(self):
         """The rows as a pandas DataFrame, one row per point in point order, the columns as in
-        ``sweep.csv`` (:data:`FIRST_COLUMNS`, then every other field as it first appears:
-        the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``, utilization, host seconds)."""
+        ``sweep.csv`` (:func:`columns`: :data:`FIRST_COLUMNS`, then every other field as it first
+        appears: the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``, utilization, host seconds;
+        those of an ok point even when no point is ok)."""
         import pandas as pd
 
         rows = sorted(self.rows, key=lambda r: r["point"])
-        cols = list(FIRST_COLUMNS)
-        for r in rows:
-            cols.extend(k for k in r if k not in cols)
-        return pd.DataFrame(rows, columns=cols)
+        return pd.DataFrame(rows, columns=columns(rows))
 
 
 def _clean_stale(points_dir: Path) -> None:
@@ -616,7 +649,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                         record = _seen_here(record, tasks[h])
                     records[h] = record
                     for p in by_hash[h]:
-                        jsonl.write(json.dumps(point_row(p, record)) + "\n")
+                        jsonl.write(storage.json_text(point_row(p, record)) + "\n")
                     jsonl.flush()
                     failed += record["status"] != "ok"
                     # the frame is cached unless the point failed while rendering it (or its
