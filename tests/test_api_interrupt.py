@@ -31,6 +31,9 @@ HOOK = textwrap.dedent("""
 
     TARGET, TIMES = sys.argv[1], int(sys.argv[2])
     seen = []
+    # (as an interactive Python or a notebook's kernel has it: a test runner started in the
+    # background of a shell passes SIGINT on ignored, and Python then leaves it ignored)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     class Hook:  # SIGINT (TIMES of them) when TARGET is first looked for, from inside its import
         def find_spec(self, name, path=None, target=None):
