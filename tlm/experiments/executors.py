@@ -90,6 +90,22 @@ class _Job:
     ends: list[str] = field(default_factory=list)  # how those workers ended
 
 
+def take_finished(finished: queue.SimpleQueue, timeout: float | None = None) -> list[cf.Future]:
+    """The futures in ``finished`` (a queue their done-callbacks feed), in the order they
+    finished: waiting for the first up to ``timeout`` seconds (None: until one comes; none in
+    that time: an empty list), then every other one already there. A constant cost per future,
+    where ``cf.wait`` on every future in flight costs a time proportional to them."""
+    try:
+        done = [finished.get(timeout=timeout)]
+    except queue.Empty:
+        return []
+    while True:
+        try:
+            done.append(finished.get_nowait())
+        except queue.Empty:
+            return done
+
+
 class LocalPool(cf.Executor):
     """A process pool that outlives the death of a worker process.
 
@@ -154,7 +170,7 @@ class LocalPool(cf.Executor):
         pool if it broke meanwhile."""
         settled = self.settled
         while self.settled == settled and self.inflight:
-            done = [f for f in self._finished() if f in self.inflight]
+            done = [f for f in take_finished(self.finished) if f in self.inflight]
             if not done:  # (a replaced pool's)
                 continue
             if any(_broke(f) for f in done):
@@ -165,15 +181,6 @@ class LocalPool(cf.Executor):
                     self._settle(self.inflight.pop(f), f)
                 self.blind = 0
             self._pump()
-
-    def _finished(self) -> list[cf.Future]:
-        """The pool futures that finished since the last call, waiting for one if none has."""
-        done = [self.finished.get()]
-        while True:
-            try:
-                done.append(self.finished.get_nowait())
-            except queue.Empty:
-                return done
 
     def _pump(self) -> None:
         """Hand points to the pool: a suspect alone once nothing else is in flight, else every waiting one."""

@@ -83,6 +83,7 @@ from tlm.experiments.executors import (
     dask_worker_where,
     kernel_threads,
     open_executor,
+    take_finished,
 )
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached
 from tlm.experiments.provenance import code_state, versions
@@ -638,7 +639,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
             while futures:
                 if isinstance(pool, (InProcess, LocalPool)):
                     pool.run_next()
-                done = _taken(finished, DASK_POLL if isinstance(pool, DaskPool) else None)
+                done = take_finished(finished, DASK_POLL if isinstance(pool, DaskPool) else None)
                 cancelled = [f for f in done if f.cancelled()]  # (by the cluster: the sweep cancelled none)
                 for f in done:
                     if f in cancelled:
@@ -681,20 +682,6 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         if bar is not None:
             bar.close()
     pool.shutdown(wait=True)
-
-
-def _taken(finished: queue.SimpleQueue, timeout: float | None) -> list[cf.Future]:
-    """The futures in ``finished``, in the order they finished: waiting for the first up to
-    ``timeout`` seconds (None: until one comes; none in that time: an empty list)."""
-    try:
-        done = [finished.get(timeout=timeout)]
-    except queue.Empty:
-        return []
-    while True:
-        try:
-            done.append(finished.get_nowait())
-        except queue.Empty:
-            return done
 
 
 def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
