@@ -94,3 +94,26 @@ def test_a_sweep_with_an_infinite_fps_writes_strict_json(tmp_path, cache, endles
     again = run_sweep(path, out, jobs=1)
     assert (again.ok, again.skipped) == (0, 2)
     assert [r["fps"] for r in strict_lines(out / "sweep.jsonl")] == [None, None]
+
+
+def test_a_studys_json_files_are_strict_json(tmp_path):
+    """A study's further files (a fit that did not converge: inf and nan) and its provenance."""
+    from tlm.experiments.study import run_study
+
+    out = tmp_path / "study"
+    run_study("s.yaml", out, "rows", [1], lambda p, _: {"p": p},
+              files=lambda rows: {"fits.json": {"slope": math.inf, "r2": math.nan, "points": len(rows)}})
+    assert strict((out / "fits.json").read_text()) == {"slope": None, "r2": None, "points": 1}
+    strict((out / "provenance.json").read_text())
+
+
+def test_a_timing_trace_is_strict_json(tmp_path):
+    """trace.json is read by trace viewers with JavaScript's JSON.parse: no Infinity or NaN."""
+    from tlm.arch.units import Trace
+
+    trace = Trace()
+    trace.slice("pipe0.traversal", "work", 0, 2, ratio=math.inf, spread=math.nan)
+    trace.write(tmp_path / "trace.json", 600e6)
+    doc = strict((tmp_path / "trace.json").read_text())
+    work = [e for e in doc["traceEvents"] if e["ph"] == "X"]
+    assert work[0]["args"]["ratio"] is None and work[0]["args"]["spread"] is None

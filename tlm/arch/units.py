@@ -30,7 +30,7 @@ from pathlib import Path
 import simpy
 
 from tlm.arch.events import CycleEnd
-from tlm.storage import write_atomic
+from tlm.storage import json_text, write_atomic
 
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
 
@@ -301,13 +301,15 @@ class Trace:
     def write(self, path: Path, clock_hz: float | None = None) -> None:
         """:meth:`to_json`'s document as ``path``, the same text as ``json.dumps`` of it,
         written event by event: the event dicts and the text are never held whole (at
-        1080p they were about 280 MiB, at the run's peak)."""
+        1080p they were about 280 MiB, at the run's peak). Strict JSON (a number that is not
+        finite as null, :func:`tlm.storage.json_text`): trace viewers parse it with
+        JavaScript's ``JSON.parse``, which refuses ``Infinity`` and ``NaN``."""
         events, rest = self._document(clock_hz, None)
         with write_atomic(path, "w") as fh:
             fh.write('{"traceEvents": [')
             sep, chunk = "", []
             for ev in events:
-                chunk.append(json.dumps(ev))
+                chunk.append(json_text(ev))
                 if len(chunk) == 4096:
                     fh.write(sep + ", ".join(chunk))
                     sep, chunk = ", ", []
@@ -315,7 +317,7 @@ class Trace:
                 fh.write(sep + ", ".join(chunk))
             fh.write("]")
             for key, value in rest.items():
-                fh.write(f", {json.dumps(key)}: {json.dumps(value)}")
+                fh.write(f", {json.dumps(key)}: {json_text(value)}")
             fh.write("}")
 
 

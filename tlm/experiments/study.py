@@ -23,7 +23,6 @@ replaced whole.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -35,7 +34,7 @@ import yaml
 from tlm.config import read_yaml, to_dict
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
-from tlm.storage import atomic_folder, check_destination, write_file, write_rows
+from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
 
 
 def _study_frame(path: Path, keys: tuple[str, ...]) -> tuple[dict, str]:
@@ -111,7 +110,7 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
         for fname, value in (files(rows) if files is not None else {}).items():
             write_file(tmp / fname, _text(fname, value))
         write_file(tmp / "provenance.json",
-                   json.dumps(provenance(source, time.perf_counter() - start), indent=2) + "\n")
+                   json_text(provenance(source, time.perf_counter() - start), indent=2) + "\n")
         write_file(tmp / MANIFEST, "".join(f"{n}\n" for n in sorted({*os.listdir(tmp), MANIFEST, "report"})))
     return rows
 
@@ -133,4 +132,4 @@ def _text(name: str, value: Any) -> str:
         return value
     if name.endswith(".yaml"):
         return yaml.safe_dump(value, sort_keys=False)
-    return json.dumps(value, indent=2, default=str) + "\n"
+    return json_text(value, indent=2, default=str) + "\n"  # (strict JSON: a fit's inf or nan as null)
