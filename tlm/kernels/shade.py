@@ -27,6 +27,8 @@ leave (they can never re-hit it) and ``tmin`` a relative epsilon (scene diagonal
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from tlm.kernels.engine import engine
@@ -56,15 +58,18 @@ HASH_MIN_COMPILED = 64  # fewer numbers than this: the numpy code (a compiled ca
 def hash_uniform(seed: int, *keys: np.ndarray | int) -> np.ndarray:
     """Uniform [0, 1) numbers, one per element of the broadcast ``keys`` (compiled,
     :mod:`tlm.kernels._jit_hash`, unless ``TLM_KERNELS=numpy``: the same numbers)."""
-    arrays = np.broadcast_arrays(*[np.asarray(k, dtype=np.int64) for k in keys])
-    if arrays and arrays[0].size >= HASH_MIN_COMPILED and engine() == "numba":
+    arrays = [np.asarray(k, dtype=np.int64) for k in keys]
+    shape = np.broadcast_shapes(*(a.shape for a in arrays))
+    if arrays and math.prod(shape) >= HASH_MIN_COMPILED and engine() == "numba":
         from tlm.kernels import _jit_hash
 
-        shape = arrays[0].shape
-        stacked = np.empty((len(arrays), arrays[0].size), dtype=np.int64)
+        # each key broadcast straight into its row (no broadcast copy first)
+        stacked = np.empty((len(arrays), *shape), dtype=np.int64)
         for row, a in zip(stacked, arrays, strict=True):
-            row[:] = a.reshape(-1)
-        return _jit_hash.hash_uniform(np.uint64(seed & 0xFFFFFFFFFFFFFFFF), stacked).reshape(shape)
+            row[...] = a
+        return _jit_hash.hash_uniform(np.uint64(seed & 0xFFFFFFFFFFFFFFFF),
+                                      stacked.reshape(len(arrays), -1)).reshape(shape)
+    arrays = np.broadcast_arrays(*arrays)
     h = _mix(np.full(arrays[0].shape, np.uint64(seed & 0xFFFFFFFFFFFFFFFF)) + _GOLD)
     for k in arrays:
         h = _mix(h ^ (k.astype(np.uint64) * _GOLD))
@@ -272,24 +277,25 @@ def emitted(lights: tuple[Light, ...], o: np.ndarray, d: np.ndarray, t_hit: np.n
     k = o.shape[0]
     radiance = np.zeros((k, 3))
     seen = np.zeros(k, dtype=bool)
-    best = t_hit.copy()
-    for light in lights:
-        if light.kind != "quad" or light.area == 0.0:
-            continue
+    quads = [light for light in lights if light.kind == "quad" and light.area != 0.0]
+    if not quads:
+        return radiance, seen
+    best = t_hit
+    dist_eps = eps / np.linalg.norm(d, axis=1)
+    rhs = np.empty((2, k))
+    for light in quads:
+        q = light.quad  # the light's arrays, Gram matrix and radiance, made once (tlm.scenes.model.QuadFrame)
         nl = light.normal
         dn = d @ nl
-        c = np.asarray(light.corner)
-        eu, ev = np.asarray(light.edge_u), np.asarray(light.edge_v)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((c - o) @ nl) / dn
-        p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - c
-        # coordinates of p in the (eu, ev) frame
-        g = np.array([[eu @ eu, eu @ ev], [eu @ ev, ev @ ev]])
-        a, b = np.linalg.solve(g, np.stack([p @ eu, p @ ev]))
-        dist_eps = eps / np.linalg.norm(d, axis=1)
+            t = ((q.corner - o) @ nl) / dn
+        p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - q.corner
+        # coordinates of p in the (eu, ev) frame; the right-hand sides written in place (no stacked copy)
+        np.matmul(p, q.edge_u, out=rhs[0])
+        np.matmul(p, q.edge_v, out=rhs[1])
+        a, b = np.linalg.solve(q.gram, rhs)
         hit = (dn < 0) & (t > dist_eps) & (t <= best + dist_eps) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
-        le = np.asarray(light.power) / (np.pi * light.area)
-        radiance[hit] = le
+        radiance[hit] = q.radiance
         seen |= hit
         best = np.where(hit, t, best)
     return radiance, seen
@@ -374,8 +380,8 @@ def direct_light(
             jv = hash_uniform(seed, keys[:, None], 1, li, s[None, :], 1)
             a = ((s % g)[None, :] + ju) / g
             b = ((s // g)[None, :] + jv) / g
-            target = (np.asarray(light.corner)[None, None, :] + a[..., None] * np.asarray(light.edge_u)
-                      + b[..., None] * np.asarray(light.edge_v))
+            q = light.quad  # its corner and edges as arrays, made once
+            target = q.corner[None, None, :] + a[..., None] * q.edge_u + b[..., None] * q.edge_v
             weight = np.full((k, g * g), 1.0 / (g * g))
             scale = np.asarray(light.power) / np.pi  # Le * A
             nl = light.normal

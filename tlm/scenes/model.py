@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -176,13 +178,14 @@ class Light:
                    "area": self.area}
         return {"type": self.kind, "power": list(self.power), **own}
 
-    @property
+    @cached_property
     def axis(self) -> np.ndarray:
-        """A spot's or directional light's ``direction`` made unit (:func:`unit_vector`)."""
+        """A spot's or directional light's ``direction`` made unit (:func:`unit_vector`; made once,
+        read-only)."""
         u = unit_vector(self.direction)
         if u is None:
             raise ValueError(f"{self.kind} light {self.name!r}: direction {list(self.direction)} has no length")
-        return u
+        return _frozen(u)
 
     @property
     def cone_cosines(self) -> tuple[float, float]:
@@ -199,22 +202,57 @@ class Light:
         share = 0.5 * ((1.0 - ci) + (ci - co) / 3.0)
         return tuple(float(p) * share for p in self.power)
 
-    @property
+    # The derived values below are made on first use and kept on the light (functools.cached_property:
+    # the shading reads them every batch of every pass). A light is frozen, and a mesh light's
+    # arrays are never changed after it is made; the arrays given out are read-only.
+
+    @cached_property
     def area(self) -> float:
+        """A quad light's area ``|cross(edge_u, edge_v)|``; a mesh light's, the sum of :attr:`areas`."""
         if self.kind == "mesh":
             return float(self.areas.sum())
         return float(np.linalg.norm(np.cross(self.edge_u, self.edge_v)))
 
-    @property
+    @cached_property
     def areas(self) -> np.ndarray:
         """(m,) areas of a mesh light's triangles."""
         t = self.triangles
-        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+        return _frozen(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1))
 
-    @property
+    @cached_property
     def normal(self) -> np.ndarray:
+        """A quad light's unit normal, ``cross(edge_u, edge_v)`` made unit (the side it emits on)."""
         n = np.cross(self.edge_u, self.edge_v)
-        return n / np.linalg.norm(n)
+        return _frozen(n / np.linalg.norm(n))
+
+    @cached_property
+    def quad(self) -> QuadFrame:
+        """A quad light's corner and edges as arrays, the Gram matrix of its edges and its
+        radiance (:class:`QuadFrame`)."""
+        c, eu, ev = (np.array(x) for x in (self.corner, self.edge_u, self.edge_v))
+        gram = np.array([[eu @ eu, eu @ ev], [eu @ ev, ev @ ev]])
+        with np.errstate(divide="ignore", invalid="ignore"):  # (a quad of no area: never seen, emits nothing)
+            le = np.array(self.power) / (np.pi * self.area)
+        return QuadFrame(*(_frozen(x) for x in (c, eu, ev, gram, le)))
+
+
+class QuadFrame(NamedTuple):
+    """A quad light's constants as arrays (:attr:`Light.quad`, read-only): ``corner``, ``edge_u``
+    and ``edge_v`` (3,); ``gram`` (2, 2), ``[[eu.eu, eu.ev], [eu.ev, ev.ev]]``, whose system gives
+    a point's coordinates ``(a, b)`` in the quad's frame; ``radiance`` (3,), ``Le = power / (pi
+    area)`` on the emitting side."""
+
+    corner: np.ndarray
+    edge_u: np.ndarray
+    edge_v: np.ndarray
+    gram: np.ndarray
+    radiance: np.ndarray
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` made read-only (a value kept on a light, shared by every caller)."""
+    a.flags.writeable = False
+    return a
 
 
 def directional_power(irradiance, lo, hi) -> tuple[float, float, float]:
