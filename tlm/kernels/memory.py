@@ -151,7 +151,7 @@ def page_misses(
     jit = _jit()
     if jit is not None:
         miss, last, armed = jit.page_misses(np.ascontiguousarray(a), np.int64(state.page), bool(state.armed),
-                                            np.int64(page_words), jit.shift_of(page_words))
+                                            np.int64(page_words), _shift(page_words))
         return miss, PairState(int(last), bool(armed))
     page = a // page_words
     offset = a - page * page_words
@@ -199,13 +199,37 @@ def span_addresses(first: np.ndarray, last: np.ndarray, words_per_item: int = 1)
     return starts + np.arange(total, dtype=np.int64)
 
 
+_COMPILED: list = []  # [_jit_memory, _jit_glue] once imported (one assignment: threads see it whole)
+
+
 def _jit():
     """The compiled compaction (:mod:`tlm.kernels._jit_memory`), None with ``TLM_KERNELS=numpy``."""
     if engine() != "numba":
         return None
-    from tlm.kernels import _jit_memory
+    return _modules()[0]
 
-    return _jit_memory
+
+def _modules() -> list:
+    """:mod:`tlm.kernels._jit_memory` and :mod:`tlm.kernels._jit_glue`, imported on first use
+    and kept (an import statement per call held the interpreter lock for a dict lookup and more)."""
+    mods = _COMPILED
+    if not mods:
+        from tlm.kernels import _jit_glue, _jit_memory
+
+        mods = [_jit_memory, _jit_glue]
+        _COMPILED[:] = mods
+    return mods
+
+
+_SHIFTS: dict[int, int] = {}
+
+
+def _shift(page_words: int) -> int:
+    """:func:`tlm.kernels._jit_memory.shift_of`, kept per page size."""
+    s = _SHIFTS.get(page_words)
+    if s is None:
+        s = _SHIFTS[page_words] = _modules()[0].shift_of(page_words)
+    return s
 
 
 def _pages(words: np.ndarray, page_words: int) -> np.ndarray:
@@ -226,6 +250,8 @@ def _ranges(first, last, owner, page_words: int) -> tuple[np.ndarray, np.ndarray
         raise ValueError(f"first ({first.shape[0]}) and last ({last.shape[0]}) differ in length")
     if owner is None:
         return first, last, np.arange(first.shape[0], dtype=np.int64)
+    if isinstance(owner, np.ndarray) and owner.dtype == np.int64 and owner.shape == first.shape:
+        return first, last, np.ascontiguousarray(owner)  # (already one int64 per range)
     return first, last, np.ascontiguousarray(np.broadcast_to(np.asarray(owner, dtype=np.int64), first.shape))
 
 
@@ -315,7 +341,7 @@ def compact(words: np.ndarray, owner: np.ndarray, page_words: int = PAGE_WORDS) 
     if jit is not None:
         if page_words <= 0:
             raise ValueError(f"page_words (={page_words}) must be > 0")
-        return jit.compact(words, owner, np.int64(page_words), jit.shift_of(page_words))
+        return jit.compact(words, owner, np.int64(page_words), _shift(page_words))
     start = _run_starts(words, page_words, owner)
     if start.shape[0] == words.shape[0]:
         return words, owner
@@ -345,7 +371,7 @@ class Accesses:
         jit = _jit()
         if jit is not None:
             first, last, owner = _ranges(first, last, owner, page_words)
-            return cls(*jit.range_runs(first, last, owner, np.int64(page_words), jit.shift_of(page_words)), page_words)
+            return cls(*jit.range_runs(first, last, owner, np.int64(page_words), _shift(page_words)), page_words)
         _, hi, owner = _spans(first, last, owner, page_words)  # a span's last word is its largest
         return cls(*compact(hi, owner, page_words), page_words)
 
@@ -362,7 +388,7 @@ class Accesses:
         if jit is not None:
             if page_words <= 0:
                 raise ValueError(f"page_words (={page_words}) must be > 0")
-            return cls(*jit.csr_runs(words, ptr, np.int64(page_words), jit.shift_of(page_words)), page_words)
+            return cls(*jit.csr_runs(words, ptr, np.int64(page_words), _shift(page_words)), page_words)
         first = ptr[:-1][ptr[1:] > ptr[:-1]]
         start = _run_starts(words, page_words, bounds=first)
         owner = np.searchsorted(ptr, start, side="right") - 1
@@ -394,7 +420,16 @@ class Accesses:
     def owner_major(self) -> Accesses:
         """All accesses of owner 0, then of owner 1, ..., each owner's in their order."""
         own = self.owner
-        if own.shape[0] < 2 or bool(np.all(own[1:] >= own[:-1])):
+        if own.shape[0] < 2:
+            return self
+        if engine() == "numba" and own.dtype == np.int64 and self.words.dtype == np.int64:
+            pw = self.page_words
+            status, words, owner = _modules()[1].owner_major(self.words, own, np.int64(pw), _shift(pw))
+            if status == 0:
+                return self
+            if status == 1:
+                return Accesses(words, owner, pw)
+        elif bool(np.all(own[1:] >= own[:-1])):
             return self
         order = np.argsort(own, kind="stable")
         return Accesses(*compact(self.words[order], own[order], self.page_words), self.page_words)
@@ -679,6 +714,18 @@ def traversal_accesses(touched, leaf_first: np.ndarray, leaf_last: np.ndarray,
     every tested leaf, four to a word) and ``vertices`` (the Intersection PM's triangle
     data: three words per slot), each in visiting order. Empty leaves read nothing.
     """
+    if engine() == "numba" and NODE_WORDS == 1 and page_words > 0:
+        glue = _modules()[1]
+        ok, *runs = glue.traversal_runs(
+            touched.node_ids, np.asarray(touched.node_ptr, dtype=np.int64), touched.leaf_ids,
+            np.asarray(touched.leaf_ptr, dtype=np.int64), leaf_first, leaf_last, INDICES_PER_WORD, VERTEX_WORDS,
+            np.int64(page_words), _shift(page_words))
+        if ok:  # (else the numpy code below says what is wrong)
+            return {
+                "nodes": Accesses(runs[0], runs[1], page_words),
+                "indices": Accesses(runs[2], runs[3], page_words),
+                "vertices": Accesses(runs[4], runs[5], page_words),
+            }
     r = touched.leaf_ptr.shape[0] - 1
     ids = touched.node_ids
     nodes = Accesses.of_csr(ids if NODE_WORDS == 1 else ids.astype(np.int64) * NODE_WORDS, touched.node_ptr,

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tlm.kernels import threads
 from tlm.kernels.bsp import BSPTree, build_triangle_tree
 from tlm.kernels.engine import ENGINES, engine  # noqa: F401  (re-exported)
 from tlm.kernels.engine import numba_available as _numba_available  # noqa: F401  (for tests)
@@ -194,27 +195,37 @@ class Occlusion:
     touched: Touched | None = None
 
 
-def _prepare(origins, directions, tmin, tmax, ignore):
-    o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3))
-    d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+def _rows3(a) -> np.ndarray:
+    """``a`` as a contiguous (r, 3) float64 array (itself where it already is one)."""
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.ndim == 2 and a.shape[1] == 3 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(np.asarray(a, dtype=np.float64).reshape(-1, 3))
+
+
+_TINY = float(np.finfo(np.float64).tiny)
+
+
+def _prepare(origins, directions, tmin, tmax, ignore, compiled_engine=None):
+    """The rays as the traversal reads them: ``o, d, tmin, tmax, ignore, scale``
+    (``compiled_engine``: whether the numba engine runs, when the caller knows)."""
+    o = _rows3(origins)
+    d = _rows3(directions)
     r = o.shape[0]
     if d.shape[0] != r:
         raise ValueError(f"origins ({r}) and directions ({d.shape[0]}) differ in length")
     tmin, tmax = np.asarray(tmin, dtype=np.float64), np.asarray(tmax, dtype=np.float64)
     if tmin.ndim == 0:  # (one value for every ray: filled, not broadcast and copied)
-        tmin = np.full(r, np.maximum(tmin, 0.0))
+        tmin = _filled(r, np.maximum(tmin, 0.0), np.float64)
     else:
         tmin = np.maximum(np.broadcast_to(tmin, (r,)), 0.0)
-    tmax = np.full(r, tmax) if tmax.ndim == 0 else _per_ray(tmax, r)
+    tmax = _filled(r, tmax, np.float64) if tmax.ndim == 0 else _per_ray(tmax, r)
     # every row's largest component in [2**-32, 2**32] (its sum of three, rounded, at
     # least 2**-30): no row is rescaled, and the row maxima need not be formed; and
     # whether a component is subnormal (or zero). Compiled: one pass, no temporaries
-    compiled = r > 0 and engine() == "numba"
+    compiled = r > 0 and (engine() == "numba" if compiled_engine is None else compiled_engine)
     mag = None  # (the magnitudes, where numpy formed them)
     if compiled:
-        from tlm.kernels import _jit_rays
-
-        plain, any_tiny = _jit_rays.direction_checks(d)
+        plain, any_tiny = _compiled()[1].direction_checks(d)
     else:
         mag = np.abs(d)
         with np.errstate(invalid="ignore"):
@@ -225,14 +236,21 @@ def _prepare(origins, directions, tmin, tmax, ignore):
         d, tmin, tmax, scale = scale_directions(d, tmin, tmax)
         mag = np.abs(d)
     if mag is not None:
-        any_tiny = bool((mag < np.finfo(np.float64).tiny).any())
+        any_tiny = bool((mag < _TINY).any())
     if any_tiny:  # a subnormal component (negligible beside the row's largest) is a zero
-        d = np.where(np.abs(d) < np.finfo(np.float64).tiny, 0.0, d)
+        d = np.where(np.abs(d) < _TINY, 0.0, d)
     if ignore is None:
-        ignore = np.full(r, -1, dtype=np.int64)
+        ignore = _filled(r, -1, np.int64)
     else:
         ignore = _per_ray(np.asarray(ignore, dtype=np.int64), r)
     return o, d, tmin, tmax, ignore, scale
+
+
+def _filled(r: int, value, dtype) -> np.ndarray:
+    """``np.full(r, value, dtype)`` without its Python layers."""
+    out = np.empty(r, dtype=dtype)
+    out.fill(value)
+    return out
 
 
 def _per_ray(a: np.ndarray, r: int) -> np.ndarray:
@@ -247,9 +265,7 @@ def _per_ray(a: np.ndarray, r: int) -> np.ndarray:
 def _same_rows(o: np.ndarray) -> bool:
     """``(o == o[:1]).all()`` (compiled under the numba engine: one pass, stopping early)."""
     if engine() == "numba":
-        from tlm.kernels import _jit_rays
-
-        return bool(_jit_rays.same_rows(o))
+        return bool(_compiled()[1].same_rows(o))
     return bool((o == o[:1]).all())
 
 
@@ -432,37 +448,69 @@ JIT_BUFFERS = (1 << 12, 8, 16)
 JIT_MIN_CHUNK = 2048
 
 
-def _jit_trace(*args):
-    from tlm.kernels import _jit
+_KERNELS: dict = {}  # the compiled kernel, imported once (an import statement per call holds the lock)
 
-    return _jit.trace(*args)
+
+def _compiled() -> tuple:
+    """:mod:`tlm.kernels._jit_glue` and :mod:`tlm.kernels._jit_rays`, imported once."""
+    mods = _KERNELS.get("glue")
+    if mods is None:
+        from tlm.kernels import _jit_glue, _jit_rays
+
+        mods = _KERNELS["glue"] = (_jit_glue, _jit_rays)
+    return mods
+
+
+def _jit_trace(*args):
+    fn = _KERNELS.get("trace")
+    if fn is None:
+        from tlm.kernels import _jit
+
+        fn = _KERNELS["trace"] = _jit.trace
+    return fn(*args)
 
 
 def _jit_chunk(accel: TriangleAccel, o, d, tmin, tmax, ignore, has_ignore, shared_o32, pre, record, first_only,
                shared_origin, a: int, b: int):
     """The compiled kernel on rays ``a:b`` (its buffers grown until they hold them):
     ``t, u, v, slot, node_visits, cnt, leaf_visits, tri_tests, node_ids, leaf_ids``."""
-    from tlm.kernels import _jit
-
-    tree, lay = accel.tree, accel.jit_layout
+    tree_args, eps_args = _jit_constants(accel)
     widest, leaves, nodes = JIT_BUFFERS
     learned = accel.__dict__.get("_jit_per_ray") if record else None  # (leaves, nodes) a ray took before
     if learned is not None:
         leaves, nodes = max(leaves, learned[0]), max(nodes, learned[1])
     r = b - a
-    caps = [min(1 << tree.levels, widest), leaves * r + 1, nodes * r + 1]
+    caps = [min(1 << tree_args[4], widest), leaves * r + 1, nodes * r + 1]
     while True:
         status, *out = _jit_trace(
-            o[a:b], d[a:b], tmin[a:b], tmax[a:b], ignore[a:b], has_ignore, tree.lo[0], tree.hi[0],
-            accel.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first, lay.last, lay.back,
-            lay.soa64, lay.ids, lay.size, pre, np.float32(EDGE_EPS[np.dtype(np.float32)]),
-            EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)], first_only, shared_origin, shared_o32,
-            record, *caps)
-        if status == _jit.OK:
-            if record and r >= LEARN_MIN_RAYS:
-                _learn(accel, int(out[6].sum()), int(out[4].sum()), r)
+            o[a:b], d[a:b], tmin[a:b], tmax[a:b], ignore[a:b], has_ignore, *tree_args, pre, *eps_args, first_only,
+            shared_origin, shared_o32, record, *caps)
+        if status == 0:  # (tlm.kernels._jit.OK; else the buffer that overflowed, 1 to 3)
+            if record and r >= LEARN_MIN_RAYS:  # (the recorded lists hold every ray's leaves and nodes)
+                _learn(accel, out[9].shape[0], out[8].shape[0], r)
             return out
         caps[status - 1] = max(2 * caps[status - 1], 1)  # a buffer was too small: rerun with it doubled
+
+
+def _jit_constants(accel: TriangleAccel) -> tuple[tuple, tuple]:
+    """What every call of the compiled kernel on ``accel`` passes alike, formed on the
+    accel's first call and kept on it (one assignment: threads see it whole; two that
+    form it at once form the same): the tree's and the layout's arrays (``levels`` 5th),
+    and the edge epsilons. Kept with the tree and layout they were formed from, and formed
+    again where the accel now has others (a copy of it given another layout, as
+    ``benchmarks/bench_raytrace.py``'s walk floor is)."""
+    tree, lay = accel.tree, accel.jit_layout
+    kept = accel.__dict__.get("_jit_constants")
+    if kept is not None and kept[0] is tree and kept[1] is lay:
+        return kept[2]
+    eps32, eps64 = EDGE_EPS[np.dtype(np.float32)], EDGE_EPS[np.dtype(np.float64)]
+    got = (
+        (tree.lo[0], tree.hi[0], accel.origin, tree.split, tree.levels, tree.leaf_offset, lay.soa32, lay.first,
+         lay.last, lay.back, lay.soa64, lay.ids, lay.size),
+        (np.float32(eps32), eps32, eps64),
+    )
+    accel.__dict__["_jit_constants"] = (tree, lay, got)
+    return got
 
 
 LEARN_MIN_RAYS = 256  # a call of fewer rays (a tail, one pixel) says too little about the rest
@@ -480,6 +528,7 @@ def _learn(accel: TriangleAccel, leaves: int, nodes: int, r: int) -> None:
         accel.__dict__["_jit_per_ray"] = (max(need[0], before[0]), max(need[1], before[1]))  # (one assignment)
 
 
+_INT32_MAX = int(np.iinfo(np.int32).max)
 _NO_STACK = np.empty((0, 0), dtype=np.float32)  # the kernel's ``pre`` where no origin is shared
 
 
@@ -505,17 +554,18 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     nodes and leaves ray-major), and the shared origin is the packet's first ray's for
     every chunk, so the result is the one-call result bit for bit.
     """
-    from tlm.kernels import _jit_rays, threads
-
+    _jit_glue, _jit_rays = _compiled()
     tree, lay = accel.tree, accel.jit_layout
     r = o.shape[0]
     # one compiled signature: numba types a read-only array (a broadcast's view) apart
-    o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
+    if not (o.flags.writeable and d.flags.writeable and tmin.flags.writeable and tmax.flags.writeable
+            and ignore.flags.writeable):
+        o, d, tmin, tmax, ignore = (a if a.flags.writeable else a.copy() for a in (o, d, tmin, tmax, ignore))
     # the kernel compares ids as int32 (ids are < 2**31): an ignore outside that range
     # can match no triangle, as in the numpy engine, so it becomes -1 (none)
     has_ignore, remap = _jit_rays.ignore_flags(ignore)
     if remap:
-        ignore = np.where((ignore < 0) | (ignore > np.iinfo(np.int32).max), -1, ignore)
+        ignore = np.where((ignore < 0) | (ignore > _INT32_MAX), -1, ignore)
     # the float32 test of shared-origin rays takes the packet's first origin (the kernel's docstring)
     shared_o32 = np.zeros(3, dtype=np.float32)
     if shared_origin and r > 0:
@@ -533,16 +583,13 @@ def _traverse_jit(accel: TriangleAccel, o, d, tmin, tmax, ignore, scale, record,
     counts = Counts(node_visits, cnt, leaf_visits, tri_tests)
     touched = None
     if record:
-        id_type = np.int32 if tree.n_nodes <= np.iinfo(np.int32).max else np.int64
-        node_ptr = np.zeros(r + 1, dtype=np.int64)
-        np.cumsum(node_visits, out=node_ptr[1:])
-        leaf_ptr = np.zeros(r + 1, dtype=np.int64)
-        np.cumsum(leaf_visits, out=leaf_ptr[1:])
-        touched = Touched(node_ptr, node_ids.astype(id_type), leaf_ptr, leaf_ids)
+        node_ptr, leaf_ptr = _jit_glue.touched_ptrs(node_visits, leaf_visits)
+        touched = Touched(node_ptr, node_ids.astype(np.int32 if tree.n_nodes <= _INT32_MAX else np.int64), leaf_ptr,
+                          leaf_ids)
     if first_only:
         return Occlusion(slot >= 0, counts, touched)
     triangle = _jit_rays.triangles_of(slot, lay.ids)  # (-1 where no slot: no triangles, nothing found)
-    if scale.any():  # back to the caller's direction; a hit beyond float64's range is a miss
+    if np.count_nonzero(scale):  # back to the caller's direction; a hit beyond float64's range is a miss
         t = unscale_t(t, scale)
         far = np.isinf(t)
         triangle, u, v = np.where(far, -1, triangle), np.where(far, 0.0, u), np.where(far, 0.0, v)
@@ -557,14 +604,15 @@ def _traverse(accel: TriangleAccel, origins, directions, tmin, tmax, ignore, rec
     float64 check); otherwise test in float32 and check every ray's answer.
     """
     tree = accel.tree
-    o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore)
+    compiled = engine() == "numba"
+    o, d, tmin, tmax, ignore, scale = _prepare(origins, directions, tmin, tmax, ignore, compiled)
     # one origin as the float32 test sees it (equal float64 rows are: the quick test)
     if shared_origin and o.shape[0] > 0 and not _same_rows(o):
         with np.errstate(over="ignore"):
             o32 = (o - accel.origin).astype(np.float32)
         if not (o32 == o32[:1]).all():
             raise ValueError("shared_origin=True but the rays do not share one origin")
-    if not exact64 and engine() == "numba":
+    if not exact64 and compiled:
         return _traverse_jit(accel, o, d, tmin, tmax, ignore, scale, record, first_only, shared_origin)
     r = o.shape[0]
     ta, tb, inv = _clip_root(tree, o, d, tmin, tmax)

@@ -1,0 +1,196 @@
+"""The integer glue around the compiled traversal, compiled with numba (nogil): what
+:func:`tlm.kernels.traverse._traverse_jit` forms from a packet's answers (the CSR pointers
+of the recorded nodes and leaves) and what :func:`tlm.kernels.memory.traversal_accesses`
+forms from them (the compacted node, leaf-index and vertex streams), each in one call
+instead of a dozen numpy calls that hold the interpreter lock between them.
+
+Integer arithmetic only: each returns, element for element, what the numpy (and
+:mod:`tlm.kernels._jit_memory`) code it replaces returns (``tests/test_traverse_glue.py``
+compares them). The compaction loops are :mod:`tlm.kernels._jit_memory`'s, written out
+again here (a shared helper made them slower there, the module's docstring says).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
+
+
+@njit(cache=True, nogil=True)
+def touched_ptrs(node_visits, leaf_visits):
+    """``node_ptr`` and ``leaf_ptr`` (r + 1,) int64: 0, then the running sums of the
+    per-ray ``node_visits`` and ``leaf_visits`` (r,) (numpy's ``cumsum`` into ``ptr[1:]``)."""
+    r = node_visits.shape[0]
+    node_ptr = np.empty(r + 1, dtype=np.int64)
+    leaf_ptr = np.empty(r + 1, dtype=np.int64)
+    a = np.int64(0)
+    b = np.int64(0)
+    node_ptr[0] = 0
+    leaf_ptr[0] = 0
+    for i in range(r):
+        a += node_visits[i]
+        b += leaf_visits[i]
+        node_ptr[i + 1] = a
+        leaf_ptr[i + 1] = b
+    return node_ptr, leaf_ptr
+
+
+@njit(cache=True, nogil=True)
+def _valid_ptr(ptr, n):
+    """``ptr`` rises from 0 to ``n`` (what ``Accesses.of_csr`` checks)."""
+    if ptr.shape[0] < 1 or ptr[0] != 0 or ptr[ptr.shape[0] - 1] != n:
+        return False
+    ok = True
+    for i in range(ptr.shape[0] - 1):
+        ok &= ptr[i + 1] >= ptr[i]
+    return ok
+
+
+@njit(cache=True, nogil=True)
+def traversal_runs(node_ids, node_ptr, leaf_ids, leaf_ptr, leaf_first, leaf_last, indices_per_word,
+                   vertex_words, page_words, shift):
+    """The three compacted streams of :func:`tlm.kernels.memory.traversal_accesses` (node
+    words ``NODE_WORDS`` = 1 per node).
+
+    Returns ``ok`` (False: a pointer array does not rise from 0 to its list's length,
+    nothing else is valid) and the words and owners of ``nodes`` (``Accesses.of_csr`` of
+    ``node_ids``, ``node_ptr``), ``indices`` (``Accesses.of_ranges`` of the words
+    ``first // indices_per_word .. (last - 1) // indices_per_word`` of every visited
+    non-empty leaf, owner its ray) and ``vertices`` (``Accesses.of_ranges`` of
+    ``[vertex_words * first, vertex_words * last)``), each int64.
+    """
+    e = np.zeros(0, dtype=np.int64)
+    if not (_valid_ptr(node_ptr, node_ids.shape[0]) and _valid_ptr(leaf_ptr, leaf_ids.shape[0])):
+        return False, e, e, e, e, e, e
+    # nodes: owner i's words node_ids[node_ptr[i]:node_ptr[i+1]] (tlm.kernels._jit_memory.csr_runs)
+    n = node_ids.shape[0]
+    nw = np.empty(n, dtype=np.int64)
+    no = np.empty(n, dtype=np.int64)
+    k = -1
+    for i in range(node_ptr.shape[0] - 1):
+        page = np.int64(0)
+        for j in range(node_ptr[i], node_ptr[i + 1]):
+            w = np.int64(node_ids[j])
+            p = w >> shift if shift >= 0 else w // page_words
+            if j == node_ptr[i] or p != page:
+                k += 1
+                nw[k] = w
+                no[k] = i
+                page = p
+            elif w > nw[k]:
+                nw[k] = w
+    nodes_w = nw[: k + 1].copy()
+    nodes_o = no[: k + 1].copy()
+    # the leaves' ranges (tlm.kernels._jit_memory.range_runs of each stream's ranges)
+    r = leaf_ptr.shape[0] - 1
+    total_i = 0
+    total_v = 0
+    for i in range(r):
+        for j in range(leaf_ptr[i], leaf_ptr[i + 1]):
+            f = np.int64(leaf_first[leaf_ids[j]])
+            last = np.int64(leaf_last[leaf_ids[j]])
+            if last <= f:
+                continue
+            a, b = f // indices_per_word, (last - 1) // indices_per_word  # (a <= b)
+            c, d = f * vertex_words, last * vertex_words - 1
+            if shift >= 0:
+                total_i += (b >> shift) - (a >> shift) + 1
+                total_v += (d >> shift) - (c >> shift) + 1
+            else:
+                total_i += b // page_words - a // page_words + 1
+                total_v += d // page_words - c // page_words + 1
+    iw = np.empty(total_i, dtype=np.int64)
+    io = np.empty(total_i, dtype=np.int64)
+    vw = np.empty(total_v, dtype=np.int64)
+    vo = np.empty(total_v, dtype=np.int64)
+    ki = -1
+    kv = -1
+    page_i = np.int64(0)
+    page_v = np.int64(0)
+    for i in range(r):
+        o = np.int64(i)
+        for j in range(leaf_ptr[i], leaf_ptr[i + 1]):
+            f = np.int64(leaf_first[leaf_ids[j]])
+            last = np.int64(leaf_last[leaf_ids[j]])
+            if last <= f:
+                continue
+            lo = f // indices_per_word
+            hi = (last - 1) // indices_per_word
+            p0 = lo >> shift if shift >= 0 else lo // page_words
+            p1 = hi >> shift if shift >= 0 else hi // page_words
+            for p in range(p0, p1 + 1):
+                w = min(hi, p * page_words + (page_words - 1))
+                if ki < 0 or p != page_i or o != io[ki]:
+                    ki += 1
+                    iw[ki] = w
+                    io[ki] = o
+                    page_i = p
+                elif w > iw[ki]:
+                    iw[ki] = w
+            lo = f * vertex_words
+            hi = last * vertex_words - 1
+            p0 = lo >> shift if shift >= 0 else lo // page_words
+            p1 = hi >> shift if shift >= 0 else hi // page_words
+            for p in range(p0, p1 + 1):
+                w = min(hi, p * page_words + (page_words - 1))
+                if kv < 0 or p != page_v or o != vo[kv]:
+                    kv += 1
+                    vw[kv] = w
+                    vo[kv] = o
+                    page_v = p
+                elif w > vw[kv]:
+                    vw[kv] = w
+    return True, nodes_w, nodes_o, iw[: ki + 1].copy(), io[: ki + 1].copy(), vw[: kv + 1].copy(), \
+        vo[: kv + 1].copy()
+
+
+@njit(cache=True, nogil=True)
+def owner_major(words, owner, page_words, shift):
+    """``Accesses.owner_major`` of the compacted stream ``words``, ``owner`` (a,) int64:
+    ``status`` 0 when the owners already rise (nothing to do), 1 with the stream put in
+    owner order, each owner's accesses in their order (numpy's stable ``argsort`` of the
+    owners), and compacted again (:func:`tlm.kernels._jit_memory.compact`), 2 when the
+    owners are negative or spread over more than ``4 a + 1024`` values (a counting sort
+    would not pay: the caller sorts)."""
+    n = owner.shape[0]
+    e = np.zeros(0, dtype=np.int64)
+    rising = True
+    lo = owner[0] if n else 0
+    hi = lo
+    for i in range(1, n):
+        x = owner[i]
+        rising &= x >= owner[i - 1]
+        lo = min(lo, x)
+        hi = max(hi, x)
+    if rising:
+        return 0, e, e
+    if lo < 0 or hi > 4 * n + 1024:
+        return 2, e, e
+    # a stable counting sort by owner, then the runs (page, owner) of the sorted stream
+    at = np.zeros(hi + 2, dtype=np.int64)
+    for i in range(n):
+        at[owner[i] + 1] += 1
+    for v in range(hi + 1):
+        at[v + 1] += at[v]
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        x = owner[i]
+        order[at[x]] = i
+        at[x] += 1
+    out_w = np.empty(n, dtype=np.int64)
+    out_o = np.empty(n, dtype=np.int64)
+    k = -1
+    page = np.int64(0)
+    for j in range(n):
+        w = words[order[j]]
+        o = owner[order[j]]
+        p = w >> shift if shift >= 0 else w // page_words
+        if k < 0 or p != page or o != out_o[k]:
+            k += 1
+            out_w[k] = w
+            out_o[k] = o
+            page = p
+        elif w > out_w[k]:
+            out_w[k] = w
+    return 1, out_w[: k + 1].copy(), out_o[: k + 1].copy()
