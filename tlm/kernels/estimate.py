@@ -205,7 +205,14 @@ def charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np
     ``into`` is a block of the estimate's ``gather_misses``, where a
     :class:`~tlm.kernels.memory.Deferred` ``streams`` corrects them later."""
     first = lp.first[leaf] * PHOTON_WORDS
-    acc = Accesses.of_ranges(first, first + lp.size[leaf] * PHOTON_WORDS, query, streams.page_words)
+    charge_words(streams, first, first + lp.size[leaf] * PHOTON_WORDS, query, into, stream)
+
+
+def charge_words(streams: Streams, lo: np.ndarray, hi: np.ndarray, query: np.ndarray, into: np.ndarray,
+                 stream: str = GATHER_STREAM) -> None:
+    """:func:`charge_leaves` of pairs whose word ranges ``lo[i] .. hi[i]`` are made already
+    (the compiled gather's chunks make them: :func:`tlm.kernels._jit_pmap.pair_words`)."""
+    acc = Accesses.of_ranges(lo, hi, query, streams.page_words)
     streams.charge(stream, acc, into.shape[0], into)
 
 
@@ -348,18 +355,20 @@ def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None,
         lambda c: _gather_chunk(lp, pts, nrm, r, cone_k, c[0] + c[2], c[0] + c[3], per_query), chunks)
     at = 0
     for q0, q1 in blocks:
-        m = q1 - q0
         parts = []
         while at < len(chunks) and chunks[at][0] == q0:
-            visits, accepted, sums, pq, leaf = next(results)
-            parts.append((visits, accepted, sums, pq + chunks[at][2], leaf))  # the query's place in the block
+            got = next(results)
+            if chunks[at][2]:
+                got = (*got[:3], got[3] + chunks[at][2], *got[4:])  # the query's place in the block
+            parts.append(got)
             at += 1
-        visits, accepted, sums, pq, leaf = (np.concatenate(col, axis=-1) for col in zip(*parts, strict=True))
+        visits, accepted, sums, pq, lo, hi, leaves, tested = (
+            parts[0] if len(parts) == 1 else (np.concatenate(col, axis=-1) for col in zip(*parts, strict=True)))
         out.node_visits[q0:q1] = visits
-        out.leaves_visited[q0:q1] = np.bincount(pq, minlength=m)
-        out.photons_tested[q0:q1] = np.bincount(pq, weights=lp.size[leaf], minlength=m)
+        out.leaves_visited[q0:q1] = leaves
+        out.photons_tested[q0:q1] = tested
         out.photons_accepted[q0:q1] = accepted
-        charge_leaves(streams, lp, pq, leaf, out.gather_misses[q0:q1], stream)
+        charge_words(streams, lo, hi, pq, out.gather_misses[q0:q1], stream)
         if norm > 0.0:
             out.density[q0:q1] = (sums / norm).T
     return out
@@ -370,11 +379,15 @@ GATHER_MIN_CHUNK = 512  # queries per chunk at the least when a block is split b
 
 def _gather_chunk(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, a: int, b: int,
                   per_query: list[float]):
-    """The compiled gather of queries ``a:b``: ``visits, accepted`` (m,), ``sums`` (3, m) and
-    the (query, leaf) pairs in order (the query numbered from ``a``), its pair buffer grown
-    until it holds them (``per_query``: the pairs per query to size it by, raised by a chunk that
-    needed more, so that the next chunks do not run twice)."""
+    """The compiled gather of queries ``a:b``: ``visits, accepted`` (m,), ``sums`` (3, m), the
+    (query, leaf) pairs' queries in order (numbered from ``a``) and the word ranges of their
+    leaves' photons (:data:`PHOTON_WORDS` a photon), and each query's leaves and photons
+    tested (m,) (:func:`tlm.kernels._jit_pmap.pair_words`, on this thread without the
+    interpreter lock); the pair buffer grown until it holds them (``per_query``: the pairs per
+    query to size it by, raised by a chunk that needed more, so that the next chunks do not
+    run twice)."""
     from tlm.kernels._jit_gather import fixed_radius
+    from tlm.kernels._jit_pmap import pair_words
 
     tree = lp.tree
     m = b - a
@@ -392,7 +405,9 @@ def _gather_chunk(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, a: 
         pairs = int(need)
         if m >= GATHER_MIN_CHUNK:  # (a few queries in a dense spot would size every later buffer)
             per_query[0] = max(per_query[0], 1.25 * need / m)
-    return visits, accepted, sums, pq[:need], leaf[:need]
+    pq = pq[:need]
+    leaves, tested, lo, hi = pair_words(pq, leaf[:need], lp.first, lp.size, m, PHOTON_WORDS)
+    return visits, accepted, sums, pq, lo, hi, leaves, tested
 
 
 # ---------------------------------------------------------------- the filters
@@ -496,7 +511,10 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
 
     position : (n, 3) the map's photons. The sample is ``min(sample, n)`` photons evenly
     spaced in storage order (``i * n // s``); the neighbours are found with
-    ``scipy.spatial.cKDTree`` and their distances recomputed in numpy, so the radius
+    ``scipy.spatial.cKDTree`` and their distances recomputed in numpy (compiled, the
+    engine's default: the same k-th distance, ``(dx*dx + dy*dy) + dz*dz``, found by an
+    exact search of a k-d tree, :func:`tlm.kernels._jit_pmap.kth_neighbour_d2`, which runs
+    without the interpreter lock; ties at the k-th distance give the same value), so the radius
     depends on the map alone (not on packets, threads or the gather points) and a map
     scaled by ``s`` gives ``s`` times the radius, up to rounding. ``k`` is capped at
     ``n - 1``. None when the map holds fewer than 2 photons or the median is 0 (photons
@@ -509,11 +527,16 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
     n = pos.shape[0]
     radius = None
     if n >= 2:
-        from scipy.spatial import cKDTree
-
         kk = min(int(k), n - 1)
         s = min(int(sample), n)
         at = np.arange(s, dtype=np.int64) * n // s
+        if engine() == "numba":  # the same distances, found by the compiled search, without the interpreter lock
+            from tlm.kernels._jit_pmap import KNN_LEAF, kth_neighbour_d2
+
+            med = float(np.median(np.sqrt(kth_neighbour_d2(np.ascontiguousarray(pos), at, kk, KNN_LEAF))))
+            return med if math.isfinite(med) and med > 0.0 else None
+        from scipy.spatial import cKDTree
+
         # (an unbalanced tree without shrunk boxes: built in under half the time, for 256
         # queries; the neighbours' distances are the same, recomputed below)
         tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)

@@ -19,11 +19,13 @@ reads in pixel order, the caustic map's on a pair of its own (:data:`CAUSTIC_STR
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 from tlm.kernels.emission import cosine_directions
+from tlm.kernels.engine import engine
 from tlm.kernels.estimate import GATHER_STREAM
 from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
@@ -233,7 +235,9 @@ PMAP_STAGE, FGATHER_STAGE = "pass_pmap", "pass_fgather"
 FG_CHUNK_RAYS = 1 << 16
 
 
+@functools.lru_cache(maxsize=64)
 def _fg_key(seed: int) -> int:
+    """The final-gather rays' hash key of the run's ``seed`` (made once a seed: every chunk asks)."""
     return int(np.random.SeedSequence([seed, 0xF16A7]).generate_state(1, dtype=np.uint64)[0] >> 1)
 
 
@@ -244,8 +248,8 @@ def final_gather_directions(normals: np.ndarray, point_keys: np.ndarray, rays: i
     neighbours. Returns the point of each ray (m * rays,), its index (m * rays,) and its
     direction (m * rays, 3), point-major."""
     m = normals.shape[0]
-    j = np.repeat(np.arange(m, dtype=np.int64), rays)
-    r = np.tile(np.arange(rays, dtype=np.int64), m)
+    ray = np.arange(m * rays, dtype=np.int64)  # (repeat and tile's values, by ufuncs: without the interpreter lock)
+    j, r = ray // rays, ray % rays
     key = _fg_key(seed)
     x1 = hash_uniform(key, point_keys[j], r, 0)
     x2 = hash_uniform(key, point_keys[j], r, 1)
@@ -322,6 +326,10 @@ def _add_per_pixel(work: dict, k: str, owner: np.ndarray, e, streams: Streams) -
     ``streams.fold``, which a :class:`~tlm.kernels.memory.Deferred` corrects later)."""
     if k == "gather_misses":
         streams.fold(e.gather_misses, owner, work[k])
+    elif engine() == "numba":  # (the same integer sums, compiled: without the interpreter lock)
+        from tlm.kernels._jit_pmap import add_per_owner
+
+        add_per_owner(work[k], np.ascontiguousarray(owner, dtype=np.int64), getattr(e, k))
     else:
         work[k] += np.bincount(owner, weights=getattr(e, k), minlength=work[k].shape[0]).astype(np.int64)
 

@@ -145,17 +145,28 @@ def _branches(frame: Frame, st: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     w_refr = np.where(mirror[:, None], 0.0, weight * (1.0 - f)[:, None] * frame.transmittance[tri])
     # the branches, each sample's reflection before its refraction
     min_w = max(frame.cfg.render.min_weight, np.finfo(float).tiny)
-    take_l = w_refl.max(axis=1) >= min_w
-    take_r = w_refr.max(axis=1) >= min_w
-    order = np.argsort(np.r_[np.flatnonzero(take_l) * 2, np.flatnonzero(take_r) * 2 + 1], kind="stable")
-    src = np.r_[np.flatnonzero(take_l), np.flatnonzero(take_r)][order]
+    n = tri.shape[0]
+    take = np.empty((n, 2), dtype=bool)  # (sample, branch): reflection 0, refraction 1
+    np.greater_equal(w_refl.max(axis=1), min_w, out=take[:, 0])
+    np.greater_equal(w_refr.max(axis=1), min_w, out=take[:, 1])
+    at = np.flatnonzero(take.ravel())  # the branches taken, in (sample, branch) order
+    src = at >> 1
     # a refraction enters the glass (against its outward normal: the medium becomes its
     # ior) or leaves it (into air); a reflection stays where it is
     entering = np.sum(d * geo, axis=1) < 0
     refracted_medium = np.where(entering, np.where(mirror, 1.0, frame.ior[tri]), 1.0)
     return {"sidx": st["sidx"][src], "tri": tri[src], "x": st["x"][src],
-            "d": np.r_[refl[take_l], refr[take_r]][order], "weight": np.r_[w_refl[take_l], w_refr[take_r]][order],
-            "medium": np.r_[medium[take_l], refracted_medium[take_r]][order]}
+            "d": _interleave(refl, refr)[at], "weight": _interleave(w_refl, w_refr)[at],
+            "medium": _interleave(medium, refracted_medium)[at]}
+
+
+def _interleave(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a[0], b[0], a[1], b[1], ...`` (rows of (n,) or (n, 3) arrays): the branches of each sample
+    in a row each, reflection before refraction (a selection: the values themselves)."""
+    out = np.empty((a.shape[0], 2, *a.shape[1:]), dtype=np.result_type(a, b))
+    out[:, 0] = a
+    out[:, 1] = b
+    return out.reshape(-1, *a.shape[1:])
 
 
 def _bounce(frame: Frame, g: GBuffer, piece: _Piece, rays: dict[str, np.ndarray], work: dict[str, np.ndarray],
