@@ -529,3 +529,30 @@ def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeyp
                       {}, threads=None)
     sweep.run_point(task)
     assert seen == [3, 2, 5]  # the worker's share; the sweep's; the config's own
+
+
+def test_a_null_thread_count_takes_at_most_the_default_maximum_unless_forked(monkeypatch):
+    """``render.threads: null`` takes the CPUs available, at most DEFAULT_MAX_THREADS (8) where
+    the batches run on threads: on 16 cores 16 threads rendered slower than 8 (the interpreter
+    lock). A count asked for is kept; forked workers (no shared lock) take every CPU; a sweep's
+    worker share is capped alike."""
+    from tlm.experiments import executors
+
+    monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
+    assert threads.DEFAULT_MAX_THREADS == 8
+    monkeypatch.setattr(threads, "available", lambda: 16)
+    with threads.using(None) as n:
+        assert n == 8 == threads.current()
+    with threads.using(12) as n:
+        assert n == 12
+    assert executors.kernel_threads(2, None, 10) == 8  # (16 CPUs over 2 workers: 8 each)
+    monkeypatch.setattr(threads, "available", lambda: 32)
+    assert executors.kernel_threads(2, None, 10) == 8  # (16 each, capped)
+    assert executors.kernel_threads(8, None, 10) == 4
+    monkeypatch.setattr(threads, "available", lambda: 4)
+    with threads.using(None) as n:
+        assert n == 4
+    monkeypatch.setattr(threads, "available", lambda: 16)
+    monkeypatch.setenv("TLM_FORK_WORKERS", "1")
+    with threads.using(None) as n:
+        assert n == (16 if threads.can_fork() else 8)

@@ -81,7 +81,8 @@ class RenderConfig:
                          "images and work do not depend on it; peak memory grows with it)", min=1)
     threads: int | None = _f(None, "threads the kernels run on (traversal, gathers, photon tracing); null = the "
                              "CPUs available to the process (its affinity, within a container's CPU quota; in a "
-                             "sweep of several --jobs: their share of them); "
+                             "sweep of several --jobs: their share of them), at most 8 (more threads render slower: "
+                             "they share Python's interpreter lock) unless TLM_FORK_WORKERS=1; "
                              "speed only: images, work and cycles are bit-identical for every count", min=1)
 
 

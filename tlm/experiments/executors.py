@@ -425,14 +425,14 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     available over the worker processes (:func:`open_executor`'s), at least one. None (the
     worker's own CPUs) for one worker, and for a remote Dask cluster, whose machines are
     not this one: there each point sizes itself (:func:`dask_worker_threads`)."""
-    from tlm.kernels.threads import available
+    from tlm.kernels.threads import available, default_threads
 
     if dask not in (None, "local"):
         return None
     workers = min(jobs, points)
     if workers <= 1:
         return None
-    return max(1, available() // workers)
+    return default_threads(available() // workers)  # (at most DEFAULT_MAX_THREADS, as a null's own)
 
 
 _SLOTS: dict[str, tuple[float, int]] = {}  # a Dask worker's address -> (when asked, slots on its machine)
@@ -453,7 +453,7 @@ def dask_worker_threads() -> int | None:
         return None
     from distributed import get_client, get_worker
 
-    from tlm.kernels.threads import available
+    from tlm.kernels.threads import available, default_threads
 
     try:
         worker = get_worker()
@@ -477,7 +477,7 @@ def dask_worker_threads() -> int | None:
         except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
             slots = own
         _SLOTS[worker.address] = (now, slots)
-    return max(1, available() // slots)
+    return default_threads(available() // slots)  # (at most DEFAULT_MAX_THREADS)
 
 
 @contextmanager

@@ -191,7 +191,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     cached (:func:`run`), so its photons are checked against memory before the render too,
     when none is cached.
 
-    The kernels run on ``render.threads`` threads (null: the CPUs available), with the
+    The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
     with threads.using(cfg.render.threads):
         timer = Timer()

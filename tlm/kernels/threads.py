@@ -136,13 +136,30 @@ def share() -> int:
     return _SHARE.get()
 
 
+# The most threads ``render.threads: null`` takes where the batches run on threads: they share
+# the interpreter lock, and past about 8 more threads render slower, not faster. On a 16-core
+# machine (benchmarks/README.md, "16 cores", 2026-11-29) cornell_pmap 320x320 ran 4.97x one
+# thread's speed on 8 threads and 3.13x on 16 (3.91x and 2.43x before the glue was compiled);
+# the conference room 5.10x and 4.02x. Forked workers (TLM_FORK_WORKERS=1) share no lock and
+# take every CPU (9.99x on 16).
+DEFAULT_MAX_THREADS = 8
+
+
+def default_threads(cpus: int | None = None) -> int:
+    """The threads of ``render.threads: null``: ``cpus`` (default the CPUs available,
+    :func:`available`; a sweep's worker passes its share of them), at most
+    :data:`DEFAULT_MAX_THREADS` unless the batches run on forked workers (:func:`can_fork`)."""
+    n = available() if cpus is None else max(1, int(cpus))
+    return n if can_fork() else min(n, DEFAULT_MAX_THREADS)
+
+
 @contextlib.contextmanager
 def using(n: int | None):
-    """Run the kernels called inside the block on ``n`` threads (None: :func:`available`).
+    """Run the kernels called inside the block on ``n`` threads (None: :func:`default_threads`).
     ``TLM_FORK_WORKERS`` is checked here (:func:`fork_workers`), so a bad value is refused
     at one thread too, where it is not read."""
     fork_workers()
-    n = available() if n is None else int(n)
+    n = default_threads() if n is None else int(n)
     if n < 1:
         raise ValueError(f"threads (={n}) must be >= 1")
     token = _THREADS.set(n)

@@ -100,7 +100,7 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
     docstring). ``timer``: gets the stages ``photon_trace``, ``cast`` and
     ``pass_<name>``; ``progress``: a bar on stderr that follows the batches.
 
-    The kernels run on ``render.threads`` threads (null: the CPUs available), with the
+    The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`). On one thread the batches run one after the
     other, every pass charging its cache pairs (one :class:`~tlm.kernels.memory.Streams`
     per pass, carried batch to batch). On several, the image is cut into smaller batches
