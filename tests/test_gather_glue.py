@@ -1,7 +1,6 @@
 """The photon-map glue compiled without the interpreter lock (tlm/kernels/_jit_pmap.py) gives
-exactly what the numpy code it replaced gave: the density rule's k-th neighbour distances
-(ties, duplicates, planes, lattices), a gather's per-query counts and leaf word ranges, the
-per-pixel sums, and the final-gather rays' point and ray indices."""
+exactly what the numpy code it replaced gave: a gather's per-query counts and leaf word ranges,
+the per-pixel sums, and the final-gather rays' point and ray indices."""
 
 from __future__ import annotations
 
@@ -10,73 +9,9 @@ import pytest
 
 from tlm.kernels import _jit_pmap, estimate, threads
 from tlm.kernels.bsp import build_point_tree
-from tlm.kernels.estimate import Estimate, density_radius
+from tlm.kernels.estimate import Estimate
 from tlm.kernels.memory import PHOTON_WORDS, Streams
 from tlm.render import pmap
-
-
-def _kth_reference(pos: np.ndarray, at: np.ndarray, kk: int) -> np.ndarray:
-    """The numpy engine's k-th distances: scipy's cKDTree, the distances recomputed in numpy."""
-    from scipy.spatial import cKDTree
-
-    s = at.shape[0]
-    _, idx = cKDTree(pos, balanced_tree=False, compact_nodes=False).query(pos[at], k=kk + 1, workers=1)
-    idx = np.asarray(idx, dtype=np.int64).reshape(s, kk + 1)
-    d2 = ((pos[idx] - pos[at][:, None, :]) ** 2).sum(axis=2)
-    d2 = np.where(idx == at[:, None], np.inf, d2)
-    d2.sort(axis=1)
-    return d2[:, kk - 1]
-
-
-def _cloud(rng, kind: int, n: int) -> np.ndarray:
-    if kind == 0:  # spread
-        return rng.standard_normal((n, 3)) * rng.uniform(0.1, 10.0, 3)
-    if kind == 1:  # a small integer lattice: many ties at every distance
-        return rng.integers(0, 3, (n, 3)).astype(np.float64)
-    if kind == 2:  # points stacked five on one spot
-        return np.repeat(rng.standard_normal((n // 5 + 1, 3)), 5, axis=0)[:n]
-    return np.column_stack([rng.standard_normal(n), np.zeros(n), rng.integers(0, 4, n) * 0.1])  # a plane, rows
-
-
-@pytest.mark.parametrize("kind", [0, 1, 2, 3])
-def test_kth_neighbour_is_the_kdtree_reference(kind):
-    rng = np.random.default_rng(11 + kind)
-    for _ in range(40):
-        n = int(rng.integers(2, 300))
-        kk = int(rng.integers(1, n))
-        s = min(int(rng.integers(1, 300)), n)
-        at = np.arange(s, dtype=np.int64) * n // s
-        pos = _cloud(rng, kind, n)
-        for leaf in (1, 3, _jit_pmap.KNN_LEAF):
-            got = _jit_pmap.kth_neighbour_d2(np.ascontiguousarray(pos), at, kk, leaf)
-            assert np.array_equal(got, _kth_reference(pos, at, kk)), (n, kk, s, leaf)
-    # the edges: the farthest other point (kk = n - 1), two points, all on one spot
-    pos = _cloud(rng, 0, 50)
-    at = np.arange(50, dtype=np.int64)
-    assert np.array_equal(_jit_pmap.kth_neighbour_d2(pos, at, 49, 4), _kth_reference(pos, at, 49))
-    two = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
-    assert _jit_pmap.kth_neighbour_d2(two, np.array([0, 1]), 1, 8).tolist() == [25.0, 25.0]
-    assert _jit_pmap.kth_neighbour_d2(np.zeros((9, 3)), np.array([0, 4]), 8, 2).tolist() == [0.0, 0.0]
-
-
-def test_kth_neighbour_is_not_the_one_before_or_after():
-    """The k-th, not the (k-1)-th or (k+1)-th: distinct distances 1, 4, 9, ... from the origin."""
-    pos = np.column_stack([np.arange(6.0), np.zeros(6), np.zeros(6)])
-    assert _jit_pmap.kth_neighbour_d2(pos, np.array([0]), 3, 1).tolist() == [9.0]
-    assert _jit_pmap.kth_neighbour_d2(pos, np.array([0, 5]), 1, 2).tolist() == [1.0, 1.0]
-
-
-@pytest.mark.parametrize("k", [1, 8, 100])
-def test_density_radius_is_the_same_on_both_engines(monkeypatch, k):
-    rng = np.random.default_rng(k)
-    pos = np.r_[rng.uniform(0.0, 5.0, (3000, 3)), np.repeat(rng.uniform(0, 5, (40, 3)), 4, axis=0)]
-    pos[::7, 2] = 0.0  # a share of them on a plane
-    got = {}
-    for name in ("numpy", "numba"):
-        monkeypatch.setenv("TLM_KERNELS", name)
-        got[name] = (density_radius(pos, k), density_radius(pos[:2], k), density_radius(np.zeros((4, 3)), k))
-    assert got["numpy"] == got["numba"]
-    assert got["numba"][0] > 0.0 and got["numba"][1] == pytest.approx(np.linalg.norm(pos[1] - pos[0]))
 
 
 def test_pair_words_are_the_bincounts():
@@ -104,6 +39,16 @@ def test_add_per_owner_is_the_bincount():
         into = start.copy()
         _jit_pmap.add_per_owner(into, owner, values)
         assert np.array_equal(into, start + np.bincount(owner, weights=values, minlength=p).astype(np.int64))
+
+
+
+@pytest.mark.parametrize("bad", [-1, 5])
+def test_add_per_owner_refuses_an_owner_outside_the_counts(bad):
+    """As numpy's bincount-and-add does: no count lands on another pixel or past the end."""
+    into = np.zeros(5, dtype=np.int64)
+    with pytest.raises(IndexError, match="owner outside"):
+        _jit_pmap.add_per_owner(into, np.array([0, bad, 1], dtype=np.int64), np.array([1, 2, 3], dtype=np.int64))
+    assert not into.any()
 
 
 @pytest.mark.parametrize("engine", ["numpy", "numba"])

@@ -461,8 +461,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "experiment's name: sweep_fifo")
     sw.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
-                    "render.threads; 1 = in this process); a point that leaves render.threads null gets "
-                    "max(1, CPUs // workers) kernel threads, so --jobs x render.threads stays within the CPUs")
+                    "render.threads, without its cap of 8; 1 = in this process); a point that leaves "
+                    "render.threads null gets max(1, CPUs // workers) kernel threads (at most 8), so --jobs x "
+                    "render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
     sw.add_argument("--dask-wait", type=float, metavar="SECONDS", help="with --dask: how long the sweep waits while "

@@ -478,7 +478,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     if jobs is None:
         from tlm.kernels.threads import available
 
-        jobs = available()  # (the affinity mask and a container's CPU quota, as render.threads)
+        jobs = available()  # (the affinity mask and a container's CPU quota; not render.threads' cap of 8)
     if jobs < 1:
         raise InputError(f"{jobs} must be >= 1", key="--jobs")
     if dask_wait is not None:

@@ -511,10 +511,7 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
 
     position : (n, 3) the map's photons. The sample is ``min(sample, n)`` photons evenly
     spaced in storage order (``i * n // s``); the neighbours are found with
-    ``scipy.spatial.cKDTree`` and their distances recomputed in numpy (compiled, the
-    engine's default: the same k-th distance, ``(dx*dx + dy*dy) + dz*dz``, found by an
-    exact search of a k-d tree, :func:`tlm.kernels._jit_pmap.kth_neighbour_d2`, which runs
-    without the interpreter lock; ties at the k-th distance give the same value), so the radius
+    ``scipy.spatial.cKDTree`` and their distances recomputed in numpy, so the radius
     depends on the map alone (not on packets, threads or the gather points) and a map
     scaled by ``s`` gives ``s`` times the radius, up to rounding. ``k`` is capped at
     ``n - 1``. None when the map holds fewer than 2 photons or the median is 0 (photons
@@ -527,16 +524,11 @@ def density_radius(position: np.ndarray, k: int, sample: int = DENSITY_SAMPLE) -
     n = pos.shape[0]
     radius = None
     if n >= 2:
+        from scipy.spatial import cKDTree
+
         kk = min(int(k), n - 1)
         s = min(int(sample), n)
         at = np.arange(s, dtype=np.int64) * n // s
-        if engine() == "numba":  # the same distances, found by the compiled search, without the interpreter lock
-            from tlm.kernels._jit_pmap import KNN_LEAF, kth_neighbour_d2
-
-            med = float(np.median(np.sqrt(kth_neighbour_d2(np.ascontiguousarray(pos), at, kk, KNN_LEAF))))
-            return med if math.isfinite(med) and med > 0.0 else None
-        from scipy.spatial import cKDTree
-
         # (an unbalanced tree without shrunk boxes: built in under half the time, for 256
         # queries; the neighbours' distances are the same, recomputed below)
         tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
