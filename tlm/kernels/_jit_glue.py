@@ -6,14 +6,17 @@ instead of a dozen numpy calls that hold the interpreter lock between them.
 
 Integer arithmetic only: each returns, element for element, what the numpy (and
 :mod:`tlm.kernels._jit_memory`) code it replaces returns (``tests/test_traverse_glue.py``
-compares them). The compaction loops are :mod:`tlm.kernels._jit_memory`'s, written out
-again here (a shared helper made them slower there, the module's docstring says).
+compares them). The node stream is :func:`tlm.kernels._jit_memory.csr_runs`'s; the two leaf
+streams' compaction loops are :mod:`tlm.kernels._jit_memory`'s ``range_runs``, written out again
+here, fused into one walk of the leaves (a shared helper made them slower there, the module's
+docstring says).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from tlm.kernels._jit_memory import csr_runs
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
@@ -63,25 +66,7 @@ def traversal_runs(node_ids, node_ptr, leaf_ids, leaf_ptr, leaf_first, leaf_last
     e = np.zeros(0, dtype=np.int64)
     if not (_valid_ptr(node_ptr, node_ids.shape[0]) and _valid_ptr(leaf_ptr, leaf_ids.shape[0])):
         return False, e, e, e, e, e, e
-    # nodes: owner i's words node_ids[node_ptr[i]:node_ptr[i+1]] (tlm.kernels._jit_memory.csr_runs)
-    n = node_ids.shape[0]
-    nw = np.empty(n, dtype=np.int64)
-    no = np.empty(n, dtype=np.int64)
-    k = -1
-    for i in range(node_ptr.shape[0] - 1):
-        page = np.int64(0)
-        for j in range(node_ptr[i], node_ptr[i + 1]):
-            w = np.int64(node_ids[j])
-            p = w >> shift if shift >= 0 else w // page_words
-            if j == node_ptr[i] or p != page:
-                k += 1
-                nw[k] = w
-                no[k] = i
-                page = p
-            elif w > nw[k]:
-                nw[k] = w
-    nodes_w = nw[: k + 1].copy()
-    nodes_o = no[: k + 1].copy()
+    nodes_w, nodes_o = csr_runs(node_ids, node_ptr, page_words, shift)  # (owner i's words node_ids[ptr[i]:ptr[i+1]])
     # the leaves' ranges (tlm.kernels._jit_memory.range_runs of each stream's ranges)
     r = leaf_ptr.shape[0] - 1
     total_i = 0
