@@ -6,17 +6,15 @@ instead of a dozen numpy calls that hold the interpreter lock between them.
 
 Integer arithmetic only: each returns, element for element, what the numpy (and
 :mod:`tlm.kernels._jit_memory`) code it replaces returns (``tests/test_traverse_glue.py``
-compares them). The node stream is :func:`tlm.kernels._jit_memory.csr_runs`'s; the two leaf
-streams' compaction loops are :mod:`tlm.kernels._jit_memory`'s ``range_runs``, written out again
-here, fused into one walk of the leaves (a shared helper made them slower there, the module's
-docstring says).
+compares them). The streams are compacted by :mod:`tlm.kernels._jit_memory`'s ``csr_runs``
+(the nodes) and ``range_runs`` (the leaves' index and vertex words).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from tlm.kernels._jit_memory import csr_runs
+from tlm.kernels._jit_memory import csr_runs, range_runs
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
@@ -67,67 +65,26 @@ def traversal_runs(node_ids, node_ptr, leaf_ids, leaf_ptr, leaf_first, leaf_last
     if not (_valid_ptr(node_ptr, node_ids.shape[0]) and _valid_ptr(leaf_ptr, leaf_ids.shape[0])):
         return False, e, e, e, e, e, e
     nodes_w, nodes_o = csr_runs(node_ids, node_ptr, page_words, shift)  # (owner i's words node_ids[ptr[i]:ptr[i+1]])
-    # the leaves' ranges (tlm.kernels._jit_memory.range_runs of each stream's ranges)
-    r = leaf_ptr.shape[0] - 1
-    total_i = 0
-    total_v = 0
-    for i in range(r):
+    # the leaves' ranges, each visited leaf's in its ray's order (an empty leaf: an empty range)
+    m = leaf_ids.shape[0]
+    i_first = np.zeros(m, dtype=np.int64)
+    i_last = np.zeros(m, dtype=np.int64)
+    v_first = np.zeros(m, dtype=np.int64)
+    v_last = np.zeros(m, dtype=np.int64)
+    owner = np.empty(m, dtype=np.int64)
+    for i in range(leaf_ptr.shape[0] - 1):
         for j in range(leaf_ptr[i], leaf_ptr[i + 1]):
+            owner[j] = i
             f = np.int64(leaf_first[leaf_ids[j]])
             last = np.int64(leaf_last[leaf_ids[j]])
-            if last <= f:
-                continue
-            a, b = f // indices_per_word, (last - 1) // indices_per_word  # (a <= b)
-            c, d = f * vertex_words, last * vertex_words - 1
-            if shift >= 0:
-                total_i += (b >> shift) - (a >> shift) + 1
-                total_v += (d >> shift) - (c >> shift) + 1
-            else:
-                total_i += b // page_words - a // page_words + 1
-                total_v += d // page_words - c // page_words + 1
-    iw = np.empty(total_i, dtype=np.int64)
-    io = np.empty(total_i, dtype=np.int64)
-    vw = np.empty(total_v, dtype=np.int64)
-    vo = np.empty(total_v, dtype=np.int64)
-    ki = -1
-    kv = -1
-    page_i = np.int64(0)
-    page_v = np.int64(0)
-    for i in range(r):
-        o = np.int64(i)
-        for j in range(leaf_ptr[i], leaf_ptr[i + 1]):
-            f = np.int64(leaf_first[leaf_ids[j]])
-            last = np.int64(leaf_last[leaf_ids[j]])
-            if last <= f:
-                continue
-            lo = f // indices_per_word
-            hi = (last - 1) // indices_per_word
-            p0 = lo >> shift if shift >= 0 else lo // page_words
-            p1 = hi >> shift if shift >= 0 else hi // page_words
-            for p in range(p0, p1 + 1):
-                w = min(hi, p * page_words + (page_words - 1))
-                if ki < 0 or p != page_i or o != io[ki]:
-                    ki += 1
-                    iw[ki] = w
-                    io[ki] = o
-                    page_i = p
-                elif w > iw[ki]:
-                    iw[ki] = w
-            lo = f * vertex_words
-            hi = last * vertex_words - 1
-            p0 = lo >> shift if shift >= 0 else lo // page_words
-            p1 = hi >> shift if shift >= 0 else hi // page_words
-            for p in range(p0, p1 + 1):
-                w = min(hi, p * page_words + (page_words - 1))
-                if kv < 0 or p != page_v or o != vo[kv]:
-                    kv += 1
-                    vw[kv] = w
-                    vo[kv] = o
-                    page_v = p
-                elif w > vw[kv]:
-                    vw[kv] = w
-    return True, nodes_w, nodes_o, iw[: ki + 1].copy(), io[: ki + 1].copy(), vw[: kv + 1].copy(), \
-        vo[: kv + 1].copy()
+            if last > f:
+                i_first[j] = f // indices_per_word
+                i_last[j] = (last - 1) // indices_per_word + 1
+                v_first[j] = f * vertex_words
+                v_last[j] = last * vertex_words
+    iw, io = range_runs(i_first, i_last, owner, page_words, shift)
+    vw, vo = range_runs(v_first, v_last, owner, page_words, shift)
+    return True, nodes_w, nodes_o, iw, io, vw, vo
 
 
 @njit(cache=True, nogil=True)
