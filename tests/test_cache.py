@@ -17,7 +17,6 @@ from tlm.kernels.memory import (
     REGION_PAGES,
     Accesses,
     PairState,
-    Recorder,
     Streams,
     misses_per_packet,
     page_misses,
@@ -25,6 +24,7 @@ from tlm.kernels.memory import (
     range_misses,
     span_addresses,
 )
+from tlm.kernels.recording import Recorder
 
 
 def misses(addresses, state=None, page_words=8):

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from tlm.config import config_from_dict
-from tlm.kernels import shade, traverse
+from tlm.kernels import shade, traverse, traverse_numpy
 from tlm.kernels.memory import REGION_PAGES, Streams, page_misses, span_addresses
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
 from tlm.kernels.work import MISS_KEYS, WORK_KEYS
@@ -304,7 +304,7 @@ def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
     d = rng.normal(size=(300, 3))
     fn = any_hit if first_only else closest_hit
     plain = fn(accel, o, d, record=True)
-    real_check, real64 = traverse.check, traverse.closest_slots64
+    real_check, real64 = traverse.check, traverse_numpy.closest_slots64
 
     def flaky(o_, d_, tmin, tmax, soa64, slot):
         t, u, v, ok = real_check(o_, d_, tmin, tmax, soa64, slot)
@@ -317,7 +317,7 @@ def test_touched_follows_the_float64_fallback(frame, monkeypatch, first_only):
         return np.full_like(slot, -1), np.full_like(t, np.inf)
 
     monkeypatch.setattr(traverse, "check", flaky)
-    monkeypatch.setattr(traverse, "closest_slots64", blind)
+    monkeypatch.setattr(traverse_numpy, "closest_slots64", blind)
     res = fn(accel, o, d, record=True)
     assert_touched_matches_counts(accel, res)
     assert_touched_matches_counts(accel, plain)

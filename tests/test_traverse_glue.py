@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from tlm.kernels import memory, traverse
-from tlm.kernels.memory import PAGE_WORDS, Accesses, traversal_accesses
+from tlm.kernels.memory import PAGE_WORDS, Accesses
+from tlm.kernels.recording import traversal_accesses
 from tlm.kernels.traverse import Touched, any_hit, build_accel, closest_hit
 from tlm.scenes.loader import load_scene
 

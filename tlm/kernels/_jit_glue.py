@@ -1,6 +1,6 @@
 """The integer glue around the compiled traversal, compiled with numba (nogil): what
 :func:`tlm.kernels.traverse._traverse_jit` forms from a packet's answers (the CSR pointers
-of the recorded nodes and leaves) and what :func:`tlm.kernels.memory.traversal_accesses`
+of the recorded nodes and leaves) and what :func:`tlm.kernels.recording.traversal_accesses`
 forms from them (the compacted node, leaf-index and vertex streams), each in one call
 instead of a dozen numpy calls that hold the interpreter lock between them.
 
@@ -51,7 +51,7 @@ def _valid_ptr(ptr, n):
 @njit(cache=True, nogil=True)
 def traversal_runs(node_ids, node_ptr, leaf_ids, leaf_ptr, leaf_first, leaf_last, indices_per_word,
                    vertex_words, page_words, shift):
-    """The three compacted streams of :func:`tlm.kernels.memory.traversal_accesses` (node
+    """The three compacted streams of :func:`tlm.kernels.recording.traversal_accesses` (node
     words ``NODE_WORDS`` = 1 per node).
 
     Returns ``ok`` (False: a pointer array does not rise from 0 to its list's length,

@@ -203,7 +203,7 @@ def charge_leaves(streams: Streams, lp: LeafPhotons, query: np.ndarray, leaf: np
     ``query[i]`` (in ``[0, m)``), pairs in order, on the pair of ``stream`` (default: the
     Fragment PM's ``photons``; the caustic map's leaves are read as ``caustic_photons``).
     ``into`` is a block of the estimate's ``gather_misses``, where a
-    :class:`~tlm.kernels.memory.Deferred` ``streams`` corrects them later."""
+    :class:`~tlm.kernels.recording.Deferred` ``streams`` corrects them later."""
     first = lp.first[leaf] * PHOTON_WORDS
     charge_words(streams, first, first + lp.size[leaf] * PHOTON_WORDS, query, into, stream)
 

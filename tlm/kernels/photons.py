@@ -51,7 +51,8 @@ from tlm.kernels.bsp import BSPTree, bounds, build_point_tree
 from tlm.kernels.emission import aim_boxes, cosine_directions, emit, photon_key
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius, leaf_photons
-from tlm.kernels.memory import PAGE_WORDS, PAIRS, Deferred, Recorder, Streams, traversal_accesses
+from tlm.kernels.memory import PAGE_WORDS, PAIRS, Streams
+from tlm.kernels.recording import Deferred, Recorder, traversal_accesses
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.kernels.work import PHOTON_WORK, PhotonWork, stream_keys

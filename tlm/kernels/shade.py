@@ -32,7 +32,8 @@ import math
 import numpy as np
 
 from tlm.kernels.engine import engine
-from tlm.kernels.memory import PAGE_WORDS, Accesses, Recorder, traversal_accesses
+from tlm.kernels.memory import PAGE_WORDS, Accesses
+from tlm.kernels.recording import Recorder, traversal_accesses
 from tlm.kernels.traverse import Counts, TriangleAccel, any_hit, closest_hit
 from tlm.scenes.model import KIND, Light, spot_falloff
 from tlm.scenes.normals import interpolate
@@ -334,7 +335,7 @@ def direct_light(
     Returns radiance (k, 3), per-point work: ``shadow_rays``, ``shadow_hits`` and the
     traversal counts of the shadow rays (``shadow_node_visits``, ...): the thesis traces
     shadow rays in passes of their own, so the timing model keeps them apart; and, with
-    ``record``, the shadow rays' reads (:func:`~tlm.kernels.memory.traversal_accesses`:
+    ``record``, the shadow rays' reads (:func:`~tlm.kernels.recording.traversal_accesses`:
     ``nodes``, ``indices``, ``vertices``, compacted for ``page_words``-word pages) with
     owner = the point, point-major (a point's rays light by light, sample by sample),
     else None.

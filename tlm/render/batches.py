@@ -18,8 +18,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from tlm.kernels import release_memory, threads
-from tlm.kernels.memory import Deferred, Streams
+from tlm.kernels.memory import Streams
 from tlm.kernels.photons import PhotonTrace
+from tlm.kernels.recording import Deferred
 from tlm.progress import Timer, progress_bar
 from tlm.render import checks
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer, cast, new_streams, pixel_batches
@@ -106,8 +107,8 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
     per pass, carried batch to batch). On several, the image is cut into smaller batches
     (:func:`batches_for`; a pixel's results never depend on its batch) and whole batches
     run at once, on the threads' pool (:func:`tlm.kernels.threads.ordered`), or on forked
-    worker processes where asked (:data:`BATCH_WORKERS`, :func:`tlm.kernels.threads.can_fork`):
-    each pass charges cold pairs of its own (:class:`~tlm.kernels.memory.Deferred`), and
+    worker processes past 8 threads or where asked (:data:`BATCH_WORKERS`, :func:`tlm.kernels.threads.can_fork`):
+    each pass charges cold pairs of its own (:class:`~tlm.kernels.recording.Deferred`), and
     the calling thread takes the batches in
     pixel order, settles each pass's charges on the carried pairs (the misses of the
     batches charged in order) and copies the batch into the image, while the next
@@ -251,7 +252,7 @@ class _Batch:
     """One batch's G-buffer (from another process: its :meth:`Primary.part`) and passes:
     pass -> (radiance, work); with ``deferred`` pairs, the work's misses as charged on
     cold pairs (settled in the calling thread; ``portable``: naming the arrays
-    ``"<pass>.<count>"``, :meth:`~tlm.kernels.memory.Deferred.portable`)."""
+    ``"<pass>.<count>"``, :meth:`~tlm.kernels.recording.Deferred.portable`)."""
 
     g: GBuffer | dict
     out: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]]
@@ -265,7 +266,7 @@ class _Batch:
 # after the photon trace: the frame, its BSP and the photon maps are the parent's pages, and
 # no interpreter lock is shared) or "threads" (one process; numpy and the compiled kernels
 # release the lock, the Python between them does not)
-BATCH_WORKERS = "processes"  # (where threads.can_fork: opt-in, TLM_FORK_WORKERS=1)
+BATCH_WORKERS = "processes"  # (where threads.can_fork: past DEFAULT_MAX_THREADS threads, or TLM_FORK_WORKERS=1)
 
 
 def _portable(frame: Frame, done: _Batch) -> _Batch:
@@ -279,7 +280,7 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
                streams: dict[str, Streams], deferred: bool, tally: bool, timer: Timer, bar, i: int,
                n: int) -> _Batch:
     """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
-    ``deferred``, on cold :class:`~tlm.kernels.memory.Deferred` pairs like them (a batch on
+    ``deferred``, on cold :class:`~tlm.kernels.recording.Deferred` pairs like them (a batch on
     a worker thread: its per-map tallies are its own too)."""
     pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
     per_map: dict | None = {} if tally else None

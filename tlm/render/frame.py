@@ -22,7 +22,8 @@ import numpy as np
 from tlm.config import RunConfig
 from tlm.kernels import threads
 from tlm.kernels.camera import primary_rays
-from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams, traversal_accesses
+from tlm.kernels.memory import SHADING_WORDS, Accesses, Streams
+from tlm.kernels.recording import Recorder, traversal_accesses
 from tlm.kernels.shade import (
     SPAWN_EPS,
     direct_light,
@@ -105,7 +106,7 @@ def record_rays(frame: Frame, rec: Recorder, hits: Hits, owners: np.ndarray | No
 
 def charge(rec: Recorder, streams: Streams, work: dict[str, np.ndarray]) -> None:
     """Charge the recorded streams, pixel-major, to ``streams``; add the misses to ``work``
-    (later corrected there when ``streams`` is a :class:`~tlm.kernels.memory.Deferred`)."""
+    (later corrected there when ``streams`` is a :class:`~tlm.kernels.recording.Deferred`)."""
     rec.charge(streams, work["fragments"].shape[0], {name: work[STREAM_KEYS[name]] for name, _ in rec.added})
 
 

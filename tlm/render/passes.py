@@ -49,7 +49,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from tlm.kernels.memory import Recorder, Streams
+from tlm.kernels.memory import Streams
+from tlm.kernels.recording import Recorder
 from tlm.kernels.shade import (
     facing,
 )

@@ -27,8 +27,9 @@ import numpy as np
 from tlm.kernels.emission import cosine_directions
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import GATHER_STREAM
-from tlm.kernels.memory import SHADING_WORDS, Accesses, Recorder, Streams
+from tlm.kernels.memory import SHADING_WORDS, Accesses, Streams
 from tlm.kernels.photons import PhotonMap, PhotonMaps, PhotonTrace, trace_photons
+from tlm.kernels.recording import Recorder
 from tlm.kernels.shade import (
     emitted,
     final_gather_bounce,
@@ -323,7 +324,7 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
 
 def _add_per_pixel(work: dict, k: str, owner: np.ndarray, e, streams: Streams) -> None:
     """Add the gathers' count ``k`` of ``e`` to their pixels ``owner`` (the misses through
-    ``streams.fold``, which a :class:`~tlm.kernels.memory.Deferred` corrects later)."""
+    ``streams.fold``, which a :class:`~tlm.kernels.recording.Deferred` corrects later)."""
     if k == "gather_misses":
         streams.fold(e.gather_misses, owner, work[k])
     elif engine() == "numba":  # (the same integer sums, compiled: without the interpreter lock)

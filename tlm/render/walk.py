@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tlm.kernels.memory import Accesses, Recorder
+from tlm.kernels.memory import Accesses
+from tlm.kernels.recording import Recorder
 from tlm.kernels.shade import (
     emitted,
     scatter_specular,
