@@ -10,11 +10,11 @@ import shutil
 
 import pytest
 
+from tlm.caches import file_digest
 from tlm.experiments.provenance import mesh_paths, scene_identity
 from tlm.scenes import cache as scache
 from tlm.scenes import meshes
 from tlm.scenes.meshes import mesh_files
-from tlm.storage import file_digest
 
 SCENE = ("geometry: [{mesh: m.obj}, {shape: plane, params: {size: [4, 4]}}]\n"
          "materials: {g: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\ndefault_material: g\n"

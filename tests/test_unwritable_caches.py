@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tlm import api, storage
+from tlm import api, caches, storage
 from tlm.experiments import reference
 from tlm.fingerprint import fingerprint
 from tlm.scenes import meshes
@@ -49,14 +49,14 @@ def test_the_cache_folder_is_tlm_cache_then_xdg_cache_home_then_home(tmp_path, m
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "own"))
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
-    assert storage.cache_root("tracebacks") == tmp_path / "own" / "tracebacks"
+    assert caches.cache_root("tracebacks") == tmp_path / "own" / "tracebacks"
     monkeypatch.setenv("TLM_CACHE", "")  # (empty: unset)
-    assert storage.cache_root("tracebacks") == tmp_path / "xdg" / "tlm" / "tracebacks"
+    assert caches.cache_root("tracebacks") == tmp_path / "xdg" / "tlm" / "tracebacks"
     monkeypatch.delenv("TLM_CACHE")
-    assert storage.cache_root("tracebacks") == tmp_path / "xdg" / "tlm" / "tracebacks"
+    assert caches.cache_root("tracebacks") == tmp_path / "xdg" / "tlm" / "tracebacks"
     for ignored in ("", "relative/xdg"):  # (the XDG spec: a relative path is ignored)
         monkeypatch.setenv("XDG_CACHE_HOME", ignored)
-        assert storage.cache_root("tracebacks") == tmp_path / "home" / ".cache" / "tlm" / "tracebacks"
+        assert caches.cache_root("tracebacks") == tmp_path / "home" / ".cache" / "tlm" / "tracebacks"
 
 
 # ---------------------------------------------------------------- one line, once
@@ -66,7 +66,7 @@ def test_a_cache_that_cannot_be_written_is_said_once_naming_it_why_and_the_cost(
                                                                                  capsys):
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "not" / "made" / "yet"))  # (writable: made on the first write)
     for kind in ("functional", "scenes", "references", "oracle"):
-        storage.cache_root(kind)
+        caches.cache_root(kind)
     assert "cannot write" not in capsys.readouterr().err
     assert not (tmp_path / "not").exists()  # (looked at, nothing made)
 
@@ -76,22 +76,22 @@ def test_a_cache_that_cannot_be_written_is_said_once_naming_it_why_and_the_cost(
     first = meshes.load_mesh(mesh)
     second = meshes.load_mesh(mesh)  # (parsed again: nothing was kept)
     np.testing.assert_array_equal(first.triangles, second.triangles)
-    storage.cache_root("scenes")
+    caches.cache_root("scenes")
     err = capsys.readouterr().err
     said = _lines(err, "cannot write tlm's scene cache")
     assert said == [f"tlm: warning: cannot write tlm's scene cache {blocked / 'scenes'} ({blocked.parent} is a "
                     "file, not a folder): large meshes are parsed again on every load; set TLM_CACHE to a "
                     "writable folder"], err
-    assert storage.cache_warnings()[-1] == said[0].removeprefix("tlm: warning: ")
+    assert caches.cache_warnings()[-1] == said[0].removeprefix("tlm: warning: ")
 
 
 def test_a_failed_write_into_a_cache_is_said_once(tmp_path, monkeypatch, capsys):
     """A cache the first look took for writable (a full disk, a quota): its first failed
     write says the line, the next ones nothing."""
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "c"))
-    entry = storage.cache_root("functional") / "k.json"
+    entry = caches.cache_root("functional") / "k.json"
     entry.parent.mkdir(parents=True)
-    (entry.parent / f".{entry.name}.tmp{os.getpid()}").mkdir()  # (the temporary file cannot be opened)
+    (entry.parent / f".{entry.name}.tmp{storage._host()}-{os.getpid()}").mkdir()  # (write_atomic cannot open it)
     for _ in range(2):
         with pytest.raises(OSError):
             storage.write_file(entry, "{}")

@@ -6,8 +6,8 @@
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
 * :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
   number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``.
-* :func:`cache_root` — where the caches live (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
-  else ``~/.cache/tlm``), and the one line said when one of them cannot be written.
+* :func:`on_failed_write` — who is told of a write that failed (:mod:`tlm.caches`, which says
+  once that one of tlm's caches cannot be written); :func:`warn` — a one-line warning.
 
 For a folder, everything is written into a temporary sibling folder, which is renamed onto the
 destination only when the block finished; on any error (or Ctrl-C) the temporary
@@ -37,7 +37,6 @@ from __future__ import annotations
 import csv
 import errno
 import fcntl
-import hashlib
 import itertools
 import json
 import math
@@ -45,11 +44,10 @@ import os
 import re
 import shutil
 import socket
-import stat
 import sys
 import threading
 import time
-from collections.abc import Collection, Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
@@ -87,8 +85,9 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
 
 def _claiming(name: str, marker: str) -> bool:
     """Whether ``name`` is the temporary file of a marker being written (another tlm
-    process claiming the folder this instant, :func:`claim_folder`), or a lock file of
-    :func:`sharing` (a sweep refused, or killed, before it wrote its marker leaves one)."""
+    process claiming the folder this instant, :func:`claim_folder`: ``.<marker>.tmp<host>-<pid>``,
+    or an older tlm's ``.<marker>.tmp<pid>``), or a lock file of :func:`sharing` (a sweep refused,
+    or killed, before it wrote its marker leaves one)."""
     return name.startswith((f".{marker}.tmp", _RUNNING)) or name == _GUARD
 
 
@@ -101,10 +100,13 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     claiming one folder at once both succeed: the second finds the first's marker.
     ``existing=False``: a folder that exists (or that another process made first) is left
     as it is, its marker the caller's to write (:func:`sharing`). Whether this made it.
+    The prepared sibling, ``.<name>.claim<host>-<pid>`` (and the thread's tag), is this writer's
+    alone, on a folder shared between machines too: what is left at its name (by an earlier process
+    of this id on this machine) is removed first, never another machine's sibling.
     """
     out = Path(out)
     if not out.exists():
-        tmp = out.with_name(f".{out.name}.claim{os.getpid()}{_thread_tag()}")
+        tmp = out.with_name(f".{out.name}.claim{_owner()}{_thread_tag()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         try:
@@ -408,8 +410,8 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
     """
     try:
         out = check_destination(out, marker)
-    except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, :func:`cache_failed`)
-        _note_cache_write(out, e)
+    except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, tlm.caches)
+        _failed_write(out, e)
         raise
     writer = _writer()
     tmp = out.parent / f".{out.name}.tmp-{writer}"
@@ -430,7 +432,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
         shutil.rmtree(tmp, ignore_errors=True)  # (an earlier process's of the same id and number)
         tmp.mkdir()
     except OSError as e:
-        _note_cache_write(out, e)
+        _failed_write(out, e)
         raise EnvironmentFailure(f"cannot create the output folder ({e.strerror})", source=str(out)) from None
     try:
         yield tmp
@@ -475,7 +477,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
     except BaseException as e:
         if not leave:
             shutil.rmtree(tmp, ignore_errors=True)
-        _note_cache_write(out, e)
+        _failed_write(out, e)
         _raise_environmental(e, out)
         raise
 
@@ -552,11 +554,11 @@ def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
 def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     """An open file that replaces ``path`` when the block succeeds.
 
-    The data go to a hidden sibling (``.<name>.tmp<pid>``, ``-t<id>`` added in a thread other
-    than the main one, ``-<n>`` added while another block of this process writes that one (a
+    The data go to a hidden sibling (``.<name>.tmp<host>-<pid>``, ``-t<id>`` added in a thread
+    other than the main one, ``-<n>`` added while another block of this process writes that one (a
     block within a block, or two generators of one thread), so concurrent writers of one path,
-    processes or threads, never share it) that is renamed onto ``path`` at the end; on any error
-    the sibling is removed and ``path`` is left as it was.
+    threads or processes, of one machine or of two sharing a folder, never share it) that is
+    renamed onto ``path`` at the end; on any error the sibling is removed and ``path`` is left as it was.
     """
     path = Path(path)
     tmp = _temporary_file(path)
@@ -567,7 +569,7 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     except BaseException as e:
         with suppress(OSError):
             tmp.unlink(missing_ok=True)
-        _note_cache_write(path, e)
+        _failed_write(path, e)
         _raise_environmental(e, path)
         raise
     finally:
@@ -576,9 +578,10 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
 
 
 def _temporary_file(path: Path) -> Path:
-    """The temporary file of a :func:`write_atomic` of ``path``: the first of ``.<name>.tmp<pid>``
-    (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now."""
-    base = f".{path.name}.tmp{os.getpid()}{_thread_tag()}"
+    """The temporary file of a :func:`write_atomic` of ``path``: the first of ``.<name>.tmp<host>-<pid>``
+    (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now. The
+    host (:func:`_owner`): on a folder shared between machines a process id alone names no process."""
+    base = f".{path.name}.tmp{_owner()}{_thread_tag()}"
     with _LIVE_LOCK:
         tmp, n = path.with_name(base), 1
         while os.path.abspath(tmp) in _FILES:
@@ -645,207 +648,24 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
             w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else _finite(v) for k, v in r.items()})
 
 
-def cache_home() -> Path:
-    """The folder of tlm's caches: ``$TLM_CACHE``; else ``$XDG_CACHE_HOME/tlm`` where
-    ``XDG_CACHE_HOME`` is set to an absolute path (the XDG spec has a relative one ignored);
-    else ``~/.cache/tlm``. An empty variable counts as unset."""
-    if own := os.environ.get("TLM_CACHE"):
-        return Path(own)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg and os.path.isabs(xdg):
-        return Path(xdg) / "tlm"
-    return Path.home() / ".cache" / "tlm"
 
 
-# tlm's caches that a run writes to: their names in a warning, and what a cache that
-# cannot be written costs (the tracebacks' folder, which falls back to the temporary
-# folder, and numba's, which says its own line, are not among them)
-CACHES = {
-    "functional": ("functional", "every frame is rendered again, even for sweep points that differ only in arch.*"),
-    "scenes": ("scene", "large meshes are parsed again on every load"),
-    "references": ("reference", "photon-map references are computed again by every run"),
-    "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
-}
-CACHE_WARNING = "cannot write tlm's "  # how each line of cache_warnings() starts
-_CACHE_LOCK = threading.Lock()
-_CACHE_CHECKED: set[Path] = set()  # the cache folders looked at in this process
-_CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> its line (said once a process)
-_CACHE_SAID: set[str] = set()  # the lines said on stderr in this process
-_CACHE_HELD = 0  # > 0: the lines are kept, not said (a sweep point: its sweep says them once)
+_HEARERS: list[Callable[[Path, BaseException], None]] = []  # told of each failed write (on_failed_write)
 
 
-def cache_root(kind: str) -> Path:
-    """``<cache_home()>/<kind>``: the folder of one of tlm's caches.
-
-    The first call in a process for a cache of :data:`CACHES` checks that the folder can be
-    written (or made); where it cannot, one line says so (:func:`cache_failed`): a cache
-    that cannot be written costs speed only, never a result, but the user is told which.
-    """
-    folder = cache_home() / kind
-    if kind in CACHES and folder not in _CACHE_CHECKED:
-        with _CACHE_LOCK:
-            _CACHE_CHECKED.add(folder)
-        why = cache_problem(folder)
-        if why is not None:
-            cache_failed(folder, why)
-    return folder
+def on_failed_write(hear: Callable[[Path, BaseException], None]) -> None:
+    """Have ``hear(path, error)`` called when a write of this module fails: :func:`write_atomic`
+    of ``path``, :func:`atomic_folder` of ``path`` (a destination refused or that cannot be made
+    too), before the error goes on. :mod:`tlm.caches` hears so, to say once that a cache cannot be
+    written (a full disk), without this module knowing of caches. Asked twice, called once."""
+    if hear not in _HEARERS:
+        _HEARERS.append(hear)
 
 
-def cache_problem(folder: Path) -> str | None:
-    """Why nothing can be written into ``folder`` (nor the folder made), or None. Looked at,
-    not tried: nothing is created (``os.access``, which a root user's read-only mount fails too)."""
-    p = Path(folder)
-    while True:
-        try:
-            st = p.stat()
-            break
-        except (FileNotFoundError, NotADirectoryError):
-            if p.parent == p:
-                return f"{p} does not exist"
-            p = p.parent
-        except OSError as e:
-            return f"{p}: {(e.strerror or str(e)).lower()}"
-    if not stat.S_ISDIR(st.st_mode):
-        return f"{p} is a file, not a folder"
-    if os.access(p, os.W_OK | os.X_OK):
-        return None
-    try:
-        read_only = bool(os.statvfs(p).f_flag & os.ST_RDONLY)
-    except OSError:
-        read_only = False
-    return f"{p} is on a read-only file system" if read_only else f"{p} is not writable (permission denied)"
-
-
-def cache_failed(path: Path, why: str) -> None:
-    """Say, once a process per cache folder, that one of tlm's caches (the one ``path`` is
-    in or under) cannot be written, why, and what that costs; nothing for a path in none."""
-    path = Path(path)
-    home = cache_home()
-    kind = next((k for k in CACHES if path == home / k or home / k in path.parents), None)
-    if kind is None:
-        return
-    folder = home / kind
-    name, cost = CACHES[kind]
-    with _CACHE_LOCK:
-        if folder in _CACHE_LINES:
-            return
-        line = f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
-        _CACHE_LINES[folder] = line
-        held = _CACHE_HELD > 0
-    if not held:
-        say_cache_warning(line)
-
-
-def say_cache_warning(line: str) -> bool:
-    """:func:`warn` a line of :func:`cache_warnings` (this process's or a worker's) unless this
-    process said it already; whether it was said now."""
-    with _CACHE_LOCK:
-        if line in _CACHE_SAID:
-            return False
-        _CACHE_SAID.add(line)
-    warn(line)
-    return True
-
-
-def cache_warnings() -> list[str]:
-    """The lines of this process on the caches of :func:`cache_home` it cannot write
-    (:func:`cache_failed`), said or held."""
-    home = cache_home()
-    with _CACHE_LOCK:
-        return [line for folder, line in _CACHE_LINES.items() if folder.parent == home]
-
-
-@contextmanager
-def cache_warnings_held() -> Iterator[None]:
-    """While the block runs, a cache that cannot be written is noted (:func:`cache_warnings`),
-    not said: a sweep's point, whose sweep says each line once for all its workers."""
-    global _CACHE_HELD
-    with _CACHE_LOCK:
-        _CACHE_HELD += 1
-    try:
-        yield
-    finally:
-        with _CACHE_LOCK:
-            _CACHE_HELD -= 1
-
-
-def _note_cache_write(path: Path, e: BaseException) -> None:
-    """A write under one of the caches failed (:func:`write_atomic`, :func:`atomic_folder`):
-    said once (a full disk, a folder :func:`cache_problem` could not tell was read-only)."""
-    if isinstance(e, EnvironmentFailure):
-        why = str(e)
-    elif isinstance(e, OSError):
-        why = environment_problem(e, filename=False) or (e.strerror or str(e)).lower()
-    elif isinstance(e, InputError):  # (check_destination's: a file, or something else, in the way)
-        why = str(e).removeprefix(f"{e.key}: ") if e.key else str(e)
-    else:
-        return
-    cache_failed(path, why)
-
-
-def file_digest(path: Path) -> dict:
-    """``{"size": bytes, "sha256": hex}`` of a file, for a cache entry's sidecar."""
-    h = hashlib.sha256()
-    size = 0
-    with open(path, "rb") as fh:
-        while chunk := fh.read(1 << 20):
-            h.update(chunk)
-            size += len(chunk)
-    return {"size": size, "sha256": h.hexdigest()}
-
-
-def cached_image(folder: Path, name: str, key: str, what: str, again: str):
-    """The image ``folder/name`` (an (H, W, 3) float ``.npy``) and ``folder/meta.json`` of
-    the cache entry ``key``, or None when there is none. A damaged entry (``meta.json``
-    unreadable or of another key; the image not the file ``meta.json`` describes, by its
-    ``npy`` digest and its ``height`` and ``width`` where given, or not (H, W, 3) floats) is
-    reported once as a warning naming the file (``what``: the entry's kind; ``again``: what
-    computes it again) and removed, so it is computed again as if never cached."""
-    import numpy as np
-
-    npy, side = folder / name, folder / "meta.json"
-    if not npy.is_file() and not side.is_file():
-        return None
-    bad, why = side, None
-    try:
-        meta = json.loads(side.read_text())
-        if not isinstance(meta, dict) or meta.get("key") != key:
-            raise ValueError("not the metadata of this entry")
-    except (OSError, ValueError) as e:
-        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
-    if why is None:
-        bad = npy
-        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
-    if why is None:
-        try:
-            image = np.load(npy, allow_pickle=False)
-            size = (meta.get("height"), meta.get("width"))
-            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
-                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
-            if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
-                raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
-                                 f"{size[1]}x{size[0]}")
-            return image, meta
-        except (OSError, ValueError, EOFError) as e:
-            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
-    warn(f"damaged {what} cache entry {bad} ({why}): removed; {again}")
-    shutil.rmtree(folder, ignore_errors=True)
-    return None
-
-
-def digest_problem(path: Path, digest: object) -> str | None:
-    """Why ``path`` is not the file :func:`file_digest` described (``digest``), or None."""
-    if not isinstance(digest, dict) or not isinstance(digest.get("size"), int):
-        return "its sidecar has no size and checksum"
-    try:
-        size = Path(path).stat().st_size
-    except OSError as e:
-        return f"cannot read it ({e.strerror or e})"
-    if size != digest["size"]:
-        return f"{size} bytes, its sidecar says {digest['size']}"
-    if file_digest(path)["sha256"] != digest.get("sha256"):
-        return "its checksum differs from its sidecar's"
-    return None
+def _failed_write(path: Path, e: BaseException) -> None:
+    """Tell each of :func:`on_failed_write`'s hearers that writing ``path`` failed with ``e``."""
+    for hear in _HEARERS:
+        hear(path, e)
 
 
 SAID: set[str] = set()  # the lines warn() said (a command clears it, to print a run's warnings once)

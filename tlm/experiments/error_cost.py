@@ -81,6 +81,7 @@ import numpy as np
 
 from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
+from tlm.caches import cache_problem, cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
@@ -107,7 +108,7 @@ from tlm.render.pmap import (
     search_radius,
     trace_photon_map,
 )
-from tlm.storage import cache_problem, cached_image, check_destination, warn
+from tlm.storage import check_destination, warn
 
 COLUMNS = (
     "point", "factors", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
@@ -205,7 +206,7 @@ class Truth:
         diffuse = diffuse_pixels(frame, g).reshape(scene.camera.height, scene.camera.width)
         found = oracle.composite_truth(scene, diffuse, spp=self.spp, compute=False)
         if found is None:
-            if progress is not None:  # (a cache that cannot be written: tlm.storage has said which, and why)
+            if progress is not None:  # (a cache that cannot be written: tlm.caches has said which, and why)
                 kept = ("computed for this run only: its cache cannot be written" if cache_problem(oracle.cache_dir())
                         else "computed once, then cached")
                 progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp ({kept})")

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.arch.functional import Functional
+from tlm.caches import cache_root, digest_problem, file_digest
 from tlm.config import noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
@@ -37,7 +38,7 @@ from tlm.fingerprint import code_fingerprint
 from tlm.render.planner import inert_changes
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
-from tlm.storage import cache_root, digest_problem, file_digest, warn, write_file
+from tlm.storage import warn, write_file
 
 
 def scene_fingerprint(scene) -> str:

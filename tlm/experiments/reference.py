@@ -24,7 +24,7 @@ The reference traces with settings of its own (:func:`reference_config`): of the
 config only what changes the converged image is read, the rest is fixed (Russian
 roulette, the caustic group's share and aiming, no final gathering, the cone filter's
 constant :data:`CONE_K`), so it is cached in tlm's cache folder (``$TLM_CACHE``, else
-``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``: :func:`tlm.storage.cache_home`) in
+``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``: :func:`tlm.caches.cache_home`) in
 ``references/<key>/``, keyed (:func:`reference_key`) by the scene (triangles, shading
 normals or parts, materials, lights, camera and resolution), the photons' path length
 (``photons.max_bounces``), where the eye paths gather (``render.reflect_depth`` with
@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.caches import cache_problem, cache_root, cached_image, file_digest
 from tlm.config import EstimateConfig, PhotonConfig, RunConfig
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.kernels.camera import primary_rays
@@ -73,7 +74,7 @@ from tlm.render.passes import gather_points
 from tlm.render.planner import check_photon_memory
 from tlm.render.pmap import trace_photon_map
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_problem, cache_root, cached_image, file_digest, warn
+from tlm.storage import atomic_folder, warn
 
 REFERENCE_SEED = 0x5EED
 KEY_VERSION = 2  # 1: keyed by render.spp, the eye samples the run's

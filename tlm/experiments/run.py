@@ -41,6 +41,7 @@ import yaml
 from tlm.arch.costs import Programs, load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
+from tlm.caches import cache_warnings
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
@@ -59,7 +60,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_warnings, check_destination, json_text, warn
+from tlm.storage import atomic_folder, check_destination, json_text, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -559,7 +560,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
     (``trace.json`` also needs the timing model's trace, ``arch.trace``).
 
     ``results.json`` ``warnings`` end with the lines on tlm's caches that this process
-    could not write (:func:`tlm.storage.cache_warnings`), as a sweep point's do.
+    could not write (:func:`tlm.caches.cache_warnings`), as a sweep point's do.
     """
     outputs = set(outputs)
     unknown = outputs - set(OUTPUTS)

@@ -21,7 +21,7 @@ importing the rest of :mod:`tlm.kernels` does not import numba.
 Where no folder can hold the compiled code (a read-only install, no writable ``~/.cache``,
 ``NUMBA_CACHE_DIR`` unset: numba raises "no locator available" when the function is
 decorated), tlm's compiled files are cached in ``numba/`` of tlm's own cache folder
-(:func:`tlm.storage.cache_home`: ``$TLM_CACHE`` may point somewhere writable) where that
+(:func:`tlm.caches.cache_home`: ``$TLM_CACHE`` may point somewhere writable) where that
 can be written, else compiled without the on-disk cache: the same code, compiled again in
 each process. That is said once a process, one line on stderr (:func:`njit`).
 
@@ -106,11 +106,11 @@ def _mine(py_file: str) -> bool:
 
 def _tlm_cache_locator(caching) -> type:
     """A locator of the last resort, for tlm's compiled files only: ``<tlm's cache>/numba``
-    (:func:`tlm.storage.cache_home`), where numba's own folders cannot be written."""
+    (:func:`tlm.caches.cache_home`), where numba's own folders cannot be written."""
 
     class TlmCacheRootLocator(_PackageStamp, caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
         def __init__(self, py_func, py_file):
-            from tlm.storage import cache_home
+            from tlm.caches import cache_home
 
             self._py_file = py_file
             self._lineno = py_func.__code__.co_firstlineno
@@ -183,7 +183,7 @@ def _uncached_line(py_file: str) -> str:
     """Where numba looked for a folder to write the compiled code of ``py_file`` in, and what to do."""
     from numba.core import config
 
-    from tlm.storage import cache_home
+    from tlm.caches import cache_home
 
     places = [f"NUMBA_CACHE_DIR={config.CACHE_DIR}" if config.CACHE_DIR else "NUMBA_CACHE_DIR unset",
               str(Path(py_file).parent / "__pycache__")]

@@ -5,7 +5,7 @@
 single precision, no JIT, so it runs wherever Mitsuba's wheel installs; it uses every
 core), :func:`ground_truth` caches converged images in ``oracle/<key>/`` of tlm's cache
 folder (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
-:func:`tlm.storage.cache_home`; a cache that cannot be written loses no image, see
+:func:`tlm.caches.cache_home`; a cache that cannot be written loses no image, see
 :func:`ground_truth`) and :func:`flip`, :func:`rel_mse` and :func:`mean_normalised_rel_rmse` measure an image
 against one. Mitsuba is optional: it is imported on first use (a missing package is a
 one-line :class:`~tlm.errors.InputError`), and that use sets Mitsuba's process-wide
@@ -91,9 +91,10 @@ from typing import Any
 
 import numpy as np
 
+from tlm.caches import cache_root
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, cache_root
+from tlm.storage import atomic_folder
 
 VARIANT = "scalar_rgb"
 INTEGRATORS = ("direct", "path", "ptracer")
@@ -346,7 +347,7 @@ def render(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, seed
 
 
 def cache_dir() -> Path:
-    """``oracle`` in tlm's cache folder (:func:`tlm.storage.cache_home`)."""
+    """``oracle`` in tlm's cache folder (:func:`tlm.caches.cache_home`)."""
     return cache_root("oracle")
 
 
@@ -376,7 +377,7 @@ def oracle_key(scene: Scene, *, integrator: str, spp: int, max_depth: int = -1, 
 def save_ground_truth(key: str, image: np.ndarray, meta: dict) -> Path:
     """Write ``image.npy`` (float32) and ``meta.json`` (with the image's size and checksum)
     atomically into the cache."""
-    from tlm.storage import file_digest
+    from tlm.caches import file_digest
 
     final = cache_dir() / key
     with atomic_folder(final, "meta.json") as tmp:
@@ -395,7 +396,7 @@ def load_ground_truth(key: str) -> tuple[np.ndarray, dict] | None:
     a warning naming the file and removed: it is rendered again as if it had never been
     cached (as the references' and the scenes' caches do).
     """
-    from tlm.storage import cached_image
+    from tlm.caches import cached_image
 
     found = cached_image(cache_dir() / key, "image.npy", key, "Mitsuba ground-truth", "it is rendered again "
                          "when next needed")
@@ -412,7 +413,7 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
 
     A cache that cannot be written (read-only, full, a file in the way) loses no image: the
     one rendered is returned all the same (as float32, as a cached one is), for this run
-    only, and :mod:`tlm.storage` says once on stderr which cache could not be written and
+    only, and :mod:`tlm.caches` says once on stderr which cache could not be written and
     what that costs (every run renders it again); no traceback.
     """
     _check_settings(integrator, spp, max_depth, seed)
@@ -438,7 +439,7 @@ def ground_truth(scene: Scene, integrator: str = "path", spp: int = 4096, max_de
     try:
         save_ground_truth(key, image, meta)
     except (EnvironmentFailure, OSError, InputError):  # (a read-only or full cache, or something in the way of
-        # the entry's folder: storage.check_destination; said once by storage.cache_failed)
+        # the entry's folder: storage.check_destination; said once by caches.cache_failed)
         return np.asarray(image, dtype=np.float32).astype(np.float64), {"key": key, **meta}
     return load_ground_truth(key)
 

@@ -6,7 +6,7 @@ of a sweep, and the key of a cached frame in each process of a sweep (a process 
 it after: :func:`tlm.experiments.frames.scene_key`) (``benchmarks/bench_load.py``
 measures both ways). Both results are kept in ``scenes/`` of tlm's cache folder
 (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
-:func:`tlm.storage.cache_home`), keyed by what determines them, bit for bit:
+:func:`tlm.caches.cache_home`), keyed by what determines them, bit for bit:
 
 * a **mesh** (:func:`mesh`): tlm's code (:func:`tlm.fingerprint.code_fingerprint`), the
   versions of numpy and trimesh (which parses PLY, STL and GLB), and the name and sha256
@@ -44,11 +44,12 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.caches import cache_root, digest_problem, file_digest
 from tlm.config import note_read
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
-from tlm.storage import cache_root, digest_problem, file_digest, warn, write_atomic
+from tlm.storage import warn, write_atomic
 
 __all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files"]
 
@@ -57,7 +58,7 @@ MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) agai
 
 
 def cache_dir() -> Path:
-    """``scenes`` in tlm's cache folder (:func:`tlm.storage.cache_home`)."""
+    """``scenes`` in tlm's cache folder (:func:`tlm.caches.cache_home`)."""
     return cache_root("scenes")
 
 
@@ -154,7 +155,7 @@ def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path)
 
 
 def _mesh_entry(path: Path, digest: dict) -> Path:
-    """Where the entry of the mesh file ``path`` (of :func:`~tlm.storage.file_digest` ``digest``) is."""
+    """Where the entry of the mesh file ``path`` (of :func:`~tlm.caches.file_digest` ``digest``) is."""
     # (the name: a part's, the format's)
     key = _key("mesh", _versions(), path.name, digest["sha256"], str(digest["size"]))
     return cache_dir() / f"mesh-{key}.npz"
@@ -163,7 +164,7 @@ def _mesh_entry(path: Path, digest: dict) -> Path:
 def mesh_files(path: Path, parse: Parse, resolve: Resolve) -> list[tuple[Path, dict]]:
     """The mesh file ``path`` and the other files a load of it reads (``resolve`` of what names
     them: from its entry when it has one, else from ``parse``), each with its
-    :func:`~tlm.storage.file_digest`, the digest an entry is keyed by and checks its other files
+    :func:`~tlm.caches.file_digest`, the digest an entry is keyed by and checks its other files
     by. An OSError or :class:`~tlm.errors.InputError` where a file cannot be read; a ValueError
     where the parse cannot name them (:func:`mesh`'s ``parse``)."""
     path = Path(path)

@@ -168,12 +168,12 @@ def _parse(path: Path) -> tuple[Geometry, list | None]:
 
 def mesh_files(path: Path) -> list[tuple[Path, dict]]:
     """The files a load of the mesh file ``path`` reads, each with its
-    :func:`~tlm.storage.file_digest` (the digest the scene cache keys a mesh by): the file,
+    :func:`~tlm.caches.file_digest` (the digest the scene cache keys a mesh by): the file,
     then an OBJ's material libraries (found as :func:`load_mesh` finds them:
     :func:`tlm.scenes.cache.mesh_files`) or a glTF's buffer files. A glTF's images (textures)
     are not among them: tlm does not render them. An :class:`~tlm.errors.InputError` or an
     OSError where one cannot be read."""
-    from tlm.storage import file_digest
+    from tlm.caches import file_digest
 
     path = Path(path)
     ext = mesh_format(path)[0]

@@ -1,0 +1,237 @@
+"""tlm's caches: where they live, the one line said when one cannot be written, and their entries' checks.
+
+* :func:`cache_home` — the folder of every cache (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
+  else ``~/.cache/tlm``); :func:`cache_root` — one cache's folder in it (``functional``,
+  ``scenes``, ``references``, ``oracle``: :data:`CACHES`).
+* :func:`cache_failed` — the one line, said once a process, that a cache cannot be written, why,
+  and what that costs (speed only, never a result); :func:`cache_warnings` — this process's lines,
+  which a run records; :func:`cache_warnings_held` — a sweep's point keeps them for its sweep to say.
+  A write of :mod:`tlm.storage` that fails under a cache's folder (a full disk) says its line too
+  (:func:`tlm.storage.on_failed_write`).
+* :func:`file_digest`, :func:`digest_problem` — the size and checksum a cache entry's sidecar keeps
+  of a file, and why a file is not the one described; :func:`cached_image` — an image entry read
+  back whole, or a damaged one said and removed, so that it is computed again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import stat
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from tlm.errors import EnvironmentFailure, InputError, environment_problem
+from tlm.storage import on_failed_write, warn
+
+
+def cache_home() -> Path:
+    """The folder of tlm's caches: ``$TLM_CACHE``; else ``$XDG_CACHE_HOME/tlm`` where
+    ``XDG_CACHE_HOME`` is set to an absolute path (the XDG spec has a relative one ignored);
+    else ``~/.cache/tlm``. An empty variable counts as unset."""
+    if own := os.environ.get("TLM_CACHE"):
+        return Path(own)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg and os.path.isabs(xdg):
+        return Path(xdg) / "tlm"
+    return Path.home() / ".cache" / "tlm"
+
+
+# tlm's caches that a run writes to: their names in a warning, and what a cache that
+# cannot be written costs (the tracebacks' folder, which falls back to the temporary
+# folder, and numba's, which says its own line, are not among them)
+CACHES = {
+    "functional": ("functional", "every frame is rendered again, even for sweep points that differ only in arch.*"),
+    "scenes": ("scene", "large meshes are parsed again on every load"),
+    "references": ("reference", "photon-map references are computed again by every run"),
+    "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
+}
+CACHE_WARNING = "cannot write tlm's "  # how each line of cache_warnings() starts
+_CACHE_LOCK = threading.Lock()
+_CACHE_CHECKED: set[Path] = set()  # the cache folders looked at in this process
+_CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> its line (said once a process)
+_CACHE_SAID: set[str] = set()  # the lines said on stderr in this process
+_CACHE_HELD = 0  # > 0: the lines are kept, not said (a sweep point: its sweep says them once)
+
+
+def cache_root(kind: str) -> Path:
+    """``<cache_home()>/<kind>``: the folder of one of tlm's caches.
+
+    The first call in a process for a cache of :data:`CACHES` checks that the folder can be
+    written (or made); where it cannot, one line says so (:func:`cache_failed`): a cache
+    that cannot be written costs speed only, never a result, but the user is told which.
+    """
+    folder = cache_home() / kind
+    if kind in CACHES and folder not in _CACHE_CHECKED:
+        with _CACHE_LOCK:
+            _CACHE_CHECKED.add(folder)
+        why = cache_problem(folder)
+        if why is not None:
+            cache_failed(folder, why)
+    return folder
+
+
+def cache_problem(folder: Path) -> str | None:
+    """Why nothing can be written into ``folder`` (nor the folder made), or None. Looked at,
+    not tried: nothing is created (``os.access``, which a root user's read-only mount fails too)."""
+    p = Path(folder)
+    while True:
+        try:
+            st = p.stat()
+            break
+        except (FileNotFoundError, NotADirectoryError):
+            if p.parent == p:
+                return f"{p} does not exist"
+            p = p.parent
+        except OSError as e:
+            return f"{p}: {(e.strerror or str(e)).lower()}"
+    if not stat.S_ISDIR(st.st_mode):
+        return f"{p} is a file, not a folder"
+    if os.access(p, os.W_OK | os.X_OK):
+        return None
+    try:
+        read_only = bool(os.statvfs(p).f_flag & os.ST_RDONLY)
+    except OSError:
+        read_only = False
+    return f"{p} is on a read-only file system" if read_only else f"{p} is not writable (permission denied)"
+
+
+def cache_failed(path: Path, why: str) -> None:
+    """Say, once a process per cache folder, that one of tlm's caches (the one ``path`` is
+    in or under) cannot be written, why, and what that costs; nothing for a path in none."""
+    path = Path(path)
+    home = cache_home()
+    kind = next((k for k in CACHES if path == home / k or home / k in path.parents), None)
+    if kind is None:
+        return
+    folder = home / kind
+    name, cost = CACHES[kind]
+    with _CACHE_LOCK:
+        if folder in _CACHE_LINES:
+            return
+        line = f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
+        _CACHE_LINES[folder] = line
+        held = _CACHE_HELD > 0
+    if not held:
+        say_cache_warning(line)
+
+
+def say_cache_warning(line: str) -> bool:
+    """:func:`warn` a line of :func:`cache_warnings` (this process's or a worker's) unless this
+    process said it already; whether it was said now."""
+    with _CACHE_LOCK:
+        if line in _CACHE_SAID:
+            return False
+        _CACHE_SAID.add(line)
+    warn(line)
+    return True
+
+
+def cache_warnings() -> list[str]:
+    """The lines of this process on the caches of :func:`cache_home` it cannot write
+    (:func:`cache_failed`), said or held."""
+    home = cache_home()
+    with _CACHE_LOCK:
+        return [line for folder, line in _CACHE_LINES.items() if folder.parent == home]
+
+
+@contextmanager
+def cache_warnings_held() -> Iterator[None]:
+    """While the block runs, a cache that cannot be written is noted (:func:`cache_warnings`),
+    not said: a sweep's point, whose sweep says each line once for all its workers."""
+    global _CACHE_HELD
+    with _CACHE_LOCK:
+        _CACHE_HELD += 1
+    try:
+        yield
+    finally:
+        with _CACHE_LOCK:
+            _CACHE_HELD -= 1
+
+
+def _note_cache_write(path: Path, e: BaseException) -> None:
+    """A write under one of the caches failed (:func:`tlm.storage.write_atomic`,
+    :func:`tlm.storage.atomic_folder`, which call this on every failed write once this module is
+    imported): said once (a full disk, a folder :func:`cache_problem` could not tell was read-only)."""
+    if isinstance(e, EnvironmentFailure):
+        why = str(e)
+    elif isinstance(e, OSError):
+        why = environment_problem(e, filename=False) or (e.strerror or str(e)).lower()
+    elif isinstance(e, InputError):  # (check_destination's: a file, or something else, in the way)
+        why = str(e).removeprefix(f"{e.key}: ") if e.key else str(e)
+    else:
+        return
+    cache_failed(path, why)
+
+
+on_failed_write(_note_cache_write)  # (tlm.storage knows nothing of caches: it tells whoever asked)
+
+
+def file_digest(path: Path) -> dict:
+    """``{"size": bytes, "sha256": hex}`` of a file, for a cache entry's sidecar."""
+    h = hashlib.sha256()
+    size = 0
+    with open(path, "rb") as fh:
+        while chunk := fh.read(1 << 20):
+            h.update(chunk)
+            size += len(chunk)
+    return {"size": size, "sha256": h.hexdigest()}
+
+
+def cached_image(folder: Path, name: str, key: str, what: str, again: str):
+    """The image ``folder/name`` (an (H, W, 3) float ``.npy``) and ``folder/meta.json`` of
+    the cache entry ``key``, or None when there is none. A damaged entry (``meta.json``
+    unreadable or of another key; the image not the file ``meta.json`` describes, by its
+    ``npy`` digest and its ``height`` and ``width`` where given, or not (H, W, 3) floats) is
+    reported once as a warning naming the file (``what``: the entry's kind; ``again``: what
+    computes it again) and removed, so it is computed again as if never cached."""
+    import numpy as np
+
+    npy, side = folder / name, folder / "meta.json"
+    if not npy.is_file() and not side.is_file():
+        return None
+    bad, why = side, None
+    try:
+        meta = json.loads(side.read_text())
+        if not isinstance(meta, dict) or meta.get("key") != key:
+            raise ValueError("not the metadata of this entry")
+    except (OSError, ValueError) as e:
+        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
+    if why is None:
+        bad = npy
+        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
+    if why is None:
+        try:
+            image = np.load(npy, allow_pickle=False)
+            size = (meta.get("height"), meta.get("width"))
+            if image.dtype.kind != "f" or image.ndim != 3 or image.shape[-1] != 3:
+                raise ValueError(f"an array of {image.dtype} {image.shape}, not (H, W, 3) floats")
+            if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
+                raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
+                                 f"{size[1]}x{size[0]}")
+            return image, meta
+        except (OSError, ValueError, EOFError) as e:
+            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
+    warn(f"damaged {what} cache entry {bad} ({why}): removed; {again}")
+    shutil.rmtree(folder, ignore_errors=True)
+    return None
+
+
+def digest_problem(path: Path, digest: object) -> str | None:
+    """Why ``path`` is not the file :func:`file_digest` described (``digest``), or None."""
+    if not isinstance(digest, dict) or not isinstance(digest.get("size"), int):
+        return "its sidecar has no size and checksum"
+    try:
+        size = Path(path).stat().st_size
+    except OSError as e:
+        return f"cannot read it ({e.strerror or e})"
+    if size != digest["size"]:
+        return f"{size} bytes, its sidecar says {digest['size']}"
+    if file_digest(path)["sha256"] != digest.get("sha256"):
+        return "its checksum differs from its sidecar's"
+    return None
+
