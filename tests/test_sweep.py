@@ -24,8 +24,9 @@ from tlm.arch.costs import DEFAULT_PATH
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.experiments.frames import cache_dir, cached_render
-from tlm.experiments.sweep import run_sweep, utilization
+from tlm.experiments.sweep import run_sweep
 from tlm.experiments.sweep_file import config_hash, expand, load_sweep, point_inputs
+from tlm.experiments.sweep_rows import utilization
 
 from .scenes import sphere_scene
 

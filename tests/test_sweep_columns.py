@@ -44,6 +44,6 @@ def test_an_all_failed_sweep_has_the_result_columns(tmp_path):
     ok = sweep(tmp_path, "ok", [10**8])
     assert ok.ok == 1
     assert header(tmp_path / "failed" / "sweep.csv") == header(tmp_path / "ok" / "sweep.csv")
-    from tlm.experiments.sweep import result_columns
+    from tlm.experiments.sweep_rows import result_columns
 
     assert set(result_columns()) <= set(ok.rows[0])

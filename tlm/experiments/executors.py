@@ -641,3 +641,45 @@ def dask_worker_where() -> str | None:
     return f"the Dask worker {worker.address} on host {socket.gethostname()}"
 
 
+# the versions (provenance.versions' keys) that can change a point's bits: a Dask worker that differs
+# from the sweep in one is refused (Python by its major.minor). The kernels (TLM_KERNELS) are recorded,
+# not refused: the compiled and numpy engines give the same bits (tests/test_engines.py, test_golden.py).
+RESULT_VERSIONS = ("python", "numpy", "numba")
+_LABELS = {"python": "Python"}
+_VERSIONS: dict[str, dict[str, str]] = {}  # TLM_KERNELS as set -> this process's versions
+
+
+class OtherVersionsOnWorker(RuntimeError):
+    """A Dask worker runs another numpy, numba or Python (major.minor) than the sweep: its points
+    could have other bits than the sweep's."""
+
+
+def worker_versions() -> dict[str, str]:
+    """This process's :func:`~tlm.experiments.provenance.versions`, which a point records: those of
+    the worker that ran it. Read once per process and ``TLM_KERNELS`` value (a point reads them
+    at no cost)."""
+    from tlm.experiments.provenance import versions
+
+    key = os.environ.get("TLM_KERNELS", "")
+    if key not in _VERSIONS:
+        _VERSIONS[key] = versions()
+    return dict(_VERSIONS[key])
+
+
+def check_worker_versions(sweeps: dict | None, here: dict, where: str) -> None:
+    """In a Dask worker ``where``: :class:`OtherVersionsOnWorker`, naming each of
+    :data:`RESULT_VERSIONS` in which ``here`` (the worker's :func:`worker_versions`) differs
+    from ``sweeps`` (the sweep's), with both versions. None for ``sweeps``: nothing to compare."""
+    if sweeps is None:
+        return
+    differ = [f"{_LABELS.get(k, k)} {_result_version(here, k)} (the sweep's {_result_version(sweeps, k)})"
+              for k in RESULT_VERSIONS if _result_version(here, k) != _result_version(sweeps, k)]
+    if differ:
+        raise OtherVersionsOnWorker(
+            f"{where} runs {' and '.join(differ)}: its points could give other results than the sweep's; install "
+            "the sweep's versions on the workers and restart them")
+
+
+def _result_version(versions: dict, name: str) -> str:
+    v = str(versions.get(name, "unknown"))
+    return ".".join(v.split(".")[:2]) if name == "python" else v

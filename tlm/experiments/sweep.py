@@ -44,8 +44,10 @@ a worker that dies (a crash, an OOM kill) costs the sweep only the point it ran,
 point kills its worker again when run alone (:class:`LocalPool`). A Dask worker checks
 first that it sees the sweep's folder and input files (and, a remote one, that it runs
 the sweep's code: :func:`_check_worker_sees`, and reads the content the sweep read:
-:func:`_check_worker_inputs`); a lost scheduler stops the sweep with one
-line (:class:`~tlm.experiments.executors.DaskPool`).
+:func:`_check_worker_inputs`), and that it runs the sweep's numpy, numba, Python and
+kernels (:func:`~tlm.experiments.executors.check_worker_versions`); a point records the
+versions of the process that ran it. A lost scheduler stops the sweep with one line
+(:class:`~tlm.experiments.executors.DaskPool`). The rows: :mod:`tlm.experiments.sweep_rows`.
 """
 
 from __future__ import annotations
@@ -56,7 +58,6 @@ import math
 import numbers
 import os
 import queue
-import re
 import shutil
 import time
 import traceback
@@ -69,6 +70,7 @@ from typing import Any
 import yaml
 
 from tlm import storage
+from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held, say_cache_warning
 from tlm.config import (
     config_from_dict,
 )
@@ -78,22 +80,25 @@ from tlm.experiments.executors import (
     DaskPool,
     InProcess,
     LocalPool,
+    OtherVersionsOnWorker,
     SweepStopped,
+    check_worker_versions,
     dask_worker_threads,
     dask_worker_where,
     kernel_threads,
     open_executor,
     take_finished,
+    worker_versions,
 )
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
+from tlm.experiments.sweep_rows import columns, point_row, write_rows
 from tlm.progress import SWEEP_ETA_AFTER, progress_bar
 from tlm.storage import atomic_folder, check_destination, claim_folder, warn
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
-FIRST_COLUMNS = ("point", "hash", "status", "error")
 
 
 # ---------------------------------------------------------------- one point (runs in a worker)
@@ -109,7 +114,8 @@ class Task:
     folder: str  # where relative paths start
     source: str  # the sweep file, for messages
     out: str  # the point's folder (absolute: a Dask worker's working folder is not the sweep's)
-    provenance: dict  # versions and git revision of the submitting host
+    provenance: dict  # versions and git revision of the submitting host (a point records its worker's
+    # versions, which a Dask worker's must match: check_worker_versions)
     threads: int | None = None  # render.threads where the config leaves it null (the worker's
     # share of the CPUs: speed only, so config.resolved.yaml keeps the config as written)
     inputs: tuple[str, ...] = ()  # the files of the sweep's folders it reads (absolute): a Dask
@@ -136,14 +142,16 @@ def run_point(task: Task) -> dict:
     t0 = time.perf_counter()
     where = dask_worker_where()  # (None but in a Dask worker)
     try:
+        ran = worker_versions()  # (the process that runs the point: what its results.json records)
         if where is not None:
             _check_worker_sees(task, where)
+            check_worker_versions(task.provenance.get("versions"), ran, where)
         threads = task.threads if task.threads is not None else dask_worker_threads()
         cfg = config_from_dict(_with_threads(task.config, threads), task.source)
         folder = Path(task.folder)
         if where is not None and task.code is not None:
             _check_worker_inputs(task, cfg, folder, where)
-        with storage.cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
+        with cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
             got = cached_render(cfg, folder, task.source)
         t1 = time.perf_counter()
         stage = "simulate"
@@ -162,7 +170,7 @@ def run_point(task: Task) -> dict:
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 # the render's warnings, and this point's own (what it sets and never reads; its stream)
                 "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg),
-                             *storage.cache_warnings()],  # (the caches this worker could not write)
+                             *cache_warnings()],  # (the caches this worker could not write)
                 # the timing keys it changed from their defaults and never read, with why (for the
                 # sweep's own line on a factor no point read: Sweep.unread_factors)
                 "inert": inert_timing_changes(timing, cfg),
@@ -170,7 +178,7 @@ def run_point(task: Task) -> dict:
                 "timing": timing_dict(timing, cfg.arch, programs),
                 "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},
                 "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6)},
-                **task.provenance,
+                **task.provenance, "versions": ran,
             }
             (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n")  # (strict: inf as null)
         return {"status": "ok", "results": results, "worker": where}
@@ -178,7 +186,8 @@ def run_point(task: Task) -> dict:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
             raise stop from e
         error = _error_record(e, stage, traceback.format_exc())
-        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker, OtherInputsOnWorker)):
+        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker, OtherInputsOnWorker,
+                                                         OtherVersionsOnWorker)):
             # (those say where)
             error["message"] = f"{error['message']} (on {where})"
         if task.code is None:  # (this machine's worker)
@@ -266,94 +275,6 @@ def write_error(task: Task, error: dict) -> None:
         (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
 
 
-# ---------------------------------------------------------------- rows
-
-
-def point_row(point: Point, record: dict) -> dict:
-    """One tidy flat row: the point, its factors, cycles, fps, utilization, error, host seconds."""
-    row: dict[str, Any] = {"point": point.index, "hash": point.hash, "status": record["status"], "error": None}
-    row.update(point.factors)
-    row["scene"] = point.config["scene"]
-    row["mode"] = point.config["mode"]
-    if record["status"] != "ok":
-        err = record["error"]
-        row["error"] = f"{err['type']}: {err['message']}".replace("\n", " ")
-        return row
-    row.update(result_fields(record["results"]))
-    return row
-
-
-def result_fields(res: dict) -> dict[str, Any]:
-    """An ok point's fields of its row, from its ``results.json``: cycles, fps, SimPy events,
-    whether TThru is steady, utilization, the image error (where there is a reference), whether
-    the frame was cached, host seconds."""
-    row: dict[str, Any] = {f"cycles.{k}": v for k, v in res["cycles"].items()}
-    row["fps"] = res["fps"]
-    row["simpy_events"] = res["timing"]["simpy_events"]
-    # whether cycles.throughput is a steady-state TThru (false: a stream too short for one)
-    row["throughput_steady"] = res["timing"].get("throughput_estimate", {}).get("steady")
-    row.update(utilization(res["timing"]["units"]))
-    err = res.get("error") or {}
-    if err.get("available"):
-        row["error.rel_mse"] = err.get("rel_mse")
-        row["error.rmse"] = err.get("rmse")
-    row["functional_cached"] = res["functional"]["cached"]
-    row["seconds.functional"] = res["host_seconds"]["functional"]
-    row["seconds.simulate"] = res["host_seconds"]["simulate"]
-    return row
-
-
-def result_columns() -> list[str]:
-    """The columns every ok point's row has after its factors, ``scene`` and ``mode``, in its
-    order: those :func:`result_fields` makes of a result of the model's shape (every PM of
-    :data:`~tlm.arch.frame_program.PMS` in ``cycles`` and in the units, no image error), its values
-    empty. ``sweep.csv`` has them whatever the points' outcome: empty cells for a failed point."""
-    from tlm.arch.frame_program import PMS
-
-    units = {f"pipe0.{pm}": {"busy": 0, "stalled": 0, "idle": 0, "elapsed": 0} for pm in PMS}
-    shape = {"cycles": dict.fromkeys((*PMS, "throughput", "latency")), "fps": None,
-             "timing": {"simpy_events": None, "throughput_estimate": {}, "units": units},
-             "error": None, "functional": {"cached": None}, "host_seconds": {"functional": None, "simulate": None}}
-    return list(result_fields(shape))
-
-
-def columns(rows: list[dict]) -> list[str]:
-    """The columns of ``sweep.csv`` and :attr:`Outcome.table`: :data:`FIRST_COLUMNS`, every other
-    field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ...), then those of
-    :func:`result_columns` no row has (all of them when no point is ok)."""
-    cols = list(FIRST_COLUMNS)
-    for r in rows:
-        cols.extend(k for k in r if k not in cols)
-    cols.extend(k for k in result_columns() if k not in cols)
-    return cols
-
-
-def utilization(units: dict) -> dict[str, float]:
-    """busy / stall / idle fractions of elapsed per PM kind, averaged over the pipelines.
-
-    PMs are the units named ``pipe<p>.<pm>``; memory modules and the crossbar are not PMs.
-    """
-    kinds: dict[str, list[dict]] = {}
-    for scope, b in units.items():
-        m = re.fullmatch(r"pipe\d+\.(\w+)", scope)
-        if m:
-            kinds.setdefault(m[1], []).append(b)
-    out = {}
-    for what, key in (("busy", "busy"), ("stall", "stalled"), ("idle", "idle")):
-        for kind, bs in kinds.items():
-            out[f"{what}.{kind}"] = round(sum(b[key] / b["elapsed"] if b["elapsed"] else 0.0 for b in bs)
-                                          / len(bs), 6)
-    return out
-
-
-def write_rows(out: Path, rows: list[dict]) -> None:
-    """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point; the CSV's columns are
-    :func:`columns` (an ok point's result columns even when no point is ok), the JSONL's
-    objects hold their own fields only."""
-    rows = sorted(rows, key=lambda r: r["point"])
-    storage.write_rows(out, "sweep", rows, columns(rows))
-
-
 # ---------------------------------------------------------------- the sweep
 
 
@@ -377,9 +298,10 @@ class Outcome:
     @property
     def table(self):
         """The rows as a pandas DataFrame, one row per point in point order, the columns as in
-        ``sweep.csv`` (:func:`columns`: :data:`FIRST_COLUMNS`, then every other field as it first
-        appears: the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``, utilization, host seconds;
-        those of an ok point even when no point is ok)."""
+        ``sweep.csv`` (:func:`~tlm.experiments.sweep_rows.columns`: the point, its hash, status and
+        error, then every other field as it first appears: the factors, ``scene``, ``mode``,
+        ``cycles.*``, ``fps``, utilization, host seconds; those of an ok point even when no point
+        is ok)."""
         import pandas as pd
 
         rows = sorted(self.rows, key=lambda r: r["point"])
@@ -566,7 +488,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                                    if records[p.hash]["status"] == "ok"])
     for line in unread:
         warn(line)
-    caches = _cache_lines([records[h] for h in tasks], storage.cache_warnings())
+    caches = _cache_lines([records[h] for h in tasks], cache_warnings())
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
     for line in stale:
@@ -593,10 +515,10 @@ def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
     lines = list(here)
     for rec in records:
         for line in (rec.get("results") or {}).get("warnings") or []:
-            if isinstance(line, str) and line.startswith(storage.CACHE_WARNING) and line not in lines:
+            if isinstance(line, str) and line.startswith(CACHE_WARNING) and line not in lines:
                 lines.append(line)
     for line in lines:
-        storage.say_cache_warning(line)
+        say_cache_warning(line)
     return lines
 
 

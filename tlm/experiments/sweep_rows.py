@@ -1,0 +1,106 @@
+"""A sweep's rows: one tidy flat row per point, and the files that hold them.
+
+A point's row (:func:`point_row`) is the point (its index, hash, status, error), its
+factors, its scene and mode, and for a point that ran the fields of its ``results.json``
+(:func:`result_fields`): cycles per PM, fps, SimPy events, whether TThru is steady,
+busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the image
+error where there is a reference, whether the frame came from the functional cache, and
+host seconds. ``sweep.jsonl`` and ``sweep.csv`` hold the rows (:func:`write_rows`), the CSV
+with an ok point's columns whatever the points' outcome (:func:`columns`).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+from tlm import storage
+from tlm.experiments.sweep_file import Point
+
+FIRST_COLUMNS = ("point", "hash", "status", "error")
+
+
+def point_row(point: Point, record: dict) -> dict:
+    """One tidy flat row: the point, its factors, cycles, fps, utilization, error, host seconds."""
+    row: dict[str, Any] = {"point": point.index, "hash": point.hash, "status": record["status"], "error": None}
+    row.update(point.factors)
+    row["scene"] = point.config["scene"]
+    row["mode"] = point.config["mode"]
+    if record["status"] != "ok":
+        err = record["error"]
+        row["error"] = f"{err['type']}: {err['message']}".replace("\n", " ")
+        return row
+    row.update(result_fields(record["results"]))
+    return row
+
+
+def result_fields(res: dict) -> dict[str, Any]:
+    """An ok point's fields of its row, from its ``results.json``: cycles, fps, SimPy events,
+    whether TThru is steady, utilization, the image error (where there is a reference), whether
+    the frame was cached, host seconds."""
+    row: dict[str, Any] = {f"cycles.{k}": v for k, v in res["cycles"].items()}
+    row["fps"] = res["fps"]
+    row["simpy_events"] = res["timing"]["simpy_events"]
+    # whether cycles.throughput is a steady-state TThru (false: a stream too short for one)
+    row["throughput_steady"] = res["timing"].get("throughput_estimate", {}).get("steady")
+    row.update(utilization(res["timing"]["units"]))
+    err = res.get("error") or {}
+    if err.get("available"):
+        row["error.rel_mse"] = err.get("rel_mse")
+        row["error.rmse"] = err.get("rmse")
+    row["functional_cached"] = res["functional"]["cached"]
+    row["seconds.functional"] = res["host_seconds"]["functional"]
+    row["seconds.simulate"] = res["host_seconds"]["simulate"]
+    return row
+
+
+def result_columns() -> list[str]:
+    """The columns every ok point's row has after its factors, ``scene`` and ``mode``, in its
+    order: those :func:`result_fields` makes of a result of the model's shape (every PM of
+    :data:`~tlm.arch.frame_program.PMS` in ``cycles`` and in the units, no image error), its values
+    empty. ``sweep.csv`` has them whatever the points' outcome: empty cells for a failed point."""
+    from tlm.arch.frame_program import PMS
+
+    units = {f"pipe0.{pm}": {"busy": 0, "stalled": 0, "idle": 0, "elapsed": 0} for pm in PMS}
+    shape = {"cycles": dict.fromkeys((*PMS, "throughput", "latency")), "fps": None,
+             "timing": {"simpy_events": None, "throughput_estimate": {}, "units": units},
+             "error": None, "functional": {"cached": None}, "host_seconds": {"functional": None, "simulate": None}}
+    return list(result_fields(shape))
+
+
+def columns(rows: list[dict]) -> list[str]:
+    """The columns of ``sweep.csv`` and :attr:`~tlm.experiments.sweep.Outcome.table`: :data:`FIRST_COLUMNS`, every other
+    field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ...), then those of
+    :func:`result_columns` no row has (all of them when no point is ok)."""
+    cols = list(FIRST_COLUMNS)
+    for r in rows:
+        cols.extend(k for k in r if k not in cols)
+    cols.extend(k for k in result_columns() if k not in cols)
+    return cols
+
+
+def utilization(units: dict) -> dict[str, float]:
+    """busy / stall / idle fractions of elapsed per PM kind, averaged over the pipelines.
+
+    PMs are the units named ``pipe<p>.<pm>``; memory modules and the crossbar are not PMs.
+    """
+    kinds: dict[str, list[dict]] = {}
+    for scope, b in units.items():
+        m = re.fullmatch(r"pipe\d+\.(\w+)", scope)
+        if m:
+            kinds.setdefault(m[1], []).append(b)
+    out = {}
+    for what, key in (("busy", "busy"), ("stall", "stalled"), ("idle", "idle")):
+        for kind, bs in kinds.items():
+            out[f"{what}.{kind}"] = round(sum(b[key] / b["elapsed"] if b["elapsed"] else 0.0 for b in bs)
+                                          / len(bs), 6)
+    return out
+
+
+def write_rows(out: Path, rows: list[dict]) -> None:
+    """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point; the CSV's columns are
+    :func:`columns` (an ok point's result columns even when no point is ok), the JSONL's
+    objects hold their own fields only."""
+    rows = sorted(rows, key=lambda r: r["point"])
+    storage.write_rows(out, "sweep", rows, columns(rows))
