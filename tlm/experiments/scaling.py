@@ -34,7 +34,8 @@ simulated and analytical cycles of both, relative errors), ``eq52.json`` (A, B, 
 largest error, per group; ``fitted_from``: per sweep folder, the hashes of the points
 its ``sweep.yaml`` listed and of those fitted, which :func:`out_of_date` compares with
 the folder as it is later), ``provenance.json`` and one figure per scene
-(``scaling_<scene>.png``): simulated and analytical T_tot against N, and the speed-up
+(``scaling_<scene>.png``, :func:`figure_files`: two scenes whose names give one file name get
+two files): simulated and analytical T_tot against N, and the speed-up
 T(1) / T(N), for each scheduler.
 """
 
@@ -309,7 +310,7 @@ def fit(records: list[dict]) -> dict[tuple, dict]:
 def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path], None] | None = None) -> dict:
     """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and, given
     ``plot`` (:func:`tlm.report.scaling.plot_scaling`, passed down by the CLI), a figure per
-    scene as ``scaling_<scene>.png``."""
+    scene as ``scaling_<scene>.png`` (:func:`figure_files`)."""
     check_destination(out, "eq52.json")
     notes: list[str] = []
     sweep_dirs = distinct_folders(sweep_dirs, notes)
@@ -331,8 +332,8 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
 
     def figures(_point, tmp: Path) -> list[dict]:
-        for scene in sorted({k[0] for k in fits} if plot else ()):
-            plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / f"scaling_{file_slug(scene)}.png")
+        for scene, file in figure_files({k[0] for k in fits} if plot else ()).items():
+            plot(scene, {k: v for k, v in fits.items() if k[0] == scene}, tmp / file)
         return table
 
     # the sweeps it was fitted from (relative to this folder), for the report's idle fractions per PM,
@@ -345,6 +346,27 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
               marker="eq52.json", files=lambda _rows: {"eq52.json": {"fits": summary, "sweeps": sweeps,
                                                                     "fitted_from": fitted_from, "notes": notes}})
     return {"fits": summary, "rows": table, "notes": notes}
+
+
+def figure_files(scenes) -> dict[str, str]:
+    """The figure file of each of ``scenes`` (eq. 5.2's names of its groups' scenes), in their sorted
+    order: ``scaling_<scene>.png``, the scene's name as :func:`file_slug` writes it. Where two scenes
+    would get one file name (``a b`` and ``a_b``, or on a file system that ignores case ``Room`` and
+    ``room``), the later gets ``_`` and 8 hex digits of its name's hash (the rule of the report's figure
+    names, :func:`tlm.report.common.figure_name`), so that no figure overwrites another; the same
+    scenes get the same names every time."""
+    import hashlib
+
+    files: dict[str, str] = {}
+    taken: set[str] = set()
+    for scene in sorted(scenes):
+        stem = f"scaling_{file_slug(scene)}"
+        tag = hashlib.sha1(scene.encode("utf-8")).hexdigest()[:8]
+        name = next(n for n in (stem, f"{stem}_{tag}", *(f"{stem}_{tag}_{i}" for i in range(2, 1000)))
+                    if f"{n}.png".lower() not in taken)
+        taken.add(f"{name}.png".lower())
+        files[scene] = f"{name}.png"
+    return files
 
 
 def file_slug(text: str) -> str:

@@ -140,7 +140,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
     (None without an N = 1 point), ``idle`` the row's ``idle.<pm>`` as written. What
     cannot be drawn is said in ``notes``.
     """
-    name = sw.path.name
+    name = sw.label  # (as the report names the sweep: a/sw and b/sw for two folders named sw)
     ok = [r for r in named_rows(sw) if r.get("status") == "ok"]
     if not ok:
         notes.append(f"{name}: no idle fractions to draw: no finished point")
@@ -239,9 +239,11 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
 
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
-    # (folder, fits, each fit's scene, eq. 5.2's label, as the report names scenes: by the scene's file; the folder)
-    sources: list[tuple[str, dict, dict[str, str], Path]] = [
-        (s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits}, s.path)
+    # (the folder's name, for the file names; its name in titles and notes, a sweep's label (a/sw and b/sw
+    # for two folders named sw); fits; each fit's scene, eq. 5.2's label, as the report names scenes: by the
+    # scene's file; the folder)
+    sources: list[tuple[str, str, dict, dict[str, str], Path]] = [
+        (s.path.name, s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits}, s.path)
         for s in inputs.of_kind("scaling") for fits in [_fits_of_study(s)]]
     stale: dict[str, str] = {}  # a scaling folder -> why its fit no longer shows its sweeps
     for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
@@ -259,22 +261,22 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         names: dict[str, str] = {}
-        sources.append((sw.path.name, _fits_of_sweep(sw, sec.notes, names), names, sw.path))
+        sources.append((sw.path.name, sw.label, _fits_of_sweep(sw, sec.notes, names), names, sw.path))
     sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
         else:
             sec.notes.append(f"{sw.label}: does not vary arch.pipelines, no idle figure")
-    for name, fits, named, where in sources:
+    for name, label, fits, named, where in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
             # (eq. 5.2's name of the scene: the file keeps its name)
             file = figure_name(out, "scaling", name, scene, key=f"scaling\n{where.absolute()}\n{scene}")
             shown = named.get(scene, scene)
-            plot_scaling(shown, mine, out / file, name)
+            plot_scaling(shown, mine, out / file, label)
             worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
-            sec.figures.append(Figure(file, f"{shown}: scaling from {name}{' (out of date)' if name in stale else ''}",
+            sec.figures.append(Figure(file, f"{shown}: scaling from {label}{' (out of date)' if name in stale else ''}",
                                              stale.get(name, "") +
                                              "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                              "least squares elsewhere; dotted: the slowest-pipeline variant. "
@@ -287,7 +289,7 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             label = f"{scene}/{mode}" if many_modes else scene
             file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
                                key="\n".join(("idle", str(sw.path.absolute()), scene, mode)))
-            plot_idle(label, g["pms"], g["points"], out / file, sw.path.name)
+            plot_idle(label, g["pms"], g["points"], out / file, sw.label)
             sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.label}",
                                       "Idle: no job to run (neither working nor stalled), as a fraction of the "
                                       "stream's elapsed cycles, averaged over the pipelines' PMs of each kind (one "

@@ -9,7 +9,10 @@ as lines (40 combinations that draw 2 lines are 2 lines); more are drawn as the 
 over the combinations with the min-max band, and the caption and a note say what the
 band is. A factor that is not a number (a scene, a mode) is a category: its values are
 points side by side (the median and a min-max bar beyond :data:`MAX_SERIES` distinct
-lines), never joined by a line. A point's scene is named as the report names scenes, by
+lines), never joined by a line. A factor of numbers with null among its values (``bsp.levels:
+[null, 6, 8]``, null the thesis's depth) keeps its axis of numbers: the null points are drawn
+apart, at the value they resolved to where their results folder records it, else at a tick
+``null`` beside the numbers (:func:`_draw_nulls`). A point's scene is named as the report names scenes, by
 its file (:func:`named_rows`). The legend is under the plot, its labels wrapped to the
 figure's width, and the figure grows by its height, so that no label squeezes the plot.
 A sweep folder's ``points/`` may also hold point folders that are not its points (an
@@ -35,6 +38,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import textwrap
 from collections import defaultdict
 from pathlib import Path
@@ -43,6 +47,7 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
+from tlm.config import describe
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import NAMED, Figure, FigureName, Section, line_style, new_figure, save, some
@@ -181,15 +186,6 @@ def _merge_groups(series: dict[tuple, dict], limit: int | None = None) -> list[t
     return merged
 
 
-def _merge_identical(series: dict[tuple, dict], others: list[str],
-                     limit: int | None = None) -> list[tuple[str, dict]] | None:
-    """The series in order, those with the same points (to 1e-9) drawn once: a line that hides
-    another would read as one combination. Their label names them all (:func:`_group_label`).
-    None when there are more than ``limit`` distinct lines (:func:`_merge_groups`)."""
-    merged = _merge_groups(series, limit)
-    return None if merged is None else [(_group_label(others, combos), pts) for combos, pts in merged]
-
-
 def _legend_below(fig, ax, width: float, height: float) -> None:
     """The axes' legend under the plot, across the figure: labels wrapped to the figure's
     width, and the figure ``width`` x ``height`` inches made taller by the legend's height,
@@ -205,25 +201,36 @@ def _legend_below(fig, ax, width: float, height: float) -> None:
 
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     """FPS against ``factor``; one line per combination of the other factors, combinations
-    that draw the same line drawn once (:func:`_merge_identical`); more than
+    that draw the same line drawn once (:func:`_merge_groups`), their label naming them all; more than
     :data:`MAX_SERIES` distinct lines are drawn as the median over the combinations and the
     min-max band (the caption says so). A factor of numbers is an axis of numbers and its
     points are joined by lines; any other factor (a scene, a mode: categories, with no
     order or distance between them) is drawn as points at its categories, the lines side
-    by side, with no line between categories."""
+    by side, with no line between categories. The null points of a factor of numbers and
+    null are drawn apart on its axis of numbers (:func:`_draw_nulls`), not as a category."""
     ok = [r for r in named_rows(sw) if r.get("status") == "ok" and r.get("fps") is not None]
     others = [f for f in factors_of(sw) if f != factor]
     values = sorted({_key(r.get(factor)) for r in ok}, key=_order)
     if len(values) < 2:
         return None
-    numeric = _numeric([r.get(factor) for r in ok])
+    # a factor of numbers and null (bsp.levels: [null, 6, 8]): the numbers on an axis of numbers, the null
+    # points apart (:func:`_null_points`), not a category of their own
+    nulls = ([r for r in ok if r.get(factor) is None] if None in values
+             and _numeric([r.get(factor) for r in ok if r.get(factor) is not None]) else [])
+    if nulls:
+        values = [v for v in values if v is not None]
+    numeric = _numeric([r.get(factor) for r in ok if not (nulls and r.get(factor) is None)])
     series: dict[tuple, dict] = defaultdict(dict)
     for r in ok:
-        series[tuple(_key(r.get(f)) for f in others)][_key(r.get(factor))] = r["fps"]
+        if not (nulls and r.get(factor) is None):
+            series[tuple(_key(r.get(f)) for f in others)][_key(r.get(factor))] = r["fps"]
     fig = new_figure(*FACTOR_SIZE)
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
-    lines = _merge_identical(series, others, limit=MAX_SERIES)
+    # (the series with the same points drawn once, a label naming them all: a line that hides another would
+    # read as one combination; None beyond MAX_SERIES distinct lines)
+    merged = _merge_groups(series, MAX_SERIES)
+    lines = None if merged is None else [(_group_label(others, combos), pts) for combos, pts in merged]
     combos = f"{len(series)} combinations of {', '.join(others)}" if len(series) > 1 else ""
     if lines is not None:
         for i, (labels, pts) in enumerate(lines):
@@ -258,12 +265,19 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                  f"spans the lowest to the highest FPS of those combinations there, the "
                  f"{'line' if numeric else 'point'} is their median (the mean of the two middle values when their "
                  "count is even, a value no point need have).")
+    null_text = ""
     if numeric:
-        lo_v, hi_v = min(values), max(values)
-        if lo_v > 0 and hi_v / lo_v >= 100:
+        nulled = _null_points(sw, factor, nulls, others)
+        xs = [*values, *(x for _, x, _ in nulled if x is not None)]
+        lo_v, hi_v = min(xs), max(xs)
+        log = lo_v > 0 and hi_v / lo_v >= 100
+        if log:
             ax.set_xscale("log")
-        elif all(float(v).is_integer() for v in values):  # (an integer factor: no 5.5 levels)
+        elif all(float(v).is_integer() for v in xs):  # (an integer factor: no 5.5 levels)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        if nulled:
+            index = {} if merged is None else {c: i for i, (cs, _) in enumerate(merged) for c in cs}
+            null_text = _draw_nulls(ax, factor, nulled, index, lines is None, (lo_v, hi_v), log)
     else:
         ax.set_xticks(range(len(values)), [_fmt(v) for v in values])
         ax.set_xlim(-0.5, len(values) - 0.5)
@@ -282,8 +296,103 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                   + "and no line joins two values.")
     caption = (f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
                f"{sw.spec.get('description') or ''}").strip().rstrip(";")
+    drawn += null_text
     return save(fig, out, name, f"{sw.label}: FPS against {factor}",
                 f"{caption.rstrip('.')}.{drawn}" if drawn else caption)
+
+
+NULL_STYLE = {"linestyle": "none", "marker": "*", "markersize": 13, "markerfacecolor": "none", "markeredgewidth": 1.3}
+
+
+def _null_meaning(factor: str) -> str:
+    """What ``null`` asks of the config key ``factor``, from its help (``tlm params``): ``floor(ln n),
+    the thesis's depth`` for ``bsp.levels``; ``the default`` where the help does not say."""
+    text = next((h for k, _, h in describe() if k == factor), "")
+    found = re.search(r"null = ([^;]+)", text)
+    return found.group(1).strip().rstrip(".") if found else "the default"
+
+
+def _resolved(factor: str, run) -> float | None:
+    """The value a point of ``factor`` null ran with, where its results folder records it: for
+    ``bsp.levels`` the depth its BSP was asked to build (results.json ``scene.bsp.requested_levels``,
+    floor(ln n)); for another key its resolved config's value, where that is a number. Else None."""
+    if run is None:
+        return None
+    if factor == LEVELS:
+        v = ((run.results.get("scene") or {}).get("bsp") or {}).get("requested_levels")
+    else:
+        v = run.config
+        for part in factor.split("."):
+            v = v.get(part) if isinstance(v, dict) else None
+    return v if _numeric([v]) and math.isfinite(v) else None
+
+
+def _null_points(sw: Sweep, factor: str, nulls: list[dict], others: list[str]) -> list[tuple[tuple, Any, float]]:
+    """The finished points of ``factor`` null: ``(combination of the other factors, the value it
+    resolved to or None, FPS)`` each, in point order."""
+    by_hash = {r.path.name: r for r in sw.runs}
+    return [(tuple(_key(r.get(f)) for f in others), _resolved(factor, by_hash.get(str(r.get("hash")))), r["fps"])
+            for r in sorted(nulls, key=lambda r: _order(r.get("point")))]
+
+
+def _draw_nulls(ax, factor: str, nulled: list[tuple[tuple, Any, float]], index: dict[tuple, int], band: bool,
+                span: tuple[float, float], log: bool) -> str:
+    """Draw the points of ``factor`` null (:func:`_null_points`) as hollow stars, joined to no line: at
+    the value each resolved to where its results folder records it, else at a tick "null" left of the
+    numbers, off the axis's scale. Each star has the colour of its combination's line (``index``: a
+    combination's line; black where it has none), or with ``band`` (the median and min-max band) the
+    median of the points at its value and a bar over their range. Their legend entries say what null
+    is; the returned sentence is the caption's."""
+    meaning = _null_meaning(factor)
+    lo, hi = span
+    integer = all(float(x).is_integer() for x in span)
+    if log:
+        apart = lo / (hi / lo) ** 0.15
+    else:
+        gap = (hi - lo) * 0.15 or abs(lo) * 0.15 or 1.0
+        apart = lo - (max(1, round(gap)) if integer else gap)
+    at: dict[Any, list[tuple[tuple, float]]] = defaultdict(list)
+    for combo, x, fps in nulled:
+        at[apart if x is None else x].append((combo, fps))
+    for x, pts in at.items():
+        if band:
+            ys = sorted(fps for _, fps in pts)
+            med = float(np.median(ys))
+            if len(ys) > 1:
+                ax.errorbar([x], [med], yerr=[[med - ys[0]], [ys[-1] - med]], fmt="none", ecolor="0.35",
+                            elinewidth=6, alpha=0.45)
+            ax.plot([x], [med], color="black", **NULL_STYLE)
+            continue
+        by_line: dict[int | None, list[float]] = defaultdict(list)
+        for combo, fps in pts:
+            by_line[index.get(combo)].append(fps)
+        for i, ys in sorted(by_line.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
+            ax.plot([x] * len(ys), ys, color="black" if i is None else line_style(i)["color"], **NULL_STYLE)
+    known = sorted({x for _, x, _ in nulled if x is not None})
+    unknown = sum(x is None for _, x, _ in nulled)
+    what = "depth" if factor == LEVELS else "value"
+    text = ""
+    if known:
+        shown = ", ".join(_fmt(x) for x in known)
+        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), at the {what} it resolved to: {shown}",
+                **NULL_STYLE)
+        source = ("the depth its BSP was asked to build, results.json scene.bsp.requested_levels" if factor == LEVELS
+                  else "its config.resolved.yaml")
+        text += (f" Hollow stars: the points of {factor} null ({meaning}), at the {what} each resolved to "
+                 f"({source}: {shown}), joined to no line.")
+    if unknown:
+        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), {what} not recorded: at \"null\"",
+                **NULL_STYLE)
+        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+        labels = ax.xaxis.get_major_formatter().format_ticks(ticks)
+        minor = [t for t in ax.xaxis.get_minorticklocs() if lo <= t <= hi]  # (a log axis's: none by "null")
+        ax.set_xticks([apart, *ticks], ["null", *labels])
+        ax.set_xticks(minor, minor=True)
+        many = unknown > 1
+        text += (f" {unknown} point{'s' if many else ''} of {factor} null ({meaning}) record{'' if many else 's'} "
+                 f"no {what} it resolved to: {'hollow stars' if many else 'a hollow star'} at \"null\", left of the "
+                 "numbers and off their scale.")
+    return text
 
 
 def _dodge(i: int, n: int) -> float:
