@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tlm import cli
+from tlm import cli_signals
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -137,14 +137,14 @@ def test_the_first_signal_notes_the_bars_drawn(monkeypatch):
     screen = Screen()
     monkeypatch.setattr(sys, "stderr", screen)
     try:
-        with cli._signals():
+        with cli_signals.signals():
             bar = tqdm(total=4, file=screen, leave=False)
             with pytest.raises(KeyboardInterrupt):
-                cli._on_signal(signal.SIGINT, None)
-            assert [r() for r in cli._BARS] == [bar]
-            assert cli._line_break(signal.SIGINT) == "\n"  # still drawn
+                cli_signals.on_signal(signal.SIGINT, None)
+            assert [r() for r in cli_signals._BARS] == [bar]
+            assert cli_signals.line_break(signal.SIGINT) == "\n"  # still drawn
             bar.close()
-            assert cli._line_break(signal.SIGINT) == ""  # closed: its line ended
+            assert cli_signals.line_break(signal.SIGINT) == ""  # closed: its line ended
     finally:
-        cli._SIGNALS.clear()
-        cli._BARS.clear()
+        cli_signals._SIGNALS.clear()
+        cli_signals._BARS.clear()

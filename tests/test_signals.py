@@ -104,11 +104,11 @@ def test_a_sweep_point_interrupted_inside_a_kernel_stops_the_sweep(tmp_path, mon
 
 SECOND = """
 import os, signal, sys
-from tlm import cli
+from tlm import cli_signals
 from tlm.experiments.executors import LocalPool
 
 pool = LocalPool(2)  # (its queues' named semaphores, registered with the resource tracker)
-with cli._signals():
+with cli_signals.signals():
     try:
         os.kill(os.getpid(), signal.{sig})
     except KeyboardInterrupt:  # the first: the clean-up begins ...

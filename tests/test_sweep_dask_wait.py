@@ -72,8 +72,9 @@ def test_the_wait_is_asked_of_the_scheduler_within_it(tmp_path):
     assert asked[-1] - asked[0] < executors.WORKERS_POLL, asked
 
 
-@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf", "-inf"])
+@pytest.mark.parametrize("value", ["-1", "0", "-3", "1e400", "nan", "inf", "-inf"])
 def test_a_bad_wait_is_one_line_exit_2_and_nothing_written(tmp_path, capsys, value):
+    """The value is echoed as typed (``-3``, not the ``-3.0`` it reads as)."""
     path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]})
     out = tmp_path / "o"
     rc = main(["sweep", str(path), "--out", str(out), "--dask", "tcp://127.0.0.1:9", f"--dask-wait={value}",
@@ -82,6 +83,7 @@ def test_a_bad_wait_is_one_line_exit_2_and_nothing_written(tmp_path, capsys, val
     assert rc == 2, err
     assert len(err.strip().splitlines()) == 1 and err.startswith("tlm: error: --dask-wait: "), err
     assert "a finite number > 0" in err, err
+    assert err.startswith(f"tlm: error: --dask-wait: {value} is not a wait: "), err
     assert not out.exists()
 
 
@@ -100,7 +102,7 @@ def test_a_wait_without_dask_is_refused_not_dropped(tmp_path, capsys):
     rc = main(["sweep", str(path), "--out", str(tmp_path / "o"), "--jobs", "1", "--dask-wait", "30"])
     err = capsys.readouterr().err
     assert rc == 2 and len(err.strip().splitlines()) == 1, err
-    assert err.startswith("tlm: error: --dask-wait: 30.0: ") and "--dask" in err, err
+    assert err.startswith("tlm: error: --dask-wait: 30: ") and "--dask" in err, err  # (as typed)
     assert not (tmp_path / "o").exists()
 
 

@@ -1,6 +1,6 @@
 """The traceback file of an unexpected error is made new: never written through a link.
 
-When tlm's cache cannot take it, ``tlm.cli.save_traceback`` writes the traceback into the
+When tlm's cache cannot take it, ``tlm.cli_signals.save_traceback`` writes the traceback into the
 shared temporary folder under a name anyone can guess (the time and the process id); it
 followed a link planted at that name, overwriting whatever the link pointed at.
 """
@@ -11,14 +11,14 @@ import os
 import tempfile
 import time
 
-import tlm.storage
-from tlm.cli import save_traceback
+import tlm.caches
+from tlm.cli_signals import save_traceback
 
 
 def _where(monkeypatch, tmp_path):
     blocked = tmp_path / "a_file"
     blocked.write_text("")
-    monkeypatch.setattr(tlm.storage, "cache_root", lambda *parts: blocked.joinpath("tlm", *parts))  # (unwritable)
+    monkeypatch.setattr(tlm.caches, "cache_root", lambda *parts: blocked.joinpath("tlm", *parts))  # (unwritable)
     shared = tmp_path / "tmp"
     shared.mkdir()
     monkeypatch.setattr(tempfile, "gettempdir", lambda: str(shared))

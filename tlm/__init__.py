@@ -57,12 +57,24 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """``tlm.<name>``: the API's name, imported on first use (PEP 562)."""
+    """``tlm.<name>``: the API's name, imported on first use (PEP 562), whole: a Ctrl-C (or a
+    SIGTERM a Python handler takes) during that import is held to its end, as in an API call
+    (:func:`tlm.whole_imports.imports_whole`; a package cut off half imported stays broken)."""
     if name in __all__:
-        from tlm import api
+        api = globals().get("api")  # (set once tlm.api is imported whole)
+        if api is None:
+            from tlm.whole_imports import imports_whole
 
+            api = imports_whole(_api)()
         return getattr(api, name)
     raise AttributeError(f"module 'tlm' has no attribute {name!r}")
+
+
+def _api() -> Any:
+    """:mod:`tlm.api`, imported."""
+    from tlm import api
+
+    return api
 
 
 def __dir__() -> list[str]:

@@ -500,7 +500,8 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
         outputs: str | Iterable[str] | None = None, progress: bool = False, reference: bool | None = None,
         say: Callable[[str], None] | None = None) -> dict:
     """Render, simulate and write the run folder ``out``, as ``tlm run`` does; returns what
-    ``results.json`` holds.
+    ``results.json`` holds, equal to ``json.loads`` of the file (a number that is not finite,
+    which strict JSON does not have, is None there and here: the ``fps`` of no cycles to time).
 
     ``outputs``: which of :data:`OUTPUTS` the folder gets besides its images and
     ``results.json`` (``"aov,trace"`` or a list; ``"images"`` or ``[]``: none; default all,
@@ -524,8 +525,11 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     if outputs is not None and "trace" in chosen and not cfg.arch.trace:
         cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
-    return runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
-                    outputs=chosen, progress=progress, reference=auto, say=say)
+    results = runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
+                       outputs=chosen, progress=progress, reference=auto, say=say)
+    from tlm.storage import json_text
+
+    return json.loads(json_text(results))  # (what the file holds: inf and nan as None)
 
 
 @imports_whole
@@ -771,13 +775,30 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
 
 
 @imports_whole
+def report_output(formats: str | Iterable[str] | None = None,
+                  dpi: int | str | None = None) -> tuple[tuple[str, ...], int]:
+    """The files each figure of a report is written as and the PNG's dots per inch, as
+    :func:`write_report` takes ``formats`` and ``dpi`` (``("png", "svg"), 110`` for ``"svg"``);
+    a bad value is the InputError it raises (naming ``--formats`` or ``--dpi``), here before
+    any work: ``tlm run --formats`` checks it so."""
+    from tlm.report.common import output
+
+    chosen = output(formats, dpi)
+    return chosen.formats, chosen.dpi
+
+
+@imports_whole
 def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
-          run_command: Callable[[list[str]], int], say: Callable[[str], None] = print) -> Path:
+          run_command: Callable[[list[str]], int], say: Callable[[str], None] = print,
+          formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
     """Every committed experiment of ``configs`` and their report into ``out`` (``tlm
     plots``). ``run_command`` runs one step's argv and returns its exit status (the CLI's
     step runner: 1 when its results report failures, an exception on bad input or a bug).
     Steps that return 1 are said and the rest run; the report is written, then
-    :class:`~tlm.errors.StepsFailed` names them."""
+    :class:`~tlm.errors.StepsFailed` names them. ``formats`` and ``dpi``: the report's
+    figure files, as :func:`write_report` takes them (checked before the first step)."""
+    from tlm.report.common import figure_output
     from tlm.report.regenerate import regenerate
 
-    return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)
+    with figure_output(formats, dpi):  # (the report's figures; a bad value stops here, before any step)
+        return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)

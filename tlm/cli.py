@@ -1,34 +1,18 @@
 """Command line: ``tlm run | sweep | scene | params | ...``. Argument parsing and printing only:
-every command calls :mod:`tlm.api` and prints what it returns.
-
-Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
-status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
-naming each blocked unit) ends with its message and exit status 1, and so does a failure
-of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
-Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
-had half written; a second signal during that clean-up ends the process at once, with one
-line of its own (and none from multiprocessing: its semaphores are released first). Anything
-else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
-A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
-as if killed by SIGPIPE).
-"""
+every command calls :mod:`tlm.api` and prints what it returns; how a command ends (its
+signals, its one-line errors, its exit status) is :mod:`tlm.cli_signals`."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
-import signal
 import sys
 import time
-import traceback
-import weakref
-from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from tlm import api, storage
 from tlm.api import MODES, Deadlock, InputError
-from tlm.errors import environment_problem, interrupted_by
+from tlm.cli_signals import exit_status, signals, version
 
 
 def _say(line: str) -> None:
@@ -44,7 +28,7 @@ def _report_after(args: argparse.Namespace, out: Path) -> None:
     if getattr(args, "no_report", False):
         return
     # no other run replaces the folder while its report is written
-    print(f"report: {api.write_report([out], lock=True)}")
+    print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -72,7 +56,7 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         configs = "configs" if Path("configs").is_dir() else str(api.configs_dir())
     try:
         page = api.plots(configs, args.runs, args.out, only, run_command=step,
-                         say=lambda line: print(line, flush=True))
+                         say=lambda line: print(line, flush=True), formats=args.formats, dpi=args.dpi)
     except StepsFailed as e:
         print(f"wrote {e.page}")
         print(f"tlm: plots: {e}", file=sys.stderr)
@@ -98,6 +82,19 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
 
 # the commands whose positional ``config`` is an experiment file or a built-in experiment's name
 EXPERIMENT_ARGS = ("run", "sweep", "reference", "error-vs-cost", "thesis", "granularity", "calibrate", "extreme")
+
+
+def _figure_args(args: argparse.Namespace) -> None:
+    """``--formats`` and ``--dpi`` checked before the command does any work (as ``tlm report``
+    checks them, :func:`tlm.api.report_output`); with ``--no-report`` they would be read by
+    nothing: refused, not dropped."""
+    given = [f"--{k}" for k in ("formats", "dpi") if getattr(args, k, None) is not None]
+    if not given:
+        return
+    if getattr(args, "no_report", False):
+        raise InputError(f"{' and '.join(given)} set the report's figure files, and --no-report writes no report: "
+                         "give one or the other", key=given[0])
+    api.report_output(args.formats, args.dpi)
 
 
 def _experiment_arg(args: argparse.Namespace) -> None:
@@ -185,7 +182,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
               f"{tm['clock_hz'] / 1e6:g} MHz), millions of cycles per frame:")
         print("  " + "  ".join(f"{k} {cyc[k] / 1e6:.3f}" for k in
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
-        print(f"  {results['fps']:.2f} frames per second")
+        fps = results["fps"]  # (None: no cycles to time)
+        print(f"  {fps:.2f} frames per second" if fps is not None else "  no frame rate: a frame of no cycles")
     print(f"wrote {out} ({time.perf_counter() - t0:.2f} s)")  # (wall: the stages may overlap on threads)
     for warning in results["warnings"]:  # (less those said during the run: a render that may not end says why first)
         if " ".join(warning.split()) not in storage.SAID:
@@ -398,6 +396,31 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(message.replace("\n", " "), source=self.prog)
 
 
+class _AsTyped(float):
+    """A number read from the command line that reads back as the user typed it (``-3``,
+    not ``-3.0``): an error that names the value echoes the argument given."""
+
+    text: str
+
+    def __new__(cls, text: str) -> _AsTyped:
+        number = super().__new__(cls, text)
+        number.text = text.strip()
+        return number
+
+    def __repr__(self) -> str:
+        return self.text
+
+    __str__ = __repr__
+
+
+def _seconds(text: str) -> float:
+    """``sweep --dask-wait``: a number of seconds, as typed (the sweep checks that it is a wait)."""
+    try:
+        return _AsTyped(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+
+
 def _folder_name(text: str) -> str:
     """``--out``: a folder's path; an empty one is refused (not read as the default)."""
     if not text.strip():
@@ -426,8 +449,19 @@ def _table_file(text: str) -> str:
     return text
 
 
+def _figure_files(parser: argparse.ArgumentParser) -> None:
+    """``--formats`` and ``--dpi``: the report's figure files (checked before any work: :func:`_figure_args`)."""
+    parser.add_argument("--formats", metavar="LIST",
+                        help="the files each figure of the report is written as, separated by commas: png, pdf, svg "
+                        "(default: png; the PNG always, as the page embeds it; a PDF or SVG is beside its PNG, of the "
+                        "same stem, and linked from its caption)")
+    parser.add_argument("--dpi", metavar="N", help="the report's PNGs' dots per inch, from 50 to 1200 (default: 110)")
+
+
 def _no_report(parser: argparse.ArgumentParser) -> None:
+    """``--no-report``, and the report's ``--formats`` and ``--dpi`` (:func:`_figure_files`)."""
     parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    _figure_files(parser)
 
 
 def _no_progress(parser: argparse.ArgumentParser) -> None:
@@ -466,7 +500,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
-    sw.add_argument("--dask-wait", type=float, metavar="SECONDS", help="with --dask: how long the sweep waits while "
+    sw.add_argument("--dask-wait", type=_seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
                     "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
                     "(default: 300)")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
@@ -542,12 +576,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", type=_folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", type=_title, help="the page's title (default: tlm report: and the folders' names)")
-    rp.add_argument("--formats", metavar="LIST",
-                    help="the files each figure is written as, separated by commas: png, pdf, svg (default: png; "
-                    "the PNG always, as the page embeds it; a PDF or SVG is beside its PNG, of the same stem, and "
-                    "linked from its caption)")
-    rp.add_argument("--dpi", metavar="N",
-                    help="the PNG's dots per inch, from 50 to 1200 (default: 110)")
+    _figure_files(rp)
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
@@ -564,6 +593,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
+    _figure_files(pl)
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
                         "tlm), or copy one out to edit")
@@ -582,169 +612,22 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def version() -> str:
-    """``tlm X.Y.Z (Python A.B.C)``: the installed package's version."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
-
-    try:
-        v = dist_version("tlm")
-    except PackageNotFoundError:
-        v = "unknown (not installed)"
-    return f"tlm {v} (Python {sys.version.split()[0]})"
-
-
-_SIGNALS: list[int] = []  # the signals received by this command, the first one first
-_BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
-
-
-def _bars_drawn() -> list:
-    """The progress bars (tqdm's) drawn and not yet closed: a closed or disabled bar is ``disable``."""
-    tqdm_std = sys.modules.get("tqdm.std")  # (none before a command made one)
-    if tqdm_std is None:
-        return []
-    try:
-        return [b for b in list(tqdm_std.tqdm._instances) if not b.disable]
-    except Exception:  # (the set changed while copied: a bar made or closed on another thread)
-        return []
-
-
-def _on_signal(signum, frame) -> None:
-    """SIGINT and SIGTERM: the first raises KeyboardInterrupt, so that what is half written
-    is removed; a second one, during that clean-up, ends the process at once, with its one
-    line (at a terminal, a line of its own), once its multiprocessing semaphores are
-    released (else the resource tracker reports them leaked, on the same stderr); a third,
-    during that release, ends it without waiting for the release."""
-    if len(_SIGNALS) > 1:
-        os._exit(128 + _SIGNALS[0])
-    if _SIGNALS:
-        _SIGNALS.append(signum)
-        line = b"tlm: interrupted again: stopping now\n"
-        with suppress(OSError):  # (at a terminal on a line of its own, not after the ^C echoed or a progress bar)
-            os.write(2, b"\n" + line if os.isatty(2) else line)
-        executors = sys.modules.get("tlm.experiments.executors")  # (imported by a sweep, with its pools)
-        if executors is not None:
-            with suppress(Exception):
-                executors.release_semaphores()
-        os._exit(128 + _SIGNALS[0])
-    _SIGNALS.append(signum)
-    _BARS[:] = [weakref.ref(b) for b in _bars_drawn()]
-    raise KeyboardInterrupt
-
-
-@contextmanager
-def _signals():
-    """SIGTERM handled as SIGINT is, while the command runs (main thread only)."""
-    _SIGNALS.clear()
-    _BARS.clear()
-    try:
-        before = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    except ValueError:  # not the main thread
-        before = {}
-    try:
-        yield
-    finally:
-        for s, h in before.items():
-            signal.signal(s, h)
-
-
-def save_traceback(exc: BaseException) -> Path | None:
-    """The full traceback of an unexpected exception in a file (the cache's ``tracebacks/``,
-    else the temporary folder); its path, or None when neither can be written. The file is
-    made new, for this user alone (0600): a file or link already at its name (another user's,
-    in the shared temporary folder) is not written through."""
-    from tlm.storage import cache_root
-
-    text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
-            + "".join(traceback.format_exception(exc)))
-    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
-    import tempfile
-
-    for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            fd = os.open(folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
-            with os.fdopen(fd, "w") as f:
-                f.write(text)
-            return folder / name
-        except OSError:
-            continue
-    return None
-
-
-def _one_line(e: BaseException) -> str:
-    return " ".join(str(e).split()) or type(e).__name__
-
-
-def _interrupted(argv: list[str] | None) -> int:
-    """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal."""
-    sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
-    if argv is None and _SIGNALS:  # the process's own command: a second signal during the
-        with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
-            for s in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(s, _on_signal)
-    line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
-    print(_line_break(sig) + line, file=sys.stderr)
-    return 128 + sig
-
-
-def _line_break(sig: int) -> str:
-    """``"\n"`` where stderr is a terminal and its cursor is not at the start of a line, so
-    that the interrupted line is a line of its own: after the ``^C`` the terminal echoed
-    (SIGINT), or after a progress bar still drawn. Nothing where a bar drawn when the signal
-    came has been closed since (its close ends its line: tqdm writes ``\n``, or ``\r`` after
-    clearing it), and nothing through a pipe or into a file."""
-    try:
-        if not sys.stderr.isatty():
-            return ""
-    except (AttributeError, ValueError):  # (no stderr, or a closed one)
-        return ""
-    if _bars_drawn():
-        return "\n"
-    if any((bar := ref()) is None or bar.disable for ref in _BARS):  # (one collected was closed by its __del__)
-        return ""
-    return "\n" if sig == signal.SIGINT else ""
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
         print(parser.format_help(), file=sys.stderr, end="")
         return 2
     try:
-        with _signals():
+        with signals():
             args = parser.parse_args(argv)
             args.argv = argv
             _experiment_arg(args)
+            _figure_args(args)
             return args.func(args)
     except SystemExit as e:  # --help, --version
         return e.code if isinstance(e.code, int) else 0
-    except InputError as e:
-        print(f"tlm: error: {_one_line(e)}", file=sys.stderr)
-        return 2
-    except Deadlock as e:  # the model could not finish: nothing is written, no partial numbers
-        print(f"tlm: deadlock: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return _interrupted(argv)
-    except BrokenPipeError:  # the reader went away (``| head``): nothing more to say
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())  # so that the exit's flush does not fail again
-        except (OSError, ValueError, AttributeError):
-            pass
-        return 128 + signal.SIGPIPE
-    except Exception as e:
-        if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
-            return _interrupted(argv)
-        what = environment_problem(e)
-        if what is not None:  # the machine's fault: a full disk, a read-only destination
-            print(f"tlm: error: {' '.join(what.split())}", file=sys.stderr)
-            return 1
-        saved = save_traceback(e)
-        where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
-        print(f"tlm: internal error: {type(e).__name__}: {_one_line(e)} ({where})", file=sys.stderr)
-        return 1
+    except (Exception, KeyboardInterrupt) as e:  # its one line and its exit status
+        return exit_status(e, argv)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
 """A Ctrl-C (SIGINT) that arrives while a module is imported, held until that import is
-complete and then raised as the KeyboardInterrupt it would have been.
+complete and then raised as the KeyboardInterrupt it would have been; and a SIGTERM the
+same way, where a Python handler takes it.
 
 Python does not undo a half-finished import: a package whose import a KeyboardInterrupt
 cut off is removed from ``sys.modules`` while the submodules it had imported stay, and
@@ -8,6 +9,13 @@ importing it again makes a package without them (``module 'numba' has no attribu
 (numba, scipy, the compiled kernels) when a function first needs them, inside a user's
 first call: its public functions are wrapped by :func:`imports_whole`, so that a notebook
 user's Ctrl-C in the first seconds of a first render interrupts the call, not the process.
+``tlm.<name>`` (the package's ``__getattr__``) imports :mod:`tlm.api` itself so, on first use.
+
+SIGTERM is held only where a Python handler takes it: that handler runs in the main thread
+between two bytecodes, as SIGINT's does, and where it raises (``tlm``'s command line turns
+SIGTERM into the KeyboardInterrupt that removes what a command half wrote) it cuts an import
+short as a Ctrl-C does. Its default action (and an ignored SIGTERM) is the kernel's, not
+Python's: nothing to hold, and a SIGTERM that ends the process is never delayed.
 """
 
 from __future__ import annotations
@@ -19,12 +27,14 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 _IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
 _IMPORT_SOURCES = (os.path.join("importlib", "_bootstrap.py"), os.path.join("importlib", "_bootstrap_external.py"))
-_LEFT_HALF: set[str] = set()  # the modules an import interrupted in an API call left without their package
+HELD = (signal.SIGINT, signal.SIGTERM)  # the signals held to an import's end, where a Python handler takes them
+_LEFT_HALF: dict[str, int] = {}  # the modules an import interrupted in an API call left without their package,
+# with the signal that cut it short
 
 
 def _importing(frame: Any, stop: Any) -> bool:
@@ -47,69 +57,73 @@ def _orphans() -> set[str]:
 
 
 class HeldInterrupt:
-    """The SIGINT handler during a call of a function :func:`imports_whole` wraps, in the
-    main thread. A Ctrl-C outside an import goes at once to the handler it replaced
-    (``KeyboardInterrupt``, or the command line's); one during an import is held, and given
-    to that handler once the main thread has left the import (a thread watches it) or, at
-    the latest, when the call ends. A second Ctrl-C during the same import goes through at
-    once (the import is then left half done, which the next API call reports:
-    :func:`check_imports`)."""
+    """The SIGINT (and SIGTERM) handler during a call of a function :func:`imports_whole`
+    wraps, in the main thread. A signal outside an import goes at once to the handler it
+    replaced (``KeyboardInterrupt``, or the command line's); one during an import is held,
+    and given to that handler once the main thread has left the import (a thread watches it)
+    or, at the latest, when the call ends. A second signal during the same import goes
+    through at once (the import is then left half done, which the next API call reports:
+    :func:`check_imports`).
 
-    def __init__(self, before: Callable, entry: Any):
-        self.before = before
+    ``before``: the handler replaced, of SIGINT, or ``{signal: handler}`` of the signals held."""
+
+    def __init__(self, before: Callable | Mapping[int, Callable], entry: Any):
+        self.before = dict(before) if isinstance(before, Mapping) else {signal.SIGINT: before}
         self.entry = entry  # the frame of the API call
         self.main = threading.get_ident()
         self.lock = threading.RLock()  # (reentrant: the handler may run while the main thread holds it)
         self.active = True
-        self.held = False
-        self.orphans: set[str] | None = None  # before an interrupt went through during an import
+        self.held: int | None = None  # the signal held
+        self.orphans: set[str] | None = None  # before a signal went through during an import
+        self.cut_by = signal.SIGINT  # the signal that went through
 
     def __call__(self, signum: int, frame: Any) -> None:
         with self.lock:
             if self.active and _importing(frame, self.entry):
-                if not self.held:
-                    self.held = True
+                if self.held is None:
+                    self.held = signum
                     # (the low-level start: threading's own start takes a lock the interrupted code may hold)
                     _thread.start_new_thread(self._watch, ())
                     return
                 if self.orphans is None:  # (now, the half-imported packages are still in sys.modules)
-                    self.orphans = _orphans()
-            self.held = False
-        self.before(signum, frame)
+                    self.orphans, self.cut_by = _orphans(), signum
+            self.held = None
+        self.before[signum](signum, frame)
 
     def _watch(self) -> None:
-        """Give the held Ctrl-C back to the main thread once it is out of the import."""
+        """Give the held signal back to the main thread once it is out of the import."""
         while True:
             time.sleep(0.01)
             with self.lock:
-                if not (self.active and self.held):
+                if not self.active or self.held is None:
                     return
                 frame = sys._current_frames().get(self.main)
                 if frame is not None and _importing(frame, self.entry):
                     continue
-                self.held = False
+                signum, self.held = self.held, None
                 if hasattr(signal, "pthread_kill"):  # (this handler passes it on: no import now)
-                    signal.pthread_kill(self.main, signal.SIGINT)
+                    signal.pthread_kill(self.main, signum)
                 else:  # (no pthread_kill: the same signal, simulated in the main thread)
-                    _thread.interrupt_main(signal.SIGINT)
+                    _thread.interrupt_main(signum)
                 return
 
     def close(self, failed: BaseException | None) -> None:
-        """The call ended: the handler it replaced back, the Ctrl-C still held raised now,
-        and the modules an interrupt that went through left half imported noted."""
-        held = False
+        """The call ended: the handlers it replaced back, the signal still held raised now,
+        and the modules a signal that went through left half imported noted."""
+        held = None
         try:
             with self.lock:
                 self.active = False
-                held, self.held = self.held, False
-        finally:  # (the handler put back even if a Ctrl-C lands here; one left behind is found stale: :func:`_outer`)
-            if signal.getsignal(signal.SIGINT) is self:
-                signal.signal(signal.SIGINT, self.before)
+                held, self.held = self.held, None
+        finally:  # (the handlers put back even if a signal lands here; one left behind is found stale: :func:`_outer`)
+            for signum, before in self.before.items():
+                if signal.getsignal(signum) is self:
+                    signal.signal(signum, before)
             self.entry = None
         if failed is not None and self.orphans is not None:
-            _LEFT_HALF.update(_orphans() - self.orphans)
-        if held:
-            signal.raise_signal(signal.SIGINT)  # (its handler runs now: the KeyboardInterrupt of the held Ctrl-C)
+            _LEFT_HALF.update(dict.fromkeys(_orphans() - self.orphans, self.cut_by))
+        if held is not None:
+            signal.raise_signal(held)  # (its handler runs now: a held Ctrl-C's KeyboardInterrupt)
 
 
 def check_imports() -> None:
@@ -117,7 +131,10 @@ def check_imports() -> None:
     left = sorted(name for name in _LEFT_HALF if name in sys.modules)
     if left:
         packages = ", ".join(sorted({name.partition(".")[0] for name in left}))
-        raise RuntimeError(f"a Ctrl-C (pressed twice) interrupted the import of {packages} in an earlier call and "
+        cut = sorted({_LEFT_HALF[name] for name in left})
+        what = ("a Ctrl-C (pressed twice)" if cut == [signal.SIGINT] else
+                f"a second signal ({', '.join(signal.Signals(s).name for s in cut)})")
+        raise RuntimeError(f"{what} interrupted the import of {packages} in an earlier call and "
                            f"left it half imported ({len(left)} modules without their package), which Python cannot "
                            "import again: restart the Python process (in a notebook, restart its kernel)")
 
@@ -134,23 +151,31 @@ def _outer(handler: HeldInterrupt) -> bool:
 
 
 def imports_whole(function: Callable) -> Callable:
-    """``function`` with a Ctrl-C that arrives during an import held to the import's end
-    (:class:`HeldInterrupt`; in the main thread, where SIGINT has a Python handler)."""
+    """``function`` with a Ctrl-C (or a SIGTERM) that arrives during an import held to the
+    import's end (:class:`HeldInterrupt`; in the main thread, for each signal of :data:`HELD`
+    that a Python handler takes)."""
 
     @functools.wraps(function)
     def call(*args: Any, **kwargs: Any) -> Any:
         check_imports()
-        before = signal.getsignal(signal.SIGINT)
-        if isinstance(before, HeldInterrupt) and not _outer(before):  # (left behind: the handler it replaced)
-            before = before.before
-        if isinstance(before, HeldInterrupt) or not callable(before):  # (an outer API call holds; or no handler)
+        if threading.current_thread() is not threading.main_thread():  # (a signal interrupts the main thread)
             return function(*args, **kwargs)
-        if threading.current_thread() is not threading.main_thread():  # (a Ctrl-C interrupts the main thread)
+        before = {}
+        for signum in HELD:
+            handler = signal.getsignal(signum)
+            if isinstance(handler, HeldInterrupt):
+                if _outer(handler):  # (an outer API call holds)
+                    return function(*args, **kwargs)
+                handler = handler.before.get(signum)  # (left behind: the handler it replaced)
+            if callable(handler):  # (not the default action, nor ignored)
+                before[signum] = handler
+        if not before:
             return function(*args, **kwargs)
         held = HeldInterrupt(before, sys._getframe())
         failed = None
         try:
-            signal.signal(signal.SIGINT, held)
+            for signum in before:
+                signal.signal(signum, held)
             return function(*args, **kwargs)
         except BaseException as e:
             failed = e

@@ -1,0 +1,186 @@
+"""How a ``tlm`` command ends: its signals, its one line on stderr and its exit status.
+
+Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
+status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
+naming each blocked unit) ends with its message and exit status 1, and so does a failure
+of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
+Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
+had half written; a second signal during that clean-up ends the process at once, with one
+line of its own (and none from multiprocessing: its semaphores are released first). Anything
+else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
+A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
+as if killed by SIGPIPE).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+import traceback
+import weakref
+from contextlib import contextmanager, suppress
+from pathlib import Path
+
+from tlm.api import Deadlock, InputError
+from tlm.errors import environment_problem, interrupted_by
+
+_SIGNALS: list[int] = []  # the signals received by this command, the first one first
+_BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
+
+
+def _line(text: str) -> None:
+    """A line on stderr (the command's last)."""
+    sys.stderr.write(f"{text}\n")
+
+
+def version() -> str:
+    """``tlm X.Y.Z (Python A.B.C)``: the installed package's version."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+
+    try:
+        v = dist_version("tlm")
+    except PackageNotFoundError:
+        v = "unknown (not installed)"
+    return f"tlm {v} (Python {sys.version.split()[0]})"
+
+
+def bars_drawn() -> list:
+    """The progress bars (tqdm's) drawn and not yet closed: a closed or disabled bar is ``disable``."""
+    tqdm_std = sys.modules.get("tqdm.std")  # (none before a command made one)
+    if tqdm_std is None:
+        return []
+    try:
+        return [b for b in list(tqdm_std.tqdm._instances) if not b.disable]
+    except Exception:  # (the set changed while copied: a bar made or closed on another thread)
+        return []
+
+
+def on_signal(signum, frame) -> None:
+    """SIGINT and SIGTERM: the first raises KeyboardInterrupt, so that what is half written
+    is removed; a second one, during that clean-up, ends the process at once, with its one
+    line (at a terminal, a line of its own), once its multiprocessing semaphores are
+    released (else the resource tracker reports them leaked, on the same stderr); a third,
+    during that release, ends it without waiting for the release."""
+    if len(_SIGNALS) > 1:
+        os._exit(128 + _SIGNALS[0])
+    if _SIGNALS:
+        _SIGNALS.append(signum)
+        line = b"tlm: interrupted again: stopping now\n"
+        with suppress(OSError):  # (at a terminal on a line of its own, not after the ^C echoed or a progress bar)
+            os.write(2, b"\n" + line if os.isatty(2) else line)
+        executors = sys.modules.get("tlm.experiments.executors")  # (imported by a sweep, with its pools)
+        if executors is not None:
+            with suppress(Exception):
+                executors.release_semaphores()
+        os._exit(128 + _SIGNALS[0])
+    _SIGNALS.append(signum)
+    _BARS[:] = [weakref.ref(b) for b in bars_drawn()]
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def signals():
+    """SIGTERM handled as SIGINT is, while the command runs (main thread only)."""
+    _SIGNALS.clear()
+    _BARS.clear()
+    try:
+        before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:  # not the main thread
+        before = {}
+    try:
+        yield
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+
+
+def save_traceback(exc: BaseException) -> Path | None:
+    """The full traceback of an unexpected exception in a file (the cache's ``tracebacks/``,
+    else the temporary folder); its path, or None when neither can be written. The file is
+    made new, for this user alone (0600): a file or link already at its name (another user's,
+    in the shared temporary folder) is not written through."""
+    from tlm.caches import cache_root
+
+    text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
+            + "".join(traceback.format_exception(exc)))
+    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
+    import tempfile
+
+    for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            fd = os.open(folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
+            with os.fdopen(fd, "w") as f:
+                f.write(text)
+            return folder / name
+        except OSError:
+            continue
+    return None
+
+
+def one_line(e: BaseException) -> str:
+    """An exception's message on one line (its type's name where it has none)."""
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+def interrupted(argv: list[str] | None) -> int:
+    """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal."""
+    sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
+    if argv is None and _SIGNALS:  # the process's own command: a second signal during the
+        with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
+            for s in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(s, on_signal)
+    line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
+    _line(line_break(sig) + line)
+    return 128 + sig
+
+
+def line_break(sig: int) -> str:
+    """``"\n"`` where stderr is a terminal and its cursor is not at the start of a line, so
+    that the interrupted line is a line of its own: after the ``^C`` the terminal echoed
+    (SIGINT), or after a progress bar still drawn. Nothing where a bar drawn when the signal
+    came has been closed since (its close ends its line: tqdm writes ``\n``, or ``\r`` after
+    clearing it), and nothing through a pipe or into a file."""
+    try:
+        if not sys.stderr.isatty():
+            return ""
+    except (AttributeError, ValueError):  # (no stderr, or a closed one)
+        return ""
+    if bars_drawn():
+        return "\n"
+    if any((bar := ref()) is None or bar.disable for ref in _BARS):  # (one collected was closed by its __del__)
+        return ""
+    return "\n" if sig == signal.SIGINT else ""
+
+
+def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
+    """The exit status of a command that raised ``e``, once its one line is on stderr
+    (``argv``: the command's, None for the process's own)."""
+    if isinstance(e, InputError):
+        _line(f"tlm: error: {one_line(e)}")
+        return 2
+    if isinstance(e, Deadlock):  # the model could not finish: nothing is written, no partial numbers
+        _line(f"tlm: deadlock: {e}")
+        return 1
+    if isinstance(e, KeyboardInterrupt):
+        return interrupted(argv)
+    if isinstance(e, BrokenPipeError):  # the reader went away (``| head``): nothing more to say
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # so that the exit's flush does not fail again
+        except (OSError, ValueError, AttributeError):
+            pass
+        return 128 + signal.SIGPIPE
+    if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
+        return interrupted(argv)
+    what = environment_problem(e)
+    if what is not None:  # the machine's fault: a full disk, a read-only destination
+        _line(f"tlm: error: {' '.join(what.split())}")
+        return 1
+    saved = save_traceback(e)
+    where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
+    _line(f"tlm: internal error: {type(e).__name__}: {one_line(e)} ({where})")
+    return 1
