@@ -55,7 +55,7 @@ def test_a_fork_workers_value_other_than_0_or_1_is_bad_input(tmp_path, cache, ca
     assert _run(tmp_path, _config(tmp_path, n_threads)) == 2
     err = capsys.readouterr().err.strip()
     assert err == (f"tlm: error: environment: TLM_FORK_WORKERS: {value!r} is not 0 or 1 (1: forked worker "
-                   "processes; 0, empty or unset: threads)")
+                   "processes; 0: threads; empty or unset: forked worker processes past 8 threads)")
     assert not (cache / "tracebacks").exists() and not (tmp_path / "out").exists()
 
 
@@ -65,11 +65,11 @@ def test_fork_workers_takes_0_1_empty_and_unset(monkeypatch, value):
         monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
     else:
         monkeypatch.setenv("TLM_FORK_WORKERS", value)
-    assert threads.fork_workers() is (value == "1")
+    assert threads.fork_workers() is {None: None, "": None, "0": False, "1": True}[value]
     with threads.using(2) as n:
         assert n == 2
-    if value != "1":
-        assert not threads.can_fork()
+        if value != "1":
+            assert not threads.can_fork()  # (unset or empty: threads up to DEFAULT_MAX_THREADS)
 
 
 def test_an_unknown_engine_is_an_input_error_naming_the_variable(monkeypatch):

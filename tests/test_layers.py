@@ -21,7 +21,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress",
-     "tlm.whole_imports"),
+     "tlm.whole_imports", "tlm.caches"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),
@@ -29,7 +29,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.arch",),
     ("tlm.experiments",),
     ("tlm.report",),
-    ("tlm.api", "tlm.cli", "tlm.__main__", "tlm"),  # tlm: the package's __init__, which re-exports tlm.api
+    # tlm: the package's __init__, which re-exports tlm.api
+    ("tlm.api", "tlm.cli", "tlm.cli_signals", "tlm.__main__", "tlm"),
 )
 
 

@@ -9,7 +9,6 @@ are really cut into many chunks (cuts in odd places, uneven chunks), as a full f
 from __future__ import annotations
 
 import itertools
-import os
 import time
 from pathlib import Path
 
@@ -23,7 +22,8 @@ from tlm.errors import InputError
 from tlm.experiments.run import render
 from tlm.kernels import bsp, emission, estimate, photons, threads, traverse
 from tlm.kernels.bsp import build_point_tree
-from tlm.kernels.memory import Accesses, Deferred, Streams
+from tlm.kernels.memory import Accesses, Streams
+from tlm.kernels.recording import Deferred
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
 from tlm.render import batches
 
@@ -89,8 +89,8 @@ def _same_render(a, b) -> None:
 ])
 @pytest.mark.parametrize("workers", ["processes", "threads"])
 def test_renders_are_bit_identical_for_any_thread_count(small_chunks, monkeypatch, workers, scene, mode, over):
-    if workers == "processes" and os.environ.get("TLM_FORK_WORKERS") != "1":
-        pytest.skip("forked workers are opt-in (TLM_FORK_WORKERS=1; threads.can_fork says why)")
+    if workers == "processes":  # (forked workers on 2 and 3 threads too, as past DEFAULT_MAX_THREADS)
+        monkeypatch.setenv("TLM_FORK_WORKERS", "1")
     monkeypatch.setattr(batches, "BATCH_WORKERS", workers)  # where whole batches run at once
     raw = _cfg(scene, mode, **over)
     one = _render(raw, 1)
@@ -341,15 +341,32 @@ def test_a_killed_forked_worker_fails_the_call_not_hangs(tmp_path):
     assert done.stdout.strip() in ("broken after []", "broken after [0]", "broken after [0, 1]")
 
 
-def test_forked_workers_only_where_asked_and_never_in_a_daemon(monkeypatch):
+def test_forked_workers_past_the_threads_maximum_or_where_asked_never_in_a_daemon(monkeypatch):
+    """``TLM_FORK_WORKERS`` unset or empty: forked workers on more than DEFAULT_MAX_THREADS
+    threads (where the batches run at once: the callers ask on more than one); ``1``:
+    forked workers on any count; ``0``: threads on any count. Never in a daemon (a Dask
+    worker may not have children), nor where there is no fork."""
     import multiprocessing
 
-    monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
-    assert not threads.can_fork()
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    for value in (None, ""):
+        if value is None:
+            monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
+        else:
+            monkeypatch.setenv("TLM_FORK_WORKERS", value)
+        assert not threads.can_fork()  # (one thread: current())
+        assert [threads.can_fork(n) for n in (2, 8, 9, 64)] == [False, False, fork, fork]
+        with threads.using(9):
+            assert threads.can_fork() == fork
+    monkeypatch.setenv("TLM_FORK_WORKERS", "0")
+    assert [threads.can_fork(n) for n in (2, 8, 9, 64)] == [False] * 4
     monkeypatch.setenv("TLM_FORK_WORKERS", "1")
-    assert threads.can_fork() == ("fork" in multiprocessing.get_all_start_methods())
+    assert threads.can_fork() == fork
+    assert [threads.can_fork(n) for n in (2, 8, 9, 64)] == [fork] * 4
     monkeypatch.setattr(multiprocessing.current_process(), "daemon", True, raising=False)
     assert not threads.can_fork()
+    monkeypatch.delenv("TLM_FORK_WORKERS")
+    assert not threads.can_fork(64)
 
 
 @pytest.mark.parametrize("n", [1, 2, 3])
@@ -534,25 +551,46 @@ def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeyp
 def test_a_null_thread_count_takes_at_most_the_default_maximum_unless_forked(monkeypatch):
     """``render.threads: null`` takes the CPUs available, at most DEFAULT_MAX_THREADS (8) where
     the batches run on threads: on 16 cores 16 threads rendered slower than 8 (the interpreter
-    lock). A count asked for is kept; forked workers (no shared lock) take every CPU; a sweep's
-    worker share is capped alike."""
+    lock). Where they run on forked workers (no shared lock: ``TLM_FORK_WORKERS`` unset past
+    8 CPUs, or ``1``) it takes every CPU, but not where another thread runs beside the render
+    (forked would fall back to threads). ``0``: threads, at most 8. A count asked for is kept;
+    a sweep's worker share is capped unless ``TLM_FORK_WORKERS=1`` (the worker is another
+    process, maybe a daemon)."""
+    import multiprocessing
+
     from tlm.experiments import executors
 
-    monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    monkeypatch.setattr(threads, "_other_threads", lambda pools=True: [])  # (this test process: quiet)
+    monkeypatch.setenv("TLM_FORK_WORKERS", "0")
     assert threads.DEFAULT_MAX_THREADS == 8
     monkeypatch.setattr(threads, "available", lambda: 16)
     with threads.using(None) as n:
         assert n == 8 == threads.current()
     with threads.using(12) as n:
         assert n == 12
-    assert executors.kernel_threads(2, None, 10) == 8  # (16 CPUs over 2 workers: 8 each)
-    monkeypatch.setattr(threads, "available", lambda: 32)
-    assert executors.kernel_threads(2, None, 10) == 8  # (16 each, capped)
-    assert executors.kernel_threads(8, None, 10) == 4
-    monkeypatch.setattr(threads, "available", lambda: 4)
-    with threads.using(None) as n:
-        assert n == 4
+    for value in ("0", "", None):
+        if value is None:
+            monkeypatch.delenv("TLM_FORK_WORKERS", raising=False)
+        else:
+            monkeypatch.setenv("TLM_FORK_WORKERS", value)
+        monkeypatch.setattr(threads, "available", lambda: 16)
+        assert executors.kernel_threads(2, None, 10) == 8  # (16 CPUs over 2 workers: 8 each)
+        monkeypatch.setattr(threads, "available", lambda: 32)
+        assert executors.kernel_threads(2, None, 10) == 8  # (16 each, capped)
+        assert executors.kernel_threads(8, None, 10) == 4
+        monkeypatch.setattr(threads, "available", lambda: 4)
+        with threads.using(None) as n:
+            assert n == 4
     monkeypatch.setattr(threads, "available", lambda: 16)
-    monkeypatch.setenv("TLM_FORK_WORKERS", "1")
+    with threads.using(None) as n:  # (unset)
+        assert n == (16 if fork else 8)
+    monkeypatch.setattr(threads, "_other_threads", lambda pools=True: ["a-user-thread"])
     with threads.using(None) as n:
-        assert n == (16 if threads.can_fork() else 8)
+        assert n == 8
+    monkeypatch.setenv("TLM_FORK_WORKERS", "1")
+    monkeypatch.setattr(threads, "_other_threads", lambda pools=True: [])
+    with threads.using(None) as n:
+        assert n == (16 if fork else 8)
+    monkeypatch.setattr(threads, "available", lambda: 32)
+    assert executors.kernel_threads(2, None, 10) == (16 if fork else 8)

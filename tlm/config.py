@@ -81,8 +81,10 @@ class RenderConfig:
                          "images and work do not depend on it; peak memory grows with it)", min=1)
     threads: int | None = _f(None, "threads the kernels run on (traversal, gathers, photon tracing); null = the "
                              "CPUs available to the process (its affinity, within a container's CPU quota; in a "
-                             "sweep of several --jobs: their share of them), at most 8 (more threads render slower: "
-                             "they share Python's interpreter lock) unless TLM_FORK_WORKERS=1; "
+                             "sweep of several --jobs: their share of them, at most 8 unless TLM_FORK_WORKERS=1); "
+                             "past 8 the batches run on forked worker processes, which take every CPU (threads share "
+                             "Python's interpreter lock and render slower past 8; TLM_FORK_WORKERS=0: threads, "
+                             "null at most 8); "
                              "speed only: images, work and cycles are bit-identical for every count", min=1)
 
 

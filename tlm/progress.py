@@ -172,6 +172,13 @@ def _bar_class():
     from tqdm import tqdm
 
     class Bar(tqdm):
+        # no monitor thread: tqdm starts one with the first bar (a disabled one too) and keeps it
+        # for the life of the process, taking tqdm's lock every few seconds; a render that forks
+        # its workers (tlm.kernels.threads.forked) forks only where no other thread runs. The
+        # monitor only lowers a bar's miniters after a stall; these bars' redraws come from
+        # their steps (and Ticking's refreshes)
+        monitor_interval = 0
+
         def __init__(self, *args, eta_after: float = 0.0, **kwargs):
             self.eta_after = eta_after
             self.seen: list[tuple[float, float]] = []  # (when, steps done then) at each update

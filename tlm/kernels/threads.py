@@ -24,6 +24,7 @@ import contextlib
 import contextvars
 import itertools
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -39,6 +40,7 @@ _THREADS: contextvars.ContextVar[int] = contextvars.ContextVar("tlm_threads", de
 _SHARE: contextvars.ContextVar[int] = contextvars.ContextVar("tlm_share", default=1)
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 _POOLS_LOCK = threading.Lock()
+_BUSY = 0  # calls submitted to the pools that have not returned (nor been cancelled); under _POOLS_LOCK
 
 
 CGROUP_ROOT = Path("/sys/fs/cgroup")  # where Linux mounts the control groups
@@ -136,21 +138,32 @@ def share() -> int:
     return _SHARE.get()
 
 
-# The most threads ``render.threads: null`` takes where the batches run on threads: they share
-# the interpreter lock, and past about 8 more threads render slower, not faster. On a 16-core
-# machine (benchmarks/README.md, "16 cores", 2026-11-29) cornell_pmap 320x320 ran 4.97x one
-# thread's speed on 8 threads and 3.13x on 16 (3.91x and 2.43x before the glue was compiled);
-# the conference room 5.10x and 4.02x. Forked workers (TLM_FORK_WORKERS=1) share no lock and
-# take every CPU (9.99x on 16).
+# The most threads the batches run on as threads by default: they share the interpreter lock,
+# and past about 8 more threads render slower, not faster. On a 16-core machine
+# (benchmarks/README.md, "16 cores", 2026-11-29) cornell_pmap 320x320 ran 4.97x one thread's
+# speed on 8 threads and 3.13x on 16 (3.91x and 2.43x before the glue was compiled); the
+# conference room 5.10x and 4.02x. Forked workers share no lock and take every CPU (9.99x on
+# 16): a render on more threads than this runs its batches and photon chunks on forked workers
+# (:func:`can_fork`), and ``render.threads: null`` takes every CPU where it may fork.
 DEFAULT_MAX_THREADS = 8
 
 
 def default_threads(cpus: int | None = None) -> int:
     """The threads of ``render.threads: null``: ``cpus`` (default the CPUs available,
     :func:`available`; a sweep's worker passes its share of them), at most
-    :data:`DEFAULT_MAX_THREADS` unless the batches run on forked workers (:func:`can_fork`)."""
-    n = available() if cpus is None else max(1, int(cpus))
-    return n if can_fork() else min(n, DEFAULT_MAX_THREADS)
+    :data:`DEFAULT_MAX_THREADS` unless the batches will run on forked workers: this
+    process's own CPUs where :func:`can_fork` and no thread but this module's pools runs
+    beside the caller (else :func:`forked` would fall back to threads, and more than
+    :data:`DEFAULT_MAX_THREADS` threads render slower); a share of them for another process
+    (a sweep's worker, whose threads and daemon flag this one cannot see: a Dask worker is a
+    daemon) only where asked (``TLM_FORK_WORKERS=1``)."""
+    if cpus is None:
+        n = available()
+        fork = can_fork(n) and not _other_threads(pools=False)
+    else:
+        n = max(1, int(cpus))
+        fork = fork_workers() is True and can_fork(n)
+    return n if fork else min(n, DEFAULT_MAX_THREADS)
 
 
 @contextlib.contextmanager
@@ -170,10 +183,13 @@ def using(n: int | None):
 
 
 def _forget_pools() -> None:
-    """In a forked child: the parent's pools' threads are not there, so start afresh."""
-    global _POOLS_LOCK
+    """In a forked child: the parent's pools' threads are not there, so start afresh (the
+    locks too: the parent may have held them at the fork, :func:`forked` does)."""
+    global _POOLS_LOCK, _BUSY, _FORK_LOCK
     _POOLS.clear()
     _POOLS_LOCK = threading.Lock()
+    _BUSY = 0
+    _FORK_LOCK = threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):
@@ -184,8 +200,38 @@ def _pool(n: int) -> ThreadPoolExecutor:
     with _POOLS_LOCK:
         pool = _POOLS.get(n)
         if pool is None:
-            pool = _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"tlm-kernel-{n}")
+            pool = _POOLS[n] = ThreadPoolExecutor(max_workers=n, thread_name_prefix=f"{_POOL_THREADS}{n}")
         return pool
+
+
+_POOL_THREADS = "tlm-kernel-"  # the start of the pools' threads' names
+
+
+def _submit(pool: ThreadPoolExecutor, fn: Callable, *args) -> Future:
+    """``pool.submit(fn, *args)``, counted in ``_BUSY`` until the call returns or is
+    cancelled: :func:`forked` forks only while no call is in flight on the pools."""
+    global _BUSY
+    with _POOLS_LOCK:
+        _BUSY += 1
+        future = pool.submit(_counted, fn, *args)
+    future.add_done_callback(_uncount_cancelled)
+    return future
+
+
+def _counted(fn: Callable, *args):
+    global _BUSY
+    try:
+        return fn(*args)
+    finally:  # (before the future is done: a caller that took every result sees no call in flight)
+        with _POOLS_LOCK:
+            _BUSY -= 1
+
+
+def _uncount_cancelled(future: Future) -> None:
+    global _BUSY
+    if future.cancelled():  # (never ran, so _counted never took it off)
+        with _POOLS_LOCK:
+            _BUSY -= 1
 
 
 def spans(n_items: int, min_chunk: int, threads: int | None = None) -> list[tuple[int, int]]:
@@ -235,7 +281,7 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     try:
         while nxt < len(items) or pending:
             while nxt < len(items) and (not pending or held + weight[nxt] <= limit):
-                pending.append((pool.submit(one.copy().run, fn, items[nxt]), weight[nxt]))
+                pending.append((_submit(pool, one.copy().run, fn, items[nxt]), weight[nxt]))
                 held += weight[nxt]
                 nxt += 1
             future, w = pending.pop(0)
@@ -262,47 +308,116 @@ def background(fn: Callable[[], R]) -> Future:
     one = contextvars.copy_context()
     one.run(_THREADS.set, 1)
     one.run(_SHARE.set, _SHARE.get() * 2)  # (a budget is shared with the caller's own calls)
-    return _pool(n).submit(one.run, fn)
+    return _submit(_pool(n), one.run, fn)
 
 
 _FORKED: Callable | None = None  # what the forked workers of :func:`forked` call (set before the fork)
 _FORKED_SHARE = 1  # their :func:`share` (the calls in flight: twice the processes)
 _FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
 
+# Threads that may run beside a fork, by name: a sweep worker's watch on its parent
+# (tlm.experiments.executors._watch_parent) waits in select() or sleep() and then calls
+# os._exit, holding no lock a forked worker could need.
+_QUIET_THREADS = frozenset({"tlm-watch-sweep"})
 
-def fork_workers() -> bool:
-    """``TLM_FORK_WORKERS``: ``1`` asks for forked workers (:func:`can_fork`), ``0``, empty or
-    unset does not; any other value (``yes``, ``true``, ``2``) is an
+
+def fork_workers() -> bool | None:
+    """``TLM_FORK_WORKERS``: ``1`` forked workers wherever the batches run at once, ``0``
+    threads always, empty or unset None (forked workers past :data:`DEFAULT_MAX_THREADS`
+    threads: :func:`can_fork`); any other value (``yes``, ``true``, ``2``) is an
     :class:`~tlm.errors.InputError` naming the variable (exit status 2), never taken as off."""
     raw = os.environ.get("TLM_FORK_WORKERS", "")
     if raw.strip() not in ("", "0", "1"):
         from tlm.errors import InputError
 
-        raise InputError(f"{raw!r} is not 0 or 1 (1: forked worker processes; 0, empty or unset: threads)",
+        raise InputError(f"{raw!r} is not 0 or 1 (1: forked worker processes; 0: threads; empty or unset: "
+                         f"forked worker processes past {DEFAULT_MAX_THREADS} threads)",
                          source="environment", key="TLM_FORK_WORKERS")
-    return raw.strip() == "1"
+    return None if raw.strip() == "" else raw.strip() == "1"
 
 
-def can_fork() -> bool:
-    """Whether batches and photon chunks run on forked worker processes: only when asked
-    (``TLM_FORK_WORKERS=1``, :func:`fork_workers`) and where fork exists (not on Windows,
-    nor macOS's default).
-
-    Off by default: the render forks from a process that already runs threads (the
-    kernels' pool, a progress bar's monitor, numba's), and a child can inherit a lock that
-    one of them held at the fork; a ``tlm run`` and the test suite were seen to hang so
-    (2026-11-27). Threads give the same bits, with less speed-up (the interpreter lock).
-    """
+def can_fork(n: int | None = None) -> bool:
+    """Whether the batches and photon chunks of a render on ``n`` threads (default
+    :func:`current`) run on forked worker processes (:func:`forked`): with
+    ``TLM_FORK_WORKERS=1`` always (the callers run them at once only on more than one
+    thread), with it empty or unset past :data:`DEFAULT_MAX_THREADS` threads (more threads
+    than that render slower: the interpreter lock), with ``0`` never; and only where fork
+    exists (not on Windows, nor macOS's default) and this process is no daemon (a Dask
+    worker may not have children). :func:`forked` itself forks only from a quiet process,
+    and falls back to threads (the same bits) where it is not."""
     import multiprocessing
 
-    return (fork_workers() and "fork" in multiprocessing.get_all_start_methods()
-            and not multiprocessing.current_process().daemon)  # (a daemon, e.g. a Dask worker, may not fork)
+    asked = fork_workers()
+    if asked is False or (asked is None and (current() if n is None else n) <= DEFAULT_MAX_THREADS):
+        return False
+    return "fork" in multiprocessing.get_all_start_methods() and not multiprocessing.current_process().daemon
 
 
-def _forked_init() -> None:
-    """A forked worker leaves Ctrl-C to the render that forked it (which ends the pool)."""
+def _other_threads(pools: bool = True) -> list[str]:
+    """The names of the Python threads alive beside the calling one, less :data:`_QUIET_THREADS`
+    (and, with ``pools=False``, less this module's pools' workers, which :func:`forked` ends)."""
+    me = threading.current_thread()
+    return [t.name for t in threading.enumerate()
+            if t is not me and t.name not in _QUIET_THREADS and (pools or not t.name.startswith(_POOL_THREADS))]
+
+
+def _compiler_lock():
+    """numba's global compiler lock (held while a thread compiles a kernel or loads one from
+    the cache), or a lock of none where numba is not imported (then no thread compiles)."""
+    module = sys.modules.get("numba.core.compiler_lock")
+    return contextlib.nullcontext() if module is None else module.global_compiler_lock
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Yield True with this process quiet enough to fork, else False (the caller runs threads).
+
+    fork() copies only the calling thread: a lock another thread holds at that instant stays
+    held forever in the child, which then hangs when it needs it (2026-11-27, a ``tlm run``
+    and the test suite). So, in this order:
+
+    * no call in flight on this module's pools (``_BUSY``: an :func:`ordered` or
+      :func:`background` call may be loading a kernel, or a caller may still submit to the
+      pool) and no other Python thread alive but the pools' (:func:`_other_threads`: a
+      user's, a notebook's, a progress bar's, another library's pool): else False. What such
+      a thread holds cannot be known (nor whether it is about to submit to a pool); tlm's own
+      bars start no monitor thread (:func:`tlm.progress._bar_class`);
+    * then the idle pools are shut down and their threads joined, under ``_POOLS_LOCK`` so
+      that none is made again meanwhile (they are made again on first use), and no thread
+      but the caller is left (else False);
+    * numba's global compiler lock held by this thread across the fork: a thread that the
+      check cannot see (started by C code) may be compiling or loading a kernel; the fork
+      waits for it. The children own the lock then (the forking thread is their only one,
+      with the same id) and give it up first thing (:func:`_forked_init`), so they compile
+      and load kernels as any process does.
+
+    The libraries' native threads hold none of Python's locks: numpy's BLAS pool (OpenBLAS
+    stops its threads around a fork itself), numba's threading layer (OpenMP or workqueue
+    threads, started by a ``parallel=True`` kernel: the reference's, which no forked worker
+    calls). The interpreter takes its import lock across a fork itself, and a module's own
+    import lock is held only by a thread importing it: none runs."""
+    with _POOLS_LOCK:
+        if _BUSY or _other_threads(pools=False):
+            yield False
+            return
+        for pool in _POOLS.values():
+            pool.shutdown(wait=True)
+        _POOLS.clear()
+        if _other_threads():
+            yield False
+            return
+        with _compiler_lock():
+            yield True
+
+
+def _forked_init(holds_compiler_lock: bool) -> None:
+    """A forked worker gives up numba's compiler lock that :func:`_quiet` held at the fork (its
+    thread is the forking one, so it owns it), and leaves Ctrl-C to the render that forked it
+    (which ends the pool)."""
     import signal
 
+    if holds_compiler_lock:
+        _compiler_lock().release()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
@@ -323,19 +438,43 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     pickled) and what it reads (a frame, its BSP, photon maps) are the caller's, page for
     page; the items and results are pickled. At most twice ``processes`` calls are in
     flight. Only where :func:`can_fork`. A worker that dies (killed, out of memory) fails
-    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang."""
+    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang.
+
+    The workers are forked only from a quiet process (:func:`_quiet`: no call in flight on
+    the pools, which are shut down, no other Python thread, numba's compiler lock held);
+    where it is not, or another thread's forked pool is running, the items run on
+    ``processes`` threads (:func:`ordered`), with the same results."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     global _FORKED, _FORKED_SHARE
     items = list(items)
-    with _FORK_LOCK:
-        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * min(2 * processes, max(1, len(items)))
+    if not items or not _FORK_LOCK.acquire(blocking=False):  # (another thread forks: not quiet)
+        yield from ordered(fn, items, processes)
+        return
+    try:
+        _FORKED, _FORKED_SHARE = fn, _SHARE.get() * min(2 * processes, len(items))
+        pool = None
+        pending = []
         try:
-            with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
-                                     initializer=_forked_init) as pool:
-                pending = []
-                nxt = 0
+            with _quiet() as quiet:
+                if quiet:
+                    holds = not isinstance(_compiler_lock(), contextlib.nullcontext)
+                    pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
+                                               initializer=_forked_init, initargs=(holds,))
+                    # (with fork the first submit forks every worker, then starts the pool's
+                    # manager thread: all the forks happen here, in the quiet process)
+                    try:
+                        pending.append(pool.submit(_call_forked, items[0]))
+                    except BaseException:  # (a fork refused, EAGAIN: no half-made pool left behind)
+                        pool.shutdown(wait=True, cancel_futures=True)
+                        raise
+            if pool is None:
+                _FORKED, _FORKED_SHARE = None, 1
+                yield from ordered(fn, items, processes)
+                return
+            with pool:
+                nxt = 1
                 try:
                     while nxt < len(items) or pending:
                         while nxt < len(items) and len(pending) < 2 * processes:
@@ -347,6 +486,8 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
                         f.cancel()
         finally:
             _FORKED, _FORKED_SHARE = None, 1
+    finally:
+        _FORK_LOCK.release()
 
 
 def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:
