@@ -226,7 +226,8 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
         assert any(c.startswith("api.") for c in calls), fn.name
 
 
-@pytest.mark.parametrize("module", ["tlm/api.py", "tlm/cli.py", "tlm/cli_signals.py", *sorted(
+@pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_common.py", "tlm/cli.py",
+                                    "tlm/cli_signals.py", *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):
     """Progress bars, the timer and provenance have modules of their own: the experiments

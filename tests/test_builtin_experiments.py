@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 import tlm.api
+import tlm.api_studies
 import tlm.arch.costs as costs
 import tlm.builtin
 import tlm.scenes.export as export
@@ -189,7 +190,7 @@ def installed(tmp_path, monkeypatch):
     table = package / "arch" / "programs.yaml"
     table.parent.mkdir(parents=True)
     shutil.copy(costs.DEFAULT_PATH, table)
-    monkeypatch.setattr(tlm.api, "_package_dir", lambda: package)
+    monkeypatch.setattr(tlm.api_studies, "_package_dir", lambda: package)  # (where write_calibration is)
     monkeypatch.setattr(costs, "DEFAULT_PATH", table)
     return table
 

@@ -14,7 +14,9 @@ walkthrough: docs/api.md)::
 
 A study (:func:`sweep`, :func:`thesis`, :func:`error_vs_cost`, ...) takes its experiment
 file's path or a built-in experiment's name (``tlm config list``), as its ``tlm`` command
-does (:func:`experiment_path`).
+does (:func:`experiment_path`). The studies and the reports are written in
+:mod:`tlm.api_studies` (what it shares with this module: :mod:`tlm.api_common`) and read from
+here as every name of the API does: ``tlm.api.sweep`` is ``tlm.api_studies.sweep``.
 
 Bad input of any kind raises :class:`InputError`, whose message names the file, the
 key and the value (``tlm`` prints it on one line and exits with status 2); a timing
@@ -41,6 +43,24 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from tlm.api_common import experiment_path  # (shared with tlm.api_studies)
+from tlm.api_common import folder as _folder
+from tlm.api_studies import (  # the many experiments and the reports (see the end of this module)
+    calibrate,
+    calibration_table,  # noqa: F401  (not in __all__: the CLI's tlm.api.<name>, as in_checkout, report_output)
+    error_vs_cost,
+    extreme,
+    granularity,
+    in_checkout,  # noqa: F401
+    plots,
+    report_output,  # noqa: F401
+    run_sweep,
+    scaling,
+    sweep,
+    thesis,
+    write_calibration,
+    write_report,
+)
 from tlm.arch.units import Deadlock, MaxEventsReached
 from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.errors import InputError, did_you_mean
@@ -48,14 +68,12 @@ from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:
     import numpy as np
-    import pandas as pd
 
     from tlm.arch.costs import Programs
     from tlm.arch.model import Timing
     from tlm.config import ArchConfig
     from tlm.experiments.reference import Made
     from tlm.experiments.run import RenderResult
-    from tlm.experiments.sweep import Outcome
     from tlm.scenes.model import Scene
 
 __all__ = [
@@ -253,16 +271,6 @@ def list_experiments() -> list[str]:
     from tlm.builtin import list_experiments as names
 
     return names()
-
-
-def experiment_path(ref: str | Path, command: str = "run") -> Path:
-    """The experiment file that ``tlm COMMAND REF`` runs: ``ref`` when it exists, else the
-    built-in experiment named ``ref``; an :class:`InputError` otherwise (a path that does
-    not exist names the built-in experiment of its file name, which is not taken in its
-    place; a name that is none lists them)."""
-    from tlm.builtin import experiment_path as find
-
-    return find(os.fspath(ref), command, list_scenes())
 
 
 def experiment_command(name: str) -> str:
@@ -547,258 +555,8 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
     return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
 
 
-# ---------------------------------------------------------------- many experiments
+# ---------------------------------------------------------------- many experiments, reports
 
-
-def _folder(out: Any, key: str = "out") -> Path:
-    """``out`` as the path of a folder to write; an InputError for what is not a path."""
-    if not isinstance(out, (str, os.PathLike)):
-        raise InputError(f"{out!r} is not a folder's path: name the folder to write", key=key)
-    return Path(out)
-
-
-def _experiment_file(path: str | Path, command: str) -> Path:
-    """The experiment file a study function was given, as ``tlm COMMAND PATH`` takes it
-    (:func:`experiment_path`): ``path`` where it exists, else the built-in experiment of
-    that name; an :class:`InputError` otherwise, and for what is neither a path nor a name."""
-    if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"{path!r} is not an experiment: give an experiment file's path or a built-in "
-                         "experiment's name ('tlm config list')", key="path")
-    return experiment_path(path, command)
-
-
-@imports_whole
-def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-              progress: bool = False, dask_wait: float | None = None) -> Outcome:
-    """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
-    :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
-    (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
-    and rendered. ``jobs``: worker processes (default the CPUs available to
-    the process, within a container's CPU quota, as for ``render.threads``; 1: in this
-    process); ``dask``: ``"local"`` or a scheduler's address; ``dask_wait`` (with ``dask``): the
-    seconds the sweep waits while the scheduler has no worker before it stops (``tlm sweep
-    --dask-wait``; default 300)."""
-    from tlm.experiments.sweep import run_sweep as run_all
-
-    if jobs is not None:
-        if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):
-            raise InputError(f"{jobs!r} is not a whole number of worker processes (None: the CPUs available)",
-                             key="jobs")
-        jobs = int(jobs)
-    return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
-                   dask_wait=dask_wait)
-
-
-@imports_whole
-def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-          progress: bool = False, dask_wait: float | None = None) -> pd.DataFrame:
-    """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
-    (:func:`run_sweep`) and return its rows as a
-    pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
-    (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
-    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait).table
-
-
-@imports_whole
-def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
-    """Fit eq. 5.2 to sweeps over ``arch.pipelines`` (``tlm scaling``): the fits, a table and
-    a figure per scene in ``out``."""
-    from tlm.experiments.scaling import analyse
-    from tlm.report.scaling import plot_scaling
-
-    return analyse([Path(d) for d in sweeps], Path(out), plot=plot_scaling)
-
-
-@imports_whole
-def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
-           bar: bool = False) -> dict:
-    """Tables I-III (``tlm thesis``): every scene and mode of the study file ``path`` (or the
-    built-in study of that name, ``"thesis"``) beside the thesis; returns ``rows`` and
-    ``summary``. ``progress`` gets ``(scene, mode, results)``."""
-    from tlm.experiments.thesis import run_thesis
-
-    return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar)
-
-
-@imports_whole
-def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
-              ) -> tuple[Programs, dict]:
-    """Fit the PM programs' free parameters to the RCast column of Tables I-III (``tlm
-    calibrate``) of the study file ``path`` (or the built-in study of that name); returns the
-    fitted table and the fit's report (``report["cells"]``)."""
-    from tlm.experiments.thesis import calibrate as fit
-
-    return fit(_experiment_file(path, "calibrate"), progress=progress)
-
-
-def _package_dir() -> Path:
-    """The folder of the tlm package that runs (site-packages/tlm in an installed copy)."""
-    return Path(__file__).resolve().parent
-
-
-def in_checkout(package: str | Path) -> bool:
-    """Whether the tlm package folder ``package`` is a checkout's (a source tree: a
-    ``pyproject.toml`` or ``.git`` beside it) rather than an installed copy (inside a
-    ``site-packages`` or ``dist-packages`` folder, or with neither beside it)."""
-    package = Path(package)
-    if {part.lower() for part in package.parts} & {"site-packages", "dist-packages"}:
-        return False
-    return (package.parent / "pyproject.toml").is_file() or (package.parent / ".git").exists()
-
-
-def _refuse_installed(target: Path) -> None:
-    """An InputError, nothing written, where the default table ``target`` lies inside the
-    package of an installed copy (its packaged ``tlm/arch/programs.yaml``): a calibration
-    there would change the table of every user of that installation, and the fingerprint
-    of its code (every cached result of it would be stale)."""
-    package = _package_dir()
-    if not in_checkout(package) and Path(target).resolve().is_relative_to(package):
-        raise InputError(f"not written: the table is inside the installed tlm package ({package}, not a checkout), "
-                         "where a fit would change it for every user of this installation: name a table with "
-                         "--write FILE, or fit and print only with --dry-run", source=str(target))
-
-
-@imports_whole
-def calibration_table(path: str | Path, target: str | Path | None = None) -> Path:
-    """The instruction table that :func:`write_calibration` writes for a :func:`calibrate`
-    of the study ``path`` (a file, or a built-in study's name): ``target``, else the study's own table (its
-    ``base.arch.programs``), else the packaged ``tlm/arch/programs.yaml``. Refused with an
-    :class:`InputError` before any fit, as :func:`write_calibration` refuses it: that
-    default table inside the package of an installed copy (:func:`in_checkout`)."""
-    from tlm.arch.costs import DEFAULT_PATH
-    from tlm.experiments.run import programs_for
-    from tlm.experiments.thesis import load_study
-
-    if target is not None:  # (named: written where it is named, an installed package's folder included)
-        return Path(target)
-    path = _experiment_file(path, "calibrate")
-    base, scenes, _, folder = load_study(path)
-    used = Path(programs_for(config_from_dict({**base, "scene": scenes[0], "mode": "rcast"}, str(path)),
-                             folder).source)
-    target = used if used.is_file() else DEFAULT_PATH
-    _refuse_installed(target)
-    return target
-
-
-@imports_whole
-def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
-                      command: str = "") -> Path:
-    """Write a :func:`calibrate` fit into the instruction table ``target``, keeping its
-    comments; returns the path written.
-
-    ``target`` defaults to the table the study uses (its ``arch.programs``, else the
-    packaged ``tlm/arch/programs.yaml``). Refused with a one-line
-    :class:`~tlm.errors.InputError`, nothing written: an empty path, a folder, a path whose
-    folder does not exist, the packaged table from a fit whose ``report`` says it is
-    not comparable with the thesis (``report["not_comparable"]``: its parameters would
-    measure that setting, not the model; name another file), and, unless ``target`` names
-    it, a table inside the package of an installed copy (:func:`in_checkout`)."""
-    from tlm.arch.costs import DEFAULT_PATH
-    from tlm.experiments.thesis import write_calibrated
-
-    if target is not None and not str(target).strip():
-        raise InputError("an empty path names no table (leave it out for the study's own table)", key="--write")
-    named = target is not None
-    if target is None:
-        used = Path(programs.source)
-        target = used if used.is_file() else DEFAULT_PATH
-    target = Path(target)
-    if target.is_dir():
-        raise InputError("is a folder, not a table file", source=str(target), key="--write")
-    if not target.parent.is_dir():
-        raise InputError(f"its folder {target.parent} does not exist", source=str(target), key="--write")
-    if not named:
-        _refuse_installed(target)
-    differ = report.get("not_comparable") or {}
-    if differ and target.resolve() == DEFAULT_PATH.resolve():
-        why = "; ".join(f"{s} is {', '.join(w)}" for s, w in differ.items())
-        raise InputError(f"not written: the packaged table is fitted to the thesis's setting only, and this study's "
-                         f"is not ({why}); name another file with --write", source=str(target))
-    write_calibrated(programs, report, target, command)
-    return target
-
-
-@imports_whole
-def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
-    """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
-    study file ``path`` (or the built-in study of that name)."""
-    from tlm.experiments.granularity import run_granularity
-
-    return run_granularity(_experiment_file(path, "granularity"), Path(out), progress)
-
-
-@imports_whole
-def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
-                  progress: Callable[[int, int, dict], None] | None = None,
-                  note: Callable[[str], None] | None = None) -> list[dict]:
-    """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
-    one row per point of the experiment file ``path`` (or the built-in experiment of that
-    name); ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none)."""
-    from tlm.experiments.error_cost import Truth, run_error_vs_cost
-
-    return run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
-                             truth=Truth(spp=truth_spp), note=note)
-
-
-@imports_whole
-def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
-    """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
-    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case."""
-    from tlm.experiments.extreme import run_extreme
-
-    return run_extreme(_experiment_file(path, "extreme"), Path(out), progress)
-
-
-# ---------------------------------------------------------------- reports
-
-
-@imports_whole
-def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
-                 lock: bool = False, formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
-    """The self-contained HTML report of run, sweep or study folders (``tlm report``);
-    returns the path of ``report.html`` (default folder: ``DIR/report`` of the one folder).
-    ``lock``: hold the folder's lock meanwhile, so no other run replaces it. ``formats``:
-    the files each figure is written as, ``"pdf,svg"`` or names of png, pdf and svg (the
-    PNG always, as the page embeds it); ``dpi``: the PNG's, 50 to 1200 (default 110)
-    (``tlm report --formats --dpi``; a bad value is an InputError before anything is written)."""
-    from tlm.report import build_report
-
-    dirs = [Path(d) for d in dirs]
-    if out is None and len(dirs) > 1:
-        raise InputError("several folders: name the report folder", key="--out")
-    if not lock:
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi)
-    from tlm.storage import folder_lock
-
-    with folder_lock(dirs[0]):
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi)
-
-
-@imports_whole
-def report_output(formats: str | Iterable[str] | None = None,
-                  dpi: int | str | None = None) -> tuple[tuple[str, ...], int]:
-    """The files each figure of a report is written as and the PNG's dots per inch, as
-    :func:`write_report` takes ``formats`` and ``dpi`` (``("png", "svg"), 110`` for ``"svg"``);
-    a bad value is the InputError it raises (naming ``--formats`` or ``--dpi``), here before
-    any work: ``tlm run --formats`` checks it so."""
-    from tlm.report.common import output
-
-    chosen = output(formats, dpi)
-    return chosen.formats, chosen.dpi
-
-
-@imports_whole
-def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
-          run_command: Callable[[list[str]], int], say: Callable[[str], None] = print,
-          formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
-    """Every committed experiment of ``configs`` and their report into ``out`` (``tlm
-    plots``). ``run_command`` runs one step's argv and returns its exit status (the CLI's
-    step runner: 1 when its results report failures, an exception on bad input or a bug).
-    Steps that return 1 are said and the rest run; the report is written, then
-    :class:`~tlm.errors.StepsFailed` names them. ``formats`` and ``dpi``: the report's
-    figure files, as :func:`write_report` takes them (checked before the first step)."""
-    from tlm.report.common import figure_output
-    from tlm.report.regenerate import regenerate
-
-    with figure_output(formats, dpi):  # (the report's figures; a bad value stops here, before any step)
-        return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)
+# tlm/api_studies.py, imported at the top of this module (``tlm.api.sweep is tlm.api_studies.sweep``):
+# run_sweep, sweep, scaling, thesis, calibrate (with calibration_table, write_calibration and
+# in_checkout), granularity, error_vs_cost and extreme; write_report, report_output and plots.
