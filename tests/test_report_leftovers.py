@@ -1,4 +1,4 @@
-"""Three report defects a researcher met in the scaling and sweeps sections.
+"""Four report defects a researcher met in the scaling and sweeps sections.
 
 * The idle figures (and the eq. 5.2 figures) of a sweep over ``arch.pipelines`` were titled by the
   sweep folder's name (``[sw]``), where the notes and tables of the same report name the sweep by
@@ -9,6 +9,9 @@
   category, ``None`` a point of its own. The numbers are on an axis of numbers now, and the null
   points are stars at the depth they resolved to (results.json ``scene.bsp.requested_levels``),
   or, where no results folder records it, at a tick ``null`` apart, with a legend entry each.
+* The scaling section marked a ``tlm scaling`` folder's figures out of date by the folder's name, so that
+  a sweep, or another scaling folder, of the same name was marked too. The marker is the folder's own,
+  and a scaling folder is named by the tail of its path that tells it from the section's other folders.
 
 The sweep folders are made by hand (the files and keys the report reads).
 """
@@ -16,6 +19,7 @@ The sweep folders are made by hand (the files and keys the report reads).
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import yaml
@@ -230,3 +234,54 @@ def test_null_among_the_levels_with_a_band_is_a_star_at_its_depth(tmp_path, monk
     assert [float(x) for x in median.get_xdata()] == [6.0, 8.0]
     (star,) = _stars(ax)
     assert float(star.get_xdata()[0]) == 7.0 and abs(float(star.get_ydata()[0]) - (13 + 0.06)) < 1e-9
+
+
+
+# ------------------------------------------------------------ 4. "out of date" is a scaling folder's, not a name's
+
+
+def _stale_fit(sweep: Path, out: Path) -> Path:
+    """A ``tlm scaling`` folder ``out`` fitted from ``sweep`` (N = 1, 2, 4), the sweep then run again into its
+    folder with N = 8 too: the fit no longer shows the points its sweep holds (out of date)."""
+    pipelines_sweep(sweep, [(n, "cornell", CORNELL, "cornell") for n in (1, 2, 4)])
+    assert main(["scaling", str(sweep), "--out", str(out), "--no-report"]) == 0
+    shutil.rmtree(sweep)
+    pipelines_sweep(sweep, [(n, "cornell", CORNELL, "cornell") for n in (1, 2, 4, 8)])
+    return out
+
+
+def _eq52_titles(sec) -> list[str]:
+    """The eq. 5.2 figures' titles, each checked to be marked out of date in its caption as in its title."""
+    figs = [f for f in sec.figures if f.file.startswith("scaling_")]
+    for f in figs:
+        assert f.title.endswith(" (out of date)") == f.caption.startswith("Out of date: "), (f.title, f.caption)
+    return [f.title for f in figs]
+
+
+def test_a_sweep_named_as_a_stale_scaling_folder_is_not_out_of_date(tmp_path):
+    """A sweep over N in a folder ``sw`` and a stale ``tlm scaling`` folder also named ``sw``: the marker
+    was looked up by the folder's name, so the fit of the sweep as it is now was marked out of date too
+    (and both figures were titled "scaling from sw")."""
+    fit = _stale_fit(tmp_path / "src" / "sw", tmp_path / "fits" / "sw")
+    fresh = pipelines_sweep(tmp_path / "now" / "sw", [(n, "cornell", CORNELL, "cornell") for n in (1, 2, 4)])
+    out = tmp_path / "rep"
+    out.mkdir()
+    sec = scaling_section(read([fit, fresh]), out)
+    assert [t.endswith(" (out of date)") for t in _eq52_titles(sec)] == [True, False], _eq52_titles(sec)
+    assert _eq52_titles(sec) == ["cornell: scaling from fits/sw (out of date)", "cornell: scaling from sw"]
+    (note,) = [n for n in sec.notes if "out of date" in n]
+    assert note.startswith("fits/sw: out of date: its sweep "), note
+
+
+def test_of_two_scaling_folders_named_alike_only_the_stale_one_is_out_of_date(tmp_path):
+    stale = _stale_fit(tmp_path / "src" / "sw", tmp_path / "a" / "eq")
+    other = pipelines_sweep(tmp_path / "src2" / "sw", [(n, "cornell", CORNELL, "cornell") for n in (1, 2, 4)])
+    assert main(["scaling", str(other), "--out", str(tmp_path / "b" / "eq"), "--no-report"]) == 0
+    out = tmp_path / "rep"
+    out.mkdir()
+    sec = scaling_section(read([stale, tmp_path / "b" / "eq"]), out)
+    assert [t.endswith(" (out of date)") for t in _eq52_titles(sec)] == [True, False], _eq52_titles(sec)
+    # (each folder named by the tail of its path that tells it from the other: "eq" named both)
+    assert _eq52_titles(sec) == ["cornell: scaling from a/eq (out of date)", "cornell: scaling from b/eq"]
+    (note,) = [n for n in sec.notes if "out of date" in n]
+    assert note.startswith("a/eq: out of date: its sweep "), note

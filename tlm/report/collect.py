@@ -41,7 +41,7 @@ import yaml
 from tlm.config import MODES
 from tlm.errors import InputError
 from tlm.experiments.thesis import METRICS, PM_METRICS
-from tlm.report.names import name_scenes, path_labels, scene_label
+from tlm.report.names import name_scenes, path_labels, scene_label, value_text
 from tlm.storage import read_jsonl
 
 
@@ -75,9 +75,10 @@ class Run:
 
     @property
     def factors_text(self) -> str:
-        """A sweep point's factor values, ``bsp.levels = 7, cache.pairs = 2`` ("" for another run);
+        """A sweep point's factor values, ``bsp.levels = 7, cache.pairs = 2`` ("" for another run), as
+        their YAML writes them (``bsp.levels = null (floor(ln n))``, :func:`~tlm.report.names.value_text`);
         a scene factor by the scene's name in the report."""
-        return ", ".join(f"{k} = {self.scene_label if k == 'scene' else _value_text(v)}"
+        return ", ".join(f"{k} = {self.scene_label if k == 'scene' else value_text(k, v)}"
                          for k, v in self.factors.items())
 
     @property
@@ -103,10 +104,6 @@ class Run:
     def radiance(self) -> Path | None:
         p = self.path / "radiance"
         return p if p.is_dir() else None
-
-
-def _value_text(v: Any) -> str:
-    return f"{v:.4g}" if isinstance(v, float) else str(v)
 
 
 @dataclass

@@ -38,6 +38,7 @@ from matplotlib.path import Path as MplPath
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, new_figure, save, some
+from tlm.report.names import value_text
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
 FEW_PIPELINES = 2  # up to this many pipelines, every PM has a bar of its own
@@ -146,7 +147,7 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
 
 
 def _factors(run: Run) -> str:
-    return ", ".join(f"{k.split('.')[-1]}={v}" for k, v in run.factors.items())
+    return ", ".join(f"{k.split('.')[-1]}={value_text(k, v)}" for k, v in run.factors.items())
 
 
 # -- (a) the eq. 5.1 breakdown ---------------------------------------------------------------

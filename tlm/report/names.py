@@ -1,13 +1,18 @@
 """How the report names a scene, and shows a path a run recorded, so that one name means
 one scene file throughout (:func:`scene_label`, :func:`name_scenes`) and no path of the
-machine that ran a study is shown as it was there (:func:`shown_paths`).
+machine that ran a study is shown as it was there (:func:`shown_paths`); and how it writes a
+sweep factor's value: as its YAML does (``null``, not ``None``), a null with what it asks of
+its key where the key's help says (``null (floor(ln n))``, :func:`value_text`).
 """
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
 from typing import Any
+
+from tlm.config import describe
 
 SCENE_FOLDERS = ("scenes", "_scenes")  # the built-in scenes' folder in a checkout, and in the wheel
 
@@ -200,3 +205,44 @@ def path_labels(paths: list[Path]) -> list[str]:
         seen.add(out)
         labels[i] = out
     return labels
+
+
+@functools.cache
+def _helps() -> dict[str, str]:
+    return {k: h for k, _, h in describe()}
+
+
+def _clause(text: str, stops: str, aside: bool = False) -> str:
+    """``text`` up to its first character of ``stops`` outside parentheses, or with ``aside`` up to
+    a parenthesis after a space too (``auto (99.5th percentile -> 1)``: ``auto``; ``floor(ln n)`` whole)."""
+    depth = 0
+    for i, c in enumerate(text):
+        if depth == 0 and (c in stops or (aside and c == "(" and text[i - 1:i] == " ")):
+            return text[:i]
+        depth += (c == "(") - (c == ")")
+    return text
+
+
+def null_meaning(key: str, short: bool = False) -> str | None:
+    """What ``null`` asks of the config key ``key``, from its help (``tlm params``): the words after
+    ``null =`` up to a ``;`` (``floor(ln n), the thesis's depth`` for ``bsp.levels``), or with ``short``
+    their first clause, up to a ``,`` or an aside in parentheses too (``floor(ln n)``); a parenthesis is
+    kept whole. None where the help does not say."""
+    found = re.search(r"null = (.+)", _helps().get(key, ""))
+    if not found:
+        return None
+    return _clause(found.group(1), ";," if short else ";", aside=short).strip().rstrip(".") or None
+
+
+def value_text(key: str, v: Any) -> str:
+    """A value of the config key ``key`` as the report writes it: as its YAML does, ``null``,
+    ``true``, ``[16, 16]``, with what null asks where the key's help says (``null (floor(ln n))``,
+    :func:`null_meaning`); a float to 4 significant digits."""
+    if v is None:
+        meaning = null_meaning(key, short=True)
+        return f"null ({meaning})" if meaning else "null"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(value_text("", x) for x in v) + "]"
+    return f"{v:.4g}" if isinstance(v, float) else str(v)

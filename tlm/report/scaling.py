@@ -32,6 +32,7 @@ from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import Figure, Section, colour, figure_name, legend_below, marker, new_figure, write_png
 from tlm.report.html import esc
+from tlm.report.names import path_labels
 from tlm.report.sweeps import PMS, factors_of, named_rows
 
 # one colour per PM kind (the yellow of the palette is too faint for a thin line); the
@@ -108,8 +109,7 @@ def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None)
         rec["report_name"] = run.scene_label
         records.append(rec)
         if rec["steady"] is False:
-            factors = ", ".join(f"{k} = {v}" for k, v in run.factors.items())
-            notes.append(f"{run.label}{f' ({factors})' if factors else ''}: {eq52.unsteady(rec)}")
+            notes.append(f"{run.label}{f' ({run.factors_text})' if run.factors else ''}: {eq52.unsteady(rec)}")
     fits = {}
     for key, pts in eq52.groups(records).items():
         if names is not None:
@@ -239,19 +239,26 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
 
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
+    studies = inputs.of_kind("scaling")
+    # a scaling folder as titles and notes name it: its name, or where another folder of the section shares it,
+    # the tail of its path that tells it apart (a sweep's label is the report's: :func:`~tlm.report.collect.read`)
+    shown = path_labels([*(st.path for st in studies), *(sw.path for sw in inputs.sweeps if _varies_pipelines(sw))])
+    shown = shown[:len(studies)]
     # (the folder's name, for the file names; its name in titles and notes, a sweep's label (a/sw and b/sw
     # for two folders named sw); fits; each fit's scene, eq. 5.2's label, as the report names scenes: by the
-    # scene's file; the folder)
-    sources: list[tuple[str, str, dict, dict[str, str], Path]] = [
-        (s.path.name, s.path.name, fits, {k[0]: inputs.study_scene(s, k[0]) for k in fits}, s.path)
-        for s in inputs.of_kind("scaling") for fits in [_fits_of_study(s)]]
-    stale: dict[str, str] = {}  # a scaling folder -> why its fit no longer shows its sweeps
-    for st in inputs.of_kind("scaling"):  # what the fit left out or noticed (failed points, an unfinished sweep)
-        sec.notes.extend(f"{st.path.name}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
+    # scene's file; the folder; why its fit no longer shows its sweeps, "" where it does: a scaling folder's
+    # own, not looked up by a name that a sweep or another scaling folder may share)
+    sources: list[tuple[str, str, dict, dict[str, str], Path, str]] = []
+    for st, label in zip(studies, shown, strict=True):
+        fits = _fits_of_study(st)
+        # what the fit left out or noticed (failed points, an unfinished sweep)
+        sec.notes.extend(f"{label}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
         old = eq52.out_of_date(st.path, st.meta)
-        sec.notes.extend(f"{st.path.name}: {n}" for n in old)
-        if any(n.startswith("out of date") for n in old):
-            stale[st.path.name] = "Out of date: its sweep holds other points now (see the notes). "
+        sec.notes.extend(f"{label}: {n}" for n in old)
+        stale = ("Out of date: its sweep holds other points now (see the notes). "
+                 if any(n.startswith("out of date") for n in old) else "")
+        sources.append((st.path.name, label, fits, {k[0]: inputs.study_scene(st, k[0]) for k in fits}, st.path,
+                        stale))
     idle_sweeps = []
     for sw in inputs.sweeps:
         if not _varies_pipelines(sw):
@@ -261,26 +268,25 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         names: dict[str, str] = {}
-        sources.append((sw.path.name, sw.label, _fits_of_sweep(sw, sec.notes, names), names, sw.path))
+        sources.append((sw.path.name, sw.label, _fits_of_sweep(sw, sec.notes, names), names, sw.path, ""))
     sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
             idle_sweeps.append(sw)
         else:
             sec.notes.append(f"{sw.label}: does not vary arch.pipelines, no idle figure")
-    for name, label, fits, named, where in sources:
+    for name, label, fits, named, where, stale in sources:
         for scene in sorted({k[0] for k in fits}):
             mine = {k: v for k, v in fits.items() if k[0] == scene}
             # (eq. 5.2's name of the scene: the file keeps its name)
             file = figure_name(out, "scaling", name, scene, key=f"scaling\n{where.absolute()}\n{scene}")
-            shown = named.get(scene, scene)
-            plot_scaling(shown, mine, out / file, label)
+            scene_shown = named.get(scene, scene)
+            plot_scaling(scene_shown, mine, out / file, label)
             worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
-            sec.figures.append(Figure(file, f"{shown}: scaling from {label}{' (out of date)' if name in stale else ''}",
-                                             stale.get(name, "") +
-                                             "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
-                                             "least squares elsewhere; dotted: the slowest-pipeline variant. "
-                                             f"Largest |error| of eq. 5.2: {worst}."))
+            sec.figures.append(Figure(file, f"{scene_shown}: scaling from {label}{' (out of date)' if stale else ''}",
+                                      stale + "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
+                                      "least squares elsewhere; dotted: the slowest-pipeline variant. "
+                                      f"Largest |error| of eq. 5.2: {worst}."))
     tables = []
     for sw in idle_sweeps:
         groups = idle_points(sw, sec.notes)

@@ -28,6 +28,7 @@ from tlm.experiments.thesis import THESIS_SCENES, median_words
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
+from tlm.report.names import value_text
 from tlm.report.sweeps import named_rows
 from tlm.report.tables import study_summaries
 
@@ -317,6 +318,12 @@ def _effect(ok: list[dict], k: str, held: list[str]) -> dict | None:
     return {"values": per, "used": used, "same": same}
 
 
+def _as_yaml(k: str, text: str) -> str:
+    """A factor's value as :func:`_effect` keys it (its repr) with null, true and false as YAML writes
+    them, null with what it asks of ``k`` (:func:`~tlm.report.names.value_text`)."""
+    return {"None": value_text(k, None), "True": "true", "False": "false"}.get(text, text)
+
+
 def sweep_findings(inputs: Inputs) -> list[str]:
     """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
     of its best value's mean to its worst's) and the point of the highest frame rate.
@@ -351,7 +358,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                              min(means, key=means.get))
                 left[k] = len(rows) - eff["used"]
         best = max(rows, key=lambda r: r["fps"])
-        where = ", ".join(f"{k} = {best.get(k)!r}" for k in factors)
+        where = ", ".join(f"{k} = {_as_yaml(k, repr(best.get(k)))}" for k in factors)
         text = f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
         notes = ""
         if nothing:
@@ -366,7 +373,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             text += f"{esc(k)} moves the frame rate most"
             if along[k]:
                 text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
-            text += f", {ratio:.2f}x between its best value ({esc(hi)}) and its worst ({esc(lo)}), averaged over "
+            text += (f", {ratio:.2f}x between its best value ({esc(_as_yaml(k, hi))}) and its worst "
+                     f"({esc(_as_yaml(k, lo))}), averaged over ")
             text += ("the other factors; " if not left[k] else
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(rows)} "
                      f"ok points left out for that); ")

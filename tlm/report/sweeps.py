@@ -12,8 +12,10 @@ points side by side (the median and a min-max bar beyond :data:`MAX_SERIES` dist
 lines), never joined by a line. A factor of numbers with null among its values (``bsp.levels:
 [null, 6, 8]``, null the thesis's depth) keeps its axis of numbers: the null points are drawn
 apart, at the value they resolved to where their results folder records it, else at a tick
-``null`` beside the numbers (:func:`_draw_nulls`). A point's scene is named as the report names scenes, by
-its file (:func:`named_rows`). The legend is under the plot, its labels wrapped to the
+``null`` beside the numbers (:func:`~tlm.report.sweep_lines.draw_nulls`). A point's scene is named as the report
+names scenes, by its file (:func:`named_rows`); a factor's value as its YAML writes it, ``null`` (not ``None``) with
+what null asks of its key where the key's help says (``levels=null (floor(ln n))``,
+:func:`~tlm.report.names.value_text`). The legend is under the plot, its labels wrapped to the
 figure's width, and the figure grows by its height, so that no label squeezes the plot.
 A sweep folder's ``points/`` may also hold point folders that are not its points (an
 earlier run of other code or another config into the folder: a point's hash holds both);
@@ -38,8 +40,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
-import textwrap
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -47,33 +47,31 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
-from tlm.config import describe
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import NAMED, Figure, FigureName, Section, line_style, new_figure, save, some
 from tlm.report.html import esc
+from tlm.report.names import value_text
+from tlm.report.sweep_lines import (
+    LEVELS,
+    all_numbers,
+    dodge,
+    draw_nulls,
+    fmt_value,
+    hashable,
+    legend_under,
+    merge_groups,
+    null_points,
+    order_key,
+    same_value,
+)
 
 MAX_SERIES = 8
 MAX_ROWS = 200
 LABEL_COMBOS = 3  # a legend label of more than MAX_SERIES identical combinations (no product) names this many
 PMS = ("vertex", "traversal", "intersection", "fragment")
-LEVELS = "bsp.levels"
 FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its legend
 LEVELS_SIZE = (13.0, 4.8)  # inches, the BSP-levels figure without its legend
-LEGEND_FONT = 7  # points
-# the legend under a figure: characters of a label per inch of the figure's width (DejaVu Sans at
-# LEGEND_FONT points, digits and lower case about 4.5 pt wide, less the marker and the padding), the
-# height of a line of text and the gap between entries, and the legend's frame and the space above it
-LEGEND_CHARS_PER_INCH = 14
-LEGEND_LINE_IN = 0.125
-LEGEND_GAP_IN = 0.05
-LEGEND_PAD_IN = 0.3
-
-
-def _fmt(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    return str(v)
 
 
 def factors_of(sw: Sweep) -> list[str]:
@@ -112,12 +110,12 @@ def table(sw: Sweep) -> str:
     for r in rows[:MAX_ROWS]:
         if r.get("status") == "ok":
             slow = max(PMS, key=lambda p: r.get(f"cycles.{p}") or 0)
-            cells = [_fmt(r.get("fps")), f"{(r.get('cycles.throughput') or 0) / 1e6:.4g}",
+            cells = [fmt_value(r.get("fps")), f"{(r.get('cycles.throughput') or 0) / 1e6:.4g}",
                      *([_ratio_text(r)] if ratio else []), slow,
-                     _fmt(round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3))]
+                     fmt_value(round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3))]
         else:
             cells = [f"failed: {r.get('error')}", "", "", "", *([""] if ratio else [])]
-        vals = [str(r.get("point")), *(_fmt(r.get(f)) for f in factors), str(r.get("status")), *cells]
+        vals = [str(r.get("point")), *(value_text(f, r.get(f)) for f in factors), str(r.get("status")), *cells]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
     if len(rows) > MAX_ROWS:
@@ -126,17 +124,13 @@ def table(sw: Sweep) -> str:
     return "\n".join(out)
 
 
-def _numeric(values: list) -> bool:
-    return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
-
-
 def _combo_label(others: list[str], combo: tuple) -> str:
-    return ", ".join(f"{f.split('.')[-1]}={_fmt(c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
+    return ", ".join(f"{f.split('.')[-1]}={value_text(f, c)}" for f, c in zip(others, combo, strict=True)) or "FPS"
 
 
-def _alternatives(values: list) -> str:
+def _alternatives(factor: str, values: list) -> str:
     """``1, 16, 256 or 4096``."""
-    texts = [_fmt(v) for v in values]
+    texts = [value_text(factor, v) for v in values]
     return texts[0] if len(texts) == 1 else ", ".join(texts[:-1]) + " or " + texts[-1]
 
 
@@ -149,9 +143,9 @@ def _group_label(others: list[str], combos: list[tuple]) -> str:
     the first :data:`LABEL_COMBOS` and how many more where they are more than :data:`MAX_SERIES`."""
     if len(combos) == 1:
         return _combo_label(others, combos[0])
-    values = [sorted({c[i] for c in combos}, key=_order) for i in range(len(others))]
+    values = [sorted({c[i] for c in combos}, key=order_key) for i in range(len(others))]
     if math.prod(len(v) for v in values) == len(set(combos)):
-        return "; ".join(f"{f.split('.')[-1]}={_alternatives(v)}" for f, v in zip(others, values, strict=True)) \
+        return "; ".join(f"{f.split('.')[-1]}={_alternatives(f, v)}" for f, v in zip(others, values, strict=True)) \
             + " (identical)"
     if len(combos) > MAX_SERIES:  # (the table above lists every point)
         return (" | ".join(_combo_label(others, c) for c in combos[:LABEL_COMBOS])
@@ -159,77 +153,37 @@ def _group_label(others: list[str], combos: list[tuple]) -> str:
     return " | ".join(_combo_label(others, c) for c in combos) + " (identical)"
 
 
-def _same(a, b) -> bool:
-    """Two values of a line the same to 1e-9 (both missing, or both not a number: the same)."""
-    if a is None or b is None:
-        return a is None and b is None
-    if math.isnan(a) or math.isnan(b):
-        return math.isnan(a) and math.isnan(b)
-    return math.isclose(a, b, rel_tol=1e-9)
-
-
-def _merge_groups(series: dict[tuple, dict], limit: int | None = None) -> list[tuple[list[tuple], dict]] | None:
-    """The series in the order of their combinations, those with the same points (:func:`_same`)
-    together: each distinct line once, with every combination that draws it. None when there
-    are more than ``limit`` distinct lines (found as soon as there are: a sweep of thousands
-    of distinct combinations is not compared pair by pair)."""
-    merged: list[tuple[list[tuple], dict]] = []
-    for combo, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
-        for combos, seen in merged:
-            if seen.keys() == pts.keys() and all(_same(seen[k], pts[k]) for k in pts):
-                combos.append(combo)
-                break
-        else:
-            if limit is not None and len(merged) >= limit:
-                return None
-            merged.append(([combo], pts))
-    return merged
-
-
-def _legend_below(fig, ax, width: float, height: float) -> None:
-    """The axes' legend under the plot, across the figure: labels wrapped to the figure's
-    width, and the figure ``width`` x ``height`` inches made taller by the legend's height,
-    so that the plot keeps about the size it has without a legend and no label, however long
-    (many identical combinations), squeezes it (matplotlib's constrained layout gives up with
-    a warning when the decorations leave the axes no room)."""
-    handles, labels = ax.get_legend_handles_labels()
-    wrapped = [textwrap.fill(label, max(20, int(width * LEGEND_CHARS_PER_INCH))) for label in labels]
-    lines = sum(w.count("\n") + 1 for w in wrapped)
-    fig.set_size_inches(width, height + LEGEND_PAD_IN + lines * LEGEND_LINE_IN + len(wrapped) * LEGEND_GAP_IN)
-    fig.legend(handles, wrapped, loc="outside lower center", fontsize=LEGEND_FONT)
-
-
 def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     """FPS against ``factor``; one line per combination of the other factors, combinations
-    that draw the same line drawn once (:func:`_merge_groups`), their label naming them all; more than
+    that draw the same line drawn once (:func:`merge_groups`), their label naming them all; more than
     :data:`MAX_SERIES` distinct lines are drawn as the median over the combinations and the
     min-max band (the caption says so). A factor of numbers is an axis of numbers and its
     points are joined by lines; any other factor (a scene, a mode: categories, with no
     order or distance between them) is drawn as points at its categories, the lines side
     by side, with no line between categories. The null points of a factor of numbers and
-    null are drawn apart on its axis of numbers (:func:`_draw_nulls`), not as a category."""
+    null are drawn apart on its axis of numbers (:func:`draw_nulls`), not as a category."""
     ok = [r for r in named_rows(sw) if r.get("status") == "ok" and r.get("fps") is not None]
     others = [f for f in factors_of(sw) if f != factor]
-    values = sorted({_key(r.get(factor)) for r in ok}, key=_order)
+    values = sorted({hashable(r.get(factor)) for r in ok}, key=order_key)
     if len(values) < 2:
         return None
     # a factor of numbers and null (bsp.levels: [null, 6, 8]): the numbers on an axis of numbers, the null
-    # points apart (:func:`_null_points`), not a category of their own
+    # points apart (:func:`null_points`), not a category of their own
     nulls = ([r for r in ok if r.get(factor) is None] if None in values
-             and _numeric([r.get(factor) for r in ok if r.get(factor) is not None]) else [])
+             and all_numbers([r.get(factor) for r in ok if r.get(factor) is not None]) else [])
     if nulls:
         values = [v for v in values if v is not None]
-    numeric = _numeric([r.get(factor) for r in ok if not (nulls and r.get(factor) is None)])
+    numeric = all_numbers([r.get(factor) for r in ok if not (nulls and r.get(factor) is None)])
     series: dict[tuple, dict] = defaultdict(dict)
     for r in ok:
         if not (nulls and r.get(factor) is None):
-            series[tuple(_key(r.get(f)) for f in others)][_key(r.get(factor))] = r["fps"]
+            series[tuple(hashable(r.get(f)) for f in others)][hashable(r.get(factor))] = r["fps"]
     fig = new_figure(*FACTOR_SIZE)
     ax = fig.subplots()
     xs_of = (lambda vs: vs) if numeric else (lambda vs: [values.index(v) for v in vs])
     # (the series with the same points drawn once, a label naming them all: a line that hides another would
     # read as one combination; None beyond MAX_SERIES distinct lines)
-    merged = _merge_groups(series, MAX_SERIES)
+    merged = merge_groups(series, MAX_SERIES)
     lines = None if merged is None else [(_group_label(others, combos), pts) for combos, pts in merged]
     combos = f"{len(series)} combinations of {', '.join(others)}" if len(series) > 1 else ""
     if lines is not None:
@@ -238,7 +192,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             if numeric:
                 ax.plot(xs_of(vs), [pts[v] for v in vs], label=labels, **line_style(i))
             else:  # (categories: points side by side at each, no line across)
-                dx = _dodge(i, len(lines))
+                dx = dodge(i, len(lines))
                 ax.plot([x + dx for x in xs_of(vs)], [pts[v] for v in vs], label=labels,
                         **{**line_style(i), "linestyle": "none", "markersize": 7})
         drawn = (f" The {combos} draw {len(lines)} distinct line{'s' if len(lines) > 1 else ''}: identical ones "
@@ -267,7 +221,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                  "count is even, a value no point need have).")
     null_text = ""
     if numeric:
-        nulled = _null_points(sw, factor, nulls, others)
+        nulled = null_points(sw, factor, nulls, others)
         xs = [*values, *(x for _, x, _ in nulled if x is not None)]
         lo_v, hi_v = min(xs), max(xs)
         log = lo_v > 0 and hi_v / lo_v >= 100
@@ -277,9 +231,9 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         if nulled:
             index = {} if merged is None else {c: i for i, (cs, _) in enumerate(merged) for c in cs}
-            null_text = _draw_nulls(ax, factor, nulled, index, lines is None, (lo_v, hi_v), log)
+            null_text = draw_nulls(ax, factor, nulled, index, lines is None, (lo_v, hi_v), log)
     else:
-        ax.set_xticks(range(len(values)), [_fmt(v) for v in values])
+        ax.set_xticks(range(len(values)), [value_text(factor, v) for v in values])
         ax.set_xlim(-0.5, len(values) - 0.5)
     fps = [r["fps"] for r in ok]
     if min(fps) > 0 and max(fps) / min(fps) >= 100:
@@ -287,7 +241,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     ax.set(xlabel=factor, ylabel="simulated frames per second (FPS)",
            title=f"{sw.label}: simulated FPS against {factor}")
     ax.grid(True, which="both", alpha=0.3)
-    _legend_below(fig, ax, *FACTOR_SIZE)
+    legend_under(fig, ax, *FACTOR_SIZE)
     name = FigureName(("sweep", sw.path.name, factor), f"{sw.path.absolute()}\n{factor}")  # sweep_<folder>_<factor>.png
     if not numeric:
         drawn += (f" The factor {factor} is a category, not a number: its values are drawn as points, "
@@ -299,117 +253,6 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     drawn += null_text
     return save(fig, out, name, f"{sw.label}: FPS against {factor}",
                 f"{caption.rstrip('.')}.{drawn}" if drawn else caption)
-
-
-NULL_STYLE = {"linestyle": "none", "marker": "*", "markersize": 13, "markerfacecolor": "none", "markeredgewidth": 1.3}
-
-
-def _null_meaning(factor: str) -> str:
-    """What ``null`` asks of the config key ``factor``, from its help (``tlm params``): ``floor(ln n),
-    the thesis's depth`` for ``bsp.levels``; ``the default`` where the help does not say."""
-    text = next((h for k, _, h in describe() if k == factor), "")
-    found = re.search(r"null = ([^;]+)", text)
-    return found.group(1).strip().rstrip(".") if found else "the default"
-
-
-def _resolved(factor: str, run) -> float | None:
-    """The value a point of ``factor`` null ran with, where its results folder records it: for
-    ``bsp.levels`` the depth its BSP was asked to build (results.json ``scene.bsp.requested_levels``,
-    floor(ln n)); for another key its resolved config's value, where that is a number. Else None."""
-    if run is None:
-        return None
-    if factor == LEVELS:
-        v = ((run.results.get("scene") or {}).get("bsp") or {}).get("requested_levels")
-    else:
-        v = run.config
-        for part in factor.split("."):
-            v = v.get(part) if isinstance(v, dict) else None
-    return v if _numeric([v]) and math.isfinite(v) else None
-
-
-def _null_points(sw: Sweep, factor: str, nulls: list[dict], others: list[str]) -> list[tuple[tuple, Any, float]]:
-    """The finished points of ``factor`` null: ``(combination of the other factors, the value it
-    resolved to or None, FPS)`` each, in point order."""
-    by_hash = {r.path.name: r for r in sw.runs}
-    return [(tuple(_key(r.get(f)) for f in others), _resolved(factor, by_hash.get(str(r.get("hash")))), r["fps"])
-            for r in sorted(nulls, key=lambda r: _order(r.get("point")))]
-
-
-def _draw_nulls(ax, factor: str, nulled: list[tuple[tuple, Any, float]], index: dict[tuple, int], band: bool,
-                span: tuple[float, float], log: bool) -> str:
-    """Draw the points of ``factor`` null (:func:`_null_points`) as hollow stars, joined to no line: at
-    the value each resolved to where its results folder records it, else at a tick "null" left of the
-    numbers, off the axis's scale. Each star has the colour of its combination's line (``index``: a
-    combination's line; black where it has none), or with ``band`` (the median and min-max band) the
-    median of the points at its value and a bar over their range. Their legend entries say what null
-    is; the returned sentence is the caption's."""
-    meaning = _null_meaning(factor)
-    lo, hi = span
-    integer = all(float(x).is_integer() for x in span)
-    if log:
-        apart = lo / (hi / lo) ** 0.15
-    else:
-        gap = (hi - lo) * 0.15 or abs(lo) * 0.15 or 1.0
-        apart = lo - (max(1, round(gap)) if integer else gap)
-    at: dict[Any, list[tuple[tuple, float]]] = defaultdict(list)
-    for combo, x, fps in nulled:
-        at[apart if x is None else x].append((combo, fps))
-    for x, pts in at.items():
-        if band:
-            ys = sorted(fps for _, fps in pts)
-            med = float(np.median(ys))
-            if len(ys) > 1:
-                ax.errorbar([x], [med], yerr=[[med - ys[0]], [ys[-1] - med]], fmt="none", ecolor="0.35",
-                            elinewidth=6, alpha=0.45)
-            ax.plot([x], [med], color="black", **NULL_STYLE)
-            continue
-        by_line: dict[int | None, list[float]] = defaultdict(list)
-        for combo, fps in pts:
-            by_line[index.get(combo)].append(fps)
-        for i, ys in sorted(by_line.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
-            ax.plot([x] * len(ys), ys, color="black" if i is None else line_style(i)["color"], **NULL_STYLE)
-    known = sorted({x for _, x, _ in nulled if x is not None})
-    unknown = sum(x is None for _, x, _ in nulled)
-    what = "depth" if factor == LEVELS else "value"
-    text = ""
-    if known:
-        shown = ", ".join(_fmt(x) for x in known)
-        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), at the {what} it resolved to: {shown}",
-                **NULL_STYLE)
-        source = ("the depth its BSP was asked to build, results.json scene.bsp.requested_levels" if factor == LEVELS
-                  else "its config.resolved.yaml")
-        text += (f" Hollow stars: the points of {factor} null ({meaning}), at the {what} each resolved to "
-                 f"({source}: {shown}), joined to no line.")
-    if unknown:
-        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), {what} not recorded: at \"null\"",
-                **NULL_STYLE)
-        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
-        labels = ax.xaxis.get_major_formatter().format_ticks(ticks)
-        minor = [t for t in ax.xaxis.get_minorticklocs() if lo <= t <= hi]  # (a log axis's: none by "null")
-        ax.set_xticks([apart, *ticks], ["null", *labels])
-        ax.set_xticks(minor, minor=True)
-        many = unknown > 1
-        text += (f" {unknown} point{'s' if many else ''} of {factor} null ({meaning}) record{'' if many else 's'} "
-                 f"no {what} it resolved to: {'hollow stars' if many else 'a hollow star'} at \"null\", left of the "
-                 "numbers and off their scale.")
-    return text
-
-
-def _dodge(i: int, n: int) -> float:
-    """The offset of series ``i`` of ``n`` at a category: side by side, within +-0.3 of it."""
-    return 0.0 if n < 2 else (i - (n - 1) / 2) * min(0.6 / (n - 1), 0.15)
-
-
-def _key(v):
-    return tuple(v) if isinstance(v, list) else v
-
-
-def _order(v):
-    if isinstance(v, bool) or v is None:
-        return (0, str(v))
-    if isinstance(v, int | float):
-        return (1, v if math.isfinite(v) else float("inf"))
-    return (2, str(v))
 
 
 def _closest_to_one(points: list[dict]) -> dict:
@@ -452,7 +295,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
         if level is None or trav is None or not isct or not trav:
             unusable.append(str(r.get("point")))
             continue
-        series[(scene, *(_key(r.get(f)) for f in others))].append({
+        series[(scene, *(hashable(r.get(f)) for f in others))].append({
             "point": r.get("point"), "level": int(level), "traversal": trav, "intersection": isct,
             "ratio": trav / isct, "fps": r.get("fps"), "throughput": r.get("cycles.throughput"),
             "truncated": bool(bsp.get("truncated")), "asked": r.get(LEVELS)})
@@ -464,7 +307,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
                      "cycles.intersection")
         return {}, []
     truncated = [str(p["point"]) for p in sorted((p for pts in series.values() for p in pts if p["truncated"]),
-                                                 key=lambda p: _order(p["point"]))]  # (in point order)
+                                                 key=lambda p: order_key(p["point"]))]  # (in point order)
     if truncated:
         notes.append(f"{name}: {_points(truncated)} built a shallower BSP tree than their level asks "
                      "(results.json scene.bsp.truncated); they are drawn at the level asked")
@@ -480,7 +323,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
     summary = []
     shared, single = [], []  # the series with no balance curve, and why
     repeats: list[dict] = []  # points that measured what another of their series measured at their level
-    for key, pts in sorted(series.items(), key=lambda kv: [_order(k) for k in kv[0]]):
+    for key, pts in sorted(series.items(), key=lambda kv: [order_key(k) for k in kv[0]]):
         pts, again = _one_per_level(pts)
         if pts is None:
             shared.append(_series_label(key, others))
@@ -503,7 +346,7 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
                         "closest_level": close["level"], "closest_ratio": close["ratio"],
                         "best_level": best["level"] if best else None, "best_fps": best["fps"] if best else None})
     if repeats:
-        numbers = [str(p["point"]) for p in sorted(repeats, key=lambda p: _order(p["point"]))]
+        numbers = [str(p["point"]) for p in sorted(repeats, key=lambda p: order_key(p["point"]))]
         null = ", bsp.levels null being the builder's floor(ln n)" if any(p["asked"] is None for p in repeats) else ""
         notes.append(f"{name}: {_points(numbers)} left out of the BSP-levels balance as repeats: each measured the "
                      f"same Ttrav, Tisct, FPS and TThru as the point of its series at its level{null} "
@@ -526,8 +369,8 @@ def _one_per_level(pts: list[dict]) -> tuple[list[dict] | None, list[dict]]:
         by_level[p["level"]].append(p)
     kept, again = [], []
     for same_level in by_level.values():
-        first = min(same_level, key=lambda p: (p["asked"] is None, _order(p["point"])))
-        if not all(_same(p[k], first[k]) for p in same_level for k in ("traversal", "intersection", "fps",
+        first = min(same_level, key=lambda p: (p["asked"] is None, order_key(p["point"])))
+        if not all(same_value(p[k], first[k]) for p in same_level for k in ("traversal", "intersection", "fps",
                                                                          "throughput")):
             return None, []
         kept.append(first)
@@ -550,7 +393,7 @@ def _curves(labels: list[str]) -> str:
 
 
 def _series_label(key: tuple, others: list[str]) -> str:
-    rest = ", ".join(f"{f.split('.')[-1]}={_fmt(v)}" for f, v in zip(others, key[1:], strict=True))
+    rest = ", ".join(f"{f.split('.')[-1]}={value_text(f, v)}" for f, v in zip(others, key[1:], strict=True))
     return f"{key[0]} ({rest})" if rest else str(key[0])
 
 
@@ -595,7 +438,7 @@ def levels_lines(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict]
                                               **{(p["level"], "fps"): p["fps"] for p in pts}}
     lines: list[tuple[str, dict]] = []
     for scene, combos_of in by_scene.items():
-        merged = _merge_groups(combos_of, limit - len(lines))
+        merged = merge_groups(combos_of, limit - len(lines))
         if merged is None:
             return None
         for combos, _ in merged:
@@ -641,7 +484,7 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
         ax.set_xticks(levels, [str(v) for v in levels])
         ax.set_xlabel("BSP levels (bsp.levels)")
         ax.grid(True, which="both", alpha=0.3)
-    _legend_below(fig, ratio_ax, *LEVELS_SIZE)  # (one legend for both panels, under them: a label naming many
+    legend_under(fig, ratio_ax, *LEVELS_SIZE)  # (one legend for both panels, under them: a label naming many
     # combinations would cover the lines inside a panel)
     where = ", ".join(dict.fromkeys(f"{s['scene']} {s['floor_ln']}" for s in summary if s["floor_ln"] is not None))
     merged = (f" The {len(summary)} series (scenes times the other factors' values) draw {len(lines)} distinct "

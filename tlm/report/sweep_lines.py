@@ -1,0 +1,188 @@
+"""The lines of a sweep's figures, whatever they plot: which combinations of the other factors
+draw one line (:func:`merge_groups`, to 1e-9: :func:`same_value`), a category's points side by
+side (:func:`dodge`), the legend under a figure, its labels wrapped to the figure's width
+(:func:`legend_under`), and the points of a factor of numbers whose value is null (``bsp.levels:
+[null, 6, 8]``, null the thesis's depth) drawn apart on its axis of numbers: at the value they
+resolved to where their results folder records it, else at a tick ``null`` beside the numbers
+(:func:`null_points`, :func:`draw_nulls`). A factor's values are ordered and compared as
+:func:`order_key` and :func:`hashable` make them.
+"""
+
+from __future__ import annotations
+
+import math
+import textwrap
+from collections import defaultdict
+from typing import Any
+
+import numpy as np
+
+from tlm.report.collect import Sweep
+from tlm.report.common import line_style
+from tlm.report.names import null_meaning
+
+LEVELS = "bsp.levels"
+LEGEND_FONT = 7  # points
+# the legend under a figure: characters of a label per inch of the figure's width (DejaVu Sans at
+# LEGEND_FONT points, digits and lower case about 4.5 pt wide, less the marker and the padding), the
+# height of a line of text and the gap between entries, and the legend's frame and the space above it
+LEGEND_CHARS_PER_INCH = 14
+LEGEND_LINE_IN = 0.125
+LEGEND_GAP_IN = 0.05
+LEGEND_PAD_IN = 0.3
+# a point of a null factor value: a hollow star
+NULL_STYLE = {"linestyle": "none", "marker": "*", "markersize": 13, "markerfacecolor": "none", "markeredgewidth": 1.3}
+
+
+def fmt_value(v: Any) -> str:
+    """A value as the report writes it: a float to 4 significant digits."""
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def all_numbers(values: list) -> bool:
+    """Every value a number (not a bool)."""
+    return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
+
+
+def same_value(a, b) -> bool:
+    """Two values of a line the same to 1e-9 (both missing, or both not a number: the same)."""
+    if a is None or b is None:
+        return a is None and b is None
+    if math.isnan(a) or math.isnan(b):
+        return math.isnan(a) and math.isnan(b)
+    return math.isclose(a, b, rel_tol=1e-9)
+
+
+def merge_groups(series: dict[tuple, dict], limit: int | None = None) -> list[tuple[list[tuple], dict]] | None:
+    """The series in the order of their combinations, those with the same points (:func:`same_value`)
+    together: each distinct line once, with every combination that draws it. None when there
+    are more than ``limit`` distinct lines (found as soon as there are: a sweep of thousands
+    of distinct combinations is not compared pair by pair)."""
+    merged: list[tuple[list[tuple], dict]] = []
+    for combo, pts in sorted(series.items(), key=lambda kv: [order_key(k) for k in kv[0]]):
+        for combos, seen in merged:
+            if seen.keys() == pts.keys() and all(same_value(seen[k], pts[k]) for k in pts):
+                combos.append(combo)
+                break
+        else:
+            if limit is not None and len(merged) >= limit:
+                return None
+            merged.append(([combo], pts))
+    return merged
+
+
+def legend_under(fig, ax, width: float, height: float) -> None:
+    """The axes' legend under the plot, across the figure: labels wrapped to the figure's
+    width, and the figure ``width`` x ``height`` inches made taller by the legend's height,
+    so that the plot keeps about the size it has without a legend and no label, however long
+    (many identical combinations), squeezes it (matplotlib's constrained layout gives up with
+    a warning when the decorations leave the axes no room)."""
+    handles, labels = ax.get_legend_handles_labels()
+    wrapped = [textwrap.fill(label, max(20, int(width * LEGEND_CHARS_PER_INCH))) for label in labels]
+    lines = sum(w.count("\n") + 1 for w in wrapped)
+    fig.set_size_inches(width, height + LEGEND_PAD_IN + lines * LEGEND_LINE_IN + len(wrapped) * LEGEND_GAP_IN)
+    fig.legend(handles, wrapped, loc="outside lower center", fontsize=LEGEND_FONT)
+
+
+def resolved_value(factor: str, run) -> float | None:
+    """The value a point of ``factor`` null ran with, where its results folder records it: for
+    ``bsp.levels`` the depth its BSP was asked to build (results.json ``scene.bsp.requested_levels``,
+    floor(ln n)); for another key its resolved config's value, where that is a number. Else None."""
+    if run is None:
+        return None
+    if factor == LEVELS:
+        v = ((run.results.get("scene") or {}).get("bsp") or {}).get("requested_levels")
+    else:
+        v = run.config
+        for part in factor.split("."):
+            v = v.get(part) if isinstance(v, dict) else None
+    return v if all_numbers([v]) and math.isfinite(v) else None
+
+
+def null_points(sw: Sweep, factor: str, nulls: list[dict], others: list[str]) -> list[tuple[tuple, Any, float]]:
+    """The finished points of ``factor`` null: ``(combination of the other factors, the value it
+    resolved to or None, FPS)`` each, in point order."""
+    by_hash = {r.path.name: r for r in sw.runs}
+    return [(tuple(hashable(r.get(f)) for f in others), resolved_value(factor, by_hash.get(str(r.get("hash")))),
+             r["fps"]) for r in sorted(nulls, key=lambda r: order_key(r.get("point")))]
+
+
+def draw_nulls(ax, factor: str, nulled: list[tuple[tuple, Any, float]], index: dict[tuple, int], band: bool,
+                span: tuple[float, float], log: bool) -> str:
+    """Draw the points of ``factor`` null (:func:`null_points`) as hollow stars, joined to no line: at
+    the value each resolved to where its results folder records it, else at a tick "null" left of the
+    numbers, off the axis's scale. Each star has the colour of its combination's line (``index``: a
+    combination's line; black where it has none), or with ``band`` (the median and min-max band) the
+    median of the points at its value and a bar over their range. Their legend entries say what null
+    is; the returned sentence is the caption's."""
+    meaning = null_meaning(factor) or "the default"  # (what its help says null is)
+    lo, hi = span
+    integer = all(float(x).is_integer() for x in span)
+    if log:
+        apart = lo / (hi / lo) ** 0.15
+    else:
+        gap = (hi - lo) * 0.15 or abs(lo) * 0.15 or 1.0
+        apart = lo - (max(1, round(gap)) if integer else gap)
+    at: dict[Any, list[tuple[tuple, float]]] = defaultdict(list)
+    for combo, x, fps in nulled:
+        at[apart if x is None else x].append((combo, fps))
+    for x, pts in at.items():
+        if band:
+            ys = sorted(fps for _, fps in pts)
+            med = float(np.median(ys))
+            if len(ys) > 1:
+                ax.errorbar([x], [med], yerr=[[med - ys[0]], [ys[-1] - med]], fmt="none", ecolor="0.35",
+                            elinewidth=6, alpha=0.45)
+            ax.plot([x], [med], color="black", **NULL_STYLE)
+            continue
+        by_line: dict[int | None, list[float]] = defaultdict(list)
+        for combo, fps in pts:
+            by_line[index.get(combo)].append(fps)
+        for i, ys in sorted(by_line.items(), key=lambda kv: -1 if kv[0] is None else kv[0]):
+            ax.plot([x] * len(ys), ys, color="black" if i is None else line_style(i)["color"], **NULL_STYLE)
+    known = sorted({x for _, x, _ in nulled if x is not None})
+    unknown = sum(x is None for _, x, _ in nulled)
+    what = "depth" if factor == LEVELS else "value"
+    text = ""
+    if known:
+        shown = ", ".join(fmt_value(x) for x in known)
+        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), at the {what} it resolved to: {shown}",
+                **NULL_STYLE)
+        source = ("the depth its BSP was asked to build, results.json scene.bsp.requested_levels" if factor == LEVELS
+                  else "its config.resolved.yaml")
+        text += (f" Hollow stars: the points of {factor} null ({meaning}), at the {what} each resolved to "
+                 f"({source}: {shown}), joined to no line.")
+    if unknown:
+        ax.plot([], [], color="black", label=f"{factor} null ({meaning}), {what} not recorded: at \"null\"",
+                **NULL_STYLE)
+        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+        labels = ax.xaxis.get_major_formatter().format_ticks(ticks)
+        minor = [t for t in ax.xaxis.get_minorticklocs() if lo <= t <= hi]  # (a log axis's: none by "null")
+        ax.set_xticks([apart, *ticks], ["null", *labels])
+        ax.set_xticks(minor, minor=True)
+        many = unknown > 1
+        text += (f" {unknown} point{'s' if many else ''} of {factor} null ({meaning}) record{'' if many else 's'} "
+                 f"no {what} it resolved to: {'hollow stars' if many else 'a hollow star'} at \"null\", left of the "
+                 "numbers and off their scale.")
+    return text
+
+
+def dodge(i: int, n: int) -> float:
+    """The offset of series ``i`` of ``n`` at a category: side by side, within +-0.3 of it."""
+    return 0.0 if n < 2 else (i - (n - 1) / 2) * min(0.6 / (n - 1), 0.15)
+
+
+def hashable(v):
+    """A factor's value as a key: a list (``[16, 16]``) as a tuple."""
+    return tuple(v) if isinstance(v, list) else v
+
+
+def order_key(v):
+    """The order of a factor's values: null and bools, then numbers, then text."""
+    if isinstance(v, bool) or v is None:
+        return (0, str(v))
+    if isinstance(v, int | float):
+        return (1, v if math.isfinite(v) else float("inf"))
+    return (2, str(v))
