@@ -7,7 +7,7 @@ available) on this machine, as a remote cluster's would run, then runs ``tlm swe
 rounds, alternating two sweeps that differ only in ``render.threads``:
 
 * ``null``: each point sizes its threads on the worker
-  (:func:`tlm.experiments.executors.dask_worker_threads`: the machine's CPUs over the
+  (:func:`tlm.experiments.dask_workers.dask_worker_threads`: the machine's CPUs over the
   task slots of its workers, here ``CPUs // slots``);
 * the CPU count: what every point took before that, whatever the worker's slots
   (``slots`` points at once, each on every CPU).

@@ -73,7 +73,7 @@ def test_two_hosts_with_one_pid_claim_a_folder_through_siblings_of_their_own(tmp
     pid = os.getpid()
     assert made == [f".sweep.claimhalpha-{pid}", f".sweep.claimhbeta-{pid}"]
 
-    for older, name in enumerate((f".sweep.yaml.tmp{storage._owner()}", ".sweep.yaml.tmp4242")):
+    for older, name in enumerate((f".sweep.yaml.tmp{storage.process_tag()}", ".sweep.yaml.tmp4242")):
         out = tmp_path / f"claimed{older}"
         out.mkdir()
         (out / name).write_text("half")  # (another writer's marker, mid-write)

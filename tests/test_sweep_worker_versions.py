@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 import tlm.experiments.sweep as sweep_mod
-from tlm.experiments.executors import OtherVersionsOnWorker, check_worker_versions, worker_versions
+from tlm.experiments.dask_workers import OtherVersionsOnWorker, check_worker_versions, worker_versions
 from tlm.experiments.sweep import Task, run_point, run_sweep
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},

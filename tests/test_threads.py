@@ -503,12 +503,12 @@ def test_a_dask_workers_points_share_its_machines_cpus(monkeypatch):
     import distributed
     from distributed import Client, LocalCluster
 
-    from tlm.experiments import executors
-    from tlm.experiments.executors import dask_worker_threads
+    from tlm.experiments import dask_workers
+    from tlm.experiments.dask_workers import dask_worker_threads
 
     assert dask_worker_threads() is None  # (not in a worker)
     monkeypatch.setattr(threads, "available", lambda: 16)
-    monkeypatch.setattr(executors, "_SLOTS", {})
+    monkeypatch.setattr(dask_workers, "_SLOTS", {})
     with LocalCluster(n_workers=2, threads_per_worker=3, processes=False, dashboard_address="127.0.0.1:0",
                       scheduler_kwargs={"dashboard": False}, silence_logs=logging.CRITICAL) as cluster, \
             Client(cluster) as client:
@@ -522,7 +522,7 @@ def test_a_dask_workers_points_share_its_machines_cpus(monkeypatch):
         monkeypatch.setattr(distributed, "get_client", unreachable)
         got = client.map(lambda _: dask_worker_threads(), range(8), pure=False)
         assert set(client.gather(got)) == {16 // 6}  # what the scheduler said, kept: not asked again
-        executors._SLOTS.clear()
+        dask_workers._SLOTS.clear()
         assert client.submit(dask_worker_threads, pure=False).result() == 16 // 3  # unreachable: its own slots
 
 

@@ -12,6 +12,7 @@ import tempfile
 import time
 
 import tlm.caches
+from tlm import storage
 from tlm.cli_signals import save_traceback
 
 
@@ -30,7 +31,7 @@ def test_a_link_planted_at_the_traceback_files_name_is_not_written_through(tmp_p
     shared = _where(monkeypatch, tmp_path)
     victim = tmp_path / "victim.txt"
     victim.write_text("keep")
-    (shared / f"tlm-traceback-20260101-000000-{os.getpid()}.txt").symlink_to(victim)
+    (shared / f"tlm-traceback-20260101-000000-{storage._host()}-{os.getpid()}.txt").symlink_to(victim)
     assert save_traceback(RuntimeError("boom")) is None
     assert victim.read_text() == "keep"
 
@@ -41,3 +42,11 @@ def test_the_traceback_file_is_this_users_alone(tmp_path, monkeypatch):
     assert path is not None and path.parent == shared
     assert "RuntimeError: boom" in path.read_text()
     assert path.stat().st_mode & 0o777 == 0o600
+
+
+def test_the_traceback_files_name_carries_the_host_as_well_as_the_pid(tmp_path, monkeypatch):
+    """The cache folder may be shared between machines: a pid alone names no process there."""
+    _where(monkeypatch, tmp_path)
+    monkeypatch.setattr(storage.socket, "gethostname", lambda: "node-7.cluster")
+    path = save_traceback(RuntimeError("boom"))
+    assert path is not None and path.name == f"tlm-traceback-20260101-000000-hnode7cluster-{os.getpid()}.txt"

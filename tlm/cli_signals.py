@@ -99,14 +99,16 @@ def signals():
 
 def save_traceback(exc: BaseException) -> Path | None:
     """The full traceback of an unexpected exception in a file (the cache's ``tracebacks/``,
-    else the temporary folder); its path, or None when neither can be written. The file is
-    made new, for this user alone (0600): a file or link already at its name (another user's,
-    in the shared temporary folder) is not written through."""
+    else the temporary folder), ``tlm-traceback-<time>-<host>-<pid>.txt``: the cache may be
+    shared between machines, where a pid alone names no process. Its path, or None when
+    neither can be written. The file is made new, for this user alone (0600): a file or link
+    already at its name (another user's, in the shared temporary folder) is not written through."""
+    from tlm import storage
     from tlm.caches import cache_root
 
     text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
             + "".join(traceback.format_exception(exc)))
-    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.txt"
+    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{storage.process_tag()}.txt"  # (<host>-<pid>)
     import tempfile
 
     for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):

@@ -106,7 +106,7 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     """
     out = Path(out)
     if not out.exists():
-        tmp = out.with_name(f".{out.name}.claim{_owner()}{_thread_tag()}")
+        tmp = out.with_name(f".{out.name}.claim{process_tag()}{_thread_tag()}")
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
         try:
@@ -125,6 +125,7 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
 
 _GUARD = ".tlm-lock"
 _RUNNING = ".tlm-running-"
+_RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
 
 
 @contextmanager
@@ -133,11 +134,13 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
     points) while the block runs: an :class:`InputError` if a process of another identity
     holds it. Processes of one identity share it (two runs of one sweep cooperate).
 
-    Each holder keeps a shared ``flock`` on ``.tlm-running-<identity>`` (with its pid);
-    a newcomer, under an exclusive lock on ``.tlm-lock``, tries an exclusive lock on
-    every other identity's file: one it gets is stale (its processes ended, the kernel
-    released their locks) and is removed; one it cannot get is held. The last holder of
-    an identity removes its file on the way out."""
+    Each holder keeps a shared ``flock`` on ``.tlm-running-<identity>`` (with its host and
+    pid, ``<host>-<pid>``: the folder may be on a disk shared between machines); a newcomer,
+    under an exclusive lock on ``.tlm-lock``, tries an exclusive lock on every other
+    identity's file: one it gets is stale (its processes ended, the kernel released their
+    locks) and is removed; one it cannot get is held, and the refusal names its holder
+    (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
+    cannot be from here. The last holder of an identity removes its file on the way out."""
     out = Path(out)
     guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
     mine_path = out / f"{_RUNNING}{identity}"
@@ -150,7 +153,7 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
                     _claim_stale(other, what)
             mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
             fcntl.flock(mine, fcntl.LOCK_SH)
-            os.pwrite(mine, f"{os.getpid():<12d}\n".encode(), 0)
+            os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
         finally:
             fcntl.flock(guard, fcntl.LOCK_UN)
         yield
@@ -175,13 +178,27 @@ def _claim_stale(path: Path, what: str) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            pid = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
             raise InputError(f"another {what} of other points is writing into {str(path.parent)!r} "
-                             f"(process {pid or '?'}): wait for it to end, or give another folder",
+                             f"({holder}): wait for it to end, or give another folder",
                              key="--out") from None
         path.unlink(missing_ok=True)
     finally:
         os.close(fd)
+
+
+def _holder(record: str) -> str:
+    """The process a running file's ``record`` names, for a refusal: ``process PID on this
+    machine, HOST``, or ``process PID on host HOST, another machine: ...`` (its processes
+    cannot be checked from this one); an older tlm's record (its pid alone) as ``process PID``."""
+    line = record.split("\n", 1)[0].strip()  # (a shorter record written over a longer one: its first line)
+    m = re.fullmatch(r"(h[A-Za-z0-9]*)-(\d+)", line)
+    if m is None:
+        return f"process {line if line.isdigit() else '?'}"
+    name = m[1][1:]
+    if m[1] == _host():
+        return f"process {m[2]} on this machine, {name}"
+    return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
 
 
 def distinct_folders(dirs: Iterable[str | Path], notes: list[str] | None = None) -> list[Path]:
@@ -216,8 +233,10 @@ def _host() -> str:
     return "h" + (re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "local")
 
 
-def _owner() -> str:
-    """``<host>-<pid>``: the process a temporary folder belongs to."""
+def process_tag() -> str:
+    """``h<host>-<pid>``: this process, as the names a writer makes beside a destination (temporary
+    files and folders, claims), a sweep folder's holder record and a traceback file carry it: on a
+    disk shared between machines a process id alone names no process."""
     return f"{_host()}-{os.getpid()}"
 
 
@@ -232,7 +251,7 @@ def _writer() -> str:
     that two threads (or two writers of one thread) never share a temporary folder."""
     with _LIVE_LOCK:
         n = next(_WRITERS)
-    return f"{_owner()}-{n}"
+    return f"{process_tag()}-{n}"
 
 
 def _thread_tag() -> str:
@@ -580,8 +599,8 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
 def _temporary_file(path: Path) -> Path:
     """The temporary file of a :func:`write_atomic` of ``path``: the first of ``.<name>.tmp<host>-<pid>``
     (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now. The
-    host (:func:`_owner`): on a folder shared between machines a process id alone names no process."""
-    base = f".{path.name}.tmp{_owner()}{_thread_tag()}"
+    host (:func:`process_tag`): on a folder shared between machines a process id alone names no process."""
+    base = f".{path.name}.tmp{process_tag()}{_thread_tag()}"
     with _LIVE_LOCK:
         tmp, n = path.with_name(base), 1
         while os.path.abspath(tmp) in _FILES:

@@ -45,7 +45,7 @@ point kills its worker again when run alone (:class:`LocalPool`). A Dask worker 
 first that it sees the sweep's folder and input files (and, a remote one, that it runs
 the sweep's code: :func:`_check_worker_sees`, and reads the content the sweep read:
 :func:`_check_worker_inputs`), and that it runs the sweep's numpy, numba, Python and
-kernels (:func:`~tlm.experiments.executors.check_worker_versions`); a point records the
+kernels (:func:`~tlm.experiments.dask_workers.check_worker_versions`); a point records the
 versions of the process that ran it. A lost scheduler stops the sweep with one line
 (:class:`~tlm.experiments.executors.DaskPool`). The rows: :mod:`tlm.experiments.sweep_rows`.
 """
@@ -75,20 +75,22 @@ from tlm.config import (
     config_from_dict,
 )
 from tlm.errors import InputError, interrupted_by
+from tlm.experiments.dask_workers import (
+    OtherVersionsOnWorker,
+    check_worker_versions,
+    dask_worker_threads,
+    dask_worker_where,
+    worker_versions,
+)
 from tlm.experiments.executors import (
     DASK_POLL,
     DaskPool,
     InProcess,
     LocalPool,
-    OtherVersionsOnWorker,
     SweepStopped,
-    check_worker_versions,
-    dask_worker_threads,
-    dask_worker_where,
     kernel_threads,
     open_executor,
     take_finished,
-    worker_versions,
 )
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached
 from tlm.experiments.provenance import code_state, versions

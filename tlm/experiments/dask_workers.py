@@ -1,0 +1,119 @@
+"""What runs on a Dask worker, or checks one, for a sweep's point.
+
+A point that a Dask worker runs sizes its kernel threads on the worker's own machine
+(:func:`dask_worker_threads`: the sweep's machine is not the worker's), names the worker
+in its messages (:func:`dask_worker_where`), records the versions of the process that ran
+it (:func:`worker_versions`) and is refused on a worker whose numpy, numba or Python
+differ from the sweep's (:func:`check_worker_versions`, :class:`OtherVersionsOnWorker`).
+The executors that hand points to the workers: :mod:`tlm.experiments.executors`.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+
+_SLOTS: dict[str, tuple[float, int]] = {}  # a Dask worker's address -> (when asked, slots on its machine)
+SLOTS_TTL = 60.0  # seconds a worker keeps what the scheduler said (a point asks once a minute at most)
+
+
+def dask_worker_threads() -> int | None:
+    """In a Dask worker: the ``render.threads`` of a point whose config leaves it null (the
+    sweep could not size it: the workers' machines are not the sweep's), the CPUs
+    available here over the task slots of every worker on this machine (their ``nthreads``
+    summed, the machine as the scheduler names it for this worker), at least one: the
+    points that run at once on a machine share its CPUs. A worker of 32 threads on a
+    32-core machine runs 32 points at once, each on one thread, where each would
+    otherwise take all 32. None outside a Dask worker. Where the scheduler cannot be asked
+    (or says something not understood), this worker's own slots; what it said is kept for
+    :data:`SLOTS_TTL` seconds. Speed only: no error leaves it."""
+    if "distributed" not in sys.modules:  # (not imported: not a Dask worker)
+        return None
+    from distributed import get_client, get_worker
+
+    from tlm.kernels.threads import available, default_threads
+
+    try:
+        worker = get_worker()
+    except ValueError:  # (not in a worker's task)
+        return None
+    own = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
+    now = time.monotonic()
+    kept = _SLOTS.get(worker.address)
+    if kept is not None and now - kept[0] < SLOTS_TTL:
+        slots = kept[1]
+    else:
+        slots = own
+        try:
+            client = get_client(timeout=5)
+            try:
+                listed = client.scheduler_info(n_workers=-1)["workers"]
+            except TypeError:  # (an older distributed lists every worker without being asked)
+                listed = client.scheduler_info()["workers"]
+            host = listed[worker.address]["host"]  # (the scheduler's own name of this machine)
+            slots = max(own, sum(int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host))
+        except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
+            slots = own
+        _SLOTS[worker.address] = (now, slots)
+    return default_threads(available() // slots)  # (at most DEFAULT_MAX_THREADS)
+
+
+def dask_worker_where() -> str | None:
+    """In a Dask worker's task: ``the Dask worker ADDRESS on host NAME``, for the messages of
+    a point that failed there; None elsewhere."""
+    if "distributed" not in sys.modules:
+        return None
+    from distributed import get_worker
+
+    try:
+        worker = get_worker()
+    except ValueError:  # (not in a worker's task)
+        return None
+    import socket
+
+    return f"the Dask worker {worker.address} on host {socket.gethostname()}"
+
+
+# the versions (provenance.versions' keys) that can change a point's bits: a Dask worker that differs
+# from the sweep in one is refused (Python by its major.minor). The kernels (TLM_KERNELS) are recorded,
+# not refused: the compiled and numpy engines give the same bits (tests/test_engines.py, test_golden.py).
+RESULT_VERSIONS = ("python", "numpy", "numba")
+_LABELS = {"python": "Python"}
+_VERSIONS: dict[str, dict[str, str]] = {}  # TLM_KERNELS as set -> this process's versions
+
+
+class OtherVersionsOnWorker(RuntimeError):
+    """A Dask worker runs another numpy, numba or Python (major.minor) than the sweep: its points
+    could have other bits than the sweep's."""
+
+
+def worker_versions() -> dict[str, str]:
+    """This process's :func:`~tlm.experiments.provenance.versions`, which a point records: those of
+    the worker that ran it. Read once per process and ``TLM_KERNELS`` value (a point reads them
+    at no cost)."""
+    from tlm.experiments.provenance import versions
+
+    key = os.environ.get("TLM_KERNELS", "")
+    if key not in _VERSIONS:
+        _VERSIONS[key] = versions()
+    return dict(_VERSIONS[key])
+
+
+def check_worker_versions(sweeps: dict | None, here: dict, where: str) -> None:
+    """In a Dask worker ``where``: :class:`OtherVersionsOnWorker`, naming each of
+    :data:`RESULT_VERSIONS` in which ``here`` (the worker's :func:`worker_versions`) differs
+    from ``sweeps`` (the sweep's), with both versions. None for ``sweeps``: nothing to compare."""
+    if sweeps is None:
+        return
+    differ = [f"{_LABELS.get(k, k)} {_result_version(here, k)} (the sweep's {_result_version(sweeps, k)})"
+              for k in RESULT_VERSIONS if _result_version(here, k) != _result_version(sweeps, k)]
+    if differ:
+        raise OtherVersionsOnWorker(
+            f"{where} runs {' and '.join(differ)}: its points could give other results than the sweep's; install "
+            "the sweep's versions on the workers and restart them")
+
+
+def _result_version(versions: dict, name: str) -> str:
+    v = str(versions.get(name, "unknown"))
+    return ".".join(v.split(".")[:2]) if name == "python" else v
