@@ -13,7 +13,8 @@ rendered again.
 
 A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
-sweep that differ only in ``arch`` do not load it again each.
+sweep that differ only in ``arch`` do not load it again each; a frame not in the cache is
+rendered from the scene its key loaded (:func:`cached_render`), not loaded again.
 """
 
 from __future__ import annotations
@@ -35,9 +36,11 @@ from tlm.config import noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.fingerprint import code_fingerprint
+from tlm.progress import Timer
 from tlm.render.planner import inert_changes
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
+from tlm.scenes.model import Scene
 from tlm.storage import warn, write_file
 
 
@@ -76,7 +79,15 @@ SUMMARY_FORMAT = "functional-summary/3"  # /2: with the npz's size and sha256; /
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
     """The cache key of ``cfg``'s frame (loads the scene, or remembers it: :func:`scene_key`;
     a bad scene is an InputError)."""
-    return functional_key(to_dict(cfg), scene_key(cfg.scene, base, cfg.resolution, source), code_fingerprint())
+    return _keyed(cfg, base, source)[0]
+
+
+def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = None) -> tuple[str, Scene | None]:
+    """:func:`render_key` with the scene its key loaded (None where the fingerprint was
+    remembered), so that a render on a cache miss does not load it again; ``timer``: gets the
+    stage ``load_scene`` of that load."""
+    fingerprint, scene = _scene_key(cfg.scene, base, cfg.resolution, source, timer)
+    return functional_key(to_dict(cfg), fingerprint, code_fingerprint()), scene
 
 
 MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
@@ -101,6 +112,14 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
     process (even to the same size and modification time) is read again. A load that read a
     file it cannot check this way is not remembered. Only the fingerprint (a string) is kept,
     not the :class:`~tlm.scenes.model.Scene`, so no caller can change what is remembered."""
+    return _scene_key(ref, base, resolution, source)[0]
+
+
+def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str | None,
+               timer: Timer | None = None) -> tuple[str, Scene | None]:
+    """:func:`scene_key` with the scene it loaded, or None where it gave the remembered
+    fingerprint (a caller that renders next uses this one: the scene loaded once)."""
+    timer = Timer() if timer is None else timer
     path = resolve_scene_path(ref, base, source)  # (a missing scene: load_scene's own error)
     # (not ``source``: it names the config in a load's errors, and a remembered load had none)
     key = (os.fspath(ref), None if base is None else str(base),
@@ -108,15 +127,17 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
     try:
         hash(key)
     except TypeError:  # (a resolution of other items than numbers: load_scene says what is wrong)
-        return scene_fingerprint(load_scene(ref, base, resolution, source))
+        with timer.stage("load_scene"):
+            scene = load_scene(ref, base, resolution, source)
+        return scene_fingerprint(scene), scene
     with _MEMO_LOCK:
         hit = _SCENE_KEYS.get(key)
     if hit is not None and _unchanged(hit[1]):
         with _MEMO_LOCK:
             if key in _SCENE_KEYS:
                 _SCENE_KEYS.move_to_end(key)
-        return hit[0]
-    with noting_reads() as reads:
+        return hit[0], None
+    with noting_reads() as reads, timer.stage("load_scene"):
         scene = load_scene(ref, base, resolution, source)
     fingerprint = scene_fingerprint(scene)
     checks = _checks(reads)
@@ -126,7 +147,7 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
             _SCENE_KEYS[key] = (fingerprint, checks)
             while len(_SCENE_KEYS) > MEMO_SIZE:
                 _SCENE_KEYS.popitem(last=False)
-    return fingerprint
+    return fingerprint, scene
 
 
 def _checks(reads: list) -> list | None:
@@ -204,14 +225,15 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     again. Both files are written atomically, so concurrent renders of one key (two
     processes of a sweep) leave one whole entry.
     """
-    key = render_key(cfg, base, source)
+    timer = Timer()
+    key, scene = _keyed(cfg, base, source, timer)  # (the scene, when the key loaded it: rendered from it)
     path = cache_dir() / f"{key}.npz"
     side = path.with_suffix(".json")
     if use_cache and path.exists() and side.exists():
         got = _load_entry(path, side, key)
         if got is not None:
             return got
-    res = run.render(cfg, base, source)
+    res = run.render(cfg, base, source, scene=scene, timer=timer)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
     # the render's own warnings: not this config's unused settings, which another config of the

@@ -183,21 +183,25 @@ class RenderResult:
 
 
 def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
-           progress: bool = False, reference: bool = False) -> RenderResult:
+           progress: bool = False, reference: bool = False, *, scene: Scene | None = None,
+           timer: Timer | None = None) -> RenderResult:
     """Render every planned frame of ``cfg`` over the whole image: its frame loaded
     (:func:`~tlm.experiments.loading.load_frame`), its passes planned and rendered in
     batches of ``render.batch_rays`` eye rays (:func:`~tlm.render.batches.render_batches`),
     the photon-map frame measured against its cached reference; ``progress``: bars on
     stderr; ``reference``: the photon-map frame's reference will be computed when none is
     cached (:func:`run`), so its photons are checked against memory before the render too,
-    when none is cached.
+    when none is cached; ``scene``: ``cfg``'s scene when the caller loaded it already (as
+    :func:`~tlm.scenes.loader.load_scene` ``(cfg.scene, base, cfg.resolution, config_source)``
+    gives it: :func:`tlm.experiments.frames.cached_render`, whose key loaded it), not loaded
+    again; ``timer``: the result's host seconds start from it (that load's stage).
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
     with threads.using(cfg.render.threads):
-        timer = Timer()
+        timer = Timer() if timer is None else timer
         with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
-            frame = load_frame(cfg, base, config_source, timer, bar)
+            frame = load_frame(cfg, base, config_source, timer, bar, scene=scene)
         the_plan = plan(frame.scene, cfg)
         if "pmap" in the_plan.run_names:  # (the global group and the caustic group's own budget)
             ph = cfg.photons
