@@ -7,23 +7,17 @@ shows in the cycles as well as in the path."""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import pytest
 import yaml
 
 import tlm
+from tests.helpers_programs import PACKAGED, tlm_run_reads_the_working_folders_table
 from tlm.api import load_config, render_image, simulate
-from tlm.cli import main
 from tlm.errors import InputError
 from tlm.experiments.run import programs_for
 
-PACKAGED = Path(tlm.__file__).parent / "arch" / "programs.yaml"
 TINY = {"scene": "cornell", "resolution": [8, 8], "mode": "rcast", "render": {"spp": 1, "light_samples": 1},
         "arch": {"trace": False}}
-TINY_SET = ["--set", "resolution=[8,8]", "--set", "mode=rcast", "--set", "render.spp=1",
-            "--set", "render.light_samples=1", "--set", "arch.trace=false"]
 
 
 @pytest.fixture
@@ -91,17 +85,8 @@ def test_a_scene_file_with_overrides_reads_the_working_folders_table(tree):
 
 
 def test_tlm_run_of_a_scene_file_reads_the_working_folders_table(tree, cache, capsys):
-    assert main(["run", "../A/scene.yaml", "--set", "arch.programs=my.yaml", *TINY_SET, "--out", "out",
-                 "--no-progress", "--no-report"]) == 0
-    results = json.loads((tree / "B" / "out" / "results.json").read_text())
-    assert results["timing"]["programs"]["source"] == str(tree / "B" / "my.yaml")
-    capsys.readouterr()
-    (tree / "A" / "nope.yaml").write_text(PACKAGED.read_text())
-    assert main(["run", "../A/scene.yaml", "--set", "arch.programs=nope.yaml", *TINY_SET, "--out", "out2",
-                 "--no-progress", "--no-report"]) == 2
-    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("tlm: error")]
-    assert err == [f"tlm: error: {tree / 'B' / 'nope.yaml'}: arch.programs: file not found"]
-    assert not (tree / "B" / "out2").exists()
+    (tree / "A" / "nope.yaml").write_text(PACKAGED.read_text())  # (the config's folder has one: not read)
+    tlm_run_reads_the_working_folders_table(capsys, "../A/scene.yaml", "my.yaml", tree / "B")
 
 
 def test_simulate_arch_programs_is_relative_to_the_working_folder(tree, cache):

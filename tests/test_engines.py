@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.helpers_gather import random_gather
 from tlm.kernels import traverse
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.traverse import any_hit, build_accel, closest_hit
@@ -478,18 +479,9 @@ def test_gather_buffers_learned_on_the_map_spare_the_reruns(monkeypatch, n_threa
     map that learned nothing. A chunk of a few queries teaches nothing (a dense spot would
     size every later buffer), and another radius starts from the default again."""
     from tlm.kernels import _jit_gather, estimate, threads
-    from tlm.kernels.bsp import build_point_tree
 
     monkeypatch.setenv("TLM_KERNELS", "numba")
-    rng = np.random.default_rng(9)
-    pos = rng.uniform(-1.0, 1.0, (4000, 3))
-    power = rng.uniform(0.0, 1.0, (4000, 3))
-    inc = rng.normal(size=(4000, 3))
-    inc /= np.linalg.norm(inc, axis=1, keepdims=True)
-    pts = rng.uniform(-1.0, 1.0, (1800, 3))
-    nrm = rng.normal(size=(1800, 3))
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    tree = build_point_tree(pos, 9)
+    pos, power, inc, tree, pts, nrm = random_gather(9, 4000, 1800, 9)
     monkeypatch.setattr(estimate, "QUERY_BLOCK", 600)  # three blocks a call, of GATHER_MIN_CHUNK queries or more
     monkeypatch.setattr(estimate, "JIT_PAIRS", 600)  # one pair a query to start with: too few
     calls = []

@@ -24,6 +24,7 @@ import yaml
 
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
+from tests.helpers_storage import refuse_to_carry
 from tlm import storage
 from tlm.cli import main
 from tlm.errors import InputError
@@ -370,14 +371,7 @@ def test_a_user_file_that_cannot_be_moved_keeps_both_folders(tmp_path, monkeypat
         (tmp / "m").write_text("old")
     (out / "a_notes.md").write_text("mine")
     (out / "b_locked").mkdir()
-    rename = Path.rename
-
-    def refused(self, target):
-        if self.name == "b_locked" and ".tmp-" in str(target):
-            raise OSError(errno.EACCES, "Permission denied", str(self))
-        return rename(self, target)
-
-    monkeypatch.setattr(Path, "rename", refused)
+    rename = refuse_to_carry(monkeypatch, "b_locked")
     with (pytest.raises(storage.EnvironmentFailure, match=r"cannot carry .*b_locked.* kept in .*r\.unsaved-"),
           atomic_folder(out, "m", owned=("m",)) as tmp):
         (tmp / "m").write_text("new")

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.helpers_gather import random_gather
 from tlm.kernels import _jit_pmap, estimate, threads
-from tlm.kernels.bsp import build_point_tree
 from tlm.kernels.estimate import Estimate
 from tlm.kernels.memory import PHOTON_WORDS, Streams
 from tlm.render import pmap
@@ -76,15 +76,7 @@ def test_final_gather_ray_indices_are_point_major(m, rays):
 def test_chunked_gathers_are_the_numpy_gathers(monkeypatch, n_threads):
     """Blocks cut into chunks on several threads (the chunks' pairs joined, their counts and word
     ranges made by each chunk): the numpy path's densities, work and misses, bit for bit."""
-    rng = np.random.default_rng(7)
-    pos = rng.uniform(-1.0, 1.0, (2500, 3))
-    power = rng.uniform(0.0, 1.0, (2500, 3))
-    inc = rng.normal(size=(2500, 3))
-    inc /= np.linalg.norm(inc, axis=1, keepdims=True)
-    pts = rng.uniform(-1.0, 1.0, (1500, 3))
-    nrm = rng.normal(size=(1500, 3))
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    tree = build_point_tree(pos, 7)
+    pos, power, inc, tree, pts, nrm = random_gather(7, 2500, 1500, 7)
     monkeypatch.setattr(estimate, "QUERY_BLOCK", 700)  # three blocks, the first two in chunks on 3 threads
     monkeypatch.setattr(estimate, "GATHER_MIN_CHUNK", 200)
     out = {}

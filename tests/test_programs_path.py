@@ -9,25 +9,20 @@ wrong folder shows."""
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 
 import pytest
 import yaml
 
-import tlm
+from tests.helpers_programs import PACKAGED, tlm_run_reads_the_working_folders_table
 from tlm.api import load_config
-from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments.granularity import load_granularity
 from tlm.experiments.run import programs_for
 from tlm.experiments.sweep_file import load_sweep
 
-PACKAGED = Path(tlm.__file__).parent / "arch" / "programs.yaml"
 TINY = {"resolution": [8, 8], "mode": "rcast", "render": {"spp": 1, "light_samples": 1}}
-TINY_SET = ["--set", "resolution=[8,8]", "--set", "mode=rcast", "--set", "render.spp=1",
-            "--set", "render.light_samples=1", "--set", "arch.trace=false"]
 
 
 def _table(folder: Path, name: str = "t.yaml") -> Path:
@@ -73,16 +68,7 @@ def test_a_table_given_on_the_command_line_is_relative_to_the_working_folder(tre
 
 
 def test_tlm_run_of_a_built_in_config_reads_the_working_folders_table(tree, cache, capsys):
-    assert main(["run", "cornell", "--set", "arch.programs=t.yaml", *TINY_SET, "--out", "out",
-                 "--no-progress", "--no-report"]) == 0
-    results = json.loads((tree / "cwd" / "out" / "results.json").read_text())
-    assert results["timing"]["programs"]["source"] == str(tree / "cwd" / "t.yaml")
-    capsys.readouterr()
-    assert main(["run", "cornell", "--set", "arch.programs=nope.yaml", *TINY_SET, "--out", "out2",
-                 "--no-progress", "--no-report"]) == 2
-    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("tlm: error")]
-    assert err == [f"tlm: error: {tree / 'cwd' / 'nope.yaml'}: arch.programs: file not found"]
-    assert not (tree / "cwd" / "out2").exists()
+    tlm_run_reads_the_working_folders_table(capsys, "cornell", "t.yaml", tree / "cwd")
 
 
 def _sweep(tree: Path, body: dict) -> Path:

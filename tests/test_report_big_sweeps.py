@@ -13,19 +13,16 @@ The sweep folders are made by hand (the files and keys the report reads, at 16x1
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
-import yaml
-
+from tests.sweep_folders import busy_units, start, write_point, write_rows
 from tlm.report.collect import read
 from tlm.report.common import some
 from tlm.report.sweeps import levels_balance, sweeps_section
 from tlm.report.tables import tables_section
 from tlm.scenes.loader import scenes_dir
 
-PMS = ("vertex", "traversal", "intersection", "fragment")
 FIFOS = [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048]  # 12 values: 12 combinations with the levels
 
 
@@ -36,9 +33,8 @@ def sweep_folder(root: Path, name: str = "cornell", levels=(6, 7), cycles_rows: 
     never fills), unless ``distinct``: then each depth draws its own curve. ``cycles_rows``:
     the rows have the traversal and intersection cycles; ``truncated``: every point's tree
     was built shallower than asked."""
-    root.mkdir()
-    (root / "sweep.yaml").write_text(yaml.safe_dump({"sweep": "s.yaml", "description": "16x16 RCast",
-                                                     "grid": {"bsp.levels": list(levels), "arch.fifo_depth": FIFOS}}))
+    start(root, {"sweep": "s.yaml", "description": "16x16 RCast",
+                 "grid": {"bsp.levels": list(levels), "arch.fifo_depth": FIFOS}})
     rows = []
     for i, (lv, fifo) in enumerate((lv, f) for lv in levels for f in FIFOS):
         fps = 20.0 - lv + (FIFOS.index(fifo) / 100 if distinct else 0.0)
@@ -51,21 +47,15 @@ def sweep_folder(root: Path, name: str = "cornell", levels=(6, 7), cycles_rows: 
         rows.append(row)
         cycles = {"vertex": 10, "traversal": trav, "intersection": 900, "fragment": 100, "throughput": 6e8 / fps,
                   "latency": 2000}
-        unit = {"T_norm": 1000, "T_ms": 0, "T_ps": 0, "idle": 0, "elapsed": 1000, "stall": {},
-                "fractions": {"busy": 1.0}}
         results = {"scene": {"name": name, "source": str(scenes_dir() / "cornell.yaml"), "resolution": [16, 16],
                              "triangles": 2604, "bsp": {"levels": lv - truncated, "requested_levels": lv,
                                                         "truncated": truncated}},
                    "mode": "rcast", "fps": fps, "cycles": cycles,
                    "factors": {"bsp.levels": lv, "arch.fifo_depth": fifo},
-                   "timing": {"frames": 1, "units": {f"pipe0.{pm}": dict(unit) for pm in PMS}}}
-        point = root / "points" / h
-        point.mkdir(parents=True)
-        (point / "results.json").write_text(json.dumps(results))
-        (point / "config.resolved.yaml").write_text(yaml.safe_dump(
-            {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "bsp": {"levels": lv},
-             "arch": {"fifo_depth": fifo}}))
-    (root / "sweep.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+                   "timing": {"frames": 1, "units": busy_units()}}
+        write_point(root, h, results, {"scene": "cornell", "mode": "rcast", "resolution": [16, 16],
+                                       "bsp": {"levels": lv}, "arch": {"fifo_depth": fifo}})
+    write_rows(root, rows)
     return root
 
 

@@ -15,17 +15,14 @@ The sweep folders are made by hand (the files and keys the report reads), with t
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 
-import yaml
-
+from tests.sweep_folders import busy_units, start, write_point, write_rows
 from tlm.report.collect import read
 from tlm.report.sweeps import levels_balance, sweeps_section
 from tlm.scenes.loader import scenes_dir
 
-PMS = ("vertex", "traversal", "intersection", "fragment")
 # (level, pipelines) -> cycles (vertex, traversal, intersection, fragment, throughput) and FPS
 MEASURED = {(3, 1): (173190, 387529, 1172664, 60630, 1791797, 334.8593618585141),
             (3, 2): (173190, 195710, 587498, 30412, 984176, 609.647054998293),
@@ -37,10 +34,8 @@ def sweep_folder(root: Path, levels=(None, 3, 6), differ: bool = False) -> Path:
     """A sweep of the built-in ring over ``bsp.levels`` x ``arch.pipelines`` [1, 2]; ``None`` is
     ``bsp.levels: null`` (floor(ln 646) = 6). ``differ``: the null points measured other traversal
     cycles than those asking for 6 (a factor the report cannot tell apart)."""
-    root.mkdir()
-    (root / "sweep.yaml").write_text(yaml.safe_dump({"sweep": "s.yaml", "description": "16x12 RCast",
-                                                     "grid": {"bsp.levels": list(levels),
-                                                              "arch.pipelines": [1, 2]}}))
+    start(root, {"sweep": "s.yaml", "description": "16x12 RCast",
+                 "grid": {"bsp.levels": list(levels), "arch.pipelines": [1, 2]}})
     rows = []
     for i, (lv, n) in enumerate((lv, n) for lv in levels for n in (1, 2)):
         level = 6 if lv is None else lv
@@ -50,8 +45,6 @@ def sweep_folder(root: Path, levels=(None, 3, 6), differ: bool = False) -> Path:
         rows.append({"point": i, "hash": h, "status": "ok", "scene": "ring", "mode": "rcast", "bsp.levels": lv,
                      "arch.pipelines": n, "fps": fps, "cycles.vertex": vert, "cycles.traversal": trav,
                      "cycles.intersection": isct, "cycles.fragment": frag, "cycles.throughput": thru})
-        unit = {"T_norm": 1000, "T_ms": 0, "T_ps": 0, "idle": 0, "elapsed": 1000, "stall": {},
-                "fractions": {"busy": 1.0}}
         results = {"scene": {"name": "ring", "source": str(scenes_dir() / "ring.yaml"), "resolution": [16, 12],
                              "triangles": 646, "bsp": {"levels": level, "requested_levels": level,
                                                        "truncated": False}},
@@ -59,14 +52,10 @@ def sweep_folder(root: Path, levels=(None, 3, 6), differ: bool = False) -> Path:
                    "cycles": {"vertex": vert, "traversal": trav, "intersection": isct, "fragment": frag,
                               "throughput": thru, "latency": thru},
                    "factors": {"bsp.levels": lv, "arch.pipelines": n},
-                   "timing": {"frames": 1, "units": {f"pipe{p}.{pm}": dict(unit) for pm in PMS for p in range(n)}}}
-        point = root / "points" / h
-        point.mkdir(parents=True)
-        (point / "results.json").write_text(json.dumps(results))
-        (point / "config.resolved.yaml").write_text(yaml.safe_dump(
-            {"scene": "ring", "mode": "rcast", "resolution": [16, 12], "bsp": {"levels": lv},
-             "arch": {"pipelines": n}}))
-    (root / "sweep.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+                   "timing": {"frames": 1, "units": busy_units(n)}}
+        write_point(root, h, results, {"scene": "ring", "mode": "rcast", "resolution": [16, 12],
+                                       "bsp": {"levels": lv}, "arch": {"pipelines": n}})
+    write_rows(root, rows)
     return root
 
 

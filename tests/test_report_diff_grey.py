@@ -10,6 +10,7 @@ import numpy as np
 from PIL import Image
 
 import tlm.report.images as images
+from tests.helpers_figures import capture
 from tlm.experiments.reference import DIFFERENCE_COLOURS, DIFFERENCE_COLOURS_BEFORE, difference_image
 from tlm.report.collect import Run
 
@@ -34,14 +35,7 @@ def ramp() -> np.ndarray:
 
 def drawn(tmp_path: Path, monkeypatch, diff_rgb: np.ndarray):
     """The matplotlib figure and the report's record of :func:`error_figure` of a run with ``diff_rgb``."""
-    figs = []
-    real = images.save
-
-    def keep(fig, *args, **kwargs):
-        figs.append(fig)
-        return real(fig, *args, **kwargs)
-
-    monkeypatch.setattr(images, "save", keep)
+    figs = capture(monkeypatch, images)
     (tmp_path / "rep").mkdir()
     record = images.error_figure(error_run(tmp_path / "run1", diff_rgb), tmp_path / "rep")
     return figs[0], record

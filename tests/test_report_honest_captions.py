@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tests.helpers_figures import capture
 from tlm.report import build_report
 from tlm.report import summary as summary_mod
 from tlm.report import sweeps as sweeps_mod
@@ -47,19 +48,6 @@ def thesis_folder(folder: Path, provenance: bool = True) -> Path:
             {"study": "configs/thesis.yaml", "git_revision": "7639e3d6db6f8690abcd", "versions": {"python": "3.11"},
              "host_seconds": 66.825}))
     return folder
-
-
-def capture(monkeypatch, module) -> list:
-    """Every matplotlib figure ``module`` saves, in order (and still saved)."""
-    figs = []
-    real = module.save
-
-    def keep(fig, *a, **k):
-        figs.append(fig)
-        return real(fig, *a, **k)
-
-    monkeypatch.setattr(module, "save", keep)
-    return figs
 
 
 def test_how_fast_says_it_is_the_thesis_study_and_names_the_other_runs(tmp_path):

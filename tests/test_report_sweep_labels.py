@@ -5,11 +5,9 @@ labels; a sweep whose name no other sweep has keeps its plain name."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import yaml
-
+from tests.sweep_folders import start, write_point, write_rows
 from tlm.report.collect import read
 from tlm.report.names import path_labels
 from tlm.report.summary import sweep_findings
@@ -22,33 +20,32 @@ def sweep_folder(folder: Path, scale: float, results: bool = False) -> Path:
     """A sweep over the packet size whose point p ran at ``scale * (100 + p)`` FPS; its
     sweep.yaml lists a fourth point that has no row yet (an interrupted sweep). ``results``:
     each point also has a results folder."""
-    folder.mkdir(parents=True)
     grid = {"arch.packet_size": list(PACKETS)}
     points = [{"hash": f"h{i:02d}"} for i in range(len(PACKETS) + 1)]
-    (folder / "sweep.yaml").write_text(yaml.safe_dump({"sweep": "s3.yaml", "description": "16x16 Cornell RCast",
-                                                       "grid": grid, "points": points}))
+    start(folder, {"sweep": "s3.yaml", "description": "16x16 Cornell RCast", "grid": grid, "points": points})
     rows = []
     for i, p in enumerate(PACKETS):
         fps = scale * (100.0 + p)
         rows.append({"point": i, "hash": f"h{i:02d}", "status": "ok", "arch.packet_size": p, "scene": "cornell",
                      "mode": "rcast", "fps": fps, "cycles.throughput": 6e8 / fps})
         if results:
-            point = folder / "points" / f"h{i:02d}"
-            point.mkdir(parents=True)
-            (point / "results.json").write_text(json.dumps({
-                "timing": {}, "scene": {"name": "cornell"}, "mode": "rcast", "fps": fps,
-                "factors": {"arch.packet_size": p}}))
-    (folder / "sweep.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+            write_point(folder, f"h{i:02d}", {"timing": {}, "scene": {"name": "cornell"}, "mode": "rcast", "fps": fps,
+                                              "factors": {"arch.packet_size": p}})
+    write_rows(folder, rows)
     return folder
 
 
-def test_two_sweeps_named_alike_are_told_apart_in_titles_headings_notes_and_findings(tmp_path):
-    a = sweep_folder(tmp_path / "coll" / "a" / "sw", 1.0)
-    b = sweep_folder(tmp_path / "coll" / "b" / "sw", 3.0)
-    inputs = read([a, b])
-    assert [sw.label for sw in inputs.sweeps] == ["a/sw", "b/sw"]
+def sections(tmp_path: Path, *names: tuple[str, float]):
+    """The report's inputs and sweeps section (into ``tmp_path/rep``) of a sweep folder
+    ``tmp_path/coll/<name>`` at FPS scale ``scale`` for each ``(name, scale)``."""
+    inputs = read([sweep_folder(tmp_path / "coll" / name, scale) for name, scale in names])
     (tmp_path / "rep").mkdir()
-    sec = sweeps_section(inputs, tmp_path / "rep")
+    return inputs, sweeps_section(inputs, tmp_path / "rep")
+
+
+def test_two_sweeps_named_alike_are_told_apart_in_titles_headings_notes_and_findings(tmp_path):
+    inputs, sec = sections(tmp_path, ("a/sw", 1.0), ("b/sw", 3.0))
+    assert [sw.label for sw in inputs.sweeps] == ["a/sw", "b/sw"]
     assert [f.title for f in sec.figures] == ["a/sw: FPS against arch.packet_size",
                                               "b/sw: FPS against arch.packet_size"]
     assert "<h3>a/sw</h3>" in sec.html and "<h3>b/sw</h3>" in sec.html and "<h3>sw</h3>" not in sec.html
@@ -60,12 +57,8 @@ def test_two_sweeps_named_alike_are_told_apart_in_titles_headings_notes_and_find
 
 
 def test_a_sweep_named_alone_keeps_its_plain_name(tmp_path):
-    a = sweep_folder(tmp_path / "coll" / "a" / "sw", 1.0)
-    other = sweep_folder(tmp_path / "coll" / "b" / "other", 2.0)
-    inputs = read([a, other])
+    inputs, sec = sections(tmp_path, ("a/sw", 1.0), ("b/other", 2.0))
     assert [sw.label for sw in inputs.sweeps] == ["sw", "other"]
-    (tmp_path / "rep").mkdir()
-    sec = sweeps_section(inputs, tmp_path / "rep")
     assert sec.figures[0].title == "sw: FPS against arch.packet_size"
     assert "<h3>sw</h3>" in sec.html
     assert sweep_findings(inputs)[0].startswith("<b>Sweep sw</b>")

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 import tlm
+from tests.helpers_storage import refuse_to_carry
 from tlm import storage
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.storage import atomic_folder, write_atomic
@@ -212,14 +213,7 @@ def test_an_environment_failure_carrying_a_file_names_a_kept_folder_of_its_own(t
     """The carry-over refusal (a user's entry that cannot be moved) twice in a row: both outputs kept."""
     out = tmp_path / "r"
     _earlier_output_with_notes(out)
-    rename = Path.rename
-
-    def refused(self, target):
-        if self.name == "notes.md" and ".tmp-" in str(target):
-            raise OSError(errno.EACCES, "Permission denied", str(self))
-        return rename(self, target)
-
-    monkeypatch.setattr(Path, "rename", refused)
+    rename = refuse_to_carry(monkeypatch, "notes.md")
     kept = []
     for text in ("one", "two"):
         with pytest.raises(EnvironmentFailure, match=r"cannot carry .*notes\.md.* kept in") as e, \

@@ -18,15 +18,6 @@ from tlm.errors import InputError
 from tlm.experiments.granularity import load_granularity
 
 
-@pytest.fixture
-def elsewhere(tmp_path, monkeypatch):
-    """An empty folder of the user's own, away from configs/, as the working folder too."""
-    folder = tmp_path / "work"
-    folder.mkdir()
-    monkeypatch.chdir(folder)
-    return folder
-
-
 def _study(folder: Path, base) -> Path:
     path = folder / "g.yaml"
     path.write_text(yaml.safe_dump({"base": base, "packet_sizes": [4, 1]}, sort_keys=False))

@@ -26,15 +26,6 @@ def _sweep(folder: Path, base, grid=None) -> Path:
     return path
 
 
-@pytest.fixture
-def elsewhere(tmp_path, monkeypatch):
-    """A folder of the user's own, away from configs/, as the working folder too."""
-    folder = tmp_path / "work"
-    folder.mkdir()
-    monkeypatch.chdir(folder)
-    return folder
-
-
 def test_a_built_in_name_is_the_packaged_run_config(elsewhere):
     sweep = load_sweep(_sweep(elsewhere, "cornell"))
     packaged = yaml.safe_load((tlm.builtin.configs_dir() / "cornell.yaml").read_text())
