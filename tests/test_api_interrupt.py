@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_interrupt import CLI_RUN
 from tlm import api
 from tlm.whole_imports import imports_whole
 
@@ -130,13 +131,7 @@ def test_a_sweep_in_this_process_interrupted_during_its_imports_runs_again(tmp_p
     assert [status for status, _ in out["second"]] == ["ok", "ok"], out["second"]
 
 
-CLI = HOOK + textwrap.dedent("""
-    from tlm.cli import main
-    rc = main(["run", "cornell", "--out", "r", "--no-report", "--set", "mode=reflect", "--set",
-               "resolution=[16,16]", "--set", "render.spp=1", "--set", "render.light_samples=1"])
-    report.update(rc=rc, target_whole=TARGET in sys.modules, out=os.path.exists("r"))
-    print(json.dumps(report))
-""")
+CLI = HOOK + CLI_RUN
 
 
 def test_tlm_run_interrupted_during_the_import_exits_130_once_it_is_whole(tmp_path):

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_interrupt import CLI_RUN
 from tlm.whole_imports import HeldInterrupt, imports_whole
 
 REPO = Path(__file__).resolve().parents[1]
@@ -130,13 +131,7 @@ def test_a_second_sigterm_during_the_import_says_to_restart(tmp_path):
         assert "restart the Python process" in out[call]
 
 
-CLI = HOOK + textwrap.dedent("""
-    from tlm.cli import main
-    rc = main(["run", "cornell", "--out", "r", "--no-report", "--set", "mode=reflect", "--set",
-               "resolution=[16,16]", "--set", "render.spp=1", "--set", "render.light_samples=1"])
-    report.update(rc=rc, target_whole=TARGET in sys.modules, out=os.path.exists("r"))
-    print(json.dumps(report))
-""")
+CLI = HOOK + CLI_RUN
 
 
 def test_tlm_run_terminated_during_the_import_exits_143_once_it_is_whole(tmp_path):
