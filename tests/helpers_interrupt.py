@@ -12,3 +12,51 @@ CLI_RUN = textwrap.dedent("""
     report.update(rc=rc, target_whole=TARGET in sys.modules, out=os.path.exists("r"))
     print(json.dumps(report))
 """)
+
+
+def signalled_call(tmp_path, monkeypatch, signum: int, module: str, installed: list | None = None):
+    """``(call, reached)``: ``call(import_it)``, wrapped by :func:`tlm.whole_imports.imports_whole`,
+    either imports ``module`` (written into ``tmp_path``: it raises ``signum`` while it is being
+    imported, then sets ``WHOLE``) or raises ``signum`` itself, outside any import; ``reached``
+    gets ``import_it`` when the call gets to its end, ``installed`` (if given) the handler of
+    ``signum`` the call ran under."""
+    import importlib
+    import signal
+
+    from tlm.whole_imports import imports_whole
+
+    name = signal.Signals(signum).name
+    (tmp_path / f"{module}.py").write_text(f"import signal\nsignal.raise_signal(signal.{name})\nWHOLE = True\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reached: list[bool] = []
+
+    @imports_whole
+    def call(import_it: bool) -> None:
+        if installed is not None:
+            installed.append(signal.getsignal(signum))
+        if import_it:
+            importlib.import_module(module)
+        else:
+            signal.raise_signal(signum)
+        reached.append(import_it)
+
+    return call, reached
+
+
+def run_script(script: str, *args: str, cwd, cache) -> dict:
+    """``script`` run by a fresh Python (``-c``, ``args`` after it) in ``cwd``, with the tlm of this
+    checkout, the functional cache ``cache`` and the default (compiled) kernels: the JSON of its last
+    line of output, with its ``stderr``; it must exit 0."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "TLM_CACHE": str(cache), "PYTHONPATH": str(repo)}
+    env.pop("TLM_KERNELS", None)  # (the default: numba)
+    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}

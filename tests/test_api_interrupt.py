@@ -8,24 +8,19 @@ the first call chosen exactly, not by a timer."""
 
 from __future__ import annotations
 
-import json
-import os
 import signal
-import subprocess
 import sys
 import textwrap
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import pytest
 
-from tests.helpers_interrupt import CLI_RUN
+from tests.helpers_interrupt import CLI_RUN, run_script, signalled_call
 from tlm import api
 from tlm.whole_imports import imports_whole
 
 pytest.importorskip("numba")
 
-REPO = Path(__file__).resolve().parents[1]
 
 HOOK = textwrap.dedent("""
     import json, os, signal, sys
@@ -70,13 +65,7 @@ RENDER = HOOK + textwrap.dedent("""
 """)
 
 
-def _run(script: str, *args: str, cwd: Path, cache: Path) -> dict:
-    env = {**os.environ, "TLM_CACHE": str(cache), "PYTHONPATH": str(REPO)}
-    env.pop("TLM_KERNELS", None)  # (the default: numba)
-    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}
+_run = run_script
 
 
 # moments of numba's import, early to late, and of tlm's own compiled modules after it
@@ -147,19 +136,7 @@ def test_a_ctrl_c_outside_an_import_is_not_held(tmp_path, monkeypatch):
     when the call ends; off the main thread a call works and installs nothing."""
     before = signal.signal(signal.SIGINT, signal.default_int_handler)  # (a test runner's worker may ignore it)
     try:
-        (tmp_path / "tlm_test_slow_import.py").write_text(
-            "import signal\nsignal.raise_signal(signal.SIGINT)\nWHOLE = True\n")
-        monkeypatch.syspath_prepend(str(tmp_path))
-        reached = []
-
-        @imports_whole
-        def call(import_it: bool) -> None:
-            if import_it:
-                import tlm_test_slow_import  # noqa: F401
-            else:
-                signal.raise_signal(signal.SIGINT)
-            reached.append(import_it)
-
+        call, reached = signalled_call(tmp_path, monkeypatch, signal.SIGINT, "tlm_test_slow_import")
         with pytest.raises(KeyboardInterrupt):
             call(False)
         assert reached == [] and signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -9,20 +9,14 @@ import system sends the signal at the moment a named module is first looked for.
 
 from __future__ import annotations
 
-import json
-import os
 import signal
-import subprocess
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
-from tests.helpers_interrupt import CLI_RUN
+from tests.helpers_interrupt import CLI_RUN, run_script, signalled_call
 from tlm.whole_imports import HeldInterrupt, imports_whole
-
-REPO = Path(__file__).resolve().parents[1]
 
 HOOK = textwrap.dedent("""
     import json, os, signal, sys
@@ -53,13 +47,7 @@ HOOK = textwrap.dedent("""
 """)
 
 
-def _run(script: str, *args: str, cwd: Path, cache: Path) -> dict:
-    env = {**os.environ, "TLM_CACHE": str(cache), "PYTHONPATH": str(REPO)}
-    env.pop("TLM_KERNELS", None)  # (the default: numba)
-    proc = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}
+_run = run_script
 
 
 FIRST_USE = HOOK + textwrap.dedent("""
@@ -159,20 +147,8 @@ def test_a_sigterm_a_handler_raises_on_is_held_to_the_imports_end(tmp_path, monk
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        (tmp_path / "tlm_test_term_import.py").write_text(
-            "import signal\nsignal.raise_signal(signal.SIGTERM)\nWHOLE = True\n")
-        monkeypatch.syspath_prepend(str(tmp_path))
-        reached, installed = [], []
-
-        @imports_whole
-        def call(import_it: bool) -> None:
-            installed.append(signal.getsignal(signal.SIGTERM))
-            if import_it:
-                import tlm_test_term_import  # noqa: F401
-            else:
-                signal.raise_signal(signal.SIGTERM)
-            reached.append(import_it)
-
+        installed: list = []
+        call, reached = signalled_call(tmp_path, monkeypatch, signal.SIGTERM, "tlm_test_term_import", installed)
         with pytest.raises(Terminated):
             call(False)
         assert reached == [] and isinstance(installed[-1], HeldInterrupt)
