@@ -66,10 +66,12 @@ def test_formats_with_no_report_is_refused_not_dropped(command, tmp_path, monkey
     monkeypatch.chdir(tmp_path)
     assert main([*COMMANDS[command], "--no-report", "--formats", "svg"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1] == ("tlm: error: --formats: --formats set the report's figure files, and --no-report writes "
+    assert err[-1] == ("tlm: error: --formats: sets the report's figure files, and --no-report writes "
                        "no report: give one or the other"), err
     assert main([*COMMANDS[command], "--no-report", "--dpi", "200"]) == 2
-    assert "--dpi: --dpi set the report's figure files" in capsys.readouterr().err
+    assert "tlm: error: --dpi: sets the report's figure files" in capsys.readouterr().err
+    assert main([*COMMANDS[command], "--no-report", "--formats", "svg", "--dpi", "200"]) == 2
+    assert "tlm: error: --formats and --dpi: set the report's figure files" in capsys.readouterr().err
 
 
 def test_plots_writes_its_report_as_asked(tmp_path, monkeypatch):

@@ -290,3 +290,27 @@ def test_claiming_a_folder_races_safely(tmp_path, monkeypatch):
     fresh = tmp_path / "f" / "g"
     storage.claim_folder(fresh, "sweep.yaml", "x")
     assert [p.name for p in fresh.iterdir()] == ["sweep.yaml"]
+
+
+@pytest.mark.slow
+def test_a_run_whose_interrupt_was_lost_exits_143_with_its_folder_whole(tmp_path, monkeypatch, capsys):
+    """SIGTERM during the render, its KeyboardInterrupt raised where CPython ignores it (as in
+    an at-fork hook when the render forks its workers): the run goes on to its end, and exits
+    143 (not 0), saying its folder is whole; the folder stays, with nothing half written."""
+    real = run_mod.render
+
+    def lost(*a, **k):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(10**7):  # (the handler raises at one of these instructions)
+                pass
+        except KeyboardInterrupt:
+            pass
+        return real(*a, **k)
+
+    monkeypatch.setattr(run_mod, "render", lost)
+    out = tmp_path / "runs" / "r"
+    assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 143
+    err = capsys.readouterr().err.strip()
+    assert err == "tlm: terminated (SIGTERM), but the command ran to its end: its output is complete"
+    assert (out / "results.json").is_file() and leftovers(tmp_path) == []

@@ -3,5 +3,8 @@
 import sys
 
 from tlm.cli import main
+from tlm.cli_signals import forget_lost_interrupt
 
-sys.exit(main())
+status = main()
+forget_lost_interrupt()  # else a SIGTERM's interrupt that left numba's exec'd source may end it by SIGINT (see there)
+sys.exit(status)

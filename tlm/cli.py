@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tlm import api, storage
 from tlm.api import MODES, Deadlock, InputError
-from tlm.cli_signals import exit_status, signals, version
+from tlm.cli_signals import exit_status, forget_lost_interrupt, interrupted, signalled, signals, version
 
 
 def _say(line: str) -> None:
@@ -41,7 +41,10 @@ def _cmd_plots(args: argparse.Namespace) -> int:
 
     def step(argv: list[str]) -> int:
         """One step's command: its exit status (1: its results report failures, as a model that
-        cannot finish does); bad input and any other error propagate and stop ``tlm plots``."""
+        cannot finish does); bad input and any other error propagate and stop ``tlm plots``.
+        Not begun after a signal whose interrupt got lost in the step before (:func:`main`)."""
+        if signalled() is not None:
+            raise KeyboardInterrupt
         sub = build_parser().parse_args(argv)
         sub.argv = argv  # (its file is the one in --configs: a name is not looked up among the built-in ones)
         try:
@@ -92,8 +95,8 @@ def _figure_args(args: argparse.Namespace) -> None:
     if not given:
         return
     if getattr(args, "no_report", False):
-        raise InputError(f"{' and '.join(given)} set the report's figure files, and --no-report writes no report: "
-                         "give one or the other", key=given[0])
+        raise InputError(f"{'set' if len(given) > 1 else 'sets'} the report's figure files, and --no-report "
+                         "writes no report: give one or the other", key=" and ".join(given))
     api.report_output(args.formats, args.dpi)
 
 
@@ -617,18 +620,29 @@ def main(argv: list[str] | None = None) -> int:
     if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
         print(parser.format_help(), file=sys.stderr, end="")
         return 2
+    finished = False  # the command returned: what it wrote is whole
     try:
         with signals():
             args = parser.parse_args(argv)
             args.argv = argv
             _experiment_arg(args)
             _figure_args(args)
-            return args.func(args)
+            status = args.func(args)
+            finished = True
     except SystemExit as e:  # --help, --version
         return e.code if isinstance(e.code, int) else 0
     except (Exception, KeyboardInterrupt) as e:  # its one line and its exit status
-        return exit_status(e, argv)
+        if not (finished and isinstance(e, KeyboardInterrupt)):
+            return exit_status(e, argv)
+        return interrupted(argv, finished=True)  # (came as the command returned)
+    if signalled() is not None:  # signalled, yet it ran to its end: its interrupt was raised where
+        # CPython ignores exceptions (an at-fork hook, a ctypes callback). Still 130 / 143, and
+        # its output, whole, is kept (as an interrupt during a run's report keeps the run's folder)
+        return interrupted(argv, finished=True)
+    return status
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    status = main()
+    forget_lost_interrupt()  # (see there: else ``python -m tlm.cli`` may die by SIGINT whatever the status)
+    sys.exit(status)

@@ -6,7 +6,10 @@ naming each blocked unit) ends with its message and exit status 1, and so does a
 of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
 Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
 had half written; a second signal during that clean-up ends the process at once, with one
-line of its own (and none from multiprocessing: its semaphores are released first). Anything
+line of its own (and none from multiprocessing: its semaphores are released first). A signal
+whose interrupt got lost (raised where Python ignores exceptions: an at-fork hook, a ctypes
+callback) or came as the command ended exits with 130 / 143 all the same, saying that the
+command ran to its end: what it wrote is whole, and kept. Anything
 else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
 A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
 as if killed by SIGPIPE).
@@ -90,11 +93,27 @@ def signals():
         before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:  # not the main thread
         before = {}
+    hook = sys.unraisablehook
+    if before:
+        sys.unraisablehook = quiet = _without_lost_interrupts(hook)
     try:
         yield
     finally:
         for s, h in before.items():
             signal.signal(s, h)
+        if before and sys.unraisablehook is quiet:
+            sys.unraisablehook = hook
+
+
+def _without_lost_interrupts(hook):
+    """``sys.unraisablehook`` less the KeyboardInterrupt of a signal that CPython ignored
+    (raised in an at-fork hook, a ctypes callback: "Exception ignored in ..." and its traceback
+    on stderr): the command's exit says it (:func:`interrupted`), in its one line."""
+    def quiet(unraisable) -> None:
+        if _SIGNALS and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return
+        hook(unraisable)
+    return quiet
 
 
 def save_traceback(exc: BaseException) -> Path | None:
@@ -128,16 +147,42 @@ def one_line(e: BaseException) -> str:
     return " ".join(str(e).split()) or type(e).__name__
 
 
-def interrupted(argv: list[str] | None) -> int:
-    """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal."""
+def signalled() -> int | None:
+    """The first signal (SIGINT or SIGTERM) the running command received, None if none. Its
+    KeyboardInterrupt may never have reached the command: raised where CPython ignores
+    exceptions (an at-fork hook, an llvmlite ctypes callback during a compilation, a
+    ``__del__``), it is dropped and the command goes on; its exit says so (:func:`interrupted`)."""
+    return _SIGNALS[0] if _SIGNALS else None
+
+
+def interrupted(argv: list[str] | None, finished: bool = False) -> int:
+    """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal.
+    ``finished``: the command ran to its end all the same (its interrupt was lost, or came as
+    it returned), so what it wrote is whole and stays: the line says so."""
     sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
     if argv is None and _SIGNALS:  # the process's own command: a second signal during the
         with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
             for s in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(s, on_signal)
     line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
+    if finished:
+        line += ", but the command ran to its end: its output is complete"
     _line(line_break(sig) + line)
     return 128 + sig
+
+
+def forget_lost_interrupt() -> None:
+    """Called just before ``python -m tlm`` exits: its exit status is the one ``main``
+    returned. A KeyboardInterrupt that left an ``exec`` of a string (dataclasses', namedtuple's
+    and numba's generated source: a signal landing there) sets CPython's "unhandled
+    KeyboardInterrupt" flag (pythonrun.c ``run_eval_code_obj``), which the command's catching
+    the interrupt later does not clear; ``python -m`` (``Py_RunMain``) then ends the
+    process with ``kill(getpid(), SIGINT)`` whatever ``sys.exit`` said: 130 after a SIGTERM,
+    killed by SIGINT rather than exiting 130 after a Ctrl-C. Each ``exec`` of a string resets
+    the flag first, so one that runs to its end clears it. (The installed ``tlm`` script
+    exits through ``Py_Exit``, which never reads the flag: the two ways now end alike, a
+    Ctrl-C with exit status 130, as before where the interrupt passed through no ``exec``.)"""
+    exec("None")
 
 
 def line_break(sig: int) -> str:
