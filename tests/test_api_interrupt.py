@@ -11,6 +11,7 @@ from __future__ import annotations
 import signal
 import sys
 import textwrap
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
@@ -149,6 +150,36 @@ def test_a_ctrl_c_outside_an_import_is_not_held(tmp_path, monkeypatch):
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         sys.modules.pop("tlm_test_slow_import", None)
+        signal.signal(signal.SIGINT, before)
+
+
+class _SignalsWhenDeleted:
+    def __del__(self):
+        signal.raise_signal(signal.SIGINT)
+
+
+def test_a_ctrl_c_in_a_finalizer_is_held_to_its_end():
+    """Python drops an exception raised in a ``__del__`` ("Exception ignored in ..."): a Ctrl-C
+    given there (a held one, given back by the watching thread while llvmlite disposes of an
+    object, as in about one run in thirty of the arraymath test above) would be lost, and the
+    call would run to its end. It is held until the finalizer has returned."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        reached = []
+
+        @imports_whole
+        def call() -> None:
+            _SignalsWhenDeleted()  # (deleted at once: its __del__ sends the Ctrl-C)
+            reached.append("after the finalizer")
+            for _ in range(500):  # (the held Ctrl-C is given back here, or at the latest as the call ends)
+                time.sleep(0.01)
+            reached.append("end")
+
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        assert reached == ["after the finalizer"]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
         signal.signal(signal.SIGINT, before)
 
 

@@ -16,6 +16,16 @@ between two bytecodes, as SIGINT's does, and where it raises (``tlm``'s command 
 SIGTERM into the KeyboardInterrupt that removes what a command half wrote) it cuts an import
 short as a Ctrl-C does. Its default action (and an ignored SIGTERM) is the kernel's, not
 Python's: nothing to hold, and a SIGTERM that ends the process is never delayed.
+
+numba's install of a registry (a typing or target context's ``install_registry``, run by every
+compile's refresh of its contexts, the first one around the imports of numba's own modules) is
+held the same way: a KeyboardInterrupt in one leaves that registry's loader broken for the
+process (its generator of the registry's new entries, ``numba.core.utils.stream_list``, is
+finished by an exception raised in it: every later compile fails with ``generator raised
+StopIteration``; cut between two entries, the rest are skipped), and a Ctrl-C held to an
+import's end was raised in the refresh around it about one time in six. A signal is not given
+in a finalizer either (a ``__del__``: llvmlite's, during a compile), where Python would drop its
+KeyboardInterrupt and the call would run on.
 """
 
 from __future__ import annotations
@@ -32,21 +42,30 @@ from typing import Any
 
 _IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
 _IMPORT_SOURCES = (os.path.join("importlib", "_bootstrap.py"), os.path.join("importlib", "_bootstrap_external.py"))
+_NUMBA_CORE = os.sep + os.path.join("numba", "core", "")  # (its contexts' install_registry, typing and target)
 HELD = (signal.SIGINT, signal.SIGTERM)  # the signals held to an import's end, where a Python handler takes them
 _LEFT_HALF: dict[str, int] = {}  # the modules an import interrupted in an API call left without their package,
 # with the signal that cut it short
+_CUT_REGISTRIES: set[int] = set()  # the signals that cut numba's install of a registry short in an API call
 
 
-def _importing(frame: Any, stop: Any) -> bool:
-    """Whether ``frame`` (the main thread's) runs an import that began after ``stop``, the
-    frame of the API call (an API call made while a module is imported does not hold every
-    Ctrl-C to its end)."""
+def _uncuttable(frame: Any, stop: Any) -> set[str]:
+    """What ``frame`` (the main thread's) runs, begun after ``stop`` (the frame of the API call),
+    that a signal must not cut short: ``"import"`` (a module's), ``"registry"`` (numba's install of
+    a registry), ``"finalizer"`` (a ``__del__``, where Python drops the KeyboardInterrupt of a Ctrl-C
+    given back there: "Exception ignored in ...", and the call goes on); empty if nothing (an API
+    call made while a module is imported does not hold every Ctrl-C to its end)."""
+    found = set()
     while frame is not None and frame is not stop:
-        name = frame.f_code.co_filename
-        if name in _IMPORT_FILES or name.endswith(_IMPORT_SOURCES):
-            return True
+        code = frame.f_code
+        if code.co_filename in _IMPORT_FILES or code.co_filename.endswith(_IMPORT_SOURCES):
+            found.add("import")
+        elif code.co_name == "install_registry" and _NUMBA_CORE in code.co_filename:
+            found.add("registry")
+        elif code.co_name == "__del__":
+            found.add("finalizer")
         frame = frame.f_back
-    return False
+    return found
 
 
 def _orphans() -> set[str]:
@@ -59,10 +78,11 @@ def _orphans() -> set[str]:
 class HeldInterrupt:
     """The SIGINT (and SIGTERM) handler during a call of a function :func:`imports_whole`
     wraps, in the main thread. A signal outside an import goes at once to the handler it
-    replaced (``KeyboardInterrupt``, or the command line's); one during an import is held,
-    and given to that handler once the main thread has left the import (a thread watches it)
-    or, at the latest, when the call ends. A second signal during the same import goes
-    through at once (the import is then left half done, which the next API call reports:
+    replaced (``KeyboardInterrupt``, or the command line's); one during an import (or numba's
+    install of a registry) is held, and given to that handler once the main thread has left it
+    (a thread watches it; not in a finalizer, which would drop it) or, at the latest, when the
+    call ends. A second signal during the same import goes through at once (the import is then
+    left half done, or the registry's loader broken, which the next API call reports:
     :func:`check_imports`).
 
     ``before``: the handler replaced, of SIGINT, or ``{signal: handler}`` of the signals held."""
@@ -76,29 +96,34 @@ class HeldInterrupt:
         self.held: int | None = None  # the signal held
         self.orphans: set[str] | None = None  # before a signal went through during an import
         self.cut_by = signal.SIGINT  # the signal that went through
+        self.cut_registry = False  # whether it went through during numba's install of a registry
 
     def __call__(self, signum: int, frame: Any) -> None:
         with self.lock:
-            if self.active and _importing(frame, self.entry):
+            if self.active and (uncuttable := _uncuttable(frame, self.entry)):
                 if self.held is None:
                     self.held = signum
                     # (the low-level start: threading's own start takes a lock the interrupted code may hold)
                     _thread.start_new_thread(self._watch, ())
                     return
+                if uncuttable == {"finalizer"}:  # (one would be dropped there: the one held stands for both)
+                    return
                 if self.orphans is None:  # (now, the half-imported packages are still in sys.modules)
                     self.orphans, self.cut_by = _orphans(), signum
+                    self.cut_registry = "registry" in uncuttable
             self.held = None
         self.before[signum](signum, frame)
 
     def _watch(self) -> None:
-        """Give the held signal back to the main thread once it is out of the import."""
+        """Give the held signal back to the main thread once it is out of the import (its handler,
+        :meth:`__call__`, holds it again if the main thread has entered another meanwhile)."""
         while True:
             time.sleep(0.01)
             with self.lock:
                 if not self.active or self.held is None:
                     return
                 frame = sys._current_frames().get(self.main)
-                if frame is not None and _importing(frame, self.entry):
+                if frame is not None and _uncuttable(frame, self.entry):
                     continue
                 signum, self.held = self.held, None
                 if hasattr(signal, "pthread_kill"):  # (this handler passes it on: no import now)
@@ -122,21 +147,29 @@ class HeldInterrupt:
             self.entry = None
         if failed is not None and self.orphans is not None:
             _LEFT_HALF.update(dict.fromkeys(_orphans() - self.orphans, self.cut_by))
+            if self.cut_registry:
+                _CUT_REGISTRIES.add(self.cut_by)
         if held is not None:
             signal.raise_signal(held)  # (its handler runs now: a held Ctrl-C's KeyboardInterrupt)
 
 
 def check_imports() -> None:
-    """A RuntimeError naming the cure where an interrupted import left packages half imported."""
+    """A RuntimeError naming the cure where an interrupted import left packages half imported,
+    or an interrupted install of one of numba's registries left its loader broken."""
     left = sorted(name for name in _LEFT_HALF if name in sys.modules)
+    if not left and not _CUT_REGISTRIES:
+        return
+    cut = sorted({_LEFT_HALF[name] for name in left} if left else _CUT_REGISTRIES)
+    what = ("a Ctrl-C (pressed twice)" if cut == [signal.SIGINT] else
+            f"a second signal ({', '.join(signal.Signals(s).name for s in cut)})")
     if left:
         packages = ", ".join(sorted({name.partition(".")[0] for name in left}))
-        cut = sorted({_LEFT_HALF[name] for name in left})
-        what = ("a Ctrl-C (pressed twice)" if cut == [signal.SIGINT] else
-                f"a second signal ({', '.join(signal.Signals(s).name for s in cut)})")
-        raise RuntimeError(f"{what} interrupted the import of {packages} in an earlier call and "
-                           f"left it half imported ({len(left)} modules without their package), which Python cannot "
-                           "import again: restart the Python process (in a notebook, restart its kernel)")
+        done = (f"the import of {packages} in an earlier call and left it half imported ({len(left)} modules "
+                "without their package), which Python cannot import again")
+    else:
+        done = ("numba's install of its registries in an earlier call and left them incomplete (every later "
+                "compile fails or misses functions), which numba cannot resume")
+    raise RuntimeError(f"{what} interrupted {done}: restart the Python process (in a notebook, restart its kernel)")
 
 
 def _outer(handler: HeldInterrupt) -> bool:
