@@ -11,12 +11,15 @@ hazard they check is a hang.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -206,3 +209,183 @@ def test_past_the_threads_maximum_a_render_forks_by_default_with_the_bits_of_thr
     assert got["0"] == ("None", 0)
     assert got["unset"] == ("None", 3)  # (a pool of 3 workers for the batches; refract traces no photons)
     assert got["unset"] == got["1"]
+
+
+_SIGNAL_AT_FORK = """
+import _thread, multiprocessing, os, signal, sys, time
+from tlm.kernels import threads
+
+# (a thread no Python check sees, OpenBLAS's or numba's; where there is none, the main thread gets the signal)
+native = _thread.start_new_thread(time.sleep, (60,)) if sys.argv[1] == "thread" else None
+sent = []
+
+def hook():  # an at-fork hook (logging has some): a handler that raises inside one is ignored by CPython
+    if not sent:
+        sent.append(1)
+        if native is None:
+            os.kill(os.getpid(), signal.SIGINT)
+        else:  # (delivered to a thread that does not block it; Python runs the handler in the main thread)
+            signal.pthread_kill(native, signal.SIGINT)
+        for _ in range(100000):  # (the handler runs here, inside the hook)
+            pass
+
+os.register_at_fork(after_in_parent=hook)
+try:
+    with threads.using(2):
+        print("returned", list(threads.forked(lambda i: i, range(4), 2)))
+except KeyboardInterrupt:
+    print("KeyboardInterrupt")
+print(len(multiprocessing.active_children()), sorted(signal.pthread_sigmask(signal.SIG_BLOCK, [])),
+      signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+"""
+
+
+@needs_fork
+@pytest.mark.parametrize("to", ["process", "thread"])
+def test_a_ctrl_c_while_the_workers_are_forked_is_not_lost(tmp_path, to):
+    """A Ctrl-C (or the command line's SIGTERM, which raises as it does) whose handler runs in an
+    at-fork hook while the workers are forked: CPython ignores an exception raised in a hook, so
+    the run went on and ended as if nothing came. Now the signal is held across the forks and
+    raised after them: the KeyboardInterrupt comes out of ``forked``, which ends its workers, and
+    the signal mask and handler are as before. Sent to the process (the main thread blocks it)
+    or to a native thread (which no mask of the main thread covers)."""
+    script = tmp_path / "script.py"
+    script.write_text(_SIGNAL_AT_FORK)
+    env = {k: v for k, v in os.environ.items() if k != "TLM_FORK_WORKERS"}
+    done = subprocess.run([sys.executable, str(script), to], capture_output=True, text=True, cwd=ROOT, env=env,
+                          timeout=120, start_new_session=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.splitlines() == ["KeyboardInterrupt", "0 [] True"], done.stdout + done.stderr
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, which an init that reaps none leaves, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+_KILLED_PARENT = """
+import multiprocessing, os, sys, time
+from tlm.kernels import threads
+
+def work(i):
+    time.sleep(0 if i == 0 else 600)
+    return i
+
+with threads.using(2):
+    done = threads.forked(work, range(5), 2)
+    next(done)
+    with open(sys.argv[1] + ".tmp", "w") as f:
+        f.write(" ".join(str(p.pid) for p in multiprocessing.active_children()))
+    os.replace(sys.argv[1] + ".tmp", sys.argv[1])
+    time.sleep(600)
+"""
+
+
+@needs_fork
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_the_workers_end_with_a_killed_parent(tmp_path):
+    """The process that forked the workers killed (SIGKILL, the out-of-memory killer; or ended by
+    ``os._exit``, the command line's second Ctrl-C): no shutdown runs, and its workers waited on
+    their pipes for ever, each holding a copy of its memory. They end with it now."""
+    script, pids_file = tmp_path / "script.py", tmp_path / "pids"
+    script.write_text(_KILLED_PARENT)
+    env = {k: v for k, v in os.environ.items() if k != "TLM_FORK_WORKERS"}
+    proc = subprocess.Popen([sys.executable, str(script), str(pids_file)], cwd=ROOT, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    pids: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while not pids_file.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert pids_file.exists(), f"no workers forked (exit status {proc.poll()})"
+        pids = [int(p) for p in pids_file.read_text().split()]
+        assert len(pids) == 2
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        deadline = time.monotonic() + 10
+        while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert [p for p in pids if _alive(p)] == []
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # (the workers left behind, in the script's group)
+        proc.wait()
+
+
+def test_a_worker_whose_parent_is_gone_ends_at_once(tmp_path):
+    """A worker whose parent died before it asked the kernel to end with it (its parent pid is not
+    the forking process's) ends at once; one whose parent lives goes on."""
+    script = tmp_path / "script.py"
+    script.write_text("import os\nfrom tlm.kernels import threads\n"
+                      "threads._forked_init(False, os.getppid())\nprint('kept', flush=True)\n"
+                      "threads._forked_init(False, -1)\nprint('still here')\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert (done.returncode, done.stdout, done.stderr) == (1, "kept\n", "")
+
+
+_FORK_REFUSED = """
+import errno, multiprocessing, signal
+import multiprocessing.popen_fork as popen_fork
+from tlm.kernels import threads
+
+real, launched = popen_fork.Popen._launch, []
+
+def launch(self, process_obj):  # the second fork refused (EAGAIN: too many processes)
+    launched.append(1)
+    if len(launched) == 2:
+        raise OSError(errno.EAGAIN, "fork refused")
+    return real(self, process_obj)
+
+popen_fork.Popen._launch = launch
+try:
+    list(threads.forked(lambda i: i, range(6), 3))
+except OSError as e:
+    print("refused:", e.strerror)
+print(len(multiprocessing.active_children()), sorted(signal.pthread_sigmask(signal.SIG_BLOCK, [])),
+      signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+"""
+
+
+@needs_fork
+def test_a_fork_refused_part_way_leaves_no_worker_and_no_hang(tmp_path):
+    """The second of three forks refused: the error comes out of ``forked``, the worker already
+    forked is ended (the pool's shutdown alone told it nothing, and multiprocessing waited for it
+    at the interpreter's exit, for ever), and the signals are as before."""
+    assert _script(tmp_path, _FORK_REFUSED, timeout=60).splitlines() == ["refused: fork refused", "0 [] True"]
+
+
+def test_a_refused_submit_is_not_counted_as_a_call_in_flight():
+    """A submit refused (a pool shut down: "cannot schedule new futures after shutdown") leaves
+    no call counted in flight: one left counted kept every later ``forked`` on threads."""
+    pool = ThreadPoolExecutor(1)
+    pool.shutdown()
+    before = threads._BUSY
+    with pytest.raises(RuntimeError, match="after shutdown"):
+        threads._submit(pool, print)
+    assert before == threads._BUSY
+
+
+_ORDERED_ACROSS_A_FORK = """
+import os, time
+from tlm.kernels import threads
+
+with threads.using(4):
+    later = threads.ordered(lambda x: x + 1, range(40))
+    first = next(later)
+    while threads._BUSY:  # (its window's calls done: the process is quiet)
+        time.sleep(0.01)
+    print(set(threads.forked(lambda i: os.getpid(), range(4), 2)) - {os.getpid()} != set())
+    print([first, *later] == list(range(1, 41)), threads._BUSY)
+    print(set(threads.forked(lambda i: os.getpid(), range(4), 2)) - {os.getpid()} != set())
+"""
+
+
+@needs_fork
+def test_an_ordered_call_resumed_after_a_fork_goes_on(tmp_path):
+    """An :func:`ordered` generator paused while the same thread forks (which shuts the idle pools
+    down) goes on, on a pool made again, rather than failing with "cannot schedule new futures
+    after shutdown" and leaving a call counted in flight for good."""
+    assert _script(tmp_path, _ORDERED_ACROSS_A_FORK, timeout=60).split() == ["True", "True", "0", "True"]

@@ -41,6 +41,7 @@ with, and a run repeats exactly.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -468,17 +469,18 @@ def trace_photons(
     full: dict[str, list[list[np.ndarray]]] = {k: [] for k in STORED}
     traced = (threads.forked(trace, spans, threads.current()) if concurrent and threads.can_fork()
               else threads.ordered(trace, spans))
-    for (lo, hi), (part, got, got_full, pairs) in zip(spans, traced, strict=True):
-        if concurrent:
-            streams.settle(pairs)  # the chunks' reads in photon order: photon-major, as one trace's
-        for k, v in part.items():
-            work[k][lo:hi] = v
-        for into, add in ((stored, got), (full, got_full)):
-            for name, per_bounce in add.items():
-                for bounce, value in enumerate(per_bounce):
-                    if bounce == len(into[name]):
-                        into[name].append([])
-                    into[name][bounce].append(value)
+    with contextlib.closing(traced):  # (ended here, whatever stops the loop: forked workers and their lock too)
+        for (lo, hi), (part, got, got_full, pairs) in zip(spans, traced, strict=True):
+            if concurrent:
+                streams.settle(pairs)  # the chunks' reads in photon order: photon-major, as one trace's
+            for k, v in part.items():
+                work[k][lo:hi] = v
+            for into, add in ((stored, got), (full, got_full)):
+                for name, per_bounce in add.items():
+                    for bounce, value in enumerate(per_bounce):
+                        if bounce == len(into[name]):
+                            into[name].append([])
+                        into[name][bounce].append(value)
     stored = {name: [v for chunks in per_bounce for v in chunks] for name, per_bounce in stored.items()}
     full = {name: [v for chunks in per_bounce for v in chunks] for name, per_bounce in full.items()}
 

@@ -24,6 +24,7 @@ import contextlib
 import contextvars
 import itertools
 import os
+import signal
 import sys
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -213,7 +214,11 @@ def _submit(pool: ThreadPoolExecutor, fn: Callable, *args) -> Future:
     global _BUSY
     with _POOLS_LOCK:
         _BUSY += 1
-        future = pool.submit(_counted, fn, *args)
+        try:
+            future = pool.submit(_counted, fn, *args)
+        except BaseException:  # (refused, "cannot schedule new futures after shutdown": no call in flight)
+            _BUSY -= 1
+            raise
     future.add_done_callback(_uncount_cancelled)
     return future
 
@@ -265,7 +270,6 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
         for item in items:
             yield fn(item)
         return
-    pool = _pool(threads)
     window = 2 * threads
     weight = [1.0] * len(items) if weights is None else [float(w) for w in weights]
     if len(weight) != len(items) or not all(w > 0 for w in weight):
@@ -281,7 +285,8 @@ def ordered(fn: Callable[[T], R], items: Iterable[T], threads: int | None = None
     try:
         while nxt < len(items) or pending:
             while nxt < len(items) and (not pending or held + weight[nxt] <= limit):
-                pending.append((_submit(pool, one.copy().run, fn, items[nxt]), weight[nxt]))
+                # (the pool looked up per call: a :func:`forked` call between two shuts it down)
+                pending.append((_submit(_pool(threads), one.copy().run, fn, items[nxt]), weight[nxt]))
                 held += weight[nxt]
                 nxt += 1
             future, w = pending.pop(0)
@@ -410,16 +415,128 @@ def _quiet():
             yield True
 
 
-def _forked_init(holds_compiler_lock: bool) -> None:
-    """A forked worker gives up numba's compiler lock that :func:`_quiet` held at the fork (its
-    thread is the forking one, so it owns it), and leaves Ctrl-C to the render that forked it
-    (which ends the pool)."""
-    import signal
+PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
+_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)  # the signals whose Python handlers raise (the command line's)
 
+
+def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
+    """A forked worker gives up numba's compiler lock that :func:`_quiet` held at the fork (its
+    thread is the forking one, so it owns it), leaves Ctrl-C to the render that forked it
+    (which ends the pool), and ends with the process ``parent`` that forked it.
+
+    SIGINT and SIGTERM came blocked from the fork (:class:`_HeldSignals`), so that neither
+    reached the handler the worker inherited (the command line's, which raises) before it
+    is replaced here; they are unblocked after (a child's pending signals are none at the
+    fork: nothing is lost). The end with ``parent``: a parent killed (SIGKILL, the out-of-memory
+    killer) or ended by ``os._exit`` (the command line's second Ctrl-C, a sweep worker's
+    watch on its own parent) runs no shutdown, and its workers would wait on their pipes for
+    ever. On Linux the kernel kills the worker then (``PR_SET_PDEATHSIG``, as a sweep's
+    workers do: :func:`tlm.experiments.executors._exit_with`); a parent that died before
+    that call is seen by its pid. The kernel sends the signal when the *thread* that forked
+    ends, not the process: the forks happen in the thread that iterates :func:`forked`'s
+    generator, which consumes the workers' results, so the workers serve no one once it is
+    gone (a generator handed to another thread that way gets BrokenProcessPool, not a hang)."""
     if holds_compiler_lock:
         _compiler_lock().release()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:  # (the parent died before the prctl: this process is an orphan already)
+        os._exit(1)
+
+
+class _HeldSignals:
+    """SIGINT and SIGTERM held while :func:`forked` forks its workers, and given to their
+    handlers once the forks are done.
+
+    ``os.fork()`` runs Python's at-fork hooks (logging's, ...) in the parent, and CPython
+    ignores an exception raised in one ("Exception ignored in ..."): a SIGINT or SIGTERM whose
+    handler raises (``KeyboardInterrupt``: the command line turns SIGTERM into one) and runs
+    inside a hook would be lost, and the interrupted run would finish and exit 0. So, in the
+    main thread (where Python runs the handlers; elsewhere this does nothing):
+
+    * each signal's Python handler is replaced by this object, which only notes the signal
+      while the forks run: the kernel may deliver a signal to any thread that does not block
+      it (OpenBLAS's, numba's native threads, which no mask of this thread covers), and its
+      Python handler then runs in the main thread, inside a hook;
+    * the signals are blocked in this thread, so that a forked child (which inherits the
+      mask, with the handler it cannot yet have replaced) gets none before :func:`_forked_init`
+      unblocks them, and no fork is interrupted;
+    * :meth:`release` unblocks them (what came meanwhile is noted), puts the handlers back and
+      raises each noted signal again (``signal.raise_signal``): its handler runs then, outside
+      any hook. The caller releases inside the region that shuts the forked pool down, so that
+      the KeyboardInterrupt that comes out of it ends the workers.
+
+    A handler left in place (a second signal while the handlers are put back) passes each
+    signal on to the one it replaced."""
+
+    def __init__(self) -> None:
+        self.before: dict[int, Callable] = {}
+        self.noted: list[int] = []
+        self.holding = False
+        self.mask: set | None = None  # the thread's mask before, while blocked
+
+    def __call__(self, signum: int, frame) -> None:
+        if self.holding:
+            self.noted.append(signum)
+            return
+        self.before[signum](signum, frame)
+
+    def hold(self) -> None:
+        if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+            return
+        self.holding = True
+        for signum in _HELD_SIGNALS:
+            handler = signal.getsignal(signum)
+            if callable(handler):  # (a Python handler: not the default action, not ignored)
+                self.before[signum] = handler  # (before the swap: :meth:`release` puts back any it finds)
+                signal.signal(signum, self)
+        # (the handlers first: once swapped, no SIGINT or SIGTERM raises until release)
+        self.mask = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+
+    def release(self) -> None:
+        """Unblock, put the handlers back, raise what came meanwhile; once (then nothing)."""
+        try:
+            if self.mask is not None:  # (the C call unblocks before any handler runs: this one, noting)
+                signal.pthread_sigmask(signal.SIG_SETMASK, self.mask)
+                self.mask = None
+        finally:
+            self.holding = False
+            try:
+                for signum, handler in self.before.items():
+                    if signal.getsignal(signum) is self:
+                        signal.signal(signum, handler)
+            finally:
+                noted, self.noted = self.noted, []
+                first = None
+                for signum in noted:  # (each, as it came: the command line's second signal ends the process)
+                    try:
+                        signal.raise_signal(signum)
+                    except BaseException as e:
+                        first = first or e
+                if first is not None:
+                    raise first
+
+
+def _end_forked(pool) -> None:
+    """Shut a forked pool whose first ``submit`` failed part way (a fork refused, EAGAIN; the
+    manager thread not started): its shutdown tells no worker to stop, and multiprocessing
+    would wait for the workers already forked at the interpreter's exit, for ever. So they
+    are killed (they ran nothing yet) and reaped first."""
+    started = list((getattr(pool, "_processes", None) or {}).values())
+    for p in started:
+        with contextlib.suppress(Exception):
+            p.kill()
+    for p in started:
+        with contextlib.suppress(Exception):
+            p.join()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _call_forked(item):
@@ -438,12 +555,19 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     pickled) and what it reads (a frame, its BSP, photon maps) are the caller's, page for
     page; the items and results are pickled. At most twice ``processes`` calls are in
     flight. Only where :func:`can_fork`. A worker that dies (killed, out of memory) fails
-    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang.
+    the call with :class:`~concurrent.futures.process.BrokenProcessPool`, never a hang; the
+    workers end with this process (:func:`_forked_init`).
 
     The workers are forked only from a quiet process (:func:`_quiet`: no call in flight on
-    the pools, which are shut down, no other Python thread, numba's compiler lock held);
-    where it is not, or another thread's forked pool is running, the items run on
-    ``processes`` threads (:func:`ordered`), with the same results."""
+    the pools, which are shut down, no other Python thread, numba's compiler lock held),
+    with SIGINT and SIGTERM held across the forks (:class:`_HeldSignals`); where it is not
+    quiet, or another thread's forked pool is running, the items run on ``processes``
+    threads (:func:`ordered`), with the same results.
+
+    The workers and this module's fork lock are held until the generator ends: a caller
+    that may stop taking results early closes it (``contextlib.closing``). A generator left
+    unclosed ends them when it is collected, which a traceback kept (a notebook's
+    ``sys.last_traceback``, whose frames hold it) delays: later calls then run on threads."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -452,42 +576,46 @@ def forked(fn: Callable[[T], R], items: Iterable[T], processes: int) -> Iterator
     if not items or not _FORK_LOCK.acquire(blocking=False):  # (another thread forks: not quiet)
         yield from ordered(fn, items, processes)
         return
+    held = _HeldSignals()
     try:
         _FORKED, _FORKED_SHARE = fn, _SHARE.get() * min(2 * processes, len(items))
         pool = None
         pending = []
-        try:
-            with _quiet() as quiet:
-                if quiet:
-                    holds = not isinstance(_compiler_lock(), contextlib.nullcontext)
-                    pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
-                                               initializer=_forked_init, initargs=(holds,))
-                    # (with fork the first submit forks every worker, then starts the pool's
-                    # manager thread: all the forks happen here, in the quiet process)
-                    try:
-                        pending.append(pool.submit(_call_forked, items[0]))
-                    except BaseException:  # (a fork refused, EAGAIN: no half-made pool left behind)
-                        pool.shutdown(wait=True, cancel_futures=True)
-                        raise
-            if pool is None:
-                _FORKED, _FORKED_SHARE = None, 1
-                yield from ordered(fn, items, processes)
-                return
-            with pool:
-                nxt = 1
+        with _quiet() as quiet:
+            if quiet:
+                holds = not isinstance(_compiler_lock(), contextlib.nullcontext)
+                pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"),
+                                           initializer=_forked_init, initargs=(holds, os.getpid()))
+                # (with fork the first submit forks every worker, then starts the pool's
+                # manager thread: all the forks happen here, in the quiet process)
                 try:
-                    while nxt < len(items) or pending:
-                        while nxt < len(items) and len(pending) < 2 * processes:
-                            pending.append(pool.submit(_call_forked, items[nxt]))
-                            nxt += 1
-                        yield pending.pop(0).result()
-                finally:
-                    for f in pending:
-                        f.cancel()
+                    held.hold()
+                    pending.append(pool.submit(_call_forked, items[0]))
+                except BaseException:  # (a fork refused, EAGAIN: no half-made pool left behind)
+                    _end_forked(pool)
+                    raise
+        if pool is None:
+            _FORKED, _FORKED_SHARE = None, 1
+            yield from ordered(fn, items, processes)
+            return
+        with pool:
+            nxt = 1
+            try:
+                held.release()  # (a signal held across the forks raises here: the pool is shut down)
+                while nxt < len(items) or pending:
+                    while nxt < len(items) and len(pending) < 2 * processes:
+                        pending.append(pool.submit(_call_forked, items[nxt]))
+                        nxt += 1
+                    yield pending.pop(0).result()
+            finally:
+                for f in pending:
+                    f.cancel()
+    finally:
+        try:
+            held.release()  # (where the forks failed; else done already)
         finally:
             _FORKED, _FORKED_SHARE = None, 1
-    finally:
-        _FORK_LOCK.release()
+            _FORK_LOCK.release()
 
 
 def chunked(fn: Callable[[int, int], R], n_items: int, min_chunk: int) -> list[R]:

@@ -12,6 +12,7 @@ belong to the experiments (:mod:`tlm.experiments.run`).
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -156,33 +157,34 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
         else:
             # (weighed by pixels: the last, small pieces run behind a slow batch, in the same memory)
             done_batches = threads.ordered(one, range(len(batches)), weights=[b.stop - b.start for b in batches])
-        for i, done in enumerate(done_batches):
-            at, g = batches[i], done.g
-            arrays = None
-            if done.portable:
-                arrays = {f"{name}.{k}": v for name, (_, wk) in done.out.items() for k, v in wk.items()}
-            for name in names:
+        with contextlib.closing(done_batches):  # (ended here, whatever stops the loop: its workers and lock go with it)
+            for i, done in enumerate(done_batches):
+                at, g = batches[i], done.g
+                arrays = None
+                if done.portable:
+                    arrays = {f"{name}.{k}": v for name, (_, wk) in done.out.items() for k, v in wk.items()}
+                for name in names:
+                    if concurrent:
+                        streams[name].settle(done.deferred[name], arrays)
+                    rad, wk = done.out[name]
+                    if name in radiance:
+                        radiance[name][at] = rad
+                    counts = work.setdefault(name, {})
+                    for k, v in wk.items():
+                        _put_counts(counts, k, v, at, w * h)
+                _merge_tallies(gather_maps, done.per_map)
+                if forked:
+                    timer.add_spans([done.timer])  # (the union of the workers' spans: wall time, not a sum)
                 if concurrent:
-                    streams[name].settle(done.deferred[name], arrays)
-                rad, wk = done.out[name]
-                if name in radiance:
-                    radiance[name][at] = rad
-                counts = work.setdefault(name, {})
-                for k, v in wk.items():
-                    _put_counts(counts, k, v, at, w * h)
-            _merge_tallies(gather_maps, done.per_map)
-            if forked:
-                timer.add_spans([done.timer])  # (the union of the workers' spans: wall time, not a sum)
-            if concurrent:
-                bar.update(1 + len(names))
-            if isinstance(g, dict):  # (a batch from another process: its primary part)
-                primary.put(g, at)
-            else:
-                primary.add(frame, g, at)
-            if len(batches) == 1:
-                whole = g
-            del g, done  # (no release_memory per batch: the batches reuse each other's blocks, and giving
-            # them back made the 1080p Refract run 18% slower for the same peak, 2026-11-28)
+                    bar.update(1 + len(names))
+                if isinstance(g, dict):  # (a batch from another process: its primary part)
+                    primary.put(g, at)
+                else:
+                    primary.add(frame, g, at)
+                if len(batches) == 1:
+                    whole = g
+                del g, done  # (no release_memory per batch: the batches reuse each other's blocks, and giving
+                # them back made the 1080p Refract run 18% slower for the same peak, 2026-11-28)
     radiance = {name: rad.reshape(h, w, 3) for name, rad in radiance.items()}
     work = {name: {k: v.reshape(h, w) for k, v in wk.items()} for name, wk in work.items()}
     gbuffer = whole if whole is not None else ImageGBuffer(frame, w * h)
