@@ -103,11 +103,15 @@ def worker_versions() -> dict[str, str]:
 def check_worker_versions(sweeps: dict | None, here: dict, where: str) -> None:
     """In a Dask worker ``where``: :class:`OtherVersionsOnWorker`, naming each of
     :data:`RESULT_VERSIONS` in which ``here`` (the worker's :func:`worker_versions`) differs
-    from ``sweeps`` (the sweep's), with both versions. None for ``sweeps``: nothing to compare."""
+    from ``sweeps`` (the sweep's), with both versions; numba only where the worker runs the compiled
+    kernels (``here["kernels"]``). None for ``sweeps``: nothing to compare."""
     if sweeps is None:
         return
+    # numba's version matters only where the worker runs the compiled kernels: its numpy engine is the
+    # reference the compiled one is checked against, whatever numba is there (or none)
+    names = [k for k in RESULT_VERSIONS if k != "numba" or here.get("kernels", "numba") == "numba"]
     differ = [f"{_LABELS.get(k, k)} {_result_version(here, k)} (the sweep's {_result_version(sweeps, k)})"
-              for k in RESULT_VERSIONS if _result_version(here, k) != _result_version(sweeps, k)]
+              for k in names if _result_version(here, k) != _result_version(sweeps, k)]
     if differ:
         raise OtherVersionsOnWorker(
             f"{where} runs {' and '.join(differ)}: its points could give other results than the sweep's; install "
