@@ -183,6 +183,42 @@ def test_a_ctrl_c_in_a_finalizer_is_held_to_its_end():
         signal.signal(signal.SIGINT, before)
 
 
+class _HangsUntilASecondSignal:
+    """A finalizer that sends one Ctrl-C, then another, and notes whether it got past the second."""
+
+    def __init__(self, reached: list):
+        self.reached = reached
+
+    def __del__(self):
+        signal.raise_signal(signal.SIGINT)  # (held: in a finalizer)
+        signal.raise_signal(signal.SIGINT)  # (a second: it goes through, ending the __del__)
+        self.reached.append("past the second")
+
+
+def test_a_second_ctrl_c_ends_a_finalizer_and_the_first_is_still_given():
+    """A ``__del__`` that hangs could not be stopped while a Ctrl-C was held in it (every later one
+    was absorbed): a second Ctrl-C goes through (it ends the ``__del__``: Python drops its exception
+    there), and the one held is still given once the finalizer has returned."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        reached: list = []
+
+        @imports_whole
+        def call() -> None:
+            _HangsUntilASecondSignal(reached)
+            reached.append("after the finalizer")
+            for _ in range(500):
+                time.sleep(0.01)
+            reached.append("end")
+
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        assert reached == ["after the finalizer"]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def _a_frame_gone():
     """The frame of a call that has ended (on no stack now)."""
     return sys._getframe()

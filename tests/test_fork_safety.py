@@ -389,3 +389,28 @@ def test_an_ordered_call_resumed_after_a_fork_goes_on(tmp_path):
     down) goes on, on a pool made again, rather than failing with "cannot schedule new futures
     after shutdown" and leaving a call counted in flight for good."""
     assert _script(tmp_path, _ORDERED_ACROSS_A_FORK, timeout=60).split() == ["True", "True", "0", "True"]
+
+
+def test_a_stand_in_handler_left_in_place_puts_the_handlers_back_at_the_next_signal():
+    """A signal while :class:`threads._HeldSignals` puts the handlers back can leave the stand-in
+    installed (a notebook would keep it for life): the next signal puts every handler back before it
+    is passed on."""
+    import signal
+
+    got = []
+
+    def handler(signum, frame):
+        got.append(signum)
+
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        stand_in = threads._HeldSignals()
+        stand_in.before = {signal.SIGINT: handler, signal.SIGTERM: handler}
+        signal.signal(signal.SIGINT, stand_in)
+        signal.signal(signal.SIGTERM, stand_in)
+        signal.raise_signal(signal.SIGTERM)
+        assert got == [signal.SIGTERM]
+        assert signal.getsignal(signal.SIGINT) is handler and signal.getsignal(signal.SIGTERM) is handler
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)

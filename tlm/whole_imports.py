@@ -106,7 +106,11 @@ class HeldInterrupt:
                     # (the low-level start: threading's own start takes a lock the interrupted code may hold)
                     _thread.start_new_thread(self._watch, ())
                     return
-                if uncuttable == {"finalizer"}:  # (one would be dropped there: the one held stands for both)
+                if uncuttable == {"finalizer"}:
+                    # a second signal in a finalizer goes through, the first still held: Python drops the
+                    # exception there, but it ends the __del__ (one that hangs can still be stopped), and the
+                    # held one is given when the finalizer has returned
+                    self.before[signum](signum, frame)
                     return
                 if self.orphans is None:  # (now, the half-imported packages are still in sys.modules)
                     self.orphans, self.cut_by = _orphans(), signum

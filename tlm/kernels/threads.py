@@ -473,8 +473,8 @@ class _HeldSignals:
       any hook. The caller releases inside the region that shuts the forked pool down, so that
       the KeyboardInterrupt that comes out of it ends the workers.
 
-    A handler left in place (a second signal while the handlers are put back) passes each
-    signal on to the one it replaced."""
+    A handler left in place (a second signal while the handlers are put back) puts the handlers
+    back at the next signal and passes it on to the one it replaced."""
 
     def __init__(self) -> None:
         self.before: dict[int, Callable] = {}
@@ -486,6 +486,9 @@ class _HeldSignals:
         if self.holding:
             self.noted.append(signum)
             return
+        for held, handler in self.before.items():  # (left in place by a signal while they were put back)
+            if signal.getsignal(held) is self:
+                signal.signal(held, handler)
         self.before[signum](signum, frame)
 
     def hold(self) -> None:
