@@ -215,6 +215,9 @@ _SIGNAL_AT_FORK = """
 import _thread, multiprocessing, os, signal, sys, time
 from tlm.kernels import threads
 
+signal.signal(signal.SIGINT, signal.default_int_handler)  # (a runner started in a shell's background passes SIGINT on
+# ignored, and Python leaves it so: as an interactive Python has it)
+
 # (a thread no Python check sees, OpenBLAS's or numba's; where there is none, the main thread gets the signal)
 native = _thread.start_new_thread(time.sleep, (60,)) if sys.argv[1] == "thread" else None
 sent = []
@@ -330,6 +333,9 @@ _FORK_REFUSED = """
 import errno, multiprocessing, signal
 import multiprocessing.popen_fork as popen_fork
 from tlm.kernels import threads
+
+signal.signal(signal.SIGINT, signal.default_int_handler)  # (a runner started in a shell's background passes SIGINT on
+# ignored, and Python leaves it so: as an interactive Python has it)
 
 real, launched = popen_fork.Popen._launch, []
 
