@@ -195,6 +195,7 @@ class _HangsUntilASecondSignal:
         self.reached.append("past the second")
 
 
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # (the dropped one: the point)
 def test_a_second_ctrl_c_ends_a_finalizer_and_the_first_is_still_given():
     """A ``__del__`` that hangs could not be stopped while a Ctrl-C was held in it (every later one
     was absorbed): a second Ctrl-C goes through (it ends the ``__del__``: Python drops its exception
