@@ -154,22 +154,33 @@ def test_a_ctrl_c_outside_an_import_is_not_held(tmp_path, monkeypatch):
 
 
 class _SignalsWhenDeleted:
+    """A finalizer that sends ``times`` Ctrl-Cs, and notes whether it got past them."""
+
+    def __init__(self, reached: list, times: int):
+        self.reached, self.times = reached, times
+
     def __del__(self):
-        signal.raise_signal(signal.SIGINT)
+        for _ in range(self.times):
+            signal.raise_signal(signal.SIGINT)
+        self.reached.append("past the signals")
 
 
-def test_a_ctrl_c_in_a_finalizer_is_held_to_its_end():
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # (the second's, dropped: the point)
+@pytest.mark.parametrize("times", [1, 2])
+def test_a_ctrl_c_in_a_finalizer_is_held_to_its_end_and_a_second_ends_it(times):
     """Python drops an exception raised in a ``__del__`` ("Exception ignored in ..."): a Ctrl-C
     given there (a held one, given back by the watching thread while llvmlite disposes of an
     object, as in about one run in thirty of the arraymath test above) would be lost, and the
-    call would run to its end. It is held until the finalizer has returned."""
+    call would run to its end. It is held until the finalizer has returned. A second Ctrl-C
+    there goes through (a ``__del__`` that hangs can be stopped: it ends it, Python dropping its
+    exception), and the one held is still given once the finalizer has returned."""
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        reached = []
+        reached: list = []
 
         @imports_whole
         def call() -> None:
-            _SignalsWhenDeleted()  # (deleted at once: its __del__ sends the Ctrl-C)
+            _SignalsWhenDeleted(reached, times)  # (deleted at once: its __del__ sends the Ctrl-Cs)
             reached.append("after the finalizer")
             for _ in range(500):  # (the held Ctrl-C is given back here, or at the latest as the call ends)
                 time.sleep(0.01)
@@ -177,44 +188,7 @@ def test_a_ctrl_c_in_a_finalizer_is_held_to_its_end():
 
         with pytest.raises(KeyboardInterrupt):
             call()
-        assert reached == ["after the finalizer"]
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    finally:
-        signal.signal(signal.SIGINT, before)
-
-
-class _HangsUntilASecondSignal:
-    """A finalizer that sends one Ctrl-C, then another, and notes whether it got past the second."""
-
-    def __init__(self, reached: list):
-        self.reached = reached
-
-    def __del__(self):
-        signal.raise_signal(signal.SIGINT)  # (held: in a finalizer)
-        signal.raise_signal(signal.SIGINT)  # (a second: it goes through, ending the __del__)
-        self.reached.append("past the second")
-
-
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # (the dropped one: the point)
-def test_a_second_ctrl_c_ends_a_finalizer_and_the_first_is_still_given():
-    """A ``__del__`` that hangs could not be stopped while a Ctrl-C was held in it (every later one
-    was absorbed): a second Ctrl-C goes through (it ends the ``__del__``: Python drops its exception
-    there), and the one held is still given once the finalizer has returned."""
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        reached: list = []
-
-        @imports_whole
-        def call() -> None:
-            _HangsUntilASecondSignal(reached)
-            reached.append("after the finalizer")
-            for _ in range(500):
-                time.sleep(0.01)
-            reached.append("end")
-
-        with pytest.raises(KeyboardInterrupt):
-            call()
-        assert reached == ["after the finalizer"]
+        assert reached == (["past the signals"] if times == 1 else []) + ["after the finalizer"]
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGINT, before)
