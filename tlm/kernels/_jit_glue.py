@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tlm.kernels._jit_memory import csr_runs, range_runs
+from tlm.kernels._jit_memory import compact, csr_runs, range_runs
 from tlm.kernels._numba_cache import njit  # (numba's, with the cache stamped on every compiled file)
 
 
@@ -120,19 +120,5 @@ def owner_major(words, owner, page_words, shift):
         x = owner[i]
         order[at[x]] = i
         at[x] += 1
-    out_w = np.empty(n, dtype=np.int64)
-    out_o = np.empty(n, dtype=np.int64)
-    k = -1
-    page = np.int64(0)
-    for j in range(n):
-        w = words[order[j]]
-        o = owner[order[j]]
-        p = w >> shift if shift >= 0 else w // page_words
-        if k < 0 or p != page or o != out_o[k]:
-            k += 1
-            out_w[k] = w
-            out_o[k] = o
-            page = p
-        elif w > out_w[k]:
-            out_w[k] = w
-    return 1, out_w[: k + 1].copy(), out_o[: k + 1].copy()
+    out_w, out_o = compact(words[order], owner[order], page_words, shift)
+    return 1, out_w, out_o
