@@ -14,7 +14,6 @@ point and reads its future. What runs on a Dask worker itself: :mod:`tlm.experim
 from __future__ import annotations
 
 import concurrent.futures as cf
-import ctypes
 import gc
 import itertools
 import logging
@@ -34,6 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tlm.errors import EnvironmentFailure, InputError, interrupted_by
+from tlm.kernels.threads import die_with_parent
 
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 DASK_POLL = 1.0  # seconds between a sweep's checks of its Dask scheduler while it waits for points
@@ -41,7 +41,6 @@ NO_WORKERS_WAIT = 300.0  # seconds a sweep waits while its Dask scheduler has no
 WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler about its workers (at most: a
 # shorter wait asks twice within it)
 ASK_TIMEOUT = 30.0  # seconds the scheduler gets to answer one
-PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
@@ -375,14 +374,12 @@ def _exit_with(parent: int) -> None:
 
     A killed sweep (SIGKILL: no shutdown runs) would otherwise leave its workers running
     the points queued to them, and then waiting for more forever. On Linux the kernel
-    kills a worker whose parent process dies (``PR_SET_PDEATHSIG``); but under
+    kills a worker whose parent process dies (:func:`tlm.kernels.threads.die_with_parent`); but under
     ``forkserver`` that parent is the fork server, which lives as long as its children.
     So a daemon thread also waits for ``parent`` itself to end (on a pidfd, else polling
     its pid and this process's parent) and ends the worker with ``os._exit``.
     """
-    if sys.platform.startswith("linux"):
-        with suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    die_with_parent()
     threading.Thread(target=_watch_parent, args=(parent, os.getppid()), name="tlm-watch-sweep",
                      daemon=True).start()
 

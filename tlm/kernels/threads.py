@@ -419,6 +419,17 @@ PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this proces
 _HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)  # the signals whose Python handlers raise (the command line's)
 
 
+def die_with_parent() -> None:
+    """On Linux, have the kernel kill this process (SIGKILL) when the thread that forked it ends
+    (``PR_SET_PDEATHSIG``): a parent killed, or ended by ``os._exit``, runs no shutdown that
+    would tell its workers to stop. Elsewhere nothing (the callers check their parent too)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
 def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
     """A forked worker gives up numba's compiler lock that :func:`_quiet` held at the fork (its
     thread is the forking one, so it owns it), leaves Ctrl-C to the render that forked it
@@ -442,11 +453,7 @@ def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    die_with_parent()
     if os.getppid() != parent:  # (the parent died before the prctl: this process is an orphan already)
         os._exit(1)
 
