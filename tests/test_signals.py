@@ -294,21 +294,25 @@ def test_claiming_a_folder_races_safely(tmp_path, monkeypatch):
 
 @pytest.mark.slow
 def test_a_run_whose_interrupt_was_lost_exits_143_with_its_folder_whole(tmp_path, monkeypatch, capsys):
-    """SIGTERM during the render, its KeyboardInterrupt raised where CPython ignores it (as in
-    an at-fork hook when the render forks its workers): the run goes on to its end, and exits
-    143 (not 0), saying its folder is whole; the folder stays, with nothing half written."""
-    real = run_mod.render
+    """SIGTERM as the run writes its folder, after its last checkpoint (tlm.progress.checkpoint:
+    one before stops the run there, tests/test_lost_interrupt.py), its KeyboardInterrupt raised
+    where CPython ignores it (an at-fork hook, a ctypes callback): the run goes on to its end, and
+    exits 143 (not 0), saying its folder is whole; the folder stays, with nothing half written."""
+    real = run_mod.write_png
+    signalled: list[bool] = []
 
     def lost(*a, **k):
-        try:
-            os.kill(os.getpid(), signal.SIGTERM)
-            for _ in range(10**7):  # (the handler raises at one of these instructions)
+        if not signalled:  # (the first image only: a second signal ends the process)
+            signalled.append(True)
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                for _ in range(10**7):  # (the handler raises at one of these instructions)
+                    pass
+            except KeyboardInterrupt:
                 pass
-        except KeyboardInterrupt:
-            pass
         return real(*a, **k)
 
-    monkeypatch.setattr(run_mod, "render", lost)
+    monkeypatch.setattr(run_mod, "write_png", lost)
     out = tmp_path / "runs" / "r"
     assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 143
     err = capsys.readouterr().err.strip()

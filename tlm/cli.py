@@ -636,7 +636,8 @@ def main(argv: list[str] | None = None) -> int:
             return exit_status(e, argv)
         return interrupted(argv, finished=True)  # (came as the command returned)
     if signalled() is not None:  # signalled, yet it ran to its end: its interrupt was raised where
-        # CPython ignores exceptions (an at-fork hook, a ctypes callback). Still 130 / 143, and
+        # CPython ignores exceptions (an at-fork hook, a ctypes callback), after the command's last
+        # checkpoint (tlm.progress.checkpoint: one before stops it there). Still 130 / 143, and
         # its output, whole, is kept (as an interrupt during a run's report keeps the run's folder)
         return interrupted(argv, finished=True)
     return status

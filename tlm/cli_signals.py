@@ -8,8 +8,10 @@ Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed w
 had half written; a second signal during that clean-up ends the process at once, with one
 line of its own (and none from multiprocessing: its semaphores are released first). A signal
 whose interrupt got lost (raised where Python ignores exceptions: an at-fork hook, a ctypes
-callback) or came as the command ended exits with 130 / 143 all the same, saying that the
-command ran to its end: what it wrote is whole, and kept. Anything
+callback) stops the command at its next checkpoint (the top of a render's batch, a photon
+chunk, a sweep's point: :func:`tlm.progress.checkpoint`) as if it had landed; one lost after
+the last checkpoint, or that came as the command ended, exits with 130 / 143 all the same,
+saying that the command ran to its end: what it wrote is whole, and kept. Anything
 else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
 A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
 as if killed by SIGPIPE).
@@ -26,6 +28,7 @@ import weakref
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
+from tlm import progress
 from tlm.api import Deadlock, InputError
 from tlm.errors import environment_problem, interrupted_by
 
@@ -81,14 +84,17 @@ def on_signal(signum, frame) -> None:
         os._exit(128 + _SIGNALS[0])
     _SIGNALS.append(signum)
     _BARS[:] = [weakref.ref(b) for b in bars_drawn()]
+    progress.signal_taken(signum)  # (raised again at the next checkpoint, in case CPython drops this one)
     raise KeyboardInterrupt
 
 
 @contextmanager
 def signals():
-    """SIGTERM handled as SIGINT is, while the command runs (main thread only)."""
+    """SIGTERM handled as SIGINT is, while the command runs (main thread only); a signal whose
+    interrupt got lost is raised again at the command's next checkpoint (:func:`on_signal`)."""
     _SIGNALS.clear()
     _BARS.clear()
+    progress.forget_signals()
     try:
         before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:  # not the main thread
@@ -101,6 +107,7 @@ def signals():
     finally:
         for s, h in before.items():
             signal.signal(s, h)
+        progress.forget_signals()  # (a checkpoint after the command, a notebook's call, raises nothing)
         if before and sys.unraisablehook is quiet:
             sys.unraisablehook = hook
 
@@ -151,7 +158,9 @@ def signalled() -> int | None:
     """The first signal (SIGINT or SIGTERM) the running command received, None if none. Its
     KeyboardInterrupt may never have reached the command: raised where CPython ignores
     exceptions (an at-fork hook, an llvmlite ctypes callback during a compilation, a
-    ``__del__``), it is dropped and the command goes on; its exit says so (:func:`interrupted`)."""
+    ``__del__``), it is dropped and the command goes on, to its next checkpoint
+    (:func:`tlm.progress.checkpoint`), where it stops; or, lost after the last one, to its end,
+    and its exit says so (:func:`interrupted`)."""
     return _SIGNALS[0] if _SIGNALS else None
 
 

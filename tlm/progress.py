@@ -5,6 +5,10 @@ time (``host_seconds``), kept apart from the work that uses them: the render's b
 loop (:mod:`tlm.render.batches`, which books its stages and draws its bar), a run, a
 sweep, a study. In the base layer so that every layer may use it. Nothing here changes
 a result; a bar is drawn only when asked for and stderr is a terminal.
+
+And the long loops' checkpoints (:func:`checkpoint`): where a command whose interrupt got
+lost stops, at the top of its next batch, photon chunk or sweep point, rather than running
+to its end.
 """
 
 from __future__ import annotations
@@ -19,6 +23,9 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
+# the signals the command line's handler took (tlm.cli_signals.on_signal: SIGINT, SIGTERM), each with the
+# process that took it, that no checkpoint has raised again: empty outside a command (a notebook's calls)
+_TAKEN: list[tuple[int, int]] = []
 _STAGES = threading.Lock()  # (a Timer's stages may be entered on several threads at once)
 _ENTERED = threading.local()  # per thread: the (timer, stage) it is in, innermost last
 
@@ -254,3 +261,36 @@ class Ticking:
         self.stop.set()
         if self.thread.is_alive():
             self.thread.join()
+
+
+def signal_taken(signum: int) -> None:
+    """The command line's handler took ``signum`` and raises its KeyboardInterrupt now
+    (:func:`tlm.cli_signals.on_signal`): the next :func:`checkpoint` raises it again, in case
+    CPython dropped it (:func:`checkpoint`)."""
+    _TAKEN.append((signum, os.getpid()))
+
+
+def forget_signals() -> None:
+    """No signal taken (a command's start and end: :func:`tlm.cli_signals.signals`)."""
+    _TAKEN.clear()
+
+
+def checkpoint() -> None:
+    """The top of a long loop's iteration (a render's batch or pass, a photon chunk, a sweep's
+    point): a KeyboardInterrupt where the command line took a signal since the last checkpoint.
+
+    The handler's own KeyboardInterrupt may never have reached the command: raised where
+    CPython ignores exceptions (an at-fork hook, an llvmlite ctypes callback during a numba
+    compilation, a ``__del__``), it is dropped ("the lost interrupt") and the command goes on.
+    Here it stops, as if the interrupt had landed: what it half wrote is removed, and it exits
+    130 / 143. Each signal is raised again once at most, and only in the main thread of the
+    process that took it (not a worker thread, nor a forked worker, which inherits the list).
+    An interrupt that went through by itself ends the command as before: no checkpoint is in a
+    clean-up path (only at the top of an iteration). Without the command line's handler (a
+    notebook's calls) nothing is taken: nothing happens. Cheap: a list's truth, when empty."""
+    if not _TAKEN:
+        return
+    if threading.current_thread() is not threading.main_thread() or _TAKEN[0][1] != os.getpid():
+        return
+    _TAKEN.clear()
+    raise KeyboardInterrupt

@@ -68,7 +68,7 @@ from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
 from tlm.kernels.shade import emitted, hash_uniform, surface_emission
 from tlm.kernels.traverse import closest_hit
-from tlm.progress import progress_bar
+from tlm.progress import checkpoint, progress_bar
 from tlm.render.frame import Frame, GBuffer, pixel_batches
 from tlm.render.passes import gather_points
 from tlm.render.planner import check_photon_memory
@@ -298,6 +298,7 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
         shift_seed = int(child.generate_state(1)[0])
         frame_k = np.zeros_like(mean)
         for turn, each in enumerate(child.spawn(strata)):
+            checkpoint()  # (a lost interrupt stops the reference here, not at its last round)
             photon_seed, eye_seed = (int(x) for x in each.generate_state(2))
             frame_k += reference_round(rframe, settings, photon_seed, eye_seed, strata, turn, shift_seed)
             rounds.update()

@@ -96,7 +96,7 @@ from tlm.experiments.frames import SUMMARY_KEYS, cached_render, is_cached
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
-from tlm.progress import SWEEP_ETA_AFTER, progress_bar
+from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
 from tlm.storage import atomic_folder, check_destination, claim_folder, warn
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -561,6 +561,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         _trim_torn(out / "sweep.jsonl")
         with open(out / "sweep.jsonl", "a") as jsonl:
             while futures:
+                checkpoint()  # (a signal whose interrupt got lost stops the sweep here: its workers too, below)
                 if isinstance(pool, (InProcess, LocalPool)):
                     pool.run_next()
                 done = take_finished(finished, DASK_POLL if isinstance(pool, DaskPool) else None)

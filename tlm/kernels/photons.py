@@ -57,6 +57,7 @@ from tlm.kernels.recording import Deferred, Recorder, traversal_accesses
 from tlm.kernels.shade import SPAWN_EPS, face_normals, facing, hash_uniform, scatter_specular
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.kernels.work import PHOTON_WORK, PhotonWork, stream_keys
+from tlm.progress import checkpoint
 from tlm.scenes.model import KIND, Scene
 from tlm.scenes.normals import crease_normals, interpolate
 
@@ -471,6 +472,7 @@ def trace_photons(
               else threads.ordered(trace, spans))
     with contextlib.closing(traced):  # (ended here, whatever stops the loop: forked workers and their lock too)
         for (lo, hi), (part, got, got_full, pairs) in zip(spans, traced, strict=True):
+            checkpoint()  # (a signal whose interrupt got lost stops the trace here, the chunks in flight too)
             if concurrent:
                 streams.settle(pairs)  # the chunks' reads in photon order: photon-major, as one trace's
             for k, v in part.items():

@@ -22,7 +22,7 @@ from tlm.kernels import release_memory, threads
 from tlm.kernels.memory import Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.recording import Deferred
-from tlm.progress import Timer, progress_bar
+from tlm.progress import Timer, checkpoint, progress_bar
 from tlm.render import checks
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer, cast, new_streams, pixel_batches
 from tlm.render.passes import PASS_FUNCTIONS, fgather_pass
@@ -159,6 +159,7 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
             done_batches = threads.ordered(one, range(len(batches)), weights=[b.stop - b.start for b in batches])
         with contextlib.closing(done_batches):  # (ended here, whatever stops the loop: its workers and lock go with it)
             for i, done in enumerate(done_batches):
+                checkpoint()  # (a signal whose interrupt got lost stops the render here, the batches in flight too)
                 at, g = batches[i], done.g
                 arrays = None
                 if done.portable:
@@ -284,6 +285,7 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
     """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
     ``deferred``, on cold :class:`~tlm.kernels.recording.Deferred` pairs like them (a batch on
     a worker thread: its per-map tallies are its own too)."""
+    checkpoint()  # (on one thread: a signal whose interrupt got lost stops the render before the batch)
     pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
     per_map: dict | None = {} if tally else None
     if bar is not None:
@@ -294,6 +296,7 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
         bar.update()
     out = {}
     for name in names:
+        checkpoint()  # (... and before each pass)
         if bar is not None:
             bar.set_postfix_str(f"batch {i + 1}/{n} {name}")
         with timer.stage(f"pass_{name}"):
