@@ -234,7 +234,13 @@ def progress_bar(enabled: bool, eta_after: float = 0.0, **kwargs):
     rate), are the steps done in the last half of the time since the bar began over that
     half, not tqdm's moving average of the last few steps. The first steps drop out of it
     as the bar goes on (a sweep's first points render their frames), and one slow step does
-    not swing it; while no step was done in the last half, the time left reads ``?``."""
+    not swing it; while no step was done in the last half, the time left reads ``?``.
+
+    A bar with no ``total`` (a stage that has no steps of its own: loading the scene, building
+    the BSP) reads its description and elapsed time, ``build BSP (2604 triangles) [00:01]``,
+    not tqdm's count of steps and their rate (``: 0step [00:01, ?step/s]``)."""
+    if kwargs.get("total") is None and "bar_format" not in kwargs:
+        kwargs["bar_format"] = "{desc} [{elapsed}{postfix}]"
     return _bar_class()(disable=None if enabled else True, file=sys.stderr, eta_after=eta_after, **kwargs)
 
 

@@ -33,7 +33,7 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
         with timer.stage("load_scene"):
             scene = load_scene(cfg.scene, base, cfg.resolution, source)
     if bar is not None:
-        bar.set_description(f"build BSP ({scene.n_triangles} triangles)")
+        bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)
     with timer.stage("build_bsp"):
         accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
