@@ -84,7 +84,7 @@ def test_a_study_folder_with_and_without_provenance(tmp_path):
                Study("scaling", Path("old"), [])]
     sec = provenance_section(Inputs([], studies=studies), tmp_path)
     assert ("<p>thesis folder th: study configs/thesis.yaml, git fedcba987654, python 3.11, host 12.5 s; "
-            "host seconds per scene {&#x27;ring&#x27;: 3.0}</p>") in sec.html
+            "host seconds per scene: ring 3.00</p>") in sec.html
     assert "<p>scaling folder old: no provenance.json (written by an older tlm)" in sec.html
     assert "th: resolved config" in sec.html and "old: resolved config" not in sec.html
     assert provenance_section(Inputs([]), tmp_path).absent == "no inputs"

@@ -80,7 +80,7 @@ def test_a_report_computes_each_scene_files_identity_once(tmp_path, monkeypatch,
     sources = {"ring": builtin / "thesis" / "ring.yaml", "room": mesh, "cornell": mine / "cornell.yaml"}
     root = tmp_path / "study"
     root.mkdir()
-    monkeypatch.setattr(tlm.report, "read", lambda dirs: study_inputs(root, sources))
+    monkeypatch.setattr(tlm.report, "read", lambda dirs, skip=None: study_inputs(root, sources))
     monkeypatch.setattr(common, "write_png", lambda fig, path: Path(path).write_bytes(b""))  # (not drawn: faster)
     page = tlm.report.build_report([root], tmp_path / "rep")
     assert page.is_file()

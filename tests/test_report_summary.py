@@ -104,4 +104,4 @@ def test_a_folder_given_twice_is_read_once(tmp_path, cache):
                  "--set", "resolution=[8,8]",
                  "--set", "render.spp=1", "--outputs", "images", "--no-report", "--no-progress"]) == 0
     assert main(["report", str(out), str(tmp_path / "." / "r"), "--out", str(tmp_path / "rep")]) == 0
-    assert f"Inputs: {out}: 1 runs, 0 sweeps" in (tmp_path / "rep" / "report.html").read_text()
+    assert f"Inputs: {out}: 1 run, 0 sweeps" in (tmp_path / "rep" / "report.html").read_text()

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from tlm.errors import InputError
 from tlm.report.collect import Inputs, read
-from tlm.report.common import Section, current_output, figure_output, forget_names
+from tlm.report.common import Section, count, current_output, figure_output, forget_names
 from tlm.report.html import esc, page
 from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder, distinct_folders
@@ -118,7 +118,8 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
                   scaling_sweeps: list[Path] | None) -> Path:
     t0 = time.perf_counter()
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
-    inputs = read(dirs)
+    # (the report's own folder, where it lies among the inputs, is not read: runs/report)
+    inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}
         scaling_sweeps = []
@@ -155,10 +156,11 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
                 esc(sw.path) for sw in inputs.scaling_sweeps) + ")"
         n_fig = len(summary.figures) + sum(len(s.figures) for s in secs)  # (every figure the page embeds)
         studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
-        intro = (f"<p>Inputs: {kinds}: {len(inputs.runs)} runs, {len(inputs.sweeps)} sweeps, "
-                 f"{len(inputs.studies)} studies ({esc(studies)})."
-                 f" {n_fig} figures, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
+        intro = (f"<p>Inputs: {kinds}: {count(len(inputs.runs), 'run')}, {count(len(inputs.sweeps), 'sweep')}, "
+                 f"{count(len(inputs.studies), 'study', 'studies')} ({esc(studies)})."
+                 f" {count(n_fig, 'figure')}, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
                  f"in {time.perf_counter() - t0:.1f} s. {linked(current_output().formats)}</p>")
+        intro += "".join(f'<p class="note">{esc(n)}.</p>' for n in inputs.notes)  # (a folder with no tlm output)
         intro += scenes_note(inputs)
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
                     summary=summary, notice=warnings_html(inputs))

@@ -1,7 +1,7 @@
 """The report's inputs: every tlm output folder it is given, read once.
 
-``tlm report`` accepts any folder a tlm command writes, and a folder of such folders
-(one level down, e.g. ``runs/``):
+``tlm report`` accepts any folder a tlm command writes, and a folder of such folders at any
+depth (``runs/``, ``nest/deep/run1``: :func:`find`; a folder in it with none is named in a note):
 
 =================  ==========================================  ================================
 kind               written by                                  recognised by
@@ -41,7 +41,7 @@ import yaml
 from tlm.config import MODES
 from tlm.errors import InputError
 from tlm.experiments.thesis import METRICS, PM_METRICS
-from tlm.report.names import name_scenes, path_labels, scene_label, value_text
+from tlm.report.names import name_scenes, path_labels, same_file, scene_label, value_text
 from tlm.storage import read_jsonl
 
 
@@ -156,6 +156,8 @@ class Inputs:
     # what a section worked out that another quotes, kept so that it is worked out once
     # (the thesis tables' sources: :func:`tlm.report.tables.collect_sources`)
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    # what the report says of the folders it was given: a folder under one with no tlm output in it
+    notes: list[str] = field(default_factory=list)
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]
@@ -168,7 +170,7 @@ class Inputs:
         that loaded it, else one made from its path (``name``: the scene's name in its file)."""
         if source:
             for r in self._all_runs():
-                if str((r.results.get("scene") or {}).get("source")) == str(source):
+                if same_file((r.results.get("scene") or {}).get("source")) == same_file(source):
                     return r.scene_label
         return scene_label(None, source, name)
 
@@ -451,23 +453,26 @@ def _thesis_rows(path: Path) -> list[dict]:
     return [row for _, row in lines]
 
 
-def read(dirs: list[Path]) -> Inputs:
-    """Read every folder of ``dirs`` (or, for a folder of folders, each tlm folder in it)."""
+def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
+    """Read every folder of ``dirs`` or, for a folder that no tlm command wrote, each tlm folder
+    under it at any depth (:func:`find`); ``skip``: the report's own folder, not read."""
     inputs = Inputs([Path(d) for d in dirs])
     folders: list[tuple[Path, str]] = []
+    seen: set[str] = set()  # (a folder reached from two of ``dirs`` is read once)
     for d in inputs.dirs:
         if not d.is_dir():
             raise InputError("is not a folder", source=str(d))
         k = kind_of(d)
-        if k is not None:
-            folders.append((d, k))
-            continue
-        inner = [(c, kind_of(c)) for c in sorted(d.iterdir()) if c.is_dir() and not c.name.startswith(".")]
-        inner = [(c, k) for c, k in inner if k is not None]
-        if not inner:
+        found = [(d, k)] if k is not None else find(d, skip, inputs.notes)
+        if not found:
             raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, "
-                             "scaling or extreme folder)", source=str(d))
-        folders.extend(inner)
+                             "scaling or extreme folder) at any depth", source=str(d))
+        for f, kind in found:
+            if _real(f) not in seen:
+                seen.add(_real(f))
+                folders.append((f, kind))
+    run_names = dict(zip([f for f, k in folders if k == "run"],
+                         path_labels([f for f, k in folders if k == "run"]), strict=True))
     labels: set[str] = set()
 
     def unique(label: str) -> str:
@@ -482,7 +487,7 @@ def read(dirs: list[Path]) -> Inputs:
     for folder, kind in folders:
         if kind == "run":
             run = _run(folder, "", "run")
-            labelled.append((run, lambda r, name=folder.name: f"{name}: {r.scene_label}/{r.mode}"))
+            labelled.append((run, lambda r, name=run_names[folder]: f"{name}: {r.scene_label}/{r.mode}"))
             inputs.runs.append(run)
         elif kind == "thesis":
             rows = _thesis_rows(folder / "thesis_comparison.csv")
@@ -532,6 +537,60 @@ def read(dirs: list[Path]) -> Inputs:
     for run, label in labelled:
         run.label = unique(label(run))
     return inputs
+
+
+def _real(folder: Path) -> str:
+    import os
+
+    return os.path.realpath(folder)
+
+
+def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -> list[tuple[Path, str]]:
+    """The tlm folders under ``root`` (a folder no tlm command wrote) at any depth, each with its
+    kind (:func:`kind_of`), in sorted order of their paths: a tlm folder's own subfolders are its
+    own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, a report
+    half written), a report's folder (``report.html``; ``skip``, the report being written), a link
+    to a folder (its folder is searched where it lies in ``root``; one to a folder outside ``root``
+    is not followed, and a line of ``notes`` says so). A folder under ``root`` with no tlm folder
+    in it at any depth is a line of ``notes`` (its subfolders are not named apart)."""
+    import os
+
+    top = _real(root)
+    skipped = _real(skip) if skip is not None else None
+    said = notes if notes is not None else []
+
+    def inside(folder: str) -> bool:
+        return os.path.commonpath([top, folder]) == top
+
+    def walk(d: Path) -> tuple[list[tuple[Path, str]], list[str]]:
+        found: list[tuple[Path, str]] = []
+        lines: list[str] = []
+        try:
+            children = sorted(c for c in d.iterdir() if not c.name.startswith("."))
+        except OSError as e:
+            return [], [f"{d}: not searched ({e.strerror or e})"]
+        for c in children:
+            if not c.is_dir():
+                continue
+            if c.is_symlink():
+                if not inside(_real(c)):
+                    lines.append(f"{c}: a link to a folder outside {root} ({_real(c)}): not followed")
+                continue  # (one inside is searched where it lies)
+            if _real(c) == skipped or (c / "report.html").is_file():
+                continue
+            k = kind_of(c)
+            if k is not None:
+                found.append((c, k))
+                continue
+            inner, inner_lines = walk(c)
+            found.extend(inner)
+            lines.extend(inner_lines if inner else [f"{c}: no run, sweep or study in it"])
+        return found, lines
+
+    found, lines = walk(root)
+    if found:
+        said.extend(lines)
+    return found
 
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:

@@ -72,6 +72,12 @@ def some(items: list[str]) -> str:
     return f"{', '.join(items[:NAMED_SOME])} and {len(items) - NAMED_SOME} more"
 
 
+def count(n: int, word: str, plural: str | None = None) -> str:
+    """``n`` and the word, singular for one: ``1 run``, ``0 runs``, ``2 studies`` (``plural``: where
+    it is not the word and ``s``)."""
+    return f"{n} {word if n == 1 else plural or word + 's'}"
+
+
 def colour(i: int) -> str:
     return COLOURS[i % len(COLOURS)]
 

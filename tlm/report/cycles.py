@@ -37,7 +37,7 @@ from matplotlib.path import Path as MplPath
 
 from tlm.arch.units import STALL_CAUSES
 from tlm.report.collect import Inputs, Run
-from tlm.report.common import FigureName, Section, new_figure, save, some
+from tlm.report.common import FigureName, Section, count, new_figure, save, some
 from tlm.report.names import value_text
 
 PMS = ("vertex", "traversal", "intersection", "fragment")
@@ -117,8 +117,9 @@ def select_runs(inputs: Inputs, limit: int = MAX_RUNS) -> tuple[list[Run], list[
         chosen += picks
         if len(picks) < len(thesis):
             shown = ", ".join(r.label for r in picks)
+            rest = len(thesis) - len(picks)
             notes.append(f"Thesis cells: the slowest mode of each scene is shown ({shown}); "
-                         f"the other {len(thesis) - len(picks)} cells are in Tables I-III.")
+                         f"the other {count(rest, 'cell')} {'is' if rest == 1 else 'are'} in Tables I-III.")
     in_sweep = {id(r) for r in timed if r.kind == "sweep-point"}
     for sw in inputs.sweeps:
         points = [r for r in sw.runs if id(r) in in_sweep]

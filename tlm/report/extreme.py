@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from tlm.report.collect import Inputs
-from tlm.report.common import Section
+from tlm.report.common import Section, count
 from tlm.report.html import esc
 from tlm.report.names import shown_paths
 
@@ -22,7 +22,7 @@ def extreme_section(inputs: Inputs, out: Path) -> Section:
     parts = []
     for st in inputs.of_kind("extreme"):
         failed = [r["case"] for r in st.rows if not r["passed"]]
-        parts.append(f"<h3>{esc(st.path.name)}</h3><p>{len(st.rows)} cases, {len(st.rows) - len(failed)} as "
+        parts.append(f"<h3>{esc(st.path.name)}</h3><p>{count(len(st.rows), 'case')}, {len(st.rows) - len(failed)} as "
                      f"expected" + (f", <strong>not as expected: {esc(', '.join(failed))}</strong>" if failed else "")
                      + f". Each case's run folder: {esc(st.path / 'cases')}/&lt;case&gt;.</p>")
         parts.append('<table><tr><th class="l">category</th><th class="l">case</th><th class="l">expected</th>'

@@ -128,9 +128,10 @@ def name_scenes(runs: list) -> None:
     of this installation, and that of another checkout with an edited ``scenes/cornell.yaml``),
     the file that is this installation's built-in one keeps the name and each other is named
     by its path. A file that is not on this machine (a run made elsewhere) cannot be told
-    apart by its content: it keeps the name (the built-in file of the checkout that ran it)."""
+    apart by its content: it keeps the name (the built-in file of the checkout that ran it).
+    First, one scene file that configs wrote two ways (a sweep file's ``../scenes/a.yaml``, a run's
+    ``/p/scenes/a.yaml``) gets one name (:func:`_one_name_per_file`)."""
     labels: dict[tuple, str] = {}  # (each distinct reference and file worked out once: a sweep's points share one)
-    files: dict[str, set[str]] = {}
     for r in runs:
         scene = r.results.get("scene") or {}
         key = (str(r.config.get("scene")), str(scene.get("source")), str(scene.get("name")))
@@ -138,7 +139,10 @@ def name_scenes(runs: list) -> None:
             r.named = ""
             labels[key] = r.scene_label
         r.named = labels[key]
-        files.setdefault(r.named, set()).add(str(scene.get("source")))
+    _one_name_per_file(runs)
+    files: dict[str, set[str]] = {}
+    for r in runs:
+        files.setdefault(r.named, set()).add(same_file((r.results.get("scene") or {}).get("source")))
     renamed: dict[tuple[str, str], str] = {}
     for label, sources in files.items():
         if len(sources) < 2:
@@ -149,7 +153,43 @@ def name_scenes(runs: list) -> None:
             renamed.update({(label, src): file_name(src) for src in _other_files(label, sources)})
     if renamed:
         for r in runs:
-            r.named = renamed.get((r.named, str((r.results.get("scene") or {}).get("source"))), r.named)
+            r.named = renamed.get((r.named, same_file((r.results.get("scene") or {}).get("source"))), r.named)
+
+
+def same_file(source: Any) -> str:
+    """A scene file's path as one text for one file, however a run recorded it: a sweep's point
+    loads ``../scenes/a.yaml`` of its sweep file's folder (``/p/exp/../scenes/a.yaml``), a run
+    ``/p/scenes/a.yaml``: both are ``/p/scenes/a.yaml`` (links resolved where the file is here).
+    ``"None"`` for no file."""
+    import os
+
+    if not source or str(source) == "None":
+        return "None"
+    return os.path.realpath(str(source).replace("\\", "/"))
+
+
+def _one_name_per_file(runs: list) -> None:
+    """Give the runs that loaded one scene file one name, where their configs wrote it two ways
+    (``../scenes/Mirror.yaml`` in a sweep file, ``/p/scenes/Mirror.yaml`` in a run's config): its
+    built-in name where one of them is that, else the file's path (:func:`file_name`). A path
+    relative to a config's folder that leaves it (``../scenes/a.yaml``) tells the reader nothing:
+    it is named by the file's path too."""
+    names: dict[str, set[str]] = {}
+    for r in runs:
+        source = (r.results.get("scene") or {}).get("source")
+        if source:
+            names.setdefault(same_file(source), set()).add(r.named)
+    chosen: dict[str, str] = {}
+    for file, named in names.items():
+        builtin = sorted(n for n in named if not n.lower().endswith((".yaml", ".yml")))
+        if len(builtin) == 1:
+            chosen[file] = builtin[0]
+        elif not builtin and (len(named) > 1 or any(n.replace("\\", "/").startswith("../") for n in named)):
+            chosen[file] = file_name(file)
+    for r in runs:
+        source = (r.results.get("scene") or {}).get("source")
+        if source and same_file(source) in chosen:
+            r.named = chosen[same_file(source)]
 
 
 def _other_files(label: str, sources: set[str]) -> list[str]:
@@ -171,10 +211,13 @@ def _other_files(label: str, sources: set[str]) -> list[str]:
 def file_name(source: str) -> str:
     """A scene file the report names by its path: relative to the current folder where it lies
     under it (a user's project: ``scenes/cornell.yaml``), else as the run recorded it."""
+    import os
+
+    path = os.path.normpath(source) if Path(source).is_absolute() else source  # (/p/exp/../a.yaml: /p/a.yaml)
     try:
-        return Path(source).relative_to(Path.cwd().resolve()).as_posix()
+        return Path(path).relative_to(Path.cwd().resolve()).as_posix()
     except (ValueError, OSError):
-        return source
+        return path
 
 
 def path_labels(paths: list[Path]) -> list[str]:

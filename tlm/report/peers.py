@@ -120,7 +120,8 @@ def ours_rows(inputs: Inputs, notes: list[str]) -> list[OursRow]:
 def _fps_text(values: list[float]) -> str:
     if len(values) == 1:
         return f"{values[0]:.3g}"
-    return f"{min(values):.3g}–{max(values):.3g} ({len(values)} runs)"
+    low, high = f"{min(values):.3g}", f"{max(values):.3g}"  # (runs of one frame rate: it is said once)
+    return f"{low if low == high else f'{low}–{high}'} ({len(values)} runs)"
 
 
 def _reciprocal(x):

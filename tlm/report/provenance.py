@@ -26,6 +26,20 @@ def _seconds(host: dict | None) -> float | None:
     return round(sum(v for v in host.values() if isinstance(v, int | float)), 3)
 
 
+def _seconds_text(v) -> str:
+    """Seconds to 3 significant digits, as a reader writes them: ``14.7``, ``3.50``, ``0.0412``, ``1234``."""
+    if not isinstance(v, int | float) or isinstance(v, bool):
+        return str(v)
+    return f"{v:.0f}" if abs(v) >= 100 else f"{v:#.3g}".rstrip(".")
+
+
+def _per_scene(seconds) -> str:
+    """A thesis study's host seconds per scene in words: ``thesis/ring 14.7, cornell 3.50``."""
+    if not isinstance(seconds, dict):
+        return str(seconds)
+    return ", ".join(f"{scene} {_seconds_text(v)}" for scene, v in seconds.items())
+
+
 def _versions(v: dict | None) -> str:
     if not v:
         return "not recorded"
@@ -70,7 +84,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
             f"host {p.get('host_seconds')} s" if p else
             "no provenance.json (written by an older tlm); its runs' folders, when it has them, record theirs"))
         if st.kind == "thesis" and st.meta.get("host_seconds"):
-            line += f"; host seconds per scene {st.meta['host_seconds']}"
+            line += f"; host seconds per scene: {_per_scene(st.meta['host_seconds'])}"
         parts.append(f"<p>{esc(line)}</p>")
         if "config" in st.meta:
             parts.append(f"<details><summary>{esc(st.path.name)}: resolved config</summary><pre>"

@@ -117,14 +117,16 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
 
     n_one = next(iter(every)) if one else None
     text = (f"<b>How fast:</b> {'in the frames of ' + esc(which) + ', ' if thesis else ''}"
-            f"from {ours[worst]:.3g} FPS ({cell(worst)}) to {ours[best]:.3g} FPS ({cell(best)})"
+            + (f"from {ours[worst]:.3g} FPS ({cell(worst)}) to {ours[best]:.3g} FPS ({cell(best)})"
+               if len(ours) > 1 else f"{ours[best]:.3g} FPS ({cell(best)})")
             + (f" at {'one pipeline' if n_one == 1 else f'{n_one} pipelines'}." if one else "."))
     if others:  # (not drawn beside the thesis's cells, but not left unsaid)
         said_runs = [f"{esc(r.label)} {r.results['fps']:.3g} FPS"
                      + ("" if one else f" ({_count(_pipelines(r), 'pipeline')})") for r in others]
         if len(said_runs) > 4:
             said_runs = [said_runs[0], f"… {len(said_runs) - 2} more …", said_runs[-1]]
-        text += (f" The {_count(len(others), 'other run')} among the inputs, not in the figure: "
+        text += (f" The {'other run' if len(others) == 1 else _count(len(others), 'other run')} among the inputs, "
+                 "not in the figure: "
                  f"{'; '.join(said_runs)}.")
     said = []  # every thesis study's median, judged as the tables judge it (none where not comparable)
     summaries = study_summaries(inputs)
@@ -185,11 +187,14 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         tops[PMS[int(np.argmax(grid[keys.index(k)]))]] += 1
     top = max(tops, key=tops.get)
     share = [cells[k][top] for k in keys if PMS[int(np.argmax([cells[k][p] for p in PMS]))] == top]
-    text = (f"<b>What limits it:</b> the {PM_METRIC[top]} PM is the bottleneck in {tops[top]} of {len(keys)} "
-            f"scene-modes, busy {100 * min(share):.0f}–{100 * max(share):.0f}% of the time.")
+    low, high = f"{100 * min(share):.0f}", f"{100 * max(share):.0f}"  # (one value, or all alike: said once)
+    where = (f"the only scene-mode, busy {high}%" if len(keys) == 1 else
+             f"{tops[top]} of {len(keys)} scene-modes, busy {low if low == high else f'{low}–{high}'}%")
+    text = f"<b>What limits it:</b> the {PM_METRIC[top]} PM is the bottleneck in {where} of the time."
     if slowest:
         m = sum(v["match"] for v in slowest.values())
-        text += f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes."
+        text += (f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes." if len(slowest) > 1 else
+                 f" The slowest PM is {'' if m else 'not '}the thesis's.")
     return text, f
 
 

@@ -49,7 +49,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormat
 
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import NAMED, Figure, FigureName, Section, line_style, new_figure, save, some
+from tlm.report.common import NAMED, Figure, FigureName, Section, count, line_style, new_figure, save, some
 from tlm.report.html import esc
 from tlm.report.names import value_text
 from tlm.report.sweep_lines import (
@@ -491,7 +491,7 @@ def levels_figure(sw: Sweep, series: dict[tuple, list[dict]], summary: list[dict
               f"line{'s' if len(lines) > 1 else ''}: identical ones are drawn once, their label naming them all."
               if len(lines) < len(summary) else "")
     return save(fig, out, FigureName(("bsp_balance", sw.path.name), str(sw.path.absolute())),
-                f"{sw.label}: Ttrav / Tisct and FPS against the BSP levels, {len(scenes)} scene(s)",
+                f"{sw.label}: Ttrav / Tisct and FPS against the BSP levels, {count(len(scenes), 'scene')}",
                 "The thesis: floor(ln n) levels balance the Traversal and Intersection PMs. Left: the slowest "
                 "pipeline's Traversal over Intersection cycles per frame (1 = balanced, dashed); right: the "
                 f"simulated FPS. Dotted verticals: floor(ln n) of each scene ({where or 'n unknown'}).{merged}")
@@ -536,7 +536,7 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         other = other_point_folders(sw)
         stale = f" {other_folders_text(other, _shown_folder(sw) / 'points')}." if other else ""
-        html.append(f"<h3>{esc(sw.label)}</h3><p>{esc(desc or '')} {len(sw.rows)} points, "
+        html.append(f"<h3>{esc(sw.label)}</h3><p>{esc(desc or '')} {count(len(sw.rows), 'point')}, "
                     f"{failed} failed{esc(sw.unfinished)}; sweep file {esc(sw.spec.get('sweep'))}.{esc(stale)}</p>")
         if other:
             sec.notes.append(f"{sw.label}: {other_folders_text(other, _shown_folder(sw) / 'points')}")

@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from tlm.report.collect import Inputs, Study
-from tlm.report.common import Section, colour, linestyle, log_ticks, marker, new_figure, save, untangle
+from tlm.report.common import Section, colour, count, linestyle, log_ticks, marker, new_figure, save, untangle
 
 
 def pareto_front(cost, error) -> np.ndarray:
@@ -253,8 +253,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
-    caption = (f"{int(ok.sum())} points; marker area grows with the photon count; ringed and numbered (named in "
-               f"the key): the {int(front.sum())} points of the Pareto front.")
+    caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; ringed and numbered "
+               f"(named in the key): the {count(int(front.sum()), 'point')} of the Pareto front.")
     if hidden:
         caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
                     "their number would cover another number or a marker (the key names them).")
