@@ -6,11 +6,14 @@ Each Traversal/Intersection phase is a two-machine flow shop through the FIFO
 (:func:`flow_shop`), at the run's packets and at packets of one (:func:`fine_ti_cycles`,
 built phase by phase); :func:`fill_and_drain` is the packets' hand-overs at the phase
 boundaries alone. Computed from the frame program, without simulating packets of one;
-:func:`tlm.arch.model.simulate` calls :func:`granularity_estimate` after its run.
+:func:`tlm.arch.model.simulate` calls :func:`granularity_estimate` after its run. A small
+frame's phases take the Python loop rather than the compiled flow shop, whose first call
+in a process costs more than the whole simulation of such a frame (:class:`_FlowShops`).
 """
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
 from fractions import Fraction
 
@@ -154,17 +157,46 @@ def flow_shop_python(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, d
     return last
 
 
-def _phase_cycles(ph: PhaseSpec, arch: ArchConfig) -> int | None:
-    """A Traversal/Intersection phase's cycles alone (:func:`flow_shop`, at ``arch.fifo_depth``);
-    None for any other phase."""
+FLOW_SHOP_LOOP_PACKETS = 1 << 16  # packets of an estimate's phases the Python loop takes (_FlowShops)
+_KERNEL = "tlm.kernels._jit_flow"
+
+
+class _FlowShops:
+    """The flow shops of one estimate's phases (a call of :func:`ti_cycles` or
+    :func:`fine_ti_cycles`): :func:`flow_shop_python` while those so far come to at most
+    :data:`FLOW_SHOP_LOOP_PACKETS` packets and the compiled kernel is not loaded in this
+    process, :func:`flow_shop` past them. The same cycles either way (the loop is the
+    kernel's reference). The kernel's first call in a process imports numba and loads its
+    compiled code from the cache: 0.5 to 2.5 s here (more on a cold cache), against 0.1 to
+    0.5 microseconds a packet in the loop (at most about 35 ms for the estimate's packets).
+    A frame whose work came from the functional cache runs no other kernel, so without
+    this the first packet size above one of ``tlm granularity`` at 48x48 took 2 s of host
+    time for the 0.07 s of its simulation."""
+
+    def __init__(self) -> None:
+        self.left = FLOW_SHOP_LOOP_PACKETS
+
+    def __call__(self, t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: int) -> int:
+        n = int(t.shape[0])
+        if n <= self.left and _KERNEL not in sys.modules:
+            self.left -= n
+            return flow_shop_python(t, i, entries, depth)
+        return flow_shop(t, i, entries, depth)
+
+
+def _phase_cycles(ph: PhaseSpec, arch: ArchConfig, shops: _FlowShops) -> int | None:
+    """A Traversal/Intersection phase's cycles alone (its flow shop, at ``arch.fifo_depth``,
+    by ``shops``); None for any other phase."""
     costs = _ti_costs(ph, arch)
-    return None if costs is None else flow_shop(*costs, ph.jobs[0].entries, arch.fifo_depth)
+    return None if costs is None else shops(*costs, ph.jobs[0].entries, arch.fifo_depth)
 
 
 def ti_cycles(program: FrameProgram, arch: ArchConfig) -> list[int]:
     """Per tile of the tiled stages, in program order: its Traversal/Intersection phases'
-    cycles, each phase alone (:func:`flow_shop`, at ``arch.fifo_depth``)."""
-    return _per_tile(program, lambda ph: _phase_cycles(ph, arch))
+    cycles, each phase alone (:func:`flow_shop`, at ``arch.fifo_depth``; the Python loop
+    for a small program's, :class:`_FlowShops`)."""
+    shops = _FlowShops()
+    return _per_tile(program, lambda ph: _phase_cycles(ph, arch, shops))
 
 
 def fine_ti_cycles(fn: Functional, programs: Programs, arch: ArchConfig) -> list[int]:
@@ -173,7 +205,8 @@ def fine_ti_cycles(fn: Functional, programs: Programs, arch: ArchConfig) -> list
     (:func:`tlm.arch.frame_program.ti_phases`, the same phases) and each dropped once its
     flow shop is known, so at most one phase's per-ray costs are held."""
     one = replace(arch, packet_size=1)
-    return [sum(c for ph in phases if (c := _phase_cycles(ph, one)) is not None)
+    shops = _FlowShops()
+    return [sum(c for ph in phases if (c := _phase_cycles(ph, one, shops)) is not None)
             for phases in ti_phases(fn, programs, one)]
 
 
@@ -226,5 +259,5 @@ def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: in
     return out
 
 
-__all__ = ["FLOW_SHOP_CHUNK", "fill_and_drain", "fine_ti_cycles", "flow_shop", "flow_shop_python",
-           "granularity_estimate", "ti_cycles"]
+__all__ = ["FLOW_SHOP_CHUNK", "FLOW_SHOP_LOOP_PACKETS", "fill_and_drain", "fine_ti_cycles", "flow_shop",
+           "flow_shop_python", "granularity_estimate", "ti_cycles"]
