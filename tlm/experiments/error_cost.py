@@ -86,13 +86,18 @@ from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import (
+    RULE,
     ReferenceSettings,
     compute_reference,
+    fewer_rounds,
     image_error,
+    kept_back,
     kept_root,
     load_reference,
+    meets_tolerance,
     reference_key,
     save_reference,
+    store_reference,
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
@@ -527,30 +532,28 @@ def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:
     return any(not hasattr(module, f) and f"{name}.{f}" not in sys.modules for f in fromlist or () if f != "*")
 
 
-def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
-    """Whether a reference's ``meta`` says it converged within ``settings.tolerance`` (the test
-    ``tlm reference`` applies to a cached one: :func:`tlm.experiments.reference.make_reference`)."""
-    err = meta.get("relative_standard_error")
-    return bool(meta.get("converged")) and err is not None and err <= settings.tolerance
-
-
-# the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
-RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
-
-
 def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
                     note=None) -> tuple[np.ndarray, dict, bool]:
     """The reference the study measures against, as ``tlm reference`` gets it: the cached
     one when it meets the base's ``reference.tolerance`` (:func:`meets_tolerance`), else
-    computed now with the base's settings and cached (``note`` says so when one was cached).
+    computed now with the base's settings and cached where it is better (``note`` says so when one
+    was cached).
     A cached one that misses the tolerance but was computed with the base's own stopping rule
-    (:data:`RULE`) is kept: computing it again would repeat the same rounds (fixed seeds) to the
-    same image. One computed now that the cache cannot take is not lost (:func:`_uncached_reference`).
-    Returns the image, its metadata and whether it was computed now."""
+    (:data:`~tlm.experiments.reference.RULE`) is kept: computing it again would repeat the same
+    rounds (fixed seeds) to the same image; so is one with more rounds than the base's
+    ``reference.max_rounds`` (:func:`~tlm.experiments.reference.fewer_rounds`; ``note`` says so).
+    One computed now replaces the cached one only where it is better, else the study uses the
+    cached one and ``note`` says which and why
+    (:func:`~tlm.experiments.reference.store_reference`). One computed now that the cache cannot
+    take is not lost (:func:`_uncached_reference`). Returns the image, its metadata and whether
+    it was computed now (False: the cached one is used)."""
     found = load_reference(key)
     if found is not None and not meets_tolerance(found[1], settings):
         meta = found[1]
-        if any(meta.get(k) != getattr(settings, k) for k in RULE):
+        if fewer_rounds(meta, settings):
+            if note is not None:
+                note(kept_back(key, meta, settings, "the base's ", force=False))
+        elif any(meta.get(k) != getattr(settings, k) for k in RULE):
             if note is not None:
                 note(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it "
                      "again with the base's reference settings")
@@ -561,9 +564,13 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     image, meta = compute_reference(frame, None, settings)
     image = image.reshape(cam.height, cam.width, 3)
     try:
-        save_reference(key, image, meta)
+        stored = store_reference(key, image, meta, settings)
     except (EnvironmentFailure, OSError, InputError) as e:  # (a cache that cannot take it: the study goes on)
         return *_uncached_reference(key, image, meta, e), True
+    if not stored.replaced:
+        if note is not None:
+            note(f"{stored.line}; the study uses the cached one")
+        return stored.image, stored.meta, False
     found = load_reference(key)
     return found[0], found[1], True
 

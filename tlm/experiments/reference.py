@@ -34,8 +34,13 @@ photon count, filter, radii, final gathering, caustic budget and aiming are not:
 PMap run of a scene is measured against the same reference. Nor is the way the rounds
 sample the pixel (``reference.spp``: any converges to the pixel's integral), nor the
 stopping rule: ``tlm reference`` reuses a cached reference that meets the requested
-tolerance and computes it again otherwise; ``tlm run`` uses whatever is cached, and
-computes it when nothing is (:func:`ensure_reference`; ``reference.auto``).
+tolerance and computes it again otherwise, but for one with more rounds than
+``reference.max_rounds`` (:func:`fewer_rounds`: fewer rounds of the same key are no better) or
+computed with the same stopping rule (:data:`RULE`: the same rounds again);
+``tlm run`` uses whatever is cached, and computes it when nothing is (:func:`ensure_reference`;
+``reference.auto``). A reference computed now replaces the cached one only where it is better
+(:func:`better`, :func:`store_reference`: it meets the tolerance and the cached one does not,
+or neither does and its relative standard error is lower), or with ``--force``.
 
 A cache that cannot be written (a read-only ``~/.cache``) loses no reference: ``tlm run``
 uses the one it computed for that run only, and ``tlm reference`` keeps it in the
@@ -367,6 +372,108 @@ def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
     return cached_image(cache_dir() / key, "reference.npy", key, "reference", "'tlm reference' computes it again")
 
 
+def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether a reference's ``meta`` says it converged within ``settings.tolerance`` (the test
+    ``tlm reference`` applies to a cached one: :func:`make_reference`)."""
+    err = meta.get("relative_standard_error")
+    return bool(meta.get("converged")) and err is not None and err <= settings.tolerance
+
+
+# the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
+RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
+
+
+def better(new: dict, old: dict, settings: ReferenceSettings) -> bool:
+    """Whether the reference of ``meta`` ``new`` is better than ``old`` (of the same key) for
+    ``settings``: it meets the tolerance (:func:`meets_tolerance`) and ``old`` does not, or,
+    neither meeting it, its relative standard error is lower (or ``old`` has none). Two that
+    both meet it: not better (the cached one stays)."""
+    a, b = meets_tolerance(new, settings), meets_tolerance(old, settings)
+    if a or b:
+        return a and not b
+    e_new, e_old = new.get("relative_standard_error"), old.get("relative_standard_error")
+    return e_old is None or (e_new is not None and e_new < e_old)
+
+
+def fewer_rounds(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether ``settings`` ask for fewer rounds (``max_rounds``) than the cached reference of
+    ``meta``, which does not meet their tolerance, already has: computing it again could only
+    give a reference of fewer rounds of the same key (the first cycles of the same seeds where
+    the cycles are as long), which is no better, so the cached one is kept."""
+    rounds = meta.get("rounds")
+    return (not meets_tolerance(meta, settings) and isinstance(rounds, int) and settings.max_rounds < rounds)
+
+
+def describe(meta: dict, settings: ReferenceSettings) -> str:
+    """``<rounds> rounds, relative standard error <e>, converged|NOT converged at tolerance <t>``."""
+    err = meta.get("relative_standard_error")
+    state = "converged" if meets_tolerance(meta, settings) else "NOT converged"
+    return (f"{meta.get('rounds')} rounds, relative standard error {'n/a' if err is None else f'{err:.4f}'}, "
+            f"{state} at tolerance {settings.tolerance}")
+
+
+def kept_back(key: str, meta: dict, settings: ReferenceSettings, whose: str = "", force: bool = True) -> str:
+    """The line of a cached reference kept without computing it again (:func:`fewer_rounds`);
+    ``whose``: whose ``reference.max_rounds`` to raise (``"the base's "``); ``force``: name ``--force``."""
+    return (f"reference {key} is cached with {describe(meta, settings)}; reference.max_rounds "
+            f"{settings.max_rounds} asks for fewer rounds than it has, so it is kept and not computed again "
+            f"(raise {whose}reference.max_rounds above {meta.get('rounds')}"
+            + (", or use --force to replace it)" if force else ")"))
+
+
+@dataclass
+class Stored:
+    """What :func:`store_reference` did: the reference the cache holds for the key now
+    (``image`` (H, W, 3), ``meta``, ``folder``), whether that is the one computed now
+    (``replaced``; False: the cached one was better and stays) and, then, ``line``: which
+    one the cache holds and why, with both errors, and where the one computed now was kept."""
+
+    image: np.ndarray
+    meta: dict
+    folder: Path
+    replaced: bool
+    line: str = ""
+
+
+def store_reference(key: str, image: np.ndarray, meta: dict, settings: ReferenceSettings,
+                    force: bool = False) -> Stored:
+    """Cache the reference ``key`` computed now (``image`` (H, W, 3), ``meta``) where it is
+    :func:`better` for ``settings`` than the one cached for the key (read again now: another
+    process may have cached one meanwhile), or where none is, or with ``force``; else the
+    cached one stays, and the one computed now is kept in :func:`kept_root` (as one the cache
+    cannot take; not where the cache is that folder, or where that folder holds a better one)
+    or dropped, which ``line`` says. The errors of :func:`save_reference` where the cache
+    cannot take it."""
+    held = None if force else load_reference(key)
+    if held is None or better(meta, held[1], settings):
+        return Stored(image, meta, save_reference(key, image, meta), True)
+    e_new, e_old = meta.get("relative_standard_error"), held[1].get("relative_standard_error")
+    why = ("it meets the tolerance" if meets_tolerance(held[1], settings) else
+           "the one computed now has no relative standard error" if e_new is None else
+           f"its relative standard error is {'lower' if e_old < e_new else 'as low'}")
+    line = (f"reference {key}: the cache keeps its reference ({describe(held[1], settings)}), not the one computed "
+            f"now ({describe(meta, settings)}): {why}")
+    root = kept_root()
+    there = root / "references"
+    try:
+        same = there.resolve() == cache_dir().resolve()
+    except OSError:
+        same = True
+    other = None if same else cached_image(there / key, "reference.npy", key, "reference", "it is replaced")
+    if same:
+        line += "; the one computed now is dropped"
+    elif other is not None and not better(meta, other[1], settings):
+        line += f"; the one computed now is dropped (one as good is kept in {there / key})"
+    else:
+        try:
+            folder = save_reference(key, image, meta, there)
+        except (EnvironmentFailure, OSError, InputError) as e:
+            line += f"; the one computed now is dropped (not kept in {root}: {' '.join(str(e).split())})"
+        else:
+            line += f"; the one computed now is kept in {folder} (TLM_CACHE={root} reads it)"
+    return Stored(held[0], held[1], cache_dir() / key, False, line)
+
+
 def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | None]:
     """RMSE and relative MSE (sum of squared error over sum of squared reference; None
     for a black reference)."""
@@ -408,16 +515,24 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     t0 = time.perf_counter()
     image, meta = compute_reference(frame, None, settings, bar=bar)
     cam = frame.scene.camera
+    kept = ""
     try:
-        where = f"cached in {save_reference(key, image.reshape(cam.height, cam.width, 3), meta)}"
+        stored = store_reference(key, image.reshape(cam.height, cam.width, 3), meta, settings)
     except (EnvironmentFailure, OSError, InputError) as e:  # (a read-only or full cache: this run still gets
         # its error; InputError: something in the way of the entry's folder, storage.check_destination)
         where = f"not cached ({' '.join(str(e).split())}): used by this run only"
+    else:
+        where = f"cached in {stored.folder}"
+        if not stored.replaced:  # (another process cached a better one meanwhile: this run uses it)
+            image, meta, kept = stored.image.reshape(-1, 3), stored.meta, stored.line
     seconds = time.perf_counter() - t0
     if say is not None:
-        state = "converged" if meta["converged"] else "NOT converged (reference.max_rounds reached)"
-        say(f"reference {key}: {state} after {meta['rounds']} rounds (relative standard error "
-            f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; {where}")
+        if kept:
+            say(f"{kept}; this run uses the cached one")
+        else:
+            state = "converged" if meta["converged"] else "NOT converged (reference.max_rounds reached)"
+            say(f"reference {key}: {state} after {meta['rounds']} rounds (relative standard error "
+                f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; {where}")
     return Found(key, settings, image, meta, seconds)
 
 
@@ -450,26 +565,34 @@ def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | No
 
 @dataclass
 class Made:
-    """What :func:`make_reference` did: the reference ``key`` and its ``settings``, its
-    ``meta`` (rounds, standard error, converged), whether it was ``computed`` now (False: a
-    cached one met the tolerance) and the ``folder`` that holds it."""
+    """What :func:`make_reference` did: the reference ``key``, the ``settings`` asked for, the
+    ``meta`` of the reference the cache holds now (rounds, standard error, converged) and the
+    ``folder`` that holds it; ``computed``: False only where a cached one met the tolerance
+    (nothing was computed); True where one was computed now, or where a cached one that misses
+    the tolerance was kept (``kept``: the line that says which one the cache holds and why,
+    empty where the cache holds the one computed now)."""
 
     key: str
     settings: ReferenceSettings
     meta: dict
     computed: bool
     folder: Path
+    kept: str = ""
 
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
                    say=None, progress=None, bar: bool = False) -> Made:
     """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
     one when it is converged within ``reference.tolerance`` (and not ``force``), else
-    computed now and cached.
+    computed now and cached where it is better than the cached one (:func:`store_reference`).
+    A cached one that misses the tolerance with more rounds than ``reference.max_rounds``
+    (:func:`fewer_rounds`), or computed with the same stopping rule (:data:`RULE`: the same
+    rounds again), is kept without computing (but with ``force``).
 
-    ``say``: called with a line when a cached reference misses the tolerance and before
-    computing; ``progress``: called ``(round, change, relative standard error)`` after each
-    round (:func:`compute_reference`); ``bar``: the rounds' progress bar on stderr.
+    ``say``: called with a line when a cached reference misses the tolerance, before
+    computing, and when the cache keeps its own; ``progress``: called ``(round, change,
+    relative standard error)`` after each round (:func:`compute_reference`); ``bar``: the
+    rounds' progress bar on stderr.
     """
     from tlm.experiments.loading import load_frame
     from tlm.scenes.loader import load_scene
@@ -483,6 +606,15 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
         err = cached[1].get("relative_standard_error")
         if cached[1].get("converged") and err is not None and err <= settings.tolerance:
             return Made(key, settings, cached[1], False, cache_dir() / key)
+        if fewer_rounds(cached[1], settings):
+            say(line := kept_back(key, cached[1], settings))
+            return Made(key, settings, cached[1], True, cache_dir() / key, line)
+        if all(cached[1].get(k) == getattr(settings, k) for k in RULE):
+            say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, computed with these "
+                         f"reference settings ({', '.join(RULE)}): computing it again would repeat the same rounds, "
+                         f"so it is kept (raise reference.max_rounds above {cached[1].get('rounds')}, or use "
+                         "--force to compute it again)"))
+            return Made(key, settings, cached[1], True, cache_dir() / key, line)
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     frame = load_frame(cfg, scene=scene)
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
@@ -490,10 +622,13 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar)
     image = image.reshape(scene.camera.height, scene.camera.width, 3)
     try:
-        folder = save_reference(key, image, meta)
+        stored = store_reference(key, image, meta, settings, force=force)
     except (EnvironmentFailure, OSError, InputError) as e:  # (the rounds' result is not thrown away)
-        folder = _kept_elsewhere(key, image, meta, e)
-    return Made(key, settings, meta, True, folder)
+        return Made(key, settings, meta, True, _kept_elsewhere(key, image, meta, e))
+    line = f"{stored.line} (--force replaces it)" if not stored.replaced else ""
+    if line:
+        say(line)
+    return Made(key, settings, stored.meta, True, stored.folder, line)
 
 
 def kept_root() -> Path:
