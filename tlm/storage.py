@@ -23,8 +23,10 @@ turns into such a thing while the block runs (another program's folder, a file) 
 output beside it, in a folder of its own (``OUT.unsaved-<pid>``, else ``-2``, ``-3``, ...), which the
 error names (:func:`_keep_beside`).
 
-Concurrent writers of one destination (two ``tlm run --out X``, or two threads of one process
-calling ``tlm.run`` into one folder) never see each other's temporary folders: each has its own
+A run holds its destination while it works (:func:`claimed`): a second ``tlm run --out X`` of
+another process is refused at once, naming the first. Concurrent writers of one destination that
+remain (two threads of one process calling ``tlm.run`` into one folder, two runs of one sweep
+writing one point) never see each other's temporary folders: each has its own
 (``.<name>.tmp-<host>-<pid>-<n>``, ``n`` counting the writers of the process); the swap of the
 old folder for the new one holds a lock on the old one (:func:`folder_lock`); the last to finish
 wins; and what a killed process left (its temporary folder, or the old folder it was swapping out)
@@ -67,9 +69,8 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     if resolved.exists():
         if not resolved.is_dir():
             raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
-        if os.path.ismount(resolved):
-            raise InputError(f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it",
-                             key=key)
+        if is_mount(resolved):
+            raise InputError(_mounted(out), key=key)
         if not (resolved / marker).is_file() and any(not _claiming(e.name, marker) for e in resolved.iterdir()):
             raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
                              "refusing to replace it", key=key)
@@ -81,6 +82,32 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
+
+
+def _mounted(out: Path) -> str:
+    """The refusal of a destination that is a mount point."""
+    return f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it"
+
+
+def is_mount(path: Path) -> bool:
+    """Whether the folder ``path`` (resolved) is a mount point: :func:`os.path.ismount`, which
+    compares devices and so misses a bind mount of a folder of the same file system (``mount
+    --bind D D``), or one of the mount points ``/proc/self/mountinfo`` lists. A mount point
+    cannot be renamed (EBUSY), so an output there could never take its place."""
+    return os.path.ismount(path) or os.fsencode(path) in _mount_points()
+
+
+def _mount_points() -> frozenset[bytes]:
+    """The mount points of this process's mount namespace (``/proc/self/mountinfo``'s fifth
+    field, its octal escapes undone: ``\\040`` for a space); none where it cannot be read."""
+    try:
+        with open("/proc/self/mountinfo", "rb") as fh:
+            lines = fh.read().splitlines()
+    except OSError:
+        return frozenset()
+    unescape = re.compile(rb"\\([0-7]{3})")
+    return frozenset(unescape.sub(lambda m: bytes([int(m[1], 8)]), fields[4])
+                     for fields in map(bytes.split, lines) if len(fields) > 4)
 
 
 def _claiming(name: str, marker: str) -> bool:
@@ -201,6 +228,106 @@ def _holder(record: str) -> str:
     return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
 
 
+_CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
+_CLAIMS_LOCK = threading.Lock()
+_CLAIMS: dict[str, list] = {}  # the destinations this process holds: path -> [fd, claim file, holders, made]
+
+
+@contextmanager
+def claimed(out: Path, what: str = "run") -> Iterator[None]:
+    """Hold the destination ``out`` (resolved) for this process while the block runs: an
+    :class:`InputError` naming the process when another holds it (``another run is writing
+    into 'OUT' (process 4242 on this machine, HOST): ...``), raised before the block does any work.
+
+    The holder keeps an exclusive ``flock`` on ``.<name>.tlm-running`` beside ``out`` (the
+    destination may not exist yet, and a run's swap replaces the folder itself), the file
+    holding its host and pid (:func:`process_tag`, read back by :func:`_holder`); the last
+    holder removes it. A file whose process ended is taken over (the kernel released its lock),
+    another machine's is respected while its lock is held: the lock alone decides, as for a
+    sweep (:func:`sharing`). Threads of one process share the claim (their writes of one folder
+    were always safe: the last to finish wins, :func:`atomic_folder`). The folders made on the
+    way to ``out`` are removed again when the block leaves none of its output in them."""
+    given = Path(out)
+    out = given.resolve()
+    key = os.fsdecode(out)
+    with _CLAIMS_LOCK:
+        held = _CLAIMS.get(key)
+        if held is None:
+            held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
+        held[3] += 1
+    try:
+        yield
+    finally:
+        with _CLAIMS_LOCK:
+            held[3] -= 1
+            if held[3] == 0 and _CLAIMS.get(key) is held:
+                del _CLAIMS[key]
+                _drop_claim(*held[:3])
+
+
+def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path]]:
+    """The locked claim file of the resolved destination ``out`` (:func:`claimed`; ``given``:
+    as the caller named it, for the messages): its descriptor, its path and the folders made
+    on the way to it."""
+    path = out.parent / f".{out.name}{_CLAIMED}"
+    made = [d for d in (out.parent, *out.parent.parents) if not d.exists()][::-1]
+    for _ in range(100):
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except FileNotFoundError:
+            continue  # (a folder on the way removed meanwhile: another holder's, made and dropped)
+        except OSError as e:
+            _remove_made(made)
+            if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
+                raise EnvironmentFailure(f"cannot write into {out.parent} (read-only or not permitted)",
+                                         source=str(given)) from None
+            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                     source=str(given)) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
+            os.close(fd)
+            _remove_made(made)
+            raise InputError(f"another {what} is writing into {str(given)!r} ({holder}): wait for it to end, "
+                             "or give another folder", key="--out") from None
+        try:
+            same = os.path.samestat(os.stat(path), os.fstat(fd))
+        except OSError:
+            same = False
+        if same:  # (not a file its holder removed between this open and this lock)
+            os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
+            return fd, path, made
+        os.close(fd)
+    _remove_made(made)
+    raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
+
+
+def _drop_claim(fd: int, path: Path, made: list[Path]) -> None:
+    """Give up the claim :func:`_take_claim` took: its file removed, its lock released (released
+    for forked children too, which hold copies of the descriptor), the folders it made removed
+    where they are empty (``out`` was not written)."""
+    try:
+        with suppress(OSError):
+            if os.path.samestat(os.stat(path), os.fstat(fd)):
+                path.unlink()
+    finally:
+        with suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+    _remove_made(made)
+
+
+def _remove_made(made: list[Path]) -> None:
+    """Remove the folders in ``made`` (outermost first) that are empty, innermost first."""
+    for d in reversed(made):
+        try:
+            d.rmdir()
+        except OSError:
+            return
+
+
 def distinct_folders(dirs: Iterable[str | Path], notes: list[str] | None = None) -> list[Path]:
     """``dirs`` with a folder given twice (or by two paths) kept once, in order; ``notes``
     gets a line for each repeat."""
@@ -275,11 +402,13 @@ def _release(name: str) -> None:
 
 
 def _forget_live() -> None:
-    """In a forked child: the parent's folders carry the parent's pid, and its lock may be held."""
-    global _LIVE_LOCK
+    """In a forked child: the parent's folders carry the parent's pid, and its locks may be held."""
+    global _LIVE_LOCK, _CLAIMS_LOCK
     _LIVE_LOCK = threading.Lock()
     _LIVE.clear()
     _FILES.clear()
+    _CLAIMS_LOCK = threading.Lock()
+    _CLAIMS.clear()  # (the parent's claims: never unlocked by the child, which would release them)
 
 
 if hasattr(os, "register_at_fork"):
@@ -371,6 +500,10 @@ def _swap_tries(tmp: Path, out: Path, writer: str, held: list[str]) -> None:
                 out.rename(old)
             except FileNotFoundError:
                 old = None  # another writer moved it first
+            except OSError as e:  # (a mount point is_mount missed: it stays as it is, and so does the output)
+                if e.errno == errno.EBUSY:
+                    raise InputError(_mounted(out), key="--out") from None
+                raise
         try:
             tmp.rename(out)
         except OSError as e:
