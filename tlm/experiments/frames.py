@@ -2,14 +2,14 @@
 
 A render's :class:`~tlm.arch.functional.Functional` (what the timing model reads) is
 saved as one ``.npz`` keyed by everything that determines it: the config without its
-``arch`` section, the scene's content and the code (:func:`tlm.fingerprint.code_fingerprint`,
-the whole package). Re-simulating a frame under another architecture config then
-reruns only the SimPy layer. Beside each ``.npz`` a JSON sidecar of the same key keeps
-what a result row needs and the timing model does not (work totals, scene statistics,
-the photon-map frame's image error), so a sweep point never has to render to report
-them, with the size and sha256 of the ``.npz`` (``npz``): a damaged entry (a file cut
-short, zeroed or overwritten) is reported once as a warning naming the file, removed and
-rendered again.
+``arch`` section and the settings the run's mode never reads (:func:`functional_key`), the
+scene's content and the code (:func:`tlm.fingerprint.code_fingerprint`, the whole package).
+Re-simulating a frame under another architecture config then reruns only the SimPy layer.
+Beside each ``.npz`` a JSON sidecar of the same key keeps what a result row needs and the
+timing model does not (work totals, scene statistics, the photon-map frame's image error),
+so a sweep point never has to render to report them, with the size and sha256 of the
+``.npz`` (``npz``): a damaged entry (a file cut short, zeroed or overwritten) is reported
+once as a warning naming the file, removed and rendered again.
 
 A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
@@ -32,12 +32,12 @@ import numpy as np
 
 from tlm.arch.functional import Functional
 from tlm.caches import cache_root, digest_problem, file_digest
-from tlm.config import noting_reads, read_text, text_digest, to_dict
+from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
-from tlm.render.planner import inert_changes
+from tlm.render.planner import inert_changes, inert_settings
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
@@ -87,7 +87,7 @@ def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = Non
     remembered), so that a render on a cache miss does not load it again; ``timer``: gets the
     stage ``load_scene`` of that load."""
     fingerprint, scene = _scene_key(cfg.scene, base, cfg.resolution, source, timer)
-    return functional_key(to_dict(cfg), fingerprint, code_fingerprint()), scene
+    return functional_key(cfg, fingerprint, code_fingerprint()), scene
 
 
 MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
@@ -211,9 +211,21 @@ def _unchanged(checks: list) -> bool:
 
 
 def is_cached(key: str) -> bool:
-    """Whether the cache holds the functional result and the summary of ``key``."""
+    """Whether the cache holds a whole entry of ``key``: the functional result and its summary,
+    of this format, the ``.npz`` the file the summary describes (its size and sha256). An entry
+    damaged or of an older format is not (:func:`cached_render` renders it again, as a miss):
+    a sweep lets one point render it first, as for a frame not cached, and the others read it
+    (:func:`tlm.experiments.sweep._dispatch`); nothing is said or removed here."""
     d = cache_dir()
-    return (d / f"{key}.npz").is_file() and (d / f"{key}.json").is_file()
+    path, side = d / f"{key}.npz", d / f"{key}.json"
+    if not (path.is_file() and side.is_file()):
+        return False
+    try:
+        summary = json.loads(side.read_text())
+    except (OSError, ValueError):
+        return False
+    return (isinstance(summary, dict) and summary.get("format") == SUMMARY_FORMAT
+            and digest_problem(path, summary.get("npz")) is None)
 
 
 def cached_render(cfg, base: Path | None = None, source: str | None = None, use_cache: bool = True
@@ -286,8 +298,8 @@ def cached_functional(cfg, base: Path | None = None, source: str | None = None, 
     """The work of ``cfg``'s frame: from the cache when an identical render was cached.
 
     Returns the :class:`Functional` and whether it came from the cache. The key is the
-    config without ``arch`` (and without what only changes pixels' brightness), the
-    scene's content and the functional layer's source code.
+    config without ``arch`` (and without what only changes pixels' brightness or what the
+    mode never reads: :func:`functional_key`), the scene's content and the code.
     """
     got = cached_render(cfg, base, source, use_cache)
     return got.functional, got.cached
@@ -297,10 +309,23 @@ def cache_dir() -> Path:
     return cache_root("functional")
 
 
-def functional_key(cfg_dict: dict, scene_fingerprint: str, code_version: str) -> str:
-    """Hash of what the work counts depend on: the config without ``arch``, the scene."""
-    keep = {k: v for k, v in cfg_dict.items() if k not in ("arch", "reference")}
-    keep.setdefault("render", {})
+def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
+    """Hash of what the work counts depend on: the settings the render reads, the scene.
+
+    ``cfg``: a :class:`~tlm.config.RunConfig` (or its :func:`~tlm.config.to_dict`). Left out:
+    ``arch`` and ``reference`` (the timing model's; the reference the photon-map frame is
+    measured against), what changes only brightness or speed (``render.exposure``,
+    ``render.threads``), and the settings the run's mode never reads, as
+    :func:`tlm.render.planner.inert_settings` names them (the one list the warnings use):
+    every photon-map key in a mode without the pass, ``estimate.k`` under another filter than
+    ``kvoxel``, ... A sweep of such a setting renders its frame once."""
+    if isinstance(cfg, dict):
+        cfg = config_from_dict(cfg)
+    unread = set(inert_settings(cfg))
+    keep = {k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference")}
+    for section, values in keep.items():
+        if isinstance(values, dict):
+            keep[section] = {k: v for k, v in values.items() if f"{section}.{k}" not in unread}
     # (not what changes only brightness or speed: the exposure, the kernels' threads)
     keep["render"] = {k: v for k, v in keep["render"].items() if k not in ("exposure", "threads")}
     blob = json.dumps({"cfg": keep, "scene": scene_fingerprint, "code": code_version}, sort_keys=True)

@@ -35,7 +35,8 @@ already done, and recomputes those whose inputs changed. Output folder::
                              or error.json when the point failed (retried by a rerun)
 
 A point renders nothing that another point rendered: points that differ only in
-``arch`` share one functional result (:mod:`tlm.arch.functional`; docs/design.md, "Why
+``arch`` (or in settings their mode never reads: ``photons.count`` in mode rcast) share one
+functional result (:mod:`tlm.arch.functional`; docs/design.md, "Why
 the seam makes sweeps cheap"). One point per functional result goes first; the others
 follow once it is cached, so two
 workers never render the same frame. Workers: a local process pool, or Dask. A local

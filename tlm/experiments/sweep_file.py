@@ -15,6 +15,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -80,8 +81,7 @@ class Sweep:
         for factor in self.factors:
             whys = {i.get(factor) for i in self.inert}
             if self.inert and None not in whys:
-                lines.append(f"{self.path}: the factor {factor} changes nothing in any point: "
-                             f"{'; '.join(sorted(whys))}")
+                lines.append(f"{self.path}: the factor {factor} changes nothing in any point: {said_once(whys)}")
         return lines
 
     def unread_factors(self, done: list[tuple[Point, dict]]) -> list[str]:
@@ -113,7 +113,7 @@ class Sweep:
             if whys:
                 where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
                 lines.append(f"{self.path}: the factor {factor} changed nothing in {where} that ran: "
-                             f"{'; '.join(sorted(whys))}")
+                             f"{said_once(whys)}")
         return lines
 
     def identity(self) -> str:
@@ -152,6 +152,31 @@ class Sweep:
                     line = lines[k, id(v)] = text[text.index("\n") + 1:]
                 out.append(line)
         return "".join(out)
+
+
+_NUMBER = re.compile(r"(\d+(?:\.\d+)?)")  # (a split on it: the text between at even places, numbers at odd)
+
+
+def said_once(whys) -> str:
+    """The points' reasons for a factor that changed nothing, each said once: reasons that differ
+    in one number only (each point's value: "alone at depth 1 and at 1024", "... depth 16 and at
+    1024 ...") are one, that number listed ("alone at depth 1, 16 or 256 and at 1024"); others
+    apart, all joined by "; "."""
+    groups: dict[tuple, list[list[str]]] = {}
+    for why in sorted(set(whys)):
+        parts = _NUMBER.split(why)
+        groups.setdefault(tuple(parts[::2]), []).append(parts)
+    out = []
+    for members in groups.values():
+        varied = [i for i in range(1, len(members[0]), 2) if len({m[i] for m in members}) > 1]
+        if len(varied) != 1:  # (the same text; or numbers that vary together: said apart, as they pair)
+            out.extend("".join(m) for m in members)
+            continue
+        at = varied[0]
+        values = sorted({m[at] for m in members}, key=float)
+        listed = f"{', '.join(values[:-1])} or {values[-1]}"
+        out.append("".join(listed if i == at else part for i, part in enumerate(members[0])))
+    return "; ".join(sorted(out))
 
 
 def _at_default(config: dict, defaults: dict, dotted: str) -> bool:
@@ -401,6 +426,7 @@ def load_sweep(path: Path) -> Sweep:
     if len(set(lengths.values())) > 1:
         raise InputError(f"lists of unequal length ({', '.join(f'{k}: {n}' for k, n in lengths.items())})",
                          source=src, key="zip")
+    _given_once(grid, zipped, src)
     seen: dict[str, str] = {}
     for name, section in (("set", settings), ("grid", grid), ("zip", zipped)):
         for k in section:
@@ -464,16 +490,53 @@ def load_sweep(path: Path) -> Sweep:
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
 
 
+def _given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> None:
+    """An InputError for a value a grid factor lists twice (``grid.arch.fifo_depth: 1 given
+    twice``), or a set of zip values given twice: its points would be one run, run once and
+    counted twice (two rows of one hash in ``sweep.csv``, the report's count of runs)."""
+    for key, values in grid.items():
+        seen: set[str] = set()
+        for v in values:
+            if _same(v) in seen:
+                raise InputError(f"{v!r} given twice", source=src, key=f"grid.{key}")
+            seen.add(_same(v))
+    if not zipped:
+        return
+    first: dict[tuple, int] = {}
+    for i, column in enumerate(zip(*zipped.values())):
+        j = first.setdefault(tuple(map(_same, column)), i)
+        if j != i:
+            if len(zipped) == 1:
+                raise InputError(f"{column[0]!r} given twice", source=src, key=f"zip.{next(iter(zipped))}")
+            shown = ", ".join(f"{k}={v!r}" for k, v in zip(zipped, column))
+            raise InputError(f"{shown} given twice (at {j} and {i})", source=src, key="zip")
+
+
+def _same(value: Any) -> str:
+    """What a factor value is, to find one given twice: its type and canonical JSON, so that
+    ``1`` and ``1.0`` (or ``true``) are other values here (the point's check may refuse one, or
+    find them one run: :func:`_one_run_one_row`)."""
+    return f"{type(value).__name__}:{json.dumps(value, sort_keys=True, default=repr)}"
+
+
 def _one_run_one_row(points: list[Point], src: str) -> None:
     """An InputError when points of other factor values are one run (one key): only
     ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
     same results), so a sweep over it would run its first value and label the others' rows
-    with values never run."""
+    with values never run. So is one value written two ways (``1000000000`` and ``1.0e+9`` of
+    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two."""
     first: dict[str, Point] = {}
     for p in points:
         other = first.setdefault(p.hash, p)
-        if other is not p and other.factors != p.factors:
-            differ = [k for k in p.factors if p.factors[k] != other.factors.get(k)]
+        if other is p:
+            continue
+        differ = [k for k in p.factors if _same(p.factors[k]) != _same(other.factors.get(k))]
+        alike = [k for k in differ if p.factors[k] == other.factors.get(k)]
+        if alike:  # (1000000000 and 1000000000.0 of a float: one value, written two ways)
+            raise InputError(f"points {other.index} and {p.index} are one run: "
+                             + ", ".join(f"{other.factors[k]!r} and {p.factors[k]!r}" for k in alike)
+                             + " are one value, given twice", source=src, key=", ".join(alike))
+        if differ:
             raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
                              f"(render.threads changes no result, only the host's speed), so they would be one run "
                              "with two labels: give render.threads under set:, and time thread counts with "

@@ -1,0 +1,51 @@
+"""A failed sweep point's line is of a bounded size: its row's ``error`` (the sweep's failure
+line on stdout, ``sweep.csv``, ``sweep.jsonl``) keeps the message's first parts and says how many
+more the point's ``error.json`` holds. A deadlock at 64 pipelines names every blocked unit, and
+its whole message, some 10 KB, was each of them."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+import yaml
+
+from tlm.experiments.sweep import run_sweep
+from tlm.experiments.sweep_rows import ERROR_CHARS, error_line
+
+BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
+        "arch": {"frames": 1, "trace": False, "pipelines": 64, "max_events": 2000}}
+BOUND = ERROR_CHARS + 120  # (the line's tail: how many more, and where the whole message is)
+
+
+@pytest.fixture(autouse=True)
+def _own_cache(cache):  # (tests/conftest.py)
+    return cache
+
+
+def test_a_deadlocked_point_fails_on_a_short_line_and_keeps_its_whole_message(tmp_path):
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": BASE, "grid": {"arch.fifo_depth": [1]}}))
+    done = run_sweep(path, tmp_path / "o", jobs=1)
+    assert (done.ok, done.failed) == (0, 1)
+    row = done.rows[0]
+    line = row["error"]
+    assert line.startswith("MaxEventsReached: ") and "waits for" in line
+    assert len(line) <= BOUND, len(line)  # (was some 10,000 characters)
+    assert f"more (the whole message: points/{row['hash']}/error.json)" in line
+    with open(tmp_path / "o" / "sweep.csv", newline="") as f:
+        (written,) = csv.DictReader(f)
+    assert written["error"] == line
+    whole = json.loads((tmp_path / "o" / "points" / row["hash"] / "error.json").read_text())["message"]
+    assert len(whole) > 5 * BOUND and whole.count("waits for") > line.count("waits for")
+    assert line.split("; ... and ")[0].removeprefix("MaxEventsReached: ") in whole
+    rest = int(line.split("; ... and ")[1].split(" ")[0])
+    assert line.count("; ") - 1 + rest == whole.count("; ")  # (every part either shown or counted)
+
+
+def test_an_error_line_is_one_line_of_a_bounded_size():
+    assert error_line("a\nb", "w") == "a b"
+    assert error_line("x" * 10, "w", limit=10) == "x" * 10
+    assert error_line("x" * 30, "w", limit=10) == "x" * 10 + "... and 20 more characters (the whole message: w)"
+    assert error_line("; ".join(["abcd"] * 10), "w", limit=12) == "abcd; abcd; ... and 8 more (the whole message: w)"
