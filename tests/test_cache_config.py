@@ -37,7 +37,7 @@ def test_the_section_is_declared_with_the_thesis_defaults(capsys):
     ({"pairs": 2.5}, ("cache.pairs", "2.5")),
     ({"block_words": 1.5}, ("cache.block_words", "1.5")),
     ({"block_words": 1}, ("cache.block_words", "1", ">= 3")),
-    ({"block_words": "big"}, ("cache.block_words", "'big'")),
+    ({"block_words": "big"}, ("cache.block_words", "big is not an integer")),
     ({"pair": 2}, ("cache.pair", "unknown key", "did you mean 'pairs'")),
     (7, ("cache", "7")),
 ], ids=["pairs-0", "pairs-5", "pairs-float", "block-1.5", "block-1", "block-str", "unknown-key", "not-mapping"])

@@ -244,20 +244,26 @@ def test_a_folder_is_not_swapped_while_another_holds_its_lock(tmp_path):
 
 
 @pytest.mark.slow
-def test_two_runs_into_one_folder_both_succeed(tmp_path):
-    """Two ``tlm run`` (with their reports) into one --out, at once: both exit 0, the folder
-    is one whole run with its report, and no temporary folder is left."""
+def test_two_runs_into_one_folder_at_once_one_is_refused(tmp_path):
+    """Two ``tlm run`` (with their reports) into one --out, at once: the second to claim the
+    folder is refused before any work (exit 2, naming the other process), not left to replace
+    the first's run in silence; the folder is one whole run with its report, and no temporary
+    folder or claim is left. (Runs that do not overlap both succeed.)"""
     out = tmp_path / "runs" / "same"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     procs = [subprocess.Popen([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(out), *SMALL,
                                "--seed", str(seed)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for seed in (1, 2)]
     results = [p.communicate(timeout=600) for p in procs]
+    codes = sorted(p.returncode for p in procs)
+    assert codes in ([0, 0], [0, 2]), results
     for p, (_, err) in zip(procs, results):
-        assert p.returncode == 0, err
         assert "Traceback" not in err
+        if p.returncode == 2:
+            assert "another run is writing into" in err and str(procs[0 if p is procs[1] else 1].pid) in err, err
     assert (out / "results.json").is_file() and (out / "report" / "report.html").is_file()
     assert leftovers(tmp_path / "runs") == []
+    assert not any(f.name.endswith(".tlm-running") for f in (tmp_path / "runs").iterdir())
 
 
 @pytest.mark.slow

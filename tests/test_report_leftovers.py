@@ -105,21 +105,22 @@ def test_the_idle_and_eq52_figures_of_two_sweeps_named_alike_are_titled_by_their
 
 
 def test_two_scenes_whose_names_give_one_file_name_get_two_scaling_figures(tmp_path):
-    """Scenes named ``a b`` and ``a_b`` (two files): ``scaling_a_b.png`` was written twice, the
-    second over the first; now the later gets the suffix, and the report shows each."""
+    """Scene files ``a b.yaml`` and ``a_b.yaml`` (named so by their configs, as the report names
+    them): ``scaling_a_b.yaml.png`` was written twice, the second over the first; now the later
+    gets the suffix, and the report shows each."""
     files = {}
     for stem, name in (("one", "a b"), ("two", "a_b")):
-        files[name] = tmp_path / f"{stem}.yaml"
-        files[name].write_text(CORNELL.read_text().replace("name: cornell", f"name: {name}", 1) + f"# {stem}\n")
-    sw = pipelines_sweep(tmp_path / "sw", [(n, str(files[name]), files[name], name)
+        files[name] = tmp_path / f"{name}.yaml"
+        files[name].write_text(CORNELL.read_text().replace("name: cornell", f"name: {stem}", 1) + f"# {stem}\n")
+    sw = pipelines_sweep(tmp_path / "sw", [(n, files[name].name, files[name], name)
                                            for name in ("a b", "a_b") for n in (1, 2, 4)])
     assert main(["scaling", str(sw), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
     meta = json.loads((tmp_path / "eq" / "eq52.json").read_text())
-    assert {f["scene"] for f in meta["fits"]} == {"a b", "a_b"}
+    assert {f["scene"] for f in meta["fits"]} == {"a b.yaml", "a_b.yaml"}
     pngs = sorted(p.name for p in (tmp_path / "eq").glob("scaling_*.png"))
     assert len(pngs) == 2, pngs  # (one before: the second figure overwrote the first)
-    assert pngs[0] == "scaling_a_b.png" and pngs[1].startswith("scaling_a_b_") and len(pngs[1]) == len(
-        "scaling_a_b_01234567.png"), pngs
+    assert pngs[0] == "scaling_a_b.yaml.png" and pngs[1].startswith("scaling_a_b.yaml_") and len(pngs[1]) == len(
+        "scaling_a_b.yaml_01234567.png"), pngs
     assert (tmp_path / "eq" / pngs[0]).read_bytes() != (tmp_path / "eq" / pngs[1]).read_bytes()
     # the same scenes get the same names again
     assert main(["scaling", str(sw), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
@@ -132,7 +133,7 @@ def test_two_scenes_whose_names_give_one_file_name_get_two_scaling_figures(tmp_p
     assert len(figs) == 2 and len({f.file for f in figs}) == 2, [f.file for f in figs]
     assert all((out / f.file).is_file() for f in figs)
     assert sorted(f.title.split(": scaling from")[0] for f in figs) == sorted(
-        str(files[n]) for n in ("a b", "a_b"))  # (the report names a scene that is not built-in by its file)
+        str(files[n]) for n in ("a b", "a_b"))  # (without its sweeps' runs, the report names such a scene by its file)
 
 
 # ------------------------------------------------------------ 3. a factor of numbers and null

@@ -51,7 +51,9 @@ def test_render_result_repr_is_a_few_lines(done):
     rcast = lines[1]
     for key in ("primary_rays", "shadow_rays", "tri_tests"):
         assert f"{key} {totals['rcast'][key]:,}" in rcast
-    assert lines[-1].strip() == "not simulated: timing is None (tlm.simulate(result) returns a Timing)"
+    assert lines[-1].strip() == ("not simulated yet: tlm.simulate(result) runs the timing model (cycles, frames per "
+                                 "second)")
+    assert "None" not in text  # (in words, not the attribute's value)
     shown = repr(simulated).splitlines()
     assert shown[:-1] == lines[:-1]
     assert shown[-1].strip() == (f"simulated: throughput {simulated.timing.cycles['throughput']:,} cycles per "

@@ -144,7 +144,7 @@ def test_points_of_a_mixed_group_exit_2_naming_the_sweep(tmp_path, small_sweep, 
     folder, _ = _copy(small_sweep, tmp_path, depth=None)
     assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and str(folder) in err[0] and "same N ([1, 1, 2, 2])" in err[0]
+    assert len(err) == 1 and str(folder) in err[0] and "same N (N = 1, 1, 2, 2)" in err[0]
     assert not (tmp_path / "eq").exists()
 
 

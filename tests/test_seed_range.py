@@ -19,7 +19,7 @@ def test_the_largest_seed_renders_its_own_image_and_one_more_is_refused():
     zero = tlm.render_image(tlm.load_config("cornell", {**SMALL, "seed": 0})).composite
     assert not np.array_equal(top, zero)
     for seed in (TOP + 1, 2**64 + 1, 2**70):
-        with pytest.raises(tlm.InputError, match=rf"cornell\.yaml .*seed: {seed} must be <= {TOP}$"):
+        with pytest.raises(tlm.InputError, match=rf"cornell\.yaml, with the overrides: seed: {seed} must be <= {TOP}$"):
             tlm.load_config("cornell", {**SMALL, "seed": seed})
 
 

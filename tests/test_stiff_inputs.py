@@ -154,7 +154,7 @@ def test_a_radius_whose_area_overflows_is_refused_naming_the_key(tmp_path, capsy
     code, warnings, err, out = _run(tmp_path, capsys, CORNELL, "pmap", "--set", "estimate.filter=disk",
                                     "--set", "estimate.caustic_radius=1e200", "--set", "estimate.final_gather=0")
     assert code == 2 and warnings is None and not out.exists()
-    assert err[-1].startswith("tlm: error: ") and err[-1].endswith("estimate.caustic_radius: 1e+200 must be <= 1e+150")
+    assert err[-1].startswith("tlm: error: ") and err[-1].endswith("estimate.caustic_radius: 1e200 must be <= 1e150")
     rng = np.random.default_rng(1)
     pos = rng.uniform(0, 1, (200, 3))
     inc = np.tile([0.0, 0.0, -1.0], (200, 1))

@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 from tlm.api_common import experiment_path  # (shared with tlm.api_studies)
 from tlm.api_common import folder as _folder
+from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_studies import (  # the many experiments and the reports (see the end of this module)
     calibrate,
     calibration_table,  # noqa: F401  (not in __all__: the CLI's tlm.api.<name>, as in_checkout, report_output)
@@ -62,7 +63,17 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     write_report,
 )
 from tlm.arch.units import Deadlock, MaxEventsReached
-from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
+from tlm.config import (
+    MODES,
+    RunConfig,
+    apply_overrides,
+    config_from_dict,
+    describe,
+    plain,
+    read_yaml,
+    to_dict,
+    with_overrides,
+)
 from tlm.errors import InputError, did_you_mean
 from tlm.whole_imports import imports_whole
 
@@ -102,7 +113,8 @@ class Config:
     from; ``source``: the file it was read from (None for a mapping), named in error
     messages and in ``results.json``; ``overrides``: the ``dotted.key=value`` strings
     applied to it; ``scene_file``: it is a scene file's default config (``tlm run
-    SCENE.yaml``).
+    SCENE.yaml``); ``via``: how the overrides were given, as error messages name them
+    (``the overrides`` for a mapping; ``--set`` for the command line's strings: :func:`load_config`).
     """
 
     settings: RunConfig
@@ -110,6 +122,7 @@ class Config:
     source: str | None = None
     overrides: tuple[str, ...] = ()
     scene_file: bool = False
+    via: str = "the overrides"
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_") or name == "settings":  # (copy and pickle look for these first)
@@ -127,19 +140,23 @@ class Config:
     @property
     def label(self) -> str:
         """What error messages call the config: its file ("(dict)" for a mapping), with
-        " (with --set)" after overrides."""
+        ", with the overrides" after overrides (``, with --set`` from the command line: :attr:`via`)."""
         source = "(dict)" if self.source is None else self.source
-        return f"{source} (with --set)" if self.overrides else source
+        return with_overrides(source, self.via) if self.overrides else source
 
     def updated(self, overrides: Overrides) -> Config:
         """A copy with the dotted keys of ``overrides`` set, checked again (an InputError
         names a bad key or value). A relative ``arch.programs`` among them is relative to the
         working folder, as ``tlm run --set`` takes it (the copy holds it as an absolute
         path), not to :attr:`base`."""
-        more = _override_strings(overrides)
-        config = replace(self, overrides=(*self.overrides, *more))
-        raw = apply_overrides(to_dict(self.settings), more, cwd=Path.cwd())
-        return replace(config, settings=config_from_dict(raw, config.label))
+        return _updated(self, _override_strings(overrides), self.via if self.overrides else _via(overrides, None))
+
+
+def _updated(config: Config, more: list[str], via: str) -> Config:
+    """:meth:`Config.updated` by the ``dotted.key=value`` strings ``more``, named ``via``."""
+    config = replace(config, overrides=(*config.overrides, *more), via=via)
+    raw = apply_overrides(to_dict(config.settings), more, source=via, cwd=Path.cwd())
+    return replace(config, settings=config_from_dict(raw, config.label))
 
 
 def _yaml_text(value: Any) -> str:
@@ -154,6 +171,16 @@ def _yaml_text(value: Any) -> str:
     except TypeError:
         raise InputError(f"{value!r} is not a value a config holds (a number, a string, a bool, null, "
                          "or lists and mappings of them)", key="overrides") from None
+
+
+def _via(overrides: Overrides | None, via: str | None) -> str:
+    """What error messages call ``overrides``: ``via`` where given, else ``the overrides`` for
+    a mapping (a notebook's) and ``--set`` for ``dotted.key=value`` strings (the command line's)."""
+    if via is not None:
+        if not isinstance(via, str) or not via.strip():
+            raise InputError(f"{via!r} is not a name for the overrides (the command line's: '--set')", key="via")
+        return via
+    return "the overrides" if isinstance(overrides, Mapping) else "--set"
 
 
 def _override_strings(overrides: Overrides | None) -> list[str]:
@@ -171,19 +198,25 @@ def _override_strings(overrides: Overrides | None) -> list[str]:
 def scene_file(path: str | Path) -> Path | None:
     """``path`` (resolved) when it is a scene file rather than a run config: it has
     ``geometry`` (or ``extends``) and no ``scene``. None for a run config (whose own loading
-    reports its typos). A file that is neither is an InputError saying what to write."""
+    reports its typos). A file that is neither is an InputError saying what to write; one whose
+    keys say it is a study or a sweep (``tlm run thesis``) names the command that takes it."""
     import dataclasses
 
     from tlm.scenes.loader import SCENE_KEYS
 
     path = Path(path)
     raw = read_yaml(path)
+    _refuse_other_kind(raw, path, "run")
     if not isinstance(raw, dict) or not raw or "scene" in raw:
         return None
     if "geometry" in raw or "extends" in raw:
         return path.resolve()
     fields = [f.name for f in dataclasses.fields(RunConfig)]
     keys = [str(k) for k in raw]
+    if "base" in keys:  # (a study's or a sweep's key, whose own keys did not say which: _refuse_other_kind)
+        raise InputError(f"not a run config (keys: {', '.join(keys)}): `base:` is a study's or a sweep's; run it "
+                         "with its command (tlm sweep, tlm thesis, tlm extreme, ...; 'tlm config list -l' names the "
+                         "command of each built-in experiment)", source=str(path))
     # keys both kinds of file have (resolution, photons) say nothing; a near miss of a config
     # key is a config's typo, which the config's own loading reports
     if any(k not in SCENE_KEYS and (k in fields or did_you_mean(k, fields)) for k in keys):
@@ -200,7 +233,7 @@ def scene_file(path: str | Path) -> Path | None:
 
 @imports_whole
 def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, overrides: Overrides | None = None,
-                *, base: str | Path | None = None) -> Config:
+                *, base: str | Path | None = None, via: str | None = None) -> Config:
     """A run config, checked: from a YAML file (a run config, or a scene file, which renders
     at the default settings), a built-in experiment's name (``"cornell"``, as ``tlm run
     cornell`` takes it: :func:`experiment_path`), a mapping of its keys, or a config
@@ -218,19 +251,24 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     ``overrides`` is relative to the working folder whatever the config (a file, a scene
     file, a mapping with its ``base``, a built-in name), as ``--set`` takes it; the config
     then holds it as an absolute path. A missing file, a YAML error, an unknown key or a
-    value out of range raise :class:`InputError` naming it.
+    value out of range raise :class:`InputError` naming it; so does a file whose keys say it
+    is a study or a sweep, which names the command that runs it (``tlm thesis thesis``).
+    ``via``: what error messages call the overrides (``cornell.yaml, with the overrides:
+    render.spp: ...``); default ``the overrides`` for a mapping, ``--set`` for strings (the
+    command line's form).
     """
+    via = _via(overrides, via)
     more = _override_strings(overrides)
     if isinstance(config, Config):
-        return config.updated(more) if more else config
+        return _updated(config, more, via) if more else config
     if isinstance(config, RunConfig):
-        out = Config(config, Path(base) if base is not None else Path.cwd())
-        return out.updated(more) if more else out
+        out = Config(config, Path(base) if base is not None else Path.cwd(), via=via)
+        return _updated(out, more, via) if more else out
     if isinstance(config, Mapping):
-        raw = apply_overrides(dict(config), more, cwd=Path.cwd()) if more else dict(config)
-        source = "(dict) (with --set)" if more else "(dict)"
+        raw = apply_overrides(dict(config), more, source=via, cwd=Path.cwd()) if more else dict(config)
+        source = with_overrides("(dict)", via) if more else "(dict)"
         return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
-                      tuple(more))
+                      tuple(more), via=via)
     if not isinstance(config, (str, os.PathLike)):
         raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
                          "a RunConfig or a Config", key="config")
@@ -243,13 +281,13 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     if scene is None:
         from tlm.config import load_config as load_run_config
 
-        settings, folder = load_run_config(path, more)
-        return Config(settings, folder, given, tuple(more))
-    source = f"(the defaults for scene file {scene})"
+        settings, folder = load_run_config(path, more, via)
+        return Config(settings, folder, given, tuple(more), via=via)
+    source = f"scene file {scene} at the default settings"
     raw: dict[str, Any] = {"scene": str(scene)}
     if more:
-        raw, source = apply_overrides(raw, more, cwd=Path.cwd()), f"{source} (with --set)"
-    return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True)
+        raw, source = apply_overrides(raw, more, source=via, cwd=Path.cwd()), with_overrides(source, via)
+    return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True, via=via)
 
 
 def params() -> list[tuple[str, Any, str]]:
@@ -533,7 +571,7 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     if outputs is not None and "trace" in chosen and not cfg.arch.trace:
         cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
-    results = runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides),
+    results = runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides), via=cfg.via,
                        outputs=chosen, progress=progress, reference=auto, say=say)
     from tlm.storage import json_text
 

@@ -8,7 +8,7 @@ import os
 import re
 from pathlib import Path
 
-from tlm.config import read_yaml
+from tlm.config import read_yaml, yaml_kind
 from tlm.errors import InputError, did_you_mean
 
 # the command that takes an experiment file, by the first of its keys found here (a study's
@@ -124,7 +124,7 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
         if raw is None:
             raw = {}
         if not isinstance(raw, dict):
-            raise InputError(f"must be a run config mapping, got {type(raw).__name__}", source=str(file))
+            raise InputError(f"must be a run config mapping, got {yaml_kind(raw)}", source=str(file))
         return raw, str(file), folder if builtin else file.resolve().parent
     if base is None:
         return {}, src, folder

@@ -11,8 +11,9 @@ import time
 from pathlib import Path
 
 from tlm import api, storage
-from tlm.api import MODES, Deadlock, InputError
-from tlm.cli_signals import exit_status, forget_lost_interrupt, interrupted, signalled, signals, version
+from tlm.api import MODES, Deadlock, InputError, MaxEventsReached
+from tlm.cli_signals import exit_status, forget_lost_interrupt, interrupted, signalled, signals, until_exit, version
+from tlm.errors import values_text
 
 
 def _say(line: str) -> None:
@@ -49,8 +50,9 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         sub.argv = argv  # (its file is the one in --configs: a name is not looked up among the built-in ones)
         try:
             return sub.func(sub)
-        except Deadlock as e:
-            print(f"tlm: deadlock: {e}", file=sys.stderr, flush=True)
+        except Deadlock as e:  # (stopped at arch.max_events: a cap hit, said as such, not a deadlock)
+            print(f"tlm: {e}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {e}", file=sys.stderr,
+                  flush=True)
             return 1
 
     only = list(dict.fromkeys(args.only)) if args.only else None  # (--only a --only b: both)
@@ -148,8 +150,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     cfg = api.load_config(args.config, overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
-    results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
-                      say=_say_err)
+    with storage.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
+        results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
+                          say=_say_err)
+        _print_run(args, results, out, skip, overrides, t0)
+        _report_after(args, out)
+    return 0
+
+
+def _print_run(args: argparse.Namespace, results: dict, out: Path, skip: str | None, overrides: list[str],
+               t0: float) -> None:
+    """What ``tlm run`` prints of the run it wrote into ``out``: the scene, each pass's work, the
+    error, the timing, and the warnings not said during the run."""
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -173,7 +185,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
               f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d} "
               f"({w['tri_tests_per_ray']:.1f} per ray, {w['tri_tests_per_shadow_ray']:.1f} per shadow ray)")
     if results.get("error") is not None:
-        print(_error_line(results["error"], skip))
+        print(_error_line(results["error"], skip, _reference_command(args, overrides)))
     for name, why in results["plan"]["left_out"].items():
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:
@@ -186,13 +198,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print("  " + "  ".join(f"{k} {cyc[k] / 1e6:.3f}" for k in
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))
         fps = results["fps"]  # (None: no cycles to time)
-        print(f"  {fps:.2f} frames per second" if fps is not None else "  no frame rate: a frame of no cycles")
+        print(f"  {_figures3(fps)} frames per second" if fps is not None else "  no frame rate: a frame of no cycles")
     print(f"wrote {out} ({time.perf_counter() - t0:.2f} s)")  # (wall: the stages may overlap on threads)
     for warning in results["warnings"]:  # (less those said during the run: a render that may not end says why first)
         if " ".join(warning.split()) not in storage.SAID:
             print(f"tlm: warning: {warning}", file=sys.stderr)
-    _report_after(args, out)
-    return 0
 
 
 def _say_err(line: str) -> None:
@@ -203,11 +213,30 @@ def _say_err(line: str) -> None:
     sys.stderr.flush()
 
 
-def _error_line(error: dict, skip: str | None) -> str:
-    """``tlm run``'s line on the photon-map frame's error against its reference."""
+def _figures3(x: float) -> str:
+    """A number to 3 significant figures, its zeros kept (``0.0500``, ``12.0``); 100 and more whole (``1234``)."""
+    return f"{x:.0f}" if abs(x) >= 99.95 else f"{x:#.3g}"
+
+
+def _reference_command(args: argparse.Namespace, overrides: list[str]) -> str:
+    """The ``tlm reference`` command that computes the reference of the run ``args``: its config as
+    typed, and the overrides the run had (``--set``, and ``--mode``/``--seed`` as ``--set``)."""
+    import shlex
+
+    argv = args.argv if getattr(args, "argv", None) is not None else sys.argv[1:]
+    try:
+        typed = build_parser().parse_args(list(argv)).config
+    except (InputError, SystemExit, AttributeError):  # (a run not from a command line: its config's path)
+        typed = args.config
+    return " ".join(["tlm reference", shlex.quote(str(typed)), *(f"--set {shlex.quote(o)}" for o in overrides)])
+
+
+def _error_line(error: dict, skip: str | None, command: str = "tlm reference CONFIG") -> str:
+    """``tlm run``'s line on the photon-map frame's error against its reference; ``command``: the
+    ``tlm reference`` command that computes it."""
     if not error.get("available"):
         why = f"skipped ({skip})" if skip else "not measured"
-        return f"  pmap error: {why}: no reference {error['reference']} cached; 'tlm reference CONFIG' computes it"
+        return f"  pmap error: {why}: no reference {error['reference']} cached; compute it with: {command}"
     rel = "n/a (black reference)" if error.get("rel_mse") is None else f"{error['rel_mse']:.4g}"
     ref = (f"{error.get('reference_rounds')} rounds, relative standard error "
            f"{error.get('reference_standard_error') or 0.0:.4f}")
@@ -242,10 +271,13 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     for note in done["notes"]:
         _say_err(f"note: {note}")
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
-    for f in done["fits"]:
-        print(f"  {f['scene']:8s} {f['mode']:7s} {f['scheduler']:8s} {f['target']:10s} A {f['A']:8.4g}  "
-              f"B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:6.1%}; slowest-pipeline variant: "
-              f"max |error| {f['slowest']['max_abs_rel_error']:6.1%} (N = {f['pipelines']})")
+    fits = done["fits"]
+    wide = {k: max([w, *(len(str(f[k])) for f in fits)]) for k, w in (("scene", 8), ("mode", 7), ("scheduler", 8))}
+    for f in fits:
+        print(f"  {f['scene']:{wide['scene']}s} {f['mode']:{wide['mode']}s} {f['scheduler']:{wide['scheduler']}s} "
+              f"{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:6.1%}; "
+              f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
+              f"(N = {values_text(f['pipelines'])})")
     print(f"wrote {out}")
     _report_after(args, out)
     return 0
@@ -296,10 +328,12 @@ def _cmd_reference(args: argparse.Namespace) -> int:
         return 0
     ok = bool(meta["converged"])
     state = "converged" if ok else "NOT converged (max_rounds reached)"
-    err = f"relative standard error {meta['relative_standard_error']:.4f}"
-    if not ok:
+    rse = meta.get("relative_standard_error")
+    err = "no relative standard error" if rse is None else f"relative standard error {rse:.4f}"
+    if not ok and rse is not None and rse > made.settings.tolerance:
         err += f" > tolerance {made.settings.tolerance}"
-    print(f"{state} after {meta['rounds']} rounds ({err}) in {time.perf_counter() - t0:.1f} s; wrote {made.folder}"
+    where = f"the cache keeps {made.folder}" if made.kept else f"wrote {made.folder}"  # (the line before says why)
+    print(f"{state} after {meta['rounds']} rounds ({err}) in {time.perf_counter() - t0:.1f} s; {where}"
           + ("" if ok else " (raise reference.max_rounds, or reference.tolerance; exit status 1)"))
     return 0 if ok else 1  # (a result to act on, as a failed sweep point or extreme case is)
 
@@ -311,9 +345,11 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
         rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g}"
         if row["truth_rel_mse"] is not None:
             rel += f" (composite vs truth {row['truth_rel_mse']:.4g}, FLIP {row['truth_flip']:.3f})"
+        fps = "-" if row.get("fps") is None else f"{row['fps']:.3g}"
+        settings = f"  ({row['factors']})" if row.get("factors") else ""  # (every setting the point varies)
         print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {row['radius'] or 0:8.3g} "
               f"k {row['k'] or row['k_nearest'] or '-'!s:>4s}  relMSE {rel:>9s}  tested {row['photons_tested']:>10d}  "
-              f"{row['gather_seconds']:.2f} s  simulated {row['fps']:.3g} fps", flush=True)
+              f"{row['gather_seconds']:.2f} s  simulated {fps} fps{settings}", flush=True)
 
     def note(message: str) -> None:
         print(f"error-vs-cost: {message}", flush=True)
@@ -326,8 +362,24 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
 
 def _cmd_params(args: argparse.Namespace) -> int:
     for key, default, help_text in api.params():
-        print(f"{key:24s} {default!r:>10s}  {help_text}")
+        print(f"{key:24s} {_yaml_text(default):>10s}  {help_text}")
     return 0
+
+
+def _yaml_text(value) -> str:
+    """A default as a config file writes it, and as YAML reads it back: ``null``, ``true``,
+    ``cornell``, ``[16, 16]``; a whole float of 10**6 or more as ``6.0e+08`` (YAML reads
+    ``6e+08``, with no point, as text)."""
+    import math
+
+    import yaml
+
+    if isinstance(value, float) and math.isfinite(value) and value == int(value) and abs(value) >= 1e6:
+        mantissa, exponent = f"{value:e}".split("e")
+        mantissa = mantissa.rstrip("0")
+        return f"{mantissa}{'0' if mantissa.endswith('.') else ''}e{exponent}"
+    text = yaml.safe_dump(value, default_flow_style=True, width=10**9, allow_unicode=True).strip()
+    return text.removesuffix("...").strip()
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
@@ -341,13 +393,13 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 
     done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress)
     print("ours (thesis), millions of cycles; FPS in frames per second")
-    print(describe_rows(done["rows"]))
+    print(describe_rows(done["rows"], done.get("names")))
     sm = done["summary"]
     print(f"{median_words(sm)}; slowest PM as in the thesis in {sm['slowest_pm_matches']} of {sm['scene_modes']} "
           "scene-modes")
     print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
           "per ray, cycles per pixel, cycles per triangle")
-    print(describe_items(sm["per_item"]))
+    print(describe_items(sm["per_item"], done.get("names")))
     print(f"wrote {out}/thesis_comparison.csv")
     _report_after(args, out)
     return 0
@@ -629,6 +681,8 @@ def main(argv: list[str] | None = None) -> int:
             _figure_args(args)
             status = args.func(args)
             finished = True
+            if argv is None and signalled() is None:  # the process's own command, done: a signal until
+                return until_exit(status)  # the process exits still says that it ran to its end (130 / 143)
     except SystemExit as e:  # --help, --version
         return e.code if isinstance(e.code, int) else 0
     except (Exception, KeyboardInterrupt) as e:  # its one line and its exit status

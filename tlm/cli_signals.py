@@ -11,7 +11,8 @@ whose interrupt got lost (raised where Python ignores exceptions: an at-fork hoo
 callback) stops the command at its next checkpoint (the top of a render's batch, a photon
 chunk, a sweep's point: :func:`tlm.progress.checkpoint`) as if it had landed; one lost after
 the last checkpoint, or that came as the command ended, exits with 130 / 143 all the same,
-saying that the command ran to its end: what it wrote is whole, and kept. Anything
+saying that the command ran to its end: what it wrote is whole, and kept; so does one that comes
+later, while the process exits (its pools' clean-up, its threads joined: :func:`until_exit`). Anything
 else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
 A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
 as if killed by SIGPIPE).
@@ -19,6 +20,7 @@ as if killed by SIGPIPE).
 
 from __future__ import annotations
 
+import atexit
 import os
 import signal
 import sys
@@ -29,11 +31,12 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from tlm import progress
-from tlm.api import Deadlock, InputError
+from tlm.api import Deadlock, InputError, MaxEventsReached
 from tlm.errors import environment_problem, interrupted_by
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
 _BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
+_EXIT: list[int] = []  # the exit status of the process's own command, once it ended (until_exit)
 
 
 def _line(text: str) -> None:
@@ -106,7 +109,8 @@ def signals():
         yield
     finally:
         for s, h in before.items():
-            signal.signal(s, h)
+            if signal.getsignal(s) is not _late_signal:  # (else the process's own command ended: until_exit)
+                signal.signal(s, h)
         progress.forget_signals()  # (a checkpoint after the command, a notebook's call, raises nothing)
         if before and sys.unraisablehook is quiet:
             sys.unraisablehook = hook
@@ -170,14 +174,108 @@ def interrupted(argv: list[str] | None, finished: bool = False) -> int:
     it returned), so what it wrote is whole and stays: the line says so."""
     sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
     if argv is None and _SIGNALS:  # the process's own command: a second signal during the
-        with suppress(ValueError):  # interpreter's exit (its pools' clean-up) ends it at once
-            for s in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(s, on_signal)
+        until_exit(128 + sig)  # interpreter's exit (its pools' clean-up) ends it at once
+    _line(_interrupted_line(sig, finished))
+    return 128 + sig
+
+
+def _interrupted_line(sig: int, finished: bool) -> str:
     line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
     if finished:
         line += ", but the command ran to its end: its output is complete"
-    _line(line_break(sig) + line)
-    return 128 + sig
+    return line_break(sig) + line
+
+
+def until_exit(status: int) -> int:
+    """The process's own command (``tlm``, ``python -m tlm``: :func:`tlm.cli.main` with no argv)
+    ended with ``status``: from now until the process exits, a SIGINT / SIGTERM is still the
+    command's. The interpreter's exit takes a while (its threads joined, its pools' workers
+    ended by the exit handlers, then its modules' teardown, where CPython has put the default
+    handlers back: a signal there killed the process, with no line): a first signal now says
+    that the command ran to its end (its output is complete) and the exit status is 128 + it,
+    once that clean-up is done (:func:`_late_signal`); a second ends the process at once, as
+    during a command's clean-up (:func:`on_signal`). The process ends when the interpreter's
+    exit handlers have run, its stdout and stderr flushed, before the modules' teardown
+    (:func:`_end`). ``status``, returned. Never for a library call (``tlm.api``, or ``main``
+    given its argv): no handler of the whole process outlives the call there."""
+    try:
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, _late_signal)
+    except ValueError:  # not the main thread: the interpreter's exit is not this command's
+        return status
+    if not _EXIT:
+        atexit.register(_end)  # (the last registered: the first run, before those of the command's pools)
+    _EXIT[:] = [status]
+    return status
+
+
+def _late_signal(signum, frame) -> None:
+    """SIGINT / SIGTERM once the process's own command ended (:func:`until_exit`): the first
+    is noted (the exit status is 128 + it) and said, the clean-up goes on; a later one is a
+    second signal (:func:`on_signal`: the process ends at once)."""
+    if _SIGNALS:
+        on_signal(signum, frame)  # (a second: never returns)
+    _SIGNALS.append(signum)
+    _say(_interrupted_line(signum, finished=True))
+
+
+def _say(text: str) -> None:
+    """A line on stderr from a signal handler: through ``sys.stderr``, else (a write to it was
+    under way where the signal landed: a reentrant call) straight to its file descriptor."""
+    try:
+        _line(text)
+        sys.stderr.flush()
+    except Exception:
+        with suppress(OSError):
+            os.write(2, f"{text}\n".encode())
+
+
+def _end() -> None:
+    """The process's own command ended (:func:`until_exit`): its exit, at the interpreter's exit
+    handlers (this one registered last, so run first). It runs the others (the pools'
+    clean-up, the workers ended: the signal handler of :func:`until_exit` still in place),
+    flushes stdout and stderr, and ends the process with the command's exit status (128 + the
+    signal that came meanwhile, if one did), leaving out the modules' teardown, where a signal
+    could only kill the process (the interpreter has put the default handlers back by then)."""
+    atexit.unregister(_end)
+    status = _EXIT[0] if isinstance(_EXIT[0], int) else int(_EXIT[0] is not None)  # (as sys.exit takes it)
+    try:
+        with suppress(BaseException):  # (each handler's exception is reported, as at any exit)
+            atexit._run_exitfuncs()
+        status = _flushed(status)
+        signals = {signal.SIGINT, signal.SIGTERM}
+        with suppress(ValueError, OSError):  # from here a signal waits (pending), to be taken below
+            signal.pthread_sigmask(signal.SIG_BLOCK, signals)
+        pending = sorted(signal.sigpending() & signals)
+        if pending and not _SIGNALS:
+            _SIGNALS.append(pending[0])
+            _say(_interrupted_line(pending[0], finished=True))
+        elif pending:  # (a second signal: the process is ending anyway)
+            _say("tlm: interrupted again: stopping now")
+        with suppress(Exception):
+            sys.stderr.flush()
+    finally:
+        os._exit(128 + _SIGNALS[0] if _SIGNALS else status)  # (no handler runs between this test and the exit)
+
+
+def _flushed(status: int) -> int:
+    """``status`` once stdout and stderr are flushed (what the interpreter's exit would do,
+    left out by :func:`_end`): 141 where the reader of stdout went away (as for ``tlm params |
+    head -1``, :func:`exit_status`), 1 with its line where it could not be written (a full disk)."""
+    streams = [sys.stdout, sys.__stdout__, sys.stderr, sys.__stderr__]
+    for stream in dict.fromkeys(s for s in streams if s is not None):
+        try:
+            stream.flush()
+        except BrokenPipeError:
+            if stream in (sys.stdout, sys.__stdout__) and status == 0:
+                status = 128 + signal.SIGPIPE
+        except OSError as e:
+            if stream in (sys.stdout, sys.__stdout__) and status == 0:
+                _say(f"tlm: error: the output could not be written: {environment_problem(e) or one_line(e)}")
+                status = 1
+        except Exception:  # (a closed stream: nothing to flush)
+            pass
+    return status
 
 
 def forget_lost_interrupt() -> None:
@@ -218,6 +316,9 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
     if isinstance(e, InputError):
         _line(f"tlm: error: {one_line(e)}")
         return 2
+    if isinstance(e, MaxEventsReached):  # stopped at the config's cap: a limit hit, said as such
+        _line(f"tlm: {e}")
+        return 1
     if isinstance(e, Deadlock):  # the model could not finish: nothing is written, no partial numbers
         _line(f"tlm: deadlock: {e}")
         return 1

@@ -13,12 +13,15 @@ import contextlib
 import contextvars
 import copy
 import dataclasses
+import decimal
 import hashlib
+import json
 import math
 import os
 import re
 import types
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -236,7 +239,7 @@ class RunConfig:
     seed: int = _f(0, "seed of every random stream (SeedSequence); at most 2**64 - 1, the kernels' 64-bit hash key",
                    min=0, max=2**64 - 1)
     resolution: list[int] | None = _f(
-        None, "[width, height] in pixels; null = the scene's", length=2
+        None, "[width, height] in pixels; null = the scene's", length=2, example="[64, 64]"
     )
     bsp: BSPConfig = field(default_factory=BSPConfig, metadata={"help": "geometry BSP"})
     render: RenderConfig = field(default_factory=RenderConfig, metadata={"help": "passes"})
@@ -269,8 +272,104 @@ def _type_ok(value: Any, tp: Any) -> bool:
     return False
 
 
-def _type_name(tp: Any) -> str:
-    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
+def value_text(v: Any, limit: int = 80) -> str:
+    """A config value as a user writes it in YAML, for error messages: ``two`` (not ``'two'``),
+    ``null``, ``true``, ``1e9`` (a float of a whole number from a million on by its exponent,
+    not ``1000000000.0``), ``[64, 64]``, ``{spp: 2}``; a string quoted only where YAML would read
+    it as something else (``'3'``, ``''``, ``'null'``). Cut to about ``limit`` characters."""
+    if v is None:
+        text = "null"
+    elif isinstance(v, bool):
+        text = "true" if v else "false"
+    elif isinstance(v, float):
+        text = _float_text(v)
+    elif isinstance(v, int):
+        text = str(v) if v.bit_length() <= 256 else f"a whole number of {len(str(abs(v)))} digits"
+    elif isinstance(v, str):
+        text = _string_text(v)
+    elif isinstance(v, (list, tuple)):
+        text = f"[{', '.join(value_text(x, limit) for x in v[:limit])}]"
+    elif isinstance(v, dict):
+        pairs = list(v.items())[:limit]
+        text = "{" + ", ".join(f"{value_text(k, limit)}: {value_text(x, limit)}" for k, x in pairs) + "}"
+    else:
+        text = _string_text(str(v))
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _float_text(v: float) -> str:
+    """A float as a user writes it: ``0.5``, ``1e9``, ``1.5e-7``; ``nan``, ``inf`` and ``-inf``
+    as the other messages of tlm name them (YAML's ``.nan``, ``.inf``)."""
+    text = repr(v)
+    if not math.isfinite(v):
+        return text
+    if "e" in text or (v.is_integer() and abs(v) >= 1e6):
+        mantissa, _, exponent = f"{decimal.Decimal(text).normalize():e}".partition("e")
+        return f"{mantissa}e{int(exponent)}"
+    return text
+
+
+def _string_text(v: str) -> str:
+    """A string as YAML would need it written: bare where it reads back as that string on
+    one line, else in quotes."""
+    if v and v == v.strip() and "\n" not in v:
+        try:
+            if parse_yaml(v) == v and ": " not in v and " #" not in v:
+                return v
+        except yaml.YAMLError:
+            pass
+    return "'" + v.replace("'", "''") + "'" if "\n" not in v else json.dumps(v, ensure_ascii=False)
+
+
+def _type_name(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
+    """What a field of type ``tp`` (its ``metadata``: ``meta``) holds, in the words of YAML:
+    ``an integer or null``, ``a list of 2 integers (e.g. [64, 64]) or null``."""
+    meta = meta or {}
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        names = [_type_name(a, meta) for a in args if a is not type(None)]
+        text = " or ".join(names)
+        return f"{text} or null" if type(None) in args else text
+    if tp is type(None):
+        return "null"
+    if tp is bool:
+        return "true or false"
+    if tp is int:
+        return "an integer"
+    if tp is float:
+        return "a number"
+    if tp is str:
+        if "choices" in meta:
+            return f"one of {', '.join(meta['choices'])}"
+        return "a string"
+    if origin is list:
+        (inner,) = typing.get_args(tp)
+        plural = {int: "integers", float: "numbers", str: "strings", bool: "trues or falses"}.get(inner)
+        if plural is None:
+            plural = f"items each {_type_name(inner)}"
+        count = f"{meta['length']} " if "length" in meta else ""
+        example = f" (e.g. {meta['example']})" if "example" in meta else ""
+        return f"a list of {count}{plural}{example}"
+    raise TypeError(f"no words for the config type {tp}")  # (tests/test_config_messages.py tries every field)
+
+
+def _type_hint(v: Any, tp: Any, meta: Mapping[str, Any]) -> str:
+    """What to write instead, for a value of the wrong type: a float of a whole number where an
+    integer goes (``1e9``: YAML reads a number with an exponent or a point as a float), a number
+    or a bool where text goes."""
+    wants = set(typing.get_args(tp)) | {tp}
+    lists = [a for a in wants if typing.get_origin(a) is list]
+    items = v if isinstance(v, list) and lists else [v]
+    whole_int = int in wants or any(typing.get_args(a) == (int,) for a in lists)
+    floats = [x for x in items if isinstance(x, float) and math.isfinite(x) and x.is_integer()]
+    if whole_int and floats and len(floats) == len([x for x in items if not isinstance(x, int)]):
+        x = floats[0]
+        whole = f"write {int(x)}" if abs(x) < 1e21 else "write it as a whole number"  # (not 300 digits)
+        return f": {value_text(x)} reads as a float (a number written with an exponent or a decimal point); {whole}"
+    if str in wants and "choices" not in meta and isinstance(v, (int, float)):  # (a bool too: YAML's true, yes)
+        return f" (quote it, '{value_text(v)}', to give it as text)"
+    return ""
 
 
 _SCHEMA: dict[type, tuple[dict[str, Any], dict[str, dataclasses.Field]]] = {}
@@ -292,7 +391,7 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
-        raise InputError(f"must be a mapping, got {raw!r}", source=source, key=prefix or "(top)")
+        raise InputError(f"must be a mapping of keys, got {value_text(raw)}", source=source, key=prefix or "(top)")
     hints, fields = _schema(cls)
     for key in raw:
         if key not in fields:
@@ -325,10 +424,10 @@ def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> A
         return _ABSENT
     v = raw[name]
     if not _type_ok(v, tp):
-        kind = _type_name(tp)
-        raise InputError(f"{v!r} is not {'an' if kind[0] in 'aeiou' else 'a'} {kind}", source=source, key=key)
+        kind = _type_name(tp, f.metadata)
+        raise InputError(f"{value_text(v)} is not {kind}{_type_hint(v, tp, f.metadata)}", source=source, key=key)
     if isinstance(v, float) and not math.isfinite(v):
-        raise InputError(f"{v!r} is not finite", source=source, key=key)
+        raise InputError(f"{value_text(v)} is not finite", source=source, key=key)
     _check_range(v, f.metadata, source, key)
     if isinstance(v, int) and not isinstance(v, bool) and float in typing.get_args(tp) + (tp,):
         v = float(v)
@@ -390,25 +489,25 @@ def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
         return
     if "choices" in meta and v not in meta["choices"]:
         raise InputError(
-            f"{v!r} is not one of {', '.join(meta['choices'])}{did_you_mean(str(v), meta['choices'])}",
+            f"{value_text(v)} is not one of {', '.join(meta['choices'])}{did_you_mean(str(v), meta['choices'])}",
             source=source, key=key,
         )
     if "length" in meta and len(v) != meta["length"]:
-        raise InputError(f"{v!r} must have {meta['length']} entries", source=source, key=key)
+        raise InputError(f"{value_text(v)} must have {meta['length']} entries", source=source, key=key)
     items = v if isinstance(v, list) else [v]
     for x in items:
         if not isinstance(x, (int, float)):
             continue
         if "min" in meta and x < meta["min"]:
-            raise InputError(f"{v!r} must be >= {meta['min']}", source=source, key=key)
+            raise InputError(f"{value_text(v)} must be >= {value_text(meta['min'])}", source=source, key=key)
         if "min_exclusive" in meta and x <= meta["min_exclusive"]:
-            raise InputError(f"{v!r} must be > {meta['min_exclusive']}", source=source, key=key)
+            raise InputError(f"{value_text(v)} must be > {value_text(meta['min_exclusive'])}", source=source, key=key)
         if "max" in meta and x > meta["max"]:
-            raise InputError(f"{v!r} must be <= {meta['max']}", source=source, key=key)
+            raise InputError(f"{value_text(v)} must be <= {value_text(meta['max'])}", source=source, key=key)
     if key == "resolution" and any(x <= 0 for x in items):
-        raise InputError(f"{v!r} must be positive", source=source, key=key)
+        raise InputError(f"{value_text(v)} must be positive", source=source, key=key)
     if key == "render.light_samples" and math.isqrt(v) ** 2 != v:
-        raise InputError(f"{v!r} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
+        raise InputError(f"{value_text(v)} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
 
 
 class DuplicateKeyError(yaml.constructor.ConstructorError):
@@ -599,8 +698,29 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
     return raw
 
 
-def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[RunConfig, Path]:
-    """Load and check a run config; returns it and the folder relative paths start from."""
+def with_overrides(source: str, via: str = "--set") -> str:
+    """What error messages call the config ``source`` with overrides applied: ``cornell.yaml,
+    with --set`` (``via``: how they were given, ``--set`` on the command line, ``the
+    overrides`` through the API)."""
+    return f"{source}, with {via}"
+
+
+def yaml_kind(value: Any) -> str:
+    """A YAML value's kind in words (``a list``), for a file that is not the mapping it should be."""
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return f"the number {value_text(value)}"
+    if isinstance(value, str):
+        return f"the text {value_text(value)}"
+    if isinstance(value, list):
+        return "a list"
+    return "something else"
+
+
+def load_config(path: Path | None, overrides: list[str] | None = None, via: str = "--set") -> tuple[RunConfig, Path]:
+    """Load and check a run config; returns it and the folder relative paths start from.
+    ``via``: how the ``overrides`` were given, as error messages name them (:func:`with_overrides`)."""
     raw: Any = {}
     source = "(defaults)"
     base = Path.cwd()
@@ -612,10 +732,10 @@ def load_config(path: Path | None, overrides: list[str] | None = None) -> tuple[
             raise InputError("is empty (nothing but comments or blanks): write the settings to change, e.g. "
                              "`scene: cornell` (the defaults: 'tlm params')", source=source)
         if not isinstance(raw, dict):
-            raise InputError(f"must be a mapping of keys, got {type(raw).__name__}", source=source)
+            raise InputError(f"must be a mapping of keys (key: value lines), got {yaml_kind(raw)}", source=source)
     if overrides:  # (command-line paths: relative to the working folder, not to the config's)
-        raw = apply_overrides(raw, overrides, cwd=Path.cwd())
-        source = f"{source} (with --set)"
+        raw = apply_overrides(raw, overrides, source=via, cwd=Path.cwd())
+        source = with_overrides(source, via)
     return _build(RunConfig, raw, source, ""), base
 
 

@@ -79,6 +79,15 @@ def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:
     return None
 
 
+def values_text(values: Iterable, most: int = 8) -> str:
+    """Values as a line says them, without Python's brackets: ``1, 2, 4, 8`` (more than
+    ``most``: the first three, ``...`` and the last, ``1, 2, 3, ..., 64 (12 values)``)."""
+    shown = [str(v) for v in values]
+    if len(shown) > most:
+        return f"{', '.join(shown[:3])}, ..., {shown[-1]} ({len(shown)} values)"
+    return ", ".join(shown)
+
+
 def did_you_mean(word: str, choices: Iterable[str]) -> str:
     """Return ' (did you mean X?)' when a close match exists, else ''."""
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

@@ -98,7 +98,7 @@ def test_a_case_that_is_all_as_expected_exits_0(tmp_path):
     assert main(["extreme", str(path), "--out", str(tmp_path / "out")]) == 0
     page = (tmp_path / "out" / "report" / "report.html").read_text(encoding="utf-8")
     extreme = page[page.index('id="extreme"'):page.index('id="provenance"')]
-    assert "1 cases, 1 as expected" in extreme and "NOT as expected" not in extreme
+    assert "1 case, 1 as expected" in extreme and "NOT as expected" not in extreme
 
 
 @pytest.mark.parametrize("cases, words", [

@@ -445,8 +445,7 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     counts: dict = {}
     bound = event_bound(program, arch)
     budget = min(arch.max_events, bound)
-    why = (f"arch.max_events = {arch.max_events} events passed, the cap the config sets (raise it if the run "
-           "is only long)") if budget == arch.max_events else (
+    why = f"arch.max_events = {arch.max_events} events" if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
               cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)

@@ -435,7 +435,8 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     pass without ``done`` (the message names every blocked unit and what it awaits).
     ``counts``, if given, receives the number of events processed under ``"events"``;
     ``why``, if given, is what the error says when ``max_events`` pass, and ``capped`` the
-    error raised then (:class:`MaxEventsReached` when ``max_events`` is the config's cap).
+    error raised then (:class:`MaxEventsReached` when ``max_events`` is the config's cap: ``why``
+    then names it, ``arch.max_events = 100 events``, and the message says it stopped there).
     ``cycle_end``, if given, holds the model's end-of-cycle events
     (:class:`tlm.arch.events.CycleEnd`): one is released whenever the current cycle has no
     other event left, before time moves on.
@@ -464,4 +465,7 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
 def _deadlock(env: simpy.Environment, units: list[Unit], why: str, error: type[Deadlock] = Deadlock) -> None:
     blocked = [f"{u.scope} waits for {u.waiting_for}" for u in units if u.waiting_for]
     detail = "; ".join(blocked) if blocked else "no unit is waiting (a process ended early)"
+    if issubclass(error, MaxEventsReached):  # (a cap hit, not a model that stopped making progress)
+        raise error(f"stopped at {why}, the cap the config sets, unfinished at cycle {int(env.now)}: {detail}; "
+                    "raise it if the run is only long")
     raise error(f"the model cannot finish at cycle {int(env.now)} ({why}): {detail}")

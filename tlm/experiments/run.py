@@ -30,6 +30,7 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -42,7 +43,7 @@ from tlm.arch.costs import Programs, load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
-from tlm.config import ArchConfig, RunConfig, to_dict
+from tlm.config import ArchConfig, RunConfig, to_dict, with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
@@ -60,7 +61,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, check_destination, json_text, warn
+from tlm.storage import atomic_folder, check_destination, claimed, json_text, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -166,7 +167,7 @@ class RenderResult:
                                                         (maps.global_map, "global")) if m is not None]
             lines.append(f"  photons: {maps.emitted:,} emitted; stored {', '.join(stored)}")
         if self.timing is None:
-            lines.append("  not simulated: timing is None (tlm.simulate(result) returns a Timing)")
+            lines.append("  not simulated yet: tlm.simulate(result) runs the timing model (cycles, frames per second)")
         else:
             fps = self.timing.fps
             lines.append(f"  simulated: throughput {self.timing.cycles['throughput']:,} cycles per frame, "
@@ -477,14 +478,16 @@ def unread_overrides(res: RenderResult, overrides: list[str] | None) -> list[str
     """A ``--set`` of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
     pass is left out: one line each. :func:`~tlm.render.planner.inert_changes` judges those
     sections as if the pass ran, since a config file may hold them for ``--mode pmap``; a
-    key given on the command line was asked for this run."""
+    key given on the command line was asked for this run. Not a key the pass is left out for
+    (``--set photons.count=0``, ``--set photons.max_bounces=1``: the plan's reason names it),
+    which did what it was set for."""
     if "pmap" in res.plan.run_names:
         return []
     why = {p.name: p.reason for p in res.plan.passes if not p.run}.get("pmap", "the photon-map pass is not run")
     lines = []
     for item in overrides or []:
         key = item.split("=", 1)[0].strip()
-        if key.startswith(PHOTON_SECTIONS):
+        if key.startswith(PHOTON_SECTIONS) and not re.search(rf"(?<![\w.]){re.escape(key)}(?![\w.])", why):
             lines.append(f"--set {item.strip()} has no effect in this run: the photon-map pass is left out ({why})")
     return lines
 
@@ -622,7 +625,7 @@ def _primary_of(res: RenderResult) -> Primary:
 
 def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | None = None,
         overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, progress: bool = False,
-        reference: bool = False, say=None) -> dict:
+        reference: bool = False, say=None, via: str = "--set") -> dict:
     """Render, simulate and write; returns the results dictionary.
 
     ``config_path`` and ``overrides`` (the ``--set`` strings) say where the config came
@@ -631,22 +634,26 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     is false in the resolved config). ``progress``: bars on stderr when it is a terminal.
     ``reference``: a photon-map frame without a cached reference gets one computed and
     cached (host stage ``reference``; ``say`` gets a line before and after), so that its
-    error is measured.
+    error is measured. A folder another process's run is writing is refused before any work
+    (an InputError naming that process; the threads of one process share their folders).
     """
     outputs = tuple(outputs)
     if "trace" not in outputs and cfg.arch.trace:
         cfg = replace(cfg, arch=replace(cfg.arch, trace=False))
-    source = f"{config_path} (with --set)" if overrides else config_path
+    source = with_overrides(config_path, via) if overrides else config_path  # (via: what errors call them)
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
-    programs = programs_for(cfg, base)  # a bad instruction table fails before the render
-    res = render(cfg, base, source, progress=progress, reference=reference)
-    if reference and res.error is not None and not res.error["available"]:
-        with res.timer.stage("reference"):
-            error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
-                                 progress=progress, say=say)
-        res = replace(res, error=error)
-    res = simulate_render(res, programs, progress=progress)
-    with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
-        results = write_run(res, out, config_path, overrides, outputs)
-        bar.update()
+    # the folder is this process's until it is written: another process's run into it is refused
+    # now, before any work, naming this one (tlm.storage.claimed), not silently replaced at its end
+    with claimed(out, "run"):
+        programs = programs_for(cfg, base)  # a bad instruction table fails before the render
+        res = render(cfg, base, source, progress=progress, reference=reference)
+        if reference and res.error is not None and not res.error["available"]:
+            with res.timer.stage("reference"):
+                error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
+                                     progress=progress, say=say)
+            res = replace(res, error=error)
+        res = simulate_render(res, programs, progress=progress)
+        with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
+            results = write_run(res, out, config_path, overrides, outputs)
+            bar.update()
     return results

@@ -21,8 +21,10 @@ those of the files its ``extends:`` chain names, and of the mesh files its geome
 as :func:`tlm.experiments.thesis.table_of` judges a thesis scene (:func:`scene_identity`):
 two copies of one file (and of its meshes) are one scene, two
 files that share a ``name`` (a modified copy of ``cornell.yaml``, the built-in ``ring``
-beside ``thesis/ring``) are two groups, each named by its file where the name alone would
-not tell them apart (:func:`groups`). The points of one group must differ in N alone: a
+beside ``thesis/ring``) are two groups. Every group's scene is named as the report names it,
+whatever else is fitted beside it (:func:`scene_name`): a built-in one by its name under
+``scenes/`` (``thesis/ring``, never ``ring``), any other by the path its config gave
+(:func:`groups`). The points of one group must differ in N alone: a
 group whose points' resolved configs differ in any other key (a sweep that zips
 ``arch.pipelines`` with ``arch.page_miss_cycles``, or two sweeps of different bases) is
 refused, naming the key, since the fit would read that key's effect as the pipelines'
@@ -49,7 +51,7 @@ from pathlib import Path
 
 import yaml
 
-from tlm.errors import InputError
+from tlm.errors import InputError, values_text
 from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.study import run_study
 from tlm.storage import check_destination, distinct_folders, read_jsonl
@@ -173,6 +175,7 @@ def record(res: dict, cfg: dict) -> dict:
     return {
         "settings": settings(cfg),
         "scene": str(res["scene"]["name"]), "scene_file": source, "scene_id": scene_identity(source),
+        "scene_ref": cfg.get("scene") if isinstance(cfg.get("scene"), str) else None,
         "steady": estimate.get("steady"), "frames": estimate.get("frames"), "min_frames": estimate.get("min_frames"),
         "mode": cfg["mode"], "scheduler": cfg["arch"]["scheduler"],
         "pipelines": int(cfg["arch"]["pipelines"]),
@@ -196,7 +199,8 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
         why = f"in {describe_differing(other, points)}" if other else "in another key"
-        raise InputError(f"two points of one scene, mode and scheduler have the same N ({ns}): they differ {why}, "
+        raise InputError(f"two points of one scene, mode and scheduler have the same N (N = {values_text(ns)}): "
+                         f"they differ {why}, "
                          "so fit them from separate sweeps", source=source, key="arch.pipelines")
     if other:
         raise InputError(f"the points of one scene, mode and scheduler differ in more than N "
@@ -205,10 +209,10 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
                          f"differ in arch.pipelines alone (a sweep per value of {', '.join(other)})",
                          source=source, key=", ".join(other))
     if len(by_n) < 2:
-        raise InputError(f"eq. 5.2 needs at least two values of N, the group has {sorted(by_n)}",
+        raise InputError(f"eq. 5.2 needs at least two values of N, the group has N = {values_text(sorted(by_n))}",
                          source=source, key="arch.pipelines")
     if 1 not in by_n:
-        raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {sorted(by_n)}",
+        raise InputError(f"eq. 5.2 is fitted through N = 1, and the group has N = {values_text(sorted(by_n))}",
                          source=source, key="arch.pipelines")
     one = by_n[1]
     t1, v, m1 = one[target], one["T_vert0"], one["sum_max"]
@@ -266,21 +270,44 @@ def fit_both(points: list[dict], target: str, source: str | None = None) -> dict
     return f
 
 
+def scene_name(rec: dict) -> str:
+    """The scene of a :func:`record` as the report names it, whatever else is fitted beside it: a
+    built-in scene by its name under ``scenes/`` (``thesis/ring``, ``ring``; a file of another
+    checkout's ``scenes`` folder too, where it is not here or is the same scene as the built-in one
+    here), another by the path its config gave (else its file's); a record without a file, made by
+    hand, by its ``name``."""
+    source = rec.get("scene_file")
+    if not source:
+        return str(rec["scene"])
+    label = scene_label(source)
+    if label != str(source):
+        return label  # (a built-in file of this installation)
+    from tlm.scenes.loader import list_scenes, scenes_dir
+
+    parts = Path(str(source).replace("\\", "/")).parts
+    for i in range(len(parts) - 2, -1, -1):
+        if parts[i] in ("scenes", "_scenes"):
+            tail = Path(*parts[i + 1:]).with_suffix("").as_posix()
+            mine = scenes_dir() / f"{tail}.yaml"
+            if tail in list_scenes() and (not Path(source).is_file() or rec.get("scene_id") is None
+                                          or rec.get("scene_id") == scene_identity(mine)):
+                return tail
+            break
+    ref = rec.get("scene_ref")
+    return ref.strip() if isinstance(ref, str) and ref.strip() else str(source)
+
+
 def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
     """The points of :func:`record` by (scene, mode, scheduler), the scene told by its file
-    (:func:`scene_identity`; a record without one, made by hand, by its name). The scene is
-    named by its ``name`` where no other file of the records has that name, else by its file
-    (:func:`scene_label`), so two scenes of one name get two names."""
+    (:func:`scene_identity`; a record without one, made by hand, by its name) and named by
+    :func:`scene_name`, one rule whatever else is fitted; two files that one name would stand
+    for get their digests beside it, so two scenes get two names."""
     def ident(r: dict) -> str:
         return str(r.get("scene_id") or r["scene"])
 
-    files: dict[str, dict[str, str]] = defaultdict(dict)  # name -> identity -> a file of it
-    for r in records:
-        files[r["scene"]].setdefault(ident(r), str(r.get("scene_file") or r["scene"]))
     labels: dict[tuple[str, str], str] = {}
-    for name, ids in files.items():
-        for i, file in ids.items():
-            labels[name, i] = name if len(ids) == 1 else scene_label(file)
+    for r in records:
+        labels.setdefault((r["scene"], ident(r)), scene_name(r))
     taken = defaultdict(list)
     for key, label in labels.items():
         taken[label].append(key)

@@ -320,21 +320,24 @@ def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
     }
 
 
-def describe_items(items: dict[str, dict]) -> str:
-    """The per-item table `tlm thesis` prints: ours (thesis) for each scene-mode."""
+def describe_items(items: dict[str, dict], scenes: dict[str, str] | None = None) -> str:
+    """The per-item table `tlm thesis` prints: ours (thesis) for each scene-mode, in fixed
+    notation (:func:`fixed`); ``scenes``: each scene's name in the printout (:func:`scene_names`)."""
     names = (("trav_cycles_per_ray", "TTrav/ray"), ("tests_per_ray", "tests/ray"),
              ("frag_cycles_per_pixel", "TFrag/pixel"), ("vert_cycles_per_triangle", "TVert/tri"))
-    lines = [f"{'scene':8s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>21s}" for _, h in names)
+    keys = [(*key.rsplit("/", 1), it) for key, it in items.items()]
+    shown = [(scenes or {}).get(scene, scene) for scene, _, _ in keys]
+    wide = max([8, *map(len, shown)])
+    lines = [f"{'scene':{wide}s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>21s}" for _, h in names)
              + f" {'tests/leaf':>10s}"]
-    for key, it in items.items():
-        scene, mode = key.split("/")
+    for scene, (_, mode, it) in zip(shown, keys, strict=True):
         cells = []
         for k, _ in names:
             o, t = it["ours"][k], it["thesis"][k]
-            cells.append(f"{'-' if o is None else f'{o:.4g}':>9s} ({'-' if t is None else f'{t:.4g}':>9s})")
+            cells.append(f"{'-' if o is None else fixed(o):>9s} ({'-' if t is None else fixed(t):>9s})")
         leaf = it["tests_per_leaf"]
-        lines.append(f"{scene:8s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>21s}" for c in cells)
-                     + f" {'-' if leaf is None else f'{leaf:.3g}':>10s}")
+        lines.append(f"{scene:{wide}s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>21s}" for c in cells)
+                     + f" {'-' if leaf is None else fixed(leaf):>10s}")
     return "\n".join(lines)
 
 
@@ -439,11 +442,31 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
 
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
                          marker="thesis_comparison.csv", files=summary_file)
-    return {"rows": rows, "summary": summary}
+    return {"rows": rows, "summary": summary, "names": scene_names(scenes, folder, str(path))}
 
 
 def _name(scene: str) -> str:
     return Path(scene).stem
+
+
+def scene_names(scenes: list[str], folder: Path, source: str) -> dict[str, str]:
+    """Each scene of a study by the name its rows give it (its file's name, ``ring``) -> the
+    scene as the report names it: a built-in one by its name under ``scenes/`` (``thesis/ring``,
+    not the built-in ``ring``), another as the study lists it (its path)."""
+    names = {}
+    for s in scenes:
+        file = resolve_scene_path(s, folder, source, "scenes").resolve()
+        label = scene_label(file)
+        names[_name(s)] = label if label != str(file) else s
+    return names
+
+
+def fixed(x: float, digits: int = 4) -> str:
+    """A number in fixed notation to ``digits`` significant figures, a large one whole: ``0.01234``,
+    ``12.35``, ``21470`` (not ``2.147e+04``)."""
+    if not math.isfinite(x) or x == 0:
+        return f"{x:g}"
+    return f"{x:.{max(0, digits - 1 - math.floor(math.log10(abs(x))))}f}"
 
 
 # -- calibration --------------------------------------------------------------------------------
@@ -600,16 +623,19 @@ def write_calibrated(programs: Programs, report: dict, target: Path, command: st
     write_file(target, text)  # (atomically, through a hidden temporary file of its own)
 
 
-def describe_rows(rows: list[dict[str, Any]]) -> str:
-    lines = [f"{'scene':8s} {'mode':8s} " + " ".join(f"{m:>16s}" for m in METRICS)]
+def describe_rows(rows: list[dict[str, Any]], scenes: dict[str, str] | None = None) -> str:
+    """Tables I-III as `tlm thesis` prints them: ours (thesis) per scene-mode and metric;
+    ``scenes``: each scene's name in the printout (:func:`scene_names`)."""
     cells: dict[tuple[str, str], dict[str, dict]] = {}
     for r in rows:
-        cells.setdefault((r["scene"], r["mode"]), {})[r["metric"]] = r
+        cells.setdefault(((scenes or {}).get(str(r["scene"]), str(r["scene"])), r["mode"]), {})[r["metric"]] = r
+    wide = max([8, *(len(scene) for scene, _ in cells)])
+    lines = [f"{'scene':{wide}s} {'mode':8s} " + " ".join(f"{m:>16s}" for m in METRICS)]
     for (scene, mode), m in cells.items():
         parts = []
         for metric in METRICS:
             r = m[metric]
             t = "-" if r["thesis"] is None else f"{r['thesis']:g}"
-            parts.append(f"{r['ours']:>7.3g} ({t:>6s})")
-        lines.append(f"{scene:8s} {mode:8s} " + " ".join(f"{p:>16s}" for p in parts))
+            parts.append(f"{fixed(r['ours'], 3):>7s} ({t:>6s})")
+        lines.append(f"{scene:{wide}s} {mode:8s} " + " ".join(f"{p:>16s}" for p in parts))
     return "\n".join(lines)
