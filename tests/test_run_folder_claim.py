@@ -221,3 +221,28 @@ def test_the_claim_lasts_through_the_runs_report(tmp_path, monkeypatch, capsys):
     assert main(["run", "cornell", "--out", str(out), *SMALL]) == 0
     assert len(seen) == 1 and seen[0].startswith("refused:") and "another run is writing into" in seen[0], seen
     assert not claim_file(out).exists()
+
+
+def test_a_bad_out_is_said_as_such_before_the_claim(tmp_path, capsys):
+    """``tlm run --out AFILE/x``: the destination's own message (exit 2), not the claim file's
+    ("cannot write beside the output folder (File exists)", exit 1): checked before the claim."""
+    (tmp_path / "afile").write_text("")
+    assert main(["run", "cornell", "--out", str(tmp_path / "afile" / "x"), *SMALL]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.endswith(f"{str(tmp_path / 'afile')!r} is a file, not a folder"), err
+
+
+def test_a_file_system_without_locks_is_said_and_leaves_nothing(tmp_path, monkeypatch):
+    """flock refused (ENOLCK, EOPNOTSUPP: a file system that takes no locks): one line naming the
+    claim file and why, the claim file and the folders made for it removed (it was an internal
+    error, the descriptor leaked and the file left)."""
+    import errno
+
+    def no_locks(fd, op):
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(storage.fcntl, "flock", no_locks)
+    out = tmp_path / "a" / "b" / "r"
+    with pytest.raises(storage.EnvironmentFailure, match="takes no locks"), storage.claimed(out):
+        raise AssertionError("claimed")
+    assert list(tmp_path.iterdir()) == []

@@ -150,6 +150,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     cfg = api.load_config(args.config, overrides)
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
+    storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
     with storage.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=_say_err)

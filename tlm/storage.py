@@ -275,8 +275,12 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        except FileNotFoundError:
-            continue  # (a folder on the way removed meanwhile: another holder's, made and dropped)
+        except FileNotFoundError as e:
+            if not out.parent.is_dir():  # (a folder on the way removed meanwhile: another holder's, made
+                continue  # and dropped; else the folder cannot hold the file: said below)
+            _remove_made(made)
+            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                     source=str(given)) from None
         except OSError as e:
             _remove_made(made)
             if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
@@ -286,7 +290,15 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
                                      source=str(given)) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+        except OSError as e:
+            if not isinstance(e, BlockingIOError):  # (a file system without locks: ENOLCK, EOPNOTSUPP)
+                os.close(fd)
+                with suppress(OSError):
+                    path.unlink()
+                _remove_made(made)
+                raise EnvironmentFailure(f"cannot lock {path} to claim the output folder ({e.strerror}): "
+                                         "the file system takes no locks; give a folder on a local disk",
+                                         source=str(given)) from None
             holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
             os.close(fd)
             _remove_made(made)
@@ -297,7 +309,12 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
         except OSError:
             same = False
         if same:  # (not a file its holder removed between this open and this lock)
-            os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
+            try:
+                os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
+            except OSError as e:  # (a full disk: no run could be written there either)
+                _drop_claim(fd, path, made)
+                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                         source=str(given)) from None
             return fd, path, made
         os.close(fd)
     _remove_made(made)
