@@ -33,6 +33,7 @@ from tlm.config import (
     read_yaml,
     run_config_field,
     to_dict,
+    value_text,
     with_leaves,
 )
 from tlm.errors import InputError
@@ -498,7 +499,7 @@ def _given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> Non
         seen: set[str] = set()
         for v in values:
             if _same(v) in seen:
-                raise InputError(f"{v!r} given twice", source=src, key=f"grid.{key}")
+                raise InputError(f"{value_text(v)} given twice", source=src, key=f"grid.{key}")
             seen.add(_same(v))
     if not zipped:
         return
@@ -507,8 +508,8 @@ def _given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> Non
         j = first.setdefault(tuple(map(_same, column)), i)
         if j != i:
             if len(zipped) == 1:
-                raise InputError(f"{column[0]!r} given twice", source=src, key=f"zip.{next(iter(zipped))}")
-            shown = ", ".join(f"{k}={v!r}" for k, v in zip(zipped, column))
+                raise InputError(f"{value_text(column[0])} given twice", source=src, key=f"zip.{next(iter(zipped))}")
+            shown = ", ".join(f"{k}={value_text(v)}" for k, v in zip(zipped, column))
             raise InputError(f"{shown} given twice (at {j} and {i})", source=src, key="zip")
 
 
@@ -533,8 +534,8 @@ def _one_run_one_row(points: list[Point], src: str) -> None:
         differ = [k for k in p.factors if _same(p.factors[k]) != _same(other.factors.get(k))]
         alike = [k for k in differ if p.factors[k] == other.factors.get(k)]
         if alike:  # (1000000000 and 1000000000.0 of a float: one value, written two ways)
-            raise InputError(f"points {other.index} and {p.index} are one run: "
-                             + ", ".join(f"{other.factors[k]!r} and {p.factors[k]!r}" for k in alike)
+            both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in alike)
+            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
                              + " are one value, given twice", source=src, key=", ".join(alike))
         if differ:
             raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
