@@ -44,7 +44,8 @@ def test_runs_are_found_at_any_depth_and_an_empty_folder_is_named(tmp_path):
 
     inputs = read([nest])
     assert [r.path for r in inputs.runs] == [nest / "deep" / "run1", nest / "run2"]
-    assert inputs.notes == [f"{nest / 'away'}: a link to a folder outside {nest} ({outside.parent}): not followed",
+    assert inputs.notes == [f"{nest / 'away'}: a link to {outside.parent}, a folder outside {nest} and no run, sweep "
+                            "or study itself: not followed (give it to tlm report as a folder of its own)",
                             f"{nest / 'junk'}: no run, sweep or study in it"]
     assert [r.label for r in inputs.runs] == ["run1: /x/Box.yaml/refract", "run2: /x/Box.yaml/refract"]
 
@@ -54,6 +55,53 @@ def test_runs_are_found_at_any_depth_and_an_empty_folder_is_named(tmp_path):
     assert f'<p class="note">{nest / "junk"}: no run, sweep or study in it.</p>' in intro
     assert main(["report", str(nest), "--out", str(nest / "rep")]) == 0  # again: its own folder is not read
     assert f"{nest / 'rep'}:" not in _intro(nest / "rep" / "report.html")
+
+
+def test_a_link_to_a_run_kept_elsewhere_is_read_and_a_link_not_followed_is_said(tmp_path, capsys):
+    links = tmp_path / "rep" / "links"
+    links.mkdir(parents=True)
+    run = _run_folder(tmp_path / "disk" / "r1")
+    os.symlink(run, links / "r1link")  # (a run folder out of the tree: read, as the one-level scan did)
+    (tmp_path / "other" / "sub").mkdir(parents=True)
+    os.symlink(tmp_path / "other", links / "olink")  # (no tlm folder itself: not followed, and said so)
+    (run / "back").symlink_to(links)  # (a tlm folder is never searched: no loop)
+
+    assert main(["report", str(links), "--out", str(tmp_path / "out")]) == 0
+    note = (f"{links / 'olink'}: a link to {tmp_path / 'other'}, a folder outside {links} and no run, sweep or "
+            "study itself: not followed (give it to tlm report as a folder of its own)")
+    assert capsys.readouterr().err.splitlines() == [f"tlm: note: {note}"]
+    intro = _intro(tmp_path / "out" / "report.html")
+    assert ": 1 run, 0 sweeps, 0 studies (none)." in intro and f'<p class="note">{note}.</p>' in intro
+    assert [r.path for r in read([links]).runs] == [links / "r1link"]
+
+
+def test_no_tlm_output_names_what_was_passed_over(tmp_path, capsys):
+    links = tmp_path / "links"
+    (tmp_path / "other").mkdir()
+    (links / ".runs" / "run").mkdir(parents=True)
+    (links / "old" / "report.html").parent.mkdir()
+    (links / "old" / "report.html").write_text("<html></html>")
+    links.joinpath("olink").symlink_to(tmp_path / "other")
+    assert main(["report", str(links), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "holds no tlm output" in err
+    assert (f"{links / 'olink'}: a link to {tmp_path / 'other'}, a folder outside {links}" in err
+            and f"; {links / '.runs'}: a hidden folder, not searched; {links / 'old'}: a report's folder, not searched"
+            in err), err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_notes_of_folders_with_no_run_are_bounded(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    _run_folder(runs / "m" / "run")
+    for i in range(25):
+        (runs / f"e{i:02d}" / "deeper").mkdir(parents=True)  # (one line for e00, none for e00/deeper)
+    inputs = read([runs])
+    assert inputs.notes == [*(f"{runs / f'e{i:02d}'}: no run, sweep or study in it" for i in range(10)),
+                            "and 15 more folders with no run, sweep or study in them"]
+    assert main(["report", str(runs), "--out", str(tmp_path / "out")]) == 0
+    assert len(capsys.readouterr().err.splitlines()) == 11
+    assert _intro(tmp_path / "out" / "report.html").count('<p class="note">') == 11
 
 
 def test_two_runs_of_one_name_in_two_folders_are_told_apart(tmp_path):

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import datetime
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -120,6 +121,9 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
+    for note in inputs.notes:  # (the folders passed over, said on stderr too: the page may not be read soon)
+        sys.stderr.write(f"tlm: note: {note}\n")
+    sys.stderr.flush()
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}
         scaling_sweeps = []

@@ -1,7 +1,8 @@
 """The report's inputs: every tlm output folder it is given, read once.
 
 ``tlm report`` accepts any folder a tlm command writes, and a folder of such folders at any
-depth (``runs/``, ``nest/deep/run1``: :func:`find`; a folder in it with none is named in a note):
+depth (``runs/``, ``nest/deep/run1``, a link to a run kept elsewhere: :func:`find`; a folder in it
+with none, and a link out of it to a folder that is no tlm folder, are named in a note):
 
 =================  ==========================================  ================================
 kind               written by                                  recognised by
@@ -32,6 +33,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Container
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -156,7 +158,8 @@ class Inputs:
     # what a section worked out that another quotes, kept so that it is worked out once
     # (the thesis tables' sources: :func:`tlm.report.tables.collect_sources`)
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
-    # what the report says of the folders it was given: a folder under one with no tlm output in it
+    # what the report says of the folders it was given (:func:`find`): a folder under one with no tlm output in it,
+    # a link out of it to a folder that is no tlm folder (not followed), a folder that could not be listed
     notes: list[str] = field(default_factory=list)
 
     def of_kind(self, kind: str) -> list[Study]:
@@ -361,21 +364,28 @@ def _run(folder: Path, label: str, kind: str) -> Run:
     return Run(folder, label, kind, results, config)
 
 
-def kind_of(folder: Path) -> str | None:
-    """Which tlm command wrote ``folder`` (None: none of them)."""
-    if (folder / "sweep.yaml").is_file() and ((folder / "points").is_dir() or (folder / "sweep.jsonl").is_file()):
+def kind_of(folder: Path, names: Container[str] | None = None) -> str | None:
+    """Which tlm command wrote ``folder`` (None: none of them). ``names``: the names in it, where
+    its listing is at hand (:func:`find`): a file not among them is not looked for."""
+    def file(name: str) -> bool:
+        return (names is None or name in names) and (folder / name).is_file()
+
+    def subfolder(name: str) -> bool:
+        return (names is None or name in names) and (folder / name).is_dir()
+
+    if file("sweep.yaml") and (subfolder("points") or file("sweep.jsonl")):
         return "sweep"  # (a sweep *file* named sweep.yaml beside other things is not one)
-    if (folder / "thesis_comparison.csv").is_file():
+    if file("thesis_comparison.csv"):
         return "thesis"
-    if (folder / "eq52.json").is_file():
+    if file("eq52.json"):
         return "scaling"
-    if (folder / "extreme.jsonl").is_file():
+    if file("extreme.jsonl"):
         return "extreme"  # its cases/<name>/ run folders are not read as runs
-    if (folder / "granularity.jsonl").is_file():
+    if file("granularity.jsonl"):
         return "granularity"
-    if (folder / "rows.jsonl").is_file() and (folder / "reference.json").is_file():
+    if file("rows.jsonl") and file("reference.json"):
         return "error-vs-cost"
-    if (folder / "results.json").is_file():
+    if file("results.json"):
         return "run"
     return None
 
@@ -463,10 +473,12 @@ def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
         if not d.is_dir():
             raise InputError("is not a folder", source=str(d))
         k = kind_of(d)
-        found = [(d, k)] if k is not None else find(d, skip, inputs.notes)
-        if not found:
-            raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, "
-                             "scaling or extreme folder) at any depth", source=str(d))
+        said: list[str] = []
+        found = [(d, k)] if k is not None else find(d, skip, said)
+        if not found:  # (and what the search passed over: a link not followed, a folder it could not list)
+            raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, scaling or "
+                             "extreme folder) at any depth" + "".join(f"; {n}" for n in said), source=str(d))
+        inputs.notes.extend(said)
         for f, kind in found:
             if _real(f) not in seen:
                 seen.add(_real(f))
@@ -545,51 +557,114 @@ def _real(folder: Path) -> str:
     return os.path.realpath(folder)
 
 
+NOTES_SHOWN = 10  # the lines :func:`find` gives of each kind of folder it passes over; then how many more
+
+
 def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -> list[tuple[Path, str]]:
     """The tlm folders under ``root`` (a folder no tlm command wrote) at any depth, each with its
     kind (:func:`kind_of`), in sorted order of their paths: a tlm folder's own subfolders are its
     own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, a report
-    half written), a report's folder (``report.html``; ``skip``, the report being written), a link
-    to a folder (its folder is searched where it lies in ``root``; one to a folder outside ``root``
-    is not followed, and a line of ``notes`` says so). A folder under ``root`` with no tlm folder
-    in it at any depth is a line of ``notes`` (its subfolders are not named apart)."""
+    half written), a report's folder (``report.html``; ``skip``, the report being written). A link
+    to a tlm folder is one, wherever it points (never searched: no loop); a link to another folder
+    is not followed (a folder in ``root`` is searched where it lies there).
+
+    ``notes`` gets a line for each folder passed over that may have been meant, at most
+    :data:`NOTES_SHOWN` of a kind and then a line of how many more: a link to a folder outside
+    ``root`` that is not a tlm folder, a folder that could not be listed and, where tlm folders were
+    found, a folder with none in it at any depth (its subfolders not named apart); where none were
+    found, the hidden and report folders passed over instead. Each folder is listed once; its
+    entries' types come with the listing (no stat of a file, nor of a folder but a link's)."""
     import os
 
     top = _real(root)
     skipped = _real(skip) if skip is not None else None
-    said = notes if notes is not None else []
+    lines: dict[str, list[str]] = {"link": [], "unlisted": [], "empty": [], "hidden": [], "report": []}
+    more = dict.fromkeys(lines, 0)
+    found: list[tuple[Path, str]] = []
 
-    def inside(folder: str) -> bool:
-        return os.path.commonpath([top, folder]) == top
+    def note(kind: str, line: str) -> None:
+        if len(lines[kind]) < NOTES_SHOWN:
+            lines[kind].append(line)
+        else:
+            more[kind] += 1
 
-    def walk(d: Path) -> tuple[list[tuple[Path, str]], list[str]]:
-        found: list[tuple[Path, str]] = []
-        lines: list[str] = []
+    def listing(d: Path) -> list[os.DirEntry] | str:
         try:
-            children = sorted(c for c in d.iterdir() if not c.name.startswith("."))
+            with os.scandir(d) as it:
+                return sorted(it, key=lambda e: e.name)
         except OSError as e:
-            return [], [f"{d}: not searched ({e.strerror or e})"]
-        for c in children:
-            if not c.is_dir():
+            return e.strerror or str(e)
+
+    empty: list[Path] = []  # (folders with no tlm folder in them, though their parent has one)
+
+    def walk(d: Path, real: str, entries: list[os.DirEntry]) -> tuple[bool, list[Path]]:
+        """Search ``d`` (its real path and listing given): whether a tlm folder is in it, and its
+        subfolders with none (said where ``d`` has one; else ``d`` is said in their stead)."""
+        any_found, none = False, []
+        for e in entries:
+            try:
+                if not e.is_dir():  # (a link to a folder is one: followed by the stat)
+                    continue
+                link = e.is_symlink()
+            except OSError:
                 continue
-            if c.is_symlink():
-                if not inside(_real(c)):
-                    lines.append(f"{c}: a link to a folder outside {root} ({_real(c)}): not followed")
-                continue  # (one inside is searched where it lies)
-            if _real(c) == skipped or (c / "report.html").is_file():
+            c = Path(d, e.name)
+            if e.name.startswith("."):
+                note("hidden", f"{c}: a hidden folder, not searched")
                 continue
-            k = kind_of(c)
+            if link:
+                target = _real(c)
+                if target == skipped:
+                    continue
+                k = kind_of(c)
+                if k is not None:
+                    found.append((c, k))
+                    any_found = True
+                elif os.path.commonpath([top, target]) != top:
+                    note("link", f"{c}: a link to {target}, a folder outside {root} and no run, sweep or study "
+                                 "itself: not followed (give it to tlm report as a folder of its own)")
+                continue  # (a link inside ``root`` to a folder that is no tlm folder: searched where it lies)
+            c_real = os.path.join(real, e.name)  # (not a link: no need to ask the file system)
+            if c_real == skipped:
+                continue
+            inner = listing(c)
+            if isinstance(inner, str):  # (a folder that cannot be listed may still be a tlm folder)
+                k = kind_of(c)
+                if k is None:
+                    note("unlisted", f"{c}: not searched ({inner})")
+                    continue
+            else:
+                names = {i.name for i in inner}
+                if "report.html" in names and (c / "report.html").is_file():
+                    note("report", f"{c}: a report's folder, not searched")
+                    continue
+                k = kind_of(c, names)
             if k is not None:
                 found.append((c, k))
+                any_found = True
                 continue
-            inner, inner_lines = walk(c)
-            found.extend(inner)
-            lines.extend(inner_lines if inner else [f"{c}: no run, sweep or study in it"])
-        return found, lines
+            has, inner_empty = walk(c, c_real, inner)
+            if has:
+                any_found = True
+                empty.extend(inner_empty)
+            else:
+                none.append(c)
+        return any_found, none
 
-    found, lines = walk(root)
-    if found:
-        said.extend(lines)
+    entries = listing(root)
+    if isinstance(entries, str):
+        raise InputError(f"cannot be searched ({entries})", source=str(root))
+    empty.extend(walk(root, top, entries)[1])
+    for c in sorted(empty):  # (in the order of their paths, as the tlm folders are)
+        note("empty", f"{c}: no run, sweep or study in it")
+    said = notes if notes is not None else []
+    wording = {"link": "links to folders outside {root} not followed", "unlisted": "folders not searched",
+               "empty": "folders with no run, sweep or study in them", "hidden": "hidden folders not searched",
+               "report": "report folders not searched"}
+    for kind in ("link", "unlisted", *(("empty",) if found else ("hidden", "report"))):
+        said.extend(lines[kind])
+        if more[kind]:
+            said.append(f"and {more[kind]} more {wording[kind].format(root=root)}")
     return found
 
 
