@@ -112,17 +112,19 @@ def test_a_worse_reference_computed_now_does_not_replace_the_cached_one(tmp_path
 
 
 def test_one_that_meets_the_tolerance_replaces_one_that_does_not(tmp_path, cache, capsys, monkeypatch):
-    """Met with a higher error: it replaces the cached one; then a converged one is not replaced by
-    another (``tlm run`` computing while another process cached one: the cached one is used)."""
+    """Met with a higher error: it replaces the cached one (4 rounds, short of ``min_rounds`` 6); then
+    a converged one is not replaced by another (``tlm run`` computing while another process cached
+    one: the cached one is used)."""
     from tlm import api
     from tlm.experiments.loading import load_frame
 
     old, _ = _cached(tmp_path, cache, capsys)
     _worse_by(monkeypatch, reference, 2.0, converged=True)
-    cfg = _config(tmp_path, {**SHORT, "tolerance": 1e6, "max_rounds": 6})
+    cfg = _config(tmp_path, {**SHORT, "tolerance": 1e6, "min_rounds": 6, "max_rounds": 6})
     assert main(["reference", cfg, "--no-progress"]) == 0
     meta, image = _held(cache)
-    assert meta["rounds"] == 2 and meta["converged"] is True  # (fewer rounds, a higher error: it met the tolerance)
+    assert meta["rounds"] == 6  # (a higher error, but it meets the rule asked for, and the cached one does not)
+    assert meta["relative_standard_error"] > old["relative_standard_error"]
 
     real = reference.compute_reference
 
@@ -168,3 +170,60 @@ def test_error_vs_cost_keeps_the_better_cached_reference(tmp_path, cache, capsys
     meta, now = _held(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
+
+
+def test_the_tolerance_is_judged_as_asked_for_now_not_by_the_stored_flag():
+    """:func:`~tlm.experiments.reference.meets_tolerance` is the stopping rule of the settings
+    asked for now (error below ``tolerance``, at least ``min_rounds`` rounds), not the
+    ``converged`` flag of the run that computed the reference: a 12-round reference that missed
+    tolerance 0.0001 (error 0.08) is better at tolerance 0.5 than an 8-round one that met it
+    (error 0.12), which replaced it before."""
+    loose = reference.ReferenceSettings(photons=3000, tolerance=0.5, min_rounds=2, max_rounds=12)
+    strict = {"relative_standard_error": 0.0817, "rounds": 12, "cycles": 3, "converged": False}
+    met = {"relative_standard_error": 0.1233, "rounds": 8, "cycles": 2, "converged": True}
+    assert reference.meets_tolerance(strict, loose) and reference.meets_tolerance(met, loose)
+    assert not reference.better(met, strict, loose)
+    assert "0.0817, converged at tolerance 0.5" in reference.describe(strict, loose)
+    short = {**met, "relative_standard_error": 0.01, "rounds": 2}  # (converged with min_rounds 2: asked for 4)
+    assert not reference.meets_tolerance(short, reference.ReferenceSettings(photons=3000, tolerance=0.5))
+    assert not reference.meets_tolerance({**met, "relative_standard_error": 0.5}, loose)  # (the rule stops below)
+
+
+def test_a_cached_reference_within_a_looser_tolerance_is_used(tmp_path, cache, capsys, monkeypatch):
+    """A cached reference that missed its own tolerance but meets the looser one asked for now is
+    used as it is, by ``tlm reference`` (exit 0) and ``tlm error-vs-cost`` (rows converged);
+    before, both computed another, which replaced it though its error was higher."""
+    old, image = _cached(tmp_path, cache, capsys)
+    loose = {**SHORT, "tolerance": round(old["relative_standard_error"] * 1.5, 4), "max_rounds": 8}
+    monkeypatch.setattr(reference, "compute_reference", lambda *a, **k: pytest.fail("computed it again"))
+    monkeypatch.setattr(error_cost, "compute_reference", lambda *a, **k: pytest.fail("computed it again"))
+    assert main(["reference", _config(tmp_path, loose), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert (f"reference {old['key']} is cached, relative standard error {old['relative_standard_error']:.4f} "
+            f"<= {loose['tolerance']}") in out
+    meta, now = _held(cache)
+    assert meta == old
+    np.testing.assert_array_equal(now, image)
+
+    exp = tmp_path / "evc.json"
+    exp.write_text(json.dumps({"base": {**PMAP, "reference": loose, "estimate": {"final_gather": 0}},
+                               "points": [{"estimate.filter": ["knn"]}]}))
+    assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "evc"), "--truth-spp", "0", "--no-report"]) == 0
+    assert "NOT converged" not in capsys.readouterr().err
+    got = json.loads((tmp_path / "evc" / "reference.json").read_text())
+    assert got["rounds"] == 4 and got["computed"] is False and got["reference_converged"] is True
+    assert _held(cache)[0] == old
+
+
+def test_a_kept_reference_is_said_against_the_tolerance_asked_for_now(tmp_path, cache, capsys):
+    """A reference cached at a loose tolerance (converged there), kept by a stricter ``tlm
+    reference`` that asks for no more rounds: the command says it is NOT converged at the
+    tolerance asked for and exits 1 (it said "converged", exit 0, from the stored flag)."""
+    loose = {**SHORT, "tolerance": 1e6}
+    assert main(["reference", _config(tmp_path, loose), "--no-progress"]) == 0
+    meta, _ = _held(cache)
+    assert meta["converged"] is True
+    capsys.readouterr()
+    assert main(["reference", _config(tmp_path, SHORT), "--no-progress"]) == 1
+    out = capsys.readouterr().out
+    assert "NOT converged" in out and "\nconverged" not in f"\n{out}", out

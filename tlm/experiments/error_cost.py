@@ -9,7 +9,10 @@ with the base's reference settings and cached (where the cache cannot take it, k
 ``tlm reference`` keeps it, ``<tmp>/tlm-cache-<uid>``, with one line that says so, and the
 study goes on). One that still misses the tolerance
 (``reference.max_rounds`` reached) is used all the same, with a warning, and every
-row's ``reference_converged`` (and ``reference.json``'s) is false. The cost: the
+row's ``reference_converged`` (and ``reference.json``'s) is false. "Meets" is judged against the
+base's ``reference.tolerance`` and ``min_rounds`` (:func:`meets_tolerance`: its error and rounds),
+not by the ``converged`` flag of the run that computed it, which ``reference.json`` keeps as it
+is: one that missed a stricter tolerance but meets the base's is used, converged. The cost: the
 gather's work (node visits, leaves visited, photons tested and accepted), host seconds
 (photon tracing and gathering, one-off work excluded: below) and the simulated time of the whole
 photon-map frame. That frame is what ``tlm run``

@@ -39,8 +39,10 @@ tolerance and computes it again otherwise, but for one with more rounds than
 computed with the same stopping rule (:data:`RULE`: the same rounds again);
 ``tlm run`` uses whatever is cached, and computes it when nothing is (:func:`ensure_reference`;
 ``reference.auto``). A reference computed now replaces the cached one only where it is better
-(:func:`better`, :func:`store_reference`: it meets the tolerance and the cached one does not,
-or neither does and its relative standard error is lower), or with ``--force``.
+(:func:`better`, :func:`store_reference`: it meets the tolerance asked for now
+(:func:`meets_tolerance`: its error and rounds, not the flag of the run that computed it) and
+the cached one does not, or neither does and its relative standard error is lower), or with
+``--force``.
 
 A cache that cannot be written (a read-only ``~/.cache``) loses no reference: ``tlm run``
 uses the one it computed for that run only, and ``tlm reference`` keeps it in the
@@ -373,10 +375,19 @@ def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
 
 
 def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
-    """Whether a reference's ``meta`` says it converged within ``settings.tolerance`` (the test
-    ``tlm reference`` applies to a cached one: :func:`make_reference`)."""
-    err = meta.get("relative_standard_error")
-    return bool(meta.get("converged")) and err is not None and err <= settings.tolerance
+    """Whether the reference of ``meta`` meets the stopping rule of ``settings`` asked for now,
+    the test :func:`compute_reference` stops at: a relative standard error below
+    ``settings.tolerance``, measured over at least two cycles, after at least
+    ``settings.min_rounds`` rounds. Judged on its error and rounds, not on its ``converged``
+    flag, which says whether it met the tolerance of the run that computed it (one that ran to a
+    strict tolerance's ``max_rounds`` may meet a looser one asked for now, and one converged at a
+    loose tolerance may miss a stricter one). The test of a cached one in ``tlm reference`` and
+    ``tlm error-vs-cost`` (:func:`make_reference`, ``study_reference``) and of which of two is
+    better (:func:`better`)."""
+    err, rounds, cycles = (meta.get(k) for k in ("relative_standard_error", "rounds", "cycles"))
+    return (isinstance(err, (int, float)) and math.isfinite(err) and err < settings.tolerance
+            and isinstance(rounds, int) and rounds >= settings.min_rounds
+            and (not isinstance(cycles, int) or cycles >= 2))
 
 
 # the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
@@ -530,7 +541,8 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
         if kept:
             say(f"{kept}; this run uses the cached one")
         else:
-            state = "converged" if meta["converged"] else "NOT converged (reference.max_rounds reached)"
+            state = ("converged" if meets_tolerance(meta, settings) else
+                     "NOT converged (reference.max_rounds reached)")
             say(f"reference {key}: {state} after {meta['rounds']} rounds (relative standard error "
                 f"{meta['relative_standard_error']:.4f}) in {seconds:.1f} s; {where}")
     return Found(key, settings, image, meta, seconds)
@@ -579,11 +591,18 @@ class Made:
     folder: Path
     kept: str = ""
 
+    @property
+    def meets(self) -> bool:
+        """Whether the reference the cache holds now meets the tolerance asked for
+        (:func:`meets_tolerance` of ``meta`` and ``settings``; not its own ``converged`` flag)."""
+        return meets_tolerance(self.meta, self.settings)
+
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
                    say=None, progress=None, bar: bool = False) -> Made:
     """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
-    one when it is converged within ``reference.tolerance`` (and not ``force``), else
+    one when it meets ``reference.tolerance`` and ``reference.min_rounds`` as asked for now
+    (:func:`meets_tolerance`, whatever tolerance it was computed for; and not ``force``), else
     computed now and cached where it is better than the cached one (:func:`store_reference`).
     A cached one that misses the tolerance with more rounds than ``reference.max_rounds``
     (:func:`fewer_rounds`), or computed with the same stopping rule (:data:`RULE`: the same
@@ -603,8 +622,7 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     key = reference_key(scene, cfg, settings)
     cached = None if force else load_reference(key)
     if cached is not None:
-        err = cached[1].get("relative_standard_error")
-        if cached[1].get("converged") and err is not None and err <= settings.tolerance:
+        if meets_tolerance(cached[1], settings):
             return Made(key, settings, cached[1], False, cache_dir() / key)
         if fewer_rounds(cached[1], settings):
             say(line := kept_back(key, cached[1], settings))

@@ -47,7 +47,13 @@ from tlm.config import ArchConfig, RunConfig, to_dict, with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
-from tlm.experiments.reference import difference_image, ensure_reference, image_error, load_reference
+from tlm.experiments.reference import (
+    difference_image,
+    ensure_reference,
+    image_error,
+    load_reference,
+    meets_tolerance,
+)
 from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
@@ -283,7 +289,7 @@ def photon_error(frame: Frame, pmap: np.ndarray, compute: bool = False, progress
                 "hint": "run 'tlm reference CONFIG' to compute and cache it"}
     meta = found.meta
     return {"reference": found.key, "available": True, **image_error(pmap, found.image),
-            "reference_converged": meta.get("converged"), "reference_rounds": meta.get("rounds"),
+            "reference_converged": meets_tolerance(meta, found.settings), "reference_rounds": meta.get("rounds"),
             "reference_standard_error": meta.get("relative_standard_error"),
             "reference_seconds": None if found.seconds is None else round(found.seconds, 3)}
 
