@@ -446,7 +446,7 @@ def test_bad_command_line_arguments(tmp_path, capsys, argv):
     "a: &a {x: 1}\nb: &b {<<: *a, x: 2}\nc: {<<: *b}\nd: {<<: *b}\n",
 ])
 def test_merge_keys_may_be_set_again_as_yaml_allows(text):
-    from tlm.config import parse_yaml
+    from tlm.config_words import parse_yaml
 
     assert parse_yaml(text) == yaml.safe_load(text)
 
@@ -454,7 +454,7 @@ def test_merge_keys_may_be_set_again_as_yaml_allows(text):
 @pytest.mark.parametrize("text", ["a: 1\na: 2\n", "a: {x: 1, x: 2}\n", "a: &a {x: 1}\nb: {<<: *a, y: 1, y: 2}\n",
                                   "l: [{q: 1, q: 2}]\n"])
 def test_a_key_given_twice_in_one_mapping_is_refused(text):
-    from tlm.config import DuplicateKeyError, parse_yaml
+    from tlm.config_words import DuplicateKeyError, parse_yaml
 
     with pytest.raises(DuplicateKeyError, match="duplicate key"):
         parse_yaml(text)

@@ -14,7 +14,8 @@ import pytest
 import tlm
 from tlm.api_common import refuse_other_kind
 from tlm.cli import main
-from tlm.config import RunConfig, _schema, config_from_dict, describe, read_yaml, value_text
+from tlm.config import RunConfig, _schema, config_from_dict, describe, read_yaml
+from tlm.config_words import value_text
 from tlm.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -25,7 +25,7 @@ import yaml
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
 from tests.helpers_storage import refuse_to_carry
-from tlm import storage
+from tlm import claims, storage
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.storage import atomic_folder, folder_lock
@@ -410,21 +410,21 @@ def test_a_destination_taken_meanwhile_keeps_the_finished_output(tmp_path):
 
 
 def test_a_folder_is_shared_by_one_identity_and_refused_to_another(tmp_path):
-    """storage.sharing: processes of one identity (one sweep's points) share a folder; another
+    """claims.sharing: processes of one identity (one sweep's points) share a folder; another
     identity is refused while any holds it, naming the process; the last holder's file goes
     on the way out, and a file whose holders ended (no lock on it) is stale and removed."""
     out = tmp_path / "o"
     out.mkdir()
-    with storage.sharing(out, "a", "sweep"):
-        with storage.sharing(out, "a", "sweep"):  # (a second open file: as another process's)
+    with claims.sharing(out, "a", "sweep"):
+        with claims.sharing(out, "a", "sweep"):  # (a second open file: as another process's)
             pass
         assert (out / ".tlm-running-a").is_file()  # the first holder still holds it
         refused = rf"another sweep of other points is writing into .*process {os.getpid()}"
-        with pytest.raises(InputError, match=refused), storage.sharing(out, "b", "sweep"):
+        with pytest.raises(InputError, match=refused), claims.sharing(out, "b", "sweep"):
             pytest.fail("a second identity got the folder")
     assert not (out / ".tlm-running-a").exists()
     (out / ".tlm-running-dead").write_text(f"{dead_pid()}\n")  # left by a killed process: no lock on it
-    with storage.sharing(out, "b", "sweep"):
+    with claims.sharing(out, "b", "sweep"):
         assert not (out / ".tlm-running-dead").exists()
     assert [p.name for p in out.iterdir()] == [".tlm-lock"]
     storage.check_destination(out, "sweep.yaml")  # (a folder holding only the lock file is still ours to claim)
@@ -440,7 +440,7 @@ def test_a_sweep_of_other_points_is_refused_while_one_runs_into_its_folder(tmp_p
     out = tmp_path / "o"
     out.mkdir()
     (out / "sweep.yaml").write_text("theirs")  # another sweep's folder, that sweep running
-    with storage.sharing(out, "theirs", "sweep"):
+    with claims.sharing(out, "theirs", "sweep"):
         assert main(["sweep", str(path), "--out", str(out), "--jobs", "1", "--no-progress", "--no-report"]) == 2
         line = one_line(capsys.readouterr().err)
         assert line.startswith("tlm: error: --out: another sweep of other points is writing into") and "process" in line

@@ -1,4 +1,4 @@
-"""A run's output folder is the run's while it works (tlm.storage.claimed): a second ``tlm run``
+"""A run's output folder is the run's while it works (tlm.claims.claimed): a second ``tlm run``
 into it from another process is refused at once (exit 2, one line naming the first's process,
 nothing written, no render), not accepted to be silently replaced by the first's at its end, as
 two ``tlm run --out conc2`` at once were (both exit 0, "wrote conc2", one output gone). A claim a
@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 import tlm.experiments.run as run_mod
-from tlm import storage
+from tlm import claims, storage
 from tlm.cli import main
 from tlm.config import RunConfig
 
@@ -124,7 +124,7 @@ def test_threads_of_one_process_share_a_claim(tmp_path):
     inside = []
 
     def hold(n: int) -> None:
-        with storage.claimed(out):
+        with claims.claimed(out):
             inside.append(claim_file(out).is_file())
             barrier.wait()
             if n == 1:
@@ -207,8 +207,8 @@ def test_the_claim_lasts_through_the_runs_report(tmp_path, monkeypatch, capsys):
 
     out = tmp_path / "runs" / "r"
     seen: list[str] = []
-    probe = ("import sys\nfrom pathlib import Path\nfrom tlm import storage\nfrom tlm.errors import InputError\n"
-             "try:\n    with storage.claimed(Path(sys.argv[1])):\n        print('claimed')\n"
+    probe = ("import sys\nfrom pathlib import Path\nfrom tlm import claims\nfrom tlm.errors import InputError\n"
+             "try:\n    with claims.claimed(Path(sys.argv[1])):\n        print('claimed')\n"
              "except InputError as e:\n    print('refused:', e)\n")
 
     def report(dirs, *a, **k):  # (while the report would be drawn: another process tries the folder)
@@ -241,8 +241,8 @@ def test_a_file_system_without_locks_is_said_and_leaves_nothing(tmp_path, monkey
     def no_locks(fd, op):
         raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
 
-    monkeypatch.setattr(storage.fcntl, "flock", no_locks)
+    monkeypatch.setattr(claims.fcntl, "flock", no_locks)
     out = tmp_path / "a" / "b" / "r"
-    with pytest.raises(storage.EnvironmentFailure, match="takes no locks"), storage.claimed(out):
+    with pytest.raises(claims.EnvironmentFailure, match="takes no locks"), claims.claimed(out):
         raise AssertionError("claimed")
     assert list(tmp_path.iterdir()) == []

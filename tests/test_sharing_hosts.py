@@ -1,4 +1,4 @@
-"""storage.sharing on a folder that machines share: a holder records its host with its pid,
+"""tlm.claims.sharing on a folder that machines share: a holder records its host with its pid,
 and a refusal names the holder's machine; another machine's process is never taken for one
 of this machine's of the same pid (its processes cannot be checked from here). A record
 of an older tlm (its pid alone) is still read."""
@@ -12,7 +12,7 @@ from contextlib import contextmanager
 
 import pytest
 
-from tlm import storage
+from tlm import claims, storage
 from tlm.errors import InputError
 
 
@@ -31,7 +31,7 @@ def held(path, record: str):
 
 
 def refusal(out) -> str:
-    with pytest.raises(InputError) as e, storage.sharing(out, "mine", "sweep"):
+    with pytest.raises(InputError) as e, claims.sharing(out, "mine", "sweep"):
         pytest.fail("a second identity got the folder")
     return str(e.value)
 
@@ -39,7 +39,7 @@ def refusal(out) -> str:
 def test_a_holder_records_its_host_and_pid_and_the_refusal_names_this_machine(tmp_path):
     out = tmp_path / "o"
     out.mkdir()
-    with storage.sharing(out, "theirs", "sweep"):
+    with claims.sharing(out, "theirs", "sweep"):
         assert (out / ".tlm-running-theirs").read_text().strip() == f"{storage._host()}-{os.getpid()}"
         said = refusal(out)
     assert f"(process {os.getpid()} on this machine, {storage._host()[1:]})" in said

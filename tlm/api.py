@@ -72,8 +72,8 @@ from tlm.config import (
     plain,
     read_yaml,
     to_dict,
-    with_overrides,
 )
+from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.whole_imports import imports_whole
 

@@ -8,7 +8,8 @@ import os
 import re
 from pathlib import Path
 
-from tlm.config import read_yaml, yaml_kind
+from tlm.config import read_yaml
+from tlm.config_words import yaml_kind
 from tlm.errors import InputError, did_you_mean
 
 # the command that takes an experiment file, by the first of its keys found here (a study's

@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from tlm import api, storage
+from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError, MaxEventsReached
 from tlm.cli_signals import exit_status, forget_lost_interrupt, interrupted, signalled, signals, until_exit, version
 from tlm.errors import values_text
@@ -151,7 +151,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
-    with storage.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
+    with claims.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=_say_err)
         _print_run(args, results, out, skip, overrides, t0)

@@ -23,8 +23,8 @@ turns into such a thing while the block runs (another program's folder, a file) 
 output beside it, in a folder of its own (``OUT.unsaved-<pid>``, else ``-2``, ``-3``, ...), which the
 error names (:func:`_keep_beside`).
 
-A run holds its destination while it works (:func:`claimed`): a second ``tlm run --out X`` of
-another process is refused at once, naming the first. Concurrent writers of one destination that
+A run holds its destination while it works (:func:`tlm.claims.claimed`): a second ``tlm run --out X``
+of another process is refused at once, naming the first. Concurrent writers of one destination that
 remain (two threads of one process calling ``tlm.run`` into one folder, two runs of one sweep
 writing one point) never see each other's temporary folders: each has its own
 (``.<name>.tmp-<host>-<pid>-<n>``, ``n`` counting the writers of the process); the swap of the
@@ -110,11 +110,15 @@ def _mount_points() -> frozenset[bytes]:
                      for fields in map(bytes.split, lines) if len(fields) > 4)
 
 
+_GUARD = ".tlm-lock"  # (the lock files of tlm.claims.sharing, which a sweep's folder may hold)
+_RUNNING = ".tlm-running-"
+
+
 def _claiming(name: str, marker: str) -> bool:
     """Whether ``name`` is the temporary file of a marker being written (another tlm
     process claiming the folder this instant, :func:`claim_folder`: ``.<marker>.tmp<host>-<pid>``,
-    or an older tlm's ``.<marker>.tmp<pid>``), or a lock file of :func:`sharing` (a sweep refused,
-    or killed, before it wrote its marker leaves one)."""
+    or an older tlm's ``.<marker>.tmp<pid>``), or a lock file of :func:`tlm.claims.sharing` (a sweep
+    refused, or killed, before it wrote its marker leaves one)."""
     return name.startswith((f".{marker}.tmp", _RUNNING)) or name == _GUARD
 
 
@@ -126,7 +130,7 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     :func:`check_destination` accepted) gets the marker by an atomic write. Two processes
     claiming one folder at once both succeed: the second finds the first's marker.
     ``existing=False``: a folder that exists (or that another process made first) is left
-    as it is, its marker the caller's to write (:func:`sharing`). Whether this made it.
+    as it is, its marker the caller's to write (:func:`tlm.claims.sharing`). Whether this made it.
     The prepared sibling, ``.<name>.claim<host>-<pid>`` (and the thread's tag), is this writer's
     alone, on a folder shared between machines too: what is left at its name (by an earlier process
     of this id on this machine) is removed first, never another machine's sibling.
@@ -148,201 +152,6 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     if existing:
         write_file(out / marker, data)
     return False
-
-
-_GUARD = ".tlm-lock"
-_RUNNING = ".tlm-running-"
-_RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
-
-
-@contextmanager
-def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
-    """Hold the existing folder ``out`` for the processes of one ``identity`` (a sweep's
-    points) while the block runs: an :class:`InputError` if a process of another identity
-    holds it. Processes of one identity share it (two runs of one sweep cooperate).
-
-    Each holder keeps a shared ``flock`` on ``.tlm-running-<identity>`` (with its host and
-    pid, ``<host>-<pid>``: the folder may be on a disk shared between machines); a newcomer,
-    under an exclusive lock on ``.tlm-lock``, tries an exclusive lock on every other
-    identity's file: one it gets is stale (its processes ended, the kernel released their
-    locks) and is removed; one it cannot get is held, and the refusal names its holder
-    (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
-    cannot be from here. The last holder of an identity removes its file on the way out."""
-    out = Path(out)
-    guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
-    mine_path = out / f"{_RUNNING}{identity}"
-    mine = None
-    try:
-        fcntl.flock(guard, fcntl.LOCK_EX)
-        try:
-            for other in sorted(out.glob(f"{_RUNNING}*")):
-                if other.name != mine_path.name:
-                    _claim_stale(other, what)
-            mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
-            fcntl.flock(mine, fcntl.LOCK_SH)
-            os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
-        finally:
-            fcntl.flock(guard, fcntl.LOCK_UN)
-        yield
-    finally:
-        if mine is not None:
-            fcntl.flock(guard, fcntl.LOCK_EX)
-            with suppress(OSError):
-                fcntl.flock(mine, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (no other holder of this identity)
-                mine_path.unlink(missing_ok=True)
-            os.close(mine)
-        os.close(guard)
-
-
-def _claim_stale(path: Path, what: str) -> None:
-    """Remove another identity's running file whose holders ended; an InputError naming
-    the process when one still holds it (:func:`sharing`, under its guard)."""
-    try:
-        fd = os.open(path, os.O_RDWR)
-    except FileNotFoundError:
-        return
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
-            raise InputError(f"another {what} of other points is writing into {str(path.parent)!r} "
-                             f"({holder}): wait for it to end, or give another folder",
-                             key="--out") from None
-        path.unlink(missing_ok=True)
-    finally:
-        os.close(fd)
-
-
-def _holder(record: str) -> str:
-    """The process a running file's ``record`` names, for a refusal: ``process PID on this
-    machine, HOST``, or ``process PID on host HOST, another machine: ...`` (its processes
-    cannot be checked from this one); an older tlm's record (its pid alone) as ``process PID``."""
-    line = record.split("\n", 1)[0].strip()  # (a shorter record written over a longer one: its first line)
-    m = re.fullmatch(r"(h[A-Za-z0-9]*)-(\d+)", line)
-    if m is None:
-        return f"process {line if line.isdigit() else '?'}"
-    name = m[1][1:]
-    if m[1] == _host():
-        return f"process {m[2]} on this machine, {name}"
-    return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
-
-
-_CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
-_CLAIMS_LOCK = threading.Lock()
-_CLAIMS: dict[str, list] = {}  # the destinations this process holds: path -> [fd, claim file, holders, made]
-
-
-@contextmanager
-def claimed(out: Path, what: str = "run") -> Iterator[None]:
-    """Hold the destination ``out`` (resolved) for this process while the block runs: an
-    :class:`InputError` naming the process when another holds it (``another run is writing
-    into 'OUT' (process 4242 on this machine, HOST): ...``), raised before the block does any work.
-
-    The holder keeps an exclusive ``flock`` on ``.<name>.tlm-running`` beside ``out`` (the
-    destination may not exist yet, and a run's swap replaces the folder itself), the file
-    holding its host and pid (:func:`process_tag`, read back by :func:`_holder`); the last
-    holder removes it. A file whose process ended is taken over (the kernel released its lock),
-    another machine's is respected while its lock is held: the lock alone decides, as for a
-    sweep (:func:`sharing`). Threads of one process share the claim (their writes of one folder
-    were always safe: the last to finish wins, :func:`atomic_folder`). The folders made on the
-    way to ``out`` are removed again when the block leaves none of its output in them."""
-    given = Path(out)
-    out = given.resolve()
-    key = os.fsdecode(out)
-    with _CLAIMS_LOCK:
-        held = _CLAIMS.get(key)
-        if held is None:
-            held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
-        held[3] += 1
-    try:
-        yield
-    finally:
-        with _CLAIMS_LOCK:
-            held[3] -= 1
-            if held[3] == 0 and _CLAIMS.get(key) is held:
-                del _CLAIMS[key]
-                _drop_claim(*held[:3])
-
-
-def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path]]:
-    """The locked claim file of the resolved destination ``out`` (:func:`claimed`; ``given``:
-    as the caller named it, for the messages): its descriptor, its path and the folders made
-    on the way to it."""
-    path = out.parent / f".{out.name}{_CLAIMED}"
-    made = [d for d in (out.parent, *out.parent.parents) if not d.exists()][::-1]
-    for _ in range(100):
-        try:
-            out.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        except FileNotFoundError as e:
-            if not out.parent.is_dir():  # (a folder on the way removed meanwhile: another holder's, made
-                continue  # and dropped; else the folder cannot hold the file: said below)
-            _remove_made(made)
-            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
-                                     source=str(given)) from None
-        except OSError as e:
-            _remove_made(made)
-            if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
-                raise EnvironmentFailure(f"cannot write into {out.parent} (read-only or not permitted)",
-                                         source=str(given)) from None
-            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
-                                     source=str(given)) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as e:
-            if not isinstance(e, BlockingIOError):  # (a file system without locks: ENOLCK, EOPNOTSUPP)
-                os.close(fd)
-                with suppress(OSError):
-                    path.unlink()
-                _remove_made(made)
-                raise EnvironmentFailure(f"cannot lock {path} to claim the output folder ({e.strerror}): "
-                                         "the file system takes no locks; give a folder on a local disk",
-                                         source=str(given)) from None
-            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
-            os.close(fd)
-            _remove_made(made)
-            raise InputError(f"another {what} is writing into {str(given)!r} ({holder}): wait for it to end, "
-                             "or give another folder", key="--out") from None
-        try:
-            same = os.path.samestat(os.stat(path), os.fstat(fd))
-        except OSError:
-            same = False
-        if same:  # (not a file its holder removed between this open and this lock)
-            try:
-                os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
-            except OSError as e:  # (a full disk: no run could be written there either)
-                _drop_claim(fd, path, made)
-                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
-                                         source=str(given)) from None
-            return fd, path, made
-        os.close(fd)
-    _remove_made(made)
-    raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
-
-
-def _drop_claim(fd: int, path: Path, made: list[Path]) -> None:
-    """Give up the claim :func:`_take_claim` took: its file removed, its lock released (released
-    for forked children too, which hold copies of the descriptor), the folders it made removed
-    where they are empty (``out`` was not written)."""
-    try:
-        with suppress(OSError):
-            if os.path.samestat(os.stat(path), os.fstat(fd)):
-                path.unlink()
-    finally:
-        with suppress(OSError):
-            fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
-    _remove_made(made)
-
-
-def _remove_made(made: list[Path]) -> None:
-    """Remove the folders in ``made`` (outermost first) that are empty, innermost first."""
-    for d in reversed(made):
-        try:
-            d.rmdir()
-        except OSError:
-            return
 
 
 def distinct_folders(dirs: Iterable[str | Path], notes: list[str] | None = None) -> list[Path]:
@@ -420,12 +229,10 @@ def _release(name: str) -> None:
 
 def _forget_live() -> None:
     """In a forked child: the parent's folders carry the parent's pid, and its locks may be held."""
-    global _LIVE_LOCK, _CLAIMS_LOCK
+    global _LIVE_LOCK
     _LIVE_LOCK = threading.Lock()
     _LIVE.clear()
     _FILES.clear()
-    _CLAIMS_LOCK = threading.Lock()
-    _CLAIMS.clear()  # (the parent's claims: never unlocked by the child, which would release them)
 
 
 if hasattr(os, "register_at_fork"):
@@ -815,8 +622,6 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
         w.writeheader()
         for r in rows:
             w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else _finite(v) for k, v in r.items()})
-
-
 
 
 _HEARERS: list[Callable[[Path, BaseException], None]] = []  # told of each failed write (on_failed_write)

@@ -43,7 +43,9 @@ from tlm.arch.costs import Programs, load_programs
 from tlm.arch.functional import Functional
 from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
-from tlm.config import ArchConfig, RunConfig, to_dict, with_overrides
+from tlm.claims import claimed
+from tlm.config import ArchConfig, RunConfig, to_dict
+from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
@@ -67,7 +69,7 @@ from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, inert_changes, inert_timing_settings, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Scene
-from tlm.storage import atomic_folder, check_destination, claimed, json_text, warn
+from tlm.storage import atomic_folder, check_destination, json_text, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
 # what a run folder's writers put in it (its report: 'tlm report' after the run); anything else
@@ -649,7 +651,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     source = with_overrides(config_path, via) if overrides else config_path  # (via: what errors call them)
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     # the folder is this process's until it is written: another process's run into it is refused
-    # now, before any work, naming this one (tlm.storage.claimed), not silently replaced at its end
+    # now, before any work, naming this one (tlm.claims.claimed), not silently replaced at its end
     with claimed(out, "run"):
         programs = programs_for(cfg, base)  # a bad instruction table fails before the render
         res = render(cfg, base, source, progress=progress, reference=reference)

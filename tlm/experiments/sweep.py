@@ -70,7 +70,7 @@ from typing import Any
 
 import yaml
 
-from tlm import storage
+from tlm import claims, storage
 from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held, say_cache_warning
 from tlm.config import (
     config_from_dict,
@@ -456,11 +456,11 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 # the folder and its marker appear together, before anything else is written in it
                 # (and only once the executor opened: a bad --dask leaves nothing): a second sweep
                 # into it, started this instant, finds a tlm output, never a half-made folder. A
-                # sweep of other points running into it refuses this one (storage.sharing); one of
+                # sweep of other points running into it refuses this one (claims.sharing); one of
                 # the same points shares it
                 marker = sweep.marker()
                 made = claim_folder(out, MARKER, marker, existing=False)
-                held.enter_context(storage.sharing(out, sweep.identity(), "sweep"))
+                held.enter_context(claims.sharing(out, sweep.identity(), "sweep"))
                 if not made:
                     storage.write_file(out / MARKER, marker)
                 points_dir.mkdir(parents=True, exist_ok=True)

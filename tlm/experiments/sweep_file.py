@@ -33,9 +33,9 @@ from tlm.config import (
     read_yaml,
     run_config_field,
     to_dict,
-    value_text,
     with_leaves,
 )
+from tlm.config_words import value_text
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
 from tlm.fingerprint import code_fingerprint
@@ -119,7 +119,7 @@ class Sweep:
 
     def identity(self) -> str:
         """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
-        identity may run into one folder at once, two of others may not (storage.sharing)."""
+        identity may run into one folder at once, two of others may not (tlm.claims.sharing)."""
         return hashlib.sha256("\n".join(p.hash for p in self.points).encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict:

@@ -1,0 +1,232 @@
+"""Who holds an output folder while it is written: a run's destination, a sweep's folder.
+
+* :func:`claimed` — a run's destination, held by one process while it works: a second ``tlm run
+  --out X`` of another process is refused at once, naming the first (its host and pid), before it
+  does any work; threads of one process share the claim.
+* :func:`sharing` — a sweep's folder, held by the processes of one identity (one sweep's points):
+  a sweep of other points running into it is refused, naming its holder.
+
+Both hold a ``flock`` on a file of their own (beside the destination, or in the sweep's folder)
+recording the holder's host and pid (:func:`tlm.storage.process_tag`): the lock alone decides
+whether a holder is alive (its process ended, the kernel released it), on a folder shared between
+machines too; the record only names it in a refusal (:func:`_holder`). Writing the folder itself,
+atomically, is :mod:`tlm.storage`'s (which recognises :func:`sharing`'s files in a folder as a tlm
+output's).
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import re
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+from pathlib import Path
+
+from tlm.errors import EnvironmentFailure, InputError
+from tlm.storage import _GUARD, _RUNNING, _host, process_tag
+
+_RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
+
+
+@contextmanager
+def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
+    """Hold the existing folder ``out`` for the processes of one ``identity`` (a sweep's
+    points) while the block runs: an :class:`InputError` if a process of another identity
+    holds it. Processes of one identity share it (two runs of one sweep cooperate).
+
+    Each holder keeps a shared ``flock`` on ``.tlm-running-<identity>`` (with its host and
+    pid, ``<host>-<pid>``: the folder may be on a disk shared between machines); a newcomer,
+    under an exclusive lock on ``.tlm-lock``, tries an exclusive lock on every other
+    identity's file: one it gets is stale (its processes ended, the kernel released their
+    locks) and is removed; one it cannot get is held, and the refusal names its holder
+    (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
+    cannot be from here. The last holder of an identity removes its file on the way out."""
+    out = Path(out)
+    guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
+    mine_path = out / f"{_RUNNING}{identity}"
+    mine = None
+    try:
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        try:
+            for other in sorted(out.glob(f"{_RUNNING}*")):
+                if other.name != mine_path.name:
+                    _claim_stale(other, what)
+            mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
+            fcntl.flock(mine, fcntl.LOCK_SH)
+            os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
+        finally:
+            fcntl.flock(guard, fcntl.LOCK_UN)
+        yield
+    finally:
+        if mine is not None:
+            fcntl.flock(guard, fcntl.LOCK_EX)
+            with suppress(OSError):
+                fcntl.flock(mine, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (no other holder of this identity)
+                mine_path.unlink(missing_ok=True)
+            os.close(mine)
+        os.close(guard)
+
+
+def _claim_stale(path: Path, what: str) -> None:
+    """Remove another identity's running file whose holders ended; an InputError naming
+    the process when one still holds it (:func:`sharing`, under its guard)."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
+            raise InputError(f"another {what} of other points is writing into {str(path.parent)!r} "
+                             f"({holder}): wait for it to end, or give another folder",
+                             key="--out") from None
+        path.unlink(missing_ok=True)
+    finally:
+        os.close(fd)
+
+
+def _holder(record: str) -> str:
+    """The process a running file's ``record`` names, for a refusal: ``process PID on this
+    machine, HOST``, or ``process PID on host HOST, another machine: ...`` (its processes
+    cannot be checked from this one); an older tlm's record (its pid alone) as ``process PID``."""
+    line = record.split("\n", 1)[0].strip()  # (a shorter record written over a longer one: its first line)
+    m = re.fullmatch(r"(h[A-Za-z0-9]*)-(\d+)", line)
+    if m is None:
+        return f"process {line if line.isdigit() else '?'}"
+    name = m[1][1:]
+    if m[1] == _host():
+        return f"process {m[2]} on this machine, {name}"
+    return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
+
+
+_CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
+_CLAIMS_LOCK = threading.Lock()
+_CLAIMS: dict[str, list] = {}  # the destinations this process holds: path -> [fd, claim file, holders, made]
+
+
+@contextmanager
+def claimed(out: Path, what: str = "run") -> Iterator[None]:
+    """Hold the destination ``out`` (resolved) for this process while the block runs: an
+    :class:`InputError` naming the process when another holds it (``another run is writing
+    into 'OUT' (process 4242 on this machine, HOST): ...``), raised before the block does any work.
+
+    The holder keeps an exclusive ``flock`` on ``.<name>.tlm-running`` beside ``out`` (the
+    destination may not exist yet, and a run's swap replaces the folder itself), the file
+    holding its host and pid (:func:`~tlm.storage.process_tag`, read back by :func:`_holder`);
+    the last holder removes it. A file whose process ended is taken over (the kernel released its
+    lock), another machine's is respected while its lock is held: the lock alone decides, as for a
+    sweep (:func:`sharing`). Threads of one process share the claim (their writes of one folder
+    were always safe: the last to finish wins, :func:`~tlm.storage.atomic_folder`). The folders
+    made on the way to ``out`` are removed again when the block leaves none of its output in them."""
+    given = Path(out)
+    out = given.resolve()
+    key = os.fsdecode(out)
+    with _CLAIMS_LOCK:
+        held = _CLAIMS.get(key)
+        if held is None:
+            held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
+        held[3] += 1
+    try:
+        yield
+    finally:
+        with _CLAIMS_LOCK:
+            held[3] -= 1
+            if held[3] == 0 and _CLAIMS.get(key) is held:
+                del _CLAIMS[key]
+                _drop_claim(*held[:3])
+
+
+def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path]]:
+    """The locked claim file of the resolved destination ``out`` (:func:`claimed`; ``given``:
+    as the caller named it, for the messages): its descriptor, its path and the folders made
+    on the way to it."""
+    path = out.parent / f".{out.name}{_CLAIMED}"
+    made = [d for d in (out.parent, *out.parent.parents) if not d.exists()][::-1]
+    for _ in range(100):
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except FileNotFoundError as e:
+            if not out.parent.is_dir():  # (a folder on the way removed meanwhile: another holder's, made
+                continue  # and dropped; else the folder cannot hold the file: said below)
+            _remove_made(made)
+            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                     source=str(given)) from None
+        except OSError as e:
+            _remove_made(made)
+            if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
+                raise EnvironmentFailure(f"cannot write into {out.parent} (read-only or not permitted)",
+                                         source=str(given)) from None
+            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                     source=str(given)) from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as e:
+            if not isinstance(e, BlockingIOError):  # (a file system without locks: ENOLCK, EOPNOTSUPP)
+                os.close(fd)
+                with suppress(OSError):
+                    path.unlink()
+                _remove_made(made)
+                raise EnvironmentFailure(f"cannot lock {path} to claim the output folder ({e.strerror}): "
+                                         "the file system takes no locks; give a folder on a local disk",
+                                         source=str(given)) from None
+            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
+            os.close(fd)
+            _remove_made(made)
+            raise InputError(f"another {what} is writing into {str(given)!r} ({holder}): wait for it to end, "
+                             "or give another folder", key="--out") from None
+        try:
+            same = os.path.samestat(os.stat(path), os.fstat(fd))
+        except OSError:
+            same = False
+        if same:  # (not a file its holder removed between this open and this lock)
+            try:
+                os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
+            except OSError as e:  # (a full disk: no run could be written there either)
+                _drop_claim(fd, path, made)
+                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                                         source=str(given)) from None
+            return fd, path, made
+        os.close(fd)
+    _remove_made(made)
+    raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
+
+
+def _drop_claim(fd: int, path: Path, made: list[Path]) -> None:
+    """Give up the claim :func:`_take_claim` took: its file removed, its lock released (released
+    for forked children too, which hold copies of the descriptor), the folders it made removed
+    where they are empty (``out`` was not written)."""
+    try:
+        with suppress(OSError):
+            if os.path.samestat(os.stat(path), os.fstat(fd)):
+                path.unlink()
+    finally:
+        with suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+    _remove_made(made)
+
+
+def _remove_made(made: list[Path]) -> None:
+    """Remove the folders in ``made`` (outermost first) that are empty, innermost first."""
+    for d in reversed(made):
+        try:
+            d.rmdir()
+        except OSError:
+            return
+
+
+def _forget_claims() -> None:
+    """In a forked child: the parent's claims, never unlocked by the child (which would release them)."""
+    global _CLAIMS_LOCK
+    _CLAIMS_LOCK = threading.Lock()
+    _CLAIMS.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_claims)

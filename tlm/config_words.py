@@ -1,0 +1,197 @@
+"""A config's YAML, both ways: how a text reads as values, and how a value is said back.
+
+Reading: :func:`parse_yaml` is PyYAML's safe loader with YAML 1.2 floats (``1e6`` is a
+number, not the string '1e6') that refuses a key given twice (:class:`DuplicateKeyError`).
+Saying: the error messages of tlm name a value as a user writes it in YAML
+(:func:`value_text`: ``two``, ``null``, ``1e9``, ``[64, 64]``), what a config field holds
+in YAML's words (:func:`type_name`: ``an integer or null``), what to write instead
+(:func:`type_hint`), what a file holds that is not a mapping (:func:`yaml_kind`) and a
+config with overrides (:func:`with_overrides`). The two live together because a string is
+said bare only where :func:`parse_yaml` reads it back as that string.
+"""
+
+from __future__ import annotations
+
+import decimal
+import json
+import math
+import re
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any
+
+import yaml
+
+
+class DuplicateKeyError(yaml.constructor.ConstructorError):
+    """A mapping names one key twice (YAML forbids it; PyYAML would keep the last silently)."""
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6', and
+    refuses a key given twice in one mapping (:class:`DuplicateKeyError`), which PyYAML
+    would read as the last one, dropping the first (a second ``render:`` section would
+    silently undo the first). Keys that a merge (``<<: *anchor``) brings in may be set
+    again, as YAML allows."""
+
+    def flatten_mapping(self, node):
+        # (checked before PyYAML's flattening rewrites the node in place with its merged keys,
+        # and once per node: a node merged twice is already flattened the second time)
+        checked = self.__dict__.setdefault("_checked", set())
+        if id(node) not in checked:
+            checked.add(id(node))
+            first: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    mark = first.setdefault(key, key_node.start_mark)
+                except TypeError:  # (an unhashable key: the constructor's own error names it)
+                    continue
+                if mark is not key_node.start_mark:
+                    raise DuplicateKeyError(
+                        None, None, f"duplicate key {key!r} (first at line {mark.line + 1}): give each key once",
+                        key_node.start_mark)
+        super().flatten_mapping(node)
+
+
+_Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+][0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def parse_yaml(text: str) -> Any:
+    """YAML text to data, with YAML 1.2 floats."""
+    return yaml.load(text, Loader=_Loader)
+
+
+def value_text(v: Any, limit: int = 80) -> str:
+    """A config value as a user writes it in YAML, for error messages: ``two`` (not ``'two'``),
+    ``null``, ``true``, ``1e9`` (a float of a whole number from a million on by its exponent,
+    not ``1000000000.0``), ``[64, 64]``, ``{spp: 2}``; a string quoted only where YAML would read
+    it as something else (``'3'``, ``''``, ``'null'``). Cut to about ``limit`` characters."""
+    if v is None:
+        text = "null"
+    elif isinstance(v, bool):
+        text = "true" if v else "false"
+    elif isinstance(v, float):
+        text = _float_text(v)
+    elif isinstance(v, int):
+        text = str(v) if v.bit_length() <= 256 else f"a whole number of {len(str(abs(v)))} digits"
+    elif isinstance(v, str):
+        text = _string_text(v)
+    elif isinstance(v, (list, tuple)):
+        text = f"[{', '.join(value_text(x, limit) for x in v[:limit])}]"
+    elif isinstance(v, dict):
+        pairs = list(v.items())[:limit]
+        text = "{" + ", ".join(f"{value_text(k, limit)}: {value_text(x, limit)}" for k, x in pairs) + "}"
+    else:
+        text = _string_text(str(v))
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _float_text(v: float) -> str:
+    """A float as a user writes it: ``0.5``, ``1e9``, ``1.5e-7``; ``nan``, ``inf`` and ``-inf``
+    as the other messages of tlm name them (YAML's ``.nan``, ``.inf``)."""
+    text = repr(v)
+    if not math.isfinite(v):
+        return text
+    if "e" in text or (v.is_integer() and abs(v) >= 1e6):
+        mantissa, _, exponent = f"{decimal.Decimal(text).normalize():e}".partition("e")
+        return f"{mantissa}e{int(exponent)}"
+    return text
+
+
+def _string_text(v: str) -> str:
+    """A string as YAML would need it written: bare where it reads back as that string on
+    one line, else in quotes."""
+    if v and v == v.strip() and "\n" not in v:
+        try:
+            if parse_yaml(v) == v and ": " not in v and " #" not in v:
+                return v
+        except yaml.YAMLError:
+            pass
+    return "'" + v.replace("'", "''") + "'" if "\n" not in v else json.dumps(v, ensure_ascii=False)
+
+
+def type_name(tp: Any, meta: Mapping[str, Any] | None = None) -> str:
+    """What a field of type ``tp`` (its ``metadata``: ``meta``) holds, in the words of YAML:
+    ``an integer or null``, ``a list of 2 integers (e.g. [64, 64]) or null``."""
+    meta = meta or {}
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        names = [type_name(a, meta) for a in args if a is not type(None)]
+        text = " or ".join(names)
+        return f"{text} or null" if type(None) in args else text
+    if tp is type(None):
+        return "null"
+    if tp is bool:
+        return "true or false"
+    if tp is int:
+        return "an integer"
+    if tp is float:
+        return "a number"
+    if tp is str:
+        if "choices" in meta:
+            return f"one of {', '.join(meta['choices'])}"
+        return "a string"
+    if origin is list:
+        (inner,) = typing.get_args(tp)
+        plural = {int: "integers", float: "numbers", str: "strings", bool: "trues or falses"}.get(inner)
+        if plural is None:
+            plural = f"items each {type_name(inner)}"
+        count = f"{meta['length']} " if "length" in meta else ""
+        example = f" (e.g. {meta['example']})" if "example" in meta else ""
+        return f"a list of {count}{plural}{example}"
+    raise TypeError(f"no words for the config type {tp}")  # (tests/test_config_messages.py tries every field)
+
+
+def type_hint(v: Any, tp: Any, meta: Mapping[str, Any]) -> str:
+    """What to write instead, for a value of the wrong type: a float of a whole number where an
+    integer goes (``1e9``: YAML reads a number with an exponent or a point as a float), a number
+    or a bool where text goes."""
+    wants = set(typing.get_args(tp)) | {tp}
+    lists = [a for a in wants if typing.get_origin(a) is list]
+    items = v if isinstance(v, list) and lists else [v]
+    whole_int = int in wants or any(typing.get_args(a) == (int,) for a in lists)
+    floats = [x for x in items if isinstance(x, float) and math.isfinite(x) and x.is_integer()]
+    if whole_int and floats and len(floats) == len([x for x in items if not isinstance(x, int)]):
+        x = floats[0]
+        whole = f"write {int(x)}" if abs(x) < 1e21 else "write it as a whole number"  # (not 300 digits)
+        return f": {value_text(x)} reads as a float (a number written with an exponent or a decimal point); {whole}"
+    if str in wants and "choices" not in meta and isinstance(v, (int, float)):  # (a bool too: YAML's true, yes)
+        return f" (quote it, '{value_text(v)}', to give it as text)"
+    return ""
+
+
+def with_overrides(source: str, via: str = "--set") -> str:
+    """What error messages call the config ``source`` with overrides applied: ``cornell.yaml,
+    with --set`` (``via``: how they were given, ``--set`` on the command line, ``the
+    overrides`` through the API)."""
+    return f"{source}, with {via}"
+
+
+def yaml_kind(value: Any) -> str:
+    """A YAML value's kind in words (``a list``), for a file that is not the mapping it should be."""
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return f"the number {value_text(value)}"
+    if isinstance(value, str):
+        return f"the text {value_text(value)}"
+    if isinstance(value, list):
+        return "a list"
+    return "something else"
