@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import csv
 import json
+from pathlib import Path
 
 import pytest
 import yaml
 
+from tlm.errors import ERROR_CHARS, error_line
 from tlm.experiments.sweep import run_sweep
-from tlm.experiments.sweep_rows import ERROR_CHARS, error_line
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
         "arch": {"frames": 1, "trace": False, "pipelines": 64, "max_events": 2000}}
@@ -49,3 +50,20 @@ def test_an_error_line_is_one_line_of_a_bounded_size():
     assert error_line("x" * 10, "w", limit=10) == "x" * 10
     assert error_line("x" * 30, "w", limit=10) == "x" * 10 + "... and 20 more characters (the whole message: w)"
     assert error_line("; ".join(["abcd"] * 10), "w", limit=12) == "abcd; abcd; ... and 8 more (the whole message: w)"
+
+
+def test_a_deadlocked_run_says_it_on_a_short_line_and_keeps_its_whole_message(tmp_path, capsys):
+    """``tlm run`` of the same frame: one line on stderr of a bounded size (it was the whole
+    message, some 10 KB), naming the file that holds the whole message; nothing written."""
+    from tlm.cli import main
+
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump(BASE))
+    assert main(["run", str(path), "--out", str(tmp_path / "r"), "--no-progress", "--no-reference"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and err.startswith("tlm: stopped at arch.max_events = 2000 events")
+    assert len(err) <= BOUND + 200, len(err)  # (the file's path is long)
+    kept = err.rsplit("(the whole message: ", 1)[1].rstrip(")")
+    whole = Path(kept).read_text()
+    assert whole.count("waits for") > err.count("waits for") and len(whole) > 5 * BOUND
+    assert not (tmp_path / "r").exists()

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from tlm import progress
 from tlm.api import Deadlock, InputError, MaxEventsReached
-from tlm.errors import environment_problem, interrupted_by
+from tlm.errors import ERROR_CHARS, environment_problem, error_line, interrupted_by
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
 _BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
@@ -316,11 +316,14 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
     if isinstance(e, InputError):
         _line(f"tlm: error: {one_line(e)}")
         return 2
-    if isinstance(e, MaxEventsReached):  # stopped at the config's cap: a limit hit, said as such
-        _line(f"tlm: {e}")
-        return 1
     if isinstance(e, Deadlock):  # the model could not finish: nothing is written, no partial numbers
-        _line(f"tlm: deadlock: {e}")
+        # (a cap hit, MaxEventsReached, said as such); its blocked units bounded to one line of a few
+        # hundred characters (10 KB at 64 pipelines), the whole message kept in a file
+        text = one_line(e)
+        if len(text) > ERROR_CHARS:
+            kept = save_traceback(e)
+            text = text if kept is None else error_line(text, str(kept))
+        _line(f"tlm: {text}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {text}")
         return 1
     if isinstance(e, KeyboardInterrupt):
         return interrupted(argv)

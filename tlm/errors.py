@@ -103,3 +103,25 @@ class StepsFailed(Exception):
         self.steps = steps
         super().__init__(f"step{'s' if len(steps) > 1 else ''} {', '.join(steps)} reported failures (exit status 1, "
                          f"see above); the report was written all the same: {page}")
+
+
+ERROR_CHARS = 400  # about the longest error a row holds (sweep.csv, sweep.jsonl, the sweep's failure lines)
+ERROR_ITEMS = "; "  # what parts of a message are cut between (a Deadlock's blocked units)
+
+
+def error_line(text: str, whole: str, limit: int = ERROR_CHARS) -> str:
+    """``text`` on one line, of about ``limit`` characters at most: a longer one (a deadlock at
+    64 pipelines names every blocked unit, some 10 KB) keeps its first parts (cut between
+    :data:`ERROR_ITEMS`, else between characters) and says how many more ``whole`` holds (where
+    the whole message is: a sweep point's ``error.json``, the file of a command's traceback)."""
+    text = text.replace("\n", " ")
+    if len(text) <= limit:
+        return text
+    parts = text.split(ERROR_ITEMS)
+    if len(parts) > 1 and len(parts[0]) <= limit:
+        kept = 1
+        while kept < len(parts) and len(ERROR_ITEMS.join(parts[:kept + 1])) <= limit:
+            kept += 1
+        rest = len(parts) - kept
+        return f"{ERROR_ITEMS.join(parts[:kept])}; ... and {rest} more (the whole message: {whole})"
+    return f"{text[:limit]}... and {len(text) - limit} more characters (the whole message: {whole})"

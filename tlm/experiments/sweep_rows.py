@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from tlm import storage
+from tlm.errors import error_line
 from tlm.experiments.sweep_file import Point
 
 FIRST_COLUMNS = ("point", "hash", "status", "error")
@@ -33,28 +34,6 @@ def point_row(point: Point, record: dict) -> dict:
         return row
     row.update(result_fields(record["results"]))
     return row
-
-
-ERROR_CHARS = 400  # about the longest error a row holds (sweep.csv, sweep.jsonl, the sweep's failure lines)
-ERROR_ITEMS = "; "  # what parts of a message are cut between (a Deadlock's blocked units)
-
-
-def error_line(text: str, whole: str, limit: int = ERROR_CHARS) -> str:
-    """``text`` on one line, of about ``limit`` characters at most: a longer one (a deadlock at
-    64 pipelines names every blocked unit, some 10 KB) keeps its first parts (cut between
-    :data:`ERROR_ITEMS`, else between characters) and says how many more ``whole`` (the point's
-    ``error.json``, its ``message``) holds."""
-    text = text.replace("\n", " ")
-    if len(text) <= limit:
-        return text
-    parts = text.split(ERROR_ITEMS)
-    if len(parts) > 1 and len(parts[0]) <= limit:
-        kept = 1
-        while kept < len(parts) and len(ERROR_ITEMS.join(parts[:kept + 1])) <= limit:
-            kept += 1
-        rest = len(parts) - kept
-        return f"{ERROR_ITEMS.join(parts[:kept])}; ... and {rest} more (the whole message: {whole})"
-    return f"{text[:limit]}... and {len(text) - limit} more characters (the whole message: {whole})"
 
 
 def result_fields(res: dict) -> dict[str, Any]:
