@@ -337,3 +337,32 @@ def test_a_study_rerun_into_its_folder_keeps_the_user_s_files(tmp_path, cache):
     assert main(["granularity", str(study), "--out", str(out), "--no-report"]) == 0
     assert (out / "notes.md").read_text() == "mine" and (out / "analysis" / "fit.py").read_text() == "mine"
     assert (out / "granularity.csv").read_text() != "stale" and not (out / "report").exists()
+
+
+def test_granularity_loads_the_flow_shop_kernel_before_its_timed_sizes(tmp_path, monkeypatch):
+    """A frame too large for the estimate's Python loop (here: a budget of 0 packets) loads the
+    compiled flow shop before the first timed simulation, not inside the first coarse size's
+    (whose host seconds booked numba's import, ~2 s, against 0.07 s of simulation)."""
+    import tlm.arch.granularity as arch_granularity
+    import tlm.experiments.granularity as study
+
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(arch_granularity, "FLOW_SHOP_LOOP_PACKETS", 0)
+    events: list[str] = []
+    real_shop, real_simulate = arch_granularity.flow_shop, study.simulate
+
+    def shop(*a, **k):
+        events.append("kernel")
+        return real_shop(*a, **k)
+
+    def simulate(*a, **k):
+        events.append("simulate")
+        return real_simulate(*a, **k)
+
+    monkeypatch.setattr(arch_granularity, "flow_shop", shop)
+    monkeypatch.setattr(study, "simulate", simulate)
+    path = tmp_path / "g.yaml"
+    path.write_text(yaml.safe_dump({"base": {**TINY, "scene": "cornell", "mode": "rcast"}, "packet_sizes": [1, 8]}))
+    rows = run_granularity(path, tmp_path / "g")
+    assert [r["packet_size"] for r in rows] == [1, 8]
+    assert events[0] == "kernel" and events.index("simulate") > 0, events[:5]
