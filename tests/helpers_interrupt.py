@@ -58,5 +58,7 @@ def run_script(script: str, *args: str, cwd, cache) -> dict:
     env.pop("TLM_KERNELS", None)  # (the default: numba)
     proc = subprocess.run([sys.executable, "-c", script, *args], cwd=cwd, env=env, capture_output=True, text=True,
                           timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    # (the status too: a process killed by a signal, or CPython's kill of itself at exit after an
+    # unhandled KeyboardInterrupt in an exec'd string, leaves stderr empty)
+    assert proc.returncode == 0, f"exit status {proc.returncode}; stdout {proc.stdout[-500:]!r}; " + proc.stderr[-3000:]
     return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}

@@ -186,6 +186,6 @@ def test_a_run_stopped_at_max_events_says_so_not_deadlock():
     with pytest.raises(MaxEventsReached) as e:
         simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
     said = str(e.value)
-    assert said.startswith("stopped at arch.max_events = 5 events, ") and said.endswith(
-        "; raise it if the run is only long"), said
+    assert said.startswith("stopped at arch.max_events = 5 events, the cap the config sets (raise it if the run "
+                           "is only long), unfinished at cycle "), said
     assert "cannot finish" not in said

@@ -62,8 +62,24 @@ def test_a_deadlocked_run_says_it_on_a_short_line_and_keeps_its_whole_message(tm
     assert main(["run", str(path), "--out", str(tmp_path / "r"), "--no-progress", "--no-reference"]) == 1
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and err.startswith("tlm: stopped at arch.max_events = 2000 events")
+    assert "raise it if the run is only long" in err  # (the advice is kept: it comes before the list)
     assert len(err) <= BOUND + 200, len(err)  # (the file's path is long)
     kept = err.rsplit("(the whole message: ", 1)[1].rstrip(")")
     whole = Path(kept).read_text()
     assert whole.count("waits for") > err.count("waits for") and len(whole) > 5 * BOUND
     assert not (tmp_path / "r").exists()
+
+
+def test_a_deadlocked_step_of_tlm_plots_is_said_on_a_short_line(tmp_path, capsys):
+    """``tlm plots``' step runner says a step's deadlock as the step's own command does: bounded."""
+    from tlm.cli import main
+
+    configs = tmp_path / "configs"
+    configs.mkdir()
+    (configs / "cornell_pmap.yaml").write_text(yaml.safe_dump(BASE))
+    argv = ["plots", "--configs", str(configs), "--runs", str(tmp_path / "runs"), "--out", str(tmp_path / "plots"),
+            "--only", "cornell_pmap"]
+    assert main(argv) == 2  # (the step failed, 1, and then no step's folder is left for the report: 2)
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if "arch.max_events" in ln]
+    assert lines and all(len(ln) <= BOUND + 200 for ln in lines), [len(ln) for ln in lines]
+    assert "raise it if the run is only long" in lines[0]

@@ -410,8 +410,8 @@ def test_the_event_cap_is_named_for_what_it_is(monkeypatch):
     from tlm.arch import model
     from tlm.arch.units import MaxEventsReached
 
-    with pytest.raises(MaxEventsReached, match=r"^stopped at arch\.max_events = 5 events, .*; raise it if the run is "
-                       r"only long$"):
+    with pytest.raises(MaxEventsReached, match=r"^stopped at arch\.max_events = 5 events, the cap the config sets "
+                       r"\(raise it if the run is only long\), unfinished at cycle \d+: "):
         simulate_program(SWAP_PROGRAM, arch(frames=3, max_events=5))
     monkeypatch.setattr(model, "event_bound", lambda program, arch: 7)
     with pytest.raises(Deadlock) as err:

@@ -156,3 +156,16 @@ def test_one_scene_file_reached_by_two_paths_is_one_scene(tmp_path, monkeypatch)
     monkeypatch.chdir(tmp_path)  # (under the current folder: relative to it)
     name_scenes(inputs.runs)
     assert point.scene_label == single.scene_label == "scenes/Mirror.yaml"
+
+
+def test_a_link_inside_the_folder_to_a_run_there_does_not_rename_it(tmp_path):
+    """``root/alink -> root/z/run``: the run is read where it lies, named ``run`` (the link, sorting
+    first, named it ``alink``)."""
+    from tlm.report.collect import find
+
+    root = tmp_path / "root"
+    run = root / "z" / "run"
+    run.mkdir(parents=True)
+    (run / "results.json").write_text("{}")
+    (root / "alink").symlink_to(run, target_is_directory=True)
+    assert [p for p, _ in find(root)] == [run]

@@ -11,8 +11,17 @@ import time
 from pathlib import Path
 
 from tlm import api, claims, storage
-from tlm.api import MODES, Deadlock, InputError, MaxEventsReached
-from tlm.cli_signals import exit_status, forget_lost_interrupt, interrupted, signalled, signals, until_exit, version
+from tlm.api import MODES, Deadlock, InputError
+from tlm.cli_signals import (
+    deadlock_line,
+    exit_status,
+    forget_lost_interrupt,
+    interrupted,
+    signalled,
+    signals,
+    until_exit,
+    version,
+)
 from tlm.errors import values_text
 
 
@@ -50,9 +59,8 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         sub.argv = argv  # (its file is the one in --configs: a name is not looked up among the built-in ones)
         try:
             return sub.func(sub)
-        except Deadlock as e:  # (stopped at arch.max_events: a cap hit, said as such, not a deadlock)
-            print(f"tlm: {e}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {e}", file=sys.stderr,
-                  flush=True)
+        except Deadlock as e:  # (as the step's own command says it: bounded, a cap hit said as such)
+            print(deadlock_line(e), file=sys.stderr, flush=True)
             return 1
 
     only = list(dict.fromkeys(args.only)) if args.only else None  # (--only a --only b: both)
@@ -325,7 +333,7 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     meta = made.meta
     if not made.computed:
         print(f"reference {made.key} is cached, relative standard error {meta['relative_standard_error']:.4f} "
-              f"<= {made.settings.tolerance} (use --force to compute it again)")
+              f"< tolerance {made.settings.tolerance} after {meta['rounds']} rounds (use --force to compute it again)")
         return 0
     ok = made.meets  # (judged against the tolerance asked for now, as the cache was: not its stored flag)
     state = "converged" if ok else "NOT converged (max_rounds reached)"

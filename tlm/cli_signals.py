@@ -2,7 +2,8 @@
 
 Bad input of any kind ends with one line on stderr (``tlm: error: ...``) and exit
 status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units.Deadlock`,
-naming each blocked unit) ends with its message and exit status 1, and so does a failure
+naming each blocked unit) ends with its message on one line, cut to a few hundred characters
+(the whole message in the traceback file it names: :func:`deadlock_line`), and exit status 1, and so does a failure
 of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
 Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
 had half written; a second signal during that clean-up ends the process at once, with one
@@ -310,6 +311,18 @@ def line_break(sig: int) -> str:
     return "\n" if sig == signal.SIGINT else ""
 
 
+def deadlock_line(e: Deadlock) -> str:
+    """A model that could not finish, on one line (``tlm: deadlock: ...``; a cap hit,
+    :class:`MaxEventsReached`, said as such): its blocked units bounded to a few hundred
+    characters (10 KB at 64 pipelines), the whole message kept in the traceback file the line
+    names (:func:`save_traceback`; where none can be written, the line says so)."""
+    text = one_line(e)
+    if len(text) > ERROR_CHARS:
+        kept = save_traceback(e)
+        text = error_line(text, "no file could be written" if kept is None else str(kept))
+    return f"tlm: {text}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {text}"
+
+
 def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
     """The exit status of a command that raised ``e``, once its one line is on stderr
     (``argv``: the command's, None for the process's own)."""
@@ -317,13 +330,7 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
         _line(f"tlm: error: {one_line(e)}")
         return 2
     if isinstance(e, Deadlock):  # the model could not finish: nothing is written, no partial numbers
-        # (a cap hit, MaxEventsReached, said as such); its blocked units bounded to one line of a few
-        # hundred characters (10 KB at 64 pipelines), the whole message kept in a file
-        text = one_line(e)
-        if len(text) > ERROR_CHARS:
-            kept = save_traceback(e)
-            text = text if kept is None else error_line(text, str(kept))
-        _line(f"tlm: {text}" if isinstance(e, MaxEventsReached) else f"tlm: deadlock: {text}")
+        _line(deadlock_line(e))
         return 1
     if isinstance(e, KeyboardInterrupt):
         return interrupted(argv)

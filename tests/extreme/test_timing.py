@@ -747,8 +747,8 @@ def test_fuzzed_architectures_finish_or_name_the_deadlock(fuzz_work, cfg, work, 
         with pytest.raises(Deadlock) as err:
             simulate(fn, PROGRAMS, dataclasses.replace(a, max_events=budget, trace=False))
         msg = str(err.value)
-        m = re.fullmatch(rf"stopped at arch\.max_events = {budget} events, the cap the config sets, unfinished at "
-                         r"cycle (\d+): (.+); raise it if the run is only long", msg)
+        m = re.fullmatch(rf"stopped at arch\.max_events = {budget} events, the cap the config sets \(raise it if the "
+                         r"run is only long\), unfinished at cycle (\d+): (.+)", msg)
         assert m, msg
         assert int(m.group(1)) <= end
         for part in m.group(2).split("; "):

@@ -466,6 +466,7 @@ def _deadlock(env: simpy.Environment, units: list[Unit], why: str, error: type[D
     blocked = [f"{u.scope} waits for {u.waiting_for}" for u in units if u.waiting_for]
     detail = "; ".join(blocked) if blocked else "no unit is waiting (a process ended early)"
     if issubclass(error, MaxEventsReached):  # (a cap hit, not a model that stopped making progress)
-        raise error(f"stopped at {why}, the cap the config sets, unfinished at cycle {int(env.now)}: {detail}; "
-                    "raise it if the run is only long")
+        # (the advice first: a long list of blocked units is cut, tlm.errors.error_line)
+        raise error(f"stopped at {why}, the cap the config sets (raise it if the run is only long), unfinished "
+                    f"at cycle {int(env.now)}: {detail}")
     raise error(f"the model cannot finish at cycle {int(env.now)} ({why}): {detail}")

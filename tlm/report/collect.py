@@ -565,8 +565,9 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
     kind (:func:`kind_of`), in sorted order of their paths: a tlm folder's own subfolders are its
     own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, a report
     half written), a report's folder (``report.html``; ``skip``, the report being written). A link
-    to a tlm folder is one, wherever it points (never searched: no loop); a link to another folder
-    is not followed (a folder in ``root`` is searched where it lies there).
+    to a tlm folder outside ``root`` is one (never searched: no loop); a link to another folder
+    outside it is not followed, and one to a folder inside it is passed over (that folder is
+    searched, and named, where it lies there).
 
     ``notes`` gets a line for each folder passed over that may have been meant, at most
     :data:`NOTES_SHOWN` of a kind and then a line of how many more: a link to a folder outside
@@ -614,16 +615,16 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
                 continue
             if link:
                 target = _real(c)
-                if target == skipped:
-                    continue
+                if target == skipped or os.path.commonpath([top, target]) == top:
+                    continue  # (a link to a folder inside ``root``: what it holds is read where it lies, by its name)
                 k = kind_of(c)
                 if k is not None:
                     found.append((c, k))
                     any_found = True
-                elif os.path.commonpath([top, target]) != top:
+                else:
                     note("link", f"{c}: a link to {target}, a folder outside {root} and no run, sweep or study "
                                  "itself: not followed (give it to tlm report as a folder of its own)")
-                continue  # (a link inside ``root`` to a folder that is no tlm folder: searched where it lies)
+                continue
             c_real = os.path.join(real, e.name)  # (not a link: no need to ask the file system)
             if c_real == skipped:
                 continue
