@@ -21,6 +21,7 @@ import tlm.experiments.run as run_mod
 from tlm import claims, storage
 from tlm.cli import main
 from tlm.config import RunConfig
+from tlm.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
 SMALL = ["--mode", "rcast", "--set", "resolution=[16,16]", "--set", "render.light_samples=1", "--no-progress",
@@ -246,3 +247,33 @@ def test_a_file_system_without_locks_is_said_and_leaves_nothing(tmp_path, monkey
     with pytest.raises(claims.EnvironmentFailure, match="takes no locks"), claims.claimed(out):
         raise AssertionError("claimed")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_forked_child_holds_none_of_its_parents_claims(tmp_path):
+    """A child forked while a claim is held (a render's forked workers) neither holds nor drops it:
+    its claims start empty (tlm.claims._forget_claims), so a claim it made of the same folder is
+    refused, and the parent's claim outlives the child's exit."""
+    out = tmp_path / "r"
+    with claims.claimed(out):
+        pid = os.fork()
+        if pid == 0:  # (the child: 0 when its claims are empty and its own claim of the folder is refused)
+            code = 1
+            try:
+                if not claims._CLAIMS:
+                    try:
+                        with claims.claimed(out):
+                            code = 2
+                    except InputError:
+                        code = 0
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        assert os.waitstatus_to_exitcode(status) == 0
+        assert claim_file(out).exists()
+        probe = ("import sys\nfrom pathlib import Path\nfrom tlm import claims\nfrom tlm.errors import InputError\n"
+                 "try:\n    with claims.claimed(Path(sys.argv[1])):\n        print('claimed')\n"
+                 "except InputError:\n    print('refused')\n")
+        got = subprocess.run([sys.executable, "-c", probe, str(out)], capture_output=True, text=True,
+                             env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=120)
+        assert got.stdout.strip() == "refused", got
+    assert not claim_file(out).exists()
