@@ -189,3 +189,22 @@ def test_a_run_stopped_at_max_events_says_so_not_deadlock():
     assert said.startswith("stopped at arch.max_events = 5 events, the cap the config sets (raise it if the run "
                            "is only long), unfinished at cycle "), said
     assert "cannot finish" not in said
+
+
+def test_thesis_progress_lines_give_fps_to_three_figures(monkeypatch, capsys, tmp_path):
+    """``tlm thesis``' line per scene-mode: fps as ``tlm run`` prints it (3 figures; ``0.05`` was
+    ``0.0503``), a frame of no cycles (fps null) as ``-`` (it raised a TypeError)."""
+    from tlm import api
+    from tlm.cli import main
+    from tlm.errors import InputError
+
+    def thesis(config, out, progress, bar):
+        progress("cornell", "pmap", {"cycles": {"throughput": 11917411000}, "fps": 600e6 / 11917411000})
+        progress("cornell", "rcast", {"cycles": {"throughput": 0}, "fps": None})
+        raise InputError("stop here")
+
+    monkeypatch.setattr(api, "thesis", thesis)
+    assert main(["thesis", "thesis", "--out", str(tmp_path / "t"), "--no-report", "--no-progress"]) == 2
+    out = capsys.readouterr().out
+    assert "  cornell pmap: throughput 11917.41 M cycles, 0.0503 fps" in out, out
+    assert "  cornell rcast: throughput 0.00 M cycles, - fps" in out, out

@@ -8,6 +8,8 @@ import json
 import os
 from pathlib import Path
 
+import pytest
+
 from tlm.cli import main
 from tlm.report.collect import Inputs, Run, Study, read
 from tlm.report.names import name_scenes
@@ -169,3 +171,18 @@ def test_a_link_inside_the_folder_to_a_run_there_does_not_rename_it(tmp_path):
     (run / "results.json").write_text("{}")
     (root / "alink").symlink_to(run, target_is_directory=True)
     assert [p for p, _ in find(root)] == [run]
+
+
+def test_no_tlm_output_says_at_most_three_passed_over_folders_on_its_line(tmp_path):
+    """The "holds no tlm output" error is one line: three of what the search passed over, then how
+    many more (44 notes made a line of a few KB)."""
+    from tlm.errors import InputError
+
+    root = tmp_path / "root"
+    for i in range(12):
+        (root / f".hidden{i:02d}").mkdir(parents=True)
+    with pytest.raises(InputError) as e:
+        read([root])
+    said = str(e.value)
+    assert said.count("a hidden folder, not searched") == 3 and said.endswith("; and 8 more passed over"), said
+    # (the search's notes: 10 of the 12 hidden folders and a line for the 2 more; three shown, 8 counted)

@@ -398,7 +398,8 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 
     def progress(scene, mode, results):
         c = results["cycles"]
-        _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {results['fps']:.2f} fps")
+        fps = "-" if results["fps"] is None else _figures3(results["fps"])
+        _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {fps} fps")
 
     done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress)
     print("ours (thesis), millions of cycles; FPS in frames per second")

@@ -476,8 +476,9 @@ def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
         said: list[str] = []
         found = [(d, k)] if k is not None else find(d, skip, said)
         if not found:  # (and what the search passed over: a link not followed, a folder it could not list)
+            shown = said[:3] + ([f"and {len(said) - 3} more passed over"] if len(said) > 3 else [])  # (one line)
             raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, scaling or "
-                             "extreme folder) at any depth" + "".join(f"; {n}" for n in said), source=str(d))
+                             "extreme folder) at any depth" + "".join(f"; {n}" for n in shown), source=str(d))
         inputs.notes.extend(said)
         for f, kind in found:
             if _real(f) not in seen:
