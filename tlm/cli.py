@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
+from tlm.cli_args import Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_signals import (
     deadlock_line,
     exit_status,
@@ -454,95 +455,15 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with the project's one-line error and exit status 2."""
-
-    def error(self, message: str):  # type: ignore[override]
-        raise InputError(message.replace("\n", " "), source=self.prog)
-
-
-class _AsTyped(float):
-    """A number read from the command line that reads back as the user typed it (``-3``,
-    not ``-3.0``): an error that names the value echoes the argument given."""
-
-    text: str
-
-    def __new__(cls, text: str) -> _AsTyped:
-        number = super().__new__(cls, text)
-        number.text = text.strip()
-        return number
-
-    def __repr__(self) -> str:
-        return self.text
-
-    __str__ = __repr__
-
-
-def _seconds(text: str) -> float:
-    """``sweep --dask-wait``: a number of seconds, as typed (the sweep checks that it is a wait)."""
-    try:
-        return _AsTyped(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-
-
-def _folder_name(text: str) -> str:
-    """``--out``: a folder's path; an empty one is refused (not read as the default)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("an empty path names no folder (leave --out out for the default)")
-    return text
-
-
-def _title(text: str) -> str:
-    """``report --title``: a title with something in it (an empty one was the default's)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("an empty title: give one, or leave --title out for the default")
-    return text
-
-
-def _table_file(text: str) -> str:
-    """``calibrate --write``: a table file's path, checked before the fit (a folder, or a
-    file in a folder that does not exist, would fail only after it)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("an empty path names no table (leave --write out for the study's own "
-                                         "table)")
-    path = Path(text)
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text} is a folder, not a table file")
-    if not path.parent.is_dir():
-        raise argparse.ArgumentTypeError(f"the folder of {text} does not exist")
-    return text
-
-
-def _figure_files(parser: argparse.ArgumentParser) -> None:
-    """``--formats`` and ``--dpi``: the report's figure files (checked before any work: :func:`_figure_args`)."""
-    parser.add_argument("--formats", metavar="LIST",
-                        help="the files each figure of the report is written as, separated by commas: png, pdf, svg "
-                        "(default: png; the PNG always, as the page embeds it; a PDF or SVG is beside its PNG, of the "
-                        "same stem, and linked from its caption)")
-    parser.add_argument("--dpi", metavar="N", help="the report's PNGs' dots per inch, from 50 to 1200 (default: 110)")
-
-
-def _no_report(parser: argparse.ArgumentParser) -> None:
-    """``--no-report``, and the report's ``--formats`` and ``--dpi`` (:func:`_figure_files`)."""
-    parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
-    _figure_files(parser)
-
-
-def _no_progress(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
-                        "not a terminal)")
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="tlm", description="Transaction-level model of J. Ling's "
+    p = Parser(prog="tlm", description="Transaction-level model of J. Ling's "
                                 "ray-tracing and photon-mapping GPU (2004).")
     p.add_argument("--version", action="version", version=version())
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run", help="render one experiment into a run folder")
     r.add_argument("config", help="experiment YAML (see 'tlm params'), a built-in experiment's name ('tlm config "
                    "list'), or a scene YAML to render at the default settings")
-    r.add_argument("--out", type=_folder_name, help="run folder (default: runs/<config name>)")
+    r.add_argument("--out", type=folder_name, help="run folder (default: runs/<config name>)")
     r.add_argument("--mode", choices=MODES, help="override the mode")
     r.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="override a parameter by dotted key, e.g. --set render.reflect_depth=2")
@@ -551,32 +472,32 @@ def build_parser() -> argparse.ArgumentParser:
                    "a comma-separated list of aov, radiance, trace (default: all three; 'images' alone: none)")
     r.add_argument("--no-reference", action="store_true", help="a photon-map run without a cached reference "
                    "does not compute one (nor its error); default: reference.auto (see 'tlm reference')")
-    _no_progress(r)
-    _no_report(r)
+    no_progress(r)
+    no_report(r)
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
     sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml, or a built-in "
                     "experiment's name: sweep_fifo")
-    sw.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
+    sw.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
                     "render.threads, without its cap of 8; 1 = in this process); a point that leaves "
                     "render.threads null gets max(1, CPUs // workers) kernel threads (at most 8), so --jobs x "
                     "render.threads stays within the CPUs")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                     help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
-    sw.add_argument("--dask-wait", type=_seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
+    sw.add_argument("--dask-wait", type=seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
                     "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
                     "(default: 300)")
     sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
                     "not a terminal)")
-    _no_report(sw)
+    no_report(sw)
     sw.set_defaults(func=_cmd_sweep)
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
                         "(Figs. 18-20)")
     sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
-    sc.add_argument("--out", type=_folder_name, help="output folder (default: runs/eq52_<first sweep folder's name>)")
-    _no_report(sc)
+    sc.add_argument("--out", type=folder_name, help="output folder (default: runs/eq52_<first sweep folder's name>)")
+    no_report(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
     ss = s.add_subparsers(dest="scene_cmd", required=True)
@@ -600,36 +521,36 @@ def build_parser() -> argparse.ArgumentParser:
     rf.add_argument("config", help="experiment YAML, or a built-in experiment's name: cornell_pmap")
     rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
     rf.add_argument("--force", action="store_true", help="compute again even if cached")
-    _no_progress(rf)
+    no_progress(rf)
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
     ev.add_argument("config", help="experiment YAML (base config and grids of points), e.g. "
                     "configs/error_vs_cost.yaml, or a built-in experiment's name: error_vs_cost")
-    ev.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
+    ev.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
                          "measured against (computed once and cached; needs pip install -e '.[oracle]'); 0: none")
-    _no_report(ev)
+    no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
     th.add_argument("config", help="study YAML (base, scenes, modes; without base every cell runs at the default "
                     "settings, not the thesis's), e.g. configs/thesis.yaml, or a built-in experiment's name: thesis")
-    th.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
-    _no_progress(th)
-    _no_report(th)
+    th.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    no_progress(th)
+    no_report(th)
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml, or a "
                     "built-in experiment's name: tlm_granularity")
-    gr.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
-    _no_report(gr)
+    gr.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
                         "to the RCast column of Tables I-III")
     ca.add_argument("config", help="study YAML with at least two of the thesis's scenes and mode rcast, e.g. "
                     "configs/thesis.yaml, or a built-in experiment's name: thesis")
-    ca.add_argument("--write", type=_table_file, metavar="TABLE",
+    ca.add_argument("--write", type=table_file, metavar="TABLE",
                     help="table to write (default: the study's own, its base.arch.programs, else the packaged "
                     "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
                     "than the thesis's)")
@@ -638,27 +559,27 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
                         "or error-vs-cost folders")
     rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
-    rp.add_argument("--out", type=_folder_name,
+    rp.add_argument("--out", type=folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
-    rp.add_argument("--title", type=_title, help="the page's title (default: tlm report: and the folders' names)")
-    _figure_files(rp)
+    rp.add_argument("--title", type=title, help="the page's title (default: tlm report: and the folders' names)")
+    figure_files(rp)
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
-    ex.add_argument("--out", type=_folder_name, help="output folder (default: runs/<config name>)")
-    _no_report(ex)
+    ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
     pl.add_argument("--configs", help="folder of the experiment files (default: ./configs where it exists, else "
                     "the built-in experiments: 'tlm config list')")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
-    pl.add_argument("--out", type=_folder_name, default="plots", help="report folder (default: plots)")
+    pl.add_argument("--out", type=folder_name, default="plots", help="report folder (default: plots)")
     pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps (thesis, "
                     "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
-    _figure_files(pl)
+    figure_files(pl)
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
                         "tlm), or copy one out to edit")

@@ -1,0 +1,91 @@
+"""The command line's argument types and the options several commands share: the parser with
+the project's one-line error, a folder's or a table's path checked as argparse reads it, and
+``--no-report``, ``--formats``, ``--dpi``, ``--no-progress`` (:func:`tlm.cli.build_parser`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tlm.api import InputError
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with the project's one-line error and exit status 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise InputError(message.replace("\n", " "), source=self.prog)
+
+
+class _AsTyped(float):
+    """A number read from the command line that reads back as the user typed it (``-3``,
+    not ``-3.0``): an error that names the value echoes the argument given."""
+
+    text: str
+
+    def __new__(cls, text: str) -> _AsTyped:
+        number = super().__new__(cls, text)
+        number.text = text.strip()
+        return number
+
+    def __repr__(self) -> str:
+        return self.text
+
+    __str__ = __repr__
+
+
+def seconds(text: str) -> float:
+    """``sweep --dask-wait``: a number of seconds, as typed (the sweep checks that it is a wait)."""
+    try:
+        return _AsTyped(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+
+
+def folder_name(text: str) -> str:
+    """``--out``: a folder's path; an empty one is refused (not read as the default)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path names no folder (leave --out out for the default)")
+    return text
+
+
+def title(text: str) -> str:
+    """``report --title``: a title with something in it (an empty one was the default's)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty title: give one, or leave --title out for the default")
+    return text
+
+
+def table_file(text: str) -> str:
+    """``calibrate --write``: a table file's path, checked before the fit (a folder, or a
+    file in a folder that does not exist, would fail only after it)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("an empty path names no table (leave --write out for the study's own "
+                                         "table)")
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a table file")
+    if not path.parent.is_dir():
+        raise argparse.ArgumentTypeError(f"the folder of {text} does not exist")
+    return text
+
+
+def figure_files(parser: argparse.ArgumentParser) -> None:
+    """``--formats`` and ``--dpi``: the report's figure files (checked before any work:
+    :func:`tlm.cli._figure_args`)."""
+    parser.add_argument("--formats", metavar="LIST",
+                        help="the files each figure of the report is written as, separated by commas: png, pdf, svg "
+                        "(default: png; the PNG always, as the page embeds it; a PDF or SVG is beside its PNG, of the "
+                        "same stem, and linked from its caption)")
+    parser.add_argument("--dpi", metavar="N", help="the report's PNGs' dots per inch, from 50 to 1200 (default: 110)")
+
+
+def no_report(parser: argparse.ArgumentParser) -> None:
+    """``--no-report``, and the report's ``--formats`` and ``--dpi`` (:func:`figure_files`)."""
+    parser.add_argument("--no-report", action="store_true", help="do not write OUT/report (see 'tlm report')")
+    figure_files(parser)
+
+
+def no_progress(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
+                        "not a terminal)")
