@@ -15,7 +15,7 @@ from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.experiments import frames
 from tlm.experiments.frames import cache_dir, cached_render
-from tlm.experiments.reference import load_reference, save_reference
+from tlm.experiments.reference_cache import load_reference, save_reference
 
 REPO = Path(__file__).resolve().parents[1]
 CFG = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
@@ -127,13 +127,13 @@ def test_a_pmap_run_with_a_damaged_reference_warns_and_goes_on(tmp_path, cache, 
 def test_a_reference_the_cache_cannot_keep_still_measures_the_run(tmp_path, cache, monkeypatch, capsys):
     """A read-only (or full) cache: the reference computed for the run is used by it and
     said not to be cached; the run does not fail after computing it."""
-    import tlm.experiments.reference as reference
+    import tlm.experiments.reference_cache as reference_cache
     from tlm.errors import EnvironmentFailure
 
     def refused(key, image, meta):
         raise EnvironmentFailure("cannot write into the cache (read-only or not permitted)", source=str(cache))
 
-    monkeypatch.setattr(reference, "save_reference", refused)
+    monkeypatch.setattr(reference_cache, "save_reference", refused)
     out = tmp_path / "r"
     assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--mode", "pmap", "--set", "resolution=[12,8]",
                  "--set", "photons.count=1500", "--set", "reference.photons=1500", "--set", "reference.max_rounds=4",

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from tlm.errors import EnvironmentFailure
-from tlm.experiments import error_cost, reference
+from tlm.experiments import error_cost, reference, reference_cache
 
 KEY = "0123456789abcdef"
 META = {"rounds": 2, "converged": True, "relative_standard_error": 0.01}
@@ -40,7 +40,7 @@ def _mode(path: Path) -> int:
 def _refused(capsys, why: str) -> None:
     """``tlm reference``'s fallback refuses the kept root: the cache's own error is raised (as
     when the temporary folder cannot be written) after one line saying why it was not kept."""
-    root = reference.kept_root()
+    root = reference_cache.kept_root()
     with pytest.raises(EnvironmentFailure) as raised:
         reference._kept_elsewhere(KEY, IMAGE, META, CACHE_ERROR)
     assert raised.value is CACHE_ERROR
@@ -51,7 +51,7 @@ def _refused(capsys, why: str) -> None:
 
 def test_the_kept_root_is_made_private_and_a_folder_of_ones_own_is_used(tmp, capsys):
     folder = reference._kept_elsewhere(KEY, IMAGE, META, CACHE_ERROR)
-    root = reference.kept_root()
+    root = reference_cache.kept_root()
     assert root.parent == tmp and folder == root / "references" / KEY
     assert _mode(root) == 0o700 and _mode(root / "references") == 0o700
     np.testing.assert_array_equal(np.load(folder / "reference.npy"), IMAGE.astype(np.float32))
@@ -66,13 +66,13 @@ def test_the_kept_root_is_made_private_and_a_folder_of_ones_own_is_used(tmp, cap
 def test_a_link_in_its_place_is_refused_and_nothing_is_written_where_it_points(tmp, tmp_path, capsys):
     theirs = tmp_path / "theirs"
     theirs.mkdir(mode=0o700)
-    reference.kept_root().symlink_to(theirs)
-    _refused(capsys, f"{reference.kept_root()} is a symbolic link (to {theirs})")
+    reference_cache.kept_root().symlink_to(theirs)
+    _refused(capsys, f"{reference_cache.kept_root()} is a symbolic link (to {theirs})")
     assert list(theirs.iterdir()) == []
 
 
 def test_a_folder_others_may_write_is_refused(tmp, capsys):
-    root = reference.kept_root()
+    root = reference_cache.kept_root()
     root.mkdir()
     os.chmod(root, 0o777)  # (as a folder another user made for everyone)
     _refused(capsys, f"{root} may be written by its group or others (mode 777)")
@@ -90,7 +90,7 @@ def test_another_users_folder_is_refused(tmp, monkeypatch, capsys):
     made by the real uid, is another user's."""
     real = os.getuid()
     monkeypatch.setattr(os, "getuid", lambda: real + 1)
-    root = reference.kept_root()
+    root = reference_cache.kept_root()
     assert root.name == f"tlm-cache-{real + 1}"
     root.mkdir(mode=0o700)
     _refused(capsys, f"{root} belongs to user {real}, not to this user ({real + 1})")
@@ -100,7 +100,7 @@ def test_another_users_folder_is_refused(tmp, monkeypatch, capsys):
 def test_error_vs_cost_does_not_keep_its_reference_in_another_users_folder(tmp, tmp_path, monkeypatch, capsys):
     theirs = tmp_path / "theirs"
     theirs.mkdir()
-    reference.kept_root().symlink_to(theirs)
+    reference_cache.kept_root().symlink_to(theirs)
     image, meta = error_cost._uncached_reference(KEY, IMAGE, META, CACHE_ERROR)
     err = capsys.readouterr().err
     assert "is a symbolic link" in err and err.rstrip().endswith("used by this study only"), err

@@ -17,7 +17,8 @@ import yaml
 
 from tlm.cli import main
 from tlm.config import config_from_dict
-from tlm.experiments.reference import ReferenceSettings, compute_reference
+from tlm.experiments.reference import compute_reference
+from tlm.experiments.reference_cache import ReferenceSettings
 from tlm.experiments.run import parse_outputs, render, write_run
 from tlm.experiments.thesis import run_thesis
 from tlm.render.batches import Primary

@@ -14,13 +14,13 @@ from scipy.spatial import cKDTree
 from tlm.cli import main
 from tlm.config import config_from_dict
 from tlm.experiments.reference import (
-    ReferenceSettings,
     cycle_length,
     difference_image,
     eye_rays,
     knn_density,
     reference_key,
 )
+from tlm.experiments.reference_cache import ReferenceSettings
 from tlm.kernels.camera import primary_rays
 from tlm.scenes.loader import load_scene
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from tlm.cli import main
-from tlm.experiments import error_cost, reference
+from tlm.experiments import error_cost, reference, reference_cache
 
 # a reference far short of its tolerance: 4 rounds of one ray each, not converged (exit status 1)
 SHORT = {"photons": 500, "k_nearest": 20, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 4, "spp": 1}
@@ -130,7 +130,7 @@ def test_one_that_meets_the_tolerance_replaces_one_that_does_not(tmp_path, cache
 
     def meanwhile(*a, **k):  # (another process caches a converged one while this one computes)
         got = real(*a, **k)
-        reference.save_reference(old["key"], image * 1.5, {**meta, "relative_standard_error": 1e-3})
+        reference_cache.save_reference(old["key"], image * 1.5, {**meta, "relative_standard_error": 1e-3})
         return got
 
     monkeypatch.setattr(reference, "compute_reference", meanwhile)
@@ -173,20 +173,20 @@ def test_error_vs_cost_keeps_the_better_cached_reference(tmp_path, cache, capsys
 
 
 def test_the_tolerance_is_judged_as_asked_for_now_not_by_the_stored_flag():
-    """:func:`~tlm.experiments.reference.meets_tolerance` is the stopping rule of the settings
+    """:func:`~tlm.experiments.reference_cache.meets_tolerance` is the stopping rule of the settings
     asked for now (error below ``tolerance``, at least ``min_rounds`` rounds), not the
     ``converged`` flag of the run that computed the reference: a 12-round reference that missed
     tolerance 0.0001 (error 0.08) is better at tolerance 0.5 than an 8-round one that met it
     (error 0.12), which replaced it before."""
-    loose = reference.ReferenceSettings(photons=3000, tolerance=0.5, min_rounds=2, max_rounds=12)
+    loose = reference_cache.ReferenceSettings(photons=3000, tolerance=0.5, min_rounds=2, max_rounds=12)
     strict = {"relative_standard_error": 0.0817, "rounds": 12, "cycles": 3, "converged": False}
     met = {"relative_standard_error": 0.1233, "rounds": 8, "cycles": 2, "converged": True}
-    assert reference.meets_tolerance(strict, loose) and reference.meets_tolerance(met, loose)
-    assert not reference.better(met, strict, loose)
-    assert "0.0817, converged at tolerance 0.5" in reference.describe(strict, loose)
+    assert reference_cache.meets_tolerance(strict, loose) and reference_cache.meets_tolerance(met, loose)
+    assert not reference_cache.better(met, strict, loose)
+    assert "0.0817, converged at tolerance 0.5" in reference_cache.describe(strict, loose)
     short = {**met, "relative_standard_error": 0.01, "rounds": 2}  # (converged with min_rounds 2: asked for 4)
-    assert not reference.meets_tolerance(short, reference.ReferenceSettings(photons=3000, tolerance=0.5))
-    assert not reference.meets_tolerance({**met, "relative_standard_error": 0.5}, loose)  # (the rule stops below)
+    assert not reference_cache.meets_tolerance(short, reference_cache.ReferenceSettings(photons=3000, tolerance=0.5))
+    assert not reference_cache.meets_tolerance({**met, "relative_standard_error": 0.5}, loose)  # (the rule stops below)
 
 
 def test_a_cached_reference_within_a_looser_tolerance_is_used(tmp_path, cache, capsys, monkeypatch):

@@ -23,7 +23,7 @@ import pytest
 import yaml
 
 from tlm import api, caches, storage
-from tlm.experiments import reference
+from tlm.experiments import reference_cache
 from tlm.fingerprint import fingerprint
 from tlm.scenes import meshes
 
@@ -163,7 +163,7 @@ def test_tlm_reference_with_a_cache_it_cannot_write_keeps_the_reference(tmp_path
     assert len(_lines(err, "cannot write tlm's reference cache")) == 1  # (said at the start, before the rounds)
 
     monkeypatch.setenv("TLM_CACHE", str(kept))  # what the line says: later runs read it
-    image, meta = reference.load_reference(made.key)
+    image, meta = reference_cache.load_reference(made.key)
     assert meta["rounds"] == made.meta["rounds"] and image.shape == (8, 8, 3)
 
 

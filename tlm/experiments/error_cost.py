@@ -88,17 +88,15 @@ from tlm.caches import cache_problem, cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
-from tlm.experiments.reference import (
+from tlm.experiments.reference import compute_reference, image_error, reference_key
+from tlm.experiments.reference_cache import (
     RULE,
     ReferenceSettings,
-    compute_reference,
     fewer_rounds,
-    image_error,
     kept_back,
     kept_root,
     load_reference,
     meets_tolerance,
-    reference_key,
     save_reference,
     store_reference,
 )
@@ -542,12 +540,12 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     computed now with the base's settings and cached where it is better (``note`` says so when one
     was cached).
     A cached one that misses the tolerance but was computed with the base's own stopping rule
-    (:data:`~tlm.experiments.reference.RULE`) is kept: computing it again would repeat the same
+    (:data:`~tlm.experiments.reference_cache.RULE`) is kept: computing it again would repeat the same
     rounds (fixed seeds) to the same image; so is one with more rounds than the base's
-    ``reference.max_rounds`` (:func:`~tlm.experiments.reference.fewer_rounds`; ``note`` says so).
+    ``reference.max_rounds`` (:func:`~tlm.experiments.reference_cache.fewer_rounds`; ``note`` says so).
     One computed now replaces the cached one only where it is better, else the study uses the
     cached one and ``note`` says which and why
-    (:func:`~tlm.experiments.reference.store_reference`). One computed now that the cache cannot
+    (:func:`~tlm.experiments.reference_cache.store_reference`). One computed now that the cache cannot
     take is not lost (:func:`_uncached_reference`). Returns the image, its metadata and whether
     it was computed now (False: the cached one is used)."""
     found = load_reference(key)
@@ -580,7 +578,7 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
 
 def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseException) -> tuple[np.ndarray, dict]:
     """The reference ``key`` the cache could not take (``error``), kept as ``tlm reference``
-    keeps it (in :func:`~tlm.experiments.reference.kept_root`, which ``TLM_CACHE`` set to it
+    keeps it (in :func:`~tlm.experiments.reference_cache.kept_root`, which ``TLM_CACHE`` set to it
     reads), with one warning line that says where; used by this study only, and said so, where
     that cannot be written either. The image as a cached one reads back (float32), and its
     metadata."""

@@ -49,13 +49,8 @@ from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
-from tlm.experiments.reference import (
-    difference_image,
-    ensure_reference,
-    image_error,
-    load_reference,
-    meets_tolerance,
-)
+from tlm.experiments.reference import difference_image, ensure_reference, image_error
+from tlm.experiments.reference_cache import load_reference, meets_tolerance
 from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel

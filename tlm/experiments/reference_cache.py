@@ -1,0 +1,239 @@
+"""Which converged reference the cache keeps, its files, and the settings it is judged by.
+
+A reference (:mod:`tlm.experiments.reference`) is computed with :class:`ReferenceSettings`: the
+photons and ``k_nearest`` of its key, and its stopping rule (:data:`RULE`). The cache folder
+``references/<key>/`` (:func:`cache_dir`) holds one reference per key,
+``reference.npy`` and ``meta.json`` (:func:`save_reference`, :func:`load_reference`). A
+reference computed now replaces the cached one only where it is better (:func:`better`,
+:func:`store_reference`: it meets the tolerance asked for now (:func:`meets_tolerance`: its
+error and rounds, not the flag of the run that computed it) and the cached one does not, or
+neither does and its relative standard error is lower), or with ``--force``; a cached one
+that misses the tolerance is kept without computing where the settings ask for fewer rounds
+(:func:`fewer_rounds`) or for the same stopping rule (:data:`RULE`).
+
+A cache that cannot be written (a read-only ``~/.cache``) loses no reference: it is kept in
+the temporary folder (:func:`kept_root`, ``<tmp>/tlm-cache-<uid>/references/<key>``). That
+folder is made for this user alone, and one made by someone else first (a link, another
+user's folder, one others may write) is not written into (:func:`private_folder`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import stat
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tlm.caches import cache_problem, cache_root, cached_image, file_digest
+from tlm.config import RunConfig
+from tlm.errors import EnvironmentFailure, InputError
+from tlm.scenes.model import Scene
+from tlm.storage import atomic_folder
+
+
+@dataclass(frozen=True)
+class ReferenceSettings:
+    photons: int  # per round
+    k_nearest: int = 100
+    tolerance: float = 0.02
+    min_rounds: int = 4
+    max_rounds: int = 128
+    spp: int = 4  # rounds of a cycle, one eye ray per pixel each, stratified over the pixel
+
+    @classmethod
+    def from_config(cls, scene: Scene, cfg: RunConfig) -> ReferenceSettings:
+        r = cfg.reference
+        return cls(photons=scene.photons if r.photons is None else r.photons, k_nearest=r.k_nearest,
+                   tolerance=r.tolerance, min_rounds=r.min_rounds, max_rounds=r.max_rounds, spp=r.spp)
+
+
+def cache_dir() -> Path:
+    return cache_root("references")
+
+
+def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = None) -> Path:
+    """Write ``reference.npy`` and ``meta.json`` atomically into the cache (or ``root``):
+    an :class:`~tlm.errors.EnvironmentFailure` naming why where its folder cannot be written."""
+    folder = cache_dir() if root is None else Path(root)
+    final = folder / key
+    why = cache_problem(folder)
+    if why is not None:
+        raise EnvironmentFailure(f"cannot write: {why}", source=str(final))
+    if root is not None:  # (a folder outside the cache: kept_root()'s, in a temporary folder others write too)
+        private_folder(folder, final)
+    with atomic_folder(final, "meta.json") as tmp:
+        np.save(tmp / "reference.npy", image.astype(np.float32))
+        body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
+        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n")
+    return final
+
+
+def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
+    """The cached reference ``key`` and its metadata, or None when there is none.
+
+    A damaged one (``meta.json`` unreadable or of another key, ``reference.npy`` not the
+    file ``meta.json`` describes, or not an array) is reported once as a warning naming
+    the file and removed: it is computed again as if it had never been cached.
+    """
+    return cached_image(cache_dir() / key, "reference.npy", key, "reference", "'tlm reference' computes it again")
+
+
+def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether the reference of ``meta`` meets the stopping rule of ``settings`` asked for now,
+    the test :func:`compute_reference` stops at: a relative standard error below
+    ``settings.tolerance``, measured over at least two cycles, after at least
+    ``settings.min_rounds`` rounds. Judged on its error and rounds, not on its ``converged``
+    flag, which says whether it met the tolerance of the run that computed it (one that ran to a
+    strict tolerance's ``max_rounds`` may meet a looser one asked for now, and one converged at a
+    loose tolerance may miss a stricter one). The test of a cached one in ``tlm reference`` and
+    ``tlm error-vs-cost`` (:func:`make_reference`, ``study_reference``) and of which of two is
+    better (:func:`better`)."""
+    err, rounds, cycles = (meta.get(k) for k in ("relative_standard_error", "rounds", "cycles"))
+    return (isinstance(err, (int, float)) and math.isfinite(err) and err < settings.tolerance
+            and isinstance(rounds, int) and rounds >= settings.min_rounds
+            and (not isinstance(cycles, int) or cycles >= 2))
+
+
+# the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
+RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
+
+
+def better(new: dict, old: dict, settings: ReferenceSettings) -> bool:
+    """Whether the reference of ``meta`` ``new`` is better than ``old`` (of the same key) for
+    ``settings``: it meets the tolerance (:func:`meets_tolerance`) and ``old`` does not, or,
+    neither meeting it, its relative standard error is lower (or ``old`` has none). Two that
+    both meet it: not better (the cached one stays)."""
+    a, b = meets_tolerance(new, settings), meets_tolerance(old, settings)
+    if a or b:
+        return a and not b
+    e_new, e_old = new.get("relative_standard_error"), old.get("relative_standard_error")
+    return e_old is None or (e_new is not None and e_new < e_old)
+
+
+def fewer_rounds(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether ``settings`` ask for fewer rounds (``max_rounds``) than the cached reference of
+    ``meta``, which does not meet their tolerance, already has: computing it again could only
+    give a reference of fewer rounds of the same key (the first cycles of the same seeds where
+    the cycles are as long), which is no better, so the cached one is kept."""
+    rounds = meta.get("rounds")
+    return (not meets_tolerance(meta, settings) and isinstance(rounds, int) and settings.max_rounds < rounds)
+
+
+def describe(meta: dict, settings: ReferenceSettings) -> str:
+    """``<rounds> rounds, relative standard error <e>, converged|NOT converged at tolerance <t>``."""
+    err = meta.get("relative_standard_error")
+    state = "converged" if meets_tolerance(meta, settings) else "NOT converged"
+    return (f"{meta.get('rounds')} rounds, relative standard error {'n/a' if err is None else f'{err:.4f}'}, "
+            f"{state} at tolerance {settings.tolerance}")
+
+
+def kept_back(key: str, meta: dict, settings: ReferenceSettings, whose: str = "", force: bool = True) -> str:
+    """The line of a cached reference kept without computing it again (:func:`fewer_rounds`);
+    ``whose``: whose ``reference.max_rounds`` to raise (``"the base's "``); ``force``: name ``--force``."""
+    return (f"reference {key} is cached with {describe(meta, settings)}; reference.max_rounds "
+            f"{settings.max_rounds} asks for fewer rounds than it has, so it is kept and not computed again "
+            f"(raise {whose}reference.max_rounds above {meta.get('rounds')}"
+            + (", or use --force to replace it)" if force else ")"))
+
+
+@dataclass
+class Stored:
+    """What :func:`store_reference` did: the reference the cache holds for the key now
+    (``image`` (H, W, 3), ``meta``, ``folder``), whether that is the one computed now
+    (``replaced``; False: the cached one was better and stays) and, then, ``line``: which
+    one the cache holds and why, with both errors, and where the one computed now was kept."""
+
+    image: np.ndarray
+    meta: dict
+    folder: Path
+    replaced: bool
+    line: str = ""
+
+
+def store_reference(key: str, image: np.ndarray, meta: dict, settings: ReferenceSettings,
+                    force: bool = False) -> Stored:
+    """Cache the reference ``key`` computed now (``image`` (H, W, 3), ``meta``) where it is
+    :func:`better` for ``settings`` than the one cached for the key (read again now: another
+    process may have cached one meanwhile), or where none is, or with ``force``; else the
+    cached one stays, and the one computed now is kept in :func:`kept_root` (as one the cache
+    cannot take; not where the cache is that folder, or where that folder holds a better one)
+    or dropped, which ``line`` says. The errors of :func:`save_reference` where the cache
+    cannot take it."""
+    held = None if force else load_reference(key)
+    if held is None or better(meta, held[1], settings):
+        return Stored(image, meta, save_reference(key, image, meta), True)
+    e_new, e_old = meta.get("relative_standard_error"), held[1].get("relative_standard_error")
+    why = ("it meets the tolerance" if meets_tolerance(held[1], settings) else
+           "the one computed now has no relative standard error" if e_new is None else
+           f"its relative standard error is {'lower' if e_old < e_new else 'as low'}")
+    line = (f"reference {key}: the cache keeps its reference ({describe(held[1], settings)}), not the one computed "
+            f"now ({describe(meta, settings)}): {why}")
+    root = kept_root()
+    there = root / "references"
+    try:
+        same = there.resolve() == cache_dir().resolve()
+    except OSError:
+        same = True
+    other = None if same else cached_image(there / key, "reference.npy", key, "reference", "it is replaced")
+    if same:
+        line += "; the one computed now is dropped"
+    elif other is not None and not better(meta, other[1], settings):
+        line += f"; the one computed now is dropped (one as good is kept in {there / key})"
+    else:
+        try:
+            folder = save_reference(key, image, meta, there)
+        except (EnvironmentFailure, OSError, InputError) as e:
+            line += f"; the one computed now is dropped (not kept in {root}: {' '.join(str(e).split())})"
+        else:
+            line += f"; the one computed now is kept in {folder} (TLM_CACHE={root} reads it)"
+    return Stored(held[0], held[1], cache_dir() / key, False, line)
+
+
+def kept_root() -> Path:
+    """Where ``tlm reference`` keeps a reference its cache cannot take: a cache folder of
+    this user's in the temporary folder (``TLM_CACHE`` set to it reads the reference), which
+    :func:`save_reference` makes private (:func:`private_folder`)."""
+    return Path(tempfile.gettempdir()) / f"tlm-cache-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+
+
+def private_folder(folder: Path, final: Path) -> None:
+    """Make ``folder`` this user's only before anything is written into it: each of its
+    folders below the temporary folder (``folder`` itself where it is not in it) is made with
+    mode 0700 where it is absent, and one that exists must be a folder, not a symbolic link,
+    owned by this user, that neither its group nor others may write. Another user can make
+    ``<tmp>/tlm-cache-<uid>`` first (a folder of theirs, or a link to one) to read or replace
+    what tlm keeps there: an :class:`~tlm.errors.EnvironmentFailure` naming ``final``, the
+    folder and why, and nothing is written."""
+    folder = Path(folder)
+    tmp = Path(tempfile.gettempdir())
+    chain = [*(p for p in reversed(folder.parents) if tmp in p.parents), folder] if tmp in folder.parents else [folder]
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    try:
+        chain[0].parent.mkdir(parents=True, exist_ok=True)
+        for p in chain:
+            with contextlib.suppress(FileExistsError):
+                os.mkdir(p, 0o700)
+            st = os.lstat(p)
+            if stat.S_ISLNK(st.st_mode):
+                why = f"is a symbolic link (to {os.readlink(p)})"
+            elif not stat.S_ISDIR(st.st_mode):
+                why = "is not a folder"
+            elif uid is not None and st.st_uid != uid:
+                why = f"belongs to user {st.st_uid}, not to this user ({uid})"
+            elif st.st_mode & 0o022:
+                why = f"may be written by its group or others (mode {stat.S_IMODE(st.st_mode):o})"
+            else:
+                continue
+            raise EnvironmentFailure(f"not written: {p} {why}, so another user could read or replace what is kept "
+                                     "there; remove it (or 'chmod go-w' a folder of your own), or set TMPDIR to a "
+                                     "folder of your own", source=str(final))
+    except EnvironmentFailure:
+        raise
+    except OSError as e:
+        raise EnvironmentFailure(f"cannot write: {' '.join(str(e).split())}", source=str(final)) from None
