@@ -31,7 +31,7 @@ def test_a_photon_key_set_for_a_run_without_the_photon_map_pass_warns(tmp_path, 
 def test_the_same_keys_in_a_photon_map_run_do_not():
     res = SimpleNamespace(plan=SimpleNamespace(run_names=["rcast", "pmap"], passes=[]))
     assert unread_overrides(res, ["photons.count=2000", "estimate.k=4"]) == []
-    left_out = SimpleNamespace(name="pmap", run=False, reason="why")
+    left_out = SimpleNamespace(name="pmap", run=False, reason="why", by=None)
     res = SimpleNamespace(plan=SimpleNamespace(run_names=["rcast"], passes=[left_out]))
     assert unread_overrides(res, [" estimate.k = 4", "bsp.levels=7"]) == [
         "--set estimate.k = 4 has no effect in this run: the photon-map pass is left out (why)"]

@@ -30,7 +30,6 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
-import re
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -481,16 +480,17 @@ def unread_overrides(res: RenderResult, overrides: list[str] | None) -> list[str
     """A ``--set`` of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
     pass is left out: one line each. :func:`~tlm.render.planner.inert_changes` judges those
     sections as if the pass ran, since a config file may hold them for ``--mode pmap``; a
-    key given on the command line was asked for this run. Not a key the pass is left out for
-    (``--set photons.count=0``, ``--set photons.max_bounces=1``: the plan's reason names it),
-    which did what it was set for."""
+    key given on the command line was asked for this run. Not the key the pass is left out by
+    (``--set photons.count=0``, ``--set photons.max_bounces=1``: the plan's ``by``), which did
+    what it was set for."""
     if "pmap" in res.plan.run_names:
         return []
-    why = {p.name: p.reason for p in res.plan.passes if not p.run}.get("pmap", "the photon-map pass is not run")
+    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    why = "the photon-map pass is not run" if left is None else left.reason
     lines = []
     for item in overrides or []:
         key = item.split("=", 1)[0].strip()
-        if key.startswith(PHOTON_SECTIONS) and not re.search(rf"(?<![\w.]){re.escape(key)}(?![\w.])", why):
+        if key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by):
             lines.append(f"--set {item.strip()} has no effect in this run: the photon-map pass is left out ({why})")
     return lines
 

@@ -27,6 +27,7 @@ class PassPlan:
     name: str
     run: bool
     reason: str
+    by: str | None = None  # the setting that left the pass out (``photons.count``), where one did
 
 
 @dataclass(frozen=True)
@@ -120,10 +121,11 @@ def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) ->
     if "lambertian" not in kinds:
         return PassPlan("pmap", False, "no Lambertian surface: nothing stores or shows photons")
     if photon_count(scene, cfg) == 0:
-        return PassPlan("pmap", False, "photons.count is 0")
+        return PassPlan("pmap", False, "photons.count is 0", by="photons.count")
     if cfg.photons.max_bounces < 2:
         return PassPlan("pmap", False, f"photons.max_bounces is {cfg.photons.max_bounces}: a photon's first hit "
-                        "is direct light (the ray-cast frame's), so the map would store nothing")
+                        "is direct light (the ray-cast frame's), so the map would store nothing",
+                        by="photons.max_bounces")
     return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
 
 
