@@ -219,24 +219,30 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 
 @imports_whole
 def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
-                 lock: bool = False, formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
+                 lock: bool = False, formats: str | Iterable[str] | None = None, dpi: int | str | None = None,
+                 note: Callable[[str], None] | None = None) -> Path:
     """The self-contained HTML report of run, sweep or study folders (``tlm report``);
     returns the path of ``report.html`` (default folder: ``DIR/report`` of the one folder).
     ``lock``: hold the folder's lock meanwhile, so no other run replaces it. ``formats``:
     the files each figure is written as, ``"pdf,svg"`` or names of png, pdf and svg (the
     PNG always, as the page embeds it); ``dpi``: the PNG's, 50 to 1200 (default 110)
-    (``tlm report --formats --dpi``; a bad value is an InputError before anything is written)."""
+    (``tlm report --formats --dpi``; a bad value is an InputError before anything is written).
+    ``note`` receives one-line notes on a folder of folders it searched, as soon as it has searched
+    them (a folder in it with no run, sweep or study, a link not followed, the folders of installed
+    software passed over, a long search: :func:`tlm.report.collect.find`); the page says them too,
+    and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``)."""
     from tlm.report import build_report
 
     dirs = [Path(d) for d in dirs]
     if out is None and len(dirs) > 1:
         raise InputError("several folders: name the report folder", key="--out")
+    hear = note if note is not None else (lambda line: None)  # (None: the page alone says them; nothing printed)
     if not lock:
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi)
+        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
     from tlm.storage import folder_lock
 
     with folder_lock(dirs[0]):
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi)
+        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
 
 
 @imports_whole

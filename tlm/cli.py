@@ -43,7 +43,11 @@ def _report_after(args: argparse.Namespace, out: Path) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    print(f"wrote {api.write_report(args.dirs, args.out or None, args.title, formats=args.formats, dpi=args.dpi)}")
+    def note(line: str) -> None:  # (each as it is known: the figures may take a while)
+        print(f"tlm: note: {line}", file=sys.stderr, flush=True)
+
+    page = api.write_report(args.dirs, args.out or None, args.title, formats=args.formats, dpi=args.dpi, note=note)
+    print(f"wrote {page}")
     return 0
 
 

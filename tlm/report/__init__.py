@@ -33,6 +33,7 @@ import datetime
 import shutil
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from tlm.errors import InputError
@@ -94,7 +95,8 @@ def default_out(dirs: list[Path]) -> Path:
 
 
 def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
-                 scaling_sweeps: list[Path] | None = None, *, formats=None, dpi: int | None = None) -> Path:
+                 scaling_sweeps: list[Path] | None = None, *, formats=None, dpi: int | None = None,
+                 note: Callable[[str], None] | None = None) -> Path:
     """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``.
 
     ``formats``: the files each figure is written as, ``png`` and any of ``pdf`` and ``svg``
@@ -107,22 +109,29 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     the scaling section draws their idle fractions per PM, and no other section reads them
     (their eq. 5.2 fits are the study's). By default, the sweeps the scaling studies
     recorded in their ``eq52.json`` that still exist and are not inputs themselves.
+
+    ``note``: gets each of the inputs' notes (:attr:`~tlm.report.collect.Inputs.notes`: a folder
+    passed over, a link not followed, ...) as soon as the inputs are read; None: each is written on
+    stderr (``tlm: note: ...``). The page says them either way.
     """
     from tlm.experiments.provenance import identities_remembered
 
     # (the files set for every figure; a scene file's identity, which judges each thesis cell, computed once)
     with figure_output(formats, dpi), identities_remembered():
-        return _build_report(dirs, out, title, scaling_sweeps)
+        return _build_report(dirs, out, title, scaling_sweeps, note)
 
 
 def _build_report(dirs: list[Path], out: Path | None, title: str | None,
-                  scaling_sweeps: list[Path] | None) -> Path:
+                  scaling_sweeps: list[Path] | None, note: Callable[[str], None] | None) -> Path:
     t0 = time.perf_counter()
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
-    for note in inputs.notes:  # (the folders passed over, said on stderr too: the page may not be read soon)
-        sys.stderr.write(f"tlm: note: {note}\n")
+    for line in inputs.notes:  # (the folders passed over, said now too: the page may not be read soon)
+        if note is not None:
+            note(line)
+        else:
+            sys.stderr.write(f"tlm: note: {line}\n")
     sys.stderr.flush()
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}

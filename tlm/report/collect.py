@@ -559,30 +559,49 @@ def _real(folder: Path) -> str:
 
 
 NOTES_SHOWN = 10  # the lines :func:`find` gives of each kind of folder it passes over; then how many more
+# folders of installed software, which no tlm command writes into, not searched by :func:`find` (``tlm report ~``
+# would list every file of every environment): by their name, or by what they hold (a virtual environment's
+# ``pyvenv.cfg``, a conda installation's or environment's ``conda-meta``)
+SOFTWARE_NAMES = {"site-packages": "installed Python packages", "dist-packages": "installed Python packages",
+                  "node_modules": "installed Node.js packages"}
+SOFTWARE_MARKS = {"pyvenv.cfg": "a Python virtual environment", "conda-meta": "a conda environment"}
+SOFTWARE_SHOWN = 3  # the folders of installed software the one line of :func:`find` names; then how many more
+# a search that listed this many folders, or took this many seconds, is said to have been long (:func:`find`)
+LONG_FOLDERS = 10_000
+LONG_SECONDS = 5.0
 
 
 def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -> list[tuple[Path, str]]:
     """The tlm folders under ``root`` (a folder no tlm command wrote) at any depth, each with its
     kind (:func:`kind_of`), in sorted order of their paths: a tlm folder's own subfolders are its
-    own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, a report
-    half written), a report's folder (``report.html``; ``skip``, the report being written). A link
-    to a tlm folder outside ``root`` is one (never searched: no loop); a link to another folder
+    own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, ``.venv``,
+    ``.cache``, a report half written), a report's folder (``report.html``; ``skip``, the report being
+    written), and a folder of installed software (``site-packages``, ``dist-packages``, ``node_modules``,
+    a virtual environment's or a conda installation's: :data:`SOFTWARE_NAMES`, :data:`SOFTWARE_MARKS`).
+    A link to a tlm folder outside ``root`` is one (never searched: no loop); a link to another folder
     outside it is not followed, and one to a folder inside it is passed over (that folder is
     searched, and named, where it lies there).
 
     ``notes`` gets a line for each folder passed over that may have been meant, at most
     :data:`NOTES_SHOWN` of a kind and then a line of how many more: a link to a folder outside
     ``root`` that is not a tlm folder, a folder that could not be listed and, where tlm folders were
-    found, a folder with none in it at any depth (its subfolders not named apart); where none were
-    found, the hidden and report folders passed over instead. Each folder is listed once; its
-    entries' types come with the listing (no stat of a file, nor of a folder but a link's)."""
+    found, a folder with none in it at any depth (its subfolders not named apart), then one line
+    that says the folders of installed software passed over and a long search (:data:`LONG_FOLDERS`
+    folders listed, or :data:`LONG_SECONDS`), where there were any or it was; where none were found,
+    the hidden, report and installed software's folders passed over instead. Each folder is listed
+    once; its entries' types come with the listing (no stat of a file, nor of a folder but a link's)."""
     import os
+    import time
 
+    t0 = time.perf_counter()
     top = _real(root)
     skipped = _real(skip) if skip is not None else None
-    lines: dict[str, list[str]] = {"link": [], "unlisted": [], "empty": [], "hidden": [], "report": []}
+    lines: dict[str, list[str]] = {"link": [], "unlisted": [], "empty": [], "hidden": [], "report": [],
+                                   "software": []}
     more = dict.fromkeys(lines, 0)
     found: list[tuple[Path, str]] = []
+    software: list[Path] = []  # (the folders of installed software passed over, in the order met)
+    listed = 0  # (the folders listed: how long the search was)
 
     def note(kind: str, line: str) -> None:
         if len(lines[kind]) < NOTES_SHOWN:
@@ -591,6 +610,8 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
             more[kind] += 1
 
     def listing(d: Path) -> list[os.DirEntry] | str:
+        nonlocal listed
+        listed += 1
         try:
             with os.scandir(d) as it:
                 return sorted(it, key=lambda e: e.name)
@@ -629,6 +650,10 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
             c_real = os.path.join(real, e.name)  # (not a link: no need to ask the file system)
             if c_real == skipped:
                 continue
+            if e.name in SOFTWARE_NAMES:  # (passed over unlisted: node_modules may hold 100,000 files)
+                software.append(c)
+                note("software", f"{c}: {SOFTWARE_NAMES[e.name]}, not searched")
+                continue
             inner = listing(c)
             if isinstance(inner, str):  # (a folder that cannot be listed may still be a tlm folder)
                 k = kind_of(c)
@@ -641,6 +666,11 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
                     note("report", f"{c}: a report's folder, not searched")
                     continue
                 k = kind_of(c, names)
+                mark = next((m for m in SOFTWARE_MARKS if m in names), None) if k is None else None
+                if mark is not None:
+                    software.append(c)
+                    note("software", f"{c}: {SOFTWARE_MARKS[mark]} ({mark}), not searched")
+                    continue
             if k is not None:
                 found.append((c, k))
                 any_found = True
@@ -662,12 +692,30 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
     said = notes if notes is not None else []
     wording = {"link": "links to folders outside {root} not followed", "unlisted": "folders not searched",
                "empty": "folders with no run, sweep or study in them", "hidden": "hidden folders not searched",
-               "report": "report folders not searched"}
-    for kind in ("link", "unlisted", *(("empty",) if found else ("hidden", "report"))):
+               "report": "report folders not searched", "software": "folders of installed software not searched"}
+    for kind in ("link", "unlisted", *(("empty",) if found else ("hidden", "report", "software"))):
         said.extend(lines[kind])
         if more[kind]:
             said.append(f"and {more[kind]} more {wording[kind].format(root=root)}")
+    if found:
+        said.extend(_search_line(root, software, listed, time.perf_counter() - t0))
     return found
+
+
+def _search_line(root: Path, software: list[Path], listed: int, seconds: float) -> list[str]:
+    """:func:`find`'s one line on its search of ``root`` where it found tlm folders: the folders of
+    installed software it passed over, and how long it was where it was long (none: ``[]``)."""
+    parts = []
+    if listed >= LONG_FOLDERS or seconds >= LONG_SECONDS:
+        parts.append(f"the search for tlm folders listed {listed:,} folders in {seconds:.1f} s (name the folders "
+                     "that hold the runs, or one nearer them, for a quicker report)")
+    if software:
+        shown = ", ".join(str(p) for p in software[:SOFTWARE_SHOWN])
+        rest = f" and {len(software) - SOFTWARE_SHOWN} more" if len(software) > SOFTWARE_SHOWN else ""
+        parts.append(f"{len(software)} folder{'s' * (len(software) > 1)} of installed software not searched "
+                     f"(a virtual or conda environment, site-packages, dist-packages or node_modules: no tlm "
+                     f"command writes there): {shown}{rest}")
+    return [f"{root}: {'; '.join(parts)}"] if parts else []
 
 
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:
