@@ -157,7 +157,6 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
     st_b = np.empty(levels + 1)
     st_depth = np.empty(levels + 1, dtype=np.int64)
     st_axis = np.empty(levels + 1, dtype=np.int64)
-    keys = np.empty(max(PAD, int((last32 - first32).max()) if first32.shape[0] else PAD), dtype=np.uint32)
     # an any-hit ray's non-empty leaves (their padded slots, their place in its list),
     # and the triangle tests up to each leaf of its list
     fs = np.empty(2 * level_cap, dtype=np.int64)
@@ -396,7 +395,7 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
                 if k >= ne:
                     break
                 q = np.uint64(k)
-                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, fs[q], fe[q], eps32, keys)
+                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, fs[q], fe[q], eps32)
                 if slot >= 0:
                     best = slot
                     last = fi[q]
@@ -407,9 +406,9 @@ def trace(o, d, tmin, tmax, ignore, has_ignore, root_lo, root_hi, origin,
             slot, pt = -1, np.float32(np.inf)
             s0, s1 = first32[leaf], last32[leaf]
             if s1 > s0 and shared:
-                slot, pt = _leaf32_shared(dx32, dy32, dz32, t0, t1, ign, pre, s0, s1, eps32, keys)
+                slot, pt = _leaf32_shared(dx32, dy32, dz32, t0, t1, ign, pre, s0, s1, eps32)
             elif s1 > s0:
-                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32, keys)
+                slot, pt = _leaf32(ox32, oy32, oz32, dx32, dy32, dz32, t0, t1, ign, soa32, s0, s1, eps32)
             if first_only:
                 if slot >= 0:
                     best = slot

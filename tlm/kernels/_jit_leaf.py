@@ -39,19 +39,29 @@ def _mx(a, b):
     return b
 
 
+_NONE = np.uint64(0xFFFFFFFFFFFFFFFF)  # (no pair yet: above every packed key and place)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
-def _pick(keys, n, best_hi, s0, tmin, tmax):
-    """The end of a leaf's float32 test: ``(slot, t)`` of the lowest key (the lowest
-    slot among equal ones), or -1 and inf when nothing is accepted before ``tmax``."""
+def _pack(key, j):
+    """A slot's key (:func:`_key`) in the high 32 bits and its place ``j`` in the leaf
+    in the low ones: the minimum of these is the lowest key's, the lowest place among
+    equal keys (one unsigned minimum a slot, which LLVM vectorizes)."""
+    return (np.uint64(key) << np.uint64(32)) | j
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pick(best, s0, tmin, tmax):
+    """The end of a leaf's float32 test from the minimum ``best`` of :func:`_pack`:
+    ``(slot, t)`` of the lowest key (the lowest slot among equal ones), or -1 and inf
+    when nothing is accepted before ``tmax``."""
+    best_hi = np.uint32(best >> np.uint64(32))
     if best_hi >= _NO_HIT:  # nothing accepted, or only at t' = inf
         return -1, np.float32(np.inf)
-    best = 0
-    while keys[best] != best_hi:
-        best += 1
-    tb = np.uint32(best_hi).view(np.float32) + tmin
+    tb = best_hi.view(np.float32) + tmin
     if not tb < tmax:
         return -1, np.float32(np.inf)
-    return s0 + best, tb
+    return s0 + np.int64(best & np.uint64(0xFFFFFFFF)), tb
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -124,26 +134,26 @@ def _slot_tuv(ox, oy, oz, dx, dy, dz, soa, s):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps, keys):
+def _leaf32(ox, oy, oz, dx, dy, dz, tmin, tmax, ign, soa, s0, s1, eps):
     """:func:`closest_slots` for one ray and the padded slots ``s0:s1``: ``(slot, t)``
     (a padded slot; -1 and inf when nothing is hit). Scalars are float32; ``ign`` is a
     triangle id or -1. Among equal distances the lowest slot wins.
 
     The slot loop is branch-free with unsigned indices, so LLVM vectorizes it (numba
     adds a negative-index wraparound to signed ones, and LLVM then gathers lane by lane).
-    ``keys`` (scratch) gets the bits of ``t' = t - tmin`` of an accepted pair and
-    0xFFFFFFFF of a rejected one. Rays of a shared origin take :func:`_leaf32_shared`
-    (the same values with the ray-independent part computed once): one loop each, as a
-    loop holding both formulas computes both in every lane.
+    A slot's key is the bits of ``t' = t - tmin`` of an accepted pair and 0xFFFFFFFF
+    of a rejected one; the loop keeps the minimum of the keys packed with their places
+    (:func:`_pack`), so no key is stored and none searched for afterwards. Rays of a
+    shared origin take :func:`_leaf32_shared` (the same values with the ray-independent
+    part computed once): one loop each, as a loop holding both formulas computes both in
+    every lane.
     """
     ign32 = np.int32(ign)
     u0 = np.uint64(s0)
-    best_hi = _REJECT
+    best = _NONE
     for j in range(np.uint64(s1 - s0)):
-        key = _slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, u0 + j, eps)
-        keys[j] = key
-        best_hi = min(best_hi, key)
-    return _pick(keys, s1 - s0, best_hi, s0, tmin, tmax)
+        best = min(best, _pack(_slot_key(ox, oy, oz, dx, dy, dz, tmin, ign32, soa, u0 + j, eps), j))
+    return _pick(best, s0, tmin, tmax)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -224,12 +234,12 @@ def shared_stack(soa32, o32):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _leaf32_shared(dx, dy, dz, tmin, tmax, ign, pre, s0, s1, eps, keys):
+def _leaf32_shared(dx, dy, dz, tmin, tmax, ign, pre, s0, s1, eps):
     """:func:`_leaf32` for a ray of the packet's shared origin, from the rows of
     :func:`_shared_rows`: ``u`` and ``v`` are linear forms in ``D``, ``(K.D) / det``
     evaluated as ``(dx kx + dy ky) + dz kz`` (the numpy shared-origin path), and ``T.N``
     is the same for every ray."""
-    best_hi = _REJECT
+    best = _NONE
     ign32 = np.int32(ign)
     for j in range(np.uint64(s1 - s0)):  # (unsigned slots, as in _leaf32)
         s = np.uint64(s0) + j
@@ -237,10 +247,8 @@ def _leaf32_shared(dx, dy, dz, tmin, tmax, ign, pre, s0, s1, eps, keys):
         t = pre[_S_T, s] * rdet
         u = _dot(dx, dy, dz, pre[_S_U, s], pre[_S_U + 1, s], pre[_S_U + 2, s]) * rdet
         v = _dot(dx, dy, dz, pre[_S_V, s], pre[_S_V + 1, s], pre[_S_V + 2, s]) * rdet
-        key = _key(u, v, t - tmin, pre[_S_ID, s], ign32, eps)
-        keys[j] = key
-        best_hi = min(best_hi, key)
-    return _pick(keys, s1 - s0, best_hi, s0, tmin, tmax)
+        best = min(best, _pack(_key(u, v, t - tmin, pre[_S_ID, s], ign32, eps), j))
+    return _pick(best, s0, tmin, tmax)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
