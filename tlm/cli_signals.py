@@ -73,7 +73,16 @@ def on_signal(signum, frame) -> None:
     is removed; a second one, during that clean-up, ends the process at once, with its one
     line (at a terminal, a line of its own), once its multiprocessing semaphores are
     released (else the resource tracker reports them leaked, on the same stderr); a third,
-    during that release, ends it without waiting for the release."""
+    during that release, ends it without waiting for the release. In a section that must not
+    be cut in two (:func:`tlm.progress.interrupts_deferred`: a pool starting a worker) the first
+    is noted and its KeyboardInterrupt raised as the section ends, and one more meanwhile is the
+    same (``timeout -s INT`` signals the process, then its group: two at once)."""
+    if progress.deferring():
+        if not _SIGNALS:
+            _SIGNALS.append(signum)
+            _BARS[:] = [weakref.ref(b) for b in bars_drawn()]
+            progress.signal_taken(signum)  # (raised at the section's end)
+        return
     if len(_SIGNALS) > 1:
         os._exit(128 + _SIGNALS[0])
     if _SIGNALS:
@@ -237,12 +246,16 @@ def _end() -> None:
     clean-up, the workers ended: the signal handler of :func:`until_exit` still in place),
     flushes stdout and stderr, and ends the process with the command's exit status (128 + the
     signal that came meanwhile, if one did), leaving out the modules' teardown, where a signal
-    could only kill the process (the interpreter has put the default handlers back by then)."""
-    atexit.unregister(_end)
+    could only kill the process (the interpreter has put the default handlers back by then).
+    Where it cannot run each of the others once (:func:`_others_once`) it leaves them, and the
+    exit, to the interpreter."""
+    if not _others_once():
+        atexit.unregister(_end)
+        return
     status = _EXIT[0] if isinstance(_EXIT[0], int) else int(_EXIT[0] is not None)  # (as sys.exit takes it)
     try:
         with suppress(BaseException):  # (each handler's exception is reported, as at any exit)
-            atexit._run_exitfuncs()
+            atexit._run_exitfuncs()  # (private: see _others_once)
         status = _flushed(status)
         signals = {signal.SIGINT, signal.SIGTERM}
         with suppress(ValueError, OSError):  # from here a signal waits (pending), to be taken below
@@ -257,6 +270,51 @@ def _end() -> None:
             sys.stderr.flush()
     finally:
         os._exit(128 + _SIGNALS[0] if _SIGNALS else status)  # (no handler runs between this test and the exit)
+
+
+class _Seen:
+    """Equal to nothing, it notes each exit handler ``atexit.unregister`` compares with it: the
+    handlers registered, in the order they were (it compares with ``==``, as documented; a
+    function's own ``==`` gives way to this one's)."""
+
+    __hash__ = None
+
+    def __init__(self) -> None:
+        self.handlers: list = []
+
+    def __eq__(self, other) -> bool:
+        self.handlers.append(other)
+        return False
+
+
+def _others_once() -> bool:
+    """Whether :func:`_end` can run the other exit handlers now, each once, and end the process
+    before the modules' teardown: then :func:`_end` is unregistered, and so is each handler
+    registered after it, which the interpreter has run already (it runs the last registered
+    first, and unregisters none as it goes: a handler registered once the command ended, as a
+    ``weakref.finalize`` made then registers one, ran twice). No public call runs the exit
+    handlers (the ``atexit`` module registers and unregisters them; only the interpreter's
+    exit runs them, and its modules' teardown follows, where a signal can only kill the
+    process), so :func:`_end` calls ``atexit._run_exitfuncs``, the one the interpreter's exit
+    calls, which every CPython 3 has. False (the interpreter runs them, each once, and the
+    teardown, as at any exit) where it is missing, or where a function registered after
+    :func:`_end` was registered before it too (``atexit.unregister`` unregisters a function's
+    every registration, and the earlier one has not run yet)."""
+    if not callable(getattr(atexit, "_run_exitfuncs", None)):
+        return False
+    seen = _Seen()
+    atexit.unregister(seen)  # (compares each handler with it, unregistering none)
+    mine = [i for i, f in enumerate(seen.handlers) if f is _end]
+    before, after = (seen.handlers[:mine[-1]], seen.handlers[mine[-1] + 1:]) if mine else (seen.handlers, [])
+    try:
+        if any(f == g for f in after for g in before):  # (as atexit.unregister compares them)
+            return False
+    except Exception:  # (a handler's own == that fails)
+        return False
+    atexit.unregister(_end)
+    for f in after:
+        atexit.unregister(f)
+    return True
 
 
 def _flushed(status: int) -> int:
@@ -325,7 +383,15 @@ def deadlock_line(e: Deadlock) -> str:
 
 def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
     """The exit status of a command that raised ``e``, once its one line is on stderr
-    (``argv``: the command's, None for the process's own)."""
+    (``argv``: the command's, None for the process's own). The process's own command that failed
+    (exit status 1 or 2) is ended as one that returned is: a signal until the process exits
+    says that the command ran to its end and the exit status is 128 + it (:func:`until_exit`)."""
+    status = _failed(e, argv)
+    return until_exit(status) if argv is None else status
+
+
+def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
+    """:func:`exit_status`, but for a signal until the process exits."""
     if isinstance(e, InputError):
         _line(f"tlm: error: {one_line(e)}")
         return 2

@@ -281,6 +281,39 @@ def forget_signals() -> None:
     _TAKEN.clear()
 
 
+_DEFERRED: list[int] = []  # the pid of each section (:func:`interrupts_deferred`) the main thread is in
+
+
+@contextmanager
+def interrupts_deferred():
+    """A section of the main thread that a signal must not cut in two (a pool starting a
+    worker process: one the pool does not know yet would outlive the command, and print a
+    traceback once the command's semaphores are gone): the command line's handler
+    (:func:`tlm.cli_signals.on_signal`) takes a signal that comes meanwhile without raising
+    (:func:`deferring`), and its KeyboardInterrupt is raised as the section ends
+    (:func:`checkpoint`); one more meanwhile is the same one (``timeout -s INT`` signals the
+    process and its group at once), so the section is never cut: it is short (a worker's start,
+    at most the fork server's start-up). Nested sections raise at the outermost one's end; off
+    the main thread, a plain block."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _DEFERRED.append(os.getpid())
+    try:
+        yield
+    finally:
+        _DEFERRED.pop()
+    if not _DEFERRED:
+        checkpoint()
+
+
+def deferring() -> bool:
+    """Whether the main thread of this process is in a section :func:`interrupts_deferred`
+    (not a forked child's inherited list)."""
+    return (bool(_DEFERRED) and _DEFERRED[-1] == os.getpid()
+            and threading.current_thread() is threading.main_thread())
+
+
 def checkpoint() -> None:
     """The top of a long loop's iteration (a render's batch or pass, a photon chunk, a sweep's
     point): a KeyboardInterrupt where the command line took a signal since the last checkpoint.

@@ -34,6 +34,7 @@ from typing import Any
 
 from tlm.errors import EnvironmentFailure, InputError, interrupted_by
 from tlm.kernels.threads import die_with_parent
+from tlm.progress import interrupts_deferred
 
 CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
 DASK_POLL = 1.0  # seconds between a sweep's checks of its Dask scheduler while it waits for points
@@ -191,16 +192,20 @@ class LocalPool(cf.Executor):
             else:
                 job = self.waiting.popleft()
             try:
-                f = self.pool.submit(_run_started, job.token, job.fn, *job.args, **job.kwargs)
+                # a signal raised inside the submit could leave a worker the pool forked without
+                # knowing it (its pid not read yet): stop() could not kill it, and it would print a
+                # traceback once this process's semaphores were gone. It is raised once the pool knows it
+                with interrupts_deferred():
+                    f = self.pool.submit(_run_started, job.token, job.fn, *job.args, **job.kwargs)
+                    self.inflight[f] = job
+                    f.add_done_callback(self.finished.put)
+                    self.processes.update(getattr(self.pool, "_processes", None) or {})
             except (BrokenProcessPool, RuntimeError):  # a worker died since the last look: not this point's
                 # doing (RuntimeError: the broken pool's shutdown raced this submit)
                 (self.suspects if job is self.alone else self.waiting).appendleft(job)
                 self.alone = None
                 self._replace()
                 continue
-            self.inflight[f] = job
-            f.add_done_callback(self.finished.put)
-            self.processes.update(getattr(self.pool, "_processes", None) or {})
 
     def _replace(self) -> None:
         """The pool broke: a new one, each point it held settled, charged or queued again."""
@@ -438,16 +443,25 @@ def _sigint_ignored():
     """SIGINT ignored while the block starts processes, which inherit it: a Ctrl-C at the
     terminal, which signals the whole process group, then reaches the sweep alone, which
     ends the cluster, and no worker prints its own traceback (a page of them, before). A
+    Ctrl-C meanwhile is not lost (an ignored signal is dropped: the sweep went on to its end,
+    exit status 0): SIGINT is blocked as well, so it waits, and is taken once the block ends
+    (unless another thread, which does not block it, takes it meanwhile: dropped, as before). A
     no-op off the main thread."""
+    mask = getattr(signal, "pthread_sigmask", None)  # (POSIX)
+    blocked = mask(signal.SIG_BLOCK, {signal.SIGINT}) if mask is not None else None
     try:
         before = signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread
+        if mask is not None:
+            mask(signal.SIG_SETMASK, blocked)
         yield
         return
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, before)
+        if mask is not None:
+            mask(signal.SIG_SETMASK, blocked)  # (a SIGINT that came meanwhile is taken now)
 
 
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,

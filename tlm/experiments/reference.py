@@ -36,7 +36,8 @@ sample the pixel (``reference.spp``: any converges to the pixel's integral), nor
 stopping rule: ``tlm reference`` reuses a cached reference that meets the requested
 tolerance and computes it again otherwise, but for one with more rounds than
 ``reference.max_rounds`` (:func:`fewer_rounds`: fewer rounds of the same key are no better) or
-computed with the same stopping rule (:data:`RULE`: the same rounds again);
+one that computing again would only repeat (:func:`repeats`: the same stopping rule, :data:`RULE`,
+or one that stops at the same round, e.g. a stricter tolerance and the same ``max_rounds``);
 ``tlm run`` uses whatever is cached, and computes it when nothing is (:func:`ensure_reference`;
 ``reference.auto``). A reference computed now replaces the cached one only where it is better
 (:func:`better`, :func:`store_reference`: it meets the tolerance asked for now
@@ -70,12 +71,14 @@ from tlm.experiments.reference_cache import (
     RULE,
     ReferenceSettings,
     cache_dir,
+    cycle_length,
     describe,
     fewer_rounds,
     kept_back,
     kept_root,
     load_reference,
     meets_tolerance,
+    repeats,
     save_reference,
     store_reference,
 )
@@ -149,11 +152,6 @@ def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> 
     }
     h.update(json.dumps(doc, sort_keys=True).encode())
     return h.hexdigest()[:20]
-
-
-def cycle_length(settings: ReferenceSettings) -> int:
-    """Rounds per cycle: ``spp``, at most half of ``max_rounds`` (two cycles measure a spread)."""
-    return max(1, min(settings.spp, settings.max_rounds // 2))
 
 
 def eye_rays(frame: Frame, pixels: np.ndarray, strata: int, turn: int, seed: int,
@@ -456,8 +454,9 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     (:func:`meets_tolerance`, whatever tolerance it was computed for; and not ``force``), else
     computed now and cached where it is better than the cached one (:func:`store_reference`).
     A cached one that misses the tolerance with more rounds than ``reference.max_rounds``
-    (:func:`fewer_rounds`), or computed with the same stopping rule (:data:`RULE`: the same
-    rounds again), is kept without computing (but with ``force``).
+    (:func:`fewer_rounds`), or one that computing again would repeat (:func:`repeats`: the same
+    stopping rule, :data:`RULE`, or one that stops it at the same round), is kept without computing
+    (but with ``force``).
 
     ``say``: called with a line when a cached reference misses the tolerance, before
     computing, and when the cache keeps its own; ``progress``: called ``(round, change,
@@ -478,11 +477,14 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
         if fewer_rounds(cached[1], settings):
             say(line := kept_back(key, cached[1], settings))
             return Made(key, settings, cached[1], True, cache_dir() / key, line)
-        if all(cached[1].get(k) == getattr(settings, k) for k in RULE):
-            say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, computed with these "
-                         f"reference settings ({', '.join(RULE)}): computing it again would repeat the same rounds, "
-                         f"so it is kept (raise reference.max_rounds above {cached[1].get('rounds')}, or use "
-                         "--force to compute it again)"))
+        if repeats(cached[1], settings):
+            same = all(cached[1].get(k) == getattr(settings, k) for k in RULE)
+            how = (f"computed with these reference settings ({', '.join(RULE)})" if same else
+                   f"where these reference settings stop it too (cycles of {cached[1].get('rounds_per_cycle')} "
+                   f"rounds, at most {cached[1].get('cycles')} of them, none before the last below the tolerance)")
+            say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, {how}: computing it "
+                         f"again would repeat the same rounds, so it is kept (raise reference.max_rounds above "
+                         f"{cached[1].get('rounds')}, or use --force to compute it again)"))
             return Made(key, settings, cached[1], True, cache_dir() / key, line)
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     frame = load_frame(cfg, scene=scene)

@@ -9,7 +9,8 @@ reference computed now replaces the cached one only where it is better (:func:`b
 error and rounds, not the flag of the run that computed it) and the cached one does not, or
 neither does and its relative standard error is lower), or with ``--force``; a cached one
 that misses the tolerance is kept without computing where the settings ask for fewer rounds
-(:func:`fewer_rounds`) or for the same stopping rule (:data:`RULE`).
+(:func:`fewer_rounds`) or where computing it would repeat its rounds (:func:`repeats`: the same
+stopping rule, :data:`RULE`, or one that stops it at the same round).
 
 A cache that cannot be written (a read-only ``~/.cache``) loses no reference: it is kept in
 the temporary folder (:func:`kept_root`, ``<tmp>/tlm-cache-<uid>/references/<key>``). That
@@ -102,6 +103,36 @@ def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
 
 # the stopping rule's settings: a reference computed with the same ones (and the same key) is the same
 RULE = ("tolerance", "min_rounds", "max_rounds", "spp")
+
+
+def cycle_length(settings: ReferenceSettings) -> int:
+    """Rounds per cycle: ``spp``, at most half of ``max_rounds`` (two cycles measure a spread)."""
+    return max(1, min(settings.spp, settings.max_rounds // 2))
+
+
+def repeats(meta: dict, settings: ReferenceSettings) -> bool:
+    """Whether computing the cached reference of ``meta``, which does not meet the tolerance of
+    ``settings``, again with ``settings`` would only repeat its rounds to the same image: the rounds
+    are seeded alike whatever the settings (cycle ``k`` of the same length is the same), so it does
+    where its cycles are as long (:func:`cycle_length`), ``settings`` allow as many cycles as it has
+    (``reference.max_rounds``) and none, and no cycle before its last meets their stopping rule
+    (its ``standard_error_per_cycle``: it would stop there, converged). True too for one computed
+    with the same stopping rule (:data:`RULE`, whatever its metadata holds): one that stopped at
+    exactly ``reference.max_rounds`` rounds is kept by the next run asking for no more, whatever
+    tolerance it asks for (a stricter one, or a ``max_rounds`` that is no whole number of cycles
+    more)."""
+    if meets_tolerance(meta, settings):
+        return False
+    if all(meta.get(k) == getattr(settings, k) for k in RULE):
+        return True
+    strata, cycles, errors = (meta.get(k) for k in ("rounds_per_cycle", "cycles", "standard_error_per_cycle"))
+    if not (isinstance(strata, int) and isinstance(cycles, int) and isinstance(errors, list)
+            and len(errors) == cycles - 1 and strata == cycle_length(settings)
+            and max(2, settings.max_rounds // strata) == cycles):
+        return False
+    min_cycles = max(2, -(-settings.min_rounds // strata))
+    return not any(isinstance(e, (int, float)) and e < settings.tolerance
+                   for k, e in enumerate(errors[:-1], start=2) if k >= min_cycles)
 
 
 def better(new: dict, old: dict, settings: ReferenceSettings) -> bool:
