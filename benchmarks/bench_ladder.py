@@ -1,8 +1,10 @@
 """Whole runs of the ladder of standard scenes (issue 23): wall time, peak memory and the
 work a setting can blow up (photons tested and accepted per gather, triangle tests per ray).
 
-Each config is ``python -m tlm run CONFIG --no-progress`` in a fresh interpreter, one
-after another (its report included, as a user runs it), on one thread; its peak RSS is
+Each config is ``python -m tlm run CONFIG --no-progress --no-reference`` in a fresh
+interpreter, one after another (its report included, as a user runs it), on one thread: the
+run alone, not the converged photon-map reference that ``reference.auto`` would compute
+first with a cold cache (``tlm reference``: minutes, and only once); its peak RSS is
 the kernel's (``os.wait4``'s ``ru_maxrss``), its wall time the parent's clock, its work
 read back from the run's ``results.json``. ``configs/cornell_pmap.yaml`` (the thesis's
 Cornell box, 2,604 triangles, 320 x 320) is the reference measured in the same run: each
@@ -36,7 +38,7 @@ BARS = {"configs/conference.yaml": {"wall": 60.0, "rss": 2 * 1024**3, "tested": 
 
 
 def run(config: str, out: Path) -> dict:
-    cmd = [sys.executable, "-m", "tlm", "run", config, "--out", str(out), "--no-progress"]
+    cmd = [sys.executable, "-m", "tlm", "run", config, "--out", str(out), "--no-progress", "--no-reference"]
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
@@ -63,6 +65,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         ref = run(REFERENCE, Path(tmp) / "reference")
         rows = [run(c, Path(tmp) / f"run{i}") for i, c in enumerate(args.configs)]
+    print("each 'tlm run CONFIG --no-progress --no-reference' (the run alone, not the photon-map reference)")
     print(f"reference {REFERENCE}: {ref['wall']:.1f} s, {ref['rss'] / 2**20:.0f} MiB, "
           f"{ref['tested']:.1f} photons tested per gather")
     print(f"{'config':32s} {'triangles':>10s} {'wall s':>7s} {'x ref':>6s} {'peak MiB':>9s} "

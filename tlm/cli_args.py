@@ -1,6 +1,7 @@
 """The command line's argument types and the options several commands share: the parser with
-the project's one-line error, a folder's or a table's path checked as argparse reads it, and
-``--no-report``, ``--formats``, ``--dpi``, ``--no-progress`` (:func:`tlm.cli.build_parser`)."""
+the project's one-line error (a command's naming the command), a folder's or a table's path
+checked as argparse reads it, and ``--no-report``, ``--formats``, ``--dpi``, ``--no-progress``
+(:func:`tlm.cli.build_parser`)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,30 @@ from tlm.api import InputError
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with the project's one-line error and exit status 2."""
+    """argparse with the project's one-line error and exit status 2: ``tlm: error: MESSAGE``
+    (the top-level parser: the line names ``tlm`` once)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise InputError(message.replace("\n", " "))
+
+    def add_subparsers(self, **kwargs):
+        kwargs.setdefault("parser_class", Subcommand)
+        return super().add_subparsers(**kwargs)
+
+
+class Subcommand(Parser):
+    """A command's parser (``tlm granularity``, ``tlm scene list``): its errors name it, and an
+    argument it does not know is its error, ``tlm: error: tlm granularity: unrecognized
+    arguments: --x``, not left over for the top-level parser (which would name no command)."""
 
     def error(self, message: str):  # type: ignore[override]
         raise InputError(message.replace("\n", " "), source=self.prog)
+
+    def parse_known_args(self, args=None, namespace=None):
+        parsed, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed, extras
 
 
 class _AsTyped(float):
@@ -86,6 +107,17 @@ def no_report(parser: argparse.ArgumentParser) -> None:
     figure_files(parser)
 
 
-def no_progress(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
-                        "not a terminal)")
+# --no-progress's help where the command draws no bar: its lines on stdout are its output, kept
+NO_BAR = "this command draws none (taken so that a script may pass it to every command; it changes nothing here)"
+
+
+def no_progress(parser: argparse.ArgumentParser, bars: str | None = None) -> None:
+    """``--no-progress``: no progress bar. Every command that runs an experiment or writes a
+    report takes it, so that a script may pass it to each. ``bars``: its help where the command
+    draws no bar of its own: what it turns off instead (``tlm plots``: its steps' bars), or
+    :data:`NO_BAR`, that it changes nothing there."""
+    if bars is None:
+        what = "no progress bar (none either when stderr is not a terminal)"
+    else:
+        what = f"no progress bar: {bars}"
+    parser.add_argument("--no-progress", action="store_true", help=what)

@@ -12,8 +12,9 @@ hold nothing for it):
 5. What do the sweeps find? For each sweep, the factor that moves the frame rate most (its
    values compared like with like: within the combinations of the other factors that
    finished with each of them) and its best point (or that none moves it).
-6. What do the granularity and extreme studies find? The coarsest packet within 1% of the
-   reference's cycles; the cases not as expected.
+6. What do the granularity and extreme studies find? The largest packet up to which every
+   size keeps within 1% of the reference's cycles (not a lucky size past one that does not),
+   and the default size's error; the cases not as expected.
 """
 
 from __future__ import annotations
@@ -392,9 +393,52 @@ def sweep_findings(inputs: Inputs) -> list[str]:
     return texts
 
 
+GRANULARITY_TOLERANCE = 0.01  # the cycle error against packets of one that the summary calls close
+
+
+def _granularity_finding(name: str, size: np.ndarray, secs: np.ndarray, err: np.ndarray) -> str:
+    """One granularity study in words (sizes increasing, the smallest the reference): the
+    largest packet up to which EVERY size keeps within the tolerance (the error need not fall
+    steadily with the size: a size that comes back within it past one that does not is said
+    as such, not taken for the finding), then the default size's error (``arch.packet_size``)."""
+    ref = int(np.argmin(size))
+    coarse = np.flatnonzero(size > size[ref])  # (the reference itself is not a finding)
+    off = np.flatnonzero(err[coarse] > GRANULARITY_TOLERANCE)
+    steady = coarse[:off[0]] if off.size else coarse
+    head = f"<b>Granularity {esc(name)}:</b> "
+    if steady.size:
+        i = int(steady[-1])
+        text = (f"packets of {int(size[i]):,} stay within 1% of the cycles of packets of {int(size[ref]):,} "
+                f"(error {err[i]:.2%})")
+        if steady.size > 1:
+            text += f", as every size below it does (at most {err[steady].max():.2%})"
+        text += f", in {secs[i]:.3g} s of simulation against {secs[ref]:.3g} s"
+    elif off.size == coarse.size:
+        i = None
+        text = (f"every packet size above {int(size[ref]):,} is more than 1% off its cycles "
+                f"(the least, {err[coarse].min():.2%})")
+    else:
+        i = int(coarse[0])
+        text = (f"packets of {int(size[i]):,}, the next size above {int(size[ref]):,}, are already {err[i]:.2%} "
+                f"off the cycles of packets of {int(size[ref]):,} (more than 1%)")
+    back = coarse[off[0]:][err[coarse[off[0]:]] <= GRANULARITY_TOLERANCE] if off.size else coarse[:0]
+    if back.size:
+        sizes = ", ".join(f"{int(size[j]):,} ({err[j]:.2%})" for j in back)
+        text += (f"; packets of {sizes} come back within 1% past a smaller size that does not: the error does "
+                 "not fall steadily with the packet size, so such a size is luck, not a setting to trust")
+    default = ArchConfig().packet_size
+    d = np.flatnonzero(size == default)
+    if d.size and default != size[ref] and d[0] != i:
+        j = int(d[0])
+        text += (f"; the default packets of {default:,} (arch.packet_size) are {err[j]:.2%} off, in "
+                 f"{secs[j]:.3g} s of simulation against {secs[ref]:.3g} s")
+    return head + text + "."
+
+
 def study_findings(inputs: Inputs) -> list[str]:
-    """The granularity and extreme studies, in words: the coarsest packet within 1% of the
-    reference and what it saves; the cases not as expected."""
+    """The granularity and extreme studies, in words: the largest packet up to which every size
+    keeps within 1% of the reference and what it saves, and the default size's error
+    (:func:`_granularity_finding`); the cases not as expected."""
     from tlm.report.tradeoff import granularity_points
 
     texts = []
@@ -403,18 +447,7 @@ def study_findings(inputs: Inputs) -> list[str]:
         ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
         if ok.sum() < 2:
             continue
-        size, secs, err = size[ok], secs[ok], np.abs(err[ok])
-        ref = int(np.argmin(size))
-        within = np.flatnonzero((err <= 0.01) & (size > size[ref]))  # (the reference itself is not a finding)
-        if within.size:
-            i = within[np.argmax(size[within])]
-            texts.append(f"<b>Granularity {esc(st.path.name)}:</b> packets of {int(size[i]):,} stay within 1% "
-                         f"of the cycles of packets of {int(size[ref]):,} (error {err[i]:.2%}), in "
-                         f"{secs[i]:.3g} s of simulation against {secs[ref]:.3g} s.")
-        else:
-            coarser = err[size > size[ref]]
-            texts.append(f"<b>Granularity {esc(st.path.name)}:</b> every packet size above {int(size[ref]):,} is "
-                         f"more than 1% off its cycles (the least, {coarser.min():.2%}).")
+        texts.append(_granularity_finding(st.path.name, size[ok], secs[ok], np.abs(err[ok])))
     for st in inputs.of_kind("extreme"):
         failed = [str(r["case"]) for r in st.rows if not r["passed"]]
         texts.append(f"<b>Extreme cases {esc(st.path.name)}:</b> {len(st.rows) - len(failed)} of {len(st.rows)} as "
