@@ -50,7 +50,7 @@ def test_a_config_file_reads_the_table_beside_it(tree):
     (tree / "configs" / "run.yaml").write_text(yaml.safe_dump({**TINY, "arch": {"programs": "t.yaml"}}))
     for more in ([], ["seed=3"]):  # (other --set keys leave the file's own path as the file wrote it)
         cfg = load_config(str(tree / "configs" / "run.yaml"), more)
-        assert cfg.settings.arch.programs == "t.yaml"
+        assert cfg.settings.arch.programs == str(tree / "configs" / "t.yaml")  # (absolute: runs again anywhere)
         assert programs_for(cfg.settings, cfg.base).source == str(tree / "configs" / "t.yaml")
 
 
@@ -87,7 +87,7 @@ def test_a_sweep_files_table_is_beside_the_sweep_file_whatever_folder_its_base_i
     sweep = load_sweep(_sweep(tree, body))
     assert sweep.folder == (tree / "configs").resolve()  # (the base file's paths start at its folder)
     point = sweep.points[0]
-    assert point.config["arch"]["programs"] == "../study/t.yaml"
+    assert point.config["arch"]["programs"] == str(tree / "study" / "t.yaml")  # (absolute: on any worker)
     table = programs_for(config_from_dict(point.config), sweep.folder)
     assert _digest(Path(table.source)) == _digest(tree / "study" / "t.yaml")
     if "grid" in body and "arch.programs" in body["grid"]:
@@ -95,7 +95,7 @@ def test_a_sweep_files_table_is_beside_the_sweep_file_whatever_folder_its_base_i
 
 
 def test_a_sweep_files_missing_table_names_the_path_tried(tree):
-    with pytest.raises(InputError, match=r"sweep\.yaml \(point 0\): .*/configs/\.\./study/nope\.yaml: arch\.programs: "
+    with pytest.raises(InputError, match=r"sweep\.yaml \(point 0\): .*/study/nope\.yaml: arch\.programs: "
                                          r"file not found"):
         load_sweep(_sweep(tree, {"grid": {"arch.programs": ["nope.yaml"]}}))
 
@@ -105,7 +105,7 @@ def test_a_base_files_own_table_is_beside_the_base_file(tree):
     (tree / "study" / "sweep.yaml").write_text(yaml.safe_dump({"base": "../configs/base.yaml",
                                                                "grid": {"arch.fifo_depth": [1, 2]}}))
     sweep = load_sweep(tree / "study" / "sweep.yaml")
-    assert [p.config["arch"]["programs"] for p in sweep.points] == ["t.yaml", "t.yaml"]
+    assert [p.config["arch"]["programs"] for p in sweep.points] == [str(tree / "configs" / "t.yaml")] * 2
     assert programs_for(config_from_dict(sweep.points[0].config), sweep.folder).source == str(
         tree / "configs" / "t.yaml")
     (tree / "study" / "g.yaml").write_text(yaml.safe_dump({"base": "../configs/base.yaml", "packet_sizes": [1]}))

@@ -51,9 +51,10 @@ def test_two_scene_files_of_one_config_fill_two_tables(tmp_path, monkeypatch):
     inputs = read([runs])
     assert {r.path.name: r.scene_label for r in inputs.runs} == {
         "a_rcast": "a/ring.yaml", "a_reflect": "a/ring.yaml", "b_refract": "b/ring.yaml"}
-    # (the premise: their resolved configs are equal but for mode)
-    assert len({json.dumps({k: v for k, v in r.config.items() if k != "mode"}, sort_keys=True, default=str)
-                for r in inputs.runs}) == 1
+    # (their resolved configs name the two files by their absolute paths: equal but for mode and scene)
+    assert len({json.dumps({k: v for k, v in r.config.items() if k not in ("mode", "scene")}, sort_keys=True,
+                           default=str) for r in inputs.runs}) == 1
+    assert {r.config["scene"] for r in inputs.runs} == {str(tmp_path / d / "ring.yaml") for d in ("a", "b")}
     sources = collect_sources(inputs, [])["ring"]
     # one table per scene file: a's two modes together, b's refract alone
     assert sorted((s.scene_label, tuple(s.modes)) for s in sources) == [

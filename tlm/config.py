@@ -490,9 +490,34 @@ def deep_merge(base: dict, over: dict) -> dict:
 
 
 # the dotted keys whose values are file paths, each relative to the file that wrote it (the
-# command line's: relative to the working folder); a scene path is looked for there and in the
-# working folder (tlm.scenes.loader.resolve_scene_path)
+# command line's: relative to the working folder); ``scene`` names a file that way too, or a
+# built-in scene by name (:func:`scene_from`)
 PATH_KEYS = ("arch.programs",)
+
+
+def names_scene_file(value: Any) -> bool:
+    """Whether the ``scene`` value ``value`` is written as a path (``box.yaml``, ``a/box``),
+    not as a built-in scene's plain name (``cornell``): as :func:`tlm.scenes.loader.resolve_scene_path`
+    tells them (``thesis/ring`` is both: a built-in scene of a subfolder, found there)."""
+    return isinstance(value, str) and (value.lower().endswith((".yaml", ".yml")) or "/" in value or os.sep in value)
+
+
+def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
+    """``value``, a ``scene`` given by a file in the first of ``folders`` (the command line:
+    the working folder), as the absolute path of the file it names: the first of
+    ``folders`` (each absolute) that holds it. Read once, where the config is read, so that
+    the config names one file wherever it is used again (a worker, a rerun of its
+    ``config.resolved.yaml`` from another folder). A built-in scene's name (``cornell``,
+    ``thesis/ring``), an absolute path, and a path none of ``folders`` holds are returned as
+    they are (:func:`tlm.scenes.loader.resolve_scene_path` finds the built-in one, or says
+    that the file is missing)."""
+    if not names_scene_file(value) or not value or Path(value).is_absolute():
+        return value
+    for folder in folders:
+        target = os.path.abspath(os.path.join(folder, value))
+        if os.path.isfile(target):
+            return target
+    return value
 
 
 def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:
@@ -514,11 +539,23 @@ def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> An
     return value
 
 
+def files_from(raw: dict, folder: Path) -> dict:
+    """The run config mapping ``raw``, written by a file in ``folder``, with the files it
+    names as absolute paths: ``scene`` (:func:`scene_from`) and the keys of
+    :data:`PATH_KEYS` (:func:`paths_from`). Its ``config.resolved.yaml`` then names the same
+    files wherever it is run again, and so does a worker of another working folder."""
+    out = {k: paths_from(k, v, folder) for k, v in raw.items()}
+    if "scene" in out:
+        out["scene"] = scene_from(out["scene"], [folder])
+    return out
+
+
 def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd: Path | None = None) -> dict:
     """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping.
     ``cwd``: where the strings were given (the command line's working folder): a relative
     path they give to a key of :data:`PATH_KEYS` is made absolute from there
-    (:func:`paths_from`), not left relative to the config's folder."""
+    (:func:`paths_from`), not left relative to the config's folder; so is a ``scene`` file
+    found there (:func:`scene_from`)."""
     raw = dict(raw)
     for item in overrides:
         if "=" not in item:
@@ -532,7 +569,7 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
             raise InputError(f"cannot parse value {text!r}", source=source, key=key) from None
         parts = key.strip().split(".")
         if cwd is not None:
-            value = paths_from(".".join(parts), value, cwd)
+            value = scene_from(value, [cwd]) if parts == ["scene"] else paths_from(".".join(parts), value, cwd)
         node = raw
         for p in parts[:-1]:
             child = node.get(p)
@@ -559,9 +596,12 @@ def load_config(path: Path | None, overrides: list[str] | None = None, via: str 
                              "`scene: cornell` (the defaults: 'tlm params')", source=source)
         if not isinstance(raw, dict):
             raise InputError(f"must be a mapping of keys (key: value lines), got {yaml_kind(raw)}", source=source)
+        raw = files_from(raw, base)  # (the files it names: from the config's folder, once)
     if overrides:  # (command-line paths: relative to the working folder, not to the config's)
         raw = apply_overrides(raw, overrides, source=via, cwd=Path.cwd())
         source = with_overrides(source, via)
+        if "scene" in raw:  # (a --set scene that is no file there: looked for beside the config, as before)
+            raw = {**raw, "scene": scene_from(raw["scene"], [base])}
     return _build(RunConfig, raw, source, ""), base
 
 

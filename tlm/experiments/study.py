@@ -31,7 +31,7 @@ from typing import Any
 
 import yaml
 
-from tlm.config import read_yaml, to_dict
+from tlm.config import files_from, read_yaml, to_dict
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
@@ -57,7 +57,7 @@ def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
     base = raw.get("base") or {}
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
-    return raw, base, src
+    return raw, _files_absolute(base, Path(path).resolve().parent), src
 
 
 def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str, Path]:
@@ -70,7 +70,14 @@ def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str,
 
     raw, src = _study_frame(path, keys)
     base, base_src, folder = read_base(raw.get("base"), Path(path).resolve().parent, src, "study file")
-    return raw, base, base_src, folder
+    return raw, _files_absolute(base, folder), base_src, folder
+
+
+def _files_absolute(base: dict, folder: Path) -> dict:
+    """``base`` with the files it names (``scene``, ``arch.programs``; relative to
+    ``folder``) as absolute paths (:func:`tlm.config.files_from`): the points'
+    ``config.resolved.yaml`` then name those files wherever they are run again."""
+    return files_from(base, folder)
 
 
 def run_study(source: str, out: Path, name: str, points: Iterable[Any],

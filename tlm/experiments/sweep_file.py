@@ -27,11 +27,14 @@ from tlm.config import (
     RunConfig,
     check_leaf,
     config_from_dict,
+    files_from,
     is_leaf,
+    names_scene_file,
     paths_from,
     plain,
     read_yaml,
     run_config_field,
+    scene_from,
     to_dict,
     with_leaves,
 )
@@ -113,7 +116,7 @@ class Sweep:
                     break
             if whys:
                 where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
-                lines.append(f"{self.path}: the factor {factor} changed nothing in {where} that ran: "
+                lines.append(f"{self.path}: the factor {factor} changed nothing in {where}: "
                              f"{said_once(whys)}")
         return lines
 
@@ -436,14 +439,17 @@ def load_sweep(path: Path) -> Sweep:
                     raise InputError(f"overlaps {where}.{other}", source=src, key=f"{name}.{k}")
             seen[k] = name
 
-    # a path the sweep file gives (arch.programs) is relative to the sweep file, where a base
-    # file in another folder starts the config's other relative paths: it is given from there
+    # a path the sweep file gives (arch.programs) is relative to the sweep file, the base's to
+    # the base config's folder; a scene file it gives is the sweep file's, else the base
+    # config's. Each is made absolute: one file wherever the sweep runs, on any worker, and in
+    # each point's config.resolved.yaml
     here = path.resolve().parent
+    scene_folders = list(dict.fromkeys([here, folder]))
 
     def moved(k: str, v: Any) -> Any:
-        return v if folder == here else paths_from(k, v, here, folder)
+        return scene_from(v, scene_folders) if k == "scene" else paths_from(k, v, here)
 
-    fixed = dict(base)
+    fixed = files_from(base, folder)  # (the base's files: from the base config's folder)
     for k, v in settings.items():
         fixed = _assign(fixed, k, moved(k, v))
     config_from_dict(fixed, f"{src} (base with set)")
@@ -472,6 +478,7 @@ def load_sweep(path: Path) -> Sweep:
             known[key] = inert_settings(_config(fields))
         inert.append(known[key])
     # every config is checked before any file it names is loaded
+    _scenes_found(rows, src, scene_folders if any(k == "scene" for k in (*settings, *factor_keys)) else [folder])
     points, seen, known = [], {}, {}
     order = sorted(checked.template)  # (the key's JSON sorts its keys)
     # the config less arch, as the JSON of its fields: those the factors leave, then the others
@@ -489,6 +496,22 @@ def load_sweep(path: Path) -> Sweep:
                             _key([fields[name].keyed for name in order], shown), inputs["functional"]))
     _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
+
+
+def _scenes_found(rows: list, src: str, folders: list[Path]) -> None:
+    """An InputError naming the point, the scene file and ``folders`` (where it was looked
+    for) for the first point whose ``scene`` is a relative path that none of them holds
+    (:func:`~tlm.config.scene_from` left it so) and that is no built-in scene
+    (``thesis/ring.yaml``)."""
+    from tlm.scenes.loader import resolve_scene_path
+
+    done = set()
+    for i, _, fields in rows:
+        scene = fields["scene"].value
+        if scene in done or not names_scene_file(scene) or not scene or Path(scene).is_absolute():
+            continue
+        resolve_scene_path(scene, folders[0], f"{src} (point {i})", also=tuple(folders[1:]))
+        done.add(scene)
 
 
 def _given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> None:

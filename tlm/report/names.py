@@ -83,7 +83,9 @@ def scene_label(ref: Any, source: Any, name: Any = None) -> str:
         if (not r.startswith(("/", ".")) and src.endswith(f"/{r}") and len(Path(src).parts) > n
                 and Path(src).parts[-n - 1] in SCENE_FOLDERS and not Path(src).is_file()):
             return r.rsplit(".", 1)[0]  # (a file on this machine is that only where its content is: a user's
-        return r  # own scenes/cornell.yaml, edited, is not the built-in cornell)
+        # own scenes/cornell.yaml, edited, is not the built-in cornell); a config's absolute path
+        # (tlm.config.scene_from made it so) relative to the current folder where it lies under it
+        return file_name(r) if Path(r).is_absolute() else r
     if src:
         from tlm.scenes.loader import list_scenes
 

@@ -77,9 +77,14 @@ def list_scenes() -> list[str]:
 
 
 def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_source: str | None = None,
-                       key: str = "scene") -> Path:
-    """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`), tried
-    relative to ``base`` then the cwd.
+                       key: str = "scene", also: tuple[Path, ...] = ()) -> Path:
+    """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`): a
+    relative path is tried relative to ``base`` (none: the cwd), then to each folder of
+    ``also``, then among the built-in scenes (``thesis/ring.yaml``); not the cwd where a
+    ``base`` is given (but for a scene file's ``extends``, as before), so that a file's
+    relative path means one file wherever the command runs. A file's ``scene`` is made
+    absolute where the config is read (:func:`tlm.config.scene_from`); a path not found
+    names the folders tried.
 
     ``config_source`` names the file the reference came from and ``key`` the key that
     gave it (``scene``, a scene file's ``extends``), for error messages.
@@ -91,13 +96,18 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         return scenes_dir() / f"{ref}.yaml"  # a built-in scene of a subfolder: thesis/ring
     if looks_like_path:
         p = Path(ref)
-        for cand in ([base / p] if base is not None and not p.is_absolute() else []) + [p]:
+        tried = [] if p.is_absolute() else [Path.cwd() if base is None else Path(base), *map(Path, also)]
+        if tried and base is not None and key == "extends":
+            tried.append(Path.cwd())  # (an extends not beside its file: the cwd's, as it always was)
+        for cand in [p if base is None or p.is_absolute() else Path(base) / p] + [f / p for f in tried[1:]]:
             if cand.is_file():
                 return cand
         if not p.is_absolute() and (scenes_dir() / p).is_file():
             return scenes_dir() / p  # thesis/ring.yaml
         stem = ref[: -len(p.suffix)] if p.suffix.lower() in (".yaml", ".yml") else ref
-        raise InputError(f"scene file {ref!r} not found{did_you_mean(stem, list_scenes())}",
+        folders = ", ".join(dict.fromkeys(os.path.abspath(f) for f in tried))
+        looked = f" (looked in {folders} and among the built-in scenes)" if tried else ""
+        raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():

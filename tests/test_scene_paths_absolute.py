@@ -1,0 +1,167 @@
+"""A relative scene file means one file wherever the command runs: a ``scene`` that names a
+file is made absolute where the config is read (relative to the file that gave it: a run
+config, a sweep file, a base config; on the command line the working folder), so that a
+run's or a sweep point's ``config.resolved.yaml`` runs again from any folder, and a remote
+worker of another working folder reads the same file. A built-in scene's name stays a name.
+A scene file not found names the folders tried."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tlm.api import load_config
+from tlm.cli import main
+from tlm.errors import InputError
+from tlm.experiments.frames import render_key
+from tlm.experiments.study import read_study, read_study_base
+from tlm.experiments.sweep import run_sweep
+from tlm.experiments.sweep_file import load_sweep
+from tlm.scenes.loader import resolve_scene_path, scenes_dir
+
+TINY = {"mode": "rcast", "resolution": [8, 8], "render": {"spp": 1, "light_samples": 1}, "arch": {"trace": False}}
+QUIET = ["--no-progress", "--no-report"]
+
+
+def _box(path: Path, wall_div: int = 1) -> Path:
+    """The built-in Cornell box as a scene file of the user's (``wall_div`` changes its mesh)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = (scenes_dir() / "cornell.yaml").read_text()
+    assert "params: {}" in text
+    path.write_text(text.replace("params: {}", f"params: {{wall_div: {wall_div}}}") if wall_div > 1 else text)
+    return path
+
+
+@pytest.fixture
+def study(tmp_path, monkeypatch):
+    """``s1/base.yaml`` (``scene: box.yaml``, beside it), ``s2/box2.yaml``, and a working folder
+    ``work/`` that holds neither."""
+    _box(tmp_path / "s1" / "box.yaml")
+    _box(tmp_path / "s2" / "box2.yaml", wall_div=2)
+    (tmp_path / "s1" / "base.yaml").write_text(yaml.safe_dump({"scene": "box.yaml", **TINY}))
+    (tmp_path / "work").mkdir()
+    monkeypatch.chdir(tmp_path / "work")
+    return tmp_path
+
+
+def _sweep(folder: Path, **body) -> Path:
+    path = folder / "sw.yaml"
+    path.write_text(yaml.safe_dump({"base": "../s1/base.yaml", **body}, sort_keys=False))
+    return path
+
+
+def test_a_sweeps_scene_files_are_found_from_any_working_folder(study):
+    """The grid's box2.yaml is beside the sweep file, box.yaml beside its base config; the
+    working folder holds neither (it failed: ``scene file 'box2.yaml' not found``)."""
+    sweep = load_sweep(_sweep(study / "s2", grid={"scene": ["box.yaml", "box2.yaml"]}))
+    assert [p.config["scene"] for p in sweep.points] == [str(study / "s1" / "box.yaml"),
+                                                         str(study / "s2" / "box2.yaml")]
+    assert [p.factors for p in sweep.points] == [{"scene": "box.yaml"}, {"scene": "box2.yaml"}]  # (as written)
+    assert sweep.points[0].hash != sweep.points[1].hash
+    # the base's own scene, and a built-in name, which stays a name
+    sweep = load_sweep(_sweep(study / "s2", grid={"seed": [0], "scene": ["cornell", "thesis/ring"]}))
+    assert [p.config["scene"] for p in sweep.points] == ["cornell", "thesis/ring"]
+    sweep = load_sweep(_sweep(study / "s2", grid={"seed": [0, 1]}))
+    assert {p.config["scene"] for p in sweep.points} == {str(study / "s1" / "box.yaml")}
+
+
+def test_a_scene_file_beside_the_sweep_file_wins_over_the_base_configs(study):
+    """A scene the sweep file gives is the sweep file's first (as arch.programs is), then the
+    base config's; never the working folder's."""
+    _box(study / "s2" / "box.yaml", wall_div=3)
+    _box(study / "work" / "box2.yaml", wall_div=4)
+    sweep = load_sweep(_sweep(study / "s2", set={"scene": "box.yaml"}, grid={"seed": [0]}))
+    assert sweep.points[0].config["scene"] == str(study / "s2" / "box.yaml")
+    (study / "s2" / "box2.yaml").unlink()
+    with pytest.raises(InputError) as e:
+        load_sweep(_sweep(study / "s2", grid={"scene": ["box2.yaml"]}))
+    assert str(e.value) == (f"{study / 's2' / 'sw.yaml'} (point 0): scene: scene file 'box2.yaml' not found "
+                            f"(looked in {study / 's2'}, {study / 's1'} and among the built-in scenes)")
+
+
+def test_a_run_configs_missing_scene_names_the_folder_tried(study):
+    (study / "s2" / "run.yaml").write_text(yaml.safe_dump({"scene": "nope.yaml"}))
+    cfg = load_config(str(study / "s2" / "run.yaml"))
+    with pytest.raises(InputError, match=r"scene file 'nope\.yaml' not found \(looked in "
+                                         + str(study / "s2").replace(".", r"\.") + r" and among the built-in"):
+        render_key(cfg.settings, cfg.base, cfg.source)
+
+
+def test_the_loader_does_not_fall_back_to_the_working_folder(study):
+    """A file's relative scene (or ``extends``) is relative to that file's folder alone: a
+    file of that name in the working folder is not taken instead."""
+    _box(study / "work" / "box2.yaml")
+    assert resolve_scene_path("box2.yaml") == Path("box2.yaml")  # (no base: the working folder)
+    assert resolve_scene_path("box2.yaml", study / "s2") == study / "s2" / "box2.yaml"
+    with pytest.raises(InputError, match=r"scene file 'box2\.yaml' not found \(looked in .*s1 and among"):
+        resolve_scene_path("box2.yaml", study / "s1")
+    assert resolve_scene_path("thesis/ring.yaml", study / "s1") == scenes_dir() / "thesis" / "ring.yaml"
+
+
+def test_a_config_files_scene_is_absolute_and_the_command_lines_is_the_working_folders(study):
+    cfg = load_config(str(study / "s1" / "base.yaml"))
+    assert cfg.settings.scene == str(study / "s1" / "box.yaml")
+    _box(study / "work" / "box.yaml", wall_div=2)
+    assert load_config(str(study / "s1" / "base.yaml"), ["scene=box.yaml"]).settings.scene == str(
+        study / "work" / "box.yaml")
+    # a --set scene that is no file in the working folder is still looked for beside the config
+    assert load_config(str(study / "s1" / "base.yaml"), ["scene=../s2/box2.yaml"]).settings.scene == str(
+        study / "s2" / "box2.yaml")
+    for name in ("cornell", "thesis/ring", "thesis/ring.yaml"):
+        assert load_config(str(study / "s1" / "base.yaml"), [f"scene={name}"]).settings.scene == name
+
+
+def test_two_box_yaml_of_other_folders_are_two_scenes(study):
+    """Each config names its own folder's box.yaml: other strings, other frame keys."""
+    _box(study / "a" / "box.yaml")
+    _box(study / "b" / "box.yaml", wall_div=2)
+    for name in ("a", "b"):
+        (study / name / "run.yaml").write_text(yaml.safe_dump({"scene": "box.yaml", **TINY}))
+    a, b = (load_config(str(study / name / "run.yaml")) for name in ("a", "b"))
+    assert (a.settings.scene, b.settings.scene) == (str(study / "a" / "box.yaml"), str(study / "b" / "box.yaml"))
+    assert render_key(a.settings, a.base) != render_key(b.settings, b.base)
+
+
+def test_a_studys_base_scene_is_absolute(study):
+    (study / "s2" / "g.yaml").write_text(yaml.safe_dump({"base": "../s1/base.yaml", "packet_sizes": [1]}))
+    _, base, _, _ = read_study_base(study / "s2" / "g.yaml", ("packet_sizes",))
+    assert base["scene"] == str(study / "s1" / "box.yaml")
+    (study / "s2" / "e.yaml").write_text(yaml.safe_dump({"base": {"scene": "box2.yaml"}, "cases": []}))
+    _, base, _ = read_study(study / "s2" / "e.yaml", ("cases",))
+    assert base["scene"] == str(study / "s2" / "box2.yaml")
+
+
+def test_a_runs_resolved_config_runs_again_from_another_folder(study, cache, monkeypatch):
+    """``tlm run s1/base.yaml`` from s1, then its config.resolved.yaml from work/: the same
+    scene file (it failed: ``scene file 'box.yaml' not found``)."""
+    monkeypatch.chdir(study / "s1")
+    assert main(["run", "base.yaml", "--out", str(study / "r1"), *QUIET]) == 0
+    resolved = yaml.safe_load((study / "r1" / "config.resolved.yaml").read_text())
+    assert resolved["scene"] == str(study / "s1" / "box.yaml")
+    monkeypatch.chdir(study / "work")
+    assert main(["run", str(study / "r1" / "config.resolved.yaml"), "--out", str(study / "r2"), *QUIET]) == 0
+    assert yaml.safe_load((study / "r2" / "config.resolved.yaml").read_text())["scene"] == resolved["scene"]
+
+
+def test_a_sweep_points_resolved_config_runs_again_from_another_folder(study, cache, monkeypatch):
+    monkeypatch.chdir(study / "s2")
+    run_sweep(_sweep(study / "s2", grid={"scene": ["box2.yaml"]}), study / "o", jobs=1)
+    (point,) = (study / "o" / "points").iterdir()
+    resolved = yaml.safe_load((point / "config.resolved.yaml").read_text())
+    assert resolved["scene"] == str(study / "s2" / "box2.yaml")
+    monkeypatch.chdir(study / "work")
+    assert main(["run", str(point / "config.resolved.yaml"), "--out", str(study / "r"), *QUIET]) == 0
+
+
+def test_a_mappings_scene_and_table_are_absolute_from_its_base(study):
+    """A Python mapping (``tlm.load_config({...}, base=...)``) names its files from ``base`` as a
+    file names them from its folder: absolute in the config, so its ``config.resolved.yaml`` runs
+    again from anywhere."""
+    (study / "s1" / "t.yaml").write_text((Path(__file__).parents[1] / "tlm" / "arch" / "programs.yaml").read_text())
+    cfg = load_config({**TINY, "scene": "box.yaml", "arch": {**TINY.get("arch", {}), "programs": "t.yaml"}},
+                      base=study / "s1")
+    assert cfg.settings.scene == str(study / "s1" / "box.yaml")
+    assert cfg.settings.arch.programs == str(study / "s1" / "t.yaml")
+    assert load_config({"scene": "cornell", **TINY}).settings.scene == "cornell"  # (a built-in name stays a name)
