@@ -182,8 +182,8 @@ def test_render_simulate_and_run_agree(tmp_path, cache):
     assert results["cycles"] == timing.cycles
     assert res.warnings == results["warnings"]  # (the render's: what tlm run warns of, but the stream's)
     unread = tlm.render_image(cfg.updated({"estimate.k": 9}))
-    assert unread.warnings == ["estimate.k = 9 has no effect in this run: estimate.filter is 'mvoxel': only "
-                               "'kvoxel' samples k voxels"]
+    assert unread.warnings == ["estimate.k=9 (in the overrides) has no effect in this run: the photon-map pass is "
+                               "left out (mode 'rcast' does not include the pmap (photon-map) pass)"]
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.resolved.yaml", "images", "results.json"]
 
 

@@ -51,7 +51,8 @@ def test_render_result_repr_is_a_few_lines(done):
     rcast = lines[1]
     for key in ("primary_rays", "shadow_rays", "tri_tests"):
         assert f"{key} {totals['rcast'][key]:,}" in rcast
-    assert lines[-1].strip() == ("not simulated yet: tlm.simulate(result) runs the timing model (cycles, frames per "
+    # (what the result holds: tlm.simulate returns a timing and leaves the render as it is)
+    assert lines[-1].strip() == ("timing: not in this result: tlm.simulate(result) returns it (cycles, frames per "
                                  "second)")
     assert "None" not in text  # (in words, not the attribute's value)
     shown = repr(simulated).splitlines()

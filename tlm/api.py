@@ -43,9 +43,15 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tlm.api_common import experiment_path  # (shared with tlm.api_studies)
+from tlm.api_common import (
+    argument_names,
+    experiment_path,  # (shared with tlm.api_studies)
+)
+from tlm.api_common import checked as _checked
 from tlm.api_common import folder as _folder
 from tlm.api_common import refuse_other_kind as _refuse_other_kind
+from tlm.api_common import renamed as _renamed
+from tlm.api_common import shown as _shown
 from tlm.api_studies import (  # the many experiments and the reports (see the end of this module)
     calibrate,
     calibration_table,  # noqa: F401  (not in __all__: the CLI's tlm.api.<name>, as in_checkout, report_output)
@@ -169,7 +175,7 @@ def _yaml_text(value: Any) -> str:
     try:
         return json.dumps(value, ensure_ascii=False)  # (YAML reads JSON's surrogate escapes as two characters)
     except TypeError:
-        raise InputError(f"{value!r} is not a value a config holds (a number, a string, a bool, null, "
+        raise InputError(f"{_shown(value)} is not a value a config holds (a number, a string, a bool, null, "
                          "or lists and mappings of them)", key="overrides") from None
 
 
@@ -178,7 +184,7 @@ def _via(overrides: Overrides | None, via: str | None) -> str:
     a mapping (a notebook's) and ``--set`` for ``dotted.key=value`` strings (the command line's)."""
     if via is not None:
         if not isinstance(via, str) or not via.strip():
-            raise InputError(f"{via!r} is not a name for the overrides (the command line's: '--set')", key="via")
+            raise InputError(f"{_shown(via)} is not a name for the overrides (the command line's: '--set')", key="via")
         return via
     return "the overrides" if isinstance(overrides, Mapping) else "--set"
 
@@ -190,11 +196,15 @@ def _override_strings(overrides: Overrides | None) -> list[str]:
     if isinstance(overrides, Mapping):
         return [f"{k}={_yaml_text(v)}" for k, v in overrides.items()]
     if isinstance(overrides, str):
-        raise InputError(f"{overrides!r}: overrides are a mapping or a list of dotted.key=value strings",
+        raise InputError(f"{_shown(overrides)}: overrides are a mapping or a list of dotted.key=value strings",
                          key="overrides")
+    if not isinstance(overrides, Iterable):
+        raise InputError(f"{_shown(overrides)} is not overrides: give a mapping or a list of dotted.key=value "
+                         "strings", key="overrides")
     return [str(o) for o in overrides]
 
 
+@argument_names
 def scene_file(path: str | Path) -> Path | None:
     """``path`` (resolved) when it is a scene file rather than a run config: it has
     ``geometry`` (or ``extends``) and no ``scene``. None for a run config (whose own loading
@@ -231,6 +241,7 @@ def scene_file(path: str | Path) -> Path | None:
                      source=str(path))
 
 
+@argument_names
 @imports_whole
 def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, overrides: Overrides | None = None,
                 *, base: str | Path | None = None, via: str | None = None) -> Config:
@@ -265,12 +276,15 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         out = Config(config, Path(base) if base is not None else Path.cwd(), via=via)
         return _updated(out, more, via) if more else out
     if isinstance(config, Mapping):
-        raw = apply_overrides(dict(config), more, source=via, cwd=Path.cwd()) if more else dict(config)
+        from tlm.config import files_from
+
+        folder = Path(base) if base is not None else Path.cwd()
+        raw = files_from(dict(config), folder.resolve())  # (its scene file and table: absolute, as a file's are)
+        raw = apply_overrides(raw, more, source=via, cwd=Path.cwd()) if more else raw
         source = with_overrides("(dict)", via) if more else "(dict)"
-        return Config(config_from_dict(raw, source), Path(base) if base is not None else Path.cwd(), None,
-                      tuple(more), via=via)
+        return Config(config_from_dict(raw, source), folder, None, tuple(more), via=via)
     if not isinstance(config, (str, os.PathLike)):
-        raise InputError(f"{config!r} is not a config: give a YAML file's path, a mapping of the config's keys, "
+        raise InputError(f"{_shown(config)} is not a config: give a YAML file's path, a mapping of the config's keys, "
                          "a RunConfig or a Config", key="config")
     path, given = Path(config), str(config)
     if not given.strip() or not path.is_file():  # (a built-in experiment's name, else the command line's error;
@@ -290,6 +304,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True, via=via)
 
 
+@argument_names
 def params() -> list[tuple[str, Any, str]]:
     """Every config parameter: (dotted key, default, meaning), as ``tlm params`` lists them."""
     return describe()
@@ -339,6 +354,7 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
 # ---------------------------------------------------------------- scenes
 
 
+@argument_names
 def list_scenes() -> list[str]:
     """The built-in scene names (what a config's ``scene:`` may name)."""
     from tlm.scenes.loader import list_scenes as names
@@ -346,6 +362,7 @@ def list_scenes() -> list[str]:
     return names()
 
 
+@argument_names
 def scene_description(name: str) -> str:
     """A built-in scene's ``description:``, else the first sentence of its leading comment
     lines, which may run over several ("" when it has neither; cheap: reads no geometry)."""
@@ -354,7 +371,7 @@ def scene_description(name: str) -> str:
 
     names = list_scenes()
     if not isinstance(name, str) or name not in names:
-        raise InputError(f"{name!r} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
+        raise InputError(f"{_shown(name)} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
                          key="scene")
     path = scenes_dir() / f"{name}.yaml"
     try:
@@ -366,6 +383,7 @@ def scene_description(name: str) -> str:
         return ""
 
 
+@argument_names
 @imports_whole
 def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
     """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
@@ -383,11 +401,12 @@ def _scene(scene: Scene | str | Path) -> Scene:
     if isinstance(scene, (str, os.PathLike)):
         return load_scene(scene)
     if not isinstance(scene, Scene):
-        raise InputError(f"{scene!r} is not a scene: give a Scene, a built-in scene's name or a scene file's path",
-                         key="scene")
+        raise InputError(f"{_shown(scene)} is not a scene: give a Scene, a built-in scene's name or a scene "
+                         "file's path", key="scene")
     return scene
 
 
+@argument_names
 @imports_whole
 def scene_info(scene: Scene | str | Path) -> dict:
     """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
@@ -421,6 +440,7 @@ def scene_info(scene: Scene | str | Path) -> dict:
     }
 
 
+@argument_names
 @imports_whole
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
@@ -430,7 +450,7 @@ def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
 
     scene = _scene(scene)
     if not isinstance(file, (str, os.PathLike)):
-        raise InputError(f"{file!r} is not a file path (.ply, .obj or .yaml)", key="file")
+        raise InputError(f"{_shown(file)} is not a file path (.ply, .obj or .yaml)", key="file")
     export_triangles(scene, Path(file))
     return scene
 
@@ -438,6 +458,7 @@ def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
 # ---------------------------------------------------------------- one experiment
 
 
+@argument_names
 @imports_whole
 def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: bool = False) -> RenderResult:
     """Render every frame ``config`` plans (its ``mode``) over the whole image.
@@ -448,14 +469,17 @@ def render_image(config: str | Path | Mapping[str, Any] | Config, *, progress: b
     the ``composite``, the eye rays' ``aov`` and ``work_totals()``, the ``scene``, the
     ``plan`` (passes run and left out), the photon map (``photons``) and the photon-map
     frame's ``error`` against its cached reference.
-    ``progress``: a bar on stderr when it is a terminal.
+    ``progress``: a bar on stderr when it is a terminal (True or False).
     """
     from tlm.experiments import run as runs
 
+    progress = _checked(progress, "progress", bool)
     cfg = load_config(config)
-    return replace(runs.render(cfg.settings, cfg.base, cfg.label, progress=progress), base=cfg.base)
+    res = runs.render(cfg.settings, cfg.base, cfg.label, progress=progress, overrides=cfg.overrides, via=cfg.via)
+    return replace(res, base=cfg.base)
 
 
+@argument_names
 @imports_whole
 def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
     """(H, W, 3) linear radiance as (H, W, 3) uint8 sRGB, to show or save: scaled by
@@ -480,7 +504,7 @@ def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
             except OverflowError:  # (an int past float's range)
                 value = math.inf
         if not math.isfinite(value) or value < 0:
-            raise InputError(f"{exposure!r} is not a finite number >= 0 (None: automatic)", key="exposure")
+            raise InputError(f"{_shown(exposure)} is not a finite number >= 0 (None: automatic)", key="exposure")
         exposure = value
     if radiance.size and not np.isfinite(radiance).any():
         raise InputError("the radiance holds no finite value (all NaN or infinite): nothing to expose",
@@ -490,9 +514,34 @@ def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
 
 
 def _arch_overrides(arch: Mapping[str, Any]) -> dict[str, Any]:
-    return {k if k.startswith("arch.") else f"arch.{k}": v for k, v in arch.items()}
+    """:func:`simulate`'s ``arch`` mapping as dotted keys of the config (``pipelines`` or
+    ``arch.pipelines``: ``arch.pipelines``). A key of another section (``render.spp``, ``mode``)
+    is an InputError that says simulate changes the architecture only, naming the key as given;
+    a key that is no setting of arch names it as given too, with the keys of arch."""
+    import dataclasses
+
+    from tlm.config import ArchConfig
+
+    fields = [f.name for f in dataclasses.fields(ArchConfig)]
+    others = [f.name for f in dataclasses.fields(RunConfig) if f.name != "arch"]
+    out = {}
+    for k, v in arch.items():
+        if not isinstance(k, str):
+            raise InputError(f"{_shown(k)} is not a key of arch: give its name, 'pipelines'", key="arch")
+        name = k.removeprefix("arch.")
+        head = name.split(".")[0]
+        if head not in fields:
+            if head in others and not k.startswith("arch."):
+                raise InputError(f"{k!r} is not a key of arch: simulate takes arch keys only ({{'pipelines': 4}}) "
+                                 "and times the render as it is, without rendering it again; for other settings, "
+                                 "render again (tlm.render_image(cfg.updated({...})))", key="arch")
+            raise InputError(f"{k!r} is not a key of arch{did_you_mean(head, fields)} (its keys: "
+                             f"{', '.join(fields)})", key="arch")
+        out[f"arch.{name}"] = v
+    return out
 
 
+@argument_names
 @imports_whole
 def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None = None, *,
              programs: Programs | str | Path | None = None, progress: bool = False) -> Timing:
@@ -504,7 +553,10 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     ``arch`` to change (``{"pipelines": 4}``; a relative ``programs`` among them is relative
     to the working folder); default the render's own. The render is not repeated: only the
     timing model runs. ``programs``: an instruction-cost table or its path (relative to the
-    working folder); default ``arch.programs`` (relative to the config's folder).
+    working folder, and named so in an error: ``/home/me/nb/my.yaml: programs: file not found``);
+    default ``arch.programs`` (relative to the config's folder). ``arch`` holds keys of ``arch``
+    only: another setting (``render.spp``) would need the render again, and is an InputError
+    that says so. ``progress``: True or False.
     """
     from tlm.arch.costs import Programs, load_programs
     from tlm.config import ArchConfig
@@ -513,11 +565,12 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
     if not isinstance(result, runs.RenderResult):
         raise InputError(f"{type(result).__name__} is not a render: give what render_image returns", key="result")
     if not (arch is None or isinstance(arch, (ArchConfig, Mapping))):
-        raise InputError(f"{arch!r}: arch is an ArchConfig or a mapping of its keys ({{'pipelines': 2}})",
+        raise InputError(f"{_shown(arch)}: arch is an ArchConfig or a mapping of its keys ({{'pipelines': 2}})",
                          key="arch")
     if not (programs is None or isinstance(programs, (Programs, str, os.PathLike))):
-        raise InputError(f"{programs!r} is not an instruction-cost table: give its path or a Programs (None: the "
-                         "config's arch.programs)", key="programs")
+        raise InputError(f"{_shown(programs)} is not an instruction-cost table: give its path or a Programs (None: "
+                         "the config's arch.programs)", key="programs")
+    progress = _checked(progress, "progress", bool)
     cfg = result.cfg
     if isinstance(arch, ArchConfig):  # (checked as the mapping is: its keys' types and ranges)
         cfg = config_from_dict({**to_dict(cfg), "arch": to_dict(arch)}, "(simulate: arch)")
@@ -526,13 +579,18 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
                                "(simulate: arch)")
     if isinstance(programs, Programs):
         table = programs
-    elif programs is not None:
-        table = load_programs(Path(programs))
+    elif programs is not None:  # (relative to the working folder, named as the absolute path it tried)
+        path = Path(programs)
+        try:
+            table = load_programs(path if path.is_absolute() else Path.cwd() / path)
+        except InputError as e:
+            raise (_renamed(e, "programs") if e.key == "arch.programs" else e) from None
     else:
         table = runs.programs_for(cfg, result.base)
     return runs.simulate_run(replace(result, cfg=cfg) if cfg is not result.cfg else result, table, progress)
 
 
+@argument_names
 def parse_outputs(text: str) -> tuple[str, ...]:
     """``tlm run --outputs`` (``"aov,trace"``): the optional outputs named, in :data:`OUTPUTS`
     order (``"images"``: none of them); an unknown name is an :class:`InputError`."""
@@ -541,6 +599,7 @@ def parse_outputs(text: str) -> tuple[str, ...]:
     return parse(text)
 
 
+@argument_names
 @imports_whole
 def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
         outputs: str | Iterable[str] | None = None, progress: bool = False, reference: bool | None = None,
@@ -553,12 +612,17 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     ``results.json`` (``"aov,trace"`` or a list; ``"images"`` or ``[]``: none; default all,
     the trace only where the config's ``arch.trace`` is true; named here, the trace is
     written whatever ``arch.trace`` says, and the run's overrides record ``arch.trace=true``).
-    ``reference``: compute the photon-map frame's reference when none is cached (default
-    the config's ``reference.auto``); ``say`` gets a line before and after computing it.
+    ``progress``: the bars on stderr, the render's and a reference's rounds (when it is a
+    terminal), and, with no ``say``, the lines on a reference computed now on stderr too (a
+    notebook shows them: a reference may take minutes). ``reference``: compute the photon-map
+    frame's reference when none is cached (True or False; default None: the config's
+    ``reference.auto``); ``say`` gets a line before and after computing it.
     A destination that is not a tlm folder, or bad input, fails before any work.
     """
     from tlm.experiments import run as runs
 
+    progress = _checked(progress, "progress", bool)
+    reference = _checked(reference, "reference", bool, none="the config's reference.auto")
     out = _folder(out)
     cfg = load_config(config)
     if outputs is None:
@@ -566,18 +630,24 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     elif isinstance(outputs, str):
         chosen = runs.parse_outputs(outputs)
     else:
-        names = list(outputs)
+        names = list(outputs) if isinstance(outputs, Iterable) else [outputs]
+        bad = [n for n in names if not isinstance(n, str)]
+        if bad:
+            raise InputError(f"{_shown(bad[0])} is not an output's name: give "
+                             f"\"aov,trace\" or a list of names ({', '.join(runs.OUTPUTS)}; \"images\": none)",
+                             key="outputs")
         chosen = runs.parse_outputs(",".join(names)) if names else ()
     if outputs is not None and "trace" in chosen and not cfg.arch.trace:
         cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
     results = runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides), via=cfg.via,
-                       outputs=chosen, progress=progress, reference=auto, say=say)
+                       outputs=chosen, progress=progress, reference=auto, say=_said(say, progress))
     from tlm.storage import json_text
 
     return json.loads(json_text(results))  # (what the file holds: inf and nan as None)
 
 
+@argument_names
 @imports_whole
 def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = False,
               say: Callable[[str], None] | None = None, progress: Callable[[int, float, float], None] | None = None,
@@ -586,11 +656,34 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
     computes it: the cached one when it meets ``reference.tolerance`` (unless ``force``),
     else computed and cached. Returns its ``key``, ``settings``, ``meta``, whether it was
     ``computed`` now and its ``folder``; ``say`` gets a line before computing, ``progress``
-    ``(round, change, relative standard error)`` after each round, ``bar`` a bar on stderr."""
+    ``(round, change, relative standard error)`` after each round, ``bar`` a bar of the rounds on
+    stderr (when it is a terminal). ``progress=True``, as :func:`render_image` and :func:`run`
+    take it: that bar, and with no ``say``, its line before computing on stderr (a notebook
+    shows it); ``force`` and ``bar``: True or False."""
     from tlm.experiments.reference import make_reference
 
+    force = _checked(force, "force", bool)
+    bar = _checked(bar, "bar", bool)
+    if progress is not None and not callable(progress):
+        shown = _checked(progress, "progress", bool, "True, False or a function of (round, change, relative "
+                         "standard error)", none="no progress")
+        bar, say, progress = bar or shown, _said(say, shown), None
     cfg = load_config(config)
     return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
+
+
+def _said(say: Callable[[str], None] | None, progress: bool) -> Callable[[str], None] | None:
+    """Where a long computation's lines go: ``say``; else, with ``progress`` on, stderr, as its bars
+    (a notebook shows stderr, and a reference computed now may take minutes); else nowhere."""
+    if say is not None or not progress:
+        return say
+    import sys
+
+    def line_on_stderr(line: str) -> None:
+        sys.stderr.write(f"{line}\n")
+        sys.stderr.flush()
+
+    return line_on_stderr
 
 
 # ---------------------------------------------------------------- many experiments, reports

@@ -6,11 +6,20 @@ its studies and reports from :mod:`tlm.api_studies`, which therefore cannot impo
 
 from __future__ import annotations
 
+import contextvars
+import functools
+import inspect
+import numbers
 import os
+import re
+import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from tlm.errors import InputError, did_you_mean
+
+F = TypeVar("F", bound=Callable[..., Any])
 
 
 def experiment_path(ref: str | Path, command: str = "run") -> Path:
@@ -24,11 +33,126 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
     return find(os.fspath(ref), command, list_scenes())
 
 
+def shown(value: Any) -> str:
+    """A value an argument was given, as an error message names it, on one short line: its
+    ``repr`` for a string, a path, a number, None or a short list of them; else its type
+    (``a RenderResult``), not a ``repr`` of many lines (a render's, a scene's) or of no use."""
+    if (value is None or isinstance(value, (str, bytes, numbers.Number, os.PathLike, list, tuple))
+            or (type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0)):  # (numpy's scalars)
+        text = repr(value)
+        if "\n" not in text and len(text) <= 120:
+            return text
+    name = type(value).__name__
+    return f"{'an' if name[:1].lower() in 'aeiou' else 'a'} {name}"
+
+
+def checked(value: Any, name: str, kind: type, what: str | None = None, none: str | None = None) -> Any:
+    """The argument ``name``'s ``value``, checked to be of ``kind``, ``bool`` (True or False;
+    numpy's bool too) or ``int`` (a whole number, numpy's too, not a bool), as that type; None
+    where ``none`` says what None means. Anything else is an :class:`InputError` naming the
+    argument (``reference: 'yes' is not True or False (None: the config's reference.auto)``):
+    a string ``"no"`` is not taken as true, nor ``1.5`` as one worker. ``what``: what the value
+    should be, in the message (default ``True or False``, ``a whole number``)."""
+    if value is None and none is not None:
+        return None
+    if kind is bool:
+        if isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_")):
+            return bool(value)
+    elif kind is int:
+        if not isinstance(value, bool) and type(value).__name__ != "bool_" and isinstance(value, numbers.Integral):
+            return int(value)
+    else:
+        raise TypeError(f"checked: {kind!r} is not bool or int")
+    what = what or ("True or False" if kind is bool else "a whole number")
+    raise InputError(f"{shown(value)} is not {what}" + (f" (None: {none})" if none is not None else ""), key=name)
+
+
 def folder(out: Any, key: str = "out") -> Path:
     """``out`` as the path of a folder to write; an InputError for what is not a path."""
     if not isinstance(out, (str, os.PathLike)):
-        raise InputError(f"{out!r} is not a folder's path: name the folder to write", key=key)
+        raise InputError(f"{shown(out)} is not a folder's path: name the folder to write", key=key)
     return Path(out)
+
+
+def renamed(error: InputError, key: str) -> InputError:
+    """``error`` (changed in place, and returned) with its key ``key`` in its place: the message
+    names the argument, ``out: ...``, where a deeper layer named the command line's flag,
+    ``--out: ...``."""
+    where = f"{error.source}: " if error.source else ""
+    text = str(error.args[0]) if error.args else ""
+    old = f"{where}{error.key}: "
+    if error.key and text.startswith(old):
+        error.args = (f"{where}{key}: {text[len(old):]}", *error.args[1:])
+        error.key = key
+    return error
+
+
+# a flag whose argument has another name than the flag's own (--dask-wait: dask_wait)
+FLAG_ARGUMENTS = {"--write": "target"}
+_FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*(?: [A-Z][A-Z_]*\b)?")  # --jobs, --write FILE
+_COMMAND = re.compile(r"\btlm [a-z-]+(?: [^\s,;:()]+)* $")  # what precedes a flag of a command shown whole
+
+
+def flag_argument(flag: str, names: set[str]) -> str | None:
+    """The argument among ``names`` that the command line's ``flag`` (``--dask-wait``) is, or None."""
+    name = FLAG_ARGUMENTS.get(flag) or (flag[2:].replace("-", "_") if flag.startswith("--") else "")
+    return name if name in names else None
+
+
+def as_arguments(error: InputError, names: set[str]) -> InputError:
+    """``error`` (changed in place, and returned) naming the arguments ``names`` where it named the
+    command line's flags: its key (``--out: ...``: ``out: ...``) and the flags in its text (``give
+    --dask local``: ``give dask local``; ``--write FILE``: ``target``), not those of a command
+    shown whole (``tlm report --formats pdf``) nor flags of no argument of the function."""
+    name = flag_argument(str(error.key), names) if error.key else None
+    if name is not None:
+        renamed(error, name)
+    if not error.args or not isinstance(error.args[0], str):
+        return error
+    text = error.args[0]
+
+    def argument(m: re.Match) -> str:
+        found = flag_argument(m.group(0).split(" ")[0], names)
+        if found is None or _COMMAND.search(text[max(0, m.start() - 60):m.start()]):
+            return m.group(0)
+        return found
+
+    error.args = (_FLAG.sub(argument, text), *error.args[1:])
+    return error
+
+
+_CALLED: contextvars.ContextVar[bool] = contextvars.ContextVar("tlm_api_called", default=False)
+
+
+def argument_names(func: F) -> F:
+    """A public function of the API whose :class:`InputError` names its arguments as a caller
+    in Python gave them: a key that is a flag of the command line (``--out``, ``--outputs``,
+    ``--jobs``, ``--dask``, ``--dask-wait``, ``--dpi``, ``--formats``, ``--truth-spp``,
+    ``--write``; the deeper layers share them with the commands) becomes the argument's name
+    (``out``, ``dask_wait``, ``target``: :data:`FLAG_ARGUMENTS`) where ``func`` has that
+    argument, and so do the flags its text names (:func:`as_arguments`). Called from the command
+    line (the ``tlm.cli`` modules) the flags stay, as the user typed them; only the outermost call
+    of the API renames (one API function calling another leaves its errors to it)."""
+    names = set(inspect.signature(func).parameters)
+
+    @functools.wraps(func)
+    def call(*args: Any, **kwargs: Any) -> Any:
+        if _CALLED.get():
+            return func(*args, **kwargs)
+        where = sys._getframe(1).f_globals  # (the caller's module: its spec's name, tlm.cli under python -m too)
+        spec = where.get("__spec__")
+        caller = str(getattr(spec, "name", None) or where.get("__name__", ""))
+        token = _CALLED.set(True)
+        try:
+            return func(*args, **kwargs)
+        except InputError as e:
+            if caller != "tlm.cli" and not caller.startswith(("tlm.cli.", "tlm.cli_")):
+                as_arguments(e, names)
+            raise
+        finally:
+            _CALLED.reset(token)
+
+    return call  # type: ignore[return-value]
 
 
 def experiment_file(path: str | Path, command: str) -> Path:
@@ -39,7 +163,7 @@ def experiment_file(path: str | Path, command: str) -> Path:
     from tlm.config import read_yaml
 
     if not isinstance(path, (str, os.PathLike)):
-        raise InputError(f"{path!r} is not an experiment: give an experiment file's path or a built-in "
+        raise InputError(f"{shown(path)} is not an experiment: give an experiment file's path or a built-in "
                          "experiment's name ('tlm config list')", key="path")
     found = experiment_path(path, command)
     if found.is_file():  # (a folder, or a file that cannot be read: the study's own loading says so)

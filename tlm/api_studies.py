@@ -11,13 +11,16 @@ first needs it, whole (:func:`tlm.whole_imports.imports_whole`), as in :mod:`tlm
 
 from __future__ import annotations
 
-import numbers
+import os
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from tlm.api_common import argument_names
+from tlm.api_common import checked as _checked
 from tlm.api_common import experiment_file as _experiment_file
 from tlm.api_common import folder as _folder
+from tlm.api_common import shown as _shown
 from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.whole_imports import imports_whole
@@ -32,9 +35,11 @@ if TYPE_CHECKING:
 # ---------------------------------------------------------------- many experiments
 
 
+@argument_names
 @imports_whole
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-              progress: bool = False, dask_wait: float | None = None) -> Outcome:
+              progress: bool = False, dask_wait: float | None = None,
+              warn: Callable[[str], None] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
     :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
     (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
@@ -42,28 +47,30 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     the process, within a container's CPU quota, as for ``render.threads``; 1: in this
     process); ``dask``: ``"local"`` or a scheduler's address; ``dask_wait`` (with ``dask``): the
     seconds the sweep waits while the scheduler has no worker before it stops (``tlm sweep
-    --dask-wait``; default 300)."""
+    --dask-wait``; default 300). ``warn`` gets each of the sweep's warning lines as it is known
+    (the factors' before the points run); None: nothing is printed, and every line is in
+    ``Outcome.warnings`` either way."""
     from tlm.experiments.sweep import run_sweep as run_all
 
-    if jobs is not None:
-        if isinstance(jobs, bool) or not isinstance(jobs, numbers.Integral):
-            raise InputError(f"{jobs!r} is not a whole number of worker processes (None: the CPUs available)",
-                             key="jobs")
-        jobs = int(jobs)
+    jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
+    progress = _checked(progress, "progress", bool)
     return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
-                   dask_wait=dask_wait)
+                   dask_wait=dask_wait, warn=warn)
 
 
+@argument_names
 @imports_whole
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
-          progress: bool = False, dask_wait: float | None = None) -> pd.DataFrame:
+          progress: bool = False, dask_wait: float | None = None,
+          warn: Callable[[str], None] | None = None) -> pd.DataFrame:
     """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
     (:func:`run_sweep`) and return its rows as a
     pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
     (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
-    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait).table
+    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait, warn=warn).table
 
 
+@argument_names
 @imports_whole
 def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     """Fit eq. 5.2 to sweeps over ``arch.pipelines`` (``tlm scaling``): the fits, a table and
@@ -74,6 +81,7 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     return analyse([Path(d) for d in sweeps], Path(out), plot=plot_scaling)
 
 
+@argument_names
 @imports_whole
 def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
            bar: bool = False) -> dict:
@@ -82,9 +90,11 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
     ``summary``. ``progress`` gets ``(scene, mode, results)``."""
     from tlm.experiments.thesis import run_thesis
 
+    bar = _checked(bar, "bar", bool)
     return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar)
 
 
+@argument_names
 @imports_whole
 def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None = None
               ) -> tuple[Programs, dict]:
@@ -145,6 +155,7 @@ def calibration_table(path: str | Path, target: str | Path | None = None) -> Pat
     return target
 
 
+@argument_names
 @imports_whole
 def write_calibration(programs: Programs, report: dict, target: str | Path | None = None,
                       command: str = "") -> Path:
@@ -183,6 +194,7 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
     return target
 
 
+@argument_names
 @imports_whole
 def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
     """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
@@ -192,6 +204,7 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
     return run_granularity(_experiment_file(path, "granularity"), Path(out), progress)
 
 
+@argument_names
 @imports_whole
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
@@ -205,6 +218,7 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                              truth=Truth(spp=truth_spp), note=note)
 
 
+@argument_names
 @imports_whole
 def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
     """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
@@ -217,6 +231,7 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 # ---------------------------------------------------------------- reports
 
 
+@argument_names
 @imports_whole
 def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
                  lock: bool = False, formats: str | Iterable[str] | None = None, dpi: int | str | None = None,
@@ -230,9 +245,24 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     ``note`` receives one-line notes on a folder of folders it searched, as soon as it has searched
     them (a folder in it with no run, sweep or study, a link not followed, the folders of installed
     software passed over, a long search: :func:`tlm.report.collect.find`); the page says them too,
-    and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``)."""
+    and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``).
+    ``dirs``: a list of folders, or one folder's path (a string or a Path: that folder, not the
+    characters of its name)."""
     from tlm.report import build_report
 
+    lock = _checked(lock, "lock", bool)
+    if isinstance(dirs, (str, os.PathLike)):  # (one folder, as tlm report DIR takes it)
+        dirs = [dirs]
+    elif not isinstance(dirs, Iterable) or isinstance(dirs, bytes):
+        raise InputError(f"{_shown(dirs)} is not a folder or a list of folders: give the run, sweep or study "
+                         "folders to report", key="dirs")
+    dirs = list(dirs)
+    for d in dirs:
+        if not isinstance(d, (str, os.PathLike)):
+            raise InputError(f"{_shown(d)} is not a folder's path: give the run, sweep or study folders to report",
+                             key="dirs")
+    if not dirs:
+        raise InputError("no folder given: name the run, sweep or study folders to report", key="dirs")
     dirs = [Path(d) for d in dirs]
     if out is None and len(dirs) > 1:
         raise InputError("several folders: name the report folder", key="--out")
@@ -258,6 +288,7 @@ def report_output(formats: str | Iterable[str] | None = None,
     return chosen.formats, chosen.dpi
 
 
+@argument_names
 @imports_whole
 def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
           run_command: Callable[[list[str]], int], say: Callable[[str], None] = print,

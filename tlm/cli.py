@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
-from tlm.cli_args import Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
+from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_signals import (
     deadlock_line,
     exit_status,
@@ -60,6 +60,8 @@ def _cmd_plots(args: argparse.Namespace) -> int:
         Not begun after a signal whose interrupt got lost in the step before (:func:`main`)."""
         if signalled() is not None:
             raise KeyboardInterrupt
+        if args.no_progress:  # (every step's command takes it)
+            argv = [*argv, "--no-progress"]
         sub = build_parser().parse_args(argv)
         sub.argv = argv  # (its file is the one in --configs: a name is not looked up among the built-in ones)
         try:
@@ -266,8 +268,13 @@ def _error_line(error: dict, skip: str | None, command: str = "tlm reference CON
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    storage.SAID.clear()  # (a cache's line said during the sweep is not passed to warned again)
+
+    def warned(line: str) -> None:  # (each as it is known: the factors' before the points run)
+        print(f"tlm: warning: {line}", file=sys.stderr, flush=True)
+
     done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
-                         dask_wait=args.dask_wait)
+                         dask_wait=args.dask_wait, warn=warned)
     for row in done.rows:
         if row["status"] != "ok":
             print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
@@ -487,9 +494,10 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
                     "render.threads, without its cap of 8; 1 = in this process); a point that leaves "
                     "render.threads null gets max(1, CPUs // workers) kernel threads (at most 8), so --jobs x "
-                    "render.threads stays within the CPUs")
+                    "render.threads stays within the CPUs; not with --dask tcp://...: its workers are the cluster's")
     sw.add_argument("--dask", metavar="local|tcp://HOST:PORT",
-                    help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address")
+                    help="run on Dask: 'local' starts a LocalCluster of --jobs workers, else a scheduler address "
+                    "(its points run as many at once as its workers have threads)")
     sw.add_argument("--dask-wait", type=seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
                     "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
                     "(default: 300)")
@@ -501,6 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "(Figs. 18-20)")
     sc.add_argument("sweeps", nargs="+", help="output folders of 'tlm sweep', e.g. runs/scaling_cornell")
     sc.add_argument("--out", type=folder_name, help="output folder (default: runs/eq52_<first sweep folder's name>)")
+    no_progress(sc, NO_BAR)
     no_report(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
@@ -534,6 +543,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
                          "measured against (computed once and cached; needs pip install -e '.[oracle]'); 0: none")
+    no_progress(ev, NO_BAR)
     no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
@@ -548,6 +558,7 @@ def build_parser() -> argparse.ArgumentParser:
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml, or a "
                     "built-in experiment's name: tlm_granularity")
     gr.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    no_progress(gr, NO_BAR)
     no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
@@ -559,6 +570,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
                     "than the thesis's)")
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
+    no_progress(ca, NO_BAR)
     ca.set_defaults(func=_cmd_calibrate)
     rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
                         "or error-vs-cost folders")
@@ -566,12 +578,14 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", type=folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", type=title, help="the page's title (default: tlm report: and the folders' names)")
+    no_progress(rp, NO_BAR)
     figure_files(rp)
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
     ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    no_progress(ex, NO_BAR)
     no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
     pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
@@ -583,6 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
+    no_progress(pl, "passed to every step (tlm thesis and tlm run draw theirs when stderr is a terminal)")
     figure_files(pl)
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
@@ -605,8 +620,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
-        print(parser.format_help(), file=sys.stderr, end="")
-        return 2
+        print(parser.format_help(), end="")  # (as ``tlm --help``: asked for, not an error)
+        return 0
     finished = False  # the command returned: what it wrote is whole
     try:
         with signals():

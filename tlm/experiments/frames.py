@@ -73,7 +73,8 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/3"  # /2: with the npz's size and sha256; /3: warnings without the settings unused
+SUMMARY_FORMAT = "functional-summary/4"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
+# /4: a reference not converged is a warning, and an unread override is warned of once
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:

@@ -44,7 +44,7 @@ from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
 from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, to_dict
-from tlm.config_words import with_overrides
+from tlm.config_words import parse_yaml, with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
@@ -96,7 +96,10 @@ class RenderResult:
     again on first use (``pixels`` and ``spp`` at once). ``primary``: the AOVs and
     eye-ray counts. ``timing`` and ``programs`` are set by :func:`simulate_render`, which
     returns a new result; ``base``: where the config's relative paths start (the
-    instruction table of ``arch.programs``), when the caller knew it.
+    instruction table of ``arch.programs``), when the caller knew it. ``overrides``: the
+    ``dotted.key=value`` strings the config was given, ``via`` how (``--set`` on the command
+    line, ``the overrides`` through the API): what :attr:`warnings` names a key by when it was
+    asked for and never read (:func:`unread_overrides`).
     """
 
     scene: Scene
@@ -114,6 +117,8 @@ class RenderResult:
     primary: Primary | None = None
     gather_maps: dict | None = None  # the pmap pass's work per photon map (pmap_pass's per_map)
     base: Path | None = None
+    overrides: tuple[str, ...] = ()
+    via: str = "--set"
 
     @property
     def accel(self) -> TriangleAccel:
@@ -140,8 +145,8 @@ class RenderResult:
     def warnings(self) -> list[str]:
         """What ``tlm run`` warns of for this render (``results.json`` ``warnings``, one line
         each: a light that reaches nothing, a black image, textures not rendered, a setting
-        never read, ...; :func:`run_warnings`), but the simulated stream's, which
-        :func:`stream_warnings` gives from a :class:`~tlm.arch.model.Timing`."""
+        never read, a photon-map reference not converged, ...; :func:`run_warnings`), but the
+        simulated stream's, which :func:`stream_warnings` gives from a :class:`~tlm.arch.model.Timing`."""
         return run_warnings(self)
 
     def work_totals(self) -> dict[str, dict[str, int]]:
@@ -154,7 +159,9 @@ class RenderResult:
     def __repr__(self) -> str:
         """A few lines (a notebook cell that shows a result): the scene and its triangles,
         the resolution, the mode, each pass run with its main work totals (those not 0),
-        the photons traced, and the timing model's throughput when simulated."""
+        the photons traced, and the timing model's throughput when the result holds it (one
+        :func:`simulate_render` made; :func:`tlm.simulate` returns its timing and leaves the
+        result as it is, so the line says what the result holds, not whether it was simulated)."""
         name = self.scene.name if len(self.scene.name) <= 40 else self.scene.name[:37] + "..."
         cam = self.scene.camera
         lines = [f"RenderResult: scene {name!r}, {self.scene.n_triangles:,} triangles, {cam.width}x{cam.height}, "
@@ -169,7 +176,7 @@ class RenderResult:
                                                         (maps.global_map, "global")) if m is not None]
             lines.append(f"  photons: {maps.emitted:,} emitted; stored {', '.join(stored)}")
         if self.timing is None:
-            lines.append("  not simulated yet: tlm.simulate(result) runs the timing model (cycles, frames per second)")
+            lines.append("  timing: not in this result: tlm.simulate(result) returns it (cycles, frames per second)")
         else:
             fps = self.timing.fps
             lines.append(f"  simulated: throughput {self.timing.cycles['throughput']:,} cycles per frame, "
@@ -187,7 +194,7 @@ class RenderResult:
 
 def render(cfg: RunConfig, base: Path | None = None, config_source: str | None = None,
            progress: bool = False, reference: bool = False, *, scene: Scene | None = None,
-           timer: Timer | None = None) -> RenderResult:
+           timer: Timer | None = None, overrides: Iterable[str] = (), via: str = "--set") -> RenderResult:
     """Render every planned frame of ``cfg`` over the whole image: its frame loaded
     (:func:`~tlm.experiments.loading.load_frame`), its passes planned and rendered in
     batches of ``render.batch_rays`` eye rays (:func:`~tlm.render.batches.render_batches`),
@@ -197,7 +204,8 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     when none is cached; ``scene``: ``cfg``'s scene when the caller loaded it already (as
     :func:`~tlm.scenes.loader.load_scene` ``(cfg.scene, base, cfg.resolution, config_source)``
     gives it: :func:`tlm.experiments.frames.cached_render`, whose key loaded it), not loaded
-    again; ``timer``: the result's host seconds start from it (that load's stage).
+    again; ``timer``: the result's host seconds start from it (that load's stage);
+    ``overrides`` and ``via``: the result's (:class:`RenderResult`), what its warnings name.
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
@@ -222,7 +230,8 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
         if done.photons is not None:
             error = photon_error(frame, done.radiance["pmap"].reshape(-1, 3))
     return RenderResult(frame.scene, cfg, the_plan, frame, done.gbuffer, done.radiance, done.work, timer,
-                        done.photons, error, primary=done.primary, gather_maps=done.gather_maps)
+                        done.photons, error, primary=done.primary, gather_maps=done.gather_maps,
+                        overrides=tuple(overrides), via=via)
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
@@ -340,8 +349,11 @@ def _eye_hits(res: RenderResult) -> tuple[int, int, int, int]:
 
 def run_warnings(res: RenderResult) -> list[str]:
     """What gives no error but a wrong picture (:mod:`tlm.render.checks`), a setting the run
-    never reads, a BSP cut short: ``results.json`` ``warnings`` but the simulated stream's
-    (:func:`stream_warnings`), one line each."""
+    never reads (each key once: one of ``res.overrides`` in a run whose photon-map pass is
+    left out by :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`),
+    a photon-map reference that is not converged (:func:`reference_warnings`), a BSP cut
+    short: ``results.json`` ``warnings`` but the simulated stream's (:func:`stream_warnings`),
+    one line each."""
     _, rays, hits, back = _eye_hits(res)
     warnings = [*checks.file_warnings(res.scene), *checks.material_warnings(res.scene),
                 *checks.light_warnings(res.scene, res.accel),
@@ -351,7 +363,10 @@ def run_warnings(res: RenderResult) -> list[str]:
     if res.photons is not None:
         st = res.photons.photons.stats()
         warnings += checks.photon_warnings(st["emitted"], st["stored"])
-    warnings += inert_changes(res.cfg)
+    unread = _unread(res, res.overrides)
+    warnings += inert_changes(res.cfg, skip=unread)
+    warnings += _unread_lines(res, unread, res.via)
+    warnings += reference_warnings(res.error, res.cfg)
     warnings += checks.branching_warning(res.cfg, res.scene)
     if "pmap" in res.plan.run_names:
         warnings += checks.radius_warnings(res.cfg, res.accel.scale)
@@ -476,27 +491,81 @@ def _fifo_alike(entries: np.ndarray, lo: int, hi: int) -> str | None:
 PHOTON_SECTIONS = ("photons.", "estimate.", "reference.")  # read by the photon-map pass (and its reference) alone
 
 
-def unread_overrides(res: RenderResult, overrides: list[str] | None) -> list[str]:
-    """A ``--set`` of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
-    pass is left out: one line each. :func:`~tlm.render.planner.inert_changes` judges those
-    sections as if the pass ran, since a config file may hold them for ``--mode pmap``; a
-    key given on the command line was asked for this run. Not the key the pass is left out by
-    (``--set photons.count=0``, ``--set photons.max_bounces=1``: the plan's ``by``), which did
-    what it was set for."""
+def unread_overrides(res: RenderResult, overrides: Iterable[str] | None, via: str = "--set") -> list[str]:
+    """An override of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
+    pass is left out: one line each, naming it as it was given (``--set estimate.k=9``; ``via``
+    ``the overrides``: ``estimate.k=9 (in the overrides)``). :func:`~tlm.render.planner.inert_changes`
+    judges those sections as if the pass ran, since a config file may hold them for ``--mode
+    pmap``; a key given as an override was asked for this run. A key set twice is named once,
+    by the override that set it last (a section given as a mapping, ``estimate={k: 9}``, sets
+    each of its keys). Not the key the pass is left out by (``--set photons.count=0``, ``--set
+    photons.max_bounces=1``: the plan's ``by``), which did what it was set for."""
+    return _unread_lines(res, _unread(res, overrides), via)
+
+
+def _unread(res: RenderResult, overrides: Iterable[str] | None) -> dict[str, str]:
+    """:func:`unread_overrides`' keys, each with the override that set it last (in that order)."""
     if "pmap" in res.plan.run_names:
+        return {}
+    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    last: dict[str, str] = {}
+    for item in overrides or []:
+        for key in _keys_set(item):
+            last.pop(key, None)  # (the later override names it)
+            last[key] = item.strip()
+    return {key: item for key, item in last.items()
+            if key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by)}
+
+
+def _keys_set(item: str) -> list[str]:
+    """The dotted keys the override ``item`` sets: its key, or each key under it when its
+    value is a mapping (``estimate={k: 9}``: ``estimate.k``)."""
+    key, _, text = item.partition("=")
+    key = key.strip()
+    try:
+        value = parse_yaml(text)
+    except yaml.YAMLError:  # (not an override a config took: its key alone)
+        return [key]
+
+    def leaves(prefix: str, node) -> list[str]:
+        if isinstance(node, dict) and node:
+            return [k for name, child in node.items() for k in leaves(f"{prefix}.{name}", child)]
+        return [prefix]
+
+    return leaves(key, value)
+
+
+def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[str]:
+    """:func:`unread_overrides`' lines: one for each override that set one of ``unread``'s keys last."""
+    if not unread:
         return []
     left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
     why = "the photon-map pass is not run" if left is None else left.reason
-    lines = []
-    for item in overrides or []:
-        key = item.split("=", 1)[0].strip()
-        if key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by):
-            lines.append(f"--set {item.strip()} has no effect in this run: the photon-map pass is left out ({why})")
-    return lines
+    given = (lambda item: f"{via} {item}") if via.startswith("-") else (lambda item: f"{item} (in {via})")
+    return [f"{given(item)} has no effect in this run: the photon-map pass is left out ({why})"
+            for item in dict.fromkeys(unread.values())]
+
+
+def reference_warnings(error: dict | None, cfg: RunConfig) -> list[str]:
+    """A line when the photon-map frame's error (``results.json`` ``error``) was measured
+    against a reference that is not converged (``reference_converged`` false: it does not meet
+    ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it."""
+    if not (error and error.get("available")) or error.get("reference_converged"):
+        return []
+    rse, rounds, ref = error.get("reference_standard_error"), error.get("reference_rounds"), cfg.reference
+    rule = f"reference.tolerance {ref.tolerance:g}" + (f", reference.min_rounds {ref.min_rounds}"
+                                                       if isinstance(rounds, int) and rounds < ref.min_rounds else "")
+    return [f"the photon-map reference {error['reference']} is NOT converged ({rounds} rounds, relative standard "
+            f"error {'n/a' if rse is None else f'{rse:.4f}'}, {rule}): the pmap error against it (error.rmse, "
+            "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'"]
 
 
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,
                  overrides: list[str] | None = None) -> dict:
+    """``results.json`` of ``res``; ``overrides``: the config's (default ``res.overrides``),
+    which its ``overrides`` and its warnings name (:func:`run_warnings`)."""
+    if overrides is not None and tuple(overrides) != res.overrides:
+        res = replace(res, overrides=tuple(overrides))
     work = {}
     for name, counts in res.work.items():
         total = {k: int(v.sum()) for k, v in counts.items()}
@@ -512,11 +581,11 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
             total["tri_tests_per_shadow_ray"] = total["shadow_tri_tests"] / shadow if shadow else 0.0
         work[name] = total
     pixels, rays, hits, back = _eye_hits(res)
-    warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg) + unread_overrides(res, overrides)
+    warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg)
     return {
         "tlm": "results/1",
         "config": config_path,
-        "overrides": list(overrides or []),
+        "overrides": list(res.overrides),
         "seed": res.cfg.seed,
         "mode": res.cfg.mode,
         "scene": scene_stats(res.scene, res.accel),
@@ -649,7 +718,8 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     # now, before any work, naming this one (tlm.claims.claimed), not silently replaced at its end
     with claimed(out, "run"):
         programs = programs_for(cfg, base)  # a bad instruction table fails before the render
-        res = render(cfg, base, source, progress=progress, reference=reference)
+        res = render(cfg, base, source, progress=progress, reference=reference, overrides=tuple(overrides or ()),
+                     via=via)
         if reference and res.error is not None and not res.error["available"]:
             with res.timer.stage("reference"):
                 error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,

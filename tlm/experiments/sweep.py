@@ -29,8 +29,9 @@ already done, and recomputes those whose inputs changed. Output folder::
     sweep.yaml               the sweep as resolved: base, set, factors, every point's hash
     sweep.jsonl              one row per point, appended as points finish (a killed sweep
                              keeps them, its last row perhaps cut off); rewritten sorted
-                             when the sweep ends
-    sweep.csv                the same rows, one column per field, written at the end
+                             when the sweep ends, or is stopped (Ctrl-C, SIGTERM, its
+                             cluster lost: the points done, _write_finished)
+    sweep.csv                the same rows, one column per field, written then too
     points/<hash>/           config.resolved.yaml, results.json, trace.json (arch.trace);
                              or error.json when the point failed (retried by a rerun)
 
@@ -63,6 +64,7 @@ import shutil
 import time
 import traceback
 from collections import deque
+from collections.abc import Callable
 from contextlib import ExitStack, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,7 +73,7 @@ from typing import Any
 import yaml
 
 from tlm import claims, storage
-from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held, say_cache_warning
+from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held
 from tlm.config import (
     config_from_dict,
 )
@@ -98,7 +100,7 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
-from tlm.storage import atomic_folder, check_destination, claim_folder, warn
+from tlm.storage import atomic_folder, check_destination, claim_folder
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
@@ -292,8 +294,9 @@ class Outcome:
     renders: int  # points whose functional result was rendered, not read from the cache
     seconds: float
     out: Path
-    # the sweep's own warnings, also on stderr: its factors that no point read (Sweep.inert_factors,
-    # before the points run; Sweep.unread_factors, after); point folders that are not its points
+    # the sweep's own warnings (run_sweep prints none; tlm sweep does): its factors that no point
+    # read (Sweep.inert_factors, before the points run; Sweep.unread_factors, after); the caches
+    # its workers could not write; point folders that are not its points
     warnings: list[str] = field(default_factory=list)
     # folders in points/ that are not this sweep's points (an earlier run of other code or config)
     other_folders: int = 0
@@ -395,11 +398,22 @@ def _with_threads(config: dict, threads: int | None) -> dict:
 
 
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
-              progress: bool = False, dask_wait: float | None = None) -> Outcome:
+              progress: bool = False, dask_wait: float | None = None,
+              warn: Callable[[str], None] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` not already done in ``out``. ``dask_wait``
     (with ``dask`` only): the seconds the sweep waits while its Dask scheduler has no worker
-    before it stops (:class:`SweepStopped`); None: :data:`~tlm.experiments.executors.NO_WORKERS_WAIT`."""
+    before it stops (:class:`SweepStopped`); None: :data:`~tlm.experiments.executors.NO_WORKERS_WAIT`.
+    ``jobs`` with a remote scheduler (``dask`` an address) is refused: its workers are the
+    cluster's. ``warn`` gets each of the sweep's warning lines as it is known (its factors' lines
+    before the points run, the others after them); None: none is printed, and every one is in
+    :attr:`Outcome.warnings` (``tlm sweep`` prints them)."""
     t_start = time.perf_counter()
+    dask = _dask_address(dask)  # (its form, even where every point is done and no scheduler is reached)
+    remote = dask not in (None, "local")  # (its workers check that they run the sweep's code and read its inputs)
+    if jobs is not None and remote:
+        raise InputError(f"{jobs} with --dask {dask}: the points run on that scheduler's workers, as many at once "
+                         "as they have threads, which the cluster sets (dask worker --nthreads), not the sweep; "
+                         "leave --jobs out", key="--jobs")
     if jobs is None:
         from tlm.kernels.threads import available
 
@@ -414,7 +428,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point)
     sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
     said = sweep.inert_factors()
-    for line in said:
+    for line in said if warn is not None else ():
         warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}
     out = Path(out)
@@ -440,7 +454,6 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
     where = os.path.abspath(points_dir)  # (a Dask worker's working folder is not this one)
-    remote = dask not in (None, "local")  # (its workers check that they run the sweep's code and read its inputs)
     tables: dict[str, str | None] = {}  # arch.programs -> the sha256 of its text (each table read once)
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
                      os.path.join(where, h), provenance, threads=share,
@@ -449,6 +462,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                      programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None)
              for h in todo}
 
+    rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
     with ExitStack() as held:  # (the folder, held until the last row is written)
         try:
             with ExitStack() as stack:
@@ -461,6 +475,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 marker = sweep.marker()
                 made = claim_folder(out, MARKER, marker, existing=False)
                 held.enter_context(claims.sharing(out, sweep.identity(), "sweep"))
+                rows_due = True
                 if not made:
                     storage.write_file(out / MARKER, marker)
                 points_dir.mkdir(parents=True, exist_ok=True)
@@ -472,32 +487,67 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 if pool is not None:
                     # the rows of this sweep's points done already, in place of an earlier sweep's: while
                     # it runs (and when it is cut short) the folder's rows are this sweep's only
-                    write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records])
+                    _write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records],
+                                sweep.factors)
                     _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
         except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
                 _clean_stale(points_dir)
+            if rows_due:  # the rows of the points done, as a run to its end writes them
+                _write_finished(out, sweep, records, todo)
             raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
         rows = [point_row(p, records[p.hash]) for p in sweep.points]
-        write_rows(out, rows)
+        _write_rows(out, rows, sweep.factors)
     computed = [r for r in rows if r["hash"] in tasks]
     failed = sum(r["status"] != "ok" for r in computed)
     renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
     unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
                                    if records[p.hash]["status"] == "ok"])
-    for line in unread:
-        warn(line)
     caches = _cache_lines([records[h] for h in tasks], cache_warnings())
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
-    for line in stale:
-        warn(line)
+    if warn is not None:
+        for line in [*unread, *caches, *stale]:
+            if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)
+                warn(line)
     return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
                    [*said, *unread, *caches, *stale], other)
+
+
+DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")  # distributed's transports of a HOST:PORT address (and inproc)
+
+
+def _dask_address(dask: Any) -> str | None:
+    """``--dask``: None, ``local``, or a scheduler's address of the form ``tcp://HOST:PORT``
+    (``HOST:PORT`` is tcp's, as for Dask; ``tls://``, ``ws://``, ``wss://``, ``ucx://`` and
+    ``inproc://`` too), its port a whole number 1 to 65535; else an :class:`InputError`. Its form
+    only: the scheduler is reached when there are points to run (:func:`open_executor`)."""
+    if dask is None or dask == "local":
+        return dask
+    fix = "give local (a LocalCluster of --jobs workers) or a Dask scheduler's address, tcp://HOST:PORT"
+    if not isinstance(dask, str):
+        raise InputError(f"{dask!r} is not a Dask scheduler's address: {fix}", key="--dask")
+    if dask.strip().lower() == "local":
+        raise InputError(f"{dask!r} is not local, the only name --dask takes (lower case): {fix}", key="--dask")
+    scheme, sep, rest = dask.partition("://")
+    if not sep:
+        scheme, rest = "tcp", dask
+    if scheme == "inproc" and rest.strip() and rest == rest.strip():
+        return dask
+    host, colon, port = rest.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):  # (an IPv6 address: [::1]:8786)
+        host = host[1:-1]
+    well_formed = (scheme in DASK_SCHEMES and colon and host and port.isascii() and port.isdigit()
+                   and not any(c.isspace() or c in "/?#@" for c in host))
+    if not well_formed:
+        raise InputError(f"{dask!r} is not a Dask scheduler's address: {fix}", key="--dask")
+    if not 1 <= int(port) <= 65535:
+        raise InputError(f"{dask!r}: its port {port} is not a port (1 to 65535): {fix}", key="--dask")
+    return dask
 
 
 def _wait_seconds(value: Any, dask: str | None) -> float:
@@ -513,16 +563,38 @@ def _wait_seconds(value: Any, dask: str | None) -> float:
 
 def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
     """The lines on tlm's caches that could not be written: this process's (``here``, most
-    said as they were met) and the points' (their workers keep them: :func:`run_point`),
-    each once; those not said yet are said now."""
+    said as they were met: :func:`tlm.caches.cache_failed`) and the points' (their workers keep
+    them: :func:`run_point`), each once."""
     lines = list(here)
     for rec in records:
         for line in (rec.get("results") or {}).get("warnings") or []:
             if isinstance(line, str) and line.startswith(CACHE_WARNING) and line not in lines:
                 lines.append(line)
-    for line in lines:
-        say_cache_warning(line)
     return lines
+
+
+def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str]) -> None:
+    """``sweep.jsonl`` and ``sweep.csv`` of a sweep cut short (interrupted, its cluster lost): the
+    rows of its points done, those done before and those its workers finished (a point whose
+    worker wrote its folder whole before the sweep took its result is done too), as the end of a
+    run writes them. A write that fails leaves the files as they were (each is written whole or
+    not at all): the sweep's own error goes on, and ``sweep.jsonl`` holds the rows appended."""
+    points_dir = out / "points"
+    present = _listed(points_dir)
+    for h in todo:
+        if h not in records and h in present and (rec := _done(points_dir / h)) is not None:
+            records[h] = rec
+    with suppress(OSError, InputError):
+        _write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records], sweep.factors)
+
+
+def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:
+    """The sweep's rows (:func:`~tlm.experiments.sweep_rows.write_rows`); with no row, which would
+    name them, its ``factors`` name the CSV's factor columns."""
+    if rows:
+        write_rows(out, rows)
+    else:
+        write_rows(out, rows, factors)
 
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],

@@ -12,6 +12,7 @@ with an ok point's columns whatever the points' outcome (:func:`columns`).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -70,11 +71,15 @@ def result_columns() -> list[str]:
     return list(result_fields(shape))
 
 
-def columns(rows: list[dict]) -> list[str]:
-    """The columns of ``sweep.csv`` and :attr:`~tlm.experiments.sweep.Outcome.table`: :data:`FIRST_COLUMNS`, every other
-    field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ...), then those of
-    :func:`result_columns` no row has (all of them when no point is ok)."""
+def columns(rows: list[dict], factors: Iterable[str] = ()) -> list[str]:
+    """The columns of ``sweep.csv`` and :attr:`~tlm.experiments.sweep.Outcome.table`: :data:`FIRST_COLUMNS`;
+    the sweep's ``factors``, where given, then ``scene`` and ``mode`` (every row's fields, in its
+    order: a file of no rows has them too, a sweep stopped before any point finished); every other
+    field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``,
+    ...); then those of :func:`result_columns` no row has (all of them when no point is ok)."""
     cols = list(FIRST_COLUMNS)
+    factors = list(factors)
+    cols.extend(k for k in ([*factors, "scene", "mode"] if factors else ()) if k not in cols)
     for r in rows:
         cols.extend(k for k in r if k not in cols)
     cols.extend(k for k in result_columns() if k not in cols)
@@ -99,9 +104,9 @@ def utilization(units: dict) -> dict[str, float]:
     return out
 
 
-def write_rows(out: Path, rows: list[dict]) -> None:
+def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None:
     """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point; the CSV's columns are
-    :func:`columns` (an ok point's result columns even when no point is ok), the JSONL's
-    objects hold their own fields only."""
+    :func:`columns` (the sweep's ``factors``, and an ok point's result columns, even when no
+    point is ok or there is no row), the JSONL's objects hold their own fields only."""
     rows = sorted(rows, key=lambda r: r["point"])
-    storage.write_rows(out, "sweep", rows, columns(rows))
+    storage.write_rows(out, "sweep", rows, columns(rows, factors))

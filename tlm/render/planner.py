@@ -12,6 +12,7 @@ scene without lights renders primary visibility only (black), and the planner sa
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
@@ -195,17 +196,21 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     return out
 
 
-def inert_changes(cfg: RunConfig) -> list[str]:
+def inert_changes(cfg: RunConfig, skip: Iterable[str] = ()) -> list[str]:
     """:func:`inert_settings` and :func:`inert_timing_settings` of the keys ``cfg`` sets
     away from their defaults, for a run whose photon-map pass runs, or whose photon
     sections are left aside (a config may hold them for ``--mode pmap``, and the plan says
     why the pass is left out): one warning line each (``estimate.k = 16 has no effect in
-    this run: ...``)."""
+    this run: ...``). ``skip``: keys warned of for another reason, left out here (the
+    overrides of a photon-map pass left out: :func:`tlm.experiments.run.unread_overrides`)."""
     defaults = dataclasses.asdict(RunConfig())
     lines = []
     settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (the photon sections judged as if run)
     settings.update(inert_timing_settings(cfg))
+    skip = set(skip)
     for key, why in settings.items():
+        if key in skip:
+            continue
         section, name = key.split(".", 1)
         value = getattr(getattr(cfg, section), name)
         if value != defaults[section][name]:
