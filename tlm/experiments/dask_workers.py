@@ -5,6 +5,7 @@ A point that a Dask worker runs sizes its kernel threads on the worker's own mac
 in its messages (:func:`dask_worker_where`), records the versions of the process that ran
 it (:func:`worker_versions`) and is refused on a worker whose numpy, numba or Python
 differ from the sweep's (:func:`check_worker_versions`, :class:`OtherVersionsOnWorker`).
+Each worker of a ``--dask local`` cluster preloads this module as it starts (:func:`dask_setup`).
 The executors that hand points to the workers: :mod:`tlm.experiments.executors`.
 """
 
@@ -12,10 +13,26 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 
 _SLOTS: dict[str, tuple[float, int]] = {}  # a Dask worker's address -> (when asked, slots on its machine)
 SLOTS_TTL = 60.0  # seconds a worker keeps what the scheduler said (a point asks once a minute at most)
+
+
+def dask_setup(worker) -> None:
+    """Run by each worker of a ``--dask local`` cluster as it starts, before any point (a Dask
+    worker preload: :func:`~tlm.experiments.executors.open_executor` names this module; a
+    worker the cluster restarts runs it again): the progress bars of the points it runs share a
+    thread lock, not tqdm's default, a multiprocessing semaphore made with the first bar (a
+    disabled one too). The worker shares the sweep's resource tracker, which writes to the
+    sweep's stderr; a worker ended without its exit handlers (killed, a SIGTERM to the
+    sweep's process group, or ended by the cluster's close while a point keeps it busy) could
+    not unlink that semaphore, and the tracker reported it leaked after tlm's last line. A
+    worker's bars are never shown: a thread lock does (the local pool's workers: the same)."""
+    from tqdm import tqdm
+
+    tqdm.set_lock(threading.RLock())
 
 
 def dask_worker_threads() -> int | None:

@@ -90,13 +90,13 @@ from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
-    RULE,
     ReferenceSettings,
     fewer_rounds,
     kept_back,
     kept_root,
     load_reference,
     meets_tolerance,
+    repeats,
     save_reference,
     store_reference,
 )
@@ -539,9 +539,11 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     one when it meets the base's ``reference.tolerance`` (:func:`meets_tolerance`), else
     computed now with the base's settings and cached where it is better (``note`` says so when one
     was cached).
-    A cached one that misses the tolerance but was computed with the base's own stopping rule
-    (:data:`~tlm.experiments.reference_cache.RULE`) is kept: computing it again would repeat the same
-    rounds (fixed seeds) to the same image; so is one with more rounds than the base's
+    A cached one that misses the tolerance is kept where computing it again with the base's settings
+    would only repeat the same rounds (fixed seeds) to the same image
+    (:func:`~tlm.experiments.reference_cache.repeats`: the base's own stopping rule,
+    :data:`~tlm.experiments.reference_cache.RULE`, or one that stops it at the same round, as
+    ``tlm reference`` keeps it); so is one with more rounds than the base's
     ``reference.max_rounds`` (:func:`~tlm.experiments.reference_cache.fewer_rounds`; ``note`` says so).
     One computed now replaces the cached one only where it is better, else the study uses the
     cached one and ``note`` says which and why
@@ -554,7 +556,7 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
         if fewer_rounds(meta, settings):
             if note is not None:
                 note(kept_back(key, meta, settings, "the base's ", force=False))
-        elif any(meta.get(k) != getattr(settings, k) for k in RULE):
+        elif not repeats(meta, settings):
             if note is not None:
                 note(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it "
                      "again with the base's reference settings")

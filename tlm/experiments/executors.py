@@ -486,11 +486,12 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
         # silence_logs: the workers' own warnings (a task cancelled by a signal, a worker
         # restarted) would reach the user's terminal as log lines; the sweep says what happened
+        # preload: each worker's set-up as it starts (no multiprocessing semaphore of its own: _local_preloads)
         with _sigint_ignored():  # (the workers start with Ctrl-C ignored: the sweep stops them)
             cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                                        dashboard_address="127.0.0.1:0",
                                                        scheduler_kwargs={"dashboard": False},
-                                                       silence_logs=logging.CRITICAL))
+                                                       silence_logs=logging.CRITICAL, **_local_preloads()))
         client = stack.enter_context(Client(cluster))
     else:
         try:
@@ -499,6 +500,27 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait)
+
+
+def _local_preloads() -> dict[str, list]:
+    """The ``preload`` and ``preload_argv`` of a ``--dask local`` cluster's workers: those of
+    Dask's config (``distributed.worker.preload``, which an explicit ``preload`` would
+    replace), then :mod:`tlm.experiments.dask_workers`, whose
+    :func:`~tlm.experiments.dask_workers.dask_setup` gives the worker's progress bars a thread
+    lock: a worker then holds no multiprocessing semaphore that the resource tracker it shares
+    with the sweep would report leaked on the sweep's stderr when the worker is killed (an
+    interrupted sweep's cluster closed while its points run, a SIGTERM to the process group,
+    a worker killed -9)."""
+    import dask
+
+    from tlm.experiments import dask_workers
+
+    preload = dask.config.get("distributed.worker.preload", None) or []
+    argv = dask.config.get("distributed.worker.preload-argv", None) or []
+    preload = [preload] if isinstance(preload, str) else list(preload)
+    if argv and not isinstance(argv[0], str):  # one list per preload: none for tlm's (a flat list: one for all)
+        argv = [*argv, []]
+    return {"preload": [*preload, dask_workers.__name__], "preload_argv": list(argv)}
 
 
 class _Quiet:
