@@ -299,18 +299,18 @@ def test_a_point_written_where_this_machine_does_not_see_it_fails_with_the_path(
     def patch_workers(patch: bool) -> None:  # (nested: sent to the workers by value)
         import shutil
 
-        from tlm.experiments import sweep
+        from tlm.experiments import sweep_point
 
         def write_elsewhere(task):  # the point's folder lands on "the worker's own disk"
-            record = sweep._original_run_point(task)
+            record = sweep_point._original_run_point(task)
             shutil.move(task.out, f"{task.out}.on-the-workers-disk")
             return record
 
         if patch:
-            sweep._original_run_point = sweep.run_point
-            sweep.run_point = write_elsewhere
+            sweep_point._original_run_point = sweep_point.run_point
+            sweep_point.run_point = write_elsewhere
         else:
-            sweep.run_point = sweep._original_run_point
+            sweep_point.run_point = sweep_point._original_run_point
 
     path = sweep_file(tmp_path, grid={"arch.fifo_depth": [1, 16]})
     with Client(cluster.address, timeout=30) as client:

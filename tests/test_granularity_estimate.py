@@ -1,7 +1,7 @@
 """The packets' estimated effect on TThru (tlm.arch.model.granularity_estimate, results.json
 ``timing.granularity``) against what packets of one measure: each Traversal/Intersection
 phase a two-machine flow shop through the FIFO (tlm.arch.model.flow_shop), in the frame's
-packets and in packets of one, and the warning of tlm.experiments.run.stream_warnings
+packets and in packets of one, and the warning of tlm.experiments.run_warnings.stream_warnings
 on it (docs/architecture.md, "Packet size")."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from tlm.arch.frame_program import FrameProgram, JobSpec, PhaseSpec, Stage, Tile
 from tlm.arch.granularity import fine_ti_cycles, flow_shop, flow_shop_python, ti_cycles
 from tlm.arch.model import frame_program, simulate_program
 from tlm.config import config_from_dict
-from tlm.experiments.run import GRANULARITY_WARNING, stream_warnings
+from tlm.experiments.run_warnings import GRANULARITY_WARNING, stream_warnings
 
 
 def _job(pm, cycles, role, entries):

@@ -2,7 +2,7 @@
 
 * ``--set photons.count=0`` in mode pmap left the photon-map pass out, as asked, and was then
   called a setting of no effect ("the photon-map pass is left out (photons.count is 0)"): the key
-  the plan's reason names is not (:func:`tlm.experiments.run.unread_overrides`).
+  the plan's reason names is not (:func:`tlm.experiments.run_warnings.unread_overrides`).
 * A sweep's factor that changed nothing said the same clause once per value ("alone at depth 1
   and at 1024 ...; ... depth 16 and at 1024 ...; ..."): once now, the values listed
   (:func:`tlm.experiments.sweep_file.said_once`)."""
@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from tlm.config import config_from_dict
-from tlm.experiments.run import unread_overrides
+from tlm.experiments.run_warnings import unread_overrides
 from tlm.experiments.sweep import run_sweep
 from tlm.render.planner import plan
 from tlm.scenes.loader import load_scene

@@ -1,5 +1,5 @@
 """The packets' cost at the phase boundaries (tlm.arch.model.fill_and_drain, results.json
-``timing.granularity``) and what the simulated run warns of (tlm.experiments.run.stream_warnings):
+``timing.granularity``) and what the simulated run warns of (tlm.experiments.run_warnings.stream_warnings):
 coarse packets, and arch keys the run provably never read. Hand-built programs of a few
 packets, as in tests/test_model.py."""
 
@@ -14,7 +14,7 @@ from tlm.arch.frame_program import FrameProgram, JobSpec, PhaseSpec, Stage, Tile
 from tlm.arch.granularity import fill_and_drain
 from tlm.arch.model import simulate_program
 from tlm.config import config_from_dict
-from tlm.experiments.run import GRANULARITY_WARNING, stream_warnings
+from tlm.experiments.run_warnings import GRANULARITY_WARNING, stream_warnings
 
 
 def _job(pm, cycles, role, entries):

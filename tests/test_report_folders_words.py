@@ -163,7 +163,7 @@ def test_one_scene_file_reached_by_two_paths_is_one_scene(tmp_path, monkeypatch)
 def test_a_link_inside_the_folder_to_a_run_there_does_not_rename_it(tmp_path):
     """``root/alink -> root/z/run``: the run is read where it lies, named ``run`` (the link, sorting
     first, named it ``alink``)."""
-    from tlm.report.collect import find
+    from tlm.report.folders import find
 
     root = tmp_path / "root"
     run = root / "z" / "run"

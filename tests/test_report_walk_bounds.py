@@ -13,8 +13,9 @@ import pytest
 
 from tlm.cli import main
 from tlm.errors import InputError
-from tlm.report import collect
-from tlm.report.collect import find, read
+from tlm.report import folders
+from tlm.report.collect import read
+from tlm.report.folders import find
 
 
 def _run_folder(folder: Path) -> Path:
@@ -75,12 +76,12 @@ def test_the_folders_of_installed_software_are_not_even_listed(tmp_path, monkeyp
 def test_a_long_search_is_said_in_that_line(tmp_path, monkeypatch):
     runs = tmp_path / "runs"
     _run_folder(runs / "a" / "b" / "run")
-    monkeypatch.setattr(collect, "LONG_FOLDERS", 4)  # (runs, a, b and run, whose names say it is one)
+    monkeypatch.setattr(folders, "LONG_FOLDERS", 4)  # (runs, a, b and run, whose names say it is one)
     notes: list[str] = []
     assert [p for p, _ in find(runs, None, notes)] == [runs / "a" / "b" / "run"]
     assert len(notes) == 1 and notes[0].startswith(f"{runs}: the search for tlm folders listed 4 folders in ")
     assert notes[0].endswith(" s (name the folders that hold the runs, or one nearer them, for a quicker report)")
-    monkeypatch.setattr(collect, "LONG_FOLDERS", 5)  # (a search of 4 folders is not long)
+    monkeypatch.setattr(folders, "LONG_FOLDERS", 5)  # (a search of 4 folders is not long)
     notes.clear()
     find(runs, None, notes)
     assert notes == []

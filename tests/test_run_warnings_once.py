@@ -1,6 +1,6 @@
 """A run's warnings say each key once, named as it was given, and the same lines reach a render's
 ``warnings``, ``tlm.run``'s result, ``results.json`` and ``tlm run``'s stderr
-(tlm.experiments.run.run_warnings): an override of a photon-map key in a run whose photon-map
+(tlm.experiments.run_warnings.run_warnings): an override of a photon-map key in a run whose photon-map
 pass is left out is warned of for that (not also for what it would do were the pass run),
 ``--set`` on the command line and ``(in the overrides)`` through the API; a photon-map
 reference that is not converged is warned of as ``tlm run``'s error line says it; and a
@@ -13,6 +13,7 @@ import json
 import tlm
 from tlm.cli import main
 from tlm.experiments import run as runs
+from tlm.experiments import run_warnings
 
 SMALL = {"mode": "rcast", "resolution": [16, 16], "render.spp": 1, "render.light_samples": 1,
          "arch.packet_size": 16, "arch.frames": 2}
@@ -38,7 +39,8 @@ def test_an_unread_override_is_warned_of_once_as_it_was_given(tmp_path, cache):
     assert not [w for w in warnings if "--set" in w]
     # a render of the same config says the same lines (but the simulated stream's, which need the timing)
     res = runs.render(cfg.settings, cfg.base, cfg.label, overrides=cfg.overrides, via=cfg.via)
-    stream = runs.stream_warnings(runs.simulate_run(res, runs.programs_for(cfg.settings, cfg.base)), cfg.settings)
+    timing = runs.simulate_run(res, runs.programs_for(cfg.settings, cfg.base))
+    stream = run_warnings.stream_warnings(timing, cfg.settings)
     assert res.warnings == [w for w in warnings if w not in stream]
 
 
@@ -90,7 +92,7 @@ def test_a_reference_not_converged_is_a_warning(tmp_path, capsys, cache):
     assert "NOT converged" in captured.out  # (the error line, as before)
     assert f"tlm: warning: {line}" in captured.err.splitlines()
     # a converged one says nothing
-    assert runs.reference_warnings({**error, "reference_converged": True}, cfg.settings) == []
+    assert run_warnings.reference_warnings({**error, "reference_converged": True}, cfg.settings) == []
 
 
 def test_a_render_repr_says_what_it_holds_not_whether_it_was_simulated(cache):

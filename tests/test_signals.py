@@ -92,9 +92,9 @@ def test_an_interrupt_a_kernel_wrapped_is_still_an_interrupt(sig, tmp_path, monk
 def test_a_sweep_point_interrupted_inside_a_kernel_stops_the_sweep(tmp_path, monkeypatch, capsys):
     """Not a failed point that the sweep goes on after: the sweep stops with 130 and keeps
     no row or error for the point."""
-    import tlm.experiments.sweep as sweep_mod
+    import tlm.experiments.sweep_point as sweep_point
 
-    monkeypatch.setattr(sweep_mod, "cached_render", _wrapped_interrupt(signal.SIGINT))
+    monkeypatch.setattr(sweep_point, "cached_render", _wrapped_interrupt(signal.SIGINT))
     out = tmp_path / "sw"
     assert main(["sweep", str(sweep_file(tmp_path, 2)), "--out", str(out), "--jobs", "1", "--no-progress",
                  "--no-report"]) == 130

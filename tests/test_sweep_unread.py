@@ -1,6 +1,6 @@
 """A sweep's own line on a factor that no point read, judged after the points ran: the
 timing keys each point changed from their defaults and never read (results.json
-``inert``: tlm.experiments.run.inert_timing_changes), summed up once for the sweep
+``inert``: tlm.experiments.run_warnings.inert_timing_changes), summed up once for the sweep
 (tlm.experiments.sweep_file.Sweep.unread_factors), where each point's warnings say it
 for the point alone."""
 

@@ -13,9 +13,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-import tlm.experiments.sweep as sweep_mod
+import tlm.experiments.sweep_point as sweep_point
 from tlm.experiments.dask_workers import OtherVersionsOnWorker, check_worker_versions, worker_versions
-from tlm.experiments.sweep import Task, run_point, run_sweep
+from tlm.experiments.sweep import run_sweep
+from tlm.experiments.sweep_point import Task, run_point
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
         "arch": {"frames": 2, "trace": False, "packet_size": 16}}
@@ -77,7 +78,7 @@ def test_a_point_records_the_versions_of_the_process_that_ran_it(tmp_path):
 
 def test_a_point_on_a_dask_worker_of_other_versions_fails_with_one_line(tmp_path, monkeypatch):
     """As a worker of other code, the point fails before it renders, its error.json written."""
-    monkeypatch.setattr(sweep_mod, "dask_worker_where", lambda: WHERE)
+    monkeypatch.setattr(sweep_point, "dask_worker_where", lambda: WHERE)
     here = worker_versions()
     sweeps = {**here, "numpy": "0.0.submitter"}
     got = run_point(_task(tmp_path, {"versions": sweeps}))

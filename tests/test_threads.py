@@ -258,7 +258,7 @@ def test_threads_do_not_enter_the_keys():
 
 def test_sweep_workers_share_the_cpus(monkeypatch):
     from tlm.experiments import executors
-    from tlm.experiments.sweep import _with_threads
+    from tlm.experiments.sweep_point import _with_threads
 
     monkeypatch.setattr(threads, "available", lambda: 16)
     assert executors.kernel_threads(4, None, 10) == 4
@@ -527,7 +527,7 @@ def test_a_dask_workers_points_share_its_machines_cpus(monkeypatch):
 
 
 def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeypatch, tmp_path):
-    from tlm.experiments import sweep
+    from tlm.experiments import sweep_point
 
     seen = []
 
@@ -535,16 +535,16 @@ def test_a_sweep_point_takes_its_workers_share_where_the_sweep_gave_none(monkeyp
         seen.append(cfg.render.threads)
         raise RuntimeError("stop here")
 
-    monkeypatch.setattr(sweep, "cached_render", render_nothing)
-    monkeypatch.setattr(sweep, "dask_worker_threads", lambda: 3)
+    monkeypatch.setattr(sweep_point, "cached_render", render_nothing)
+    monkeypatch.setattr(sweep_point, "dask_worker_threads", lambda: 3)
     base = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8]}
-    task = sweep.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "p"), {}, threads=None)
-    assert sweep.run_point(task)["status"] == "failed"
-    task = sweep.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "q"), {}, threads=2)
-    sweep.run_point(task)
-    task = sweep.Task("h", {**base, "render": {"threads": 5}}, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "r"),
-                      {}, threads=None)
-    sweep.run_point(task)
+    task = sweep_point.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "p"), {}, threads=None)
+    assert sweep_point.run_point(task)["status"] == "failed"
+    task = sweep_point.Task("h", base, {}, str(tmp_path), "sweep.yaml", str(tmp_path / "q"), {}, threads=2)
+    sweep_point.run_point(task)
+    task = sweep_point.Task("h", {**base, "render": {"threads": 5}}, {}, str(tmp_path), "sweep.yaml",
+                            str(tmp_path / "r"), {}, threads=None)
+    sweep_point.run_point(task)
     assert seen == [3, 2, 5]  # the worker's share; the sweep's; the config's own
 
 

@@ -7,7 +7,7 @@ import json
 from types import SimpleNamespace
 
 from tlm.cli import main
-from tlm.experiments.run import unread_overrides
+from tlm.experiments.run_warnings import unread_overrides
 
 SMALL = ["--set", "resolution=[16,16]", "--set", "arch.packet_size=16", "--set", "arch.frames=2",
          "--no-report", "--no-progress", "--outputs", "images"]

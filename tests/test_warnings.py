@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 # (packets of 16: a 16x16 frame in packets of 256 is one packet a phase, whose hand-overs put its
 # cycles 20-35% off packets of one, and the run rightly warns of that: not what these tests are about)
 # (the photon count goes into the config files: a --set of it in a run without the photon-map
-# pass is warned of, run.unread_overrides)
+# pass is warned of, run_warnings.unread_overrides)
 SMALL = ["--set", "resolution=[16,16]", "--set", "render.spp=1",
          "--set", "arch.packet_size=16"]
 CORNELL_LIGHT = "corner: [343.0, 548.8, 227.0], power: [1100000.0, 950000.0, 750000.0]"

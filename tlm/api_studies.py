@@ -244,7 +244,7 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     (``tlm report --formats --dpi``; a bad value is an InputError before anything is written).
     ``note`` receives one-line notes on a folder of folders it searched, as soon as it has searched
     them (a folder in it with no run, sweep or study, a link not followed, the folders of installed
-    software passed over, a long search: :func:`tlm.report.collect.find`); the page says them too,
+    software passed over, a long search: :func:`tlm.report.folders.find`); the page says them too,
     and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``).
     ``dirs``: a list of folders, or one folder's path (a string or a Path: that folder, not the
     characters of its name)."""

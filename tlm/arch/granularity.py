@@ -233,7 +233,7 @@ def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: in
     ``fine`` (a program built by hand: its packets of one are not known) the smaller of
     ``fill_drain_cycles`` and ``over_slowest_pm`` over TThru, and no ``change_cycles``.
     Measured against ``tlm granularity`` in docs/architecture.md ("Packet size"), where
-    ``tlm run``'s warning threshold (:data:`tlm.experiments.run.GRANULARITY_WARNING`) comes from.
+    ``tlm run``'s warning threshold (:data:`tlm.experiments.run_warnings.GRANULARITY_WARNING`) comes from.
     """
     fd = _busiest(fill_and_drain(program, arch), program)
     over = max(0, throughput - slowest)

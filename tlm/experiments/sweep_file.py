@@ -91,7 +91,7 @@ class Sweep:
     def unread_factors(self, done: list[tuple[Point, dict]]) -> list[str]:
         """A warning line per factor that no point read, judged after the points ran: the
         timing model's keys a point changed from their defaults and never read are in its
-        ``results.json`` ``inert`` (:func:`tlm.experiments.run.inert_timing_changes`:
+        ``results.json`` ``inert`` (:func:`tlm.experiments.run_warnings.inert_timing_changes`:
         ``arch.swap_cycles`` where no PM moved, ``arch.context_switch_cycles`` with one
         image in flight, ...). A factor gets a line when every point in ``done`` (``(point,
         its results)``, the points that ran and did not fail) names it there or holds it at

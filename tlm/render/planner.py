@@ -177,7 +177,7 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     Kept apart from :func:`inert_settings`, whose answer a sweep reuses for every point of
     the same mode, photon sections and scheduler (``tlm.experiments.sweep``): these depend
     on other keys. What only the simulated run can tell (the FIFO's depth, empty tiles, a
-    swap or context switch that never happened) is :func:`tlm.experiments.run.stream_warnings`'.
+    swap or context switch that never happened) is :func:`tlm.experiments.run_warnings.stream_warnings`'.
     """
     from tlm.kernels.memory import PM_STREAMS
 
@@ -202,7 +202,7 @@ def inert_changes(cfg: RunConfig, skip: Iterable[str] = ()) -> list[str]:
     sections are left aside (a config may hold them for ``--mode pmap``, and the plan says
     why the pass is left out): one warning line each (``estimate.k = 16 has no effect in
     this run: ...``). ``skip``: keys warned of for another reason, left out here (the
-    overrides of a photon-map pass left out: :func:`tlm.experiments.run.unread_overrides`)."""
+    overrides of a photon-map pass left out: :func:`tlm.experiments.run_warnings.unread_overrides`)."""
     defaults = dataclasses.asdict(RunConfig())
     lines = []
     settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (the photon sections judged as if run)

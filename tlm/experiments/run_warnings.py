@@ -1,0 +1,250 @@
+"""What a run warns of: ``results.json`` ``warnings``, one line each, of what gives no error
+but a wrong or a misleading result.
+
+:func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
+a setting the run never reads, an override of a photon-map key whose pass is left out:
+:func:`unread_overrides`, a reference not converged: :func:`reference_warnings`, a BSP cut
+short); :func:`stream_warnings`: the simulated stream's (too few frames, packets too coarse
+from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set that the timing model
+never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
+:func:`tlm.experiments.run.results_dict` puts them in ``results.json``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+import yaml
+
+from tlm.arch.model import Timing
+from tlm.config import ArchConfig, RunConfig
+from tlm.config_words import parse_yaml
+from tlm.registry import SCHEDULERS
+from tlm.render import checks
+from tlm.render.planner import inert_changes, inert_timing_settings
+
+# RenderResult (tlm.experiments.run, which imports this module) is named in annotations only and not
+# imported: an import, even under TYPE_CHECKING, would make the two modules a cycle (tests/test_layers.py)
+
+
+def eye_hits(res: RenderResult) -> tuple[int, int, int, int]:  # noqa: F821
+    """Pixels, eye rays, their hits and their hits on the back of an opaque triangle."""
+    if res.primary is not None:
+        return res.primary.t.shape[0], res.primary.rays, res.primary.hits, res.primary.back
+    g = res.gbuffer  # (a result made by hand, not by render)
+    back = checks.back_faces(res.scene, g.triangle, g.direction)
+    return g.pixels.shape[0], g.origin.shape[0], int((g.triangle >= 0).sum()), back
+
+
+def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
+    """What gives no error but a wrong picture (:mod:`tlm.render.checks`), a setting the run
+    never reads (each key once: one of ``res.overrides`` in a run whose photon-map pass is
+    left out by :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`),
+    a photon-map reference that is not converged (:func:`reference_warnings`), a BSP cut
+    short: ``results.json`` ``warnings`` but the simulated stream's (:func:`stream_warnings`),
+    one line each."""
+    _, rays, hits, back = eye_hits(res)
+    warnings = [*checks.file_warnings(res.scene), *checks.material_warnings(res.scene),
+                *checks.light_warnings(res.scene, res.accel),
+                *checks.camera_warnings(rays, hits, back),
+                *checks.image_warnings({n: res.radiance[n] for n in res.plan.run_names if n in res.radiance},
+                                       checks.light_scale(res.scene, res.accel.scale))]
+    if res.photons is not None:
+        st = res.photons.photons.stats()
+        warnings += checks.photon_warnings(st["emitted"], st["stored"])
+    unread = _unread(res, res.overrides)
+    warnings += inert_changes(res.cfg, skip=unread)
+    warnings += _unread_lines(res, unread, res.via)
+    warnings += reference_warnings(res.error, res.cfg)
+    warnings += checks.branching_warning(res.cfg, res.scene)
+    if "pmap" in res.plan.run_names:
+        warnings += checks.radius_warnings(res.cfg, res.accel.scale)
+    if res.accel.tree.truncated:
+        t = res.accel.tree
+        warnings.append(f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
+                        f"{res.cfg.bsp.memory_factor:g}x the triangle list")
+    return warnings
+
+
+# |timing.granularity.share| from which a run warns (docs/architecture.md, "Packet size")
+GRANULARITY_WARNING = 0.05
+
+
+def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
+    """The simulated stream's warnings, one line each: too few frames for a steady-state
+    throughput; packets so coarse that they move TThru from that of packets of one by a
+    large share, either way (:func:`~tlm.arch.granularity.granularity_estimate`, from
+    :data:`GRANULARITY_WARNING` on); image tiles without pixels; and what only the run can
+    tell of a setting changed from its default that it never read (:func:`timing_inert`)."""
+    if timing is None:
+        return []
+    lines = []
+    est = timing.throughput_estimate
+    if est and not est["steady"]:
+        lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
+                     f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
+                     "cycles.throughput is the stream's elapsed cycles per frame")
+    share = (timing.granularity or {}).get("share", 0.0)
+    if abs(share) >= GRANULARITY_WARNING:
+        how = ("whole packets add about {:.0%} of cycles.throughput to what packets of one ray would take (the "
+               "Traversal and Intersection PMs' fill and drain of whole packets at the phase boundaries)"
+               if share > 0 else
+               "packets of one ray would take about {:.0%} of cycles.throughput more (entering the FIFO one by "
+               "one, they leave the Traversal PM waiting for room more often: a whole packet enters at once, as "
+               "into a deeper FIFO)").format(abs(share))
+        lines.append(f"arch.packet_size = {cfg.arch.packet_size} is coarse for this frame: {how} "
+                     "(timing.granularity): measure it with 'tlm granularity', or lower arch.packet_size")
+    tiling = timing.program.tiling or {}
+    bounds = tiling.get("tiles") or []
+    empty = sum(1 for x0, y0, x1, y1 in bounds if x0 == x1 or y0 == y1)
+    if empty:
+        width, height = max(b[2] for b in bounds), max(b[3] for b in bounds)
+        queue = "" if SCHEDULERS[timing.program.scheduler].pinned else f" of the {timing.program.scheduler} queue"
+        lines.append(f"arch.pipelines = {cfg.arch.pipelines}: {empty} of the {len(bounds)} image tiles{queue} have "
+                     f"no pixels (a {width}x{height} image cut into a {tiling['rows']}x{tiling['cols']} grid): a "
+                     "pipeline given one has no pixel work in it")
+    lines += [f"{key} = {getattr(cfg.arch, key.split('.', 1)[1])!r} has no effect in this run: {why}"
+              for key, why in timing_inert(timing, cfg.arch).items()]
+    return lines
+
+
+def inert_timing_changes(timing: Timing, cfg: RunConfig) -> dict[str, str]:
+    """The timing model's and the cache's keys ``cfg`` changes from their defaults that this
+    simulated run never read, each with why: those the config alone shows
+    (:func:`~tlm.render.planner.inert_timing_settings`) and those only the run can tell
+    (:func:`timing_inert`). A sweep point records them (``results.json`` ``inert``), and
+    the sweep names a factor that every point it ran agrees on
+    (:meth:`tlm.experiments.sweep_file.Sweep.unread_factors`)."""
+    defaults = RunConfig()
+    out = {key: why for key, why in inert_timing_settings(cfg).items()
+           if _value(cfg, key) != _value(defaults, key)}
+    out.update(timing_inert(timing, cfg.arch))
+    return out
+
+
+def _value(cfg: RunConfig, key: str):
+    section, name = key.split(".", 1)
+    return getattr(getattr(cfg, section), name)
+
+
+def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
+    """The arch keys set away from their defaults that this simulated run provably never
+    read, each with why (the keys whose inertness the config alone shows are
+    :func:`~tlm.render.planner.inert_timing_settings`'):
+
+    * ``arch.swap_cycles`` when no PM moved to another module (the value is read at a
+      swap only);
+    * ``arch.context_switch_cycles`` with two images in flight when no PM was preempted
+      (read at a preemption only);
+    * ``arch.fifo_depth`` when every Traversal/Intersection job's FIFO behaves alike at
+      this depth and the default's: every packet carries at least as many triangle
+      addresses as the larger depth (each enters an empty FIFO alone at either), or the
+      job's packets all fit in the smaller one together (the FIFO never fills).
+    """
+    default = ArchConfig()
+    out: dict[str, str] = {}
+    xb = timing.crossbar or {}
+    if arch.swap_cycles != default.swap_cycles and xb.get("swaps") == 0:
+        out["arch.swap_cycles"] = "no PM moved to another module (timing.crossbar.swaps is 0)"
+    if (arch.context_switch_cycles != default.context_switch_cycles and arch.images_in_flight > 1
+            and not any((xb.get("preemptions") or {}).values())):
+        out["arch.context_switch_cycles"] = "no PM was preempted (timing.crossbar.preemptions are 0)"
+    if arch.fifo_depth != default.fifo_depth:
+        lo, hi = sorted((arch.fifo_depth, default.fifo_depth))
+        ways = {_fifo_alike(np.asarray(ph.jobs[0].entries, dtype=np.int64), lo, hi)
+                for ph in timing.program.phases if len(ph.jobs) == 2 and ph.jobs[0].entries is not None}
+        if ways and None not in ways:
+            out["arch.fifo_depth"] = {
+                frozenset({"alone"}): f"every packet carries at least {hi} triangle addresses, so it enters an "
+                                      f"empty FIFO alone at depth {lo} and at {hi} (lower arch.packet_size to see "
+                                      "the depth)",
+                frozenset({"together"}): f"every Traversal/Intersection phase's packets fit in {lo} FIFO entries "
+                                         "together: the FIFO never fills"}.get(
+                frozenset(ways), f"each Traversal/Intersection phase's packets either all carry at least {hi} "
+                                 f"triangle addresses or fit in {lo} FIFO entries together")
+    return out
+
+
+def _fifo_alike(entries: np.ndarray, lo: int, hi: int) -> str | None:
+    """Why a job's FIFO, its packets carrying ``entries`` triangle addresses, behaves alike
+    at the depths ``lo`` and ``hi`` (a packet takes min(entries, depth) entries, at least
+    one): ``"alone"``, every packet fills the FIFO at both, so each enters it empty;
+    ``"together"``, all of them fit at both at once, so it never fills; None: neither."""
+    if entries.size and int(entries.min()) >= hi:
+        return "alone"
+    if int(np.clip(entries, 1, lo).sum()) <= lo:
+        return "together"
+    return None
+
+
+PHOTON_SECTIONS = ("photons.", "estimate.", "reference.")  # read by the photon-map pass (and its reference) alone
+
+
+def unread_overrides(res: RenderResult, overrides: Iterable[str] | None, via: str = "--set") -> list[str]:  # noqa: F821
+    """An override of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
+    pass is left out: one line each, naming it as it was given (``--set estimate.k=9``; ``via``
+    ``the overrides``: ``estimate.k=9 (in the overrides)``). :func:`~tlm.render.planner.inert_changes`
+    judges those sections as if the pass ran, since a config file may hold them for ``--mode
+    pmap``; a key given as an override was asked for this run. A key set twice is named once,
+    by the override that set it last (a section given as a mapping, ``estimate={k: 9}``, sets
+    each of its keys). Not the key the pass is left out by (``--set photons.count=0``, ``--set
+    photons.max_bounces=1``: the plan's ``by``), which did what it was set for."""
+    return _unread_lines(res, _unread(res, overrides), via)
+
+
+def _unread(res: RenderResult, overrides: Iterable[str] | None) -> dict[str, str]:  # noqa: F821
+    """:func:`unread_overrides`' keys, each with the override that set it last (in that order)."""
+    if "pmap" in res.plan.run_names:
+        return {}
+    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    last: dict[str, str] = {}
+    for item in overrides or []:
+        for key in _keys_set(item):
+            last.pop(key, None)  # (the later override names it)
+            last[key] = item.strip()
+    return {key: item for key, item in last.items()
+            if key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by)}
+
+
+def _keys_set(item: str) -> list[str]:
+    """The dotted keys the override ``item`` sets: its key, or each key under it when its
+    value is a mapping (``estimate={k: 9}``: ``estimate.k``)."""
+    key, _, text = item.partition("=")
+    key = key.strip()
+    try:
+        value = parse_yaml(text)
+    except yaml.YAMLError:  # (not an override a config took: its key alone)
+        return [key]
+
+    def leaves(prefix: str, node) -> list[str]:
+        if isinstance(node, dict) and node:
+            return [k for name, child in node.items() for k in leaves(f"{prefix}.{name}", child)]
+        return [prefix]
+
+    return leaves(key, value)
+
+
+def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[str]:  # noqa: F821
+    """:func:`unread_overrides`' lines: one for each override that set one of ``unread``'s keys last."""
+    if not unread:
+        return []
+    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    why = "the photon-map pass is not run" if left is None else left.reason
+    given = (lambda item: f"{via} {item}") if via.startswith("-") else (lambda item: f"{item} (in {via})")
+    return [f"{given(item)} has no effect in this run: the photon-map pass is left out ({why})"
+            for item in dict.fromkeys(unread.values())]
+
+
+def reference_warnings(error: dict | None, cfg: RunConfig) -> list[str]:
+    """A line when the photon-map frame's error (``results.json`` ``error``) was measured
+    against a reference that is not converged (``reference_converged`` false: it does not meet
+    ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it."""
+    if not (error and error.get("available")) or error.get("reference_converged"):
+        return []
+    rse, rounds, ref = error.get("reference_standard_error"), error.get("reference_rounds"), cfg.reference
+    rule = f"reference.tolerance {ref.tolerance:g}" + (f", reference.min_rounds {ref.min_rounds}"
+                                                       if isinstance(rounds, int) and rounds < ref.min_rounds else "")
+    return [f"the photon-map reference {error['reference']} is NOT converged ({rounds} rounds, relative standard "
+            f"error {'n/a' if rse is None else f'{rse:.4f}'}, {rule}): the pmap error against it (error.rmse, "
+            "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'"]

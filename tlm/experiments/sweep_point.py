@@ -1,0 +1,219 @@
+"""One sweep point, as a worker runs it: the :class:`Task` it travels as (plain data), and
+:func:`run_point`, which renders (or loads) the point's functional result, simulates it and
+writes its folder, ``points/<hash>/`` (``results.json``, or ``error.json``: :func:`write_error`).
+
+A Dask worker first checks that it sees the sweep's folder and input files and, a remote
+one, that it runs the sweep's code (:func:`_check_worker_sees`) and reads the content the
+sweep read (:func:`_check_worker_inputs`); the versions it runs are checked by
+:func:`~tlm.experiments.dask_workers.check_worker_versions`. The sweep that hands the points
+out: :mod:`tlm.experiments.sweep`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from contextlib import suppress
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tlm import storage
+from tlm.caches import cache_warnings, cache_warnings_held
+from tlm.config import config_from_dict
+from tlm.errors import InputError, interrupted_by
+from tlm.experiments.dask_workers import (
+    OtherVersionsOnWorker,
+    check_worker_versions,
+    dask_worker_threads,
+    dask_worker_where,
+    worker_versions,
+)
+from tlm.experiments.frames import SUMMARY_KEYS, cached_render
+from tlm.storage import atomic_folder
+
+MARKER = "sweep.yaml"  # marks an output folder as a sweep's
+POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs to run one point (plain data: it travels to other processes)."""
+
+    hash: str
+    config: dict
+    factors: dict[str, Any]
+    folder: str  # where relative paths start
+    source: str  # the sweep file, for messages
+    out: str  # the point's folder (absolute: a Dask worker's working folder is not the sweep's)
+    provenance: dict  # versions and git revision of the submitting host (a point records its worker's
+    # versions, which a Dask worker's must match: check_worker_versions)
+    threads: int | None = None  # render.threads where the config leaves it null (the worker's
+    # share of the CPUs: speed only, so config.resolved.yaml keeps the config as written)
+    inputs: tuple[str, ...] = ()  # the files of the sweep's folders it reads (absolute): a Dask
+    # worker checks that it sees them, and the sweep's output folder, before it runs the point
+    code: str | None = None  # a remote Dask worker's tlm must have this code fingerprint (the
+    # sweep's, part of the point's hash): another version's cycles would be filed under it
+    functional: str = ""  # the functional key of the point's frame as the sweep computed it (part of
+    # its hash: the scene's content), which a remote Dask worker's own must equal
+    programs: str | None = None  # the sha256 of the text of the point's arch.programs table as the sweep
+    # read it (None: tlm's own table, part of the code), which a remote Dask worker's must equal
+
+
+def run_point(task: Task) -> dict:
+    """Render (or load) the point's functional result, simulate it, write its folder.
+
+    Returns ``{"status": "ok", "results": ...}``, or ``{"status": "failed", "error":
+    ...}`` after writing ``error.json``: an exception never leaves the worker.
+    """
+    from tlm.arch.model import simulate  # the timing layer is imported where it runs
+    from tlm.experiments.run import programs_for, timing_dict
+    from tlm.experiments.run_warnings import inert_timing_changes, stream_warnings
+    from tlm.render.planner import inert_changes
+
+    stage = "functional"
+    t0 = time.perf_counter()
+    where = dask_worker_where()  # (None but in a Dask worker)
+    try:
+        ran = worker_versions()  # (the process that runs the point: what its results.json records)
+        if where is not None:
+            _check_worker_sees(task, where)
+            check_worker_versions(task.provenance.get("versions"), ran, where)
+        threads = task.threads if task.threads is not None else dask_worker_threads()
+        cfg = config_from_dict(_with_threads(task.config, threads), task.source)
+        folder = Path(task.folder)
+        if where is not None and task.code is not None:
+            _check_worker_inputs(task, cfg, folder, where)
+        with cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
+            got = cached_render(cfg, folder, task.source)
+        t1 = time.perf_counter()
+        stage = "simulate"
+        programs = programs_for(cfg, folder)
+        timing = simulate(got.functional, programs, cfg.arch)
+        t2 = time.perf_counter()
+        stage = "write"
+        summary = got.summary
+        with atomic_folder(Path(task.out), "results.json") as tmp:
+            (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
+            if timing.trace is not None:
+                timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
+            results = {
+                "tlm": POINT_FORMAT, "hash": task.hash, "sweep": task.source, "factors": task.factors,
+                "seed": cfg.seed, "mode": cfg.mode,
+                **{k: summary.get(k) for k in SUMMARY_KEYS},
+                # the render's warnings, and this point's own (what it sets and never reads; its stream)
+                "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg),
+                             *cache_warnings()],  # (the caches this worker could not write)
+                # the timing keys it changed from their defaults and never read, with why (for the
+                # sweep's own line on a factor no point read: Sweep.unread_factors)
+                "inert": inert_timing_changes(timing, cfg),
+                "cycles": timing.cycles, "fps": timing.fps,
+                "timing": timing_dict(timing, cfg.arch, programs),
+                "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},
+                "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6)},
+                **task.provenance, "versions": ran,
+            }
+            (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n")  # (strict: inf as null)
+        return {"status": "ok", "results": results, "worker": where}
+    except Exception as e:
+        if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
+            raise stop from e
+        error = error_record(e, stage, traceback.format_exc())
+        if where is not None and not isinstance(e, (PathNotOnWorker, OtherCodeOnWorker, OtherInputsOnWorker,
+                                                         OtherVersionsOnWorker)):
+            # (those say where)
+            error["message"] = f"{error['message']} (on {where})"
+        if task.code is None:  # (this machine's worker)
+            write_error(task, error)
+        elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
+            with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
+                write_error(task, error)
+        return {"status": "failed", "error": error, "worker": where}
+
+
+class PathNotOnWorker(OSError):
+    """A Dask worker does not see a file or folder of the sweep at the path the sweep gives."""
+
+
+class OtherCodeOnWorker(RuntimeError):
+    """A remote Dask worker runs a tlm whose code is not the sweep's."""
+
+
+class OtherInputsOnWorker(RuntimeError):
+    """A remote Dask worker reads other content than the sweep did for a point: its scene (a
+    built-in scene file of its own install, a file or mesh at the sweep's path on a disk of its
+    own) or its programs table."""
+
+
+def _check_worker_sees(task: Task, where: str) -> None:
+    """In a Dask worker: a remote one runs the sweep's tlm code (else :class:`OtherCodeOnWorker`),
+    and the sweep's output folder and the input files the point reads are there at the
+    sweep's paths (a worker on another machine sees them only on a shared file system; else
+    :class:`PathNotOnWorker`), each named with the worker's address and host."""
+    if task.code is not None:
+        from tlm.fingerprint import code_fingerprint
+
+        if code_fingerprint() != task.code:
+            raise OtherCodeOnWorker(
+                f"{where} runs other tlm code (code fingerprint {code_fingerprint()}, the sweep's {task.code}): "
+                "install the sweep's tlm on the workers, and restart them after an update of it")
+    sweep_dir = Path(task.out).parent.parent
+    if not (sweep_dir / MARKER).is_file():
+        raise PathNotOnWorker(f"the sweep's output folder {sweep_dir} is not there on {where}: the workers "
+                              "write the point folders into it, so they must see it at that path (a shared "
+                              "file system)")
+    for path in task.inputs:
+        if not os.access(path, os.R_OK):
+            raise PathNotOnWorker(f"cannot read {path} on {where}: the workers must see the sweep's "
+                                  "files at the paths the sweep gives (a shared file system)")
+
+
+def _check_worker_inputs(task: Task, cfg, folder: Path, where: str) -> None:
+    """On a remote Dask worker, before the point renders: the programs table it reads holds the
+    text the sweep read (the sha256 in ``task.programs``), and its point's frame has the
+    functional key the sweep computed (``task.functional``: the scene file and its meshes as this
+    worker reads them; a built-in scene is its own install's), else :class:`OtherInputsOnWorker`.
+    The point's hash holds both, so a point of other content would be filed under this one's."""
+    from tlm.config import read_text, text_digest
+    from tlm.experiments.frames import render_key
+
+    fix = "the workers must see the sweep's files as this machine does"
+    if task.programs is not None and cfg.arch.programs is not None:
+        table = folder / cfg.arch.programs  # (an absolute table stays itself)
+        here = text_digest(read_text(table))
+        if here != task.programs:
+            raise OtherInputsOnWorker(
+                f"{where} reads another programs table at {table} (its text's sha256 {here[:16]}, the sweep's "
+                f"{task.programs[:16]}): the file differs there; {fix}")
+    if task.functional:
+        key = render_key(cfg, folder, task.source)  # (remembered: cached_render's own call reads it back)
+        if key != task.functional:
+            from tlm.scenes.loader import resolve_scene_path
+
+            scene = resolve_scene_path(cfg.scene, folder, task.source)
+            raise OtherInputsOnWorker(
+                f"{where} sees other inputs for this point (its frame key {key}, the sweep's {task.functional}; "
+                f"its scene file {scene}): the scene file or its meshes differ there; {fix}")
+
+
+def error_record(e: BaseException, stage: str, tb: str) -> dict:
+    return {"type": type(e).__name__, "message": str(e), "stage": stage, "traceback": tb}
+
+
+def write_error(task: Task, error: dict) -> None:
+    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config."""
+    with atomic_folder(Path(task.out), "error.json") as tmp:
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
+        body = {"hash": task.hash, "factors": task.factors, **error}
+        (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
+
+
+def _with_threads(config: dict, threads: int | None) -> dict:
+    """``config`` with ``render.threads`` set to ``threads`` where the config leaves it null."""
+    render = config.get("render", {})
+    if threads is None or render.get("threads") is not None:
+        return config
+    return {**config, "render": {**render, "threads": threads}}
