@@ -162,6 +162,18 @@ def test_a_bad_dask_is_refused_even_where_every_point_is_done(tmp_path, capsys, 
     assert "2 points: 0 ok, 0 failed, 2 skipped" in capsys.readouterr().out
 
 
+
+@pytest.mark.parametrize("dask", ["ucxx://127.0.0.1:9", "TCP://127.0.0.1:9", "127.0.0.1:9", "[::1]:9"])
+def test_a_transport_the_check_does_not_know_is_left_to_dask(tmp_path, capsys, dask):
+    """Only the address's form is checked: a plugin's transport (ucxx) or a scheme in capitals is
+    Dask's to take or refuse when there are points to run, not refused by tlm beforehand."""
+    path = _sweep(tmp_path, grid={"arch.fifo_depth": [1, 2]})
+    out = tmp_path / "o"
+    assert run_sweep(path, out, jobs=1).ok == 2
+    capsys.readouterr()
+    assert main(["sweep", str(path), "--out", str(out), "--dask", dask, "--no-progress", "--no-report"]) == 0
+    assert "2 points: 0 ok, 0 failed, 2 skipped" in capsys.readouterr().out
+
 # ---------------------------------------------------------------- warnings: returned by the library, printed by the CLI
 
 

@@ -62,6 +62,7 @@ import math
 import numbers
 import os
 import queue
+import re
 import shutil
 import time
 import traceback
@@ -329,13 +330,14 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                    [*said, *unread, *caches, *stale], other)
 
 
-DASK_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")  # distributed's transports of a HOST:PORT address (and inproc)
+# a transport's name before ``://`` (distributed's tcp, tls, ws, wss, ucx, and a plugin's, such as ucxx)
+DASK_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*")
 
 
 def _dask_address(dask: Any) -> str | None:
     """``--dask``: None, ``local``, or a scheduler's address of the form ``tcp://HOST:PORT``
-    (``HOST:PORT`` is tcp's, as for Dask; ``tls://``, ``ws://``, ``wss://``, ``ucx://`` and
-    ``inproc://`` too), its port a whole number 1 to 65535; else an :class:`InputError`. Its form
+    (``HOST:PORT`` is tcp's, as for Dask; ``tls://``, ``ws://``, ``ucx://``, a plugin's transport
+    and ``inproc://`` too), its port a whole number 1 to 65535; else an :class:`InputError`. Its form
     only: the scheduler is reached when there are points to run (:func:`open_executor`)."""
     if dask is None or dask == "local":
         return dask
@@ -352,7 +354,7 @@ def _dask_address(dask: Any) -> str | None:
     host, colon, port = rest.rpartition(":")
     if host.startswith("[") and host.endswith("]"):  # (an IPv6 address: [::1]:8786)
         host = host[1:-1]
-    well_formed = (scheme in DASK_SCHEMES and colon and host and port.isascii() and port.isdigit()
+    well_formed = (DASK_SCHEME.fullmatch(scheme) is not None and colon and host and port.isascii() and port.isdigit()
                    and not any(c.isspace() or c in "/?#@" for c in host))
     if not well_formed:
         raise InputError(f"{dask!r} is not a Dask scheduler's address: {fix}", key="--dask")
