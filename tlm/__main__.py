@@ -2,6 +2,7 @@
 
 import sys
 
+import tlm.cli_signals  # noqa: F401  (first: a signal during the imports below is the command's, early_signals)
 from tlm.cli import main
 from tlm.cli_signals import forget_lost_interrupt
 

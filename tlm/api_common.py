@@ -12,8 +12,8 @@ import inspect
 import numbers
 import os
 import re
-import sys
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -122,6 +122,20 @@ def as_arguments(error: InputError, names: set[str]) -> InputError:
 
 
 _CALLED: contextvars.ContextVar[bool] = contextvars.ContextVar("tlm_api_called", default=False)
+_FLAGS_KEPT: contextvars.ContextVar[bool] = contextvars.ContextVar("tlm_flags_kept", default=False)
+
+
+@contextmanager
+def flags_kept():
+    """A block whose calls of the API keep the command line's flags in their errors
+    (:func:`argument_names`): the ``tlm`` command's, which :func:`tlm.cli.main` runs within it
+    (``tlm``, ``python -m tlm``, ``main([...])`` alike). Its way there is
+    ``tlm.api.argument_names.flags_kept``: the command line reaches the API through :mod:`tlm.api`."""
+    token = _FLAGS_KEPT.set(True)
+    try:
+        yield
+    finally:
+        _FLAGS_KEPT.reset(token)
 
 
 def argument_names(func: F) -> F:
@@ -130,29 +144,31 @@ def argument_names(func: F) -> F:
     ``--jobs``, ``--dask``, ``--dask-wait``, ``--dpi``, ``--formats``, ``--truth-spp``,
     ``--write``; the deeper layers share them with the commands) becomes the argument's name
     (``out``, ``dask_wait``, ``target``: :data:`FLAG_ARGUMENTS`) where ``func`` has that
-    argument, and so do the flags its text names (:func:`as_arguments`). Called from the command
-    line (the ``tlm.cli`` modules) the flags stay, as the user typed them; only the outermost call
-    of the API renames (one API function calling another leaves its errors to it)."""
+    argument, and so do the flags its text names (:func:`as_arguments`). Within the command
+    line's command (:func:`flags_kept`, which :func:`tlm.cli.main` sets) the flags stay, as the
+    user typed them; a call from anywhere else (a script, a notebook, a plugin or a test helper,
+    whatever its module's name) gets the arguments' names. Only the outermost call of the API
+    renames (one API function calling another leaves its errors to it)."""
     names = set(inspect.signature(func).parameters)
 
     @functools.wraps(func)
     def call(*args: Any, **kwargs: Any) -> Any:
         if _CALLED.get():
             return func(*args, **kwargs)
-        where = sys._getframe(1).f_globals  # (the caller's module: its spec's name, tlm.cli under python -m too)
-        spec = where.get("__spec__")
-        caller = str(getattr(spec, "name", None) or where.get("__name__", ""))
         token = _CALLED.set(True)
         try:
             return func(*args, **kwargs)
         except InputError as e:
-            if caller != "tlm.cli" and not caller.startswith(("tlm.cli.", "tlm.cli_")):
+            if not _FLAGS_KEPT.get():
                 as_arguments(e, names)
             raise
         finally:
             _CALLED.reset(token)
 
     return call  # type: ignore[return-value]
+
+
+argument_names.flags_kept = flags_kept  # type: ignore[attr-defined]  (tlm.api re-exports argument_names)
 
 
 def experiment_file(path: str | Path, command: str) -> Path:

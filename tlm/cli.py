@@ -4,6 +4,9 @@ signals, its one-line errors, its exit status) is :mod:`tlm.cli_signals`."""
 
 from __future__ import annotations
 
+import tlm.cli_signals  # noqa: F401  (the first of tlm's modules: a signal from here on is the command's, early_signals)
+
+# isort: split
 import argparse
 import json
 import sys
@@ -501,8 +504,7 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--dask-wait", type=seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
                     "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
                     "(default: 300)")
-    sw.add_argument("--no-progress", action="store_true", help="no progress bar (none either when stderr is "
-                    "not a terminal)")
+    no_progress(sw)
     no_report(sw)
     sw.set_defaults(func=_cmd_sweep)
     sc = sub.add_parser("scaling", help="fit eq. 5.2 to scaling sweeps over arch.pipelines; table and figures "
@@ -618,23 +620,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
-        print(parser.format_help(), end="")  # (as ``tlm --help``: asked for, not an error)
-        return 0
+    """The ``tlm`` command ``argv`` (None: the process's own, ``sys.argv[1:]``): its exit status.
+    Its calls of the API keep the command line's flags in their errors (``--out: ...``, not
+    ``out: ...``: :func:`tlm.api_common.argument_names`)."""
     finished = False  # the command returned: what it wrote is whole
     try:
-        with signals():
-            args = parser.parse_args(argv)
-            args.argv = argv
-            _experiment_arg(args)
-            _figure_args(args)
-            status = args.func(args)
+        with signals(), api.argument_names.flags_kept():
+            parser = build_parser()  # (a signal meanwhile is the command's: 130 / 143, its one line)
+            if not (sys.argv[1:] if argv is None else argv):  # a bare ``tlm``: what it can do
+                print(parser.format_help(), end="")  # (as ``tlm --help``: asked for, not an error)
+                status = 0
+            else:
+                args = parser.parse_args(argv)
+                args.argv = argv
+                _experiment_arg(args)
+                _figure_args(args)
+                status = args.func(args)
             finished = True
             if argv is None and signalled() is None:  # the process's own command, done: a signal until
                 return until_exit(status)  # the process exits still says that it ran to its end (130 / 143)
-    except SystemExit as e:  # --help, --version
-        return e.code if isinstance(e.code, int) else 0
+    except SystemExit as e:  # --help, --version: ended as a command that returned
+        code = e.code if isinstance(e.code, int) else 0
+        return until_exit(code) if argv is None else code
     except (Exception, KeyboardInterrupt) as e:  # its one line and its exit status
         if not (finished and isinstance(e, KeyboardInterrupt)):
             return exit_status(e, argv)

@@ -16,26 +16,101 @@ saying that the command ran to its end: what it wrote is whole, and kept; so doe
 later, while the process exits (its pools' clean-up, its threads joined: :func:`until_exit`). Anything
 else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
 A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
-as if killed by SIGPIPE).
+as if killed by SIGPIPE). A signal that comes before the command begins (while the ``tlm``
+process imports its modules and builds its parser, a second or more under load) is the
+command's too, from this module's import on (:func:`early_signals`: tlm.cli and tlm.__main__
+import it first, and it installs its handler before its own imports): the command stops as it
+begins, with the same line and exit status, not a traceback of a half-finished import.
 """
+
+# ruff: noqa: E402  (the early handler is installed before this module's other imports: see early_signals)
 
 from __future__ import annotations
 
-import atexit
 import os
 import signal
 import sys
+from contextlib import contextmanager, suppress
+
+_SIGNALS: list[int] = []  # the signals received by this command, the first one first
+
+
+def _early_signal(signum, frame) -> None:
+    """SIGINT / SIGTERM in the ``tlm`` process before its command began (:func:`early_signals`):
+    the first is noted, and raised as the command begins (:func:`signals`: its line, 130 / 143),
+    so that no import is cut in two and no traceback is printed; a second ends the process at
+    once, as during a command's clean-up (:func:`on_signal`; nothing has begun that needs one)."""
+    if _SIGNALS:
+        line = b"tlm: interrupted again: stopping now\n"
+        with suppress(OSError):
+            os.write(2, b"\n" + line if os.isatty(2) else line)
+        os._exit(128 + _SIGNALS[0])
+    _SIGNALS.append(signum)
+
+
+def command_process() -> bool:
+    """Whether this process is a ``tlm`` command's own: its main module is the ``tlm`` script
+    (``[project.scripts]``: a file of that name, less what the script itself strips, ``-script.pyw``
+    or ``.exe``; on Windows a zip of that name runs its ``__main__.py``), ``tlm.__main__``
+    (``python -m tlm``) or ``tlm.cli`` (``python -m tlm.cli``). Not a process that imports tlm
+    (a notebook, a test), nor a child of the command (a sweep's worker, Dask's: multiprocessing's
+    spawn runs the parent's main file as ``__mp_main__``, under a main module of its own that has
+    no file, though with the parent's ``sys.argv``)."""
+    main = sys.modules.get("__main__")
+    if main is None or getattr(main, "__name__", None) != "__main__":
+        return False
+    mp = sys.modules.get("multiprocessing")
+    if mp is not None and mp.parent_process() is not None:
+        return False
+    spec = getattr(main, "__spec__", None)
+    if spec is not None and spec.name != "__main__":
+        return spec.name in ("tlm.__main__", "tlm.cli")
+    path = getattr(main, "__file__", None)
+    if not isinstance(path, str):
+        return False
+    if spec is not None:  # (a zip run as a script, its __main__.py inside)
+        path = os.path.dirname(path)
+    name = os.path.basename(path)
+    for end in ("-script.pyw", ".exe"):
+        if name.endswith(end):
+            name = name[:-len(end)]
+            break
+    return name == "tlm"
+
+
+def early_signals() -> None:
+    """The ``tlm`` process's SIGINT and SIGTERM handled from now on (:func:`_early_signal`), where
+    Python's defaults still take them (an ignored one, as ``nohup`` leaves it, stays ignored until
+    the command's own handler, :func:`signals`). Before, a Ctrl-C during the imports and the
+    parser's making (the first second, under load) printed a KeyboardInterrupt's traceback, and a
+    SIGTERM killed the process without a line. Called as this module is imported, in the command's
+    process alone (:func:`command_process`), before its other imports: tlm.cli and tlm.__main__
+    import it first. Only Python's start (its ``site``) and the package's ``__init__`` come before.
+    Main thread only."""
+    for s, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+        try:
+            if signal.getsignal(s) is default:
+                signal.signal(s, _early_signal)
+        except ValueError:  # not the main thread
+            return
+
+
+if command_process():
+    early_signals()
+
+import atexit
 import time
 import traceback
 import weakref
-from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tlm import progress
-from tlm.api import Deadlock, InputError, MaxEventsReached
-from tlm.errors import ERROR_CHARS, environment_problem, error_line, interrupted_by
+from tlm.errors import ERROR_CHARS, InputError, environment_problem, error_line, interrupted_by
 
-_SIGNALS: list[int] = []  # the signals received by this command, the first one first
+if TYPE_CHECKING:  # (imported where used: tlm.api is the heavy part of a command's imports, see early_signals)
+    from tlm.api import Deadlock
+
 _BARS: list[weakref.ref] = []  # the progress bars on the screen when the first signal came
 _EXIT: list[int] = []  # the exit status of the process's own command, once it ended (until_exit)
 
@@ -104,9 +179,13 @@ def on_signal(signum, frame) -> None:
 @contextmanager
 def signals():
     """SIGTERM handled as SIGINT is, while the command runs (main thread only); a signal whose
-    interrupt got lost is raised again at the command's next checkpoint (:func:`on_signal`)."""
-    _SIGNALS.clear()
-    _BARS.clear()
+    interrupt got lost is raised again at the command's next checkpoint (:func:`on_signal`). In
+    the process's own command, one that came before it began (:func:`early_signals`) stops it
+    here, before any work: a KeyboardInterrupt as the block begins."""
+    early = any(signal.getsignal(s) is _early_signal for s in (signal.SIGINT, signal.SIGTERM))
+    if not early:  # (else the signal the early handler noted, if one came, is this command's)
+        _SIGNALS.clear()
+        _BARS.clear()
     progress.forget_signals()
     try:
         before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -116,11 +195,14 @@ def signals():
     if before:
         sys.unraisablehook = quiet = _without_lost_interrupts(hook)
     try:
+        if _SIGNALS:  # (noted by the early handler: the command stops before any work)
+            raise KeyboardInterrupt
         yield
     finally:
         for s, h in before.items():
             if signal.getsignal(s) is not _late_signal:  # (else the process's own command ended: until_exit)
-                signal.signal(s, h)
+                # (the early handler's place is the late one's: the process's own command ended, until_exit follows)
+                signal.signal(s, _late_signal if h is _early_signal else h)
         progress.forget_signals()  # (a checkpoint after the command, a notebook's call, raises nothing)
         if before and sys.unraisablehook is quiet:
             sys.unraisablehook = hook
@@ -374,6 +456,8 @@ def deadlock_line(e: Deadlock) -> str:
     :class:`MaxEventsReached`, said as such): its blocked units bounded to a few hundred
     characters (10 KB at 64 pipelines), the whole message kept in the traceback file the line
     names (:func:`save_traceback`; where none can be written, the line says so)."""
+    from tlm.api import MaxEventsReached
+
     text = one_line(e)
     if len(text) > ERROR_CHARS:
         kept = save_traceback(e)
@@ -392,6 +476,8 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
 
 def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
     """:func:`exit_status`, but for a signal until the process exits."""
+    from tlm.api import Deadlock
+
     if isinstance(e, InputError):
         _line(f"tlm: error: {one_line(e)}")
         return 2
