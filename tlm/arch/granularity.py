@@ -232,7 +232,11 @@ def granularity_estimate(program: FrameProgram, arch: ArchConfig, throughput: in
     ``over_slowest_pm``, over TThru (negative: faster than packets of one); without
     ``fine`` (a program built by hand: its packets of one are not known) the smaller of
     ``fill_drain_cycles`` and ``over_slowest_pm`` over TThru, and no ``change_cycles``.
-    Measured against ``tlm granularity`` in docs/architecture.md ("Packet size"), where
+    So with two images in flight ``share`` bounds neither the sign nor strictly the size of
+    the change in TThru (on small frames the measured change is mostly smaller and can take
+    the other sign: Cornell refract 32x32 at 256, +8.7%, measured -2.3%); ``over_slowest_pm``
+    bounds what the packets add. :func:`tlm.experiments.run_warnings.granularity_line` words
+    it so. Measured against ``tlm granularity`` in docs/architecture.md ("Packet size"), where
     ``tlm run``'s warning threshold (:data:`tlm.experiments.run_warnings.GRANULARITY_WARNING`) comes from.
     """
     fd = _busiest(fill_and_drain(program, arch), program)

@@ -12,6 +12,7 @@ never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_cha
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 import numpy as np
@@ -67,7 +68,8 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     return warnings
 
 
-# |timing.granularity.share| from which a run warns (docs/architecture.md, "Packet size")
+# |timing.granularity.share| from which a run warns (docs/architecture.md, "Packet size": on frames of 32x32 and
+# 48x48 at packets of 16 to 1024, 26 of the 30 settings it fires on measure over 5%, none under 2%)
 GRANULARITY_WARNING = 0.05
 
 
@@ -75,7 +77,7 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     """The simulated stream's warnings, one line each: too few frames for a steady-state
     throughput; packets so coarse that they move TThru from that of packets of one by a
     large share, either way (:func:`~tlm.arch.granularity.granularity_estimate`, from
-    :data:`GRANULARITY_WARNING` on); image tiles without pixels; and what only the run can
+    :data:`GRANULARITY_WARNING` on: :func:`granularity_line`); image tiles without pixels; and what only the run can
     tell of a setting changed from its default that it never read (:func:`timing_inert`)."""
     if timing is None:
         return []
@@ -87,14 +89,8 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
                      "cycles.throughput is the stream's elapsed cycles per frame")
     share = (timing.granularity or {}).get("share", 0.0)
     if abs(share) >= GRANULARITY_WARNING:
-        how = ("whole packets add about {:.0%} of cycles.throughput to what packets of one ray would take (the "
-               "Traversal and Intersection PMs' fill and drain of whole packets at the phase boundaries)"
-               if share > 0 else
-               "packets of one ray would take about {:.0%} of cycles.throughput more (entering the FIFO one by "
-               "one, they leave the Traversal PM waiting for room more often: a whole packet enters at once, as "
-               "into a deeper FIFO)").format(abs(share))
-        lines.append(f"arch.packet_size = {cfg.arch.packet_size} is coarse for this frame: {how} "
-                     "(timing.granularity): measure it with 'tlm granularity', or lower arch.packet_size")
+        lines.append(granularity_line(timing.granularity, timing.cycles["throughput"], cfg.arch.packet_size,
+                                      cfg.arch.images_in_flight))
     tiling = timing.program.tiling or {}
     bounds = tiling.get("tiles") or []
     empty = sum(1 for x0, y0, x1, y1 in bounds if x0 == x1 or y0 == y1)
@@ -164,6 +160,42 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
                 frozenset(ways), f"each Traversal/Intersection phase's packets either all carry at least {hi} "
                                  f"triangle addresses or fit in {lo} FIFO entries together")
     return out
+
+
+def granularity_line(granularity: dict, throughput: int, packet_size: int, images_in_flight: int) -> str:
+    """The coarse-packet warning for ``timing.granularity`` (its ``share``, its
+    ``over_slowest_pm`` against ``throughput``, TThru). With one image in flight the
+    estimate is the change in TThru to the cycle, so the line gives its sign and size.
+    With more, ``share`` is each Traversal/Intersection phase alone, which the other
+    image's work partly fills or, rarely, widens: the measured change is mostly smaller
+    and may take the other sign (Cornell refract 32x32 at 256: estimate +8.7%, measured
+    -2.3%), so the line gives it as how far TThru can move either way, and
+    ``over_slowest_pm`` (TThru less the slowest PM's cycles, below which packets of one
+    cannot go) as the most that packets can add, in whole percent rounded up
+    (docs/architecture.md, "Packet size")."""
+    share = granularity.get("share", 0.0)
+    size = f"{abs(share):.0%}"
+    head = f"arch.packet_size = {packet_size} is coarse for this frame: "
+    tail = ": measure it with 'tlm granularity', or lower arch.packet_size"
+    if images_in_flight <= 1:
+        how = (f"whole packets add about {size} of cycles.throughput to what packets of one ray would take (the "
+               "Traversal and Intersection PMs' fill and drain of whole packets at the phase boundaries)"
+               if share > 0 else
+               f"packets of one ray would take about {size} of cycles.throughput more (entering the FIFO one by "
+               "one, they leave the Traversal PM waiting for room more often: a whole packet enters at once, as "
+               "into a deeper FIFO)")
+        return f"{head}{how} (timing.granularity){tail}"
+    alone = ("whole packets add that much to what packets of one ray would take, by their fill and drain at the "
+             "phase boundaries" if share > 0 else
+             "packets of one ray would take that much more, entering the FIFO one by one")
+    over = granularity.get("over_slowest_pm")
+    most = "" if over is None or throughput <= 0 else f", and add at most {math.ceil(100 * over / throughput)}%"
+    cap = ("" if not most else "; over_slowest_pm, cycles.throughput less the slowest PM's cycles, is all that they "
+           "can add")
+    return (f"{head}with {images_in_flight} images in flight whole packets can move cycles.throughput by about {size} "
+            f"either way against packets of one ray, mostly less{most} (timing.granularity: share {share:+.1%} is "
+            f"each Traversal/Intersection phase alone, where {alone}; the other image's work fills part of that and "
+            f"can turn the change's sign{cap}){tail}")
 
 
 def _fifo_alike(entries: np.ndarray, lo: int, hi: int) -> str | None:
