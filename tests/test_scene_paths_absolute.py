@@ -3,7 +3,9 @@ file is made absolute where the config is read (relative to the file that gave i
 config, a sweep file, a base config; on the command line the working folder), so that a
 run's or a sweep point's ``config.resolved.yaml`` runs again from any folder, and a remote
 worker of another working folder reads the same file. A built-in scene's name stays a name.
-A scene file not found names the folders tried."""
+A relative scene is looked for from the file that gave it first, the working folder last (a
+project's config that names its scene from the project's root, run from there). A scene file
+not found names the folders tried, in that order."""
 
 from __future__ import annotations
 
@@ -69,35 +71,50 @@ def test_a_sweeps_scene_files_are_found_from_any_working_folder(study):
 
 def test_a_scene_file_beside_the_sweep_file_wins_over_the_base_configs(study):
     """A scene the sweep file gives is the sweep file's first (as arch.programs is), then the
-    base config's; never the working folder's."""
+    base config's, then the working folder's, last."""
     _box(study / "s2" / "box.yaml", wall_div=3)
+    _box(study / "work" / "box.yaml", wall_div=4)
     _box(study / "work" / "box2.yaml", wall_div=4)
     sweep = load_sweep(_sweep(study / "s2", set={"scene": "box.yaml"}, grid={"seed": [0]}))
     assert sweep.points[0].config["scene"] == str(study / "s2" / "box.yaml")
+    (study / "s2" / "box.yaml").unlink()
+    sweep = load_sweep(_sweep(study / "s2", set={"scene": "box.yaml"}, grid={"seed": [0]}))
+    assert sweep.points[0].config["scene"] == str(study / "s1" / "box.yaml")
     (study / "s2" / "box2.yaml").unlink()
+    sweep = load_sweep(_sweep(study / "s2", grid={"scene": ["box2.yaml"]}))
+    assert sweep.points[0].config["scene"] == str(study / "work" / "box2.yaml")  # (absolute: for any worker)
+    (study / "work" / "box2.yaml").unlink()
     with pytest.raises(InputError) as e:
         load_sweep(_sweep(study / "s2", grid={"scene": ["box2.yaml"]}))
     assert str(e.value) == (f"{study / 's2' / 'sw.yaml'} (point 0): scene: scene file 'box2.yaml' not found "
-                            f"(looked in {study / 's2'}, {study / 's1'} and among the built-in scenes)")
+                            f"(looked in {study / 's2'}, {study / 's1'}, among the built-in scenes and in the "
+                            f"working folder {study / 'work'})")
 
 
 def test_a_run_configs_missing_scene_names_the_folder_tried(study):
     (study / "s2" / "run.yaml").write_text(yaml.safe_dump({"scene": "nope.yaml"}))
     cfg = load_config(str(study / "s2" / "run.yaml"))
-    with pytest.raises(InputError, match=r"scene file 'nope\.yaml' not found \(looked in "
-                                         + str(study / "s2").replace(".", r"\.") + r" and among the built-in"):
+    with pytest.raises(InputError) as e:
         render_key(cfg.settings, cfg.base, cfg.source)
+    assert str(e.value).endswith(f"scene file 'nope.yaml' not found (looked in {study / 's2'}, among the built-in "
+                                 f"scenes and in the working folder {study / 'work'})")
 
 
-def test_the_loader_does_not_fall_back_to_the_working_folder(study):
-    """A file's relative scene (or ``extends``) is relative to that file's folder alone: a
-    file of that name in the working folder is not taken instead."""
+def test_the_loader_looks_in_the_working_folder_last(study):
+    """A file's relative scene (or ``extends``) is relative to that file's folder first: a
+    file of that name in the working folder is not taken instead; it is found there only
+    where the file's folder (and the built-in scenes) hold none."""
     _box(study / "work" / "box2.yaml")
     assert resolve_scene_path("box2.yaml") == Path("box2.yaml")  # (no base: the working folder)
-    assert resolve_scene_path("box2.yaml", study / "s2") == study / "s2" / "box2.yaml"
-    with pytest.raises(InputError, match=r"scene file 'box2\.yaml' not found \(looked in .*s1 and among"):
+    assert resolve_scene_path("box2.yaml", study / "s2") == study / "s2" / "box2.yaml"  # (the file's folder wins)
+    assert resolve_scene_path("box2.yaml", study / "s1") == study / "work" / "box2.yaml"  # (the cwd, last)
+    (study / "work" / "box2.yaml").unlink()
+    with pytest.raises(InputError, match=r"scene file 'box2\.yaml' not found \(looked in .*s1, among the "
+                                         r"built-in scenes and in the working folder .*work\)"):
         resolve_scene_path("box2.yaml", study / "s1")
+    _box(study / "work" / "thesis" / "ring.yaml", wall_div=2)  # (a built-in scene wins over the cwd's)
     assert resolve_scene_path("thesis/ring.yaml", study / "s1") == scenes_dir() / "thesis" / "ring.yaml"
+    assert load_config(str(study / "s1" / "base.yaml")).settings.scene == str(study / "s1" / "box.yaml")
 
 
 def test_a_config_files_scene_is_absolute_and_the_command_lines_is_the_working_folders(study):
@@ -165,3 +182,45 @@ def test_a_mappings_scene_and_table_are_absolute_from_its_base(study):
     assert cfg.settings.scene == str(study / "s1" / "box.yaml")
     assert cfg.settings.arch.programs == str(study / "s1" / "t.yaml")
     assert load_config({"scene": "cornell", **TINY}).settings.scene == "cornell"  # (a built-in name stays a name)
+
+
+@pytest.fixture
+def project(tmp_path, monkeypatch):
+    """A project whose config names its scene from the project's root (``configs/x.yaml``:
+    ``scene: myscenes/box.yaml``), a sweep whose base is that config, run from the root."""
+    root = tmp_path / "proj"
+    _box(root / "myscenes" / "box.yaml")
+    (root / "configs").mkdir()
+    (root / "configs" / "x.yaml").write_text(yaml.safe_dump({"scene": "myscenes/box.yaml", **TINY}))
+    (root / "study").mkdir()
+    (root / "study" / "sw.yaml").write_text(yaml.safe_dump({"base": "../configs/x.yaml",
+                                                            "grid": {"arch.fifo_depth": [1, 2]}}))
+    monkeypatch.chdir(root)
+    return root
+
+
+def test_a_scene_from_the_working_folder_is_found_last_and_made_absolute(project, cache):
+    """``tlm run configs/x.yaml`` from the project's root, and a sweep of that base: the scene
+    is the working folder's (nothing beside the config holds it), absolute in the config so that
+    a worker and a rerun elsewhere read the same file (it failed: ``scene file
+    'myscenes/box.yaml' not found (looked in .../configs ...)``)."""
+    box = str(project / "myscenes" / "box.yaml")
+    assert load_config("configs/x.yaml").settings.scene == box
+    assert main(["run", "configs/x.yaml", "--out", str(project / "r1"), *QUIET]) == 0
+    assert yaml.safe_load((project / "r1" / "config.resolved.yaml").read_text())["scene"] == box
+    assert {p.config["scene"] for p in load_sweep(Path("study/sw.yaml")).points} == {box}
+    # a file of that path beside the config wins over the working folder's
+    _box(project / "configs" / "myscenes" / "box.yaml", wall_div=2)
+    assert load_config("configs/x.yaml").settings.scene == str(project / "configs" / "myscenes" / "box.yaml")
+
+
+def test_an_old_resolved_config_runs_again_from_the_folder_its_scene_was_relative_to(project, cache, monkeypatch):
+    """A ``config.resolved.yaml`` of an older tlm holds the scene as its config wrote it
+    (relative to the config's folder): run again from that folder, it finds the scene there."""
+    old = project.parent / "runs" / "r3" / "config.resolved.yaml"  # (../myscenes/box.yaml is no file from there)
+    old.parent.mkdir(parents=True)
+    old.write_text(yaml.safe_dump({"scene": "../myscenes/box.yaml", **TINY}))
+    monkeypatch.chdir(project / "configs")
+    assert main(["run", str(old), "--out", str(project / "r2"), *QUIET]) == 0
+    assert yaml.safe_load((project / "r2" / "config.resolved.yaml").read_text())["scene"] == str(
+        project / "myscenes" / "box.yaml")

@@ -37,7 +37,8 @@ def test_a_built_in_name_is_the_packaged_run_config(elsewhere):
     (elsewhere / "mine_programs.yaml").write_bytes(
         (Path(tlm.__file__).parent / "arch" / "programs.yaml").read_bytes())
     sweep = load_sweep(_sweep(elsewhere, "cornell", {"arch.programs": ["mine_programs.yaml"]}))
-    assert sweep.points[0].config["arch"]["programs"] == "mine_programs.yaml"
+    # (absolute where the sweep file is read: one file on any worker and in config.resolved.yaml)
+    assert sweep.points[0].config["arch"]["programs"] == str((elsewhere / "mine_programs.yaml").resolve())
 
 
 def test_a_path_that_exists_wins_and_a_folder_does_not_hide_the_built_in(elsewhere):

@@ -125,12 +125,15 @@ def _refuse_installed(target: Path) -> None:
     """An InputError, nothing written, where the default table ``target`` lies inside the
     package of an installed copy (its packaged ``tlm/arch/programs.yaml``): a calibration
     there would change the table of every user of that installation, and the fingerprint
-    of its code (every cached result of it would be stale)."""
+    of its code (every cached result of it would be stale). Its message reads the same from
+    the command line and from Python: it names each way by its whole command or call, no
+    bare flag that :func:`~tlm.api_common.argument_names` would rename for a caller in Python."""
     package = _package_dir()
     if not in_checkout(package) and Path(target).resolve().is_relative_to(package):
         raise InputError(f"not written: the table is inside the installed tlm package ({package}, not a checkout), "
-                         "where a fit would change it for every user of this installation: name a table with "
-                         "--write FILE, or fit and print only with --dry-run", source=str(target))
+                         "where a fit would change it for every user of this installation: name another table "
+                         "(tlm calibrate --write FILE, or tlm.write_calibration's target=), or fit and print only "
+                         "(tlm calibrate --dry-run, or tlm.calibrate alone)", source=str(target))
 
 
 @imports_whole

@@ -495,6 +495,15 @@ def deep_merge(base: dict, over: dict) -> dict:
 PATH_KEYS = ("arch.programs",)
 
 
+def builtin_scenes_dir() -> Path:
+    """Where the built-in scene files are: inside the wheel (``tlm/_scenes``), or the
+    repository's ``scenes/`` (:func:`tlm.scenes.loader.scenes_dir` is this folder)."""
+    packaged = Path(__file__).resolve().parent / "_scenes"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[1] / "scenes"
+
+
 def names_scene_file(value: Any) -> bool:
     """Whether the ``scene`` value ``value`` is written as a path (``box.yaml``, ``a/box``),
     not as a built-in scene's plain name (``cornell``): as :func:`tlm.scenes.loader.resolve_scene_path`
@@ -504,20 +513,29 @@ def names_scene_file(value: Any) -> bool:
 
 def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
     """``value``, a ``scene`` given by a file in the first of ``folders`` (the command line:
-    the working folder), as the absolute path of the file it names: the first of
-    ``folders`` (each absolute) that holds it. Read once, where the config is read, so that
-    the config names one file wherever it is used again (a worker, a rerun of its
+    the working folder), as the absolute path of the file it names, looked for as
+    :func:`tlm.scenes.loader.resolve_scene_path` looks: in each of ``folders`` (each
+    absolute) in turn, then among the built-in scenes, then in the working folder, last (a
+    project's config that names its scene from the project's root: ``scene:
+    myscenes/box.yaml`` run from there). Read once, where the config is read, so that the
+    config names one file wherever it is used again (a worker, a rerun of its
     ``config.resolved.yaml`` from another folder). A built-in scene's name (``cornell``,
-    ``thesis/ring``), an absolute path, and a path none of ``folders`` holds are returned as
-    they are (:func:`tlm.scenes.loader.resolve_scene_path` finds the built-in one, or says
-    that the file is missing)."""
+    ``thesis/ring``, ``thesis/ring.yaml``), an absolute path, and a path none of them holds
+    are returned as they are (:func:`~tlm.scenes.loader.resolve_scene_path` finds the
+    built-in one, or says that the file is missing)."""
     if not names_scene_file(value) or not value or Path(value).is_absolute():
         return value
+    builtin = builtin_scenes_dir()
+    if not value.lower().endswith((".yaml", ".yml")) and (builtin / f"{value}.yaml").is_file():
+        return value  # (thesis/ring: the built-in scene first, as the loader takes it)
     for folder in folders:
         target = os.path.abspath(os.path.join(folder, value))
         if os.path.isfile(target):
             return target
-    return value
+    if (builtin / value).is_file():
+        return value  # (thesis/ring.yaml: a built-in scene, a name wherever it runs)
+    target = os.path.abspath(value)  # (the working folder, last)
+    return target if os.path.isfile(target) else value
 
 
 def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:

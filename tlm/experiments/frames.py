@@ -245,7 +245,7 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     if use_cache and path.exists() and side.exists():
         got = _load_entry(path, side, key)
         if got is not None:
-            return got
+            return _here(got, cfg, base, source, scene)
     res = run.render(cfg, base, source, scene=scene, timer=timer)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
@@ -263,6 +263,19 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
         except OSError:
             pass  # a read-only (or full) cache only costs speed
     return CachedRender(fn, summary, False, key)
+
+
+def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
+    """``got``, a cached frame, with its summary's ``scene.source`` the file this config names:
+    the key holds the scene's content and file name, not its folder, so the same project in
+    another folder shares the frame, and its results name its own file."""
+    held = got.summary.get("scene")
+    if not isinstance(held, dict):
+        return got
+    here = scene.source if scene is not None else str(resolve_scene_path(cfg.scene, base, source))
+    if held.get("source") != here:
+        got.summary["scene"] = {**held, "source": here}
+    return got
 
 
 def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
@@ -319,11 +332,19 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     ``render.threads``), and the settings the run's mode never reads, as
     :func:`tlm.render.planner.inert_settings` names them (the one list the warnings use):
     every photon-map key in a mode without the pass, ``estimate.k`` under another filter than
-    ``kvoxel``, ... A sweep of such a setting renders its frame once."""
+    ``kvoxel``, ... A sweep of such a setting renders its frame once.
+
+    A scene file is keyed by its file's name alone (``box.yaml``), not by the absolute path
+    the config holds (:func:`tlm.config.scene_from`): its content is ``scene_fingerprint``,
+    so the same project in another folder (moved, copied, another user's checkout) finds the
+    frames it rendered, and two files of one content but other names (which a result names
+    by the file) stay two entries. A built-in scene's name is kept as it is."""
     if isinstance(cfg, dict):
         cfg = config_from_dict(cfg)
     unread = set(inert_settings(cfg))
     keep = {k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference")}
+    if isinstance(keep.get("scene"), str) and os.path.isabs(keep["scene"]):
+        keep["scene"] = os.path.basename(keep["scene"])  # (not where the project lies: its content is the scene)
     for section, values in keep.items():
         if isinstance(values, dict):
             keep[section] = {k: v for k, v in values.items() if f"{section}.{k}" not in unread}

@@ -15,6 +15,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,6 +25,7 @@ import yaml
 
 from tlm.builtin import read_base
 from tlm.config import (
+    PATH_KEYS,
     RunConfig,
     check_leaf,
     config_from_dict,
@@ -193,7 +195,7 @@ def _at_default(config: dict, defaults: dict, dotted: str) -> bool:
     return here == there
 
 
-def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
+def config_hash(resolved: dict, inputs: dict[str, str] | None = None, folder: Path | None = None) -> str:
     """The point's key: sha256 of the resolved config's canonical JSON, of the fingerprints
     of its input files and of tlm's code, 16 hex digits.
 
@@ -201,8 +203,11 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None) -> str:
     only: the scene and its meshes (through the functional key) and the programs table.
     The files and the code are part of the key so that a rerun after a change to either
     computes its points again instead of reusing results of other inputs or other code.
+    ``folder``: the sweep file's folder; the files the config names (absolute there:
+    :func:`tlm.config.scene_from`) are keyed by their path from it (:func:`_keyed`), so that
+    the same project in another folder, moved or copied, has the same keys.
     """
-    return _key([_keyed(name, resolved[name]) for name in sorted(resolved)],
+    return _key([_keyed(name, resolved[name], folder) for name in sorted(resolved)],
                 None if inputs is None else _json(inputs))
 
 
@@ -211,13 +216,32 @@ def _json(value: Any) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"))
 
 
-def _keyed(name: str, resolved: Any) -> str:
+def _keyed(name: str, resolved: Any, folder: Path | None = None) -> str:
     """A top-level field of a resolved config as the point's key holds it: ``"name":`` and
     its JSON, less ``render.threads`` (it changes the speed alone, bit-identical results: a
-    point keeps its key)."""
+    point keeps its key). Where ``folder`` (the sweep file's) is given, an absolute ``scene``
+    file and ``arch.programs`` table are keyed by their path from it (:func:`_from`): where
+    the project lies is not part of the key, only which of its files a point names (their
+    content is, by ``inputs``: :func:`config_hash`). Two files of one content that a sweep
+    lists stay two points."""
     if name == "render" and isinstance(resolved, dict):
         resolved = {k: v for k, v in resolved.items() if k != "threads"}
+    if folder is not None and name == "scene":
+        resolved = _from(resolved, folder)
+    if folder is not None and name == "arch" and isinstance(resolved, dict) and "programs" in resolved:
+        resolved = {**resolved, "programs": _from(resolved["programs"], folder)}
     return f"{json.dumps(name)}:{_json(resolved)}"
+
+
+def _from(value: Any, folder: Path) -> Any:
+    """An absolute path ``value`` as its path from ``folder`` (posix: ``../scenes/box.yaml``);
+    anything else (a built-in scene's name, none) as it is."""
+    if not isinstance(value, str) or not os.path.isabs(value):
+        return value
+    try:
+        return Path(os.path.relpath(value, folder)).as_posix()
+    except ValueError:  # (another drive: no path from there)
+        return value
 
 
 def _key(keyed: list[str], inputs: str | None) -> str:
@@ -315,9 +339,9 @@ class _Field:
     keyed: str  # '"name":' and its JSON in the point's key (config_hash: render.threads left out)
 
 
-def _field(name: str, value: Any) -> _Field:
+def _field(name: str, value: Any, folder: Path | None = None) -> _Field:
     resolved = to_dict(value)
-    return _Field(name, value, resolved, _json(resolved), _keyed(name, resolved))
+    return _Field(name, value, resolved, _json(resolved), _keyed(name, resolved, folder))
 
 
 def _config(fields: dict[str, _Field]) -> RunConfig:
@@ -335,8 +359,9 @@ class _Checked:
     (:func:`check_leaf`) and a combination is the base's section with them
     (:func:`with_leaves`, which makes the checks across the section's fields)."""
 
-    def __init__(self, fixed: dict, keys: list[str], values: list[list]):
+    def __init__(self, fixed: dict, keys: list[str], values: list[list], folder: Path | None = None):
         self.fixed, self.keys, self.values = fixed, keys, values
+        self.folder = folder  # (the sweep file's: the points' keys name files from there, _keyed)
         names = [f.name for f in dataclasses.fields(RunConfig)]
         owner = [k.split(".")[0] for k in keys]
         # a key that is no field: every point fails the check (of its first key, point 0 first)
@@ -344,7 +369,7 @@ class _Checked:
         under = {name: [i for i, o in enumerate(owner) if o == name] for name in names}
         # the fields the factors leave as the base has them; the others' slots (RunConfig's order)
         self.template: dict[str, _Field | None] = {
-            name: None if under[name] else _field(name, self._value(name, [])) for name in names}
+            name: None if under[name] else _field(name, self._value(name, []), folder) for name in names}
         self.varying = [(name, under[name], {}) for name in names if under[name]]
         self.leaves = {name: all(is_leaf(keys[i]) for i in at) for name, at, _ in self.varying}
         self.base = {name: self._value(name, []) for name, _, _ in self.varying if self.leaves[name]}
@@ -367,14 +392,14 @@ class _Checked:
     def _check(self, name: str, at: list[int], index: tuple) -> _Field | None:
         try:
             if not self.leaves[name]:
-                return _field(name, self._value(name, at, index))
+                return _field(name, self._value(name, at, index), self.folder)
             changes = {}
             for i in at:
                 value = self._leaf(i, index[i])
                 if value is _REFUSED:
                     return None
                 changes[self.keys[i].split(".")[1]] = value
-            return _field(name, with_leaves(name, self.base[name], changes))
+            return _field(name, with_leaves(name, self.base[name], changes), self.folder)
         except Exception:  # (the point's whole check, run again, says what and where)
             return None
 
@@ -395,7 +420,7 @@ class _Checked:
         return fields
 
     def of(self, cfg: RunConfig) -> dict[str, _Field]:
-        return {name: _field(name, getattr(cfg, name)) for name in self.template}
+        return {name: _field(name, getattr(cfg, name), self.folder) for name in self.template}
 
 
 _REFUSED = object()
@@ -441,8 +466,10 @@ def load_sweep(path: Path) -> Sweep:
 
     # a path the sweep file gives (arch.programs) is relative to the sweep file, the base's to
     # the base config's folder; a scene file it gives is the sweep file's, else the base
-    # config's. Each is made absolute: one file wherever the sweep runs, on any worker, and in
-    # each point's config.resolved.yaml
+    # config's, else a built-in scene, else the working folder's (last). Each is made absolute:
+    # one file wherever the sweep runs, on any worker, and in each point's config.resolved.yaml;
+    # the points' keys name it by its path from the sweep file's folder (_keyed), not where the
+    # project lies
     here = path.resolve().parent
     scene_folders = list(dict.fromkeys([here, folder]))
 
@@ -456,7 +483,8 @@ def load_sweep(path: Path) -> Sweep:
     factors_list, indices = _expand_both(grid, zipped)
     factor_keys = [*grid, *zipped]
     checked = _Checked(fixed, factor_keys, [[moved(k, v) for v in values]
-                                            for k, values in zip(factor_keys, [*grid.values(), *zipped.values()])])
+                                            for k, values in zip(factor_keys, [*grid.values(), *zipped.values()])],
+                       here)
     rows = []
     for i, (factors, index) in enumerate(zip(factors_list, indices)):
         fields = checked.point(index)
@@ -543,12 +571,24 @@ def _same(value: Any) -> str:
     return f"{type(value).__name__}:{json.dumps(value, sort_keys=True, default=repr)}"
 
 
+def _resolved(config: dict, dotted: str) -> Any:
+    """The value of the dotted key ``dotted`` in a point's resolved ``config`` (a missing one:
+    a fresh object, equal to nothing)."""
+    here: Any = config
+    for part in dotted.split("."):
+        if not isinstance(here, dict) or part not in here:
+            return object()
+        here = here[part]
+    return here
+
+
 def _one_run_one_row(points: list[Point], src: str) -> None:
     """An InputError when points of other factor values are one run (one key): only
     ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
     same results), so a sweep over it would run its first value and label the others' rows
     with values never run. So is one value written two ways (``1000000000`` and ``1.0e+9`` of
-    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two."""
+    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two, and one file named
+    two ways (``box.yaml`` and ``./box.yaml``: one absolute path once read)."""
     first: dict[str, Point] = {}
     for p in points:
         other = first.setdefault(p.hash, p)
@@ -560,6 +600,12 @@ def _one_run_one_row(points: list[Point], src: str) -> None:
             both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in alike)
             raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
                              + " are one value, given twice", source=src, key=", ".join(alike))
+        files = [k for k in differ
+                 if k in ("scene", *PATH_KEYS) and _resolved(p.config, k) == _resolved(other.config, k)]
+        if files:  # (box.yaml and ./box.yaml, or a path from the sweep file and one from its base: one file)
+            both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in files)
+            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
+                             + " name one file, given twice", source=src, key=", ".join(files))
         if differ:
             raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
                              f"(render.threads changes no result, only the host's speed), so they would be one run "

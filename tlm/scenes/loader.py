@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import deep_merge, read_yaml
+from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes import cache
 from tlm.scenes.lights import mesh_light as mesh_light  # (kept importable from here: tlm.render.checks names it)
@@ -59,11 +59,9 @@ BYTES_PER_PIXEL = 4096  # generous bound on every per-pixel buffer of a run, all
 
 
 def scenes_dir() -> Path:
-    """Where the built-in scene files are: inside the wheel, or the repository's."""
-    packaged = Path(__file__).resolve().parent.parent / "_scenes"
-    if packaged.is_dir():
-        return packaged
-    return Path(__file__).resolve().parents[2] / "scenes"
+    """Where the built-in scene files are: inside the wheel, or the repository's
+    (:func:`tlm.config.builtin_scenes_dir`, where a config's ``scene`` is read)."""
+    return builtin_scenes_dir()
 
 
 def list_scenes() -> list[str]:
@@ -80,11 +78,12 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
                        key: str = "scene", also: tuple[Path, ...] = ()) -> Path:
     """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`): a
     relative path is tried relative to ``base`` (none: the cwd), then to each folder of
-    ``also``, then among the built-in scenes (``thesis/ring.yaml``); not the cwd where a
-    ``base`` is given (but for a scene file's ``extends``, as before), so that a file's
-    relative path means one file wherever the command runs. A file's ``scene`` is made
-    absolute where the config is read (:func:`tlm.config.scene_from`); a path not found
-    names the folders tried.
+    ``also``, then among the built-in scenes (``thesis/ring.yaml``), then relative to the
+    working folder, last (a project's config that names its scene from the project's root,
+    run from there; a scene file's ``extends`` alike). A path written as a built-in scene's
+    name (``thesis/ring``) is that scene. A file's ``scene`` is made absolute where the config
+    is read, looked for in the same order (:func:`tlm.config.scene_from`); a path not found
+    names the folders tried, in that order.
 
     ``config_source`` names the file the reference came from and ``key`` the key that
     gave it (``scene``, a scene file's ``extends``), for error messages.
@@ -97,16 +96,21 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     if looks_like_path:
         p = Path(ref)
         tried = [] if p.is_absolute() else [Path.cwd() if base is None else Path(base), *map(Path, also)]
-        if tried and base is not None and key == "extends":
-            tried.append(Path.cwd())  # (an extends not beside its file: the cwd's, as it always was)
         for cand in [p if base is None or p.is_absolute() else Path(base) / p] + [f / p for f in tried[1:]]:
             if cand.is_file():
                 return cand
         if not p.is_absolute() and (scenes_dir() / p).is_file():
             return scenes_dir() / p  # thesis/ring.yaml
+        if tried and base is not None and (Path.cwd() / p).is_file():
+            return Path.cwd() / p  # (the working folder, last)
         stem = ref[: -len(p.suffix)] if p.suffix.lower() in (".yaml", ".yml") else ref
-        folders = ", ".join(dict.fromkeys(os.path.abspath(f) for f in tried))
-        looked = f" (looked in {folders} and among the built-in scenes)" if tried else ""
+        folders = list(dict.fromkeys(os.path.abspath(f) for f in tried))
+        cwd = os.path.abspath(Path.cwd())
+        last = f" and in the working folder {cwd}" if folders and cwd not in folders else ""
+        looked = ""
+        if folders:
+            looked = (f" (looked in {', '.join(folders)}, among the built-in scenes{last})" if last
+                      else f" (looked in {', '.join(folders)} and among the built-in scenes)")
         raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
