@@ -401,11 +401,15 @@ def parse_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
     assert header[1] == "format binary_little_endian 1.0"
     nv = int(next(h for h in header if h.startswith("element vertex")).split()[-1])
     nf = int(next(h for h in header if h.startswith("element face")).split()[-1])
-    verts = np.frombuffer(raw, dtype="<f8", count=3 * nv, offset=end).reshape(nv, 3)
+    at = header.index(next(h for h in header if h.startswith("element vertex")))
+    props = [h.split() for h in header[at + 1:] if h.startswith("property")][:header[at + 1:].index(
+        next(h for h in header[at + 1:] if h.startswith("element")))]
+    assert [p[2] for p in props[:3]] == ["x", "y", "z"] and all(p[1] == "double" for p in props)  # (then nx ny nz)
+    verts = np.frombuffer(raw, dtype="<f8", count=len(props) * nv, offset=end).reshape(nv, len(props))[:, :3]
     rec = np.frombuffer(raw, dtype=[("k", "u1"), ("v", "<i4", 3), ("m", "<i4")], count=nf,
-                        offset=end + 24 * nv)
+                        offset=end + 8 * len(props) * nv)
     assert np.all(rec["k"] == 3)
-    assert len(raw) == end + 24 * nv + rec.itemsize * nf
+    assert len(raw) == end + 8 * len(props) * nv + rec.itemsize * nf
     return verts[rec["v"]], rec["m"]
 
 

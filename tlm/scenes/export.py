@@ -10,10 +10,13 @@ the normals the renderer uses, so that a re-read file needs no crease angle) and
 materials (``usemtl``, in an MTL library of the same stem written beside it: ``Kd`` for
 a Lambertian material, ``Ks`` and ``illum 3`` for a mirror, ``Ni``, ``Tf`` and ``illum
 7`` for a dielectric, ``Ke`` for emission), so that tlm reads the OBJ back as the same
-triangles, parts and materials, and the normals to within the rounding of their
-renormalization on reading (but a dielectric's transmittance: tlm's MTL reading takes glass
-as clear, :mod:`tlm.scenes.materials`). The scene's lights, camera
-and resolution are in neither file.
+triangles, parts and materials, and the normals to the bit (a unit ``vn`` is read as
+written: :func:`tlm.scenes.objfile.unit_as_written`), but a dielectric's transmittance
+(tlm's MTL reading takes glass as clear, :mod:`tlm.scenes.materials`). The PLY file carries
+the shading normals too (``nx ny nz``, one per vertex, each vertex one corner), written so
+that their normalization on reading gives them back to the bit
+(:func:`tlm.scenes.objfile.unit_preimage`). The scene's lights, camera and resolution are
+in neither file.
 
 A ``.yaml`` target writes the scene file that closes the round trip (:func:`scene_yaml`):
 ``geometry: {mesh: STEM.obj}``, every material under ``materials:`` with its exact values
@@ -50,6 +53,7 @@ from tlm.scenes.model import Scene
 from tlm.storage import write_atomic, write_file
 
 FORMATS = (".ply", ".obj", ".yaml", ".yml")
+_PLY_NORMALS = "property double nx\nproperty double ny\nproperty double nz\n"  # (a PLY's vertex normals)
 
 
 def export_triangles(scene: Scene, path: Path) -> None:
@@ -72,6 +76,8 @@ def export_triangles(scene: Scene, path: Path) -> None:
     if scene_file:
         for other in (path.with_suffix(".obj"), path):
             _check_ours(other, path, "scene file" if other == path else "mesh")
+    else:
+        _check_ours(path, path, "mesh")
     told = notices(scene)
     try:
         if scene_file:
@@ -184,6 +190,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
     n = faces.shape[0]
     told = list(told)
     if suffix == ".ply":
+        from tlm.scenes.objfile import unit_preimage
         from tlm.scenes.plyfile import NAME_COMMENT
 
         names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
@@ -192,6 +199,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
             f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{_comments('comment ', told)}"
             f"{names}"
             f"element vertex {3 * n}\nproperty double x\nproperty double y\nproperty double z\n"
+            f"{_PLY_NORMALS if scene.normals is not None else ''}"
             f"element face {n}\nproperty list uchar int vertex_indices\n"
             "property int material\nend_header\n"
         )
@@ -201,6 +209,8 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
         face_rec["m"] = scene.material_index
         with write_atomic(path, "wb") as f:
             f.write(header.encode())
+            if scene.normals is not None:  # (each vertex is one corner: its normal beside its position)
+                verts = np.concatenate([verts, unit_preimage(scene.normals).reshape(-1, 3)], axis=1)
             f.write(verts.astype("<f8").tobytes())
             f.write(face_rec.tobytes())
     else:
@@ -210,6 +220,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
         lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
         normals = scene.normals
         if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
+            # (as they are: the OBJ reader keeps a unit vn as written, objfile.unit_as_written)
             corners = np.asarray(normals, dtype=np.float64).reshape(-1, 3).tolist()
             lines += [f"vn {x!r} {y!r} {z!r}" for x, y, z in corners]
             face_line = "f {0}//{0} {1}//{1} {2}//{2}".format
@@ -248,12 +259,17 @@ _MTL_HEAD = "# tlm scene "  # (the first line of a library, OBJ or scene file tl
 
 
 def _written_by_tlm(path: Path) -> bool:
-    """Whether the file starts as every file tlm exports does."""
+    """Whether the file starts as every file tlm exports does (a PLY file: its header's
+    second comment line, after the format line, ``comment tlm scene ...``)."""
     try:
         with open(path, "rb") as f:
-            return f.read(len(_MTL_HEAD)) == _MTL_HEAD.encode()
+            head = f.read(1 << 10)
     except OSError:
         return False
+    if head.startswith(b"ply"):
+        lines = head.split(b"\n")
+        return len(lines) > 3 and lines[2].startswith(b"comment tlm scene ") and lines[1].startswith(b"format ")
+    return head.startswith(_MTL_HEAD.encode())
 
 
 def _check_ours(path: Path, target: Path, what: str) -> None:
@@ -261,7 +277,7 @@ def _check_ours(path: Path, target: Path, what: str) -> None:
     is not a file tlm wrote (a published scene's OBJ, a user's scene file)."""
     if path.exists() and not _written_by_tlm(path):
         raise InputError(f"{path.name} exists and is not a {what} tlm wrote; the export would replace it: "
-                         "name another .yaml file", source=str(target))
+                         f"name another {target.suffix.lower()} file", source=str(target))
 
 
 def _one_line(name: str) -> str:

@@ -196,11 +196,33 @@ def _camera_entry(camera: dict, i: int, src: str) -> tuple[str, float | None, fl
     return kind, float(yfov), aspect
 
 
+def _colour_notes(header: dict, src: str) -> tuple[str, ...]:
+    """A line naming the meshes whose primitives give vertex colours (``COLOR_0``, ...),
+    which tlm does not render (none when no primitive does), as
+    :func:`tlm.scenes.plyfile.colour_notes` says of a PLY's."""
+    meshes = header.get("meshes") if isinstance(header.get("meshes"), list) else []
+    names: list[str] = []
+    found: list[str] = []
+    for i, mesh in enumerate(meshes):
+        prims = mesh.get("primitives") if isinstance(mesh, dict) else None
+        got = sorted({str(k) for p in (prims if isinstance(prims, list) else []) if isinstance(p, dict)
+                      for k in (p.get("attributes") if isinstance(p.get("attributes"), dict) else {})
+                      if str(k).startswith("COLOR_")})
+        if got:
+            names.append(_label(mesh, f"meshes[{i}]"))
+            found += [k for k in got if k not in found]
+    if not names:
+        return ()
+    return (f"{src}: its vertex colours ({', '.join(sorted(found))} of {_listed(names)}) are not rendered: a "
+            "triangle's material is the glTF's or the scene file's (parts:, materials:, default_material)",)
+
+
 def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ...]]:
     """A glTF's point, spot and directional lights and first perspective camera
     (:class:`~tlm.scenes.model.Imported`, None when it has neither) and a line each on what of
     its lights and cameras is not imported (a light or camera on no node of the scene,
-    orthographic cameras, perspective ones after the first, a point or spot light's ``range``).
+    orthographic cameras, perspective ones after the first, a point or spot light's ``range``),
+    and one on its meshes' vertex colours (``COLOR_0``), which tlm does not render.
 
     Each node of the scene that names a light gives a tlm light at the node's world position
     (its intensity is in candela for a point or spot light, lux for a directional one):
@@ -248,8 +270,9 @@ def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ..
                 raise InputError(f"nodes[{n}].extensions.{_PUNCTUAL}.light = {k!r} names no entry of "
                                  f"{_PUNCTUAL}.lights (it has {len(lights)})", source=src)
             on_light[n] = k
+    colours = _colour_notes(header, src)
     if not lights and not cameras:
-        return None, ()
+        return None, colours
     paths = _scene_walk(header, nodes, src) if on_light or on_camera else {}
     file = Path(src).name
     out: list[Light] = []
@@ -320,6 +343,7 @@ def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ..
                      "reaches every distance (falling off as 1/d^2)")
     if skipped:
         notes.append(f"{src}: not imported from its cameras: {_listed(skipped)}")
+    notes += colours
     if not out and camera is None:
         return None, tuple(notes)
     return Imported(src, tuple(out), camera, camera_name, aspect), tuple(notes)

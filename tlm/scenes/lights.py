@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from tlm.config_words import value_text
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes.model import Geometry, Imported, Light, Material, Scene, directional_power, unit_vector
 from tlm.scenes.validate import MAX_MAGNITUDE
@@ -48,11 +49,12 @@ def typed(raw: Any, src: str, key: str, allowed: dict[str, tuple[str, ...]]) -> 
     :data:`LIGHT_KEYS`; a material's: the loader's ``MATERIAL_KEYS``)."""
     raw = _mapping(raw, src, key)
     kind = raw.get("type")
-    if kind not in allowed:
-        raise InputError(
-            f"type {kind!r} is not one of {', '.join(allowed)}{did_you_mean(str(kind), allowed)}",
-            source=src, key=key,
-        )
+    if kind is None:  # (absent, or "type:" with nothing after it)
+        raise InputError(f"missing; give one of {', '.join(allowed)}", source=src, key=f"{key}.type")
+    if not isinstance(kind, str) or kind not in allowed:
+        said = repr(kind) if isinstance(kind, str) else value_text(kind)  # (not a string: as YAML writes it)
+        hint = did_you_mean(kind, allowed) if isinstance(kind, str) else ""
+        raise InputError(f"type {said} is not one of {', '.join(allowed)}{hint}", source=src, key=key)
     _keys(raw, allowed[kind], src, key)
     return raw, kind
 

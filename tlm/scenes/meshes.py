@@ -222,7 +222,7 @@ def _libraries(path: Path, names: list) -> list[Path]:
 
 
 def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, list]:
-    from tlm.scenes.objfile import read_obj
+    from tlm.scenes.objfile import colour_notes, read_obj
 
     obj = read_obj(path, stem)
     _check_mesh(obj.vertices, obj.faces, "the mesh", src)
@@ -239,7 +239,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
         normals=normals,
         materials=materials,
         face_material=face_material,
-        notes=_concave_note(tri, obj.face_line, src),
+        notes=_concave_note(tri, obj.face_line, src) + colour_notes(obj, src),
     ), [[text, line] for text, line in obj.mtllibs]
 
 

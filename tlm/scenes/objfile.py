@@ -2,7 +2,8 @@
 
 :func:`read_obj` reads the statements a renderer needs and ignores the rest:
 
-* ``v x y z [w | r g b]`` positions (the first three numbers), ``vn`` normals;
+* ``v x y z [w | r g b]`` positions (the first three numbers), ``vn`` normals (a unit
+  one read as written: :func:`unit_as_written`);
   ``vt``, ``vp``, ``s``, ``l``, ``p``, comments and any unknown statement are skipped;
 * ``f`` faces with every corner form (``i``, ``i/j``, ``i//k``, ``i/j/k``), 1-based or
   negative (relative: ``-1`` is the last vertex defined above the face) indices;
@@ -37,7 +38,8 @@ import numpy as np
 
 from tlm.errors import InputError
 
-__all__ = ["COMPRESSED_SUFFIXES", "ObjData", "parse_obj", "read_bytes", "read_obj"]
+__all__ = ["COMPRESSED_SUFFIXES", "ObjData", "colour_notes", "parse_obj", "read_bytes", "read_obj", "unit_as_written",
+           "unit_preimage"]
 
 COMPRESSED_SUFFIXES = {".gz": gzip.decompress, ".xz": lzma.decompress, ".bz2": bz2.decompress}
 
@@ -49,7 +51,8 @@ class ObjData:
     vertices : (nv, 3) float64, every ``v`` of the file in order.
     faces : (t, 3) int64 0-based indices into ``vertices``.
     face_line : (t,) int64 the 1-based line number of each triangle's ``f`` statement.
-    vertex_normals : (nn, 3) float64, every ``vn``.
+    vertex_normals : (nn, 3) float64, every ``vn`` (a unit one so that normalizing it
+        gives it back as written: :func:`unit_as_written`).
     corner_normals : (t, 3) int64 0-based indices into ``vertex_normals``; None unless
         every corner of every face gives one.
     part : (t,) int32 into ``part_names``: the ``o`` object of each face when the file
@@ -60,6 +63,9 @@ class ObjData:
         of their first use by a face), -1 for faces above the first ``usemtl``.
     material_lines : the line number of each material name's first ``usemtl``.
     mtllibs : ``(file name, line number)`` of every library ``mtllib`` names.
+    colour_lines : ``(count, first line)`` of the ``v`` statements that give a vertex
+        colour (``v x y z r g b``: six numbers or more), ``(0, 0)`` when none does;
+        :func:`colour_notes` says that they are not rendered.
     """
 
     vertices: np.ndarray
@@ -73,6 +79,7 @@ class ObjData:
     material_names: tuple[str, ...]
     material_lines: tuple[int, ...]
     mtllibs: tuple[tuple[str, int], ...]
+    colour_lines: tuple[int, int] = (0, 0)  # (how many v lines give a colour, the first one's number)
 
 
 def read_bytes(path: Path) -> bytes:
@@ -99,6 +106,67 @@ def read_obj(path: Path, stem: str | None = None) -> ObjData:
     if stem is None:
         stem = Path(path.stem).stem if path.suffix.lower() in COMPRESSED_SUFFIXES else path.stem
     return parse_obj(read_bytes(path), str(path), stem)
+
+
+_PHI = (5 ** 0.5 - 1) / 2  # (scales 2 ** frac(k phi): spread evenly over [1, 2), the same on every run)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """``v`` over its length, as tlm's mesh reading normalizes a file's normals
+    (``tlm.scenes.meshes``: OBJ, PLY and glTF alike), zero vectors kept."""
+    length = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
+
+
+def unit_preimage(normals: np.ndarray) -> np.ndarray:
+    """Vectors whose normalization (:func:`_unit`, as tlm's mesh reading normalizes a file's
+    normals) gives the unit ``normals`` (..., 3) back to the bit: each one itself where that
+    holds (its length computes to 1), else the first of it times 2 ** frac(k phi)
+    (k = 1, 2, ...) that does (a unit vector's rounded length is often 1 +- an ulp, and
+    its normalization then moves a component by an ulp); one for which none of 2 ** 16
+    scales does is kept as it is (an ulp off). What ``tlm scene export`` writes as a
+    PLY's normals (:mod:`tlm.scenes.export`), and how the reader keeps a unit ``vn``
+    (:func:`unit_as_written`)."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    out = n.copy()
+    todo = np.flatnonzero((_unit(n) != n).any(axis=1))
+    k = 1
+    while todo.shape[0] and k <= 4096:  # (the first scales fix most, each later one a few of those left)
+        cand = n[todo] * 2.0 ** ((k * _PHI) % 1.0)
+        ok = (_unit(cand) == n[todo]).all(axis=1)
+        out[todo[ok]] = cand[ok]
+        todo, k = todo[~ok], k + 1
+    if todo.shape[0]:
+        scales = (2.0 ** ((np.arange(k, k + (1 << 16)) * _PHI) % 1.0)).reshape(16, -1, 1)
+        for i in todo.tolist():  # (about 50 in a million)
+            for chunk in scales:
+                cand = n[i] * chunk
+                hit = np.flatnonzero((_unit(cand) == n[i]).all(axis=1))
+                if hit.shape[0]:
+                    out[i] = cand[hit[0]]
+                    break
+    return out.reshape(np.shape(normals))
+
+
+UNIT_TOLERANCE = 4 * np.finfo(np.float64).eps  # a vn whose length is within this of 1 is unit, as written
+
+
+def unit_as_written(vn: np.ndarray) -> np.ndarray:
+    """``vn`` (n, 3) with each unit vector (its length within :data:`UNIT_TOLERANCE` of 1:
+    written as unit, to the last digit) replaced by its :func:`unit_preimage`, so that the
+    loader's normalization gives the vector back as written, not an ulp off: a unit
+    normal is not normalized again (an exported OBJ's normals read back to the bit).
+    Other vectors are kept (the loader normalizes them)."""
+    vn = np.asarray(vn, dtype=np.float64)
+    if vn.shape[0] == 0:
+        return vn
+    length = np.linalg.norm(vn, axis=-1)
+    unit = np.flatnonzero(np.abs(length - 1.0) <= UNIT_TOLERANCE)
+    if unit.shape[0] == 0:
+        return vn
+    out = vn.copy()
+    out[unit] = unit_preimage(vn[unit])
+    return out
 
 
 # ------------------------------------------------------------------ helpers
@@ -178,6 +246,37 @@ def _vectors_fast(block: bytes, n: int, key: bytes) -> np.ndarray | None:
         return None
     first = np.cumsum(count) - count
     return values[first[:, None] + np.arange(3)]
+
+
+def _colour_lines(block: bytes, lines: np.ndarray) -> tuple[int, int]:
+    """``(count, first line number)`` of the ``v`` lines ``lines`` (0-based, their text
+    ``block``) that hold six numbers or more (a vertex colour, ``v x y z r g b``)."""
+    body = np.frombuffer(block, dtype=np.uint8)
+    word = body > 32
+    starts = int(np.count_nonzero(word[1:] & ~word[:-1])) + int(word[:1].sum())
+    if starts <= 4 * lines.shape[0]:  # (every line 'v' and 3 numbers, or some of 4: no colour)
+        return 0, 0
+    found = []
+    for i, raw in enumerate(block.split(b"\n")[: lines.shape[0]]):
+        words = _strip_comment(raw).split()[1:]
+        if len(words) >= 6:
+            try:
+                [float(w) for w in words[3:6]]
+            except ValueError:
+                continue
+            found.append(i)
+    return (len(found), int(lines[found[0]]) + 1) if found else (0, 0)
+
+
+def colour_notes(obj: ObjData, src: str) -> tuple[str, ...]:
+    """A line saying that the file's vertex colours are not rendered (none when it gives
+    none), as :func:`tlm.scenes.plyfile.colour_notes` says of a PLY's."""
+    count, line = obj.colour_lines
+    if not count:
+        return ()
+    return (f"{src}: its vertex colours ('v x y z r g b', {count} line{'s' if count > 1 else ''} from line {line}) "
+            "are not rendered: a triangle's material is the scene file's or its MTL's (usemtl, parts:, materials:, "
+            "default_material)",)
 
 
 def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np.ndarray:
@@ -333,10 +432,12 @@ def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
     vertices = _vectors_fast(block, n_v, b"v") if n_v else np.zeros((0, 3))
     if vertices is None:
         vertices = _vectors_slow(block, v_lines, "v", source)
+    colour_lines = _colour_lines(block, v_lines) if n_v else (0, 0)
     block = L.block(vn_lines)
     vnormals = _vectors_fast(block, vn_lines.shape[0], b"vn") if vn_lines.shape[0] else np.zeros((0, 3))
     if vnormals is None:
         vnormals = _vectors_slow(block, vn_lines, "vn", source)
+    vnormals = unit_as_written(vnormals)
 
     if f_lines.shape[0] == 0:
         if n_v == 0:
@@ -399,6 +500,7 @@ def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
         material_names=material_names,
         material_lines=material_lines,
         mtllibs=tuple(mtllibs),
+        colour_lines=colour_lines,
     )
 
 

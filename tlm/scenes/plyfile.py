@@ -97,6 +97,19 @@ def material_names(head: bytes, src: str) -> dict[int, str]:
     return out
 
 
+def _declared_list(head: bytes, element: str, prop: str) -> bool:
+    """Whether the header declares ``element``'s property ``prop`` as a list
+    (``property list COUNT_TYPE TYPE NAME``), not one number (``property TYPE NAME``)."""
+    inside = False
+    for line in head.decode("ascii", "replace").splitlines():
+        words = line.split()
+        if words[:1] == ["element"]:
+            inside = words[1:2] == [element]
+        elif inside and words[:1] == ["property"] and words[-1:] == [prop]:
+            return words[1:2] == ["list"]
+    return False
+
+
 def _sequences(lists) -> tuple[np.ndarray | None, list[np.ndarray] | None]:
     """A face element's ``vertex_indices`` as an (n, k) array when every face has k
     corners, else as one array per face."""
@@ -166,7 +179,9 @@ def face_materials(geom, src: str, head: bytes, face_of: np.ndarray | None
         return None
     values = field(data, prop)
     values = values if isinstance(values, np.ndarray) else np.asarray(values)
-    if values.dtype.names or values.dtype == object or values.ndim != 1:
+    if values.ndim == 2 and values.shape[1] == 1 and not _declared_list(head, "face", prop):
+        values = values[:, 0]  # (trimesh keeps an ASCII file's scalar property as an (n, 1) column)
+    if values.dtype.names or values.dtype == object or values.ndim != 1 or _declared_list(head, "face", prop):
         raise InputError(f"face property {prop!r} is a list; tlm reads one whole number per face (the index of "
                          "its material, -1: none)", source=src)
     if values.dtype.kind == "f":
