@@ -389,10 +389,13 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
     """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
     default the working folder), at its own resolution or ``[width, height]``."""
     from tlm.scenes.loader import load_scene as load
+    from tlm.scenes.loader import resolve_scene_path
 
+    folder = Path(base) if base is not None else Path.cwd()
+    # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
     # (a numpy array or a tuple reads as the list it holds, as in load_config)
-    return load(str(scene), Path(base) if base is not None else Path.cwd(),
-                None if resolution is None else plain(resolution), config_source="(load_scene)")
+    path = resolve_scene_path(str(scene), folder, config_source=str(scene))
+    return load(path, folder, None if resolution is None else plain(resolution), config_source="(load_scene)")
 
 
 def _scene(scene: Scene | str | Path) -> Scene:

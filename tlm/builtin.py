@@ -168,10 +168,12 @@ def experiment_description(name: str) -> str:
 def export_experiment(name: str, file: str | Path) -> list[Path]:
     """Copy the built-in experiment ``name`` to ``file`` (a ``.yaml`` path, to edit and run);
     returns the files written. A sweep whose ``base:`` is a run config file beside it gets
-    that file beside ``file`` too, when no file of that name is there, so that the copy
-    runs as it is. Refused (InputError, nothing written): a name that is no built-in
-    experiment, a file that is not ``.yaml``, a folder that does not exist, and a file
-    that exists with other contents (a copy edited before is not overwritten)."""
+    that file beside ``file`` too (one with the same contents there already is kept, not
+    written again), so that the copy runs as it is. Refused (InputError, nothing written): a
+    name that is no built-in experiment, a file that is not ``.yaml``, a folder that does not
+    exist, a ``file`` of the base's own name, and a file that exists with other contents:
+    ``file`` (a copy edited before is not overwritten) or the base's beside it (the user's own
+    ``ring.yaml``, which the copy's ``base: ring.yaml`` would read in place of the built-in's)."""
     from tlm.storage import write_file
 
     names = list_experiments()
@@ -189,13 +191,19 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
     copies = [(source, file)]
     raw = read_yaml(source)
     base = raw.get("base") if isinstance(raw, dict) else None
-    if isinstance(base, str) and not Path(base).is_absolute():
+    if isinstance(base, str) and not Path(base).is_absolute() and (source.parent / base).is_file():
         beside = file.parent / base
-        if not beside.exists() and (source.parent / base).is_file():
-            copies.append((source.parent / base, beside))
-    for src, dst in copies:
+        if beside.resolve() == file.resolve():
+            raise InputError(f"is the name of the base config {name} names (base: {base}), which is copied beside "
+                             "it: name another file", source=str(file))
+        copies.append((source.parent / base, beside))
+    for i, (src, dst) in enumerate(copies):
         if dst.exists() and (dst.is_dir() or dst.read_bytes() != src.read_bytes()):
-            raise InputError("exists with other contents: name another file (or remove it)", source=str(dst))
+            how = ("name another file (or remove it)" if i == 0 else
+                   f"{file}'s base: {base} would read it in place of the built-in {name}'s base config: copy into "
+                   "another folder (or remove it)")
+            raise InputError(f"exists with other contents: {how}", source=str(dst))
+    copies = [copies[0], *((src, dst) for src, dst in copies[1:] if not dst.exists())]  # (the same base: kept)
     for src, dst in copies:
         write_file(dst, src.read_bytes())
     return [dst for _, dst in copies]

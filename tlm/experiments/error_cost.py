@@ -5,9 +5,9 @@ keys; every point renders the photon-map frame of the base scene and records its
 error against the converged reference (:mod:`tlm.experiments.reference`) beside its
 cost. The reference is found as ``tlm reference`` finds it (:func:`study_reference`):
 the cached one when it meets the base's ``reference.tolerance``, else computed first
-with the base's reference settings and cached (where the cache cannot take it, kept where
-``tlm reference`` keeps it, ``<tmp>/tlm-cache-<uid>``, with one line that says so, and the
-study goes on). One that still misses the tolerance
+with the base's reference settings (a line says so first, as ``tlm run`` says it) and
+cached (where the cache cannot take it, kept where ``tlm reference`` keeps it,
+``<tmp>/tlm-cache-<uid>``, with one line that says so, and the study goes on). One that still misses the tolerance
 (``reference.max_rounds`` reached) is used all the same, with a warning, and every
 row's ``reference_converged`` (and ``reference.json``'s) is false. "Meets" is judged against the
 base's ``reference.tolerance`` and ``min_rounds`` (:func:`meets_tolerance`: its error and rounds),
@@ -27,7 +27,9 @@ planner leaves out, e.g. ``photons.count: 0``, simulates the other passes). The 
 The scene, its BSP and the eye rays are the base's, cast once: a point may not vary
 ``scene``, ``mode`` (every point is a photon-map frame), ``resolution``, ``bsp.*`` or
 ``render.spp`` (:data:`FIXED`), nor what the reference depends on (all refused, naming
-the point's key, before any work). The other passes' work is computed once per setting of
+the point's key, before any work); a base that gives a ``mode`` other than ``pmap`` is refused
+too (:func:`load_experiment`), not run as a photon-map frame unsaid. The other passes' work
+is computed once per setting of
 what it depends on (everything but ``photons``, ``estimate`` and ``arch``); each photon
 map (one per photon count, seed and tracing setting) is traced once and shared by every
 filter, radius and k that uses it. A row's ``factors`` names the point's own settings
@@ -138,7 +140,8 @@ def _check_factor(key: str, source: str, where: str, section: str | None = None)
     why = FIXED.get("bsp" if key.startswith("bsp.") else key)
     if why is not None:
         how = (f" (the point's {section}: replaces the base's whole section: give {section}.<key> for what it "
-               "changes)") if section else "; set it under base, and run one experiment per value"
+               "changes)") if section else (" (mode: pmap; leave it out)" if key == "mode" else
+                                            "; set it under base, and run one experiment per value")
         raise InputError(f"a point cannot vary {key}: {why}{how}", source=source, key=where)
 
 
@@ -171,9 +174,16 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
 
 
 def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
+    """``(base, points, folder)`` of the experiment file ``path``, every point checked before
+    any work. A base that sets a ``mode`` other than ``pmap`` is refused (InputError naming
+    ``base.mode``): every point is a photon-map frame, which the base's mode would not be."""
     raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
-    shared = _fixed(config_from_dict(base, src))
+    base_cfg = config_from_dict(base, src)  # (a mode that is no mode is refused here, as by tlm run)
+    if "mode" in base and base_cfg.mode != "pmap":
+        raise InputError(f"{base_cfg.mode!r}: error-vs-cost measures the photon map, and every point is a photon-map "
+                         "frame (mode: pmap): give mode: pmap, or leave it out", source=src, key="base.mode")
+    shared = _fixed(base_cfg)
     for p in points:  # check every point before any work starts
         mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})"))
         for key, value in mine.items():  # (a whole section given, render: {spp: 1}, is caught here)
@@ -537,8 +547,8 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
                     note=None) -> tuple[np.ndarray, dict, bool]:
     """The reference the study measures against, as ``tlm reference`` gets it: the cached
     one when it meets the base's ``reference.tolerance`` (:func:`meets_tolerance`), else
-    computed now with the base's settings and cached where it is better (``note`` says so when one
-    was cached).
+    computed now with the base's settings and cached where it is better (``note`` says so before the
+    rounds start: none cached, or the cached one computed again).
     A cached one that misses the tolerance is kept where computing it again with the base's settings
     would only repeat the same rounds (fixed seeds) to the same image
     (:func:`~tlm.experiments.reference_cache.repeats`: the base's own stopping rule,
@@ -551,6 +561,11 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     take is not lost (:func:`_uncached_reference`). Returns the image, its metadata and whether
     it was computed now (False: the cached one is used)."""
     found = load_reference(key)
+    if found is None and note is not None:  # (as tlm run says it: the rounds may take minutes)
+        note(f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
+             f"k = {settings.k_nearest} per round, until the relative standard error is below "
+             f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for every study and "
+             "run of this scene")
     if found is not None and not meets_tolerance(found[1], settings):
         meta = found[1]
         if fewer_rounds(meta, settings):

@@ -101,7 +101,11 @@ INTEGRATORS = ("direct", "path", "ptracer")
 MITSUBA_DIAGONAL = 1000.0  # the scene's bounding-box diagonal in Mitsuba's units (see _normalised)
 LIGHT_OFFSET = 1e-5  # quad lights move this fraction of the bounding-box diagonal along their normal
 MAPPING_VERSION = 1  # part of the cache key: bump when the scene mapping changes what Mitsuba renders
-INSTALL_HINT = "pip install -e \".[oracle]\""
+# the optional packages of the 'oracle' extra (pyproject.toml's, which a test keeps them equal to), and how to
+# install them: by name beside an installed copy (pip install . from a clone), or as the extra in a checkout
+ORACLE_PACKAGES = ("mitsuba>=3.5", "flip-evaluator>=1.6")
+INSTALL_HINT = ("pip install " + " ".join(f'"{p}"' for p in ORACLE_PACKAGES)
+                + '; in a checkout: pip install -e ".[oracle]"')
 REL_MSE_EPS = 1e-2  # rel_mse's floor on ref^2, as a fraction of mean(ref)^2 (see rel_mse)
 
 

@@ -30,6 +30,7 @@ from tlm.report.collect import Inputs, Run
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
 from tlm.report.names import value_text
+from tlm.report.sweep_lines import same_value
 from tlm.report.sweeps import named_rows
 from tlm.report.tables import study_summaries
 
@@ -306,17 +307,18 @@ def _effect(ok: list[dict], k: str, held: list[str]) -> dict | None:
     the combination of its values of the factors ``held``; only the combinations that finished
     with every value ``k`` takes among ``ok`` count. Each value's mean is over those
     combinations (a combination's rows of one value: their mean). None where ``k`` takes one
-    value; else ``values`` (repr -> that mean, {} where no combination is complete), ``used``
+    value; else ``values`` (repr -> that mean, in the order the values first come in ``ok``, the
+    sweep's; {} where no combination is complete), ``used``
     (the rows counted) and ``same`` (whether some combination finished with two values of
     ``k`` or more, and every such combination ran at one frame rate across them: ``k``
     changes nothing between the points that differ only in it)."""
-    values = {repr(r.get(k)) for r in ok}
+    values = list(dict.fromkeys(repr(r.get(k)) for r in ok))  # (an order of its own: not a set's, which varies)
     if len(values) < 2:
         return None
     combos: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for r in ok:
         combos[tuple(repr(r.get(j)) for j in held)][repr(r.get(k))].append(float(r["fps"]))
-    complete = [c for c in combos.values() if set(c) == values]
+    complete = [c for c in combos.values() if set(c) == set(values)]
     used = sum(len(fs) for c in complete for fs in c.values())
     per = {v: float(np.mean([np.mean(c[v]) for c in complete])) for v in values} if complete else {}
     pairs = [c for c in combos.values() if len(c) > 1]
@@ -330,9 +332,49 @@ def _as_yaml(k: str, text: str) -> str:
     return {"None": value_text(k, None), "True": "true", "False": "false"}.get(text, text)
 
 
+def _and(items: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
+MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
+
+
+def _extreme(k: str, means: dict[str, float], m: float) -> list[str]:
+    """The values of ``k`` whose mean is ``m`` (to 1e-9: :func:`same_value`), as YAML writes them."""
+    return [_as_yaml(k, v) for v, mean in means.items() if same_value(mean, m)]
+
+
+def _values(tied: list[str]) -> str:
+    """One value, or the values that tie, said so (``2 and 4, tied``)."""
+    return esc(tied[0]) if len(tied) == 1 else f"{esc(_and(tied))}, tied"
+
+
+def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
+    """The point of the highest frame rate in words; where points that differ in more than the
+    factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), each of
+    them, in sweep order (the first of those that differ only in ``inert``; at most
+    :data:`MAX_TIED_POINTS` named, the rest counted)."""
+    top = max(r["fps"] for r in rows)
+    best = {}
+    for r in rows:
+        if same_value(r["fps"], top):
+            best.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
+    where = [", ".join(f"{k} = {_as_yaml(k, repr(r.get(k)))}" for k in factors) for r in best.values()]
+    if len(where) == 1:
+        return f"the best point is {esc(where[0])} at {top:.3g} FPS."
+    named = [esc(w if len(factors) == 1 else f"({w})") for w in where[:MAX_TIED_POINTS]]
+    if len(where) > MAX_TIED_POINTS:
+        named.append(f"{len(where) - MAX_TIED_POINTS} more")
+    return f"the best points, tied at {top:.3g} FPS, are {_and(named)}."
+
+
 def sweep_findings(inputs: Inputs) -> list[str]:
     """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
-    of its best value's mean to its worst's) and the point of the highest frame rate.
+    of its best value's mean to its worst's) and the point of the highest frame rate. Values
+    and points that tie (to 1e-9) are said as tied, every one of them (a best value and a best
+    point that would each be one of the tied at random could contradict each other), but for
+    points that differ only in factors that change nothing (:func:`_best_points`).
 
     A factor is judged like with like: its values are compared in the combinations of the
     other factors' values that finished (status ok) with every one of its values, so that a
@@ -359,12 +401,11 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                 nothing.append(k)
             elif not means:
                 apart.append(k)
-            elif min(means.values()) > 0 and max(means.values()) > min(means.values()):
-                spread[k] = (max(means.values()) / min(means.values()), max(means, key=means.get),
-                             min(means, key=means.get))
+            elif min(means.values()) > 0 and not same_value(max(means.values()), min(means.values())):
+                top, bottom = max(means.values()), min(means.values())
+                spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom))
                 left[k] = len(rows) - eff["used"]
-        best = max(rows, key=lambda r: r["fps"])
-        where = ", ".join(f"{k} = {_as_yaml(k, repr(best.get(k)))}" for k in factors)
+        best = _best_points(rows, factors, nothing)
         text = f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
         notes = ""
         if nothing:
@@ -379,16 +420,16 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             text += f"{esc(k)} moves the frame rate most"
             if along[k]:
                 text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
-            text += (f", {ratio:.2f}x between its best value ({esc(_as_yaml(k, hi))}) and its worst "
-                     f"({esc(_as_yaml(k, lo))}), averaged over ")
+            text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi)}) and its "
+                     f"worst ({_values(lo)}), averaged over ")
             text += ("the other factors; " if not left[k] else
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(rows)} "
                      f"ok points left out for that); ")
-            text += notes + f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+            text += notes + best
         elif len({r["fps"] for r in rows}) == 1:  # (a tie everywhere: no best value, no best point)
-            text += f"no factor changes the frame rate: every point runs at {best['fps']:.3g} FPS."
+            text += f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS."
         else:
-            text += notes + f"the best point is {esc(where)} at {best['fps']:.3g} FPS."
+            text += notes + best
         texts.append(text)
     return texts
 

@@ -160,8 +160,10 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
     cost = np.array([_num(r.get("trace_seconds")) + _num(r.get("gather_seconds")) for r in rows])
     ok = np.isfinite(truth) & np.isfinite(cost)
     if not ok.any():
+        from tlm.oracle.mitsuba import INSTALL_HINT  # (the hint only: Mitsuba itself is not imported)
+
         notes.append(f"{label}: no row was measured against a ground truth ('tlm error-vs-cost' with Mitsuba "
-                     "installed, pip install -e '.[oracle]'): no error against the ground truth.")
+                     f"installed, {INSTALL_HINT}): no error against the ground truth.")
         return None
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
