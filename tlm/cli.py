@@ -544,7 +544,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
-                         "measured against (computed once and cached; needs pip install -e '.[oracle]'); 0: none")
+                         "measured against (computed once and cached; needs Mitsuba 3 and flip-evaluator: "
+                         "pip install -e '.[oracle]' in a checkout); 0: none")
     no_progress(ev, NO_BAR)
     no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
