@@ -27,6 +27,12 @@ import tlm.cli as cli
 from tlm import cli_signals
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def default_sigint() -> None:
+    """(In the child, before Python starts: SIGINT as a terminal's shell leaves it. A test
+    suite run from a background shell inherits it ignored, and Python then keeps ignoring it.)"""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 SIGNALS = pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
 LINE = {"SIGINT": "tlm: interrupted", "SIGTERM": "tlm: terminated (SIGTERM)"}
 FINISHED = ", but the command ran to its end: its output is complete"
@@ -36,6 +42,7 @@ def python(tmp_path, *args: str) -> subprocess.CompletedProcess:
     """A fresh Python with this checkout's tlm, in ``tmp_path``."""
     env = {**os.environ, "PYTHONPATH": str(REPO), "TLM_CACHE": str(tmp_path / "cache")}
     return subprocess.run([sys.executable, *args], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          preexec_fn=default_sigint,
                           timeout=120)
 
 

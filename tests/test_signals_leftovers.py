@@ -30,6 +30,12 @@ from tlm import cli_signals
 from tlm.experiments.executors import LocalPool
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def default_sigint() -> None:
+    """(In the child, before Python starts: SIGINT as a terminal's shell leaves it. A test
+    suite run from a background shell inherits it ignored, and Python then keeps ignoring it.)"""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 LINE = {"SIGINT": "tlm: interrupted", "SIGTERM": "tlm: terminated (SIGTERM)"}
 FINISHED = ", but the command ran to its end: its output is complete"
 
@@ -53,6 +59,7 @@ def run(tmp_path, argv: list[str], after: str = "", patch: str = "") -> subproce
     env = {**os.environ, "PYTHONPATH": str(REPO), "TLM_CACHE": str(tmp_path / "cache")}
     code = WRAPPER.format(argv=argv, after=after, patch=patch)
     return subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          preexec_fn=default_sigint,
                           timeout=120)
 
 
@@ -148,7 +155,8 @@ def test_a_ctrl_c_while_the_sweep_starts_its_workers_is_not_lost(tmp_path):
             "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler,\n"
             "      signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, []))\n")
     env = {**os.environ, "PYTHONPATH": str(REPO), "TLM_CACHE": str(tmp_path / "cache")}
-    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                          preexec_fn=default_sigint, timeout=120)
     assert (proc.returncode, proc.stdout.split("\n")) == (0, ["not taken there", "taken after", "True False", ""]), \
         proc.stderr
 
