@@ -122,3 +122,38 @@ def test_a_frame_shared_by_two_copies_names_each_copys_own_scene_file(two_copies
     assert not first.cached and second.cached
     assert first.summary["scene"]["source"] == str(two_copies[0] / "myscenes" / "box.yaml")
     assert second.summary["scene"]["source"] == str(two_copies[1] / "myscenes" / "box.yaml")
+
+
+def test_two_scenes_of_one_file_name_differing_in_their_name_do_not_share_a_frame(tmp_path, monkeypatch):
+    """A/box.yaml and B/box.yaml differ in ``name:`` alone: a frame key holds the file's name and
+    the scene's content, so the name is in the content (a shared frame said the first one's name)."""
+    for sub, name in (("A", "box_A"), ("B", "box_B")):
+        path = _box(tmp_path / sub / "box.yaml")
+        path.write_text(f"name: {name}\n" + "\n".join(line for line in path.read_text().splitlines()
+                                                       if not line.startswith("name:")) + "\n")
+        (tmp_path / sub / "run.yaml").write_text(yaml.safe_dump({**TINY, "scene": "box.yaml"}))
+    monkeypatch.chdir(tmp_path)
+    a, b = (load_config(str(tmp_path / sub / "run.yaml")) for sub in ("A", "B"))
+    assert render_key(a.settings, a.base) != render_key(b.settings, b.base)
+
+
+def test_a_copys_shared_frame_warns_of_its_own_files(tmp_path, monkeypatch, cache):
+    """An OBJ's note names its file; the copy that finds the first copy's frame says its own."""
+    from tlm.experiments.frames import cached_render
+
+    for sub in ("one", "two"):
+        (tmp_path / sub).mkdir()
+        (tmp_path / sub / "tri.obj").write_text("v -1 0 -1 0.8 0.1 0.1\nv 1 0 -1 0.8 0.1 0.1\nv 0 0 1 0.8 0.1 0.1\n"
+                                                "f 1 2 3\n")
+        (tmp_path / sub / "s.yaml").write_text(
+            "geometry: {mesh: tri.obj}\ndefault_material: m\n"
+            "materials: {m: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n"
+            "lights: [{type: point, position: [0, 3, 0], power: [50, 50, 50]}]\n"
+            "camera: {eye: [0, 3, -3], target: [0, 0, 0], vfov: 40}\nresolution: [8, 8]\n")
+        (tmp_path / sub / "run.yaml").write_text(yaml.safe_dump({**TINY, "scene": "s.yaml"}))
+    monkeypatch.chdir(tmp_path)
+    a, b = (load_config(str(tmp_path / sub / "run.yaml")) for sub in ("one", "two"))
+    first, second = cached_render(a.settings, a.base), cached_render(b.settings, b.base)
+    assert second.cached and first.key == second.key
+    said = [w for w in second.summary["warnings"] if "tri.obj" in w]
+    assert said and all(str(tmp_path / "two") in w and str(tmp_path / "one") not in w for w in said), said

@@ -87,8 +87,8 @@ def test_a_scene_file_beside_the_sweep_file_wins_over_the_base_configs(study):
     with pytest.raises(InputError) as e:
         load_sweep(_sweep(study / "s2", grid={"scene": ["box2.yaml"]}))
     assert str(e.value) == (f"{study / 's2' / 'sw.yaml'} (point 0): scene: scene file 'box2.yaml' not found "
-                            f"(looked in {study / 's2'}, {study / 's1'}, among the built-in scenes and in the "
-                            f"working folder {study / 'work'})")
+                            f"(looked in {study / 's2'}, {study / 's1'}, {study / 'work'} and among the built-in "
+                            "scenes)")
 
 
 def test_a_run_configs_missing_scene_names_the_folder_tried(study):
@@ -96,24 +96,29 @@ def test_a_run_configs_missing_scene_names_the_folder_tried(study):
     cfg = load_config(str(study / "s2" / "run.yaml"))
     with pytest.raises(InputError) as e:
         render_key(cfg.settings, cfg.base, cfg.source)
-    assert str(e.value).endswith(f"scene file 'nope.yaml' not found (looked in {study / 's2'}, among the built-in "
-                                 f"scenes and in the working folder {study / 'work'})")
+    assert str(e.value).endswith(f"scene file 'nope.yaml' not found (looked in {study / 's2'}, {study / 'work'} "
+                                 "and among the built-in scenes)")
 
 
-def test_the_loader_looks_in_the_working_folder_last(study):
+def test_the_loader_looks_in_the_files_folder_then_the_working_folder_then_the_built_ins(study):
     """A file's relative scene (or ``extends``) is relative to that file's folder first: a
-    file of that name in the working folder is not taken instead; it is found there only
-    where the file's folder (and the built-in scenes) hold none."""
+    file of that name in the working folder is not taken instead; it is found there where the
+    file's folder holds none, before the built-in scenes (a project's own ``ring.yaml`` is not
+    replaced by the built-in ring, as before absolute paths)."""
     _box(study / "work" / "box2.yaml")
     assert resolve_scene_path("box2.yaml") == Path("box2.yaml")  # (no base: the working folder)
     assert resolve_scene_path("box2.yaml", study / "s2") == study / "s2" / "box2.yaml"  # (the file's folder wins)
-    assert resolve_scene_path("box2.yaml", study / "s1") == study / "work" / "box2.yaml"  # (the cwd, last)
+    assert resolve_scene_path("box2.yaml", study / "s1") == study / "work" / "box2.yaml"  # (then the cwd)
     (study / "work" / "box2.yaml").unlink()
-    with pytest.raises(InputError, match=r"scene file 'box2\.yaml' not found \(looked in .*s1, among the "
-                                         r"built-in scenes and in the working folder .*work\)"):
+    with pytest.raises(InputError, match=r"scene file 'box2\.yaml' not found \(looked in .*s1, .*work and among "
+                                         r"the built-in scenes\)"):
         resolve_scene_path("box2.yaml", study / "s1")
-    _box(study / "work" / "thesis" / "ring.yaml", wall_div=2)  # (a built-in scene wins over the cwd's)
     assert resolve_scene_path("thesis/ring.yaml", study / "s1") == scenes_dir() / "thesis" / "ring.yaml"
+    _box(study / "work" / "ring.yaml", wall_div=2)  # (the project's own ring.yaml wins over the built-in ring)
+    assert resolve_scene_path("ring.yaml", study / "s1") == study / "work" / "ring.yaml"
+    (study / "s1" / "mine.yaml").write_text(yaml.safe_dump({"scene": "ring.yaml", **TINY}))
+    assert load_config(str(study / "s1" / "mine.yaml")).settings.scene == str(study / "work" / "ring.yaml")
+    assert resolve_scene_path("thesis/ring", study / "s1") == scenes_dir() / "thesis" / "ring.yaml"  # (a name)
     assert load_config(str(study / "s1" / "base.yaml")).settings.scene == str(study / "s1" / "box.yaml")
 
 

@@ -515,9 +515,9 @@ def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
     """``value``, a ``scene`` given by a file in the first of ``folders`` (the command line:
     the working folder), as the absolute path of the file it names, looked for as
     :func:`tlm.scenes.loader.resolve_scene_path` looks: in each of ``folders`` (each
-    absolute) in turn, then among the built-in scenes, then in the working folder, last (a
-    project's config that names its scene from the project's root: ``scene:
-    myscenes/box.yaml`` run from there). Read once, where the config is read, so that the
+    absolute) in turn, then in the working folder (a project's config that names its scene
+    from the project's root: ``scene: myscenes/box.yaml`` run from there), then among the
+    built-in scenes. Read once, where the config is read, so that the
     config names one file wherever it is used again (a worker, a rerun of its
     ``config.resolved.yaml`` from another folder). A built-in scene's name (``cornell``,
     ``thesis/ring``, ``thesis/ring.yaml``), an absolute path, and a path none of them holds
@@ -532,10 +532,10 @@ def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
         target = os.path.abspath(os.path.join(folder, value))
         if os.path.isfile(target):
             return target
-    if (builtin / value).is_file():
-        return value  # (thesis/ring.yaml: a built-in scene, a name wherever it runs)
-    target = os.path.abspath(value)  # (the working folder, last)
-    return target if os.path.isfile(target) else value
+    target = os.path.abspath(value)  # (the working folder, before the built-in scenes: a project's own ring.yaml)
+    if os.path.isfile(target):
+        return target
+    return value  # (thesis/ring.yaml: a built-in scene, a name wherever it runs; else the loader says it is missing)
 
 
 def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:

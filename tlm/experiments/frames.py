@@ -51,6 +51,11 @@ def scene_fingerprint(scene) -> str:
     if scene.normals is not None:
         h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
     h.update(repr((scene.materials, scene.lights, scene.camera, scene.photons)).encode())
+    # (what its results say of it: its name, and its files' notes with its folder left out, so
+    # that a copy of the scene in another folder shares the frame: :func:`_here`)
+    folder = os.path.dirname(scene.source) if scene.source else ""
+    notes = [str(n).replace(folder, "") if folder else str(n) for n in scene.extra.get("notes") or []]
+    h.update(repr((scene.name, notes)).encode())
     return h.hexdigest()[:16]
 
 
@@ -266,15 +271,20 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
 
 
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
-    """``got``, a cached frame, with its summary's ``scene.source`` the file this config names:
-    the key holds the scene's content and file name, not its folder, so the same project in
-    another folder shares the frame, and its results name its own file."""
+    """``got``, a cached frame, with its summary's ``scene.source`` the file this config names,
+    and its warnings naming this file's folder: the key holds the scene's content and file
+    name, not its folder, so the same project in another folder shares the frame, and its
+    results name its own files."""
     held = got.summary.get("scene")
-    if not isinstance(held, dict):
+    if not isinstance(held, dict) or not isinstance(held.get("source"), str):
         return got
     here = scene.source if scene is not None else str(resolve_scene_path(cfg.scene, base, source))
-    if held.get("source") != here:
+    if held["source"] != here:
+        was, now = os.path.dirname(held["source"]), os.path.dirname(here)
         got.summary["scene"] = {**held, "source": here}
+        if was and isinstance(got.summary.get("warnings"), list):
+            got.summary["warnings"] = [w.replace(was, now) if isinstance(w, str) else w
+                                       for w in got.summary["warnings"]]
     return got
 
 

@@ -78,9 +78,10 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
                        key: str = "scene", also: tuple[Path, ...] = ()) -> Path:
     """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`): a
     relative path is tried relative to ``base`` (none: the cwd), then to each folder of
-    ``also``, then among the built-in scenes (``thesis/ring.yaml``), then relative to the
-    working folder, last (a project's config that names its scene from the project's root,
-    run from there; a scene file's ``extends`` alike). A path written as a built-in scene's
+    ``also``, then relative to the working folder (a project's config that names its scene
+    from the project's root, run from there; a scene file's ``extends`` alike), then among the
+    built-in scenes (``thesis/ring.yaml``), as before absolute paths: a project's own
+    ``ring.yaml`` is not replaced by the built-in one. A path written as a built-in scene's
     name (``thesis/ring``) is that scene. A file's ``scene`` is made absolute where the config
     is read, looked for in the same order (:func:`tlm.config.scene_from`); a path not found
     names the folders tried, in that order.
@@ -99,18 +100,16 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         for cand in [p if base is None or p.is_absolute() else Path(base) / p] + [f / p for f in tried[1:]]:
             if cand.is_file():
                 return cand
+        if tried and base is not None and (Path.cwd() / p).is_file():
+            return Path.cwd() / p  # (the working folder, before the built-in scenes: a project's own ring.yaml)
         if not p.is_absolute() and (scenes_dir() / p).is_file():
             return scenes_dir() / p  # thesis/ring.yaml
-        if tried and base is not None and (Path.cwd() / p).is_file():
-            return Path.cwd() / p  # (the working folder, last)
         stem = ref[: -len(p.suffix)] if p.suffix.lower() in (".yaml", ".yml") else ref
         folders = list(dict.fromkeys(os.path.abspath(f) for f in tried))
         cwd = os.path.abspath(Path.cwd())
-        last = f" and in the working folder {cwd}" if folders and cwd not in folders else ""
-        looked = ""
-        if folders:
-            looked = (f" (looked in {', '.join(folders)}, among the built-in scenes{last})" if last
-                      else f" (looked in {', '.join(folders)} and among the built-in scenes)")
+        if folders and cwd not in folders:
+            folders.append(cwd)  # (the working folder, before the built-in scenes)
+        looked = f" (looked in {', '.join(folders)} and among the built-in scenes)" if folders else ""
         raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
