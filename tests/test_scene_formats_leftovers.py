@@ -9,6 +9,7 @@ import re
 
 import numpy as np
 import pytest
+import trimesh
 
 from tlm.errors import InputError
 
@@ -124,6 +125,8 @@ def test_exported_normals_read_back_to_the_bit(tmp_path, name):
         export_triangles(a, tmp_path / f"t{suffix}")
         b = load_scene(_back(tmp_path, f"t{suffix}"))
         assert b.extra["normals"] == "file" and np.array_equal(a.normals, b.normals), suffix
+    ply = trimesh.load(tmp_path / "t.ply", process=False)  # (unit normals, as another tool reads them)
+    np.testing.assert_allclose(np.linalg.norm(ply._cache.cache["vertex_normals"], axis=1), 1.0, rtol=0, atol=1e-15)
     export_scene(a, tmp_path / "s.yaml")
     assert np.array_equal(a.normals, load_scene(tmp_path / "s.yaml").normals)
 

@@ -13,9 +13,9 @@ a Lambertian material, ``Ks`` and ``illum 3`` for a mirror, ``Ni``, ``Tf`` and `
 triangles, parts and materials, and the normals to the bit (a unit ``vn`` is read as
 written: :func:`tlm.scenes.objfile.unit_as_written`), but a dielectric's transmittance
 (tlm's MTL reading takes glass as clear, :mod:`tlm.scenes.materials`). The PLY file carries
-the shading normals too (``nx ny nz``, one per vertex, each vertex one corner), written so
-that their normalization on reading gives them back to the bit
-(:func:`tlm.scenes.objfile.unit_preimage`). The scene's lights, camera and resolution are
+the shading normals too (``nx ny nz``, one per vertex, each vertex one corner), unit
+vectors as they are, which tlm reads back to the bit as an OBJ's ``vn`` (a unit normal is
+read as written). The scene's lights, camera and resolution are
 in neither file.
 
 A ``.yaml`` target writes the scene file that closes the round trip (:func:`scene_yaml`):
@@ -190,7 +190,6 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
     n = faces.shape[0]
     told = list(told)
     if suffix == ".ply":
-        from tlm.scenes.objfile import unit_preimage
         from tlm.scenes.plyfile import NAME_COMMENT
 
         names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
@@ -210,7 +209,7 @@ def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.n
         with write_atomic(path, "wb") as f:
             f.write(header.encode())
             if scene.normals is not None:  # (each vertex is one corner: its normal beside its position)
-                verts = np.concatenate([verts, unit_preimage(scene.normals).reshape(-1, 3)], axis=1)
+                verts = np.concatenate([verts, np.asarray(scene.normals, dtype=np.float64).reshape(-1, 3)], axis=1)
             f.write(verts.astype("<f8").tobytes())
             f.write(face_rec.tobytes())
     else:

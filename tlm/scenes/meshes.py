@@ -459,6 +459,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         tri = vertices[faces]
         if strips is None and polys is None:
             nrm = _file_normals(geom, faces)
+        if ext == ".ply" and nrm is not None:  # (a unit normal read as written, as an OBJ's vn: an export's)
+            from tlm.scenes.objfile import unit_as_written
+
+            nrm = unit_as_written(nrm.reshape(-1, 3)).reshape(nrm.shape)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
             if nrm is not None:  # normals transform by the inverse transpose
