@@ -515,7 +515,7 @@ def build_parser() -> argparse.ArgumentParser:
     no_report(sc)
     sc.set_defaults(func=_cmd_scaling)
     s = sub.add_parser("scene", help="list, show or export scenes")
-    ss = s.add_subparsers(dest="scene_cmd", required=True)
+    ss = s.add_subparsers(dest="scene_cmd", required=True, metavar="{list,show,export}")
     sl = ss.add_parser("list", help="the built-in scenes (names for a config's scene: key)")
     sl.add_argument("-l", "--long", action="store_true", help="with each scene's description")
     sl.add_argument("--all", action="store_true", help="also the scenes of bad input on purpose (tests of the "
@@ -605,7 +605,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "
                         "tlm), or copy one out to edit")
-    cs = co.add_subparsers(dest="config_cmd", required=True)
+    cs = co.add_subparsers(dest="config_cmd", required=True, metavar="{list,export}")
     cl = cs.add_parser("list", help="the built-in experiments: names that the commands taking an experiment file "
                        "take instead (tlm run cornell_pmap)")
     cl.add_argument("-l", "--long", action="store_true", help="with the command that runs each one and its "

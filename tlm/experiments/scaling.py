@@ -83,6 +83,8 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
     """
     sweep_dir = Path(sweep_dir)
     rows_path = sweep_dir / "sweep.jsonl"
+    if not sweep_dir.exists():
+        raise InputError("no such folder: name a 'tlm sweep' output folder (runs/scaling_ring)", source=str(sweep_dir))
     if not rows_path.is_file():
         raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
     try:

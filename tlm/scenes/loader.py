@@ -74,6 +74,25 @@ def list_scenes() -> list[str]:
     )
 
 
+BAD_ON_PURPOSE = "# Bad input"  # how a built-in scene of bad input on purpose begins (a test of an error message)
+
+
+def listed_scenes() -> list[str]:
+    """The built-in names ``tlm scene list`` and a not-found error list: not the scenes of bad
+    input on purpose (their first line begins :data:`BAD_ON_PURPOSE`), which are still built-in
+    scenes by name."""
+    root = scenes_dir()
+
+    def on_purpose(name: str) -> bool:
+        try:
+            with open(root / f"{name}.yaml", encoding="utf-8") as f:
+                return f.readline().startswith(BAD_ON_PURPOSE)
+        except (OSError, UnicodeDecodeError):
+            return False
+
+    return [n for n in list_scenes() if not on_purpose(n)]
+
+
 def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_source: str | None = None,
                        key: str = "scene", also: tuple[Path, ...] = ()) -> Path:
     """A built-in name (``cornell``) or a path (a ``str`` or a :class:`~pathlib.Path`): a
@@ -116,7 +135,7 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     if builtin.is_file():
         return builtin
     raise InputError(
-        f"{ref!r} is not a built-in scene ({', '.join(list_scenes())}){did_you_mean(ref, list_scenes())}",
+        f"{ref!r} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
         source=config_source, key=key,
     )
 
