@@ -93,14 +93,14 @@ from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
     ReferenceSettings,
-    fewer_rounds,
+    computing_line,
     kept_back,
     kept_root,
     load_reference,
     meets_tolerance,
-    repeats,
     save_reference,
     store_reference,
+    verdict,
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import read_study, run_study
@@ -562,20 +562,15 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     it was computed now (False: the cached one is used)."""
     found = load_reference(key)
     if found is None and note is not None:  # (as tlm run says it: the rounds may take minutes)
-        note(f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
-             f"k = {settings.k_nearest} per round, until the relative standard error is below "
-             f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for every study and "
-             "run of this scene")
-    if found is not None and not meets_tolerance(found[1], settings):
-        meta = found[1]
-        if fewer_rounds(meta, settings):
-            if note is not None:
-                note(kept_back(key, meta, settings, "the base's ", force=False))
-        elif not repeats(meta, settings):
-            if note is not None:
-                note(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it "
-                     "again with the base's reference settings")
-            found = None
+        note(computing_line(key, settings, "every study and run of this scene"))
+    kind = "meets" if found is None else verdict(found[1], settings)
+    if kind == "fewer" and note is not None:
+        note(kept_back(key, found[1], settings, "the base's ", force=False))
+    elif kind == "compute":
+        if note is not None:
+            note(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it "
+                 "again with the base's reference settings")
+        found = None
     if found is not None:
         return found[0], found[1], False
     cam = frame.scene.camera

@@ -71,16 +71,16 @@ from tlm.experiments.reference_cache import (
     RULE,
     ReferenceSettings,
     cache_dir,
+    computing_line,
     cycle_length,
     describe,
-    fewer_rounds,
     kept_back,
     kept_root,
     load_reference,
     meets_tolerance,
-    repeats,
     save_reference,
     store_reference,
+    verdict,
 )
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.engine import engine
@@ -368,10 +368,8 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     if not compute:
         return Found(key, settings)
     if say is not None:
-        say(f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
-            f"k = {settings.k_nearest} per round, until the relative standard error is below "
-            f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for every run of this "
-            "scene ('--no-reference' or reference.auto: false skips it)")
+        say(computing_line(key, settings, "every run of this scene ('--no-reference' or reference.auto: false "
+                                          "skips it)"))
     t0 = time.perf_counter()
     image, meta = compute_reference(frame, None, settings, bar=bar)
     cam = frame.scene.camera
@@ -472,12 +470,13 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     key = reference_key(scene, cfg, settings)
     cached = None if force else load_reference(key)
     if cached is not None:
-        if meets_tolerance(cached[1], settings):
+        kind = verdict(cached[1], settings)
+        if kind == "meets":
             return Made(key, settings, cached[1], False, cache_dir() / key)
-        if fewer_rounds(cached[1], settings):
+        if kind == "fewer":
             say(line := kept_back(key, cached[1], settings))
             return Made(key, settings, cached[1], True, cache_dir() / key, line)
-        if repeats(cached[1], settings):
+        if kind == "repeats":
             same = all(cached[1].get(k) == getattr(settings, k) for k in RULE)
             how = (f"computed with these reference settings ({', '.join(RULE)})" if same else
                    f"where these reference settings stop it too (cycles of {cached[1].get('rounds_per_cycle')} "

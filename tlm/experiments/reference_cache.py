@@ -156,6 +156,26 @@ def fewer_rounds(meta: dict, settings: ReferenceSettings) -> bool:
     return (not meets_tolerance(meta, settings) and isinstance(rounds, int) and settings.max_rounds < rounds)
 
 
+def verdict(meta: dict, settings: ReferenceSettings) -> str:
+    """What to do with the cached reference of ``meta`` asked for with ``settings``, the one rule of
+    ``tlm reference`` and ``tlm error-vs-cost``: ``"meets"`` (use it: :func:`meets_tolerance`),
+    ``"fewer"`` (keep it: :func:`fewer_rounds`), ``"repeats"`` (keep it: :func:`repeats`), or
+    ``"compute"`` (compute it again, and cache the better one)."""
+    if meets_tolerance(meta, settings):
+        return "meets"
+    if fewer_rounds(meta, settings):
+        return "fewer"
+    return "repeats" if repeats(meta, settings) else "compute"
+
+
+def computing_line(key: str, settings: ReferenceSettings, cached_for: str) -> str:
+    """The line said before a reference none cached is computed (the rounds may take minutes);
+    ``cached_for``: what it is then cached for, and how to skip it."""
+    return (f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
+            f"k = {settings.k_nearest} per round, until the relative standard error is below "
+            f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for {cached_for}")
+
+
 def describe(meta: dict, settings: ReferenceSettings) -> str:
     """``<rounds> rounds, relative standard error <e>, converged|NOT converged at tolerance <t>``."""
     err = meta.get("relative_standard_error")
