@@ -17,17 +17,13 @@ import numpy as np
 import pytest
 
 import tlm.experiments.error_cost as ec
+from tests.helpers_reference import held_reference
 from tlm.cli import main
 
 from .scenes import sphere_scene
 
 # 2 cycles of 2 rounds, far short of the tolerance: not converged
 SHORT = {"photons": 500, "k_nearest": 20, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 4, "spp": 2}
-
-
-def _held(cache) -> tuple[dict, np.ndarray]:
-    (folder,) = (cache / "references").iterdir()
-    return json.loads((folder / "meta.json").read_text()), np.load(folder / "reference.npy")
 
 
 @pytest.mark.parametrize("asked", [{"tolerance": 1e-7}, {"max_rounds": 5}, {"tolerance": 1e-7, "min_rounds": 3}],
@@ -39,7 +35,7 @@ def test_a_study_keeps_a_cached_reference_that_computing_again_would_repeat(
     cfg.write_text(json.dumps({"scene": "furnace.yaml", "mode": "pmap", "resolution": [8, 8], "reference": SHORT}))
     assert main(["reference", str(cfg), "--no-progress"]) == 1  # (not converged)
     capsys.readouterr()
-    old, image = _held(cache)
+    old, image = held_reference(cache)
     assert old["rounds"] == 4 and old["cycles"] == 2 and old["converged"] is False
 
     computed = []
@@ -68,6 +64,6 @@ def test_a_study_keeps_a_cached_reference_that_computing_again_would_repeat(
     assert ref["rounds"] == 4
     with open(out / "rows.csv") as f:
         assert [r["reference_converged"] for r in csv.DictReader(f)] == ["False", "False"]
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)

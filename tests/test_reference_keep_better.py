@@ -18,6 +18,7 @@ import tempfile
 import numpy as np
 import pytest
 
+from tests.helpers_reference import held_reference
 from tlm.cli import main
 from tlm.experiments import error_cost, reference, reference_cache
 
@@ -32,16 +33,11 @@ def _config(tmp_path, ref: dict):
     return str(path)
 
 
-def _held(cache) -> tuple[dict, np.ndarray]:
-    (folder,) = (cache / "references").iterdir()
-    return json.loads((folder / "meta.json").read_text()), np.load(folder / "reference.npy")
-
-
 def _cached(tmp_path, cache, capsys) -> tuple[dict, np.ndarray]:
     """The 4-round reference ``tlm reference`` caches, not converged."""
     assert main(["reference", _config(tmp_path, SHORT), "--no-progress"]) == 1
     capsys.readouterr()
-    meta, image = _held(cache)
+    meta, image = held_reference(cache)
     assert meta["rounds"] == 4 and meta["converged"] is False
     return meta, image
 
@@ -70,13 +66,13 @@ def test_fewer_rounds_than_the_cached_reference_keep_it_without_computing(tmp_pa
     assert len(said) == 1 and f"reference {old['key']} is cached with 4 rounds, relative standard error " in said[0]
     assert "reference.max_rounds 2 asks for fewer rounds than it has, so it is kept" in said[0]
     assert "NOT converged (max_rounds reached) after 4 rounds" in out
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
 
     assert main(["reference", _config(tmp_path, SHORT), "--no-progress"]) == 1  # (its own rule: the same rounds)
     assert "computing it again would repeat the same rounds, so it is kept" in capsys.readouterr().out
-    assert _held(cache)[0] == old
+    assert held_reference(cache)[0] == old
 
 
 def test_a_worse_reference_computed_now_does_not_replace_the_cached_one(tmp_path, cache, capsys, monkeypatch):
@@ -95,7 +91,7 @@ def test_a_worse_reference_computed_now_does_not_replace_the_cached_one(tmp_path
     assert len(said) == 1 and f"(4 rounds, relative standard error {e_old:.4f}, NOT converged" in said[0]
     assert "not the one computed now (6 rounds, relative standard error " in said[0]
     assert "its relative standard error is lower" in said[0] and f"kept in {kept} " in said[0]
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
     assert json.loads((kept / "meta.json").read_text())["rounds"] == 6
@@ -103,12 +99,12 @@ def test_a_worse_reference_computed_now_does_not_replace_the_cached_one(tmp_path
     _worse_by(monkeypatch, reference, 1e-3)  # (better, and neither meets the tolerance: it replaces)
     assert main(["reference", cfg, "--no-progress"]) == 1
     assert "the cache keeps" not in capsys.readouterr().out
-    assert _held(cache)[0]["rounds"] == 6
+    assert held_reference(cache)[0]["rounds"] == 6
 
     _worse_by(monkeypatch, reference, 1e6)  # (--force: computed and cached whatever it is)
     assert main(["reference", _config(tmp_path, SHORT), "--no-progress", "--force"]) == 1
     assert "the cache keeps" not in capsys.readouterr().out
-    assert _held(cache)[0]["rounds"] == 4
+    assert held_reference(cache)[0]["rounds"] == 4
 
 
 def test_one_that_meets_the_tolerance_replaces_one_that_does_not(tmp_path, cache, capsys, monkeypatch):
@@ -122,7 +118,7 @@ def test_one_that_meets_the_tolerance_replaces_one_that_does_not(tmp_path, cache
     _worse_by(monkeypatch, reference, 2.0, converged=True)
     cfg = _config(tmp_path, {**SHORT, "tolerance": 1e6, "min_rounds": 6, "max_rounds": 6})
     assert main(["reference", cfg, "--no-progress"]) == 0
-    meta, image = _held(cache)
+    meta, image = held_reference(cache)
     assert meta["rounds"] == 6  # (a higher error, but it meets the rule asked for, and the cached one does not)
     assert meta["relative_standard_error"] > old["relative_standard_error"]
 
@@ -140,7 +136,7 @@ def test_one_that_meets_the_tolerance_replaces_one_that_does_not(tmp_path, cache
     found = reference.ensure_reference(frame, compute=True, say=lines.append)
     assert found.meta["relative_standard_error"] == 1e-3 and "this run uses the cached one" in lines[-1]
     np.testing.assert_array_equal(found.image, (image * 1.5).reshape(-1, 3))
-    assert _held(cache)[0]["relative_standard_error"] == 1e-3
+    assert held_reference(cache)[0]["relative_standard_error"] == 1e-3
 
 
 def test_error_vs_cost_keeps_the_better_cached_reference(tmp_path, cache, capsys, monkeypatch):
@@ -160,14 +156,14 @@ def test_error_vs_cost_keeps_the_better_cached_reference(tmp_path, cache, capsys
     got = study({**SHORT, "tolerance": 1e-5, "max_rounds": 2}, "fewer")
     assert got["rounds"] == 4 and got["computed"] is False and got["reference_converged"] is False
     assert "asks for fewer rounds than it has, so it is kept" in capsys.readouterr().out
-    assert _held(cache)[0] == old
+    assert held_reference(cache)[0] == old
 
     _worse_by(monkeypatch, error_cost, 100.0)
     got = study({**SHORT, "tolerance": 1e-5, "max_rounds": 6}, "worse")
     assert got["rounds"] == 4 and got["computed"] is False
     out = capsys.readouterr().out
     assert "the cache keeps its reference (4 rounds" in out and "the study uses the cached one" in out
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
 
@@ -201,7 +197,7 @@ def test_a_cached_reference_within_a_looser_tolerance_is_used(tmp_path, cache, c
     out = capsys.readouterr().out
     assert (f"reference {old['key']} is cached, relative standard error {old['relative_standard_error']:.4f} "
             f"< tolerance {loose['tolerance']} after {old['rounds']} rounds") in out
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
 
@@ -212,7 +208,7 @@ def test_a_cached_reference_within_a_looser_tolerance_is_used(tmp_path, cache, c
     assert "NOT converged" not in capsys.readouterr().err
     got = json.loads((tmp_path / "evc" / "reference.json").read_text())
     assert got["rounds"] == 4 and got["computed"] is False and got["reference_converged"] is True
-    assert _held(cache)[0] == old
+    assert held_reference(cache)[0] == old
 
 
 def test_a_kept_reference_is_said_against_the_tolerance_asked_for_now(tmp_path, cache, capsys):
@@ -221,7 +217,7 @@ def test_a_kept_reference_is_said_against_the_tolerance_asked_for_now(tmp_path, 
     tolerance asked for and exits 1 (it said "converged", exit 0, from the stored flag)."""
     loose = {**SHORT, "tolerance": 1e6}
     assert main(["reference", _config(tmp_path, loose), "--no-progress"]) == 0
-    meta, _ = _held(cache)
+    meta, _ = held_reference(cache)
     assert meta["converged"] is True
     capsys.readouterr()
     assert main(["reference", _config(tmp_path, SHORT), "--no-progress"]) == 1

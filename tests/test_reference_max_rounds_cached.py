@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pytest
 
+from tests.helpers_reference import held_reference
 from tlm.cli import main
 from tlm.experiments import reference
 from tlm.experiments.reference_cache import ReferenceSettings, repeats
@@ -30,18 +31,13 @@ def _config(tmp_path, ref: dict) -> str:
     return str(path)
 
 
-def _held(cache) -> tuple[dict, np.ndarray]:
-    (folder,) = (cache / "references").iterdir()
-    return json.loads((folder / "meta.json").read_text()), np.load(folder / "reference.npy")
-
-
 @pytest.mark.parametrize("asked", [{"tolerance": 1e-7}, {"max_rounds": 5}, {"tolerance": 1e-7, "min_rounds": 3}],
                          ids=["stricter-tolerance", "max-rounds-no-whole-cycle-more", "stricter-and-min-rounds"])
 def test_a_reference_at_max_rounds_is_kept_where_computing_it_would_stop_at_the_same_round(
         tmp_path, cache, capsys, monkeypatch, asked):
     assert main(["reference", _config(tmp_path, SHORT), "--no-progress"]) == 1
     capsys.readouterr()
-    old, image = _held(cache)
+    old, image = held_reference(cache)
     assert old["rounds"] == 4 and old["cycles"] == 2 and old["converged"] is False
 
     monkeypatch.setattr(reference, "compute_reference", lambda *a, **k: pytest.fail("computed the same rounds again"))
@@ -51,7 +47,7 @@ def test_a_reference_at_max_rounds_is_kept_where_computing_it_would_stop_at_the_
     assert len(said) == 1 and f"reference {old['key']} is cached with 4 rounds" in said[0]
     assert "these reference settings stop it too (cycles of 2 rounds, at most 2 of them" in said[0]
     assert "NOT converged (max_rounds reached) after 4 rounds" in out
-    meta, now = _held(cache)
+    meta, now = held_reference(cache)
     assert meta == old
     np.testing.assert_array_equal(now, image)
 
