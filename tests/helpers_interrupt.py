@@ -62,3 +62,12 @@ def run_script(script: str, *args: str, cwd, cache) -> dict:
     # unhandled KeyboardInterrupt in an exec'd string, leaves stderr empty)
     assert proc.returncode == 0, f"exit status {proc.returncode}; stdout {proc.stdout[-500:]!r}; " + proc.stderr[-3000:]
     return json.loads(proc.stdout.strip().splitlines()[-1]) | {"stderr": proc.stderr}
+
+
+def running(pid: int) -> bool:
+    """The process ``pid`` is there and not a zombie (which an init that reaps none leaves)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_interrupt import running
 from tlm.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -105,15 +106,6 @@ def test_the_pools_clean_up_still_runs_after_the_signal(tmp_path):
     assert (proc.returncode, proc.stderr) == (143, LINE["SIGTERM"] + FINISHED + "\n")
     workers = [int(p) for p in (tmp_path / "workers").read_text().split()]
     deadline = time.monotonic() + 30  # (a hang guard: they are ended before the process exits)
-    while time.monotonic() < deadline and any(map(_running, workers)):
+    while time.monotonic() < deadline and any(map(running, workers)):
         time.sleep(0.05)
-    assert len(workers) == 2 and not [p for p in workers if _running(p)]
-
-
-def _running(pid: int) -> bool:
-    """The process ``pid`` is there and not a zombie."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
+    assert len(workers) == 2 and not [p for p in workers if running(p)]

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_interrupt import running
 from tlm import cli_signals
 from tlm.experiments.executors import LocalPool
 
@@ -132,9 +133,9 @@ def test_a_signal_while_the_pool_starts_a_worker_lets_the_sweep_kill_it(monkeypa
         killed = pool.stop()
     assert len(started) == 1 and started[0] in killed
     deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and _running(started[0]):
+    while time.monotonic() < deadline and running(started[0]):
         time.sleep(0.05)
-    assert not _running(started[0])
+    assert not running(started[0])
 
 
 @pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="POSIX")
@@ -159,12 +160,3 @@ def test_a_ctrl_c_while_the_sweep_starts_its_workers_is_not_lost(tmp_path):
                           preexec_fn=default_sigint, timeout=120)
     assert (proc.returncode, proc.stdout.split("\n")) == (0, ["not taken there", "taken after", "True False", ""]), \
         proc.stderr
-
-
-def _running(pid: int) -> bool:
-    """The process ``pid`` is there and not a zombie."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
