@@ -59,7 +59,7 @@ def test_results_lights_are_the_scene_show_lights(tmp_path):
     assert quad == {"type": "quad", "power": [5.0, 5.0, 5.0], "corner": [-0.5, 2.0, -0.5],
                     "edge_u": [1.0, 0.0, 0.0], "edge_v": [0.0, 0.0, 1.0], "area": 1.0}
     # the emitting box: 12 triangles, 2 * (0.4 * 0.4) + 4 * (0.4 * 0.2) square units, pi * Le * area watts
-    assert mesh["materials"] == "glow" and mesh["triangles"] == 12
+    assert mesh["materials"] == ["glow"] and mesh["triangles"] == 12
     assert mesh["area"] == pytest.approx(0.64, rel=1e-12)
     assert mesh["power"] == pytest.approx([math.pi * 2.0 * 0.64] * 3, rel=1e-12)
 

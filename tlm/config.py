@@ -408,11 +408,84 @@ def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
         raise InputError(f"{value_text(v)} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
 
 
+# the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
+MESH_FORMATS = {".obj": "an OBJ", ".ply": "a PLY", ".stl": "an STL", ".glb": "a binary glTF (.glb)", ".gltf": "a glTF"}
+_MESH_COMPRESSED = (".gz", ".xz", ".bz2")
+# an OBJ's statements (the first words of its lines)
+_OBJ_WORDS = {"v", "vt", "vn", "vp", "f", "l", "p", "o", "g", "s", "mtllib", "usemtl", "cstype", "deg", "curv", "surf"}
+
+
+def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | None:
+    """The format (:data:`MESH_FORMATS`' words: ``"an OBJ"``) of the mesh file ``path``, told
+    by its suffix (``pawn.obj``, ``pawn.obj.gz``) or else by its first bytes: a binary glTF's
+    ``glTF`` magic, a PLY's ``ply`` and ``format`` lines, an ASCII STL's ``solid`` and ``facet normal``,
+    a binary STL's size (80 bytes, a count, 50 bytes a triangle; not for a ``.yaml`` name), an
+    OBJ's statements (``v``, ``f``, ``o``, ... and nothing else on its first lines), a glTF
+    JSON's ``asset`` with its ``version``. None for anything else, a file that cannot be read
+    included (its read says why): what :func:`read_yaml` refuses by name, never by failing to
+    parse it. ``content=False``: by the suffix alone (a name not yet looked for)."""
+    name = os.fspath(path).lower()
+    stem = name[: -len(os.path.splitext(name)[1])] if name.endswith(_MESH_COMPRESSED) else name
+    ext = os.path.splitext(stem)[1]
+    if ext in MESH_FORMATS:
+        return MESH_FORMATS[ext]
+    if not content:
+        return None
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+            size = os.fstat(f.fileno()).st_size
+    except OSError:
+        return None
+    if head[:4] == b"glTF":
+        return MESH_FORMATS[".glb"]
+    lines = head.replace(b"\r", b"").split(b"\n")
+    if lines[0].strip() == b"ply" and len(lines) > 1 and lines[1].startswith(b"format "):
+        return MESH_FORMATS[".ply"]
+    if lines[0].split()[:1] == [b"solid"] and b"facet normal" in head:
+        return MESH_FORMATS[".stl"]
+    if (size >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
+            and not name.endswith((".yaml", ".yml"))):
+        return MESH_FORMATS[".stl"]
+    words = [ln.split(maxsplit=1)[0] for ln in lines[:-1] if ln.strip() and not ln.lstrip().startswith(b"#")][:40]
+    if words and b"v" in words and all(w.decode("latin-1") in _OBJ_WORDS for w in words):
+        return MESH_FORMATS[".obj"]
+    text = head.lstrip()
+    if text[:1] == b"{" and b'"asset"' in text and b'"version"' in text:
+        return MESH_FORMATS[".gltf"]
+    return None
+
+
+def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
+    """What a message about the mesh file ``name`` (of ``format_``, :func:`mesh_file_format`)
+    given where a YAML file or a scene is expected says: what it is and how to render it (a
+    scene file names it under ``geometry``; ``key``: the key that named it, ``scene`` or
+    ``extends``, else a file read as YAML). A file told by its content alone is to be
+    renamed first: a mesh file is read by its suffix."""
+    base, renamed = os.path.basename(name), ""
+    if mesh_file_format(base, content=False) is None:
+        base = os.path.splitext(base)[0] + next(e for e, f in MESH_FORMATS.items() if f == format_)
+        renamed = f"rename it {base} (a mesh file is read by its suffix), "
+    scene = (f"`geometry: {{mesh: {base}}}` in a scene file beside it, with `materials:` and `camera:` "
+             f"unless the mesh file gives them (docs/scenes.md, \"Geometry\")")
+    if key == "extends":
+        return (f"{name!r} is {format_} mesh file, not a scene file to extend: name it under `geometry:` instead "
+                f"({renamed}`geometry: {{mesh: {base}}}`; docs/scenes.md, \"Geometry\")")
+    if key is not None:
+        return (f"{name!r} is {format_} mesh file, not a scene: {renamed}write {scene}, and name that file instead "
+                f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
+    return f"is {format_} mesh file, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
+
+
 def read_yaml(path: Path) -> Any:
-    """Read a YAML file; a missing file or a syntax error is an InputError naming it.
+    """Read a YAML file; a missing file or a syntax error is an InputError naming it, and so
+    is a mesh file (:func:`mesh_file_format`), with what to write to render it.
 
     Inside :func:`noting_reads`, the read is noted: ``("yaml", path, sha256 of the text,
     the mapping's ``extends``)`` (what a memo of a load that reads it checks)."""
+    format_ = mesh_file_format(path)
+    if format_ is not None and os.path.isfile(path):
+        raise InputError(mesh_file_hint(str(path), format_), source=str(path))
     text = read_text(path)
     data = yaml_from_text(text, path)
     if _READS.get() is not None:

@@ -78,7 +78,7 @@ def mesh_light(triangles: np.ndarray, material_index: np.ndarray, materials: tup
     le = np.array([m.emission for m in materials], dtype=np.float64)[material_index[ids]]
     power = np.pi * (le * areas[:, None]).sum(axis=0)
     names = [materials[i].name for i in np.unique(material_index[ids])]
-    return Light("mesh", tuple(float(x) for x in power), name=", ".join(names),
+    return Light("mesh", tuple(float(x) for x in power), name=", ".join(names), materials=tuple(names),
                  ids=ids.astype(np.int64), triangles=tri, radiance=le)
 
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
+from tlm.config import builtin_scenes_dir, deep_merge, mesh_file_format, mesh_file_hint, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.scenes import cache
 from tlm.scenes.lights import mesh_light as mesh_light  # (kept importable from here: tlm.render.checks names it)
@@ -109,6 +109,8 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     gave it (``scene``, a scene file's ``extends``), for error messages.
     """
     ref = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
+    if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:
+        raise InputError(mesh_file_hint(ref, format_, key), source=config_source, key=key)  # (by its name: pawn.glb)
     yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
     looks_like_path = yaml_file or "/" in ref or os.sep in ref
     if looks_like_path and not yaml_file and (scenes_dir() / f"{ref}.yaml").is_file():

@@ -219,8 +219,86 @@ def glb_chunks(data: bytes, source: str = "") -> tuple[dict, bytes]:
     if rest + 8 <= len(data):
         blen, bkind = struct.unpack_from("<II", data, rest)
         if bkind == 0x004E4942:  # "BIN\0"
+            if rest + 8 + blen > len(data):
+                raise InputError(f"the binary glTF file is truncated: its BIN chunk says {blen:,} bytes, the file "
+                                 f"holds {len(data) - rest - 8:,} of them", source=source)
             binary = data[rest + 8: rest + 8 + blen]
     return header, binary
+
+
+def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: str) -> list[int | None]:
+    """The bytes each of a glTF's ``buffers`` holds: a ``.glb``'s first buffer without a
+    ``uri`` its BIN chunk (``binary``; None for a ``.gltf``), a ``data:`` URI its decoded
+    bytes, a file its size (by its name, else by its name percent-decoded); None where
+    there is nothing to measure. An InputError names a buffer whose file is missing or whose
+    data URI is no base64."""
+    import base64
+    import binascii
+    from urllib.parse import unquote
+
+    buffers = header.get("buffers")
+    out: list[int | None] = []
+    for i, b in enumerate(buffers if isinstance(buffers, list) else []):
+        uri = b.get("uri") if isinstance(b, dict) else None
+        if uri is None:
+            out.append(len(binary) if binary is not None and i == 0 else None)
+        elif not isinstance(uri, str):
+            raise InputError(f"buffers[{i}].uri = {uri!r} is not a string", source=source)
+        elif uri.startswith("data:"):
+            payload = uri.partition(",")[2]
+            try:
+                out.append(len(base64.b64decode(payload, validate=True)) if ";base64" in uri.partition(",")[0]
+                           else len(unquote(payload).encode("latin-1", "replace")))
+            except (binascii.Error, ValueError):
+                raise InputError(f"buffers[{i}].uri: its data URI is not valid base64", source=source) from None
+        else:
+            found = [f for f in (path.parent / uri, path.parent / unquote(uri)) if f.is_file()]
+            if not found:
+                raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / unquote(uri)}", source=source)
+            out.append(found[0].stat().st_size)
+    return out
+
+
+def check_gltf_buffers(header: dict, sizes: list[int | None], source: str) -> None:
+    """A glTF's buffers and buffer views, before a library reads them (which fails an
+    ``assert`` or reads past the end): each buffer's ``byteLength`` is a count of bytes its
+    data (``sizes``, :func:`gltf_buffer_sizes`) holds, each buffer view names a buffer and
+    lies inside it. An InputError names the first that does not (a file cut short, a view
+    past its buffer)."""
+    def count(x) -> bool:
+        return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+    buffers = header.get("buffers")
+    buffers = [b if isinstance(b, dict) else {} for b in buffers] if isinstance(buffers, list) else []
+    lengths: list[int | None] = []
+    for i, b in enumerate(buffers):
+        have = sizes[i] if i < len(sizes) else None
+        length = b.get("byteLength", have)  # (left out, as the spec does not allow: what its data holds)
+        lengths.append(length)
+        if length is None:
+            continue
+        if not count(length):
+            raise InputError(f"buffers[{i}].byteLength = {length!r} is not a count of bytes", source=source)
+        if have is not None and length > have:
+            uri = b.get("uri")
+            what = (f"its file {uri!r}" if isinstance(uri, str) and not uri.startswith("data:")
+                    else "its data URI" if isinstance(uri, str) else "the BIN chunk")
+            raise InputError(f"buffers[{i}].byteLength = {length:,} but {what} holds {have:,} bytes "
+                             "(cut short, or not this glTF's)", source=source)
+    views = header.get("bufferViews")
+    for j, v in enumerate(views if isinstance(views, list) else []):
+        v = v if isinstance(v, dict) else {}
+        k = v.get("buffer")
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(buffers):
+            raise InputError(f"bufferViews[{j}].buffer = {k!r} names no entry of 'buffers' (it has {len(buffers)})",
+                             source=source)
+        offset, length = v.get("byteOffset", 0), v.get("byteLength")
+        for key, x in (("byteOffset", offset), ("byteLength", length)):
+            if not count(x):
+                raise InputError(f"bufferViews[{j}].{key} = {x!r} is not a count of bytes", source=source)
+        if lengths[k] is not None and offset + length > lengths[k]:
+            raise InputError(f"bufferViews[{j}] (bytes {offset:,} to {offset + length:,}) runs past the end of "
+                             f"buffers[{k}], which holds {lengths[k]:,}", source=source)
 
 
 def write_glb(header: dict, binary: bytes = b"") -> bytes:

@@ -363,10 +363,24 @@ def _buffer_files(header: dict, path: Path, src: str) -> list | None:
     return out if changed else None
 
 
+def _glb_binary(data: bytes, ext: str, src: str) -> bytes | None:
+    """A ``.glb``'s BIN chunk (b"" if none); None for a ``.gltf``."""
+    from tlm.scenes.materials import glb_chunks
+
+    return glb_chunks(data, src)[1] if ext == ".glb" else None
+
+
 def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
     import trimesh
 
-    from tlm.scenes.materials import check_gltf, gltf_json, gltf_materials, write_glb
+    from tlm.scenes.materials import (
+        check_gltf,
+        check_gltf_buffers,
+        gltf_buffer_sizes,
+        gltf_json,
+        gltf_materials,
+        write_glb,
+    )
     from tlm.scenes.objfile import read_bytes
 
     file_materials: tuple[Material, ...] = ()
@@ -387,6 +401,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             imported, notes = gltf_imports(header, src)
             file_materials = tuple(gltf_materials(header, src))
             buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
+            check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src), src)
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
             nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
@@ -413,6 +428,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     try:
         loaded = trimesh.load(source, force=None, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything from ValueError to IndexError
+        if ext == ".ply" and "unexpected length" in str(exc):  # (trimesh's "PLY is unexpected length!")
+            raise InputError("the binary PLY file's data is not the length its header gives (cut short, bytes added, "
+                             "or a count wrong)",
+                             source=src) from None
         raise InputError(f"cannot parse the {ext[1:].upper()} file: {_one_line(exc)}",
                          source=src) from None
 

@@ -140,6 +140,8 @@ class Light:
     ids: np.ndarray | None = field(default=None, compare=False, repr=False)
     triangles: np.ndarray | None = field(default=None, compare=False, repr=False)
     radiance: np.ndarray | None = field(default=None, compare=False, repr=False)
+    # a mesh light's emitting materials' names, in the scene's order (its ``name`` joins them with ", ")
+    materials: tuple[str, ...] = field(default=(), compare=False)
 
     def record(self) -> dict:
         """The light as plain data (for hashes and results.json): a quad or point light's
@@ -162,7 +164,8 @@ class Light:
     def info(self) -> dict:
         """The light as ``tlm scene show`` lists it (and a run's ``results.json``): its type,
         power (W) and its kind's own fields (a spot's cone angles in degrees, as a scene file
-        gives them; a directional light's power is its irradiance over the disc covering the scene)."""
+        gives them; a directional light's power is its irradiance over the disc covering the scene;
+        a mesh light's ``materials`` a list of names)."""
         own: dict
         if self.kind == "point":
             own = {"position": list(self.position)}
@@ -172,7 +175,8 @@ class Light:
         elif self.kind == "directional":
             own = {"direction": list(self.direction), "irradiance": list(self.irradiance)}
         elif self.kind == "mesh":
-            own = {"materials": self.name, "triangles": int(self.ids.shape[0]), "area": self.area}
+            own = {"materials": list(self.materials) or [self.name], "triangles": int(self.ids.shape[0]),
+                   "area": self.area}
         else:
             own = {"corner": list(self.corner), "edge_u": list(self.edge_u), "edge_v": list(self.edge_v),
                    "area": self.area}
