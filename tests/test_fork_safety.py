@@ -24,6 +24,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers_interrupt import running
 from tlm.kernels import threads
 from tlm.progress import progress_bar
 
@@ -261,14 +262,6 @@ def test_a_ctrl_c_while_the_workers_are_forked_is_not_lost(tmp_path, to):
     assert done.stdout.splitlines() == ["KeyboardInterrupt", "0 [] True"], done.stdout + done.stderr
 
 
-def _alive(pid: int) -> bool:
-    """Whether process ``pid`` runs (a zombie, which an init that reaps none leaves, does not)."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z"
-    except (OSError, IndexError):
-        return False
-
-
 _KILLED_PARENT = """
 import multiprocessing, os, sys, time
 from tlm.kernels import threads
@@ -309,9 +302,9 @@ def test_the_workers_end_with_a_killed_parent(tmp_path):
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         deadline = time.monotonic() + 10
-        while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        while any(running(p) for p in pids) and time.monotonic() < deadline:
             time.sleep(0.05)
-        assert [p for p in pids if _alive(p)] == []
+        assert [p for p in pids if running(p)] == []
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)  # (the workers left behind, in the script's group)

@@ -29,6 +29,7 @@ Compressed files (``.gz``, ``.xz``, ``.bz2``) are decompressed by :func:`read_by
 from __future__ import annotations
 
 import bz2
+import functools
 import gzip
 import lzma
 from dataclasses import dataclass
@@ -118,34 +119,95 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
 
 
+@functools.cache
+def _scales() -> np.ndarray:
+    """The scales :func:`unit_preimage` tries, in order: 2 ** frac(k phi) for k = 1 .. 4096 + 2 ** 16
+    (the first 4096 by Python's float power, the rest by numpy's over an array: bit for bit the
+    scales of the first, one-scale-at-a-time search, whose results an exported file holds)."""
+    first = np.array([2.0 ** ((k * _PHI) % 1.0) for k in range(1, 4097)])
+    scales = np.concatenate([first, 2.0 ** ((np.arange(4097, 4097 + (1 << 16)) * _PHI) % 1.0)])
+    scales.flags.writeable = False
+    return scales
+
+
+def _gives_back(cx: np.ndarray, cy: np.ndarray, cz: np.ndarray, n: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Where the vector ``(cx, cy, cz)`` normalizes (:func:`_unit`, bit for bit: its length is
+    ``sqrt((x x + y y) + z z)``, as ``np.linalg.norm`` sums, and one of length 0 or NaN becomes 0)
+    to ``n`` (its components, broadcast against ``cx``)."""
+    length = cx * cx
+    t = cy * cy
+    length += t
+    np.multiply(cz, cz, out=t)
+    length += t
+    np.sqrt(length, out=length)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = np.divide(cx, length, out=t) == n[0]
+        ok &= np.divide(cy, length, out=t) == n[1]
+        ok &= np.divide(cz, length, out=t) == n[2]
+    if not length.min(initial=1.0) > 0:  # (a length 0 or NaN: _unit gives 0)
+        flat = ~(length > 0)
+        zero = (n[0] == 0) & (n[1] == 0) & (n[2] == 0)
+        ok[flat] = np.broadcast_to(zero, ok.shape)[flat]
+    return ok
+
+
+_ROWS, _BLOCK, _MIN = 1 << 17, 1 << 15, 1 << 12  # vectors done at a time; most, fewest candidates tried at once
+
+
 def unit_preimage(normals: np.ndarray) -> np.ndarray:
     """Vectors whose normalization (:func:`_unit`, as tlm's mesh reading normalizes a file's
     normals) gives the unit ``normals`` (..., 3) back to the bit: each one itself where that
     holds (its length computes to 1), else the first of it times 2 ** frac(k phi)
     (k = 1, 2, ...) that does (a unit vector's rounded length is often 1 +- an ulp, and
-    its normalization then moves a component by an ulp); one for which none of 2 ** 16
-    scales does is kept as it is (an ulp off). What ``tlm scene export`` writes as a
+    its normalization then moves a component by an ulp); one for which none of the
+    4096 + 2 ** 16 scales does is kept as it is (an ulp off). What ``tlm scene export`` writes as a
     PLY's normals (:mod:`tlm.scenes.export`), and how the reader keeps a unit ``vn``
-    (:func:`unit_as_written`)."""
+    (:func:`unit_as_written`). Vectorized, :data:`_ROWS` vectors at a time (:func:`_first_scales`)."""
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     out = n.copy()
-    todo = np.flatnonzero((_unit(n) != n).any(axis=1))
-    k = 1
-    while todo.shape[0] and k <= 4096:  # (the first scales fix most, each later one a few of those left)
-        cand = n[todo] * 2.0 ** ((k * _PHI) % 1.0)
-        ok = (_unit(cand) == n[todo]).all(axis=1)
-        out[todo[ok]] = cand[ok]
-        todo, k = todo[~ok], k + 1
-    if todo.shape[0]:
-        scales = (2.0 ** ((np.arange(k, k + (1 << 16)) * _PHI) % 1.0)).reshape(16, -1, 1)
-        for i in todo.tolist():  # (about 50 in a million)
-            for chunk in scales:
-                cand = n[i] * chunk
-                hit = np.flatnonzero((_unit(cand) == n[i]).all(axis=1))
-                if hit.shape[0]:
-                    out[i] = cand[hit[0]]
-                    break
+    scales = _scales()
+    for a in range(0, n.shape[0], _ROWS):
+        k = _first_scales(n[a: a + _ROWS], scales)
+        found = np.flatnonzero(k >= 0)
+        out[a + found] = n.take(a + found, axis=0) * scales.take(k[found])[:, None]
     return out.reshape(np.shape(normals))
+
+
+def _first_scales(n: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """For each row of ``n`` (m, 3) that does not normalize to itself, the index of the first of
+    ``scales`` whose multiple of it does (:func:`_gives_back`); -1 for the others. The rows left
+    try the next scales together, a block of them (those left times the block between
+    :data:`_MIN` and :data:`_BLOCK` candidates: about as many scales as a hit takes, by the last
+    block's hits), each keeping its first hit."""
+    x, y, z = (np.ascontiguousarray(n[:, j]) for j in range(3))
+    first = np.full(n.shape[0], -1, dtype=np.intp)
+    idx = np.flatnonzero(~_gives_back(x, y, z, (x, y, z)))
+    x, y, z = x[idx], y[idx], z[idx]
+    k, rate = 0, 1.0
+    while idx.shape[0] and k < scales.shape[0]:
+        m = idx.shape[0]
+        b = max(1, min(_BLOCK // m, max(-(-_MIN // m), int(0.5 / rate))))
+        s = scales[k: k + b]
+        if b == 1:
+            hit = _gives_back(x * s[0], y * s[0], z * s[0], (x, y, z))
+            first[idx[hit]] = k
+        elif b <= m:  # candidates (scale, vector): the longer axis inner
+            s2 = s[:, None]
+            ok = _gives_back(x * s2, y * s2, z * s2, (x, y, z))
+            hit = ok.any(axis=0)
+            first[idx[hit]] = k + ok.argmax(axis=0)[hit]
+        else:
+            xt, yt, zt = x[:, None], y[:, None], z[:, None]
+            ok = _gives_back(xt * s, yt * s, zt * s, (xt, yt, zt))
+            hit = ok.any(axis=1)
+            first[idx[hit]] = k + ok[hit].argmax(axis=1)
+        hits = np.count_nonzero(hit)
+        rate = max(hits / (m * b), 1e-9)
+        if hits:
+            keep = np.flatnonzero(~hit)
+            idx, x, y, z = idx[keep], x[keep], y[keep], z[keep]
+        k += b
+    return first
 
 
 UNIT_TOLERANCE = 4 * np.finfo(np.float64).eps  # a vn whose length is within this of 1 is unit, as written
