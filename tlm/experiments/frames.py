@@ -341,7 +341,8 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     measured against), what changes only brightness or speed (``render.exposure``,
     ``render.threads``), and the settings the run's mode never reads, as
     :func:`tlm.render.planner.inert_settings` names them (the one list the warnings use):
-    every photon-map key in a mode without the pass, ``estimate.k`` under another filter than
+    every photon-map key in a mode without the pass, the specular walk's (``render.reflect_depth``,
+    ``render.fresnel``, ...) in mode ``rcast``, ``estimate.k`` under another filter than
     ``kvoxel``, ... A sweep of such a setting renders its frame once.
 
     A scene file is keyed by its file's name alone (``box.yaml``), not by the absolute path

@@ -2,7 +2,7 @@
 but a wrong or a misleading result.
 
 :func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
-a setting the run never reads, an override of a photon-map key whose pass is left out:
+a setting the run never reads, an override of a key whose pass is left out:
 :func:`unread_overrides`, a reference not converged: :func:`reference_warnings`, a BSP cut
 short); :func:`stream_warnings`: the simulated stream's (too few frames, packets too coarse
 from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set that the timing model
@@ -23,7 +23,7 @@ from tlm.config import ArchConfig, RunConfig
 from tlm.config_words import parse_yaml
 from tlm.registry import SCHEDULERS
 from tlm.render import checks
-from tlm.render.planner import inert_changes, inert_timing_settings
+from tlm.render.planner import inert_changes, inert_timing_settings, walk_inert_settings
 
 # RenderResult (tlm.experiments.run, which imports this module) is named in annotations only and not
 # imported: an import, even under TYPE_CHECKING, would make the two modules a cycle (tests/test_layers.py)
@@ -40,8 +40,9 @@ def eye_hits(res: RenderResult) -> tuple[int, int, int, int]:  # noqa: F821
 
 def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     """What gives no error but a wrong picture (:mod:`tlm.render.checks`), a setting the run
-    never reads (each key once: one of ``res.overrides`` in a run whose photon-map pass is
-    left out by :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`),
+    never reads (each key once: an override of ``res.overrides`` the run never reads, a
+    photon-map key with the pass left out or a specular walk's key the mode never reads, by
+    :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`),
     a photon-map reference that is not converged (:func:`reference_warnings`), a BSP cut
     short: ``results.json`` ``warnings`` but the simulated stream's (:func:`stream_warnings`),
     one line each."""
@@ -214,29 +215,48 @@ PHOTON_SECTIONS = ("photons.", "estimate.", "reference.")  # read by the photon-
 
 
 def unread_overrides(res: RenderResult, overrides: Iterable[str] | None, via: str = "--set") -> list[str]:  # noqa: F821
-    """An override of a photon-map key (:data:`PHOTON_SECTIONS`) in a run whose photon-map
-    pass is left out: one line each, naming it as it was given (``--set estimate.k=9``; ``via``
-    ``the overrides``: ``estimate.k=9 (in the overrides)``). :func:`~tlm.render.planner.inert_changes`
-    judges those sections as if the pass ran, since a config file may hold them for ``--mode
-    pmap``; a key given as an override was asked for this run. A key set twice is named once,
-    by the override that set it last (a section given as a mapping, ``estimate={k: 9}``, sets
-    each of its keys). Not the key the pass is left out by (``--set photons.count=0``, ``--set
-    photons.max_bounces=1``: the plan's ``by``), which did what it was set for."""
+    """An override of a key no pass of the run reads: a photon-map key (:data:`PHOTON_SECTIONS`)
+    in a run whose photon-map pass is left out, a key of the specular walk (``render.reflect_depth``,
+    ``render.refract_depth``, ``render.fresnel``, ``render.min_weight``) in a mode without the
+    passes that walk (:func:`~tlm.render.planner.walk_inert_settings`): one line each, naming it as
+    it was given (``--set estimate.k=9``; ``via`` ``the overrides``: ``estimate.k=9 (in the
+    overrides)``). :func:`~tlm.render.planner.inert_changes` judges those keys as if every pass
+    ran, since a config file may hold them for another ``--mode``; a key given as an override was
+    asked for this run. A key set twice is named once, by the override that set it last (a section
+    given as a mapping, ``estimate={k: 9}``, sets each of its keys; one that sets a key the run
+    reads too names those it does not). Not the key the photon-map pass is left out by (``--set
+    photons.count=0``, ``--set photons.max_bounces=1``: the plan's ``by``), which did what it was
+    set for."""
     return _unread_lines(res, _unread(res, overrides), via)
+
+
+def _walk_unread(res: RenderResult) -> dict[str, str]:  # noqa: F821
+    """The specular walk's keys the run's mode never reads, each with why (none for a result
+    made by hand that holds no config, its plan alone)."""
+    cfg = getattr(res, "cfg", None)
+    return {} if cfg is None else walk_inert_settings(cfg.mode)
+
+
+def _photon_why(res: RenderResult) -> str | None:  # noqa: F821
+    """Why an override of a photon-map key changes nothing (its pass is left out), or None when the pass runs."""
+    if "pmap" in res.plan.run_names:
+        return None
+    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    return f"the photon-map pass is left out ({'the photon-map pass is not run' if left is None else left.reason})"
 
 
 def _unread(res: RenderResult, overrides: Iterable[str] | None) -> dict[str, str]:  # noqa: F821
     """:func:`unread_overrides`' keys, each with the override that set it last (in that order)."""
-    if "pmap" in res.plan.run_names:
-        return {}
     left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
+    photons = _photon_why(res) is not None
+    walk = _walk_unread(res)
     last: dict[str, str] = {}
     for item in overrides or []:
         for key in _keys_set(item):
             last.pop(key, None)  # (the later override names it)
             last[key] = item.strip()
     return {key: item for key, item in last.items()
-            if key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by)}
+            if key in walk or (photons and key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by))}
 
 
 def _keys_set(item: str) -> list[str]:
@@ -261,11 +281,17 @@ def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[s
     """:func:`unread_overrides`' lines: one for each override that set one of ``unread``'s keys last."""
     if not unread:
         return []
-    left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
-    why = "the photon-map pass is not run" if left is None else left.reason
+    walk = _walk_unread(res)
+    photon_why = _photon_why(res)
     given = (lambda item: f"{via} {item}") if via.startswith("-") else (lambda item: f"{item} (in {via})")
-    return [f"{given(item)} has no effect in this run: the photon-map pass is left out ({why})"
-            for item in dict.fromkeys(unread.values())]
+    lines = []
+    for item in dict.fromkeys(unread.values()):
+        keys = [key for key, it in unread.items() if it == item]
+        whys = dict.fromkeys(walk.get(key, photon_why) for key in keys)
+        # (an override that sets keys the run reads too, a section given whole, names those it does not)
+        named = "" if len(keys) == len(set(_keys_set(item))) else f": {', '.join(keys)}"
+        lines.append(f"{given(item)}{named} has no effect in this run: {'; '.join(whys)}")
+    return lines
 
 
 def reference_warnings(error: dict | None, cfg: RunConfig) -> list[str]:

@@ -137,6 +137,7 @@ def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, 
     ``pmap_reason``: why the photon-map pass does not run (the plan's reason), or None when
     it runs; by default judged from ``cfg.mode`` alone (a pass the mode does not ask for
     never runs). Only the built-in filters are judged; a registered one uses what it reads.
+    The specular walk's render keys a mode never reads are :func:`walk_inert_settings`'.
     """
     out: dict[str, str] = {}
     if pmap_reason is None and cfg.mode != "pmap":
@@ -162,8 +163,31 @@ def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, 
                     out[f"estimate.{name}"] = f"estimate.{prefix}radius is set, and comes first"
             elif getattr(est, f"{prefix}radius_fraction") is not None:
                 out[f"estimate.{prefix}radius_photons"] = f"estimate.{prefix}radius_fraction is set, and comes first"
+    out.update(walk_inert_settings(cfg.mode))
     if cfg.arch.scheduler == "static":
         out["arch.tiles_per_pipeline"] = "arch.scheduler is 'static' (one tile a pipeline): only 'dynamic' queues tiles"
+    return out
+
+
+# The render keys that only a specular walk reads (:func:`tlm.render.walk.specular_walk`: the depth
+# it follows, its Fresnel split and the weight it prunes a branch below), each with the first mode
+# whose passes walk it: the reflect pass walks the paths that first meet a mirror (and split at the
+# glass they meet), the refract pass those that first meet glass; the photon-map pass gathers at the
+# ends of both walks and traces its photons by ``render.fresnel``. The ray-cast pass reads none.
+WALK_SETTINGS = {"render.reflect_depth": "reflect", "render.fresnel": "reflect", "render.min_weight": "reflect",
+                 "render.refract_depth": "refract"}
+
+
+def walk_inert_settings(mode: str) -> dict[str, str]:
+    """:data:`WALK_SETTINGS`' keys that no pass of ``mode`` reads, each with why
+    (``render.reflect_depth`` in mode ``rcast``, ``render.refract_depth`` in mode ``reflect``)."""
+    level = MODES.index(mode)
+    out = {}
+    for key, first in WALK_SETTINGS.items():
+        if level < MODES.index(first):
+            out[key] = (f"mode {mode!r} traces no mirror or glass paths (the reflect, refract and pmap passes do)"
+                        if mode == "rcast" else
+                        f"mode {mode!r} does not include the {first} pass (the {first} and pmap passes read it)")
     return out
 
 
@@ -198,14 +222,15 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
 
 def inert_changes(cfg: RunConfig, skip: Iterable[str] = ()) -> list[str]:
     """:func:`inert_settings` and :func:`inert_timing_settings` of the keys ``cfg`` sets
-    away from their defaults, for a run whose photon-map pass runs, or whose photon
-    sections are left aside (a config may hold them for ``--mode pmap``, and the plan says
-    why the pass is left out): one warning line each (``estimate.k = 16 has no effect in
-    this run: ...``). ``skip``: keys warned of for another reason, left out here (the
-    overrides of a photon-map pass left out: :func:`tlm.experiments.run_warnings.unread_overrides`)."""
+    away from their defaults, the photon sections and the specular walk's render keys
+    (:data:`WALK_SETTINGS`) judged as if every pass ran (a config may hold them for another
+    ``--mode``, and the plan says why a pass is left out): one warning line each
+    (``estimate.k = 16 has no effect in this run: ...``). ``skip``: keys warned of for
+    another reason, left out here (the overrides a run never reads:
+    :func:`tlm.experiments.run_warnings.unread_overrides`)."""
     defaults = dataclasses.asdict(RunConfig())
     lines = []
-    settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (the photon sections judged as if run)
+    settings = inert_settings(dataclasses.replace(cfg, mode="pmap"))  # (judged as if every pass ran)
     settings.update(inert_timing_settings(cfg))
     skip = set(skip)
     for key, why in settings.items():
