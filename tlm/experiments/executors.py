@@ -5,7 +5,8 @@ points in the tlm process itself (:class:`InProcess`, for a debugger); otherwise
 local pool of worker processes (:class:`LocalPool`), forked from a fresh server
 process, that end with the sweep's process and outlive the death of one of their own;
 or a Dask cluster (``--dask local`` starts a ``LocalCluster``, ``--dask tcp://HOST:PORT``
-connects to a scheduler), through a :class:`DaskPool` that says when the cluster itself
+connects to a scheduler, once :func:`answers` found one there), through a :class:`DaskPool` that
+ends a local cluster's workers at once when the sweep is interrupted and says when the cluster itself
 fails the sweep (its scheduler lost, no worker for ``--dask-wait`` seconds, by default
 :data:`NO_WORKERS_WAIT`). All are ``concurrent.futures`` executors: the sweep submits a
 point and reads its future. What runs on a Dask worker itself: :mod:`tlm.experiments.dask_workers`.
@@ -13,6 +14,7 @@ point and reads its future. What runs on a Dask worker itself: :mod:`tlm.experim
 
 from __future__ import annotations
 
+import asyncio
 import concurrent.futures as cf
 import gc
 import itertools
@@ -22,6 +24,7 @@ import os
 import queue
 import select
 import signal
+import socket
 import sys
 import threading
 import time
@@ -42,6 +45,7 @@ NO_WORKERS_WAIT = 300.0  # seconds a sweep waits while its Dask scheduler has no
 WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler about its workers (at most: a
 # shorter wait asks twice within it)
 ASK_TIMEOUT = 30.0  # seconds the scheduler gets to answer one
+STOP_WAIT = 0.5  # seconds an interrupted sweep's --dask local workers get to close before they are killed
 PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
@@ -494,12 +498,80 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
         client = stack.enter_context(Client(cluster))
     else:
+        answers(dask)  # (a refused connection at once, where distributed retries it for CONNECT_TIMEOUT s)
         try:
             client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
-        except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
+        except (OSError, ValueError, TypeError, MemoryError) as e:  # TimeoutError is an OSError (MemoryError: a
+            # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
-    return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait)
+    return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
+
+
+SOCKET_SCHEMES = ("tcp", "tls", "ws", "wss")  # distributed's transports over a TCP connection to HOST:PORT
+
+
+def answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """An :class:`InputError` (``--dask``) where nothing answers at the scheduler's ``address``,
+    told from one TCP connection to its host and port (a transport over TCP: :data:`SOCKET_SCHEMES`;
+    any other is left to Dask): a refused one (no process listens on that port: a scheduler not
+    started, or another port), an unknown host and an unreachable network are known at once,
+    where distributed's connect retries them for its whole timeout and says "Timed out"; a host
+    that does not answer (one that is down, a firewall that drops the packets) after ``timeout``
+    seconds, as before, with a line that says so. A connection made is closed at once (the
+    scheduler logs, at INFO, that one closed before its handshake), and Dask connects next."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, loc = parse_address(address)
+        host, port = parse_host_port(loc)
+    except (ValueError, TypeError):  # (a form Dask refuses itself, and says why)
+        return
+    if scheme not in SOCKET_SCHEMES:
+        return
+    where = ("the scheduler's address is the one 'dask scheduler' printed (Scheduler at: ...), "
+             "tcp://HOST:8786 by default")
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as conn:
+            odd = _not_dask(conn) if scheme == "tcp" else None
+    except ConnectionRefusedError:
+        raise InputError(f"nothing answers at {address!r}: no process listens on port {port} of {host} (connection "
+                         f"refused: no scheduler started there, or another port); {where}", key="--dask") from None
+    except TimeoutError:  # (socket.timeout)
+        raise InputError(f"no answer from {address!r} within {timeout:g} s (a host that is down or not there, or a "
+                         f"firewall that drops the connection); {where}", key="--dask") from None
+    except socket.gaierror as e:
+        raise InputError(f"cannot reach {address!r}: its host {host!r} is not known ({e.strerror or e})",
+                         key="--dask") from None
+    except OSError as e:  # (no route to the host, an unreachable network)
+        raise InputError(f"cannot reach {address!r} ({e.strerror or e}); {where}", key="--dask") from None
+    if odd is not None:  # (distributed's connect would wait for it forever, or read its bytes as a frame's size)
+        raise InputError(f"{address!r} answers, but not as a Dask scheduler ({odd}: a web server, such as the "
+                         f"dashboard's, port 8787?); {where}", key="--dask")
+
+
+HANDSHAKE_MAX = 1 << 20  # bytes: a Dask scheduler's first message (its handshake) is far smaller
+
+
+def _not_dask(conn: socket.socket) -> str | None:
+    """Why what answers on the TCP connection ``conn`` is not a Dask scheduler, or None: a
+    scheduler writes its handshake as soon as it accepts, its first 8 bytes the size of the
+    message (little-endian); a web server writes nothing before a request (``conn``'s timeout:
+    it said nothing), or an answer whose bytes are no such size."""
+    got = b""
+    try:
+        while len(got) < 8:
+            more = conn.recv(8 - len(got))
+            if not more:
+                return None if got else "it closed the connection at once"  # (a scheduler busy elsewhere: Dask's)
+            got += more
+    except TimeoutError:
+        return "it said nothing" if not got else None
+    except OSError:
+        return None
+    if not 0 < int.from_bytes(got, "little") <= HANDSHAKE_MAX:
+        return f"its first bytes are {got!r}"
+    return None
 
 
 def _local_preloads() -> dict[str, list]:
@@ -560,8 +632,9 @@ class DaskPool(cf.Executor):
     """
 
     def __init__(self, client, address: str, remote: bool, quiet: _Quiet | None = None,
-                 wait: float | None = None) -> None:
+                 wait: float | None = None, cluster=None) -> None:
         self.client = client
+        self.cluster = cluster  # a --dask local LocalCluster (this process's nannies: stop)
         self.quiet = _Quiet() if quiet is None else quiet
         self.address = address
         self.remote = remote
@@ -576,6 +649,26 @@ class DaskPool(cf.Executor):
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with suppress(Exception):  # (a client whose scheduler is gone cannot cancel anything)
             self.executor.shutdown(wait=wait)
+
+    def stop(self) -> None:
+        """The sweep was interrupted: its points cancelled (the executor shut down, not waited
+        for) and, for a ``--dask local`` cluster, its workers ended now: each gets
+        :data:`STOP_WAIT` seconds to close (an idle one does), then its nanny kills it (a point
+        it runs is not waited for: its half-written folder is a temporary one, removed as a dead
+        process's; the worker holds no semaphore: :func:`_local_preloads`). Closing the cluster
+        then has no worker left to wait for, where its nannies gave a busy one up to 4 s to
+        finish its point. A remote cluster's workers are not the sweep's to end."""
+        self.shutdown(wait=False)
+        nannies = list((getattr(self.cluster, "workers", None) or {}).values())
+        if not nannies:
+            return
+
+        async def close_all() -> None:
+            await asyncio.gather(*(n.close(timeout=STOP_WAIT, reason="tlm-sweep-stopped") for n in nannies),
+                                 return_exceptions=True)
+
+        with suppress(Exception):  # (the cluster's close, next, ends what is left as ever)
+            self.cluster.sync(close_all)
 
     def trouble(self, cancelled: bool) -> str | None:
         """Why the sweep cannot go on on this cluster, or None. ``cancelled``: a point's

@@ -299,9 +299,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 if pool is not None:
                     # the rows of this sweep's points done already, in place of an earlier sweep's: while
                     # it runs (and when it is cut short) the folder's rows are this sweep's only
-                    _write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records],
+                    _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records],
                                 sweep.factors)
-                    _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped)
+                    _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped,
+                              lambda p, record: _row(p, record, sweep))
         except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
@@ -312,7 +313,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
 
-        rows = [point_row(p, records[p.hash]) for p in sweep.points]
+        rows = [_row(p, records[p.hash], sweep) for p in sweep.points]
         _write_rows(out, rows, sweep.factors)
     computed = [r for r in rows if r["hash"] in tasks]
     failed = sum(r["status"] != "ok" for r in computed)
@@ -337,7 +338,8 @@ DASK_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*")
 def _dask_address(dask: Any) -> str | None:
     """``--dask``: None, ``local``, or a scheduler's address of the form ``tcp://HOST:PORT``
     (``HOST:PORT`` is tcp's, as for Dask; ``tls://``, ``ws://``, ``ucx://``, a plugin's transport
-    and ``inproc://`` too), its port a whole number 1 to 65535; else an :class:`InputError`. Its form
+    and ``inproc://`` too), its port a whole number 1 to 65535; else an :class:`InputError`, as is a
+    dashboard's ``http(s)://`` address (Dask prints it beside the scheduler's). Its form
     only: the scheduler is reached when there are points to run (:func:`open_executor`)."""
     if dask is None or dask == "local":
         return dask
@@ -349,6 +351,10 @@ def _dask_address(dask: Any) -> str | None:
     scheme, sep, rest = dask.partition("://")
     if not sep:
         scheme, rest = "tcp", dask
+    if scheme.lower() in ("http", "https"):  # (the one Dask prints beside the scheduler's: "dashboard at")
+        raise InputError(f"{dask!r} is the address of a Dask dashboard (a web page), not of a scheduler: give the "
+                         "scheduler's, tcp://HOST:8786 or the one 'dask scheduler' printed (Scheduler at: ...), "
+                         "or local", key="--dask")
     if scheme == "inproc" and rest.strip() and rest == rest.strip():
         return dask
     host, colon, port = rest.rpartition(":")
@@ -398,7 +404,25 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
         if h not in records and h in present and (rec := _done(points_dir / h)) is not None:
             records[h] = rec
     with suppress(OSError, InputError):
-        _write_rows(out, [point_row(p, records[p.hash]) for p in sweep.points if p.hash in records], sweep.factors)
+        _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records], sweep.factors)
+
+
+def _row(point: Point, record: dict, sweep) -> dict:
+    """The point's row (:func:`~tlm.experiments.sweep_rows.point_row`), its ``scene`` as the sweep
+    gives it, for the researcher's tables: a ``scene`` factor's value, or the one ``set`` gives, as
+    written; else (the base config's) the scene file's path from the sweep file's folder (posix,
+    ``../scenes/box.yaml``), a built-in scene's name as it is. The point's config names the file by
+    its absolute path, for the workers (and its ``config.resolved.yaml``, which runs from anywhere);
+    a path on the table would name where the project lay, not which file."""
+    row = point_row(point, record)
+    if "scene" in point.factors:  # (its factor column too: one column, the value as written)
+        row["scene"] = point.factors["scene"]
+    elif "scene" in sweep.set:
+        row["scene"] = sweep.set["scene"]
+    elif isinstance(scene := row.get("scene"), str) and os.path.isabs(scene):
+        with suppress(ValueError):  # (another drive: no path from there; the absolute path stays)
+            row["scene"] = Path(os.path.relpath(scene, sweep.path.resolve().parent)).as_posix()
+    return row
 
 
 def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:
@@ -411,8 +435,10 @@ def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:
 
 
 def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], by_hash: dict[str, list[Point]],
-              records: dict[str, dict], out: Path, progress: bool, total: int, skipped: int) -> None:
+              records: dict[str, dict], out: Path, progress: bool, total: int, skipped: int,
+              row: Callable[[Point, dict], dict] = point_row) -> None:
     """Run the tasks: one per functional key first, the rest of its group once it is cached.
+    ``row``: a point's row (``sweep.jsonl``) of its record (:func:`_row`).
 
     A point's future, once done, enters the queue ``finished`` (its done-callback): the loop
     takes the points as they finish, at a constant cost each, where ``cf.wait`` on every
@@ -461,7 +487,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                         record = _seen_here(record, tasks[h])
                     records[h] = record
                     for p in by_hash[h]:
-                        jsonl.write(storage.json_text(point_row(p, record)) + "\n")
+                        jsonl.write(storage.json_text(row(p, record)) + "\n")
                     jsonl.flush()
                     failed += record["status"] != "ok"
                     # the frame is cached unless the point failed while rendering it (or its
@@ -486,6 +512,8 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
             _clean_stale(out / "points")
         elif isinstance(pool, InProcess):
             pool.shutdown(wait=False, cancel_futures=True)
+        elif isinstance(pool, DaskPool):  # (a local cluster's workers ended now, not waited for)
+            pool.stop()
         else:
             pool.shutdown(wait=False)
         raise
