@@ -62,10 +62,29 @@ def experiment_path(ref: str, command: str = "run", scenes: list[str] | tuple[st
         raise InputError(f"neither a file nor a built-in experiment (built-in: {listed}; 'tlm config list -l' "
                          f"says what each one is){did_you_mean(ref, names)}{scene}", source=ref)
     stem = path.stem if yaml_file else path.name
-    if stem in names and not scene:
+    builtin_scene = scene_of_path(ref, scenes) if yaml_file else None
+    if stem in names and not scene and not builtin_scene:
         raise InputError(f"not found here; the built-in experiment of that name: tlm {command} {stem} "
                          "('tlm config export' copies it out to edit)", source=ref)
+    if builtin_scene:
+        raise InputError(f"not found here; the built-in scene of that name: {builtin_scene} ('tlm scene export "
+                         f"{builtin_scene} FILE.yaml' copies it out to edit and run; a config names it: scene: "
+                         f"{builtin_scene})", source=ref)
     raise InputError(f"file not found{scene}", source=ref)
+
+
+def scene_of_path(ref: str, scenes: list[str] | tuple[str, ...]) -> str | None:
+    """The built-in scene a ``.yaml`` path that does not exist names: by its place under a
+    ``scenes`` folder (``scenes/examples/mesh_on_floor.yaml``, a checkout's path, outside
+    one: ``examples/mesh_on_floor``; ``scenes/cornell.yaml``: ``cornell``), or as a scene's
+    name with its folder (``thesis/ring.yaml``: ``thesis/ring``); None for any other path
+    (``cornell.yaml`` names the built-in experiment ``cornell``)."""
+    parts = Path(ref).with_suffix("").parts
+    under = "scenes" in parts
+    if under:
+        parts = parts[len(parts) - parts[::-1].index("scenes"):]
+    name = "/".join(parts)
+    return name if name in scenes and (under or "/" in name) else None
 
 
 def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, bool]:
@@ -167,9 +186,11 @@ def experiment_description(name: str) -> str:
 
 def export_experiment(name: str, file: str | Path) -> list[Path]:
     """Copy the built-in experiment ``name`` to ``file`` (a ``.yaml`` path, to edit and run);
-    returns the files written. A sweep whose ``base:`` is a run config file beside it gets
-    that file beside ``file`` too (one with the same contents there already is kept, not
-    written again), so that the copy runs as it is. Refused (InputError, nothing written): a
+    returns the files written. Its comment's commands name the copy (``tlm sweep sr.yaml``,
+    not the checkout's ``configs/scaling_ring.yaml``: :func:`exported_text`). A sweep whose
+    ``base:`` is a run config file beside it gets that file beside ``file`` too, so that the
+    copy runs as it is. A file there already with the contents it would get (an export done
+    before) is kept, not written again, and not returned. Refused (InputError, nothing written): a
     name that is no built-in experiment, a file that is not ``.yaml``, a folder that does not
     exist, a ``file`` of the base's own name, and a file that exists with other contents:
     ``file`` (a copy edited before is not overwritten) or the base's beside it (the user's own
@@ -178,8 +199,7 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
 
     names = list_experiments()
     if name not in names:
-        raise InputError(f"{name!r} is not a built-in experiment ({', '.join(names)}){did_you_mean(name, names)}",
-                         key="name")
+        raise InputError(f"{name!r} is not a built-in experiment ({', '.join(names)}){did_you_mean(name, names)}")
     file = Path(file)
     if file.suffix.lower() not in (".yaml", ".yml"):
         raise InputError("name a .yaml file to copy the experiment into", source=str(file))
@@ -188,7 +208,7 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
     if not file.parent.is_dir():
         raise InputError(f"folder {str(file.parent)!r} does not exist", source=str(file))
     source = configs_dir() / f"{name}.yaml"
-    copies = [(source, file)]
+    copies = [(exported_text(source, name, file), file)]
     raw = read_yaml(source)
     base = raw.get("base") if isinstance(raw, dict) else None
     if isinstance(base, str) and not Path(base).is_absolute() and (source.parent / base).is_file():
@@ -196,14 +216,27 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
         if beside.resolve() == file.resolve():
             raise InputError(f"is the name of the base config {name} names (base: {base}), which is copied beside "
                              "it: name another file", source=str(file))
-        copies.append((source.parent / base, beside))
-    for i, (src, dst) in enumerate(copies):
-        if dst.exists() and (dst.is_dir() or dst.read_bytes() != src.read_bytes()):
+        copies.append(((source.parent / base).read_bytes(), beside))
+    for i, (data, dst) in enumerate(copies):
+        if dst.exists() and (dst.is_dir() or dst.read_bytes() != data):
             how = ("name another file (or remove it)" if i == 0 else
                    f"{file}'s base: {base} would read it in place of the built-in {name}'s base config: copy into "
                    "another folder (or remove it)")
             raise InputError(f"exists with other contents: {how}", source=str(dst))
-    copies = [copies[0], *((src, dst) for src, dst in copies[1:] if not dst.exists())]  # (the same base: kept)
-    for src, dst in copies:
-        write_file(dst, src.read_bytes())
+    copies = [(data, dst) for data, dst in copies if not dst.exists()]  # (the same contents: kept)
+    for data, dst in copies:
+        write_file(dst, data)
     return [dst for _, dst in copies]
+
+
+def exported_text(source: Path, name: str, file: Path) -> bytes:
+    """The built-in experiment file ``source`` (of ``name``) as ``tlm config export`` writes it
+    to ``file``: its comment lines' ``configs/NAME.yaml`` (the checkout's path of this file, in
+    the commands they show) read ``file``, as given; the rest byte for byte."""
+    data = source.read_bytes()
+    own = f"configs/{name}.yaml"
+    if own.encode() not in data:
+        return data
+    lines = data.decode("utf-8").splitlines(keepends=True)
+    return "".join(line.replace(own, str(file)) if line.lstrip().startswith("#") else line
+                   for line in lines).encode("utf-8")

@@ -351,7 +351,8 @@ def median_words(s: dict) -> str:
             + (f" ({why})" if why else ""))
 
 
-def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = None) -> dict:
+def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = None,
+              names: dict[str, str] | None = None) -> dict:
     """The medians of |relative error| and the slowest PMs of comparison rows.
 
     ``not_comparable``: scene -> how ours differs from the thesis's setting
@@ -359,7 +360,8 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     setting measures the setting, not the model). ``held_out_cells`` and
     ``calibrated_cells`` count every cell with a thesis value, ``*_compared`` those the
     medians are over; ``median_withheld`` says in words what was left out and why (None:
-    nothing)."""
+    nothing), each scene by its name in ``names`` (its rows' name -> the printout's:
+    :func:`scene_names`, ``ring`` -> ``thesis/ring``), as the tables name it."""
     nc = {s: list(w) for s, w in (not_comparable or {}).items() if w}
     known = [r for r in rows if r["rel_error"] is not None]
     compared = [r for r in known if str(r["scene"]) not in nc]
@@ -368,8 +370,9 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     withheld = None
     left = {s: w for s, w in nc.items() if any(str(r["scene"]) == s for r in known)}
     if left:
-        what = "; ".join(f"{s} is {', '.join(w)}" for s, w in left.items())
-        withheld = (f"{', '.join(left)} left out, not comparable with the thesis: {what}" if compared
+        shown = {s: (names or {}).get(s, s) for s in left}
+        what = "; ".join(f"{shown[s]} is {', '.join(w)}" for s, w in left.items())
+        withheld = (f"{', '.join(shown.values())} left out, not comparable with the thesis: {what}" if compared
                     else f"not comparable with the thesis: {what}")
     slowest = {}
     cells: dict[tuple[str, str], dict[str, dict]] = {}
@@ -407,9 +410,11 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
     summary: dict = {}
     items: dict[str, dict] = {}
     differ: dict[str, list[str]] = {}  # scene -> how its cells differ from the thesis's setting
+    names: dict[str, str] = {}  # (each scene as the tables name it, for the summary's words too)
 
     def summary_file(rows: list[dict]) -> dict:
-        summary.update(summarize(rows, differ), per_item=items, host_seconds=wall)
+        names.update(names or scene_names(scenes, folder, str(path)))
+        summary.update(summarize(rows, differ, names), per_item=items, host_seconds=wall)
         return {"thesis_summary.json": summary}
 
     # (each cell is judged by its scene file: the identities of that file and of the built-in ones, once)
@@ -442,7 +447,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
 
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
                          marker="thesis_comparison.csv", files=summary_file)
-    return {"rows": rows, "summary": summary, "names": scene_names(scenes, folder, str(path))}
+    return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path))}
 
 
 def _name(scene: str) -> str:

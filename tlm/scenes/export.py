@@ -275,7 +275,8 @@ def _check_ours(path: Path, target: Path, what: str) -> None:
     """An InputError when ``path``, which exporting ``target`` would replace, exists and
     is not a file tlm wrote (a published scene's OBJ, a user's scene file)."""
     if path.exists() and not _written_by_tlm(path):
-        raise InputError(f"{path.name} exists and is not a {what} tlm wrote; the export would replace it: "
+        which = "" if path == target else f"{path.name} "  # (the file named: not said twice)
+        raise InputError(f"{which}exists and is not a {what} tlm wrote; the export would replace it: "
                          f"name another {target.suffix.lower()} file", source=str(target))
 
 
