@@ -59,7 +59,11 @@ def test_a_run_signalled_in_each_phase(phase, sig, tmp_path, monkeypatch, capsys
     out = runs / "r"
     assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 128 + sig
     err = capsys.readouterr().err.strip()
-    assert err == ("tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)")
+    line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
+    if phase == "report":  # (what was kept, and the command that writes the report)
+        line += (f" while writing the report: the run in {out} is kept, whole (results.json and its files); no "
+                 f"report was written (none is left half-written): write it with: tlm report {out}")
+    assert err == line
     if phase == "report":  # the run folder was whole before its report began: it stays, without a report
         assert (out / "results.json").is_file() and not (out / "report").exists()
     else:

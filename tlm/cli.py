@@ -17,6 +17,7 @@ from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_signals import (
+    Interrupted,
     deadlock_line,
     exit_status,
     forget_lost_interrupt,
@@ -37,19 +38,60 @@ def _say(line: str) -> None:
     sys.stdout.flush()
 
 
-def _report_after(args: argparse.Namespace, out: Path) -> None:
-    """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``."""
+def _report_after(args: argparse.Namespace, out: Path, kept: str | None = None) -> None:
+    """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``.
+    ``kept``: what the command wrote there (``the run``): a signal while the report is written
+    then ends the command saying that this is kept, whole, and how to write the report
+    (:func:`_report_interrupted`); the report's own folder is written beside ``OUT/report`` and
+    takes its place at the end (:func:`tlm.storage.atomic_folder`), so none is half written."""
     if getattr(args, "no_report", False):
         return
-    # no other run replaces the folder while its report is written
-    print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
+    try:
+        # no other run replaces the folder while its report is written
+        print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
+    except KeyboardInterrupt as e:
+        if kept is None or isinstance(e, Interrupted):
+            raise
+        raise Interrupted(_report_interrupted(args, out, kept)) from e
+
+
+def _report_interrupted(args: argparse.Namespace, out: Path, kept: str) -> str:
+    """What ``tlm: terminated (SIGTERM)`` (``tlm: interrupted``) says after a signal came while
+    the report of ``out`` was written: ``kept`` (``the run``) is whole, and no report was written
+    (the command that writes it: ``tlm report OUT``, with the ``--formats`` and ``--dpi`` given),
+    or it was, whole, where the signal came as it took its place."""
+    import shlex
+
+    page = out / "report" / "report.html"  # (what api.write_report returns: the page, written last)
+    if page.is_file():  # (the report's folder took its place before the signal's interrupt came)
+        return f"as its report was written: {kept} in {out} and its report ({page}) are complete"
+    command = ["tlm report", shlex.quote(str(out))]
+    command += [f"--{flag} {shlex.quote(str(value))}" for flag in ("formats", "dpi")
+                if (value := getattr(args, flag, None)) is not None]
+    return (f"while writing the report: {kept} in {out} is kept, whole (results.json and its files); no report "
+            f"was written (none is left half-written): write it with: {' '.join(command)}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    """The report of ``args.dirs`` into ``--out`` (default ``DIR/report``), its folder claimed as a run's is
+    (another process's report into it meanwhile is refused, exit 2, naming that process), the first folder
+    locked as the report a run ends with locks it (no run replaces it while it is read)."""
     def note(line: str) -> None:  # (each as it is known: the figures may take a while)
         print(f"tlm: note: {line}", file=sys.stderr, flush=True)
 
-    page = api.write_report(args.dirs, args.out or None, args.title, formats=args.formats, dpi=args.dpi, note=note)
+    out = Path(args.out) if args.out else Path(args.dirs[0]) / "report" if len(args.dirs) == 1 else None
+
+    def write() -> Path:  # (the first folder's lock, unless it is --out itself, which the report's swap locks)
+        lock = out is None or Path(out).resolve() != Path(args.dirs[0]).resolve()
+        return api.write_report(args.dirs, args.out or None, args.title, lock=lock, formats=args.formats,
+                                dpi=args.dpi, note=note)
+
+    if out is None or not all(Path(d).is_dir() for d in args.dirs):
+        page = write()  # (the folders' own error, before any claim: the claim makes the folders on its way)
+    else:
+        storage.check_destination(out, "report.html")  # (a bad --out said as such, before the claim's file beside it)
+        with claims.claimed(out, "report"):
+            page = write()
     print(f"wrote {page}")
     return 0
 
@@ -144,9 +186,13 @@ def _cmd_config(args: argparse.Namespace) -> int:
             print(f"{name:{wide}s}  {runs[name]:{wider}s}  {api.experiment_description(name)}".rstrip())
         return 0
     written = api.export_experiment(args.name, args.file)
-    also = "".join(f" and {p} (its base config, which it names)" for p in written[1:])
-    print(f"wrote {written[0]} (a copy of the built-in experiment {args.name}){also}; "
-          f"run it: tlm {api.experiment_command(args.name)} {written[0]}")
+    file = Path(args.file)  # (not in written: it is already this copy, kept as it was)
+    base = [f"{p} (its base config, which it names)" for p in written if p != file]
+    said = (f"wrote {file} (a copy of the built-in experiment {args.name})" if file in written else
+            f"{file} is already a copy of the built-in experiment {args.name}: kept")
+    if base:
+        said += (" and " if file in written else "; wrote ") + base[0]
+    print(f"{said}; run it: tlm {api.experiment_command(args.name)} {file}")
     return 0
 
 
@@ -173,7 +219,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=_say_err)
         _print_run(args, results, out, skip, overrides, t0)
-        _report_after(args, out)
+        _report_after(args, out, kept="the run")
     return 0
 
 

@@ -260,20 +260,34 @@ def signalled() -> int | None:
     return _SIGNALS[0] if _SIGNALS else None
 
 
-def interrupted(argv: list[str] | None, finished: bool = False) -> int:
+class Interrupted(KeyboardInterrupt):
+    """A signal's interrupt that says what the command kept: ``kept``, the rest of its one line
+    (``tlm: terminated (SIGTERM) while writing the report: the run in runs/x is kept, whole; ...``,
+    :func:`interrupted`). Raised from the KeyboardInterrupt of a stage whose output is apart from
+    what the command wrote before it (a run's report: ``tlm run`` says what to type to write it)."""
+
+    def __init__(self, kept: str) -> None:
+        super().__init__(kept)
+        self.kept = kept
+
+
+def interrupted(argv: list[str] | None, finished: bool = False, kept: str | None = None) -> int:
     """The command was interrupted (SIGINT or SIGTERM): its line, and 128 + the signal.
     ``finished``: the command ran to its end all the same (its interrupt was lost, or came as
-    it returned), so what it wrote is whole and stays: the line says so."""
+    it returned), so what it wrote is whole and stays: the line says so. ``kept``: what the
+    command kept, and how to finish it, said after the signal (:class:`Interrupted`)."""
     sig = _SIGNALS[0] if _SIGNALS else signal.SIGINT
     if argv is None and _SIGNALS:  # the process's own command: a second signal during the
         until_exit(128 + sig)  # interpreter's exit (its pools' clean-up) ends it at once
-    _line(_interrupted_line(sig, finished))
+    _line(_interrupted_line(sig, finished, kept))
     return 128 + sig
 
 
-def _interrupted_line(sig: int, finished: bool) -> str:
+def _interrupted_line(sig: int, finished: bool, kept: str | None = None) -> str:
     line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
-    if finished:
+    if kept:
+        line += f" {kept}"
+    elif finished:
         line += ", but the command ran to its end: its output is complete"
     return line_break(sig) + line
 
@@ -485,7 +499,7 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
         _line(deadlock_line(e))
         return 1
     if isinstance(e, KeyboardInterrupt):
-        return interrupted(argv)
+        return interrupted(argv, kept=getattr(e, "kept", None))
     if isinstance(e, BrokenPipeError):  # the reader went away (``| head``): nothing more to say
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)

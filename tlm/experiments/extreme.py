@@ -270,6 +270,16 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
     raise ValueError(kind)
 
 
+def case_named(e: InputError, source: str, case: str) -> InputError:
+    """``e`` naming the case ``case`` beside the cases file ``source`` (``extreme.yaml (bad-x): ...``),
+    as the config's own checks name it; ``e`` itself where it names another file, or the case already."""
+    if e.source != source:
+        return e
+    where = f"{e.source}: " + (f"{e.key}: " if e.key else "")
+    text = str(e)
+    return InputError(text[len(where):] if text.startswith(where) else text, source=f"{source} ({case})", key=e.key)
+
+
 def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
     """Run every case of ``path`` into ``out``; returns the rows (one per case)."""
     from tlm.experiments.run import run
@@ -286,6 +296,7 @@ def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
             cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
             results = run(cfg, dest, folder, config_path=str(path))
         except InputError as e:
+            e = case_named(e, str(path), c["name"])  # (the run's own checks name the file alone: the case too)
             if want_error:
                 text = checks[0]["error"]
                 ok = text in str(e) and len(str(e).splitlines()) == 1 and not dest.exists()

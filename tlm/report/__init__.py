@@ -111,8 +111,9 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     recorded in their ``eq52.json`` that still exist and are not inputs themselves.
 
     ``note``: gets each of the inputs' notes (:attr:`~tlm.report.collect.Inputs.notes`: a folder
-    passed over, a link not followed, ...) as soon as the inputs are read; None: each is written on
-    stderr (``tlm: note: ...``). The page says them either way.
+    passed over, a link not followed, ...; :attr:`~tlm.report.collect.Inputs.damaged`: a damaged file,
+    left out of the report) as soon as the inputs are read; None: each is written on stderr
+    (``tlm: note: ...``). The page says them either way (the damaged files with the warnings).
     """
     from tlm.experiments.provenance import identities_remembered
 
@@ -127,12 +128,14 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
-    for line in inputs.notes:  # (the folders passed over, said now too: the page may not be read soon)
+    for line in [*inputs.notes, *inputs.damaged]:  # (the folders passed over, the damaged files left out, said
+        # now too: the page may not be read soon)
         if note is not None:
             note(line)
         else:
             sys.stderr.write(f"tlm: note: {line}\n")
     sys.stderr.flush()
+    recorded = scaling_sweeps is None  # (not given: a damaged one is said and left out, as a damaged input is)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
         shown = {sw.path.resolve() for sw in inputs.sweeps}
         scaling_sweeps = []
@@ -146,11 +149,23 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
                 else:
                     inputs.scaling_missing.append(f"{st.path.name}: its sweep {p} is gone: no idle fractions from it")
     if scaling_sweeps:
-        extra = read([Path(d) for d in scaling_sweeps])
+        try:
+            extra = read([Path(d) for d in scaling_sweeps])
+        except InputError as e:
+            if not recorded:
+                raise
+            extra = Inputs([])
+            extra.damaged.append(f"{e}: the idle fractions of the scaling study's sweeps are left out of this report")
         if extra.studies or any(r.kind != "sweep-point" for r in extra.runs):
             raise InputError("a scaling study's sweeps must be sweep folders",
                              source=", ".join(str(d) for d in scaling_sweeps))
         inputs.scaling_sweeps = extra.sweeps
+        for line in extra.damaged:  # (a damaged point of such a sweep: left out of the idle fractions, said)
+            inputs.damaged.append(line)
+            if note is not None:
+                note(line)
+            else:
+                sys.stderr.write(f"tlm: note: {line}\n")
     out = Path(out) if out is not None else default_out(dirs)
     with atomic_folder(out, MARKER) as tmp:
         for name in KEPT_FOLDERS:  # what others wrote into the report's folder stays
@@ -170,7 +185,9 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
         n_fig = len(summary.figures) + sum(len(s.figures) for s in secs)  # (every figure the page embeds)
         studies = ", ".join(sorted({s.kind for s in inputs.studies})) or "none"
         intro = (f"<p>Inputs: {kinds}: {count(len(inputs.runs), 'run')}, {count(len(inputs.sweeps), 'sweep')}, "
-                 f"{count(len(inputs.studies), 'study', 'studies')} ({esc(studies)})."
+                 f"{count(len(inputs.studies), 'study', 'studies')} ({esc(studies)})"
+                 + (f"; {count(len(inputs.damaged), 'damaged file')} left out (see the warnings below)"
+                    if inputs.damaged else "") + "."
                  f" {count(n_fig, 'figure')}, written {esc(datetime.datetime.now().isoformat(timespec='seconds'))} "
                  f"in {time.perf_counter() - t0:.1f} s. {linked(current_output().formats)}</p>")
         intro += "".join(f'<p class="note">{esc(n)}.</p>' for n in inputs.notes)  # (a folder with no tlm output)

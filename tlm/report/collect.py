@@ -22,10 +22,14 @@ a :class:`Run`; the study tables are kept as rows.
 
 A file the sections read is checked here for what they need of it (its columns or keys,
 numbers where they compute): a damaged one, empty, cut off (a study's tables are written
-whole; only ``sweep.jsonl`` is appended to, its last row perhaps cut off by a killed sweep)
-or of another shape, is an :class:`~tlm.errors.InputError` naming the file, before any
-report is written. A sweep row "ok" whose point's ``results.json`` is gone is read as
-``status: missing``.
+whole; only ``sweep.jsonl`` is appended to, its last row perhaps cut off by a killed sweep),
+not JSON where it should be, or of another shape, is an :class:`~tlm.errors.InputError`
+naming the file. :func:`read` leaves out what such a file belongs to (a run, a thesis cell,
+a sweep point, a study, a sweep) and lists it in :attr:`Inputs.damaged` (the page's
+warnings, a note on stderr), so that one damaged copy does not stop the report of the rest;
+where every tlm output given is damaged, the InputError lists them all and no report is
+written. A sweep row "ok" whose point's ``results.json`` is gone is read as
+``status: missing``; one whose ``results.json`` is damaged, as ``status: damaged``.
 """
 
 from __future__ import annotations
@@ -162,12 +166,28 @@ class Inputs:
     # what the report says of the folders it was given (:func:`find`): a folder under one with no tlm output in it,
     # a link out of it to a folder that is no tlm folder (not followed), a folder that could not be listed
     notes: list[str] = field(default_factory=list)
+    # the damaged files among the inputs, each a line naming the file, its damage, what to do and what the
+    # report leaves out for it (:func:`read`); the page lists them with the warnings, stderr as notes
+    damaged: list[str] = field(default_factory=list)
 
     def of_kind(self, kind: str) -> list[Study]:
         return [s for s in self.studies if s.kind == kind]
 
     def _all_runs(self) -> list[Run]:
         return [*self.runs, *(r for sw in self.scaling_sweeps for r in sw.runs)]
+
+    def unread_cases(self) -> str:
+        """What a section that draws runs says of the extreme studies' cases, which are simulated
+        but not read as runs (each is a run folder under ``cases/``: ``tlm report`` of that folder
+        draws them); "" where the inputs have no extreme case."""
+        studies = [(st, len(st.rows)) for st in self.of_kind("extreme") if st.rows]
+        if not studies:
+            return ""
+        n = sum(k for _, k in studies)
+        return (f"the {n} case{'s' * (n != 1)} of the extreme stud{'ies' if len(studies) > 1 else 'y'} "
+                f"({', '.join(str(st.path) for st, _ in studies)}) were simulated, but this report reads only "
+                "their expected and measured behaviour (§8): each case is a run folder under cases/, which "
+                f"'tlm report {studies[0][0].path / 'cases'}' draws")
 
     def scene_of_file(self, source: Any, name: Any = None) -> str:
         """The report's name (:func:`scene_label`) of the scene file ``source``: that of the runs
@@ -203,10 +223,24 @@ class Inputs:
 
 
 def _json(path: Path) -> Any:
+    """A JSON file tlm writes whole: an :class:`InputError` naming it where it cannot be read or
+    is not JSON (empty, cut off, edited: a damaged copy)."""
     try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError) as e:
-        raise InputError(f"cannot read: {e}", source=str(path)) from None
+        text = path.read_text()
+    except (OSError, ValueError) as e:  # (ValueError: not text, UnicodeDecodeError)
+        raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
+    if not text.strip():
+        raise InputError("is empty (cannot read it as JSON): a damaged copy (tlm writes it whole)", source=str(path))
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        cut = not text.rstrip().endswith(("}", "]"))  # (tlm's JSON files are an object or a list: it ends early)
+        raise InputError(f"is {'cut off' if cut else 'not valid JSON'} (cannot read it as JSON: {e.msg}: line "
+                         f"{e.lineno} column {e.colno}): a damaged copy (tlm writes it whole)",
+                         source=str(path)) from None
+    except ValueError as e:
+        raise InputError(f"is not valid JSON (cannot read it as JSON: {e}): a damaged copy (tlm writes it whole)",
+                         source=str(path)) from None
 
 
 def _whole_file(path: Path) -> str:
@@ -349,9 +383,16 @@ def _eq52(path: Path, rows: list[dict]) -> dict:
 
 def _yaml(path: Path) -> Any:
     try:
-        return yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as e:
-        raise InputError(f"cannot read: {str(e).splitlines()[0]}", source=str(path)) from None
+        text = path.read_text()
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        at = f": line {mark.line + 1} column {mark.column + 1}" if mark is not None else ""
+        raise InputError(f"is not valid YAML (cannot read: {str(getattr(e, 'problem', None) or e).splitlines()[0]}"
+                         f"{at}): a damaged or edited copy (tlm writes it whole)", source=str(path)) from None
 
 
 def _run(folder: Path, label: str, kind: str) -> Run:
@@ -472,53 +513,16 @@ def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
 
     labelled: list[tuple[Run, Any]] = []  # each run and how its label reads, given its scene's name
 
+    damaged: list[str] = []  # (each damaged folder's error, with what to do)
     for folder, kind in folders:
-        if kind == "run":
-            run = _run(folder, "", "run")
-            labelled.append((run, lambda r, name=run_names[folder]: f"{name}: {r.scene_label}/{r.mode}"))
-            inputs.runs.append(run)
-        elif kind == "thesis":
-            rows = _thesis_rows(folder / "thesis_comparison.csv")
-            summary_path = folder / "thesis_summary.json"
-            summary = _thesis_summary(summary_path) if summary_path.is_file() else {}
-            inputs.studies.append(Study("thesis", folder, rows, summary))
-            _study_records(inputs.studies[-1], folder)
-            for cell in sorted(folder.glob("*/*/results.json")):
-                run = _run(cell.parent, "", "thesis")
-                labelled.append((run, lambda r: f"{r.scene_label}/{r.mode}"))
-                inputs.runs.append(run)
-        elif kind == "sweep":
-            spec = _yaml(folder / "sweep.yaml") or {}
-            _check(spec, folder / "sweep.yaml", None, "a tlm sweep's record", {},
-                   {"points": LIST_OR_NONE, "grid": MAPPING_OR_NONE, "zip": MAPPING_OR_NONE})
-            rows = []
-            if (folder / "sweep.jsonl").is_file():  # (appended point by point: a last row cut off is left out)
-                rows = _rows_checked(folder / "sweep.jsonl", read_jsonl(folder / "sweep.jsonl"), "a tlm sweep's row",
-                                     {}, SWEEP_ROW_OPTIONAL)
-            planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
-            if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
-                rows = [r for r in rows if str(r.get("hash")) in planned]
-            runs, sweep_runs = [], []
-            for i, row in enumerate(rows if (folder / "points").is_dir() else []):  # (rows alone: no results)
-                point = folder / "points" / str(row.get("hash"))
-                if row.get("status") == "ok" and not (point / "results.json").is_file():
-                    # a point whose results are gone is not ok ('tlm scaling' refuses the sweep): the report says so
-                    rows[i] = {**row, "status": "missing", "error": f"its results.json is missing "
-                               f"({point / 'results.json'}): the same 'tlm sweep' command runs it again"}
-            for row in sorted(rows, key=lambda r: r.get("point", 0)):
-                point = folder / "points" / str(row.get("hash"))
-                if row.get("status") != "ok" or not (point / "results.json").is_file():
-                    continue
-                run = _run(point, "", "sweep-point")
-                run.factors = dict(run.results.get("factors") or {})
-                sweep_runs.append((run, row.get("point")))
-                runs.append(run)
-            inputs.sweeps.append(Sweep(folder, spec, rows, runs))
-            labelled.extend((run, lambda r, sw=inputs.sweeps[-1], point=point: f"{sw.label} #{point}")
-                            for run, point in sweep_runs)
-            inputs.runs.extend(runs)
-        else:
-            _study(inputs, folder, kind)
+        try:
+            _folder(inputs, folder, kind, run_names.get(folder, ""), labelled)
+        except InputError as e:  # (nothing of the folder was kept: said, and the rest is reported)
+            damaged.append(_damage_line(e, AGAIN.get(kind)))
+            inputs.damaged.append(f"{damaged[-1]}: {LEFT_OUT[kind].format(folder=folder)}")
+    if damaged and not (inputs.runs or inputs.sweeps or inputs.studies):  # (nothing left to report)
+        raise InputError(damaged[0] if len(damaged) == 1 else f"every tlm output given is damaged ({len(damaged)} "
+                         "folders), so no report is written: " + "; ".join(damaged))
     for sw, label in zip(inputs.sweeps, path_labels([sw.path for sw in inputs.sweeps]), strict=True):
         sw.label = label  # (before the labels of its points, which name it)
     name_scenes(inputs.runs)
@@ -527,23 +531,115 @@ def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
     return inputs
 
 
+# what the report leaves out for a damaged file of a folder of each kind, and what to do about it
+LEFT_OUT = {"run": "the run {folder} is left out of this report",
+            "thesis": "the thesis study {folder} (its tables and its cells) is left out of this report",
+            "sweep": "the sweep {folder} is left out of this report",
+            "scaling": "the scaling study {folder} is left out of this report",
+            "granularity": "the granularity study {folder} is left out of this report",
+            "extreme": "the extreme cases {folder} are left out of this report",
+            "error-vs-cost": "the error-vs-cost study {folder} is left out of this report",
+            "cell": "its thesis cell {folder} is left out of this report (the thesis tables still show it)",
+            "point": "its sweep point {folder} is left out of this report (the sweep's table says 'damaged')"}
+AGAIN = {"run": "run it again", "cell": "run the study again", "point": "run the sweep again (tlm sweep with "
+         "its sweep file and --out)", "sweep": "run the sweep again"}
+
+
+def _damage_line(e: InputError, again: str | None) -> str:
+    """What the report says of a damaged file: its error, and what to do where it does not say."""
+    text = str(e)
+    return text if "again" in text else f"{text}; copy it again or {again or 'run the study again'}"
+
+
+def _folder(inputs: Inputs, folder: Path, kind: str, run_name: str, labelled: list[tuple[Run, Any]]) -> None:
+    """Read the tlm ``folder`` of ``kind`` into ``inputs`` (its runs labelled in ``labelled``), or
+    nothing of it: an :class:`InputError` naming its damaged file. A damaged thesis cell or sweep point
+    leaves out that cell or point alone (in :attr:`Inputs.damaged`)."""
+    if kind == "run":
+        run = _run(folder, "", "run")
+        labelled.append((run, lambda r, name=run_name: f"{name}: {r.scene_label}/{r.mode}"))
+        inputs.runs.append(run)
+    elif kind == "thesis":
+        rows = _thesis_rows(folder / "thesis_comparison.csv")
+        summary_path = folder / "thesis_summary.json"
+        summary = _thesis_summary(summary_path) if summary_path.is_file() else {}
+        study = Study("thesis", folder, rows, summary)
+        _study_records(study, folder)
+        cells, damaged = [], []
+        for cell in sorted(folder.glob("*/*/results.json")):
+            try:
+                cells.append(_run(cell.parent, "", "thesis"))
+            except InputError as e:
+                damaged.append(f"{_damage_line(e, AGAIN['cell'])}: {LEFT_OUT['cell'].format(folder=cell.parent)}")
+        inputs.studies.append(study)
+        inputs.damaged.extend(damaged)
+        labelled.extend((run, lambda r: f"{r.scene_label}/{r.mode}") for run in cells)
+        inputs.runs.extend(cells)
+    elif kind == "sweep":
+        _sweep(inputs, folder, labelled)
+    else:
+        _study(inputs, folder, kind)
+
+
+def _sweep(inputs: Inputs, folder: Path, labelled: list[tuple[Run, Any]]) -> None:
+    """The sweep ``folder`` into ``inputs`` (:func:`_folder`)."""
+    spec = _yaml(folder / "sweep.yaml") or {}
+    _check(spec, folder / "sweep.yaml", None, "a tlm sweep's record", {},
+           {"points": LIST_OR_NONE, "grid": MAPPING_OR_NONE, "zip": MAPPING_OR_NONE})
+    rows = []
+    if (folder / "sweep.jsonl").is_file():  # (appended point by point: a last row cut off is left out)
+        rows = _rows_checked(folder / "sweep.jsonl", read_jsonl(folder / "sweep.jsonl"), "a tlm sweep's row",
+                             {}, SWEEP_ROW_OPTIONAL)
+    planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
+    if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
+        rows = [r for r in rows if str(r.get("hash")) in planned]
+    runs, sweep_runs, damaged = [], [], []
+    for i, row in enumerate(rows if (folder / "points").is_dir() else []):  # (rows alone: no results)
+        point = folder / "points" / str(row.get("hash"))
+        if row.get("status") != "ok":
+            continue
+        if not (point / "results.json").is_file():
+            # a point whose results are gone is not ok ('tlm scaling' refuses the sweep): the report says so
+            rows[i] = {**row, "status": "missing", "error": f"its results.json is missing "
+                       f"({point / 'results.json'}): the same 'tlm sweep' command runs it again"}
+            continue
+        try:
+            run = _run(point, "", "sweep-point")
+        except InputError as e:  # (the point is not ok: the table says why, the warnings name the file)
+            damaged.append(f"{_damage_line(e, AGAIN['point'])}: {LEFT_OUT['point'].format(folder=point)}")
+            rows[i] = {**row, "status": "damaged", "error": f"{e}"}
+            continue
+        run.factors = dict(run.results.get("factors") or {})
+        sweep_runs.append((run, row.get("point"), i))
+    sweep_runs.sort(key=lambda t: rows[t[2]].get("point", 0))
+    runs = [run for run, _, _ in sweep_runs]
+    inputs.sweeps.append(Sweep(folder, spec, rows, runs))
+    inputs.damaged.extend(damaged)
+    labelled.extend((run, lambda r, sw=inputs.sweeps[-1], point=point: f"{sw.label} #{point}")
+                    for run, point, _ in sweep_runs)
+    inputs.runs.extend(runs)
+
+
 def _study(inputs: Inputs, folder: Path, kind: str) -> None:
     if kind == "scaling":
         rows = (_csv_rows(folder / "eq52.csv", "a row of a tlm eq. 5.2 table", SCALING_COLUMNS, SCALING_OPTIONAL)
                 if (folder / "eq52.csv").is_file() else [])
-        inputs.studies.append(Study("scaling", folder, rows, _eq52(folder / "eq52.json", rows)))
+        study = Study("scaling", folder, rows, _eq52(folder / "eq52.json", rows))
     elif kind == "granularity":
         path = folder / "granularity.jsonl"
-        inputs.studies.append(Study("granularity", folder, [row for _, row in _study_jsonl(path)]))
+        study = Study("granularity", folder, [row for _, row in _study_jsonl(path)])
     elif kind == "extreme":
         path = folder / "extreme.jsonl"
-        inputs.studies.append(Study("extreme", folder, _rows_checked(path, _study_jsonl(path),
-                                                                     "a tlm extreme case's row", EXTREME_KEYS)))
+        study = Study("extreme", folder, _rows_checked(path, _study_jsonl(path), "a tlm extreme case's row",
+                                                       EXTREME_KEYS))
     elif kind == "error-vs-cost":
         path = folder / "rows.jsonl"
         rows = _rows_checked(path, _study_jsonl(path), "a tlm error-vs-cost row", ERROR_COST_KEYS, ERROR_COST_OPTIONAL)
-        inputs.studies.append(Study("error-vs-cost", folder, rows, {"reference": _json(folder / "reference.json")}))
-    _study_records(inputs.studies[-1], folder)
+        study = Study("error-vs-cost", folder, rows, {"reference": _json(folder / "reference.json")})
+    else:
+        return
+    _study_records(study, folder)  # (a damaged record: nothing of the study kept)
+    inputs.studies.append(study)
 
 
 def _study_records(study: Study, folder: Path) -> None:

@@ -513,7 +513,9 @@ def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
 def cycles_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("cycles", "Where the cycles go")
     if not inputs.runs:
-        sec.absent = "no run, thesis or sweep folder among the inputs (nothing was simulated)"
+        cases = inputs.unread_cases()
+        sec.absent = ("no run, thesis or sweep folder among the inputs" + (f"; {cases}" if cases else
+                                                                           " (nothing was simulated)"))
         return sec
     runs, notes = select_runs(inputs)
     sec.notes.extend(notes)

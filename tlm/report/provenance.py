@@ -55,22 +55,60 @@ def _code(r: dict) -> str:
     return f"{rev} ({', '.join(more)})" if more else rev
 
 
-def _run_row(run: Run) -> list[str]:
+def _run_row(run: Run, shared: dict[str, float] | None = None) -> list[str]:
+    """A run's row. Its host seconds: a sweep point's render (``functional.render_host_seconds``) is
+    said as part of them where the point rendered (its ``host_seconds.functional`` was measured
+    around it), beside them where the render was cached (done before, by another point or run);
+    ``shared``: the stages of a thesis cell that its scene's other cells record too (one render)."""
     r = run.results
     host = _seconds(r.get("host_seconds"))
     render = (r.get("functional") or {}).get("render_host_seconds")
     if render:
-        host = f"{host} (+ {_seconds(render)} render, {'cached' if r['functional'].get('cached') else 'this point'})"
+        host = (f"{host} (+ {_seconds(render)} render, cached)" if r["functional"].get("cached") else
+                f"{host} (of which {_seconds(render)} render)")
+    elif shared:
+        host = f"{host} (of which {_seconds(shared)} shared with its scene's other modes)"
     return [run.label, run.kind, str(run.path), str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
+
+
+def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
+    """Per thesis cell (its index in ``runs``), the stages of its ``host_seconds`` that another cell of
+    the same study and scene records with the same seconds: the scene's one render (its load, BSP,
+    casts and the passes both modes ran), timed once and recorded in each cell that uses it."""
+    groups: dict[str, list[int]] = {}
+    for i, run in enumerate(runs):
+        if run.kind == "thesis" and isinstance(run.results.get("host_seconds"), dict):
+            groups.setdefault(str(run.path.parent.resolve()), []).append(i)
+    out: dict[int, dict[str, float]] = {}
+    for members in groups.values():
+        for i in members:
+            mine = runs[i].results["host_seconds"]
+            same = {k: v for k, v in mine.items() if k != "simulate" and isinstance(v, int | float) and v > 0
+                    and any(runs[j].results["host_seconds"].get(k) == v for j in members if j != i)}
+            if same:
+                out[i] = same
+    return out
 
 
 def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
     head = ["run", "kind", "folder", "seed", "git revision", "versions", "host s"]
-    parts = ["<table><tr>" + "".join(f'<th class="l">{esc(h)}</th>' for h in head) + "</tr>"]
-    for run in inputs.runs:
-        parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in _run_row(run)) + "</tr>")
-    parts.append("</table>")
+    parts = []
+    if inputs.runs:
+        shared = shared_stages(inputs.runs)
+        parts.append("<table><tr>" + "".join(f'<th class="l">{esc(h)}</th>' for h in head) + "</tr>")
+        for i, run in enumerate(inputs.runs):
+            parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in _run_row(run, shared.get(i)))
+                         + "</tr>")
+        parts.append("</table>")
+        if shared:
+            sec.notes.append("A thesis study renders each scene once for all its modes: each cell's host seconds "
+                             "count that render (the part said as shared with its scene's other modes), so its "
+                             "cells sum to more than the study's host seconds (its line below), which count the "
+                             "render once.")
+    else:
+        cases = inputs.unread_cases()
+        parts.append(f"<p>No run among the inputs{'; ' + esc(cases) if cases else ''}.</p>")
     for run in inputs.runs[:MAX_CONFIGS]:
         parts.append(f"<details><summary>{esc(run.label)}: resolved config</summary><pre>"
                      f"{esc(yaml.safe_dump(run.config, sort_keys=False))}</pre></details>")

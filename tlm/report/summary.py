@@ -85,17 +85,25 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         theirs = {}
     ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
     if not ours:
-        return "No run or thesis study among the inputs: no frame rate to show.", None
+        return _fps_of_points(inputs), None
     scenes = sorted({s for s, _ in ours}, key=_scene_order)
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
-    width = 0.8 / 4
-    for j, mode in enumerate(MODES):
-        xs = [i + (j - 1.5) * width for i in range(len(scenes))]
-        ax.bar(xs, [ours.get((s, mode), 0) for s in scenes], width, label=MODE_NAMES[mode], **bar_style(j))
-        th = [theirs.get((s, mode)) for s in scenes]
-        ax.plot([x for x, t in zip(xs, th, strict=True) if t], [t for t in th if t], "k_", markersize=11,
-                markeredgewidth=2, label="thesis" if j == 0 and any(th) else None)
+    drawn_modes = [m for m in MODES if any((s, m) in ours for s in scenes)]  # (the legend names the bars drawn)
+    drawn_modes += sorted({m for _, m in ours} - set(MODES))
+    width = 0.8 / len(drawn_modes)
+    ticks = 0  # the thesis's values drawn
+    for j, mode in enumerate(drawn_modes):
+        xs = [i + (j - (len(drawn_modes) - 1) / 2) * width for i in range(len(scenes))]
+        ax.bar(xs, [ours.get((s, mode), 0) for s in scenes], width, label=MODE_NAMES.get(mode, mode),
+               **bar_style(MODES.index(mode) if mode in MODES else j))
+        th = [theirs.get((s, mode)) if (s, mode) in ours else None for s in scenes]
+        at = [(x, t) for x, t in zip(xs, th, strict=True) if t]
+        if at:  # a black tick on a white one: seen on a black bar, a white one and the background alike
+            ax.plot([x for x, _ in at], [t for _, t in at], "_", color="white", markersize=13, markeredgewidth=5)
+            ax.plot([x for x, _ in at], [t for _, t in at], "k_", markersize=11, markeredgewidth=2,
+                    label=None if ticks else "thesis")
+            ticks += len(at)
     ax.set_xticks(range(len(scenes)), scenes)
     ax.set_yscale("log")
     ax.set_ylabel("frames per second")
@@ -105,7 +113,7 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     f = save(fig, out, "summary_fps.png", "Frames per second",
              (f"bars: ours, the frames of {which}, at the simulated clock" if thesis
               else "bars: ours at the simulated clock")
-             + "; black ticks: the thesis's Tables I–III"
+             + ("; black ticks edged in white: the thesis's Tables I–III" if ticks else "")
              + (f"; {_count(len(others), 'other run')} among the inputs not drawn ("
                 + ("its frame rate is" if len(others) == 1 else "their frame rates are") + " in the text)"
                 if others else ""))
@@ -140,6 +148,24 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def _number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
+
+
+def _fps_of_points(inputs: Inputs) -> str:
+    """What "How fast" says with no run or thesis study to draw: the sweep points' frame rates, where
+    the inputs have any (§4 draws them against each factor), else that there is none."""
+    points = [r for r in inputs.runs if r.kind == "sweep-point" and _number(r.results.get("fps"))
+              and r.results["fps"] > 0]
+    if not points:
+        return "No run, thesis study or finished sweep point among the inputs: no frame rate to show."
+    lo, hi = min(points, key=lambda r: r.results["fps"]), max(points, key=lambda r: r.results["fps"])
+    rng = (f"{lo.results['fps']:.3g} FPS" if lo is hi else
+           f"from {lo.results['fps']:.3g} FPS ({esc(lo.label)}) to {hi.results['fps']:.3g} FPS ({esc(hi.label)})")
+    return (f"<b>How fast:</b> no run or thesis study among the inputs to draw per scene and mode; the "
+            f"{_count(len(points), 'sweep point')} run {rng} (§4 draws them against each factor).")
+
+
 def _scene_order(label: str) -> tuple:
     """The thesis's scenes first, in the order of its tables (ring, room, Cornell), then the others."""
     order = list(THESIS_SCENES.values())
@@ -164,7 +190,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             if THESIS_SCENES.get(r.scene) == r.scene_label:  # (the thesis's scene: its slowest PM is known)
                 cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
     if not cells:
-        return "No run records its units' busy fractions: no bottleneck to show.", None
+        return _bottleneck_of_points(inputs), None
     thesis = inputs.of_kind("thesis")
     slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
     keys = sorted(cells, key=lambda k: (_scene_order(k[0]), MODES.index(k[1]) if k[1] in MODES else 9))
@@ -172,32 +198,73 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     fig = new_figure(SIZE[0], max(SIZE[1], 0.22 * len(keys) + 0.9))
     ax = fig.add_subplot()
     ax.imshow(grid, cmap="Greys", vmin=0, vmax=1, aspect="auto")
+    marked = 0  # the thesis's slowest PMs drawn
     for i, k in enumerate(keys):
         for j, pm in enumerate(PMS):
             v = grid[i, j]
             mark = ""
-            if k in cell_of and slowest.get(cell_of[k], {}).get("thesis") == PM_METRIC[pm]:
+            if k in cell_of and (slowest.get(cell_of[k]) or {}).get("thesis") == PM_METRIC[pm]:
                 mark = " ▲"
+                marked += 1
             ax.text(j, i, f"{100 * v:.0f}%{mark}", ha="center", va="center", fontsize=7,
                     color="white" if v > 0.55 else "black", fontweight="bold" if j == grid[i].argmax() else None)
     ax.set_xticks(range(len(PMS)), [PM_METRIC[p] for p in PMS])
     ax.set_yticks(range(len(keys)), [f"{s} {MODE_NAMES.get(m, m)}" for s, m in keys], fontsize=7)
     f = save(fig, out, "summary_bottleneck.png", "Busy share per PM",
-             "each cell: busy cycles / elapsed cycles of the PM; bold: our bottleneck; ▲: the thesis's slowest PM")
+             "each cell: busy cycles / elapsed cycles of the PM; bold: our bottleneck"
+             + ("; ▲: the thesis's slowest PM" if marked else ""))
     tops = defaultdict(int)
     for k in keys:
         tops[PMS[int(np.argmax(grid[keys.index(k)]))]] += 1
-    top = max(tops, key=tops.get)
-    share = [cells[k][top] for k in keys if PMS[int(np.argmax([cells[k][p] for p in PMS]))] == top]
+    most = max(tops.values())
+    top = [pm for pm in PMS if tops[pm] == most]  # (PM order: a tie is said as one, not one of it at random)
+    share = [cells[k][pm] for pm in top for k in keys if PMS[int(np.argmax([cells[k][p] for p in PMS]))] == pm]
     low, high = f"{100 * min(share):.0f}", f"{100 * max(share):.0f}"  # (one value, or all alike: said once)
-    where = (f"the only scene-mode, busy {high}%" if len(keys) == 1 else
-             f"{tops[top]} of {len(keys)} scene-modes, busy {low if low == high else f'{low}–{high}'}%")
-    text = f"<b>What limits it:</b> the {PM_METRIC[top]} PM is the bottleneck in {where} of the time."
+    busy = f"busy {low if low == high else f'{low}–{high}'}%"
+    if len(keys) == 1:
+        text = f"<b>What limits it:</b> the {PM_METRIC[top[0]]} PM is the bottleneck in the only scene-mode, busy " \
+               f"{high}% of the time."
+    elif len(top) == 1:
+        text = (f"<b>What limits it:</b> the {PM_METRIC[top[0]]} PM is the bottleneck in {most} of {len(keys)} "
+                f"scene-modes, {busy} of the time.")
+    else:
+        names = ", ".join(PM_METRIC[pm] for pm in top[:-1]) + f" and {PM_METRIC[top[-1]]}"
+        text = (f"<b>What limits it:</b> no one PM: each of {names} is the bottleneck in {most} of {len(keys)} "
+                f"scene-modes, {busy} of the time there.")
     if slowest:
         m = sum(v["match"] for v in slowest.values())
         text += (f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes." if len(slowest) > 1 else
                  f" The slowest PM is {'' if m else 'not '}the thesis's.")
     return text, f
+
+
+def _busy(r: Run) -> dict[str, float] | None:
+    """The busy share of each PM of pipeline 0 that ``r`` records; None where it lacks one."""
+    units = (r.results.get("timing") or {}).get("units") or {}
+    busy = {pm: units[f"pipe0.{pm}"]["fractions"].get("busy") for pm in PMS
+            if isinstance(units.get(f"pipe0.{pm}"), dict) and isinstance(units[f"pipe0.{pm}"].get("fractions"), dict)}
+    return busy if len(busy) == len(PMS) and all(_number(v) for v in busy.values()) else None
+
+
+def _bottleneck_of_points(inputs: Inputs) -> str:
+    """What "What limits it" says with no run or thesis cell to draw: the bottleneck PM of the sweep
+    points that record their busy fractions, where any do, else that none does."""
+    busy = [b for r in inputs.runs if r.kind == "sweep-point" and (b := _busy(r)) is not None]
+    if not busy:
+        return "No run, thesis cell or sweep point records its units' busy fractions: no bottleneck to show."
+    tops = defaultdict(list)
+    for b in busy:
+        pm = max(PMS, key=lambda p: b[p])  # (the first of PM order on a tie)
+        tops[pm].append(b[pm])
+    each = "; ".join(f"{PM_METRIC[pm]} in {len(tops[pm])}, busy {_percent_range(tops[pm])}"
+                     for pm in sorted(tops, key=lambda p: (-len(tops[p]), PMS.index(p))))
+    return (f"<b>What limits it:</b> no run or thesis study among the inputs to draw; the bottleneck PM of the "
+            f"{_count(len(busy), 'sweep point')}: {each} of the time.")
+
+
+def _percent_range(shares: list[float]) -> str:
+    low, high = f"{100 * min(shares):.0f}", f"{100 * max(shares):.0f}"
+    return f"{low if low == high else f'{low}–{high}'}%"
 
 
 def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
@@ -252,7 +319,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     err = "truth_rel_mse" if any(r.get("truth_rel_mse") is not None for r in rows) else "rel_mse"
     rows = [r for r in rows if r.get(err) is not None and r.get("frame_seconds")]
     if not rows:
-        return "No error-against-cost study among the inputs: no error to show.", None
+        return _other_errors(inputs), None
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
     series = [_series(r) for r in sorted(rows, key=lambda r: (str(r["filter"]), _gather_rays(r)))]
@@ -284,6 +351,25 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             + ", ".join(f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
                         if k in best and best[k] is not lo) + ".")
     return text, f
+
+
+def _other_errors(inputs: Inputs) -> str:
+    """What "What quality costs" says with no error-against-cost rows to draw: the errors the page
+    shows elsewhere (a run's photon-map error in §2, the granularity study's cycle error in §6)."""
+    runs = [r for r in inputs.runs if r.images is not None and (r.results.get("error") or {}).get("available")
+            and _number((r.results.get("error") or {}).get("rmse"))]
+    shown = []
+    if runs:
+        rmse = [r.results["error"]["rmse"] for r in runs]
+        lo, hi = f"{min(rmse):.3g}", f"{max(rmse):.3g}"
+        shown.append(f"§2 shows the photon-map error of {_count(len(runs), 'run')} against its reference (RMSE "
+                     f"{lo if lo == hi else f'{lo}–{hi}'})")
+    if inputs.of_kind("granularity"):
+        shown.append("§6 shows the TLM cycle error of the granularity study against host time")
+    if not shown:
+        return "No error-against-cost study among the inputs: no error to show."
+    return ("<b>What quality costs:</b> no error-against-cost study among the inputs: no image error against run "
+            f"time; {'; '.join(shown)}.")
 
 
 def _moves_with(rows: list[dict], k: str, factors: list[str]) -> list[str]:

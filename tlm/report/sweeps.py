@@ -174,6 +174,11 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
     if nulls:
         values = [v for v in values if v is not None]
     numeric = all_numbers([r.get(factor) for r in ok if not (nulls and r.get(factor) is None)])
+    if not numeric:  # categories in the sweep's order (its points are numbered in its grid's order), not by name
+        first: dict = {}
+        for r in sorted(ok, key=lambda r: order_key(r.get("point"))):
+            first.setdefault(hashable(r.get(factor)), len(first))
+        values = sorted(values, key=lambda v: first.get(v, len(first)))
     series: dict[tuple, dict] = defaultdict(dict)
     for r in ok:
         if not (nulls and r.get(factor) is None):

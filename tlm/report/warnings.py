@@ -26,11 +26,24 @@ def recorded(inputs: Inputs) -> list[tuple[str, list[str]]]:
     return list(found.items())
 
 
-def warnings_html(inputs: Inputs) -> str:
-    """The block under the report's inputs line; empty when no run recorded a warning."""
-    found = recorded(inputs)
-    if not found:
+def damaged_html(inputs: Inputs) -> str:
+    """The damaged files among the inputs (:attr:`~tlm.report.collect.Inputs.damaged`), each with
+    what to do and what the report leaves out for it; "" where none is."""
+    if not inputs.damaged:
         return ""
+    n = len(inputs.damaged)
+    return (f"<p><strong>Damaged inputs.</strong> {n} damaged file{'s' if n > 1 else ''} could not be read; "
+            "what each holds is left out of this report:</p><ul>"
+            + "".join(f"<li>{esc(line)}</li>" for line in inputs.damaged) + "</ul>")
+
+
+def warnings_html(inputs: Inputs) -> str:
+    """The block under the report's inputs line: the damaged files left out (:func:`damaged_html`)
+    and the warnings the runs recorded; empty when there are neither."""
+    found = recorded(inputs)
+    damaged = damaged_html(inputs)
+    if not found:
+        return f'<div class="warnings">{damaged}</div>' if damaged else ""
     total = len(inputs.runs)
     items = []
     for line, labels in found:
@@ -41,6 +54,6 @@ def warnings_html(inputs: Inputs) -> str:
         items.append(f"<li>{esc(line)}<span class=\"note\">{esc(whose)}</span></li>")
     runs = len({label for _, labels in found for label in labels})
     who = "The run" if total == 1 else f"{runs} of the {total} runs"
-    return (f'<div class="warnings"><p><strong>Warnings.</strong> {who} recorded {len(found)} '
+    return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {who} recorded {len(found)} '
             f"warning{'s' if len(found) > 1 else ''} (results.json <code>warnings</code>); read what is drawn "
             "from them with these in mind:</p><ul>" + "".join(items) + "</ul></div>")
