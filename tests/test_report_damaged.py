@@ -1,7 +1,9 @@
 """`tlm report` of damaged study folders, and a damaged Mitsuba ground truth in the cache.
 
 A file the report reads that is empty, cut off, or not of the shape tlm writes is one
-line naming the file (exit 2) and no report folder; a sweep point whose results.json is
+line naming the file; where it is the report's only input, that line is the error (exit 2)
+and no report folder is written (with other inputs, the damaged one is named and left
+out: tests/test_report_probe_mends.py); a sweep point whose results.json is
 gone is not counted as ok. A damaged ground-truth cache entry is a warning naming the
 file, removed and rendered again, never an internal error.
 """

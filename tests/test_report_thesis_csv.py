@@ -3,7 +3,8 @@ first screen's "How fast" sentence saying the pipeline count its runs were simul
 
 A thesis_comparison.csv without a column, without a metric row of a cell, with a row twice,
 a value that is not a (finite) number or not true/false, or no rows is one line naming the
-file (and the column, row or line), exit 2, and no report folder.
+file (and the column, row or line); as the report's only input, exit 2 and no report folder
+(with other inputs it is named and left out: tests/test_report_probe_mends.py).
 """
 
 from __future__ import annotations
