@@ -11,6 +11,8 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from tlm import api, claims, storage
@@ -38,44 +40,106 @@ def _say(line: str) -> None:
     sys.stdout.flush()
 
 
-def _report_after(args: argparse.Namespace, out: Path, kept: str | None = None) -> None:
+def _report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> None:
     """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``.
-    ``kept``: what the command wrote there (``the run``): a signal while the report is written
-    then ends the command saying that this is kept, whole, and how to write the report
-    (:func:`_report_interrupted`); the report's own folder is written beside ``OUT/report`` and
-    takes its place at the end (:func:`tlm.storage.atomic_folder`), so none is half written."""
+    ``kept``: what the command wrote there (``the run``, ``the sweep``), whole before the report
+    begins; ``files``: its files, as the line names them (``results.json and its files``). The
+    report's folder is claimed as ``tlm report`` claims it (:func:`_report_claimed`: a ``tlm
+    report`` into it meanwhile is refused at once), this command's report waiting, said, while
+    another process's is written there (another sweep of the same points into the folder, a
+    ``tlm report`` begun before): its own is of the folder as the command left it. It is written
+    beside ``OUT/report`` and takes its place at the end (:func:`tlm.storage.atomic_folder`), so
+    none is half written. A signal meanwhile ends the command saying that ``kept`` is kept,
+    whole, and how to write the report (:func:`_report_interrupted`)."""
     if getattr(args, "no_report", False):
         return
+    folder = out / "report"
+    begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's folder keeps its last)
     try:
-        # no other run replaces the folder while its report is written
-        print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
+        with _report_claimed(folder, wait=lambda holder: _say_err(
+                f"note: another report is writing into {str(folder)!r} ({holder}): the report of {kept} in {out} "
+                "waits for it to end")):
+            begun, earlier = True, _page_id(folder)
+            # no other run replaces the folder while its report is written
+            print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
     except KeyboardInterrupt as e:
-        if kept is None or isinstance(e, Interrupted):
+        if isinstance(e, Interrupted):
             raise
-        raise Interrupted(_report_interrupted(args, out, kept)) from e
+        raise Interrupted(_report_interrupted(args, out, f"{kept} in {out}", files, earlier if begun else False)) from e
 
 
-def _report_interrupted(args: argparse.Namespace, out: Path, kept: str) -> str:
-    """What ``tlm: terminated (SIGTERM)`` (``tlm: interrupted``) says after a signal came while
-    the report of ``out`` was written: ``kept`` (``the run``) is whole, and no report was written
-    (the command that writes it: ``tlm report OUT``, with the ``--formats`` and ``--dpi`` given),
-    or it was, whole, where the signal came as it took its place."""
+@contextmanager
+def _report_claimed(folder: Path, wait: Callable[[str], None] | None = None) -> Iterator[None]:
+    """A context holding the report folder ``folder`` for this process while a report is written
+    into it (:func:`tlm.claims.claimed`), as ``tlm report`` holds its ``--out`` and a command the
+    ``OUT/report`` of its end (:func:`_report_after`). Where another process holds it: without
+    ``wait`` (``tlm report``), refused at once, exit 2, naming that process (``another report is
+    writing into 'OUT/report' (process ...)``); with it, ``wait`` is told that process, once, and
+    this one waits until the folder is free (the command's own report, of what it just wrote). A
+    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`)."""
+    import re
+
+    storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
+    told = False
+    with ExitStack() as held:
+        while True:
+            try:
+                held.enter_context(claims.claimed(folder, "report"))
+                break
+            except InputError as e:
+                if wait is None:
+                    raise
+                if not told:
+                    holder = re.search(r"\((process [^)]*)\): wait for it", str(e))
+                    wait(holder[1] if holder else "another process")
+                    told = True
+                time.sleep(0.1)
+        yield
+
+
+def _page_id(folder: Path) -> tuple[int, int] | None:
+    """Which ``report.html`` is in the report folder ``folder`` now (its device and inode), None for none."""
+    try:
+        st = (folder / "report.html").stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _report_command(args: argparse.Namespace, out: Path) -> str:
+    """``tlm report OUT`` that writes the report of ``out`` as the command would have (its
+    ``--formats`` and ``--dpi``), ready to paste (quoted for a shell)."""
     import shlex
 
-    page = out / "report" / "report.html"  # (what api.write_report returns: the page, written last)
-    if page.is_file():  # (the report's folder took its place before the signal's interrupt came)
-        return f"as its report was written: {kept} in {out} and its report ({page}) are complete"
     command = ["tlm report", shlex.quote(str(out))]
     command += [f"--{flag} {shlex.quote(str(value))}" for flag in ("formats", "dpi")
                 if (value := getattr(args, flag, None)) is not None]
-    return (f"while writing the report: {kept} in {out} is kept, whole (results.json and its files); no report "
-            f"was written (none is left half-written): write it with: {' '.join(command)}")
+    return " ".join(command)
+
+
+def _report_interrupted(args: argparse.Namespace, out: Path, kept: str, files: str,
+                        earlier: tuple[int, int] | bool | None) -> str:
+    """What ``tlm: terminated (SIGTERM)`` (``tlm: interrupted``) says after a signal came while
+    the report of ``out`` was written: ``kept`` (``the run in OUT``) is whole (``files``), and no
+    report was written (the command that writes it: :func:`_report_command`), an earlier one
+    left as it was (``earlier``: its :func:`_page_id` as this report began; False: it had not
+    begun, waiting for another's); or the report was, whole, where the signal came as it took its
+    place."""
+    page = out / "report" / "report.html"  # (what api.write_report returns: the page, written last)
+    now = _page_id(page.parent)
+    if earlier is not False and now is not None and now != earlier:  # (this report's folder took its place)
+        return f"as its report was written: {kept} and its report ({page}) are complete"
+    left = ("none is left half-written" if now is None else
+            f"none is left half-written; the earlier report in {page.parent} is left as it was")
+    return (f"while writing the report: {kept} is kept, whole ({files}); no report was written ({left}): write "
+            f"it with: {_report_command(args, out)}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
     """The report of ``args.dirs`` into ``--out`` (default ``DIR/report``), its folder claimed as a run's is
-    (another process's report into it meanwhile is refused, exit 2, naming that process), the first folder
-    locked as the report a run ends with locks it (no run replaces it while it is read)."""
+    (another process's report into it meanwhile, this command's or the one a run, sweep or study writes at its
+    end, is refused, exit 2, naming that process: :func:`_report_claimed`), the first folder locked as the
+    report a run ends with locks it (no run replaces it while it is read)."""
     def note(line: str) -> None:  # (each as it is known: the figures may take a while)
         print(f"tlm: note: {line}", file=sys.stderr, flush=True)
 
@@ -89,8 +153,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if out is None or not all(Path(d).is_dir() for d in args.dirs):
         page = write()  # (the folders' own error, before any claim: the claim makes the folders on its way)
     else:
-        storage.check_destination(out, "report.html")  # (a bad --out said as such, before the claim's file beside it)
-        with claims.claimed(out, "report"):
+        with _report_claimed(out):
             page = write()
     print(f"wrote {page}")
     return 0
@@ -141,7 +204,7 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
     failed = [r["case"] for r in rows if not r["passed"]]
     print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
           + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
-    _report_after(args, out)
+    _report_after(args, out, "the study", "extreme.csv, extreme.jsonl and the cases' run folders")
     return 1 if failed else 0
 
 
@@ -219,7 +282,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=_say_err)
         _print_run(args, results, out, skip, overrides, t0)
-        _report_after(args, out, kept="the run")
+        _report_after(args, out, "the run", "results.json and its files")
     return 0
 
 
@@ -330,7 +393,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     n = len(done.rows)
     print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
           f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
-    _report_after(args, out)
+    _report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
     return 1 if done.failed else 0
 
 
@@ -349,7 +412,7 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
               f"(N = {values_text(f['pipelines'])})")
     print(f"wrote {out}")
-    _report_after(args, out)
+    _report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
     return 0
 
 
@@ -426,7 +489,7 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
 
     rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note)
     print(f"wrote {out} ({len(rows)} rows)")
-    _report_after(args, out)
+    _report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
     return 0
 
 
@@ -472,7 +535,8 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"], done.get("names")))
     print(f"wrote {out}/thesis_comparison.csv")
-    _report_after(args, out)
+    _report_after(args, out, "the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene "
+                  "and mode")
     return 0
 
 
@@ -488,7 +552,7 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
         print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
               f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
     print(f"wrote {out}/granularity.csv")
-    _report_after(args, out)
+    _report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
     return 0
 
 

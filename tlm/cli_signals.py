@@ -264,7 +264,8 @@ class Interrupted(KeyboardInterrupt):
     """A signal's interrupt that says what the command kept: ``kept``, the rest of its one line
     (``tlm: terminated (SIGTERM) while writing the report: the run in runs/x is kept, whole; ...``,
     :func:`interrupted`). Raised from the KeyboardInterrupt of a stage whose output is apart from
-    what the command wrote before it (a run's report: ``tlm run`` says what to type to write it)."""
+    what the command wrote before it (the report a run, sweep or study writes at its end: the line
+    says what is kept and what to type to write the report, :func:`tlm.cli._report_interrupted`)."""
 
     def __init__(self, kept: str) -> None:
         super().__init__(kept)
