@@ -26,6 +26,10 @@ directional light's irradiance: its power follows the scene's bounds), the camer
 resolution and the photon count. ``tlm run`` on it renders what the original scene
 renders. Floats are written as Python's ``repr``, which reads back to the same bits.
 
+The OBJ, its MTL library and the scene file are written together, all or none
+(:func:`write_files`): a full disk or a signal leaves an earlier export of the same name as it
+was, and no file of the new one.
+
 Each triangle is written with its own three vertices (no welding), so face ``i`` of
 the file is triangle id ``i`` of every AOV and BSP leaf, exactly, and the vertex
 positions are the ones the renderer uses.
@@ -42,15 +46,19 @@ header, and they are passed on.
 
 from __future__ import annotations
 
+import itertools
 import json
+import os
 import re
+from collections.abc import Sequence
+from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, environment_problem
 from tlm.scenes.model import Scene
-from tlm.storage import write_atomic, write_file
+from tlm.storage import process_tag, write_atomic, write_file
 
 FORMATS = (".ply", ".obj", ".yaml", ".yml")
 _PLY_NORMALS = "property double nx\nproperty double ny\nproperty double nz\n"  # (a PLY's vertex normals)
@@ -80,11 +88,12 @@ def export_triangles(scene: Scene, path: Path) -> None:
         _check_ours(path, path, "mesh")
     told = notices(scene)
     try:
-        if scene_file:
-            _write(scene, path.with_suffix(".obj"), ".obj", verts, faces, told)
-            write_file(path, scene_yaml(scene, path.with_suffix(".obj").name, told))
-        else:
-            _write(scene, path, suffix, verts, faces, told)
+        if suffix == ".ply":
+            _write_ply(scene, path, verts, faces, told)
+        else:  # (the MTL, the OBJ and the scene file: all of them or none, write_files)
+            mesh = path.with_suffix(".obj")
+            files = _obj_files(scene, mesh, verts, faces, told)
+            write_files([*files, (path, scene_yaml(scene, mesh.name, told))] if scene_file else files)
     except EnvironmentFailure:
         raise
     except OSError as e:  # (a folder that takes no files: /proc, a special file system)
@@ -185,58 +194,110 @@ def _comments(prefix: str, lines: list[str]) -> str:
     return "".join(f"{prefix}{line}\n" for line in lines)
 
 
-def _write(scene: Scene, path: Path, suffix: str, verts: np.ndarray, faces: np.ndarray,
-           told: list[str] | tuple[str, ...] = ()) -> None:
-    n = faces.shape[0]
-    told = list(told)
-    if suffix == ".ply":
-        from tlm.scenes.plyfile import NAME_COMMENT
+def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
+    """Each ``(path, data)`` of ``files`` as the whole of ``path``: all of them, or none.
 
-        names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
-        header = (
-            "ply\nformat binary_little_endian 1.0\n"
-            f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{_comments('comment ', told)}"
-            f"{names}"
-            f"element vertex {3 * n}\nproperty double x\nproperty double y\nproperty double z\n"
-            f"{_PLY_NORMALS if scene.normals is not None else ''}"
-            f"element face {n}\nproperty list uchar int vertex_indices\n"
-            "property int material\nend_header\n"
-        )
-        face_rec = np.zeros(n, dtype=[("k", "u1"), ("v", "<i4", 3), ("m", "<i4")])
-        face_rec["k"] = 3
-        face_rec["v"] = faces
-        face_rec["m"] = scene.material_index
-        with write_atomic(path, "wb") as f:
-            f.write(header.encode())
-            if scene.normals is not None:  # (each vertex is one corner: its normal beside its position)
-                verts = np.concatenate([verts, np.asarray(scene.normals, dtype=np.float64).reshape(-1, 3)], axis=1)
-            f.write(verts.astype("<f8").tobytes())
-            f.write(face_rec.tobytes())
+    Each is written to a hidden file of its own beside its path (``.<name>.new<host>-<pid>-<n>``,
+    written by :func:`tlm.storage.write_file`), and these are renamed onto the paths, in order, only
+    once all are written; an earlier file of a path is moved aside (``.<name>.old<host>-<pid>-<n>``)
+    until all are in place. On any error (a full disk), a signal included, the new files are removed
+    and every path is left as it was: one renamed already gets its earlier file back, or is removed
+    where it had none. A full disk (an OSError of the machine's) is an EnvironmentFailure naming the
+    path that did not fit, not its hidden file."""
+    files = [(Path(p), data) for p, data in files]
+    staged: list[tuple[Path, Path, Path]] = []  # (path, its new file, its earlier file's name while aside)
+    renaming = -1  # (the index of the path being renamed onto; those before it are in place)
+    try:
+        for path, data in files:
+            tag = f"{process_tag()}-{next(_STAGED)}"
+            new, old = path.with_name(f".{path.name}.new{tag}"), path.with_name(f".{path.name}.old{tag}")
+            staged.append((path, new, old))  # (before it exists: a signal after its rename still removes it)
+            try:
+                write_file(new, data)
+            except EnvironmentFailure as e:
+                what = environment_problem(e.__cause__, filename=False) if isinstance(e.__cause__, OSError) else None
+                if what is None:
+                    raise
+                raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from e.__cause__
+        for i, (path, new, old) in enumerate(staged):
+            renaming = i
+            with suppress(FileNotFoundError):  # (none before)
+                os.rename(path, old)
+            os.replace(new, path)
+    except BaseException:
+        for i, (path, new, old) in reversed(list(enumerate(staged))):
+            with suppress(OSError):
+                if i <= renaming and os.path.lexists(old):  # (moved aside: back, over the new file if it came)
+                    os.replace(old, path)
+                elif i <= renaming and not os.path.lexists(new):  # (renamed in where none was before)
+                    path.unlink(missing_ok=True)
+            with suppress(OSError):
+                new.unlink(missing_ok=True)
+        raise
+    for _path, _new, old in staged:
+        with suppress(OSError):
+            old.unlink(missing_ok=True)
+
+
+_STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
+
+
+def _write_ply(scene: Scene, path: Path, verts: np.ndarray, faces: np.ndarray,
+               told: list[str] | tuple[str, ...] = ()) -> None:
+    """The PLY file of the triangles (the module's docstring), written atomically."""
+    from tlm.scenes.plyfile import NAME_COMMENT
+
+    n = faces.shape[0]
+    names = "".join(f"{NAME_COMMENT}{i} {json.dumps(m.name)}\n" for i, m in enumerate(scene.materials))
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"comment tlm scene {_one_line(scene.name)}: face i is triangle id i\n{_comments('comment ', list(told))}"
+        f"{names}"
+        f"element vertex {3 * n}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"{_PLY_NORMALS if scene.normals is not None else ''}"
+        f"element face {n}\nproperty list uchar int vertex_indices\n"
+        "property int material\nend_header\n"
+    )
+    face_rec = np.zeros(n, dtype=[("k", "u1"), ("v", "<i4", 3), ("m", "<i4")])
+    face_rec["k"] = 3
+    face_rec["v"] = faces
+    face_rec["m"] = scene.material_index
+    with write_atomic(path, "wb") as f:
+        f.write(header.encode())
+        if scene.normals is not None:  # (each vertex is one corner: its normal beside its position)
+            verts = np.concatenate([verts, np.asarray(scene.normals, dtype=np.float64).reshape(-1, 3)], axis=1)
+        f.write(verts.astype("<f8").tobytes())
+        f.write(face_rec.tobytes())
+
+
+def _obj_files(scene: Scene, path: Path, verts: np.ndarray, faces: np.ndarray,
+               told: list[str] | tuple[str, ...] = ()) -> list[tuple[Path, str]]:
+    """The OBJ file ``path`` of the triangles and its MTL library beside it (the module's
+    docstring), as ``(path, text)``, the library first, for :func:`write_files`."""
+    n = faces.shape[0]
+    library = path.with_suffix(".mtl")
+    lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", *(f"# {t}" for t in told),
+             f"mtllib {library.name}"]
+    lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
+    normals = scene.normals
+    if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
+        # (as they are: the OBJ reader keeps a unit vn as written, objfile.unit_as_written)
+        corners = np.asarray(normals, dtype=np.float64).reshape(-1, 3).tolist()
+        lines += [f"vn {x!r} {y!r} {z!r}" for x, y, z in corners]
+        face_line = "f {0}//{0} {1}//{1} {2}//{2}".format
     else:
-        library = path.with_suffix(".mtl")
-        lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", *(f"# {t}" for t in told),
-                 f"mtllib {library.name}"]
-        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in verts.tolist()]
-        normals = scene.normals
-        if normals is not None:  # (per corner, in the vertices' order: corner k's normal is vn k)
-            # (as they are: the OBJ reader keeps a unit vn as written, objfile.unit_as_written)
-            corners = np.asarray(normals, dtype=np.float64).reshape(-1, 3).tolist()
-            lines += [f"vn {x!r} {y!r} {z!r}" for x, y, z in corners]
-            face_line = "f {0}//{0} {1}//{1} {2}//{2}".format
-        else:
-            face_line = "f {} {} {}".format
-        part, mat = np.asarray(scene.part), np.asarray(scene.material_index)
-        starts = np.flatnonzero(np.r_[True, (part[1:] != part[:-1]) | (mat[1:] != mat[:-1])])
-        ends = np.r_[starts[1:], n]
-        last_part = None
-        for s, e in zip(starts.tolist(), ends.tolist(), strict=True):  # (one o and usemtl per run)
-            if part[s] != last_part:
-                lines.append(f"o {scene.part_names[part[s]]}")
-                last_part = part[s]
-            lines.append(f"usemtl {scene.materials[mat[s]].name}")
-            lines += [face_line(a + 1, a + 2, a + 3) for a in range(3 * s, 3 * e, 3)]
-        write_file(library, mtl_text(scene, told))
-        write_file(path, "\n".join(lines) + "\n")
+        face_line = "f {} {} {}".format
+    part, mat = np.asarray(scene.part), np.asarray(scene.material_index)
+    starts = np.flatnonzero(np.r_[True, (part[1:] != part[:-1]) | (mat[1:] != mat[:-1])])
+    ends = np.r_[starts[1:], n]
+    last_part = None
+    for s, e in zip(starts.tolist(), ends.tolist(), strict=True):  # (one o and usemtl per run)
+        if part[s] != last_part:
+            lines.append(f"o {scene.part_names[part[s]]}")
+            last_part = part[s]
+        lines.append(f"usemtl {scene.materials[mat[s]].name}")
+        lines += [face_line(a + 1, a + 2, a + 3) for a in range(3 * s, 3 * e, 3)]
+    return [(library, mtl_text(scene, list(told))), (path, "\n".join(lines) + "\n")]
 
 
 def _check_library(scene: Scene, library: Path) -> None:
