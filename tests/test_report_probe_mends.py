@@ -29,6 +29,7 @@ from tlm.cli import main
 from tlm.errors import InputError
 from tlm.report.collect import Inputs, Run, Study, Sweep, read
 from tlm.report.cycles import cycles_section
+from tlm.report.html import section_html
 from tlm.report.provenance import provenance_section
 from tlm.report.summary import PMS, summary_section
 from tlm.report.warnings import warnings_html
@@ -244,6 +245,22 @@ def test_host_seconds_say_what_is_part_of_what(tmp_path):
     assert "1.367 (of which 0.878 render)" in sec.html and "(+ 0.878" not in sec.html
     assert "2.25 (of which 1.75 shared with its scene" in sec.html
     assert any("renders each scene once for all its modes" in n for n in sec.notes)
+
+
+def test_the_shared_render_note_points_where_the_studys_line_is(tmp_path):
+    """The notes come after the section's table and its study lines (html.section): the
+    study's line is above them; without the study among the inputs, its provenance.json."""
+    cells = [Run(tmp_path / "th" / "ring" / mode, f"ring/{mode}", "thesis",
+                 {"scene": {"name": "ring"}, "host_seconds": {"load_scene": 0.25, "build_bsp": 1.5, "simulate": 0.5}},
+                 {}) for mode in ("rcast", "pmap")]
+    study = Study("thesis", tmp_path / "th", [], {"provenance": {"study": "t.yaml", "host_seconds": 2.5}})
+    for studies, where in (([study], "(its line above)"), ([], "(its folder's provenance.json)")):
+        sec = provenance_section(Inputs([], runs=cells, studies=studies), tmp_path)
+        (note,) = [n for n in sec.notes if "renders each scene once" in n]
+        assert f"the study's host seconds {where}, which count" in note and "below" not in note
+        if studies:  # (on the page: the study's line, then the note)
+            page = section_html(1, sec, tmp_path)
+            assert page.index("thesis folder") < page.index("renders each scene once")
 
 
 def test_a_huge_resolution_case_names_its_case(tmp_path, cache):

@@ -92,7 +92,7 @@ def test_a_mesh_file_in_a_scene_slot_says_to_write_a_scene_file(tmp_path, monkey
     for args, said in [(["run", "pawn.glb"], "pawn.glb: is a binary glTF (.glb) mesh file, not a YAML file"),
                        (["run", "c.yaml"], "c.yaml: scene: 'pawn.obj' is an OBJ mesh file, not a scene"),
                        (["run", "c.yaml", "--set", "scene=pawn.glb"], "scene: 'pawn.glb' is a binary glTF"),
-                       (["scene", "show", "pawn.glb"], "scene: 'pawn.glb' is a binary glTF (.glb) mesh file"),
+                       (["scene", "show", "pawn.glb"], "pawn.glb: is a binary glTF (.glb) mesh file, not a scene"),
                        (["scene", "show", "e.yaml"], "extends: 'pawn.glb' is a binary glTF (.glb) mesh file, "
                                                      "not a scene file to extend")]:
         assert main([*args, "--out", str(tmp_path / "out")] if args[0] == "run" else args) == 2, args
@@ -169,3 +169,95 @@ def test_a_mesh_lights_materials_are_a_list(tmp_path):
     assert mesh["materials"] == ["glow", "warm, soft"]  # (in the scene's order of its materials)
     light = next(lt for lt in load_scene(str(path)).lights if lt.kind == "mesh")
     assert light.name == "glow, warm, soft"  # (the text that names it, and its record, as before)
+
+
+def test_a_scene_given_as_a_mesh_file_is_named_once_without_a_key_not_written(tmp_path, monkeypatch, capsys):
+    (tmp_path / "pawn.obj").write_text(OBJ)
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path / "sub")
+    for args in (["scene", "show", "../pawn.obj"], ["scene", "export", "../pawn.obj", "x.ply"]):
+        assert main(args) == 2
+        (line,) = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+        assert line.startswith("tlm: error: ../pawn.obj: is an OBJ mesh file, not a scene: write "
+                               "`geometry: {mesh: pawn.obj}`"), line
+        assert line.count("../pawn.obj") == 1 and ": scene: " not in line
+        assert line.endswith("name that file in its place")
+    assert not (tmp_path / "sub" / "x.ply").exists()
+    with pytest.raises(InputError, match=r"^\.\./pawn\.obj: is an OBJ mesh file, not a scene: "):
+        tlm.load_scene("../pawn.obj")
+
+
+def _lines(text: str, width: int, sep: str) -> str:
+    return sep.join(text[i:i + width] for i in range(0, len(text), width))
+
+
+def test_a_base64_data_uri_with_whitespace_loads_and_garbage_is_refused(tmp_path):
+    b64 = base64.b64encode(BIN).decode()
+    for k, sep in enumerate(["\n", "\r\n", " ", "\n\t "]):  # (MIME breaks lines every 76 characters; here 16)
+        path = tmp_path / f"w{k}.gltf"
+        path.write_text(json.dumps(_gltf({"uri": "data:application/octet-stream;base64," + _lines(b64, 16, sep)})))
+        assert load_mesh(path).triangles.shape == (1, 3, 3), repr(sep)
+    for k, bad in enumerate([b64[:10] + "*" + b64[10:], b64[:-4] + "A=AA", b64[:10] + "\u00a0" + b64[10:]]):
+        path = tmp_path / f"g{k}.gltf"
+        path.write_text(json.dumps(_gltf({"uri": "data:application/octet-stream;base64," + bad})))
+        with pytest.raises(InputError) as e:
+            load_mesh(path)
+        assert str(e.value) == f"{path}: buffers[0].uri: its data URI is not valid base64", bad
+
+
+def test_a_byte_length_short_of_the_bytes_its_data_holds_loads_with_a_note(tmp_path):
+    """The spec calls it invalid, but glTF libraries read the data's bytes: read so, and named
+    in the notes; a view past the bytes really there is still refused."""
+    said = "buffers[0].byteLength = 40 is less than bufferViews[1] reaches (bytes 36 to 48): read from the 48 bytes "
+    uri = "data:application/octet-stream;base64," + base64.b64encode(BIN).decode()
+    for name, buffer, what in [("f.gltf", {"uri": "t.bin"}, "its file 't.bin'"),
+                               ("u.gltf", {"uri": uri}, "its data URI"), ("b.glb", {}, "the BIN chunk")]:
+        (tmp_path / "t.bin").write_bytes(BIN)
+        g = _gltf(buffer)
+        g["buffers"][0]["byteLength"] = 40
+        path = tmp_path / name
+        path.write_bytes(write_glb(g, BIN) if name.endswith(".glb") else json.dumps(g).encode())
+        geom = load_mesh(path)
+        assert geom.triangles.shape == (1, 3, 3) and geom.triangles[0, 1].tolist() == [1.0, 0.0, 0.0]
+        (note,) = geom.notes
+        assert note.startswith(f"{path}: {said}{what} holds") and "byteLength to be the buffer's length" in note
+    # the scene's notes say it (tlm scene show, a run's warnings)
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({
+        "geometry": {"mesh": "f.gltf"}, "default_material": "white",
+        "materials": {"white": {"type": "lambertian", "albedo": [0.5, 0.5, 0.5]}},
+        "camera": {"eye": [0.3, 0.3, 3.0], "target": [0.3, 0.3, 0.0], "vfov": 40.0}, "resolution": [8, 8]}))
+    assert [n for n in tlm.scene_info(str(tmp_path / "s.yaml"))["notes"] if said in n]
+    # a view past the bytes the data holds: refused, by those bytes
+    g = _gltf({"uri": "t.bin"})
+    g["buffers"][0]["byteLength"] = 40
+    g["bufferViews"][1]["byteLength"] = 16
+    (tmp_path / "p.gltf").write_text(json.dumps(g))
+    with pytest.raises(InputError) as e:
+        load_mesh(tmp_path / "p.gltf")
+    assert str(e.value) == f"{tmp_path / 'p.gltf'}: bufferViews[1] (bytes 36 to 52) runs past the end of buffers[0], " \
+                           "which holds 48"
+
+
+def test_a_json_config_is_not_called_a_gltf_while_a_gltf_under_a_yaml_name_still_is(tmp_path):
+    for k, text in enumerate([
+            '{"scene": "cornell", "resolution": [32, 24], "mode": "rcast", "asset": 1, "version": 2}\n',
+            '{"scene": "cornell", "asset": {"version": "2.0"}, "meshes": []}\n',  # (glTF's scene is an index)
+            '{"asset": {"version": "2.0"}, "meshes": [], "mode": "rcast"}\n',  # (a key glTF has not)
+            '{"asset": {"version": "2.0"}, "note": "version"}\n', '{"asset": "x", "version": 1, "meshes": []}\n']):
+        path = tmp_path / f"j{k}.yaml"
+        path.write_text(text)
+        assert mesh_file_format(path) is None, text
+        assert isinstance(read_yaml(path), dict)
+    with pytest.raises(InputError) as e:
+        load_config(tmp_path / "j0.yaml")
+    assert str(e.value).startswith(f"{tmp_path / 'j0.yaml'}: asset: unknown key")
+    g = _gltf({"uri": "data:application/octet-stream;base64," + base64.b64encode(BIN).decode()})
+    big = {**g, "extras": {"pad": "x" * 5000}}  # ('asset' past the first 4 KB: sorted after 'accessors', 'extras')
+    cut = json.dumps(g, indent=1)
+    huge = dict(g, buffers=[{"byteLength": 1 << 20, "uri": "data:application/octet-stream;base64," + "A" * (1 << 21)}])
+    for name, text in [("g.yaml", json.dumps(g)), ("sorted.yaml", json.dumps(big, sort_keys=True)),
+                       ("cut.yaml", cut[: len(cut) // 2]), ("huge.yaml", json.dumps(huge))]:
+        (tmp_path / name).write_text(text)
+        assert mesh_file_format(tmp_path / name) == "a glTF", name
+        with pytest.raises(InputError, match=r"is a glTF mesh file, not a YAML file: rename it"):
+            read_yaml(tmp_path / name)

@@ -101,10 +101,12 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
             parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in _run_row(run, shared.get(i)))
                          + "</tr>")
         parts.append("</table>")
-        if shared:
+        if shared:  # (the study's line, when the study is an input, is above the notes: html.section's order)
+            where = ("its line above" if any(st.kind == "thesis" for st in inputs.studies)
+                     else "its folder's provenance.json")
             sec.notes.append("A thesis study renders each scene once for all its modes: each cell's host seconds "
                              "count that render (the part said as shared with its scene's other modes), so its "
-                             "cells sum to more than the study's host seconds (its line below), which count the "
+                             f"cells sum to more than the study's host seconds ({where}), which count the "
                              "render once.")
     else:
         cases = inputs.unread_cases()

@@ -106,11 +106,15 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     names the folders tried, in that order.
 
     ``config_source`` names the file the reference came from and ``key`` the key that
-    gave it (``scene``, a scene file's ``extends``), for error messages.
+    gave it (``scene``, a scene file's ``extends``), for error messages; a mesh file given
+    by itself (``config_source`` is ``ref``: ``tlm scene show pawn.obj``) is named once,
+    without a key it was not given under.
     """
     ref = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
-    if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:
-        raise InputError(mesh_file_hint(ref, format_, key), source=config_source, key=key)  # (by its name: pawn.glb)
+    if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:  # (by its name)
+        if config_source == ref:  # (given by itself: `tlm scene show pawn.glb`, load_scene("pawn.glb"), named once)
+            raise InputError(mesh_file_hint(ref, format_, ""), source=ref)
+        raise InputError(mesh_file_hint(ref, format_, key), source=config_source, key=key)
     yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
     looks_like_path = yaml_file or "/" in ref or os.sep in ref
     if looks_like_path and not yaml_file and (scenes_dir() / f"{ref}.yaml").is_file():

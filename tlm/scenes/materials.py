@@ -230,10 +230,13 @@ def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: st
     """The bytes each of a glTF's ``buffers`` holds: a ``.glb``'s first buffer without a
     ``uri`` its BIN chunk (``binary``; None for a ``.gltf``), a ``data:`` URI its decoded
     bytes, a file its size (by its name, else by its name percent-decoded); None where
-    there is nothing to measure. An InputError names a buffer whose file is missing or whose
-    data URI is no base64."""
+    there is nothing to measure. A base64 data URI may hold whitespace (line breaks every 76
+    characters, as MIME writes it), which is left out, as glTF libraries do. An InputError
+    names a buffer whose file is missing or whose data URI is no base64 (any other character
+    outside base64's alphabet, or padding wrong)."""
     import base64
     import binascii
+    import re
     from urllib.parse import unquote
 
     buffers = header.get("buffers")
@@ -247,7 +250,8 @@ def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: st
         elif uri.startswith("data:"):
             payload = uri.partition(",")[2]
             try:
-                out.append(len(base64.b64decode(payload, validate=True)) if ";base64" in uri.partition(",")[0]
+                out.append(len(base64.b64decode(re.sub(r"\s+", "", payload, flags=re.ASCII), validate=True))
+                           if ";base64" in uri.partition(",")[0]
                            else len(unquote(payload).encode("latin-1", "replace")))
             except (binascii.Error, ValueError):
                 raise InputError(f"buffers[{i}].uri: its data URI is not valid base64", source=source) from None
@@ -259,32 +263,39 @@ def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: st
     return out
 
 
-def check_gltf_buffers(header: dict, sizes: list[int | None], source: str) -> None:
+def check_gltf_buffers(header: dict, sizes: list[int | None], source: str) -> tuple[str, ...]:
     """A glTF's buffers and buffer views, before a library reads them (which fails an
     ``assert`` or reads past the end): each buffer's ``byteLength`` is a count of bytes its
     data (``sizes``, :func:`gltf_buffer_sizes`) holds, each buffer view names a buffer and
-    lies inside it. An InputError names the first that does not (a file cut short, a view
-    past its buffer)."""
+    lies inside the bytes its data holds. An InputError names the first that does not (a
+    file cut short, a view past its buffer's data). A buffer whose ``byteLength`` is less
+    than a view of it reaches, where its data holds those bytes, is read as glTF libraries
+    read it (the data's bytes, not its ``byteLength``; the spec calls it invalid) and named
+    in the lines returned, for ``Geometry.notes``: one per such buffer."""
     def count(x) -> bool:
         return isinstance(x, int) and not isinstance(x, bool) and x >= 0
 
     buffers = header.get("buffers")
     buffers = [b if isinstance(b, dict) else {} for b in buffers] if isinstance(buffers, list) else []
     lengths: list[int | None] = []
+    held: list[int | None] = []
+    whats: list[str] = []
     for i, b in enumerate(buffers):
         have = sizes[i] if i < len(sizes) else None
         length = b.get("byteLength", have)  # (left out, as the spec does not allow: what its data holds)
+        uri = b.get("uri")
+        whats.append(f"its file {uri!r}" if isinstance(uri, str) and not uri.startswith("data:")
+                     else "its data URI" if isinstance(uri, str) else "the BIN chunk")
         lengths.append(length)
+        held.append(have)
         if length is None:
             continue
         if not count(length):
             raise InputError(f"buffers[{i}].byteLength = {length!r} is not a count of bytes", source=source)
         if have is not None and length > have:
-            uri = b.get("uri")
-            what = (f"its file {uri!r}" if isinstance(uri, str) and not uri.startswith("data:")
-                    else "its data URI" if isinstance(uri, str) else "the BIN chunk")
-            raise InputError(f"buffers[{i}].byteLength = {length:,} but {what} holds {have:,} bytes "
+            raise InputError(f"buffers[{i}].byteLength = {length:,} but {whats[i]} holds {have:,} bytes "
                              "(cut short, or not this glTF's)", source=source)
+    notes: dict[int, str] = {}
     views = header.get("bufferViews")
     for j, v in enumerate(views if isinstance(views, list) else []):
         v = v if isinstance(v, dict) else {}
@@ -296,9 +307,16 @@ def check_gltf_buffers(header: dict, sizes: list[int | None], source: str) -> No
         for key, x in (("byteOffset", offset), ("byteLength", length)):
             if not count(x):
                 raise InputError(f"bufferViews[{j}].{key} = {x!r} is not a count of bytes", source=source)
-        if lengths[k] is not None and offset + length > lengths[k]:
+        end = held[k] if held[k] is not None else lengths[k]  # (what a library reads: the data's bytes)
+        if end is not None and offset + length > end:
             raise InputError(f"bufferViews[{j}] (bytes {offset:,} to {offset + length:,}) runs past the end of "
-                             f"buffers[{k}], which holds {lengths[k]:,}", source=source)
+                             f"buffers[{k}], which holds {end:,}", source=source)
+        if lengths[k] is not None and offset + length > lengths[k] and k not in notes:
+            notes[k] = (f"{source}: buffers[{k}].byteLength = {lengths[k]:,} is less than bufferViews[{j}] reaches "
+                        f"(bytes {offset:,} to {offset + length:,}): read from the {held[k]:,} bytes {whats[k]} "
+                        "holds, as glTF libraries read it; the glTF spec wants byteLength to be the buffer's "
+                        "length (fix it in the file)")
+    return tuple(notes[k] for k in sorted(notes))
 
 
 def write_glb(header: dict, binary: bytes = b"") -> bytes:

@@ -401,7 +401,8 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             imported, notes = gltf_imports(header, src)
             file_materials = tuple(gltf_materials(header, src))
             buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
-            check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src), src)
+            notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src),
+                                        src)
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
             nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
