@@ -10,7 +10,9 @@
   (:func:`tlm.storage.on_failed_write`).
 * :func:`file_digest`, :func:`digest_problem` — the size and checksum a cache entry's sidecar keeps
   of a file, and why a file is not the one described; :func:`cached_image` — an image entry read
-  back whole, or a damaged one said and removed, so that it is computed again.
+  back whole, or a damaged one said and removed, so that it is computed again; :func:`fields_problem` —
+  why a sidecar lacks a key it must hold, or holds one of another type; :func:`remove_entry` — a
+  damaged entry removed (a folder where a file should be too), only inside its cache.
 """
 
 from __future__ import annotations
@@ -45,7 +47,9 @@ def cache_home() -> Path:
 # cannot be written costs (the tracebacks' folder, which falls back to the temporary
 # folder, and numba's, which says its own line, are not among them)
 CACHES = {
-    "functional": ("functional", "every frame is rendered again, even for sweep points that differ only in arch.*"),
+    # (what it holds is still read: a sweep of cached frames renders none)
+    "functional": ("functional", "the frames it holds are read, but none is added: a frame not in it is rendered "
+                   "again by every run and sweep point, even points that differ only in arch.*"),
     "scenes": ("scene", "large meshes are parsed again on every load"),
     "references": ("reference", "photon-map references are computed again by every run"),
     "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
@@ -182,17 +186,21 @@ def file_digest(path: Path) -> dict:
     return {"size": size, "sha256": h.hexdigest()}
 
 
-def cached_image(folder: Path, name: str, key: str, what: str, again: str):
+def cached_image(folder: Path, name: str, key: str, what: str, again: str, fields: dict | None = None,
+                 optional: dict | None = None):
     """The image ``folder/name`` (an (H, W, 3) float ``.npy``) and ``folder/meta.json`` of
-    the cache entry ``key``, or None when there is none. A damaged entry (``meta.json``
-    unreadable or of another key; the image not the file ``meta.json`` describes, by its
-    ``npy`` digest and its ``height`` and ``width`` where given, or not (H, W, 3) floats) is
-    reported once as a warning naming the file (``what``: the entry's kind; ``again``: what
-    computes it again) and removed, so it is computed again as if never cached."""
+    the cache entry ``key``, or None when there is none. A damaged entry is reported once as a
+    warning naming the file (``what``: the entry's kind; ``again``: what computes it again) and
+    removed, so it is computed again as if never cached: ``meta.json`` unreadable (a folder too)
+    or of another key, without the size and checksum of the image (``npy``: an entry of an older
+    tlm, or a damaged one), without a key of ``fields``, or with a key of ``fields`` or ``optional``
+    of another type (:func:`fields_problem`; ``height`` and ``width`` whole numbers); the image
+    not the file ``meta.json`` describes, by its ``npy`` digest and its ``height`` and ``width``
+    where given, or not (H, W, 3) floats."""
     import numpy as np
 
     npy, side = folder / name, folder / "meta.json"
-    if not npy.is_file() and not side.is_file():
+    if not npy.exists() and not side.exists():  # (a folder in place of either is a damaged entry)
         return None
     bad, why = side, None
     try:
@@ -200,10 +208,14 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str):
         if not isinstance(meta, dict) or meta.get("key") != key:
             raise ValueError("not the metadata of this entry")
     except (OSError, ValueError) as e:
-        why = f"unreadable ({type(e).__name__}: {' '.join(str(e).split())[:80]})"
+        why = f"unreadable ({_error_text(e)})"
+    if why is None:
+        why = fields_problem(meta, fields or {}, {"height": int, "width": int, **(optional or {})})
+        if why is None and "npy" not in meta:
+            why = f"it has no size and checksum of {name} (an entry of an older tlm, or a damaged one)"
     if why is None:
         bad = npy
-        why = digest_problem(npy, meta["npy"]) if "npy" in meta else None  # (older entries have none)
+        why = digest_problem(npy, meta["npy"])
     if why is None:
         try:
             image = np.load(npy, allow_pickle=False)
@@ -215,9 +227,60 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str):
                                  f"{size[1]}x{size[0]}")
             return image, meta
         except (OSError, ValueError, EOFError) as e:
-            why = f"{type(e).__name__}: {' '.join(str(e).split())[:80]}"
-    warn(f"damaged {what} cache entry {bad} ({why}): removed; {again}")
-    shutil.rmtree(folder, ignore_errors=True)
+            why = _error_text(e)
+    left = remove_entry(folder, folder.parent)
+    done = "removed" if left is None else f"not removed ({left})"
+    warn(f"damaged {what} cache entry {bad} ({why}): {done}; {again}")
+    return None
+
+
+def _error_text(e: BaseException) -> str:
+    """``Type: message`` of an error on one line: an OSError's reason without its file name (the
+    warning names the file; a name cut short read as a broken quote), any other message cut after
+    120 characters with an ellipsis."""
+    text = (e.strerror or str(e)) if isinstance(e, OSError) else str(e)
+    text = " ".join(text.split())
+    return f"{type(e).__name__}: {text if len(text) <= 120 else text[:117] + '...'}"
+
+
+_KIND_NAMES = {int: "a whole number", float: "a number", str: "a string", bool: "true or false", list: "a list",
+               dict: "an object", type(None): "null"}
+
+
+def fields_problem(meta: dict, fields: dict, optional: dict | None = None) -> str | None:
+    """Why ``meta`` (a cache entry's metadata) does not hold each key of ``fields`` as a value of
+    its type(s) (``{"rounds": int, "relative_standard_error": (int, float, type(None))}``; true and
+    false are no number), or holds a key of ``optional`` of another type than its, or None."""
+    for k, kinds in {**(optional or {}), **fields}.items():
+        kinds = kinds if isinstance(kinds, tuple) else (kinds,)
+        if k not in meta:
+            if k in fields:
+                return f"it has no {k!r}"
+            continue
+        v = meta[k]
+        if not isinstance(v, kinds) or (isinstance(v, bool) and bool not in kinds):
+            shown = json.dumps(v)
+            shown = shown if len(shown) <= 40 else shown[:37] + "..."
+            return f"its {k!r} is {shown}, not {' or '.join(_KIND_NAMES.get(t, t.__name__) for t in kinds)}"
+    return None
+
+
+def remove_entry(path: Path, root: Path) -> str | None:
+    """Remove the cache entry ``path``: a file, a symbolic link (not what it points to), or a
+    folder where a file should be (a whole tree); only where it lies in ``root`` (a cache's
+    folder, or one below it), never elsewhere. Why it was not removed, or None (removed, or
+    gone already)."""
+    path = Path(path)
+    try:
+        here, top = path.parent.resolve(), Path(root).resolve()
+        if here != top and top not in here.parents:
+            return f"it is not in the cache folder {root}"
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
+    except OSError as e:
+        return (e.strerror or str(e)).lower()
     return None
 
 

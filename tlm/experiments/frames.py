@@ -8,8 +8,10 @@ Re-simulating a frame under another architecture config then reruns only the Sim
 Beside each ``.npz`` a JSON sidecar of the same key keeps what a result row needs and the
 timing model does not (work totals, scene statistics, the photon-map frame's image error),
 so a sweep point never has to render to report them, with the size and sha256 of the
-``.npz`` (``npz``): a damaged entry (a file cut short, zeroed or overwritten) is reported
-once as a warning naming the file, removed and rendered again.
+``.npz`` (``npz``): a damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
+key a result row reads or with one of another type (:func:`summary_problem`), a folder where either
+file should be) is reported once as a warning naming the file, removed (a folder too, only inside
+the cache) and rendered again. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
 
 A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
@@ -31,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.arch.functional import Functional
-from tlm.caches import cache_root, digest_problem, file_digest
+from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, remove_entry
 from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
@@ -80,6 +82,24 @@ class CachedRender:
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
 SUMMARY_FORMAT = "functional-summary/4"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
 # /4: a reference not converged is a warning, and an unread override is warned of once
+
+
+# what a sidecar of SUMMARY_FORMAT holds, by type (summary_problem): the keys a result row reads
+SUMMARY_FIELDS = {"scene": dict, "plan": dict, "primary": dict, "work": dict, "photons": (dict, type(None)),
+                  "error": (dict, type(None)), "warnings": list, "host_seconds": dict}
+assert set(SUMMARY_FIELDS) == {*SUMMARY_KEYS, "host_seconds"}
+
+
+def summary_problem(summary: dict) -> str | None:
+    """Why a sidecar of :data:`SUMMARY_FORMAT` does not hold what a result row reads (each key of
+    :data:`SUMMARY_FIELDS` of its type, its warnings lines, its host seconds numbers), or None."""
+    why = fields_problem(summary, SUMMARY_FIELDS)
+    if why is None and not all(isinstance(w, str) for w in summary["warnings"]):
+        why = "its 'warnings' are not all lines"
+    if why is None and not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                               for v in summary["host_seconds"].values()):
+        why = "its 'host_seconds' are not all numbers"
+    return why
 
 
 def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
@@ -218,7 +238,8 @@ def _unchanged(checks: list) -> bool:
 
 def is_cached(key: str) -> bool:
     """Whether the cache holds a whole entry of ``key``: the functional result and its summary,
-    of this format, the ``.npz`` the file the summary describes (its size and sha256). An entry
+    of this format, with what a result row reads (:func:`summary_problem`), the ``.npz`` the file
+    the summary describes (its size and sha256). An entry
     damaged or of an older format is not (:func:`cached_render` renders it again, as a miss):
     a sweep lets one point render it first, as for a frame not cached, and the others read it
     (:func:`tlm.experiments.sweep._dispatch`); nothing is said or removed here."""
@@ -231,7 +252,7 @@ def is_cached(key: str) -> bool:
     except (OSError, ValueError):
         return False
     return (isinstance(summary, dict) and summary.get("format") == SUMMARY_FORMAT
-            and digest_problem(path, summary.get("npz")) is None)
+            and summary_problem(summary) is None and digest_problem(path, summary.get("npz")) is None)
 
 
 def cached_render(cfg, base: Path | None = None, source: str | None = None, use_cache: bool = True
@@ -240,17 +261,23 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
 
     An entry is the functional result (``<key>.npz``) and its summary (``<key>.json``,
     a sidecar); an entry missing either, unreadable or of an older format is rendered
-    again. Both files are written atomically, so concurrent renders of one key (two
-    processes of a sweep) leave one whole entry.
+    again, a damaged one (a folder where either file should be too) said and removed first.
+    Both files are written atomically, so concurrent renders of one key (two processes of a
+    sweep) leave one whole entry; a write that fails (a full disk, a read-only cache) costs
+    speed only, and leaves no ``.npz`` without its sidecar.
     """
     timer = Timer()
     key, scene = _keyed(cfg, base, source, timer)  # (the scene, when the key loaded it: rendered from it)
     path = cache_dir() / f"{key}.npz"
     side = path.with_suffix(".json")
-    if use_cache and path.exists() and side.exists():
-        got = _load_entry(path, side, key)
-        if got is not None:
-            return _here(got, cfg, base, source, scene)
+    if use_cache:
+        folder = next((f for f in (path, side) if f.is_dir()), None)  # (what would be read or written there)
+        if folder is not None:
+            _damaged(folder, side if folder == path else path, "a folder, not a file")
+        elif path.exists() and side.exists():
+            got = _load_entry(path, side, key)
+            if got is not None:
+                return _here(got, cfg, base, source, scene)
     res = run.render(cfg, base, source, scene=scene, timer=timer)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
@@ -261,12 +288,15 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS},
                "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()}}
     if use_cache:
+        saved = False
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             fn.save(path)  # the npz first: the sidecar holds its size and checksum
+            saved = True
             write_file(side, json.dumps({**summary, "npz": file_digest(path)}, indent=1) + "\n")
-        except OSError:
-            pass  # a read-only (or full) cache only costs speed
+        except OSError:  # a read-only (or full) cache only costs speed
+            if saved:  # (the .npz without its sidecar: nothing reads it, so it would only fill the disk)
+                remove_entry(path, cache_dir())
     return CachedRender(fn, summary, False, key)
 
 
@@ -300,6 +330,10 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
         return None
     if summary.get("format") != SUMMARY_FORMAT:
         return None  # an entry of an older tlm: rendered again and replaced
+    problem = summary_problem(summary)
+    if problem is not None:
+        _damaged(side, path, problem)
+        return None
     problem = digest_problem(path, summary.pop("npz", None))
     if problem is not None:
         _damaged(path, side, problem)
@@ -312,9 +346,11 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
 
 
 def _damaged(bad: Path, other: Path, why: str) -> None:  # (its callers return None)
-    warn(f"damaged functional cache entry {bad} ({why}): removed, rendering it again")
-    for f in (bad, other):
-        f.unlink(missing_ok=True)
+    """Say the damaged entry (``bad``, and ``other``, its other file) once, and remove both (a folder
+    too: :func:`~tlm.caches.remove_entry`, only inside the cache)."""
+    left = [w for w in (remove_entry(f, cache_dir()) for f in (bad, other)) if w is not None]
+    done = "removed" if not left else f"not removed ({left[0]})"
+    warn(f"damaged functional cache entry {bad} ({why}): {done}, rendering it again")
 
 
 def cached_functional(cfg, base: Path | None = None, source: str | None = None, use_cache: bool = True

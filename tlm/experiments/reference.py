@@ -368,8 +368,9 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     if not compute:
         return Found(key, settings)
     if say is not None:
-        say(computing_line(key, settings, "every run of this scene ('--no-reference' or reference.auto: false "
-                                          "skips it)"))
+        skip = "('--no-reference' or reference.auto: false skips it)"
+        say(computing_line(key, settings, f"every run of this scene {skip}",
+                           f"used by this run only, and computed again by the next {skip}"))
     t0 = time.perf_counter()
     image, meta = compute_reference(frame, None, settings, bar=bar)
     cam = frame.scene.camera

@@ -75,14 +75,28 @@ def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = 
     return final
 
 
-def load_reference(key: str) -> tuple[np.ndarray, dict] | None:
-    """The cached reference ``key`` and its metadata, or None when there is none.
+_NUMBER = (int, float)
+# what a reference's meta.json holds, by type: what every reader reads (META_FIELDS), and what
+# compute_reference writes besides, which the cache's rules read where it is there (META_OPTIONAL)
+META_FIELDS = {"rounds": int, "relative_standard_error": (*_NUMBER, type(None))}
+META_OPTIONAL = {"photons": int, "k_nearest": int, "tolerance": _NUMBER, "min_rounds": int, "max_rounds": int,
+                 "spp": int, "rounds_per_cycle": int, "cycles": int, "standard_error_per_cycle": list,
+                 "converged": bool}
 
-    A damaged one (``meta.json`` unreadable or of another key, ``reference.npy`` not the
-    file ``meta.json`` describes, or not an array) is reported once as a warning naming
-    the file and removed: it is computed again as if it had never been cached.
+
+def load_reference(key: str, root: Path | None = None, again: str = "'tlm reference' computes it again"
+                   ) -> tuple[np.ndarray, dict] | None:
+    """The cached reference ``key`` and its metadata, or None when there is none (``root``:
+    another cache's ``references`` folder than :func:`cache_dir`; ``again``: what computes it).
+
+    A damaged one (``meta.json`` unreadable or of another key, without the size and checksum
+    of ``reference.npy`` (an older tlm's), without a key of :data:`META_FIELDS`, or with one of
+    it or of :data:`META_OPTIONAL` of another type; ``reference.npy`` not the file
+    ``meta.json`` describes, or not an image) is reported once as a warning naming the file
+    and removed: it is computed again as if it had never been cached.
     """
-    return cached_image(cache_dir() / key, "reference.npy", key, "reference", "'tlm reference' computes it again")
+    folder = (cache_dir() if root is None else Path(root)) / key
+    return cached_image(folder, "reference.npy", key, "reference", again, META_FIELDS, META_OPTIONAL)
 
 
 def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
@@ -168,12 +182,15 @@ def verdict(meta: dict, settings: ReferenceSettings) -> str:
     return "repeats" if repeats(meta, settings) else "compute"
 
 
-def computing_line(key: str, settings: ReferenceSettings, cached_for: str) -> str:
+def computing_line(key: str, settings: ReferenceSettings, cached_for: str, uncached: str = "it is not cached") -> str:
     """The line said before a reference none cached is computed (the rounds may take minutes);
-    ``cached_for``: what it is then cached for, and how to skip it."""
-    return (f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
+    ``cached_for``: what it is then cached for, and how to skip it; ``uncached``: what becomes of it
+    instead where the cache cannot be written (:func:`~tlm.caches.cache_problem`), said with why."""
+    line = (f"computing the photon-map reference {key} (none cached): {settings.photons} photons and "
             f"k = {settings.k_nearest} per round, until the relative standard error is below "
-            f"{settings.tolerance} (at most {settings.max_rounds} rounds); it is cached for {cached_for}")
+            f"{settings.tolerance} (at most {settings.max_rounds} rounds); ")
+    why = cache_problem(cache_dir())
+    return line + (f"it is cached for {cached_for}" if why is None else f"the cache cannot take it ({why}): {uncached}")
 
 
 def describe(meta: dict, settings: ReferenceSettings) -> str:
@@ -231,7 +248,7 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
         same = there.resolve() == cache_dir().resolve()
     except OSError:
         same = True
-    other = None if same else cached_image(there / key, "reference.npy", key, "reference", "it is replaced")
+    other = None if same else load_reference(key, there, "it is replaced")
     if same:
         line += "; the one computed now is dropped"
     elif other is not None and not better(meta, other[1], settings):

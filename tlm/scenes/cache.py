@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.caches import cache_root, digest_problem, file_digest
+from tlm.caches import cache_root, digest_problem, file_digest, remove_entry
 from tlm.config import note_read
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
@@ -224,6 +224,9 @@ def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
         meta = json.loads(arrays.pop("meta").tobytes().decode())
         if not isinstance(meta, dict):
             raise ValueError("its metadata is not a JSON object")
+    except IsADirectoryError:
+        _damaged(entry, "a folder, not a file")
+        return None
     except Exception as e:  # BadZipFile, EOFError, zlib.error, KeyError, ValueError: a damaged file
         _damaged(entry, f"{type(e).__name__}: {e}")
         return None
@@ -311,6 +314,8 @@ def _imported(meta: dict, source: str) -> Imported:
 def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
     """The arrays and the metadata as one file, atomically; nothing on an OSError."""
     blob = np.frombuffer(json.dumps({"format": FORMAT, **meta}).encode(), dtype=np.uint8)
+    if entry.is_dir():  # (one no read looked at first: mesh_files reads its metadata alone, quietly)
+        _damaged(entry, "a folder, not a file")
     try:
         entry.parent.mkdir(parents=True, exist_ok=True)
         with write_atomic(entry, "wb") as fh:
@@ -320,9 +325,8 @@ def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
 
 
 def _damaged(entry: Path, why: str) -> None:
-    try:
-        entry.unlink(missing_ok=True)
-        done = "removed, computing it again"
-    except OSError:  # (a read-only cache: computed again every time, said every time)
-        done = "computing it again (it could not be removed)"
+    """Say the damaged entry and remove it (a folder where the file should be too, only inside the
+    cache: :func:`~tlm.caches.remove_entry`), so that the entry computed again can be written."""
+    left = remove_entry(entry, cache_dir())  # (a read-only cache: computed again every time, said every time)
+    done = "removed, computing it again" if left is None else f"computing it again (it could not be removed: {left})"
     warn(f"damaged scene cache entry {entry} ({why}): {done}")
