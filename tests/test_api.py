@@ -211,11 +211,14 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     """tlm/cli.py parses and prints, and tlm/cli_signals.py ends a command (its signals, its
     one line, its exit status): besides the API and each other they import only the error
     helpers, the cache folder (for a traceback's file), a run's claim of its folder (held through
-    its report) and the thesis tables' text formatting; tlm/cli_args.py (the argument types and
-    shared options) imports the API alone."""
+    its report) and the thesis tables' text formatting; tlm/cli_report.py (the report a command
+    writes at its end, the claim of a report's folder) as cli_signals does; tlm/cli_args.py (the
+    argument types and shared options) imports the API alone."""
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
-    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args"}, used - allowed
+    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report"}, used - allowed
+    report = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_report.py")}
+    assert report <= (allowed - {"tlm.experiments.thesis"}) | {"tlm.cli_signals"}, report - allowed
     ending = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_signals.py")}
     assert ending <= allowed - {"tlm.experiments.thesis"}, ending - allowed
     arguments = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_args.py")}
@@ -231,7 +234,7 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
 
 
 @pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_common.py", "tlm/cli.py",
-                                    "tlm/cli_args.py", "tlm/cli_signals.py", *sorted(
+                                    "tlm/cli_args.py", "tlm/cli_report.py", "tlm/cli_signals.py", *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):
     """Progress bars, the timer and provenance have modules of their own: the experiments

@@ -30,8 +30,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.experiments",),
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
-    ("tlm.api", "tlm.api_studies", "tlm.api_common", "tlm.cli", "tlm.cli_args", "tlm.cli_signals", "tlm.__main__",
-     "tlm"),
+    ("tlm.api", "tlm.api_studies", "tlm.api_common", "tlm.cli", "tlm.cli_args", "tlm.cli_report", "tlm.cli_signals",
+     "tlm.__main__", "tlm"),
 )
 
 

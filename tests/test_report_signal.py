@@ -3,7 +3,7 @@
 both (``tlm report OUT``, with the ``--formats`` and ``--dpi`` given), the exit status is still
 128 + the signal, and no report is left half written (it is written beside ``OUT/report`` and
 takes its place at the end: :func:`tlm.storage.atomic_folder`); a signal that comes once the
-report took its place says that both are complete (:func:`tlm.cli._report_interrupted`). So do
+report took its place says that both are complete (:func:`tlm.cli_report._report_interrupted`). So do
 ``tlm sweep`` and the studies (``tlm thesis``, ``tlm granularity``, ...), each naming what it kept,
 and a sweep's earlier report, which stays in its folder until the new one takes its place, is not
 taken for the new one. The report a command writes at its end claims ``OUT/report`` as ``tlm

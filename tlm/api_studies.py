@@ -248,7 +248,9 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     ``note`` receives one-line notes on a folder of folders it searched, as soon as it has searched
     them (a folder in it with no run, sweep or study, a link not followed, the folders of installed
     software passed over, a long search: :func:`tlm.report.folders.find`); the page says them too,
-    and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``).
+    and nothing is printed (``tlm report`` prints them on stderr, ``tlm: note: ...``). With ``lock``,
+    where another process holds the folder (a run replacing it, a report reading it), ``note`` is
+    told so, naming that process where it can (:func:`tlm.claims.lock_holder`), before this waits.
     ``dirs``: a list of folders, or one folder's path (a string or a Path: that folder, not the
     characters of its name)."""
     from tlm.report import build_report
@@ -272,9 +274,15 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     hear = note if note is not None else (lambda line: None)  # (None: the page alone says them; nothing printed)
     if not lock:
         return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
+    from tlm.claims import lock_holder
     from tlm.storage import folder_lock
 
-    with folder_lock(dirs[0]):
+    def waiting() -> None:  # (another process holds it: a run replacing the folder, a report reading it)
+        holder = lock_holder(dirs[0]) or "another process"
+        hear(f"{str(dirs[0])!r} is held by {holder}, a run replacing it or a report reading it: the report waits "
+             "for it to end")
+
+    with folder_lock(dirs[0], waiting=waiting):
         return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
 
 

@@ -5,8 +5,10 @@
   does any work; threads of one process share the claim.
 * :func:`sharing` — a sweep's folder, held by the processes of one identity (one sweep's points):
   a sweep of other points running into it is refused, naming its holder.
+* :func:`lock_holder` — the process holding a folder's lock (:func:`tlm.storage.folder_lock`), for
+  the line of one that waits for it (``tlm report``).
 
-Both hold a ``flock`` on a file of their own (beside the destination, or in the sweep's folder)
+The first two hold a ``flock`` on a file of their own (beside the destination, or in the sweep's folder)
 recording the holder's host and pid (:func:`tlm.storage.process_tag`): the lock alone decides
 whether a holder is alive (its process ended, the kernel released it), on a folder shared between
 machines too; the record only names it in a refusal (:func:`_holder`). Writing the folder itself,
@@ -102,6 +104,46 @@ def _holder(record: str) -> str:
     if m[1] == _host():
         return f"process {m[2]} on this machine, {name}"
     return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
+
+
+def lock_holder(path: Path) -> str | None:
+    """The process holding a ``flock`` on ``path`` (a folder's :func:`tlm.storage.folder_lock`: a
+    run swapping a new folder in, a report reading it), named as a refusal names a claim's holder
+    (``process 4242 on this machine, HOST``) with its command line where it can be read (``(python -m
+    tlm run x.yaml --out runs/x)``); None where none is found: this machine's kernel lists its locks
+    (``/proc/locks``, Linux), and lists none on ``path`` for another machine's process (a disk shared
+    between machines), another container's, or one that let go meanwhile."""
+    try:
+        st = os.stat(path)
+        with open("/proc/locks", encoding="ascii", errors="replace") as f:
+            listed = f.read().splitlines()
+    except OSError:
+        return None
+    inode = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    for line in listed:  # ``1: FLOCK  ADVISORY  WRITE 4242 fe:00:3926309 0 EOF`` (a waiter's: ``1: -> FLOCK ...``)
+        fields = line.split()
+        if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5] == inode and fields[4].isdigit():
+            pid = int(fields[4])
+            if pid == os.getpid():
+                return f"this process ({pid})"
+            if pid > 0:
+                return f"process {pid} on this machine, {_host()[1:]}{_command(pid)}"
+    return None
+
+
+def _command(pid: int, most: int = 100) -> str:
+    """`` (its command line)`` of the process ``pid``, shortened to ``most`` characters; empty
+    where it cannot be read (ended meanwhile, another user's under ``hidepid``)."""
+    import shlex
+
+    try:
+        words = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace").rstrip("\0").split("\0")
+    except OSError:
+        return ""
+    if not words or not words[0]:
+        return ""
+    line = shlex.join([Path(words[0]).name, *words[1:]])
+    return f" ({line if len(line) <= most else line[:most - 3] + '...'})"
 
 
 _CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)

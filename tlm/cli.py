@@ -1,6 +1,7 @@
 """Command line: ``tlm run | sweep | scene | params | ...``. Argument parsing and printing only:
 every command calls :mod:`tlm.api` and prints what it returns; how a command ends (its
-signals, its one-line errors, its exit status) is :mod:`tlm.cli_signals`."""
+signals, its one-line errors, its exit status) is :mod:`tlm.cli_signals`, the report it writes
+at its end :mod:`tlm.cli_report`."""
 
 from __future__ import annotations
 
@@ -11,15 +12,13 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
+from tlm.cli_report import report_after, report_claimed, say_err
 from tlm.cli_signals import (
-    Interrupted,
     deadlock_line,
     exit_status,
     forget_lost_interrupt,
@@ -40,105 +39,12 @@ def _say(line: str) -> None:
     sys.stdout.flush()
 
 
-def _report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> None:
-    """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``.
-    ``kept``: what the command wrote there (``the run``, ``the sweep``), whole before the report
-    begins; ``files``: its files, as the line names them (``results.json and its files``). The
-    report's folder is claimed as ``tlm report`` claims it (:func:`_report_claimed`: a ``tlm
-    report`` into it meanwhile is refused at once), this command's report waiting, said, while
-    another process's is written there (another sweep of the same points into the folder, a
-    ``tlm report`` begun before): its own is of the folder as the command left it. It is written
-    beside ``OUT/report`` and takes its place at the end (:func:`tlm.storage.atomic_folder`), so
-    none is half written. A signal meanwhile ends the command saying that ``kept`` is kept,
-    whole, and how to write the report (:func:`_report_interrupted`)."""
-    if getattr(args, "no_report", False):
-        return
-    folder = out / "report"
-    begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's folder keeps its last)
-    try:
-        with _report_claimed(folder, wait=lambda holder: _say_err(
-                f"note: another report is writing into {str(folder)!r} ({holder}): the report of {kept} in {out} "
-                "waits for it to end")):
-            begun, earlier = True, _page_id(folder)
-            # no other run replaces the folder while its report is written
-            print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
-    except KeyboardInterrupt as e:
-        if isinstance(e, Interrupted):
-            raise
-        raise Interrupted(_report_interrupted(args, out, f"{kept} in {out}", files, earlier if begun else False)) from e
-
-
-@contextmanager
-def _report_claimed(folder: Path, wait: Callable[[str], None] | None = None) -> Iterator[None]:
-    """A context holding the report folder ``folder`` for this process while a report is written
-    into it (:func:`tlm.claims.claimed`), as ``tlm report`` holds its ``--out`` and a command the
-    ``OUT/report`` of its end (:func:`_report_after`). Where another process holds it: without
-    ``wait`` (``tlm report``), refused at once, exit 2, naming that process (``another report is
-    writing into 'OUT/report' (process ...)``); with it, ``wait`` is told that process, once, and
-    this one waits until the folder is free (the command's own report, of what it just wrote). A
-    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`)."""
-    import re
-
-    storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
-    told = False
-    with ExitStack() as held:
-        while True:
-            try:
-                held.enter_context(claims.claimed(folder, "report"))
-                break
-            except InputError as e:
-                if wait is None:
-                    raise
-                if not told:
-                    holder = re.search(r"\((process [^)]*)\): wait for it", str(e))
-                    wait(holder[1] if holder else "another process")
-                    told = True
-                time.sleep(0.1)
-        yield
-
-
-def _page_id(folder: Path) -> tuple[int, int] | None:
-    """Which ``report.html`` is in the report folder ``folder`` now (its device and inode), None for none."""
-    try:
-        st = (folder / "report.html").stat()
-    except OSError:
-        return None
-    return st.st_dev, st.st_ino
-
-
-def _report_command(args: argparse.Namespace, out: Path) -> str:
-    """``tlm report OUT`` that writes the report of ``out`` as the command would have (its
-    ``--formats`` and ``--dpi``), ready to paste (quoted for a shell)."""
-    import shlex
-
-    command = ["tlm report", shlex.quote(str(out))]
-    command += [f"--{flag} {shlex.quote(str(value))}" for flag in ("formats", "dpi")
-                if (value := getattr(args, flag, None)) is not None]
-    return " ".join(command)
-
-
-def _report_interrupted(args: argparse.Namespace, out: Path, kept: str, files: str,
-                        earlier: tuple[int, int] | bool | None) -> str:
-    """What ``tlm: terminated (SIGTERM)`` (``tlm: interrupted``) says after a signal came while
-    the report of ``out`` was written: ``kept`` (``the run in OUT``) is whole (``files``), and no
-    report was written (the command that writes it: :func:`_report_command`), an earlier one
-    left as it was (``earlier``: its :func:`_page_id` as this report began; False: it had not
-    begun, waiting for another's); or the report was, whole, where the signal came as it took its
-    place."""
-    page = out / "report" / "report.html"  # (what api.write_report returns: the page, written last)
-    now = _page_id(page.parent)
-    if earlier is not False and now is not None and now != earlier:  # (this report's folder took its place)
-        return f"as its report was written: {kept} and its report ({page}) are complete"
-    left = ("none is left half-written" if now is None else
-            f"none is left half-written; the earlier report in {page.parent} is left as it was")
-    return (f"while writing the report: {kept} is kept, whole ({files}); no report was written ({left}): write "
-            f"it with: {_report_command(args, out)}")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
     """The report of ``args.dirs`` into ``--out`` (default ``DIR/report``), its folder claimed as a run's is
     (another process's report into it meanwhile, this command's or the one a run, sweep or study writes at its
-    end, is refused, exit 2, naming that process: :func:`_report_claimed`), the first folder locked as the
+    end, is refused, exit 2, naming that process: :func:`tlm.cli_report.report_claimed`), the first folder locked as the
     report a run ends with locks it (no run replaces it while it is read)."""
     def note(line: str) -> None:  # (each as it is known: the figures may take a while)
         print(f"tlm: note: {line}", file=sys.stderr, flush=True)
@@ -153,7 +59,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if out is None or not all(Path(d).is_dir() for d in args.dirs):
         page = write()  # (the folders' own error, before any claim: the claim makes the folders on its way)
     else:
-        with _report_claimed(out):
+        with report_claimed(out):
             page = write()
     print(f"wrote {page}")
     return 0
@@ -204,7 +110,7 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
     failed = [r["case"] for r in rows if not r["passed"]]
     print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
           + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
-    _report_after(args, out, "the study", "extreme.csv, extreme.jsonl and the cases' run folders")
+    report_after(args, out, "the study", "extreme.csv, extreme.jsonl and the cases' run folders")
     return 1 if failed else 0
 
 
@@ -233,7 +139,7 @@ def _experiment_arg(args: argparse.Namespace) -> None:
         return
     path = api.experiment_path(args.config, args.cmd)
     if str(path) != args.config:
-        _say_err(f"{args.config}: the built-in experiment {path}")
+        say_err(f"{args.config}: the built-in experiment {path}")
         args.config = str(path)
 
 
@@ -280,9 +186,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
     with claims.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
-                          say=_say_err)
+                          say=say_err)
         _print_run(args, results, out, skip, overrides, t0)
-        _report_after(args, out, "the run", "results.json and its files")
+        report_after(args, out, "the run", "results.json and its files")
     return 0
 
 
@@ -331,14 +237,6 @@ def _print_run(args: argparse.Namespace, results: dict, out: Path, skip: str | N
     for warning in results["warnings"]:  # (less those said during the run: a render that may not end says why first)
         if " ".join(warning.split()) not in storage.SAID:
             print(f"tlm: warning: {warning}", file=sys.stderr)
-
-
-def _say_err(line: str) -> None:
-    """A progress line on stderr, above any progress bar."""
-    from tqdm import tqdm
-
-    tqdm.write(f"tlm: {line}", file=sys.stderr)
-    sys.stderr.flush()
 
 
 def _figures3(x: float) -> str:
@@ -393,7 +291,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     n = len(done.rows)
     print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
           f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
-    _report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
+    report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
     return 1 if done.failed else 0
 
 
@@ -402,7 +300,7 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
     done = api.scaling(dirs, out)
     for note in done["notes"]:
-        _say_err(f"note: {note}")
+        say_err(f"note: {note}")
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
     fits = done["fits"]
     wide = {k: max([w, *(len(str(f[k])) for f in fits)]) for k, w in (("scene", 8), ("mode", 7), ("scheduler", 8))}
@@ -412,7 +310,7 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
               f"(N = {values_text(f['pipelines'])})")
     print(f"wrote {out}")
-    _report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
+    report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
     return 0
 
 
@@ -425,7 +323,7 @@ def _cmd_scene(args: argparse.Namespace) -> int:
             if name not in hidden:
                 print(f"{name:28s} {api.scene_description(name)}".rstrip() if args.long else name)
         if hidden:  # (on stderr: stdout stays the names a config may give)
-            _say_err(f"scene list: {len(hidden)} scenes of bad input on purpose (tests of tlm's error messages: "
+            say_err(f"scene list: {len(hidden)} scenes of bad input on purpose (tests of tlm's error messages: "
                      f"{', '.join(hidden)}) left out; --all lists them")
         return 0
     scene = api.load_scene(args.name)
@@ -489,7 +387,7 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
 
     rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note)
     print(f"wrote {out} ({len(rows)} rows)")
-    _report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
+    report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
     return 0
 
 
@@ -535,7 +433,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"], done.get("names")))
     print(f"wrote {out}/thesis_comparison.csv")
-    _report_after(args, out, "the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene "
+    report_after(args, out, "the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene "
                   "and mode")
     return 0
 
@@ -552,7 +450,7 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
         print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
               f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
     print(f"wrote {out}/granularity.csv")
-    _report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
+    report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
     return 0
 
 

@@ -269,11 +269,13 @@ def clean_stale(folder: Path, name: str = ".+") -> None:
 
 
 @contextmanager
-def folder_lock(out: Path) -> Iterator[None]:
+def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterator[None]:
     """An exclusive lock on the folder ``out`` as it is now (``flock`` on the folder itself),
     held while a writer swaps a new folder in for it, and while a command reads the folder
     it just wrote (its report), so that no other writer replaces it meanwhile. A folder
-    replaced while this waited for the lock is locked in its turn; no folder, no lock."""
+    replaced while this waited for the lock is locked in its turn; no folder, no lock.
+    ``waiting`` is called once, before this waits, where another holds the lock (who:
+    :func:`tlm.claims.lock_holder`)."""
     out = Path(out)
     for _ in range(1000):
         try:
@@ -286,7 +288,15 @@ def folder_lock(out: Path) -> Iterator[None]:
         except OSError:
             break  # not a folder, or not ours to open: no lock
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
+            if waiting is None:
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            else:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:  # (held by another: said, once, then waited for)
+                    told, waiting = waiting, None
+                    told()
+                    fcntl.flock(fd, fcntl.LOCK_EX)
             try:
                 same = os.stat(out).st_ino == os.fstat(fd).st_ino
             except OSError:

@@ -1,0 +1,120 @@
+"""The report a command writes at its end (``OUT/report``, :func:`report_after`), the claim of a
+report's folder that it and ``tlm report`` take (:func:`report_claimed`), and what a signal while
+it is written says (:func:`_report_interrupted`); with the line a command says on stderr
+(:func:`say_err`). Printing only, as :mod:`tlm.cli`: the report itself is :mod:`tlm.api`'s."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+
+from tlm import api, claims, storage
+from tlm.api import InputError
+from tlm.cli_signals import Interrupted
+
+
+def say_err(line: str) -> None:
+    """A progress line on stderr, above any progress bar."""
+    from tqdm import tqdm
+
+    tqdm.write(f"tlm: {line}", file=sys.stderr)
+    sys.stderr.flush()
+
+
+def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> None:
+    """The report of a folder a command just wrote (``OUT/report``), unless ``--no-report``.
+    ``kept``: what the command wrote there (``the run``, ``the sweep``), whole before the report
+    begins; ``files``: its files, as the line names them (``results.json and its files``). The
+    report's folder is claimed as ``tlm report`` claims it (:func:`report_claimed`: a ``tlm
+    report`` into it meanwhile is refused at once), this command's report waiting, said, while
+    another process's is written there (another sweep of the same points into the folder, a
+    ``tlm report`` begun before): its own is of the folder as the command left it. It is written
+    beside ``OUT/report`` and takes its place at the end (:func:`tlm.storage.atomic_folder`), so
+    none is half written. A signal meanwhile ends the command saying that ``kept`` is kept,
+    whole, and how to write the report (:func:`_report_interrupted`)."""
+    if getattr(args, "no_report", False):
+        return
+    folder = out / "report"
+    begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's folder keeps its last)
+    try:
+        with report_claimed(folder, wait=lambda holder: say_err(
+                f"note: another report is writing into {str(folder)!r} ({holder}): the report of {kept} in {out} "
+                "waits for it to end")):
+            begun, earlier = True, _page_id(folder)
+            # no other run replaces the folder while its report is written
+            print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
+    except KeyboardInterrupt as e:
+        if isinstance(e, Interrupted):
+            raise
+        raise Interrupted(_report_interrupted(args, out, f"{kept} in {out}", files, earlier if begun else False)) from e
+
+
+@contextmanager
+def report_claimed(folder: Path, wait: Callable[[str], None] | None = None) -> Iterator[None]:
+    """A context holding the report folder ``folder`` for this process while a report is written
+    into it (:func:`tlm.claims.claimed`), as ``tlm report`` holds its ``--out`` and a command the
+    ``OUT/report`` of its end (:func:`report_after`). Where another process holds it: without
+    ``wait`` (``tlm report``), refused at once, exit 2, naming that process (``another report is
+    writing into 'OUT/report' (process ...)``); with it, ``wait`` is told that process, once, and
+    this one waits until the folder is free (the command's own report, of what it just wrote). A
+    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`)."""
+    import re
+
+    storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
+    told = False
+    with ExitStack() as held:
+        while True:
+            try:
+                held.enter_context(claims.claimed(folder, "report"))
+                break
+            except InputError as e:
+                if wait is None:
+                    raise
+                if not told:
+                    holder = re.search(r"\((process [^)]*)\): wait for it", str(e))
+                    wait(holder[1] if holder else "another process")
+                    told = True
+                time.sleep(0.1)
+        yield
+
+
+def _page_id(folder: Path) -> tuple[int, int] | None:
+    """Which ``report.html`` is in the report folder ``folder`` now (its device and inode), None for none."""
+    try:
+        st = (folder / "report.html").stat()
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _report_command(args: argparse.Namespace, out: Path) -> str:
+    """``tlm report OUT`` that writes the report of ``out`` as the command would have (its
+    ``--formats`` and ``--dpi``), ready to paste (quoted for a shell)."""
+    import shlex
+
+    command = ["tlm report", shlex.quote(str(out))]
+    command += [f"--{flag} {shlex.quote(str(value))}" for flag in ("formats", "dpi")
+                if (value := getattr(args, flag, None)) is not None]
+    return " ".join(command)
+
+
+def _report_interrupted(args: argparse.Namespace, out: Path, kept: str, files: str,
+                        earlier: tuple[int, int] | bool | None) -> str:
+    """What ``tlm: terminated (SIGTERM)`` (``tlm: interrupted``) says after a signal came while
+    the report of ``out`` was written: ``kept`` (``the run in OUT``) is whole (``files``), and no
+    report was written (the command that writes it: :func:`_report_command`), an earlier one
+    left as it was (``earlier``: its :func:`_page_id` as this report began; False: it had not
+    begun, waiting for another's); or the report was, whole, where the signal came as it took its
+    place."""
+    page = out / "report" / "report.html"  # (what api.write_report returns: the page, written last)
+    now = _page_id(page.parent)
+    if earlier is not False and now is not None and now != earlier:  # (this report's folder took its place)
+        return f"as its report was written: {kept} and its report ({page}) are complete"
+    left = ("none is left half-written" if now is None else
+            f"none is left half-written; the earlier report in {page.parent} is left as it was")
+    return (f"while writing the report: {kept} is kept, whole ({files}); no report was written ({left}): write "
+            f"it with: {_report_command(args, out)}")
