@@ -5,22 +5,26 @@ status 2, never a traceback; a model that cannot finish (:class:`~tlm.arch.units
 naming each blocked unit) ends with its message on one line, cut to a few hundred characters
 (the whole message in the traceback file it names: :func:`deadlock_line`), and exit status 1, and so does a failure
 of the machine (a full disk, a read-only destination: :class:`~tlm.errors.EnvironmentFailure`).
-Ctrl-C (SIGINT) exits with 130 and SIGTERM with 143, after the command removed what it
-had half written; a second signal during that clean-up ends the process at once, with one
-line of its own (and none from multiprocessing: its semaphores are released first). A signal
-whose interrupt got lost (raised where Python ignores exceptions: an at-fork hook, a ctypes
-callback) stops the command at its next checkpoint (the top of a render's batch, a photon
-chunk, a sweep's point: :func:`tlm.progress.checkpoint`) as if it had landed; one lost after
-the last checkpoint, or that came as the command ended, exits with 130 / 143 all the same,
-saying that the command ran to its end: what it wrote is whole, and kept; so does one that comes
-later, while the process exits (its pools' clean-up, its threads joined: :func:`until_exit`). Anything
-else (a bug) prints one line and the path of a file holding the full traceback, exit 1.
-A reader that goes away (``tlm params | head -1``) ends the command quietly (status 141,
-as if killed by SIGPIPE). A signal that comes before the command begins (while the ``tlm``
-process imports its modules and builds its parser, a second or more under load) is the
-command's too, from this module's import on (:func:`early_signals`: tlm.cli and tlm.__main__
-import it first, and it installs its handler before its own imports): the command stops as it
-begins, with the same line and exit status, not a traceback of a half-finished import.
+Ctrl-C (SIGINT) exits with 130, SIGTERM with 143 and SIGHUP (a terminal closed) with 129, after the
+command removed what it had half written (a signal the process inherited ignored stays ignored); a
+second signal during that clean-up ends the process at once, with one line of its own (and none from
+multiprocessing: its semaphores are released first). A signal whose interrupt got lost (raised where
+Python ignores exceptions: an at-fork hook, a ctypes callback) stops the command at its next
+checkpoint (the top of a render's batch, a photon chunk, a sweep's point:
+:func:`tlm.progress.checkpoint`) as if it had landed; one lost after the last checkpoint, or that
+came as the command ended, exits with 130 / 143 all the same, saying that the command ran to its
+end: what it wrote is whole, and kept; so does one that comes later, while the process exits (its
+pools' clean-up, its threads joined: :func:`until_exit`). Anything else (a bug) prints one line and
+the path of a file holding the full traceback, exit 1. A reader of stdout that goes away (``tlm
+params | head -1``) ends the command quietly (status 141, as if killed by SIGPIPE), once it has
+finished the folder it writes, if it writes one; a reader of stderr that goes away stops nothing
+(:func:`guard_streams`). A MemoryError is ``tlm: error: out of memory: ...``, exit 1
+(:func:`tlm.errors.memory_problem`); OpenBLAS runs on one thread (:func:`one_blas_thread`). SIGQUIT
+is left to Python's default (the process ends at once, no clean-up). A signal that comes before the
+command begins (while the ``tlm`` process imports its modules and builds its parser, a second or
+more under load) is the command's too, from this module's import on (:func:`early_signals`: tlm.cli
+and tlm.__main__ import it first, and it installs its handler before its own imports): the command
+stops as it begins, with the same line and exit status, not a traceback of a half-finished import.
 """
 
 # ruff: noqa: E402  (the early handler is installed before this module's other imports: see early_signals)
@@ -33,11 +37,21 @@ import sys
 from contextlib import contextmanager, suppress
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
+# the signals the command takes (SIGHUP: its terminal closed, its ssh dropped; none on Windows), each with
+# Python's default handler for it
+_TAKEN = tuple((getattr(signal, n), signal.default_int_handler if n == "SIGINT" else signal.SIG_DFL)
+               for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+TAKEN = tuple(s for s, _ in _TAKEN)
+# the names its line gives each one (tlm: interrupted, tlm: terminated (SIGTERM), tlm: hung up (SIGHUP))
+_SAID = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated (SIGTERM)"}
+if hasattr(signal, "SIGHUP"):
+    _SAID[signal.SIGHUP] = "hung up (SIGHUP)"
+BLAS_THREADS = "OPENBLAS_NUM_THREADS"  # OpenBLAS's threads (numpy's, scipy's), read as its library is loaded
 
 
 def _early_signal(signum, frame) -> None:
-    """SIGINT / SIGTERM in the ``tlm`` process before its command began (:func:`early_signals`):
-    the first is noted, and raised as the command begins (:func:`signals`: its line, 130 / 143),
+    """SIGINT / SIGTERM / SIGHUP in the ``tlm`` process before its command began (:func:`early_signals`):
+    the first is noted, and raised as the command begins (:func:`signals`: its line, 130 / 143 / 129),
     so that no import is cut in two and no traceback is printed; a second ends the process at
     once, as during a command's clean-up (:func:`on_signal`; nothing has begun that needs one)."""
     if _SIGNALS:
@@ -79,15 +93,15 @@ def command_process() -> bool:
 
 
 def early_signals() -> None:
-    """The ``tlm`` process's SIGINT and SIGTERM handled from now on (:func:`_early_signal`), where
-    Python's defaults still take them (an ignored one, as ``nohup`` leaves it, stays ignored until
-    the command's own handler, :func:`signals`). Before, a Ctrl-C during the imports and the
-    parser's making (the first second, under load) printed a KeyboardInterrupt's traceback, and a
-    SIGTERM killed the process without a line. Called as this module is imported, in the command's
-    process alone (:func:`command_process`), before its other imports: tlm.cli and tlm.__main__
-    import it first. Only Python's start (its ``site``) and the package's ``__init__`` come before.
-    Main thread only."""
-    for s, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+    """The ``tlm`` process's SIGINT, SIGTERM and SIGHUP handled from now on (:func:`_early_signal`), where
+    Python's defaults still take them (an ignored one, as ``nohup`` leaves SIGHUP and a shell's
+    background job ``&`` SIGINT, stays ignored, by the command's own handler too: :func:`signals`).
+    Before, a Ctrl-C during the imports and the parser's making (the first second, under load)
+    printed a KeyboardInterrupt's traceback, and a SIGTERM killed the process without a line.
+    Called as this module is imported, in the command's process alone (:func:`command_process`),
+    before its other imports: tlm.cli and tlm.__main__ import it first. Only Python's start (its
+    ``site``) and the package's ``__init__`` come before. Main thread only."""
+    for s, default in _TAKEN:
         try:
             if signal.getsignal(s) is default:
                 signal.signal(s, _early_signal)
@@ -95,10 +109,47 @@ def early_signals() -> None:
             return
 
 
+def one_blas_thread() -> None:
+    """OpenBLAS (numpy's, and scipy's that numba loads to check for BLAS as it compiles a kernel)
+    on one thread in the ``tlm`` process, unless its environment says otherwise (``OPENBLAS_NUM_THREADS``,
+    read as each library is loaded: set before numpy is imported). Its threads serve nothing of tlm's (no
+    product of large matrices; the kernels run on tlm's own threads, :mod:`tlm.kernels.threads`), and
+    starting them takes a buffer for each: under a limit on the address space (``ulimit -v``) that
+    allocation failed, and OpenBLAS retried it for ever (a hang that ignored SIGTERM) or ended the
+    process with its own line (``OpenBLAS error: Memory allocation still failed ...``, exit 1). With
+    one thread an allocation that fails is a MemoryError, said as ``tlm: error: out of memory: ...``
+    (:func:`_failed`). Inherited by the command's workers (a sweep's)."""
+    os.environ.setdefault(BLAS_THREADS, "1")
+
+
+def no_stream_closed() -> None:
+    """stdout or stderr closed as the ``tlm`` process started (``2>&-``: Python then has no
+    ``sys.stderr``, and the next file the command opened took its file descriptor, with what a
+    library writes there) made ``/dev/null``: what is said there is lost, the command goes on."""
+    for name, fd in (("stdout", 1), ("stderr", 2)):
+        if getattr(sys, name) is not None:
+            continue
+        try:
+            os.fstat(fd)
+        except OSError:  # (closed: /dev/null takes its place)
+            with suppress(OSError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                if devnull != fd:
+                    os.dup2(devnull, fd)
+                    os.close(devnull)
+        with suppress(OSError):  # (else another file took it already: the stream alone is /dev/null)
+            target = fd if os.path.samestat(os.fstat(fd), os.stat(os.devnull)) else os.devnull
+            setattr(sys, name, open(target, "w", buffering=1, closefd=target != fd,  # noqa: SIM115
+                                    encoding="utf-8", errors="backslashreplace"))
+
+
 if command_process():
+    no_stream_closed()
+    one_blas_thread()
     early_signals()
 
 import atexit
+import threading
 import time
 import traceback
 import weakref
@@ -106,7 +157,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tlm import progress
-from tlm.errors import ERROR_CHARS, InputError, environment_problem, error_line, interrupted_by
+from tlm.errors import ERROR_CHARS, InputError, environment_problem, error_line, interrupted_by, memory_problem
 
 if TYPE_CHECKING:  # (imported where used: tlm.api is the heavy part of a command's imports, see early_signals)
     from tlm.api import Deadlock
@@ -116,8 +167,9 @@ _EXIT: list[int] = []  # the exit status of the process's own command, once it e
 
 
 def _line(text: str) -> None:
-    """A line on stderr (the command's last)."""
-    sys.stderr.write(f"{text}\n")
+    """A line on stderr (the command's last); none where its reader went away."""
+    with suppress(BrokenPipeError):
+        sys.stderr.write(f"{text}\n")
 
 
 def version() -> str:
@@ -178,17 +230,22 @@ def on_signal(signum, frame) -> None:
 
 @contextmanager
 def signals():
-    """SIGTERM handled as SIGINT is, while the command runs (main thread only); a signal whose
+    """SIGTERM and SIGHUP handled as SIGINT is, while the command runs (main thread only); a signal whose
     interrupt got lost is raised again at the command's next checkpoint (:func:`on_signal`). In
     the process's own command, one that came before it began (:func:`early_signals`) stops it
-    here, before any work: a KeyboardInterrupt as the block begins."""
-    early = any(signal.getsignal(s) is _early_signal for s in (signal.SIGINT, signal.SIGTERM))
+    here, before any work: a KeyboardInterrupt as the block begins. A signal ignored when the block
+    begins stays ignored (``nohup`` ignores SIGHUP, a shell's background job ``&`` SIGINT: the
+    command is meant to outlive them). A reader of stdout or stderr that goes away stops nothing
+    (:func:`guard_streams`, in the main thread): the command runs to its end, and where it was
+    stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`_failed`)."""
+    early = any(signal.getsignal(s) is _early_signal for s in TAKEN)
     if not early:  # (else the signal the early handler noted, if one came, is this command's)
         _SIGNALS.clear()
         _BARS.clear()
     progress.forget_signals()
+    guarded = guard_streams() if threading.current_thread() is threading.main_thread() else {}
     try:
-        before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        before = {s: signal.signal(s, on_signal) for s in TAKEN if signal.getsignal(s) is not signal.SIG_IGN}
     except ValueError:  # not the main thread
         before = {}
     hook = sys.unraisablehook
@@ -198,7 +255,14 @@ def signals():
         if _SIGNALS:  # (noted by the early handler: the command stops before any work)
             raise KeyboardInterrupt
         yield
+        out = guarded.get("stdout")
+        if out is not None and out.error is not None:  # (its reader went away: the command ran on, to its end)
+            raise out.error
     finally:
+        if not command_process():  # (the process's own keeps them to its exit, which flushes them: _flushed)
+            for name, stream in guarded.items():
+                if getattr(sys, name) is stream:
+                    setattr(sys, name, stream._stream)
         for s, h in before.items():
             if signal.getsignal(s) is not _late_signal:  # (else the process's own command ended: until_exit)
                 # (the early handler's place is the late one's: the process's own command ended, until_exit follows)
@@ -285,7 +349,7 @@ def interrupted(argv: list[str] | None, finished: bool = False, kept: str | None
 
 
 def _interrupted_line(sig: int, finished: bool, kept: str | None = None) -> str:
-    line = "tlm: interrupted" if sig == signal.SIGINT else "tlm: terminated (SIGTERM)"
+    line = f"tlm: {_SAID.get(sig, f'terminated ({signal.Signals(sig).name})')}"
     if kept:
         line += f" {kept}"
     elif finished:
@@ -306,8 +370,9 @@ def until_exit(status: int) -> int:
     (:func:`_end`). ``status``, returned. Never for a library call (``tlm.api``, or ``main``
     given its argv): no handler of the whole process outlives the call there."""
     try:
-        for s in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(s, _late_signal)
+        for s in TAKEN:
+            if signal.getsignal(s) is not signal.SIG_IGN:  # (ignored by the command: still, signals)
+                signal.signal(s, _late_signal)
     except ValueError:  # not the main thread: the interpreter's exit is not this command's
         return status
     if not _EXIT:
@@ -354,7 +419,7 @@ def _end() -> None:
         with suppress(BaseException):  # (each handler's exception is reported, as at any exit)
             atexit._run_exitfuncs()  # (private: see _others_once)
         status = _flushed(status)
-        signals = {signal.SIGINT, signal.SIGTERM}
+        signals = {s for s in TAKEN if signal.getsignal(s) is not signal.SIG_IGN}
         with suppress(ValueError, OSError):  # from here a signal waits (pending), to be taken below
             signal.pthread_sigmask(signal.SIG_BLOCK, signals)
         pending = sorted(signal.sigpending() & signals)
@@ -418,6 +483,8 @@ def _flushed(status: int) -> int:
     """``status`` once stdout and stderr are flushed (what the interpreter's exit would do,
     left out by :func:`_end`): 141 where the reader of stdout went away (as for ``tlm params |
     head -1``, :func:`exit_status`), 1 with its line where it could not be written (a full disk)."""
+    if _GONE.get("stdout") and status == 0:  # (its reader went away during the command: guard_streams)
+        status = 128 + signal.SIGPIPE
     streams = [sys.stdout, sys.__stdout__, sys.stderr, sys.__stderr__]
     for stream in dict.fromkeys(s for s in streams if s is not None):
         try:
@@ -425,6 +492,8 @@ def _flushed(status: int) -> int:
         except BrokenPipeError:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
                 status = 128 + signal.SIGPIPE
+            with suppress(Exception):  # (the interpreter's own flush at the exit: nothing left to fail)
+                _to_devnull(stream.fileno())
         except OSError as e:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
                 _say(f"tlm: error: the output could not be written: {environment_problem(e) or one_line(e)}")
@@ -432,6 +501,119 @@ def _flushed(status: int) -> int:
         except Exception:  # (a closed stream: nothing to flush)
             pass
     return status
+
+
+_GONE: dict[str, bool] = {}  # the streams (stdout, stderr) whose reader went away during the command
+
+
+class _Guarded:
+    """stdout or stderr (``name``), whose reader going away (``tlm run ... | head``, ``2>&- | ...``: a
+    BrokenPipeError) stops nothing (stdout's: while the command writes a destination, :func:`_writing`;
+    else its BrokenPipeError ends the command at once, quietly): what it writes there from then on is dropped
+    (its file descriptor now leads to ``/dev/null``, so a library's own writes are dropped too),
+    the command runs to its end and writes its files, its report. The stream is noted
+    (:data:`_GONE`) and the first BrokenPipeError kept (``error``): a reader of stdout gone ends
+    the command with exit status 141 once its work is done, as if SIGPIPE had ended it
+    (:func:`signals`, :func:`_flushed`); one of stderr changes nothing (its warnings and lines
+    are lost, to no one). Anything else is the stream's."""
+
+    def __init__(self, stream, name: str) -> None:
+        self._stream = stream
+        self._name = name
+        self.error: BrokenPipeError | None = None
+
+    def _gone(self, e: BrokenPipeError) -> None:
+        _GONE[self._name] = True
+        if self.error is None:
+            self.error = e
+        with suppress(Exception):
+            _to_devnull(self._stream.fileno())
+        with suppress(Exception):  # (what was buffered goes to /dev/null now)
+            self._stream.flush()
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError as e:
+            self._gone(e)
+            if self._name == "stdout" and not _writing():
+                raise
+            return len(text)
+
+    def writelines(self, lines) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError as e:
+            self._gone(e)
+            if self._name == "stdout" and not _writing():
+                raise
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+    def __iter__(self):
+        return iter(self._stream)
+
+
+def _writing() -> bool:
+    """Whether the command is writing a destination (it holds one: :func:`tlm.claims.claimed`, a
+    run's folder, a sweep's, a report's): then a reader of stdout that goes away stops nothing, and
+    what it writes is finished; a command that only prints (``tlm params | head -1``) stops there."""
+    claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination)
+    return bool(getattr(claims, "_CLAIMS", None))
+
+
+def guard_streams() -> dict[str, _Guarded]:
+    """``sys.stdout`` and ``sys.stderr`` made :class:`_Guarded`, each that is not already (and is
+    not None); those made now, by name. :data:`_GONE` forgotten (a new command)."""
+    _GONE.clear()
+    made = {}
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and not isinstance(stream, _Guarded):
+            made[name] = _Guarded(stream, name)
+            setattr(sys, name, made[name])
+    return made
+
+
+def _to_devnull(fd: int) -> None:
+    """File descriptor ``fd`` led to ``/dev/null`` (its reader went away)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        return
+    try:
+        os.dup2(devnull, fd)
+    except OSError:
+        pass
+    finally:
+        os.close(devnull)
+
+
+def _reader_gone(fd: int) -> bool:
+    """Whether file descriptor ``fd`` is a pipe (or socket) whose reader went away: the kernel
+    says POLLERR (Linux) or POLLHUP for it; False where it cannot tell (no ``poll``)."""
+    import select
+
+    if not hasattr(select, "poll"):
+        return False
+    try:
+        poll = select.poll()
+        poll.register(fd, select.POLLOUT)
+        return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+    except (OSError, ValueError):
+        return False
+
+
+def _broken_streams() -> list[str]:
+    """Of stdout and stderr, those whose reader went away (noted by :class:`_Guarded`, or said by
+    the kernel of file descriptors 1 and 2): a BrokenPipeError that reached the command line is
+    theirs; one of another pipe (a worker's) is an error of its own (:func:`_failed`)."""
+    return [name for name, fd in (("stdout", 1), ("stderr", 2)) if _GONE.get(name) or _reader_gone(fd)]
 
 
 def forget_lost_interrupt() -> None:
@@ -501,17 +683,16 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
         return 1
     if isinstance(e, KeyboardInterrupt):
         return interrupted(argv, kept=getattr(e, "kept", None))
-    if isinstance(e, BrokenPipeError):  # the reader went away (``| head``): nothing more to say
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())  # so that the exit's flush does not fail again
-        except (OSError, ValueError, AttributeError):
-            pass
+    broken = _broken_streams() if isinstance(e, BrokenPipeError) else []
+    if broken:  # the reader of stdout (or stderr) went away (``| head``): nothing more to say
+        for name in broken:  # so that the exit's flush does not fail again
+            with suppress(Exception):
+                _to_devnull(getattr(sys, name).fileno())
         return 128 + signal.SIGPIPE
     if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
         return interrupted(argv)
-    what = environment_problem(e)
-    if what is not None:  # the machine's fault: a full disk, a read-only destination
+    what = environment_problem(e) or memory_problem(e)
+    if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory
         _line(f"tlm: error: {' '.join(what.split())}")
         return 1
     saved = save_traceback(e)

@@ -5,7 +5,7 @@ mesh, a command-line value. The command line catches it, prints its one-line mes
 and exits with status 2; it never shows a traceback. The message always names the
 file, the key and the offending value, so that the line alone says what to fix.
 `EnvironmentFailure` is the machine's fault (a full disk, a read-only destination): one
-line, exit status 1.
+line, exit status 1; so is a MemoryError (:func:`memory_problem`: ``out of memory: ...``).
 """
 
 from __future__ import annotations
@@ -63,6 +63,38 @@ def environment_problem(e: BaseException, filename: bool = True) -> str | None:
     if e.errno is None and "requested and" in text and "written" in text:
         return f"a write was cut short ({text}): no space left on device?"
     return None
+
+
+def memory_problem(e: BaseException | None) -> str | None:
+    """``out of memory: ...`` where a MemoryError is in ``e``'s chain of causes and contexts (a
+    numba kernel's, wrapped), with what the failed allocation needed where it says (numpy's
+    ``Unable to allocate 8.24 MiB for an array ...``) and the limit on the address space where one
+    is set (``ulimit -v``); None where the chain holds none. The machine's fault, not tlm's: one
+    line, exit status 1, as a full disk."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen and not isinstance(e, MemoryError):
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    if not isinstance(e, MemoryError):
+        return None
+    text = " ".join(str(e).split())
+    line = f"out of memory: {text}" if text else "out of memory"
+    limit = address_space_limit()
+    if limit is not None:
+        line += f" (the address space of this process is limited to {limit / 2**20:.0f} MiB: ulimit -v)"
+    return line
+
+
+def address_space_limit() -> int | None:
+    """The limit on this process's address space in bytes (``ulimit -v``, RLIMIT_AS), None where
+    none is set or it cannot be read (not Unix)."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+    except (ImportError, AttributeError, OSError, ValueError):
+        return None
+    return None if soft == resource.RLIM_INFINITY else soft
 
 
 def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:

@@ -416,7 +416,8 @@ def _quiet():
 
 
 PR_SET_PDEATHSIG = 1  # prctl option (<linux/prctl.h>): a signal for this process when its parent dies
-_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)  # the signals whose Python handlers raise (the command line's)
+# the signals whose Python handlers raise (the command line's: tlm.cli_signals.TAKEN)
+_HELD_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 
 
 def die_with_parent() -> None:
@@ -435,7 +436,7 @@ def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
     thread is the forking one, so it owns it), leaves Ctrl-C to the render that forked it
     (which ends the pool), and ends with the process ``parent`` that forked it.
 
-    SIGINT and SIGTERM came blocked from the fork (:class:`_HeldSignals`), so that neither
+    SIGINT, SIGTERM and SIGHUP came blocked from the fork (:class:`_HeldSignals`), so that none
     reached the handler the worker inherited (the command line's, which raises) before it
     is replaced here; they are unblocked after (a child's pending signals are none at the
     fork: nothing is lost). The end with ``parent``: a parent killed (SIGKILL, the out-of-memory
@@ -451,6 +452,8 @@ def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
         _compiler_lock().release()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if hasattr(signal, "SIGHUP"):  # (a closed terminal's, sent to the whole group: the render ends the pool)
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD_SIGNALS)
     die_with_parent()
