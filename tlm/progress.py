@@ -194,10 +194,11 @@ def _bar_class():
             self.dynamic_ncols = terminal_shape  # (read at each redraw, as tqdm's own)
 
         def update(self, n=1):
-            out = super().update(n)
             if self.eta_after > 0 and not self.disable:
-                self.seen.append((self._time(), self.n))  # (one append: a redraw on another thread reads it)
-            return out
+                # (before tqdm's update, which may redraw with this step; one append: a redraw on
+                # another thread reads it)
+                self.seen.append((self._time(), self.n + n))
+            return super().update(n)
 
         @property
         def format_dict(self):
@@ -212,14 +213,36 @@ def _bar_class():
 
         def recent_rate(self, elapsed: float) -> float | None:
             """Steps per second over the last half of the time since the bar began, once
-            ``eta_after`` of its steps are done and a step was done in that half; else None."""
+            ``eta_after`` of its steps are done and a step ended in that half; else None.
+
+            Each step's work is spread evenly over its span (from the step before it, or the
+            bar's start, to its end): of a step that ends in the last half, only the part of
+            its span in that half counts there, not the whole step (a slow first step
+            counted whole gave about twice the rate while it ended in the last half, and half
+            the time left). The steps in the half are over the time from its start to the
+            last step's end: the step running now goes at that rate, but it has not ended,
+            so it adds less than one step; if the time since the last step says so, the
+            rate is lower (one more step over the whole half). Steps of equal length give
+            their own rate, so the time left shown after each is the time left."""
             done = self.n - self.initial
             if done < max(1, math.ceil(self.eta_after * (self.total - self.initial))) or elapsed <= 0:
                 return None
             seen = self.seen
-            k = bisect.bisect_right(seen, self.start_t + elapsed / 2, key=lambda e: e[0])  # (those in the first half)
-            recent = self.n - (seen[k - 1][1] if k else self.initial)
-            return recent / (elapsed / 2) if recent > 0 else None
+            m = len(seen)  # (a step's update on another thread may append meanwhile)
+            if not m:
+                return None
+            half = self.start_t + elapsed / 2
+            t_last, n_last = seen[m - 1]
+            if t_last <= half:
+                return None  # (no step ended in the last half)
+            k = bisect.bisect_right(seen, half, hi=m, key=lambda e: e[0])  # (those that ended in the first half)
+            t0, n0 = seen[k - 1] if k else (self.start_t, self.initial)
+            t1, n1 = seen[k]
+            at_half = n0 + (n1 - n0) * (half - t0) / (t1 - t0) if t1 > t0 else n1
+            recent = n_last - at_half
+            if recent <= 0:
+                return None
+            return min(recent / (t_last - half), (recent + 1) / (elapsed / 2))
 
     return Bar
 
@@ -232,7 +255,8 @@ def progress_bar(enabled: bool, eta_after: float = 0.0, **kwargs):
     ``initial``, the steps done before): until that many are done (at least one) the time
     left reads ``?``; from then on the rate, and the time left (the steps left at that
     rate), are the steps done in the last half of the time since the bar began over that
-    half, not tqdm's moving average of the last few steps. The first steps drop out of it
+    half (a step's work spread over its span: ``Bar.recent_rate``; steps of equal length
+    give the true time left), not tqdm's moving average of the last few steps. The first steps drop out of it
     as the bar goes on (a sweep's first points render their frames), and one slow step does
     not swing it; while no step was done in the last half, the time left reads ``?``.
 

@@ -13,6 +13,9 @@ belong to the experiments (:mod:`tlm.experiments.run`).
 from __future__ import annotations
 
 import contextlib
+import mmap
+import os
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -143,14 +146,17 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
                 traced = trace_photon_map(frame, warm=concurrent)
             bar.update()
         if concurrent:
+            if not bar.disable:
+                bar.set_postfix_str("prepare")
             _warm(frame, traced)
         release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
 
         forked = concurrent and BATCH_WORKERS == "processes" and threads.can_fork()
+        labels = None if bar.disable else _Labels(bar, len(batches), names)  # (made before the workers' fork)
 
         def one(i: int) -> _Batch:  # (threads share the run's timer, which counts a stage's wall time once)
             return _run_batch(frame, names, batches[i], traced, streams, concurrent, gather_maps is not None,
-                              Timer() if forked else timer, None if concurrent else bar, i, len(batches))
+                              Timer() if forked else timer, None if concurrent else bar, i, labels)
 
         if forked:
             done_batches = threads.forked(lambda i: _portable(frame, one(i)), range(len(batches)), threads.current())
@@ -178,6 +184,8 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
                     timer.add_spans([done.timer])  # (the union of the workers' spans: wall time, not a sum)
                 if concurrent:
                     bar.update(1 + len(names))
+                    if labels is not None:  # (forked workers' stages, read from the board here)
+                        labels.show()
                 if isinstance(g, dict):  # (a batch from another process: its primary part)
                     primary.put(g, at)
                 else:
@@ -281,15 +289,17 @@ def _portable(frame: Frame, done: _Batch) -> _Batch:
 
 def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTrace | None,
                streams: dict[str, Streams], deferred: bool, tally: bool, timer: Timer, bar, i: int,
-               n: int) -> _Batch:
+               labels: _Labels | None = None) -> _Batch:
     """Cast batch ``at`` and run every pass on it, on the carried ``streams`` or, when
     ``deferred``, on cold :class:`~tlm.kernels.recording.Deferred` pairs like them (a batch on
-    a worker thread: its per-map tallies are its own too)."""
+    a worker thread: its per-map tallies are its own too). ``bar``: counts its steps (on one
+    thread); ``i``: its index; ``labels``: told each stage it enters, for the bar's label
+    (:class:`_Labels`)."""
     checkpoint()  # (on one thread: a signal whose interrupt got lost stops the render before the batch)
     pairs = {name: Deferred.like(s) for name, s in streams.items()} if deferred else streams
     per_map: dict | None = {} if tally else None
-    if bar is not None:
-        bar.set_postfix_str(f"batch {i + 1}/{n} cast")
+    if labels is not None:
+        labels.enter(i, "cast")
     with timer.stage("cast"):
         g = cast(frame, np.arange(at.start, at.stop, dtype=np.int64))
     if bar is not None:
@@ -297,8 +307,8 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
     out = {}
     for name in names:
         checkpoint()  # (... and before each pass)
-        if bar is not None:
-            bar.set_postfix_str(f"batch {i + 1}/{n} {name}")
+        if labels is not None:
+            labels.enter(i, name)
         with timer.stage(f"pass_{name}"):
             if name == "pmap":
                 out[name] = pmap_pass(frame, g, traced.photons, streams=pairs[name], per_map=per_map,
@@ -309,7 +319,51 @@ def _run_batch(frame: Frame, names: tuple[str, ...], at: slice, traced: PhotonTr
                 out[name] = PASS_FUNCTIONS[name](frame, g, pairs[name])
         if bar is not None:
             bar.update()
+    if labels is not None:
+        labels.enter(i, None)
     return _Batch(g, out, pairs if deferred else None, per_map, timer)
+
+
+class _Labels:
+    """The render bar's label while the batches run, ``batch i/n <stage>``: the stage
+    (``cast``, then each pass by name) of the first batch not done, the one the calling
+    thread takes next. On one thread, the batch that runs. Where batches run at once, each
+    writes the stage it enters (or that it is done) to a board, one byte a batch, in shared
+    memory (an anonymous mmap, made before the workers are forked: their writes are seen
+    here), and the label is redrawn from the board: by a batch's own thread as it enters a
+    stage (in this process: on one thread, or on the threads' pool), and by the calling
+    thread as it takes each batch (what forked workers did, having no bar of their own).
+    The redraws are serialized, so the label shown is the board's latest. Display only: no
+    result reads it."""
+
+    DONE = 255  # (0: not begun; 1 + the stage's index: in it)
+
+    def __init__(self, bar, n: int, names: tuple[str, ...]):
+        self.bar, self.n = bar, n
+        self.stages = ("cast", *names)
+        self.board = mmap.mmap(-1, max(n, 1))  # (anonymous: shared with forked children, zeros)
+        self.pid = os.getpid()
+        self.lock = threading.Lock()
+        self.first = 0  # (the batches before it are done)
+        self.shown: str | None = None
+
+    def enter(self, i: int, stage: str | None) -> None:
+        """Batch ``i`` enters ``stage`` (None: it is done)."""
+        self.board[i] = self.DONE if stage is None else 1 + self.stages.index(stage)
+        if os.getpid() == self.pid:  # (a forked worker only writes the board)
+            self.show()
+
+    def show(self) -> None:
+        """Redraw the label from the board, where it changed."""
+        with self.lock:
+            while self.first < self.n and self.board[self.first] == self.DONE:
+                self.first += 1
+            if self.first >= self.n or not self.board[self.first]:
+                return  # (all done, or the next batch has not begun: the label stays)
+            label = f"batch {self.first + 1}/{self.n} {self.stages[self.board[self.first] - 1]}"
+            if label != self.shown:
+                self.shown = label
+                self.bar.set_postfix_str(label)
 
 
 def _warm(frame: Frame, traced: PhotonTrace | None) -> None:
