@@ -140,12 +140,13 @@ def _copy(small_sweep: Path, tmp_path: Path, depth: int | None = 16) -> tuple[Pa
 
 
 @pytest.mark.slow
-def test_points_of_a_mixed_group_exit_2_naming_the_sweep(tmp_path, small_sweep, capsys):
+def test_points_of_a_crossed_group_are_fitted_per_combination(tmp_path, small_sweep, capsys):
+    """A grid of N and the FIFO depth (N = 1, 1, 2, 2): a fit per depth (it was refused)."""
     folder, _ = _copy(small_sweep, tmp_path, depth=None)
-    assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and str(folder) in err[0] and "same N (N = 1, 1, 2, 2)" in err[0]
-    assert not (tmp_path / "eq").exists()
+    assert main(["scaling", str(folder), "--out", str(tmp_path / "eq"), "--no-report"]) == 0
+    meta = json.loads((tmp_path / "eq" / "eq52.json").read_text())
+    assert sorted((f["group"], f["target"], tuple(f["pipelines"])) for f in meta["fits"]) == [
+        (f"arch.fifo_depth = {d}", t, (1, 2)) for d in (1, 16) for t in ("latency", "throughput")]
 
 
 @pytest.mark.slow

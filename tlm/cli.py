@@ -304,9 +304,13 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
     fits = done["fits"]
     wide = {k: max([w, *(len(str(f[k])) for f in fits)]) for k, w in (("scene", 8), ("mode", 7), ("scheduler", 8))}
+    # a sweep crossing N with other factors: a fit per combination of their values (its group)
+    group = max((len(f.get("group") or "") for f in fits), default=0)
     for f in fits:
+        combination = f"{f.get('group') or '':{group}s} " if group else ""
         print(f"  {f['scene']:{wide['scene']}s} {f['mode']:{wide['mode']}s} {f['scheduler']:{wide['scheduler']}s} "
-              f"{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  max |error| {f['max_abs_rel_error']:6.1%}; "
+              f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
+              f"max |error| {f['max_abs_rel_error']:6.1%}; "
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
               f"(N = {values_text(f['pipelines'])})")
     print(f"wrote {out}")

@@ -299,6 +299,33 @@ def photon_error(frame: Frame, pmap: np.ndarray, compute: bool = False, progress
             "reference_seconds": None if found.seconds is None else round(found.seconds, 3)}
 
 
+def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None) -> dict:
+    """What ``results.json``'s ``error`` records of a photon-map reference not computed as asked:
+    ``skipped``, why (``--no-reference``, the run's ``reference`` false, or the config's
+    ``reference.auto: false``), and ``command``, the ``tlm reference`` command that computes it
+    (:func:`reference_command`), as ``tlm run`` prints them."""
+    return {"skipped": "--no-reference" if cfg.reference.auto else "reference.auto: false",
+            "command": reference_command(config_path, overrides)}
+
+
+def reference_command(config_path: str | None, overrides: Iterable[str] | None = ()) -> str:
+    """The ``tlm reference`` command that computes the reference of a run of ``config_path`` with
+    ``overrides`` (its ``--set`` strings): a built-in experiment by its name (``cornell_pmap``),
+    another config by its path as given; ``CONFIG`` for a config that is no file (a mapping)."""
+    import shlex
+
+    from tlm.builtin import configs_dir, list_experiments
+
+    typed = str(config_path) if config_path else "CONFIG"
+    path = Path(typed)
+    try:
+        if path.is_absolute() and path.parent.resolve() == configs_dir().resolve() and path.stem in list_experiments():
+            typed = path.stem
+    except OSError:
+        pass
+    return " ".join(["tlm reference", shlex.quote(typed), *(f"--set {shlex.quote(str(o))}" for o in overrides or ())])
+
+
 def _write_difference(res: RenderResult, path: Path) -> None:
     """``images/pmap_error.png``: the photon-map frame minus its reference (signed colours,
     :func:`~tlm.experiments.reference.difference_image`), when the error was measured; its
@@ -503,6 +530,8 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
                 error = photon_error(res.frame, res.radiance["pmap"].reshape(-1, 3), compute=True,
                                      progress=progress, say=say)
             res = replace(res, error=error)
+        elif res.error is not None and not res.error["available"]:  # (skipped as asked: the report says so)
+            res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides)})
         res = simulate_render(res, programs, progress=progress)
         with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
             results = write_run(res, out, config_path, overrides, outputs)

@@ -28,7 +28,9 @@ whatever else is fitted beside it (:func:`scene_name`): a built-in one by its na
 group whose points' resolved configs differ in any other key (a sweep that zips
 ``arch.pipelines`` with ``arch.page_miss_cycles``, or two sweeps of different bases) is
 refused, naming the key, since the fit would read that key's effect as the pipelines'
-(the keys that leave the cycles as they are, :data:`NO_EFFECT`, may differ). Failed
+(the keys that leave the cycles as they are, :data:`NO_EFFECT`, may differ). A sweep that
+crosses N with other factors is fitted once per combination of their values that has two
+values of N (:func:`parts`: a fit's ``group``, ``bsp.levels = 15, cache.pairs = 4``). Failed
 points are left out, each named in the notes; so is a point whose stream was too short
 for a steady state (``throughput_steady`` false: its TThru includes the fill and drain),
 which is fitted all the same. :func:`analyse` writes ``eq52.csv`` (per point:
@@ -119,7 +121,9 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
         except (OSError, ValueError, yaml.YAMLError) as e:
             raise InputError(f"point {row.get('point')}: cannot read its folder ({e})", source=str(rows_path),
                              key=f"line {n}") from None
-        rec = {**record(res, cfg), "sweep": str(sweep_dir), "hash": str(row.get("hash"))}
+        fac = factors.get(str(row.get("hash")))
+        rec = {**record(res, cfg), "sweep": str(sweep_dir), "hash": str(row.get("hash")),
+               "factors": fac if isinstance(fac, dict) else {}}
         records.append(rec)
         if notes is not None and rec["steady"] is False:
             notes.append(f"{sweep_dir}: point {row.get('point')} "
@@ -186,6 +190,73 @@ def record(res: dict, cfg: dict) -> dict:
         "max_max": max(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
         "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
     }
+
+
+def fit_key(scene: str, mode: str, scheduler: str, target: str, group: str = "") -> tuple:
+    """A fit's key: (scene, mode, scheduler, target), and the combination of the other factors
+    (:func:`parts`) where a group is fitted per combination."""
+    return (scene, mode, scheduler, target, group) if group else (scene, mode, scheduler, target)
+
+
+def key_group(key: tuple) -> str:
+    """The combination of the other factors of a :func:`fit_key` ("" for a group fitted whole)."""
+    return str(key[4]) if len(key) > 4 else ""
+
+
+def _shown(text: str) -> str:
+    """A setting's value (JSON text, :func:`settings`) as a label shows it: ``null``, ``15``, ``a``."""
+    try:
+        v = json.loads(text)
+    except ValueError:
+        return text
+    return v if isinstance(v, str) else json.dumps(v)
+
+
+def combination_text(values: dict) -> str:
+    """A combination of factor values as :func:`parts` labels it: ``bsp.levels = null, cache.pairs = 4``."""
+    return ", ".join(f"{k} = {_shown(json.dumps(v, sort_keys=True, default=str))}" for k, v in values.items())
+
+
+def parts(points: list[dict], where: str = "", notes: list[str] | None = None) -> list[tuple[str, list[dict]]]:
+    """The points of one (scene, mode, scheduler) group, split by their sweeps' other factors.
+
+    A sweep that crosses ``arch.pipelines`` with other factors (a grid of N and ``bsp.levels``,
+    or N beside a zip of ``bsp.levels`` and ``cache.pairs``) is fitted once per combination of
+    the other factors' values, each a curve labelled ``bsp.levels = 15, cache.pairs = 4``: the
+    factors (a point's ``factors``, its sweep's) whose values differ among the points, each
+    value as the point's resolved config holds it (so that two sweeps of one base, one of them
+    over another factor too, agree where the values do). A combination with one value of N is
+    left out, ``notes`` saying so, where another has two; where none has (a zip of N with
+    another factor: one N per combination) or no other factor varies, the group is one part,
+    ``("", points)``, fitted (or refused, :func:`fit_group`) whole, as before."""
+    keys: list[str] = []
+    for p in points:
+        keys.extend(k for k in p.get("factors") or {} if k not in GROUP_KEYS and k not in keys)
+
+    def value(p: dict, k: str) -> str:
+        text = (p.get("settings") or {}).get(k)
+        if text is None:
+            f = p.get("factors") or {}
+            text = json.dumps(f[k], sort_keys=True, default=str) if k in f else "(not set)"
+        return text
+
+    keys = [k for k in keys if len({value(p, k) for p in points}) > 1]
+    if not keys:
+        return [("", points)]
+    split: dict[tuple, list[dict]] = {}
+    for p in points:
+        split.setdefault(tuple(value(p, k) for k in keys), []).append(p)
+    labelled = [(", ".join(f"{k} = {_shown(v)}" for k, v in zip(keys, vals, strict=True)), pts)
+                for vals, pts in split.items()]
+    ok = [(label, pts) for label, pts in labelled if len({p["pipelines"] for p in pts}) >= 2]
+    if not ok:
+        return [("", points)]
+    if notes is not None:
+        for label, pts in labelled:
+            if len({p["pipelines"] for p in pts}) < 2:
+                notes.append(f"{where + ': ' if where else ''}{label}: not fitted: one value of N only "
+                             f"(N = {values_text(sorted({p['pipelines'] for p in pts}))}); eq. 5.2 needs two")
+    return ok
 
 
 def fit_group(points: list[dict], target: str, slowest: bool = False, source: str | None = None) -> dict:
@@ -323,16 +394,21 @@ def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
     return dict(sorted(out.items()))
 
 
-def fit(records: list[dict]) -> dict[tuple, dict]:
-    """Eq. 5.2 per (scene, mode, scheduler) (:func:`groups`) and target; an error names the
-    group's sweep folders."""
+def fit(records: list[dict], notes: list[str] | None = None) -> dict[tuple, dict]:
+    """Eq. 5.2 per (scene, mode, scheduler) (:func:`groups`), per combination of the sweeps' other
+    factors (:func:`parts`, each fit's ``group``; ``notes`` gets a line per combination left out)
+    and per target, keyed by :func:`fit_key`; an error names the group's sweep folders."""
     fits = {}
     for key, pts in groups(records).items():
         sweeps = sorted({r["sweep"] for r in pts if r.get("sweep")})
         group = "/".join(key) if "/" not in key[0] else f"{key[0]}: {key[1]}/{key[2]}"
-        source = f"{', '.join(sweeps)} ({group})" if sweeps else None
-        for target in TARGETS:
-            fits[(*key, target)] = fit_both(pts, target, source)
+        where = f"{', '.join(sweeps)} ({group})" if sweeps else group
+        for label, part in parts(pts, where, notes):
+            source = (f"{', '.join(sweeps)} ({group}{'; ' + label if label else ''})" if sweeps
+                      else label or None)
+            for target in TARGETS:
+                fits[fit_key(*key, target, label)] = {**fit_both(part, target, source),
+                                                     **({"group": label} if label else {})}
     return fits
 
 
@@ -347,18 +423,22 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
     with identities_remembered():  # (every point of a scene names one scene file: digested once, not once a point)
         records = [r for d in sweep_dirs for r in collect(d, notes, failed)]
     try:
-        fits = fit(records)
+        fits = fit(records, notes)
     except InputError as e:
         if not failed:
             raise
         raise InputError(f"{e} (left out, as they failed: {'; '.join(failed)})") from None
     table, summary = [], []
     files = {scene: pts[0].get("scene_file") for (scene, _, _), pts in groups(records).items()}
-    for (scene, mode, sched, target), f in fits.items():
+    for key, f in fits.items():
+        scene, mode, sched, target = key[:4]
+        group = {"group": key_group(key)} if key_group(key) else {}  # (a combination of the other factors)
         summary.append({"scene": scene, "scene_file": files.get(scene), "mode": mode, "scheduler": sched,
-                        "target": target, "A": f["A"], "B": f["B"], "max_abs_rel_error": f["max_abs_rel_error"],
-                        "slowest": f["slowest"], "pipelines": [r["pipelines"] for r in f["rows"]]})
-        table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r} for r in f["rows"])
+                        "target": target, **group, "A": f["A"], "B": f["B"],
+                        "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
+                        "pipelines": [r["pipelines"] for r in f["rows"]]})
+        table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r, **group}
+                     for r in f["rows"])
 
     def figures(_point, tmp: Path) -> list[dict]:
         for scene, file in figure_files({k[0] for k in fits} if plot else ()).items():

@@ -349,6 +349,26 @@ def images_section(inputs: Inputs, out: Path) -> Section:
     return section
 
 
+def _unmeasured(run: Run, error: dict) -> str:
+    """Why a run's photon-map error was not measured, and the command that computes its reference, as
+    ``tlm run`` printed them: from ``results.json`` where it records them (``skipped``, ``command``);
+    else the command from the run's config and overrides, and the reason from its config (a run with
+    ``reference.auto`` true and no reference computed was run with ``--no-reference``)."""
+    why, command = error.get("skipped"), error.get("command")
+    if not isinstance(command, str) or not command:
+        from tlm.experiments.run import reference_command  # (tlm run's rule; imported only here)
+
+        config = run.results.get("config")
+        command = reference_command(config if isinstance(config, str) else None,
+                                    [o for o in run.results.get("overrides") or [] if isinstance(o, str)])
+    if not isinstance(why, str) or not why:
+        auto = (run.config.get("reference") or {}).get("auto") if isinstance(run.config, dict) else None
+        why = "reference.auto: false" if auto is False else "--no-reference" if auto is True else ""
+    key = error.get("reference")
+    return (f"the photon-map frame's error was not measured: {f'skipped ({why})' if why else 'not measured'}: "
+            f"no reference{f' {key}' if key else ''} cached; compute it with: {command}, then run it again")
+
+
 def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
     """Each run's photon-map error: a figure (:func:`error_figure`) and a phrase of the lead."""
     from tlm.report.html import esc
@@ -359,8 +379,7 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
         if not error:
             continue  # no photon-map frame
         if not error.get("available"):
-            section.notes.append(f"{run.label}: the photon-map frame's error was not measured (no reference "
-                                 "cached when it ran; 'tlm reference CONFIG', then run it again)")
+            section.notes.append(f"{run.label}: {_unmeasured(run, error)}")
             continue
         said.append(f"{esc(run.label)}: {esc(_error_words(error))}")
         if len(said) > MAX_ERROR_FIGURES:

@@ -45,28 +45,33 @@ TITLES = {"latency": "frame latency (eq. 5.2's T_tot)", "throughput": "throughpu
 
 def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = "") -> None:
     """Three panels: latency and throughput against N (simulated, eq. 5.2, slowest-pipeline
-    variant), and the speed-up; one colour and marker per scheduler. Each panel's legend
+    variant), and the speed-up; one colour and marker per scheduler, and per combination of
+    the sweep's other factors where it was fitted per combination (a key's group,
+    :func:`tlm.experiments.scaling.fit_key`), each curve labelled by it. Each panel's legend
     sits under it, where it covers no curve."""
     fig = new_figure(15, 5.8)  # (taller: the legends sit under the panels)
     axes = fig.subplots(1, 3)
-    scheds = sorted({k[2] for k in fits}, key=lambda s: (s != "static", s))
-    for (_, mode, sched, target), f in sorted(fits.items()):
-        i = scheds.index(sched)
+    curves = sorted({(k[2], eq52.key_group(k)) for k in fits}, key=lambda c: (c[0] != "static", c))
+    for key, f in sorted(fits.items()):
+        _, mode, sched, target = key[:4]
+        group = eq52.key_group(key)
+        i = curves.index((sched, group))
         c, m = colour(2 * i), marker(i)
+        name = f"{sched}, {group}" if group else sched
         ns = [r["pipelines"] for r in f["rows"]]
         ax = axes[0 if target == "latency" else 1]
         ax.plot(ns, [r["simulated"] for r in f["rows"]], color=c, marker=m, linestyle="-",
-                label=f"{sched} ({mode}): simulated")
+                label=f"{name} ({mode}): simulated")
         ax.plot(ns, [r["analytical"] for r in f["rows"]], color=c, linestyle="--",
-                label=f"{sched}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {f['max_abs_rel_error']:.1%}")
+                label=f"{name}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {f['max_abs_rel_error']:.1%}")
         if "analytical_slowest" in f["rows"][0]:
             s = f["slowest"]
             ax.plot(ns, [r["analytical_slowest"] for r in f["rows"]], color=c, linestyle=":",
-                    label=f"{sched}: slowest pipeline, A={s['A']:.3g}, B={s['B']:.3g}, "
+                    label=f"{name}: slowest pipeline, A={s['A']:.3g}, B={s['B']:.3g}, "
                           f"max err {s['max_abs_rel_error']:.1%}")
         if target == "throughput":
             axes[2].plot(ns, [r["speedup"] for r in f["rows"]], color=c, marker=m, linestyle="-",
-                         label=f"{sched} ({mode})")
+                         label=f"{name} ({mode})")
     where = f" [{source}]" if source else ""
     for ax, target in zip(axes[:2], ("latency", "throughput"), strict=True):
         ax.set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="cycles per frame",
@@ -89,12 +94,12 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
 
 def _fits_of_study(study) -> dict[tuple, dict]:
     rows = defaultdict(list)
-    for r in study.rows:
-        rows[(r["scene"], r["mode"], r["scheduler"], r["target"])].append(
+    for r in study.rows:  # (a fit per combination of a sweep's other factors: its rows' and its group)
+        rows[eq52.fit_key(r["scene"], r["mode"], r["scheduler"], r["target"], r.get("group") or "")].append(
             {**r, "pipelines": int(r["pipelines"])})
     fits = {}
     for f in study.meta.get("fits", []):
-        key = (f["scene"], f["mode"], f["scheduler"], f["target"])
+        key = eq52.fit_key(f["scene"], f["mode"], f["scheduler"], f["target"], f.get("group") or "")
         if key in rows:
             fits[key] = {**f, "rows": sorted(rows[key], key=lambda r: r["pipelines"])}
     return fits
@@ -107,6 +112,7 @@ def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None)
     for run in sweep.runs:  # (read once by collect.read)
         rec = eq52.record(run.results, run.config)
         rec["report_name"] = run.scene_label
+        rec["factors"] = run.factors  # (a fit per combination of the other factors: eq52.parts)
         records.append(rec)
         if rec["steady"] is False:
             notes.append(f"{run.label}{f' ({run.factors_text})' if run.factors else ''}: {eq52.unsteady(rec)}")
@@ -114,11 +120,13 @@ def _fits_of_sweep(sweep, notes: list[str], names: dict[str, str] | None = None)
     for key, pts in eq52.groups(records).items():
         if names is not None:
             names[key[0]] = pts[0]["report_name"]
-        for target in eq52.TARGETS:
-            try:
-                fits[(*key, target)] = eq52.fit_both(pts, target)
-            except InputError as e:
-                notes.append(f"{sweep.label}: {'/'.join(key)} {target} not fitted: {e}")
+        for group, part in eq52.parts(pts, f"{sweep.label}: {'/'.join(key)}", notes):
+            for target in eq52.TARGETS:
+                try:
+                    fits[eq52.fit_key(*key, target, group)] = eq52.fit_both(part, target)
+                except InputError as e:
+                    notes.append(f"{sweep.label}: {'/'.join(key)}{f' ({group})' if group else ''} {target} "
+                                 f"not fitted: {e}")
     return fits
 
 
@@ -130,10 +138,12 @@ def _scheduler_order(s: str) -> tuple:
     return (s != "static", s != "dynamic", s)
 
 
-def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
+def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
     """The data behind the idle figures and tables of a sweep over ``arch.pipelines``.
 
-    Per (scene, mode): ``{"pms": [...], "points": [...]}``, the points sorted by scheduler
+    Per (scene, mode), and per combination of the sweep's other factors where it crosses N with
+    others ((scene, mode, ``bsp.levels = 15``), in the order of their first points):
+    ``{"pms": [...], "points": [...]}``, the points sorted by scheduler
     (static first) then N, each ``{"point", "scheduler", "pipelines", "throughput",
     "speedup", "idle": {pm: fraction}}``: ``throughput`` is the row's
     ``cycles.throughput`` (TThru), ``speedup`` TThru(1) / TThru(N) of the same scheduler
@@ -151,7 +161,16 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
                      f"({', '.join(f'idle.{p}' for p in PMS)}); a sweep run by a newer tlm writes them")
         return {}
     by_hash = {r.path.name: r for r in sw.runs}
-    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    # a sweep crossing N with other factors: a figure per combination of their values (as eq. 5.2's fits)
+    # where one has two values of N (a zip of N with another factor: one figure over N, as before)
+    others = [k for k in factors_of(sw) if k not in eq52.GROUP_KEYS
+              and len({repr(r.get(k)) for r in ok}) > 1]
+    ns = defaultdict(set)
+    for r in ok:
+        ns[tuple(repr(r.get(k)) for k in others)].add(r.get("arch.pipelines"))
+    if not any(len(n) > 1 for n in ns.values()):
+        others = []
+    groups: dict[tuple, list[dict]] = defaultdict(list)
     unknown = []
     for r in sorted(ok, key=lambda r: r.get("point", 0)):
         run = by_hash.get(str(r.get("hash")))
@@ -161,7 +180,8 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
         if n is None or sched is None:
             unknown.append(str(r.get("point")))
             continue
-        groups[(str(r.get("scene")), str(r.get("mode")))].append({
+        combination = eq52.combination_text({k: r.get(k) for k in others})
+        groups[(str(r.get("scene")), str(r.get("mode")), *((combination,) if combination else ()))].append({
             "point": r.get("point"), "scheduler": str(sched), "pipelines": int(n),
             "throughput": r.get("cycles.throughput"),
             "idle": {p: r.get(f"idle.{p}") for p in pms}})
@@ -169,7 +189,10 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
         notes.append(f"{name}: points {', '.join(unknown)} left out of the idle figures: neither the row nor a "
                      "results folder gives their scheduler and N")
     out = {}
-    for (scene, mode), pts in sorted(groups.items()):
+    for key, pts in sorted(groups.items(), key=lambda kv: kv[0][:2]):  # (a scene's combinations as they came)
+        scene, mode = key[:2]
+        if len(key) > 2:
+            mode = f"{mode} ({key[2]})"  # (in the notes)
         seen = defaultdict(list)
         for p in pts:
             seen[(p["scheduler"], p["pipelines"])].append(str(p["point"]))
@@ -186,7 +209,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple[str, str], dict]:
         for p in pts:
             t1, t = one.get(p["scheduler"]), p["throughput"]
             p["speedup"] = t1 / t if t1 and t else None
-        out[(scene, mode)] = {"pms": pms, "points": pts}
+        out[key] = {"pms": pms, "points": pts}
     return out
 
 
@@ -237,9 +260,16 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     return "\n".join(out)
 
 
-def scaling_section(inputs: Inputs, out: Path) -> Section:
-    sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
-    studies = inputs.of_kind("scaling")
+def fit_sources(inputs: Inputs, notes: list[str],
+                studies: bool = True) -> list[tuple[str, str, dict, dict[str, str], Path, str]]:
+    """The eq. 5.2 fits among the inputs, as §3 draws them and the summary's "Does it scale" reads
+    them: each ``tlm scaling`` folder's, and each sweep's over ``arch.pipelines`` (fitted here, per
+    combination of its other factors, :func:`tlm.experiments.scaling.parts`). Per source: (the
+    folder's name, for the file names; its name in titles and notes; its fits by
+    :func:`~tlm.experiments.scaling.fit_key`; each fit's scene as the report names it; the folder;
+    why its fit no longer shows its sweeps, "" where it does). What was not fitted, and why, goes
+    to ``notes``. ``studies`` false: the sweeps' alone."""
+    studies = inputs.of_kind("scaling") if studies else []
     # a scaling folder as titles and notes name it: its name, or where another folder of the section shares it,
     # the tail of its path that tells it apart (a sweep's label is the report's: :func:`~tlm.report.collect.read`)
     shown = path_labels([*(st.path for st in studies), *(sw.path for sw in inputs.sweeps if _varies_pipelines(sw))])
@@ -252,23 +282,28 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
     for st, label in zip(studies, shown, strict=True):
         fits = _fits_of_study(st)
         # what the fit left out or noticed (failed points, an unfinished sweep)
-        sec.notes.extend(f"{label}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
+        notes.extend(f"{label}: {n}" for n in st.meta.get("notes") or [] if isinstance(n, str))
         old = eq52.out_of_date(st.path, st.meta)
-        sec.notes.extend(f"{label}: {n}" for n in old)
+        notes.extend(f"{label}: {n}" for n in old)
         stale = ("Out of date: its sweep holds other points now (see the notes). "
                  if any(n.startswith("out of date") for n in old) else "")
         sources.append((st.path.name, label, fits, {k[0]: inputs.study_scene(st, k[0]) for k in fits}, st.path,
                         stale))
-    idle_sweeps = []
     for sw in inputs.sweeps:
         if not _varies_pipelines(sw):
             continue
-        idle_sweeps.append(sw)
         if not sw.runs:
-            sec.notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")
+            notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")
             continue
         names: dict[str, str] = {}
-        sources.append((sw.path.name, sw.label, _fits_of_sweep(sw, sec.notes, names), names, sw.path, ""))
+        sources.append((sw.path.name, sw.label, _fits_of_sweep(sw, notes, names), names, sw.path, ""))
+    return sources
+
+
+def scaling_section(inputs: Inputs, out: Path) -> Section:
+    sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
+    sources = fit_sources(inputs, sec.notes)
+    idle_sweeps = [sw for sw in inputs.sweeps if _varies_pipelines(sw)]
     sec.notes.extend(inputs.scaling_missing)
     for sw in inputs.scaling_sweeps:  # fitted by a scaling study among the inputs: idle fractions only
         if _varies_pipelines(sw):
@@ -282,7 +317,8 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             file = figure_name(out, "scaling", name, scene, key=f"scaling\n{where.absolute()}\n{scene}")
             scene_shown = named.get(scene, scene)
             plot_scaling(scene_shown, mine, out / file, label)
-            worst = ", ".join(f"{k[2]} {k[3]} {v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
+            worst = ", ".join(f"{k[2]}{f' ({eq52.key_group(k)})' if eq52.key_group(k) else ''} {k[3]} "
+                              f"{v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
             sec.figures.append(Figure(file, f"{scene_shown}: scaling from {label}{' (out of date)' if stale else ''}",
                                       stale + "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                       "least squares elsewhere; dotted: the slowest-pipeline variant. "
@@ -290,11 +326,13 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
     tables = []
     for sw in idle_sweeps:
         groups = idle_points(sw, sec.notes)
-        many_modes = len({mode for _, mode in groups}) > 1
-        for (scene, mode), g in groups.items():
-            label = f"{scene}/{mode}" if many_modes else scene
+        many_modes = len({key[1] for key in groups}) > 1
+        for key, g in groups.items():
+            scene, mode, combination = *key[:2], (key[2] if len(key) > 2 else "")
+            label = (f"{scene}/{mode}" if many_modes else scene) + (f" [{combination}]" if combination else "")
             file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
-                               key="\n".join(("idle", str(sw.path.absolute()), scene, mode)))
+                               *((combination,) if combination else ()),
+                               key="\n".join(("idle", str(sw.path.absolute()), *key)))
             plot_idle(label, g["pms"], g["points"], out / file, sw.label)
             sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.label}",
                                       "Idle: no job to run (neither working nor stalled), as a fraction of the "
@@ -305,6 +343,9 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
                                      "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
     sec.html = "\n".join(tables)
     if not sec.figures:
-        sec.absent = ("no 'tlm scaling' folder and no sweep over arch.pipelines among the inputs "
+        folders = [label for _, label, _, _, _, _ in sources] + [sw.label for sw in idle_sweeps if not sw.runs]
+        sec.absent = (f"no eq. 5.2 fit or idle figure from {', '.join(dict.fromkeys(folders))}: the notes say why"
+                      if folders else
+                      "no 'tlm scaling' folder and no sweep over arch.pipelines among the inputs "
                       "(e.g. 'tlm sweep scaling_ring', the built-in experiment)")
     return sec

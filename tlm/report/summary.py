@@ -268,26 +268,54 @@ def _percent_range(shares: list[float]) -> str:
 
 
 def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
-    rows = [r for st in inputs.of_kind("scaling") for r in st.rows
-            if r.get("target") == "throughput" and r.get("scheduler") == "static"]
-    if not rows:
-        return "No eq. 5.2 study among the inputs: no scaling to show.", None
-    by = defaultdict(list)
-    for st in inputs.of_kind("scaling"):
+    """The speed-up of TThru against N of every eq. 5.2 fit that §3 draws (:func:`fit_sources`: the
+    ``tlm scaling`` folders' and those of the sweeps over ``arch.pipelines``, a fit per combination of
+    a sweep's other factors), the static scheduler's where a curve has it."""
+    from tlm.experiments.scaling import key_group
+    from tlm.report.scaling import fit_sources
+
+    # (source, scene, mode, group) -> scheduler -> rows: a scaling study's rows (eq52.csv), a sweep's fits
+    found: dict[tuple, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
+    studies = inputs.of_kind("scaling")
+    for st in studies:
         for r in st.rows:
-            if r.get("target") == "throughput" and r.get("scheduler") == "static":
-                by[inputs.study_scene(st, r["scene"])].append(r)  # (the scene by its file, as in §3)
+            if r.get("target") == "throughput":  # (the scene by its file, as in §3)
+                at = (st.path.name, inputs.study_scene(st, r["scene"]), r.get("mode", ""), r.get("group") or "")
+                found[at][str(r.get("scheduler"))].append(r)
+    sweeps = fit_sources(inputs, [], studies=False)  # (§3 says what was not fitted and why)
+    for _, label, fits, named, _, _ in sweeps:
+        for key, f in fits.items():
+            scene, mode, sched, target = key[:4]
+            if target == "throughput" and f.get("rows"):
+                found[(label, named.get(scene, scene), mode, key_group(key))][sched] = f["rows"]
+    curves = {at: ("static", by["static"]) if by.get("static") else next(iter(by.items()))
+              for at, by in found.items() if any(by.values())}
+    if not curves:
+        if sweeps:
+            return (f"No eq. 5.2 fit of {', '.join(dict.fromkeys(label for _, label, *_ in sweeps))}: no scaling to "
+                    "show (§3's notes say why).", None)
+        return "No eq. 5.2 study or sweep over arch.pipelines among the inputs: no scaling to show.", None
+    scenes = defaultdict(set)  # (a scene fitted from two folders: each curve names its folder)
+    for label, scene, _, _ in curves:
+        scenes[scene].add(label)
+    modes = len({mode for _, _, mode, _ in curves}) > 1
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
     top_n, gains = 1, []
-    for i, (scene, rs) in enumerate(sorted(by.items(), key=lambda kv: _scene_order(kv[0]))):
+    order = sorted(curves, key=lambda c: (_scene_order(c[1]), c[0], c[2]))
+    for i, at in enumerate(order):
+        label, scene, mode, group = at
+        sched, rs = curves[at]
         rs = sorted(rs, key=lambda r: r["pipelines"])
         ref = rs[0]["simulated"]
         n = [r["pipelines"] for r in rs]
         sp = [ref / r["simulated"] for r in rs]
-        ax.plot(n, sp, label=scene, **line_style(i))
+        name = " ".join(w for w in (scene, MODE_NAMES.get(mode, mode) if modes else "",
+                                    f"({label})" if len(scenes[scene]) > 1 else "",
+                                    f"[{group}]" if group else "", "" if sched == "static" else f"({sched})") if w)
+        ax.plot(n, sp, label=name, **line_style(i))
         top_n = max(top_n, n[-1])
-        gains.append((scene, n[-1], sp[-1]))
+        gains.append((name, n[-1], sp[-1]))
     ax.plot([1, top_n], [1, top_n], color="0.6", linewidth=1, label="ideal")
     ax.set_xscale("log", base=2)
     ax.set_yscale("log", base=2)
