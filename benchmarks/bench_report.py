@@ -2,14 +2,18 @@
 
 The Quick-start (README.md) is ``tlm run configs/cornell.yaml``: a render, its simulation
 and, at the end, the report (``OUT/report``: figures and ``report.html``). This bench writes
-that run folder once (``tlm run CONFIG --no-report``), then times, in ``--repeat`` rounds,
-each command in a fresh interpreter:
+that run folder once (``tlm run CONFIG --no-report``; ``--set KEY=VALUE``, repeatable, passed
+on to it: ``--set resolution=[48,48]`` for a small run, whose report costs about as much as
+the run), then times, in ``--repeat`` rounds, each command in a fresh interpreter:
 
 * ``tlm run CONFIG --no-report`` (with an empty ``TLM_CACHE`` of its own, as a first
   Quick-start has): the run without its report, the reference;
-* the report as a run writes it: an interpreter that has imported what ``tlm run`` imports
-  before its report times :func:`tlm.api.write_report` of the run folder (matplotlib's
-  import and the first uses of fonts and parsers included, as at the end of a run);
+* the report as a run writes it: an interpreter that has just run ``tlm run CONFIG
+  --no-report`` itself (:func:`tlm.cli.main`, with what a run leaves in the process: its
+  compiled kernels, scene and caches, tens of thousands of objects for the garbage collector
+  to scan) times :func:`tlm.api.write_report` of that run folder (matplotlib's import and the
+  first uses of fonts and parsers included, as at the end of a run); with ``--run DIR``, an
+  interpreter that has imported what ``tlm run`` imports, of DIR;
 * ``tlm report RUN``: the report as a command of its own, all its imports included;
 
 and, in this process, :func:`tlm.report.build_report` of the folder after a first build (the
@@ -27,7 +31,8 @@ with the ``tlm`` of another copy of the repository (``DIR/tlm`` first on ``PYTHO
 the code before a change), alternated with this one's. No bar: the figures are for
 reading (benchmarks/README.md).
 
-    python benchmarks/bench_report.py [--config configs/cornell.yaml] [--repeat 3] [--run DIR] [--against DIR]
+    python benchmarks/bench_report.py [--config configs/cornell.yaml] [--set KEY=VALUE ...] [--repeat 3]
+        [--run DIR] [--against DIR]
 """
 
 from __future__ import annotations
@@ -47,10 +52,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 # the report's parts, in its order (tlm.report.sections, then the first screen)
 PARTS = ("tables", "images", "scaling", "sweeps", "cycles", "tradeoff", "peers", "extreme", "provenance", "summary")
-# the report as 'tlm run' writes it at its end: after the run's imports, in the same process
+# the report as 'tlm run' writes it at its end: after the run (argv[3:], 'tlm run' less its --out; none:
+# after the run's imports alone), in the same process
 AS_IN_A_RUN = """import sys, time
 from pathlib import Path
 import tlm.api, tlm.cli, tlm.experiments.run
+if sys.argv[3:] and tlm.cli.main(["run", *sys.argv[3:], "--out", sys.argv[1]]) != 0:
+    raise SystemExit("the run failed")
 t0, c0 = time.perf_counter(), time.process_time()
 tlm.api.write_report([Path(sys.argv[1])], Path(sys.argv[2]))
 print(time.perf_counter() - t0, time.process_time() - c0)
@@ -111,6 +119,8 @@ def empty_figure(path: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", type=Path, default=ROOT / "configs" / "cornell.yaml")
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                    help="passed on to 'tlm run' (repeatable): --set 'resolution=[48,48]' for a small run")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--run", type=Path, help="the report of this run folder; no 'tlm run' is timed")
     ap.add_argument("--against", type=Path, help="another copy of the repository whose tlm is timed too")
@@ -133,18 +143,21 @@ def main() -> None:
         cache = tmp / "cache"
         config = str(args.config.resolve())
         run = args.run.resolve() if args.run else tmp / "run"
+        sets = [a for kv in args.overrides for a in ("--set", kv)]
         if args.run is None:
-            timed(["-m", "tlm", "run", config, "--out", str(run), "--no-progress", "--no-report"], cache)
+            timed(["-m", "tlm", "run", config, *sets, "--out", str(run), "--no-progress", "--no-report"], cache)
         os.environ["TLM_CACHE"] = str(cache)
         tlm.report.build_report([run], tmp / "first")  # (the first uses of fonts and parsers: not the build's)
         n_fig = len(list((tmp / "first").glob("*.png")))
         for i in range(args.repeat):
             if args.run is None:
-                t.setdefault("run", []).append(timed(["-m", "tlm", "run", config, "--out", str(tmp / f"run{i}"),
-                                                      "--no-progress", "--no-report"], cache))
+                t.setdefault("run", []).append(timed(["-m", "tlm", "run", config, *sets, "--out",
+                                                      str(tmp / f"run{i}"), "--no-progress", "--no-report"], cache))
             for name, code in (codes.items() if i % 2 == 0 else reversed(codes.items())):
-                t.setdefault(f"in_run {name}", []).append(timed(["-c", AS_IN_A_RUN, str(run), str(tmp / "in_run")],
-                                                                cache, code))
+                ran = [] if args.run else [config, *sets, "--no-progress", "--no-report"]  # (its own run first)
+                shutil.rmtree(tmp / "ran", ignore_errors=True)
+                t.setdefault(f"in_run {name}", []).append(timed(
+                    ["-c", AS_IN_A_RUN, str(tmp / "ran" if ran else run), str(tmp / "in_run"), *ran], cache, code))
                 t.setdefault(f"command {name}", []).append(timed(["-m", "tlm", "report", str(run), "--out",
                                                                   str(tmp / "command")], cache, code))
             t.setdefault("figure", []).append(min((in_process(lambda: empty_figure(tmp / "empty.png"))
@@ -166,7 +179,8 @@ def main() -> None:
     def ratio(a: str, b: str) -> float:  # (of CPU seconds)
         return statistics.median(x[1] / y[1] for x, y in zip(t[a], t[b], strict=True))
 
-    print(f"the report of {run if args.run else f'tlm run {args.config.name}'}: {n_fig} figures at {DPI} DPI")
+    what = run if args.run else " ".join(["tlm run", args.config.name, *(f"--set {kv}" for kv in args.overrides)])
+    print(f"the report of {what}: {n_fig} figures at {DPI} DPI")
     print("each in a fresh interpreter (best of the rounds; ratios of CPU seconds, the median of the rounds'):")
     if args.run is None:
         print(f"  tlm run --no-report                  {best('run')}   (the reference)")
