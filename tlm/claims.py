@@ -5,6 +5,7 @@
   does any work; threads of one process share the claim.
 * :func:`sharing` — a sweep's folder, held by the processes of one identity (one sweep's points):
   a sweep of other points running into it is refused, naming its holder.
+* :func:`holding` — whether this process holds a destination now (:func:`claimed`'s).
 * :func:`lock_holder` — the process holding a folder's lock (:func:`tlm.storage.folder_lock`), for
   the line of one that waits for it (``tlm report``).
 
@@ -149,6 +150,12 @@ def _command(pid: int, most: int = 100) -> str:
 _CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
 _CLAIMS_LOCK = threading.Lock()
 _CLAIMS: dict[str, list] = {}  # the destinations this process holds: path -> [fd, claim file, holders, made]
+
+
+def holding() -> bool:
+    """Whether this process holds a destination now (:func:`claimed`: a run's folder, a sweep's,
+    a report's): the command is writing one (read by :func:`tlm.cli_signals._writing`)."""
+    return bool(_CLAIMS)
 
 
 @contextmanager

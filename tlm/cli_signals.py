@@ -563,8 +563,8 @@ def _writing() -> bool:
     """Whether the command is writing a destination (it holds one: :func:`tlm.claims.claimed`, a
     run's folder, a sweep's, a report's): then a reader of stdout that goes away stops nothing, and
     what it writes is finished; a command that only prints (``tlm params | head -1``) stops there."""
-    claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination)
-    return bool(getattr(claims, "_CLAIMS", None))
+    claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination: none held before)
+    return claims is not None and claims.holding()
 
 
 def guard_streams() -> dict[str, _Guarded]:

@@ -43,7 +43,9 @@ from typing import Any
 _IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
 _IMPORT_SOURCES = (os.path.join("importlib", "_bootstrap.py"), os.path.join("importlib", "_bootstrap_external.py"))
 _NUMBA_CORE = os.sep + os.path.join("numba", "core", "")  # (its contexts' install_registry, typing and target)
-HELD = (signal.SIGINT, signal.SIGTERM)  # the signals held to an import's end, where a Python handler takes them
+# the signals held to an import's end, where a Python handler takes them (the command line's:
+# tlm.cli_signals.TAKEN, SIGHUP a closed terminal's; none on Windows)
+HELD = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
 _LEFT_HALF: dict[str, int] = {}  # the modules an import interrupted in an API call left without their package,
 # with the signal that cut it short
 _CUT_REGISTRIES: set[int] = set()  # the signals that cut numba's install of a registry short in an API call
@@ -76,7 +78,7 @@ def _orphans() -> set[str]:
 
 
 class HeldInterrupt:
-    """The SIGINT (and SIGTERM) handler during a call of a function :func:`imports_whole`
+    """The SIGINT (and SIGTERM, SIGHUP) handler during a call of a function :func:`imports_whole`
     wraps, in the main thread. A signal outside an import goes at once to the handler it
     replaced (``KeyboardInterrupt``, or the command line's); one during an import (or numba's
     install of a registry) is held, and given to that handler once the main thread has left it
@@ -188,7 +190,7 @@ def _outer(handler: HeldInterrupt) -> bool:
 
 
 def imports_whole(function: Callable) -> Callable:
-    """``function`` with a Ctrl-C (or a SIGTERM) that arrives during an import held to the
+    """``function`` with a Ctrl-C (or a SIGTERM, a SIGHUP) that arrives during an import held to the
     import's end (:class:`HeldInterrupt`; in the main thread, for each signal of :data:`HELD`
     that a Python handler takes)."""
 

@@ -145,8 +145,8 @@ class LocalPool(cf.Executor):
         self.settled = 0  # points whose future was set
         self.blind = 0  # breaks in a row with no point started
         if self.context.get_start_method() == "forkserver":
-            # the fork server started with SIGINT ignored, so that the workers forked from it
-            # ignore it from their first instruction (they get the server's first handlers):
+            # the fork server started with SIGINT and SIGHUP ignored, so that the workers forked from it
+            # ignore them from their first instruction (they get the server's first handlers):
             # a Ctrl-C at the terminal, which signals the whole process group, reaches the
             # sweep alone, which kills them; no idle worker prints a KeyboardInterrupt's traceback
             from multiprocessing import forkserver
@@ -317,13 +317,14 @@ _STARTED = None  # in a local worker: the queue on which it says which point it 
 
 
 def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
-    """A local worker's set-up: the sweep's ``TLM_*`` variables, SIGINT ignored, an end with
+    """A local worker's set-up: the sweep's ``TLM_*`` variables, SIGINT and SIGHUP ignored, an end with
     the sweep's process, and the queue on which it says which point it starts."""
     global _STARTED
     _STARTED = started
-    # Ctrl-C ignored: the sweep's process ends its workers (those of the fork server ignore it
-    # from their start already: LocalPool; under spawn, from here on)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C and a hang-up ignored: the sweep's process ends its workers (those of the fork server
+    # ignore them from their start already: LocalPool; under spawn, from here on)
+    for signum in WORKERS_IGNORE:
+        signal.signal(signum, signal.SIG_IGN)
     _worker_env(env)
     _exit_with(parent)
     # tqdm's default lock is a multiprocessing semaphore, which a worker killed by an
@@ -442,20 +443,27 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     return default_threads(available() // workers)  # (at most DEFAULT_MAX_THREADS, as a null's own)
 
 
+# the signals a sweep's workers ignore: Ctrl-C's and a hang-up's (a terminal closed, an ssh dropped),
+# which the kernel sends to the whole process group: the sweep alone takes them and ends its workers
+WORKERS_IGNORE = tuple(getattr(signal, n) for n in ("SIGINT", "SIGHUP") if hasattr(signal, n))
+
+
 @contextmanager
 def _sigint_ignored():
-    """SIGINT ignored while the block starts processes, which inherit it: a Ctrl-C at the
-    terminal, which signals the whole process group, then reaches the sweep alone, which
-    ends the cluster, and no worker prints its own traceback (a page of them, before). A
-    Ctrl-C meanwhile is not lost (an ignored signal is dropped: the sweep went on to its end,
-    exit status 0): SIGINT is blocked as well, so it waits, and is taken once the block ends
-    (unless another thread, which does not block it, takes it meanwhile: dropped, as before). A
-    no-op off the main thread."""
+    """SIGINT (and SIGHUP: :data:`WORKERS_IGNORE`) ignored while the block starts processes, which
+    inherit it: a Ctrl-C at the terminal (a hang-up), which signals the whole process group, then
+    reaches the sweep alone, which ends the cluster, and no worker prints its own traceback (a
+    page of them, before) or dies of it. A signal meanwhile is not lost (an ignored signal is
+    dropped: the sweep went on to its end, exit status 0): they are blocked as well, so it waits,
+    and is taken once the block ends (unless another thread, which does not block it, takes it
+    meanwhile: dropped, as before). A no-op off the main thread."""
     mask = getattr(signal, "pthread_sigmask", None)  # (POSIX)
-    blocked = mask(signal.SIG_BLOCK, {signal.SIGINT}) if mask is not None else None
+    blocked = mask(signal.SIG_BLOCK, set(WORKERS_IGNORE)) if mask is not None else None
+    before = {}
     try:
-        before = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread
+        for signum in WORKERS_IGNORE:
+            before[signum] = signal.signal(signum, signal.SIG_IGN)
+    except ValueError:  # not the main thread (the first one refused: none changed)
         if mask is not None:
             mask(signal.SIG_SETMASK, blocked)
         yield
@@ -463,9 +471,10 @@ def _sigint_ignored():
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, before)
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
         if mask is not None:
-            mask(signal.SIG_SETMASK, blocked)  # (a SIGINT that came meanwhile is taken now)
+            mask(signal.SIG_SETMASK, blocked)  # (a signal that came meanwhile is taken now)
 
 
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
@@ -491,7 +500,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
         # silence_logs: the workers' own warnings (a task cancelled by a signal, a worker
         # restarted) would reach the user's terminal as log lines; the sweep says what happened
         # preload: each worker's set-up as it starts (no multiprocessing semaphore of its own: _local_preloads)
-        with _sigint_ignored():  # (the workers start with Ctrl-C ignored: the sweep stops them)
+        with _sigint_ignored():  # (the workers start with Ctrl-C and SIGHUP ignored: the sweep stops them)
             cluster = stack.enter_context(LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                                        dashboard_address="127.0.0.1:0",
                                                        scheduler_kwargs={"dashboard": False},

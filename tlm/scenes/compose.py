@@ -125,15 +125,19 @@ def item_transform(raw: Any, src: str, key: str) -> tuple[np.ndarray, np.ndarray
 
 def transform_geometry(geom: Geometry, m: np.ndarray, t: np.ndarray) -> Geometry:
     """``p' = M p + t`` on the triangles; file normals by the inverse transpose; a
-    mirroring ``M`` (negative determinant) reverses each triangle's vertex order."""
+    mirroring ``M`` (negative determinant) reverses each triangle's vertex order. (The inverse
+    and the determinant are written out, :func:`~tlm.scenes.meshes.inverse3` and
+    :func:`~tlm.scenes.meshes.det3`: no LAPACK call.)"""
+    from tlm.scenes.meshes import det3, inverse3  # (as load_mesh: meshes is imported where a scene needs it)
+
     with np.errstate(over="ignore", invalid="ignore"):  # the caller checks the result is finite
         tri = np.asarray(geom.triangles, dtype=np.float64) @ m.T + t
         normals = geom.normals
         if normals is not None:
-            normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(m)
+            normals = np.asarray(normals, dtype=np.float64) @ inverse3(m)
             length = np.linalg.norm(normals, axis=2, keepdims=True)
             normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
-        mirrors = np.linalg.det(m / np.abs(m).max()) < 0.0
+        mirrors = det3(m / np.abs(m).max()) < 0.0
     if mirrors:
         tri = tri[:, [0, 2, 1]]
         normals = None if normals is None else normals[:, [0, 2, 1]]

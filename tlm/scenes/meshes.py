@@ -370,6 +370,40 @@ def _glb_binary(data: bytes, ext: str, src: str) -> bytes | None:
     return glb_chunks(data, src)[1] if ext == ".glb" else None
 
 
+def det3(m: np.ndarray) -> np.ndarray | float:
+    """The determinant of a 3x3 matrix (or of each of a stack, ``(..., 3, 3)``) by the rule of
+    Sarrus, written out: no LAPACK call, hence none of OpenBLAS's, whose first call takes a
+    buffer of its own and, where a limit on the address space (``ulimit -v``) leaves too little
+    for it, ends the process with its own line (``OpenBLAS error: Memory allocation still
+    failed ...``, exit 1) instead of a MemoryError. Equal to ``np.linalg.det`` up to rounding."""
+    m = np.asarray(m, dtype=np.float64)
+    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    return (a * e * i + b * f * g + c * d * h) - (c * e * g + a * f * h + b * d * i)
+
+
+def inverse3(m: np.ndarray) -> np.ndarray:
+    """The inverse of a 3x3 matrix (or of each of a stack, ``(..., 3, 3)``): its adjugate (the
+    transposed cofactors) over its determinant, written out (no LAPACK call: :func:`det3`).
+    Equal to ``np.linalg.inv`` up to rounding; a singular matrix gives non-finite entries (no
+    LinAlgError)."""
+    m = np.asarray(m, dtype=np.float64)
+    r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
+    # the adjugate's columns are the cross products of the rows: M @ adj = det * I
+    adj = np.stack([_cross(r1, r2), _cross(r2, r0), _cross(r0, r1)], axis=-1)
+    det = np.sum(r0 * adj[..., :, 0], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return adj / np.asarray(det)[..., None, None]
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u x v`` along the last axis, written out (as ``np.cross``, which calls no BLAS either)."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
+
+
 def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
     import trimesh
 
@@ -486,8 +520,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
             if nrm is not None:  # normals transform by the inverse transpose
-                nrm = nrm @ np.linalg.inv(transform[:3, :3])
-            if np.linalg.det(transform[:3, :3]) < 0:  # a mirroring transform flips winding
+                nrm = nrm @ inverse3(transform[:3, :3])  # (written out: no LAPACK call, det3)
+            with np.errstate(divide="ignore", invalid="ignore"):  # (scaled to 1: no overflow; an all-zero one, NaN)
+                mirrors = det3(transform[:3, :3] / np.abs(transform[:3, :3]).max()) < 0
+            if mirrors:  # a mirroring transform flips winding
                 tri = tri[:, [0, 2, 1]]
                 nrm = None if nrm is None else nrm[:, [0, 2, 1]]
         corner_normals.append(nrm)
