@@ -231,7 +231,7 @@ def _limited():
 def test_a_small_address_space_is_out_of_memory_not_a_hang(tmp_path):
     """(OpenBLAS's threads' buffers at ``ulimit -v 400000``: the run hung, for ever, at 88% CPU.)
     Where the limit leaves too little for OpenBLAS's one buffer (128 MiB, taken at its first call:
-    ``np.linalg.inv`` as the scene is loaded) OpenBLAS itself ends the process with its own line
+    a solve or matrix product of the render's shading) OpenBLAS itself ends the process with its own line
     and exit status 1, which no Python code can catch: that line is allowed here, a hang or a
     traceback is not."""
     env = {k: v for k, v in _env().items() if k != "OPENBLAS_NUM_THREADS"}
