@@ -19,6 +19,7 @@ import tlm.api_studies
 import tlm.arch.costs as costs
 import tlm.builtin
 import tlm.scenes.export as export
+from tests.helpers_packaged import installed_configs, one_error
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.experiments.extreme import load_cases
@@ -30,23 +31,14 @@ CONFIGS = REPO / "configs"
 TINY = ["--set", "resolution=[16,16]", "--mode", "rcast", "--no-progress", "--no-report"]
 
 
-def _one_error(capsys) -> str:
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert len(err) == 1, err
-    return err[0]
+_one_error = one_error
 
 
 @pytest.fixture
 def packaged(tmp_path, monkeypatch):
     """The built-in experiments as an installed copy has them: a copy of configs/ in a
     package folder of its own (tlm/_configs), and a working folder without configs/."""
-    folder = tmp_path / "site-packages" / "tlm" / "_configs"
-    shutil.copytree(CONFIGS, folder)
-    monkeypatch.setattr(tlm.builtin, "configs_dir", lambda: folder)
-    work = tmp_path / "work"
-    work.mkdir()
-    monkeypatch.chdir(work)
-    return folder
+    return installed_configs(tmp_path, monkeypatch)
 
 
 # ---------------------------------------------------------------- names and paths

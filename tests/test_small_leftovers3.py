@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import shutil
 import sys
 import tomllib
 from pathlib import Path
@@ -15,6 +14,7 @@ import pytest
 
 import tlm.api
 import tlm.builtin
+from tests.helpers_packaged import installed_configs, one_error
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.report.collect import Inputs, Study, Sweep
@@ -27,10 +27,7 @@ REPO = Path(__file__).resolve().parents[1]
 SHORT = {"photons": 800, "k_nearest": 20, "tolerance": 1e-6, "min_rounds": 2, "max_rounds": 2, "spp": 1}
 
 
-def _one_error(capsys) -> str:
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert len(err) == 1, err
-    return err[0]
+_one_error = one_error
 
 
 def _study(tmp_path: Path, **base) -> Path:
@@ -101,13 +98,7 @@ def _edit_points(exp: Path, points: list) -> Path:
 
 @pytest.fixture
 def packaged(tmp_path, monkeypatch):
-    folder = tmp_path / "site-packages" / "tlm" / "_configs"
-    shutil.copytree(REPO / "configs", folder)
-    monkeypatch.setattr(tlm.builtin, "configs_dir", lambda: folder)
-    work = tmp_path / "work"
-    work.mkdir()
-    monkeypatch.chdir(work)
-    return folder
+    return installed_configs(tmp_path, monkeypatch)
 
 
 def test_config_export_does_not_point_a_sweep_at_the_users_own_base(packaged, capsys):

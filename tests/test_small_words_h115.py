@@ -6,13 +6,13 @@ not comparable as its table does."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
 import yaml
 
 import tlm.builtin
+from tests.helpers_packaged import installed_configs, one_error
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.experiments.thesis import summarize
@@ -21,23 +21,14 @@ REPO = Path(__file__).resolve().parents[1]
 TINY = ["--set", "resolution=[16,16]", "--mode", "rcast", "--no-progress", "--no-report"]
 
 
-def _one_error(capsys) -> str:
-    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
-    assert len(err) == 1, err
-    return err[0]
+_one_error = one_error
 
 
 @pytest.fixture
 def packaged(tmp_path, monkeypatch):
     """The built-in experiments as an installed copy has them, and a working folder without
     configs/ or scenes/."""
-    folder = tmp_path / "site-packages" / "tlm" / "_configs"
-    shutil.copytree(REPO / "configs", folder)
-    monkeypatch.setattr(tlm.builtin, "configs_dir", lambda: folder)
-    work = tmp_path / "work"
-    work.mkdir()
-    monkeypatch.chdir(work)
-    return folder
+    return installed_configs(tmp_path, monkeypatch)
 
 
 # ---------------------------------------------------------------- a checkout's scene path outside one
