@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from tlm import cli_signals
 from tlm.cli import main
@@ -167,6 +168,33 @@ def test_a_reader_of_stdout_gone_costs_no_report(tmp_path):
         os.close(w)
     assert proc.returncode == 128 + signal.SIGPIPE and "tlm: cornell:" in proc.stderr, proc.stderr
     assert (tmp_path / "r" / "report" / "report.html").is_file() and _hidden(tmp_path) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["sweep", "scaling"])
+def test_a_reader_of_stdout_gone_costs_a_sweep_or_a_fit_no_report(tmp_path, command):
+    """With stdout unbuffered (``PYTHONUNBUFFERED=1``, ``python -u``, as containers and CI set it) a
+    sweep's summary line, printed before its report, met the closed pipe at once: the sweep holds
+    its folder by sharing, a fit holds none, so both stopped with 141 and no report, saying nothing."""
+    base = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1},
+            "arch": {"frames": 1, "trace": False}}
+    path = tmp_path / "sweep.yaml"
+    path.write_text(yaml.safe_dump({"base": base, "grid": {"arch.pipelines": [1, 2]}}))
+    env = {**_env(), "PYTHONUNBUFFERED": "1"}
+    sweep = [sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(tmp_path / "s"), "--no-progress"]
+    if command == "scaling":
+        subprocess.run([*sweep, "--no-report"], cwd=tmp_path, env=env, check=True, capture_output=True, timeout=300)
+        argv, out = [sys.executable, "-m", "tlm", "scaling", str(tmp_path / "s"), "--out", str(tmp_path / "e")], "e"
+    else:
+        argv, out = sweep, "s"
+    w = _closed_pipe()
+    try:
+        proc = subprocess.run(argv, cwd=tmp_path, env=env, text=True, timeout=300, preexec_fn=_default_sigint,
+                              stdout=w, stderr=subprocess.PIPE)
+    finally:
+        os.close(w)
+    assert proc.returncode == 128 + signal.SIGPIPE, proc.stderr
+    assert (tmp_path / out / "report" / "report.html").is_file(), proc.stderr
 
 
 def _started(tmp_path: Path, preexec) -> subprocess.Popen:

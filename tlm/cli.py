@@ -27,6 +27,7 @@ from tlm.cli_signals import (
     signals,
     until_exit,
     version,
+    writes_files,
 )
 from tlm.errors import values_text
 
@@ -632,6 +633,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _writes_files(args: argparse.Namespace) -> bool:
+    """Whether the command ``args`` writes files (all but ``params`` and the listing and showing
+    of scenes and experiments): a reader of its stdout that goes away stops it only once they are
+    written (:func:`tlm.cli_signals.writes_files`)."""
+    if args.func is _cmd_params:
+        return False
+    if args.func in (_cmd_scene, _cmd_config):
+        return getattr(args, "scene_cmd", None) == "export" or getattr(args, "config_cmd", None) == "export"
+    return True
+
+
 def main(argv: list[str] | None = None) -> int:
     """The ``tlm`` command ``argv`` (None: the process's own, ``sys.argv[1:]``): its exit status.
     Its calls of the API keep the command line's flags in their errors (``--out: ...``, not
@@ -648,7 +660,8 @@ def main(argv: list[str] | None = None) -> int:
                 args.argv = argv
                 _experiment_arg(args)
                 _figure_args(args)
-                status = args.func(args)
+                with writes_files(_writes_files(args)):
+                    status = args.func(args)
             finished = True
             if argv is None and signalled() is None:  # the process's own command, done: a signal until
                 return until_exit(status)  # the process exits still says that it ran to its end (130 / 143)

@@ -34,6 +34,7 @@ from __future__ import annotations
 import os
 import signal
 import sys
+from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
@@ -559,10 +560,30 @@ class _Guarded:
         return iter(self._stream)
 
 
+_WRITES = False  # the command writes files (:func:`writes_files`, set by tlm.cli for its command)
+
+
+@contextmanager
+def writes_files(yes: bool) -> Iterator[None]:
+    """While the block runs, the command is one that writes files (``tlm run``, ``sweep``, a study,
+    ``scaling``, a report, an export), whatever it holds at the moment: a sweep shares its folder
+    (:func:`tlm.claims.sharing`), a study or ``tlm scaling`` holds none, and each prints its summary
+    before its report; :func:`_writing` reads it."""
+    global _WRITES
+    before, _WRITES = _WRITES, yes
+    try:
+        yield
+    finally:
+        _WRITES = before
+
+
 def _writing() -> bool:
-    """Whether the command is writing a destination (it holds one: :func:`tlm.claims.claimed`, a
-    run's folder, a sweep's, a report's): then a reader of stdout that goes away stops nothing, and
-    what it writes is finished; a command that only prints (``tlm params | head -1``) stops there."""
+    """Whether the command is writing a destination (one that writes files, :func:`writes_files`,
+    or one holding a destination: :func:`tlm.claims.claimed`, a run's folder, a sweep's, a
+    report's): then a reader of stdout that goes away stops nothing, and what it writes is
+    finished; a command that only prints (``tlm params | head -1``) stops there."""
+    if _WRITES:
+        return True
     claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination: none held before)
     return claims is not None and claims.holding()
 
