@@ -134,12 +134,19 @@ def test_sighup_is_said_as_sigterm_is(tmp_path, capsys, monkeypatch):
         return real(*a, **k)
 
     monkeypatch.setattr(run_mod, "render", hung_up)
-    before = signal.getsignal(signal.SIGHUP)
-    out = tmp_path / "r"
-    assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 128 + signal.SIGHUP
-    assert capsys.readouterr().err.strip() == "tlm: hung up (SIGHUP)"
-    assert not out.exists() and _hidden(tmp_path) == []
-    assert signal.getsignal(signal.SIGHUP) == before
+    # the test's own handler while it runs: a command that did not take SIGHUP leaves it to this
+    # one (the test fails), not to the default, which would end the whole test process
+    missed: list[int] = []
+    previous = signal.signal(signal.SIGHUP, lambda sig, frame: missed.append(sig))
+    try:
+        before = signal.getsignal(signal.SIGHUP)
+        out = tmp_path / "r"
+        assert main(["run", CORNELL, "--out", str(out), *SMALL]) == 128 + signal.SIGHUP, missed
+        assert capsys.readouterr().err.strip() == "tlm: hung up (SIGHUP)"
+        assert not out.exists() and _hidden(tmp_path) == []
+        assert signal.getsignal(signal.SIGHUP) == before and missed == []
+    finally:
+        signal.signal(signal.SIGHUP, previous)
 
 
 def _run(tmp_path: Path, **kw) -> subprocess.CompletedProcess:
