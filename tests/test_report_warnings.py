@@ -89,3 +89,20 @@ def test_an_empty_report_title_is_refused(tmp_path, capsys):
     assert main(["report", str(tmp_path), "--title", " "]) == 2
     assert capsys.readouterr().err.strip() == ("tlm: error: tlm report: argument --title: an empty title: give one, "
                                                "or leave --title out for the default")
+
+
+def test_many_warnings_keep_the_first_screens_and_drop_none():
+    """The committed report's 26 warnings (one coarse-packet line per frame's figures) took the page
+    past its screens: the box lists the first SHOWN_WARNINGS, the rest one click below, none dropped."""
+    from types import SimpleNamespace
+
+    from tlm.report import warnings as box
+
+    runs = [SimpleNamespace(label=f"run {i}", results={"warnings": [f"warning number {i}"]}) for i in range(11)]
+    page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
+    shown, _, hidden = page.partition("<details>")
+    assert [f"warning number {i}" in shown for i in range(11)] == [i < box.SHOWN_WARNINGS for i in range(11)]
+    assert all(f"warning number {i}" in hidden for i in range(box.SHOWN_WARNINGS, 11))
+    assert "<summary>3 more warnings</summary>" in hidden and "recorded 11 warnings" in shown
+    few = box.warnings_html(SimpleNamespace(runs=runs[:box.SHOWN_WARNINGS], damaged=[]))
+    assert "<details>" not in few and all(f"warning number {i}" in few for i in range(box.SHOWN_WARNINGS))

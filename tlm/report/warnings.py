@@ -1,7 +1,9 @@
 """The warnings the runs recorded (``results.json`` ``warnings``: a light that reaches
 nothing, a black image, a stream too short for a steady state, a setting the run never
 read, ...), at the top of the report, so that a table or figure drawn from such a run is
-read with its caveat: each warning once, with the runs that recorded it.
+read with its caveat: each warning once, with the runs that recorded it (the first
+:data:`SHOWN_WARNINGS` in the box, the rest one click below them, so that a page of many
+sweeps keeps its first screens).
 
 Warnings of a study's cells (a thesis cell, a sweep point) are the same lines ``tlm run``
 prints for a run; the commands that run many of them print none, so the report is where
@@ -14,6 +16,7 @@ from tlm.report.collect import Inputs
 from tlm.report.html import esc
 
 SHOWN_RUNS = 4  # runs named per warning; the rest counted
+SHOWN_WARNINGS = 8  # warnings listed in the box itself; the rest in a <details> under them (the page's first screens)
 
 
 def recorded(inputs: Inputs) -> list[tuple[str, list[str]]]:
@@ -54,6 +57,9 @@ def warnings_html(inputs: Inputs) -> str:
         items.append(f"<li>{esc(line)}<span class=\"note\">{esc(whose)}</span></li>")
     runs = len({label for _, labels in found for label in labels})
     who = "The run" if total == 1 else f"{runs} of the {total} runs"
+    shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
+    more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
+            + "".join(rest) + "</ul></details>") if rest else ""
     return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {who} recorded {len(found)} '
             f"warning{'s' if len(found) > 1 else ''} (results.json <code>warnings</code>); read what is drawn "
-            "from them with these in mind:</p><ul>" + "".join(items) + "</ul></div>")
+            "from them with these in mind:</p><ul>" + "".join(shown) + "</ul>" + more + "</div>")
