@@ -2,9 +2,21 @@
 
 from __future__ import annotations
 
+import signal
+
 import pytest
 
 COLLECTED = pytest.StashKey[list]()  # every test the session collected, before -m / -k deselect any
+
+
+def pytest_configure(config):
+    """Ctrl-C as at a terminal, whoever started the suite: a shell's background job (``.ci/run &``,
+    a script's ``cmd &``) starts with SIGINT ignored (POSIX), which tlm keeps, as Python does
+    (tests/test_faults_h121.py), so the tests of what tlm does on Ctrl-C, in this process
+    (``main([...])``) and in the children that inherit its dispositions, would test an ignored
+    signal instead. (In each xdist worker too: it runs this hook.)"""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.hookimpl(tryfirst=True)
