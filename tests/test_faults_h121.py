@@ -268,8 +268,8 @@ def test_a_small_address_space_is_out_of_memory_not_a_hang(tmp_path):
     Where the limit leaves too little for OpenBLAS's one buffer (128 MiB, taken at its first call:
     a solve or matrix product of the render's shading) OpenBLAS itself ends the process with its own line
     and exit status 1, and where numba compiles the kernels (a fresh clone's first run) LLVM aborts with
-    its own (SIGABRT: "LLVM ERROR: out of memory", or C++'s std::bad_alloc): no Python code can catch either, so those lines are allowed here; a hang or a
-    traceback is not."""
+    its own (SIGABRT: "LLVM ERROR: out of memory", or C++'s std::bad_alloc): no Python code can catch
+    either, so those lines are allowed here; a hang or a traceback is not."""
     env = {k: v for k, v in _env().items() if k != "OPENBLAS_NUM_THREADS"}
     proc = subprocess.run([sys.executable, "-m", "tlm", "run", CORNELL, "--out", str(tmp_path / "r"), *SMALL],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120, preexec_fn=_limited)
