@@ -21,7 +21,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress",
-     "tlm.whole_imports", "tlm.caches", "tlm.config_words", "tlm.claims"),
+     "tlm.whole_imports", "tlm.caches", "tlm.config_words", "tlm.mesh_files", "tlm.claims"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),

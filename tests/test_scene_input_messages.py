@@ -14,8 +14,9 @@ import yaml
 
 import tlm
 from tlm.cli import main
-from tlm.config import load_config, mesh_file_format, read_yaml
+from tlm.config import load_config, read_yaml
 from tlm.errors import InputError
+from tlm.mesh_files import mesh_file_format
 from tlm.scenes.loader import load_scene
 from tlm.scenes.materials import write_glb
 from tlm.scenes.meshes import load_mesh

@@ -27,6 +27,7 @@ import yaml
 
 from tlm.config_words import DuplicateKeyError, parse_yaml, type_hint, type_name, value_text, with_overrides, yaml_kind
 from tlm.errors import InputError, did_you_mean
+from tlm.mesh_files import mesh_file_format, mesh_file_hint
 from tlm.registry import ESTIMATORS, SCHEDULERS
 
 MODES = ("rcast", "reflect", "refract", "pmap")
@@ -406,112 +407,6 @@ def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
         raise InputError(f"{value_text(v)} must be positive", source=source, key=key)
     if key == "render.light_samples" and math.isqrt(v) ** 2 != v:
         raise InputError(f"{value_text(v)} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
-
-
-# the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
-MESH_FORMATS = {".obj": "an OBJ", ".ply": "a PLY", ".stl": "an STL", ".glb": "a binary glTF (.glb)", ".gltf": "a glTF"}
-_MESH_COMPRESSED = (".gz", ".xz", ".bz2")
-# an OBJ's statements (the first words of its lines)
-_OBJ_WORDS = {"v", "vt", "vn", "vp", "f", "l", "p", "o", "g", "s", "mtllib", "usemtl", "cstype", "deg", "curv", "surf"}
-# glTF 2.0's top-level properties (a JSON file with others is no glTF)
-_GLTF_KEYS = {"asset", "scene", "scenes", "nodes", "meshes", "accessors", "bufferViews", "buffers", "materials",
-              "textures", "images", "samplers", "cameras", "skins", "animations", "extensions", "extensionsUsed",
-              "extensionsRequired", "extras"}
-_GLTF_NOT_LISTS = {"asset", "scene", "extensions", "extras"}  # (every other one is a list; 'scene' an index)
-_GLTF_PARSED = 1 << 20  # (bytes: a JSON file up to this size is parsed to tell a glTF; a larger one by its first bytes)
-
-
-def _gltf_json(path: str | os.PathLike, head: bytes, size: int) -> bool:
-    """Whether the JSON file ``path`` (``head``: its first bytes, ``size`` its length) is a
-    glTF: an object whose ``asset`` is an object with a ``version``, whose ``meshes`` is a
-    list, and whose every key is one of glTF's top-level properties, of its type (``scene``
-    an index, ``nodes``, ``buffers``, ... lists). Parsed up to
-    :data:`_GLTF_PARSED` bytes; a larger file (or one that does not parse: a glTF cut short)
-    by its first bytes, ``"asset": {`` holding ``"version"`` and a list of ``meshes``,
-    ``nodes``, ``accessors``, ... beside it. A config written as JSON (``{"scene": "cornell",
-    "asset": 1}``) is none."""
-    import json
-    import re
-
-    if size <= _GLTF_PARSED:
-        try:
-            with open(path, "rb") as f:
-                data = json.loads(f.read())
-        except (OSError, ValueError):
-            data = None
-        if data is not None:
-            return (isinstance(data, dict) and set(data) <= _GLTF_KEYS and isinstance(data.get("asset"), dict)
-                    and "version" in data["asset"] and isinstance(data.get("meshes"), list)
-                    and all(isinstance(v, list) for k, v in data.items() if k not in _GLTF_NOT_LISTS)
-                    and (isinstance(data.get("scene", 0), int) and not isinstance(data.get("scene"), bool)))
-    return (re.search(rb'"asset"\s*:\s*\{[^{}]*"version"\s*:', head) is not None
-            and re.search(rb'"(scenes|nodes|meshes|accessors|bufferViews|buffers)"\s*:\s*\[', head) is not None)
-
-
-def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | None:
-    """The format (:data:`MESH_FORMATS`' words: ``"an OBJ"``) of the mesh file ``path``, told
-    by its suffix (``pawn.obj``, ``pawn.obj.gz``) or else by its first bytes: a binary glTF's
-    ``glTF`` magic, a PLY's ``ply`` and ``format`` lines, an ASCII STL's ``solid`` and ``facet normal``,
-    a binary STL's size (80 bytes, a count, 50 bytes a triangle; not for a ``.yaml`` name), an
-    OBJ's statements (``v``, ``f``, ``o``, ... and nothing else on its first lines), a glTF
-    JSON's ``asset`` object with its ``version``, its ``meshes`` and no key glTF does not have
-    (:func:`_gltf_json`; a config written as JSON is none). None for anything else, a file that cannot be read
-    included (its read says why): what :func:`read_yaml` refuses by name, never by failing to
-    parse it. ``content=False``: by the suffix alone (a name not yet looked for)."""
-    name = os.fspath(path).lower()
-    stem = name[: -len(os.path.splitext(name)[1])] if name.endswith(_MESH_COMPRESSED) else name
-    ext = os.path.splitext(stem)[1]
-    if ext in MESH_FORMATS:
-        return MESH_FORMATS[ext]
-    if not content:
-        return None
-    try:
-        with open(path, "rb") as f:
-            head = f.read(4096)
-            size = os.fstat(f.fileno()).st_size
-    except OSError:
-        return None
-    if head[:4] == b"glTF":
-        return MESH_FORMATS[".glb"]
-    lines = head.replace(b"\r", b"").split(b"\n")
-    if lines[0].strip() == b"ply" and len(lines) > 1 and lines[1].startswith(b"format "):
-        return MESH_FORMATS[".ply"]
-    if lines[0].split()[:1] == [b"solid"] and b"facet normal" in head:
-        return MESH_FORMATS[".stl"]
-    if (size >= 84 and size == 84 + 50 * int.from_bytes(head[80:84], "little")
-            and not name.endswith((".yaml", ".yml"))):
-        return MESH_FORMATS[".stl"]
-    words = [ln.split(maxsplit=1)[0] for ln in lines[:-1] if ln.strip() and not ln.lstrip().startswith(b"#")][:40]
-    if words and b"v" in words and all(w.decode("latin-1") in _OBJ_WORDS for w in words):
-        return MESH_FORMATS[".obj"]
-    text = head.lstrip()
-    if text[:1] == b"{" and _gltf_json(path, text, size):
-        return MESH_FORMATS[".gltf"]
-    return None
-
-
-def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
-    """What a message about the mesh file ``name`` (of ``format_``, :func:`mesh_file_format`)
-    given where a YAML file or a scene is expected says: what it is and how to render it (a
-    scene file names it under ``geometry``; ``key``: the key that named it, ``scene`` or
-    ``extends``; ``""``: a scene given by itself, on the command line or to ``load_scene``,
-    which the message's source names; else a file read as YAML). A file told by its content
-    alone is to be renamed first: a mesh file is read by its suffix."""
-    base, renamed = os.path.basename(name), ""
-    if mesh_file_format(base, content=False) is None:
-        base = os.path.splitext(base)[0] + next(e for e, f in MESH_FORMATS.items() if f == format_)
-        renamed = f"rename it {base} (a mesh file is read by its suffix), "
-    scene = (f"`geometry: {{mesh: {base}}}` in a scene file beside it, with `materials:` and `camera:` "
-             f"unless the mesh file gives them (docs/scenes.md, \"Geometry\")")
-    if key == "extends":
-        return (f"{name!r} is {format_} mesh file, not a scene file to extend: name it under `geometry:` instead "
-                f"({renamed}`geometry: {{mesh: {base}}}`; docs/scenes.md, \"Geometry\")")
-    if key == "":
-        return f"is {format_} mesh file, not a scene: {renamed}write {scene}, and name that file in its place"
-    if key is not None:
-        return (f"{name!r} is {format_} mesh file, not a scene: {renamed}write {scene}, and name that file instead "
-                f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
-    return f"is {format_} mesh file, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
 
 
 def read_yaml(path: Path) -> Any:

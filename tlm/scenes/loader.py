@@ -25,8 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import builtin_scenes_dir, deep_merge, mesh_file_format, mesh_file_hint, read_yaml
+from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean
+from tlm.mesh_files import mesh_file_format, mesh_file_hint
 from tlm.scenes import cache
 from tlm.scenes.lights import mesh_light as mesh_light  # (kept importable from here: tlm.render.checks names it)
 from tlm.scenes.lights import scene_lights, typed, with_mesh_light
