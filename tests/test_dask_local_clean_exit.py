@@ -143,3 +143,30 @@ def test_dask_setup_gives_the_bars_a_thread_lock():
             tqdm.__dict__.get("_lock") is not None and delattr(tqdm, "_lock")
         else:
             tqdm.set_lock(before)
+
+
+@pytest.mark.parametrize("ending", [KeyboardInterrupt, None])
+def test_distributed_stays_silent_after_a_local_cluster_closed_on_a_signal(ending):
+    """A signal ends the sweep (a KeyboardInterrupt, tlm.cli_signals): distributed's loggers stay
+    silenced after the cluster closed, where its event loop thread logged each connection to a
+    worker the process group's signal killed ("Batched Comm Closed" and a traceback) after
+    tlm's one line (the cluster's own silence_logs ends with its close). An ordinary end
+    puts them back as they were."""
+    import logging
+    from contextlib import ExitStack
+
+    names = ["distributed", "distributed.batched", "distributed.core", "distributed.scheduler"]
+    before = {n: logging.getLogger(n).level for n in names}
+    try:
+        with pytest.raises(KeyboardInterrupt) if ending else ExitStack():
+            with ExitStack() as stack:
+                executors.open_executor(stack, 1, "local", 1)
+                if ending:
+                    raise ending
+        quiet = not logging.getLogger("distributed.batched").isEnabledFor(logging.CRITICAL)
+        assert quiet is bool(ending)
+        if not ending:
+            assert {n: logging.getLogger(n).level for n in names} == before
+    finally:
+        for n, level in before.items():
+            logging.getLogger(n).setLevel(level)

@@ -141,3 +141,23 @@ def test_a_forked_child_forgets_the_parent_s_folders_in_use(tmp_path):
     assert os.waitstatus_to_exitcode(status) == 0
     assert [(tmp_path / f"c{i}" / "m").read_text() for i in range(n)] == ["child"] * n
     assert (out / "m").read_text() == "parent" and leftovers(tmp_path) == []
+
+
+def test_a_folder_moved_away_while_it_is_checked_is_as_if_none(tmp_path, monkeypatch):
+    """Another writer renames the old output aside and its own into place; a writer checking
+    the destination between the two (it existed a moment ago, now it does not) goes on as if
+    there were none, where it said "No such file or directory" (a FileNotFoundError from
+    listing the folder) and lost its finished output."""
+    out = tmp_path / "r"
+    out.mkdir()
+    (out / "x").write_text("someone's")
+    real = storage.is_mount
+
+    def moved_meanwhile(path):  # (looked at after the folder was seen to exist, before it is listed)
+        answer = real(path)
+        if path == out.resolve() and out.exists():
+            out.rename(tmp_path / ".r.old-elsewhere")
+        return answer
+
+    monkeypatch.setattr(storage, "is_mount", moved_meanwhile)
+    assert storage.check_destination(out, "m") == out.resolve()

@@ -46,6 +46,7 @@ import os
 import re
 import shutil
 import socket
+import stat
 import sys
 import threading
 import time
@@ -67,13 +68,7 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
         raise InputError(f"{str(out)!r} is the current folder or one of its parents; name a new folder",
                          key=key)
     if resolved.exists():
-        if not resolved.is_dir():
-            raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
-        if is_mount(resolved):
-            raise InputError(_mounted(out), key=key)
-        if not (resolved / marker).is_file() and any(not _claiming(e.name, marker) for e in resolved.iterdir()):
-            raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
-                             "refusing to replace it", key=key)
+        _check_existing(out, resolved, marker, key)
     parent = resolved.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
@@ -82,6 +77,23 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     if not os.access(parent, os.W_OK | os.X_OK):
         raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
+
+
+def _check_existing(out: Path, resolved: Path, marker: str, key: str) -> None:
+    """An InputError where the existing ``resolved`` may not be replaced (not a folder, a mount
+    point, a folder that is no earlier tlm output and not being claimed). Nothing where it
+    vanished while it was looked at: another writer of the same output (a thread or a process)
+    renames the old folder aside and its own into place, and between the two there is none."""
+    try:
+        if not stat.S_ISDIR(resolved.stat().st_mode):
+            raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
+        if is_mount(resolved):
+            raise InputError(_mounted(out), key=key)
+        if not (resolved / marker).is_file() and any(not _claiming(e.name, marker) for e in resolved.iterdir()):
+            raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
+                             "refusing to replace it", key=key)
+    except FileNotFoundError:
+        return
 
 
 def _mounted(out: Path) -> str:
@@ -174,10 +186,10 @@ def pid_alive(pid: int) -> bool:
     except OSError:
         pass  # alive (another user's) or unknown
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
+        line = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return True  # no /proc: it exists
-    return not stat[stat.rindex(")") + 2:].startswith(("Z", "X"))
+    return not line[line.rindex(")") + 2:].startswith(("Z", "X"))
 
 
 def _host() -> str:

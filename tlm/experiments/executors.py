@@ -493,7 +493,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
     gc.collect()
 
     quiet = _Quiet()  # (DaskPool.trouble silences distributed's logs)
-    stack.callback(quiet.restore)  # restored once the client has closed
+    stack.push(quiet.after)  # restored once the client has closed (not when a signal ends the process)
     if dask == "local":
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
@@ -506,6 +506,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        scheduler_kwargs={"dashboard": False},
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
         client = stack.enter_context(Client(cluster))
+        stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
     else:
         answers(dask)  # (a refused connection at once, where distributed retries it for CONNECT_TIMEOUT s)
         try:
@@ -620,6 +621,32 @@ class _Quiet:
         for name, level in self.levels.items():
             logging.getLogger(name).setLevel(level)
         self.levels.clear()
+
+    # A signal (SIGINT, SIGTERM, SIGHUP: a KeyboardInterrupt, tlm.cli_signals) ends the process:
+    # its process group's signal may have killed the --dask local workers first, and
+    # distributed's event loop thread, which outlives the cluster's close, then logs each
+    # closed connection with its traceback ("Batched Comm Closed") after tlm's one line (the
+    # cluster's own silence_logs ends with its close). Its loggers stay silenced from the
+    # cluster's close to the process's end; any other end of the stack puts them back.
+
+    def before(self, kind: type[BaseException] | None, *_) -> bool:
+        """An ExitStack exit callback entered after the cluster: on a signal, silence now."""
+        if _signalled(kind):
+            self.now()
+        return False
+
+    def after(self, kind: type[BaseException] | None, *_) -> bool:
+        """An ExitStack exit callback entered before the cluster: put the levels back but on a signal."""
+        if _signalled(kind):
+            self.now()
+        else:
+            self.restore()
+        return False
+
+
+def _signalled(kind: type[BaseException] | None) -> bool:
+    """Whether an exception of ``kind`` ends the process on a signal (an interrupt, an exit)."""
+    return kind is not None and issubclass(kind, (KeyboardInterrupt, SystemExit))
 
 
 class SweepStopped(EnvironmentFailure):
