@@ -158,11 +158,10 @@ def test_distributed_stays_silent_after_a_local_cluster_closed_on_a_signal(endin
     names = ["distributed", "distributed.batched", "distributed.core", "distributed.scheduler"]
     before = {n: logging.getLogger(n).level for n in names}
     try:
-        with pytest.raises(KeyboardInterrupt) if ending else ExitStack():
-            with ExitStack() as stack:
-                executors.open_executor(stack, 1, "local", 1)
-                if ending:
-                    raise ending
+        with pytest.raises(KeyboardInterrupt) if ending else ExitStack(), ExitStack() as stack:
+            executors.open_executor(stack, 1, "local", 1)
+            if ending:
+                raise ending
         quiet = not logging.getLogger("distributed.batched").isEnabledFor(logging.CRITICAL)
         assert quiet is bool(ending)
         if not ending:
