@@ -1,0 +1,90 @@
+"""The Dask side of a sweep's executors that stands apart from the pool itself: the check that
+something answers, as a Dask scheduler, at a ``--dask tcp://HOST:PORT`` address before the client
+connects (:func:`answers`, within :data:`CONNECT_TIMEOUT` seconds), and :class:`SweepStopped`, the
+one line that says the cluster, not a point, stopped the sweep.
+
+:mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
+executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
+its worker preloads and the silencing of distributed's logs stay there. What runs on a Dask
+worker: :mod:`tlm.experiments.dask_workers`. Nothing here imports distributed at import time.
+"""
+
+from __future__ import annotations
+
+import socket
+
+from tlm.errors import EnvironmentFailure, InputError
+
+CONNECT_TIMEOUT = 10  # seconds to reach a Dask scheduler
+
+
+SOCKET_SCHEMES = ("tcp", "tls", "ws", "wss")  # distributed's transports over a TCP connection to HOST:PORT
+
+
+def answers(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """An :class:`InputError` (``--dask``) where nothing answers at the scheduler's ``address``,
+    told from one TCP connection to its host and port (a transport over TCP: :data:`SOCKET_SCHEMES`;
+    any other is left to Dask): a refused one (no process listens on that port: a scheduler not
+    started, or another port), an unknown host and an unreachable network are known at once,
+    where distributed's connect retries them for its whole timeout and says "Timed out"; a host
+    that does not answer (one that is down, a firewall that drops the packets) after ``timeout``
+    seconds, as before, with a line that says so. A connection made is closed at once (the
+    scheduler logs, at INFO, that one closed before its handshake), and Dask connects next."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, loc = parse_address(address)
+        host, port = parse_host_port(loc)
+    except (ValueError, TypeError):  # (a form Dask refuses itself, and says why)
+        return
+    if scheme not in SOCKET_SCHEMES:
+        return
+    where = ("the scheduler's address is the one 'dask scheduler' printed (Scheduler at: ...), "
+             "tcp://HOST:8786 by default")
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as conn:
+            odd = _not_dask(conn) if scheme == "tcp" else None
+    except ConnectionRefusedError:
+        raise InputError(f"nothing answers at {address!r}: no process listens on port {port} of {host} (connection "
+                         f"refused: no scheduler started there, or another port); {where}", key="--dask") from None
+    except TimeoutError:  # (socket.timeout)
+        raise InputError(f"no answer from {address!r} within {timeout:g} s (a host that is down or not there, or a "
+                         f"firewall that drops the connection); {where}", key="--dask") from None
+    except socket.gaierror as e:
+        raise InputError(f"cannot reach {address!r}: its host {host!r} is not known ({e.strerror or e})",
+                         key="--dask") from None
+    except OSError as e:  # (no route to the host, an unreachable network)
+        raise InputError(f"cannot reach {address!r} ({e.strerror or e}); {where}", key="--dask") from None
+    if odd is not None:  # (distributed's connect would wait for it forever, or read its bytes as a frame's size)
+        raise InputError(f"{address!r} answers, but not as a Dask scheduler ({odd}: a web server, such as the "
+                         f"dashboard's, port 8787?); {where}", key="--dask")
+
+
+HANDSHAKE_MAX = 1 << 20  # bytes: a Dask scheduler's first message (its handshake) is far smaller
+
+
+def _not_dask(conn: socket.socket) -> str | None:
+    """Why what answers on the TCP connection ``conn`` is not a Dask scheduler, or None: a
+    scheduler writes its handshake as soon as it accepts, its first 8 bytes the size of the
+    message (little-endian); a web server writes nothing before a request (``conn``'s timeout:
+    it said nothing), or an answer whose bytes are no such size."""
+    got = b""
+    try:
+        while len(got) < 8:
+            more = conn.recv(8 - len(got))
+            if not more:
+                return None if got else "it closed the connection at once"  # (a scheduler busy elsewhere: Dask's)
+            got += more
+    except TimeoutError:
+        return "it said nothing" if not got else None
+    except OSError:
+        return None
+    if not 0 < int.from_bytes(got, "little") <= HANDSHAKE_MAX:
+        return f"its first bytes are {got!r}"
+    return None
+
+
+class SweepStopped(EnvironmentFailure):
+    """The cluster, not a point, stopped the sweep (its Dask scheduler lost, or without
+    workers too long): one line, exit status 1; the points done are kept, and a rerun
+    into the folder runs the others."""
