@@ -30,7 +30,9 @@ group whose points' resolved configs differ in any other key (a sweep that zips
 refused, naming the key, since the fit would read that key's effect as the pipelines'
 (the keys that leave the cycles as they are, :data:`NO_EFFECT`, may differ). A sweep that
 crosses N with other factors is fitted once per combination of their values that has two
-values of N (:func:`parts`: a fit's ``group``, ``bsp.levels = 15, cache.pairs = 4``). Failed
+values of N (:func:`parts`: a fit's ``group``, ``bsp.levels = 15, cache.pairs = 4``), but for
+the factors of :data:`NO_EFFECT`, which split nothing: the points of one N that differ in them
+alone are fitted as one (:func:`one_per_n`; a note where their cycles disagree). Failed
 points are left out, each named in the notes; so is a point whose stream was too short
 for a steady state (``throughput_steady`` false: its TThru includes the fill and drain),
 which is fitted all the same. :func:`analyse` writes ``eq52.csv`` (per point:
@@ -166,11 +168,17 @@ def settings(cfg: dict) -> dict[str, str]:
             key = f"{prefix}{k}"
             if isinstance(v, dict) and v:
                 walk(v, f"{key}.")
-            elif key not in GROUP_KEYS and key not in NO_EFFECT and not key.startswith(NO_EFFECT_PREFIXES):
+            elif key not in GROUP_KEYS and not no_effect(key):
                 flat[key] = json.dumps(v, sort_keys=True, default=str)
 
     walk(cfg if isinstance(cfg, dict) else {}, "")
     return flat
+
+
+def no_effect(key: str) -> bool:
+    """Whether a dotted config key leaves the cycles as they are (:data:`NO_EFFECT`, or a key
+    under one of :data:`NO_EFFECT_PREFIXES`, or such a prefix's section itself)."""
+    return key in NO_EFFECT or any(key.startswith(p) or key == p.rstrip(".") for p in NO_EFFECT_PREFIXES)
 
 
 def record(res: dict, cfg: dict) -> dict:
@@ -228,10 +236,12 @@ def parts(points: list[dict], where: str = "", notes: list[str] | None = None) -
     over another factor too, agree where the values do). A combination with one value of N is
     left out, ``notes`` saying so, where another has two; where none has (a zip of N with
     another factor: one N per combination) or no other factor varies, the group is one part,
-    ``("", points)``, fitted (or refused, :func:`fit_group`) whole, as before."""
+    ``("", points)``, fitted (or refused, :func:`fit_group`) whole, as before. A factor that leaves
+    the cycles as they are (:func:`no_effect`: ``arch.trace``, ``render.threads``) splits nothing:
+    the points it tells apart are one point each, :func:`one_per_n`."""
     keys: list[str] = []
-    for p in points:
-        keys.extend(k for k in p.get("factors") or {} if k not in GROUP_KEYS and k not in keys)
+    for p in points:  # (a factor that leaves the cycles as they are, arch.trace, splits nothing: one_per_n)
+        keys.extend(k for k in p.get("factors") or {} if k not in GROUP_KEYS and not no_effect(k) and k not in keys)
 
     def value(p: dict, k: str) -> str:
         text = (p.get("settings") or {}).get(k)
@@ -242,7 +252,7 @@ def parts(points: list[dict], where: str = "", notes: list[str] | None = None) -
 
     keys = [k for k in keys if len({value(p, k) for p in points}) > 1]
     if not keys:
-        return [("", points)]
+        return [("", one_per_n(points, where, notes))]
     split: dict[tuple, list[dict]] = {}
     for p in points:
         split.setdefault(tuple(value(p, k) for k in keys), []).append(p)
@@ -250,13 +260,71 @@ def parts(points: list[dict], where: str = "", notes: list[str] | None = None) -
                 for vals, pts in split.items()]
     ok = [(label, pts) for label, pts in labelled if len({p["pipelines"] for p in pts}) >= 2]
     if not ok:
-        return [("", points)]
+        return [("", one_per_n(points, where, notes))]
     if notes is not None:
         for label, pts in labelled:
             if len({p["pipelines"] for p in pts}) < 2:
                 notes.append(f"{where + ': ' if where else ''}{label}: not fitted: one value of N only "
                              f"(N = {values_text(sorted({p['pipelines'] for p in pts}))}); eq. 5.2 needs two")
-    return ok
+    return [(label, one_per_n(pts, f"{where + ': ' if where else ''}{label}", notes)) for label, pts in ok]
+
+
+CYCLES = ("latency", "throughput", "T_vert0", "sum_max", "max_max")  # (what fit_group reads of a point)
+
+
+def one_per_n(points: list[dict], where: str = "", notes: list[str] | None = None) -> list[dict]:
+    """``points`` with one point per N where several of an N differ in nothing but the keys that leave
+    the cycles as they are (:func:`no_effect`: a sweep crossing N with ``arch.trace``): their resolved
+    configs' :func:`settings` equal, they are one point of eq. 5.2 run twice, and the first (in the
+    sweeps' order) is kept. Where their cycles disagree all the same, ``notes`` gets a line naming the
+    values and the point kept. Points of an N that differ in another key, or that have no ``settings``
+    (records made by hand), are all kept: :func:`fit_group` refuses them, naming the key."""
+    by_n: dict[int, list[dict]] = defaultdict(list)
+    for p in points:
+        by_n[p["pipelines"]].append(p)
+    if all(len(same) == 1 for same in by_n.values()):
+        return points
+    out = []
+    for p in points:
+        same = by_n[p["pipelines"]]
+        if len(same) == 1 or any("settings" not in q for q in same) or differing(same):
+            out.append(p)
+        elif p is same[0]:
+            out.append(p)
+            if notes is not None and len({tuple(q.get(k) for k in CYCLES) for q in same}) > 1:
+                notes.append(f"{where + ': ' if where else ''}N = {p['pipelines']}: {len(same)} points differ only "
+                             f"in keys that leave the cycles as they are ({_no_effect_text(same)}), yet their "
+                             f"cycles disagree ({_cycles_text(same)}): fitted from the first "
+                             f"({_point_text(p)}); rerun them to tell which is right")
+    return out
+
+
+def _no_effect_text(points: list[dict]) -> str:
+    """The factors of ``points`` whose values differ (``arch.trace = false, true``); else that their
+    factors are equal (two sweeps of one base and N)."""
+    keys = sorted({k for p in points for k in p.get("factors") or {}})
+    shown = []
+    for k in keys:
+        vals = []
+        for p in points:
+            v = _shown(json.dumps((p.get("factors") or {}).get(k), sort_keys=True, default=str))
+            if v not in vals:
+                vals.append(v)
+        if len(vals) > 1:
+            shown.append(f"{k} = {', '.join(vals)}")
+    return "; ".join(shown) or "the same factors, from " + ", ".join(sorted({str(p.get('sweep')) for p in points}))
+
+
+def _cycles_text(points: list[dict]) -> str:
+    """``latency = 100, 120; throughput = 50, 60``: the cycles in which ``points`` disagree."""
+    return "; ".join(f"{k} = {', '.join(str(p.get(k)) for p in points)}" for k in CYCLES
+                     if len({p.get(k) for p in points}) > 1)
+
+
+def _point_text(p: dict) -> str:
+    """A point as a note names it: its factors, and its sweep folder where it has one."""
+    fac = combination_text(p.get("factors") or {}) or f"N = {p['pipelines']}"
+    return f"{fac}, {p['sweep']}" if p.get("sweep") else fac
 
 
 def fit_group(points: list[dict], target: str, slowest: bool = False, source: str | None = None) -> dict:

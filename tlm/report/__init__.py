@@ -52,7 +52,11 @@ MARKER = "report.html"
 KEPT_FOLDERS = ("oracle",)
 
 
-def sections(inputs: Inputs, out: Path) -> list[Section]:
+SECTIONS = 9  # (the numbered sections, :func:`section_makers`: the progress bar counts them before importing them)
+
+
+def section_makers() -> tuple[Callable[[Inputs, Path], Section], ...]:
+    """The functions that make the numbered sections, in the page's order (:data:`SECTIONS` of them)."""
     from tlm.report.cycles import cycles_section
     from tlm.report.extreme import extreme_section
     from tlm.report.images import images_section
@@ -63,9 +67,19 @@ def sections(inputs: Inputs, out: Path) -> list[Section]:
     from tlm.report.tables import tables_section
     from tlm.report.tradeoff import tradeoff_section
 
-    order = (tables_section, images_section, scaling_section, sweeps_section, cycles_section, tradeoff_section,
-             peers_section, extreme_section, provenance_section)
-    return [make(inputs, out) for make in order]
+    return (tables_section, images_section, scaling_section, sweeps_section, cycles_section, tradeoff_section,
+            peers_section, extreme_section, provenance_section)
+
+
+def sections(inputs: Inputs, out: Path, step: Callable[[str], None] | None = None) -> list[Section]:
+    """Every numbered section of the report, in order; ``step`` is told each one's name (``cycles``)
+    as it begins (the progress bar: :func:`build_report`)."""
+    made = []
+    for make in section_makers():
+        if step is not None:
+            step(make.__name__.removesuffix("_section"))
+        made.append(make(inputs, out))
+    return made
 
 
 def scenes_note(inputs: Inputs) -> str:
@@ -99,7 +113,7 @@ def default_out(dirs: list[Path]) -> Path:
 
 def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
                  scaling_sweeps: list[Path] | None = None, *, formats=None, dpi: int | None = None,
-                 note: Callable[[str], None] | None = None) -> Path:
+                 note: Callable[[str], None] | None = None, progress: bool = False) -> Path:
     """Read ``dirs``, write the report folder ``out``; returns the path of ``report.html``.
 
     ``formats``: the files each figure is written as, ``png`` and any of ``pdf`` and ``svg``
@@ -117,13 +131,17 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     passed over, a link not followed, ...; :attr:`~tlm.report.collect.Inputs.damaged`: a damaged file,
     left out of the report) as soon as the inputs are read; None: each is written on stderr
     (``tlm: note: ...``). The page says them either way (the damaged files with the warnings).
+
+    ``progress``: a bar on stderr, drawn only when it is a terminal (:func:`tlm.progress.progress_bar`),
+    with a step for reading the inputs, each section, the summary and the page, named as it runs
+    (``report: cycles``); gone at the end. Nothing else the report prints or writes changes with it.
     """
     from tlm.experiments.provenance import identities_remembered
 
     # (the files set for every figure; a scene file's identity, which judges each thesis cell, computed once;
     # the objects the process held before, not scanned again by the collector while the figures are made)
     with figure_output(formats, dpi), identities_remembered(), older_objects_frozen():
-        return _build_report(dirs, out, title, scaling_sweeps, note)
+        return _build_report(dirs, out, title, scaling_sweeps, note, progress)
 
 
 _FROZEN = threading.Lock()
@@ -160,18 +178,39 @@ def older_objects_frozen() -> Iterator[None]:
                 gc.unfreeze()
 
 
-def _build_report(dirs: list[Path], out: Path | None, title: str | None,
-                  scaling_sweeps: list[Path] | None, note: Callable[[str], None] | None) -> Path:
+def _build_report(dirs: list[Path], out: Path | None, title: str | None, scaling_sweeps: list[Path] | None,
+                  note: Callable[[str], None] | None, progress: bool = False) -> Path:
+    from tlm.progress import Ticking, progress_bar
+
+    # (its steps: the inputs read, each section, the summary and the page; redrawn meanwhile, so that its
+    # time goes on in a long section; no rate or time left: one section takes 100 times another's time)
+    with progress_bar(progress, desc="report: read", total=SECTIONS + 3, unit="step", leave=False,
+                      bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}]") as bar, Ticking(bar):
+        return _build_report_steps(dirs, out, title, scaling_sweeps, note, bar)
+
+
+def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, scaling_sweeps: list[Path] | None,
+                        note: Callable[[str], None] | None, bar) -> Path:
     t0 = time.perf_counter()
+
+    def step(name: str) -> None:  # (the step ``name`` begins: the one before it is done)
+        bar.update()
+        bar.set_description_str(f"report: {name}", refresh=True)
+
+    def say(line: str) -> None:  # (a note on stderr, the bar cleared for it and drawn again below it)
+        with bar.external_write_mode(file=sys.stderr):
+            if note is not None:
+                note(line)
+            else:
+                sys.stderr.write(f"tlm: note: {line}\n")
+                sys.stderr.flush()
+
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
     for line in [*inputs.notes, *inputs.damaged]:  # (the folders passed over, the damaged files left out, said
         # now too: the page may not be read soon)
-        if note is not None:
-            note(line)
-        else:
-            sys.stderr.write(f"tlm: note: {line}\n")
+        say(line)
     sys.stderr.flush()
     recorded = scaling_sweeps is None  # (not given: a damaged one is said and left out, as a damaged input is)
     if scaling_sweeps is None:  # the sweeps a scaling study among the inputs recorded, where they still are
@@ -200,20 +239,20 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None,
         inputs.scaling_sweeps = extra.sweeps
         for line in extra.damaged:  # (a damaged point of such a sweep: left out of the idle fractions, said)
             inputs.damaged.append(line)
-            if note is not None:
-                note(line)
-            else:
-                sys.stderr.write(f"tlm: note: {line}\n")
+            say(line)
     out = Path(out) if out is not None else default_out(dirs)
     with atomic_folder(out, MARKER) as tmp:
         for name in KEPT_FOLDERS:  # what others wrote into the report's folder stays
             if (out / name).is_dir():
                 shutil.copytree(out / name, tmp / name)
         try:
-            secs = sections(inputs, tmp)
+            # (no bar drawn: sections called as before, with the inputs and the folder alone)
+            secs = sections(inputs, tmp, step) if not bar.disable else sections(inputs, tmp)
             from tlm.report.summary import summary_section
 
+            step("summary")
             summary = summary_section(inputs, tmp)
+            step("page")
         finally:
             forget_names(tmp)  # (the figures are written: their names need no record now)
         kinds = ", ".join(f"{esc(d)}" for d in dirs)

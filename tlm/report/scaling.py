@@ -33,6 +33,7 @@ from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import Figure, Section, colour, figure_name, legend_below, marker, new_figure, write_png
 from tlm.report.html import esc
 from tlm.report.names import path_labels
+from tlm.report.sweep_lines import column_texts
 from tlm.report.sweeps import PMS, factors_of, named_rows
 
 # one colour per PM kind (the yellow of the palette is too faint for a thin line); the
@@ -163,7 +164,8 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
     by_hash = {r.path.name: r for r in sw.runs}
     # a sweep crossing N with other factors: a figure per combination of their values (as eq. 5.2's fits)
     # where one has two values of N (a zip of N with another factor: one figure over N, as before)
-    others = [k for k in factors_of(sw) if k not in eq52.GROUP_KEYS
+    # (a factor that leaves the cycles as they are, arch.trace, splits nothing: eq52.one_per_n)
+    others = [k for k in factors_of(sw) if k not in eq52.GROUP_KEYS and not eq52.no_effect(k)
               and len({repr(r.get(k)) for r in ok}) > 1]
     ns = defaultdict(set)
     for r in ok:
@@ -171,6 +173,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
     if not any(len(n) > 1 for n in ns.values()):
         others = []
     groups: dict[tuple, list[dict]] = defaultdict(list)
+    factors: dict[int, dict] = {}  # (each point's factors, by id of its dict: what tells apart two of one N)
     unknown = []
     for r in sorted(ok, key=lambda r: r.get("point", 0)):
         run = by_hash.get(str(r.get("hash")))
@@ -181,10 +184,10 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
             unknown.append(str(r.get("point")))
             continue
         combination = eq52.combination_text({k: r.get(k) for k in others})
-        groups[(str(r.get("scene")), str(r.get("mode")), *((combination,) if combination else ()))].append({
-            "point": r.get("point"), "scheduler": str(sched), "pipelines": int(n),
-            "throughput": r.get("cycles.throughput"),
-            "idle": {p: r.get(f"idle.{p}") for p in pms}})
+        point = {"point": r.get("point"), "scheduler": str(sched), "pipelines": int(n),
+                 "throughput": r.get("cycles.throughput"), "idle": {p: r.get(f"idle.{p}") for p in pms}}
+        factors[id(point)] = {k: r.get(k) for k in factors_of(sw)}
+        groups[(str(r.get("scene")), str(r.get("mode")), *((combination,) if combination else ()))].append(point)
     if unknown:
         notes.append(f"{name}: points {', '.join(unknown)} left out of the idle figures: neither the row nor a "
                      "results folder gives their scheduler and N")
@@ -193,6 +196,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
         scene, mode = key[:2]
         if len(key) > 2:
             mode = f"{mode} ({key[2]})"  # (in the notes)
+        pts = _one_per_n(pts, factors, f"{name}: {scene}/{mode}", notes)
         seen = defaultdict(list)
         for p in pts:
             seen[(p["scheduler"], p["pipelines"])].append(str(p["point"]))
@@ -210,6 +214,32 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
             t1, t = one.get(p["scheduler"]), p["throughput"]
             p["speedup"] = t1 / t if t1 and t else None
         out[key] = {"pms": pms, "points": pts}
+    return out
+
+
+def _one_per_n(pts: list[dict], factors: dict[int, dict], where: str, notes: list[str]) -> list[dict]:
+    """The points of one idle figure with one per (scheduler, N) where several differ only in factors
+    that leave the cycles as they are (:func:`tlm.experiments.scaling.no_effect`, ``arch.trace``): the
+    first is kept, as eq. 5.2 keeps it, and ``notes`` gets a line where their TThru or idle fractions
+    disagree. Points that differ in another factor are all kept (the caller says why no figure)."""
+    same: dict[tuple, list[dict]] = defaultdict(list)
+    for p in pts:
+        same[(p["scheduler"], p["pipelines"])].append(p)
+    out = []
+    for p in pts:
+        these = same[(p["scheduler"], p["pipelines"])]
+        fs = [factors[id(q)] for q in these]
+        keys = sorted({k for f in fs for k in f if len({repr(g.get(k)) for g in fs}) > 1})
+        if len(these) == 1 or not all(eq52.no_effect(k) for k in keys):
+            out.append(p)
+        elif p is these[0]:
+            out.append(p)
+            if len({(repr(q["throughput"]), repr(sorted(q["idle"].items()))) for q in these}) > 1:
+                shown = "; ".join(f"point {q['point']}: TThru {q['throughput']}" for q in these)
+                notes.append(f"{where}: {p['scheduler']} N={p['pipelines']}: points "
+                             f"{', '.join(str(q['point']) for q in these)} differ only in factors that leave the "
+                             f"cycles as they are ({', '.join(keys) or 'none'}), yet their TThru or idle fractions "
+                             f"disagree ({shown}): point {p['point']} drawn")
     return out
 
 
@@ -250,9 +280,10 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     rows = sorted(points, key=lambda p: (p["pipelines"], _scheduler_order(p["scheduler"])))
     out = [f"<details><summary>{esc(title)}</summary>",
            "<table><tr>" + "".join(f"<th{_left(h == 'scheduler')}>{esc(h)}</th>" for h in head) + "</tr>"]
-    for p in rows:
-        t = p["throughput"]
-        cells = [str(p["pipelines"]), p["scheduler"], "" if t is None else f"{t / 1e6:.4g}",
+    # (TThru's numbers in one notation: column_texts)
+    thru = column_texts([None if p["throughput"] is None else p["throughput"] / 1e6 for p in rows], lambda _v: "")
+    for p, t in zip(rows, thru, strict=True):
+        cells = [str(p["pipelines"]), p["scheduler"], t,
                  "" if p["speedup"] is None else f"{p['speedup']:.3f}",
                  *("" if p["idle"][pm] is None else f"{p['idle'][pm]:.3f}" for pm in pms)]
         out.append("<tr>" + "".join(f"<td{_left(k == 1)}>{esc(c)}</td>" for k, c in enumerate(cells)) + "</tr>")

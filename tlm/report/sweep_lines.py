@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import textwrap
 from collections import defaultdict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -39,6 +40,50 @@ def fmt_value(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.4g}"
     return str(v)
+
+
+# a table column of numbers is written in fixed notation where its smallest number (not 0) and its
+# largest are within these bounds (4 significant digits each: 0.001234, 1381, 34530, 1234567), else
+# each in scientific notation (3.4e+05, 1.2e+06, 5e+10)
+FIXED_FROM, FIXED_BELOW = 1e-3, 1e7
+
+
+def _fixed(v: float) -> str:
+    """``v`` to 4 significant digits in fixed notation, trailing zeros left out (as ``.4g`` leaves
+    them out): ``0.05``, ``1381``, ``34530``."""
+    if v == 0:
+        return "0"
+    digits = max(0, 3 - math.floor(math.log10(abs(v))))
+    text = f"{v:.{digits}f}"
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def _scientific(v: float) -> str:
+    """``v`` to 4 significant digits in scientific notation, the mantissa's trailing zeros left out:
+    ``3.4e+05``, ``5e+10``; 0 is ``0``."""
+    if v == 0:
+        return "0"
+    mantissa, _, exponent = f"{v:.3e}".partition("e")
+    return f"{mantissa.rstrip('0').rstrip('.') if '.' in mantissa else mantissa}e{exponent}"
+
+
+def column_texts(values: list, text: Callable[[Any], str] = fmt_value) -> list[str]:
+    """The cells of one table column, its numbers in one notation, chosen for the column (``.4g``
+    chose it for each number: ``340000`` beside ``1.2e+06``, ``1381`` beside ``3.453e+04``): whole
+    numbers (ints) as they are where the column has no other number; else fixed notation where every
+    number but 0 lies in [:data:`FIXED_FROM`, :data:`FIXED_BELOW`) in size, each to 4 significant
+    digits (``0.2348``, ``34530``), else scientific notation for every number (``3.4e+05``,
+    ``5e+10``). Any other value (null, a bool, text, NaN, a list) is ``text``'s."""
+    def number(v: Any) -> bool:
+        return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+    nums = [v for v in values if number(v)]
+    if all(isinstance(v, int) for v in nums):
+        return [str(v) if number(v) else text(v) for v in values]
+    sizes = [abs(v) for v in nums if v != 0]
+    fixed = not sizes or (min(sizes) >= FIXED_FROM and max(sizes) < FIXED_BELOW)
+    write = _fixed if fixed else _scientific
+    return [write(v) if number(v) else text(v) for v in values]
 
 
 def all_numbers(values: list) -> bool:

@@ -55,9 +55,9 @@ from tlm.report.names import value_text
 from tlm.report.sweep_lines import (
     LEVELS,
     all_numbers,
+    column_texts,
     dodge,
     draw_nulls,
-    fmt_value,
     hashable,
     legend_under,
     merge_groups,
@@ -107,15 +107,23 @@ def table(sw: Sweep) -> str:
             "slowest PM", "host s"]
     rows = sorted(named_rows(sw), key=lambda r: r.get("point", 0))
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
-    for r in rows[:MAX_ROWS]:
+    # each column's numbers in one notation (column_texts): a factor's values, FPS, TThru, host seconds
+    shown = rows[:MAX_ROWS]
+    ok = [r for r in shown if r.get("status") == "ok"]
+    columns = {f: column_texts([r.get(f) for r in shown], lambda v, f=f: value_text(f, v)) for f in factors}
+    fps = column_texts([r.get("fps") for r in ok])
+    thru = column_texts([(r.get("cycles.throughput") or 0) / 1e6 for r in ok])
+    host = column_texts([round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3)
+                         for r in ok])
+    k = 0  # (the row's place among the finished ones)
+    for i, r in enumerate(shown):
         if r.get("status") == "ok":
             slow = max(PMS, key=lambda p: r.get(f"cycles.{p}") or 0)
-            cells = [fmt_value(r.get("fps")), f"{(r.get('cycles.throughput') or 0) / 1e6:.4g}",
-                     *([_ratio_text(r)] if ratio else []), slow,
-                     fmt_value(round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3))]
+            cells = [fps[k], thru[k], *([_ratio_text(r)] if ratio else []), slow, host[k]]
+            k += 1
         else:
             cells = [f"failed: {r.get('error')}", "", "", "", *([""] if ratio else [])]
-        vals = [str(r.get("point")), *(value_text(f, r.get(f)) for f in factors), str(r.get("status")), *cells]
+        vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
     if len(rows) > MAX_ROWS:

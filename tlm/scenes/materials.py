@@ -79,7 +79,7 @@ from tlm.errors import InputError
 from tlm.scenes.model import Material
 
 __all__ = [
-    "GLB_MAGIC", "glb_chunks", "gltf_json", "gltf_material", "gltf_materials", "mtl_material",
+    "GLB_MAGIC", "glb_chunks", "glb_length_notes", "gltf_json", "gltf_material", "gltf_materials", "mtl_material",
     "parse_mtl", "write_glb",
 ]
 
@@ -199,12 +199,47 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Mat
 # ------------------------------------------------------------------ glTF
 
 
+def _chunks_end(data: bytes) -> int | None:
+    """Where a binary glTF file's last chunk ends, walking its chunks from byte 12 by their
+    lengths; None where a chunk is cut (its 8-byte head, or its data, runs past the file's end)."""
+    end = 12
+    while end + 8 <= len(data):
+        end += 8 + struct.unpack_from("<I", data, end)[0]
+    return end if end == len(data) else None
+
+
+def _long_header(data: bytes) -> int | None:
+    """The length a binary glTF file's 12-byte header gives where it exceeds the file by less than
+    a chunk's 8-byte head (no whole chunk can be missing) and the file's chunks are whole, to its
+    last byte (:func:`_chunks_end`): a writer that rounded the length up, or a file that lost
+    padding past its last chunk; glTF 2.0 wants the header's length to be the file's, and readers
+    (trimesh) read such a file by its chunks. None for any other file."""
+    if data[:4] != GLB_MAGIC or len(data) < 20:
+        return None
+    total = struct.unpack_from("<I", data, 8)[0]
+    return total if 0 < total - len(data) < 8 and _chunks_end(data) == len(data) else None
+
+
+def glb_length_notes(data: bytes, source: str = "") -> tuple[str, ...]:
+    """The note on a binary glTF file whose header says a few bytes more than the file holds, its
+    chunks whole (:func:`_long_header`), which :func:`glb_chunks` reads as it is; () otherwise."""
+    total = _long_header(data)
+    if total is None:
+        return ()
+    return (f"{source + ': ' if source else ''}the binary glTF header's length says {total:,} bytes, the file has "
+            f"{len(data):,} and its chunks are whole (the last ends at the file's end): read by its chunks, as "
+            f"glTF libraries read it; glTF 2.0 wants the header's length to be the file's (fix it: write "
+            f"{len(data):,} in bytes 8 to 11, little-endian, or export the file again)",)
+
+
 def glb_chunks(data: bytes, source: str = "") -> tuple[dict, bytes]:
-    """The JSON (parsed) and the BIN chunk (b"" if none) of a binary glTF file."""
+    """The JSON (parsed) and the BIN chunk (b"" if none) of a binary glTF file. A header whose
+    length exceeds the file's by less than 8 bytes, the chunks whole, is read all the same
+    (:func:`glb_length_notes` says so); a cut chunk is refused as truncated."""
     if data[:4] != GLB_MAGIC:
         raise InputError("not a binary glTF file (no 'glTF' header)", source=source)
     total = struct.unpack_from("<I", data, 8)[0] if len(data) >= 12 else None
-    if len(data) < 20 or (total is not None and total > len(data)):
+    if len(data) < 20 or (total is not None and total > len(data) and _long_header(data) is None):
         said = f"its header says {total:,} bytes" if total is not None else "its header is cut"
         raise InputError(f"the binary glTF file is truncated: {said}, the file has {len(data):,}", source=source)
     length, kind = struct.unpack_from("<II", data, 12)

@@ -410,6 +410,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     from tlm.scenes.materials import (
         check_gltf,
         check_gltf_buffers,
+        glb_length_notes,
         gltf_buffer_sizes,
         gltf_json,
         gltf_materials,
@@ -437,6 +438,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
             notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src),
                                         src)
+            notes += glb_length_notes(data, src) if ext == ".glb" else ()
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
             nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
