@@ -53,6 +53,9 @@ PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process 
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
 BROKEN_WAIT = 60  # seconds a broken local pool gets to fail the points it holds
+UNGUARDED_EXIT = 79  # the exit status of a worker that, re-running the main script as it starts, was asked
+# for a sweep there (the script's is not under ``if __name__ == "__main__":``: leave_if_bootstrapping)
+TLM_PRELOAD = ("tlm.experiments.sweep", "tlm.experiments.run")  # imported once by the fork server, not per worker
 
 
 class InProcess(cf.Executor):
@@ -132,7 +135,10 @@ class LocalPool(cf.Executor):
 
     Workers are forked from a fresh server process (``forkserver``), never from this
     one: this process may hold threads (the progress bar's monitor, a Dask client's
-    event loop) whose locks a forked child would inherit held.
+    event loop) whose locks a forked child would inherit held. Each runs the main script
+    again as it starts (as Python's ``spawn`` does): one that starts the sweep as it is
+    imported is refused with one :class:`~tlm.errors.InputError` before the pool starts a worker
+    (:func:`_check_guarded`; its workers would end at once: :func:`leave_if_bootstrapping`).
     """
 
     def __init__(self, jobs: int) -> None:
@@ -154,8 +160,9 @@ class LocalPool(cf.Executor):
             # sweep alone, which kills them; no idle worker prints a KeyboardInterrupt's traceback
             from multiprocessing import forkserver
 
-            with _sigint_ignored():
+            with _sigint_ignored(), _tlm_preloaded():
                 forkserver.ensure_running()
+        _check_guarded(self.context)
         self._new()
 
     def _new(self) -> None:
@@ -224,6 +231,8 @@ class LocalPool(cf.Executor):
         self.pool.shutdown(wait=True)  # its workers are joined: their exit codes are known
         self._read_started()
         self.started.close()
+        if any(p.exitcode == UNGUARDED_EXIT and pid not in self.pids.values() for pid, p in self.processes.items()):
+            raise unguarded_error()  # (the script's first sweep passed _check_guarded, this one's call did not)
         pids, processes, alone = self.pids, self.processes, self.alone
         self.alone = None
         held = sorted(self.inflight.items(), key=lambda item: item[1].token)
@@ -422,11 +431,94 @@ def _alive(pid: int) -> bool:
 
 
 def _mp_context():
+    """A local pool's multiprocessing context: ``forkserver`` (else ``spawn``). Asked for in a
+    worker process still bootstrapping, it ends that process (:func:`leave_if_bootstrapping`)."""
+    leave_if_bootstrapping()
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["tlm.experiments.sweep", "tlm.experiments.run"])  # imported once, not per worker
-    return ctx
+    return multiprocessing.get_context("forkserver")
+
+
+@contextmanager
+def _tlm_preloaded():
+    """While the block starts the fork server (if none runs yet: it is one per process), the
+    server imports :data:`TLM_PRELOAD` once, not each worker: added to the host program's
+    preload list (``multiprocessing.set_forkserver_preload``), which is put back as it was
+    afterwards. What stays changed: a fork server started here has tlm's modules imported, and
+    serves the host's own forkserver processes too (they fork with tlm imported). The default
+    list's ``__main__`` is left out for the start, as tlm's own list always left it: where
+    Python passes the server the main script's path, the server would run it, and an
+    unguarded script's sweep there."""
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver, "_forkserver", None)
+    host = getattr(server, "_preload_modules", None)  # (no public reader)
+    if not isinstance(host, list):  # (another Python's fork server: tlm's list alone, as before)
+        forkserver.set_forkserver_preload(list(TLM_PRELOAD))
+        yield
+        return
+    forkserver.set_forkserver_preload([*(m for m in host if m != "__main__"),
+                                       *(m for m in TLM_PRELOAD if m not in host)])
+    try:
+        yield
+    finally:
+        forkserver.set_forkserver_preload(host)
+
+
+def leave_if_bootstrapping() -> None:
+    """End this process at once, quietly, with :data:`UNGUARDED_EXIT` if it is a worker process
+    still bootstrapping (Python's own test: ``multiprocessing.spawn._check_not_importing_main``).
+    A forkserver or spawn worker runs the main script again as it starts (as ``__mp_main__``); one
+    that calls ``tlm.sweep`` not under ``if __name__ == "__main__":`` asks for a sweep there. It
+    would start nothing (Python refuses a new process then: each worker printed that
+    RuntimeError's traceback, and the sweep saw its workers die before any point); its exit
+    status tells the sweep's process why (:func:`_check_guarded`, :meth:`LocalPool._replace`)."""
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        os._exit(UNGUARDED_EXIT)
+
+
+def main_script() -> str | None:
+    """The main script (its path; a module's name under ``python -m``) that a ``forkserver`` or
+    ``spawn`` worker process runs again as it starts, as ``multiprocessing.spawn`` finds it; None
+    where it runs none (``python -c``, a notebook, IPython, a package's ``__main__``)."""
+    main = sys.modules.get("__main__")
+    name = getattr(getattr(main, "__spec__", None), "name", None)
+    path = getattr(main, "__file__", None)
+    if name is not None:  # (python -m: imported again by its name, but a package's __main__)
+        return None if name == "__main__" or name.endswith(".__main__") else (path or name)
+    if path is None or os.path.splitext(os.path.basename(path))[0] == "ipython":
+        return None
+    return os.path.abspath(path)
+
+
+def unguarded_error() -> InputError:
+    """The error of a main script that starts a sweep as it is imported (:func:`leave_if_bootstrapping`)."""
+    return InputError("the script starts a sweep as it is imported, and each of the sweep's worker processes imports "
+                      "it again as it starts (Python's multiprocessing runs the main script in every new process): "
+                      "put the call that starts the sweep (tlm.sweep, tlm.run_sweep, the study) under "
+                      "`if __name__ == \"__main__\":`", source=main_script() or "__main__")
+
+
+def _check_guarded(context) -> None:
+    """Raise :func:`unguarded_error` where a process of ``context`` that runs the main script again
+    as it starts (:func:`main_script`) ends with :data:`UNGUARDED_EXIT`: before the pool
+    starts a worker, and before the sweep writes anything (it claims its folder once its
+    executor opened). One process that does nothing (the cost of a worker's start, once per
+    pool); none where no script is run again, nor under ``fork``."""
+    if context.get_start_method() == "fork" or main_script() is None:
+        return
+    probe = context.Process(name="tlm-guard-check")  # (no target: it runs nothing)
+    with _sigint_ignored():  # (as a worker: a Ctrl-C reaches the sweep alone)
+        probe.start()
+    try:
+        probe.join()
+    finally:
+        if probe.exitcode is None:  # (interrupted while it starts)
+            with suppress(Exception):
+                probe.kill()
+            probe.join()
+    if probe.exitcode == UNGUARDED_EXIT:
+        raise unguarded_error()
 
 
 def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
@@ -484,7 +576,9 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                   dask_wait: float | None = None) -> cf.Executor:
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
     client's; no more workers than ``points``. ``dask_wait``: the seconds a Dask sweep
-    waits while its scheduler has no worker (None: :data:`NO_WORKERS_WAIT`)."""
+    waits while its scheduler has no worker (None: :data:`NO_WORKERS_WAIT`). In a worker process
+    still bootstrapping, it ends that process (:func:`leave_if_bootstrapping`)."""
+    leave_if_bootstrapping()  # (a worker re-running a script that sweeps at import starts nothing, even in-process)
     if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
         return InProcess() if jobs == 1 else LocalPool(min(jobs, points))
     jobs = min(jobs, points)
@@ -498,6 +592,10 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
     quiet = _Quiet()  # (DaskPool.trouble silences distributed's logs)
     stack.push(quiet.after)  # restored once the client has closed (not when a signal ends the process)
     if dask == "local":
+        from distributed.utils import get_mp_context
+
+        _check_guarded(get_mp_context())  # (the workers' own start method: a script that sweeps at import is
+        # one line, where the nannies failed to start their workers)
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
         # it still tries 8787, and warns when that is taken (another cluster, another sweep)
         # silence_logs: the workers' own warnings (a task cancelled by a signal, a worker
