@@ -98,4 +98,4 @@ def test_a_config_shows_as_one_short_line():
     assert text.startswith(f"Config(source={cfg.source!r}, overrides=[mode=\"reflect\", resolution=[16, 16], ")
     assert text.endswith("... 1 more], scene='cornell', mode='reflect', resolution=[16, 16], seed=3)")
     assert repr(api.load_config({"scene": "ring"})) == "Config(source=None, scene='ring', mode='refract', " \
-                                                        "resolution=None, seed=0)"
+                                                        "resolution=[320, 240] (the scene's), seed=0)"

@@ -57,7 +57,7 @@ def test_a_full_disk_on_the_second_file_leaves_the_folder_as_it_was(tmp_path, mo
         export_triangles(_scene("before", 0.0), tmp_path / target)
     before = _contents(tmp_path)
     calls: list[Path] = []
-    monkeypatch.setattr(tlm.scenes.export, "write_file", _full_on(2, calls))
+    monkeypatch.setattr(tlm.storage, "write_file", _full_on(2, calls))
     with pytest.raises(EnvironmentFailure) as e:
         export_triangles(_scene("after", 0.5), tmp_path / target)
     assert len(calls) == 2
@@ -107,7 +107,7 @@ def test_write_files_writes_bytes_and_text_and_names_the_file_that_did_not_fit(t
     (tmp_path / "a.bin").write_bytes(b"old")
     tlm.scenes.export.write_files([(tmp_path / "a.bin", b"\x00\x01"), (tmp_path / "b.txt", "text\n")])
     assert _contents(tmp_path) == {"a.bin": b"\x00\x01", "b.txt": b"text\n"}
-    monkeypatch.setattr(tlm.scenes.export, "write_file", _full_on(1, []))
+    monkeypatch.setattr(tlm.storage, "write_file", _full_on(1, []))
     with pytest.raises(EnvironmentFailure, match=r"c\.txt: cannot write: no space left on device$"):
         tlm.scenes.export.write_files([(tmp_path / "c.txt", "c"), (tmp_path / "a.bin", b"new")])
     assert _contents(tmp_path) == {"a.bin": b"\x00\x01", "b.txt": b"text\n"}

@@ -201,6 +201,14 @@ def test_the_report_draws_a_bar_on_a_terminal_only_when_asked(tmp_path):
     assert done.stderr == ""
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="a pseudo-terminal")
+def test_tlm_report_draws_its_bar_unless_no_progress(tmp_path):
+    sw = _fake_sweep(tmp_path / "sw", {"arch.pipelines": [1, 2]}, _scaling_row)
+    tlm_report = [sys.executable, "-m", "tlm", "report", str(sw), "--out"]
+    assert _has_the_bar(_stderr_on_a_terminal([*tlm_report, str(tmp_path / "on")]))
+    assert _stderr_on_a_terminal([*tlm_report, str(tmp_path / "off"), "--no-progress"]) == ""
+
+
 def test_the_bar_counts_every_section():
     from tlm.report import SECTIONS, section_makers
 

@@ -45,7 +45,9 @@ from typing import TYPE_CHECKING, Any
 
 from tlm.api_common import (
     argument_names,
+    arguments_text,
     experiment_path,  # (shared with tlm.api_studies)
+    flags_are_kept,
 )
 from tlm.api_common import checked as _checked
 from tlm.api_common import folder as _folder
@@ -80,7 +82,11 @@ from tlm.config import (
     to_dict,
 )
 from tlm.config_words import with_overrides
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import (
+    InputError,
+    StepsFailed,  # noqa: F401  (not in __all__: what plots raises, read as tlm.api.StepsFailed)
+    did_you_mean,
+)
 from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:
@@ -133,15 +139,38 @@ class Config:
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_") or name == "settings":  # (copy and pickle look for these first)
             raise AttributeError(name)
-        return getattr(self.settings, name)
+        try:
+            return getattr(self.settings, name)
+        except AttributeError:  # (named as the class the caller holds, not the RunConfig it reads from)
+            import dataclasses
+
+            known = [f.name for f in (*dataclasses.fields(self), *dataclasses.fields(self.settings))]
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}"
+                                 f"{did_you_mean(name, known)}") from None
 
     def __repr__(self) -> str:
         """One line (a notebook shows it for ``cfg``): where it came from, its overrides and
         the settings that name the run; every setting: ``cfg.settings`` or ``tlm.config.to_dict(cfg.settings)``."""
         shown = list(self.overrides[:4]) + ([f"... {len(self.overrides) - 4} more"] if len(self.overrides) > 4 else [])
         more = f", overrides=[{', '.join(shown)}]" if shown else ""
+        resolution = self.settings.resolution
+        shown_resolution = repr(resolution) if resolution is not None else f"{self._scene_resolution()!r} (the scene's)"
         return (f"Config(source={self.source!r}{more}, scene={self.settings.scene!r}, mode={self.settings.mode!r}, "
-                f"resolution={self.settings.resolution!r}, seed={self.settings.seed!r})")
+                f"resolution={shown_resolution}, seed={self.settings.seed!r})")
+
+    def _scene_resolution(self) -> list[int] | None:
+        """The resolution a render of this config uses where it sets none: its scene file's
+        ``resolution`` (read, with its ``extends`` chain, not built); None where that cannot be read
+        (the render's own loading then says why)."""
+        from tlm.scenes.loader import read_scene_tree, resolve_scene_path
+
+        try:
+            raw, _ = read_scene_tree(resolve_scene_path(self.settings.scene, self.base), ())
+        except (InputError, OSError, ValueError):
+            return None
+        res = raw.get("resolution")
+        ok = isinstance(res, list) and len(res) == 2 and all(type(x) is int for x in res)
+        return res if ok else None
 
     @property
     def label(self) -> str:
@@ -399,6 +428,9 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
 
 
 def _scene(scene: Scene | str | Path) -> Scene:
+    """The scene named, loaded; or the Scene given, checked as a loaded one is (one made or changed
+    in Python: NaN or infinite vertices are an InputError naming it, :func:`tlm.scenes.export.check_scene`)."""
+    from tlm.scenes.export import check_scene
     from tlm.scenes.model import Scene
 
     if isinstance(scene, (str, os.PathLike)):
@@ -406,6 +438,7 @@ def _scene(scene: Scene | str | Path) -> Scene:
     if not isinstance(scene, Scene):
         raise InputError(f"{_shown(scene)} is not a scene: give a Scene, a built-in scene's name or a scene "
                          "file's path", key="scene")
+    check_scene(scene)
     return scene
 
 
@@ -448,7 +481,9 @@ def scene_info(scene: Scene | str | Path) -> dict:
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
     or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
-    :mod:`tlm.scenes.export`); returns the scene."""
+    :mod:`tlm.scenes.export`); returns the scene. A Scene that no scene file could hold (NaN or
+    infinite vertices, as one made with ``dataclasses.replace`` may have) is an InputError naming
+    it and its first such triangle, as the loader names a file's, and nothing is written."""
     from tlm.scenes.export import export_triangles
 
     scene = _scene(scene)
@@ -596,10 +631,16 @@ def simulate(result: RenderResult, arch: ArchConfig | Mapping[str, Any] | None =
 @argument_names
 def parse_outputs(text: str) -> tuple[str, ...]:
     """``tlm run --outputs`` (``"aov,trace"``): the optional outputs named, in :data:`OUTPUTS`
-    order (``"images"``: none of them); an unknown name is an :class:`InputError`."""
+    order (``"images"``: none of them); an unknown name is an :class:`InputError` naming ``text``
+    (``--outputs`` from the command line)."""
     from tlm.experiments.run import parse_outputs as parse
 
-    return parse(text)
+    try:
+        return parse(text)
+    except InputError as e:
+        if e.key != "--outputs" or flags_are_kept():
+            raise
+        raise _renamed(e, "text") from None
 
 
 @argument_names
@@ -653,16 +694,20 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
 @argument_names
 @imports_whole
 def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = False,
-              say: Callable[[str], None] | None = None, progress: Callable[[int, float, float], None] | None = None,
-              bar: bool = False) -> Made:
+              say: Callable[[str], None] | None = None,
+              progress: Callable[[int, float, float], None] | bool | None = None, bar: bool = False) -> Made:
     """The converged photon-map reference of ``config``'s scene, as ``tlm reference``
     computes it: the cached one when it meets ``reference.tolerance`` (unless ``force``),
-    else computed and cached. Returns its ``key``, ``settings``, ``meta``, whether it was
-    ``computed`` now and its ``folder``; ``say`` gets a line before computing, ``progress``
-    ``(round, change, relative standard error)`` after each round, ``bar`` a bar of the rounds on
-    stderr (when it is a terminal). ``progress=True``, as :func:`render_image` and :func:`run`
-    take it: that bar, and with no ``say``, its line before computing on stderr (a notebook
-    shows it); ``force`` and ``bar``: True or False."""
+    else computed and cached (a cached one that computing again would not better, fewer rounds
+    asked for or the same rounds repeated, is kept: ``kept`` says why). Returns its ``key``,
+    ``settings``, ``meta``, whether it was ``computed`` now (False where the cache's was returned)
+    and its ``folder``; ``say`` gets a line before computing, and the line on a cached one kept,
+    ``progress`` ``(round, change, relative standard error)`` after each round (the round's number
+    from 1; the two measures after each cycle of ``reference.spp`` rounds from the second, when they
+    are measured, and NaN after the other rounds), ``bar`` a bar of the rounds on stderr (when it is
+    a terminal). ``progress=True``, as :func:`render_image` and :func:`run` take it: that bar, and
+    with no ``say``, its line before computing on stderr (a notebook shows it); ``force`` and
+    ``bar``: True or False."""
     from tlm.experiments.reference import make_reference
 
     force = _checked(force, "force", bool)
@@ -672,7 +717,18 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
                          "standard error)", none="no progress")
         bar, say, progress = bar or shown, _said(say, shown), None
     cfg = load_config(config)
-    return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
+    if flags_are_kept():  # (tlm reference: its lines name its flags, --force)
+        return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
+    names = {"force", "say", "progress", "bar"}
+
+    def named(line: str) -> str:  # (a caller in Python: force=True, not --force)
+        return arguments_text(line, names, {"force", "bar"})
+
+    told = None if say is None else (lambda line: say(named(line)))
+    made = make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=told, progress=progress, bar=bar)
+    if made is not None and made.kept:
+        made = replace(made, kept=named(made.kept))
+    return made
 
 
 def _said(say: Callable[[str], None] | None, progress: bool) -> Callable[[str], None] | None:

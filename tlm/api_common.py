@@ -88,9 +88,11 @@ def renamed(error: InputError, key: str) -> InputError:
 
 
 # a flag whose argument has another name than the flag's own (--dask-wait: dask_wait)
-FLAG_ARGUMENTS = {"--write": "target"}
+FLAG_ARGUMENTS = {"--write": "target", "--set": "overrides"}
 _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*(?: [A-Z][A-Z_]*\b)?")  # --jobs, --write FILE
 _COMMAND = re.compile(r"\btlm [a-z-]+(?: [^\s,;:()]+)* $")  # what precedes a flag of a command shown whole
+# what precedes a flag that is a config's label, ``cornell.yaml, with --set`` (the overrides' ``via``: kept)
+_LABEL = re.compile(r", with $")
 
 
 def flag_argument(flag: str, names: set[str]) -> str | None:
@@ -99,25 +101,39 @@ def flag_argument(flag: str, names: set[str]) -> str | None:
     return name if name in names else None
 
 
-def as_arguments(error: InputError, names: set[str]) -> InputError:
-    """``error`` (changed in place, and returned) naming the arguments ``names`` where it named the
-    command line's flags: its key (``--out: ...``: ``out: ...``) and the flags in its text (``give
-    --dask local``: ``give dask local``; ``--write FILE``: ``target``), not those of a command
-    shown whole (``tlm report --formats pdf``) nor flags of no argument of the function."""
-    name = flag_argument(str(error.key), names) if error.key else None
-    if name is not None:
-        renamed(error, name)
-    if not error.args or not isinstance(error.args[0], str):
-        return error
-    text = error.args[0]
+def arguments_text(text: str, names: set[str], switches: set[str] | frozenset[str] = frozenset()) -> str:
+    """``text`` naming the arguments ``names`` where it named the command line's flags (``give
+    --dask local``: ``give dask local``; ``--write FILE``: ``target``; a flag of a True-or-False
+    argument among ``switches``, ``use --force``: ``use force=True``), but those of a command shown
+    whole (``tlm report --formats pdf``), a config's label (``cornell.yaml, with --set``: how its
+    overrides were given, :attr:`tlm.api.Config.via`) and flags of no argument of the function."""
 
     def argument(m: re.Match) -> str:
         found = flag_argument(m.group(0).split(" ")[0], names)
-        if found is None or _COMMAND.search(text[max(0, m.start() - 60):m.start()]):
+        before = text[max(0, m.start() - 60):m.start()]
+        if found is None or _COMMAND.search(before) or _LABEL.search(before):
             return m.group(0)
-        return found
+        return f"{found}=True" if found in switches else found
 
-    error.args = (_FLAG.sub(argument, text), *error.args[1:])
+    return _FLAG.sub(argument, text)
+
+
+def as_arguments(error: InputError, names: set[str], switches: set[str] | frozenset[str] = frozenset()
+                 ) -> InputError:
+    """``error`` (changed in place, and returned) naming the arguments ``names`` where it named the
+    command line's flags: its key (``--out: ...``: ``out: ...``), its source where that is a flag
+    (``--set: 'seed' is not of the form ...``: ``overrides: ...``) and the flags in its text
+    (:func:`arguments_text`; ``switches``: the True-or-False arguments, named ``force=True``)."""
+    name = flag_argument(str(error.key), names) if error.key else None
+    if name is not None:
+        renamed(error, name)
+    source = flag_argument(error.source, names) if isinstance(error.source, str) else None
+    if source is not None and error.args and str(error.args[0]).startswith(f"{error.source}: "):
+        error.args = (f"{source}: {str(error.args[0])[len(error.source) + 2:]}", *error.args[1:])
+        error.source = source
+    if not error.args or not isinstance(error.args[0], str):
+        return error
+    error.args = (arguments_text(error.args[0], names, switches), *error.args[1:])
     return error
 
 
@@ -144,12 +160,15 @@ def argument_names(func: F) -> F:
     ``--jobs``, ``--dask``, ``--dask-wait``, ``--dpi``, ``--formats``, ``--truth-spp``,
     ``--write``; the deeper layers share them with the commands) becomes the argument's name
     (``out``, ``dask_wait``, ``target``: :data:`FLAG_ARGUMENTS`) where ``func`` has that
-    argument, and so do the flags its text names (:func:`as_arguments`). Within the command
+    argument, and so do a source that is a flag (``--set: ...``: ``overrides: ...``) and the flags
+    its text names (:func:`as_arguments`; a True-or-False argument's as ``force=True``). Within the command
     line's command (:func:`flags_kept`, which :func:`tlm.cli.main` sets) the flags stay, as the
     user typed them; a call from anywhere else (a script, a notebook, a plugin or a test helper,
     whatever its module's name) gets the arguments' names. Only the outermost call of the API
     renames (one API function calling another leaves its errors to it)."""
-    names = set(inspect.signature(func).parameters)
+    parameters = inspect.signature(func).parameters
+    names = set(parameters)
+    switches = {n for n, p in parameters.items() if p.default is False}  # (--force: force=True)
 
     @functools.wraps(func)
     def call(*args: Any, **kwargs: Any) -> Any:
@@ -160,12 +179,18 @@ def argument_names(func: F) -> F:
             return func(*args, **kwargs)
         except InputError as e:
             if not _FLAGS_KEPT.get():
-                as_arguments(e, names)
+                as_arguments(e, names, switches)
             raise
         finally:
             _CALLED.reset(token)
 
     return call  # type: ignore[return-value]
+
+
+def flags_are_kept() -> bool:
+    """Whether this call runs within :func:`flags_kept` (the command line's command): its lines
+    name the command line's flags, as the user typed them, rather than the arguments' names."""
+    return _FLAGS_KEPT.get()
 
 
 argument_names.flags_kept = flags_kept  # type: ignore[attr-defined]  (tlm.api re-exports argument_names)

@@ -35,11 +35,26 @@ if TYPE_CHECKING:
 # ---------------------------------------------------------------- many experiments
 
 
+def _overrides(overrides: Iterable[str] | None) -> tuple[str, ...]:
+    """A study's or a sweep's ``overrides``: ``dotted.key=value`` strings, as ``tlm run --set``
+    takes them (``tlm sweep --set``, ``tlm thesis --set``, ...); None: none."""
+    if overrides is None:
+        return ()
+    if isinstance(overrides, (str, bytes, dict)) or not isinstance(overrides, Iterable):
+        raise InputError(f"{_shown(overrides)}: overrides are a list of dotted.key=value strings, as --set takes "
+                         "them", key="overrides")
+    given = tuple(overrides)
+    for o in given:
+        if not isinstance(o, str):
+            raise InputError(f"{_shown(o)} is not a dotted.key=value string", key="overrides")
+    return given
+
+
 @argument_names
 @imports_whole
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
-              warn: Callable[[str], None] | None = None) -> Outcome:
+              warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
     :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
     (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
@@ -49,25 +64,35 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     seconds the sweep waits while the scheduler has no worker before it stops (``tlm sweep
     --dask-wait``; default 300). ``warn`` gets each of the sweep's warning lines as it is known
     (the factors' before the points run); None: nothing is printed, and every line is in
-    ``Outcome.warnings`` either way."""
+    ``Outcome.warnings`` either way. ``overrides``: ``dotted.key=value`` strings (``tlm sweep --set``)
+    applied to every point's base config before its factors (a factor's key refused): in each
+    point's config and hash, and in ``sweep.yaml``."""
     from tlm.experiments.sweep import run_sweep as run_all
 
     jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
     progress = _checked(progress, "progress", bool)
     return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
-                   dask_wait=dask_wait, warn=warn)
+                   dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides))
 
 
 @argument_names
 @imports_whole
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
           progress: bool = False, dask_wait: float | None = None,
-          warn: Callable[[str], None] | None = None) -> pd.DataFrame:
+          warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> pd.DataFrame:
     """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
     (:func:`run_sweep`) and return its rows as a
     pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
-    (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...)."""
-    return run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait, warn=warn).table
+    (``point``, ``hash``, ``status``, ``error``, the factors, ``cycles.*``, ``fps``, ...).
+    The sweep's warnings (:attr:`Outcome.warnings`: a factor no point read, a cache its workers
+    could not write, point folders not its own; what ``tlm sweep`` prints) are the table's
+    ``attrs["warnings"]``, a list of lines (empty: none); ``warn`` gets each as it is known too.
+    None: nothing is printed, as by :func:`run_sweep`."""
+    done = run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait, warn=warn,
+                     overrides=overrides)
+    table = done.table
+    table.attrs["warnings"] = list(done.warnings)
+    return table
 
 
 @argument_names
@@ -84,14 +109,16 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
 @argument_names
 @imports_whole
 def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
-           bar: bool = False) -> dict:
+           bar: bool = False, overrides: Iterable[str] | None = None) -> dict:
     """Tables I-III (``tlm thesis``): every scene and mode of the study file ``path`` (or the
     built-in study of that name, ``"thesis"``) beside the thesis; returns ``rows`` and
-    ``summary``. ``progress`` gets ``(scene, mode, results)``."""
+    ``summary``. ``progress`` gets ``(scene, mode, results)``. ``overrides``: ``dotted.key=value``
+    strings (``tlm thesis --set``) applied to the study's base (not ``scene`` nor ``mode``)."""
     from tlm.experiments.thesis import run_thesis
 
     bar = _checked(bar, "bar", bool)
-    return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar)
+    return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar,
+                      overrides=_overrides(overrides))
 
 
 @argument_names
@@ -199,36 +226,44 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
 
 @argument_names
 @imports_whole
-def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None) -> list[dict]:
+def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None,
+                overrides: Iterable[str] | None = None) -> list[dict]:
     """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
-    study file ``path`` (or the built-in study of that name)."""
+    study file ``path`` (or the built-in study of that name). ``overrides``: ``dotted.key=value``
+    strings (``tlm granularity --set``) applied to its base (not ``arch.packet_size``)."""
     from tlm.experiments.granularity import run_granularity
 
-    return run_granularity(_experiment_file(path, "granularity"), Path(out), progress)
+    return run_granularity(_experiment_file(path, "granularity"), Path(out), progress,
+                           overrides=_overrides(overrides))
 
 
 @argument_names
 @imports_whole
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
-                  note: Callable[[str], None] | None = None) -> list[dict]:
+                  note: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> list[dict]:
     """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
     one row per point of the experiment file ``path`` (or the built-in experiment of that
-    name); ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none)."""
+    name); ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none);
+    ``overrides``: ``dotted.key=value`` strings (``tlm error-vs-cost --set``) applied to its base
+    (not a key its points vary)."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
     return run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
-                             truth=Truth(spp=truth_spp), note=note)
+                             truth=Truth(spp=truth_spp), note=note, overrides=_overrides(overrides))
 
 
 @argument_names
 @imports_whole
-def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None) -> list[dict]:
+def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None,
+            overrides: Iterable[str] | None = None) -> list[dict]:
     """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
-    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case."""
+    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case.
+    ``overrides``: ``dotted.key=value`` strings (``tlm extreme --set``) applied to its base (not a
+    key a case's config gives)."""
     from tlm.experiments.extreme import run_extreme
 
-    return run_extreme(_experiment_file(path, "extreme"), Path(out), progress)
+    return run_extreme(_experiment_file(path, "extreme"), Path(out), progress, overrides=_overrides(overrides))
 
 
 # ---------------------------------------------------------------- reports
@@ -238,7 +273,7 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 @imports_whole
 def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, title: str | None = None, *,
                  lock: bool = False, formats: str | Iterable[str] | None = None, dpi: int | str | None = None,
-                 note: Callable[[str], None] | None = None) -> Path:
+                 note: Callable[[str], None] | None = None, progress: bool = False) -> Path:
     """The self-contained HTML report of run, sweep or study folders (``tlm report``);
     returns the path of ``report.html`` (default folder: ``DIR/report`` of the one folder).
     ``lock``: hold the folder's lock meanwhile, so no other run replaces it. ``formats``:
@@ -252,10 +287,12 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     where another process holds the folder (a run replacing it, a report reading it), ``note`` is
     told so, naming that process where it can (:func:`tlm.claims.lock_holder`), before this waits.
     ``dirs``: a list of folders, or one folder's path (a string or a Path: that folder, not the
-    characters of its name)."""
+    characters of its name). ``progress``: a bar on stderr while it is written, when stderr is a
+    terminal (True or False; ``tlm report`` draws it unless ``--no-progress``)."""
     from tlm.report import build_report
 
     lock = _checked(lock, "lock", bool)
+    progress = _checked(progress, "progress", bool)
     if isinstance(dirs, (str, os.PathLike)):  # (one folder, as tlm report DIR takes it)
         dirs = [dirs]
     elif not isinstance(dirs, Iterable) or isinstance(dirs, bytes):
@@ -273,7 +310,8 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
         raise InputError("several folders: name the report folder", key="--out")
     hear = note if note is not None else (lambda line: None)  # (None: the page alone says them; nothing printed)
     if not lock:
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
+        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear,
+                            progress=progress)
     from tlm.claims import lock_holder
     from tlm.storage import folder_lock
 
@@ -283,7 +321,8 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
              "for it to end")
 
     with folder_lock(dirs[0], waiting=waiting):
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear)
+        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear,
+                            progress=progress)
 
 
 @imports_whole
@@ -302,16 +341,21 @@ def report_output(formats: str | Iterable[str] | None = None,
 @argument_names
 @imports_whole
 def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
-          run_command: Callable[[list[str]], int], say: Callable[[str], None] = print,
+          run_command: Callable[[list[str]], int], say: Callable[[str], None] | None = None,
           formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
-    """Every committed experiment of ``configs`` and their report into ``out`` (``tlm
-    plots``). ``run_command`` runs one step's argv and returns its exit status (the CLI's
-    step runner: 1 when its results report failures, an exception on bad input or a bug).
-    Steps that return 1 are said and the rest run; the report is written, then
-    :class:`~tlm.errors.StepsFailed` names them. ``formats`` and ``dpi``: the report's
-    figure files, as :func:`write_report` takes them (checked before the first step)."""
+    """Every committed experiment of ``configs`` (or the steps ``only``) and their report into
+    ``out`` (``tlm plots``); returns the path of ``report.html``. ``run_command`` runs one step's
+    ``tlm`` argv (``["sweep", "configs/bsp_levels.yaml", "--out", ...]``) and returns its exit
+    status: 1 when its results report failures, an exception on bad input or a bug (``tlm plots``
+    hands down its own; from Python, ``lambda argv: subprocess.run(["tlm", *argv]).returncode``
+    runs each step as its command). ``say`` gets a line before each step and after one that
+    returns 1 (None: nothing is printed). Steps that return 1 and the rest run; the report is
+    written, then :class:`tlm.api.StepsFailed` (``.page``, ``.steps``) names them. ``formats`` and
+    ``dpi``: the report's figure files, as :func:`write_report` takes them (checked before the
+    first step)."""
     from tlm.report.common import figure_output
     from tlm.report.regenerate import regenerate
 
+    hear = say if say is not None else (lambda line: None)  # (None: nothing printed, as every API function)
     with figure_output(formats, dpi):  # (the report's figures; a bad value stops here, before any step)
-        return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=say)
+        return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=hear)

@@ -10,6 +10,7 @@ import tlm.cli_signals  # noqa: F401  (the first of tlm's modules: a signal from
 # isort: split
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -55,7 +56,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     def write() -> Path:  # (the first folder's lock, unless it is --out itself, which the report's swap locks)
         lock = out is None or Path(out).resolve() != Path(args.dirs[0]).resolve()
         return api.write_report(args.dirs, args.out or None, args.title, lock=lock, formats=args.formats,
-                                dpi=args.dpi, note=note)
+                                dpi=args.dpi, note=note, progress=not args.no_progress)
 
     if out is None or not all(Path(d).is_dir() for d in args.dirs):
         page = write()  # (the folders' own error, before any claim: the claim makes the folders on its way)
@@ -107,7 +108,7 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
         print(f"  {'pass' if row['passed'] else 'FAIL'}  {row['category']:10s} {row['case']:24s} {row['measured']}",
               flush=True)
 
-    rows = api.extreme(args.config, out, progress=progress)
+    rows = api.extreme(args.config, out, progress=progress, **_overrides(args))
     failed = [r["case"] for r in rows if not r["passed"]]
     print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
           + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
@@ -285,7 +286,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         print(f"tlm: warning: {line}", file=sys.stderr, flush=True)
 
     done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
-                         dask_wait=args.dask_wait, warn=warned)
+                         dask_wait=args.dask_wait, warn=warned, **_overrides(args))
     for row in done.rows:
         if row["status"] != "ok":
             print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
@@ -354,11 +355,12 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     made = api.reference(
         api.load_config(args.config, list(args.set or [])), force=args.force, say=print,
-        progress=lambda k, c, e: _say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
+        progress=lambda k, c, e: None if math.isnan(e) else _say(  # (NaN: a round that ends no measured cycle)
+            f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}"),
         bar=not args.no_progress,
     )
     meta = made.meta
-    if not made.computed:
+    if not made.computed and made.meets:  # (a cached one kept that misses the tolerance: said below)
         print(f"reference {made.key} is cached, relative standard error {meta['relative_standard_error']:.4f} "
               f"< tolerance {made.settings.tolerance} after {meta['rounds']} rounds (use --force to compute it again)")
         return 0
@@ -390,7 +392,8 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"error-vs-cost: {message}", flush=True)
 
-    rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note)
+    rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
+                             **_overrides(args))
     print(f"wrote {out} ({len(rows)} rows)")
     report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
     return 0
@@ -428,7 +431,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
         fps = "-" if results["fps"] is None else _figures3(results["fps"])
         _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {fps} fps")
 
-    done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress)
+    done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress, **_overrides(args))
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"], done.get("names")))
     sm = done["summary"]
@@ -450,7 +453,7 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
         print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
               f"{tm.events:>9d} events, {secs:7.2f} s", flush=True)
 
-    rows = api.granularity(args.config, out, progress=progress)
+    rows = api.granularity(args.config, out, progress=progress, **_overrides(args))
     for r in rows:
         print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
               f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
@@ -480,6 +483,21 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if not args.dry_run:
         print(f"wrote {target}")
     return 0
+
+
+def _overrides(args: argparse.Namespace) -> dict[str, list[str]]:
+    """A study's or sweep's ``--set`` strings, in the order given, as the keyword argument of its
+    API function (``overrides``); none given: no argument (the function's default, none)."""
+    given = list(getattr(args, "set", None) or [])
+    return {"overrides": given} if given else {}
+
+
+def _set_option(parser: argparse.ArgumentParser, where: str) -> None:
+    """``--set KEY=VALUE`` of a command that runs configs made from a file's base (``where``: what
+    it applies to, and what it may not set), as ``tlm run --set`` reads it."""
+    parser.add_argument("--set", action="append", metavar="KEY=VALUE",
+                        help="override a parameter by dotted key, as tlm run --set does (repeated; e.g. --set "
+                        f"'resolution=[64, 64]'), in {where}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -517,6 +535,8 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--dask-wait", type=seconds, metavar="SECONDS", help="with --dask: how long the sweep waits while "
                     "the scheduler has no worker (or does not answer) before it stops, keeping the points done "
                     "(default: 300)")
+    _set_option(sw, "every point's base config, after the sweep file's set: and before its factors (a factor's "
+                "key is refused); part of each point's hash, and listed in sweep.yaml")
     no_progress(sw)
     no_report(sw)
     sw.set_defaults(func=_cmd_sweep)
@@ -559,6 +579,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
                          "measured against (computed once and cached; needs Mitsuba 3 and flip-evaluator: "
                          "pip install -e '.[oracle]' in a checkout); 0: none")
+    _set_option(ev, "the base config of every point (a key the points vary, or mode, is refused)")
     no_progress(ev, NO_BAR)
     no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
@@ -566,6 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
     th.add_argument("config", help="study YAML (base, scenes, modes; without base every cell runs at the default "
                     "settings, not the thesis's), e.g. configs/thesis.yaml, or a built-in experiment's name: thesis")
     th.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    _set_option(th, "the base config of every cell (scene and mode, which scenes: and modes: set, are refused)")
     no_progress(th)
     no_report(th)
     th.set_defaults(func=_cmd_thesis)
@@ -574,6 +596,7 @@ def build_parser() -> argparse.ArgumentParser:
     gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml, or a "
                     "built-in experiment's name: tlm_granularity")
     gr.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    _set_option(gr, "the base config (arch.packet_size, which packet_sizes sets, is refused)")
     no_progress(gr, NO_BAR)
     no_report(gr)
     gr.set_defaults(func=_cmd_granularity)
@@ -594,13 +617,14 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", type=folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
     rp.add_argument("--title", type=title, help="the page's title (default: tlm report: and the folders' names)")
-    no_progress(rp, NO_BAR)
+    no_progress(rp)
     figure_files(rp)
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
     ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
+    _set_option(ex, "the base config merged under every case's (a key a case's config gives is refused)")
     no_progress(ex, NO_BAR)
     no_report(ex)
     ex.set_defaults(func=_cmd_extreme)

@@ -1,7 +1,7 @@
 """Files and folders that appear whole or not at all: the one place tlm writes atomically.
 
 * :func:`write_atomic` — one file, written beside its destination and renamed onto it;
-  :func:`write_file` the same for a ready ``str`` or ``bytes``.
+  :func:`write_file` the same for a ready ``str`` or ``bytes``; :func:`write_files` several files, all or none.
 * :func:`atomic_folder` — an output folder (a run, a sweep, a study).
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
 * :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
@@ -50,7 +50,7 @@ import stat
 import sys
 import threading
 import time
-from collections.abc import Callable, Collection, Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
@@ -593,6 +593,54 @@ def write_file(path: Path, data: str | bytes) -> None:
     """``data`` as the whole of ``path``, atomically (:func:`write_atomic`)."""
     with write_atomic(path, "wb" if isinstance(data, bytes) else "w") as fh:
         fh.write(data)
+
+
+def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
+    """Each ``(path, data)`` of ``files`` as the whole of ``path``: all of them, or none.
+
+    Each is written to a hidden file of its own beside its path (``.<name>.new<host>-<pid>-<n>``,
+    written by :func:`tlm.storage.write_file`), and these are renamed onto the paths, in order, only
+    once all are written; an earlier file of a path is moved aside (``.<name>.old<host>-<pid>-<n>``)
+    until all are in place. On any error (a full disk), a signal included, the new files are removed
+    and every path is left as it was: one renamed already gets its earlier file back, or is removed
+    where it had none. A full disk (an OSError of the machine's) is an EnvironmentFailure naming the
+    path that did not fit, not its hidden file."""
+    files = [(Path(p), data) for p, data in files]
+    staged: list[tuple[Path, Path, Path]] = []  # (path, its new file, its earlier file's name while aside)
+    renaming = -1  # (the index of the path being renamed onto; those before it are in place)
+    try:
+        for path, data in files:
+            tag = f"{process_tag()}-{next(_STAGED)}"
+            new, old = path.with_name(f".{path.name}.new{tag}"), path.with_name(f".{path.name}.old{tag}")
+            staged.append((path, new, old))  # (before it exists: a signal after its rename still removes it)
+            try:
+                write_file(new, data)
+            except EnvironmentFailure as e:
+                what = environment_problem(e.__cause__, filename=False) if isinstance(e.__cause__, OSError) else None
+                if what is None:
+                    raise
+                raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from e.__cause__
+        for i, (path, new, old) in enumerate(staged):
+            renaming = i
+            with suppress(FileNotFoundError):  # (none before)
+                os.rename(path, old)
+            os.replace(new, path)
+    except BaseException:
+        for i, (path, new, old) in reversed(list(enumerate(staged))):
+            with suppress(OSError):
+                if i <= renaming and os.path.lexists(old):  # (moved aside: back, over the new file if it came)
+                    os.replace(old, path)
+                elif i <= renaming and not os.path.lexists(new):  # (renamed in where none was before)
+                    path.unlink(missing_ok=True)
+            with suppress(OSError):
+                new.unlink(missing_ok=True)
+        raise
+    for _path, _new, old in staged:
+        with suppress(OSError):
+            old.unlink(missing_ok=True)
+
+
+_STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
 
 
 def json_text(value, **dumps_kw) -> str:

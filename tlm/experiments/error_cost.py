@@ -88,6 +88,7 @@ from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
 from tlm.caches import cache_problem, cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
+from tlm.config_words import with_overrides
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
@@ -103,7 +104,7 @@ from tlm.experiments.reference_cache import (
     verdict,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study, run_study
+from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
 from tlm.render.frame import Frame, GBuffer, cast
@@ -173,24 +174,49 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
     return [f"{k}={json.dumps(v)}" for k, v in point.items()]
 
 
-def load_experiment(path: Path) -> tuple[dict, list[dict], Path]:
+def load_experiment(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[dict], Path]:
     """``(base, points, folder)`` of the experiment file ``path``, every point checked before
     any work. A base that sets a ``mode`` other than ``pmap`` is refused (InputError naming
-    ``base.mode``): every point is a photon-map frame, which the base's mode would not be."""
+    ``base.mode``): every point is a photon-map frame, which the base's mode would not be.
+    ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base as ``tlm run --set``
+    applies them (a key a point varies refused: the point's value would win unsaid; ``mode``
+    other than ``pmap`` too), in every point's config."""
     raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
     base_cfg = config_from_dict(base, src)  # (a mode that is no mode is refused here, as by tlm run)
     if "mode" in base and base_cfg.mode != "pmap":
         raise InputError(f"{base_cfg.mode!r}: error-vs-cost measures the photon map, and every point is a photon-map "
                          "frame (mode: pmap): give mode: pmap, or leave it out", source=src, key="base.mode")
+    folder = Path(path).resolve().parent
+    label = src  # (what a point's config is named by in its errors)
+    if overrides:
+        base = with_set(base, overrides, [folder])
+        varied: dict[str, str] = {}  # each key a point varies, by the first grid that does
+        for i, grid in enumerate(_grids(raw.get("points"))):
+            for k in grid:
+                varied.setdefault(str(k), f"varied by the study's points (points[{i}].{k}): change its values in the "
+                                          "experiment file, not by --set")
+        refuse_set(overrides, varied, src)
+        label = with_overrides(src)
+        base_cfg = config_from_dict(base, label)
+        if "mode" in base and base_cfg.mode != "pmap":  # (a --set's: the file's was checked above)
+            item = next(o for o in reversed(overrides) if override_key(o) == "mode")
+            raise InputError(f"{base_cfg.mode!r}: error-vs-cost measures the photon map, and every point is a "
+                             "photon-map frame (mode: pmap): leave --set mode out", source=src,
+                             key=f"--set {item.strip()}")
     shared = _fixed(base_cfg)
     for p in points:  # check every point before any work starts
-        mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{src} (point {p})"))
+        mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{label} (point {p})"))
         for key, value in mine.items():  # (a whole section given, render: {spp: 1}, is caught here)
             if value != shared[key]:
                 given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
                 _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None)
-    return base, points, Path(path).resolve().parent
+    return base, points, folder
+
+
+def _grids(points: Any) -> list[dict]:
+    """The grids of a file's ``points`` (checked by :func:`expand`): a list of them, or one."""
+    return [points] if isinstance(points, dict) else list(points)
 
 
 def _fixed(cfg: RunConfig) -> dict[str, Any]:
@@ -245,7 +271,8 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
     return {"truth_rmse": err["rmse"], "truth_rel_mse": err["rel_mse"], "truth_flip": oracle.flip(img, truth)}
 
 
-def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None) -> list[dict]:
+def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None,
+                      overrides: tuple[str, ...] = ()) -> list[dict]:
     """Run every point of the experiment file ``path``; write the rows into ``out``.
 
     Each row measures the point's photon-map frame against our converged reference
@@ -253,12 +280,15 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     composite (every planned frame) against the independent ground truth (``truth_*``:
     Mitsuba's path tracer, so bias of the model shows as well as noise), when there is
     one. ``note`` receives one-line messages (the ground truth computed, or missing).
+    ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
+    ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
     """
     truth = Truth() if truth is None else truth
     if not isinstance(truth.spp, int) or isinstance(truth.spp, bool) or truth.spp < 0:
         raise InputError(f"{truth.spp!r} is not a count of samples per pixel (0: no ground truth)", key="--truth-spp")
     start = time.perf_counter()
-    base, points, folder = load_experiment(Path(path))
+    overrides = tuple(str(o) for o in overrides)
+    base, points, folder = load_experiment(Path(path), overrides)
     check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
     configs = [config_from_dict({**apply_overrides(base, _override_strings(p)), "mode": "pmap"}, str(path))
@@ -370,7 +400,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     with clock.running():
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
-                         one, columns=COLUMNS, config=cfg0, started=start,
+                         one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
                          files=lambda _rows: {"reference.json": {"key": key, **ref_meta,
                                                                  "reference_converged": converged,
                                                                  "computed": computed},

@@ -45,8 +45,9 @@ from typing import Any
 import numpy as np
 
 from tlm.config import config_from_dict, deep_merge
+from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
-from tlm.experiments.study import read_study, run_study
+from tlm.experiments.study import read_study, refuse_set, run_study, with_set
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
 CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
@@ -144,9 +145,26 @@ def _check_check(chk: Any, src: str, key: str, earlier: set[str], ran: set[str])
     return kind
 
 
-def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
-    """The base config and the cases of the file, every one checked before any runs."""
+def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[dict], Path]:
+    """The base config and the cases of the file, every one checked before any runs.
+    ``overrides``: ``tlm extreme --set`` strings, applied to the base (merged under every case's
+    config) as ``tlm run --set`` applies them; one of a key a case's config gives (or a section
+    above or below one) is refused: that case's value would win unsaid."""
     raw, base, src = read_study(path, ("cases",))
+    label = src  # (what a case's config is named by in its errors)
+    if overrides:
+        given = base
+        base = with_set(base, overrides, [Path(path).resolve().parent])
+        label = with_overrides(src)
+        try:  # (a bad --set said as tlm run says it; a base that holds only under its cases, as ever by them)
+            config_from_dict(base, label)
+        except InputError:
+            try:
+                config_from_dict(given, src)
+            except InputError:
+                pass
+            else:
+                raise
     cases = raw.get("cases")
     if not isinstance(cases, list) or not cases:
         raise InputError("must be a non-empty list of cases", source=src, key="cases")
@@ -177,11 +195,25 @@ def load_cases(path: Path) -> tuple[dict, list[dict], Path]:
             expects_error |= kind == "error"
         if expects_error and len(c["checks"]) != 1:
             raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
+        if overrides:  # (its keys: a --set of one would be lost in this case)
+            refuse_set(overrides, {k: f"set by the case {name!r} ({where}.config.{k}): a --set applies under every "
+                                      "case's config; change the case in the cases file, not by --set"
+                                   for k in _leaves(c["config"])}, src)
         if not expects_error:  # a case that should run must have a valid config now
-            config_from_dict(deep_merge(base, c["config"]), f"{src} ({where})")
+            config_from_dict(deep_merge(base, c["config"]), f"{label} ({where})")
             ran.add(name)
         names.add(name)
     return base, cases, Path(path).resolve().parent
+
+
+def _leaves(config: dict, prefix: str = "") -> list[str]:
+    """The dotted keys a case's ``config`` gives, as :func:`tlm.config.deep_merge` merges it over
+    the base: each key of a mapping under a mapping, else the key itself."""
+    out = []
+    for k, v in config.items():
+        key = f"{prefix}{k}"
+        out.extend(_leaves(v, f"{key}.") if isinstance(v, dict) and v else [key])
+    return out
 
 
 def _get(results: dict, key: str) -> Any:
@@ -273,18 +305,22 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
 def case_named(e: InputError, source: str, case: str) -> InputError:
     """``e`` naming the case ``case`` beside the cases file ``source`` (``extreme.yaml (bad-x): ...``),
     as the config's own checks name it; ``e`` itself where it names another file, or the case already."""
-    if e.source != source:
+    if e.source not in (source, with_overrides(source)):  # (a run of a case under --set: its config's, so named)
         return e
     where = f"{e.source}: " + (f"{e.key}: " if e.key else "")
     text = str(e)
-    return InputError(text[len(where):] if text.startswith(where) else text, source=f"{source} ({case})", key=e.key)
+    return InputError(text[len(where):] if text.startswith(where) else text, source=f"{e.source} ({case})",
+                      key=e.key)
 
 
-def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
-    """Run every case of ``path`` into ``out``; returns the rows (one per case)."""
+def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
+    """Run every case of ``path`` into ``out``; returns the rows (one per case). ``overrides``: ``tlm
+    extreme --set`` strings (:func:`load_cases`), which each case's ``results.json`` (``overrides``)
+    and the study's ``provenance.json`` list."""
     from tlm.experiments.run import run
 
-    base, cases, folder = load_cases(Path(path))
+    overrides = tuple(str(o) for o in overrides)
+    base, cases, folder = load_cases(Path(path), overrides)
     done: dict[str, tuple[Path, dict]] = {}
 
     def one(c: dict, tmp: Path) -> dict:
@@ -294,7 +330,7 @@ def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
         want_error = isinstance(checks[0], dict) and "error" in checks[0]
         try:
             cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
-            results = run(cfg, dest, folder, config_path=str(path))
+            results = run(cfg, dest, folder, config_path=str(path), overrides=list(overrides) or None)
         except InputError as e:
             e = case_named(e, str(path), c["name"])  # (the run's own checks name the file alone: the case too)
             if want_error:
@@ -315,4 +351,4 @@ def run_extreme(path: Path, out: Path, progress=None) -> list[dict]:
                 "checks": json.dumps(checks), "measured": measured, "passed": ok,
                 "seconds": round(time.perf_counter() - t0, 3)}
 
-    return run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress)
+    return run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress, overrides=overrides)

@@ -33,10 +33,11 @@ from pathlib import Path
 from tlm.arch.granularity import fine_ti_cycles
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict
+from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import read_study_base, run_study
+from tlm.experiments.study import read_study_base, refuse_set, run_study, with_set
 from tlm.storage import check_destination
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
@@ -45,9 +46,11 @@ COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_a
 KEYS = ("packet_sizes",)  # the study's own keys, beside base and description
 
 
-def load_granularity(path: Path):
+def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     """``(config, packet sizes in increasing order, the folder its relative paths start at)``
-    of the study file ``path``; InputError names the file and the key."""
+    of the study file ``path``; InputError names the file and the key. ``overrides``: ``tlm
+    granularity --set`` strings, applied to the base as ``tlm run --set`` applies them; one of
+    ``arch.packet_size``, which ``packet_sizes`` sets, is refused, as is a bad key or value."""
     path = Path(path)
     src = str(path)
     raw, base, base_src, folder = read_study_base(path, KEYS)
@@ -56,13 +59,22 @@ def load_granularity(path: Path):
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):
         raise InputError(f"{sizes!r} must be a non-empty list of whole numbers >= 1", source=src,
                          key="packet_sizes")
+    if overrides:
+        config_from_dict(base, base_src)  # (the base's own errors first, naming its file)
+        base = with_set(base, overrides, list(dict.fromkeys([folder, Path(path).resolve().parent])))
+        refuse_set(overrides, {"arch.packet_size": "set by the study's packet_sizes, one simulation each: list "
+                                                   "them there, not by --set"}, src)
+        base_src = with_overrides(base_src)
     cfg = config_from_dict(base, base_src)
     return cfg, sorted(set(sizes)), folder
 
 
-def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
-    """Simulate the frame of ``path`` at each packet size; rows relative to the smallest."""
-    cfg, sizes, folder = load_granularity(Path(path))
+def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
+    """Simulate the frame of ``path`` at each packet size; rows relative to the smallest.
+    ``overrides``: ``tlm granularity --set`` strings (:func:`load_granularity`), in the study's
+    ``config.resolved.yaml`` by their values and listed in its ``provenance.json``."""
+    overrides = tuple(str(o) for o in overrides)
+    cfg, sizes, folder = load_granularity(Path(path), overrides)
     check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
     fn, _hit = cached_functional(cfg, folder, str(path))
@@ -93,4 +105,5 @@ def run_granularity(path: Path, out: Path, progress=None) -> list[dict]:
                          "reference": sizes[0]})
         return rows
 
-    return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative)
+    return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative,
+                     overrides=overrides)

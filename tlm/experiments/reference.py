@@ -270,7 +270,9 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     frame : the run's frame (its scene, BSP and config; the reference traces with
         :func:`reference_config` of it). g : unused (the reference casts its own eye rays
         every round; kept for callers that pass the run's G-buffer).
-    progress : called ``(round, change, standard error)`` after every cycle but the first.
+    progress : called ``(round, change, standard error)`` after each round, the round's number
+        counted from 1; the change and the standard error are measured after each cycle from the
+        second, and are NaN after the other rounds (a cycle's first rounds, the first cycle).
     bar : a progress bar of the rounds on stderr (only when it is a terminal).
     Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
     """
@@ -296,6 +298,8 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
             photon_seed, eye_seed = (int(x) for x in each.generate_state(2))
             frame_k += reference_round(rframe, settings, photon_seed, eye_seed, strata, turn, shift_seed)
             rounds.update()
+            if progress is not None and turn < strata - 1:  # (a cycle's last round: after its measures)
+                progress((k - 1) * strata + turn + 1, math.nan, math.nan)
         frame_k /= strata
         delta = frame_k - mean
         new = mean + delta / k
@@ -310,8 +314,8 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
         mean = new
         if k > 1:
             rounds.set_postfix_str(f"relative standard error {errors[-1]:.4f} (stop below {settings.tolerance})")
-        if progress is not None and k > 1:
-            progress(k * strata, changes[-1], errors[-1])
+        if progress is not None:
+            progress(k * strata, changes[-1] if k > 1 else math.nan, errors[-1] if k > 1 else math.nan)
         if k >= min_cycles and errors[-1] < settings.tolerance:
             converged = True
             break
@@ -427,10 +431,12 @@ def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | No
 class Made:
     """What :func:`make_reference` did: the reference ``key``, the ``settings`` asked for, the
     ``meta`` of the reference the cache holds now (rounds, standard error, converged) and the
-    ``folder`` that holds it; ``computed``: False only where a cached one met the tolerance
-    (nothing was computed); True where one was computed now, or where a cached one that misses
-    the tolerance was kept (``kept``: the line that says which one the cache holds and why,
-    empty where the cache holds the one computed now)."""
+    ``folder`` that holds it; ``computed``: whether one was computed now (True), or the cached
+    one was returned with nothing computed (False: one that meets the tolerance, or one that
+    misses it and is kept, as computing again would not better it). ``kept``: the line that
+    says which one the cache holds and why, where that is not one computed now that meets the
+    tolerance: a cached one kept without computing (``computed`` False, :attr:`meets` False), or
+    a better one kept over the one computed now (``computed`` True); empty otherwise."""
 
     key: str
     settings: ReferenceSettings
@@ -476,7 +482,7 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
             return Made(key, settings, cached[1], False, cache_dir() / key)
         if kind == "fewer":
             say(line := kept_back(key, cached[1], settings))
-            return Made(key, settings, cached[1], True, cache_dir() / key, line)
+            return Made(key, settings, cached[1], False, cache_dir() / key, line)
         if kind == "repeats":
             same = all(cached[1].get(k) == getattr(settings, k) for k in RULE)
             how = (f"computed with these reference settings ({', '.join(RULE)})" if same else
@@ -485,7 +491,7 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
             say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, {how}: computing it "
                          f"again would repeat the same rounds, so it is kept (raise reference.max_rounds above "
                          f"{cached[1].get('rounds')}, or use --force to compute it again)"))
-            return Made(key, settings, cached[1], True, cache_dir() / key, line)
+            return Made(key, settings, cached[1], False, cache_dir() / key, line)
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     frame = load_frame(cfg, scene=scene)
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "

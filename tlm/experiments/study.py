@@ -31,7 +31,7 @@ from typing import Any
 
 import yaml
 
-from tlm.config import files_from, read_yaml, to_dict
+from tlm.config import apply_overrides, files_from, read_yaml, scene_from, to_dict
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
@@ -80,11 +80,54 @@ def _files_absolute(base: dict, folder: Path) -> dict:
     return files_from(base, folder)
 
 
+def override_key(item: str) -> str:
+    """The dotted key the ``--set`` string ``item`` (``dotted.key=value``) sets, as
+    :func:`tlm.config.apply_overrides` reads it."""
+    return item.partition("=")[0].strip()
+
+
+def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = ()) -> dict:
+    """The run config mapping ``raw`` with the ``--set`` strings ``overrides`` (``dotted.key=value``,
+    values read as YAML) applied as ``tlm run --set`` applies them (:func:`tlm.config.load_config`):
+    a relative ``arch.programs`` or ``scene`` file from the working folder, and a ``scene`` file
+    that is not there looked for in ``folders`` (the study or sweep file's), each then absolute.
+    A string not of that form, or a value YAML cannot read, is an InputError naming ``--set``."""
+    overrides = list(overrides)
+    if not overrides:
+        return raw
+    out = apply_overrides(raw, overrides, source="--set", cwd=Path.cwd())
+    if "scene" in out and any(override_key(o) == "scene" for o in overrides):
+        out = {**out, "scene": scene_from(out["scene"], list(folders))}
+    return out
+
+
+def refuse_set(overrides: Iterable[str], taken: dict[str, str], source: str | None = None) -> None:
+    """An InputError (``FILE: --set ITEM: ...``, ``source`` the file) for the first ``--set``
+    string of ``overrides`` whose key is a key of ``taken``, or a section above or below one
+    (``arch`` and ``arch.fifo_depth``): the keys the study or sweep sets itself, each mapped to
+    what sets it and what to do instead (``a factor of the sweep (grid.arch.fifo_depth): change its
+    values in the sweep file``); a --set of one would be lost there, or win over the file's values,
+    unsaid."""
+    for item in overrides:
+        key = override_key(item)
+        for other, why in taken.items():
+            if key == other:
+                named = f"{key} is"
+            elif other.startswith(key + "."):
+                named = f"{key} holds {other},"
+            elif key.startswith(other + "."):
+                named = f"{key} is in {other},"
+            else:
+                continue
+            raise InputError(f"{named} {why}", source=source, key=f"--set {item.strip()}")
+
+
 def run_study(source: str, out: Path, name: str, points: Iterable[Any],
               run_point: Callable[[Any, Path], dict | list[dict] | None], *, columns: Iterable[str] = (),
               marker: str | None = None, config=None, finish: Callable[[list[dict], Path], list[dict]] | None = None,
               files: Callable[[list[dict]], dict[str, Any]] | None = None,
-              progress: Callable[[dict], None] | None = None, started: float | None = None) -> list[dict]:
+              progress: Callable[[dict], None] | None = None, started: float | None = None,
+              overrides: Iterable[str] = ()) -> list[dict]:
     """Run ``points`` into the folder ``out``; the rows written, in the order computed.
 
     ``run_point(point, folder)`` computes one point (it may write into ``folder``, the
@@ -97,6 +140,8 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
     this study, which may be replaced; the destination is checked before any work.
     ``progress(row)`` is called after each row. ``started`` (a ``time.perf_counter()``
     reading) dates the study's start for ``provenance.json`` when its set-up ran before.
+    ``overrides``: the ``--set`` strings the study's base was run with, which ``provenance.json``
+    records (``overrides``, where any was given).
     """
     start = time.perf_counter() if started is None else started
     marker = marker or f"{name}.jsonl"
@@ -116,8 +161,11 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
             write_file(tmp / "config.resolved.yaml", yaml.safe_dump(to_dict(config), sort_keys=False))
         for fname, value in (files(rows) if files is not None else {}).items():
             write_file(tmp / fname, _text(fname, value))
-        write_file(tmp / "provenance.json",
-                   json_text(provenance(source, time.perf_counter() - start), indent=2) + "\n")
+        made = provenance(source, time.perf_counter() - start)
+        overrides = [str(o) for o in overrides]
+        if overrides:  # (the --set strings the study's configs were made with: their values are in its configs)
+            made = {"study": made.pop("study"), "overrides": overrides, **made}
+        write_file(tmp / "provenance.json", json_text(made, indent=2) + "\n")
         write_file(tmp / MANIFEST, "".join(f"{n}\n" for n in sorted({*os.listdir(tmp), MANIFEST, "report"})))
     return rows
 

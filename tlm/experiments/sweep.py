@@ -20,18 +20,22 @@ paths in the base config (``scene``, ``arch.programs``) start at its folder when
 ``base`` is a file, else at the sweep file's folder; an ``arch.programs`` the sweep
 file itself gives (``set``, ``grid``, ``zip``) starts at the sweep file's folder, and a
 ``scene`` it gives is looked for from the base config's folder, then the working folder.
+``tlm sweep --set KEY=VALUE`` (``overrides``) sets a key of the base after ``set``, before the
+factors (one of a factor's key is refused), as ``tlm run --set`` does: its paths from the working folder.
 
 A point is keyed by the hash of its resolved config, of the content of the files it
 names (the scene and its meshes, through the functional key; the programs table) and
 of tlm's code, so a rerun (or another sweep into the same folder) skips the points
 already done, and recomputes those whose inputs changed. Output folder::
 
-    sweep.yaml               the sweep as resolved: base, set, factors, every point's hash
+    sweep.yaml               the sweep as resolved: base, set, the --set strings (overrides),
+                             factors, every point's hash
     sweep.jsonl              one row per point, appended as points finish (a killed sweep
                              keeps them, its last row perhaps cut off); rewritten sorted
                              when the sweep ends, or is stopped (Ctrl-C, SIGTERM, its
                              cluster lost: the points done, _write_finished)
-    sweep.csv                the same rows, one column per field, written then too
+    sweep.csv                the same rows, one column per field, written then too (a
+                             factor's null value as null)
     points/<hash>/           config.resolved.yaml, results.json, trace.json (arch.trace);
                              or error.json when the point failed (retried by a rerun)
 
@@ -67,7 +71,7 @@ import shutil
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from contextlib import ExitStack, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,6 +87,7 @@ from tlm.experiments.executors import (
     LocalPool,
     SweepStopped,
     kernel_threads,
+    leave_if_bootstrapping,
     open_executor,
     take_finished,
 )
@@ -211,14 +216,19 @@ def _table_digest(config: dict, folder: Path, seen: dict[str, str | None]) -> st
 
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
-              warn: Callable[[str], None] | None = None) -> Outcome:
-    """Run every point of the sweep file ``path`` not already done in ``out``. ``dask_wait``
+              warn: Callable[[str], None] | None = None, overrides: Iterable[str] = ()) -> Outcome:
+    """Run every point of the sweep file ``path`` not already done in ``out``. ``overrides``: the
+    ``dotted.key=value`` strings of ``tlm sweep --set``, applied to the base config of every point
+    before its factors (:func:`~tlm.experiments.sweep_file.load_sweep`): part of each point's config,
+    and so of its hash (a rerun into ``out`` with other ones runs the points they change again), and
+    listed in ``sweep.yaml`` (``overrides``). ``dask_wait``
     (with ``dask`` only): the seconds the sweep waits while its Dask scheduler has no worker
     before it stops (:class:`SweepStopped`); None: :data:`~tlm.experiments.executors.NO_WORKERS_WAIT`.
     ``jobs`` with a remote scheduler (``dask`` an address) is refused: its workers are the
     cluster's. ``warn`` gets each of the sweep's warning lines as it is known (its factors' lines
     before the points run, the others after them); None: none is printed, and every one is in
     :attr:`Outcome.warnings` (``tlm sweep`` prints them)."""
+    leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
     dask = _dask_address(dask)  # (its form, even where every point is done and no scheduler is reached)
     remote = dask not in (None, "local")  # (its workers check that they run the sweep's code and read its inputs)
@@ -238,7 +248,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     from tlm.kernels.threads import fork_workers
 
     engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point)
-    sweep = load_sweep(Path(path))  # loads every distinct programs table and scene
+    sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
     said = sweep.inert_factors()
     for line in said if warn is not None else ():
         warn(line)
@@ -410,14 +420,14 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
 def _row(point: Point, record: dict, sweep) -> dict:
     """The point's row (:func:`~tlm.experiments.sweep_rows.point_row`), its ``scene`` as the sweep
     gives it, for the researcher's tables: a ``scene`` factor's value, or the one ``set`` gives, as
-    written; else (the base config's) the scene file's path from the sweep file's folder (posix,
-    ``../scenes/box.yaml``), a built-in scene's name as it is. The point's config names the file by
-    its absolute path, for the workers (and its ``config.resolved.yaml``, which runs from anywhere);
-    a path on the table would name where the project lay, not which file."""
+    written; else (the base config's, or a ``--set scene``) the scene file's path from the sweep
+    file's folder (posix, ``../scenes/box.yaml``), a built-in scene's name as it is. The point's
+    config names the file by its absolute path, for the workers (and its ``config.resolved.yaml``,
+    which runs from anywhere); a path on the table would name where the project lay, not which file."""
     row = point_row(point, record)
     if "scene" in point.factors:  # (its factor column too: one column, the value as written)
         row["scene"] = point.factors["scene"]
-    elif "scene" in sweep.set:
+    elif "scene" in sweep.set and not sweep.overridden("scene"):
         row["scene"] = sweep.set["scene"]
     elif isinstance(scene := row.get("scene"), str) and os.path.isabs(scene):
         with suppress(ValueError):  # (another drive: no path from there; the absolute path stays)

@@ -17,6 +17,7 @@ import itertools
 import json
 import os
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,9 +41,10 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import value_text
+from tlm.config_words import value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
+from tlm.experiments.study import override_key, refuse_set, with_set
 from tlm.fingerprint import code_fingerprint
 
 _SCALARS = (str, int, float, bool, type(None))
@@ -74,6 +76,13 @@ class Sweep:
     # per point, the settings it never reads and why (tlm.render.planner.inert_settings of
     # the config load_sweep checked)
     inert: list[dict[str, str]] = field(default_factory=list)
+    # the command line's --set strings (tlm sweep --set), applied to the base after ``set``: in every
+    # point's config, and so in its hash
+    overrides: tuple[str, ...] = ()
+
+    def overridden(self, key: str) -> bool:
+        """Whether a ``--set`` of the sweep gave the dotted ``key`` (itself, not a section above it)."""
+        return any(override_key(o) == key for o in self.overrides)
 
     @property
     def factors(self) -> list[str]:
@@ -128,10 +137,11 @@ class Sweep:
         return hashlib.sha256("\n".join(p.hash for p in self.points).encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict:
+        given = {"overrides": list(self.overrides)} if self.overrides else {}  # (tlm sweep --set, as typed)
         return {
             "tlm": "sweep/1", "sweep": str(self.path), "description": self.description,
-            "base_file": self.base_file, "base": self.base, "set": self.set, "grid": self.grid, "zip": self.zip,
-            "points": [{"point": p.index, "hash": p.hash, "factors": p.factors} for p in self.points],
+            "base_file": self.base_file, "base": self.base, "set": self.set, **given, "grid": self.grid,
+            "zip": self.zip, "points": [{"point": p.index, "hash": p.hash, "factors": p.factors} for p in self.points],
         }
 
     def marker(self) -> str:
@@ -426,10 +436,17 @@ class _Checked:
 _REFUSED = object()
 
 
-def load_sweep(path: Path) -> Sweep:
+def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     """Read and check a sweep file and every point's config, and load the scenes and programs
     tables the points name (their content is part of the points' keys); InputError names the
-    file and key."""
+    file and key.
+
+    ``overrides``: ``dotted.key=value`` strings (``tlm sweep --set``), applied to the base after
+    the file's ``set`` (a key both give: the --set's value) and before the factors, as ``tlm run
+    --set`` applies them (:func:`tlm.experiments.study.with_set`: a relative path from the working
+    folder); the points' configs, and so their hashes, hold them. One whose key is a factor's, or a
+    section above or below one, is refused (the factor would win unsaid), as is a bad key or value
+    (the error names the file ``with --set``, as ``tlm run``'s does)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -480,6 +497,14 @@ def load_sweep(path: Path) -> Sweep:
     for k, v in settings.items():
         fixed = _assign(fixed, k, moved(k, v))
     config_from_dict(fixed, f"{src} (base with set)")
+    overrides = tuple(str(o) for o in overrides)
+    label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
+    if overrides:
+        fixed = with_set(fixed, overrides, scene_folders)
+        refuse_set(overrides, {k: f"a factor of the sweep ({where}.{k}), which gives each point its value: change "
+                                  "its values in the sweep file, not by --set"
+                               for where, section in (("grid", grid), ("zip", zipped)) for k in section}, src)
+        config_from_dict(fixed, label)
     factors_list, indices = _expand_both(grid, zipped)
     factor_keys = [*grid, *zipped]
     checked = _Checked(fixed, factor_keys, [[moved(k, v) for v in values]
@@ -493,7 +518,7 @@ def load_sweep(path: Path) -> Sweep:
             for k, v in factors.items():
                 point = _assign(point, k, moved(k, v))
             shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
-            fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
+            fields = checked.of(config_from_dict(point, f"{label} (point {i}: {shown})"))
         rows.append((i, factors, fields))
     from tlm.render.planner import inert_settings
 
@@ -506,7 +531,8 @@ def load_sweep(path: Path) -> Sweep:
             known[key] = inert_settings(_config(fields))
         inert.append(known[key])
     # every config is checked before any file it names is loaded
-    _scenes_found(rows, src, scene_folders if any(k == "scene" for k in (*settings, *factor_keys)) else [folder])
+    given = (*settings, *factor_keys, *map(override_key, overrides))
+    _scenes_found(rows, src, scene_folders if any(k == "scene" for k in given) else [folder])
     points, seen, known = [], {}, {}
     order = sorted(checked.template)  # (the key's JSON sorts its keys)
     # the config less arch, as the JSON of its fields: those the factors leave, then the others
@@ -523,7 +549,7 @@ def load_sweep(path: Path) -> Sweep:
         points.append(Point(i, factors, {name: f.resolved for name, f in fields.items()},
                             _key([fields[name].keyed for name in order], shown), inputs["functional"]))
     _one_run_one_row(points, src)
-    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert)
+    return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert, overrides)
 
 
 def _scenes_found(rows: list, src: str, folders: list[Path]) -> None:

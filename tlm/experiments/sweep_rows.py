@@ -6,11 +6,14 @@ factors, its scene and mode, and for a point that ran the fields of its ``result
 busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the image
 error where there is a reference, whether the frame came from the functional cache, and
 host seconds. ``sweep.jsonl`` and ``sweep.csv`` hold the rows (:func:`write_rows`), the CSV
-with an ok point's columns whatever the points' outcome (:func:`columns`).
+with an ok point's columns whatever the points' outcome (:func:`columns`), and a factor's null
+value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell.
 """
 
 from __future__ import annotations
 
+import csv
+import math
 import re
 from collections.abc import Iterable
 from pathlib import Path
@@ -23,9 +26,22 @@ from tlm.experiments.sweep_file import Point
 FIRST_COLUMNS = ("point", "hash", "status", "error")
 
 
-def point_row(point: Point, record: dict) -> dict:
+class Row(dict):
+    """A point's row: a dict of its fields, which knows which of them are the point's factors
+    (``factors``: their keys), so that ``sweep.csv`` writes a factor's null as ``null``
+    (:func:`write_rows`); ``sweep.jsonl`` and the API's rows see a plain dict."""
+
+    __slots__ = ("factors",)
+
+    def __init__(self, *args, factors: Iterable[str] = (), **kwargs):
+        super().__init__(*args, **kwargs)
+        self.factors = tuple(factors)
+
+
+def point_row(point: Point, record: dict) -> Row:
     """One tidy flat row: the point, its factors, cycles, fps, utilization, error, host seconds."""
-    row: dict[str, Any] = {"point": point.index, "hash": point.hash, "status": record["status"], "error": None}
+    row = Row({"point": point.index, "hash": point.hash, "status": record["status"], "error": None},
+              factors=point.factors)
     row.update(point.factors)
     row["scene"] = point.config["scene"]
     row["mode"] = point.config["mode"]
@@ -107,6 +123,32 @@ def utilization(units: dict) -> dict[str, float]:
 def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None:
     """``sweep.jsonl`` and ``sweep.csv``: the rows sorted by point; the CSV's columns are
     :func:`columns` (the sweep's ``factors``, and an ok point's result columns, even when no
-    point is ok or there is no row), the JSONL's objects hold their own fields only."""
+    point is ok or there is no row), the JSONL's objects hold their own fields only. Each is
+    written whole or not at all, as :func:`tlm.storage.write_rows` writes a study's rows, and the
+    cells alike (a list or mapping as JSON, a number that is not finite empty, as null), but for
+    a factor's null value (a key of ``factors``, or of a :class:`Row`'s own): ``null``
+    (:func:`csv_cell`), which an empty cell (a field the row does not have: a failed point's
+    ``fps``) would not tell apart."""
     rows = sorted(rows, key=lambda r: r["point"])
-    storage.write_rows(out, "sweep", rows, columns(rows, factors))
+    factors = list(factors)
+    named = {*factors, *(k for r in rows for k in getattr(r, "factors", ()))}
+    storage.write_file(out / "sweep.jsonl", "".join(storage.json_text(r) + "\n" for r in rows))
+    with storage.write_atomic(out / "sweep.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=columns(rows, factors))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: csv_cell(v, k in named) for k, v in r.items()})
+
+
+def csv_cell(value: Any, factor: bool = False) -> Any:
+    """A row's value as its ``sweep.csv`` cell: a list or mapping as JSON, a number that is not
+    finite as an empty cell (strict JSON's null, as :func:`tlm.storage.write_rows` writes it), a
+    factor's null (``factor``) as ``null``, as the sweep file's YAML and ``--set`` write it; anything
+    else as the CSV writes it."""
+    if value is None:
+        return "null" if factor else None
+    if isinstance(value, (list, dict)):
+        return storage.json_text(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

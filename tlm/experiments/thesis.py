@@ -59,10 +59,11 @@ import numpy as np
 from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.config import MODES, RunConfig, config_from_dict, to_dict
+from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
-from tlm.experiments.study import read_study, run_study
+from tlm.experiments.study import read_study, refuse_set, run_study, with_set
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 from tlm.scenes.loader import resolve_scene_path, scenes_dir
@@ -185,11 +186,23 @@ def run_mismatches(table: str, results: dict, config: dict) -> list[str]:
                       clock_hz=(results.get("timing") or {}).get("clock_hz"))
 
 
-def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
+def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[str], list[str], Path]:
+    """``(base, scenes, modes, folder)`` of the study file ``path``, every cell's config checked.
+    ``overrides``: ``tlm thesis --set`` strings, applied to ``base`` as ``tlm run --set`` applies
+    them; one of ``scene`` or ``mode``, which each cell gets from ``scenes`` and ``modes``, is
+    refused, as is a bad key or value (the error names the file ``with --set``)."""
     raw, base, src = read_study(path, ("scenes", "modes"))
     for key in ("scene", "mode"):
         if key in base:
             raise InputError(f"is set by '{key}s', not in base", source=src, key=f"base.{key}")
+    folder = Path(path).resolve().parent
+    label = src  # (what a cell's config is named by in its errors)
+    if overrides:
+        base = with_set(base, overrides, [folder])
+        refuse_set(overrides, {k: f"set by the study's {k}s, one cell each: list them under {k}s in the study "
+                                  "file, not by --set" for k in ("scene", "mode")}, src)
+        label = with_overrides(src)
+        config_from_dict(base, label)  # (the base alone first: a bad --set named as tlm run names it)
     scenes = raw.get("scenes", list(THESIS_SCENES.values()))
     modes = raw.get("modes", list(MODES))
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) for s in scenes):
@@ -200,10 +213,9 @@ def load_study(path: Path) -> tuple[dict, list[str], list[str], Path]:
     if twice:  # (each mode writes DIR/<scene>/<mode> and its rows once: a second one would be dropped)
         raise InputError(f"{', '.join(repr(m) for m in twice)} {'is' if len(twice) == 1 else 'are'} listed twice "
                          "(list each mode once)", source=src, key="modes")
-    folder = Path(path).resolve().parent
     for s in scenes:
         for m in modes:
-            config_from_dict({**base, "scene": s, "mode": m}, f"{src} (scene {s}, mode {m})")
+            config_from_dict({**base, "scene": s, "mode": m}, f"{label} (scene {s}, mode {m})")
     files: dict[Path, str] = {}
     names: dict[str, str] = {}
     for s in scenes:  # each scene writes DIR/<name> and its rows: one scene, one name
@@ -399,13 +411,16 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     }
 
 
-def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
+def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, overrides: tuple[str, ...] = ()) -> dict:
     """Every (scene, mode) of the study: run folders, the comparison CSV and its summary.
 
     progress : called ``(scene, mode, results)`` after each cell; bar : progress bars of
-    the cells, each scene's render and each simulation on stderr (only on a terminal).
+    the cells, each scene's render and each simulation on stderr (only on a terminal);
+    overrides : ``tlm thesis --set`` strings, applied to the study's base (:func:`load_study`),
+    which each cell's ``results.json`` (``overrides``) and ``provenance.json`` record.
     """
-    base, scenes, modes, folder = load_study(Path(path))
+    overrides = tuple(str(o) for o in overrides)
+    base, scenes, modes, folder = load_study(Path(path), overrides)
     wall: dict[str, float] = {}
     summary: dict = {}
     items: dict[str, dict] = {}
@@ -433,7 +448,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
                 cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
                 sub = restrict(res, cfg)
                 sub = simulate_render(sub, programs, progress=bar)
-                results = write_run(sub, tmp / _name(scene) / mode, str(path), [f"scene={scene}", f"mode={mode}"])
+                results = write_run(sub, tmp / _name(scene) / mode, str(path),
+                                    [*overrides, f"scene={scene}", f"mode={mode}"])
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
                 items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
                 if _name(scene) in THESIS:
@@ -446,7 +462,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False) -> dict:
             return rows
 
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
-                         marker="thesis_comparison.csv", files=summary_file)
+                         marker="thesis_comparison.csv", files=summary_file, overrides=overrides)
     return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path))}
 
 

@@ -27,7 +27,7 @@ resolution and the photon count. ``tlm run`` on it renders what the original sce
 renders. Floats are written as Python's ``repr``, which reads back to the same bits.
 
 The OBJ, its MTL library and the scene file are written together, all or none
-(:func:`write_files`): a full disk or a signal leaves an earlier export of the same name as it
+(:func:`tlm.storage.write_files`): a full disk or a signal leaves an earlier export of the same name as it
 was, and no file of the new one.
 
 Each triangle is written with its own three vertices (no welding), so face ``i`` of
@@ -46,30 +46,53 @@ header, and they are passed on.
 
 from __future__ import annotations
 
-import itertools
 import json
-import os
 import re
-from collections.abc import Sequence
-from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import EnvironmentFailure, InputError, environment_problem
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
-from tlm.storage import process_tag, write_atomic, write_file
+from tlm.storage import write_atomic, write_files
 
 FORMATS = (".ply", ".obj", ".yaml", ".yml")
 _PLY_NORMALS = "property double nx\nproperty double ny\nproperty double nz\n"  # (a PLY's vertex normals)
 
 
+def check_scene(scene: Scene) -> None:
+    """An :class:`InputError` for a scene that no scene file could hold, as the loader refuses such a
+    file (:mod:`tlm.scenes.loader`, in its words): triangles not of shape (n, 3, 3), none, or NaN or
+    infinite vertices (naming the scene and its first such triangle), and shading normals that are
+    not finite. A scene loaded from a file passed these checks; one made or changed in Python (a
+    ``dataclasses.replace`` of its triangles) is checked here before it is exported or described."""
+    from tlm.scenes.loader import _check_triangles  # (the loader's own check and wording)
+
+    where = f"scene {scene.name!r}"
+    try:
+        tri = np.asarray(scene.triangles, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError("the triangles are not an array of numbers", source=where, key="triangles") from None
+    _check_triangles(tri, where, "triangles")
+    if scene.normals is not None:
+        normals = np.asarray(scene.normals, dtype=np.float64)
+        bad = ~np.isfinite(normals.reshape(max(normals.shape[:1], default=1), -1)).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(f"the vertex normals of {int(bad.sum())} triangle(s) are not finite (first: triangle "
+                             f"{i}, {normals[i].tolist()})", source=where, key="normals")
+
+
 def export_triangles(scene: Scene, path: Path) -> None:
+    """Write ``scene`` to ``path`` as its suffix says (the module's docstring); a scene that no
+    file could hold (:func:`check_scene`) or a path that cannot take it is an InputError before
+    anything is written."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
         raise InputError(f"unsupported format {suffix or '(none)'!r}: use {', '.join(FORMATS[:-1])} or {FORMATS[-1]}",
                          source=str(path))
+    check_scene(scene)
     tri = scene.triangles
     n = tri.shape[0]
     verts = tri.reshape(-1, 3)
@@ -194,54 +217,6 @@ def _comments(prefix: str, lines: list[str]) -> str:
     return "".join(f"{prefix}{line}\n" for line in lines)
 
 
-def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
-    """Each ``(path, data)`` of ``files`` as the whole of ``path``: all of them, or none.
-
-    Each is written to a hidden file of its own beside its path (``.<name>.new<host>-<pid>-<n>``,
-    written by :func:`tlm.storage.write_file`), and these are renamed onto the paths, in order, only
-    once all are written; an earlier file of a path is moved aside (``.<name>.old<host>-<pid>-<n>``)
-    until all are in place. On any error (a full disk), a signal included, the new files are removed
-    and every path is left as it was: one renamed already gets its earlier file back, or is removed
-    where it had none. A full disk (an OSError of the machine's) is an EnvironmentFailure naming the
-    path that did not fit, not its hidden file."""
-    files = [(Path(p), data) for p, data in files]
-    staged: list[tuple[Path, Path, Path]] = []  # (path, its new file, its earlier file's name while aside)
-    renaming = -1  # (the index of the path being renamed onto; those before it are in place)
-    try:
-        for path, data in files:
-            tag = f"{process_tag()}-{next(_STAGED)}"
-            new, old = path.with_name(f".{path.name}.new{tag}"), path.with_name(f".{path.name}.old{tag}")
-            staged.append((path, new, old))  # (before it exists: a signal after its rename still removes it)
-            try:
-                write_file(new, data)
-            except EnvironmentFailure as e:
-                what = environment_problem(e.__cause__, filename=False) if isinstance(e.__cause__, OSError) else None
-                if what is None:
-                    raise
-                raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from e.__cause__
-        for i, (path, new, old) in enumerate(staged):
-            renaming = i
-            with suppress(FileNotFoundError):  # (none before)
-                os.rename(path, old)
-            os.replace(new, path)
-    except BaseException:
-        for i, (path, new, old) in reversed(list(enumerate(staged))):
-            with suppress(OSError):
-                if i <= renaming and os.path.lexists(old):  # (moved aside: back, over the new file if it came)
-                    os.replace(old, path)
-                elif i <= renaming and not os.path.lexists(new):  # (renamed in where none was before)
-                    path.unlink(missing_ok=True)
-            with suppress(OSError):
-                new.unlink(missing_ok=True)
-        raise
-    for _path, _new, old in staged:
-        with suppress(OSError):
-            old.unlink(missing_ok=True)
-
-
-_STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
-
-
 def _write_ply(scene: Scene, path: Path, verts: np.ndarray, faces: np.ndarray,
                told: list[str] | tuple[str, ...] = ()) -> None:
     """The PLY file of the triangles (the module's docstring), written atomically."""
@@ -273,7 +248,7 @@ def _write_ply(scene: Scene, path: Path, verts: np.ndarray, faces: np.ndarray,
 def _obj_files(scene: Scene, path: Path, verts: np.ndarray, faces: np.ndarray,
                told: list[str] | tuple[str, ...] = ()) -> list[tuple[Path, str]]:
     """The OBJ file ``path`` of the triangles and its MTL library beside it (the module's
-    docstring), as ``(path, text)``, the library first, for :func:`write_files`."""
+    docstring), as ``(path, text)``, the library first, for :func:`tlm.storage.write_files`."""
     n = faces.shape[0]
     library = path.with_suffix(".mtl")
     lines = [f"{_MTL_HEAD}{_one_line(scene.name)}: face i is triangle id i", *(f"# {t}" for t in told),
