@@ -7,7 +7,7 @@
 * A SIGHUP during a delayed import could cut it (:data:`tlm.whole_imports.HELD` held SIGINT
   and SIGTERM only).
 * A sweep's workers ignored SIGINT only: a hang-up, sent to the whole process group, killed them.
-* ``cli_signals._writing`` read ``tlm.claims._CLAIMS``; now :func:`tlm.claims.holding`.
+* ``cli_signals._writing`` (now ``cli_streams._writing``) read ``tlm.claims._CLAIMS``; now :func:`tlm.claims.holding`.
 """
 
 from __future__ import annotations
@@ -172,11 +172,11 @@ def test_a_spawned_workers_set_up_ignores_a_hang_up():
 
 
 def test_writing_asks_claims_holding(tmp_path, monkeypatch):
-    from tlm import claims, cli_signals
+    from tlm import claims, cli_streams
 
     assert not claims.holding()
     with claims.claimed(tmp_path / "out"):
-        assert claims.holding() and cli_signals._writing()
-    assert not claims.holding() and not cli_signals._writing()
+        assert claims.holding() and cli_streams._writing()
+    assert not claims.holding() and not cli_streams._writing()
     monkeypatch.setattr(claims, "holding", lambda: True)  # (the public helper is what _writing reads)
-    assert cli_signals._writing()
+    assert cli_streams._writing()

@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tlm import cli_signals
+from tlm import cli_signals, cli_streams
 from tlm.cli import main
 
 from .test_faults import CORNELL, SMALL, leftovers
@@ -78,29 +78,29 @@ def test_a_memory_error_is_out_of_memory_on_one_line(capsys):
 
 def test_a_broken_pipe_not_of_stdout_or_stderr_is_not_a_reader_gone(capsys, monkeypatch):
     """(A worker's pipe: an error of its own, with its traceback kept, not a quiet 141.)"""
-    monkeypatch.setattr(cli_signals, "_reader_gone", lambda fd: False)
+    monkeypatch.setattr(cli_streams, "_reader_gone", lambda fd: False)
     assert cli_signals.exit_status(BrokenPipeError(32, "Broken pipe"), ["run"]) == 1
     assert "BrokenPipeError" in capsys.readouterr().err
 
 
 def test_a_guarded_stream_whose_reader_went_away_drops_what_it_is_given(monkeypatch):
-    monkeypatch.setattr(cli_signals, "_GONE", {})
-    monkeypatch.setattr(cli_signals, "_writing", lambda: True)  # (a command writing its destination)
+    monkeypatch.setattr(cli_streams, "_GONE", {})
+    monkeypatch.setattr(cli_streams, "_writing", lambda: True)  # (a command writing its destination)
     w = _closed_pipe()
     stream = os.fdopen(w, "w", buffering=1)
     try:
-        guarded = cli_signals._Guarded(stream, "stdout")
-        assert cli_signals._reader_gone(w)
+        guarded = cli_streams._Guarded(stream, "stdout")
+        assert cli_streams._reader_gone(w)
         guarded.write("lost\n")  # (no BrokenPipeError)
         guarded.flush()
-        assert cli_signals._GONE["stdout"] and isinstance(guarded.error, BrokenPipeError)
-        assert not cli_signals._reader_gone(w) and os.path.samestat(os.fstat(w), os.stat(os.devnull))
+        assert cli_streams._GONE["stdout"] and isinstance(guarded.error, BrokenPipeError)
+        assert not cli_streams._reader_gone(w) and os.path.samestat(os.fstat(w), os.stat(os.devnull))
     finally:
         stream.close()
 
 
 def test_a_command_whose_stdout_reader_went_away_runs_to_its_end(tmp_path, monkeypatch, capsys):
-    """While it writes a destination (as if ``tlm params`` did: :func:`tlm.cli_signals._writing`) the
+    """While it writes a destination (as if ``tlm params`` did: :func:`tlm.cli_streams._writing`) the
     command runs to its end, what it prints dropped; then 141, quietly. (One that only prints stops at
     once, tests/test_faults.py.)"""
     class ClosedPipe(io.StringIO):
@@ -118,7 +118,7 @@ def test_a_command_whose_stdout_reader_went_away_runs_to_its_end(tmp_path, monke
         return status
 
     monkeypatch.setattr(cli, "_cmd_params", params)
-    monkeypatch.setattr(cli_signals, "_writing", lambda: True)
+    monkeypatch.setattr(cli_streams, "_writing", lambda: True)
     monkeypatch.setattr(sys, "stdout", ClosedPipe())
     assert main(["params"]) == 141 and done == [0]
     assert capsys.readouterr().err == "" and isinstance(sys.stdout, ClosedPipe)
@@ -266,7 +266,7 @@ def _limited():
 def test_a_small_address_space_is_out_of_memory_not_a_hang(tmp_path):
     """(OpenBLAS's threads' buffers at ``ulimit -v 400000``: the run hung, for ever, at 88% CPU.)
     Where the limit leaves too little for OpenBLAS's one buffer (128 MiB, taken at its first call:
-    a solve or matrix product of the render's shading) OpenBLAS itself ends the process with its own line
+    the render's exposure product; the shading has none since tests/test_faults_h133.py) OpenBLAS itself ends the process with its own line
     and exit status 1, and where numba compiles the kernels (a fresh clone's first run) LLVM aborts with
     its own (SIGABRT: "LLVM ERROR: out of memory", or C++'s std::bad_alloc): no Python code can catch
     either, so those lines are allowed here; a hang or a traceback is not."""

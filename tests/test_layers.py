@@ -31,7 +31,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_common", "tlm.cli", "tlm.cli_args", "tlm.cli_report", "tlm.cli_signals",
-     "tlm.__main__", "tlm"),
+     "tlm.cli_streams", "tlm.__main__", "tlm"),
 )
 
 

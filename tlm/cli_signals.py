@@ -18,13 +18,15 @@ pools' clean-up, its threads joined: :func:`until_exit`). Anything else (a bug) 
 the path of a file holding the full traceback, exit 1. A reader of stdout that goes away (``tlm
 params | head -1``) ends the command quietly (status 141, as if killed by SIGPIPE), once it has
 finished the folder it writes, if it writes one; a reader of stderr that goes away stops nothing
-(:func:`guard_streams`). A MemoryError is ``tlm: error: out of memory: ...``, exit 1
-(:func:`tlm.errors.memory_problem`); OpenBLAS runs on one thread (:func:`one_blas_thread`). SIGQUIT
-is left to Python's default (the process ends at once, no clean-up). A signal that comes before the
-command begins (while the ``tlm`` process imports its modules and builds its parser, a second or
-more under load) is the command's too, from this module's import on (:func:`early_signals`: tlm.cli
-and tlm.__main__ import it first, and it installs its handler before its own imports): the command
-stops as it begins, with the same line and exit status, not a traceback of a half-finished import.
+(:func:`tlm.cli_streams.guard_streams`). A MemoryError is ``tlm: error: out of memory: ...``, exit 1
+(:func:`tlm.errors.memory_problem`), and so is a thread the system refused (``tlm: error: no new
+thread could be started: ...``, :func:`tlm.errors.thread_problem`); OpenBLAS runs on one thread
+(:func:`one_blas_thread`). SIGQUIT is left to Python's default (the process ends at once, no
+clean-up). A signal that comes before the command begins (while the ``tlm`` process imports its
+modules and builds its parser, a second or more under load) is the command's too, from this module's
+import on (:func:`early_signals`: tlm.cli and tlm.__main__ import it first, and it installs its
+handler before its own imports): the command stops as it begins, with the same line and exit status,
+not a traceback of a half-finished import.
 """
 
 # ruff: noqa: E402  (the early handler is installed before this module's other imports: see early_signals)
@@ -34,8 +36,10 @@ from __future__ import annotations
 import os
 import signal
 import sys
-from collections.abc import Iterator
 from contextlib import contextmanager, suppress
+
+from tlm import cli_streams  # (the standard library's alone: no import of tlm's runs before early_signals)
+from tlm.cli_streams import guard_streams, no_stream_closed, writes_files  # noqa: F401  (writes_files: tlm.cli's)
 
 _SIGNALS: list[int] = []  # the signals received by this command, the first one first
 # the signals the command takes (SIGHUP: its terminal closed, its ssh dropped; none on Windows), each with
@@ -123,27 +127,6 @@ def one_blas_thread() -> None:
     os.environ.setdefault(BLAS_THREADS, "1")
 
 
-def no_stream_closed() -> None:
-    """stdout or stderr closed as the ``tlm`` process started (``2>&-``: Python then has no
-    ``sys.stderr``, and the next file the command opened took its file descriptor, with what a
-    library writes there) made ``/dev/null``: what is said there is lost, the command goes on."""
-    for name, fd in (("stdout", 1), ("stderr", 2)):
-        if getattr(sys, name) is not None:
-            continue
-        try:
-            os.fstat(fd)
-        except OSError:  # (closed: /dev/null takes its place)
-            with suppress(OSError):
-                devnull = os.open(os.devnull, os.O_WRONLY)
-                if devnull != fd:
-                    os.dup2(devnull, fd)
-                    os.close(devnull)
-        with suppress(OSError):  # (else another file took it already: the stream alone is /dev/null)
-            target = fd if os.path.samestat(os.fstat(fd), os.stat(os.devnull)) else os.devnull
-            setattr(sys, name, open(target, "w", buffering=1, closefd=target != fd,  # noqa: SIM115
-                                    encoding="utf-8", errors="backslashreplace"))
-
-
 if command_process():
     no_stream_closed()
     one_blas_thread()
@@ -158,7 +141,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from tlm import progress
-from tlm.errors import ERROR_CHARS, InputError, environment_problem, error_line, interrupted_by, memory_problem
+from tlm.errors import (
+    ERROR_CHARS,
+    InputError,
+    environment_problem,
+    error_line,
+    interrupted_by,
+    memory_problem,
+    thread_problem,
+)
 
 if TYPE_CHECKING:  # (imported where used: tlm.api is the heavy part of a command's imports, see early_signals)
     from tlm.api import Deadlock
@@ -237,7 +228,7 @@ def signals():
     here, before any work: a KeyboardInterrupt as the block begins. A signal ignored when the block
     begins stays ignored (``nohup`` ignores SIGHUP, a shell's background job ``&`` SIGINT: the
     command is meant to outlive them). A reader of stdout or stderr that goes away stops nothing
-    (:func:`guard_streams`, in the main thread): the command runs to its end, and where it was
+    (:func:`tlm.cli_streams.guard_streams`, in the main thread): the command runs to its end, and where it was
     stdout's, its BrokenPipeError is raised as the block ends (exit status 141, :func:`_failed`)."""
     early = any(signal.getsignal(s) is _early_signal for s in TAKEN)
     if not early:  # (else the signal the early handler noted, if one came, is this command's)
@@ -484,7 +475,7 @@ def _flushed(status: int) -> int:
     """``status`` once stdout and stderr are flushed (what the interpreter's exit would do,
     left out by :func:`_end`): 141 where the reader of stdout went away (as for ``tlm params |
     head -1``, :func:`exit_status`), 1 with its line where it could not be written (a full disk)."""
-    if _GONE.get("stdout") and status == 0:  # (its reader went away during the command: guard_streams)
+    if cli_streams._GONE.get("stdout") and status == 0:  # (its reader went away during the command: guard_streams)
         status = 128 + signal.SIGPIPE
     streams = [sys.stdout, sys.__stdout__, sys.stderr, sys.__stderr__]
     for stream in dict.fromkeys(s for s in streams if s is not None):
@@ -494,7 +485,7 @@ def _flushed(status: int) -> int:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
                 status = 128 + signal.SIGPIPE
             with suppress(Exception):  # (the interpreter's own flush at the exit: nothing left to fail)
-                _to_devnull(stream.fileno())
+                cli_streams._to_devnull(stream.fileno())
         except OSError as e:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
                 _say(f"tlm: error: the output could not be written: {environment_problem(e) or one_line(e)}")
@@ -503,138 +494,6 @@ def _flushed(status: int) -> int:
             pass
     return status
 
-
-_GONE: dict[str, bool] = {}  # the streams (stdout, stderr) whose reader went away during the command
-
-
-class _Guarded:
-    """stdout or stderr (``name``), whose reader going away (``tlm run ... | head``, ``2>&- | ...``: a
-    BrokenPipeError) stops nothing (stdout's: while the command writes a destination, :func:`_writing`;
-    else its BrokenPipeError ends the command at once, quietly): what it writes there from then on is dropped
-    (its file descriptor now leads to ``/dev/null``, so a library's own writes are dropped too),
-    the command runs to its end and writes its files, its report. The stream is noted
-    (:data:`_GONE`) and the first BrokenPipeError kept (``error``): a reader of stdout gone ends
-    the command with exit status 141 once its work is done, as if SIGPIPE had ended it
-    (:func:`signals`, :func:`_flushed`); one of stderr changes nothing (its warnings and lines
-    are lost, to no one). Anything else is the stream's."""
-
-    def __init__(self, stream, name: str) -> None:
-        self._stream = stream
-        self._name = name
-        self.error: BrokenPipeError | None = None
-
-    def _gone(self, e: BrokenPipeError) -> None:
-        _GONE[self._name] = True
-        if self.error is None:
-            self.error = e
-        with suppress(Exception):
-            _to_devnull(self._stream.fileno())
-        with suppress(Exception):  # (what was buffered goes to /dev/null now)
-            self._stream.flush()
-
-    def write(self, text):
-        try:
-            return self._stream.write(text)
-        except BrokenPipeError as e:
-            self._gone(e)
-            if self._name == "stdout" and not _writing():
-                raise
-            return len(text)
-
-    def writelines(self, lines) -> None:
-        for line in lines:
-            self.write(line)
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except BrokenPipeError as e:
-            self._gone(e)
-            if self._name == "stdout" and not _writing():
-                raise
-
-    def __getattr__(self, name):
-        return getattr(self._stream, name)
-
-    def __iter__(self):
-        return iter(self._stream)
-
-
-_WRITES = False  # the command writes files (:func:`writes_files`, set by tlm.cli for its command)
-
-
-@contextmanager
-def writes_files(yes: bool) -> Iterator[None]:
-    """While the block runs, the command is one that writes files (``tlm run``, ``sweep``, a study,
-    ``scaling``, a report, an export), whatever it holds at the moment: a sweep shares its folder
-    (:func:`tlm.claims.sharing`), a study or ``tlm scaling`` holds none, and each prints its summary
-    before its report; :func:`_writing` reads it."""
-    global _WRITES
-    before, _WRITES = _WRITES, yes
-    try:
-        yield
-    finally:
-        _WRITES = before
-
-
-def _writing() -> bool:
-    """Whether the command is writing a destination (one that writes files, :func:`writes_files`,
-    or one holding a destination: :func:`tlm.claims.claimed`, a run's folder, a sweep's, a
-    report's): then a reader of stdout that goes away stops nothing, and what it writes is
-    finished; a command that only prints (``tlm params | head -1``) stops there."""
-    if _WRITES:
-        return True
-    claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination: none held before)
-    return claims is not None and claims.holding()
-
-
-def guard_streams() -> dict[str, _Guarded]:
-    """``sys.stdout`` and ``sys.stderr`` made :class:`_Guarded`, each that is not already (and is
-    not None); those made now, by name. :data:`_GONE` forgotten (a new command)."""
-    _GONE.clear()
-    made = {}
-    for name in ("stdout", "stderr"):
-        stream = getattr(sys, name)
-        if stream is not None and not isinstance(stream, _Guarded):
-            made[name] = _Guarded(stream, name)
-            setattr(sys, name, made[name])
-    return made
-
-
-def _to_devnull(fd: int) -> None:
-    """File descriptor ``fd`` led to ``/dev/null`` (its reader went away)."""
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-    except OSError:
-        return
-    try:
-        os.dup2(devnull, fd)
-    except OSError:
-        pass
-    finally:
-        os.close(devnull)
-
-
-def _reader_gone(fd: int) -> bool:
-    """Whether file descriptor ``fd`` is a pipe (or socket) whose reader went away: the kernel
-    says POLLERR (Linux) or POLLHUP for it; False where it cannot tell (no ``poll``)."""
-    import select
-
-    if not hasattr(select, "poll"):
-        return False
-    try:
-        poll = select.poll()
-        poll.register(fd, select.POLLOUT)
-        return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
-    except (OSError, ValueError):
-        return False
-
-
-def _broken_streams() -> list[str]:
-    """Of stdout and stderr, those whose reader went away (noted by :class:`_Guarded`, or said by
-    the kernel of file descriptors 1 and 2): a BrokenPipeError that reached the command line is
-    theirs; one of another pipe (a worker's) is an error of its own (:func:`_failed`)."""
-    return [name for name, fd in (("stdout", 1), ("stderr", 2)) if _GONE.get(name) or _reader_gone(fd)]
 
 
 def forget_lost_interrupt() -> None:
@@ -647,8 +506,11 @@ def forget_lost_interrupt() -> None:
     killed by SIGINT rather than exiting 130 after a Ctrl-C. Each ``exec`` of a string resets
     the flag first, so one that runs to its end clears it. (The installed ``tlm`` script
     exits through ``Py_Exit``, which never reads the flag: the two ways now end alike, a
-    Ctrl-C with exit status 130, as before where the interrupt passed through no ``exec``.)"""
-    exec("None")
+    Ctrl-C with exit status 130, as before where the interrupt passed through no ``exec``.) Where
+    too little memory is left to compile that string (a MemoryError), the flag stays as it is:
+    the command has ended, and its exit is not to be a traceback."""
+    with suppress(MemoryError):
+        exec("None")
 
 
 def line_break(sig: int) -> str:
@@ -704,19 +566,20 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
         return 1
     if isinstance(e, KeyboardInterrupt):
         return interrupted(argv, kept=getattr(e, "kept", None))
-    broken = _broken_streams() if isinstance(e, BrokenPipeError) else []
+    broken = cli_streams._broken_streams() if isinstance(e, BrokenPipeError) else []
     if broken:  # the reader of stdout (or stderr) went away (``| head``): nothing more to say
         for name in broken:  # so that the exit's flush does not fail again
             with suppress(Exception):
-                _to_devnull(getattr(sys, name).fileno())
+                cli_streams._to_devnull(getattr(sys, name).fileno())
         return 128 + signal.SIGPIPE
     if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
         return interrupted(argv)
-    what = environment_problem(e) or memory_problem(e)
-    if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory
+    what = environment_problem(e) or memory_problem(e) or thread_problem(e)
+    if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory, no thread
         _line(f"tlm: error: {' '.join(what.split())}")
         return 1
     saved = save_traceback(e)
     where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
     _line(f"tlm: internal error: {type(e).__name__}: {one_line(e)} ({where})")
     return 1
+

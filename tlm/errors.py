@@ -5,7 +5,8 @@ mesh, a command-line value. The command line catches it, prints its one-line mes
 and exits with status 2; it never shows a traceback. The message always names the
 file, the key and the offending value, so that the line alone says what to fix.
 `EnvironmentFailure` is the machine's fault (a full disk, a read-only destination): one
-line, exit status 1; so is a MemoryError (:func:`memory_problem`: ``out of memory: ...``).
+line, exit status 1; so is a MemoryError (:func:`memory_problem`: ``out of memory: ...``) and
+a thread the system refused (:func:`thread_problem`: ``no new thread could be started: ...``).
 """
 
 from __future__ import annotations
@@ -14,6 +15,11 @@ import difflib
 import errno
 import os
 from collections.abc import Iterable
+
+try:  # (imported now: under a small ``ulimit -v`` loading it later, as a command fails, may fail too)
+    import resource
+except ImportError:  # (not Unix)
+    resource = None
 
 
 class InputError(ValueError):
@@ -65,34 +71,73 @@ def environment_problem(e: BaseException, filename: bool = True) -> str | None:
     return None
 
 
+UNMAPPED = "failed to map segment from shared object"  # the dynamic loader's words for a library it could not map
+
+
 def memory_problem(e: BaseException | None) -> str | None:
     """``out of memory: ...`` where a MemoryError is in ``e``'s chain of causes and contexts (a
     numba kernel's, wrapped), with what the failed allocation needed where it says (numpy's
     ``Unable to allocate 8.24 MiB for an array ...``) and the limit on the address space where one
-    is set (``ulimit -v``); None where the chain holds none. The machine's fault, not tlm's: one
-    line, exit status 1, as a full disk."""
+    is set (``ulimit -v``); under such a limit, a library that could not be mapped as it was loaded
+    (an ImportError or ctypes' OSError: ``... failed to map segment from shared object``, a
+    module imported late, as matplotlib's for a report) is out of memory too. None where the
+    chain holds none. The machine's fault, not tlm's: one line, exit status 1, as a full disk."""
+    limit = address_space_limit()
     seen: set[int] = set()
     while e is not None and id(e) not in seen and not isinstance(e, MemoryError):
+        if limit is not None and isinstance(e, (ImportError, OSError)) and UNMAPPED in str(e):
+            break
         seen.add(id(e))
         e = e.__cause__ or e.__context__
-    if not isinstance(e, MemoryError):
+    if e is None or id(e) in seen:
         return None
     text = " ".join(str(e).split())
     line = f"out of memory: {text}" if text else "out of memory"
-    limit = address_space_limit()
     if limit is not None:
         line += f" (the address space of this process is limited to {limit / 2**20:.0f} MiB: ulimit -v)"
     return line
 
 
+THREAD_REFUSED = "can't start new thread"  # threading's RuntimeError where the system gives no more threads
+
+
+def thread_problem(e: BaseException | None) -> str | None:
+    """``no new thread could be started: ...`` where threading's RuntimeError (``can't start new
+    thread``) is in ``e``'s chain of causes and contexts (a render's threads, a pool's), with the
+    limits that can refuse one where they are set: the address space (``ulimit -v``: each thread's
+    stack is mapped in it) and the user's processes and threads (``ulimit -u``); None where the
+    chain holds none. The machine's fault, not tlm's: one line, exit status 1, as out of memory."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen:
+        if isinstance(e, RuntimeError) and str(e) == THREAD_REFUSED:
+            break
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    else:
+        return None
+    limits = []
+    space = address_space_limit()
+    if space is not None:
+        limits.append(f"the address space of this process is limited to {space / 2**20:.0f} MiB: ulimit -v")
+    threads = _limit("RLIMIT_NPROC")
+    if threads is not None:
+        limits.append(f"this user may run {threads} processes and threads: ulimit -u")
+    said = f" ({'; '.join(limits)})" if limits else ""
+    return f"no new thread could be started: {THREAD_REFUSED}{said}"
+
+
 def address_space_limit() -> int | None:
     """The limit on this process's address space in bytes (``ulimit -v``, RLIMIT_AS), None where
     none is set or it cannot be read (not Unix)."""
-    try:
-        import resource
+    return _limit("RLIMIT_AS")
 
-        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-    except (ImportError, AttributeError, OSError, ValueError):
+
+def _limit(name: str) -> int | None:
+    """The soft limit ``name`` of ``resource`` (``RLIMIT_AS``), None where none is set or it
+    cannot be read (not Unix, or a limit this system lacks)."""
+    try:
+        soft = resource.getrlimit(getattr(resource, name))[0]
+    except (AttributeError, OSError, ValueError):  # (no resource module: AttributeError)
         return None
     return None if soft == resource.RLIM_INFINITY else soft
 

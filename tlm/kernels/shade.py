@@ -268,6 +268,34 @@ def surface_emission(emission: np.ndarray | None, normals: np.ndarray, triangle:
     return np.where(front[:, None], emission[t], 0.0)
 
 
+def dot3(v: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(k,) the dot products of the rows of ``v`` (k, 3) with ``w`` (3,), written out. ``v @ w``
+    is a BLAS call (OpenBLAS's ``dgemv``) which, for more than some 200 rows, takes a buffer of
+    OpenBLAS's (32 MiB of address space, mapped at the first call and at each call under way at
+    once on the render's threads): under a limit on the address space (``ulimit -v``) a mapping
+    that fails ends the process in OpenBLAS itself (``OpenBLAS error: Memory allocation still
+    failed ...``, exit 1), where numpy's own allocation raises a MemoryError (``tlm: error: out
+    of memory: ...``). Equal to ``v @ w`` up to rounding (OpenBLAS fuses the multiply-adds, as
+    its kernel for the CPU does)."""
+    return v[:, 0] * w[0] + v[:, 1] * w[1] + v[:, 2] * w[2]
+
+
+def solve2(a: np.ndarray, r0: np.ndarray, r1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(x0, x1)`` with ``a @ (x0, x1) = (r0, r1)`` for a 2x2 matrix ``a`` and (k,) right-hand
+    sides: LAPACK's ``dgesv`` written out (an LU factorisation with partial pivoting, its
+    reciprocals of the pivots, as OpenBLAS computes it), without its call: ``np.linalg.solve``
+    takes OpenBLAS's buffer at every call, of any size (:func:`dot3`). Equal to it up to the rounding of
+    OpenBLAS's fused multiply-adds; a singular ``a`` gives non-finite values, not a LinAlgError."""
+    (a00, a01), (a10, a11) = (float(a[0, 0]), float(a[0, 1])), (float(a[1, 0]), float(a[1, 1]))
+    if abs(a10) > abs(a00):  # (the larger pivot first: the rows swapped)
+        a00, a01, a10, a11, r0, r1 = a10, a11, a00, a01, r1, r0
+    inv00 = 1.0 / a00 if a00 != 0.0 else math.inf
+    low = a10 * inv00
+    u11 = a11 - low * a01
+    x1 = (r1 - low * r0) * (1.0 / u11 if u11 != 0.0 else math.inf)
+    return (r0 - a01 * x1) * inv00, x1
+
+
 def emitted(lights: tuple[Light, ...], o: np.ndarray, d: np.ndarray, t_hit: np.ndarray,
             eps: float) -> tuple[np.ndarray, np.ndarray]:
     """Radiance of quad lights seen directly along rays, where nearer than ``t_hit + eps``.
@@ -283,18 +311,16 @@ def emitted(lights: tuple[Light, ...], o: np.ndarray, d: np.ndarray, t_hit: np.n
         return radiance, seen
     best = t_hit
     dist_eps = eps / np.linalg.norm(d, axis=1)
-    rhs = np.empty((2, k))
     for light in quads:
         q = light.quad  # the light's arrays, Gram matrix and radiance, made once (tlm.scenes.model.QuadFrame)
         nl = light.normal
-        dn = d @ nl
+        dn = dot3(d, nl)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((q.corner - o) @ nl) / dn
+            t = dot3(q.corner - o, nl) / dn
         p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - q.corner
-        # coordinates of p in the (eu, ev) frame; the right-hand sides written in place (no stacked copy)
-        np.matmul(p, q.edge_u, out=rhs[0])
-        np.matmul(p, q.edge_v, out=rhs[1])
-        a, b = np.linalg.solve(q.gram, rhs)
+        # coordinates of p in the (eu, ev) frame
+        with np.errstate(divide="ignore", invalid="ignore"):  # (a singular Gram matrix: no hit, as for NaN)
+            a, b = solve2(q.gram, dot3(p, q.edge_u), dot3(p, q.edge_v))
         hit = (dn < 0) & (t > dist_eps) & (t <= best + dist_eps) & (a >= 0) & (a <= 1) & (b >= 0) & (b <= 1)
         radiance[hit] = q.radiance
         seen |= hit

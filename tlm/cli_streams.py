@@ -1,0 +1,178 @@
+"""The ``tlm`` command's stdout and stderr: guarded, so that a reader that goes away stops nothing.
+
+A reader of stdout that goes away (``tlm params | head -1``) ends a command that only prints at
+once, quietly (exit status 141, as if killed by SIGPIPE); one that writes a destination (``tlm run
+... | head``: :func:`writes_files`, a claim of its folder) runs to its end, what it prints from
+then on dropped, and exits with 141 once its folder is whole. A reader of stderr that goes away
+stops nothing: the command's warnings and lines are lost, to no one (:class:`_Guarded`, made by
+:func:`guard_streams` as a command begins). Where stdout or stderr was closed as the process
+started (``2>&-``) it is ``/dev/null`` (:func:`no_stream_closed`). How the command then ends (its
+exit status, its last line) is :mod:`tlm.cli_signals`', which re-exports these names: a test's
+``monkeypatch.setattr(cli_signals, "_writing", ...)`` reaches the code here.
+
+Only the standard library is imported: :mod:`tlm.cli_signals` imports this module before it takes
+the command's early signals (:func:`tlm.cli_signals.early_signals`), as the process starts.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
+
+
+def no_stream_closed() -> None:
+    """stdout or stderr closed as the ``tlm`` process started (``2>&-``: Python then has no
+    ``sys.stderr``, and the next file the command opened took its file descriptor, with what a
+    library writes there) made ``/dev/null``: what is said there is lost, the command goes on."""
+    for name, fd in (("stdout", 1), ("stderr", 2)):
+        if getattr(sys, name) is not None:
+            continue
+        try:
+            os.fstat(fd)
+        except OSError:  # (closed: /dev/null takes its place)
+            with suppress(OSError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                if devnull != fd:
+                    os.dup2(devnull, fd)
+                    os.close(devnull)
+        with suppress(OSError):  # (else another file took it already: the stream alone is /dev/null)
+            target = fd if os.path.samestat(os.fstat(fd), os.stat(os.devnull)) else os.devnull
+            setattr(sys, name, open(target, "w", buffering=1, closefd=target != fd,  # noqa: SIM115
+                                    encoding="utf-8", errors="backslashreplace"))
+
+
+
+_GONE: dict[str, bool] = {}  # the streams (stdout, stderr) whose reader went away during the command
+
+
+class _Guarded:
+    """stdout or stderr (``name``), whose reader going away (``tlm run ... | head``, ``2>&- | ...``: a
+    BrokenPipeError) stops nothing (stdout's: while the command writes a destination, :func:`_writing`;
+    else its BrokenPipeError ends the command at once, quietly): what it writes there from then on is dropped
+    (its file descriptor now leads to ``/dev/null``, so a library's own writes are dropped too),
+    the command runs to its end and writes its files, its report. The stream is noted
+    (:data:`_GONE`) and the first BrokenPipeError kept (``error``): a reader of stdout gone ends
+    the command with exit status 141 once its work is done, as if SIGPIPE had ended it
+    (:func:`tlm.cli_signals.signals`, :func:`tlm.cli_signals._flushed`); one of stderr changes
+    nothing (its warnings and lines are lost, to no one). Anything else is the stream's."""
+
+    def __init__(self, stream, name: str) -> None:
+        self._stream = stream
+        self._name = name
+        self.error: BrokenPipeError | None = None
+
+    def _gone(self, e: BrokenPipeError) -> None:
+        _GONE[self._name] = True
+        if self.error is None:
+            self.error = e
+        with suppress(Exception):
+            _to_devnull(self._stream.fileno())
+        with suppress(Exception):  # (what was buffered goes to /dev/null now)
+            self._stream.flush()
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError as e:
+            self._gone(e)
+            if self._name == "stdout" and not _writing():
+                raise
+            return len(text)
+
+    def writelines(self, lines) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError as e:
+            self._gone(e)
+            if self._name == "stdout" and not _writing():
+                raise
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+    def __iter__(self):
+        return iter(self._stream)
+
+
+_WRITES = False  # the command writes files (:func:`writes_files`, set by tlm.cli for its command)
+
+
+@contextmanager
+def writes_files(yes: bool) -> Iterator[None]:
+    """While the block runs, the command is one that writes files (``tlm run``, ``sweep``, a study,
+    ``scaling``, a report, an export), whatever it holds at the moment: a sweep shares its folder
+    (:func:`tlm.claims.sharing`), a study or ``tlm scaling`` holds none, and each prints its summary
+    before its report; :func:`_writing` reads it."""
+    global _WRITES
+    before, _WRITES = _WRITES, yes
+    try:
+        yield
+    finally:
+        _WRITES = before
+
+
+def _writing() -> bool:
+    """Whether the command is writing a destination (one that writes files, :func:`writes_files`,
+    or one holding a destination: :func:`tlm.claims.claimed`, a run's folder, a sweep's, a
+    report's): then a reader of stdout that goes away stops nothing, and what it writes is
+    finished; a command that only prints (``tlm params | head -1``) stops there."""
+    if _WRITES:
+        return True
+    claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination: none held before)
+    return claims is not None and claims.holding()
+
+
+def guard_streams() -> dict[str, _Guarded]:
+    """``sys.stdout`` and ``sys.stderr`` made :class:`_Guarded`, each that is not already (and is
+    not None); those made now, by name. :data:`_GONE` forgotten (a new command)."""
+    _GONE.clear()
+    made = {}
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and not isinstance(stream, _Guarded):
+            made[name] = _Guarded(stream, name)
+            setattr(sys, name, made[name])
+    return made
+
+
+def _to_devnull(fd: int) -> None:
+    """File descriptor ``fd`` led to ``/dev/null`` (its reader went away)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        return
+    try:
+        os.dup2(devnull, fd)
+    except OSError:
+        pass
+    finally:
+        os.close(devnull)
+
+
+def _reader_gone(fd: int) -> bool:
+    """Whether file descriptor ``fd`` is a pipe (or socket) whose reader went away: the kernel
+    says POLLERR (Linux) or POLLHUP for it; False where it cannot tell (no ``poll``)."""
+    import select
+
+    if not hasattr(select, "poll"):
+        return False
+    try:
+        poll = select.poll()
+        poll.register(fd, select.POLLOUT)
+        return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+    except (OSError, ValueError):
+        return False
+
+
+def _broken_streams() -> list[str]:
+    """Of stdout and stderr, those whose reader went away (noted by :class:`_Guarded`, or said by
+    the kernel of file descriptors 1 and 2): a BrokenPipeError that reached the command line is
+    theirs; one of another pipe (a worker's) is an error of its own (:func:`tlm.cli_signals._failed`)."""
+    return [name for name, fd in (("stdout", 1), ("stderr", 2)) if _GONE.get(name) or _reader_gone(fd)]
+
