@@ -266,7 +266,8 @@ def _limited():
 def test_a_small_address_space_is_out_of_memory_not_a_hang(tmp_path):
     """(OpenBLAS's threads' buffers at ``ulimit -v 400000``: the run hung, for ever, at 88% CPU.)
     Where the limit leaves too little for OpenBLAS's one buffer (128 MiB, taken at its first call:
-    the render's exposure product; the shading has none since tests/test_faults_h133.py) OpenBLAS itself ends the process with its own line
+    the render's exposure product; the shading has none since tests/test_faults_h133.py)
+    OpenBLAS itself ends the process with its own line
     and exit status 1, and where numba compiles the kernels (a fresh clone's first run) LLVM aborts with
     its own (SIGABRT: "LLVM ERROR: out of memory", or C++'s std::bad_alloc): no Python code can catch
     either, so those lines are allowed here; a hang or a traceback is not."""
