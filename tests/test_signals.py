@@ -192,7 +192,10 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path, mon
     the local pool's semaphores to clean up and warned of them (they are released first)."""
     group = "group" in executor
     executor = [a for a in executor if a != "group"]
-    path, out = sweep_file(tmp_path), tmp_path / "o"
+    # (points enough that some are left when the signal's clean-up ends: a --dask local cluster's
+    # workers, which ignore SIGINT, run points until it has closed, 6 of 8 on a loaded machine)
+    n = 16
+    path, out = sweep_file(tmp_path, n), tmp_path / "o"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen([sys.executable, "-m", "tlm", "sweep", str(path), "--out", str(out), "--jobs", "2",
                              "--no-report", *executor], cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
@@ -231,7 +234,7 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path, mon
         time.sleep(0.05)
     assert len(below) >= 3 and not [p for p in below if _running(p)]
     done = {p.name for p in (out / "points").iterdir() if (p / "results.json").is_file()}
-    assert 2 <= len(done) < 8
+    assert 2 <= len(done) < n
     if not twice:  # (a second signal ends the process at once: the next sweep removes what it left)
         assert leftovers(out) == []
     # the points' keys hold the code's fingerprint: the rerun keys them with the signalled sweep's
@@ -240,7 +243,7 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path, mon
     assert len(codes) == 1
     monkeypatch.setattr(fingerprint, "_CODE", codes.pop())
     again = run_sweep(path, out, jobs=1)
-    assert again.skipped == len(done) and again.ok == 8 - len(done) and again.failed == 0
+    assert again.skipped == len(done) and again.ok == n - len(done) and again.failed == 0
     assert leftovers(out) == []
 
 

@@ -64,9 +64,12 @@ def test_the_wait_is_asked_of_the_scheduler_within_it(tmp_path):
     pool.wait, pool.workerless_since, pool.asked = 1.0, None, -math.inf
     why = None
     deadline = time.monotonic() + 10
-    while why is None and time.monotonic() < deadline:
-        why = pool.trouble(cancelled=False)
-        time.sleep(0.05)
+    try:
+        while why is None and time.monotonic() < deadline:
+            why = pool.trouble(cancelled=False)
+            time.sleep(0.05)
+    finally:  # (trouble silenced distributed's loggers: put back, as the sweep's stack does, for the
+        pool.quiet.restore()  # tests after this one in the process, tests/test_dask_local_clean_exit.py's)
     assert why is not None and why.startswith("the Dask scheduler tcp://x:1 has had no worker for "), why
     assert why.endswith("(--dask-wait: 1 s)"), why
     assert asked[-1] - asked[0] < executors.WORKERS_POLL, asked

@@ -196,12 +196,62 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str, field
     tlm, or a damaged one), without a key of ``fields``, or with a key of ``fields`` or ``optional``
     of another type (:func:`fields_problem`; ``height`` and ``width`` whole numbers); the image
     not the file ``meta.json`` describes, by its ``npy`` digest and its ``height`` and ``width``
-    where given, or not (H, W, 3) floats."""
+    where given, or not (H, W, 3) floats.
+
+    Another process (or thread) writing the same entry meanwhile replaces its folder whole
+    (:func:`tlm.storage.atomic_folder`: the old one renamed aside and removed, the new one renamed
+    into place): files read across that replacement (the ``meta.json`` of one folder and the image
+    of the next, or none where the old one was removed) are no damaged entry; the entry is read
+    again, and never said damaged nor removed unless the folder found damaged is the one still there."""
+    for _ in range(_READS):
+        try:  # (held open, the folder read keeps its inode number: it is told from any other one there)
+            held = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+        except (FileNotFoundError, NotADirectoryError):
+            held = None
+        except OSError:  # (a folder this process may not read: judged as it is, as before)
+            held = _UNHELD
+        try:
+            found, bad, why = _read_image(folder, name, key, fields, optional)
+            if why is None:
+                return found
+            if not _still_there(folder, held):
+                continue  # (replaced while it was read: read the new one)
+            left = remove_entry(folder, folder.parent)
+        finally:
+            if held not in (None, _UNHELD):
+                os.close(held)
+        done = "removed" if left is None else f"not removed ({left})"
+        warn(f"damaged {what} cache entry {bad} ({why}): {done}; {again}")
+        return None
+    return None  # (replaced again each time it was read: as if not cached, computed again)
+
+
+_READS = 5  # times an entry replaced while it is read is read again (cached_image)
+_UNHELD = -1  # (cached_image: a folder that could not be opened, not one that was not there)
+
+
+def _still_there(folder: Path, held: int | None) -> bool:
+    """Whether ``folder`` is the folder ``held`` (a descriptor opened on it before it was read,
+    or None where there was none then) still: not replaced, nor made, meanwhile."""
+    if held == _UNHELD:
+        return True
+    try:
+        now = os.stat(folder)
+    except OSError:
+        return False  # (gone: being replaced, the new one not yet in place, or removed by another reader)
+    if held is None:
+        return not stat.S_ISDIR(now.st_mode)
+    return os.path.samestat(now, os.fstat(held))
+
+
+def _read_image(folder: Path, name: str, key: str, fields: dict | None, optional: dict | None):
+    """:func:`cached_image`'s reading: ``((image, meta), None, None)``, ``(None, None, None)`` where
+    there is no entry, or ``(None, bad, why)``: the damaged file and what is wrong with it."""
     import numpy as np
 
     npy, side = folder / name, folder / "meta.json"
     if not npy.exists() and not side.exists():  # (a folder in place of either is a damaged entry)
-        return None
+        return None, None, None
     bad, why = side, None
     try:
         meta = json.loads(side.read_text())
@@ -225,13 +275,10 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str, field
             if all(isinstance(n, int) for n in size) and image.shape[:2] != size:
                 raise ValueError(f"an image of {image.shape[1]}x{image.shape[0]} pixels, its meta.json says "
                                  f"{size[1]}x{size[0]}")
-            return image, meta
+            return (image, meta), None, None
         except (OSError, ValueError, EOFError) as e:
             why = _error_text(e)
-    left = remove_entry(folder, folder.parent)
-    done = "removed" if left is None else f"not removed ({left})"
-    warn(f"damaged {what} cache entry {bad} ({why}): {done}; {again}")
-    return None
+    return None, bad, why
 
 
 def _error_text(e: BaseException) -> str:

@@ -29,6 +29,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError
+from tlm.progress import interrupts_deferred
 from tlm.storage import _GUARD, _RUNNING, _host, process_tag
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
@@ -175,19 +176,24 @@ def claimed(out: Path, what: str = "run") -> Iterator[None]:
     given = Path(out)
     out = given.resolve()
     key = os.fsdecode(out)
-    with _CLAIMS_LOCK:
-        held = _CLAIMS.get(key)
-        if held is None:
-            held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
-        held[3] += 1
+    taken = None
     try:
+        # (a signal while the claim is taken, its file made but not yet held here, left the file
+        # behind: the command line's handler raises it once the claim is held, and dropped)
+        with interrupts_deferred(), _CLAIMS_LOCK:
+            held = _CLAIMS.get(key)
+            if held is None:
+                held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
+            held[3] += 1
+            taken = held
         yield
     finally:
-        with _CLAIMS_LOCK:
-            held[3] -= 1
-            if held[3] == 0 and _CLAIMS.get(key) is held:
-                del _CLAIMS[key]
-                _drop_claim(*held[:3])
+        if taken is not None:
+            with _CLAIMS_LOCK:
+                taken[3] -= 1
+                if taken[3] == 0 and _CLAIMS.get(key) is taken:
+                    del _CLAIMS[key]
+                    _drop_claim(*taken[:3])
 
 
 def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path]]:

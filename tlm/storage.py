@@ -83,17 +83,25 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str) -> None:
     """An InputError where the existing ``resolved`` may not be replaced (not a folder, a mount
     point, a folder that is no earlier tlm output and not being claimed). Nothing where it
     vanished while it was looked at: another writer of the same output (a thread or a process)
-    renames the old folder aside and its own into place, and between the two there is none."""
+    renames the old folder aside and its own into place, and between the two there is none. A refusal
+    is told from one listing of one folder: where the marker was looked for between those two renames
+    (no folder), the entries of the folder renamed into place next (its marker among them) are
+    another folder's, not a folder without its marker."""
     try:
         if not stat.S_ISDIR(resolved.stat().st_mode):
             raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
         if is_mount(resolved):
             raise InputError(_mounted(out), key=key)
-        if not (resolved / marker).is_file() and any(not _claiming(e.name, marker) for e in resolved.iterdir()):
-            raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
-                             "refusing to replace it", key=key)
+        if (resolved / marker).is_file():
+            return
+        with os.scandir(resolved) as listing:  # (one listing, of one folder: the marker may have come meanwhile)
+            entries = list(listing)
     except FileNotFoundError:
         return
+    if not any(e.name == marker and e.is_file() for e in entries) and any(not _claiming(e.name, marker)
+                                                                            for e in entries):
+        raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
+                         "refusing to replace it", key=key)
 
 
 def _mounted(out: Path) -> str:
