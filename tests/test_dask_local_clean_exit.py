@@ -150,10 +150,12 @@ def test_distributed_stays_silent_after_a_local_cluster_closed_on_a_signal(endin
     """A signal ends the sweep (a KeyboardInterrupt, tlm.cli_signals): distributed's loggers stay
     silenced after the cluster closed, where its event loop thread logged each connection to a
     worker the process group's signal killed ("Batched Comm Closed" and a traceback) after
-    tlm's one line (the cluster's own silence_logs ends with its close). An ordinary end
-    puts them back as they were."""
+    tlm's one line (the cluster's own silence_logs ends with its close), then put back
+    (``executors.QUIET_GRACE`` seconds later, by a timer). An ordinary end puts them back as they were."""
     import logging
     from contextlib import ExitStack
+
+    import distributed  # noqa: F401  (its import sets its loggers' levels: before, as they are then)
 
     names = ["distributed", "distributed.batched", "distributed.core", "distributed.scheduler"]
     before = {n: logging.getLogger(n).level for n in names}
@@ -164,8 +166,32 @@ def test_distributed_stays_silent_after_a_local_cluster_closed_on_a_signal(endin
                 raise ending
         quiet = not logging.getLogger("distributed.batched").isEnabledFor(logging.CRITICAL)
         assert quiet is bool(ending)
-        if not ending:
-            assert {n: logging.getLogger(n).level for n in names} == before
+        if ending:  # (put back QUIET_GRACE seconds later: a session that goes on, a notebook's, hears them again)
+            executors._put_back_left()
+        assert {n: logging.getLogger(n).level for n in names} == before
     finally:
         for n, level in before.items():
             logging.getLogger(n).setLevel(level)
+
+
+def test_loggers_left_silent_by_a_signal_come_back_and_a_later_sweep_keeps_their_own_levels(monkeypatch):
+    """Left silenced by a signal, distributed's loggers are put back ``QUIET_GRACE`` seconds later
+    (a notebook's session goes on after a Ctrl-C: it stayed silent for good); a sweep that
+    silences them meanwhile records their levels before the silence, not the silence."""
+    import logging
+
+    log = logging.getLogger("distributed.worker")
+    monkeypatch.setattr(log, "level", logging.INFO)
+    monkeypatch.setattr(executors, "QUIET_GRACE", 0.2)
+    executors._Quiet().after(KeyboardInterrupt)
+    assert log.level > logging.CRITICAL
+    later = executors._Quiet()
+    later.now()  # (a second sweep, within the grace)
+    assert later.levels["distributed.worker"] == logging.INFO
+    later.restore()
+    assert log.level == logging.INFO
+    executors._Quiet().after(KeyboardInterrupt)
+    deadline = time.monotonic() + 30
+    while log.level != logging.INFO and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert log.level == logging.INFO

@@ -142,3 +142,33 @@ def test_a_local_pool_keeps_the_host_programs_forkserver_preload(tmp_path):
     proc, _, _ = run_script(tmp_path, PRELOAD)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.splitlines() == ["[True, True] forkserver", "['colorsys']"], proc.stdout
+
+
+# a script whose in-process sweep (jobs=1) runs at import, then a pool of its own (guarded): each
+# of its own processes runs the script again, and the sweep with it, as before; only tlm's own
+# processes leave as they start (a reviewer: they all left, and the host's pool broke)
+OWN_POOL = """
+import multiprocessing, sys
+from concurrent.futures import ProcessPoolExecutor
+with open({log!r}, "a") as f:
+    f.write(__name__ + "\\n")
+import tlm
+rows = tlm.sweep({sweep!r}, {out!r}, jobs=1, progress=False)
+
+
+def square(x):
+    return x * x
+
+
+if __name__ == "__main__":
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as ex:
+        print(list(ex.map(square, [1, 2])), list(rows["status"]))
+"""
+
+
+def test_a_pool_of_the_host_s_own_runs_the_script_as_before(tmp_path):
+    proc, out, runs = run_script(tmp_path, OWN_POOL)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.splitlines() == ["[1, 4] ['ok', 'ok']"], proc.stdout
+    assert runs.count("__main__") == 1 and runs.count("__mp_main__") >= 1, runs
+    assert (out / "sweep.csv").is_file()

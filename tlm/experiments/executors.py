@@ -430,13 +430,48 @@ def _alive(pid: int) -> bool:
     return True
 
 
+OWN_PROCESS = "tlm-"  # the start of the name of every process a local pool of tlm's starts
+
+
+class _SpawnWorker(multiprocessing.context.SpawnProcess):
+    """A ``spawn`` process of tlm's own pool: named :data:`OWN_PROCESS`..., a name the process
+    has before it runs the main script again (:func:`leave_if_bootstrapping`)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        if not self.name.startswith(OWN_PROCESS):
+            self.name = OWN_PROCESS + self.name
+
+
+class _SpawnContext(multiprocessing.context.SpawnContext):
+    """The ``spawn`` context whose processes are tlm's own (:class:`_SpawnWorker`)."""
+
+    Process = _SpawnWorker
+
+
+if hasattr(multiprocessing.context, "ForkServerContext"):  # (POSIX)
+    class _ForkServerWorker(multiprocessing.context.ForkServerProcess):
+        """A ``forkserver`` process of tlm's own pool (as :class:`_SpawnWorker`)."""
+
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            if not self.name.startswith(OWN_PROCESS):
+                self.name = OWN_PROCESS + self.name
+
+    class _ForkServerContext(multiprocessing.context.ForkServerContext):
+        """The ``forkserver`` context whose processes are tlm's own (:class:`_ForkServerWorker`)."""
+
+        Process = _ForkServerWorker
+
+
 def _mp_context():
-    """A local pool's multiprocessing context: ``forkserver`` (else ``spawn``). Asked for in a
-    worker process still bootstrapping, it ends that process (:func:`leave_if_bootstrapping`)."""
+    """A local pool's multiprocessing context: ``forkserver`` (else ``spawn``), whose processes
+    are named as tlm's own (:data:`OWN_PROCESS`). Asked for in a process of tlm's still
+    bootstrapping, it ends that process (:func:`leave_if_bootstrapping`)."""
     leave_if_bootstrapping()
     if "forkserver" not in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("spawn")
-    return multiprocessing.get_context("forkserver")
+        return _SpawnContext()
+    return _ForkServerContext()
 
 
 @contextmanager
@@ -472,8 +507,12 @@ def leave_if_bootstrapping() -> None:
     that calls ``tlm.sweep`` not under ``if __name__ == "__main__":`` asks for a sweep there. It
     would start nothing (Python refuses a new process then: each worker printed that
     RuntimeError's traceback, and the sweep saw its workers die before any point); its exit
-    status tells the sweep's process why (:func:`_check_guarded`, :meth:`LocalPool._replace`)."""
-    if getattr(multiprocessing.current_process(), "_inheriting", False):
+    status tells the sweep's process why (:func:`_check_guarded`, :meth:`LocalPool._replace`).
+    Only tlm's own processes leave (named :data:`OWN_PROCESS`..., a name they have before they
+    run the script): a process of the host's own (its pool, a Dask nanny's worker) that runs the
+    script again runs its sweep as before (in-process; a pool of its own is Python's to refuse)."""
+    me = multiprocessing.current_process()
+    if getattr(me, "_inheriting", False) and me.name.startswith(OWN_PROCESS):
         os._exit(UNGUARDED_EXIT)
 
 
@@ -507,7 +546,7 @@ def _check_guarded(context) -> None:
     pool); none where no script is run again, nor under ``fork``."""
     if context.get_start_method() == "fork" or main_script() is None:
         return
-    probe = context.Process(name="tlm-guard-check")  # (no target: it runs nothing)
+    probe = context.Process(name=f"{OWN_PROCESS}guard-check")  # (no target: it runs nothing)
     with _sigint_ignored():  # (as a worker: a Ctrl-C reaches the sweep alone)
         probe.start()
     try:
@@ -647,22 +686,25 @@ class _Quiet:
         self.levels: dict[str, int] = {}
 
     def now(self) -> None:
-        for name in ["distributed", *logging.root.manager.loggerDict]:  # (dask's config sets its children's)
-            if (name == "distributed" or name.startswith("distributed.")) and name not in self.levels:
-                self.levels[name] = logging.getLogger(name).level
-                logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+        with _LEFT_LOCK:
+            for name in ["distributed", *logging.root.manager.loggerDict]:  # (dask's config sets its children's)
+                if (name == "distributed" or name.startswith("distributed.")) and name not in self.levels:
+                    # (one left silenced after an earlier signal: its level before that, not the silence)
+                    self.levels[name] = _LEFT_QUIET.pop(name, logging.getLogger(name).level)
+                    logging.getLogger(name).setLevel(logging.CRITICAL + 1)
 
     def restore(self) -> None:
         for name, level in self.levels.items():
             logging.getLogger(name).setLevel(level)
         self.levels.clear()
 
-    # A signal (SIGINT, SIGTERM, SIGHUP: a KeyboardInterrupt, tlm.cli_signals) ends the process:
-    # its process group's signal may have killed the --dask local workers first, and
+    # A signal (SIGINT, SIGTERM, SIGHUP: a KeyboardInterrupt, tlm.cli_signals) ends the command's
+    # process: its process group's signal may have killed the --dask local workers first, and
     # distributed's event loop thread, which outlives the cluster's close, then logs each
     # closed connection with its traceback ("Batched Comm Closed") after tlm's one line (the
     # cluster's own silence_logs ends with its close). Its loggers stay silenced from the
-    # cluster's close to the process's end; any other end of the stack puts them back.
+    # cluster's close for QUIET_GRACE seconds, then are put back (a Python session that
+    # goes on after a Ctrl-C: a notebook's); any other end of the stack puts them back at once.
 
     def before(self, kind: type[BaseException] | None, *_) -> bool:
         """An ExitStack exit callback entered after the cluster: on a signal, silence now."""
@@ -671,12 +713,32 @@ class _Quiet:
         return False
 
     def after(self, kind: type[BaseException] | None, *_) -> bool:
-        """An ExitStack exit callback entered before the cluster: put the levels back but on a signal."""
-        if _signalled(kind):
-            self.now()
-        else:
+        """An ExitStack exit callback entered before the cluster: put the levels back, on a
+        signal only :data:`QUIET_GRACE` seconds later."""
+        if not _signalled(kind):
             self.restore()
+            return False
+        self.now()
+        with _LEFT_LOCK:
+            _LEFT_QUIET.update(self.levels)
+            self.levels.clear()
+        later = threading.Timer(QUIET_GRACE, _put_back_left)
+        later.daemon = True  # (a process that ends meanwhile does not wait for it)
+        later.start()
         return False
+
+
+QUIET_GRACE = 10.0  # seconds distributed's loggers stay silenced after a signal ended a --dask local sweep
+_LEFT_QUIET: dict[str, int] = {}  # logger -> its level before the silence, for the loggers left silenced
+_LEFT_LOCK = threading.Lock()
+
+
+def _put_back_left() -> None:
+    """The levels of the loggers left silenced after a signal (:meth:`_Quiet.after`), put back."""
+    with _LEFT_LOCK:
+        for name, level in _LEFT_QUIET.items():
+            logging.getLogger(name).setLevel(level)
+        _LEFT_QUIET.clear()
 
 
 def _signalled(kind: type[BaseException] | None) -> bool:
