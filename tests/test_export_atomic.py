@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -130,7 +131,8 @@ def test_config_export_writes_a_sweep_and_its_base_or_neither(tmp_path, monkeypa
         monkeypatch.setattr(tlm.storage, "write_file", write_file)
     with pytest.raises(EnvironmentFailure if fail == "full-disk" else KeyboardInterrupt):
         tlm.builtin.export_experiment("sweep_fifo", tmp_path / "fifo.yaml")
-    assert [p.name for p in calls] == ["fifo.yaml", "cornell.yaml"]
+    # (each written to its hidden file beside it first: tlm.storage.write_files)
+    assert [re.sub(r"^\.(.*)\.new.*$", r"\1", p.name) for p in calls] == ["fifo.yaml", "cornell.yaml"]
     assert _contents(tmp_path) == {}  # (the old code left fifo.yaml, whose base: cornell.yaml is not there)
     monkeypatch.undo()
     assert tlm.builtin.export_experiment("sweep_fifo", tmp_path / "fifo.yaml") == [tmp_path / "fifo.yaml",

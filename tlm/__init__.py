@@ -20,6 +20,7 @@ if TYPE_CHECKING:
         Deadlock,
         InputError,
         MaxEventsReached,
+        StepsFailed,
         calibrate,
         error_vs_cost,
         export_scene,
@@ -48,8 +49,8 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "calibrate", "error_vs_cost",
-    "export_scene",
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "StepsFailed", "calibrate",
+    "error_vs_cost", "export_scene",
     "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
     "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
     "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",

@@ -55,6 +55,7 @@ from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_common import renamed as _renamed
 from tlm.api_common import shown as _shown
 from tlm.api_studies import (  # the many experiments and the reports (see the end of this module)
+    StudyRows,  # noqa: F401  (not in __all__: what error_vs_cost returns, a list of rows with attrs)
     calibrate,
     calibration_table,  # noqa: F401  (not in __all__: the CLI's tlm.api.<name>, as in_checkout, report_output)
     error_vs_cost,
@@ -84,7 +85,7 @@ from tlm.config import (
 from tlm.config_words import with_overrides
 from tlm.errors import (
     InputError,
-    StepsFailed,  # noqa: F401  (not in __all__: what plots raises, read as tlm.api.StepsFailed)
+    StepsFailed,  # (what plots raises)
     did_you_mean,
 )
 from tlm.whole_imports import imports_whole
@@ -100,8 +101,8 @@ if TYPE_CHECKING:
     from tlm.scenes.model import Scene
 
 __all__ = [
-    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "calibrate", "error_vs_cost",
-    "export_scene",
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "StepsFailed", "calibrate",
+    "error_vs_cost", "export_scene",
     "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
     "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
     "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",
@@ -660,7 +661,8 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     terminal), and, with no ``say``, the lines on a reference computed now on stderr too (a
     notebook shows them: a reference may take minutes). ``reference``: compute the photon-map
     frame's reference when none is cached (True or False; default None: the config's
-    ``reference.auto``); ``say`` gets a line before and after computing it.
+    ``reference.auto``); ``say`` gets a line before and after computing it (naming this call's
+    arguments, ``reference=False``, where ``tlm run`` names its flags).
     A destination that is not a tlm folder, or bad input, fails before any work.
     """
     from tlm.experiments import run as runs
@@ -684,8 +686,14 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
     if outputs is not None and "trace" in chosen and not cfg.arch.trace:
         cfg = cfg.updated({"arch.trace": True})  # (asked for by name: the config's arch.trace: false gives way)
     auto = cfg.settings.reference.auto if reference is None else reference
+    hear = _said(say, progress)
+
+    def named(line: str) -> None:  # (a caller in Python: reference=False, not --no-reference)
+        hear(arguments_text(line, {"config", "out", "outputs", "progress", "reference", "say"}, {"progress"}))
+
+    told = named if hear is not None and not flags_are_kept() else hear
     results = runs.run(cfg.settings, out, cfg.base, config_path=cfg.source, overrides=list(cfg.overrides), via=cfg.via,
-                       outputs=chosen, progress=progress, reference=auto, say=_said(say, progress))
+                       outputs=chosen, progress=progress, reference=auto, say=told)
     from tlm.storage import json_text
 
     return json.loads(json_text(results))  # (what the file holds: inf and nan as None)

@@ -89,7 +89,8 @@ def renamed(error: InputError, key: str) -> InputError:
 
 # a flag whose argument has another name than the flag's own (--dask-wait: dask_wait)
 FLAG_ARGUMENTS = {"--write": "target", "--set": "overrides"}
-_FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*(?: [A-Z][A-Z_]*\b)?")  # --jobs, --write FILE
+# --jobs, --write FILE, --truth-spp 0 (a flag and its value: truth_spp=0)
+_FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*(?: [A-Z][A-Z_]*\b| -?[0-9]+(?:\.[0-9]+)?\b(?!\.[0-9]))?")
 _COMMAND = re.compile(r"\btlm [a-z-]+(?: [^\s,;:()]+)* $")  # what precedes a flag of a command shown whole
 # what precedes a flag that is a config's label, ``cornell.yaml, with --set`` (the overrides' ``via``: kept)
 _LABEL = re.compile(r", with $")
@@ -101,18 +102,33 @@ def flag_argument(flag: str, names: set[str]) -> str | None:
     return name if name in names else None
 
 
+def negated_argument(flag: str, names: set[str]) -> str | None:
+    """The argument among ``names`` that the command line's ``--no-NAME`` flag turns off
+    (``--no-reference``: ``reference``, given as ``reference=False``), or None."""
+    return flag_argument(f"--{flag[5:]}", names) if flag.startswith("--no-") else None
+
+
 def arguments_text(text: str, names: set[str], switches: set[str] | frozenset[str] = frozenset()) -> str:
     """``text`` naming the arguments ``names`` where it named the command line's flags (``give
     --dask local``: ``give dask local``; ``--write FILE``: ``target``; a flag of a True-or-False
-    argument among ``switches``, ``use --force``: ``use force=True``), but those of a command shown
+    argument among ``switches``, ``use --force``: ``use force=True``; a flag that turns an argument
+    off, ``--no-reference``: ``reference=False``; a flag and a number, ``--truth-spp 0``:
+    ``truth_spp=0``), but those of a command shown
     whole (``tlm report --formats pdf``), a config's label (``cornell.yaml, with --set``: how its
     overrides were given, :attr:`tlm.api.Config.via`) and flags of no argument of the function."""
 
     def argument(m: re.Match) -> str:
-        found = flag_argument(m.group(0).split(" ")[0], names)
+        flag = m.group(0).split(" ")[0]
+        found = flag_argument(flag, names)
+        off = negated_argument(flag, names) if found is None else None
         before = text[max(0, m.start() - 60):m.start()]
-        if found is None or _COMMAND.search(before) or _LABEL.search(before):
+        if (found is None and off is None) or _COMMAND.search(before) or _LABEL.search(before):
             return m.group(0)
+        value = m.group(0)[len(flag) + 1:]
+        if off is not None:
+            return f"{off}=False{f' {value}' if value else ''}"
+        if value[:1].isdigit() or value[:1] == "-":  # (a number given to it: as Python passes it)
+            return f"{found}={value}"
         return f"{found}=True" if found in switches else found
 
     return _FLAG.sub(argument, text)

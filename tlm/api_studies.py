@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from tlm.api_common import argument_names
+from tlm.api_common import argument_names, arguments_text, flags_are_kept
 from tlm.api_common import checked as _checked
 from tlm.api_common import experiment_file as _experiment_file
 from tlm.api_common import folder as _folder
@@ -237,20 +237,50 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
                            overrides=_overrides(overrides))
 
 
+class StudyRows(list):
+    """A study's rows, a list of dicts (one per point), with ``attrs`` as a pandas DataFrame has
+    them (:func:`sweep`'s table): ``attrs["notes"]`` and ``attrs["warnings"]``, lists of the lines
+    the study said (empty: none)."""
+
+    def __init__(self, rows: Iterable[dict] = (), notes: Iterable[str] = (), warnings: Iterable[str] = ()):
+        super().__init__(rows)
+        self.attrs = {"notes": list(notes), "warnings": list(warnings)}
+
+
 @argument_names
 @imports_whole
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
-                  note: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> list[dict]:
+                  note: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> StudyRows:
     """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
     one row per point of the experiment file ``path`` (or the built-in experiment of that
-    name); ``truth_spp``: samples per pixel of Mitsuba 3's ground truth (0: none);
-    ``overrides``: ``dotted.key=value`` strings (``tlm error-vs-cost --set``) applied to its base
-    (not a key its points vary)."""
+    name), a list of dicts (:class:`StudyRows`); ``truth_spp``: samples per pixel of Mitsuba 3's
+    ground truth (0: none); ``overrides``: ``dotted.key=value`` strings (``tlm error-vs-cost
+    --set``) applied to its base (not a key its points vary). The study's notes (the reference
+    computed, or the ground truth; no ground truth, and why: its ``truth_*`` columns are then empty)
+    are the rows' ``attrs["notes"]``, and ``note`` gets each as it is known too (None: nothing is
+    printed); its warnings (the reference not converged, or not cached), which it prints on stderr
+    as ``tlm error-vs-cost`` does, are their ``attrs["warnings"]``."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
-    return run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
-                             truth=Truth(spp=truth_spp), note=note, overrides=_overrides(overrides))
+    notes: list[str] = []
+    warnings: list[str] = []
+    kept = flags_are_kept()
+    names = {"path", "out", "truth_spp", "progress", "note", "overrides"}
+
+    def said(lines: list[str], hear: Callable[[str], None] | None) -> Callable[[str], None]:
+        def told(line: str) -> None:  # (a caller in Python: truth_spp=0, not --truth-spp 0)
+            line = line if kept else arguments_text(line, names)
+            lines.append(line)
+            if hear is not None:
+                hear(line)
+
+        return told
+
+    rows = run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
+                             truth=Truth(spp=truth_spp), note=said(notes, note), overrides=_overrides(overrides),
+                             warned=said(warnings, None))
+    return StudyRows(rows, notes, warnings)
 
 
 @argument_names

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import re
-from contextlib import suppress
 from pathlib import Path
 
 from tlm.config import read_yaml
@@ -190,14 +189,14 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
     returns the files written. Its comment's commands name the copy (``tlm sweep sr.yaml``,
     not the checkout's ``configs/scaling_ring.yaml``: :func:`exported_text`). A sweep whose
     ``base:`` is a run config file beside it gets that file beside ``file`` too, so that the
-    copy runs as it is: both files, or neither (on a full disk, or a signal, the one written
-    is removed). A file there already with the contents it would get (an export done before)
-    is kept, not written again, and not returned. Refused (InputError, nothing written): a
-    name that is no built-in experiment, a file that is not ``.yaml``, a folder that does not
+    copy runs as it is: both files, or neither (:func:`tlm.storage.write_files`: on a full disk,
+    or a signal, the one written is removed). A file there already with the contents it would get
+    (an export done before) is kept, not written again, and not returned. Refused (InputError,
+    nothing written): a name that is no built-in experiment, a file that is not ``.yaml``, a folder that does not
     exist, a ``file`` of the base's own name, and a file that exists with other contents:
     ``file`` (a copy edited before is not overwritten) or the base's beside it (the user's own
     ``ring.yaml``, which the copy's ``base: ring.yaml`` would read in place of the built-in's)."""
-    from tlm.storage import write_file
+    from tlm.storage import write_files
 
     names = list_experiments()
     if name not in names:
@@ -226,16 +225,7 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
                    "another folder (or remove it)")
             raise InputError(f"exists with other contents: {how}", source=str(dst))
     copies = [(data, dst) for data, dst in copies if not dst.exists()]  # (the same contents: kept)
-    written: list[Path] = []
-    try:  # (the pair or neither: a copy without its base reads no base; none of them was there before)
-        for data, dst in copies:
-            written.append(dst)  # (before it exists: a signal after its rename still removes it)
-            write_file(dst, data)
-    except BaseException:
-        for dst in written:
-            with suppress(OSError):
-                dst.unlink(missing_ok=True)
-        raise
+    write_files([(dst, data) for data, dst in copies])  # (the pair or neither: a copy without its base reads no base)
     return [dst for _, dst in copies]
 
 

@@ -64,7 +64,8 @@ File format::
       - {estimate.filter: [kvoxel], estimate.k: [4, 8, 16], ...}
 
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
-pandas), ``reference.json`` (the reference used: its metadata, ``reference_converged``
+pandas; in the CSV a null of a setting's column, :data:`SETTING_COLUMNS`, is ``null``, any other
+an empty cell), ``reference.json`` (the reference used: its metadata, ``reference_converged``
 and whether it was ``computed`` by this study), ``config.resolved.yaml`` and
 ``provenance.json`` (versions, git revision, host seconds).
 """
@@ -105,6 +106,7 @@ from tlm.experiments.reference_cache import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
+from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
 from tlm.render.frame import Frame, GBuffer, cast
@@ -127,6 +129,11 @@ COLUMNS = (
     "trace_seconds", "gather_seconds", "one_off_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
 )
+# the columns that hold a point's setting as its config has it: their null is the setting's value
+# (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other
+# column's null is a measure not taken or of no meaning for the row (no ground truth, the k of a filter that
+# samples no voxels, the fps of no cycles): an empty cell
+SETTING_COLUMNS = ("filter", "radius_fraction", "cone_k", "final_gather", "aim")
 
 
 # what every point shares with the base (the module's docstring): key -> what it is
@@ -237,7 +244,7 @@ class Truth:
         the path tracer, with the particle tracer at the diffuse pixels where a point
         light's caustics would be missing), or None and why not."""
         scene = frame.scene
-        if self.spp <= 0:
+        if self.spp <= 0:  # (tlm.error_vs_cost's note: truth_spp=0)
             return None, {"available": False, "reason": "not asked for (--truth-spp 0)"}
         try:
             from tlm.oracle import mitsuba as oracle
@@ -272,14 +279,16 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
 
 
 def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None,
-                      overrides: tuple[str, ...] = ()) -> list[dict]:
+                      overrides: tuple[str, ...] = (), warned=None) -> list[dict]:
     """Run every point of the experiment file ``path``; write the rows into ``out``.
 
     Each row measures the point's photon-map frame against our converged reference
     (``rmse``, ``rel_mse``: the estimator's error at this photon path model) and its whole
     composite (every planned frame) against the independent ground truth (``truth_*``:
     Mitsuba's path tracer, so bias of the model shows as well as noise), when there is
-    one. ``note`` receives one-line messages (the ground truth computed, or missing).
+    one. ``note`` receives one-line messages (the reference or the ground truth computed, or no
+    ground truth); ``warned`` each warning line, which is printed on stderr too (the reference not
+    converged, or not cached: :func:`study_warning`).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
     """
@@ -309,15 +318,15 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                              "render's specular depths and Fresnel settings, reference.photons, reference.k_nearest): "
                              "every point is measured against the base's reference; run one experiment per value",
                              source=str(path), key=f"points: {point}")
-    reference, ref_meta, computed = study_reference(frame0, settings, key, note)
+    reference, ref_meta, computed = study_reference(frame0, settings, key, note, warned)
     converged = meets_tolerance(ref_meta, settings)
     if not converged:
         err = ref_meta.get("relative_standard_error")
-        warn(f"error-vs-cost: the photon-map reference {key} is NOT converged: relative standard error "
-             f"{'n/a' if err is None else f'{err:.4f}'} after {ref_meta.get('rounds')} rounds, above the base's "
-             f"reference.tolerance {settings.tolerance}; every row's rmse and rel_mse include its noise "
-             "(reference_converged: false in the rows and reference.json); raise the base's reference.max_rounds "
-             "(or reference.tolerance)")
+        study_warning(f"error-vs-cost: the photon-map reference {key} is NOT converged: relative standard error "
+                      f"{'n/a' if err is None else f'{err:.4f}'} after {ref_meta.get('rounds')} rounds, above the "
+                      f"base's reference.tolerance {settings.tolerance}; every row's rmse and rel_mse include its "
+                      "noise (reference_converged: false in the rows and reference.json); raise the base's "
+                      "reference.max_rounds (or reference.tolerance)", warned)
     reference = reference.reshape(-1, 3)
     truth_image, truth_meta = truth.load(frame0, g, note)
     keep = None
@@ -401,10 +410,12 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
-                         files=lambda _rows: {"reference.json": {"key": key, **ref_meta,
-                                                                 "reference_converged": converged,
-                                                                 "computed": computed},
-                                              "truth.json": truth_meta})
+                         files=lambda rows: {"reference.json": {"key": key, **ref_meta,
+                                                                "reference_converged": converged,
+                                                                "computed": computed},
+                                             "truth.json": truth_meta,
+                                             # (over run_study's rows.csv: a setting's null as null)
+                                             "rows.csv": csv_text(rows, COLUMNS, SETTING_COLUMNS)})
 
 
 # the warm-up of a point's settings (:class:`WarmUp`): its photon trace of at most this many photons
@@ -574,7 +585,7 @@ def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:
 
 
 def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
-                    note=None) -> tuple[np.ndarray, dict, bool]:
+                    note=None, warned=None) -> tuple[np.ndarray, dict, bool]:
     """The reference the study measures against, as ``tlm reference`` gets it: the cached
     one when it meets the base's ``reference.tolerance`` (:func:`meets_tolerance`), else
     computed now with the base's settings and cached where it is better (``note`` says so before the
@@ -588,8 +599,8 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     One computed now replaces the cached one only where it is better, else the study uses the
     cached one and ``note`` says which and why
     (:func:`~tlm.experiments.reference_cache.store_reference`). One computed now that the cache cannot
-    take is not lost (:func:`_uncached_reference`). Returns the image, its metadata and whether
-    it was computed now (False: the cached one is used)."""
+    take is not lost (:func:`_uncached_reference`; ``warned`` gets its warning line too). Returns the
+    image, its metadata and whether it was computed now (False: the cached one is used)."""
     found = load_reference(key)
     if found is None and note is not None:  # (as tlm run says it: the rounds may take minutes)
         note(computing_line(key, settings, "every study and run of this scene"))
@@ -609,7 +620,7 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     try:
         stored = store_reference(key, image, meta, settings)
     except (EnvironmentFailure, OSError, InputError) as e:  # (a cache that cannot take it: the study goes on)
-        return *_uncached_reference(key, image, meta, e), True
+        return *_uncached_reference(key, image, meta, e, warned), True
     if not stored.replaced:
         if note is not None:
             note(f"{stored.line}; the study uses the cached one")
@@ -618,26 +629,35 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     return found[0], found[1], True
 
 
-def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseException) -> tuple[np.ndarray, dict]:
+def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseException,
+                        warned=None) -> tuple[np.ndarray, dict]:
     """The reference ``key`` the cache could not take (``error``), kept as ``tlm reference``
     keeps it (in :func:`~tlm.experiments.reference_cache.kept_root`, which ``TLM_CACHE`` set to it
-    reads), with one warning line that says where; used by this study only, and said so, where
-    that cannot be written either. The image as a cached one reads back (float32), and its
-    metadata."""
+    reads), with one warning line that says where (:func:`study_warning`); used by this study only,
+    and said so, where that cannot be written either. The image as a cached one reads back
+    (float32), and its metadata."""
     why = " ".join(str(error).split())
     root = kept_root()
     try:
         folder = save_reference(key, image, meta, root / "references")
     except (EnvironmentFailure, OSError, InputError) as e:
-        warn(f"reference {key}: not cached ({why}), nor kept in {root} ({' '.join(str(e).split())}): used by "
-             "this study only")
+        study_warning(f"reference {key}: not cached ({why}), nor kept in {root} ({' '.join(str(e).split())}): "
+                      "used by this study only", warned)
     else:
-        warn(f"reference {key}: not cached ({why}): kept in {folder} instead, which later runs read with "
-             f"TLM_CACHE={root}")
+        study_warning(f"reference {key}: not cached ({why}): kept in {folder} instead, which later runs read with "
+                      f"TLM_CACHE={root}", warned)
         kept = cached_image(folder, "reference.npy", key, "reference", "the next study computes it again")
         if kept is not None:  # (what a later run reads from there: reference.json the same as a cached one's)
             return kept
     return image.astype(np.float32), {"key": key, **meta}
+
+
+def study_warning(message: str, warned=None) -> None:
+    """A warning of the study: on stderr (:func:`tlm.storage.warn`, ``tlm: warning: ...``), and
+    to ``warned`` (where given) as the one line it printed."""
+    warn(message)
+    if warned is not None:
+        warned(" ".join(message.split()))
 
 
 def factors_text(point: dict[str, Any]) -> str:

@@ -7,12 +7,14 @@ busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), t
 error where there is a reference, whether the frame came from the functional cache, and
 host seconds. ``sweep.jsonl`` and ``sweep.csv`` hold the rows (:func:`write_rows`), the CSV
 with an ok point's columns whatever the points' outcome (:func:`columns`), and a factor's null
-value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell.
+value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
+(:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
 import re
 from collections.abc import Iterable
@@ -138,6 +140,24 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
         w.writeheader()
         for r in rows:
             w.writerow({k: csv_cell(v, k in named) for k, v in r.items()})
+
+
+def csv_text(rows: Iterable[dict], columns: Iterable[str] = (), values: Iterable[str] = ()) -> str:
+    """The CSV of ``rows`` as :func:`tlm.storage.write_rows` writes a study's (``columns`` first, a
+    column no row has included, then every other key of the rows as it first appears), each cell
+    :func:`csv_cell`'s, a null of a key of ``values`` (a null that is a setting's value, not a field
+    missing or of no meaning) as ``null``."""
+    rows = list(rows)
+    cols = list(columns)
+    for r in rows:
+        cols.extend(k for k in r if k not in cols)
+    values = set(values)
+    buffer = io.StringIO(newline="")
+    w = csv.DictWriter(buffer, fieldnames=cols)
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: csv_cell(v, k in values) for k, v in r.items()})
+    return buffer.getvalue()
 
 
 def csv_cell(value: Any, factor: bool = False) -> Any:
