@@ -486,18 +486,22 @@ def _tlm_preloaded():
     unguarded script's sweep there."""
     from multiprocessing import forkserver
 
-    server = getattr(forkserver, "_forkserver", None)
-    host = getattr(server, "_preload_modules", None)  # (no public reader)
-    if not isinstance(host, list):  # (another Python's fork server: tlm's list alone, as before)
-        forkserver.set_forkserver_preload(list(TLM_PRELOAD))
-        yield
-        return
-    forkserver.set_forkserver_preload([*(m for m in host if m != "__main__"),
-                                       *(m for m in TLM_PRELOAD if m not in host)])
-    try:
-        yield
-    finally:
-        forkserver.set_forkserver_preload(host)
+    with _PRELOAD_LOCK:  # (two threads starting pools at once: the second would keep the first's list as the host's)
+        server = getattr(forkserver, "_forkserver", None)
+        host = getattr(server, "_preload_modules", None)  # (no public reader)
+        if not isinstance(host, list):  # (another Python's fork server: tlm's list alone, as before)
+            forkserver.set_forkserver_preload(list(TLM_PRELOAD))
+            yield
+            return
+        forkserver.set_forkserver_preload([*(m for m in host if m != "__main__"),
+                                           *(m for m in TLM_PRELOAD if m not in host)])
+        try:
+            yield
+        finally:
+            forkserver.set_forkserver_preload(host)
+
+
+_PRELOAD_LOCK = threading.Lock()
 
 
 def leave_if_bootstrapping() -> None:
