@@ -228,5 +228,5 @@ def test_a_run_s_reference_the_cache_cannot_take_is_said_so_before_and_after(tmp
     before = next(line for line in lines if line.startswith("computing the photon-map reference"))
     assert "it is cached for" not in before  # (was: "it is cached for every run of this scene", then not cached)
     assert before.endswith(f"the cache cannot take it ({afile} is a file, not a folder): used by this run only, "
-                           "and computed again by the next ('--no-reference' or reference.auto: false skips it)")
+                           "and computed again by the next ('reference=False' or reference.auto: false skips it)")
     assert any(line.endswith("used by this run only") and "not cached (" in line for line in lines), lines

@@ -208,7 +208,7 @@ def test_thesis_and_granularity_run_their_base_with_the_set(tmp_path, capsys):
                  "--set", "resolution=[10, 10]"]) == 0
     results = json.loads((tmp_path / "t" / "cornell" / "rcast" / "results.json").read_text())
     assert results["scene"]["resolution"] == [10, 10]
-    assert results["overrides"] == ["resolution=[10, 10]", "scene=cornell", "mode=rcast"]
+    assert results["overrides"] == ["resolution=[10, 10]"]  # (the user's alone: the cell's own scene, mode apart)
     assert json.loads((tmp_path / "t" / "provenance.json").read_text())["overrides"] == ["resolution=[10, 10]"]
 
     gran = _file(tmp_path, "gr.yaml", {"base": {"scene": "cornell", "mode": "rcast", **FAST}, "packet_sizes": [1, 16]})

@@ -42,8 +42,9 @@ def test_a_rerun_after_a_code_edit_says_how_many_old_point_folders_stay(tmp_path
     assert main(["sweep", str(path), "--out", str(out), "--jobs", "1", "--no-progress", "--no-report"]) == 0
     said = capsys.readouterr()
     line = (f"2 point folders in {out / 'points'} are not this sweep's: left by an earlier run into the folder of "
-            "other tlm code or another config (an edit under tlm/ or to an input file changes every point's hash); "
-            "nothing reads them, and removing them changes no result (sweep.yaml lists this sweep's hashes)")
+            "other tlm code, another config or a different --set (an edit under tlm/ or to an input file changes "
+            "every point's hash); nothing reads them, and removing them changes no result (sweep.yaml lists this "
+            "sweep's hashes)")
     assert f"tlm: warning: {line}\n" in said.err
     assert "2 points: 2 ok, 0 failed, 0 skipped (done before)" in said.out
     assert len([p for p in (out / "points").iterdir() if not p.name.startswith(".")]) == 4  # (nothing removed)

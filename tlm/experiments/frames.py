@@ -6,9 +6,12 @@ saved as one ``.npz`` keyed by everything that determines it: the config without
 scene's content and the code (:func:`tlm.fingerprint.code_fingerprint`, the whole package).
 Re-simulating a frame under another architecture config then reruns only the SimPy layer.
 Beside each ``.npz`` a JSON sidecar of the same key keeps what a result row needs and the
-timing model does not (work totals, scene statistics, the photon-map frame's image error),
-so a sweep point never has to render to report them, with the size and sha256 of the
-``.npz`` (``npz``): a damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
+timing model does not (work totals, scene statistics), so a sweep point never has to render to
+report them, with the size and sha256 of the ``.npz`` (``npz``). A photon-map frame keeps its
+image too (``<key>.pmap.npy``, its size and sha256 in the sidecar's ``pmap``), so its error is
+measured when the frame is read, against the reference cached then (:func:`cached_render`): a
+reference computed after the frame was cached (``tlm reference``) is used, as ``tlm run`` would.
+A damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
 key a result row reads or with one of another type (:func:`summary_problem`), a folder where either
 file should be) is reported once as a warning naming the file, removed (a folder too, only inside
 the cache) and rendered again. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
@@ -21,6 +24,7 @@ rendered from the scene its key loaded (:func:`cached_render`), not loaded again
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -37,6 +41,7 @@ from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, 
 from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
+from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.planner import inert_changes, inert_settings
@@ -69,8 +74,10 @@ class CachedRender:
     scene's statistics, the plan, the primary rays, the work totals per pass, the photon
     map's statistics and the photon-map frame's error, as ``results.json`` of ``tlm run``
     writes them (keys :data:`SUMMARY_KEYS`), and the render's host seconds per stage.
-    The error is the one measured when the frame was rendered: a reference computed
-    later does not change a cached summary.
+    The error is measured when the frame is read, from its image in the cache, against the
+    reference cached now and judged by this config's ``reference`` settings (a reference
+    computed after the frame was cached is used; the cached frame stays valid), as ``tlm run``
+    of the config would measure it.
     """
 
     functional: Functional
@@ -80,14 +87,17 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/4"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
-# /4: a reference not converged is a warning, and an unread override is warned of once
+SUMMARY_FORMAT = "functional-summary/5"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
+# /4: a reference not converged is a warning, and an unread override is warned of once; /5: the photon-map
+# frame's image kept (``pmap``), its error measured when read, the reference's lines not kept
 
 
 # what a sidecar of SUMMARY_FORMAT holds, by type (summary_problem): the keys a result row reads
+# (and ``pmap``: the photon-map frame's image file, its size and sha256, and the reference it was keyed to
+# with the reference settings of that key, ``reference``, ``photons``, ``k_nearest``; None without the pass)
 SUMMARY_FIELDS = {"scene": dict, "plan": dict, "primary": dict, "work": dict, "photons": (dict, type(None)),
-                  "error": (dict, type(None)), "warnings": list, "host_seconds": dict}
-assert set(SUMMARY_FIELDS) == {*SUMMARY_KEYS, "host_seconds"}
+                  "error": (dict, type(None)), "warnings": list, "host_seconds": dict, "pmap": (dict, type(None))}
+assert set(SUMMARY_FIELDS) == {*SUMMARY_KEYS, "host_seconds", "pmap"}
 
 
 def summary_problem(summary: dict) -> str | None:
@@ -99,6 +109,12 @@ def summary_problem(summary: dict) -> str | None:
     if why is None and not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                for v in summary["host_seconds"].values()):
         why = "its 'host_seconds' are not all numbers"
+    if why is None and (summary["pmap"] is None) != (summary["error"] is None):
+        why = "its 'pmap' and 'error' disagree on the photon-map frame"
+    if why is None and summary["pmap"] is not None and not (
+            isinstance(summary["pmap"].get("reference"), str)
+            and all(isinstance(summary["pmap"].get(k), int) for k in ("photons", "k_nearest"))):
+        why = "its 'pmap' has no reference key and settings"
     return why
 
 
@@ -252,7 +268,13 @@ def is_cached(key: str) -> bool:
     except (OSError, ValueError):
         return False
     return (isinstance(summary, dict) and summary.get("format") == SUMMARY_FORMAT
-            and summary_problem(summary) is None and digest_problem(path, summary.get("npz")) is None)
+            and summary_problem(summary) is None and digest_problem(path, summary.get("npz")) is None
+            and (summary["pmap"] is None or digest_problem(_image_file(path), summary["pmap"]) is None))
+
+
+def _image_file(path: Path) -> Path:
+    """The photon-map frame's image beside the entry's ``<key>.npz``: ``<key>.pmap.npy``."""
+    return path.with_suffix(".pmap.npy")
 
 
 def cached_render(cfg, base: Path | None = None, source: str | None = None, use_cache: bool = True
@@ -277,28 +299,97 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
         elif path.exists() and side.exists():
             got = _load_entry(path, side, key)
             if got is not None:
-                return _here(got, cfg, base, source, scene)
+                got = _here(got, cfg, base, source, scene)
+                return _measured(got, cfg, lambda: _image(path), scene, base, source)
     res = run.render(cfg, base, source, scene=scene, timer=timer)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
     # the render's own warnings: not this config's unused settings, which another config of the
-    # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep)
-    inert = set(inert_changes(cfg))
+    # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep), nor
+    # the reference's (its error is measured when the frame is read: _measured)
+    inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg)}
     full["warnings"] = [w for w in full["warnings"] if w not in inert]
+    pmap = res.radiance["pmap"].reshape(-1, 3) if res.error is not None else None
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS},
-               "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()}}
+               "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
+               "pmap": None if pmap is None else {"reference": res.error["reference"],
+                                                  **_reference_settings(cfg, res.scene.photons)}}
     if use_cache:
-        saved = False
+        saved = []
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            fn.save(path)  # the npz first: the sidecar holds its size and checksum
-            saved = True
-            write_file(side, json.dumps({**summary, "npz": file_digest(path)}, indent=1) + "\n")
+            fn.save(path)  # the npz (and the image) first: the sidecar holds their sizes and checksums
+            saved.append(path)
+            side_text = {**summary, "npz": file_digest(path)}
+            if pmap is not None:
+                saved.append(_image_file(path))
+                _save_image(_image_file(path), pmap)
+                side_text["pmap"] = {**summary["pmap"], **file_digest(_image_file(path))}
+            write_file(side, json.dumps(side_text, indent=1) + "\n")
         except OSError:  # a read-only (or full) cache only costs speed
-            if saved:  # (the .npz without its sidecar: nothing reads it, so it would only fill the disk)
-                remove_entry(path, cache_dir())
-    return CachedRender(fn, summary, False, key)
+            for done in saved:  # (files without their sidecar: nothing reads them, so they would only fill the disk)
+                remove_entry(done, cache_dir())
+    got = CachedRender(fn, summary, False, key)
+    return _measured(got, cfg, lambda: pmap, res.scene, base, source)
 
+
+def _save_image(path: Path, image: np.ndarray) -> None:
+    """The photon-map frame's image, written whole or not at all (a temporary file renamed)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.save(fh, image)
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _image(path: Path) -> np.ndarray:
+    """The cached photon-map frame's image beside ``path`` (its checksum was checked when the entry was read)."""
+    return np.load(_image_file(path), allow_pickle=False)
+
+
+def _reference_settings(cfg, scene_photons: int) -> dict:
+    """What of ``cfg``'s reference settings its reference's key holds beside the frame's (which the
+    functional key holds): the photons per round (null: the scene's) and ``k_nearest``."""
+    r = cfg.reference
+    return {"photons": int(scene_photons if r.photons is None else r.photons), "k_nearest": int(r.k_nearest)}
+
+
+def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | None, source: str | None
+              ) -> CachedRender:
+    """``got`` with its photon-map frame's ``error`` measured now: the image (``pmap()``) against the
+    reference of ``cfg`` cached now, as :func:`tlm.experiments.run.photon_error` measures it (the
+    reference's stopping rule ``cfg``'s), and the line on a reference not converged among its
+    warnings. The reference's key is the one the frame was rendered with where ``cfg`` asks the same
+    reference photons and ``k_nearest`` (the rest of that key is the frame's: scene, camera, the
+    photons' bounces and the specular walks'), else computed from the scene (loaded where the key
+    did not load it)."""
+    held = got.summary.get("pmap")
+    if not isinstance(held, dict) or got.summary.get("error") is None:
+        return got
+    from tlm.experiments.reference import reference_key
+    from tlm.experiments.reference_cache import ReferenceSettings, load_reference
+
+    scene_photons = (got.summary.get("scene") or {}).get("photons")
+    if scene is None and cfg.reference.photons is None and not isinstance(scene_photons, int):
+        scene = load_scene(cfg.scene, base, cfg.resolution, source)
+    mine = _reference_settings(cfg, scene_photons if scene is None else scene.photons)
+    settings = ReferenceSettings(**mine, tolerance=cfg.reference.tolerance, min_rounds=cfg.reference.min_rounds,
+                                 max_rounds=cfg.reference.max_rounds, spp=cfg.reference.spp)
+    if mine == {k: held.get(k) for k in mine}:
+        key = held["reference"]
+    else:
+        if scene is None:
+            scene = load_scene(cfg.scene, base, cfg.resolution, source)
+        key = reference_key(scene, cfg, settings)
+    found = load_reference(key)
+    image, meta = (None, None) if found is None else (found[0].reshape(-1, 3), found[1])
+    error = run.error_against(key, settings, pmap() if image is not None else None, image, meta)
+    summary = {**got.summary, "error": error,
+               "warnings": [*(got.summary.get("warnings") or []), *reference_warnings(error, cfg)]}
+    return CachedRender(got.functional, summary, got.cached, got.key)
 
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
     """``got``, a cached frame, with its summary's ``scene.source`` the file this config names,
@@ -338,6 +429,11 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
     if problem is not None:
         _damaged(path, side, problem)
         return None
+    if summary["pmap"] is not None:
+        problem = digest_problem(_image_file(path), summary["pmap"])
+        if problem is not None:
+            _damaged(_image_file(path), side, problem)
+            return None
     try:
         return CachedRender(Functional.load(path), summary, True, key)
     except Exception as e:  # BadZipFile, EOFError, zlib.error, ValueError, KeyError: a damaged file
@@ -348,7 +444,9 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
 def _damaged(bad: Path, other: Path, why: str) -> None:  # (its callers return None)
     """Say the damaged entry (``bad``, and ``other``, its other file) once, and remove both (a folder
     too: :func:`~tlm.caches.remove_entry`, only inside the cache)."""
-    left = [w for w in (remove_entry(f, cache_dir()) for f in (bad, other)) if w is not None]
+    npz = next(f for f in (bad, other) if f.suffix == ".json").with_suffix(".npz")
+    files = dict.fromkeys((bad, other, npz, _image_file(npz)))  # (the entry's every file, once)
+    left = [w for w in (remove_entry(f, cache_dir()) for f in files) if w is not None]
     done = "removed" if not left else f"not removed ({left[0]})"
     warn(f"damaged functional cache entry {bad} ({why}): {done}, rendering it again")
 

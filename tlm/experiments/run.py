@@ -50,7 +50,7 @@ from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error
 from tlm.experiments.reference_cache import load_reference, meets_tolerance
-from tlm.experiments.run_warnings import eye_hits, run_warnings, stream_warnings
+from tlm.experiments.run_warnings import eye_hits, run_warnings, stream_warnings, unread_overrides
 from tlm.kernels import release_memory, threads
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.traverse import TriangleAccel
@@ -289,14 +289,22 @@ def photon_error(frame: Frame, pmap: np.ndarray, compute: bool = False, progress
     cached now when none is (``progress``: its bar on stderr; ``say``: a line before and
     after). ``reference_seconds``: what computing it took, when it was computed now."""
     found = ensure_reference(frame, compute=compute, bar=progress, say=say)
-    if found.image is None:
-        return {"reference": found.key, "available": False,
-                "hint": "run 'tlm reference CONFIG' to compute and cache it"}
-    meta = found.meta
-    return {"reference": found.key, "available": True, **image_error(pmap, found.image),
-            "reference_converged": meets_tolerance(meta, found.settings), "reference_rounds": meta.get("rounds"),
+    return error_against(found.key, found.settings, pmap, found.image, found.meta, found.seconds)
+
+
+def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray | None, meta: dict | None,
+                  seconds: float | None = None) -> dict:
+    """``results.json`` ``error`` of the photon-map frame ``pmap`` (pixels, 3) against the reference ``key``
+    (``image`` and ``meta``: None where none is cached; ``settings``: the run's
+    :class:`~tlm.experiments.reference_cache.ReferenceSettings`, whose stopping rule judges it;
+    ``seconds``: what computing it took now): :func:`photon_error`'s, and a sweep point's of a cached frame
+    (:func:`tlm.experiments.frames.cached_render`), measured against the reference cached when it is read."""
+    if image is None or meta is None:
+        return {"reference": key, "available": False, "hint": "run 'tlm reference CONFIG' to compute and cache it"}
+    return {"reference": key, "available": True, **image_error(pmap, image),
+            "reference_converged": meets_tolerance(meta, settings), "reference_rounds": meta.get("rounds"),
             "reference_standard_error": meta.get("relative_standard_error"),
-            "reference_seconds": None if found.seconds is None else round(found.seconds, 3)}
+            "reference_seconds": None if seconds is None else round(seconds, 3)}
 
 
 def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None) -> dict:
@@ -366,9 +374,12 @@ def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
 
 
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,
-                 overrides: list[str] | None = None) -> dict:
+                 overrides: list[str] | None = None, say_unread: bool = True) -> dict:
     """``results.json`` of ``res``; ``overrides``: the config's (default ``res.overrides``),
-    which its ``overrides`` and its warnings name (:func:`run_warnings`)."""
+    which its ``overrides`` and its warnings name (:func:`run_warnings`); ``say_unread`` false: its
+    warnings leave out the lines of an override this run never reads
+    (:func:`~tlm.experiments.run_warnings.unread_overrides`: a study's ``--set`` that some of its
+    cells do not read, which the study says once)."""
     if overrides is not None and tuple(overrides) != res.overrides:
         res = replace(res, overrides=tuple(overrides))
     work = {}
@@ -387,6 +398,9 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         work[name] = total
     pixels, rays, hits, back = eye_hits(res)
     warnings = run_warnings(res) + stream_warnings(res.timing, res.cfg)
+    if not say_unread:
+        unread = set(unread_overrides(res, res.overrides, res.via))
+        warnings = [w for w in warnings if w not in unread]
     return {
         "tlm": "results/1",
         "config": config_path,
@@ -437,11 +451,12 @@ def _per_map(res: RenderResult) -> dict:
 
 
 def write_run(res: RenderResult, out: Path, config_path: str | None = None,
-              overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS) -> dict:
+              overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, say_unread: bool = True) -> dict:
     """Write the run folder atomically (temporary sibling, then rename).
 
     outputs : which of :data:`OUTPUTS` to write besides the images and ``results.json``
-    (``trace.json`` also needs the timing model's trace, ``arch.trace``).
+    (``trace.json`` also needs the timing model's trace, ``arch.trace``). say_unread : false,
+    ``results.json`` ``warnings`` leave out an override the run never reads (:func:`results_dict`).
 
     ``results.json`` ``warnings`` end with the lines on tlm's caches that this process
     could not write (:func:`tlm.caches.cache_warnings`), as a sweep point's do.
@@ -484,7 +499,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         res.timer.seconds["write"] = time.perf_counter() - t0
-        results = results_dict(res, exposure, config_path, overrides)
+        results = results_dict(res, exposure, config_path, overrides, say_unread)
         # the caches this process could not write (said on stderr when met; a sweep's points record them too)
         results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
         # (strict JSON: an fps of no cycles to time, inf here, is written as null)

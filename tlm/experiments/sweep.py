@@ -154,7 +154,74 @@ def _done(folder: Path) -> dict | None:
     if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
             and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
         return None
+    if _reference_now(results.get("error")):  # (measured now: its frame is read from the cache, not rendered)
+        return None
     return {"status": "ok", "results": results}
+
+
+def _reference_now(error: Any) -> bool:
+    """Whether a point's photon-map ``error`` was not measured for want of a reference that is
+    cached now (``tlm reference`` since): the point is run again, its frame read from the cache."""
+    from tlm.experiments.reference_cache import cache_dir
+
+    if not (isinstance(error, dict) and error.get("available") is False and isinstance(error.get("reference"), str)):
+        return False
+    return (cache_dir() / error["reference"] / "meta.json").is_file()
+
+
+# the config keys a photon-map reference's key reads (tlm.experiments.reference.reference_key), or a section of
+REFERENCE_READS = ("scene", "resolution", "photons.max_bounces", "render.reflect_depth", "render.refract_depth",
+                   "render.fresnel", "render.min_weight", "reference")
+
+
+def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
+    """The line on the sweep's photon-map points that have no image error: no reference cached for
+    them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
+    ``tlm reference`` command that computes each reference they need (the base config with the
+    ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
+    reference reads, :data:`REFERENCE_READS`); none when every photon-map point has one."""
+    from tlm.experiments.run import reference_command
+
+    missing: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        rec = records.get(p.hash) or {}
+        error = (rec.get("results") or {}).get("error") if rec.get("status") == "ok" else None
+        if isinstance(error, dict) and error.get("available") is False:
+            missing.setdefault(str(error.get("reference")), []).append(p)
+    if not missing:
+        return []
+    config = _base_config(sweep)
+    commands = []
+    for points in missing.values():
+        given = [k for k in (*sweep.set, *points[0].factors)
+                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in REFERENCE_READS)]
+        sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
+        commands.append(reference_command(config, sets))
+    n = sum(len(ps) for ps in missing.values())
+    them = f"{'this reference' if len(commands) == 1 else f'these {len(commands)} references'}"
+    return [f"{n} of {len(sweep.points)} points have no photon-map error (error.rmse, error.rel_mse): no reference "
+            f"is cached for them, and a sweep computes none (reference.auto is 'tlm run''s); {'; '.join(commands)} "
+            f"computes {them}, and the sweep run again into {out} then measures them from their cached frames"]
+
+
+def _dotted(config: dict, dotted: str) -> Any:
+    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
+    for part in dotted.split("."):
+        config = config.get(part) if isinstance(config, dict) else None
+    return config
+
+
+def _base_config(sweep) -> str | None:
+    """The sweep's base config as a command line names it: its file's path from the working folder, a
+    built-in one's name; None (``CONFIG``) for a mapping in the sweep file."""
+    from tlm.builtin import base_path
+
+    if sweep.base_file is None:
+        return None
+    with suppress(InputError, OSError, ValueError):
+        file, builtin = base_path(sweep.base_file, sweep.path.resolve().parent, str(sweep.path), "sweep file")
+        return str(file) if builtin else os.path.relpath(file)
+    return sweep.base_file
 
 
 def _listed(folder: Path) -> set[str]:
@@ -167,8 +234,9 @@ def _listed(folder: Path) -> set[str]:
 
 def other_folders(points_dir: Path, hashes) -> int:
     """The folders in ``points_dir`` that are none of ``hashes`` (this sweep's points): those an
-    earlier run into the folder left, of other tlm code or another config (a point's hash holds
-    the code's fingerprint, its resolved config and its input files' content). One listing, names
+    earlier run into the folder left, of other tlm code, another config or a different ``--set``
+    (a point's hash holds the code's fingerprint, its resolved config, the ``--set`` values
+    included, and its input files' content). One listing, names
     only; a writer's hidden temporary folders are not counted."""
     return sum(not n.startswith(".") and n not in hashes for n in _listed(points_dir))
 
@@ -177,9 +245,9 @@ def other_folders_line(n: int, points_dir: Path) -> str:
     """The line that says what ``n`` folders of :func:`other_folders` are."""
     its = "them" if n != 1 else "it"
     return (f"{n} point folder{'s' if n != 1 else ''} in {points_dir} {'are' if n != 1 else 'is'} not this "
-            "sweep's: left by an earlier run into the folder of other tlm code or another config (an edit "
-            f"under tlm/ or to an input file changes every point's hash); nothing reads {its}, and removing "
-            f"{its} changes no result (sweep.yaml lists this sweep's hashes)")
+            "sweep's: left by an earlier run into the folder of other tlm code, another config or a different "
+            "--set (an edit under tlm/ or to an input file changes every point's hash); nothing reads "
+            f"{its}, and removing {its} changes no result (sweep.yaml lists this sweep's hashes)")
 
 
 def _inputs(config: dict, folder: Path, source: str) -> tuple[str, ...]:
@@ -330,6 +398,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
     unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
                                    if records[p.hash]["status"] == "ok"])
+    unread += unmeasured_line(sweep, records, out)
     caches = _cache_lines([records[h] for h in tasks], cache_warnings())
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
@@ -419,20 +488,35 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
 
 def _row(point: Point, record: dict, sweep) -> dict:
     """The point's row (:func:`~tlm.experiments.sweep_rows.point_row`), its ``scene`` as the sweep
-    gives it, for the researcher's tables: a ``scene`` factor's value, or the one ``set`` gives, as
-    written; else (the base config's, or a ``--set scene``) the scene file's path from the sweep
-    file's folder (posix, ``../scenes/box.yaml``), a built-in scene's name as it is. The point's
-    config names the file by its absolute path, for the workers (and its ``config.resolved.yaml``,
-    which runs from anywhere); a path on the table would name where the project lay, not which file."""
+    gives it, for the researcher's tables: a ``scene`` factor's value, a ``--set scene``'s (a path from
+    the working folder, as ``tlm run --set`` reads it), or the one ``set`` gives, as written; else (the
+    base config's) the scene file's path from the sweep file's folder (posix, ``../scenes/box.yaml``), a
+    built-in scene's name as it is. The point's config names the file by its absolute path, for the
+    workers (and its ``config.resolved.yaml``, which runs from anywhere); a path on the table would name
+    where the project lay, not which file."""
     row = point_row(point, record)
     if "scene" in point.factors:  # (its factor column too: one column, the value as written)
         row["scene"] = point.factors["scene"]
+    elif sweep.overridden("scene") and isinstance(given := _set_scene(sweep.overrides), str):
+        row["scene"] = given  # (as the --set gives it: a path from the working folder, as 'tlm run --set' reads it)
     elif "scene" in sweep.set and not sweep.overridden("scene"):
         row["scene"] = sweep.set["scene"]
     elif isinstance(scene := row.get("scene"), str) and os.path.isabs(scene):
         with suppress(ValueError):  # (another drive: no path from there; the absolute path stays)
             row["scene"] = Path(os.path.relpath(scene, sweep.path.resolve().parent)).as_posix()
     return row
+
+
+def _set_scene(overrides: Iterable[str]) -> Any:
+    """The value of the last ``--set scene=...`` of ``overrides`` as written (read as YAML), or None."""
+    import yaml
+
+    from tlm.experiments.study import override_key
+
+    given = [str(o).partition("=")[2] for o in overrides if override_key(str(o)) == "scene"]
+    with suppress(yaml.YAMLError):
+        return yaml.safe_load(given[-1]) if given else None
+    return None
 
 
 def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:

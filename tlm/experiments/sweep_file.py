@@ -518,7 +518,13 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
             for k, v in factors.items():
                 point = _assign(point, k, moved(k, v))
             shown = ", ".join(f"{k}={v!r}" for k, v in factors.items())
-            fields = checked.of(config_from_dict(point, f"{label} (point {i}: {shown})"))
+            try:
+                fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
+            except InputError as e:  # (named by what gave the key: a --set's, not a factor's, says so)
+                if not (overrides and _given_by(e.key, map(override_key, overrides))
+                        and not _given_by(e.key, factors)):
+                    raise
+                raise _named(e, f"{label} (point {i}: {shown})") from None
         rows.append((i, factors, fields))
     from tlm.render.planner import inert_settings
 
@@ -532,7 +538,9 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
         inert.append(known[key])
     # every config is checked before any file it names is loaded
     given = (*settings, *factor_keys, *map(override_key, overrides))
-    _scenes_found(rows, src, scene_folders if any(k == "scene" for k in given) else [folder])
+    by_set = any(override_key(o) == "scene" for o in overrides)  # (a scene a --set gives: its error says so)
+    _scenes_found(rows, label if by_set else src, scene_folders if any(k == "scene" for k in given) else [folder],
+                  not by_set)
     points, seen, known = [], {}, {}
     order = sorted(checked.template)  # (the key's JSON sorts its keys)
     # the config less arch, as the JSON of its fields: those the factors leave, then the others
@@ -552,8 +560,22 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert, overrides)
 
 
-def _scenes_found(rows: list, src: str, folders: list[Path]) -> None:
-    """An InputError naming the point, the scene file and ``folders`` (where it was looked
+def _given_by(key: str | None, keys) -> bool:
+    """Whether the dotted ``key`` (an error's) is one of ``keys``, or a section above or below one."""
+    return key is not None and any(key == k or key.startswith(k + ".") or k.startswith(key + ".") for k in keys)
+
+
+def _named(e: InputError, source: str) -> InputError:
+    """``e`` with its source ``source``."""
+    said = str(e)
+    head = f"{e.source}: " if e.source else ""
+    head += f"{e.key}: " if e.key else ""
+    return InputError(said[len(head):] if said.startswith(head) else said, source=source, key=e.key)
+
+
+def _scenes_found(rows: list, src: str, folders: list[Path], per_point: bool = True) -> None:
+    """An InputError naming the point (``per_point``; not for a scene every point has of a ``--set``,
+    ``src`` then the file ``with --set``), the scene file and ``folders`` (where it was looked
     for) for the first point whose ``scene`` is a relative path that none of them holds
     (:func:`~tlm.config.scene_from` left it so) and that is no built-in scene
     (``thesis/ring.yaml``)."""
@@ -564,7 +586,7 @@ def _scenes_found(rows: list, src: str, folders: list[Path]) -> None:
         scene = fields["scene"].value
         if scene in done or not names_scene_file(scene) or not scene or Path(scene).is_absolute():
             continue
-        resolve_scene_path(scene, folders[0], f"{src} (point {i})", also=tuple(folders[1:]))
+        resolve_scene_path(scene, folders[0], f"{src} (point {i})" if per_point else src, also=tuple(folders[1:]))
         done.add(scene)
 
 

@@ -63,11 +63,12 @@ from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
+from tlm.experiments.run_warnings import unread_overrides
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 from tlm.scenes.loader import resolve_scene_path, scenes_dir
-from tlm.storage import write_file
+from tlm.storage import warn, write_file
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -427,9 +428,16 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     differ: dict[str, list[str]] = {}  # scene -> how its cells differ from the thesis's setting
     names: dict[str, str] = {}  # (each scene as the tables name it, for the summary's words too)
 
+    unread: dict[str, dict[tuple[str, str], str]] = {}  # a --set some cell never reads -> its cells -> why
+
+    def names_of(scene: str) -> str:
+        names.update(names or scene_names(scenes, folder, str(path)))
+        return names.get(_name(scene), scene)
+
     def summary_file(rows: list[dict]) -> dict:
         names.update(names or scene_names(scenes, folder, str(path)))
-        summary.update(summarize(rows, differ, names), per_item=items, host_seconds=wall)
+        summary.update(summarize(rows, differ, names), per_item=items, host_seconds=wall,
+                       warnings=unread_lines(unread, len(scenes), len(modes)))
         return {"thesis_summary.json": summary}
 
     # (each cell is judged by its scene file: the identities of that file and of the built-in ones, once)
@@ -448,8 +456,12 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
                 cfg = config_from_dict({**base, "scene": scene, "mode": mode}, str(path))
                 sub = restrict(res, cfg)
                 sub = simulate_render(sub, programs, progress=bar)
-                results = write_run(sub, tmp / _name(scene) / mode, str(path),
-                                    [*overrides, f"scene={scene}", f"mode={mode}"])
+                # (its overrides the --set strings alone, as a case of tlm extreme records them; its scene and
+                # mode are its results' own. A --set this cell never reads is said once, for every cell: unread)
+                results = write_run(sub, tmp / _name(scene) / mode, str(path), list(overrides), say_unread=False)
+                for line in unread_overrides(sub, overrides):
+                    item, _, why = line.partition(" has no effect in this run: ")
+                    unread.setdefault(item, {})[(names_of(scene), mode)] = why.replace(f"mode {mode!r}", "its mode")
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
                 items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
                 if _name(scene) in THESIS:
@@ -463,7 +475,28 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
 
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
                          marker="thesis_comparison.csv", files=summary_file, overrides=overrides)
+    for line in summary.get("warnings") or []:
+        warn(line)
     return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path))}
+
+
+def unread_lines(unread: dict[str, dict[tuple[str, str], str]], scenes: int, modes: int) -> list[str]:
+    """One line per ``--set`` of the study that some of its cells never read (``unread``: the
+    override as given, ``--set KEY=VALUE``, -> the cells, ``(scene, mode)``, -> why; ``scenes``
+    and ``modes``: how many the study has): how many cells, which (by mode: ``rcast`` of every
+    scene, or of those named) and why, once for the study rather than in each cell's
+    ``results.json``."""
+    lines = []
+    for item, where in unread.items():
+        by_mode: dict[str, list[str]] = {}
+        for scene, mode in where:
+            by_mode.setdefault(mode, []).append(scene)
+        every = all(len(names) == scenes for names in by_mode.values())
+        said = ", ".join(by_mode) + " of every scene" if every else "; ".join(
+            f"{mode} of {', '.join(names)}" for mode, names in by_mode.items())
+        lines.append(f"{item} changes nothing in {len(where)} of {scenes * modes} cells (mode {said}): "
+                     f"{'; '.join(dict.fromkeys(where.values()))}")
+    return lines
 
 
 def _name(scene: str) -> str:
