@@ -137,7 +137,8 @@ def test_the_sweep_section_counts_point_folders_of_no_point_of_the_sweep(tmp_pat
     (folder / "points" / ".h000.tmp-h1-999999").mkdir()  # (a writer's temporary folder: not counted)
     sec = sweeps_section(read([folder]), tmp_path)
     said = ("48 point folders in s48/points are not this sweep's: left by an earlier run into the folder of other "
-            "tlm code or another config (an edit under tlm/ or to an input file changes every point's hash); "
-            "nothing reads them, and removing them changes no result (sweep.yaml lists this sweep's hashes)")
+            "tlm code, another config or a different --set (an edit under tlm/ or to an input file changes every "
+            "point's hash); nothing reads them, and removing them changes no result (sweep.yaml lists this sweep's "
+            "hashes)")
     assert f"s48: {said}" in sec.notes
     assert f"sweep file s48.yaml. {esc(said)}.</p>" in sec.html

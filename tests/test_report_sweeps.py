@@ -122,8 +122,9 @@ def test_idle_figure_and_table_in_the_report(sweeps, tmp_path):
     by_key = {(r["arch.pipelines"], r["arch.scheduler"]): r for r in rows(sweeps / "sc")}
     for c in cells:
         r = by_key[(int(c[0]), c[1])]
-        assert c[2] == f"{r['cycles.throughput'] / 1e6:.4g}"
+        assert float(c[2]) == pytest.approx(r["cycles.throughput"] / 1e6, rel=1e-3)
         assert c[4:] == [f"{r[f'idle.{pm}']:.3f}" for pm in PMS]
+    assert len({len(c[2].partition(".")[2]) for c in cells}) == 1  # (one number of decimals in the column)
     assert "sweeps" in page.read_text() and "idle_sc_ring.png" not in section(page, "sweeps")
 
 

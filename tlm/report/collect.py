@@ -63,6 +63,15 @@ class Run:
     config: dict  # config.resolved.yaml
     factors: dict[str, Any] = field(default_factory=dict)  # a sweep point's factor values
     named: str = ""  # the scene's name in the report where :func:`read` set it (see :attr:`scene_label`)
+    # a sweep point's --set overrides: its sweep's (sweep.yaml ``overrides``; its results.json has none); None for
+    # another run, whose own results.json lists them (:attr:`overrides`)
+    sweep_overrides: list[str] | None = None
+
+    @property
+    def overrides(self) -> list[str]:
+        """The ``--set K=V`` overrides the run was made with: its results.json's ``overrides``, a sweep
+        point's its sweep's ([] where none)."""
+        return self.sweep_overrides if self.sweep_overrides is not None else overrides_of(self.results)
 
     @property
     def scene(self) -> str:
@@ -127,6 +136,11 @@ class Sweep:
         self.label = self.label or self.path.name
 
     @property
+    def overrides(self) -> list[str]:
+        """The ``--set K=V`` overrides the sweep ran with (sweep.yaml ``overrides``), [] where none."""
+        return overrides_of(self.spec)
+
+    @property
     def planned(self) -> int:
         """The points sweep.yaml lists (the rows, for a sweep.yaml that lists none)."""
         return len(self.spec.get("points") or []) or len(self.rows)
@@ -148,6 +162,23 @@ class Study:
     path: Path
     rows: list[dict]
     meta: dict = field(default_factory=dict)  # summary / reference / fits
+
+    @property
+    def overrides(self) -> list[str]:
+        """The ``--set K=V`` overrides the study ran with (its provenance.json's ``overrides``), [] where none."""
+        return overrides_of(self.meta.get("provenance"))
+
+
+def overrides_of(record: Any) -> list[str]:
+    """The ``overrides`` a record lists (results.json, sweep.yaml, provenance.json: ``--set``'s
+    ``K=V`` texts, in order), [] where it lists none."""
+    found = record.get("overrides") if isinstance(record, dict) else None
+    return [str(o) for o in found] if isinstance(found, list) else []
+
+
+def with_set(overrides: list[str]) -> str:
+    """``with --set resolution=[32,32], mode=pmap``; "" for none."""
+    return f"with --set {', '.join(overrides)}" if overrides else ""
 
 
 @dataclass
@@ -610,6 +641,7 @@ def _sweep(inputs: Inputs, folder: Path, labelled: list[tuple[Run, Any]]) -> Non
             rows[i] = {**row, "status": "damaged", "error": f"{e}"}
             continue
         run.factors = dict(run.results.get("factors") or {})
+        run.sweep_overrides = overrides_of(spec)
         sweep_runs.append((run, row.get("point"), i))
     sweep_runs.sort(key=lambda t: rows[t[2]].get("point", 0))
     runs = [run for run, _, _ in sweep_runs]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from tlm.report.collect import Inputs, Run
+from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section
 from tlm.report.html import esc
 
@@ -55,11 +55,12 @@ def _code(r: dict) -> str:
     return f"{rev} ({', '.join(more)})" if more else rev
 
 
-def _run_row(run: Run, shared: dict[str, float] | None = None) -> list[str]:
+def _run_row(run: Run, shared: dict[str, float] | None = None, overrides: bool = False) -> list[str]:
     """A run's row. Its host seconds: a sweep point's render (``functional.render_host_seconds``) is
     said as part of them where the point rendered (its ``host_seconds.functional`` was measured
     around it), beside them where the render was cached (done before, by another point or run);
-    ``shared``: the stages of a thesis cell that its scene's other cells record too (one render)."""
+    ``shared``: the stages of a thesis cell that its scene's other cells record too (one render);
+    ``overrides``: a cell after the folder's for its ``--set`` overrides (``none`` where it had none)."""
     r = run.results
     host = _seconds(r.get("host_seconds"))
     render = (r.get("functional") or {}).get("render_host_seconds")
@@ -68,7 +69,8 @@ def _run_row(run: Run, shared: dict[str, float] | None = None) -> list[str]:
                 f"{host} (of which {_seconds(render)} render)")
     elif shared:
         host = f"{host} (of which {_seconds(shared)} shared with its scene's other modes)"
-    return [run.label, run.kind, str(run.path), str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
+    return [run.label, run.kind, str(run.path), *([", ".join(run.overrides) or "none"] if overrides else []),
+            str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
 
 
 def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
@@ -92,14 +94,16 @@ def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
 
 def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
-    head = ["run", "kind", "folder", "seed", "git revision", "versions", "host s"]
+    # (a --set column where some run was made with overrides: a sweep point's are its sweep's)
+    overrides = any(run.overrides for run in inputs.runs)
+    head = ["run", "kind", "folder", *(["--set"] if overrides else []), "seed", "git revision", "versions", "host s"]
     parts = []
     if inputs.runs:
         shared = shared_stages(inputs.runs)
         parts.append("<table><tr>" + "".join(f'<th class="l">{esc(h)}</th>' for h in head) + "</tr>")
         for i, run in enumerate(inputs.runs):
-            parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in _run_row(run, shared.get(i)))
-                         + "</tr>")
+            cells = _run_row(run, shared.get(i), overrides)
+            parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in cells) + "</tr>")
         parts.append("</table>")
         if shared:  # (the study's line, when the study is an input, is above the notes: html.section's order)
             where = ("its line above" if any(st.kind == "thesis" for st in inputs.studies)
@@ -117,11 +121,14 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     if len(inputs.runs) > MAX_CONFIGS:
         sec.notes.append(f"The resolved configs of the first {MAX_CONFIGS} of {len(inputs.runs)} runs are listed; "
                          "every run's is its folder's config.resolved.yaml.")
+    for sw in inputs.sweeps:  # (its points' rows above list its --set; its file and --set once, as the studies')
+        line = f"sweep folder {sw.path}: sweep file {sw.spec.get('sweep')}, {with_set(sw.overrides) or 'no --set'}"
+        parts.append(f"<p>{esc(line)}</p>")
     for st in inputs.studies:
         p = st.meta.get("provenance")
         line = (f"{st.kind} folder {st.path}: " + (
-            f"study {p.get('study')}, git {_code(p)}, {_versions(p.get('versions'))}, "
-            f"host {p.get('host_seconds')} s" if p else
+            f"study {p.get('study')}, {with_set(st.overrides) + ', ' if st.overrides else ''}git {_code(p)}, "
+            f"{_versions(p.get('versions'))}, host {p.get('host_seconds')} s" if p else
             "no provenance.json (written by an older tlm); its runs' folders, when it has them, record theirs"))
         if st.kind == "thesis" and st.meta.get("host_seconds"):
             line += f"; host seconds per scene: {_per_scene(st.meta['host_seconds'])}"

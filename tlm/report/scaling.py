@@ -33,7 +33,7 @@ from tlm.report.collect import Inputs, Sweep
 from tlm.report.common import Figure, Section, colour, figure_name, legend_below, marker, new_figure, write_png
 from tlm.report.html import esc
 from tlm.report.names import path_labels
-from tlm.report.sweep_lines import column_texts
+from tlm.report.sweep_lines import column_decimals
 from tlm.report.sweeps import PMS, factors_of, named_rows
 
 # one colour per PM kind (the yellow of the palette is too faint for a thin line); the
@@ -280,8 +280,8 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     rows = sorted(points, key=lambda p: (p["pipelines"], _scheduler_order(p["scheduler"])))
     out = [f"<details><summary>{esc(title)}</summary>",
            "<table><tr>" + "".join(f"<th{_left(h == 'scheduler')}>{esc(h)}</th>" for h in head) + "</tr>"]
-    # (TThru's numbers in one notation: column_texts)
-    thru = column_texts([None if p["throughput"] is None else p["throughput"] / 1e6 for p in rows], lambda _v: "")
+    # (TThru's numbers in one notation, to one count of decimals: column_decimals)
+    thru = column_decimals([None if p["throughput"] is None else p["throughput"] / 1e6 for p in rows], lambda _v: "")
     for p, t in zip(rows, thru, strict=True):
         cells = [str(p["pipelines"]), p["scheduler"], t,
                  "" if p["speedup"] is None else f"{p['speedup']:.3f}",

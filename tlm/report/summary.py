@@ -26,7 +26,7 @@ import numpy as np
 
 from tlm.config import ArchConfig
 from tlm.experiments.thesis import THESIS_SCENES, median_words
-from tlm.report.collect import Inputs, Run
+from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
 from tlm.report.names import value_text
@@ -235,6 +235,9 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         m = sum(v["match"] for v in slowest.values())
         text += (f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes." if len(slowest) > 1 else
                  f" The slowest PM is {'' if m else 'not '}the thesis's.")
+    points = _sweep_bottlenecks(inputs)  # (not in the figure: the sweeps' points, where the bottleneck moves)
+    if points:
+        text += f" Across the sweeps' points (not drawn): {'; '.join(points)}."
     return text, f
 
 
@@ -244,6 +247,38 @@ def _busy(r: Run) -> dict[str, float] | None:
     busy = {pm: units[f"pipe0.{pm}"]["fractions"].get("busy") for pm in PMS
             if isinstance(units.get(f"pipe0.{pm}"), dict) and isinstance(units[f"pipe0.{pm}"].get("fractions"), dict)}
     return busy if len(busy) == len(PMS) and all(_number(v) for v in busy.values()) else None
+
+
+def _sweep_bottlenecks(inputs: Inputs, moving: bool = False) -> list[str]:
+    """Per sweep whose finished points record their busy fractions, its points' bottleneck PM in words:
+    ``scal: TVert in all 14 points, busy 43–97%``, or where it moves across the sweep, each PM's count and
+    the first point it limits (``TFrag in 3 (first at arch.pipelines = 1), TVert in 5 (first at ...)``).
+    ``moving``: the sweeps where it moves alone."""
+    texts = []
+    for sw in inputs.sweeps:
+        tops: dict[str, list[tuple[Run, float]]] = defaultdict(list)
+        for r in sw.runs:
+            b = _busy(r)
+            if b is not None:
+                pm = max(PMS, key=lambda p: b[p])  # (the first of PM order on a tie)
+                tops[pm].append((r, b[pm]))
+        if not tops:
+            continue
+        n = sum(len(v) for v in tops.values())
+        first = {pm: next(i for i, r in enumerate(sw.runs) if r is tops[pm][0][0]) for pm in tops}
+        order = sorted(tops, key=lambda p: (-len(tops[p]), first[p]))  # (the most points first, then sweep order)
+        if len(order) == 1:
+            if moving:
+                continue
+            pm = order[0]
+            texts.append(f"{esc(sw.label)}: {PM_METRIC[pm]} in {'all ' if n > 1 else ''}{_count(n, 'point')}, busy "
+                         f"{_percent_range([v for _, v in tops[pm]])}")
+        else:
+            each = ", ".join(f"{PM_METRIC[pm]} in {len(tops[pm])} (busy {_percent_range([v for _, v in tops[pm]])}"
+                             + (f"; first at {esc(tops[pm][0][0].factors_text)}" if tops[pm][0][0].factors else "")
+                             + ")" for pm in order)
+            texts.append(f"{esc(sw.label)}: the bottleneck moves across its {n} points: {each}")
+    return texts
 
 
 def _bottleneck_of_points(inputs: Inputs) -> str:
@@ -258,8 +293,10 @@ def _bottleneck_of_points(inputs: Inputs) -> str:
         tops[pm].append(b[pm])
     each = "; ".join(f"{PM_METRIC[pm]} in {len(tops[pm])}, busy {_percent_range(tops[pm])}"
                      for pm in sorted(tops, key=lambda p: (-len(tops[p]), PMS.index(p))))
+    moves = _sweep_bottlenecks(inputs, moving=True)  # (where it moves within a sweep: at which points)
     return (f"<b>What limits it:</b> no run or thesis study among the inputs to draw; the bottleneck PM of the "
-            f"{_count(len(busy), 'sweep point')}: {each} of the time.")
+            f"{_count(len(busy), 'sweep point')}: {each} of the time."
+            + (f" Within a sweep: {'; '.join(moves)}." if moves else ""))
 
 
 def _percent_range(shares: list[float]) -> str:
@@ -271,13 +308,16 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     """The speed-up of TThru against N of every eq. 5.2 fit that §3 draws (:func:`fit_sources`: the
     ``tlm scaling`` folders' and those of the sweeps over ``arch.pipelines``, a fit per combination of
     a sweep's other factors), the static scheduler's where a curve has it."""
-    from tlm.experiments.scaling import key_group
+    from tlm.experiments.scaling import key_group, out_of_date
     from tlm.report.scaling import fit_sources
 
     # (source, scene, mode, group) -> scheduler -> rows: a scaling study's rows (eq52.csv), a sweep's fits
     found: dict[tuple, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
     studies = inputs.of_kind("scaling")
+    stale = set()  # (the studies whose sweep holds other points now: §3 marks their fits out of date, and so here)
     for st in studies:
+        if any(n.startswith("out of date") for n in out_of_date(st.path, st.meta)):
+            stale.add(st.path.name)
         for r in st.rows:
             if r.get("target") == "throughput":  # (the scene by its file, as in §3)
                 at = (st.path.name, inputs.study_scene(st, r["scene"]), r.get("mode", ""), r.get("group") or "")
@@ -312,7 +352,8 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         sp = [ref / r["simulated"] for r in rs]
         name = " ".join(w for w in (scene, MODE_NAMES.get(mode, mode) if modes else "",
                                     f"({label})" if len(scenes[scene]) > 1 else "",
-                                    f"[{group}]" if group else "", "" if sched == "static" else f"({sched})") if w)
+                                    f"[{group}]" if group else "", "" if sched == "static" else f"({sched})",
+                                    "(out of date)" if label in stale else "") if w)
         ax.plot(n, sp, label=name, **line_style(i))
         top_n = max(top_n, n[-1])
         gains.append((name, n[-1], sp[-1]))
@@ -326,6 +367,9 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
              "speed-up of the throughput with the static scheduler; grey: the ideal N")
     parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n:g}" for s, n, g in gains)
     text = f"<b>Does it scale:</b> {parts} (static tiles; the dynamic scheduler and eq. 5.2 are in §3)."
+    if stale & {label for label, *_ in curves}:
+        text += (f" Out of date: {esc(_and(sorted(stale & {label for label, *_ in curves})))}'s sweep holds other "
+                 "points now than its fit was made from (§3's notes say which).")
     return text, f
 
 
@@ -341,19 +385,44 @@ def _series(r: dict) -> str:
     return f"{r['filter']}" + (f" + final gather ({n} rays)" if n else "")
 
 
+def _study_labels(studies: list) -> dict[int, str]:
+    """Per error-vs-cost study (by ``id``), what tells its series apart from another study's in the
+    summary's figure: "" for one study; else its name (:func:`~tlm.report.tradeoff.study_names`) and
+    the ``--set`` overrides that not every study shares (two folders that differ only by ``--set``
+    are two series, not one)."""
+    from tlm.report.tradeoff import study_names
+
+    if len(studies) < 2:
+        return {id(st): "" for st in studies}
+    common = set.intersection(*(set(st.overrides) for st in studies))
+    out = {}
+    for st, name in zip(studies, study_names(studies), strict=True):
+        own = [o for o in st.overrides if o not in common]
+        out[id(st)] = f"{name}: --set {', '.join(own)}" if own else name
+    return out
+
+
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
-    studies = inputs.of_kind("error-vs-cost")
-    rows = [r for st in studies for r in st.rows]
+    studies = [st for st in inputs.of_kind("error-vs-cost") if st.rows]
+    labels = _study_labels(studies)
+    rows = [{**r, "_study": st} for st in studies for r in st.rows]
     err = "truth_rel_mse" if any(r.get("truth_rel_mse") is not None for r in rows) else "rel_mse"
     rows = [r for r in rows if r.get(err) is not None and r.get("frame_seconds")]
     if not rows:
         return _other_errors(inputs), None
+
+    def series_of(r: dict) -> str:  # (a row's series: its filter, final gathering, and study where several)
+        where = labels[id(r["_study"])]
+        return _series(r) + (f" ({where})" if where else "")
+
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
-    series = [_series(r) for r in sorted(rows, key=lambda r: (str(r["filter"]), _gather_rays(r)))]
+    order = {id(st): i for i, st in enumerate(studies)}
+    series = [series_of(r) for r in sorted(rows, key=lambda r: (str(r["filter"]), _gather_rays(r),
+                                                                 order[id(r["_study"])]))]
     series = list(dict.fromkeys(series))  # (a filter with final gathering is a series of its own, after it)
     for i, name in enumerate(series):
-        rs = sorted((r for r in rows if _series(r) == name), key=lambda r: r["frame_seconds"])
+        rs = sorted((r for r in rows if series_of(r) == name), key=lambda r: r["frame_seconds"])
         ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=name,
                 **{**line_style(i), "linestyle": "none"})
     ax.set_xscale("log")
@@ -365,20 +434,43 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.legend(fontsize=7)
     f = save(fig, out, "summary_tradeoff.png", "Error against frame time",
              "each point: one photon count, radius or k of a filter (with final gathering, when on, a series "
-             "of its own); lower left is better")
+             "of its own" + ("; each study's points a series of their own, named by its folder and the --set "
+                             "overrides the other studies do not share" if len(studies) > 1 else "")
+             + "); lower left is better")
     best = {}
     for r in rows:
-        if _series(r) not in best or r[err] < best[_series(r)][err]:
-            best[_series(r)] = r
+        if series_of(r) not in best or r[err] < best[series_of(r)][err]:
+            best[series_of(r)] = r
     lo = min(best.values(), key=lambda r: r[err])
     gather = _gather_rays(lo)
+    st = lo["_study"]
+    # (the input the numbers are from, where another study or a --set could have made them: its folder, --set)
+    source = ", ".join(w for w in (st.path.name, with_set(st.overrides)) if w) \
+        if len(studies) > 1 or st.overrides else ""
+    rest = [f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
+            if k in best and best[k] is not lo]
     text = (f"<b>What quality costs:</b> the lowest error is {esc(lo['filter'])}'s"
-            + (f" with final gathering ({gather} rays)" if gather else "") + f", relative MSE {lo[err]:.3g} at "
-            f"{lo['frame_seconds']:.3g} s a frame"
-            + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference") + "; "
-            + ", ".join(f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
-                        if k in best and best[k] is not lo) + ".")
+            + (f" with final gathering ({gather} rays)" if gather else "")
+            + (f" (from {esc(source)})" if source else "") + ", relative MSE "
+            f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
+            + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference")
+            + (f"; {', '.join(rest)}" if rest else "") + "." + _points_error(inputs))
     return text, f
+
+
+def _points_error(inputs: Inputs) -> str:
+    """A sentence (after a space) on the image error of the finished sweep points that measured it against
+    their reference (sweep.csv's ``error.rel_mse``; §4's points tables list it): how many, of which sweeps,
+    and the range; "" where none did."""
+    found = {sw.label: [float(r["error.rel_mse"]) for r in sw.rows if r.get("status") == "ok"
+                        and _number(r.get("error.rel_mse"))] for sw in inputs.sweeps}
+    found = {k: v for k, v in found.items() if v}
+    if not found:
+        return ""
+    every = [v for vs in found.values() for v in vs]
+    lo, hi = f"{min(every):.3g}", f"{max(every):.3g}"
+    return (f" The {_count(len(every), 'sweep point')} of {esc(_and(list(found)))} that measured their image "
+            f"error have a relative MSE of {lo if lo == hi else f'{lo}–{hi}'} against their reference (§4 lists each).")
 
 
 def _other_errors(inputs: Inputs) -> str:
@@ -394,6 +486,9 @@ def _other_errors(inputs: Inputs) -> str:
                      f"{lo if lo == hi else f'{lo}–{hi}'})")
     if inputs.of_kind("granularity"):
         shown.append("§6 shows the TLM cycle error of the granularity study against host time")
+    points = _points_error(inputs)
+    if points:
+        shown.append(points.strip().removeprefix("The ").removesuffix("."))
     if not shown:
         return "No error-against-cost study among the inputs: no error to show."
     return ("<b>What quality costs:</b> no error-against-cost study among the inputs: no image error against run "
@@ -520,7 +615,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                 spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom))
                 left[k] = len(rows) - eff["used"]
         best = _best_points(rows, factors, nothing)
-        text = f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok{esc(sw.unfinished)}): "
+        text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
+                f"{', ' + esc(with_set(sw.overrides)) if sw.overrides else ''}{esc(sw.unfinished)}): ")
         notes = ""
         if nothing:
             notes += (f"{esc(', '.join(nothing))} {'changes' if len(nothing) == 1 else 'change'} nothing between "

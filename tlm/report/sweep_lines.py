@@ -86,6 +86,28 @@ def column_texts(values: list, text: Callable[[Any], str] = fmt_value) -> list[s
     return [write(v) if number(v) else text(v) for v in values]
 
 
+# a column of measured numbers whose largest is under this many times its smallest (not 0) is written to one
+# count of decimals (:func:`column_decimals`); a wider one keeps 4 significant digits a number
+ONE_DECIMALS_SPAN = 100
+
+
+def column_decimals(values: list, text: Callable[[Any], str] = fmt_value) -> list[str]:
+    """The cells of a table column of measured numbers (cycles, frame rates, seconds, errors), each
+    to the one count of decimals that writes its largest number to 4 significant digits, trailing
+    zeros kept, so that a row's digits line up with its neighbours' (``102.0`` beside ``101.6`` and
+    ``64.3``, not ``102``). A column whose numbers span :data:`ONE_DECIMALS_SPAN` times or more (one
+    count of decimals would write its smallest with fewer than 2 significant digits), or that
+    :func:`column_texts` writes in scientific notation or as whole numbers, is written as it writes it."""
+    nums = [abs(v) for v in values if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)]
+    sizes = [v for v in nums if v != 0]
+    if (all(isinstance(v, int) for v in nums) or not sizes or min(sizes) < FIXED_FROM
+            or max(sizes) >= FIXED_BELOW or max(sizes) >= ONE_DECIMALS_SPAN * min(sizes)):
+        return column_texts(values, text)
+    places = max(0, 3 - math.floor(math.log10(max(sizes))))
+    return [("0" if v == 0 else f"{v:.{places}f}") if isinstance(v, int | float) and not isinstance(v, bool)
+            and math.isfinite(v) else text(v) for v in values]
+
+
 def all_numbers(values: list) -> bool:
     """Every value a number (not a bool)."""
     return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)

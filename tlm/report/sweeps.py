@@ -48,13 +48,14 @@ import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
 from tlm.kernels.bsp import default_levels
-from tlm.report.collect import Inputs, Sweep
+from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, Figure, FigureName, Section, count, line_style, new_figure, save, some
 from tlm.report.html import esc
 from tlm.report.names import value_text
 from tlm.report.sweep_lines import (
     LEVELS,
     all_numbers,
+    column_decimals,
     column_texts,
     dodge,
     draw_nulls,
@@ -74,6 +75,14 @@ FACTOR_SIZE = (7.0, 4.5)  # inches, the FPS-against-a-factor figure without its 
 LEVELS_SIZE = (13.0, 4.8)  # inches, the BSP-levels figure without its legend
 
 
+# a sweep row's image error against the point's reference (sweep.csv), and its column's head in the points table
+ERROR_COLUMNS = {"error.rel_mse": "relative MSE", "error.rmse": "RMSE"}
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
 def factors_of(sw: Sweep) -> list[str]:
     return [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
 
@@ -91,6 +100,29 @@ def named_rows(sw: Sweep) -> list[dict]:
     return out
 
 
+def _listed(what: str, values: list[str]) -> str:
+    """``scene a``, ``scenes a and b``, ``scenes a, b and c``."""
+    said = values[0] if len(values) == 1 else f"{', '.join(values[:-1])} and {values[-1]}"
+    return f"{what}{'s' * (len(values) > 1)} {said}"
+
+
+def described(sw: Sweep) -> str:
+    """What the sweep ran, as its captions say it: its sweep file's ``description``; where it ran with
+    ``--set`` overrides (sweep.yaml ``overrides``), which may change what that description names (another
+    scene, mode or resolution), the scenes and modes its points resolved to and the overrides, the
+    description after them as its file wrote it."""
+    desc = str(sw.spec.get("description") or "").strip()
+    if not sw.overrides:
+        return desc
+    rows = named_rows(sw)
+    scenes = list(dict.fromkeys(str(r["scene"]) for r in rows if r.get("scene") is not None))
+    modes = list(dict.fromkeys(str(r["mode"]) for r in rows if r.get("mode") is not None))
+    ran = ", ".join(_listed(w, v) for w, v in (("scene", scenes), ("mode", modes)) if v)
+    text = f"{ran + ', ' if ran else ''}{with_set(sw.overrides)}"
+    return f"{text} (its sweep file's description, before the --set: “{desc.rstrip('.')}”)." if desc \
+        else f"{text}."
+
+
 def _ratio_text(r: dict) -> str:
     """A row's Ttrav / Tisct (cycles.traversal / cycles.intersection), "" where it has none."""
     trav, isct = r.get("cycles.traversal"), r.get("cycles.intersection")
@@ -103,26 +135,31 @@ def table(sw: Sweep) -> str:
     as a number (its table summarises each series in one row, and its figure may be left out)."""
     factors = factors_of(sw)
     ratio = LEVELS in factors
-    head = ["point", *factors, "status", "FPS", "TThru (M cycles)", *(["Ttrav / Tisct"] if ratio else []),
-            "slowest PM", "host s"]
     rows = sorted(named_rows(sw), key=lambda r: r.get("point", 0))
+    # (the points' image error against their reference, where they measured it: sweep.csv's error.rel_mse and
+    # error.rmse, a column each)
+    errs = [k for k in ERROR_COLUMNS if any(_finite(r.get(k)) for r in rows if r.get("status") == "ok")]
+    head = ["point", *factors, "status", "FPS", "TThru (M cycles)", *(["Ttrav / Tisct"] if ratio else []),
+            *(ERROR_COLUMNS[k] for k in errs), "slowest PM", "host s"]
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     # each column's numbers in one notation (column_texts): a factor's values, FPS, TThru, host seconds
     shown = rows[:MAX_ROWS]
     ok = [r for r in shown if r.get("status") == "ok"]
     columns = {f: column_texts([r.get(f) for r in shown], lambda v, f=f: value_text(f, v)) for f in factors}
-    fps = column_texts([r.get("fps") for r in ok])
-    thru = column_texts([(r.get("cycles.throughput") or 0) / 1e6 for r in ok])
-    host = column_texts([round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3)
-                         for r in ok])
+    # (the measured columns to one count of decimals each: column_decimals)
+    fps = column_decimals([r.get("fps") for r in ok])
+    thru = column_decimals([(r.get("cycles.throughput") or 0) / 1e6 for r in ok])
+    host = column_decimals([round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3)
+                            for r in ok])
+    err = {e: column_decimals([r.get(e) if _finite(r.get(e)) else None for r in ok], lambda _v: "") for e in errs}
     k = 0  # (the row's place among the finished ones)
     for i, r in enumerate(shown):
         if r.get("status") == "ok":
             slow = max(PMS, key=lambda p: r.get(f"cycles.{p}") or 0)
-            cells = [fps[k], thru[k], *([_ratio_text(r)] if ratio else []), slow, host[k]]
+            cells = [fps[k], thru[k], *([_ratio_text(r)] if ratio else []), *(err[e][k] for e in errs), slow, host[k]]
             k += 1
         else:
-            cells = [f"failed: {r.get('error')}", "", "", "", *([""] if ratio else [])]
+            cells = [f"failed: {r.get('error')}", "", *([""] if ratio else []), *("" for _ in errs), "", ""]
         vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
@@ -262,7 +299,7 @@ def factor_figure(sw: Sweep, factor: str, out: Path, notes: list[str]):
                      else "the median and the min-max range over the other factors' combinations, ")
                   + "and no line joins two values.")
     caption = (f"{len(ok)} finished points of {sw.planned}{sw.unfinished}; "
-               f"{sw.spec.get('description') or ''}").strip().rstrip(";")
+               f"{described(sw)}").strip().rstrip(";")
     drawn += null_text
     return save(fig, out, name, f"{sw.label}: FPS against {factor}",
                 f"{caption.rstrip('.')}.{drawn}" if drawn else caption)
@@ -528,8 +565,8 @@ def other_folders_text(n: int, points: Path) -> str:
     """What a sweep's ``points/`` holding ``n`` folders of no point of it means (the report's
     note, and ``tlm sweep``'s line after its points)."""
     return (f"{n} point folder{'s' if n != 1 else ''} in {points} {'are' if n != 1 else 'is'} not "
-            "this sweep's: left by an earlier run into the folder of other tlm code or another config "
-            "(an edit under tlm/ or to an input file changes every point's hash); nothing reads "
+            "this sweep's: left by an earlier run into the folder of other tlm code, another config or a different "
+            "--set (an edit under tlm/ or to an input file changes every point's hash); nothing reads "
             f"{'them' if n != 1 else 'it'}, and removing {'them' if n != 1 else 'it'} changes no result "
             "(sweep.yaml lists this sweep's hashes)")
 
@@ -545,7 +582,7 @@ def sweeps_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("sweeps", "Sweeps: the points and the frame rate against each factor")
     html = []
     for sw in inputs.sweeps:
-        desc = sw.spec.get("description")
+        desc = described(sw)
         failed = sum(r.get("status") != "ok" for r in sw.rows)
         other = other_point_folders(sw)
         stale = f" {other_folders_text(other, _shown_folder(sw) / 'points')}." if other else ""

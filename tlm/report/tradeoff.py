@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from tlm.report.collect import Inputs, Study
+from tlm.report.collect import Inputs, Study, with_set
 from tlm.report.common import Section, colour, count, linestyle, log_ticks, marker, new_figure, save, untangle
 
 
@@ -348,6 +348,8 @@ def tradeoff_section(inputs: Inputs, out: Path) -> Section:
         sec.notes.append("No granularity study among the inputs: no TLM cycle error against run time "
                          "('tlm granularity' writes one).")
     for i, (st, label) in enumerate(zip(evc, study_names(evc), strict=True)):
+        if st.overrides:  # (what ran: the titles say the study's --set, which two studies may differ in alone)
+            label = f"{label} ({with_set(st.overrides)})"
         if not st.rows:
             sec.notes.append(f"{label}: the error-vs-cost study has no rows.")
             continue
