@@ -20,6 +20,7 @@ from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_report import report_after, report_claimed, say_err
 from tlm.cli_signals import (
+    blas_buffer_mapped,
     deadlock_line,
     exit_status,
     forget_lost_interrupt,
@@ -684,7 +685,10 @@ def main(argv: list[str] | None = None) -> int:
                 args.argv = argv
                 _experiment_arg(args)
                 _figure_args(args)
-                with writes_files(_writes_files(args)):
+                writes = _writes_files(args)
+                if writes:  # (a render, a report's figures: OpenBLAS's buffer mapped first, blas_buffer_mapped)
+                    blas_buffer_mapped()
+                with writes_files(writes):
                     status = args.func(args)
             finished = True
             if argv is None and signalled() is None:  # the process's own command, done: a signal until

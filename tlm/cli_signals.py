@@ -21,7 +21,9 @@ finished the folder it writes, if it writes one; a reader of stderr that goes aw
 (:func:`tlm.cli_streams.guard_streams`). A MemoryError is ``tlm: error: out of memory: ...``, exit 1
 (:func:`tlm.errors.memory_problem`), and so is a thread the system refused (``tlm: error: no new
 thread could be started: ...``, :func:`tlm.errors.thread_problem`); OpenBLAS runs on one thread
-(:func:`one_blas_thread`). SIGQUIT is left to Python's default (the process ends at once, no
+(:func:`one_blas_thread`), its buffers mapped as a command that writes files begins
+(:func:`blas_buffer_mapped`), and a MemoryError that Python ignored prints no traceback
+(:func:`_without_lost_interrupts`). SIGQUIT is left to Python's default (the process ends at once, no
 clean-up). A signal that comes before the command begins (while the ``tlm`` process imports its
 modules and builds its parser, a second or more under load) is the command's too, from this module's
 import on (:func:`early_signals`: tlm.cli and tlm.__main__ import it first, and it installs its
@@ -125,6 +127,55 @@ def one_blas_thread() -> None:
     one thread an allocation that fails is a MemoryError, said as ``tlm: error: out of memory: ...``
     (:func:`_failed`). Inherited by the command's workers (a sweep's)."""
     os.environ.setdefault(BLAS_THREADS, "1")
+
+
+BLAS_ROOM = 128 << 20  # the address space checked free before OpenBLAS's buffers (32 MiB each) and scipy's library
+BLAS_ROWS = 1024  # the rows of the product that maps numpy's (OpenBLAS's gemv takes its buffer past some 250 rows)
+
+
+def blas_buffer_mapped() -> None:
+    """OpenBLAS's buffers mapped now, as a command that writes files begins (``tlm run``, a sweep, a
+    report: its figures), while the address space is free; under a small ``ulimit -v`` (the render's
+    memory taken) OpenBLAS cannot map one later, and no line of tlm's says it. numpy's OpenBLAS maps
+    its buffer (32 MiB) at a thread's first product of more than some 250 rows (the image's exposure,
+    the report's figures), keeps it for the thread's later products, and where it cannot, ends the
+    process itself (``OpenBLAS error: Memory allocation still failed after 10 retries``, exit 1): here
+    a product of :data:`BLAS_ROWS` rows on this (the main) thread maps it. scipy's own OpenBLAS
+    (loaded by numba as it first loads a kernel, to check for BLAS: ``scipy.linalg``) maps its buffer
+    as its library is loaded, and where it cannot, retries for ever (a hang that SIGTERM does not end):
+    here its library is loaded first (:func:`_scipy_blas`). :data:`BLAS_ROOM` is mapped and unmapped
+    before either, and where it cannot be the command ends as out of memory (a MemoryError: ``tlm: error:
+    out of memory: ...``, :func:`_failed`), before any work. A few milliseconds, numpy imported."""
+    import mmap
+
+    import numpy as np
+
+    try:
+        room = mmap.mmap(-1, BLAS_ROOM)
+    except OSError as e:  # (ENOMEM)
+        raise MemoryError(f"no room for OpenBLAS's buffers: {BLAS_ROOM >> 20} MiB of address space "
+                          "could not be mapped") from e
+    room.close()
+    np.ones((BLAS_ROWS, 3)) @ np.ones(3)
+    _scipy_blas()
+
+
+def _scipy_blas() -> None:
+    """scipy's OpenBLAS library (``scipy.libs/libscipy_openblas*.so`` of a wheel) loaded, without scipy
+    (a few milliseconds, not the second that ``import scipy.linalg`` takes): scipy's modules that
+    load it later find it loaded. None where scipy is not installed, or not from a wheel that bundles
+    it. One that cannot be mapped is ctypes' OSError (``failed to map segment from shared object``:
+    out of memory under a limit, :func:`tlm.errors.memory_problem`)."""
+    import ctypes
+    from importlib.util import find_spec
+
+    try:
+        spec = find_spec("scipy")
+    except (ImportError, ValueError):
+        return
+    for place in (spec.submodule_search_locations or []) if spec is not None else []:
+        for lib in sorted((Path(place).parent / "scipy.libs").glob("libscipy_openblas*.so*")):
+            ctypes.CDLL(str(lib))
 
 
 if command_process():
@@ -267,9 +318,14 @@ def signals():
 def _without_lost_interrupts(hook):
     """``sys.unraisablehook`` less the KeyboardInterrupt of a signal that CPython ignored
     (raised in an at-fork hook, a ctypes callback: "Exception ignored in ..." and its traceback
-    on stderr): the command's exit says it (:func:`interrupted`), in its one line."""
+    on stderr): the command's exit says it (:func:`interrupted`), in its one line. Less a
+    MemoryError too (one in matplotlib's ``read_from_file_callback`` under ``ulimit -v``, FreeType
+    reading a font): the call that made the callback fails in its turn, and the command's line
+    says it (``tlm: error: out of memory: ...``), not a traceback above it."""
     def quiet(unraisable) -> None:
         if _SIGNALS and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return
+        if isinstance(unraisable.exc_value, MemoryError):
             return
         hook(unraisable)
     return quiet
@@ -507,9 +563,10 @@ def forget_lost_interrupt() -> None:
     the flag first, so one that runs to its end clears it. (The installed ``tlm`` script
     exits through ``Py_Exit``, which never reads the flag: the two ways now end alike, a
     Ctrl-C with exit status 130, as before where the interrupt passed through no ``exec``.) Where
-    too little memory is left to compile that string (a MemoryError), the flag stays as it is:
-    the command has ended, and its exit is not to be a traceback."""
-    with suppress(MemoryError):
+    too little memory is left to compile that string (a MemoryError, or under ``ulimit -v`` a SystemError,
+    ``exec`` returned NULL without setting an exception), the flag stays as it is: the command has ended,
+    and its exit is not to be a traceback."""
+    with suppress(MemoryError, SystemError):
         exec("None")
 
 
@@ -550,7 +607,12 @@ def exit_status(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int
     (``argv``: the command's, None for the process's own). The process's own command that failed
     (exit status 1 or 2) is ended as one that returned is: a signal until the process exits
     says that the command ran to its end and the exit status is 128 + it (:func:`until_exit`)."""
-    status = _failed(e, argv)
+    try:
+        status = _failed(e, argv)
+    except MemoryError:  # (under ``ulimit -v``, too little left even to say it: the shortest line, no traceback)
+        with suppress(OSError):
+            os.write(2, b"tlm: error: out of memory\n")
+        status = 1
     return until_exit(status) if argv is None else status
 
 
@@ -578,7 +640,11 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
     if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory, no thread
         _line(f"tlm: error: {' '.join(what.split())}")
         return 1
-    saved = save_traceback(e)
+    try:
+        saved = save_traceback(e)
+    except MemoryError as m:  # (under ``ulimit -v``: the traceback's text, tlm's version read from its metadata)
+        _line(f"tlm: error: {memory_problem(m)}, as the command ended with {type(e).__name__}: {one_line(e)}")
+        return 1
     where = f"full traceback in {saved}" if saved else "the traceback could not be saved"
     _line(f"tlm: internal error: {type(e).__name__}: {one_line(e)} ({where})")
     return 1
