@@ -119,8 +119,8 @@ class Outcome:
     renders: int  # points whose functional result was rendered, not read from the cache
     seconds: float
     out: Path
-    # the sweep's own warnings (run_sweep prints none; tlm sweep does): its factors that no point
-    # read (Sweep.inert_factors, before the points run; Sweep.unread_factors, after); the caches
+    # the sweep's own warnings (run_sweep prints none; tlm sweep does): its factors and --set strings that
+    # no point read (Sweep.inert_factors, inert_sets, before the points run; Sweep.unread_factors, after); the caches
     # its workers could not write; point folders that are not its points
     warnings: list[str] = field(default_factory=list)
     # folders in points/ that are not this sweep's points (an earlier run of other code or config)
@@ -317,7 +317,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
 
     engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point)
     sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
-    said = sweep.inert_factors()
+    said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)
     for line in said if warn is not None else ():
         warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}

@@ -17,6 +17,7 @@ import itertools
 import json
 import os
 import re
+import shlex
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +42,7 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import value_text, with_overrides
+from tlm.config_words import parse_yaml, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
 from tlm.experiments.study import override_key, refuse_set, with_set
@@ -99,6 +100,37 @@ class Sweep:
                 lines.append(f"{self.path}: the factor {factor} changes nothing in any point: {said_once(whys)}")
         return lines
 
+    def set_keys(self) -> dict[str, str]:
+        """The keys the sweep's ``--set`` strings set (a section given as a mapping, ``estimate={k: 9}``,
+        sets each of its keys: :func:`set_leaves`), each with the ``--set`` string that set it last."""
+        last: dict[str, str] = {}
+        for item in self.overrides:
+            for key in set_leaves(item):
+                last.pop(key, None)
+                last[key] = item.strip()
+        return last
+
+    def inert_sets(self) -> list[str]:
+        """A warning line per ``--set`` of the sweep that changes nothing in any point, by the rule of
+        :meth:`inert_factors` (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` in mode rcast),
+        as ``tlm run --set`` says one its run never reads; a ``--set`` that some points read gets none,
+        as a factor does not. A section given whole names the keys no point reads where it sets others
+        too (``--set estimate={k: 9, ...}: estimate.k``)."""
+        return self._set_lines({k: {i.get(k) for i in self.inert} for k in self.set_keys()
+                                if self.inert and all(k in i for i in self.inert)}, "changes nothing in any point")
+
+    def _set_lines(self, whys: dict[str, set], verb: str) -> list[str]:
+        """One line per ``--set`` string of the keys ``whys`` (key -> its points' reasons) that it set last."""
+        keys = self.set_keys()
+        lines = []
+        for item in dict.fromkeys(keys[k] for k in whys):
+            mine = [k for k in whys if keys[k] == item]
+            named = "" if len(mine) == len(set_leaves(item)) else f": {', '.join(mine)}"
+            lines.append(f"{self.path}: --set {item}{named} {verb} (though in every point's config and hash: "
+                         f"a rerun into a folder swept without it runs its points again): "
+                         f"{said_once(set().union(*(whys[k] for k in mine)))}")
+        return lines
+
     def unread_factors(self, done: list[tuple[Point, dict]]) -> list[str]:
         """A warning line per factor that no point read, judged after the points ran: the
         timing model's keys a point changed from their defaults and never read are in its
@@ -110,10 +142,12 @@ class Sweep:
         factors :meth:`inert_factors` named before the points ran."""
         if not done:
             return []
-        said = {f for f in self.factors if self.inert and all(f in i for i in self.inert)}
+        said = {f for f in [*self.factors, *self.set_keys()] if self.inert and all(f in i for i in self.inert)}
         defaults = to_dict(RunConfig())
+        where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
         lines = []
-        for factor in self.factors:
+        sets: dict[str, set] = {}
+        for factor in [*self.factors, *self.set_keys()]:
             if factor in said:
                 continue
             whys: set[str] = set()
@@ -125,11 +159,12 @@ class Sweep:
                 elif not _at_default(point.config, defaults, factor):
                     whys.clear()
                     break
-            if whys:
-                where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
+            if whys and factor in self.factors:
                 lines.append(f"{self.path}: the factor {factor} changed nothing in {where}: "
                              f"{said_once(whys)}")
-        return lines
+            elif whys:  # (a key of a --set: said as the --set that gave it)
+                sets[factor] = whys
+        return [*lines, *self._set_lines(sets, f"changed nothing in {where}")]
 
     def identity(self) -> str:
         """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
@@ -193,6 +228,52 @@ def said_once(whys) -> str:
         listed = f"{', '.join(values[:-1])} or {values[-1]}"
         out.append("".join(listed if i == at else part for i, part in enumerate(members[0])))
     return "; ".join(sorted(out))
+
+
+def set_leaves(item: str) -> dict[str, Any]:
+    """The dotted keys the ``--set`` string ``item`` sets, each with its value: its key, or each key
+    under it when its value is a mapping (``estimate={k: 9}``: ``estimate.k``; an empty one sets none:
+    the section at its defaults); a value YAML cannot read (refused elsewhere): its key alone."""
+    key, _, text = str(item).partition("=")
+    try:
+        value = parse_yaml(text)
+    except yaml.YAMLError:
+        return {key.strip(): None}
+
+    def leaves(prefix: str, node: Any) -> dict[str, Any]:
+        if isinstance(node, dict):
+            return {k: v for name, child in node.items() for k, v in leaves(f"{prefix}.{name}", child).items()}
+        return {prefix: node}
+
+    return leaves(key.strip(), value)
+
+
+def _refuse_factor_sets(overrides: Iterable[str], factors: dict[str, str], src: str) -> None:
+    """An InputError for the first ``--set`` string of ``overrides`` that sets a factor's key (``factors``:
+    key -> where, ``grid``), or a section above or below one: the factor would win unsaid. A section given
+    as a mapping (``bsp={memory_factor: 10}``) replaces the base's section, as ``tlm run --set`` does, and
+    is taken where none of its keys is a factor's (each point then gets its factor's value in it); one that
+    sets a factor's key is refused, naming its other keys in the dotted form that a sweep takes."""
+    why = "which gives each point its value: change its values in the sweep file, not by --set"
+    for item in overrides:
+        key = override_key(item)
+        leaves = set_leaves(item)
+        touched = [(leaf, f) for leaf in leaves for f in factors if _given_by(leaf, [f])]
+        if not touched:
+            continue
+        if list(leaves) == [key] or not any(f.startswith(key + ".") for _, f in touched):
+            refuse_set([item], {f: f"a factor of the sweep ({factors[f]}.{f}), {why}" for _, f in touched}, src)
+        f = next(f for _, f in touched if f.startswith(key + "."))
+        others = [f"--set {shlex.quote(f'{k}={_flow(v)}')}" for k, v in leaves.items()
+                  if not any(_given_by(k, [g]) for g in factors)]
+        rest = f"; give its other keys one by one: {' '.join(others)}" if others else ""
+        raise InputError(f"{key} holds {f}, a factor of the sweep ({factors[f]}.{f}), {why}{rest}", source=src,
+                         key=f"--set {item.strip()}")
+
+
+def _flow(value: Any) -> str:
+    """``value`` as a ``--set`` writes it: YAML's flow style, on one line."""
+    return yaml.safe_dump(value, default_flow_style=True, width=10**6).strip().removesuffix("...").strip()
 
 
 def _at_default(config: dict, defaults: dict, dotted: str) -> bool:
@@ -445,8 +526,10 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     the file's ``set`` (a key both give: the --set's value) and before the factors, as ``tlm run
     --set`` applies them (:func:`tlm.experiments.study.with_set`: a relative path from the working
     folder); the points' configs, and so their hashes, hold them. One whose key is a factor's, or a
-    section above or below one, is refused (the factor would win unsaid), as is a bad key or value
-    (the error names the file ``with --set``, as ``tlm run``'s does)."""
+    section above or below one, is refused (the factor would win unsaid), but a section given as a
+    mapping that leaves the factor's key out, which replaces the base's section as ``tlm run --set``
+    does (:func:`_refuse_factor_sets`); so is a bad key or value (the error names the file ``with
+    --set``, as ``tlm run``'s does)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -501,9 +584,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
     if overrides:
         fixed = with_set(fixed, overrides, scene_folders)
-        refuse_set(overrides, {k: f"a factor of the sweep ({where}.{k}), which gives each point its value: change "
-                                  "its values in the sweep file, not by --set"
-                               for where, section in (("grid", grid), ("zip", zipped)) for k in section}, src)
+        _refuse_factor_sets(overrides, {k: where for where, section in (("grid", grid), ("zip", zipped))
+                                        for k in section}, src)
         config_from_dict(fixed, label)
     factors_list, indices = _expand_both(grid, zipped)
     factor_keys = [*grid, *zipped]

@@ -352,21 +352,47 @@ def images_section(inputs: Inputs, out: Path) -> Section:
 def _unmeasured(run: Run, error: dict) -> str:
     """Why a run's photon-map error was not measured, and the command that computes its reference, as
     ``tlm run`` printed them: from ``results.json`` where it records them (``skipped``, ``command``);
-    else the command from the run's config and overrides, and the reason from its config (a run with
-    ``reference.auto`` true and no reference computed was run with ``--no-reference``)."""
+    else the command from the run's config and overrides where its config is a run config file
+    (:func:`_run_config`), or else from the run folder's ``config.resolved.yaml`` (every setting of the
+    run, its ``--set`` values included, its scene by its absolute path: a thesis cell's ``results.json``
+    ``config`` is the study file, which ``tlm reference`` refuses); and the reason from its config (a
+    run with ``reference.auto`` true and no reference computed was run with ``--no-reference``)."""
     why, command = error.get("skipped"), error.get("command")
     if not isinstance(command, str) or not command:
         from tlm.experiments.run import reference_command  # (tlm run's rule; imported only here)
 
+        resolved = run.path / "config.resolved.yaml"
         config = run.results.get("config")
-        command = reference_command(config if isinstance(config, str) else None,
-                                    [o for o in run.results.get("overrides") or [] if isinstance(o, str)])
+        if resolved.is_file() and not _run_config(run, config):
+            command = reference_command(str(resolved.absolute()))
+        else:
+            command = reference_command(config if isinstance(config, str) else None,
+                                        [o for o in run.results.get("overrides") or [] if isinstance(o, str)])
     if not isinstance(why, str) or not why:
         auto = (run.config.get("reference") or {}).get("auto") if isinstance(run.config, dict) else None
         why = "reference.auto: false" if auto is False else "--no-reference" if auto is True else ""
     key = error.get("reference")
     return (f"the photon-map frame's error was not measured: {f'skipped ({why})' if why else 'not measured'}: "
             f"no reference{f' {key}' if key else ''} cached; compute it with: {command}, then run it again")
+
+
+def _run_config(run: Run, config) -> bool:
+    """Whether ``config`` (a run's ``results.json`` ``config``) names a run config (or scene file) that
+    ``tlm reference`` takes, as seen from here: a file of a run folder that is not a thesis cell
+    (``<study>/<scene>/<mode>``, its config the study file), with no key of a study or sweep
+    (:data:`tlm.builtin.EXPERIMENT_COMMANDS`, ``base``); not one not found from the working folder (a
+    relative path from another folder)."""
+    from tlm.builtin import EXPERIMENT_COMMANDS
+    from tlm.config import read_yaml
+    from tlm.errors import InputError
+
+    if run.kind != "run" or not isinstance(config, str) or (run.path.parent.parent / "thesis_comparison.csv").is_file():
+        return False
+    try:
+        raw = read_yaml(Path(config)) if Path(config).is_file() else None
+    except (InputError, OSError, ValueError):
+        return False
+    return isinstance(raw, dict) and not any(k in raw for k in ("base", *dict(EXPERIMENT_COMMANDS)))
 
 
 def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
