@@ -317,17 +317,20 @@ def interrupts_deferred():
     (:func:`deferring`), and its KeyboardInterrupt is raised as the section ends
     (:func:`checkpoint`); one more meanwhile is the same one (``timeout -s INT`` signals the
     process and its group at once), so the section is never cut: it is short (a worker's start,
-    at most the fork server's start-up). Nested sections raise at the outermost one's end; off
-    the main thread, a plain block."""
+    at most the fork server's start-up, a claim's file). Nested sections raise at the outermost
+    one's end; off the main thread, a plain block. Only a signal taken during the section is
+    raised at its end: one taken before it and lost (a command after its last checkpoint, which
+    runs to its end and says so) is not made a checkpoint here."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    before = len(_TAKEN)
     _DEFERRED.append(os.getpid())
     try:
         yield
     finally:
         _DEFERRED.pop()
-    if not _DEFERRED:
+    if not _DEFERRED and len(_TAKEN) > before:
         checkpoint()
 
 

@@ -288,6 +288,32 @@ def clean_stale(folder: Path, name: str = ".+") -> None:
         shutil.rmtree(d, ignore_errors=True)
 
 
+def clean_stale_files(folder: Path, name: str = ".+") -> None:
+    """Remove the temporary files of :func:`write_atomic` (``.<name>.tmp<host>-<pid>``, a thread's
+    ``-t<id>`` and a count added) that processes of this machine now gone left in ``folder``: one
+    killed, or ended at once by a second signal, while it wrote. Another machine's, a live
+    process's and those this process's writers are writing now are left alone."""
+    pattern = re.compile(rf"\.{name}\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
+    try:
+        entries = list(Path(folder).iterdir())
+    except OSError:
+        return
+    host = _host()
+    for f in entries:
+        m = pattern.fullmatch(f.name)
+        if not m or (m[1] is not None and m[1] != host) or f.is_symlink() or not f.is_file():
+            continue
+        pid = int(m[2])
+        if pid == os.getpid():
+            with _LIVE_LOCK:
+                if os.path.abspath(f) in _FILES:
+                    continue
+        elif pid_alive(pid):
+            continue
+        with suppress(OSError):
+            f.unlink()
+
+
 @contextmanager
 def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterator[None]:
     """An exclusive lock on the folder ``out`` as it is now (``flock`` on the folder itself),
