@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ import yaml
 from tlm.config import config_from_dict
 from tlm.errors import InputError
 from tlm.experiments import frames, run
+from tlm.experiments.reference_cache import cache_dir as reference_dir
 from tlm.experiments.reference_cache import save_reference
 from tlm.experiments.sweep import run_sweep
 from tlm.experiments.sweep_file import load_sweep
@@ -159,3 +161,110 @@ def test_a_run_still_says_its_own_unread_set(tmp_path, elsewhere):
     said = run.results_dict(res, 1.0, "c.yaml")["warnings"]
     assert [w for w in said if w.startswith("--set reference.auto=false has no effect in this run")]
     assert not [w for w in run.results_dict(res, 1.0, "c.yaml", say_unread=False)["warnings"] if "reference.auto" in w]
+
+
+# --- a review's findings (h145): a reference computed again under its key, a race on the frame's image, the
+# line's grammar, and the command of a sweep whose base is a mapping
+
+
+def test_a_rerun_measures_again_a_point_measured_against_a_reference_computed_again_since(tmp_path, elsewhere):
+    path, out = _sweep(tmp_path)
+    first = run_sweep(path, out, jobs=1)
+    key = json.loads(next((out / "points").glob("*/results.json")).read_text())["error"]["reference"]
+    _store(key, 12 * 8, seed=1)
+    measured = run_sweep(path, out, jobs=1)
+    assert first.renders == 1 and measured.renders == 0 and measured.skipped == 0
+    was = measured.rows[0]["error.rmse"]
+    assert was is not None and run_sweep(path, out, jobs=1).skipped == 2  # (the same reference: done)
+    _store(key, 12 * 8, seed=2)  # (computed again under its key: tlm reference --set reference.max_rounds=16 --force)
+    again = run_sweep(path, out, jobs=1)
+    assert again.skipped == 0 and again.renders == 0  # (was: both skipped, the error of the reference replaced)
+    cfg = config_from_dict({**PMAP, "seed": 0}, "test")
+    now = _fresh_error(cfg)["rmse"]
+    assert now != was and all(r["error.rmse"] == now for r in again.rows)
+    assert run_sweep(path, tmp_path / "new", jobs=1).rows[0]["error.rmse"] == now  # (as a fresh folder gives)
+    for results in (out / "points").glob("*/results.json"):  # (a point of an older tlm: no digest recorded)
+        held = json.loads(results.read_text())
+        del held["error"]["reference_sha256"]
+        results.write_text(json.dumps(held))
+    assert run_sweep(path, out, jobs=1).skipped == 0
+    assert run_sweep(path, out, jobs=1).skipped == 2
+    shutil.rmtree(reference_dir() / key)  # (the cache cleared: nothing measures it now)
+    kept = run_sweep(path, out, jobs=1)
+    assert kept.skipped == 2 and all(r["error.rmse"] == now for r in kept.rows)
+
+
+def _entry_changed(monkeypatch, change) -> None:
+    """``change(image file)`` called just after the functional cache entry was read and checked (another
+    process at work on the entry between that check and the image's load)."""
+    load = frames._load_entry
+
+    def load_then_change(path, side, key):
+        got = load(path, side, key)
+        if got is not None:
+            change(path.with_suffix(".pmap.npy"))
+        return got
+
+    monkeypatch.setattr(frames, "_load_entry", load_then_change)
+
+
+def test_a_frame_s_image_removed_after_its_entry_was_read_renders_it_again(monkeypatch, capsys):
+    cfg = config_from_dict(PMAP, "test")
+    first = frames.cached_render(cfg)
+    _store(first.summary["error"]["reference"], 12 * 8)
+    _entry_changed(monkeypatch, lambda image: image.unlink())
+    got = frames.cached_render(cfg)  # (was: FileNotFoundError from np.load)
+    assert not got.cached and got.summary["error"] == _fresh_error(cfg)
+    assert "damaged" not in capsys.readouterr().err  # (removed by another: not said here)
+
+
+def test_a_frame_s_image_changed_after_its_entry_was_read_is_a_damaged_entry(monkeypatch, capsys):
+    cfg = config_from_dict(PMAP, "test")
+    first = frames.cached_render(cfg)
+    _store(first.summary["error"]["reference"], 12 * 8)
+
+    def overwrite(image):  # (the same size, other pixels)
+        data = bytearray(image.read_bytes())
+        data[-8:] = np.float64(7.0).tobytes()
+        image.write_bytes(bytes(data))
+
+    _entry_changed(monkeypatch, overwrite)
+    got = frames.cached_render(cfg)
+    assert not got.cached and got.summary["error"] == _fresh_error(cfg)  # (was: measured from the changed pixels)
+    image = frames.cache_dir() / f"{first.key}.pmap.npy"
+    assert (f"damaged functional cache entry {image} (its checksum differs from its sidecar's): removed, rendering it "
+            "again") in " ".join(capsys.readouterr().err.split())
+
+
+def test_the_line_on_one_point_without_error_says_it_in_the_singular(tmp_path, elsewhere):
+    from tlm.experiments.sweep import unmeasured_line
+
+    unmeasured = {"status": "ok", "results": {"error": {"reference": "r1", "available": False}}}
+    measured = {"status": "ok", "results": {"error": {"reference": "r1", "available": True}}}
+    path, out = _sweep(tmp_path, grid={"arch.pipelines": [1]})
+    one = load_sweep(path)
+    [line] = unmeasured_line(one, {one.points[0].hash: unmeasured}, out)
+    assert line.startswith("the 1 point has no photon-map error (error.rmse, error.rel_mse): no reference is cached "
+                           "for it, and")  # (was: 1 of 1 points have ... for them)
+    assert line.endswith(f"the sweep run again into {out} then measures it from its cached frame")
+    path, out = _sweep(tmp_path, grid={"arch.pipelines": [1, 2, 4, 8]})
+    four = load_sweep(path)
+    records = {p.hash: unmeasured if p.index == 0 else measured for p in four.points}
+    assert unmeasured_line(four, records, out)[0].startswith("1 of 4 points has no photon-map error")
+
+
+def test_the_reference_command_of_a_sweep_with_an_inline_base_runs(tmp_path, elsewhere):
+    from tlm.cli import main
+
+    tiny = {**PMAP, "reference": {"photons": 1000, "min_rounds": 2, "max_rounds": 2}}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": tiny, "grid": {"arch.pipelines": [1, 2]}}))
+    out = elsewhere / "o"
+    first = run_sweep(path, out, jobs=1, overrides=["seed=3"])
+    [line] = [w for w in first.warnings if "no photon-map error" in w]
+    command = line.split("; ")[1].split(" computes this reference, ")[0]
+    assert command.startswith("tlm reference o/points/") and command.endswith("/config.resolved.yaml")  # (was: CONFIG)
+    assert main([*command.split()[1:], "--no-progress"]) == 1  # (computed and cached: not converged in 2 rounds)
+    again = run_sweep(path, out, jobs=1, overrides=["seed=3"])
+    assert again.skipped == 0 and again.renders == 0 and all(r["error.rmse"] is not None for r in again.rows)
+    assert not [w for w in again.warnings if "no photon-map error" in w]

@@ -10,7 +10,9 @@ timing model does not (work totals, scene statistics), so a sweep point never ha
 report them, with the size and sha256 of the ``.npz`` (``npz``). A photon-map frame keeps its
 image too (``<key>.pmap.npy``, its size and sha256 in the sidecar's ``pmap``), so its error is
 measured when the frame is read, against the reference cached then (:func:`cached_render`): a
-reference computed after the frame was cached (``tlm reference``) is used, as ``tlm run`` would.
+reference computed after the frame was cached (``tlm reference``) is used, as ``tlm run`` would. The image
+is read only where there is a reference, its bytes checked against the sidecar as they are read: one removed
+meanwhile (another process) or changed renders the frame again, a changed one said as a damaged entry.
 A damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
 key a result row reads or with one of another type (:func:`summary_problem`), a folder where either
 file should be) is reported once as a warning naming the file, removed (a folder too, only inside
@@ -27,6 +29,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import io
 import json
 import os
 import threading
@@ -300,7 +303,10 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
             got = _load_entry(path, side, key)
             if got is not None:
                 got = _here(got, cfg, base, source, scene)
-                return _measured(got, cfg, lambda: _image(path), scene, base, source)
+                measured = _measured(got, cfg, lambda: _image(path, side, got.summary["pmap"]), scene, base, source)
+                if measured is not None:
+                    return measured
+                # (its image removed or changed since the entry was read: another process's; rendered again)
     res = run.render(cfg, base, source, scene=scene, timer=timer)
     fn = res.functional()
     full = run.results_dict(res, exposure=0.0, config_path=source)
@@ -345,9 +351,33 @@ def _save_image(path: Path, image: np.ndarray) -> None:
             tmp.unlink()
 
 
-def _image(path: Path) -> np.ndarray:
-    """The cached photon-map frame's image beside ``path`` (its checksum was checked when the entry was read)."""
-    return np.load(_image_file(path), allow_pickle=False)
+def _image(path: Path, side: Path, digest: dict) -> np.ndarray | None:
+    """The cached photon-map frame's image beside ``path``, its bytes checked as they are read against
+    ``digest`` (the sidecar ``side``'s ``pmap``: its size and sha256); None where it is not there now
+    (another process removed the entry since it was read) or not that file (a damaged entry: said once
+    and removed, as :func:`_load_entry` does). Its caller renders the frame again then."""
+    file = _image_file(path)
+    try:
+        data = file.read_bytes()
+    except (FileNotFoundError, NotADirectoryError):
+        return None  # (gone: whoever removed it said why, where it was damaged)
+    except OSError as e:
+        _damaged(file, side, f"cannot read it ({e.strerror or e})")
+        return None
+    if len(data) != digest.get("size"):
+        why = f"{len(data)} bytes, its sidecar says {digest.get('size')}"
+    elif hashlib.sha256(data).hexdigest() != digest.get("sha256"):
+        why = "its checksum differs from its sidecar's"
+    else:
+        try:
+            image = np.load(io.BytesIO(data), allow_pickle=False)
+            if image.dtype.kind != "f" or image.ndim != 2 or image.shape[-1] != 3:
+                raise ValueError(f"an array of {image.dtype} {image.shape}, not (pixels, 3) floats")
+            return image
+        except (ValueError, EOFError, OSError) as e:
+            why = f"{type(e).__name__}: {e}"
+    _damaged(file, side, why)
+    return None
 
 
 def _reference_settings(cfg, scene_photons: int) -> dict:
@@ -358,14 +388,15 @@ def _reference_settings(cfg, scene_photons: int) -> dict:
 
 
 def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | None, source: str | None
-              ) -> CachedRender:
+              ) -> CachedRender | None:
     """``got`` with its photon-map frame's ``error`` measured now: the image (``pmap()``) against the
     reference of ``cfg`` cached now, as :func:`tlm.experiments.run.photon_error` measures it (the
     reference's stopping rule ``cfg``'s), and the line on a reference not converged among its
     warnings. The reference's key is the one the frame was rendered with where ``cfg`` asks the same
     reference photons and ``k_nearest`` (the rest of that key is the frame's: scene, camera, the
     photons' bounces and the specular walks'), else computed from the scene (loaded where the key
-    did not load it)."""
+    did not load it). None where the image is not there to measure (``pmap()`` gives None: a cached one
+    removed or damaged since its entry was read, :func:`_image`): the frame is rendered again."""
     held = got.summary.get("pmap")
     if not isinstance(held, dict) or got.summary.get("error") is None:
         return got
@@ -386,7 +417,10 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
         key = reference_key(scene, cfg, settings)
     found = load_reference(key)
     image, meta = (None, None) if found is None else (found[0].reshape(-1, 3), found[1])
-    error = run.error_against(key, settings, pmap() if image is not None else None, image, meta)
+    frame = pmap() if image is not None else None  # (read only where there is a reference to measure it against)
+    if image is not None and frame is None:
+        return None
+    error = run.error_against(key, settings, frame, image, meta)
     summary = {**got.summary, "error": error,
                "warnings": [*(got.summary.get("warnings") or []), *reference_warnings(error, cfg)]}
     return CachedRender(got.functional, summary, got.cached, got.key)

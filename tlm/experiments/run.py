@@ -298,13 +298,19 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
     (``image`` and ``meta``: None where none is cached; ``settings``: the run's
     :class:`~tlm.experiments.reference_cache.ReferenceSettings`, whose stopping rule judges it;
     ``seconds``: what computing it took now): :func:`photon_error`'s, and a sweep point's of a cached frame
-    (:func:`tlm.experiments.frames.cached_render`), measured against the reference cached when it is read."""
+    (:func:`tlm.experiments.frames.cached_render`), measured against the reference cached when it is read.
+    ``reference_sha256``: the sha256 of the cached reference's ``reference.npy`` as its ``meta.json`` holds it
+    (``npy``), which tells a reference computed again under the same key (``tlm reference --force``, other
+    ``reference.max_rounds``) from this one (:func:`tlm.experiments.sweep._reference_now`); None for one
+    computed now whose ``meta`` does not hold it."""
     if image is None or meta is None:
         return {"reference": key, "available": False, "hint": "run 'tlm reference CONFIG' to compute and cache it"}
+    npy = meta.get("npy")
     return {"reference": key, "available": True, **image_error(pmap, image),
             "reference_converged": meets_tolerance(meta, settings), "reference_rounds": meta.get("rounds"),
             "reference_standard_error": meta.get("relative_standard_error"),
-            "reference_seconds": None if seconds is None else round(seconds, 3)}
+            "reference_seconds": None if seconds is None else round(seconds, 3),
+            "reference_sha256": npy.get("sha256") if isinstance(npy, dict) else None}
 
 
 def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None) -> dict:

@@ -140,13 +140,16 @@ class Outcome:
 
 
 def _clean_stale(points_dir: Path) -> None:
-    """Remove temporary point folders of sweeps that were killed (their process is gone)."""
+    """Remove temporary point folders of sweeps that were killed (their process is gone), and the
+    temporary files of the rows (sweep.csv, sweep.jsonl) such a sweep left beside them."""
     storage.clean_stale(points_dir)
+    storage.clean_stale_files(points_dir.parent)
 
 
 def _done(folder: Path) -> dict | None:
     """A finished point's record from its folder, or None (not run, failed, unreadable, or
-    a ``results.json`` that is not this point's: another run written there, an edited file)."""
+    a ``results.json`` that is not this point's: another run written there, an edited file; a photon-map
+    error that is not the one the reference cached now gives, :func:`_reference_now`)."""
     try:
         results = json.loads((folder / "results.json").read_text())
     except (OSError, ValueError):
@@ -154,19 +157,35 @@ def _done(folder: Path) -> dict | None:
     if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
             and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
         return None
-    if _reference_now(results.get("error")):  # (measured now: its frame is read from the cache, not rendered)
+    if _reference_now(results.get("error")):  # (measured again: its frame is read from the cache, not rendered)
         return None
     return {"status": "ok", "results": results}
 
 
 def _reference_now(error: Any) -> bool:
-    """Whether a point's photon-map ``error`` was not measured for want of a reference that is
-    cached now (``tlm reference`` since): the point is run again, its frame read from the cache."""
+    """Whether a point's photon-map ``error`` is not the one its reference cached now gives: not measured
+    for want of a reference that is cached now (``tlm reference`` since), or measured against another
+    reference of its key than the one cached now (computed again since: ``tlm reference --force``, a
+    ``reference.max_rounds`` that is not in the key), told by the ``reference_sha256`` it records against
+    the sha256 of ``reference.npy`` that the cached reference's ``meta.json`` holds (a point that records
+    none, written by an older tlm, too). The point is run again, its frame read from the cache and
+    measured now. One measured against a reference that is no longer cached (the cache cleared) keeps
+    its error: nothing would measure it now."""
     from tlm.experiments.reference_cache import cache_dir
 
-    if not (isinstance(error, dict) and error.get("available") is False and isinstance(error.get("reference"), str)):
+    if not (isinstance(error, dict) and isinstance(error.get("reference"), str)):
         return False
-    return (cache_dir() / error["reference"] / "meta.json").is_file()
+    meta = cache_dir() / error["reference"] / "meta.json"
+    if error.get("available") is False:
+        return meta.is_file()
+    if error.get("available") is not True:
+        return False
+    try:
+        npy = json.loads(meta.read_text()).get("npy")
+    except (OSError, ValueError, AttributeError):  # (none cached now, or a damaged one: its reader says so)
+        return False
+    sha = npy.get("sha256") if isinstance(npy, dict) else None
+    return isinstance(sha, str) and error.get("reference_sha256") != sha
 
 
 # the config keys a photon-map reference's key reads (tlm.experiments.reference.reference_key), or a section of
@@ -179,7 +198,9 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
     them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
     ``tlm reference`` command that computes each reference they need (the base config with the
     ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
-    reference reads, :data:`REFERENCE_READS`); none when every photon-map point has one."""
+    reference reads, :data:`REFERENCE_READS`; a sweep whose base is a mapping in the sweep file, which
+    no command names, by the ``config.resolved.yaml`` of one of the points, which holds all of them);
+    none when every photon-map point has one."""
     from tlm.experiments.run import reference_command
 
     missing: dict[str, list[Point]] = {}
@@ -193,15 +214,22 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
     config = _base_config(sweep)
     commands = []
     for points in missing.values():
+        if config is None:  # (its every setting, the --set values and the factors' included)
+            resolved = out / "points" / points[0].hash / "config.resolved.yaml"
+            commands.append(reference_command(os.path.relpath(resolved)))
+            continue
         given = [k for k in (*sweep.set, *points[0].factors)
                  if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in REFERENCE_READS)]
         sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
         commands.append(reference_command(config, sets))
     n = sum(len(ps) for ps in missing.values())
     them = f"{'this reference' if len(commands) == 1 else f'these {len(commands)} references'}"
-    return [f"{n} of {len(sweep.points)} points have no photon-map error (error.rmse, error.rel_mse): no reference "
-            f"is cached for them, and a sweep computes none (reference.auto is 'tlm run''s); {'; '.join(commands)} "
-            f"computes {them}, and the sweep run again into {out} then measures them from their cached frames"]
+    which = (f"{n} of {len(sweep.points)} points have" if n > 1 else
+             "the 1 point has" if len(sweep.points) == 1 else f"1 of {len(sweep.points)} points has")
+    it, its = ("them", "their cached frames") if n > 1 else ("it", "its cached frame")
+    return [f"{which} no photon-map error (error.rmse, error.rel_mse): no reference is cached for {it}, and a "
+            f"sweep computes none (reference.auto is 'tlm run''s); {'; '.join(commands)} computes {them}, and the "
+            f"sweep run again into {out} then measures {it} from {its}"]
 
 
 def _dotted(config: dict, dotted: str) -> Any:
