@@ -64,12 +64,12 @@ def test_a_sweep_made_with_set_is_captioned_by_what_its_points_ran(tmp_path):
 
 def test_provenance_lists_the_overrides_of_each_input(tmp_path):
     sw = _sweep()
-    run = Run(Path("runs/base"), "base: cbox/pmap", "run", {"scene": {"name": "cbox"}, "overrides": ["mode=pmap"]},
-              {})
+    run = Run(Path("runs/base"), "base: cbox/pmap", "run",
+              {"scene": {"name": "cbox"}, "overrides": ["arch.pipelines=2", "mode=pmap"]}, {})  # (mode=: --mode's)
     ev = Study("error-vs-cost", Path("runs/ev"), [], {"provenance": {"study": "ev.yaml",
                                                                      "overrides": ["arch.pipelines=2"]}})
     html = provenance_section(Inputs([], runs=[run, *sw.runs], sweeps=[sw], studies=[ev]), tmp_path).html
-    assert "<th class=\"l\">--set</th>" in html and '<td class="l">mode=pmap</td>' in html
+    assert "<th class=\"l\">--set</th>" in html and '<td class="l">arch.pipelines=2</td>' in html
     assert '<td class="l">scene=cbox.yaml, mode=pmap, resolution=[32,32]</td>' in html  # (a point: its sweep's)
     assert "sweep folder runs/sw: sweep file scaling_cornell.yaml, with --set scene=cbox.yaml" in html
     assert "study ev.yaml, with --set arch.pipelines=2," in html

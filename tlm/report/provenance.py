@@ -55,6 +55,20 @@ def _code(r: dict) -> str:
     return f"{rev} ({', '.join(more)})" if more else rev
 
 
+FLAGS = ("mode", "seed")  # tlm run's --mode and --seed: results.json ``overrides`` ends with them as mode=, seed=
+
+
+def given_set(run: Run) -> list[str]:
+    """The ``--set`` strings a run was made with as given: a ``tlm run``'s ``results.json`` ``overrides``
+    less the ``mode=``/``seed=`` its ``--mode``/``--seed`` added at their end (the mode is in the run's
+    label, the seed in its own column); a study cell's or sweep point's all of them."""
+    found = list(run.overrides)
+    if run.kind == "run":
+        while found and found[-1].partition("=")[0].strip() in FLAGS:
+            found.pop()
+    return found
+
+
 def _run_row(run: Run, shared: dict[str, float] | None = None, overrides: bool = False) -> list[str]:
     """A run's row. Its host seconds: a sweep point's render (``functional.render_host_seconds``) is
     said as part of them where the point rendered (its ``host_seconds.functional`` was measured
@@ -69,7 +83,7 @@ def _run_row(run: Run, shared: dict[str, float] | None = None, overrides: bool =
                 f"{host} (of which {_seconds(render)} render)")
     elif shared:
         host = f"{host} (of which {_seconds(shared)} shared with its scene's other modes)"
-    return [run.label, run.kind, str(run.path), *([", ".join(run.overrides) or "none"] if overrides else []),
+    return [run.label, run.kind, str(run.path), *([", ".join(given_set(run)) or "none"] if overrides else []),
             str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
 
 
@@ -95,7 +109,7 @@ def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
 def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
     # (a --set column where some run was made with overrides: a sweep point's are its sweep's)
-    overrides = any(run.overrides for run in inputs.runs)
+    overrides = any(given_set(run) for run in inputs.runs)
     head = ["run", "kind", "folder", *(["--set"] if overrides else []), "seed", "git revision", "versions", "host s"]
     parts = []
     if inputs.runs:

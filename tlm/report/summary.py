@@ -458,41 +458,97 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
+def _references(keys: list) -> str:
+    """``their reference`` where the errors are against one reference, ``their 2 references`` else."""
+    n = len(set(keys))
+    return "their reference" if n <= 1 else f"their {n} references"
+
+
+def _point_errors(sw) -> tuple[list[tuple[float, str]], list]:
+    """A sweep's finished photon-map points: ``(relative MSE, reference key)`` of those that measured
+    their image error (sweep.csv's ``error.rel_mse``), and the runs of those that have none (no
+    reference cached: ``results.json`` ``error.available`` false)."""
+    runs = {r.path.name: r for r in sw.runs}
+    measured, unmeasured = [], []
+    for row in sw.rows:
+        if row.get("status") != "ok":
+            continue
+        run = runs.get(str(row.get("hash")))
+        error = run.results.get("error") if run is not None else None
+        if _number(row.get("error.rel_mse")):
+            measured.append((float(row["error.rel_mse"]), str((error or {}).get("reference"))))
+        elif isinstance(error, dict) and error.get("available") is False:
+            unmeasured.append(run)
+    return measured, unmeasured
+
+
+def _unmeasured_command(runs: list) -> str:
+    """The ``tlm reference`` commands that compute the references the unmeasured points ``runs`` need
+    (one a reference key, from its first point's ``config.resolved.yaml``: every setting of the point),
+    as the sweep printed them on stderr."""
+    from tlm.experiments.run import reference_command  # (tlm run's rule, as images.py's)
+
+    by_key: dict[str, object] = {}
+    for run in runs:
+        by_key.setdefault(str((run.results.get("error") or {}).get("reference")), run)
+    return "; ".join(reference_command(str((run.path / "config.resolved.yaml").absolute())) for run in by_key.values())
+
+
 def _points_error(inputs: Inputs) -> str:
     """A sentence (after a space) on the image error of the finished sweep points that measured it against
-    their reference (sweep.csv's ``error.rel_mse``; §4's points tables list it): how many, of which sweeps,
-    and the range; "" where none did."""
-    found = {sw.label: [float(r["error.rel_mse"]) for r in sw.rows if r.get("status") == "ok"
-                        and _number(r.get("error.rel_mse"))] for sw in inputs.sweeps}
-    found = {k: v for k, v in found.items() if v}
-    if not found:
-        return ""
-    every = [v for vs in found.values() for v in vs]
-    lo, hi = f"{min(every):.3g}", f"{max(every):.3g}"
-    return (f" The {_count(len(every), 'sweep point')} of {esc(_and(list(found)))} that measured their image "
-            f"error have a relative MSE of {lo if lo == hi else f'{lo}–{hi}'} against their reference (§4 lists each).")
+    their reference (sweep.csv's ``error.rel_mse``; §4's points tables list it): how many of how many, of
+    which sweeps, and the range; then one on the photon-map points that have none (no reference cached), with
+    the ``tlm reference`` command that computes it; "" where no point has a photon-map error or lacks one."""
+    found, missing = {}, {}
+    for sw in inputs.sweeps:
+        measured, unmeasured = _point_errors(sw)
+        if measured:
+            found[sw.label] = (measured, len(measured) + len(unmeasured))
+        if unmeasured:
+            missing[sw.label] = (unmeasured, len(measured) + len(unmeasured), sw.path)
+    said = ""
+    if found:
+        every = [v for vs, _ in found.values() for v, _ in vs]
+        lo, hi = f"{min(every):.3g}", f"{max(every):.3g}"
+        refs = _references([k for vs, _ in found.values() for _, k in vs])
+        if all(len(vs) == n for vs, n in found.values()):  # (every photon-map point measured it)
+            said += (f" The {_count(len(every), 'sweep point')} of {esc(_and(list(found)))} that measured their image "
+                     f"error have a relative MSE of {lo if lo == hi else f'{lo}–{hi}'} against {refs} (§4 lists each).")
+        else:
+            parts = [f"{len(vs)} of {n} points of {label}" if len(vs) < n else f"the {_count(n, 'point')} of {label}"
+                     for label, (vs, n) in found.items()]
+            said += (f" {esc(_and(parts))} measured their image error: relative MSE "
+                     f"{lo if lo == hi else f'{lo}–{hi}'} against {refs} (§4 lists each).")
+    for label, (runs, n, path) in missing.items():
+        keys = {str((r.results.get("error") or {}).get("reference")) for r in runs}
+        said += (f" {len(runs)} of {n} photon-map points of {esc(label)} have no image error: no reference is cached "
+                 f"for them, and a sweep computes none; <code>{esc(_unmeasured_command(runs))}</code> computes "
+                 f"{'it' if len(keys) == 1 else f'these {len(keys)} references'}, and the same 'tlm sweep' run again "
+                 f"into {esc(str(path))} measures them from their cached frames.")
+    return said
 
 
 def _other_errors(inputs: Inputs) -> str:
     """What "What quality costs" says with no error-against-cost rows to draw: the errors the page
-    shows elsewhere (a run's photon-map error in §2, the granularity study's cycle error in §6)."""
+    shows elsewhere (a run's photon-map error in §2, the granularity study's cycle error in §6), each as a
+    relative MSE (as the error-against-cost figures and the sweep points' are)."""
     runs = [r for r in inputs.runs if r.images is not None and (r.results.get("error") or {}).get("available")
-            and _number((r.results.get("error") or {}).get("rmse"))]
+            and _number((r.results.get("error") or {}).get("rel_mse"))]
     shown = []
     if runs:
-        rmse = [r.results["error"]["rmse"] for r in runs]
-        lo, hi = f"{min(rmse):.3g}", f"{max(rmse):.3g}"
-        shown.append(f"§2 shows the photon-map error of {_count(len(runs), 'run')} against its reference (RMSE "
-                     f"{lo if lo == hi else f'{lo}–{hi}'})")
+        rel = [r.results["error"]["rel_mse"] for r in runs]
+        lo, hi = f"{min(rel):.3g}", f"{max(rel):.3g}"
+        keys = [r.results["error"].get("reference") for r in runs]
+        shown.append(f"§2 shows the photon-map error of {_count(len(runs), 'run')} against "
+                     f"{_references(keys).replace('their', 'its') if len(runs) == 1 else _references(keys)} "
+                     f"(relative MSE {lo if lo == hi else f'{lo}–{hi}'})")
     if inputs.of_kind("granularity"):
         shown.append("§6 shows the TLM cycle error of the granularity study against host time")
     points = _points_error(inputs)
-    if points:
-        shown.append(points.strip().removeprefix("The ").removesuffix("."))
-    if not shown:
+    if not shown and not points:
         return "No error-against-cost study among the inputs: no error to show."
     return ("<b>What quality costs:</b> no error-against-cost study among the inputs: no image error against run "
-            f"time; {'; '.join(shown)}.")
+            f"time{'; ' if shown else ''}{'; '.join(shown)}." + points)
 
 
 def _moves_with(rows: list[dict], k: str, factors: list[str]) -> list[str]:

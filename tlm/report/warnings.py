@@ -7,7 +7,12 @@ sweeps keeps its first screens).
 
 Warnings of a study's cells (a thesis cell, a sweep point) are the same lines ``tlm run``
 prints for a run; the commands that run many of them print none, so the report is where
-they are read.
+they are read. A study's own warnings, said once for the study on stderr (``tlm thesis``'s
+``--set`` no cell reads), are the ``warnings`` list of its file (``thesis_summary.json``; any
+study record with one: :data:`STUDY_FILES`), listed in the same box once each, attributed to
+the study. (``tlm error-vs-cost``, ``tlm extreme`` and ``tlm granularity`` write no such list:
+error-vs-cost's reference not converged is its ``reference.json`` ``converged``, drawn with the
+error figures.)
 """
 
 from __future__ import annotations
@@ -17,6 +22,9 @@ from tlm.report.html import esc
 
 SHOWN_RUNS = 4  # runs named per warning; the rest counted
 SHOWN_WARNINGS = 8  # warnings listed in the box itself; the rest in a <details> under them (the page's first screens)
+# a study's records (Study.meta key -> its file) whose ``warnings`` list is the study's own; "" is the
+# meta itself (a thesis study's meta is its thesis_summary.json)
+STUDY_FILES = {"": "thesis_summary.json", "reference": "reference.json", "provenance": "provenance.json"}
 
 
 def recorded(inputs: Inputs) -> list[tuple[str, list[str]]]:
@@ -27,6 +35,29 @@ def recorded(inputs: Inputs) -> list[tuple[str, list[str]]]:
         for line in lines if isinstance(lines, list) else [lines]:
             found.setdefault(str(line), []).append(run.label)
     return list(found.items())
+
+
+def study_label(study) -> str:
+    """How the warnings box names a study: ``the thesis study T``."""
+    return f"the {study.kind} study {study.path}"
+
+
+def study_recorded(inputs: Inputs) -> list[tuple[str, list[str], list[str]]]:
+    """``(warning, labels of the studies that recorded it, their files)`` in the order first met:
+    the ``warnings`` lists of the studies' own records (:data:`STUDY_FILES`)."""
+    found: dict[str, tuple[list[str], list[str]]] = {}
+    for study in getattr(inputs, "studies", None) or []:
+        for key, name in STUDY_FILES.items():
+            record = study.meta if not key else study.meta.get(key)
+            if (key == "" and study.kind != "thesis") or not isinstance(record, dict):
+                continue
+            lines = record.get("warnings") or []
+            for line in lines if isinstance(lines, list) else [lines]:
+                whose, files = found.setdefault(str(line), ([], []))
+                if study_label(study) not in whose:
+                    whose.append(study_label(study))
+                    files.append(name)
+    return [(line, whose, files) for line, (whose, files) in found.items()]
 
 
 def damaged_html(inputs: Inputs) -> str:
@@ -44,22 +75,36 @@ def warnings_html(inputs: Inputs) -> str:
     """The block under the report's inputs line: the damaged files left out (:func:`damaged_html`)
     and the warnings the runs recorded; empty when there are neither."""
     found = recorded(inputs)
+    studies = study_recorded(inputs)
     damaged = damaged_html(inputs)
-    if not found:
+    if not found and not studies:
         return f'<div class="warnings">{damaged}</div>' if damaged else ""
     total = len(inputs.runs)
     items = []
+    for line, whose_studies, _ in studies:  # (a study's own first: said once for all its cells)
+        items.append(f"<li>{esc(line)}<span class=\"note\"> ({esc(', '.join(whose_studies))})</span></li>")
+    said = {line for line, _, _ in studies}
     for line, labels in found:
+        if line in said:  # (a cell of an older study recorded the study's line too: once, the study's)
+            continue
         named = ", ".join(labels[:SHOWN_RUNS]) + (f" and {len(labels) - SHOWN_RUNS} more" if len(labels) > SHOWN_RUNS
                                                   else "")
-        whose = "" if total == 1 else " (every run)" if len(labels) == total else (
+        whose = "" if total == 1 and not studies else " (every run)" if len(labels) == total else (
             f" ({len(labels)} of {total} runs: {named})")
         items.append(f"<li>{esc(line)}<span class=\"note\">{esc(whose)}</span></li>")
-    runs = len({label for _, labels in found for label in labels})
-    who = "The run" if total == 1 else f"{runs} of the {total} runs"
+    kept = [(line, labels) for line, labels in found if line not in said]
+    runs = len({label for _, labels in kept for label in labels})
+    study_names = list(dict.fromkeys(s for _, whose, _ in studies for s in whose))
+    files = list(dict.fromkeys(f for _, _, fs in studies for f in fs))
+    who = " and ".join(filter(None, (
+        ("The run" if total == 1 else f"{runs} of the {total} runs") if kept else "",
+        (study_names[0] if len(study_names) == 1 else f"{len(study_names)} studies") if studies else "")))
+    who = who[0].upper() + who[1:]
+    where = " and ".join([*(["results.json"] if kept else []), *files])
+    n = len(items)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
             + "".join(rest) + "</ul></details>") if rest else ""
-    return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {who} recorded {len(found)} '
-            f"warning{'s' if len(found) > 1 else ''} (results.json <code>warnings</code>); read what is drawn "
+    return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
+            f"warning{'s' if n > 1 else ''} ({esc(where)} <code>warnings</code>); read what is drawn "
             "from them with these in mind:</p><ul>" + "".join(shown) + "</ul>" + more + "</div>")
