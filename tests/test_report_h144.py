@@ -146,3 +146,10 @@ def test_does_it_scale_marks_an_out_of_date_fit(tmp_path, monkeypatch):
     monkeypatch.setattr(eq52, "out_of_date", lambda folder, meta: ["out of date: its sweep holds other points"])
     lead = summary_section(Inputs([], studies=[study]), tmp_path).lead
     assert "ring (out of date) 2.5x at N = 4" in lead and "Out of date: eq's sweep holds other points now" in lead
+
+
+def test_a_column_s_smallest_number_keeps_three_significant_digits():
+    from tlm.report.sweep_lines import column_decimals
+
+    assert column_decimals([29.5, 0.6712, 4.016]) == ["29.500", "0.671", "4.016"]  # (was 0.67 beside 29.50)
+    assert column_decimals([102.0, 101.6, 64.3]) == ["102.0", "101.6", "64.3"]

@@ -93,9 +93,10 @@ ONE_DECIMALS_SPAN = 100
 
 def column_decimals(values: list, text: Callable[[Any], str] = fmt_value) -> list[str]:
     """The cells of a table column of measured numbers (cycles, frame rates, seconds, errors), each
-    to the one count of decimals that writes its largest number to 4 significant digits, trailing
-    zeros kept, so that a row's digits line up with its neighbours' (``102.0`` beside ``101.6`` and
-    ``64.3``, not ``102``). A column whose numbers span :data:`ONE_DECIMALS_SPAN` times or more (one
+    to the one count of decimals that writes its largest number to 4 significant digits and its
+    smallest to 3 at least, trailing zeros kept, so that a row's digits line up with its
+    neighbours' (``102.0`` beside ``101.6`` and ``64.3``, not ``102``; ``29.500`` above ``0.671``,
+    not ``0.67``). A column whose numbers span :data:`ONE_DECIMALS_SPAN` times or more (one
     count of decimals would write its smallest with fewer than 2 significant digits), or that
     :func:`column_texts` writes in scientific notation or as whole numbers, is written as it writes it."""
     nums = [abs(v) for v in values if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)]
@@ -103,7 +104,7 @@ def column_decimals(values: list, text: Callable[[Any], str] = fmt_value) -> lis
     if (all(isinstance(v, int) for v in nums) or not sizes or min(sizes) < FIXED_FROM
             or max(sizes) >= FIXED_BELOW or max(sizes) >= ONE_DECIMALS_SPAN * min(sizes)):
         return column_texts(values, text)
-    places = max(0, 3 - math.floor(math.log10(max(sizes))))
+    places = max(0, 3 - math.floor(math.log10(max(sizes))), 2 - math.floor(math.log10(min(sizes))))
     return [("0" if v == 0 else f"{v:.{places}f}") if isinstance(v, int | float) and not isinstance(v, bool)
             and math.isfinite(v) else text(v) for v in values]
 
