@@ -267,24 +267,7 @@ def clean_stale(folder: Path, name: str = ".+") -> None:
     Of this process's own names, those none of its writers is using now are removed (left by an
     earlier process of the same id); one a writer (another thread) is using is never touched."""
     pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
-    try:
-        entries = list(Path(folder).iterdir())
-    except OSError:
-        return
-    host = _host()
-    for d in entries:
-        m = pattern.fullmatch(d.name)
-        if not m or (m[1] is not None and m[1] != host):
-            continue
-        if not d.is_dir() or d.is_symlink():
-            continue
-        pid = int(m[2])
-        if pid == os.getpid():
-            with _LIVE_LOCK:
-                if d.name in _LIVE:
-                    continue
-        elif pid_alive(pid):
-            continue
+    for d in _left_by_the_gone(folder, pattern, Path.is_dir, lambda d: d.name in _LIVE):
         shutil.rmtree(d, ignore_errors=True)
 
 
@@ -294,24 +277,35 @@ def clean_stale_files(folder: Path, name: str = ".+") -> None:
     killed, or ended at once by a second signal, while it wrote. Another machine's, a live
     process's and those this process's writers are writing now are left alone."""
     pattern = re.compile(rf"\.{name}\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
+    for f in _left_by_the_gone(folder, pattern, Path.is_file, lambda f: os.path.abspath(f) in _FILES):
+        with suppress(OSError):
+            f.unlink()
+
+
+def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], bool],
+                      in_use: Callable[[Path], bool]) -> list[Path]:
+    """The entries of ``folder`` (not links; of ``kind``) whose names ``pattern`` matches (its
+    groups: the host, None for an older writer's name, and the process id) that a process of this
+    machine now gone left, or this process before (its id reused) where ``in_use`` (asked
+    under the lock of this process's writers) says none of its writers uses it now."""
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
-        return
-    host = _host()
-    for f in entries:
-        m = pattern.fullmatch(f.name)
-        if not m or (m[1] is not None and m[1] != host) or f.is_symlink() or not f.is_file():
+        return []
+    host, gone = _host(), []
+    for e in entries:
+        m = pattern.fullmatch(e.name)
+        if not m or (m[1] is not None and m[1] != host) or e.is_symlink() or not kind(e):
             continue
         pid = int(m[2])
         if pid == os.getpid():
             with _LIVE_LOCK:
-                if os.path.abspath(f) in _FILES:
+                if in_use(e):
                     continue
         elif pid_alive(pid):
             continue
-        with suppress(OSError):
-            f.unlink()
+        gone.append(e)
+    return gone
 
 
 @contextmanager

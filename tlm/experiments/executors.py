@@ -433,14 +433,18 @@ def _alive(pid: int) -> bool:
 OWN_PROCESS = "tlm-"  # the start of the name of every process a local pool of tlm's starts
 
 
-class _SpawnWorker(multiprocessing.context.SpawnProcess):
-    """A ``spawn`` process of tlm's own pool: named :data:`OWN_PROCESS`..., a name the process
-    has before it runs the main script again (:func:`leave_if_bootstrapping`)."""
+class _OwnProcess:
+    """A process of tlm's own pool: named :data:`OWN_PROCESS`..., a name the process has before
+    it runs the main script again (:func:`leave_if_bootstrapping`); mixed into a context's class."""
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         if not self.name.startswith(OWN_PROCESS):
             self.name = OWN_PROCESS + self.name
+
+
+class _SpawnWorker(_OwnProcess, multiprocessing.context.SpawnProcess):
+    """A ``spawn`` process of tlm's own pool."""
 
 
 class _SpawnContext(multiprocessing.context.SpawnContext):
@@ -450,13 +454,8 @@ class _SpawnContext(multiprocessing.context.SpawnContext):
 
 
 if hasattr(multiprocessing.context, "ForkServerContext"):  # (POSIX)
-    class _ForkServerWorker(multiprocessing.context.ForkServerProcess):
-        """A ``forkserver`` process of tlm's own pool (as :class:`_SpawnWorker`)."""
-
-        def __init__(self, *args, **kwargs) -> None:
-            super().__init__(*args, **kwargs)
-            if not self.name.startswith(OWN_PROCESS):
-                self.name = OWN_PROCESS + self.name
+    class _ForkServerWorker(_OwnProcess, multiprocessing.context.ForkServerProcess):
+        """A ``forkserver`` process of tlm's own pool."""
 
     class _ForkServerContext(multiprocessing.context.ForkServerContext):
         """The ``forkserver`` context whose processes are tlm's own (:class:`_ForkServerWorker`)."""
