@@ -26,7 +26,6 @@ rendered from the scene its key loaded (:func:`cached_render`), not loaded again
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import hashlib
 import io
@@ -51,7 +50,7 @@ from tlm.render.planner import inert_changes, inert_settings
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
-from tlm.storage import warn, write_file
+from tlm.storage import warn, write_atomic, write_file
 
 
 def scene_fingerprint(scene) -> str:
@@ -329,7 +328,8 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
             side_text = {**summary, "npz": file_digest(path)}
             if pmap is not None:
                 saved.append(_image_file(path))
-                _save_image(_image_file(path), pmap)
+                with write_atomic(_image_file(path), "wb") as fh:  # (whole or not at all)
+                    np.save(fh, pmap)
                 side_text["pmap"] = {**summary["pmap"], **file_digest(_image_file(path))}
             write_file(side, json.dumps(side_text, indent=1) + "\n")
         except OSError:  # a read-only (or full) cache only costs speed
@@ -337,18 +337,6 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
                 remove_entry(done, cache_dir())
     got = CachedRender(fn, summary, False, key)
     return _measured(got, cfg, lambda: pmap, res.scene, base, source)
-
-
-def _save_image(path: Path, image: np.ndarray) -> None:
-    """The photon-map frame's image, written whole or not at all (a temporary file renamed)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.save(fh, image)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
 
 
 def _image(path: Path, side: Path, digest: dict) -> np.ndarray | None:
