@@ -121,8 +121,15 @@ def reference_config(cfg: RunConfig, settings: ReferenceSettings) -> RunConfig:
     return replace(cfg, mode="pmap", seed=REFERENCE_SEED, render=render, photons=photons, estimate=estimate)
 
 
+# the config keys :func:`reference_key` reads, or a section of them (a sweep's command that computes the
+# reference of its points names these of its factors and --set: tlm.experiments.sweep.unmeasured_line)
+KEY_READS = ("scene", "resolution", "photons.max_bounces", "render.reflect_depth", "render.refract_depth",
+             "render.fresnel", "render.min_weight", "reference")
+
+
 def reference_key(scene: Scene, cfg: RunConfig, settings: ReferenceSettings) -> str:
-    """A hash of everything the converged photon-map image depends on (the module's docstring)."""
+    """A hash of everything the converged photon-map image depends on (the module's docstring;
+    of the config, the keys :data:`KEY_READS`)."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(scene.triangles).tobytes())
     h.update(np.ascontiguousarray(scene.material_index).tobytes())

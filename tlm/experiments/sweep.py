@@ -87,7 +87,6 @@ from tlm.experiments.executors import (
     LocalPool,
     SweepStopped,
     kernel_threads,
-    leave_if_bootstrapping,
     open_executor,
     take_finished,
 )
@@ -104,6 +103,7 @@ from tlm.experiments.sweep_point import (
     write_error,
 )
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
+from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
 from tlm.storage import check_destination, claim_folder
 
@@ -188,19 +188,16 @@ def _reference_now(error: Any) -> bool:
     return isinstance(sha, str) and error.get("reference_sha256") != sha
 
 
-# the config keys a photon-map reference's key reads (tlm.experiments.reference.reference_key), or a section of
-REFERENCE_READS = ("scene", "resolution", "photons.max_bounces", "render.reflect_depth", "render.refract_depth",
-                   "render.fresnel", "render.min_weight", "reference")
-
-
 def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
     """The line on the sweep's photon-map points that have no image error: no reference cached for
     them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
     ``tlm reference`` command that computes each reference they need (the base config with the
     ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
-    reference reads, :data:`REFERENCE_READS`; a sweep whose base is a mapping in the sweep file, which
-    no command names, by the ``config.resolved.yaml`` of one of the points, which holds all of them);
+    reference reads, :data:`~tlm.experiments.reference.KEY_READS`; a sweep whose base is a mapping in
+    the sweep file, which no command names, by the ``config.resolved.yaml`` of one of the points,
+    which holds all of them);
     none when every photon-map point has one."""
+    from tlm.experiments.reference import KEY_READS
     from tlm.experiments.run import reference_command
 
     missing: dict[str, list[Point]] = {}
@@ -219,7 +216,7 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
             commands.append(reference_command(os.path.relpath(resolved)))
             continue
         given = [k for k in (*sweep.set, *points[0].factors)
-                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in REFERENCE_READS)]
+                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in KEY_READS)]
         sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
         commands.append(reference_command(config, sets))
     n = sum(len(ps) for ps in missing.values())
