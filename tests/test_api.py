@@ -246,6 +246,26 @@ def test_no_private_name_is_imported_from_another_module(module):
     assert private == []
 
 
+def test_a_sweeps_set_checks_are_public_names_of_their_own_module():
+    """The helpers on a sweep's ``--set`` strings (tlm/experiments/sweep_sets.py, out of
+    sweep_file.py) are public there, the same objects sweep_file.py calls, and do as they did."""
+    import tlm.experiments.sweep_file as sweep_file
+    from tlm.errors import InputError
+    from tlm.experiments import sweep_sets
+    from tlm.experiments.sweep_sets import given_by, named, refuse_factor_sets, said_once, set_leaves
+
+    for name in ("at_default", "given_by", "named", "refuse_factor_sets", "said_once", "set_leaves"):
+        assert getattr(sweep_file, name) is getattr(sweep_sets, name), name
+    assert set_leaves("estimate={k: 9, radius: 2}") == {"estimate.k": 9, "estimate.radius": 2}
+    assert given_by("arch", ["arch.fifo_depth"]) and not given_by("seed", ["arch.fifo_depth"])
+    assert said_once(["alone at depth 16", "alone at depth 1"]) == "alone at depth 1 or 16"
+    with pytest.raises(InputError) as e:
+        refuse_factor_sets(["arch={fifo_depth: 4, pipelines: 2}"], {"arch.fifo_depth": "grid"}, "s.yaml")
+    assert e.value.key == "--set arch={fifo_depth: 4, pipelines: 2}" and str(e.value).endswith("--set arch.pipelines=2")
+    again = named(e.value, "s.yaml with --set")
+    assert again.source == "s.yaml with --set" and again.key == e.value.key and str(again).count("s.yaml") == 1
+
+
 def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():
     from tlm.progress import Ticking, Timer, progress_bar
 

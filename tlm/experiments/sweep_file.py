@@ -16,8 +16,6 @@ import hashlib
 import itertools
 import json
 import os
-import re
-import shlex
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,10 +40,11 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import parse_yaml, value_text, with_overrides
+from tlm.config_words import value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
-from tlm.experiments.study import override_key, refuse_set, with_set
+from tlm.experiments.study import override_key, with_set
+from tlm.experiments.sweep_sets import at_default, given_by, named, refuse_factor_sets, said_once, set_leaves
 from tlm.fingerprint import code_fingerprint
 
 _SCALARS = (str, int, float, bool, type(None))
@@ -156,7 +155,7 @@ class Sweep:
                 why = inert.get(factor) if isinstance(inert, dict) else None
                 if why is not None:
                     whys.add(str(why))
-                elif not _at_default(point.config, defaults, factor):
+                elif not at_default(point.config, defaults, factor):
                     whys.clear()
                     break
             if whys and factor in self.factors:
@@ -203,87 +202,6 @@ class Sweep:
                     line = lines[k, id(v)] = text[text.index("\n") + 1:]
                 out.append(line)
         return "".join(out)
-
-
-_NUMBER = re.compile(r"(\d+(?:\.\d+)?)")  # (a split on it: the text between at even places, numbers at odd)
-
-
-def said_once(whys) -> str:
-    """The points' reasons for a factor that changed nothing, each said once: reasons that differ
-    in one number only (each point's value: "alone at depth 1 and at 1024", "... depth 16 and at
-    1024 ...") are one, that number listed ("alone at depth 1, 16 or 256 and at 1024"); others
-    apart, all joined by "; "."""
-    groups: dict[tuple, list[list[str]]] = {}
-    for why in sorted(set(whys)):
-        parts = _NUMBER.split(why)
-        groups.setdefault(tuple(parts[::2]), []).append(parts)
-    out = []
-    for members in groups.values():
-        varied = [i for i in range(1, len(members[0]), 2) if len({m[i] for m in members}) > 1]
-        if len(varied) != 1:  # (the same text; or numbers that vary together: said apart, as they pair)
-            out.extend("".join(m) for m in members)
-            continue
-        at = varied[0]
-        values = sorted({m[at] for m in members}, key=float)
-        listed = f"{', '.join(values[:-1])} or {values[-1]}"
-        out.append("".join(listed if i == at else part for i, part in enumerate(members[0])))
-    return "; ".join(sorted(out))
-
-
-def set_leaves(item: str) -> dict[str, Any]:
-    """The dotted keys the ``--set`` string ``item`` sets, each with its value: its key, or each key
-    under it when its value is a mapping (``estimate={k: 9}``: ``estimate.k``; an empty one sets none:
-    the section at its defaults); a value YAML cannot read (refused elsewhere): its key alone."""
-    key, _, text = str(item).partition("=")
-    try:
-        value = parse_yaml(text)
-    except yaml.YAMLError:
-        return {key.strip(): None}
-
-    def leaves(prefix: str, node: Any) -> dict[str, Any]:
-        if isinstance(node, dict):
-            return {k: v for name, child in node.items() for k, v in leaves(f"{prefix}.{name}", child).items()}
-        return {prefix: node}
-
-    return leaves(key.strip(), value)
-
-
-def _refuse_factor_sets(overrides: Iterable[str], factors: dict[str, str], src: str) -> None:
-    """An InputError for the first ``--set`` string of ``overrides`` that sets a factor's key (``factors``:
-    key -> where, ``grid``), or a section above or below one: the factor would win unsaid. A section given
-    as a mapping (``bsp={memory_factor: 10}``) replaces the base's section, as ``tlm run --set`` does, and
-    is taken where none of its keys is a factor's (each point then gets its factor's value in it); one that
-    sets a factor's key is refused, naming its other keys in the dotted form that a sweep takes."""
-    why = "which gives each point its value: change its values in the sweep file, not by --set"
-    for item in overrides:
-        key = override_key(item)
-        leaves = set_leaves(item)
-        touched = [(leaf, f) for leaf in leaves for f in factors if _given_by(leaf, [f])]
-        if not touched:
-            continue
-        if list(leaves) == [key] or not any(f.startswith(key + ".") for _, f in touched):
-            refuse_set([item], {f: f"a factor of the sweep ({factors[f]}.{f}), {why}" for _, f in touched}, src)
-        f = next(f for _, f in touched if f.startswith(key + "."))
-        others = [f"--set {shlex.quote(f'{k}={_flow(v)}')}" for k, v in leaves.items()
-                  if not any(_given_by(k, [g]) for g in factors)]
-        rest = f"; give its other keys one by one: {' '.join(others)}" if others else ""
-        raise InputError(f"{key} holds {f}, a factor of the sweep ({factors[f]}.{f}), {why}{rest}", source=src,
-                         key=f"--set {item.strip()}")
-
-
-def _flow(value: Any) -> str:
-    """``value`` as a ``--set`` writes it: YAML's flow style, on one line."""
-    return yaml.safe_dump(value, default_flow_style=True, width=10**6).strip().removesuffix("...").strip()
-
-
-def _at_default(config: dict, defaults: dict, dotted: str) -> bool:
-    """Whether the resolved ``config`` holds the key ``dotted`` at its default."""
-    here, there = config, defaults
-    for part in dotted.split("."):
-        if not (isinstance(here, dict) and isinstance(there, dict) and part in here and part in there):
-            return False
-        here, there = here[part], there[part]
-    return here == there
 
 
 def config_hash(resolved: dict, inputs: dict[str, str] | None = None, folder: Path | None = None) -> str:
@@ -528,8 +446,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     folder); the points' configs, and so their hashes, hold them. One whose key is a factor's, or a
     section above or below one, is refused (the factor would win unsaid), but a section given as a
     mapping that leaves the factor's key out, which replaces the base's section as ``tlm run --set``
-    does (:func:`_refuse_factor_sets`); so is a bad key or value (the error names the file ``with
-    --set``, as ``tlm run``'s does)."""
+    does (:func:`~tlm.experiments.sweep_sets.refuse_factor_sets`); so is a bad key or value (the error
+    names the file ``with --set``, as ``tlm run``'s does)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -584,8 +502,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
     if overrides:
         fixed = with_set(fixed, overrides, scene_folders)
-        _refuse_factor_sets(overrides, {k: where for where, section in (("grid", grid), ("zip", zipped))
-                                        for k in section}, src)
+        refuse_factor_sets(overrides, {k: where for where, section in (("grid", grid), ("zip", zipped))
+                                       for k in section}, src)
         config_from_dict(fixed, label)
     factors_list, indices = _expand_both(grid, zipped)
     factor_keys = [*grid, *zipped]
@@ -603,10 +521,10 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
             try:
                 fields = checked.of(config_from_dict(point, f"{src} (point {i}: {shown})"))
             except InputError as e:  # (named by what gave the key: a --set's, not a factor's, says so)
-                if not (overrides and _given_by(e.key, map(override_key, overrides))
-                        and not _given_by(e.key, factors)):
+                if not (overrides and given_by(e.key, map(override_key, overrides))
+                        and not given_by(e.key, factors)):
                     raise
-                raise _named(e, f"{label} (point {i}: {shown})") from None
+                raise named(e, f"{label} (point {i}: {shown})") from None
         rows.append((i, factors, fields))
     from tlm.render.planner import inert_settings
 
@@ -640,19 +558,6 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
                             _key([fields[name].keyed for name in order], shown), inputs["functional"]))
     _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert, overrides)
-
-
-def _given_by(key: str | None, keys) -> bool:
-    """Whether the dotted ``key`` (an error's) is one of ``keys``, or a section above or below one."""
-    return key is not None and any(key == k or key.startswith(k + ".") or k.startswith(key + ".") for k in keys)
-
-
-def _named(e: InputError, source: str) -> InputError:
-    """``e`` with its source ``source``."""
-    said = str(e)
-    head = f"{e.source}: " if e.source else ""
-    head += f"{e.key}: " if e.key else ""
-    return InputError(said[len(head):] if said.startswith(head) else said, source=source, key=e.key)
 
 
 def _scenes_found(rows: list, src: str, folders: list[Path], per_point: bool = True) -> None:
