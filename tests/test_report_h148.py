@@ -89,3 +89,13 @@ def test_a_run_s_mode_flag_is_not_in_its_set_column():
     assert provenance.given_set(only) == []
     point = Run(Path("p"), "sw #0", "sweep-point", {}, {}, sweep_overrides=["mode=pmap"])
     assert provenance.given_set(point) == ["mode=pmap"]
+
+
+def test_the_points_error_sentence_is_said_by_the_summary_points_module():
+    """tlm.report.summary_points (moved out of summary.py, h150) says the sweep points' error sentence."""
+    from tlm.report.summary_points import points_error
+
+    sw, runs = _sweep(2, 2)
+    text = points_error(Inputs([sw.path], runs=runs, sweeps=[sw]))
+    assert text.startswith(" 2 of 4 points of kmixed measured their image error: relative MSE 0.25")
+    assert text in summary._other_errors(Inputs([sw.path], runs=runs, sweeps=[sw]))

@@ -15,6 +15,9 @@ hold nothing for it):
 6. What do the granularity and extreme studies find? The largest packet up to which every
    size keeps within 1% of the reference's cycles (not a lucky size past one that does not),
    and the default size's error; the cases not as expected.
+
+The sentences on the sweeps' points (their frame rates, bottleneck PM and image error) are
+:mod:`tlm.report.summary_points`'s.
 """
 
 from __future__ import annotations
@@ -30,14 +33,24 @@ from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
 from tlm.report.names import value_text
+from tlm.report.summary_points import (
+    PM_METRIC,
+    PMS,
+    bottleneck_of_points,
+    fps_of_points,
+    points_error,
+    references,
+    sweep_bottlenecks,
+)
+from tlm.report.summary_points import and_ as _and
+from tlm.report.summary_points import count as _count
+from tlm.report.summary_points import number as _number
 from tlm.report.sweep_lines import same_value
 from tlm.report.sweeps import named_rows
 from tlm.report.tables import study_summaries
 
 MODES = ("rcast", "reflect", "refract", "pmap")
 MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
-PMS = ("vertex", "traversal", "intersection", "fragment")
-PM_METRIC = {"vertex": "TVert", "traversal": "TTrav", "intersection": "Tisct", "fragment": "TFrag"}
 SIZE = (5.4, 3.1)
 
 
@@ -85,7 +98,7 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         theirs = {}
     ours = {k: v for k, v in ours.items() if isinstance(v, int | float) and v > 0}
     if not ours:
-        return _fps_of_points(inputs), None
+        return fps_of_points(inputs), None
     scenes = sorted({s for s, _ in ours}, key=_scene_order)
     fig = new_figure(*SIZE)
     ax = fig.add_subplot()
@@ -148,32 +161,10 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
-def _number(v) -> bool:
-    return isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v)
-
-
-def _fps_of_points(inputs: Inputs) -> str:
-    """What "How fast" says with no run or thesis study to draw: the sweep points' frame rates, where
-    the inputs have any (§4 draws them against each factor), else that there is none."""
-    points = [r for r in inputs.runs if r.kind == "sweep-point" and _number(r.results.get("fps"))
-              and r.results["fps"] > 0]
-    if not points:
-        return "No run, thesis study or finished sweep point among the inputs: no frame rate to show."
-    lo, hi = min(points, key=lambda r: r.results["fps"]), max(points, key=lambda r: r.results["fps"])
-    rng = (f"{lo.results['fps']:.3g} FPS" if lo is hi else
-           f"from {lo.results['fps']:.3g} FPS ({esc(lo.label)}) to {hi.results['fps']:.3g} FPS ({esc(hi.label)})")
-    return (f"<b>How fast:</b> no run or thesis study among the inputs to draw per scene and mode; the "
-            f"{_count(len(points), 'sweep point')} run {rng} (§4 draws them against each factor).")
-
-
 def _scene_order(label: str) -> tuple:
     """The thesis's scenes first, in the order of its tables (ring, room, Cornell), then the others."""
     order = list(THESIS_SCENES.values())
     return (order.index(label) if label in order else len(order), label)
-
-
-def _count(n: int, what: str) -> str:
-    return f"{n} {what}{'s' * (n != 1)}"
 
 
 def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
@@ -190,7 +181,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             if THESIS_SCENES.get(r.scene) == r.scene_label:  # (the thesis's scene: its slowest PM is known)
                 cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
     if not cells:
-        return _bottleneck_of_points(inputs), None
+        return bottleneck_of_points(inputs), None
     thesis = inputs.of_kind("thesis")
     slowest = (thesis[0].meta.get("slowest_pm") or {}) if thesis else {}
     keys = sorted(cells, key=lambda k: (_scene_order(k[0]), MODES.index(k[1]) if k[1] in MODES else 9))
@@ -235,73 +226,10 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         m = sum(v["match"] for v in slowest.values())
         text += (f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes." if len(slowest) > 1 else
                  f" The slowest PM is {'' if m else 'not '}the thesis's.")
-    points = _sweep_bottlenecks(inputs)  # (not in the figure: the sweeps' points, where the bottleneck moves)
+    points = sweep_bottlenecks(inputs)  # (not in the figure: the sweeps' points, where the bottleneck moves)
     if points:
         text += f" Across the sweeps' points (not drawn): {'; '.join(points)}."
     return text, f
-
-
-def _busy(r: Run) -> dict[str, float] | None:
-    """The busy share of each PM of pipeline 0 that ``r`` records; None where it lacks one."""
-    units = (r.results.get("timing") or {}).get("units") or {}
-    busy = {pm: units[f"pipe0.{pm}"]["fractions"].get("busy") for pm in PMS
-            if isinstance(units.get(f"pipe0.{pm}"), dict) and isinstance(units[f"pipe0.{pm}"].get("fractions"), dict)}
-    return busy if len(busy) == len(PMS) and all(_number(v) for v in busy.values()) else None
-
-
-def _sweep_bottlenecks(inputs: Inputs, moving: bool = False) -> list[str]:
-    """Per sweep whose finished points record their busy fractions, its points' bottleneck PM in words:
-    ``scal: TVert in all 14 points, busy 43–97%``, or where it moves across the sweep, each PM's count and
-    the first point it limits (``TFrag in 3 (first at arch.pipelines = 1), TVert in 5 (first at ...)``).
-    ``moving``: the sweeps where it moves alone."""
-    texts = []
-    for sw in inputs.sweeps:
-        tops: dict[str, list[tuple[Run, float]]] = defaultdict(list)
-        for r in sw.runs:
-            b = _busy(r)
-            if b is not None:
-                pm = max(PMS, key=lambda p: b[p])  # (the first of PM order on a tie)
-                tops[pm].append((r, b[pm]))
-        if not tops:
-            continue
-        n = sum(len(v) for v in tops.values())
-        first = {pm: next(i for i, r in enumerate(sw.runs) if r is tops[pm][0][0]) for pm in tops}
-        order = sorted(tops, key=lambda p: (-len(tops[p]), first[p]))  # (the most points first, then sweep order)
-        if len(order) == 1:
-            if moving:
-                continue
-            pm = order[0]
-            texts.append(f"{esc(sw.label)}: {PM_METRIC[pm]} in {'all ' if n > 1 else ''}{_count(n, 'point')}, busy "
-                         f"{_percent_range([v for _, v in tops[pm]])}")
-        else:
-            each = ", ".join(f"{PM_METRIC[pm]} in {len(tops[pm])} (busy {_percent_range([v for _, v in tops[pm]])}"
-                             + (f"; first at {esc(tops[pm][0][0].factors_text)}" if tops[pm][0][0].factors else "")
-                             + ")" for pm in order)
-            texts.append(f"{esc(sw.label)}: the bottleneck moves across its {n} points: {each}")
-    return texts
-
-
-def _bottleneck_of_points(inputs: Inputs) -> str:
-    """What "What limits it" says with no run or thesis cell to draw: the bottleneck PM of the sweep
-    points that record their busy fractions, where any do, else that none does."""
-    busy = [b for r in inputs.runs if r.kind == "sweep-point" and (b := _busy(r)) is not None]
-    if not busy:
-        return "No run, thesis cell or sweep point records its units' busy fractions: no bottleneck to show."
-    tops = defaultdict(list)
-    for b in busy:
-        pm = max(PMS, key=lambda p: b[p])  # (the first of PM order on a tie)
-        tops[pm].append(b[pm])
-    each = "; ".join(f"{PM_METRIC[pm]} in {len(tops[pm])}, busy {_percent_range(tops[pm])}"
-                     for pm in sorted(tops, key=lambda p: (-len(tops[p]), PMS.index(p))))
-    moves = _sweep_bottlenecks(inputs, moving=True)  # (where it moves within a sweep: at which points)
-    return (f"<b>What limits it:</b> no run or thesis study among the inputs to draw; the bottleneck PM of the "
-            f"{_count(len(busy), 'sweep point')}: {each} of the time."
-            + (f" Within a sweep: {'; '.join(moves)}." if moves else ""))
-
-
-def _percent_range(shares: list[float]) -> str:
-    low, high = f"{100 * min(shares):.0f}", f"{100 * max(shares):.0f}"
-    return f"{low if low == high else f'{low}–{high}'}%"
 
 
 def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
@@ -454,78 +382,8 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             + (f" (from {esc(source)})" if source else "") + ", relative MSE "
             f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
             + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference")
-            + (f"; {', '.join(rest)}" if rest else "") + "." + _points_error(inputs))
+            + (f"; {', '.join(rest)}" if rest else "") + "." + points_error(inputs))
     return text, f
-
-
-def _references(keys: list) -> str:
-    """``their reference`` where the errors are against one reference, ``their 2 references`` else."""
-    n = len(set(keys))
-    return "their reference" if n <= 1 else f"their {n} references"
-
-
-def _point_errors(sw) -> tuple[list[tuple[float, str]], list]:
-    """A sweep's finished photon-map points: ``(relative MSE, reference key)`` of those that measured
-    their image error (sweep.csv's ``error.rel_mse``), and the runs of those that have none (no
-    reference cached: ``results.json`` ``error.available`` false)."""
-    runs = {r.path.name: r for r in sw.runs}
-    measured, unmeasured = [], []
-    for row in sw.rows:
-        if row.get("status") != "ok":
-            continue
-        run = runs.get(str(row.get("hash")))
-        error = run.results.get("error") if run is not None else None
-        if _number(row.get("error.rel_mse")):
-            measured.append((float(row["error.rel_mse"]), str((error or {}).get("reference"))))
-        elif isinstance(error, dict) and error.get("available") is False:
-            unmeasured.append(run)
-    return measured, unmeasured
-
-
-def _unmeasured_command(runs: list) -> str:
-    """The ``tlm reference`` commands that compute the references the unmeasured points ``runs`` need
-    (one a reference key, from its first point's ``config.resolved.yaml``: every setting of the point),
-    as the sweep printed them on stderr."""
-    from tlm.experiments.run import reference_command  # (tlm run's rule, as images.py's)
-
-    by_key: dict[str, object] = {}
-    for run in runs:
-        by_key.setdefault(str((run.results.get("error") or {}).get("reference")), run)
-    return "; ".join(reference_command(str((run.path / "config.resolved.yaml").absolute())) for run in by_key.values())
-
-
-def _points_error(inputs: Inputs) -> str:
-    """A sentence (after a space) on the image error of the finished sweep points that measured it against
-    their reference (sweep.csv's ``error.rel_mse``; §4's points tables list it): how many of how many, of
-    which sweeps, and the range; then one on the photon-map points that have none (no reference cached), with
-    the ``tlm reference`` command that computes it; "" where no point has a photon-map error or lacks one."""
-    found, missing = {}, {}
-    for sw in inputs.sweeps:
-        measured, unmeasured = _point_errors(sw)
-        if measured:
-            found[sw.label] = (measured, len(measured) + len(unmeasured))
-        if unmeasured:
-            missing[sw.label] = (unmeasured, len(measured) + len(unmeasured), sw.path)
-    said = ""
-    if found:
-        every = [v for vs, _ in found.values() for v, _ in vs]
-        lo, hi = f"{min(every):.3g}", f"{max(every):.3g}"
-        refs = _references([k for vs, _ in found.values() for _, k in vs])
-        if all(len(vs) == n for vs, n in found.values()):  # (every photon-map point measured it)
-            said += (f" The {_count(len(every), 'sweep point')} of {esc(_and(list(found)))} that measured their image "
-                     f"error have a relative MSE of {lo if lo == hi else f'{lo}–{hi}'} against {refs} (§4 lists each).")
-        else:
-            parts = [f"{len(vs)} of {n} points of {label}" if len(vs) < n else f"the {_count(n, 'point')} of {label}"
-                     for label, (vs, n) in found.items()]
-            said += (f" {esc(_and(parts))} measured their image error: relative MSE "
-                     f"{lo if lo == hi else f'{lo}–{hi}'} against {refs} (§4 lists each).")
-    for label, (runs, n, path) in missing.items():
-        keys = {str((r.results.get("error") or {}).get("reference")) for r in runs}
-        said += (f" {len(runs)} of {n} photon-map points of {esc(label)} have no image error: no reference is cached "
-                 f"for them, and a sweep computes none; <code>{esc(_unmeasured_command(runs))}</code> computes "
-                 f"{'it' if len(keys) == 1 else f'these {len(keys)} references'}, and the same 'tlm sweep' run again "
-                 f"into {esc(str(path))} measures them from their cached frames.")
-    return said
 
 
 def _other_errors(inputs: Inputs) -> str:
@@ -540,11 +398,11 @@ def _other_errors(inputs: Inputs) -> str:
         lo, hi = f"{min(rel):.3g}", f"{max(rel):.3g}"
         keys = [r.results["error"].get("reference") for r in runs]
         shown.append(f"§2 shows the photon-map error of {_count(len(runs), 'run')} against "
-                     f"{_references(keys).replace('their', 'its') if len(runs) == 1 else _references(keys)} "
+                     f"{references(keys).replace('their', 'its') if len(runs) == 1 else references(keys)} "
                      f"(relative MSE {lo if lo == hi else f'{lo}–{hi}'})")
     if inputs.of_kind("granularity"):
         shown.append("§6 shows the TLM cycle error of the granularity study against host time")
-    points = _points_error(inputs)
+    points = points_error(inputs)
     if not shown and not points:
         return "No error-against-cost study among the inputs: no error to show."
     return ("<b>What quality costs:</b> no error-against-cost study among the inputs: no image error against run "
@@ -595,11 +453,6 @@ def _as_yaml(k: str, text: str) -> str:
     """A factor's value as :func:`_effect` keys it (its repr) with null, true and false as YAML writes
     them, null with what it asks of ``k`` (:func:`~tlm.report.names.value_text`)."""
     return {"None": value_text(k, None), "True": "true", "False": "false"}.get(text, text)
-
-
-def _and(items: list[str]) -> str:
-    """``a``, ``a and b``, ``a, b and c``."""
-    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
 
 
 MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
