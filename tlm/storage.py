@@ -5,7 +5,8 @@
 * :func:`atomic_folder` — an output folder (a run, a sweep, a study).
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
 * :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
-  number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``.
+  number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``; and
+  :func:`read_jsonl`, rows read back (both :mod:`tlm.storage_json`'s, imported from here too).
 * :func:`on_failed_write` — who is told of a write that failed (:mod:`tlm.caches`, which says
   once that one of tlm's caches cannot be written); :func:`warn` — a one-line warning.
 
@@ -28,8 +29,8 @@ of another process is refused at once, naming the first. Concurrent writers of o
 remain (two threads of one process calling ``tlm.run`` into one folder, two runs of one sweep
 writing one point) never see each other's temporary folders: each has its own
 (``.<name>.tmp-<host>-<pid>-<n>``, ``n`` counting the writers of the process); the swap of the
-old folder for the new one holds a lock on the old one (:func:`folder_lock`); the last to finish
-wins; and what a killed process left (its temporary folder, or the old folder it was swapping out)
+old folder for the new one holds a lock on the old one (:func:`folder_lock`, from :mod:`tlm.storage_lock`); the last
+to finish wins; and what a killed process left (its temporary folder, or the old folder it was swapping out)
 is removed by the next writer once that process is gone. A process never removes a temporary
 folder one of its own writers is using (:func:`clean_stale`).
 """
@@ -38,10 +39,7 @@ from __future__ import annotations
 
 import csv
 import errno
-import fcntl
 import itertools
-import json
-import math
 import os
 import re
 import shutil
@@ -49,13 +47,14 @@ import socket
 import stat
 import sys
 import threading
-import time
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
 from tlm.errors import EnvironmentFailure, InputError, environment_problem
+from tlm.storage_json import finite, json_text, read_jsonl  # noqa: F401  (read_jsonl: re-exported)
+from tlm.storage_lock import folder_lock
 
 
 def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
@@ -308,47 +307,6 @@ def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], 
     return gone
 
 
-@contextmanager
-def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterator[None]:
-    """An exclusive lock on the folder ``out`` as it is now (``flock`` on the folder itself),
-    held while a writer swaps a new folder in for it, and while a command reads the folder
-    it just wrote (its report), so that no other writer replaces it meanwhile. A folder
-    replaced while this waited for the lock is locked in its turn; no folder, no lock.
-    ``waiting`` is called once, before this waits, where another holds the lock (who:
-    :func:`tlm.claims.lock_holder`)."""
-    out = Path(out)
-    for _ in range(1000):
-        try:
-            fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
-        except FileNotFoundError:
-            time.sleep(0.01)  # (another writer may be between its two renames)
-            if out.exists() or out.is_symlink():
-                continue
-            break
-        except OSError:
-            break  # not a folder, or not ours to open: no lock
-        try:
-            if waiting is None:
-                fcntl.flock(fd, fcntl.LOCK_EX)
-            else:
-                try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                except BlockingIOError:  # (held by another: said, once, then waited for)
-                    told, waiting = waiting, None
-                    told()
-                    fcntl.flock(fd, fcntl.LOCK_EX)
-            try:
-                same = os.stat(out).st_ino == os.fstat(fd).st_ino
-            except OSError:
-                same = False
-            if same:
-                yield
-                return
-        finally:
-            os.close(fd)  # releases the lock
-    yield
-
-
 def _swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:
     """Rename ``tmp`` onto ``out``, the old ``out`` (if any) moved aside first and removed
     after; retried when another writer put a folder there in between. ``writer``: the
@@ -547,35 +505,6 @@ def _raise_environmental(e: BaseException, where: Path) -> None:
             raise EnvironmentFailure(f"cannot write: {what}", source=str(where)) from e
 
 
-def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
-    """The rows of a JSON-lines file the experiments append to, with their line numbers.
-
-    A last line cut off while written (no newline at the end of the file: a process
-    killed mid-write) is left out; any other line that is not a JSON object is an
-    :class:`InputError` naming the file and the line (``hint`` is added to its message).
-    """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", source=str(path)) from None
-    lines = text.splitlines()
-    rows = []
-    for n, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        try:
-            row = json.loads(line)
-        except ValueError:
-            if n == len(lines) and not text.endswith("\n"):
-                continue  # the row a killed process was writing
-            row = None
-        if not isinstance(row, dict):
-            raise InputError(f"is not a JSON row{hint}", source=str(path), key=f"line {n}")
-        rows.append((n, row))
-    return rows
-
-
 @contextmanager
 def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     """An open file that replaces ``path`` when the block succeeds.
@@ -671,35 +600,6 @@ def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
 _STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
 
 
-def json_text(value, **dumps_kw) -> str:
-    """``json.dumps(value, **dumps_kw)`` as strict JSON: a float that is not finite (``inf``,
-    ``-inf``, ``nan``; a numpy float too) anywhere in ``value``, or returned by ``default``, is
-    written as null. Python's ``json`` would write ``Infinity`` or ``NaN``, which JSON does not
-    have, and which JavaScript, jq and many other readers refuse. Reading back is unchanged:
-    ``json.loads`` reads null as None (and still reads the ``Infinity`` of files written before)."""
-    default = dumps_kw.pop("default", None)
-    if default is not None:
-        dumps_kw["default"] = lambda o: _finite(default(o))
-    try:
-        return json.dumps(value, allow_nan=False, **dumps_kw)
-    except ValueError as e:
-        if "Out of range float values" not in str(e):
-            raise  # (a circular reference)
-    return json.dumps(_finite(value), allow_nan=False, **dumps_kw)
-
-
-def _finite(value):
-    """``value`` with every float in it that is not finite replaced by None (mappings, lists
-    and tuples copied; anything else as it is)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
-
-
 def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[str] = ()) -> None:
     """Result rows as ``folder/<name>.jsonl`` (one JSON object a line) and ``<name>.csv``.
 
@@ -719,7 +619,7 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
         w = csv.DictWriter(fh, fieldnames=cols)
         w.writeheader()
         for r in rows:
-            w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else _finite(v) for k, v in r.items()})
+            w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else finite(v) for k, v in r.items()})
 
 
 _HEARERS: list[Callable[[Path, BaseException], None]] = []  # told of each failed write (on_failed_write)
