@@ -155,6 +155,7 @@ def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run
     # a run at the thesis's sizes (faked) is comparable
     big = _as_run(cells["cornell/rcast"], "run", "big", **{"scene.resolution": [320, 320]})
     big.config.setdefault("render", {}).update(spp=1, light_samples=1)  # and at the thesis's sampling
+    big.config.setdefault("arch", {}).update(frames=5)  # and stream (configs/thesis.yaml's)
     section = tables_section(Inputs([], runs=[*runs, big]), tmp_path)
     assert section.absent is None
     tables = re.findall(r'<table class="thesis-table" data-scene="(\w+)" data-source="([^"]*)" '

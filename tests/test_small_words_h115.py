@@ -141,7 +141,7 @@ def test_tlm_thesis_names_thesis_ring_once(tmp_path, monkeypatch, capsys):
     study = tmp_path / "study.yaml"
     study.write_text(yaml.safe_dump({
         "base": {"seed": 0, "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
-                 "arch": {"frames": 2, "packet_size": 64, "trace": False}},
+                 "arch": {"trace": False}},  # (the thesis's stream and packets: only the size is not)
         "scenes": ["thesis/ring"], "modes": ["rcast"]}))
     out = tmp_path / "out"
     assert main(["thesis", str(study), "--out", str(out), "--no-progress", "--no-report"]) == 0

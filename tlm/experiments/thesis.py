@@ -13,12 +13,11 @@ resolution, 4 eye rays and 4 light samples per pixel, not the thesis's 1 and 1),
 once, and no two scenes may share a file name (each writes the folder ``DIR/<name>``).
 
 Which table a scene is set beside is its file's name (``ring``, ``room``, ``cornell``);
-whether it *is* the thesis's scene is its file (:data:`THESIS_SCENES`: the built-in
-``thesis/ring``, ``thesis/room`` and ``cornell``). :func:`mismatches` is the one rule of
-comparability (that scene, and the thesis's resolution, photons, sampling, one pipeline,
-600 MHz): the summary's medians, the report's tables and ``tlm calibrate``'s refusal to
-overwrite the packaged table all follow it. A scene that is not comparable keeps its
-cells in the CSV but gives no median: it would measure the setting, not the model.
+whether it *is* the thesis's scene, at the thesis's setting, is the one rule of
+comparability, :func:`~tlm.experiments.thesis_setting.mismatches` (its names are
+re-exported here): the summary's medians, the report's tables and ``tlm calibrate``'s
+refusal to overwrite the packaged table all follow it. A scene that is not comparable keeps
+its cells in the CSV but gives no median: it would measure the setting, not the model.
 
 ``tlm thesis FILE --out DIR`` renders every scene once in the last (largest) mode; the
 modes are cumulative, so each smaller mode's frames are a subset of that render and
@@ -61,13 +60,26 @@ from tlm.arch.model import PM_TABLE_NAMES, simulate
 from tlm.config import MODES, RunConfig, config_from_dict, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import InputError
-from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
+from tlm.experiments.provenance import identities_remembered, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.run_warnings import unread_overrides
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
+from tlm.experiments.thesis_setting import (  # noqa: F401  (all but mismatches, run_mismatches, THESIS_SCENES: re-exported)
+    NOT_SETTING,
+    THESIS_CLOCK_HZ,
+    THESIS_SAMPLING,
+    THESIS_SCENES,
+    THESIS_SIZES,
+    mismatches,
+    photons_of,
+    run_mismatches,
+    setting_mismatches,
+    table_of,
+    thesis_setting,
+)
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
-from tlm.scenes.loader import resolve_scene_path, scenes_dir
+from tlm.scenes.loader import resolve_scene_path
 from tlm.storage import warn, write_file
 
 # Tables I-III: millions of cycles (FPS in frames per second).
@@ -98,93 +110,10 @@ FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
 FIT_RECORDS = ("traversal", "fragment")
 COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated")
 
-# The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
-THESIS_SCENES = {"ring": "thesis/ring", "room": "thesis/room", "cornell": "cornell"}
-# The thesis's stated sizes (Tables I-III headings; the thesis scenes' defaults):
-# width, height, photons, triangles.
-THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
-                "cornell": (320, 320, 120_000, 2604)}
-THESIS_CLOCK_HZ = 600e6
-THESIS_SAMPLING = {"spp": (1, "eye rays per pixel"), "light_samples": (1, "light samples")}  # configs/thesis.yaml
-
 
 def thesis_value(scene: str, mode: str, metric: str) -> float | None:
     table = THESIS.get(scene)
     return None if table is None else table[metric][MODES.index(mode)]
-
-
-def table_of(source: str | Path | None) -> str | None:
-    """The table (``ring``, ``room``, ``cornell``) whose scene the scene file ``source`` is,
-    judged by the file, not its name: a file with the bytes of a built-in file of
-    :data:`THESIS_SCENES`, wherever it is (another checkout's, a copy; a user's
-    ``cornell.yaml``, or the built-in caustic showcase ``ring``, is none). A file that is
-    not on this machine (a folder written elsewhere) is judged by its place under a
-    ``scenes`` folder. None: not one of the thesis's scenes."""
-    if not source:
-        return None
-    p = Path(source)
-    root = scenes_dir()
-    mine = scene_identity(p) if p.is_file() else None  # (once, not once a table)
-    for table, name in THESIS_SCENES.items():
-        builtin = root / f"{name}.yaml"
-        if mine is not None:
-            if mine == scene_identity(builtin):
-                return table
-            continue
-        tail = ("scenes", *f"{name}.yaml".split("/"))
-        if p.parts[-len(tail):] == tail or p.parts[-len(tail):] == ("_scenes", *tail[1:]):
-            return table
-    return None
-
-
-def mismatches(table: str, *, source: str | None = None, resolution: list[int] | None = None,
-               photons: int | None = None, spp: int | None = None, light_samples: int | None = None,
-               pipelines: int | None = None, clock_hz: float | None = None) -> list[str]:
-    """How a frame set beside ``table`` differs from the thesis's (empty: comparable).
-
-    The one rule of comparability: the scene file ``source`` must be the thesis's scene
-    of that table (:func:`table_of`), and the resolution, the photons emitted (None: no
-    photon pass), the eye rays and light samples per pixel, the pipelines and the clock
-    the thesis's. A value given as None is not judged. Each entry says what ours is, in
-    a few words (``16×16 pixels (thesis 320×320)``)."""
-    w, h, n, _ = THESIS_SIZES[table]
-    out = []
-    if source is not None and table_of(source) != table:
-        out.append(f"the scene {scene_label(source)} (the thesis's is {THESIS_SCENES[table]})")
-    if resolution and [int(resolution[0]), int(resolution[1])] != [w, h]:
-        out.append(f"{resolution[0]}×{resolution[1]} pixels (thesis {w}×{h})")
-    if photons is not None and int(photons) != n:
-        out.append(f"{int(photons):,} photons (thesis {n:,})")
-    for key, value in (("spp", spp), ("light_samples", light_samples)):
-        thesis, what = THESIS_SAMPLING[key]
-        if value is not None and int(value) != thesis:
-            out.append(f"{value} {what} (thesis {thesis})")
-    if pipelines is not None and int(pipelines) != 1:
-        out.append(f"{pipelines} pipelines (the tables are one pipeline)")
-    if clock_hz is not None and not math.isclose(float(clock_hz), THESIS_CLOCK_HZ):
-        out.append(f"clock {float(clock_hz) / 1e6:g} MHz (thesis 600 MHz)")
-    return out
-
-
-def photons_of(results: dict, config: dict) -> int | None:
-    """The photons a run emitted (None when its photon pass did not run)."""
-    if "pmap" not in (results.get("plan") or {}).get("run", []):
-        return None
-    emitted = (results.get("photons") or {}).get("emitted")
-    if emitted is not None:
-        return int(emitted)
-    count = (config.get("photons") or {}).get("count")
-    return int(count) if count is not None else (results.get("scene") or {}).get("photons")
-
-
-def run_mismatches(table: str, results: dict, config: dict) -> list[str]:
-    """:func:`mismatches` of a run folder: its ``results.json`` and resolved config, as dicts."""
-    scene = results.get("scene") or {}
-    render = config.get("render") or {}
-    return mismatches(table, source=scene.get("source"), resolution=scene.get("resolution"),
-                      photons=photons_of(results, config), spp=render.get("spp"),
-                      light_samples=render.get("light_samples"), pipelines=(config.get("arch") or {}).get("pipelines"),
-                      clock_hz=(results.get("timing") or {}).get("clock_hz"))
 
 
 def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[str], list[str], Path]:
@@ -589,7 +518,8 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         cam = res.scene.camera
         differ[_name(scene)] = mismatches(_name(scene), source=res.scene.source, resolution=[cam.width, cam.height],
                                           spp=cfg.render.spp, light_samples=cfg.render.light_samples,
-                                          pipelines=cfg.arch.pipelines, clock_hz=cfg.arch.clock_hz)
+                                          pipelines=cfg.arch.pipelines, clock_hz=cfg.arch.clock_hz,
+                                          config=to_dict(cfg))
     ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
     # T_norm is linear in the parameters: instructions and records per frame, once
     instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
