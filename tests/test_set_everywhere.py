@@ -188,9 +188,9 @@ def test_study_set_is_refused_where_the_study_sets_the_key(tmp_path, capsys):
                                                                            "points (points[0].estimate.filter)"),
             (["error-vs-cost", str(evc), "--set", "mode=rcast"], f"{evc}: --set mode=rcast: 'rcast': error-vs-cost "
                                                                   "measures the photon map"),
-            (["extreme", str(cases), "--set", "arch={pipelines: 2}"], f"{cases}: --set arch={{pipelines: 2}}: arch "
-                                                                       "holds arch.fifo_depth, set by the case 'a' "
-                                                                       "(cases[0].config.arch.fifo_depth)"),
+            (["extreme", str(cases), "--set", "arch={fifo_depth: 4}"], f"{cases}: --set arch={{fifo_depth: 4}}: arch "
+                                                                        "holds arch.fifo_depth, set by the case 'a' "
+                                                                        "(cases[0].config.arch.fifo_depth)"),
             (["extreme", str(cases), "--set", "scene=ring"], f"{cases}: --set scene=ring: scene is set by the case "
                                                               "'a'"),
     ):

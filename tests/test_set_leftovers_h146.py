@@ -3,7 +3,7 @@
 1. A sweep's ``--set`` that no point reads is said once, as a factor that no point reads is
    (:meth:`tlm.experiments.sweep_file.Sweep.inert_sets`, and after the points ran, a timing key:
    ``Sweep.unread_factors``); one some point reads is not.
-2. A ``--set`` of a section that does not set a factor's key is taken (it replaces the base's section,
+2. A ``--set`` of a section that does not set a factor's key is taken (it merges into the base's section,
    as ``tlm run --set`` does; each point's factor then sets its key in it); one that sets it is refused,
    naming its other keys in the dotted form.
 3. The report's command for a thesis cell without its reference runs (its ``config.resolved.yaml``, not
@@ -93,7 +93,7 @@ def test_a_section_set_that_leaves_the_factor_is_taken_and_the_factor_set_in_it(
     path = _sweep(tmp_path, grid={"bsp.levels": [4, 5]})
     sw = load_sweep(path, ["bsp={memory_factor: 10}"])
     assert [(p.config["bsp"]["levels"], p.config["bsp"]["memory_factor"]) for p in sw.points] == [(4, 10), (5, 10)]
-    # it replaces the base's section, as tlm run --set does (arch.pipelines of set: back at its default there too)
+    # it merges into the base's section, as tlm run --set does (arch.pipelines of set: kept there too)
     path = _sweep(tmp_path, set={"arch.pipelines": 2}, grid={"arch.fifo_depth": [4, 16]})
     sw = load_sweep(path, ["arch={page_miss_cycles: 5}"])
     run_file = tmp_path / "run.yaml"

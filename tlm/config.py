@@ -25,6 +25,7 @@ from typing import Any
 
 import yaml
 
+from tlm import config_words
 from tlm.config_words import DuplicateKeyError, parse_yaml, type_hint, type_name, value_text, with_overrides, yaml_kind
 from tlm.errors import InputError, did_you_mean
 from tlm.mesh_files import mesh_file_format, mesh_file_hint
@@ -578,7 +579,8 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
     ``cwd``: where the strings were given (the command line's working folder): a relative
     path they give to a key of :data:`PATH_KEYS` is made absolute from there
     (:func:`paths_from`), not left relative to the config's folder; so is a ``scene`` file
-    found there (:func:`scene_from`)."""
+    found there (:func:`scene_from`). A mapping given for a section merges into it, as its dotted
+    leaves would (``render={spp: 1}`` is ``render.spp=1``: :func:`~tlm.config_words.laid_over`)."""
     raw = dict(raw)
     for item in overrides:
         if "=" not in item:
@@ -599,7 +601,7 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
             child = dict(child) if isinstance(child, dict) else {}
             node[p] = child
             node = child
-        node[parts[-1]] = value
+        node[parts[-1]] = config_words.laid_over(node.get(parts[-1]), value, ".".join(parts), SECTIONS)
     return raw
 
 
@@ -690,3 +692,7 @@ def describe(cls: type = RunConfig, prefix: str = "") -> list[tuple[str, Any, st
         else:
             out.append((key, f.default, f.metadata.get("help", "")))
     return out
+
+
+# the dotted keys of RunConfig's sections (render, arch, ...): a mapping given for one merges into it (laid_over)
+SECTIONS = frozenset(k.rsplit(".", i)[0] for k, _, _ in describe() for i in range(1, k.count(".") + 1))

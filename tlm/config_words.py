@@ -7,7 +7,8 @@ Saying: the error messages of tlm name a value as a user writes it in YAML
 in YAML's words (:func:`type_name`: ``an integer or null``), what to write instead
 (:func:`type_hint`), what a file holds that is not a mapping (:func:`yaml_kind`) and a
 config with overrides (:func:`with_overrides`). The two live together because a string is
-said bare only where :func:`parse_yaml` reads it back as that string.
+said bare only where :func:`parse_yaml` reads it back as that string. A value given for a
+key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import math
 import re
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from typing import Any
 
 import yaml
@@ -182,6 +183,17 @@ def with_overrides(source: str, via: str = "--set") -> str:
     with --set`` (``via``: how they were given, ``--set`` on the command line, ``the
     overrides`` through the API)."""
     return f"{source}, with {via}"
+
+
+def laid_over(old: Any, new: Any, key: str, sections: Collection[str]) -> Any:
+    """``new``, given for the dotted ``key``, over the value ``old`` there: a mapping given for one of
+    ``sections`` (the config's, :data:`tlm.config.SECTIONS`) merges into the section's mapping key by key,
+    recursively, as its dotted leaves given one by one would (``render={spp: 1}`` is ``render.spp=1``: the
+    section's other keys are kept, as OmegaConf merges); anything else replaces ``old`` (``render=null``: the
+    section at its defaults; a setting's value, a mapping too: the config has no mapping-valued setting)."""
+    if not (isinstance(new, dict) and isinstance(old, dict) and key in sections):
+        return new
+    return {**old, **{k: laid_over(old.get(k), v, f"{key}.{k}", sections) for k, v in new.items()}}
 
 
 def yaml_kind(value: Any) -> str:

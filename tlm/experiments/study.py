@@ -31,7 +31,8 @@ from typing import Any
 
 import yaml
 
-from tlm.config import apply_overrides, files_from, read_yaml, scene_from, to_dict
+from tlm.config import SECTIONS, apply_overrides, files_from, read_yaml, scene_from, to_dict
+from tlm.config_words import parse_yaml
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
@@ -86,6 +87,25 @@ def override_key(item: str) -> str:
     return item.partition("=")[0].strip()
 
 
+def set_leaves(item: str) -> dict[str, Any]:
+    """The dotted keys the ``--set`` string ``item`` sets, each with its value: its key, or each key
+    under it when its value is a mapping given for a section, which merges into it
+    (:func:`tlm.config_words.laid_over`: ``estimate={k: 9}`` sets ``estimate.k`` alone; an empty one
+    sets none, the section as it was); a value YAML cannot read (refused elsewhere): its key alone."""
+    key, _, text = str(item).partition("=")
+    try:
+        value = parse_yaml(text)
+    except yaml.YAMLError:
+        return {key.strip(): None}
+
+    def leaves(prefix: str, node: Any) -> dict[str, Any]:
+        if isinstance(node, dict) and prefix in SECTIONS:
+            return {k: v for name, child in node.items() for k, v in leaves(f"{prefix}.{name}", child).items()}
+        return {prefix: node}
+
+    return leaves(key.strip(), value)
+
+
 def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = ()) -> dict:
     """The run config mapping ``raw`` with the ``--set`` strings ``overrides`` (``dotted.key=value``,
     values read as YAML) applied as ``tlm run --set`` applies them (:func:`tlm.config.load_config`):
@@ -103,14 +123,19 @@ def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = ()) 
 
 def refuse_set(overrides: Iterable[str], taken: dict[str, str], source: str | None = None) -> None:
     """An InputError (``FILE: --set ITEM: ...``, ``source`` the file) for the first ``--set``
-    string of ``overrides`` whose key is a key of ``taken``, or a section above or below one
+    string of ``overrides`` that sets a key of ``taken``, or a section above or below one
     (``arch`` and ``arch.fifo_depth``): the keys the study or sweep sets itself, each mapped to
     what sets it and what to do instead (``a factor of the sweep (grid.arch.fifo_depth): change its
     values in the sweep file``); a --set of one would be lost there, or win over the file's values,
-    unsaid."""
+    unsaid. A section given as a mapping sets the keys it names (:func:`set_leaves`: it merges into
+    the section), so ``arch={pipelines: 2}`` beside a taken ``arch.fifo_depth`` is not refused, but
+    ``arch={fifo_depth: 2}`` is, and so is ``arch=null`` (the whole section at its defaults)."""
     for item in overrides:
         key = override_key(item)
         for other, why in taken.items():
+            if not any(leaf == other or leaf.startswith(other + ".") or other.startswith(leaf + ".")
+                       for leaf in set_leaves(item)):
+                continue
             if key == other:
                 named = f"{key} is"
             elif other.startswith(key + "."):

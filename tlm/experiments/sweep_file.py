@@ -26,6 +26,7 @@ import yaml
 from tlm.builtin import read_base
 from tlm.config import (
     PATH_KEYS,
+    SECTIONS,
     RunConfig,
     check_leaf,
     config_from_dict,
@@ -40,7 +41,7 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import value_text, with_overrides
+from tlm.config_words import laid_over, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
 from tlm.experiments.study import override_key, with_set
@@ -291,7 +292,8 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work:
 
 
 def _assign(raw: dict, key: str, value: Any) -> dict:
-    """A copy of ``raw`` with the dotted ``key`` set to ``value`` (sections created as needed)."""
+    """A copy of ``raw`` with the dotted ``key`` set to ``value`` (sections created as needed); a mapping
+    given for a section merges into it, as ``tlm run --set`` merges it (:func:`~tlm.config_words.laid_over`)."""
     out = dict(raw)
     node = out
     parts = key.split(".")
@@ -299,7 +301,7 @@ def _assign(raw: dict, key: str, value: Any) -> dict:
         child = node.get(p)
         node[p] = child = dict(child) if isinstance(child, dict) else {}
         node = child
-    node[parts[-1]] = value
+    node[parts[-1]] = laid_over(node.get(parts[-1]), value, key, SECTIONS)
     return out
 
 
@@ -445,9 +447,10 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     --set`` applies them (:func:`tlm.experiments.study.with_set`: a relative path from the working
     folder); the points' configs, and so their hashes, hold them. One whose key is a factor's, or a
     section above or below one, is refused (the factor would win unsaid), but a section given as a
-    mapping that leaves the factor's key out, which replaces the base's section as ``tlm run --set``
+    mapping that leaves the factor's key out, which merges into the base's section as ``tlm run --set``
     does (:func:`~tlm.experiments.sweep_sets.refuse_factor_sets`); so is a bad key or value (the error
-    names the file ``with --set``, as ``tlm run``'s does)."""
+    names the file ``with --set``, as ``tlm run``'s does). A section given as a mapping under ``set``,
+    or as a factor's values, merges into the base's section likewise (:func:`_assign`)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)

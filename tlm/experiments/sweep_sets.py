@@ -1,5 +1,6 @@
 """A sweep's ``--set`` strings (``tlm sweep --set``, :func:`tlm.experiments.sweep_file.load_sweep`):
-the keys each sets, the one refused for setting a factor's key, which a point's error a ``--set``
+the keys each sets (:func:`~tlm.experiments.study.set_leaves`, which the studies' refusal shares), the
+one refused for setting a factor's key, which a point's error a ``--set``
 gave; and the words of the warnings on what no point reads (:class:`~tlm.experiments.sweep_file.Sweep`'s
 ``inert_factors``, ``inert_sets``, ``unread_factors``).
 """
@@ -13,9 +14,8 @@ from typing import Any
 
 import yaml
 
-from tlm.config_words import parse_yaml
 from tlm.errors import InputError
-from tlm.experiments.study import override_key, refuse_set
+from tlm.experiments.study import override_key, refuse_set, set_leaves
 
 _NUMBER = re.compile(r"(\d+(?:\.\d+)?)")  # (a split on it: the text between at even places, numbers at odd)
 
@@ -42,30 +42,13 @@ def said_once(whys) -> str:
     return "; ".join(sorted(out))
 
 
-def set_leaves(item: str) -> dict[str, Any]:
-    """The dotted keys the ``--set`` string ``item`` sets, each with its value: its key, or each key
-    under it when its value is a mapping (``estimate={k: 9}``: ``estimate.k``; an empty one sets none:
-    the section at its defaults); a value YAML cannot read (refused elsewhere): its key alone."""
-    key, _, text = str(item).partition("=")
-    try:
-        value = parse_yaml(text)
-    except yaml.YAMLError:
-        return {key.strip(): None}
-
-    def leaves(prefix: str, node: Any) -> dict[str, Any]:
-        if isinstance(node, dict):
-            return {k: v for name, child in node.items() for k, v in leaves(f"{prefix}.{name}", child).items()}
-        return {prefix: node}
-
-    return leaves(key.strip(), value)
-
-
 def refuse_factor_sets(overrides: Iterable[str], factors: dict[str, str], src: str) -> None:
     """An InputError for the first ``--set`` string of ``overrides`` that sets a factor's key (``factors``:
     key -> where, ``grid``), or a section above or below one: the factor would win unsaid. A section given
-    as a mapping (``bsp={memory_factor: 10}``) replaces the base's section, as ``tlm run --set`` does, and
-    is taken where none of its keys is a factor's (each point then gets its factor's value in it); one that
-    sets a factor's key is refused, naming its other keys in the dotted form that a sweep takes."""
+    as a mapping (``bsp={memory_factor: 10}``) merges into the base's section, as ``tlm run --set`` does
+    (:func:`~tlm.experiments.study.set_leaves`), and is taken where none of its keys is a factor's (each point
+    then gets its factor's value in it); one that sets a factor's key is refused, naming its other keys in the
+    dotted form that a sweep takes."""
     why = "which gives each point its value: change its values in the sweep file, not by --set"
     for item in overrides:
         key = override_key(item)
