@@ -97,7 +97,8 @@ def test_a_sweep_says_its_points_without_error_and_a_rerun_measures_them(tmp_pat
     command = f"tlm reference {os.path.relpath(tmp_path / 'base.yaml')} --set 'resolution=[12, 8]'"
     assert said == [f"2 of 2 points have no photon-map error (error.rmse, error.rel_mse): no reference is cached for "
                     f"them, and a sweep computes none (reference.auto is 'tlm run''s); {command} computes this "
-                    f"reference, and the sweep run again into {out} then measures them from their cached frames"]
+                    f"reference, and the sweep run again into {out} then measures them from their cached frames "
+                    "('tlm sweep --reference' computes this reference before the points, and measures them)"]
     key = json.loads(next((out / "points").glob("*/results.json")).read_text())["error"]["reference"]
     _store(key, 12 * 8)
     again = run_sweep(path, out, jobs=1, overrides=["resolution=[12, 8]"])
@@ -246,7 +247,8 @@ def test_the_line_on_one_point_without_error_says_it_in_the_singular(tmp_path, e
     [line] = unmeasured_line(one, {one.points[0].hash: unmeasured}, out)
     assert line.startswith("the 1 point has no photon-map error (error.rmse, error.rel_mse): no reference is cached "
                            "for it, and")  # (was: 1 of 1 points have ... for them)
-    assert line.endswith(f"the sweep run again into {out} then measures it from its cached frame")
+    assert line.endswith(f"the sweep run again into {out} then measures it from its cached frame ('tlm sweep "
+                         "--reference' computes this reference before the points, and measures it)")
     path, out = _sweep(tmp_path, grid={"arch.pipelines": [1, 2, 4, 8]})
     four = load_sweep(path)
     records = {p.hash: unmeasured if p.index == 0 else measured for p in four.points}

@@ -54,7 +54,8 @@ def _overrides(overrides: Iterable[str] | None) -> tuple[str, ...]:
 @imports_whole
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
-              warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> Outcome:
+              warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None,
+              reference: bool = False, say: Callable[[str], None] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
     :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
     (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
@@ -66,20 +67,24 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     (the factors' before the points run); None: nothing is printed, and every line is in
     ``Outcome.warnings`` either way. ``overrides``: ``dotted.key=value`` strings (``tlm sweep --set``)
     applied to every point's base config before its factors (a factor's key refused): in each
-    point's config and hash, and in ``sweep.yaml``."""
+    point's config and hash, and in ``sweep.yaml``. ``reference`` (``tlm sweep --reference``): each photon-map
+    reference the points need that is not cached is computed and cached before them, so that they are
+    measured; ``say`` gets its lines (as ``tlm reference`` prints them)."""
     from tlm.experiments.sweep import run_sweep as run_all
 
     jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
     progress = _checked(progress, "progress", bool)
     return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
-                   dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides))
+                   dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides),
+                   reference=_checked(reference, "reference", bool), say=say)
 
 
 @argument_names
 @imports_whole
 def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
           progress: bool = False, dask_wait: float | None = None,
-          warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> pd.DataFrame:
+          warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None,
+          reference: bool = False, say: Callable[[str], None] | None = None) -> pd.DataFrame:
     """Run the sweep file ``path`` (or the built-in sweep of that name) into ``out``
     (:func:`run_sweep`) and return its rows as a
     pandas DataFrame: one row per point, in point order, the columns of ``sweep.csv``
@@ -89,7 +94,7 @@ def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: s
     ``attrs["warnings"]``, a list of lines (empty: none); ``warn`` gets each as it is known too.
     None: nothing is printed, as by :func:`run_sweep`."""
     done = run_sweep(path, out, jobs=jobs, dask=dask, progress=progress, dask_wait=dask_wait, warn=warn,
-                     overrides=overrides)
+                     overrides=overrides, reference=reference, say=say)
     table = done.table
     table.attrs["warnings"] = list(done.warnings)
     return table

@@ -78,6 +78,7 @@ from tlm.experiments.reference_cache import (
     kept_root,
     load_reference,
     meets_tolerance,
+    npy_digest,
     save_reference,
     store_reference,
     verdict,
@@ -370,7 +371,10 @@ class Found:
 def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say=None) -> Found:
     """The cached reference of ``frame``'s scene and config; with ``compute``, computed and
     cached when there is none (``say``: called with a line before and after, e.g. to
-    stderr; ``bar``: the rounds' progress bar on stderr, when it is a terminal)."""
+    stderr; ``bar``: the rounds' progress bar on stderr, when it is a terminal). The ``meta`` of
+    one computed now is the cached one's, its ``npy`` (size and sha256 of ``reference.npy``)
+    included; where the cache could not take it, ``npy`` is that of the ``reference.npy`` it
+    would have been (:func:`~tlm.experiments.reference_cache.npy_digest`)."""
     settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
     key = reference_key(frame.scene, frame.cfg, settings)
     found = load_reference(key)
@@ -391,8 +395,11 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     except (EnvironmentFailure, OSError, InputError) as e:  # (a read-only or full cache: this run still gets
         # its error; InputError: something in the way of the entry's folder, storage.check_destination)
         where = f"not cached ({' '.join(str(e).split())}): used by this run only"
+        # (its sha256 as the reference.npy it would have been: the one computed again with these settings)
+        meta = {**meta, "npy": npy_digest(image.reshape(cam.height, cam.width, 3))}
     else:
         where = f"cached in {stored.folder}"
+        meta = stored.meta  # (as its meta.json holds it: the sha256 of its reference.npy, npy, too)
         if not stored.replaced:  # (another process cached a better one meanwhile: this run uses it)
             image, meta, kept = stored.image.reshape(-1, 3), stored.meta, stored.line
     seconds = time.perf_counter() - t0
@@ -508,7 +515,8 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     try:
         stored = store_reference(key, image, meta, settings, force=force)
     except (EnvironmentFailure, OSError, InputError) as e:  # (the rounds' result is not thrown away)
-        return Made(key, settings, meta, True, _kept_elsewhere(key, image, meta, e))
+        folder = _kept_elsewhere(key, image, meta, e)  # (its meta as there, with its npy, as a cached one's)
+        return Made(key, settings, {**meta, "npy": npy_digest(image)}, True, folder)
     line = f"{stored.line} (--force replaces it)" if not stored.replaced else ""
     if line:
         say(line)

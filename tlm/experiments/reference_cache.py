@@ -75,6 +75,20 @@ def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = 
     return final
 
 
+def npy_digest(image: np.ndarray) -> dict:
+    """``{"size": bytes, "sha256": hex}`` of the ``reference.npy`` :func:`save_reference` writes of ``image``
+    (float32, its shape as given): what its ``meta.json`` holds as ``npy``, without a file. A run whose
+    reference the cache could not take records its sha256 all the same (``results.json``
+    ``error.reference_sha256``): the reference computed again with the same settings is the same file."""
+    import hashlib
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, np.asarray(image).astype(np.float32))
+    data = buf.getvalue()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
 _NUMBER = (int, float)
 # what a reference's meta.json holds, by type: what every reader reads (META_FIELDS), and what
 # compute_reference writes besides, which the cache's rules read where it is there (META_OPTIONAL)
@@ -213,9 +227,10 @@ def kept_back(key: str, meta: dict, settings: ReferenceSettings, whose: str = ""
 @dataclass
 class Stored:
     """What :func:`store_reference` did: the reference the cache holds for the key now
-    (``image`` (H, W, 3), ``meta``, ``folder``), whether that is the one computed now
-    (``replaced``; False: the cached one was better and stays) and, then, ``line``: which
-    one the cache holds and why, with both errors, and where the one computed now was kept."""
+    (``image`` (H, W, 3), ``meta`` as its ``meta.json`` holds it, ``npy`` included, ``folder``),
+    whether that is the one computed now (``replaced``; False: the cached one was better and
+    stays) and, then, ``line``: which one the cache holds and why, with both errors, and where
+    the one computed now was kept."""
 
     image: np.ndarray
     meta: dict
@@ -234,8 +249,8 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
     or dropped, which ``line`` says. The errors of :func:`save_reference` where the cache
     cannot take it."""
     held = None if force else load_reference(key)
-    if held is None or better(meta, held[1], settings):
-        return Stored(image, meta, save_reference(key, image, meta), True)
+    if held is None or better(meta, held[1], settings):  # (its meta as meta.json holds it: with the npy's sha256)
+        return Stored(image, {**meta, "npy": npy_digest(image)}, save_reference(key, image, meta), True)
     e_new, e_old = meta.get("relative_standard_error"), held[1].get("relative_standard_error")
     why = ("it meets the tolerance" if meets_tolerance(held[1], settings) else
            "the one computed now has no relative standard error" if e_new is None else

@@ -188,14 +188,15 @@ def _reference_now(error: Any) -> bool:
     return isinstance(sha, str) and error.get("reference_sha256") != sha
 
 
-def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
+def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = False) -> list[str]:
     """The line on the sweep's photon-map points that have no image error: no reference cached for
     them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
     ``tlm reference`` command that computes each reference they need (the base config with the
     ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
     reference reads, :data:`~tlm.experiments.reference.KEY_READS`; a sweep whose base is a mapping in
     the sweep file, which no command names, by the ``config.resolved.yaml`` of one of the points,
-    which holds all of them);
+    which holds all of them), and that ``tlm sweep --reference`` computes them (but where it was given,
+    ``asked``: a reference it could not compute, which its own warning names);
     none when every photon-map point has one."""
     from tlm.experiments.reference import KEY_READS
     from tlm.experiments.run import reference_command
@@ -224,9 +225,82 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path) -> list[str]:
     which = (f"{n} of {len(sweep.points)} points have" if n > 1 else
              "the 1 point has" if len(sweep.points) == 1 else f"1 of {len(sweep.points)} points has")
     it, its = ("them", "their cached frames") if n > 1 else ("it", "its cached frame")
-    return [f"{which} no photon-map error (error.rmse, error.rel_mse): no reference is cached for {it}, and a "
-            f"sweep computes none (reference.auto is 'tlm run''s); {'; '.join(commands)} computes {them}, and the "
-            f"sweep run again into {out} then measures {it} from {its}"]
+    why = ("though --reference was given (a line above says why where one could not be computed or cached; a "
+           "remote Dask worker reads its own cache)" if asked else "and a sweep computes none (reference.auto is "
+           "'tlm run''s)")
+    return [f"{which} no photon-map error (error.rmse, error.rel_mse): no reference is cached for {it}, {why}; "
+            f"{'; '.join(commands)} computes {them}, and the "
+            f"sweep run again into {out} then measures {it} from {its}"
+            + ("" if asked else f" ('tlm sweep --reference' computes {them} before the points, and measures {it})")]
+
+
+def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
+                     progress: bool = False) -> list[str]:
+    """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need
+    and the cache lacks, before the points run, so that they are measured against it (a point done before
+    without an error is then run again, its frame read from the cache: :func:`_reference_now`). Needed:
+    by a point not done yet in ``points_dir``, or done without an error; one reference per distinct
+    value of the keys its key reads (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and
+    ``photons.count`` that say whether the photon-map pass runs: :func:`~tlm.render.planner.plan`), each
+    computed as ``tlm reference`` of a point's config computes it
+    (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one per measured cycle as
+    ``tlm reference`` prints them, and its rounds' bar with ``progress``); one cached is used as it is
+    (as ``tlm run`` uses it). An interrupt stops the sweep before any point runs: the points done before
+    stay, and a rerun reuses the references cached. Returns a warning line per reference that could not
+    be computed (its points run all the same, without their error)."""
+    from tlm.config import config_from_dict
+    from tlm.errors import EnvironmentFailure
+    from tlm.experiments.reference import KEY_READS, make_reference, reference_key
+    from tlm.experiments.reference_cache import ReferenceSettings, load_reference
+    from tlm.render.planner import plan
+    from tlm.scenes.loader import load_scene
+
+    say = say or (lambda line: None)
+    present = _listed(points_dir)
+    groups: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        if p.hash in present and not _unmeasured(points_dir / p.hash):
+            continue
+        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
+        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
+    source = str(sweep.path)
+    needed: dict[str, tuple[Any, list[Point]]] = {}  # reference key -> a config of it, its points
+    for points in groups.values():
+        cfg = config_from_dict(points[0].config, source)
+        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
+        if "pmap" not in plan(scene, cfg).run_names:
+            continue
+        key = reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg))
+        needed.setdefault(key, (cfg, []))[1].extend(points)
+    lines = []
+    missing = [(k, cfg, points) for k, (cfg, points) in needed.items() if load_reference(k) is None]
+    for i, (key, cfg, points) in enumerate(missing, start=1):
+        n = len({p.hash for p in points})
+        say(f"sweep --reference: computing reference {i} of {len(missing)}, {key}, which {n} point"
+            f"{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'} (none cached)")
+        t0 = time.perf_counter()
+        try:
+            made = make_reference(cfg, sweep.folder, source, say=say, bar=progress, progress=lambda k, c, e: (
+                None if math.isnan(e) else say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}")))
+        except (InputError, EnvironmentFailure, OSError, MemoryError) as e:
+            line = (f"sweep --reference: the photon-map reference {key} of {n} point{'s' if n != 1 else ''} "
+                    f"could not be computed ({type(e).__name__}: {' '.join(str(e).split())}): "
+                    f"{'they run' if n != 1 else 'it runs'} without the photon-map error")
+            lines.append(line)
+            continue
+        rse = made.meta.get("relative_standard_error")
+        state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
+        say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
+            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}")
+    return lines
+
+
+def _unmeasured(folder: Path) -> bool:
+    """Whether the point of ``folder`` is to be measured against its reference: not done (to be run), or
+    done without a photon-map error (no reference cached when it ran)."""
+    rec = _done(folder)
+    error = None if rec is None else rec["results"].get("error")
+    return rec is None or (isinstance(error, dict) and error.get("available") is False)
 
 
 def _dotted(config: dict, dotted: str) -> Any:
@@ -309,7 +383,8 @@ def _table_digest(config: dict, folder: Path, seen: dict[str, str | None]) -> st
 
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
-              warn: Callable[[str], None] | None = None, overrides: Iterable[str] = ()) -> Outcome:
+              warn: Callable[[str], None] | None = None, overrides: Iterable[str] = (), reference: bool = False,
+              say: Callable[[str], None] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` not already done in ``out``. ``overrides``: the
     ``dotted.key=value`` strings of ``tlm sweep --set``, applied to the base config of every point
     before its factors (:func:`~tlm.experiments.sweep_file.load_sweep`): part of each point's config,
@@ -320,7 +395,11 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     ``jobs`` with a remote scheduler (``dask`` an address) is refused: its workers are the
     cluster's. ``warn`` gets each of the sweep's warning lines as it is known (its factors' lines
     before the points run, the others after them); None: none is printed, and every one is in
-    :attr:`Outcome.warnings` (``tlm sweep`` prints them)."""
+    :attr:`Outcome.warnings` (``tlm sweep`` prints them). ``reference`` (``tlm sweep --reference``): before
+    the points, each photon-map reference that the points to run (and those done without an error) need and
+    the cache lacks is computed and cached (:func:`sweep_references`; ``say`` gets its lines, as ``tlm
+    reference`` prints them, and ``progress`` its rounds' bar), so that they are measured as after a
+    ``tlm reference``; one that fails is a warning and its points run without their error."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
     dask = _dask_address(dask)  # (its form, even where every point is done and no scheduler is reached)
@@ -349,6 +428,11 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
     points_dir = out / "points"
+    if reference:  # (before the points are read: one done without an error is measured now)
+        failed_refs = sweep_references(sweep, points_dir, say, progress)
+        said += failed_refs
+        for line in failed_refs if warn is not None else ():
+            warn(line)
 
     by_hash: dict[str, list[Point]] = {}
     for p in sweep.points:
@@ -423,7 +507,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     renders = len({r["hash"] for r in computed if r.get("functional_cached") is False})
     unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
                                    if records[p.hash]["status"] == "ok"])
-    unread += unmeasured_line(sweep, records, out)
+    unread += unmeasured_line(sweep, records, out, reference)
     caches = _cache_lines([records[h] for h in tasks], cache_warnings())
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
