@@ -216,7 +216,9 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     argument types and shared options) imports the API alone."""
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
-    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report"}, used - allowed
+    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache"}, used - allowed
+    caching = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_cache.py")}  # (tlm cache: the caches' folder alone)
+    assert caching <= {"tlm", "tlm.cache_admin", "tlm.caches", "tlm.errors"}, caching
     report = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_report.py")}
     assert report <= (allowed - {"tlm.experiments.thesis"}) | {"tlm.cli_signals"}, report - allowed
     ending = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_signals.py")}
@@ -237,6 +239,7 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
 
 @pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_common.py", "tlm/cli.py",
                                     "tlm/cli_args.py", "tlm/cli_report.py", "tlm/cli_signals.py", "tlm/cli_streams.py",
+                                    "tlm/cli_cache.py",
                                     *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):
@@ -264,6 +267,29 @@ def test_a_sweeps_set_checks_are_public_names_of_their_own_module():
     assert e.value.key == "--set arch={fifo_depth: 4, pipelines: 2}" and str(e.value).endswith("--set arch.pipelines=2")
     again = named(e.value, "s.yaml with --set")
     assert again.source == "s.yaml with --set" and again.key == e.value.key and str(again).count("s.yaml") == 1
+
+
+def test_storage_and_error_cost_moved_code_is_the_same_objects_there(tmp_path):
+    """Strict JSON and the rows read back (tlm/storage_json.py), the folder lock (tlm/storage_lock.py),
+    both out of storage.py, and the one-off clock (tlm/experiments/error_cost_clock.py, out of
+    error_cost.py): the same objects the old modules import and call, and doing as they did."""
+    import tlm.experiments.error_cost as error_cost
+    import tlm.storage as storage
+    from tlm.experiments.error_cost_clock import CompileClock
+    from tlm.storage_json import finite, json_text, read_jsonl
+    from tlm.storage_lock import folder_lock
+
+    for name, obj in (("json_text", json_text), ("read_jsonl", read_jsonl), ("finite", finite),
+                      ("folder_lock", folder_lock)):
+        assert getattr(storage, name) is obj, name
+    assert error_cost.CompileClock is CompileClock
+    assert json_text({"a": [float("inf"), 1.5]}) == '{"a": [null, 1.5]}' and finite(float("nan")) is None
+    (tmp_path / "r.jsonl").write_text('{"a": 1}\n{"a": 2')  # (a last line cut off: left out)
+    assert read_jsonl(tmp_path / "r.jsonl") == [(1, {"a": 1})]
+    with folder_lock(tmp_path):
+        pass
+    clock = CompileClock()
+    assert clock.within(0.0, 1.0) == 0.0 and clock.spans == []
 
 
 def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():

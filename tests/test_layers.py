@@ -20,8 +20,9 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.fingerprint", "tlm.registry", "tlm.progress",
-     "tlm.whole_imports", "tlm.caches", "tlm.config_words", "tlm.mesh_files", "tlm.claims"),
+    ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.storage_json", "tlm.storage_lock",
+     "tlm.fingerprint", "tlm.registry", "tlm.progress", "tlm.whole_imports", "tlm.caches", "tlm.config_words",
+     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),
@@ -31,7 +32,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_common", "tlm.cli", "tlm.cli_args", "tlm.cli_report", "tlm.cli_signals",
-     "tlm.cli_streams", "tlm.__main__", "tlm"),
+     "tlm.cli_streams", "tlm.cli_cache", "tlm.__main__", "tlm"),
 )
 
 

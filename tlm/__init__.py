@@ -21,7 +21,9 @@ if TYPE_CHECKING:
         InputError,
         MaxEventsReached,
         StepsFailed,
+        cache_info,
         calibrate,
+        clear_cache,
         error_vs_cost,
         export_scene,
         extreme,
@@ -32,6 +34,7 @@ if TYPE_CHECKING:
         params,
         parse_outputs,
         plots,
+        prune_cache,
         reference,
         render_image,
         run,
@@ -49,11 +52,11 @@ if TYPE_CHECKING:
     )
 
 __all__ = [
-    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "StepsFailed", "calibrate",
-    "error_vs_cost", "export_scene",
-    "extreme", "granularity", "list_scenes", "load_config", "load_scene", "params", "parse_outputs", "plots",
-    "reference", "render_image", "run", "run_sweep", "scaling", "scene_description", "scene_file", "scene_info",
-    "simulate", "sweep", "thesis", "to_srgb", "write_calibration", "write_report",
+    "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "StepsFailed", "cache_info",
+    "calibrate", "clear_cache", "error_vs_cost", "export_scene", "extreme", "granularity", "list_scenes", "load_config",
+    "load_scene", "params", "parse_outputs", "plots", "prune_cache", "reference", "render_image", "run", "run_sweep",
+    "scaling", "scene_description", "scene_file", "scene_info", "simulate", "sweep", "thesis", "to_srgb",
+    "write_calibration", "write_report",
 ]
 
 

@@ -12,7 +12,8 @@
   of a file, and why a file is not the one described; :func:`cached_image` — an image entry read
   back whole, or a damaged one said and removed, so that it is computed again; :func:`fields_problem` —
   why a sidecar lacks a key it must hold, or holds one of another type; :func:`remove_entry` — a
-  damaged entry removed (a folder where a file should be too), only inside its cache.
+  damaged entry removed (a folder where a file should be too), only inside its cache; :func:`note_use` —
+  an entry's file marked used now (``tlm cache prune``'s least recently used), where it can be.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import shutil
 import stat
 import threading
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError, environment_problem
@@ -213,6 +214,8 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str, field
         try:
             found, bad, why = _read_image(folder, name, key, fields, optional)
             if why is None:
+                if found is not None:
+                    note_use(folder / "meta.json")
                 return found
             if not _still_there(folder, held):
                 continue  # (replaced while it was read: read the new one)
@@ -224,6 +227,14 @@ def cached_image(folder: Path, name: str, key: str, what: str, again: str, field
         warn(f"damaged {what} cache entry {bad} ({why}): {done}; {again}")
         return None
     return None  # (replaced again each time it was read: as if not cached, computed again)
+
+
+def note_use(path: Path) -> None:
+    """Mark a cache entry's file ``path`` used now (its modification time: ``tlm cache prune`` removes the
+    least recently used first, and access times are often not kept); nothing where it cannot be (a
+    read-only cache, another user's): a read never fails for it."""
+    with suppress(OSError, NotImplementedError):  # (a link is not followed: its own time, if any)
+        os.utime(path, follow_symlinks=False)
 
 
 _READS = 5  # times an entry replaced while it is read is read again (cached_image)

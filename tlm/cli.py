@@ -18,6 +18,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
+from tlm.cli_cache import add_cache_parser
 from tlm.cli_report import report_after, report_claimed, say_err
 from tlm.cli_signals import (
     blas_buffer_mapped,
@@ -168,10 +169,26 @@ def _cmd_config(args: argparse.Namespace) -> int:
     return 0
 
 
+def _blame_flag(config: str, sets: list[str], flagged: dict[str, str]) -> None:
+    """Where ``config`` with ``sets`` (the --set strings) and the ``flagged`` ones (``{"--seed -1": "seed=-1"}``)
+    is refused: the error of the first flag refused on top of ``sets`` alone, named by that flag (``cornell.yaml,
+    with --seed -1: seed: -1 must be >= 0``, not ``with --set``); nothing where ``sets`` alone are refused or each
+    flag alone passes (the caller's error, with --set, stands)."""
+    if not flagged:
+        return
+    try:
+        cfg = api.load_config(config, sets)
+    except InputError:
+        return
+    for given, item in flagged.items():
+        api.load_config(cfg, [item], via=given)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     storage.SAID.clear()
     overrides = list(args.set or [])
+    flagged = {}  # (--mode/--seed: recorded as the --set they amount to, their errors named by the flag)
     for flag, value in (("mode", args.mode), ("seed", args.seed)):
         if value is None:
             continue
@@ -179,11 +196,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if twice:  # (which one was meant: neither is dropped silently)
             raise InputError(f"--{flag} {value} and --set {twice[-1]} both set {flag}: give one", key=f"--{flag}")
         overrides.append(f"{flag}={value}")
+        flagged[f"--{flag} {value}"] = overrides[-1]
     outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
     if api.scene_file(args.config) is not None:
         _say(f"{args.config} is a scene file: rendering it with the default settings "
              f"(a config would say `scene: {args.config}`; see 'tlm params')")
-    cfg = api.load_config(args.config, overrides)
+    try:
+        cfg = api.load_config(args.config, overrides)
+    except InputError:
+        _blame_flag(args.config, list(args.set or []), flagged)
+        raise
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
@@ -287,7 +309,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         print(f"tlm: warning: {line}", file=sys.stderr, flush=True)
 
     done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
-                         dask_wait=args.dask_wait, warn=warned, **_overrides(args))
+                         dask_wait=args.dask_wait, warn=warned, reference=args.reference, say=_say,
+                         **_overrides(args))
     for row in done.rows:
         if row["status"] != "ok":
             print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
@@ -538,6 +561,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(default: 300)")
     _set_option(sw, "every point's base config, after the sweep file's set: and before its factors (a factor's "
                 "key is refused); part of each point's hash, and listed in sweep.yaml")
+    sw.add_argument("--reference", action="store_true", help="compute and cache, before the points, each photon-map "
+                    "reference they need that is not cached (as 'tlm reference' does), so their error is measured")
     no_progress(sw)
     no_report(sw)
     sw.set_defaults(func=_cmd_sweep)
@@ -655,6 +680,7 @@ def build_parser() -> argparse.ArgumentParser:
     co.set_defaults(func=_cmd_config)
     pa = sub.add_parser("params", help="every config parameter with its default and meaning")
     pa.set_defaults(func=_cmd_params)
+    add_cache_parser(sub)  # tlm cache [info | prune | clear] (tlm/cli_cache.py)
     return p
 
 

@@ -16,7 +16,9 @@ meanwhile (another process) or changed renders the frame again, a changed one sa
 A damaged entry (a file cut short, zeroed or overwritten, a sidecar without a
 key a result row reads or with one of another type (:func:`summary_problem`), a folder where either
 file should be) is reported once as a warning naming the file, removed (a folder too, only inside
-the cache) and rendered again. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
+the cache) and rendered again; an entry whose file is removed under its reader (``tlm cache prune``,
+another process) is a miss, rendered again quietly. A frame read marks its entry used, for ``tlm cache
+prune``. A write that fails (a full disk) leaves no ``.npz`` without its sidecar.
 
 A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
@@ -39,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.arch.functional import Functional
-from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, remove_entry
+from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, note_use, remove_entry
 from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
 from tlm.errors import InputError
 from tlm.experiments import run
@@ -432,12 +434,17 @@ def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: 
 
 
 def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
-    """The cached entry, or None: outdated (an older format, rendered again quietly) or
-    damaged (a warning naming the file; both files removed, so it is said once)."""
+    """The cached entry, or None: outdated (an older format, rendered again quietly), gone
+    (a file of it removed since it was found: a prune, another process; a miss, quietly) or
+    damaged (a warning naming the file; both files removed, so it is said once). An entry read
+    is marked used (its sidecar's time: :func:`tlm.caches.note_use`; no digest checks it), so that
+    ``tlm cache prune`` removes frames by their last use where access times are not kept."""
     try:
         summary = json.loads(side.read_text())
         if not isinstance(summary, dict):
             raise ValueError("not a JSON object")
+    except (FileNotFoundError, NotADirectoryError):
+        return None
     except (OSError, ValueError) as e:  # (UnicodeDecodeError is a ValueError)
         _damaged(side, path, f"unreadable sidecar ({type(e).__name__})")
         return None
@@ -449,18 +456,29 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
         return None
     problem = digest_problem(path, summary.pop("npz", None))
     if problem is not None:
-        _damaged(path, side, problem)
+        if not _gone(path):
+            _damaged(path, side, problem)
         return None
     if summary["pmap"] is not None:
         problem = digest_problem(_image_file(path), summary["pmap"])
         if problem is not None:
-            _damaged(_image_file(path), side, problem)
+            if not _gone(_image_file(path)):
+                _damaged(_image_file(path), side, problem)
             return None
     try:
-        return CachedRender(Functional.load(path), summary, True, key)
+        got = CachedRender(Functional.load(path), summary, True, key)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
     except Exception as e:  # BadZipFile, EOFError, zlib.error, ValueError, KeyError: a damaged file
         _damaged(path, side, f"{type(e).__name__}: {e}")
         return None
+    note_use(side)
+    return got
+
+
+def _gone(file: Path) -> bool:
+    """Whether an entry's ``file`` is not there now (removed under its reader: no damaged entry)."""
+    return not os.path.lexists(file)
 
 
 def _damaged(bad: Path, other: Path, why: str) -> None:  # (its callers return None)

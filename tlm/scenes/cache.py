@@ -29,8 +29,9 @@ less time than the read back). An entry is one ``.npz`` (its arrays and a ``meta
 member, JSON), written atomically, so concurrent loads of one scene leave one whole entry
 of one writer; a damaged entry (cut short, zeroed, overwritten: the zip's CRC-32 of every
 member, the arrays' shapes, the metadata) is reported as a warning naming the file,
-removed and computed again; a cache that cannot be written (read-only, full) only costs
-speed.
+removed and computed again (one removed under its reader, by ``tlm cache prune`` or another
+process, is computed again quietly); a read marks its entry used, for ``tlm cache prune``; a cache
+that cannot be written (read-only, full) only costs speed.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.caches import cache_root, digest_problem, file_digest, remove_entry
+from tlm.caches import cache_root, digest_problem, file_digest, note_use, remove_entry
 from tlm.config import note_read
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
@@ -187,6 +188,8 @@ def _names(entry: Path) -> list | None:
     except Exception:  # (FileNotFoundError, BadZipFile, KeyError, ValueError, ...)
         return None
     ok = isinstance(meta, dict) and meta.get("format") == FORMAT and isinstance(meta.get("names"), list)
+    if ok:
+        note_use(entry)  # (a use too: it spares a parse)
     return meta["names"] if ok else None
 
 
@@ -216,14 +219,18 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray, crease_angle: float,
 
 
 def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
-    """An entry's arrays and metadata, or None: of an older format (quietly) or damaged
-    (a warning; removed)."""
+    """An entry's arrays and metadata, or None: of an older format or gone (removed since it was
+    found: ``tlm cache prune``, another process), quietly, or damaged (a warning; removed). An entry
+    read is marked used (:func:`tlm.caches.note_use`: its time, which no digest checks), so that
+    ``tlm cache prune`` removes entries by their last use where access times are not kept."""
     try:
         with np.load(entry, allow_pickle=False) as z:  # (zip: every member's CRC-32 is checked as it is read)
             arrays = {k: z[k] for k in z.files}
         meta = json.loads(arrays.pop("meta").tobytes().decode())
         if not isinstance(meta, dict):
             raise ValueError("its metadata is not a JSON object")
+    except (FileNotFoundError, NotADirectoryError):
+        return None  # (a miss: computed again)
     except IsADirectoryError:
         _damaged(entry, "a folder, not a file")
         return None
@@ -232,6 +239,7 @@ def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
         return None
     if meta.get("format") != FORMAT:
         return None  # (another format cannot be under this key: the key hashes FORMAT)
+    note_use(entry)
     return arrays, meta
 
 

@@ -1,0 +1,328 @@
+"""What tlm's caches hold, and their entries removed whole: ``tlm cache`` (:mod:`tlm.cli_cache`).
+
+* :data:`NAMES` — the caches under :func:`tlm.caches.cache_home`, each a folder of it; :func:`scan` —
+  one cache's entries (:class:`Entry`), the writes in progress and the files that are not tlm's;
+  :func:`survey` — every cache's (:class:`Cache`).
+* :func:`choose` — the entries a prune removes (last used before a time, then the least recently used
+  until the rest fit a size); :func:`remove` — entries removed whole, in an order no reader can mistake
+  for a damaged entry.
+* :func:`duration`, :func:`size`, :func:`cache_names` — the flags' values read (an
+  :class:`~tlm.errors.InputError` naming the flag and the value); :func:`human` — bytes as ``48.2M``.
+
+An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` with its sidecar
+``<key>.json`` and a photon-map frame's ``<key>.pmap.npy``; ``scenes/mesh-<key>.npz`` or
+``normals-<key>.npz``; ``references/<key>/`` and ``oracle/<key>/`` (a folder: the image and its
+``meta.json``); ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be
+written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
+access or modification time of its files: a reference or a ground truth read refreshes its ``meta.json``'s
+(:func:`tlm.caches.note_use`); a frame or a scene read only updates the access time where the file system
+keeps it (``relatime``, Linux's default: once a day at least; ``noatime``: never, and its last use is
+when it was written).
+
+Never touched: a file or folder that is no entry of tlm's (a user's own file, a link), and a write in
+progress: a temporary file or folder (``.<name>.tmp...``, ``.<name>.old-...``, numba's ``*.tmp.*``)
+or an entry without its sidecar (the files a writer renames into place before it) under
+:data:`BUSY_SECONDS` old, or one a live process of this machine is writing. Older temporaries, left by
+a killed writer, are entries of their own (``leftover``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import re
+import stat
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tlm.caches import cache_home, remove_entry
+from tlm.errors import InputError
+from tlm.storage import folder_lock, pid_alive, process_tag
+
+NAMES = ("functional", "scenes", "references", "oracle", "tracebacks", "numba")
+BUSY_SECONDS = 3600  # a temporary file (or an entry without its sidecar) younger than this is a write in progress
+
+_HEX = r"[0-9a-f]{16,64}"
+_FUNCTIONAL = re.compile(rf"({_HEX})\.(npz|json|pmap\.npy)")
+_SCENES = re.compile(rf"((?:mesh|normals)-{_HEX})\.(npz|json)")
+_FOLDER_KEY = re.compile(_HEX)
+_TRACEBACK = re.compile(r"tlm-traceback-.+\.txt")
+_NUMBA = re.compile(r"(.+\.py\d+)\.(nbi|\d+\.nbc)")
+# the temporary names of tlm's writers (tlm.storage: write_atomic, atomic_folder, write_files, a kept
+# folder) and numba's (``<file>.tmp.<uid>``)
+_TEMPORARY = re.compile(r"\..+\.(?:tmp|old|new|claim)-?(?:h[A-Za-z0-9]*-)?\d+(?:-t?\d+)*"
+                        r"|.+\.(?:nbi|nbc)\.tmp\.[0-9a-f]+|.+\.unsaved-\d+(?:-t?\d+)*")
+_WRITER = re.compile(r"(h[A-Za-z0-9]*)-(\d+)")  # (the host and process a temporary name carries)
+_MARKERS = {"functional": ".json", "numba": ".nbi"}  # the file a writer puts in place last
+_SIDECAR_FIRST = (".json", ".nbi")  # removed first: an entry without them is no entry to its reader
+
+
+@dataclass
+class Entry:
+    """One entry of a cache: its ``files`` (paths in the cache's folder, removed together), their
+    ``size`` in bytes and ``last_use`` (seconds since the epoch); ``leftover``: a killed writer's
+    temporary file or folder."""
+
+    cache: str
+    name: str
+    files: list[Path]
+    size: int = 0
+    last_use: float = 0.0
+    leftover: bool = False
+
+    def shown(self) -> str:
+        return f"{self.cache}/{self.name}"
+
+
+@dataclass
+class Cache:
+    """A cache's folder, its entries, the writes in progress there (``busy``) and what is not tlm's
+    (``other``: paths, never removed), with their sizes."""
+
+    name: str
+    folder: Path
+    entries: list[Entry] = field(default_factory=list)
+    busy: list[Path] = field(default_factory=list)
+    busy_size: int = 0
+    other: list[Path] = field(default_factory=list)
+    other_size: int = 0
+
+    @property
+    def size(self) -> int:
+        return sum(e.size for e in self.entries)
+
+    def record(self) -> dict:
+        """As ``tlm cache --json`` prints it."""
+        uses = [e.last_use for e in self.entries]
+        return {"cache": self.name, "folder": str(self.folder), "entries": len(self.entries), "bytes": self.size,
+                "oldest_use": stamp(min(uses)) if uses else None, "newest_use": stamp(max(uses)) if uses else None,
+                "leftovers": sum(e.leftover for e in self.entries), "being_written": len(self.busy),
+                "being_written_bytes": self.busy_size, "not_tlms": [str(p) for p in self.other],
+                "not_tlms_bytes": self.other_size}
+
+
+def _usage(path: Path) -> tuple[int, float, float]:
+    """``(bytes, last use, last modification)`` of a file, or of a folder and everything in it (links
+    not followed; by lstat); (0, 0, 0) where it is gone."""
+    try:
+        st = path.lstat()
+    except OSError:
+        return 0, 0.0, 0.0
+    size, used, changed = st.st_size, max(st.st_atime, st.st_mtime), st.st_mtime
+    if stat.S_ISDIR(st.st_mode):  # (a folder's access time: its listing, as this scan's own; not a use)
+        size, used = 0, st.st_mtime
+        try:
+            inside = list(path.iterdir())
+        except OSError:
+            inside = []
+        for p in inside:
+            s, u, m = _usage(p)
+            size, used, changed = size + s, max(used, u), max(changed, m)
+    return size, used, changed
+
+
+def _live_writer(name: str) -> bool:
+    """Whether a temporary's name carries a live process of this machine (its writer at work)."""
+    host = process_tag().rsplit("-", 1)[0]
+    return any(m[1] == host and pid_alive(int(m[2])) for m in _WRITER.finditer(name))
+
+
+def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache:
+    """The cache ``name`` (of :data:`NAMES`) in ``home`` (:func:`~tlm.caches.cache_home`): a
+    missing folder is an empty cache."""
+    folder = (cache_home() if home is None else Path(home)) / name
+    now = time.time() if now is None else now
+    cache = Cache(name, folder)
+    groups: dict[str, list[Path]] = {}
+    temporaries: list[Path] = []
+    for path in _listing(folder, deep=name == "numba"):
+        rel = path.relative_to(folder)
+        key = _entry_key(name, path)
+        if key is not None:
+            groups.setdefault(str(rel.parent / key) if rel.parent != Path(".") else key, []).append(path)
+        elif _TEMPORARY.fullmatch(path.name) and not path.is_symlink():
+            temporaries.append(path)
+        else:
+            cache.other.append(path)
+            cache.other_size += _usage(path)[0]
+    for key, files in sorted(groups.items()):
+        sizes = [_usage(f) for f in files]
+        entry = Entry(name, key, files, sum(s for s, _, _ in sizes), max(u for _, u, _ in sizes))
+        marker = _MARKERS.get(name)
+        written = max(m for _, _, m in sizes)
+        if marker is not None and not any(f.name.endswith(marker) for f in files) and now - written < BUSY_SECONDS:
+            cache.busy.extend(files)  # (its writer puts the sidecar in place last)
+            cache.busy_size += entry.size
+        else:
+            cache.entries.append(entry)
+    for path in temporaries:
+        size, used, written = _usage(path)
+        if now - written < BUSY_SECONDS or _live_writer(path.name):
+            cache.busy.append(path)
+            cache.busy_size += size
+        else:
+            cache.entries.append(Entry(name, str(path.relative_to(folder)), [path], size, used, leftover=True))
+    return cache
+
+
+def _listing(folder: Path, deep: bool) -> list[Path]:
+    """What ``folder`` holds (``deep``: the files of its folders, numba's per-source folders, too)."""
+    try:
+        top = sorted(folder.iterdir())
+    except OSError:  # (no folder: an empty cache)
+        return []
+    if not deep:
+        return top
+    out = []
+    for p in top:
+        if p.is_dir() and not p.is_symlink() and not _TEMPORARY.fullmatch(p.name):
+            out.extend(_listing(p, True))
+        else:
+            out.append(p)
+    return out
+
+
+def _entry_key(name: str, path: Path) -> str | None:
+    """The entry of cache ``name`` the path ``path`` is a file of (its key), or None: not tlm's."""
+    if path.is_symlink():
+        return None
+    n = path.name
+    if name == "functional":
+        m = _FUNCTIONAL.fullmatch(n)
+    elif name == "scenes":
+        m = _SCENES.fullmatch(n)
+    elif name in ("references", "oracle"):
+        return n if _FOLDER_KEY.fullmatch(n) and path.is_dir() else None
+    elif name == "tracebacks":
+        return n if _TRACEBACK.fullmatch(n) and path.is_file() else None
+    else:
+        m = _NUMBA.fullmatch(n)
+    return m[1] if m else None
+
+
+def survey(names: Iterable[str] = NAMES, home: Path | None = None) -> list[Cache]:
+    """:func:`scan` of each cache of ``names``."""
+    now = time.time()
+    return [scan(n, home, now) for n in names]
+
+
+def folder_size(home: Path | None = None) -> int:
+    """The bytes of everything in the cache folder (entries, writes in progress, what is not tlm's)."""
+    return _usage(cache_home() if home is None else Path(home))[0]
+
+
+def choose(caches: Iterable[Cache], older_than: float | None = None, max_size: int | None = None,
+           now: float | None = None) -> list[Entry]:
+    """The entries of ``caches`` a prune removes, least recently used first: those last used more than
+    ``older_than`` seconds ago, then the least recently used of the rest until what stays is at most
+    ``max_size`` bytes."""
+    now = time.time() if now is None else now
+    entries = sorted((e for c in caches for e in c.entries), key=lambda e: (e.last_use, e.cache, e.name))
+    gone = [e for e in entries if older_than is not None and e.last_use < now - older_than]
+    if max_size is not None:
+        left = sum(e.size for e in entries) - sum(e.size for e in gone)
+        for e in entries:
+            if left <= max_size:
+                break
+            if e not in gone:
+                gone.append(e)
+                left -= e.size
+    return sorted(gone, key=lambda e: (e.last_use, e.cache, e.name))
+
+
+_ASIDE = itertools.count()
+
+
+def remove(entries: Iterable[Entry], home: Path | None = None, unused_since: float | None = None
+           ) -> tuple[list[Entry], list[tuple[Entry, str]]]:
+    """Remove each entry whole: ``(removed, [(not removed, why)])``. An entry used (read or written)
+    after ``unused_since`` (the scan's time) is left, as used meanwhile. Files are removed only inside
+    their cache's folder; a sidecar first (its reader then sees no entry, not a damaged one), and a
+    folder renamed aside first (a reader holding it reads it again and finds none; a killed prune
+    leaves a temporary name that the next one removes)."""
+    base = cache_home() if home is None else Path(home)
+    done, failed = [], []
+    for e in entries:
+        root = base / e.cache
+        if unused_since is not None and max(_usage(f)[1] for f in e.files) > unused_since:
+            failed.append((e, "used meanwhile"))
+            continue
+        why = None
+        for f in sorted(e.files, key=lambda f: not f.name.endswith(_SIDECAR_FIRST)):
+            why = _remove_one(f, root, e.leftover) or why
+        (failed.append((e, why)) if why else done.append(e))
+    return done, failed
+
+
+def _remove_one(path: Path, root: Path, leftover: bool) -> str | None:
+    """Remove one file (or folder) of an entry; why not, or None."""
+    if path.is_dir() and not path.is_symlink() and not leftover:
+        aside = path.with_name(f".{path.name}.old-{process_tag()}-{next(_ASIDE) + 10_000}")
+        try:
+            with folder_lock(path):  # (not while a writer swaps a new one in for it)
+                path.rename(aside)
+        except FileNotFoundError:
+            return None  # (gone already: another prune, or a reader that found it damaged)
+        except OSError as e:
+            return (e.strerror or str(e)).lower()
+        path = aside
+    return remove_entry(path, root)
+
+
+# ------------------------------------------------------------------ the flags' values
+
+_UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}
+_SIZES = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+
+
+def duration(text: str, key: str = "--older-than") -> float:
+    """``30d``, ``12h``, ``90m``, ``45s``, ``2w``: seconds."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([smhdw])\s*", text)
+    if not m:
+        raise InputError(f"{text!r} is not a duration: a number and s, m, h, d or w (30d, 12h)", key=key)
+    return float(m[1]) * _UNITS[m[2]]
+
+
+def size(text: str, key: str = "--max-size") -> int:
+    """``500M``, ``2G``, ``1.5G``, ``800K``, ``2GiB``, a number of bytes: bytes (K, M, G, T: powers of 1024)."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*(?:([kmgt])(?:i?b)?|b)?\s*", text, re.I)
+    if not m:
+        raise InputError(f"{text!r} is not a size: a number of bytes, or one with K, M, G or T (500M, 2G)", key=key)
+    value = float(m[1]) * _SIZES[(m[2] or "").lower()]
+    if not math.isfinite(value):
+        raise InputError(f"{text!r} is not a size", key=key)
+    return int(value)
+
+
+def cache_names(given: list[str] | None, key: str = "--cache") -> list[str]:
+    """The caches named (each once, in :data:`NAMES`' order); all where none is."""
+    for n in given or []:
+        if n not in NAMES:
+            raise InputError(f"{n!r} is not one of tlm's caches ({', '.join(NAMES)})", key=key)
+    return [n for n in NAMES if not given or n in given]
+
+
+def human(n: float) -> str:
+    """Bytes as ``du -h`` says them: ``512B``, ``48.2K``, ``1.1G`` (powers of 1024)."""
+    for unit in ("B", "K", "M", "G", "T"):
+        if abs(n) < 1024 or unit == "T":
+            return f"{int(n)}{unit}" if unit == "B" else f"{n:.1f}{unit}"
+        n /= 1024
+    return f"{n:.1f}T"
+
+
+def stamp(t: float) -> str:
+    """A time as local ISO 8601 to the second, with its offset."""
+    import datetime
+
+    return datetime.datetime.fromtimestamp(t).astimezone().isoformat(timespec="seconds")
+
+
+def as_json(caches: list[Cache], home: Path) -> str:
+    """``tlm cache --json``."""
+    return json.dumps({"folder": str(home), "bytes": folder_size(home), "caches": [c.record() for c in caches]},
+                      indent=1)
+

@@ -1,0 +1,165 @@
+"""``tlm cache [info | prune | clear]``: what tlm's caches hold, and their entries removed whole
+(:mod:`tlm.cache_admin`); :func:`add_cache_parser` is :func:`tlm.cli.build_parser`'s."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from tlm import cache_admin as ca
+from tlm.caches import cache_home
+from tlm.errors import InputError
+
+_LAST_USE = ("Last use: the latest access or modification time of an entry's files (a reference or ground "
+             "truth read refreshes it; a frame or scene read only where the file system keeps access times)")
+
+
+def _out(line: str) -> None:
+    """A line of the command's output on stdout (ruff's T20 is for tlm/cli.py's prints alone)."""
+    sys.stdout.write(line + "\n")
+
+
+def _typed(read):
+    """An argparse type of a :mod:`tlm.cache_admin` reader: its InputError as argparse's one line."""
+    def typed(text: str):
+        try:
+            return read(text, key="")
+        except InputError as e:
+            raise argparse.ArgumentTypeError(str(e).removeprefix(": ")) from None
+    typed.__name__ = read.__name__
+    return typed
+
+
+def _cache_option(p: argparse.ArgumentParser, default=None) -> None:
+    p.add_argument("--cache", action="append", metavar="NAME", default=default, type=_typed(_one_name),
+                   help=f"only this cache ({', '.join(ca.NAMES)}); may be given again (default: all)")
+
+
+def _one_name(text: str, key: str = "--cache") -> str:
+    return ca.cache_names([text], key)[0]
+
+
+def add_cache_parser(sub) -> None:
+    """``tlm cache`` and its commands, on the subcommands ``sub`` of :func:`tlm.cli.build_parser`."""
+    c = sub.add_parser("cache", help="what tlm's caches hold (tlm cache), and old entries removed "
+                       "(tlm cache prune, tlm cache clear)",
+                       description="What tlm's caches hold, and their old entries removed, whole. " + _LAST_USE + ".")
+    c.add_argument("--json", action="store_true", help="the table as JSON")
+    _cache_option(c)
+    cs = c.add_subparsers(dest="cache_cmd", metavar="{info,prune,clear}")
+    i = cs.add_parser("info", help="one row per cache: its entries, size, oldest and newest last use, folder "
+                      "(what tlm cache alone prints)")
+    i.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="the table as JSON")
+    _cache_option(i, argparse.SUPPRESS)
+    p = cs.add_parser("prune", help="remove whole entries: those last used before --older-than, then the least "
+                      "recently used until the rest fit --max-size", description=_LAST_USE + ". Never removed: "
+                      "files that are not tlm's entries, and writes in progress (a temporary file under an hour "
+                      "old, or one a live process is writing). A run that needs a removed entry computes it again.")
+    p.add_argument("--older-than", type=_typed(ca.duration), metavar="DURATION",
+                   help="remove entries last used more than this long ago: 30d, 12h, 90m, 2w")
+    p.add_argument("--max-size", type=_typed(ca.size), metavar="SIZE",
+                   help="then the least recently used until the chosen caches' entries take at most this: "
+                   "500M, 2G (K, M, G, T: powers of 1024)")
+    _cache_option(p, argparse.SUPPRESS)
+    p.add_argument("--dry-run", action="store_true", help="list what would go, with sizes; remove nothing")
+    cl = cs.add_parser("clear", help="remove every entry of the caches (--cache: of those only)")
+    _cache_option(cl, argparse.SUPPRESS)
+    cl.add_argument("--dry-run", action="store_true", help="list what would go, with sizes; remove nothing")
+    c.set_defaults(func=cache_command)
+
+
+def cache_command(args: argparse.Namespace) -> int:
+    """``tlm cache``'s handler: its exit status (1 where an entry could not be removed)."""
+    names = ca.cache_names(getattr(args, "cache", None))
+    command = getattr(args, "cache_cmd", None) or "info"
+    if command == "info":
+        return _info(names, getattr(args, "json", False))
+    if command == "prune" and args.older_than is None and args.max_size is None:
+        raise InputError("give --older-than DURATION and/or --max-size SIZE (tlm cache clear removes every entry)",
+                         source="tlm cache prune")
+    start = time.time()
+    caches = ca.survey(names)
+    if command == "clear":
+        chosen = sorted((e for c in caches for e in c.entries), key=lambda e: (e.last_use, e.cache, e.name))
+    else:
+        chosen = ca.choose(caches, args.older_than, args.max_size, start)
+    kept = sum(len(c.entries) for c in caches) - len(chosen)
+    kept_size = sum(c.size for c in caches) - sum(e.size for e in chosen)
+    skipped = _skipped(caches)
+    if args.dry_run:
+        for e in chosen:
+            _out(f"would remove {e.shown()} ({ca.human(e.size)}, last used {_when(e.last_use)})")
+        _out(f"would remove {_count(chosen)} ({ca.human(sum(e.size for e in chosen))}), keep {kept} "
+              f"({ca.human(kept_size)}){skipped}; nothing removed (--dry-run)")
+        return 0
+    done, failed = ca.remove(chosen, unused_since=start if command == "prune" else None)
+    used = [e for e, why in failed if why == "used meanwhile"]
+    failed = [(e, why) for e, why in failed if why != "used meanwhile"]
+    kept += len(used)
+    kept_size += sum(e.size for e in used)
+    _out(f"removed {_count(done)} ({ca.human(sum(e.size for e in done))}) from {_where(done)}, kept {kept} "
+          f"({ca.human(kept_size)}){skipped}" + (f"; {len(used)} used meanwhile kept" if used else ""))
+    if failed:
+        e, why = failed[0]
+        _out(f"could not remove {_count([x for x, _ in failed])} ({ca.human(sum(x.size for x, _ in failed))}), "
+              f"e.g. {e.shown()}: {why}")
+        return 1
+    return 0
+
+
+def _count(entries: list) -> str:
+    return f"{len(entries)} entr{'y' if len(entries) == 1 else 'ies'}"
+
+
+def _where(entries: list) -> str:
+    names = [n for n in ca.NAMES if any(e.cache == n for e in entries)]
+    return ", ".join(names) if names else "no cache"
+
+
+def _skipped(caches: list) -> str:
+    """What a prune or clear never touches, where there is any."""
+    busy, other = sum(len(c.busy) for c in caches), sum(len(c.other) for c in caches)
+    words = []
+    if busy:
+        words.append(f"{busy} being written")
+    if other:
+        words.append(f"{other} not tlm's")
+    return f"; left alone: {', '.join(words)}" if words else ""
+
+
+def _when(t: float | None) -> str:
+    return "-" if t is None else time.strftime("%Y-%m-%d %H:%M", time.localtime(t))
+
+
+def _info(names: list[str], as_json: bool) -> int:
+    home = cache_home()
+    caches = ca.survey(names, home)
+    if as_json:
+        _out(ca.as_json(caches, home))
+        return 0
+    _out(f"tlm's caches in {home}")
+    rows = [("cache", "entries", "size", "oldest use", "newest use", "folder")]
+    for c in caches:
+        uses = [e.last_use for e in c.entries]
+        rows.append((c.name, str(len(c.entries)), ca.human(c.size), _when(min(uses) if uses else None),
+                     _when(max(uses) if uses else None), str(c.folder)))
+    every = [e.last_use for c in caches for e in c.entries]
+    rows.append(("all", str(sum(len(c.entries) for c in caches)), ca.human(sum(c.size for c in caches)),
+                 _when(min(every) if every else None), _when(max(every) if every else None), str(home)))
+    widths = [max(len(r[k]) for r in rows) for k in range(6)]
+    for r in rows:
+        _out("  ".join(v.rjust(w) if k in (1, 2) else v.ljust(w) for k, (v, w) in enumerate(zip(r, widths)))
+             .rstrip())
+    busy = [c for c in caches if c.busy]
+    other = [p for c in caches for p in c.other]
+    line = f"the folder in all: {ca.human(ca.folder_size(home))}"
+    if busy:
+        line += (f"; being written: {sum(len(c.busy) for c in busy)} files "
+                 f"({ca.human(sum(c.busy_size for c in busy))})")
+    if other:
+        line += (f"; not tlm's entries, never removed: {len(other)} "
+                 f"({ca.human(sum(c.other_size for c in caches))}), e.g. {other[0]}")
+    _out(line)
+    _out(_LAST_USE)
+    return 0
