@@ -102,7 +102,7 @@ from tlm.experiments.reference_cache import (
     verdict,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
+from tlm.experiments.study import override_key, read_study, refuse_set, run_study, set_leaves, with_set
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
@@ -139,14 +139,19 @@ FIXED = {"scene": "every point renders the base's scene", "mode": "every point i
          "render.spp": "every point shares the base's eye rays"}
 
 
-def _check_factor(key: str, source: str, where: str, section: str | None = None) -> None:
+def _check_factor(key: str, source: str, where: str, section: str | None = None, whole: bool = True) -> None:
     """An InputError for a point key every point takes from the base (:data:`FIXED`);
-    ``section``: the point gave that key's whole section, which replaces the base's."""
+    ``section``: the point gave that key's section, whole (``render: null``, which gives the section
+    at its defaults, ``whole``) or as a mapping that sets the key (which merges into the base's section)."""
     why = FIXED.get("bsp" if key.startswith("bsp.") else key)
     if why is not None:
-        how = (f" (the point's {section}: replaces the base's whole section: give {section}.<key> for what it "
-               "changes)") if section else (" (mode: pmap; leave it out)" if key == "mode" else
-                                            "; set it under base, and run one experiment per value")
+        how = (" (mode: pmap; leave it out)" if key == "mode" else
+               "; set it under base, and run one experiment per value")
+        if section and whole:
+            how = (f" (the point's {section}: replaces the base's whole section: give {section}.<key> for what it "
+                   "changes)")
+        elif section:
+            how = f" (the point's {section} sets it){how}"
         raise InputError(f"a point cannot vary {key}: {why}{how}", source=source, key=where)
 
 
@@ -195,11 +200,12 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, 
     label = src  # (what a point's config is named by in its errors)
     if overrides:
         base = with_set(base, overrides, [folder])
-        varied: dict[str, str] = {}  # each key a point varies, by the first grid that does
-        for i, grid in enumerate(_grids(raw.get("points"))):
-            for k in grid:
-                varied.setdefault(str(k), f"varied by the study's points (points[{i}].{k}): change its values in the "
-                                          "experiment file, not by --set")
+        varied: dict[str, str] = {}  # each key a point sets, by the first grid that does (a section's mapping:
+        for i, grid in enumerate(_grids(raw.get("points"))):  # the keys it names, as it merges into the section)
+            for k, v in grid.items():
+                for leaf in _keys_given(str(k), v if isinstance(v, list) else [v]):
+                    varied.setdefault(leaf, f"varied by the study's points (points[{i}].{k}): change its values in "
+                                            "the experiment file, not by --set")
         refuse_set(overrides, varied, src)
         label = with_overrides(src)
         base_cfg = config_from_dict(base, label)
@@ -211,11 +217,23 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, 
     shared = _fixed(base_cfg)
     for p in points:  # check every point before any work starts
         mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{label} (point {p})"))
-        for key, value in mine.items():  # (a whole section given, render: {spp: 1}, is caught here)
+        for key, value in mine.items():  # (a section given, render: {spp: 1} or render: null, is caught here)
             if value != shared[key]:
                 given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
-                _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None)
+                _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None,
+                              whole=not isinstance(p.get(given), dict))
     return base, points, folder
+
+
+def _keys_given(key: str, values: list) -> list[str]:
+    """The dotted keys a grid's ``values`` for ``key`` set over the base: ``key``, or where a value is a
+    mapping given for a section, which merges into it (:func:`~tlm.config.apply_overrides`), the keys it
+    names (``estimate: [{k: 9}]`` sets ``estimate.k`` alone), as a ``--set`` of it would
+    (:func:`~tlm.experiments.study.set_leaves`)."""
+    out: dict[str, None] = {}
+    for v in values:
+        out.update(dict.fromkeys(set_leaves(f"{key}={json.dumps(v)}")))  # (as the point's own override reads)
+    return list(out)
 
 
 def _grids(points: Any) -> list[dict]:

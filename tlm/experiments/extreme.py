@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import config_from_dict, deep_merge
+from tlm.config import SECTIONS, config_from_dict, deep_merge
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
@@ -208,11 +208,12 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
 
 def _leaves(config: dict, prefix: str = "") -> list[str]:
     """The dotted keys a case's ``config`` gives, as :func:`tlm.config.deep_merge` merges it over
-    the base: each key of a mapping under a mapping, else the key itself."""
+    the base: each key of a mapping given for a section (none of an empty one: it changes nothing),
+    else the key itself; as :func:`~tlm.experiments.study.set_leaves` reads a ``--set``."""
     out = []
     for k, v in config.items():
         key = f"{prefix}{k}"
-        out.extend(_leaves(v, f"{key}.") if isinstance(v, dict) and v else [key])
+        out.extend(_leaves(v, f"{key}.") if isinstance(v, dict) and key in SECTIONS else [key])
     return out
 
 

@@ -16,11 +16,10 @@ import math
 from collections.abc import Iterable
 
 import numpy as np
-import yaml
 
 from tlm.arch.model import Timing
 from tlm.config import ArchConfig, RunConfig
-from tlm.config_words import parse_yaml
+from tlm.experiments.study import set_leaves
 from tlm.registry import SCHEDULERS
 from tlm.render import checks
 from tlm.render.planner import inert_changes, inert_timing_settings, walk_inert_settings
@@ -223,9 +222,11 @@ def unread_overrides(res: RenderResult, overrides: Iterable[str] | None, via: st
     overrides)``). :func:`~tlm.render.planner.inert_changes` judges those keys as if every pass
     ran, since a config file may hold them for another ``--mode``; a key given as an override was
     asked for this run. A key set twice is named once, by the override that set it last (a section
-    given as a mapping, ``estimate={k: 9}``, sets each of its keys; one that sets a key the run
-    reads too names those it does not). Not the key the photon-map pass is left out by (``--set
-    photons.count=0``, ``--set photons.max_bounces=1``: the plan's ``by``), which did what it was
+    given as a mapping, ``estimate={k: 9}``, sets the keys it names, as it merges into the section:
+    :func:`~tlm.experiments.study.set_leaves`, so ``estimate={}`` sets none; one that sets a key the
+    run reads too names those it does not; ``estimate=null`` sets the whole section, each key of it
+    set before). Not the key the photon-map pass is left out by (``--set photons.count=0``, ``--set
+    photons.max_bounces=1``: the plan's ``by``), nor a section that holds it, which did what it was
     set for."""
     return _unread_lines(res, _unread(res, overrides), via)
 
@@ -250,31 +251,16 @@ def _unread(res: RenderResult, overrides: Iterable[str] | None) -> dict[str, str
     left = next((p for p in res.plan.passes if p.name == "pmap" and not p.run), None)
     photons = _photon_why(res) is not None
     walk = _walk_unread(res)
+    by = getattr(left, "by", None) or ""  # (the key that left the pass out: it did what it was set for)
     last: dict[str, str] = {}
     for item in overrides or []:
-        for key in _keys_set(item):
-            last.pop(key, None)  # (the later override names it)
+        for key in set_leaves(item):  # (a section's mapping: the keys it names, as it merges; null: the section)
+            for earlier in [k for k in last if k == key or k.startswith(key + ".")]:
+                del last[earlier]  # (the later override names it)
             last[key] = item.strip()
     return {key: item for key, item in last.items()
-            if key in walk or (photons and key.startswith(PHOTON_SECTIONS) and (left is None or key != left.by))}
-
-
-def _keys_set(item: str) -> list[str]:
-    """The dotted keys the override ``item`` sets: its key, or each key under it when its
-    value is a mapping (``estimate={k: 9}``: ``estimate.k``)."""
-    key, _, text = item.partition("=")
-    key = key.strip()
-    try:
-        value = parse_yaml(text)
-    except yaml.YAMLError:  # (not an override a config took: its key alone)
-        return [key]
-
-    def leaves(prefix: str, node) -> list[str]:
-        if isinstance(node, dict) and node:
-            return [k for name, child in node.items() for k in leaves(f"{prefix}.{name}", child)]
-        return [prefix]
-
-    return leaves(key, value)
+            if key in walk or (photons and (key + ".").startswith(PHOTON_SECTIONS)
+                               and not (by + ".").startswith(key + "."))}
 
 
 def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[str]:  # noqa: F821
@@ -289,7 +275,7 @@ def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[s
         keys = [key for key, it in unread.items() if it == item]
         whys = dict.fromkeys(walk.get(key, photon_why) for key in keys)
         # (an override that sets keys the run reads too, a section given whole, names those it does not)
-        named = "" if len(keys) == len(set(_keys_set(item))) else f": {', '.join(keys)}"
+        named = "" if len(keys) == len(set_leaves(item)) else f": {', '.join(keys)}"
         lines.append(f"{given(item)}{named} has no effect in this run: {'; '.join(whys)}")
     return lines
 

@@ -30,6 +30,7 @@ from tlm.config import (
     RunConfig,
     check_leaf,
     config_from_dict,
+    describe,
     files_from,
     is_leaf,
     names_scene_file,
@@ -102,22 +103,33 @@ class Sweep:
 
     def set_keys(self) -> dict[str, str]:
         """The keys the sweep's ``--set`` strings set (a section given as a mapping, ``estimate={k: 9}``,
-        sets each of its keys: :func:`set_leaves`), each with the ``--set`` string that set it last."""
+        sets the keys it names, as it merges: :func:`set_leaves`; ``estimate=null`` the section, each key
+        of it set before), each with the ``--set`` string that set it last."""
         last: dict[str, str] = {}
         for item in self.overrides:
             for key in set_leaves(item):
-                last.pop(key, None)
+                for earlier in [k for k in last if k == key or k.startswith(key + ".")]:
+                    del last[earlier]
                 last[key] = item.strip()
         return last
+
+    def _inert_whys(self, key: str) -> set[str] | None:
+        """Why ``key`` changes nothing, each point's reason (a section, ``estimate`` of ``--set estimate=null``:
+        each of its keys'), or None where some point reads it."""
+        keys = [k for k, _, _ in describe() if k.startswith(key + ".")] if key in SECTIONS else [key]
+        if not self.inert or not all(k in i for i in self.inert for k in keys):
+            return None
+        return {i[k] for i in self.inert for k in keys}
 
     def inert_sets(self) -> list[str]:
         """A warning line per ``--set`` of the sweep that changes nothing in any point, by the rule of
         :meth:`inert_factors` (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` in mode rcast),
         as ``tlm run --set`` says one its run never reads; a ``--set`` that some points read gets none,
-        as a factor does not. A section given whole names the keys no point reads where it sets others
-        too (``--set estimate={k: 9, ...}: estimate.k``)."""
-        return self._set_lines({k: {i.get(k) for i in self.inert} for k in self.set_keys()
-                                if self.inert and all(k in i for i in self.inert)}, "changes nothing in any point")
+        as a factor does not. A section given as a mapping names the keys no point reads where it sets
+        others too (``--set estimate={k: 9, ...}: estimate.k``); one given null, the whole section, is
+        said where no point reads any key of it."""
+        whys = {k: self._inert_whys(k) for k in self.set_keys()}
+        return self._set_lines({k: w for k, w in whys.items() if w is not None}, "changes nothing in any point")
 
     def _set_lines(self, whys: dict[str, set], verb: str) -> list[str]:
         """One line per ``--set`` string of the keys ``whys`` (key -> its points' reasons) that it set last."""
@@ -142,7 +154,7 @@ class Sweep:
         factors :meth:`inert_factors` named before the points ran."""
         if not done:
             return []
-        said = {f for f in [*self.factors, *self.set_keys()] if self.inert and all(f in i for i in self.inert)}
+        said = {f for f in [*self.factors, *self.set_keys()] if self._inert_whys(f) is not None}
         defaults = to_dict(RunConfig())
         where = "the one point" if len(done) == 1 else f"any of the {len(done)} points"
         lines = []
@@ -305,6 +317,21 @@ def _assign(raw: dict, key: str, value: Any) -> dict:
     return out
 
 
+def _keys_given(key: str, values: Iterable[Any]) -> list[str]:
+    """The dotted keys that ``values``, each given for the dotted ``key`` (a ``set:`` entry's value, a
+    factor's list), set over the base: ``key`` itself, or where a value is a mapping given for a section,
+    which merges into it (:func:`_assign`), the keys it names (``render: {spp: 1}`` sets ``render.spp``
+    alone, ``render: {}`` none), as :func:`~tlm.experiments.study.set_leaves` reads a ``--set``'s."""
+    out: dict[str, None] = {}
+    for v in values:
+        if isinstance(v, dict) and key in SECTIONS:
+            for name, child in v.items():
+                out.update(dict.fromkeys(_keys_given(f"{key}.{name}", [child])))
+        else:
+            out[key] = None
+    return list(out)
+
+
 def _dotted_keys(section: Any, name: str, src: str, lists: bool) -> dict[str, Any]:
     if section is None:
         return {}
@@ -450,7 +477,9 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     mapping that leaves the factor's key out, which merges into the base's section as ``tlm run --set``
     does (:func:`~tlm.experiments.sweep_sets.refuse_factor_sets`); so is a bad key or value (the error
     names the file ``with --set``, as ``tlm run``'s does). A section given as a mapping under ``set``,
-    or as a factor's values, merges into the base's section likewise (:func:`_assign`)."""
+    or as a factor's values, merges into the base's section likewise (:func:`_assign`), and sets the keys
+    it names alone (:func:`_keys_given`): ``set``, ``grid`` and ``zip`` overlap, and a ``--set`` a factor,
+    by those keys (``set: {render: {spp: 1}}`` beside a factor ``render.light_samples`` is taken)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -477,13 +506,14 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
         raise InputError(f"lists of unequal length ({', '.join(f'{k}: {n}' for k, n in lengths.items())})",
                          source=src, key="zip")
     _given_once(grid, zipped, src)
-    seen: dict[str, str] = {}
+    seen: dict[str, tuple[str, str]] = {}  # each key set so far (a section's mapping: those it names): by what
     for name, section in (("set", settings), ("grid", grid), ("zip", zipped)):
-        for k in section:
-            for other, where in seen.items():
-                if k == other or k.startswith(other + ".") or other.startswith(k + "."):
+        for k, v in section.items():
+            mine = _keys_given(k, [v] if name == "set" else v)
+            for leaf, (other, where) in seen.items():
+                if any(m == leaf or m.startswith(leaf + ".") or leaf.startswith(m + ".") for m in mine):
                     raise InputError(f"overlaps {where}.{other}", source=src, key=f"{name}.{k}")
-            seen[k] = name
+            seen.update(dict.fromkeys(mine, (k, name)))
 
     # a path the sweep file gives (arch.programs) is relative to the sweep file, the base's to
     # the base config's folder; a scene file it gives is the sweep file's, else the base
@@ -505,8 +535,13 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
     if overrides:
         fixed = with_set(fixed, overrides, scene_folders)
-        refuse_factor_sets(overrides, {k: where for where, section in (("grid", grid), ("zip", zipped))
-                                       for k in section}, src)
+        # (a factor whose values are a section's mappings sets the keys they name: a --set of another is kept)
+        factor_sets = {k: (where, _keys_given(k, values)) for where, section in (("grid", grid), ("zip", zipped))
+                       for k, values in section.items()}
+        for item in overrides:
+            mine = set_leaves(item)
+            refuse_factor_sets([item], {k: where for k, (where, keys) in factor_sets.items()
+                                        if any(given_by(m, keys) for m in mine)}, src)
         config_from_dict(fixed, label)
     factors_list, indices = _expand_both(grid, zipped)
     factor_keys = [*grid, *zipped]
