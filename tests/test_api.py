@@ -216,7 +216,10 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     argument types and shared options) imports the API alone."""
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
-    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache"}, used - allowed
+    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache", "tlm.cli_run"}, \
+        used - allowed
+    running = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_run.py")}  # (what tlm run prints, out of cli.py)
+    assert running <= allowed - {"tlm.experiments.thesis"}, running - allowed
     caching = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_cache.py")}  # (tlm cache: the caches' folder alone)
     assert caching <= {"tlm", "tlm.cache_admin", "tlm.caches", "tlm.errors"}, caching
     report = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_report.py")}
@@ -237,9 +240,9 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
         assert any(c.startswith("api.") for c in calls), fn.name
 
 
-@pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_common.py", "tlm/cli.py",
-                                    "tlm/cli_args.py", "tlm/cli_report.py", "tlm/cli_signals.py", "tlm/cli_streams.py",
-                                    "tlm/cli_cache.py",
+@pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_scenes.py", "tlm/api_cache.py",
+                                    "tlm/api_common.py", "tlm/cli.py", "tlm/cli_args.py", "tlm/cli_report.py",
+                                    "tlm/cli_run.py", "tlm/cli_signals.py", "tlm/cli_streams.py", "tlm/cli_cache.py",
                                     *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):
@@ -290,6 +293,25 @@ def test_storage_and_error_cost_moved_code_is_the_same_objects_there(tmp_path):
         pass
     clock = CompileClock()
     assert clock.within(0.0, 1.0) == 0.0 and clock.spans == []
+
+
+def test_the_caches_scenes_and_run_lines_moved_code_is_the_same_objects_there(cache):
+    """tlm's caches (tlm/api_cache.py) and scenes (tlm/api_scenes.py), both out of api.py, and what
+    ``tlm run`` prints (tlm/cli_run.py, out of cli.py): the objects tlm.api re-exports and cli.py
+    calls, doing as they did."""
+    import tlm.cli as cli
+    from tlm.api_cache import cache_info, clear_cache, prune_cache
+    from tlm.api_scenes import export_scene, list_scenes, load_scene, scene_description, scene_info
+    from tlm.cli_run import blame_flag, figures3, print_run
+
+    for obj in (cache_info, clear_cache, prune_cache, export_scene, list_scenes, load_scene, scene_description,
+                scene_info):
+        assert getattr(api, obj.__name__) is obj and getattr(tlm, obj.__name__) is obj, obj.__name__
+    assert (cli.blame_flag, cli.figures3, cli.print_run) == (blame_flag, figures3, print_run)
+    assert cache_info("tracebacks")["folder"] == str(cache) and clear_cache(dry_run=True)["removed"] == []
+    with pytest.raises(tlm.InputError, match="max_size: -1 is not a size"):
+        prune_cache(max_size=-1)
+    assert "cornell" in list_scenes() and figures3(0.0504) == "0.0504" and figures3(1234.4) == "1234"
 
 
 def test_the_timer_adds_up_stages_and_a_bar_is_drawn_only_when_asked():

@@ -15,7 +15,8 @@ walkthrough: docs/api.md)::
 A study (:func:`sweep`, :func:`thesis`, :func:`error_vs_cost`, ...) takes its experiment
 file's path or a built-in experiment's name (``tlm config list``), as its ``tlm`` command
 does (:func:`experiment_path`). The studies and the reports are written in
-:mod:`tlm.api_studies` (what it shares with this module: :mod:`tlm.api_common`) and read from
+:mod:`tlm.api_studies`, the scenes' functions in :mod:`tlm.api_scenes` and the caches' in
+:mod:`tlm.api_cache` (what they share with this module: :mod:`tlm.api_common`), and read from
 here as every name of the API does: ``tlm.api.sweep`` is ``tlm.api_studies.sweep``.
 
 Bad input of any kind raises :class:`InputError`, whose message names the file, the
@@ -38,13 +39,12 @@ import json
 import math
 import numbers
 import os
-import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tlm import cache_admin as _ca
+from tlm.api_cache import cache_info, clear_cache, prune_cache  # tlm's caches (see the end of this module)
 from tlm.api_common import (
     argument_names,
     arguments_text,
@@ -56,6 +56,13 @@ from tlm.api_common import folder as _folder
 from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_common import renamed as _renamed
 from tlm.api_common import shown as _shown
+from tlm.api_scenes import (  # the built-in scenes; a scene loaded, shown, exported (see "scenes" below)
+    export_scene,
+    list_scenes,
+    load_scene,
+    scene_description,
+    scene_info,
+)
 from tlm.api_studies import (  # the many experiments and the reports (see the end of this module)
     StudyRows,  # noqa: F401  (not in __all__: what error_vs_cost returns, a list of rows with attrs)
     calibrate,
@@ -74,7 +81,6 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     write_report,
 )
 from tlm.arch.units import Deadlock, MaxEventsReached
-from tlm.caches import cache_home
 from tlm.config import (
     MODES,
     RunConfig,
@@ -101,7 +107,6 @@ if TYPE_CHECKING:
     from tlm.config import ArchConfig
     from tlm.experiments.reference import Made
     from tlm.experiments.run import RenderResult
-    from tlm.scenes.model import Scene
 
 __all__ = [
     "MODES", "OUTPUTS", "Config", "Deadlock", "InputError", "MaxEventsReached", "StepsFailed", "cache_info",
@@ -386,115 +391,8 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
 
 # ---------------------------------------------------------------- scenes
 
-
-@argument_names
-def list_scenes() -> list[str]:
-    """The built-in scene names (what a config's ``scene:`` may name)."""
-    from tlm.scenes.loader import list_scenes as names
-
-    return names()
-
-
-@argument_names
-def scene_description(name: str) -> str:
-    """A built-in scene's ``description:``, else the first sentence of its leading comment
-    lines, which may run over several ("" when it has neither; cheap: reads no geometry)."""
-    from tlm.builtin import comment_description
-    from tlm.scenes.loader import scenes_dir
-
-    names = list_scenes()
-    if not isinstance(name, str) or name not in names:
-        raise InputError(f"{_shown(name)} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
-                         key="scene")
-    path = scenes_dir() / f"{name}.yaml"
-    try:
-        raw = read_yaml(path)
-        if isinstance(raw, dict) and isinstance(raw.get("description"), str):
-            return raw["description"]
-        return comment_description(path.read_text(encoding="utf-8"))
-    except (InputError, OSError, UnicodeDecodeError):
-        return ""
-
-
-@argument_names
-@imports_whole
-def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
-    """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
-    default the working folder), at its own resolution or ``[width, height]``."""
-    from tlm.scenes.loader import load_scene as load
-    from tlm.scenes.loader import resolve_scene_path
-
-    folder = Path(base) if base is not None else Path.cwd()
-    # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
-    # (a numpy array or a tuple reads as the list it holds, as in load_config)
-    path = resolve_scene_path(str(scene), folder, config_source=str(scene))
-    return load(path, folder, None if resolution is None else plain(resolution), config_source="(load_scene)")
-
-
-def _scene(scene: Scene | str | Path) -> Scene:
-    """The scene named, loaded; or the Scene given, checked as a loaded one is (one made or changed
-    in Python: NaN or infinite vertices are an InputError naming it, :func:`tlm.scenes.export.check_scene`)."""
-    from tlm.scenes.export import check_scene
-    from tlm.scenes.model import Scene
-
-    if isinstance(scene, (str, os.PathLike)):
-        return load_scene(scene)
-    if not isinstance(scene, Scene):
-        raise InputError(f"{_shown(scene)} is not a scene: give a Scene, a built-in scene's name or a scene "
-                         "file's path", key="scene")
-    check_scene(scene)
-    return scene
-
-
-@argument_names
-@imports_whole
-def scene_info(scene: Scene | str | Path) -> dict:
-    """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
-    parts, lights and camera of a scene (or of the scene named), and ``notes``: the lines
-    on what its mesh files gave that was imported or left out, which a run warns of. Each
-    light is its ``type``, ``power`` and its kind's own fields: a point light's ``position``;
-    a spot's ``position``, ``direction``, ``inner_cone_angle`` and ``outer_cone_angle``
-    (degrees); a directional light's ``direction`` and ``irradiance``; a quad's ``corner``,
-    ``edge_u``, ``edge_v`` and ``area``; a mesh light's ``materials``, ``triangles`` and
-    ``area``."""
-    from tlm.experiments.run import scene_head
-
-    scene = _scene(scene)
-    head, used = scene_head(scene, lambda lo, hi: {"min": lo.tolist(), "max": hi.tolist()})
-    return {
-        **head,
-        "materials": [
-            {"name": m.name, "type": m.kind, "triangles": int(used[i]),
-             **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
-             **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
-             **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
-             **({"emission": list(m.emission)} if m.emits else {}),
-             **({"ignored": list(m.ignored)} if m.ignored else {})}  # (not rendered: checks.material_warnings)
-            for i, m in enumerate(scene.materials)
-        ],
-        "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
-        "lights": [lt.info() for lt in scene.lights],
-        "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
-                   "up": list(scene.camera.up), "vfov": scene.camera.vfov},
-        "notes": [str(n) for n in scene.extra.get("notes") or []],
-    }
-
-
-@argument_names
-@imports_whole
-def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
-    """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
-    or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
-    :mod:`tlm.scenes.export`); returns the scene. A Scene that no scene file could hold (NaN or
-    infinite vertices, as one made with ``dataclasses.replace`` may have) is an InputError naming
-    it and its first such triangle, as the loader names a file's, and nothing is written."""
-    from tlm.scenes.export import export_triangles
-
-    scene = _scene(scene)
-    if not isinstance(file, (str, os.PathLike)):
-        raise InputError(f"{_shown(file)} is not a file path (.ply, .obj or .yaml)", key="file")
-    export_triangles(scene, Path(file))
-    return scene
+# tlm/api_scenes.py, imported at the top of this module (``tlm.api.load_scene is tlm.api_scenes.load_scene``):
+# list_scenes, scene_description, load_scene, scene_info and export_scene.
 
 
 # ---------------------------------------------------------------- one experiment
@@ -758,61 +656,8 @@ def _said(say: Callable[[str], None] | None, progress: bool) -> Callable[[str], 
 
 # ---------------------------------------------------------------- tlm's caches (tlm.cache_admin)
 
-
-def cache_info(caches: str | Iterable[str] | None = None) -> dict:
-    """``tlm cache --json``: the ``folder``, its ``bytes`` and a dict per cache of ``caches`` (one name or
-    several of :data:`tlm.cache_admin.NAMES`; None: all): its ``entries``, ``bytes``, ``oldest_use``, ..."""
-    home = cache_home()
-    return json.loads(_ca.as_json(_ca.survey(_cache_names(caches), home), home))
-
-
-def prune_cache(older_than: float | str | None = None, max_size: float | str | None = None,
-                caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
-    """``tlm cache prune``: the entries of ``caches`` (:func:`cache_info`'s) last used over ``older_than`` ago
-    (seconds, ``"30d"``), then the least recently used until the rest take ``max_size`` (bytes, ``"500M"``),
-    removed whole. Returns ``removed`` (``dry_run``: would be; nothing is) and ``not_removed`` (with ``why``),
-    each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``."""
-    if older_than is None and max_size is None:
-        raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
-    return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))
-
-
-def clear_cache(caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
-    """``tlm cache clear``: every entry of ``caches`` (None: all) removed; returns what :func:`prune_cache` does."""
-    return _removed(caches, dry_run, -math.inf, None)
-
-
-def _cache_names(caches: Any) -> list[str]:
-    listed = [caches] if isinstance(caches, str) or not isinstance(caches, Iterable) else list(caches)
-    return _ca.cache_names(None if caches is None else listed, key="caches")
-
-
-def _amount(value: Any, key: str) -> float | None:
-    """``older_than`` (seconds) or ``max_size`` (bytes): a number, not negative, or the flag's text."""
-    duration = key == "older_than"
-    if isinstance(value, str):
-        return (_ca.duration if duration else _ca.size)(value, key=key)
-    if value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool) and 0 <= value < math.inf):
-        return None if value is None else float(value)
-    what = "a duration: seconds (not negative) or text such as '30d'" if duration else \
-        "a size: bytes (not negative) or text such as '500M'"
-    raise InputError(f"{_shown(value)} is not {what}", key=key)
-
-
-def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None) -> dict:
-    """:func:`prune_cache` (:func:`clear_cache`: ``older`` -inf, every entry) as ``tlm cache`` does it."""
-    dry_run, start = _checked(dry_run, "dry_run", bool), time.time()
-    found = _ca.survey(_cache_names(caches))
-    gone = _ca.choose(found, older, None if most is None else int(most), start)
-    done, failed = (gone, []) if dry_run else _ca.remove(gone, unused_since=None if older == -math.inf else start)
-    removed = {id(e) for e in done}
-    kept = [e for c in found for e in c.entries if id(e) not in removed]
-
-    def row(e: _ca.Entry) -> dict:
-        return {"entry": e.shown(), "bytes": e.size, "last_use": _ca.stamp(e.last_use)}
-
-    return {"removed": [row(e) for e in done], "not_removed": [{**row(e), "why": why} for e, why in failed],
-            "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}
+# tlm/api_cache.py, imported at the top of this module (``tlm.api.cache_info is tlm.api_cache.cache_info``):
+# cache_info, prune_cache and clear_cache.
 
 
 # ---------------------------------------------------------------- many experiments, reports

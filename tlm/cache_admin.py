@@ -14,10 +14,12 @@ An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` wit
 ``normals-<key>.npz``; ``references/<key>/`` and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``); ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be
 written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
-access or modification time of its files: a reference or a ground truth read refreshes its ``meta.json``'s
-(:func:`tlm.caches.note_use`); a frame or a scene read only updates the access time where the file system
-keeps it (``relatime``, Linux's default: once a day at least; ``noatime``: never, and its last use is
-when it was written).
+access or modification time of its files. tlm's reads refresh a file's modification time
+(:func:`tlm.caches.note_use`): a frame read, its sidecar ``<key>.json``'s; a mesh or normals entry read
+(a mesh's metadata alone too, read for the files its parse names), its ``.npz``'s; a reference or a
+ground truth read, its ``meta.json``'s. numba's reads of a kernel, and a traceback read, update only the
+access time, where the file system keeps it (``relatime``, Linux's default: once a day at least;
+``noatime``: never, and their last use is when they were written).
 
 Never touched: a file or folder that is no entry of tlm's (a user's own file, a link), and a write in
 progress: a temporary file or folder (``.<name>.tmp...``, ``.<name>.old-...``, numba's ``*.tmp.*``)

@@ -11,8 +11,9 @@ from tlm import cache_admin as ca
 from tlm.caches import cache_home
 from tlm.errors import InputError
 
-_LAST_USE = ("Last use: the latest access or modification time of an entry's files (a reference or ground "
-             "truth read refreshes it; a frame or scene read only where the file system keeps access times)")
+_LAST_USE = ("Last use: the latest access or modification time of an entry's files (tlm's read of a frame, a "
+             "mesh or normals entry, a reference or a ground truth refreshes it; numba's read of a kernel only "
+             "where the file system keeps access times)")
 
 
 def _out(line: str) -> None:

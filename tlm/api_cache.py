@@ -1,0 +1,79 @@
+"""tlm's Python API, its caches: what they hold (``tlm cache``), and their entries removed whole by
+age or to a size (``tlm cache prune``, ``tlm cache clear``), as :mod:`tlm.cache_admin` finds and removes
+them.
+
+Read them from :mod:`tlm.api` (or ``tlm``), which re-exports them: ``tlm.cache_info is
+tlm.api.cache_info``. Bad input raises :class:`~tlm.errors.InputError` naming the argument and the
+value (``max_size: -1 is not a size: ...``), before anything is removed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+import time
+from collections.abc import Iterable
+from typing import Any
+
+from tlm import cache_admin as _ca
+from tlm.api_common import checked as _checked
+from tlm.api_common import shown as _shown
+from tlm.caches import cache_home
+from tlm.errors import InputError
+
+
+def cache_info(caches: str | Iterable[str] | None = None) -> dict:
+    """``tlm cache --json``: the ``folder``, its ``bytes`` and a dict per cache of ``caches`` (one name or
+    several of :data:`tlm.cache_admin.NAMES`; None: all): its ``entries``, ``bytes``, ``oldest_use``, ..."""
+    home = cache_home()
+    return json.loads(_ca.as_json(_ca.survey(_cache_names(caches), home), home))
+
+
+def prune_cache(older_than: float | str | None = None, max_size: float | str | None = None,
+                caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
+    """``tlm cache prune``: the entries of ``caches`` (:func:`cache_info`'s) last used over ``older_than`` ago
+    (seconds, ``"30d"``), then the least recently used until the rest take ``max_size`` (bytes, ``"500M"``),
+    removed whole. Returns ``removed`` (``dry_run``: would be; nothing is) and ``not_removed`` (with ``why``),
+    each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``."""
+    if older_than is None and max_size is None:
+        raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
+    return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))
+
+
+def clear_cache(caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
+    """``tlm cache clear``: every entry of ``caches`` (None: all) removed; returns what :func:`prune_cache` does."""
+    return _removed(caches, dry_run, -math.inf, None)
+
+
+def _cache_names(caches: Any) -> list[str]:
+    listed = [caches] if isinstance(caches, str) or not isinstance(caches, Iterable) else list(caches)
+    return _ca.cache_names(None if caches is None else listed, key="caches")
+
+
+def _amount(value: Any, key: str) -> float | None:
+    """``older_than`` (seconds) or ``max_size`` (bytes): a number, not negative, or the flag's text."""
+    duration = key == "older_than"
+    if isinstance(value, str):
+        return (_ca.duration if duration else _ca.size)(value, key=key)
+    if value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool) and 0 <= value < math.inf):
+        return None if value is None else float(value)
+    what = "a duration: seconds (not negative) or text such as '30d'" if duration else \
+        "a size: bytes (not negative) or text such as '500M'"
+    raise InputError(f"{_shown(value)} is not {what}", key=key)
+
+
+def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None) -> dict:
+    """:func:`prune_cache` (:func:`clear_cache`: ``older`` -inf, every entry) as ``tlm cache`` does it."""
+    dry_run, start = _checked(dry_run, "dry_run", bool), time.time()
+    found = _ca.survey(_cache_names(caches))
+    gone = _ca.choose(found, older, None if most is None else int(most), start)
+    done, failed = (gone, []) if dry_run else _ca.remove(gone, unused_since=None if older == -math.inf else start)
+    removed = {id(e) for e in done}
+    kept = [e for c in found for e in c.entries if id(e) not in removed]
+
+    def row(e: _ca.Entry) -> dict:
+        return {"entry": e.shown(), "bytes": e.size, "last_use": _ca.stamp(e.last_use)}
+
+    return {"removed": [row(e) for e in done], "not_removed": [{**row(e), "why": why} for e, why in failed],
+            "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}

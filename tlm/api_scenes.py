@@ -1,0 +1,133 @@
+"""tlm's Python API, its scenes: the built-in scenes listed and described (``tlm scene list``), a
+scene loaded by name or file (:func:`load_scene`), shown (``tlm scene show``) and exported
+(``tlm scene export``).
+
+Read them from :mod:`tlm.api` (or ``tlm``), which re-exports them: ``tlm.load_scene is
+tlm.api.load_scene``. Bad input raises :class:`~tlm.errors.InputError`, and a layer is imported when
+a function first needs it, whole (:func:`tlm.whole_imports.imports_whole`), as in :mod:`tlm.api`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from tlm.api_common import argument_names
+from tlm.api_common import shown as _shown
+from tlm.config import plain, read_yaml
+from tlm.errors import InputError, did_you_mean
+from tlm.whole_imports import imports_whole
+
+if TYPE_CHECKING:
+    from tlm.scenes.model import Scene
+
+
+@argument_names
+def list_scenes() -> list[str]:
+    """The built-in scene names (what a config's ``scene:`` may name)."""
+    from tlm.scenes.loader import list_scenes as names
+
+    return names()
+
+
+@argument_names
+def scene_description(name: str) -> str:
+    """A built-in scene's ``description:``, else the first sentence of its leading comment
+    lines, which may run over several ("" when it has neither; cheap: reads no geometry)."""
+    from tlm.builtin import comment_description
+    from tlm.scenes.loader import scenes_dir
+
+    names = list_scenes()
+    if not isinstance(name, str) or name not in names:
+        raise InputError(f"{_shown(name)} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
+                         key="scene")
+    path = scenes_dir() / f"{name}.yaml"
+    try:
+        raw = read_yaml(path)
+        if isinstance(raw, dict) and isinstance(raw.get("description"), str):
+            return raw["description"]
+        return comment_description(path.read_text(encoding="utf-8"))
+    except (InputError, OSError, UnicodeDecodeError):
+        return ""
+
+
+@argument_names
+@imports_whole
+def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution: list[int] | None = None) -> Scene:
+    """A built-in scene by name (``cornell``) or a scene file by path (relative to ``base``,
+    default the working folder), at its own resolution or ``[width, height]``."""
+    from tlm.scenes.loader import load_scene as load
+    from tlm.scenes.loader import resolve_scene_path
+
+    folder = Path(base) if base is not None else Path.cwd()
+    # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
+    # (a numpy array or a tuple reads as the list it holds, as in load_config)
+    path = resolve_scene_path(str(scene), folder, config_source=str(scene))
+    return load(path, folder, None if resolution is None else plain(resolution), config_source="(load_scene)")
+
+
+def _scene(scene: Scene | str | Path) -> Scene:
+    """The scene named, loaded; or the Scene given, checked as a loaded one is (one made or changed
+    in Python: NaN or infinite vertices are an InputError naming it, :func:`tlm.scenes.export.check_scene`)."""
+    from tlm.scenes.export import check_scene
+    from tlm.scenes.model import Scene
+
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(scene)
+    if not isinstance(scene, Scene):
+        raise InputError(f"{_shown(scene)} is not a scene: give a Scene, a built-in scene's name or a scene "
+                         "file's path", key="scene")
+    check_scene(scene)
+    return scene
+
+
+@argument_names
+@imports_whole
+def scene_info(scene: Scene | str | Path) -> dict:
+    """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
+    parts, lights and camera of a scene (or of the scene named), and ``notes``: the lines
+    on what its mesh files gave that was imported or left out, which a run warns of. Each
+    light is its ``type``, ``power`` and its kind's own fields: a point light's ``position``;
+    a spot's ``position``, ``direction``, ``inner_cone_angle`` and ``outer_cone_angle``
+    (degrees); a directional light's ``direction`` and ``irradiance``; a quad's ``corner``,
+    ``edge_u``, ``edge_v`` and ``area``; a mesh light's ``materials``, ``triangles`` and
+    ``area``."""
+    from tlm.experiments.run import scene_head
+
+    scene = _scene(scene)
+    head, used = scene_head(scene, lambda lo, hi: {"min": lo.tolist(), "max": hi.tolist()})
+    return {
+        **head,
+        "materials": [
+            {"name": m.name, "type": m.kind, "triangles": int(used[i]),
+             **({"albedo": list(m.albedo)} if m.kind == "lambertian" else {}),
+             **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
+             **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
+             **({"emission": list(m.emission)} if m.emits else {}),
+             **({"ignored": list(m.ignored)} if m.ignored else {})}  # (not rendered: checks.material_warnings)
+            for i, m in enumerate(scene.materials)
+        ],
+        "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},
+        "lights": [lt.info() for lt in scene.lights],
+        "camera": {"eye": list(scene.camera.eye), "target": list(scene.camera.target),
+                   "up": list(scene.camera.up), "vfov": scene.camera.vfov},
+        "notes": [str(n) for n in scene.extra.get("notes") or []],
+    }
+
+
+@argument_names
+@imports_whole
+def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
+    """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
+    or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
+    :mod:`tlm.scenes.export`); returns the scene. A Scene that no scene file could hold (NaN or
+    infinite vertices, as one made with ``dataclasses.replace`` may have) is an InputError naming
+    it and its first such triangle, as the loader names a file's, and nothing is written."""
+    from tlm.scenes.export import export_triangles
+
+    scene = _scene(scene)
+    if not isinstance(file, (str, os.PathLike)):
+        raise InputError(f"{_shown(file)} is not a file path (.ply, .obj or .yaml)", key="file")
+    export_triangles(scene, Path(file))
+    return scene
