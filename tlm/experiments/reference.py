@@ -123,7 +123,7 @@ def reference_config(cfg: RunConfig, settings: ReferenceSettings) -> RunConfig:
 
 
 # the config keys :func:`reference_key` reads, or a section of them (a sweep's command that computes the
-# reference of its points names these of its factors and --set: tlm.experiments.sweep.unmeasured_line)
+# reference of its points names these of its factors and --set: tlm.experiments.sweep_reference.unmeasured_line)
 KEY_READS = ("scene", "resolution", "photons.max_bounces", "render.reflect_depth", "render.refract_depth",
              "render.fresnel", "render.min_weight", "reference")
 

@@ -301,7 +301,7 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
     (:func:`tlm.experiments.frames.cached_render`), measured against the reference cached when it is read.
     ``reference_sha256``: the sha256 of the cached reference's ``reference.npy`` as its ``meta.json`` holds it
     (``npy``), which tells a reference computed again under the same key (``tlm reference --force``, other
-    ``reference.max_rounds``) from this one (:func:`tlm.experiments.sweep._reference_now`): of one computed
+    ``reference.max_rounds``) from this one (:func:`tlm.experiments.sweep_reference.reference_now`): of one computed
     now too, as it was cached (:func:`~tlm.experiments.reference.ensure_reference`; where the cache could not
     take it, that of the ``reference.npy`` it would have been); None where ``meta`` holds none."""
     if image is None or meta is None:

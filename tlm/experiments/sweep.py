@@ -55,13 +55,14 @@ runs the sweep's numpy, numba, Python and kernels
 (:func:`~tlm.experiments.dask_workers.check_worker_versions`); a point records the
 versions of the process that ran it. A lost scheduler stops the sweep with one line
 (:class:`~tlm.experiments.executors.DaskPool`). One point, as a worker runs it:
-:mod:`tlm.experiments.sweep_point`. The rows: :mod:`tlm.experiments.sweep_rows`.
+:mod:`tlm.experiments.sweep_point`. The rows: :mod:`tlm.experiments.sweep_rows`. Its photon-map
+references (``--reference``) and the line on its points without an image error:
+:mod:`tlm.experiments.sweep_reference`.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
-import json
 import math
 import numbers
 import os
@@ -95,13 +96,13 @@ from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_point import (
     MARKER,
-    POINT_FORMAT,
     PathNotOnWorker,
     Task,
     error_record,
     run_point,
     write_error,
 )
+from tlm.experiments.sweep_reference import done_record, listed, sweep_references, unmeasured_line
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -146,198 +147,13 @@ def _clean_stale(points_dir: Path) -> None:
     storage.clean_stale_files(points_dir.parent)
 
 
-def _done(folder: Path) -> dict | None:
-    """A finished point's record from its folder, or None (not run, failed, unreadable, or
-    a ``results.json`` that is not this point's: another run written there, an edited file; a photon-map
-    error that is not the one the reference cached now gives, :func:`_reference_now`)."""
-    try:
-        results = json.loads((folder / "results.json").read_text())
-    except (OSError, ValueError):
-        return None
-    if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
-            and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
-        return None
-    if _reference_now(results.get("error")):  # (measured again: its frame is read from the cache, not rendered)
-        return None
-    return {"status": "ok", "results": results}
-
-
-def _reference_now(error: Any) -> bool:
-    """Whether a point's photon-map ``error`` is not the one its reference cached now gives: not measured
-    for want of a reference that is cached now (``tlm reference`` since), or measured against another
-    reference of its key than the one cached now (computed again since: ``tlm reference --force``, a
-    ``reference.max_rounds`` that is not in the key), told by the ``reference_sha256`` it records against
-    the sha256 of ``reference.npy`` that the cached reference's ``meta.json`` holds (a point that records
-    none, written by an older tlm, too). The point is run again, its frame read from the cache and
-    measured now. One measured against a reference that is no longer cached (the cache cleared) keeps
-    its error: nothing would measure it now."""
-    from tlm.experiments.reference_cache import cache_dir
-
-    if not (isinstance(error, dict) and isinstance(error.get("reference"), str)):
-        return False
-    meta = cache_dir() / error["reference"] / "meta.json"
-    if error.get("available") is False:
-        return meta.is_file()
-    if error.get("available") is not True:
-        return False
-    try:
-        npy = json.loads(meta.read_text()).get("npy")
-    except (OSError, ValueError, AttributeError):  # (none cached now, or a damaged one: its reader says so)
-        return False
-    sha = npy.get("sha256") if isinstance(npy, dict) else None
-    return isinstance(sha, str) and error.get("reference_sha256") != sha
-
-
-def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = False) -> list[str]:
-    """The line on the sweep's photon-map points that have no image error: no reference cached for
-    them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
-    ``tlm reference`` command that computes each reference they need (the base config with the
-    ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
-    reference reads, :data:`~tlm.experiments.reference.KEY_READS`; a sweep whose base is a mapping in
-    the sweep file, which no command names, by the ``config.resolved.yaml`` of one of the points,
-    which holds all of them), and that ``tlm sweep --reference`` computes them (but where it was given,
-    ``asked``: a reference it could not compute, which its own warning names);
-    none when every photon-map point has one."""
-    from tlm.experiments.reference import KEY_READS
-    from tlm.experiments.run import reference_command
-
-    missing: dict[str, list[Point]] = {}
-    for p in sweep.points:
-        rec = records.get(p.hash) or {}
-        error = (rec.get("results") or {}).get("error") if rec.get("status") == "ok" else None
-        if isinstance(error, dict) and error.get("available") is False:
-            missing.setdefault(str(error.get("reference")), []).append(p)
-    if not missing:
-        return []
-    config = _base_config(sweep)
-    commands = []
-    for points in missing.values():
-        if config is None:  # (its every setting, the --set values and the factors' included)
-            resolved = out / "points" / points[0].hash / "config.resolved.yaml"
-            commands.append(reference_command(os.path.relpath(resolved)))
-            continue
-        given = [k for k in (*sweep.set, *points[0].factors)
-                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in KEY_READS)]
-        sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
-        commands.append(reference_command(config, sets))
-    n = sum(len(ps) for ps in missing.values())
-    them = f"{'this reference' if len(commands) == 1 else f'these {len(commands)} references'}"
-    which = (f"{n} of {len(sweep.points)} points have" if n > 1 else
-             "the 1 point has" if len(sweep.points) == 1 else f"1 of {len(sweep.points)} points has")
-    it, its = ("them", "their cached frames") if n > 1 else ("it", "its cached frame")
-    why = ("though --reference was given (a line above says why where one could not be computed or cached; a "
-           "remote Dask worker reads its own cache)" if asked else "and a sweep computes none (reference.auto is "
-           "'tlm run''s)")
-    return [f"{which} no photon-map error (error.rmse, error.rel_mse): no reference is cached for {it}, {why}; "
-            f"{'; '.join(commands)} computes {them}, and the "
-            f"sweep run again into {out} then measures {it} from {its}"
-            + ("" if asked else f" ('tlm sweep --reference' computes {them} before the points, and measures {it})")]
-
-
-def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
-                     progress: bool = False) -> list[str]:
-    """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need
-    and the cache lacks, before the points run, so that they are measured against it (a point done before
-    without an error is then run again, its frame read from the cache: :func:`_reference_now`). Needed:
-    by a point not done yet in ``points_dir``, or done without an error; one reference per distinct
-    value of the keys its key reads (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and
-    ``photons.count`` that say whether the photon-map pass runs: :func:`~tlm.render.planner.plan`), each
-    computed as ``tlm reference`` of a point's config computes it
-    (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one per measured cycle as
-    ``tlm reference`` prints them, and its rounds' bar with ``progress``); one cached is used as it is
-    (as ``tlm run`` uses it). An interrupt stops the sweep before any point runs: the points done before
-    stay, and a rerun reuses the references cached. Returns a warning line per reference that could not
-    be computed (its points run all the same, without their error)."""
-    from tlm.config import config_from_dict
-    from tlm.errors import EnvironmentFailure
-    from tlm.experiments.reference import KEY_READS, make_reference, reference_key
-    from tlm.experiments.reference_cache import ReferenceSettings, load_reference
-    from tlm.render.planner import plan
-    from tlm.scenes.loader import load_scene
-
-    say = say or (lambda line: None)
-    present = _listed(points_dir)
-    groups: dict[str, list[Point]] = {}
-    for p in sweep.points:
-        if p.hash in present and not _unmeasured(points_dir / p.hash):
-            continue
-        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
-        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
-    source = str(sweep.path)
-    needed: dict[str, tuple[Any, list[Point]]] = {}  # reference key -> a config of it, its points
-    for points in groups.values():
-        cfg = config_from_dict(points[0].config, source)
-        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
-        if "pmap" not in plan(scene, cfg).run_names:
-            continue
-        key = reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg))
-        needed.setdefault(key, (cfg, []))[1].extend(points)
-    lines = []
-    missing = [(k, cfg, points) for k, (cfg, points) in needed.items() if load_reference(k) is None]
-    for i, (key, cfg, points) in enumerate(missing, start=1):
-        n = len({p.hash for p in points})
-        say(f"sweep --reference: computing reference {i} of {len(missing)}, {key}, which {n} point"
-            f"{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'} (none cached)")
-        t0 = time.perf_counter()
-        try:
-            made = make_reference(cfg, sweep.folder, source, say=say, bar=progress, progress=lambda k, c, e: (
-                None if math.isnan(e) else say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}")))
-        except (InputError, EnvironmentFailure, OSError, MemoryError) as e:
-            line = (f"sweep --reference: the photon-map reference {key} of {n} point{'s' if n != 1 else ''} "
-                    f"could not be computed ({type(e).__name__}: {' '.join(str(e).split())}): "
-                    f"{'they run' if n != 1 else 'it runs'} without the photon-map error")
-            lines.append(line)
-            continue
-        rse = made.meta.get("relative_standard_error")
-        state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
-        say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
-            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}")
-    return lines
-
-
-def _unmeasured(folder: Path) -> bool:
-    """Whether the point of ``folder`` is to be measured against its reference: not done (to be run), or
-    done without a photon-map error (no reference cached when it ran)."""
-    rec = _done(folder)
-    error = None if rec is None else rec["results"].get("error")
-    return rec is None or (isinstance(error, dict) and error.get("available") is False)
-
-
-def _dotted(config: dict, dotted: str) -> Any:
-    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
-    for part in dotted.split("."):
-        config = config.get(part) if isinstance(config, dict) else None
-    return config
-
-
-def _base_config(sweep) -> str | None:
-    """The sweep's base config as a command line names it: its file's path from the working folder, a
-    built-in one's name; None (``CONFIG``) for a mapping in the sweep file."""
-    from tlm.builtin import base_path
-
-    if sweep.base_file is None:
-        return None
-    with suppress(InputError, OSError, ValueError):
-        file, builtin = base_path(sweep.base_file, sweep.path.resolve().parent, str(sweep.path), "sweep file")
-        return str(file) if builtin else os.path.relpath(file)
-    return sweep.base_file
-
-
-def _listed(folder: Path) -> set[str]:
-    """The names in ``folder`` (none where it is missing or unreadable)."""
-    try:
-        return set(os.listdir(folder))
-    except OSError:
-        return set()
-
-
 def other_folders(points_dir: Path, hashes) -> int:
     """The folders in ``points_dir`` that are none of ``hashes`` (this sweep's points): those an
     earlier run into the folder left, of other tlm code, another config or a different ``--set``
     (a point's hash holds the code's fingerprint, its resolved config, the ``--set`` values
     included, and its input files' content). One listing, names
     only; a writer's hidden temporary folders are not counted."""
-    return sum(not n.startswith(".") and n not in hashes for n in _listed(points_dir))
+    return sum(not n.startswith(".") and n not in hashes for n in listed(points_dir))
 
 
 def other_folders_line(n: int, points_dir: Path) -> str:
@@ -397,9 +213,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     before the points run, the others after them); None: none is printed, and every one is in
     :attr:`Outcome.warnings` (``tlm sweep`` prints them). ``reference`` (``tlm sweep --reference``): before
     the points, each photon-map reference that the points to run (and those done without an error) need and
-    the cache lacks is computed and cached (:func:`sweep_references`; ``say`` gets its lines, as ``tlm
-    reference`` prints them, and ``progress`` its rounds' bar), so that they are measured as after a
-    ``tlm reference``; one that fails is a warning and its points run without their error."""
+    the cache lacks is computed and cached (:func:`~tlm.experiments.sweep_reference.sweep_references`;
+    ``say`` gets its lines, as ``tlm reference`` prints them, and ``progress`` its rounds' bar), so that
+    they are measured as after a ``tlm reference``; one that fails is a warning and its points run without
+    their error."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
     dask = _dask_address(dask)  # (its form, even where every point is done and no scheduler is reached)
@@ -439,9 +256,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         by_hash.setdefault(p.hash, []).append(p)
     records: dict[str, dict] = {}
     todo: list[str] = []
-    present = _listed(points_dir)  # (a point with no folder is not done: no read of it)
+    present = listed(points_dir)  # (a point with no folder is not done: no read of it)
     for h in by_hash:
-        rec = _done(points_dir / h) if h in present else None
+        rec = done_record(points_dir / h) if h in present else None
         if rec is not None:
             records[h] = rec
         else:
@@ -479,7 +296,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                     storage.write_file(out / MARKER, marker)
                 points_dir.mkdir(parents=True, exist_ok=True)
                 _clean_stale(points_dir)
-                present = _listed(points_dir)
+                present = listed(points_dir)
                 for h in todo:  # a failed point's folder (or an unreadable one) is run again
                     if h in present:  # (another sweep into this folder may be replacing it)
                         shutil.rmtree(points_dir / h, ignore_errors=True)
@@ -587,9 +404,9 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
     run writes them. A write that fails leaves the files as they were (each is written whole or
     not at all): the sweep's own error goes on, and ``sweep.jsonl`` holds the rows appended."""
     points_dir = out / "points"
-    present = _listed(points_dir)
+    present = listed(points_dir)
     for h in todo:
-        if h not in records and h in present and (rec := _done(points_dir / h)) is not None:
+        if h not in records and h in present and (rec := done_record(points_dir / h)) is not None:
             records[h] = rec
     with suppress(OSError, InputError):
         _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records], sweep.factors)

@@ -1,0 +1,214 @@
+"""A sweep's photon-map references: which of its points are measured against the reference cached now,
+the references ``tlm sweep --reference`` computes before the points, and the line on the points left
+without an image error.
+
+A point's folder ``points/<hash>/`` is done (:func:`done_record`) only where its photon-map error is
+the one the reference cached now gives (:func:`reference_now`): a point measured before its reference
+was cached (``tlm reference`` since), or against one computed again since, runs again, its frame read
+from the functional cache. :func:`sweep_references` computes and caches, before the points run, each
+reference that the points to run need and the cache lacks (one per distinct value of the keys a
+reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm reference`` computes it.
+:func:`unmeasured_line` is the sweep's warning on the points that still have no error, with the ``tlm
+reference`` command of each reference they need. The sweep that runs the points:
+:mod:`tlm.experiments.sweep`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from contextlib import suppress
+from pathlib import Path
+from typing import Any
+
+from tlm.errors import InputError
+from tlm.experiments.sweep_file import Point
+from tlm.experiments.sweep_point import POINT_FORMAT
+
+
+def done_record(folder: Path) -> dict | None:
+    """A finished point's record from its folder, or None (not run, failed, unreadable, or
+    a ``results.json`` that is not this point's: another run written there, an edited file; a photon-map
+    error that is not the one the reference cached now gives, :func:`reference_now`)."""
+    try:
+        results = json.loads((folder / "results.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
+            and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
+        return None
+    if reference_now(results.get("error")):  # (measured again: its frame is read from the cache, not rendered)
+        return None
+    return {"status": "ok", "results": results}
+
+
+def reference_now(error: Any) -> bool:
+    """Whether a point's photon-map ``error`` is not the one its reference cached now gives: not measured
+    for want of a reference that is cached now (``tlm reference`` since), or measured against another
+    reference of its key than the one cached now (computed again since: ``tlm reference --force``, a
+    ``reference.max_rounds`` that is not in the key), told by the ``reference_sha256`` it records against
+    the sha256 of ``reference.npy`` that the cached reference's ``meta.json`` holds (a point that records
+    none, written by an older tlm, too). The point is run again, its frame read from the cache and
+    measured now. One measured against a reference that is no longer cached (the cache cleared) keeps
+    its error: nothing would measure it now."""
+    from tlm.experiments.reference_cache import cache_dir
+
+    if not (isinstance(error, dict) and isinstance(error.get("reference"), str)):
+        return False
+    meta = cache_dir() / error["reference"] / "meta.json"
+    if error.get("available") is False:
+        return meta.is_file()
+    if error.get("available") is not True:
+        return False
+    try:
+        npy = json.loads(meta.read_text()).get("npy")
+    except (OSError, ValueError, AttributeError):  # (none cached now, or a damaged one: its reader says so)
+        return False
+    sha = npy.get("sha256") if isinstance(npy, dict) else None
+    return isinstance(sha, str) and error.get("reference_sha256") != sha
+
+
+def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = False) -> list[str]:
+    """The line on the sweep's photon-map points that have no image error: no reference cached for
+    them (a sweep computes none; ``reference.auto`` is ``tlm run``'s), with how many, and the
+    ``tlm reference`` command that computes each reference they need (the base config with the
+    ``--set`` strings, and what the sweep's ``set`` and the point's factors give of the keys a
+    reference reads, :data:`~tlm.experiments.reference.KEY_READS`; a sweep whose base is a mapping in
+    the sweep file, which no command names, by the ``config.resolved.yaml`` of one of the points,
+    which holds all of them), and that ``tlm sweep --reference`` computes them (but where it was given,
+    ``asked``: a reference it could not compute, which its own warning names);
+    none when every photon-map point has one."""
+    from tlm.experiments.reference import KEY_READS
+    from tlm.experiments.run import reference_command
+
+    missing: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        rec = records.get(p.hash) or {}
+        error = (rec.get("results") or {}).get("error") if rec.get("status") == "ok" else None
+        if isinstance(error, dict) and error.get("available") is False:
+            missing.setdefault(str(error.get("reference")), []).append(p)
+    if not missing:
+        return []
+    config = _base_config(sweep)
+    commands = []
+    for points in missing.values():
+        if config is None:  # (its every setting, the --set values and the factors' included)
+            resolved = out / "points" / points[0].hash / "config.resolved.yaml"
+            commands.append(reference_command(os.path.relpath(resolved)))
+            continue
+        given = [k for k in (*sweep.set, *points[0].factors)
+                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in KEY_READS)]
+        sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
+        commands.append(reference_command(config, sets))
+    n = sum(len(ps) for ps in missing.values())
+    them = f"{'this reference' if len(commands) == 1 else f'these {len(commands)} references'}"
+    which = (f"{n} of {len(sweep.points)} points have" if n > 1 else
+             "the 1 point has" if len(sweep.points) == 1 else f"1 of {len(sweep.points)} points has")
+    it, its = ("them", "their cached frames") if n > 1 else ("it", "its cached frame")
+    why = ("though --reference was given (a line above says why where one could not be computed or cached; a "
+           "remote Dask worker reads its own cache)" if asked else "and a sweep computes none (reference.auto is "
+           "'tlm run''s)")
+    return [f"{which} no photon-map error (error.rmse, error.rel_mse): no reference is cached for {it}, {why}; "
+            f"{'; '.join(commands)} computes {them}, and the "
+            f"sweep run again into {out} then measures {it} from {its}"
+            + ("" if asked else f" ('tlm sweep --reference' computes {them} before the points, and measures {it})")]
+
+
+def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
+                     progress: bool = False) -> list[str]:
+    """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need
+    and the cache lacks, before the points run, so that they are measured against it (a point done before
+    without an error is then run again, its frame read from the cache: :func:`reference_now`). Needed:
+    by a point not done yet in ``points_dir``, or done without an error; one reference per distinct
+    value of the keys its key reads (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and
+    ``photons.count`` that say whether the photon-map pass runs: :func:`~tlm.render.planner.plan`), each
+    computed as ``tlm reference`` of a point's config computes it
+    (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one per measured cycle as
+    ``tlm reference`` prints them, and its rounds' bar with ``progress``); one cached is used as it is
+    (as ``tlm run`` uses it). An interrupt stops the sweep before any point runs: the points done before
+    stay, and a rerun reuses the references cached. Returns a warning line per reference that could not
+    be computed (its points run all the same, without their error)."""
+    from tlm.config import config_from_dict
+    from tlm.errors import EnvironmentFailure
+    from tlm.experiments.reference import KEY_READS, make_reference, reference_key
+    from tlm.experiments.reference_cache import ReferenceSettings, load_reference
+    from tlm.render.planner import plan
+    from tlm.scenes.loader import load_scene
+
+    say = say or (lambda line: None)
+    present = listed(points_dir)
+    groups: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        if p.hash in present and not _unmeasured(points_dir / p.hash):
+            continue
+        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
+        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
+    source = str(sweep.path)
+    needed: dict[str, tuple[Any, list[Point]]] = {}  # reference key -> a config of it, its points
+    for points in groups.values():
+        cfg = config_from_dict(points[0].config, source)
+        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
+        if "pmap" not in plan(scene, cfg).run_names:
+            continue
+        key = reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg))
+        needed.setdefault(key, (cfg, []))[1].extend(points)
+    lines = []
+    missing = [(k, cfg, points) for k, (cfg, points) in needed.items() if load_reference(k) is None]
+    for i, (key, cfg, points) in enumerate(missing, start=1):
+        n = len({p.hash for p in points})
+        say(f"sweep --reference: computing reference {i} of {len(missing)}, {key}, which {n} point"
+            f"{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'} (none cached)")
+        t0 = time.perf_counter()
+        try:
+            made = make_reference(cfg, sweep.folder, source, say=say, bar=progress, progress=lambda k, c, e: (
+                None if math.isnan(e) else say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}")))
+        except (InputError, EnvironmentFailure, OSError, MemoryError) as e:
+            line = (f"sweep --reference: the photon-map reference {key} of {n} point{'s' if n != 1 else ''} "
+                    f"could not be computed ({type(e).__name__}: {' '.join(str(e).split())}): "
+                    f"{'they run' if n != 1 else 'it runs'} without the photon-map error")
+            lines.append(line)
+            continue
+        rse = made.meta.get("relative_standard_error")
+        state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
+        say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
+            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}")
+    return lines
+
+
+def _unmeasured(folder: Path) -> bool:
+    """Whether the point of ``folder`` is to be measured against its reference: not done (to be run), or
+    done without a photon-map error (no reference cached when it ran)."""
+    rec = done_record(folder)
+    error = None if rec is None else rec["results"].get("error")
+    return rec is None or (isinstance(error, dict) and error.get("available") is False)
+
+
+def _dotted(config: dict, dotted: str) -> Any:
+    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
+    for part in dotted.split("."):
+        config = config.get(part) if isinstance(config, dict) else None
+    return config
+
+
+def _base_config(sweep) -> str | None:
+    """The sweep's base config as a command line names it: its file's path from the working folder, a
+    built-in one's name; None (``CONFIG``) for a mapping in the sweep file."""
+    from tlm.builtin import base_path
+
+    if sweep.base_file is None:
+        return None
+    with suppress(InputError, OSError, ValueError):
+        file, builtin = base_path(sweep.base_file, sweep.path.resolve().parent, str(sweep.path), "sweep file")
+        return str(file) if builtin else os.path.relpath(file)
+    return sweep.base_file
+
+
+def listed(folder: Path) -> set[str]:
+    """The names in ``folder`` (none where it is missing or unreadable)."""
+    try:
+        return set(os.listdir(folder))
+    except OSError:
+        return set()
