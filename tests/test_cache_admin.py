@@ -302,3 +302,129 @@ def test_the_python_api_s_bad_arguments_are_input_errors_in_python_words(call, s
         call(tlm)
     assert str(got.value).startswith(said), str(got.value)
     assert (folder / "reference.npy").is_file() and (folder / "meta.json").is_file()
+
+
+# ---------------------------------------------------------------- flags before and after the command; odd folders
+
+
+def test_json_before_or_after_prune_and_clear_prints_what_the_api_returns(cache, capsys):
+    import tlm
+
+    folders = [a_reference(k * 20) for k in "ab"]
+    aged(folders[:1], 10)
+    status, out, _ = run_cli(capsys, "--json", "prune", "--max-size", "0", "--dry-run")  # (was: the text lines)
+    assert status == 0 and json.loads(out) == tlm.prune_cache(max_size=0, dry_run=True)
+    assert [r["entry"] for r in json.loads(out)["removed"]] == ["references/" + "a" * 20, "references/" + "b" * 20]
+    status, out, _ = run_cli(capsys, "prune", "--json", "--older-than", "5d")  # (was: refused, exit 2)
+    got = json.loads(out)
+    assert status == 0 and [r["entry"] for r in got["removed"]] == ["references/" + "a" * 20] and got["kept"] == 1
+    assert not folders[0].exists() and folders[1].is_dir()
+    status, out, _ = run_cli(capsys, "clear", "--json", "--dry-run")
+    assert status == 0 and json.loads(out)["kept"] == 0 and folders[1].is_dir()
+    status, out, _ = run_cli(capsys, "--json", "clear")
+    assert status == 0 and json.loads(out) == {"removed": [json.loads(out)["removed"][0]], "not_removed": [],
+                                               "kept": 0, "kept_bytes": 0} and not folders[1].exists()
+
+
+@pytest.mark.parametrize("argv", [["--cache", "tracebacks", "prune", "--cache", "references", "--max-size", "0"],
+                                  ["--cache", "tracebacks", "clear", "--cache", "references"],
+                                  ["--cache", "references", "--cache", "tracebacks", "clear"],
+                                  ["clear", "--cache", "tracebacks", "--cache", "references"]])
+def test_cache_given_before_and_after_the_command_are_both_taken(argv, cache, capsys):
+    a_reference("a" * 20)
+    from tlm.cli_signals import save_traceback
+
+    save_traceback(ValueError("x"))
+    crease()  # (a scenes entry: not chosen, kept)
+    status, out, _ = run_cli(capsys, *argv, "--dry-run")
+    listed = [line.split()[2].split("/")[0] for line in out.splitlines()[:-1]]
+    assert status == 0 and listed == ["references", "tracebacks"], out  # (was: the command's --cache alone)
+    assert out.splitlines()[-1].startswith("would remove 2 entries (")  # (the scenes entry: not of these caches)
+    status, out, _ = run_cli(capsys, "--cache", "scenes", "info", "--cache", "tracebacks")
+    assert status == 0 and [line.split()[0] for line in out.splitlines()[2:5]] == ["scenes", "tracebacks", "all"]
+
+
+@pytest.mark.parametrize("argv", [[], ["info"], ["--json"], ["clear"], ["prune", "--older-than", "0s"]])
+def test_tlm_cache_set_to_a_file_is_one_line_exit_2_naming_it(argv, tmp_path, monkeypatch, capsys):
+    import tlm
+
+    afile = tmp_path / "afile"
+    afile.write_text("hi\n")
+    monkeypatch.setenv("TLM_CACHE", str(afile))
+    status, out, err = run_cli(capsys, *argv)  # (was: six empty caches, "the folder in all: 3B"; exit 0)
+    assert status == 2 and out == "" and err.splitlines() == [f"tlm: error: TLM_CACHE: {afile} is a file, not "
+                                                              "a folder"], err
+    assert afile.read_text() == "hi\n"
+    for call in (tlm.cache_info, tlm.clear_cache, lambda: tlm.prune_cache(older_than=0)):
+        with pytest.raises(tlm.InputError, match=f"^TLM_CACHE: {afile} is a file, not a folder$"):
+            call()
+
+
+def test_a_file_for_a_cache_s_folder_is_not_tlm_s_and_an_unreadable_folder_is_said(cache, capsys, monkeypatch):
+    a_reference("a" * 20)
+    (cache / "functional").write_text("mine")
+    status, out, err = run_cli(capsys)
+    assert status == 0 and err == "" and f"not tlm's entries, never removed: 1 (4B), e.g. {cache / 'functional'}" in out
+    status, out, _ = run_cli(capsys, "clear")
+    assert status == 0 and out.startswith("removed 1 entry") and (cache / "functional").read_text() == "mine"
+    a_reference("b" * 20)
+    listing = Path.iterdir
+
+    def iterdir(self):
+        if self == cache / "references":
+            raise PermissionError(13, "Permission denied", str(self))
+        return listing(self)
+
+    monkeypatch.setattr(Path, "iterdir", iterdir)  # (as root, chmod 000 does not stop a read)
+    for argv in ([], ["clear"]):  # (was: an empty cache, and the clear removed nothing and said so, exit 0)
+        status, out, err = run_cli(capsys, *argv)
+        assert status == 1 and out == "" and err.splitlines() == [
+            f"tlm: error: cannot read the cache folder {cache / 'references'}: permission denied"], err
+    monkeypatch.setattr(Path, "iterdir", listing)
+    assert (cache / "references" / ("b" * 20)).is_dir()
+
+
+def test_entries_that_could_not_be_removed_are_counted_kept_as_the_api_counts_them(cache, capsys, monkeypatch):
+    import tlm
+
+    folders = [a_reference(k * 20) for k in "abcd"]
+    monkeypatch.setattr(cache_admin, "_remove_one", lambda path, root, leftover: "operation not permitted")
+    status, out, _ = run_cli(capsys, "prune", "--max-size", "0")
+    first, second = out.splitlines()
+    assert status == 1 and ", kept 4 (" in first and first.startswith("removed 0 entries"), out  # (was: kept 0)
+    assert second.startswith("could not remove 4 entries") and "operation not permitted" in second
+    status, out, _ = run_cli(capsys, "--json", "clear")
+    assert status == 1 and json.loads(out) == tlm.clear_cache() and json.loads(out)["kept"] == 4
+    assert len(json.loads(out)["not_removed"]) == 4 and all(f.is_dir() for f in folders)
+
+
+def test_units_in_any_case_and_too_large_values_alike_for_both_flags(cache, capsys):
+    import tlm
+
+    assert cache_admin.duration("12H") == 12 * 3600 and cache_admin.duration("2W") == 14 * DAY  # (was: refused)
+    assert cache_admin.duration("90M") == 90 * 60 and cache_admin.size("2gb") == cache_admin.size("2GiB") == 2 << 30
+    folder = a_reference("a" * 20)
+    aged([folder], 20)
+    status, out, _ = run_cli(capsys, "prune", "--older-than", "2W", "--dry-run")
+    assert status == 0 and out.startswith("would remove references/" + "a" * 20)
+    huge = "9" * 400
+    for flag, value, said in (("--older-than", huge + "d", "too large for a duration: at most 1000 years"),
+                              ("--max-size", huge, "too large for a size: at most 1 EiB"),
+                              ("--older-than", "60000w", "'60000w' is too large for a duration")):
+        status, out, err = run_cli(capsys, "prune", flag, value)  # (was: --older-than infinite, --max-size "not a
+        assert status == 2 and out == "" and len(err.splitlines()) == 1 and said in err, err  # size" without why)
+        assert len(err) < 200 and f"argument {flag}: " in err
+    for kw in ({"max_size": 10 ** 400}, {"older_than": 1e300}, {"max_size": huge}):  # (was: an OverflowError; ok)
+        with pytest.raises(tlm.InputError, match="is too large for a"):
+            tlm.prune_cache(**kw)
+    assert folder.is_dir()
+
+
+def test_an_empty_list_of_caches_is_none_in_the_api(cache):
+    import tlm
+
+    folder = a_reference("a" * 20)
+    assert tlm.cache_info(caches=[])["caches"] == []  # (was: every cache)
+    assert tlm.clear_cache(caches=[]) == {"removed": [], "not_removed": [], "kept": 0, "kept_bytes": 0}
+    assert tlm.prune_cache(max_size=0, caches=())["removed"] == [] and folder.is_dir()  # (was: all removed)
+    assert [c["cache"] for c in tlm.cache_info()["caches"]] == list(cache_admin.NAMES)

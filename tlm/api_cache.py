@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import math
 import numbers
-import time
 from collections.abc import Iterable
 from typing import Any
 
@@ -25,7 +24,9 @@ from tlm.errors import InputError
 
 def cache_info(caches: str | Iterable[str] | None = None) -> dict:
     """``tlm cache --json``: the ``folder``, its ``bytes`` and a dict per cache of ``caches`` (one name or
-    several of :data:`tlm.cache_admin.NAMES`; None: all): its ``entries``, ``bytes``, ``oldest_use``, ..."""
+    several of :data:`tlm.cache_admin.NAMES`; None: all; an empty list: none): its ``entries``, ``bytes``
+    (the apparent bytes of its entries' files, not ``du``'s blocks), ``oldest_use``, ... The folder a file
+    (``$TLM_CACHE`` set to one): an :class:`~tlm.errors.InputError`; one that does not exist: empty caches."""
     home = cache_home()
     return json.loads(_ca.as_json(_ca.survey(_cache_names(caches), home), home))
 
@@ -35,15 +36,18 @@ def prune_cache(older_than: float | str | None = None, max_size: float | str | N
     """``tlm cache prune``: the entries of ``caches`` (:func:`cache_info`'s) last used over ``older_than`` ago
     (seconds, ``"30d"``), then the least recently used until the rest take ``max_size`` (bytes, ``"500M"``),
     removed whole. Returns ``removed`` (``dry_run``: would be; nothing is) and ``not_removed`` (with ``why``),
-    each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``."""
+    each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes`` (every entry not
+    removed: those that could not be too). ``older_than`` at most 1000 years, ``max_size`` 1 EiB; ``caches=[]``:
+    none, nothing removed."""
     if older_than is None and max_size is None:
         raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
     return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))
 
 
 def clear_cache(caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
-    """``tlm cache clear``: every entry of ``caches`` (None: all) removed; returns what :func:`prune_cache` does."""
-    return _removed(caches, dry_run, -math.inf, None)
+    """``tlm cache clear``: every entry of ``caches`` (None: all; an empty list: none) removed; returns what
+    :func:`prune_cache` does."""
+    return _removed(caches, dry_run, None, None, clear=True)
 
 
 def _cache_names(caches: Any) -> list[str]:
@@ -52,28 +56,25 @@ def _cache_names(caches: Any) -> list[str]:
 
 
 def _amount(value: Any, key: str) -> float | None:
-    """``older_than`` (seconds) or ``max_size`` (bytes): a number, not negative, or the flag's text."""
+    """``older_than`` (seconds) or ``max_size`` (bytes): a number, not negative nor too large, or the flag's text."""
     duration = key == "older_than"
     if isinstance(value, str):
         return (_ca.duration if duration else _ca.size)(value, key=key)
-    if value is None or (isinstance(value, numbers.Real) and not isinstance(value, bool) and 0 <= value < math.inf):
-        return None if value is None else float(value)
+    if value is None:
+        return None
+    if isinstance(value, numbers.Real) and not isinstance(value, bool) and value >= 0:
+        try:
+            number = float(value)
+        except OverflowError:  # (an int past a float's range)
+            number = math.inf
+        return _ca.too_large(number, value, key, duration)
     what = "a duration: seconds (not negative) or text such as '30d'" if duration else \
         "a size: bytes (not negative) or text such as '500M'"
     raise InputError(f"{_shown(value)} is not {what}", key=key)
 
 
-def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None) -> dict:
-    """:func:`prune_cache` (:func:`clear_cache`: ``older`` -inf, every entry) as ``tlm cache`` does it."""
-    dry_run, start = _checked(dry_run, "dry_run", bool), time.time()
-    found = _ca.survey(_cache_names(caches))
-    gone = _ca.choose(found, older, None if most is None else int(most), start)
-    done, failed = (gone, []) if dry_run else _ca.remove(gone, unused_since=None if older == -math.inf else start)
-    removed = {id(e) for e in done}
-    kept = [e for c in found for e in c.entries if id(e) not in removed]
-
-    def row(e: _ca.Entry) -> dict:
-        return {"entry": e.shown(), "bytes": e.size, "last_use": _ca.stamp(e.last_use)}
-
-    return {"removed": [row(e) for e in done], "not_removed": [{**row(e), "why": why} for e, why in failed],
-            "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}
+def _removed(caches: Any, dry_run: Any, older: float | None, most: float | None, clear: bool = False) -> dict:
+    """:func:`prune_cache` (:func:`clear_cache`: ``clear``, every entry) as ``tlm cache`` does it."""
+    dry_run = _checked(dry_run, "dry_run", bool)
+    return _ca.prune(_cache_names(caches), older, None if most is None else int(most), clear=clear,
+                     dry_run=dry_run).record()

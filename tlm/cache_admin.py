@@ -5,7 +5,8 @@
   :func:`survey` — every cache's (:class:`Cache`).
 * :func:`choose` — the entries a prune removes (last used before a time, then the least recently used
   until the rest fit a size); :func:`remove` — entries removed whole, in an order no reader can mistake
-  for a damaged entry.
+  for a damaged entry; :func:`prune` — both, as ``tlm cache prune``/``clear`` and the API do it
+  (:class:`Outcome`: its :meth:`~Outcome.record` is what ``--json`` prints and ``tlm.prune_cache`` returns).
 * :func:`duration`, :func:`size`, :func:`cache_names` — the flags' values read (an
   :class:`~tlm.errors.InputError` naming the flag and the value); :func:`human` — bytes as ``48.2M``.
 
@@ -14,7 +15,8 @@ An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` wit
 ``normals-<key>.npz``; ``references/<key>/`` and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``); ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be
 written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
-access or modification time of its files. tlm's reads refresh a file's modification time
+access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
+``du``'s blocks; a folder itself counts nothing). tlm's reads refresh a file's modification time
 (:func:`tlm.caches.note_use`): a frame read, its sidecar ``<key>.json``'s; a mesh or normals entry read
 (a mesh's metadata alone too, read for the files its parse names), its ``.npz``'s; a reference or a
 ground truth read, its ``meta.json``'s. numba's reads of a kernel, and a traceback read, update only the
@@ -33,6 +35,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import re
 import stat
 import time
@@ -41,7 +44,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from tlm.caches import cache_home, remove_entry
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError
 from tlm.storage import folder_lock, pid_alive, process_tag
 
 NAMES = ("functional", "scenes", "references", "oracle", "tracebacks", "numba")
@@ -134,10 +137,15 @@ def _live_writer(name: str) -> bool:
 
 def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache:
     """The cache ``name`` (of :data:`NAMES`) in ``home`` (:func:`~tlm.caches.cache_home`): a
-    missing folder is an empty cache."""
+    missing folder is an empty cache; a file where its folder should be is not tlm's (``other``); a
+    folder that cannot be read an :class:`~tlm.errors.EnvironmentFailure`."""
     folder = (cache_home() if home is None else Path(home)) / name
     now = time.time() if now is None else now
     cache = Cache(name, folder)
+    if (folder.exists() or folder.is_symlink()) and not folder.is_dir():
+        cache.other.append(folder)
+        cache.other_size += _usage(folder)[0]
+        return cache
     groups: dict[str, list[Path]] = {}
     temporaries: list[Path] = []
     for path in _listing(folder, deep=name == "numba"):
@@ -174,8 +182,10 @@ def _listing(folder: Path, deep: bool) -> list[Path]:
     """What ``folder`` holds (``deep``: the files of its folders, numba's per-source folders, too)."""
     try:
         top = sorted(folder.iterdir())
-    except OSError:  # (no folder: an empty cache)
+    except FileNotFoundError:  # (no folder: an empty cache)
         return []
+    except OSError as e:
+        raise EnvironmentFailure(f"cannot read the cache folder {folder}: {(e.strerror or str(e)).lower()}") from None
     if not deep:
         return top
     out = []
@@ -206,9 +216,34 @@ def _entry_key(name: str, path: Path) -> str | None:
 
 
 def survey(names: Iterable[str] = NAMES, home: Path | None = None) -> list[Cache]:
-    """:func:`scan` of each cache of ``names``."""
+    """:func:`scan` of each cache of ``names``, after :func:`check_home`."""
+    home = check_home(home)
     now = time.time()
     return [scan(n, home, now) for n in names]
+
+
+def check_home(home: Path | None = None) -> Path:
+    """The cache folder (``home``, else :func:`~tlm.caches.cache_home`), checked: one that does not exist
+    holds empty caches; a file (or anything not a folder) is an :class:`~tlm.errors.InputError` naming
+    the setting it came from (``TLM_CACHE: /x is a file, not a folder``), one that cannot be looked
+    at an :class:`~tlm.errors.EnvironmentFailure`."""
+    home = cache_home() if home is None else Path(home)
+    try:
+        st = home.stat()
+    except FileNotFoundError:
+        return home
+    except OSError as e:
+        raise EnvironmentFailure(f"cannot read the cache folder {home}: {(e.strerror or str(e)).lower()}") from None
+    if not stat.S_ISDIR(st.st_mode):
+        what = "a file" if stat.S_ISREG(st.st_mode) else "not a folder"
+        if home == cache_home():
+            setting = ("TLM_CACHE" if os.environ.get("TLM_CACHE") else
+                       "XDG_CACHE_HOME" if os.path.isabs(os.environ.get("XDG_CACHE_HOME") or "") else None)
+        else:
+            setting = None
+        raise InputError(f"{home} is {what}{', not a folder' if what == 'a file' else ''}",
+                         key=setting or "tlm's cache folder")
+    return home
 
 
 def folder_size(home: Path | None = None) -> int:
@@ -259,6 +294,46 @@ def remove(entries: Iterable[Entry], home: Path | None = None, unused_since: flo
     return done, failed
 
 
+@dataclass
+class Outcome:
+    """A prune's or clear's: the ``caches`` surveyed, the entries ``chosen``, those ``removed`` (a dry run:
+    the chosen, none really) and those ``failed`` (with why: ``used meanwhile``, or the system's words)."""
+
+    caches: list[Cache]
+    chosen: list[Entry]
+    removed: list[Entry]
+    failed: list[tuple[Entry, str]]
+
+    @property
+    def kept(self) -> list[Entry]:
+        """Every entry not removed: not chosen, used meanwhile, or that could not be removed."""
+        gone = {id(e) for e in self.removed}
+        return [e for c in self.caches for e in c.entries if id(e) not in gone]
+
+    def record(self) -> dict:
+        """What ``tlm cache prune --json`` prints and :func:`tlm.prune_cache` returns."""
+        def row(e: Entry) -> dict:
+            return {"entry": e.shown(), "bytes": e.size, "last_use": stamp(e.last_use)}
+
+        kept = self.kept
+        return {"removed": [row(e) for e in self.removed],
+                "not_removed": [{**row(e), "why": why} for e, why in self.failed],
+                "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}
+
+
+def prune(names: Iterable[str], older_than: float | None = None, max_size: int | None = None, *,
+          clear: bool = False, dry_run: bool = False, home: Path | None = None) -> Outcome:
+    """``tlm cache prune`` (``clear``: ``tlm cache clear``, every entry) of the caches ``names``: :func:`survey`,
+    :func:`choose`, and (unless ``dry_run``) :func:`remove`; a prune leaves an entry used since its survey."""
+    start = time.time()
+    caches = survey(names, home)
+    chosen = choose(caches, -math.inf if clear else older_than, None if clear else max_size, start)
+    if dry_run:
+        return Outcome(caches, chosen, chosen, [])
+    done, failed = remove(chosen, home, unused_since=None if clear else start)
+    return Outcome(caches, chosen, done, failed)
+
+
 def _remove_one(path: Path, root: Path, leftover: bool) -> str | None:
     """Remove one file (or folder) of an entry; why not, or None."""
     if path.is_dir() and not path.is_symlink() and not leftover:
@@ -280,31 +355,49 @@ _UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400, "w": 7 * 86400}
 _SIZES = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
 
+# (a value past these is refused as too large, not read as "no limit": 1000 years, 1 EiB)
+MAX_DURATION = 1000 * 365.25 * 86400
+MAX_SIZE = 1 << 60
+
+
 def duration(text: str, key: str = "--older-than") -> float:
-    """``30d``, ``12h``, ``90m``, ``45s``, ``2w``: seconds."""
-    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([smhdw])\s*", text)
+    """``30d``, ``12h``, ``90m``, ``45s``, ``2w`` (any case; ``M`` is minutes): seconds, at most
+    :data:`MAX_DURATION`."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([smhdw])\s*", text, re.I)
     if not m:
         raise InputError(f"{text!r} is not a duration: a number and s, m, h, d or w (30d, 12h)", key=key)
-    return float(m[1]) * _UNITS[m[2]]
+    return too_large(float(m[1]) * _UNITS[m[2].lower()], text, key, True)
 
 
 def size(text: str, key: str = "--max-size") -> int:
-    """``500M``, ``2G``, ``1.5G``, ``800K``, ``2GiB``, a number of bytes: bytes (K, M, G, T: powers of 1024)."""
+    """``500M``, ``2G``, ``1.5G``, ``800K``, ``2GiB``, ``2gb``, a number of bytes (any case): bytes (K, M, G,
+    T: powers of 1024), at most :data:`MAX_SIZE`."""
     m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*(?:([kmgt])(?:i?b)?|b)?\s*", text, re.I)
     if not m:
         raise InputError(f"{text!r} is not a size: a number of bytes, or one with K, M, G or T (500M, 2G)", key=key)
-    value = float(m[1]) * _SIZES[(m[2] or "").lower()]
-    if not math.isfinite(value):
-        raise InputError(f"{text!r} is not a size", key=key)
-    return int(value)
+    return int(too_large(float(m[1]) * _SIZES[(m[2] or "").lower()], text, key, False))
+
+
+def too_large(value: float, given: object, key: str, seconds: bool) -> float:
+    """``value`` (``key``'s, a duration's seconds or, not ``seconds``, a size's bytes, read from ``given``),
+    or an :class:`~tlm.errors.InputError` where it is past :data:`MAX_DURATION` or :data:`MAX_SIZE` (or
+    infinite)."""
+    if value <= (MAX_DURATION if seconds else MAX_SIZE):
+        return value
+    text = str(given)
+    shown = f"{text[:20]}... ({len(text)} characters)" if len(text) > 40 else repr(given) if isinstance(
+        given, str) else text
+    what = "a duration: at most 1000 years" if seconds else "a size: at most 1 EiB (1048576T)"
+    raise InputError(f"{shown} is too large for {what}", key=key)
 
 
 def cache_names(given: list[str] | None, key: str = "--cache") -> list[str]:
-    """The caches named (each once, in :data:`NAMES`' order); all where none is."""
+    """The caches named (each once, in :data:`NAMES`' order); all where ``given`` is None (an empty list:
+    none)."""
     for n in given or []:
         if n not in NAMES:
             raise InputError(f"{n!r} is not one of tlm's caches ({', '.join(NAMES)})", key=key)
-    return [n for n in NAMES if not given or n in given]
+    return [n for n in NAMES if given is None or n in given]
 
 
 def human(n: float) -> str:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 
@@ -32,9 +33,16 @@ def _typed(read):
     return typed
 
 
-def _cache_option(p: argparse.ArgumentParser, default=None) -> None:
-    p.add_argument("--cache", action="append", metavar="NAME", default=default, type=_typed(_one_name),
-                   help=f"only this cache ({', '.join(ca.NAMES)}); may be given again (default: all)")
+def _cache_option(p: argparse.ArgumentParser, default=None, dest: str = "cache") -> None:
+    """``--cache``; a command's (``dest`` ``cache_too``) is taken with ``tlm cache``'s, not instead of it."""
+    p.add_argument("--cache", action="append", metavar="NAME", default=default, type=_typed(_one_name), dest=dest,
+                   help=f"only this cache ({', '.join(ca.NAMES)}); may be given again, before or after the "
+                   "command (default: all)")
+
+
+def _json_option(p: argparse.ArgumentParser, default=False) -> None:
+    p.add_argument("--json", action="store_true", default=default,
+                   help="as JSON (info: the table; prune, clear: what tlm.prune_cache returns)")
 
 
 def _one_name(text: str, key: str = "--cache") -> str:
@@ -45,66 +53,73 @@ def add_cache_parser(sub) -> None:
     """``tlm cache`` and its commands, on the subcommands ``sub`` of :func:`tlm.cli.build_parser`."""
     c = sub.add_parser("cache", help="what tlm's caches hold (tlm cache), and old entries removed "
                        "(tlm cache prune, tlm cache clear)",
-                       description="What tlm's caches hold, and their old entries removed, whole. " + _LAST_USE + ".")
-    c.add_argument("--json", action="store_true", help="the table as JSON")
+                       description="What tlm's caches hold, and their old entries removed, whole. " + _LAST_USE
+                       + ". Sizes: the apparent bytes of the entries' files (ls -l's, not du's blocks; a folder "
+                       "itself counts nothing).")
+    _json_option(c)
     _cache_option(c)
     cs = c.add_subparsers(dest="cache_cmd", metavar="{info,prune,clear}")
     i = cs.add_parser("info", help="one row per cache: its entries, size, oldest and newest last use, folder "
                       "(what tlm cache alone prints)")
-    i.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="the table as JSON")
-    _cache_option(i, argparse.SUPPRESS)
+    _json_option(i, argparse.SUPPRESS)
+    _cache_option(i, argparse.SUPPRESS, "cache_too")
     p = cs.add_parser("prune", help="remove whole entries: those last used before --older-than, then the least "
                       "recently used until the rest fit --max-size", description=_LAST_USE + ". Never removed: "
                       "files that are not tlm's entries, and writes in progress (a temporary file under an hour "
                       "old, or one a live process is writing). A run that needs a removed entry computes it again.")
     p.add_argument("--older-than", type=_typed(ca.duration), metavar="DURATION",
-                   help="remove entries last used more than this long ago: 30d, 12h, 90m, 2w")
+                   help="remove entries last used more than this long ago: a number and s, m, h, d or w, any "
+                   "case (30d, 12h, 90m: minutes, 2w; at most 1000 years)")
     p.add_argument("--max-size", type=_typed(ca.size), metavar="SIZE",
-                   help="then the least recently used until the chosen caches' entries take at most this: "
-                   "500M, 2G (K, M, G, T: powers of 1024)")
-    _cache_option(p, argparse.SUPPRESS)
+                   help="then the least recently used until the chosen caches' entries take at most this "
+                   "(apparent bytes of their files, not du's blocks): bytes, or a number and K, M, G or T, "
+                   "powers of 1024, any case, B or iB after it or not (500M, 2G, 2gb, 1.5GiB; at most 1 EiB)")
+    _cache_option(p, argparse.SUPPRESS, "cache_too")
+    _json_option(p, argparse.SUPPRESS)
     p.add_argument("--dry-run", action="store_true", help="list what would go, with sizes; remove nothing")
     cl = cs.add_parser("clear", help="remove every entry of the caches (--cache: of those only)")
-    _cache_option(cl, argparse.SUPPRESS)
+    _cache_option(cl, argparse.SUPPRESS, "cache_too")
+    _json_option(cl, argparse.SUPPRESS)
     cl.add_argument("--dry-run", action="store_true", help="list what would go, with sizes; remove nothing")
     c.set_defaults(func=cache_command)
 
 
 def cache_command(args: argparse.Namespace) -> int:
     """``tlm cache``'s handler: its exit status (1 where an entry could not be removed)."""
-    names = ca.cache_names(getattr(args, "cache", None))
+    given = (getattr(args, "cache", None) or []) + (getattr(args, "cache_too", None) or [])
+    names = ca.cache_names(given or None)
     command = getattr(args, "cache_cmd", None) or "info"
+    as_json = getattr(args, "json", False)
     if command == "info":
-        return _info(names, getattr(args, "json", False))
+        return _info(names, as_json)
     if command == "prune" and args.older_than is None and args.max_size is None:
         raise InputError("give --older-than DURATION and/or --max-size SIZE (tlm cache clear removes every entry)",
                          source="tlm cache prune")
-    start = time.time()
-    caches = ca.survey(names)
-    if command == "clear":
-        chosen = sorted((e for c in caches for e in c.entries), key=lambda e: (e.last_use, e.cache, e.name))
-    else:
-        chosen = ca.choose(caches, args.older_than, args.max_size, start)
-    kept = sum(len(c.entries) for c in caches) - len(chosen)
-    kept_size = sum(c.size for c in caches) - sum(e.size for e in chosen)
-    skipped = _skipped(caches)
+    clear = command == "clear"
+    outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
+                       dry_run=args.dry_run)
+    used = [e for e, why in outcome.failed if why == "used meanwhile"]
+    failed = [(e, why) for e, why in outcome.failed if why != "used meanwhile"]
+    if as_json:
+        _out(json.dumps(outcome.record(), indent=1))
+        return 1 if failed else 0
+    kept = outcome.kept
+    kept_size = sum(e.size for e in kept)
+    skipped = _skipped(outcome.caches)
     if args.dry_run:
+        chosen = outcome.chosen
         for e in chosen:
             _out(f"would remove {e.shown()} ({ca.human(e.size)}, last used {_when(e.last_use)})")
-        _out(f"would remove {_count(chosen)} ({ca.human(sum(e.size for e in chosen))}), keep {kept} "
-              f"({ca.human(kept_size)}){skipped}; nothing removed (--dry-run)")
+        _out(f"would remove {_count(chosen)} ({ca.human(sum(e.size for e in chosen))}), keep {len(kept)} "
+             f"({ca.human(kept_size)}){skipped}; nothing removed (--dry-run)")
         return 0
-    done, failed = ca.remove(chosen, unused_since=start if command == "prune" else None)
-    used = [e for e, why in failed if why == "used meanwhile"]
-    failed = [(e, why) for e, why in failed if why != "used meanwhile"]
-    kept += len(used)
-    kept_size += sum(e.size for e in used)
-    _out(f"removed {_count(done)} ({ca.human(sum(e.size for e in done))}) from {_where(done)}, kept {kept} "
-          f"({ca.human(kept_size)}){skipped}" + (f"; {len(used)} used meanwhile kept" if used else ""))
+    done = outcome.removed
+    _out(f"removed {_count(done)} ({ca.human(sum(e.size for e in done))}) from {_where(done)}, kept {len(kept)} "
+         f"({ca.human(kept_size)}){skipped}" + (f"; {len(used)} used meanwhile kept" if used else ""))
     if failed:
         e, why = failed[0]
-        _out(f"could not remove {_count([x for x, _ in failed])} ({ca.human(sum(x.size for x, _ in failed))}), "
-              f"e.g. {e.shown()}: {why}")
+        _out(f"could not remove {_count([x for x, _ in failed])} ({ca.human(sum(x.size for x, _ in failed))}) "
+             f"(kept), e.g. {e.shown()}: {why}")
         return 1
     return 0
 
