@@ -17,18 +17,23 @@ whether it *is* the thesis's scene, at the thesis's setting, is the one rule of
 comparability, :func:`~tlm.experiments.thesis_setting.mismatches` (its names are
 re-exported here): the summary's medians, the report's tables and ``tlm calibrate``'s
 refusal to overwrite the packaged table all follow it. A scene that is not comparable keeps
-its cells in the CSV but gives no median: it would measure the setting, not the model.
+its cells in the CSV, each saying so (``comparable`` false, ``not_comparable`` why), but gives
+no median: it would measure the setting, not the model.
 
 ``tlm thesis FILE --out DIR`` renders every scene once in the last (largest) mode; the
 modes are cumulative, so each smaller mode's frames are a subset of that render and
 its run folder is written from it without rendering again (``DIR/<scene>/<mode>``,
 each with its own simulation). Then ``DIR/thesis_comparison.csv`` has one row per
 (scene, mode, metric) with the columns ``scene, mode, metric, thesis, ours,
-rel_error, calibrated`` (cycles in millions as in the tables, FPS in frames per
-second), and ``DIR/thesis_summary.json`` the median absolute relative error over the
-held-out cells of the comparable scenes (``not_comparable``: why the others are left out;
-``median_withheld``: the same in words) and, per scene-mode, whether our slowest PM is
-the thesis's.
+rel_error, calibrated, comparable, not_comparable`` (cycles in millions as in the tables,
+FPS in frames per second; ``comparable`` false where the cell's scene is not the thesis's
+at its setting, ``not_comparable`` then how, in the summary's words; both empty where the
+thesis has no value), and ``DIR/thesis_summary.json`` the median absolute relative error
+over the held-out cells of the comparable scenes (``not_comparable``: why the others are
+left out, keyed by the scene as the CSV's ``scene`` column names it; ``median_withheld``:
+the same in words, naming the scene as the printout does; ``scenes``: the one name -> the
+other, ``ring`` -> ``thesis/ring``) and, per scene-mode, whether our slowest PM is the
+thesis's.
 
 ``tlm calibrate FILE`` fits the free parameters of the instruction table (the ``scale``
 of each programmable PM, and the ``record_cycles`` of the Traversal and Fragment PMs)
@@ -108,7 +113,7 @@ FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
 # same per traced ray in its three scenes, and its TFrag has a per-pixel part as large as
 # its per-hit part (docs/fidelity.md, "Cycles per record")
 FIT_RECORDS = ("traversal", "fragment")
-COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated")
+COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated", "comparable", "not_comparable")
 
 
 def thesis_value(scene: str, mode: str, metric: str) -> float | None:
@@ -195,6 +200,21 @@ def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]
             "calibrated": (mode, metric) in CALIBRATED,
         })
     return rows
+
+
+def with_comparable(rows: list[dict], not_comparable: dict[str, list[str]]) -> list[dict]:
+    """``rows`` (:func:`comparison_rows`) with whether each can be compared with the thesis:
+    ``comparable`` false and ``not_comparable`` how ours differs (``"; "``-joined, as the
+    summary's words join them) for a row whose scene is in ``not_comparable`` (its rows'
+    name -> how, :func:`mismatches`), true and None for another; both None where the thesis
+    has no value (nothing to compare). Its ``rel_error`` is kept, as the report keeps the
+    value: a reader of the CSV is told, not left to join it with the summary."""
+    out = []
+    for r in rows:
+        why = [] if r["thesis"] is None else list((not_comparable or {}).get(str(r["scene"])) or [])
+        out.append({**r, "comparable": None if r["thesis"] is None else not why,
+                    "not_comparable": "; ".join(why) if why else None})
+    return out
 
 
 # -- per work item: where the cycles of a cell go -------------------------------------------------
@@ -365,7 +385,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
 
     def summary_file(rows: list[dict]) -> dict:
         names.update(names or scene_names(scenes, folder, str(path)))
-        summary.update(summarize(rows, differ, names), per_item=items, host_seconds=wall,
+        summary.update(summarize(rows, differ, names), scenes=dict(names), per_item=items, host_seconds=wall,
                        warnings=unread_lines(unread, len(scenes), len(modes)))
         return {"thesis_summary.json": summary}
 
@@ -402,8 +422,10 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
             wall[scene] = round(time.perf_counter() - t0, 3)
             return rows
 
+        # (each row says whether its cell is compared: its scene judged by every mode's cell, as the summary judges it)
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
-                         marker="thesis_comparison.csv", files=summary_file, overrides=overrides)
+                         marker="thesis_comparison.csv", finish=lambda rows, _: with_comparable(rows, differ),
+                         files=summary_file, overrides=overrides)
     for line in summary.get("warnings") or []:
         warn(line)
     return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path))}
