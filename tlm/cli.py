@@ -478,7 +478,8 @@ def build_parser() -> argparse.ArgumentParser:
     _set_option(sw, "every point's base config, after the sweep file's set: and before its factors (a factor's "
                 "key is refused); part of each point's hash, and listed in sweep.yaml")
     sw.add_argument("--reference", action="store_true", help="compute and cache, before the points, each photon-map "
-                    "reference they need that is not cached (as 'tlm reference' does), so their error is measured")
+                    "reference they need that is not cached, or cached short of its tolerance where more rounds are "
+                    "allowed (as 'tlm reference' decides), so their error is measured")
     no_progress(sw)
     no_report(sw)
     sw.set_defaults(func=_cmd_sweep)

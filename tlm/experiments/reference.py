@@ -373,8 +373,10 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     cached when there is none (``say``: called with a line before and after, e.g. to
     stderr; ``bar``: the rounds' progress bar on stderr, when it is a terminal). The ``meta`` of
     one computed now is the cached one's, its ``npy`` (size and sha256 of ``reference.npy``)
-    included; where the cache could not take it, ``npy`` is that of the ``reference.npy`` it
-    would have been (:func:`~tlm.experiments.reference_cache.npy_digest`)."""
+    included, and its ``image`` the one stored (float32, as a later run reads it back), so that the
+    same sha256 means the same error; where the cache could not take it, the image and ``npy`` are
+    those of the ``reference.npy`` it would have been (float32,
+    :func:`~tlm.experiments.reference_cache.npy_digest`)."""
     settings = ReferenceSettings.from_config(frame.scene, frame.cfg)
     key = reference_key(frame.scene, frame.cfg, settings)
     found = load_reference(key)
@@ -395,13 +397,17 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     except (EnvironmentFailure, OSError, InputError) as e:  # (a read-only or full cache: this run still gets
         # its error; InputError: something in the way of the entry's folder, storage.check_destination)
         where = f"not cached ({' '.join(str(e).split())}): used by this run only"
-        # (its sha256 as the reference.npy it would have been: the one computed again with these settings)
+        # (the image as its reference.npy would hold it, float32, and that file's sha256: the one computed again
+        # with these settings, so that its error is the one a run reading that file measures)
+        image = image.astype(np.float32)
         meta = {**meta, "npy": npy_digest(image.reshape(cam.height, cam.width, 3))}
     else:
         where = f"cached in {stored.folder}"
-        meta = stored.meta  # (as its meta.json holds it: the sha256 of its reference.npy, npy, too)
+        # (the image as stored, float32, and its meta as its meta.json holds it, npy's sha256 too: the error is
+        # the one every later run reading that reference.npy measures; not the float64 mean computed)
+        image, meta = stored.image.reshape(-1, 3), stored.meta
         if not stored.replaced:  # (another process cached a better one meanwhile: this run uses it)
-            image, meta, kept = stored.image.reshape(-1, 3), stored.meta, stored.line
+            kept = stored.line
     seconds = time.perf_counter() - t0
     if say is not None:
         if kept:
@@ -498,12 +504,8 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
             say(line := kept_back(key, cached[1], settings))
             return Made(key, settings, cached[1], False, cache_dir() / key, line)
         if kind == "repeats":
-            same = all(cached[1].get(k) == getattr(settings, k) for k in RULE)
-            how = (f"computed with these reference settings ({', '.join(RULE)})" if same else
-                   f"where these reference settings stop it too (cycles of {cached[1].get('rounds_per_cycle')} "
-                   f"rounds, at most {cached[1].get('cycles')} of them, none before the last below the tolerance)")
-            say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, {how}: computing it "
-                         f"again would repeat the same rounds, so it is kept (raise reference.max_rounds above "
+            say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, "
+                         f"{repeats_why(cached[1], settings)}, so it is kept (raise reference.max_rounds above "
                          f"{cached[1].get('rounds')}, or use --force to compute it again)"))
             return Made(key, settings, cached[1], False, cache_dir() / key, line)
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
@@ -521,6 +523,16 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     if line:
         say(line)
     return Made(key, settings, stored.meta, True, stored.folder, line)
+
+
+def repeats_why(meta: dict, settings: ReferenceSettings) -> str:
+    """Why computing the cached reference of ``meta`` again with ``settings`` would only repeat it
+    (:func:`~tlm.experiments.reference_cache.repeats`): the words of ``tlm reference``'s line that keeps it."""
+    same = all(meta.get(k) == getattr(settings, k) for k in RULE)
+    how = (f"computed with these reference settings ({', '.join(RULE)})" if same else
+           f"where these reference settings stop it too (cycles of {meta.get('rounds_per_cycle')} "
+           f"rounds, at most {meta.get('cycles')} of them, none before the last below the tolerance)")
+    return f"{how}: computing it again would repeat the same rounds"
 
 
 def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseException) -> Path:

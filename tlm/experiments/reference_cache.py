@@ -227,9 +227,9 @@ def kept_back(key: str, meta: dict, settings: ReferenceSettings, whose: str = ""
 @dataclass
 class Stored:
     """What :func:`store_reference` did: the reference the cache holds for the key now
-    (``image`` (H, W, 3), ``meta`` as its ``meta.json`` holds it, ``npy`` included, ``folder``),
-    whether that is the one computed now (``replaced``; False: the cached one was better and
-    stays) and, then, ``line``: which one the cache holds and why, with both errors, and where
+    (``image`` (H, W, 3) float32, as ``reference.npy`` holds it; ``meta`` as its ``meta.json`` holds it,
+    ``npy`` included; ``folder``), whether that is the one computed now (``replaced``; False: the cached
+    one was better and stays) and, then, ``line``: which one the cache holds and why, with both errors, and where
     the one computed now was kept."""
 
     image: np.ndarray
@@ -250,7 +250,9 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
     cannot take it."""
     held = None if force else load_reference(key)
     if held is None or better(meta, held[1], settings):  # (its meta as meta.json holds it: with the npy's sha256)
-        return Stored(image, {**meta, "npy": npy_digest(image)}, save_reference(key, image, meta), True)
+        # (the image as reference.npy holds it, float32: what a later run reads back, so measures alike)
+        return Stored(image.astype(np.float32), {**meta, "npy": npy_digest(image)}, save_reference(key, image, meta),
+                      True)
     e_new, e_old = meta.get("relative_standard_error"), held[1].get("relative_standard_error")
     why = ("it meets the tolerance" if meets_tolerance(held[1], settings) else
            "the one computed now has no relative standard error" if e_new is None else

@@ -213,7 +213,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     before the points run, the others after them); None: none is printed, and every one is in
     :attr:`Outcome.warnings` (``tlm sweep`` prints them). ``reference`` (``tlm sweep --reference``): before
     the points, each photon-map reference that the points to run (and those done without an error) need and
-    the cache lacks is computed and cached (:func:`~tlm.experiments.sweep_reference.sweep_references`;
+    the cache lacks, or holds short of its tolerance where more rounds are allowed (as ``tlm reference``
+    decides), is computed and cached (:func:`~tlm.experiments.sweep_reference.sweep_references`;
     ``say`` gets its lines, as ``tlm reference`` prints them, and ``progress`` its rounds' bar), so that
     they are measured as after a ``tlm reference``; one that fails is a warning and its points run without
     their error."""

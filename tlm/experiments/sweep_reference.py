@@ -6,8 +6,9 @@ A point's folder ``points/<hash>/`` is done (:func:`done_record`) only where its
 the one the reference cached now gives (:func:`reference_now`): a point measured before its reference
 was cached (``tlm reference`` since), or against one computed again since, runs again, its frame read
 from the functional cache. :func:`sweep_references` computes and caches, before the points run, each
-reference that the points to run need and the cache lacks (one per distinct value of the keys a
-reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm reference`` computes it.
+reference that the points to run need and the cache lacks, or holds one that misses their tolerance (one
+per distinct value of the keys a reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm
+reference`` decides and computes it (a cached one that computing again would not better is kept, and said so).
 :func:`unmeasured_line` is the sweep's warning on the points that still have no error, with the ``tlm
 reference`` command of each reference they need. The sweep that runs the points:
 :mod:`tlm.experiments.sweep`.
@@ -119,48 +120,78 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = Fa
 
 def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
                      progress: bool = False) -> list[str]:
-    """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need
-    and the cache lacks, before the points run, so that they are measured against it (a point done before
-    without an error is then run again, its frame read from the cache: :func:`reference_now`). Needed:
-    by a point not done yet in ``points_dir``, or done without an error; one reference per distinct
-    value of the keys its key reads (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and
-    ``photons.count`` that say whether the photon-map pass runs: :func:`~tlm.render.planner.plan`), each
-    computed as ``tlm reference`` of a point's config computes it
-    (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one per measured cycle as
-    ``tlm reference`` prints them, and its rounds' bar with ``progress``); one cached is used as it is
-    (as ``tlm run`` uses it). An interrupt stops the sweep before any point runs: the points done before
-    stay, and a rerun reuses the references cached. Returns a warning line per reference that could not
-    be computed (its points run all the same, without their error)."""
+    """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need,
+    before the points run, so that they are measured against it (a point done before without an error, or
+    against another reference, is then run again, its frame read from the cache: :func:`reference_now`),
+    deciding on a cached one as ``tlm reference`` of a point's config does
+    (:func:`~tlm.experiments.reference_cache.verdict`): one that meets its points' tolerance is used as it
+    is (as ``tlm run`` uses it); one that misses it is computed again (cached where it is better), but one
+    that computing again would not better (fewer rounds asked for than it has, or the same rounds
+    repeated) is kept, and a line says why. Needed: by a point not done yet in ``points_dir``, or done
+    without an error or with one measured against a reference that misses its tolerance
+    (:func:`_to_measure`); one reference per distinct value of the keys its key reads
+    (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and ``photons.count`` that say whether
+    the photon-map pass runs: :func:`~tlm.render.planner.plan`), each computed as ``tlm reference`` of a
+    point's config computes it (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one
+    per measured cycle as ``tlm reference`` prints them, and its rounds' bar with ``progress``). An
+    interrupt stops the sweep before any point runs: the points done before stay, and a rerun reuses the
+    references cached. Returns a warning line per reference that could not be computed (its points run all
+    the same, without their error, or against the cached one that misses their tolerance), or the one line
+    that no point of the sweep runs the photon-map pass."""
     from tlm.config import config_from_dict
     from tlm.errors import EnvironmentFailure
-    from tlm.experiments.reference import KEY_READS, make_reference, reference_key
-    from tlm.experiments.reference_cache import ReferenceSettings, load_reference
+    from tlm.experiments.reference import KEY_READS, make_reference, reference_key, repeats_why
+    from tlm.experiments.reference_cache import ReferenceSettings, describe, load_reference, verdict
     from tlm.render.planner import plan
     from tlm.scenes.loader import load_scene
 
     say = say or (lambda line: None)
     present = listed(points_dir)
-    groups: dict[str, list[Point]] = {}
+    groups: dict[str, list[Point]] = {}  # every point, by what says whether it has a reference and which
     for p in sweep.points:
-        if p.hash in present and not _unmeasured(points_dir / p.hash):
-            continue
         reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
         groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
     source = str(sweep.path)
-    needed: dict[str, tuple[Any, list[Point]]] = {}  # reference key -> a config of it, its points
-    for points in groups.values():
-        cfg = config_from_dict(points[0].config, source)
+    pmap = False
+    # reference key -> a config of it, its settings, the points that need it, those of them not measured yet
+    needed: dict[str, tuple[Any, ReferenceSettings, list[Point], list[Point]]] = {}
+    for group in groups.values():
+        cfg = config_from_dict(group[0].config, source)
         scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
         if "pmap" not in plan(scene, cfg).run_names:
             continue
-        key = reference_key(scene, cfg, ReferenceSettings.from_config(scene, cfg))
-        needed.setdefault(key, (cfg, []))[1].extend(points)
+        pmap = True
+        measure = {p.hash: _to_measure(points_dir / p.hash) if p.hash in present else "run" for p in group}
+        points = [p for p in group if measure[p.hash]]
+        if points:
+            settings = ReferenceSettings.from_config(scene, cfg)
+            need = needed.setdefault(reference_key(scene, cfg, settings), (cfg, settings, [], []))
+            need[2].extend(points)
+            need[3].extend(p for p in points if measure[p.hash] != "again")
+    if not pmap:
+        return ["--reference: no point of this sweep runs the photon-map pass: no reference to compute"]
+    todo = []  # (key, a config of it, how many points need it, the words for them, whether cached, why computed)
+    for key, (cfg, settings, points, unmeasured) in needed.items():
+        cached = load_reference(key)
+        kind = "compute" if cached is None else verdict(cached[1], settings)
+        if kind == "meets" or (kind != "compute" and not unmeasured):  # (points done against the one kept: as
+            continue  # they were, said by their warnings)
+        n = len({p.hash for p in (points if kind == "compute" else unmeasured)})
+        they = f"{n} point{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'}"
+        if kind == "compute":
+            todo.append((key, cfg, n, they, cached is not None, "none cached" if cached is None else
+                         f"the cached one, {describe(cached[1], settings)}, is computed again"))
+            continue
+        meta = cached[1]
+        why = (f"; reference.max_rounds {settings.max_rounds} asks for fewer rounds than it has" if kind == "fewer"
+               else f", {repeats_why(meta, settings)}")
+        measured = "they are" if n != 1 else "it is"
+        say(f"sweep --reference: reference {key}, which {they}, is cached with {describe(meta, settings)}{why}, so "
+            f"it is kept, not computed again, and {measured} measured against it (raise reference.max_rounds above "
+            f"{meta.get('rounds')}, or compute it again with 'tlm reference --force')")
     lines = []
-    missing = [(k, cfg, points) for k, (cfg, points) in needed.items() if load_reference(k) is None]
-    for i, (key, cfg, points) in enumerate(missing, start=1):
-        n = len({p.hash for p in points})
-        say(f"sweep --reference: computing reference {i} of {len(missing)}, {key}, which {n} point"
-            f"{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'} (none cached)")
+    for i, (key, cfg, n, they, had, why) in enumerate(todo, start=1):
+        say(f"sweep --reference: computing reference {i} of {len(todo)}, {key}, which {they} ({why})")
         t0 = time.perf_counter()
         try:
             made = make_reference(cfg, sweep.folder, source, say=say, bar=progress, progress=lambda k, c, e: (
@@ -168,7 +199,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         except (InputError, EnvironmentFailure, OSError, MemoryError) as e:
             line = (f"sweep --reference: the photon-map reference {key} of {n} point{'s' if n != 1 else ''} "
                     f"could not be computed ({type(e).__name__}: {' '.join(str(e).split())}): "
-                    f"{'they run' if n != 1 else 'it runs'} without the photon-map error")
+                    + (f"{'they are' if n != 1 else 'it is'} measured against the cached one" if had else
+                       f"{'they run' if n != 1 else 'it runs'} without the photon-map error"))
             lines.append(line)
             continue
         rse = made.meta.get("relative_standard_error")
@@ -178,12 +210,20 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     return lines
 
 
-def _unmeasured(folder: Path) -> bool:
-    """Whether the point of ``folder`` is to be measured against its reference: not done (to be run), or
-    done without a photon-map error (no reference cached when it ran)."""
+def _to_measure(folder: Path) -> str:
+    """Whether the point of ``folder`` is to be measured against its reference: ``"run"`` (not done),
+    ``"unmeasured"`` (done without a photon-map error: no reference cached when it ran), ``"again"`` (done
+    with one measured against a reference that misses its tolerance, ``reference_converged`` false: measured
+    again where ``--reference`` computes that reference again, :func:`reference_now`), or ``""`` (no)."""
     rec = done_record(folder)
-    error = None if rec is None else rec["results"].get("error")
-    return rec is None or (isinstance(error, dict) and error.get("available") is False)
+    if rec is None:
+        return "run"
+    error = rec["results"].get("error")
+    if not isinstance(error, dict):
+        return ""
+    if error.get("available") is False:
+        return "unmeasured"
+    return "again" if error.get("available") is True and error.get("reference_converged") is False else ""
 
 
 def _dotted(config: dict, dotted: str) -> Any:
