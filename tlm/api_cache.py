@@ -35,10 +35,11 @@ def prune_cache(older_than: float | str | None = None, max_size: float | str | N
                 caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
     """``tlm cache prune``: the entries of ``caches`` (:func:`cache_info`'s) last used over ``older_than`` ago
     (seconds, ``"30d"``), then the least recently used until the rest take ``max_size`` (bytes, ``"500M"``),
-    removed whole. Returns ``removed`` (``dry_run``: would be; nothing is) and ``not_removed`` (with ``why``),
-    each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes`` (every entry not
-    removed: those that could not be too). ``older_than`` at most 1000 years, ``max_size`` 1 EiB; ``caches=[]``:
-    none, nothing removed."""
+    removed whole. Returns ``dry_run`` (True: ``removed`` lists what would be removed; nothing is),
+    ``removed`` and ``not_removed`` (with ``why``: ``used meanwhile``, read, written or replaced since the
+    survey, so kept), each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``
+    (every entry not removed: those that could not be too). ``older_than`` at most 1000 years, ``max_size``
+    1 EiB; ``caches=[]``: none, nothing removed."""
     if older_than is None and max_size is None:
         raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
     return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))

@@ -77,6 +77,9 @@ class Entry:
     size: int = 0
     last_use: float = 0.0
     leftover: bool = False
+    # (each file's :func:`_fingerprint` as the scan saw it: :func:`remove` removes a file only while it is
+    # still that one)
+    seen: dict[Path, dict[str, tuple[int, ...]]] = field(default_factory=dict, repr=False, compare=False)
 
     def shown(self) -> str:
         return f"{self.cache}/{self.name}"
@@ -129,6 +132,28 @@ def _usage(path: Path) -> tuple[int, float, float]:
     return size, used, changed
 
 
+def _fingerprint(path: Path) -> dict[str, tuple[int, ...]]:
+    """A file's or folder's ``{"": (device, inode, modification time in ns, access time in ns)}``, and a
+    folder's files' and folders' the same under their paths in it (lstat; a folder's access time, its
+    listing, left out): any write, replacement or (where access times are kept) read changes it; ``{}``
+    where it is gone. (A modification time set now may be a few milliseconds behind ``time.time()``, the
+    kernel's coarse clock: a use just after a survey is told by this, not by a time.)"""
+    try:
+        st = path.lstat()
+    except OSError:
+        return {}
+    folder = stat.S_ISDIR(st.st_mode)
+    out = {"": (st.st_dev, st.st_ino, st.st_mtime_ns, 0 if folder else st.st_atime_ns)}
+    if folder:
+        try:
+            inside = sorted(path.iterdir())
+        except OSError:
+            inside = []
+        for p in inside:
+            out.update({f"{p.name}/{k}" if k else p.name: v for k, v in _fingerprint(p).items()})
+    return out
+
+
 def _live_writer(name: str) -> bool:
     """Whether a temporary's name carries a live process of this machine (its writer at work)."""
     host = process_tag().rsplit("-", 1)[0]
@@ -160,7 +185,8 @@ def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache
             cache.other_size += _usage(path)[0]
     for key, files in sorted(groups.items()):
         sizes = [_usage(f) for f in files]
-        entry = Entry(name, key, files, sum(s for s, _, _ in sizes), max(u for _, u, _ in sizes))
+        entry = Entry(name, key, files, sum(s for s, _, _ in sizes), max(u for _, u, _ in sizes),
+                      seen=_seen(files))
         marker = _MARKERS.get(name)
         written = max(m for _, _, m in sizes)
         if marker is not None and not any(f.name.endswith(marker) for f in files) and now - written < BUSY_SECONDS:
@@ -174,8 +200,14 @@ def scan(name: str, home: Path | None = None, now: float | None = None) -> Cache
             cache.busy.append(path)
             cache.busy_size += size
         else:
-            cache.entries.append(Entry(name, str(path.relative_to(folder)), [path], size, used, leftover=True))
+            cache.entries.append(Entry(name, str(path.relative_to(folder)), [path], size, used, leftover=True,
+                                       seen=_seen([path])))
     return cache
+
+
+def _seen(files: list[Path]) -> dict[Path, dict[str, tuple[int, ...]]]:
+    """:attr:`Entry.seen`: each of ``files``' :func:`_fingerprint` (those gone already left out)."""
+    return {f: i for f in files if (i := _fingerprint(f))}
 
 
 def _listing(folder: Path, deep: bool) -> list[Path]:
@@ -224,26 +256,39 @@ def survey(names: Iterable[str] = NAMES, home: Path | None = None) -> list[Cache
 
 def check_home(home: Path | None = None) -> Path:
     """The cache folder (``home``, else :func:`~tlm.caches.cache_home`), checked: one that does not exist
-    holds empty caches; a file (or anything not a folder) is an :class:`~tlm.errors.InputError` naming
-    the setting it came from (``TLM_CACHE: /x is a file, not a folder``), one that cannot be looked
+    holds empty caches; a file (or anything not a folder), or a path under a file, is an
+    :class:`~tlm.errors.InputError` naming the setting it came from (``TLM_CACHE: /x is a file, not a
+    folder``, ``XDG_CACHE_HOME: /x/tlm: /x is a file, not a folder``), one that cannot be looked
     at an :class:`~tlm.errors.EnvironmentFailure`."""
     home = cache_home() if home is None else Path(home)
     try:
         st = home.stat()
     except FileNotFoundError:
         return home
+    except NotADirectoryError:  # (a file above it: XDG_CACHE_HOME=/etc/passwd, the folder /etc/passwd/tlm)
+        above = next((p for p in home.parents if p.exists() and not p.is_dir()), None)
+        if above is None:
+            raise EnvironmentFailure(f"cannot read the cache folder {home}: not a directory") from None
+        raise InputError(f"{home}: {_not_a_folder(above, above.stat().st_mode)}", key=_setting(home)) from None
     except OSError as e:
         raise EnvironmentFailure(f"cannot read the cache folder {home}: {(e.strerror or str(e)).lower()}") from None
     if not stat.S_ISDIR(st.st_mode):
-        what = "a file" if stat.S_ISREG(st.st_mode) else "not a folder"
-        if home == cache_home():
-            setting = ("TLM_CACHE" if os.environ.get("TLM_CACHE") else
-                       "XDG_CACHE_HOME" if os.path.isabs(os.environ.get("XDG_CACHE_HOME") or "") else None)
-        else:
-            setting = None
-        raise InputError(f"{home} is {what}{', not a folder' if what == 'a file' else ''}",
-                         key=setting or "tlm's cache folder")
+        raise InputError(_not_a_folder(home, st.st_mode), key=_setting(home))
     return home
+
+
+def _not_a_folder(path: Path, mode: int) -> str:
+    return f"{path} is a file, not a folder" if stat.S_ISREG(mode) else f"{path} is not a folder"
+
+
+def _setting(home: Path) -> str:
+    """The setting the cache folder ``home`` came from, as an error names it."""
+    if home == cache_home():
+        if os.environ.get("TLM_CACHE"):
+            return "TLM_CACHE"
+        if os.path.isabs(os.environ.get("XDG_CACHE_HOME") or ""):
+            return "XDG_CACHE_HOME"
+    return "tlm's cache folder"
 
 
 def folder_size(home: Path | None = None) -> int:
@@ -260,49 +305,75 @@ def choose(caches: Iterable[Cache], older_than: float | None = None, max_size: i
     entries = sorted((e for c in caches for e in c.entries), key=lambda e: (e.last_use, e.cache, e.name))
     gone = [e for e in entries if older_than is not None and e.last_use < now - older_than]
     if max_size is not None:
+        taken = {id(e) for e in gone}  # (by identity: a list's ``in`` compares entries field by field, n² of them)
         left = sum(e.size for e in entries) - sum(e.size for e in gone)
         for e in entries:
             if left <= max_size:
                 break
-            if e not in gone:
+            if id(e) not in taken:
                 gone.append(e)
+                taken.add(id(e))
                 left -= e.size
     return sorted(gone, key=lambda e: (e.last_use, e.cache, e.name))
 
 
 _ASIDE = itertools.count()
+USED = "used meanwhile"  # why an entry read, written or replaced since its scan is kept
 
 
 def remove(entries: Iterable[Entry], home: Path | None = None, unused_since: float | None = None
            ) -> tuple[list[Entry], list[tuple[Entry, str]]]:
     """Remove each entry whole: ``(removed, [(not removed, why)])``. An entry used (read or written)
-    after ``unused_since`` (the scan's time) is left, as used meanwhile. Files are removed only inside
-    their cache's folder; a sidecar first (its reader then sees no entry, not a damaged one), and a
-    folder renamed aside first (a reader holding it reads it again and finds none; a killed prune
-    leaves a temporary name that the next one removes)."""
+    after ``unused_since`` (the scan's time), or a file of it that is no longer the one its scan saw
+    (another file or folder put in its place: :attr:`Entry.seen`; with ``unused_since``, one written, or
+    read where access times are kept, since), is left, as :data:`USED`: checked before each file goes, a
+    folder's inside its :func:`~tlm.storage.folder_lock` (a writer swapping a new one in waits, or is waited
+    for and then kept). Files are removed only inside their cache's folder (a cache's folder that is a link, a cache
+    moved to another disk, is followed); a sidecar first (its reader then sees no entry, not a damaged
+    one), and a folder renamed aside first (a reader holding it reads it again and finds none; a killed
+    prune leaves a temporary name that the next one removes)."""
     base = cache_home() if home is None else Path(home)
     done, failed = [], []
     for e in entries:
         root = base / e.cache
-        if unused_since is not None and max(_usage(f)[1] for f in e.files) > unused_since:
-            failed.append((e, "used meanwhile"))
+        if not all(_unchanged(e, f, unused_since) for f in e.files):
+            failed.append((e, USED))
             continue
         why = None
         for f in sorted(e.files, key=lambda f: not f.name.endswith(_SIDECAR_FIRST)):
-            why = _remove_one(f, root, e.leftover) or why
+            said = _remove_one(f, root, e.leftover, lambda e=e, f=f: _unchanged(e, f, unused_since))
+            if said == USED:  # (the files after it are kept: a writer's, or one a reader just used)
+                why = USED
+                break
+            why = said or why
         (failed.append((e, why)) if why else done.append(e))
     return done, failed
 
 
+def _unchanged(e: Entry, path: Path, unused_since: float | None) -> bool:
+    """Whether the file (or folder) ``path`` of the entry ``e`` is still what its scan saw: the same file
+    (:attr:`Entry.seen`), and where ``unused_since`` is given unchanged since (its :func:`_fingerprint`) and
+    not used after it; one gone meanwhile is (there is nothing left of it to keep)."""
+    seen = e.seen.get(path)
+    if seen is not None:
+        now = _fingerprint(path)
+        if not now:
+            return True
+        if now[""][:2] != seen[""][:2] or (unused_since is not None and now != seen):
+            return False
+    return unused_since is None or _usage(path)[1] <= unused_since
+
+
 @dataclass
 class Outcome:
-    """A prune's or clear's: the ``caches`` surveyed, the entries ``chosen``, those ``removed`` (a dry run:
-    the chosen, none really) and those ``failed`` (with why: ``used meanwhile``, or the system's words)."""
+    """A prune's or clear's: the ``caches`` surveyed, the entries ``chosen``, those ``removed`` (a ``dry_run``:
+    the chosen, none really) and those ``failed`` (with why: :data:`USED`, or the system's words)."""
 
     caches: list[Cache]
     chosen: list[Entry]
     removed: list[Entry]
     failed: list[tuple[Entry, str]]
+    dry_run: bool = False
 
     @property
     def kept(self) -> list[Entry]:
@@ -316,7 +387,7 @@ class Outcome:
             return {"entry": e.shown(), "bytes": e.size, "last_use": stamp(e.last_use)}
 
         kept = self.kept
-        return {"removed": [row(e) for e in self.removed],
+        return {"dry_run": self.dry_run, "removed": [row(e) for e in self.removed],
                 "not_removed": [{**row(e), "why": why} for e, why in self.failed],
                 "kept": len(kept), "kept_bytes": sum(e.size for e in kept)}
 
@@ -329,23 +400,28 @@ def prune(names: Iterable[str], older_than: float | None = None, max_size: int |
     caches = survey(names, home)
     chosen = choose(caches, -math.inf if clear else older_than, None if clear else max_size, start)
     if dry_run:
-        return Outcome(caches, chosen, chosen, [])
+        return Outcome(caches, chosen, chosen, [], dry_run=True)
     done, failed = remove(chosen, home, unused_since=None if clear else start)
     return Outcome(caches, chosen, done, failed)
 
 
-def _remove_one(path: Path, root: Path, leftover: bool) -> str | None:
-    """Remove one file (or folder) of an entry; why not, or None."""
+def _remove_one(path: Path, root: Path, leftover: bool, unchanged=None) -> str | None:
+    """Remove one file (or folder) of an entry; why not (:data:`USED` where ``unchanged()``, asked just
+    before, a folder's inside its lock, says it is no longer what was chosen), or None."""
     if path.is_dir() and not path.is_symlink() and not leftover:
         aside = path.with_name(f".{path.name}.old-{process_tag()}-{next(_ASIDE) + 10_000}")
         try:
             with folder_lock(path):  # (not while a writer swaps a new one in for it)
+                if unchanged is not None and not unchanged():  # (a new one swapped in while this waited)
+                    return USED
                 path.rename(aside)
         except FileNotFoundError:
             return None  # (gone already: another prune, or a reader that found it damaged)
         except OSError as e:
             return (e.strerror or str(e)).lower()
         path = aside
+    elif unchanged is not None and not unchanged():
+        return USED
     return remove_entry(path, root)
 
 

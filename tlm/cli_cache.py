@@ -98,8 +98,8 @@ def cache_command(args: argparse.Namespace) -> int:
     clear = command == "clear"
     outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
                        dry_run=args.dry_run)
-    used = [e for e, why in outcome.failed if why == "used meanwhile"]
-    failed = [(e, why) for e, why in outcome.failed if why != "used meanwhile"]
+    used = [e for e, why in outcome.failed if why == ca.USED]
+    failed = [(e, why) for e, why in outcome.failed if why != ca.USED]
     if as_json:
         _out(json.dumps(outcome.record(), indent=1))
         return 1 if failed else 0
