@@ -64,13 +64,16 @@ def test_an_unread_override_of_a_section_is_judged_by_the_keys_it_sets():
     # a mapping: the keys it names, its line as the dotted key's
     assert unread_overrides(res, ["estimate={k: 9}"]) == [f"--set estimate={{k: 9}} {said}"]
     assert unread_overrides(res, ["estimate.k=9"]) == [f"--set estimate.k=9 {said}"]
-    assert unread_overrides(res, ["estimate={}"]) == []  # (sets nothing: it merges)
+    # (sets nothing: it merges; said so, h172)
+    empty = ("--set estimate={} has no effect in this run: it sets nothing (a mapping given for a section merges into "
+             "it key by key, and this one names no key); --set estimate=null gives the section at its defaults")
+    assert unread_overrides(res, ["estimate={}"]) == [empty]
     # null: the whole section at its defaults, said as such (was: not said at all), and as the last to set its keys
     assert unread_overrides(res, ["estimate=null"]) == [f"--set estimate=null {said}"]
     assert unread_overrides(res, ["estimate.k=9", "estimate=null"]) == [f"--set estimate=null {said}"]
     assert unread_overrides(res, ["estimate=null", "estimate.k=9"]) == [f"--set estimate=null {said}",
                                                                          f"--set estimate.k=9 {said}"]
-    assert unread_overrides(res, ["estimate={k: 9}", "estimate={}"]) == [f"--set estimate={{k: 9}} {said}"]
+    assert unread_overrides(res, ["estimate={k: 9}", "estimate={}"]) == [f"--set estimate={{k: 9}} {said}", empty]
     # not the key that left the pass out, nor its section given whole
     by = _left_out(by="photons.count")
     assert unread_overrides(by, ["photons={count: 0}"]) == []
@@ -151,7 +154,9 @@ def test_a_sweeps_set_of_a_section_no_point_reads_is_said_by_the_keys_it_sets(tm
             f"without it runs its points again): {no_pmap}")
     assert load_sweep(path, ["estimate=null"]).inert_sets() == [f"{path}: --set estimate=null {said}"]  # (was: none)
     assert load_sweep(path, ["estimate.k=5", "estimate=null"]).inert_sets() == [f"{path}: --set estimate=null {said}"]
-    assert load_sweep(path, ["estimate={}"]).inert_sets() == []
+    assert load_sweep(path, ["estimate={}"]).inert_sets() == [  # (sets nothing: said so, h172)
+        f"{path}: --set estimate={{}} sets nothing (a mapping given for a section merges into it key by key, and this "
+        "one names no key); --set estimate=null gives the section at its defaults"]
     assert load_sweep(path, ["estimate={k: 5}"]).inert_sets() == [f"{path}: --set estimate={{k: 5}} {said}"]
     assert load_sweep(path, ["render=null"]).inert_sets() == []  # (render.spp is read)
 

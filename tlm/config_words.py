@@ -8,7 +8,8 @@ in YAML's words (:func:`type_name`: ``an integer or null``), what to write inste
 (:func:`type_hint`), what a file holds that is not a mapping (:func:`yaml_kind`) and a
 config with overrides (:func:`with_overrides`). The two live together because a string is
 said bare only where :func:`parse_yaml` reads it back as that string. A value given for a
-key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`.
+key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`, and why
+an empty one there (``--set render={}``) sets nothing: :func:`sets_nothing`.
 """
 
 from __future__ import annotations
@@ -194,6 +195,16 @@ def laid_over(old: Any, new: Any, key: str, sections: Collection[str]) -> Any:
     if not (isinstance(new, dict) and isinstance(old, dict) and key in sections):
         return new
     return {**old, **{k: laid_over(old.get(k), v, f"{key}.{k}", sections) for k, v in new.items()}}
+
+
+def sets_nothing(null: str, then: str = "") -> str:
+    """Why a mapping that names no key, given for a section (``--set render={}``, a sweep's ``set:
+    {render: {}}`` or a factor's value ``{}``), changes nothing: :func:`laid_over` merges it into the
+    section key by key (before, it gave the section at its defaults); ``then``: what follows of that,
+    where said (a sweep factor's points: the base's section); ``null``: what gives the section at its
+    defaults, as it is given there (``--set render=null``)."""
+    return (f"sets nothing (a mapping given for a section merges into it key by key, and this one names no key)"
+            f"{f': {then}' if then else ''}; {null} gives the section at its defaults")
 
 
 def yaml_kind(value: Any) -> str:

@@ -19,7 +19,8 @@ import numpy as np
 
 from tlm.arch.model import Timing
 from tlm.config import ArchConfig, RunConfig
-from tlm.experiments.study import set_leaves
+from tlm.config_words import sets_nothing
+from tlm.experiments.study import override_key, set_leaves
 from tlm.registry import SCHEDULERS
 from tlm.render import checks
 from tlm.render.planner import inert_changes, inert_timing_settings, walk_inert_settings
@@ -41,7 +42,8 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     """What gives no error but a wrong picture (:mod:`tlm.render.checks`), a setting the run
     never reads (each key once: an override of ``res.overrides`` the run never reads, a
     photon-map key with the pass left out or a specular walk's key the mode never reads, by
-    :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`),
+    :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`), an override that
+    sets nothing (``render={}``: :func:`empty_sets`),
     a photon-map reference that is not converged (:func:`reference_warnings`), a BSP cut
     short: ``results.json`` ``warnings`` but the simulated stream's (:func:`stream_warnings`),
     one line each."""
@@ -57,6 +59,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     unread = _unread(res, res.overrides)
     warnings += inert_changes(res.cfg, skip=unread)
     warnings += _unread_lines(res, unread, res.via)
+    warnings += empty_sets(res.overrides, res.via)
     warnings += reference_warnings(res.error, res.cfg)
     warnings += checks.branching_warning(res.cfg, res.scene)
     if "pmap" in res.plan.run_names:
@@ -227,8 +230,32 @@ def unread_overrides(res: RenderResult, overrides: Iterable[str] | None, via: st
     run reads too names those it does not; ``estimate=null`` sets the whole section, each key of it
     set before). Not the key the photon-map pass is left out by (``--set photons.count=0``, ``--set
     photons.max_bounces=1``: the plan's ``by``), nor a section that holds it, which did what it was
-    set for."""
-    return _unread_lines(res, _unread(res, overrides), via)
+    set for. Then a line each, in the same words, for an override that sets nothing in any run
+    (:func:`empty_sets`: ``--set render={}``)."""
+    return [*_unread_lines(res, _unread(res, overrides), via), *empty_sets(overrides, via)]
+
+
+def empty_sets(overrides: Iterable[str] | None, via: str = "--set") -> list[str]:
+    """A line for each override that gives a section a mapping naming no key (``--set render={}``; through
+    the API ``{"render": {}}``, ``via`` ``the overrides``): a mapping merges into its section
+    (:func:`~tlm.config_words.laid_over`), so it sets nothing, where it used to give the section at its
+    defaults, as ``render=null`` does (:func:`~tlm.config_words.sets_nothing`). Worded as
+    :func:`unread_overrides`' lines (``... has no effect in this run: ...``), so that a study that says
+    those once for all its cells (``tlm thesis``) says these once too; an override given twice, once."""
+    lines = []
+    for item in dict.fromkeys(str(o).strip() for o in overrides or ()):
+        if set_leaves(item):  # (it sets a key; a value YAML cannot read: its key, refused elsewhere)
+            continue
+        null = f"{override_key(item)}=null"
+        lines.append(f"{_given(via)(item)} has no effect in this run: it "
+                     f"{sets_nothing(f'{via} {null}' if via.startswith('-') else null)}")
+    return lines
+
+
+def _given(via: str):
+    """How a line names an override given ``via``: ``--set estimate.k=9``, or ``estimate.k=9 (in the
+    overrides)``."""
+    return (lambda item: f"{via} {item}") if via.startswith("-") else (lambda item: f"{item} (in {via})")
 
 
 def _walk_unread(res: RenderResult) -> dict[str, str]:  # noqa: F821
@@ -269,7 +296,7 @@ def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[s
         return []
     walk = _walk_unread(res)
     photon_why = _photon_why(res)
-    given = (lambda item: f"{via} {item}") if via.startswith("-") else (lambda item: f"{item} (in {via})")
+    given = _given(via)
     lines = []
     for item in dict.fromkeys(unread.values()):
         keys = [key for key, it in unread.items() if it == item]

@@ -42,7 +42,7 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import laid_over, value_text, with_overrides
+from tlm.config_words import laid_over, sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
 from tlm.experiments.study import override_key, with_set
@@ -93,12 +93,19 @@ class Sweep:
     def inert_factors(self) -> list[str]:
         """A warning line per factor that changes nothing in any point
         (:func:`tlm.render.planner.inert_settings`: ``estimate.k`` swept under the m-voxel
-        filter, ``photons.count`` in mode rcast): its points would be the same run."""
+        filter, ``photons.count`` in mode rcast): its points would be the same run. Then one per value of a
+        factor that sets nothing (a section's mapping that names no key, ``grid: {render: [{}, ...]}``, which
+        merges into the base's section: :func:`_keys_given`; null gives the section at its defaults)."""
         lines = []
         for factor in self.factors:
             whys = {i.get(factor) for i in self.inert}
             if self.inert and None not in whys:
                 lines.append(f"{self.path}: the factor {factor} changes nothing in any point: {said_once(whys)}")
+        for where, section in (("grid", self.grid), ("zip", self.zip)):
+            for key, values in section.items():
+                base = f"its points have the base's {key}"
+                lines += [f"{self.path}: {where}.{key}: the value {value_text(v)} "
+                          f"{sets_nothing('a value null', base)}" for v in values if not _keys_given(key, [v])]
         return lines
 
     def set_keys(self) -> dict[str, str]:
@@ -127,9 +134,16 @@ class Sweep:
         as ``tlm run --set`` says one its run never reads; a ``--set`` that some points read gets none,
         as a factor does not. A section given as a mapping names the keys no point reads where it sets
         others too (``--set estimate={k: 9, ...}: estimate.k``); one given null, the whole section, is
-        said where no point reads any key of it."""
+        said where no point reads any key of it. Then one line per ``--set`` and ``set:`` entry that sets
+        nothing: a section's mapping that names no key (``--set render={}``, ``set: {render: {}}``), which
+        merges into the base's section (:func:`~tlm.config_words.sets_nothing`; null gives it at its defaults)."""
         whys = {k: self._inert_whys(k) for k in self.set_keys()}
-        return self._set_lines({k: w for k, w in whys.items() if w is not None}, "changes nothing in any point")
+        lines = self._set_lines({k: w for k, w in whys.items() if w is not None}, "changes nothing in any point")
+        lines += [f"{self.path}: set.{key}: {value_text(v)} {sets_nothing(f'set.{key}: null')}"
+                  for key, v in self.set.items() if not _keys_given(key, [v])]
+        empty = dict.fromkeys(o.strip() for o in self.overrides if not set_leaves(o))
+        return lines + [f"{self.path}: --set {item} {sets_nothing(f'--set {override_key(item)}=null')}"
+                        for item in empty]
 
     def _set_lines(self, whys: dict[str, set], verb: str) -> list[str]:
         """One line per ``--set`` string of the keys ``whys`` (key -> its points' reasons) that it set last."""
