@@ -14,12 +14,11 @@ not in each cell's ``results.json``).
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import pytest
-import yaml
 
 import tlm
+from tests.helpers_yaml import yaml_file as _file
 from tlm.cli import main
 from tlm.experiments.sweep_file import load_sweep
 
@@ -30,15 +29,7 @@ RUN = "--set render={} has no effect in this run: it " + WHY + "; --set render=n
 QUIET = ["--no-report", "--no-progress", "--outputs", "images"]
 
 
-@pytest.fixture(autouse=True)
-def _own_cache(cache):  # (tests/conftest.py)
-    return cache
-
-
-def _file(folder: Path, name: str, content: dict) -> Path:
-    path = folder / name
-    path.write_text(yaml.safe_dump(content, sort_keys=False))
-    return path
+pytestmark = pytest.mark.usefixtures("cache")  # a cache folder of the test's own (tests/conftest.py)
 
 
 def _said(err: str, text: str) -> int:

@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from tests.helpers_yaml import yaml_file as _file
 from tlm.cli import main
 from tlm.experiments.sweep_file import Point
 from tlm.experiments.sweep_rows import point_row, write_rows
@@ -31,15 +32,7 @@ FAST = {"resolution": [8, 8], "render": {"light_samples": 1, "spp": 1}, "arch": 
 SWEEP = {"base": {"scene": "cornell", "mode": "rcast", **FAST}, "grid": {"bsp.levels": [None, 4]}}
 
 
-@pytest.fixture(autouse=True)
-def _own_cache(cache):  # (tests/conftest.py)
-    return cache
-
-
-def _file(folder: Path, name: str, content: dict) -> Path:
-    path = folder / name
-    path.write_text(yaml.safe_dump(content, sort_keys=False))
-    return path
+pytestmark = pytest.mark.usefixtures("cache")  # a cache folder of the test's own (tests/conftest.py)
 
 
 def _csv(path: Path) -> list[dict]:

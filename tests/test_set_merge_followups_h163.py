@@ -20,12 +20,12 @@ A mapping given for a section merges into it (``render={spp: 1}`` is ``render.sp
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 import yaml
 
+from tests.helpers_yaml import yaml_file as _file
 from tlm.cli import main
 from tlm.config import apply_overrides, deep_merge
 from tlm.errors import InputError
@@ -38,15 +38,7 @@ BASE = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": {"s
         "arch": {"frames": 1, "images_in_flight": 1, "trace": False}}
 
 
-@pytest.fixture(autouse=True)
-def _own_cache(cache):  # (tests/conftest.py)
-    return cache
-
-
-def _file(folder: Path, name: str, content: dict) -> Path:
-    path = folder / name
-    path.write_text(yaml.safe_dump(content, sort_keys=False))
-    return path
+pytestmark = pytest.mark.usefixtures("cache")  # a cache folder of the test's own (tests/conftest.py)
 
 
 # ------------------------------------------------------------------ 1. the unread-override lines

@@ -18,12 +18,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import typing
-from pathlib import Path
 
 import pytest
 import yaml
 
 import tlm
+from tests.helpers_yaml import yaml_file as _file
 from tlm.cli import main
 from tlm.config import SECTIONS, RunConfig, apply_overrides, describe, load_config, to_dict
 from tlm.errors import InputError
@@ -37,15 +37,7 @@ BASE = {"scene": "cornell", "mode": "rcast", "resolution": [8, 8], "render": REN
         "arch": {"frames": 1, "images_in_flight": 1, "trace": False, "pipelines": 2}}
 
 
-@pytest.fixture(autouse=True)
-def _own_cache(cache):  # (tests/conftest.py)
-    return cache
-
-
-def _file(folder: Path, name: str, content: dict) -> Path:
-    path = folder / name
-    path.write_text(yaml.safe_dump(content, sort_keys=False))
-    return path
+pytestmark = pytest.mark.usefixtures("cache")  # a cache folder of the test's own (tests/conftest.py)
 
 
 # ------------------------------------------------------------------ tlm run --set, the API
