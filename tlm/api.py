@@ -627,14 +627,16 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
         bar, say, progress = bar or shown, _said(say, shown), None
     cfg = load_config(config)
     if flags_are_kept():  # (tlm reference: its lines name its flags, --force)
-        return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar)
+        return make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=say, progress=progress, bar=bar,
+                              overrides=cfg.overrides, via=cfg.via)
     names = {"force", "say", "progress", "bar"}
 
     def named(line: str) -> str:  # (a caller in Python: force=True, not --force)
         return arguments_text(line, names, {"force", "bar"})
 
     told = None if say is None else (lambda line: say(named(line)))
-    made = make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=told, progress=progress, bar=bar)
+    made = make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=told, progress=progress, bar=bar,
+                          overrides=cfg.overrides, via=cfg.via)
     if made is not None and made.kept:
         made = replace(made, kept=named(made.kept))
     return made

@@ -85,7 +85,7 @@ from tlm.arch.functional import Functional, TreeWork
 from tlm.arch.model import simulate
 from tlm.caches import cache_problem, cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
-from tlm.config_words import with_overrides
+from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import cast_image, load_frame
@@ -183,13 +183,16 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
     return [f"{k}={json.dumps(v)}" for k, v in point.items()]
 
 
-def load_experiment(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[dict], Path]:
+def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None) -> tuple[dict, list[dict], Path]:
     """``(base, points, folder)`` of the experiment file ``path``, every point checked before
     any work. A base that sets a ``mode`` other than ``pmap`` is refused (InputError naming
     ``base.mode``): every point is a photon-map frame, which the base's mode would not be.
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base as ``tlm run --set``
     applies them (a key a point varies refused: the point's value would win unsaid; ``mode``
-    other than ``pmap`` too), in every point's config."""
+    other than ``pmap`` too), in every point's config. ``warned``: called, once every point is
+    checked, with a line for each ``--set`` and each points value that sets nothing (a section's
+    mapping that names no key, ``--set render={}``, ``render: [{}]``, merges into the base's:
+    :func:`empty_lines`)."""
     raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
     base_cfg = config_from_dict(base, src)  # (a mode that is no mode is refused here, as by tlm run)
@@ -222,7 +225,25 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, 
                 given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
                 _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None,
                               whole=not isinstance(p.get(given), dict))
+    for line in empty_lines(raw.get("points"), overrides, src) if warned is not None else ():
+        warned(line)
     return base, points, folder
+
+
+def empty_lines(points: Any, overrides: tuple[str, ...], source: str) -> list[str]:
+    """A line for each ``--set`` (:func:`~tlm.experiments.run_warnings.empty_sets`, as ``tlm run`` says
+    it) and each value of a grid of ``points`` (``points[0].render: the value {} ...``, as ``tlm sweep``
+    says a factor's) that gives a section a mapping naming no key: it merges into the base's section,
+    so it sets nothing (:func:`~tlm.config_words.sets_nothing`); a line given twice, once."""
+    from tlm.experiments.run_warnings import empty_sets
+
+    lines = empty_sets(overrides)
+    for i, grid in enumerate(_grids(points)):
+        for k, values in grid.items():
+            base = f"its points have the base's {k}"
+            lines += [f"{source}: points[{i}].{k}: the value {value_text(v)} {sets_nothing('a value null', base)}"
+                      for v in (values if isinstance(values, list) else [values]) if not _keys_given(str(k), [v])]
+    return list(dict.fromkeys(lines))
 
 
 def _keys_given(key: str, values: list) -> list[str]:
@@ -303,7 +324,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     Mitsuba's path tracer, so bias of the model shows as well as noise), when there is
     one. ``note`` receives one-line messages (the reference or the ground truth computed, or no
     ground truth); ``warned`` each warning line, which is printed on stderr too (the reference not
-    converged, or not cached: :func:`study_warning`).
+    converged, or not cached: :func:`study_warning`; a ``--set`` or points value that sets nothing,
+    ``render={}``, before any work: :func:`empty_lines`).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
     """
@@ -312,7 +334,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         raise InputError(f"{truth.spp!r} is not a count of samples per pixel (0: no ground truth)", key="--truth-spp")
     start = time.perf_counter()
     overrides = tuple(str(o) for o in overrides)
-    base, points, folder = load_experiment(Path(path), overrides)
+    base, points, folder = load_experiment(Path(path), overrides, lambda line: study_warning(line, warned))
     check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
     configs = [config_from_dict({**apply_overrides(base, _override_strings(p)), "mode": "pmap"}, str(path))

@@ -48,6 +48,7 @@ from tlm.config import SECTIONS, config_from_dict, deep_merge
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
+from tlm.storage import warn
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
 CHECKS = ("finite", "invariants", "same_image", "value", "compare", "error")
@@ -317,12 +318,22 @@ def case_named(e: InputError, source: str, case: str) -> InputError:
 def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
     """Run every case of ``path`` into ``out``; returns the rows (one per case). ``overrides``: ``tlm
     extreme --set`` strings (:func:`load_cases`), which each case's ``results.json`` (``overrides``)
-    and the study's ``provenance.json`` list."""
+    and the study's ``provenance.json`` list. Of the warnings each case's ``results.json`` holds, only
+    those of its ``--set`` are said on stderr (``tlm: warning: ...``), once for the study: one that sets
+    nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`) before the cases, one
+    that some cases never read after them, with which and why (:func:`unread_lines`); the others (a
+    coarse packet size, ...) are each case's own, in its folder and the report."""
     from tlm.experiments.run import run
+    from tlm.experiments.run_warnings import empty_sets
 
     overrides = tuple(str(o) for o in overrides)
     base, cases, folder = load_cases(Path(path), overrides)
+    empty = empty_sets(overrides)  # (a --set render={}: said once now, before the cases, not after each)
+    for line in empty:
+        warn(line)
     done: dict[str, tuple[Path, dict]] = {}
+    unread: dict[str, dict[str, list[str]]] = {}  # a --set some case never reads -> why -> those cases
+    given = {f"--set {o.strip()}" for o in overrides}
 
     def one(c: dict, tmp: Path) -> dict:
         t0 = time.perf_counter()
@@ -348,8 +359,30 @@ def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...]
                 ok = all(v for v, _ in verdicts)
                 measured = "; ".join(m for _, m in verdicts)
                 done[c["name"]] = (dest, results)
+                for line in results["warnings"]:  # (its --set it never read: said once below, for every case)
+                    item, said, why = line.partition(" has no effect in this run: ")
+                    if said and item in given and line not in empty:  # (as tlm thesis words its cells': its mode)
+                        why = why.replace(f"mode {results['mode']!r}", "its mode")
+                        unread.setdefault(item, {}).setdefault(why, []).append(c["name"])
         return {"case": c["name"], "category": c["category"], "expect": c["expect"],
                 "checks": json.dumps(checks), "measured": measured, "passed": ok,
                 "seconds": round(time.perf_counter() - t0, 3)}
 
-    return run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress, overrides=overrides)
+    rows = run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress, overrides=overrides)
+    for line in unread_lines(unread, len(done)):
+        warn(line)
+    return rows
+
+
+def unread_lines(unread: dict[str, dict[str, list[str]]], ran: int) -> list[str]:
+    """One line per ``--set`` of the study that some of its cases never read (``unread``: the override
+    as given, ``--set KEY=VALUE``, -> why, as the case's ``results.json`` says it, -> those cases;
+    ``ran``: how many cases ran), once for the study: how many cases, which, and why (each case's
+    ``results.json`` ``warnings`` keeps its own line)."""
+    lines = []
+    for item, whys in unread.items():
+        n = sum(len(names) for names in whys.values())
+        lines.append(f"{item} has no effect in {n} of {ran} cases: "
+                     + "; ".join(f"{why} ({'case' if len(names) == 1 else 'cases'} {', '.join(names)})"
+                               for why, names in whys.items()))
+    return lines

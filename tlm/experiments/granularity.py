@@ -37,8 +37,9 @@ from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
 from tlm.experiments.run import programs_for
+from tlm.experiments.run_warnings import empty_sets
 from tlm.experiments.study import read_study_base, refuse_set, run_study, with_set
-from tlm.storage import check_destination
+from tlm.storage import check_destination, warn
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
@@ -72,9 +73,12 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
 def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
     """Simulate the frame of ``path`` at each packet size; rows relative to the smallest.
     ``overrides``: ``tlm granularity --set`` strings (:func:`load_granularity`), in the study's
-    ``config.resolved.yaml`` by their values and listed in its ``provenance.json``."""
+    ``config.resolved.yaml`` by their values and listed in its ``provenance.json``; one that sets
+    nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`) is said on stderr."""
     overrides = tuple(str(o) for o in overrides)
     cfg, sizes, folder = load_granularity(Path(path), overrides)
+    for line in empty_sets(overrides):  # (a --set render={} sets nothing: said once, as tlm run says it)
+        warn(line)
     check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
     fn, _hit = cached_functional(cfg, folder, str(path))

@@ -473,7 +473,8 @@ class Made:
 
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
-                   say=None, progress=None, bar: bool = False) -> Made:
+                   say=None, progress=None, bar: bool = False, overrides: tuple[str, ...] = (),
+                   via: str = "--set") -> Made:
     """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
     one when it meets ``reference.tolerance`` and ``reference.min_rounds`` as asked for now
     (:func:`meets_tolerance`, whatever tolerance it was computed for; and not ``force``), else
@@ -486,11 +487,17 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     ``say``: called with a line when a cached reference misses the tolerance, before
     computing, and when the cache keeps its own; ``progress``: called ``(round, change,
     relative standard error)`` after each round (:func:`compute_reference`); ``bar``: the
-    rounds' progress bar on stderr.
+    rounds' progress bar on stderr. ``overrides``: the ``dotted.key=value`` strings ``cfg`` was made
+    with (``tlm reference --set``; ``via``: how they were given, as :func:`tlm.api.load_config` names
+    them): one that sets nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`)
+    is said on stderr (``tlm: warning: ...``) first, once.
     """
     from tlm.experiments.loading import load_frame
+    from tlm.experiments.run_warnings import empty_sets
     from tlm.scenes.loader import load_scene
 
+    for line in empty_sets(overrides, via):
+        warn(line)
     say = say or (lambda line: None)
     scene = load_scene(cfg.scene, base, cfg.resolution, source)
     settings = ReferenceSettings.from_config(scene, cfg)

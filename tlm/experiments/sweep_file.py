@@ -674,8 +674,9 @@ def _one_run_one_row(points: list[Point], src: str) -> None:
     ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
     same results), so a sweep over it would run its first value and label the others' rows
     with values never run. So is one value written two ways (``1000000000`` and ``1.0e+9`` of
-    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two, and one file named
-    two ways (``box.yaml`` and ``./box.yaml``: one absolute path once read)."""
+    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two, one file named
+    two ways (``box.yaml`` and ``./box.yaml``: one absolute path once read), and values that give
+    one config (``photons: [{}, null]`` where the base has no ``photons``: its defaults either way)."""
     first: dict[str, Point] = {}
     for p in points:
         other = first.setdefault(p.hash, p)
@@ -693,6 +694,12 @@ def _one_run_one_row(points: list[Point], src: str) -> None:
             both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in files)
             raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
                              + " name one file, given twice", source=src, key=", ".join(files))
+        if differ and _resolved(p.config, "render.threads") == _resolved(other.config, "render.threads"):
+            # (not the threads: values that give one config, {} and null of a section the base leaves out)
+            both = (f"{k}: {value_text(other.factors.get(k))} and {value_text(p.factors[k])}" for k in differ)
+            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
+                             + " give the same config (a section's mapping merges into the base's section, and "
+                             "null gives it at its defaults): give one of them", source=src, key=", ".join(differ))
         if differ:
             raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
                              f"(render.threads changes no result, only the host's speed), so they would be one run "
