@@ -5,9 +5,12 @@ whose files were there was cached, so every point of its group went at once, and
 
 from __future__ import annotations
 
+import json
+
 import pytest
 import yaml
 
+from tlm import fingerprint
 from tlm.config import config_from_dict
 from tlm.experiments import frames
 from tlm.experiments.sweep import run_sweep
@@ -29,7 +32,9 @@ def damage(key: str) -> None:
     npz.write_bytes(data[: len(data) // 2] + bytes(len(data) - len(data) // 2))
 
 
-def test_a_damaged_entry_is_rendered_by_one_worker(tmp_path, capfd):
+def damaged_sweep(tmp_path, capfd) -> tuple[str, list[str]]:
+    """A sweep of two points of one frame, its entry damaged, run again with ``--jobs 2``: the frame's
+    key (as this process computes it) and the functional keys the points' results hold."""
     path = tmp_path / "sweep.yaml"
     path.write_text(yaml.safe_dump({"base": BASE, "grid": {"arch.fifo_depth": [1, 16]}}))
     first = run_sweep(path, tmp_path / "a", jobs=1)
@@ -44,7 +49,27 @@ def test_a_damaged_entry_is_rendered_by_one_worker(tmp_path, capfd):
     assert (again.ok, again.failed, again.renders) == (2, 0, 1), err  # (was 2 rendered)
     assert sorted(r["functional_cached"] for r in again.rows) == [False, True]
     assert err.count(SAID) <= 1, err  # (a worker's stderr may come later: at most once)
-    assert frames.is_cached(key)  # (the entry whole again)
+    held = [json.loads((tmp_path / "b" / "points" / r["hash"] / "results.json").read_text())["functional"]["key"]
+            for r in again.rows]
+    assert frames.is_cached(key), held  # (the entry whole again)
+    return key, held
+
+
+def test_a_damaged_entry_is_rendered_by_one_worker(tmp_path, capfd):
+    key, held = damaged_sweep(tmp_path, capfd)
+    assert held == [key, key]
+
+
+def test_a_worker_keys_its_frame_with_the_sweeps_code_fingerprint(tmp_path, capfd, monkeypatch):
+    """The package edited since this process took its code fingerprint (a checkout worked on while the
+    suite, or a sweep, runs): a local worker keys the frame by the sweep's fingerprint, which the points'
+    hashes hold and its fork server's code was loaded under, not by the one the disk gives at its first
+    point. It took the disk's: the damaged entry under the sweep's key was never read (nor said, nor
+    rendered again: the test above failed once so in a full run), and the frame was cached under another
+    code's key, rendered by the fork server's code (read by a later run of that code as its own)."""
+    monkeypatch.setattr(fingerprint, "_CODE", "0123456789abcdef")  # (not the disk's: as after an edit)
+    key, held = damaged_sweep(tmp_path, capfd)
+    assert held == [key, key]
 
 
 def test_an_entry_of_an_older_format_is_not_cached(tmp_path):

@@ -59,3 +59,11 @@ def code_fingerprint() -> str:
     if _CODE is None:
         _CODE = fingerprint()
     return _CODE
+
+
+def use_code(code: str) -> None:
+    """Take ``code`` as this process's :func:`code_fingerprint` from now on: a sweep's worker adopts the
+    sweep's, the code its fork server imported (:func:`tlm.experiments.executors.LocalPool`), rather than
+    hash the package files as they are on the disk at its first point."""
+    global _CODE
+    _CODE = code

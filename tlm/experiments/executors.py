@@ -172,12 +172,14 @@ class LocalPool(cf.Executor):
         self._new()
 
     def _new(self) -> None:
+        from tlm.fingerprint import code_fingerprint
+
         env = {k: v for k, v in os.environ.items() if k.startswith("TLM_")}  # the server's may be older
         self.started = self.context.SimpleQueue()  # (token, pid) from a worker starting a point; one per pool
         self.pids: dict[int, int] = {}  # token -> pid of the worker that started it, in this pool
         self.processes: dict[int, Any] = {}  # pid -> the pool's Process, for its exit code
-        self.pool = cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context,
-                                           initializer=_worker_init, initargs=(env, os.getpid(), self.started))
+        self.pool = cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=self.context, initializer=_worker_init,
+                                           initargs=(env, os.getpid(), self.started, code_fingerprint()))
 
     def submit(self, fn, /, *args, **kwargs):
         job = _Job(cf.Future(), fn, args, kwargs, next(self.tokens))
@@ -334,11 +336,24 @@ def _ended(code: int | None) -> str:
 _STARTED = None  # in a local worker: the queue on which it says which point it starts
 
 
-def _worker_init(env: dict[str, str], parent: int, started=None) -> None:
+def _worker_init(env: dict[str, str], parent: int, started=None, code: str | None = None) -> None:
     """A local worker's set-up: the sweep's ``TLM_*`` variables, SIGINT and SIGHUP ignored, an end with
-    the sweep's process, and the queue on which it says which point it starts."""
+    the sweep's process, the queue on which it says which point it starts, and the sweep's code
+    fingerprint (``code``, :func:`tlm.fingerprint.code_fingerprint` of the sweep's process) as its own.
+
+    The worker runs the code its fork server imported as it started (:data:`TLM_PRELOAD`: the renderer,
+    the kernels; under ``spawn``, what it imported as it started), and the sweep hashed its points and
+    keyed their frames with its fingerprint; read from the disk at the worker's first point, after an
+    edit of the package meanwhile (a checkout worked on while a sweep runs, a worker started late or
+    replaced), its own would file frames rendered by that code under another code's key (read as that
+    code's by a later run: stale work counts), and miss the frame the sweep's first point of a group
+    rendered (each point of the group rendering it again)."""
     global _STARTED
     _STARTED = started
+    if code is not None:
+        from tlm.fingerprint import use_code
+
+        use_code(code)
     # Ctrl-C and a hang-up ignored: the sweep's process ends its workers (those of the fork server
     # ignore them from their start already: LocalPool; under spawn, from here on)
     for signum in WORKERS_IGNORE:
