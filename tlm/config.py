@@ -142,7 +142,9 @@ class EstimateConfig:
     radius_photons: int = _f(
         100, "density rule of the indirect map (radius and radius_fraction null): the radius that holds about "
         "this many stored photons, the median distance from a fixed sample of 256 of the map's photons to their "
-        "radius_photons-th nearest neighbour (the same map gives the same radius)", min=1, max=100000,
+        "radius_photons-th nearest neighbour (the same map gives the same radius); gathered only without final "
+        "gathering (final_gather 0): with it, the global map is gathered at final_gather_photons instead",
+        min=1, max=100000,
     )
     caustic_radius: float | None = _f(
         None, "the caustic map's search radius in scene units; null = caustic_radius_fraction x the diagonal, "

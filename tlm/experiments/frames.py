@@ -48,7 +48,7 @@ from tlm.experiments import run
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
-from tlm.render.planner import inert_changes, inert_settings
+from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
@@ -517,7 +517,9 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     :func:`tlm.render.planner.inert_settings` names them (the one list the warnings use):
     every photon-map key in a mode without the pass, the specular walk's (``render.reflect_depth``,
     ``render.fresnel``, ...) in mode ``rcast``, ``estimate.k`` under another filter than
-    ``kvoxel``, ... A sweep of such a setting renders its frame once.
+    ``kvoxel``, ... A sweep of such a setting renders its frame once; but for those the frame's
+    summary records (:func:`~tlm.render.planner.recorded_inert_settings`: ``estimate.radius_photons``
+    under final gathering, the indirect radius ``photons.radius``), kept so a frame's record is its own.
 
     A scene file is keyed by its file's name alone (``box.yaml``), not by the absolute path
     the config holds (:func:`tlm.config.scene_from`): its content is ``scene_fingerprint``,
@@ -526,7 +528,7 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     by the file) stay two entries. A built-in scene's name is kept as it is."""
     if isinstance(cfg, dict):
         cfg = config_from_dict(cfg)
-    unread = set(inert_settings(cfg))
+    unread = set(inert_settings(cfg)) - recorded_inert_settings(cfg)  # (less those its summary records)
     keep = {k: v for k, v in to_dict(cfg).items() if k not in ("arch", "reference")}
     if isinstance(keep.get("scene"), str) and os.path.isabs(keep["scene"]):
         keep["scene"] = os.path.basename(keep["scene"])  # (not where the project lies: its content is the scene)

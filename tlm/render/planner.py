@@ -130,6 +130,26 @@ def _decide_pmap(scene: Scene, cfg: RunConfig, wanted: bool, kinds: set[str]) ->
     return PassPlan("pmap", True, "mode 'pmap' asks for it and the scene has lights and diffuse receivers")
 
 
+# why estimate.radius_photons changes nothing under final gathering (estimate.final_gather > 0): it
+# sizes the indirect map, which is then not gathered (tlm.render.pmap.gathered_maps); the global map
+# the final-gather rays gather is sized by final_gather_photons (tlm.render.pmap.global_radius)
+FINAL_GATHER_RADIUS_PHOTONS = ("estimate.final_gather is on (its rays gather the global map, sized by "
+                               "estimate.final_gather_photons; the indirect map this sizes is not gathered)")
+
+
+def recorded_inert_settings(cfg: RunConfig) -> set[str]:
+    """The keys :func:`inert_settings` names for ``cfg`` (judged from its mode) whose value a
+    frame still records: ``estimate.radius_photons`` under final gathering with the density
+    rule, which changes neither the image nor the work but sizes the indirect map's radius
+    that ``results.json`` records beside it (``photons.radius``, ``photons.radius_photons``;
+    :func:`tlm.render.pmap.radii`). The functional key keeps them
+    (:func:`tlm.experiments.frames.functional_key`), so a frame's record is its own config's."""
+    est = cfg.estimate
+    if cfg.mode == "pmap" and est.final_gather > 0 and est.radius is None and est.radius_fraction is None:
+        return {"estimate.radius_photons"}
+    return set()
+
+
 def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, str]:
     """The config's keys whose value changes nothing in a run of ``cfg``, each with why:
     what a user who set (or swept) one should be told, since the run takes it silently.
@@ -157,6 +177,8 @@ def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, 
             out["estimate.cone_k"] = "estimate.filter is 'disk', which weighs every photon alike (no cone)"
         if est.final_gather == 0:
             out["estimate.final_gather_photons"] = "estimate.final_gather is 0 (no final gathering)"
+        elif est.radius is None and est.radius_fraction is None:  # (else the rule of radius, radius_fraction below)
+            out["estimate.radius_photons"] = FINAL_GATHER_RADIUS_PHOTONS
         for prefix in ("", "caustic_"):
             if getattr(est, f"{prefix}radius") is not None:
                 for name in (f"{prefix}radius_fraction", f"{prefix}radius_photons"):
