@@ -1,0 +1,246 @@
+"""The summary's sentences on what a sweep's factors do (:mod:`tlm.report.summary` says them): per sweep,
+the factor that moves the frame rate most, like with like, and its best point (:func:`sweep_findings`); the
+factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
+be compared; the best of points tied in frame rate is the one of least image error where each measured it; and
+per sweep whose points measured their image error, the factor that moves it most (:func:`error_factor`, said
+under "What quality costs").
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from tlm.report.collect import Inputs, with_set
+from tlm.report.html import esc
+from tlm.report.names import value_text
+from tlm.report.summary_points import and_ as _and
+from tlm.report.summary_points import number as _number
+from tlm.report.sweep_lines import same_value
+from tlm.report.sweeps import named_rows
+
+
+def _moves_with(rows: list[dict], k: str, factors: list[str]) -> list[str]:
+    """The other factors whose value each value of ``k`` fixes in ``rows`` (a sweep's rows,
+    the failed ones too), and that take more than one value: they move together with ``k``
+    (a ``zip:``), so that ``k``'s effect cannot be told from theirs."""
+    out = []
+    for j in factors:
+        if j == k:
+            continue
+        seen: dict[str, set[str]] = defaultdict(set)
+        for r in rows:
+            seen[repr(r.get(k))].add(repr(r.get(j)))
+        if all(len(v) == 1 for v in seen.values()) and len(set().union(*seen.values())) > 1:
+            out.append(j)
+    return out
+
+
+ERROR = "error.rel_mse"  # a sweep point's measured image error (sweep.csv), which a factor may change
+
+
+def _effect(ok: list[dict], k: str, held: list[str], of: str = "fps") -> dict | None:
+    """``k``'s effect on the frame rate (``of``: another column of ``ok``, the image error
+    :data:`ERROR`) among the ``ok`` rows, like with like: a row belongs to
+    the combination of its values of the factors ``held``; only the combinations that finished
+    with every value ``k`` takes among ``ok`` count. Each value's mean is over those
+    combinations (a combination's rows of one value: their mean). None where ``k`` takes one
+    value; else ``values`` (repr -> that mean, in the order the values first come in ``ok``, the
+    sweep's; {} where no combination is complete), ``used``
+    (the rows counted), ``combos`` (the complete combinations), ``compared`` (the combinations that
+    finished with two values of ``k`` or more) and ``same`` (whether some
+    combination finished with two values of ``k`` or more, and every such combination has one
+    value of ``of`` (to 1e-9: :func:`same_value`) across them: ``k`` does not change it between the
+    points that differ only in it)."""
+    values = list(dict.fromkeys(repr(r.get(k)) for r in ok))  # (an order of its own: not a set's, which varies)
+    if len(values) < 2:
+        return None
+    combos: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in ok:
+        combos[tuple(repr(r.get(j)) for j in held)][repr(r.get(k))].append(float(r[of]))
+    complete = [c for c in combos.values() if set(c) == set(values)]
+    used = sum(len(fs) for c in complete for fs in c.values())
+    per = {v: float(np.mean([np.mean(c[v]) for c in complete])) for v in values} if complete else {}
+    pairs = [c for c in combos.values() if len(c) > 1]
+    flat = [[f for fs in c.values() for f in fs] for c in pairs]
+    same = bool(flat) and all(all(same_value(f, fs[0]) for f in fs) for fs in flat)
+    return {"values": per, "used": used, "combos": len(complete), "compared": len(pairs), "same": same}
+
+
+def _measured(rows: list[dict]) -> list[dict]:
+    """The rows that measured their image error (a number in :data:`ERROR`)."""
+    return [r for r in rows if _number(r.get(ERROR))]
+
+
+def _error_range(k: str, eff: dict, most: bool = False) -> str:
+    """How ``k`` changes the image error (:func:`_effect` of :data:`ERROR`, ``eff``), in words: its
+    values' mean relative MSE from the worst to the best (tied values said so), averaged over the other
+    factors where it is compared in more than one of their combinations; with ``most``, the ratio too
+    ("" where no combination finished with each of its values)."""
+    means = eff["values"]
+    if not means:
+        return ""
+    hi, lo = max(means.values()), min(means.values())
+    ratio = f"{hi / lo:.2f}x, " if most and lo > 0 else ""
+    return (f"{ratio}relative MSE {hi:.3g} at {_values(_extreme(k, means, hi))} → {lo:.3g} at "
+            f"{_values(_extreme(k, means, lo))}{', averaged over the other factors' if eff['combos'] > 1 else ''}")
+
+
+def _as_yaml(k: str, text: str) -> str:
+    """A factor's value as :func:`_effect` keys it (its repr) with null, true and false as YAML writes
+    them, null with what it asks of ``k`` (:func:`~tlm.report.names.value_text`)."""
+    return {"None": value_text(k, None), "True": "true", "False": "false"}.get(text, text)
+
+
+MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
+
+
+def _extreme(k: str, means: dict[str, float], m: float) -> list[str]:
+    """The values of ``k`` whose mean is ``m`` (to 1e-9: :func:`same_value`), as YAML writes them."""
+    return [_as_yaml(k, v) for v, mean in means.items() if same_value(mean, m)]
+
+
+def _values(tied: list[str]) -> str:
+    """One value, or the values that tie, said so (``2 and 4, tied``)."""
+    return esc(tied[0]) if len(tied) == 1 else f"{esc(_and(tied))}, tied"
+
+
+def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
+    """The point of the highest frame rate in words; where points that differ in more than the
+    factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
+    the least image error where each of them measured it (the text says so), else each of them
+    (those of the least error, tied), in sweep order (the first of those that differ only in
+    ``inert``; at most :data:`MAX_TIED_POINTS` named, the rest counted)."""
+    top = max(r["fps"] for r in rows)
+    best = {}
+    for r in rows:
+        if same_value(r["fps"], top):
+            best.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
+    tied, least = len(best), ""
+    if tied > 1 and len(_measured(list(best.values()))) == tied:  # (the least error of the tied decides)
+        low = min(float(r[ERROR]) for r in best.values())
+        best = {key: r for key, r in best.items() if same_value(float(r[ERROR]), low)}
+        least = f"the least image error (relative MSE {low:.3g}) of the {tied} points tied at that frame rate"
+    where = [", ".join(f"{k} = {_as_yaml(k, repr(r.get(k)))}" for k in factors) for r in best.values()]
+    if len(where) == 1:
+        return f"the best point is {esc(where[0])} at {top:.3g} FPS{', ' + least if least else ''}."
+    named = [esc(w if len(factors) == 1 else f"({w})") for w in where[:MAX_TIED_POINTS]]
+    if len(where) > MAX_TIED_POINTS:
+        named.append(f"{len(where) - MAX_TIED_POINTS} more")
+    return (f"the best points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
+            f"are {_and(named)}.")
+
+
+def error_factor(inputs: Inputs) -> str:
+    """A sentence (after a space) per sweep whose points measured their image error: the factor that
+    moves the mean error most, like with like (:func:`_effect` of :data:`ERROR`: the ratio of its
+    worst value's mean to its best's), where one factor does (none tied with it); "" else."""
+    said = ""
+    for sw in inputs.sweeps:
+        every = named_rows(sw)
+        rows = _measured([r for r in every if r.get("status") == "ok"])
+        factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
+        spread = {}
+        for k in factors:
+            along = _moves_with(every, k, factors)
+            eff = _effect(rows, k, [j for j in factors if j != k and j not in along], ERROR)
+            means = (eff or {}).get("values")
+            if means and min(means.values()) > 0 and not same_value(max(means.values()), min(means.values())):
+                spread[k] = (max(means.values()) / min(means.values()), eff, along)
+        if not spread:
+            continue
+        k = max(spread, key=lambda f: spread[f][0])
+        if sum(same_value(v[0], spread[k][0]) for v in spread.values()) > 1:
+            continue  # (two factors move it as much: neither is the one)
+        _, eff, along = spread[k]
+        said += (f" In {esc(sw.label)}, {esc(k)} moves the image error most"
+                 + (f" (with {esc(', '.join(along))}, which {'moves' if len(along) == 1 else 'move'} with it)"
+                    if along else "") + f": {_error_range(k, eff, most=True)}.")
+    return said
+
+
+def sweep_findings(inputs: Inputs) -> list[str]:
+    """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
+    of its best value's mean to its worst's) and the point of the highest frame rate. Values
+    and points that tie (to 1e-9) are said as tied, every one of them (a best value and a best
+    point that would each be one of the tied at random could contradict each other), but for
+    points that differ only in factors that change nothing (:func:`_best_points`).
+
+    A factor is judged like with like: its values are compared in the combinations of the
+    other factors' values that finished (status ok) with every one of its values, so that a
+    failed point does not weigh one value's mean with other points than another's. The text
+    says how many ok points were left out for that, names the factors that move together with
+    it (a ``zip:``: their effect cannot be told from its own), the factors that change nothing
+    between points that differ only in them (neither the frame rate nor, where the points measured
+    it, the image error :data:`ERROR`), those that change the image error but not the frame rate
+    (from its worst value's mean error to its best's), and those that cannot be compared like with
+    like (no combination finished with each of their values)."""
+    texts = []
+    for sw in inputs.sweeps:
+        every = named_rows(sw)
+        rows = [r for r in every if r.get("status") == "ok" and isinstance(r.get("fps"), int | float)]
+        factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
+        if not rows or not factors:
+            continue
+        spread, nothing, apart, along, left, errs, unjudged = {}, [], [], {}, {}, [], []
+        measured = _measured(rows)  # (a factor that keeps the frame rate may still change the image error)
+        for k in factors:
+            along[k] = _moves_with(every, k, factors)
+            held = [j for j in factors if j != k and j not in along[k]]
+            eff = _effect(rows, k, held)
+            if eff is None:
+                continue
+            means = eff["values"]
+            err = _effect(measured, k, held, ERROR) if eff["same"] and measured else None
+            if eff["same"] and measured and not (err or {}).get("same"):
+                if err is not None and err["compared"]:
+                    span = _error_range(k, err)
+                    errs.append(f"{esc(k)} changes the image error{f' ({span})' if span else ''}, not the frame rate, "
+                                f"between points that differ only in it")
+                else:
+                    unjudged.append(k)
+            elif eff["same"]:
+                nothing.append(k)
+            elif not means:
+                apart.append(k)
+            elif min(means.values()) > 0 and not same_value(max(means.values()), min(means.values())):
+                top, bottom = max(means.values()), min(means.values())
+                spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom))
+                left[k] = len(rows) - eff["used"]
+        best = _best_points(rows, factors, nothing)
+        text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
+                f"{', ' + esc(with_set(sw.overrides)) if sw.overrides else ''}{esc(sw.unfinished)}): ")
+        notes = ""
+        if nothing:
+            notes += (f"{esc(', '.join(nothing))} {'changes' if len(nothing) == 1 else 'change'} nothing "
+                      f"{'(neither the frame rate nor the image error) ' if measured else ''}between "
+                      f"points that differ only in {'it' if len(nothing) == 1 else 'them'}; ")
+        notes += "".join(f"{e}; " for e in errs)
+        if unjudged:
+            notes += (f"{esc(', '.join(unjudged))} {'does' if len(unjudged) == 1 else 'do'} not change the frame rate "
+                      f"between points that differ only in {'it' if len(unjudged) == 1 else 'them'} (the image error "
+                      f"not measured at such points); ")
+        if apart:
+            notes += (f"{esc(', '.join(apart))} cannot be compared like with like (no values of the other factors "
+                      f"finished with each of {'its' if len(apart) == 1 else 'their'} values); ")
+        if spread:
+            k = max(spread, key=lambda f: spread[f][0])
+            ratio, hi, lo = spread[k]
+            text += f"{esc(k)} moves the frame rate most"
+            if along[k]:
+                text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
+            text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi)}) and its "
+                     f"worst ({_values(lo)}), averaged over ")
+            text += ("the other factors; " if not left[k] else
+                     f"the other factors' values that finished with each of its values ({left[k]} of the {len(rows)} "
+                     f"ok points left out for that); ")
+            text += notes + best
+        elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
+            text += f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS."
+        elif len({r["fps"] for r in rows}) == 1:  # (the image error still tells the points apart)
+            text += f"no factor changes the frame rate (every point runs at {rows[0]['fps']:.3g} FPS); " + notes + best
+        else:
+            text += notes + best
+        texts.append(text)
+    return texts
