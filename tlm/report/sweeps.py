@@ -1,7 +1,8 @@
 """Section: what each sweep varied and what it did to the frame rate.
 
 Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slowest
-PM, host seconds; a failed point with its error) and one figure per varied factor:
+PM, host seconds less their one-off part, numba compiling and first imports, said in a note
+under it; a failed point with its error) and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
 factors. Combinations that draw the same line are drawn once, one label naming them all,
 and the lines are counted after that: up to :data:`MAX_SERIES` distinct lines are drawn
@@ -149,8 +150,9 @@ def table(sw: Sweep) -> str:
     # (the measured columns to one count of decimals each: column_decimals)
     fps = column_decimals([r.get("fps") for r in ok])
     thru = column_decimals([(r.get("cycles.throughput") or 0) / 1e6 for r in ok])
-    host = column_decimals([round((r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0), 3)
-                            for r in ok])
+    # (host seconds less the one-off part: numba compiling or loading kernels and first imports, paid by whichever
+    # points a worker ran first, not by their settings; sweep.csv's seconds.one_off)
+    host = column_decimals([round(_host_seconds(r), 3) for r in ok])
     err = {e: column_decimals([r.get(e) if _finite(r.get(e)) else None for r in ok], lambda _v: "") for e in errs}
     k = 0  # (the row's place among the finished ones)
     for i, r in enumerate(shown):
@@ -163,10 +165,27 @@ def table(sw: Sweep) -> str:
         vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
+    once = [r for r in ok if _finite(r.get("seconds.one_off"))]
+    if once:
+        paid = [r for r in once if r["seconds.one_off"] >= 0.0005]
+        where = (f"{sum(r['seconds.one_off'] for r in paid):.3g} s in all, paid by "
+                 f"{_points([str(r.get('point')) for r in paid])}" if paid else "none here")
+        out.append('<p class="note">host s: a point\'s host seconds (sweep.csv seconds.functional plus '
+                   "seconds.simulate) less their one-off part, seconds.one_off: numba compiling or loading kernels "
+                   "and modules imported for the first time, paid by whichever points each worker ran first, not "
+                   f"by their settings ({esc(where)}).</p>")
     if len(rows) > MAX_ROWS:
         out.append(f'<p class="note">The first {MAX_ROWS} of {len(rows)} points are listed; '
                    f"all are in {esc(sw.path / 'sweep.csv')}.</p>")
     return "\n".join(out)
+
+
+def _host_seconds(r: dict) -> float:
+    """A row's host seconds less their one-off part (``seconds.one_off``; none in a sweep.csv of
+    before it was measured)."""
+    once = r.get("seconds.one_off")
+    return max(0.0, (r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0)
+               - (once if _finite(once) else 0.0))
 
 
 def _combo_label(others: list[str], combo: tuple) -> str:
