@@ -25,7 +25,15 @@ finished by an exception raised in it: every later compile fails with ``generato
 StopIteration``; cut between two entries, the rest are skipped), and a Ctrl-C held to an
 import's end was raised in the refresh around it about one time in six. A signal is not given
 in a finalizer either (a ``__del__``: llvmlite's, during a compile), where Python would drop its
-KeyboardInterrupt and the call would run on.
+KeyboardInterrupt and the call would run on. Nor while numba or llvmlite runs Python code (a compile,
+or a compiled function loaded from numba's cache): llvmlite hands LLVM objects from one owner to another
+in two steps, a C call and then a Python line that records it (``link_modules``' ``src.detach()``,
+``add_module``'s ``module._owned = True``), and a signal that arrives during the C call has its handler
+run as the call returns, between the two: the KeyboardInterrupt left a module that LLVM had destroyed
+(or that the execution engine owns) for llvmlite to dispose of again when it was collected: a segfault
+or "free(): double free" later in the process (SIGINTs at random moments of numba compiles crashed about
+one process in two of 150; the likely cause of a clean-clone CI run's exit status -11 in
+``test_api_interrupt[tlm.kernels._jit_bsp]``, whose held Ctrl-C is given back during the first compile).
 """
 
 from __future__ import annotations
@@ -43,6 +51,7 @@ from typing import Any
 _IMPORT_FILES = ("<frozen importlib._bootstrap>", "<frozen importlib._bootstrap_external>")
 _IMPORT_SOURCES = (os.path.join("importlib", "_bootstrap.py"), os.path.join("importlib", "_bootstrap_external.py"))
 _NUMBA_CORE = os.sep + os.path.join("numba", "core", "")  # (its contexts' install_registry, typing and target)
+COMPILERS = ("numba", "llvmlite")  # the packages whose Python code a signal must not cut short (:func:`_uncuttable`)
 # the signals held to an import's end, where a Python handler takes them (the command line's:
 # tlm.cli_signals.TAKEN, SIGHUP a closed terminal's; none on Windows)
 HELD = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
@@ -51,13 +60,27 @@ _LEFT_HALF: dict[str, int] = {}  # the modules an import interrupted in an API c
 _CUT_REGISTRIES: set[int] = set()  # the signals that cut numba's install of a registry short in an API call
 
 
+def _compiler_folders() -> tuple[str, ...]:
+    """The folders of numba's and llvmlite's code, of those imported (none before: then no frame
+    of theirs can run but their import's, which is held as an import)."""
+    folders = []
+    for name in COMPILERS:
+        file = getattr(sys.modules.get(name), "__file__", None)
+        if file:
+            folders.append(os.path.join(os.path.dirname(os.path.abspath(file)), ""))
+    return tuple(folders)
+
+
 def _uncuttable(frame: Any, stop: Any) -> set[str]:
     """What ``frame`` (the main thread's) runs, begun after ``stop`` (the frame of the API call),
     that a signal must not cut short: ``"import"`` (a module's), ``"registry"`` (numba's install of
-    a registry), ``"finalizer"`` (a ``__del__``, where Python drops the KeyboardInterrupt of a Ctrl-C
-    given back there: "Exception ignored in ...", and the call goes on); empty if nothing (an API
-    call made while a module is imported does not hold every Ctrl-C to its end)."""
+    a registry), ``"compile"`` (numba's or llvmlite's Python code: a compile, a load from numba's
+    cache, where llvmlite hands LLVM objects over in a C call and a Python line after it),
+    ``"finalizer"`` (a ``__del__``, where Python drops the KeyboardInterrupt of a Ctrl-C given back
+    there: "Exception ignored in ...", and the call goes on); empty if nothing (an API call made
+    while a module is imported does not hold every Ctrl-C to its end)."""
     found = set()
+    compilers = _compiler_folders()
     while frame is not None and frame is not stop:
         code = frame.f_code
         if code.co_filename in _IMPORT_FILES or code.co_filename.endswith(_IMPORT_SOURCES):
@@ -66,6 +89,8 @@ def _uncuttable(frame: Any, stop: Any) -> set[str]:
             found.add("registry")
         elif code.co_name == "__del__":
             found.add("finalizer")
+        if compilers and code.co_filename.startswith(compilers):
+            found.add("compile")
         frame = frame.f_back
     return found
 
@@ -81,8 +106,9 @@ class HeldInterrupt:
     """The SIGINT (and SIGTERM, SIGHUP) handler during a call of a function :func:`imports_whole`
     wraps, in the main thread. A signal outside an import goes at once to the handler it
     replaced (``KeyboardInterrupt``, or the command line's); one during an import (or numba's
-    install of a registry) is held, and given to that handler once the main thread has left it
-    (a thread watches it; not in a finalizer, which would drop it) or, at the latest, when the
+    install of a registry, or numba's or llvmlite's Python code: a compile) is held, and given to
+    that handler once the main thread has left it (a thread watches it; not in a finalizer, which
+    would drop it) or, at the latest, when the
     call ends. A second signal during the same import goes through at once (the import is then
     left half done, or the registry's loader broken, which the next API call reports:
     :func:`check_imports`).
@@ -108,7 +134,7 @@ class HeldInterrupt:
                     # (the low-level start: threading's own start takes a lock the interrupted code may hold)
                     _thread.start_new_thread(self._watch, ())
                     return
-                if uncuttable == {"finalizer"}:
+                if "finalizer" in uncuttable and uncuttable <= {"finalizer", "compile"}:  # (llvmlite's __del__ too)
                     # a second signal in a finalizer goes through, the first still held: Python drops the
                     # exception there, but it ends the __del__ (one that hangs can still be stopped), and the
                     # held one is given when the finalizer has returned
