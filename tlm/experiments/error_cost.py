@@ -102,7 +102,7 @@ from tlm.experiments.reference_cache import (
     verdict,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import override_key, read_study, refuse_set, run_study, set_leaves, with_set
+from tlm.experiments.study import override_key, read_study, refuse_set, run_study, value_leaves, with_set
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
@@ -253,7 +253,7 @@ def _keys_given(key: str, values: list) -> list[str]:
     (:func:`~tlm.experiments.study.set_leaves`)."""
     out: dict[str, None] = {}
     for v in values:
-        out.update(dict.fromkeys(set_leaves(f"{key}={json.dumps(v)}")))  # (as the point's own override reads)
+        out.update(dict.fromkeys(value_leaves(key, v)))
     return list(out)
 
 

@@ -97,13 +97,17 @@ def set_leaves(item: str) -> dict[str, Any]:
         value = parse_yaml(text)
     except yaml.YAMLError:
         return {key.strip(): None}
+    return value_leaves(key.strip(), value)
 
-    def leaves(prefix: str, node: Any) -> dict[str, Any]:
-        if isinstance(node, dict) and prefix in SECTIONS:
-            return {k: v for name, child in node.items() for k, v in leaves(f"{prefix}.{name}", child).items()}
-        return {prefix: node}
 
-    return leaves(key.strip(), value)
+def value_leaves(key: str, value: Any) -> dict[str, Any]:
+    """The dotted keys ``value``, given for the dotted ``key`` (a ``--set``'s, a sweep's ``set:`` entry or
+    factor value, a study's points value), sets over the base, each with its value: ``key``, or where
+    ``value`` is a mapping given for a section, which merges into it, the keys it names, recursively
+    (:func:`set_leaves`)."""
+    if isinstance(value, dict) and key in SECTIONS:
+        return {k: v for name, child in value.items() for k, v in value_leaves(f"{key}.{name}", child).items()}
+    return {key: value}
 
 
 def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = ()) -> dict:

@@ -45,7 +45,7 @@ from tlm.config import (
 from tlm.config_words import laid_over, sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
-from tlm.experiments.study import override_key, with_set
+from tlm.experiments.study import override_key, value_leaves, with_set
 from tlm.experiments.sweep_sets import at_default, given_by, named, refuse_factor_sets, said_once, set_leaves
 from tlm.fingerprint import code_fingerprint
 
@@ -338,11 +338,7 @@ def _keys_given(key: str, values: Iterable[Any]) -> list[str]:
     alone, ``render: {}`` none), as :func:`~tlm.experiments.study.set_leaves` reads a ``--set``'s."""
     out: dict[str, None] = {}
     for v in values:
-        if isinstance(v, dict) and key in SECTIONS:
-            for name, child in v.items():
-                out.update(dict.fromkeys(_keys_given(f"{key}.{name}", [child])))
-        else:
-            out[key] = None
+        out.update(dict.fromkeys(value_leaves(key, v)))
     return list(out)
 
 
