@@ -24,6 +24,14 @@ planner leaves out, e.g. ``photons.count: 0``, simulates the other passes). The 
 ``throughput_cycles`` and ``latency_cycles``, ``frame_seconds`` (throughput cycles /
 ``arch.clock_hz``), ``fps`` and ``simulate_seconds`` (host seconds of the simulation).
 
+A row's radii are those its photon-map pass gathered with (:func:`~tlm.render.pmap.gathered_radii`),
+in scene units: ``radius`` the indirect light's, the indirect map's, or under final gathering
+(``final_gather`` > 0) the global map's, where the final-gather rays land (``estimate.radius`` or
+``radius_fraction`` when given, else the density rule with ``estimate.final_gather_photons``);
+``caustic_radius`` the caustic map's. Not the indirect map's under final gathering: that map is
+built but not gathered, and its radius (``estimate.radius_photons``) is not computed. Each is empty
+where its map is not gathered (it holds no photon) or the filter takes no radius (``knn``).
+
 The scene, its BSP and the eye rays are the base's, cast once: a point may not vary
 ``scene``, ``mode`` (every point is a photon-map frame), ``resolution``, ``bsp.*`` or
 ``render.spp`` (:data:`FIXED`), nor what the reference depends on (all refused, naming
@@ -36,7 +44,7 @@ filter, radius and k that uses it. A row's ``factors`` names the point's own set
 (``photons.count=30000; estimate.filter=disk``).
 
 Host seconds: a row's ``trace_seconds`` is its photon maps' making: their trace, their leaf
-order (which every gather reads) and the density radii the point's radius rule asks for; made
+order (which every gather reads) and the density radii the point's gathers ask for; made
 once, each is counted in full by every row that uses it (the same trace seconds on every row
 that shares a map: its cost if run alone). ``gather_seconds`` is its photon-map pass; both with
 the kernels warm. What a process pays once, whichever point first needs it, is charged to no
@@ -112,15 +120,15 @@ from tlm.render.planner import photon_count, plan
 from tlm.render.pmap import (
     density_requests,
     gathered_maps,
+    gathered_radii,
     pmap_pass,
-    search_radius,
     trace_photon_map,
 )
 from tlm.storage import check_destination, warn
 
 COLUMNS = (
-    "point", "factors", "filter", "photons", "stored", "radius", "radius_fraction", "k", "k_nearest", "cone_k",
-    "final_gather", "caustic_photons", "aim",
+    "point", "factors", "filter", "photons", "stored", "radius", "caustic_radius", "radius_fraction", "k",
+    "k_nearest", "cone_k", "final_gather", "caustic_photons", "aim",
     "rmse", "rel_mse", "reference_converged", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp",
     *GATHER_KEYS[1:], "gathers",
     "trace_seconds", "gather_seconds", "one_off_seconds",
@@ -401,7 +409,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             one_off += once
             maps[map_key] = (traced, t1 - t0 - once)
         traced, trace_s = maps[map_key]
-        for m, k in density_requests(frame, traced.photons):  # (each density radius the point asks for)
+        for m, k in density_requests(frame, traced.photons, gathered_only=True):  # (each one its gathers use)
             if (id(m), k) not in density_s:  # (made once; counted by every point that asks for it)
                 t0 = time.perf_counter()
                 m.density_radius(k)
@@ -424,10 +432,12 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
         simulate_s = time.perf_counter() - t0
         est = cfg.estimate
+        radii = gathered_radii(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else {}
         row = {
             "point": i, "factors": factors_text(point),
             "filter": est.filter, "photons": n, "stored": traced.photons.n,
-            "radius": search_radius(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else None,
+            "radius": next((radii[m] for m in ("global", "indirect", "photons") if m in radii), None),
+            "caustic_radius": radii.get("caustic"),
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),

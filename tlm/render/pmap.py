@@ -11,7 +11,8 @@ point and final gathering (eqs. 3.2-3.5).
   (:func:`final_gathering`: rays from each point to where the global map is gathered),
   whose rays' work :func:`tlm.render.passes.fgather_pass` reports as a pass of its own;
 * :func:`gathered_maps` says which maps that pass gathers (the one rule: the pass and
-  :mod:`tlm.experiments.error_cost`, which times their leaf order with the trace, ask it).
+  :mod:`tlm.experiments.error_cost`, which times their leaf order with the trace, ask it),
+  and :func:`gathered_radii` the radius it gathers each of them with (:func:`map_radius`).
 
 Work and page misses follow the rules of :mod:`tlm.render.passes`: the gathers' photon-leaf
 reads in pixel order, the caustic map's on a pair of its own (:data:`CAUSTIC_STREAM`).
@@ -148,11 +149,22 @@ def density_wanted(frame: Frame) -> list[tuple[str, int]]:
     return out
 
 
-def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap) -> list[tuple[PhotonMap, int]]:
+# the maps of gathered_maps whose radius a density_wanted entry sizes (a single map: the indirect one's)
+_SIZES = {"global": ("global",), "indirect": ("indirect", "photons"), "caustic": ("caustic",)}
+
+
+def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap,
+                     gathered_only: bool = False) -> list[tuple[PhotonMap, int]]:
     """:func:`density_wanted` of ``photons``' maps: the ``(map, k)`` whose density radius
-    (:meth:`PhotonMap.density_radius`) the pmap frame's radii ask for, each map once per ``k``."""
+    (:meth:`PhotonMap.density_radius`) the pmap frame's radii ask for, each map once per ``k``.
+    ``gathered_only``: only those of the radii the photon-map pass gathers with
+    (:func:`gathered_radii`): under final gathering not the indirect map's, which :func:`radii`
+    records but nothing gathers, nor a map's that holds no photon."""
     once: list[tuple[PhotonMap, int]] = []
+    names = gathered_maps(frame, photons) if gathered_only else None
     for which, k in density_wanted(frame):
+        if names is not None and not any(name in names for name in _SIZES[which]):
+            continue
         m = (photons.global_map if final_gathering(frame, photons) else None) if which == "global" else _map_of(
             photons, which)
         if m is not None and not any(m is m2 and k == k2 for m2, k2 in once):
@@ -224,6 +236,24 @@ def gathered_maps(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> dict[
     else:
         found = {"caustic": photons.caustic_map, "indirect": photons.indirect_map}
     return {name: m for name, m in found.items() if m is not None and m.n > 0}
+
+
+def map_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None, name: str) -> float:
+    """The radius :func:`pmap_pass` gathers the map ``name`` of :func:`gathered_maps` with: the
+    caustic map's :func:`caustic_radius`, the global map's :func:`global_radius` (final gathering),
+    the indirect map's (or a single map's, ``"photons"``) :func:`search_radius`."""
+    if name == "caustic":
+        return caustic_radius(frame, photons)
+    if name == "global":
+        return global_radius(frame, photons)
+    return search_radius(frame, photons)
+
+
+def gathered_radii(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> dict[str, float]:
+    """The search radius of each map :func:`pmap_pass` gathers, by the names of :func:`gathered_maps`
+    (:func:`map_radius`): with final gathering the caustic and global maps', not the indirect map's
+    (built, and recorded by :func:`radii`, but not gathered), which is not computed here."""
+    return {name: map_radius(frame, photons, name) for name in gathered_maps(frame, photons)}
 
 
 # the host-seconds stages of the pmap and fgather passes (tlm.render.batches times pass <name> as
@@ -373,8 +403,8 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
         g.memo["fgather_work"] = new_work(p)
     sidx, tri, pts, n, weight, bounce, medium = gather_points_full(frame, g)
     gathered = gathered_maps(frame, photons)  # (the global map's gathers are the final-gather rays', below)
-    maps = [(name, m, caustic_radius(frame, photons) if name == "caustic" else search_radius(frame, photons),
-             kdtree if name == "photons" else None, CAUSTIC_STREAM if name == "caustic" else GATHER_STREAM)
+    maps = [(name, m, map_radius(frame, photons, name), kdtree if name == "photons" else None,
+             CAUSTIC_STREAM if name == "caustic" else GATHER_STREAM)
             for name, m in gathered.items() if name != "global"]
     if sidx.shape[0] == 0 or not (maps or fg):
         return pixel_mean(frame, radiance), work
@@ -385,7 +415,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     if "global" in gathered:
         with booked_apart(FGATHER_STAGE, within=PMAP_STAGE):  # (the rays and their gathers: the fgather pass's)
             fg_streams = new_streams(frame) if fg_streams is None else fg_streams
-            radius = global_radius(frame, photons)
+            radius = map_radius(frame, photons, "global")
             pkeys = keys * 64 + bounce
             # chunks of whole pixels, in pixel order, of at most FG_CHUNK_RAYS rays
             step = max(1, FG_CHUNK_RAYS // frame.cfg.estimate.final_gather)
