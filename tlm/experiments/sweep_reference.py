@@ -8,7 +8,8 @@ was cached (``tlm reference`` since), or against one computed again since, runs 
 from the functional cache. :func:`sweep_references` computes and caches, before the points run, each
 reference that the points to run need and the cache lacks, or holds one that misses their tolerance (one
 per distinct value of the keys a reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm
-reference`` decides and computes it (a cached one that computing again would not better is kept, and said so).
+reference`` decides and computes it (a cached one that computing again would not better is kept, and said so;
+points that share one but ask for different tolerances or rounds: the strictest, :func:`strictest`).
 :func:`unmeasured_line` is the sweep's warning on the points that still have no error, with the ``tlm
 reference`` command of each reference they need. The sweep that runs the points:
 :mod:`tlm.experiments.sweep`.
@@ -22,12 +23,16 @@ import os
 import time
 from collections.abc import Callable
 from contextlib import suppress
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tlm.errors import InputError
 from tlm.experiments.sweep_file import Point
 from tlm.experiments.sweep_point import POINT_FORMAT
+
+if TYPE_CHECKING:
+    from tlm.experiments.reference_cache import ReferenceSettings
 
 
 def done_record(folder: Path) -> dict | None:
@@ -96,13 +101,19 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = Fa
     config = _base_config(sweep)
     commands = []
     for points in missing.values():
+        # (points of one reference that ask for different stopping rules: the strictest, which meets each one's)
+        rule = _strictest_rule([(p.config.get("reference") or {}) for p in points])
         if config is None:  # (its every setting, the --set values and the factors' included)
             resolved = out / "points" / points[0].hash / "config.resolved.yaml"
-            commands.append(reference_command(os.path.relpath(resolved)))
+            own = points[0].config.get("reference") or {}
+            commands.append(reference_command(os.path.relpath(resolved), [
+                f"reference.{k}={json.dumps(v)}" for k, v in rule.items() if own.get(k) != v]))
             continue
+        first = points[0].config
+        first = {**first, "reference": {**(first.get("reference") or {}), **rule}} if rule else first
         given = [k for k in (*sweep.set, *points[0].factors)
                  if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in KEY_READS)]
-        sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(points[0].config, k))}" for k in given)]
+        sets = [*sweep.overrides, *(f"{k}={json.dumps(_dotted(first, k))}" for k in given)]
         commands.append(reference_command(config, sets))
     n = sum(len(ps) for ps in missing.values())
     them = f"{'this reference' if len(commands) == 1 else f'these {len(commands)} references'}"
@@ -124,7 +135,9 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     before the points run, so that they are measured against it (a point done before without an error, or
     against another reference, is then run again, its frame read from the cache: :func:`reference_now`),
     deciding on a cached one as ``tlm reference`` of a point's config does
-    (:func:`~tlm.experiments.reference_cache.verdict`): one that meets its points' tolerance is used as it
+    (:func:`~tlm.experiments.reference_cache.verdict`; points of one reference that ask for different
+    stopping rules, which its key does not read, by the strictest of them, :func:`strictest`, its lines saying
+    so and which of the points' own tolerances it meets): one that meets its points' tolerance is used as it
     is (as ``tlm run`` uses it); one that misses it is computed again (cached where it is better), but one
     that computing again would not better (fewer rounds asked for than it has, or the same rounds
     repeated) is kept, and a line says why. Needed: by a point not done yet in ``points_dir``, or done
@@ -141,7 +154,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     from tlm.config import config_from_dict
     from tlm.errors import EnvironmentFailure
     from tlm.experiments.reference import KEY_READS, make_reference, reference_key, repeats_why
-    from tlm.experiments.reference_cache import ReferenceSettings, describe, load_reference, verdict
+    from tlm.experiments.reference_cache import RULE, ReferenceSettings, describe, load_reference, verdict
     from tlm.render.planner import plan
     from tlm.scenes.loader import load_scene
 
@@ -153,8 +166,9 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
     source = str(sweep.path)
     pmap = False
-    # reference key -> a config of it, its settings, the points that need it, those of them not measured yet
-    needed: dict[str, tuple[Any, ReferenceSettings, list[Point], list[Point]]] = {}
+    # reference key -> a config of it, the points that need it, those of them not measured yet, and the
+    # settings each of them asks for (its stopping rule, RULE, is no part of the key: points of one key may differ)
+    needed: dict[str, tuple[Any, list[Point], list[Point], dict[str, ReferenceSettings]]] = {}
     for group in groups.values():
         cfg = config_from_dict(group[0].config, source)
         scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
@@ -165,13 +179,18 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         points = [p for p in group if measure[p.hash]]
         if points:
             settings = ReferenceSettings.from_config(scene, cfg)
-            need = needed.setdefault(reference_key(scene, cfg, settings), (cfg, settings, [], []))
-            need[2].extend(points)
-            need[3].extend(p for p in points if measure[p.hash] != "again")
+            need = needed.setdefault(reference_key(scene, cfg, settings), (cfg, [], [], {}))
+            need[1].extend(points)
+            need[2].extend(p for p in points if measure[p.hash] != "again")
+            need[3].update((p.hash, settings) for p in points)  # (by point: one of a hash listed twice)
     if not pmap:
         return ["--reference: no point of this sweep runs the photon-map pass: no reference to compute"]
-    todo = []  # (key, a config of it, how many points need it, the words for them, whether cached, why computed)
-    for key, (cfg, settings, points, unmeasured) in needed.items():
+    todo = []  # (key, a config of it, how many points need it, the words for them, whether cached, why computed,
+    # the settings asked for, each point's own)
+    for key, (cfg, points, unmeasured, by_point) in needed.items():
+        asked = list(by_point.values())
+        settings = strictest(asked)  # (what meets it meets every point's own: the tolerance of each is met)
+        cfg = replace(cfg, reference=replace(cfg.reference, **{k: getattr(settings, k) for k in RULE}))
         cached = load_reference(key)
         kind = "compute" if cached is None else verdict(cached[1], settings)
         if kind == "meets" or (kind != "compute" and not unmeasured):  # (points done against the one kept: as
@@ -179,8 +198,9 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         n = len({p.hash for p in (points if kind == "compute" else unmeasured)})
         they = f"{n} point{'s' if n != 1 else ''} of the sweep need{'' if n != 1 else 's'}"
         if kind == "compute":
-            todo.append((key, cfg, n, they, cached is not None, "none cached" if cached is None else
-                         f"the cached one, {describe(cached[1], settings)}, is computed again"))
+            todo.append((key, cfg, n, they, cached is not None, ("none cached" if cached is None else
+                         f"the cached one, {describe(cached[1], settings)}, is computed again")
+                         + _asked_line(settings, asked), asked))
             continue
         meta = cached[1]
         why = (f"; reference.max_rounds {settings.max_rounds} asks for fewer rounds than it has" if kind == "fewer"
@@ -188,9 +208,10 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         measured = "they are" if n != 1 else "it is"
         say(f"sweep --reference: reference {key}, which {they}, is cached with {describe(meta, settings)}{why}, so "
             f"it is kept, not computed again, and {measured} measured against it (raise reference.max_rounds above "
-            f"{meta.get('rounds')}, or compute it again with 'tlm reference --force')")
+            f"{meta.get('rounds')}, or compute it again with 'tlm reference --force')"
+            + _asked_line(settings, asked, "judged") + _judged(meta, asked))
     lines = []
-    for i, (key, cfg, n, they, had, why) in enumerate(todo, start=1):
+    for i, (key, cfg, n, they, had, why, asked) in enumerate(todo, start=1):
         say(f"sweep --reference: computing reference {i} of {len(todo)}, {key}, which {they} ({why})")
         t0 = time.perf_counter()
         try:
@@ -206,8 +227,64 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         rse = made.meta.get("relative_standard_error")
         state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
         say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
-            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}")
+            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}"
+            + _judged(made.meta, asked))
     return lines
+
+
+def strictest(asked: list[ReferenceSettings]) -> ReferenceSettings:
+    """The settings one reference of a key is computed and judged with for points that ask for different stopping
+    rules (:data:`~tlm.experiments.reference_cache.RULE`, no part of the key): the lowest ``tolerance``, the most
+    ``min_rounds`` and the most ``max_rounds`` any of them asks for, and the ``spp`` of the first point that asks
+    for that tolerance; so a reference that meets them meets each point's own tolerance
+    (:func:`~tlm.experiments.reference_cache.meets_tolerance`), and none is computed to fewer rounds than a point
+    allows. The first point's settings where all ask alike (as ``tlm reference`` of its config computes it)."""
+    from tlm.experiments.reference_cache import RULE
+
+    return replace(asked[0], **_strictest_rule([{k: getattr(s, k) for k in RULE} for s in asked]))
+
+
+def _strictest_rule(rules: list[dict]) -> dict:
+    """Of the stopping rules ``rules`` (mappings of ``tolerance``, ``min_rounds``, ``max_rounds`` and ``spp``, as a
+    point's resolved ``reference`` holds them), what :func:`strictest` sets over the first one's: none where they
+    are alike (or a point's is not a mapping of numbers)."""
+    keys = ("tolerance", "min_rounds", "max_rounds", "spp")
+    if all({k: r.get(k) for k in keys} == {k: rules[0].get(k) for k in keys} for r in rules) or not all(
+            isinstance(r.get(k), (int, float)) for r in rules for k in keys):
+        return {}
+    tolerance = min(r["tolerance"] for r in rules)
+    return {"tolerance": tolerance, "min_rounds": max(r["min_rounds"] for r in rules),
+            "max_rounds": max(r["max_rounds"] for r in rules),
+            "spp": next(r["spp"] for r in rules if r["tolerance"] == tolerance)}
+
+
+def _asked_line(settings: ReferenceSettings, asked: list[ReferenceSettings], how: str = "computed and judged"
+                ) -> str:
+    """The words on the settings a reference is computed and judged with where its points ask for different
+    stopping rules (:func:`strictest`; ``how``: what is done by them); none where they ask alike."""
+    if all(s == asked[0] for s in asked):
+        return ""
+    tolerances = ", ".join(f"{t:g}" for t in sorted({s.tolerance for s in asked}))
+    return (f"; its points ask for different stopping rules (tolerance {tolerances}): it is {how} by "
+            f"the strictest, tolerance {settings.tolerance:g}, {settings.min_rounds} to {settings.max_rounds} rounds "
+            f"in cycles of {settings.spp}")
+
+
+def _judged(meta: dict, asked: list[ReferenceSettings]) -> str:
+    """Where a reference's points ask for different stopping rules: which of their own tolerances it meets, with
+    how many points each (each point's error records its own, ``reference_converged``); none where they ask
+    alike."""
+    from tlm.experiments.reference_cache import meets_tolerance
+
+    if all(s == asked[0] for s in asked):
+        return ""
+    counts: dict[bool, dict[float, int]] = {True: {}, False: {}}
+    for s in asked:
+        told = counts[meets_tolerance(meta, s)]
+        told[s.tolerance] = told.get(s.tolerance, 0) + 1
+    said = [f"{verb} " + " and ".join(f"{t:g} ({n} point{'s' if n != 1 else ''})" for t, n in sorted(told.items()))
+            for verb, told in (("meets", counts[True]), ("does NOT meet", counts[False])) if told]
+    return f"; against its points' own tolerances it {', and '.join(said)}"
 
 
 def _to_measure(folder: Path) -> str:
