@@ -29,10 +29,20 @@ def dask_setup(worker) -> None:
     sweep's stderr; a worker ended without its exit handlers (killed, a SIGTERM to the
     sweep's process group, or ended by the cluster's close while a point keeps it busy) could
     not unlink that semaphore, and the tracker reported it leaked after tlm's last line. A
-    worker's bars are never shown: a thread lock does (the local pool's workers: the same)."""
+    worker's bars are never shown: a thread lock does (the local pool's workers: the same).
+
+    It also imports the renderer and the sweep's point code now (:data:`~tlm.experiments.worker_start.
+    TLM_PRELOAD`, as a local pool's fork server does): the worker runs the code the sweep started with,
+    whose fingerprint its points take (``Task.own_code``), not what the checkout holds at its first point."""
+    import importlib
+
     from tqdm import tqdm
 
+    from tlm.experiments.worker_start import TLM_PRELOAD
+
     tqdm.set_lock(threading.RLock())
+    for name in TLM_PRELOAD:
+        importlib.import_module(name)
 
 
 def dask_worker_threads() -> int | None:

@@ -276,7 +276,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                      os.path.join(where, h), provenance, threads=share,
                      inputs=_inputs(by_hash[h][0].config, sweep.folder, str(sweep.path)),
                      code=provenance["code_fingerprint"] if remote else None, functional=fkeys[h],
-                     programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None)
+                     programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None,
+                     own_code=provenance["code_fingerprint"] if dask == "local" else None)
              for h in todo}
 
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)

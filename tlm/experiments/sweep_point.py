@@ -63,6 +63,8 @@ class Task:
     # its hash: the scene's content), which a remote Dask worker's own must equal
     programs: str | None = None  # the sha256 of the text of the point's arch.programs table as the sweep
     # read it (None: tlm's own table, part of the code), which a remote Dask worker's must equal
+    own_code: str | None = None  # the sweep's code fingerprint, which a worker of the sweep's own --dask local
+    # cluster takes as its own (same machine, same files: run_point), as a local pool's worker does
 
 
 def run_point(task: Task) -> dict:
@@ -70,6 +72,13 @@ def run_point(task: Task) -> dict:
 
     Returns ``{"status": "ok", "results": ...}``, or ``{"status": "failed", "error":
     ...}`` after writing ``error.json``: an exception never leaves the worker.
+
+    A worker of the sweep's own ``--dask local`` cluster (``task.own_code``) takes the sweep's code
+    fingerprint as its own first (:func:`tlm.fingerprint.use_code`), as a local pool's worker does as
+    it starts: the sweep hashed the points and keys their frames with it, and one hashed from the
+    disk at the worker's first point, after an edit of the package meanwhile, would file the frames
+    its code renders under another code's key (and miss the frame its group's first point rendered).
+    A remote worker's must equal the sweep's instead (``task.code``: :class:`OtherCodeOnWorker`).
     """
     from tlm.arch.model import simulate  # the timing layer is imported where it runs
     from tlm.experiments.run import programs_for, timing_dict
@@ -78,6 +87,10 @@ def run_point(task: Task) -> dict:
 
     stage = "functional"
     t0 = time.perf_counter()
+    if task.own_code is not None:  # (a --dask local worker: the sweep's fingerprint, not its disk's at its first point)
+        from tlm.fingerprint import use_code
+
+        use_code(task.own_code)
     where = dask_worker_where()  # (None but in a Dask worker)
     try:
         ran = worker_versions()  # (the process that runs the point: what its results.json records)
