@@ -11,8 +11,9 @@
   :class:`~tlm.errors.InputError` naming the flag and the value); :func:`human` — bytes as ``48.2M``.
 
 An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` with its sidecar
-``<key>.json`` and a photon-map frame's ``<key>.pmap.npy``; ``scenes/mesh-<key>.npz`` or
-``normals-<key>.npz``; ``references/<key>/`` and ``oracle/<key>/`` (a folder: the image and its
+``<key>.json`` and a photon-map frame's ``<key>.pmap.npy``; ``scenes/mesh-<key>.npz``,
+``normals-<key>.npz`` or a scene's remembered fingerprint ``key-<key>.json``; ``references/<key>/``
+and ``oracle/<key>/`` (a folder: the image and its
 ``meta.json``); ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be
 written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
@@ -52,7 +53,7 @@ BUSY_SECONDS = 3600  # a temporary file (or an entry without its sidecar) younge
 
 _HEX = r"[0-9a-f]{16,64}"
 _FUNCTIONAL = re.compile(rf"({_HEX})\.(npz|json|pmap\.npy)")
-_SCENES = re.compile(rf"((?:mesh|normals)-{_HEX})\.(npz|json)")
+_SCENES = re.compile(rf"((?:mesh|normals|key)-{_HEX})\.(npz|json)")
 _FOLDER_KEY = re.compile(_HEX)
 _TRACEBACK = re.compile(r"tlm-traceback-.+\.txt")
 _NUMBA = re.compile(r"(.+\.py\d+)\.(nbi|\d+\.nbc)")

@@ -22,8 +22,10 @@ prune``. A write that fails (a full disk) leaves no ``.npz`` without its sidecar
 
 A key needs the scene's content: :func:`scene_key` loads the scene once in a process and
 remembers its fingerprint while the files the load read are unchanged, so the points of a
-sweep that differ only in ``arch`` do not load it again each; a frame not in the cache is
-rendered from the scene its key loaded (:func:`cached_render`), not loaded again.
+sweep that differ only in ``arch`` do not load it again each; a scene with mesh files, on disk
+too (``scenes/key-<hash>.json``), so that another process (a rerun of a sweep whose points are
+done) parses no mesh for it; a frame not in the cache is rendered from the scene its key loaded
+(:func:`cached_render`), not loaded again.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import json
 import os
 import threading
 from collections import OrderedDict
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,7 +167,15 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
 def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str | None,
                timer: Timer | None = None) -> tuple[str, Scene | None]:
     """:func:`scene_key` with the scene it loaded, or None where it gave the remembered
-    fingerprint (a caller that renders next uses this one: the scene loaded once)."""
+    fingerprint (a caller that renders next uses this one: the scene loaded once).
+
+    A fingerprint is remembered in this process and, for a scene with mesh files (their parse is the
+    cost), on disk too (:func:`_kept_key`: ``scenes/key-<hash>.json`` in tlm's cache), under the same key
+    and checks: another process (a rerun of a sweep whose points are done, a sweep's worker) gives it
+    without loading the scene while every file the load read is as it was (each file's sha256: the
+    mesh parsed from the same bytes by the same code gives the same fingerprint), so a rerun that
+    computes nothing parses no mesh, nor writes a pruned mesh entry back. The key is the parsed
+    scene's fingerprint as ever: what is remembered is only which one those files give."""
     timer = Timer() if timer is None else timer
     path = resolve_scene_path(ref, base, source)  # (a missing scene: load_scene's own error)
     # (not ``source``: it names the config in a load's errors, and a remembered load had none)
@@ -178,10 +189,14 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
         return scene_fingerprint(scene), scene
     with _MEMO_LOCK:
         hit = _SCENE_KEYS.get(key)
+    if hit is None:
+        hit = _kept_key(key)
     if hit is not None and _unchanged(hit[1]):
         with _MEMO_LOCK:
-            if key in _SCENE_KEYS:
-                _SCENE_KEYS.move_to_end(key)
+            _SCENE_KEYS[key] = hit
+            _SCENE_KEYS.move_to_end(key)
+            while len(_SCENE_KEYS) > MEMO_SIZE:
+                _SCENE_KEYS.popitem(last=False)
         return hit[0], None
     with noting_reads() as reads, timer.stage("load_scene"):
         scene = load_scene(ref, base, resolution, source)
@@ -193,12 +208,77 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
             _SCENE_KEYS[key] = (fingerprint, checks)
             while len(_SCENE_KEYS) > MEMO_SIZE:
                 _SCENE_KEYS.popitem(last=False)
+    if checks is not None and any(c[0] in ("libraries", "listed") for c in checks):  # (a mesh parsed: the cost)
+        _keep_key(key, fingerprint, checks)
     return fingerprint, scene
 
 
+SCENE_KEY_FORMAT = "tlm-scene-key/1"  # the "tlm" field of a remembered scene fingerprint (scenes/key-<hash>.json)
+
+
+def _key_file(key: tuple) -> tuple[Path, list] | None:
+    """The file that remembers the fingerprint of the scene load ``key`` (a :func:`_scene_key` key) on disk,
+    with the key as JSON; None where the key is no JSON."""
+    try:
+        plain = json.loads(json.dumps([*key, _parse_versions()]))  # (a parse's libraries: the mesh cache's too)
+    except (TypeError, ValueError):
+        return None
+    name = hashlib.sha256(json.dumps(plain).encode()).hexdigest()[:24]
+    return cache_root("scenes") / f"key-{name}.json", plain
+
+
+@functools.cache
+def _parse_versions() -> str:
+    """The versions of the libraries a mesh's parse runs (numpy; trimesh for PLY, STL, GLB), which a
+    fingerprint remembered on disk was given by."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = []
+    for name in ("numpy", "trimesh"):
+        try:
+            out.append(f"{name}={version(name)}")
+        except PackageNotFoundError:
+            out.append(f"{name}=none")
+    return " ".join(out)
+
+
+def _kept_key(key: tuple) -> tuple[str, list] | None:
+    """The fingerprint and checks remembered on disk for ``key`` (:func:`_keep_key`), or None: none kept,
+    or one not read whole (its checks then run as a load's would: a damaged one costs a load, quietly)."""
+    found = _key_file(key)
+    if found is None:
+        return None
+    path, plain = found
+    try:
+        kept = json.loads(path.read_text())
+        if (not isinstance(kept, dict) or kept.get("tlm") != SCENE_KEY_FORMAT or kept.get("key") != plain
+                or not isinstance(kept.get("fingerprint"), str) or not isinstance(kept.get("checks"), list)
+                or not all(isinstance(c, list) and c and c[0] in _TELLS for c in kept["checks"])):
+            return None
+    except (OSError, ValueError):
+        return None
+    note_use(path)  # (tlm cache prune keeps the fingerprints in use)
+    return kept["fingerprint"], kept["checks"]
+
+
+def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
+    """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` on disk (speed only: a cache
+    that cannot be written is left as it is)."""
+    found = _key_file(key)
+    if found is None:
+        return
+    path, plain = found
+    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks}
+    with suppress(OSError, TypeError, ValueError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with write_atomic(path) as f:
+            f.write(json.dumps(body))
+
+
 def _checks(reads: list) -> list | None:
-    """For each file read that :func:`tlm.config.noting_reads` noted, what tells it now (a
-    function of no argument) and what it told then; None where one cannot be told so."""
+    """For each file read that :func:`tlm.config.noting_reads` noted, what tells it now and what it
+    told then, as JSON (``[kind, *arguments, then]``: :data:`_TELLS` tells it now); None where one
+    cannot be told so."""
     out, seen = [], set()
     try:
         for read in reads:
@@ -208,27 +288,54 @@ def _checks(reads: list) -> list | None:
             seen.add(said)
             if read[0] == "yaml":  # (its text's digest as it was parsed)
                 _, path, digest, extends = read
-                out.append((functools.partial(_text_digest, path), digest))
+                out.append(["text", path, digest])
                 if extends is not None:
-                    find = functools.partial(_found, extends, Path(path).parent, path)
-                    out.append((find, find()))
+                    found = [extends, str(Path(path).parent), path]
+                    out.append(["found", *found, _tell(["found", *found, None])])
             elif read[0] == "mesh":
                 _, path, digest, names, resolve = read
                 if digest is None:
                     return None
                 if names is not None:  # (an OBJ: its libraries found again beside it; [] for PLY, STL, GLB)
-                    files = functools.partial(_mesh_and_libraries, Path(path), names, resolve)
+                    check = ["libraries", path, names, _function_name(resolve)]
                 else:  # (a glTF's buffers: tlm.scenes.meshes.mesh_files)
-                    files = functools.partial(_listed, Path(path))
-                now = files()
-                if now[0] != (path, digest):  # (the file changed while it was loaded)
+                    check = ["listed", path]
+                now = _tell([*check, None])
+                if now[0] != _plain([path, digest]):  # (the file changed while it was loaded)
                     return None
-                out.append((files, now))
+                out.append([*check, now])
             else:
                 return None
-    except (OSError, InputError, ValueError):
+    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError):
         return None
     return out
+
+
+def _plain(value):
+    """``value`` as JSON gives it back (tuples as lists): what a check told, here and read from disk alike."""
+    return json.loads(json.dumps(value))
+
+
+def _function_name(f) -> str:
+    """``module:qualname`` of a module-level function (one that :func:`_function` finds again), else a ValueError."""
+    name = f"{f.__module__}:{f.__qualname__}"
+    if _function(name) is not f:
+        raise ValueError(f"{name} is not found by its name")
+    return name
+
+
+def _function(name: str):
+    """The function of tlm's scene loaders named ``module:qualname`` (a check read from disk calls it:
+    a name outside ``tlm.scenes`` is refused, a ValueError)."""
+    import importlib
+
+    module, _, qualname = name.partition(":")
+    if not module.startswith("tlm.scenes."):
+        raise ValueError(f"{name} is not a function of tlm's scene loaders")
+    f = importlib.import_module(module)
+    for part in qualname.split("."):
+        f = getattr(f, part)
+    return f
 
 
 def _text_digest(path: str) -> str:
@@ -248,12 +355,26 @@ def _listed(path: Path) -> list:
     return [(str(p), d) for p, d in mesh_files(path)]
 
 
+# what tells a check's file now, by the check's kind, from its arguments (a check is [kind, *arguments, then])
+_TELLS = {
+    "text": lambda path: _text_digest(path),
+    "found": lambda ref, folder, src: _found(ref, Path(folder), src),
+    "libraries": lambda path, names, resolve: _mesh_and_libraries(Path(path), names, _function(resolve)),
+    "listed": lambda path: _listed(Path(path)),
+}
+
+
+def _tell(check: list):
+    """What the file of ``check`` tells now (as JSON)."""
+    return _plain(_TELLS[check[0]](*check[1:-1]))
+
+
 def _unchanged(checks: list) -> bool:
     """Whether every file a remembered load read tells what it told then."""
     try:
-        return all(tell() == then for tell, then in checks)
-    except (OSError, InputError, ValueError):  # (a file gone or unreadable: the load says so)
-        return False
+        return all(_tell(check) == check[-1] for check in checks)
+    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError, KeyError, IndexError):
+        return False  # (a file gone or unreadable: the load says so; a check read from disk not understood)
 
 
 def is_cached(key: str) -> bool:
