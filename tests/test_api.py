@@ -272,6 +272,46 @@ def test_a_sweeps_set_checks_are_public_names_of_their_own_module():
     assert again.source == "s.yaml with --set" and again.key == e.value.key and str(again).count("s.yaml") == 1
 
 
+def test_config_paths_and_sweep_factors_moved_code_is_the_same_objects_there(tmp_path):
+    """The files a config names (tlm/config_paths.py, out of config.py) and a sweep file's factors as
+    written (tlm/experiments/sweep_factors.py, out of sweep_file.py): the same objects the old modules
+    import and call (sweep_file.py by its old private names), and doing as they did."""
+    import tlm.config as config
+    import tlm.experiments.sweep_file as sweep_file
+    from tlm.config_paths import PATH_KEYS, builtin_scenes_dir, files_from, names_scene_file, paths_from, scene_from
+    from tlm.errors import InputError
+    from tlm.experiments.sweep_factors import (
+        assign,
+        dotted_keys,
+        expand,
+        expand_both,
+        given_once,
+        keys_given,
+        value_identity,
+    )
+
+    for obj in (builtin_scenes_dir, files_from, names_scene_file, paths_from, scene_from):
+        assert getattr(config, obj.__name__) is obj, obj.__name__
+    assert config.PATH_KEYS is PATH_KEYS == ("arch.programs",)
+    for old, obj in (("_assign", assign), ("_dotted_keys", dotted_keys), ("expand", expand),
+                     ("_expand_both", expand_both), ("_given_once", given_once), ("_keys_given", keys_given),
+                     ("_same", value_identity)):
+        assert getattr(sweep_file, old) is obj, old
+    (tmp_path / "box.yaml").write_text("{}")
+    assert names_scene_file("a/box") and not names_scene_file("cornell") and (builtin_scenes_dir() / "cornell.yaml")
+    assert files_from({"scene": "box.yaml", "arch": {"programs": "t.yaml"}}, tmp_path) == {
+        "scene": str(tmp_path / "box.yaml"), "arch": {"programs": str(tmp_path / "t.yaml")}}
+    assert scene_from("cornell", [tmp_path]) == "cornell" and paths_from("seed", 1, tmp_path) == 1
+    assert assign({"render": {"spp": 4}}, "render", {"light_samples": 1}) == {"render": {"spp": 4, "light_samples": 1}}
+    assert keys_given("render", [{"spp": 1}, {}]) == ["render.spp"]
+    assert dotted_keys({"seed": [0, 1]}, "grid", "s.yaml", lists=True) == {"seed": [0, 1]}
+    assert expand({"seed": [0, 1]}, {"mode": ["rcast"]}) == [{"seed": 0, "mode": "rcast"}, {"seed": 1, "mode": "rcast"}]
+    assert expand_both({"seed": [0, 1]}, {})[1] == [(0,), (1,)] and value_identity(1) != value_identity(1.0)
+    with pytest.raises(InputError) as e:
+        given_once({"arch.fifo_depth": [1, 16, 1]}, {}, "s.yaml")
+    assert e.value.key == "grid.arch.fifo_depth" and "1 given twice" in str(e.value)
+
+
 def test_storage_and_error_cost_moved_code_is_the_same_objects_there(tmp_path):
     """Strict JSON and the rows read back (tlm/storage_json.py), the folder lock (tlm/storage_lock.py),
     both out of storage.py, and the one-off clock (tlm/experiments/error_cost_clock.py, out of

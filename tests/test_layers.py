@@ -22,7 +22,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "tlm"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.errors", "tlm.config", "tlm.builtin", "tlm.storage", "tlm.storage_json", "tlm.storage_lock",
      "tlm.fingerprint", "tlm.registry", "tlm.progress", "tlm.whole_imports", "tlm.caches", "tlm.config_words",
-     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin"),
+     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),

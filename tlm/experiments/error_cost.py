@@ -110,7 +110,8 @@ from tlm.experiments.reference_cache import (
     verdict,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import override_key, read_study, refuse_set, run_study, value_leaves, with_set
+from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
+from tlm.experiments.sweep_factors import keys_given as _keys_given
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
@@ -252,17 +253,6 @@ def empty_lines(points: Any, overrides: tuple[str, ...], source: str) -> list[st
             lines += [f"{source}: points[{i}].{k}: the value {value_text(v)} {sets_nothing('a value null', base)}"
                       for v in (values if isinstance(values, list) else [values]) if not _keys_given(str(k), [v])]
     return list(dict.fromkeys(lines))
-
-
-def _keys_given(key: str, values: list) -> list[str]:
-    """The dotted keys a grid's ``values`` for ``key`` set over the base: ``key``, or where a value is a
-    mapping given for a section, which merges into it (:func:`~tlm.config.apply_overrides`), the keys it
-    names (``estimate: [{k: 9}]`` sets ``estimate.k`` alone), as a ``--set`` of it would
-    (:func:`~tlm.experiments.study.set_leaves`)."""
-    out: dict[str, None] = {}
-    for v in values:
-        out.update(dict.fromkeys(value_leaves(key, v)))
-    return list(out)
 
 
 def _grids(points: Any) -> list[dict]:

@@ -6,14 +6,14 @@ loads the scenes and programs tables the points name: a point's key (:func:`conf
 is the hash of its resolved config, of the content of the files it names and of tlm's
 code. The checks run once per value, not once per point (:class:`_Checked`): a sweep of
 10^5 points is checked in seconds (``benchmarks/bench_sweep_validate.py``), with the keys
-and messages of the whole-config check.
+and messages of the whole-config check. The ``set``, ``grid`` and ``zip`` mappings as written, a
+value given twice and the factors' expansion: :mod:`tlm.experiments.sweep_factors`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import itertools
 import json
 import os
 from collections.abc import Iterable
@@ -42,10 +42,17 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import laid_over, sets_nothing, value_text, with_overrides
+from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
-from tlm.experiments.study import override_key, value_leaves, with_set
+from tlm.experiments.study import override_key, with_set
+from tlm.experiments.sweep_factors import assign as _assign
+from tlm.experiments.sweep_factors import dotted_keys as _dotted_keys
+from tlm.experiments.sweep_factors import expand as expand
+from tlm.experiments.sweep_factors import expand_both as _expand_both
+from tlm.experiments.sweep_factors import given_once as _given_once
+from tlm.experiments.sweep_factors import keys_given as _keys_given
+from tlm.experiments.sweep_factors import value_identity as _same
 from tlm.experiments.sweep_sets import at_default, given_by, named, refuse_factor_sets, said_once, set_leaves
 from tlm.fingerprint import code_fingerprint
 
@@ -317,65 +324,6 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work:
     return {"functional": seen["functional", work], "programs": seen["programs", table]}
 
 
-def _assign(raw: dict, key: str, value: Any) -> dict:
-    """A copy of ``raw`` with the dotted ``key`` set to ``value`` (sections created as needed); a mapping
-    given for a section merges into it, as ``tlm run --set`` merges it (:func:`~tlm.config_words.laid_over`)."""
-    out = dict(raw)
-    node = out
-    parts = key.split(".")
-    for p in parts[:-1]:
-        child = node.get(p)
-        node[p] = child = dict(child) if isinstance(child, dict) else {}
-        node = child
-    node[parts[-1]] = laid_over(node.get(parts[-1]), value, key, SECTIONS)
-    return out
-
-
-def _keys_given(key: str, values: Iterable[Any]) -> list[str]:
-    """The dotted keys that ``values``, each given for the dotted ``key`` (a ``set:`` entry's value, a
-    factor's list), set over the base: ``key`` itself, or where a value is a mapping given for a section,
-    which merges into it (:func:`_assign`), the keys it names (``render: {spp: 1}`` sets ``render.spp``
-    alone, ``render: {}`` none), as :func:`~tlm.experiments.study.set_leaves` reads a ``--set``'s."""
-    out: dict[str, None] = {}
-    for v in values:
-        out.update(dict.fromkeys(value_leaves(key, v)))
-    return list(out)
-
-
-def _dotted_keys(section: Any, name: str, src: str, lists: bool) -> dict[str, Any]:
-    if section is None:
-        return {}
-    if not isinstance(section, dict):
-        raise InputError(f"must be a mapping of dotted keys, got {section!r}", source=src, key=name)
-    for k, v in section.items():
-        if not isinstance(k, str) or not k or any(not p for p in k.split(".")):
-            raise InputError(f"{k!r} is not a dotted config key", source=src, key=name)
-        if lists:
-            if not isinstance(v, list):
-                raise InputError(f"{v!r} is not a list of values", source=src, key=f"{name}.{k}")
-            if not v:
-                raise InputError("has no values", source=src, key=f"{name}.{k}")
-    return dict(section)
-
-
-def expand(grid: dict[str, list], zipped: dict[str, list]) -> list[dict[str, Any]]:
-    """product(grid) x zip, as {dotted key: value}; the grid's first key varies slowest, zip fastest."""
-    return _expand_both(grid, zipped)[0]
-
-
-def _expand_both(grid: dict[str, list], zipped: dict[str, list]) -> tuple[list[dict[str, Any]], list[tuple]]:
-    """:func:`expand`, and beside each point the index of each factor's value in its list
-    (the grid's keys, then the zip's)."""
-    columns = list(zip(*zipped.values())) if zipped else [()]
-    factors, indices = [], []
-    for combo in itertools.product(*(range(len(v)) for v in grid.values())):
-        values = {k: grid[k][j] for k, j in zip(grid, combo)}
-        for c in range(len(columns)):
-            factors.append({**values, **dict(zip(zipped, columns[c]))})
-            indices.append(combo + (c,) * len(zipped))
-    return factors, indices
-
-
 @dataclass(frozen=True)
 class _Field:
     """One top-level field of a point's resolved config (a section, ``scene``, ``mode``, ...)."""
@@ -623,35 +571,6 @@ def _scenes_found(rows: list, src: str, folders: list[Path], per_point: bool = T
             continue
         resolve_scene_path(scene, folders[0], f"{src} (point {i})" if per_point else src, also=tuple(folders[1:]))
         done.add(scene)
-
-
-def _given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> None:
-    """An InputError for a value a grid factor lists twice (``grid.arch.fifo_depth: 1 given
-    twice``), or a set of zip values given twice: its points would be one run, run once and
-    counted twice (two rows of one hash in ``sweep.csv``, the report's count of runs)."""
-    for key, values in grid.items():
-        seen: set[str] = set()
-        for v in values:
-            if _same(v) in seen:
-                raise InputError(f"{value_text(v)} given twice", source=src, key=f"grid.{key}")
-            seen.add(_same(v))
-    if not zipped:
-        return
-    first: dict[tuple, int] = {}
-    for i, column in enumerate(zip(*zipped.values())):
-        j = first.setdefault(tuple(map(_same, column)), i)
-        if j != i:
-            if len(zipped) == 1:
-                raise InputError(f"{value_text(column[0])} given twice", source=src, key=f"zip.{next(iter(zipped))}")
-            shown = ", ".join(f"{k}={value_text(v)}" for k, v in zip(zipped, column))
-            raise InputError(f"{shown} given twice (at {j} and {i})", source=src, key="zip")
-
-
-def _same(value: Any) -> str:
-    """What a factor value is, to find one given twice: its type and canonical JSON, so that
-    ``1`` and ``1.0`` (or ``true``) are other values here (the point's check may refuse one, or
-    find them one run: :func:`_one_run_one_row`)."""
-    return f"{type(value).__name__}:{json.dumps(value, sort_keys=True, default=repr)}"
 
 
 def _resolved(config: dict, dotted: str) -> Any:
