@@ -258,6 +258,10 @@ def scene_file(path: str | Path) -> Path | None:
     if not isinstance(raw, dict) or not raw or "scene" in raw:
         return None
     if "geometry" in raw or "extends" in raw:
+        from tlm.scenes.loader import read_scene_tree
+
+        # (its keys, and its extends: chain's, checked now: a typo is its one line, before a run's note on it)
+        read_scene_tree(path.resolve(), ())
         return path.resolve()
     fields = [f.name for f in dataclasses.fields(RunConfig)]
     keys = [str(k) for k in raw]

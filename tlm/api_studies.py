@@ -41,8 +41,17 @@ def _overrides(overrides: Iterable[str] | None) -> tuple[str, ...]:
     if overrides is None:
         return ()
     if isinstance(overrides, (str, bytes, dict)) or not isinstance(overrides, Iterable):
-        raise InputError(f"{_shown(overrides)}: overrides are a list of dotted.key=value strings, as --set takes "
-                         "them", key="overrides")
+        # (the shape asked for against the one given, in the argument's own words: no --set, which
+        # argument_names would rename to overrides)
+        if isinstance(overrides, str):
+            given = f"one string: put it in a list, [{_shown(overrides)}]"
+        elif isinstance(overrides, dict):
+            given = "a mapping: one 'dotted.key=value' string per key, ['render.spp=2', ...]"
+        else:
+            name = type(overrides).__name__
+            given = f"{'an' if name[:1].lower() in 'aeiou' else 'a'} {name}"
+        raise InputError(f"{_shown(overrides)}: overrides are a list of dotted.key=value strings, not {given}",
+                         key="overrides")
     given = tuple(overrides)
     for o in given:
         if not isinstance(o, str):
@@ -114,16 +123,20 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
 @argument_names
 @imports_whole
 def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, dict], None] | None = None,
-           bar: bool = False, overrides: Iterable[str] | None = None) -> dict:
+           bar: bool = False, overrides: Iterable[str] | None = None,
+           warn: Callable[[str], None] | None = None) -> dict:
     """Tables I-III (``tlm thesis``): every scene and mode of the study file ``path`` (or the
-    built-in study of that name, ``"thesis"``) beside the thesis; returns ``rows`` and
-    ``summary``. ``progress`` gets ``(scene, mode, results)``. ``overrides``: ``dotted.key=value``
-    strings (``tlm thesis --set``) applied to the study's base (not ``scene`` nor ``mode``)."""
+    built-in study of that name, ``"thesis"``) beside the thesis; returns ``rows``, ``summary``
+    and ``warnings``. ``progress`` gets ``(scene, mode, results)``. ``overrides``: ``dotted.key=value``
+    strings (``tlm thesis --set``) applied to the study's base (not ``scene`` nor ``mode``).
+    ``warnings``: the study's warning lines, each once: a ``--set`` some cells never read, then each
+    distinct warning of the cells' ``results.json`` with the cells it is of (``tlm thesis`` prints
+    them on stderr after its table); ``warn`` gets each once the cells ran (None: nothing is printed)."""
     from tlm.experiments.thesis import run_thesis
 
     bar = _checked(bar, "bar", bool)
     return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar,
-                      overrides=_overrides(overrides))
+                      overrides=_overrides(overrides), warn=warn if warn is not None else (lambda line: None))
 
 
 @argument_names

@@ -184,14 +184,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"{flag}={value}")
         flagged[f"--{flag} {value}"] = overrides[-1]
     outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
-    if api.scene_file(args.config) is not None:
-        _say(f"{args.config} is a scene file: rendering it with the default settings "
-             f"(a config would say `scene: {args.config}`; see 'tlm params')")
     try:
         cfg = api.load_config(args.config, overrides)
     except InputError:
         blame_flag(args.config, list(args.set or []), flagged)
         raise
+    if api.scene_file(args.config) is not None:  # (a note on stderr, as the built-in experiment's, _experiment_arg;
+        # once it loaded: bad input is its one line)
+        say_err(f"{args.config} is a scene file: rendering it with the default settings "
+                f"(a config would say `scene: {args.config}`; see 'tlm params')")
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
@@ -340,8 +341,10 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
 
 
 def _cmd_params(args: argparse.Namespace) -> int:
-    for key, default, help_text in api.params():
-        print(f"{key:24s} {_yaml_text(default):>10s}  {help_text}")
+    rows = api.params()
+    wide = max((len(key) for key, _, _ in rows), default=0)  # (the longest key's width: each value in its column)
+    for key, default, help_text in rows:
+        print(f"{key:{wide}s} {_yaml_text(default):>10s}  {help_text}")
     return 0
 
 
@@ -381,6 +384,9 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"], done.get("names")))
     print(f"wrote {out}/thesis_comparison.csv")
+    sys.stdout.flush()  # (its table first, then its warnings on stderr, each once: api.thesis returns them)
+    for line in done.get("warnings") or []:
+        storage.warn(line)
     report_after(args, out, "the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene "
                   "and mode")
     return 0
@@ -432,12 +438,14 @@ def _overrides(args: argparse.Namespace) -> dict[str, list[str]]:
     return {"overrides": given} if given else {}
 
 
-def _set_option(parser: argparse.ArgumentParser, where: str) -> None:
+def _set_option(parser: argparse.ArgumentParser, where: str, example: str = "'resolution=[64, 64]'") -> None:
     """``--set KEY=VALUE`` of a command that runs configs made from a file's base (``where``: what
-    it applies to, and what it may not set), as ``tlm run --set`` reads it."""
+    it applies to, and what it may not set), as ``tlm run --set`` reads it; ``example``: a --set,
+    as typed, that the command takes with each of its built-in experiments (not a key they set
+    themselves, which it refuses: tests/test_help_docs_h188.py)."""
     parser.add_argument("--set", action="append", metavar="KEY=VALUE",
-                        help="override a parameter by dotted key, as tlm run --set does (repeated; e.g. --set "
-                        f"'resolution=[64, 64]'), in {where}")
+                        help=f"override a parameter by dotted key, as tlm run --set does (repeated; e.g. --set "
+                        f"{example}), in {where}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -507,8 +515,8 @@ def build_parser() -> argparse.ArgumentParser:
     rf = sub.add_parser("reference", help="compute and cache the converged photon-map reference of a config",
                         description="Compute and cache the converged photon-map reference of a config. Exit "
                         "status 0 when it is converged (or cached so), 1 when it stopped at reference.max_rounds "
-                        "without reaching reference.tolerance (cached all the same; the line says so), 2 for "
-                        "bad input.")
+                        "without reaching reference.tolerance (cached where it is better than a cached one, else "
+                        "the cache keeps its own; the line says which, and what to raise), 2 for bad input.")
     rf.add_argument("config", help="experiment YAML, or a built-in experiment's name: cornell_pmap")
     rf.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a parameter by dotted key")
     rf.add_argument("--force", action="store_true", help="compute again even if cached")
@@ -520,8 +528,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
-                         "measured against (computed once and cached; needs Mitsuba 3 and flip-evaluator: "
-                         "pip install -e '.[oracle]' in a checkout); 0: none")
+                         "measured against (default: %(default)s; computed once and cached; needs Mitsuba 3 and "
+                         "flip-evaluator: pip install -e '.[oracle]' in a checkout); 0: none")
     _set_option(ev, "the base config of every point (a key the points vary, or mode, is refused)")
     no_progress(ev, NO_BAR)
     no_report(ev)
@@ -554,8 +562,8 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--dry-run", action="store_true", help="fit and print, write nothing")
     no_progress(ca, NO_BAR)
     ca.set_defaults(func=_cmd_calibrate)
-    rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity "
-                        "or error-vs-cost folders")
+    rp = sub.add_parser("report", help="figures and report.html from run, sweep, thesis, scaling, granularity, "
+                        "error-vs-cost or extreme folders")
     rp.add_argument("dirs", nargs="+", metavar="DIR", help="tlm output folders, or folders of them (e.g. runs/)")
     rp.add_argument("--out", type=folder_name,
                     help="report folder (default: DIR/report; required for several folders)")
@@ -567,11 +575,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "measured one (exit 1 if any differs)")
     ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
     ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
-    _set_option(ex, "the base config merged under every case's (a key a case's config gives is refused)")
+    _set_option(ex, "the base config merged under every case's (a key a case's config gives is refused)",
+                example="render.spp=2")  # (its cases set resolution)
     no_progress(ex, NO_BAR)
     no_report(ex)
     ex.set_defaults(func=_cmd_extreme)
-    pl = sub.add_parser("plots", help="run every committed experiment (configs/) and write their report into plots/")
+    pl = sub.add_parser("plots", help="run the committed studies of configs/ (thesis, six sweeps and their eq. 5.2 "
+                        "fit, granularity, error-vs-cost, extreme) and the cornell_pmap run, not the other "
+                        "single-scene run configs, and write their report into plots/")
     pl.add_argument("--configs", help="folder of the experiment files (default: ./configs where it exists, else "
                     "the built-in experiments: 'tlm config list')")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
@@ -580,7 +591,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
-    no_progress(pl, "passed to every step (tlm thesis and tlm run draw theirs when stderr is a terminal)")
+    no_progress(pl, "passed to every step (of them tlm thesis and tlm run draw bars, when stderr is a terminal; "
+                "the sweep steps run with --no-progress always, and the report tlm plots writes draws none)")
     figure_files(pl)
     pl.set_defaults(func=_cmd_plots)
     co = sub.add_parser("config", help="list the built-in experiments (the repository's configs/, shipped with "

@@ -54,6 +54,7 @@ import json
 import math
 import re
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -85,7 +86,8 @@ from tlm.experiments.thesis_setting import (  # noqa: F401  (all but mismatches,
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
 from tlm.scenes.loader import resolve_scene_path
-from tlm.storage import warn, write_file
+from tlm.storage import SAID, write_file
+from tlm.storage import warn as _warn
 
 # Tables I-III: millions of cycles (FPS in frames per second).
 THESIS = {
@@ -361,14 +363,20 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     }
 
 
-def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, overrides: tuple[str, ...] = ()) -> dict:
+def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, overrides: tuple[str, ...] = (),
+               warn: Callable[[str], None] | None = None) -> dict:
     """Every (scene, mode) of the study: run folders, the comparison CSV and its summary.
 
     progress : called ``(scene, mode, results)`` after each cell; bar : progress bars of
     the cells, each scene's render and each simulation on stderr (only on a terminal);
     overrides : ``tlm thesis --set`` strings, applied to the study's base (:func:`load_study`),
-    which each cell's ``results.json`` (``overrides``) and ``provenance.json`` record.
+    which each cell's ``results.json`` (``overrides``) and ``provenance.json`` record;
+    warn : gets each of the study's warning lines once the cells ran (None: said on stderr,
+    ``tlm: warning: ...``): a ``--set`` some cells never read (:func:`unread_lines`, the summary's
+    ``warnings``), then each distinct warning of the cells' ``results.json`` once, with how many
+    cells and which (:func:`cell_warning_lines`). The returned ``warnings`` are those lines.
     """
+    warn = _warn if warn is None else warn
     overrides = tuple(str(o) for o in overrides)
     base, scenes, modes, folder = load_study(Path(path), overrides)
     wall: dict[str, float] = {}
@@ -378,6 +386,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     names: dict[str, str] = {}  # (each scene as the tables name it, for the summary's words too)
 
     unread: dict[str, dict[tuple[str, str], str]] = {}  # a --set some cell never reads -> its cells -> why
+    said: dict[str, list[str]] = {}  # a cell's own warning -> the cells that gave it ("thesis/ring pmap")
+    before = set(SAID)  # (a line said on stderr during the study, a cache's, is not said again after it)
 
     def names_of(scene: str) -> str:
         names.update(names or scene_names(scenes, folder, str(path)))
@@ -411,6 +421,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
                 for line in unread_overrides(sub, overrides):
                     item, _, why = line.partition(" has no effect in this run: ")
                     unread.setdefault(item, {})[(names_of(scene), mode)] = why.replace(f"mode {mode!r}", "its mode")
+                for line in results["warnings"]:  # (its own: the --set it never read are not among them)
+                    said.setdefault(" ".join(line.split()), []).append(f"{names_of(scene)} {mode}")
                 rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
                 items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
                 if _name(scene) in THESIS:
@@ -426,9 +438,33 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
                          marker="thesis_comparison.csv", finish=lambda rows, _: with_comparable(rows, differ),
                          files=summary_file, overrides=overrides)
-    for line in summary.get("warnings") or []:
+    lines = [*(summary.get("warnings") or []), *cell_warning_lines(said, len(scenes) * len(modes), SAID - before)]
+    for line in lines:
         warn(line)
-    return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path))}
+    return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path)),
+            "warnings": lines}
+
+
+def cell_warning_lines(said: dict[str, list[str]], cells: int, already: set[str] = frozenset()) -> list[str]:
+    """Each distinct warning of a study's cells (``said``: the line, as a cell's ``results.json``
+    ``warnings`` has it, -> the cells that gave it, ``"thesis/ring pmap"``; ``cells``: how many the
+    study has) once, led by the cells it is of: ``cell cornell pmap: ...``, ``2 of 12 cells
+    (thesis/ring pmap, cornell pmap): ...``, ``all 12 cells: ...``; but for those of ``already``,
+    the lines said on stderr while the cells ran (a cache that could not be written:
+    :data:`tlm.storage.SAID`), which are not said again."""
+    lines = []
+    for line, where in said.items():
+        if line in already:
+            continue
+        where = list(dict.fromkeys(where))
+        if len(where) == 1:
+            who = f"cell {where[0]}"
+        elif len(where) == cells:
+            who = f"all {cells} cells"
+        else:
+            who = f"{len(where)} of {cells} cells ({', '.join(where)})"
+        lines.append(f"{who}: {line}")
+    return lines
 
 
 def unread_lines(unread: dict[str, dict[tuple[str, str], str]], scenes: int, modes: int) -> list[str]:
