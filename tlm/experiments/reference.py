@@ -451,7 +451,7 @@ def difference_image(image: np.ndarray, reference: np.ndarray, scale: float | No
 class Made:
     """What :func:`make_reference` did: the reference ``key``, the ``settings`` asked for, the
     ``meta`` of the reference the cache holds now (rounds, standard error, converged) and the
-    ``folder`` that holds it; ``computed``: whether one was computed now (True), or the cached
+    ``folder`` that holds it, and its ``image``; ``computed``: whether one was computed now (True), or the cached
     one was returned with nothing computed (False: one that meets the tolerance, or one that
     misses it and is kept, as computing again would not better it). ``kept``: the line that
     says which one the cache holds and why, where that is not one computed now that meets the
@@ -462,8 +462,9 @@ class Made:
     settings: ReferenceSettings
     meta: dict
     computed: bool
-    folder: Path
+    folder: Path | None  # (None: computed, but kept nowhere, with ``unkept``)
     kept: str = ""
+    image: np.ndarray | None = None  # (H, W, 3) float32: the reference of ``meta``, as its reference.npy holds it
 
     @property
     def meets(self) -> bool:
@@ -474,7 +475,7 @@ class Made:
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
                    say=None, progress=None, bar: bool = False, overrides: tuple[str, ...] = (),
-                   via: str = "--set") -> Made:
+                   via: str = "--set", unkept: bool = False) -> Made:
     """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
     one when it meets ``reference.tolerance`` and ``reference.min_rounds`` as asked for now
     (:func:`meets_tolerance`, whatever tolerance it was computed for; and not ``force``), else
@@ -490,7 +491,9 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     rounds' progress bar on stderr. ``overrides``: the ``dotted.key=value`` strings ``cfg`` was made
     with (``tlm reference --set``; ``via``: how they were given, as :func:`tlm.api.load_config` names
     them): one that sets nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`)
-    is said on stderr (``tlm: warning: ...``) first, once.
+    is said on stderr (``tlm: warning: ...``) first, once. ``unkept``: one computed now that neither the cache
+    nor :func:`~tlm.experiments.reference_cache.kept_root` can take is returned all the same (``folder`` None,
+    said by a warning; a sweep holds it in its output folder for its points), not the cache's error.
     """
     from tlm.experiments.loading import load_frame
     from tlm.experiments.run_warnings import empty_sets
@@ -506,15 +509,15 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     if cached is not None:
         kind = verdict(cached[1], settings)
         if kind == "meets":
-            return Made(key, settings, cached[1], False, cache_dir() / key)
+            return Made(key, settings, cached[1], False, cache_dir() / key, image=cached[0])
         if kind == "fewer":
             say(line := kept_back(key, cached[1], settings))
-            return Made(key, settings, cached[1], False, cache_dir() / key, line)
+            return Made(key, settings, cached[1], False, cache_dir() / key, line, cached[0])
         if kind == "repeats":
             say(line := (f"reference {key} is cached with {describe(cached[1], settings)}, "
                          f"{repeats_why(cached[1], settings)}, so it is kept (raise reference.max_rounds above "
                          f"{cached[1].get('rounds')}, or use --force to compute it again)"))
-            return Made(key, settings, cached[1], False, cache_dir() / key, line)
+            return Made(key, settings, cached[1], False, cache_dir() / key, line, cached[0])
         say(f"reference {key} is cached but does not meet tolerance {settings.tolerance}: computing it again")
     frame = load_frame(cfg, scene=scene)
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
@@ -524,12 +527,12 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     try:
         stored = store_reference(key, image, meta, settings, force=force)
     except (EnvironmentFailure, OSError, InputError) as e:  # (the rounds' result is not thrown away)
-        folder = _kept_elsewhere(key, image, meta, e)  # (its meta as there, with its npy, as a cached one's)
-        return Made(key, settings, {**meta, "npy": npy_digest(image)}, True, folder)
-    line = f"{stored.line} (--force replaces it)" if not stored.replaced else ""
+        folder = _kept_elsewhere(key, image, meta, e, unkept)  # (its meta as there, with its npy, as a cached one's)
+        return Made(key, settings, {**meta, "npy": npy_digest(image)}, True, folder, image=image.astype(np.float32))
+    line = "" if stored.replaced else stored.line if stored.same else f"{stored.line} (--force replaces it)"
     if line:
         say(line)
-    return Made(key, settings, stored.meta, True, stored.folder, line)
+    return Made(key, settings, stored.meta, True, stored.folder, line, stored.image)
 
 
 def repeats_why(meta: dict, settings: ReferenceSettings) -> str:
@@ -542,15 +545,20 @@ def repeats_why(meta: dict, settings: ReferenceSettings) -> str:
     return f"{how}: computing it again would repeat the same rounds"
 
 
-def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseException) -> Path:
+def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseException, unkept: bool = False
+                    ) -> Path | None:
     """The reference ``key``, which the cache could not take (``error``), written into
     :func:`kept_root` instead, and one warning line that says so; ``error`` itself where
-    that cannot be written either."""
+    that cannot be written either (``unkept``: None, the warning saying it is kept nowhere)."""
     root = kept_root()
     try:
         folder = save_reference(key, image, meta, root / "references")
     except (EnvironmentFailure, OSError, InputError) as e:
-        warn(f"reference {key}: not kept in {root} either ({' '.join(str(e).split())})")
+        warn(f"reference {key}: not kept in {root} either ({' '.join(str(e).split())})"
+             + (f"; not cached ({' '.join(str(error).split())}): only this sweep's points are measured against it"
+                if unkept else ""))
+        if unkept:
+            return None
         raise error from None
     warn(f"reference {key}: not cached ({' '.join(str(error).split())}): kept in {folder} instead, "
          f"which later runs read with TLM_CACHE={root}")

@@ -16,16 +16,23 @@ A cache that cannot be written (a read-only ``~/.cache``) loses no reference: it
 the temporary folder (:func:`kept_root`, ``<tmp>/tlm-cache-<uid>/references/<key>``). That
 folder is made for this user alone, and one made by someone else first (a link, another
 user's folder, one others may write) is not written into (:func:`private_folder`).
+
+A sweep (``tlm sweep --reference``) holds its own copy of each reference its points are measured
+against, for the sweep's duration (:func:`holding`): a point reads it there first, so that a
+``tlm cache prune`` meanwhile, or a cache that could not take a reference the sweep computed,
+costs no point its error.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import json
 import math
 import os
 import stat
 import tempfile
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -58,15 +65,18 @@ def cache_dir() -> Path:
     return cache_root("references")
 
 
-def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = None) -> Path:
+def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = None, private: bool = True) -> Path:
     """Write ``reference.npy`` and ``meta.json`` atomically into the cache (or ``root``):
-    an :class:`~tlm.errors.EnvironmentFailure` naming why where its folder cannot be written."""
+    an :class:`~tlm.errors.EnvironmentFailure` naming why where its folder cannot be written.
+    ``private``: a ``root`` is made this user's only first (:func:`private_folder`; not for a
+    sweep's own copy in its output folder, :func:`holding`)."""
     folder = cache_dir() if root is None else Path(root)
     final = folder / key
     why = cache_problem(folder)
     if why is not None:
         raise EnvironmentFailure(f"cannot write: {why}", source=str(final))
-    if root is not None:  # (a folder outside the cache: kept_root()'s, in a temporary folder others write too)
+    if root is not None and private:  # (a folder outside the cache: kept_root()'s, in a temporary folder others write
+        # too)
         private_folder(folder, final)
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
@@ -109,8 +119,31 @@ def load_reference(key: str, root: Path | None = None, again: str = "'tlm refere
     ``meta.json`` describes, or not an image) is reported once as a warning naming the file
     and removed: it is computed again as if it had never been cached.
     """
+    if root is None and (own := (_HELD.get() or {}).get(key)) is not None:  # (a sweep's own copy, :func:`holding`)
+        found = cached_image(Path(own), "reference.npy", key, "reference", again, META_FIELDS, META_OPTIONAL)
+        if found is not None:
+            return found
     folder = (cache_dir() if root is None else Path(root)) / key
     return cached_image(folder, "reference.npy", key, "reference", again, META_FIELDS, META_OPTIONAL)
+
+
+# reference key -> the folder of the copy a sweep holds of it (:func:`holding`): this thread's, while a point runs
+_HELD: contextvars.ContextVar[Mapping[str, str] | None] = contextvars.ContextVar("tlm_held_references", default=None)
+
+
+@contextlib.contextmanager
+def holding(folders: Mapping[str, str]) -> Iterator[None]:
+    """While the block runs (in this thread), :func:`load_reference` of a key of ``folders`` (reference key ->
+    the folder of a copy of it, ``<root>/<key>``) reads that copy first, and the cache only where it is not there:
+    a sweep's point (:func:`tlm.experiments.sweep_point.run_point`) is measured against the reference the sweep
+    computed or chose for it, which the sweep holds for its duration (in its output folder, which its workers
+    see: :func:`tlm.experiments.sweep_reference.hold_references`), whatever the cache holds meanwhile (pruned,
+    cleared, or one it could not take)."""
+    token = _HELD.set({**(_HELD.get() or {}), **folders})
+    try:
+        yield
+    finally:
+        _HELD.reset(token)
 
 
 def meets_tolerance(meta: dict, settings: ReferenceSettings) -> bool:
@@ -237,6 +270,7 @@ class Stored:
     folder: Path
     replaced: bool
     line: str = ""
+    same: bool = False  # (not replaced: the cache holds the same reference.npy as the one computed now)
 
 
 def store_reference(key: str, image: np.ndarray, meta: dict, settings: ReferenceSettings,
@@ -246,13 +280,21 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
     process may have cached one meanwhile), or where none is, or with ``force``; else the
     cached one stays, and the one computed now is kept in :func:`kept_root` (as one the cache
     cannot take; not where the cache is that folder, or where that folder holds a better one)
-    or dropped, which ``line`` says. The errors of :func:`save_reference` where the cache
-    cannot take it."""
-    held = None if force else load_reference(key)
+    or dropped, which ``line`` says; one that is the same file as the cached one (its ``reference.npy``'s
+    sha256: computed at once by another process) is dropped, and ``line`` says it is the same (``same``).
+    The errors of :func:`save_reference` where the cache cannot take it."""
+    held = None if force else load_reference(key, cache_dir())  # (the cache's, not a sweep's own copy: holding)
     if held is None or better(meta, held[1], settings):  # (its meta as meta.json holds it: with the npy's sha256)
         # (the image as reference.npy holds it, float32: what a later run reads back, so measures alike)
         return Stored(image.astype(np.float32), {**meta, "npy": npy_digest(image)}, save_reference(key, image, meta),
                       True)
+    digest, npy = npy_digest(image), held[1].get("npy")
+    if isinstance(npy, dict) and npy.get("sha256") == digest["sha256"] and npy.get("size") == digest["size"]:
+        # (another process computed the same one meanwhile, of the same seeds and settings: nothing to keep)
+        return Stored(held[0], held[1], cache_dir() / key, False,
+                      f"reference {key}: the cache holds the same reference as the one computed now "
+                      f"({describe(held[1], settings)}; reference.npy sha256 {digest['sha256'][:16]}, cached "
+                      "meanwhile by another run): the one computed now is dropped", same=True)
     e_new, e_old = meta.get("relative_standard_error"), held[1].get("relative_standard_error")
     why = ("it meets the tolerance" if meets_tolerance(held[1], settings) else
            "the one computed now has no relative standard error" if e_new is None else

@@ -74,7 +74,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable, Iterable
 from contextlib import ExitStack, suppress
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -102,7 +102,14 @@ from tlm.experiments.sweep_point import (
     run_point,
     write_error,
 )
-from tlm.experiments.sweep_reference import done_record, listed, sweep_references, unmeasured_line
+from tlm.experiments.sweep_reference import (
+    done_record,
+    drop_references,
+    hold_references,
+    listed,
+    sweep_references,
+    unmeasured_line,
+)
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -216,7 +223,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     the cache lacks, or holds short of its tolerance where more rounds are allowed (as ``tlm reference``
     decides), is computed and cached (:func:`~tlm.experiments.sweep_reference.sweep_references`;
     ``say`` gets its lines, as ``tlm reference`` prints them, and ``progress`` its rounds' bar), so that
-    they are measured as after a ``tlm reference``; one that fails is a warning and its points run without
+    they are measured as after a ``tlm reference``, against a copy of it that the sweep holds in ``out`` while
+    they run (:func:`~tlm.experiments.sweep_reference.hold_references`: one the cache could not take, or pruned
+    meanwhile, measures them all the same); one that fails is a warning and its points run without
     their error."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
@@ -246,8 +255,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
     points_dir = out / "points"
+    hold: dict[str, tuple] = {}  # the references the points are measured against, which the sweep holds
     if reference:  # (before the points are read: one done without an error is measured now)
-        failed_refs = sweep_references(sweep, points_dir, say, progress)
+        failed_refs = sweep_references(sweep, points_dir, say, progress, hold)
         said += failed_refs
         for line in failed_refs if warn is not None else ():
             warn(line)
@@ -302,6 +312,13 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 for h in todo:  # a failed point's folder (or an unreadable one) is run again
                     if h in present:  # (another sweep into this folder may be replacing it)
                         shutil.rmtree(points_dir / h, ignore_errors=True)
+                if todo and hold:  # (--reference: a copy of each, the points' to read for the sweep's duration)
+                    folders, root, lines = hold_references(hold, out)
+                    held.callback(drop_references, root)
+                    said += lines
+                    for line in lines if warn is not None else ():
+                        warn(line)
+                    tasks = {h: replace(t, references=tuple(sorted(folders.items()))) for h, t in tasks.items()}
                 if pool is not None:
                     # the rows of this sweep's points done already, in place of an earlier sweep's: while
                     # it runs (and when it is cut short) the folder's rows are this sweep's only

@@ -35,6 +35,7 @@ from tlm.experiments.dask_workers import (
 )
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render
+from tlm.experiments.reference_cache import holding
 from tlm.storage import atomic_folder
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
@@ -65,6 +66,8 @@ class Task:
     # read it (None: tlm's own table, part of the code), which a remote Dask worker's must equal
     own_code: str | None = None  # the sweep's code fingerprint, which a worker of the sweep's own --dask local
     # cluster takes as its own (same machine, same files: run_point), as a local pool's worker does
+    references: tuple[tuple[str, str], ...] = ()  # (reference key, folder): the copies of the references the
+    # sweep holds in its output folder (--reference), which the point reads first (reference_cache.holding)
 
 
 def run_point(task: Task) -> dict:
@@ -103,7 +106,8 @@ def run_point(task: Task) -> dict:
         if where is not None and task.code is not None:
             _check_worker_inputs(task, cfg, folder, where)
         with _one_off_clock() as clock:  # (numba compiling or loading a kernel, first imports: the point's one-off)
-            with cache_warnings_held():  # (a cache that cannot be written: the sweep says it once)
+            # (a cache that cannot be written: the sweep says it once; the references the sweep holds: read first)
+            with cache_warnings_held(), holding(dict(task.references)):
                 got = cached_render(cfg, folder, task.source)
             t1 = time.perf_counter()
             stage = "simulate"

@@ -10,6 +10,9 @@ reference that the points to run need and the cache lacks, or holds one that mis
 per distinct value of the keys a reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm
 reference`` decides and computes it (a cached one that computing again would not better is kept, and said so;
 points that share one but ask for different tolerances or rounds: the strictest, :func:`strictest`).
+The sweep holds a copy of each reference its points are measured against in its output folder while they run
+(:func:`hold_references`, :func:`drop_references`), which they read first: a ``tlm cache prune`` meanwhile, or
+a cache that could not take one computed now, costs no point its error.
 :func:`unmeasured_line` is the sweep's warning on the points that still have no error, with the ``tlm
 reference`` command of each reference they need. The sweep that runs the points:
 :mod:`tlm.experiments.sweep`.
@@ -130,7 +133,7 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = Fa
 
 
 def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
-                     progress: bool = False) -> list[str]:
+                     progress: bool = False, hold: dict[str, tuple[Any, dict]] | None = None) -> list[str]:
     """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need,
     before the points run, so that they are measured against it (a point done before without an error, or
     against another reference, is then run again, its frame read from the cache: :func:`reference_now`),
@@ -150,7 +153,11 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     interrupt stops the sweep before any point runs: the points done before stay, and a rerun reuses the
     references cached. Returns a warning line per reference that could not be computed (its points run all
     the same, without their error, or against the cached one that misses their tolerance), or the one line
-    that no point of the sweep runs the photon-map pass."""
+    that no point of the sweep runs the photon-map pass. ``hold``: filled with the image and meta of each
+    reference the points to run are measured against, by key (the one computed now, wherever it was kept, or the
+    cached one used or kept), read or computed now: the sweep holds a copy of each for its duration
+    (:func:`hold_references`), so that a ``tlm cache prune`` meanwhile, or a cache that could not take one
+    computed now, costs no point its error."""
     from tlm.config import config_from_dict
     from tlm.errors import EnvironmentFailure
     from tlm.experiments.reference import KEY_READS, make_reference, reference_key, repeats_why
@@ -193,6 +200,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         cfg = replace(cfg, reference=replace(cfg.reference, **{k: getattr(settings, k) for k in RULE}))
         cached = load_reference(key)
         kind = "compute" if cached is None else verdict(cached[1], settings)
+        if cached is not None and hold is not None:  # (the one the points use, unless one is computed now)
+            hold[key] = cached
         if kind == "meets" or (kind != "compute" and not unmeasured):  # (points done against the one kept: as
             continue  # they were, said by their warnings)
         n = len({p.hash for p in (points if kind == "compute" else unmeasured)})
@@ -216,7 +225,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         t0 = time.perf_counter()
         try:
             made = make_reference(cfg, sweep.folder, source, say=say, bar=progress, progress=lambda k, c, e: (
-                None if math.isnan(e) else say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}")))
+                None if math.isnan(e) else say(f"  round {k:3d}  change {c:.4f}  relative standard error {e:.4f}")),
+                unkept=hold is not None)  # (one kept nowhere: held by the sweep for its points)
         except (InputError, EnvironmentFailure, OSError, MemoryError) as e:
             line = (f"sweep --reference: the photon-map reference {key} of {n} point{'s' if n != 1 else ''} "
                     f"could not be computed ({type(e).__name__}: {' '.join(str(e).split())}): "
@@ -224,12 +234,61 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
                        f"{'they run' if n != 1 else 'it runs'} without the photon-map error"))
             lines.append(line)
             continue
+        if hold is not None and made.image is not None:  # (the cache's now, or the one kept where it could not)
+            hold[key] = (made.image, made.meta)
         rse = made.meta.get("relative_standard_error")
         state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
         say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
-            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; {made.folder}"
-            + _judged(made.meta, asked))
+            f"{'n/a' if rse is None else f'{rse:.4f}'}) in {time.perf_counter() - t0:.1f} s; "
+            f"{made.folder or 'kept nowhere but for this sweep'}" + _judged(made.meta, asked))
     return lines
+
+
+HELD = ".references"  # the output folder's folder of the copies of the references a sweep holds (hold_references)
+
+
+def hold_references(hold: dict[str, tuple[Any, dict]], out: Path) -> tuple[dict[str, str], Path | None, list[str]]:
+    """Write a copy of each reference of ``hold`` (key -> image and meta, :func:`sweep_references`) into the sweep's
+    output folder ``out`` (``.references/.held.tmp-<pid>/<key>``: its own, whatever other sweeps into the folder hold;
+    one a killed sweep left is removed here, ``storage.clean_stale``), which its workers see (a remote Dask worker
+    too: it writes the point folders there), for the points to read first
+    (:func:`~tlm.experiments.reference_cache.holding`): a ``tlm cache prune`` meanwhile, or a cache that could not
+    take one computed now, costs no point its error. Returns the folders by key, the folder to remove when the sweep
+    ends (:func:`drop_references`; None: nothing written), and a warning line per reference that could not be
+    written (its points read the cache, as they did before)."""
+    from tlm import storage
+    from tlm.errors import EnvironmentFailure
+    from tlm.experiments.reference_cache import save_reference
+
+    if not hold:
+        return {}, None, []
+    parent = out / HELD
+    root = parent / f".held.tmp-{os.getpid()}"
+    folders: dict[str, str] = {}
+    lines = []
+    for key, (image, meta) in hold.items():
+        try:
+            if not folders:
+                parent.mkdir(exist_ok=True)
+                storage.clean_stale(parent, "held")  # (what killed sweeps left)
+                root.mkdir(exist_ok=True)
+            folders[key] = str(save_reference(key, image, meta, root.resolve(), private=False))
+        except (EnvironmentFailure, InputError, OSError) as e:
+            lines.append(f"sweep --reference: cannot hold a copy of reference {key} in {root} for the sweep's points "
+                         f"({' '.join(str(e).split())}): they read it from the cache, where a 'tlm cache prune' "
+                         "meanwhile removes it")
+    return folders, root, lines
+
+
+def drop_references(root: Path | None) -> None:
+    """Remove the copies :func:`hold_references` wrote (``root``), and ``.references`` where that leaves it empty."""
+    import shutil
+
+    if root is None:
+        return
+    shutil.rmtree(root, ignore_errors=True)
+    with suppress(OSError):
+        root.parent.rmdir()
 
 
 def strictest(asked: list[ReferenceSettings]) -> ReferenceSettings:
