@@ -30,7 +30,7 @@ from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.progress import interrupts_deferred
-from tlm.storage import _GUARD, _RUNNING, _host, process_tag
+from tlm.storage import _GUARD, _RUNNING, _host, naming, process_tag
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
 
@@ -49,7 +49,8 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
     (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
     cannot be from here. The last holder of an identity removes its file on the way out."""
     out = Path(out)
-    guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
+    with naming(out / _GUARD):  # (a full disk: one line naming the file, :func:`tlm.storage.naming`)
+        guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
     mine_path = out / f"{_RUNNING}{identity}"
     mine = None
     try:
@@ -58,9 +59,10 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
             for other in sorted(out.glob(f"{_RUNNING}*")):
                 if other.name != mine_path.name:
                     _claim_stale(other, what)
-            mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
-            fcntl.flock(mine, fcntl.LOCK_SH)
-            os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
+            with naming(mine_path):  # (os.pwrite's OSError names no file)
+                mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
+                fcntl.flock(mine, fcntl.LOCK_SH)
+                os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
         finally:
             fcntl.flock(guard, fcntl.LOCK_UN)
         yield
@@ -244,7 +246,7 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
                 os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
             except OSError as e:  # (a full disk: no run could be written there either)
                 _drop_claim(fd, path, made)
-                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
+                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror}: {path})",
                                          source=str(given)) from None
             return fd, path, made
         os.close(fd)

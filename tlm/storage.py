@@ -4,6 +4,9 @@
   :func:`write_file` the same for a ready ``str`` or ``bytes``; :func:`write_files` several files, all or none.
 * :func:`atomic_folder` — an output folder (a run, a sweep, a study).
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
+* :func:`naming` — a write that names no file (``os.pwrite``, a flush) named by its path when it fails (a
+  full disk: one line naming the file); :func:`appending` a file appended to, its failures so named (both
+  :mod:`tlm.storage_json`'s, imported from here too).
 * :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
   number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``; and
   :func:`read_jsonl`, rows read back (both :mod:`tlm.storage_json`'s, imported from here too).
@@ -53,7 +56,7 @@ from pathlib import Path
 from typing import IO
 
 from tlm.errors import EnvironmentFailure, InputError, environment_problem
-from tlm.storage_json import finite, json_text, read_jsonl  # noqa: F401  (read_jsonl: re-exported)
+from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
 from tlm.storage_lock import folder_lock
 
 
@@ -158,10 +161,13 @@ def claim_folder(out: Path, marker: str, data: str, existing: bool = True) -> bo
     if not out.exists():
         tmp = out.with_name(f".{out.name}.claim{process_tag()}{_thread_tag()}")
         shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir(parents=True)
-        try:
-            write_file(tmp / marker, data)
-            os.rename(tmp, out)
+        try:  # (a failure names the folder and its marker, not the prepared sibling, which is gone)
+            with naming(out):
+                tmp.mkdir(parents=True)
+            with naming(out / marker):
+                write_file(tmp / marker, data)
+            with naming(out):
+                os.rename(tmp, out)
             return True
         except OSError:
             if not out.is_dir():  # not a lost race: a real failure

@@ -1,19 +1,24 @@
-"""Strict JSON text and the JSON-lines rows read back (out of :mod:`tlm.storage`, which re-exports them).
+"""Strict JSON text, the JSON-lines rows appended and read back (out of :mod:`tlm.storage`, which re-exports them).
 
 * :func:`json_text` — the JSON text of every file tlm writes for its user: strict JSON, a
   number that is not finite (inf, nan) written as null, never as ``Infinity`` or ``NaN``;
   :func:`finite` the value it writes (:func:`tlm.storage.write_rows`'s CSV cells too).
 * :func:`read_jsonl` — the rows of a JSON-lines file the experiments append to, a last line cut
-  off by a killed process left out.
+  off by a killed process left out; :func:`appending` — such a file appended to, its failures
+  naming it (:func:`naming`: a write that names no file, ``os.pwrite`` or a flush, named by its path).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from pathlib import Path
+from typing import IO
 
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError, environment_problem
 
 
 def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
@@ -43,6 +48,59 @@ def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
             raise InputError(f"is not a JSON row{hint}", source=str(path), key=f"line {n}")
         rows.append((n, row))
     return rows
+
+
+@contextmanager
+def naming(path: Path) -> Iterator[None]:
+    """Name ``path`` in an OSError of the block: a write to a descriptor (``os.pwrite``), a buffered
+    file's flush, its flush at close, name no file. The machine's (a full disk, an I/O error: ENOSPC,
+    EIO, EDQUOT, ...) is an EnvironmentFailure, ``PATH: cannot write: no space left on device``, as
+    :func:`tlm.storage.write_atomic`'s (one already raised naming a file of ``path`` is named ``path``
+    too); any other that names no file gets ``path`` as its filename."""
+    try:
+        yield
+    except OSError as e:
+        cause = e.__cause__ if isinstance(e, EnvironmentFailure) and isinstance(e.__cause__, OSError) else e
+        what = None if isinstance(cause, EnvironmentFailure) else environment_problem(cause, filename=False)
+        if what is not None:
+            raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from cause
+        if e.filename is None and not isinstance(e, EnvironmentFailure):
+            e.filename = os.fspath(path)
+        raise
+
+
+class _Appended:
+    """:func:`appending`'s file: its writes and flushes name the file when they fail (:func:`naming`)."""
+
+    def __init__(self, fh: IO, path: Path):
+        self._fh, self._path = fh, path
+
+    def write(self, data):
+        with naming(self._path):
+            return self._fh.write(data)
+
+    def flush(self) -> None:
+        with naming(self._path):
+            self._fh.flush()
+
+
+@contextmanager
+def appending(path: Path, mode: str = "a", **open_kw) -> Iterator[_Appended]:
+    """``path`` open to append to (rows added as they come, not written whole: ``sweep.jsonl``), whose
+    open, writes, flushes and close name ``path`` when they fail (:func:`naming`): a full disk is one
+    line naming the file, never a bare ``no space left on device``. Where the block fails, its error
+    goes on, not the close's (a flush of what it had not written yet, on a full disk failing too)."""
+    path = Path(path)
+    with naming(path):
+        fh = open(path, mode, **open_kw)  # noqa: SIM115  (closed below, its failure named)
+    try:
+        yield _Appended(fh, path)
+    except BaseException:
+        with suppress(OSError):
+            fh.close()
+        raise
+    with naming(path):
+        fh.close()
 
 
 def json_text(value, **dumps_kw) -> str:

@@ -510,7 +510,7 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                            desc="sweep")
         failed = 0
         _trim_torn(out / "sweep.jsonl")
-        with open(out / "sweep.jsonl", "a") as jsonl:
+        with storage.appending(out / "sweep.jsonl") as jsonl:  # (a full disk: a line naming it, not a bare ENOSPC)
             while futures:
                 checkpoint()  # (a signal whose interrupt got lost stops the sweep here: its workers too, below)
                 if isinstance(pool, (InProcess, LocalPool)):
@@ -575,7 +575,7 @@ def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
 def _trim_torn(path: Path) -> None:
     """Cut off a last row left half written (a sweep killed while writing it), so that the
     rows appended next start on a line of their own."""
-    with suppress(FileNotFoundError), open(path, "rb+") as f:
+    with suppress(FileNotFoundError), storage.naming(path), open(path, "rb+") as f:
         data = f.read()
         if data and not data.endswith(b"\n"):
             f.truncate(data.rfind(b"\n") + 1)
