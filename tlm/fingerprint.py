@@ -63,9 +63,9 @@ def code_fingerprint() -> str:
 
 def use_code(code: str) -> None:
     """Take ``code`` as this process's :func:`code_fingerprint` from now on: a sweep's worker adopts the
-    sweep's, the code its fork server imported (:func:`tlm.experiments.executors.LocalPool`; a worker of
-    the sweep's own ``--dask local`` cluster at each point: :func:`tlm.experiments.sweep_point.run_point`),
-    rather than hash the package files as they are on the disk at its first point. A remote Dask worker
-    keeps its own, which must equal the sweep's (its points are refused otherwise, with why)."""
+    sweep's, the code its fork server imported (:func:`tlm.experiments.executors.LocalPool`), rather than
+    hash the package files as they are on the disk at its first point. A Dask worker (a remote one, or
+    one of the sweep's own ``--dask local`` cluster, a new interpreter) keeps its own, which must equal
+    the sweep's (its points are refused otherwise, with why: :mod:`tlm.experiments.sweep_point`)."""
     global _CODE
     _CODE = code

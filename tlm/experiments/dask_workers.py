@@ -32,8 +32,9 @@ def dask_setup(worker) -> None:
     worker's bars are never shown: a thread lock does (the local pool's workers: the same).
 
     It also imports the renderer and the sweep's point code now (:data:`~tlm.experiments.worker_start.
-    TLM_PRELOAD`, as a local pool's fork server does): the worker runs the code the sweep started with,
-    whose fingerprint its points take (``Task.own_code``), not what the checkout holds at its first point."""
+    TLM_PRELOAD`, as a local pool's fork server does) and hashes the package then
+    (:func:`~tlm.fingerprint.code_fingerprint`): the fingerprint of the code it imported, not of what the
+    disk holds at its first point, which its points compare with the sweep's (``Task.own_code``)."""
     import importlib
 
     from tqdm import tqdm
@@ -43,6 +44,9 @@ def dask_setup(worker) -> None:
     tqdm.set_lock(threading.RLock())
     for name in TLM_PRELOAD:
         importlib.import_module(name)
+    from tlm.fingerprint import code_fingerprint
+
+    code_fingerprint()
 
 
 def dask_worker_threads() -> int | None:

@@ -64,8 +64,8 @@ class Task:
     # its hash: the scene's content), which a remote Dask worker's own must equal
     programs: str | None = None  # the sha256 of the text of the point's arch.programs table as the sweep
     # read it (None: tlm's own table, part of the code), which a remote Dask worker's must equal
-    own_code: str | None = None  # the sweep's code fingerprint, which a worker of the sweep's own --dask local
-    # cluster takes as its own (same machine, same files: run_point), as a local pool's worker does
+    own_code: str | None = None  # the sweep's code fingerprint, which the code a worker of the sweep's own
+    # --dask local cluster imported as it started must have (run_point: else OtherCodeOnWorker)
     references: tuple[tuple[str, str], ...] = ()  # (reference key, folder): the copies of the references the
     # sweep holds in its output folder (--reference), which the point reads first (reference_cache.holding)
 
@@ -76,12 +76,13 @@ def run_point(task: Task) -> dict:
     Returns ``{"status": "ok", "results": ...}``, or ``{"status": "failed", "error":
     ...}`` after writing ``error.json``: an exception never leaves the worker.
 
-    A worker of the sweep's own ``--dask local`` cluster (``task.own_code``) takes the sweep's code
-    fingerprint as its own first (:func:`tlm.fingerprint.use_code`), as a local pool's worker does as
-    it starts: the sweep hashed the points and keys their frames with it, and one hashed from the
-    disk at the worker's first point, after an edit of the package meanwhile, would file the frames
-    its code renders under another code's key (and miss the frame its group's first point rendered).
-    A remote worker's must equal the sweep's instead (``task.code``: :class:`OtherCodeOnWorker`).
+    A worker of the sweep's own ``--dask local`` cluster (``task.own_code``) is a new interpreter that
+    imported tlm from the disk as it started (:func:`~tlm.experiments.dask_workers.dask_setup`, which
+    hashes the package then): where the package was edited after the sweep took its fingerprint, the
+    worker runs other code than the sweep hashed its points and keys with, and its points fail with
+    :class:`OtherCodeOnWorker` naming both fingerprints (filing that code's frames under the sweep's
+    key, or under another than the sweep reads, would be wrong either way), as a remote worker's do
+    (``task.code``).
     """
     from tlm.arch.model import simulate  # the timing layer is imported where it runs
     from tlm.experiments.run import programs_for, timing_dict
@@ -90,12 +91,10 @@ def run_point(task: Task) -> dict:
 
     stage = "functional"
     t0 = time.perf_counter()
-    if task.own_code is not None:  # (a --dask local worker: the sweep's fingerprint, not its disk's at its first point)
-        from tlm.fingerprint import use_code
-
-        use_code(task.own_code)
     where = dask_worker_where()  # (None but in a Dask worker)
     try:
+        if task.own_code is not None:  # (a --dask local worker: the code it imported as it started)
+            _check_own_code(task.own_code, where)
         ran = worker_versions()  # (the process that runs the point: what its results.json records)
         if where is not None:
             _check_worker_sees(task, where)
@@ -198,6 +197,18 @@ class OtherInputsOnWorker(RuntimeError):
     """A remote Dask worker reads other content than the sweep did for a point: its scene (a
     built-in scene file of its own install, a file or mesh at the sweep's path on a disk of its
     own) or its programs table."""
+
+
+def _check_own_code(code: str, where: str | None) -> None:
+    """A worker of the sweep's own ``--dask local`` cluster runs the code the sweep hashed (``code``):
+    else :class:`OtherCodeOnWorker` (the package changed on the disk after the sweep started)."""
+    from tlm.fingerprint import code_fingerprint
+
+    if code_fingerprint() != code:
+        raise OtherCodeOnWorker(
+            f"{where or 'a worker of the sweep'} runs other tlm code than the sweep (code fingerprint "
+            f"{code_fingerprint()}, the sweep's {code}): the package changed on the disk after the sweep started; "
+            "run the sweep again, and the points done keep their results")
 
 
 def _check_worker_sees(task: Task, where: str) -> None:
