@@ -17,10 +17,11 @@ the way to the timing model.
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
@@ -45,7 +46,21 @@ FORMAT = "functional/3"  # the .npz layout (unchanged by the typed classes: old 
 PassWork = RayPassWork | GatherWork
 
 __all__ = ["FORMAT", "GATHER_PASS", "LEVEL_FIELDS", "RAY_PASSES", "BuildLevelWork", "Functional", "GatherWork",
-           "PassWork", "PhotonWork", "RayPassWork", "TreeWork", "WorkArrays", "pass_work_class"]
+           "PassWork", "PhotonWork", "RayPassWork", "TreeWork", "WorkArrays", "pass_work_class", "save_npz"]
+
+NPZ_LEVEL = 1  # zlib's level for save_npz: savez_compressed's 6 takes 1.6-6x the time for 3-20% fewer bytes
+
+
+def save_npz(file: Path | BinaryIO, arrays: Mapping[str, np.ndarray], level: int = NPZ_LEVEL) -> None:
+    """``np.savez_compressed(file, **arrays)`` at zlib level ``level``: the same zip of the same
+    ``<name>.npy`` members (zip64, deflated), which ``np.load`` reads back as the same arrays
+    (dtype, shape and values), without pickles (an object array is a ValueError). ``file``: a
+    path (written as it is named, no ``.npz`` added) or a binary file open for writing."""
+    with zipfile.ZipFile(file, mode="w", compression=zipfile.ZIP_DEFLATED, compresslevel=level,
+                         allowZip64=True) as zf:
+        for name, value in arrays.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
 
 
 def _whole(v, what: str, minimum: int = 0) -> int:
@@ -228,7 +243,7 @@ class Functional:
             arrays[f"photons/{k}"] = v
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         with write_atomic(path, mode="wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            save_npz(fh, arrays)
 
     @classmethod
     def load(cls, path: Path) -> Functional:

@@ -278,47 +278,148 @@ class Trace:
         events, rest = self._document(clock_hz, modules_per_pipe)
         return {"traceEvents": list(events), **rest}
 
-    def _document(self, clock_hz: float | None, modules_per_pipe: int | None):
-        """The events of :meth:`to_json`'s document, one at a time (the rows' metadata,
-        then the slices), and its other keys."""
+    def _layout(self, clock_hz: float | None, modules_per_pipe: int | None):
+        """The rows in the document's order, each row's id there (by its id here), and the
+        microseconds of a cycle."""
         per_pipe = modules_per_pipe or self.modules_per_pipe
         order = sorted(self.rows, key=lambda scope: row_order(scope, per_pipe))
         tid_of = {self.rows[scope]: i for i, scope in enumerate(order)}
-        us = 1e6 / clock_hz if clock_hz else 1.0
+        return order, tid_of, 1e6 / clock_hz if clock_hz else 1.0
+
+    def _document(self, clock_hz: float | None, modules_per_pipe: int | None):
+        """The events of :meth:`to_json`'s document, one at a time (the rows' metadata,
+        then the slices), and its other keys."""
+        order, tid_of, us = self._layout(clock_hz, modules_per_pipe)
 
         def events():
-            for i, scope in enumerate(order):
-                yield {"name": "thread_name", "ph": "M", "pid": 0, "tid": i, "args": {"name": scope}}
-                yield {"name": "thread_sort_index", "ph": "M", "pid": 0, "tid": i, "args": {"sort_index": i}}
+            yield from _row_events(order)
             for n, s, e, tid, a in self._slices():
-                yield {"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
-                       "args": {**a, "start_cycle": s, "cycles": e - s}}
+                yield _slice_event(n, s, e, tid, a, tid_of, us)
 
         unit = "microseconds at the modelled clock" if clock_hz else "clock cycles (no clock given)"
         other = {"time_unit": unit, "clock_hz": clock_hz, "cycles_in": "args.start_cycle, args.cycles"}
         return events(), {"displayTimeUnit": "ns", "otherData": other}
 
+    def _texts(self, clock_hz: float | None):
+        """The JSON text of each event of :meth:`to_json`'s document, in its order, a list at
+        a time (the rows' metadata, then the slices 4,096 at a time): exactly
+        :func:`~tlm.storage.json_text` of each event. A slice's is spelt out here, a column
+        at a time, as ``json.dumps`` writes it (:func:`_slice_texts`): about three times
+        faster than making its dict and dumping it, and a run has tens of thousands."""
+        order, tid_of, us = self._layout(clock_hz, None)
+        yield [json_text(ev) for ev in _row_events(order)]
+        flat, size = self._flat, _CHUNK * _SLICE
+        made: dict = {}  # the texts of the names, arg keys and string args met
+        for i in range(0, len(flat), size):
+            texts = _slice_texts(flat[i:i + size], tid_of, us, made) if type(us) is float else None
+            if texts is None:  # (a slice of anything else, a numpy float clock: as json_text makes it)
+                texts = [json_text(_slice_event(*flat[j:j + 4], self._args(j), tid_of, us))
+                         for j in range(i, min(i + size, len(flat)), _SLICE)]
+            yield texts
+
     def write(self, path: Path, clock_hz: float | None = None) -> None:
         """:meth:`to_json`'s document as ``path``, the same text as ``json.dumps`` of it,
-        written event by event: the event dicts and the text are never held whole (at
-        1080p they were about 280 MiB, at the run's peak). Strict JSON (a number that is not
-        finite as null, :func:`tlm.storage.json_text`): trace viewers parse it with
-        JavaScript's ``JSON.parse``, which refuses ``Infinity`` and ``NaN``."""
-        events, rest = self._document(clock_hz, None)
+        written 4,096 events at a time (:meth:`_texts`): the event dicts and the text are
+        never held whole (at 1080p they were about 280 MiB, at the run's peak). Strict JSON
+        (a number that is not finite as null, :func:`tlm.storage.json_text`): trace viewers
+        parse it with JavaScript's ``JSON.parse``, which refuses ``Infinity`` and ``NaN``."""
+        _, rest = self._document(clock_hz, None)
         with write_atomic(path, "w") as fh:
             fh.write('{"traceEvents": [')
-            sep, chunk = "", []
-            for ev in events:
-                chunk.append(json_text(ev))
-                if len(chunk) == 4096:
-                    fh.write(sep + ", ".join(chunk))
-                    sep, chunk = ", ", []
-            if chunk:
-                fh.write(sep + ", ".join(chunk))
+            sep = ""
+            for texts in self._texts(clock_hz):
+                if texts:
+                    fh.write(sep + ", ".join(texts))
+                    sep = ", "
             fh.write("]")
             for key, value in rest.items():
                 fh.write(f", {json.dumps(key)}: {json_text(value)}")
             fh.write("}")
+
+
+_CHUNK = 4096  # the slices Trace.write spells out and writes at a time
+
+
+def _row_events(order: list[str]):
+    """The metadata events of the rows ``order``: each one's name and place."""
+    for i, scope in enumerate(order):
+        yield {"name": "thread_name", "ph": "M", "pid": 0, "tid": i, "args": {"name": scope}}
+        yield {"name": "thread_sort_index", "ph": "M", "pid": 0, "tid": i, "args": {"sort_index": i}}
+
+
+def _slice_event(n, s, e, tid, a: dict, tid_of: dict, us: float) -> dict:
+    """A slice's event: its times in microseconds, its exact cycles in its args."""
+    return {"name": n, "ph": "X", "ts": s * us, "dur": (e - s) * us, "pid": 0, "tid": tid_of[tid],
+            "args": {**a, "start_cycle": s, "cycles": e - s}}
+
+
+_NOT_FINITE = frozenset(("inf", "-inf", "nan"))  # float.__repr__ of a float json_text writes as null
+_NO_ARG = frozenset(("start_cycle", "cycles"))  # (keys the event sets: a slice's own one is json_text's to place)
+
+
+def _slice_texts(part: list, tid_of: dict, us: float, made: dict) -> list[str] | None:
+    """The JSON texts of the slices ``part`` (a run of :attr:`Trace._flat`), each exactly
+    ``json_text`` of its event, or None if any slice is not of the kinds spelt out here: a
+    name that is a str, start and end ints, args of str keys (not start_cycle or cycles) and
+    values of type str, int, float, bool or None. ``json.dumps`` writes an int as ``int.__repr__``,
+    a float as ``float.__repr__`` (json_text: null if it is not finite), a str with its
+    non-ASCII escaped. ``made`` keeps the texts of the strings met (names, keys, str args)."""
+    names, starts, ends, args = part[0::_SLICE], part[1::_SLICE], part[2::_SLICE], part[4::_SLICE]
+    if not ({*map(type, starts), *map(type, ends)} <= {int} and set(map(type, names)) <= {str}):
+        return None
+    cycles = list(map(int.__sub__, ends, starts))
+    ts = list(map(float.__repr__, map(us.__mul__, starts)))  # (s * us: the same product as us * s)
+    lasting = set(cycles)  # (a few thousand durations in tens of thousands of slices: each spelt once)
+    dur = list(map(dict(zip(lasting, map(float.__repr__, map(us.__mul__, lasting)))).__getitem__, cycles))
+    for col in (ts, dur):
+        if not _NOT_FINITE.isdisjoint(col):
+            col[:] = ["null" if t in _NOT_FINITE else t for t in col]
+    for n in set(names).difference(made):
+        made[n] = json.dumps(n)
+    arg_texts = []
+    for a, norm, ms, ps in zip(args, part[5::_SLICE], part[6::_SLICE], part[7::_SLICE], strict=True):
+        if a is None:  # a work slice not read yet: its three counts
+            if not (type(norm) is int and type(ms) is int and type(ps) is int):
+                return None
+            arg_texts.append(f'"T_norm": {norm}, "T_ms": {ms}, "T_ps": {ps}, ')
+        elif a:
+            text = _args_text(a, made)
+            if text is None:
+                return None
+            arg_texts.append(text)
+        else:
+            arg_texts.append("")
+    return [f'{{"name": {made[n]}, "ph": "X", "ts": {t}, "dur": {d}, "pid": 0, "tid": {tid_of[tid]}, '
+            f'"args": {{{a}"start_cycle": {s}, "cycles": {c}}}}}'
+            for n, t, d, tid, a, s, c in zip(names, ts, dur, part[3::_SLICE], arg_texts, starts, cycles, strict=True)]
+
+
+def _args_text(args: dict, made: dict) -> str | None:
+    """The JSON text of a slice's ``args`` before its start_cycle and cycles (each entry and a
+    comma after it), as :func:`_slice_texts` spells them; None where it does not."""
+    out = []
+    for k, v in args.items():
+        if type(k) is not str or k in _NO_ARG:
+            return None
+        key = made.get(k)
+        if key is None:
+            key = made[k] = json.dumps(k)
+        t = type(v)
+        if t is int:
+            out.append(f"{key}: {v}, ")
+        elif t is str:
+            word = made.get(v)
+            if word is None:
+                word = made[v] = json.dumps(v)
+            out.append(f"{key}: {word}, ")
+        elif t is float:
+            text = float.__repr__(v)
+            out.append(f"{key}: {'null' if text in _NOT_FINITE else text}, ")
+        elif v is None or t is bool:
+            out.append(f"{key}: {'null' if v is None else 'true' if v else 'false'}, ")
+        else:
+            return None
+    return "".join(out)
 
 
 _STALL_LOG = {cause: f"stall {cause}" for cause in STALL_CAUSES}  # a stall's log entry
