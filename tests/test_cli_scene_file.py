@@ -20,8 +20,8 @@ def test_run_a_scene_file(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(["run", str(EXAMPLE), "--out", str(out), "--set", "resolution=[32,32]", "--no-report",
                  "--no-progress"]) == 0
-    lines = capsys.readouterr().err.splitlines()
-    assert lines[0].startswith(f"tlm: {EXAMPLE} is a scene file: rendering it with the default settings")
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith(f"{EXAMPLE} is a scene file: rendering it with the default settings")
     assert f"`scene: {EXAMPLE}`" in lines[0]
     results = json.loads((out / "results.json").read_text())
     assert results["scene"]["name"] == "mesh_on_floor"
@@ -37,7 +37,7 @@ def test_run_a_scene_file_that_extends_another(tmp_path, capsys):
     scene.write_text(f"extends: {EXAMPLE}\nname: mine\nresolution: [16, 12]\n")
     assert main(["run", str(scene), "--out", str(tmp_path / "o"), "--mode", "rcast", "--outputs", "images",
                  "--no-report", "--no-progress"]) == 0
-    assert "is a scene file" in capsys.readouterr().err
+    assert "is a scene file" in capsys.readouterr().out
     results = json.loads((tmp_path / "o" / "results.json").read_text())
     assert results["scene"]["name"] == "mine" and results["scene"]["resolution"] == [16, 12]
 

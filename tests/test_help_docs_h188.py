@@ -172,11 +172,18 @@ def test_the_apis_overrides_error_names_the_shape_wanted_and_given(tmp_path, giv
     assert "takes them" not in str(e.value)
 
 
-def test_a_scene_files_note_goes_to_stderr(tmp_path, capsys):
-    """As the built-in experiment's note does (``tlm: cornell: the built-in experiment ...``); it was on stdout."""
+def test_a_scene_files_note_is_said_once_its_config_loads(tmp_path, capsys):
+    """Bad input with a scene file is its one line on stderr, and no note ahead of it on stdout (the note was said
+    before the config loaded); a good run says the note on stdout, where a run's lines go (stderr holds a warning
+    or an error alone: tests/test_stiff_inputs.py, tests/test_builder_param_keys.py)."""
     example = REPO / "scenes" / "examples" / "mesh_on_floor.yaml"
+    assert main(["run", str(example), "--out", str(tmp_path / "bad"), "--set", "render.spp=-1",
+                 "--no-report", "--no-progress"]) == 2
+    got = capsys.readouterr()
+    assert got.out == "" and got.err.count("\n") == 1 and "render.spp" in got.err, got
+    assert not (tmp_path / "bad").exists()
     assert main(["run", str(example), "--out", str(tmp_path / "run"), "--set", "resolution=[16,12]", "--mode",
                  "rcast", "--outputs", "images", "--no-report", "--no-progress"]) == 0
     got = capsys.readouterr()
-    assert "is a scene file" not in got.out
-    assert f"tlm: {example} is a scene file: rendering it with the default settings" in got.err
+    assert got.out.startswith(f"{example} is a scene file: rendering it with the default settings"), got.out
+    assert "is a scene file" not in got.err

@@ -189,10 +189,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except InputError:
         blame_flag(args.config, list(args.set or []), flagged)
         raise
-    if api.scene_file(args.config) is not None:  # (a note on stderr, as the built-in experiment's, _experiment_arg;
-        # once it loaded: bad input is its one line)
-        say_err(f"{args.config} is a scene file: rendering it with the default settings "
-                f"(a config would say `scene: {args.config}`; see 'tlm params')")
+    if api.scene_file(args.config) is not None:  # (a note on stdout, with the run's lines, once the config
+        # loaded: bad input is its one line on stderr, and a warning said before the render is stderr's first line)
+        _say(f"{args.config} is a scene file: rendering it with the default settings "
+             f"(a config would say `scene: {args.config}`; see 'tlm params')")
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)

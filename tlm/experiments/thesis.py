@@ -371,11 +371,13 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     the cells, each scene's render and each simulation on stderr (only on a terminal);
     overrides : ``tlm thesis --set`` strings, applied to the study's base (:func:`load_study`),
     which each cell's ``results.json`` (``overrides``) and ``provenance.json`` record;
-    warn : gets each of the study's warning lines once the cells ran (None: said on stderr,
-    ``tlm: warning: ...``): a ``--set`` some cells never read (:func:`unread_lines`, the summary's
-    ``warnings``), then each distinct warning of the cells' ``results.json`` once, with how many
-    cells and which (:func:`cell_warning_lines`). The returned ``warnings`` are those lines.
+    warn : gets each of the study's warning lines once the cells ran: a ``--set`` some cells never
+    read (:func:`unread_lines`, the summary's ``warnings``), then each distinct warning of the cells'
+    ``results.json`` once, with how many cells and which (:func:`cell_warning_lines`). The returned
+    ``warnings`` are those lines. None: the first kind said on stderr (``tlm: warning: ...``), the
+    cells' own only returned (a library caller's cells keep theirs; ``tlm thesis`` prints them all).
     """
+    quiet_cells = warn is None
     warn = _warn if warn is None else warn
     overrides = tuple(str(o) for o in overrides)
     base, scenes, modes, folder = load_study(Path(path), overrides)
@@ -438,8 +440,9 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
                          marker="thesis_comparison.csv", finish=lambda rows, _: with_comparable(rows, differ),
                          files=summary_file, overrides=overrides)
-    lines = [*(summary.get("warnings") or []), *cell_warning_lines(said, len(scenes) * len(modes), SAID - before)]
-    for line in lines:
+    unread_said = list(summary.get("warnings") or [])
+    lines = [*unread_said, *cell_warning_lines(said, len(scenes) * len(modes), SAID - before)]
+    for line in unread_said if quiet_cells else lines:
         warn(line)
     return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path)),
             "warnings": lines}
