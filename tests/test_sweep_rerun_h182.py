@@ -102,3 +102,33 @@ def test_a_damaged_remembered_fingerprint_is_a_load_said_nowhere(tmp_path, monke
     another_process(monkeypatch)
     again = run_sweep(path, tmp_path / "o", jobs=1)
     assert again.skipped == 4 and loads == ["key", "render", "key"]  # (kept again, whole)
+
+
+def test_an_mtl_saved_while_the_first_run_loads_the_scene_is_not_given_to_the_rerun(tmp_path, monkeypatch, loads):
+    """The user saves an edit of the MTL while the sweep loads the scene (after the parse read it): no
+    fingerprint of the material read is remembered under the new MTL's sha256, so the rerun runs every point
+    again of the new one (h194; was: every rerun skipped them all, of the old material, for ever)."""
+    import tlm.scenes.materials as materials
+
+    path = sweep(tmp_path)
+    mtl = tmp_path / "scene" / "meshes" / "CornellBox-Original.mtl"
+    real, done = materials.parse_mtl, []
+
+    def raced(*args, **kw):
+        out = real(*args, **kw)
+        if not done:
+            done.append(1)
+            mtl.write_text(mtl.read_text().replace("Kd 0.725 0.71 0.68", "Kd 0.1 0.71 0.68", 1))
+        return out
+
+    monkeypatch.setattr(materials, "parse_mtl", raced)
+    first = run_sweep(path, tmp_path / "o", jobs=1)
+    assert done and first.ok == 4
+    another_process(monkeypatch)
+    again = run_sweep(path, tmp_path / "o", jobs=1)
+    assert (again.ok, again.skipped) == (4, 0)  # (was: (0, 4))
+    assert not {r["hash"] for r in again.rows} & {r["hash"] for r in first.rows}
+    another_process(monkeypatch)
+    loaded = len(loads)
+    last = run_sweep(path, tmp_path / "o", jobs=1)  # (the new material's fingerprint: remembered)
+    assert (last.ok, last.skipped) == (0, 4) and len(loads) == loaded

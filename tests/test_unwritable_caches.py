@@ -80,8 +80,9 @@ def test_a_cache_that_cannot_be_written_is_said_once_naming_it_why_and_the_cost(
     err = capsys.readouterr().err
     said = _lines(err, "cannot write tlm's scene cache")
     assert said == [f"tlm: warning: cannot write tlm's scene cache {blocked / 'scenes'} ({blocked.parent} is a "
-                    "file, not a folder): large meshes are parsed again on every load; set TLM_CACHE to a "
-                    "writable folder"], err
+                    "file, not a folder): large meshes are parsed again on every load, and no scene's fingerprint is "
+                    "remembered: each process (a finished sweep's rerun too) parses its mesh scenes again; set "
+                    "TLM_CACHE to a writable folder"], err
     assert caches.cache_warnings()[-1] == said[0].removeprefix("tlm: warning: ")
 
 

@@ -39,7 +39,9 @@ def prune_cache(older_than: float | str | None = None, max_size: float | str | N
     ``removed`` and ``not_removed`` (with ``why``: ``used meanwhile``, read, written or replaced since the
     survey, so kept), each ``{"entry", "bytes", "last_use"}``, and the ``kept`` entries and ``kept_bytes``
     (every entry not removed: those that could not be too). ``older_than`` at most 1000 years, ``max_size``
-    1 EiB; ``caches=[]``: none, nothing removed."""
+    1 EiB; ``caches=[]``: none, nothing removed. A Ctrl-C while entries are removed raises
+    :class:`tlm.cache_admin.RemovalInterrupted` (a KeyboardInterrupt) whose ``removed`` lists those
+    already removed (each whole)."""
     if older_than is None and max_size is None:
         raise InputError("give older_than= and/or max_size= (clear_cache() removes every entry)", key="prune_cache")
     return _removed(caches, dry_run, _amount(older_than, "older_than"), _amount(max_size, "max_size"))
@@ -47,7 +49,7 @@ def prune_cache(older_than: float | str | None = None, max_size: float | str | N
 
 def clear_cache(caches: str | Iterable[str] | None = None, dry_run: bool = False) -> dict:
     """``tlm cache clear``: every entry of ``caches`` (None: all; an empty list: none) removed; returns what
-    :func:`prune_cache` does."""
+    :func:`prune_cache` does (and raises what it does on a Ctrl-C)."""
     return _removed(caches, dry_run, None, None, clear=True)
 
 

@@ -19,7 +19,8 @@ written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
 ``du``'s blocks; a folder itself counts nothing). tlm's reads refresh a file's modification time
 (:func:`tlm.caches.note_use`): a frame read, its sidecar ``<key>.json``'s; a mesh or normals entry read
-(a mesh's metadata alone too, read for the files its parse names), its ``.npz``'s; a reference or a
+(a mesh's metadata alone too, read for the files its parse names), its ``.npz``'s; a scene's remembered
+fingerprint read (a scene key given without a parse), its ``key-<key>.json``'s; a reference or a
 ground truth read, its ``meta.json``'s. numba's reads of a kernel, and a traceback read, update only the
 access time, where the file system keeps it (``relatime``, Linux's default: once a day at least;
 ``noatime``: never, and their last use is when they were written).
@@ -335,20 +336,32 @@ def remove(entries: Iterable[Entry], home: Path | None = None, unused_since: flo
     prune leaves a temporary name that the next one removes)."""
     base = cache_home() if home is None else Path(home)
     done, failed = [], []
-    for e in entries:
-        root = base / e.cache
-        if not all(_unchanged(e, f, unused_since) for f in e.files):
-            failed.append((e, USED))
-            continue
-        why = None
-        for f in sorted(e.files, key=lambda f: not f.name.endswith(_SIDECAR_FIRST)):
-            said = _remove_one(f, root, e.leftover, lambda e=e, f=f: _unchanged(e, f, unused_since))
-            if said == USED:  # (the files after it are kept: a writer's, or one a reader just used)
-                why = USED
-                break
-            why = said or why
-        (failed.append((e, why)) if why else done.append(e))
+    try:
+        for e in entries:
+            root = base / e.cache
+            if not all(_unchanged(e, f, unused_since) for f in e.files):
+                failed.append((e, USED))
+                continue
+            why = None
+            for f in sorted(e.files, key=lambda f: not f.name.endswith(_SIDECAR_FIRST)):
+                said = _remove_one(f, root, e.leftover, lambda e=e, f=f: _unchanged(e, f, unused_since))
+                if said == USED:  # (the files after it are kept: a writer's, or one a reader just used)
+                    why = USED
+                    break
+                why = said or why
+            (failed.append((e, why)) if why else done.append(e))
+    except KeyboardInterrupt as e:  # (Ctrl-C, SIGTERM: what went by then, said)
+        raise RemovalInterrupted(done) from e
     return done, failed
+
+
+class RemovalInterrupted(KeyboardInterrupt):
+    """The KeyboardInterrupt (Ctrl-C, SIGTERM) that came while :func:`remove` (:func:`prune`) removed
+    entries: ``removed``, the entries removed whole before it (``tlm cache prune`` says them)."""
+
+    def __init__(self, removed: list[Entry]) -> None:
+        super().__init__(f"removed {len(removed)} entries before the interrupt")
+        self.removed = removed
 
 
 def _unchanged(e: Entry, path: Path, unused_since: float | None) -> bool:
@@ -396,7 +409,8 @@ class Outcome:
 def prune(names: Iterable[str], older_than: float | None = None, max_size: int | None = None, *,
           clear: bool = False, dry_run: bool = False, home: Path | None = None) -> Outcome:
     """``tlm cache prune`` (``clear``: ``tlm cache clear``, every entry) of the caches ``names``: :func:`survey`,
-    :func:`choose`, and (unless ``dry_run``) :func:`remove`; a prune leaves an entry used since its survey."""
+    :func:`choose`, and (unless ``dry_run``) :func:`remove`; a prune leaves an entry used since its survey. A
+    KeyboardInterrupt during the removal is a :class:`RemovalInterrupted` naming the entries removed by then."""
     start = time.time()
     caches = survey(names, home)
     chosen = choose(caches, -math.inf if clear else older_than, None if clear else max_size, start)

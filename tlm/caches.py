@@ -51,7 +51,8 @@ CACHES = {
     # (what it holds is still read: a sweep of cached frames renders none)
     "functional": ("functional", "the frames it holds are read, but none is added: a frame not in it is rendered "
                    "again by every run and sweep point, even points that differ only in arch.*"),
-    "scenes": ("scene", "large meshes are parsed again on every load"),
+    "scenes": ("scene", "large meshes are parsed again on every load, and no scene's fingerprint is remembered: "
+               "each process (a finished sweep's rerun too) parses its mesh scenes again"),
     "references": ("reference", "photon-map references are computed again by every run"),
     "oracle": ("Mitsuba ground-truth", "ground truths are rendered again by every run"),
 }

@@ -13,8 +13,8 @@ from tlm.caches import cache_home
 from tlm.errors import InputError
 
 _LAST_USE = ("Last use: the latest access or modification time of an entry's files (tlm's read of a frame, a "
-             "mesh or normals entry, a reference or a ground truth refreshes it; numba's read of a kernel only "
-             "where the file system keeps access times)")
+             "mesh or normals entry, a scene's remembered fingerprint, a reference or a ground truth refreshes "
+             "it; numba's read of a kernel only where the file system keeps access times)")
 
 
 def _out(line: str) -> None:
@@ -96,8 +96,16 @@ def cache_command(args: argparse.Namespace) -> int:
         raise InputError("give --older-than DURATION and/or --max-size SIZE (tlm cache clear removes every entry)",
                          source="tlm cache prune")
     clear = command == "clear"
-    outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
-                       dry_run=args.dry_run)
+    try:
+        outcome = ca.prune(names, None if clear else args.older_than, None if clear else args.max_size, clear=clear,
+                           dry_run=args.dry_run)
+    except KeyboardInterrupt as e:  # (Ctrl-C, SIGTERM: still 130 / 143, its line saying what went by then: the
+        # rest of it, as tlm.cli_signals.Interrupted's ``kept``, which tlm.cli_signals.exit_status reads)
+        if not args.dry_run and getattr(e, "kept", None) is None:
+            done = e.removed if isinstance(e, ca.RemovalInterrupted) else []  # (none: before the removal began)
+            e.kept = (f"while {'clearing' if clear else 'pruning'} the cache: removed {_count(done)} "
+                      f"({ca.human(sum(x.size for x in done))}) before the interrupt")
+        raise
     used = [e for e, why in outcome.failed if why == ca.USED]
     failed = [(e, why) for e, why in outcome.failed if why != ca.USED]
     if as_json:

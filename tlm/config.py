@@ -477,7 +477,8 @@ _READS: contextvars.ContextVar[list | None] = contextvars.ContextVar("tlm_reads"
 def noting_reads():
     """Inside, :func:`read_yaml` and the mesh loads (:func:`tlm.scenes.cache.mesh`) note the
     files they read in the list this yields, each a tuple whose first item names its kind
-    (``"yaml"``, ``"mesh"``): what a memo of the load checks before it is used again
+    (``"yaml"``, ``"mesh"``; ``"side"``: a file a mesh's parse read beside it, with the sha256 of
+    the bytes the read returned): what a memo of the load checks before it is used again
     (:func:`tlm.experiments.frames.render_key`). A scope inside another notes into its own
     list and the outer's."""
     outer = _READS.get()

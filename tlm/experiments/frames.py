@@ -52,6 +52,7 @@ from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings
+from tlm.scenes.cache import read_as
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
@@ -156,7 +157,8 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
     every file the load read (:func:`tlm.config.noting_reads`): the scene file and its
     ``extends:`` chain by the sha256 of their text and the file each ``extends:`` finds now,
     each mesh file with the files its load read beside it (an OBJ's material libraries, as the
-    load finds them now; a glTF's buffers) by their sha256. A remembered fingerprint is given
+    load finds them now; a glTF's buffers) by their sha256, which must be that of the bytes the
+    parse read (a load during which one was saved is not remembered). A remembered fingerprint is given
     again only while all of them are as they were, so a file edited between two sweeps of one
     process (even to the same size and modification time) is read again. A load that read a
     file it cannot check this way is not remembered. Only the fingerprint (a string) is kept,
@@ -278,7 +280,9 @@ def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
 def _checks(reads: list) -> list | None:
     """For each file read that :func:`tlm.config.noting_reads` noted, what tells it now and what it
     told then, as JSON (``[kind, *arguments, then]``: :data:`_TELLS` tells it now); None where one
-    cannot be told so."""
+    cannot be told so, or where a mesh's file or one its parse read beside it (an OBJ's material
+    library, a glTF's buffer) tells now other bytes than the parse read (saved while the scene loaded:
+    what it tells now is not what the fingerprint was parsed from; :func:`tlm.scenes.cache.read_as`)."""
     out, seen = [], set()
     try:
         for read in reads:
@@ -286,6 +290,8 @@ def _checks(reads: list) -> list | None:
             if said in seen:
                 continue
             seen.add(said)
+            if read[0] == "side":  # (a file a mesh's parse read beside it: checked with its mesh's, below)
+                continue
             if read[0] == "yaml":  # (its text's digest as it was parsed)
                 _, path, digest, extends = read
                 out.append(["text", path, digest])
@@ -303,10 +309,12 @@ def _checks(reads: list) -> list | None:
                 now = _tell([*check, None])
                 if now[0] != _plain([path, digest]):  # (the file changed while it was loaded)
                     return None
+                if not read_as([(p, d["sha256"]) for p, d in now[1:]], reads):  # (its libraries, buffers: too)
+                    return None
                 out.append([*check, now])
             else:
                 return None
-    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError):
+    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError, KeyError, IndexError):
         return None
     return out
 

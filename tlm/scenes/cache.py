@@ -13,7 +13,8 @@ measures both ways). Both results are kept in ``scenes/`` of tlm's cache folder
   of the mesh file. The entry keeps the file's notes and a glTF's imported point, spot and
   directional lights and camera (``Geometry.imports``, read back as the file's they are read for), and what names
   the other files the parse read (an OBJ's ``mtllib`` statements) and those files' paths
-  and sha256: before an entry is used, the
+  and sha256 (of the bytes the parse read: none is written where a file was saved while it
+  was parsed, :func:`read_as`): before an entry is used, the
   lookup of those files runs again beside this mesh (so a library that appeared where the
   lookup looks first, or one that changed or went missing, means a new parse). A file
   whose parse can read files the lookup cannot name (any ``.gltf``, a ``.glb`` with
@@ -46,13 +47,13 @@ from pathlib import Path
 import numpy as np
 
 from tlm.caches import cache_root, digest_problem, file_digest, note_use, remove_entry
-from tlm.config import note_read
+from tlm.config import note_read, noting_reads
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
 from tlm.storage import warn, write_atomic
 
-__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files"]
+__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files", "read_as"]
 
 FORMAT = "tlm-scene-cache/3"  # /2: one file an entry (its metadata inside); /3: imported lights of every kind
 MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) again: it is quicker
@@ -112,9 +113,12 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
     entry = _mesh_entry(path, digest)
     if entry.exists():
         got = _read(entry)
-        if got is not None and _libraries_unchanged(path, got[1], resolve):
+        libraries = None if got is None else _libraries_unchanged(path, got[1], resolve)
+        if libraries is not None:
             geom = _geometry(entry, *got, path=path)
             if geom is not None:
+                for p, sha in libraries:  # (the bytes the entry was parsed from, just checked: "read" as they were)
+                    note_read(("side", str(p), sha))
                 note_read(("mesh", str(path), digest, got[1].get("names"), resolve))
                 return geom
     geom, names = _kept(path, parse, resolve, digest, entry)
@@ -123,14 +127,19 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
 
 
 def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path) -> tuple[Geometry, list | None]:
-    """``parse(path)``, kept as the entry ``entry`` when it is large enough and names its other files."""
-    geom, names = parse(path)
+    """``parse(path)``, kept as the entry ``entry`` when it is large enough and names its other files, and
+    each file is still what the parse read (the mesh file the bytes of ``digest``, taken before it; its
+    other files the bytes their reads returned, :func:`read_as`): a file saved while it was parsed leaves
+    no entry that holds the old parse under the new file's digest."""
+    with noting_reads() as reads:  # (a scope of its own: the outer one, a scene load's, notes them too)
+        geom, names = parse(path)
     if names is None or geom.triangles.shape[0] < MIN_TRIANGLES:
         return geom, names
     try:
-        deps = [{"path": os.path.relpath(p, path.parent), **file_digest(Path(p))} for p in resolve(path, names)]
-        if file_digest(path) != digest:
-            return geom, names  # (the file changed while it was parsed: not kept under its old digest)
+        files = [(Path(p), file_digest(Path(p))) for p in resolve(path, names)]
+        if file_digest(path) != digest or not read_as([(p, d["sha256"]) for p, d in files], reads):
+            return geom, names  # (a file changed while it was parsed: not kept under its new digest)
+        deps = [{"path": os.path.relpath(p, path.parent), **d} for p, d in files]
     except (OSError, InputError):
         return geom, names
     arrays = {"triangles": geom.triangles, "part": geom.part}
@@ -243,17 +252,34 @@ def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
     return arrays, meta
 
 
-def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> bool:
-    """Whether the lookup of the entry's other files beside ``path`` finds the same paths,
-    and each is the file it was."""
+def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> list[tuple[Path, str]] | None:
+    """Where the lookup of the entry's other files beside ``path`` finds the same paths, and each
+    is the file it was: those files, each with the sha256 of the bytes the entry was parsed from;
+    else None."""
     deps = meta.get("deps")
     try:
-        now = [os.path.relpath(p, path.parent) for p in resolve(path, meta.get("names") or [])]
+        found = [Path(p) for p in resolve(path, meta.get("names") or [])]
+        now = [os.path.relpath(p, path.parent) for p in found]
     except (InputError, OSError, TypeError, ValueError):
-        return False  # (a library missing now: the parse says so)
+        return None  # (a library missing now: the parse says so)
     if not isinstance(deps, list) or now != [d.get("path") if isinstance(d, dict) else None for d in deps]:
-        return False
-    return all(digest_problem(path.parent / d["path"], d) is None for d in deps)
+        return None
+    if not all(digest_problem(path.parent / d["path"], d) is None for d in deps):
+        return None
+    return [(p, d["sha256"]) for p, d in zip(found, deps, strict=True)]
+
+
+def read_as(files: list[tuple[Path | str, str]], reads: list) -> bool:
+    """Whether each of ``files`` (a path and a sha256: what it holds now) is what the parse that noted
+    ``reads`` (:func:`tlm.config.noting_reads`) read of it: its reads (``("side", path, sha256 of the
+    bytes read)``, :func:`tlm.scenes.objfile.read_bytes`, a glTF's resolver) returned those bytes, every
+    one (a file by its real path). False for a file whose read was not noted, or that two reads found
+    different: a file saved while the parse ran is not taken for the one it read."""
+    got: dict[str, set] = {}
+    for read in reads:
+        if read[0] == "side":
+            got.setdefault(os.path.realpath(read[1]), set()).add(read[2])
+    return all(got.get(os.path.realpath(p)) == {sha} for p, sha in files)
 
 
 _HERE = "{mesh}"  # a cached line's place for the path of the file it was read for

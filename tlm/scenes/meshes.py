@@ -44,6 +44,7 @@ loading runs under ``warnings.catch_warnings`` and ``np.errstate``. Every proble
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 import warnings
@@ -319,7 +320,8 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
     library: dict[str, Material] = {}
     files = _libraries(path, obj.mtllibs)  # (the lookup the scene cache reruns: tlm.scenes.cache)
     for mtl in files:
-        for m in parse_mtl(read_bytes(mtl).decode("utf-8", "replace"), str(mtl)):
+        # (its read noted with the bytes' sha256: what a memo of the parse checks the library by)
+        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl)):
             library.setdefault(m.name, m)
     materials = tuple(library.values())
     index = {m.name: i for i, m in enumerate(materials)}
@@ -460,8 +462,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
                     import json
 
                     source = io.BytesIO(json.dumps(header).encode())
-                    kwargs["resolver"] = trimesh.resolvers.FilePathResolver(str(path))
+                    kwargs["resolver"] = _noting_resolver(str(path))
                 kwargs["file_type"] = ext[1:]
+    if ext in (".glb", ".gltf") and isinstance(source, str):  # (trimesh's own resolver of the file, noting)
+        kwargs["resolver"] = _noting_resolver(str(path))
     try:
         loaded = trimesh.load(source, force=None, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything from ValueError to IndexError
@@ -557,6 +561,45 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         notes=notes,
         imports=() if imported is None else (imported,),
     )
+
+
+def _noting_resolver(path: str):
+    """trimesh's resolver of the files beside ``path`` (``FilePathResolver``, as trimesh makes one for a
+    file it loads) that notes each file it reads inside :func:`tlm.config.noting_reads`:
+    ``("side", the file, sha256 of the bytes it returned)`` (a glTF's buffers: what the parse read,
+    which what remembers the parse checks them by, :func:`tlm.scenes.cache.read_as`)."""
+    return _noting_resolver_class()(path)
+
+
+@functools.cache
+def _noting_resolver_class():
+    import hashlib
+    import os
+
+    from trimesh.resolvers import FilePathResolver
+
+    from tlm.config import note_read
+
+    class NotingResolver(FilePathResolver):
+        def get(self, name: str):
+            data = super().get(name)
+            # (the file read: the first of the names FilePathResolver.get tries that is there; trimesh 4 has
+            # no ``absolute``, and joins the name to the folder)
+            absolute = getattr(self, "absolute", None) or (lambda n: Path(self.parent) / n)
+            try:
+                for candidate in (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1]):
+                    try:
+                        file = absolute(candidate)
+                    except ValueError:
+                        continue
+                    if file.exists():
+                        note_read(("side", str(file), hashlib.sha256(data).hexdigest()))
+                        break
+            except (AttributeError, OSError, TypeError):
+                pass  # (not noted: a memo of the parse finds this file's read missing, and remembers nothing)
+            return data
+
+    return NotingResolver
 
 
 def _gltf_index(geom, n_materials: int) -> int:

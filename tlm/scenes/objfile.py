@@ -31,12 +31,14 @@ from __future__ import annotations
 import bz2
 import functools
 import gzip
+import hashlib
 import lzma
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from tlm.config import note_read
 from tlm.errors import InputError
 
 __all__ = ["COMPRESSED_SUFFIXES", "ObjData", "colour_notes", "parse_obj", "read_bytes", "read_obj", "unit_as_written",
@@ -83,13 +85,19 @@ class ObjData:
     colour_lines: tuple[int, int] = (0, 0)  # (how many v lines give a colour, the first one's number)
 
 
-def read_bytes(path: Path) -> bytes:
-    """The file's bytes, decompressed when its suffix is ``.gz``, ``.xz`` or ``.bz2``."""
+def read_bytes(path: Path, side: bool = False) -> bytes:
+    """The file's bytes, decompressed when its suffix is ``.gz``, ``.xz`` or ``.bz2``. ``side``: a file
+    a mesh's parse reads beside the mesh (an OBJ's material library), whose read is noted inside
+    :func:`tlm.config.noting_reads` as ``("side", path, sha256 of the bytes read)``: what the parse
+    read, which what remembers the parse checks the file by (not its digest taken after the parse,
+    which an edit saved meanwhile changes: :func:`tlm.scenes.cache.read_as`)."""
     path = Path(path)
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read the file ({exc.strerror or exc})", source=str(path)) from None
+    if side:
+        note_read(("side", str(path), hashlib.sha256(data).hexdigest()))
     unzip = COMPRESSED_SUFFIXES.get(path.suffix.lower())
     if unzip is not None:
         try:
