@@ -103,8 +103,11 @@ from tlm.experiments.sweep_point import (
     write_error,
 )
 from tlm.experiments.sweep_reference import (
+    Held,
+    clean_held,
     done_record,
     drop_references,
+    held_root,
     hold_references,
     listed,
     sweep_references,
@@ -225,7 +228,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     ``say`` gets its lines, as ``tlm reference`` prints them, and ``progress`` its rounds' bar), so that
     they are measured as after a ``tlm reference``, against a copy of it that the sweep holds in ``out`` while
     they run (:func:`~tlm.experiments.sweep_reference.hold_references`: one the cache could not take, or pruned
-    meanwhile, measures them all the same); one that fails is a warning and its points run without
+    meanwhile, measures them all the same; what a killed sweep left there, every sweep into ``out`` removes,
+    :func:`~tlm.experiments.sweep_reference.clean_held`); one that fails is a warning and its points run without
     their error."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
@@ -255,7 +259,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
     points_dir = out / "points"
-    hold: dict[str, tuple] = {}  # the references the points are measured against, which the sweep holds
+    hold: dict[str, Held] = {}  # the references the points are measured against, which the sweep holds
     if reference:  # (before the points are read: one done without an error is measured now)
         failed_refs = sweep_references(sweep, points_dir, say, progress, hold)
         said += failed_refs
@@ -308,13 +312,15 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                     storage.write_file(out / MARKER, marker)
                 points_dir.mkdir(parents=True, exist_ok=True)
                 _clean_stale(points_dir)
+                clean_held(out)  # (the copies of references that killed sweeps left: --reference or not)
                 present = listed(points_dir)
                 for h in todo:  # a failed point's folder (or an unreadable one) is run again
                     if h in present:  # (another sweep into this folder may be replacing it)
                         shutil.rmtree(points_dir / h, ignore_errors=True)
-                if todo and hold:  # (--reference: a copy of each, the points' to read for the sweep's duration)
-                    folders, root, lines = hold_references(hold, out)
+                if hold:  # (--reference: a copy of each its points to run need, for them to read while they run)
+                    root = held_root(out)  # (named, and its removal registered, before anything is written there)
                     held.callback(drop_references, root)
+                    folders, lines = hold_references(hold, root, todo)  # (hold emptied: no image kept in memory)
                     said += lines
                     for line in lines if warn is not None else ():
                         warn(line)

@@ -10,9 +10,10 @@ reference that the points to run need and the cache lacks, or holds one that mis
 per distinct value of the keys a reference reads, :data:`~tlm.experiments.reference.KEY_READS`), as ``tlm
 reference`` decides and computes it (a cached one that computing again would not better is kept, and said so;
 points that share one but ask for different tolerances or rounds: the strictest, :func:`strictest`).
-The sweep holds a copy of each reference its points are measured against in its output folder while they run
-(:func:`hold_references`, :func:`drop_references`), which they read first: a ``tlm cache prune`` meanwhile, or
-a cache that could not take one computed now, costs no point its error.
+The sweep holds a copy of each reference its points to run are measured against in its output folder while they
+run (:func:`held_root`, :func:`hold_references`, :func:`drop_references`), which they read first: a ``tlm cache
+prune`` meanwhile, or a cache that could not take one computed now, costs no point its error; what a killed sweep
+left there, every sweep into the folder removes (:func:`clean_held`).
 :func:`unmeasured_line` is the sweep's warning on the points that still have no error, with the ``tlm
 reference`` command of each reference they need. The sweep that runs the points:
 :mod:`tlm.experiments.sweep`.
@@ -24,9 +25,9 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from contextlib import suppress
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -132,8 +133,21 @@ def unmeasured_line(sweep, records: dict[str, dict], out: Path, asked: bool = Fa
             + ("" if asked else f" ('tlm sweep --reference' computes {them} before the points, and measures {it})")]
 
 
+@dataclass
+class Held:
+    """A reference the sweep holds a copy of for its points (:func:`sweep_references` fills them,
+    :func:`hold_references` writes them): its ``image`` and ``meta``, the hashes of the sweep's ``points``
+    measured against it, and the ``folder`` where it is kept (the cache's, ``<tmp>/tlm-cache-<uid>``'s, or None:
+    kept nowhere but by the sweep)."""
+
+    image: Any
+    meta: dict
+    points: frozenset[str]
+    folder: Path | None
+
+
 def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
-                     progress: bool = False, hold: dict[str, tuple[Any, dict]] | None = None) -> list[str]:
+                     progress: bool = False, hold: dict[str, Held] | None = None) -> list[str]:
     """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need,
     before the points run, so that they are measured against it (a point done before without an error, or
     against another reference, is then run again, its frame read from the cache: :func:`reference_now`),
@@ -153,15 +167,15 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     interrupt stops the sweep before any point runs: the points done before stay, and a rerun reuses the
     references cached. Returns a warning line per reference that could not be computed (its points run all
     the same, without their error, or against the cached one that misses their tolerance), or the one line
-    that no point of the sweep runs the photon-map pass. ``hold``: filled with the image and meta of each
-    reference the points to run are measured against, by key (the one computed now, wherever it was kept, or the
-    cached one used or kept), read or computed now: the sweep holds a copy of each for its duration
-    (:func:`hold_references`), so that a ``tlm cache prune`` meanwhile, or a cache that could not take one
-    computed now, costs no point its error."""
+    that no point of the sweep runs the photon-map pass. ``hold``: filled with each reference (a :class:`Held`)
+    that points to measure are measured against, by key (the one computed now, wherever it was kept, or the cached
+    one used or kept), read or computed now, with all the points of its key: the sweep holds a copy of those its
+    points to run need for its duration (:func:`hold_references`), so that a ``tlm cache prune`` meanwhile, or a
+    cache that could not take one computed now, costs no point its error."""
     from tlm.config import config_from_dict
     from tlm.errors import EnvironmentFailure
     from tlm.experiments.reference import KEY_READS, make_reference, reference_key, repeats_why
-    from tlm.experiments.reference_cache import RULE, ReferenceSettings, describe, load_reference, verdict
+    from tlm.experiments.reference_cache import RULE, ReferenceSettings, cache_dir, describe, load_reference, verdict
     from tlm.render.planner import plan
     from tlm.scenes.loader import load_scene
 
@@ -176,17 +190,20 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     # reference key -> a config of it, the points that need it, those of them not measured yet, and the
     # settings each of them asks for (its stopping rule, RULE, is no part of the key: points of one key may differ)
     needed: dict[str, tuple[Any, list[Point], list[Point], dict[str, ReferenceSettings]]] = {}
+    every: dict[str, set[str]] = {}  # reference key -> the hashes of all its points (done or not: Held.points)
     for group in groups.values():
         cfg = config_from_dict(group[0].config, source)
         scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
         if "pmap" not in plan(scene, cfg).run_names:
             continue
         pmap = True
+        settings = ReferenceSettings.from_config(scene, cfg)
+        key = reference_key(scene, cfg, settings)
+        every.setdefault(key, set()).update(p.hash for p in group)
         measure = {p.hash: _to_measure(points_dir / p.hash) if p.hash in present else "run" for p in group}
         points = [p for p in group if measure[p.hash]]
         if points:
-            settings = ReferenceSettings.from_config(scene, cfg)
-            need = needed.setdefault(reference_key(scene, cfg, settings), (cfg, [], [], {}))
+            need = needed.setdefault(key, (cfg, [], [], {}))
             need[1].extend(points)
             need[2].extend(p for p in points if measure[p.hash] != "again")
             need[3].update((p.hash, settings) for p in points)  # (by point: one of a hash listed twice)
@@ -201,7 +218,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
         cached = load_reference(key)
         kind = "compute" if cached is None else verdict(cached[1], settings)
         if cached is not None and hold is not None:  # (the one the points use, unless one is computed now)
-            hold[key] = cached
+            hold[key] = Held(cached[0], cached[1], frozenset(every[key]), cache_dir() / key)
         if kind == "meets" or (kind != "compute" and not unmeasured):  # (points done against the one kept: as
             continue  # they were, said by their warnings)
         n = len({p.hash for p in (points if kind == "compute" else unmeasured)})
@@ -220,6 +237,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
             f"{meta.get('rounds')}, or compute it again with 'tlm reference --force')"
             + _asked_line(settings, asked, "judged") + _judged(meta, asked))
     lines = []
+    cached = None  # (the last one read: hold's alone, where it is held, freed once written: hold_references)
     for i, (key, cfg, n, they, had, why, asked) in enumerate(todo, start=1):
         say(f"sweep --reference: computing reference {i} of {len(todo)}, {key}, which {they} ({why})")
         t0 = time.perf_counter()
@@ -235,7 +253,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
             lines.append(line)
             continue
         if hold is not None and made.image is not None:  # (the cache's now, or the one kept where it could not)
-            hold[key] = (made.image, made.meta)
+            hold[key] = Held(made.image, made.meta, frozenset(every[key]), made.folder)
         rse = made.meta.get("relative_standard_error")
         state = "converged" if made.meets else "NOT converged (reference.max_rounds reached)"
         say(f"reference {key}: {state} after {made.meta.get('rounds')} rounds (relative standard error "
@@ -247,46 +265,99 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
 HELD = ".references"  # the output folder's folder of the copies of the references a sweep holds (hold_references)
 
 
-def hold_references(hold: dict[str, tuple[Any, dict]], out: Path) -> tuple[dict[str, str], Path | None, list[str]]:
-    """Write a copy of each reference of ``hold`` (key -> image and meta, :func:`sweep_references`) into the sweep's
-    output folder ``out`` (``.references/.held.tmp-<pid>/<key>``: its own, whatever other sweeps into the folder hold;
-    one a killed sweep left is removed here, ``storage.clean_stale``), which its workers see (a remote Dask worker
-    too: it writes the point folders there), for the points to read first
-    (:func:`~tlm.experiments.reference_cache.holding`): a ``tlm cache prune`` meanwhile, or a cache that could not
-    take one computed now, costs no point its error. Returns the folders by key, the folder to remove when the sweep
-    ends (:func:`drop_references`; None: nothing written), and a warning line per reference that could not be
-    written (its points read the cache, as they did before)."""
+def clean_held(out: Path) -> None:
+    """Remove from the sweep folder ``out`` the copies of references (:func:`hold_references`) that sweeps of this
+    machine now gone left (killed: they could not remove their own; ``storage.clean_stale``: another machine's, a
+    live process's and this process's other sweeps' are kept), and ``.references`` where that leaves it empty: every
+    sweep into the folder does so once it has claimed it, ``--reference`` or not."""
     from tlm import storage
+
+    parent = out / HELD
+    storage.clean_stale(parent, "held")
+    with suppress(OSError):
+        parent.rmdir()
+
+
+def held_root(out: Path) -> Path:
+    """The folder of the copies this sweep holds in its output folder ``out``:
+    ``.references/.held.tmp-<host>-<pid>-<n>`` (``storage``'s writer's name: no other sweep's, of another machine
+    sharing the folder or of this process, and one :func:`clean_held` never takes for a killed sweep's), noted as in
+    use from now until :func:`drop_references`; nothing is written yet (:func:`hold_references`), so that its
+    removal can be registered first."""
+    from tlm import storage
+
+    root = Path(os.path.abspath(out / HELD)) / f".held.tmp-{storage._writer()}"
+    storage._hold(root.name)  # (before it exists: no clean_stale of another thread's may take it for a leftover)
+    return root
+
+
+def hold_references(hold: dict[str, Held], root: Path, todo: Iterable[str]) -> tuple[dict[str, str], list[str]]:
+    """Write a copy of each reference of ``hold`` (key -> :class:`Held`, :func:`sweep_references`) that a point of
+    ``todo`` (the hashes of the points to run) is measured against into ``root`` (:func:`held_root`, in the sweep's
+    output folder), which its workers see (a remote Dask worker too: it writes the point folders there), for the
+    points to read first (:func:`~tlm.experiments.reference_cache.holding`): a ``tlm cache prune`` meanwhile, or a
+    cache that could not take one computed now, costs no point its error. ``hold`` is emptied as it goes (the images
+    are not kept in memory for the sweep's duration, nor those no point to run needs). Returns the folders by key and
+    a warning line per reference that could not be written, saying what its points read instead."""
     from tlm.errors import EnvironmentFailure
     from tlm.experiments.reference_cache import save_reference
 
-    if not hold:
-        return {}, None, []
-    parent = out / HELD
-    root = parent / f".held.tmp-{os.getpid()}"
+    run = set(todo)
     folders: dict[str, str] = {}
     lines = []
-    for key, (image, meta) in hold.items():
+    made = False
+    while hold:
+        key = next(iter(hold))
+        held = hold.pop(key)
+        if not held.points & run:  # (its points are all done: nothing reads it)
+            continue
         try:
-            if not folders:
-                parent.mkdir(exist_ok=True)
-                storage.clean_stale(parent, "held")  # (what killed sweeps left)
-                root.mkdir(exist_ok=True)
-            folders[key] = str(save_reference(key, image, meta, root.resolve(), private=False))
+            if not made:
+                _make(root)
+                made = True
+            folders[key] = str(save_reference(key, held.image, held.meta, root, private=False))
         except (EnvironmentFailure, InputError, OSError) as e:
             lines.append(f"sweep --reference: cannot hold a copy of reference {key} in {root} for the sweep's points "
-                         f"({' '.join(str(e).split())}): they read it from the cache, where a 'tlm cache prune' "
-                         "meanwhile removes it")
-    return folders, root, lines
+                         f"({' '.join(str(e).split())}): {_read_instead(key, held.folder)}")
+        del held  # (its image: freed now)
+    return folders, lines
 
 
-def drop_references(root: Path | None) -> None:
-    """Remove the copies :func:`hold_references` wrote (``root``), and ``.references`` where that leaves it empty."""
+def _make(root: Path) -> None:
+    """Make ``root`` (:func:`held_root`) and its ``.references``: again where another sweep's :func:`clean_held` or
+    :func:`drop_references` removed the empty ``.references`` between the two (it removes only an empty one)."""
+    for tries in range(8):
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+            return
+        except FileNotFoundError:
+            if tries == 7:
+                raise
+
+
+def _read_instead(key: str, folder: Path | None) -> str:
+    """What the points of the reference ``key`` read where the sweep cannot hold a copy of it (kept in ``folder``,
+    :class:`Held`)."""
+    from tlm.experiments.reference_cache import cache_dir
+
+    cached = cache_dir() / key
+    if folder is not None and Path(folder) == cached:
+        return "they read it from the cache, where a 'tlm cache prune' meanwhile removes it"
+    where = "it is kept nowhere else" if folder is None else f"the cache does not hold it (it is kept in {folder})"
+    if (cached / "meta.json").is_file():  # (an older one, which the one computed now could not replace)
+        return f"{where}: they are measured against the other one the cache holds"
+    return f"{where}: they run without the photon-map error"
+
+
+def drop_references(root: Path) -> None:
+    """Remove the copies :func:`hold_references` wrote (``root``, :func:`held_root`: no longer noted as in use), and
+    ``.references`` where that leaves it empty (another sweep's copies in it: left, with it)."""
     import shutil
 
-    if root is None:
-        return
+    from tlm import storage
+
     shutil.rmtree(root, ignore_errors=True)
+    storage._release(root.name)
     with suppress(OSError):
         root.parent.rmdir()
 
