@@ -30,6 +30,7 @@ if TYPE_CHECKING:
 
     from tlm.arch.costs import Programs
     from tlm.experiments.sweep import Outcome
+    from tlm.experiments.sweep_plan import SweepPlan
 
 
 # ---------------------------------------------------------------- many experiments
@@ -64,7 +65,8 @@ def _overrides(overrides: Iterable[str] | None) -> tuple[str, ...]:
 def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
               warn: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None,
-              reference: bool = False, say: Callable[[str], None] | None = None) -> Outcome:
+              reference: bool = False, say: Callable[[str], None] | None = None,
+              dry_run: bool = False) -> Outcome | SweepPlan:
     """Run every point of the sweep file ``path`` (or the built-in sweep of that name:
     :func:`experiment_path`) not already done in ``out`` (``tlm sweep``); returns the rows
     (``.rows``, dicts; ``.table``, a DataFrame) and the counts of points ok, failed, skipped
@@ -78,11 +80,19 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     applied to every point's base config before its factors (a factor's key refused): in each
     point's config and hash, and in ``sweep.yaml``. ``reference`` (``tlm sweep --reference``): each photon-map
     reference the points need that is not cached is computed and cached before them, so that they are
-    measured; ``say`` gets its lines (as ``tlm reference`` prints them)."""
+    measured; ``say`` gets its lines (as ``tlm reference`` prints them). ``dry_run`` (``tlm sweep --dry-run``):
+    nothing is run or written (no output folder, no cache entry): the same checks of the arguments, the sweep
+    file and ``out``, then what the sweep would do, a :class:`~tlm.experiments.sweep_plan.SweepPlan` (``.points``,
+    ``.done``, ``.to_run``, ``.frames``, ``.frames_cached``, ``.renders``, ``.references`` with ``reference``,
+    ``.stale``, ``.other_folders``, ``.warnings``; ``.lines()`` and ``.record()``, its summary and its JSON)."""
     from tlm.experiments.sweep import run_sweep as run_all
+    from tlm.experiments.sweep_plan import plan_sweep
 
     jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
     progress = _checked(progress, "progress", bool)
+    if _checked(dry_run, "dry_run", bool):
+        return plan_sweep(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, dask_wait=dask_wait,
+                          overrides=_overrides(overrides), reference=_checked(reference, "reference", bool))
     return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
                    dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides),
                    reference=_checked(reference, "reference", bool), say=say)

@@ -225,6 +225,16 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     def warned(line: str) -> None:  # (each as it is known: the factors' before the points run)
         print(f"tlm: warning: {line}", file=sys.stderr, flush=True)
 
+    if args.json and not args.dry_run:  # (asked for, and read by nothing: refused, not dropped)
+        raise InputError("prints the plan of a dry run as JSON: give --dry-run too (a sweep prints its rows' "
+                         "summary and writes sweep.jsonl and sweep.csv)", key="--json")
+    if args.dry_run:  # what the sweep would do: its checks, then a summary; nothing run or written
+        plan = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, dask_wait=args.dask_wait,
+                             reference=args.reference, dry_run=True, **_overrides(args))
+        print(json.dumps(plan.record(), indent=1) if args.json else "\n".join(plan.lines()), flush=True)
+        for line in plan.warnings:  # (on stderr, as the sweep says them; in the JSON too)
+            warned(line)
+        return 0
     done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
                          dask_wait=args.dask_wait, warn=warned, reference=args.reference, say=_say,
                          **_overrides(args))
@@ -488,6 +498,13 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--reference", action="store_true", help="compute and cache, before the points, each photon-map "
                     "reference they need that is not cached, or cached short of its tolerance where more rounds are "
                     "allowed (as 'tlm reference' decides), so their error is measured")
+    sw.add_argument("--dry-run", action="store_true", help="run nothing and write nothing (no folder, no frame or "
+                    "reference in the cache, no report): check the sweep file, --set and --out as the sweep does, then "
+                    "say how many points are done already in --out (skipped) and to run, how many frames they share "
+                    "and how many of those are cached, the references --reference would compute, the stale folders "
+                    "it would remove and the warnings it would give")
+    sw.add_argument("--json", action="store_true", help="with --dry-run: print the plan as one JSON object (its "
+                    "warnings in it) in place of the summary")
     no_progress(sw)
     no_report(sw)
     sw.set_defaults(func=_cmd_sweep)

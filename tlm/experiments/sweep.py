@@ -233,20 +233,13 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     their error."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
-    dask = _dask_address(dask)  # (its form, even where every point is done and no scheduler is reached)
+    # (the Dask address's form, even where every point is done and no scheduler is reached)
+    dask, dask_wait = checked_options(jobs, dask, dask_wait)
     remote = dask not in (None, "local")  # (its workers check that they run the sweep's code and read its inputs)
-    if jobs is not None and remote:
-        raise InputError(f"{jobs} with --dask {dask}: the points run on that scheduler's workers, as many at once "
-                         "as they have threads, which the cluster sets (dask worker --nthreads), not the sweep; "
-                         "leave --jobs out", key="--jobs")
     if jobs is None:
         from tlm.kernels.threads import available
 
         jobs = available()  # (the affinity mask and a container's CPU quota; not render.threads' cap of 8)
-    if jobs < 1:
-        raise InputError(f"{jobs} must be >= 1", key="--jobs")
-    if dask_wait is not None:
-        dask_wait = _wait_seconds(dask_wait, dask)
     from tlm.kernels.engine import engine
     from tlm.kernels.threads import fork_workers
 
@@ -359,6 +352,21 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 warn(line)
     return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
                    [*said, *unread, *caches, *stale], other)
+
+
+def checked_options(jobs: int | None, dask: str | None,
+                    dask_wait: float | None) -> tuple[str | None, float | None]:
+    """``--jobs``, ``--dask`` and ``--dask-wait`` checked, for :func:`run_sweep` and ``tlm sweep --dry-run``
+    (:func:`~tlm.experiments.sweep_plan.plan_sweep`): the Dask address (None: no Dask) and the wait in
+    seconds (None: the default)."""
+    dask = _dask_address(dask)
+    if jobs is not None and dask not in (None, "local"):
+        raise InputError(f"{jobs} with --dask {dask}: the points run on that scheduler's workers, as many at once "
+                         "as they have threads, which the cluster sets (dask worker --nthreads), not the sweep; "
+                         "leave --jobs out", key="--jobs")
+    if jobs is not None and jobs < 1:
+        raise InputError(f"{jobs} must be >= 1", key="--jobs")
+    return dask, None if dask_wait is None else _wait_seconds(dask_wait, dask)
 
 
 # a transport's name before ``://`` (distributed's tcp, tls, ws, wss, ucx, and a plugin's, such as ucxx)

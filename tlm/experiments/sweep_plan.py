@@ -1,0 +1,288 @@
+"""What a sweep would do, told before it spends anything (``tlm sweep FILE --dry-run``).
+
+:func:`plan` reads what :func:`~tlm.experiments.sweep.run_sweep` reads before its first point, and no
+more, and writes nothing (no output folder, no cache entry, no claim, no report): the sweep file and every
+point's config, checked as the sweep checks them (:func:`~tlm.experiments.sweep_file.load_sweep`: the same
+one-line errors), the output folder's points done (:func:`~tlm.experiments.sweep_reference.done_record`, as
+the sweep skips them), the frames the points to run share (their functional keys; points that differ only in
+keys their frame does not read share one) and which of them the functional cache holds
+(:func:`~tlm.experiments.frames.is_cached`, as the sweep's dispatch asks it), the stale folders a sweep into
+the folder removes (a killed sweep's temporary point folders, row files and held references; a failed or
+unfinished point's folder, run again) and those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
+the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
+:meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`); with ``reference`` (``--reference``), the photon-map
+references it would compute, decided as :func:`~tlm.experiments.sweep_reference.sweep_references` decides
+(one per distinct value of the keys a reference reads; a cached one judged by its ``meta.json`` alone, its
+image neither read nor, where damaged, removed). A scene is loaded only where a key needs it: the frames'
+keys (as the sweep's own check does) and, with ``reference``, the references'. That load is the sweep's own:
+a mesh of at least :data:`~tlm.scenes.cache.MIN_TRIANGLES` triangles not in the scene cache yet is kept there
+(with its crease normals and its remembered fingerprint), as any load of it keeps it; nothing else is written.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterable
+from contextlib import suppress
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tlm import storage
+from tlm.experiments.sweep_file import Point, Sweep, load_sweep
+from tlm.experiments.sweep_point import MARKER
+from tlm.experiments.sweep_reference import HELD, done_record, listed, strictest
+
+
+@dataclass
+class Reference:
+    """A photon-map reference the sweep's points need (``--reference``): its ``key``, how many of the points
+    that would run need it (``points``), and what the sweep would do: ``"compute"`` (none cached),
+    ``"compute again"`` (the cached one misses the points' tolerance, and more rounds would better it),
+    ``"cached"`` (it meets their tolerance: used as it is) or ``"kept"`` (it misses it, but computing again
+    would not better it: used as it is, and said so)."""
+
+    key: str
+    points: int
+    action: str
+
+    @property
+    def computed(self) -> bool:
+        return self.action.startswith("compute")
+
+
+@dataclass
+class SweepPlan:
+    """What ``tlm sweep`` of the sweep file ``path`` into ``out`` would do (:func:`plan`); nothing is run or
+    written. Counts of points are of the sweep file's points (its rows); frames are functional results."""
+
+    path: Path
+    out: Path
+    points: int  # the sweep file's points
+    done: int  # done already in ``out``: skipped
+    to_run: int  # run (points not done; with --reference, done ones measured again)
+    measured_again: int  # of ``to_run``: points done whose reference --reference would compute (run again)
+    frames: int  # the distinct frames (functional results) of the points to run
+    frames_cached: int  # of ``frames``: in the functional cache now (read, not rendered)
+    replaced: int  # point folders of points to run (failed, unfinished, unreadable): removed and run again
+    stale: int  # temporary folders and files of killed sweeps in ``out``: removed
+    other_folders: int  # point folders of no point of this sweep: kept, warned of
+    references: list[Reference] | None = None  # with --reference: every reference the points to run need
+    warnings: list[str] = field(default_factory=list)  # the warnings the sweep would say (before its points run)
+    remote: bool = False  # a remote Dask scheduler: its workers' caches, not this machine's, decide the renders
+
+    @property
+    def renders(self) -> int:
+        """The frames the sweep would render: the points' frames not cached (one render each)."""
+        return self.frames - self.frames_cached
+
+    def record(self) -> dict[str, Any]:
+        """The plan as JSON-able values (``tlm sweep --dry-run --json``)."""
+        refs = None if self.references is None else [
+            {"key": r.key, "points": r.points, "action": r.action} for r in self.references]
+        return {"dry_run": True, "sweep": str(self.path), "out": str(self.out), "points": self.points,
+                "done": self.done, "to_run": self.to_run, "measured_again": self.measured_again,
+                "frames": self.frames, "frames_cached": self.frames_cached, "renders": self.renders,
+                "replaced": self.replaced, "stale": self.stale, "other_folders": self.other_folders,
+                "references": refs, "remote": self.remote, "warnings": list(self.warnings)}
+
+    def lines(self) -> list[str]:
+        """The summary ``tlm sweep --dry-run`` prints, a line each."""
+        def n(count: int, word: str) -> str:
+            return f"{count} {word}{'s' if count != 1 else ''}"
+
+        again = f", {self.measured_again} of them done before and measured again (--reference)" \
+            if self.measured_again else ""
+        replaced = (f"; {n(self.replaced, 'point folder')} of failed or unfinished points removed and run again"
+                    if self.replaced else "")
+        where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
+        lines = [f"dry run of {self.path} into {self.out}: nothing run, nothing written",
+                 f"  {n(self.points, 'point')}: {self.done} done already (skipped), {self.to_run} to run{again}"
+                 f"{replaced}",
+                 f"  {n(self.frames, 'frame')} for the points to run: {self.frames_cached} cached{where}, "
+                 f"{self.renders} to render"]
+        if self.references is not None:
+            computed = [r for r in self.references if r.computed]
+            lines.append("  --reference: none needed (the photon-map points to run have theirs cached, or none runs "
+                         "the pass)" if not self.references else
+                         f"  --reference: {n(len(computed), 'reference')} to compute, "
+                         f"{len(self.references) - len(computed)} cached")
+            lines += [f"    {r.key}: {r.action} ({n(r.points, 'point')})" for r in self.references]
+        if self.stale:
+            lines.append(f"  {n(self.stale, 'temporary folder or file')} of killed sweeps in {self.out}: removed")
+        if self.other_folders:
+            lines.append(f"  {n(self.other_folders, 'point folder')} not this sweep's: kept (a warning says so)")
+        return lines
+
+
+def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
+               dask_wait: float | None = None, overrides: Iterable[str] = (), reference: bool = False) -> SweepPlan:
+    """What :func:`~tlm.experiments.sweep.run_sweep` of the same arguments would do, nothing run or written (``tlm
+    sweep --dry-run``): its checks of them, of the environment's kernel settings, of the sweep file (every point's
+    config: :func:`~tlm.experiments.sweep_file.load_sweep`) and of ``out`` first, in its order (the same errors),
+    then :func:`plan`."""
+    from tlm.experiments.sweep import checked_options
+    from tlm.kernels.engine import engine
+    from tlm.kernels.threads import fork_workers
+
+    dask = checked_options(jobs, dask, dask_wait)[0]
+    engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS: refused as by the sweep)
+    sweep = load_sweep(Path(path), overrides)
+    storage.check_destination(Path(out), MARKER)
+    return plan(sweep, Path(out), reference, remote=dask not in (None, "local"))
+
+
+def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False) -> SweepPlan:
+    """What :func:`~tlm.experiments.sweep.run_sweep` of the loaded ``sweep`` into ``out`` would do (the module's
+    docstring); ``out`` checked already (:func:`~tlm.storage.check_destination`). Reads, writes nothing."""
+    from tlm.experiments.frames import is_cached
+    from tlm.experiments.sweep import other_folders, other_folders_line
+
+    out = Path(out)
+    points_dir = out / "points"
+    by_hash: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        by_hash.setdefault(p.hash, []).append(p)
+    present = listed(points_dir)
+    records = {h: done_record(points_dir / h) if h in present else None for h in by_hash}
+    todo = {h for h, rec in records.items() if rec is None}
+    replaced = sum(h in present for h in todo)
+    warnings = [*sweep.inert_factors(), *sweep.inert_sets()]
+    references = again = None
+    if reference:
+        references, again, line = _references(sweep, records)
+        warnings += line
+    run = todo | (again or set())
+    frames = {by_hash[h][0].functional for h in run}
+    cached = sum(is_cached(k) for k in frames)
+    other = other_folders(points_dir, by_hash)
+    if other:
+        warnings.append(other_folders_line(other, points_dir))
+    count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)
+    return SweepPlan(sweep.path, out, len(sweep.points), count(set(by_hash) - run), count(run),
+                     count(again or ()), len(frames), cached, replaced, _stale(out), other, references,
+                     warnings, remote)
+
+
+def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Reference], set[str], list[str]]:
+    """``--reference``'s references, decided as :func:`~tlm.experiments.sweep_reference.sweep_references` decides
+    (its points grouped by what a reference reads, a scene loaded per group), none computed: each reference the
+    points to run (or those done without an error, or measured against one short of its tolerance) need, the
+    hashes of the points done that computing them would measure again, and the sweep's line where no point runs
+    the photon-map pass."""
+    from tlm.config import config_from_dict
+    from tlm.experiments.reference import KEY_READS, reference_key
+    from tlm.experiments.reference_cache import ReferenceSettings, verdict
+    from tlm.render.planner import plan as passes
+    from tlm.scenes.loader import load_scene
+
+    groups: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
+        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
+    source = str(sweep.path)
+    pmap = False
+    needed: dict[str, tuple[dict[str, str], dict[str, Any]]] = {}  # key -> (hash -> why measured, settings by hash)
+    for group in groups.values():
+        cfg = config_from_dict(group[0].config, source)
+        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
+        if "pmap" not in passes(scene, cfg).run_names:
+            continue
+        pmap = True
+        settings = ReferenceSettings.from_config(scene, cfg)
+        key = reference_key(scene, cfg, settings)
+        for p in group:
+            why = _to_measure(records[p.hash])
+            if why:
+                need = needed.setdefault(key, ({}, {}))
+                need[0][p.hash] = why
+                need[1][p.hash] = settings
+    if not pmap:
+        return [], set(), ["--reference: no point of this sweep runs the photon-map pass: no reference to compute"]
+    refs, again = [], set()
+    for key, (measure, asked) in needed.items():
+        settings = strictest(list(asked.values()))
+        meta = _cached_meta(key)
+        kind = "compute" if meta is None else verdict(meta, settings)
+        unmeasured = [h for h, why in measure.items() if why != "again"]
+        if kind == "meets":
+            action = "cached"
+        elif kind != "compute":
+            action = "kept"
+            if not unmeasured:  # (points done against the one kept: as they were; no line of the sweep's either)
+                continue
+        else:
+            action = "compute" if meta is None else "compute again"
+            again |= {h for h, why in measure.items() if why != "run"}
+        hashes = measure if kind == "compute" else unmeasured
+        points = sum(1 for p in sweep.points if p.hash in hashes)
+        refs.append(Reference(key, points, action))
+    return refs, again, []
+
+
+def _to_measure(record: dict | None) -> str:
+    """Whether a point (its done ``record``, None: not done) is to be measured against its reference, as
+    ``tlm sweep --reference`` decides (:mod:`tlm.experiments.sweep_reference`): ``"run"`` (not done),
+    ``"unmeasured"`` (done without an error), ``"again"`` (done against one short of its tolerance), or ``""``."""
+    if record is None:
+        return "run"
+    error = record["results"].get("error")
+    if not isinstance(error, dict):
+        return ""
+    if error.get("available") is False:
+        return "unmeasured"
+    return "again" if error.get("available") is True and error.get("reference_converged") is False else ""
+
+
+def _cached_meta(key: str) -> dict | None:
+    """The ``meta.json`` of the cached reference ``key`` where the entry is whole (its fields of their types, its
+    ``reference.npy`` the file the metadata describes), else None: read only (a damaged one is neither said nor
+    removed here: the sweep's own read does both, and computes it again)."""
+    from tlm.caches import digest_problem, fields_problem
+    from tlm.experiments.reference_cache import META_FIELDS, META_OPTIONAL, cache_dir
+
+    folder = cache_dir() / key
+    try:
+        meta = json.loads((folder / "meta.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(meta, dict) or meta.get("key", key) != key or fields_problem(meta, META_FIELDS, META_OPTIONAL):
+        return None
+    npy = meta.get("npy")
+    if not isinstance(npy, dict) or digest_problem(folder / "reference.npy", npy) is not None:
+        return None
+    return meta
+
+
+def _stale(out: Path) -> int:
+    """The temporary folders and files that sweeps of this machine now gone (killed) left in ``out``, which
+    a sweep into it removes: in ``points/`` (a point's half-written folder), beside the rows (``sweep.csv``,
+    ``sweep.jsonl``) and in ``.references`` (the copies of references held, ``--reference``); as
+    :func:`~tlm.storage.clean_stale` tells them (another machine's and a live process's are kept)."""
+    folders = re.compile(r"\..+\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
+    files = re.compile(r"\..+\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
+    held = re.compile(r"\.held\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
+    return (_gone(out / "points", folders, Path.is_dir) + _gone(out, files, Path.is_file)
+            + _gone(out / HELD, held, Path.is_dir))
+
+
+def _gone(folder: Path, pattern: re.Pattern, kind: Any) -> int:
+    """How many entries of ``folder`` (of ``kind``, not links) ``pattern`` names (its groups: the host, the
+    process id) that a process of this machine now gone left."""
+    host = storage.process_tag().rpartition("-")[0]
+    n = 0
+    with suppress(OSError):
+        for e in Path(folder).iterdir():
+            m = pattern.fullmatch(e.name)
+            if not m or (m[1] is not None and m[1] != host) or e.is_symlink() or not kind(e):
+                continue
+            n += not storage.pid_alive(int(m[2]))
+    return n
+
+
+def _dotted(config: dict, dotted: str) -> Any:
+    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
+    for part in dotted.split("."):
+        config = config.get(part) if isinstance(config, dict) else None
+    return config
