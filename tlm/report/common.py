@@ -36,7 +36,9 @@ import contextvars
 import hashlib
 import math
 import re
+import textwrap
 import unicodedata
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -225,8 +227,7 @@ def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
     renderer = FigureCanvasAgg(fig).get_renderer()
     engine = fig.get_layout_engine()
     if engine is not None:
-        with contextlib.suppress(ValueError):
-            engine.execute(fig)
+        _lay_out(fig, engine)
     points = []  # markers in display coordinates, with their radius in pixels
     px = fig.dpi / 72
     for a in fig.axes:
@@ -312,6 +313,23 @@ class Section:
     html_open: bool = False  # ``html`` is short: shown open
 
 
+def _lay_out(fig: MplFigure, engine) -> None:
+    """Run the figure's layout engine as ``Figure.draw`` runs it (a ValueError ignored), and keep its
+    warning that the decorations left the axes no room (constrained layout then leaves the figure as it
+    is) off stderr: a report prints no library warning (the figures size their legends to fit)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="constrained_layout not applied", category=UserWarning)
+        with contextlib.suppress(ValueError):
+            engine.execute(fig)
+
+
+def wrap_title(text: str, width_in: float, fontsize: float = 12.0) -> str:
+    """``text`` wrapped to lines that fit ``width_in`` inches at ``fontsize`` points (an axes title:
+    12 points by default); a title that fits is returned as it is."""
+    chars = max(20, int(width_in * 72 / (fontsize * 0.6)))
+    return text if len(text) <= chars else textwrap.fill(text, chars)
+
+
 # the parser an Agg renderer makes for itself, shared: it keeps the labels it parsed
 _MATHTEXT = MathTextParser("path")
 
@@ -337,8 +355,7 @@ def write_png(fig: MplFigure, path: Path) -> None:
     engine = fig.get_layout_engine()
     if engine is not None:
         if fig.axes:  # (as Figure.draw runs it, ignoring a ValueError)
-            with contextlib.suppress(ValueError):
-                engine.execute(fig)
+            _lay_out(fig, engine)
         fig.set_layout_engine(None)
     path = Path(path)
     fig.savefig(path, dpi=out.dpi)
@@ -353,16 +370,36 @@ def write_png(fig: MplFigure, path: Path) -> None:
 _TAKEN: dict[str, dict[str, str]] = {}
 
 
-def _name_part(text) -> str:
+def _name_part(text, limit: int | None = NAME_PART) -> str:
     """``text`` as a part of a file name: accents dropped (é is e), every run of other characters than
     ASCII letters, digits and ``-`` one ``_``, no ``_`` or ``-`` at either end, at most :data:`NAME_PART`
     characters. Text with none of those characters is ``x`` and 8 hex digits of its hash."""
     text = str(text)
     folded = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
-    part = re.sub(r"[^A-Za-z0-9-]+", "_", folded).strip("_-")[:NAME_PART].rstrip("_-")
+    part = re.sub(r"[^A-Za-z0-9-]+", "_", folded).strip("_-")[:limit].rstrip("_-")
     if not part and text.strip():
         part = "x" + hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
     return part
+
+
+_STEM_MAX = NAME_MAX - 4 - 9  # (room for "_" and 8 hex digits, and ".png")
+_SETTING = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)+(?=\s*=)")
+
+
+def short_keys(text: str) -> str:
+    """``text`` with each dotted config key before an ``=`` cut to its last part: ``arch.fifo_depth = 16,
+    cache.pairs = 1`` is ``fifo_depth = 16, pairs = 1``."""
+    return _SETTING.sub(lambda m: m.group(0).rsplit(".", 1)[-1], text)
+
+
+def _stem(parts: list[str], cut: bool = False) -> str | None:
+    """The parts as a file name's stem (:func:`_name_part`, joined by ``_``); None where a part or the
+    whole would be cut (unless ``cut``: then cut to fit)."""
+    names = [_name_part(p) for p in parts]
+    whole = "_".join(n for n in names if n) or "figure"
+    if not cut and (len(whole) > _STEM_MAX or any(len(_name_part(p, limit=None)) > NAME_PART for p in parts)):
+        return None
+    return whole[:_STEM_MAX].rstrip("_-")
 
 
 def figure_name(out: Path, *parts, key: str | None = None) -> str:
@@ -373,15 +410,20 @@ def figure_name(out: Path, *parts, key: str | None = None) -> str:
 
     The name is the parts (:func:`_name_part`, empty ones left out) joined by ``_``, then ``.png``:
     ``sweep_odd_sweep_x_y_2_e_arch_fifo_depth.png`` for ``odd sweep (x&y)#2 é`` and ``arch.fifo_depth``.
-    It is unique within the folder: where a figure of another key took that name (and its file is
-    there), this one gets ``_`` and 8 hex digits of its key's hash, so a report written again from
+    Where a part would be cut (past :data:`NAME_PART`) or the name (past :data:`NAME_MAX`), each
+    dotted setting before an ``=`` in the parts keeps its last part (``arch.fifo_depth = 16`` is
+    ``fifo_depth_16``, :func:`short_keys`) before anything is cut, so that a combination of factors
+    keeps its values; a name that fits is as it was. It is unique within the folder: where a figure
+    of another key took that name (and its file is there), this one gets ``_`` and 8 hex digits of its
+    key's hash, so a report written again from
     the same inputs gives every figure the same name. The same key gets the same name again."""
     parts = [str(p) for p in parts]
     if parts and parts[-1].lower().endswith(".png"):
         parts[-1] = parts[-1][:-4]
     key = "\n".join(parts) if key is None else str(key)
-    stem = "_".join(p for p in map(_name_part, parts) if p) or "figure"
-    stem = stem[:NAME_MAX - 4 - 9].rstrip("_-")  # (room for "_" and 8 hex digits, and ".png")
+    stem = _stem(parts)
+    if stem is None:  # (a part or the whole cut: the factors' names shortened first, so their values stay)
+        stem = _stem([short_keys(p) for p in parts], cut=True)
     folder = Path(out)
     taken = _TAKEN.setdefault(str(folder.absolute()), {})
     tag = hashlib.sha1(key.encode("utf-8")).hexdigest()[:8]

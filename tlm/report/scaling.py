@@ -22,6 +22,7 @@ pipeline 0's.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections import defaultdict
 from pathlib import Path
 
@@ -30,7 +31,19 @@ from matplotlib.ticker import NullLocator
 from tlm.errors import InputError
 from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
-from tlm.report.common import Figure, Section, colour, figure_name, legend_below, marker, new_figure, write_png
+from tlm.report.common import (
+    Figure,
+    Section,
+    colour,
+    count,
+    figure_name,
+    marker,
+    new_figure,
+    short_keys,
+    some,
+    wrap_title,
+    write_png,
+)
 from tlm.report.html import esc
 from tlm.report.names import path_labels
 from tlm.report.sweep_lines import column_decimals
@@ -42,6 +55,53 @@ PM_COLOURS = {"vertex": 0, "traversal": 2, "intersection": 4, "fragment": 6}
 SCHEDULER_LINES = {"static": "-", "dynamic": "--"}
 
 TITLES = {"latency": "frame latency (eq. 5.2's T_tot)", "throughput": "throughput TThru"}
+
+# a sweep crossing N with many other factors: combinations whose curves are the same are drawn once, and of
+# the distinct ones at most these (those of the highest and the lowest speed-up at the largest N; the notes
+# name the rest, whose numbers are the sweep's sweep.csv or the study's eq52.csv)
+MAX_IDLE = 6  # idle figures (and tables) per sweep, scene and mode
+MAX_CURVES = 6  # curves (scheduler x combination) on each panel of a scaling figure
+LONG_COMBINATION = 40  # a combination's text past this many characters names each factor by its last dotted part
+LEGEND_ROWS = 14  # a scaling panel's legend of more rows than this makes the figure taller
+LEGEND_ROW_IN = 0.17  # inches per legend row past LEGEND_ROWS
+LEGEND_CHARS = 80  # a scaling panel's legend label is wrapped at this many characters
+
+
+def short_combination(text: str) -> str:
+    """A combination of factor values as a label shows it: as written, or past :data:`LONG_COMBINATION`
+    characters with each factor's last dotted part (``fifo_depth = 16, pairs = 1``)."""
+    return short_keys(text) if len(text) > LONG_COMBINATION else text
+
+
+def extremes(items: list, score, limit: int) -> list:
+    """``items`` where they are at most ``limit``; else the ``limit - limit // 2`` of the highest
+    ``score`` and the ``limit // 2`` of the lowest (None counts as the lowest), in their order."""
+    if len(items) <= limit:
+        return list(items)
+    ranked = sorted(range(len(items)), key=lambda i: (score(items[i]) is None, -(score(items[i]) or 0.0)))
+    keep = set(ranked[:limit - limit // 2]) | set(ranked[len(ranked) - limit // 2:])
+    return [x for i, x in enumerate(items) if i in keep]
+
+
+def _value_texts(key: str, values: list[dict]) -> list[str]:
+    return list(dict.fromkeys(eq52.combination_text({key: v.get(key)}).split(" = ", 1)[1] for v in values))
+
+
+def merged_label(values: list[dict]) -> str:
+    """The label of the combinations ``values`` (each a factor's value by its key) that draw one figure or
+    curve: one, as :func:`tlm.experiments.scaling.combination_text` writes it; several that are every
+    combination of some values of each factor, each factor once (``fifo_depth = 16 or 64; pairs = 1``);
+    else the first and how many more; ``(identical)`` after several. Long, by the factors' last parts."""
+    if len(values) == 1:
+        return short_combination(eq52.combination_text(values[0]))
+    keys = list(values[0])
+    texts = {k: _value_texts(k, values) for k in keys}
+    if keys and math.prod(len(t) for t in texts.values()) == len(values):
+        parts = [f"{k} = {t[0] if len(t) == 1 else ', '.join(t[:-1]) + ' or ' + t[-1]}" for k, t in texts.items()]
+        text = "; ".join(parts)
+    else:
+        text = f"{eq52.combination_text(values[0])} and {count(len(values) - 1, 'more combination')}"
+    return short_combination(text) + " (identical)"
 
 
 def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = "") -> None:
@@ -76,14 +136,23 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
     where = f" [{source}]" if source else ""
     for ax, target in zip(axes[:2], ("latency", "throughput"), strict=True):
         ax.set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="cycles per frame",
-               title=f"{scene}: {TITLES[target]}{where}")
-        legend_below(ax)
+               title=wrap_title(f"{scene}: {TITLES[target]}{where}", 6.5))
         ax.grid(True, which="both", alpha=0.3)
     ns = sorted({r["pipelines"] for f in fits.values() for r in f["rows"]})
     axes[2].plot(ns, ns, color="grey", linestyle=(0, (1, 2)), label="linear (ideal)")
     axes[2].set(xscale="log", yscale="log", xlabel="pipelines N", ylabel="speed-up TThru(1) / TThru(N)",
-                title=f"{scene}: speed-up{where}")
-    legend_below(axes[2])
+                title=wrap_title(f"{scene}: speed-up{where}", 6.5))
+    # (the legends under the panels, long labels wrapped; one of many rows makes the figure taller, so that
+    # the panels keep their size: constrained layout gives up where the legends leave them no room)
+    rows = 0
+    for ax in axes:
+        handles, labels = ax.get_legend_handles_labels()
+        wrapped = [textwrap.fill(t, LEGEND_CHARS) if len(t) > LEGEND_CHARS else t for t in labels]
+        rows = max(rows, sum(t.count("\n") + 1 for t in wrapped))
+        ax.legend(handles, wrapped, fontsize=7, ncol=1, loc="upper center", bbox_to_anchor=(0.5, -0.14),
+                  borderaxespad=0.0)
+    if rows > LEGEND_ROWS:
+        fig.set_size_inches(15, 5.8 + (rows - LEGEND_ROWS) * LEGEND_ROW_IN)
     axes[2].grid(True, which="both", alpha=0.3)
     for ax in axes:  # N at its own values, not at powers of ten
         ax.set_xticks(ns, [str(n) for n in ns])
@@ -144,7 +213,8 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
 
     Per (scene, mode), and per combination of the sweep's other factors where it crosses N with
     others ((scene, mode, ``bsp.levels = 15``), in the order of their first points):
-    ``{"pms": [...], "points": [...]}``, the points sorted by scheduler
+    ``{"pms": [...], "points": [...], "values": {...}}`` (``values``: the other factors' values, by key;
+    empty where N is crossed with none), the points sorted by scheduler
     (static first) then N, each ``{"point", "scheduler", "pipelines", "throughput",
     "speedup", "idle": {pm: fraction}}``: ``throughput`` is the row's
     ``cycles.throughput`` (TThru), ``speedup`` TThru(1) / TThru(N) of the same scheduler
@@ -213,7 +283,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
         for p in pts:
             t1, t = one.get(p["scheduler"]), p["throughput"]
             p["speedup"] = t1 / t if t1 and t else None
-        out[key] = {"pms": pms, "points": pts}
+        out[key] = {"pms": pms, "points": pts, "values": {k: factors[id(pts[0])].get(k) for k in others}}
     return out
 
 
@@ -264,7 +334,7 @@ def plot_idle(scene: str, pms: list[str], points: list[dict], path: Path, source
     ax.set_ylim(-0.02, 1.02)
     where = f" [{source}]" if source else ""
     ax.set(xlabel="pipelines N", ylabel="idle fraction of the elapsed cycles",
-           title=f"{scene}: idle fraction per PM, {' against '.join(scheds)}{where}")
+           title=wrap_title(f"{scene}: idle fraction per PM, {' against '.join(scheds)}{where}", 8.0))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=len(scheds))
     write_png(fig, path)
@@ -331,6 +401,72 @@ def fit_sources(inputs: Inputs, notes: list[str],
     return sources
 
 
+def _top_speedup(points: list[dict]):
+    """The speed-up at the largest N of the first scheduler's points (idle_points' order)."""
+    mine = [p for p in points if p["scheduler"] == points[0]["scheduler"]]
+    return max(mine, key=lambda p: p["pipelines"])["speedup"]
+
+
+def bounded_fits(fits: dict[tuple, dict], numbers: str) -> tuple[dict[tuple, dict], str]:
+    """The fits of one scene that its scaling figure draws, and what the caption says of the rest.
+
+    Fits per combination of a sweep's other factors whose curves are the same (every scheduler's and
+    target's simulated cycles) are drawn once, their label naming them all (:func:`merged_label`); of
+    more distinct ones than :data:`MAX_CURVES` curves (schedulers x combinations) per panel, those of the
+    highest and the lowest speed-up at the largest N (the first scheduler's) are drawn, and the sentence
+    returned says how many are not and that ``numbers`` (sweep.csv, eq52.csv) holds them. Fits of
+    short combinations, none merged or left out, are returned as they are (and "")."""
+    groups = list(dict.fromkeys(eq52.key_group(k) for k in fits))
+    if groups == [""] or not groups:
+        return fits, ""
+    signature: dict[str, list] = defaultdict(list)
+    for k, f in sorted(fits.items()):
+        signature[eq52.key_group(k)].append((k[1], k[2], k[3], [r.get("simulated") for r in f["rows"]]))
+    merged: dict[str, list[str]] = {}
+    for g in groups:
+        merged.setdefault(repr(signature[g]), []).append(g)
+    lists = list(merged.values())
+    scheds = sorted({k[2] for k in fits}, key=_scheduler_order)
+    first = scheds[0]
+
+    def score(gs: list[str]):
+        f = next((v for k, v in fits.items() if eq52.key_group(k) == gs[0] and k[2] == first
+                  and k[3] == "throughput"), None)
+        return f["rows"][-1].get("speedup") if f and f.get("rows") else None
+
+    drawn = extremes(lists, score, max(2, MAX_CURVES // len(scheds)))
+    if len(lists) == len(groups) and len(drawn) == len(lists) and all(len(g) <= LONG_COMBINATION for g in groups):
+        return fits, ""
+    label = {}
+    for gs in drawn:
+        label[gs[0]] = (short_combination(gs[0]) if len(gs) == 1 else
+                        short_combination(f"{gs[0]} and {count(len(gs) - 1, 'more combination')}") + " (identical)")
+    out = {}
+    for k, f in fits.items():
+        if eq52.key_group(k) in label:
+            out[eq52.fit_key(*k[:4], label[eq52.key_group(k)])] = f
+    said = ""
+    if len(lists) < len(groups):
+        said += (f" The {len(groups)} combinations of the other factors draw {len(lists)} distinct curves: "
+                 "identical ones are drawn once.")
+    if len(drawn) < len(lists):
+        left = [f"[{short_combination(gs[0])}]" for gs in lists if gs not in drawn]
+        said += (f" {len(drawn)} of the {len(lists)} distinct curves are drawn, those of the highest and the lowest "
+                 f"speed-up at the largest N; not drawn: {some(left)} ({numbers} holds every point).")
+    return out, said.strip()
+
+
+def _merge_idle(groups: dict[tuple, dict]) -> dict[tuple, list[tuple[list[tuple], dict]]]:
+    """idle_points' groups by (scene, mode), those of one (scene, mode) whose points are the same (scheduler,
+    N, TThru and idle fractions) merged: ``[(keys, group), ...]``, the group the first key's."""
+    out: dict[tuple, dict[str, tuple[list[tuple], dict]]] = defaultdict(dict)
+    for key, g in groups.items():
+        sig = repr([(p["scheduler"], p["pipelines"], p["throughput"], sorted(p["idle"].items()))
+                    for p in g["points"]])
+        out[key[:2]].setdefault(sig if len(key) > 2 else repr(key), ([], g))[0].append(key)
+    return {at: list(by.values()) for at, by in out.items()}
+
+
 def scaling_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("scaling", "Scaling with N pipelines: simulated against eq. 5.2, static against dynamic")
     sources = fit_sources(inputs, sec.notes)
@@ -347,31 +483,53 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             # (eq. 5.2's name of the scene: the file keeps its name)
             file = figure_name(out, "scaling", name, scene, key=f"scaling\n{where.absolute()}\n{scene}")
             scene_shown = named.get(scene, scene)
-            plot_scaling(scene_shown, mine, out / file, label)
+            numbers = "eq52.csv" if (where / "eq52.csv").is_file() else "sweep.csv"
+            drawn, said = bounded_fits(mine, numbers)
+            if said:
+                sec.notes.append(f"{label}: {scene_shown}: {said}")
+            plot_scaling(scene_shown, drawn, out / file, label)
             worst = ", ".join(f"{k[2]}{f' ({eq52.key_group(k)})' if eq52.key_group(k) else ''} {k[3]} "
-                              f"{v['max_abs_rel_error']:.1%}" for k, v in sorted(mine.items()))
+                              f"{v['max_abs_rel_error']:.1%}" for k, v in sorted(drawn.items()))
             sec.figures.append(Figure(file, f"{scene_shown}: scaling from {label}{' (out of date)' if stale else ''}",
                                       stale + "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                       "least squares elsewhere; dotted: the slowest-pipeline variant. "
-                                      f"Largest |error| of eq. 5.2: {worst}."))
+                                      f"Largest |error| of eq. 5.2: {worst}." + (f" {said}" if said else "")))
     tables = []
     for sw in idle_sweeps:
         groups = idle_points(sw, sec.notes)
         many_modes = len({key[1] for key in groups}) > 1
-        for key, g in groups.items():
-            scene, mode, combination = *key[:2], (key[2] if len(key) > 2 else "")
-            label = (f"{scene}/{mode}" if many_modes else scene) + (f" [{combination}]" if combination else "")
-            file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
-                               *((combination,) if combination else ()),
-                               key="\n".join(("idle", str(sw.path.absolute()), *key)))
-            plot_idle(label, g["pms"], g["points"], out / file, sw.label)
-            sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.label}",
-                                      "Idle: no job to run (neither working nor stalled), as a fraction of the "
-                                      "stream's elapsed cycles, averaged over the pipelines' PMs of each kind (one "
-                                      "Vertex PM, pipeline 0's); the row's idle.<pm>. Solid, filled markers: static "
-                                      "tiling; dashed, open markers: the dynamic scheduler."))
-            tables.append(idle_table(f"{label} ({sw.label}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
-                                     "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
+        for (scene, mode), merged in _merge_idle(groups).items():
+            where = f"{scene}/{mode}" if many_modes else scene
+            drawn = extremes(merged, lambda m: _top_speedup(m[1]["points"]), MAX_IDLE)
+            bounded = ""
+            if len(drawn) < len(merged) or len(merged) < sum(len(keys) for keys, _ in merged):
+                combos = sum(len(keys) for keys, _ in merged)
+                shown = {id(m) for m in drawn}
+                left = [f"[{merged_label([groups[k]['values'] for k in m[0]])}]" for m in merged if id(m) not in shown]
+                bounded = (f" The {combos} combinations of the other factors draw {len(merged)} distinct idle "
+                           "figures (identical ones drawn once)"
+                           + (f"; {len(drawn)} are drawn, those of the highest and the lowest speed-up at the "
+                              f"largest N; sweep.csv holds the idle.<pm> of every point" if left else "") + ".")
+                if left:
+                    sec.notes.append(f"{sw.label}: {where}: {len(left)} of {len(merged)} distinct idle figures not "
+                                     f"drawn (only those of the highest and the lowest speed-up at the largest N are): "
+                                     f"{some(left)}; sweep.csv holds their idle.<pm> and cycles.throughput")
+            for keys, g in drawn:
+                key = keys[0]
+                combination = merged_label([groups[k]["values"] for k in keys]) if len(key) > 2 else ""
+                label = where + (f" [{combination}]" if combination else "")
+                file = figure_name(out, "idle", sw.path.name, scene, *((mode,) if many_modes else ()),
+                                   *((key[2],) if len(key) > 2 else ()),
+                                   key="\n".join(("idle", str(sw.path.absolute()), *key)))
+                plot_idle(label, g["pms"], g["points"], out / file, sw.label)
+                sec.figures.append(Figure(file, f"{label}: idle fraction per PM against N, from {sw.label}",
+                                          "Idle: no job to run (neither working nor stalled), as a fraction of the "
+                                          "stream's elapsed cycles, averaged over the pipelines' PMs of each kind "
+                                          "(one Vertex PM, pipeline 0's); the row's idle.<pm>. Solid, filled "
+                                          "markers: static tiling; dashed, open markers: the dynamic scheduler."
+                                          + bounded))
+                tables.append(idle_table(f"{label} ({sw.label}): N, scheduler, TThru, speed-up TThru(1) / TThru(N) "
+                                         "of the same scheduler, idle fraction per PM", g["pms"], g["points"]))
     sec.html = "\n".join(tables)
     if not sec.figures:
         folders = [label for _, label, _, _, _, _ in sources] + [sw.label for sw in idle_sweeps if not sw.runs]

@@ -54,6 +54,7 @@ from tlm.report.tables import study_summaries
 MODES = ("rcast", "reflect", "refract", "pmap")
 MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
 SIZE = (5.4, 3.1)
+SCALING_LINES = 8  # curves of the scaling figure: of more, merged where the same, then the extremes
 
 
 def _configured(config: dict) -> int:
@@ -239,7 +240,8 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ``tlm scaling`` folders' and those of the sweeps over ``arch.pipelines``, a fit per combination of
     a sweep's other factors), the static scheduler's where a curve has it."""
     from tlm.experiments.scaling import key_group, out_of_date
-    from tlm.report.scaling import fit_sources
+    from tlm.report.scaling import extremes, fit_sources, short_combination
+    from tlm.report.sweep_lines import legend_under
 
     # (source, scene, mode, group) -> scheduler -> rows: a scaling study's rows (eq52.csv), a sweep's fits
     found: dict[tuple, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
@@ -269,33 +271,57 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     for label, scene, _, _ in curves:
         scenes[scene].add(label)
     modes = len({mode for _, _, mode, _ in curves}) > 1
-    fig = new_figure(*SIZE)
-    ax = fig.add_subplot()
-    top_n, gains = 1, []
     order = sorted(curves, key=lambda c: (_scene_order(c[1]), c[0], c[2]))
-    for i, at in enumerate(order):
+    lines = []  # (name, N, speed-ups): each curve's, those whose points are the same one line
+    same: dict[str, int] = {}
+    for at in order:
         label, scene, mode, group = at
         sched, rs = curves[at]
         rs = sorted(rs, key=lambda r: r["pipelines"])
         ref = rs[0]["simulated"]
         n = [r["pipelines"] for r in rs]
         sp = [ref / r["simulated"] for r in rs]
+        many = len(curves) > SCALING_LINES
+        shown = short_combination(group) if many else group
         name = " ".join(w for w in (scene, MODE_NAMES.get(mode, mode) if modes else "",
                                     f"({label})" if len(scenes[scene]) > 1 else "",
-                                    f"[{group}]" if group else "", "" if sched == "static" else f"({sched})",
+                                    f"[{shown}]" if shown else "", "" if sched == "static" else f"({sched})",
                                     "(out of date)" if label in stale else "") if w)
-        ax.plot(n, sp, label=name, **line_style(i))
+        sig = repr((label, scene, mode, sched, n, sp))
+        if many and sig in same:  # (a sweep's combinations of one curve: drawn once, counted)
+            lines[same[sig]][3] += 1
+            continue
+        same[sig] = len(lines)
+        lines.append([name, n, sp, 1])
+    drawn = extremes(lines, lambda x: x[2][-1], SCALING_LINES)
+    fig = new_figure(*SIZE)
+    ax = fig.add_subplot()
+    top_n = 1
+    for i, (name, n, sp, k) in enumerate(drawn):
+        ax.plot(n, sp, label=name if k == 1 else f"{name} and {k - 1} more (identical)", **line_style(i))
         top_n = max(top_n, n[-1])
-        gains.append((name, n[-1], sp[-1]))
     ax.plot([1, top_n], [1, top_n], color="0.6", linewidth=1, label="ideal")
     ax.set_xscale("log", base=2)
     ax.set_yscale("log", base=2)
     ax.set_xlabel("pipelines N")
     ax.set_ylabel("speed-up of TThru")
-    ax.legend(fontsize=7)
-    f = save(fig, out, "summary_scaling.png", "Scaling with N pipelines",
-             "speed-up of the throughput with the static scheduler; grey: the ideal N")
-    parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n:g}" for s, n, g in gains)
+    caption = "speed-up of the throughput with the static scheduler; grey: the ideal N"
+    if len(curves) > SCALING_LINES:  # (the legend under the plot, its labels wrapped: legend_under)
+        legend_under(fig, ax, *SIZE)
+        caption += (f"; of {len(curves)} curves ({len(lines)} distinct), those of the "
+                    f"{SCALING_LINES - SCALING_LINES // 2} highest and {SCALING_LINES // 2} lowest speed-ups at the "
+                    "largest N are drawn (§3's notes name the rest; sweep.csv holds every point)"
+                    if len(drawn) < len(lines) else f"; {len(curves)} curves, {len(lines)} distinct")
+    else:
+        ax.legend(fontsize=7)
+    f = save(fig, out, "summary_scaling.png", "Scaling with N pipelines", caption)
+    gains = [(name if k == 1 else f"{name} and {k - 1} more (identical)", n[-1], sp[-1]) for name, n, sp, k in lines]
+    if len(lines) <= SCALING_LINES:
+        parts = ", ".join(f"{esc(s)} {g:.1f}x at N = {n:g}" for s, n, g in gains)
+    else:  # (a sweep of many combinations: the range, the best and the worst, not a sentence per curve)
+        best, worst = max(gains, key=lambda x: x[2]), min(gains, key=lambda x: x[2])
+        parts = (f"from {worst[2]:.2f}x to {best[2]:.2f}x over {len(curves)} curves; best {esc(best[0])} "
+                 f"{best[2]:.2f}x at N = {best[1]:g}, worst {esc(worst[0])} {worst[2]:.2f}x at N = {worst[1]:g}")
     text = f"<b>Does it scale:</b> {parts} (static tiles; the dynamic scheduler and eq. 5.2 are in §3)."
     if stale & {label for label, *_ in curves}:
         text += (f" Out of date: {esc(_and(sorted(stale & {label for label, *_ in curves})))}'s sweep holds other "
