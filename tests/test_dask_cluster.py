@@ -29,7 +29,7 @@ pytest.importorskip("distributed")
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
         "arch": {"frames": 2, "trace": False, "packet_size": 16}}
-HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off")
+HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write")
 DASK = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
 WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
 

@@ -20,7 +20,8 @@ from tlm.experiments.frames import render_key
 from tlm.experiments.sweep import run_sweep
 from tlm.scenes.loader import scenes_dir
 
-HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off", "functional_cached")  # (the first sweep renders)
+HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write",
+        "functional_cached")  # (the first sweep renders)
 WHITE, WHITE_EDITED = "albedo: [0.73, 0.73, 0.73]", "albedo: [0.37, 0.73, 0.73]"
 SCALE, SCALE_EDITED = "scale: 7.54193", "scale: 8.54193"
 

@@ -34,7 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 RUN_POINT = sweep_mod.run_point
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [24, 16], "render": {"light_samples": 1},
         "arch": {"frames": 2, "trace": False, "packet_size": 32}}
-HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off")
+HOST = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write")
 
 
 @pytest.fixture(autouse=True)

@@ -60,7 +60,8 @@ def test_the_first_point_pays_the_one_off_and_host_s_leaves_it_out(tmp_path, mon
     html = table(read([out]).sweeps[0])
     cells = [row.split("</td><td>") for row in html.split("<tr>")[2:]]
     host = {int(c[0].removeprefix("<td>")): float(c[-1].split("</td>")[0]) for c in cells}
-    want = round(first["seconds.functional"] + first["seconds.simulate"] - first["seconds.one_off"], 3)
+    want = round(first["seconds.functional"] + first["seconds.simulate"] + first["seconds.write"]
+                 - first["seconds.one_off"], 3)
     assert abs(host[0] - want) <= 0.0011
     assert "less their one-off part, seconds.one_off" in html and "paid by point" in html
 
@@ -72,7 +73,7 @@ def test_a_row_of_an_older_results_json_has_no_one_off(tmp_path: Path):
            "functional": {"cached": True}, "host_seconds": {"functional": 2.0, "simulate": 1.0}}
     assert result_fields(res)["seconds.one_off"] is None
     cols = result_columns()
-    assert cols[-3:] == ["seconds.functional", "seconds.simulate", "seconds.one_off"]
+    assert cols[-4:] == ["seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write"]
 
 
 def test_the_provenance_host_seconds_do_not_add_the_one_off_part_twice():

@@ -51,7 +51,7 @@ from tlm.experiments import run
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
-from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings
+from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
 from tlm.scenes.cache import read_as
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
@@ -583,7 +583,8 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
     if problem is not None:
         _damaged(side, path, problem)
         return None
-    problem = digest_problem(path, summary.pop("npz", None))
+    npz = summary.pop("npz", None)
+    problem = digest_problem(path, npz)
     if problem is not None:
         if not _gone(path):
             _damaged(path, side, problem)
@@ -595,7 +596,7 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
                 _damaged(_image_file(path), side, problem)
             return None
     try:
-        got = CachedRender(Functional.load(path), summary, True, key)
+        got = CachedRender(_read_frame(path, key, npz), summary, True, key)
     except (FileNotFoundError, NotADirectoryError):
         return None
     except Exception as e:  # BadZipFile, EOFError, zlib.error, ValueError, KeyError: a damaged file
@@ -603,6 +604,30 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
         return None
     note_use(side)
     return got
+
+
+_LAST_FRAME: tuple[str, str, int, str, Functional] | None = None  # (file, key, size, sha256, frame): the last read
+_LAST_FRAME_LOCK = threading.Lock()
+
+
+def _read_frame(path: Path, key: str, digest: dict) -> Functional:
+    """:meth:`Functional.load` of the entry ``path`` of ``key``, or the frame this process read last where it is
+    that file again: the same file and key, and the size and sha256 of ``digest`` (the sidecar's, which
+    :func:`digest_problem` has just checked the file's bytes against), so that the points of a sweep, handed out
+    grouped by frame (:func:`tlm.experiments.sweep._dispatch`), do not each decompress the same frame. Every
+    check of the entry runs as before (its sidecar, its checksum, its image): an entry removed is a miss and
+    one rendered again is another file (another sha256), read anew. One frame is kept (its memory); its arrays
+    are read-only (:class:`~tlm.kernels.work.WorkArrays`), so no point changes the frame the next one gets."""
+    global _LAST_FRAME
+    held = (os.path.abspath(path), key, digest["size"], digest["sha256"])
+    with _LAST_FRAME_LOCK:
+        last = _LAST_FRAME
+    if last is not None and last[:4] == held:
+        return last[4]
+    frame = Functional.load(path)
+    with _LAST_FRAME_LOCK:
+        _LAST_FRAME = (*held, frame)
+    return frame
 
 
 def _gone(file: Path) -> bool:
@@ -649,6 +674,10 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     ``kvoxel``, ... A sweep of such a setting renders its frame once; but for those the frame's
     summary records (:func:`~tlm.render.planner.recorded_inert_settings`: ``estimate.radius_photons``
     under final gathering, the indirect radius ``photons.radius``), kept so a frame's record is its own.
+    A setting whose values give one frame (:func:`~tlm.render.planner.same_frame_settings`: ``cache.pairs``
+    2, 3 and 4, each cached stream on a pair of its own) is keyed by the value that stands for them (4), so
+    those render their frame once too (the entries cached under the keys 2 and 3 had before are read no more:
+    ``tlm cache prune`` removes them in their turn).
 
     A scene file is keyed by its file's name alone (``box.yaml``), not by the absolute path
     the config holds (:func:`tlm.config.scene_from`): its content is ``scene_fingerprint``,
@@ -664,6 +693,10 @@ def functional_key(cfg, scene_fingerprint: str, code_version: str) -> str:
     for section, values in keep.items():
         if isinstance(values, dict):
             keep[section] = {k: v for k, v in values.items() if f"{section}.{k}" not in unread}
+    for setting, value in same_frame_settings(cfg).items():  # (cache.pairs 2, 3 and 4: one frame, keyed as 4)
+        section, name = setting.split(".", 1)
+        if name in keep.get(section, {}):
+            keep[section][name] = value
     # (not what changes only brightness or speed: the exposure, the kernels' threads)
     keep["render"] = {k: v for k, v in keep["render"].items() if k not in ("exposure", "threads")}
     blob = json.dumps({"cfg": keep, "scene": scene_fingerprint, "code": code_version}, sort_keys=True)

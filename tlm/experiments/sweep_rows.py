@@ -5,7 +5,8 @@ factors, its scene and mode, and for a point that ran the fields of its ``result
 (:func:`result_fields`): cycles per PM, fps, SimPy events, whether TThru is steady,
 busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the image
 error where there is a reference, whether the frame came from the functional cache, and
-host seconds, with their one-off part (``seconds.one_off``: numba compiling, first imports).
+host seconds, with their one-off part (``seconds.one_off``: numba compiling, first imports), and
+the seconds of writing its folder (``seconds.write``).
 ``sweep.jsonl`` and ``sweep.csv`` hold the rows (:func:`write_rows`), the CSV
 with an ok point's columns whatever the points' outcome (:func:`columns`), and a factor's null
 value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
@@ -59,7 +60,7 @@ def point_row(point: Point, record: dict) -> Row:
 def result_fields(res: dict) -> dict[str, Any]:
     """An ok point's fields of its row, from its ``results.json``: cycles, fps, SimPy events,
     whether TThru is steady, utilization, the image error (where there is a reference), whether
-    the frame was cached, host seconds (and their one-off part)."""
+    the frame was cached, host seconds (and their one-off part), the seconds its folder's write took."""
     row: dict[str, Any] = {f"cycles.{k}": v for k, v in res["cycles"].items()}
     row["fps"] = res["fps"]
     row["simpy_events"] = res["timing"]["simpy_events"]
@@ -76,6 +77,9 @@ def result_fields(res: dict) -> dict[str, Any]:
     # (the part of those two in which numba compiled or loaded a kernel, or a module was first imported: the
     # one-off work of whichever points of a worker ran first; null in a results.json of before it was measured)
     row["seconds.one_off"] = res["host_seconds"].get("one_off")
+    # (the writing of the point's folder, after its simulate: config.resolved.yaml, trace.json, the record; null in
+    # a results.json of before it was measured)
+    row["seconds.write"] = res["host_seconds"].get("write")
     return row
 
 
@@ -89,8 +93,8 @@ def result_columns() -> list[str]:
     units = {f"pipe0.{pm}": {"busy": 0, "stalled": 0, "idle": 0, "elapsed": 0} for pm in PMS}
     shape = {"cycles": dict.fromkeys((*PMS, "throughput", "latency")), "fps": None,
              "timing": {"simpy_events": None, "throughput_estimate": {}, "units": units},
-             "error": None, "functional": {"cached": None}, "host_seconds": {"functional": None, "simulate": None,
-                                                                               "one_off": None}}
+             "error": None, "functional": {"cached": None},
+             "host_seconds": {"functional": None, "simulate": None, "one_off": None, "write": None}}
     return list(result_fields(shape))
 
 

@@ -225,8 +225,6 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     on other keys. What only the simulated run can tell (the FIFO's depth, empty tiles, a
     swap or context switch that never happened) is :func:`tlm.experiments.run_warnings.stream_warnings`'.
     """
-    from tlm.kernels.memory import PM_STREAMS
-
     out: dict[str, str] = {}
     arch = cfg.arch
     if arch.pipelines == 1:
@@ -234,12 +232,34 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     if arch.images_in_flight == 1:
         out["arch.context_switch_cycles"] = ("arch.images_in_flight is 1 (a PM never has an older image's job "
                                              "to switch to)")
-    streams = max(len(names) for names in PM_STREAMS.values())
+    streams = pair_streams()
     default_pairs = RunConfig().cache.pairs
     if min(cfg.cache.pairs, default_pairs) >= streams:
         out["cache.pairs"] = (f"a PM phase reads at most {streams} cached streams, so {streams} or more pairs give "
                               f"each a pair of its own, as the default {default_pairs} does")
     return out
+
+
+def pair_streams() -> int:
+    """The most cached streams one PM phase reads (:data:`tlm.kernels.memory.PM_STREAMS`: 2, the node
+    heap and the leaf indices, ...): a phase's stream ``k`` takes pair ``k mod cache.pairs``, so at this
+    many pairs or more each stream has a pair of its own, the same one at every such value."""
+    from tlm.kernels.memory import PM_STREAMS
+
+    return max(len(names) for names in PM_STREAMS.values())
+
+
+def same_frame_settings(cfg: RunConfig) -> dict[str, object]:
+    """The settings of ``cfg`` at whose value the render gives the same frame as at other values,
+    each with the value that stands for all of them: ``cache.pairs`` at :func:`pair_streams` or more
+    (each cached stream on a pair of its own, the same pair at each of them: the same page misses,
+    work and image) stands for the default's 4 (for :func:`pair_streams` where the default were fewer).
+    The functional key holds that value (:func:`tlm.experiments.frames.functional_key`), so a sweep
+    of ``cache.pairs`` 2, 3 and 4 renders one frame; 1 (both streams of a phase on one pair) its own."""
+    streams = pair_streams()
+    if cfg.cache.pairs >= streams:
+        return {"cache.pairs": max(RunConfig().cache.pairs, streams)}
+    return {}
 
 
 def inert_changes(cfg: RunConfig, skip: Iterable[str] = ()) -> list[str]:

@@ -170,8 +170,9 @@ def table(sw: Sweep) -> str:
         paid = [r for r in once if r["seconds.one_off"] >= 0.0005]
         where = (f"{sum(r['seconds.one_off'] for r in paid):.3g} s in all, paid by "
                  f"{_points([str(r.get('point')) for r in paid])}" if paid else "none here")
-        out.append('<p class="note">host s: a point\'s host seconds (sweep.csv seconds.functional plus '
-                   "seconds.simulate) less their one-off part, seconds.one_off: numba compiling or loading kernels "
+        out.append('<p class="note">host s: a point\'s host seconds (sweep.csv seconds.functional, '
+                   "seconds.simulate and seconds.write) less their one-off part, seconds.one_off: numba compiling or "
+                   "loading kernels "
                    "and modules imported for the first time, paid by whichever points each worker ran first, not "
                    f"by their settings ({esc(where)}).</p>")
     if len(rows) > MAX_ROWS:
@@ -185,7 +186,7 @@ def _host_seconds(r: dict) -> float:
     before it was measured)."""
     once = r.get("seconds.one_off")
     return max(0.0, (r.get("seconds.functional") or 0) + (r.get("seconds.simulate") or 0)
-               - (once if _finite(once) else 0.0))
+               + (r.get("seconds.write") or 0) - (once if _finite(once) else 0.0))
 
 
 def _combo_label(others: list[str], combo: tuple) -> str:
