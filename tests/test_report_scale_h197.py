@@ -155,3 +155,21 @@ def test_a_long_combination_keeps_every_value_in_the_file_name(tmp_path):
     assert figure_name(tmp_path, "sweep", "design_space", "arch.page_miss_cycles") == \
         "sweep_design_space_arch_page_miss_cycles.png"
     assert figure_name(tmp_path, "idle", "cross", "cornell", "bsp.levels = 5") == "idle_cross_cornell_bsp_levels_5.png"
+
+
+def test_combinations_merge_only_where_every_number_drawn_is_the_same():
+    """Two combinations of the same simulated cycles but another eq. 5.2 fit (A, its curve, its error) are two
+    curves: merged, the figure drew one fit's A and the caption's largest error left the other's out (a review)."""
+    rows = [{"pipelines": n, "simulated": 100.0 / n, "analytical": 100.0 / n, "speedup": float(n)} for n in (1, 2, 4)]
+    other = [{**r, "analytical": r["analytical"] * 1.5} for r in rows]
+    fits = {}
+    for group, (a, drawn) in {"fifo_depth = 8": (1.0, rows), "fifo_depth = 16": (9.0, other)}.items():
+        for target in eq52.TARGETS:
+            fits[eq52.fit_key("cornell", "rcast", "static", target, group)] = {
+                "rows": drawn, "A": a, "B": 2.0, "max_abs_rel_error": 0.5 if a > 1 else 0.01}
+    out, note = scaling_mod.bounded_fits(fits, "sweep.csv")
+    assert sorted({f["A"] for f in out.values()}) == [1.0, 9.0], (out.keys(), note)
+    assert "identical" not in " ".join(str(k) for k in out)
+    same = {k: {**v, "A": 1.0, "rows": rows, "max_abs_rel_error": 0.01} for k, v in fits.items()}
+    merged, _ = scaling_mod.bounded_fits(same, "sweep.csv")  # (every number the same: one curve, both named)
+    assert len(merged) == len(eq52.TARGETS) and "identical" in " ".join(str(k) for k in merged), merged.keys()

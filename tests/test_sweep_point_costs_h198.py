@@ -232,9 +232,12 @@ def test_the_points_of_a_frame_read_it_once_while_its_entry_is_that_file(loads, 
     assert not e.cached and e.functional == first.functional
 
 
-def test_a_point_cannot_change_the_frame_the_next_one_reads(loads, tmp_path):
+def test_a_point_cannot_change_the_frame_the_next_one_reads(loads, tmp_path, monkeypatch):
     """The frame kept is the one every point of the group gets: its arrays are read-only, and a sweep's
-    points leave it equal to the entry's file."""
+    points leave it equal to the entry's file (kept here past the sweep's end, which drops it)."""
+    import tlm.experiments.sweep as sweep_mod
+
+    monkeypatch.setattr(sweep_mod, "forget_last_frame", lambda: None)
     path = tmp_path / "group.yaml"
     path.write_text(yaml.safe_dump({"base": {**SMALL, "mode": "pmap"}, "grid": {"arch.fifo_depth": [16, 64, 256]}}))
     done = run_sweep(path, tmp_path / "out", jobs=1)
@@ -246,3 +249,16 @@ def test_a_point_cannot_change_the_frame_the_next_one_reads(loads, tmp_path):
     with pytest.raises(ValueError):
         arrays[0][0] = 1
     assert dataclasses.is_dataclass(kept) and isinstance(arrays[0], np.ndarray)
+
+
+def test_a_sweep_in_this_process_keeps_no_frame_after_it_ends(tmp_path, cache):
+    """The last frame read is kept while a sweep's points run, not after (a library caller's process; a review)."""
+    from tlm.experiments.sweep import run_sweep as sweep_here
+
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump({"base": {"scene": "cornell", "mode": "rcast", "resolution": [8, 8],
+                                             "arch": {"frames": 2, "trace": False}},
+                                    "grid": {"arch.fifo_depth": [4, 16]}}))
+    done = sweep_here(path, tmp_path / "o", jobs=1)
+    assert (done.ok, done.failed) == (2, 0)
+    assert frames._LAST_FRAME is None

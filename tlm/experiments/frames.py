@@ -630,6 +630,13 @@ def _read_frame(path: Path, key: str, digest: dict) -> Functional:
     return frame
 
 
+def forget_last_frame() -> None:
+    """Drop the frame :func:`_read_frame` keeps (a sweep's end: a library caller's process does not hold it on)."""
+    global _LAST_FRAME
+    with _LAST_FRAME_LOCK:
+        _LAST_FRAME = None
+
+
 def _gone(file: Path) -> bool:
     """Whether an entry's ``file`` is not there now (removed under its reader: no damaged entry)."""
     return not os.path.lexists(file)

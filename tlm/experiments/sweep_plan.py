@@ -97,7 +97,8 @@ class SweepPlan:
         replaced = (f"; {n(self.replaced, 'point folder')} of failed or unfinished points removed and run again"
                     if self.replaced else "")
         where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
-        lines = [f"dry run of {self.path} into {self.out}: nothing run, nothing written",
+        lines = [f"dry run of {self.path} into {self.out}: nothing run, no output folder written (tlm's scene "
+                 "cache may keep what the keys' scene loads parsed)",
                  f"  {n(self.points, 'point')}: {self.done} done already (skipped), {self.to_run} to run{again}"
                  f"{replaced}",
                  f"  {n(self.frames, 'frame')} for the points to run: {self.frames_cached} cached{where}, "
@@ -110,7 +111,8 @@ class SweepPlan:
                          f"{len(self.references) - len(computed)} cached")
             lines += [f"    {r.key}: {r.action} ({n(r.points, 'point')})" for r in self.references]
         if self.stale:
-            lines.append(f"  {n(self.stale, 'temporary folder or file')} of killed sweeps in {self.out}: removed")
+            what = "folder or file" if self.stale == 1 else "folders or files"
+            lines.append(f"  {self.stale} temporary {what} of killed sweeps in {self.out}: removed")
         if self.other_folders:
             lines.append(f"  {n(self.other_folders, 'point folder')} not this sweep's: kept (a warning says so)")
         return lines

@@ -421,7 +421,11 @@ def bounded_fits(fits: dict[tuple, dict], numbers: str) -> tuple[dict[tuple, dic
         return fits, ""
     signature: dict[str, list] = defaultdict(list)
     for k, f in sorted(fits.items()):
-        signature[eq52.key_group(k)].append((k[1], k[2], k[3], [r.get("simulated") for r in f["rows"]]))
+        # (every number the figure draws or its caption reads: the rows' N, simulated, eq. 5.2 and slowest-pipeline
+        # values and speed-ups, the fit's A, B, largest error and slowest-pipeline fit)
+        signature[eq52.key_group(k)].append((k[1], k[2], k[3], [
+            (r.get("pipelines"), r.get("simulated"), r.get("analytical"), r.get("analytical_slowest"), r.get("speedup"))
+            for r in f["rows"]], [f.get(name) for name in ("A", "B", "max_abs_rel_error", "slowest")]))
     merged: dict[str, list[str]] = {}
     for g in groups:
         merged.setdefault(repr(signature[g]), []).append(g)
