@@ -49,7 +49,7 @@ POINT_HOST_FIELDS = ("functional.render_host_seconds",)  # the render's seconds 
 # the reference's meta.json: how long the rounds took
 REFERENCE_HOST_FIELDS = ("host_seconds",)
 # sweep.csv / sweep.jsonl columns copied from the points' host_seconds
-SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off")
+SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write")
 
 # results.json sections of the functional layer (the render): independent of the
 # architecture, so equal across packet sizes, N and schedulers ...
