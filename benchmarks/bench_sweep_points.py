@@ -30,7 +30,7 @@ import yaml
 
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"spp": 1, "light_samples": 1},
         "arch": {"trace": False}}
-HOST = ["seconds.functional", "seconds.simulate", "seconds.one_off", "functional_cached"]
+HOST = ["seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write", "functional_cached"]
 
 
 def sweep_file(folder: Path, points: int) -> Path:
