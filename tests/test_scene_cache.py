@@ -201,7 +201,7 @@ def test_another_numpy_or_trimesh_is_another_entry(tmp_path, small, monkeypatch)
     path = _box(tmp_path / "a")
     meshes.load_mesh(path)
     meshes.load_mesh(path)
-    monkeypatch.setattr(scache, "_versions", lambda: "numpy=0 trimesh=0")
+    monkeypatch.setattr(scache, "parse_versions", lambda: "numpy=0 trimesh=0")
     meshes.load_mesh(path)
     assert small == ["box.obj", "box.obj"]
 

@@ -30,7 +30,6 @@ done) parses no mesh for it; a frame not in the cache is rendered from the scene
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import io
 import json
@@ -52,7 +51,7 @@ from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
-from tlm.scenes.cache import read_as
+from tlm.scenes.cache import parse_versions, read_as
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
@@ -222,26 +221,11 @@ def _key_file(key: tuple) -> tuple[Path, list] | None:
     """The file that remembers the fingerprint of the scene load ``key`` (a :func:`_scene_key` key) on disk,
     with the key as JSON; None where the key is no JSON."""
     try:
-        plain = json.loads(json.dumps([*key, _parse_versions()]))  # (a parse's libraries: the mesh cache's too)
+        plain = json.loads(json.dumps([*key, parse_versions()]))  # (a parse's libraries: the mesh cache's too)
     except (TypeError, ValueError):
         return None
     name = hashlib.sha256(json.dumps(plain).encode()).hexdigest()[:24]
     return cache_root("scenes") / f"key-{name}.json", plain
-
-
-@functools.cache
-def _parse_versions() -> str:
-    """The versions of the libraries a mesh's parse runs (numpy; trimesh for PLY, STL, GLB), which a
-    fingerprint remembered on disk was given by."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = []
-    for name in ("numpy", "trimesh"):
-        try:
-            out.append(f"{name}={version(name)}")
-        except PackageNotFoundError:
-            out.append(f"{name}=none")
-    return " ".join(out)
 
 
 def _kept_key(key: tuple) -> tuple[str, list] | None:

@@ -32,7 +32,7 @@ from typing import Any
 from tlm import storage
 from tlm.experiments.sweep_file import Point, Sweep, load_sweep
 from tlm.experiments.sweep_point import MARKER
-from tlm.experiments.sweep_reference import HELD, done_record, listed, strictest
+from tlm.experiments.sweep_reference import HELD, done_record, listed, reference_groups, strictest
 
 
 @dataclass
@@ -173,27 +173,12 @@ def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Ref
     points to run (or those done without an error, or measured against one short of its tolerance) need, the
     hashes of the points done that computing them would measure again, and the sweep's line where no point runs
     the photon-map pass."""
-    from tlm.config import config_from_dict
-    from tlm.experiments.reference import KEY_READS, reference_key
-    from tlm.experiments.reference_cache import ReferenceSettings, verdict
-    from tlm.render.planner import plan as passes
-    from tlm.scenes.loader import load_scene
+    from tlm.experiments.reference_cache import verdict
 
-    groups: dict[str, list[Point]] = {}
-    for p in sweep.points:
-        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
-        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
-    source = str(sweep.path)
     pmap = False
     needed: dict[str, tuple[dict[str, str], dict[str, Any]]] = {}  # key -> (hash -> why measured, settings by hash)
-    for group in groups.values():
-        cfg = config_from_dict(group[0].config, source)
-        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
-        if "pmap" not in passes(scene, cfg).run_names:
-            continue
+    for group, _cfg, settings, key in reference_groups(sweep):
         pmap = True
-        settings = ReferenceSettings.from_config(scene, cfg)
-        key = reference_key(scene, cfg, settings)
         for p in group:
             why = _to_measure(records[p.hash])
             if why:
@@ -281,10 +266,3 @@ def _gone(folder: Path, pattern: re.Pattern, kind: Any) -> int:
                 continue
             n += not storage.pid_alive(int(m[2]))
     return n
-
-
-def _dotted(config: dict, dotted: str) -> Any:
-    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
-    for part in dotted.split("."):
-        config = config.get(part) if isinstance(config, dict) else None
-    return config

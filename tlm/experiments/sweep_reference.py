@@ -25,7 +25,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import suppress
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -146,6 +146,31 @@ class Held:
     folder: Path | None
 
 
+def reference_groups(sweep) -> Iterator[tuple[list[Point], Any, Any, str]]:
+    """The points of ``sweep`` (a :class:`~tlm.experiments.sweep_file.Sweep`) grouped by what says whether they
+    have a photon-map reference and which (``mode``, ``photons.count`` and the keys a reference reads,
+    :data:`~tlm.experiments.reference.KEY_READS`), a scene loaded per group: for each group whose points run the
+    photon-map pass, its points, the config of its first, the :class:`~tlm.experiments.reference_cache.
+    ReferenceSettings` of that config and the reference's key (:func:`sweep_references`, ``tlm sweep --dry-run``)."""
+    from tlm.config import config_from_dict
+    from tlm.experiments.reference import KEY_READS, reference_key
+    from tlm.experiments.reference_cache import ReferenceSettings
+    from tlm.render.planner import plan
+    from tlm.scenes.loader import load_scene
+
+    groups: dict[str, list[Point]] = {}
+    for p in sweep.points:
+        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
+        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
+    source = str(sweep.path)
+    for group in groups.values():
+        cfg = config_from_dict(group[0].config, source)
+        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
+        if "pmap" in plan(scene, cfg).run_names:
+            settings = ReferenceSettings.from_config(scene, cfg)
+            yield group, cfg, settings, reference_key(scene, cfg, settings)
+
+
 def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None = None,
                      progress: bool = False, hold: dict[str, Held] | None = None) -> list[str]:
     """``tlm sweep --reference``: compute and cache each photon-map reference that the sweep's points need,
@@ -172,33 +197,20 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     one used or kept), read or computed now, with all the points of its key: the sweep holds a copy of those its
     points to run need for its duration (:func:`hold_references`), so that a ``tlm cache prune`` meanwhile, or a
     cache that could not take one computed now, costs no point its error."""
-    from tlm.config import config_from_dict
     from tlm.errors import EnvironmentFailure
-    from tlm.experiments.reference import KEY_READS, make_reference, reference_key, repeats_why
-    from tlm.experiments.reference_cache import RULE, ReferenceSettings, cache_dir, describe, load_reference, verdict
-    from tlm.render.planner import plan
-    from tlm.scenes.loader import load_scene
+    from tlm.experiments.reference import make_reference, repeats_why
+    from tlm.experiments.reference_cache import RULE, cache_dir, describe, load_reference, verdict
 
     say = say or (lambda line: None)
     present = listed(points_dir)
-    groups: dict[str, list[Point]] = {}  # every point, by what says whether it has a reference and which
-    for p in sweep.points:
-        reads = [_dotted(p.config, k) for k in ("mode", "photons.count", *KEY_READS)]
-        groups.setdefault(json.dumps(reads, sort_keys=True, default=str), []).append(p)
     source = str(sweep.path)
     pmap = False
     # reference key -> a config of it, the points that need it, those of them not measured yet, and the
     # settings each of them asks for (its stopping rule, RULE, is no part of the key: points of one key may differ)
     needed: dict[str, tuple[Any, list[Point], list[Point], dict[str, ReferenceSettings]]] = {}
     every: dict[str, set[str]] = {}  # reference key -> the hashes of all its points (done or not: Held.points)
-    for group in groups.values():
-        cfg = config_from_dict(group[0].config, source)
-        scene = load_scene(cfg.scene, sweep.folder, cfg.resolution, source)
-        if "pmap" not in plan(scene, cfg).run_names:
-            continue
+    for group, cfg, settings, key in reference_groups(sweep):
         pmap = True
-        settings = ReferenceSettings.from_config(scene, cfg)
-        key = reference_key(scene, cfg, settings)
         every.setdefault(key, set()).update(p.hash for p in group)
         measure = {p.hash: _to_measure(points_dir / p.hash) if p.hash in present else "run" for p in group}
         points = [p for p in group if measure[p.hash]]

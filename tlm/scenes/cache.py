@@ -65,7 +65,7 @@ def cache_dir() -> Path:
 
 
 @functools.cache
-def _versions() -> str:
+def parse_versions() -> str:
     """The versions of the libraries a parse runs (numpy; trimesh for PLY, STL, GLB)."""
     from importlib.metadata import PackageNotFoundError, version
 
@@ -167,7 +167,7 @@ def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path)
 def _mesh_entry(path: Path, digest: dict) -> Path:
     """Where the entry of the mesh file ``path`` (of :func:`~tlm.caches.file_digest` ``digest``) is."""
     # (the name: a part's, the format's)
-    key = _key("mesh", _versions(), path.name, digest["sha256"], str(digest["size"]))
+    key = _key("mesh", parse_versions(), path.name, digest["sha256"], str(digest["size"]))
     return cache_dir() / f"mesh-{key}.npz"
 
 
