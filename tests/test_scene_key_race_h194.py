@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import time
 from collections import OrderedDict
@@ -28,6 +27,9 @@ from tlm.scenes import cache as scene_cache
 from tlm.scenes import meshes
 from tlm.scenes.loader import load_scene
 
+from .helpers_scene_loads import another_process
+from .helpers_scene_loads import box as copied_box
+
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 OLD, NEW = "Kd 0.725 0.71 0.68", "Kd 0.1 0.71 0.68"  # (the first such line of the MTL: its floor)
 
@@ -38,19 +40,11 @@ def _own_cache(cache, monkeypatch):  # (tests/conftest.py; nothing this process 
     return cache
 
 
-def another_process(monkeypatch) -> None:
-    """What this process remembers forgotten, as in a new one (the disk's caches kept)."""
-    monkeypatch.setattr(frames, "_SCENE_KEYS", OrderedDict())
-
-
 def box(folder: Path) -> Path:
-    """A copy of the Cornell box scene file with its OBJ mesh and material library."""
-    (folder / "meshes").mkdir(parents=True)
-    for name in ("CornellBox-Original.obj", "CornellBox-Original.mtl"):
-        shutil.copy(SCENES / "meshes" / name, folder / "meshes" / name)
-    shutil.copy(SCENES / "cornell-box.yaml", folder / "box.yaml")
+    """A copy of the Cornell box scene file with its OBJ mesh and material library (its floor's line OLD)."""
+    path = copied_box(folder)
     assert OLD in (folder / "meshes" / "CornellBox-Original.mtl").read_text()
-    return folder / "box.yaml"
+    return path
 
 
 def edit(path: Path) -> None:

@@ -10,9 +10,10 @@ import pytest
 
 import tlm
 import tlm.experiments.frames as frames
-import tlm.experiments.loading as loading
 from tlm.config import config_from_dict
 from tlm.experiments import run as runs
+
+from .helpers_scene_loads import counted_loads
 
 CONFIG = {"scene": "cornell", "resolution": [8, 8], "render": {"spp": 1, "light_samples": 1},
           "photons": {"count": 2000}}
@@ -27,17 +28,7 @@ def _own_cache(cache, monkeypatch):  # (tests/conftest.py; and no fingerprint re
 @pytest.fixture
 def loads(monkeypatch):
     """Each scene load, by where the code looked the loader up (the key's, the render's)."""
-    got: list[str] = []
-
-    def counting(where, load):
-        def counted(*args, **kw):
-            got.append(where)
-            return load(*args, **kw)
-        return counted
-
-    monkeypatch.setattr(frames, "load_scene", counting("key", frames.load_scene))
-    monkeypatch.setattr(loading, "load_scene", counting("render", loading.load_scene))
-    return got
+    return counted_loads(monkeypatch)
 
 
 @pytest.fixture

@@ -7,19 +7,16 @@ what they were."""
 
 from __future__ import annotations
 
-import shutil
-from collections import OrderedDict
 from pathlib import Path
 
 import pytest
 import yaml
 
 import tlm.experiments.frames as frames
-import tlm.experiments.loading as loading
 from tlm import cache_admin
 from tlm.experiments.sweep import run_sweep
 
-SCENES = Path(__file__).resolve().parent.parent / "scenes"
+from .helpers_scene_loads import another_process, box, counted_loads
 
 
 @pytest.fixture(autouse=True)
@@ -30,31 +27,7 @@ def _own_cache(cache):  # (tests/conftest.py)
 @pytest.fixture
 def loads(monkeypatch):
     """Each scene load (the key's, the render's), in this process."""
-    got: list[str] = []
-
-    def counting(where, load):
-        def counted(*args, **kw):
-            got.append(where)
-            return load(*args, **kw)
-        return counted
-
-    monkeypatch.setattr(frames, "load_scene", counting("key", frames.load_scene))
-    monkeypatch.setattr(loading, "load_scene", counting("render", loading.load_scene))
-    return got
-
-
-def another_process(monkeypatch) -> None:
-    """What this process remembers forgotten, as in a new one (the disk's caches kept)."""
-    monkeypatch.setattr(frames, "_SCENE_KEYS", OrderedDict())
-
-
-def box(folder: Path) -> Path:
-    """A copy of the Cornell box scene file with its OBJ mesh and material library."""
-    (folder / "meshes").mkdir(parents=True)
-    for name in ("CornellBox-Original.obj", "CornellBox-Original.mtl"):
-        shutil.copy(SCENES / "meshes" / name, folder / "meshes" / name)
-    shutil.copy(SCENES / "cornell-box.yaml", folder / "box.yaml")
-    return folder / "box.yaml"
+    return counted_loads(monkeypatch)
 
 
 def sweep(folder: Path) -> Path:
