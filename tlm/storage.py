@@ -271,9 +271,14 @@ def clean_stale(folder: Path, name: str = ".+") -> None:
     not this machine's to check. Names without a host (older writers) count as this machine's.
     Of this process's own names, those none of its writers is using now are removed (left by an
     earlier process of the same id); one a writer (another thread) is using is never touched."""
-    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
-    for d in _left_by_the_gone(folder, pattern, Path.is_dir, lambda d: d.name in _LIVE):
+    for d in stale_folders(folder, name):
         shutil.rmtree(d, ignore_errors=True)
+
+
+def stale_folders(folder: Path, name: str = ".+") -> list[Path]:
+    """The temporary folders :func:`clean_stale` would remove from ``folder`` now (``tlm sweep --dry-run``)."""
+    pattern = re.compile(rf"\.{name}\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
+    return _left_by_the_gone(folder, pattern, Path.is_dir, lambda d: d.name in _LIVE)
 
 
 def clean_stale_files(folder: Path, name: str = ".+") -> None:
@@ -281,10 +286,15 @@ def clean_stale_files(folder: Path, name: str = ".+") -> None:
     ``-t<id>`` and a count added) that processes of this machine now gone left in ``folder``: one
     killed, or ended at once by a second signal, while it wrote. Another machine's, a live
     process's and those this process's writers are writing now are left alone."""
-    pattern = re.compile(rf"\.{name}\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
-    for f in _left_by_the_gone(folder, pattern, Path.is_file, lambda f: os.path.abspath(f) in _FILES):
+    for f in stale_files(folder, name):
         with suppress(OSError):
             f.unlink()
+
+
+def stale_files(folder: Path, name: str = ".+") -> list[Path]:
+    """The temporary files :func:`clean_stale_files` would remove from ``folder`` now (``tlm sweep --dry-run``)."""
+    pattern = re.compile(rf"\.{name}\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
+    return _left_by_the_gone(folder, pattern, Path.is_file, lambda f: os.path.abspath(f) in _FILES)
 
 
 def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], bool],

@@ -22,9 +22,7 @@ a mesh of at least :data:`~tlm.scenes.cache.MIN_TRIANGLES` triangles not in the 
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Iterable
-from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,7 +30,7 @@ from typing import Any
 from tlm import storage
 from tlm.experiments.sweep_file import Point, Sweep, load_sweep
 from tlm.experiments.sweep_point import MARKER
-from tlm.experiments.sweep_reference import HELD, done_record, listed, reference_groups, strictest
+from tlm.experiments.sweep_reference import HELD, done_record, listed, reference_groups, strictest, to_measure
 
 
 @dataclass
@@ -180,7 +178,7 @@ def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Ref
     for group, _cfg, settings, key in reference_groups(sweep):
         pmap = True
         for p in group:
-            why = _to_measure(records[p.hash])
+            why = to_measure(records[p.hash])
             if why:
                 need = needed.setdefault(key, ({}, {}))
                 need[0][p.hash] = why
@@ -208,20 +206,6 @@ def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Ref
     return refs, again, []
 
 
-def _to_measure(record: dict | None) -> str:
-    """Whether a point (its done ``record``, None: not done) is to be measured against its reference, as
-    ``tlm sweep --reference`` decides (:mod:`tlm.experiments.sweep_reference`): ``"run"`` (not done),
-    ``"unmeasured"`` (done without an error), ``"again"`` (done against one short of its tolerance), or ``""``."""
-    if record is None:
-        return "run"
-    error = record["results"].get("error")
-    if not isinstance(error, dict):
-        return ""
-    if error.get("available") is False:
-        return "unmeasured"
-    return "again" if error.get("available") is True and error.get("reference_converged") is False else ""
-
-
 def _cached_meta(key: str) -> dict | None:
     """The ``meta.json`` of the cached reference ``key`` where the entry is whole (its fields of their types, its
     ``reference.npy`` the file the metadata describes), else None: read only (a damaged one is neither said nor
@@ -247,22 +231,5 @@ def _stale(out: Path) -> int:
     a sweep into it removes: in ``points/`` (a point's half-written folder), beside the rows (``sweep.csv``,
     ``sweep.jsonl``) and in ``.references`` (the copies of references held, ``--reference``); as
     :func:`~tlm.storage.clean_stale` tells them (another machine's and a live process's are kept)."""
-    folders = re.compile(r"\..+\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
-    files = re.compile(r"\..+\.tmp(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-t\d+)?(?:-\d+)?")
-    held = re.compile(r"\.held\.(?:tmp|old)-(?:(h[A-Za-z0-9]*)-)?(\d+)(?:-\d+)*")
-    return (_gone(out / "points", folders, Path.is_dir) + _gone(out, files, Path.is_file)
-            + _gone(out / HELD, held, Path.is_dir))
-
-
-def _gone(folder: Path, pattern: re.Pattern, kind: Any) -> int:
-    """How many entries of ``folder`` (of ``kind``, not links) ``pattern`` names (its groups: the host, the
-    process id) that a process of this machine now gone left."""
-    host = storage.process_tag().rpartition("-")[0]
-    n = 0
-    with suppress(OSError):
-        for e in Path(folder).iterdir():
-            m = pattern.fullmatch(e.name)
-            if not m or (m[1] is not None and m[1] != host) or e.is_symlink() or not kind(e):
-                continue
-            n += not storage.pid_alive(int(m[2]))
-    return n
+    return (len(storage.stale_folders(out / "points")) + len(storage.stale_files(out))
+            + len(storage.stale_folders(out / HELD, "held")))

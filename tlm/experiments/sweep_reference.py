@@ -184,7 +184,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     that computing again would not better (fewer rounds asked for than it has, or the same rounds
     repeated) is kept, and a line says why. Needed: by a point not done yet in ``points_dir``, or done
     without an error or with one measured against a reference that misses its tolerance
-    (:func:`_to_measure`); one reference per distinct value of the keys its key reads
+    (:func:`to_measure`); one reference per distinct value of the keys its key reads
     (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and ``photons.count`` that say whether
     the photon-map pass runs: :func:`~tlm.render.planner.plan`), each computed as ``tlm reference`` of a
     point's config computes it (:func:`~tlm.experiments.reference.make_reference`: its lines to ``say``, one
@@ -212,7 +212,7 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     for group, cfg, settings, key in reference_groups(sweep):
         pmap = True
         every.setdefault(key, set()).update(p.hash for p in group)
-        measure = {p.hash: _to_measure(points_dir / p.hash) if p.hash in present else "run" for p in group}
+        measure = {p.hash: to_measure(done_record(points_dir / p.hash)) if p.hash in present else "run" for p in group}
         points = [p for p in group if measure[p.hash]]
         if points:
             need = needed.setdefault(key, (cfg, [], [], {}))
@@ -429,12 +429,12 @@ def _judged(meta: dict, asked: list[ReferenceSettings]) -> str:
     return f"; against its points' own tolerances it {', and '.join(said)}"
 
 
-def _to_measure(folder: Path) -> str:
-    """Whether the point of ``folder`` is to be measured against its reference: ``"run"`` (not done),
-    ``"unmeasured"`` (done without a photon-map error: no reference cached when it ran), ``"again"`` (done
-    with one measured against a reference that misses its tolerance, ``reference_converged`` false: measured
-    again where ``--reference`` computes that reference again, :func:`reference_now`), or ``""`` (no)."""
-    rec = done_record(folder)
+def to_measure(rec: dict | None) -> str:
+    """Whether a point (its :func:`done_record`, None: not done) is to be measured against its reference:
+    ``"run"`` (not done), ``"unmeasured"`` (done without a photon-map error: no reference cached when it ran),
+    ``"again"`` (done with one measured against a reference that misses its tolerance, ``reference_converged``
+    false: measured again where ``--reference`` computes that reference again, :func:`reference_now`), or ``""``
+    (no). ``tlm sweep --reference`` and its ``--dry-run`` decide by it."""
     if rec is None:
         return "run"
     error = rec["results"].get("error")
