@@ -86,8 +86,11 @@ def test_points_are_the_grid_product_times_zip_in_order(tmp_path):
         assert c["arch"]["frames"] == 3 and c["render"]["reflect_depth"] == 2  # set
         assert c["arch"]["packet_size"] == 32 and c["resolution"] == [24, 16]  # the base file
         assert c["render"]["batch"] == 4  # a default
-        assert p.hash == config_hash(c, point_inputs(config_from_dict(c), sw.folder, "test")) and len(p.hash) == 16
-        assert p.hash != config_hash(c)  # the input files are part of the key
+        # (the key holds arch.trace as true, whatever the point runs with: h209)
+        assert c["arch"]["trace"] is False
+        keyed = {**c, "arch": {**c["arch"], "trace": True}}
+        assert p.hash == config_hash(keyed, point_inputs(config_from_dict(c), sw.folder, "test")) and len(p.hash) == 16
+        assert p.hash != config_hash(keyed)  # the input files are part of the key
     assert len({p.hash for p in sw.points}) == 12
     assert sw.folder == tmp_path.resolve()
 

@@ -47,9 +47,10 @@ def _write(tmp_path: Path, **body) -> Path:
 
 
 # (computed with tlm.experiments.sweep as it was before the per-field checks: every point's whole
-# config checked, hashed by config_hash; a change of the schema or of its defaults changes them all)
-PINNED = ["7c4c7e6713fdec3c", "3c1dcd8a7d515b21", "c6640f7ed59b36aa", "07d3cc79c6ad32ba",
-          "1a51496ebe9cd7ca", "01e1513a8b27fe02", "a913769d0d2ca381", "3404f043b8f5174e"]
+# config checked, hashed by config_hash; a change of the schema or of its defaults changes them all; since
+# h209 the key holds arch.trace as true, BASE's false aside: HEAD's hashes of this sweep with arch.trace true)
+PINNED = ["475ec9860fb2bb75", "0473e7e902d50e1c", "4f89e1df056cc6dd", "c6b80a7c36d062ff",
+          "23368e7c2bb792cd", "526503e4cf87b0ec", "2d83afaed44c15ff", "282c14c785621d44"]
 
 
 def test_point_hashes_are_those_of_before(tmp_path, fixed_inputs):
@@ -59,8 +60,9 @@ def test_point_hashes_are_those_of_before(tmp_path, fixed_inputs):
                   zip={"arch.clock_hz": [1000000000, 6.0e8], "seed": [0, 3]})
     points = load_sweep(path).points
     assert [p.hash for p in points] == PINNED
-    for p in points:  # (and the key is config_hash of the point's resolved config)
-        assert p.hash == sweep_mod.config_hash(p.config, _fake_inputs(config_from_dict(p.config), None, ""))
+    for p in points:  # (and the key is config_hash of the point's resolved config, arch.trace as true: h209)
+        keyed = {**p.config, "arch": {**p.config["arch"], "trace": True}}
+        assert p.hash == sweep_mod.config_hash(keyed, _fake_inputs(config_from_dict(p.config), None, ""))
 
 
 def test_configs_are_those_of_the_whole_check(tmp_path, fixed_inputs):
@@ -86,7 +88,8 @@ def test_configs_are_those_of_the_whole_check(tmp_path, fixed_inputs):
         resolved = dataclasses.asdict(cfg)
         assert p.factors == f
         assert json.dumps(p.config) == json.dumps(resolved)  # (the keys' order too: config.resolved.yaml)
-        assert p.hash == sweep_mod.config_hash(resolved, _fake_inputs(cfg, None, ""))
+        keyed = {**resolved, "arch": {**resolved["arch"], "trace": True}}  # (the key's arch.trace: h209)
+        assert p.hash == sweep_mod.config_hash(keyed, _fake_inputs(cfg, None, ""))
         assert isinstance(p.config["arch"]["clock_hz"], float)
         assert inert == inert_settings(cfg)
 

@@ -36,8 +36,13 @@ already done, and recomputes those whose inputs changed. Output folder::
                              cluster lost: the points done, _write_finished)
     sweep.csv                the same rows, one column per field, written then too (a
                              factor's null value as null)
-    points/<hash>/           config.resolved.yaml, results.json, trace.json (arch.trace);
-                             or error.json when the point failed (retried by a rerun)
+    points/<hash>/           config.resolved.yaml (the arch.trace the point ran with),
+                             results.json, and trace.json only where the sweep asks for
+                             arch.trace: true (its base, set, a factor or a --set; else the
+                             point runs with it false; its hash holds it as true but where a
+                             factor gives it, so a rerun that asks for a trace runs only the
+                             points done without one: point_done); or error.json when the
+                             point failed (retried by a rerun)
 
 A point renders nothing that another point rendered: points that differ only in
 ``arch`` (or in settings their mode never reads: ``photons.count`` in mode rcast) share one
@@ -157,6 +162,17 @@ def _clean_stale(points_dir: Path) -> None:
     storage.clean_stale_files(points_dir.parent)
 
 
+def point_done(folder: Path, point: Point) -> dict | None:
+    """The record of ``point`` done in its ``folder`` (:func:`~tlm.experiments.sweep_reference.done_record`),
+    or None where it is to run: not done, or done without the ``trace.json`` it asks for (:attr:`Point.traces`:
+    a sweep run before without ``arch.trace: true``, whose points' hashes hold it as true all the same). A
+    point done with a trace.json it no longer asks for is done (the file is kept)."""
+    record = done_record(folder)
+    if record is not None and point.traces and not (folder / "trace.json").is_file():
+        return None
+    return record
+
+
 def other_folders(points_dir: Path, hashes) -> int:
     """The folders in ``points_dir`` that are none of ``hashes`` (this sweep's points): those an
     earlier run into the folder left, of other tlm code, another config or a different ``--set``
@@ -266,7 +282,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     todo: list[str] = []
     present = listed(points_dir)  # (a point with no folder is not done: no read of it)
     for h in by_hash:
-        rec = done_record(points_dir / h) if h in present else None
+        rec = point_done(points_dir / h, by_hash[h][0]) if h in present else None
         if rec is not None:
             records[h] = rec
         else:
@@ -439,8 +455,9 @@ def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str])
     not at all): the sweep's own error goes on, and ``sweep.jsonl`` holds the rows appended."""
     points_dir = out / "points"
     present = listed(points_dir)
+    first = {p.hash: p for p in reversed(sweep.points)}
     for h in todo:
-        if h not in records and h in present and (rec := done_record(points_dir / h)) is not None:
+        if h not in records and h in present and (rec := point_done(points_dir / h, first[h])) is not None:
             records[h] = rec
     with suppress(OSError, InputError):
         _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records], sweep.factors)

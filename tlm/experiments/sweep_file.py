@@ -70,6 +70,12 @@ class Point:
     hash: str  # 16 hex digits of sha256 over ``config``, its input files and tlm's code (config_hash)
     functional: str = ""  # the functional key of its frame: points of one key share one render
 
+    @property
+    def traces(self) -> bool:
+        """Whether the point keeps the timing model's trace and writes ``trace.json``: its config's
+        ``arch.trace``, true only where the sweep asks for it (:func:`_trace_asked`)."""
+        return (self.config.get("arch") or {}).get("trace") is True
+
 
 @dataclass(frozen=True)
 class Sweep:
@@ -437,7 +443,10 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     names the file ``with --set``, as ``tlm run``'s does). A section given as a mapping under ``set``,
     or as a factor's values, merges into the base's section likewise (:func:`_assign`), and sets the keys
     it names alone (:func:`_keys_given`): ``set``, ``grid`` and ``zip`` overlap, and a ``--set`` a factor,
-    by those keys (``set: {render: {spp: 1}}`` beside a factor ``render.light_samples`` is taken)."""
+    by those keys (``set: {render: {spp: 1}}`` beside a factor ``render.light_samples`` is taken).
+
+    A point's ``arch.trace`` (its trace.json) is false unless the sweep writes it (:func:`_trace_asked`);
+    its key holds it as true but where a factor gives it (:func:`_traced`)."""
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
@@ -539,6 +548,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
                   not by_set)
     points, seen, known = [], {}, {}
     order = sorted(checked.template)  # (the key's JSON sorts its keys)
+    asked, by_factor = _trace_asked(base, settings, grid, zipped, overrides)
+    traced: dict[int, tuple[dict, str]] = {}  # id of an arch field -> (its config, its keyed text), per trace
     # the config less arch, as the JSON of its fields: those the factors leave, then the others
     same = tuple(f.full for name, f in checked.template.items() if f is not None and name != "arch")
     other = [name for name, f in checked.template.items() if f is None and name != "arch"]
@@ -549,11 +560,51 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
             inputs = point_inputs(_config(fields), folder, f"{src} (point {i})", seen, work)
             known[key] = inputs, _json(inputs)
         inputs, shown = known[key]
+        # (arch.trace: as the sweep asks for it, in the key as true: _traced)
+        trace = asked or (bool(by_factor) and any(k in by_factor and TRACE in _keys_given(k, [v])
+                                                  for k, v in factors.items()))
+        arch = fields["arch"]
+        if (id(arch), trace) not in traced:
+            traced[id(arch), trace] = _traced(arch, trace, bool(by_factor), here)
+        config, keyed = {name: f.resolved for name, f in fields.items()}, traced[id(arch), trace]
+        config["arch"] = keyed[0]
         # config_hash(resolved, inputs), from the fields' own JSON
-        points.append(Point(i, factors, {name: f.resolved for name, f in fields.items()},
-                            _key([fields[name].keyed for name in order], shown), inputs["functional"]))
+        points.append(Point(i, factors, config,
+                            _key([keyed[1] if name == "arch" else fields[name].keyed for name in order], shown),
+                            inputs["functional"]))
     _one_run_one_row(points, src)
     return Sweep(path, description, base, base_file, settings, grid, zipped, folder, points, inert, overrides)
+
+
+TRACE = "arch.trace"  # the key whose trace.json a sweep point writes only where the sweep asks for it
+
+
+def _trace_asked(base: dict, settings: dict, grid: dict, zipped: dict, overrides: Iterable[str]) -> tuple[bool, set]:
+    """Whether the sweep writes ``arch.trace`` for every point (in its base, a mapping or the base config file,
+    under ``set``, or in a ``--set``), and the factors that may give it (``grid: {arch.trace: [false, true]}``,
+    a mapping of the ``arch`` section that names it: :func:`_keys_given`). A point whose ``arch.trace`` none
+    of them gives runs with it false (``tlm run``'s default, true, is not a sweep's: a trace of each of its
+    points would be most of its output, and ``tlm report`` draws the timeline of two points of a sweep at
+    most); one given runs as given."""
+    written = [*(k for key, v in base.items() for k in _keys_given(str(key), [v])),
+               *(k for key, v in settings.items() for k in _keys_given(key, [v])),
+               *(k for item in overrides for k in set_leaves(item))]
+    factors = {key for key, values in (*grid.items(), *zipped.items()) if TRACE in _keys_given(key, values)}
+    return TRACE in written, factors
+
+
+def _traced(arch: _Field, trace: bool, by_factor: bool, folder: Path) -> tuple[dict, str]:
+    """A point's ``arch`` section with ``arch.trace`` as the sweep asks for it (``trace``: the value it
+    resolves to, else false), and its text in the point's key (:func:`_keyed`): with ``arch.trace`` true
+    whatever the point runs with, so that asking for a trace, or no longer, keeps the point's key (a point
+    done without its trace.json runs again: :func:`tlm.experiments.sweep.point_done`); but where a factor
+    gives ``arch.trace`` (``by_factor``), as the point runs, so that its points of either value stay two."""
+    resolved = arch.resolved
+    value = resolved.get("trace") is True if trace else False
+    config = resolved if resolved.get("trace") == value else {**resolved, "trace": value}
+    keyed_as = config if by_factor else {**resolved, "trace": True}
+    keyed = arch.keyed if keyed_as == resolved else _keyed("arch", keyed_as, folder)
+    return config, keyed
 
 
 def _scenes_found(rows: list, src: str, folders: list[Path], per_point: bool = True) -> None:

@@ -3,12 +3,13 @@
 :func:`plan` reads what :func:`~tlm.experiments.sweep.run_sweep` reads before its first point, and no
 more, and writes nothing (no output folder, no cache entry, no claim, no report): the sweep file and every
 point's config, checked as the sweep checks them (:func:`~tlm.experiments.sweep_file.load_sweep`: the same
-one-line errors), the output folder's points done (:func:`~tlm.experiments.sweep_reference.done_record`, as
-the sweep skips them), the frames the points to run share (their functional keys; points that differ only in
-keys their frame does not read share one) and which of them the functional cache holds
+one-line errors), the output folder's points done (:func:`~tlm.experiments.sweep.point_done`, as the sweep
+skips them), the frames the points to run share (their functional keys; points that differ only in keys their
+frame does not read share one) and which of them the functional cache holds
 (:func:`~tlm.experiments.frames.is_cached`, as the sweep's dispatch asks it), the stale folders a sweep into
 the folder removes (a killed sweep's temporary point folders, row files and held references; a failed or
-unfinished point's folder, run again) and those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
+unfinished point's folder, or one done without the trace.json it asks for, ``arch.trace``: run again) and
+those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
 the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
 :meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`); with ``reference`` (``--reference``), the photon-map
 references it would compute, decided as :func:`~tlm.experiments.sweep_reference.sweep_references` decides
@@ -69,6 +70,7 @@ class SweepPlan:
     references: list[Reference] | None = None  # with --reference: every reference the points to run need
     warnings: list[str] = field(default_factory=list)  # the warnings the sweep would say (before its points run)
     remote: bool = False  # a remote Dask scheduler: its workers' caches, not this machine's, decide the renders
+    untraced: int = 0  # of ``replaced``: points done without the trace.json they now ask for (arch.trace: true)
 
     @property
     def renders(self) -> int:
@@ -82,8 +84,9 @@ class SweepPlan:
         return {"dry_run": True, "sweep": str(self.path), "out": str(self.out), "points": self.points,
                 "done": self.done, "to_run": self.to_run, "measured_again": self.measured_again,
                 "frames": self.frames, "frames_cached": self.frames_cached, "renders": self.renders,
-                "replaced": self.replaced, "stale": self.stale, "other_folders": self.other_folders,
-                "references": refs, "remote": self.remote, "warnings": list(self.warnings)}
+                "replaced": self.replaced, "untraced": self.untraced, "stale": self.stale,
+                "other_folders": self.other_folders, "references": refs, "remote": self.remote,
+                "warnings": list(self.warnings)}
 
     def lines(self) -> list[str]:
         """The summary ``tlm sweep --dry-run`` prints, a line each."""
@@ -92,8 +95,11 @@ class SweepPlan:
 
         again = f", {self.measured_again} of them done before and measured again (--reference)" \
             if self.measured_again else ""
-        replaced = (f"; {n(self.replaced, 'point folder')} of failed or unfinished points removed and run again"
-                    if self.replaced else "")
+        folders = [*([f"{n(self.replaced - self.untraced, 'point folder')} of failed or unfinished points"]
+                     if self.replaced > self.untraced else []),
+                   *([f"{n(self.untraced, 'point folder')} of points done without the trace.json they ask for "
+                      "(arch.trace)"] if self.untraced else [])]
+        replaced = f"; {' and '.join(folders)} removed and run again" if folders else ""
         where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
         lines = [f"dry run of {self.path} into {self.out}: nothing run, no output folder written (tlm's scene "
                  "cache may keep what the keys' scene loads parsed)",
@@ -137,7 +143,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     """What :func:`~tlm.experiments.sweep.run_sweep` of the loaded ``sweep`` into ``out`` would do (the module's
     docstring); ``out`` checked already (:func:`~tlm.storage.check_destination`). Reads, writes nothing."""
     from tlm.experiments.frames import is_cached
-    from tlm.experiments.sweep import other_folders, other_folders_line
+    from tlm.experiments.sweep import other_folders, other_folders_line, point_done
 
     out = Path(out)
     points_dir = out / "points"
@@ -145,9 +151,11 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     for p in sweep.points:
         by_hash.setdefault(p.hash, []).append(p)
     present = listed(points_dir)
-    records = {h: done_record(points_dir / h) if h in present else None for h in by_hash}
+    records = {h: point_done(points_dir / h, by_hash[h][0]) if h in present else None for h in by_hash}
     todo = {h for h, rec in records.items() if rec is None}
     replaced = sum(h in present for h in todo)
+    # (of them, done but for the trace.json the point asks for: point_done)
+    untraced = sum(h in present and by_hash[h][0].traces and done_record(points_dir / h) is not None for h in todo)
     warnings = [*sweep.inert_factors(), *sweep.inert_sets()]
     references = again = None
     if reference:
@@ -162,7 +170,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)
     return SweepPlan(sweep.path, out, len(sweep.points), count(set(by_hash) - run), count(run),
                      count(again or ()), len(frames), cached, replaced, _stale(out), other, references,
-                     warnings, remote)
+                     warnings, remote, untraced)
 
 
 def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Reference], set[str], list[str]]:

@@ -1,6 +1,8 @@
 """One sweep point, as a worker runs it: the :class:`Task` it travels as (plain data), and
 :func:`run_point`, which renders (or loads) the point's functional result, simulates it and
-writes its folder, ``points/<hash>/`` (``results.json``, or ``error.json``: :func:`write_error`).
+writes its folder, ``points/<hash>/`` (``results.json``, ``trace.json`` where its config's ``arch.trace`` is true,
+only where the sweep asks for it: :func:`~tlm.experiments.sweep_file.load_sweep`; or ``error.json``:
+:func:`write_error`).
 
 A Dask worker first checks that it sees the sweep's folder and input files and, a remote
 one, that it runs the sweep's code (:func:`_check_worker_sees`) and reads the content the

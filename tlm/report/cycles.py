@@ -537,7 +537,8 @@ def cycles_section(inputs: Inputs, out: Path) -> Section:
             sec.figures.append(fig)
         if run.trace is None:
             traced = ((run.config or {}).get("arch") or {}).get("trace")
-            why = ("arch.trace was false" if traced is False else
+            why = ("arch.trace was false; a sweep's points trace only where it sets arch.trace: true"
+                   if traced is False else
                    "the run wrote one, and it is gone from the folder" if traced else "none was written")
             sec.notes.append(f"{run.label}: no trace.json ({why}), so no timeline.")
             continue
