@@ -63,10 +63,12 @@ def test_the_same_sweep_in_two_folders_has_the_same_point_keys(two_copies):
     assert [p.hash for p in one.points] == [p.hash for p in two.points]
     assert [p.functional for p in one.points] == [p.functional for p in two.points]
     assert len({p.hash for p in one.points}) == 6  # (three scenes, two depths: six points)
-    for sweep in (one, two):  # (config_hash of a point's config, from the sweep file's folder, is its key)
-        p = sweep.points[2]
+    for sweep in (one, two):  # (config_hash of a point's config, from the sweep file's folder, is its key:
+        p = sweep.points[2]  # with arch.trace as true, as a point's key holds it where no factor gives it)
         inputs = point_inputs(load_config(p.config).settings, sweep.folder, "test")
-        assert config_hash(p.config, inputs, sweep.path.resolve().parent) == p.hash
+        keyed = {**p.config, "arch": {**p.config["arch"], "trace": True}}
+        assert p.config["arch"]["trace"] is False
+        assert config_hash(keyed, inputs, sweep.path.resolve().parent) == p.hash
 
 
 def test_the_same_config_in_two_folders_shares_its_frame(two_copies):
