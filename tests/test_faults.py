@@ -25,7 +25,7 @@ import yaml
 import tlm.cli as cli
 import tlm.experiments.run as run_mod
 from tests.helpers_storage import refuse_to_carry
-from tlm import claims, storage
+from tlm import claims, storage, storage_lock
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.storage import atomic_folder, folder_lock
@@ -317,7 +317,11 @@ def test_swap_retries_when_another_writer_lands_first(tmp_path, monkeypatch):
 
 def _interrupt_the_swap(monkeypatch, out: Path):
     """Path.rename patched to be interrupted (a signal) as the new folder is renamed onto
-    ``out``, after the old one was moved aside; returns the real rename, to restore."""
+    ``out``, after the old one was moved aside, on a file system that cannot swap the two in one
+    call (tlm.storage_lock.exchange; where it can: tests/test_folder_exchange_h208.py); returns the
+    real rename, to restore."""
+    monkeypatch.setattr(storage_lock, "_renameat2", lambda: None)
+    monkeypatch.setattr(storage_lock, "_EXCHANGES", {})
     rename = Path.rename
 
     def interrupted(self, target):

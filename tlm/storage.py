@@ -15,7 +15,9 @@
 
 For a folder, everything is written into a temporary sibling folder, which is renamed onto the
 destination only when the block finished; on any error (or Ctrl-C) the temporary
-folder is removed and an earlier folder of the same name is left as it was.
+folder is removed and an earlier folder of the same name is left as it was. An earlier folder is
+swapped for the new one in one call where the file system can (:func:`tlm.storage_lock.exchange`), so
+the destination is never missing meanwhile; elsewhere (NFS, another OS) it is renamed aside first.
 
 An existing destination is replaced only if it is an earlier output of the same kind:
 a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
@@ -46,7 +48,7 @@ import itertools
 import os
 import re
 import shutil
-import socket
+import socket  # noqa: F401  (storage.socket.gethostname: what _host, tlm.storage_lock's, asks)
 import stat
 import sys
 import threading
@@ -55,9 +57,10 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
+from tlm import storage_lock
 from tlm.errors import EnvironmentFailure, InputError, environment_problem
 from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
-from tlm.storage_lock import folder_lock
+from tlm.storage_lock import _host, folder_lock
 
 
 def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
@@ -84,7 +87,8 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
 def _check_existing(out: Path, resolved: Path, marker: str, key: str) -> None:
     """An InputError where the existing ``resolved`` may not be replaced (not a folder, a mount
     point, a folder that is no earlier tlm output and not being claimed). Nothing where it
-    vanished while it was looked at: another writer of the same output (a thread or a process)
+    vanished while it was looked at: another writer of the same output (a thread or a process) that
+    cannot swap the two folders in one call (:func:`tlm.storage_lock.exchange`: NFS, an older tlm)
     renames the old folder aside and its own into place, and between the two there is none. A refusal
     is told from one listing of one folder: where the marker was looked for between those two renames
     (no folder), the entries of the folder renamed into place next (its marker among them) are
@@ -205,12 +209,6 @@ def pid_alive(pid: int) -> bool:
     return not line[line.rindex(")") + 2:].startswith(("Z", "X"))
 
 
-def _host() -> str:
-    """This machine's name as a temporary folder's names carry it (``h`` and its letters
-    and digits): on a folder shared between machines, a process id alone names no process."""
-    return "h" + (re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "local")
-
-
 def process_tag() -> str:
     """``h<host>-<pid>``: this process, as the names a writer makes beside a destination (temporary
     files and folders, claims), a sweep folder's holder record and a traceback file carry it: on a
@@ -324,9 +322,11 @@ def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], 
 
 
 def _swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:
-    """Rename ``tmp`` onto ``out``, the old ``out`` (if any) moved aside first and removed
-    after; retried when another writer put a folder there in between. ``writer``: the
-    :func:`_writer` the names of the old folders carry (a new one when not given)."""
+    """Put ``tmp`` in place of ``out``: an old ``out`` swapped for it in one call where the file system
+    can (:func:`tlm.storage_lock.exchange`; then removed, at ``tmp``'s name), else moved aside first and
+    removed after (the old folder back where ``tmp`` cannot follow or a signal comes between the two);
+    retried when another writer put a folder there in between. ``writer``: the :func:`_writer` the names
+    of the old folders carry (a new one when not given)."""
     writer = writer or _writer()
     held: list[str] = []
     try:
@@ -339,8 +339,18 @@ def _swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:
 def _swap_tries(tmp: Path, out: Path, writer: str, held: list[str]) -> None:
     """:func:`_swap_in`'s loop; ``held`` gets the old folders' names it noted as in use."""
     for n in itertools.count():
+        try:
+            if out.exists() and storage_lock.exchange(tmp, out):
+                shutil.rmtree(tmp, ignore_errors=True)  # (the old folder, at the temporary folder's name now)
+                return
+        except FileNotFoundError:
+            pass  # (moved meanwhile: by a writer that renames twice, between its renames: renamed onto below)
+        except OSError as e:  # (a mount point is_mount missed: EBUSY)
+            if e.errno == errno.EBUSY:
+                raise InputError(_mounted(out), key="--out") from None
+            raise
         old = None
-        if out.exists():
+        if out.exists():  # (a file system without the exchange, or another OS: two renames)
             old = out.parent / f".{out.name}.old-{writer}-{n}"
             _hold(old.name)
             held.append(old.name)
@@ -456,9 +466,12 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                 raise EnvironmentFailure(
                     f"cannot carry {e.filename!r} into the new output ({e.strerror}), so the folder is left as it "
                     f"was; this run's output is kept in {str(kept)!r}", source=str(out)) from None
+            new = os.lstat(tmp)
             try:
                 _swap_in(tmp, out, writer)
             except BaseException:  # (the user's files go back where they were)
+                if storage_lock.is_at(out, new):  # (swapped in, then a signal: it stays; the old one goes with tmp)
+                    raise
                 stuck = []
                 for name in moved:
                     try:

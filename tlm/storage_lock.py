@@ -1,18 +1,40 @@
-"""The lock on an output folder (out of :mod:`tlm.storage`, which re-exports it).
+"""The lock on an output folder, and the swap of a new folder for an old one in one call (out of
+:mod:`tlm.storage`, which re-exports :func:`folder_lock`).
 
 * :func:`folder_lock` — an exclusive ``flock`` on a folder as it is now, held while a writer swaps a
   new folder in for it (:func:`tlm.storage.atomic_folder`) and while a command reads the folder it
   just wrote (its report); who holds it: :func:`tlm.claims.lock_holder`.
+* :func:`exchange` — two paths swapped in one call (Linux's ``renameat2`` with ``RENAME_EXCHANGE``):
+  how a writer puts its new folder in place of an old one, so that the destination is never missing
+  meanwhile; where this system or the folder's file system cannot (another OS, a kernel before 3.15,
+  NFS, some overlays), the writer renames the old folder aside and its own into place (two renames).
+* :func:`exchanges_in` — whether a folder's file system does :func:`exchange` (asked once per file
+  system and process): there a missing folder is no folder, not a writer between its two renames.
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import fcntl
+import functools
+import itertools
 import os
+import platform
+import re
+import socket
+import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
+
+
+def _host() -> str:
+    """This machine's name as a temporary folder's names carry it (``h`` and its letters
+    and digits): on a folder shared between machines, a process id alone names no process."""
+    return "h" + (re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "local")
 
 
 @contextmanager
@@ -22,13 +44,27 @@ def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterato
     it just wrote (its report), so that no other writer replaces it meanwhile. A folder
     replaced while this waited for the lock is locked in its turn; no folder, no lock.
     ``waiting`` is called once, before this waits, where another holds the lock (who:
-    :func:`tlm.claims.lock_holder`)."""
+    :func:`tlm.claims.lock_holder`).
+
+    A missing ``out`` is looked for again 10 ms later where a writer may be between its two renames
+    (the old folder renamed aside, the new one not yet in). Where ``out``'s parent is on a file system
+    that does :func:`exchange` (:func:`exchanges_in`), this machine's writers swap the two folders in
+    one call, ``out`` is never missing between them, and a missing folder is no folder, told at once
+    (each new point of a sweep). Mixed cases: a writer on another machine through NFS gets EINVAL and
+    renames twice, and a reader through NFS (there, or here through an NFS mount) finds that NFS does
+    not exchange either, and waits as before. Not waited for: a writer that renames twice on a file
+    system this machine exchanges on (an older tlm; a container whose seccomp filter refuses
+    ``renameat2``; another machine writing through NFS a disk this one reads locally), caught between
+    its renames: a reader finds no folder (as it would have after 10 ms of a slow writer), and a writer
+    here finds none to carry the user's files over from, so it puts its folder in place of the one the
+    other renames in next (:func:`tlm.storage._swap_tries`), removing what that one carried over."""
     out = Path(out)
     for _ in range(1000):
         try:
             fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
         except FileNotFoundError:
-            time.sleep(0.01)  # (another writer may be between its two renames)
+            if not exchanges_in(out.parent, out.name):
+                time.sleep(0.01)  # (another writer may be between its two renames)
             if out.exists() or out.is_symlink():
                 continue
             break
@@ -54,3 +90,107 @@ def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterato
         finally:
             os.close(fd)  # releases the lock
     yield
+
+
+_AT_FDCWD = -100
+_RENAME_EXCHANGE = 2
+_SYS_RENAMEAT2 = {"x86_64": 316, "amd64": 316, "aarch64": 276, "arm64": 276}  # (where libc has no renameat2)
+# (what says that this system or this file system cannot exchange; EPERM: a seccomp filter that refuses the
+# call, and otherwise a refusal the two renames then meet and raise)
+_CANNOT = frozenset({errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EPERM})
+_EXCHANGES: dict[int, bool] = {}  # a file system (st_dev) -> whether it exchanged (once it could not: False)
+_PROBES = itertools.count()
+
+
+@functools.cache
+def _renameat2() -> Callable[[bytes, bytes], int] | None:
+    """``renameat2(AT_FDCWD, a, AT_FDCWD, b, RENAME_EXCHANGE)`` through ctypes (libc's, glibc >= 2.28;
+    else the system call by its number on x86_64 and aarch64): -1 with ``errno`` set where it fails.
+    None on another OS, or where libc has neither."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+    except OSError:
+        return None
+    call = getattr(libc, "renameat2", None)
+    if call is not None:
+        call.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+        call.restype = ctypes.c_int
+        return lambda a, b: call(_AT_FDCWD, a, _AT_FDCWD, b, _RENAME_EXCHANGE)
+    number, syscall = _SYS_RENAMEAT2.get(platform.machine()), getattr(libc, "syscall", None)
+    if number is None or syscall is None:
+        return None
+    syscall.restype = ctypes.c_long
+    return lambda a, b: syscall(ctypes.c_long(number), ctypes.c_int(_AT_FDCWD), ctypes.c_char_p(a),
+                                ctypes.c_int(_AT_FDCWD), ctypes.c_char_p(b), ctypes.c_uint(_RENAME_EXCHANGE))
+
+
+def exchange(a: Path, b: Path) -> bool:
+    """Swap the paths ``a`` and ``b`` (two folders, both there) in one call: True when done. False,
+    nothing changed, where this system or ``b``'s file system cannot (another OS, no ``renameat2``:
+    ENOSYS; a file system without the exchange, NFS among them: EINVAL, ENOTSUP; EPERM), which
+    :func:`exchanges_in` then answers for that file system. Any other failure is the OSError of the
+    call, nothing changed (ENOENT where either is gone, EBUSY for a mount point)."""
+    call = _renameat2()
+    if call is None:
+        return False
+    if call(os.fsencode(a), os.fsencode(b)) == 0:
+        _note(b, True)
+        return True
+    err = ctypes.get_errno()
+    if err in _CANNOT:
+        _note(b, False)
+        return False
+    raise OSError(err, os.strerror(err), str(a), None, str(b))
+
+
+def is_at(path: Path, folder: os.stat_result) -> bool:
+    """Whether ``path`` is the folder ``folder`` is the status of (a folder swapped in, then a signal)."""
+    try:
+        return os.path.samestat(folder, os.lstat(path))
+    except OSError:
+        return False
+
+
+def _note(path: Path, exchanged: bool) -> None:
+    """Note whether an exchange worked on the file system of ``path``'s folder (a failure sticks:
+    an overlay may exchange some folders and not others, and where one could not, a reader waits)."""
+    with suppress(OSError):
+        dev = os.stat(os.path.dirname(os.path.abspath(path))).st_dev
+        if exchanged:
+            _EXCHANGES.setdefault(dev, True)
+        else:
+            _EXCHANGES[dev] = False
+
+
+def exchanges_in(folder: Path, name: str = "tlm") -> bool:
+    """Whether the file system of ``folder`` does :func:`exchange`: known from an exchange of this
+    process there, else probed once per file system (``st_dev``) by exchanging two empty folders
+    made in ``folder`` and removed at once (``.<name>.old-<host>-<pid>-<thread>-<n>-0`` and ``-1``:
+    names :func:`tlm.storage.clean_stale` removes where a killed process left them). False, and asked
+    again next time, where that cannot tell (a folder that cannot be written, one of the two removed
+    meanwhile by another writer's clean-up)."""
+    try:
+        dev = os.stat(folder).st_dev
+    except OSError:
+        return False
+    known = _EXCHANGES.get(dev)
+    if known is not None:
+        return known
+    if _renameat2() is None:
+        _EXCHANGES[dev] = False
+        return False
+    base = os.path.join(folder, f".{name}.old-{_host()}-{os.getpid()}-{threading.get_native_id()}-{next(_PROBES)}")
+    made: list[str] = []
+    try:
+        for probe in (f"{base}-0", f"{base}-1"):
+            os.mkdir(probe)
+            made.append(probe)
+        return exchange(*made)
+    except OSError:
+        return False
+    finally:
+        for probe in made:
+            with suppress(OSError):
+                os.rmdir(probe)
