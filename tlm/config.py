@@ -208,23 +208,30 @@ class ReferenceConfig:
                     "error is left out unless a reference is cached)")
 
 
+# Maxima keep the model's cycles within int64 (numpy, the compiled flow shop, results.json): a frame is T_norm + misses
+# x page_miss_cycles + flushes x flush_cycles + swaps, switches, copies x theirs; each <= 2**20 (thesis: 2 to 16) with
+# frames <= 10**4 < 2**14 stays below 2**63 up to 2**29 such events a frame (a thesis-size Cornell PMap frame: 2.6e6);
+# FIFO depth, packet size <= 2**31, max_events <= 2**53. clock_hz >= 1 Hz: a trace's us (cycles x 1e6 / clock) finite.
+_CYC, _SIZE = {"max": 1 << 20}, {"min": 1, "max": 1 << 31}
+
+
 @dataclass(frozen=True)
 class ArchConfig:
     clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles "
-                         "(at most 1e12: a terahertz)", min_exclusive=0.0, max=1e12)
+                         "(1 Hz to 1e12, a terahertz)", min_exclusive=0.0, min=1.0, max=1e12)
     frames: int = _f(5, "frames in the simulated stream (the same image, two in flight); TThru is measured "
                      "over the steady state, which needs at least 5 frames with two images in flight (one "
                      "frame with one)", min=1, max=10000)
     images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
                                min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",
-                          min=1)
-    fifo_depth: int = _f(1024, "triangle addresses the Traversal PM's FIFO to the Intersection PM holds", min=1)
-    page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access)", min=0)
-    flush_cycles: int = _f(4, "T_ps cycles per pipeline flush (thesis: 4)", min=0)
-    swap_cycles: int = _f(2, "cycles to re-route a PM to another module (top two address bits)", min=0)
-    copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1)
-    context_switch_cycles: int = _f(16, "cycles to save or restore a PM's context at a preemption", min=0)
+                          **_SIZE)
+    fifo_depth: int = _f(1024, "triangle addresses the Traversal PM's FIFO to the Intersection PM holds", **_SIZE)
+    page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access)", min=0, **_CYC)
+    flush_cycles: int = _f(4, "T_ps cycles per pipeline flush (thesis: 4)", min=0, **_CYC)
+    swap_cycles: int = _f(2, "cycles to re-route a PM to another module (top two address bits)", min=0, **_CYC)
+    copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1, **_CYC)
+    context_switch_cycles: int = _f(16, "cycles to save or restore a PM's context at a preemption", min=0, **_CYC)
     memory: str = _f("swap", "swap: frames move down the chain by re-routing, data is copied only where two "
                      "stages need it | copy: every hand-over copies the working set", choices=MEMORY_READINGS)
     pipelines: int = _f(1, "duplicated pipelines (thesis §V.D): the image is cut into tiles, one Vertex PM "
@@ -238,7 +245,8 @@ class ArchConfig:
                               "--set: to the working folder); null = the calibrated default "
                               "tlm/arch/programs.yaml")
     max_events: int = _f(200_000_000, "SimPy events after which an unfinished run is a deadlock (a cap: a run "
-                                      "also stops past 64 events per packet, job and tile of its program)", min=1)
+                                      "also stops past 64 events per packet, job and tile of its program)", min=1,
+                         max=1 << 53)
     trace: bool = _f(True, "write trace.json (Chrome trace events, opens in ui.perfetto.dev)")
 
 
@@ -335,6 +343,8 @@ def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> A
         return _ABSENT
     v = raw[name]
     if not _type_ok(v, tp):
+        if _whole_floats(v):  # (1e20 for an integer: its range first, not "write 100000000000000000000" it refuses)
+            _check_bounds(v, f.metadata, source, key)
         kind = type_name(tp, f.metadata)
         raise InputError(f"{value_text(v)} is not {kind}{type_hint(v, tp, f.metadata)}", source=source, key=key)
     if isinstance(v, float) and not math.isfinite(v):
@@ -395,6 +405,23 @@ def with_leaves(section: str, value: Any, changes: dict[str, Any], source: str =
     return out
 
 
+def _whole_floats(v: Any) -> bool:  # a number or a list of numbers, a finite whole float among them (1e20)
+    xs = v if isinstance(v, list) else [v]
+    return all(type(x) in (int, float) for x in xs) and any(type(x) is float and x.is_integer() for x in xs)
+
+
+def _check_bounds(v: Any, meta: dict, source: str, key: str) -> None:  # (min_exclusive before min: 0 is "> 0.0")
+    for x in v if isinstance(v, list) else [v]:
+        if not isinstance(x, (int, float)):
+            continue
+        if "min_exclusive" in meta and x <= meta["min_exclusive"]:
+            raise InputError(f"{value_text(v)} must be > {value_text(meta['min_exclusive'])}", source=source, key=key)
+        if "min" in meta and x < meta["min"]:
+            raise InputError(f"{value_text(v)} must be >= {value_text(meta['min'])}", source=source, key=key)
+        if "max" in meta and x > meta["max"]:
+            raise InputError(f"{value_text(v)} must be <= {value_text(meta['max'])}", source=source, key=key)
+
+
 def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
     if v is None:
         return
@@ -406,15 +433,7 @@ def _check_range(v: Any, meta: dict, source: str, key: str) -> None:
     if "length" in meta and len(v) != meta["length"]:
         raise InputError(f"{value_text(v)} must have {meta['length']} entries", source=source, key=key)
     items = v if isinstance(v, list) else [v]
-    for x in items:
-        if not isinstance(x, (int, float)):
-            continue
-        if "min" in meta and x < meta["min"]:
-            raise InputError(f"{value_text(v)} must be >= {value_text(meta['min'])}", source=source, key=key)
-        if "min_exclusive" in meta and x <= meta["min_exclusive"]:
-            raise InputError(f"{value_text(v)} must be > {value_text(meta['min_exclusive'])}", source=source, key=key)
-        if "max" in meta and x > meta["max"]:
-            raise InputError(f"{value_text(v)} must be <= {value_text(meta['max'])}", source=source, key=key)
+    _check_bounds(v, meta, source, key)
     if key == "resolution" and any(x <= 0 for x in items):
         raise InputError(f"{value_text(v)} must be positive", source=source, key=key)
     if key == "render.light_samples" and math.isqrt(v) ** 2 != v:

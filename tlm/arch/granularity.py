@@ -22,6 +22,7 @@ import numpy as np
 from tlm.arch.costs import Programs
 from tlm.arch.frame_program import FrameProgram, PhaseSpec, ti_phases
 from tlm.arch.functional import Functional
+from tlm.arch.units import INT64_MAX, within_int64
 from tlm.config import ArchConfig
 from tlm.kernels.engine import engine
 from tlm.registry import SCHEDULERS
@@ -34,6 +35,10 @@ def _ti_costs(ph: PhaseSpec, arch: ArchConfig) -> tuple[np.ndarray, np.ndarray] 
     if len(ph.jobs) != 2 or not ph.jobs[0].n:
         return None
     page, flush = arch.page_miss_cycles, arch.flush_cycles
+    # both PMs' cycles of the whole phase, exact (Python ints), within int64: no packet's cycles, sum (np.cumsum)
+    # or flow-shop time can wrap then
+    within_int64(sum(int(js.norm.sum()) + int(js.misses.sum()) * page + int(js.flushes.sum()) * flush
+                     for js in ph.jobs), "a Traversal/Intersection phase's packets")
     t, i = (js.norm.astype(np.int64) + js.misses.astype(np.int64) * page + js.flushes.astype(np.int64) * flush
             for js in ph.jobs)
     return t, i
@@ -113,6 +118,7 @@ def flow_shop(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, depth: i
                          + ("" if entries is None else f", {int(np.shape(entries)[0])} entries"))
     if n == 0:
         return 0
+    depth = min(int(depth), INT64_MAX >> 1)  # (as deep as any: past every entry; ends - depth stays in int64)
     if engine() != "numba":
         return flow_shop_python(t, i, entries, depth)
     from tlm.kernels import _jit_flow
@@ -132,6 +138,7 @@ def flow_shop_python(t: np.ndarray, i: np.ndarray, entries: np.ndarray | None, d
     n = int(t.shape[0])
     if n == 0:
         return 0
+    depth = min(int(depth), INT64_MAX >> 1)  # (as deep as any: past every entry)
     slots = np.ones(n, dtype=np.int64) if entries is None else np.clip(np.asarray(entries, dtype=np.int64), 1, depth)
     ends = np.cumsum(slots)  # entries of packets 0..k
     before = np.concatenate(([0], ends))  # entries of the packets before m

@@ -66,7 +66,7 @@ from tlm.arch.granularity import (
 )
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
-from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run
+from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run, within_int64
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
 
@@ -449,6 +449,7 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
               cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
+    within_int64(end, f"the stream of {arch.frames} frame{'s' * (arch.frames != 1)}")  # (no unit's are more)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget

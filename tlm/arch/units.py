@@ -22,6 +22,7 @@ event budget passes with work unfinished.
 from __future__ import annotations
 
 import json
+import math
 import re
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ from pathlib import Path
 import simpy
 
 from tlm.arch.events import CycleEnd
+from tlm.errors import InputError
 from tlm.storage import json_text, write_atomic
 
 STALL_CAUSES = ("handshake", "swap", "copy", "preemption", "fifo_full", "fifo_empty")
@@ -44,6 +46,21 @@ class MaxEventsReached(Deadlock):
     not a model that stopped making progress (the liveness bound's :class:`Deadlock`), so a
     run that is only long finishes with the cap raised. A :class:`Deadlock` still, for
     whatever reports a model that could not finish (nothing written, exit status 1)."""
+
+
+INT64_MAX = (1 << 63) - 1  # the most cycles numpy, the compiled kernels and results.json's readers hold
+
+
+def within_int64(cycles: int, what: str) -> int:
+    """``cycles`` (a Python int, exact), or an InputError (one line, exit status 2) where it is past int64:
+    the products of the config's cycle counts (``arch.page_miss_cycles`` ...) and the frame's events
+    would wrap in numpy or lose the report's exactness. The config's maxima keep a run of up to 2**29 such
+    events a frame within it (tlm/config.py, ArchConfig); a larger frame stops here, never wraps."""
+    if cycles > INT64_MAX:
+        raise InputError(f"{what}: {cycles:.3g} cycles, past the 2**63 - 1 that the model's counts hold: "
+                         "lower arch.page_miss_cycles, flush_cycles, swap_cycles, context_switch_cycles or "
+                         "arch.frames, or render a smaller frame", key="arch")
+    return cycles
 
 
 def _cycles(value: int, what: str) -> int:
@@ -263,6 +280,9 @@ class Trace:
             flat += idle
             if end > reach[tid]:
                 flat += ("idle", reach[tid], end, tid, {}, None, None, None)
+        for tid in self.rows.values():  # a unit that did nothing (a row made with no slice): idle throughout
+            if tid not in reach and end > 0:
+                flat += ("idle", 0, end, tid, {}, None, None, None)
 
     def to_json(self, clock_hz: float | None = None, modules_per_pipe: int | None = None) -> dict:
         """The trace document, as Perfetto and chrome://tracing open it.
@@ -284,7 +304,14 @@ class Trace:
         per_pipe = modules_per_pipe or self.modules_per_pipe
         order = sorted(self.rows, key=lambda scope: row_order(scope, per_pipe))
         tid_of = {self.rows[scope]: i for i, scope in enumerate(order)}
-        return order, tid_of, 1e6 / clock_hz if clock_hz else 1.0
+        if not clock_hz:
+            return order, tid_of, 1.0
+        us = 1e6 / clock_hz if clock_hz > 0 else math.nan
+        last = max(self._flat[2::_SLICE], default=0)
+        if not (math.isfinite(us) and math.isfinite(last * us)):  # (never a null or negative timestamp)
+            raise ValueError(f"trace: clock_hz = {clock_hz!r} Hz puts its {last} cycles at {last * us!r} "
+                             "microseconds, not a finite time (arch.clock_hz is at least 1 Hz)")
+        return order, tid_of, us
 
     def _document(self, clock_hz: float | None, modules_per_pipe: int | None):
         """The events of :meth:`to_json`'s document, one at a time (the rows' metadata,
@@ -440,7 +467,8 @@ class Unit:
         # record, as in Trace); :attr:`log` spells it out when it is read
         self._raw: list = []
         self._log: list[tuple[str, int]] = []
-        self._tid: int | None = None  # the unit's row in the trace
+        self._tid: int | None = None if trace is None else trace.row(scope)  # the unit's row in the trace (one
+        # from the start: a unit that does nothing has its idle row, Trace.fill_idle)
 
     @property
     def log(self) -> list[tuple[str, int]]:

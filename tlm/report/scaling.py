@@ -460,6 +460,22 @@ def bounded_fits(fits: dict[tuple, dict], numbers: str) -> tuple[dict[tuple, dic
     return out, said.strip()
 
 
+def below_floor(fits: dict[tuple, dict]) -> list[str]:
+    """Where eq. 5.2's fit goes below T_vert0, the one (shared) Vertex PM's cycles per frame: a
+    floor of both TThru and the latency at every N (each frame takes its Vertex PM that long),
+    so the fit's value there is one no count of pipelines reaches. One line per fit so."""
+    lines = []
+    for k, f in sorted(fits.items()):
+        ns = [r["pipelines"] for r in f.get("rows", []) if r.get("T_vert0") and r["analytical"] < r["T_vert0"]]
+        if ns:
+            group = f" ({eq52.key_group(k)})" if eq52.key_group(k) else ""
+            floor = round(f["rows"][0]["T_vert0"])
+            lines.append(f"{k[2]}{group} {k[3]}: eq. 5.2's fit falls below T_vert0 = {floor:,} "
+                         f"cycles (the shared Vertex PM's cycles per frame, below which no frame goes) at N = "
+                         f"{', '.join(map(str, ns))}: there it predicts what no count of pipelines reaches")
+    return lines
+
+
 def _merge_idle(groups: dict[tuple, dict]) -> dict[tuple, list[tuple[list[tuple], dict]]]:
     """idle_points' groups by (scene, mode), those of one (scene, mode) whose points are the same (scheduler,
     N, TThru and idle fractions) merged: ``[(keys, group), ...]``, the group the first key's."""
@@ -491,6 +507,7 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             drawn, said = bounded_fits(mine, numbers)
             if said:
                 sec.notes.append(f"{label}: {scene_shown}: {said}")
+            sec.notes.extend(f"{label}: {scene_shown}: {line}" for line in below_floor(drawn))
             plot_scaling(scene_shown, drawn, out / file, label)
             worst = ", ".join(f"{k[2]}{f' ({eq52.key_group(k)})' if eq52.key_group(k) else ''} {k[3]} "
                               f"{v['max_abs_rel_error']:.1%}" for k, v in sorted(drawn.items()))

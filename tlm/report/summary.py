@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import ArchConfig
-from tlm.experiments.thesis import THESIS_SCENES, median_words
+from tlm.experiments.thesis import THESIS_SCENES, median_words, slowest_words
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks, new_figure, save
 from tlm.report.html import esc
@@ -227,7 +227,8 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                 f"scene-modes, {busy} of the time there.")
     if slowest:
         m = sum(v["match"] for v in slowest.values())
-        text += (f" The slowest PM is the thesis's in {m} of {len(slowest)} scene-modes." if len(slowest) > 1 else
+        words = slowest_words({"scene_modes": len(slowest), "slowest_pm_matches": m, **thesis[0].meta})
+        text += (f" {words[0].upper()}{words[1:]}." if len(slowest) > 1 else  # (qualified: slowest_words)
                  f" The slowest PM is {'' if m else 'not '}the thesis's.")
     points = sweep_bottlenecks(inputs)  # (not in the figure: the sweeps' points, where the bottleneck moves)
     if points:

@@ -41,6 +41,7 @@ from tlm.experiments.thesis import (
     comparison_rows,
     median_words,
     run_mismatches,
+    slowest_words,
     summarize,
 )
 from tlm.report.collect import Inputs, Run, Study
@@ -308,7 +309,7 @@ def _line(s: dict) -> str:
                      f"{s['calibrated_cells_compared']} calibrated cells "
                      f"{s['median_abs_rel_error_calibrated']:.1%}")
     if s["scene_modes"]:
-        parts.append(f"slowest PM as in the thesis in {s['slowest_pm_matches']} of {s['scene_modes']} scene-modes")
+        parts.append(slowest_words(s))  # (qualified as the median is, where scenes are not comparable)
     return "; ".join(parts) if parts else "no cell with a thesis value"
 
 
