@@ -6,7 +6,9 @@ Each check returns warnings, one line each naming the thing (``lights[1] (quad)`
 ``tlm run`` prints them on stderr. Everything here is deterministic (fixed probe
 patterns, no random numbers), so the warnings of a run repeat exactly.
 
-* :func:`light_warnings`: every light with power is probed with :data:`PROBE_RAYS` rays
+* :func:`light_warnings`: a light of zero power among lights with power is named (its shadow rays
+  are cast and charged to the timing model, and add nothing: :func:`zero_power_warnings`); every
+  light with power is probed with :data:`PROBE_RAYS` rays
   spread over the side it emits on (a point light: the sphere; a spot: its outer cone; a
   directional light: parallel rays along its direction from the disc covering the scene's
   bounding sphere; a quad light: the
@@ -253,13 +255,27 @@ def probe_light(scene: Scene, accel: TriangleAccel, light: Light, n: int = PROBE
     return {"rays": int(o.shape[0]), "hits": int(hit.sum()), "back": back}
 
 
+def zero_power_warnings(scene: Scene) -> list[str]:
+    """One line per light of zero power beside a light with power (every light off: the black
+    image and the plan say so): it adds nothing to the picture, but its shadow rays are cast and
+    charged to the timing model, as the hardware would cast them (the model keeps them)."""
+    off = [i for i, lt in enumerate(scene.lights) if not any(p > 0.0 for p in lt.power)]
+    if len(off) == len(scene.lights):
+        return []
+    return [f"{light_name(i, scene.lights[i])} has zero power: its shadow rays (one per Lambertian point facing it"
+            f"{'' if scene.lights[i].kind in ('point', 'spot', 'directional') else ', per render.light_samples'}, "
+            "each frame) are charged to the timing model and add nothing to the picture (leave the light out, or "
+            "give it power)" for i in off]
+
+
 def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> list[str]:
-    """One line per light with power that reaches no surface or lights only back faces."""
-    out = []
+    """One line per light with power that reaches no surface or lights only back faces, and per
+    light of zero power among lights with power (:func:`zero_power_warnings`)."""
+    out = zero_power_warnings(scene)
     kind = scene.material_table()["kind"] if scene.lights else None
     for i, light in enumerate(scene.lights):
         if not any(p > 0.0 for p in light.power):
-            continue  # a light switched off: the black image says so
+            continue  # a light switched off: zero_power_warnings, or (all off) the black image, says so
         p = probe_light(scene, accel, light, n, kind)
         if p["rays"] == 0:
             continue
@@ -357,10 +373,26 @@ def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
     what = ", ".join(dict.fromkeys(k for m in hit for k in m.ignored))
     names = ", ".join(repr(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown else "")
     many = len(hit) > 1
+    # (a Lambertian's constant colour is its albedo; the others say what they become: a glTF material
+    # whose metallicFactor defaults to 1 is a mirror, not its diffuse colour)
+    other = [m for m in hit if m.kind != "lambertian"]
+    became = ("" if not other else f", as {rendered_as(other[0])}" if not many else
+              " (" + "; ".join(f"{m.name!r} as {rendered_as(m)}" for m in other[:shown]) + ")")
     return [f"{len(hit)} material{'s' if many else ''} of the mesh file{'s' if many else ''} ({names}) "
             f"{'use' if many else 'uses'} what tlm does not render: {what}; "
-            f"{'each renders' if many else 'it renders'} with its constant colour (a scene file's "
+            f"{'each renders' if many else 'it renders'} with its constant colour{became} (a scene file's "
             "materials: entry of the same name replaces it)"]
+
+
+def rendered_as(m) -> str:
+    """What a material renders as, in words: ``a mirror of reflectance [1, 1, 1]``."""
+    def rgb(c) -> str:
+        return "[" + ", ".join(f"{x:.3g}" for x in c) + "]"
+
+    what = {"lambertian": f"a Lambertian surface of albedo {rgb(m.albedo)}",
+            "mirror": f"a mirror of reflectance {rgb(m.reflectance)}",
+            "dielectric": f"glass of ior {m.ior:.4g} and transmittance {rgb(m.transmittance)}"}.get(m.kind, m.kind)
+    return what + (f" emitting {rgb(m.emission)}" if m.emits else "")
 
 
 def back_faces(scene: Scene, triangle: np.ndarray, direction: np.ndarray, kind: np.ndarray | None = None) -> int:

@@ -345,10 +345,11 @@ def load_scene(
     tri = np.asarray(geom.triangles, dtype=np.float64)
     _check_triangles(tri, src)
 
-    materials, material_index = _assign_materials(raw, geom, src)
+    materials, material_index, unused = _assign_materials(raw, geom, src)
     part = np.asarray(geom.part, dtype=np.int32)
 
     lights, notes = scene_lights(raw, geom, src)
+    notes = [*unused, *notes]
     view, camera_notes = _camera(raw, geom, src)
 
     res = resolution if resolution is not None else raw.get("resolution")
@@ -466,8 +467,9 @@ def _aspect_note(geom: Geometry, res: list[int], given: bool) -> list[str]:
             f"resolution's {ratio:.6g} ({res[0]}x{res[1]}): the horizontal field of view follows the resolution"]
 
 
-def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Material, ...], np.ndarray]:
-    """The scene's materials and each triangle's index into them.
+def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Material, ...], np.ndarray, list[str]]:
+    """The scene's materials, each triangle's index into them, and a line per ``materials:``
+    entry no triangle can take where the geometry's files name no material (:func:`_check_unused`).
 
     A triangle takes, in order of precedence: its part's material under ``parts:``;
     the material the mesh file gives it (a ``materials:`` entry of the same name
@@ -509,6 +511,7 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
                 f"{did_you_mean(str(p), geom.part_names)}",
                 source=src, key=f"parts.{p}",
             )
+    unused = _check_unused(yaml_mats, file_mats, parts_raw, default, src)
     part = np.asarray(geom.part, dtype=np.int32)
     # per part: the scene file's material, or -1 (the file's material, else the default)
     part_material = np.full(len(geom.part_names), -1, dtype=np.int32)
@@ -546,7 +549,31 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
         new = np.full(len(materials), -1, dtype=np.int32)
         new[kept] = np.arange(len(kept), dtype=np.int32)
         materials, material_index = tuple(materials[i] for i in kept), new[material_index]
-    return materials, np.asarray(material_index, dtype=np.int32)
+    return materials, np.asarray(material_index, dtype=np.int32), unused
+
+
+def _check_unused(yaml_mats: dict[str, Material], file_mats: tuple[Material, ...], parts_raw: dict,
+                  default: Any, src: str, shown: int = 12) -> list[str]:
+    """The ``materials:`` entries no triangle can take: their name is no mesh file's material (nor
+    a renamed one's ``NAME_2`` or first name), no ``parts:`` value and not ``default_material``.
+    Where the geometry's files name materials, the first is an InputError (a typo of a file's
+    material name would render the file's material, silently); where they name none (builders,
+    shapes: ``materials:`` is the palette ``parts:`` picks from, and an entry may be kept for
+    later), a line each, for the scene's notes."""
+    file_names = list(dict.fromkeys([m.name for m in file_mats] + [m.alias for m in file_mats if m.alias]))
+    used = {*file_names, *(str(v) for v in parts_raw.values()), str(default)}
+    unused = [name for name in yaml_mats if name not in used]
+    if not file_names:
+        return [f"{src}: materials.{name}: used by no triangle (no part under parts: names it and it is not "
+                "default_material): it is not rendered" for name in unused]
+    if not unused:
+        return []
+    name = unused[0]
+    listed = ", ".join(file_names[:shown]) + (f" and {len(file_names) - shown} more" if len(file_names) > shown else "")
+    close = did_you_mean(name, file_names).strip()[1:-1]  # ("did you mean 'x'?" without its brackets)
+    raise InputError(f"used by no triangle (the mesh files' materials: {listed}{'; ' + close if close else ''}): give "
+                     "it a mesh file's material's name (to replace that material), or name it under parts: or as "
+                     "default_material", source=src, key=f"materials.{name}")
 
 
 def transform_scene(scene: Scene, scale: float, translate: np.ndarray) -> Scene:

@@ -21,9 +21,9 @@ MTL                                                     tlm kind      parameters
 ``illum`` 4, 6, 7 or 9 (glass), or ``d`` < 1            dielectric    ``ior = Ni`` (1.5 without ``Ni``),
 (``Tr`` > 0)                                                          ``transmittance = (1, 1, 1)``
 ``illum`` 3, 5 or 8 (ray-traced reflection), or no      mirror        ``reflectance = Ks`` (clipped to
-``illum`` and a dominant ``Ks`` (max Ks > max Kd)                     [0, 1])
-anything else (``illum`` 0-2: Phong)                    lambertian    ``albedo = Kd`` (clipped to [0, 1];
-                                                                      0.8 grey without ``Kd``)
+``illum`` and a dominant ``Ks`` (max Ks > max Kd)                     [0, 1], a note)
+anything else (``illum`` 0-2: Phong)                    lambertian    ``albedo = Kd`` (clipped to [0, 1],
+                                                                      a note; 0.8 grey without ``Kd``)
 ``Ke`` > 0, with any of the above                       (same kind)   ``emission = Ke`` (radiance, W/sr/m²)
 ======================================================  ============  ===================================
 
@@ -45,7 +45,9 @@ Choices, and why:
 Errors (:class:`~tlm.errors.InputError`, one line naming the MTL file, the line, the
 material and the key): a value that is not a number, NaN or infinite; a negative
 colour; ``d`` or ``Tr`` outside [0, 1]; ``Ni`` <= 0 on a dielectric; a statement with
-too few numbers.
+too few numbers. Notes (``Geometry.notes``, a line each naming the file and the line): a colour
+used that is clipped (``Kd 185 181 173``, 0-255 values, is white), a ``newmtl`` name defined
+again (the first definition is used), a material another library of the OBJ defined first.
 
 **glTF 2.0** (:func:`gltf_materials`, from the file's JSON, so that extensions count):
 
@@ -65,7 +67,10 @@ material is named by its ``name``, or ``material_<i>`` (its index) without one. 
 ignored and changes the look (every ``*Texture``, an alpha below 1 or an ``alphaMode``
 other than ``OPAQUE``, any extension besides the three above, ``doubleSided`` on an
 emissive material: tlm's emitters emit from their front only) is kept in
-:attr:`Material.ignored`, for the run's warning, as for MTL.
+:attr:`Material.ignored`, for the run's warning, as for MTL. ``KHR_materials_pbrSpecularGlossiness``
+is not read: as in a glTF reader without it, its material is its fallback
+``pbrMetallicRoughness``, and where that gives no ``metallicFactor`` (the default 1) a mirror
+(of ``baseColorFactor``, white without one); its ignored entry says so.
 """
 
 from __future__ import annotations
@@ -93,6 +98,7 @@ _SCALARS = ("Ni", "d", "Tr", "illum", "Ns")
 # statements read past that change a surface's look (the run warns of them: Material.ignored)
 _MTL_LOOKS = ("bump", "disp", "decal", "refl", "norm", "Pr", "Pm", "Ps", "Pc", "Pcr", "aniso", "anisor")
 _GLTF_READ = ("KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior")
+_SPEC_GLOSS = "KHR_materials_pbrSpecularGlossiness"  # (not read: a glTF reader without it reads the fallback)
 _IGNORED = "ignored"  # (the key of a material's ignored statements among its MTL properties)
 
 
@@ -103,9 +109,11 @@ def _clip01(c) -> tuple[float, float, float]:
 # ------------------------------------------------------------------ MTL
 
 
-def parse_mtl(text: str, source: str) -> list[Material]:
+def parse_mtl(text: str, source: str, notes: list[str] | None = None) -> list[Material]:
     """The materials an MTL file defines, in file order (a name defined twice: the
-    first definition counts). ``source`` names the file in errors."""
+    first definition counts). ``source`` names the file in errors. ``notes``, where given,
+    gets a line (file, line, value) per definition left out as a repeat of a name and per
+    colour clipped into [0, 1] (:func:`mtl_material`)."""
     found: list[tuple[str, int, dict]] = []
     current: dict | None = None
     name = ""
@@ -156,22 +164,35 @@ def parse_mtl(text: str, source: str) -> list[Material]:
             if key in ("d", "Tr") and not 0.0 <= v <= 1.0:
                 raise InputError(f"{where}: {args[0]} is outside [0, 1]", source=source)
             current[key] = (v, number)
-    seen: set[str] = set()
+    seen: dict[str, int] = {}
     out = []
     for name, number, props in found:
         if name in seen:
+            if notes is not None:
+                notes.append(f"{source}: line {number}: newmtl {name!r} again (first defined at line {seen[name]}): "
+                             "this definition is ignored, the first one is used (rename one of them)")
             continue
-        seen.add(name)
-        out.append(mtl_material(name, props, source, number))
+        seen[name] = number
+        out.append(mtl_material(name, props, source, number, notes))
     return out
 
 
-def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Material:
+def mtl_material(name: str, props: dict, source: str = "", line: int = 0, notes: list[str] | None = None
+                 ) -> Material:
     """Map one MTL material (``props``: key -> (value, line number)) to tlm's kinds,
-    by the module's table."""
+    by the module's table. ``notes``, where given, gets a line when the colour used (``Kd``
+    of a Lambertian, ``Ks`` of a mirror) has a component over 1, clipped to 1."""
 
     def get(key, default=None):
         return props[key][0] if key in props else default
+
+    def clipped(key: str, what: str, c) -> tuple[float, float, float]:
+        out = _clip01(c)
+        if notes is not None and key in props and max(c) > 1.0:
+            scaled = " (0-255 values? divide them by 255)" if max(c) > 2.0 and max(c) <= 255.0 else ""
+            notes.append(f"{source}: line {props[key][1]}: material {name!r}: {key} {' '.join(f'{x:g}' for x in c)}"
+                         f" is over 1: clipped to {what} [{', '.join(f'{x:g}' for x in out)}]{scaled}")
+        return out
 
     kd = get("Kd", DEFAULT_KD)
     ks = get("Ks", (0.0, 0.0, 0.0))
@@ -192,8 +213,9 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0) -> Mat
         return Material(name, "dielectric", ior=float(ior), transmittance=(1.0, 1.0, 1.0),
                         emission=emission, ignored=ignored)
     if illum in MIRROR_ILLUM or (illum is None and max(ks) > max(kd) and max(ks) > 0.0):
-        return Material(name, "mirror", reflectance=_clip01(ks), emission=emission, ignored=ignored)
-    return Material(name, "lambertian", albedo=_clip01(kd), emission=emission, ignored=ignored)
+        return Material(name, "mirror", reflectance=clipped("Ks", "reflectance", ks), emission=emission,
+                        ignored=ignored)
+    return Material(name, "lambertian", albedo=clipped("Kd", "albedo", kd), emission=emission, ignored=ignored)
 
 
 # ------------------------------------------------------------------ glTF
@@ -400,6 +422,12 @@ def check_gltf(header: dict, source: str) -> None:
         v = header.get(table)
         return [e if isinstance(e, dict) else {} for e in v] if isinstance(v, list) else []
 
+    asset = header.get("asset")
+    version = asset.get("version") if isinstance(asset, dict) else None
+    if isinstance(version, (str, int, float)) and not isinstance(version, bool) \
+            and str(version).split(".", 1)[0].strip() != "2":
+        raise InputError(f"asset.version {version}: tlm reads glTF 2.0 (convert the file to glTF 2.0: gltf-pipeline "
+                         "-i IN.gltf -o OUT.gltf, for one, upgrades a 1.0 file)", source=source)
     if not count("meshes"):
         raise InputError("the glTF has no meshes: nothing to render", source=source)
     for i, node in enumerate(entries("nodes")):
@@ -485,7 +513,10 @@ def _gltf_ignored(m: dict, pbr: dict, ext: dict, emits: bool = False) -> tuple[s
     """What of a glTF material changes its look and is not rendered (the module's docstring)."""
     out = [k for k in (*m, *pbr) if k.endswith("Texture")]
     for name, body in ext.items():
-        if name not in _GLTF_READ:
+        if name == _SPEC_GLOSS and "metallicFactor" not in pbr:  # (what it becomes: glTF's defaults)
+            out.append(f"{name} (read as its fallback pbrMetallicRoughness, whose metallicFactor defaults to 1: "
+                       "a mirror)")
+        elif name not in _GLTF_READ:
             out.append(name)
         elif isinstance(body, dict):
             out += [k for k in body if k.endswith("Texture")]

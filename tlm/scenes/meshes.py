@@ -232,7 +232,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
     if obj.corner_normals is not None:
         normals = obj.vertex_normals[obj.corner_normals]
         normals = _unit_or_none(normals)
-    materials, face_material = _obj_materials(path, obj, src)
+    materials, face_material, mtl_notes = _obj_materials(path, obj, src)
     return Geometry(
         triangles=np.ascontiguousarray(tri, dtype=np.float64),
         part=obj.part,
@@ -240,7 +240,7 @@ def _load_obj(path: Path, stem: str, zext: str, src: str) -> tuple[Geometry, lis
         normals=normals,
         materials=materials,
         face_material=face_material,
-        notes=_concave_note(tri, obj.face_line, src) + colour_notes(obj, src),
+        notes=_concave_note(tri, obj.face_line, src) + colour_notes(obj, src) + mtl_notes,
     ), [[text, line] for text, line in obj.mtllibs]
 
 
@@ -311,18 +311,26 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     return out
 
 
-def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.ndarray | None]:
+def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.ndarray | None, tuple[str, ...]]:
+    """The OBJ's materials, each face's index into them, and the notes of its libraries
+    (:func:`~tlm.scenes.materials.parse_mtl`'s, and a material a later library defines again)."""
     from tlm.scenes.materials import parse_mtl
     from tlm.scenes.objfile import read_bytes
 
     if not obj.mtllibs:
-        return (), None
+        return (), None, ()
     library: dict[str, Material] = {}
+    first: dict[str, Path] = {}
+    notes: list[str] = []
     files = _libraries(path, obj.mtllibs)  # (the lookup the scene cache reruns: tlm.scenes.cache)
     for mtl in files:
         # (its read noted with the bytes' sha256: what a memo of the parse checks the library by)
-        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl)):
+        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl), notes):
+            if m.name in library and first[m.name] != mtl:
+                notes.append(f"{mtl}: newmtl {m.name!r} is defined by {first[m.name]} too, named first by the "
+                             "mtllib: that one is used")
             library.setdefault(m.name, m)
+            first.setdefault(m.name, mtl)
     materials = tuple(library.values())
     index = {m.name: i for i, m in enumerate(materials)}
     table = np.full(len(obj.material_names) + 1, -1, dtype=np.int32)  # the last: "no usemtl"
@@ -333,7 +341,7 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
             index[name] = len(materials)
             materials = (*materials, Material(name, "lambertian", albedo=(0.8, 0.8, 0.8), undefined=why))
         table[k] = index[name]
-    return materials, table[obj.material]
+    return materials, table[obj.material], tuple(dict.fromkeys(notes))
 
 
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
@@ -432,7 +440,11 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         if zext:
             source = io.BytesIO(data)
             kwargs = {"file_type": ext[1:]}
-        if ext in (".glb", ".gltf") and data.strip():
+        if ext in (".glb", ".gltf") and not data.strip():  # (trimesh: "index 0 is out of bounds")
+            raise InputError(f"the file is empty ({len(data):,} bytes{', all whitespace' if data else ''}): no "
+                             f"{'binary ' if ext == '.glb' else ''}glTF to read (cut short, or not written yet?)",
+                             source=src)
+        if ext in (".glb", ".gltf"):
             header = gltf_json(path, data)
             check_gltf(header, src)
             imported, notes = gltf_imports(header, src)
