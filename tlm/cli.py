@@ -322,7 +322,9 @@ def _cmd_reference(args: argparse.Namespace) -> int:
     if not ok and rse is not None and rse > made.settings.tolerance:
         err += f" > tolerance {made.settings.tolerance}"
     where = f"the cache keeps {made.folder}" if made.kept else f"wrote {made.folder}"  # (the line before says why)
-    print(f"{state} after {meta['rounds']} rounds ({err}) in {time.perf_counter() - t0:.1f} s; {where}"
+    # (the seconds of a computation; none computed: the cached one was found, its rounds run by an earlier command)
+    took = f" in {time.perf_counter() - t0:.1f} s" if made.computed else ", found cached (nothing computed)"
+    print(f"{state} after {meta['rounds']} rounds ({err}){took}; {where}"
           + ("" if ok else " (raise reference.max_rounds, or reference.tolerance; exit status 1)"))
     return 0 if ok else 1  # (a result to act on, as a failed sweep point or extreme case is)
 
@@ -336,9 +338,11 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
             rel += f" (composite vs truth {row['truth_rel_mse']:.4g}, FLIP {row['truth_flip']:.3f})"
         fps = "-" if row.get("fps") is None else f"{row['fps']:.3g}"
         settings = f"  ({row['factors']})" if row.get("factors") else ""  # (every setting the point varies)
-        print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {row['radius'] or 0:8.3g} "
+        # (no radius: the filter takes none, knn, or the map is not gathered: '-', as the CSV's empty cell)
+        radius = "-" if row["radius"] is None else f"{row['radius']:.3g}"
+        print(f"  [{i + 1:3d}/{n}] {row['filter']:6s} photons {row['photons']:>7d} radius {radius:>8s} "
               f"k {row['k'] or row['k_nearest'] or '-'!s:>4s}  relMSE {rel:>9s}  tested {row['photons_tested']:>10d}  "
-              f"{row['gather_seconds']:.2f} s  simulated {fps} fps{settings}", flush=True)
+              f"gather {row['gather_seconds']:.2f} s  simulated {fps} fps{settings}", flush=True)
 
     def note(message: str) -> None:
         print(f"error-vs-cost: {message}", flush=True)

@@ -197,8 +197,10 @@ from tlm.errors import (
     InputError,
     environment_problem,
     error_line,
+    forget_landed,
     interrupted_by,
     memory_problem,
+    signal_landed,
     thread_problem,
 )
 
@@ -268,6 +270,7 @@ def on_signal(signum, frame) -> None:
     _SIGNALS.append(signum)
     _BARS[:] = [weakref.ref(b) for b in bars_drawn()]
     progress.signal_taken(signum)  # (raised again at the next checkpoint, in case CPython drops this one)
+    signal_landed(frame)  # (an error a C extension makes of it is known for it: tlm.errors.interrupted_by)
     raise KeyboardInterrupt
 
 
@@ -285,6 +288,7 @@ def signals():
     if not early:  # (else the signal the early handler noted, if one came, is this command's)
         _SIGNALS.clear()
         _BARS.clear()
+        forget_landed()
     progress.forget_signals()
     guarded = guard_streams() if threading.current_thread() is threading.main_thread() else {}
     try:
@@ -634,7 +638,8 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
             with suppress(Exception):
                 cli_streams._to_devnull(getattr(sys, name).fileno())
         return 128 + signal.SIGPIPE
-    if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError)
+    if interrupted_by(e) is not None:  # (Ctrl-C inside a compiled kernel's callback: a SystemError; inside
+        # a C extension's call into Python, one that made it an error of its own: nanobind's TypeError)
         return interrupted(argv)
     what = environment_problem(e) or memory_problem(e) or thread_problem(e)
     if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory, no thread

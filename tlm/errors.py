@@ -142,15 +142,58 @@ def _limit(name: str) -> int | None:
     return None if soft == resource.RLIM_INFINITY else soft
 
 
+_LANDED: list = []  # the Python frame each signal's KeyboardInterrupt was raised in (signal_landed)
+
+
+def signal_landed(frame) -> None:
+    """The command line's signal handler raises its KeyboardInterrupt in ``frame`` (the Python frame that
+    ran as the signal came: :func:`tlm.cli_signals.on_signal`), kept until :func:`forget_landed`, so that an
+    exception that code outside Python made of that interrupt is known for it (:func:`interrupted_by`)."""
+    if frame is not None:
+        _LANDED.append(frame)
+
+
+def forget_landed() -> None:
+    """No signal landed (a command's start and end: :func:`tlm.cli_signals.signals`)."""
+    _LANDED.clear()
+
+
+def _raised_where_landed(e: BaseException) -> bool:
+    """Whether ``e`` was raised by a call that was running when a signal's interrupt was raised
+    (:func:`signal_landed`): the innermost frame of its traceback (where it was raised, or the Python
+    frame that called the C function that raised it) is the frame the signal landed in or one of its
+    callers. An exception raised before the signal came, and being handled when it came, is not:
+    its innermost frame had ended by then."""
+    tb = e.__traceback__
+    if tb is None or not _LANDED:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    for frame in _LANDED:
+        while frame is not None:
+            if frame is tb.tb_frame:
+                return True
+            frame = frame.f_back
+    return False
+
+
 def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:
     """The KeyboardInterrupt (Ctrl-C, or SIGTERM, which the command line turns into one) in
     ``e``'s chain of causes and contexts, where something wrapped it: a signal that arrives
     while a compiled numba kernel calls back into Python ends as a ``SystemError`` caused by
-    the interrupt. None where the chain holds none: ``e`` is an error of its own."""
+    the interrupt. An exception of the chain that was raised by a call running when the command
+    line's handler raised its interrupt (:func:`_raised_where_landed`) is that interrupt too, though
+    it does not hold it: a C extension that calls back into Python may turn the interrupt into an
+    error of its own, with the interrupt only in its message (nanobind's ``TypeError: could not
+    export nb::ndarray: ... KeyboardInterrupt``, FLIP's ``evaluate`` importing a module); a new
+    KeyboardInterrupt is returned for it. None where the chain holds neither: ``e`` is an error
+    of its own."""
     seen: set[int] = set()
     while e is not None and id(e) not in seen:
         if isinstance(e, KeyboardInterrupt):
             return e
+        if _raised_where_landed(e):
+            return KeyboardInterrupt()
         seen.add(id(e))
         e = e.__cause__ or e.__context__
     return None

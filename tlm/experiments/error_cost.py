@@ -34,8 +34,11 @@ where its map is not gathered (it holds no photon) or the filter takes no radius
 
 The scene, its BSP and the eye rays are the base's, cast once: a point may not vary
 ``scene``, ``mode`` (every point is a photon-map frame), ``resolution``, ``bsp.*`` or
-``render.spp`` (:data:`FIXED`), nor what the reference depends on (all refused, naming
-the point's key, before any work); a base that gives a ``mode`` other than ``pmap`` is refused
+``render.spp`` (:data:`FIXED`), nor what the reference depends on, nor how it is found or
+computed (``reference.tolerance``, ``min_rounds``, ``max_rounds`` and ``spp``: every point is
+measured against the base's reference), nor ``reference.auto`` and ``render.exposure``, which
+change nothing in the rows (all refused, naming the point's key, before any work); a base that
+gives a ``mode`` other than ``pmap`` is refused
 too (:func:`load_experiment`), not run as a photon-map frame unsaid. The other passes' work
 is computed once per setting of
 what it depends on (everything but ``photons``, ``estimate`` and ``arch``); each photon
@@ -96,6 +99,7 @@ from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.error_cost_clock import CompileClock
+from tlm.experiments.error_cost_truth import truth_noise_words
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
@@ -145,7 +149,17 @@ SETTING_COLUMNS = ("filter", "radius_fraction", "cone_k", "final_gather", "aim")
 # what every point shares with the base (the module's docstring): key -> what it is
 FIXED = {"scene": "every point renders the base's scene", "mode": "every point is a photon-map frame",
          "resolution": "every point renders the base's resolution", "bsp": "every point traces the base's BSP",
-         "render.spp": "every point shares the base's eye rays"}
+         "render.spp": "every point shares the base's eye rays",
+         # (what finds or computes the base's reference: its stopping rule, its rounds' eye rays, tlm run's auto;
+         # what it depends on, reference.photons and k_nearest, is refused as such: run_error_vs_cost)
+         **{f"reference.{k}": "every point is measured against the base's reference, found or computed with the "
+                              "base's reference settings" for k in ("tolerance", "min_rounds", "max_rounds", "spp")},
+         "reference.auto": "it changes nothing in the rows (the study finds or computes the base's reference "
+                           "whatever it says: it is tlm run's)",
+         "render.exposure": "it changes nothing in the rows (their errors are of the radiance, which the exposure "
+                            "does not scale; the study writes no image)"}
+# the keys of FIXED a point is told to leave out, not to give under base with one experiment per value
+UNUSED = ("render.exposure", "reference.auto")
 
 
 def _check_factor(key: str, source: str, where: str, section: str | None = None, whole: bool = True) -> None:
@@ -154,7 +168,7 @@ def _check_factor(key: str, source: str, where: str, section: str | None = None,
     at its defaults, ``whole``) or as a mapping that sets the key (which merges into the base's section)."""
     why = FIXED.get("bsp" if key.startswith("bsp.") else key)
     if why is not None:
-        how = (" (mode: pmap; leave it out)" if key == "mode" else
+        how = (" (mode: pmap; leave it out)" if key == "mode" else "; leave it out" if key in UNUSED else
                "; set it under base, and run one experiment per value")
         if section and whole:
             how = (f" (the point's {section}: replaces the base's whole section: give {section}.<key> for what it "
@@ -262,7 +276,8 @@ def _grids(points: Any) -> list[dict]:
 
 def _fixed(cfg: RunConfig) -> dict[str, Any]:
     """The settings of :data:`FIXED` of a resolved config (the mode as the study runs it)."""
-    return {"scene": cfg.scene, "resolution": cfg.resolution, "bsp": cfg.bsp, "render.spp": cfg.render.spp}
+    return {"scene": cfg.scene, "resolution": cfg.resolution, "bsp": cfg.bsp,
+            **{k: getattr(getattr(cfg, k.split(".")[0]), k.split(".")[1]) for k in FIXED if "." in k}}
 
 
 @dataclass(frozen=True)
@@ -372,6 +387,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         truth_meta["pixels_compared"] = float(keep.mean())
     if not truth_meta["available"] and note is not None:
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
+    elif truth_meta["available"] and truth_noise_words(truth.spp):  # (its noise in every truth_* error)
+        words = truth_noise_words(truth.spp)
+        study_warning(f"error-vs-cost: {words[0].lower()}{words[1:]}", warned)
 
     maps: dict[tuple, tuple] = {}  # map key -> (the trace, its seconds without compilation)
     density_s: dict[tuple, float] = {}  # (id of a map in maps, k) -> seconds of its density radius

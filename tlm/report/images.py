@@ -14,8 +14,9 @@ that mode, i.e. the *cumulative* composite (the modes add passes: Refract is ray
   the four panels are directly comparable. A run folder without ``radiance/`` shows
   its ``images/composite.png`` for its own mode only.
 
-A run whose photon-map frame was measured against its converged reference
-(``results.json`` ``error``, :mod:`tlm.experiments.reference`) also gets a figure of
+A run whose photon-map frame was measured against its reference (``results.json`` ``error``,
+:mod:`tlm.experiments.reference`; one that did not converge, ``reference_converged`` false, is said
+"NOT converged" in the figure's title, caption and the lead) also gets a figure of
 that frame beside its difference from the reference (ours minus the reference in
 luminance), titled with the relative MSE and RMSE, which the section's lead repeats. The
 difference is read back from the run's ``images/pmap_error.png`` (the blue and red of a
@@ -199,6 +200,12 @@ def _error_words(error: dict) -> str:
     return f"relative MSE {rel}, RMSE {error['rmse']:.3g}"
 
 
+def _reference_words(error: dict) -> str:
+    """The reference a run's photon-map error is against: ``its converged reference``, or where
+    it did not converge (``reference_converged`` not true) ``its reference (NOT converged)``."""
+    return "its converged reference" if error.get("reference_converged") else "its reference (NOT converged)"
+
+
 def signed_difference(rgb: np.ndarray, colours: tuple[str, ...]) -> np.ndarray | None:
     """(H, W) in [-1, 1]: the difference (over its scale) that each pixel of ``rgb`` ((H, W, 3)
     uint8) stands for in the piecewise-linear map of ``colours`` (evenly spaced from -1 to +1, as
@@ -259,7 +266,7 @@ def error_figure(run: Run, out: Path):
         ax.set_title(title, fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
-    title = f"{run.label}: PMap frame against its converged reference, {_error_words(error)}"
+    title = f"{run.label}: PMap frame against {_reference_words(error)}, {_error_words(error)}"
     state = "converged" if error.get("reference_converged") else "NOT converged"
     drawn = (f"{diff_name} as the run wrote it: its colours are not those of "
              "tlm's difference image, so they are not read back and no colour bar is drawn"
@@ -274,7 +281,7 @@ def error_figure(run: Run, out: Path):
                f"{error.get('reference_standard_error') or 0.0:.3g}), {drawn}. The reference is "
                "the pixel's box-filter integral: a run of render.spp 1 samples the pixel's centre, so edges "
                "show aliasing too.")
-    fig.suptitle(f"{run.label}\nPMap frame against its converged reference: {_error_words(error)}", fontsize=9)
+    fig.suptitle(f"{run.label}\nPMap frame against {_reference_words(error)}: {_error_words(error)}", fontsize=9)
     return save(fig, out, FigureName(("pmap_error", run.label), f"pmap_error\n{run.label}"), title, caption)
 
 
@@ -400,6 +407,7 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
     from tlm.report.html import esc
 
     said = []
+    converged: list[bool] = []  # (each said run's reference converged)
     for run in runs:
         error = run.results.get("error")
         if not error:
@@ -407,7 +415,9 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
         if not error.get("available"):
             section.notes.append(f"{run.label}: {_unmeasured(run, error)}")
             continue
-        said.append(f"{esc(run.label)}: {esc(_error_words(error))}")
+        said.append(f"{esc(run.label)}: {esc(_error_words(error))}"
+                    + ("" if error.get("reference_converged") else " (its reference NOT converged)"))
+        converged.append(bool(error.get("reference_converged")))
         if len(said) > MAX_ERROR_FIGURES:
             section.notes.append(f"{run.label}: its PMap error figure is left out (at most {MAX_ERROR_FIGURES})")
             continue
@@ -417,4 +427,5 @@ def _error_figures(section: Section, runs: list[Run], out: Path) -> None:
         else:
             section.figures.append(fig)
     if said:
-        section.lead = "PMap frame against its converged reference: " + "; ".join(said) + "."
+        section.lead = ("PMap frame against its converged reference: " if all(converged) else
+                        "PMap frame against its reference: ") + "; ".join(said) + "."

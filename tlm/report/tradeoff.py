@@ -5,10 +5,14 @@
     ``frame_seconds`` column) and against host wall time (photon tracing + gathering,
     ``trace_seconds + gather_seconds``, with the kernels warm: the captions give the one-off
     work left out, the rows' ``one_off_seconds``, :func:`wall_time_caption`). One marker and
-    colour per filter (and final-gather count: ``mvoxel + final gather 16`` is a series of its
-    own; a point's name adds its caustic photon budget); the marker's
+    colour per filter (and final-gather count: ``mvoxel + final gather (16 rays)`` is a series of its
+    own, after ``mvoxel + final gather (4 rays)``; a point's name adds its caustic photon budget), the
+    same in each of a study's figures and in the summary's (:func:`series_styles`); the marker's
     area grows with the photon count; the Pareto front (the points no other point beats
-    on both error and time) is drawn as a step line and its points are named.
+    on both error and time) is drawn as a step line and its points are named. A reference
+    that did not converge (``reference.json``'s ``reference_converged``, or the rows') is said so in
+    the axis label, title and caption (:func:`reference_words`). Titles that the study's ``--set``
+    makes long are wrapped (:func:`~tlm.report.common.wrap_title`).
 (b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
     (``max_abs_rel_error``, the largest relative error of any PM's cycles, TThru or the
     latency) against the host wall time of the simulation (``simulate_seconds``), each
@@ -25,8 +29,22 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tlm.experiments.error_cost_truth import truth_noise_words
 from tlm.report.collect import Inputs, Study, with_set
-from tlm.report.common import Section, colour, count, linestyle, log_ticks, marker, new_figure, save, untangle
+from tlm.report.common import (
+    Section,
+    colour,
+    count,
+    linestyle,
+    log_ticks,
+    marker,
+    new_figure,
+    save,
+    untangle,
+    wrap_title,
+)
+
+TITLE_INCHES = 5.6  # the axes' width of an error-vs-cost figure (9 inches wide, its key to the right): its title's
 
 
 def pareto_front(cost, error) -> np.ndarray:
@@ -79,14 +97,69 @@ def _sizes(photons: np.ndarray) -> np.ndarray:
     return 25 + 175 * t
 
 
-def _series(r: dict) -> str:
-    """A row's series (marker and colour): its filter, and its final gathering when on."""
+def gather_rays(r: dict) -> int:
+    """The final-gather rays of an error-vs-cost row (0: none)."""
     fg = _num(r.get("final_gather"))
-    return f"{r.get('filter')}" + (f" + final gather {int(fg)}" if np.isfinite(fg) and fg > 0 else "")
+    return int(fg) if np.isfinite(fg) and fg > 0 else 0
+
+
+def series_of(r: dict) -> str:
+    """A row's series (marker and colour): its filter, and its final gathering when on
+    (``mvoxel + final gather (16 rays)``, as the summary's figure names it)."""
+    n = gather_rays(r)
+    return f"{r.get('filter')}" + (f" + final gather ({n} rays)" if n else "")
+
+
+_series = series_of
+
+
+def series_order(rows: list[dict]) -> list[str]:
+    """The series of ``rows`` in the order the report draws and styles them: by filter, then by
+    final-gather rays as numbers (4 before 16; none first)."""
+    keyed = {series_of(r): (str(r.get("filter")), gather_rays(r)) for r in rows}
+    return sorted(keyed, key=lambda name: keyed[name])
+
+
+def series_styles(rows: list[dict]) -> dict[str, int]:
+    """Each series of a study's ``rows`` (all of them, drawn or not) -> its style index
+    (:func:`~tlm.report.common.colour`, :func:`~tlm.report.common.marker`,
+    :func:`~tlm.report.common.line_style`): one marker and colour per series in every figure of the
+    study, whichever rows a figure draws, and the summary's for a single study."""
+    return {name: i for i, name in enumerate(series_order(rows))}
+
+
+def reference_converged(study: Study) -> bool | None:
+    """Whether the study's reference met its tolerance: ``reference.json``'s ``reference_converged``
+    (else its ``converged``), else the rows' ``reference_converged``; None where nothing says."""
+    ref = study.meta.get("reference") if isinstance(study.meta, dict) else None
+    for key in ("reference_converged", "converged"):
+        if isinstance(ref, dict) and isinstance(ref.get(key), bool):
+            return ref[key]
+    said = {r.get("reference_converged") for r in study.rows if isinstance(r.get("reference_converged"), bool)}
+    return None if not said else all(said)
+
+
+def reference_words(study: Study) -> tuple[str, str]:
+    """``(short, long)`` words for the reference a study's ``rmse`` is against: ``"the converged
+    reference"``, or where it did not converge ``"the reference (NOT converged)"`` and a sentence
+    with its relative standard error, rounds and tolerance (``reference.json``)."""
+    if reference_converged(study) is not False:
+        return "the converged reference", ""
+    ref = study.meta.get("reference") if isinstance(study.meta.get("reference"), dict) else {}
+    err, rounds, tol = (_num(ref.get(k)) for k in ("relative_standard_error", "rounds", "tolerance"))
+    how = ", ".join(w for w in (
+        f"relative standard error {err:.3g}" if np.isfinite(err) else "",
+        f"after {int(rounds)} rounds" if np.isfinite(rounds) else "",
+        f"above its tolerance {tol:g}" if np.isfinite(tol) else "") if w)
+    return ("the reference (NOT converged)",
+            f"The reference did NOT converge ({how or 'reference.json'}): each RMSE against it includes the "
+            "reference's own noise.")
 
 
 def _point_name(r: dict) -> str:
-    f = _series(r)
+    f = str(r.get("filter"))
+    if gather_rays(r):
+        f = series_of(r)
     extra = ""
     if f == "knn" and r.get("k_nearest") is not None:
         extra = f", k={int(r['k_nearest'])}"
@@ -167,9 +240,10 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
         return None
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
-    filters = sorted({_series(r) for r, k in zip(rows, ok, strict=True) if k})
-    for i, f in enumerate(filters):
-        m = ok & np.array([_series(r) == f for r in rows])
+    styles = series_styles(rows)
+    for f in [f for f in styles if any(series_of(r) == f for r, k in zip(rows, ok, strict=True) if k)]:
+        i = styles[f]
+        m = ok & np.array([series_of(r) == f for r in rows])
         ax.scatter(cost[m], truth[m], s=40, c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
                    label=f"{f}: composite vs ground truth", zorder=3)
         mo = m & np.isfinite(own)
@@ -180,16 +254,19 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
     _log_if_decades(ax, "x", cost[ok])
     ax.set_yscale("log")
     ax.set(xlabel="host wall time: photon tracing + gathering (s)", ylabel="image RMSE (linear radiance)",
-           title=f"{label}: RMSE vs the ground truth and vs our reference")
+           title=wrap_title(f"{label}: RMSE vs the ground truth and vs our reference", TITLE_INCHES))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     spp = next((r.get("truth_spp") for r in rows if r.get("truth_spp")), None)
+    _, unconverged = reference_words(study)
     caption = ("Image RMSE in linear radiance. Filled: the whole composite (every planned frame) against "
                "Mitsuba 3's path tracer" + (f" ({spp} spp)" if spp else "") + ", over the pixels away from the "
-               "lights seen directly; hollow: the photon-map frame alone against our own converged k-NN "
-               "reference, over every pixel; a vertical line joins a point's two errors. They are errors of "
+               "lights seen directly; hollow: the photon-map frame alone against our own "
+               + ("converged k-NN reference" if not unconverged else "k-NN reference, NOT converged")
+               + ", over every pixel; a vertical line joins a point's two errors. They are errors of "
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
-               "wrong, not the model's bias alone. " + wall_time_caption(rows))
+               "wrong, not the model's bias alone. " + (f"{unconverged} " if unconverged else "")
+               + (f"{truth_noise_words(spp)} " if truth_noise_words(spp) else "") + wall_time_caption(rows))
     return save(fig, out, name, f"{label}: error against the ground truth and against our reference, "
                 "against wall time", caption)
 
@@ -224,9 +301,10 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     front = pareto_front(c, e)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
-    filters = sorted({_series(r) for r in sub})
-    for i, f in enumerate(filters):
-        m = np.array([_series(r) == f for r in sub])
+    styles = series_styles(rows)
+    for f in [f for f in styles if any(series_of(r) == f for r in sub)]:
+        i = styles[f]
+        m = np.array([series_of(r) == f for r in sub])
         ax.scatter(c[m], e[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
                    alpha=0.85, label=f"filter {f}", zorder=3)  # (and final gathering)
     o = np.argsort(c[front], kind="stable")
@@ -250,8 +328,10 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
                    label=f"{p:,} photons")
     _log_if_decades(ax, "x", c)
     _log_if_decades(ax, "y", e)
-    ax.set(xlabel=xlabel, ylabel="image RMSE against the converged reference (linear radiance)",
-           title=f"{label}: photon-map RMSE against {what}")
+    against, unconverged = reference_words(study)
+    ax.set(xlabel=xlabel, ylabel=f"image RMSE against {against} (linear radiance)",
+           title=wrap_title(f"{label}: photon-map RMSE against {what}"
+                            + (" (reference NOT converged)" if unconverged else ""), TITLE_INCHES))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
@@ -260,6 +340,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     if hidden:
         caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
                     "their number would cover another number or a marker (the key names them).")
+    if unconverged:
+        caption += " " + unconverged
     if cost_key == "wall":
         caption += " " + wall_time_caption(rows)
     else:

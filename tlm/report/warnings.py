@@ -11,8 +11,9 @@ they are read. A study's own warnings, said once for the study on stderr (``tlm 
 ``--set`` no cell reads), are the ``warnings`` list of its file (``thesis_summary.json``; any
 study record with one: :data:`STUDY_FILES`), listed in the same box once each, attributed to
 the study. (``tlm error-vs-cost``, ``tlm extreme`` and ``tlm granularity`` write no such list:
-error-vs-cost's reference not converged is its ``reference.json`` ``converged``, drawn with the
-error figures.)
+error-vs-cost's reference not converged is its ``reference.json`` ``reference_converged`` false, listed
+here from it, :func:`reference_line`, and said in the axis label, title and caption of each of the study's
+error figures, :func:`tlm.report.tradeoff.reference_words`.)
 """
 
 from __future__ import annotations
@@ -42,11 +43,33 @@ def study_label(study) -> str:
     return f"the {study.kind} study {study.path}"
 
 
+def reference_line(study) -> str | None:
+    """The warning of an error-vs-cost study whose reference did not converge (``reference.json``
+    ``reference_converged``, else ``converged``, false), as the study printed it; None for any other."""
+    ref = study.meta.get("reference") if study.kind == "error-vs-cost" and isinstance(study.meta, dict) else None
+    if not isinstance(ref, dict):
+        return None
+    converged = ref.get("reference_converged", ref.get("converged"))
+    if converged is not False:
+        return None
+    err, rounds, tol = (ref.get(k) for k in ("relative_standard_error", "rounds", "tolerance"))
+    num = (int, float)
+    return (f"error-vs-cost: the photon-map reference {ref.get('key', '')} is NOT converged: relative standard error "
+            f"{f'{err:.4f}' if isinstance(err, num) else 'n/a'} after {rounds} rounds"
+            + (f", above its tolerance {tol}" if isinstance(tol, num) else "")
+            + "; every row's rmse and rel_mse include its noise")
+
+
 def study_recorded(inputs: Inputs) -> list[tuple[str, list[str], list[str]]]:
     """``(warning, labels of the studies that recorded it, their files)`` in the order first met:
     the ``warnings`` lists of the studies' own records (:data:`STUDY_FILES`)."""
     found: dict[str, tuple[list[str], list[str]]] = {}
     for study in getattr(inputs, "studies", None) or []:
+        line = reference_line(study)
+        if line is not None:
+            whose, files = found.setdefault(line, ([], []))
+            whose.append(study_label(study))
+            files.append("reference.json:reference_converged")  # (file:key, where no warnings list holds it)
         for key, name in STUDY_FILES.items():
             record = study.meta if not key else study.meta.get(key)
             if (key == "" and study.kind != "thesis") or not isinstance(record, dict):
@@ -100,11 +123,12 @@ def warnings_html(inputs: Inputs) -> str:
         ("The run" if total == 1 else f"{runs} of the {total} runs") if kept else "",
         (study_names[0] if len(study_names) == 1 else f"{len(study_names)} studies") if studies else "")))
     who = who[0].upper() + who[1:]
-    where = " and ".join([*(["results.json"] if kept else []), *files])
+    where = " and ".join(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in
+                         (f.partition(":") for f in [*(["results.json"] if kept else []), *files]))
     n = len(items)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
             + "".join(rest) + "</ul></details>") if rest else ""
     return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
-            f"warning{'s' if n > 1 else ''} ({esc(where)} <code>warnings</code>); read what is drawn "
+            f"warning{'s' if n > 1 else ''} ({where}); read what is drawn "
             "from them with these in mind:</p><ul>" + "".join(shown) + "</ul>" + more + "</div>")
