@@ -247,3 +247,21 @@ def test_tlm_reference_says_a_kept_reference_was_found_cached_not_computed(capsy
     second = capsys.readouterr().out.strip().splitlines()[-1]
     assert "after 4 rounds" in second and ", found cached (nothing computed); the cache keeps " in second
     assert not re.search(r"\) in [0-9.]+ s", second), second
+
+
+@pytest.mark.parametrize(("truth", "converged"), [(True, True), (False, False)])
+def test_the_summary_s_quality_line_says_the_truth_s_samples_and_an_unconverged_reference(tmp_path, truth,
+                                                                                          converged):
+    """"What quality costs" quoted truth_rel_mse with no word of the truth's 16 samples a pixel, and rel_mse
+    "against our reference" where that reference had not converged."""
+    from tlm.report.collect import Inputs
+    from tlm.report.summary import _tradeoff
+
+    st = _study(tmp_path, converged=converged)
+    if not truth:
+        st.rows[:] = [{**r, "truth_rel_mse": None} for r in st.rows]
+    text, _ = _tradeoff(Inputs([tmp_path], studies=[st]), tmp_path)
+    if truth:
+        assert "against Mitsuba's path tracer (16 spp)" in text and "only 16 samples per pixel" in text
+    else:
+        assert "against our reference (NOT converged)" in text

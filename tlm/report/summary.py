@@ -330,18 +330,6 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     return text, f
 
 
-def _gather_rays(r: dict) -> int:
-    """The final-gather rays of an error-vs-cost row (0: none)."""
-    fg = r.get("final_gather")
-    return int(fg) if isinstance(fg, int | float) and not isinstance(fg, bool) and np.isfinite(fg) and fg > 0 else 0
-
-
-def _series(r: dict) -> str:
-    """An error-vs-cost row's series: its filter, and its final gathering when on."""
-    n = _gather_rays(r)
-    return f"{r['filter']}" + (f" + final gather ({n} rays)" if n else "")
-
-
 def _study_labels(studies: list) -> dict[int, str]:
     """Per error-vs-cost study (by ``id``), what tells its series apart from another study's in the
     summary's figure: "" for one study; else its name (:func:`~tlm.report.tradeoff.study_names`) and
@@ -360,6 +348,10 @@ def _study_labels(studies: list) -> dict[int, str]:
 
 
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    from tlm.report.tradeoff import gather_rays as _gather_rays
+    from tlm.report.tradeoff import reference_converged, truth_noise_words
+    from tlm.report.tradeoff import series_of as _series
+
     studies = [st for st in inputs.of_kind("error-vs-cost") if st.rows]
     labels = _study_labels(studies)
     rows = [{**r, "_study": st} for st in studies for r in st.rows]
@@ -406,12 +398,19 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         if len(studies) > 1 or st.overrides else ""
     rest = [f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
             if k in best and best[k] is not lo]
+    if err == "truth_rel_mse":  # (the truth's samples, and where they are few, that its noise is in the error)
+        spp = lo.get("truth_spp")
+        against = " against Mitsuba's path tracer" + (f" ({int(spp):,} spp)" if _number(spp) and spp > 0 else "")
+        noise = f" {esc(words)}" if (words := truth_noise_words(spp)) else ""
+    else:
+        against = " against our reference" + (" (NOT converged)" if reference_converged(st) is False else "")
+        noise = ""
     text = (f"<b>What quality costs:</b> the lowest error is {esc(lo['filter'])}'s"
             + (f" with final gathering ({gather} rays)" if gather else "")
             + (f" (from {esc(source)})" if source else "") + ", relative MSE "
             f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
-            + (" against Mitsuba's path tracer" if err == "truth_rel_mse" else " against our reference")
-            + (f"; {', '.join(rest)}" if rest else "") + "." + points_error(inputs) + error_factor(inputs))
+            + against + (f"; {', '.join(rest)}" if rest else "") + "." + noise
+            + points_error(inputs) + error_factor(inputs))
     return text, f
 
 
