@@ -71,7 +71,8 @@ def test_a_study_at_another_setting_quotes_no_median_anywhere(tmp_path, cache, c
     section = tables_section(inputs, tmp_path)
     (line,) = re.findall(r'<p class="study-summary">(.*?)</p>', section.html, re.S)
     assert line == f"Thesis study out: no median |relative error| ({NOT_COMPARABLE}); slowest PM as in the " \
-                   "thesis in 0 of 2 scene-modes."
+                   "thesis in 0 of 2 scene-modes, none comparable with the thesis (a count of the setting, not " \
+                   "of the model)."  # (the count qualified as the median is: it was the bare count)
     (fig,) = figures
     notes = [t.get_text() for ax in fig.axes for t in ax.texts]
     assert notes and not [t for t in notes if t.endswith("%")]  # no error annotated against another setting

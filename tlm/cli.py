@@ -170,6 +170,11 @@ def _cmd_config(args: argparse.Namespace) -> int:
     return 0
 
 
+# a scene file's keys that are no run setting: `--set camera.vfov=50` on a scene file is told where they go
+_SCENE_ONLY = ("camera", "lights", "materials", "parts", "default_material", "geometry", "transform",
+               "crease_angle", "extends")
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     storage.SAID.clear()
@@ -186,13 +191,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
     outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
     try:
         cfg = api.load_config(args.config, overrides)
-    except InputError:
+    except InputError as exc:
         blame_flag(args.config, list(args.set or []), flagged)
+        root = (exc.key or "").split(".", 1)[0]
+        if root in _SCENE_ONLY and api.scene_file(args.config) is not None:  # (--set camera.vfov=50 on a scene file)
+            raise InputError(f"{exc} ({root} is a key of the scene file, not a run setting that --set takes: edit "
+                             f"{args.config}'s {root}:, or write a scene file with `extends: {args.config}` and "
+                             f"the {root}: to change (docs/scenes.md), and run that)") from None
         raise
     if api.scene_file(args.config) is not None:  # (a note on stdout, with the run's lines, once the config
         # loaded: bad input is its one line on stderr, and a warning said before the render is stderr's first line)
-        _say(f"{args.config} is a scene file: rendering it with the default settings "
-             f"(a config would say `scene: {args.config}`; see 'tlm params')")
+        rendered = api.scene_file(args.config)
+        if Path(str(cfg.scene)).resolve() == Path(rendered).resolve():
+            _say(f"{args.config} is a scene file: rendering it with the default settings "
+                 f"(a config would say `scene: {args.config}`; see 'tlm params')")
+        else:  # (--set scene=... replaced it: say what is rendered)
+            _say(f"{args.config} is a scene file, but --set scene={cfg.scene} replaces it: rendering {cfg.scene} "
+                 "with the default settings")
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
     storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
@@ -379,7 +394,7 @@ def _yaml_text(value) -> str:
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    from tlm.experiments.thesis import describe_items, describe_rows, median_words
+    from tlm.experiments.thesis import describe_items, describe_rows, median_words, slowest_words
 
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
@@ -392,8 +407,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"], done.get("names")))
     sm = done["summary"]
-    print(f"{median_words(sm)}; slowest PM as in the thesis in {sm['slowest_pm_matches']} of {sm['scene_modes']} "
-          "scene-modes")
+    print(f"{median_words(sm)}; {slowest_words(sm)}")
     print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"], done.get("names")))
