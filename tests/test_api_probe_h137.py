@@ -126,6 +126,7 @@ def test_plots_prints_nothing_unless_asked_and_its_error_type_is_the_api_s(tmp_p
         ran.append(argv)
         return 0  # (writes nothing: the report then finds no step's folder)
 
+    (tmp_path / "configs").mkdir()  # (a configs folder that is not there is refused before any step)
     with pytest.raises(tlm.InputError, match="no step's folder exists"):
         tlm.plots(tmp_path / "configs", tmp_path / "runs", tmp_path / "plots", ["thesis"], run_command=step)
     assert [a[0] for a in ran] == ["thesis"]

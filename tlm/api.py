@@ -52,7 +52,6 @@ from tlm.api_common import (
     flags_are_kept,
 )
 from tlm.api_common import checked as _checked
-from tlm.api_common import folder as _folder
 from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_common import renamed as _renamed
 from tlm.api_common import shown as _shown
@@ -67,10 +66,13 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     StudyRows,  # noqa: F401  (not in __all__: what error_vs_cost returns, a list of rows with attrs)
     calibrate,
     calibration_table,  # noqa: F401  (not in __all__: the CLI's tlm.api.<name>, as in_checkout, report_output)
+    callback,
     error_vs_cost,
+    expanded,
     extreme,
     granularity,
     in_checkout,  # noqa: F401
+    out_folder,
     plots,
     report_output,  # noqa: F401
     run_sweep,
@@ -312,6 +314,9 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     """
     via = _via(overrides, via)
     more = _override_strings(overrides)
+    config, base = expanded(config), expanded(base)
+    if base is not None and not isinstance(base, (str, os.PathLike)):  # (a file's and a Config's own: theirs)
+        raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
     if isinstance(config, Config):
         return _updated(config, more, via) if more else config
     if isinstance(config, RunConfig):
@@ -334,6 +339,10 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         path = experiment_path(config)
         given = str(path)
     scene = scene_file(path)
+    if scene is None and read_yaml(path) == {}:  # (`{}`: every setting at its default, as the mapping {} is)
+        raw = apply_overrides({}, more, source=via, cwd=Path.cwd()) if more else {}
+        settings = config_from_dict(raw, with_overrides(given, via) if more else given)
+        return Config(settings, path.resolve().parent, given, tuple(more), via=via)
     if scene is None:
         from tlm.config import load_config as load_run_config
 
@@ -436,10 +445,14 @@ def to_srgb(radiance: np.ndarray, exposure: float | None = None) -> np.ndarray:
 
     from tlm.render.image import auto_exposure, to_srgb8
 
-    radiance = np.asarray(radiance)
+    given, radiance = radiance, np.asarray(radiance)
     if radiance.ndim < 1 or radiance.shape[-1] != 3 or radiance.dtype.kind not in "iuf":
-        raise InputError(f"an array of shape {radiance.shape} and dtype {radiance.dtype} is not RGB radiance: "
-                         "give (..., 3) real numbers, as a RenderResult's radiance", key="radiance")
+        passes = getattr(given, "radiance", None)  # (a RenderResult: its composite, or a pass's radiance)
+        what = (f"an array of shape {radiance.shape} and dtype {radiance.dtype}" if radiance.dtype != object
+                or isinstance(given, np.ndarray) else _shown(given))
+        raise InputError(f"{what} is not RGB radiance: give (..., 3) real numbers, as a RenderResult's " + (
+            f"res.composite or res.radiance[{next(iter(passes))!r}]" if isinstance(passes, Mapping) and passes
+            else "radiance"), key="radiance")
     if exposure is not None:
         value = math.nan  # (numpy's bool is not a numbers.Real)
         if not isinstance(exposure, bool) and isinstance(exposure, numbers.Real):
@@ -574,7 +587,8 @@ def run(config: str | Path | Mapping[str, Any] | Config, out: str | Path, *,
 
     progress = _checked(progress, "progress", bool)
     reference = _checked(reference, "reference", bool, none="the config's reference.auto")
-    out = _folder(out)
+    say = callback(say, "say")
+    out = out_folder(out)
     cfg = load_config(config)
     if outputs is None:
         chosen = runs.OUTPUTS
@@ -613,8 +627,8 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
     computes it: the cached one when it meets ``reference.tolerance`` (unless ``force``),
     else computed and cached (a cached one that computing again would not better, fewer rounds
     asked for or the same rounds repeated, is kept: ``kept`` says why). Returns its ``key``,
-    ``settings``, ``meta``, whether it was ``computed`` now (False where the cache's was returned)
-    and its ``folder``; ``say`` gets a line before computing, and the line on a cached one kept,
+    ``settings``, ``meta``, whether it was ``computed`` now (False where the cache's was returned),
+    its ``folder`` and ``warnings``; ``say`` gets a line before computing, and the line on a cached one kept,
     ``progress`` ``(round, change, relative standard error)`` after each round (the round's number
     from 1; the two measures after each cycle of ``reference.spp`` rounds from the second, when they
     are measured, and NaN after the other rounds), ``bar`` a bar of the rounds on stderr (when it is
@@ -625,6 +639,7 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
 
     force = _checked(force, "force", bool)
     bar = _checked(bar, "bar", bool)
+    say = callback(say, "say")
     if progress is not None and not callable(progress):
         shown = _checked(progress, "progress", bool, "True, False or a function of (round, change, relative "
                          "standard error)", none="no progress")
@@ -639,11 +654,12 @@ def reference(config: str | Path | Mapping[str, Any] | Config, *, force: bool = 
         return arguments_text(line, names, {"force", "bar"})
 
     told = None if say is None else (lambda line: say(named(line)))
+    warnings: list[str] = []  # (returned, as tlm.run's; tlm reference prints them on stderr)
     made = make_reference(cfg.settings, cfg.base, cfg.label, force=force, say=told, progress=progress, bar=bar,
-                          overrides=cfg.overrides, via=cfg.via)
+                          overrides=cfg.overrides, via=cfg.via, warned=warnings.append)
     if made is not None and made.kept:
         made = replace(made, kept=named(made.kept))
-    return made
+    return replace(made, warnings=tuple(warnings)) if made is not None else made
 
 
 def _said(say: Callable[[str], None] | None, progress: bool) -> Callable[[str], None] | None:

@@ -33,6 +33,66 @@ if TYPE_CHECKING:
     from tlm.experiments.sweep_plan import SweepPlan
 
 
+# ---------------------------------------------------------------- the arguments' checks (tlm.api's too)
+
+
+def callback(value: object, name: str, what: str = "a function of one line") -> Callable | None:
+    """The argument ``name``'s ``value`` where it is a function (or None: none); anything else is an
+    InputError naming the argument, before any work (it was called only once the work was done: a
+    render's whole frame, then ``TypeError: 'int' object is not callable``)."""
+    if value is not None and not callable(value):
+        raise InputError(f"{_shown(value)} is not a function: give {what}, or None", key=name)
+    return value
+
+
+def out_folder(out: object, key: str = "out") -> Path:
+    """``out`` as the path of a folder to write (:func:`~tlm.api_common.folder`), ``~`` expanded."""
+    return _folder(out, key).expanduser()
+
+
+def expanded(path: object) -> object:
+    """A path argument with ``~`` expanded (``"~/runs/x"``: the home folder's, not ``./~/runs/x``);
+    anything else as given, for its own check to name."""
+    if isinstance(path, (str, os.PathLike)) and os.fspath(path).startswith("~"):
+        return Path(path).expanduser()
+    return path
+
+
+def folder_list(value: object, key: str, what: str) -> list[Path]:
+    """``value``, a list of folders or one folder's path (a string or a Path: that folder, not the
+    characters of its name), as paths (``~`` expanded); anything else, an item that is no path, or
+    no folder at all, is an InputError naming the argument ``key``; ``what``: what the folders are."""
+    if isinstance(value, (str, os.PathLike)):
+        value = [value]
+    elif not isinstance(value, Iterable) or isinstance(value, bytes):
+        raise InputError(f"{_shown(value)} is not a folder or a list of folders: give {what}", key=key)
+    given = list(value)
+    for d in given:
+        if not isinstance(d, (str, os.PathLike)):
+            raise InputError(f"{_shown(d)} is not a folder's path: give {what}", key=key)
+    if not given:
+        raise InputError(f"no folder given: name {what}", key=key)
+    return [Path(d).expanduser() for d in given]
+
+
+def _formats(formats: object) -> str | list[str] | None:
+    """``formats`` as :func:`write_report` takes it: None, ``"pdf,svg"`` or names; anything else is an
+    InputError naming the argument (the report's own check names the values)."""
+    if formats is None or isinstance(formats, str):
+        return formats
+    if isinstance(formats, Iterable) and not isinstance(formats, (bytes, os.PathLike)):
+        given = list(formats)
+        if all(isinstance(f, str) for f in given):
+            return given
+    raise InputError(f"{_shown(formats)} is not figure formats: give \"pdf,svg\" or a list of names of png, "
+                     "pdf and svg (None: the PNG alone)", key="formats")
+
+
+def _experiment(path: object, command: str) -> Path:
+    """The experiment file a study was given (:func:`~tlm.api_common.experiment_file`), ``~`` expanded."""
+    return _experiment_file(expanded(path), command)
+
+
 # ---------------------------------------------------------------- many experiments
 
 
@@ -90,10 +150,11 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
 
     jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
     progress = _checked(progress, "progress", bool)
+    warn, say = callback(warn, "warn"), callback(say, "say")
     if _checked(dry_run, "dry_run", bool):
-        return plan_sweep(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, dask_wait=dask_wait,
+        return plan_sweep(_experiment(path, "sweep"), out_folder(out), jobs=jobs, dask=dask, dask_wait=dask_wait,
                           overrides=_overrides(overrides), reference=_checked(reference, "reference", bool))
-    return run_all(_experiment_file(path, "sweep"), _folder(out), jobs=jobs, dask=dask, progress=progress,
+    return run_all(_experiment(path, "sweep"), out_folder(out), jobs=jobs, dask=dask, progress=progress,
                    dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides),
                    reference=_checked(reference, "reference", bool), say=say)
 
@@ -123,11 +184,13 @@ def sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, dask: s
 @imports_whole
 def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     """Fit eq. 5.2 to sweeps over ``arch.pipelines`` (``tlm scaling``): the fits, a table and
-    a figure per scene in ``out``."""
+    a figure per scene in ``out``. ``sweeps``: a list of sweep folders, or one folder's path; none
+    is an InputError, nothing written."""
     from tlm.experiments.scaling import analyse
     from tlm.report.scaling import plot_scaling
 
-    return analyse([Path(d) for d in sweeps], Path(out), plot=plot_scaling)
+    dirs = folder_list(sweeps, "sweeps", "the sweep folders to fit (tlm sweep's output folders)")
+    return analyse(dirs, out_folder(out), plot=plot_scaling)
 
 
 @argument_names
@@ -145,7 +208,9 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
     from tlm.experiments.thesis import run_thesis
 
     bar = _checked(bar, "bar", bool)
-    return run_thesis(_experiment_file(path, "thesis"), Path(out), progress, bar=bar,
+    progress = callback(progress, "progress", "a function of (scene, mode, results)")
+    warn = callback(warn, "warn")
+    return run_thesis(_experiment(path, "thesis"), out_folder(out), progress, bar=bar,
                       overrides=_overrides(overrides), warn=warn if warn is not None else (lambda line: None))
 
 
@@ -158,7 +223,8 @@ def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None 
     fitted table and the fit's report (``report["cells"]``)."""
     from tlm.experiments.thesis import calibrate as fit
 
-    return fit(_experiment_file(path, "calibrate"), progress=progress)
+    progress = callback(progress, "progress", "a function of (iteration, report)")
+    return fit(_experiment(path, "calibrate"), progress=progress)
 
 
 def _package_dir() -> Path:
@@ -255,14 +321,38 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
 @argument_names
 @imports_whole
 def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None,
-                overrides: Iterable[str] | None = None) -> list[dict]:
+                overrides: Iterable[str] | None = None, warn: Callable[[str], None] | None = None) -> StudyRows:
     """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
-    study file ``path`` (or the built-in study of that name). ``overrides``: ``dotted.key=value``
-    strings (``tlm granularity --set``) applied to its base (not ``arch.packet_size``)."""
+    study file ``path`` (or the built-in study of that name): a list of dicts (:class:`StudyRows`).
+    ``overrides``: ``dotted.key=value`` strings (``tlm granularity --set``) applied to its base (not
+    ``arch.packet_size``). Its warnings (an override that sets nothing, ``render={}``), which ``tlm
+    granularity`` prints on stderr, are the rows' ``attrs["warnings"]``; ``warn`` gets each as it is
+    known too (None: nothing is printed)."""
     from tlm.experiments.granularity import run_granularity
 
-    return run_granularity(_experiment_file(path, "granularity"), Path(out), progress,
-                           overrides=_overrides(overrides))
+    progress = callback(progress, "progress", "a function of one row")
+    warned = _Warned(callback(warn, "warn"))
+    rows = run_granularity(_experiment(path, "granularity"), out_folder(out), progress,
+                           overrides=_overrides(overrides), **warned.arguments())
+    return StudyRows(rows, warnings=warned.lines)
+
+
+class _Warned:
+    """A study's warning lines, kept (and given to the caller's ``warn``), as a call of the API returns
+    them; from the command line (:func:`~tlm.api_common.flags_are_kept`) the study prints them itself."""
+
+    def __init__(self, hear: Callable[[str], None] | None) -> None:
+        self.hear, self.lines = hear, []
+
+    def __call__(self, line: str) -> None:
+        self.lines.append(line)
+        if self.hear is not None:
+            self.hear(line)
+
+    def arguments(self) -> dict:
+        """The study's ``via`` and ``warned`` (none from the command line: ``--set``, on stderr)."""
+        return {} if flags_are_kept() else {"via": "the overrides", "warned": self}
+
 
 
 class StudyRows(list):
@@ -305,7 +395,9 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
 
         return told
 
-    rows = run_error_vs_cost(_experiment_file(path, "error-vs-cost"), Path(out), progress=progress,
+    progress = callback(progress, "progress", "a function of (point, points, row)")
+    note = callback(note, "note")
+    rows = run_error_vs_cost(_experiment(path, "error-vs-cost"), out_folder(out), progress=progress,
                              truth=Truth(spp=truth_spp), note=said(notes, note), overrides=_overrides(overrides),
                              warned=said(warnings, None))
     return StudyRows(rows, notes, warnings)
@@ -314,14 +406,20 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
 @argument_names
 @imports_whole
 def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], None] | None = None,
-            overrides: Iterable[str] | None = None) -> list[dict]:
+            overrides: Iterable[str] | None = None, warn: Callable[[str], None] | None = None) -> StudyRows:
     """The stiff and extreme cases of the study file ``path`` (or the built-in study of that
-    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case.
-    ``overrides``: ``dotted.key=value`` strings (``tlm extreme --set``) applied to its base (not a
-    key a case's config gives)."""
+    name, ``"extreme"``), expected against measured (``tlm extreme``): one row a case, a list of
+    dicts (:class:`StudyRows`). ``overrides``: ``dotted.key=value`` strings (``tlm extreme --set``)
+    applied to its base (not a key a case's config gives). Its warnings (an override that sets
+    nothing, one some cases never read), which ``tlm extreme`` prints on stderr, are the rows'
+    ``attrs["warnings"]``; ``warn`` gets each as it is known too (None: nothing is printed)."""
     from tlm.experiments.extreme import run_extreme
 
-    return run_extreme(_experiment_file(path, "extreme"), Path(out), progress, overrides=_overrides(overrides))
+    progress = callback(progress, "progress", "a function of one row")
+    warned = _Warned(callback(warn, "warn"))
+    rows = run_extreme(_experiment(path, "extreme"), out_folder(out), progress, overrides=_overrides(overrides),
+                       **warned.arguments())
+    return StudyRows(rows, warnings=warned.lines)
 
 
 # ---------------------------------------------------------------- reports
@@ -351,25 +449,14 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
 
     lock = _checked(lock, "lock", bool)
     progress = _checked(progress, "progress", bool)
-    if isinstance(dirs, (str, os.PathLike)):  # (one folder, as tlm report DIR takes it)
-        dirs = [dirs]
-    elif not isinstance(dirs, Iterable) or isinstance(dirs, bytes):
-        raise InputError(f"{_shown(dirs)} is not a folder or a list of folders: give the run, sweep or study "
-                         "folders to report", key="dirs")
-    dirs = list(dirs)
-    for d in dirs:
-        if not isinstance(d, (str, os.PathLike)):
-            raise InputError(f"{_shown(d)} is not a folder's path: give the run, sweep or study folders to report",
-                             key="dirs")
-    if not dirs:
-        raise InputError("no folder given: name the run, sweep or study folders to report", key="dirs")
-    dirs = [Path(d) for d in dirs]
+    dirs = folder_list(dirs, "dirs", "the run, sweep or study folders to report")
     if out is None and len(dirs) > 1:
         raise InputError("several folders: name the report folder", key="--out")
-    hear = note if note is not None else (lambda line: None)  # (None: the page alone says them; nothing printed)
+    out = out_folder(out) if out is not None else None
+    formats = _formats(formats)
+    hear = callback(note, "note") or (lambda line: None)  # (None: the page alone says them; nothing printed)
     if not lock:
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear,
-                            progress=progress)
+        return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
     from tlm.claims import lock_holder
     from tlm.storage import folder_lock
 
@@ -379,8 +466,7 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
              "for it to end")
 
     with folder_lock(dirs[0], waiting=waiting):
-        return build_report(dirs, Path(out) if out is not None else None, title, formats=formats, dpi=dpi, note=hear,
-                            progress=progress)
+        return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
 
 
 @imports_whole
@@ -398,7 +484,7 @@ def report_output(formats: str | Iterable[str] | None = None,
 
 @argument_names
 @imports_whole
-def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str] | None = None, *,
+def plots(configs: str | Path, runs: str | Path, out: str | Path, only: str | list[str] | None = None, *,
           run_command: Callable[[list[str]], int], say: Callable[[str], None] | None = None,
           formats: str | Iterable[str] | None = None, dpi: int | str | None = None) -> Path:
     """Every committed experiment of ``configs`` (or the steps ``only``) and their report into
@@ -410,10 +496,24 @@ def plots(configs: str | Path, runs: str | Path, out: str | Path, only: list[str
     returns 1 (None: nothing is printed). Steps that return 1 and the rest run; the report is
     written, then :class:`tlm.api.StepsFailed` (``.page``, ``.steps``) names them. ``formats`` and
     ``dpi``: the report's figure files, as :func:`write_report` takes them (checked before the
-    first step)."""
+    first step). ``only``: a list of steps' names, or one step's name."""
     from tlm.report.common import figure_output
     from tlm.report.regenerate import regenerate
 
-    hear = say if say is not None else (lambda line: None)  # (None: nothing printed, as every API function)
-    with figure_output(formats, dpi):  # (the report's figures; a bad value stops here, before any step)
-        return regenerate(Path(configs), Path(runs), Path(out), only, run_command=run_command, say=hear)
+    if run_command is None or callback(run_command, "run_command") is None:
+        raise InputError("None is not a function: give one that runs a step's tlm argv and returns its exit status, "
+                         "lambda argv: subprocess.run([\"tlm\", *argv]).returncode", key="run_command")
+    hear = callback(say, "say") or (lambda line: None)  # (None: nothing printed, as every API function)
+    steps = [only] if isinstance(only, str) else only  # (one step: that step, not the characters of its name)
+    if steps is not None:
+        steps = list(steps) if isinstance(steps, Iterable) and not isinstance(steps, bytes) else [steps]
+        if not all(isinstance(n, str) for n in steps):
+            raise InputError(f"{_shown(only)} is not steps' names: give a list of them, or one (None: every step)",
+                             key="only")
+    folders = []
+    for name, value in (("configs", configs), ("runs", runs)):
+        if not isinstance(value, (str, os.PathLike)):
+            raise InputError(f"{_shown(value)} is not a folder's path", key=name)
+        folders.append(Path(value).expanduser())
+    with figure_output(_formats(formats), dpi):  # (the report's figures; a bad value stops here, before any step)
+        return regenerate(*folders, out_folder(out), steps, run_command=run_command, say=hear)

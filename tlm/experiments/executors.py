@@ -32,7 +32,7 @@ import time
 import warnings
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import ExitStack, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,8 +45,8 @@ from tlm.experiments.worker_start import UNGUARDED_EXIT as UNGUARDED_EXIT
 from tlm.experiments.worker_start import WORKERS_IGNORE as WORKERS_IGNORE
 from tlm.experiments.worker_start import check_guarded as _check_guarded  # (read here: what a test replaces)
 from tlm.experiments.worker_start import leave_if_bootstrapping as leave_if_bootstrapping
+from tlm.experiments.worker_start import main_file_hidden, mp_context, tlm_preloaded
 from tlm.experiments.worker_start import main_script as main_script
-from tlm.experiments.worker_start import mp_context, tlm_preloaded
 from tlm.experiments.worker_start import sigint_ignored as _sigint_ignored  # (tests import it from here)
 from tlm.experiments.worker_start import unguarded_error as unguarded_error
 from tlm.kernels.threads import die_with_parent
@@ -473,9 +473,12 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
     client's; no more workers than ``points``. ``dask_wait``: the seconds a Dask sweep
     waits while its scheduler has no worker (None: :data:`NO_WORKERS_WAIT`)."""
+    if jobs != 1 or dask is not None:  # (a script on stdin: its workers start as python -c's)
+        stack.enter_context(main_file_hidden())
     if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
         return InProcess() if jobs == 1 else LocalPool(min(jobs, points))
     jobs = min(jobs, points)
+    stack.enter_context(_host_kept())  # (closed last: the environment and loggers distributed changes, put back)
     from distributed import Client, LocalCluster
 
     # a Client left unreachable earlier (one whose connection failed: the constructor raised
@@ -511,6 +514,32 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
+
+
+@contextmanager
+def _host_kept():
+    """The calling process's ``os.environ`` and the ``distributed``, ``tornado`` and ``bokeh`` loggers'
+    handlers and ``propagate`` put back as they were once the block ends: distributed sets the variables its
+    nannies' workers inherit (``OMP_NUM_THREADS=1``, ``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``, ...)
+    in this process, and its import gives those loggers a handler of its own (a notebook's session would
+    keep both after its sweep). Their levels are :class:`_Quiet`'s."""
+    env = dict(os.environ)
+    loggers = {n: (list(logging.getLogger(n).handlers), logging.getLogger(n).propagate) for n in _HOST_LOGGERS}
+    try:
+        yield
+    finally:
+        for k in [k for k in os.environ if k not in env]:
+            os.environ.pop(k, None)
+        for k, v in env.items():
+            if os.environ.get(k) != v:
+                os.environ[k] = v
+        for name, (handlers, propagate) in loggers.items():
+            logger = logging.getLogger(name)
+            logger.handlers[:] = handlers
+            logger.propagate = propagate
+
+
+_HOST_LOGGERS = ("distributed", "tornado", "bokeh")  # the loggers distributed's import configures
 
 
 def _local_preloads() -> dict[str, list]:

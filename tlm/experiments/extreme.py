@@ -197,8 +197,8 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
         if expects_error and len(c["checks"]) != 1:
             raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
         if overrides:  # (its keys: a --set of one would be lost in this case)
-            refuse_set(overrides, {k: f"set by the case {name!r} ({where}.config.{k}): a --set applies under every "
-                                      "case's config; change the case in the cases file, not by --set"
+            refuse_set(overrides, {k: f"set by the case {name!r} ({where}.config.{k}), whose config wins over "
+                                      "--set; change the case in the cases file, not by --set"
                                    for k in _leaves(c["config"])}, src)
         if not expects_error:  # a case that should run must have a valid config now
             config_from_dict(deep_merge(base, c["config"]), f"{label} ({where})")
@@ -315,25 +315,27 @@ def case_named(e: InputError, source: str, case: str) -> InputError:
                       key=e.key)
 
 
-def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
+def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *, via: str = "--set",
+                warned=warn) -> list[dict]:
     """Run every case of ``path`` into ``out``; returns the rows (one per case). ``overrides``: ``tlm
     extreme --set`` strings (:func:`load_cases`), which each case's ``results.json`` (``overrides``)
     and the study's ``provenance.json`` list. Of the warnings each case's ``results.json`` holds, only
     those of its ``--set`` are said on stderr (``tlm: warning: ...``), once for the study: one that sets
     nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`) before the cases, one
     that some cases never read after them, with which and why (:func:`unread_lines`); the others (a
-    coarse packet size, ...) are each case's own, in its folder and the report."""
+    coarse packet size, ...) are each case's own, in its folder and the report. ``via``: what those lines call the
+    overrides; ``warned``: where they go (default: stderr; :func:`tlm.api.extreme` returns them)."""
     from tlm.experiments.run import run
     from tlm.experiments.run_warnings import empty_sets
 
     overrides = tuple(str(o) for o in overrides)
     base, cases, folder = load_cases(Path(path), overrides)
-    empty = empty_sets(overrides)  # (a --set render={}: said once now, before the cases, not after each)
+    empty = empty_sets(overrides, via)  # (a --set render={}: said once now, before the cases, not after each)
     for line in empty:
-        warn(line)
+        warned(line)
     done: dict[str, tuple[Path, dict]] = {}
     unread: dict[str, dict[str, list[str]]] = {}  # a --set some case never reads -> why -> those cases
-    given = {f"--set {o.strip()}" for o in overrides}
+    given = {f"{via} {o.strip()}" if via.startswith("-") else f"{o.strip()} (in {via})" for o in overrides}
 
     def one(c: dict, tmp: Path) -> dict:
         t0 = time.perf_counter()
@@ -342,7 +344,7 @@ def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...]
         want_error = isinstance(checks[0], dict) and "error" in checks[0]
         try:
             cfg = config_from_dict(deep_merge(base, c["config"]), f"{path} ({c['name']})")
-            results = run(cfg, dest, folder, config_path=str(path), overrides=list(overrides) or None)
+            results = run(cfg, dest, folder, config_path=str(path), overrides=list(overrides) or None, via=via)
         except InputError as e:
             e = case_named(e, str(path), c["name"])  # (the run's own checks name the file alone: the case too)
             if want_error:
@@ -370,7 +372,7 @@ def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...]
 
     rows = run_study(str(path), out, "extreme", cases, one, columns=COLUMNS, progress=progress, overrides=overrides)
     for line in unread_lines(unread, len(done)):
-        warn(line)
+        warned(line)
     return rows
 
 

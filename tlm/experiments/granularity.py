@@ -70,15 +70,17 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     return cfg, sorted(set(sizes)), folder
 
 
-def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = ()) -> list[dict]:
+def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *,
+                    via: str = "--set", warned=warn) -> list[dict]:
     """Simulate the frame of ``path`` at each packet size; rows relative to the smallest.
     ``overrides``: ``tlm granularity --set`` strings (:func:`load_granularity`), in the study's
     ``config.resolved.yaml`` by their values and listed in its ``provenance.json``; one that sets
-    nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`) is said on stderr."""
+    nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`, naming them ``via``)
+    is given to ``warned`` (default: said on stderr; :func:`tlm.api.granularity` returns it)."""
     overrides = tuple(str(o) for o in overrides)
     cfg, sizes, folder = load_granularity(Path(path), overrides)
-    for line in empty_sets(overrides):  # (a --set render={} sets nothing: said once, as tlm run says it)
-        warn(line)
+    for line in empty_sets(overrides, via):  # (a --set render={} sets nothing: said once, as tlm run says it)
+        warned(line)
     check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
     fn, _hit = cached_functional(cfg, folder, str(path))

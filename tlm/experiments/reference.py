@@ -465,6 +465,7 @@ class Made:
     folder: Path | None  # (None: computed, but kept nowhere, with ``unkept``)
     kept: str = ""
     image: np.ndarray | None = None  # (H, W, 3) float32: the reference of ``meta``, as its reference.npy holds it
+    warnings: tuple[str, ...] = ()  # (tlm.api.reference: the lines tlm reference prints on stderr, returned)
 
     @property
     def meets(self) -> bool:
@@ -475,7 +476,7 @@ class Made:
 
 def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None = None, force: bool = False,
                    say=None, progress=None, bar: bool = False, overrides: tuple[str, ...] = (),
-                   via: str = "--set", unkept: bool = False) -> Made:
+                   via: str = "--set", unkept: bool = False, warned=None) -> Made:
     """The converged reference of ``cfg``'s photon-map frame (``tlm reference``): the cached
     one when it meets ``reference.tolerance`` and ``reference.min_rounds`` as asked for now
     (:func:`meets_tolerance`, whatever tolerance it was computed for; and not ``force``), else
@@ -491,16 +492,17 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     rounds' progress bar on stderr. ``overrides``: the ``dotted.key=value`` strings ``cfg`` was made
     with (``tlm reference --set``; ``via``: how they were given, as :func:`tlm.api.load_config` names
     them): one that sets nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`)
-    is said on stderr (``tlm: warning: ...``) first, once. ``unkept``: one computed now that neither the cache
-    nor :func:`~tlm.experiments.reference_cache.kept_root` can take is returned all the same (``folder`` None,
-    said by a warning; a sweep holds it in its output folder for its points), not the cache's error.
+    is said on stderr (``tlm: warning: ...``) first, once, or given to ``warned`` (:func:`tlm.api.reference`).
+    ``unkept``: one computed now that neither the cache nor :func:`~tlm.experiments.reference_cache.kept_root`
+    can take is returned all the same (``folder`` None, said by a warning; a sweep holds it in its output folder
+    for its points), not the cache's error.
     """
     from tlm.experiments.loading import load_frame
     from tlm.experiments.run_warnings import empty_sets
     from tlm.scenes.loader import load_scene
 
     for line in empty_sets(overrides, via):
-        warn(line)
+        (warned or warn)(line)
     say = say or (lambda line: None)
     scene = load_scene(cfg.scene, base, cfg.resolution, source)
     settings = ReferenceSettings.from_config(scene, cfg)

@@ -483,7 +483,9 @@ def fit(records: list[dict], notes: list[str] | None = None) -> dict[tuple, dict
 def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path], None] | None = None) -> dict:
     """Fit eq. 5.2 over the points of ``sweep_dirs``; write the table, the fits and, given
     ``plot`` (:func:`tlm.report.scaling.plot_scaling`, passed down by the CLI), a figure per
-    scene as ``scaling_<scene>.png`` (:func:`figure_files`)."""
+    scene as ``scaling_<scene>.png`` (:func:`figure_files`). No folder at all is an InputError, nothing written."""
+    if not sweep_dirs:  # (an empty study, with no fit, is no answer)
+        raise InputError("no folder given: name the sweep folders to fit (tlm sweep's output folders)", key="sweeps")
     check_destination(out, "eq52.json")
     notes: list[str] = []
     sweep_dirs = distinct_folders(sweep_dirs, notes)

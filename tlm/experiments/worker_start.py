@@ -150,15 +150,40 @@ def leave_if_bootstrapping() -> None:
 def main_script() -> str | None:
     """The main script (its path; a module's name under ``python -m``) that a ``forkserver`` or
     ``spawn`` worker process runs again as it starts, as ``multiprocessing.spawn`` finds it; None
-    where it runs none (``python -c``, a notebook, IPython, a package's ``__main__``)."""
+    where it runs none (``python -c``, a script on standard input, a notebook, IPython, a package's
+    ``__main__``: :func:`main_file_hidden`)."""
     main = sys.modules.get("__main__")
     name = getattr(getattr(main, "__spec__", None), "name", None)
     path = getattr(main, "__file__", None)
     if name is not None:  # (python -m: imported again by its name, but a package's __main__)
         return None if name == "__main__" or name.endswith(".__main__") else (path or name)
-    if path is None or os.path.splitext(os.path.basename(path))[0] == "ipython":
+    if path is None or os.path.splitext(os.path.basename(path))[0] == "ipython" or _no_file(path):
         return None
     return os.path.abspath(path)
+
+
+def _no_file(path: object) -> bool:
+    """Whether the main module's ``__file__`` ``path`` names no file: ``<stdin>`` (``python - < script.py``),
+    ``<string>`` and their kin, which Python sets for code it did not read from a file."""
+    return isinstance(path, str) and path.startswith("<") and path.endswith(">")
+
+
+@contextmanager
+def main_file_hidden():
+    """While the block starts worker processes, a main module whose ``__file__`` names no file
+    (``<stdin>``: a script given on standard input, ``python - < script.py``) is as ``python -c``'s, which
+    has none: multiprocessing's ``spawn`` and ``forkserver`` workers would run it again from that path
+    (``FileNotFoundError: '<stdin>'``, each worker dead before any point). Put back afterwards."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if getattr(getattr(main, "__spec__", None), "name", None) is not None or not _no_file(path):
+        yield
+        return
+    del main.__file__
+    try:
+        yield
+    finally:
+        main.__file__ = path
 
 
 def unguarded_error() -> InputError:

@@ -23,6 +23,7 @@ says that the report there is the earlier one, with its date (:func:`earlier_rep
 from __future__ import annotations
 
 import datetime
+import numbers
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -98,6 +99,10 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
     for n in only or []:
         if n not in names:
             raise InputError(f"unknown step {n!r} (steps: {', '.join(names)})", key="--only")
+    if not configs.is_dir():  # (every step reads its experiment file there: said once, before the first step)
+        what = "is not a folder" if configs.exists() else "no such folder"
+        raise InputError(f"{what}: name the folder of the experiment files (configs/)", source=str(configs),
+                         key="--configs")
     failed = []
     for name, argv in STEPS:
         if only and name not in only:
@@ -108,6 +113,9 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
             status = run_command(argv)
         except InputError as e:
             raise InputError(f"step {name} stopped on bad input: {e}", key="tlm plots") from None
+        if isinstance(status, bool) or not isinstance(status, numbers.Integral):  # (a caller's run_command)
+            raise InputError(f"step {name}: run_command returned {status!r}, not an exit status (a whole number: "
+                             "0 for success, 1 where the step's results report failures)", key="run_command")
         if status == 1:  # a result: failures among the step's results, said above
             say(f"== {name}: exit status 1 (its results report failures, see above); the other steps and the "
                 "report still run")
