@@ -62,7 +62,8 @@ def test_a_pmap_run_computes_its_reference_once_and_every_run_reuses_it(tmp_path
     assert 0 < error["rel_mse"] < 0.2 and error["difference_image"] == "images/pmap_error.png"
     png = Image.open(tmp_path / "a" / "images" / "pmap_error.png")
     assert png.size == (24, 24) and png.mode == "RGB" and error["difference_scale"] > 0
-    assert first["host_seconds"]["reference"] >= error["reference_seconds"]
+    # (numba compiling or loading a kernel while it ran is the run's one_off, not the reference stage's)
+    assert first["host_seconds"]["reference"] + first["host_seconds"]["one_off"] >= error["reference_seconds"]
     assert references(cache) == [error["reference"]]
     # what does not change the converged image finds the same reference: nothing computed
     for args in (["--set", "render.spp=1"], ["--set", "photons.count=3000"], ["--set", "estimate.filter=disk"],

@@ -80,6 +80,24 @@ class Timer:
             self.seconds[name] = self.seconds.get(name, 0.0) + total - sum(b - a for a, b in _merged(mine))
             self.spans[name] = spans
 
+    def book_apart(self, stage: str, spans: list[tuple[float, float]]) -> None:
+        """Book the time ``spans`` cover (``time.perf_counter`` readings, from any thread: the
+        spans in which numba compiled or loaded a kernel, or a module was first imported, as
+        :class:`~tlm.experiments.error_cost_clock.CompileClock` keeps them) to stage ``stage``,
+        out of the others: each stage loses the part of its blocks' time that they cover, and
+        ``stage`` gets all the time they cover (overlapping spans counted once), in a stage or
+        between stages (a cold run's first compiles: :func:`tlm.experiments.run.run`). A stage
+        that kept no spans (one made from seconds alone) keeps its seconds."""
+        apart = _merged([(a, b) for a, b in spans if b > a])
+        if not apart:
+            self.seconds.setdefault(stage, 0.0)
+            return
+        for name, own in self.spans.items():
+            if name != stage and name in self.seconds:
+                self.seconds[name] = max(0.0, self.seconds[name] - _overlap(_merged(own), apart))
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + sum(b - a for a, b in apart)
+        self.spans.setdefault(stage, []).extend(apart)
+
     def stage(self, name: str):
         """A context manager that adds the wall seconds of its block to stage ``name``."""
         timer = self
@@ -107,6 +125,19 @@ def _merged(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
         else:
             out.append((a, b))
     return out
+
+
+def _overlap(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> float:
+    """The time two lists of disjoint, sorted spans (:func:`_merged`) have in common."""
+    total, i, j = 0.0, 0, 0
+    while i < len(a) and j < len(b):
+        lo, hi = max(a[i][0], b[j][0]), min(a[i][1], b[j][1])
+        total += max(0.0, hi - lo)
+        if a[i][1] < b[j][1]:
+            i += 1
+        else:
+            j += 1
+    return total
 
 
 @contextmanager

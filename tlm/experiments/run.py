@@ -30,8 +30,10 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -46,6 +48,7 @@ from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
+from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error
@@ -261,7 +264,7 @@ def simulate_run(res: RenderResult, programs: Programs, progress: bool = False, 
 def simulate_render(res: RenderResult, programs: Programs, progress: bool = False) -> RenderResult:
     """``res`` simulated: a new result with its ``timing``, its ``programs`` and the stage
     ``simulate`` in its host seconds (``res`` itself is left as it is)."""
-    timer = Timer(dict(res.timer.seconds))
+    timer = Timer(dict(res.timer.seconds), {k: list(v) for k, v in res.timer.spans.items()})  # (spans: one_off)
     timing = simulate_run(res, programs, progress, timer)
     return replace(res, timer=timer, timing=timing, programs=programs)
 
@@ -458,12 +461,16 @@ def _per_map(res: RenderResult) -> dict:
 
 
 def write_run(res: RenderResult, out: Path, config_path: str | None = None,
-              overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, say_unread: bool = True) -> dict:
+              overrides: list[str] | None = None, outputs: Iterable[str] = OUTPUTS, say_unread: bool = True,
+              one_off: Callable[[], list[tuple[float, float]]] | None = None) -> dict:
     """Write the run folder atomically (temporary sibling, then rename).
 
     outputs : which of :data:`OUTPUTS` to write besides the images and ``results.json``
     (``trace.json`` also needs the timing model's trace, ``arch.trace``). say_unread : false,
     ``results.json`` ``warnings`` leave out an override the run never reads (:func:`results_dict`).
+    one_off : the run's one-off spans so far (numba compiling or loading a kernel, first imports:
+    :func:`run`), booked to the stage ``one_off`` out of the others (:meth:`~tlm.progress.Timer.book_apart`)
+    once the folder's seconds are measured, before ``results.json`` records them.
 
     ``results.json`` ``warnings`` end with the lines on tlm's caches that this process
     could not write (:func:`tlm.caches.cache_warnings`), as a sweep point's do.
@@ -503,10 +510,16 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False))
         if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
-        res.timer.seconds["write"] = time.perf_counter() - t0
         results = results_dict(res, exposure, config_path, overrides, say_unread)
         # the caches this process could not write (said on stderr when met; a sweep's points record them too)
         results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
+        # (the write: the folder and the record, up to results.json's own text, as a sweep point's)
+        t1 = time.perf_counter()
+        res.timer.seconds["write"] = t1 - t0
+        res.timer.spans["write"] = [(t0, t1)]
+        if one_off is not None:
+            res.timer.book_apart("one_off", one_off())
+        results["host_seconds"] = {k: round(v, 6) for k, v in res.timer.seconds.items()}
         # (strict JSON: an fps of no cycles to time, inf here, is written as null)
         (tmp / "results.json").write_text(json_text(results, indent=2) + "\n")
     return results
@@ -533,7 +546,15 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     cached (host stage ``reference``; ``say`` gets a line before and after), so that its
     error is measured. A folder another process's run is writing is refused before any work
     (an InputError naming that process; the threads of one process share their folders).
+
+    ``results.json`` ``host_seconds`` has the stage ``one_off``: the seconds of the run in which
+    numba compiled or loaded a kernel, or a module was imported for the first time (a sweep
+    point's ``one_off``: :class:`~tlm.experiments.error_cost_clock.CompileClock`), in a stage or
+    between stages (a cold run compiles its kernels as the batches' warm-up casts its first ray),
+    taken out of the stages they fell in: so the stages say where a cold run's time went, and a
+    cold run's passes read as a warm one's.
     """
+    t_start = time.perf_counter()
     outputs = tuple(outputs)
     if "trace" not in outputs and cfg.arch.trace:
         cfg = replace(cfg, arch=replace(cfg.arch, trace=False))
@@ -541,7 +562,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     # the folder is this process's until it is written: another process's run into it is refused
     # now, before any work, naming this one (tlm.claims.claimed), not silently replaced at its end
-    with claimed(out, "run"):
+    with claimed(out, "run"), one_off_clock() as clock:
         programs = programs_for(cfg, base)  # a bad instruction table fails before the render
         res = render(cfg, base, source, progress=progress, reference=reference, overrides=tuple(overrides or ()),
                      via=via)
@@ -554,6 +575,45 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
             res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides)})
         res = simulate_render(res, programs, progress=progress)
         with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
-            results = write_run(res, out, config_path, overrides, outputs)
+            results = write_run(res, out, config_path, overrides, outputs,
+                                one_off=lambda: spans_within(clock.spans, t_start, time.perf_counter()))
             bar.update()
     return results
+
+
+def spans_within(spans: list[tuple[float, float]], start: float, end: float) -> list[tuple[float, float]]:
+    """``spans`` (``time.perf_counter`` readings) cut to ``start`` .. ``end`` (those of another run, on
+    another thread, before this one began: not its)."""
+    return [(max(a, start), min(b, end)) for a, b in list(spans) if min(b, end) > max(a, start)]
+
+
+_CLOCK = CompileClock()  # (one per process: runs on several threads share its hooks, as sweep points do)
+_CLOCK_USERS = 0
+_CLOCK_LOCK = threading.Lock()
+_CLOCK_RUNNING = None  # (the context of _CLOCK.running() while a run runs)
+
+
+@contextmanager
+def one_off_clock():
+    """The process's one-off clock (:class:`~tlm.experiments.error_cost_clock.CompileClock`: numba
+    compiling or loading a kernel, first imports), running while any :func:`run` of this process
+    runs (its hooks, the import statement's and numba's, are the process's: runs on several
+    threads share it, as :mod:`tlm.experiments.sweep_point`'s points do), its spans forgotten
+    when none does."""
+    global _CLOCK_USERS, _CLOCK_RUNNING
+    with _CLOCK_LOCK:
+        if _CLOCK_USERS == 0:
+            _CLOCK.spans.clear()
+            t0 = time.perf_counter()
+            _CLOCK_RUNNING = _CLOCK.running()
+            _CLOCK_RUNNING.__enter__()
+            _CLOCK.spans.append((t0, time.perf_counter()))  # (its hooks' own first imports: numba's, in a new process)
+        _CLOCK_USERS += 1
+    try:
+        yield _CLOCK
+    finally:
+        with _CLOCK_LOCK:
+            _CLOCK_USERS -= 1
+            if _CLOCK_USERS == 0:
+                running, _CLOCK_RUNNING = _CLOCK_RUNNING, None
+                running.__exit__(None, None, None)

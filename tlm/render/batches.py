@@ -102,8 +102,10 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
                    progress: bool = False) -> Rendered:
     """Render ``passes`` (by default those the planner runs for the frame's scene and
     config, in order) over the whole image of ``frame``, in batches (the module's
-    docstring). ``timer``: gets the stages ``photon_trace``, ``cast`` and
-    ``pass_<name>``; ``progress``: a bar on stderr that follows the batches.
+    docstring). ``timer``: gets the stages ``photon_trace``, ``prepare`` (the warm-up before
+    batches run at once: :func:`_warm`), ``cast`` and ``pass_<name>``; ``progress``: a bar on
+    stderr while the photons are traced and the warm-up runs (its elapsed time), then one whose
+    steps are the batches' casts and passes.
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`). On one thread the batches run one after the
@@ -137,20 +139,23 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
     primary = Primary.empty(w * h)
     whole: GBuffer | None = None
     gather_maps: dict | None = {} if "pmap" in names else None
-    steps = len(batches) * (1 + len(names)) + ("pmap" in names)
-    with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
-        concurrent = threads.current() > 1 and len(batches) > 1
-        if "pmap" in names:
-            bar.set_postfix_str("photon trace")
-            with timer.stage("photon_trace"):  # (when batches run at once: with what they read)
-                traced = trace_photon_map(frame, warm=concurrent)
-            bar.update()
-        if concurrent:
-            if not bar.disable:
+    concurrent = threads.current() > 1 and len(batches) > 1
+    if "pmap" in names or concurrent:
+        # (the photon trace and the warm-up: a bar with no steps of its own, so that the batches' bar's rate and
+        # time left are the batches' alone; counted as a step of it, a 16 s photon trace read as 16 s a step)
+        # (no Ticking thread: the trace forks its workers only where no other thread runs)
+        with progress_bar(progress, desc="render", total=None, leave=False) as bar:
+            if "pmap" in names:
+                bar.set_postfix_str("photon trace")
+                with timer.stage("photon_trace"):  # (when batches run at once: with what they read)
+                    traced = trace_photon_map(frame, warm=concurrent)
+            if concurrent:
                 bar.set_postfix_str("prepare")
-            _warm(frame, traced)
-        release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
-
+                with timer.stage("prepare"):  # (its numba compiling, a cold run's: tlm run books it to one_off)
+                    _warm(frame, traced)
+    release_memory()  # (the photon trace's and the kernels' layout's freed blocks)
+    steps = len(batches) * (1 + len(names))  # (each batch's cast and passes)
+    with progress_bar(progress, desc="render", total=steps, unit="step", leave=False) as bar:
         forked = concurrent and BATCH_WORKERS == "processes" and threads.can_fork()
         labels = None if bar.disable else _Labels(bar, len(batches), names)  # (made before the workers' fork)
 

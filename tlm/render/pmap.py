@@ -101,21 +101,28 @@ def radius_rule(frame: Frame, which: str = "indirect") -> str:
 
 
 def _radius(frame: Frame, photons: PhotonMaps | PhotonMap | None, which: str) -> float:
+    return _radius_used(frame, photons, which)[0]
+
+
+def _radius_used(frame: Frame, photons: PhotonMaps | PhotonMap | None, which: str) -> tuple[float, str]:
+    """The ``which`` map's radius and the rule that gave it: :func:`radius_rule`'s, but
+    ``fallback`` where the density rule's map is too small to measure (fewer than 2 photons, or
+    all on one point: :data:`FALLBACK_FRACTION` of the diagonal)."""
     est = frame.cfg.estimate
     given, fraction, k = ((est.caustic_radius, est.caustic_radius_fraction, est.caustic_radius_photons)
                           if which == "caustic" else (est.radius, est.radius_fraction, est.radius_photons))
     rule = radius_rule(frame, which)
     if rule == "radius":
-        return given
+        return given, rule
     if rule == "density":
         m = _map_of(photons, which)
         if m is None:
             raise ValueError(f"the {which} map's radius follows the density rule: pass the photon map")
         r = m.density_radius(k)
         if r is not None:
-            return r
-        fraction = FALLBACK_FRACTION[which]
-    return fraction * frame.accel.scale
+            return r, rule
+        return FALLBACK_FRACTION[which] * frame.accel.scale, "fallback"
+    return fraction * frame.accel.scale, rule
 
 
 def search_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None = None) -> float:
@@ -173,23 +180,28 @@ def density_requests(frame: Frame, photons: PhotonMaps | PhotonMap,
 
 
 def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
-    """The search radii a pmap frame used and how each was chosen (``results.json``)."""
+    """The search radii a pmap frame used and the rule that gave each (``results.json``): ``radius``,
+    ``fraction`` or ``density`` (with ``<key>_photons``, its k), and ``fallback`` where the
+    density rule's map is too small to measure (fewer than 2 photons, or all on one point: an
+    empty caustic map), the radius then :data:`FALLBACK_FRACTION` of the diagonal
+    (``<key>_fraction``)."""
     est = frame.cfg.estimate
     out = {}
     if final_gathering(frame, photons):
-        explicit = est.radius is not None or est.radius_fraction is not None
-        out["global_radius"] = global_radius(frame, photons)
-        out["global_radius_rule"] = radius_rule(frame, "indirect") if explicit else "density"
-        if not explicit:
+        out["global_radius"], out["global_radius_rule"] = _global_radius_used(frame, photons)
+        if out["global_radius_rule"] == "density":
             out["global_radius_photons"] = est.final_gather_photons
+        elif out["global_radius_rule"] == "fallback":
+            out["global_radius_fraction"] = FALLBACK_FRACTION["indirect"]
         out["final_gather"] = est.final_gather
     for which, key, k in (("indirect", "radius", est.radius_photons),
                           ("caustic", "caustic_radius", est.caustic_radius_photons)):
-        rule = radius_rule(frame, which)
-        out[key] = _radius(frame, photons, which)
+        out[key], rule = _radius_used(frame, photons, which)
         out[f"{key}_rule"] = rule
         if rule == "density":
             out[f"{key}_photons"] = k
+        elif rule == "fallback":
+            out[f"{key}_fraction"] = FALLBACK_FRACTION[which]
     return out
 
 
@@ -204,11 +216,16 @@ def global_radius(frame: Frame, photons: PhotonMaps) -> float:
     """The global map's search radius (final gathering): ``estimate.radius`` or
     ``radius_fraction`` when given (as the indirect map's), else the density rule with
     ``final_gather_photons`` on the global map."""
+    return _global_radius_used(frame, photons)[0]
+
+
+def _global_radius_used(frame: Frame, photons: PhotonMaps) -> tuple[float, str]:
+    """:func:`global_radius` and the rule that gave it (:func:`_radius_used`'s words)."""
     est = frame.cfg.estimate
     if est.radius is not None or est.radius_fraction is not None:
-        return search_radius(frame, photons)
+        return _radius_used(frame, photons, "indirect")
     r = photons.global_map.density_radius(est.final_gather_photons) if photons.global_map is not None else None
-    return FALLBACK_FRACTION["indirect"] * frame.accel.scale if r is None else r
+    return (FALLBACK_FRACTION["indirect"] * frame.accel.scale, "fallback") if r is None else (r, "density")
 
 
 def final_gathering(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> bool:

@@ -23,8 +23,10 @@ MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
 def _seconds(host: dict | None) -> float | None:
     if not host:
         return None
-    # (a sweep point's one_off is a part of its functional and simulate seconds, not beside them)
-    return round(sum(v for k, v in host.items() if k != "one_off" and isinstance(v, int | float)), 3)
+    # (a sweep point's one_off is a part of its functional and simulate seconds, not beside them; a tlm run's is a
+    # stage of its own, taken out of the stages it fell in: tlm.experiments.run.run)
+    part = "functional" in host
+    return round(sum(v for k, v in host.items() if not (part and k == "one_off") and isinstance(v, int | float)), 3)
 
 
 def _seconds_text(v) -> str:
@@ -84,6 +86,8 @@ def _run_row(run: Run, shared: dict[str, float] | None = None, overrides: bool =
                 f"{host} (of which {_seconds(render)} render)")
     elif shared:
         host = f"{host} (of which {_seconds(shared)} shared with its scene's other modes)"
+    elif run.kind == "run" and isinstance(once := (r.get("host_seconds") or {}).get("one_off"), int | float) and once:
+        host = f"{host} (of which {_seconds_text(once)} one-off: numba compiling, first imports)"
     return [run.label, run.kind, str(run.path), *([", ".join(given_set(run)) or "none"] if overrides else []),
             str(r.get("seed")), _code(r), _versions(r.get("versions")), str(host)]
 
