@@ -123,8 +123,10 @@ def warnings_html(inputs: Inputs) -> str:
         ("The run" if total == 1 else f"{runs} of the {total} runs") if kept else "",
         (study_names[0] if len(study_names) == 1 else f"{len(study_names)} studies") if studies else "")))
     who = who[0].upper() + who[1:]
-    where = " and ".join(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in
-                         (f.partition(":") for f in [*(["results.json"] if kept else []), *files]))
+    named = [f.partition(":") for f in [*(["results.json"] if kept else []), *files]]
+    where = (esc(" and ".join(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
+             if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
+             " and ".join(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
     n = len(items)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
