@@ -24,6 +24,7 @@ import fcntl
 import os
 import re
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -98,16 +99,34 @@ def _claim_stale(path: Path, what: str) -> None:
 
 def _holder(record: str) -> str:
     """The process a running file's ``record`` names, for a refusal: ``process PID on this
-    machine, HOST``, or ``process PID on host HOST, another machine: ...`` (its processes
-    cannot be checked from this one); an older tlm's record (its pid alone) as ``process PID``."""
+    machine, HOST (its command line)`` (:func:`_command`, where it can be read), or ``process PID
+    on host HOST, another machine: ...`` (its processes cannot be checked from this one); an older
+    tlm's record (its pid alone) as ``process PID``; ``process ?`` for none (not written yet)."""
     line = record.split("\n", 1)[0].strip()  # (a shorter record written over a longer one: its first line)
     m = re.fullmatch(r"(h[A-Za-z0-9]*)-(\d+)", line)
     if m is None:
         return f"process {line if line.isdigit() else '?'}"
     name = m[1][1:]
     if m[1] == _host():
-        return f"process {m[2]} on this machine, {name}"
+        return f"process {m[2]} on this machine, {name}{_command(int(m[2]))}"
     return f"process {m[2]} on host {name}, another machine: its processes cannot be checked from this one"
+
+
+def _claim_holder(fd: int, path: Path, wait: float = 0.5) -> str:
+    """The holder of the claim file ``path`` (open as ``fd``, its lock held by another), for a
+    refusal (:func:`_holder`). Its holder writes its record just after it takes the lock, so a
+    record not written yet is waited for a moment; then this machine's kernel is asked who
+    holds the lock (:func:`lock_holder`), and ``process ?`` said only where neither tells."""
+    deadline = time.monotonic() + wait
+    while True:
+        record = os.pread(fd, _RECORD, 0).decode("ascii", "replace")
+        holder = _holder(record)
+        if holder != "process ?" or time.monotonic() >= deadline:
+            break
+        time.sleep(0.01)
+    if holder == "process ?":
+        holder = lock_holder(path) or holder
+    return holder
 
 
 def lock_holder(path: Path) -> str | None:
@@ -136,7 +155,7 @@ def lock_holder(path: Path) -> str | None:
 
 
 def _command(pid: int, most: int = 100) -> str:
-    """`` (its command line)`` of the process ``pid``, shortened to ``most`` characters; empty
+    """`` (its command line)`` of the process ``pid``, on one line, shortened to ``most`` characters; empty
     where it cannot be read (ended meanwhile, another user's under ``hidepid``)."""
     import shlex
 
@@ -146,7 +165,7 @@ def _command(pid: int, most: int = 100) -> str:
         return ""
     if not words or not words[0]:
         return ""
-    line = shlex.join([Path(words[0]).name, *words[1:]])
+    line = " ".join(shlex.join([Path(words[0]).name, *words[1:]]).split())  # (on one line: a -c program's lines)
     return f" ({line if len(line) <= most else line[:most - 3] + '...'})"
 
 
@@ -232,7 +251,7 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
                 raise EnvironmentFailure(f"cannot lock {path} to claim the output folder ({e.strerror}): "
                                          "the file system takes no locks; give a folder on a local disk",
                                          source=str(given)) from None
-            holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
+            holder = _claim_holder(fd, path)
             os.close(fd)
             _remove_made(made)
             raise InputError(f"another {what} is writing into {str(given)!r} ({holder}): wait for it to end, "

@@ -19,7 +19,7 @@ from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_cache import add_cache_parser
-from tlm.cli_report import report_after, report_claimed, say_err
+from tlm.cli_report import kept_whole, report_after, report_claimed, say_err
 from tlm.cli_run import blame_flag, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
@@ -64,7 +64,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     if out is None or not all(Path(d).is_dir() for d in args.dirs):
         page = write()  # (the folders' own error, before any claim: the claim makes the folders on its way)
     else:
-        with report_claimed(out):
+        with report_claimed(out, of=None if args.out else str(args.dirs[0])):  # (what the user gave: DIR or --out)
             page = write()
     print(f"wrote {page}")
     return 0
@@ -112,10 +112,12 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
               flush=True)
 
     rows = api.extreme(args.config, out, progress=progress, **_overrides(args))
-    failed = [r["case"] for r in rows if not r["passed"]]
-    print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
-          + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
-    report_after(args, out, "the study", "extreme.csv, extreme.jsonl and the cases' run folders")
+    kept = ("the study", "extreme.csv, extreme.jsonl and the cases' run folders")
+    with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
+        failed = [r["case"] for r in rows if not r["passed"]]
+        print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
+              + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
+        report_after(args, out, *kept)
     return 1 if failed else 0
 
 
@@ -214,8 +216,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     with claims.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=say_err)
-        print_run(results, out, skip, lambda: _reference_command(args, overrides), t0)
-        report_after(args, out, "the run", "results.json and its files")
+        with kept_whole(args, out, "the run", "results.json and its files"):  # (a signal from here on: the run
+            print_run(results, out, skip, lambda: _reference_command(args, overrides), t0)  # is in place, said so)
+            report_after(args, out, "the run", "results.json and its files")
     return 0
 
 
@@ -253,13 +256,14 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
                          dask_wait=args.dask_wait, warn=warned, reference=args.reference, say=_say,
                          **_overrides(args))
-    for row in done.rows:
-        if row["status"] != "ok":
-            print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
-    n = len(done.rows)
-    print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
-          f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
-    report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
+    with kept_whole(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv"):
+        for row in done.rows:
+            if row["status"] != "ok":
+                print(f"  point {row['point']} ({row['hash']}) failed: {row['error']}")
+        n = len(done.rows)
+        print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
+              f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
+        report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
     return 1 if done.failed else 0
 
 
@@ -267,6 +271,14 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
     dirs = [Path(d) for d in args.sweeps]
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
     done = api.scaling(dirs, out)
+    with kept_whole(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene"):
+        _print_scaling(done, out)
+        report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
+    return 0
+
+
+def _print_scaling(done: dict, out: Path) -> None:
+    """What ``tlm scaling`` prints of its fits."""
     for note in done["notes"]:
         say_err(f"note: {note}")
     print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
@@ -282,8 +294,6 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
               f"(N = {values_text(f['pipelines'])})")
     print(f"wrote {out}")
-    report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
-    return 0
 
 
 def _cmd_scene(args: argparse.Namespace) -> int:
@@ -364,8 +374,9 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
 
     rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
                              **_overrides(args))
-    print(f"wrote {out} ({len(rows)} rows)")
-    report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
+    with kept_whole(args, out, "the study", "rows.csv, rows.jsonl and reference.json"):
+        print(f"wrote {out} ({len(rows)} rows)")
+        report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
     return 0
 
 
@@ -394,8 +405,6 @@ def _yaml_text(value) -> str:
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    from tlm.experiments.thesis import describe_items, describe_rows, median_words, slowest_words
-
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(scene, mode, results):
@@ -404,6 +413,17 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
         _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {fps} fps")
 
     done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress, **_overrides(args))
+    kept = ("the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene and mode")
+    with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
+        _print_thesis(done, out)
+        report_after(args, out, *kept)
+    return 0
+
+
+def _print_thesis(done: dict, out: Path) -> None:
+    """What ``tlm thesis`` prints of its study: its tables, then its warnings."""
+    from tlm.experiments.thesis import describe_items, describe_rows, median_words, slowest_words
+
     print("ours (thesis), millions of cycles; FPS in frames per second")
     print(describe_rows(done["rows"], done.get("names")))
     sm = done["summary"]
@@ -415,9 +435,6 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
     sys.stdout.flush()  # (its table first, then its warnings on stderr, each once: api.thesis returns them)
     for line in done.get("warnings") or []:
         storage.warn(line)
-    report_after(args, out, "the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene "
-                  "and mode")
-    return 0
 
 
 def _cmd_granularity(args: argparse.Namespace) -> int:
@@ -428,11 +445,12 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
               f"{tm.events:>9d} events, {secs:7.2f} s", flush=True)
 
     rows = api.granularity(args.config, out, progress=progress, **_overrides(args))
-    for r in rows:
-        print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
-              f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
-    print(f"wrote {out}/granularity.csv")
-    report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
+    with kept_whole(args, out, "the study", "granularity.csv and granularity.jsonl"):
+        for r in rows:
+            print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
+                  f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
+        print(f"wrote {out}/granularity.csv")
+        report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
     return 0
 
 

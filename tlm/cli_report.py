@@ -15,6 +15,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
+from tlm.errors import EnvironmentFailure
 
 
 def say_err(line: str) -> None:
@@ -51,17 +52,41 @@ def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> 
         if isinstance(e, Interrupted):
             raise
         raise Interrupted(_report_interrupted(args, out, f"{kept} in {out}", files, earlier if begun else False)) from e
+    except EnvironmentFailure as e:  # (a full disk as the report is written: what the command wrote is whole)
+        failed = EnvironmentFailure(f"{e}; {_not_written(args, out, f'{kept} in {out}', files)}")
+        failed.source = e.source
+        raise failed from e
 
 
 @contextmanager
-def report_claimed(folder: Path, wait: Callable[[str], None] | None = None) -> Iterator[None]:
+def kept_whole(args: argparse.Namespace, out: Path, kept: str, files: str) -> Iterator[None]:
+    """Around what a command does once its output in ``out`` is whole (swapped in: its lines on
+    stdout, then :func:`report_after`): a signal meanwhile ends it saying that ``kept`` is kept, whole
+    (``files``), and, unless ``--no-report``, how to write its report (not a bare ``tlm: interrupted``,
+    which would leave the user to guess whether the run is there). A signal during the report itself:
+    :func:`report_after`'s own line."""
+    try:
+        yield
+    except KeyboardInterrupt as e:
+        if isinstance(e, Interrupted):
+            raise
+        if getattr(args, "no_report", False):
+            raise Interrupted(f"after {kept} was written: {kept} in {out} is kept, whole ({files})") from e
+        raise Interrupted(f"before its report began: {_not_written(args, out, f'{kept} in {out}', files)}") from e
+
+
+@contextmanager
+def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: str | None = None
+                   ) -> Iterator[None]:
     """A context holding the report folder ``folder`` for this process while a report is written
     into it (:func:`tlm.claims.claimed`), as ``tlm report`` holds its ``--out`` and a command the
     ``OUT/report`` of its end (:func:`report_after`). Where another process holds it: without
     ``wait`` (``tlm report``), refused at once, exit 2, naming that process (``another report is
     writing into 'OUT/report' (process ...)``); with it, ``wait`` is told that process, once, and
     this one waits until the folder is free (the command's own report, of what it just wrote). A
-    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`)."""
+    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`).
+    ``of``: the folder the user gave where ``folder`` is its default report folder (``tlm report DIR``
+    without ``--out``): the refusal names it, not ``--out``, which the user did not give."""
     import re
 
     storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
@@ -72,10 +97,14 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None) -> I
                 held.enter_context(claims.claimed(folder, "report"))
                 break
             except InputError as e:
+                if wait is None and of is not None and e.key == "--out":
+                    text = str(e).removeprefix(f"{e.key}: ").replace("or give another folder",
+                                                                     "or give another folder with --out")
+                    raise InputError(f"{text.replace(' into ', ' into its report folder ', 1)}", source=of) from None
                 if wait is None:
                     raise
                 if not told:
-                    holder = re.search(r"\((process [^)]*)\): wait for it", str(e))
+                    holder = re.search(r"\((process .*)\): wait for it", str(e), re.S)  # (its command line in ( ))
                     wait(holder[1] if holder else "another process")
                     told = True
                 time.sleep(0.1)
@@ -114,7 +143,14 @@ def _report_interrupted(args: argparse.Namespace, out: Path, kept: str, files: s
     now = _page_id(page.parent)
     if earlier is not False and now is not None and now != earlier:  # (this report's folder took its place)
         return f"as its report was written: {kept} and its report ({page}) are complete"
-    left = ("none is left half-written" if now is None else
+    return f"while writing the report: {_not_written(args, out, kept, files)}"
+
+
+def _not_written(args: argparse.Namespace, out: Path, kept: str, files: str) -> str:
+    """``the run in OUT is kept, whole (FILES); no report was written (...): write it with: tlm report OUT``:
+    what a command whose report was not written (a signal, a full disk) says of what it wrote."""
+    page = out / "report" / "report.html"
+    left = ("none is left half-written" if _page_id(page.parent) is None else
             f"none is left half-written; the earlier report in {page.parent} is left as it was")
-    return (f"while writing the report: {kept} is kept, whole ({files}); no report was written ({left}): write "
-            f"it with: {_report_command(args, out)}")
+    return (f"{kept} is kept, whole ({files}); no report was written ({left}): write it with: "
+            f"{_report_command(args, out)}")

@@ -353,10 +353,15 @@ def save_traceback(exc: BaseException) -> Path | None:
         try:
             folder.mkdir(parents=True, exist_ok=True)
             fd = os.open(folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
+        except OSError:
+            continue
+        try:
             with os.fdopen(fd, "w") as f:
                 f.write(text)
             return folder / name
-        except OSError:
+        except OSError:  # (a full disk: made, not written; no empty or cut-off traceback is left behind)
+            with suppress(OSError):
+                os.unlink(folder / name)
             continue
     return None
 

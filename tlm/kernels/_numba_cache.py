@@ -25,6 +25,12 @@ decorated), tlm's compiled files are cached in ``numba/`` of tlm's own cache fol
 can be written, else compiled without the on-disk cache: the same code, compiled again in
 each process. That is said once a process, one line on stderr (:func:`njit`).
 
+A cached entry of tlm's compiled files that cannot be loaded (its ``.nbc`` data or ``.nbi``
+index cut off, zeroed or overwritten: numba raises ``UnpicklingError`` and the like on every
+call, naming no file) is named in one warning, its function's files removed and the function
+compiled and cached again (:func:`install` wraps numba's ``Cache.load_overload``); a cache
+that cannot be written then is said once, and the compiled code runs.
+
 Not covered: a package run from a zip file (no files to hash: numba's own stamps), and
 ``NUMBA_CACHE_LOCATOR_CLASSES``, which names numba's classes and so bypasses the wrapping.
 ``tests/test_numba_cache.py`` checks that every file of tlm with a cached function is
@@ -34,6 +40,7 @@ one of :func:`compiled_sources` and takes ``njit`` from here.
 from __future__ import annotations
 
 import functools
+import glob
 import hashlib
 import inspect
 import os
@@ -145,7 +152,101 @@ def install() -> bool:
             classes[i] = type(f"Tlm{cls.__name__}", (_PackageStamp, cls), {"__module__": __name__})
     if not any(getattr(cls, "__name__", "") == "TlmCacheRootLocator" for cls in classes):
         classes.append(_tlm_cache_locator(caching))
+    cache = getattr(caching, "Cache", None)
+    if isinstance(cache, type) and callable(getattr(cache, "load_overload", None)) \
+            and not getattr(cache.load_overload, "_tlm_damage", False):
+        cache.load_overload = _damage_safe(cache.load_overload)
+    if isinstance(cache, type) and callable(getattr(cache, "save_overload", None)) \
+            and not getattr(cache.save_overload, "_tlm_damage", False):
+        cache.save_overload = _save_safe(cache.save_overload)
     return True
+
+
+def _damage_safe(load):
+    """numba's ``Cache.load_overload``, where a cached entry of tlm's compiled files cannot be
+    loaded (its index or data file cut off, zeroed or overwritten: ``UnpicklingError``,
+    ``EOFError``, ``ValueError``, ``OSError`` reading it, ...): a warning naming the file,
+    the function's index and data files removed (:func:`_drop_damaged`), and None, so that
+    numba compiles it again and writes a new entry. Other files' entries: numba's own load."""
+
+    @functools.wraps(load)
+    def load_overload(self, sig, target_context):
+        try:
+            return load(self, sig, target_context)
+        except Exception as e:
+            locator = getattr(getattr(self, "_impl", None), "locator", None)
+            if not isinstance(locator, _PackageStamp) or getattr(self, "_cache_file", None) is None:
+                raise
+            _drop_damaged(self, sig, target_context, e)
+            return None
+
+    load_overload._tlm_damage = True  # type: ignore[attr-defined]
+    return load_overload
+
+
+def _save_safe(save):
+    """numba's ``Cache.save_overload``, where tlm's compiled code cannot be written to its cache (a
+    damaged index left in place, a full disk): a warning, once a process; the compiled code runs."""
+
+    @functools.wraps(save)
+    def save_overload(self, sig, data):
+        try:
+            return save(self, sig, data)
+        except Exception as e:
+            if not isinstance(getattr(getattr(self, "_impl", None), "locator", None), _PackageStamp):
+                raise
+            line = (f"numba could not cache the compiled code of {_function_name(self)} in {self._cache_path} "
+                    f"({type(e).__name__}: {str(e)[:100]}): it is compiled again in the next process")
+            if "save" not in _DAMAGED:
+                _DAMAGED.add("save")
+                from tlm.storage import warn
+
+                warn(line)
+
+    save_overload._tlm_damage = True  # type: ignore[attr-defined]
+    return save_overload
+
+
+def _function_name(cache) -> str:
+    """``tlm.kernels._jit_bsp.level_sums``: the function of numba's ``cache``, for a warning."""
+    func = getattr(cache, "_py_func", None)
+    return f"{func.__module__}.{func.__qualname__}" if func is not None else str(getattr(cache, "_name", "?"))
+
+
+_DAMAGED: set[str] = set()  # the cache files said damaged in this process (each said once)
+
+
+def _drop_damaged(cache, sig, target_context, error: Exception) -> None:
+    """Say which file of numba's ``cache`` (its ``IndexDataCacheFile``: an index ``.nbi`` and
+    its ``.nbc`` data files) could not be loaded for ``sig``, once a process, and remove
+    the index and its data files (numba writes them again after the compile)."""
+    from tlm.storage import warn
+
+    cache_file = cache._cache_file
+    index = Path(cache_file._index_path)
+    base = index.name[: -len(".nbi")]
+    bad = index
+    try:
+        name = cache_file._load_index().get(cache._index_key(sig, target_context.codegen()))
+    except Exception:  # (the index is the damaged one)
+        name = None
+    if name:  # (the index loads: the data file it names for ``sig`` is the damaged one)
+        bad = index.parent / name
+    left = []
+    for f in (index, *index.parent.glob(f"{glob.escape(base)}.*.nbc")):
+        try:
+            f.unlink()
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            left.append(f"{f.name}: {e.strerror or e}")
+    if str(bad) in _DAMAGED:
+        return
+    _DAMAGED.add(str(bad))
+    what = ("removed, with the rest of that function's cached files" if not left
+            else f"could not be removed ({'; '.join(left)}): remove it by hand")
+    warn(f"{bad}: numba's cached compiled code of {_function_name(cache)} is damaged and cannot be loaded "
+         f"({type(error).__name__}: {str(error)[:100]}): {what}; compiled again")
 
 
 _UNCACHED: list[str] = []  # the line said when a function found no folder for its compiled code

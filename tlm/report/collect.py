@@ -426,14 +426,76 @@ def _yaml(path: Path) -> Any:
                          f"{at}): a damaged or edited copy (tlm writes it whole)", source=str(path)) from None
 
 
-def _run(folder: Path, label: str, kind: str) -> Run:
-    results = _json(folder / "results.json")
+COUNT = (lambda v: FINITE[0](v) and v >= 0, "a finite number, not negative")
+COUNT_OR_NONE = (lambda v: v is None or COUNT[0](v), "a finite number, not negative, or empty")
+MODE_OR_NONE = (lambda v: v is None or v in MODES, f"a mode ({', '.join(MODES)})")
+# what the sections read of a run's results.json (:func:`_results`): its keys, then the counts in them
+RESULTS_KEYS = {"scene": MAPPING, "timing": MAPPING_OR_NONE}
+RESULTS_OPTIONAL = {"mode": MODE_OR_NONE, "fps": COUNT_OR_NONE, "cycles": MAPPING_OR_NONE, "work": MAPPING_OR_NONE,
+                    "photons": MAPPING_OR_NONE, "plan": MAPPING_OR_NONE, "image": MAPPING_OR_NONE,
+                    "error": MAPPING_OR_NONE, "host_seconds": MAPPING_OR_NONE, "factors": MAPPING_OR_NONE,
+                    "warnings": LIST_OR_NONE, "overrides": LIST_OR_NONE}
+SCENE_KEYS = {"name": (lambda v: isinstance(v, str | int | float) and not isinstance(v, bool), "a name")}
+SCENE_OPTIONAL = {"source": (lambda v: v is None or isinstance(v, str), "a path or empty"),
+                  "resolution": (lambda v: v is None or (isinstance(v, list) and len(v) == 2 and all(
+                      isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in v)), "[width, height]"),
+                  "triangles": COUNT_OR_NONE, "bsp": MAPPING_OR_NONE}
+LIST = (lambda v: isinstance(v, list), "a list")
+TIMING_OPTIONAL = {"units": MAPPING, "frame_times": LIST, "pipelines": LIST,
+                   "images_in_flight": (lambda v: v is None or (isinstance(v, int) and not isinstance(v, bool)
+                                                                and v > 0), "a positive whole number or empty")}
+IMAGE_OPTIONAL = {"exposure": (lambda v: v is None or (FINITE[0](v) and v > 0), "a positive finite number or empty")}
+ERROR_OPTIONAL = {"rel_mse": FINITE_OR_NONE}
+
+
+def _counts(value: Any, path: Path, where: str, none: bool = False) -> None:
+    """An :class:`InputError` naming ``path`` and the key ``where`` unless every value in the mapping ``value``
+    (at any depth) is a finite number, not negative (true or false allowed; empty where ``none``)."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _counts(v, path, f"{where}.{k}", none)
+    elif not (isinstance(value, bool) or COUNT[0](value) or (none and value is None)):
+        raise InputError(f"is {_short(value)}, not {COUNT[1]}: an edited or damaged copy (tlm writes its counts)",
+                         source=str(path), key=where)
+
+
+def _results(path: Path) -> dict:
+    """A run's ``results.json``, checked for what the sections read of it: an :class:`InputError`
+    naming the file and the key for one of another type, a count that is not a finite number or is
+    negative (``cycles``, ``fps``, ``work``, ``timing.units``), or a mode tlm does not know."""
+    results = _json(path)
     if not isinstance(results, dict) or "timing" not in results or "scene" not in results:
-        raise InputError("is not a tlm results file (no 'timing' or 'scene')", source=str(folder / "results.json"))
+        raise InputError("is not a tlm results file (no 'timing' or 'scene')", source=str(path))
+    what = "a tlm results file"
+    _check(results, path, None, what, RESULTS_KEYS, RESULTS_OPTIONAL)
+    _check(results["scene"], path, "scene", what, SCENE_KEYS, SCENE_OPTIONAL)
+    if results["timing"] is not None:  # (tlm writes cycles, fps and timing together, or all three empty)
+        empty = [k for k in ("cycles", "fps") if k in results and results[k] is None]
+        if empty:
+            raise InputError(f"{' and '.join(repr(k) for k in empty)} {'is' if len(empty) == 1 else 'are'} empty "
+                             "but 'timing' is not: an edited or damaged copy (tlm writes them together)",
+                             source=str(path))
+    for key, optional in (("timing", TIMING_OPTIONAL), ("image", IMAGE_OPTIONAL), ("error", ERROR_OPTIONAL)):
+        if results.get(key) is not None:
+            _check(results[key], path, key, what, {}, optional)
+    for key, none in (("cycles", False), ("work", True)):
+        _counts(results.get(key) or {}, path, key, none)
+    _counts(((results.get("photons") or {}).get("work")) or {}, path, "photons.work", True)
+    for name, unit in ((results.get("timing") or {}).get("units") or {}).items():
+        if not isinstance(unit, dict):
+            raise InputError(f"is {_short(unit)}, not a mapping ({what})", source=str(path), key=f"timing.units.{name}")
+        _counts(unit, path, f"timing.units.{name}")
+    return results
+
+
+def _run(folder: Path, label: str, kind: str) -> Run:
+    results = _results(folder / "results.json")
     cfg_path = folder / "config.resolved.yaml"
     config = (_yaml(cfg_path) if cfg_path.is_file() else {}) or {}
     if not isinstance(config, dict):
         raise InputError(f"is {type(config).__name__} {_short(config)}, not a tlm config", source=str(cfg_path))
+    if results.get("mode") is None and config.get("mode") is not None and config["mode"] not in MODES:
+        raise InputError(f"is {_short(config['mode'])}, not {MODE_OR_NONE[1]}", source=str(cfg_path), key="mode")
     return Run(folder, label, kind, results, config)
 
 
