@@ -64,8 +64,13 @@ def test_a_float_past_the_maximum_says_the_maximum_not_a_whole_number_it_refuses
 def test_the_clock_is_at_least_one_hertz():
     with pytest.raises(InputError, match=r"arch\.clock_hz: 1e-300 must be >= 1\.0$"):
         _arch(clock_hz=1e-300)
-    with pytest.raises(InputError, match=r"arch\.clock_hz: 0\.0 must be > 0\.0$"):  # (as before)
+    # (h219, 6) 0 and -5 said "> 0.0" alone, then 0.5 ">= 1.0": the least at once
+    with pytest.raises(InputError, match=r"arch\.clock_hz: 0\.0 must be > 0\.0 and >= 1\.0$"):
         _arch(clock_hz=0.0)
+    with pytest.raises(InputError, match=r"arch\.clock_hz: -5 must be > 0\.0 and >= 1\.0$"):
+        _arch(clock_hz=-5)
+    with pytest.raises(InputError, match=r"arch\.clock_hz: 0\.5 must be >= 1\.0$"):
+        _arch(clock_hz=0.5)
     assert _arch(clock_hz=1.0).clock_hz == 1.0
 
 
@@ -159,3 +164,34 @@ def test_the_scaling_report_says_where_eq52_goes_below_the_vertex_pm_s_floor():
     assert below_floor(fits) == ["dynamic throughput: eq. 5.2's fit falls below T_vert0 = 1,448,093 cycles (the "
                                  "shared Vertex PM's cycles per frame, below which no frame goes) at N = 16: there "
                                  "it predicts what no count of pipelines reaches"]
+
+
+def test_a_whole_float_past_an_integer_keys_range_is_echoed_by_its_exponent():
+    """(h219, 9) ``arch.frames=1e5`` said ``100000.0 must be <= 10000``."""
+    with pytest.raises(InputError, match=r"^test\.yaml: arch\.frames: 1e5 must be <= 10000$"):
+        _arch(frames=1e5)
+    with pytest.raises(InputError, match=r"^test\.yaml: arch\.frames: 1\.5e4 must be <= 10000$"):
+        _arch(frames=1.5e4)
+    with pytest.raises(InputError, match=r"^test\.yaml: arch\.frames: 12345\.0 must be <= 10000$"):  # (no rounding)
+        _arch(frames=12345.0)
+
+
+def test_a_stream_past_int64_by_the_programs_tables_scale_names_the_table(tmp_path, capsys):
+    """(h219, 4) the line blamed the cycle knobs (page_miss_cycles ...) and the frames alone where the programs
+    table's scale made every frame's 1.45e18 cycles: it names arch.programs too."""
+    import re
+    from pathlib import Path
+
+    from tlm.cli import main
+
+    repo = Path(__file__).resolve().parents[1]
+    text = (repo / "tlm" / "arch" / "programs.yaml").read_text()
+    (tmp_path / "big.yaml").write_text(re.sub(r"(?m)^(  scale: )[0-9.]+$", r"\g<1>7.54193e12", text, count=1))
+    out = tmp_path / "o"
+    assert main(["run", str(repo / "configs" / "cornell.yaml"), "--set", f"arch.programs={tmp_path / 'big.yaml'}",
+                 "--set", "arch.frames=10", "--set", "resolution=[16,16]", "--set", "arch.trace=false",
+                 "--no-reference", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("tlm: error: arch: the stream of 10 frames: 1.45e+19 cycles, past the 2**63 - 1"), err
+    assert "the scale or record_cycles of the programs table (arch.programs" in err and "arch.frames" in err, err
+    assert not out.exists()

@@ -68,6 +68,42 @@ def test_an_interrupt_a_c_extension_made_its_own_error_is_still_an_interrupt(sig
     assert "tlm: internal error: ValueError: a bug of its own" in capsys.readouterr().err
 
 
+
+def test_a_bug_raised_after_a_library_swallowed_the_interrupt_is_the_bug_and_no_frame_outlives_the_command(
+        tmp_path, monkeypatch, capsys):
+    """(h219, 3) a bug raised in a caller of the frame a signal landed in, after a library swallowed the
+    interrupt, was called "interrupted" (exit 130, no traceback kept); the frames the signal landed in, and
+    every caller's locals, stayed alive after the command (errors._LANDED)."""
+    import gc
+    import weakref
+
+    from tlm import errors
+
+    held = []
+
+    def swallowing_library():
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(10**6):
+                pass
+        except KeyboardInterrupt:
+            pass
+
+    def render(*a, **k):
+        big = np.ones(1000)
+        held.append(weakref.ref(big))
+        swallowing_library()
+        return {}["missing"]  # (a real bug, after the interrupt was handled)
+
+    monkeypatch.setattr(run_mod, "render", render)
+    monkeypatch.setenv("TLM_CACHE", str(tmp_path / "cache"))
+    assert main(["run", CORNELL, "--out", str(tmp_path / "r"), *SMALL]) == 1
+    assert "tlm: internal error: KeyError: 'missing'" in capsys.readouterr().err
+    assert list((tmp_path / "cache").rglob("tlm-traceback-*"))
+    assert errors._LANDED == []
+    gc.collect()
+    assert held and held[0]() is None  # (the command's locals let go)
+
 # -- 2: a point that varies how the reference is found, or what changes nothing in the rows --------------------
 
 @pytest.mark.parametrize(("points", "key"), [
@@ -265,3 +301,45 @@ def test_the_summary_s_quality_line_says_the_truth_s_samples_and_an_unconverged_
         assert "against Mitsuba's path tracer (16 spp)" in text and "only 16 samples per pixel" in text
     else:
         assert "against our reference (NOT converged)" in text
+
+
+def test_the_summary_s_figure_styles_a_series_as_the_study_s_figures_do(tmp_path, monkeypatch):
+    """(h219, 8) the summary numbered its series from the rows it draws (knn without a frame time left out:
+    mvoxel took knn's colour), where the study's figures style them by all its rows (tradeoff.series_styles)."""
+    import matplotlib.colors as mcolors
+
+    import tlm.report.summary as summary
+    from tests.helpers_figures import capture
+    from tlm.report.collect import Inputs
+    from tlm.report.common import line_style
+    from tlm.report.tradeoff import series_styles
+
+    figs = capture(monkeypatch, summary)
+    st = _study(tmp_path, converged=True)
+    for r in st.rows:
+        if r["filter"] == "knn":
+            r["frame_seconds"] = None
+    summary._tradeoff(Inputs([tmp_path], studies=[st]), tmp_path)
+    styles = series_styles(st.rows)
+    drawn = {ln.get_label(): (mcolors.to_hex(ln.get_color()), ln.get_marker()) for ln in figs[0].axes[0].get_lines()}
+    assert "knn" not in drawn and set(drawn) == set(styles) - {"knn"}
+    for name, (color, mark) in drawn.items():
+        want = line_style(styles[name])
+        assert (color, mark) == (mcolors.to_hex(want["color"]), want["marker"]), name
+
+
+def test_the_summary_marks_a_value_against_a_non_converged_reference_among_several_studies(tmp_path):
+    """(h219, 8) with two studies, a series' best value from the study whose reference did not converge was quoted
+    beside the others' with no word of it."""
+    from tlm.report.collect import Inputs
+    from tlm.report.summary import _tradeoff
+
+    good = _study(tmp_path / "a", converged=True, overrides=["photons.count=1"])
+    bad = _study(tmp_path / "b", converged=False, overrides=["photons.count=2"])
+    for st in (good, bad):
+        st.rows[:] = [{**r, "truth_rel_mse": None} for r in st.rows]
+    for r in bad.rows:
+        r["rel_mse"] = 0.02  # (the good study holds the lowest: the bad one's values are in the rest)
+    text, _ = _tradeoff(Inputs([tmp_path], studies=[good, bad]), tmp_path)
+    assert text.split("; ", 1)[0].endswith("a frame against our reference"), text  # (the lowest: converged)
+    assert text.count("(against a reference NOT converged)") == 4, text  # (the bad study's 4 series)

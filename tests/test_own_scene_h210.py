@@ -68,6 +68,38 @@ def test_a_materials_entry_named_after_no_file_material_is_refused_with_the_near
             api.load_scene(name)
 
 
+def test_an_entry_inherited_through_extends_that_a_child_leaves_unused_is_a_note_naming_the_parent(tmp_path):
+    """(h219, 1) the check ran on the merged file: a child that moved a part to a material of its own made the
+    parent's entry "used by no triangle", exit 2, and the child cannot take an entry out (``glass: null``)."""
+    glass = "{type: dielectric, ior: 1.5, transmittance: [0.9, 0.9, 0.9]}"
+    parent = _scene(tmp_path, LIGHT + "geometry:\n  - {mesh: m.obj}\n  - {shape: plane, name: ball, params: "
+                    f"{{size: [1, 1]}}}}\nmaterials: {{glass: {glass}}}\nparts: {{ball: glass}}\n")
+    parent.write_text(parent.read_text().replace("geometry: {mesh: m.obj}\n", ""))
+    api.load_scene(parent)
+    child = tmp_path / "child.yaml"
+    child.write_text("extends: s.yaml\nmaterials: {chrome: {type: mirror, reflectance: [0.9, 0.9, 0.9]}}\n"
+                     "parts: {ball: chrome}\n")
+    scene = api.load_scene(child)
+    assert [m.kind for m in scene.materials if m.name == "chrome"] == ["mirror"]
+    assert f"{child}: materials.glass (given by {parent}, through extends:): used by no triangle here: it is not " \
+           "rendered" in scene.extra["notes"], scene.extra["notes"]
+    # the child's own entry that no triangle takes is still refused
+    child.write_text("extends: s.yaml\nmaterials: {chrome: {type: mirror, reflectance: [0.9, 0.9, 0.9]}}\n")
+    with pytest.raises(InputError, match=r"child\.yaml: materials\.chrome: used by no triangle"):
+        api.load_scene(child)
+
+
+def test_a_typo_in_a_parts_value_is_blamed_on_the_value_not_on_the_material_it_leaves_unused(tmp_path):
+    """(h219, 2) ``parts: {ball: glas}`` said ``materials.glass: used by no triangle``."""
+    path = _scene(tmp_path, LIGHT + "geometry:\n  - {mesh: m.obj}\n  - {shape: plane, name: ball, params: "
+                  "{size: [1, 1]}}\nmaterials: {glass: {type: dielectric, ior: 1.5, transmittance: [1, 1, 1]}}\n"
+                  "parts: {ball: glas}\n")
+    path.write_text(path.read_text().replace("geometry: {mesh: m.obj}\n", ""))
+    with pytest.raises(InputError) as e:
+        api.load_scene(path)
+    assert str(e.value) == f"{path}: parts.ball: 'glas' is not a material (did you mean 'glass'?)"
+
+
 def test_the_cli_exits_2_on_an_unused_materials_entry(tmp_path, capsys):
     from tlm.cli import main
 
@@ -80,16 +112,18 @@ def test_the_cli_exits_2_on_an_unused_materials_entry(tmp_path, capsys):
 # ------------------------------------------------------------ 2. a light of zero power beside lit ones
 
 
-def test_a_zero_power_light_among_lit_ones_is_warned_of_and_planned_with_a_note(tmp_path):
+def test_a_zero_power_light_among_lit_ones_is_warned_of_once(tmp_path):
+    """(h219, 5) a stdout note of the plan said it too, and results.json held both: the warning alone."""
     lights = ("lights: [{type: point, position: [0.3, 0.3, 1], power: [10, 10, 10]},\n"
               "         {type: point, position: [0.6, 0.3, 1], power: [0, 0, 0]}]\n")
     scene = api.load_scene(_scene(tmp_path, lights))
     (line,) = zero_power_warnings(scene)
     assert line.startswith("lights[1] (point) has zero power: its shadow rays") and "timing model" in line, line
-    notes = plan(scene, RunConfig(mode="rcast")).notes
-    assert any(n.startswith("lights[1] has zero power: its shadow rays are still cast") for n in notes), notes
+    assert not [n for n in plan(scene, RunConfig(mode="rcast")).notes if "zero power" in n]
     results = api.run(RunConfig(scene=str(tmp_path / "s.yaml"), mode="rcast"), tmp_path / "out")
     assert line in results["warnings"]
+    said = [w for w in [*results["warnings"], *results["plan"].get("notes", [])] if "zero power" in w]
+    assert said == [line], said
     # every light off: the black image and the plan's note say so, not a line per light
     off = api.load_scene(_scene(tmp_path, "lights: [{type: point, position: [0.3, 0.3, 1], power: [0, 0, 0]}]\n"))
     assert zero_power_warnings(off) == []
@@ -145,6 +179,17 @@ def test_an_mtl_colour_over_1_and_a_repeated_newmtl_are_noted_with_file_line_and
                     "definition is ignored, the first one is used (rename one of them)"], said
 
 
+def test_a_material_a_second_library_defines_again_is_noted_with_both_lines(tmp_path):
+    """(h219, 9) the note named the two files and no line."""
+    (tmp_path / "m.obj").write_text(OBJ.replace("mtllib m.mtl", "mtllib m.mtl n.mtl"))
+    (tmp_path / "m.mtl").write_text(MTL)
+    (tmp_path / "n.mtl").write_text("newmtl other\nKd 0 1 0\nnewmtl floor\nKd 0 0 1\n")
+    (tmp_path / "s.yaml").write_text("geometry: {mesh: m.obj}\n" + CAMERA + LIGHT)
+    said = [n for n in api.load_scene(tmp_path / "s.yaml").extra["notes"] if "n.mtl" in n]
+    assert said == [f"{tmp_path / 'n.mtl'}: line 3: newmtl 'floor' is defined by {tmp_path / 'm.mtl'} too (line 3), "
+                    "named first by the mtllib: that one is used"], said
+
+
 # ------------------------------------------------------------ 5, 6. an empty GLB, a glTF 1.0 file
 
 
@@ -166,6 +211,23 @@ def test_a_gltf_1_file_is_named_by_its_version(tmp_path):
 
 
 # ------------------------------------------------------------ 9. docs/scenes.md
+
+
+def test_a_binary_gltf_1_file_is_named_by_its_version(tmp_path):
+    """(h219, 7) a .glb whose header gives version 1 said "first chunk is not its JSON"."""
+    import struct
+
+    body = b'{"asset": {"version": "1.0"}, "meshes": {"m": {"primitives": []}}}'
+    data = b"glTF" + struct.pack("<III", 1, 20 + len(body), len(body)) + struct.pack("<I", 0) + body
+    with pytest.raises(InputError, match=r"^v1\.glb: a binary glTF 1\.0 file \(its header says version 1\): tlm "
+                                         r"reads glTF 2\.0 \(convert the file to glTF 2\.0: gltf-pipeline "):
+        glb_chunks(data, "v1.glb")
+    (tmp_path / "v1.glb").write_bytes(data)
+    (tmp_path / "s.yaml").write_text("geometry: {mesh: v1.glb}\n" + CAMERA + LIGHT
+                                     + "materials: {w: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n"
+                                     "default_material: w\n")
+    with pytest.raises(InputError, match=r"v1\.glb: a binary glTF 1\.0 file"):
+        api.load_scene(tmp_path / "s.yaml")
 
 
 def test_the_docs_say_a_second_files_equal_light_is_shared_not_renamed():

@@ -198,7 +198,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         root = (exc.key or "").split(".", 1)[0]
         if root in _SCENE_ONLY and api.scene_file(args.config) is not None:  # (--set camera.vfov=50 on a scene file)
             raise InputError(f"{exc} ({root} is a key of the scene file, not a run setting that --set takes: edit "
-                             f"{args.config}'s {root}:, or write a scene file with `extends: {args.config}` and "
+                             f"{args.config}'s {root}:, or write a scene file with `extends: "
+                             f"{Path(args.config).resolve()}` (extends: is read from the new file's folder) and "
                              f"the {root}: to change (docs/scenes.md), and run that)") from None
         raise
     if api.scene_file(args.config) is not None:  # (a note on stdout, with the run's lines, once the config

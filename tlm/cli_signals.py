@@ -305,7 +305,13 @@ def signals():
         out = guarded.get("stdout")
         if out is not None and out.error is not None:  # (its reader went away: the command ran on, to its end)
             raise out.error
+    except BaseException as e:
+        from tlm.errors import settle_landed
+
+        settle_landed(e)  # (an error a C extension made of a signal's interrupt: known for it after the block,
+        raise  # whose frames the signals landed in, with every caller's locals, are let go as it ends)
     finally:
+        forget_landed()  # (the frames the signals landed in, and every caller's locals: not kept past the command)
         if not command_process():  # (the process's own keeps them to its exit, which flushes them: _flushed)
             for name, stream in guarded.items():
                 if getattr(sys, name) is stream:

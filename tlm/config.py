@@ -208,10 +208,11 @@ class ReferenceConfig:
                     "error is left out unless a reference is cached)")
 
 
-# Maxima keep the model's cycles within int64 (numpy, the compiled flow shop, results.json): a frame is T_norm + misses
-# x page_miss_cycles + flushes x flush_cycles + swaps, switches, copies x theirs; each <= 2**20 (thesis: 2 to 16) with
-# frames <= 10**4 < 2**14 stays below 2**63 up to 2**29 such events a frame (a thesis-size Cornell PMap frame: 2.6e6);
-# FIFO depth, packet size <= 2**31, max_events <= 2**53. clock_hz >= 1 Hz: a trace's us (cycles x 1e6 / clock) finite.
+# Maxima keep the model's cycles within int64. A frame is T_norm + misses x page_miss + flushes x flush + swaps,
+# switches x theirs + copied words / copy_words_per_cycle (it divides); knobs <= 2**20, frames <= 10**4 < 2**14 keep all
+# but T_norm below 2**63 to 2**29 events a frame (thesis Cornell PMap: 2.6e6). T_norm (arch.programs: its scale) is
+# capped only at costs.MAX_CYCLES = 2**62 a job: the frames can pass int64 with it (units.within_int64 stops that). FIFO
+# depth, packet size <= 2**31, max_events <= 2**53. clock_hz >= 1 Hz: a trace's us (cycles x 1e6 / clock) finite.
 _CYC, _SIZE = {"max": 1 << 20}, {"min": 1, "max": 1 << 31}
 
 
@@ -343,8 +344,8 @@ def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> A
         return _ABSENT
     v = raw[name]
     if not _type_ok(v, tp):
-        if _whole_floats(v):  # (1e20 for an integer: its range first, not "write 100000000000000000000" it refuses)
-            _check_bounds(v, f.metadata, source, key)
+        if typed := _whole_floats(v):  # (1e20 for an integer: its range first, not "write 100000000000000000000")
+            _check_bounds(v, f.metadata, source, key, typed)
         kind = type_name(tp, f.metadata)
         raise InputError(f"{value_text(v)} is not {kind}{type_hint(v, tp, f.metadata)}", source=source, key=key)
     if isinstance(v, float) and not math.isfinite(v):
@@ -405,21 +406,20 @@ def with_leaves(section: str, value: Any, changes: dict[str, Any], source: str =
     return out
 
 
-def _whole_floats(v: Any) -> bool:  # a number or a list of numbers, a finite whole float among them (1e20)
+def _whole_floats(v: Any) -> str:  # numbers, a finite whole float among them (1e20): v as typed (1e5, not 100000.0)
     xs = v if isinstance(v, list) else [v]
-    return all(type(x) in (int, float) for x in xs) and any(type(x) is float and x.is_integer() for x in xs)
+    t = f"{v:.3g}".replace("e+0", "e").replace("e+", "e") if type(v) is float and abs(v) >= 1e4 else ""
+    ok = all(type(x) in (int, float) for x in xs) and any(type(x) is float and x.is_integer() for x in xs)
+    return "" if not ok else t if "e" in t and float(t) == v else value_text(v)
 
 
-def _check_bounds(v: Any, meta: dict, source: str, key: str) -> None:  # (min_exclusive before min: 0 is "> 0.0")
-    for x in v if isinstance(v, list) else [v]:
-        if not isinstance(x, (int, float)):
-            continue
-        if "min_exclusive" in meta and x <= meta["min_exclusive"]:
-            raise InputError(f"{value_text(v)} must be > {value_text(meta['min_exclusive'])}", source=source, key=key)
-        if "min" in meta and x < meta["min"]:
-            raise InputError(f"{value_text(v)} must be >= {value_text(meta['min'])}", source=source, key=key)
-        if "max" in meta and x > meta["max"]:
-            raise InputError(f"{value_text(v)} must be <= {value_text(meta['max'])}", source=source, key=key)
+def _check_bounds(v: Any, meta: dict, source: str, key: str, text: str = "") -> None:  # (> 0.0 and >= 1.0 at once)
+    lo_ex, lo, hi = meta.get("min_exclusive"), meta.get("min"), meta.get("max")
+    for x in [x for x in (v if isinstance(v, list) else [v]) if isinstance(x, (int, float))]:
+        if bound := (f"> {value_text(lo_ex)}" + (f" and >= {value_text(lo)}" if lo is not None else "")
+                     if lo_ex is not None and x <= lo_ex else f">= {value_text(lo)}" if lo is not None and x < lo
+                     else f"<= {value_text(hi)}" if hi is not None and x > hi else ""):
+            raise InputError(f"{text or value_text(v)} must be {bound}", source=source, key=key)
 
 
 def _check_range(v: Any, meta: dict, source: str, key: str) -> None:

@@ -11,6 +11,7 @@ a thread the system refused (:func:`thread_problem`: ``no new thread could be st
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import errno
 import os
@@ -143,6 +144,7 @@ def _limit(name: str) -> int | None:
 
 
 _LANDED: list = []  # the Python frame each signal's KeyboardInterrupt was raised in (signal_landed)
+_MARK = "_tlm_interrupt"  # set on an exception found, as its command ended, to be an interrupt (settle_landed)
 
 
 def signal_landed(frame) -> None:
@@ -154,8 +156,37 @@ def signal_landed(frame) -> None:
 
 
 def forget_landed() -> None:
-    """No signal landed (a command's start and end: :func:`tlm.cli_signals.signals`)."""
+    """No signal landed (a command's start and end: :func:`tlm.cli_signals.signals`): the frames let go, and
+    with them every local of the command's calls they held."""
     _LANDED.clear()
+
+
+def settle_landed(e: BaseException | None) -> None:
+    """As a command's block ends with ``e`` (:func:`tlm.cli_signals.signals`), before its frames are let go
+    (:func:`forget_landed`): each exception of ``e``'s chain that is a signal's interrupt made into an error of
+    its own (:func:`_made_of_interrupt`) is marked so, for :func:`interrupted_by` after the block."""
+    seen: set[int] = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if _made_of_interrupt(e):
+            with contextlib.suppress(AttributeError, TypeError):  # (an exception that takes no attribute)
+                setattr(e, _MARK, True)
+        e = e.__cause__ or e.__context__
+
+
+def _made_of_interrupt(e: BaseException) -> bool:
+    """Whether ``e`` is a signal's interrupt that code outside Python made an error of its own: it carries
+    the interrupt (its ``__context__`` is one, or its text names ``KeyboardInterrupt``, as nanobind's
+    ``TypeError: could not export nb::ndarray: ... KeyboardInterrupt`` does) and was raised by a call running
+    when the interrupt was raised (:func:`_raised_where_landed`). A bug raised in a caller after a library
+    swallowed the interrupt carries none: it is the bug."""
+    if not _LANDED:
+        return False
+    try:
+        carries = isinstance(e.__context__, KeyboardInterrupt) or "KeyboardInterrupt" in str(e)
+    except Exception:  # (an exception whose str fails)
+        return False
+    return carries and _raised_where_landed(e)
 
 
 def _raised_where_landed(e: BaseException) -> bool:
@@ -181,18 +212,19 @@ def interrupted_by(e: BaseException | None) -> KeyboardInterrupt | None:
     """The KeyboardInterrupt (Ctrl-C, or SIGTERM, which the command line turns into one) in
     ``e``'s chain of causes and contexts, where something wrapped it: a signal that arrives
     while a compiled numba kernel calls back into Python ends as a ``SystemError`` caused by
-    the interrupt. An exception of the chain that was raised by a call running when the command
-    line's handler raised its interrupt (:func:`_raised_where_landed`) is that interrupt too, though
-    it does not hold it: a C extension that calls back into Python may turn the interrupt into an
-    error of its own, with the interrupt only in its message (nanobind's ``TypeError: could not
-    export nb::ndarray: ... KeyboardInterrupt``, FLIP's ``evaluate`` importing a module); a new
-    KeyboardInterrupt is returned for it. None where the chain holds neither: ``e`` is an error
-    of its own."""
+    the interrupt. An exception of the chain that a C extension made of the interrupt
+    (:func:`_made_of_interrupt`: it carries the interrupt, in its text or context, and was raised by
+    a call running when the command line's handler raised it; marked so where the command's block
+    ended first, :func:`settle_landed`) is that interrupt too, though it does not hold it: a C
+    extension that calls back into Python may turn the interrupt into an error of its own, with the
+    interrupt only in its message (nanobind's ``TypeError: could not export nb::ndarray: ...
+    KeyboardInterrupt``, FLIP's ``evaluate`` importing a module); a new KeyboardInterrupt is
+    returned for it. None where the chain holds neither: ``e`` is an error of its own."""
     seen: set[int] = set()
     while e is not None and id(e) not in seen:
         if isinstance(e, KeyboardInterrupt):
             return e
-        if _raised_where_landed(e):
+        if getattr(e, _MARK, False) is True or _made_of_interrupt(e):
             return KeyboardInterrupt()
         seen.add(id(e))
         e = e.__cause__ or e.__context__

@@ -53,13 +53,17 @@ INT64_MAX = (1 << 63) - 1  # the most cycles numpy, the compiled kernels and res
 
 def within_int64(cycles: int, what: str) -> int:
     """``cycles`` (a Python int, exact), or an InputError (one line, exit status 2) where it is past int64:
-    the products of the config's cycle counts (``arch.page_miss_cycles`` ...) and the frame's events
-    would wrap in numpy or lose the report's exactness. The config's maxima keep a run of up to 2**29 such
-    events a frame within it (tlm/config.py, ArchConfig); a larger frame stops here, never wraps."""
+    the frames times a frame's cycles (T_norm, the programs table's instructions times its PMs' ``scale``
+    and ``record_cycles``, plus the frame's events times the config's cycle counts, ``arch.page_miss_cycles``
+    ...) would wrap in numpy or lose the report's exactness. The config's maxima keep the events' share within
+    it up to 2**29 events a frame (tlm/config.py, ArchConfig); T_norm is bounded only by
+    :data:`tlm.arch.costs.MAX_CYCLES` (2**62) a job's work, so a table's scale can pass it over the frames
+    alone. Either stops here, never wraps; the line names both."""
     if cycles > INT64_MAX:
-        raise InputError(f"{what}: {cycles:.3g} cycles, past the 2**63 - 1 that the model's counts hold: "
-                         "lower arch.page_miss_cycles, flush_cycles, swap_cycles, context_switch_cycles or "
-                         "arch.frames, or render a smaller frame", key="arch")
+        raise InputError(f"{what}: {cycles:.3g} cycles, past the 2**63 - 1 that the model's counts hold: lower "
+                         "arch.frames, the scale or record_cycles of the programs table (arch.programs; null: "
+                         "tlm/arch/programs.yaml), arch.page_miss_cycles, flush_cycles, swap_cycles or "
+                         "context_switch_cycles, or render a smaller frame", key="arch")
     return cycles
 
 

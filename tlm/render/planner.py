@@ -61,12 +61,7 @@ def plan(scene: Scene, cfg: RunConfig) -> Plan:
         notes.append("the scene has no lights: no shadow rays are cast and every frame is black")
     elif all(max(lt.power) == 0.0 for lt in scene.lights):
         notes.append("every light has zero power: frames are black (shadow rays are still cast)")
-    else:
-        off = [f"lights[{i}]" for i, lt in enumerate(scene.lights) if max(lt.power) == 0.0]
-        if off:
-            one = len(off) == 1
-            notes.append(f"{', '.join(off)} {'has' if one else 'have'} zero power: {'its' if one else 'their'} "
-                         "shadow rays are still cast and charged to the timing model, and add nothing")
+    # (a zero-power light beside lit ones: the run's warning says it, tlm.render.checks.zero_power_warnings)
     if "lambertian" not in kinds:
         notes.append("the scene has no Lambertian surface: nothing receives direct light")
 

@@ -349,7 +349,7 @@ def _study_labels(studies: list) -> dict[int, str]:
 
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     from tlm.report.tradeoff import gather_rays as _gather_rays
-    from tlm.report.tradeoff import reference_converged, truth_noise_words
+    from tlm.report.tradeoff import reference_converged, series_styles, truth_noise_words
     from tlm.report.tradeoff import series_of as _series
 
     studies = [st for st in inputs.of_kind("error-vs-cost") if st.rows]
@@ -370,10 +370,12 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     series = [series_of(r) for r in sorted(rows, key=lambda r: (str(r["filter"]), _gather_rays(r),
                                                                  order[id(r["_study"])]))]
     series = list(dict.fromkeys(series))  # (a filter with final gathering is a series of its own, after it)
-    for i, name in enumerate(series):
+    # one study: each series the style the study's own figures give it (of all its rows, drawn or not); several: in turn
+    styles = series_styles(studies[0].rows) if len(studies) == 1 else {name: i for i, name in enumerate(series)}
+    for name in series:
         rs = sorted((r for r in rows if series_of(r) == name), key=lambda r: r["frame_seconds"])
         ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=name,
-                **{**line_style(i), "linestyle": "none"})
+                **{**line_style(styles[name]), "linestyle": "none"})
     ax.set_xscale("log")
     ax.set_yscale("log")
     log_ticks(ax, "x")  # (no minor tick labels running into each other)
@@ -396,7 +398,10 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     # (the input the numbers are from, where another study or a --set could have made them: its folder, --set)
     source = ", ".join(w for w in (st.path.name, with_set(st.overrides)) if w) \
         if len(studies) > 1 or st.overrides else ""
-    rest = [f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s" for k in series
+    # (several studies: a value against a reference that did not converge says so, as the lowest's does)
+    unsure = {id(s) for s in studies if len(studies) > 1 and err == "rel_mse" and reference_converged(s) is False}
+    rest = [f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s"
+            + (" (against a reference NOT converged)" if id(best[k]["_study"]) in unsure else "") for k in series
             if k in best and best[k] is not lo]
     if err == "truth_rel_mse":  # (the truth's samples, and where they are few, that its noise is in the error)
         spp = lo.get("truth_spp")

@@ -287,9 +287,12 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
         )
 
 
-def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
+def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] | None = None) -> tuple[dict, Path]:
     """The scene file's mapping with its ``extends:`` chain merged in, and the file whose
-    ``geometry`` it uses (a mesh path is relative to the file that names it).
+    ``geometry`` it uses (a mesh path is relative to the file that names it). ``given``, where
+    passed, gets each ``materials:`` entry's name -> the file of the chain that gave it last (this
+    file where it names the entry, else the base's that does): an entry only inherited is not
+    this file's to check (:func:`_check_unused`).
 
     ``extends: NAME_OR_PATH`` starts from another scene file; this file's keys replace
     the base's, and mappings (``materials``, ``parts``, ``camera``, a material's fields)
@@ -304,7 +307,9 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
         raise InputError(f"is a run config (it names `scene: {raw['scene']}`), not a scene file: a config's `scene:` "
                          "names a built-in scene or a scene file (with `geometry:`)", source=src)
     _keys(raw, SCENE_KEYS, src, "")
+    own = raw.get("materials")
     if "extends" not in raw:
+        _given(given, own, path)
         return raw, path
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
@@ -313,7 +318,8 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
-    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()))
+    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given)
+    _given(given, own, path)
     geometry = raw.get("geometry")
     if "geometry" in raw and not (isinstance(geometry, dict) and isinstance(base.get("geometry"), dict)
                                   and "mesh" not in geometry):
@@ -325,6 +331,10 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...]) -> tuple[dict, Path]:
         base = {**base, "materials": {k: v for k, v in base_mats.items() if k not in retyped}}
     return deep_merge(base, raw), geom_path
 
+
+def _given(given: dict[str, Path] | None, materials: Any, path: Path) -> None:
+    if given is not None and isinstance(materials, dict):
+        given.update(dict.fromkeys((str(k) for k in materials), path))
 
 
 def load_scene(
@@ -338,14 +348,16 @@ def load_scene(
     """
     path = resolve_scene_path(ref, base, config_source)
     src = str(path)
-    raw, geom_path = read_scene_tree(path, ())
+    given: dict[str, Path] = {}
+    raw, geom_path = read_scene_tree(path, (), given)
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
     geom = _geometry(raw["geometry"], str(geom_path), geom_path)
     tri = np.asarray(geom.triangles, dtype=np.float64)
     _check_triangles(tri, src)
 
-    materials, material_index, unused = _assign_materials(raw, geom, src)
+    inherited = {name: str(f) for name, f in given.items() if f != path}  # (through extends:)
+    materials, material_index, unused = _assign_materials(raw, geom, src, inherited)
     part = np.asarray(geom.part, dtype=np.int32)
 
     lights, notes = scene_lights(raw, geom, src)
@@ -467,9 +479,12 @@ def _aspect_note(geom: Geometry, res: list[int], given: bool) -> list[str]:
             f"resolution's {ratio:.6g} ({res[0]}x{res[1]}): the horizontal field of view follows the resolution"]
 
 
-def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Material, ...], np.ndarray, list[str]]:
+def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, str] | None = None
+                      ) -> tuple[tuple[Material, ...], np.ndarray, list[str]]:
     """The scene's materials, each triangle's index into them, and a line per ``materials:``
-    entry no triangle can take where the geometry's files name no material (:func:`_check_unused`).
+    entry no triangle can take where the geometry's files name no material, or where the entry
+    is only inherited through ``extends:`` (``inherited``: its name -> the file that gave it;
+    :func:`_check_unused`).
 
     A triangle takes, in order of precedence: its part's material under ``parts:``;
     the material the mesh file gives it (a ``materials:`` entry of the same name
@@ -511,9 +526,8 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
                 f"{did_you_mean(str(p), geom.part_names)}",
                 source=src, key=f"parts.{p}",
             )
-    unused = _check_unused(yaml_mats, file_mats, parts_raw, default, src)
-    part = np.asarray(geom.part, dtype=np.int32)
-    # per part: the scene file's material, or -1 (the file's material, else the default)
+    # per part: the scene file's material, or -1 (the file's material, else the default); a parts: value
+    # checked first (a typo there leaves its material unused: the typo is the error, not the entry)
     part_material = np.full(len(geom.part_names), -1, dtype=np.int32)
     for i, p in enumerate(geom.part_names):
         m = parts_raw.get(p)
@@ -523,6 +537,8 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
             raise InputError(f"{m!r} is not a material{did_you_mean(str(m), names)}",
                              source=src, key=f"parts.{p}")
         part_material[i] = names.index(m)
+    unused = _check_unused(yaml_mats, file_mats, parts_raw, default, src, inherited or {})
+    part = np.asarray(geom.part, dtype=np.int32)
     material_index = part_material[part]
     if geom.face_material is not None and file_mats:
         face = remap[np.asarray(geom.face_material, dtype=np.int32)]  # (-1, "none", indexes remap's last)
@@ -553,20 +569,26 @@ def _assign_materials(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Materi
 
 
 def _check_unused(yaml_mats: dict[str, Material], file_mats: tuple[Material, ...], parts_raw: dict,
-                  default: Any, src: str, shown: int = 12) -> list[str]:
+                  default: Any, src: str, inherited: dict[str, str], shown: int = 12) -> list[str]:
     """The ``materials:`` entries no triangle can take: their name is no mesh file's material (nor
     a renamed one's ``NAME_2`` or first name), no ``parts:`` value and not ``default_material``.
-    Where the geometry's files name materials, the first is an InputError (a typo of a file's
-    material name would render the file's material, silently); where they name none (builders,
-    shapes: ``materials:`` is the palette ``parts:`` picks from, and an entry may be kept for
-    later), a line each, for the scene's notes."""
+    Where the geometry's files name materials, the first of the scene file's own is an InputError
+    (a typo of a file's material name would render the file's material, silently); where they
+    name none (builders, shapes: ``materials:`` is the palette ``parts:`` picks from, and an
+    entry may be kept for later), and for an entry only inherited through ``extends:``
+    (``inherited``: its name -> the file that gave it; this file cannot take it out, and its
+    ``parts:`` may have moved a part to a material of its own), a line each, for the scene's notes."""
     file_names = list(dict.fromkeys([m.name for m in file_mats] + [m.alias for m in file_mats if m.alias]))
     used = {*file_names, *(str(v) for v in parts_raw.values()), str(default)}
     unused = [name for name in yaml_mats if name not in used]
+    notes = [f"{src}: materials.{name} (given by {inherited[name]}, through extends:): used by no triangle here: "
+             "it is not rendered" for name in unused if name in inherited]
+    unused = [name for name in unused if name not in inherited]
     if not file_names:
-        return [f"{src}: materials.{name}: used by no triangle (no part under parts: names it and it is not "
-                "default_material): it is not rendered" for name in unused]
+        return notes + [f"{src}: materials.{name}: used by no triangle (no part under parts: names it and it is not "
+                        "default_material): it is not rendered" for name in unused]
     if not unused:
+        return notes
         return []
     name = unused[0]
     listed = ", ".join(file_names[:shown]) + (f" and {len(file_names) - shown} more" if len(file_names) > shown else "")

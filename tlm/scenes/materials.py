@@ -109,11 +109,13 @@ def _clip01(c) -> tuple[float, float, float]:
 # ------------------------------------------------------------------ MTL
 
 
-def parse_mtl(text: str, source: str, notes: list[str] | None = None) -> list[Material]:
+def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dict[str, int] | None = None
+              ) -> list[Material]:
     """The materials an MTL file defines, in file order (a name defined twice: the
     first definition counts). ``source`` names the file in errors. ``notes``, where given,
     gets a line (file, line, value) per definition left out as a repeat of a name and per
-    colour clipped into [0, 1] (:func:`mtl_material`)."""
+    colour clipped into [0, 1] (:func:`mtl_material`); ``lines``, where given, each material's
+    name -> the line of its ``newmtl``."""
     found: list[tuple[str, int, dict]] = []
     current: dict | None = None
     name = ""
@@ -173,6 +175,8 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None) -> list[Ma
                              "this definition is ignored, the first one is used (rename one of them)")
             continue
         seen[name] = number
+        if lines is not None:
+            lines[name] = number
         out.append(mtl_material(name, props, source, number, notes))
     return out
 
@@ -254,12 +258,20 @@ def glb_length_notes(data: bytes, source: str = "") -> tuple[str, ...]:
             f"{len(data):,} in bytes 8 to 11, little-endian, or export the file again)",)
 
 
+_READS_2 = ("tlm reads glTF 2.0 (convert the file to glTF 2.0: gltf-pipeline -i IN.gltf -o OUT.gltf, for one, "
+            "upgrades a 1.0 file, a .glb too)")
+
+
 def glb_chunks(data: bytes, source: str = "") -> tuple[dict, bytes]:
     """The JSON (parsed) and the BIN chunk (b"" if none) of a binary glTF file. A header whose
     length exceeds the file's by less than 8 bytes, the chunks whole, is read all the same
     (:func:`glb_length_notes` says so); a cut chunk is refused as truncated."""
     if data[:4] != GLB_MAGIC:
         raise InputError("not a binary glTF file (no 'glTF' header)", source=source)
+    version = struct.unpack_from("<I", data, 4)[0] if len(data) >= 8 else 2
+    if version != 2:  # (glTF 1.0's KHR_binary_glTF: one JSON "content" after a 20-byte header, no chunks)
+        raise InputError(f"a binary glTF {version}.0 file (its header says version {version}): {_READS_2}",
+                         source=source)
     total = struct.unpack_from("<I", data, 8)[0] if len(data) >= 12 else None
     if len(data) < 20 or (total is not None and total > len(data) and _long_header(data) is None):
         said = f"its header says {total:,} bytes" if total is not None else "its header is cut"
@@ -426,8 +438,7 @@ def check_gltf(header: dict, source: str) -> None:
     version = asset.get("version") if isinstance(asset, dict) else None
     if isinstance(version, (str, int, float)) and not isinstance(version, bool) \
             and str(version).split(".", 1)[0].strip() != "2":
-        raise InputError(f"asset.version {version}: tlm reads glTF 2.0 (convert the file to glTF 2.0: gltf-pipeline "
-                         "-i IN.gltf -o OUT.gltf, for one, upgrades a 1.0 file)", source=source)
+        raise InputError(f"asset.version {version}: {_READS_2}", source=source)
     if not count("meshes"):
         raise InputError("the glTF has no meshes: nothing to render", source=source)
     for i, node in enumerate(entries("nodes")):

@@ -320,17 +320,18 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
     if not obj.mtllibs:
         return (), None, ()
     library: dict[str, Material] = {}
-    first: dict[str, Path] = {}
+    first: dict[str, tuple[Path, int]] = {}  # (a material's library and the line of its newmtl there)
     notes: list[str] = []
     files = _libraries(path, obj.mtllibs)  # (the lookup the scene cache reruns: tlm.scenes.cache)
     for mtl in files:
+        lines: dict[str, int] = {}
         # (its read noted with the bytes' sha256: what a memo of the parse checks the library by)
-        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl), notes):
-            if m.name in library and first[m.name] != mtl:
-                notes.append(f"{mtl}: newmtl {m.name!r} is defined by {first[m.name]} too, named first by the "
-                             "mtllib: that one is used")
+        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl), notes, lines):
+            if m.name in library and first[m.name][0] != mtl:
+                notes.append(f"{mtl}: line {lines[m.name]}: newmtl {m.name!r} is defined by {first[m.name][0]} too "
+                             f"(line {first[m.name][1]}), named first by the mtllib: that one is used")
             library.setdefault(m.name, m)
-            first.setdefault(m.name, mtl)
+            first.setdefault(m.name, (mtl, lines[m.name]))
     materials = tuple(library.values())
     index = {m.name: i for i, m in enumerate(materials)}
     table = np.full(len(obj.material_names) + 1, -1, dtype=np.int32)  # the last: "no usemtl"
