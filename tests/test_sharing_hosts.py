@@ -42,7 +42,7 @@ def test_a_holder_records_its_host_and_pid_and_the_refusal_names_this_machine(tm
     with claims.sharing(out, "theirs", "sweep"):
         assert (out / ".tlm-running-theirs").read_text().strip() == f"{storage._host()}-{os.getpid()}"
         said = refusal(out)
-    assert f"(process {os.getpid()} on this machine, {storage._host()[1:]})" in said
+    assert f"(process {os.getpid()} on this machine, {storage._host()[1:]} (" in said  # (then its command line)
     assert "another machine" not in said
 
 
