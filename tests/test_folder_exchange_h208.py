@@ -241,3 +241,22 @@ def test_a_probe_that_cannot_make_its_folders_tells_nothing_and_waits(tmp_path, 
 def test_storage_still_names_the_host_it_did():
     """``_host`` moved to tlm.storage_lock: the same function where tlm.claims imports it."""
     assert storage._host is storage_lock._host and storage._host().startswith("h")
+
+
+def test_a_file_system_s_yes_is_asked_again_after_a_while(tmp_path, monkeypatch, exchanging):
+    """A long-lived process (a Dask worker, a notebook) may outlive a mount, and a tmpfs or NFS mounted later
+    may get its device number: a yes is trusted for a while (tlm.storage_lock.TRUST_S, 30 s), then asked again,
+    so that an NFS mount there now (EINVAL) is told, and folder_lock waits for a writer between its two
+    renames again (h218)."""
+    assert storage_lock.exchanges_in(tmp_path) is True
+    cannot_exchange(monkeypatch, errno.EINVAL)  # (the device number another mount's now: NFS)
+    assert storage_lock.exchanges_in(tmp_path) is True  # (within the while: no probe)
+    now = time.monotonic()
+    monkeypatch.setattr(time, "monotonic", lambda: now + 31)
+    assert storage_lock.exchanges_in(tmp_path) is False
+    assert leftovers(tmp_path) == []  # (the probe's two folders removed)
+    slept = []
+    monkeypatch.setattr(time, "sleep", slept.append)
+    with folder_lock(tmp_path / "missing"):
+        pass
+    assert slept == [0.01]

@@ -7,16 +7,21 @@ again only the points done without the trace.json they now ask for; ``--dry-run`
 
 from __future__ import annotations
 
+import json
+import shutil
 from pathlib import Path
 
 import pytest
 import yaml
 
 import tlm.arch.model as model
+from tlm import claims
 from tlm.cli import main
 from tlm.config import config_from_dict, to_dict
+from tlm.errors import InputError
 from tlm.experiments.sweep import run_sweep
 from tlm.experiments.sweep_file import config_hash, load_sweep, point_inputs
+from tlm.experiments.sweep_plan import plan_sweep
 
 # no arch.trace: tlm run's default (true) is not a sweep's
 BASE = {"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"light_samples": 1, "spp": 1},
@@ -160,9 +165,110 @@ def test_asking_for_a_trace_runs_again_only_the_points_done_without_one(tmp_path
     assert {k: plan[k] for k in ("points", "done", "to_run", "replaced", "untraced")} == {
         "points": 3, "done": 2, "to_run": 1, "replaced": 1, "untraced": 1}
     assert main(["sweep", str(sweep), "--out", str(out), "--set", "arch.trace=true", "--dry-run"]) == 0
-    assert ("1 point folder of points done without the trace.json they ask for (arch.trace) removed and run again"
-            in capsys.readouterr().out)
+    assert ("1 point folder of points done without the trace.json they ask for (arch.trace) run again, each kept "
+            "until its new folder replaces it" in capsys.readouterr().out)
     done = run_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"])
     assert (done.skipped, done.ok) == (2, 1) and traced[3:] == [True]
     third = _ran(out)
     assert {h: third[h] for h in first} == first and third[new][:2] == (True, True)
+
+
+# --- h218: a review's findings (--reference with a trace, an interrupted traced rerun, a traced and an untraced
+# sweep into one folder at once)
+
+PMAP = {"scene": "cornell", "mode": "pmap", "resolution": [8, 8], "photons": {"count": 1500},
+        "render": {"light_samples": 1}, "estimate": {"final_gather": 0}, "arch": {"frames": 1, "packet_size": 32},
+        "reference": {"photons": 1500, "k_nearest": 20, "min_rounds": 4, "max_rounds": 64, "spp": 2,
+                      "tolerance": 0.5}}
+
+
+def _errors(out: Path) -> dict[str, bool | None]:
+    return {p.name: (json.loads((p / "results.json").read_text()).get("error") or {}).get("available")
+            for p in (out / "points").iterdir()}
+
+
+@pytest.mark.slow
+def test_reference_computes_what_points_run_again_for_their_trace_need(tmp_path, cache):
+    """--reference decides a point done as the sweep does (point_done): after the reference cache is pruned, a
+    rerun that asks for a trace runs its points again and computes the reference they are measured against, as
+    its dry run says (before, it computed none and the points came back without their error)."""
+    out = tmp_path / "out"
+    sweep = _sweep(tmp_path, base=PMAP)
+    assert run_sweep(sweep, out, jobs=1, reference=True).ok == 2
+    assert set(_errors(out).values()) == {True}
+    shutil.rmtree(cache / "references")  # (a tlm cache prune)
+    plan = plan_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"], reference=True)
+    assert [r.action for r in plan.references] == ["compute"] and plan.untraced == 2
+    said: list[str] = []
+    done = run_sweep(sweep, out, jobs=1, reference=True, overrides=["arch.trace=true"], say=said.append,
+                     warn=said.append)
+    assert done.ok == 2 and any("computing reference 1 of 1" in line for line in said), said
+    assert set(_errors(out).values()) == {True}, said
+    assert not any("no photon-map error" in line for line in said), said
+    assert all(written for _, written, _ in _ran(out).values())
+
+
+def test_an_interrupt_while_points_run_again_for_their_trace_loses_no_point_done(tmp_path, monkeypatch):
+    """Asking for a trace runs again the points done without one; each stays (with a user's file in it) until its
+    new folder replaces it, so an interrupt meanwhile loses none, and the file is carried into the new folder."""
+    out = tmp_path / "out"
+    sweep = _sweep(tmp_path, grid={"arch.fifo_depth": [1, 2, 4, 8]})
+    assert run_sweep(sweep, out, jobs=1).ok == 4
+    before = _ran(out)
+    for h in before:
+        (out / "points" / h / "notes.md").write_text(f"mine {h}")
+    real, calls = model.simulate, []
+
+    def stopped(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(model, "simulate", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"])
+    after = _ran(out)
+    assert set(after) == set(before)  # (every point done is still there: one of them now with its trace)
+    assert sorted(written for _, written, _ in after.values()) == [False, False, False, True]
+    assert {h: after[h] for h in after if not after[h][1]} == {h: before[h] for h in after if not after[h][1]}
+    assert all((out / "points" / h / "notes.md").read_text() == f"mine {h}" for h in before)
+    rows = [json.loads(line) for line in (out / "sweep.jsonl").read_text().splitlines()]
+    assert sorted(r["hash"] for r in rows) == sorted(before)  # (the rows of the sweep cut short: every point's)
+    monkeypatch.setattr(model, "simulate", real)
+    done = run_sweep(sweep, out, jobs=1)  # (the trace given up: all done)
+    assert (done.skipped, done.ok, done.failed) == (4, 0, 0)
+
+
+def test_a_point_that_fails_to_run_again_for_its_trace_keeps_its_results(tmp_path, monkeypatch):
+    """A point done without a trace that fails as it runs again for one: its folder keeps its results (an
+    error.json could not replace them: the marker differs), and its row says the error."""
+    out = tmp_path / "out"
+    sweep = _sweep(tmp_path)
+    assert run_sweep(sweep, out, jobs=1).ok == 2
+    before = _ran(out)
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("no memory for the trace")
+
+    monkeypatch.setattr(model, "simulate", fails)
+    done = run_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"])
+    assert (done.ok, done.failed) == (0, 2)
+    assert all("no memory for the trace" in str(r["error"]) for r in done.rows), done.rows
+    assert _ran(out) == before and not list(out.rglob("error.json"))
+
+
+def test_a_traced_and_an_untraced_sweep_of_the_same_points_do_not_share_a_folder(tmp_path):
+    """Their points' hashes are one (arch.trace keyed as true), but each would replace the other's points: the
+    sweep's identity, which the folder's claim compares (tlm.claims.sharing), tells them apart, so the second is
+    refused while the first runs there."""
+    plain, traced = _sweep(tmp_path, "d.yaml"), _sweep(tmp_path, "t.yaml", set={"arch.trace": True})
+    assert [p.hash for p in load_sweep(plain).points] == [p.hash for p in load_sweep(traced).points]
+    assert load_sweep(plain).identity() != load_sweep(traced).identity()
+    assert load_sweep(plain).identity() == load_sweep(plain, ["arch.trace=false"]).identity()
+    assert load_sweep(traced).identity() == load_sweep(plain, ["arch.trace=true"]).identity()
+    out = tmp_path / "out"
+    assert run_sweep(plain, out, jobs=1).ok == 2
+    running = load_sweep(plain, ["arch.trace=true"]).identity()  # (a traced sweep of them, running into the folder)
+    with claims.sharing(out, running, "sweep"), pytest.raises(InputError, match="another sweep of other points"):
+        run_sweep(plain, out, jobs=1)

@@ -9,7 +9,8 @@
   meanwhile; where this system or the folder's file system cannot (another OS, a kernel before 3.15,
   NFS, some overlays), the writer renames the old folder aside and its own into place (two renames).
 * :func:`exchanges_in` — whether a folder's file system does :func:`exchange` (asked once per file
-  system and process): there a missing folder is no folder, not a writer between its two renames.
+  system and process, a yes again after :data:`TRUST_S`): there a missing folder is no folder, not a writer
+  between its two renames.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import errno
 import fcntl
 import functools
 import itertools
+import math
 import os
 import platform
 import re
@@ -99,6 +101,9 @@ _SYS_RENAMEAT2 = {"x86_64": 316, "amd64": 316, "aarch64": 276, "arm64": 276}  # 
 # call, and otherwise a refusal the two renames then meet and raise)
 _CANNOT = frozenset({errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EPERM})
 _EXCHANGES: dict[int, bool] = {}  # a file system (st_dev) -> whether it exchanged (once it could not: False)
+# a file system (st_dev) -> when an exchange last worked there (time.monotonic()): a yes is trusted for TRUST_S only
+_EXCHANGED_AT: dict[int, float] = {}
+TRUST_S = 30.0  # seconds a file system's yes is trusted (then asked again: an st_dev is reused after an unmount)
 _PROBES = itertools.count()
 
 
@@ -155,27 +160,35 @@ def is_at(path: Path, folder: os.stat_result) -> bool:
 
 def _note(path: Path, exchanged: bool) -> None:
     """Note whether an exchange worked on the file system of ``path``'s folder (a failure sticks:
-    an overlay may exchange some folders and not others, and where one could not, a reader waits)."""
+    an overlay may exchange some folders and not others, and where one could not, a reader waits; a
+    success is trusted for :data:`TRUST_S` from now, :func:`exchanges_in`)."""
     with suppress(OSError):
         dev = os.stat(os.path.dirname(os.path.abspath(path))).st_dev
         if exchanged:
-            _EXCHANGES.setdefault(dev, True)
+            if _EXCHANGES.setdefault(dev, True):
+                _EXCHANGED_AT[dev] = time.monotonic()
         else:
             _EXCHANGES[dev] = False
 
 
 def exchanges_in(folder: Path, name: str = "tlm") -> bool:
     """Whether the file system of ``folder`` does :func:`exchange`: known from an exchange of this
-    process there, else probed once per file system (``st_dev``) by exchanging two empty folders
+    process there, else probed per file system (``st_dev``) by exchanging two empty folders
     made in ``folder`` and removed at once (``.<name>.old-<host>-<pid>-<thread>-<n>-0`` and ``-1``:
     names :func:`tlm.storage.clean_stale` removes where a killed process left them). False, and asked
     again next time, where that cannot tell (a folder that cannot be written, one of the two removed
-    meanwhile by another writer's clean-up)."""
+    meanwhile by another writer's clean-up). A yes is trusted for :data:`TRUST_S` after the last exchange
+    that worked there, then probed again: a long-lived process (a Dask worker, a notebook) may outlive the
+    mount, and a tmpfs or NFS mounted later may get its device number (a no sticks: it only costs a reader
+    the 10 ms wait of :func:`folder_lock`)."""
     try:
         dev = os.stat(folder).st_dev
     except OSError:
         return False
     known = _EXCHANGES.get(dev)
+    if known and time.monotonic() - _EXCHANGED_AT.get(dev, -math.inf) > TRUST_S:
+        _EXCHANGES.pop(dev, None)  # (asked again: the file system there may be another now)
+        known = None
     if known is not None:
         return known
     if _renameat2() is None:

@@ -104,6 +104,7 @@ from tlm.experiments.sweep_point import (
     PathNotOnWorker,
     Task,
     error_record,
+    finished,
     run_point,
     write_error,
 )
@@ -115,6 +116,7 @@ from tlm.experiments.sweep_reference import (
     held_root,
     hold_references,
     listed,
+    point_done,
     sweep_references,
     unmeasured_line,
 )
@@ -160,17 +162,6 @@ def _clean_stale(points_dir: Path) -> None:
     temporary files of the rows (sweep.csv, sweep.jsonl) such a sweep left beside them."""
     storage.clean_stale(points_dir)
     storage.clean_stale_files(points_dir.parent)
-
-
-def point_done(folder: Path, point: Point) -> dict | None:
-    """The record of ``point`` done in its ``folder`` (:func:`~tlm.experiments.sweep_reference.done_record`),
-    or None where it is to run: not done, or done without the ``trace.json`` it asks for (:attr:`Point.traces`:
-    a sweep run before without ``arch.trace: true``, whose points' hashes hold it as true all the same). A
-    point done with a trace.json it no longer asks for is done (the file is kept)."""
-    record = done_record(folder)
-    if record is not None and point.traces and not (folder / "trace.json").is_file():
-        return None
-    return record
 
 
 def other_folders(points_dir: Path, hashes) -> int:
@@ -325,7 +316,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 clean_held(out)  # (the copies of references that killed sweeps left: --reference or not)
                 present = listed(points_dir)
                 for h in todo:  # a failed point's folder (or an unreadable one) is run again
-                    if h in present:  # (another sweep into this folder may be replacing it)
+                    # (another sweep into this folder may be replacing it). A finished one run again (for the
+                    # trace.json it now asks for, or measured again) stays until its new folder replaces it
+                    # (run_point's atomic_folder, which carries a user's files over): an interrupt loses nothing
+                    if h in present and finished(points_dir / h) is None:
                         shutil.rmtree(points_dir / h, ignore_errors=True)
                 if hold:  # (--reference: a copy of each its points to run need, for them to read while they run)
                     root = held_root(out)  # (named, and its removal registered, before anything is written there)
@@ -450,14 +444,15 @@ def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
 def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str]) -> None:
     """``sweep.jsonl`` and ``sweep.csv`` of a sweep cut short (interrupted, its cluster lost): the
     rows of its points done, those done before and those its workers finished (a point whose
-    worker wrote its folder whole before the sweep took its result is done too), as the end of a
+    worker wrote its folder whole before the sweep took its result is done too; one done before without
+    the trace.json it now asks for too, its folder kept till its new one replaces it), as the end of a
     run writes them. A write that fails leaves the files as they were (each is written whole or
     not at all): the sweep's own error goes on, and ``sweep.jsonl`` holds the rows appended."""
     points_dir = out / "points"
     present = listed(points_dir)
-    first = {p.hash: p for p in reversed(sweep.points)}
-    for h in todo:
-        if h not in records and h in present and (rec := point_done(points_dir / h, first[h])) is not None:
+    for h in todo:  # (and one done before without the trace.json it now asks for, not run again yet: its folder
+        # kept, its results its row's, point_done aside)
+        if h not in records and h in present and (rec := done_record(points_dir / h)) is not None:
             records[h] = rec
     with suppress(OSError, InputError):
         _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records], sweep.factors)

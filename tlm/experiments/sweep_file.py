@@ -67,7 +67,9 @@ class Point:
     index: int
     factors: dict[str, Any]  # dotted key -> value
     config: dict  # to_dict of the resolved RunConfig (its sections shared with other points: read, never written)
-    hash: str  # 16 hex digits of sha256 over ``config``, its input files and tlm's code (config_hash)
+    # 16 hex digits of sha256 over ``config`` (but with arch.trace as true, where no factor gives it: _traced),
+    # its input files and tlm's code (config_hash)
+    hash: str
     functional: str = ""  # the functional key of its frame: points of one key share one render
 
     @property
@@ -206,9 +208,13 @@ class Sweep:
         return [*lines, *self._set_lines(sets, f"changed nothing in {where}")]
 
     def identity(self) -> str:
-        """16 hex digits naming the sweep's points (their hashes, in order): two sweeps of one
-        identity may run into one folder at once, two of others may not (tlm.claims.sharing)."""
-        return hashlib.sha256("\n".join(p.hash for p in self.points).encode()).hexdigest()[:16]
+        """16 hex digits naming the sweep's points (their hashes, in order, and which of them write
+        trace.json, :attr:`Point.traces`, which their hashes need not tell: :func:`_traced`): two sweeps of
+        one identity may run into one folder at once, two of others may not (tlm.claims.sharing), a sweep
+        that asks for ``arch.trace`` and one of the same points that does not among them (each would
+        replace the other's points, with or without their trace.json)."""
+        return hashlib.sha256("\n".join(p.hash + (" trace" if p.traces else "") for p in self.points
+                                        ).encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict:
         given = {"overrides": list(self.overrides)} if self.overrides else {}  # (tlm sweep --set, as typed)
@@ -597,7 +603,7 @@ def _traced(arch: _Field, trace: bool, by_factor: bool, folder: Path) -> tuple[d
     """A point's ``arch`` section with ``arch.trace`` as the sweep asks for it (``trace``: the value it
     resolves to, else false), and its text in the point's key (:func:`_keyed`): with ``arch.trace`` true
     whatever the point runs with, so that asking for a trace, or no longer, keeps the point's key (a point
-    done without its trace.json runs again: :func:`tlm.experiments.sweep.point_done`); but where a factor
+    done without its trace.json runs again: :func:`tlm.experiments.sweep_reference.point_done`); but where a factor
     gives ``arch.trace`` (``by_factor``), as the point runs, so that its points of either value stay two."""
     resolved = arch.resolved
     value = resolved.get("trace") is True if trace else False

@@ -3,12 +3,13 @@
 :func:`plan` reads what :func:`~tlm.experiments.sweep.run_sweep` reads before its first point, and no
 more, and writes nothing (no output folder, no cache entry, no claim, no report): the sweep file and every
 point's config, checked as the sweep checks them (:func:`~tlm.experiments.sweep_file.load_sweep`: the same
-one-line errors), the output folder's points done (:func:`~tlm.experiments.sweep.point_done`, as the sweep
-skips them), the frames the points to run share (their functional keys; points that differ only in keys their
-frame does not read share one) and which of them the functional cache holds
+one-line errors), the output folder's points done (:func:`~tlm.experiments.sweep_reference.point_done`, as
+the sweep skips them), the frames the points to run share (their functional keys; points that differ only in keys
+their frame does not read share one) and which of them the functional cache holds
 (:func:`~tlm.experiments.frames.is_cached`, as the sweep's dispatch asks it), the stale folders a sweep into
 the folder removes (a killed sweep's temporary point folders, row files and held references; a failed or
-unfinished point's folder, or one done without the trace.json it asks for, ``arch.trace``: run again) and
+unfinished point's folder, run again; one done without the trace.json it asks for, ``arch.trace``, is run
+again and kept until its new folder replaces it) and
 those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
 the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
 :meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`); with ``reference`` (``--reference``), the photon-map
@@ -31,7 +32,15 @@ from typing import Any
 from tlm import storage
 from tlm.experiments.sweep_file import Point, Sweep, load_sweep
 from tlm.experiments.sweep_point import MARKER
-from tlm.experiments.sweep_reference import HELD, done_record, listed, reference_groups, strictest, to_measure
+from tlm.experiments.sweep_reference import (
+    HELD,
+    done_record,
+    listed,
+    point_done,
+    reference_groups,
+    strictest,
+    to_measure,
+)
 
 
 @dataclass
@@ -95,11 +104,11 @@ class SweepPlan:
 
         again = f", {self.measured_again} of them done before and measured again (--reference)" \
             if self.measured_again else ""
-        folders = [*([f"{n(self.replaced - self.untraced, 'point folder')} of failed or unfinished points"]
-                     if self.replaced > self.untraced else []),
+        folders = [*([f"{n(self.replaced - self.untraced, 'point folder')} of failed or unfinished points removed "
+                       "and run again"] if self.replaced > self.untraced else []),
                    *([f"{n(self.untraced, 'point folder')} of points done without the trace.json they ask for "
-                      "(arch.trace)"] if self.untraced else [])]
-        replaced = f"; {' and '.join(folders)} removed and run again" if folders else ""
+                      "(arch.trace) run again, each kept until its new folder replaces it"] if self.untraced else [])]
+        replaced = f"; {'; '.join(folders)}" if folders else ""
         where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
         lines = [f"dry run of {self.path} into {self.out}: nothing run, no output folder written (tlm's scene "
                  "cache may keep what the keys' scene loads parsed)",
@@ -143,7 +152,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     """What :func:`~tlm.experiments.sweep.run_sweep` of the loaded ``sweep`` into ``out`` would do (the module's
     docstring); ``out`` checked already (:func:`~tlm.storage.check_destination`). Reads, writes nothing."""
     from tlm.experiments.frames import is_cached
-    from tlm.experiments.sweep import other_folders, other_folders_line, point_done
+    from tlm.experiments.sweep import other_folders, other_folders_line
 
     out = Path(out)
     points_dir = out / "points"

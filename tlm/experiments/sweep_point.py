@@ -13,6 +13,7 @@ out: :mod:`tlm.experiments.sweep`.
 
 from __future__ import annotations
 
+import json
 import os
 import threading
 import time
@@ -118,7 +119,7 @@ def run_point(task: Task) -> dict:
             one_off = clock.within(t0, t2)
         stage = "write"
         summary = got.summary
-        with atomic_folder(Path(task.out), "results.json") as tmp:
+        with atomic_folder(Path(task.out), "results.json", POINT_FILES) as tmp:  # (a user's files carried over)
             (tmp / "config.resolved.yaml").write_text(config_text(task.config))
             if timing.trace is not None:
                 timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
@@ -272,9 +273,33 @@ def error_record(e: BaseException, stage: str, tb: str) -> dict:
     return {"type": type(e).__name__, "message": str(e), "stage": stage, "traceback": tb}
 
 
+def finished(folder: Path) -> dict | None:
+    """The ``results.json`` of a point that finished in ``folder``, or None (not run, failed, unreadable, or a
+    ``results.json`` that is not this point's: another run written there, an edited file). A finished point may
+    still be run again (:func:`~tlm.experiments.sweep_reference.done_record`,
+    :func:`~tlm.experiments.sweep_reference.point_done`): its folder stays until the new one replaces it
+    (:func:`~tlm.storage.atomic_folder`), so that an interrupt meanwhile loses nothing."""
+    try:
+        results = json.loads((folder / "results.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
+            and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
+        return None
+    return results
+
+
+POINT_FILES = frozenset({"config.resolved.yaml", "results.json", "trace.json", "error.json"})  # (a point writes)
+
+
 def write_error(task: Task, error: dict) -> None:
-    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config."""
-    with atomic_folder(Path(task.out), "error.json") as tmp:
+    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config. Not where
+    the folder holds the point finished before (:func:`finished`: run again
+    for the trace.json it now asks for, or to be measured again): its results stay, and the error is the
+    sweep's row's (a rerun tries it again)."""
+    if finished(Path(task.out)) is not None:
+        return
+    with atomic_folder(Path(task.out), "error.json", POINT_FILES) as tmp:
         (tmp / "config.resolved.yaml").write_text(config_text(task.config))
         body = {"hash": task.hash, "factors": task.factors, **error}
         (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")

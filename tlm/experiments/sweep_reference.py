@@ -33,26 +33,33 @@ from typing import TYPE_CHECKING, Any
 
 from tlm.errors import InputError
 from tlm.experiments.sweep_file import Point
-from tlm.experiments.sweep_point import POINT_FORMAT
+from tlm.experiments.sweep_point import finished
 
 if TYPE_CHECKING:
     from tlm.experiments.reference_cache import ReferenceSettings
 
 
 def done_record(folder: Path) -> dict | None:
-    """A finished point's record from its folder, or None (not run, failed, unreadable, or
-    a ``results.json`` that is not this point's: another run written there, an edited file; a photon-map
-    error that is not the one the reference cached now gives, :func:`reference_now`)."""
-    try:
-        results = json.loads((folder / "results.json").read_text())
-    except (OSError, ValueError):
-        return None
-    if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name
-            and all(isinstance(results.get(k), dict) for k in ("cycles", "timing", "functional", "host_seconds"))):
+    """A finished point's record from its folder, or None (not :func:`finished`; a photon-map error that is
+    not the one the reference cached now gives, :func:`reference_now`)."""
+    results = finished(folder)
+    if results is None:
         return None
     if reference_now(results.get("error")):  # (measured again: its frame is read from the cache, not rendered)
         return None
     return {"status": "ok", "results": results}
+
+
+def point_done(folder: Path, point: Point) -> dict | None:
+    """The record of ``point`` done in its ``folder`` (:func:`done_record`), or None where it is to run: not
+    done, or done without the ``trace.json`` it asks for (:attr:`Point.traces`: a sweep run before without
+    ``arch.trace: true``, whose points' hashes hold it as true all the same). A point done with a trace.json it
+    no longer asks for is done (the file is kept). What is done, for the sweep, its ``--dry-run`` and
+    ``--reference``'s references (:func:`sweep_references`) alike."""
+    record = done_record(folder)
+    if record is not None and point.traces and not (folder / "trace.json").is_file():
+        return None
+    return record
 
 
 def reference_now(error: Any) -> bool:
@@ -182,7 +189,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     so and which of the points' own tolerances it meets): one that meets its points' tolerance is used as it
     is (as ``tlm run`` uses it); one that misses it is computed again (cached where it is better), but one
     that computing again would not better (fewer rounds asked for than it has, or the same rounds
-    repeated) is kept, and a line says why. Needed: by a point not done yet in ``points_dir``, or done
+    repeated) is kept, and a line says why. Needed: by a point not done yet in ``points_dir`` (:func:`point_done`,
+    as the sweep and its ``--dry-run`` tell it: one done without the trace.json it asks for runs again), or done
     without an error or with one measured against a reference that misses its tolerance
     (:func:`to_measure`); one reference per distinct value of the keys its key reads
     (:data:`~tlm.experiments.reference.KEY_READS`, with the ``mode`` and ``photons.count`` that say whether
@@ -212,7 +220,8 @@ def sweep_references(sweep, points_dir: Path, say: Callable[[str], None] | None 
     for group, cfg, settings, key in reference_groups(sweep):
         pmap = True
         every.setdefault(key, set()).update(p.hash for p in group)
-        measure = {p.hash: to_measure(done_record(points_dir / p.hash)) if p.hash in present else "run" for p in group}
+        measure = {p.hash: to_measure(point_done(points_dir / p.hash, p)) if p.hash in present else "run"
+                   for p in group}
         points = [p for p in group if measure[p.hash]]
         if points:
             need = needed.setdefault(key, (cfg, [], [], {}))
