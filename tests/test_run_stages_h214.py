@@ -4,13 +4,20 @@ render bar's steps are the batches' alone, and the radii record the rule that ga
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import threading
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
 import tlm.render.batches as batches
 from tlm.config import config_from_dict
 from tlm.experiments.run import render, run
+from tlm.kernels import threads
 from tlm.progress import Timer
 from tlm.render.pmap import FALLBACK_FRACTION, radii
 
@@ -100,3 +107,161 @@ def test_an_empty_maps_radius_records_the_fallback_it_used():
     assert got["radius_fraction"] == FALLBACK_FRACTION["indirect"]
     assert "caustic_radius_photons" not in got and "radius_photons" not in got
     assert got["global_radius_rule"] == "fallback" and "global_radius_photons" not in got
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_tlm_run_where_numba_does_not_import_times_first_imports_alone(tmp_path, cache):
+    """numba not importable (the numpy kernels run): the one-off clock's numba listener made `tlm run`
+    an internal error (ImportError from error_cost_clock); now the import hook alone times it."""
+    shim = tmp_path / "nonumba" / "numba"
+    shim.mkdir(parents=True)
+    (shim / "__init__.py").write_text('raise ImportError("no numba")\n')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "nonumba"), str(ROOT)]),
+           "TLM_KERNELS": ""}
+    done = subprocess.run([sys.executable, "-m", "tlm", "run", str(ROOT / "configs" / "cornell.yaml"),
+                           "--set", "resolution=[8,8]", "--out", str(tmp_path / "run"), "--no-progress"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "one_off" in json.loads((tmp_path / "run" / "results.json").read_text())["host_seconds"]
+
+
+def test_the_clock_imports_no_numba_for_the_numpy_kernels(tmp_path):
+    """With TLM_KERNELS=numpy the clock imported numba (its listener) just to time a run that never compiles."""
+    script = ("import sys\nfrom tlm.experiments.error_cost_clock import CompileClock\nclock = CompileClock()\n"
+              "with clock.running():\n    import colorsys  # noqa\n"
+              "print('numba' in sys.modules, clock.within(0.0, 1e12) > 0)\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "TLM_KERNELS": "numpy"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["False", "True"]  # (no numba; the first import timed)
+
+
+def test_clocks_that_stop_out_of_order_leave_the_import_statement_as_it_was():
+    """A run's clock and a sweep point's (two threads) entered a, b and left a, b: builtins.__import__
+    stayed wrapped for the life of the process, and the run's clock went on recording."""
+    import builtins
+
+    import tlm.experiments.run as runs
+    import tlm.experiments.sweep_point as sweep_point
+
+    real = builtins.__import__
+    a = runs.one_off_clock()
+    a.__enter__()
+    b = sweep_point._one_off_clock()
+    b.__enter__()
+    a.__exit__(None, None, None)
+    assert builtins.__import__ is not real  # (the point's clock still runs)
+    b.__exit__(None, None, None)
+    assert builtins.__import__ is real
+    n = len(runs._CLOCK.spans)
+    import xml.dom.pulldom  # noqa: F401  (a first import, no clock running)
+
+    assert len(runs._CLOCK.spans) == n
+
+
+def test_another_threads_compiling_is_not_the_runs_one_off_but_its_kernel_threads_is(tmp_path, monkeypatch):
+    """Another thread's compile (0.8 s) while the run's warm-up worked (1 s) was booked to the run's
+    one_off and taken out of its prepare; the kernel pool's compile for the run (0.6 s) is the run's."""
+    real = batches._warm
+    began = threading.Event()
+
+    def other():
+        began.wait(30)
+        _compiling(0.8)
+
+    def warm(frame, traced):
+        began.set()
+        time.sleep(1.0)  # (the run's own work, meanwhile)
+        threads.background(lambda: _compiling(0.6)).result()  # (on a kernel thread, for the run)
+        real(frame, traced)
+
+    monkeypatch.setattr(batches, "_warm", warm)
+    beside = threading.Thread(target=other)
+    beside.start()
+    try:
+        cfg = config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [64, 64],
+                                "render": {"threads": 2}, "arch": {"packet_size": 16}})
+        host = run(cfg, tmp_path / "run", outputs=())["host_seconds"]
+    finally:
+        began.set()
+        beside.join()
+    assert 0.55 <= host["one_off"] < 1.2
+    assert host["prepare"] >= 0.9
+
+
+def test_a_span_of_the_runs_still_open_as_it_writes_is_its_one_off(tmp_path, monkeypatch):
+    """A compile for the run still under way when results.json's seconds were measured was left out."""
+    import tlm.experiments.run as runs
+
+    real = runs.results_dict
+    pending = []
+
+    def record(*args, **kwargs):
+        with threads.using(2):
+            pending.append(threads.background(lambda: _compiling(1.0)))
+        time.sleep(0.5)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(runs, "results_dict", record)
+    cfg = config_from_dict({"scene": "cornell", "mode": "rcast", "resolution": [16, 16], "render": {"threads": 1}})
+    try:
+        host = run(cfg, tmp_path / "run", outputs=())["host_seconds"]
+    finally:
+        for f in pending:
+            f.result()
+    assert host["one_off"] >= 0.45
+
+
+def test_the_photon_trace_bar_is_redrawn_at_its_chunks_checkpoints():
+    """The photon trace's bar was drawn once (render [00:00, photon trace]) while the trace ran; where it
+    may fork (no Ticking thread) the chunks' checkpoints redraw it, in the thread that entered it only."""
+    from tlm.progress import Redrawn, checkpoint
+
+    class Bar:
+        disable, drawn = False, 0
+
+        def refresh(self):
+            self.drawn += 1
+
+    bar = Bar()
+    with Redrawn(bar, every=0.05):
+        checkpoint()
+        assert bar.drawn == 0  # (at most every 0.05 s)
+        time.sleep(0.06)
+        elsewhere = threading.Thread(target=checkpoint)
+        elsewhere.start()
+        elsewhere.join()
+        assert bar.drawn == 0
+        checkpoint()
+        assert bar.drawn == 1
+    time.sleep(0.06)
+    checkpoint()
+    assert bar.drawn == 1
+
+
+def test_the_photon_trace_bar_ticks_where_the_render_forks_no_worker(monkeypatch):
+    """One thread: a Ticking thread redraws the photon trace's bar (its elapsed time)."""
+    made = []
+
+    class Probe:
+        def __init__(self, bar):
+            made.append(type(self).__name__)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return None
+
+    monkeypatch.setattr(batches, "Ticking", type("Ticking", (Probe,), {}))
+    monkeypatch.setattr(batches, "Redrawn", type("Redrawn", (Probe,), {}))
+    bar = SimpleNamespace(disable=False)  # (a bar drawn: at a terminal)
+    with threads.using(1):
+        batches._kept_alive(bar)
+    monkeypatch.setenv("TLM_FORK_WORKERS", "1")
+    with threads.using(2):
+        batches._kept_alive(bar)
+    assert made == ["Ticking", "Redrawn"]

@@ -324,6 +324,37 @@ class Ticking:
             self.thread.join()
 
 
+class Redrawn:
+    """Redraws a bar (its elapsed time) at the checkpoints (:func:`checkpoint`: a photon chunk's, a
+    batch's) of the thread and process that entered it, every ``every`` seconds at most, while a long
+    call runs: :class:`Ticking` with no thread of its own, for a call that may fork its workers
+    (:func:`tlm.kernels.threads.forked` forks only where no other thread runs). A forked worker's
+    checkpoints (another process) and other threads' redraw nothing."""
+
+    def __init__(self, bar, every: float = 0.5):
+        self.bar, self.every = bar, every
+        self.last = time.monotonic()
+        self.where = (os.getpid(), threading.get_ident())
+
+    def redraw(self) -> None:
+        now = time.monotonic()
+        if now - self.last >= self.every and (os.getpid(), threading.get_ident()) == self.where:
+            self.last = now
+            self.bar.refresh()
+
+    def __enter__(self):
+        if not self.bar.disable:
+            _REDRAWN.append(self)
+        return self
+
+    def __exit__(self, *exc):
+        if self in _REDRAWN:
+            _REDRAWN.remove(self)
+
+
+_REDRAWN: list[Redrawn] = []  # the bars the checkpoints redraw (Redrawn)
+
+
 def signal_taken(signum: int) -> None:
     """The command line's handler took ``signum`` and raises its KeyboardInterrupt now
     (:func:`tlm.cli_signals.on_signal`): the next :func:`checkpoint` raises it again, in case
@@ -384,7 +415,11 @@ def checkpoint() -> None:
     process that took it (not a worker thread, nor a forked worker, which inherits the list).
     An interrupt that went through by itself ends the command as before: no checkpoint is in a
     clean-up path (only at the top of an iteration). Without the command line's handler (a
-    notebook's calls) nothing is taken: nothing happens. Cheap: a list's truth, when empty."""
+    notebook's calls) nothing is taken: nothing happens. Cheap: a list's truth, when empty.
+
+    It also redraws the bars waiting on the loop (:class:`Redrawn`: their elapsed time)."""
+    for bar in list(_REDRAWN):
+        bar.redraw()
     if not _TAKEN:
         return
     if threading.current_thread() is not threading.main_thread() or _TAKEN[0][1] != os.getpid():

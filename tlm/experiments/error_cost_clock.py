@@ -2,15 +2,38 @@
 the spans in which numba compiled a kernel or loaded one from its on-disk cache, or a module was
 imported for the first time, from any thread (:class:`CompileClock`); a window's share of them is
 taken out of a row's timed trace and gather and said as its ``one_off_seconds``.
+
+The hooks are the process's, one of each, shared by every clock that runs (:func:`_hooks_on`):
+the import statement's (``builtins.__import__`` wrapped while any clock runs, restored when the
+last one stops, whatever order they stop in) and numba's ``numba:compiler_lock`` listener, only
+where numba is already imported or is the engine that runs (:func:`tlm.kernels.engine.engine`:
+not with ``TLM_KERNELS=numpy``, nor where numba does not import, when the import hook alone runs).
 """
 
 from __future__ import annotations
 
+import builtins
+import contextvars
 import sys
 import threading
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from importlib.util import resolve_name
+
+# whose work a span is: the token of :meth:`CompileClock.owned` in the context of the thread that
+# began it (the kernels' pool threads run their calls in a copy of the caller's context:
+# tlm.kernels.threads.ordered), None where no one's
+_OWNER: contextvars.ContextVar[object | None] = contextvars.ContextVar("tlm_one_off_owner", default=None)
+
+
+class Span(tuple):
+    """A span ``(start, end)`` (``time.perf_counter`` readings) that also says whose work it
+    was (``owner``: :meth:`CompileClock.owned`'s token, None where no one's) and its thread."""
+
+    def __new__(cls, start: float, end: float, owner: object | None = None, thread: int = 0):
+        span = super().__new__(cls, (start, end))
+        span.owner, span.thread = owner, thread
+        return span
 
 
 class CompileClock:
@@ -18,70 +41,189 @@ class CompileClock:
     cache (its global compiler lock asked for and held: numba's ``numba:compiler_lock`` event),
     or an ``import`` statement imported a module not imported before (its first import, with
     what that imports), from any thread, while :meth:`running`; :meth:`within` gives the
-    seconds of a window that any of them covered (overlapping spans counted once)."""
+    seconds of a window that any of them covered (overlapping spans counted once).
+
+    Each thread's spans are its own (one thread's nested events one span), each one tagged with
+    the :meth:`owned` token of the context it began in: :meth:`spans_of` gives one owner's (a
+    run's, on its thread and the kernels' pool threads working for it), a span still open cut
+    at the window's end."""
 
     def __init__(self):
         self._lock = threading.Lock()
-        self._depth = 0
-        self._since = 0.0
-        self.spans: list[tuple[float, float]] = []
+        self._local = threading.local()  # .stack: the thread's open events, [(owner, start), ...]
+        self._open: dict[tuple[int, object | None], float] = {}  # (thread, owner) -> start of its open span
+        self._running = 0
+        self.spans: list[tuple[float, float]] = []  # (Span, closed; a list others may clear)
 
     def _start(self) -> None:
-        with self._lock:
-            if self._depth == 0:
-                self._since = time.perf_counter()
-            self._depth += 1
+        owner, now = _OWNER.get(), time.perf_counter()
+        stack = self._local.__dict__.setdefault("stack", [])
+        if all(o is not owner for o, _ in stack):  # (the thread's outermost event of that owner)
+            with self._lock:
+                self._open[(threading.get_ident(), owner)] = now
+        stack.append((owner, now))
 
     def _end(self) -> None:
-        with self._lock:
-            self._depth -= 1
-            if self._depth == 0:
-                self.spans.append((self._since, time.perf_counter()))
+        stack = self._local.__dict__.get("stack")
+        if not stack:  # (begun before this clock ran)
+            return
+        owner, _ = stack.pop()
+        if all(o is not owner for o, _ in stack):
+            key = (threading.get_ident(), owner)
+            with self._lock:
+                since = self._open.pop(key, None)
+                if since is not None:
+                    self.spans.append(Span(since, time.perf_counter(), owner, key[0]))
 
     @contextmanager
     def running(self):
-        import builtins
-
-        from numba.core import event
-
-        clock = self
-
-        class Listener(event.Listener):
-            def on_start(self, _event):
-                clock._start()
-
-            def on_end(self, _event):
-                clock._end()
-
-        real = builtins.__import__
-
-        def timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002 (__import__'s)
-            try:
-                first = _first_import(name, globals, fromlist, level)
-            except Exception:  # (a module's own __getattr__ that fails: the import itself says so)
-                first = True
-            if not first:
-                return real(name, globals, locals, fromlist, level)
-            self._start()
-            try:
-                return real(name, globals, locals, fromlist, level)
-            finally:
-                self._end()
-
-        builtins.__import__ = timed_import
+        """Record while the block runs (the process's hooks on while any clock runs: :func:`_hooks_on`).
+        A clock may run on several threads at once; its spans are cleared as it starts from none."""
+        with self._lock:
+            if self._running == 0:
+                self.spans.clear()
+            self._running += 1
         try:
-            with event.install_listener("numba:compiler_lock", Listener()):
+            _hooks_on(self)
+            try:
                 yield self
+            finally:
+                _hooks_off(self)
         finally:
-            if builtins.__import__ is timed_import:
-                builtins.__import__ = real
+            with self._lock:
+                self._running -= 1
+
+    @contextmanager
+    def owned(self):
+        """A token for the block's work: the spans begun in its context (its thread's, and the
+        kernel pool's calls it makes) are tagged with it (:meth:`spans_of`); forgotten after."""
+        token = object()
+        reset = _OWNER.set(token)
+        try:
+            yield token
+        finally:
+            _OWNER.reset(reset)
+            with self._lock:
+                self.spans[:] = [s for s in self.spans if getattr(s, "owner", None) is not token]
+
+    def spans_of(self, owner: object, start: float, end: float) -> list[tuple[float, float]]:
+        """``owner``'s spans cut to ``start`` .. ``end`` (those still open: up to ``end``)."""
+        with self._lock:
+            mine = [(s[0], s[1]) for s in self.spans if getattr(s, "owner", None) is owner]
+            mine += [(a, end) for (_, o), a in self._open.items() if o is owner]
+        return [(max(a, start), min(b, end)) for a, b in mine if min(b, end) > max(a, start)]
 
     def within(self, start: float, end: float) -> float:
         """Seconds between ``start`` and ``end`` (``time.perf_counter()`` readings) in which numba
-        compiled or a module was imported for the first time."""
+        compiled or a module was imported for the first time (any thread's: overlaps counted once)."""
         with self._lock:
-            spans = list(self.spans) + ([(self._since, end)] if self._depth else [])
-        return sum(max(0.0, min(end, b) - max(start, a)) for a, b in spans)
+            spans = [(a, b) for a, b in self.spans] + [(a, end) for a in self._open.values()]
+        cut = sorted((max(a, start), min(b, end)) for a, b in spans if min(b, end) > max(a, start))
+        total, reach = 0.0, start
+        for a, b in cut:
+            if b > reach:
+                total += b - max(a, reach)
+                reach = b
+        return total
+
+
+# the process's hooks, shared by the clocks that run (a clock running twice: listed twice)
+_HOOKS_LOCK = threading.Lock()
+_ACTIVE: tuple[CompileClock, ...] = ()
+_REAL_IMPORT = None  # builtins.__import__ as it was when the hook went on
+_LISTENER = None  # numba's listener, while registered
+
+
+def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002 (__import__'s)
+    real = _REAL_IMPORT if _REAL_IMPORT is not None else _builtin_import
+    clocks = _ACTIVE
+    if not clocks:  # (left in place under another hook that wrapped it: passes through)
+        return real(name, globals, locals, fromlist, level)
+    try:
+        first = _first_import(name, globals, fromlist, level)
+    except Exception:  # (a module's own __getattr__ that fails: the import itself says so)
+        first = True
+    if not first:
+        return real(name, globals, locals, fromlist, level)
+    for clock in clocks:
+        clock._start()
+    try:
+        return real(name, globals, locals, fromlist, level)
+    finally:
+        for clock in clocks:
+            clock._end()
+
+
+_builtin_import = builtins.__import__
+
+
+def _wants_numba() -> bool:
+    """Whether numba's listener goes on: numba imported already, or the engine that runs (an
+    import of numba only where the kernels would import it: not with ``TLM_KERNELS=numpy``)."""
+    if "numba" in sys.modules:
+        return True
+    from tlm.errors import InputError
+    from tlm.kernels.engine import engine
+
+    try:
+        return engine() == "numba"
+    except InputError:  # (a bad TLM_KERNELS: the render says so)
+        return False
+
+
+def _numba_listener():
+    """A listener of numba's ``numba:compiler_lock`` event that times it on every running clock."""
+    from numba.core import event
+
+    began = threading.local()  # .stack: the clocks each open event of the thread began on
+
+    class Listener(event.Listener):
+        def on_start(self, _event):
+            clocks = _ACTIVE
+            began.__dict__.setdefault("stack", []).append(clocks)
+            for clock in clocks:
+                clock._start()
+
+        def on_end(self, _event):
+            stack = began.__dict__.get("stack")
+            for clock in stack.pop() if stack else ():  # (those its start began on: a clock since started has none)
+                clock._end()
+
+    listener = Listener()
+    event.register("numba:compiler_lock", listener)
+    return listener
+
+
+def _hooks_on(clock: CompileClock) -> None:
+    """``clock`` running: the import hook on with the first clock, numba's listener where wanted."""
+    global _ACTIVE, _REAL_IMPORT, _LISTENER
+    with _HOOKS_LOCK:
+        _ACTIVE = (*_ACTIVE, clock)
+        if builtins.__import__ is not _timed_import and _REAL_IMPORT is None:
+            _REAL_IMPORT = builtins.__import__
+            builtins.__import__ = _timed_import
+        if _LISTENER is None and _wants_numba():  # (numba's own first import: timed by the hook)
+            with suppress(ImportError):  # (numba does not import: the import hook alone)
+                _LISTENER = _numba_listener()
+
+
+def _hooks_off(clock: CompileClock) -> None:
+    """``clock`` stopped: with the last one, the hooks off (the import statement's as it was; a
+    hook another library put over it since stays, and this one under it passes calls through)."""
+    global _ACTIVE, _REAL_IMPORT, _LISTENER
+    with _HOOKS_LOCK:
+        left = list(_ACTIVE)
+        left.remove(clock)
+        _ACTIVE = tuple(left)
+        if _ACTIVE:
+            return
+        if _LISTENER is not None:
+            from numba.core import event
+
+            event.unregister("numba:compiler_lock", _LISTENER)
+            _LISTENER = None
+        if builtins.__import__ is _timed_import:
+            builtins.__import__, _REAL_IMPORT = _REAL_IMPORT, None
 
 
 def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:

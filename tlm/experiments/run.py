@@ -30,7 +30,6 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable, Iterable
 from contextlib import contextmanager
@@ -552,7 +551,8 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     point's ``one_off``: :class:`~tlm.experiments.error_cost_clock.CompileClock`), in a stage or
     between stages (a cold run compiles its kernels as the batches' warm-up casts its first ray),
     taken out of the stages they fell in: so the stages say where a cold run's time went, and a
-    cold run's passes read as a warm one's.
+    cold run's passes read as a warm one's. Only the run's own (its thread's, and the kernel pool's
+    calls for it: :func:`one_off_clock`): another thread's first import or compile meanwhile is not.
     """
     t_start = time.perf_counter()
     outputs = tuple(outputs)
@@ -562,7 +562,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
     # the folder is this process's until it is written: another process's run into it is refused
     # now, before any work, naming this one (tlm.claims.claimed), not silently replaced at its end
-    with claimed(out, "run"), one_off_clock() as clock:
+    with claimed(out, "run"), one_off_clock() as spans:
         programs = programs_for(cfg, base)  # a bad instruction table fails before the render
         res = render(cfg, base, source, progress=progress, reference=reference, overrides=tuple(overrides or ()),
                      via=via)
@@ -576,44 +576,21 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
         res = simulate_render(res, programs, progress=progress)
         with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
             results = write_run(res, out, config_path, overrides, outputs,
-                                one_off=lambda: spans_within(clock.spans, t_start, time.perf_counter()))
+                                one_off=lambda: spans(t_start, time.perf_counter()))
             bar.update()
     return results
 
 
-def spans_within(spans: list[tuple[float, float]], start: float, end: float) -> list[tuple[float, float]]:
-    """``spans`` (``time.perf_counter`` readings) cut to ``start`` .. ``end`` (those of another run, on
-    another thread, before this one began: not its)."""
-    return [(max(a, start), min(b, end)) for a, b in list(spans) if min(b, end) > max(a, start)]
-
-
-_CLOCK = CompileClock()  # (one per process: runs on several threads share its hooks, as sweep points do)
-_CLOCK_USERS = 0
-_CLOCK_LOCK = threading.Lock()
-_CLOCK_RUNNING = None  # (the context of _CLOCK.running() while a run runs)
+_CLOCK = CompileClock()  # (one per process: runs on several threads share it, each with its own spans)
 
 
 @contextmanager
 def one_off_clock():
-    """The process's one-off clock (:class:`~tlm.experiments.error_cost_clock.CompileClock`: numba
-    compiling or loading a kernel, first imports), running while any :func:`run` of this process
-    runs (its hooks, the import statement's and numba's, are the process's: runs on several
-    threads share it, as :mod:`tlm.experiments.sweep_point`'s points do), its spans forgotten
-    when none does."""
-    global _CLOCK_USERS, _CLOCK_RUNNING
-    with _CLOCK_LOCK:
-        if _CLOCK_USERS == 0:
-            _CLOCK.spans.clear()
-            t0 = time.perf_counter()
-            _CLOCK_RUNNING = _CLOCK.running()
-            _CLOCK_RUNNING.__enter__()
-            _CLOCK.spans.append((t0, time.perf_counter()))  # (its hooks' own first imports: numba's, in a new process)
-        _CLOCK_USERS += 1
-    try:
-        yield _CLOCK
-    finally:
-        with _CLOCK_LOCK:
-            _CLOCK_USERS -= 1
-            if _CLOCK_USERS == 0:
-                running, _CLOCK_RUNNING = _CLOCK_RUNNING, None
-                running.__exit__(None, None, None)
+    """The run's one-off clock: the process's :class:`~tlm.experiments.error_cost_clock.CompileClock`
+    (numba compiling or loading a kernel, first imports), running while any :func:`run` of this
+    process runs, and what it gives: ``spans(start, end)``, this run's spans cut to that window,
+    those the run's own work began (on its thread, and on the kernels' pool threads working for
+    it: :meth:`~tlm.experiments.error_cost_clock.CompileClock.owned`), not another thread's first
+    import or compile meanwhile; a span still open, up to ``end``."""
+    with _CLOCK.owned() as mine, _CLOCK.running():
+        yield lambda start, end: _CLOCK.spans_of(mine, start, end)

@@ -21,11 +21,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tlm.errors import InputError
 from tlm.kernels import release_memory, threads
 from tlm.kernels.memory import Streams
 from tlm.kernels.photons import PhotonTrace
 from tlm.kernels.recording import Deferred
-from tlm.progress import Timer, checkpoint, progress_bar
+from tlm.progress import Redrawn, Ticking, Timer, checkpoint, progress_bar
 from tlm.render import checks
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer, cast, new_streams, pixel_batches
 from tlm.render.passes import PASS_FUNCTIONS, fgather_pass
@@ -128,6 +129,20 @@ def render_batches(frame: Frame, passes: Sequence[str] | None = None, timer: Tim
         return _render_batches(frame, names, timer, progress)
 
 
+def _kept_alive(bar):
+    """What redraws the photon trace's and warm-up's bar while they run (its elapsed time): a
+    :class:`~tlm.progress.Ticking` thread where the render forks no worker (one thread, or
+    :func:`tlm.kernels.threads.can_fork` false), else the photon chunks' checkpoints
+    (:class:`~tlm.progress.Redrawn`: the trace forks its workers only where no other thread runs)."""
+    if bar.disable:
+        return contextlib.nullcontext()
+    try:
+        may_fork = threads.current() > 1 and threads.can_fork()
+    except InputError:  # (a bad TLM_FORK_WORKERS: the trace or the batches say so)
+        may_fork = True
+    return Redrawn(bar) if may_fork else Ticking(bar)
+
+
 def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress: bool) -> Rendered:
     """:func:`render_batches` on the calling thread's kernel threads."""
     w, h = frame.scene.camera.width, frame.scene.camera.height
@@ -143,8 +158,8 @@ def _render_batches(frame: Frame, names: tuple[str, ...], timer: Timer, progress
     if "pmap" in names or concurrent:
         # (the photon trace and the warm-up: a bar with no steps of its own, so that the batches' bar's rate and
         # time left are the batches' alone; counted as a step of it, a 16 s photon trace read as 16 s a step)
-        # (no Ticking thread: the trace forks its workers only where no other thread runs)
-        with progress_bar(progress, desc="render", total=None, leave=False) as bar:
+        # (its elapsed time redrawn: _kept_alive)
+        with progress_bar(progress, desc="render", total=None, leave=False) as bar, _kept_alive(bar):
             if "pmap" in names:
                 bar.set_postfix_str("photon trace")
                 with timer.stage("photon_trace"):  # (when batches run at once: with what they read)
