@@ -43,6 +43,7 @@ def _never(*args, **kwargs):
     ("progress", lambda d: tlm.granularity(d / "g.yaml", d / "out", progress=3)),
     ("warn", lambda d: tlm.granularity(d / "g.yaml", d / "out", warn=3)),
     ("note", lambda d: tlm.error_vs_cost("error_vs_cost", d / "out", note=3)),
+    ("warn", lambda d: tlm.error_vs_cost("error_vs_cost", d / "out", warn=3)),
     ("progress", lambda d: tlm.extreme("extreme", d / "out", progress=3)),
     ("progress", lambda d: tlm.calibrate("thesis", progress=3)),
 ])
@@ -127,13 +128,21 @@ def test_list_scenes_leaves_out_the_scenes_of_bad_input_on_purpose():
     assert e.value.key == "bad"
 
 
-def test_a_config_file_of_an_empty_mapping_is_the_defaults_as_the_mapping_is(tmp_path):
+def test_a_config_file_of_an_empty_mapping_is_refused_as_an_empty_file_is(tmp_path, cache, capsys):
+    """A file of ``{}`` is not the defaults by mistake (e208dd7 took it so: ``tlm run empty.yaml`` rendered
+    cornell); the mapping ``{}`` given in Python is."""
+    from tlm.cli import main
+
     (tmp_path / "e.yaml").write_text("{}\n")
-    cfg = tlm.load_config(tmp_path / "e.yaml")
-    assert cfg.settings == tlm.load_config({}).settings and cfg.source == str(tmp_path / "e.yaml")
-    assert cfg.base == tmp_path.resolve()
-    assert tlm.load_config(tmp_path / "e.yaml", {"seed": 3}).settings.seed == 3
-    (tmp_path / "c.yaml").write_text("# nothing\n")  # (comments alone: still refused, not the defaults by mistake)
+    for overrides in (None, {"seed": 3}):
+        with pytest.raises(InputError) as e:
+            tlm.load_config(tmp_path / "e.yaml", overrides)
+        assert str(e.value).startswith(f"{tmp_path / 'e.yaml'}: holds an empty mapping {{}}: nothing to run")
+        assert "not taken as the defaults" in str(e.value) and "is empty (nothing but comments" not in str(e.value)
+    assert tlm.load_config({}).settings == tlm.load_config({"scene": "cornell"}).settings
+    assert main(["run", str(tmp_path / "e.yaml"), "--out", str(tmp_path / "r")]) == 2
+    assert "holds an empty mapping {}" in capsys.readouterr().err and not (tmp_path / "r").exists()
+    (tmp_path / "c.yaml").write_text("# nothing\n")  # (comments alone: refused, in their own words)
     with pytest.raises(InputError, match="is empty"):
         tlm.load_config(tmp_path / "c.yaml")
 
@@ -142,10 +151,45 @@ def test_a_config_file_of_an_empty_mapping_is_the_defaults_as_the_mapping_is(tmp
 def test_a_tilde_in_a_path_is_the_home_folder(tmp_path, cache, monkeypatch, elsewhere):
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
     (tmp_path / "home").mkdir()
-    (tmp_path / "home" / "e.yaml").write_text("{}\n")
+    (tmp_path / "home" / "e.yaml").write_text("scene: cornell\n")
     assert tlm.load_config("~/e.yaml").base == (tmp_path / "home").resolve()
     tlm.run(TINY, "~/x", outputs="images")
     assert (tmp_path / "home" / "x" / "results.json").is_file() and not (elsewhere / "~").exists()
+
+
+def test_the_scenes_functions_expand_a_tilde_too(tmp_path, monkeypatch, elsewhere):
+    """tlm.load_scene, scene_info and export_scene took "~/s.yaml" as ./~/s.yaml."""
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    scene = tlm.export_scene("cornell", "~/c.ply")
+    assert (tmp_path / "home" / "c.ply").is_file() and not (elsewhere / "~").exists()
+    tlm.export_scene(scene, "~/s.yaml")
+    assert (tmp_path / "home" / "s.yaml").is_file()
+    assert len(tlm.load_scene("~/s.yaml").triangles) == len(scene.triangles)
+    assert len(tlm.load_scene("s.yaml", base="~").triangles) == len(scene.triangles)
+    assert tlm.scene_info("~/s.yaml")["triangles"] == tlm.scene_info(scene)["triangles"]
+
+
+@pytest.mark.parametrize("name, call", [
+    ("config", lambda d: tlm.load_config("~nosuchuser_h222/x.yaml")),
+    ("base", lambda d: tlm.load_config({"scene": "cornell"}, base="~nosuchuser_h222")),
+    ("out", lambda d: tlm.run(TINY, "~nosuchuser_h222/x")),
+    ("sweeps", lambda d: tlm.scaling("~nosuchuser_h222/s", d / "sc")),
+    ("out", lambda d: tlm.scaling([d], "~nosuchuser_h222/sc")),
+    ("path", lambda d: tlm.granularity("~nosuchuser_h222/g.yaml", d / "g")),
+    ("runs", lambda d: tlm.plots(ROOT / "configs", "~nosuchuser_h222", d / "p", run_command=_never)),
+    ("scene", lambda d: tlm.load_scene("~nosuchuser_h222/s.yaml")),
+    ("base", lambda d: tlm.load_scene("s.yaml", base="~nosuchuser_h222")),
+    ("scene", lambda d: tlm.scene_info("~nosuchuser_h222/s.yaml")),
+    ("file", lambda d: tlm.export_scene("cornell", "~nosuchuser_h222/s.ply")),
+])
+def test_a_tilde_of_no_home_folder_is_an_input_error_naming_the_argument(tmp_path, cache, name, call):
+    """It was a bare ``RuntimeError: Could not determine home directory`` (or, in the scenes' functions,
+    a file ``./~nosuchuser_h222/...`` looked for)."""
+    with pytest.raises(InputError) as e:
+        call(tmp_path)
+    assert e.value.key == name and str(e.value).startswith(f"{name}: '~nosuchuser_h222")
+    assert "~nosuchuser_h222 names no home folder (no such user)" in str(e.value)
 
 
 @pytest.mark.slow
@@ -166,6 +210,28 @@ def test_the_studies_return_a_warning_of_their_overrides_and_print_none(tmp_path
     made = tlm.reference(tlm.load_config(PMAP, {"render": {}}))
     assert len(made.warnings) == 1 and made.warnings[0].startswith("render={} (in the overrides) has no effect")
     assert "warning" not in capfd.readouterr().err
+
+
+def test_error_vs_cost_returns_its_warnings_and_prints_them_from_the_command_line_alone(tmp_path, cache, capfd,
+                                                                                         monkeypatch):
+    """It printed them on stderr from Python too, and had no ``warn=`` (granularity's and extreme's convention)."""
+    from tlm.cli import main
+    from tlm.experiments import error_cost
+
+    def stop(*args, **kwargs):  # (the study's first step after its warnings: nothing rendered)
+        raise InputError("stopped here", key="test")
+
+    monkeypatch.setattr(error_cost, "check_destination", stop)
+    heard = []
+    with pytest.raises(InputError, match="stopped here"):
+        tlm.error_vs_cost("error_vs_cost", tmp_path / "e", overrides=["render={}"], warn=heard.append)
+    assert len(heard) == 1 and heard[0].startswith("render={} (in the overrides) has no effect"), heard
+    assert "warning" not in capfd.readouterr().err
+    error_cost.study_warning("a line  of\n two", heard.append)
+    assert heard[-1] == "a line of two" and capfd.readouterr().err == ""
+    assert main(["error-vs-cost", "error_vs_cost", "--set", "render={}", "--out", str(tmp_path / "c")]) == 2
+    err = capfd.readouterr().err
+    assert err.count("tlm: warning: --set render={} has no effect") == 1, err
 
 
 @pytest.mark.slow
@@ -204,16 +270,36 @@ def _python(tmp_path: Path, args: list[str], stdin: str | None = None) -> subpro
 def test_a_sweep_of_worker_processes_from_a_script_on_stdin_runs_its_points(tmp_path):
     """``python - < script.py``: the workers tried to run '<stdin>' again as the main script (a
     FileNotFoundError's traceback each), and every point failed WorkerDied, exit status 0."""
-    body = 'rows = tlm.sweep(W / "sw.yaml", W / "out", jobs=2)\nprint(list(rows["status"]))\n'
+    body = """\
+        import threading, time
+        missing, stop = [], threading.Event()
+        def watch():  # (the script's other thread, reading its own __file__: deleted for the whole sweep)
+            while not stop.is_set():
+                try:
+                    __file__
+                except NameError:
+                    missing.append(1)
+                time.sleep(0.001)
+        t = threading.Thread(target=watch)
+        t.start()
+        rows = tlm.sweep(W / "sw.yaml", W / "out", jobs=2)
+        stop.set()
+        t.join()
+        print("missing", len(missing), __file__)
+        print(list(rows["status"]))
+        """
     done = _python(tmp_path, ["-"], _script(tmp_path, body))
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == "['ok', 'ok']" and "Traceback" not in done.stderr
+    assert "missing 0 <stdin>" in done.stdout, done.stdout
 
 
 def test_a_main_module_of_no_file_is_run_again_by_no_worker(monkeypatch):
     """``<stdin>`` (``python - < script.py``) is no script to run again, as ``python -c`` has none: its
-    workers start with no main path (it was abspath('<stdin>'), which each worker failed to open)."""
+    workers start with no main path (it was abspath('<stdin>'), which each worker failed to open). Its
+    ``__file__`` stays (it was deleted for the whole sweep: the script's other threads got a NameError)."""
     import types
+    from multiprocessing import spawn
 
     from tlm.experiments.worker_start import main_file_hidden, main_script
 
@@ -221,13 +307,37 @@ def test_a_main_module_of_no_file_is_run_again_by_no_worker(monkeypatch):
     main.__file__, main.__spec__ = "<stdin>", None
     monkeypatch.setitem(sys.modules, "__main__", main)
     assert main_script() is None
+    own = spawn.get_preparation_data
+    assert "init_main_from_path" in own("w")
     with main_file_hidden():
-        assert not hasattr(main, "__file__")
-    assert main.__file__ == "<stdin>"
+        assert main.__file__ == "<stdin>" and "init_main_from_path" not in spawn.get_preparation_data("w")
+        with main_file_hidden():  # (another sweep's, in another thread)
+            assert "init_main_from_path" not in spawn.get_preparation_data("w")
+        assert "init_main_from_path" not in spawn.get_preparation_data("w")
+    assert main.__file__ == "<stdin>" and spawn.get_preparation_data is own
     main.__file__ = "/some/script.py"
     with main_file_hidden():
         assert main.__file__ == "/some/script.py"
+        assert spawn.get_preparation_data("w")["init_main_from_path"] == "/some/script.py"
     assert main_script() == "/some/script.py"
+
+
+def test_a_dask_sweep_puts_back_only_the_variables_distributed_set(monkeypatch):
+    """The whole environment was put back, undoing a variable the caller's other thread set meanwhile."""
+    from tlm.experiments import executors
+
+    for k in ("H222_D", "H222_E", "H222_U", "H222_K"):
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("H222_K", "before")
+    with executors._host_kept() as written:
+        written.update({"H222_D": "1", "H222_E": "1", "H222_K": "1"})  # (what distributed wrote)
+        os.environ.update(H222_D="1", H222_E="1", H222_K="1")
+        os.environ["H222_E"] = "user's"  # (another thread's, since)
+        os.environ["H222_U"] = "user's"
+    assert "H222_D" not in os.environ and os.environ["H222_K"] == "before"
+    assert os.environ["H222_E"] == os.environ["H222_U"] == "user's"
+    written = executors._pre_spawn_env()
+    assert written["__DASK_PARENT_PID"] == str(os.getpid()) and "PYTHONHASHSEED" in written
 
 
 @pytest.mark.slow

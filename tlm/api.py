@@ -314,7 +314,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     """
     via = _via(overrides, via)
     more = _override_strings(overrides)
-    config, base = expanded(config), expanded(base)
+    config, base = expanded(config, "config"), expanded(base, "base")
     if base is not None and not isinstance(base, (str, os.PathLike)):  # (a file's and a Config's own: theirs)
         raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
     if isinstance(config, Config):
@@ -339,10 +339,6 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         path = experiment_path(config)
         given = str(path)
     scene = scene_file(path)
-    if scene is None and read_yaml(path) == {}:  # (`{}`: every setting at its default, as the mapping {} is)
-        raw = apply_overrides({}, more, source=via, cwd=Path.cwd()) if more else {}
-        settings = config_from_dict(raw, with_overrides(given, via) if more else given)
-        return Config(settings, path.resolve().parent, given, tuple(more), via=via)
     if scene is None:
         from tlm.config import load_config as load_run_config
 

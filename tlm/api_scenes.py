@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from tlm.api_common import argument_names, checked, flags_are_kept
 from tlm.api_common import shown as _shown
+from tlm.api_studies import expanded
 from tlm.config import plain, read_yaml
 from tlm.errors import InputError, did_you_mean
 from tlm.whole_imports import imports_whole
@@ -65,6 +66,7 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
     from tlm.scenes.loader import load_scene as load
     from tlm.scenes.loader import resolve_scene_path
 
+    scene, base = expanded(scene, "scene"), expanded(base, "base")  # (~: the home folder, as every path argument's)
     folder = Path(base) if base is not None else Path.cwd()
     # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
     # (a numpy array or a tuple reads as the list it holds, as in load_config)
@@ -134,5 +136,5 @@ def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     scene = _scene(scene)
     if not isinstance(file, (str, os.PathLike)):
         raise InputError(f"{_shown(file)} is not a file path (.ply, .obj or .yaml)", key="file")
-    export_triangles(scene, Path(file))
+    export_triangles(scene, Path(expanded(file, "file")))
     return scene

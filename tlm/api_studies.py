@@ -46,15 +46,28 @@ def callback(value: object, name: str, what: str = "a function of one line") -> 
 
 
 def out_folder(out: object, key: str = "out") -> Path:
-    """``out`` as the path of a folder to write (:func:`~tlm.api_common.folder`), ``~`` expanded."""
-    return _folder(out, key).expanduser()
+    """``out`` as the path of a folder to write (:func:`~tlm.api_common.folder`), ``~`` expanded (:func:`home`)."""
+    return home(_folder(out, key), key)
 
 
-def expanded(path: object) -> object:
-    """A path argument with ``~`` expanded (``"~/runs/x"``: the home folder's, not ``./~/runs/x``);
-    anything else as given, for its own check to name."""
-    if isinstance(path, (str, os.PathLike)) and os.fspath(path).startswith("~"):
+def home(path: str | os.PathLike, key: str) -> Path:
+    """``path`` with its ``~`` (``~/x``, ``~user/x``) expanded; a ``~`` that names no home folder
+    (``~nosuchuser/x``, or ``~`` with no HOME) is an InputError naming the argument ``key`` (it was
+    ``RuntimeError: Could not determine home directory``)."""
+    try:
         return Path(path).expanduser()
+    except RuntimeError:
+        tilde = Path(path).parts[0]
+        raise InputError(f"{os.fspath(path)!r}: {tilde} names no home folder ("
+                         f"{'no such user' if tilde != '~' else 'HOME is not set'}): give the path in full",
+                         key=key) from None
+
+
+def expanded(path: object, key: str) -> object:
+    """A path argument ``key`` with ``~`` expanded (``"~/runs/x"``: the home folder's, not ``./~/runs/x``;
+    :func:`home`); anything else as given, for its own check to name."""
+    if isinstance(path, (str, os.PathLike)) and os.fspath(path).startswith("~"):
+        return home(path, key)
     return path
 
 
@@ -72,7 +85,7 @@ def folder_list(value: object, key: str, what: str) -> list[Path]:
             raise InputError(f"{_shown(d)} is not a folder's path: give {what}", key=key)
     if not given:
         raise InputError(f"no folder given: name {what}", key=key)
-    return [Path(d).expanduser() for d in given]
+    return [home(d, key) for d in given]
 
 
 def _formats(formats: object) -> str | list[str] | None:
@@ -90,7 +103,7 @@ def _formats(formats: object) -> str | list[str] | None:
 
 def _experiment(path: object, command: str) -> Path:
     """The experiment file a study was given (:func:`~tlm.api_common.experiment_file`), ``~`` expanded."""
-    return _experiment_file(expanded(path), command)
+    return _experiment_file(expanded(path, "path"), command)
 
 
 # ---------------------------------------------------------------- many experiments
@@ -355,6 +368,12 @@ class _Warned:
 
 
 
+def _stderr_warning(line: str) -> None:
+    from tlm.storage import warn
+
+    warn(line)
+
+
 class StudyRows(list):
     """A study's rows, a list of dicts (one per point), with ``attrs`` as a pandas DataFrame has
     them (:func:`sweep`'s table): ``attrs["notes"]`` and ``attrs["warnings"]``, lists of the lines
@@ -369,7 +388,8 @@ class StudyRows(list):
 @imports_whole
 def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
                   progress: Callable[[int, int, dict], None] | None = None,
-                  note: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None) -> StudyRows:
+                  note: Callable[[str], None] | None = None, overrides: Iterable[str] | None = None,
+                  warn: Callable[[str], None] | None = None) -> StudyRows:
     """Photon-map filters, image error against work and host time (``tlm error-vs-cost``):
     one row per point of the experiment file ``path`` (or the built-in experiment of that
     name), a list of dicts (:class:`StudyRows`); ``truth_spp``: samples per pixel of Mitsuba 3's
@@ -377,14 +397,15 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
     --set``) applied to its base (not a key its points vary). The study's notes (the reference
     computed, or the ground truth; no ground truth, and why: its ``truth_*`` columns are then empty)
     are the rows' ``attrs["notes"]``, and ``note`` gets each as it is known too (None: nothing is
-    printed); its warnings (the reference not converged, or not cached), which it prints on stderr
-    as ``tlm error-vs-cost`` does, are their ``attrs["warnings"]``."""
+    printed); its warnings (the reference not converged, or not cached; an override that sets nothing,
+    ``render={}``), which ``tlm error-vs-cost`` prints on stderr, are their ``attrs["warnings"]``; ``warn``
+    gets each as it is known too (None: nothing is printed)."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
     notes: list[str] = []
     warnings: list[str] = []
     kept = flags_are_kept()
-    names = {"path", "out", "truth_spp", "progress", "note", "overrides"}
+    names = {"path", "out", "truth_spp", "progress", "note", "overrides", "warn"}
 
     def said(lines: list[str], hear: Callable[[str], None] | None) -> Callable[[str], None]:
         def told(line: str) -> None:  # (a caller in Python: truth_spp=0, not --truth-spp 0)
@@ -397,9 +418,11 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
 
     progress = callback(progress, "progress", "a function of (point, points, row)")
     note = callback(note, "note")
+    # (the command line's: printed on stderr by the study, once each, as tlm.storage.warn prints them)
+    hear = callback(warn, "warn") or (_stderr_warning if kept else None)
     rows = run_error_vs_cost(_experiment(path, "error-vs-cost"), out_folder(out), progress=progress,
                              truth=Truth(spp=truth_spp), note=said(notes, note), overrides=_overrides(overrides),
-                             warned=said(warnings, None))
+                             warned=said(warnings, hear), via="--set" if kept else "the overrides")
     return StudyRows(rows, notes, warnings)
 
 
@@ -514,6 +537,6 @@ def plots(configs: str | Path, runs: str | Path, out: str | Path, only: str | li
     for name, value in (("configs", configs), ("runs", runs)):
         if not isinstance(value, (str, os.PathLike)):
             raise InputError(f"{_shown(value)} is not a folder's path", key=name)
-        folders.append(Path(value).expanduser())
+        folders.append(home(value, name))
     with figure_output(_formats(formats), dpi):  # (the report's figures; a bad value stops here, before any step)
         return regenerate(*folders, out_folder(out), steps, run_command=run_command, say=hear)

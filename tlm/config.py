@@ -568,9 +568,11 @@ def load_config(path: Path | None, overrides: list[str] | None = None, via: str 
         raw = read_yaml(Path(path))
         source = str(path)
         base = Path(path).resolve().parent
-        if raw is None or raw == {}:  # (an empty file, or comments only: not the defaults by mistake)
-            raise InputError("is empty (nothing but comments or blanks): write the settings to change, e.g. "
-                             "`scene: cornell` (the defaults: 'tlm params')", source=source)
+        if raw is None or raw == {}:  # (an empty file, comments only or `{}`: not the defaults by mistake)
+            what = "holds an empty mapping {}: nothing to run" if raw == {} else \
+                "is empty (nothing but comments or blanks)"
+            raise InputError(f"{what}: write the settings to change, e.g. `scene: cornell` (an empty config file is "
+                             "not taken as the defaults: 'tlm params' lists them)", source=source)
         if not isinstance(raw, dict):
             raise InputError(f"must be a mapping of keys (key: value lines), got {yaml_kind(raw)}", source=source)
         raw = files_from(raw, base)  # (the files it names: from the config's folder, once)

@@ -206,7 +206,8 @@ def _override_strings(point: dict[str, Any]) -> list[str]:
     return [f"{k}={json.dumps(v)}" for k, v in point.items()]
 
 
-def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None) -> tuple[dict, list[dict], Path]:
+def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None,
+                    via: str = "--set") -> tuple[dict, list[dict], Path]:
     """``(base, points, folder)`` of the experiment file ``path``, every point checked before
     any work. A base that sets a ``mode`` other than ``pmap`` is refused (InputError naming
     ``base.mode``): every point is a photon-map frame, which the base's mode would not be.
@@ -215,7 +216,7 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None) ->
     other than ``pmap`` too), in every point's config. ``warned``: called, once every point is
     checked, with a line for each ``--set`` and each points value that sets nothing (a section's
     mapping that names no key, ``--set render={}``, ``render: [{}]``, merges into the base's:
-    :func:`empty_lines`)."""
+    :func:`empty_lines`; ``via``: what those lines call the overrides)."""
     raw, base, src = read_study(path, ("points",))
     points = expand(raw.get("points"), src)
     base_cfg = config_from_dict(base, src)  # (a mode that is no mode is refused here, as by tlm run)
@@ -248,19 +249,19 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None) ->
                 given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
                 _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None,
                               whole=not isinstance(p.get(given), dict))
-    for line in empty_lines(raw.get("points"), overrides, src) if warned is not None else ():
+    for line in empty_lines(raw.get("points"), overrides, src, via) if warned is not None else ():
         warned(line)
     return base, points, folder
 
 
-def empty_lines(points: Any, overrides: tuple[str, ...], source: str) -> list[str]:
+def empty_lines(points: Any, overrides: tuple[str, ...], source: str, via: str = "--set") -> list[str]:
     """A line for each ``--set`` (:func:`~tlm.experiments.run_warnings.empty_sets`, as ``tlm run`` says
     it) and each value of a grid of ``points`` (``points[0].render: the value {} ...``, as ``tlm sweep``
     says a factor's) that gives a section a mapping naming no key: it merges into the base's section,
     so it sets nothing (:func:`~tlm.config_words.sets_nothing`); a line given twice, once."""
     from tlm.experiments.run_warnings import empty_sets
 
-    lines = empty_sets(overrides)
+    lines = empty_sets(overrides, via)  # (via: what the lines call the overrides, "the overrides" in the API's)
     for i, grid in enumerate(_grids(points)):
         for k, values in grid.items():
             base = f"its points have the base's {k}"
@@ -328,7 +329,7 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
 
 
 def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None,
-                      overrides: tuple[str, ...] = (), warned=None) -> list[dict]:
+                      overrides: tuple[str, ...] = (), warned=None, via: str = "--set") -> list[dict]:
     """Run every point of the experiment file ``path``; write the rows into ``out``.
 
     Each row measures the point's photon-map frame against our converged reference
@@ -336,9 +337,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     composite (every planned frame) against the independent ground truth (``truth_*``:
     Mitsuba's path tracer, so bias of the model shows as well as noise), when there is
     one. ``note`` receives one-line messages (the reference or the ground truth computed, or no
-    ground truth); ``warned`` each warning line, which is printed on stderr too (the reference not
+    ground truth); ``warned`` each warning line, in place of stderr (None: printed there; the reference not
     converged, or not cached: :func:`study_warning`; a ``--set`` or points value that sets nothing,
-    ``render={}``, before any work: :func:`empty_lines`).
+    ``render={}``, before any work: :func:`empty_lines`, naming the overrides ``via``).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
     """
@@ -347,7 +348,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         raise InputError(f"{truth.spp!r} is not a count of samples per pixel (0: no ground truth)", key="--truth-spp")
     start = time.perf_counter()
     overrides = tuple(str(o) for o in overrides)
-    base, points, folder = load_experiment(Path(path), overrides, lambda line: study_warning(line, warned))
+    base, points, folder = load_experiment(Path(path), overrides, lambda line: study_warning(line, warned), via)
     check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
     configs = [config_from_dict({**apply_overrides(base, _override_strings(p)), "mode": "pmap"}, str(path))
@@ -622,10 +623,12 @@ def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseExce
 
 
 def study_warning(message: str, warned=None) -> None:
-    """A warning of the study: on stderr (:func:`tlm.storage.warn`, ``tlm: warning: ...``), and
-    to ``warned`` (where given) as the one line it printed."""
-    warn(message)
-    if warned is not None:
+    """A warning of the study: given to ``warned`` as one line, or where that is None said on stderr
+    (:func:`tlm.storage.warn`, ``tlm: warning: ...``); not both (:func:`tlm.api.error_vs_cost` returns them,
+    printing none, as :func:`tlm.api.granularity` does; ``tlm error-vs-cost`` prints each once)."""
+    if warned is None:
+        warn(message)
+    else:
         warned(" ".join(message.split()))
 
 

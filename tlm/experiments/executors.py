@@ -473,12 +473,13 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
     """A concurrent.futures executor: in-process (``jobs`` 1), local processes, or a Dask
     client's; no more workers than ``points``. ``dask_wait``: the seconds a Dask sweep
     waits while its scheduler has no worker (None: :data:`NO_WORKERS_WAIT`)."""
-    if jobs != 1 or dask is not None:  # (a script on stdin: its workers start as python -c's)
+    if jobs != 1 or dask is not None:  # (a script on stdin: its workers, and those started again, as python -c's)
         stack.enter_context(main_file_hidden())
     if dask is None:  # a pool even for one point: a point that ends its worker does not end the sweep
         return InProcess() if jobs == 1 else LocalPool(min(jobs, points))
     jobs = min(jobs, points)
-    stack.enter_context(_host_kept())  # (closed last: the environment and loggers distributed changes, put back)
+    written = stack.enter_context(_host_kept())  # (closed last: the environment and loggers distributed changes,
+    # put back; written: the variables it sets in this process, as its nannies will)
     from distributed import Client, LocalCluster
 
     # a Client left unreachable earlier (one whose connection failed: the constructor raised
@@ -491,6 +492,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
     if dask == "local":
         from distributed.utils import get_mp_context
 
+        written.update(_pre_spawn_env())
         _check_guarded(get_mp_context())  # (the workers' own start method: a script that sweeps at import is
         # one line, where the nannies failed to start their workers)
         # no dashboard, and the scheduler's HTTP server on a free port: with dashboard_address=None
@@ -503,6 +505,8 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        dashboard_address="127.0.0.1:0",
                                                        scheduler_kwargs={"dashboard": False},
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
+        for nanny in list(getattr(cluster, "workers", {}).values()):  # (what each nanny sets, as it computed it)
+            written.update(getattr(nanny, "pre_spawn_env", None) or {})
         client = stack.enter_context(Client(cluster))
         stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
     else:
@@ -518,25 +522,46 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
 
 @contextmanager
 def _host_kept():
-    """The calling process's ``os.environ`` and the ``distributed``, ``tornado`` and ``bokeh`` loggers'
-    handlers and ``propagate`` put back as they were once the block ends: distributed sets the variables its
-    nannies' workers inherit (``OMP_NUM_THREADS=1``, ``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``, ...)
-    in this process, and its import gives those loggers a handler of its own (a notebook's session would
-    keep both after its sweep). Their levels are :class:`_Quiet`'s."""
+    """The variables of the calling process's ``os.environ`` that distributed sets, and the ``distributed``,
+    ``tornado`` and ``bokeh`` loggers' handlers and ``propagate``, put back as they were once the block ends:
+    distributed sets the variables its nannies' workers inherit (``OMP_NUM_THREADS=1``,
+    ``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``, ...: its ``pre-spawn-environ``) in this process, and its
+    import gives those loggers a handler of its own (a notebook's session would keep both after its sweep).
+    Yields the record of what it sets (a dict the caller fills: :func:`_pre_spawn_env`, the nannies' own); a
+    variable is put back only where its value is still what distributed wrote, so that one another thread set
+    meanwhile stays (the whole environment was put back, undoing it). Their levels are :class:`_Quiet`'s."""
     env = dict(os.environ)
+    written: dict[str, str] = {}
     loggers = {n: (list(logging.getLogger(n).handlers), logging.getLogger(n).propagate) for n in _HOST_LOGGERS}
     try:
-        yield
+        yield written
     finally:
-        for k in [k for k in os.environ if k not in env]:
-            os.environ.pop(k, None)
-        for k, v in env.items():
-            if os.environ.get(k) != v:
-                os.environ[k] = v
+        for k, v in written.items():
+            if os.environ.get(k) == v and env.get(k) != v:  # (still distributed's, not another thread's since)
+                if k in env:
+                    os.environ[k] = env[k]
+                else:
+                    os.environ.pop(k, None)
         for name, (handlers, propagate) in loggers.items():
             logger = logging.getLogger(name)
             logger.handlers[:] = handlers
             logger.propagate = propagate
+
+
+def _pre_spawn_env() -> dict[str, str]:
+    """The variables a local cluster's nannies will set in this process before each worker starts, as
+    ``distributed.nanny.Nanny`` computes them (Dask's ``distributed.nanny.pre-spawn-environ``, a variable
+    already set keeping its value; ``PYTHONHASHSEED``; ``__DASK_PARENT_PID``, for the workers' process
+    titles), for :func:`_host_kept` to put back: known before the cluster starts, in case its start fails."""
+    import dask
+
+    given = dask.config.get("distributed.nanny.pre-spawn-environ", None)
+    env = {k: os.environ.get(k, str(v)) for k, v in (given if isinstance(given, dict) else {}).items()
+           if v is not None}
+    if env.get("PYTHONHASHSEED") in (None, "0"):
+        env["PYTHONHASHSEED"] = "6640"  # (distributed's own choice, dask/distributed#8400)
+    env["__DASK_PARENT_PID"] = str(os.getpid())
+    return env
 
 
 _HOST_LOGGERS = ("distributed", "tornado", "bokeh")  # the loggers distributed's import configures

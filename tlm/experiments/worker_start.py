@@ -170,20 +170,45 @@ def _no_file(path: object) -> bool:
 
 @contextmanager
 def main_file_hidden():
-    """While the block starts worker processes, a main module whose ``__file__`` names no file
-    (``<stdin>``: a script given on standard input, ``python - < script.py``) is as ``python -c``'s, which
-    has none: multiprocessing's ``spawn`` and ``forkserver`` workers would run it again from that path
-    (``FileNotFoundError: '<stdin>'``, each worker dead before any point). Put back afterwards."""
-    main = sys.modules.get("__main__")
-    path = getattr(main, "__file__", None)
-    if getattr(getattr(main, "__spec__", None), "name", None) is not None or not _no_file(path):
-        yield
-        return
-    del main.__file__
+    """While the block runs (a sweep's pool or Dask cluster, whose workers start, and start again, as
+    it runs), a worker process started by ``spawn`` or ``forkserver`` is not told to run again a main
+    module whose ``__file__`` names no file (``<stdin>``: a script given on standard input, ``python - <
+    script.py``), as ``python -c``'s, which has none: it would (``FileNotFoundError: '<stdin>'``, each
+    worker dead before any point). Only what :func:`multiprocessing.spawn.get_preparation_data` tells
+    a new process is changed (its ``init_main_from_path``), not ``__main__``: the script's own threads
+    still read its ``__file__`` (it was deleted for the whole sweep, a NameError in the caller's other
+    threads). Blocks may nest and overlap, in threads: the first in puts the change in, the last out
+    takes it away."""
+    global _hiding
+    from multiprocessing import spawn
+
+    with _HIDE_LOCK:
+        if _hiding == 0:
+            _PREPARATION[:] = [spawn.get_preparation_data]
+            spawn.get_preparation_data = _preparation_data
+        _hiding += 1
     try:
         yield
     finally:
-        main.__file__ = path
+        with _HIDE_LOCK:
+            _hiding -= 1
+            if _hiding == 0 and spawn.get_preparation_data is _preparation_data:
+                spawn.get_preparation_data = _PREPARATION[0]  # (kept: a call under way still reads it)
+
+
+_HIDE_LOCK = threading.Lock()
+_hiding = 0  # main_file_hidden blocks open
+_PREPARATION: list = []  # multiprocessing.spawn's own get_preparation_data while they are
+
+
+def _preparation_data(name: str) -> dict:
+    """:func:`multiprocessing.spawn.get_preparation_data`, less ``init_main_from_path`` where the main
+    module's ``__file__`` names no file (:func:`main_file_hidden`)."""
+    data = _PREPARATION[0](name)
+    main = sys.modules.get("__main__")
+    if getattr(getattr(main, "__spec__", None), "name", None) is None and _no_file(getattr(main, "__file__", None)):
+        data.pop("init_main_from_path", None)
+    return data
 
 
 def unguarded_error() -> InputError:
