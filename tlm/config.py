@@ -209,7 +209,7 @@ class ReferenceConfig:
 
 
 # Maxima keep the model's cycles within int64. A frame is T_norm + misses x page_miss + flushes x flush + swaps,
-# switches x theirs + copied words / copy_words_per_cycle (it divides); knobs <= 2**20, frames <= 10**4 < 2**14 keep all
+# switches x theirs + words / copy_words_per_cycle (divides: <= 2**62); knobs <= 2**20, frames <= 10**4 keep all
 # but T_norm below 2**63 to 2**29 events a frame (thesis Cornell PMap: 2.6e6). T_norm (arch.programs: its scale) is
 # capped only at costs.MAX_CYCLES = 2**62 a job: the frames can pass int64 with it (units.within_int64 stops that). FIFO
 # depth, packet size <= 2**31, max_events <= 2**53. clock_hz >= 1 Hz: a trace's us (cycles x 1e6 / clock) finite.
@@ -231,7 +231,8 @@ class ArchConfig:
     page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access)", min=0, **_CYC)
     flush_cycles: int = _f(4, "T_ps cycles per pipeline flush (thesis: 4)", min=0, **_CYC)
     swap_cycles: int = _f(2, "cycles to re-route a PM to another module (top two address bits)", min=0, **_CYC)
-    copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1, **_CYC)
+    copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1,
+                                   max=1 << 62)  # (a divisor: any bandwidth keeps the copies' cycles small)
     context_switch_cycles: int = _f(16, "cycles to save or restore a PM's context at a preemption", min=0, **_CYC)
     memory: str = _f("swap", "swap: frames move down the chain by re-routing, data is copied only where two "
                      "stages need it | copy: every hand-over copies the working set", choices=MEMORY_READINGS)
