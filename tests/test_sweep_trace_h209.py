@@ -241,21 +241,70 @@ def test_an_interrupt_while_points_run_again_for_their_trace_loses_no_point_done
 
 
 def test_a_point_that_fails_to_run_again_for_its_trace_keeps_its_results(tmp_path, monkeypatch):
-    """A point done without a trace that fails as it runs again for one: its folder keeps its results (an
-    error.json could not replace them: the marker differs), and its row says the error."""
+    """A point done without a trace that fails as it runs again for one: its folder keeps its results, and its
+    error.json, the whole message its row points to (traceback and all), is written beside them (h224). A later
+    sweep still runs it again for its trace; the folder that then replaces it holds no error.json (not carried
+    over as a user's file), the user's own file is."""
     out = tmp_path / "out"
     sweep = _sweep(tmp_path)
     assert run_sweep(sweep, out, jobs=1).ok == 2
     before = _ran(out)
+    for h in before:
+        (out / "points" / h / "notes.md").write_text(f"mine {h}")
+    real = model.simulate
+
+    message = "no memory for the trace; " + "; ".join(f"unit{i} blocked" for i in range(200))  # (cut in its row)
 
     def fails(*args, **kwargs):
-        raise RuntimeError("no memory for the trace")
+        raise RuntimeError(message)
 
     monkeypatch.setattr(model, "simulate", fails)
     done = run_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"])
     assert (done.ok, done.failed) == (0, 2)
     assert all("no memory for the trace" in str(r["error"]) for r in done.rows), done.rows
-    assert _ran(out) == before and not list(out.rglob("error.json"))
+    assert _ran(out) == before
+    rows = [json.loads(line) for line in (out / "sweep.jsonl").read_text().splitlines()]
+    for row in rows:  # (where the row says the whole message is)
+        where = row["error"].rsplit("the whole message: ", 1)[1].rstrip(")")
+        error = json.loads((out / where).read_text())
+        assert error["hash"] == row["hash"] and error["message"] == message
+        assert "Traceback" in error["traceback"] and "RuntimeError" in error["traceback"]
+    plan = plan_sweep(sweep, out, overrides=["arch.trace=true"])
+    assert (plan.to_run, plan.untraced) == (2, 2)  # (still to run again for its trace)
+    monkeypatch.setattr(model, "simulate", real)
+    again = run_sweep(sweep, out, jobs=1, overrides=["arch.trace=true"])
+    assert (again.skipped, again.ok, again.failed) == (0, 2, 0)
+    assert not list(out.rglob("error.json"))
+    assert all(written for _, written, _ in _ran(out).values())
+    assert all((out / "points" / h / "notes.md").read_text() == f"mine {h}" for h in before)
+
+
+def test_a_remote_worker_s_point_run_again_is_not_taken_for_the_old_folder(tmp_path):
+    """A remote Dask worker's record (sweep._seen_here): a point run again keeps its old folder, whose
+    results.json is not the worker's; a worker that wrote where this machine does not see has its ok record
+    failed all the same (h224). The worker's own results.json (a shared disk) is taken; an error.json of an
+    earlier try is replaced by the worker's error."""
+    from types import SimpleNamespace
+
+    from tlm.experiments.sweep import _seen_here
+
+    out = tmp_path / "out"
+    assert run_sweep(_sweep(tmp_path), out, jobs=1).ok == 2
+    folder = sorted((out / "points").iterdir())[0]
+    task = SimpleNamespace(out=str(folder), hash=folder.name, factors={}, config={})
+    old = json.loads((folder / "results.json").read_text())
+    new = {**old, "host_seconds": {**old["host_seconds"], "write": old["host_seconds"]["write"] + 1.0}}
+    remote = {"status": "ok", "results": new, "worker": "tcp://10.0.0.9:1234"}
+    seen = _seen_here(remote, task)
+    assert seen["status"] == "failed" and "does not see" in seen["error"]["message"], seen
+    assert json.loads((folder / "results.json").read_text()) == old  # (the old results kept)
+    assert json.loads((folder / "error.json").read_text())["type"] == "PathNotOnWorker"
+    shared = {"status": "ok", "results": old, "worker": "tcp://10.0.0.9:1234"}
+    assert _seen_here(shared, task) is shared  # (the worker's own file, seen here)
+    error = {"type": "RuntimeError", "message": "no memory (on tcp://10.0.0.9:1234)", "stage": "simulate",
+             "traceback": "Traceback ..."}
+    assert _seen_here({"status": "failed", "error": error}, task)["status"] == "failed"
+    assert json.loads((folder / "error.json").read_text()) == {"hash": folder.name, "factors": {}, **error}
 
 
 def test_a_traced_and_an_untraced_sweep_of_the_same_points_do_not_share_a_folder(tmp_path):

@@ -68,6 +68,7 @@ references (``--reference``) and the line on its points without an image error:
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import math
 import numbers
 import os
@@ -611,13 +612,15 @@ def _trim_torn(path: Path) -> None:
 def _seen_here(record: dict, task: Task) -> dict:
     """A remote worker's point as this machine sees it: a point its worker wrote where this
     machine does not see it (its own disk, not a shared one) failed, with where it went;
-    a failed point's ``error.json`` written here where its worker could not."""
+    a failed point's ``error.json`` written here where its worker could not. The worker's file is told by
+    its content, the record's own (:func:`_holds`): a point run again keeps its old folder, whose
+    ``results.json`` (or ``error.json`` of an earlier try) is not the worker's."""
     if record["status"] != "ok":
-        if not (Path(task.out) / "error.json").is_file():
+        if not _holds(Path(task.out) / "error.json", record["error"]):
             with suppress(OSError, InputError):
                 write_error(task, record["error"])
         return record
-    if (Path(task.out) / "results.json").is_file():
+    if _holds(Path(task.out) / "results.json", record.get("results")):
         return record
     where = record.get("worker") or "its Dask worker"
     error = error_record(PathNotOnWorker(
@@ -626,6 +629,19 @@ def _seen_here(record: dict, task: Task) -> dict:
     with suppress(OSError, InputError):
         write_error(task, error)
     return {"status": "failed", "error": error}
+
+
+def _holds(path: Path, value) -> bool:
+    """Whether the JSON file ``path`` here holds ``value`` (a worker's record, as written: strict JSON), or a
+    mapping with each of its keys (an ``error.json``: the error with the point's hash and factors)."""
+    try:
+        here = json.loads(path.read_text())
+        want = json.loads(storage.json_text(value))
+    except (OSError, ValueError, TypeError):
+        return False
+    if isinstance(want, dict) and isinstance(here, dict):
+        return all(k in here and here[k] == v for k, v in want.items())
+    return here == want
 
 
 def _record(f: cf.Future, task: Task) -> dict:

@@ -293,15 +293,18 @@ POINT_FILES = frozenset({"config.resolved.yaml", "results.json", "trace.json", "
 
 
 def write_error(task: Task, error: dict) -> None:
-    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config. Not where
-    the folder holds the point finished before (:func:`finished`: run again
-    for the trace.json it now asks for, or to be measured again): its results stay, and the error is the
-    sweep's row's (a rerun tries it again)."""
+    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config. Where the
+    folder holds the point finished before (:func:`finished`: run again for the trace.json it now asks for, or
+    to be measured again), its results stay and ``error.json`` is written beside them (where the sweep's row
+    points for the whole message); the folder is still run again by a later sweep (its rerun's demand holds),
+    and the new folder that replaces it does not carry the file over (:data:`POINT_FILES`)."""
+    body = {"hash": task.hash, "factors": task.factors, **error}
     if finished(Path(task.out)) is not None:
+        with storage.write_atomic(Path(task.out) / "error.json") as f:
+            f.write(storage.json_text(body, indent=2) + "\n")
         return
     with atomic_folder(Path(task.out), "error.json", POINT_FILES) as tmp:
         (tmp / "config.resolved.yaml").write_text(config_text(task.config))
-        body = {"hash": task.hash, "factors": task.factors, **error}
         (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
 
 
