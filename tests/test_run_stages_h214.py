@@ -265,3 +265,105 @@ def test_the_photon_trace_bar_ticks_where_the_render_forks_no_worker(monkeypatch
     with threads.using(2):
         batches._kept_alive(bar)
     assert made == ["Ticking", "Redrawn"]
+
+
+@pytest.fixture
+def hooks_kept(monkeypatch):
+    """The process's import statement and the clock's shared hooks put back after the test (whatever it left)."""
+    import builtins
+
+    import tlm.experiments.error_cost_clock as ecc
+
+    for name in ("_ACTIVE", "_REAL_IMPORT", "_LISTENER"):
+        monkeypatch.setattr(ecc, name, getattr(ecc, name))
+    monkeypatch.setattr(builtins, "__import__", builtins.__import__)
+    return ecc
+
+
+def test_a_ctrl_c_while_the_hooks_go_on_leaves_them_off(hooks_kept, monkeypatch):
+    """A KeyboardInterrupt while numba's first import ran (inside _hooks_on) left the import hook
+    installed and the clock listed as running, for the life of the process."""
+    import builtins
+
+    ecc = hooks_kept
+    real, before = builtins.__import__, ecc._ACTIVE
+
+    def interrupted():
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ecc, "_wants_numba", lambda: True)
+    monkeypatch.setattr(ecc, "_numba_listener", interrupted)
+    with pytest.raises(KeyboardInterrupt), ecc.CompileClock().running():
+        pass
+    assert builtins.__import__ is real and ecc._ACTIVE is before
+
+
+def test_another_threads_compile_open_as_the_clock_stops_is_in_no_later_window(hooks_kept):
+    """A compile on another thread still under way as the last clock stopped (its end never heard:
+    the listener gone) stayed open on the clock: every later window's one_off covered it whole."""
+    from numba.core import event
+
+    clock = hooks_kept.CompileClock()
+    began, done = threading.Event(), threading.Event()
+
+    def compiling():
+        with event.trigger_event("numba:compiler_lock"):
+            began.set()
+            done.wait(30)
+
+    other = threading.Thread(target=compiling)
+    with clock.running():
+        other.start()
+        assert began.wait(30)
+    done.set()
+    other.join()
+    with clock.running():
+        t0 = time.perf_counter()
+        time.sleep(0.3)
+        t1 = time.perf_counter()
+        assert clock.within(t0, t1) < 0.05  # (was 0.3)
+
+
+def test_a_ctrl_c_as_the_import_hook_starts_its_span_leaves_none_open(hooks_kept, tmp_path, monkeypatch):
+    """A KeyboardInterrupt between the clocks' start and the hook's try: the span stayed open (the
+    rest of the run's windows covered it) and the thread's stack dirty."""
+    module = f"tlm_h225_probe_{os.getpid()}"
+    (tmp_path / f"{module}.py").write_text("X = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, module, raising=False)
+
+    class Interrupted(hooks_kept.CompileClock):
+        interrupt = False
+
+        def _start(self):
+            super()._start()
+            if self.interrupt:
+                self.interrupt = False
+                raise KeyboardInterrupt
+
+    clock = Interrupted()
+    with clock.running():
+        clock.interrupt = True
+        with pytest.raises(KeyboardInterrupt):
+            __import__(module)  # (a first import: through builtins.__import__)
+        t0 = time.perf_counter()
+        time.sleep(0.3)
+        t1 = time.perf_counter()
+        assert clock.within(t0, t1) < 0.05  # (was 0.3)
+    sys.modules.pop(module, None)
+
+
+def test_the_import_hook_goes_on_again_after_a_library_restored_the_import_statement(hooks_kept):
+    """A library's hook put over the clock's and then taken off (the original put back): no later
+    clock wrapped the import statement again, and first imports went untimed."""
+    import builtins
+
+    ecc = hooks_kept
+    real = builtins.__import__
+    clock = ecc.CompileClock()
+    with clock.running():
+        builtins.__import__ = lambda *a, **k: real(*a, **k)  # (the library's, over the clock's)
+    builtins.__import__ = real  # (the library taken off: what it saved put back)
+    with clock.running():
+        assert builtins.__import__ is ecc._timed_import
+    assert builtins.__import__ is real

@@ -53,38 +53,57 @@ class CompileClock:
         self._local = threading.local()  # .stack: the thread's open events, [(owner, start), ...]
         self._open: dict[tuple[int, object | None], float] = {}  # (thread, owner) -> start of its open span
         self._running = 0
+        self._run = 0  # (which run of the clock: a thread's stack of an earlier one is forgotten)
         self.spans: list[tuple[float, float]] = []  # (Span, closed; a list others may clear)
+
+    def _stack(self) -> list:
+        """The thread's open events of this run of the clock (``self._lock`` held): those of an earlier
+        run (an event whose end never came: its listener gone, a Ctrl-C) forgotten."""
+        local = self._local.__dict__
+        if local.get("run") != self._run:
+            local["run"], local["stack"] = self._run, []
+        return local["stack"]
 
     def _start(self) -> None:
         owner, now = _OWNER.get(), time.perf_counter()
-        stack = self._local.__dict__.setdefault("stack", [])
-        if all(o is not owner for o, _ in stack):  # (the thread's outermost event of that owner)
-            with self._lock:
+        with self._lock:
+            stack = self._stack()
+            if all(o is not owner for o, _ in stack):  # (the thread's outermost event of that owner)
                 self._open[(threading.get_ident(), owner)] = now
-        stack.append((owner, now))
+            stack.append((owner, now))
 
     def _end(self) -> None:
-        stack = self._local.__dict__.get("stack")
-        if not stack:  # (begun before this clock ran)
-            return
-        owner, _ = stack.pop()
-        if all(o is not owner for o, _ in stack):
-            key = (threading.get_ident(), owner)
-            with self._lock:
+        with self._lock:
+            stack = self._stack()
+            if not stack:  # (begun before this run of the clock)
+                return
+            owner, _ = stack.pop()
+            if all(o is not owner for o, _ in stack):
+                key = (threading.get_ident(), owner)
                 since = self._open.pop(key, None)
                 if since is not None:
                     self.spans.append(Span(since, time.perf_counter(), owner, key[0]))
 
+    def _new_run(self) -> None:
+        """``self._lock`` held: the spans still open closed now (an end that will never come: numba's
+        listener gone as the last clock stopped, a Ctrl-C inside the hook), every thread's stack forgotten."""
+        now = time.perf_counter()
+        self.spans += [Span(a, now, owner, thread) for (thread, owner), a in self._open.items()]
+        self._open.clear()
+        self._run += 1
+
     @contextmanager
     def running(self):
         """Record while the block runs (the process's hooks on while any clock runs: :func:`_hooks_on`).
-        A clock may run on several threads at once; its spans are cleared as it starts from none."""
+        A clock may run on several threads at once; its spans are cleared as it starts from none, and
+        those still open closed as it stops (an end never heard: each thread's events forgotten)."""
         with self._lock:
             if self._running == 0:
+                self._new_run()
                 self.spans.clear()
             self._running += 1
         try:
-            _hooks_on(self)
+            _hooks_on(self)  # (as it was, if it raises: a Ctrl-C while numba imports)
             try:
                 yield self
             finally:
@@ -92,6 +111,8 @@ class CompileClock:
         finally:
             with self._lock:
                 self._running -= 1
+                if self._running == 0:
+                    self._new_run()
 
     @contextmanager
     def owned(self):
@@ -145,9 +166,9 @@ def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noq
         first = True
     if not first:
         return real(name, globals, locals, fromlist, level)
-    for clock in clocks:
-        clock._start()
-    try:
+    try:  # (the starts inside: a Ctrl-C among them still ends them)
+        for clock in clocks:
+            clock._start()
         return real(name, globals, locals, fromlist, level)
     finally:
         for clock in clocks:
@@ -198,32 +219,46 @@ def _hooks_on(clock: CompileClock) -> None:
     """``clock`` running: the import hook on with the first clock, numba's listener where wanted."""
     global _ACTIVE, _REAL_IMPORT, _LISTENER
     with _HOOKS_LOCK:
-        _ACTIVE = (*_ACTIVE, clock)
-        if builtins.__import__ is not _timed_import and _REAL_IMPORT is None:
-            _REAL_IMPORT = builtins.__import__
-            builtins.__import__ = _timed_import
-        if _LISTENER is None and _wants_numba():  # (numba's own first import: timed by the hook)
-            with suppress(ImportError):  # (numba does not import: the import hook alone)
-                _LISTENER = _numba_listener()
+        before = _ACTIVE
+        try:  # (whatever it raises, a Ctrl-C while numba's first import runs: the hooks as they were)
+            _ACTIVE = (*before, clock)
+            # (wrapped; again where the import statement is what this hook called, a library's hook put
+            # over it since taken off: not where another hook may still call this one under it)
+            now = builtins.__import__
+            if now is not _timed_import and (_REAL_IMPORT is None or now is _REAL_IMPORT):
+                _REAL_IMPORT, builtins.__import__ = now, _timed_import
+            if _LISTENER is None and _wants_numba():  # (numba's own first import: timed by the hook)
+                with suppress(ImportError):  # (numba does not import: the import hook alone)
+                    _LISTENER = _numba_listener()
+        except BaseException:
+            _ACTIVE = before
+            if not before:
+                _unhook()
+            raise
 
 
 def _hooks_off(clock: CompileClock) -> None:
     """``clock`` stopped: with the last one, the hooks off (the import statement's as it was; a
     hook another library put over it since stays, and this one under it passes calls through)."""
-    global _ACTIVE, _REAL_IMPORT, _LISTENER
+    global _ACTIVE
     with _HOOKS_LOCK:
         left = list(_ACTIVE)
         left.remove(clock)
         _ACTIVE = tuple(left)
-        if _ACTIVE:
-            return
-        if _LISTENER is not None:
-            from numba.core import event
+        if not _ACTIVE:
+            _unhook()
 
-            event.unregister("numba:compiler_lock", _LISTENER)
-            _LISTENER = None
-        if builtins.__import__ is _timed_import:
-            builtins.__import__, _REAL_IMPORT = _REAL_IMPORT, None
+
+def _unhook() -> None:
+    """The hooks off, no clock running (``_HOOKS_LOCK`` held)."""
+    global _REAL_IMPORT, _LISTENER
+    if _LISTENER is not None:
+        from numba.core import event
+
+        event.unregister("numba:compiler_lock", _LISTENER)
+        _LISTENER = None
+    if builtins.__import__ is _timed_import:
+        builtins.__import__, _REAL_IMPORT = _REAL_IMPORT, None
 
 
 def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:

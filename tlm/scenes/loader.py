@@ -589,7 +589,6 @@ def _check_unused(yaml_mats: dict[str, Material], file_mats: tuple[Material, ...
                         "default_material): it is not rendered" for name in unused]
     if not unused:
         return notes
-        return []
     name = unused[0]
     listed = ", ".join(file_names[:shown]) + (f" and {len(file_names) - shown} more" if len(file_names) > shown else "")
     close = did_you_mean(name, file_names).strip()[1:-1]  # ("did you mean 'x'?" without its brackets)
