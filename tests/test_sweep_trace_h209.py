@@ -162,8 +162,8 @@ def test_asking_for_a_trace_runs_again_only_the_points_done_without_one(tmp_path
     sweep = _sweep(tmp_path, "d.yaml", grid=more)
     assert main(["sweep", str(sweep), "--out", str(out), "--set", "arch.trace=true", "--dry-run", "--json"]) == 0
     plan = yaml.safe_load(capsys.readouterr().out)
-    assert {k: plan[k] for k in ("points", "done", "to_run", "replaced", "untraced")} == {
-        "points": 3, "done": 2, "to_run": 1, "replaced": 1, "untraced": 1}
+    assert {k: plan[k] for k in ("points", "done", "to_run", "replaced", "kept", "untraced")} == {
+        "points": 3, "done": 2, "to_run": 1, "replaced": 0, "kept": 1, "untraced": 1}  # (kept until replaced)
     assert main(["sweep", str(sweep), "--out", str(out), "--set", "arch.trace=true", "--dry-run"]) == 0
     assert ("1 point folder of points done without the trace.json they ask for (arch.trace) run again, each kept "
             "until its new folder replaces it" in capsys.readouterr().out)

@@ -31,7 +31,7 @@ from typing import Any
 
 from tlm import storage
 from tlm.experiments.sweep_file import Point, Sweep, load_sweep
-from tlm.experiments.sweep_point import MARKER
+from tlm.experiments.sweep_point import MARKER, finished
 from tlm.experiments.sweep_reference import (
     HELD,
     done_record,
@@ -79,7 +79,8 @@ class SweepPlan:
     references: list[Reference] | None = None  # with --reference: every reference the points to run need
     warnings: list[str] = field(default_factory=list)  # the warnings the sweep would say (before its points run)
     remote: bool = False  # a remote Dask scheduler: its workers' caches, not this machine's, decide the renders
-    untraced: int = 0  # of ``replaced``: points done without the trace.json they now ask for (arch.trace: true)
+    untraced: int = 0  # of ``kept``: points done without the trace.json they now ask for (arch.trace: true)
+    kept: int = 0  # point folders of finished points run again (their trace.json, --reference): kept until replaced
 
     @property
     def renders(self) -> int:
@@ -93,7 +94,7 @@ class SweepPlan:
         return {"dry_run": True, "sweep": str(self.path), "out": str(self.out), "points": self.points,
                 "done": self.done, "to_run": self.to_run, "measured_again": self.measured_again,
                 "frames": self.frames, "frames_cached": self.frames_cached, "renders": self.renders,
-                "replaced": self.replaced, "untraced": self.untraced, "stale": self.stale,
+                "replaced": self.replaced, "kept": self.kept, "untraced": self.untraced, "stale": self.stale,
                 "other_folders": self.other_folders, "references": refs, "remote": self.remote,
                 "warnings": list(self.warnings)}
 
@@ -104,10 +105,13 @@ class SweepPlan:
 
         again = f", {self.measured_again} of them done before and measured again (--reference)" \
             if self.measured_again else ""
-        folders = [*([f"{n(self.replaced - self.untraced, 'point folder')} of failed or unfinished points removed "
-                       "and run again"] if self.replaced > self.untraced else []),
-                   *([f"{n(self.untraced, 'point folder')} of points done without the trace.json they ask for "
-                      "(arch.trace) run again, each kept until its new folder replaces it"] if self.untraced else [])]
+        why = ("without the trace.json they ask for (arch.trace)" if self.untraced == self.kept else
+               "measured again (--reference)" if not self.untraced else
+               "without the trace.json they ask for (arch.trace), or measured again (--reference)")
+        folders = [*([f"{n(self.replaced, 'point folder')} of failed or unfinished points removed and run again"]
+                     if self.replaced else []),
+                   *([f"{n(self.kept, 'point folder')} of points done {why} run again, each kept until its new "
+                      "folder replaces it"] if self.kept else [])]
         replaced = f"; {'; '.join(folders)}" if folders else ""
         where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
         lines = [f"dry run of {self.path} into {self.out}: nothing run, no output folder written (tlm's scene "
@@ -162,7 +166,6 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     present = listed(points_dir)
     records = {h: point_done(points_dir / h, by_hash[h][0]) if h in present else None for h in by_hash}
     todo = {h for h, rec in records.items() if rec is None}
-    replaced = sum(h in present for h in todo)
     # (of them, done but for the trace.json the point asks for: point_done)
     untraced = sum(h in present and by_hash[h][0].traces and done_record(points_dir / h) is not None for h in todo)
     warnings = [*sweep.inert_factors(), *sweep.inert_sets()]
@@ -171,6 +174,9 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
         references, again, line = _references(sweep, records)
         warnings += line
     run = todo | (again or set())
+    # (as run_sweep: a folder of no finished point is removed first, a finished one kept until it is replaced)
+    ended = {h: finished(points_dir / h) is not None for h in run if h in present}
+    replaced, kept = sum(not e for e in ended.values()), sum(ended.values())
     frames = {by_hash[h][0].functional for h in run}
     cached = sum(is_cached(k) for k in frames)
     other = other_folders(points_dir, by_hash)
@@ -179,7 +185,7 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     count = lambda hashes: sum(len(by_hash[h]) for h in hashes)  # noqa: E731  (a hash's points: its rows)
     return SweepPlan(sweep.path, out, len(sweep.points), count(set(by_hash) - run), count(run),
                      count(again or ()), len(frames), cached, replaced, _stale(out), other, references,
-                     warnings, remote, untraced)
+                     warnings, remote, untraced, kept)
 
 
 def _references(sweep: Sweep, records: dict[str, dict | None]) -> tuple[list[Reference], set[str], list[str]]:
