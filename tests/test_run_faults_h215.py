@@ -270,3 +270,20 @@ def test_a_traceback_that_cannot_be_written_leaves_no_empty_file(tmp_path, monke
     except RuntimeError as e:
         assert cli_signals.save_traceback(e) is None
     assert list(tmp_path.rglob("tlm-traceback-*")) == []
+
+
+def test_an_interrupt_a_c_extension_made_an_error_of_after_the_run_says_it_is_kept(tmp_path, monkeypatch):
+    """kept_whole caught a KeyboardInterrupt alone: a Ctrl-C that a C extension turned into an error of its own
+    (tlm.errors.interrupted_by) as the run's lines were printed gave a bare 'tlm: interrupted'."""
+    import argparse
+
+    from tlm import cli_report, errors
+    from tlm.cli_signals import Interrupted
+
+    monkeypatch.setattr(cli_report, "interrupted_by", lambda e: e if isinstance(e, TypeError) else None)
+    args = argparse.Namespace(no_report=True)
+    with pytest.raises(Interrupted, match="is kept, whole"), cli_report.kept_whole(args, tmp_path, "the run", "f"):
+        raise TypeError("could not export nb::ndarray: ... KeyboardInterrupt")
+    with pytest.raises(ValueError), cli_report.kept_whole(args, tmp_path, "the run", "f"):  # (a real bug: raised)
+        raise ValueError("a bug")
+    assert errors.interrupted_by(ValueError("a bug")) is None

@@ -15,7 +15,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
-from tlm.errors import EnvironmentFailure
+from tlm.errors import EnvironmentFailure, interrupted_by
 
 
 def say_err(line: str) -> None:
@@ -48,14 +48,14 @@ def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> 
             begun, earlier = True, _page_id(folder)
             # no other run replaces the folder while its report is written
             print(f"report: {api.write_report([out], lock=True, formats=args.formats, dpi=args.dpi)}")
-    except KeyboardInterrupt as e:
-        if isinstance(e, Interrupted):
+    except BaseException as e:  # (a Ctrl-C, or an error a C extension made of it: errors.interrupted_by)
+        if isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
+            if isinstance(e, EnvironmentFailure):  # (a full disk as the report is written: the output is whole)
+                failed = EnvironmentFailure(f"{e}; {_not_written(args, out, f'{kept} in {out}', files)}")
+                failed.source = e.source
+                raise failed from e
             raise
         raise Interrupted(_report_interrupted(args, out, f"{kept} in {out}", files, earlier if begun else False)) from e
-    except EnvironmentFailure as e:  # (a full disk as the report is written: what the command wrote is whole)
-        failed = EnvironmentFailure(f"{e}; {_not_written(args, out, f'{kept} in {out}', files)}")
-        failed.source = e.source
-        raise failed from e
 
 
 @contextmanager
@@ -67,8 +67,8 @@ def kept_whole(args: argparse.Namespace, out: Path, kept: str, files: str) -> It
     :func:`report_after`'s own line."""
     try:
         yield
-    except KeyboardInterrupt as e:
-        if isinstance(e, Interrupted):
+    except BaseException as e:  # (a Ctrl-C, or an error a C extension made of it: errors.interrupted_by)
+        if isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
             raise
         if getattr(args, "no_report", False):
             raise Interrupted(f"after {kept} was written: {kept} in {out} is kept, whole ({files})") from e
