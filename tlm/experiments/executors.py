@@ -32,13 +32,15 @@ import time
 import warnings
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import ExitStack, contextmanager, suppress
+from contextlib import ExitStack, suppress
 from dataclasses import dataclass, field
 from typing import Any
 
 from tlm.errors import InputError, interrupted_by
 from tlm.experiments.executors_dask import CONNECT_TIMEOUT, answers
 from tlm.experiments.executors_dask import SweepStopped as SweepStopped  # (kept importable from here: the sweep)
+from tlm.experiments.executors_dask import host_kept as _host_kept  # (kept importable from here: tests)
+from tlm.experiments.executors_dask import pre_spawn_env as _pre_spawn_env
 from tlm.experiments.worker_start import OWN_PROCESS as OWN_PROCESS  # (these: kept importable from here)
 from tlm.experiments.worker_start import TLM_PRELOAD as TLM_PRELOAD
 from tlm.experiments.worker_start import UNGUARDED_EXIT as UNGUARDED_EXIT
@@ -518,53 +520,6 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
-
-
-@contextmanager
-def _host_kept():
-    """The variables of the calling process's ``os.environ`` that distributed sets, and the ``distributed``,
-    ``tornado`` and ``bokeh`` loggers' handlers and ``propagate``, put back as they were once the block ends:
-    distributed sets the variables its nannies' workers inherit (``OMP_NUM_THREADS=1``,
-    ``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``, ...: its ``pre-spawn-environ``) in this process, and its
-    import gives those loggers a handler of its own (a notebook's session would keep both after its sweep).
-    Yields the record of what it sets (a dict the caller fills: :func:`_pre_spawn_env`, the nannies' own); a
-    variable is put back only where its value is still what distributed wrote, so that one another thread set
-    meanwhile stays (the whole environment was put back, undoing it). Their levels are :class:`_Quiet`'s."""
-    env = dict(os.environ)
-    written: dict[str, str] = {}
-    loggers = {n: (list(logging.getLogger(n).handlers), logging.getLogger(n).propagate) for n in _HOST_LOGGERS}
-    try:
-        yield written
-    finally:
-        for k, v in written.items():
-            if os.environ.get(k) == v and env.get(k) != v:  # (still distributed's, not another thread's since)
-                if k in env:
-                    os.environ[k] = env[k]
-                else:
-                    os.environ.pop(k, None)
-        for name, (handlers, propagate) in loggers.items():
-            logger = logging.getLogger(name)
-            logger.handlers[:] = handlers
-            logger.propagate = propagate
-
-
-def _pre_spawn_env() -> dict[str, str]:
-    """The variables a local cluster's nannies will set in this process before each worker starts, as
-    ``distributed.nanny.Nanny`` computes them (Dask's ``distributed.nanny.pre-spawn-environ``, a variable
-    already set keeping its value; ``PYTHONHASHSEED``; ``__DASK_PARENT_PID``, for the workers' process
-    titles), for :func:`_host_kept` to put back: known before the cluster starts, in case its start fails."""
-    import dask
-
-    given = dask.config.get("distributed.nanny.pre-spawn-environ", None)
-    env = {k: os.environ.get(k, str(v)) for k, v in (given if isinstance(given, dict) else {}).items()
-           if v is not None}
-    if env.get("PYTHONHASHSEED") in (None, "0"):
-        env["PYTHONHASHSEED"] = "6640"  # (distributed's own choice, dask/distributed#8400)
-    env["__DASK_PARENT_PID"] = str(os.getpid())
-    return env
-
-
-_HOST_LOGGERS = ("distributed", "tornado", "bokeh")  # the loggers distributed's import configures
 
 
 def _local_preloads() -> dict[str, list]:

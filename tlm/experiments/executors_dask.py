@@ -1,7 +1,8 @@
 """The Dask side of a sweep's executors that stands apart from the pool itself: the check that
 something answers, as a Dask scheduler, at a ``--dask tcp://HOST:PORT`` address before the client
 connects (:func:`answers`, within :data:`CONNECT_TIMEOUT` seconds), and :class:`SweepStopped`, the
-one line that says the cluster, not a point, stopped the sweep.
+one line that says the cluster, not a point, stopped the sweep; and :func:`host_kept`, which puts back
+what a local cluster changes in this process (the variables its nannies set, distributed's loggers).
 
 :mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
 executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
@@ -11,7 +12,10 @@ worker: :mod:`tlm.experiments.dask_workers`. Nothing here imports distributed at
 
 from __future__ import annotations
 
+import logging
+import os
 import socket
+from contextlib import contextmanager
 
 from tlm.errors import EnvironmentFailure, InputError
 
@@ -88,3 +92,51 @@ class SweepStopped(EnvironmentFailure):
     """The cluster, not a point, stopped the sweep (its Dask scheduler lost, or without
     workers too long): one line, exit status 1; the points done are kept, and a rerun
     into the folder runs the others."""
+
+
+@contextmanager
+def host_kept():
+    """The variables of the calling process's ``os.environ`` that distributed sets, and the ``distributed``,
+    ``tornado`` and ``bokeh`` loggers' handlers and ``propagate``, put back as they were once the block ends:
+    distributed sets the variables its nannies' workers inherit (``OMP_NUM_THREADS=1``,
+    ``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``, ...: its ``pre-spawn-environ``) in this process, and its
+    import gives those loggers a handler of its own (a notebook's session would keep both after its sweep).
+    Yields the record of what it sets (a dict the caller fills: :func:`pre_spawn_env`, the nannies' own); a
+    variable is put back only where its value is still what distributed wrote, so that one another thread set
+    meanwhile stays (the whole environment was put back, undoing it). Their levels are
+    :class:`tlm.experiments.executors._Quiet`'s."""
+    env = dict(os.environ)
+    written: dict[str, str] = {}
+    loggers = {n: (list(logging.getLogger(n).handlers), logging.getLogger(n).propagate) for n in _HOST_LOGGERS}
+    try:
+        yield written
+    finally:
+        for k, v in written.items():
+            if os.environ.get(k) == v and env.get(k) != v:  # (still distributed's, not another thread's since)
+                if k in env:
+                    os.environ[k] = env[k]
+                else:
+                    os.environ.pop(k, None)
+        for name, (handlers, propagate) in loggers.items():
+            logger = logging.getLogger(name)
+            logger.handlers[:] = handlers
+            logger.propagate = propagate
+
+
+def pre_spawn_env() -> dict[str, str]:
+    """The variables a local cluster's nannies will set in this process before each worker starts, as
+    ``distributed.nanny.Nanny`` computes them (Dask's ``distributed.nanny.pre-spawn-environ``, a variable
+    already set keeping its value; ``PYTHONHASHSEED``; ``__DASK_PARENT_PID``, for the workers' process
+    titles), for :func:`host_kept` to put back: known before the cluster starts, in case its start fails."""
+    import dask
+
+    given = dask.config.get("distributed.nanny.pre-spawn-environ", None)
+    env = {k: os.environ.get(k, str(v)) for k, v in (given if isinstance(given, dict) else {}).items()
+           if v is not None}
+    if env.get("PYTHONHASHSEED") in (None, "0"):
+        env["PYTHONHASHSEED"] = "6640"  # (distributed's own choice, dask/distributed#8400)
+    env["__DASK_PARENT_PID"] = str(os.getpid())
+    return env
+
+
+_HOST_LOGGERS = ("distributed", "tornado", "bokeh")  # the loggers distributed's import configures
