@@ -15,10 +15,9 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 import time
 import traceback
-from contextlib import contextmanager, suppress
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -165,31 +164,9 @@ def run_point(task: Task) -> dict:
 
 
 _CLOCK = CompileClock()  # (one per process: a Dask worker runs points in threads, each timing its own window)
-_CLOCK_USERS = 0
-_CLOCK_LOCK = threading.Lock()
-_CLOCK_RUNNING = None  # (the context of _CLOCK.running() while a point runs)
-
-
-@contextmanager
-def _one_off_clock():
-    """The process's :class:`~tlm.experiments.error_cost_clock.CompileClock`, running while any
-    point of this process runs (points in threads of one Dask worker share it: its hooks are
-    the process's), its spans forgotten when none does."""
-    global _CLOCK_USERS, _CLOCK_RUNNING
-    with _CLOCK_LOCK:
-        if _CLOCK_USERS == 0:
-            _CLOCK.spans.clear()
-            _CLOCK_RUNNING = _CLOCK.running()
-            _CLOCK_RUNNING.__enter__()
-        _CLOCK_USERS += 1
-    try:
-        yield _CLOCK
-    finally:
-        with _CLOCK_LOCK:
-            _CLOCK_USERS -= 1
-            if _CLOCK_USERS == 0:
-                running, _CLOCK_RUNNING = _CLOCK_RUNNING, None
-                running.__exit__(None, None, None)
+# The process's clock, running while any point of this process runs (points in threads of one Dask worker share
+# it: its hooks are the process's; CompileClock.running counts its users), its spans forgotten when none does.
+_one_off_clock = _CLOCK.running
 
 
 class PathNotOnWorker(OSError):
