@@ -213,11 +213,13 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     helpers, the cache folder (for a traceback's file), a run's claim of its folder (held through
     its report) and the thesis tables' text formatting; tlm/cli_report.py (the report a command
     writes at its end, the claim of a report's folder) as cli_signals does; tlm/cli_args.py (the
-    argument types and shared options) imports the API alone."""
+    argument types and shared options) imports the API alone; tlm/cli_tables.py (the tables
+    tlm thesis, tlm scaling and tlm params print, out of cli.py) as cli.py does, the thesis
+    tables' text formatting among them, and cli_report's one line on stderr."""
     allowed = {"tlm", "tlm.api", "tlm.errors", "tlm.storage", "tlm.claims", "tlm.caches", "tlm.experiments.thesis"}
     used = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli.py")}
-    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache", "tlm.cli_run"}, \
-        used - allowed
+    assert used <= allowed | {"tlm.cli_signals", "tlm.cli_args", "tlm.cli_report", "tlm.cli_cache", "tlm.cli_run",
+                              "tlm.cli_tables"}, used - allowed
     running = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_run.py")}  # (what tlm run prints, out of cli.py)
     assert running <= allowed - {"tlm.experiments.thesis"}, running - allowed
     caching = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_cache.py")}  # (tlm cache: the caches' folder alone)
@@ -230,7 +232,10 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
     assert streams == set(), streams
     arguments = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_args.py")}
     assert arguments <= {"tlm.api"}, arguments
-    thesis = {n for m, n in _tlm_imports(ROOT / "tlm" / "cli.py") if m == "tlm.experiments.thesis"}
+    tables = {m for m, _ in _tlm_imports(ROOT / "tlm" / "cli_tables.py")}  # (what cli.py printed of the studies)
+    assert tables <= allowed | {"tlm.cli_report"}, tables - allowed
+    thesis = {n for f in ("cli.py", "cli_tables.py") for m, n in _tlm_imports(ROOT / "tlm" / f)
+              if m == "tlm.experiments.thesis"}
     assert thesis <= {"describe_rows", "describe_items", "median_words", "slowest_words"}
     commands = [n for n in ast.walk(ast.parse((ROOT / "tlm" / "cli.py").read_text()))
                 if isinstance(n, ast.FunctionDef) and n.name.startswith("_cmd_")]
@@ -243,6 +248,7 @@ def test_the_cli_reaches_the_layers_below_only_through_the_api():
 @pytest.mark.parametrize("module", ["tlm/api.py", "tlm/api_studies.py", "tlm/api_scenes.py", "tlm/api_cache.py",
                                     "tlm/api_common.py", "tlm/cli.py", "tlm/cli_args.py", "tlm/cli_report.py",
                                     "tlm/cli_run.py", "tlm/cli_signals.py", "tlm/cli_streams.py", "tlm/cli_cache.py",
+                                    "tlm/cli_tables.py",
                                     *sorted(
     str(p.relative_to(ROOT)) for p in (ROOT / "tlm" / "experiments").glob("*.py"))])
 def test_no_private_name_is_imported_from_another_module(module):

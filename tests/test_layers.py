@@ -32,7 +32,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common", "tlm.cli", "tlm.cli_args",
-     "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_streams", "tlm.cli_cache", "tlm.__main__", "tlm"),
+     "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_streams", "tlm.cli_cache",
+     "tlm.cli_tables", "tlm.__main__", "tlm"),
 )
 
 

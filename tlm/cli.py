@@ -33,7 +33,9 @@ from tlm.cli_signals import (
     version,
     writes_files,
 )
-from tlm.errors import values_text
+from tlm.cli_tables import print_scaling as _print_scaling
+from tlm.cli_tables import print_thesis as _print_thesis
+from tlm.cli_tables import yaml_text as _yaml_text
 
 
 def _say(line: str) -> None:
@@ -42,8 +44,6 @@ def _say(line: str) -> None:
 
     tqdm.write(line, file=sys.stdout)
     sys.stdout.flush()
-
-
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -223,7 +223,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-
 def _reference_command(args: argparse.Namespace, overrides: list[str]) -> str:
     """The ``tlm reference`` command that computes the reference of the run ``args``: its config as
     typed, and the overrides the run had (``--set``, and ``--mode``/``--seed`` as ``--set``)."""
@@ -276,25 +275,6 @@ def _cmd_scaling(args: argparse.Namespace) -> int:
         _print_scaling(done, out)
         report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
     return 0
-
-
-def _print_scaling(done: dict, out: Path) -> None:
-    """What ``tlm scaling`` prints of its fits."""
-    for note in done["notes"]:
-        say_err(f"note: {note}")
-    print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
-    fits = done["fits"]
-    wide = {k: max([w, *(len(str(f[k])) for f in fits)]) for k, w in (("scene", 8), ("mode", 7), ("scheduler", 8))}
-    # a sweep crossing N with other factors: a fit per combination of their values (its group)
-    group = max((len(f.get("group") or "") for f in fits), default=0)
-    for f in fits:
-        combination = f"{f.get('group') or '':{group}s} " if group else ""
-        print(f"  {f['scene']:{wide['scene']}s} {f['mode']:{wide['mode']}s} {f['scheduler']:{wide['scheduler']}s} "
-              f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
-              f"max |error| {f['max_abs_rel_error']:6.1%}; "
-              f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
-              f"(N = {values_text(f['pipelines'])})")
-    print(f"wrote {out}")
 
 
 def _cmd_scene(args: argparse.Namespace) -> int:
@@ -389,22 +369,6 @@ def _cmd_params(args: argparse.Namespace) -> int:
     return 0
 
 
-def _yaml_text(value) -> str:
-    """A default as a config file writes it, and as YAML reads it back: ``null``, ``true``,
-    ``cornell``, ``[16, 16]``; a whole float of 10**6 or more as ``6.0e+08`` (YAML reads
-    ``6e+08``, with no point, as text)."""
-    import math
-
-    import yaml
-
-    if isinstance(value, float) and math.isfinite(value) and value == int(value) and abs(value) >= 1e6:
-        mantissa, exponent = f"{value:e}".split("e")
-        mantissa = mantissa.rstrip("0")
-        return f"{mantissa}{'0' if mantissa.endswith('.') else ''}e{exponent}"
-    text = yaml.safe_dump(value, default_flow_style=True, width=10**9, allow_unicode=True).strip()
-    return text.removesuffix("...").strip()
-
-
 def _cmd_thesis(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
@@ -419,23 +383,6 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
         _print_thesis(done, out)
         report_after(args, out, *kept)
     return 0
-
-
-def _print_thesis(done: dict, out: Path) -> None:
-    """What ``tlm thesis`` prints of its study: its tables, then its warnings."""
-    from tlm.experiments.thesis import describe_items, describe_rows, median_words, slowest_words
-
-    print("ours (thesis), millions of cycles; FPS in frames per second")
-    print(describe_rows(done["rows"], done.get("names")))
-    sm = done["summary"]
-    print(f"{median_words(sm)}; {slowest_words(sm)}")
-    print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
-          "per ray, cycles per pixel, cycles per triangle")
-    print(describe_items(sm["per_item"], done.get("names")))
-    print(f"wrote {out}/thesis_comparison.csv")
-    sys.stdout.flush()  # (its table first, then its warnings on stderr, each once: api.thesis returns them)
-    for line in done.get("warnings") or []:
-        storage.warn(line)
 
 
 def _cmd_granularity(args: argparse.Namespace) -> int:

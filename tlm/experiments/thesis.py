@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import math
 import re
 import time
 from collections.abc import Callable
@@ -82,6 +81,12 @@ from tlm.experiments.thesis_setting import (  # noqa: F401  (all but mismatches,
     setting_mismatches,
     table_of,
     thesis_setting,
+)
+from tlm.experiments.thesis_text import (  # noqa: F401  (all but fixed: re-exported, their home until now)
+    describe_items,
+    fixed,
+    median_words,
+    slowest_words,
 )
 from tlm.progress import Timer, progress_bar
 from tlm.render.planner import plan
@@ -284,53 +289,6 @@ def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
     }
 
 
-def describe_items(items: dict[str, dict], scenes: dict[str, str] | None = None) -> str:
-    """The per-item table `tlm thesis` prints: ours (thesis) for each scene-mode, in fixed
-    notation (:func:`fixed`); ``scenes``: each scene's name in the printout (:func:`scene_names`)."""
-    names = (("trav_cycles_per_ray", "TTrav/ray"), ("tests_per_ray", "tests/ray"),
-             ("frag_cycles_per_pixel", "TFrag/pixel"), ("vert_cycles_per_triangle", "TVert/tri"))
-    keys = [(*key.rsplit("/", 1), it) for key, it in items.items()]
-    shown = [(scenes or {}).get(scene, scene) for scene, _, _ in keys]
-    wide = max([8, *map(len, shown)])
-    lines = [f"{'scene':{wide}s} {'mode':8s} {'rays':>8s} " + " ".join(f"{h:>21s}" for _, h in names)
-             + f" {'tests/leaf':>10s}"]
-    for scene, (_, mode, it) in zip(shown, keys, strict=True):
-        cells = []
-        for k, _ in names:
-            o, t = it["ours"][k], it["thesis"][k]
-            cells.append(f"{'-' if o is None else fixed(o):>9s} ({'-' if t is None else fixed(t):>9s})")
-        leaf = it["tests_per_leaf"]
-        lines.append(f"{scene:{wide}s} {mode:8s} {it['rays']:>8d} " + " ".join(f"{c:>21s}" for c in cells)
-                     + f" {'-' if leaf is None else fixed(leaf):>10s}")
-    return "\n".join(lines)
-
-
-def median_words(s: dict) -> str:
-    """A :func:`summarize`'s held-out median in words, as every place that quotes it says it:
-    over how many cells, or why there is none (scenes not comparable, no thesis value)."""
-    med, why = s["median_abs_rel_error_held_out"], s.get("median_withheld")
-    if med is None:
-        return f"no median |relative error| ({why or 'no cell with a thesis value'})"
-    return (f"median |relative error| over the {s['held_out_cells_compared']} held-out cells: {med:.1%}"
-            + (f" ({why})" if why else ""))
-
-
-def slowest_words(s: dict) -> str:
-    """A :func:`summarize`'s slowest-PM count in words, qualified as :func:`median_words` qualifies
-    the median: over the comparable scene-modes alone where some are not comparable, and said
-    to be of a setting not the thesis's where none is (a count against another setting measures
-    the setting, not the model)."""
-    n, m = s["scene_modes"], s["slowest_pm_matches"]
-    n_ok, m_ok = s.get("slowest_pm_comparable", n), s.get("slowest_pm_matches_comparable", m)
-    if n_ok == n:
-        return f"slowest PM as in the thesis in {m} of {n} scene-modes"
-    if n_ok:
-        return (f"slowest PM as in the thesis in {m_ok} of {n_ok} comparable scene-modes "
-                f"({n - n_ok} not comparable left out)")
-    return (f"slowest PM as in the thesis in {m} of {n} scene-modes, none comparable with the thesis "
-            "(a count of the setting, not of the model)")
-
-
 def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = None,
               names: dict[str, str] | None = None) -> dict:
     """The medians of |relative error| and the slowest PMs of comparison rows.
@@ -522,14 +480,6 @@ def scene_names(scenes: list[str], folder: Path, source: str) -> dict[str, str]:
         label = scene_label(file)
         names[_name(s)] = label if label != str(file) else s
     return names
-
-
-def fixed(x: float, digits: int = 4) -> str:
-    """A number in fixed notation to ``digits`` significant figures, a large one whole: ``0.01234``,
-    ``12.35``, ``21470`` (not ``2.147e+04``)."""
-    if not math.isfinite(x) or x == 0:
-        return f"{x:g}"
-    return f"{x:.{max(0, digits - 1 - math.floor(math.log10(abs(x))))}f}"
 
 
 # -- calibration --------------------------------------------------------------------------------

@@ -1,0 +1,65 @@
+"""The tables the commands print of what the API returns (out of :mod:`tlm.cli`, which imports
+them by their old names): ``tlm thesis``'s Tables I-III and counts per work item
+(:func:`print_thesis`), ``tlm scaling``'s eq. 5.2 fits (:func:`print_scaling`), and a default as
+``tlm params`` writes it in its column (:func:`yaml_text`)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from tlm import storage
+from tlm.cli_report import say_err
+from tlm.errors import values_text
+
+
+def print_thesis(done: dict, out: Path) -> None:
+    """What ``tlm thesis`` prints of its study: its tables, then its warnings."""
+    from tlm.experiments.thesis import describe_items, describe_rows, median_words, slowest_words
+
+    print("ours (thesis), millions of cycles; FPS in frames per second")
+    print(describe_rows(done["rows"], done.get("names")))
+    sm = done["summary"]
+    print(f"{median_words(sm)}; {slowest_words(sm)}")
+    print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
+          "per ray, cycles per pixel, cycles per triangle")
+    print(describe_items(sm["per_item"], done.get("names")))
+    print(f"wrote {out}/thesis_comparison.csv")
+    sys.stdout.flush()  # (its table first, then its warnings on stderr, each once: api.thesis returns them)
+    for line in done.get("warnings") or []:
+        storage.warn(line)
+
+
+def print_scaling(done: dict, out: Path) -> None:
+    """What ``tlm scaling`` prints of its fits."""
+    for note in done["notes"]:
+        say_err(f"note: {note}")
+    print("eq. 5.2, T_tot(N) = A * T_vert0 + B * sum_i max(T_t,i, T_r,i, T_f,i) / N, exact at N = 1:")
+    fits = done["fits"]
+    wide = {k: max([w, *(len(str(f[k])) for f in fits)]) for k, w in (("scene", 8), ("mode", 7), ("scheduler", 8))}
+    # a sweep crossing N with other factors: a fit per combination of their values (its group)
+    group = max((len(f.get("group") or "") for f in fits), default=0)
+    for f in fits:
+        combination = f"{f.get('group') or '':{group}s} " if group else ""
+        print(f"  {f['scene']:{wide['scene']}s} {f['mode']:{wide['mode']}s} {f['scheduler']:{wide['scheduler']}s} "
+              f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
+              f"max |error| {f['max_abs_rel_error']:6.1%}; "
+              f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
+              f"(N = {values_text(f['pipelines'])})")
+    print(f"wrote {out}")
+
+
+def yaml_text(value) -> str:
+    """A default as a config file writes it, and as YAML reads it back: ``null``, ``true``,
+    ``cornell``, ``[16, 16]``; a whole float of 10**6 or more as ``6.0e+08`` (YAML reads
+    ``6e+08``, with no point, as text)."""
+    import math
+
+    import yaml
+
+    if isinstance(value, float) and math.isfinite(value) and value == int(value) and abs(value) >= 1e6:
+        mantissa, exponent = f"{value:e}".split("e")
+        mantissa = mantissa.rstrip("0")
+        return f"{mantissa}{'0' if mantissa.endswith('.') else ''}e{exponent}"
+    text = yaml.safe_dump(value, default_flow_style=True, width=10**9, allow_unicode=True).strip()
+    return text.removesuffix("...").strip()

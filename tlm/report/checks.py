@@ -1,0 +1,162 @@
+"""A tlm file the report reads, read whole and checked (out of :mod:`tlm.report.collect`, which
+imports these by their old names): a JSON or YAML file tlm writes whole (:func:`read_json`,
+:func:`read_yaml`: a damaged copy is an :class:`~tlm.errors.InputError` naming it), the kinds of
+value a check wants (:data:`PRESENT`, :data:`NUMBER`, ... :data:`COUNT`), :func:`check` of a
+record's keys against them, and a run's ``results.json`` checked for what the sections read of it
+(:func:`read_results`). The study tables' columns and keys, and the reading of a study folder,
+stay in :mod:`tlm.report.collect`."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tlm.config import MODES
+from tlm.errors import InputError
+
+
+def read_json(path: Path) -> Any:
+    """A JSON file tlm writes whole: an :class:`InputError` naming it where it cannot be read or
+    is not JSON (empty, cut off, edited: a damaged copy)."""
+    try:
+        text = path.read_text()
+    except (OSError, ValueError) as e:  # (ValueError: not text, UnicodeDecodeError)
+        raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
+    if not text.strip():
+        raise InputError("is empty (cannot read it as JSON): a damaged copy (tlm writes it whole)", source=str(path))
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        cut = not text.rstrip().endswith(("}", "]"))  # (tlm's JSON files are an object or a list: it ends early)
+        raise InputError(f"is {'cut off' if cut else 'not valid JSON'} (cannot read it as JSON: {e.msg}: line "
+                         f"{e.lineno} column {e.colno}): a damaged copy (tlm writes it whole)",
+                         source=str(path)) from None
+    except ValueError as e:
+        raise InputError(f"is not valid JSON (cannot read it as JSON: {e}): a damaged copy (tlm writes it whole)",
+                         source=str(path)) from None
+
+
+def number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+# a check: (test, what the value should be)
+PRESENT = (lambda v: True, "present")
+TEXT = (lambda v: isinstance(v, str), "text")
+NUMBER = (number, "a number")
+NUMBER_OR_NONE = (lambda v: v is None or number(v), "a number or empty")
+POSITIVE = (lambda v: number(v) and v > 0, "a positive number")
+BOOL = (lambda v: isinstance(v, bool), "true or false")
+MAPPING = (lambda v: isinstance(v, dict), "a mapping")
+MAPPING_OR_NONE = (lambda v: v is None or isinstance(v, dict), "a mapping")
+LIST_OR_NONE = (lambda v: v is None or isinstance(v, list), "a list")
+TEXTS = (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of texts")
+
+FINITE = (lambda v: number(v) and math.isfinite(v), "a finite number")
+FINITE_OR_NONE = (lambda v: v is None or FINITE[0](v), "a finite number or empty")
+
+
+def check(record: Any, path: Path, where: str | None, what: str, required: dict, optional: dict | None = None) -> None:
+    """An :class:`InputError` naming ``path`` (and ``where`` in it: a line, a key) unless
+    ``record`` is a mapping with every ``required`` key and every key (of ``required`` and
+    of ``optional`` where present) of the value its check wants."""
+    if not isinstance(record, dict):
+        raise InputError(f"is {type(record).__name__} {short(record)}, not {what}", source=str(path), key=where)
+    missing = [k for k in required if k not in record]
+    if missing:
+        raise InputError(f"has no {', '.join(repr(k) for k in missing)}: not {what}", source=str(path), key=where)
+    for k, (ok, want) in {**(optional or {}), **required}.items():
+        if k in record and not ok(record[k]):
+            raise InputError(f"{k!r} is {short(record[k])}, not {want} ({what})", source=str(path), key=where)
+
+
+def short(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def rows_checked(path: Path, rows: list[tuple[int, dict]], what: str, required: dict,
+                 optional: dict | None = None) -> list[dict]:
+    for n, row in rows:
+        check(row, path, f"line {n}", what, required, optional)
+    return [row for _, row in rows]
+
+
+def read_yaml(path: Path) -> Any:
+    try:
+        text = path.read_text()
+    except (OSError, ValueError) as e:
+        raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        at = f": line {mark.line + 1} column {mark.column + 1}" if mark is not None else ""
+        raise InputError(f"is not valid YAML (cannot read: {str(getattr(e, 'problem', None) or e).splitlines()[0]}"
+                         f"{at}): a damaged or edited copy (tlm writes it whole)", source=str(path)) from None
+
+
+COUNT = (lambda v: FINITE[0](v) and v >= 0, "a finite number, not negative")
+COUNT_OR_NONE = (lambda v: v is None or COUNT[0](v), "a finite number, not negative, or empty")
+MODE_OR_NONE = (lambda v: v is None or v in MODES, f"a mode ({', '.join(MODES)})")
+# what the sections read of a run's results.json (:func:`read_results`): its keys, then the counts in them
+RESULTS_KEYS = {"scene": MAPPING, "timing": MAPPING_OR_NONE}
+RESULTS_OPTIONAL = {"mode": MODE_OR_NONE, "fps": COUNT_OR_NONE, "cycles": MAPPING_OR_NONE, "work": MAPPING_OR_NONE,
+                    "photons": MAPPING_OR_NONE, "plan": MAPPING_OR_NONE, "image": MAPPING_OR_NONE,
+                    "error": MAPPING_OR_NONE, "host_seconds": MAPPING_OR_NONE, "factors": MAPPING_OR_NONE,
+                    "warnings": LIST_OR_NONE, "overrides": LIST_OR_NONE}
+SCENE_KEYS = {"name": (lambda v: isinstance(v, str | int | float) and not isinstance(v, bool), "a name")}
+SCENE_OPTIONAL = {"source": (lambda v: v is None or isinstance(v, str), "a path or empty"),
+                  "resolution": (lambda v: v is None or (isinstance(v, list) and len(v) == 2 and all(
+                      isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in v)), "[width, height]"),
+                  "triangles": COUNT_OR_NONE, "bsp": MAPPING_OR_NONE}
+LIST = (lambda v: isinstance(v, list), "a list")
+TIMING_OPTIONAL = {"units": MAPPING, "frame_times": LIST, "pipelines": LIST,
+                   "images_in_flight": (lambda v: v is None or (isinstance(v, int) and not isinstance(v, bool)
+                                                                and v > 0), "a positive whole number or empty")}
+IMAGE_OPTIONAL = {"exposure": (lambda v: v is None or (FINITE[0](v) and v > 0), "a positive finite number or empty")}
+ERROR_OPTIONAL = {"rel_mse": FINITE_OR_NONE}
+
+
+def counts(value: Any, path: Path, where: str, none: bool = False) -> None:
+    """An :class:`InputError` naming ``path`` and the key ``where`` unless every value in the mapping ``value``
+    (at any depth) is a finite number, not negative (true or false allowed; empty where ``none``)."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            counts(v, path, f"{where}.{k}", none)
+    elif not (isinstance(value, bool) or COUNT[0](value) or (none and value is None)):
+        raise InputError(f"is {short(value)}, not {COUNT[1]}: an edited or damaged copy (tlm writes its counts)",
+                         source=str(path), key=where)
+
+
+def read_results(path: Path) -> dict:
+    """A run's ``results.json``, checked for what the sections read of it: an :class:`InputError`
+    naming the file and the key for one of another type, a count that is not a finite number or is
+    negative (``cycles``, ``fps``, ``work``, ``timing.units``), or a mode tlm does not know."""
+    results = read_json(path)
+    if not isinstance(results, dict) or "timing" not in results or "scene" not in results:
+        raise InputError("is not a tlm results file (no 'timing' or 'scene')", source=str(path))
+    what = "a tlm results file"
+    check(results, path, None, what, RESULTS_KEYS, RESULTS_OPTIONAL)
+    check(results["scene"], path, "scene", what, SCENE_KEYS, SCENE_OPTIONAL)
+    if results["timing"] is not None:  # (tlm writes cycles, fps and timing together, or all three empty)
+        empty = [k for k in ("cycles", "fps") if k in results and results[k] is None]
+        if empty:
+            raise InputError(f"{' and '.join(repr(k) for k in empty)} {'is' if len(empty) == 1 else 'are'} empty "
+                             "but 'timing' is not: an edited or damaged copy (tlm writes them together)",
+                             source=str(path))
+    for key, optional in (("timing", TIMING_OPTIONAL), ("image", IMAGE_OPTIONAL), ("error", ERROR_OPTIONAL)):
+        if results.get(key) is not None:
+            check(results[key], path, key, what, {}, optional)
+    for key, none in (("cycles", False), ("work", True)):
+        counts(results.get(key) or {}, path, key, none)
+    counts(((results.get("photons") or {}).get("work")) or {}, path, "photons.work", True)
+    for name, unit in ((results.get("timing") or {}).get("units") or {}).items():
+        if not isinstance(unit, dict):
+            raise InputError(f"is {short(unit)}, not a mapping ({what})", source=str(path), key=f"timing.units.{name}")
+        counts(unit, path, f"timing.units.{name}")
+    return results
