@@ -146,7 +146,7 @@ def test_what_is_not_a_config_a_render_or_radiance_is_named():
 
 
 def test_configs_load_from_files_mappings_and_scene_files(tmp_path):
-    cfg = tlm.load_config(ROOT / "configs" / "cornell.yaml", ["mode=rcast"], base=tmp_path)
+    cfg = tlm.load_config(ROOT / "configs" / "cornell.yaml", ["mode=rcast"])
     assert cfg.mode == "rcast" and cfg.base == ROOT / "configs" and cfg.overrides == ("mode=rcast",)
     assert cfg.label.endswith("cornell.yaml, with --set") and not cfg.scene_file
     more = cfg.updated({"render.spp": 2, "arch.pipelines": 2})

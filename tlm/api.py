@@ -301,8 +301,10 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     :class:`InputError` names that experiment instead.
 
     ``overrides``: dotted keys to set, ``{"render.spp": 2}`` or ``["render.spp=2"]`` (as
-    ``tlm run --set``). ``base``: where a mapping's relative paths start (default: the
-    working folder; a file's own folder for a file). A relative ``arch.programs`` given in
+    ``tlm run --set``). ``base``: where a mapping's (or a RunConfig's) relative paths start
+    (default: the working folder); a file's (a built-in name's, a scene file's) start at its own
+    folder and a Config's at its ``base``: another ``base`` given with one is an :class:`InputError`
+    naming ``base``, never ignored. A relative ``arch.programs`` given in
     ``overrides`` is relative to the working folder whatever the config (a file, a scene
     file, a mapping with its ``base``, a built-in name), as ``--set`` takes it; the config
     then holds it as an absolute path. A missing file, a YAML error, an unknown key or a
@@ -315,9 +317,10 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     via = _via(overrides, via)
     more = _override_strings(overrides)
     config, base = expanded(config, "config"), expanded(base, "base")
-    if base is not None and not isinstance(base, (str, os.PathLike)):  # (a file's and a Config's own: theirs)
+    if base is not None and not isinstance(base, (str, os.PathLike)):  # (a file's and a Config's own: _own_base)
         raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
     if isinstance(config, Config):
+        _own_base(config, base, "the Config's")
         return _updated(config, more, via) if more else config
     if isinstance(config, RunConfig):
         out = Config(config, Path(base) if base is not None else Path.cwd(), via=via)
@@ -343,12 +346,22 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         from tlm.config import load_config as load_run_config
 
         settings, folder = load_run_config(path, more, via)
-        return Config(settings, folder, given, tuple(more), via=via)
+        return _own_base(Config(settings, folder, given, tuple(more), via=via), base, f"the config file {given}'s")
     source = f"scene file {scene} at the default settings"
     raw: dict[str, Any] = {"scene": str(scene)}
     if more:
         raw, source = apply_overrides(raw, more, source=via, cwd=Path.cwd()), with_overrides(source, via)
-    return Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True, via=via)
+    return _own_base(Config(config_from_dict(raw, source), scene.parent, given, tuple(more), scene_file=True, via=via),
+                     base, f"the scene file {given}'s")
+
+
+def _own_base(config: Config, base: str | Path | None, whose: str) -> Config:
+    """``config`` (a file's, or a Config given), whose relative paths start at its own folder
+    (``config.base``): a ``base`` given that is another folder is refused, never ignored unsaid."""
+    if base is not None and Path(base).resolve() != Path(config.base).resolve():
+        raise InputError(f"{base}: {whose} relative paths start at its own folder ({config.base}), not at base: "
+                         "base is for a mapping or a RunConfig; leave it out", key="base")
+    return config
 
 
 @argument_names

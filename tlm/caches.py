@@ -35,13 +35,35 @@ from tlm.storage import on_failed_write, warn
 def cache_home() -> Path:
     """The folder of tlm's caches: ``$TLM_CACHE``; else ``$XDG_CACHE_HOME/tlm`` where
     ``XDG_CACHE_HOME`` is set to an absolute path (the XDG spec has a relative one ignored);
-    else ``~/.cache/tlm``. An empty variable counts as unset."""
-    if own := os.environ.get("TLM_CACHE"):
+    else ``~/.cache/tlm``. An empty variable counts as unset. A relative ``$TLM_CACHE`` is made
+    absolute at its first read (:func:`own_cache`), from the working folder then."""
+    if own := own_cache():
         return Path(own)
     xdg = os.environ.get("XDG_CACHE_HOME")
     if xdg and os.path.isabs(xdg):
         return Path(xdg) / "tlm"
     return Path.home() / ".cache" / "tlm"
+
+
+def own_cache() -> str | None:
+    """``$TLM_CACHE`` (None where unset or empty), absolute: a relative one is made absolute the first
+    time it is read (as this module is imported, else at the first :func:`cache_home` after it was set),
+    from the working folder then, and written back to ``os.environ``, so that a later ``os.chdir``
+    (a notebook's, a script's), a sweep's workers (given this process's ``TLM_*`` variables, whatever
+    folder they start in) and the processes this one starts all use that one folder."""
+    own = os.environ.get("TLM_CACHE")
+    if not own:
+        return None
+    if not os.path.isabs(own):
+        try:
+            own = os.path.abspath(own)
+        except OSError:  # (the working folder removed: none to start from; read as it is, made absolute later)
+            return own
+        os.environ["TLM_CACHE"] = own
+    return own
+
+
+own_cache()  # (its first read: a relative one from the working folder as tlm's caches are first imported)
 
 
 # tlm's caches that a run writes to: their names in a warning, and what a cache that

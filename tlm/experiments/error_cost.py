@@ -31,6 +31,9 @@ in scene units: ``radius`` the indirect light's, the indirect map's, or under fi
 ``caustic_radius`` the caustic map's. Not the indirect map's under final gathering: that map is
 built but not gathered, and its radius (``estimate.radius_photons``) is not computed. Each is empty
 where its map is not gathered (it holds no photon) or the filter takes no radius (``knn``).
+``radius_rule`` and ``caustic_radius_rule`` (the last columns) say the rule that gave each, in the
+words of a run's ``results.json`` (:func:`radius_rule_used`): ``radius``, ``fraction``, ``density``,
+or ``fallback`` where the density rule's map was too small to measure; empty where its radius is.
 
 The scene, its BSP and the eye rays are the base's, cast once: a point may not vary
 ``scene``, ``mode`` (every point is a photon-map frame), ``resolution``, ``bsp.*`` or
@@ -127,6 +130,7 @@ from tlm.render.pmap import (
     gathered_maps,
     gathered_radii,
     pmap_pass,
+    radius_rule,
     trace_photon_map,
 )
 from tlm.storage import check_destination, warn
@@ -138,6 +142,7 @@ COLUMNS = (
     *GATHER_KEYS[1:], "gathers",
     "trace_seconds", "gather_seconds", "one_off_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
+    "radius_rule", "caustic_radius_rule",  # (appended: the columns before keep their places)
 )
 # the columns that hold a point's setting as its config has it: their null is the setting's value
 # (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other
@@ -443,10 +448,11 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         simulate_s = time.perf_counter() - t0
         est = cfg.estimate
         radii = gathered_radii(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else {}
+        indirect = next((m for m in ("global", "indirect", "photons") if m in radii), None)  # (the indirect light's)
         row = {
             "point": i, "factors": factors_text(point),
             "filter": est.filter, "photons": n, "stored": traced.photons.n,
-            "radius": next((radii[m] for m in ("global", "indirect", "photons") if m in radii), None),
+            "radius": radii.get(indirect),
             "caustic_radius": radii.get("caustic"),
             "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
@@ -459,6 +465,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),
             "one_off_seconds": round(one_off, 4),
             **frame_time(tm.cycles, cfg.arch.clock_hz), "simulate_seconds": round(simulate_s, 4),
+            **{f"{col}_rule": radius_rule_used(frame, traced.photons, name) if name in radii else None
+               for col, name in (("radius", indirect), ("caustic_radius", "caustic"))},
         }
         if progress is not None:
             progress(i, len(points), row)
@@ -473,6 +481,25 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                                              "truth.json": truth_meta,
                                              # (over run_study's rows.csv: a setting's null as null)
                                              "rows.csv": csv_text(rows, COLUMNS, SETTING_COLUMNS)})
+
+
+def radius_rule_used(frame: Frame, photons, name: str) -> str:
+    """The rule that gave the radius the photon-map pass gathered the map ``name`` of
+    :func:`~tlm.render.pmap.gathered_maps` with (a row's ``radius_rule``, ``caustic_radius_rule``),
+    in the words of ``results.json``'s ``*_rule`` (:func:`tlm.render.pmap.radii`): ``radius`` (the
+    scene units given), ``fraction`` (of the diagonal), ``density`` (holds about k photons), or
+    ``fallback`` where the density rule's map was too small to measure. Its density radius is the
+    one the row's gather made (a map keeps it): nothing is computed again."""
+    est = frame.cfg.estimate
+    if name == "global" and est.radius is None and est.radius_fraction is None:
+        rule, k = "density", est.final_gather_photons  # (final gathering's global map: its own k)
+    else:
+        which = "caustic" if name == "caustic" else "indirect"
+        rule = radius_rule(frame, which)
+        k = est.caustic_radius_photons if which == "caustic" else est.radius_photons
+    if rule == "density" and gathered_maps(frame, photons)[name].density_radius(k) is None:
+        return "fallback"
+    return rule
 
 
 # the warm-up of a point's settings (:class:`WarmUp`): its photon trace of at most this many photons

@@ -139,13 +139,43 @@ class CompileClock:
         compiled or a module was imported for the first time (any thread's: overlaps counted once)."""
         with self._lock:
             spans = [(a, b) for a, b in self.spans] + [(a, end) for a in self._open.values()]
-        cut = sorted((max(a, start), min(b, end)) for a, b in spans if min(b, end) > max(a, start))
-        total, reach = 0.0, start
-        for a, b in cut:
-            if b > reach:
-                total += b - max(a, reach)
-                reach = b
-        return total
+        return covered(spans, start, end)
+
+    @contextmanager
+    def running_own(self):
+        """:meth:`running` for the block's own work (:meth:`owned`): yields an :class:`OwnSpans`, whose
+        ``within(start, end)`` counts the spans the block's work began (on its thread, and on the
+        kernels' pool threads working for it), not another thread's first import or compile meanwhile
+        (another sweep point's in a thread of the same Dask worker): a sweep point's one-off clock, as
+        ``tlm run``'s (:func:`tlm.experiments.run.one_off_clock`)."""
+        with self.owned() as token, self.running():
+            yield OwnSpans(self, token)
+
+
+class OwnSpans:
+    """One owner's share of a running :class:`CompileClock` (:meth:`CompileClock.running_own`)."""
+
+    def __init__(self, clock: CompileClock, owner: object):
+        self.clock, self.owner = clock, owner
+
+    def spans(self, start: float, end: float) -> list[tuple[float, float]]:
+        """The owner's spans cut to ``start`` .. ``end`` (:meth:`CompileClock.spans_of`)."""
+        return self.clock.spans_of(self.owner, start, end)
+
+    def within(self, start: float, end: float) -> float:
+        """Seconds between ``start`` and ``end`` that the owner's spans cover (overlaps counted once)."""
+        return covered(self.spans(start, end), start, end)
+
+
+def covered(spans: list[tuple[float, float]], start: float, end: float) -> float:
+    """Seconds between ``start`` and ``end`` that ``spans`` cover (overlapping spans counted once)."""
+    cut = sorted((max(a, start), min(b, end)) for a, b in spans if min(b, end) > max(a, start))
+    total, reach = 0.0, start
+    for a, b in cut:
+        if b > reach:
+            total += b - max(a, reach)
+            reach = b
+    return total
 
 
 # the process's hooks, shared by the clocks that run (a clock running twice: listed twice)

@@ -136,8 +136,9 @@ def run_point(task: Task) -> dict:
                 "timing": timing_dict(timing, cfg.arch, programs),
                 "functional": {"key": got.key, "cached": got.cached, "render_host_seconds": summary["host_seconds"]},
                 # (one_off: the part of functional and simulate in which numba compiled or loaded a kernel
-                # from its cache or a module was first imported, in this process: what the first points pay;
-                # write: the point's folder, up to results.json's text, measured below)
+                # from its cache or a module was first imported, for this point's own work (not another point's
+                # in another thread of this process): what the first points pay; write: the point's folder, up to
+                # results.json's text, measured below)
                 "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6),
                                  "write": None, "one_off": round(one_off, 6)},
                 **task.provenance, "versions": ran,
@@ -166,7 +167,9 @@ def run_point(task: Task) -> dict:
 _CLOCK = CompileClock()  # (one per process: a Dask worker runs points in threads, each timing its own window)
 # The process's clock, running while any point of this process runs (points in threads of one Dask worker share
 # it: its hooks are the process's; CompileClock.running counts its users), its spans forgotten when none does.
-_one_off_clock = _CLOCK.running
+# Each point counts its own spans alone (CompileClock.running_own: those its work began, on its thread and the
+# kernels' pool threads working for it), as tlm run does: not another point's compile in another thread.
+_one_off_clock = _CLOCK.running_own
 
 
 class PathNotOnWorker(OSError):
