@@ -15,6 +15,12 @@ per pixel, shading normals, glass split by Fresnel, index-matched glass letting 
 rays through, caustic and indirect photon maps gathered also at the ends of the specular
 paths; every ``kernel:`` entry (traversal, intersection, BSP) stayed the same. The runs
 use the programs' scales of that time (:data:`SCALES`, with no cycles per record).
+Rewritten a fourth time when the gather's cone weight became a work item of its own
+(``photons_weighted``, h235): the photon-map runs' ``work.pmap`` gained it, and the disk
+run's Fragment PM no longer pays the cone weight (its ``cycles`` and ``units`` fell);
+images, photons, every other count and the cone filters' cycles stayed the same. (The
+AVX2 file was written on an AVX512 machine with ``NPY_DISABLE_CPU_FEATURES="X86_V4
+AVX512_ICL"``, which reproduced the file of HEAD exactly first.)
 
 Regenerate only when a change *means* to alter results (and say so in the commit)::
 

@@ -233,8 +233,11 @@ def _parse_programs(raw, source: str) -> Programs:
             priced = {*ins, *fl, *raw_items, misses}
             for item in work.job_items(f"{pm}.{job}"):
                 if item.name not in priced:
+                    older = (" (a table written before it was counted apart priced the cone weight within "
+                             "photons_accepted: photons_weighted: 0 keeps its costs)"
+                             if item.name == "photons_weighted" else "")
                     raise InputError(f"does not price the work item {item.name!r}, which this job charges "
-                                     f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing)",
+                                     f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing){older}",
                                      source=source, key=f"{pm}.{job}")
             jobs[(pm, job)] = JobProgram(ins, fl, misses, tuple(raw_items))
     isect = _mapping(raw.get("intersection"), source, "intersection")

@@ -29,7 +29,9 @@ root included: one split comparison each; for the k-voxel filter ``k * levels`` 
 the inner nodes below flat splits visited by the samples' extra branches),
 ``leaves_visited`` (distinct leaves searched), ``photons_tested`` (the sizes of the
 leaves searched; for k-NN the neighbours examined), ``photons_accepted`` (within ``r``
-and from the front), ``probe_tests`` (k-voxel only: leaves the probe points reach,
+and from the front), ``photons_weighted`` (the accepted photons whose weight the filter
+computes: all of them for the cone filters, m-voxel, k-voxel and k-NN; none for the disk,
+whose weight is 1), ``probe_tests`` (k-voxel only: leaves the probe points reach,
 :data:`~tlm.kernels.kvoxel.PROBES` per query plus one per extra branch at flat splits) and ``gather_misses``:
 the page misses (:mod:`tlm.kernels.memory`) of the Fragment PM's photon-leaf pair reading
 the photons of every leaf searched (``PHOTON_WORDS`` = 2 words per photon, leaves in
@@ -79,7 +81,9 @@ class Estimate:
 
     density : (q, 3) float64, reflected flux density ``sum w power / area`` (W/m^2).
     node_visits, leaves_visited, photons_tested, photons_accepted, probe_tests,
-    gather_misses : (q,) int64 work counts (see the module docstring).
+    gather_misses, photons_weighted : (q,) int64 work counts (see the module docstring).
+    ``photons_weighted`` left out (an estimator written before it) is ``photons_accepted``:
+    every accepted photon charged a weight, as the cone filters are.
     """
 
     density: np.ndarray
@@ -89,6 +93,11 @@ class Estimate:
     photons_accepted: np.ndarray
     probe_tests: np.ndarray
     gather_misses: np.ndarray
+    photons_weighted: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.photons_weighted is None:
+            object.__setattr__(self, "photons_weighted", self.photons_accepted)
 
 
 @dataclass(frozen=True)
@@ -191,7 +200,14 @@ def gather_inputs(position, power, incoming, tree, points, normals, prepared):
 
 def empty_estimate(q: int) -> Estimate:
     z = np.zeros(q, dtype=np.int64)
-    return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy(), z.copy())
+    return Estimate(np.zeros((q, 3)), z, z.copy(), z.copy(), z.copy(), z.copy(), z.copy(), z.copy())
+
+
+def weigh_all(out: Estimate) -> Estimate:
+    """``out`` with every accepted photon weighted (``photons_weighted = photons_accepted``):
+    what a cone filter computes per accepted photon, as a disk filter does not."""
+    out.photons_weighted[:] = out.photons_accepted
+    return out
 
 
 GATHER_STREAM = "photons"  # the Fragment PM's stream reading photon leaves (tlm.kernels.memory.PM_STREAMS)
@@ -310,7 +326,8 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
     density = out.density
     norm = math.pi * r * r * (1.0 if cone_k is None else 1.0 - 2.0 / (3.0 * cone_k))
     if engine() == "numba":
-        return _fixed_radius_jit(lp, pts, nrm, r, cone_k, norm, streams, stream, out)
+        out = _fixed_radius_jit(lp, pts, nrm, r, cone_k, norm, streams, stream, out)
+        return out if cone_k is None else weigh_all(out)
     todo = [(q0, min(q0 + QUERY_BLOCK, q)) for q0 in range(0, q, QUERY_BLOCK)][::-1]
     while todo:
         q0, q1 = todo.pop()
@@ -330,7 +347,7 @@ def _fixed_radius(position, power, incoming, tree, points, normals, radius, cone
         if norm > 0.0:  # r * r underflows to 0 for r below ~1e-162: then the density is 0
             for c in range(3):
                 density[q0:q1, c] = per_query(loc, sums[c], m) / norm
-    return out
+    return out if cone_k is None else weigh_all(out)
 
 
 def _fixed_radius_jit(lp: LeafPhotons, pts, nrm, r: float, cone_k: float | None, norm: float, streams: Streams,
@@ -473,7 +490,7 @@ def knn_estimate(position, power, incoming, points, normals, k_nearest: int = 50
         q1 = min(q0 + block, q)
         _knn_block(position, power, incoming, kdtree, pts[q0:q1], nrm[q0:q1], kk, cone_k, out, slice(q0, q1))
     out.photons_tested[:] = kk
-    return out
+    return weigh_all(out)
 
 
 def _knn_block(position, power, incoming, kdtree, pts, nrm, kk: int, cone_k: float, out: Estimate, sl) -> None:

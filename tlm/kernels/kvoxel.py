@@ -87,6 +87,7 @@ from tlm.kernels.estimate import (
     gather_inputs,
     gather_pairs,
     per_query,
+    weigh_all,
 )
 from tlm.kernels.memory import Streams
 from tlm.kernels.shade import hash_uniform
@@ -305,4 +306,4 @@ def kvoxel_estimate(position, power, incoming, tree: BSPTree, points, normals, r
             for c in range(3):
                 e = np.divide(sums[c], area, out=np.zeros_like(area), where=area > 0.0)  # eq. 3.4
                 out.density[sl, c] = per_query(pq, e * share, m)  # eq. 3.5
-    return out
+    return weigh_all(out)  # (every accepted photon cone-weighted, as the m-voxel filter's)

@@ -266,7 +266,10 @@ class RayPassWork(WorkArrays):
     Item("node_visits", "photon BSP inner nodes on the search lists (Fig. 8)", ("fragment.gather",)),
     Item("leaves_visited", "photon BSP leaves searched (each ends a loop: a flush)", ("fragment.gather",)),
     Item("photons_tested", "photons compared against the search radius", ("fragment.gather",)),
-    Item("photons_accepted", "photons inside it, from the front, that were filtered", ("fragment.gather",)),
+    Item("photons_accepted", "photons inside it, from the front, that were filtered (the power loaded and summed)",
+         ("fragment.gather",)),
+    Item("photons_weighted", "accepted photons whose filter computes a weight (the cone of eq. 3.3: mvoxel, kvoxel, "
+         "knn; 0 for disk, eq. 3.2's weight 1)", ("fragment.gather",)),
     Item("gather_misses", "page misses reading the searched leaves' photons (0 for knn)", ("fragment.gather",),
          streams=("photons", "caustic_photons")),
 ))
