@@ -241,6 +241,9 @@ def _override_strings(overrides: Overrides | None) -> list[str]:
     if not isinstance(overrides, Iterable):
         raise InputError(f"{_shown(overrides)} is not overrides: give a mapping or a list of dotted.key=value "
                          "strings", key="overrides")
+    if isinstance(overrides, (set, frozenset)):  # (applied in order: a set has none, its order may change)
+        raise InputError("a set has no order, and overrides are applied in order (a key set twice: the last "
+                         "one): give a list or a tuple of dotted.key=value strings, or a mapping", key="overrides")
     return [str(o) for o in overrides]
 
 

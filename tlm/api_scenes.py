@@ -66,6 +66,11 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
     from tlm.scenes.loader import load_scene as load
     from tlm.scenes.loader import resolve_scene_path
 
+    if not isinstance(scene, (str, os.PathLike)):  # (named by its type, not taken for a scene's name: str(5))
+        raise InputError(f"{_shown(scene)} is not a scene's name or path: give a built-in scene's name "
+                         "(tlm.list_scenes()) or a scene file's path", key="scene")
+    if base is not None and not isinstance(base, (str, os.PathLike)):
+        raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
     scene, base = expanded(scene, "scene"), expanded(base, "base")  # (~: the home folder, as every path argument's)
     folder = Path(base) if base is not None else Path.cwd()
     # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;

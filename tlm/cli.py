@@ -36,6 +36,7 @@ from tlm.cli_signals import (
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
+from tlm.errors import check_numba_threads
 
 
 def _say(line: str) -> None:
@@ -645,6 +646,8 @@ def main(argv: list[str] | None = None) -> int:
                 writes = _writes_files(args)
                 if writes:  # (a render, a report's figures: OpenBLAS's buffer mapped first, blas_buffer_mapped)
                     blas_buffer_mapped()
+                if args.func not in (_cmd_params, _cmd_scene, _cmd_config, _cmd_report):  # (those that render)
+                    check_numba_threads()  # (numba's import fails on a NUMBA_NUM_THREADS below 1: said first)
                 with writes_files(writes):
                     status = args.func(args)
             finished = True

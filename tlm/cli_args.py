@@ -11,12 +11,43 @@ from pathlib import Path
 from tlm.api import InputError
 
 
+class _Once(argparse._StoreAction):
+    """A flag of one value (``--mode``, ``--seed``, ``--out``): given twice in one command it is
+    refused, naming both values (``--mode given twice (rcast, then pmap): give it once``), not
+    taken as the last (argparse's way, which drops the first silently). A flag that gathers its
+    values (``--set``: ``action="append"``) is not one."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault(_GIVEN, {})
+        if self.dest in given:
+            first_flag, first = given[self.dest]
+            flag = first_flag if first_flag == option_string else f"{first_flag} (then {option_string})"
+            parser.error(f"{flag} given twice ({first}, then {values}): give it once")
+        given[self.dest] = (option_string, values)
+        super().__call__(parser, namespace, values, option_string)
+
+
+_GIVEN = "_tlm_flags_given"  # (the namespace's record of the one-value flags given, while it is parsed)
+
+
 class Parser(argparse.ArgumentParser):
     """argparse with the project's one-line error and exit status 2: ``tlm: error: MESSAGE``
-    (the top-level parser: the line names ``tlm`` once)."""
+    (the top-level parser: the line names ``tlm`` once); a flag of one value given twice is
+    refused (:class:`_Once`)."""
 
     def error(self, message: str):  # type: ignore[override]
         raise InputError(message.replace("\n", " "))
+
+    def add_argument(self, *args, **kwargs):
+        if args and args[0].startswith(self.prefix_chars) and kwargs.get("action", "store") == "store" \
+                and kwargs.get("nargs") in (None, "?"):
+            kwargs["action"] = _Once
+        return super().add_argument(*args, **kwargs)
+
+    def parse_known_args(self, args=None, namespace=None):
+        parsed, extras = super().parse_known_args(args, namespace)
+        parsed.__dict__.pop(_GIVEN, None)
+        return parsed, extras
 
     def add_subparsers(self, **kwargs):
         kwargs.setdefault("parser_class", Subcommand)

@@ -372,9 +372,16 @@ def save_traceback(exc: BaseException) -> Path | None:
     return None
 
 
+# the control characters left in a line once its whitespace is one space (NUL, ESC, DEL, C1), each as \xNN
+_ESCAPES = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7f, 0xa0))}
+
+
 def one_line(e: BaseException) -> str:
-    """An exception's message on one line (its type's name where it has none)."""
-    return " ".join(str(e).split()) or type(e).__name__
+    """An exception's message on one line (its type's name where it has none), its control
+    characters escaped (a NUL byte of a file's name as ``\\x00``, an escape sequence as ``\\x1b[...``):
+    what a line of the command names, from a file or the command line, is shown, not obeyed by the
+    terminal or dropped by it."""
+    return (" ".join(str(e).split()) or type(e).__name__).translate(_ESCAPES)
 
 
 def signalled() -> int | None:

@@ -35,7 +35,16 @@ from tlm.config_paths import (  # noqa: F401  (PATH_KEYS, builtin_scenes_dir, na
     paths_from,
     scene_from,
 )
-from tlm.config_words import DuplicateKeyError, parse_yaml, type_hint, type_name, value_text, with_overrides, yaml_kind
+from tlm.config_words import (
+    DuplicateKeyError,
+    ExpansionError,
+    parse_yaml,
+    type_hint,
+    type_name,
+    value_text,
+    with_overrides,
+    yaml_kind,
+)
 from tlm.errors import InputError, did_you_mean
 from tlm.mesh_files import mesh_file_format, mesh_file_hint
 from tlm.registry import ESTIMATORS, SCHEDULERS
@@ -97,7 +106,8 @@ class RenderConfig:
                              "past 8 the batches run on forked worker processes, which take every CPU (threads share "
                              "Python's interpreter lock and render slower past 8; TLM_FORK_WORKERS=0: threads, "
                              "null at most 8); "
-                             "speed only: images, work and cycles are bit-identical for every count", min=1)
+                             "speed only: images, work and cycles are bit-identical for every count; at most 1024 "
+                             "(more than the CPUs: allowed, and slower)", min=1, max=1024)
 
 
 @dataclass(frozen=True)
@@ -316,8 +326,10 @@ def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
     hints, fields = _schema(cls)
     for key in raw:
         if key not in fields:
-            where = f"{prefix}.{key}" if prefix else str(key)
-            raise InputError(f"unknown key{did_you_mean(str(key), fields)}", source=source, key=where)
+            # (YAML's 1:, true:, null: as written, not Python's True, None; a date as it reads, 2026-01-01)
+            name = value_text(key) if isinstance(key, (bool, int, float, type(None))) else str(key)
+            where = f"{prefix}.{name}" if prefix else name
+            raise InputError(f"unknown key{did_you_mean(name, fields)}", source=source, key=where)
     values = {}
     for name, f in fields.items():
         v = _field(f, hints[name], raw, source, f"{prefix}.{name}" if prefix else name)
@@ -485,7 +497,7 @@ def yaml_from_text(text: str, path: Path) -> Any:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        what = "YAML error" if isinstance(e, DuplicateKeyError) else "YAML syntax error"
+        what = "YAML error" if isinstance(e, (DuplicateKeyError, ExpansionError)) else "YAML syntax error"
         raise InputError(f"{what}{where}: {problem}", source=str(path)) from None
 
 
@@ -543,8 +555,11 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
             raise InputError(f"{item!r}: the dotted key before '=' is empty or has an empty part", source=source)
         try:
             value = parse_yaml(text)
-        except yaml.YAMLError:
-            raise InputError(f"cannot parse value {text!r}", source=source, key=key) from None
+        except yaml.YAMLError as e:  # (what is wrong with it: a key given twice, a syntax error)
+            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+            if isinstance(e, DuplicateKeyError):
+                problem = problem.replace(" (first at line 1)", "")  # (a value of one line)
+            raise InputError(f"cannot parse value {text!r}: {problem}", source=source, key=key) from None
         parts = key.strip().split(".")
         if cwd is not None:
             value = scene_from(value, [cwd]) if parts == ["scene"] else paths_from(".".join(parts), value, cwd)

@@ -65,7 +65,11 @@ def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> An
     above one: ``arch: {programs: ...}``) by a file in ``folder`` (the command line: the
     working folder), with each relative path of :data:`PATH_KEYS` in it made to name the
     same file from elsewhere: absolute, or relative to the folder ``to`` when given (where
-    the config's other relative paths start). Anything else is returned as it is."""
+    the config's other relative paths start). Anything else is returned as it is, a ``key``
+    that is no string too (YAML's ``1:``, ``true:``, ``null:``: names no file; the config's
+    checks then say it is an unknown key)."""
+    if not isinstance(key, str):
+        return value
     for path_key in PATH_KEYS:
         if key == path_key:
             if not isinstance(value, str) or not value or Path(value).is_absolute():

@@ -20,7 +20,7 @@ import math
 import re
 import types
 import typing
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from typing import Any
 
 import yaml
@@ -30,12 +30,49 @@ class DuplicateKeyError(yaml.constructor.ConstructorError):
     """A mapping names one key twice (YAML forbids it; PyYAML would keep the last silently)."""
 
 
+class ExpansionError(yaml.composer.ComposerError):
+    """A document whose aliases (``*name``) expand it to more values than :data:`MAX_EXPANDED` past
+    its own (a "billion laughs": a few hundred bytes that every walk of the values, a check or a
+    message, would take minutes over)."""
+
+
+# values that a document's aliases may add to it, expanded (a config or a scene holds a few hundred)
+MAX_EXPANDED = 1_000_000
+
+
+def _expanded(node: yaml.Node, sizes: dict[int, int]) -> int:
+    """The values that ``node`` holds once its aliases are expanded, each node counted once per
+    place it appears (``sizes``: by node, those counted; a node inside itself, ``&a [*a]``, once)."""
+    size = sizes.get(id(node))
+    if size is not None:
+        return size
+    sizes[id(node)] = 1  # (a node met again inside itself: counted once)
+    children = node.value if isinstance(node, yaml.SequenceNode) else \
+        [n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode) else []
+    size = 1
+    for child in children:
+        size += _expanded(child, sizes)
+        if size > 4 * MAX_EXPANDED:  # (enough to refuse it: not counted to its billions)
+            break
+    sizes[id(node)] = size
+    return size
+
+
 class _Loader(yaml.SafeLoader):
     """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6', and
     refuses a key given twice in one mapping (:class:`DuplicateKeyError`), which PyYAML
     would read as the last one, dropping the first (a second ``render:`` section would
     silently undo the first). Keys that a merge (``<<: *anchor``) brings in may be set
     again, as YAML allows."""
+
+    def compose_document(self):
+        node = super().compose_document()
+        sizes: dict[int, int] = {}
+        if node is not None and _expanded(node, sizes) - len(sizes) > MAX_EXPANDED:
+            raise ExpansionError(
+                None, None, f"its aliases (*name) expand it to more than {MAX_EXPANDED:,} values: write each "
+                "value out, or alias fewer", node.start_mark)
+        return node
 
     def flatten_mapping(self, node):
         # (checked before PyYAML's flattening rewrites the node in place with its merged keys,
@@ -95,13 +132,27 @@ def value_text(v: Any, limit: int = 80) -> str:
     elif isinstance(v, str):
         text = _string_text(v)
     elif isinstance(v, (list, tuple)):
-        text = f"[{', '.join(value_text(x, limit) for x in v[:limit])}]"
+        text = _joined("[", (value_text(x, limit) for x in v), "]", limit)
     elif isinstance(v, dict):
-        pairs = list(v.items())[:limit]
-        text = "{" + ", ".join(f"{value_text(k, limit)}: {value_text(x, limit)}" for k, x in pairs) + "}"
+        text = _joined("{", (f"{value_text(k, limit)}: {value_text(x, limit)}" for k, x in v.items()), "}", limit)
     else:
         text = _string_text(str(v))
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _joined(opening: str, items: Iterator[str], closing: str, limit: int) -> str:
+    """``items`` between ``opening`` and ``closing``, comma-separated, taken only until the text
+    passes ``limit`` characters (:func:`value_text` cuts it there): a list of a million items, or
+    one that YAML's aliases make of millions (``&a [*b, *b, ...]``), is said after a few."""
+    parts: list[str] = []
+    size = len(opening)
+    for item in items:
+        if size > limit:  # (more past the limit: said so, not shown as the whole)
+            parts.append("...")
+            break
+        parts.append(item)
+        size += len(item) + 2
+    return opening + ", ".join(parts) + closing
 
 
 def _float_text(v: float) -> str:

@@ -29,12 +29,18 @@ class InputError(ValueError):
     def __init__(self, message: str, *, source: str | None = None, key: str | None = None):
         self.source = source
         self.key = key
+        self.message = message
         where = ""
         if source:
             where = f"{source}: "
         if key:
             where += f"{key}: "
         super().__init__(f"{where}{message}")
+
+    def under(self, section: str) -> InputError:
+        """The same error, its key named below ``section`` (``base.render.spp``: a key of a run
+        config given inline under ``base:``, as checked alone)."""
+        return InputError(self.message, source=self.source, key=f"{section}.{self.key}" if self.key else section)
 
 
 class EnvironmentFailure(OSError):
@@ -47,6 +53,22 @@ class EnvironmentFailure(OSError):
 
     def __str__(self) -> str:
         return self.args[0]
+
+
+def check_numba_threads() -> None:
+    """``NUMBA_NUM_THREADS``, checked before numba is imported, which a whole number below 1 makes
+    fail (``ValueError: Number of threads specified must be > 0``): an InputError naming the variable
+    (exit status 2), as a bad ``TLM_KERNELS`` or ``TLM_FORK_WORKERS`` is. One that is no number is
+    numba's to warn of (it takes its default). tlm runs numba's kernels on threads of its own
+    (``render.threads``): the variable is numba's, which tlm sets no default for."""
+    raw = os.environ.get("NUMBA_NUM_THREADS")
+    try:
+        count = 1 if raw is None else int(raw)
+    except ValueError:
+        return
+    if count < 1:
+        raise InputError(f"{raw!r} is below 1: numba cannot start with it (unset it: numba's threads are the "
+                         "CPUs; tlm's kernels run on render.threads)", source="environment", key="NUMBA_NUM_THREADS")
 
 
 # errors of the machine, not of the input or of tlm: the disk, the file system, the limits

@@ -529,9 +529,20 @@ def _raise_environmental(e: BaseException, where: Path) -> None:
     elif isinstance(e, EnvironmentFailure):
         return
     if isinstance(e, OSError):
-        what = environment_problem(e, filename=False)
+        what = write_problem(e, where)
         if what is not None:
             raise EnvironmentFailure(f"cannot write: {what}", source=str(where)) from e
+
+
+def write_problem(e: OSError, where: Path) -> str | None:
+    """What the machine's OSError ``e``, met writing ``where``, says in a few words
+    (:func:`~tlm.errors.environment_problem`: ``no space left on device``), a folder that is there
+    but takes no new file (``/proc``: its ENOENT) included, as one that is read-only is; None where
+    it is not the machine's (nor the destination's) fault."""
+    what = environment_problem(e, filename=False)
+    if what is None and e.errno == errno.ENOENT and Path(where).parent.is_dir():
+        what = f"{Path(where).parent} takes no new files (making one there: no such file or directory)"
+    return what
 
 
 @contextmanager
@@ -602,7 +613,7 @@ def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
             try:
                 write_file(new, data)
             except EnvironmentFailure as e:
-                what = environment_problem(e.__cause__, filename=False) if isinstance(e.__cause__, OSError) else None
+                what = write_problem(e.__cause__, path) if isinstance(e.__cause__, OSError) else None
                 if what is None:
                     raise
                 raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from e.__cause__

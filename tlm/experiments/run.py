@@ -46,7 +46,7 @@ from tlm.caches import cache_warnings
 from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, to_dict
 from tlm.config_words import with_overrides
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, check_numba_threads, did_you_mean
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, versions
@@ -211,6 +211,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
+    check_numba_threads()  # (before numba's import, which it would fail)
     with threads.using(cfg.render.threads):
         timer = Timer() if timer is None else timer
         with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
@@ -560,6 +561,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
         cfg = replace(cfg, arch=replace(cfg.arch, trace=False))
     source = with_overrides(config_path, via) if overrides else config_path  # (via: what errors call them)
     check_destination(out, "results.json")  # before any work: a bad --out fails at once
+    check_numba_threads()
     # the folder is this process's until it is written: another process's run into it is refused
     # now, before any work, naming this one (tlm.claims.claimed), not silently replaced at its end
     with claimed(out, "run"), one_off_clock() as spans:

@@ -467,7 +467,12 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     folder = path.resolve().parent
     base_file = raw.get("base") if isinstance(raw.get("base"), str) else None
     base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file")
-    config_from_dict(base, base_src)  # the base alone, so its errors name its own file
+    try:
+        config_from_dict(base, base_src)  # the base alone, so its errors name its own file
+    except InputError as e:
+        if not isinstance(raw.get("base"), dict):
+            raise
+        raise e.under("base") from None  # (inline: the key as the sweep file writes it, base.render.spp)
 
     settings = _dotted_keys(raw.get("set"), "set", src, lists=False)
     grid = _dotted_keys(raw.get("grid"), "grid", src, lists=True)

@@ -40,14 +40,28 @@ def digit_count(n: int) -> str:
     return f"{'an' if lead.startswith('8') or lead in ('11', '18') else 'a'} {d}-digit number"
 
 
-def shown(v: Any) -> str:
+SHOWN_CHARS = 200  # the most characters of a value an error line shows (the rest: "...")
+
+
+def shown(v: Any, limit: int = SHOWN_CHARS) -> str:
     """``repr`` of a value as an error line names it, a whole number past 900 bits (float64
-    holds none past 1024) by its count of digits, in a list too."""
+    holds none past 1024) by its count of digits, in a list too; cut to ``limit`` characters,
+    a list's items taken only until then (a list of millions, aliases' too, said after a few)."""
     if isinstance(v, list):
-        return f"[{', '.join(shown(x) for x in v)}]"
-    if isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 900:
+        parts: list[str] = []
+        size = 1
+        for x in v:
+            if size > limit:  # (more past the limit: said so, not shown as the whole)
+                parts.append("...")
+                break
+            parts.append(shown(x, limit))
+            size += len(parts[-1]) + 2
+        text = f"[{', '.join(parts)}]"
+    elif isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 900:
         return digit_count(v)
-    return repr(v)
+    else:
+        text = repr(v)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _beyond(x: Any) -> bool:
