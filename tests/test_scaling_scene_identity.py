@@ -57,7 +57,7 @@ def test_a_scaling_study_digests_each_scene_file_once(tmp_path, monkeypatch):
     monkeypatch.setattr(provenance, "_identity", counted)
     done = analyse(sweeps, tmp_path / "eq")
     assert digests == Counter({str(scene): 1}), digests  # (six points of one scene file)
-    assert {f["scene"] for f in done["fits"]} == {str(scene)} and len(done["fits"]) == 4  # (2 schedulers x 2 targets)
+    assert {f["scene"] for f in done["fits"]} == {scene.name} and len(done["fits"]) == 4  # (2 schedulers x 2 targets)
     assert sorted(done["fits"], key=json.dumps) == sorted(before[0] + before[1], key=json.dumps)
     assert provenance.scene_identity(scene) == provenance.scene_identity(scene)  # (outside: computed each call)
     assert digests[str(scene)] == 3

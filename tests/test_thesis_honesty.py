@@ -93,7 +93,9 @@ def test_the_first_screen_judges_every_thesis_study(tmp_path):
                                                             "median_abs_rel_error_held_out": 0.2, "held_out_cells": 3})
     lead = summary_section(Inputs([], studies=[off, ok]), tmp_path).lead
     assert ("Against Tables I–III: thesis study small: no median |relative error| "
-            f"({NOT_COMPARABLE}); thesis study full: median |relative error| over the 3 held-out cells: 20.0%.") in lead
+            f"({NOT_COMPARABLE}); thesis study full: median |relative error| over the 2 held-out cells that are "
+            "predictions of their own: 35.0% (left out, 1 that repeats another cell: FPS (") in lead
+    assert "over all 3 held-out cells 20.0%)." in lead
     assert "99%" not in lead
 
 

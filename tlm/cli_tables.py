@@ -46,6 +46,17 @@ def print_scaling(done: dict, out: Path) -> None:
               f"max |error| {f['max_abs_rel_error']:6.1%}; "
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
               f"(N = {values_text(f['pipelines'])})")
+    # (the latency is images in flight x TThru at every point of a group: its fit is the throughput fit scaled)
+    lat = [f for f in fits if f["target"] == "latency"]
+    times = {f.get("latency_multiple") for f in lat}
+    if lat and None not in times:
+        k = ", ".join(f"{x}" for x in sorted(times))
+        print(f"latency = {k} x TThru at every point (images in flight x TThru: a closed loop, Little's law), so each "
+              f"latency fit is its throughput fit x {k}, with the same errors: not a second test of eq. 5.2")
+    elif times - {None}:
+        scaled = sum(f.get("latency_multiple") is not None for f in lat)
+        print(f"latency = images in flight x TThru at every point of {scaled} of the {len(lat)} latency fits "
+              "(a closed loop, Little's law): those are their throughput fits scaled, not a second test of eq. 5.2")
     print(f"wrote {out}")
 
 

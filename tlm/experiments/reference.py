@@ -354,8 +354,10 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
 
 
 def image_error(image: np.ndarray, reference: np.ndarray) -> dict[str, float | None]:
-    """RMSE and relative MSE (sum of squared error over sum of squared reference; None
-    for a black reference)."""
+    """RMSE and relative MSE, ``rel_mse``: the sum of squared error over the sum of squared reference
+    (None for a black reference), the ``rel_mse`` of every run, study and report of tlm. A bright pixel
+    weighs more than a dark one: it is not the per-pixel relative MSE of many rendering papers (the mean
+    of ``(t - r)^2 / (r^2 + eps)``, :func:`tlm.oracle.mitsuba.rel_mse_per_pixel`)."""
     diff = np.asarray(image, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
     ref2 = float(np.sum(np.asarray(reference, dtype=np.float64) ** 2))
     sq = float(np.sum(diff**2))

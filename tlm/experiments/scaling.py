@@ -11,8 +11,18 @@ pipeline's Traversal, Intersection and Fragment cycles per frame from every poin
 and fits A and B per (scene, mode, scheduler) and per target: the frame latency (the
 "total time" of one frame, arrival to image) and the throughput (TThru, cycles per
 frame in the stream). The fit is exact at N = 1, as the thesis asks, and least squares
-over the other N. Eq. 5.2 divides the sum over the pipelines by N: it assumes tiles of
-equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
+over the other N. In this model the latency is no second measurement: the stream is a closed
+loop (a frame arrives when the one ``arch.images_in_flight`` before it is done), so by Little's
+law the latency is images in flight x TThru: to the cycle at the default 5 frames in every case
+checked (with frames done in order, the one steady frame's latency spans the window TThru is
+measured over) and with one image, and to within a
+few percent over a longer stream where the steady state is not periodic in k frames (the
+dynamic scheduler in PMap); not where the stream is too short for a steady state
+(``throughput_steady`` false). Where every point of a group has it (:func:`latency_multiple`),
+the latency fit's A and B are the throughput fit's times that multiple, with the same errors:
+its ``latency_multiple`` says so (None where it does not hold), and ``tlm scaling`` and the
+report say the latency fit is the throughput fit scaled. Eq. 5.2 divides the sum over the
+pipelines by N: it assumes tiles of equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
 pipeline's max(T_t, T_r, T_f) in the sum (its own A and B), which is what a static
 tiling of an uneven image waits for.
 
@@ -23,8 +33,8 @@ two copies of one file (and of its meshes) are one scene, two
 files that share a ``name`` (a modified copy of ``cornell.yaml``, the built-in ``ring``
 beside ``thesis/ring``) are two groups. Every group's scene is named as the report names it,
 whatever else is fitted beside it (:func:`scene_name`): a built-in one by its name under
-``scenes/`` (``thesis/ring``, never ``ring``), any other by the path its config gave
-(:func:`groups`). The points of one group must differ in N alone: a
+``scenes/`` (``thesis/ring``, never ``ring``), any other by the path its config gave, an absolute one
+short (:func:`short_scene_path`: ``myroom.yaml``) (:func:`groups`). The points of one group must differ in N alone: a
 group whose points' resolved configs differ in any other key (a sweep that zips
 ``arch.pipelines`` with ``arch.page_miss_cycles``, or two sweeps of different bases) is
 refused, naming the key, since the fit would read that key's effect as the pipelines'
@@ -197,6 +207,7 @@ def record(res: dict, cfg: dict) -> dict:
         "sum_max": sum(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
         "max_max": max(max(p["traversal"], p["intersection"], p["fragment"]) for p in per_pipe),
         "latency": int(res["cycles"]["latency"]), "throughput": int(res["cycles"]["throughput"]),
+        "in_flight": cfg["arch"].get("images_in_flight"),
     }
 
 
@@ -435,7 +446,23 @@ def scene_name(rec: dict) -> str:
                 return tail
             break
     ref = rec.get("scene_ref")
-    return ref.strip() if isinstance(ref, str) and ref.strip() else str(source)
+    return short_scene_path(ref.strip() if isinstance(ref, str) and ref.strip() else str(source))
+
+
+def short_scene_path(path: str) -> str:
+    """A scene file that is not built-in, by a short name: a relative path as given; an absolute one (a
+    resolved config's, ``/p/work/myroom.yaml``) relative to the current folder where it lies under it, as
+    the report names it (``myroom.yaml``), else by its file's name; :func:`groups` tells apart two files
+    that one name would stand for."""
+    if not os.path.isabs(path):
+        return path
+    p = Path(os.path.normpath(path))
+    for here in dict.fromkeys((Path.cwd(), Path.cwd().resolve())):
+        try:
+            return p.relative_to(here).as_posix()
+        except ValueError:
+            continue
+    return p.name
 
 
 def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
@@ -462,6 +489,21 @@ def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
     return dict(sorted(out.items()))
 
 
+def latency_multiple(points: list[dict]) -> int | None:
+    """The whole number k with latency = k x throughput at every point of ``points`` (to the
+    cycle or so that rounding each to whole cycles leaves: ``k / 2 + 1``), k the images in flight
+    where a point says it (``in_flight``); None where there is none. In the closed-loop stream
+    (:func:`tlm.arch.model.steady_throughput`) it is Little's law: the latency fit is then the
+    throughput fit times k, no second test of eq. 5.2."""
+    if not points or any(not p.get("throughput") or not p.get("latency") for p in points):
+        return None
+    k = round(points[0]["latency"] / points[0]["throughput"])
+    if k < 1 or any(p.get("in_flight") not in (None, k) for p in points):
+        return None
+    ok = all(abs(p["latency"] - k * p["throughput"]) <= k / 2 + 1 for p in points)
+    return k if ok else None
+
+
 def fit(records: list[dict], notes: list[str] | None = None) -> dict[tuple, dict]:
     """Eq. 5.2 per (scene, mode, scheduler) (:func:`groups`), per combination of the sweeps' other
     factors (:func:`parts`, each fit's ``group``; ``notes`` gets a line per combination left out)
@@ -475,8 +517,10 @@ def fit(records: list[dict], notes: list[str] | None = None) -> dict[tuple, dict
             source = (f"{', '.join(sweeps)} ({group}{'; ' + label if label else ''})" if sweeps
                       else label or None)
             for target in TARGETS:
-                fits[fit_key(*key, target, label)] = {**fit_both(part, target, source),
-                                                     **({"group": label} if label else {})}
+                # (the latency: images in flight x TThru at every point, or None where not: latency_multiple)
+                fits[fit_key(*key, target, label)] = {
+                    **fit_both(part, target, source), **({"group": label} if label else {}),
+                    **({"latency_multiple": latency_multiple(part)} if target == "latency" else {})}
     return fits
 
 
@@ -506,7 +550,8 @@ def analyse(sweep_dirs: list[Path], out: Path, plot: Callable[[str, dict, Path],
         summary.append({"scene": scene, "scene_file": files.get(scene), "mode": mode, "scheduler": sched,
                         "target": target, **group, "A": f["A"], "B": f["B"],
                         "max_abs_rel_error": f["max_abs_rel_error"], "slowest": f["slowest"],
-                        "pipelines": [r["pipelines"] for r in f["rows"]]})
+                        "pipelines": [r["pipelines"] for r in f["rows"]],
+                        **({"latency_multiple": f["latency_multiple"]} if "latency_multiple" in f else {})})
         table.extend({"scene": scene, "mode": mode, "scheduler": sched, "target": target, **r, **group}
                      for r in f["rows"])
 

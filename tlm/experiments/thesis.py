@@ -29,7 +29,11 @@ rel_error, calibrated, comparable, not_comparable`` (cycles in millions as in th
 FPS in frames per second; ``comparable`` false where the cell's scene is not the thesis's
 at its setting, ``not_comparable`` then how, in the summary's words; both empty where the
 thesis has no value), and ``DIR/thesis_summary.json`` the median absolute relative error
-over the held-out cells of the comparable scenes (``not_comparable``: why the others are
+over the held-out cells of the comparable scenes that are predictions of their own
+(``median_abs_rel_error_predicted``; ``not_predictions``: the held-out cells left out of it and why,
+:data:`NOT_PREDICTIONS`: TVert in Reflect and Refract, the fitted RCast TVert again, and FPS, the clock
+over TThru; ``median_abs_rel_error_held_out``: the median over every held-out cell, those
+included), (``not_comparable``: why the others are
 left out, keyed by the scene as the CSV's ``scene`` column names it; ``median_withheld``:
 the same in words, naming the scene as the printout does; ``scenes``: the one name -> the
 other, ``ring`` -> ``thesis/ring``) and, per scene-mode, whether our slowest PM is the
@@ -115,12 +119,28 @@ THESIS = {
 METRICS = ("TVert", "TTrav", "Tisct", "TFrag", "TThru", "FPS")
 PM_METRICS = ("TVert", "TTrav", "Tisct", "TFrag")
 CALIBRATED = {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
+# Held-out cells that are no prediction of their own, each another cell again (in the thesis's
+# tables and in ours alike): the headline median leaves them out (:func:`summarize`), the CSV keeps them.
+# Their kind (as the summary's ``not_predictions`` names it) -> why.
+NOT_PREDICTIONS = {
+    "TVert in Reflect and Refract": "the fitted RCast TVert again: one geometry BSP a frame, whatever the mode",
+    "FPS": "clock / TThru, 600 MHz at the thesis's setting: the TThru cell again",
+}
 FIT_PMS = {"vertex": "TVert", "traversal": "TTrav", "fragment": "TFrag"}
 # PMs whose record_cycles are fitted beside their scale: the thesis's TTrav is nearly the
 # same per traced ray in its three scenes, and its TFrag has a per-pixel part as large as
 # its per-hit part (docs/fidelity.md, "Cycles per record")
 FIT_RECORDS = ("traversal", "fragment")
 COLUMNS = ("scene", "mode", "metric", "thesis", "ours", "rel_error", "calibrated", "comparable", "not_comparable")
+
+
+def not_prediction(mode: str, metric: str) -> str | None:
+    """The kind of :data:`NOT_PREDICTIONS` a held-out cell is (None: a prediction of its own)."""
+    if metric == "FPS":
+        return "FPS"
+    if metric == "TVert" and mode in ("reflect", "refract"):
+        return "TVert in Reflect and Refract"
+    return None
 
 
 def thesis_value(scene: str, mode: str, metric: str) -> float | None:
@@ -297,13 +317,22 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     (:func:`mismatches`); those scenes' cells count in no median (an error against another
     setting measures the setting, not the model). ``held_out_cells`` and
     ``calibrated_cells`` count every cell with a thesis value, ``*_compared`` those the
-    medians are over; ``median_withheld`` says in words what was left out and why (None:
+    medians are over; ``predicted_cells`` and ``median_abs_rel_error_predicted`` (the headline,
+    :func:`median_words`) the held-out cells but those of :data:`NOT_PREDICTIONS` (another cell
+    again: ``not_predictions``, the kinds left out -> why; ``not_predictions_compared``, how many);
+    ``median_withheld`` says in words what was left out and why (None:
     nothing), each scene by its name in ``names`` (its rows' name -> the printout's:
     :func:`scene_names`, ``ring`` -> ``thesis/ring``), as the tables name it."""
     nc = {s: list(w) for s, w in (not_comparable or {}).items() if w}
     known = [r for r in rows if r["rel_error"] is not None]
     compared = [r for r in known if str(r["scene"]) not in nc]
     held = [abs(r["rel_error"]) for r in compared if not r["calibrated"]]
+    # (the headline: the held-out cells that are predictions of their own, not another cell again)
+    kinds = {(str(r["mode"]), str(r["metric"])): not_prediction(str(r["mode"]), str(r["metric"]))
+             for r in known if not r["calibrated"]}
+    predicted = [abs(r["rel_error"]) for r in compared
+                 if not r["calibrated"] and kinds[(str(r["mode"]), str(r["metric"]))] is None]
+    left_kinds = [k for k in NOT_PREDICTIONS if k in kinds.values()]
     fitted = [abs(r["rel_error"]) for r in compared if r["calibrated"]]
     withheld = None
     left = {s: w for s, w in nc.items() if any(str(r["scene"]) == s for r in known)}
@@ -329,6 +358,13 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
         "calibrated_cells": sum(bool(r["calibrated"]) for r in known),
         "median_abs_rel_error_calibrated": float(np.median(fitted)) if fitted else None,
         "held_out_cells_compared": len(held),
+        # the headline (median_words): the held-out cells but those of not_predictions, over the comparable scenes
+        "predicted_cells": sum(not r["calibrated"] and kinds[(str(r["mode"]), str(r["metric"]))] is None
+                               for r in known),
+        "median_abs_rel_error_predicted": float(np.median(predicted)) if predicted else None,
+        "predicted_cells_compared": len(predicted),
+        "not_predictions": {k: NOT_PREDICTIONS[k] for k in left_kinds},
+        "not_predictions_compared": len(held) - len(predicted),
         "calibrated_cells_compared": len(fitted),
         "not_comparable": nc,
         "median_withheld": withheld,

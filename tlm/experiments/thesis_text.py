@@ -33,12 +33,29 @@ def describe_items(items: dict[str, dict], scenes: dict[str, str] | None = None)
 
 def median_words(s: dict) -> str:
     """A :func:`~tlm.experiments.thesis.summarize`'s held-out median in words, as every place that quotes it says it:
-    over how many cells, or why there is none (scenes not comparable, no thesis value)."""
+    over how many cells, or why there is none (scenes not comparable, no thesis value). The median is over
+    the held-out cells that are predictions of their own (``median_abs_rel_error_predicted``), saying which
+    were left out as another cell again and the median over every held-out cell with them; a summary
+    written before that key was added gives the held-out median alone, as it then said it."""
     med, why = s["median_abs_rel_error_held_out"], s.get("median_withheld")
     if med is None:
         return f"no median |relative error| ({why or 'no cell with a thesis value'})"
-    return (f"median |relative error| over the {s['held_out_cells_compared']} held-out cells: {med:.1%}"
-            + (f" ({why})" if why else ""))
+    tail = f" ({why})" if why else ""
+    if "median_abs_rel_error_predicted" not in s:
+        return f"median |relative error| over the {s['held_out_cells_compared']} held-out cells: {med:.1%}{tail}"
+    left = s.get("not_predictions") or {}
+    n_left = s.get("not_predictions_compared", 0)
+    every = f"over all {s['held_out_cells_compared']} held-out cells {med:.1%}"
+    if not left or not n_left:
+        return f"median |relative error| over the {s['held_out_cells_compared']} held-out cells: {med:.1%}{tail}"
+    which = "; ".join(f"{k} ({v})" for k, v in left.items())
+    pred = s["median_abs_rel_error_predicted"]
+    if pred is None:
+        return f"no held-out cell is a prediction of its own (left out: {which}); {every}{tail}"
+    repeat = "repeats" if n_left == 1 else "repeat"
+    return (f"median |relative error| over the {s['predicted_cells_compared']} held-out cells that are "
+            f"predictions of their own: {pred:.1%} (left out, {n_left} that {repeat} another cell: {which}; "
+            f"{every}){tail}")
 
 
 def slowest_words(s: dict) -> str:

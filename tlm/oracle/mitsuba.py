@@ -6,10 +6,11 @@ single precision, no JIT, so it runs wherever Mitsuba's wheel installs; it uses 
 core), :func:`ground_truth` caches converged images in ``oracle/<key>/`` of tlm's cache
 folder (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``, else ``~/.cache/tlm``:
 :func:`tlm.caches.cache_home`; a cache that cannot be written loses no image, see
-:func:`ground_truth`) and :func:`flip`, :func:`rel_mse` and :func:`mean_normalised_rel_rmse` measure an image
-against one. Mitsuba is optional: it is imported on first use (a missing package is a
-one-line :class:`~tlm.errors.InputError`), and that use sets Mitsuba's process-wide
-variant to ``scalar_rgb``.
+:func:`ground_truth`) and :func:`flip`, :func:`rel_mse_per_pixel` and :func:`mean_normalised_rel_rmse` measure an
+image against one (the per-pixel relative MSE of many rendering papers: not the ``rel_mse`` of
+tlm's runs, studies and reports, :func:`tlm.experiments.reference.image_error`'s summed ratio).
+Mitsuba is optional: it is imported on first use (a missing package is a one-line
+:class:`~tlm.errors.InputError`), and that use sets Mitsuba's process-wide variant to ``scalar_rgb``.
 
 The mapping, and why:
 
@@ -106,7 +107,7 @@ MAPPING_VERSION = 1  # part of the cache key: bump when the scene mapping change
 ORACLE_PACKAGES = ("mitsuba>=3.5", "flip-evaluator>=1.6")
 INSTALL_HINT = ("pip install " + " ".join(f'"{p}"' for p in ORACLE_PACKAGES)
                 + '; in a checkout: pip install -e ".[oracle]"')
-REL_MSE_EPS = 1e-2  # rel_mse's floor on ref^2, as a fraction of mean(ref)^2 (see rel_mse)
+REL_MSE_EPS = 1e-2  # rel_mse_per_pixel's floor on ref^2, as a fraction of mean(ref)^2 (see rel_mse_per_pixel)
 
 
 def _mitsuba():
@@ -519,8 +520,11 @@ def _pair(test, reference) -> tuple[np.ndarray, np.ndarray]:
     return t, r
 
 
-def rel_mse(test, reference) -> float:
-    """Relative MSE: the mean over pixels and channels of ``(test - ref)^2 / (ref^2 + eps)``.
+def rel_mse_per_pixel(test, reference) -> float:
+    """Per-pixel relative MSE: the mean over pixels and channels of ``(test - ref)^2 / (ref^2 + eps)``,
+    the relMSE of many rendering papers. Not the ``rel_mse`` of tlm's runs, studies and reports
+    (:func:`tlm.experiments.reference.image_error`: ``sum (test - ref)^2 / sum ref^2``, which weighs a
+    pixel by its brightness). ``rel_mse`` is its old name, kept.
 
     ``eps = REL_MSE_EPS * mean(ref)^2`` with :data:`REL_MSE_EPS` = 1e-2: a pixel darker
     than a tenth of the image's mean is measured against that tenth instead of against
@@ -530,8 +534,11 @@ def rel_mse(test, reference) -> float:
     t, r = _pair(test, reference)
     eps = REL_MSE_EPS * float(np.mean(r)) ** 2
     if not eps > 0:
-        raise ValueError("rel_mse needs a reference with a positive mean")
+        raise ValueError("rel_mse_per_pixel needs a reference with a positive mean")
     return float(np.mean((t - r) ** 2 / (r**2 + eps)))
+
+
+rel_mse = rel_mse_per_pixel  # (its old name: the per-pixel relMSE, not the rel_mse of tlm's runs and reports)
 
 
 def mean_normalised_rel_rmse(test, reference, mask=None) -> float:

@@ -1,8 +1,8 @@
 """Report section: our simulated frame rates beside the figures the thesis quotes (§V.B).
 
 The thesis compares its architecture with SaarCOR (Schmittler et al. [5]: 7.52-28.88
-fps with one ray tracing core), GPU stream ray casting (Purcell et al. [14]: 1.8-10.5
-fps) and photon mapping on a GPU (Purcell et al. [16]: 8.1 s per frame for the ring
+fps with one ray tracing core), GPU stream ray casting (Purcell et al., cited there by no number:
+1.8-10.5 fps) and photon mapping on a GPU (Purcell et al. [16]: 8.1 s per frame for the ring
 scene, 64.3 s for the Cornell Box), and gives its own FPS row in Tables I-III. The
 peers rendered other scenes, at other resolutions, on other (real or simulated)
 hardware: the comparison is of orders of magnitude only, and the figure says so.
@@ -52,11 +52,13 @@ class Peer:
     high_fps: float
 
 
-# As quoted in the thesis, §V.B "Results and System Performance" (references as numbered there).
+# As quoted in the thesis, §V.B "Results and System Performance" (references as numbered there; the stream
+# ray casting figures are "Purcell et al's commodity GPU based stream ray tracing studies", with no number: the
+# thesis's [14] (SIGGRAPH 2002) and [17] (Purcell's 2004 dissertation) are both such studies, so neither is named).
 PEERS = (
     Peer("SaarCOR, one RTC", "Schmittler, Wald and Slusallek, Graphics Hardware 2002 [5]",
          "ray tracing on a fixed-function ray tracing core (simulated hardware)", "7.52 fps to 28.88 fps", 7.52, 28.88),
-    Peer("GPU stream ray casting", "Purcell et al., SIGGRAPH 2002 [14]",
+    Peer("GPU stream ray casting", "Purcell et al.'s GPU stream ray tracing studies (no reference given)",
          "simple ray-casting images without indirect illumination on a commodity GPU", "1.8 fps to 10.5 fps",
          1.8, 10.5),
     Peer("GPU photon mapping, ring", "Purcell et al., Graphics Hardware 2003 [16]",

@@ -7,7 +7,11 @@ One command regenerates ``plots/`` (the figures the README shows)::
 Each step is a tlm command over a file in ``configs/``; a sweep skips the points it
 finished before, and the functional cache spares renders that were done before, so a
 second call redoes only the simulations and the report. ``--only`` runs a subset of
-the steps (the report still reads every step's folder that exists).
+the steps (the report still reads every step's folder that exists). A scaling sweep's
+folder that the eq52 folder was fitted from (its ``eq52.json`` ``sweeps``) is shown
+through that fit; another (no eq52 folder: ``--only scaling_cornell``) is reported as
+the sweep it is. The eq52 step fits the scaling folders this command runs or that exist,
+saying which are missing; with none of them it is refused before any step runs.
 
 A step that exits with status 1 has run and reports failures among its results (a case
 of ``tlm extreme`` that differs from its expectation, a sweep point that failed, a model
@@ -103,10 +107,22 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
         what = "is not a folder" if configs.exists() else "no such folder"
         raise InputError(f"{what}: name the folder of the experiment files (configs/)", source=str(configs),
                          key="--configs")
+    planned = [n for n in names if not only or n in only]
+    # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
+    # (a missing one is said and left out of the fit; none at all is refused before any step runs)
+    absent = [s for s in SCALING if s not in planned and not (runs / s).is_dir()]
+    if "eq52" in planned and len(absent) == len(SCALING):
+        raise InputError(f"step eq52 fits the scaling sweeps, and none is under {runs} ({', '.join(absent)}: no such "
+                         f"folder) nor among the steps to run: add {' or '.join(absent)} to --only", key="--only")
     failed = []
     for name, argv in STEPS:
         if only and name not in only:
             continue
+        if name == "eq52" and absent:
+            argv = [a for a in argv if a not in {f"{{runs}}/{s}" for s in absent}]
+            say(f"== eq52: fits {', '.join(s for s in SCALING if s not in absent)} alone: no folder "
+                f"{', '.join(absent)} under {runs} (run {'its step' if len(absent) == 1 else 'their steps'} "
+                f"with --only to fit {'it' if len(absent) == 1 else 'them'} too)")
         argv = [a.format(configs=configs, runs=runs) for a in argv] + ["--no-report"]
         say(f"== {name}: tlm {' '.join(argv)}")
         try:
@@ -123,11 +139,28 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
         elif status != 0:
             raise InputError(f"step {name} failed with exit status {status} (see above)", key="tlm plots")
         ran.append(name)
-    dirs = [runs / n for n in REPORTED if (runs / n).is_dir()]
+    # a scaling sweep that the eq52 folder was fitted from is shown through it (its idle fractions alone read from
+    # the sweep); one it was not (no eq52 folder, or one fitted from the others) is reported as the sweep it is
+    fitted_by = _fitted_by(runs / "eq52")
+    dirs, fitted = [], []
+    for n in names:
+        if (runs / n).is_dir() and (n in REPORTED or n in SCALING):
+            (fitted if n in SCALING and (runs / n).resolve() in fitted_by else dirs).append(runs / n)
     if not dirs:
         raise InputError(f"no step's folder exists under {runs}", key="--runs")
-    fitted = [runs / n for n in SCALING if (runs / n).is_dir()]
     page = build_report(dirs, out, "tlm: the committed experiments", scaling_sweeps=fitted)
     if failed:
         raise StepsFailed(page, failed)
     return page
+
+
+def _fitted_by(eq52: Path) -> set[Path]:
+    """The sweep folders (resolved) that the scaling folder ``eq52`` records in its ``eq52.json`` as fitted
+    from; none where it has no readable one (the report says what is wrong with it)."""
+    import json
+
+    try:
+        sweeps = json.loads((eq52 / "eq52.json").read_text(encoding="utf-8")).get("sweeps")
+    except (OSError, ValueError, AttributeError):
+        return set()
+    return {(eq52 / rel).resolve() for rel in sweeps if isinstance(rel, str)} if isinstance(sweeps, list) else set()

@@ -6,7 +6,8 @@ hold nothing for it):
 1. How fast? Frames per second per scene and mode, ours beside the thesis's (Tables I–III):
    the thesis study's frames when there is one (the other runs' frame rates in words).
 2. What limits it? The bottleneck PM of each scene-mode and its utilisation (busy share
-   of the elapsed cycles), and whether the thesis names the same PM.
+   of the elapsed cycles; with N pipelines a PM's busiest pipeline's, as its ``cycles.<pm>``
+   is its slowest pipeline's), and whether the thesis names the same PM.
 3. Does it scale? Speed-up with N pipelines against the ideal N (eq. 5.2's sweeps).
 4. What does quality cost? Image error against run time of the photon-map filters.
 5. What do the sweeps find? For each sweep, the factor that moves the frame rate most (its
@@ -41,6 +42,7 @@ from tlm.report.summary_points import (
     PM_METRIC,
     PMS,
     bottleneck_of_points,
+    busy_shares,
     fps_of_points,
     points_error,
     references,
@@ -161,6 +163,14 @@ def _fps(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         said.append(f"{'thesis study ' + study.path.name + ': ' if len(summaries) > 1 else ''}{words}")
     if said:
         text += f" Against Tables I–III: {esc('; '.join(said))}."
+        # (the scenes of its cells, as the tables name them: thesis/ring; the framed ones, comparable, in a median)
+        framed = [s for _, s in summaries if s.get("median_abs_rel_error_held_out") is not None
+                  and any(Path(c).name in ("ring", "room") and c not in (s.get("not_comparable") or {})
+                          for c in {k.rsplit("/", 1)[0] for k in s.get("slowest_pm") or {}})]
+        if framed:  # (a median over the thesis's ring or room, whose framing was chosen against the same cells)
+            text += (" The thesis's ring and room were framed against these same tables (the ring's missed eye rays, "
+                     "the room's one light: docs/fidelity.md, “The scenes”), so the agreement is not independent "
+                     "of them.")
     return text, f
 
 
@@ -176,10 +186,8 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     for r in inputs.runs:
         if r.kind != "thesis" and not (r.kind == "run" and (r.scene_label, r.mode) not in cells):
             continue
-        units = (r.results.get("timing") or {}).get("units") or {}
-        busy = {pm: units[f"pipe0.{pm}"]["fractions"]["busy"] for pm in PMS
-                if f"pipe0.{pm}" in units and "fractions" in units[f"pipe0.{pm}"]}
-        if len(busy) == len(PMS):
+        busy = busy_shares(r.results)  # (each PM's busiest pipeline's, as its cycles.<pm> and slowest_pm)
+        if busy is not None:
             cells[(r.scene_label, r.mode)] = busy
             if THESIS_SCENES.get(r.scene) == r.scene_label:  # (the thesis's scene: its slowest PM is known)
                 cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
@@ -205,7 +213,8 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ax.set_xticks(range(len(PMS)), [PM_METRIC[p] for p in PMS])
     ax.set_yticks(range(len(keys)), [f"{s} {MODE_NAMES.get(m, m)}" for s, m in keys], fontsize=7)
     f = save(fig, out, "summary_bottleneck.png", "Busy share per PM",
-             "each cell: busy cycles / elapsed cycles of the PM; bold: our bottleneck"
+             "each cell: busy cycles / elapsed cycles of the PM (with N pipelines: its busiest pipeline's); "
+             "bold: our bottleneck"
              + ("; ▲: the thesis's slowest PM" if marked else ""))
     tops = defaultdict(int)
     for k in keys:
@@ -241,8 +250,9 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ``tlm scaling`` folders' and those of the sweeps over ``arch.pipelines``, a fit per combination of
     a sweep's other factors), the static scheduler's where a curve has it."""
     from tlm.experiments.scaling import key_group, out_of_date
-    from tlm.report.scaling import extremes, fit_sources, short_combination
+    from tlm.report.scaling import extremes, fit_sources, idle_points, short_combination
     from tlm.report.sweep_lines import legend_under
+    from tlm.report.sweeps import factors_of
 
     # (source, scene, mode, group) -> scheduler -> rows: a scaling study's rows (eq52.csv), a sweep's fits
     found: dict[tuple, dict[str, list[dict]]] = defaultdict(lambda: defaultdict(list))
@@ -261,6 +271,19 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             scene, mode, sched, target = key[:4]
             if target == "throughput" and f.get("rows"):
                 found[(label, named.get(scene, scene), mode, key_group(key))][sched] = f["rows"]
+    # (a sweep over arch.pipelines that §3 does not fit but draws the idle tables of, TThru and speed-up per N:
+    # one passed for §3's idle fractions alone that no scaling study among the inputs was fitted from, or one
+    # of rows alone, no results folder to fit: its curve is said here, from those rows)
+    covered = {(st.path / rel).resolve() for st in studies for rel in st.meta.get("sweeps") or []
+               if isinstance(rel, str)}
+    for sw in [*inputs.scaling_sweeps, *(sw for sw in inputs.sweeps if not sw.runs)]:
+        if sw.path.resolve() in covered or "arch.pipelines" not in factors_of(sw):
+            continue
+        for key, g in idle_points(sw, []).items():
+            for p in g["points"]:
+                if _number(p["throughput"]) and p["throughput"] > 0:
+                    found[(sw.label, key[0], key[1], key[2] if len(key) > 2 else "")][p["scheduler"]].append(
+                        {"pipelines": p["pipelines"], "simulated": p["throughput"]})
     curves = {at: ("static", by["static"]) if by.get("static") else next(iter(by.items()))
               for at, by in found.items() if any(by.values())}
     if not curves:
@@ -324,6 +347,17 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         parts = (f"from {worst[2]:.2f}x to {best[2]:.2f}x over {len(curves)} curves; best {esc(best[0])} "
                  f"{best[2]:.2f}x at N = {best[1]:g}, worst {esc(worst[0])} {worst[2]:.2f}x at N = {worst[1]:g}")
     text = f"<b>Does it scale:</b> {parts} (static tiles; the dynamic scheduler and eq. 5.2 are in §3)."
+    # (eq. 5.2's latency fits where the latency is images in flight x TThru at every point: the throughput's scaled)
+    lat = [f for st in studies for f in st.meta.get("fits") or []
+           if isinstance(f, dict) and f.get("target") == "latency"]
+    scaled = [f for f in lat if isinstance(f.get("latency_multiple"), int)]
+    if scaled:
+        k = ", ".join(str(x) for x in sorted({f["latency_multiple"] for f in scaled}))
+        which = ("The eq. 5.2 latency fit in §3 is its throughput fit" if len(lat) == 1 else
+                 f"The {len(lat)} eq. 5.2 latency fits in §3 are their throughput fits" if len(scaled) == len(lat) else
+                 f"{len(scaled)} of the {len(lat)} eq. 5.2 latency fits in §3 are their throughput fits")
+        text += (f" {which} x {k}: in this closed loop the latency is images in flight x TThru (Little's law), "
+                 "no second test of eq. 5.2.")
     if stale & {label for label, *_ in curves}:
         text += (f" Out of date: {esc(_and(sorted(stale & {label for label, *_ in curves})))}'s sweep holds other "
                  "points now than its fit was made from (§3's notes say which).")
@@ -410,13 +444,69 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     else:
         against = " against our reference" + (" (NOT converged)" if reference_converged(st) is False else "")
         noise = ""
+    seeds = _seeds_words(rows, err, series_of)  # (one seed's winner is one sample: said as such)
     text = (f"<b>What quality costs:</b> the lowest error is {esc(lo['filter'])}'s"
             + (f" with final gathering ({gather} rays)" if gather else "")
             + (f" (from {esc(source)})" if source else "") + ", relative MSE "
             f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
-            + against + (f"; {', '.join(rest)}" if rest else "") + "." + noise
+            + against + (f"; {', '.join(rest)}" if rest else "") + "." + esc(seeds) + noise
             + points_error(inputs) + error_factor(inputs))
     return text, f
+
+
+def _row_seed(r: dict) -> str:
+    """The seed of an error-vs-cost row: its point's (``seed=1`` among its ``factors``), else its
+    study's ``--set seed=``, else its study's base seed (named by the study's folder)."""
+    for part in str(r.get("factors") or "").split("; "):
+        if part.strip().startswith("seed="):
+            return part.strip()[len("seed="):]
+    study = r.get("_study")
+    for o in getattr(study, "overrides", None) or []:
+        if o.startswith("seed="):
+            return o[len("seed="):]
+    return _base_seed(getattr(study, "path", None))
+
+
+def _base_seed(folder: Path | None) -> str:
+    """An error-vs-cost study's base seed, from its ``config.resolved.yaml`` (its folder's name where
+    that cannot be read: a seed of its own)."""
+    import yaml
+
+    try:
+        seed = (yaml.safe_load((Path(folder) / "config.resolved.yaml").read_text()) or {}).get("seed")
+    except (OSError, TypeError, AttributeError, yaml.YAMLError):
+        seed = None
+    return str(seed) if seed is not None else f"the base of {getattr(folder, 'name', '?')}"
+
+
+def _seeds_words(rows: list[dict], err: str, series_of) -> str:
+    """What "the lowest error" of the error-vs-cost rows is a sample of, a sentence: that they are one
+    seed's (one photon map per count: which filter wins by a small margin is the seed's as much as the
+    filter's, and another seed can reorder them), else each series' lowest error per seed: in how many
+    seeds it is the lowest, its mean and range over the seeds."""
+    by_seed: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        by_seed[_row_seed(r)].append(r)
+    if len(by_seed) < 2:
+        only = next(iter(by_seed))
+        only = f"seed {only}" if only.lstrip("-").isdigit() else only
+        return (f" These rows are of one seed ({only}): where the filters' errors are close, another "
+                "seed's photon maps can reorder them (a seed key in the study's points gives the spread).")
+    names = list(dict.fromkeys(series_of(r) for r in rows))
+    wins: dict[str, int] = defaultdict(int)
+    per: dict[str, list[float]] = defaultdict(list)
+    for rs in by_seed.values():
+        best = {}
+        for r in rs:
+            k = series_of(r)
+            if k not in best or r[err] < best[k]:
+                best[k] = r[err]
+        wins[min(best, key=best.get)] += 1
+        for k, v in best.items():
+            per[k].append(v)
+    parts = [f"{k}: lowest in {wins[k]} of {len(by_seed)}, mean {np.mean(per[k]):.3g} "
+             f"({min(per[k]):.3g}-{max(per[k]):.3g}) over {len(per[k])} seeds" for k in names if per[k]]
+    return f" Over the rows' {len(by_seed)} seeds, each series' lowest error per seed: {'; '.join(parts)}."
 
 
 def _other_errors(inputs: Inputs) -> str:

@@ -68,6 +68,30 @@ def _effect(ok: list[dict], k: str, held: list[str], of: str = "fps") -> dict | 
     return {"values": per, "used": used, "combos": len(complete), "compared": len(pairs), "same": same}
 
 
+CYCLES = {"cycles.vertex": "TVert", "cycles.traversal": "TTrav", "cycles.intersection": "Tisct",
+          "cycles.fragment": "TFrag", "cycles.throughput": "TThru", "cycles.latency": "the latency"}
+
+
+def _cycles_moved(ok: list[dict], k: str, held: list[str]) -> tuple[str, float] | None:
+    """Where ``k`` keeps the frame rate: whether it still moves a cycle count (sweep.csv's ``cycles.<pm>``,
+    :data:`CYCLES`) between the ``ok`` rows that differ only in it (the combinations of the factors ``held``,
+    as :func:`_effect`): the count it moves most, by name, and by how much (the largest of a combination's
+    highest over its lowest, less one); None where every count is the same (to 1e-9) in each combination."""
+    most: tuple[str, float] | None = None
+    for col, name in CYCLES.items():
+        combos: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+        for r in ok:
+            if _number(r.get(col)):
+                combos[tuple(repr(r.get(j)) for j in held)][repr(r.get(k))].append(float(r[col]))
+        for c in combos.values():
+            vs = [v for vals in c.values() for v in vals] if len(c) > 1 else []
+            if vs and not all(same_value(v, vs[0]) for v in vs) and min(vs) > 0:
+                change = max(vs) / min(vs) - 1
+                if most is None or change > most[1]:
+                    most = (name, change)
+    return most
+
+
 def _measured(rows: list[dict]) -> list[dict]:
     """The rows that measured their image error (a number in :data:`ERROR`)."""
     return [r for r in rows if _number(r.get(ERROR))]
@@ -183,7 +207,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
         factors = [*(sw.spec.get("grid") or {}), *(sw.spec.get("zip") or {})]
         if not rows or not factors:
             continue
-        spread, nothing, apart, along, left, errs, unjudged = {}, [], [], {}, {}, [], []
+        spread, nothing, apart, along, left, errs, unjudged, kept = {}, [], [], {}, {}, [], [], []
         measured = _measured(rows)  # (a factor that keeps the frame rate may still change the image error)
         for k in factors:
             along[k] = _moves_with(every, k, factors)
@@ -200,6 +224,9 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                                 f"between points that differ only in it")
                 else:
                     unjudged.append(k)
+            elif eff["same"] and (moved := _cycles_moved(rows, k, held)) is not None:
+                kept.append((k, *moved))  # (the frame rate kept, a PM's cycles not: it does not "change nothing")
+                nothing.append(k)  # (its points tie in frame rate: the best point is said once, as of one)
             elif eff["same"]:
                 nothing.append(k)
             elif not means:
@@ -212,10 +239,14 @@ def sweep_findings(inputs: Inputs) -> list[str]:
         text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
                 f"{', ' + esc(with_set(sw.overrides)) if sw.overrides else ''}{esc(sw.unfinished)}): ")
         notes = ""
-        if nothing:
-            notes += (f"{esc(', '.join(nothing))} {'changes' if len(nothing) == 1 else 'change'} nothing "
+        inert = [k for k in nothing if k not in {f for f, *_ in kept}]  # (every cycle count the same)
+        if inert:
+            notes += (f"{esc(', '.join(inert))} {'changes' if len(inert) == 1 else 'change'} nothing "
                       f"{'(neither the frame rate nor the image error) ' if measured else ''}between "
-                      f"points that differ only in {'it' if len(nothing) == 1 else 'them'}; ")
+                      f"points that differ only in {'it' if len(inert) == 1 else 'them'}; ")
+        moved = "".join(f"{esc(k)} keeps the frame rate between points that differ only in it, but moves {name} "
+                        f"(by up to {change:.1%}); " for k, name, change in kept)
+        notes += moved
         notes += "".join(f"{e}; " for e in errs)
         if unjudged:
             notes += (f"{esc(', '.join(unjudged))} {'does' if len(unjudged) == 1 else 'do'} not change the frame rate "
@@ -237,7 +268,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                      f"ok points left out for that); ")
             text += notes + best
         elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
-            text += f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS."
+            text += (f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS"
+                     + (f"; {moved.removesuffix('; ')}" if moved else "") + ".")
         elif len({r["fps"] for r in rows}) == 1:  # (the image error still tells the points apart)
             text += f"no factor changes the frame rate (every point runs at {rows[0]['fps']:.3g} FPS); " + notes + best
         else:

@@ -48,12 +48,28 @@ def fps_of_points(inputs: Inputs) -> str:
             f"{count(len(points), 'sweep point')} run {rng} (§4 draws them against each factor).")
 
 
+def busy_shares(results: dict) -> dict[str, float] | None:
+    """The busy share of each PM that a run's ``results`` record, a PM's busiest pipeline's (as ``cycles.<pm>``
+    is its slowest pipeline's, the one the frame waits for, and ``timing.throughput_estimate.slowest_pm`` the PM
+    of the most of those): the most ``timing.units.pipe<i>.<pm>.fractions.busy`` over the pipelines; None where
+    a PM has none, or one that is not a number."""
+    units = (results.get("timing") or {}).get("units") or {}
+    busy: dict[str, float] = {}
+    for name, unit in units.items():
+        pipe, _, pm = str(name).partition(".")
+        if pm not in PMS or not pipe.startswith("pipe") or not pipe[4:].isdigit():
+            continue
+        v = unit.get("fractions", {}).get("busy") if isinstance(unit, dict) and isinstance(
+            unit.get("fractions"), dict) else None
+        if not number(v):
+            return None
+        busy[pm] = max(busy.get(pm, v), v)
+    return busy if len(busy) == len(PMS) else None
+
+
 def _busy(r: Run) -> dict[str, float] | None:
-    """The busy share of each PM of pipeline 0 that ``r`` records; None where it lacks one."""
-    units = (r.results.get("timing") or {}).get("units") or {}
-    busy = {pm: units[f"pipe0.{pm}"]["fractions"].get("busy") for pm in PMS
-            if isinstance(units.get(f"pipe0.{pm}"), dict) and isinstance(units[f"pipe0.{pm}"].get("fractions"), dict)}
-    return busy if len(busy) == len(PMS) and all(number(v) for v in busy.values()) else None
+    """The busy share of each PM that ``r`` records (:func:`busy_shares`); None where it lacks one."""
+    return busy_shares(r.results)
 
 
 def sweep_bottlenecks(inputs: Inputs, moving: bool = False) -> list[str]:
@@ -135,16 +151,60 @@ def _point_errors(sw) -> tuple[list[tuple[float, str]], list]:
     return measured, unmeasured
 
 
-def _unmeasured_command(runs: list) -> str:
-    """The ``tlm reference`` commands that compute the references the unmeasured points ``runs`` need
-    (one a reference key, from its first point's ``config.resolved.yaml``: every setting of the point),
-    as the sweep printed them on stderr."""
+def _unmeasured_command(sw, runs: list) -> str:
+    """The ``tlm reference`` commands that compute the references the unmeasured points ``runs`` of the sweep
+    ``sw`` need (one a reference key), as the sweep printed them on stderr: its base config file with the
+    sweep's ``--set`` strings and what its ``set`` and the point's factors give of the keys a reference reads
+    (:data:`~tlm.experiments.reference.KEY_READS`); for a sweep whose base is a mapping in the sweep file, which
+    no command names, the first point's ``config.resolved.yaml`` (every setting of the point)."""
+    import json
+
+    from tlm.experiments.reference import KEY_READS
     from tlm.experiments.run import reference_command  # (tlm run's rule, as images.py's)
 
     by_key: dict[str, object] = {}
     for run in runs:
         by_key.setdefault(str((run.results.get("error") or {}).get("reference")), run)
-    return "; ".join(reference_command(str((run.path / "config.resolved.yaml").absolute())) for run in by_key.values())
+    base = _base_config(sw)
+    commands = []
+    for run in by_key.values():
+        if base is None:
+            commands.append(reference_command(str((run.path / "config.resolved.yaml").absolute())))
+            continue
+        given = [k for k in (*(sw.spec.get("set") or {}), *run.factors)
+                 if any(k == r or k.startswith(r + ".") or r.startswith(k + ".") for r in KEY_READS)]
+        sets = [*sw.overrides, *(f"{k}={json.dumps(_dotted(run.config, k))}" for k in given)]
+        commands.append(reference_command(base, sets))
+    return "; ".join(commands)
+
+
+def _dotted(config: dict, dotted: str):
+    """The value of the dotted key ``dotted`` in a point's resolved ``config``."""
+    for part in dotted.split("."):
+        config = config.get(part) if isinstance(config, dict) else None
+    return config
+
+
+def _base_config(sw) -> str | None:
+    """A sweep's base config file as its command line names it (as ``tlm sweep`` printed it): its path from
+    the working folder, a built-in one's name; None for a mapping in the sweep file (sweep.yaml ``base_file``
+    null). The sweep file's folder is that of sweep.yaml's ``sweep`` (as given to ``tlm sweep``); where the
+    file is not found from here, ``base_file`` as the sweep file wrote it."""
+    import os
+    from pathlib import Path
+
+    from tlm.builtin import base_path
+    from tlm.errors import InputError
+
+    base, source = sw.spec.get("base_file"), sw.spec.get("sweep")
+    if not isinstance(base, str) or not base.strip():
+        return None
+    try:
+        folder = Path(str(source)).resolve().parent if isinstance(source, str) and source else Path.cwd()
+        file, builtin = base_path(base, folder, str(source), "sweep file")
+        return str(file) if builtin else os.path.relpath(file)
+    except (InputError, OSError, ValueError):
+        return base
 
 
 def points_error(inputs: Inputs) -> str:
@@ -153,6 +213,7 @@ def points_error(inputs: Inputs) -> str:
     which sweeps, and the range; then one on the photon-map points that have none (no reference cached), with
     the ``tlm reference`` command that computes it; "" where no point has a photon-map error or lacks one."""
     found, missing = {}, {}
+    sweeps = {sw.label: sw for sw in inputs.sweeps}
     for sw in inputs.sweeps:
         measured, unmeasured = _point_errors(sw)
         if measured:
@@ -174,8 +235,9 @@ def points_error(inputs: Inputs) -> str:
                      f"{lo if lo == hi else f'{lo}–{hi}'} against {refs} (§4 lists each).")
     for label, (runs, n, path) in missing.items():
         keys = {str((r.results.get("error") or {}).get("reference")) for r in runs}
+        command = _unmeasured_command(sweeps[label], runs)
         said += (f" {len(runs)} of {n} photon-map points of {esc(label)} have no image error: no reference is cached "
-                 f"for them, and a sweep computes none; <code>{esc(_unmeasured_command(runs))}</code> computes "
+                 f"for them, and a sweep computes none; <code>{esc(command)}</code> computes "
                  f"{'it' if len(keys) == 1 else f'these {len(keys)} references'}, and the same 'tlm sweep' run again "
                  f"into {esc(str(path))} measures them from their cached frames.")
     return said
