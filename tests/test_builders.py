@@ -409,7 +409,7 @@ _PLY_HEADER = (
 @pytest.mark.parametrize(
     ("name", "text", "first"),
     [
-        ("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 nan\nf 1 2 3\nf 2 4 3\n", 3),
+        ("nan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 nan\nf 1 2 3\nf 2 4 3\n", 4),  # (OBJ numbers vertices from 1)
         ("nan.ply", _PLY_HEADER + "element face 1\nproperty list uchar int vertex_indices\n"
          "end_header\n0 0 0\nnan 0 0\n0 1 inf\n3 0 1 2\n", 1),
     ],

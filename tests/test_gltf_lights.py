@@ -73,7 +73,7 @@ VIEW = {"name": "view", "translation": [0.0, 1.0, 10.0], "rotation": [0.0, S45, 
 
 
 def _scene_glb(folder: Path, **kw) -> Path:
-    lights = kw.pop("lights", [LAMP, {"type": "spot", "name": "beam", "intensity": 9.0}])
+    lights = kw.pop("lights", [LAMP, {"type": "spot", "name": "beam", "intensity": 9.0, "spot": {}}])
     cameras = kw.pop("cameras", [_perspective(), {"type": "orthographic", "orthographic": {
         "xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10}}])
     nodes = kw.pop("nodes", (PARENT, _on(0, name="bulb", translation=[1.0, 0.0, 0.0]), MATRIX, VIEW,
@@ -192,8 +192,8 @@ def test_the_scene_files_lights_and_camera_come_first(tmp_path):
 
 def test_range_aspect_ratio_and_unplaced_entries_are_named(tmp_path):
     ranged = {**LAMP, "range": 4.0}
-    glb = _glb(tmp_path, [ranged, {"type": "point"}, {"type": "directional"}, {"type": "spot", "range": 2.0},
-                          {"type": "spot"}],
+    glb = _glb(tmp_path, [ranged, {"type": "point"}, {"type": "directional"},
+                          {"type": "spot", "range": 2.0, "spot": {}}, {"type": "spot", "spot": {}}],
                [_perspective(aspectRatio=1.5), _perspective(0.9)],
                (_on(0, translation=[0, 2, 0]), {"camera": 0, "translation": [0, 0, 5]}, {"camera": 1},
                 _on(2), _on(3, translation=[0, 3, 0])), (1, 2, 3, 4, 5))
@@ -322,7 +322,7 @@ def test_gltf_imports_reads_a_header_without_a_mesh():
     down its node's -z, and a perspective camera turned 90 degrees about y (it looks down the
     world's -x); nothing is left out, so there are no notes."""
     header = {
-        "extensions": {"KHR_lights_punctual": {"lights": [LAMP, {"type": "spot", "name": "cone"}]}},
+        "extensions": {"KHR_lights_punctual": {"lights": [LAMP, {"type": "spot", "name": "cone", "spot": {}}]}},
         "cameras": [{"type": "perspective", "perspective": {"yfov": math.pi / 2}}],
         "nodes": [{"children": [1], "scale": [2.0, 2.0, 2.0], "translation": [1.0, 0.0, 0.0]},
                   _on(0, translation=[0.0, 3.0, 0.0]), _on(1), {"camera": 0, "rotation": [0.0, S45, 0.0, S45]}],

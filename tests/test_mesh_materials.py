@@ -572,7 +572,7 @@ def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_o
     header, binary = _gltf_scene(tmp_path)
     header["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.1}}] * 2
     header["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 50},
-                                                               {"type": "spot", "intensity": 5},
+                                                               {"type": "spot", "intensity": 5, "spot": {}},
                                                                {"type": "point", "intensity": 1},
                                                                {"type": "directional", "intensity": 2}]}}
     header["materials"][3]["doubleSided"] = True  # the emissive "lamp"

@@ -215,7 +215,7 @@ def test_errors_are_one_line_naming_file_and_line(tmp_path, text, words):
 def test_nan_vertex_names_it(tmp_path):
     path = tmp_path / "nan.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n")
-    with pytest.raises(InputError, match=r"NaN.*vertex 2"):
+    with pytest.raises(InputError, match=r"NaN.*vertex 3, line 3"):
         load_mesh(path)
 
 

@@ -25,7 +25,7 @@ def _show(capsys, path) -> dict:
 
 def test_scene_show_lists_what_a_gltf_gave_and_what_was_left_out(tmp_path, capsys):
     # (the lamp on two nodes, the spot 'beam' on one, the directional 'sky' on none)
-    glb = _scene_glb(tmp_path, lights=[LAMP, {"type": "spot", "name": "beam", "intensity": 9.0},
+    glb = _scene_glb(tmp_path, lights=[LAMP, {"type": "spot", "name": "beam", "intensity": 9.0, "spot": {}},
                                        {"type": "directional", "name": "sky"}])
     scene = _yaml(tmp_path, "geometry: {mesh: s.glb}\n")
     shown = _show(capsys, scene)

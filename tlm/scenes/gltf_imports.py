@@ -15,7 +15,7 @@ import numpy as np
 from tlm.errors import InputError
 from tlm.scenes.model import Camera, Imported, Light
 
-__all__ = ["gltf_imports"]
+__all__ = ["check_mesh_nodes", "gltf_imports"]
 
 _PUNCTUAL = "KHR_lights_punctual"
 _SHOWN = 4  # entries a note names before "and N more"
@@ -118,6 +118,29 @@ def _world(path: tuple[int, ...], nodes: list, src: str) -> np.ndarray:
     return m
 
 
+def check_mesh_nodes(header: dict, src: str) -> None:
+    """Every node of the glTF's scene that places a mesh has a world transform that keeps it a
+    solid: an InputError names the first whose transform (with its parents') is not finite, or
+    is singular (a zero scale, an all-zero ``matrix``), which collapses the mesh to a plane, a
+    line or a point (as a zero scale on the way to a spot or directional light or the camera
+    is an error: :func:`gltf_imports`). A node the scene reaches twice (a cycle) is an error."""
+    nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
+    if not any(isinstance(node, dict) and "mesh" in node for node in nodes):
+        return
+    paths = _scene_walk(header, nodes, src)
+    for n in sorted(paths):
+        if not (isinstance(nodes[n], dict) and "mesh" in nodes[n]):
+            continue
+        m = _world(paths[n], nodes, src)[:3, :3]
+        big = float(np.abs(m).max())
+        unit = m / big if big > 0.0 else m  # (scaled to 1: no underflow in the determinant)
+        det = float(np.dot(unit[0], np.cross(unit[1], unit[2])))  # (no LAPACK call: tlm.scenes.meshes.det3)
+        if not abs(det) > 1e-15:
+            raise InputError(f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale or an "
+                             f"all-zero matrix): it collapses meshes[{nodes[n]['mesh']!r}] to a plane, a line or a "
+                             "point", source=src)
+
+
 def _entries(table, where: str, src: str) -> list[dict]:
     if table is None:
         return []
@@ -152,7 +175,11 @@ def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray, tuple[
         raise InputError(f"{where}.range: {light['range']!r} must be > 0", source=src)
     cone = (0.0, 0.0)
     if kind == "spot":
-        spot = light.get("spot", {})
+        if "spot" not in light:  # (the extension's spec: "When a light's type is spot, the spot property on the
+            # light is required"; its cone angles inside it are optional)
+            raise InputError(f"{where}: a spot light needs a 'spot' object (KHR_lights_punctual requires it; "
+                             "'spot': {} gives the default cone angles 0 and pi / 4)", source=src)
+        spot = light["spot"]
         if not isinstance(spot, dict):
             raise InputError(f"{where}.spot: {spot!r} is not an object", source=src)
         given = spot.get("innerConeAngle", 0.0), spot.get("outerConeAngle", math.pi / 4.0)

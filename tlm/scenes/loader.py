@@ -17,6 +17,7 @@ transform applied) too large or too small for the float32 ray-triangle test
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 from dataclasses import replace
@@ -38,6 +39,7 @@ from tlm.scenes.validate import MAX_MAGNITUDE
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num as _num
+from tlm.scenes.validate import shown as _shown
 from tlm.scenes.validate import vec as _vec
 
 SCENE_KEYS = (
@@ -123,9 +125,11 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     if looks_like_path:
         p = Path(ref)
         tried = [] if p.is_absolute() else [Path.cwd() if base is None else Path(base), *map(Path, also)]
+        odd = None  # (the first path tried that is there but is no file to read: named if none is found)
         for cand in [p if base is None or p.is_absolute() else Path(base) / p] + [f / p for f in tried[1:]]:
             if cand.is_file():
                 return cand
+            odd = odd or (cand if os.path.lexists(cand) else None)
         if tried and base is not None and (Path.cwd() / p).is_file():
             return Path.cwd() / p  # (the working folder, before the built-in scenes: a project's own ring.yaml)
         if not p.is_absolute() and (scenes_dir() / p).is_file():
@@ -136,6 +140,10 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         if folders and cwd not in folders:
             folders.append(cwd)  # (the working folder, before the built-in scenes)
         looked = f" (looked in {', '.join(folders)} and among the built-in scenes)" if folders else ""
+        if odd is not None:
+            named = "" if os.path.abspath(odd) == os.path.abspath(ref) else f": {odd}"
+            raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file", source=config_source,
+                             key=key)
         raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
@@ -145,6 +153,20 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         f"{ref!r} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
         source=config_source, key=key,
     )
+
+
+def _not_a_file(path: Path) -> str:
+    """What a path that is there but not a readable file is, in words."""
+    if path.is_dir():
+        return "a folder"
+    if path.is_symlink():
+        try:
+            path.resolve(strict=True)
+        except (RuntimeError, OSError) as exc:  # (a loop: RuntimeError up to Python 3.12, OSError ELOOP after)
+            if isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP:
+                return "a symbolic link that leads round in a loop"
+            return f"a symbolic link to {os.readlink(path)!r}, which is not there"
+    return "not a regular file"
 
 
 def _material(name: str, raw: Any, src: str) -> Material:
@@ -302,7 +324,11 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     stays relative to the base.
     """
     src = str(path)
-    raw = _mapping(read_yaml(path), src, "")
+    raw = read_yaml(path)
+    if raw is None:  # (as a config file: tlm.config)
+        raise InputError("is empty (nothing but comments or blanks): a scene file needs `geometry:` at least "
+                         "(docs/scenes.md)", source=src)
+    raw = _mapping(raw, src, "")
     if "scene" in raw and "geometry" not in raw and "extends" not in raw:  # (a run config named as a scene)
         raise InputError(f"is a run config (it names `scene: {raw['scene']}`), not a scene file: a config's `scene:` "
                          "names a built-in scene or a scene file (with `geometry:`)", source=src)
@@ -394,6 +420,9 @@ def load_scene(
         raise InputError("the mesh's vertex normals are not finite", source=str(geom_path), key="geometry.mesh")
     if normals is None or "crease_angle" in raw:  # the scene's crease angle overrides the file's normals
         normals = cache.crease_normals(tri, geom.part, crease, crease_normals)
+    for key in ("name", "description"):  # (words: `name: [1]` is not the name "[1]")
+        if key in raw and not isinstance(raw[key], str):
+            raise InputError(f"{_shown(raw[key])} is not text (quote it: {key}: \"...\")", source=src, key=key)
     scene = Scene(
         name=str(raw.get("name", path.stem)),
         triangles=tri,

@@ -404,11 +404,22 @@ def gltf_json(path: Path, data: bytes | None = None) -> dict:
     path = Path(path)
     data = path.read_bytes() if data is None else data
     if data[:4] == GLB_MAGIC:
-        return glb_chunks(data, str(path))[0]
-    try:
-        return json.loads(data)
-    except ValueError as exc:
-        raise InputError(f"the glTF JSON does not parse ({exc})", source=str(path)) from None
+        header = glb_chunks(data, str(path))[0]
+    else:
+        try:
+            header = json.loads(data)
+        except ValueError as exc:
+            raise InputError(f"the glTF JSON does not parse ({exc})", source=str(path)) from None
+    if not isinstance(header, dict):  # (the spec's top level is an object: "asset", "meshes", ...)
+        raise InputError(f"the glTF JSON is {_json_kind(header)}, not an object (a glTF's top level is an object "
+                         "with 'asset', 'meshes', ...)", source=str(path))
+    return header
+
+
+def _json_kind(value) -> str:
+    """A JSON value's kind, in words: "a list", "a number", "null", ..."""
+    return ("null" if value is None else "a list" if isinstance(value, list) else "a string" if isinstance(value, str)
+            else "a boolean" if isinstance(value, bool) else "a number")
 
 
 # bytes of a glTF accessor's component type, and components of its element type
@@ -458,6 +469,11 @@ def check_gltf(header: dict, source: str) -> None:
                 ref(f"{where}.attributes.{name}", a, "accessors")
     views = entries("bufferViews")
     for i, acc in enumerate(entries("accessors")):
+        for key, table in (("componentType", _COMPONENT_BYTES), ("type", _TYPE_COMPONENTS)):
+            value = acc.get(key)
+            if isinstance(value, bool) or not isinstance(value, (int, str)) or value not in table:  # (required)
+                raise InputError(f"accessors[{i}].{key} = {value!r} is not a glTF accessor {key} (one of "
+                                 f"{', '.join(map(str, table))})", source=source)
         if "bufferView" not in acc:
             continue
         ref(f"accessors[{i}].bufferView", acc["bufferView"], "bufferViews")

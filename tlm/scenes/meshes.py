@@ -36,6 +36,10 @@ polygons are fan-triangulated from their first corner.
 * A file ending in ``.gz``, ``.xz`` or ``.bz2`` after its format's suffix
   (``conference.obj.xz``) is decompressed first (all but ``.gltf``).
 
+The checks of a file's bytes and of the files it names that run before trimesh reads it (an ASCII
+STL's facets, a glTF's buffer URIs, the resolver that notes the buffers it reads) are
+:mod:`tlm.scenes.mesh_checks`.
+
 Shading normals come from the file (OBJ ``vn`` when every corner has one, PLY
 ``nx ny nz``, glTF ``NORMAL``) or are None. No library warning reaches the terminal:
 loading runs under ``warnings.catch_warnings`` and ``np.errstate``. Every problem is an
@@ -44,7 +48,6 @@ loading runs under ``warnings.catch_warnings`` and ``np.errstate``. Every proble
 
 from __future__ import annotations
 
-import functools
 import io
 import re
 import warnings
@@ -53,7 +56,13 @@ from pathlib import Path
 import numpy as np
 
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.gltf_imports import gltf_imports
+from tlm.scenes.gltf_imports import check_mesh_nodes, gltf_imports
+from tlm.scenes.mesh_checks import absolute_uri as _absolute_uri  # noqa: F401  (the old names, still importable)
+from tlm.scenes.mesh_checks import buffer_files as _buffer_files
+from tlm.scenes.mesh_checks import check_ascii_stl as _check_ascii_stl
+from tlm.scenes.mesh_checks import glb_binary as _glb_binary
+from tlm.scenes.mesh_checks import noting_resolver as _noting_resolver
+from tlm.scenes.mesh_checks import noting_resolver_class as _noting_resolver_class  # noqa: F401
 from tlm.scenes.model import Geometry, Imported, Material
 
 __all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_files", "mesh_format"]
@@ -86,7 +95,7 @@ def _check_mesh(vertices: np.ndarray, faces: np.ndarray, label: str, source: str
         count = int(bad.sum())
         raise InputError(
             f"{label} has {count} {'vertex' if count == 1 else 'vertices'} with NaN or "
-            f"infinite coordinates (first: vertex {first}, {vertices[first].tolist()})",
+            f"infinite coordinates (first: vertex {first} counting from 0, {vertices[first].tolist()})",
             source=source,
         )
     if faces.min() < 0 or faces.max() >= len(vertices):
@@ -348,39 +357,6 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
 
 
-def _buffer_files(header: dict, path: Path, src: str) -> list | None:
-    """A ``.gltf``'s ``buffers`` with each file name (``uri``, RFC 3986) percent-decoded where
-    the file is there by its decoded name (Blender writes ``my%20model.bin``); None when no
-    name changes. An InputError names a buffer whose file is missing."""
-    from urllib.parse import unquote
-
-    buffers = header.get("buffers")
-    if not isinstance(buffers, list):
-        return None
-    out, changed = [], False
-    for i, b in enumerate(buffers):
-        uri = b.get("uri") if isinstance(b, dict) else None
-        if not isinstance(uri, str) or uri.startswith("data:"):
-            out.append(b)
-            continue
-        plain = unquote(uri)
-        if not (path.parent / uri).is_file() and (path.parent / plain).is_file():
-            out.append({**b, "uri": plain})
-            changed = True
-            continue
-        if not (path.parent / uri).is_file():
-            raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / plain}", source=src)
-        out.append(b)
-    return out if changed else None
-
-
-def _glb_binary(data: bytes, ext: str, src: str) -> bytes | None:
-    """A ``.glb``'s BIN chunk (b"" if none); None for a ``.gltf``."""
-    from tlm.scenes.materials import glb_chunks
-
-    return glb_chunks(data, src)[1] if ext == ".glb" else None
-
-
 def det3(m: np.ndarray) -> np.ndarray | float:
     """The determinant of a 3x3 matrix (or of each of a stack, ``(..., 3, 3)``) by the rule of
     Sarrus, written out: no LAPACK call, hence none of OpenBLAS's, whose first call takes a
@@ -448,9 +424,10 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         if ext in (".glb", ".gltf"):
             header = gltf_json(path, data)
             check_gltf(header, src)
+            check_mesh_nodes(header, src)
             imported, notes = gltf_imports(header, src)
             file_materials = tuple(gltf_materials(header, src))
-            buffers = _buffer_files(header, path, src) if ext == ".gltf" else None
+            buffers = _buffer_files(header, path, src)
             notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src),
                                         src)
             notes += glb_length_notes(data, src) if ext == ".glb" else ()
@@ -477,6 +454,14 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
                     source = io.BytesIO(json.dumps(header).encode())
                     kwargs["resolver"] = _noting_resolver(str(path))
                 kwargs["file_type"] = ext[1:]
+    if ext == ".stl":
+        _check_ascii_stl(path, data, src)
+    if ext == ".ply":  # (an ASCII one's rows against its header: trimesh reads a wrong list count as something else)
+        from tlm.scenes import plyfile
+
+        head = plyfile.header(path, data)
+        if b"format ascii" in head:
+            plyfile.check_ascii(head, data if data is not None else path.read_bytes(), src)
     if ext in (".glb", ".gltf") and isinstance(source, str):  # (trimesh's own resolver of the file, noting)
         kwargs["resolver"] = _noting_resolver(str(path))
     try:
@@ -574,45 +559,6 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         notes=notes,
         imports=() if imported is None else (imported,),
     )
-
-
-def _noting_resolver(path: str):
-    """trimesh's resolver of the files beside ``path`` (``FilePathResolver``, as trimesh makes one for a
-    file it loads) that notes each file it reads inside :func:`tlm.config.noting_reads`:
-    ``("side", the file, sha256 of the bytes it returned)`` (a glTF's buffers: what the parse read,
-    which what remembers the parse checks them by, :func:`tlm.scenes.cache.read_as`)."""
-    return _noting_resolver_class()(path)
-
-
-@functools.cache
-def _noting_resolver_class():
-    import hashlib
-    import os
-
-    from trimesh.resolvers import FilePathResolver
-
-    from tlm.config import note_read
-
-    class NotingResolver(FilePathResolver):
-        def get(self, name: str):
-            data = super().get(name)
-            # (the file read: the first of the names FilePathResolver.get tries that is there; trimesh 4 has
-            # no ``absolute``, and joins the name to the folder)
-            absolute = getattr(self, "absolute", None) or (lambda n: Path(self.parent) / n)
-            try:
-                for candidate in (name.strip(), name.strip().lstrip("/"), os.path.split(name)[-1]):
-                    try:
-                        file = absolute(candidate)
-                    except ValueError:
-                        continue
-                    if file.exists():
-                        note_read(("side", str(file), hashlib.sha256(data).hexdigest()))
-                        break
-            except (AttributeError, OSError, TypeError):
-                pass  # (not noted: a memo of the parse finds this file's read missing, and remembers nothing)
-            return data
-
-    return NotingResolver
 
 
 def _gltf_index(geom, n_materials: int) -> int:

@@ -83,6 +83,79 @@ def _weld(points: np.ndarray, part: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return order, starts, np.diff(np.r_[starts, m])
 
 
+_SMALL_GROUP = 256  # welded groups of more corners are summed by :func:`_group_sums`
+_CLUSTER_RADIUS = 1e-6  # radians: face normals this close share one crease decision
+_MAX_CLUSTERS = 16
+_MARGIN = 1e-9  # on the cosine: far above the rounding of a dot product of unit vectors
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (radians) between the rows of ``a`` and the vector ``b`` (accurate near 0 and pi)."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))  # (no BLAS call)
+
+
+def _clusters(f: np.ndarray, cos_crease: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Label the face normals ``f`` (k, 3) of one welded group by cluster, and decide the
+    crease test between every two clusters once for all their members: ``(labels, ok)``
+    with ``ok[a, b]`` the bits that ``dot(f_i, f_j) >= cos_crease`` gives for every ``i``
+    in ``a`` and ``j`` in ``b``; None where a pair of clusters lies too near the crease
+    angle to decide for all members (or there are too many clusters)."""
+    k = f.shape[0]
+    if not np.isfinite(f).all():
+        return None
+    labels = np.full(k, -1, dtype=np.int64)
+    zero = ~np.any(f != 0.0, axis=1)  # a degenerate face: its dot with any normal is +-0.0
+    refs: list[np.ndarray] = []
+    radii: list[float] = []
+    rest = np.flatnonzero(~zero)
+    while rest.size:
+        if len(refs) == _MAX_CLUSTERS:
+            return None
+        ang = _angle(f[rest], f[rest[0]])
+        inside = ang <= _CLUSTER_RADIUS
+        labels[rest[inside]] = len(refs)
+        refs.append(f[rest[0]])
+        radii.append(float(ang[inside].max()))
+        rest = rest[~inside]
+    u = len(refs)
+    ok = np.zeros((u + 1, u + 1), dtype=bool)
+    ok[u, :] = ok[:, u] = cos_crease <= 0.0  # (+-0.0 >= cos_crease)
+    labels[zero] = u
+    for a in range(u):
+        theta = _angle(np.array(refs), refs[a])
+        spread = np.array(radii) + radii[a]
+        near, far = np.cos(np.minimum(theta + spread, np.pi)), np.cos(np.maximum(theta - spread, 0.0))
+        yes, no = near >= cos_crease + _MARGIN, far < cos_crease - _MARGIN
+        if not np.all(yes | no):
+            return None
+        ok[a, :u] = yes
+    return labels, ok
+
+
+def _group_sums(f: np.ndarray, w: np.ndarray, cos_crease: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each corner's weighted normal sum over the welded group with face normals ``f`` (k, 3)
+    and angle weights ``w`` (k,), in ascending corner order (the bits of the neighbour-rank
+    loop in :func:`crease_normals`). Corners whose normals fall in one cluster make the same
+    crease decisions, so they share one sequential sum (``np.cumsum`` adds in order): time
+    O(k x clusters); a group that does not cluster falls back to k passes of length k."""
+    k = f.shape[0]
+    found = _clusters(f, cos_crease)
+    out = np.zeros((3, k))
+    if found is None:
+        for j in range(k):
+            b = f[j]
+            ok = (f[:, 0] * b[0] + f[:, 1] * b[1]) + f[:, 2] * b[2] >= cos_crease
+            wq = np.where(ok, w[j], 0.0)
+            out += wq * b[:, None]
+        return out[0], out[1], out[2]
+    labels, ok = found
+    for a in np.unique(labels):
+        wq = np.where(ok[a][labels], w, 0.0)
+        total = np.cumsum(np.concatenate([np.zeros((1, 3)), wq[:, None] * f]), axis=0)[-1]
+        out[:, labels == a] = total[:, None]
+    return out[0], out[1], out[2]
+
+
 def crease_normals(triangles: np.ndarray, part: np.ndarray | None = None,
                    crease_angle: float = DEFAULT_CREASE_ANGLE) -> np.ndarray:
     """Per-corner unit shading normals (n, 3, 3) of world-space ``triangles`` (n, 3, 3).
@@ -91,7 +164,8 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray | None = None,
     crease_angle : degrees; faces meeting at a larger angle keep their own normal.
 
     A corner's sum runs over its welded neighbours in ascending corner order (itself
-    included), one neighbour rank at a time over all corners at once.
+    included), one neighbour rank at a time over all corners at once; a group of more
+    than ``_SMALL_GROUP`` corners by :func:`_group_sums`, with the same bits.
     """
     tri = np.asarray(triangles, dtype=np.float64)
     n = tri.shape[0]
@@ -116,17 +190,23 @@ def crease_normals(triangles: np.ndarray, part: np.ndarray | None = None,
     fx, fy, fz = f[:, 0].copy(), f[:, 1].copy(), f[:, 2].copy()
     w = weight[order]
     ax, ay, az = np.zeros(3 * n), np.zeros(3 * n), np.zeros(3 * n)
-    # sum over each corner's welded neighbours in ascending corner order (itself included),
-    # the j-th neighbour of every corner at once
-    for j in range(1, active.shape[0]):
+    # groups of more than _SMALL_GROUP corners (a prefix of the grouped list) one at a time,
+    # in time linear in their size (a fan's first vertex is in every one of its triangles)
+    large = int(np.sum(sizes[sizes > _SMALL_GROUP]))
+    for g in np.flatnonzero(sizes > _SMALL_GROUP):
+        lo, hi = int(new_starts[g]), int(new_starts[g] + sizes[g])
+        ax[lo:hi], ay[lo:hi], az[lo:hi] = _group_sums(f[lo:hi], w[lo:hi], cos_crease)
+    # the other groups: sum over each corner's welded neighbours in ascending corner order
+    # (itself included), the j-th neighbour of every corner at once
+    for j in range(1, min(active.shape[0], _SMALL_GROUP + 1)):
         m = int(active[j])
-        q = head[:m] + (j - 1)
+        q = head[large:m] + (j - 1)
         bx, by, bz = fx[q], fy[q], fz[q]
-        ok = (fx[:m] * bx + fy[:m] * by) + fz[:m] * bz >= cos_crease  # = np.sum(.., axis=1)
+        ok = (fx[large:m] * bx + fy[large:m] * by) + fz[large:m] * bz >= cos_crease  # = np.sum(.., axis=1)
         wq = np.where(ok, w[q], 0.0)  # a skipped neighbour adds +-0.0: the sum stays the same bits
-        ax[:m] += wq * bx
-        ay[:m] += wq * by
-        az[:m] += wq * bz
+        ax[large:m] += wq * bx
+        ay[large:m] += wq * by
+        az[large:m] += wq * bz
     acc = np.empty((3 * n, 3))
     acc[order] = np.stack([ax, ay, az], axis=1)
     normals = _unit(acc).reshape(n, 3, 3)

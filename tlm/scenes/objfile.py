@@ -365,6 +365,9 @@ def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np
     return out
 
 
+_HUGE = 2 ** 62  # |index| from here on: no file has that many elements (and int64 holds them)
+
+
 def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Every corner of the ``n`` face lines of ``block``: its line (0..n-1), vertex index,
     and normal index (0 where it has none) with a flag; None when the fast path cannot
@@ -373,6 +376,8 @@ def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     try:
         values = np.fromstring(body.replace(b"/", b" "), dtype=np.int64, sep=" ")
     except ValueError:
+        return None
+    if ((values >= _HUGE) | (values <= -_HUGE)).any():  # (read as int64's limit, its sign lost: the slow path names it)
         return None
     b = np.frombuffer(body, dtype=np.uint8)
     digit = (b > 32) & (b != 47)  # bytes of numbers (byte 0, the blanked 'f', is not one)
@@ -418,6 +423,10 @@ def _corners_slow(block: bytes, lines: np.ndarray, source: str):
             except ValueError:
                 raise _err(source, int(lines[i]) + 1,
                            f"cannot read the face corner {_shown(corner)} (indices are integers)") from None
+            for k, what in zip(idx, ("vertex", "texture coordinate", "normal"), strict=False):
+                if k is not None and abs(k) >= _HUGE:
+                    why = f"before the first {what}" if k < 0 else f"beyond any file's {what} count"
+                    raise _err(source, int(lines[i]) + 1, f"a face references {what} {k}: an index far {why}")
             line_of.append(i)
             vertex.append(idx[0])
             n = idx[2] if len(idx) == 3 else None
@@ -503,6 +512,12 @@ def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
     if vertices is None:
         vertices = _vectors_slow(block, v_lines, "v", source)
     colour_lines = _colour_lines(block, v_lines) if n_v else (0, 0)
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():  # (named as the file numbers them: from 1, with the line)
+        k, count = int(np.flatnonzero(bad)[0]), int(bad.sum())
+        raise InputError(f"the mesh has {count} {'vertex' if count == 1 else 'vertices'} with NaN or infinite "
+                         f"coordinates (first: vertex {k + 1}, line {int(v_lines[k]) + 1}, {vertices[k].tolist()})",
+                         source=source)
     block = L.block(vn_lines)
     vnormals = _vectors_fast(block, vn_lines.shape[0], b"vn") if vn_lines.shape[0] else np.zeros((0, 3))
     if vnormals is None:

@@ -24,6 +24,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,7 @@ import numpy as np
 from tlm.errors import InputError
 from tlm.scenes.model import Material
 
-__all__ = ["MATERIAL_PROPERTIES", "NAME_COMMENT", "colour_notes", "face_materials", "field", "header",
+__all__ = ["MATERIAL_PROPERTIES", "NAME_COMMENT", "check_ascii", "colour_notes", "face_materials", "field", "header",
            "material_names", "polygons"]
 
 MATERIAL_PROPERTIES = ("material", "material_index")  # a face's material index, the first of these present
@@ -239,3 +240,73 @@ def colour_notes(geom, src: str) -> tuple[str, ...]:
         out.append(f"{src}: its triangle strips' {got[0]} property is not read (tlm reads a face element's): a "
                    "triangle's material is the scene file's (parts:, materials:, default_material)")
     return tuple(out)
+
+
+def check_ascii(head: bytes, data: bytes, src: str) -> None:
+    """An ASCII PLY's data against its header, before trimesh reads it (which reads a list's
+    count of 255 over three numbers, or a file cut short, as something else, or fails with
+    "faces with mixed vertices"): an InputError names the first element row whose line does not
+    hold the numbers its properties need (a list shorter or longer than its count), or the
+    elements the data falls short of (cut short, or a header's count too large). A file that
+    does not put one element row per line (the spec allows it; no common writer does) is
+    checked by its count of numbers only."""
+    elements: list[tuple[str, int, list[bool]]] = []  # (name, count, each property: a list?)
+    for line in head.decode("ascii", "replace").splitlines():
+        words = line.split()
+        if words[:1] == ["format"] and words[1:2] != ["ascii"]:
+            return
+        if words[:1] == ["element"] and len(words) >= 3:
+            try:
+                elements.append((words[1], int(words[2]), []))
+            except ValueError:
+                return  # (trimesh's message)
+        elif words[:1] == ["property"] and elements:
+            elements[-1][2].append(words[1:2] == ["list"])
+    body = data[data.find(b"end_header") + len(b"end_header"):].split(b"\n", 1)[-1]
+    first = head.count(b"\n") + 2  # the data's first line's number in the file
+    buf = np.frombuffer(body, dtype=np.uint8)
+    blank = (buf == 32) | (buf == 9) | (buf == 10) | (buf == 13) | (buf == 11) | (buf == 12)
+    starts = np.flatnonzero(~blank & np.r_[True, blank[:-1]])  # each number's first byte
+    line_of = np.searchsorted(np.flatnonzero(buf == 10), starts, side="right")  # (its line in the data, from 0)
+    new_line = np.flatnonzero(np.r_[True, line_of[1:] != line_of[:-1]]) if line_of.shape[0] else line_of
+    used = line_of[new_line]  # the lines that hold numbers, and how many each
+    per_line = np.diff(np.r_[new_line, line_of.shape[0]])
+    values = None
+    total = int(starts.shape[0])
+    rows = sum(count for _, count, _ in elements)
+    least = sum(count * len(props) for _, count, props in elements)  # (a list: its count at least)
+    shown = ", ".join(f"{name} {count:,}" for name, count, _ in elements)
+    if total < least:
+        raise InputError(f"the ASCII PLY's data holds {total:,} numbers, fewer than its header's elements need "
+                         f"({shown}: at least {least:,}): cut short, or a count in the header too large", source=src)
+    if used.shape[0] != rows:  # (not a row a line: trimesh reads it by its numbers)
+        return
+    head_token = np.cumsum(per_line) - per_line  # each line's first number's index
+    at = 0
+    for name, count, props in elements:
+        have = per_line[at:at + count]
+        need = np.full(count, len(props), dtype=np.int64)
+        lists = [p for p, is_list in enumerate(props) if is_list]
+        if len(lists) == 1 and count:  # (the list's count: the number at its place in the line)
+            p = lists[0]
+            ok = have > p
+            if values is None:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # (numpy's DeprecationWarning on a word it cannot read)
+                    values = np.fromstring(body, dtype=np.float64, sep=" ")
+            if values.shape[0] != total:
+                return  # (a word that is not a number: trimesh's message)
+            n = values[head_token[at:at + count][ok] + p]
+            if not np.isfinite(n).all():
+                return  # (a count that is NaN: trimesh's message)
+            need[ok] += np.clip(n, 0, 1 << 40).astype(np.int64)
+        elif lists:
+            return  # (two lists in one row: trimesh's reading)
+        bad = np.flatnonzero(have != need)
+        if bad.shape[0]:
+            row = int(bad[0])
+            raise InputError(f"line {first + int(used[at + row])}: element {name!r} row {row} (from 0) holds "
+                             f"{int(have[row])} numbers where its properties (a list: its count, then that many) need "
+                             f"{int(need[row])}: a list's count wrong, or the line cut short", source=src)
+        at += count
+
