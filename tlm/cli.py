@@ -18,7 +18,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
-from tlm.cli_cache import add_cache_parser
+from tlm.cli_cache import add_cache_parser, cache_command
 from tlm.cli_report import kept_whole, report_after, report_claimed, say_err
 from tlm.cli_run import blame_flag, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
@@ -646,7 +646,8 @@ def main(argv: list[str] | None = None) -> int:
                 writes = _writes_files(args)
                 if writes:  # (a render, a report's figures: OpenBLAS's buffer mapped first, blas_buffer_mapped)
                     blas_buffer_mapped()
-                if args.func not in (_cmd_params, _cmd_scene, _cmd_config, _cmd_report):  # (those that render)
+                if args.func not in (_cmd_params, _cmd_scene, _cmd_config, _cmd_report, _cmd_scaling, cache_command):
+                    # (those that may render: the others never import numba)
                     check_numba_threads()  # (numba's import fails on a NUMBA_NUM_THREADS below 1: said first)
                 with writes_files(writes):
                     status = args.func(args)

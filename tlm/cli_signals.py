@@ -381,7 +381,14 @@ def one_line(e: BaseException) -> str:
     characters escaped (a NUL byte of a file's name as ``\\x00``, an escape sequence as ``\\x1b[...``):
     what a line of the command names, from a file or the command line, is shown, not obeyed by the
     terminal or dropped by it."""
-    return (" ".join(str(e).split()) or type(e).__name__).translate(_ESCAPES)
+    return escaped(str(e)) or type(e).__name__
+
+
+def escaped(text: str) -> str:
+    """``text`` on one line (its whitespace one space), its control characters escaped as
+    :func:`one_line`'s are: a line that names a path or a value the user gave (an ``--out`` with an
+    escape sequence in its name, in a machine's error such as ``cannot write``) shows it."""
+    return " ".join(text.split()).translate(_ESCAPES)
 
 
 def signalled() -> int | None:
@@ -566,7 +573,8 @@ def _flushed(status: int) -> int:
                 cli_streams._to_devnull(stream.fileno())
         except OSError as e:
             if stream in (sys.stdout, sys.__stdout__) and status == 0:
-                _say(f"tlm: error: the output could not be written: {environment_problem(e) or one_line(e)}")
+                what = escaped(environment_problem(e) or "") or one_line(e)
+                _say(f"tlm: error: the output could not be written: {what}")
                 status = 1
         except Exception:  # (a closed stream: nothing to flush)
             pass
@@ -661,7 +669,7 @@ def _failed(e: Exception | KeyboardInterrupt, argv: list[str] | None) -> int:
         return interrupted(argv)
     what = environment_problem(e) or memory_problem(e) or thread_problem(e)
     if what is not None:  # the machine's fault: a full disk, a read-only destination, too little memory, no thread
-        _line(f"tlm: error: {' '.join(what.split())}")
+        _line(f"tlm: error: {escaped(what)}")  # (a path of the user's in it: its control characters escaped)
         return 1
     try:
         saved = save_traceback(e)

@@ -139,10 +139,11 @@ COLUMNS = (
     "point", "factors", "filter", "photons", "stored", "radius", "caustic_radius", "radius_fraction", "k",
     "k_nearest", "cone_k", "final_gather", "caustic_photons", "aim",
     "rmse", "rel_mse", "reference_converged", "truth_rmse", "truth_rel_mse", "truth_flip", "truth_spp",
-    *GATHER_KEYS[1:], "gathers",
+    *(k for k in GATHER_KEYS[1:] if k != "photons_weighted"), "gathers",
     "trace_seconds", "gather_seconds", "one_off_seconds",
     "throughput_cycles", "latency_cycles", "frame_seconds", "fps", "simulate_seconds",
     "radius_rule", "caustic_radius_rule",  # (appended: the columns before keep their places)
+    "photons_weighted",  # (the accepted photons whose weight the filter computed: appended too)
 )
 # the columns that hold a point's setting as its config has it: their null is the setting's value
 # (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other

@@ -56,6 +56,9 @@ from tlm.render.planner import photon_count
 # the caustic map's leaf reads: a stream not in tlm.kernels.memory.PM_STREAMS, so a pair of its own
 # (the two maps' gathers of consecutive packets then miss as the whole image's do)
 CAUSTIC_STREAM = "caustic_photons"
+# what pmap_pass's per_map tallies of each map's gathers (with their count, gathers): results.json's
+# photons.gather.<map>, whose counts summed over the maps are work.pmap's (photons_weighted too: h243)
+MAP_TALLY = ("photons_tested", "photons_accepted", "photons_weighted", "leaves_visited")
 
 
 def trace_photon_map(frame: Frame, n: int | None = None, seed: int | None = None, warm: bool = False) -> PhotonTrace:
@@ -361,9 +364,8 @@ def _final_gather_chunk(frame: Frame, gmap: PhotonMap, radius: float, pts: np.nd
     for k in GATHER_KEYS[1:]:
         _add_per_pixel(gather_work, k, lo, e, gather_streams)
     if per_map is not None:
-        tally = per_map.setdefault("global", dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited",
-                                                            "gathers"), 0))
-        for k in ("photons_tested", "photons_accepted", "leaves_visited"):
+        tally = per_map.setdefault("global", dict.fromkeys((*MAP_TALLY, "gathers"), 0))
+        for k in MAP_TALLY:
             tally[k] += int(getattr(e, k).sum())
         tally["gathers"] += int(lj.shape[0])
     return flux * (np.pi / rays)
@@ -396,8 +398,8 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     caustic map's leaves on a pair of their own, :data:`CAUSTIC_STREAM`; the indirect map's
     on the Fragment PM's ``photons`` pair), ``streams`` as in :func:`~tlm.render.passes.rcast_pass`.
     ``per_map``: a dict to which each map's totals are added (``"caustic"``, ``"indirect"``
-    or, for a single map, ``"photons"`` -> ``photons_tested``, ``photons_accepted``,
-    ``leaves_visited``), the split of the work's sums between the two maps.
+    or, for a single map, ``"photons"`` -> :data:`MAP_TALLY` and ``gathers``), the split of
+    the work's sums between the two maps.
 
     With final gathering (:func:`final_gathering`), the indirect map is not gathered: at
     every gather point ``estimate.final_gather`` stratified cosine-weighted rays (through
@@ -451,8 +453,8 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
         e = _estimate(frame, ph, radius, pts, n, keys, streams, tree, stream)
         density += e.density
         if per_map is not None:
-            tally = per_map.setdefault(name, dict.fromkeys(("photons_tested", "photons_accepted", "leaves_visited"), 0))
-            for k in ("photons_tested", "photons_accepted", "leaves_visited"):
+            tally = per_map.setdefault(name, dict.fromkeys(MAP_TALLY, 0))
+            for k in MAP_TALLY:
                 tally[k] += int(getattr(e, k).sum())
             tally["gathers"] = tally.get("gathers", 0) + int(sidx.shape[0])
         for k in GATHER_KEYS[1:]:
