@@ -176,6 +176,7 @@ def test_the_steps_that_ran_before_the_bad_input_are_named(tmp_path):
         return str(e.value)
 
     (tmp_path / "runs" / "scaling_ring").mkdir(parents=True)  # (eq52 fits the scaling folders there: one)
+    (tmp_path / "runs" / "scaling_ring" / "sweep.jsonl").write_text("")  # (a folder without it holds no sweep)
     bad = "tlm plots: step tlm_granularity stopped on bad input: g.yaml: packet_sizes: a bad packet size"
     assert plots() == bad  # (no earlier report: nothing more to say)
     stale = _stale(tmp_path)

@@ -165,7 +165,7 @@ def test_a_scene_file_has_one_short_name(tmp_path, monkeypatch):
     recs = [{**rec, "scene_file": f, "scene_ref": f, "scene_id": i, "mode": "rcast", "scheduler": "static"}
             for f, i in (("/x/a/myroom.yaml", "id-a"), ("/x/b/myroom.yaml", "id-b"))]
     names = sorted(k[0] for k in groups(recs))
-    assert names == ["myroom.yaml [id-a]", "myroom.yaml [id-b]"]  # (two files, one name: told apart)
+    assert names == ["/x/a/myroom.yaml", "/x/b/myroom.yaml"]  # (two files, one name: told apart by their paths)
 
 
 # ---------------------------------------------------------------- the sweep's tlm reference command

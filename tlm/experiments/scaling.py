@@ -422,12 +422,12 @@ def fit_both(points: list[dict], target: str, source: str | None = None) -> dict
     return f
 
 
-def scene_name(rec: dict) -> str:
+def scene_name(rec: dict, short: bool = True) -> str:
     """The scene of a :func:`record` as the report names it, whatever else is fitted beside it: a
     built-in scene by its name under ``scenes/`` (``thesis/ring``, ``ring``; a file of another
     checkout's ``scenes`` folder too, where it is not here or is the same scene as the built-in one
-    here), another by the path its config gave (else its file's); a record without a file, made by
-    hand, by its ``name``."""
+    here), another by the path its config gave (else its file's), :func:`short_scene_path` (``short``
+    false: as given, absolute or not); a record without a file, made by hand, by its ``name``."""
     source = rec.get("scene_file")
     if not source:
         return str(rec["scene"])
@@ -446,7 +446,8 @@ def scene_name(rec: dict) -> str:
                 return tail
             break
     ref = rec.get("scene_ref")
-    return short_scene_path(ref.strip() if isinstance(ref, str) and ref.strip() else str(source))
+    given = ref.strip() if isinstance(ref, str) and ref.strip() else str(source)
+    return short_scene_path(given) if short else given
 
 
 def short_scene_path(path: str) -> str:
@@ -468,8 +469,9 @@ def short_scene_path(path: str) -> str:
 def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
     """The points of :func:`record` by (scene, mode, scheduler), the scene told by its file
     (:func:`scene_identity`; a record without one, made by hand, by its name) and named by
-    :func:`scene_name`, one rule whatever else is fitted; two files that one name would stand
-    for get their digests beside it, so two scenes get two names."""
+    :func:`scene_name`, one rule whatever else is fitted; two files that one short name would stand
+    for are named by their paths as given (``/x/a/room.yaml``, ``/x/b/room.yaml``), or where those are one
+    too, by the name with their digests beside it, so two scenes get two names."""
     def ident(r: dict) -> str:
         return str(r.get("scene_id") or r["scene"])
 
@@ -479,10 +481,14 @@ def groups(records: list[dict]) -> dict[tuple[str, str, str], list[dict]]:
     taken = defaultdict(list)
     for key, label in labels.items():
         taken[label].append(key)
-    for label, keys in taken.items():  # (two files a label does not tell apart: their digests do)
+    full = {}
+    for r in records:
+        full.setdefault((r["scene"], ident(r)), scene_name(r, short=False))
+    for label, keys in taken.items():  # (two files a short name does not tell apart: their paths, else digests)
         if len(keys) > 1:
+            long = [full[key] for key in keys]
             for key in keys:
-                labels[key] = f"{label} [{key[1]}]"
+                labels[key] = full[key] if len(set(long)) == len(long) else f"{label} [{key[1]}]"
     out: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
     for r in records:
         out[(labels[r["scene"], ident(r)], r["mode"], r["scheduler"])].append(r)

@@ -11,7 +11,9 @@ the steps (the report still reads every step's folder that exists). A scaling sw
 folder that the eq52 folder was fitted from (its ``eq52.json`` ``sweeps``) is shown
 through that fit; another (no eq52 folder: ``--only scaling_cornell``) is reported as
 the sweep it is. The eq52 step fits the scaling folders this command runs or that exist,
-saying which are missing; with none of them it is refused before any step runs.
+saying which are missing (a folder without a sweep in it, no ``sweep.jsonl``: an interrupted
+or emptied one, is missing, and left out of the report, said); with none of them it is
+refused before any step runs.
 
 A step that exits with status 1 has run and reports failures among its results (a case
 of ``tlm extreme`` that differs from its expectation, a sweep point that failed, a model
@@ -110,18 +112,19 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
     planned = [n for n in names if not only or n in only]
     # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
     # (a missing one is said and left out of the fit; none at all is refused before any step runs)
-    absent = [s for s in SCALING if s not in planned and not (runs / s).is_dir()]
+    # (a folder without a sweep in it, an interrupted or emptied one, is no sweep to fit: absent, said so)
+    absent = [s for s in SCALING if s not in planned and not _is_sweep(runs / s)]
     if "eq52" in planned and len(absent) == len(SCALING):
-        raise InputError(f"step eq52 fits the scaling sweeps, and none is under {runs} ({', '.join(absent)}: no such "
-                         f"folder) nor among the steps to run: add {' or '.join(absent)} to --only", key="--only")
+        raise InputError(f"step eq52 fits the scaling sweeps, and none is under {runs} ({_why_absent(runs, absent)}) "
+                         f"nor among the steps to run: add {' or '.join(absent)} to --only", key="--only")
     failed = []
     for name, argv in STEPS:
         if only and name not in only:
             continue
         if name == "eq52" and absent:
             argv = [a for a in argv if a not in {f"{{runs}}/{s}" for s in absent}]
-            say(f"== eq52: fits {', '.join(s for s in SCALING if s not in absent)} alone: no folder "
-                f"{', '.join(absent)} under {runs} (run {'its step' if len(absent) == 1 else 'their steps'} "
+            say(f"== eq52: fits {', '.join(s for s in SCALING if s not in absent)} alone: "
+                f"{_why_absent(runs, absent)} under {runs} (run {'its step' if len(absent) == 1 else 'their steps'} "
                 f"with --only to fit {'it' if len(absent) == 1 else 'them'} too)")
         argv = [a.format(configs=configs, runs=runs) for a in argv] + ["--no-report"]
         say(f"== {name}: tlm {' '.join(argv)}")
@@ -144,7 +147,9 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
     fitted_by = _fitted_by(runs / "eq52")
     dirs, fitted = [], []
     for n in names:
-        if (runs / n).is_dir() and (n in REPORTED or n in SCALING):
+        if n in SCALING and (runs / n).is_dir() and not _is_sweep(runs / n):
+            say(f"== report: {runs / n} left out: no sweep in it (no sweep.jsonl; run step {n} to fill it)")
+        elif (runs / n).is_dir() and (n in REPORTED or n in SCALING):
             (fitted if n in SCALING and (runs / n).resolve() in fitted_by else dirs).append(runs / n)
     if not dirs:
         raise InputError(f"no step's folder exists under {runs}", key="--runs")
@@ -152,6 +157,19 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
     if failed:
         raise StepsFailed(page, failed)
     return page
+
+
+def _is_sweep(folder: Path) -> bool:
+    """Whether the scaling step's folder ``folder`` holds a sweep (its ``sweep.jsonl``) to fit and report."""
+    return (folder / "sweep.jsonl").is_file()
+
+
+def _why_absent(runs: Path, absent: list[str]) -> str:
+    """The scaling folders ``absent`` under ``runs`` in words: no such folder, or one without a sweep in it."""
+    gone = [s for s in absent if not (runs / s).is_dir()]
+    empty = [s for s in absent if s not in gone]
+    return "; ".join([*([f"no folder {', '.join(gone)}"] if gone else []),
+                      *([f"no sweep in {', '.join(empty)} (no sweep.jsonl)"] if empty else [])])
 
 
 def _fitted_by(eq52: Path) -> set[Path]:

@@ -76,7 +76,8 @@ def _cycles_moved(ok: list[dict], k: str, held: list[str]) -> tuple[str, float] 
     """Where ``k`` keeps the frame rate: whether it still moves a cycle count (sweep.csv's ``cycles.<pm>``,
     :data:`CYCLES`) between the ``ok`` rows that differ only in it (the combinations of the factors ``held``,
     as :func:`_effect`): the count it moves most, by name, and by how much (the largest of a combination's
-    highest over its lowest, less one); None where every count is the same (to 1e-9) in each combination."""
+    highest over its lowest, less one; infinite where a count is 0 in one point and not in another); None where
+    every count is the same (to 1e-9) in each combination."""
     most: tuple[str, float] | None = None
     for col, name in CYCLES.items():
         combos: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
@@ -85,8 +86,8 @@ def _cycles_moved(ok: list[dict], k: str, held: list[str]) -> tuple[str, float] 
                 combos[tuple(repr(r.get(j)) for j in held)][repr(r.get(k))].append(float(r[col]))
         for c in combos.values():
             vs = [v for vals in c.values() for v in vals] if len(c) > 1 else []
-            if vs and not all(same_value(v, vs[0]) for v in vs) and min(vs) > 0:
-                change = max(vs) / min(vs) - 1
+            if vs and not all(same_value(v, vs[0]) for v in vs):
+                change = max(vs) / min(vs) - 1 if min(vs) > 0 else float("inf")  # (0 cycles in one point: moved)
                 if most is None or change > most[1]:
                     most = (name, change)
     return most
@@ -245,7 +246,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                       f"{'(neither the frame rate nor the image error) ' if measured else ''}between "
                       f"points that differ only in {'it' if len(inert) == 1 else 'them'}; ")
         moved = "".join(f"{esc(k)} keeps the frame rate between points that differ only in it, but moves {name} "
-                        f"(by up to {change:.1%}); " for k, name, change in kept)
+                        f"({f'by up to {change:.1%}' if change != float('inf') else 'from none in some points'}); "
+                        for k, name, change in kept)
         notes += moved
         notes += "".join(f"{e}; " for e in errs)
         if unjudged:

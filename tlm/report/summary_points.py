@@ -156,7 +156,8 @@ def _unmeasured_command(sw, runs: list) -> str:
     ``sw`` need (one a reference key), as the sweep printed them on stderr: its base config file with the
     sweep's ``--set`` strings and what its ``set`` and the point's factors give of the keys a reference reads
     (:data:`~tlm.experiments.reference.KEY_READS`); for a sweep whose base is a mapping in the sweep file, which
-    no command names, the first point's ``config.resolved.yaml`` (every setting of the point)."""
+    no command names, or whose base file is not found from here as the sweep read it (:func:`_base_config`),
+    the first point's ``config.resolved.yaml`` (every setting of the point)."""
     import json
 
     from tlm.experiments.reference import KEY_READS
@@ -188,12 +189,15 @@ def _dotted(config: dict, dotted: str):
 def _base_config(sw) -> str | None:
     """A sweep's base config file as its command line names it (as ``tlm sweep`` printed it): its path from
     the working folder, a built-in one's name; None for a mapping in the sweep file (sweep.yaml ``base_file``
-    null). The sweep file's folder is that of sweep.yaml's ``sweep`` (as given to ``tlm sweep``); where the
-    file is not found from here, ``base_file`` as the sweep file wrote it."""
+    null). The sweep file's folder is that of sweep.yaml's ``sweep`` (as given to ``tlm sweep``); None too where
+    the base is not found from here, or its content is not sweep.yaml's ``base`` (the report made from another
+    folder than the sweep, the file edited since: the command would name no file or another one), so that the
+    caller names the point's ``config.resolved.yaml``."""
     import os
     from pathlib import Path
 
     from tlm.builtin import base_path
+    from tlm.config import read_yaml
     from tlm.errors import InputError
 
     base, source = sw.spec.get("base_file"), sw.spec.get("sweep")
@@ -202,9 +206,11 @@ def _base_config(sw) -> str | None:
     try:
         folder = Path(str(source)).resolve().parent if isinstance(source, str) and source else Path.cwd()
         file, builtin = base_path(base, folder, str(source), "sweep file")
+        if isinstance(sw.spec.get("base"), dict) and (read_yaml(file) or {}) != sw.spec["base"]:
+            return None  # (another file than the sweep read, or one edited since: the point's own config)
         return str(file) if builtin else os.path.relpath(file)
     except (InputError, OSError, ValueError):
-        return base
+        return None
 
 
 def points_error(inputs: Inputs) -> str:
