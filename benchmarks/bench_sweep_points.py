@@ -14,7 +14,11 @@ the CPU seconds (``time.process_time``: the machine's load changes the wall time
 point of each run, the median of each way, their ratio, and whether the two ways gave the
 same rows (``sweep.csv`` less the host seconds and ``functional_cached``).
 
-    python benchmarks/bench_sweep_points.py [--points 100|200] [--repeat 2]
+``--report``: then the report's read of the last sweep's folder (:func:`tlm.report.collect.read`: every
+point's ``results.json`` and ``config.resolved.yaml``), ``--repeat`` times with libyaml's parser and as many
+with PyYAML's own (alternating), its CPU a point each way and whether the two reads are the same.
+
+    python benchmarks/bench_sweep_points.py [--points 100|200] [--repeat 2] [--report]
 """
 
 from __future__ import annotations
@@ -60,6 +64,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=100)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--report", action="store_true", help="time the report's read of the sweep's folder too")
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -85,6 +90,32 @@ def main() -> None:
         print(f"median CPU a point: {with_ * 1e3:.1f} ms with the memos, {without * 1e3:.1f} ms without: "
               f"{without / with_:.2f}x")
         print(f"same rows both ways: {rows[True].equals(rows[False])}")
+        if args.report:
+            report_read(Path(tmp) / f"run{args.repeat - 1}_plain", args.points, args.repeat)
+
+
+def report_read(folder: Path, points: int, repeat: int) -> None:
+    """The report's read of the sweep ``folder``: CPU a point with libyaml's parser and with PyYAML's own."""
+    import tlm.report.checks as checks
+    from tlm.report.collect import read
+
+    libyaml = checks._C_LOADER
+    cpu: dict[bool, list[float]] = {True: [], False: []}
+    got: dict[bool, object] = {}
+    for i in range(repeat):
+        for c in (True, False) if libyaml is not None else (False,):
+            checks._C_LOADER = libyaml if c else None
+            c0 = time.process_time()
+            inputs = read([folder])
+            cpu[c].append((time.process_time() - c0) / points)
+            got[c] = [(r.path, r.results, r.config) for r in inputs.sweeps[0].runs] if inputs.sweeps else None
+            print(f"report read {i + 1} with {'libyaml' if c else 'PyYAML'}: {cpu[c][-1] * 1e3:6.2f} ms CPU a point",
+                  flush=True)
+    checks._C_LOADER = libyaml
+    if libyaml is not None:
+        fast, slow = statistics.median(cpu[True]), statistics.median(cpu[False])
+        print(f"median report read a point: {fast * 1e3:.2f} ms with libyaml, {slow * 1e3:.2f} ms with PyYAML: "
+              f"{slow / fast:.2f}x; same read both ways: {got[True] == got[False]}")
 
 
 if __name__ == "__main__":

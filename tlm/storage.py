@@ -220,6 +220,7 @@ _LIVE_LOCK = threading.Lock()
 _LIVE: set[str] = set()  # the names of the temporary folders this process's writers are using now
 _WRITERS = itertools.count()  # (numbers the writers of this process; under _LIVE_LOCK)
 _FILES: set[str] = set()  # the temporary files this process's write_atomic blocks are writing now
+_CLEANED: set[str] = set()  # the folders whose leftovers this process looked for once (atomic_folder's clean_once)
 
 
 def _writer() -> str:
@@ -256,6 +257,7 @@ def _forget_live() -> None:
     _LIVE_LOCK = threading.Lock()
     _LIVE.clear()
     _FILES.clear()
+    _CLEANED.clear()
 
 
 if hasattr(os, "register_at_fork"):
@@ -410,13 +412,18 @@ def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
 
 
 @contextmanager
-def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) -> Iterator[Path]:
+def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
+                  clean_once: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
 
     ``marker`` is the file that marks an earlier output of this kind (it may be
     replaced); the block must write it. ``owned``: the names such an output may hold;
     where given, whatever else an earlier ``out`` holds (a user's notes, an analysis
     folder) is carried into the new one, not removed with the old output.
+    Before it, the temporary folders that killed writers of ``out`` left beside it are removed
+    (:func:`clean_stale`, which lists the whole of ``out``'s parent); ``clean_once``: only at this
+    process's first write into that parent (a sweep's points: the sweep cleans its ``points/`` at its
+    start and its end, and a listing of N points' folder at each of N points is N² work).
     """
     try:
         out = check_destination(out, marker)
@@ -427,18 +434,19 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None) 
     tmp = out.parent / f".{out.name}.tmp-{writer}"
     _hold(tmp.name)  # (before it exists: no other thread's clean_stale may take it for a leftover)
     try:
-        yield from _atomic_folder(out, marker, owned, tmp, writer)
+        yield from _atomic_folder(out, marker, owned, tmp, writer, clean_once)
     finally:
         _release(tmp.name)
 
 
 def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: Path,
-                   writer: str) -> Iterator[Path]:
+                   writer: str, clean_once: bool = False) -> Iterator[Path]:
     """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``."""
     leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        clean_stale(out.parent, re.escape(out.name))
+        if not clean_once or _first_clean(out.parent):
+            clean_stale(out.parent, re.escape(out.name) if not clean_once else ".+")
         shutil.rmtree(tmp, ignore_errors=True)  # (an earlier process's of the same id and number)
         tmp.mkdir()
     except OSError as e:
@@ -493,6 +501,16 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
         _failed_write(out, e)
         _raise_environmental(e, out)
         raise
+
+
+def _first_clean(folder: Path) -> bool:
+    """Whether this process has not yet looked for leftovers in ``folder`` (noted now: it will)."""
+    key = os.path.abspath(folder)
+    with _LIVE_LOCK:
+        if key in _CLEANED:
+            return False
+        _CLEANED.add(key)
+        return True
 
 
 def _keep_beside(tmp: Path, out: Path) -> Path | None:

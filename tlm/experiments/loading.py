@@ -4,10 +4,18 @@ Every command that renders starts with this one sequence (``tlm run``, ``tlm ref
 ``tlm error-vs-cost``); :func:`load_frame` is it, with the host seconds of its two costly
 stages booked in a :class:`~tlm.progress.Timer` and a progress bar told which
 stage it is in.
+
+While a sweep runs in this process (:func:`keeping_accel`), the last BSP built is remembered (:func:`accel_for`:
+one, whatever the scene's size), so that renders of one scene and BSP one after another (a sweep's frames that
+differ in what the BSP does not depend on, ``cache.pairs``, ``arch.*`` of the functional key) build it once;
+elsewhere (``tlm run``, ``tlm.run`` from a notebook) nothing is kept after the render.
 """
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -36,9 +44,63 @@ def load_frame(cfg: RunConfig, base: Path | None = None, source: str | None = No
         bar.set_description_str(f"build BSP ({scene.n_triangles} triangles)")
     tables = threads.background(lambda: Frame.tables(scene))  # (on a worker while the BSP is built)
     with timer.stage("build_bsp"):
-        accel = build_accel(scene.triangles, levels=cfg.bsp.levels, memory_factor=cfg.bsp.memory_factor)
-    release_memory()  # (the build's freed blocks)
+        accel = accel_for(scene.triangles, cfg.bsp.levels, cfg.bsp.memory_factor)
     return Frame.create(scene, accel, cfg, tables.result())
+
+
+_LAST_ACCEL: list = []  # [(levels, memory_factor, accel)]: the last BSP this process built (one: its memory)
+_ACCEL_LOCK = threading.Lock()
+_KEEPING = [0]  # how many keeping_accel() are open in this process (a sweep's): the BSP is kept while any is
+
+
+@contextmanager
+def keeping_accel() -> Iterator[None]:
+    """Keep the last BSP built (:func:`accel_for`) while this is open (a sweep's points in this process); let it
+    go when the last one opened closes."""
+    with _ACCEL_LOCK:
+        _KEEPING[0] += 1
+    try:
+        yield
+    finally:
+        with _ACCEL_LOCK:
+            _KEEPING[0] -= 1
+            if _KEEPING[0] == 0:
+                _LAST_ACCEL.clear()
+
+
+def accel_for(triangles: np.ndarray, levels: int | None, memory_factor: float):
+    """:func:`~tlm.kernels.traverse.build_accel` ``(triangles, levels, memory_factor)``, or the last one
+    built in this process where it was built from the same arguments: triangles of the same bits (compared
+    whole: a scene is never changed in place, nor is an accel by a render, whose kernels keep on it only
+    what the same triangles give again, or sizes no result depends on). Only the last is kept: a scene of
+    hundreds of thousands of triangles has a BSP of hundreds of MB; the one kept is let go before another is
+    built, and none is kept outside :func:`keeping_accel` (a sweep's end lets it go)."""
+    tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    with _ACCEL_LOCK:
+        last = _LAST_ACCEL[0] if _LAST_ACCEL else None
+    if last is not None and last[0] == levels and last[1] == memory_factor and _same_bits(last[2].triangles, tri):
+        return last[2]
+    forget_accel()  # (before the build: never two held at once)
+    accel = build_accel(tri, levels=levels, memory_factor=memory_factor)
+    release_memory()  # (the build's freed blocks)
+    with _ACCEL_LOCK:
+        if _KEEPING[0]:
+            _LAST_ACCEL[:] = [(levels, memory_factor, accel)]
+    return accel
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two float64 arrays hold the same bits (-0.0 is not 0.0, nor one NaN another)."""
+    if a is b:
+        return True
+    return a.shape == b.shape and np.array_equal(np.ascontiguousarray(a).view(np.uint64),
+                                                 np.ascontiguousarray(b).view(np.uint64))
+
+
+def forget_accel() -> None:
+    """Let go of the BSP :func:`accel_for` keeps (its frames' memory, once they are done)."""
+    with _ACCEL_LOCK:
+        _LAST_ACCEL.clear()
 
 
 def cast_image(frame: Frame) -> GBuffer:

@@ -98,6 +98,7 @@ from tlm.experiments.executors import (
     take_finished,
 )
 from tlm.experiments.frames import forget_last_frame, is_cached
+from tlm.experiments.loading import keeping_accel
 from tlm.experiments.provenance import code_state, versions
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_point import (
@@ -298,6 +299,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
     with ExitStack() as held:  # (the folder, held until the last row is written)
         held.callback(forget_last_frame)  # (the frame an in-process point read last: not kept after the sweep)
+        held.enter_context(keeping_accel())  # (the BSP its last render built, kept for the next: not after it)
         try:
             with ExitStack() as stack:
                 pool = open_executor(stack, jobs, dask, len(todo), dask_wait) if todo else None

@@ -118,7 +118,9 @@ def run_point(task: Task) -> dict:
             one_off = clock.within(t0, t2)
         stage = "write"
         summary = got.summary
-        with atomic_folder(Path(task.out), "results.json", POINT_FILES) as tmp:  # (a user's files carried over)
+        # (a user's files carried over; the killed writers' leftovers in points/: looked for at this process's first
+        # point, the sweep cleans the folder at its start and end)
+        with atomic_folder(Path(task.out), "results.json", POINT_FILES, clean_once=True) as tmp:
             (tmp / "config.resolved.yaml").write_text(config_text(task.config))
             if timing.trace is not None:
                 timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
@@ -283,7 +285,7 @@ def write_error(task: Task, error: dict) -> None:
         with storage.write_atomic(Path(task.out) / "error.json") as f:
             f.write(storage.json_text(body, indent=2) + "\n")
         return
-    with atomic_folder(Path(task.out), "error.json", POINT_FILES) as tmp:
+    with atomic_folder(Path(task.out), "error.json", POINT_FILES, clean_once=True) as tmp:
         (tmp / "config.resolved.yaml").write_text(config_text(task.config))
         (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
 
