@@ -121,9 +121,10 @@ def _world(path: tuple[int, ...], nodes: list, src: str) -> np.ndarray:
 def check_mesh_nodes(header: dict, src: str) -> None:
     """Every node of the glTF's scene that places a mesh has a world transform that keeps it a
     solid: an InputError names the first whose transform (with its parents') is not finite, or
-    is singular (a zero scale, an all-zero ``matrix``), which collapses the mesh to a plane, a
-    line or a point (as a zero scale on the way to a spot or directional light or the camera
-    is an error: :func:`gltf_imports`). A node the scene reaches twice (a cycle) is an error."""
+    is singular (a zero scale, an all-zero ``matrix``; a small but non-zero scale is not), which
+    collapses the mesh to a plane, a line or a point (as a zero scale on the way to a spot or
+    directional light or the camera is an error: :func:`gltf_imports`). A node the scene
+    reaches twice (a cycle) is an error."""
     nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
     if not any(isinstance(node, dict) and "mesh" in node for node in nodes):
         return
@@ -132,13 +133,19 @@ def check_mesh_nodes(header: dict, src: str) -> None:
         if not (isinstance(nodes[n], dict) and "mesh" in nodes[n]):
             continue
         m = _world(paths[n], nodes, src)[:3, :3]
-        big = float(np.abs(m).max())
-        unit = m / big if big > 0.0 else m  # (scaled to 1: no underflow in the determinant)
-        det = float(np.dot(unit[0], np.cross(unit[1], unit[2])))  # (no LAPACK call: tlm.scenes.meshes.det3)
-        if not abs(det) > 1e-15:
-            raise InputError(f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale or an "
-                             f"all-zero matrix): it collapses meshes[{nodes[n]['mesh']!r}] to a plane, a line or a "
-                             "point", source=src)
+        # each column (an axis's image) to unit length, so that a small but non-zero scale, [1e-9, 1e-9, 1],
+        # is no nearer singular than [1, 1, 1]; a zero scale leaves a zero column, or columns that are
+        # dependent to rounding (at most ~2e-15 after a chain of rotations and scales)
+        big = np.abs(m).max(axis=0)
+        det = 0.0
+        if (big > 0.0).all():
+            unit = m / big  # (scaled to 1 first: no overflow or underflow in the norms)
+            unit = unit / np.sqrt(np.sum(unit * unit, axis=0))
+            det = float(np.dot(unit[:, 0], np.cross(unit[:, 1], unit[:, 2])))  # (no LAPACK call: meshes.det3)
+        if not abs(det) > 1e-12:
+            raise InputError(f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale, an "
+                             "all-zero matrix, or scales whose product is 0 in floating point): it collapses "
+                             f"meshes[{nodes[n]['mesh']!r}] to a plane, a line or a point", source=src)
 
 
 def _entries(table, where: str, src: str) -> list[dict]:

@@ -166,7 +166,7 @@ def _not_a_file(path: Path) -> str:
             if isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP:
                 return "a symbolic link that leads round in a loop"
             return f"a symbolic link to {os.readlink(path)!r}, which is not there"
-    return "not a regular file"
+    return "a special file (a device, a pipe or a socket)"
 
 
 def _material(name: str, raw: Any, src: str) -> Material:
@@ -326,8 +326,8 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     src = str(path)
     raw = read_yaml(path)
     if raw is None:  # (as a config file: tlm.config)
-        raise InputError("is empty (nothing but comments or blanks): a scene file needs `geometry:` at least "
-                         "(docs/scenes.md)", source=src)
+        raise InputError("is empty (nothing but comments or blanks) or a bare null: a scene file needs `geometry:` "
+                         "at least (docs/scenes.md)", source=src)
     raw = _mapping(raw, src, "")
     if "scene" in raw and "geometry" not in raw and "extends" not in raw:  # (a run config named as a scene)
         raise InputError(f"is a run config (it names `scene: {raw['scene']}`), not a scene file: a config's `scene:` "

@@ -97,22 +97,31 @@ def noting_resolver(path: str):
 def noting_resolver_class():
     """The class :func:`noting_resolver` makes (trimesh imported, and the class defined, once)."""
     import hashlib
+    import inspect
     import os
 
     from trimesh.resolvers import FilePathResolver
 
     from tlm.config import note_read
 
+    # (trimesh 5's FilePathResolver refuses a name up a folder unless allow_anywhere; trimesh 4, which
+    # pyproject allows, has no such argument)
+    _ANYWHERE = "allow_anywhere" in inspect.signature(FilePathResolver.__init__).parameters
+
     class NotingResolver(FilePathResolver):
         # (a folder up is a relative URI too, which glTF allows: ``../bin/data.bin``; an absolute one is
         # refused, and named by buffer_files before trimesh reads a buffer)
         def __init__(self, source: str):
-            super().__init__(source, allow_anywhere=True)
+            if _ANYWHERE:
+                super().__init__(source, allow_anywhere=True)
+            else:  # (trimesh 4: no such argument; its get joins any name to the folder, ../ included)
+                super().__init__(source)
 
         def absolute(self, name: str):
             if os.path.isabs(name.strip()):
                 raise ValueError(f"{name!r} is an absolute path, not a file name relative to the glTF")
-            return super().absolute(name)
+            parent = getattr(super(), "absolute", None)  # (trimesh 4 has none)
+            return parent(name) if parent is not None else Path(self.parent) / name.strip()
 
         def get(self, name: str):
             data = super().get(name)
