@@ -89,7 +89,23 @@ def rows_checked(path: Path, rows: list[tuple[int, dict]], what: str, required: 
 # libyaml's parser (``yaml.CSafeLoader``: 5-7 times faster on a point's config.resolved.yaml, the same values);
 # None where PyYAML was built without libyaml. read_yaml has no checks of its own that a loader class carries (no
 # duplicate-key or expansion check: tlm writes these files whole; tlm.config reads a user's YAML with them).
+# (Where they differ, in no file tlm writes: libyaml reads a tab after a key's colon, which PyYAML refuses, and a
+# bare ``!`` tag as '', which PyYAML reads as null.)
 _C_LOADER = getattr(yaml, "CSafeLoader", None)
+# libyaml's composer recurses on the C stack: a file nested tens of thousands deep (a damaged one: 100 kB of "[")
+# ends the process (SIGSEGV), where PyYAML's own parser raises RecursionError. A node is nested no deeper than the
+# flow collections ("[", "{") around it and twice its column + 1 (a block node starts right of its parent's, or at
+# its column for a sequence under a key): a file whose bound is over this is read by PyYAML's parser (which reads
+# none nested more than a few hundred deep).
+C_DEPTH = 1000
+
+
+def _shallow(text: str) -> bool:
+    """Whether ``text`` cannot be nested deeper than :data:`C_DEPTH` (lines split at "\\n" only: YAML's own are
+    no longer)."""
+    if len(text) <= C_DEPTH // 2 - 1:  # (n characters nest no deeper than n)
+        return True
+    return text.count("[") + text.count("{") + 2 * (max(map(len, text.split("\n"))) + 1) <= C_DEPTH
 
 
 def read_yaml(path: Path) -> Any:
@@ -99,7 +115,7 @@ def read_yaml(path: Path) -> Any:
         text = path.read_text()
     except (OSError, ValueError) as e:
         raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
-    if _C_LOADER is not None:
+    if _C_LOADER is not None and _shallow(text):
         try:
             return yaml.load(text, Loader=_C_LOADER)  # (a safe loader: libyaml's SafeLoader)
         except yaml.YAMLError:  # (read again by PyYAML's own parser: its error, worded as tlm words it)
@@ -111,6 +127,9 @@ def read_yaml(path: Path) -> Any:
         at = f": line {mark.line + 1} column {mark.column + 1}" if mark is not None else ""
         raise InputError(f"is not valid YAML (cannot read: {str(getattr(e, 'problem', None) or e).splitlines()[0]}"
                          f"{at}): a damaged or edited copy (tlm writes it whole)", source=str(path)) from None
+    except RecursionError:
+        raise InputError("is nested too deeply to read (more than PyYAML's parser reads): a damaged or edited copy "
+                         "(tlm writes it whole)", source=str(path)) from None
 
 
 COUNT = (lambda v: FINITE[0](v) and v >= 0, "a finite number, not negative")
