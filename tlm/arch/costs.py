@@ -47,6 +47,9 @@ JOBS = {
     "fragment": ("shade", "light", "photons", "gather"),
 }
 FIXED_KEYS = ("ray_load_cycles", "triangle_cycles", "stages")
+# what a table written before a work item was counted apart priced it within: said where such a table is refused
+_PRICED_BEFORE = {"photons_weighted": " (a table written before it was counted apart priced the cone weight within "
+                                      "photons_accepted: photons_weighted: 0 keeps its costs)"}
 
 
 def _check_schema() -> None:
@@ -233,9 +236,7 @@ def _parse_programs(raw, source: str) -> Programs:
             priced = {*ins, *fl, *raw_items, misses}
             for item in work.job_items(f"{pm}.{job}"):
                 if item.name not in priced:
-                    older = (" (a table written before it was counted apart priced the cone weight within "
-                             "photons_accepted: photons_weighted: 0 keeps its costs)"
-                             if item.name == "photons_weighted" else "")
+                    older = _PRICED_BEFORE.get(item.name, "")
                     raise InputError(f"does not price the work item {item.name!r}, which this job charges "
                                      f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing){older}",
                                      source=source, key=f"{pm}.{job}")
