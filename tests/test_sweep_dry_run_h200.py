@@ -67,8 +67,7 @@ def test_a_dry_run_writes_nothing_and_says_what_the_sweep_would_do(tmp_path, cac
     assert _listing(tmp_path) == before  # (no output folder, no claim file beside it, no cache entry, no report)
     assert not out.exists() and not cache.exists()
     assert said.splitlines()[:3] == [
-        f"dry run of {path} into {out}: nothing run, no output folder written (tlm's scene cache may keep what the "
-        "keys' scene loads parsed)",
+        f"dry run of {path} into {out}: nothing run, nothing written",
         "  8 points: 0 done already (skipped), 8 to run",
         "  2 frames for the points to run: 0 cached, 2 to render"]
     # the warning the sweep gives before its points, on stderr as it gives it

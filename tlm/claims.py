@@ -180,6 +180,23 @@ def holding() -> bool:
     return bool(_CLAIMS)
 
 
+class FolderHeld(InputError):
+    """:func:`claimed`'s refusal where another process holds the folder (``--out``), with its parts
+    (``held``: what writes, the folder as the caller named it, the holder's words: :func:`_holder`), so
+    that a caller says it otherwise (:func:`held_line`) without taking the message apart."""
+
+    held: tuple[str, str, str] = ("", "", "")
+
+
+def held_line(what: str, folder: str, holder: str, report_folder: bool = False) -> str:
+    """The refusal of a folder another process holds: ``another run is writing into 'OUT' (process ...):
+    wait for it to end, or give another folder``; ``report_folder``: ``folder`` is the report folder of
+    the folder the user gave (``tlm report DIR``, no ``--out``), said so, and ``--out`` named."""
+    into, other = ("into its report folder", "another folder with --out") if report_folder else ("into",
+                                                                                               "another folder")
+    return f"another {what} is writing {into} {folder!r} ({holder}): wait for it to end, or give {other}"
+
+
 @contextmanager
 def claimed(out: Path, what: str = "run") -> Iterator[None]:
     """Hold the destination ``out`` (resolved) for this process while the block runs: an
@@ -254,8 +271,9 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
             holder = _claim_holder(fd, path)
             os.close(fd)
             _remove_made(made)
-            raise InputError(f"another {what} is writing into {str(given)!r} ({holder}): wait for it to end, "
-                             "or give another folder", key="--out") from None
+            refused = FolderHeld(held_line(what, str(given), holder), key="--out")
+            refused.held = (what, str(given), holder)
+            raise refused from None
         try:
             same = os.path.samestat(os.stat(path), os.fstat(fd))
         except OSError:

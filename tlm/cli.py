@@ -484,7 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "reference they need that is not cached, or cached short of its tolerance where more rounds are "
                     "allowed (as 'tlm reference' decides), so their error is measured")
     sw.add_argument("--dry-run", action="store_true", help="run nothing and write no output (no folder, no frame or "
-                    "reference in the cache, no report; the scene cache may keep what loading the scene parsed): check "
+                    "reference or parsed scene in the cache, no report): check "
                     "the sweep file, --set and --out as the sweep does, then say how many points are done already in "
                     "--out (skipped) and to run, how many frames they share and how many of those are cached, the "
                     "references --reference would compute, the stale folders it would remove and the warnings it "

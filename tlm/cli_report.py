@@ -87,8 +87,6 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
     folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`).
     ``of``: the folder the user gave where ``folder`` is its default report folder (``tlm report DIR``
     without ``--out``): the refusal names it, not ``--out``, which the user did not give."""
-    import re
-
     storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
     told = False
     with ExitStack() as held:
@@ -96,16 +94,14 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
             try:
                 held.enter_context(claims.claimed(folder, "report"))
                 break
-            except InputError as e:
-                if wait is None and of is not None and e.key == "--out":
-                    text = str(e).removeprefix(f"{e.key}: ").replace("or give another folder",
-                                                                     "or give another folder with --out")
-                    raise InputError(f"{text.replace(' into ', ' into its report folder ', 1)}", source=of) from None
+            except claims.FolderHeld as e:
+                what, given, holder = e.held
+                if wait is None and of is not None:  # (the same words, of its report folder, --out named)
+                    raise InputError(claims.held_line(what, given, holder, report_folder=True), source=of) from None
                 if wait is None:
                     raise
                 if not told:
-                    holder = re.search(r"\((process .*)\): wait for it", str(e), re.S)  # (its command line in ( ))
-                    wait(holder[1] if holder else "another process")
+                    wait(holder)
                     told = True
                 time.sleep(0.1)
         yield

@@ -51,7 +51,7 @@ from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
-from tlm.scenes.cache import parse_versions, read_as
+from tlm.scenes.cache import parse_versions, read_as, writable
 from tlm.scenes.loader import load_scene, resolve_scene_path
 from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
@@ -243,14 +243,15 @@ def _kept_key(key: tuple) -> tuple[str, list] | None:
             return None
     except (OSError, ValueError):
         return None
-    note_use(path)  # (tlm cache prune keeps the fingerprints in use)
+    if writable():  # (not inside tlm.scenes.cache.read_only: a dry run)
+        note_use(path)  # (tlm cache prune keeps the fingerprints in use)
     return kept["fingerprint"], kept["checks"]
 
 
 def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
     """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` on disk (speed only: a cache
-    that cannot be written is left as it is)."""
-    found = _key_file(key)
+    that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run)."""
+    found = _key_file(key) if writable() else None
     if found is None:
         return
     path, plain = found

@@ -16,9 +16,10 @@ the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.S
 references it would compute, decided as :func:`~tlm.experiments.sweep_reference.sweep_references` decides
 (one per distinct value of the keys a reference reads; a cached one judged by its ``meta.json`` alone, its
 image neither read nor, where damaged, removed). A scene is loaded only where a key needs it: the frames'
-keys (as the sweep's own check does) and, with ``reference``, the references'. That load is the sweep's own:
-a mesh of at least :data:`~tlm.scenes.cache.MIN_TRIANGLES` triangles not in the scene cache yet is kept there
-(with its crease normals and its remembered fingerprint), as any load of it keeps it; nothing else is written.
+keys (as the sweep's own check does) and, with ``reference``, the references'. That load reads the scene cache
+and writes nothing to it (:func:`~tlm.scenes.cache.read_only`): a mesh of at least
+:data:`~tlm.scenes.cache.MIN_TRIANGLES` triangles not in it yet is parsed and not kept, nor its crease normals or
+its remembered fingerprint, and no entry read is marked used.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from tlm.experiments.sweep_reference import (
     strictest,
     to_measure,
 )
+from tlm.scenes.cache import read_only
 
 
 @dataclass
@@ -114,8 +116,7 @@ class SweepPlan:
                       "folder replaces it"] if self.kept else [])]
         replaced = f"; {'; '.join(folders)}" if folders else ""
         where = " (this machine's cache; a remote Dask worker reads its own)" if self.remote else ""
-        lines = [f"dry run of {self.path} into {self.out}: nothing run, no output folder written (tlm's scene "
-                 "cache may keep what the keys' scene loads parsed)",
+        lines = [f"dry run of {self.path} into {self.out}: nothing run, nothing written",
                  f"  {n(self.points, 'point')}: {self.done} done already (skipped), {self.to_run} to run{again}"
                  f"{replaced}",
                  f"  {n(self.frames, 'frame')} for the points to run: {self.frames_cached} cached{where}, "
@@ -147,9 +148,10 @@ def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None 
 
     dask = checked_options(jobs, dask, dask_wait)[0]
     engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS: refused as by the sweep)
-    sweep = load_sweep(Path(path), overrides)
-    storage.check_destination(Path(out), MARKER)
-    return plan(sweep, Path(out), reference, remote=dask not in (None, "local"))
+    with read_only():  # (the scenes' loads read the scene cache and write nothing: no parse kept, no entry touched)
+        sweep = load_sweep(Path(path), overrides)
+        storage.check_destination(Path(out), MARKER)
+        return plan(sweep, Path(out), reference, remote=dask not in (None, "local"))
 
 
 def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False) -> SweepPlan:

@@ -32,16 +32,20 @@ of one writer; a damaged entry (cut short, zeroed, overwritten: the zip's CRC-32
 member, the arrays' shapes, the metadata) is reported as a warning naming the file,
 removed and computed again (one removed under its reader, by ``tlm cache prune`` or another
 process, is computed again quietly); a read marks its entry used, for ``tlm cache prune``; a cache
-that cannot be written (read-only, full) only costs speed.
+that cannot be written (read-only, full) only costs speed. Inside :func:`read_only` (``tlm sweep --dry-run``)
+the cache is read and nothing else: no entry written, marked used or removed (a damaged one is said and
+parsed past).
 """
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import hashlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -53,10 +57,31 @@ from tlm.fingerprint import code_fingerprint
 from tlm.scenes.model import Camera, Geometry, Imported, Light, Material
 from tlm.storage import warn, write_atomic
 
-__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files", "read_as"]
+__all__ = ["FORMAT", "MIN_TRIANGLES", "cache_dir", "crease_normals", "mesh", "mesh_files", "read_as", "read_only",
+           "writable"]
 
 FORMAT = "tlm-scene-cache/3"  # /2: one file an entry (its metadata inside); /3: imported lights of every kind
 MIN_TRIANGLES = 20_000  # smaller geometry is parsed (its normals computed) again: it is quicker
+
+
+_READ_ONLY: contextvars.ContextVar[bool] = contextvars.ContextVar("tlm_scene_cache_read_only", default=False)
+
+
+@contextmanager
+def read_only() -> Iterator[None]:
+    """Inside (this thread, this context), tlm's scene cache and what is kept beside it is read only: a parse
+    or normals computed are not kept, an entry read is not marked used, a damaged one is not removed
+    (``tlm sweep --dry-run`` writes nothing; :func:`writable`)."""
+    token = _READ_ONLY.set(True)
+    try:
+        yield
+    finally:
+        _READ_ONLY.reset(token)
+
+
+def writable() -> bool:
+    """Whether the scene cache may be written here (not inside :func:`read_only`)."""
+    return not _READ_ONLY.get()
 
 
 def cache_dir() -> Path:
@@ -197,7 +222,7 @@ def _names(entry: Path) -> list | None:
     except Exception:  # (FileNotFoundError, BadZipFile, KeyError, ValueError, ...)
         return None
     ok = isinstance(meta, dict) and meta.get("format") == FORMAT and isinstance(meta.get("names"), list)
-    if ok:
+    if ok and writable():
         note_use(entry)  # (a use too: it spares a parse)
     return meta["names"] if ok else None
 
@@ -248,7 +273,8 @@ def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
         return None
     if meta.get("format") != FORMAT:
         return None  # (another format cannot be under this key: the key hashes FORMAT)
-    note_use(entry)
+    if writable():
+        note_use(entry)
     return arrays, meta
 
 
@@ -346,7 +372,9 @@ def _imported(meta: dict, source: str) -> Imported:
 
 
 def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
-    """The arrays and the metadata as one file, atomically; nothing on an OSError."""
+    """The arrays and the metadata as one file, atomically; nothing on an OSError, nor inside :func:`read_only`."""
+    if not writable():
+        return
     blob = np.frombuffer(json.dumps({"format": FORMAT, **meta}).encode(), dtype=np.uint8)
     if entry.is_dir():  # (one no read looked at first: mesh_files reads its metadata alone, quietly)
         _damaged(entry, "a folder, not a file")
@@ -361,6 +389,9 @@ def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
 def _damaged(entry: Path, why: str) -> None:
     """Say the damaged entry and remove it (a folder where the file should be too, only inside the
     cache: :func:`~tlm.caches.remove_entry`), so that the entry computed again can be written."""
+    if not writable():  # (a dry run: said, and left as it is)
+        warn(f"damaged scene cache entry {entry} ({why}): computing it again (kept: nothing is written here)")
+        return
     left = remove_entry(entry, cache_dir())  # (a read-only cache: computed again every time, said every time)
     done = "removed, computing it again" if left is None else f"computing it again (it could not be removed: {left})"
     warn(f"damaged scene cache entry {entry} ({why}): {done}")

@@ -321,7 +321,9 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     merge key by key, so ``materials: {glass: {ior: 1.0}}`` changes one number. A material
     given another ``type`` is replaced whole (a mirror takes none of a glass's fields). A
     one-item ``geometry`` that names no ``mesh`` merges into the base's, whose mesh path
-    stays relative to the base.
+    stays relative to the base. A material given as null (``materials: {chrome: null}``) removes the
+    base's material of that name (one the base does not give is an error, as is a null in a file that
+    extends none); a ``lights:`` list replaces the base's whole (``lights: []``: none).
     """
     src = str(path)
     raw = read_yaml(path)
@@ -335,6 +337,9 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     _keys(raw, SCENE_KEYS, src, "")
     own = raw.get("materials")
     if "extends" not in raw:
+        for name in _removed(own):  # (nothing to remove: a null here is a mistake, said as such)
+            raise InputError("null removes an inherited material, and this file extends no scene (extends:): give the "
+                             "material's fields, or leave it out", source=src, key=f"materials.{name}")
         _given(given, own, path)
         return raw, path
     ref = raw.pop("extends")
@@ -351,16 +356,30 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
                                   and "mesh" not in geometry):
         geom_path = path  # (this file names the geometry's mesh, or replaces the geometry)
     mats, base_mats = raw.get("materials"), base.get("materials")
+    inherited = list(base_mats) if isinstance(base_mats, dict) else []
+    for name in _removed(mats):
+        if name not in inherited:
+            raise InputError(f"null removes an inherited material, and {base_path} (extends:) gives none named "
+                             f"{name!r}{did_you_mean(str(name), [str(k) for k in inherited])}", source=src,
+                             key=f"materials.{name}")
     if isinstance(mats, dict) and isinstance(base_mats, dict):
         retyped = {k for k, v in mats.items() if isinstance(v, dict) and "type" in v
                    and isinstance(base_mats.get(k), dict) and base_mats[k].get("type") != v["type"]}
         base = {**base, "materials": {k: v for k, v in base_mats.items() if k not in retyped}}
-    return deep_merge(base, raw), geom_path
+    merged = deep_merge(base, raw)
+    if _removed(mats):  # (an inherited material given as null: taken out)
+        merged["materials"] = {k: v for k, v in merged["materials"].items() if v is not None}
+    return merged, geom_path
+
+
+def _removed(materials: Any) -> list:
+    """The names a scene file's ``materials:`` mapping gives as null (each removes the base's material)."""
+    return [k for k, v in materials.items() if v is None] if isinstance(materials, dict) else []
 
 
 def _given(given: dict[str, Path] | None, materials: Any, path: Path) -> None:
     if given is not None and isinstance(materials, dict):
-        given.update(dict.fromkeys((str(k) for k in materials), path))
+        given.update(dict.fromkeys((str(k) for k, v in materials.items() if v is not None), path))
 
 
 def load_scene(
