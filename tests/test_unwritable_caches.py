@@ -274,7 +274,7 @@ def test_the_fingerprint_of_a_wheel_s_layout_is_the_checkout_s(tmp_path):
 def test_the_licence_pyproject_names_ships_as_a_file():
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
     assert project["license"] == {"text": "MIT"}
-    assert project["license-files"] == ["LICENSE"]
+    assert project["license-files"] == ["LICENSE", "scenes/meshes/COPYRIGHT-*.txt"]  # (the meshes' notices too)
     text = (REPO / "LICENSE").read_text()
     assert text.startswith("MIT License\n\nCopyright (c) 2026 the tlm developers\n")
     assert "Permission is hereby granted, free of charge" in text and 'THE SOFTWARE IS PROVIDED "AS IS"' in text

@@ -1,7 +1,8 @@
 """Mesh files told from YAML ones (:func:`mesh_file_format`: by the name's suffix or the file's
 first bytes, never by a failed parse), and the one line that says how to use a mesh file given
 where a config or a scene file goes (:func:`mesh_file_hint`): read by :func:`tlm.config.read_yaml`
-and by the scene loader's path resolution."""
+and by the scene loader's path resolution. An OBJ's MTL material library given so is told and
+hinted at too: it is read with the OBJ that names it (:func:`mtl_user`), which is what to name."""
 
 from __future__ import annotations
 
@@ -10,6 +11,11 @@ import os
 # the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
 MESH_FORMATS = {".obj": "an OBJ", ".ply": "a PLY", ".stl": "an STL", ".glb": "a binary glTF (.glb)", ".gltf": "a glTF"}
 _MESH_COMPRESSED = (".gz", ".xz", ".bz2")
+# a Wavefront material library: no mesh, but given where a scene goes as one is (its OBJ is what to name)
+MTL_FORMAT = "a Wavefront MTL material library"
+# an MTL's statements (the first words of its lines: the spec's, and the PBR extension's)
+_MTL_WORDS = {"newmtl", "ka", "kd", "ks", "ke", "tf", "ni", "ns", "d", "tr", "illum", "sharpness", "bump", "disp",
+              "decal", "refl", "norm", "pr", "pm", "ps", "pc", "pcr", "aniso", "anisor"}  # (in lower case; and map_*)
 # an OBJ's statements (the first words of its lines)
 _OBJ_WORDS = {"v", "vt", "vn", "vp", "f", "l", "p", "o", "g", "s", "mtllib", "usemtl", "cstype", "deg", "curv", "surf"}
 # glTF 2.0's top-level properties (a JSON file with others is no glTF)
@@ -52,7 +58,9 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
     by its suffix (``pawn.obj``, ``pawn.obj.gz``) or else by its first bytes: a binary glTF's
     ``glTF`` magic, a PLY's ``ply`` and ``format`` lines, an ASCII STL's ``solid`` and ``facet normal``,
     a binary STL's size (80 bytes, a count, 50 bytes a triangle; not for a ``.yaml`` name), an
-    OBJ's statements (``v``, ``f``, ``o``, ... and nothing else on its first lines), a glTF
+    OBJ's statements (``v``, ``f``, ``o``, ... and nothing else on its first lines), an MTL
+    library's (:data:`MTL_FORMAT`, ``.mtl``: ``newmtl``, ``Kd``, ``illum``, ... and nothing else;
+    no mesh, but given where a scene goes as one is, its hint names its OBJ), a glTF
     JSON's ``asset`` object with its ``version``, its ``meshes`` and no key glTF does not have
     (:func:`_gltf_json`; a config written as JSON is none). None for anything else, a file that cannot be read
     included (its read says why): what :func:`tlm.config.read_yaml` refuses by name, never by failing to
@@ -62,6 +70,8 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
     ext = os.path.splitext(stem)[1]
     if ext in MESH_FORMATS:
         return MESH_FORMATS[ext]
+    if ext == ".mtl":
+        return MTL_FORMAT
     if not content:
         return None
     try:
@@ -83,6 +93,9 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
     words = [ln.split(maxsplit=1)[0] for ln in lines[:-1] if ln.strip() and not ln.lstrip().startswith(b"#")][:40]
     if words and b"v" in words and all(w.decode("latin-1") in _OBJ_WORDS for w in words):
         return MESH_FORMATS[".obj"]
+    if words and b"newmtl" in words and all((w := x.decode("latin-1").lower()) in _MTL_WORDS or w.startswith("map_")
+                                            for x in words):
+        return MTL_FORMAT
     text = head.lstrip()
     if text[:1] == b"{" and _gltf_json(path, text, size):
         return MESH_FORMATS[".gltf"]
@@ -96,6 +109,8 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
     ``extends``; ``""``: a scene given by itself, on the command line or to ``load_scene``,
     which the message's source names; else a file read as YAML). A file told by its content
     alone is to be renamed first: a mesh file is read by its suffix."""
+    if format_ == MTL_FORMAT:
+        return _mtl_hint(name, key)
     base, renamed = os.path.basename(name), ""
     if mesh_file_format(base, content=False) is None:
         base = os.path.splitext(base)[0] + next(e for e, f in MESH_FORMATS.items() if f == format_)
@@ -113,3 +128,54 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
     return f"is {format_} mesh file, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
 
 
+def _mtl_hint(name: str, key: str | None) -> str:
+    """:func:`mesh_file_hint` of an MTL material library ``name``: what it is, and the OBJ to name
+    instead (:func:`mtl_user`), as :func:`mesh_file_hint` words it for ``key``."""
+    obj = mtl_user(name)
+    what = (f"{MTL_FORMAT} (the materials of an OBJ mesh, read with the OBJ whose `mtllib` names it"
+            f"{f': {obj}, beside it' if obj else ''})")
+    mesh = obj or "THE.obj"
+    scene = (f"`geometry: {{mesh: {mesh}}}` in a scene file beside it{'' if obj else ', naming that OBJ'}, with "
+             "`camera:` (and `materials:` for any the library lacks; docs/scenes.md, \"Geometry\")")
+    if key == "extends":
+        return (f"{name!r} is {what}, not a scene file to extend: name its OBJ under `geometry:` instead "
+                f"(`geometry: {{mesh: {mesh}}}`; docs/scenes.md, \"Geometry\")")
+    if key == "":
+        return f"is {what}, not a scene: write {scene}, and name that file in its place"
+    if key is not None:
+        return (f"{name!r} is {what}, not a scene: write {scene}, and name that file instead "
+                f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
+    return f"is {what}, not a YAML file: write {scene}, and run that file (`tlm run SCENE.yaml`)"
+
+
+def mtl_user(name: str | os.PathLike) -> str | None:
+    """The name of the OBJ file beside the MTL library ``name`` that uses it, where that is plain:
+    one of its stem (``CornellBox-Sphere.obj``, or compressed: ``.obj.xz``, ...), else the one OBJ
+    beside it (plain, up to 64 OBJ files looked at) whose first 64 KiB has an ``mtllib`` naming it.
+    None where there is none, or more than one."""
+    import re
+
+    path = os.fspath(name)
+    folder, base = os.path.dirname(path) or ".", os.path.basename(path)
+    stem = base[: -len(os.path.splitext(base)[1])] if base.lower().endswith(_MESH_COMPRESSED) else base
+    stem = os.path.splitext(stem)[0]
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return None
+    same = [n for n in names if n.lower() in {f"{stem}.obj".lower(), *(f"{stem}.obj{z}".lower()
+                                                                       for z in _MESH_COMPRESSED)}]
+    if same:
+        return same[0]
+    named = re.compile(rb"^[ \t]*mtllib[ \t]+(.*)$", re.MULTILINE)
+    users = []
+    for n in [n for n in names if n.lower().endswith(".obj")][:64]:
+        try:
+            with open(os.path.join(folder, n), "rb") as f:
+                head = f.read(1 << 16)
+        except OSError:
+            continue
+        if any(base.encode() in m.group(1).split() or m.group(1).strip() == base.encode()
+               for m in named.finditer(head)):
+            users.append(n)
+    return users[0] if len(users) == 1 else None

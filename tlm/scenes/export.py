@@ -37,11 +37,15 @@ positions are the ones the renderer uses.
 Every file written (OBJ, MTL, PLY and scene file) carries, below its first line, the
 notices of the mesh files the scene's geometry comes from (:func:`notices`), as comment
 lines: a published mesh's licence asks for its attribution to go with every copy (the
-Cornell boxes are CC BY 3.0: ``scenes/meshes/COPYRIGHT-cornellbox.txt``). A mesh's notice
-is the ``COPYRIGHT-<name>.txt`` beside it whose ``<name>`` begins the mesh file's name
-(letters and digits compared, any case: ``CornellBox-Water.obj.xz`` and
-``COPYRIGHT-cornellbox.txt``); a mesh that tlm exported carries its notices in its own
-header, and they are passed on.
+Cornell boxes are CC BY 3.0: ``scenes/meshes/COPYRIGHT-cornellbox.txt``). A mesh's notices
+are the files beside it whose name begins, in any case, with ``COPYRIGHT``, ``LICENSE`` or
+``LICENCE`` (:func:`notice_files`): one whose name goes on to name files there is theirs only
+(``COPYRIGHT-<name>.txt`` whose ``<name>`` begins the mesh file's name, letters and digits
+compared, any case: ``CornellBox-Water.obj.xz`` and ``COPYRIGHT-cornellbox.txt``; the longest
+such), any other is every mesh's there (``copyright.txt``, as McGuire's archives publish it
+beside their OBJ files; ``LICENSE``). A mesh that tlm exported carries its notices in its own
+header, and they are passed on. A mesh file with none is named in a warning (``tlm: warning:
+...``, a line each): the export carries no licence notice for it.
 """
 
 from __future__ import annotations
@@ -54,7 +58,7 @@ import numpy as np
 
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.scenes.model import Scene
-from tlm.storage import write_atomic, write_files
+from tlm.storage import warn, write_atomic, write_files
 
 FORMATS = (".ply", ".obj", ".yaml", ".yml")
 _PLY_NORMALS = "property double nx\nproperty double ny\nproperty double nz\n"  # (a PLY's vertex normals)
@@ -109,7 +113,7 @@ def export_triangles(scene: Scene, path: Path) -> None:
             _check_ours(other, path, "scene file" if other == path else "mesh")
     else:
         _check_ours(path, path, "mesh")
-    told = notices(scene)
+    told, bare = _notices(scene)
     try:
         if suffix == ".ply":
             _write_ply(scene, path, verts, faces, told)
@@ -121,6 +125,12 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise
     except OSError as e:  # (a folder that takes no files: /proc, a special file system)
         raise EnvironmentFailure(f"cannot write it ({e.strerror or e})", source=str(path)) from None
+    from tlm.scenes.meshes import shown_path
+
+    for mesh in bare:  # (a mesh's licence may ask for its notice with every copy: said, not dropped silently)
+        warn(f"{path}: the export carries no licence notice for the mesh {shown_path(mesh)}: there is no notice "
+             "file of it beside it (COPYRIGHT*, LICENSE*, LICENCE*) and none in its header; if its licence asks for "
+             "one with every copy, add it beside the exported files")
 
 
 _NOTICE = "Notice of the mesh "  # (the first line of a mesh's notice in a file tlm exports)
@@ -133,16 +143,24 @@ def notices(scene: Scene) -> list[str]:
     the mesh M (its COPYRIGHT-x.txt), to keep with every copy:``) and its text's lines,
     each indented by two spaces (blank lines and a leading ``#`` left out). Empty for a
     scene that is not from a scene file, or whose meshes carry none."""
+    return _notices(scene)[0]
+
+
+def _notices(scene: Scene) -> tuple[list[str], list[Path]]:
+    """:func:`notices`, and the mesh files that carry none (each export warns of them)."""
     try:
         files = _mesh_files(Path(scene.source))
     except (InputError, OSError, ValueError):  # (not a scene file: a Scene made in Python)
-        return []
+        return [], []
     out: list[str] = []
+    bare: list[Path] = []
     for mesh in files:
         block = _notice_of(mesh)
         if block and not _holds(out, block):
             out += block
-    return out
+        if not block and mesh.is_file() and mesh not in bare:
+            bare.append(mesh)
+    return out, bare
 
 
 def _holds(lines: list[str], block: list[str]) -> bool:
@@ -167,22 +185,48 @@ def _alnum(text: str) -> str:
     return re.sub(r"[^0-9a-z]", "", text.lower())
 
 
+_NOTICE_WORDS = ("copyright", "licence", "license")  # (how a notice file's name begins, any case)
+
+
+def notice_files(mesh: Path) -> list[Path]:
+    """The notice files of one mesh file, beside it (the module's docstring): the files whose
+    name begins, in any case, with ``COPYRIGHT``, ``LICENSE`` or ``LICENCE``. One that names
+    a file there after the word (``COPYRIGHT-cornellbox.txt``: its letters and digits begin
+    ``CornellBox-Water.obj.xz``'s) is that file's only (of several, the longest name); the others
+    (``copyright.txt``, as McGuire's archives name theirs, ``LICENSE``, ``LICENSE-CC-BY.txt``)
+    are every mesh's there, after it, by name."""
+    try:
+        names = sorted(p.name for p in mesh.parent.iterdir())
+    except OSError:
+        return []
+    beside = [n for n in names if n.lower().startswith(_NOTICE_WORDS) and (mesh.parent / n).is_file()]
+    others = [_alnum(n) for n in names if n not in beside]
+    own, folder = [], []
+    for n in beside:
+        rest = _alnum(Path(n).stem[len(next(w for w in _NOTICE_WORDS if n.lower().startswith(w))):])
+        if not rest or not any(o.startswith(rest) for o in others):
+            folder.append(mesh.parent / n)  # (names no file there: the folder's)
+        elif _alnum(mesh.name).startswith(rest):
+            own.append(mesh.parent / n)
+    return [*sorted(own, key=lambda p: -len(p.name))[:1], *folder]
+
+
 def _notice_of(mesh: Path) -> list[str]:
-    """The notice lines of one mesh file: its COPYRIGHT file's, else those its own header
-    carries when tlm exported it."""
+    """The notice lines of one mesh file: its notice files' (:func:`notice_files`), else those
+    its own header carries when tlm exported it."""
     if not mesh.is_file():
         return []
-    name = _alnum(mesh.name)
-    found = sorted((p for p in mesh.parent.glob("COPYRIGHT-*.txt")
-                    if _alnum(p.stem[len("COPYRIGHT-"):]) and name.startswith(_alnum(p.stem[len("COPYRIGHT-"):]))),
-                   key=lambda p: -len(p.name))
-    if found:
-        text = found[0].read_text(encoding="utf-8", errors="replace")
+    out: list[str] = []
+    for found in notice_files(mesh):
+        try:
+            text = found.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            continue
         body = [line.strip().removeprefix("#").strip() for line in text.splitlines()]
         body = [f"{_BODY}{line}" for line in body if line]
         changed = f"{_BODY}(Changed: this file holds the mesh's triangles as tlm loads them, not the file itself.)"
-        return [f"{_NOTICE}{mesh.name} (its {found[0].name}), to keep with every copy:", *body, changed] if body else []
-    return _notices_in_header(mesh)
+        out += [f"{_NOTICE}{mesh.name} (its {found.name}), to keep with every copy:", *body, changed] if body else []
+    return out or _notices_in_header(mesh)
 
 
 def _notices_in_header(mesh: Path) -> list[str]:

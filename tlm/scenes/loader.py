@@ -527,6 +527,19 @@ def _aspect_note(geom: Geometry, res: list[int], given: bool) -> list[str]:
             f"resolution's {ratio:.6g} ({res[0]}x{res[1]}): the horizontal field of view follows the resolution"]
 
 
+def _a_file_material(name: str, file_mats: tuple[Material, ...], given: Any = None) -> str:
+    """What a ``parts:`` entry that names no part adds where its name is a material of the mesh
+    files (``parts: {tallBox: ...}`` on ``CornellBox-Original``, whose ``tallBox`` is a material
+    and no part): a material is replaced under ``materials:`` (``given``: the entry's value, a
+    material's name whose fields to give there); "" for another name."""
+    if not any(name in (m.name, m.alias) for m in file_mats):
+        return ""
+    how = f"`materials: {{{name}: ...}}` with the fields of {given!r}" if isinstance(given, str) else \
+        f"`materials: {{{name}: {{type: ..., ...}}}}`"
+    return (f"; {name!r} is a material of the mesh file, not a part: to change the triangles that take it, "
+            f"replace it under materials: ({how})")
+
+
 def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, str] | None = None
                       ) -> tuple[tuple[Material, ...], np.ndarray, list[str]]:
     """The scene's materials, each triangle's index into them, and a line per ``materials:``
@@ -571,7 +584,7 @@ def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, 
         if p not in geom.part_names:
             raise InputError(
                 f"the geometry has no part {p!r} (parts: {', '.join(geom.part_names)})"
-                f"{did_you_mean(str(p), geom.part_names)}",
+                f"{_a_file_material(str(p), file_mats, parts_raw[p]) or did_you_mean(str(p), geom.part_names)}",
                 source=src, key=f"parts.{p}",
             )
     # per part: the scene file's material, or -1 (the file's material, else the default); a parts: value

@@ -47,7 +47,10 @@ material and the key): a value that is not a number, NaN or infinite; a negative
 colour; ``d`` or ``Tr`` outside [0, 1]; ``Ni`` <= 0 on a dielectric; a statement with
 too few numbers. Notes (``Geometry.notes``, a line each naming the file and the line): a colour
 used that is clipped (``Kd 185 181 173``, 0-255 values, is white), a ``newmtl`` name defined
-again (the first definition is used), a material another library of the OBJ defined first.
+again (the first definition is used), a material another library of the OBJ defined first, a
+statement given again in one material with another value (the last is used, as trimesh's and
+tinyobjloader's MTL readers take it: each assignment replaces the one before; the LBNL conference
+room's table, ``mesh29_SG``, gives ``Kd 0.286275 0.149020 0.129412`` then ``Kd 1 1 1``, white).
 
 **glTF 2.0** (:func:`gltf_materials`, from the file's JSON, so that extensions count):
 
@@ -100,6 +103,8 @@ _MTL_LOOKS = ("bump", "disp", "decal", "refl", "norm", "Pr", "Pm", "Ps", "Pc", "
 _GLTF_READ = ("KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior")
 _SPEC_GLOSS = "KHR_materials_pbrSpecularGlossiness"  # (not read: a glTF reader without it reads the fallback)
 _IGNORED = "ignored"  # (the key of a material's ignored statements among its MTL properties)
+_AGAIN = "again"  # (its statements given again with another value: (key, line before, text before, line, text))
+_SAID = "said"  # (its statements' numbers as the file writes them, by key)
 
 
 def _clip01(c) -> tuple[float, float, float]:
@@ -112,10 +117,12 @@ def _clip01(c) -> tuple[float, float, float]:
 def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dict[str, int] | None = None
               ) -> list[Material]:
     """The materials an MTL file defines, in file order (a name defined twice: the
-    first definition counts). ``source`` names the file in errors. ``notes``, where given,
-    gets a line (file, line, value) per definition left out as a repeat of a name and per
-    colour clipped into [0, 1] (:func:`mtl_material`); ``lines``, where given, each material's
-    name -> the line of its ``newmtl``."""
+    first definition counts; a statement given twice in one material: the last counts).
+    ``source`` names the file in errors. ``notes``, where given, gets a line (file, line, value)
+    per definition left out as a repeat of a name, per statement of a material given again with
+    another value (both lines, as written, and which is used) and per colour clipped into [0, 1]
+    (:func:`mtl_material`); ``lines``, where given, each material's name -> the line of its
+    ``newmtl``."""
     found: list[tuple[str, int, dict]] = []
     current: dict | None = None
     name = ""
@@ -160,12 +167,16 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dic
                 raise InputError(f"{where}: needs 3 numbers (r g b) or 1, got {len(values)}", source=source)
             if min(values[:3]) < 0.0:
                 raise InputError(f"{where}: {' '.join(args)} has a negative component", source=source)
-            current[key] = (tuple(values[:3]), number)
+            value = tuple(values[:3])
         else:
-            v = values[0]
-            if key in ("d", "Tr") and not 0.0 <= v <= 1.0:
+            value = values[0]
+            if key in ("d", "Tr") and not 0.0 <= value <= 1.0:
                 raise InputError(f"{where}: {args[0]} is outside [0, 1]", source=source)
-            current[key] = (v, number)
+        said = current.setdefault(_SAID, {})  # (each statement's numbers as the file writes them)
+        if key in current and current[key][0] != value:  # (the last wins, as OBJ readers take it: noted)
+            current.setdefault(_AGAIN, []).append((key, current[key][1], said[key], number, " ".join(args)))
+        current[key] = (value, number)
+        said[key] = " ".join(args)
     seen: dict[str, int] = {}
     out = []
     for name, number, props in found:
@@ -177,6 +188,12 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dic
         seen[name] = number
         if lines is not None:
             lines[name] = number
+        again = props.pop(_AGAIN, ())
+        props.pop(_SAID, None)
+        if notes is not None:
+            notes += [f"{source}: line {line}: material {name!r}: {key} given twice, line {before_line} `{key} "
+                      f"{before}` and line {line} `{key} {text}`: the last is used, as OBJ readers (trimesh, "
+                      "tinyobjloader) take it (give it once)" for key, before_line, before, line, text in again]
         out.append(mtl_material(name, props, source, number, notes))
     return out
 

@@ -49,6 +49,7 @@ loading runs under ``warnings.catch_warnings`` and ``np.errstate``. Every proble
 from __future__ import annotations
 
 import io
+import os
 import re
 import warnings
 from pathlib import Path
@@ -131,7 +132,8 @@ def load_mesh(path: Path) -> Geometry:
     ----------
     path : Path
         An OBJ, PLY, STL, GLB or GLTF file, or one of the first four compressed
-        (``.gz``, ``.xz``, ``.bz2`` after the format's suffix).
+        (``.gz``, ``.xz``, ``.bz2`` after the format's suffix); named in messages and
+        notes without its ``..`` (:func:`shown_path`).
 
     Returns
     -------
@@ -149,13 +151,27 @@ def load_mesh(path: Path) -> Geometry:
         point cloud, path), non-triangle faces, NaN/inf vertices, bad face indices, a
         missing or bad material library, an undefined material.
     """
-    path = Path(path)
+    path = shown_path(Path(path))
     mesh_format(path)  # (an unsupported suffix is an error before anything is read)
     if not path.is_file():
         raise InputError("mesh file not found", source=str(path))
     from tlm.scenes import cache
 
     return cache.mesh(path, _parse, _libraries)
+
+
+def shown_path(path: Path) -> Path:
+    """``path`` as messages name it: its ``..`` and ``.`` taken out (:func:`os.path.normpath`, not
+    ``resolve``: a symbolic link keeps its name), ``scenes/../cb/box.obj`` as ``cb/box.obj``, where
+    that is the same file in the same folder (a ``..`` after a symbolic link to a folder leads
+    elsewhere than the name without it: such a path is kept as given)."""
+    norm = Path(os.path.normpath(path))
+    if norm == path:
+        return path
+    try:
+        return norm if os.path.samefile(norm, path) and os.path.samefile(norm.parent, path.parent) else path
+    except OSError:  # (not there: a message names it as given)
+        return path
 
 
 def _parse(path: Path) -> tuple[Geometry, list | None]:
