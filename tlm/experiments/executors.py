@@ -509,17 +509,31 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
         for nanny in list(getattr(cluster, "workers", {}).values()):  # (what each nanny sets, as it computed it)
             written.update(getattr(nanny, "pre_spawn_env", None) or {})
-        client = stack.enter_context(Client(cluster))
+        client = stack.enter_context(_client(Client, cluster))
         stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
     else:
         answers(dask)  # (a refused connection at once, where distributed retries it for CONNECT_TIMEOUT s)
         try:
-            client = stack.enter_context(Client(dask, timeout=CONNECT_TIMEOUT))
+            client = stack.enter_context(_client(Client, dask, timeout=CONNECT_TIMEOUT))
         except (OSError, ValueError, TypeError, MemoryError) as e:  # TimeoutError is an OSError (MemoryError: a
             # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
+
+
+def _client(client_class, *args, **kwargs):
+    """``client_class(*args, **kwargs)`` (a ``distributed.Client``) without Dask's ``VersionMismatchWarning``,
+    which it warns as it connects where the scheduler's, the workers' and this process's packages differ (a
+    table over several lines, with a file's path): the points of a worker whose numpy, numba or Python differ
+    fail with tlm's own line on it (:class:`~tlm.experiments.dask_workers.OtherVersionsOnWorker`), and the
+    versions each point ran with are in its ``results.json``. The filter is the process's while the client
+    connects (its loop's thread warns it, and a sync client waits for that), put back after."""
+    from distributed.versions import VersionMismatchWarning
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=VersionMismatchWarning)
+        return client_class(*args, **kwargs)
 
 
 def _local_preloads() -> dict[str, list]:

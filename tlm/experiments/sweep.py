@@ -654,6 +654,28 @@ def _record(f: cf.Future, task: Task) -> dict:
         if (stop := interrupted_by(e)) is not None:
             raise stop from e
         error = error_record(e, "worker", "".join(traceback.format_exception(e)))
+        if (killed := _killed_worker_line(e)) is not None:
+            error["message"] = killed
         with suppress(OSError, InputError):  # the row still says what happened
             write_error(task, error)
         return {"status": "failed", "error": error}
+
+
+def _killed_worker_line(e: BaseException) -> str | None:
+    """tlm's line for Dask's ``KilledWorker`` (``distributed.scheduler.KilledWorker``: the workers that held the point
+    died more times than ``distributed.scheduler.allowed-failures`` allows), in place of Dask's own (which points to a
+    web page): the last worker, where Dask names it, the setting and its value, that the point need not be the cause
+    (a point only queued on a worker that died counts too) and that a rerun into the folder runs it again. None for
+    any other exception."""
+    if type(e).__name__ != "KilledWorker" or not type(e).__module__.startswith("distributed"):
+        return None
+    last = getattr(getattr(e, "last_worker", None), "address", None) if len(e.args) >= 2 else None
+    failures = e.args[2] if len(e.args) >= 3 and isinstance(e.args[2], int) else None
+    times = f"{failures + 1} times" if failures is not None else "too many times"
+    allowed = f" ({failures})" if failures is not None else ""
+    last = f", the last the Dask worker {last}" if isinstance(last, str) and last else ""
+    return (f"the Dask workers that held this point died {times}{last}: Dask gives a point up after "
+            f"distributed.scheduler.allowed-failures{allowed} such deaths, whether it ran there or only waited "
+            "in the worker's queue (another point may have killed it: out of memory, a crash); the workers' logs "
+            "say why; a rerun into the folder runs the point again")
+

@@ -136,12 +136,17 @@ class SweepPlan:
         return lines
 
 
+DRY_RUN_CONNECT_TIMEOUT = 5  # seconds a dry run waits for a --dask scheduler's host to answer (the sweep: 10)
+
+
 def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
                dask_wait: float | None = None, overrides: Iterable[str] = (), reference: bool = False) -> SweepPlan:
     """What :func:`~tlm.experiments.sweep.run_sweep` of the same arguments would do, nothing run or written (``tlm
     sweep --dry-run``): its checks of them, of the environment's kernel settings, of the sweep file (every point's
     config: :func:`~tlm.experiments.sweep_file.load_sweep`) and of ``out`` first, in its order (the same errors),
-    then :func:`plan`."""
+    a ``--dask tcp://...`` scheduler's address tried as the sweep tries it (:func:`~tlm.experiments.executors_dask.
+    answers`: one TCP connection, closed at once, within :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made,
+    nothing submitted), then :func:`plan`."""
     from tlm.experiments.sweep import checked_options
     from tlm.kernels.engine import engine
     from tlm.kernels.threads import fork_workers
@@ -151,6 +156,11 @@ def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None 
     with read_only():  # (the scenes' loads read the scene cache and write nothing: no parse kept, no entry touched)
         sweep = load_sweep(Path(path), overrides)
         storage.check_destination(Path(out), MARKER)
+    if dask not in (None, "local"):  # (a scheduler's address: tried as the sweep tries it, nothing submitted)
+        from tlm.experiments.executors_dask import answers
+
+        answers(dask, timeout=DRY_RUN_CONNECT_TIMEOUT)
+    with read_only():
         return plan(sweep, Path(out), reference, remote=dask not in (None, "local"))
 
 

@@ -92,21 +92,14 @@ def run_point(task: Task) -> dict:
     from tlm.render.planner import inert_changes
 
     stage = "functional"
-    t0 = time.perf_counter()
     where = dask_worker_where()  # (None but in a Dask worker)
     try:
-        if task.own_code is not None:  # (a --dask local worker: the code it imported as it started)
-            _check_own_code(task.own_code, where)
-        ran = worker_versions()  # (the process that runs the point: what its results.json records)
-        if where is not None:
-            _check_worker_sees(task, where)
-            check_worker_versions(task.provenance.get("versions"), ran, where)
-        threads = task.threads if task.threads is not None else dask_worker_threads()
-        cfg = config_from_dict(_with_threads(task.config, threads), task.source)
-        folder = Path(task.folder)
-        if where is not None and task.code is not None:
-            _check_worker_inputs(task, cfg, folder, where)
-        with _one_off_clock() as clock:  # (numba compiling or loading a kernel, first imports: the point's one-off)
+        # (numba compiling or loading a kernel, first imports: the point's one-off, from t0 on: the worker's checks
+        # before its render, a part of its functional seconds, first import the kernels' modules and numba
+        # (worker_versions) on a worker's first point, and a remote worker reads the point's scene for its key)
+        with _one_off_clock() as clock:
+            t0 = time.perf_counter()
+            ran, cfg, folder = _checked(task, where)
             # (a cache that cannot be written: the sweep says it once; the references the sweep holds: read first)
             with cache_warnings_held(), holding(dict(task.references)):
                 got = cached_render(cfg, folder, task.source)
@@ -130,7 +123,7 @@ def run_point(task: Task) -> dict:
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 # the render's warnings, and this point's own (what it sets and never reads; its stream)
                 "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg),
-                             *cache_warnings()],  # (the caches this worker could not write)
+                             *_worker_cache_warnings(task, where)],  # (the caches this worker could not write)
                 # the timing keys it changed from their defaults and never read, with why (for the
                 # sweep's own line on a factor no point read: Sweep.unread_factors)
                 "inert": inert_timing_changes(timing, cfg),
@@ -164,6 +157,37 @@ def run_point(task: Task) -> dict:
             with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
                 write_error(task, error)
         return {"status": "failed", "error": error, "worker": where}
+
+
+def _checked(task: Task, where: str | None) -> tuple[dict, Any, Path]:
+    """The worker's checks before it runs ``task`` (a ``--dask local`` worker's code, a Dask worker's view of the
+    sweep's files, its versions and inputs), and what the point runs with: this process's versions (what its
+    ``results.json`` records), its config (``render.threads`` sized here where the config leaves it null) and the
+    folder its relative paths start from."""
+    if task.own_code is not None:  # (a --dask local worker: the code it imported as it started)
+        _check_own_code(task.own_code, where)
+    ran = worker_versions()  # (the process that runs the point: what its results.json records)
+    if where is not None:
+        _check_worker_sees(task, where)
+        check_worker_versions(task.provenance.get("versions"), ran, where)
+    threads = task.threads if task.threads is not None else dask_worker_threads()
+    cfg = config_from_dict(_with_threads(task.config, threads), task.source)
+    folder = Path(task.folder)
+    if where is not None and task.code is not None:
+        _check_worker_inputs(task, cfg, folder, where)
+    return ran, cfg, folder
+
+
+def _worker_cache_warnings(task: Task, where: str | None) -> list[str]:
+    """The lines on the caches this process could not write (:func:`~tlm.caches.cache_warnings`), a remote Dask
+    worker's (``task.code``) ending ``(on the Dask worker ADDRESS on host NAME)``: its cache is its own machine's,
+    which the sweep's lines (one each: :func:`~tlm.experiments.sweep._cache_lines`) would not tell from the sweep's
+    own. A local pool's worker, or a ``--dask local`` one, has the sweep's ``TLM_CACHE``, and its lines are the
+    sweep's own (said once)."""
+    lines = cache_warnings()
+    if where is None or task.code is None:
+        return lines
+    return [f"{line} (on {where})" for line in lines]
 
 
 _CLOCK = CompileClock()  # (one per process: a Dask worker runs points in threads, each timing its own window)
