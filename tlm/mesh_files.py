@@ -102,15 +102,16 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
     return None
 
 
-def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
+def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str | os.PathLike | None = None) -> str:
     """What a message about the mesh file ``name`` (of ``format_``, :func:`mesh_file_format`)
     given where a YAML file or a scene is expected says: what it is and how to render it (a
     scene file names it under ``geometry``; ``key``: the key that named it, ``scene`` or
     ``extends``; ``""``: a scene given by itself, on the command line or to ``load_scene``,
     which the message's source names; else a file read as YAML). A file told by its content
-    alone is to be renamed first: a mesh file is read by its suffix."""
+    alone is to be renamed first: a mesh file is read by its suffix. ``folder``: the one a relative
+    ``name`` is relative to (a scene file's, for its ``extends``; none: the working folder)."""
     if format_ == MTL_FORMAT:
-        return _mtl_hint(name, key)
+        return _mtl_hint(name, key, folder)
     base, renamed = os.path.basename(name), ""
     if mesh_file_format(base, content=False) is None:
         base = os.path.splitext(base)[0] + next(e for e, f in MESH_FORMATS.items() if f == format_)
@@ -128,13 +129,17 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None) -> str:
     return f"is {format_} mesh file, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
 
 
-def _mtl_hint(name: str, key: str | None) -> str:
-    """:func:`mesh_file_hint` of an MTL material library ``name``: what it is, and the OBJ to name
-    instead (:func:`mtl_user`), as :func:`mesh_file_hint` words it for ``key``."""
-    obj = mtl_user(name)
+def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = None) -> str:
+    """:func:`mesh_file_hint` of an MTL material library ``name`` (relative to ``folder``, where
+    given): what it is, and the OBJ to name instead (:func:`mtl_user`), as :func:`mesh_file_hint`
+    words it for ``key`` (under ``extends``, as the scene file that extends it names it)."""
+    beside = os.path.join(folder, name) if folder is not None else name
+    obj = mtl_user(beside if os.path.exists(beside) else name)  # (else as the working folder finds it)
     what = (f"{MTL_FORMAT} (the materials of an OBJ mesh, read with the OBJ whose `mtllib` names it"
             f"{f': {obj}, beside it' if obj else ''})")
     mesh = obj or "THE.obj"
+    if obj and key == "extends":  # (a path from the scene file that extends the library, as its name is)
+        mesh = os.path.join(os.path.dirname(name), obj)
     scene = (f"`geometry: {{mesh: {mesh}}}` in a scene file beside it{'' if obj else ', naming that OBJ'}, with "
              "`camera:` (and `materials:` for any the library lacks; docs/scenes.md, \"Geometry\")")
     if key == "extends":
@@ -175,7 +180,14 @@ def mtl_user(name: str | os.PathLike) -> str | None:
                 head = f.read(1 << 16)
         except OSError:
             continue
-        if any(base.encode() in m.group(1).split() or m.group(1).strip() == base.encode()
-               for m in named.finditer(head)):
+        if any(_names(base, m.group(1)) for m in named.finditer(head)):
             users.append(n)
     return users[0] if len(users) == 1 else None
+
+
+def _names(base: str, mtllib: bytes) -> bool:
+    """Whether an ``mtllib`` statement's text names the file ``base`` beside the OBJ: one of its
+    names, or its whole text (a name with spaces), written as ``base`` or with ``./`` or ``..``
+    that lead back to it (``./box.mtl``, ``.\\box.mtl``)."""
+    text = mtllib.decode("utf-8", errors="replace")
+    return any(os.path.normpath(w.replace("\\", "/")) == base for w in (*text.split(), text.strip()) if w)

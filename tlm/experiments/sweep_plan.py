@@ -144,9 +144,9 @@ def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None 
     """What :func:`~tlm.experiments.sweep.run_sweep` of the same arguments would do, nothing run or written (``tlm
     sweep --dry-run``): its checks of them, of the environment's kernel settings, of the sweep file (every point's
     config: :func:`~tlm.experiments.sweep_file.load_sweep`) and of ``out`` first, in its order (the same errors),
-    a ``--dask tcp://...`` scheduler's address tried as the sweep tries it (:func:`~tlm.experiments.executors_dask.
-    answers`: one TCP connection, closed at once, within :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made,
-    nothing submitted), then :func:`plan`."""
+    a ``--dask tcp://...`` scheduler's address (``tls://``, ``ws://``, ``wss://`` alike: no handshake) tried as
+    the sweep tries it (:func:`~tlm.experiments.executors_dask.answers`: one TCP connection, closed at once, within
+    :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made, nothing submitted), then :func:`plan`."""
     from tlm.experiments.sweep import checked_options
     from tlm.kernels.engine import engine
     from tlm.kernels.threads import fork_workers

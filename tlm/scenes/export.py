@@ -43,7 +43,8 @@ are the files beside it whose name begins, in any case, with ``COPYRIGHT``, ``LI
 (``COPYRIGHT-<name>.txt`` whose ``<name>`` begins the mesh file's name, letters and digits
 compared, any case: ``CornellBox-Water.obj.xz`` and ``COPYRIGHT-cornellbox.txt``; the longest
 such), any other is every mesh's there (``copyright.txt``, as McGuire's archives publish it
-beside their OBJ files; ``LICENSE``). A mesh that tlm exported carries its notices in its own
+beside their OBJ files; ``LICENSE``); a symbolic link has those of the file it links to
+too. A mesh that tlm exported carries its notices in its own
 header, and they are passed on. A mesh file with none is named in a warning (``tlm: warning:
 ...``, a line each): the export carries no licence notice for it.
 """
@@ -194,7 +195,23 @@ def notice_files(mesh: Path) -> list[Path]:
     a file there after the word (``COPYRIGHT-cornellbox.txt``: its letters and digits begin
     ``CornellBox-Water.obj.xz``'s) is that file's only (of several, the longest name); the others
     (``copyright.txt``, as McGuire's archives name theirs, ``LICENSE``, ``LICENSE-CC-BY.txt``)
-    are every mesh's there, after it, by name."""
+    are every mesh's there, after it, by name. A symbolic link has those beside the file it
+    links to too, by that file's name, after its own (``box.obj`` linking to a published
+    ``CornellBox-Original.obj``: that file's notice is the link's, a ``LICENSE`` beside the link
+    or not)."""
+    found = _notice_files_beside(mesh)
+    if mesh.is_symlink():
+        try:
+            target = mesh.resolve(strict=True)
+        except (OSError, RuntimeError):  # (a broken link, a loop of links)
+            return found
+        held = {p.resolve() for p in found}
+        found += [p for p in _notice_files_beside(target) if p.resolve() not in held]
+    return found
+
+
+def _notice_files_beside(mesh: Path) -> list[Path]:
+    """:func:`notice_files` of ``mesh`` among the files of its own folder."""
     try:
         names = sorted(p.name for p in mesh.parent.iterdir())
     except OSError:

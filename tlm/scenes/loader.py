@@ -117,7 +117,7 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:  # (by its name)
         if config_source == ref:  # (given by itself: `tlm scene show pawn.glb`, load_scene("pawn.glb"), named once)
             raise InputError(mesh_file_hint(ref, format_, ""), source=ref)
-        raise InputError(mesh_file_hint(ref, format_, key), source=config_source, key=key)
+        raise InputError(mesh_file_hint(ref, format_, key, base), source=config_source, key=key)
     yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
     looks_like_path = yaml_file or "/" in ref or os.sep in ref
     if looks_like_path and not yaml_file and (scenes_dir() / f"{ref}.yaml").is_file():

@@ -103,8 +103,7 @@ _MTL_LOOKS = ("bump", "disp", "decal", "refl", "norm", "Pr", "Pm", "Ps", "Pc", "
 _GLTF_READ = ("KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior")
 _SPEC_GLOSS = "KHR_materials_pbrSpecularGlossiness"  # (not read: a glTF reader without it reads the fallback)
 _IGNORED = "ignored"  # (the key of a material's ignored statements among its MTL properties)
-_AGAIN = "again"  # (its statements given again with another value: (key, line before, text before, line, text))
-_SAID = "said"  # (its statements' numbers as the file writes them, by key)
+_SAID = "said"  # (its statements as the file writes them, by key: [(line, numbers as written, value), ...])
 
 
 def _clip01(c) -> tuple[float, float, float]:
@@ -114,13 +113,22 @@ def _clip01(c) -> tuple[float, float, float]:
 # ------------------------------------------------------------------ MTL
 
 
+def _given_again(source: str, name: str, key: str, given: list[tuple[int, str, object]]) -> str:
+    """The note on the statement ``key`` of the material ``name`` given more than once with other
+    values (``given``: each time's line, numbers as written and value): every line, and the last used."""
+    times = "twice" if len(given) == 2 else f"{len(given)} times"
+    lines = [f"line {line} `{key} {text}`" for line, text, _ in given]
+    return (f"{source}: line {given[-1][0]}: material {name!r}: {key} given {times}, {', '.join(lines[:-1])} and "
+            f"{lines[-1]}: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give it once)")
+
+
 def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dict[str, int] | None = None
               ) -> list[Material]:
     """The materials an MTL file defines, in file order (a name defined twice: the
     first definition counts; a statement given twice in one material: the last counts).
     ``source`` names the file in errors. ``notes``, where given, gets a line (file, line, value)
     per definition left out as a repeat of a name, per statement of a material given again with
-    another value (both lines, as written, and which is used) and per colour clipped into [0, 1]
+    another value (every line it is on, as written, and which is used) and per colour clipped into [0, 1]
     (:func:`mtl_material`); ``lines``, where given, each material's name -> the line of its
     ``newmtl``."""
     found: list[tuple[str, int, dict]] = []
@@ -172,11 +180,10 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dic
             value = values[0]
             if key in ("d", "Tr") and not 0.0 <= value <= 1.0:
                 raise InputError(f"{where}: {args[0]} is outside [0, 1]", source=source)
-        said = current.setdefault(_SAID, {})  # (each statement's numbers as the file writes them)
-        if key in current and current[key][0] != value:  # (the last wins, as OBJ readers take it: noted)
-            current.setdefault(_AGAIN, []).append((key, current[key][1], said[key], number, " ".join(args)))
+        # (each statement as the file writes it: one given again with another value is noted; the last wins, as
+        # OBJ readers take it)
+        current.setdefault(_SAID, {}).setdefault(key, []).append((number, " ".join(args), value))
         current[key] = (value, number)
-        said[key] = " ".join(args)
     seen: dict[str, int] = {}
     out = []
     for name, number, props in found:
@@ -188,12 +195,10 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dic
         seen[name] = number
         if lines is not None:
             lines[name] = number
-        again = props.pop(_AGAIN, ())
-        props.pop(_SAID, None)
+        said = props.pop(_SAID, {})
         if notes is not None:
-            notes += [f"{source}: line {line}: material {name!r}: {key} given twice, line {before_line} `{key} "
-                      f"{before}` and line {line} `{key} {text}`: the last is used, as OBJ readers (trimesh, "
-                      "tinyobjloader) take it (give it once)" for key, before_line, before, line, text in again]
+            notes += [_given_again(source, name, key, given) for key, given in said.items()
+                      if len({value for *_, value in given}) > 1]
         out.append(mtl_material(name, props, source, number, notes))
     return out
 
