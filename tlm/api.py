@@ -83,16 +83,7 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     write_report,
 )
 from tlm.arch.units import Deadlock, MaxEventsReached
-from tlm.config import (
-    MODES,
-    RunConfig,
-    apply_overrides,
-    config_from_dict,
-    describe,
-    plain,
-    read_yaml,
-    to_dict,
-)
+from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import (
     InputError,

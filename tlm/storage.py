@@ -58,7 +58,9 @@ from pathlib import Path
 from typing import IO
 
 from tlm import storage_lock
-from tlm.errors import EnvironmentFailure, InputError, environment_problem
+from tlm.errors import EnvironmentFailure, InputError
+from tlm.storage_errors import raise_environmental as _raise_environmental
+from tlm.storage_errors import write_problem
 from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
 from tlm.storage_lock import _host, folder_lock
 
@@ -538,41 +540,6 @@ def _keep_beside(tmp: Path, out: Path) -> Path | None:
             return None
         return kept
     return None
-
-
-def _raise_environmental(e: BaseException, where: Path) -> None:
-    """An OSError of the machine's (a full disk) as an EnvironmentFailure naming ``where``."""
-    if isinstance(e, EnvironmentFailure) and isinstance(e.__cause__, OSError):
-        e = e.__cause__  # a file of the folder: the folder is named instead of its temporary file
-    elif isinstance(e, EnvironmentFailure):
-        return
-    if isinstance(e, OSError):
-        what = write_problem(e, where)
-        if what is not None:
-            raise EnvironmentFailure(f"cannot write: {what}", source=str(where)) from e
-
-
-def write_problem(e: OSError, where: Path) -> str | None:
-    """What the machine's OSError ``e``, met writing ``where``, says in a few words
-    (:func:`~tlm.errors.environment_problem`: ``no space left on device``), a folder that is there
-    but takes no new file (``/proc``: its ENOENT) included, as one that is read-only is; None where
-    it is not the machine's (nor the destination's) fault. That ENOENT is the folder's only where it
-    names a hidden file of ``where``'s own beside it (:func:`write_atomic`'s, :func:`write_files`'):
-    another (an input the block that writes reads, missing; a file of a folder gone meanwhile) is
-    not blamed on the folder."""
-    what = environment_problem(e, filename=False)
-    if what is None and e.errno == errno.ENOENT and _own_file(e, Path(where)) and Path(where).parent.is_dir():
-        what = f"{Path(where).parent} takes no new files (making one there: no such file or directory)"
-    return what
-
-
-def _own_file(e: OSError, where: Path) -> bool:
-    """Whether ``e`` names one file (no second: not a rename's) that is a hidden file of ``where``'s
-    beside it (``.<name>.tmp...``, ``..<name>.new....tmp...``): the file a write of ``where`` makes."""
-    if not isinstance(e.filename, (str, os.PathLike)) or e.filename2 is not None:
-        return False
-    made = Path(e.filename)
-    return made.parent == where.parent and made.name.startswith(".") and where.name in made.name
 
 
 @contextmanager

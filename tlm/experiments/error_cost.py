@@ -95,13 +95,16 @@ from typing import Any
 
 import numpy as np
 
-from tlm.arch.functional import Functional, TreeWork
+from tlm.arch.functional import TreeWork
 from tlm.arch.model import simulate
 from tlm.caches import cache_problem, cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.error_cost_clock import CompileClock
+from tlm.experiments.error_cost_frame import frame_functional, frame_time
+from tlm.experiments.error_cost_frame import others_key as _others_key
+from tlm.experiments.error_cost_frame import own_passes as _own_passes
 from tlm.experiments.error_cost_truth import truth_noise_words
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
@@ -123,8 +126,8 @@ from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
 from tlm.render.frame import Frame, GBuffer, cast
-from tlm.render.passes import PASS_FUNCTIONS, TRACED_BY, diffuse_pixels, gather_points_full, sees_a_light
-from tlm.render.planner import photon_count, plan, same_frame_settings
+from tlm.render.passes import diffuse_pixels, gather_points_full, sees_a_light
+from tlm.render.planner import photon_count, same_frame_settings
 from tlm.render.pmap import (
     density_requests,
     gathered_maps,
@@ -665,60 +668,8 @@ def factors_text(point: dict[str, Any]) -> str:
     return "; ".join(f"{k}={v if isinstance(v, str) else json.dumps(v)}" for k, v in point.items())
 
 
-def _others_key(cfg: RunConfig, names: tuple[str, ...]) -> str:
-    """What the passes other than the photon map depend on: the config but its photon,
-    estimate and timing settings (and the reference's, which only the error reads)."""
-    keep = {k: v for k, v in to_dict(cfg).items() if k not in ("photons", "estimate", "arch", "reference")}
-    return json.dumps([list(names), keep], sort_keys=True, default=str)
-
-
 def _caustic_photons(cfg: RunConfig, n: int) -> int:
     """The caustic group's photon budget: ``photons.caustic_count``, else ``caustic_fraction`` x the count
     (as the trace splits it; 0 in a scene without mirrors or glass, which has no caustic group)."""
     return cfg.photons.caustic_count if cfg.photons.caustic_count is not None else round(
         n * cfg.photons.caustic_fraction)
-
-
-def _own_passes(names) -> tuple[str, ...]:
-    """The planned passes computed on their own (not the photon map, nor what it traces)."""
-    return tuple(n for n in names if n != "pmap" and n not in TRACED_BY)
-
-
-def frame_functional(frame: Frame, g: GBuffer, geometry: TreeWork, others: dict[str, dict], traced,
-                     pmap_work: dict[str, np.ndarray], fg_work: dict[str, np.ndarray] | None = None) -> Functional:
-    """The work of the point's whole photon-map frame, as :meth:`Functional.of` builds it for
-    ``tlm run``: the passes the planner runs for ``frame.cfg``, in plan order.
-
-    ``others`` caches the work of the passes other than the photon map, keyed by what it
-    depends on (computed here when missing, once for every point that shares it);
-    ``traced`` is the point's photon trace and ``pmap_work`` its photon-map pass's work,
-    ``fg_work`` its final-gather rays' (``g.memo["fgather_work"]`` after :func:`pmap_pass`).
-    """
-    names = tuple(plan(frame.scene, frame.cfg).run_names)
-    rest = _own_passes(names)
-    key = _others_key(frame.cfg, rest)
-    if key not in others:  # (radiance, work) of each pass
-        others[key] = {n: PASS_FUNCTIONS[n](frame, g) for n in rest}
-    work = {n: w for n, (_, w) in others[key].items()}
-    with_pmap = "pmap" in names
-    if with_pmap:
-        work["pmap"] = pmap_work
-    if "fgather" in names:
-        if fg_work is None:
-            raise ValueError("frame_functional: the plan has final gathering: pass its rays' work (fg_work)")
-        work["fgather"] = fg_work
-    return Functional(  # the render's dicts, converted to the typed work by Functional
-        passes=names,
-        work={p: work[p] for p in names},
-        geometry=geometry,
-        photon_work=traced.work if with_pmap else None,
-        photon_tree=TreeWork.of_maps(traced.photons) if with_pmap else None,
-        pixels=int(g.pixels.shape[0]), width=int(frame.scene.camera.width),
-    )
-
-
-def frame_time(cycles: dict, clock_hz: float) -> dict:
-    """A simulated frame's columns: throughput and latency cycles, seconds and FPS."""
-    thr = int(cycles["throughput"])
-    return {"throughput_cycles": thr, "latency_cycles": int(cycles["latency"]),
-            "frame_seconds": thr / clock_hz, "fps": clock_hz / thr if thr > 0 else None}
