@@ -62,3 +62,14 @@ def test_numba_threads_below_one_stops_no_command_that_never_imports_numba(tmp_p
     assert main(["run", "cornell", "--out", str(tmp_path / "r")]) == 2
     assert "NUMBA_NUM_THREADS" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+def test_a_sweep_files_null_key_is_named_as_yaml_writes_it(tmp_path, capsys):
+    """A `set:` key written `null` (YAML's None) is named `null`, as the config's keys are, not Python's None."""
+    from tlm.cli import main
+
+    sweep = tmp_path / "sw.yaml"
+    sweep.write_text("base: cornell\nset: {null: 3}\ngrid: {seed: [1, 2]}\n")
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "o"), "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert "null is not a dotted config key" in err and "None" not in err, err
