@@ -38,6 +38,7 @@ import numpy as np
 from tlm.config import read_text, text_digest, yaml_from_text
 from tlm.errors import InputError, did_you_mean
 from tlm.kernels import work
+from tlm.storage import warn
 
 DEFAULT_PATH = Path(__file__).with_name("programs.yaml")
 PROGRAMMABLE = ("vertex", "traversal", "fragment")
@@ -47,9 +48,9 @@ JOBS = {
     "fragment": ("shade", "light", "photons", "gather"),
 }
 FIXED_KEYS = ("ray_load_cycles", "triangle_cycles", "stages")
-# what a table written before a work item was counted apart priced it within: said where such a table is refused
-_PRICED_BEFORE = {"photons_weighted": " (a table written before it was counted apart priced the cone weight within "
-                                      "photons_accepted: photons_weighted: 0 keeps its costs)"}
+# work items counted apart after tables were written without them (``tlm calibrate --write``), and what such a
+# table priced them within: one of them missing is read as 0, which keeps that table's costs, with a warning
+_PRICED_BEFORE = {"photons_weighted": "the cone weight within photons_accepted"}
 
 
 def _check_schema() -> None:
@@ -235,11 +236,17 @@ def _parse_programs(raw, source: str) -> Programs:
                                  source=source, key=f"{pm}.{job}.misses")
             priced = {*ins, *fl, *raw_items, misses}
             for item in work.job_items(f"{pm}.{job}"):
-                if item.name not in priced:
-                    older = _PRICED_BEFORE.get(item.name, "")
-                    raise InputError(f"does not price the work item {item.name!r}, which this job charges "
-                                     f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing){older}",
-                                     source=source, key=f"{pm}.{job}")
+                if item.name in priced:
+                    continue
+                if item.name in _PRICED_BEFORE:  # (a table written before the item was counted apart: its costs)
+                    ins[item.name] = 0.0
+                    warn(f"{source}: {pm}.{job}: prices no {item.name!r}, counted apart since the table was written "
+                         f"(it priced {_PRICED_BEFORE[item.name]}): read as 0, which keeps its costs; give "
+                         f"{item.name} a weight to silence this")
+                    continue
+                raise InputError(f"does not price the work item {item.name!r}, which this job charges "
+                                 f"(tlm/kernels/work.py; give it a weight, 0 if it costs nothing)",
+                                 source=source, key=f"{pm}.{job}")
             jobs[(pm, job)] = JobProgram(ins, fl, misses, tuple(raw_items))
     isect = _mapping(raw.get("intersection"), source, "intersection")
     _unknown(isect, FIXED_KEYS, source, "intersection")
