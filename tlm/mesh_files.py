@@ -118,15 +118,22 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str 
         renamed = f"rename it {base} (a mesh file is read by its suffix), "
     scene = (f"`geometry: {{mesh: {base}}}` in a scene file beside it, with `materials:` and `camera:` "
              f"unless the mesh file gives them (docs/scenes.md, \"Geometry\")")
+    return _by_key(name, key, f"{format_} mesh file", scene, base, "it", renamed)
+
+
+def _by_key(name: str, key: str | None, what: str, scene: str, mesh: str, it: str, renamed: str = "") -> str:
+    """The hint for a file ``name`` that is ``what``, not a scene, as ``key`` names it (``extends``, a
+    config key, ``""``: the command line's scene, None: a file read as YAML): write ``scene`` instead,
+    naming ``it`` (``mesh``) under ``geometry:`` (``renamed``: what to rename it first, or nothing)."""
     if key == "extends":
-        return (f"{name!r} is {format_} mesh file, not a scene file to extend: name it under `geometry:` instead "
-                f"({renamed}`geometry: {{mesh: {base}}}`; docs/scenes.md, \"Geometry\")")
+        return (f"{name!r} is {what}, not a scene file to extend: name {it} under `geometry:` instead "
+                f"({renamed}`geometry: {{mesh: {mesh}}}`; docs/scenes.md, \"Geometry\")")
     if key == "":
-        return f"is {format_} mesh file, not a scene: {renamed}write {scene}, and name that file in its place"
+        return f"is {what}, not a scene: {renamed}write {scene}, and name that file in its place"
     if key is not None:
-        return (f"{name!r} is {format_} mesh file, not a scene: {renamed}write {scene}, and name that file instead "
+        return (f"{name!r} is {what}, not a scene: {renamed}write {scene}, and name that file instead "
                 f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
-    return f"is {format_} mesh file, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
+    return f"is {what}, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
 
 
 def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = None) -> str:
@@ -142,15 +149,7 @@ def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = Non
         mesh = os.path.join(os.path.dirname(name), obj)
     scene = (f"`geometry: {{mesh: {mesh}}}` in a scene file beside it{'' if obj else ', naming that OBJ'}, with "
              "`camera:` (and `materials:` for any the library lacks; docs/scenes.md, \"Geometry\")")
-    if key == "extends":
-        return (f"{name!r} is {what}, not a scene file to extend: name its OBJ under `geometry:` instead "
-                f"(`geometry: {{mesh: {mesh}}}`; docs/scenes.md, \"Geometry\")")
-    if key == "":
-        return f"is {what}, not a scene: write {scene}, and name that file in its place"
-    if key is not None:
-        return (f"{name!r} is {what}, not a scene: write {scene}, and name that file instead "
-                f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
-    return f"is {what}, not a YAML file: write {scene}, and run that file (`tlm run SCENE.yaml`)"
+    return _by_key(name, key, what, scene, mesh, "its OBJ")
 
 
 def mtl_user(name: str | os.PathLike) -> str | None:

@@ -41,6 +41,7 @@ from tlm.experiments.executors_dask import CONNECT_TIMEOUT, answers
 from tlm.experiments.executors_dask import SweepStopped as SweepStopped  # (kept importable from here: the sweep)
 from tlm.experiments.executors_dask import host_kept as _host_kept  # (kept importable from here: tests)
 from tlm.experiments.executors_dask import pre_spawn_env as _pre_spawn_env
+from tlm.experiments.executors_dask import quiet_client as _client
 from tlm.experiments.worker_start import OWN_PROCESS as OWN_PROCESS  # (these: kept importable from here)
 from tlm.experiments.worker_start import TLM_PRELOAD as TLM_PRELOAD
 from tlm.experiments.worker_start import UNGUARDED_EXIT as UNGUARDED_EXIT
@@ -520,20 +521,6 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
-
-
-def _client(client_class, *args, **kwargs):
-    """``client_class(*args, **kwargs)`` (a ``distributed.Client``) without Dask's ``VersionMismatchWarning``,
-    which it warns as it connects where the scheduler's, the workers' and this process's packages differ (a
-    table over several lines, with a file's path): the points of a worker whose numpy, numba or Python differ
-    fail with tlm's own line on it (:class:`~tlm.experiments.dask_workers.OtherVersionsOnWorker`), and the
-    versions each point ran with are in its ``results.json``. The filter is the process's while the client
-    connects (its loop's thread warns it, and a sync client waits for that), put back after."""
-    from distributed.versions import VersionMismatchWarning
-
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", category=VersionMismatchWarning)
-        return client_class(*args, **kwargs)
 
 
 def _local_preloads() -> dict[str, list]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import os
 import socket
+import warnings
 from contextlib import contextmanager
 
 from tlm.errors import EnvironmentFailure, InputError
@@ -140,3 +141,17 @@ def pre_spawn_env() -> dict[str, str]:
 
 
 _HOST_LOGGERS = ("distributed", "tornado", "bokeh")  # the loggers distributed's import configures
+
+
+def quiet_client(client_class, *args, **kwargs):
+    """``client_class(*args, **kwargs)`` (a ``distributed.Client``) without Dask's ``VersionMismatchWarning``,
+    which it warns as it connects where the scheduler's, the workers' and this process's packages differ (a
+    table over several lines, with a file's path): the points of a worker whose numpy, numba or Python differ
+    fail with tlm's own line on it (:class:`~tlm.experiments.dask_workers.OtherVersionsOnWorker`), and the
+    versions each point ran with are in its ``results.json``. The filter is the process's while the client
+    connects (its loop's thread warns it, and a sync client waits for that), put back after."""
+    from distributed.versions import VersionMismatchWarning
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=VersionMismatchWarning)
+        return client_class(*args, **kwargs)
