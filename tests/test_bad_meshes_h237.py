@@ -24,13 +24,15 @@ from tlm.scenes.loader import load_scene
 from tlm.scenes.meshes import load_mesh
 
 # one triangle (0,0,0) (1,0,0) (0,1,0): 36 bytes of float32 positions, then 3 uint16 indices (+2 padding)
-_DATA = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3H", 0, 1, 2) + b"\0\0"
+TRIANGLE = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3H", 0, 1, 2) + b"\0\0"
 SCENE = ("materials: {white: {type: lambertian, albedo: [0.7, 0.7, 0.7]}}\ndefault_material: white\n"
          "camera: {eye: [0.0, 0.5, -3.4], target: [0.0, 0.35, 0.0], vfov: 38.0}\nresolution: [8, 8]\n")
 
 
-def _gltf(uri: str | None = None, **extra) -> dict:
-    uri = uri or "data:application/octet-stream;base64," + base64.b64encode(_DATA).decode()
+def triangle_gltf(uri: str, **fields) -> dict:
+    """A glTF of one mesh, the triangle of ``TRIANGLE`` (its buffer at ``uri``), in the one node of
+    the one scene; ``fields`` replace its top-level fields (``nodes``, ``scenes``, ...) or add to them
+    (tests/test_review_h244.py builds its files with it too)."""
     return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
             "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
             "buffers": [{"uri": uri, "byteLength": 44}],
@@ -38,7 +40,11 @@ def _gltf(uri: str | None = None, **extra) -> dict:
                             {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
             "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
                            "min": [0, 0, 0], "max": [1, 1, 0]},
-                          {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}], **extra}
+                          {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}], **fields}
+
+
+def _gltf(uri: str | None = None, **extra) -> dict:
+    return triangle_gltf(uri or "data:application/octet-stream;base64," + base64.b64encode(TRIANGLE).decode(), **extra)
 
 
 def _write(path: Path, content) -> Path:
@@ -152,7 +158,7 @@ def test_a_gltf_whose_json_is_a_list(tmp_path, cache):
 
 
 def test_a_buffer_a_folder_up_loads_and_an_absolute_one_is_named(tmp_path, cache):
-    _write(tmp_path / "bin" / "data.bin", _DATA)
+    _write(tmp_path / "bin" / "data.bin", TRIANGLE)
     geom = load_mesh(_write(tmp_path / "model" / "m.gltf", _gltf("../bin/data.bin")))
     assert geom.triangles.shape == (1, 3, 3)
     absolute = str(tmp_path / "bin" / "data.bin")

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from tests._subproc import held_claim
 from tlm.cli import main
 from tlm.errors import InputError
 from tlm.scenes.loader import load_scene
@@ -57,19 +58,6 @@ def test_a_null_material_the_base_does_not_give_or_without_extends_is_one_line(t
         load_scene(str(path))
 
 
-def _held(folder: Path) -> int:
-    """The claim of ``folder`` held as another process holds it (another open file's flock), with a record."""
-    import fcntl
-
-    from tlm import storage
-
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(folder.parent / f".{folder.name}.tlm-running", os.O_RDWR | os.O_CREAT)
-    fcntl.flock(fd, fcntl.LOCK_EX)
-    os.pwrite(fd, f"{storage._host()}-4242".ljust(63).encode() + b"\n", 0)
-    return fd
-
-
 def test_a_held_report_folders_line_is_built_from_its_parts(tmp_path):
     """Before: the refusal was the claim's line edited by string replacement, which edited the folder's name
     too where it held the words replaced (``... or give another folder with --out/report``), and the holder
@@ -78,7 +66,7 @@ def test_a_held_report_folders_line_is_built_from_its_parts(tmp_path):
 
     given = tmp_path / "a (process 1): wait for it, or give another folder"
     report = given / "report"
-    fd = _held(report)
+    fd = held_claim(report)
     told: list[str] = []
     try:
         with pytest.raises(InputError) as e, report_claimed(report, of=str(given)):

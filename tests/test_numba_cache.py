@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import importlib
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +15,7 @@ from pathlib import Path
 import pytest
 from numba.core.dispatcher import Dispatcher
 
+from tests._subproc import probe_copy
 from tlm.kernels import _numba_cache
 
 REPO = Path(__file__).resolve().parents[1]
@@ -100,29 +100,15 @@ def probe(a, b):
     return _mn(a, b)
 """
 
-RUN = """import sys
-sys.path.insert(0, {root!r})
-import tlm
-assert tlm.__file__.startswith({root!r}), tlm.__file__
-from tlm.kernels._jit_probe import probe
-print(probe(1.0, 2.0))
-"""
-
 
 @pytest.mark.slow
 def test_an_edit_of_a_helper_recompiles_the_kernel_that_inlines_it(tmp_path):
     """A copy of the package with a cached kernel inlining ``_jit_leaf._mn`` (another file): run,
     edit ``_mn`` alone, run again. numba's own stamps would load the first build (1.0)."""
-    root = tmp_path / "copy"
-    shutil.copytree(REPO / "tlm", root / "tlm", ignore=shutil.ignore_patterns("__pycache__"))
-    (root / "tlm" / "kernels" / "_jit_probe.py").write_text(PROBE)
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
+    root, run_copy = probe_copy(tmp_path, PROBE)
 
     def run() -> str:
-        done = subprocess.run([sys.executable, "-c", RUN.format(root=str(root))], capture_output=True, text=True,
-                              env=env, cwd=tmp_path, timeout=300)
-        assert done.returncode == 0, done.stderr
-        return done.stdout.strip()
+        return run_copy().stdout.strip()  # (its exit status 0 asserted there)
 
     assert run() == "1.0"
     cached = list((root / "tlm" / "kernels" / "__pycache__").glob("_jit_probe.probe-*.nbi"))

@@ -7,36 +7,22 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.test_bad_meshes_h237 import TRIANGLE, triangle_gltf
 from tlm.errors import InputError
 from tlm.scenes import mesh_checks
 from tlm.scenes.meshes import load_mesh
 
-# one triangle (0,0,0) (1,0,0) (0,1,0): 36 bytes of float32 positions, then 3 uint16 indices (+2 padding)
-_DATA = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3H", 0, 1, 2) + b"\0\0"
-
-
-def _gltf(uri: str, nodes: list, roots: list) -> dict:
-    return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": roots}], "nodes": nodes,
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-            "buffers": [{"uri": uri, "byteLength": 44}],
-            "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
-                            {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
-            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                           "min": [0, 0, 0], "max": [1, 1, 0]},
-                          {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]}
-
 
 def _write(folder: Path, nodes: list, roots: list | None = None, uri: str = "data.bin") -> Path:
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "data.bin").write_bytes(_DATA)
+    (folder / "data.bin").write_bytes(TRIANGLE)
     path = folder / "g.gltf"
-    path.write_text(json.dumps(_gltf(uri, nodes, [0] if roots is None else roots)))
+    path.write_text(json.dumps(triangle_gltf(uri, nodes=nodes, scenes=[{"nodes": [0] if roots is None else roots}])))
     return path
 
 
@@ -100,7 +86,7 @@ def test_the_noting_resolver_under_trimesh_4(tmp_path, monkeypatch):
     mesh_checks.noting_resolver_class.cache_clear()
     try:
         resolver = mesh_checks.noting_resolver(str(path))  # (ef5e115: TypeError, allow_anywhere)
-        assert resolver.get("data.bin") == _DATA
+        assert resolver.get("data.bin") == TRIANGLE
         assert resolver.get("../bin/up.bin") == b"up"
         assert resolver.absolute("../bin/up.bin") == folder / "../bin/up.bin"
         with pytest.raises(ValueError, match="absolute path"):

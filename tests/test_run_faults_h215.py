@@ -7,17 +7,15 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from tests._subproc import held_claim, probe_copy
 from tlm.errors import InputError
 from tlm.report import collect
-
-REPO = Path(__file__).resolve().parents[1]
 
 PROBE = """from tlm.kernels._numba_cache import njit
 
@@ -27,31 +25,17 @@ def probe(a, b):
     return a * 10.0 + b
 """
 
-RUN = """import sys
-sys.path.insert(0, {root!r})
-import tlm
-assert tlm.__file__.startswith({root!r}), tlm.__file__
-from tlm.kernels._jit_probe import probe
-print(probe(1.0, 2.0))
-"""
-
 
 @pytest.mark.slow
 def test_a_damaged_numba_cache_entry_is_named_removed_and_compiled_again(tmp_path):
     """A copy of the package with a cached probe kernel: its cache entry cut off, zeroed, its
     index overwritten. Each: a warning naming the file, the right answer, the entry written
     again (the next run is quiet). Before: ``UnpicklingError`` on every run, naming no file."""
-    root = tmp_path / "copy"
-    shutil.copytree(REPO / "tlm", root / "tlm", ignore=shutil.ignore_patterns("__pycache__"))
-    (root / "tlm" / "kernels" / "_jit_probe.py").write_text(PROBE)
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "NUMBA_DISABLE_JIT")}
-    env["TLM_CACHE"] = str(tmp_path / "cache")
+    root, run_copy = probe_copy(tmp_path, PROBE, {"TLM_CACHE": str(tmp_path / "cache")})
     cache = root / "tlm" / "kernels" / "__pycache__"
 
     def run() -> str:
-        done = subprocess.run([sys.executable, "-c", RUN.format(root=str(root))], capture_output=True, text=True,
-                              env=env, cwd=tmp_path, timeout=300)
-        assert done.returncode == 0, done.stderr
+        done = run_copy()  # (its exit status 0 asserted there)
         assert done.stdout.strip() == "12.0"
         return done.stderr
 
@@ -155,19 +139,6 @@ def test_a_claims_holder_that_has_not_written_its_record_is_named(tmp_path):
 
 
 # -- tlm report DIR while a run's report holds DIR/report; a full disk as a run's report is written -----------------
-
-def held_claim(folder: Path) -> int:
-    """The claim of ``folder`` held, as another process holds it (another open file's flock), with a record."""
-    import fcntl
-
-    from tlm import storage
-
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(folder.parent / f".{folder.name}.tlm-running", os.O_RDWR | os.O_CREAT)
-    fcntl.flock(fd, fcntl.LOCK_EX)
-    os.pwrite(fd, f"{storage._host()}-4242".ljust(63).encode() + b"\n", 0)
-    return fd
-
 
 def test_tlm_report_dir_refused_for_its_report_folder_names_dir_not_out(tmp_path):
     """Before: ``tlm: error: --out: another report is writing into 'c3/report'``, no --out given."""
