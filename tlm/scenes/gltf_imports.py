@@ -15,7 +15,7 @@ import numpy as np
 from tlm.errors import InputError
 from tlm.scenes.model import Camera, Imported, Light
 
-__all__ = ["check_mesh_nodes", "gltf_imports"]
+__all__ = ["check_mesh_nodes", "gltf_imports", "singular", "singular_message"]
 
 _PUNCTUAL = "KHR_lights_punctual"
 _SHOWN = 4  # entries a note names before "and N more"
@@ -118,34 +118,136 @@ def _world(path: tuple[int, ...], nodes: list, src: str) -> np.ndarray:
     return m
 
 
-def check_mesh_nodes(header: dict, src: str) -> None:
-    """Every node of the glTF's scene that places a mesh has a world transform that keeps it a
-    solid: an InputError names the first whose transform (with its parents') is not finite, or
-    is singular (a zero scale, an all-zero ``matrix``; a small but non-zero scale is not), which
-    collapses the mesh to a plane, a line or a point (as a zero scale on the way to a spot or
-    directional light or the camera is an error: :func:`gltf_imports`). A node the scene
+def singular(m: np.ndarray) -> bool:
+    """Whether a 3x3 transform is singular: a zero scale, an all-zero ``matrix``, or scales
+    whose product is 0 in floating point (a small but non-zero scale is not)."""
+    # each column (an axis's image) to unit length, so that a small but non-zero scale, [1e-9, 1e-9, 1],
+    # is no nearer singular than [1, 1, 1]; a zero scale leaves a zero column, or columns that are
+    # dependent to rounding (at most ~2e-15 after a chain of rotations and scales)
+    big = np.abs(m).max(axis=0)
+    det = 0.0
+    if (big > 0.0).all():
+        unit = m / big  # (scaled to 1 first: no overflow or underflow in the norms)
+        unit = unit / np.sqrt(np.sum(unit * unit, axis=0))
+        det = float(np.dot(unit[:, 0], np.cross(unit[:, 1], unit[:, 2])))  # (no LAPACK call: meshes.det3)
+    return not abs(det) > 1e-12
+
+
+def singular_message(n: int, mesh) -> str:
+    """The error for a mesh node whose world transform collapses its mesh's triangles."""
+    return (f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale, an all-zero matrix, or "
+            f"scales whose product is 0 in floating point): it collapses meshes[{mesh!r}] to a plane, a line or a "
+            "point")
+
+
+def _accessor_mat4(header: dict, k, buffer, where: str, src: str) -> np.ndarray:
+    """The (count, 4, 4) float matrices of accessor ``k`` (glTF's MAT4 of floats, column major),
+    read through ``buffer(i) -> bytes``; an InputError naming ``where`` for anything else."""
+    acc = (header.get("accessors") or [None] * (k + 1))[k] if isinstance(k, int) and k >= 0 else None
+    views = header.get("bufferViews") or []
+    if not (isinstance(acc, dict) and acc.get("type") == "MAT4" and acc.get("componentType") == 5126
+            and isinstance(acc.get("count"), int) and "sparse" not in acc
+            and isinstance(acc.get("bufferView"), int) and 0 <= acc["bufferView"] < len(views)):
+        raise InputError(f"{where} = {k!r} names no MAT4 accessor of floats that tlm reads (one in a buffer view, "
+                         "not sparse)", source=src)
+    view = views[acc["bufferView"]]
+    stride = int(view.get("byteStride", 64) or 64)
+    start = int(view.get("byteOffset", 0)) + int(acc.get("byteOffset", 0))
+    data = buffer(int(view.get("buffer", 0)))
+    count = acc["count"]
+    need = start + (stride * (count - 1) + 64 if count else 0)
+    if len(data) < need:
+        raise InputError(f"{where} = {k}: its accessor needs {need:,} bytes of its buffer, which holds "
+                         f"{len(data):,}", source=src)
+    rows = [np.frombuffer(data, dtype="<f4", count=16, offset=start + i * stride) for i in range(count)]
+    return np.array(rows, dtype=np.float64).reshape(count, 4, 4).transpose(0, 2, 1)
+
+
+def _parents(nodes: list) -> dict[int, int]:
+    return {c: i for i, n in enumerate(nodes) if isinstance(n, dict)
+            for c in (n.get("children") or []) if isinstance(c, int) and not isinstance(c, bool)}
+
+
+def _path(i: int, parents: dict[int, int]) -> tuple[int, ...]:
+    """A node's path from its root by its parents (a node outside the scene: a skin's joint)."""
+    path = [i]
+    while path[-1] in parents and len(path) <= len(parents):
+        path.append(parents[path[-1]])
+    return tuple(reversed(path))
+
+
+def _skin_matrix(header: dict, nodes: list, n: int, buffer, src: str) -> np.ndarray | None:
+    """The one matrix every joint of node ``n``'s skin gives its vertices (each joint's world
+    transform times its inverse bind matrix: glTF's joint matrix), None where they differ (a
+    posed skin, whose vertices need blending by their weights)."""
+    skins = header.get("skins") if isinstance(header.get("skins"), list) else []
+    k = nodes[n].get("skin")
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(skins) or not isinstance(skins[k], dict):
+        raise InputError(f"nodes[{n}].skin = {k!r} names no entry of 'skins' (it has {len(skins)})", source=src)
+    joints = skins[k].get("joints")
+    if not (isinstance(joints, list) and joints and all(isinstance(j, int) and not isinstance(j, bool)
+                                                        and 0 <= j < len(nodes) for j in joints)):
+        raise InputError(f"skins[{k}].joints: {joints!r} is not a list of node indices", source=src)
+    if "inverseBindMatrices" in skins[k]:
+        inverse = _accessor_mat4(header, skins[k]["inverseBindMatrices"], buffer, f"skins[{k}].inverseBindMatrices",
+                                 src)
+        if len(inverse) < len(joints):
+            raise InputError(f"skins[{k}].inverseBindMatrices: {len(inverse)} matrices for {len(joints)} joints",
+                             source=src)
+    else:
+        inverse = np.repeat(np.eye(4)[None], len(joints), axis=0)
+    parents = _parents(nodes)
+    got = [_world(_path(j, parents), nodes, src) @ inverse[i] for i, j in enumerate(joints)]
+    if not np.isfinite(got).all():
+        raise InputError(f"skins[{k}]: a joint's matrix (its world transform times its inverse bind matrix) is not "
+                         "finite", source=src)
+    scale = max(float(np.abs(got[0]).max()), 1e-300)
+    if all(np.abs(g - got[0]).max() <= 1e-6 * scale for g in got[1:]):  # (float32 inverse bind matrices)
+        return got[0]
+    return None
+
+
+def check_mesh_nodes(header: dict, src: str, buffer=None) -> tuple[dict[int, np.ndarray], tuple[str, ...]]:
+    """The mesh nodes of the glTF's scene whose world transform tlm sets itself (a node's
+    world transform is its local transform composed with its parents'), each with the 4x4
+    transform its mesh gets, and a line on each skin tlm does not pose:
+
+    * a node whose world transform is singular (a zero scale, an all-zero ``matrix``; a small
+      but non-zero scale is not): its world transform, kept where its mesh is flat and the
+      transform keeps its triangles (a quad in the XY plane under a scale [1, 1, 0]; checked
+      with the triangles, :func:`tlm.scenes.meshes.load_mesh`), else an error naming the node;
+    * a skinned mesh's node (``skin``): glTF ignores its transform; its mesh gets its skin's
+      joint matrix (each joint's world transform times its inverse bind matrix, read through
+      ``buffer(i) -> bytes``) where every joint gives the same one (a skin at rest); a posed
+      skin (joint matrices that differ) is not blended: its mesh gets its node's world
+      transform, as before, and a line says so.
+
+    An InputError names the first node whose world transform is not finite. A node the scene
     reaches twice (a cycle) is an error."""
     nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
     if not any(isinstance(node, dict) and "mesh" in node for node in nodes):
-        return
+        return {}, ()
     paths = _scene_walk(header, nodes, src)
+    out: dict[int, np.ndarray] = {}
+    posed: list[str] = []
     for n in sorted(paths):
         if not (isinstance(nodes[n], dict) and "mesh" in nodes[n]):
             continue
-        m = _world(paths[n], nodes, src)[:3, :3]
-        # each column (an axis's image) to unit length, so that a small but non-zero scale, [1e-9, 1e-9, 1],
-        # is no nearer singular than [1, 1, 1]; a zero scale leaves a zero column, or columns that are
-        # dependent to rounding (at most ~2e-15 after a chain of rotations and scales)
-        big = np.abs(m).max(axis=0)
-        det = 0.0
-        if (big > 0.0).all():
-            unit = m / big  # (scaled to 1 first: no overflow or underflow in the norms)
-            unit = unit / np.sqrt(np.sum(unit * unit, axis=0))
-            det = float(np.dot(unit[:, 0], np.cross(unit[:, 1], unit[:, 2])))  # (no LAPACK call: meshes.det3)
-        if not abs(det) > 1e-12:
-            raise InputError(f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale, an "
-                             "all-zero matrix, or scales whose product is 0 in floating point): it collapses "
-                             f"meshes[{nodes[n]['mesh']!r}] to a plane, a line or a point", source=src)
+        if "skin" in nodes[n] and buffer is not None:
+            rigid = _skin_matrix(header, nodes, n, buffer, src)
+            if rigid is not None:
+                out[n] = rigid
+                continue
+            posed.append(f"nodes[{n}] (skins[{nodes[n]['skin']}])")
+        m = _world(paths[n], nodes, src)
+        if singular(m[:3, :3]):
+            out[n] = m
+    notes = ()
+    if posed:
+        notes = (f"{src}: its skinned mesh{'es' if len(posed) > 1 else ''} {_listed(posed)} "
+                 f"{'are' if len(posed) > 1 else 'is'} not posed (the joints' matrices differ: tlm does not blend a "
+                 "skin's joints by their weights); placed by the node's world transform, unposed",)
+    return out, notes
 
 
 def _entries(table, where: str, src: str) -> list[dict]:

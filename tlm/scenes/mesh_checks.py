@@ -13,7 +13,7 @@ from pathlib import Path
 
 from tlm.errors import InputError
 
-__all__ = ["absolute_uri", "buffer_files", "check_ascii_stl", "glb_binary", "noting_resolver",
+__all__ = ["absolute_uri", "buffer_files", "buffer_reader", "check_ascii_stl", "glb_binary", "noting_resolver",
            "noting_resolver_class"]
 
 
@@ -52,6 +52,39 @@ def buffer_files(header: dict, path: Path, src: str) -> list | None:
             raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / plain}", source=src)
         out.append(b)
     return out if changed else None
+
+
+def buffer_reader(header: dict, path: Path, binary: bytes | None, src: str):
+    """``read(i) -> bytes``: the bytes of a glTF's ``buffers[i]`` (a ``.glb``'s first buffer
+    without a ``uri`` its BIN chunk ``binary``, a ``data:`` URI decoded, else the file named
+    relative to the glTF, by its name or percent-decoded); an InputError names a buffer that
+    holds nothing tlm can read."""
+    import base64
+    import binascii
+    from urllib.parse import unquote
+
+    buffers = header.get("buffers") if isinstance(header.get("buffers"), list) else []
+
+    def read(i: int) -> bytes:
+        b = buffers[i] if 0 <= i < len(buffers) and isinstance(buffers[i], dict) else None
+        uri = None if b is None else b.get("uri")
+        if b is not None and uri is None and binary is not None and i == 0:
+            return binary
+        if isinstance(uri, str) and uri.startswith("data:"):
+            head, _, payload = uri.partition(",")
+            try:
+                return (base64.b64decode(re.sub(r"\s+", "", payload, flags=re.ASCII), validate=True)
+                        if ";base64" in head else unquote(payload).encode("latin-1", "replace"))
+            except (binascii.Error, ValueError):
+                raise InputError(f"buffers[{i}].uri: its data URI is not valid base64", source=src) from None
+        if isinstance(uri, str) and not absolute_uri(uri):
+            for f in (path.parent / uri, path.parent / unquote(uri)):
+                if f.is_file():
+                    return f.read_bytes()
+        raise InputError(f"buffers[{i}]: no data tlm can read (a uri relative to the glTF, a data URI, or a .glb's "
+                         "BIN chunk)", source=src)
+
+    return read
 
 
 def glb_binary(data: bytes, ext: str, src: str) -> bytes | None:

@@ -20,7 +20,9 @@ polygons are fan-triangulated from their first corner.
 * **PLY, STL, GLB/GLTF** are read with trimesh (``process=False``). A file holding one
   mesh becomes one part named after the file stem; a scene (GLB/GLTF) one part per
   geometry, named by trimesh's geometry name, with each instance's scene-graph
-  transform applied. glTF materials come from the file's JSON (extensions included)
+  transform applied (a skinned mesh's its skin's joint matrix, not its node's; a singular one
+  where it keeps a flat mesh's triangles: :func:`tlm.scenes.gltf_imports.check_mesh_nodes`,
+  :func:`tlm.scenes.mat3.keeps_triangles`). glTF materials come from the file's JSON (extensions included)
   and map to tlm's kinds by :func:`tlm.scenes.materials.gltf_material`. Its
   ``KHR_lights_punctual`` point, spot and directional lights and its first perspective
   camera, placed by the nodes of its scene, are ``Geometry.imports``
@@ -57,9 +59,12 @@ from pathlib import Path
 import numpy as np
 
 from tlm.errors import InputError, did_you_mean
-from tlm.scenes.gltf_imports import check_mesh_nodes, gltf_imports
+from tlm.scenes.gltf_imports import check_mesh_nodes, gltf_imports, singular, singular_message
+from tlm.scenes.mat3 import _cross, adjugate3, det3, inverse3  # noqa: F401  (the old names, importable here)
+from tlm.scenes.mat3 import keeps_triangles as _keeps_triangles
 from tlm.scenes.mesh_checks import absolute_uri as _absolute_uri  # noqa: F401  (the old names, still importable)
 from tlm.scenes.mesh_checks import buffer_files as _buffer_files
+from tlm.scenes.mesh_checks import buffer_reader as _buffer_reader
 from tlm.scenes.mesh_checks import check_ascii_stl as _check_ascii_stl
 from tlm.scenes.mesh_checks import glb_binary as _glb_binary
 from tlm.scenes.mesh_checks import noting_resolver as _noting_resolver
@@ -71,6 +76,7 @@ __all__ = ["COMPRESSED_EXTENSIONS", "SUPPORTED_EXTENSIONS", "load_mesh", "mesh_f
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".glb", ".gltf")
 COMPRESSED_EXTENSIONS = (".gz", ".xz", ".bz2")
 _TAG = "tlm-material-"  # the names given to a glTF file's materials while trimesh reads it
+_NODE_TAG = "tlm-node-"  # the names given to the mesh nodes whose transform tlm sets (check_mesh_nodes)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -373,40 +379,6 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
 # ------------------------------------------------------------------ PLY, STL, glTF (trimesh)
 
 
-def det3(m: np.ndarray) -> np.ndarray | float:
-    """The determinant of a 3x3 matrix (or of each of a stack, ``(..., 3, 3)``) by the rule of
-    Sarrus, written out: no LAPACK call, hence none of OpenBLAS's, whose first call takes a
-    buffer of its own and, where a limit on the address space (``ulimit -v``) leaves too little
-    for it, ends the process with its own line (``OpenBLAS error: Memory allocation still
-    failed ...``, exit 1) instead of a MemoryError. Equal to ``np.linalg.det`` up to rounding."""
-    m = np.asarray(m, dtype=np.float64)
-    a, b, c = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
-    d, e, f = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
-    g, h, i = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
-    return (a * e * i + b * f * g + c * d * h) - (c * e * g + a * f * h + b * d * i)
-
-
-def inverse3(m: np.ndarray) -> np.ndarray:
-    """The inverse of a 3x3 matrix (or of each of a stack, ``(..., 3, 3)``): its adjugate (the
-    transposed cofactors) over its determinant, written out (no LAPACK call: :func:`det3`).
-    Equal to ``np.linalg.inv`` up to rounding; a singular matrix gives non-finite entries (no
-    LinAlgError)."""
-    m = np.asarray(m, dtype=np.float64)
-    r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
-    # the adjugate's columns are the cross products of the rows: M @ adj = det * I
-    adj = np.stack([_cross(r1, r2), _cross(r2, r0), _cross(r0, r1)], axis=-1)
-    det = np.sum(r0 * adj[..., :, 0], axis=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return adj / np.asarray(det)[..., None, None]
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``u x v`` along the last axis, written out (as ``np.cross``, which calls no BLAS either)."""
-    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
-                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
-                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
-
-
 def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geometry:
     import trimesh
 
@@ -424,6 +396,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     file_materials: tuple[Material, ...] = ()
     header: dict | None = None  # (a glTF's JSON)
     imported: Imported | None = None  # (a glTF's lights and camera)
+    placed: dict[int, np.ndarray] = {}  # (a glTF's mesh nodes whose transform tlm sets: check_mesh_nodes)
     notes: tuple[str, ...] = ()
     source: object = str(path)
     kwargs: dict = {}
@@ -440,18 +413,19 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         if ext in (".glb", ".gltf"):
             header = gltf_json(path, data)
             check_gltf(header, src)
-            check_mesh_nodes(header, src)
             imported, notes = gltf_imports(header, src)
             file_materials = tuple(gltf_materials(header, src))
             buffers = _buffer_files(header, path, src)
-            notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, _glb_binary(data, ext, src), src),
-                                        src)
+            binary = _glb_binary(data, ext, src)
+            notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, binary, src), src)
             notes += glb_length_notes(data, src) if ext == ".glb" else ()
+            placed, posed = check_mesh_nodes(header, src, _buffer_reader(header, path, binary, src))
+            notes += posed
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
             nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
             cameras = any(isinstance(n, dict) and "camera" in n for n in nodes)
-            if file_materials or buffers is not None or cameras:
+            if file_materials or buffers is not None or cameras or placed:
                 # name each material by its index, so that each geometry's says which it is
                 from tlm.scenes.materials import glb_chunks
 
@@ -462,6 +436,13 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
                     # camera's; tlm reads the cameras itself: gltf_imports)
                     header["nodes"] = [{k: v for k, v in n.items() if k != "camera"} if isinstance(n, dict) else n
                                        for n in nodes]
+                if placed:  # (each named by its index, so that trimesh's frame of its mesh says which it is; a
+                    # node named like that already loses its name, which tlm does not use)
+                    header["nodes"] = [
+                        dict(n, name=f"{_NODE_TAG}{i}") if i in placed
+                        else {k: v for k, v in n.items() if k != "name"}
+                        if isinstance(n, dict) and str(n.get("name", "")).startswith(_NODE_TAG) else n
+                        for i, n in enumerate(header["nodes"])]
                 if ext == ".glb":
                     source = io.BytesIO(write_glb(header, glb_chunks(data, src)[1]))
                 else:
@@ -490,16 +471,27 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         raise InputError(f"cannot parse the {ext[1:].upper()} file: {_one_line(exc)}",
                          source=src) from None
 
-    # (part name, trimesh geometry, 4x4 transform) per instance.
-    items: list[tuple[str, object, np.ndarray]] = []
+    # (part name, trimesh geometry, 4x4 transform, the glTF node whose transform tlm sets or None) per instance.
+    items: list[tuple[str, object, np.ndarray, int | None]] = []
     if isinstance(loaded, trimesh.Scene):
         for node in loaded.graph.nodes_geometry:
             transform, geom_name = loaded.graph[node]
-            items.append((str(geom_name), loaded.geometry[geom_name], np.asarray(transform)))
+            tagged = re.match(rf"{_NODE_TAG}(\d+)(?:_\w+)?$", str(node)) if placed else None
+            n = int(tagged.group(1)) if tagged and int(tagged.group(1)) in placed else None
+            items.append((str(geom_name), loaded.geometry[geom_name],
+                          np.asarray(transform) if n is None else placed[n], n))
     else:
-        items.append((stem, loaded, np.eye(4)))
+        items.append((stem, loaded, np.eye(4), None))
     if not items:
         raise InputError("the file holds no geometry (empty mesh)", source=src)
+    for n in sorted({node for _, _, transform, node in items if node is not None and singular(transform[:3, :3])}):
+        # (a singular transform, judged by all the triangles of the node's mesh, its primitives together: two
+        # flat layers are no flat mesh)
+        tri = [np.asarray(geom.vertices, dtype=np.float64)[np.asarray(geom.faces)] for _, geom, _, node in items
+               if node == n and isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
+               and np.min(geom.faces) >= 0 and np.max(geom.faces) < len(geom.vertices)]  # (else: _check_mesh)
+        if tri and not _keeps_triangles(np.concatenate(tri), placed[n][:3, :3]):
+            raise InputError(singular_message(n, header["nodes"][n].get("mesh")), source=src)
 
     if ext == ".ply":
         from tlm.scenes import plyfile
@@ -510,7 +502,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     part_ids: list[np.ndarray] = []
     mat_ids: list[np.ndarray] = []
     corner_normals: list[np.ndarray | None] = []
-    for name, geom, transform in items:
+    for name, geom, transform, node in items:
         label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
         has_faces = isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
         strips = _ply_strips(geom) if ext == ".ply" and not has_faces else None
@@ -537,12 +529,14 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             from tlm.scenes.objfile import unit_as_written
 
             nrm = unit_as_written(nrm.reshape(-1, 3)).reshape(nrm.shape)
+        flat = node is not None and singular(transform[:3, :3])  # (a flat mesh its node's zero scale keeps)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
-            if nrm is not None:  # normals transform by the inverse transpose
-                nrm = nrm @ inverse3(transform[:3, :3])  # (written out: no LAPACK call, det3)
+            if nrm is not None:  # normals transform by the inverse transpose (a singular one: by the adjugate)
+                nrm = nrm @ (adjugate3 if flat else inverse3)(transform[:3, :3])  # (written out: no LAPACK call)
             with np.errstate(divide="ignore", invalid="ignore"):  # (scaled to 1: no overflow; an all-zero one, NaN)
-                mirrors = det3(transform[:3, :3] / np.abs(transform[:3, :3]).max()) < 0
+                # (a singular transform turns no winding: its determinant, 0, is not negative)
+                mirrors = not flat and det3(transform[:3, :3] / np.abs(transform[:3, :3]).max()) < 0
             if mirrors:  # a mirroring transform flips winding
                 tri = tri[:, [0, 2, 1]]
                 nrm = None if nrm is None else nrm[:, [0, 2, 1]]

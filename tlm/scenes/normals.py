@@ -85,6 +85,7 @@ def _weld(points: np.ndarray, part: np.ndarray) -> tuple[np.ndarray, np.ndarray,
 
 _SMALL_GROUP = 256  # welded groups of more corners are summed by :func:`_group_sums`
 _CLUSTER_RADIUS = 1e-6  # radians: face normals this close share one crease decision
+_WIDE = 0.45  # a second try: clusters of up to this fraction of the crease angle (a pole's fan, a flat apex)
 _MAX_CLUSTERS = 16
 _MARGIN = 1e-9  # on the cosine: far above the rounding of a dot product of unit vectors
 
@@ -94,12 +95,15 @@ def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))  # (no BLAS call)
 
 
-def _clusters(f: np.ndarray, cos_crease: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """Label the face normals ``f`` (k, 3) of one welded group by cluster, and decide the
-    crease test between every two clusters once for all their members: ``(labels, ok)``
+def _clusters(f: np.ndarray, cos_crease: float, radius: float = _CLUSTER_RADIUS,
+              centred: bool = False) -> tuple[np.ndarray, np.ndarray] | None:
+    """Label the face normals ``f`` (k, 3) of one welded group by cluster (each the normals
+    within ``radius`` radians of its reference: the first normal left, or with ``centred``
+    their mean direction where that is near any), and decide the crease test between every
+    two clusters once for all their members: ``(labels, ok)``
     with ``ok[a, b]`` the bits that ``dot(f_i, f_j) >= cos_crease`` gives for every ``i``
-    in ``a`` and ``j`` in ``b``; None where a pair of clusters lies too near the crease
-    angle to decide for all members (or there are too many clusters)."""
+    in ``a`` and ``j`` in ``b``; None where a pair of clusters (or a cluster with itself) lies
+    too near the crease angle to decide for all members (or there are too many clusters)."""
     k = f.shape[0]
     if not np.isfinite(f).all():
         return None
@@ -111,10 +115,18 @@ def _clusters(f: np.ndarray, cos_crease: float) -> tuple[np.ndarray, np.ndarray]
     while rest.size:
         if len(refs) == _MAX_CLUSTERS:
             return None
-        ang = _angle(f[rest], f[rest[0]])
-        inside = ang <= _CLUSTER_RADIUS
+        ref = f[rest[0]]
+        ang = _angle(f[rest], ref)
+        if centred:  # (a fan's normals around a pole: one cluster about their mean, none about the first)
+            mean = np.sum(f[rest], axis=0)
+            size = float(np.sqrt(np.sum(mean * mean)))
+            if size > 0.0 and np.isfinite(size):
+                about = _angle(f[rest], mean / size)
+                if np.count_nonzero(about <= radius) > np.count_nonzero(ang <= radius):
+                    ref, ang = mean / size, about
+        inside = ang <= radius
         labels[rest[inside]] = len(refs)
-        refs.append(f[rest[0]])
+        refs.append(ref)
         radii.append(float(ang[inside].max()))
         rest = rest[~inside]
     u = len(refs)
@@ -137,9 +149,17 @@ def _group_sums(f: np.ndarray, w: np.ndarray, cos_crease: float) -> tuple[np.nda
     and angle weights ``w`` (k,), in ascending corner order (the bits of the neighbour-rank
     loop in :func:`crease_normals`). Corners whose normals fall in one cluster make the same
     crease decisions, so they share one sequential sum (``np.cumsum`` adds in order): time
-    O(k x clusters); a group that does not cluster falls back to k passes of length k."""
+    O(k x clusters). Clusters of normals within 1e-6 radians are tried first, then wider ones
+    about their mean (up to ``_WIDE`` of the crease angle: the fan around a sphere's pole or a
+    flat cone's apex, whose normals all lie within the crease angle of each other). A group that
+    does not cluster so (a steep cone's apex: its normals around a circle wider than the crease
+    angle, each corner's neighbours a window of its own) falls back to k passes of length k: a
+    sum in floating point depends on where it starts, so windows that start at different
+    corners share no partial sums, and the same bits need every corner's own sum."""
     k = f.shape[0]
     found = _clusters(f, cos_crease)
+    if found is None and cos_crease < 1.0:  # (wider clusters, about their mean: a pole's or a flat apex's fan)
+        found = _clusters(f, cos_crease, _WIDE * float(np.arccos(cos_crease)), centred=True)
     out = np.zeros((3, k))
     if found is None:
         for j in range(k):
