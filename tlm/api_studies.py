@@ -488,7 +488,7 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
         hear(f"{str(dirs[0])!r} is held by {holder}, a run replacing it or a report reading it: the report waits "
              "for it to end")
 
-    with folder_lock(dirs[0], waiting=waiting):
+    with folder_lock(dirs[0], waiting=waiting, probe=False):  # (a reader: nothing written beside the folder)
         return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
 
 

@@ -2,7 +2,8 @@
 
 * :func:`write_atomic` — one file, written beside its destination and renamed onto it;
   :func:`write_file` the same for a ready ``str`` or ``bytes``; :func:`write_files` several files, all or none.
-* :func:`atomic_folder` — an output folder (a run, a sweep, a study).
+* :func:`atomic_folder` — an output folder (a run, a sweep, a study); :func:`write_into`, a file put
+  into one under its lock.
 * :func:`write_rows` — the one writer of result rows: ``<name>.jsonl`` and ``<name>.csv``.
 * :func:`naming` — a write that names no file (``os.pwrite``, a flush) named by its path when it fails (a
   full disk: one line naming the file); :func:`appending` a file appended to, its failures so named (both
@@ -587,6 +588,21 @@ def write_file(path: Path, data: str | bytes) -> None:
     """``data`` as the whole of ``path``, atomically (:func:`write_atomic`)."""
     with write_atomic(path, "wb" if isinstance(data, bytes) else "w") as fh:
         fh.write(data)
+
+
+def write_into(folder: Path, name: str, data: str | bytes, keep: Callable[[Path], bool]) -> bool:
+    """``data`` as the whole of the file ``name`` in the output folder ``folder`` as it is, where ``keep(folder)``
+    says so, both under the folder's lock (:func:`folder_lock`): True where written, False (nothing written) where
+    ``keep`` says no or there is no folder. A writer swapping a new folder in for it (:func:`atomic_folder`, a
+    concurrent sweep of the same points) waits for the lock, so that the file goes into the folder ``keep`` was
+    asked about (a failed point's ``error.json`` beside the results it keeps), never into the new one: nothing
+    swaps in between the question and the write."""
+    folder = Path(folder)
+    with folder_lock(folder):
+        if not folder.is_dir() or not keep(folder):
+            return False
+        write_file(folder / name, data)
+    return True
 
 
 def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:

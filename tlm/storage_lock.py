@@ -9,8 +9,8 @@
   meanwhile; where this system or the folder's file system cannot (another OS, a kernel before 3.15,
   NFS, some overlays), the writer renames the old folder aside and its own into place (two renames).
 * :func:`exchanges_in` — whether a folder's file system does :func:`exchange` (asked once per file
-  system and process, a yes again after :data:`TRUST_S`): there a missing folder is no folder, not a writer
-  between its two renames.
+  system and process, a yes again after :data:`TRUST_S`; a reader's lock asks only what is known, writing
+  nothing): there a missing folder is no folder, not a writer between its two renames.
 """
 
 from __future__ import annotations
@@ -40,13 +40,15 @@ def _host() -> str:
 
 
 @contextmanager
-def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterator[None]:
+def folder_lock(out: Path, waiting: Callable[[], None] | None = None, *, probe: bool = True) -> Iterator[None]:
     """An exclusive lock on the folder ``out`` as it is now (``flock`` on the folder itself),
     held while a writer swaps a new folder in for it, and while a command reads the folder
     it just wrote (its report), so that no other writer replaces it meanwhile. A folder
     replaced while this waited for the lock is locked in its turn; no folder, no lock.
     ``waiting`` is called once, before this waits, where another holds the lock (who:
-    :func:`tlm.claims.lock_holder`).
+    :func:`tlm.claims.lock_holder`). ``probe``: False for a reader (a report reading its run folder, one
+    shared read-only on a lab server), which never writes: the file system is not probed by making
+    folders in ``out``'s parent, only what this process knows of it is used (:func:`exchanges_in`).
 
     A missing ``out`` is looked for again 10 ms later where a writer may be between its two renames
     (the old folder renamed aside, the new one not yet in). Where ``out``'s parent is on a file system
@@ -65,7 +67,7 @@ def folder_lock(out: Path, waiting: Callable[[], None] | None = None) -> Iterato
         try:
             fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
         except FileNotFoundError:
-            if not exchanges_in(out.parent, out.name):
+            if not exchanges_in(out.parent, out.name, probe=probe):
                 time.sleep(0.01)  # (another writer may be between its two renames)
             if out.exists() or out.is_symlink():
                 continue
@@ -105,6 +107,10 @@ _EXCHANGES: dict[int, bool] = {}  # a file system (st_dev) -> whether it exchang
 _EXCHANGED_AT: dict[int, float] = {}
 TRUST_S = 30.0  # seconds a file system's yes is trusted (then asked again: an st_dev is reused after an unmount)
 _PROBES = itertools.count()
+# a file system (st_dev) -> when a probe there could not make its folders (time.monotonic()): not probed again
+# for TRUST_S from a folder this process cannot write (a results folder shared read-only)
+_UNWRITABLE: dict[int, float] = {}
+_NOT_WRITABLE = frozenset({errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT})
 
 
 @functools.cache
@@ -171,16 +177,18 @@ def _note(path: Path, exchanged: bool) -> None:
             _EXCHANGES[dev] = False
 
 
-def exchanges_in(folder: Path, name: str = "tlm") -> bool:
+def exchanges_in(folder: Path, name: str = "tlm", probe: bool = True) -> bool:
     """Whether the file system of ``folder`` does :func:`exchange`: known from an exchange of this
     process there, else probed per file system (``st_dev``) by exchanging two empty folders
     made in ``folder`` and removed at once (``.<name>.old-<host>-<pid>-<thread>-<n>-0`` and ``-1``:
-    names :func:`tlm.storage.clean_stale` removes where a killed process left them). False, and asked
-    again next time, where that cannot tell (a folder that cannot be written, one of the two removed
-    meanwhile by another writer's clean-up). A yes is trusted for :data:`TRUST_S` after the last exchange
-    that worked there, then probed again: a long-lived process (a Dask worker, a notebook) may outlive the
-    mount, and a tmpfs or NFS mounted later may get its device number (a no sticks: it only costs a reader
-    the 10 ms wait of :func:`folder_lock`)."""
+    names :func:`tlm.storage.clean_stale` removes where a killed process left them). ``probe`` False
+    (a reader: :func:`folder_lock`'s): nothing written, what is known of the file system, else False.
+    False where the probe cannot tell: one of the two removed meanwhile by another writer's clean-up
+    (asked again next time); a folder it cannot write into (read-only, not the user's: remembered for
+    that file system, not probed again for :data:`TRUST_S` from a folder this process cannot write).
+    A yes is trusted for :data:`TRUST_S` after the last exchange that worked there, then probed again:
+    a long-lived process (a Dask worker, a notebook) may outlive the mount, and a tmpfs or NFS mounted later
+    may get its device number (a no sticks: it only costs a reader the 10 ms wait of :func:`folder_lock`)."""
     try:
         dev = os.stat(folder).st_dev
     except OSError:
@@ -191,19 +199,25 @@ def exchanges_in(folder: Path, name: str = "tlm") -> bool:
         known = None
     if known is not None:
         return known
+    if not probe:
+        return False
     if _renameat2() is None:
         _EXCHANGES[dev] = False
         return False
+    if time.monotonic() - _UNWRITABLE.get(dev, -math.inf) <= TRUST_S and not os.access(folder, os.W_OK | os.X_OK):
+        return False  # (a probe there could not write a while ago, and this folder is not writable either)
     base = os.path.join(folder, f".{name}.old-{_host()}-{os.getpid()}-{threading.get_native_id()}-{next(_PROBES)}")
     made: list[str] = []
     try:
-        for probe in (f"{base}-0", f"{base}-1"):
-            os.mkdir(probe)
-            made.append(probe)
+        for path in (f"{base}-0", f"{base}-1"):
+            os.mkdir(path)
+            made.append(path)
         return exchange(*made)
-    except OSError:
+    except OSError as e:
+        if not made and e.errno in _NOT_WRITABLE:
+            _UNWRITABLE[dev] = time.monotonic()
         return False
     finally:
-        for probe in made:
+        for path in made:
             with suppress(OSError):
-                os.rmdir(probe)
+                os.rmdir(path)

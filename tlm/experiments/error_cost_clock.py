@@ -23,7 +23,10 @@ from importlib.util import resolve_name
 # whose work a span is: the token of :meth:`CompileClock.owned` in the context of the thread that
 # began it (the kernels' pool threads run their calls in a copy of the caller's context:
 # tlm.kernels.threads.ordered), None where no one's
-_OWNER: contextvars.ContextVar[object | None] = contextvars.ContextVar("tlm_one_off_owner", default=None)
+# (the state below kept where the module is loaded again, importlib.reload, IPython's %autoreload: a clock
+# running then keeps its tokens, and the hook in place the import statement it wraps: it was a RecursionError)
+_OWNER: contextvars.ContextVar[object | None] = globals().get("_OWNER") or contextvars.ContextVar(
+    "tlm_one_off_owner", default=None)
 
 
 class Span(tuple):
@@ -178,11 +181,19 @@ def covered(spans: list[tuple[float, float]], start: float, end: float) -> float
     return total
 
 
-# the process's hooks, shared by the clocks that run (a clock running twice: listed twice)
-_HOOKS_LOCK = threading.Lock()
-_ACTIVE: tuple[CompileClock, ...] = ()
-_REAL_IMPORT = None  # builtins.__import__ as it was when the hook went on
-_LISTENER = None  # numba's listener, while registered
+# the process's hooks, shared by the clocks that run (a clock running twice: listed twice); a reload of
+# the module keeps them as they are (the hook in place, an earlier load's function, reads them by name)
+_HOOKS_LOCK = globals().get("_HOOKS_LOCK") or threading.Lock()
+_ACTIVE: tuple[CompileClock, ...] = globals().get("_ACTIVE", ())
+_REAL_IMPORT = globals().get("_REAL_IMPORT")  # builtins.__import__ as it was when the hook went on
+_LISTENER = globals().get("_LISTENER")  # numba's listener, while registered
+_HOOK = "_tlm_one_off_hook"  # the attribute that marks this module's import hook (of this load or an earlier one)
+
+
+def _is_hook(function) -> bool:
+    """Whether ``function`` is this module's import hook (:func:`_timed_import`, this load's or one of an earlier
+    load in the same module, :func:`importlib.reload`; a module imported afresh, a new one, wraps another's hook)."""
+    return getattr(function, _HOOK, False) is True and getattr(function, "__globals__", None) is globals()
 
 
 def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noqa: A002 (__import__'s)
@@ -205,7 +216,11 @@ def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noq
             clock._end()
 
 
-_builtin_import = builtins.__import__
+setattr(_timed_import, _HOOK, True)
+# the import statement as it was before any hook of this module (loaded again: the first load's; never the hook)
+_builtin_import = globals().get("_builtin_import") or builtins.__import__
+if getattr(_builtin_import, _HOOK, False) is True:  # (imported afresh under another's hook: the statement it wraps)
+    _builtin_import = _builtin_import.__globals__["_builtin_import"]
 
 
 def _wants_numba() -> bool:
@@ -255,7 +270,7 @@ def _hooks_on(clock: CompileClock) -> None:
             # (wrapped; again where the import statement is what this hook called, a library's hook put
             # over it since taken off: not where another hook may still call this one under it)
             now = builtins.__import__
-            if now is not _timed_import and (_REAL_IMPORT is None or now is _REAL_IMPORT):
+            if not _is_hook(now) and (_REAL_IMPORT is None or now is _REAL_IMPORT):
                 _REAL_IMPORT, builtins.__import__ = now, _timed_import
             if _LISTENER is None and _wants_numba():  # (numba's own first import: timed by the hook)
                 with suppress(ImportError):  # (numba does not import: the import hook alone)
@@ -287,8 +302,8 @@ def _unhook() -> None:
 
         event.unregister("numba:compiler_lock", _LISTENER)
         _LISTENER = None
-    if builtins.__import__ is _timed_import:
-        builtins.__import__, _REAL_IMPORT = _REAL_IMPORT, None
+    if _is_hook(builtins.__import__):  # (this load's hook, or an earlier load's)
+        builtins.__import__, _REAL_IMPORT = _REAL_IMPORT or _builtin_import, None
 
 
 def _first_import(name: str, scope: dict | None, fromlist, level: int) -> bool:

@@ -303,15 +303,17 @@ def write_error(task: Task, error: dict) -> None:
     folder holds the point finished before (:func:`finished`: run again for the trace.json it now asks for, or
     to be measured again), its results stay and ``error.json`` is written beside them (where the sweep's row
     points for the whole message); the folder is still run again by a later sweep (its rerun's demand holds),
-    and the new folder that replaces it does not carry the file over (:data:`POINT_FILES`)."""
+    and the new folder that replaces it does not carry the file over (:data:`POINT_FILES`). The question and
+    the write are one under the folder's lock (:func:`~tlm.storage.write_into`): a concurrent sweep of the same
+    point swaps its new folder in before the question or after the write, never between them (no stale
+    ``error.json`` beside the good results it swapped in)."""
     body = {"hash": task.hash, "factors": task.factors, **error}
-    if finished(Path(task.out)) is not None:
-        with storage.write_atomic(Path(task.out) / "error.json") as f:
-            f.write(storage.json_text(body, indent=2) + "\n")
+    text = storage.json_text(body, indent=2) + "\n"
+    if storage.write_into(Path(task.out), "error.json", text, lambda folder: finished(folder) is not None):
         return
     with atomic_folder(Path(task.out), "error.json", POINT_FILES, clean_once=True) as tmp:
         (tmp / "config.resolved.yaml").write_text(config_text(task.config))
-        (tmp / "error.json").write_text(storage.json_text(body, indent=2) + "\n")
+        (tmp / "error.json").write_text(text)
 
 
 _C_DUMPER = getattr(yaml, "CSafeDumper", None)  # (libyaml's emitter: None where PyYAML was built without it)

@@ -178,33 +178,64 @@ def main_file_hidden():
     a new process is changed (its ``init_main_from_path``), not ``__main__``: the script's own threads
     still read its ``__file__`` (it was deleted for the whole sweep, a NameError in the caller's other
     threads). Blocks may nest and overlap, in threads: the first in puts the change in, the last out
-    takes it away."""
+    takes it away.
+
+    Another library's wrapper of the same function (a user's code, another tool) is kept working, put
+    over this one or under it: this one's wrapper calls what it wrapped (its own, not a shared slot), is
+    taken away only where it is still the outermost, and otherwise stays under the other, passing calls
+    through once no block is open; where it is found in place again (the other library took its own
+    away), it is used again rather than wrapped in another (no wrapper calling itself: a RecursionError
+    at the next sweep's first worker)."""
     global _hiding
     from multiprocessing import spawn
 
     with _HIDE_LOCK:
         if _hiding == 0:
-            _PREPARATION[:] = [spawn.get_preparation_data]
-            spawn.get_preparation_data = _preparation_data
+            now = spawn.get_preparation_data
+            if _wraps(now) is not None:  # (tlm's own, still outermost: used again)
+                _PREPARATION[:] = [now]
+            else:
+                _PREPARATION[:] = [_wrapper(now)]
+                spawn.get_preparation_data = _PREPARATION[0]
         _hiding += 1
     try:
         yield
     finally:
         with _HIDE_LOCK:
             _hiding -= 1
-            if _hiding == 0 and spawn.get_preparation_data is _preparation_data:
-                spawn.get_preparation_data = _PREPARATION[0]  # (kept: a call under way still reads it)
+            ours = _PREPARATION[0] if _PREPARATION else None
+            if _hiding == 0 and ours is not None and spawn.get_preparation_data is ours:
+                spawn.get_preparation_data = _wraps(ours)  # (what it wrapped; a call under way keeps it)
 
 
 _HIDE_LOCK = threading.Lock()
 _hiding = 0  # main_file_hidden blocks open
-_PREPARATION: list = []  # multiprocessing.spawn's own get_preparation_data while they are
+_PREPARATION: list = []  # tlm's wrapper put in by the first block (:func:`_wrapper`), while they are open
+_WRAPPED = "_tlm_wraps"  # the attribute of tlm's wrapper: (the wrapper itself, the function it wraps)
 
 
-def _preparation_data(name: str) -> dict:
-    """:func:`multiprocessing.spawn.get_preparation_data`, less ``init_main_from_path`` where the main
-    module's ``__file__`` names no file (:func:`main_file_hidden`)."""
-    data = _PREPARATION[0](name)
+def _wraps(function):
+    """The function tlm's wrapper ``function`` wraps; None where ``function`` is not tlm's (another's, one made
+    with ``functools.wraps`` of tlm's among them: that copies the attribute, which names tlm's wrapper, not it)."""
+    mark = getattr(function, _WRAPPED, None)
+    return mark[1] if isinstance(mark, tuple) and len(mark) == 2 and mark[0] is function else None
+
+
+def _wrapper(inner):
+    """tlm's :func:`multiprocessing.spawn.get_preparation_data` over ``inner`` (the function it was):
+    :func:`_preparation_data`'s change while a :func:`main_file_hidden` block is open, else ``inner``'s
+    data as they are (left under another library's wrapper, it passes calls through)."""
+    def get_preparation_data(name: str) -> dict:
+        return _preparation_data(inner, name) if _hiding else inner(name)
+
+    setattr(get_preparation_data, _WRAPPED, (get_preparation_data, inner))
+    return get_preparation_data
+
+
+def _preparation_data(inner, name: str) -> dict:
+    """``inner(name)`` (:func:`multiprocessing.spawn.get_preparation_data`, or the wrapper it was), less
+    ``init_main_from_path`` where the main module's ``__file__`` names no file (:func:`main_file_hidden`)."""
+    data = inner(name)
     main = sys.modules.get("__main__")
     if getattr(getattr(main, "__spec__", None), "name", None) is None and _no_file(getattr(main, "__file__", None)):
         data.pop("init_main_from_path", None)
