@@ -18,14 +18,25 @@ same rows (``sweep.csv`` less the host seconds and ``functional_cached``).
 point's ``results.json`` and ``config.resolved.yaml``), ``--repeat`` times with libyaml's parser and as many
 with PyYAML's own (alternating), its CPU a point each way and whether the two reads are the same.
 
-    python benchmarks/bench_sweep_points.py [--points 100|200] [--repeat 2] [--report]
+``--fresh N``: then the whole cached sweep as a command, ``N`` times, each in a fresh interpreter
+(:func:`tlm.cli.main` ``sweep FILE --jobs 1 --no-progress --no-report``: its imports and fixed costs
+included, which the in-process runs above share): the child's CPU seconds (user + sys) and whether it
+imported numba (a sweep whose frames are all cached runs no kernel: since 2026-12-01 it imports none).
+``--against DIR``: those commands alternated with the ``tlm`` of another copy of the repository
+(``DIR/tlm`` first on ``PYTHONPATH``: the code before a change), whose code has frames of its own in
+the cache (one warm-up sweep each first).
+
+    python benchmarks/bench_sweep_points.py [--points 100|200] [--repeat 2] [--report] [--fresh N [--against DIR]]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -65,6 +76,10 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=100)
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--report", action="store_true", help="time the report's read of the sweep's folder too")
+    ap.add_argument("--fresh", type=int, default=0, metavar="N",
+                    help="time N cached sweeps as commands, each in a fresh interpreter")
+    ap.add_argument("--against", type=Path, default=None, metavar="DIR",
+                    help="with --fresh: alternate with the tlm of another copy of the repository")
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -92,6 +107,50 @@ def main() -> None:
         print(f"same rows both ways: {rows[True].equals(rows[False])}")
         if args.report:
             report_read(Path(tmp) / f"run{args.repeat - 1}_plain", args.points, args.repeat)
+        if args.fresh:
+            fresh(path, Path(tmp), args.fresh, args.against)
+
+
+# a cached sweep as `tlm sweep` runs it, in a fresh interpreter; prints whether numba was imported
+SWEEP = ("import sys\nfrom tlm.cli import main\n"
+         "status = main(['sweep', sys.argv[1], '--out', sys.argv[2], '--jobs', '1', '--no-progress', '--no-report'])\n"
+         "print('numba' in sys.modules)\nsys.exit(status)\n")
+
+
+def _command(root: Path, path: Path, out: Path) -> tuple[float, float, bool]:
+    """One sweep in a fresh interpreter with ``root``'s tlm: its CPU seconds (user + sys), wall seconds,
+    and whether it imported numba."""
+    paths = [str(root), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(paths)}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    # (in the sweep's folder: ``python -c`` puts the working folder first on sys.path, before PYTHONPATH)
+    done = subprocess.run([sys.executable, "-c", SWEEP, str(path), str(out)], capture_output=True, text=True,
+                          env=env, cwd=path.parent, check=False)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        raise SystemExit(f"the sweep with {root}/tlm failed: {done.stderr[-2000:]}")
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return cpu, wall, done.stdout.split()[-1] == "True"
+
+
+def fresh(path: Path, tmp: Path, n: int, against: Path | None) -> None:
+    """``n`` cached sweeps of ``path``, each a command in a fresh interpreter, with this tlm (and ``against``'s,
+    alternated): CPU and wall seconds each, whether numba was imported, the median CPU each way."""
+    here = Path(__file__).resolve().parents[1]
+    trees = {"this": here, **({"against": against.resolve()} if against is not None else {})}
+    for name, root in trees.items():  # (the other tree's code: its frames are its own in the cache)
+        _command(root, path, tmp / f"fresh_warm_{name}")
+    cpu: dict[str, list[float]] = {name: [] for name in trees}
+    for i in range(n):
+        for name, root in trees.items():
+            c, w, numba = _command(root, path, tmp / f"fresh{i}_{name}")
+            cpu[name].append(c)
+            print(f"fresh sweep {i + 1} ({name} tlm): {c:5.2f} s CPU, {w:5.2f} s wall, numba imported: {numba}",
+                  flush=True)
+    print("median CPU of a cached sweep as a command: "
+          + ", ".join(f"{statistics.median(v):.2f} s ({name} tlm)" for name, v in cpu.items()))
 
 
 def report_read(folder: Path, points: int, repeat: int) -> None:

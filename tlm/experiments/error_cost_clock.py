@@ -6,8 +6,10 @@ taken out of a row's timed trace and gather and said as its ``one_off_seconds``.
 The hooks are the process's, one of each, shared by every clock that runs (:func:`_hooks_on`):
 the import statement's (``builtins.__import__`` wrapped while any clock runs, restored when the
 last one stops, whatever order they stop in) and numba's ``numba:compiler_lock`` listener, only
-where numba is already imported or is the engine that runs (:func:`tlm.kernels.engine.engine`:
-not with ``TLM_KERNELS=numpy``, nor where numba does not import, when the import hook alone runs).
+put on where numba is imported already, or as soon as its first import ends while a clock runs
+(:func:`_wants_numba`): a clock imports no numba itself, so a process that runs no kernel (numba
+not imported: ``TLM_KERNELS=numpy``, numba missing, a sweep whose frames are all cached) never
+imports it, and numba compiles nothing before it is imported.
 """
 
 from __future__ import annotations
@@ -201,6 +203,8 @@ def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noq
     clocks = _ACTIVE
     if not clocks:  # (left in place under another hook that wrapped it: passes through)
         return real(name, globals, locals, fromlist, level)
+    if _LISTENER is None and _wants_numba():  # (numba imported where this hook did not see it end)
+        _listen_now()
     try:
         first = _first_import(name, globals, fromlist, level)
     except Exception:  # (a module's own __getattr__ that fails: the import itself says so)
@@ -214,6 +218,8 @@ def _timed_import(name, globals=None, locals=None, fromlist=(), level=0):  # noq
     finally:
         for clock in clocks:
             clock._end()
+        if _LISTENER is None and _wants_numba():  # (numba's first import just ended: its listener on)
+            _listen_now()
 
 
 setattr(_timed_import, _HOOK, True)
@@ -224,17 +230,27 @@ if getattr(_builtin_import, _HOOK, False) is True:  # (imported afresh under ano
 
 
 def _wants_numba() -> bool:
-    """Whether numba's listener goes on: numba imported already, or the engine that runs (an
-    import of numba only where the kernels would import it: not with ``TLM_KERNELS=numpy``)."""
-    if "numba" in sys.modules:
-        return True
-    from tlm.errors import InputError
-    from tlm.kernels.engine import engine
+    """Whether numba is imported, its first import ended (not one still running its module's code, in
+    which numba's listener could not be put yet): the listener then goes on (:func:`_hooks_on`,
+    :func:`_listen_now`). Nothing is imported for it."""
+    module = sys.modules.get("numba")
+    spec = getattr(module, "__spec__", None)
+    return module is not None and not getattr(spec, "_initializing", False)
 
+
+def _listen_now() -> None:
+    """numba's listener on, where numba's first import has just ended while a clock runs and the hooks'
+    lock is free (held: :func:`_hooks_on` or :func:`_hooks_off` is at work, and puts it on or has no
+    clock left to time it for); a numba that fails as the listener goes on leaves the import hook alone."""
+    global _LISTENER
+    if not _HOOKS_LOCK.acquire(blocking=False):
+        return
     try:
-        return engine() == "numba"
-    except InputError:  # (a bad TLM_KERNELS: the render says so)
-        return False
+        if _LISTENER is None and _ACTIVE:
+            with suppress(Exception):
+                _LISTENER = _numba_listener()
+    finally:
+        _HOOKS_LOCK.release()
 
 
 def _numba_listener():
@@ -272,7 +288,7 @@ def _hooks_on(clock: CompileClock) -> None:
             now = builtins.__import__
             if not _is_hook(now) and (_REAL_IMPORT is None or now is _REAL_IMPORT):
                 _REAL_IMPORT, builtins.__import__ = now, _timed_import
-            if _LISTENER is None and _wants_numba():  # (numba's own first import: timed by the hook)
+            if _LISTENER is None and _wants_numba():  # (else on as numba's first import ends: _timed_import)
                 with suppress(ImportError):  # (numba does not import: the import hook alone)
                     _LISTENER = _numba_listener()
         except BaseException:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import hashlib
 import os
 import platform
@@ -23,11 +24,10 @@ PACKAGES = ("tlm", "numpy", "scipy", "numba", "simpy", "trimesh", "pyyaml", "pil
 def versions() -> dict[str, str]:
     """Python's, the platform's and :data:`PACKAGES`' versions ("not installed" for one missing),
     and ``kernels``: the engine of the kernels that run here, ``numba`` (compiled) or ``numpy``
-    (:func:`tlm.kernels.engine.engine`, from ``TLM_KERNELS``; an unknown value is refused as
-    bad input). The images do not depend on it; host seconds do."""
+    (:func:`kernels_here`: :func:`tlm.kernels.engine.engine`'s answer, from ``TLM_KERNELS``; an
+    unknown value is refused as bad input). The images do not depend on it; host seconds do.
+    The versions are the packages' metadata: nothing is imported for them."""
     import importlib.metadata as md
-
-    from tlm.kernels.engine import engine
 
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for pkg in PACKAGES:
@@ -35,8 +35,63 @@ def versions() -> dict[str, str]:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
-    out["kernels"] = engine()
+    out["kernels"] = kernels_here()
     return out
+
+
+def kernels_here() -> str:
+    """:func:`tlm.kernels.engine.engine` (``numba`` where numba imports, unless ``TLM_KERNELS=numpy``),
+    without importing numba where it is sure to import (:func:`_numba_sound`): a process that runs
+    no kernel (a sweep whose frames are all cached) records the engine its kernels would run and
+    spends no 0.2 - 0.5 s importing numba for it. Where numba was imported or tried already in this
+    process, or a kernel asked for the engine, that answer; where the check is not sure (numba
+    missing, another module named numba found first, a dependency out of numba's range), numba's
+    import decides, as the kernels' own :func:`~tlm.kernels.engine.engine` does."""
+    import sys
+
+    from tlm.kernels.engine import engine, numba_available
+
+    name = os.environ.get("TLM_KERNELS", "").strip().lower()
+    tried = getattr(numba_available, "cache_info", None)  # (its answer remembered: numba's import tried)
+    if name not in ("", "numba") or "numba" in sys.modules or tried is None or tried().currsize:
+        return engine()  # (numpy, a bad value refused, or numba's import tried: engine()'s answer at no cost)
+    return "numba" if _numba_sound() else engine()
+
+
+@functools.cache
+def _numba_sound() -> bool:
+    """Whether ``import numba`` is sure to succeed, told without importing it: the module that import
+    would find is the installed distribution's own ``numba/__init__.py`` (no other module named numba
+    earlier on the path, which the import would run instead), llvmlite's likewise, and Python, NumPy
+    and llvmlite are within the ranges numba's metadata requires (the checks numba's own first lines
+    make, ``numba._ensure_critical_deps``). False where any of that is not so or cannot be told: then
+    the import itself decides (:func:`kernels_here`)."""
+    import importlib.metadata as md
+    import importlib.util
+
+    try:
+        from packaging.requirements import Requirement
+        from packaging.specifiers import SpecifierSet
+
+        dist = md.distribution("numba")
+        for mod in ("numba", "llvmlite"):
+            spec = importlib.util.find_spec(mod)
+            own = md.distribution(mod).locate_file(f"{mod}/__init__.py")
+            if spec is None or spec.origin is None or os.path.realpath(spec.origin) != os.path.realpath(own):
+                return False
+        python = dist.metadata.get("Requires-Python")
+        if python and not SpecifierSet(python).contains(platform.python_version(), prereleases=True):
+            return False
+        for req in map(Requirement, dist.requires or ()):
+            if req.marker is not None and not req.marker.evaluate({"extra": ""}):
+                continue  # (an extra's or another platform's requirement)
+            if not req.specifier.contains(md.version(req.name), prereleases=True):
+                return False
+        import numpy  # (imported by tlm already: the one numba would check, against its metadata's)
+
+        return numpy.__version__ == md.version("numpy")
+    except Exception:  # (metadata missing or unreadable, packaging absent: not sure)
+        return False
 
 
 def _git(*args: str, cwd: Path) -> str | None:

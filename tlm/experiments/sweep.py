@@ -249,10 +249,12 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
         from tlm.kernels.threads import available
 
         jobs = available()  # (the affinity mask and a container's CPU quota; not render.threads' cap of 8)
-    from tlm.kernels.engine import engine
+    from tlm.experiments.provenance import kernels_here
     from tlm.kernels.threads import fork_workers
 
-    engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point)
+    # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point; numba not imported for it where it is
+    # sure to import: a sweep whose frames are all cached runs no kernel)
+    kernels_here(), fork_workers()
     sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
     said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)
     for line in said if warn is not None else ():

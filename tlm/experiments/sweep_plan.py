@@ -147,12 +147,12 @@ def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None 
     a ``--dask tcp://...`` scheduler's address (``tls://``, ``ws://``, ``wss://`` alike: no handshake) tried as
     the sweep tries it (:func:`~tlm.experiments.executors_dask.answers`: one TCP connection, closed at once, within
     :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made, nothing submitted), then :func:`plan`."""
+    from tlm.experiments.provenance import kernels_here
     from tlm.experiments.sweep import checked_options
-    from tlm.kernels.engine import engine
     from tlm.kernels.threads import fork_workers
 
     dask = checked_options(jobs, dask, dask_wait)[0]
-    engine(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS: refused as by the sweep)
+    kernels_here(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS: refused as by the sweep)
     with read_only():  # (the scenes' loads read the scene cache and write nothing: no parse kept, no entry touched)
         sweep = load_sweep(Path(path), overrides)
         storage.check_destination(Path(out), MARKER)
