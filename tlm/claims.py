@@ -29,9 +29,10 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, path_shown
 from tlm.progress import interrupts_deferred
 from tlm.storage import _GUARD, _RUNNING, _host, naming, process_tag
+from tlm.storage_errors import takes_no_files
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
 
@@ -245,15 +246,17 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
             out.parent.mkdir(parents=True, exist_ok=True)
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         except FileNotFoundError as e:
-            if not out.parent.is_dir():  # (a folder on the way removed meanwhile: another holder's, made
-                continue  # and dropped; else the folder cannot hold the file: said below)
+            # (the folder the file or a folder on the way was made in: there, it takes no new one, /proc's ENOENT;
+            # gone, it was removed meanwhile, another holder's, made and dropped: tried again)
+            there = out.parent if e.filename is None or Path(e.filename) == path else Path(e.filename).parent
+            if not there.is_dir():
+                continue
             _remove_made(made)
-            raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
-                                     source=str(given)) from None
+            raise EnvironmentFailure(f"cannot write: {takes_no_files(there)}", source=str(given)) from None
         except OSError as e:
             _remove_made(made)
             if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
-                raise EnvironmentFailure(f"cannot write into {out.parent} (read-only or not permitted)",
+                raise EnvironmentFailure(f"cannot write into {path_shown(out.parent)} (read-only or not permitted)",
                                          source=str(given)) from None
             raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror})",
                                      source=str(given)) from None

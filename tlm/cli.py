@@ -24,6 +24,7 @@ from tlm.cli_run import blame_flag, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
     deadlock_line,
+    escaped,
     exit_status,
     forget_lost_interrupt,
     interrupted,
@@ -36,7 +37,7 @@ from tlm.cli_signals import (
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
-from tlm.errors import check_numba_threads
+from tlm.errors import check_numba_threads, path_shown
 
 
 def _say(line: str) -> None:
@@ -53,7 +54,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     end, is refused, exit 2, naming that process: :func:`tlm.cli_report.report_claimed`), the first folder locked as the
     report a run ends with locks it (no run replaces it while it is read)."""
     def note(line: str) -> None:  # (each as it is known: the figures may take a while)
-        print(f"tlm: note: {line}", file=sys.stderr, flush=True)
+        print(f"tlm: note: {escaped(line)}", file=sys.stderr, flush=True)
 
     out = Path(args.out) if args.out else Path(args.dirs[0]) / "report" if len(args.dirs) == 1 else None
 
@@ -99,7 +100,7 @@ def _cmd_plots(args: argparse.Namespace) -> int:
                          say=lambda line: print(line, flush=True), formats=args.formats, dpi=args.dpi)
     except StepsFailed as e:
         print(f"wrote {e.page}")
-        print(f"tlm: plots: {e}", file=sys.stderr)
+        print(f"tlm: plots: {escaped(str(e))}", file=sys.stderr)
         return 1
     print(f"wrote {page}")
     return 0
@@ -147,7 +148,7 @@ def _experiment_arg(args: argparse.Namespace) -> None:
         return
     path = api.experiment_path(args.config, args.cmd)
     if str(path) != args.config:
-        say_err(f"{args.config}: the built-in experiment {path}")
+        say_err(f"{path_shown(args.config)}: the built-in experiment {path_shown(path)}")
         args.config = str(path)
 
 
@@ -242,7 +243,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     storage.SAID.clear()  # (a cache's line said during the sweep is not passed to warned again)
 
     def warned(line: str) -> None:  # (each as it is known: the factors' before the points run)
-        print(f"tlm: warning: {line}", file=sys.stderr, flush=True)
+        print(f"tlm: warning: {escaped(line)}", file=sys.stderr, flush=True)
 
     if args.json and not args.dry_run:  # (asked for, and read by nothing: refused, not dropped)
         raise InputError("prints the plan of a dry run as JSON: give --dry-run too (a sweep prints its rows' "
@@ -420,7 +421,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         # (refused, nothing written, for the packaged table from such a fit: api.write_calibration)
         target = api.write_calibration(programs, report, args.write, command)
     if warning:
-        print(warning, file=sys.stderr)
+        print(escaped(warning), file=sys.stderr)
     if not args.dry_run:
         print(f"wrote {target}")
     return 0

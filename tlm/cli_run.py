@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tlm import api, storage
 from tlm.api import InputError
+from tlm.errors import escaped_line as escaped  # (tlm.cli_signals.escaped: the same lines)
 
 
 def blame_flag(config: str, sets: list[str], flagged: dict[str, str]) -> None:
@@ -73,7 +74,7 @@ def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], 
     print(f"wrote {out} ({time.perf_counter() - t0:.2f} s)")  # (wall: the stages may overlap on threads)
     for warning in results["warnings"]:  # (less those said during the run: a render that may not end says why first)
         if " ".join(warning.split()) not in storage.SAID:
-            print(f"tlm: warning: {warning}", file=sys.stderr)
+            print(f"tlm: warning: {escaped(warning)}", file=sys.stderr)
 
 
 def figures3(x: float) -> str:

@@ -197,6 +197,7 @@ from tlm.errors import (
     InputError,
     environment_problem,
     error_line,
+    escaped_line,
     forget_landed,
     interrupted_by,
     memory_problem,
@@ -372,8 +373,6 @@ def save_traceback(exc: BaseException) -> Path | None:
     return None
 
 
-# the control characters left in a line once its whitespace is one space (NUL, ESC, DEL, C1), each as \xNN
-_ESCAPES = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7f, 0xa0))}
 
 
 def one_line(e: BaseException) -> str:
@@ -386,9 +385,11 @@ def one_line(e: BaseException) -> str:
 
 def escaped(text: str) -> str:
     """``text`` on one line (its whitespace one space), its control characters escaped as
-    :func:`one_line`'s are: a line that names a path or a value the user gave (an ``--out`` with an
-    escape sequence in its name, in a machine's error such as ``cannot write``) shows it."""
-    return " ".join(text.split()).translate(_ESCAPES)
+    :func:`one_line`'s are (:func:`tlm.errors.escaped_line`): a line that names a path or a value the
+    user gave (an ``--out`` with an escape sequence in its name, in a machine's error such as ``cannot
+    write``; a scene's name in a warning) shows it. ``tlm: error:``, ``tlm: warning:`` and ``tlm: plots:``
+    lines alike."""
+    return escaped_line(text)
 
 
 def signalled() -> int | None:

@@ -58,6 +58,18 @@ def _expanded(node: yaml.Node, sizes: dict[int, int]) -> int:
     return size
 
 
+def refuse_expansion(node: yaml.Node | None) -> yaml.Node | None:
+    """``node``, a composed document, or an :class:`ExpansionError` where its aliases expand it to more
+    than :data:`MAX_EXPANDED` values past its own: the check of every loader that reads a file tlm may
+    walk (:func:`parse_yaml`'s; :func:`tlm.report.checks.read_yaml`'s, of a folder's YAML)."""
+    sizes: dict[int, int] = {}
+    if node is not None and _expanded(node, sizes) - len(sizes) > MAX_EXPANDED:
+        raise ExpansionError(
+            None, None, f"its aliases (*name) expand it to more than {MAX_EXPANDED:,} values: write each "
+            "value out, or alias fewer", node.start_mark)
+    return node
+
+
 class _Loader(yaml.SafeLoader):
     """SafeLoader that reads ``1e6`` as a float (YAML 1.2), not as the string '1e6', and
     refuses a key given twice in one mapping (:class:`DuplicateKeyError`), which PyYAML
@@ -66,13 +78,7 @@ class _Loader(yaml.SafeLoader):
     again, as YAML allows."""
 
     def compose_document(self):
-        node = super().compose_document()
-        sizes: dict[int, int] = {}
-        if node is not None and _expanded(node, sizes) - len(sizes) > MAX_EXPANDED:
-            raise ExpansionError(
-                None, None, f"its aliases (*name) expand it to more than {MAX_EXPANDED:,} values: write each "
-                "value out, or alias fewer", node.start_mark)
-        return node
+        return refuse_expansion(super().compose_document())
 
     def flatten_mapping(self, node):
         # (checked before PyYAML's flattening rewrites the node in place with its merged keys,

@@ -23,8 +23,32 @@ except ImportError:  # (not Unix)
     resource = None
 
 
+# the control characters a line shows escaped (NUL, ESC, DEL, C1: \xNN; a tab, a newline, a carriage return as
+# Python writes them, \t, \n, \r), so that a path or a name with one in it is shown, not obeyed by the terminal,
+# dropped by it, or shown as a space (accents and CJK are shown as they are)
+LINE_ESCAPES = {c: f"\\x{c:02x}" for c in (*range(0x20), *range(0x7f, 0xa0))} | {9: "\\t", 10: "\\n", 13: "\\r"}
+
+
+def path_shown(path: object) -> str:
+    """A path (or a name) the user gave, as a line names it: its control characters escaped
+    (:data:`LINE_ESCAPES`: ``a\\tb.yaml``, ``\\x1b[31m``), its spaces as they are. A message that
+    puts a path in a line without ``!r`` names it through this (:class:`InputError`'s ``source``, a
+    failed write's folder), since :func:`escaped_line` makes a line's whitespace one space."""
+    return os.fsdecode(path).translate(LINE_ESCAPES) if isinstance(path, (str, bytes, os.PathLike)) else \
+        str(path).translate(LINE_ESCAPES)
+
+
+def escaped_line(text: str) -> str:
+    """``text`` on one line (its whitespace one space), its control characters escaped
+    (:data:`LINE_ESCAPES`): what ``tlm: error:``, ``tlm: warning:`` and ``tlm: plots:`` lines print
+    (:func:`tlm.cli_signals.escaped`), so that a value from a file or the command line (an escape
+    sequence in a scene's or a folder's name) is shown, not obeyed by the terminal."""
+    return " ".join(text.split()).translate(LINE_ESCAPES)
+
+
 class InputError(ValueError):
-    """Bad user input: one line naming the file, the key and the value."""
+    """Bad user input: one line naming the file, the key and the value. ``source`` (kept as
+    given) is named as :func:`path_shown` shows a path: a tab in a file's name is ``\\t``, not a space."""
 
     def __init__(self, message: str, *, source: str | None = None, key: str | None = None):
         self.source = source
@@ -32,7 +56,7 @@ class InputError(ValueError):
         self.message = message
         where = ""
         if source:
-            where = f"{source}: "
+            where = f"{path_shown(source)}: "
         if key:
             where += f"{key}: "
         super().__init__(f"{where}{message}")
@@ -49,7 +73,7 @@ class EnvironmentFailure(OSError):
 
     def __init__(self, message: str, *, source: str | None = None):
         self.source = source
-        super().__init__(f"{source}: {message}" if source else message)
+        super().__init__(f"{path_shown(source)}: {message}" if source else message)
 
     def __str__(self) -> str:
         return self.args[0]
@@ -87,7 +111,7 @@ def environment_problem(e: BaseException, filename: bool = True) -> str | None:
         return str(e)
     if e.errno in ENVIRONMENT_ERRNOS:
         what = (e.strerror or os.strerror(e.errno)).lower()
-        return f"{what}: {e.filename}" if e.filename and filename else what
+        return f"{what}: {path_shown(e.filename)}" if e.filename and filename else what
     text = str(e)
     if e.errno is None and "requested and" in text and "written" in text:
         return f"a write was cut short ({text}): no space left on device?"

@@ -59,16 +59,18 @@ from pathlib import Path
 from typing import IO
 
 from tlm import storage_lock
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.storage_errors import raise_environmental as _raise_environmental
-from tlm.storage_errors import write_problem
+from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
+from tlm.storage_files import write_files as _write_files
 from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
 from tlm.storage_lock import _host, folder_lock
 
 
-def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
+def check_destination(out: Path, marker: str, key: str = "--out", also: Collection[str] = ()) -> Path:
     """The resolved destination, or an InputError saying why it may not be written
-    (an EnvironmentFailure when its parent folder cannot be written)."""
+    (an EnvironmentFailure when its parent folder cannot be written). ``also``: other files that mark an
+    earlier output it may replace (a sweep point's ``error.json``, beside ``results.json``)."""
     out = Path(out)
     resolved = out.resolve()
     cwd = Path.cwd().resolve()
@@ -76,7 +78,7 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
         raise InputError(f"{str(out)!r} is the current folder or one of its parents; name a new folder",
                          key=key)
     if resolved.exists():
-        _check_existing(out, resolved, marker, key)
+        _check_existing(out, resolved, marker, key, also)
     parent = resolved.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
@@ -87,7 +89,7 @@ def check_destination(out: Path, marker: str, key: str = "--out") -> Path:
     return resolved
 
 
-def _check_existing(out: Path, resolved: Path, marker: str, key: str) -> None:
+def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Collection[str] = ()) -> None:
     """An InputError where the existing ``resolved`` may not be replaced (not a folder, a mount
     point, a folder that is no earlier tlm output and not being claimed). Nothing where it
     vanished while it was looked at: another writer of the same output (a thread or a process) that
@@ -101,14 +103,14 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str) -> None:
             raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
         if is_mount(resolved):
             raise InputError(_mounted(out), key=key)
-        if (resolved / marker).is_file():
+        if any((resolved / m).is_file() for m in (marker, *also)):
             return
         with os.scandir(resolved) as listing:  # (one listing, of one folder: the marker may have come meanwhile)
             entries = list(listing)
     except FileNotFoundError:
         return
-    if not any(e.name == marker and e.is_file() for e in entries) and any(not _claiming(e.name, marker)
-                                                                            for e in entries):
+    if not any(e.name in (marker, *also) and e.is_file() for e in entries) and any(
+            not any(_claiming(e.name, m) for m in (marker, *also)) for e in entries):
         raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
                          "refusing to replace it", key=key)
 
@@ -416,7 +418,8 @@ def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
 
 @contextmanager
 def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
-                  clean_once: bool = False) -> Iterator[Path]:
+                  clean_once: bool = False, into: Callable[[Path], bool] | None = None,
+                  replaces: Collection[str] = ()) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
 
     ``marker`` is the file that marks an earlier output of this kind (it may be
@@ -427,23 +430,36 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
     (:func:`clean_stale`, which lists the whole of ``out``'s parent); ``clean_once``: only at this
     process's first write into that parent (a sweep's points: the sweep cleans its ``points/`` at its
     start and its end, and a listing of N points' folder at each of N points is N² work).
+    ``into``: where ``out`` is, at the swap (asked under its lock), a folder that ``into(out)`` keeps (one another
+    writer swapped in meanwhile: a failed point's error beside a concurrent sweep's good results of the same
+    point), the block's ``marker`` file is renamed into it instead, the rest of the block's folder dropped; such
+    a folder found as this starts is not refused. ``replaces``: other files than ``marker`` that mark an earlier
+    output this may replace (a point's ``results.json`` over its failed try's ``error.json``, a concurrent sweep's).
     """
     try:
-        out = check_destination(out, marker)
+        out = check_destination(out, marker, also=replaces)
     except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, tlm.caches)
-        _failed_write(out, e)
-        raise
+        if into is None or not isinstance(e, InputError) or not _kept(Path(out), into):
+            _failed_write(out, e)
+            raise
+        out = Path(out).resolve()  # (asked again under the lock at the swap)
     writer = _writer()
     tmp = out.parent / f".{out.name}.tmp-{writer}"
     _hold(tmp.name)  # (before it exists: no other thread's clean_stale may take it for a leftover)
     try:
-        yield from _atomic_folder(out, marker, owned, tmp, writer, clean_once)
+        yield from _atomic_folder(out, marker, owned, tmp, writer, clean_once, into, replaces)
     finally:
         _release(tmp.name)
 
 
+def _kept(out: Path, into: Callable[[Path], bool]) -> bool:
+    """Whether ``out`` is a folder (not a link to one) that ``into`` keeps (:func:`atomic_folder`)."""
+    return out.is_dir() and not out.is_symlink() and into(out)
+
+
 def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: Path,
-                   writer: str, clean_once: bool = False) -> Iterator[Path]:
+                   writer: str, clean_once: bool = False,
+                   into: Callable[[Path], bool] | None = None, replaces: Collection[str] = ()) -> Iterator[Path]:
     """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``."""
     leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
     try:
@@ -460,9 +476,13 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
         if not (tmp / marker).is_file():
             raise RuntimeError(f"an output folder was written without its {marker}")
         with folder_lock(out):
+            if into is not None and _kept(out, into):  # (the marker into it, under the lock: nothing swaps in between)
+                os.replace(tmp / marker, out / marker)
+                shutil.rmtree(tmp, ignore_errors=True)
+                return
             if out.exists():
                 try:  # another writer may have put something else there meanwhile
-                    check_destination(out, marker)
+                    check_destination(out, marker, also=replaces)
                 except InputError as refused:  # the finished output is kept beside it, not thrown away
                     kept = _keep_beside(tmp, out)
                     if kept is None:
@@ -605,54 +625,6 @@ def write_into(folder: Path, name: str, data: str | bytes, keep: Callable[[Path]
     return True
 
 
-def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
-    """Each ``(path, data)`` of ``files`` as the whole of ``path``: all of them, or none.
-
-    Each is written to a hidden file of its own beside its path (``.<name>.new<host>-<pid>-<n>``,
-    written by :func:`tlm.storage.write_file`), and these are renamed onto the paths, in order, only
-    once all are written; an earlier file of a path is moved aside (``.<name>.old<host>-<pid>-<n>``)
-    until all are in place. On any error (a full disk), a signal included, the new files are removed
-    and every path is left as it was: one renamed already gets its earlier file back, or is removed
-    where it had none. A full disk (an OSError of the machine's) is an EnvironmentFailure naming the
-    path that did not fit, not its hidden file."""
-    files = [(Path(p), data) for p, data in files]
-    staged: list[tuple[Path, Path, Path]] = []  # (path, its new file, its earlier file's name while aside)
-    renaming = -1  # (the index of the path being renamed onto; those before it are in place)
-    try:
-        for path, data in files:
-            tag = f"{process_tag()}-{next(_STAGED)}"
-            new, old = path.with_name(f".{path.name}.new{tag}"), path.with_name(f".{path.name}.old{tag}")
-            staged.append((path, new, old))  # (before it exists: a signal after its rename still removes it)
-            try:
-                write_file(new, data)
-            except EnvironmentFailure as e:
-                what = write_problem(e.__cause__, path) if isinstance(e.__cause__, OSError) else None
-                if what is None:
-                    raise
-                raise EnvironmentFailure(f"cannot write: {what}", source=str(path)) from e.__cause__
-        for i, (path, new, old) in enumerate(staged):
-            renaming = i
-            with suppress(FileNotFoundError):  # (none before)
-                os.rename(path, old)
-            os.replace(new, path)
-    except BaseException:
-        for i, (path, new, old) in reversed(list(enumerate(staged))):
-            with suppress(OSError):
-                if i <= renaming and os.path.lexists(old):  # (moved aside: back, over the new file if it came)
-                    os.replace(old, path)
-                elif i <= renaming and not os.path.lexists(new):  # (renamed in where none was before)
-                    path.unlink(missing_ok=True)
-            with suppress(OSError):
-                new.unlink(missing_ok=True)
-        raise
-    for _path, _new, old in staged:
-        with suppress(OSError):
-            old.unlink(missing_ok=True)
-
-
-_STAGED = itertools.count()  # (numbers write_files's hidden files in this process)
-
-
 def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[str] = ()) -> None:
     """Result rows as ``folder/<name>.jsonl`` (one JSON object a line) and ``<name>.csv``.
 
@@ -673,6 +645,12 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
         w.writeheader()
         for r in rows:
             w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else finite(v) for k, v in r.items()})
+
+
+def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:
+    """Each ``(path, data)`` of ``files`` as the whole of ``path``: all of them, or none
+    (:func:`tlm.storage_files.write_files`, with this module's :func:`write_file`)."""
+    _write_files(files, lambda path, data: write_file(path, data), process_tag)
 
 
 _HEARERS: list[Callable[[Path, BaseException], None]] = []  # told of each failed write (on_failed_write)
@@ -700,5 +678,5 @@ def warn(message: str) -> None:
     """A one-line warning on stderr (``tlm: warning: ...``), recorded in :data:`SAID`."""
     line = " ".join(message.split())
     SAID.add(line)
-    sys.stderr.write(f"tlm: warning: {line}\n")
+    sys.stderr.write(f"tlm: warning: {escaped_line(line)}\n")  # (a name in it: its control characters shown)
     sys.stderr.flush()

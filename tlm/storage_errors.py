@@ -10,7 +10,7 @@ import errno
 import os
 from pathlib import Path
 
-from tlm.errors import EnvironmentFailure, environment_problem
+from tlm.errors import EnvironmentFailure, environment_problem, path_shown
 
 
 def raise_environmental(e: BaseException, where: Path) -> None:
@@ -34,8 +34,15 @@ def write_problem(e: OSError, where: Path) -> str | None:
     block that writes reads, missing; a file of a folder gone meanwhile) is not blamed on the folder."""
     what = environment_problem(e, filename=False)
     if what is None and e.errno == errno.ENOENT and _own_file(e, Path(where)) and Path(where).parent.is_dir():
-        what = f"{Path(where).parent} takes no new files (making one there: no such file or directory)"
+        what = takes_no_files(Path(where).parent)
     return what
+
+
+def takes_no_files(folder: Path) -> str:
+    """Why a file cannot be made in ``folder``, a folder that is there but whose file system makes no new
+    file (``/proc``: ENOENT, as if it were not there): the words of :func:`write_problem` and of an output
+    folder's claim there (:func:`tlm.claims.claimed`), the folder named as a line shows a path."""
+    return f"{path_shown(folder)} takes no new files (making one there: no such file or directory)"
 
 
 def _own_file(e: OSError, where: Path) -> bool:

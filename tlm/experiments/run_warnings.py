@@ -44,9 +44,9 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     photon-map key with the pass left out or a specular walk's key the mode never reads, by
     :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`), an override that
     sets nothing (``render={}``: :func:`empty_sets`),
-    a photon-map reference that is not converged (:func:`reference_warnings`), a BSP cut
-    short: ``results.json`` ``warnings`` but the simulated stream's (:func:`stream_warnings`),
-    one line each."""
+    a photon-map reference that is not converged (:func:`reference_warnings`), ``render.threads`` past the
+    CPUs available (:func:`threads_warning`), a BSP cut short: ``results.json`` ``warnings`` but the
+    simulated stream's (:func:`stream_warnings`), one line each."""
     _, rays, hits, back = eye_hits(res)
     warnings = [*checks.file_warnings(res.scene), *checks.material_warnings(res.scene),
                 *checks.light_warnings(res.scene, res.accel),
@@ -62,6 +62,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     warnings += empty_sets(res.overrides, res.via)
     warnings += reference_warnings(res.error, res.cfg)
     warnings += checks.branching_warning(res.cfg, res.scene)
+    warnings += threads_warning(res.cfg)
     if "pmap" in res.plan.run_names:
         warnings += checks.radius_warnings(res.cfg, res.accel.scale)
     if res.accel.tree.truncated:
@@ -69,6 +70,28 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
         warnings.append(f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
                         f"{res.cfg.bsp.memory_factor:g}x the triangle list")
     return warnings
+
+
+def threads_warning(cfg: RunConfig | None, cpus: int | None = None) -> list[str]:
+    """A line when ``render.threads`` asks for more threads than the ``cpus`` this process may run on
+    (default: :func:`~tlm.kernels.threads.available`, its affinity mask within a control group's CPU
+    quota, which a null ``render.threads`` takes): allowed, bit for bit the same images, work and cycles,
+    but slower, as the threads (or forked workers) take turns on them. None for null (the CPUs
+    available) or a count no more than them. A run says it once (``results.json`` ``warnings``); a
+    sweep's point records it in its own ``results.json``, as the render's other warnings."""
+    asked = getattr(getattr(cfg, "render", None), "threads", None)
+    if asked is None:
+        return []
+    if cpus is None:
+        from tlm.kernels.threads import available
+
+        cpus = available()
+    if asked <= cpus:
+        return []
+    return [f"render.threads = {asked} is more than the {cpus} CPU{'s' if cpus != 1 else ''} available to this "
+            "process (its affinity mask, within a control group's CPU quota): the kernels' threads take turns on "
+            "them, which is slower, not faster (images, work and cycles are the same for every count); leave "
+            "render.threads null for the CPUs available"]
 
 
 # |timing.granularity.share| from which a run warns (docs/architecture.md, "Packet size": on frames of 32x32 and

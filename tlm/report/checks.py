@@ -16,6 +16,7 @@ from typing import Any
 import yaml
 
 from tlm.config import MODES
+from tlm.config_words import MAX_EXPANDED, ExpansionError, refuse_expansion
 from tlm.errors import InputError
 
 
@@ -87,11 +88,32 @@ def rows_checked(path: Path, rows: list[tuple[int, dict]], what: str, required: 
 
 
 # libyaml's parser (``yaml.CSafeLoader``: 5-7 times faster on a point's config.resolved.yaml, the same values);
-# None where PyYAML was built without libyaml. read_yaml has no checks of its own that a loader class carries (no
-# duplicate-key or expansion check: tlm writes these files whole; tlm.config reads a user's YAML with them).
+# None where PyYAML was built without libyaml. read_yaml's loaders check one thing a config's loader checks: a
+# document whose aliases expand it past MAX_EXPANDED values (a damaged or hostile copy), refused; not duplicate keys
+# (tlm writes these files whole; tlm.config reads a user's YAML with that check too).
 # (Where they differ, in no file tlm writes: libyaml reads a tab after a key's colon, which PyYAML refuses, and a
 # bare ``!`` tag as '', which PyYAML reads as null.)
 _C_LOADER = getattr(yaml, "CSafeLoader", None)
+
+
+class _Safe(yaml.SafeLoader):
+    """PyYAML's SafeLoader, refusing a document whose aliases expand it past
+    :data:`~tlm.config_words.MAX_EXPANDED` values (:func:`~tlm.config_words.refuse_expansion`), as a
+    config's loader does: a damaged or hostile copy of a few hundred bytes that every check would walk
+    for hours."""
+
+    def compose_document(self):
+        return refuse_expansion(super().compose_document())
+
+
+if _C_LOADER is not None:
+    class _CSafe(_C_LOADER):
+        """libyaml's SafeLoader with :class:`_Safe`'s check of its aliases."""
+
+        def get_single_node(self):
+            return refuse_expansion(super().get_single_node())
+
+    _C_LOADER = _CSafe
 # libyaml's composer recurses on the C stack: a file nested tens of thousands deep (a damaged one: 100 kB of "[")
 # ends the process (SIGSEGV), where PyYAML's own parser raises RecursionError. A node is nested no deeper than the
 # flow collections ("[", "{") around it and twice its column + 1 (a block node starts right of its parent's, or at
@@ -118,10 +140,14 @@ def read_yaml(path: Path) -> Any:
     if _C_LOADER is not None and _shallow(text):
         try:
             return yaml.load(text, Loader=_C_LOADER)  # (a safe loader: libyaml's SafeLoader)
+        except ExpansionError as e:
+            raise _expansion(e, path) from None
         except yaml.YAMLError:  # (read again by PyYAML's own parser: its error, worded as tlm words it)
             pass
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_Safe)  # (a safe loader: PyYAML's SafeLoader, with the check)
+    except ExpansionError as e:
+        raise _expansion(e, path) from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         at = f": line {mark.line + 1} column {mark.column + 1}" if mark is not None else ""
@@ -130,6 +156,12 @@ def read_yaml(path: Path) -> Any:
     except RecursionError:
         raise InputError("is nested too deeply to read (more than PyYAML's parser reads): a damaged or edited copy "
                          "(tlm writes it whole)", source=str(path)) from None
+
+
+def _expansion(e: ExpansionError, path: Path) -> InputError:
+    """:func:`read_yaml`'s refusal of a file whose aliases expand it past the limit, naming it."""
+    return InputError(f"its aliases (*name) expand it to more than {MAX_EXPANDED:,} values: a damaged or edited "
+                      "copy (tlm writes it whole, without aliases)", source=str(path))
 
 
 COUNT = (lambda v: FINITE[0](v) and v >= 0, "a finite number, not negative")

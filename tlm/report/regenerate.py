@@ -34,7 +34,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from tlm.errors import InputError, StepsFailed
+from tlm.errors import InputError, StepsFailed, escaped_line
 
 SCALING = ("scaling_ring", "scaling_room", "scaling_cornell")  # the sweeps the eq52 step fits
 SWEEPS = (*SCALING, "design_space", "bsp_levels", "sweep_fifo")
@@ -92,7 +92,7 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
     except BaseException:  # stopped before its report (a bug, a full disk, Ctrl-C): an earlier one is not its own
         earlier = earlier_report(out, ran)
         if earlier is not None:
-            sys.stderr.write(f"tlm: plots: {earlier}\n")
+            sys.stderr.write(f"tlm: plots: {escaped_line(earlier)}\n")
             sys.stderr.flush()
         raise
 

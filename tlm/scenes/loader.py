@@ -142,6 +142,9 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         looked = f" (looked in {', '.join(folders)} and among the built-in scenes)" if folders else ""
         if odd is not None:
             named = "" if os.path.abspath(odd) == os.path.abspath(ref) else f": {odd}"
+            if config_source == ref and not named:  # (given by itself, `tlm scene show /dev/null`: named once, as
+                # the file, without a key it was not given under, as a mesh file given by itself is)
+                raise InputError(f"is {_not_a_file(odd)}, not a scene file", source=ref)
             raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file", source=config_source,
                              key=key)
         raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
