@@ -106,7 +106,7 @@ def test_errors_name_the_argument_not_the_flag(tmp_path, cache, monkeypatch):
     monkeypatch.chdir(tmp_path)
     cfg = tlm.load_config("cornell", TINY)
     cases = [
-        (lambda: tlm.run(cfg, ""), "out: '.' is the current folder"),
+        (lambda: tlm.run(cfg, ""), "out: '' is the current folder"),
         (lambda: tlm.run(cfg, tmp_path / "r", outputs="imagez"), "outputs: 'imagez': expected"),
         (lambda: tlm.sweep("sweep_fifo", tmp_path / "s", jobs=0), "jobs: 0 must be >= 1"),
         (lambda: tlm.write_report([tmp_path], dpi=20), "dpi: 20 dots per inch is out of range"),

@@ -52,6 +52,7 @@ from tlm.api_common import (
     flags_are_kept,
 )
 from tlm.api_common import checked as _checked
+from tlm.api_common import existing_folder as _existing_folder
 from tlm.api_common import refuse_other_kind as _refuse_other_kind
 from tlm.api_common import renamed as _renamed
 from tlm.api_common import shown as _shown
@@ -313,6 +314,7 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     config, base = expanded(config, "config"), expanded(base, "base")
     if base is not None and not isinstance(base, (str, os.PathLike)):  # (a file's and a Config's own: _own_base)
         raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
+    _existing_folder(base, "base")
     if isinstance(config, Config):
         _own_base(config, base, "the Config's")
         return _updated(config, more, via) if more else config

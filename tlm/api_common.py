@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, path_shown
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -71,14 +71,25 @@ def folder(out: Any, key: str = "out") -> Path:
     """``out`` as the path of a folder to write; an InputError for what is not a path."""
     if not isinstance(out, (str, os.PathLike)):
         raise InputError(f"{shown(out)} is not a folder's path: name the folder to write", key=key)
+    if os.fspath(out) in ("", b""):  # (Path("") is ".": said as given, not as the '.' it becomes)
+        raise InputError(f"{shown(out)} is the current folder (an empty path); name a new folder", key=key)
     return Path(out)
+
+
+def existing_folder(path: str | os.PathLike | None, key: str = "base") -> None:
+    """An InputError naming the argument ``key`` where ``path`` (None: the working folder) is not a
+    folder that is there: a relative path found from it would be looked for nowhere."""
+    if path is not None and not os.path.isdir(path):
+        why = "a file" if os.path.exists(path) else "not found"
+        raise InputError(f"{shown(path)} is not a folder ({why}): give an existing folder (None: the working folder)",
+                         key=key)
 
 
 def renamed(error: InputError, key: str) -> InputError:
     """``error`` (changed in place, and returned) with its key ``key`` in its place: the message
     names the argument, ``out: ...``, where a deeper layer named the command line's flag,
     ``--out: ...``."""
-    where = f"{error.source}: " if error.source else ""
+    where = f"{path_shown(error.source)}: " if error.source else ""  # (as InputError names it)
     text = str(error.args[0]) if error.args else ""
     old = f"{where}{error.key}: "
     if error.key and text.startswith(old):

@@ -15,7 +15,14 @@ SIGTERM is held only where a Python handler takes it: that handler runs in the m
 between two bytecodes, as SIGINT's does, and where it raises (``tlm``'s command line turns
 SIGTERM into the KeyboardInterrupt that removes what a command half wrote) it cuts an import
 short as a Ctrl-C does. Its default action (and an ignored SIGTERM) is the kernel's, not
-Python's: nothing to hold, and a SIGTERM that ends the process is never delayed.
+Python's: nothing to hold, and a SIGTERM that ends the process is never delayed. SIGHUP (a
+closed terminal's) and SIGALRM (a timeout's: ``signal.setitimer`` and a handler that raises, as
+notebooks' timeouts do; it cut numba's import as a Ctrl-C did) are held the same way.
+
+An interrupt that nothing holds (another signal's handler that raises, an asynchronous exception
+from another thread) may still cut an import short: the outermost API call of a thread notes what
+its failure left (:class:`_Imports`: packages half imported, a module left half run in
+``sys.modules``), and the next call raises the RuntimeError that says to restart (:func:`check_imports`).
 
 numba's install of a registry (a typing or target context's ``install_registry``, run by every
 compile's refresh of its contexts, the first one around the imports of numba's own modules) is
@@ -53,10 +60,17 @@ _IMPORT_SOURCES = (os.path.join("importlib", "_bootstrap.py"), os.path.join("imp
 _NUMBA_CORE = os.sep + os.path.join("numba", "core", "")  # (its contexts' install_registry, typing and target)
 COMPILERS = ("numba", "llvmlite")  # the packages whose Python code a signal must not cut short (:func:`_uncuttable`)
 # the signals held to an import's end, where a Python handler takes them (the command line's:
-# tlm.cli_signals.TAKEN, SIGHUP a closed terminal's; none on Windows)
-HELD = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
-_LEFT_HALF: dict[str, int] = {}  # the modules an import interrupted in an API call left without their package,
-# with the signal that cut it short
+# tlm.cli_signals.TAKEN, SIGHUP a closed terminal's; SIGALRM a timeout's, as a notebook's ``signal.setitimer``
+# and a handler that raises; none on Windows)
+HELD = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP", "SIGALRM") if hasattr(signal, n))
+# the timers' signals: no one insisting, so one that comes while another signal is held is held too (and a repeat
+# of one held dropped, as the kernel merges a pending signal's), where a second Ctrl-C goes through
+_TIMERS = tuple(getattr(signal, n) for n in ("SIGALRM",) if hasattr(signal, n))
+_LEFT_HALF: dict[str, int | str] = {}  # the modules an import interrupted in an API call left without their
+# package, with the signal that cut it short (or the name of the exception, where no held signal did)
+_HALF_RUN: dict[str, tuple[Any, str]] = {}  # the modules an exception in an API call left in sys.modules half
+# run (their spec still ``_initializing``: "partially initialized module"), with the module and that exception
+_CALLS = threading.local()  # ``open``: an API call of this thread is running (the outermost watches its imports)
 _CUT_REGISTRIES: set[int] = set()  # the signals that cut numba's install of a registry short in an API call
 
 
@@ -103,7 +117,7 @@ def _orphans() -> set[str]:
 
 
 class HeldInterrupt:
-    """The SIGINT (and SIGTERM, SIGHUP) handler during a call of a function :func:`imports_whole`
+    """The SIGINT (and SIGTERM, SIGHUP, SIGALRM) handler during a call of a function :func:`imports_whole`
     wraps, in the main thread. A signal outside an import goes at once to the handler it
     replaced (``KeyboardInterrupt``, or the command line's); one during an import (or numba's
     install of a registry, or numba's or llvmlite's Python code: a compile) is held, and given to
@@ -111,7 +125,8 @@ class HeldInterrupt:
     would drop it) or, at the latest, when the
     call ends. A second signal during the same import goes through at once (the import is then
     left half done, or the registry's loader broken, which the next API call reports:
-    :func:`check_imports`).
+    :func:`check_imports`), but for a timer's (:data:`_TIMERS`), held too, and a first one after a
+    timer's: those are held after the first (:attr:`late`).
 
     ``before``: the handler replaced, of SIGINT, or ``{signal: handler}`` of the signals held."""
 
@@ -122,6 +137,7 @@ class HeldInterrupt:
         self.lock = threading.RLock()  # (reentrant: the handler may run while the main thread holds it)
         self.active = True
         self.held: int | None = None  # the signal held
+        self.late: list[int] = []  # the signals held after it (a timer's; a first one after a timer's)
         self.orphans: set[str] | None = None  # before a signal went through during an import
         self.cut_by = signal.SIGINT  # the signal that went through
         self.cut_registry = False  # whether it went through during numba's install of a registry
@@ -133,6 +149,12 @@ class HeldInterrupt:
                     self.held = signum
                     # (the low-level start: threading's own start takes a lock the interrupted code may hold)
                     _thread.start_new_thread(self._watch, ())
+                    return
+                if signum in _TIMERS or (self.held in _TIMERS and signum not in self.late):
+                    # (a timer's signal is no one insisting: held too, a repeat dropped; a first Ctrl-C after a
+                    # timer's is a first one, held; the Ctrl-C after it goes through)
+                    if signum != self.held and signum not in self.late:
+                        self.late.append(signum)
                     return
                 if "finalizer" in uncuttable and uncuttable <= {"finalizer", "compile"}:  # (llvmlite's __del__ too)
                     # a second signal in a finalizer goes through, the first still held: Python drops the
@@ -157,21 +179,24 @@ class HeldInterrupt:
                 frame = sys._current_frames().get(self.main)
                 if frame is not None and _uncuttable(frame, self.entry):
                     continue
-                signum, self.held = self.held, None
-                if hasattr(signal, "pthread_kill"):  # (this handler passes it on: no import now)
-                    signal.pthread_kill(self.main, signum)
-                else:  # (no pthread_kill: the same signal, simulated in the main thread)
-                    _thread.interrupt_main(signum)
+                given = [self.held, *self.late]
+                self.held, self.late = None, []
+                for signum in given:
+                    if hasattr(signal, "pthread_kill"):  # (this handler passes it on: no import now)
+                        signal.pthread_kill(self.main, signum)
+                    else:  # (no pthread_kill: the same signal, simulated in the main thread)
+                        _thread.interrupt_main(signum)
                 return
 
     def close(self, failed: BaseException | None) -> None:
         """The call ended: the handlers it replaced back, the signal still held raised now,
         and the modules a signal that went through left half imported noted."""
-        held = None
+        held: list[int] = []
         try:
             with self.lock:
                 self.active = False
-                held, self.held = self.held, None
+                held = [self.held, *self.late] if self.held is not None else []
+                self.held, self.late = None, []
         finally:  # (the handlers put back even if a signal lands here; one left behind is found stale: :func:`_outer`)
             for signum, before in self.before.items():
                 if signal.getsignal(signum) is self:
@@ -181,19 +206,75 @@ class HeldInterrupt:
             _LEFT_HALF.update(dict.fromkeys(_orphans() - self.orphans, self.cut_by))
             if self.cut_registry:
                 _CUT_REGISTRIES.add(self.cut_by)
-        if held is not None:
-            signal.raise_signal(held)  # (its handler runs now: a held Ctrl-C's KeyboardInterrupt)
+        _give(held)
+
+
+def _give(signums: list[int]) -> None:
+    """Each signal raised in turn (its handler runs now: a held Ctrl-C's KeyboardInterrupt), every
+    handler run though an earlier one raised (the last one's exception goes on, the others its context)."""
+    if signums:
+        try:
+            signal.raise_signal(signums[0])
+        finally:
+            _give(signums[1:])
+
+
+def _initializing() -> set[str]:
+    """The modules in ``sys.modules`` whose import has not finished (their spec's ``_initializing``:
+    those being imported now, or one an exception left there half run)."""
+    return {name for name, module in list(sys.modules.items())
+            if getattr(getattr(module, "__spec__", None), "_initializing", False) is True}
+
+
+def _running_imports() -> set[str]:
+    """The modules whose own code (``<module>``) some thread runs now: imports under way."""
+    names = set()
+    for frame in sys._current_frames().values():
+        while frame is not None:
+            if frame.f_code.co_name == "<module>":
+                names.add(frame.f_globals.get("__name__"))
+            frame = frame.f_back
+    return names
+
+
+class _Imports:
+    """What the imports of an API call left (the outermost of its thread): the packages an exception
+    cut off half imported, whatever raised it (a signal tlm does not hold, another thread's
+    asynchronous exception), noted for :func:`check_imports`, as :class:`HeldInterrupt` notes those of
+    a second signal that went through. Before the call, only the names of ``sys.modules`` (a copy:
+    the rest is worked out if the call fails)."""
+
+    def __init__(self) -> None:
+        self.names = set(sys.modules)
+
+    def note(self, failed: BaseException) -> None:
+        cause = type(failed).__name__
+        before = {n for n in self.names if "." in n and n.rpartition(".")[0] not in self.names}  # (its orphans)
+        for name in _orphans() - before:
+            _LEFT_HALF.setdefault(name, cause)
+        for name in _initializing() - self.names - _running_imports():  # (not another thread's import)
+            _HALF_RUN.setdefault(name, (sys.modules.get(name), cause))
 
 
 def check_imports() -> None:
-    """A RuntimeError naming the cure where an interrupted import left packages half imported,
-    or an interrupted install of one of numba's registries left its loader broken."""
+    """A RuntimeError naming the cure where an interrupted import left packages half imported (or a
+    module half run), or an interrupted install of one of numba's registries left its loader broken."""
     left = sorted(name for name in _LEFT_HALF if name in sys.modules)
-    if not left and not _CUT_REGISTRIES:
+    half = sorted(name for name, (module, _) in _HALF_RUN.items() if sys.modules.get(name) is module
+                  and getattr(getattr(module, "__spec__", None), "_initializing", False) is True)
+    if not left and not half and not _CUT_REGISTRIES:
         return
-    cut = sorted({_LEFT_HALF[name] for name in left} if left else _CUT_REGISTRIES)
-    what = ("a Ctrl-C (pressed twice)" if cut == [signal.SIGINT] else
-            f"a second signal ({', '.join(signal.Signals(s).name for s in cut)})")
+    if half and not left:
+        names = ", ".join(half)
+        raise RuntimeError(f"an exception ({', '.join(sorted({_HALF_RUN[n][1] for n in half}))}) interrupted the "
+                           f"import of {names} in an earlier call and left it half run, which Python does not run "
+                           "again: restart the Python process (in a notebook, restart its kernel)")
+    cut = sorted({_LEFT_HALF[name] for name in left} if left else _CUT_REGISTRIES, key=str)
+    if not all(isinstance(c, int) for c in cut):  # (an exception no held signal raised)
+        what = f"an exception ({', '.join(str(signal.Signals(c).name if isinstance(c, int) else c) for c in cut)})"
+    else:
+        what = ("a Ctrl-C (pressed twice)" if cut == [signal.SIGINT] else
+                f"a second signal ({', '.join(signal.Signals(s).name for s in cut)})")
     if left:
         packages = ", ".join(sorted({name.partition(".")[0] for name in left}))
         done = (f"the import of {packages} in an earlier call and left it half imported ({len(left)} modules "
@@ -216,13 +297,28 @@ def _outer(handler: HeldInterrupt) -> bool:
 
 
 def imports_whole(function: Callable) -> Callable:
-    """``function`` with a Ctrl-C (or a SIGTERM, a SIGHUP) that arrives during an import held to the
-    import's end (:class:`HeldInterrupt`; in the main thread, for each signal of :data:`HELD`
-    that a Python handler takes)."""
+    """``function`` with a Ctrl-C (or a SIGTERM, a SIGHUP, a SIGALRM) that arrives during an import held
+    to the import's end (:class:`HeldInterrupt`; in the main thread, for each signal of :data:`HELD`
+    that a Python handler takes); and what an interrupt that cut an import short left noted
+    (:class:`_Imports`), in any thread, so that the next call says to restart (:func:`check_imports`)."""
 
     @functools.wraps(function)
     def call(*args: Any, **kwargs: Any) -> Any:
         check_imports()
+        if getattr(_CALLS, "open", False):  # (an outer API call of this thread watches)
+            return held_call(*args, **kwargs)
+        imports = _Imports()
+        _CALLS.open = True
+        try:
+            return held_call(*args, **kwargs)
+        except BaseException as e:
+            if not isinstance(e, Exception):  # (an interrupt's: KeyboardInterrupt, SystemExit; an import that
+                imports.note(e)  # fails of itself, an ImportError, leaves its own package broken, not tlm's calls)
+            raise
+        finally:
+            _CALLS.open = False
+
+    def held_call(*args: Any, **kwargs: Any) -> Any:
         if threading.current_thread() is not threading.main_thread():  # (a signal interrupts the main thread)
             return function(*args, **kwargs)
         before = {}

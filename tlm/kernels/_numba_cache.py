@@ -43,7 +43,9 @@ import functools
 import glob
 import hashlib
 import inspect
+import io
 import os
+import pickle
 import threading
 from pathlib import Path
 
@@ -167,7 +169,9 @@ def _damage_safe(load):
     loaded (its index or data file cut off, zeroed or overwritten: ``UnpicklingError``,
     ``EOFError``, ``ValueError``, ``OSError`` reading it, ...): a warning naming the file,
     the function's index and data files removed (:func:`_drop_damaged`), and None, so that
-    numba compiles it again and writes a new entry. Other files' entries: numba's own load."""
+    numba compiles it again and writes a new entry. Other files' entries: numba's own load.
+    An error where the files' bytes read whole (:func:`_bytes_whole`: a numba left half imported,
+    ``module 'numba' has no attribute 'core'``, as its data is unpickled) is raised, no file removed."""
 
     @functools.wraps(load)
     def load_overload(self, sig, target_context):
@@ -177,11 +181,68 @@ def _damage_safe(load):
             locator = getattr(getattr(self, "_impl", None), "locator", None)
             if not isinstance(locator, _PackageStamp) or getattr(self, "_cache_file", None) is None:
                 raise
+            if _bytes_whole(self._cache_file):  # (not the files': a half-imported numba, a failed rebuild)
+                raise
             _drop_damaged(self, sig, target_context, e)
             return None
 
     load_overload._tlm_damage = True  # type: ignore[attr-defined]
     return load_overload
+
+
+class _Stub:
+    """Whatever a pickle names (a class, a function): it takes any arguments and state."""
+
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __setstate__(self, state):
+        pass
+
+    def __setitem__(self, key, value):
+        pass
+
+    def append(self, item):
+        pass
+
+    def extend(self, items):
+        pass
+
+    def add(self, item):
+        pass
+
+
+class _BytesOnly(pickle.Unpickler):
+    """An unpickler that imports nothing: a pickle's bytes read, its objects stubs (:class:`_Stub`)."""
+
+    def find_class(self, module, name):
+        return _Stub
+
+    def persistent_load(self, pid):
+        return _Stub()
+
+
+def _bytes_whole(cache_file) -> bool:
+    """Whether numba's ``IndexDataCacheFile``'s index (a version, then a ``(stamp, overloads)`` pair)
+    and the data files it names (a tuple each) read whole, by the pickle format alone, importing nothing
+    (the same, whatever state numba is in): false where one is cut off, zeroed or overwritten."""
+    try:
+        with open(cache_file._index_path, "rb") as f:
+            _BytesOnly(f).load()  # (the version numba wrote; then its pair, a pickle of its own, as numba reads it)
+            pair = _BytesOnly(io.BytesIO(f.read())).load()
+        if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[1], dict)):
+            return False
+        for name in pair[1].values():
+            if not isinstance(name, str):
+                return False
+            with open(os.path.join(os.path.dirname(cache_file._index_path), name), "rb") as f:
+                if not isinstance(_BytesOnly(f).load(), tuple):
+                    return False
+    except FileNotFoundError:  # (removed meanwhile, by another process: nothing damaged here)
+        return True
+    except Exception:
+        return False
+    return True
 
 
 def _save_safe(save):
