@@ -111,8 +111,10 @@ def test_the_ground_truth_line_says_when_the_truth_is_not_cached(tmp_path, monke
     exp = _study(tmp_path)
     monkeypatch.setenv("TLM_CACHE", str(tmp_path / "ok"))
     assert _run(exp, tmp_path / "first", truth_spp=1) == 0
-    lines = [line for line in capsys.readouterr().out.splitlines() if "ground truth:" in line]
-    assert len(lines) == 1 and lines[0].endswith("1 spp (computed once, then cached)"), lines
+    lines = [line for line in capsys.readouterr().out.splitlines() if "ground truth" in line]
+    assert len(lines) == 1 and lines[0].startswith("error-vs-cost: computing the ground truth (not cached): ") \
+        and lines[0].endswith("1 spp; this may take minutes; it is then cached for every later study of this scene "
+                              "at this spp"), lines
 
     root = tmp_path / "blocked"  # (the references' cache writable, the ground truths' a regular file)
     root.mkdir()
@@ -120,9 +122,9 @@ def test_the_ground_truth_line_says_when_the_truth_is_not_cached(tmp_path, monke
     monkeypatch.setenv("TLM_CACHE", str(root))
     assert _run(exp, tmp_path / "second", truth_spp=1) == 0
     captured = capsys.readouterr()
-    lines = [line for line in captured.out.splitlines() if "ground truth:" in line]
-    assert len(lines) == 1 and lines[0].endswith("1 spp (computed for this run only: its cache cannot be written)"), \
-        lines
+    lines = [line for line in captured.out.splitlines() if "ground truth" in line]
+    assert len(lines) == 1 and lines[0].endswith("it is computed for this study only"), lines
+    assert f"the cache cannot take it ({root / 'oracle'}" in lines[0], lines
     assert f"cannot write tlm's Mitsuba ground-truth cache {root / 'oracle'}" in captured.err
     assert json.loads((tmp_path / "second" / "truth.json").read_text())["available"] is True
 

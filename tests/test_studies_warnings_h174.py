@@ -66,7 +66,7 @@ def test_tlm_error_vs_cost_says_an_empty_set_and_points_value_once(tmp_path, cap
     exp = _file(tmp_path, "evc.yaml", {
         "base": {"scene": "cornell", "resolution": [8, 8], "reference": REFERENCE, "photons": {"count": 800},
                  "estimate": {"final_gather": 0}},
-        "points": [{"estimate.filter": ["disk"], "render": [{}, {"light_samples": 4}]},
+        "points": [{"estimate.filter": ["disk"], "render": [{}, {"light_samples": 9}]},
                    {"estimate.filter": "mvoxel", "render": [{}]}]})
     assert main(["error-vs-cost", str(exp), "--out", str(tmp_path / "o"), "--truth-spp", "0", *QUIET,
                  "--set", "estimate={}", "--set", "estimate={}", "--set", "photons={count: 800}"]) == 0

@@ -341,9 +341,11 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
 
     def progress(i: int, n: int, row: dict) -> None:
-        rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g}"
+        # (rel_mse against tlm's own photon-map reference; the composite's against Mitsuba, FLIP where measured)
+        rel = "n/a" if row["rel_mse"] is None else f"{row['rel_mse']:.4g} vs reference"
         if row["truth_rel_mse"] is not None:
-            rel += f" (composite vs truth {row['truth_rel_mse']:.4g}, FLIP {row['truth_flip']:.3f})"
+            flip = "" if row["truth_flip"] is None else f", FLIP {row['truth_flip']:.3f}"
+            rel += f" (composite vs Mitsuba {row['truth_rel_mse']:.4g}{flip})"
         fps = "-" if row.get("fps") is None else f"{row['fps']:.3g}"
         settings = f"  ({row['factors']})" if row.get("factors") else ""  # (every setting the point varies)
         # (no radius: the filter takes none, knn, or the map is not gathered: '-', as the CSV's empty cell)

@@ -89,7 +89,7 @@ from __future__ import annotations
 import itertools
 import json
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -97,7 +97,7 @@ import numpy as np
 
 from tlm.arch.functional import TreeWork
 from tlm.arch.model import simulate
-from tlm.caches import cache_problem, cached_image
+from tlm.caches import cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError
@@ -105,7 +105,7 @@ from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.error_cost_frame import frame_functional, frame_time
 from tlm.experiments.error_cost_frame import others_key as _others_key
 from tlm.experiments.error_cost_frame import own_passes as _own_passes
-from tlm.experiments.error_cost_truth import truth_noise_words
+from tlm.experiments.error_cost_truth import Truth, truth_error, truth_noise_words
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
@@ -122,11 +122,12 @@ from tlm.experiments.reference_cache import (
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
 from tlm.experiments.sweep_factors import keys_given as _keys_given
+from tlm.experiments.sweep_factors import value_identity
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
 from tlm.render.frame import Frame, GBuffer, cast
-from tlm.render.passes import diffuse_pixels, gather_points_full, sees_a_light
+from tlm.render.passes import gather_points_full, sees_a_light
 from tlm.render.planner import photon_count, same_frame_settings
 from tlm.render.pmap import (
     density_requests,
@@ -188,7 +189,9 @@ def _check_factor(key: str, source: str, where: str, section: str | None = None,
 
 
 def expand(points: Any, source: str) -> list[dict[str, Any]]:
-    """The union of the grids: a list of {dotted key: value} overrides, in file order."""
+    """The union of the grids: a list of {dotted key: value} overrides, in file order. A value a grid's
+    key lists twice is refused (``points[0].photons.count: 5000 given twice``), as ``tlm sweep`` refuses
+    one: its rows would be one point measured twice."""
     if isinstance(points, dict):
         points = [points]
     if not isinstance(points, list) or not points:
@@ -206,6 +209,11 @@ def expand(points: Any, source: str) -> list[dict[str, Any]]:
             v = v if isinstance(v, list) else [v]
             if not v:
                 raise InputError("has no values", source=source, key=f"points[{i}].{k}")
+            seen: set[str] = set()  # (a value given twice: two rows of one point, as tlm sweep refuses it)
+            for x in v:
+                if value_identity(x) in seen:
+                    raise InputError(f"{value_text(x)} given twice", source=source, key=f"points[{i}].{k}")
+                seen.add(value_identity(x))
             values.append(v)
         out.extend(dict(zip(keys, combo, strict=True)) for combo in itertools.product(*values))
     return out
@@ -251,13 +259,20 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None,
                              "photon-map frame (mode: pmap): leave --set mode out", source=src,
                              key=f"--set {item.strip()}")
     shared = _fixed(base_cfg)
+    first: dict[str, dict] = {}  # each point's whole config -> the first point that gives it
     for p in points:  # check every point before any work starts
-        mine = _fixed(config_from_dict(apply_overrides(base, _override_strings(p)), f"{label} (point {p})"))
-        for key, value in mine.items():  # (a section given, render: {spp: 1} or render: null, is caught here)
+        cfg = config_from_dict(apply_overrides(base, _override_strings(p)), f"{label} (point {p})")
+        for key, value in _fixed(cfg).items():  # (a section given, render: {spp: 1} or render: null, caught here)
             if value != shared[key]:
                 given = next((k for k in p if k == key or key.startswith(f"{k}.")), None)
                 _check_factor(key, src, f"points: {p}", section=given if given not in (None, key) else None,
                               whole=not isinstance(p.get(given), dict))
+        other = first.setdefault(json.dumps(to_dict(cfg), sort_keys=True, default=str), p)
+        if other is not p:  # (two grids that list one point, or two points that give one config: as tlm sweep)
+            both = f"{{{factors_text(p)}}} given twice" if other == p else \
+                f"{{{factors_text(other)}}} and {{{factors_text(p)}}} are one point (one config)"
+            raise InputError(f"{both}: its rows would be one measurement written twice; list it once",
+                             source=src, key="points")
     for line in empty_lines(raw.get("points"), overrides, src, via) if warned is not None else ():
         warned(line)
     return base, points, folder
@@ -288,53 +303,6 @@ def _fixed(cfg: RunConfig) -> dict[str, Any]:
     """The settings of :data:`FIXED` of a resolved config (the mode as the study runs it)."""
     return {"scene": cfg.scene, "resolution": cfg.resolution, "bsp": cfg.bsp,
             **{k: getattr(getattr(cfg, k.split(".")[0]), k.split(".")[1]) for k in FIXED if "." in k}}
-
-
-@dataclass(frozen=True)
-class Truth:
-    """What the composites are measured against besides our own reference: Mitsuba 3's
-    path tracer (:mod:`tlm.oracle.mitsuba`) at ``spp`` samples per pixel, or nothing
-    (``spp`` 0, or Mitsuba not installed: ``reason`` says which)."""
-
-    spp: int = 4096
-
-    def load(self, frame: Frame, g: GBuffer, progress=None) -> tuple[np.ndarray | None, dict]:
-        """The ground truth of the frame's scene (:func:`tlm.oracle.mitsuba.composite_truth`:
-        the path tracer, with the particle tracer at the diffuse pixels where a point
-        light's caustics would be missing), or None and why not."""
-        scene = frame.scene
-        if self.spp <= 0:  # (tlm.error_vs_cost's note: truth_spp=0)
-            return None, {"available": False, "reason": "not asked for (--truth-spp 0)"}
-        try:
-            from tlm.oracle import mitsuba as oracle
-
-            oracle.require()
-        except InputError as e:
-            return None, {"available": False, "reason": str(e)}
-        diffuse = diffuse_pixels(frame, g).reshape(scene.camera.height, scene.camera.width)
-        found = oracle.composite_truth(scene, diffuse, spp=self.spp, compute=False)
-        if found is None:
-            if progress is not None:  # (a cache that cannot be written: tlm.caches has said which, and why)
-                kept = ("computed for this run only: its cache cannot be written" if cache_problem(oracle.cache_dir())
-                        else "computed once, then cached")
-                progress(f"ground truth: Mitsuba 3 path tracer, {self.spp} spp ({kept})")
-            found = oracle.composite_truth(scene, diffuse, spp=self.spp)
-        image, meta = found
-        return np.asarray(image, dtype=np.float64), {"available": True, **meta}
-
-
-def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarray) -> dict[str, float | None]:
-    """The composite's RMSE, relative MSE (sum of squared error over sum of squared truth, as
-    ``rel_mse`` against our reference) over the pixels ``keep`` ((height, width) bool: away
-    from the lights seen directly, :func:`tlm.oracle.mitsuba.away_from_lights`) and mean
-    HDR-FLIP over the whole image, against the ground truth (None without one)."""
-    if truth is None:
-        return {"truth_rmse": None, "truth_rel_mse": None, "truth_flip": None}
-    from tlm.oracle import mitsuba as oracle
-
-    img = composite.reshape(truth.shape)
-    err = image_error(img[keep], truth[keep])  # the same measures as against our own reference
-    return {"truth_rmse": err["rmse"], "truth_rel_mse": err["rel_mse"], "truth_flip": oracle.flip(img, truth)}
 
 
 def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None = None, note=None,
@@ -463,7 +431,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),
             "aim": cfg.photons.aim,
             **image_error(radiance, reference), "reference_converged": converged,
-            **truth_error(composite, truth_image, keep),
+            **truth_error(composite, truth_image, keep, flip="flip_missing" not in truth_meta),
             "truth_spp": truth.spp if truth_image is not None else None,
             **{k: int(work[k].sum()) for k in GATHER_KEYS},
             "trace_seconds": round(trace_s, 4), "gather_seconds": round(gather_s, 4),

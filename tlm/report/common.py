@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import hashlib
 import math
 import re
@@ -48,6 +49,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 from matplotlib.mathtext import MathTextParser
+from matplotlib.ticker import Formatter, LogLocator
 
 from tlm.errors import InputError
 
@@ -115,17 +117,123 @@ def legend_below(ax, fontsize: float = 7, ncol: int = 1):
 
 
 def log_ticks(ax, axis: str = "x") -> None:
-    """Tick labels of a log ``axis`` that do not run into each other: no labels on the minor
-    ticks; over fewer than two decades the major ticks are at 1, 2 and 5 times the powers of
-    ten, so that the axis still has several labels. Call it once the data are drawn."""
-    from matplotlib.ticker import LogFormatterSciNotation, LogLocator, NullFormatter
+    """Tick labels of a log ``axis`` that do not run into each other, and at least two of them where
+    two fit: no labels on the minor ticks; the major ticks chosen when the figure is drawn, at its
+    final size (:class:`LogTicks`), the first of these that leaves room between the labels: the powers
+    of ten (every other, every third, ... over many decades), 1, 2 and 5 times them, round steps of the
+    range (0.15, 0.2, 0.25, 0.3 over frame times of 0.145 to 0.34 s), 1 to 9 times the powers of ten,
+    each only with three ticks or more; else the first with two. Labels are decimals (``0.15``, ``2000``) where every
+    tick is from 0.001 to 10^5, else powers of ten (``2×10^6``). Call it once the scale is log."""
+    from matplotlib.ticker import NullFormatter
 
     a = ax.xaxis if axis == "x" else ax.yaxis
-    lo, hi = ax.get_xlim() if axis == "x" else ax.get_ylim()
-    if lo > 0 and hi > 0 and abs(np.log10(hi / lo)) < 2:
-        a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        a.set_major_formatter(LogFormatterSciNotation(base=10, labelOnlyBase=False))
+    if a.get_scale() == "log":
+        a.set_major_locator(LogTicks(axis))
+        a.set_major_formatter(LogLabels())
     a.set_minor_formatter(NullFormatter())
+
+
+LOG_TICKS_MAX = 8  # the most major ticks :func:`log_ticks` puts on an axis
+LOG_LABEL_GAP = 0.5  # the room :func:`log_ticks` leaves between two labels, in the labels' font size
+
+
+def log_labels(ticks) -> list[str]:
+    """The labels of a log axis's major ``ticks`` (:func:`log_ticks`): decimals where every tick is from
+    0.001 to 10^5 (``0.15``, ``2000``), else mathtext powers of ten (``10^{-4}``, ``2×10^{6}``)."""
+    values = [float(v) for v in ticks]
+    if all(1e-3 <= v < 1e5 for v in values):
+        return [f"{v:.6g}" for v in values]
+    out = []
+    for v in values:
+        if not v > 0:
+            out.append(f"{v:g}")
+            continue
+        e = math.floor(math.log10(v) + 1e-9)
+        m = float(f"{v / 10.0**e:.6g}")
+        out.append(r"$\mathdefault{" + ("" if m == 1 else f"{m:g}\\times") + f"10^{{{e}}}" + "}$")
+    return out
+
+
+def _log_candidates(lo: float, hi: float) -> list[list[float]]:
+    """The tick sets :class:`LogTicks` tries over ``lo`` to ``hi`` (> 0), in its order: the powers of
+    ten (every one, then every 2nd, 3rd, ...), 1-2-5 times them, round linear steps
+    (:class:`~matplotlib.ticker.MaxNLocator`, densest first), then 1-9 times the powers of ten; each
+    within the range and at most :data:`LOG_TICKS_MAX` ticks."""
+    from matplotlib.ticker import MaxNLocator
+
+    span = (lo * (1 - 1e-9), hi * (1 + 1e-9))
+
+    def inside(values) -> list[float]:
+        return sorted({float(v) for v in values if span[0] <= v <= span[1]})
+
+    e0, e1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+    out = []
+    for stride in (1, 2, 3, 4, 5, 10, 20, 50, 100):
+        out.append(inside(10.0**e for e in range(e0, e1 + 1) if e % stride == 0))
+    out.append(inside(float(f"{m * 10.0**e:.12g}") for e in range(e0, e1 + 1) for m in (1, 2, 5)))
+    for bins in range(LOG_TICKS_MAX - 1, 0, -1):
+        ticks = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+        out.append(inside(float(f"{t:.12g}") for t in ticks if t > 0))
+    out.append(inside(float(f"{m * 10.0**e:.12g}") for e in range(e0, e1 + 1) for m in range(1, 10)))
+    return [t for t in out if 0 < len(t) <= LOG_TICKS_MAX]
+
+
+class LogTicks(LogLocator):
+    """The major ticks of a log axis (:func:`log_ticks`), chosen at each draw for the axis's length
+    then: the first of :func:`_log_candidates` whose labels (:func:`log_labels`, measured in the tick
+    labels' font) leave :data:`LOG_LABEL_GAP` between each two with three ticks or more, else with two,
+    else one that fits; the sparsest where none does."""
+
+    def __init__(self, axis: str = "x"):
+        super().__init__(base=10.0)
+        self.which = axis
+
+    def __call__(self):
+        lo, hi = self.axis.get_view_interval()
+        return self.tick_values(lo, hi)
+
+    def tick_values(self, vmin, vmax):
+        lo, hi = sorted((float(vmin), float(vmax)))
+        if not (lo > 0 and math.isfinite(hi)) or lo == hi:
+            return super().tick_values(vmin, vmax)
+        sets = _log_candidates(lo, hi)
+        fits = [t for t in sets if self._fits(t, lo, hi)]
+        for need in (3, 2, 1):
+            chosen = next((t for t in fits if len(t) >= need), None)
+            if chosen is not None:
+                return np.asarray(chosen)
+        return np.asarray(min(sets, key=len) if sets else [])
+
+    def _fits(self, ticks: list[float], lo: float, hi: float) -> bool:
+        if len(ticks) < 2 or self.axis is None:
+            return True
+        prop = self.axis.majorTicks[0].label1.get_fontproperties()
+        box = self.axis.axes.bbox
+        length = (box.width if self.which == "x" else box.height) * 72.0 / self.axis.figure.dpi  # (points)
+        sizes = [_text_size(text, prop)[0 if self.which == "x" else 1] for text in log_labels(ticks)]
+        at = [length * math.log(t / lo) / math.log(hi / lo) for t in ticks]
+        gap = LOG_LABEL_GAP * prop.get_size_in_points()
+        return all(b - a >= (sa + sb) / 2 + gap for a, b, sa, sb in zip(at, at[1:], sizes, sizes[1:]))
+
+
+@functools.lru_cache(maxsize=512)
+def _text_size(text: str, prop) -> tuple[float, float]:
+    """The width and height (points) of a tick label in the font ``prop`` (mathtext where in ``$``)."""
+    from matplotlib.textpath import TextToPath
+
+    w, h, _ = TextToPath().get_text_width_height_descent(text, prop, ismath="$" in text)
+    return float(w), float(h)
+
+
+class LogLabels(Formatter):
+    """The labels of :class:`LogTicks`'s ticks (:func:`log_labels`, one style for all of them)."""
+
+    def format_ticks(self, values):
+        self.set_locs(values)
+        return log_labels(values)
+
+    def __call__(self, x, pos=None):
+        return log_labels([x])[0] if not len(self.locs) else log_labels([*self.locs, x])[-1]
 
 
 @dataclass(frozen=True)

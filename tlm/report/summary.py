@@ -483,13 +483,16 @@ def _seeds_words(rows: list[dict], err: str, series_of) -> str:
     """What "the lowest error" of the error-vs-cost rows is a sample of, a sentence: that they are one
     seed's (one photon map per count: which filter wins by a small margin is the seed's as much as the
     filter's, and another seed can reorder them), else each series' lowest error per seed: in how many
-    seeds it is the lowest, its mean and range over the seeds."""
+    seeds it is the lowest (where there are two series or more to compare), its mean and range over the seeds."""
     by_seed: dict[str, list[dict]] = defaultdict(list)
     for r in rows:
         by_seed[_row_seed(r)].append(r)
     if len(by_seed) < 2:
         only = next(iter(by_seed))
         only = f"seed {only}" if only.lstrip("-").isdigit() else only
+        if len({series_of(r) for r in rows}) < 2:  # (one series: no other to reorder it with)
+            return (f" These rows are of one seed ({only}): another seed's photon maps give other errors (a seed "
+                    "key in the study's points gives the spread).")
         return (f" These rows are of one seed ({only}): where the filters' errors are close, another "
                 "seed's photon maps can reorder them (a seed key in the study's points gives the spread).")
     names = list(dict.fromkeys(series_of(r) for r in rows))
@@ -504,9 +507,12 @@ def _seeds_words(rows: list[dict], err: str, series_of) -> str:
         wins[min(best, key=best.get)] += 1
         for k, v in best.items():
             per[k].append(v)
-    parts = [f"{k}: lowest in {wins[k]} of {len(by_seed)}, mean {np.mean(per[k]):.3g} "
-             f"({min(per[k]):.3g}-{max(per[k]):.3g}) over {len(per[k])} seeds" for k in names if per[k]]
-    return f" Over the rows' {len(by_seed)} seeds, each series' lowest error per seed: {'; '.join(parts)}."
+    compared = len(names) > 1  # (a winner count of one series would be a comparison with nothing)
+    parts = [f"{k}: " + (f"lowest in {wins[k]} of {len(by_seed)}, " if compared else "")
+             + f"mean {np.mean(per[k]):.3g} ({min(per[k]):.3g}-{max(per[k]):.3g}) over {len(per[k])} seeds"
+             for k in names if per[k]]
+    whose = "each series'" if compared else "its one series'"
+    return f" Over the rows' {len(by_seed)} seeds, {whose} lowest error per seed: {'; '.join(parts)}."
 
 
 def _other_errors(inputs: Inputs) -> str:
