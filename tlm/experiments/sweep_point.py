@@ -113,7 +113,9 @@ def run_point(task: Task) -> dict:
         summary = got.summary
         # (a user's files carried over; the killed writers' leftovers in points/: looked for at this process's first
         # point, the sweep cleans the folder at its start and end)
-        with atomic_folder(Path(task.out), "results.json", POINT_FILES, clean_once=True) as tmp:
+        # (an error folder of the same point that a concurrent sweep's failed try put there meanwhile: replaced)
+        with atomic_folder(Path(task.out), "results.json", POINT_FILES, clean_once=True,
+                           replaces=("error.json",)) as tmp:
             (tmp / "config.resolved.yaml").write_text(config_text(task.config))
             if timing.trace is not None:
                 timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
@@ -306,12 +308,19 @@ def write_error(task: Task, error: dict) -> None:
     and the new folder that replaces it does not carry the file over (:data:`POINT_FILES`). The question and
     the write are one under the folder's lock (:func:`~tlm.storage.write_into`): a concurrent sweep of the same
     point swaps its new folder in before the question or after the write, never between them (no stale
-    ``error.json`` beside the good results it swapped in)."""
+    ``error.json`` beside the good results it swapped in). One it swaps in after a question that found no
+    finished point is asked about again under the lock at the error folder's swap (``atomic_folder``'s
+    ``into``): ``error.json`` goes beside its results, as above (not a refusal in place of the point's error,
+    with the error folder left in ``points/`` as ``<hash>.unsaved-<pid>``)."""
     body = {"hash": task.hash, "factors": task.factors, **error}
     text = storage.json_text(body, indent=2) + "\n"
-    if storage.write_into(Path(task.out), "error.json", text, lambda folder: finished(folder) is not None):
+
+    def keep(folder: Path) -> bool:
+        return finished(folder) is not None
+
+    if storage.write_into(Path(task.out), "error.json", text, keep):
         return
-    with atomic_folder(Path(task.out), "error.json", POINT_FILES, clean_once=True) as tmp:
+    with atomic_folder(Path(task.out), "error.json", POINT_FILES, clean_once=True, into=keep) as tmp:
         (tmp / "config.resolved.yaml").write_text(config_text(task.config))
         (tmp / "error.json").write_text(text)
 
