@@ -129,8 +129,10 @@ def _command(root: Path, path: Path, out: Path) -> tuple[float, float, bool]:
                           env=env, cwd=path.parent, check=False)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if done.returncode != 0:
-        raise SystemExit(f"the sweep with {root}/tlm failed: {done.stderr[-2000:]}")
+    if done.returncode != 0:  # (a failed point says why on stdout, the sweep exits 1: both said)
+        said = "\n".join(text.strip()[-2000:] for text in (done.stdout, done.stderr) if text.strip())
+        raise SystemExit(f"the sweep with {root}/tlm failed (exit status {done.returncode}): "
+                         f"{said or 'it said nothing'}")
     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
     return cpu, wall, done.stdout.split()[-1] == "True"
 

@@ -45,7 +45,8 @@ def kernels_here() -> str:
     no kernel (a sweep whose frames are all cached) records the engine its kernels would run and
     spends no 0.2 - 0.5 s importing numba for it. Where numba was imported or tried already in this
     process, or a kernel asked for the engine, that answer; where the check is not sure (numba
-    missing, another module named numba found first, a dependency out of numba's range), numba's
+    missing, another module named numba found first, a dependency out of numba's range, a file of its
+    wheel missing or no wheel's record of its files: a source tree's), numba's
     import decides, as the kernels' own :func:`~tlm.kernels.engine.engine` does."""
     import sys
 
@@ -64,8 +65,8 @@ def _numba_sound() -> bool:
     would find is the installed distribution's own ``numba/__init__.py`` (no other module named numba
     earlier on the path, which the import would run instead), llvmlite's likewise, and Python, NumPy
     and llvmlite are within the ranges numba's metadata requires (the checks numba's own first lines
-    make, ``numba._ensure_critical_deps``). False where any of that is not so or cannot be told: then
-    the import itself decides (:func:`kernels_here`)."""
+    make, ``numba._ensure_critical_deps``), each one's files whole (:func:`_files_whole`). False where
+    any of that is not so or cannot be told: then the import itself decides (:func:`kernels_here`)."""
     import importlib.metadata as md
     import importlib.util
 
@@ -76,8 +77,11 @@ def _numba_sound() -> bool:
         dist = md.distribution("numba")
         for mod in ("numba", "llvmlite"):
             spec = importlib.util.find_spec(mod)
-            own = md.distribution(mod).locate_file(f"{mod}/__init__.py")
-            if spec is None or spec.origin is None or os.path.realpath(spec.origin) != os.path.realpath(own):
+            own = md.distribution(mod)
+            init = own.locate_file(f"{mod}/__init__.py")
+            if spec is None or spec.origin is None or os.path.realpath(spec.origin) != os.path.realpath(init):
+                return False
+            if not _files_whole(own, mod):  # (a compiled extension deleted: the import fails)
                 return False
         python = dist.metadata.get("Requires-Python")
         if python and not SpecifierSet(python).contains(platform.python_version(), prereleases=True):
@@ -92,6 +96,27 @@ def _numba_sound() -> bool:
         return numpy.__version__ == md.version("numpy")
     except Exception:  # (metadata missing or unreadable, packaging absent: not sure)
         return False
+
+
+def _files_whole(dist, mod: str) -> bool:
+    """Whether every file of package ``mod`` that ``dist``'s ``RECORD`` lists with a size is there, with that
+    size: numba's compiled extensions and llvmlite's shared library among them (one deleted or cut short:
+    the import fails, and the numpy kernels run). False without a ``RECORD`` (a source tree's ``egg-info``,
+    whose extensions may not be built; an installer that writes none): not sure. A library that is there
+    but does not load (a system library it needs missing) is not told."""
+    import csv
+
+    base = os.fspath(dist.locate_file(""))
+    listed = 0
+    try:
+        for row in csv.reader((dist.read_text("RECORD") or "").splitlines()):
+            if len(row) >= 3 and row[0].startswith(f"{mod}/") and row[2]:
+                if os.stat(os.path.join(base, row[0])).st_size != int(row[2]):
+                    return False
+                listed += 1
+    except (OSError, ValueError, csv.Error):  # (a file missing; a size that is not a number)
+        return False
+    return listed > 0
 
 
 def _git(*args: str, cwd: Path) -> str | None:

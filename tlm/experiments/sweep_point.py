@@ -37,6 +37,7 @@ from tlm.experiments.dask_workers import (
 )
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.frames import SUMMARY_KEYS, cached_render
+from tlm.experiments.provenance import kernels_here
 from tlm.experiments.reference_cache import holding
 from tlm.storage import atomic_folder
 
@@ -104,6 +105,8 @@ def run_point(task: Task) -> dict:
             with cache_warnings_held(), holding(dict(task.references)):
                 got = cached_render(cfg, folder, task.source)
             t1 = time.perf_counter()
+            # (the engine the kernels ran, where they did: engine()'s own answer, not numba's metadata's)
+            ran = {**ran, "kernels": kernels_here()}
             stage = "simulate"
             programs = programs_for(cfg, folder)
             timing = simulate(got.functional, programs, cfg.arch)
