@@ -193,7 +193,7 @@ def test_folder_of_folders(folders, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("argv, words", [
-    (["report", "{tmp}/nothing"], "is not a folder"),
+    (["report", "{tmp}/nothing"], "not found"),
     (["report", "{tmp}"], "holds no tlm output"),
     (["report", "{run}", "{gran}"], "--out"),
     (["report", "{gran}", "--out", "{tmp}/occupied"], "not an earlier tlm output"),

@@ -86,8 +86,14 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
     this one waits until the folder is free (the command's own report, of what it just wrote). A
     folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`).
     ``of``: the folder the user gave where ``folder`` is its default report folder (``tlm report DIR``
-    without ``--out``): the refusal names it, not ``--out``, which the user did not give."""
-    storage.check_destination(folder, "report.html")  # (a bad --out said as such, before the claim's file beside it)
+    without ``--out``): the refusal names it, not ``--out``, which the user did not give; a parent that cannot be
+    written is said with ``; give --out``."""
+    try:  # (a bad --out said as such, before the claim's file beside it)
+        storage.check_destination(folder, "report.html")
+    except EnvironmentFailure as e:  # (DIR/report, unwritable: the user may name another, tlm report's own flag)
+        if of is None or wait is not None:
+            raise
+        raise EnvironmentFailure(f"{e}; give --out") from None
     told = False
     with ExitStack() as held:
         while True:

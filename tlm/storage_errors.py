@@ -52,3 +52,14 @@ def _own_file(e: OSError, where: Path) -> bool:
         return False
     made = Path(e.filename)
     return made.parent == where.parent and made.name.startswith(".") and where.name in made.name
+
+
+FULL_DISK = ("no space left on device", "disk quota exceeded")  # (ENOSPC's, EDQUOT's words; numpy's short write's)
+
+
+def says_disk_full(kind: str, message: str) -> bool:
+    """Whether an error of the type named ``kind`` saying ``message`` (a sweep point's record, as its worker
+    wrote it: ``EnvironmentFailure``, ``PATH: cannot write: no space left on device``) is a full disk or quota:
+    :data:`FULL_DISK`'s words, as :func:`~tlm.errors.environment_problem` gives them, in an EnvironmentFailure
+    or a bare OSError. No point after such a one can write its folder either (the sweep stops on it)."""
+    return kind in ("EnvironmentFailure", "OSError") and any(w in str(message).lower() for w in FULL_DISK)

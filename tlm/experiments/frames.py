@@ -250,7 +250,8 @@ def _kept_key(key: tuple) -> tuple[str, list] | None:
 
 def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
     """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` on disk (speed only: a cache
-    that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run)."""
+    that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run). A
+    folder where the file should be is a damaged entry (:func:`_kept_key` read none): removed, the file written."""
     found = _key_file(key) if writable() else None
     if found is None:
         return
@@ -258,6 +259,8 @@ def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
     body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks}
     with suppress(OSError, TypeError, ValueError):
         path.parent.mkdir(parents=True, exist_ok=True)
+        if path.is_dir() and not path.is_symlink():  # (not the whole cache that cannot be written: this entry)
+            remove_entry(path, path.parent)
         with write_atomic(path) as f:
             f.write(json.dumps(body))
 

@@ -33,7 +33,7 @@ already done, and recomputes those whose inputs changed. Output folder::
     sweep.jsonl              one row per point, appended as points finish (a killed sweep
                              keeps them, its last row perhaps cut off); rewritten sorted
                              when the sweep ends, or is stopped (Ctrl-C, SIGTERM, its
-                             cluster lost: the points done, _write_finished)
+                             cluster lost, a point's full disk: the points done, _write_finished)
     sweep.csv                the same rows, one column per field, written then too (a
                              factor's null value as null)
     points/<hash>/           config.resolved.yaml (the arch.trace the point ran with),
@@ -86,7 +86,7 @@ from typing import Any
 
 from tlm import claims, storage
 from tlm.caches import CACHE_WARNING, cache_warnings
-from tlm.errors import InputError, interrupted_by
+from tlm.errors import EnvironmentFailure, InputError, interrupted_by
 from tlm.experiments.executors import (
     DASK_POLL,
     DaskPool,
@@ -126,6 +126,7 @@ from tlm.experiments.sweep_rows import columns, point_row, write_rows
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
 from tlm.storage import check_destination, claim_folder
+from tlm.storage_errors import says_disk_full
 
 
 @dataclass
@@ -554,6 +555,8 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                         continue
                     h = futures.pop(f)
                     record = _record(f, tasks[h])
+                    if record["status"] != "ok" and says_disk_full(record["error"]["type"], record["error"]["message"]):
+                        raise _disk_full(record["error"]["message"], records, by_hash, total, out)
                     if remote:
                         record = _seen_here(record, tasks[h])
                     records[h] = record
@@ -592,6 +595,15 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
         if bar is not None:
             bar.close()
     pool.shutdown(wait=True)
+
+
+def _disk_full(message: str, records: dict[str, dict], by_hash: dict[str, list[Point]], total: int,
+               out: Path) -> EnvironmentFailure:
+    """The line that stops a sweep at its first point whose folder could not be written for a full disk (the
+    next would fail alike): not that point's failure, which runs again, as an interrupted one does."""
+    n_done = sum(len(by_hash[h]) for h, r in records.items() if r["status"] == "ok")
+    return EnvironmentFailure(f"{message}: the sweep stopped with {n_done} of {total} points done, kept in {out}; "
+                              "with room, run it again into that folder to run the others")
 
 
 def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
@@ -658,8 +670,9 @@ def _record(f: cf.Future, task: Task) -> dict:
         error = error_record(e, "worker", "".join(traceback.format_exception(e)))
         if (killed := _killed_worker_line(e)) is not None:
             error["message"] = killed
-        with suppress(OSError, InputError):  # the row still says what happened
-            write_error(task, error)
+        with suppress(OSError, InputError):  # the row still says what happened (a full disk: none, the sweep stops)
+            if not says_disk_full(error["type"], error["message"]):
+                write_error(task, error)
         return {"status": "failed", "error": error}
 
 

@@ -40,6 +40,7 @@ from tlm.experiments.frames import SUMMARY_KEYS, cached_render
 from tlm.experiments.provenance import kernels_here
 from tlm.experiments.reference_cache import holding
 from tlm.storage import atomic_folder
+from tlm.storage_errors import says_disk_full
 
 MARKER = "sweep.yaml"  # marks an output folder as a sweep's
 POINT_FORMAT = "sweep-point/1"  # the "tlm" field of a point's results.json
@@ -156,7 +157,9 @@ def run_point(task: Task) -> dict:
                                                          OtherVersionsOnWorker)):
             # (those say where)
             error["message"] = f"{error['message']} (on {where})"
-        if task.code is None:  # (this machine's worker)
+        if says_disk_full(error["type"], error["message"]):  # (no error.json: the sweep stops on it, the point to run)
+            pass
+        elif task.code is None:  # (this machine's worker)
             write_error(task, error)
         elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
             with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)

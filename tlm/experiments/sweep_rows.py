@@ -20,6 +20,7 @@ import io
 import math
 import re
 from collections.abc import Iterable
+from contextlib import suppress
 from pathlib import Path
 from typing import Any
 
@@ -139,16 +140,25 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
     cells alike (a list or mapping as JSON, a number that is not finite empty, as null), but for
     a factor's null value (a key of ``factors``, or of a :class:`Row`'s own): ``null``
     (:func:`csv_cell`), which an empty cell (a field the row does not have: a failed point's
-    ``fps``) would not tell apart."""
+    ``fps``) would not tell apart.
+
+    Where either write fails (a full disk), ``sweep.csv`` is removed and the error goes on: the CSV there
+    would contradict ``sweep.jsonl``, the rows just written or those a sweep appended since the CSV was
+    (nothing but the JSONL is lost: the CSV is written from its rows)."""
     rows = sorted(rows, key=lambda r: r["point"])
     factors = list(factors)
     named = {*factors, *(k for r in rows for k in getattr(r, "factors", ()))}
-    storage.write_file(out / "sweep.jsonl", "".join(storage.json_text(r) + "\n" for r in rows))
-    with storage.write_atomic(out / "sweep.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=columns(rows, factors))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: csv_cell(v, k in named) for k, v in r.items()})
+    try:
+        storage.write_file(out / "sweep.jsonl", "".join(storage.json_text(r) + "\n" for r in rows))
+        with storage.write_atomic(out / "sweep.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=columns(rows, factors))
+            w.writeheader()
+            for r in rows:
+                w.writerow({k: csv_cell(v, k in named) for k, v in r.items()})
+    except OSError:
+        with suppress(OSError):
+            (out / "sweep.csv").unlink(missing_ok=True)
+        raise
 
 
 def csv_text(rows: Iterable[dict], columns: Iterable[str] = (), values: Iterable[str] = ()) -> str:

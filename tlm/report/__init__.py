@@ -39,12 +39,12 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from tlm.errors import InputError
+from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section, count, current_output, figure_output, forget_names
 from tlm.report.html import esc, page
 from tlm.report.warnings import warnings_html
-from tlm.storage import atomic_folder, distinct_folders
+from tlm.storage import atomic_folder, check_destination, distinct_folders
 
 MARKER = "report.html"
 # subfolders of a report's folder that the report does not draw but keeps when it is
@@ -109,6 +109,19 @@ def default_out(dirs: list[Path]) -> Path:
     if len(dirs) == 1:
         return Path(dirs[0]) / "report"
     raise ValueError("several folders: name the report folder with --out")
+
+
+def check_out(out: Path | None, dirs: list[Path]) -> Path:
+    """The report's folder (``out``; None: ``DIR/report`` of the one folder of ``dirs``), refused as
+    its write refuses it (:func:`~tlm.storage.check_destination`: an InputError, or an EnvironmentFailure
+    where its parent cannot be written, which says ``give --out`` where the folder was the default)."""
+    where = Path(out) if out is not None else default_out(dirs)
+    try:
+        return check_destination(where, MARKER)
+    except EnvironmentFailure as e:
+        if out is not None:
+            raise
+        raise EnvironmentFailure(f"{e}; give --out") from None
 
 
 def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
@@ -189,6 +202,14 @@ def _build_report(dirs: list[Path], out: Path | None, title: str | None, scaling
         return _build_report_steps(dirs, out, title, scaling_sweeps, note, bar)
 
 
+def _found(dirs: list[Path]) -> None:
+    """An InputError naming the first of ``dirs`` that is not there ("not found", not the "is not a
+    folder" of one that is there and is a file)."""
+    for d in dirs:
+        if not Path(d).exists():
+            raise InputError("not found", source=str(d))
+
+
 def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, scaling_sweeps: list[Path] | None,
                         note: Callable[[str], None] | None, bar) -> Path:
     t0 = time.perf_counter()
@@ -202,10 +223,12 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
             if note is not None:
                 note(line)
             else:
-                sys.stderr.write(f"tlm: note: {line}\n")
+                sys.stderr.write(f"tlm: note: {escaped_line(line)}\n")
                 sys.stderr.flush()
 
+    _found([*dirs, *(scaling_sweeps or ())])
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
+    check_out(out, dirs)  # (refused as its write would refuse it, before the inputs are read)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
     for line in [*inputs.notes, *inputs.damaged]:  # (the folders passed over, the damaged files left out, said
