@@ -133,34 +133,56 @@ def singular(m: np.ndarray) -> bool:
     return not abs(det) > 1e-12
 
 
-def singular_message(n: int, mesh) -> str:
-    """The error for a mesh node whose world transform collapses its mesh's triangles."""
-    return (f"nodes[{n}]: its world transform (with its parents') is singular (a zero scale, an all-zero matrix, or "
-            f"scales whose product is 0 in floating point): it collapses meshes[{mesh!r}] to a plane, a line or a "
-            "point")
+def singular_message(n: int, mesh, skin=None) -> str:
+    """The error for a mesh node whose world transform (or, given ``skin``, its skin's joint
+    matrix, which glTF places a skinned mesh by) collapses its mesh's triangles."""
+    what = ("its world transform (with its parents')" if skin is None else
+            f"its skin's joint matrix (skins[{skin!r}]: a joint's world transform times its inverse bind matrix)")
+    return (f"nodes[{n}]: {what} is singular (a zero scale, an all-zero matrix, or scales whose product is 0 in "
+            f"floating point): it collapses meshes[{mesh!r}] to a plane, a line or a point")
 
 
 def _accessor_mat4(header: dict, k, buffer, where: str, src: str) -> np.ndarray:
     """The (count, 4, 4) float matrices of accessor ``k`` (glTF's MAT4 of floats, column major),
-    read through ``buffer(i) -> bytes``; an InputError naming ``where`` for anything else."""
-    acc = (header.get("accessors") or [None] * (k + 1))[k] if isinstance(k, int) and k >= 0 else None
-    views = header.get("bufferViews") or []
+    read through ``buffer(i) -> bytes``; an InputError naming ``where`` for anything else (an
+    index out of range, a byte offset or stride that is no count of bytes, matrices past their
+    buffer view)."""
+    def count(x) -> bool:
+        return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
+    accessors = header.get("accessors") if isinstance(header.get("accessors"), list) else []
+    views = header.get("bufferViews") if isinstance(header.get("bufferViews"), list) else []
+    if not (count(k) and k < len(accessors)):
+        raise InputError(f"{where} = {k!r} names no entry of 'accessors' (it has {len(accessors)})", source=src)
+    acc = accessors[k]
     if not (isinstance(acc, dict) and acc.get("type") == "MAT4" and acc.get("componentType") == 5126
-            and isinstance(acc.get("count"), int) and "sparse" not in acc
-            and isinstance(acc.get("bufferView"), int) and 0 <= acc["bufferView"] < len(views)):
+            and count(acc.get("count")) and "sparse" not in acc
+            and count(acc.get("bufferView")) and acc["bufferView"] < len(views)
+            and isinstance(views[acc["bufferView"]], dict)):
         raise InputError(f"{where} = {k!r} names no MAT4 accessor of floats that tlm reads (one in a buffer view, "
                          "not sparse)", source=src)
-    view = views[acc["bufferView"]]
-    stride = int(view.get("byteStride", 64) or 64)
-    start = int(view.get("byteOffset", 0)) + int(acc.get("byteOffset", 0))
-    data = buffer(int(view.get("buffer", 0)))
-    count = acc["count"]
-    need = start + (stride * (count - 1) + 64 if count else 0)
-    if len(data) < need:
-        raise InputError(f"{where} = {k}: its accessor needs {need:,} bytes of its buffer, which holds "
+    j = acc["bufferView"]
+    view = views[j]
+    stride = view.get("byteStride") or 64  # (left out: tightly packed)
+    for key, x, least in ((f"bufferViews[{j}].byteStride", stride, 64),
+                          (f"bufferViews[{j}].byteOffset", view.get("byteOffset", 0), 0),
+                          (f"accessors[{k}].byteOffset", acc.get("byteOffset", 0), 0)):
+        if not (count(x) and x >= least):
+            raise InputError(f"{where} = {k}: {key} = {x!r} is not a count of bytes"
+                             f"{f' of at least {least} (a MAT4 of floats)' if least else ''}", source=src)
+    n, offset = acc["count"], acc.get("byteOffset", 0)
+    span = stride * (n - 1) + 64 if n else 0
+    length = view.get("byteLength")
+    if count(length) and offset + span > length:
+        raise InputError(f"{where} = {k}: its {n} matrices need {offset + span:,} bytes of bufferViews[{j}], "
+                         f"which holds {length:,}", source=src)
+    start = view.get("byteOffset", 0) + offset
+    data = buffer(view.get("buffer", 0))
+    if len(data) < start + span:
+        raise InputError(f"{where} = {k}: its accessor needs {start + span:,} bytes of its buffer, which holds "
                          f"{len(data):,}", source=src)
-    rows = [np.frombuffer(data, dtype="<f4", count=16, offset=start + i * stride) for i in range(count)]
-    return np.array(rows, dtype=np.float64).reshape(count, 4, 4).transpose(0, 2, 1)
+    rows = [np.frombuffer(data, dtype="<f4", count=16, offset=start + i * stride) for i in range(n)]
+    return np.array(rows, dtype=np.float64).reshape(n, 4, 4).transpose(0, 2, 1)
 
 
 def _parents(nodes: list) -> dict[int, int]:
@@ -176,14 +198,39 @@ def _path(i: int, parents: dict[int, int]) -> tuple[int, ...]:
     return tuple(reversed(path))
 
 
-def _skin_matrix(header: dict, nodes: list, n: int, buffer, src: str) -> np.ndarray | None:
+def _joint_world(j: int, nodes: list, parents: dict[int, int], worlds: dict[int, np.ndarray],
+                 src: str) -> np.ndarray:
+    """:func:`_world` of node ``j`` by its parents (the same products, in the same order), each
+    node's kept in ``worlds``: a rig's joints share their parents' (no time quadratic in its depth)."""
+    path = _path(j, parents)
+    done = len(path)
+    while done and path[done - 1] not in worlds:
+        done -= 1
+    m = worlds[path[done - 1]] if done else np.eye(4)
+    for i in path[done:]:
+        m = m @ _node_matrix(nodes[i] if isinstance(nodes[i], dict) else {}, i, src)
+        worlds[i] = m
+    if not np.isfinite(m).all():
+        raise InputError(f"nodes[{j}]: its world transform (with its parents') is not finite", source=src)
+    return m
+
+
+def _skin_matrix(header: dict, nodes: list, n: int, buffer, src: str,
+                 memo: dict | None = None) -> np.ndarray | None:
     """The one matrix every joint of node ``n``'s skin gives its vertices (each joint's world
     transform times its inverse bind matrix: glTF's joint matrix), None where they differ (a
-    posed skin, whose vertices need blending by their weights)."""
+    posed skin, whose vertices need blending by their weights). ``memo`` keeps each skin's
+    (and each node's world transform) for the other nodes of one file."""
+    memo = {} if memo is None else memo
     skins = header.get("skins") if isinstance(header.get("skins"), list) else []
     k = nodes[n].get("skin")
-    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(skins) or not isinstance(skins[k], dict):
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(skins):
         raise InputError(f"nodes[{n}].skin = {k!r} names no entry of 'skins' (it has {len(skins)})", source=src)
+    if not isinstance(skins[k], dict):
+        raise InputError(f"skins[{k}]: {skins[k]!r} is not an object (a skin: its joints and inverse bind matrices)",
+                         source=src)
+    if ("skin", k) in memo:  # (a skin that skins several nodes)
+        return memo[("skin", k)]
     joints = skins[k].get("joints")
     if not (isinstance(joints, list) and joints and all(isinstance(j, int) and not isinstance(j, bool)
                                                         and 0 <= j < len(nodes) for j in joints)):
@@ -196,21 +243,25 @@ def _skin_matrix(header: dict, nodes: list, n: int, buffer, src: str) -> np.ndar
                              source=src)
     else:
         inverse = np.repeat(np.eye(4)[None], len(joints), axis=0)
-    parents = _parents(nodes)
-    got = [_world(_path(j, parents), nodes, src) @ inverse[i] for i, j in enumerate(joints)]
+    if "parents" not in memo:
+        memo["parents"] = _parents(nodes)
+    worlds = memo.setdefault("worlds", {})
+    got = [_joint_world(j, nodes, memo["parents"], worlds, src) @ inverse[i] for i, j in enumerate(joints)]
     if not np.isfinite(got).all():
         raise InputError(f"skins[{k}]: a joint's matrix (its world transform times its inverse bind matrix) is not "
                          "finite", source=src)
     scale = max(float(np.abs(got[0]).max()), 1e-300)
-    if all(np.abs(g - got[0]).max() <= 1e-6 * scale for g in got[1:]):  # (float32 inverse bind matrices)
-        return got[0]
-    return None
+    rigid = all(np.abs(g - got[0]).max() <= 1e-6 * scale for g in got[1:])  # (float32 inverse bind matrices)
+    memo[("skin", k)] = got[0] if rigid else None
+    return memo[("skin", k)]
 
 
-def check_mesh_nodes(header: dict, src: str, buffer=None) -> tuple[dict[int, np.ndarray], tuple[str, ...]]:
+def check_mesh_nodes(header: dict, src: str,
+                     buffer=None) -> tuple[dict[int, np.ndarray], frozenset[int], tuple[str, ...]]:
     """The mesh nodes of the glTF's scene whose world transform tlm sets itself (a node's
     world transform is its local transform composed with its parents'), each with the 4x4
-    transform its mesh gets, and a line on each skin tlm does not pose:
+    transform its mesh gets; those of them placed by their skin's joint matrix; and a line on
+    each skin tlm does not pose:
 
     * a node whose world transform is singular (a zero scale, an all-zero ``matrix``; a small
       but non-zero scale is not): its world transform, kept where its mesh is flat and the
@@ -226,17 +277,20 @@ def check_mesh_nodes(header: dict, src: str, buffer=None) -> tuple[dict[int, np.
     reaches twice (a cycle) is an error."""
     nodes = header.get("nodes") if isinstance(header.get("nodes"), list) else []
     if not any(isinstance(node, dict) and "mesh" in node for node in nodes):
-        return {}, ()
+        return {}, frozenset(), ()
     paths = _scene_walk(header, nodes, src)
     out: dict[int, np.ndarray] = {}
     posed: list[str] = []
+    skinned: set[int] = set()
+    memo: dict = {}  # (each skin's matrix, and the world transforms of its joints, worked out once)
     for n in sorted(paths):
         if not (isinstance(nodes[n], dict) and "mesh" in nodes[n]):
             continue
         if "skin" in nodes[n] and buffer is not None:
-            rigid = _skin_matrix(header, nodes, n, buffer, src)
+            rigid = _skin_matrix(header, nodes, n, buffer, src, memo)
             if rigid is not None:
                 out[n] = rigid
+                skinned.add(n)
                 continue
             posed.append(f"nodes[{n}] (skins[{nodes[n]['skin']}])")
         m = _world(paths[n], nodes, src)
@@ -247,7 +301,7 @@ def check_mesh_nodes(header: dict, src: str, buffer=None) -> tuple[dict[int, np.
         notes = (f"{src}: its skinned mesh{'es' if len(posed) > 1 else ''} {_listed(posed)} "
                  f"{'are' if len(posed) > 1 else 'is'} not posed (the joints' matrices differ: tlm does not blend a "
                  "skin's joints by their weights); placed by the node's world transform, unposed",)
-    return out, notes
+    return out, frozenset(skinned), notes
 
 
 def _entries(table, where: str, src: str) -> list[dict]:

@@ -64,8 +64,14 @@ def buffer_reader(header: dict, path: Path, binary: bytes | None, src: str):
     from urllib.parse import unquote
 
     buffers = header.get("buffers") if isinstance(header.get("buffers"), list) else []
+    got: dict[int, bytes] = {}  # (each buffer read once: a skin's matrices are read for every node it skins)
 
     def read(i: int) -> bytes:
+        if i not in got:
+            got[i] = _read(i)
+        return got[i]
+
+    def _read(i: int) -> bytes:
         b = buffers[i] if 0 <= i < len(buffers) and isinstance(buffers[i], dict) else None
         uri = None if b is None else b.get("uri")
         if b is not None and uri is None and binary is not None and i == 0:

@@ -397,6 +397,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     header: dict | None = None  # (a glTF's JSON)
     imported: Imported | None = None  # (a glTF's lights and camera)
     placed: dict[int, np.ndarray] = {}  # (a glTF's mesh nodes whose transform tlm sets: check_mesh_nodes)
+    skinned: frozenset[int] = frozenset()  # (those of them placed by their skin's joint matrix)
     notes: tuple[str, ...] = ()
     source: object = str(path)
     kwargs: dict = {}
@@ -419,7 +420,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             binary = _glb_binary(data, ext, src)
             notes += check_gltf_buffers(header, gltf_buffer_sizes(header, path, binary, src), src)
             notes += glb_length_notes(data, src) if ext == ".glb" else ()
-            placed, posed = check_mesh_nodes(header, src, _buffer_reader(header, path, binary, src))
+            placed, skinned, posed = check_mesh_nodes(header, src, _buffer_reader(header, path, binary, src))
             notes += posed
             if buffers is not None:  # (read from the JSON with the buffers' file names decoded)
                 header = {**header, "buffers": buffers}
@@ -490,8 +491,11 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         tri = [np.asarray(geom.vertices, dtype=np.float64)[np.asarray(geom.faces)] for _, geom, _, node in items
                if node == n and isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
                and np.min(geom.faces) >= 0 and np.max(geom.faces) < len(geom.vertices)]  # (else: _check_mesh)
-        if tri and not _keeps_triangles(np.concatenate(tri), placed[n][:3, :3]):
-            raise InputError(singular_message(n, header["nodes"][n].get("mesh")), source=src)
+        judged = np.concatenate(tri) if tri else None
+        # (a NaN or infinite corner is not judged here: _check_mesh names its vertex below)
+        if judged is not None and np.isfinite(judged).all() and not _keeps_triangles(judged, placed[n][:3, :3]):
+            raise InputError(singular_message(n, header["nodes"][n].get("mesh"),
+                                              header["nodes"][n].get("skin") if n in skinned else None), source=src)
 
     if ext == ".ply":
         from tlm.scenes import plyfile
