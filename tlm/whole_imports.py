@@ -46,6 +46,7 @@ one process in two of 150; the likely cause of a clean-clone CI run's exit statu
 from __future__ import annotations
 
 import _thread
+import contextlib
 import functools
 import os
 import signal
@@ -237,22 +238,89 @@ def _running_imports() -> set[str]:
     return names
 
 
+def _handlers_codes() -> set[Any]:
+    """The code of each Python signal handler installed now (and :class:`HeldInterrupt`'s)."""
+    codes = {HeldInterrupt.__call__.__code__}
+    for signum in signal.valid_signals() if hasattr(signal, "valid_signals") else HELD:
+        handler = signal.getsignal(signum)
+        code = getattr(getattr(handler, "__func__", handler), "__code__", None)
+        if code is not None:
+            codes.add(code)
+    return codes
+
+
+def _chain(failed: BaseException) -> list[BaseException]:
+    """``failed`` and the exceptions it came from (its cause, its context), each once."""
+    found: list[BaseException] = []
+    todo: list[BaseException | None] = [failed]
+    while todo:
+        e = todo.pop()
+        if e is not None and all(e is not f for f in found):
+            found.append(e)
+            todo += [e.__cause__, e.__context__]
+    return found
+
+
+def _frames(failed: BaseException) -> list[Any]:
+    """The frames the tracebacks of ``failed`` and of the exceptions it came from pass through."""
+    frames = []
+    for e in _chain(failed):
+        tb = e.__traceback__
+        while tb is not None:
+            frames.append(tb.tb_frame)
+            tb = tb.tb_next
+    return frames
+
+
+def _cut_imports(frames: list[Any]) -> set[str]:
+    """The modules whose import an exception cut short on its way out of ``frames`` (its traceback's):
+    those whose own code (``<module>``) or whose import by importlib's code it passed through. Empty
+    where it came from no import (a Ctrl-C during a render)."""
+    names = set()
+    for frame in frames:
+        code = frame.f_code
+        if code.co_name == "<module>":
+            names.add(frame.f_globals.get("__name__"))
+        elif code.co_filename in _IMPORT_FILES or code.co_filename.endswith(_IMPORT_SOURCES):
+            local = frame.f_locals
+            names.add(local.get("name") if isinstance(local.get("name"), str)
+                      else getattr(local.get("spec"), "name", None))
+    return {name for name in names if isinstance(name, str)}
+
+
+def _interrupt(failed: BaseException, frames: list[Any]) -> bool:
+    """Whether ``failed`` ends a call as an interrupt: not an Exception (KeyboardInterrupt, SystemExit,
+    another thread's asynchronous exception), or one a signal's handler raised (its frame in ``frames``).
+    An Exception of the call's own code (an ImportError: an import that fails of itself) is none."""
+    if not isinstance(failed, Exception):
+        return True
+    codes = _handlers_codes()
+    return any(frame.f_code in codes for frame in frames)
+
+
 class _Imports:
-    """What the imports of an API call left (the outermost of its thread): the packages an exception
+    """What the imports of an API call left (the outermost of its thread): the packages an interrupt
     cut off half imported, whatever raised it (a signal tlm does not hold, another thread's
     asynchronous exception), noted for :func:`check_imports`, as :class:`HeldInterrupt` notes those of
-    a second signal that went through. Before the call, only the names of ``sys.modules`` (a copy:
-    the rest is worked out if the call fails)."""
-
-    def __init__(self) -> None:
-        self.names = set(sys.modules)
+    a second signal that went through. Nothing is kept before the call (no copy of ``sys.modules``:
+    a call costs nothing more); what an interrupt cut is told by its traceback (:func:`_cut_imports`):
+    the modules without their package in the packages it cut, and the modules left half run. A package
+    that an import which failed of itself left half imported (an ImportError tlm caught: numba's, where
+    it runs on numpy) is not said for a Ctrl-C that ends a later render."""
 
     def note(self, failed: BaseException) -> None:
+        frames = _frames(failed)
+        if not _interrupt(failed, frames):
+            return
+        cut = _cut_imports(frames)
+        if not cut:  # (it cut no import: a render's, a callback's)
+            return
         cause = type(failed).__name__
-        before = {n for n in self.names if "." in n and n.rpartition(".")[0] not in self.names}  # (its orphans)
-        for name in _orphans() - before:
-            _LEFT_HALF.setdefault(name, cause)
-        for name in _initializing() - self.names - _running_imports():  # (not another thread's import)
+        packages = {name.partition(".")[0] for name in cut}
+        for name in _orphans():
+            if name.partition(".")[0] in packages:
+                _LEFT_HALF.setdefault(name, cause)
+        for name in _initializing() - _running_imports():  # (not another thread's import, nor this one's caller)
             _HALF_RUN.setdefault(name, (sys.modules.get(name), cause))
 
 
@@ -312,8 +380,8 @@ def imports_whole(function: Callable) -> Callable:
         try:
             return held_call(*args, **kwargs)
         except BaseException as e:
-            if not isinstance(e, Exception):  # (an interrupt's: KeyboardInterrupt, SystemExit; an import that
-                imports.note(e)  # fails of itself, an ImportError, leaves its own package broken, not tlm's calls)
+            with contextlib.suppress(Exception):  # (never in place of the call's own exception)
+                imports.note(e)  # (an interrupt's that cut an import: KeyboardInterrupt, SystemExit, a handler's raise)
             raise
         finally:
             _CALLS.open = False

@@ -170,8 +170,12 @@ def _damage_safe(load):
     ``EOFError``, ``ValueError``, ``OSError`` reading it, ...): a warning naming the file,
     the function's index and data files removed (:func:`_drop_damaged`), and None, so that
     numba compiles it again and writes a new entry. Other files' entries: numba's own load.
-    An error where the files' bytes read whole (:func:`_bytes_whole`: a numba left half imported,
-    ``module 'numba' has no attribute 'core'``, as its data is unpickled) is raised, no file removed."""
+    An error of a numba left half imported (:func:`_half_imported`: ``module 'numba' has no attribute
+    'core'``, as its contexts are refreshed or its data unpickled) where the files' bytes read whole
+    (:func:`_bytes_whole`), and one a signal's handler raised during the load (:func:`_raised_by_handler`:
+    a timeout's, an interrupt's), are raised, no file removed; any other error (``LLVM bitcode parsing
+    error``: a file's bytes zeroed inside the compiled code it holds, which its pickle reads whole) is the
+    files'."""
 
     @functools.wraps(load)
     def load_overload(self, sig, target_context):
@@ -181,13 +185,54 @@ def _damage_safe(load):
             locator = getattr(getattr(self, "_impl", None), "locator", None)
             if not isinstance(locator, _PackageStamp) or getattr(self, "_cache_file", None) is None:
                 raise
-            if _bytes_whole(self._cache_file):  # (not the files': a half-imported numba, a failed rebuild)
-                raise
+            if _raised_by_handler(e) or (_half_imported(e) and _bytes_whole(self._cache_file)):
+                raise  # (not the files': an interrupt, a timeout's raise; a half-imported numba)
             _drop_damaged(self, sig, target_context, e)
             return None
 
     load_overload._tlm_damage = True  # type: ignore[attr-defined]
     return load_overload
+
+
+def _half_imported(error: Exception) -> bool:
+    """Whether ``error`` is what a package left half imported raises, not a file's damage: a submodule
+    imported (in ``sys.modules``) that its package lacks (``module 'numba' has no attribute 'core'``),
+    or a module still being imported (``partially initialized module``)."""
+    import re
+    import sys
+
+    if isinstance(error, ImportError):
+        return "partially initialized module" in str(error)
+    if not isinstance(error, AttributeError):
+        return False
+    obj, name = getattr(error, "obj", None), getattr(error, "name", None)
+    if not (inspect.ismodule(obj) and isinstance(name, str)):  # (said by its message only: before Python 3.10)
+        found = re.search(r"module '([\w.]+)' has no attribute '(\w+)'", str(error))
+        if not found:
+            return False
+        obj, name = sys.modules.get(found.group(1)), found.group(2)
+    return obj is not None and not hasattr(obj, name) and f"{obj.__name__}.{name}" in sys.modules
+
+
+def _raised_by_handler(error: Exception) -> bool:
+    """Whether a Python signal handler installed now (or one that tlm's held handler of an API call passes
+    a signal to: its ``before``) raised ``error``: its code among the frames of ``error``'s traceback."""
+    import signal
+
+    codes = set()
+    for signum in signal.valid_signals():
+        handler = signal.getsignal(signum)
+        before = getattr(handler, "before", None)
+        for h in (handler, *(before.values() if isinstance(before, dict) else ())):
+            code = getattr(getattr(h, "__func__", h), "__code__", None)
+            if code is not None:
+                codes.add(code)
+    tb = error.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code in codes:
+            return True
+        tb = tb.tb_next
+    return False
 
 
 class _Stub:
