@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from tlm.api_common import argument_names, checked, flags_are_kept
+from tlm.api_common import argument_names, checked, existing_folder, flags_are_kept
 from tlm.api_common import shown as _shown
 from tlm.api_studies import expanded
 from tlm.config import plain, read_yaml
@@ -72,6 +72,7 @@ def load_scene(scene: str | Path, *, base: str | Path | None = None, resolution:
     if base is not None and not isinstance(base, (str, os.PathLike)):
         raise InputError(f"{_shown(base)} is not a folder's path (None: the working folder)", key="base")
     scene, base = expanded(scene, "scene"), expanded(base, "base")  # (~: the home folder, as every path argument's)
+    existing_folder(base, "base")  # (as load_config: a relative scene path looked for nowhere is not "not found")
     folder = Path(base) if base is not None else Path.cwd()
     # a scene not found is named as given (as 'tlm run NAME' names its NAME), a bad resolution as this call's;
     # (a numpy array or a tuple reads as the list it holds, as in load_config)

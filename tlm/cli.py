@@ -147,9 +147,13 @@ def _experiment_arg(args: argparse.Namespace) -> None:
     if getattr(args, "cmd", None) not in EXPERIMENT_ARGS:
         return
     path = api.experiment_path(args.config, args.cmd)
-    if str(path) != args.config:
-        say_err(f"{path_shown(args.config)}: the built-in experiment {path_shown(path)}")
-        args.config = str(path)
+    if path == Path(args.config):  # (the path given, as given: dd/ and ./dd are no built-in experiment's)
+        if path.is_dir():  # (said once, as such: not read as a file, which says it cannot)
+            raise InputError("is a folder, not a config file: name a YAML file, or a built-in experiment "
+                             "('tlm config list')", source=args.config)
+        return
+    say_err(f"{path_shown(args.config)}: the built-in experiment {path_shown(path)}")
+    args.config = str(path)
 
 
 def _cmd_config(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ import dataclasses
 import hashlib
 import math
 import os
+import stat
 import types
 import typing
 from dataclasses import dataclass, field
@@ -470,18 +471,41 @@ def read_yaml(path: Path) -> Any:
     return data
 
 
+# the most a text file tlm reads whole (a config, a scene file, a sweep or a table) may hold: more is no such file
+# (``/dev/zero``, a mesh or an image named in its place), refused before it is read, not read until memory runs out
+MAX_TEXT_BYTES = 64 * 2**20
+
+
 def read_text(path: Path) -> str:
     """A UTF-8 text file's text, as :func:`read_yaml` reads it; a missing or unreadable file
-    is an InputError naming it."""
+    is an InputError naming it, and so is a folder, a device (``/dev/zero``: no file ends it) and
+    a file of more than :data:`MAX_TEXT_BYTES` (a pipe's text read no further than that)."""
     try:
-        return Path(path).read_text(encoding="utf-8")
+        with open(path, "rb") as f:  # (a folder: IsADirectoryError, below)
+            mode = os.fstat(f.fileno())
+            if stat.S_ISCHR(mode.st_mode) or stat.S_ISBLK(mode.st_mode):
+                raise InputError("is a device, not a file to read: name a YAML file", source=str(path))
+            if mode.st_size > MAX_TEXT_BYTES:
+                raise InputError(_too_large(f"{mode.st_size / 2**20:,.0f} MiB, at most"), source=str(path))
+            data = f.read(MAX_TEXT_BYTES + 1)  # (a pipe's size is not known: read no more than the most it may be)
+        if len(data) > MAX_TEXT_BYTES:
+            raise InputError(_too_large("more than"), source=str(path))
+        # (as Path.read_text gives it: universal newlines, a byte offset in the whole file where it is no UTF-8)
+        return data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
         raise InputError("file not found", source=str(path)) from None
+    except IsADirectoryError:
+        raise InputError("is a folder, not a file: name a YAML file", source=str(path)) from None
     except UnicodeDecodeError as e:
         raise InputError(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
                          source=str(path)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
+
+
+def _too_large(size: str) -> str:
+    return (f"is too large to be a YAML file tlm reads ({size} {MAX_TEXT_BYTES // 2**20} MiB): a mesh is "
+            "named in a scene file's geometry (docs/scenes.md)")
 
 
 def text_digest(text: str) -> str:

@@ -117,6 +117,20 @@ _Loader.add_implicit_resolver(
 )
 
 
+class _CheckedSafeLoader(yaml.SafeLoader):
+    """PyYAML's SafeLoader (YAML 1.1, as ``yaml.safe_load``) with :func:`refuse_expansion`'s check."""
+
+    def compose_document(self):
+        return refuse_expansion(super().compose_document())
+
+
+def safe_load(text: str) -> Any:
+    """``yaml.safe_load(text)``, but an :class:`ExpansionError` (a ``yaml.YAMLError``) where its aliases
+    expand it past :data:`MAX_EXPANDED` values: for a file tlm wrote (a point's ``config.resolved.yaml``, a
+    sweep's ``sweep.yaml``) that a damaged or hostile copy could make a few hundred bytes long and endless."""
+    return yaml.load(text, Loader=_CheckedSafeLoader)
+
+
 def parse_yaml(text: str) -> Any:
     """YAML text to data, with YAML 1.2 floats."""
     return yaml.load(text, Loader=_Loader)

@@ -67,10 +67,13 @@ from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  #
 from tlm.storage_lock import _host, folder_lock
 
 
-def check_destination(out: Path, marker: str, key: str = "--out", also: Collection[str] = ()) -> Path:
+def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", also: Collection[str] = ()) -> Path:
     """The resolved destination, or an InputError saying why it may not be written
     (an EnvironmentFailure when its parent folder cannot be written). ``also``: other files that mark an
-    earlier output it may replace (a sweep point's ``error.json``, beside ``results.json``)."""
+    earlier output it may replace (a sweep point's ``error.json``, beside ``results.json``). An empty
+    path is named as given (``''``), not as the ``'.'`` it becomes."""
+    if os.fspath(out) in ("", b""):
+        raise InputError("'' is the current folder (an empty path); name a new folder", key=key)
     out = Path(out)
     resolved = out.resolve()
     cwd = Path.cwd().resolve()

@@ -65,6 +65,7 @@ from pathlib import Path
 
 import yaml
 
+from tlm.config_words import safe_load  # (yaml.safe_load, its aliases bounded)
 from tlm.errors import InputError, values_text
 from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.study import run_study
@@ -102,7 +103,7 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
     if not rows_path.is_file():
         raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
     try:
-        spec = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+        spec = safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
     except (OSError, ValueError, yaml.YAMLError):
         spec = {}
     points = [p for p in (spec.get("points") if isinstance(spec, dict) else None) or [] if isinstance(p, dict)]
@@ -126,7 +127,7 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
         folder = sweep_dir / "points" / str(row.get("hash"))
         try:
             res = json.loads((folder / "results.json").read_text())
-            cfg = yaml.safe_load((folder / "config.resolved.yaml").read_text())
+            cfg = safe_load((folder / "config.resolved.yaml").read_text())
         except FileNotFoundError as e:
             raise InputError(f"point {row.get('point')}: {e.filename} is missing (rerun 'tlm sweep' into this "
                              "folder to compute the point again)", source=str(rows_path), key=f"line {n}") from None
@@ -627,7 +628,7 @@ def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:
     each sorted. A ``sweep.jsonl`` that is not JSON is an InputError."""
     sweep_dir = Path(sweep_dir)
     try:
-        spec = yaml.safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+        spec = safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
     except (OSError, ValueError, yaml.YAMLError):
         spec = {}
     points = (spec.get("points") if isinstance(spec, dict) else None) or []

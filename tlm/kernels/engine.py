@@ -32,8 +32,17 @@ def engine() -> str:
 
 @functools.cache
 def numba_available() -> bool:
+    """Whether numba imports: False where it is not installed (the kernels run on numpy, said by
+    nothing: numba is optional), and where it is but cannot load (an ``OSError``: llvmlite's shared
+    library missing or of another machine), which one warning names, with its cause."""
     try:
         import numba  # noqa: F401
     except ImportError:
+        return False
+    except OSError as e:  # (numba installed, its compiler's library not loadable: numpy's kernels, said once)
+        from tlm.storage import warn
+
+        warn(f"numba is installed but cannot load ({type(e).__name__}: {e}): the kernels run on numpy (the same "
+             "results, slower; TLM_KERNELS=numpy says so without numba)")
         return False
     return True

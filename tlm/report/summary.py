@@ -472,8 +472,10 @@ def _base_seed(folder: Path | None) -> str:
     that cannot be read: a seed of its own)."""
     import yaml
 
+    from tlm.config_words import safe_load
+
     try:
-        seed = (yaml.safe_load((Path(folder) / "config.resolved.yaml").read_text()) or {}).get("seed")
+        seed = (safe_load((Path(folder) / "config.resolved.yaml").read_text()) or {}).get("seed")
     except (OSError, TypeError, AttributeError, yaml.YAMLError):
         seed = None
     return str(seed) if seed is not None else f"the base of {getattr(folder, 'name', '?')}"

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tlm.config_words import safe_load
 from tlm.experiments.error_cost_truth import truth_noise_words
 from tlm.report.collect import Inputs, Study, with_set
 from tlm.report.common import (
@@ -353,7 +354,7 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
 def _gran_label(study: Study, name: str) -> str:
     cfg = study.path / "config.resolved.yaml"
     try:
-        c = yaml.safe_load(cfg.read_text()) if cfg.is_file() else None
+        c = safe_load(cfg.read_text()) if cfg.is_file() else None  # (aliases bounded: config_words.safe_load)
     except (OSError, yaml.YAMLError):
         c = None
     if isinstance(c, dict) and c.get("scene"):
