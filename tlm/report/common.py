@@ -139,18 +139,25 @@ LOG_LABEL_GAP = 0.5  # the room :func:`log_ticks` leaves between two labels, in 
 
 def log_labels(ticks) -> list[str]:
     """The labels of a log axis's major ``ticks`` (:func:`log_ticks`): decimals where every tick is from
-    0.001 to 10^5 (``0.15``, ``2000``), else mathtext powers of ten (``10^{-4}``, ``2×10^{6}``)."""
+    0.001 to 10^5 (``0.15``, ``2000``), else mathtext powers of ten (``10^{-4}``, ``2×10^{6}``); each with
+    the fewest significant digits (up to 12) that read back as its own tick (``0.2500001``, not ``0.25``
+    five times over; ``1.000025×10^{6}``, not ``1.00002×10^{6}``)."""
     values = [float(v) for v in ticks]
-    if all(1e-3 <= v < 1e5 for v in values):
-        return [f"{v:.6g}" for v in values]
+    decimal = all(1e-3 <= v < 1e5 for v in values)
     out = []
     for v in values:
-        if not v > 0:
+        if not (v > 0 and math.isfinite(v)):
             out.append(f"{v:g}")
             continue
-        e = math.floor(math.log10(v) + 1e-9)
-        m = float(f"{v / 10.0**e:.6g}")
-        out.append(r"$\mathdefault{" + ("" if m == 1 else f"{m:g}\\times") + f"10^{{{e}}}" + "}$")
+        # (decimals: 'g' from 6 digits, which strips trailing zeros and puts no exponent below 10^5)
+        texts = (f"{v:.{d}g}" for d in range(6, 13)) if decimal else (f"{v:.{d - 1}e}" for d in range(1, 13))
+        text = next((t for t in texts if float(t) == v), f"{v:.12g}" if decimal else f"{v:.11e}")
+        if decimal:
+            out.append(text)
+            continue
+        mantissa, e = text.split("e")
+        mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+        out.append(r"$\mathdefault{" + ("" if mantissa == "1" else f"{mantissa}\\times") + f"10^{{{int(e)}}}" + "}$")
     return out
 
 
@@ -166,14 +173,19 @@ def _log_candidates(lo: float, hi: float) -> list[list[float]]:
     def inside(values) -> list[float]:
         return sorted({float(v) for v in values if span[0] <= v <= span[1]})
 
-    e0, e1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+    # (10.0**309 overflows: no tick above the largest power of ten a float holds)
+    e0, e1 = math.floor(math.log10(lo)), min(math.ceil(math.log10(hi)), 308)
     out = []
     for stride in (1, 2, 3, 4, 5, 10, 20, 50, 100):
         out.append(inside(10.0**e for e in range(e0, e1 + 1) if e % stride == 0))
     out.append(inside(float(f"{m * 10.0**e:.12g}") for e in range(e0, e1 + 1) for m in (1, 2, 5)))
     for bins in range(LOG_TICKS_MAX - 1, 0, -1):
-        ticks = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
-        out.append(inside(float(f"{t:.12g}") for t in ticks if t > 0))
+        try:  # (a range near the largest float has no linear step: its arange fails)
+            with np.errstate(all="ignore"):
+                ticks = MaxNLocator(nbins=bins, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+        except (ValueError, OverflowError):
+            continue
+        out.append(inside(float(f"{t:.12g}") for t in ticks if t > 0 and math.isfinite(t)))
     out.append(inside(float(f"{m * 10.0**e:.12g}") for e in range(e0, e1 + 1) for m in range(1, 10)))
     return [t for t in out if 0 < len(t) <= LOG_TICKS_MAX]
 
@@ -182,11 +194,14 @@ class LogTicks(LogLocator):
     """The major ticks of a log axis (:func:`log_ticks`), chosen at each draw for the axis's length
     then: the first of :func:`_log_candidates` whose labels (:func:`log_labels`, measured in the tick
     labels' font) leave :data:`LOG_LABEL_GAP` between each two with three ticks or more, else with two,
-    else one that fits; the sparsest where none does."""
+    else one that fits; where none does (an axis too short for two labels of any set), one tick: the sparsest
+    set's nearest the middle. The choice is remembered for the axis's range, length and font (matplotlib asks
+    for the ticks dozens of times a draw)."""
 
     def __init__(self, axis: str = "x"):
         super().__init__(base=10.0)
         self.which = axis
+        self._last: tuple | None = None  # ((range, length, font), ticks) of the latest choice
 
     def __call__(self):
         lo, hi = self.axis.get_view_interval()
@@ -196,20 +211,37 @@ class LogTicks(LogLocator):
         lo, hi = sorted((float(vmin), float(vmax)))
         if not (lo > 0 and math.isfinite(hi)) or lo == hi:
             return super().tick_values(vmin, vmax)
+        room = self._room()
+        key = (lo, hi, room[0], hash(room[1])) if room is not None else None
+        if key is not None and self._last is not None and self._last[0] == key:
+            return self._last[1].copy()
         sets = _log_candidates(lo, hi)
-        fits = [t for t in sets if self._fits(t, lo, hi)]
+        fits = [t for t in sets if self._fits(t, lo, hi, room)]
+        chosen = None
         for need in (3, 2, 1):
             chosen = next((t for t in fits if len(t) >= need), None)
             if chosen is not None:
-                return np.asarray(chosen)
-        return np.asarray(min(sets, key=len) if sets else [])
+                break
+        if chosen is None and sets:  # (no set's labels fit: the one tick of the sparsest set nearest the middle)
+            middle = math.sqrt(lo) * math.sqrt(hi)
+            chosen = [min(min(sets, key=len), key=lambda t: abs(math.log(t / middle)))]
+        ticks = np.asarray(chosen if chosen is not None else [], dtype=float)
+        if key is not None:
+            self._last = (key, ticks.copy())
+        return ticks
 
-    def _fits(self, ticks: list[float], lo: float, hi: float) -> bool:
-        if len(ticks) < 2 or self.axis is None:
-            return True
+    def _room(self):
+        """The axis's length (points) and its tick labels' font, or None for a locator on no axis."""
+        if self.axis is None or self.axis.axes is None:
+            return None
         prop = self.axis.majorTicks[0].label1.get_fontproperties()
         box = self.axis.axes.bbox
-        length = (box.width if self.which == "x" else box.height) * 72.0 / self.axis.figure.dpi  # (points)
+        return (box.width if self.which == "x" else box.height) * 72.0 / self.axis.figure.dpi, prop
+
+    def _fits(self, ticks: list[float], lo: float, hi: float, room=None) -> bool:
+        if len(ticks) < 2 or room is None:
+            return True
+        length, prop = room
         sizes = [_text_size(text, prop)[0 if self.which == "x" else 1] for text in log_labels(ticks)]
         at = [length * math.log(t / lo) / math.log(hi / lo) for t in ticks]
         gap = LOG_LABEL_GAP * prop.get_size_in_points()
