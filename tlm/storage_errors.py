@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, environment_problem, path_shown
@@ -55,11 +56,21 @@ def _own_file(e: OSError, where: Path) -> bool:
 
 
 FULL_DISK = ("no space left on device", "disk quota exceeded")  # (ENOSPC's, EDQUOT's words; numpy's short write's)
+# the words as a line ends with them (``: WORDS``, ``(WORDS)``, numpy's ``WORDS?``), a worker's `` (on ...)`` aside;
+# a bare OSError's by its errno (``[Errno 28] No space left on device: 'PATH'``): never a path's words
+_FULL_AT_END = re.compile(rf"(?:^|: |\()(?:{'|'.join(FULL_DISK)})[)?]?$")
+_FULL_ERRNOS = "|".join(str(getattr(errno, n)) for n in ("ENOSPC", "EDQUOT") if hasattr(errno, n))
+_FULL_ERRNO = re.compile(rf"\[errno (?:{_FULL_ERRNOS})\]")
 
 
 def says_disk_full(kind: str, message: str) -> bool:
     """Whether an error of the type named ``kind`` saying ``message`` (a sweep point's record, as its worker
     wrote it: ``EnvironmentFailure``, ``PATH: cannot write: no space left on device``) is a full disk or quota:
-    :data:`FULL_DISK`'s words, as :func:`~tlm.errors.environment_problem` gives them, in an EnvironmentFailure
-    or a bare OSError. No point after such a one can write its folder either (the sweep stops on it)."""
-    return kind in ("EnvironmentFailure", "OSError") and any(w in str(message).lower() for w in FULL_DISK)
+    :data:`FULL_DISK`'s words, as :func:`~tlm.errors.environment_problem` gives them, ending an
+    EnvironmentFailure's line, or a bare OSError's errno. A path that holds the words (an output folder named
+    ``no space left on device``, its point's ``file too large``) is none. No point after such a one can write its
+    folder either (the sweep stops on it)."""
+    text = re.sub(r" \(on [^()]*\)$", "", str(message)).lower()  # (the worker the point ran on: sweep_point)
+    if kind == "OSError":
+        return _FULL_ERRNO.match(text) is not None
+    return kind == "EnvironmentFailure" and _FULL_AT_END.search(text) is not None

@@ -36,7 +36,7 @@ import shutil
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError, escaped_line
@@ -111,17 +111,25 @@ def default_out(dirs: list[Path]) -> Path:
     raise ValueError("several folders: name the report folder with --out")
 
 
-def check_out(out: Path | None, dirs: list[Path]) -> Path:
+def check_out(out: Path | None, dirs: list[Path], also: Iterable[Path] = ()) -> Path:
     """The report's folder (``out``; None: ``DIR/report`` of the one folder of ``dirs``), refused as
     its write refuses it (:func:`~tlm.storage.check_destination`: an InputError, or an EnvironmentFailure
-    where its parent cannot be written, which says ``give --out`` where the folder was the default)."""
+    where its parent cannot be written, which says ``give --out`` where the folder was the default); and
+    where it is, or holds, one of ``dirs`` or ``also`` (the inputs, ``tlm plots``' --runs and --configs):
+    the report replaces its folder whole, which would remove them."""
     where = Path(out) if out is not None else default_out(dirs)
     try:
-        return check_destination(where, MARKER)
+        resolved = check_destination(where, MARKER)
     except EnvironmentFailure as e:
         if out is not None:
             raise
         raise EnvironmentFailure(f"{e}; give --out") from None
+    for d in (*dirs, *also):
+        if resolved == (d := Path(d)).resolve() or resolved in d.resolve().parents:
+            raise InputError(f"{str(where)!r} {'is' if resolved == d.resolve() else 'holds'} {str(d)!r}, an input of "
+                             "the report: writing the report there would remove it (the report replaces its folder "
+                             "whole); name another folder", key="--out")
+    return resolved
 
 
 def build_report(dirs: list[Path], out: Path | None = None, title: str | None = None,
@@ -228,7 +236,7 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
 
     _found([*dirs, *(scaling_sweeps or ())])
     dirs = distinct_folders(dirs)  # (a folder given twice is read once)
-    check_out(out, dirs)  # (refused as its write would refuse it, before the inputs are read)
+    check_out(out, dirs, scaling_sweeps or ())  # (refused as its write would refuse it, before the inputs are read)
     # (the report's own folder, where it lies among the inputs, is not read: runs/report)
     inputs = read(dirs, skip=Path(out) if out is not None else Path(dirs[0]) / "report" if len(dirs) == 1 else None)
     for line in [*inputs.notes, *inputs.damaged]:  # (the folders passed over, the damaged files left out, said

@@ -21,7 +21,8 @@ that cannot finish): it is said, the other steps and the report still run, and
 :class:`StepsFailed` (``tlm plots``: exit status 1) names such steps at the end. Any
 other status, or bad input (an :class:`~tlm.errors.InputError` out of the step), stops
 the command at that step. An ``out`` that the report could not be written into (a file, a
-read-only folder's) is refused before the first step, as a bad ``--only`` or ``--configs`` is.
+read-only folder's), or that is or holds ``runs`` or ``configs`` (the report replaces its folder
+whole), is refused before the first step, as a bad ``--only`` or ``--configs`` is.
 A command stopped so writes no report, and the report an
 earlier ``tlm plots`` left in ``out`` stays as it was (a command that fails leaves its
 destination alone; ``plots/`` is the committed report the README shows): the error then
@@ -111,7 +112,8 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
         what = "is not a folder" if configs.exists() else "no such folder"
         raise InputError(f"{what}: name the folder of the experiment files (configs/)", source=str(configs),
                          key="--configs")
-    check_out(out, [])  # (the report's folder, refused as its write refuses it: before the first step, not after all)
+    # (the report's folder, refused as its write refuses it, or holding the steps' folders: before the first step)
+    check_out(out, [], [runs, configs])
     planned = [n for n in names if not only or n in only]
     # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
     # (a missing one is said and left out of the fit; none at all is refused before any step runs)
