@@ -550,13 +550,15 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                     pool.run_next()
                 done = take_finished(finished, DASK_POLL if isinstance(pool, DaskPool) else None)
                 cancelled = [f for f in done if f.cancelled()]  # (by the cluster: the sweep cancelled none)
+                full = None  # (a full disk's message: the sweep stops once the points finished with it are taken)
                 for f in done:
                     if f in cancelled:
                         continue
                     h = futures.pop(f)
                     record = _record(f, tasks[h])
                     if record["status"] != "ok" and says_disk_full(record["error"]["type"], record["error"]["message"]):
-                        raise _disk_full(record["error"]["message"], records, by_hash, total, out)
+                        full = full or record["error"]["message"]
+                        continue
                     if remote:
                         record = _seen_here(record, tasks[h])
                     records[h] = record
@@ -571,6 +573,8 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                     bar.update(len(by_hash[h]))
                     if failed:
                         bar.set_postfix(failed=failed)
+                if full is not None:  # (the rows of the points done beside it written, and counted, first)
+                    raise _disk_full(full, records, by_hash, total, out)
                 if isinstance(pool, DaskPool):  # the cluster itself gone (or without workers): a line, not rows
                     why = pool.trouble(cancelled=bool(cancelled))
                     if why is not None:
