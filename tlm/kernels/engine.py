@@ -34,13 +34,18 @@ def engine() -> str:
 def numba_available() -> bool:
     """Whether numba imports: False where it is not installed (the kernels run on numpy, said by
     nothing: numba is optional), and where it is but cannot load (an ``OSError``: llvmlite's shared
-    library missing or of another machine), which one warning names, with its cause."""
+    library missing or of another machine), which one warning names, with its cause; one that could
+    not be mapped under a limit on the address space is out of memory (:func:`tlm.errors.memory_problem`)."""
     try:
         import numba  # noqa: F401
     except ImportError:
         return False
     except OSError as e:  # (numba installed, its compiler's library not loadable: numpy's kernels, said once)
+        from tlm.errors import memory_problem
         from tlm.storage import warn
+
+        if memory_problem(e) is not None:  # (a library not mapped under ulimit -v: out of memory, as ever)
+            raise
 
         warn(f"numba is installed but cannot load ({type(e).__name__}: {e}): the kernels run on numpy (the same "
              "results, slower; TLM_KERNELS=numpy says so without numba)")
