@@ -8,6 +8,8 @@
 * :func:`holding` — whether this process holds a destination now (:func:`claimed`'s).
 * :func:`lock_holder` — the process holding a folder's lock (:func:`tlm.storage.folder_lock`), for
   the line of one that waits for it (``tlm report``).
+* :func:`drop_stale` — remove the claim file a killed run left beside its folder, where its holder is
+  provably gone (``tlm report`` of the folder; the next :func:`claimed` of it takes it over).
 
 The first two hold a ``flock`` on a file of their own (beside the destination, or in the sweep's folder)
 recording the holder's host and pid (:func:`tlm.storage.process_tag`): the lock alone decides
@@ -31,7 +33,7 @@ from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError, path_shown
 from tlm.progress import interrupts_deferred
-from tlm.storage import _GUARD, _RUNNING, _host, naming, process_tag
+from tlm.storage import _GUARD, _RUNNING, _host, naming, pid_alive, process_tag
 from tlm.storage_errors import takes_no_files
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
@@ -271,6 +273,9 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
                 raise EnvironmentFailure(f"cannot lock {path} to claim the output folder ({e.strerror}): "
                                          "the file system takes no locks; give a folder on a local disk",
                                          source=str(given)) from None
+            if _being_dropped(fd, path):  # (a dead run's file, drop_stale removing it as this opened it: a new one)
+                os.close(fd)
+                continue
             holder = _claim_holder(fd, path)
             os.close(fd)
             _remove_made(made)
@@ -292,6 +297,66 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
         os.close(fd)
     _remove_made(made)
     raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
+
+
+def _gone(record: str) -> bool:
+    """Whether a claim file's ``record`` (``<host>-<pid>``, :func:`_holder`) names a process of this
+    machine that is gone; False for a live one, another machine's, an older tlm's (its pid alone) or none."""
+    m = re.fullmatch(r"(h[A-Za-z0-9]*)-(\d+)", record.split("\n", 1)[0].strip())
+    return m is not None and m[1] == _host() and not pid_alive(int(m[2]))
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the file open as ``fd``."""
+    try:
+        return os.path.samestat(os.stat(path), os.fstat(fd))
+    except OSError:
+        return False
+
+
+def _being_dropped(fd: int, path: Path, wait: float = 0.2) -> bool:
+    """Whether the claim file ``path`` (open as ``fd``, its lock held by another) is one that
+    :func:`drop_stale` holds to remove: its record names a process of this machine that is gone, and
+    within ``wait`` seconds ``path`` no longer names it (the caller takes a new one). A live holder's
+    file (its record its own) is never waited for."""
+    if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")):
+        return False
+    deadline = time.monotonic() + wait
+    while _same_file(fd, path):
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.005)
+    return True
+
+
+def drop_stale(out: Path) -> bool:
+    """Remove the claim file (:func:`claimed`) that a process now gone left beside the destination
+    ``out``, ``.<name>.tlm-running`` (a ``tlm run`` killed with SIGKILL while it wrote its report);
+    whether one was removed. Only one whose holder is provably gone: its lock is free (the kernel
+    released a dead holder's) and its record names a process of this machine that is not alive. One
+    held, one of a live process, another machine's or an older tlm's (its pid alone: the next
+    :func:`claimed` of ``out`` takes it over), one this process holds, and one that cannot be
+    removed (a read-only copy) are left as they are. A run that opened the file meanwhile takes a
+    new one (:func:`_being_dropped`), never refused for it."""
+    out = Path(out).resolve()
+    path = out.parent / f".{out.name}{_CLAIMED}"
+    with _CLAIMS_LOCK:
+        if os.fsdecode(out) in _CLAIMS:  # (this process's own: held)
+            return False
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (held, or a file system without locks: left)
+        if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or not _same_file(fd, path):
+            return False
+        path.unlink()
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)  # (the lock with it)
 
 
 def _drop_claim(fd: int, path: Path, made: list[Path]) -> None:

@@ -23,9 +23,10 @@ the destination is never missing meanwhile; elsewhere (NFS, another OS) it is re
 An existing destination is replaced only if it is an earlier output of the same kind:
 a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
 folder. Anything else — a file, a folder of other things, the current folder or one of
-its parents, a mount point — is refused with an :class:`~tlm.errors.InputError`, so ``--out .``
-can never delete a checkout. A destination whose parent cannot be written (a read-only file
-system) is an :class:`~tlm.errors.EnvironmentFailure`, found before any work. A destination that
+its parents, a mount point (but for a sweep's folder, written in place: :data:`IN_PLACE`) — is
+refused with an :class:`~tlm.errors.InputError`, so ``--out .`` can never delete a checkout. A
+destination whose parent cannot be written (a read-only file system) is an
+:class:`~tlm.errors.EnvironmentFailure`, found before any work. A destination that
 turns into such a thing while the block runs (another program's folder, a file) keeps the finished
 output beside it, in a folder of its own (``OUT.unsaved-<pid>``, else ``-2``, ``-3``, ...), which the
 error names (:func:`_keep_beside`).
@@ -104,7 +105,7 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
     try:
         if not stat.S_ISDIR(resolved.stat().st_mode):
             raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
-        if is_mount(resolved):
+        if is_mount(resolved) and marker not in IN_PLACE:
             raise InputError(_mounted(out), key=key)
         if any((resolved / m).is_file() for m in (marker, *also)):
             return
@@ -116,6 +117,11 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
             not any(_claiming(e.name, m) for m in (marker, *also)) for e in entries):
         raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
                          "refusing to replace it", key=key)
+
+
+# the markers of the outputs written into their folder in place, never replacing it (a sweep's ``sweep.yaml``:
+# its points, rows and report go inside, :func:`tlm.experiments.sweep.run_sweep`): such a folder may be a mount point
+IN_PLACE = frozenset({"sweep.yaml"})
 
 
 def _mounted(out: Path) -> str:

@@ -43,7 +43,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     never reads (each key once: an override of ``res.overrides`` the run never reads, a
     photon-map key with the pass left out or a specular walk's key the mode never reads, by
     :func:`unread_overrides`, else by :func:`~tlm.render.planner.inert_changes`), an override that
-    sets nothing (``render={}``: :func:`empty_sets`),
+    sets nothing (``render={}``: :func:`empty_sets`), a photon-map pass a setting left out (:func:`left_out_warnings`),
     a photon-map reference that is not converged (:func:`reference_warnings`), ``render.threads`` past the
     CPUs available (:func:`threads_warning`), a BSP cut short: ``results.json`` ``warnings`` but the
     simulated stream's (:func:`stream_warnings`), one line each."""
@@ -56,6 +56,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     if res.photons is not None:
         st = res.photons.photons.stats()
         warnings += checks.photon_warnings(st["emitted"], st["stored"])
+    warnings += left_out_warnings(res.plan, res.cfg)
     unread = _unread(res, res.overrides)
     warnings += inert_changes(res.cfg, skip=unread)
     warnings += _unread_lines(res, unread, res.via)
@@ -70,6 +71,15 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
         warnings.append(f"BSP stopped at {t.levels} of {t.requested_levels} levels: the expansion would exceed "
                         f"{res.cfg.bsp.memory_factor:g}x the triangle list")
     return warnings
+
+
+def left_out_warnings(plan, cfg: RunConfig) -> list[str]:
+    """The photon-map pass that the run's mode asks for and a setting of its config left out
+    (``photons.count`` 0, ``photons.max_bounces`` under 2: the plan's ``by``), once: no photon is
+    traced and the run has no pmap frame, which its passes and images would otherwise leave unsaid."""
+    return [f"mode {cfg.mode!r} asks for the photon-map pass, but {p.reason}: the pass is left out, no photon is "
+            f"traced and the run has no pmap frame (its passes: {', '.join(plan.run_names)})"
+            for p in plan.passes if p.name == "pmap" and not p.run and p.by is not None]
 
 
 def threads_warning(cfg: RunConfig | None, cpus: int | None = None) -> list[str]:

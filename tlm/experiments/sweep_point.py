@@ -160,7 +160,11 @@ def run_point(task: Task) -> dict:
         if says_disk_full(error["type"], error["message"]):  # (no error.json: the sweep stops on it, the point to run)
             pass
         elif task.code is None:  # (this machine's worker)
-            write_error(task, error)
+            try:
+                write_error(task, error)
+            except Exception as failed:  # (a full disk, a folder in the way: the row keeps the point's own error,
+                # the write's said beside it; nothing leaves the worker)
+                error["message"] = f"{error['message']} (its error.json could not be written: {failed})"
         elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
             with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
                 write_error(task, error)

@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tlm import claims
 from tlm.config import MODES
 from tlm.errors import InputError
 from tlm.experiments.thesis import METRICS, PM_METRICS
@@ -538,6 +539,9 @@ def _folder(inputs: Inputs, folder: Path, kind: str, run_name: str, labelled: li
     nothing of it: an :class:`InputError` naming its damaged file. A damaged thesis cell or sweep point
     leaves out that cell or point alone (in :attr:`Inputs.damaged`)."""
     if kind == "run":
+        # (the claim a run killed while it wrote its report left beside its folder, its holder gone: removed,
+        # as the next run into the folder would; one held or not provably stale is left)
+        claims.drop_stale(folder)
         run = _run(folder, "", "run")
         labelled.append((run, lambda r, name=run_name: f"{name}: {r.scene_label}/{r.mode}"))
         inputs.runs.append(run)

@@ -14,6 +14,10 @@ the study. (``tlm error-vs-cost``, ``tlm extreme`` and ``tlm granularity`` write
 error-vs-cost's reference not converged is its ``reference.json`` ``reference_converged`` false, listed
 here from it, :func:`reference_line`, and said in the axis label, title and caption of each of the study's
 error figures, :func:`tlm.report.tradeoff.reference_words`.)
+
+Inputs whose results different tlm code made (their code fingerprints differ, or one records none: an
+older tlm) are said first, naming which folders are of which code (:func:`code_line`); what is drawn
+is not changed.
 """
 
 from __future__ import annotations
@@ -83,6 +87,49 @@ def study_recorded(inputs: Inputs) -> list[tuple[str, list[str], list[str]]]:
     return [(line, whose, files) for line, (whose, files) in found.items()]
 
 
+def folder_codes(inputs: Inputs) -> dict[str, list[str | None]]:
+    """The code each input folder's results came from, by folder: the ``code_fingerprint`` its
+    records hold (:func:`tlm.experiments.provenance.code_state`; a run's and each sweep point's
+    ``results.json``, a study's ``provenance.json``), None for one written by a tlm older than
+    those records; a sweep with no finished point (nothing of it drawn) is not listed."""
+    def code(record) -> str | None:
+        found = record.get("code_fingerprint") if isinstance(record, dict) else None
+        return str(found) if found else None
+
+    out: dict[str, list[str | None]] = {}
+    for sw in getattr(inputs, "sweeps", None) or []:
+        if sw.runs:
+            out[str(sw.path)] = list(dict.fromkeys(code(run.results) for run in sw.runs))
+    for study in getattr(inputs, "studies", None) or []:
+        out[str(study.path)] = [code(study.meta.get("provenance"))]
+    for run in inputs.runs:
+        if getattr(run, "kind", None) == "run":
+            out[str(run.path)] = [code(run.results)]
+    return out
+
+
+def code_line(inputs: Inputs) -> str | None:
+    """Where the inputs' results come from different tlm code (their code fingerprints differ, or some
+    record none: an older tlm), the line that says which folders are of which code; None where one code
+    made them all (or none records its code: nothing to tell them apart by). What is drawn is not changed."""
+    groups: dict[str | None, list[str]] = {}
+    for folder, codes in folder_codes(inputs).items():
+        for c in codes:
+            groups.setdefault(c, []).append(folder)
+    if len(groups) < 2:
+        return None
+
+    def named(folders: list[str]) -> str:
+        return ", ".join(folders[:SHOWN_RUNS]) + (f" and {len(folders) - SHOWN_RUNS} more"
+                                                  if len(folders) > SHOWN_RUNS else "")
+
+    parts = [f"code {c}: {named(f)}" for c, f in groups.items() if c is not None]
+    if None in groups:
+        parts.append(f"no code recorded (an older tlm): {named(groups[None])}")
+    return ("these inputs come from different tlm code, so their numbers may differ by the code alone, whatever "
+            "their settings (" + "; ".join(parts) + "); run them again with one tlm to compare them")
+
+
 def damaged_html(inputs: Inputs) -> str:
     """The damaged files among the inputs (:attr:`~tlm.report.collect.Inputs.damaged`), each with
     what to do and what the report leaves out for it; "" where none is."""
@@ -95,11 +142,15 @@ def damaged_html(inputs: Inputs) -> str:
 
 
 def warnings_html(inputs: Inputs) -> str:
-    """The block under the report's inputs line: the damaged files left out (:func:`damaged_html`)
-    and the warnings the runs recorded; empty when there are neither."""
+    """The block under the report's inputs line: inputs of different tlm code (:func:`code_line`), the
+    damaged files left out (:func:`damaged_html`) and the warnings the runs recorded; empty when there
+    are none of these."""
     found = recorded(inputs)
     studies = study_recorded(inputs)
     damaged = damaged_html(inputs)
+    mixed = code_line(inputs)
+    if mixed is not None:  # (said first: it bears on every number of the page)
+        damaged = f"<p><strong>Different code.</strong> {esc(mixed[0].upper() + mixed[1:])}.</p>" + damaged
     if not found and not studies:
         return f'<div class="warnings">{damaged}</div>' if damaged else ""
     total = len(inputs.runs)
