@@ -123,6 +123,7 @@ from tlm.experiments.sweep_reference import (
     unmeasured_line,
 )
 from tlm.experiments.sweep_rows import columns, point_row, write_rows
+from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
 from tlm.storage import check_destination, claim_folder
@@ -618,15 +619,6 @@ def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
         pids = [pid for pid in pids if storage.pid_alive(pid)]
         if pids:
             time.sleep(0.02)
-
-
-def _trim_torn(path: Path) -> None:
-    """Cut off a last row left half written (a sweep killed while writing it), so that the
-    rows appended next start on a line of their own."""
-    with suppress(FileNotFoundError), storage.naming(path), open(path, "rb+") as f:
-        data = f.read()
-        if data and not data.endswith(b"\n"):
-            f.truncate(data.rfind(b"\n") + 1)
 
 
 def _seen_here(record: dict, task: Task) -> dict:

@@ -191,3 +191,12 @@ def csv_cell(value: Any, factor: bool = False) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def trim_torn(path: Path) -> None:
+    """Cut off a last row left half written (a sweep killed while writing it), so that the
+    rows appended next start on a line of their own."""
+    with suppress(FileNotFoundError), storage.naming(path), open(path, "rb+") as f:
+        data = f.read()
+        if data and not data.endswith(b"\n"):
+            f.truncate(data.rfind(b"\n") + 1)
