@@ -121,6 +121,16 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str 
     return _by_key(name, key, f"{format_} mesh file", scene, base, "it", renamed)
 
 
+def mesh_file_missing(format_: str) -> str:
+    """What a message about a mesh file (of ``format_``, :func:`mesh_file_format` by its name)
+    given where a scene goes, and not found, says after the "not found": what its name makes it."""
+    if format_ == MTL_FORMAT:
+        return (f"by its name {format_}, not a scene: a scene file names the OBJ that reads it under "
+                "`geometry:` (docs/scenes.md, \"Geometry\")")
+    return f"by its name {format_} mesh file, not a scene: a scene file names it under `geometry:` (docs/scenes.md, " \
+           "\"Geometry\")"
+
+
 def _by_key(name: str, key: str | None, what: str, scene: str, mesh: str, it: str, renamed: str = "") -> str:
     """The hint for a file ``name`` that is ``what``, not a scene, as ``key`` names it (``extends``, a
     config key, ``""``: the command line's scene, None: a file read as YAML): write ``scene`` instead,

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 
@@ -352,3 +353,16 @@ def reference_warnings(error: dict | None, cfg: RunConfig) -> list[str]:
     return [f"the photon-map reference {error['reference']} is NOT converged ({rounds} rounds, relative standard "
             f"error {'n/a' if rse is None else f'{rse:.4f}'}, {rule}): the pmap error against it (error.rmse, "
             "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'"]
+
+
+def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = None) -> list[str]:
+    """:func:`threads_warning`'s line for the most ``render.threads``
+    that a point gives past the ``cpus`` available (default: the process's), once, as the sweep
+    starts: a point whose frame is cached renders nothing, and so records none (a point that renders
+    records it in its own ``results.json`` too). None for a Dask cluster's workers (their own CPUs)."""
+    from tlm.config import config_from_dict
+
+    most = max(points, key=lambda p: (p.config.get("render") or {}).get("threads") or 0, default=None)
+    if most is None or (most.config.get("render") or {}).get("threads") is None:
+        return []
+    return threads_warning(config_from_dict(most.config, source), cpus)

@@ -100,6 +100,7 @@ from tlm.experiments.executors import (
 from tlm.experiments.frames import forget_last_frame, is_cached
 from tlm.experiments.loading import keeping_accel
 from tlm.experiments.provenance import code_state, versions
+from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_point import (
     MARKER,
@@ -259,6 +260,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     kernels_here(), fork_workers()
     sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
     said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)
+    said += [] if remote else threads_line(sweep.points, str(sweep.path))  # (its points cached or not)
     for line in said if warn is not None else ():
         warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}

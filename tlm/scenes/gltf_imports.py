@@ -298,9 +298,11 @@ def check_mesh_nodes(header: dict, src: str,
             out[n] = m
     notes = ()
     if posed:
-        notes = (f"{src}: its skinned mesh{'es' if len(posed) > 1 else ''} {_listed(posed)} "
-                 f"{'are' if len(posed) > 1 else 'is'} not posed (the joints' matrices differ: tlm does not blend a "
-                 "skin's joints by their weights); placed by the node's world transform, unposed",)
+        many = len(posed) > 1
+        notes = (f"{src}: its skinned mesh{'es' if many else ''} {_listed(posed)} "
+                 f"{'are' if many else 'is'} posed (the joints' matrices differ), drawn unposed: tlm does not "
+                 "apply a skin's pose (it does not blend the joints by their weights); placed by "
+                 f"{'each' if many else 'the'} node's world transform",)
     return out, frozenset(skinned), notes
 
 

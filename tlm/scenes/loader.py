@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
-from tlm.errors import InputError, did_you_mean
-from tlm.mesh_files import mesh_file_format, mesh_file_hint
+from tlm.errors import InputError, did_you_mean, path_shown
+from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
 from tlm.scenes.lights import mesh_light as mesh_light  # (kept importable from here: tlm.render.checks names it)
 from tlm.scenes.lights import scene_lights, typed, with_mesh_light
@@ -111,11 +111,18 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     ``config_source`` names the file the reference came from and ``key`` the key that
     gave it (``scene``, a scene file's ``extends``), for error messages; a mesh file given
     by itself (``config_source`` is ``ref``: ``tlm scene show pawn.obj``) is named once,
-    without a key it was not given under.
+    without a key it was not given under; one that is in none of the folders looked in is said not
+    found first, what its name makes it after (:func:`~tlm.mesh_files.mesh_file_missing`).
     """
     ref = os.fspath(ref) if isinstance(ref, os.PathLike) else ref
     if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:  # (by its name)
-        if config_source == ref:  # (given by itself: `tlm scene show pawn.glb`, load_scene("pawn.glb"), named once)
+        by_itself = config_source == ref  # (given by itself: `tlm scene show pawn.glb`, load_scene("pawn.glb"))
+        folders = _mesh_folders(ref, base, also)
+        if folders is not None:  # (not there: said first, as for a scene file; what its name is after)
+            looked = f" (looked in {', '.join(folders)})" if folders else ""
+            raise InputError(f"{'file' if by_itself else repr(ref)} not found{looked}; {mesh_file_missing(format_)}",
+                             source=ref if by_itself else config_source, key=None if by_itself else key)
+        if by_itself:  # (named once)
             raise InputError(mesh_file_hint(ref, format_, ""), source=ref)
         raise InputError(mesh_file_hint(ref, format_, key, base), source=config_source, key=key)
     yaml_file = ref.lower().endswith((".yaml", ".yml"))  # (Scene.YAML too: a file system may keep the case)
@@ -156,6 +163,19 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         f"{ref!r} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
         source=config_source, key=key,
     )
+
+
+def _mesh_folders(ref: str, base: Path | None, also: tuple[Path, ...]) -> list[str] | None:
+    """None where the mesh file ``ref`` (given where a scene goes) is there, in a folder
+    :func:`resolve_scene_path` looks in for a scene file (``base``, else the working folder; each of
+    ``also``; the working folder), as anything (a folder, a dangling link: its hint says what it
+    is); else the folders looked in (none: an absolute ``ref``)."""
+    p = Path(ref)
+    if p.is_absolute():
+        return None if os.path.lexists(p) else []
+    folders = list(dict.fromkeys(os.path.abspath(f) for f in (Path.cwd() if base is None else Path(base), *also,
+                                                               Path.cwd())))
+    return None if any(os.path.lexists(Path(f) / p) for f in folders) else folders
 
 
 def _not_a_file(path: Path) -> str:
@@ -458,7 +478,9 @@ def load_scene(
         source=src,
         extra={"description": str(raw.get("description", "")), "crease_angle": crease,
                "normals": "file" if normals is geom.normals else "crease",
-               "notes": [*geom.notes, *notes]},
+               # (a note is a line naming its file as given: its control characters shown as path_shown shows a
+               # path's, a tab as \t, where a warning line would make it a space and obey an escape sequence)
+               "notes": [path_shown(n) for n in (*geom.notes, *notes)]},
         normals=normals,
     )
     if scale != 1.0 or translate != (0.0, 0.0, 0.0):
