@@ -349,6 +349,12 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     points = [{**p, "sum_max": p["max_max"] * p["pipelines"]} for p in points] if slowest else points
     by_n = {p["pipelines"]: p for p in points}
     other = differing(points)
+    if len(by_n) == 1 and len(points) > 1:  # (no second sweep can pair with these: N is what does not vary)
+        n, differ = points[0]["pipelines"], f" (they differ in {', '.join(other)})" if other else ""
+        raise InputError(f"the {len(points)} points of one scene, mode and scheduler all have N = {n}{differ}: the "
+                         f"sweep has one value of N ({n}), and eq. 5.2 needs a sweep over arch.pipelines (N = 1 and "
+                         "another value; its other factors are fitted per combination)", source=source,
+                         key="arch.pipelines")
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
         why = f"in {describe_differing(other, points)}" if other else "in another key"

@@ -5,10 +5,11 @@ eq. 5.2 (and its slowest-pipeline variant), for the static and the dynamic sched
 and the speed-up TThru(1) / TThru(N). The fits come from ``tlm scaling`` folders
 (``eq52.json`` and ``eq52.csv``) and from every sweep given to the report that varies
 ``arch.pipelines`` (fitted here with :mod:`tlm.experiments.scaling`: a scene is its file,
-and a point without a steady state is named in the notes). A ``tlm scaling`` folder whose
-sweep holds other points now than those it was fitted from (run again with another base,
-or finished since: :func:`tlm.experiments.scaling.out_of_date`) is said to be out of date,
-in the notes and on its figures.
+and a point without a steady state is named in the notes), save one that a scaling study among
+the inputs was fitted from (:func:`fitted_sweeps`): that is shown through the study's fit alone.
+A ``tlm scaling`` folder whose sweep holds other points now than those it was fitted from
+(run again with another base, or finished since: :func:`tlm.experiments.scaling.out_of_date`)
+is said to be out of date, in the notes and on its figures.
 
 Beside them, per scene of every such sweep (and of the sweeps a scaling study was
 fitted from, ``Inputs.scaling_sweeps``), the idle fraction of each PM kind against N,
@@ -361,6 +362,18 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     return "\n".join(out)
 
 
+def fitted_sweeps(inputs: Inputs) -> dict[Path, str]:
+    """The sweep folders (resolved) that a scaling study among the inputs lists in its ``eq52.json``
+    ``sweeps`` (relative to the study's folder), each with the study's folder name: such a sweep among
+    the inputs is shown through that study's fit alone (as ``tlm plots`` shows it), not fitted again."""
+    out: dict[Path, str] = {}
+    for st in inputs.of_kind("scaling"):
+        for rel in st.meta.get("sweeps") or []:
+            if isinstance(rel, str):
+                out.setdefault((st.path / rel).resolve(), st.path.name)
+    return out
+
+
 def fit_sources(inputs: Inputs, notes: list[str],
                 studies: bool = True) -> list[tuple[str, str, dict, dict[str, str], Path, str]]:
     """The eq. 5.2 fits among the inputs, as §3 draws them and the summary's "Does it scale" reads
@@ -369,11 +382,15 @@ def fit_sources(inputs: Inputs, notes: list[str],
     folder's name, for the file names; its name in titles and notes; its fits by
     :func:`~tlm.experiments.scaling.fit_key`; each fit's scene as the report names it; the folder;
     why its fit no longer shows its sweeps, "" where it does). What was not fitted, and why, goes
-    to ``notes``. ``studies`` false: the sweeps' alone."""
+    to ``notes``. ``studies`` false: the sweeps' alone. A sweep that a scaling study among the inputs
+    was fitted from (:func:`fitted_sweeps`) is no source of its own, whether ``studies`` or not: its
+    fit is the study's (drawn twice otherwise, once per folder)."""
+    fitted = fitted_sweeps(inputs)
     studies = inputs.of_kind("scaling") if studies else []
     # a scaling folder as titles and notes name it: its name, or where another folder of the section shares it,
     # the tail of its path that tells it apart (a sweep's label is the report's: :func:`~tlm.report.collect.read`)
-    shown = path_labels([*(st.path for st in studies), *(sw.path for sw in inputs.sweeps if _varies_pipelines(sw))])
+    own = [sw.path for sw in inputs.sweeps if _varies_pipelines(sw) and sw.path.resolve() not in fitted]
+    shown = path_labels([*(st.path for st in studies), *own])
     shown = shown[:len(studies)]
     # (the folder's name, for the file names; its name in titles and notes, a sweep's label (a/sw and b/sw
     # for two folders named sw); fits; each fit's scene, eq. 5.2's label, as the report names scenes: by the
@@ -392,6 +409,10 @@ def fit_sources(inputs: Inputs, notes: list[str],
                         stale))
     for sw in inputs.sweeps:
         if not _varies_pipelines(sw):
+            continue
+        if sw.path.resolve() in fitted:  # (its idle fractions are still drawn, from the sweep: scaling_section)
+            notes.append(f"{sw.label}: fitted by the scaling study {fitted[sw.path.resolve()]} among the inputs: "
+                         "shown through that fit, not fitted again")
             continue
         if not sw.runs:
             notes.append(f"{sw.label}: no finished point with a results folder: eq. 5.2 not fitted")

@@ -39,6 +39,7 @@ from tlm.report.common import Figure, Section, bar_style, line_style, log_ticks,
 from tlm.report.html import esc
 from tlm.report.summary_effects import error_factor, sweep_findings
 from tlm.report.summary_points import (
+    BUSIEST,
     PM_METRIC,
     PMS,
     bottleneck_of_points,
@@ -241,7 +242,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                  f" The slowest PM is {'' if m else 'not '}the thesis's.")
     points = sweep_bottlenecks(inputs)  # (not in the figure: the sweeps' points, where the bottleneck moves)
     if points:
-        text += f" Across the sweeps' points (not drawn): {'; '.join(points)}."
+        text += f" Across the sweeps' points (not drawn): {'; '.join(points)}. {BUSIEST[0].upper()}{BUSIEST[1:]}."
     return text, f
 
 
@@ -250,7 +251,7 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     ``tlm scaling`` folders' and those of the sweeps over ``arch.pipelines``, a fit per combination of
     a sweep's other factors), the static scheduler's where a curve has it."""
     from tlm.experiments.scaling import key_group, out_of_date
-    from tlm.report.scaling import extremes, fit_sources, idle_points, short_combination
+    from tlm.report.scaling import extremes, fit_sources, fitted_sweeps, idle_points, short_combination
     from tlm.report.sweep_lines import legend_under
     from tlm.report.sweeps import factors_of
 
@@ -274,8 +275,7 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     # (a sweep over arch.pipelines that §3 does not fit but draws the idle tables of, TThru and speed-up per N:
     # one passed for §3's idle fractions alone that no scaling study among the inputs was fitted from, or one
     # of rows alone, no results folder to fit: its curve is said here, from those rows)
-    covered = {(st.path / rel).resolve() for st in studies for rel in st.meta.get("sweeps") or []
-               if isinstance(rel, str)}
+    covered = fitted_sweeps(inputs)  # (a sweep among the inputs that a study was fitted from: fit_sources skips it)
     for sw in [*inputs.scaling_sweeps, *(sw for sw in inputs.sweeps if not sw.runs)]:
         if sw.path.resolve() in covered or "arch.pipelines" not in factors_of(sw):
             continue

@@ -48,6 +48,11 @@ def fps_of_points(inputs: Inputs) -> str:
             f"{count(len(points), 'sweep point')} run {rng} (§4 draws them against each factor).")
 
 
+# what a "busy" share of the sweep points' bottleneck is (HTML: no angle brackets): not sweep.csv's busy.<pm>, the
+# mean over the pipelines, which is lower where the pipelines' tiles take unequal work
+BUSIEST = "busy: the PM's busiest pipeline's share of the time; sweep.csv's busy.* columns are means over the pipelines"
+
+
 def busy_shares(results: dict) -> dict[str, float] | None:
     """The busy share of each PM that a run's ``results`` record, a PM's busiest pipeline's (as ``cycles.<pm>``
     is its slowest pipeline's, the one the frame waits for, and ``timing.throughput_estimate.slowest_pm`` the PM
@@ -118,7 +123,7 @@ def bottleneck_of_points(inputs: Inputs) -> str:
                      for pm in sorted(tops, key=lambda p: (-len(tops[p]), PMS.index(p))))
     moves = sweep_bottlenecks(inputs, moving=True)  # (where it moves within a sweep: at which points)
     return (f"<b>What limits it:</b> no run or thesis study among the inputs to draw; the bottleneck PM of the "
-            f"{count(len(busy), 'sweep point')}: {each} of the time."
+            f"{count(len(busy), 'sweep point')}: {each} of the time ({BUSIEST})."
             + (f" Within a sweep: {'; '.join(moves)}." if moves else ""))
 
 
