@@ -45,7 +45,7 @@ import numpy as np
 from tlm.arch.functional import Functional
 from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, note_use, remove_entry
 from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
-from tlm.errors import InputError
+from tlm.errors import InputError, path_shown
 from tlm.experiments import run
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
@@ -65,10 +65,10 @@ def scene_fingerprint(scene) -> str:
     if scene.normals is not None:
         h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
     h.update(repr((scene.materials, scene.lights, scene.camera, scene.photons)).encode())
-    # (what its results say of it: its name, and its files' notes with its folder left out, so
-    # that a copy of the scene in another folder shares the frame: :func:`_here`)
+    # (what its results say of it: its name, and its files' notes with its folder left out, as given and as a note
+    # shows it (path_shown: a tab as \t), so that a copy of the scene in another folder shares the frame: :func:`_here`)
     folder = os.path.dirname(scene.source) if scene.source else ""
-    notes = [str(n).replace(folder, "") if folder else str(n) for n in scene.extra.get("notes") or []]
+    notes = [str(n).replace(folder, "").replace(path_shown(folder), "") for n in scene.extra.get("notes") or []]
     h.update(repr((scene.name, notes)).encode())
     return h.hexdigest()[:16]
 
@@ -545,7 +545,8 @@ def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: 
         was, now = os.path.dirname(held["source"]), os.path.dirname(here)
         got.summary["scene"] = {**held, "source": here}
         if was and isinstance(got.summary.get("warnings"), list):
-            got.summary["warnings"] = [w.replace(was, now) if isinstance(w, str) else w
+            shown = (path_shown(was), path_shown(now)) if path_shown(was) != was else (now, now)  # (a note's: \t)
+            got.summary["warnings"] = [w.replace(was, now).replace(*shown) if isinstance(w, str) else w
                                        for w in got.summary["warnings"]]
     return got
 

@@ -118,9 +118,13 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     if isinstance(ref, str) and (format_ := mesh_file_format(ref, content=False)) is not None:  # (by its name)
         by_itself = config_source == ref  # (given by itself: `tlm scene show pawn.glb`, load_scene("pawn.glb"))
         folders = _mesh_folders(ref, base, also)
-        if folders is not None:  # (not there: said first, as for a scene file; what its name is after)
-            looked = f" (looked in {', '.join(folders)})" if folders else ""
-            raise InputError(f"{'file' if by_itself else repr(ref)} not found{looked}; {mesh_file_missing(format_)}",
+        if folders is not None:  # (not there: said first, as for a scene file; what its name is after; a built-in
+            # scene's name with a mesh's suffix, cornell.obj, is asked about as a scene file's name is)
+            looked = f" (looked in {', '.join(map(path_shown, folders))})" if folders else ""
+            stem = os.path.splitext(ref)[0]
+            stem = os.path.splitext(stem)[0] if mesh_file_format(stem, content=False) is not None else stem
+            raise InputError(f"{'file' if by_itself else repr(ref)} not found{looked}; {mesh_file_missing(format_)}"
+                             f"{did_you_mean(stem, list_scenes())}",
                              source=ref if by_itself else config_source, key=None if by_itself else key)
         if by_itself:  # (named once)
             raise InputError(mesh_file_hint(ref, format_, ""), source=ref)
@@ -146,7 +150,7 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         cwd = os.path.abspath(Path.cwd())
         if folders and cwd not in folders:
             folders.append(cwd)  # (the working folder, before the built-in scenes)
-        looked = f" (looked in {', '.join(folders)} and among the built-in scenes)" if folders else ""
+        looked = f" (looked in {', '.join(map(path_shown, folders))} and among the built-in scenes)" if folders else ""
         if odd is not None:
             named = "" if os.path.abspath(odd) == os.path.abspath(ref) else f": {odd}"
             if config_source == ref and not named:  # (given by itself, `tlm scene show /dev/null`: named once, as
@@ -169,13 +173,14 @@ def _mesh_folders(ref: str, base: Path | None, also: tuple[Path, ...]) -> list[s
     """None where the mesh file ``ref`` (given where a scene goes) is there, in a folder
     :func:`resolve_scene_path` looks in for a scene file (``base``, else the working folder; each of
     ``also``; the working folder), as anything (a folder, a dangling link: its hint says what it
-    is); else the folders looked in (none: an absolute ``ref``)."""
+    is; one of the built-in scenes' own, ``meshes/CornellBox-Original.obj``, too); else the folders looked in
+    (none: an absolute ``ref``)."""
     p = Path(ref)
     if p.is_absolute():
         return None if os.path.lexists(p) else []
     folders = list(dict.fromkeys(os.path.abspath(f) for f in (Path.cwd() if base is None else Path(base), *also,
                                                                Path.cwd())))
-    return None if any(os.path.lexists(Path(f) / p) for f in folders) else folders
+    return None if any(os.path.lexists(Path(f) / p) for f in (*folders, scenes_dir())) else folders
 
 
 def _not_a_file(path: Path) -> str:
