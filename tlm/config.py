@@ -485,9 +485,9 @@ def read_text(path: Path) -> str:
             mode = os.fstat(f.fileno())
             if stat.S_ISCHR(mode.st_mode) or stat.S_ISBLK(mode.st_mode):
                 raise InputError("is a device, not a file to read: name a YAML file", source=str(path))
-            if mode.st_size > MAX_TEXT_BYTES:
-                raise InputError(_too_large(f"{mode.st_size / 2**20:,.0f} MiB, at most"), source=str(path))
-            data = f.read(MAX_TEXT_BYTES + 1)  # (a pipe's size is not known: read no more than the most it may be)
+            if mode.st_size > MAX_TEXT_BYTES:  # (in bytes: 64 MiB and 1 byte is no "64 MiB, at most 64 MiB")
+                raise InputError(_too_large(f"{mode.st_size:,} bytes, at most"), source=str(path))
+            data = _read_bounded(f, mode.st_size)
         if len(data) > MAX_TEXT_BYTES:
             raise InputError(_too_large("more than"), source=str(path))
         # (as Path.read_text gives it: universal newlines, a byte offset in the whole file where it is no UTF-8)
@@ -501,6 +501,22 @@ def read_text(path: Path) -> str:
                          source=str(path)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
+
+
+def _read_bounded(f: typing.BinaryIO, size: int) -> bytes:
+    """At most :data:`MAX_TEXT_BYTES` + 1 bytes of ``f``: its ``size`` (and one more, for a file that grew) at
+    once, then a MiB at a time (a pipe's size is not known), so that a small file's read does not ask for the
+    most a file may hold (``f.read(MAX_TEXT_BYTES + 1)`` takes 64 MiB of address space: under ``ulimit -v`` a
+    300-byte config was out of memory). A read of fewer bytes than asked is the end (``f`` blocks)."""
+    chunks, got = [], 0
+    want = min(max(size, 0) + 1, MAX_TEXT_BYTES + 1)
+    while want > 0:
+        chunks.append(f.read(want))
+        got += len(chunks[-1])
+        if len(chunks[-1]) < want:
+            break
+        want = min(2**20, MAX_TEXT_BYTES + 1 - got)
+    return b"".join(chunks)
 
 
 def _too_large(size: str) -> str:
