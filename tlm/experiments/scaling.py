@@ -351,10 +351,15 @@ def fit_group(points: list[dict], target: str, slowest: bool = False, source: st
     other = differing(points)
     if len(by_n) == 1 and len(points) > 1:  # (no second sweep can pair with these: N is what does not vary)
         n, differ = points[0]["pipelines"], f" (they differ in {', '.join(other)})" if other else ""
-        raise InputError(f"the {len(points)} points of one scene, mode and scheduler all have N = {n}{differ}: the "
-                         f"sweep has one value of N ({n}), and eq. 5.2 needs a sweep over arch.pipelines (N = 1 and "
-                         "another value; its other factors are fitted per combination)", source=source,
-                         key="arch.pipelines")
+        # (a sweep over arch.pipelines, its factor: its points of the other values of N failed or have not run yet)
+        why = (f"the sweep has one value of N ({n}), and eq. 5.2 needs a sweep over arch.pipelines"
+               if not any("arch.pipelines" in (p.get("factors") or {}) for p in points) else
+               "no point of another value of N has finished (the sweep has no other, or those points failed or "
+               "have not run yet: the same 'tlm sweep' command finishes an interrupted sweep), and eq. 5.2 needs "
+               "finished points")
+        raise InputError(f"the {len(points)} points of one scene, mode and scheduler all have N = {n}{differ}: "
+                         f"{why} (N = 1 and another value; its other factors are fitted per combination)",
+                         source=source, key="arch.pipelines")
     if len(by_n) != len(points):
         ns = sorted(p["pipelines"] for p in points)
         why = f"in {describe_differing(other, points)}" if other else "in another key"
@@ -656,28 +661,31 @@ def out_of_date(folder: Path, meta: dict) -> list[str]:
         return (["its eq52.json does not record which points it was fitted from (written by an older tlm): "
                  "whether its sweeps hold other points now cannot be told; run 'tlm scaling' again to know"]
                 if meta.get("sweeps") else [])
-    out = []
-    for entry in fitted:
-        sweep = Path(os.path.normpath(Path(folder) / entry["sweep"]))  # (relative to the folder; absolute stays)
-        if not (sweep / "sweep.jsonl").is_file():
-            continue
-        try:
-            planned, done = sweep_points(sweep)
-        except InputError as e:
-            out.append(f"whether its sweep {sweep} holds other points now cannot be told ({e})")
-            continue
-        then_planned, then_done = set(entry.get("planned") or []), set(entry.get("points") or [])
-        rerun = "run 'tlm scaling' again to fit the sweep as it is"
-        if planned and then_planned and set(planned) != then_planned:
-            new = len(set(planned) - then_planned)
-            out.append(f"out of date: its sweep {sweep} now holds other points than it was fitted from ({new} of "
-                       f"its {len(planned)} points are new: the sweep was run again with another base, other "
-                       f"factors, other inputs or another tlm); this fit is of the earlier points, not of those "
-                       f"the sweep holds now; {rerun}")
-        elif set(done) != then_done:
-            more, less = len(set(done) - then_done), len(then_done - set(done))
-            what = "; ".join(w for w in (f"{more} finished since" if more else "",
-                                         f"{less} of the fitted ones no longer finished" if less else "") if w)
-            out.append(f"out of date: its sweep {sweep} has other finished points than it was fitted from "
-                       f"({what}); {rerun}")
-    return out
+    return [line for entry in fitted if (line := entry_out_of_date(folder, entry))]
+
+
+def entry_out_of_date(folder: Path, entry: dict) -> str | None:
+    """:func:`out_of_date`'s line on one sweep of a ``tlm scaling`` folder's ``fitted_from`` (``entry``), None
+    where the sweep holds the points fitted, and none finished since (its fit shows the sweep as it is), or
+    where the sweep is gone (left to the caller)."""
+    sweep = Path(os.path.normpath(Path(folder) / entry["sweep"]))  # (relative to the folder; absolute stays)
+    if not (sweep / "sweep.jsonl").is_file():
+        return None
+    try:
+        planned, done = sweep_points(sweep)
+    except InputError as e:
+        return f"whether its sweep {sweep} holds other points now cannot be told ({e})"
+    then_planned, then_done = set(entry.get("planned") or []), set(entry.get("points") or [])
+    rerun = "run 'tlm scaling' again to fit the sweep as it is"
+    if planned and then_planned and set(planned) != then_planned:
+        new = len(set(planned) - then_planned)
+        return (f"out of date: its sweep {sweep} now holds other points than it was fitted from ({new} of "
+                f"its {len(planned)} points are new: the sweep was run again with another base, other "
+                f"factors, other inputs or another tlm); this fit is of the earlier points, not of those "
+                f"the sweep holds now; {rerun}")
+    if set(done) != then_done:
+        more, less = len(set(done) - then_done), len(then_done - set(done))
+        what = "; ".join(w for w in (f"{more} finished since" if more else "",
+                                     f"{less} of the fitted ones no longer finished" if less else "") if w)
+        return f"out of date: its sweep {sweep} has other finished points than it was fitted from ({what}); {rerun}"
+    return None

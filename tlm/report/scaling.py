@@ -6,7 +6,8 @@ and the speed-up TThru(1) / TThru(N). The fits come from ``tlm scaling`` folders
 (``eq52.json`` and ``eq52.csv``) and from every sweep given to the report that varies
 ``arch.pipelines`` (fitted here with :mod:`tlm.experiments.scaling`: a scene is its file,
 and a point without a steady state is named in the notes), save one that a scaling study among
-the inputs was fitted from (:func:`fitted_sweeps`): that is shown through the study's fit alone.
+the inputs was fitted from as the sweep is now (:func:`fitted_sweeps`): that is shown through the
+study's fit alone (one run again or finished since is fitted here too, the study's fit out of date).
 A ``tlm scaling`` folder whose sweep holds other points now than those it was fitted from
 (run again with another base, or finished since: :func:`tlm.experiments.scaling.out_of_date`)
 is said to be out of date, in the notes and on its figures.
@@ -362,15 +363,25 @@ def idle_table(title: str, pms: list[str], points: list[dict]) -> str:
     return "\n".join(out)
 
 
-def fitted_sweeps(inputs: Inputs) -> dict[Path, str]:
+def fitted_sweeps(inputs: Inputs, current: bool = True) -> dict[Path, str]:
     """The sweep folders (resolved) that a scaling study among the inputs lists in its ``eq52.json``
     ``sweeps`` (relative to the study's folder), each with the study's folder name: such a sweep among
-    the inputs is shown through that study's fit alone (as ``tlm plots`` shows it), not fitted again."""
+    the inputs is shown through that study's fit alone (as ``tlm plots`` shows it), not fitted again.
+    ``current`` (the default): only those whose points now are those the study was fitted from
+    (:func:`tlm.experiments.scaling.entry_out_of_date`; a study of an older tlm, which did not record them:
+    by the path alone). A sweep run again, finished since, or another sweep where the path leads now (a study
+    copied without its sweeps) is one the study's fit does not show: the report fits it too."""
     out: dict[Path, str] = {}
     for st in inputs.of_kind("scaling"):
+        recorded = st.meta.get("fitted_from")
+        entries = {e.get("sweep"): e for e in recorded or [] if isinstance(e, dict)}
         for rel in st.meta.get("sweeps") or []:
-            if isinstance(rel, str):
-                out.setdefault((st.path / rel).resolve(), st.path.name)
+            if not isinstance(rel, str) or (st.path / rel).resolve() in out:
+                continue
+            if current and recorded is not None and (rel not in entries
+                                                      or eq52.entry_out_of_date(st.path, entries[rel])):
+                continue
+            out[(st.path / rel).resolve()] = st.path.name
     return out
 
 
@@ -383,7 +394,7 @@ def fit_sources(inputs: Inputs, notes: list[str],
     :func:`~tlm.experiments.scaling.fit_key`; each fit's scene as the report names it; the folder;
     why its fit no longer shows its sweeps, "" where it does). What was not fitted, and why, goes
     to ``notes``. ``studies`` false: the sweeps' alone. A sweep that a scaling study among the inputs
-    was fitted from (:func:`fitted_sweeps`) is no source of its own, whether ``studies`` or not: its
+    was fitted from, as it is now (:func:`fitted_sweeps`), is no source of its own, whether ``studies`` or not: its
     fit is the study's (drawn twice otherwise, once per folder)."""
     fitted = fitted_sweeps(inputs)
     studies = inputs.of_kind("scaling") if studies else []

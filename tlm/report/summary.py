@@ -275,9 +275,12 @@ def _scaling(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     # (a sweep over arch.pipelines that §3 does not fit but draws the idle tables of, TThru and speed-up per N:
     # one passed for §3's idle fractions alone that no scaling study among the inputs was fitted from, or one
     # of rows alone, no results folder to fit: its curve is said here, from those rows)
-    covered = fitted_sweeps(inputs)  # (a sweep among the inputs that a study was fitted from: fit_sources skips it)
-    for sw in [*inputs.scaling_sweeps, *(sw for sw in inputs.sweeps if not sw.runs)]:
-        if sw.path.resolve() in covered or "arch.pipelines" not in factors_of(sw):
+    # (a sweep among the inputs that a study's fit shows as it is now: fit_sources skips it; one read for the idle
+    # fractions alone, that a study lists: §3 shows it through that study's fit, even one out of date)
+    covered, listed = fitted_sweeps(inputs), fitted_sweeps(inputs, current=False)
+    for sw, shown in [*((sw, listed) for sw in inputs.scaling_sweeps),
+                      *((sw, covered) for sw in inputs.sweeps if not sw.runs)]:
+        if sw.path.resolve() in shown or "arch.pipelines" not in factors_of(sw):
             continue
         for key, g in idle_points(sw, []).items():
             for p in g["points"]:
