@@ -25,6 +25,7 @@ import errno
 import fcntl
 import os
 import re
+import stat
 import threading
 import time
 from collections.abc import Iterator
@@ -317,12 +318,18 @@ def _same_file(fd: int, path: Path) -> bool:
 def _being_dropped(fd: int, path: Path, wait: float = 0.2) -> bool:
     """Whether the claim file ``path`` (open as ``fd``, its lock held by another) is one that
     :func:`drop_stale` holds to remove: its record names a process of this machine that is gone, and
-    within ``wait`` seconds ``path`` no longer names it (the caller takes a new one). A live holder's
-    file (its record its own) is never waited for."""
+    within ``wait`` seconds ``path`` no longer names it (the caller takes a new one) or its lock is let go
+    (one :func:`drop_stale` could not remove: the caller opens it again). A live holder's file (its record
+    its own) is never waited for."""
     if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")):
         return False
     deadline = time.monotonic() + wait
     while _same_file(fd, path):
+        try:  # (let go without removing it, a parent it cannot write: the caller opens it again and takes it)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            pass
         if time.monotonic() >= deadline:
             return False
         time.sleep(0.005)
@@ -335,19 +342,24 @@ def drop_stale(out: Path) -> bool:
     whether one was removed. Only one whose holder is provably gone: its lock is free (the kernel
     released a dead holder's) and its record names a process of this machine that is not alive. One
     held, one of a live process, another machine's or an older tlm's (its pid alone: the next
-    :func:`claimed` of ``out`` takes it over), one this process holds, and one that cannot be
-    removed (a read-only copy) are left as they are. A run that opened the file meanwhile takes a
-    new one (:func:`_being_dropped`), never refused for it."""
+    :func:`claimed` of ``out`` takes it over), one this process holds, one that is not a plain file
+    (a link, a folder, a FIFO) and one that cannot be removed (a read-only copy) are left as they are.
+    A run that opened the file meanwhile takes a new one, or this one (:func:`_being_dropped`), never
+    refused for it."""
     out = Path(out).resolve()
     path = out.parent / f".{out.name}{_CLAIMED}"
     with _CLAIMS_LOCK:
         if os.fsdecode(out) in _CLAIMS:  # (this process's own: held)
             return False
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    try:  # (not through a link, and never waiting: a FIFO put there would block the open)
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return False
     try:
+        # (read before the lock: one not provably stale, a live or reused pid's, another machine's, an older
+        # tlm's, one not written yet, is never locked, so a run claiming it at this moment is not refused for it)
+        if not stat.S_ISREG(os.fstat(fd).st_mode) or not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")):
+            return False
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (held, or a file system without locks: left)
         if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or not _same_file(fd, path):
             return False

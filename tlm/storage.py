@@ -83,7 +83,9 @@ def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", a
                          key=key)
     if resolved.exists():
         _check_existing(out, resolved, marker, key, also)
-    parent = resolved.parent
+    # (an existing folder written in place, a sweep's: written inside, never swapped, so it and not its
+    # parent must be writable, a mount point in a folder of root's, /media, among them)
+    parent = resolved if marker in IN_PLACE and resolved.is_dir() else resolved.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():  # (a file where a folder on the way should be: the user's path, not the machine)

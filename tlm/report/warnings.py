@@ -22,6 +22,8 @@ is not changed.
 
 from __future__ import annotations
 
+from collections import Counter
+
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
 
@@ -87,24 +89,25 @@ def study_recorded(inputs: Inputs) -> list[tuple[str, list[str], list[str]]]:
     return [(line, whose, files) for line, (whose, files) in found.items()]
 
 
-def folder_codes(inputs: Inputs) -> dict[str, list[str | None]]:
-    """The code each input folder's results came from, by folder: the ``code_fingerprint`` its
-    records hold (:func:`tlm.experiments.provenance.code_state`; a run's and each sweep point's
-    ``results.json``, a study's ``provenance.json``), None for one written by a tlm older than
-    those records; a sweep with no finished point (nothing of it drawn) is not listed."""
+def folder_codes(inputs: Inputs) -> dict[str, dict[str | None, int]]:
+    """The code each input folder's results came from, by folder, each with how many of its results
+    (a sweep's points; a run's, a study's: 1) it made: the ``code_fingerprint`` its records hold
+    (:func:`tlm.experiments.provenance.code_state`; a run's and each sweep point's ``results.json``, a
+    study's ``provenance.json``), None for one written by a tlm older than those records; a sweep with
+    no finished point (nothing of it drawn) is not listed."""
     def code(record) -> str | None:
         found = record.get("code_fingerprint") if isinstance(record, dict) else None
         return str(found) if found else None
 
-    out: dict[str, list[str | None]] = {}
+    out: dict[str, dict[str | None, int]] = {}
     for sw in getattr(inputs, "sweeps", None) or []:
         if sw.runs:
-            out[str(sw.path)] = list(dict.fromkeys(code(run.results) for run in sw.runs))
+            out[str(sw.path)] = dict(Counter(code(run.results) for run in sw.runs))
     for study in getattr(inputs, "studies", None) or []:
-        out[str(study.path)] = [code(study.meta.get("provenance"))]
+        out[str(study.path)] = {code(study.meta.get("provenance")): 1}
     for run in inputs.runs:
         if getattr(run, "kind", None) == "run":
-            out[str(run.path)] = [code(run.results)]
+            out[str(run.path)] = {code(run.results): 1}
     return out
 
 
@@ -114,8 +117,9 @@ def code_line(inputs: Inputs) -> str | None:
     made them all (or none records its code: nothing to tell them apart by). What is drawn is not changed."""
     groups: dict[str | None, list[str]] = {}
     for folder, codes in folder_codes(inputs).items():
-        for c in codes:
-            groups.setdefault(c, []).append(folder)
+        for c, n in codes.items():  # (a sweep resumed by another tlm: each code with how many of its points)
+            groups.setdefault(c, []).append(folder if len(codes) == 1 else f"{folder} ({n} of {sum(codes.values())} "
+                                                                          "points)")
     if len(groups) < 2:
         return None
 
