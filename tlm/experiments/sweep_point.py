@@ -162,8 +162,11 @@ def run_point(task: Task) -> dict:
         elif task.code is None:  # (this machine's worker)
             try:
                 write_error(task, error)
-            except Exception as failed:  # (a full disk, a folder in the way: the row keeps the point's own error,
-                # the write's said beside it; nothing leaves the worker)
+            except Exception as failed:  # (a folder in the way: the row keeps the point's own error, the write's
+                # said beside it; nothing leaves the worker)
+                lost = error_record(failed, "write", traceback.format_exc())
+                if says_disk_full(lost["type"], lost["message"]):  # (a full disk: the sweep stops on it, as on a
+                    return {"status": "failed", "error": lost, "worker": where}  # point whose own write it refused)
                 error["message"] = f"{error['message']} (its error.json could not be written: {failed})"
         elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
             with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
