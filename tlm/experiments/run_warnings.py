@@ -366,3 +366,22 @@ def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = No
     if most is None or (most.config.get("render") or {}).get("threads") is None:
         return []
     return threads_warning(config_from_dict(most.config, source), cpus)
+
+
+def sweep_jobs_line(points: Iterable[Any], workers: int, cpus: int | None = None) -> list[str]:
+    """A line where ``workers`` local worker processes (``--jobs``, no more than the points to run),
+    each rendering with the most ``render.threads`` a point of ``points`` gives, run more threads than
+    the ``cpus`` available, while that count alone is no more than them (:func:`sweep_threads_line`
+    says that one): a point that leaves it null gets its worker's share (tlm.experiments.executors.
+    kernel_threads), one that gives it does not."""
+    if cpus is None:
+        from tlm.kernels.threads import available
+
+        cpus = available()
+    most = max(((p.config.get("render") or {}).get("threads") or 0 for p in points), default=0)
+    if workers <= 1 or not most or most > cpus or workers * most <= cpus:
+        return []
+    return [f"--jobs: {workers} worker processes, each with render.threads = {most}, run {workers * most} kernel "
+            f"threads on the {cpus} CPU{'s' if cpus != 1 else ''} available to this process: they take turns on "
+            "them, which is slower, not faster (results are the same); lower --jobs, or leave render.threads null "
+            "(each worker then gets its share of the CPUs)"]

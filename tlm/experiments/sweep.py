@@ -100,6 +100,7 @@ from tlm.experiments.executors import (
 from tlm.experiments.frames import forget_last_frame, is_cached
 from tlm.experiments.loading import keeping_accel
 from tlm.experiments.provenance import code_state, versions
+from tlm.experiments.run_warnings import sweep_jobs_line
 from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_point import (
@@ -292,6 +293,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # --jobs x render.threads <= the CPUs: a point that leaves render.threads null gets its
     # worker's share of them (its key does not depend on it: config_hash)
     share = kernel_threads(jobs, dask, len(todo))
+    if dask is None and warn is not None:  # (--jobs x a given render.threads past the CPUs: once, as it starts)
+        for line in sweep_jobs_line([by_hash[h][0] for h in todo], min(jobs, len(todo))):
+            said.append(line)
+            warn(line)
     where = os.path.abspath(points_dir)  # (a Dask worker's working folder is not this one)
     tables: dict[str, str | None] = {}  # arch.programs -> the sha256 of its text (each table read once)
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
