@@ -37,9 +37,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tlm.errors import InputError, interrupted_by
-from tlm.experiments.executors_dask import CONNECT_TIMEOUT, answers
+from tlm.experiments.executors_dask import CONNECT_TIMEOUT, WorkerWatch, answers
 from tlm.experiments.executors_dask import SweepStopped as SweepStopped  # (kept importable from here: the sweep)
 from tlm.experiments.executors_dask import host_kept as _host_kept  # (kept importable from here: tests)
+from tlm.experiments.executors_dask import local_preloads as _local_preloads
 from tlm.experiments.executors_dask import pre_spawn_env as _pre_spawn_env
 from tlm.experiments.executors_dask import quiet_client as _client
 from tlm.experiments.worker_start import OWN_PROCESS as OWN_PROCESS  # (these: kept importable from here)
@@ -519,29 +520,10 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
         except (OSError, ValueError, TypeError, MemoryError) as e:  # TimeoutError is an OSError (MemoryError: a
             # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
-        return DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
+        pool = DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
+        pool.watch.refuse()  # (a worker that cannot load the points, named before one is sent: WorkerCannotRun)
+        return pool
     return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
-
-
-def _local_preloads() -> dict[str, list]:
-    """The ``preload`` and ``preload_argv`` of a ``--dask local`` cluster's workers: those of
-    Dask's config (``distributed.worker.preload``, which an explicit ``preload`` would
-    replace), then :mod:`tlm.experiments.dask_workers`, whose
-    :func:`~tlm.experiments.dask_workers.dask_setup` gives the worker's progress bars a thread
-    lock: a worker then holds no multiprocessing semaphore that the resource tracker it shares
-    with the sweep would report leaked on the sweep's stderr when the worker is killed (an
-    interrupted sweep's cluster closed while its points run, a SIGTERM to the process group,
-    a worker killed -9)."""
-    import dask
-
-    from tlm.experiments import dask_workers
-
-    preload = dask.config.get("distributed.worker.preload", None) or []
-    argv = dask.config.get("distributed.worker.preload-argv", None) or []
-    preload = [preload] if isinstance(preload, str) else list(preload)
-    if argv and not isinstance(argv[0], str):  # one list per preload: none for tlm's (a flat list: one for all)
-        argv = [*argv, []]
-    return {"preload": [*preload, dask_workers.__name__], "preload_argv": list(argv)}
 
 
 class _Quiet:
@@ -634,13 +616,23 @@ class DaskPool(cf.Executor):
         self.wait = NO_WORKERS_WAIT if wait is None else wait
         self.workerless_since: float | None = None
         self.asked = -float("inf")  # when the scheduler was last asked for its workers
+        self.watch = WorkerWatch(client, remote=remote)  # (the workers checked, those lost holding points)
+        self.keyed = type(self.executor).__name__ == "ClientExecutor"  # (a client's: each point keyed, for watch)
 
     def submit(self, fn, /, *args, **kwargs):
+        if getattr(self, "keyed", False):
+            kwargs["key"] = self.watch.key(fn)
         return self.executor.submit(fn, *args, **kwargs)
+
+    def lost(self) -> list[str]:
+        """The lines on the workers that left the cluster while they held some of the sweep's points."""
+        return self.watch.lost() if hasattr(self, "watch") else []
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with suppress(Exception):  # (a client whose scheduler is gone cannot cancel anything)
             self.executor.shutdown(wait=wait)
+        if hasattr(self, "watch"):
+            self.watch.close()
 
     def stop(self) -> None:
         """The sweep was interrupted: its points cancelled (the executor shut down, not waited
@@ -676,8 +668,11 @@ class DaskPool(cf.Executor):
             return None
         self.asked = now
         try:
-            workers = len(self.client.nthreads(callback_timeout=ASK_TIMEOUT))
+            workers = self.client.nthreads(callback_timeout=ASK_TIMEOUT)
             why = "has had no worker"
+            if getattr(self, "remote", False) and hasattr(self, "watch"):  # (one that joined since: checked)
+                self.watch.check(list(workers))
+            workers = len(workers)
         except Exception as e:  # (a scheduler that does not answer: the same bounded wait)
             if getattr(self.client, "status", "running") != "running":
                 return self._quiet(f"lost the Dask scheduler {self.address} ({type(e).__name__}: {e})")
@@ -688,8 +683,9 @@ class DaskPool(cf.Executor):
         if self.workerless_since is None:
             self.workerless_since = now
         if now - self.workerless_since >= self.wait:
+            lost = "".join(f"; {line}" for line in self.lost())  # (why it has none, where a worker that left says)
             return self._quiet(f"the Dask scheduler {self.address} {why} for {now - self.workerless_since:.0f} s "
-                               f"(--dask-wait: {self.wait:g} s)")
+                               f"(--dask-wait: {self.wait:g} s){lost}")
         return None
 
     def _quiet(self, reason: str) -> str:

@@ -1,22 +1,29 @@
 """The Dask side of a sweep's executors that stands apart from the pool itself: the check that
 something answers, as a Dask scheduler, at a ``--dask tcp://HOST:PORT`` address before the client
 connects (:func:`answers`, within :data:`CONNECT_TIMEOUT` seconds), and :class:`SweepStopped`, the
-one line that says the cluster, not a point, stopped the sweep; and :func:`host_kept`, which puts back
-what a local cluster changes in this process (the variables its nannies set, distributed's loggers).
+one line that says the cluster, not a point, stopped the sweep; :func:`host_kept`, which puts back
+what a local cluster changes in this process (the variables its nannies set, distributed's loggers); the
+preloads of a local cluster's workers (:func:`local_preloads`); and :class:`WorkerWatch`, which checks
+that each worker can load the sweep's points before any is sent (:class:`WorkerCannotRun`) and names a
+worker that left the cluster while it ran some of them.
 
 :mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
 executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
-its worker preloads and the silencing of distributed's logs stay there. What runs on a Dask
+and the silencing of distributed's logs stay there. What runs on a Dask
 worker: :mod:`tlm.experiments.dask_workers`. Nothing here imports distributed at import time.
 """
 
 from __future__ import annotations
 
+import builtins
 import logging
 import os
 import socket
+import types
+import uuid
 import warnings
-from contextlib import contextmanager
+from collections import deque
+from contextlib import contextmanager, suppress
 
 from tlm.errors import EnvironmentFailure, InputError
 
@@ -155,3 +162,219 @@ def quiet_client(client_class, *args, **kwargs):
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=VersionMismatchWarning)
         return client_class(*args, **kwargs)
+
+
+def local_preloads() -> dict[str, list]:
+    """The ``preload`` and ``preload_argv`` of a ``--dask local`` cluster's workers: those of
+    Dask's config (``distributed.worker.preload``, which an explicit ``preload`` would
+    replace), then :mod:`tlm.experiments.dask_workers`, whose
+    :func:`~tlm.experiments.dask_workers.dask_setup` gives the worker's progress bars a thread
+    lock: a worker then holds no multiprocessing semaphore that the resource tracker it shares
+    with the sweep would report leaked on the sweep's stderr when the worker is killed (an
+    interrupted sweep's cluster closed while its points run, a SIGTERM to the process group,
+    a worker killed -9)."""
+    import dask
+
+    from tlm.experiments import dask_workers
+
+    preload = dask.config.get("distributed.worker.preload", None) or []
+    argv = dask.config.get("distributed.worker.preload-argv", None) or []
+    preload = [preload] if isinstance(preload, str) else list(preload)
+    if argv and not isinstance(argv[0], str):  # one list per preload: none for tlm's (a flat list: one for all)
+        argv = [*argv, []]
+    return {"preload": [*preload, dask_workers.__name__], "preload_argv": list(argv)}
+
+
+RUNNER = "tlm.experiments.sweep_point"  # the module a worker unpickles each point's task from (run_point, Task)
+PROBE_MODULE = "tlm worker probe"  # the probe's module name: none a process can import (it pickles by value)
+
+
+class WorkerCannotRun(EnvironmentFailure):
+    """A remote Dask worker cannot load the sweep's points (its tlm is older than the sweep's, or it has
+    none): Dask would end the worker at its first point, unpickling it, and the sweep would say only that
+    its scheduler has no worker. Said before any point is sent: one line, exit status 1, nothing written."""
+
+
+def _on_worker(runner: str) -> dict:
+    """What a Dask worker has of tlm: its host, the folder its ``tlm`` imports from, whether it has the module
+    ``runner`` and, where its tlm can say, its code fingerprint. Run on the worker as :func:`worker_probe`'s
+    copy, pickled by value: the standard library only, and no exception leaves it (a worker whose tlm is older
+    than the sweep's lacks modules that the sweep has, this one's included)."""
+    import contextlib
+    import importlib
+    import importlib.util
+    import socket
+
+    seen: dict = {"host": socket.gethostname(), "tlm": None, "runner": False, "fingerprint": None, "error": None}
+    try:
+        spec = importlib.util.find_spec("tlm")
+        if spec is not None:
+            places = list(spec.submodule_search_locations or [])
+            seen["tlm"] = places[0] if places else spec.origin
+            seen["runner"] = importlib.util.find_spec(runner) is not None
+    except ModuleNotFoundError as e:  # (a package above the runner's module not there: a tlm older still)
+        if not (e.name and (runner + ".").startswith(e.name + ".")):
+            seen["error"] = f"{type(e).__name__}: {e}"
+    except Exception as e:  # (a tlm that fails as it is imported)
+        seen["error"] = f"{type(e).__name__}: {e}"
+    if seen["tlm"] is not None and not seen["runner"] and seen["error"] is None:  # (for the line on it)
+        with contextlib.suppress(Exception):  # (a tlm too old, or too odd, to say)
+            seen["fingerprint"] = str(importlib.import_module("tlm.fingerprint").code_fingerprint())
+    return seen
+
+
+def worker_probe():
+    """:func:`_on_worker` as a function of no module a worker could lack: distributed's pickle cannot find it
+    by name (:data:`PROBE_MODULE`), so it pickles it by value (cloudpickle), its code and no global of this
+    module, and a worker whose tlm has no :mod:`tlm.experiments.executors_dask` runs it all the same."""
+    probe = types.FunctionType(_on_worker.__code__, {"__builtins__": builtins, "__name__": PROBE_MODULE},
+                               _on_worker.__name__)
+    probe.__module__ = PROBE_MODULE
+    probe.__qualname__ = _on_worker.__name__
+    return probe
+
+
+def cannot_run(seen, sweeps: str | None = None) -> str | None:
+    """Why a worker whose :func:`_on_worker` answer is ``seen`` cannot load the sweep's points, or None (it can,
+    or it could not be asked: its points say what they meet). ``sweeps``: the sweep's code fingerprint."""
+    if not isinstance(seen, dict) or seen.get("runner"):
+        return None
+    if seen.get("tlm") is None:
+        return "it has no tlm" + (f" ({seen['error']})" if seen.get("error") else "")
+    theirs = f"; the sweep's {sweeps}" if sweeps else ""
+    code = f" (code fingerprint {seen['fingerprint']}{theirs})" if seen.get("fingerprint") else ""
+    if seen.get("error"):
+        return f"its tlm at {seen['tlm']}{code} fails as it is imported ({seen['error']})"
+    return f"its tlm at {seen['tlm']}{code} has no {RUNNER} (it is older than the sweep's)"
+
+
+ASK_WORKERS = 30.0  # seconds the workers get to answer the probe
+
+
+class WorkerWatch:
+    """The workers a Dask sweep sends its points to: each checked to load them (:meth:`check`: by the sweep,
+    before it sends one, and as a worker joins while it runs), and the lines on those that left the cluster
+    while they ran some of them (:meth:`lost`, from the scheduler's ``remove-worker`` events, which name the
+    tasks a worker held). The sweep's points are known by their keys (:meth:`key`)."""
+
+    def __init__(self, client, code: str | None = None, remote: bool = True) -> None:
+        self.client = client
+        self.remote = remote  # (a --dask local cluster's workers run the sweep's own tlm)
+        self.code = code  # the sweep's code fingerprint, for the lines
+        self.keys: set[str] = set()
+        self.hosts: dict[str, str] = {}  # a worker's address -> its host, as it said
+        self.why: dict[str, str] = {}  # a worker's address -> why it cannot load the sweep's points
+        self.checked: set[str] = set()
+        self.lines: list[str] = []
+        self.events: deque = deque()  # (time, message) of the scheduler's "all" topic, appended by the client's loop
+        self.subscribed = False
+        subscribe = getattr(client, "subscribe_topic", None)
+        if subscribe is not None:
+            with suppress(Exception):  # (a scheduler that cannot: a worker lost is said as before, not named)
+                subscribe("all", self.events.append)
+                self.subscribed = True
+
+    def close(self) -> None:
+        """The scheduler's events no longer sent to this client: before it closes (else an in-process scheduler
+        logs, at CRITICAL, the event of the client's own close that it could not send it)."""
+        if self.subscribed:
+            self.subscribed = False
+            with suppress(Exception):
+                self.client.unsubscribe_topic("all")
+
+    def key(self, fn) -> str:
+        """A new key for a point of the sweep's, as Dask's own for an impure call (its function's name, a uuid)."""
+        key = f"{getattr(fn, '__name__', 'point')}-{uuid.uuid4()}"
+        self.keys.add(key)
+        return key
+
+    def sweeps_code(self) -> str | None:
+        """The sweep's code fingerprint (this process's tlm), for a line on a worker of another."""
+        if self.code is None:
+            with suppress(Exception):
+                from tlm.fingerprint import code_fingerprint
+
+                self.code = code_fingerprint()
+        return self.code
+
+    def where(self, address: str) -> str:
+        host = self.hosts.get(address)
+        return f"the Dask worker {address}" + (f" on host {host}" if host else "")
+
+    def check(self, addresses=None) -> list[str]:
+        """The workers at ``addresses`` (None: every worker the scheduler has) not checked yet, asked what
+        they have of tlm (:func:`worker_probe`); one line for each that cannot load the sweep's points. A
+        worker that cannot be asked is not refused (its points say what they meet)."""
+        if addresses is not None:
+            addresses = [a for a in addresses if a not in self.checked]
+            if not addresses:
+                return []
+        try:
+            got = self.client.run(worker_probe(), RUNNER, workers=addresses, on_error="return",
+                                  callback_timeout=ASK_WORKERS)
+        except Exception:  # (a scheduler that does not answer: the sweep's own wait says it)
+            return []
+        lines = []
+        for address, seen in sorted(got.items()):
+            self.checked.add(address)
+            if isinstance(seen, dict) and seen.get("host"):
+                self.hosts[address] = str(seen["host"])
+            why = cannot_run(seen)
+            if why is not None:
+                why = cannot_run(seen, self.sweeps_code())
+                self.why[address] = why
+                lines.append(f"{self.where(address)} cannot run tlm's points: {why}")
+        return lines
+
+    def refuse(self) -> None:
+        """:class:`WorkerCannotRun` naming each worker that cannot load the sweep's points, before any is sent."""
+        lines = self.check()
+        if lines:
+            self.close()
+            raise WorkerCannotRun(f"{'; '.join(lines)}: install the sweep's tlm on the workers and restart them "
+                                  "(no point was sent)")
+
+    def lost(self) -> list[str]:
+        """Every line so far on a worker that left the cluster while it ran (or held) some of the sweep's
+        points (the scheduler runs them again on another worker), with why where it is known."""
+        while self.events:
+            try:
+                _, msg = self.events.popleft()
+            except (ValueError, TypeError):
+                continue
+            if not isinstance(msg, dict) or msg.get("action") != "remove-worker":
+                continue
+            held = len(self.keys.intersection(msg.get("processing-tasks") or ()))
+            if not held:
+                continue
+            address = str(msg.get("worker"))
+            why = self.why.get(address)
+            if why is not None:
+                why = f"it cannot run tlm's points: {why}"
+            elif address in self.checked or not self.remote:
+                why = "why is in its own log"
+            else:  # (it joined, and left, between two of the sweep's polls)
+                why = ("why is in its own log; it left before the sweep could ask what tlm it has: one whose tlm is "
+                       "older than the sweep's leaves so at its first point")
+            self.lines.append(f"{self.where(address)} left the cluster while it held {held} of the sweep's points "
+                              f"({why})")
+        return list(self.lines)
+
+
+def killed_worker_line(e: BaseException) -> str | None:
+    """tlm's line for Dask's ``KilledWorker`` (``distributed.scheduler.KilledWorker``: the workers that held the point
+    died more times than ``distributed.scheduler.allowed-failures`` allows), in place of Dask's own (which points to a
+    web page): the last worker, where Dask names it, the setting and its value, that the point need not be the cause
+    (a point only queued on a worker that died counts too) and that a rerun into the folder runs it again. None for
+    any other exception."""
+    if type(e).__name__ != "KilledWorker" or not type(e).__module__.startswith("distributed"):
+        return None
+    last = getattr(getattr(e, "last_worker", None), "address", None) if len(e.args) >= 2 else None
+    failures = e.args[2] if len(e.args) >= 3 and isinstance(e.args[2], int) else None
+    times = f"{failures + 1} times" if failures is not None else "too many times"
+    allowed = f" ({failures})" if failures is not None else ""
+    last = f", the last the Dask worker {last}" if isinstance(last, str) and last else ""
+    return (f"the Dask workers that held this point died {times}{last}: Dask gives a point up after "
+            f"distributed.scheduler.allowed-failures{allowed} such deaths, whether it ran there or only waited "
+            "in the worker's queue (another point may have killed it: out of memory, a crash); the workers' logs "
+            "say why; a rerun into the folder runs the point again")

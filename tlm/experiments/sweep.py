@@ -97,6 +97,7 @@ from tlm.experiments.executors import (
     open_executor,
     take_finished,
 )
+from tlm.experiments.executors_dask import killed_worker_line as _killed_worker_line
 from tlm.experiments.frames import forget_last_frame, is_cached
 from tlm.experiments.loading import keeping_accel
 from tlm.experiments.provenance import code_state, versions
@@ -350,6 +351,10 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                                 sweep.factors)
                     _dispatch(pool, tasks, fkeys, by_hash, records, out, progress, len(sweep.points), skipped,
                               lambda p, record: _row(p, record, sweep))
+                    lost = pool.lost() if isinstance(pool, DaskPool) else []  # (a worker that left with points)
+                    said += lost
+                    for line in lost if warn is not None else ():
+                        warn(line)
         except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
@@ -677,23 +682,3 @@ def _record(f: cf.Future, task: Task) -> dict:
             if not says_disk_full(error["type"], error["message"]):
                 write_error(task, error)
         return {"status": "failed", "error": error}
-
-
-def _killed_worker_line(e: BaseException) -> str | None:
-    """tlm's line for Dask's ``KilledWorker`` (``distributed.scheduler.KilledWorker``: the workers that held the point
-    died more times than ``distributed.scheduler.allowed-failures`` allows), in place of Dask's own (which points to a
-    web page): the last worker, where Dask names it, the setting and its value, that the point need not be the cause
-    (a point only queued on a worker that died counts too) and that a rerun into the folder runs it again. None for
-    any other exception."""
-    if type(e).__name__ != "KilledWorker" or not type(e).__module__.startswith("distributed"):
-        return None
-    last = getattr(getattr(e, "last_worker", None), "address", None) if len(e.args) >= 2 else None
-    failures = e.args[2] if len(e.args) >= 3 and isinstance(e.args[2], int) else None
-    times = f"{failures + 1} times" if failures is not None else "too many times"
-    allowed = f" ({failures})" if failures is not None else ""
-    last = f", the last the Dask worker {last}" if isinstance(last, str) and last else ""
-    return (f"the Dask workers that held this point died {times}{last}: Dask gives a point up after "
-            f"distributed.scheduler.allowed-failures{allowed} such deaths, whether it ran there or only waited "
-            "in the worker's queue (another point may have killed it: out of memory, a crash); the workers' logs "
-            "say why; a rerun into the folder runs the point again")
-
