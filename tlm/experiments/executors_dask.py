@@ -271,8 +271,20 @@ class WorkerWatch:
         subscribe = getattr(client, "subscribe_topic", None)
         if subscribe is not None:
             with suppress(Exception):  # (a scheduler that cannot: a worker lost is said as before, not named)
-                subscribe("all", self.events.append)
+                subscribe("all", self._event)
                 self.subscribed = True
+
+    def _event(self, event) -> None:
+        """One of the scheduler's events: a worker's removal, kept for :meth:`lost` (no other event is kept); the
+        worker is no longer checked (one that a nanny restarts at the same address may run another tlm: asked
+        again), what was known of it kept with the event."""
+        msg = event[1] if isinstance(event, tuple) and len(event) == 2 else None
+        if not isinstance(msg, dict) or msg.get("action") != "remove-worker":  # (every client's gathers, scatters,
+            return  # runs, on a shared scheduler: not kept for a long sweep)
+        address = str(msg.get("worker"))
+        event = (*event, self.why.pop(address, None), address in self.checked)
+        self.checked.discard(address)
+        self.events.append(event)
 
     def close(self) -> None:
         """The scheduler's events no longer sent to this client: before it closes (else an in-process scheduler
@@ -338,9 +350,10 @@ class WorkerWatch:
         """Every line so far on a worker that left the cluster while it ran (or held) some of the sweep's
         points (the scheduler runs them again on another worker), with why where it is known."""
         while self.events:
+            event = self.events.popleft()
             try:
-                _, msg = self.events.popleft()
-            except (ValueError, TypeError):
+                msg = event[1]
+            except (IndexError, TypeError, KeyError):
                 continue
             if not isinstance(msg, dict) or msg.get("action") != "remove-worker":
                 continue
@@ -348,10 +361,10 @@ class WorkerWatch:
             if not held:
                 continue
             address = str(msg.get("worker"))
-            why = self.why.get(address)
+            why, checked = event[2:4] if len(event) == 4 else (self.why.get(address), address in self.checked)
             if why is not None:
                 why = f"it cannot run tlm's points: {why}"
-            elif address in self.checked or not self.remote:
+            elif checked or not self.remote:
                 why = "why is in its own log"
             else:  # (it joined, and left, between two of the sweep's polls)
                 why = ("why is in its own log; it left before the sweep could ask what tlm it has: one whose tlm is "
