@@ -12,6 +12,7 @@ import struct
 import subprocess
 import sys
 import termios
+import time
 from contextlib import suppress
 from pathlib import Path
 
@@ -71,18 +72,28 @@ def _typed_ctrl_c(tmp_path: Path, kind: str) -> tuple[bytes, int]:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen([sys.executable, "-c", CHILD.format(kind=kind)], cwd=tmp_path, env=env,
                             stdin=slave, stdout=subprocess.PIPE, stderr=slave, start_new_session=True)
-    os.close(slave)
+    # (the slave is kept open here until the command has ended and its output is read: Linux drops what a pty
+    # holds unread once its last slave closes, so a loaded machine lost the command's last line)
     shown = b""
     try:
         if kind != "sigterm":
             assert select.select([proc.stdout], [], [], 60)[0], "the command never got ready"
             assert proc.stdout.readline() == b"ready\n"
             os.write(master, b"\x03")  # Ctrl-C
-        with suppress(OSError):  # (EIO: the command ended)
-            while select.select([master], [], [], 60)[0] and (chunk := os.read(master, 4096)):
+        deadline = time.monotonic() + 60
+        with suppress(OSError):
+            while time.monotonic() < deadline:
+                ended = proc.poll() is not None
+                if not select.select([master], [], [], 0.2 if ended else 1)[0]:
+                    if ended:  # (ended, and nothing more to read)
+                        break
+                    continue
+                if not (chunk := os.read(master, 4096)):
+                    break
                 shown += chunk
         return shown, proc.wait(timeout=60)
     finally:
+        os.close(slave)
         os.close(master)
         if proc.poll() is None:
             proc.kill()
