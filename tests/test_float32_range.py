@@ -112,3 +112,10 @@ def test_the_bounds_lie_inside_the_range_the_cornell_box_renders_exactly(tmp_pat
             np.testing.assert_allclose(got[name], base[name], rtol=1e-12, atol=1e-12 * base[name].max())
     for scale in ("3.0e10", "3.0e-16"):
         _refused(_scaled(tmp_path, scale), "transform.scale")
+
+
+def test_the_range_check_lives_beside_the_loader_under_its_old_names():
+    from tlm.scenes import float32_range
+
+    assert loader.check_float32_range is float32_range.check_float32_range
+    assert (loader.SIZE_HI, loader.SIZE_LO) == (float32_range.SIZE_HI, float32_range.SIZE_LO)

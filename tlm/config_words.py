@@ -25,6 +25,8 @@ from typing import Any
 
 import yaml
 
+from tlm.errors import InputError, did_you_mean
+
 
 class DuplicateKeyError(yaml.constructor.ConstructorError):
     """A mapping names one key twice (YAML forbids it; PyYAML would keep the last silently)."""
@@ -289,3 +291,38 @@ def yaml_kind(value: Any) -> str:
     if isinstance(value, list):
         return "a list"
     return "something else"
+
+
+# the checks of a config value against its field's metadata (tlm.config's, out of that module)
+def whole_floats(v: Any) -> str:  # numbers, a finite whole float among them (1e20): v as typed (1e5, not 100000.0)
+    xs = v if isinstance(v, list) else [v]
+    t = f"{v:.3g}".replace("e+0", "e").replace("e+", "e") if type(v) is float and abs(v) >= 1e4 else ""
+    ok = all(type(x) in (int, float) for x in xs) and any(type(x) is float and x.is_integer() for x in xs)
+    return "" if not ok else t if "e" in t and float(t) == v else value_text(v)
+
+
+def check_bounds(v: Any, meta: dict, source: str, key: str, text: str = "") -> None:  # (> 0.0 and >= 1.0 at once)
+    lo_ex, lo, hi = meta.get("min_exclusive"), meta.get("min"), meta.get("max")
+    for x in [x for x in (v if isinstance(v, list) else [v]) if isinstance(x, (int, float))]:
+        if bound := (f"> {value_text(lo_ex)}" + (f" and >= {value_text(lo)}" if lo is not None else "")
+                     if lo_ex is not None and x <= lo_ex else f">= {value_text(lo)}" if lo is not None and x < lo
+                     else f"<= {value_text(hi)}" if hi is not None and x > hi else ""):
+            raise InputError(f"{text or value_text(v)} must be {bound}", source=source, key=key)
+
+
+def check_range(v: Any, meta: dict, source: str, key: str) -> None:
+    if v is None:
+        return
+    if "choices" in meta and v not in meta["choices"]:
+        raise InputError(
+            f"{value_text(v)} is not one of {', '.join(meta['choices'])}{did_you_mean(str(v), meta['choices'])}",
+            source=source, key=key,
+        )
+    if "length" in meta and len(v) != meta["length"]:
+        raise InputError(f"{value_text(v)} must have {meta['length']} entries", source=source, key=key)
+    items = v if isinstance(v, list) else [v]
+    check_bounds(v, meta, source, key)
+    if key == "resolution" and any(x <= 0 for x in items):
+        raise InputError(f"{value_text(v)} must be positive", source=source, key=key)
+    if key == "render.light_samples" and math.isqrt(v) ** 2 != v:
+        raise InputError(f"{value_text(v)} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
