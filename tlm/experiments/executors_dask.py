@@ -349,19 +349,12 @@ class WorkerWatch:
     def lost(self) -> list[str]:
         """Every line so far on a worker that left the cluster while it ran (or held) some of the sweep's
         points (the scheduler runs them again on another worker), with why where it is known."""
-        while self.events:
-            event = self.events.popleft()
-            try:
-                msg = event[1]
-            except (IndexError, TypeError, KeyError):
-                continue
-            if not isinstance(msg, dict) or msg.get("action") != "remove-worker":
-                continue
+        while self.events:  # (each a worker's removal, with what was known of it then: _event)
+            _, msg, why, checked = self.events.popleft()
             held = len(self.keys.intersection(msg.get("processing-tasks") or ()))
             if not held:
                 continue
             address = str(msg.get("worker"))
-            why, checked = event[2:4] if len(event) == 4 else (self.why.get(address), address in self.checked)
             if why is not None:
                 why = f"it cannot run tlm's points: {why}"
             elif checked or not self.remote:
