@@ -121,8 +121,8 @@ from tlm.experiments.reference_cache import (
 )
 from tlm.experiments.run import programs_for
 from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
+from tlm.experiments.sweep_factors import given_once
 from tlm.experiments.sweep_factors import keys_given as _keys_given
-from tlm.experiments.sweep_factors import value_identity
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
@@ -190,8 +190,9 @@ def _check_factor(key: str, source: str, where: str, section: str | None = None,
 
 def expand(points: Any, source: str) -> list[dict[str, Any]]:
     """The union of the grids: a list of {dotted key: value} overrides, in file order. A value a grid's
-    key lists twice is refused (``points[0].photons.count: 5000 given twice``), as ``tlm sweep`` refuses
-    one: its rows would be one point measured twice."""
+    key lists twice is refused (``points[0].photons.count: 5000 given twice``) by the check ``tlm sweep``
+    refuses one with (:func:`~tlm.experiments.sweep_factors.given_once`): its rows would be one point
+    measured twice."""
     if isinstance(points, dict):
         points = [points]
     if not isinstance(points, list) or not points:
@@ -209,11 +210,10 @@ def expand(points: Any, source: str) -> list[dict[str, Any]]:
             v = v if isinstance(v, list) else [v]
             if not v:
                 raise InputError("has no values", source=source, key=f"points[{i}].{k}")
-            seen: set[str] = set()  # (a value given twice: two rows of one point, as tlm sweep refuses it)
-            for x in v:
-                if value_identity(x) in seen:
-                    raise InputError(f"{value_text(x)} given twice", source=source, key=f"points[{i}].{k}")
-                seen.add(value_identity(x))
+            try:  # (a value given twice: two rows of one point, refused by tlm sweep's own check, its words)
+                given_once({str(k): v}, {}, source)
+            except InputError as e:  # (named by the point's key, not a sweep's grid.<key>)
+                raise InputError(e.message, source=source, key=f"points[{i}].{k}") from None
             values.append(v)
         out.extend(dict(zip(keys, combo, strict=True)) for combo in itertools.product(*values))
     return out

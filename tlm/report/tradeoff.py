@@ -12,7 +12,10 @@
     on both error and time) is drawn as a step line and its points are named. A reference
     that did not converge (``reference.json``'s ``reference_converged``, or the rows') is said so in
     the axis label, title and caption (:func:`reference_words`). Titles that the study's ``--set``
-    makes long are wrapped (:func:`~tlm.report.common.wrap_title`).
+    makes long are wrapped (:func:`~tlm.report.common.wrap_title`). An axis is log where its positive
+    values span a decade (the RMSE against the ground truth: where one is positive); there a value of 0
+    is drawn on a dotted line a decade below the least positive one (:func:`log_floor`), one below 0 is
+    left off, and the caption names both by their ``point`` in rows.csv (:func:`off_log_words`).
 (b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
     (``max_abs_rel_error``, the largest relative error of any PM's cycles, TThru or the
     latency) against the host wall time of the simulation (``simulate_seconds``), each
@@ -76,10 +79,67 @@ PARETO_OFFSETS = ((6, 4), (-6, 4), (6, -4), (-6, -4), (0, 10), (0, -10), (12, 0)
 
 
 def _log_if_decades(ax, axis: str, values) -> None:
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x) and x > 0], dtype=float)
-    if v.size and v.max() / v.min() >= 10:
+    if _spans_decades(values):
         (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
         log_ticks(ax, axis)
+
+
+def _spans_decades(values, always: bool = False) -> bool:
+    """Whether an axis of ``values`` is drawn log: its positive finite values span a decade or more
+    (``always``: where there is one)."""
+    v = np.asarray([x for x in values if x is not None and np.isfinite(x) and x > 0], dtype=float)
+    return bool(v.size) and (always or v.max() / v.min() >= 10)
+
+
+def log_floor(values) -> float:
+    """Where a log axis draws a value of 0: a decade below the smallest positive finite one of
+    ``values`` (as the granularity figure draws its reference's error 0); NaN where there is none."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    return float(v.min()) / 10 if v.size else math.nan
+
+
+def as_drawn(values, floor: float | None) -> np.ndarray:
+    """``values`` as an axis draws them: as they are on a linear one (``floor`` None); on a log one each 0
+    at ``floor`` (:func:`log_floor`) and each below 0 NaN, left off (said: :func:`off_log_words`)."""
+    v = np.asarray(values, dtype=float)
+    if floor is None:
+        return v
+    return np.where(v == 0, floor, np.where(v < 0, math.nan, v))
+
+
+def off_log_words(rows: list[dict], values, floor: float | None, what: str) -> str:
+    """Caption words for the points ``rows`` of which a log axis cannot show ``what`` (``values``) as it is
+    (``floor`` None: a linear axis, which shows them: ""): each 0 drawn at ``floor`` (the dotted line),
+    each below 0 not drawn; both named by their ``point`` in rows.csv."""
+    if floor is None:
+        return ""
+    v = np.asarray(values, dtype=float)
+    words = ""
+    zero, below = v == 0, np.isfinite(v) & (v < 0)
+    if zero.any():
+        words += (f" {_points(rows, zero)} {'has' if zero.sum() == 1 else 'have'} {what} of 0, which a log axis cannot "
+                  f"show: drawn at {floor:.2g} (the dotted line).")
+    if below.any():
+        shown = ", ".join(f"{x:.3g}" for x in v[below][:3]) + (", ..." if below.sum() > 3 else "")
+        words += (f" {_points(rows, below)} {'has' if below.sum() == 1 else 'have'} {what} below 0 ({shown}), which "
+                  "a log axis cannot show: not drawn.")
+    return words
+
+
+def _points(rows: list[dict], mask) -> str:
+    """``Point 3`` or ``Points 3, 5 and 7`` of rows.csv (their ``point``; the first 8, then how many more)."""
+    ids = [str(r.get("point", j)) for j, (r, m) in enumerate(zip(rows, mask, strict=True)) if m]
+    shown = ids if len(ids) <= 8 else [*ids[:7], f"{len(ids) - 7} more"]
+    listed = shown[0] if len(shown) == 1 else ", ".join(shown[:-1]) + " and " + shown[-1]
+    return f"{'Point' if len(ids) == 1 else 'Points'} {listed} of rows.csv"
+
+
+def _floor_line(ax, axis: str, floor: float | None, values, what: str) -> None:
+    """The dotted line a log axis draws its 0s of ``values`` on (:func:`as_drawn`), labelled in the key."""
+    if floor is not None and (np.asarray(values, dtype=float) == 0).any():
+        (ax.axvline if axis == "x" else ax.axhline)(floor, color="0.4", linestyle=":", linewidth=1.0, zorder=1,
+                                                    label=f"{what} 0, drawn at {floor:.2g}")
 
 
 def _num(v) -> float:
@@ -239,21 +299,32 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
         notes.append(f"{label}: no row was measured against a ground truth ('tlm error-vs-cost' with Mitsuba "
                      f"installed, {INSTALL_HINT}): no error against the ground truth.")
         return None
+    # a log RMSE axis where there is a positive RMSE (a log time axis where the times span a decade): its 0s
+    # drawn at a floor below the least positive value, its values below 0 left off, the caption says which
+    errors = np.concatenate([truth[ok], own[ok]])
+    y_floor = log_floor(errors) if _spans_decades(errors, always=True) else None
+    x_floor = log_floor(cost[ok]) if _spans_decades(cost[ok]) else None
+    cx, ty, oy = as_drawn(cost, x_floor), as_drawn(truth, y_floor), as_drawn(own, y_floor)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
     styles = series_styles(rows)
     for f in [f for f in styles if any(series_of(r) == f for r, k in zip(rows, ok, strict=True) if k)]:
         i = styles[f]
-        m = ok & np.array([series_of(r) == f for r in rows])
-        ax.scatter(cost[m], truth[m], s=40, c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
+        m = ok & np.isfinite(cx) & np.array([series_of(r) == f for r in rows])
+        mt = m & np.isfinite(ty)
+        ax.scatter(cx[mt], ty[mt], s=40, c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
                    label=f"{f}: composite vs ground truth", zorder=3)
-        mo = m & np.isfinite(own)
-        ax.scatter(cost[mo], own[mo], s=40, facecolors="none", edgecolors=colour(i), marker=marker(i),
+        mo = m & np.isfinite(oy)
+        ax.scatter(cx[mo], oy[mo], s=40, facecolors="none", edgecolors=colour(i), marker=marker(i),
                    linewidths=1.0, label=f"{f}: photon frame alone vs own reference", zorder=3)
-        for x, a, b in zip(cost[mo], own[mo], truth[mo], strict=True):
+        for x, a, b in zip(cx[mo & mt], oy[mo & mt], ty[mo & mt], strict=True):
             ax.plot([x, x], [a, b], color=colour(i), linewidth=0.6, alpha=0.5, zorder=2)
-    _log_if_decades(ax, "x", cost[ok])
-    ax.set_yscale("log")
+    _floor_line(ax, "x", x_floor, cost[ok], "host wall time")
+    _floor_line(ax, "y", y_floor, errors, "RMSE")
+    for axis, floor in (("x", x_floor), ("y", y_floor)):
+        if floor is not None:
+            (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
+            log_ticks(ax, axis)
     ax.set(xlabel="host wall time: photon tracing + gathering (s)", ylabel="image RMSE (linear radiance)",
            title=wrap_title(f"{label}: RMSE vs the ground truth and vs our reference", TITLE_INCHES))
     ax.grid(True, which="both", alpha=0.3)
@@ -268,6 +339,10 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
                "wrong, not the model's bias alone. " + (f"{unconverged} " if unconverged else "")
                + (f"{truth_noise_words(spp)} " if truth_noise_words(spp) else "") + wall_time_caption(rows))
+    measured = [r for r, k in zip(rows, ok, strict=True) if k]
+    caption += (off_log_words(measured, truth[ok], y_floor, "an RMSE against the ground truth")
+                + off_log_words(measured, own[ok], y_floor, "an RMSE against our reference")
+                + off_log_words(measured, cost[ok], x_floor, "a host wall time"))
     return save(fig, out, name, f"{label}: error against the ground truth and against our reference, "
                 "against wall time", caption)
 
@@ -284,32 +359,42 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
         xlabel = "host wall time: photon tracing + gathering (s)"
         what = "host wall time"
     err = np.array([_num(r.get("rmse")) for r in rows])
-    ok = np.isfinite(cost) & np.isfinite(err)
+    present = np.isfinite(cost) & np.isfinite(err)
     label = label or study.path.name
-    if not ok.any():
+    if not present.any():
         if cost_key == "frame":
             notes.append(f"{label}: its rows have no simulated frame time (written before 'tlm error-vs-cost' "
                          f"simulated the frame; run it again): no RMSE against simulated frame time.")
         else:
             notes.append(f"{label}: no row has both an RMSE and host seconds: no RMSE against host wall time.")
         return None
-    if not ok.all():
-        notes.append(f"{label}: {int((~ok).sum())} of {len(rows)} rows have no RMSE or no {what} and are not drawn.")
+    if not present.all():
+        notes.append(f"{label}: {int((~present).sum())} of {len(rows)} rows have no RMSE or no {what} and are not "
+                     "drawn.")
+    # a log axis where its positive values span a decade: its 0s drawn at a floor below them, its values below 0
+    # left off, and the caption says which (off_log_words)
+    x_floor = log_floor(cost[present]) if _spans_decades(cost[present]) else None
+    y_floor = log_floor(err[present]) if _spans_decades(err[present]) else None
+    ok = present & np.isfinite(as_drawn(cost, x_floor)) & np.isfinite(as_drawn(err, y_floor))
+    if not ok.any():  # (each point below 0 on one log axis or the other: both linear, every point drawn)
+        x_floor = y_floor = None
+        ok = present
     photons = np.array([_num(r.get("photons")) for r in rows])
     sizes = _sizes(np.where(np.isfinite(photons), photons, 1)[ok])
     sub = [r for r, k in zip(rows, ok, strict=True) if k]
     c, e = cost[ok], err[ok]
-    front = pareto_front(c, e)
+    front = pareto_front(c, e)  # (of the values: a 0 is the least)
+    cd, ed = as_drawn(c, x_floor), as_drawn(e, y_floor)  # (where the points are drawn)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
     styles = series_styles(rows)
     for f in [f for f in styles if any(series_of(r) == f for r in sub)]:
         i = styles[f]
         m = np.array([series_of(r) == f for r in sub])
-        ax.scatter(c[m], e[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
+        ax.scatter(cd[m], ed[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
                    alpha=0.85, label=f"filter {f}", zorder=3)  # (and final gathering)
     o = np.argsort(c[front], kind="stable")
-    fc, fe = c[front][o], e[front][o]
+    fc, fe = cd[front][o], ed[front][o]
     ax.step(fc, fe, where="post", color="black", linestyle="--", linewidth=1.2, zorder=2,
             label="Pareto front (lowest RMSE for no more time)")
     ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
@@ -327,8 +412,11 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     for p in shown:
         ax.scatter([], [], s=float(all_sizes[counts.index(p)]), facecolors="0.7", edgecolors="black",
                    label=f"{p:,} photons")
-    _log_if_decades(ax, "x", c)
-    _log_if_decades(ax, "y", e)
+    for axis, floor, values, zero in (("x", x_floor, c, what), ("y", y_floor, e, "RMSE")):
+        _floor_line(ax, axis, floor, values, zero)
+        if floor is not None:
+            (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
+            log_ticks(ax, axis)
     against, unconverged = reference_words(study)
     ax.set(xlabel=xlabel, ylabel=f"image RMSE against {against} (linear radiance)",
            title=wrap_title(f"{label}: photon-map RMSE against {what}"
@@ -338,6 +426,9 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
     caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; ringed and numbered "
                f"(named in the key): the {count(int(front.sum()), 'point')} of the Pareto front.")
+    drawn = [r for r, k in zip(rows, present, strict=True) if k]
+    caption += off_log_words(drawn, err[present], y_floor, "an RMSE")
+    caption += off_log_words(drawn, cost[present], x_floor, f"a {what}")
     if hidden:
         caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
                     "their number would cover another number or a marker (the key names them).")
