@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from tlm.errors import InputError, did_you_mean, path_shown
+from tlm.errors import InputError, did_you_mean
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -88,14 +88,15 @@ def existing_folder(path: str | os.PathLike | None, key: str = "base") -> None:
 def renamed(error: InputError, key: str) -> InputError:
     """``error`` (changed in place, and returned) with its key ``key`` in its place: the message
     names the argument, ``out: ...``, where a deeper layer named the command line's flag,
-    ``--out: ...``."""
-    where = f"{path_shown(error.source)}: " if error.source else ""  # (as InputError names it)
-    text = str(error.args[0]) if error.args else ""
-    old = f"{where}{error.key}: "
-    if error.key and text.startswith(old):
-        error.args = (f"{where}{key}: {text[len(old):]}", *error.args[1:])
-        error.key = key
+    ``--out: ...`` (its line made again: :meth:`~tlm.errors.InputError.replaced`)."""
+    if error.key:
+        _take(error, error.replaced(key=key))
     return error
+
+
+def _take(error: InputError, new: InputError) -> None:
+    """``error`` made ``new`` in place (its line, source and key), so that the error raised on keeps its traceback."""
+    error.args, error.source, error.key = new.args, new.source, new.key
 
 
 # a flag whose argument has another name than the flag's own (--dask-wait: dask_wait)
@@ -155,9 +156,8 @@ def as_arguments(error: InputError, names: set[str], switches: set[str] | frozen
     if name is not None:
         renamed(error, name)
     source = flag_argument(error.source, names) if isinstance(error.source, str) else None
-    if source is not None and error.args and str(error.args[0]).startswith(f"{error.source}: "):
-        error.args = (f"{source}: {str(error.args[0])[len(error.source) + 2:]}", *error.args[1:])
-        error.source = source
+    if source is not None:
+        _take(error, error.replaced(source=source))
     if not error.args or not isinstance(error.args[0], str):
         return error
     error.args = (arguments_text(error.args[0], names, switches), *error.args[1:])

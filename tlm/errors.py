@@ -16,6 +16,7 @@ import difflib
 import errno
 import os
 from collections.abc import Iterable
+from typing import Any
 
 try:  # (imported now: under a small ``ulimit -v`` loading it later, as a command fails, may fail too)
     import resource
@@ -46,6 +47,9 @@ def escaped_line(text: str) -> str:
     return " ".join(text.split()).translate(LINE_ESCAPES)
 
 
+_KEPT = object()  # (a field of :meth:`InputError.replaced` not given: kept)
+
+
 class InputError(ValueError):
     """Bad user input: one line naming the file, the key and the value. ``source`` (kept as
     given) is named as :func:`path_shown` shows a path: a tab in a file's name is ``\\t``, not a space."""
@@ -64,7 +68,18 @@ class InputError(ValueError):
     def under(self, section: str) -> InputError:
         """The same error, its key named below ``section`` (``base.render.spp``: a key of a run
         config given inline under ``base:``, as checked alone)."""
-        return InputError(self.message, source=self.source, key=f"{section}.{self.key}" if self.key else section)
+        return self.replaced(key=f"{section}.{self.key}" if self.key else section)
+
+    def replaced(self, *, message: Any = _KEPT, source: Any = _KEPT, key: Any = _KEPT) -> InputError:
+        """A new error like this one, the fields given replaced (``None``: no source, no key) and the
+        others kept, its line made again from them as :class:`InputError` makes it (no caller takes
+        the line apart by hand): of the same class, so an InputError still (exit status 2; its own
+        attributes kept: :class:`tlm.claims.FolderHeld`'s ``held``), with no traceback of its own."""
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        InputError.__init__(new, self.message if message is _KEPT else message,
+                            source=self.source if source is _KEPT else source, key=self.key if key is _KEPT else key)
+        return new
 
 
 class EnvironmentFailure(OSError):

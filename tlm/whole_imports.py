@@ -239,14 +239,26 @@ def _running_imports() -> set[str]:
 
 
 def _handlers_codes() -> set[Any]:
-    """The code of each Python signal handler installed now (and :class:`HeldInterrupt`'s)."""
+    """The code of each Python signal handler installed now, of :class:`HeldInterrupt`'s, and of the
+    handlers an installed HeldInterrupt passes a signal to (its ``before``)."""
     codes = {HeldInterrupt.__call__.__code__}
     for signum in signal.valid_signals() if hasattr(signal, "valid_signals") else HELD:
         handler = signal.getsignal(signum)
-        code = getattr(getattr(handler, "__func__", handler), "__code__", None)
-        if code is not None:
-            codes.add(code)
+        before = getattr(handler, "before", None)
+        for h in (handler, *(before.values() if isinstance(before, dict) else ())):
+            code = getattr(getattr(h, "__func__", h), "__code__", None)
+            if code is not None:
+                codes.add(code)
     return codes
+
+
+def raised_by_handler(error: BaseException) -> bool:
+    """Whether a Python signal handler raised ``error``, or an exception it came from (its cause, its
+    context): the code of one (:func:`_handlers_codes`) among the frames of their tracebacks. What tells
+    an interrupt that cut an import short (:func:`_interrupt`) and one that cut the load of a cached kernel
+    (:func:`tlm.kernels._numba_cache._damage_safe`: not the files' damage) from an error of their own."""
+    codes = _handlers_codes()
+    return any(frame.f_code in codes for frame in _frames(error))
 
 
 def _chain(failed: BaseException) -> list[BaseException]:
@@ -288,14 +300,11 @@ def _cut_imports(frames: list[Any]) -> set[str]:
     return {name for name in names if isinstance(name, str)}
 
 
-def _interrupt(failed: BaseException, frames: list[Any]) -> bool:
+def _interrupt(failed: BaseException) -> bool:
     """Whether ``failed`` ends a call as an interrupt: not an Exception (KeyboardInterrupt, SystemExit,
-    another thread's asynchronous exception), or one a signal's handler raised (its frame in ``frames``).
+    another thread's asynchronous exception), or one a signal's handler raised (:func:`raised_by_handler`).
     An Exception of the call's own code (an ImportError: an import that fails of itself) is none."""
-    if not isinstance(failed, Exception):
-        return True
-    codes = _handlers_codes()
-    return any(frame.f_code in codes for frame in frames)
+    return not isinstance(failed, Exception) or raised_by_handler(failed)
 
 
 class _Imports:
@@ -309,10 +318,9 @@ class _Imports:
     it runs on numpy) is not said for a Ctrl-C that ends a later render."""
 
     def note(self, failed: BaseException) -> None:
-        frames = _frames(failed)
-        if not _interrupt(failed, frames):
+        if not _interrupt(failed):
             return
-        cut = _cut_imports(frames)
+        cut = _cut_imports(_frames(failed))
         if not cut:  # (it cut no import: a render's, a callback's)
             return
         cause = type(failed).__name__

@@ -46,7 +46,7 @@ import numpy as np
 
 from tlm.config import SECTIONS, config_from_dict, deep_merge
 from tlm.config_words import with_overrides
-from tlm.errors import InputError, did_you_mean, path_shown
+from tlm.errors import InputError, did_you_mean
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
 from tlm.storage import warn
 
@@ -309,10 +309,7 @@ def case_named(e: InputError, source: str, case: str) -> InputError:
     as the config's own checks name it; ``e`` itself where it names another file, or the case already."""
     if e.source not in (source, with_overrides(source)):  # (a run of a case under --set: its config's, so named)
         return e
-    where = f"{path_shown(e.source)}: " + (f"{e.key}: " if e.key else "")  # (as InputError names it)
-    text = str(e)
-    return InputError(text[len(where):] if text.startswith(where) else text, source=f"{e.source} ({case})",
-                      key=e.key)
+    return e.replaced(source=f"{e.source} ({case})")
 
 
 def run_extreme(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *, via: str = "--set",

@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from tlm.errors import InputError, path_shown
+from tlm.errors import InputError
 from tlm.experiments.study import override_key, refuse_set, set_leaves
 
 _NUMBER = re.compile(r"(\d+(?:\.\d+)?)")  # (a split on it: the text between at even places, numbers at odd)
@@ -87,8 +87,5 @@ def given_by(key: str | None, keys) -> bool:
 
 
 def named(e: InputError, source: str) -> InputError:
-    """``e`` with its source ``source``."""
-    said = str(e)
-    head = f"{path_shown(e.source)}: " if e.source else ""  # (as InputError names it)
-    head += f"{e.key}: " if e.key else ""
-    return InputError(said[len(head):] if said.startswith(head) else said, source=source, key=e.key)
+    """``e`` with its source ``source`` (:meth:`~tlm.errors.InputError.replaced`)."""
+    return e.replaced(source=source)

@@ -52,6 +52,8 @@ from pathlib import Path
 from numba import njit as _numba_njit
 from numba import prange
 
+from tlm.whole_imports import raised_by_handler
+
 __all__ = ["compiled_sources", "install", "njit", "package_stamp", "prange", "stamp_of"]
 
 PACKAGE = Path(__file__).resolve().parents[1]  # tlm/
@@ -172,10 +174,10 @@ def _damage_safe(load):
     numba compiles it again and writes a new entry. Other files' entries: numba's own load.
     An error of a numba left half imported (:func:`_half_imported`: ``module 'numba' has no attribute
     'core'``, as its contexts are refreshed or its data unpickled) where the files' bytes read whole
-    (:func:`_bytes_whole`), and one a signal's handler raised during the load (:func:`_raised_by_handler`:
-    a timeout's, an interrupt's), are raised, no file removed; any other error (``LLVM bitcode parsing
-    error``: a file's bytes zeroed inside the compiled code it holds, which its pickle reads whole) is the
-    files'."""
+    (:func:`_bytes_whole`), and one a signal's handler raised during the load, or one that came of it
+    (:func:`tlm.whole_imports.raised_by_handler`: a timeout's, an interrupt's), are raised, no file removed;
+    any other error (``LLVM bitcode parsing error``: a file's bytes zeroed inside the compiled code it holds,
+    which its pickle reads whole) is the files'."""
 
     @functools.wraps(load)
     def load_overload(self, sig, target_context):
@@ -185,7 +187,7 @@ def _damage_safe(load):
             locator = getattr(getattr(self, "_impl", None), "locator", None)
             if not isinstance(locator, _PackageStamp) or getattr(self, "_cache_file", None) is None:
                 raise
-            if _raised_by_handler(e) or (_half_imported(e) and _bytes_whole(self._cache_file)):
+            if raised_by_handler(e) or (_half_imported(e) and _bytes_whole(self._cache_file)):
                 raise  # (not the files': an interrupt, a timeout's raise; a half-imported numba)
             _drop_damaged(self, sig, target_context, e)
             return None
@@ -212,27 +214,6 @@ def _half_imported(error: Exception) -> bool:
             return False
         obj, name = sys.modules.get(found.group(1)), found.group(2)
     return obj is not None and not hasattr(obj, name) and f"{obj.__name__}.{name}" in sys.modules
-
-
-def _raised_by_handler(error: Exception) -> bool:
-    """Whether a Python signal handler installed now (or one that tlm's held handler of an API call passes
-    a signal to: its ``before``) raised ``error``: its code among the frames of ``error``'s traceback."""
-    import signal
-
-    codes = set()
-    for signum in signal.valid_signals():
-        handler = signal.getsignal(signum)
-        before = getattr(handler, "before", None)
-        for h in (handler, *(before.values() if isinstance(before, dict) else ())):
-            code = getattr(getattr(h, "__func__", h), "__code__", None)
-            if code is not None:
-                codes.add(code)
-    tb = error.__traceback__
-    while tb is not None:
-        if tb.tb_frame.f_code in codes:
-            return True
-        tb = tb.tb_next
-    return False
 
 
 class _Stub:
