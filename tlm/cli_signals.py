@@ -219,15 +219,11 @@ def _line(text: str) -> None:
 
 
 def version() -> str:
-    """``tlm X.Y.Z (Python A.B.C)``: the installed package's version."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as dist_version
+    """``tlm X.Y.Z (Python A.B.C)``: the version of the code that runs
+    (:func:`tlm.experiments.provenance.tlm_version`: a checkout's own, not an installed copy's)."""
+    from tlm.experiments.provenance import tlm_version
 
-    try:
-        v = dist_version("tlm")
-    except PackageNotFoundError:
-        v = "unknown (not installed)"
-    return f"tlm {v} (Python {sys.version.split()[0]})"
+    return f"tlm {tlm_version()} (Python {sys.version.split()[0]})"
 
 
 def bars_drawn() -> list:

@@ -133,8 +133,8 @@ from tlm.render.pmap import (
     density_requests,
     gathered_maps,
     gathered_radii,
+    map_radius_used,
     pmap_pass,
-    radius_rule,
     trace_photon_map,
 )
 from tlm.storage import check_destination, warn
@@ -461,17 +461,9 @@ def radius_rule_used(frame: Frame, photons, name: str) -> str:
     in the words of ``results.json``'s ``*_rule`` (:func:`tlm.render.pmap.radii`): ``radius`` (the
     scene units given), ``fraction`` (of the diagonal), ``density`` (holds about k photons), or
     ``fallback`` where the density rule's map was too small to measure. Its density radius is the
-    one the row's gather made (a map keeps it): nothing is computed again."""
-    est = frame.cfg.estimate
-    if name == "global" and est.radius is None and est.radius_fraction is None:
-        rule, k = "density", est.final_gather_photons  # (final gathering's global map: its own k)
-    else:
-        which = "caustic" if name == "caustic" else "indirect"
-        rule = radius_rule(frame, which)
-        k = est.caustic_radius_photons if which == "caustic" else est.radius_photons
-    if rule == "density" and gathered_maps(frame, photons)[name].density_radius(k) is None:
-        return "fallback"
-    return rule
+    one the row's gather made (a map keeps it): nothing is computed again. The photon map's own
+    rule (:func:`~tlm.render.pmap.map_radius_used`, the one source of a radius and its rule)."""
+    return map_radius_used(frame, photons, name)[1]
 
 
 # the warm-up of a point's settings (:class:`WarmUp`): its photon trace of at most this many photons

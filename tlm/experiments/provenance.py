@@ -26,17 +26,60 @@ def versions() -> dict[str, str]:
     and ``kernels``: the engine of the kernels that run here, ``numba`` (compiled) or ``numpy``
     (:func:`kernels_here`: :func:`tlm.kernels.engine.engine`'s answer, from ``TLM_KERNELS``; an
     unknown value is refused as bad input). The images do not depend on it; host seconds do.
-    The versions are the packages' metadata: nothing is imported for them."""
+    The versions are the packages' metadata (tlm's: the code that runs, :func:`tlm_version`): nothing
+    is imported for them."""
     import importlib.metadata as md
 
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for pkg in PACKAGES:
         try:
-            out[pkg] = md.version(pkg)
+            out[pkg] = tlm_version() if pkg == "tlm" else md.version(pkg)
         except md.PackageNotFoundError:
             out[pkg] = "not installed"
     out["kernels"] = kernels_here()
     return out
+
+
+@functools.cache
+def tlm_version() -> str:
+    """The version of the tlm whose code runs (this package), not of whichever copy is installed:
+    in a source tree (this package is the ``tlm/`` beside a ``pyproject.toml`` of project ``tlm``:
+    a checkout run with ``python -m tlm``, installed in editable mode or not) that file's
+    ``version``; else the installed distribution's where its ``tlm/__init__.py`` is this package's;
+    else ``unknown`` (with the installed copy's version where there is one: ``unknown (installed
+    tlm 0.1.0 is another copy)``). Read once a process: the code that runs is the one imported."""
+    import importlib.metadata as md
+
+    here = Path(__file__).resolve().parents[1]  # (this package's folder)
+    own = _source_version(here.parent / "pyproject.toml")
+    if own is not None:
+        return own
+    try:
+        dist = md.distribution("tlm")
+        installed = dist.version
+        init = Path(os.fspath(dist.locate_file("tlm/__init__.py")))
+        if init.is_file() and init.resolve() == here / "__init__.py":
+            return installed
+    except md.PackageNotFoundError:
+        return "unknown (not installed)"
+    except (OSError, ValueError):  # (metadata unreadable)
+        return "unknown"
+    return f"unknown (installed tlm {installed} is another copy)"
+
+
+def _source_version(pyproject: Path) -> str | None:
+    """``project.version`` of the ``pyproject.toml`` at ``pyproject`` where its ``project.name`` is
+    tlm; None where there is no such file, it is not tlm's, or it gives no version as a string."""
+    import tomllib
+
+    try:
+        project = tomllib.loads(pyproject.read_text(encoding="utf-8")).get("project")
+    except (OSError, ValueError, UnicodeDecodeError):  # (none there; tomllib.TOMLDecodeError is a ValueError)
+        return None
+    if not isinstance(project, dict) or project.get("name") != "tlm":
+        return None
+    version = project.get("version")
+    return version if isinstance(version, str) and version else None
 
 
 def kernels_here() -> str:

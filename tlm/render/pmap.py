@@ -262,11 +262,19 @@ def map_radius(frame: Frame, photons: PhotonMaps | PhotonMap | None, name: str) 
     """The radius :func:`pmap_pass` gathers the map ``name`` of :func:`gathered_maps` with: the
     caustic map's :func:`caustic_radius`, the global map's :func:`global_radius` (final gathering),
     the indirect map's (or a single map's, ``"photons"``) :func:`search_radius`."""
+    return map_radius_used(frame, photons, name)[0]
+
+
+def map_radius_used(frame: Frame, photons: PhotonMaps | PhotonMap | None, name: str) -> tuple[float, str]:
+    """:func:`map_radius` and the rule that gave it, in the words of :func:`radii`: ``radius``,
+    ``fraction``, ``density`` or ``fallback`` (the one source of a gathered map's radius and rule:
+    :func:`tlm.experiments.error_cost.radius_rule_used` reads its rule here). A density radius is
+    the map's own, kept: asked again, nothing is computed."""
     if name == "caustic":
-        return caustic_radius(frame, photons)
+        return _radius_used(frame, photons, "caustic")
     if name == "global":
-        return global_radius(frame, photons)
-    return search_radius(frame, photons)
+        return _global_radius_used(frame, photons)
+    return _radius_used(frame, photons, "indirect")
 
 
 def gathered_radii(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> dict[str, float]:

@@ -37,6 +37,8 @@ from __future__ import annotations
 
 import inspect
 import math
+import os
+import stat
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -50,7 +52,7 @@ from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num, shown, vec
 
 __all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_path",
-           "transform_geometry"]
+           "plain_path", "transform_geometry"]
 
 SOURCES = ("builder", "mesh", "shape")
 ITEM_KEYS = ("builder", "mesh", "shape", "params", "transform", "name")
@@ -222,17 +224,58 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
         raise InputError("a mesh takes no params (scale, rotate and move it with transform)",
                          source=src, key=f"{key}.params")
     mpath = mesh_path(mesh, path)
-    if mpath.is_dir():
-        raise InputError(f"{str(mpath)!r} is a folder, not a mesh file", source=src, key=f"{key}.mesh")
-    if not mpath.is_file():
-        raise InputError(f"mesh file {str(mpath)!r} not found", source=src, key=f"{key}.mesh")
+    wrong = _not_a_mesh_file(mpath)
+    if wrong:
+        raise InputError(wrong, source=src, key=f"{key}.mesh")
     return load_mesh(mpath)
 
 
+def _not_a_mesh_file(mpath: Path) -> str | None:
+    """Why the path ``mpath`` names no regular file to read a mesh from (a folder, a device, a pipe, a
+    socket, a link to nothing, nothing, a folder on the way that cannot be searched); None where it does."""
+    try:
+        mode = mpath.stat().st_mode
+    except FileNotFoundError:
+        if mpath.is_symlink():
+            return f"mesh file {str(mpath)!r} is a symbolic link to {os.readlink(mpath)!r}, which is not there"
+        return f"mesh file {str(mpath)!r} not found"
+    except OSError as e:  # (a folder on the way that cannot be searched, a link loop, a name too long)
+        return f"mesh file {str(mpath)!r} cannot be read ({e.strerror or e})"
+    if stat.S_ISREG(mode):
+        return None
+    if stat.S_ISDIR(mode):
+        return f"{str(mpath)!r} is a folder, not a mesh file"
+    kind = ("a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode) else
+            "a named pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a special file")
+    return f"{str(mpath)!r} is {kind}, not a mesh file (a mesh is read from a regular file)"
+
+
 def mesh_path(mesh: str, path: Path) -> Path:
-    """An item's ``mesh:`` file, relative to the scene file ``path`` that names it."""
+    """An item's ``mesh:`` file, relative to the scene file ``path`` that names it, without its ``..``
+    and ``.`` where the plain name is the same entry (:func:`plain_path`): one mesh reached two ways
+    (``a/../m/box.obj``, ``m/box.obj``) is one path, in messages and to whatever compares them."""
     mpath = Path(mesh)
-    return mpath if mpath.is_absolute() else path.parent / mpath
+    return plain_path(mpath if mpath.is_absolute() else path.parent / mpath)
+
+
+def plain_path(path: Path) -> Path:
+    """``path`` without its ``..`` and ``.`` (:func:`os.path.normpath`, not ``resolve``: a symbolic
+    link keeps its name) where that names the same entry: the same name in the same folder
+    (``scenes/../m/box.obj`` as ``m/box.obj``), whether the file is there or not (a missing file's
+    message names it plainly too). Kept as given where the folders differ (a ``..`` after a symbolic
+    link to a folder leads elsewhere than the name without it) or where the folder is not there."""
+    norm = Path(os.path.normpath(path))
+    if norm == path:
+        return path
+    if norm.name != path.name:  # (a path ending in .. or .: a folder's; the same entry where the two are one)
+        try:
+            return norm if os.path.samefile(norm, path) else path
+        except OSError:
+            return path
+    try:
+        return norm if os.path.samefile(norm.parent, path.parent) else path
+    except OSError:  # (a folder on the way not there)
+        return path
 
 
 def _shape(raw: dict, src: str, key: str) -> Geometry:
