@@ -61,7 +61,9 @@ import json
 import os
 from collections import defaultdict
 from collections.abc import Callable
+from contextvars import ContextVar
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -633,18 +635,24 @@ def file_slug(text: str) -> str:
     return f"{slug[:60 - 9].rstrip('_.') or 'scene'}_{tag}"
 
 
+# how sweep_points reads a sweep's sweep.yaml (its data) and sweep.jsonl (its rows); while a report is written, by
+# that report's reads, each file once a report (tlm.report.once.reading sets it for the report alone)
+SWEEP_READ: ContextVar[Callable[[Path], Any]] = ContextVar(
+    "SWEEP_READ", default=lambda path: read_jsonl(path) if path.suffix == ".jsonl" else safe_load(path.read_text()))
+
+
 def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:
     """The hashes of the points the sweep in ``sweep_dir`` lists (its ``sweep.yaml``; none
     where it lists none) and of those of them finished (a row ok and a ``results.json``),
-    each sorted. A ``sweep.jsonl`` that is not JSON is an InputError."""
-    sweep_dir = Path(sweep_dir)
+    each sorted. A ``sweep.jsonl`` that is not JSON is an InputError. Its files read by :data:`SWEEP_READ`."""
+    sweep_dir, read = Path(sweep_dir), SWEEP_READ.get()
     try:
-        spec = safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+        spec = read(sweep_dir / "sweep.yaml") or {}
     except (OSError, ValueError, yaml.YAMLError):
         spec = {}
     points = (spec.get("points") if isinstance(spec, dict) else None) or []
     planned = sorted({str(p.get("hash")) for p in points if isinstance(p, dict)})
-    rows = read_jsonl(sweep_dir / "sweep.jsonl") if (sweep_dir / "sweep.jsonl").is_file() else []
+    rows = read(sweep_dir / "sweep.jsonl") if (sweep_dir / "sweep.jsonl").is_file() else []
     done = {str(r.get("hash")) for _, r in rows if isinstance(r, dict) and r.get("status") == "ok"
             and (not planned or str(r.get("hash")) in planned)}
     return planned, sorted(h for h in done if (sweep_dir / "points" / h / "results.json").is_file())

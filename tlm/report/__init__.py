@@ -43,6 +43,7 @@ from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section, count, current_output, figure_output, forget_names
 from tlm.report.html import esc, page
+from tlm.report.once import reading
 from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder, check_destination, distinct_folders
 
@@ -258,7 +259,7 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
                     inputs.scaling_missing.append(f"{st.path.name}: its sweep {p} is gone: no idle fractions from it")
     if scaling_sweeps:
         try:
-            extra = read([Path(d) for d in scaling_sweeps])
+            extra = read([Path(d) for d in scaling_sweeps], reads=inputs.reads)  # (each file read once a report)
         except InputError as e:
             if not recorded:
                 raise
@@ -277,12 +278,13 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
             if (out / name).is_dir():
                 shutil.copytree(out / name, tmp / name)
         try:
-            # (no bar drawn: sections called as before, with the inputs and the folder alone)
-            secs = sections(inputs, tmp, step) if not bar.disable else sections(inputs, tmp)
-            from tlm.report.summary import summary_section
+            with reading(inputs.reads):  # (a file that collect.read read, not read again: a scaling study's sweep)
+                # (no bar drawn: sections called as before, with the inputs and the folder alone)
+                secs = sections(inputs, tmp, step) if not bar.disable else sections(inputs, tmp)
+                from tlm.report.summary import summary_section
 
-            step("summary")
-            summary = summary_section(inputs, tmp)
+                step("summary")
+                summary = summary_section(inputs, tmp)
             step("page")
         finally:
             forget_names(tmp)  # (the figures are written: their names need no record now)

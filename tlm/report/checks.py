@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from tlm.config import MODES
-from tlm.config_words import MAX_EXPANDED, ExpansionError, refuse_expansion
+from tlm.config_words import MAX_EXPANDED, ExpansionError, refuse_expansion, safe_load
 from tlm.errors import InputError
 
 
@@ -93,22 +93,12 @@ def rows_checked(path: Path, rows: list[tuple[int, dict]], what: str, required: 
 # (tlm writes these files whole; tlm.config reads a user's YAML with that check too).
 # (Where they differ, in no file tlm writes: libyaml reads a tab after a key's colon, which PyYAML refuses, and a
 # bare ``!`` tag as '', which PyYAML reads as null.)
+# PyYAML's own parser: :func:`tlm.config_words.safe_load` (its SafeLoader with that check).
 _C_LOADER = getattr(yaml, "CSafeLoader", None)
-
-
-class _Safe(yaml.SafeLoader):
-    """PyYAML's SafeLoader, refusing a document whose aliases expand it past
-    :data:`~tlm.config_words.MAX_EXPANDED` values (:func:`~tlm.config_words.refuse_expansion`), as a
-    config's loader does: a damaged or hostile copy of a few hundred bytes that every check would walk
-    for hours."""
-
-    def compose_document(self):
-        return refuse_expansion(super().compose_document())
-
-
 if _C_LOADER is not None:
     class _CSafe(_C_LOADER):
-        """libyaml's SafeLoader with :class:`_Safe`'s check of its aliases."""
+        """libyaml's SafeLoader with :func:`~tlm.config_words.safe_load`'s check of its aliases
+        (:func:`~tlm.config_words.refuse_expansion`)."""
 
         def get_single_node(self):
             return refuse_expansion(super().get_single_node())
@@ -145,7 +135,7 @@ def read_yaml(path: Path) -> Any:
         except yaml.YAMLError:  # (read again by PyYAML's own parser: its error, worded as tlm words it)
             pass
     try:
-        return yaml.load(text, Loader=_Safe)  # (a safe loader: PyYAML's SafeLoader, with the check)
+        return safe_load(text)  # (a safe loader: PyYAML's SafeLoader, with the check)
     except ExpansionError as e:
         raise _expansion(e, path) from None
     except yaml.YAMLError as e:

@@ -79,6 +79,7 @@ from tlm.report.checks import rows_checked as _rows_checked
 from tlm.report.checks import short as _short
 from tlm.report.folders import find, kind_of, real_path
 from tlm.report.names import name_scenes, path_labels, same_file, scene_label, value_text
+from tlm.report.once import Reads
 from tlm.storage import read_jsonl
 
 
@@ -224,6 +225,8 @@ class Inputs:
     # what a section worked out that another quotes, kept so that it is worked out once
     # (the thesis tables' sources: :func:`tlm.report.tables.collect_sources`)
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    # the files of the inputs that several steps read (a scaling study's sweeps), each read once (:class:`Reads`)
+    reads: Reads = field(default_factory=Reads, repr=False, compare=False)
     # what the report says of the folders it was given (:func:`find`): a folder under one with no tlm output in it,
     # a link out of it to a folder that is no tlm folder (not followed), a folder that could not be listed
     notes: list[str] = field(default_factory=list)
@@ -462,10 +465,13 @@ def _thesis_rows(path: Path) -> list[dict]:
     return [row for _, row in lines]
 
 
-def read(dirs: list[Path], skip: Path | None = None) -> Inputs:
+def read(dirs: list[Path], skip: Path | None = None, reads: Reads | None = None) -> Inputs:
     """Read every folder of ``dirs`` or, for a folder that no tlm command wrote, each tlm folder
-    under it at any depth (:func:`find`); ``skip``: the report's own folder, not read."""
+    under it at any depth (:func:`find`); ``skip``: the report's own folder, not read; ``reads``: the
+    report's reads so far (:class:`~tlm.report.once.Reads`; None: a new one), kept as ``inputs.reads``."""
     inputs = Inputs([Path(d) for d in dirs])
+    if reads is not None:
+        inputs.reads = reads
     folders: list[tuple[Path, str]] = []
     seen: set[str] = set()  # (a folder reached from two of ``dirs`` is read once)
     for d in inputs.dirs:
@@ -569,12 +575,12 @@ def _folder(inputs: Inputs, folder: Path, kind: str, run_name: str, labelled: li
 
 def _sweep(inputs: Inputs, folder: Path, labelled: list[tuple[Run, Any]]) -> None:
     """The sweep ``folder`` into ``inputs`` (:func:`_folder`)."""
-    spec = _yaml(folder / "sweep.yaml") or {}
+    spec = inputs.reads(folder / "sweep.yaml") or {}  # (read once: a scaling study's checks read it again)
     _check(spec, folder / "sweep.yaml", None, "a tlm sweep's record", {},
            {"points": LIST_OR_NONE, "grid": MAPPING_OR_NONE, "zip": MAPPING_OR_NONE})
     rows = []
     if (folder / "sweep.jsonl").is_file():  # (appended point by point: a last row cut off is left out)
-        rows = _rows_checked(folder / "sweep.jsonl", read_jsonl(folder / "sweep.jsonl"), "a tlm sweep's row",
+        rows = _rows_checked(folder / "sweep.jsonl", inputs.reads(folder / "sweep.jsonl"), "a tlm sweep's row",
                              {}, SWEEP_ROW_OPTIONAL)
     planned = {str(p.get("hash")) for p in spec.get("points") or [] if isinstance(p, dict)}
     if planned:  # (rows of an earlier sweep into the folder, left by a rerun cut short: not this one's)
