@@ -245,18 +245,22 @@ def scene_file(path: str | Path) -> Path | None:
     ``geometry`` (or ``extends``) and no ``scene``. None for a run config (whose own loading
     reports its typos). A file that is neither is an InputError saying what to write; one whose
     keys say it is a study or a sweep (``tlm run thesis``) names the command that takes it."""
+    return _scene_of(read_yaml(Path(path)), Path(path))
+
+
+def _scene_of(raw: Any, path: Path) -> Path | None:
+    """:func:`scene_file` of ``path``, whose YAML (``raw``) is read already: read once (a pipe's is gone)."""
     import dataclasses
 
-    from tlm.scenes.loader import SCENE_KEYS
+    from tlm.scenes.loader import SCENE_KEYS, read_scene_tree
 
-    path = Path(path)
-    raw = read_yaml(path)
     _refuse_other_kind(raw, path, "run")
     if not isinstance(raw, dict) or not raw or "scene" in raw:
         return None
     if "geometry" in raw or "extends" in raw:
-        from tlm.scenes.loader import read_scene_tree
-
+        if not path.is_file():  # (a pipe's text is gone once read, and a render reads its scene file again)
+            raise InputError("is a scene file given as a pipe or a device, which a render reads again (and its "
+                             "extends: and meshes from its folder): save it to a file and name that", source=str(path))
         # (its keys, and its extends: chain's, checked now: a typo is its one line, before a run's note on it)
         read_scene_tree(path.resolve(), ())
         return path.resolve()
@@ -337,11 +341,12 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         # a folder named as a built-in experiment does not hide it, as on the command line)
         path = experiment_path(config)
         given = str(path)
-    scene = scene_file(path)
+    raw_file = read_yaml(path)  # (read once: its kind and its settings from this one text)
+    scene = _scene_of(raw_file, path)
     if scene is None:
-        from tlm.config import load_config as load_run_config
+        from tlm.config import config_from_yaml
 
-        settings, folder = load_run_config(path, more, via)
+        settings, folder = config_from_yaml(raw_file, path, more, via)
         return _own_base(Config(settings, folder, given, tuple(more), via=via), base, f"the config file {given}'s")
     source = f"scene file {scene} at the default settings"
     raw: dict[str, Any] = {"scene": str(scene)}

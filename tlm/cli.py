@@ -202,24 +202,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except InputError as exc:
         blame_flag(args.config, list(args.set or []), flagged)
         root = (exc.key or "").split(".", 1)[0]
-        if root in _SCENE_ONLY and api.scene_file(args.config) is not None:  # (--set camera.vfov=50 on a scene file)
+        # (--set camera.vfov=50 on a scene file; a pipe's text is read once, by the load: no hint on it)
+        if root in _SCENE_ONLY and Path(args.config).is_file() and api.scene_file(args.config) is not None:
             raise InputError(f"{exc} ({root} is a key of the scene file, not a run setting that --set takes: edit "
                              f"{args.config}'s {root}:, or write a scene file with `extends: "
                              f"{Path(args.config).resolve()}` (extends: is read from the new file's folder) and "
                              f"the {root}: to change (docs/scenes.md), and run that)") from None
         raise
-    if api.scene_file(args.config) is not None:  # (a note on stdout, with the run's lines, once the config
-        # loaded: bad input is its one line on stderr, and a warning said before the render is stderr's first line)
-        rendered = api.scene_file(args.config)
-        if Path(str(cfg.scene)).resolve() == Path(rendered).resolve():
+    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    storage.check_destination(out, "results.json")  # (a bad --out its one line, nothing said before it)
+    if cfg.scene_file:  # (a note on stdout, with the run's lines, once the config loaded and --out checked: bad
+        # input is its one line on stderr, and a warning said before the render is stderr's first line)
+        if Path(str(cfg.scene)).resolve() == Path(cfg.source).resolve():  # (the scene file the config was read from)
             _say(f"{args.config} is a scene file: rendering it with the default settings "
                  f"(a config would say `scene: {args.config}`; see 'tlm params')")
         else:  # (--set scene=... replaced it: say what is rendered)
             _say(f"{args.config} is a scene file, but --set scene={cfg.scene} replaces it: rendering {cfg.scene} "
                  "with the default settings")
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     skip = "--no-reference" if args.no_reference else None if cfg.reference.auto else "reference.auto: false"
-    storage.check_destination(out, "results.json")  # (a bad --out said as such, before the claim's file beside it)
     with claims.claimed(out, "run"):  # (the run's, and its report's: another process's run into it is refused)
         results = api.run(cfg, out, outputs=outputs, progress=not args.no_progress, reference=skip is None,
                           say=say_err)

@@ -429,8 +429,9 @@ def read_yaml(path: Path) -> Any:
 
     Inside :func:`noting_reads`, the read is noted: ``("yaml", path, sha256 of the text,
     the mapping's ``extends``)`` (what a memo of a load that reads it checks)."""
-    format_ = mesh_file_format(path)
-    if format_ is not None and os.path.isfile(path):
+    # (a regular file's first bytes alone: a pipe's or a FIFO's, once read, are gone; read_text's read is their one)
+    format_ = mesh_file_format(path) if os.path.isfile(path) else None
+    if format_ is not None:
         raise InputError(mesh_file_hint(str(path), format_), source=str(path))
     text = read_text(path)
     data = yaml_from_text(text, path)
@@ -491,6 +492,13 @@ def _read_bounded(f: typing.BinaryIO, size: int) -> bytes:
 def _too_large(size: str) -> str:
     return (f"is too large to be a YAML file tlm reads ({size} {MAX_TEXT_BYTES // 2**20} MiB): a mesh is "
             "named in a scene file's geometry (docs/scenes.md)")
+
+
+def file_folder(path: Path) -> Path:
+    """The folder the relative paths of the file ``path`` start at: its own (links resolved); the working
+    folder for an anonymous pipe's (``tlm run <(...)``: ``/proc/PID/fd/pipe:[N]`` is in none), as they were typed."""
+    resolved = Path(path).resolve()
+    return resolved.parent if resolved.exists() else Path.cwd()
 
 
 def text_digest(text: str) -> str:
@@ -586,13 +594,20 @@ def load_config(path: Path | None, overrides: list[str] | None = None, via: str 
     """Load and check a run config; returns it and the folder relative paths start from.
     ``via``: how the ``overrides`` were given, as error messages name them
     (:func:`~tlm.config_words.with_overrides`)."""
-    raw: Any = {}
+    return config_from_yaml(None if path is None else read_yaml(Path(path)), path, overrides, via)
+
+
+def config_from_yaml(raw: Any, path: Path | None, overrides: list[str] | None = None,
+                     via: str = "--set") -> tuple[RunConfig, Path]:
+    """:func:`load_config` of the file ``path`` whose YAML :func:`read_yaml` read already (``raw``): a file is
+    read once, its text parsed from memory (a pipe's, ``tlm run <(...)``, has nothing left for a second read)."""
     source = "(defaults)"
     base = Path.cwd()
-    if path is not None:
-        raw = read_yaml(Path(path))
+    if path is None:
+        raw = {}
+    else:
         source = str(path)
-        base = Path(path).resolve().parent
+        base = file_folder(path)
         if raw is None or raw == {}:  # (an empty file, comments only or `{}`: not the defaults by mistake)
             what = "holds an empty mapping {}: nothing to run" if raw == {} else \
                 "is empty (nothing but comments or blanks)"

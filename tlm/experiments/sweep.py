@@ -261,13 +261,13 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # sure to import: a sweep whose frames are all cached runs no kernel)
     kernels_here(), fork_workers()
     sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
+    out = Path(out)
+    check_destination(out, MARKER)  # before anything is written or said: a bad --out is its one line
     said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)
     said += [] if remote else threads_line(sweep.points, str(sweep.path))  # (its points cached or not)
     for line in said if warn is not None else ():
         warn(line)
     fkeys = {p.hash: p.functional for p in sweep.points}
-    out = Path(out)
-    check_destination(out, MARKER)  # before anything is written: a bad --out fails at once
     points_dir = out / "points"
     hold: dict[str, Held] = {}  # the references the points are measured against, which the sweep holds
     if reference:  # (before the points are read: one done without an error is measured now)
@@ -648,11 +648,12 @@ def _seen_here(record: dict, task: Task) -> dict:
         return record
     where = record.get("worker") or "its Dask worker"
     error = error_record(PathNotOnWorker(
-        f"{where} wrote {task.out}, which this machine does not see: the workers must write the sweep's "
-        "output folder on a file system this machine reads"), "worker", "")
+        f"{where} wrote {task.out}, which this machine does not see (its results are on the worker's machine): "
+        "share the sweep's output folder between this machine and the workers' at the same path (a shared file "
+        "system), then run the sweep again"), "worker", "")
     with suppress(OSError, InputError):
         write_error(task, error)
-    return {"status": "failed", "error": error}
+    return {"status": "failed", "error": error, **({"ran": record["ran"]} if "ran" in record else {})}
 
 
 def _holds(path: Path, value) -> bool:

@@ -31,6 +31,7 @@ from tlm.config import (
     check_leaf,
     config_from_dict,
     describe,
+    file_folder,
     files_from,
     is_leaf,
     names_scene_file,
@@ -464,7 +465,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     description = raw.get("description")
     if description is not None and not isinstance(description, str):
         raise InputError(f"{description!r} is not a string", source=src, key="description")
-    folder = path.resolve().parent
+    folder = file_folder(path)  # (an anonymous pipe's: the working folder)
     base_file = raw.get("base") if isinstance(raw.get("base"), str) else None
     base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file")
     try:
@@ -499,7 +500,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     # one file wherever the sweep runs, on any worker, and in each point's config.resolved.yaml;
     # the points' keys name it by its path from the sweep file's folder (_keyed), not where the
     # project lies
-    here = path.resolve().parent
+    here = file_folder(path)
     scene_folders = list(dict.fromkeys([here, folder]))
 
     def moved(k: str, v: Any) -> Any:
