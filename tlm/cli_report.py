@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from tlm import api, claims
+from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
 from tlm.errors import EnvironmentFailure, interrupted_by
@@ -84,14 +84,16 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
     ``wait`` (``tlm report``), refused at once, exit 2, naming that process (``another report is
     writing into 'OUT/report' (process ...)``); with it, ``wait`` is told that process, once, and
     this one waits until the folder is free (the command's own report, of what it just wrote). A
-    folder that is not a report's is refused first, as the report's write refuses it
-    (:func:`tlm.report.check_out`). ``of``: the folder the user gave where ``folder`` is its default report
-    folder (``tlm report DIR`` without ``--out``): the refusal names it, not ``--out``, which the user did not
-    give; a parent that cannot be written is said with ``; give --out``."""
-    from tlm.report import check_out
-
-    # (a bad --out said as such, before the claim's file beside it; DIR/report, unwritable: '; give --out')
-    check_out(folder if of is None or wait is not None else None, [] if of is None else [Path(of)])
+    folder that is not a report's is refused first, as such (:func:`tlm.storage.check_destination`).
+    ``of``: the folder the user gave where ``folder`` is its default report folder (``tlm report DIR``
+    without ``--out``): the refusal names it, not ``--out``, which the user did not give; a parent that cannot be
+    written is said with ``; give --out``."""
+    try:  # (a bad --out said as such, before the claim's file beside it)
+        storage.check_destination(folder, "report.html")
+    except EnvironmentFailure as e:  # (DIR/report, unwritable: the user may name another, tlm report's own flag)
+        if of is None or wait is not None:
+            raise
+        raise EnvironmentFailure(f"{e}; give --out") from None
     told = False
     with ExitStack() as held:
         while True:
