@@ -95,8 +95,9 @@ def renamed(error: InputError, key: str) -> InputError:
 
 
 def _take(error: InputError, new: InputError) -> None:
-    """``error`` made ``new`` in place (its line, source and key), so that the error raised on keeps its traceback."""
-    error.args, error.source, error.key = new.args, new.source, new.key
+    """``error`` made ``new`` in place (its line, message, source and key), so that the error raised on keeps its
+    traceback."""
+    error.args, error.message, error.source, error.key = new.args, new.message, new.source, new.key
 
 
 # a flag whose argument has another name than the flag's own (--dask-wait: dask_wait)
@@ -150,17 +151,18 @@ def as_arguments(error: InputError, names: set[str], switches: set[str] | frozen
                  ) -> InputError:
     """``error`` (changed in place, and returned) naming the arguments ``names`` where it named the
     command line's flags: its key (``--out: ...``: ``out: ...``), its source where that is a flag
-    (``--set: 'seed' is not of the form ...``: ``overrides: ...``) and the flags in its text
-    (:func:`arguments_text`; ``switches``: the True-or-False arguments, named ``force=True``)."""
+    (``--set: 'seed' is not of the form ...``: ``overrides: ...``) and the flags in its message
+    (:func:`arguments_text`; ``switches``: the True-or-False arguments, named ``force=True``), its line
+    made again from them (:meth:`~tlm.errors.InputError.replaced`: its ``message`` says what its line says)."""
     name = flag_argument(str(error.key), names) if error.key else None
     if name is not None:
         renamed(error, name)
     source = flag_argument(error.source, names) if isinstance(error.source, str) else None
     if source is not None:
         _take(error, error.replaced(source=source))
-    if not error.args or not isinstance(error.args[0], str):
-        return error
-    error.args = (arguments_text(error.args[0], names, switches), *error.args[1:])
+    # (its message named so, its line made again from it: ``replaced`` makes the same line, not --dask again; the
+    # source, a file's path, kept as it is)
+    _take(error, error.replaced(message=arguments_text(f"{error.message}", names, switches)))
     return error
 
 

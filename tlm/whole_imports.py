@@ -252,31 +252,47 @@ def _handlers_codes() -> set[Any]:
     return codes
 
 
-def raised_by_handler(error: BaseException) -> bool:
+def raised_by_handler(error: BaseException, handled: BaseException | None = None) -> bool:
     """Whether a Python signal handler raised ``error``, or an exception it came from (its cause, its
-    context): the code of one (:func:`_handlers_codes`) among the frames of their tracebacks. What tells
-    an interrupt that cut an import short (:func:`_interrupt`) and one that cut the load of a cached kernel
+    context): the code of one (:func:`_handlers_codes`) among the frames of their tracebacks, or a
+    KeyboardInterrupt among them (Python's own SIGINT handler raises it from C: no frame of its own; a Ctrl-C
+    whatever raised it). ``handled``: the exception being handled as the work began (``sys.exc_info()``),
+    which it and those it came from are older than (an error raised in an ``except`` block has it for its
+    context: a timeout caught, then a retry), so none of the work's. What tells an interrupt that cut an
+    import short (:func:`_interrupt`) and one that cut the load of a cached kernel
     (:func:`tlm.kernels._numba_cache._damage_safe`: not the files' damage) from an error of their own."""
+    chain = _chain(error, handled)
+    if any(isinstance(e, KeyboardInterrupt) for e in chain):
+        return True
     codes = _handlers_codes()
-    return any(frame.f_code in codes for frame in _frames(error))
+    return any(frame.f_code in codes for frame in _chain_frames(chain))
 
 
-def _chain(failed: BaseException) -> list[BaseException]:
-    """``failed`` and the exceptions it came from (its cause, its context), each once."""
+def _chain(failed: BaseException, handled: BaseException | None = None) -> list[BaseException]:
+    """``failed`` and the exceptions it came from (its cause, its context), each once (a loop of contexts
+    ends), but ``handled`` and those it came from (older: :func:`raised_by_handler`)."""
+    seen = {id(e) for e in _chain(handled)} if handled is not None else set()  # (ids: held by ``found``, ``handled``)
     found: list[BaseException] = []
     todo: list[BaseException | None] = [failed]
     while todo:
         e = todo.pop()
-        if e is not None and all(e is not f for f in found):
+        if e is not None and id(e) not in seen:
+            seen.add(id(e))
             found.append(e)
             todo += [e.__cause__, e.__context__]
     return found
 
 
-def _frames(failed: BaseException) -> list[Any]:
-    """The frames the tracebacks of ``failed`` and of the exceptions it came from pass through."""
+def _frames(failed: BaseException, handled: BaseException | None = None) -> list[Any]:
+    """The frames the tracebacks of ``failed`` and of the exceptions it came from (but ``handled``'s:
+    :func:`_chain`) pass through."""
+    return _chain_frames(_chain(failed, handled))
+
+
+def _chain_frames(chain: list[BaseException]) -> list[Any]:
+    """The frames the tracebacks of the exceptions ``chain`` pass through."""
     frames = []
-    for e in _chain(failed):
+    for e in chain:
         tb = e.__traceback__
         while tb is not None:
             frames.append(tb.tb_frame)
@@ -300,11 +316,12 @@ def _cut_imports(frames: list[Any]) -> set[str]:
     return {name for name in names if isinstance(name, str)}
 
 
-def _interrupt(failed: BaseException) -> bool:
+def _interrupt(failed: BaseException, handled: BaseException | None = None) -> bool:
     """Whether ``failed`` ends a call as an interrupt: not an Exception (KeyboardInterrupt, SystemExit,
-    another thread's asynchronous exception), or one a signal's handler raised (:func:`raised_by_handler`).
+    another thread's asynchronous exception), or one a signal's handler raised, or that came of one
+    (:func:`raised_by_handler`; ``handled``: the exception handled as the call began, not the call's).
     An Exception of the call's own code (an ImportError: an import that fails of itself) is none."""
-    return not isinstance(failed, Exception) or raised_by_handler(failed)
+    return not isinstance(failed, Exception) or raised_by_handler(failed, handled)
 
 
 class _Imports:
@@ -317,10 +334,13 @@ class _Imports:
     that an import which failed of itself left half imported (an ImportError tlm caught: numba's, where
     it runs on numpy) is not said for a Ctrl-C that ends a later render."""
 
+    def __init__(self) -> None:
+        self.handled = sys.exc_info()[1]  # (a call made in an ``except`` block: that exception is not the call's)
+
     def note(self, failed: BaseException) -> None:
-        if not _interrupt(failed):
+        if not _interrupt(failed, self.handled):
             return
-        cut = _cut_imports(_frames(failed))
+        cut = _cut_imports(_frames(failed, self.handled))
         if not cut:  # (it cut no import: a render's, a callback's)
             return
         cause = type(failed).__name__

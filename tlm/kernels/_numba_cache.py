@@ -46,6 +46,7 @@ import inspect
 import io
 import os
 import pickle
+import sys
 import threading
 from pathlib import Path
 
@@ -175,19 +176,21 @@ def _damage_safe(load):
     An error of a numba left half imported (:func:`_half_imported`: ``module 'numba' has no attribute
     'core'``, as its contexts are refreshed or its data unpickled) where the files' bytes read whole
     (:func:`_bytes_whole`), and one a signal's handler raised during the load, or one that came of it
-    (:func:`tlm.whole_imports.raised_by_handler`: a timeout's, an interrupt's), are raised, no file removed;
+    (:func:`tlm.whole_imports.raised_by_handler`: a timeout's, a Ctrl-C's; not one the load began in the
+    ``except`` block of, a timeout caught before a retry), are raised, no file removed;
     any other error (``LLVM bitcode parsing error``: a file's bytes zeroed inside the compiled code it holds,
     which its pickle reads whole) is the files'."""
 
     @functools.wraps(load)
     def load_overload(self, sig, target_context):
+        handled = sys.exc_info()[1]  # (a load in an ``except`` block, a retry after a timeout: not the load's)
         try:
             return load(self, sig, target_context)
         except Exception as e:
             locator = getattr(getattr(self, "_impl", None), "locator", None)
             if not isinstance(locator, _PackageStamp) or getattr(self, "_cache_file", None) is None:
                 raise
-            if raised_by_handler(e) or (_half_imported(e) and _bytes_whole(self._cache_file)):
+            if raised_by_handler(e, handled) or (_half_imported(e) and _bytes_whole(self._cache_file)):
                 raise  # (not the files': an interrupt, a timeout's raise; a half-imported numba)
             _drop_damaged(self, sig, target_context, e)
             return None
