@@ -80,17 +80,14 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     scaling,
     sweep,
     thesis,
+    tlm_version,  # noqa: F401  (not in __all__: tlm --version's, the running code's version)
     write_calibration,
     write_report,
 )
 from tlm.arch.units import Deadlock, MaxEventsReached
 from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, plain, read_yaml, to_dict
 from tlm.config_words import with_overrides
-from tlm.errors import (
-    InputError,
-    StepsFailed,  # (what plots raises)
-    did_you_mean,
-)
+from tlm.errors import InputError, StepsFailed, did_you_mean  # (StepsFailed: what plots raises)
 from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:

@@ -240,6 +240,13 @@ def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None 
     return fit(_experiment(path, "calibrate"), progress=progress)
 
 
+def tlm_version() -> str:
+    """The version of the tlm code that runs (:func:`tlm.experiments.provenance.tlm_version`; ``tlm --version``'s)."""
+    from tlm.experiments.provenance import tlm_version as running
+
+    return running()
+
+
 def _package_dir() -> Path:
     """The folder of the tlm package that runs (site-packages/tlm in an installed copy)."""
     return Path(__file__).resolve().parent

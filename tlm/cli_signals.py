@@ -221,7 +221,7 @@ def _line(text: str) -> None:
 def version() -> str:
     """``tlm X.Y.Z (Python A.B.C)``: the version of the code that runs
     (:func:`tlm.experiments.provenance.tlm_version`: a checkout's own, not an installed copy's)."""
-    from tlm.experiments.provenance import tlm_version
+    from tlm.api import tlm_version
 
     return f"tlm {tlm_version()} (Python {sys.version.split()[0]})"
 

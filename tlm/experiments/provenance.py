@@ -45,7 +45,8 @@ def tlm_version() -> str:
     """The version of the tlm whose code runs (this package), not of whichever copy is installed:
     in a source tree (this package is the ``tlm/`` beside a ``pyproject.toml`` of project ``tlm``:
     a checkout run with ``python -m tlm``, installed in editable mode or not) that file's
-    ``version``; else the installed distribution's where its ``tlm/__init__.py`` is this package's;
+    ``version``; else the installed distribution's where its ``tlm/__init__.py`` is this package's
+    (or it is an editable install of this source tree: its ``direct_url.json``, PEP 610);
     else ``unknown`` (with the installed copy's version where there is one: ``unknown (installed
     tlm 0.1.0 is another copy)``). Read once a process: the code that runs is the one imported."""
     import importlib.metadata as md
@@ -58,13 +59,31 @@ def tlm_version() -> str:
         dist = md.distribution("tlm")
         installed = dist.version
         init = Path(os.fspath(dist.locate_file("tlm/__init__.py")))
-        if init.is_file() and init.resolve() == here / "__init__.py":
+        if (init.is_file() and init.resolve() == here / "__init__.py") or _editable_of(dist, here.parent):
             return installed
     except md.PackageNotFoundError:
         return "unknown (not installed)"
     except (OSError, ValueError):  # (metadata unreadable)
         return "unknown"
     return f"unknown (installed tlm {installed} is another copy)"
+
+
+def _editable_of(dist, folder: Path) -> bool:
+    """Whether the distribution ``dist`` is an editable install of the source tree ``folder`` (its
+    ``direct_url.json``: ``dir_info.editable`` and a ``file:`` url of that folder); False where it
+    says otherwise or cannot be read."""
+    import json
+    from urllib.parse import urlsplit
+    from urllib.request import url2pathname
+
+    try:
+        direct = json.loads(dist.read_text("direct_url.json") or "null")
+        url = urlsplit(direct["url"])
+        if not direct.get("dir_info", {}).get("editable") or url.scheme != "file":
+            return False
+        return Path(url2pathname(url.path)).resolve() == folder
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):  # (no such file, or not PEP 610's)
+        return False
 
 
 def _source_version(pyproject: Path) -> str | None:

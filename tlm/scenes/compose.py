@@ -232,15 +232,24 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
 
 def _not_a_mesh_file(mpath: Path) -> str | None:
     """Why the path ``mpath`` names no regular file to read a mesh from (a folder, a device, a pipe, a
-    socket, a link to nothing, nothing, a folder on the way that cannot be searched); None where it does."""
+    socket, a link to nothing, nothing, a folder on the way that cannot be searched, a name no file can
+    have); None where it does."""
     try:
         mode = mpath.stat().st_mode
     except FileNotFoundError:
         if mpath.is_symlink():
-            return f"mesh file {str(mpath)!r} is a symbolic link to {os.readlink(mpath)!r}, which is not there"
+            try:
+                to = os.readlink(mpath)
+            except OSError:  # (removed meanwhile)
+                return f"mesh file {str(mpath)!r} not found"
+            end = ("itself a link that leads to no file" if os.path.islink(mpath.parent / to) else
+                   "which is not there")  # (a chain of links ending in nothing)
+            return f"mesh file {str(mpath)!r} is a symbolic link to {to!r}, {end}"
         return f"mesh file {str(mpath)!r} not found"
     except OSError as e:  # (a folder on the way that cannot be searched, a link loop, a name too long)
         return f"mesh file {str(mpath)!r} cannot be read ({e.strerror or e})"
+    except ValueError:  # (a NUL character: no file has such a name)
+        return f"mesh file {str(mpath)!r} not found (a file name holds no NUL character)"
     if stat.S_ISREG(mode):
         return None
     if stat.S_ISDIR(mode):
@@ -270,11 +279,11 @@ def plain_path(path: Path) -> Path:
     if norm.name != path.name:  # (a path ending in .. or .: a folder's; the same entry where the two are one)
         try:
             return norm if os.path.samefile(norm, path) else path
-        except OSError:
+        except (OSError, ValueError):
             return path
     try:
         return norm if os.path.samefile(norm.parent, path.parent) else path
-    except OSError:  # (a folder on the way not there)
+    except (OSError, ValueError):  # (a folder on the way not there; a NUL in a name: no such folder)
         return path
 
 
