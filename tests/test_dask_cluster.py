@@ -24,6 +24,7 @@ import tlm.experiments.sweep as sweep_mod
 import tlm.fingerprint as fingerprint
 from tlm.errors import EnvironmentFailure
 from tlm.experiments.sweep import run_sweep
+from tlm.experiments.sweep_rows import RAN_COLUMNS
 
 pytest.importorskip("distributed")
 
@@ -119,7 +120,8 @@ def csv_rows(out: Path) -> list[dict]:
     import pandas as pd
 
     table = pd.read_csv(out / "sweep.csv", dtype={"hash": str})
-    table = table.drop(columns=[*HOST, "functional_cached"])
+    table = table.drop(columns=[*HOST, "functional_cached", *(c for c in RAN_COLUMNS if c in table)])  # (and who
+    # ran each point: a worker of the cluster, or the sweep's own process)
     return table.astype(object).where(table.notna(), None).to_dict("records")  # (NaN != NaN)
 
 

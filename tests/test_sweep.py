@@ -26,7 +26,7 @@ from tlm.config import config_from_dict
 from tlm.experiments.frames import cache_dir, cached_render
 from tlm.experiments.sweep import run_sweep
 from tlm.experiments.sweep_file import config_hash, expand, load_sweep, point_inputs
-from tlm.experiments.sweep_rows import utilization
+from tlm.experiments.sweep_rows import RAN_COLUMNS, utilization
 
 from .scenes import sphere_scene
 
@@ -53,7 +53,8 @@ def jsonl(path: Path) -> list[dict]:
 
 
 def without_host(rows: list[dict]) -> list[dict]:
-    return [{k: v for k, v in r.items() if k not in HOST} for r in rows]
+    """The rows less what differs with the process that ran a point: host seconds, and who ran it (RAN_COLUMNS)."""
+    return [{k: v for k, v in r.items() if k not in HOST and k not in RAN_COLUMNS} for r in rows]
 
 
 # ---------------------------------------------------------------- the sweep file

@@ -2,7 +2,8 @@
 
 A point that a Dask worker runs sizes its kernel threads on the worker's own machine
 (:func:`dask_worker_threads`: the sweep's machine is not the worker's), names the worker
-in its messages (:func:`dask_worker_where`), records the versions of the process that ran
+in its messages (:func:`dask_worker_where`: by its ``--name``, :func:`worker_words`), records who ran it
+(:func:`ran_here`: the worker's name, host and process) and the versions of the process that ran
 it (:func:`worker_versions`) and is refused on a worker whose numpy, numba or Python
 differ from the sweep's (:func:`check_worker_versions`, :class:`OtherVersionsOnWorker`).
 Each worker of a ``--dask local`` cluster preloads this module as it starts (:func:`dask_setup`).
@@ -59,16 +60,13 @@ def dask_worker_threads() -> int | None:
     otherwise take all 32. None outside a Dask worker. Where the scheduler cannot be asked
     (or says something not understood), this worker's own slots; what it said is kept for
     :data:`SLOTS_TTL` seconds. Speed only: no error leaves it."""
-    if "distributed" not in sys.modules:  # (not imported: not a Dask worker)
+    worker = _dask_worker()
+    if worker is None:
         return None
-    from distributed import get_client, get_worker
+    from distributed import get_client
 
-    from tlm.kernels.threads import available, default_threads
+    from tlm.kernels.threads import shared_threads
 
-    try:
-        worker = get_worker()
-    except ValueError:  # (not in a worker's task)
-        return None
     own = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
     now = time.monotonic()
     kept = _SLOTS.get(worker.address)
@@ -87,23 +85,58 @@ def dask_worker_threads() -> int | None:
         except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
             slots = own
         _SLOTS[worker.address] = (now, slots)
-    return default_threads(available() // slots)  # (at most DEFAULT_MAX_THREADS)
+    return shared_threads(slots)  # (at most DEFAULT_MAX_THREADS)
 
 
-def dask_worker_where() -> str | None:
-    """In a Dask worker's task: ``the Dask worker ADDRESS on host NAME``, for the messages of
-    a point that failed there; None elsewhere."""
-    if "distributed" not in sys.modules:
+def _dask_worker():
+    """The Dask worker whose task runs in this thread, or None (not in a worker's task)."""
+    if "distributed" not in sys.modules:  # (not imported: not a Dask worker)
         return None
     from distributed import get_worker
 
     try:
-        worker = get_worker()
+        return get_worker()
     except ValueError:  # (not in a worker's task)
+        return None
+
+
+def worker_name(name, address) -> str:
+    """A Dask worker as its user knows it: the name it was given (``dask worker --name w1``; ``w1-0``, ``w1-1``
+    with ``--nworkers 2``), else its ``address`` (a worker given no name is named by its address; those of a
+    ``--dask local`` cluster are numbered by the cluster, 0, 1, ...: their addresses tell them apart)."""
+    return name if isinstance(name, str) and name and name != address else str(address)
+
+
+def worker_words(name, address, host: str | None = None) -> str:
+    """``the Dask worker NAME (ADDRESS) on host HOST`` for the lines on a worker: its :func:`worker_name`, its
+    address beside a name it was given, its host where it is known."""
+    label = worker_name(name, address)
+    at = f" ({address})" if label != str(address) else ""
+    return f"the Dask worker {label}{at}" + (f" on host {host}" if host else "")
+
+
+def dask_worker_where() -> str | None:
+    """In a Dask worker's task: ``the Dask worker NAME (ADDRESS) on host HOST`` (:func:`worker_words`), for the
+    messages of a point that failed there; None elsewhere."""
+    worker = _dask_worker()
+    if worker is None:
         return None
     import socket
 
-    return f"the Dask worker {worker.address} on host {socket.gethostname()}"
+    return worker_words(getattr(worker, "name", None), worker.address, socket.gethostname())
+
+
+def ran_here() -> dict:
+    """Who runs a point in this process, as its ``results.json`` records it (``ran``) and its row's ``worker``,
+    ``host`` and ``pid`` columns say (:func:`~tlm.experiments.sweep_rows.point_row`): ``worker``, the Dask
+    worker's :func:`worker_name` (its ``--name``, else its address; None outside a Dask worker: a local pool's
+    process, or the sweep's own with ``--jobs 1``), ``host``, this machine's name, and ``pid``, this process's
+    id. Plain data; read at no cost, no error leaves it."""
+    import socket
+
+    worker = _dask_worker()
+    name = None if worker is None else worker_name(getattr(worker, "name", None), getattr(worker, "address", ""))
+    return {"worker": name, "host": socket.gethostname(), "pid": os.getpid()}
 
 
 # the versions (provenance.versions' keys) that can change a point's bits: a Dask worker that differs

@@ -462,14 +462,12 @@ def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:
     worker's own CPUs) for one worker, and for a remote Dask cluster, whose machines are
     not this one: there each point sizes itself
     (:func:`~tlm.experiments.dask_workers.dask_worker_threads`)."""
-    from tlm.kernels.threads import available, default_threads
+    from tlm.kernels.threads import shared_threads
 
     if dask not in (None, "local"):
         return None
     workers = min(jobs, points)
-    if workers <= 1:
-        return None
-    return default_threads(available() // workers)  # (at most DEFAULT_MAX_THREADS, as a null's own)
+    return None if workers <= 1 else shared_threads(workers)  # (at most DEFAULT_MAX_THREADS, as a null's own)
 
 
 def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,

@@ -195,8 +195,9 @@ class WorkerCannotRun(EnvironmentFailure):
     its scheduler has no worker. Said before any point is sent: one line, exit status 1, nothing written."""
 
 
-def _on_worker(runner: str) -> dict:
-    """What a Dask worker has of tlm: its host, the folder its ``tlm`` imports from, whether it has the module
+def _on_worker(runner: str, dask_worker=None) -> dict:
+    """What a Dask worker has of tlm: its host, its name (``dask_worker``'s, which ``Client.run`` passes: the
+    ``--name`` it was given, for the lines on it), the folder its ``tlm`` imports from, whether it has the module
     ``runner`` and, where its tlm can say, its code fingerprint. Run on the worker as :func:`worker_probe`'s
     copy, pickled by value: the standard library only, and no exception leaves it (a worker whose tlm is older
     than the sweep's lacks modules that the sweep has, this one's included)."""
@@ -206,6 +207,8 @@ def _on_worker(runner: str) -> dict:
     import socket
 
     seen: dict = {"host": socket.gethostname(), "tlm": None, "runner": False, "fingerprint": None, "error": None}
+    name = getattr(dask_worker, "name", None)
+    seen["name"] = name if isinstance(name, str) else None  # (plain data: a cluster's numbers are not names)
     try:
         spec = importlib.util.find_spec("tlm")
         if spec is not None:
@@ -228,7 +231,7 @@ def worker_probe():
     by name (:data:`PROBE_MODULE`), so it pickles it by value (cloudpickle), its code and no global of this
     module, and a worker whose tlm has no :mod:`tlm.experiments.executors_dask` runs it all the same."""
     probe = types.FunctionType(_on_worker.__code__, {"__builtins__": builtins, "__name__": PROBE_MODULE},
-                               _on_worker.__name__)
+                               _on_worker.__name__, _on_worker.__defaults__)
     probe.__module__ = PROBE_MODULE
     probe.__qualname__ = _on_worker.__name__
     return probe
@@ -263,6 +266,7 @@ class WorkerWatch:
         self.code = code  # the sweep's code fingerprint, for the lines
         self.keys: set[str] = set()
         self.hosts: dict[str, str] = {}  # a worker's address -> its host, as it said
+        self.names: dict[str, str] = {}  # a worker's address -> the name it was given (dask worker --name), as it said
         self.why: dict[str, str] = {}  # a worker's address -> why it cannot load the sweep's points
         self.checked: set[str] = set()
         self.lines: list[str] = []
@@ -282,7 +286,7 @@ class WorkerWatch:
         if not isinstance(msg, dict) or msg.get("action") != "remove-worker":  # (every client's gathers, scatters,
             return  # runs, on a shared scheduler: not kept for a long sweep)
         address = str(msg.get("worker"))
-        event = (*event, self.why.pop(address, None), address in self.checked)
+        event = (*event, self.why.pop(address, None), address in self.checked, self.where(address))
         self.checked.discard(address)
         self.events.append(event)
 
@@ -310,8 +314,10 @@ class WorkerWatch:
         return self.code
 
     def where(self, address: str) -> str:
-        host = self.hosts.get(address)
-        return f"the Dask worker {address}" + (f" on host {host}" if host else "")
+        """The worker at ``address`` in a line: by its name where it was given one, its host where it said it."""
+        from tlm.experiments.dask_workers import worker_words
+
+        return worker_words(self.names.get(address), address, self.hosts.get(address))
 
     def check(self, addresses=None) -> list[str]:
         """The workers at ``addresses`` (None: every worker the scheduler has) not checked yet, asked what
@@ -331,6 +337,8 @@ class WorkerWatch:
             self.checked.add(address)
             if isinstance(seen, dict) and seen.get("host"):
                 self.hosts[address] = str(seen["host"])
+            if isinstance(seen, dict) and isinstance(seen.get("name"), str):
+                self.names[address] = seen["name"]
             why = cannot_run(seen)
             if why is not None:
                 why = cannot_run(seen, self.sweeps_code())
@@ -350,11 +358,10 @@ class WorkerWatch:
         """Every line so far on a worker that left the cluster while it ran (or held) some of the sweep's
         points (the scheduler runs them again on another worker), with why where it is known."""
         while self.events:  # (each a worker's removal, with what was known of it then: _event)
-            _, msg, why, checked = self.events.popleft()
+            _, msg, why, checked, where = self.events.popleft()
             held = len(self.keys.intersection(msg.get("processing-tasks") or ()))
             if not held:
                 continue
-            address = str(msg.get("worker"))
             if why is not None:
                 why = f"it cannot run tlm's points: {why}"
             elif checked or not self.remote:
@@ -362,8 +369,7 @@ class WorkerWatch:
             else:  # (it joined, and left, between two of the sweep's polls)
                 why = ("why is in its own log; it left before the sweep could ask what tlm it has: one whose tlm is "
                        "older than the sweep's leaves so at its first point")
-            self.lines.append(f"{self.where(address)} left the cluster while it held {held} of the sweep's points "
-                              f"({why})")
+            self.lines.append(f"{where} left the cluster while it held {held} of the sweep's points ({why})")
         return list(self.lines)
 
 
@@ -375,11 +381,14 @@ def killed_worker_line(e: BaseException) -> str | None:
     any other exception."""
     if type(e).__name__ != "KilledWorker" or not type(e).__module__.startswith("distributed"):
         return None
-    last = getattr(getattr(e, "last_worker", None), "address", None) if len(e.args) >= 2 else None
+    from tlm.experiments.dask_workers import worker_words
+
+    worker = getattr(e, "last_worker", None) if len(e.args) >= 2 else None
+    last = getattr(worker, "address", None)
     failures = e.args[2] if len(e.args) >= 3 and isinstance(e.args[2], int) else None
     times = f"{failures + 1} times" if failures is not None else "too many times"
     allowed = f" ({failures})" if failures is not None else ""
-    last = f", the last the Dask worker {last}" if isinstance(last, str) and last else ""
+    last = f", the last {worker_words(getattr(worker, 'name', None), last)}" if isinstance(last, str) and last else ""
     return (f"the Dask workers that held this point died {times}{last}: Dask gives a point up after "
             f"distributed.scheduler.allowed-failures{allowed} such deaths, whether it ran there or only waited "
             "in the worker's queue (another point may have killed it: out of memory, a crash); the workers' logs "

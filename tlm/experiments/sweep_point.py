@@ -33,6 +33,7 @@ from tlm.experiments.dask_workers import (
     check_worker_versions,
     dask_worker_threads,
     dask_worker_where,
+    ran_here,
     worker_versions,
 )
 from tlm.experiments.error_cost_clock import CompileClock
@@ -95,6 +96,7 @@ def run_point(task: Task) -> dict:
 
     stage = "functional"
     where = dask_worker_where()  # (None but in a Dask worker)
+    ran_on = ran_here()  # (who runs it: its results.json's "ran", its row's worker, host and pid)
     try:
         # (numba compiling or loading a kernel, first imports: the point's one-off, from t0 on: the worker's checks
         # before its render, a part of its functional seconds, first import the kernels' modules and numba
@@ -142,13 +144,13 @@ def run_point(task: Task) -> dict:
                 # results.json's text, measured below)
                 "host_seconds": {"functional": round(t1 - t0, 6), "simulate": round(t2 - t1, 6),
                                  "write": None, "one_off": round(one_off, 6)},
-                **task.provenance, "versions": ran,
+                **task.provenance, "versions": ran, "ran": ran_on,
             }
             # (its folder made, config.resolved.yaml, trace.json and the record: all of the write but results.json's
             # own text and the folder's move into place, which come after the seconds they would hold)
             results["host_seconds"]["write"] = round(time.perf_counter() - t2, 6)
             (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n")  # (strict: inf as null)
-        return {"status": "ok", "results": results, "worker": where}
+        return {"status": "ok", "results": results, "worker": where, "ran": ran_on}
     except Exception as e:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
             raise stop from e
@@ -161,17 +163,18 @@ def run_point(task: Task) -> dict:
             pass
         elif task.code is None:  # (this machine's worker)
             try:
-                write_error(task, error)
+                write_error(task, error, ran_on)
             except Exception as failed:  # (a folder in the way: the row keeps the point's own error, the write's
                 # said beside it; nothing leaves the worker)
                 lost = error_record(failed, "write", traceback.format_exc())
                 if says_disk_full(lost["type"], lost["message"]):  # (a full disk: the sweep stops on it, as on a
-                    return {"status": "failed", "error": lost, "worker": where}  # point whose own write it refused)
+                    return {"status": "failed", "error": lost, "worker": where, "ran": ran_on}  # point whose own
+                    # write it refused)
                 error["message"] = f"{error['message']} (its error.json could not be written: {failed})"
         elif (Path(task.out).parent.parent / MARKER).is_file():  # (a remote worker without the sweep's
             with suppress(OSError, InputError):  # folder makes none: the sweep writes error.json, _seen_here)
-                write_error(task, error)
-        return {"status": "failed", "error": error, "worker": where}
+                write_error(task, error, ran_on)
+        return {"status": "failed", "error": error, "worker": where, "ran": ran_on}
 
 
 def _checked(task: Task, where: str | None) -> tuple[dict, Any, Path]:
@@ -253,13 +256,17 @@ def _check_worker_sees(task: Task, where: str) -> None:
                 "install the sweep's tlm on the workers, and restart them after an update of it")
     sweep_dir = Path(task.out).parent.parent
     if not (sweep_dir / MARKER).is_file():
-        raise PathNotOnWorker(f"the sweep's output folder {sweep_dir} is not there on {where}: the workers "
-                              "write the point folders into it, so they must see it at that path (a shared "
-                              "file system)")
+        raise PathNotOnWorker(f"the sweep's output folder {sweep_dir} is not there on {where}, which writes the "
+                              "point's folder into it: share that folder with the workers' machines at the same path "
+                              "(a shared file system), or give the sweep an output folder they share")
+    table = (task.config.get("arch") or {}).get("programs")
+    table = None if table is None else os.path.abspath(Path(task.folder) / table)
     for path in task.inputs:
         if not os.access(path, os.R_OK):
-            raise PathNotOnWorker(f"cannot read {path} on {where}: the workers must see the sweep's "
-                                  "files at the paths the sweep gives (a shared file system)")
+            what = "the programs table" if path == table else "the scene file"
+            raise PathNotOnWorker(f"cannot read {what} {path} on {where}: copy it to that path on the worker's "
+                                  "machine, or share its folder with the workers at the same path (a shared file "
+                                  "system)")
 
 
 def _check_worker_inputs(task: Task, cfg, folder: Path, where: str) -> None:
@@ -313,8 +320,9 @@ def finished(folder: Path) -> dict | None:
 POINT_FILES = frozenset({"config.resolved.yaml", "results.json", "trace.json", "error.json"})  # (a point writes)
 
 
-def write_error(task: Task, error: dict) -> None:
-    """The failed point's folder: ``error.json`` (exception, message, traceback) and its config. Where the
+def write_error(task: Task, error: dict, ran: dict | None = None) -> None:
+    """The failed point's folder: ``error.json`` (exception, message, traceback; ``ran``, who ran the point, where
+    given: :func:`~tlm.experiments.dask_workers.ran_here`) and its config. Where the
     folder holds the point finished before (:func:`finished`: run again for the trace.json it now asks for, or
     to be measured again), its results stay and ``error.json`` is written beside them (where the sweep's row
     points for the whole message); the folder is still run again by a later sweep (its rerun's demand holds),
@@ -325,7 +333,7 @@ def write_error(task: Task, error: dict) -> None:
     finished point is asked about again under the lock at the error folder's swap (``atomic_folder``'s
     ``into``): ``error.json`` goes beside its results, as above (not a refusal in place of the point's error,
     with the error folder left in ``points/`` as ``<hash>.unsaved-<pid>``)."""
-    body = {"hash": task.hash, "factors": task.factors, **error}
+    body = {"hash": task.hash, "factors": task.factors, **error, **({"ran": ran} if ran is not None else {})}
     text = storage.json_text(body, indent=2) + "\n"
 
     def keep(folder: Path) -> bool:

@@ -1,7 +1,8 @@
 """A sweep's rows: one tidy flat row per point, and the files that hold them.
 
 A point's row (:func:`point_row`) is the point (its index, hash, status, error), its
-factors, its scene and mode, and for a point that ran the fields of its ``results.json``
+factors, its scene and mode, who ran it (:func:`ran_fields`: the Dask worker's name, the host, the process,
+where its record says), and for a point that ran the fields of its ``results.json``
 (:func:`result_fields`): cycles per PM, fps, SimPy events, whether TThru is steady,
 busy/stall/idle per PM kind averaged over the pipelines (:func:`utilization`), the image
 error where there is a reference, whether the frame came from the functional cache, and
@@ -29,6 +30,8 @@ from tlm.errors import error_line
 from tlm.experiments.sweep_file import Point
 
 FIRST_COLUMNS = ("point", "hash", "status", "error")
+RAN_COLUMNS = ("worker", "host", "pid")  # who ran a point (its record's ``ran``: dask_workers.ran_here), after its
+# mode, where its record says (a row of a sweep of before they were recorded has none)
 
 
 class Row(dict):
@@ -50,12 +53,26 @@ def point_row(point: Point, record: dict) -> Row:
     row.update(point.factors)
     row["scene"] = point.config["scene"]
     row["mode"] = point.config["mode"]
+    row.update(ran_fields(record))
     if record["status"] != "ok":
         err = record["error"]
         row["error"] = error_line(f"{err['type']}: {err['message']}", f"points/{point.hash}/error.json")
         return row
     row.update(result_fields(record["results"]))
     return row
+
+
+def ran_fields(record: dict) -> dict[str, Any]:
+    """Who ran the point of ``record`` (a worker's, or its ``results.json`` read back: a sweep resumed), as its
+    row's :data:`RAN_COLUMNS`: the Dask worker's name (its ``--name``, else its address; null for a local
+    process), the host, the process id; none where the record does not say (a point of an older tlm, one whose
+    worker died before it could)."""
+    ran = record.get("ran")
+    if not isinstance(ran, dict):
+        ran = (record.get("results") or {}).get("ran")
+    if not isinstance(ran, dict):
+        return {}
+    return {k: ran.get(k) for k in RAN_COLUMNS}
 
 
 def result_fields(res: dict) -> dict[str, Any]:

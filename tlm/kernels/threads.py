@@ -167,6 +167,18 @@ def default_threads(cpus: int | None = None) -> int:
     return n if fork else min(n, DEFAULT_MAX_THREADS)
 
 
+def shared_threads(slots: int | None = None) -> int:
+    """The threads of ``render.threads: null`` where ``slots`` points run at once on this machine (a sweep's
+    local workers, or the task slots of the Dask workers on one machine): the CPUs available
+    (:func:`available`) over them, at least one (:func:`default_threads`' own limits); None: this
+    process's own answer, :func:`default_threads`. The one reading of a null ``render.threads``: a sweep's
+    share (:func:`~tlm.experiments.executors.kernel_threads`) and a Dask worker's
+    (:func:`~tlm.experiments.dask_workers.dask_worker_threads`) are this one."""
+    if slots is None:
+        return default_threads()
+    return default_threads(available() // max(1, int(slots)))
+
+
 @contextlib.contextmanager
 def using(n: int | None):
     """Run the kernels called inside the block on ``n`` threads (None: :func:`default_threads`).
