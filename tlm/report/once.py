@@ -5,8 +5,9 @@ A scaling study's sweep (its ``sweep.yaml`` and ``sweep.jsonl``) is read as an i
 the sweep as it is now (:func:`tlm.experiments.scaling.sweep_points`: §3's fits and notes, the
 summary's "Does it scale"): six reads of each file a report. :class:`Reads` keeps what one report
 read, by the file's resolved path and its stat (a file replaced or written to meanwhile is read
-again), on that report's :class:`~tlm.report.collect.Inputs`; its sections and summary read through
-it too (:func:`reading`). Nothing of it outlives the report (:func:`tlm.api.write_report`, called
+again, its modification time set back too: ``cp -p``, ``rsync -a --inplace``, ``touch -r``), on that
+report's :class:`~tlm.report.collect.Inputs`; its sections and summary read through it too
+(:func:`reading`). Nothing of it outlives the report (:func:`tlm.api.write_report`, called
 from a notebook, reads the files again the next time).
 """
 
@@ -37,7 +38,8 @@ class Reads:
             st = path.stat()
         except OSError:  # (read as it would be: its error, nothing kept)
             return load(path)
-        key = (str(path.resolve()), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+        # (its ctime too: the kernel's, which a write sets and no one sets back, where the mtime can be: os.utime)
+        key = (str(path.resolve()), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
         if key not in self._read:
             self._read[key] = load(path)
         return self._read[key]
