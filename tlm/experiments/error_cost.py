@@ -212,8 +212,8 @@ def expand(points: Any, source: str) -> list[dict[str, Any]]:
                 raise InputError("has no values", source=source, key=f"points[{i}].{k}")
             try:  # (a value given twice: two rows of one point, refused by tlm sweep's own check, its words)
                 given_once({str(k): v}, {}, source)
-            except InputError as e:  # (named by the point's key, not a sweep's grid.<key>)
-                raise InputError(e.message, source=source, key=f"points[{i}].{k}") from None
+            except InputError as e:  # (named by the point's key, not a sweep's grid.<key>; its class kept)
+                raise e.replaced(key=f"points[{i}].{k}") from None
             values.append(v)
         out.extend(dict(zip(keys, combo, strict=True)) for combo in itertools.product(*values))
     return out

@@ -386,14 +386,21 @@ def _study_labels(studies: list) -> dict[int, str]:
 
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     from tlm.report.tradeoff import gather_rays as _gather_rays
-    from tlm.report.tradeoff import reference_converged, series_styles, truth_noise_words
+    from tlm.report.tradeoff import log_floor, reference_converged, series_styles, truth_noise_words
     from tlm.report.tradeoff import series_of as _series
 
     studies = [st for st in inputs.of_kind("error-vs-cost") if st.rows]
     labels = _study_labels(studies)
     rows = [{**r, "_study": st} for st in studies for r in st.rows]
     err = "truth_rel_mse" if any(r.get("truth_rel_mse") is not None for r in rows) else "rel_mse"
-    rows = [r for r in rows if r.get(err) is not None and r.get("frame_seconds")]
+    measured = [r for r in rows if r.get(err) is not None]
+    rows = [r for r in measured if _number(r.get("frame_seconds")) and r["frame_seconds"] > 0]  # (a log axis's)
+    if not rows and studies:  # (not "no error-against-cost study": a study written before the frame was simulated)
+        return ("<b>What quality costs:</b> no row of the error-against-cost "
+                + ("study" if len(studies) == 1 else "studies") + " among the inputs has both a relative MSE and a "
+                "simulated frame time above 0 (a study written before 'tlm error-vs-cost' simulated the frame: run it "
+                "again): no error against frame time here; its figures draw the RMSE against host wall time."
+                + points_error(inputs) + error_factor(inputs)), None
     if not rows:
         return _other_errors(inputs), None
 
@@ -409,14 +416,23 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     series = list(dict.fromkeys(series))  # (a filter with final gathering is a series of its own, after it)
     # one study: each series the style the study's own figures give it (of all its rows, drawn or not); several: in turn
     styles = series_styles(studies[0].rows) if len(studies) == 1 else {name: i for i, name in enumerate(series)}
-    for name in series:
-        rs = sorted((r for r in rows if series_of(r) == name), key=lambda r: r["frame_seconds"])
-        ax.plot([r["frame_seconds"] for r in rs], [r[err] for r in rs], label=name,
+    values = np.array([float(r[err]) for r in rows])
+    floor = log_floor(values)  # (an error of 0 drawn a decade below the least positive one)
+    log_y = floor == floor  # (none above 0: a linear axis, each error drawn as it is; a log one could draw none)
+    zero, below, odd = int((values == 0).sum()), int((values < 0).sum()), int((~np.isfinite(values)).sum())
+    shown = np.isfinite(values) & ((values >= 0) if log_y else True)
+    for name in [n for n in series if any(k and series_of(r) == n for r, k in zip(rows, shown, strict=True))]:
+        rs = sorted((r for r, k in zip(rows, shown, strict=True) if k and series_of(r) == name),
+                    key=lambda r: r["frame_seconds"])
+        ax.plot([r["frame_seconds"] for r in rs], [r[err] or floor if log_y else r[err] for r in rs], label=name,
                 **{**line_style(styles[name]), "linestyle": "none"})
+    if zero and log_y:
+        ax.axhline(floor, color="0.4", linestyle=":", linewidth=1.0, label=f"error 0, drawn at {floor:.2g}")
     ax.set_xscale("log")
-    ax.set_yscale("log")
     log_ticks(ax, "x")  # (no minor tick labels running into each other)
-    log_ticks(ax, "y")
+    if log_y:
+        ax.set_yscale("log")
+        log_ticks(ax, "y")
     ax.set_xlabel("simulated frame time (s)")
     ax.set_ylabel("relative MSE" + (" vs Mitsuba" if err == "truth_rel_mse" else " vs reference"))
     ax.legend(fontsize=7)
@@ -424,7 +440,22 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
              "each point: one photon count, radius or k of a filter (with final gathering, when on, a series "
              "of its own" + ("; each study's points a series of their own, named by its folder and the --set "
                              "overrides the other studies do not share" if len(studies) > 1 else "")
-             + "); lower left is better")
+             + "); lower left is better"
+             + (f"; {zero} of them with an error of 0, which a log axis cannot show: drawn at {floor:.2g} (the "
+                "dotted line)" if zero and log_y else "")
+             + (f"; {below} with an error below 0, which a log axis cannot show: not drawn" if below and log_y else "")
+             + ("" if log_y else "; no error is above 0, which a log axis needs: the error axis is linear")
+             + (f"; {odd} with an error that is not a finite number: not drawn" if odd else "")
+             + (f"; {len(measured) - len(rows)} with no simulated frame time above 0: not drawn"
+                if len(measured) > len(rows) else ""))
+    quoted = [r for r, v in zip(rows, values, strict=True) if np.isfinite(v) and v >= 0]  # (below 0: no error)
+    if not quoted:
+        return (f"<b>What quality costs:</b> none of the {_count(len(rows), 'error-against-cost row')} has a relative "
+                f"MSE of 0 or above ({esc(', '.join(f'{v:.3g}' for v in values[:3]))}"
+                f"{', ...' if len(values) > 3 else ''}): no lowest error to quote (the figure's caption says which "
+                "are drawn)." + points_error(inputs) + error_factor(inputs)), f
+    left = len(rows) - len(quoted)
+    rows = quoted
     best = {}
     for r in rows:
         if series_of(r) not in best or r[err] < best[series_of(r)][err]:
@@ -452,7 +483,9 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             + (f" with final gathering ({gather} rays)" if gather else "")
             + (f" (from {esc(source)})" if source else "") + ", relative MSE "
             f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
-            + against + (f"; {', '.join(rest)}" if rest else "") + "." + esc(seeds) + noise
+            + against + (f"; {', '.join(rest)}" if rest else "")
+            + (f" ({_count(left, 'row')} with a relative MSE below 0 or not a finite number left out)" if left
+               else "") + "." + esc(seeds) + noise
             + points_error(inputs) + error_factor(inputs))
     return text, f
 

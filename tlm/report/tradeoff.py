@@ -88,15 +88,27 @@ def _spans_decades(values, always: bool = False) -> bool:
     """Whether an axis of ``values`` is drawn log: its positive finite values span a decade or more
     (``always``: where there is one)."""
     v = np.asarray([x for x in values if x is not None and np.isfinite(x) and x > 0], dtype=float)
-    return bool(v.size) and (always or v.max() / v.min() >= 10)
+    return bool(v.size) and (always or v.max() >= 10 * v.min())  # (not max / min: 1 / 5e-324 overflows)
 
 
 def log_floor(values) -> float:
     """Where a log axis draws a value of 0: a decade below the smallest positive finite one of
-    ``values`` (as the granularity figure draws its reference's error 0); NaN where there is none."""
+    ``values`` (as the granularity figure draws its reference's error 0), at it where a tenth of it is
+    0 in floating point (5e-324: not a floor of 0, which no log axis draws); NaN where there is none."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v) & (v > 0)]
-    return float(v.min()) / 10 if v.size else math.nan
+    if not v.size:
+        return math.nan
+    least = float(v.min())
+    return least / 10 if least / 10 > 0 else least
+
+
+def named_off(values, other_drawn) -> np.ndarray:
+    """``values`` of the points a caption names as off a log axis (:func:`off_log_words`): each whose other
+    coordinate is drawn, and each below 0 (not drawn, whatever the other); NaN for the rest (a 0 whose other
+    coordinate is left off is not "drawn at" the floor: its other value's words say it is not drawn)."""
+    v = np.asarray(values, dtype=float)
+    return np.where(np.asarray(other_drawn, dtype=bool) | (v < 0), v, math.nan)
 
 
 def as_drawn(values, floor: float | None) -> np.ndarray:
@@ -319,8 +331,9 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                    linewidths=1.0, label=f"{f}: photon frame alone vs own reference", zorder=3)
         for x, a, b in zip(cx[mo & mt], oy[mo & mt], ty[mo & mt], strict=True):
             ax.plot([x, x], [a, b], color=colour(i), linewidth=0.6, alpha=0.5, zorder=2)
-    _floor_line(ax, "x", x_floor, cost[ok], "host wall time")
-    _floor_line(ax, "y", y_floor, errors, "RMSE")
+    on_x, on_t, on_o = ok & np.isfinite(cx), ok & np.isfinite(ty), ok & np.isfinite(oy)  # (drawn: x, filled, hollow)
+    _floor_line(ax, "x", x_floor, cost[on_x & (on_t | on_o)], "host wall time")
+    _floor_line(ax, "y", y_floor, np.concatenate([truth[on_x & on_t], own[on_x & on_o]]), "RMSE")
     for axis, floor in (("x", x_floor), ("y", y_floor)):
         if floor is not None:
             (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
@@ -339,10 +352,12 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
                "wrong, not the model's bias alone. " + (f"{unconverged} " if unconverged else "")
                + (f"{truth_noise_words(spp)} " if truth_noise_words(spp) else "") + wall_time_caption(rows))
-    measured = [r for r, k in zip(rows, ok, strict=True) if k]
-    caption += (off_log_words(measured, truth[ok], y_floor, "an RMSE against the ground truth")
-                + off_log_words(measured, own[ok], y_floor, "an RMSE against our reference")
-                + off_log_words(measured, cost[ok], x_floor, "a host wall time"))
+    caption += (off_log_words(rows, named_off(np.where(ok, truth, math.nan), on_x), y_floor,
+                              "an RMSE against the ground truth")
+                + off_log_words(rows, named_off(np.where(ok, own, math.nan), on_x), y_floor,
+                                "an RMSE against our reference")
+                + off_log_words(rows, named_off(np.where(ok, cost, math.nan), on_t | on_o), x_floor,
+                                "a host wall time"))
     return save(fig, out, name, f"{label}: error against the ground truth and against our reference, "
                 "against wall time", caption)
 
@@ -426,9 +441,11 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
     caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; ringed and numbered "
                f"(named in the key): the {count(int(front.sum()), 'point')} of the Pareto front.")
-    drawn = [r for r, k in zip(rows, present, strict=True) if k]
-    caption += off_log_words(drawn, err[present], y_floor, "an RMSE")
-    caption += off_log_words(drawn, cost[present], x_floor, f"a {what}")
+    # (a point is named by its value on one axis where it is drawn on the other, or that value is below 0: a 0 with
+    # a time below 0 is not "drawn at" the floor; ``point``, else its place among all the rows, not the drawn)
+    on_x, on_y = present & np.isfinite(as_drawn(cost, x_floor)), present & np.isfinite(as_drawn(err, y_floor))
+    caption += off_log_words(rows, named_off(np.where(present, err, math.nan), on_x), y_floor, "an RMSE")
+    caption += off_log_words(rows, named_off(np.where(present, cost, math.nan), on_y), x_floor, f"a {what}")
     if hidden:
         caption += (f" Front points {', '.join(t.get_text() for t in hidden)} are ringed but not numbered: "
                     "their number would cover another number or a marker (the key names them).")
