@@ -26,7 +26,7 @@ def res(tmp_path_factory):
 
 BAD_ARCH = [  # (a key's value, the message simulate gives for it as a mapping)
     ({"clock_hz": float("nan")}, r"arch\.clock_hz: nan is not finite"),
-    ({"clock_hz": 0.0}, r"arch\.clock_hz: 0\.0 must be > 0\.0"),
+    ({"clock_hz": 0.0}, r"arch\.clock_hz: 0\.0 must be >= 1\.0"),
     ({"memory": "nope"}, r"arch\.memory: nope is not one of swap, copy"),
     ({"tiles_per_pipeline": 0}, r"arch\.tiles_per_pipeline: 0 must be >= 1"),
     ({"frames": 0}, r"arch\.frames: 0 must be >= 1"),

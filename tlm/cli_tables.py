@@ -45,7 +45,8 @@ def print_scaling(done: dict, out: Path) -> None:
               f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
               f"max |error| {f['max_abs_rel_error']:6.1%}; "
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
-              f"(N = {values_text(f['pipelines'])})")
+              f"(N = {values_text(f['pipelines'])}"
+              f"{' alone: two points fit A and B exactly, a test of nothing' if len(f['pipelines']) <= 2 else ''})")
     # (the latency is images in flight x TThru at every point of a group: its fit is the throughput fit scaled)
     lat = [f for f in fits if f["target"] == "latency"]
     times = {f.get("latency_multiple") for f in lat}

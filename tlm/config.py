@@ -200,9 +200,10 @@ class EstimateConfig:
 class CacheConfig:
     pairs: int = _f(4, "cache block pairs per programmable PM (thesis: 8 blocks = 4 pairs); a PM phase's k-th "
                     "stream takes pair k mod pairs (1: node heap and leaf indices share one)", min=1, max=4)
-    block_words: int = _f(1024, "128-bit words per cache block, the page a miss fetches (thesis: 1024); "
-                          "the next block is prefetched past its middle (at least 3 words: in a block of 2 no "
-                          "word is past it, so nothing would be prefetched)", min=3, max=1 << 20)
+    block_words: int = _f(1024, "128-bit words per cache block, the page a miss fetches (thesis: 1024), its "
+                          "transfer free (a miss costs arch.page_miss_cycles at any size: a sweep of it measures "
+                          "locality alone); the next block is prefetched past its middle (at least 3 words: in a "
+                          "block of 2 no word is past it)", min=3, max=1 << 20)
 
 
 @dataclass(frozen=True)
@@ -228,21 +229,23 @@ class ReferenceConfig:
 # capped only at costs.MAX_CYCLES = 2**62 a job: the frames can pass int64 with it (units.within_int64 stops that). FIFO
 # depth, packet size <= 2**31, max_events <= 2**53. clock_hz >= 1 Hz: a trace's us (cycles x 1e6 / clock) finite.
 _CYC, _SIZE = {"max": 1 << 20}, {"min": 1, "max": 1 << 31}
+MAX_TILES = 1 << 16  # tiles_per_pipeline x pipelines at most (docs/architecture.md, "Tiles": what more costs)
 
 
 @dataclass(frozen=True)
 class ArchConfig:
     clock_hz: float = _f(600e6, "system clock in Hz (thesis: 600 MHz); FPS = clock_hz / throughput cycles "
-                         "(1 Hz to 1e12, a terahertz)", min_exclusive=0.0, min=1.0, max=1e12)
+                         "(1 Hz to 1e12, a terahertz)", min=1.0, max=1e12)
     frames: int = _f(5, "frames in the simulated stream (the same image, two in flight); TThru is measured "
                      "over the steady state, which needs at least 5 frames with two images in flight (one "
                      "frame with one)", min=1, max=10000)
-    images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1",
-                               min=1, max=2)
+    images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1; memory "
+                               "modules: 2 x images_in_flight x pipelines (+1 composer past 1 pipeline)", min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",
                           **_SIZE)
     fifo_depth: int = _f(1024, "triangle addresses the Traversal PM's FIFO to the Intersection PM holds", **_SIZE)
-    page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access)", min=0, **_CYC)
+    page_miss_cycles: int = _f(12, "T_ms cycles per page miss (thesis: 12, DDR row + column access), the same at "
+                               "every cache.block_words: the block's transfer costs nothing", min=0, **_CYC)
     flush_cycles: int = _f(4, "T_ps cycles per pipeline flush (thesis: 4)", min=0, **_CYC)
     swap_cycles: int = _f(2, "cycles to re-route a PM to another module (top two address bits)", min=0, **_CYC)
     copy_words_per_cycle: int = _f(2, "128-bit words per cycle of a block copy between modules", min=1,
@@ -254,7 +257,7 @@ class ArchConfig:
                         "builds the shared structures, the crossbar copies them to every pipeline", min=1, max=4096)
     scheduler: str = _f("static", "static: one tile (quadrant for 4) per pipeline | dynamic: a shared queue of "
                         "tiles_per_pipeline x pipelines tiles, an idle pipeline takes the next", choices=SCHEDULERS)
-    tiles_per_pipeline: int = _f(4, "tiles per pipeline in the dynamic scheduler's queue", min=1, max=4096)
+    tiles_per_pipeline: int = _f(4, f"tiles per pipeline, dynamic queue (x pipelines <= {MAX_TILES})", min=1, max=4096)
     fanout: str = _f("broadcast", "copies of shared structures to the pipelines: broadcast (the crossbar writes "
                      "every pipeline's module at once) | serial (one copy per pipeline)", choices=FANOUTS)
     programs: str | None = _f(None, "instruction-cost table (YAML, relative to the file that names it; "
@@ -349,6 +352,10 @@ def _across(out: Any, source: str, prefix: str) -> None:
     if isinstance(out, ReferenceConfig) and out.min_rounds > out.max_rounds:
         raise InputError(f"{out.min_rounds} is more than {prefix}.max_rounds ({out.max_rounds})", source=source,
                          key=f"{prefix}.min_rounds")
+    if isinstance(out, ArchConfig) and out.scheduler == "dynamic" and (n := out.tiles_per_pipeline * out.pipelines) \
+            > MAX_TILES:  # (the static scheduler's tiles are the pipelines, at most 4096)
+        raise InputError(f"{out.tiles_per_pipeline} x {prefix}.pipelines ({out.pipelines}) = {n} tiles in the dynamic "
+                         f"queue, more than {MAX_TILES}", source=source, key=f"{prefix}.tiles_per_pipeline")
 
 
 def _field(f: dataclasses.Field, tp: Any, raw: dict, source: str, key: str) -> Any:

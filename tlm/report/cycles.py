@@ -210,7 +210,7 @@ def breakdown_figure(run: Run, out: Path, name: str | FigureName):
     if not bd.labels:
         return None
     top = float(bd.elapsed.max()) if bd.elapsed.size else 0.0
-    scale, unit = (1e6, "million cycles") if top >= 1e6 else (1e3, "thousand cycles") if top >= 1e4 else (1, "cycles")
+    scale, unit = cycles_unit(top)
     fig = new_figure(max(6.5, 1.0 * len(bd.labels) + 4.0), 4.8)
     ax = fig.subplots()
     x = np.arange(len(bd.labels))
@@ -440,6 +440,27 @@ def _gantt_rows(run: Run, g: Gantt) -> tuple[list[str], str | None]:
                   f"are left out to keep the rows readable.")
 
 
+# a timeline's time unit: the largest of these its stream lasts at least one of (at 600 MHz, ms or µs; at 1 Hz,
+# days or years: no "ms" with an offset of x1e10 on the axis), and its clock's: the largest the clock is one of
+TIME_UNITS = (("years", 365.25 * 86400), ("days", 86400.0), ("h", 3600.0), ("min", 60.0), ("s", 1.0), ("ms", 1e-3),
+              ("µs", 1e-6), ("ns", 1e-9))
+CLOCK_UNITS = (("THz", 1e12), ("GHz", 1e9), ("MHz", 1e6), ("kHz", 1e3), ("Hz", 1.0))
+
+
+def time_axis(end_cycles: float, clock_hz: float) -> tuple[float, str]:
+    """The factor from cycles to a timeline's time unit and its axis label, both chosen by the clock
+    ``clock_hz`` and the stream's ``end_cycles``: ``time (ms at 600 MHz)``, ``time (days at 1 Hz)``."""
+    secs = end_cycles / clock_hz
+    unit, size = next(((u, v) for u, v in TIME_UNITS if secs >= v), TIME_UNITS[-1])
+    hz_unit, hz = next(((u, v) for u, v in CLOCK_UNITS if clock_hz >= v), CLOCK_UNITS[-1])
+    return 1.0 / (clock_hz * size), f"time ({unit} at {clock_hz / hz:g} {hz_unit})"
+
+
+def cycles_unit(top: float) -> tuple[float, str]:
+    """The scale and name of a cycle count axis up to ``top``: millions past 1e6, thousands past 1e4."""
+    return (1e6, "million cycles") if top >= 1e6 else (1e3, "thousand cycles") if top >= 1e4 else (1.0, "cycles")
+
+
 def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
     g = gantt(run.trace)
     if not g.rows or g.end <= 0:
@@ -454,10 +475,7 @@ def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
     spans = pixel_spans(g) if coarse else g.spans
     clock = g.clock_hz
     if clock:
-        secs = g.end / clock
-        tscale, tunit = (1e3, "ms") if secs >= 1e-3 else (1e6, "µs")
-        k = tscale / clock
-        xlabel = f"time ({tunit} at {clock / 1e6:g} MHz)"
+        k, xlabel = time_axis(g.end, clock)
     else:
         k, xlabel = 1.0, "time (cycles)"
     fig = new_figure(11, 1.6 + 0.3 * len(rows))
@@ -489,8 +507,9 @@ def gantt_figure(run: Run, out: Path, name: str | FigureName, notes: list[str]):
     ax.set(xlabel=xlabel)
     _title(ax, f"{run.label}: busy, stalled and idle over time", run)
     if clock:
-        top = ax.secondary_xaxis("top", functions=(lambda t: t / k / 1e6, lambda c: c * 1e6 * k))
-        top.set_xlabel("million cycles", fontsize=8)
+        per, unit = cycles_unit(g.end)
+        top = ax.secondary_xaxis("top", functions=(lambda t: t / k / per, lambda c: c * per * k))
+        top.set_xlabel(unit, fontsize=8)
     order = [s for s in (*STATES, "preempted") if s in present] + sorted(present - set(STATES) - {"preempted"})
     handles = []
     for s in order:

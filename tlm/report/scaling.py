@@ -106,6 +106,21 @@ def merged_label(values: list[dict]) -> str:
     return short_combination(text) + " (identical)"
 
 
+def untested(fit: dict) -> bool:
+    """Whether an eq. 5.2 fit has two values of N alone (N = 1 and one other): its two parameters A and B are
+    solved from its two points, so its error is 0 by construction (or, where its N's have the same
+    sum_i max / N, what B = 1 leaves) and tests nothing; a third N is what tests the equation."""
+    return len({r["pipelines"] for r in fit["rows"]}) <= 2
+
+
+def error_text(fit: dict) -> str:
+    """A fit's largest |error| as a caption or a legend shows it, with why it tests nothing where it is
+    :func:`untested`."""
+    ns = sorted({r["pipelines"] for r in fit["rows"]})
+    return f"{fit['max_abs_rel_error']:.1%}" + (f" (N = {' and '.join(map(str, ns))} alone: exact by "
+                                                 "construction)" if untested(fit) else "")
+
+
 def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = "") -> None:
     """Three panels: latency and throughput against N (simulated, eq. 5.2, slowest-pipeline
     variant), and the speed-up; one colour and marker per scheduler, and per combination of
@@ -126,12 +141,12 @@ def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = 
         ax.plot(ns, [r["simulated"] for r in f["rows"]], color=c, marker=m, linestyle="-",
                 label=f"{name} ({mode}): simulated")
         ax.plot(ns, [r["analytical"] for r in f["rows"]], color=c, linestyle="--",
-                label=f"{name}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {f['max_abs_rel_error']:.1%}")
+                label=f"{name}: eq. 5.2, A={f['A']:.3g}, B={f['B']:.3g}, max err {error_text(f)}")
         if "analytical_slowest" in f["rows"][0]:
             s = f["slowest"]
             ax.plot(ns, [r["analytical_slowest"] for r in f["rows"]], color=c, linestyle=":",
                     label=f"{name}: slowest pipeline, A={s['A']:.3g}, B={s['B']:.3g}, "
-                          f"max err {s['max_abs_rel_error']:.1%}")
+                          f"max err {error_text({**s, 'rows': f['rows']})}")
         if target == "throughput":
             axes[2].plot(ns, [r["speedup"] for r in f["rows"]], color=c, marker=m, linestyle="-",
                          label=f"{name} ({mode})")
@@ -542,7 +557,11 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
             sec.notes.extend(f"{label}: {scene_shown}: {line}" for line in below_floor(drawn))
             plot_scaling(scene_shown, drawn, out / file, label)
             worst = ", ".join(f"{k[2]}{f' ({eq52.key_group(k)})' if eq52.key_group(k) else ''} {k[3]} "
-                              f"{v['max_abs_rel_error']:.1%}" for k, v in sorted(drawn.items()))
+                              f"{error_text(v)}" for k, v in sorted(drawn.items()))
+            if any(untested(v) for v in drawn.values()):  # (two points fit two parameters: a 0.0% that is no test)
+                worst += (". A fit of two values of N tests nothing: eq. 5.2's two parameters, A and B, are "
+                          "solved from its two points, which it then meets exactly whatever the model does; a third "
+                          "N in the sweep is what tests the equation")
             sec.figures.append(Figure(file, f"{scene_shown}: scaling from {label}{' (out of date)' if stale else ''}",
                                       stale + "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                       "least squares elsewhere; dotted: the slowest-pipeline variant. "

@@ -26,8 +26,10 @@ from __future__ import annotations
 
 import html
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import quote
 
 from tlm.config import MODES
 from tlm.experiments.thesis import (
@@ -383,6 +385,22 @@ LEGEND = (f"Each cell: ours (simulated), the thesis's value, the relative error 
           f"{MARK_CALIBRATED} calibrated cell (fitted to the thesis, not a prediction); "
           f"{MARK_SLOW_THESIS} slowest PM of the scene-mode in the thesis; {MARK_SLOW_OURS} slowest PM in ours. "
           "Cycles in millions per frame, FPS in frames per second at the simulated clock.")
+# where each kind of cell's error against the thesis is explained (how far ours is, and the measured cause)
+FIDELITY_DOC, FIDELITY_PART = Path(__file__).resolve().parents[2] / "docs" / "fidelity.md", "by-cell"
+
+
+def fidelity_html(out: Path) -> str:
+    """Why cells differ from the thesis, pointing to docs/fidelity.md's "By cell": a link relative to the report
+    folder ``out`` where that page is beside the package (a source checkout: ``../docs/fidelity.md#by-cell`` from
+    the committed ``plots/``), its name alone in an installed copy, which ships no docs (no link that leads nowhere)."""
+    words = "docs/fidelity.md, “By cell”"
+    if FIDELITY_DOC.is_file():
+        href = quote(os.path.relpath(FIDELITY_DOC, Path(out).resolve()).replace(os.sep, "/")) + "#" + FIDELITY_PART
+        words = f'<a href="{html.escape(href)}">{html.escape(words)}</a>'
+    else:
+        words = f"{html.escape(words)} in tlm's source"
+    return (f'<p class="legend">Why a cell is far from the thesis: each kind of cell, how far ours is and the '
+            f"measured cause, in {words}.</p>")
 
 
 # -- figure -------------------------------------------------------------------------------------
@@ -509,6 +527,7 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
         parts.append(f'<p class="study-summary">Thesis study {html.escape(study.path.name)}: '
                      f"{html.escape(_line(summary))}.</p>")
     parts.append(f'<p class="legend">{html.escape(LEGEND)}</p>')
+    parts.append(fidelity_html(out))
     for scene, srcs in sources.items():
         shown = srcs[:MAX_TABLES_PER_SCENE]
         if len(srcs) > len(shown):
