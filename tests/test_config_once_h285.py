@@ -109,8 +109,8 @@ def test_a_scene_file_given_as_a_pipe_is_said_so(tmp_path, piped, capsys):
     assert main(["run", pipe, "--out", str(tmp_path / "r")]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1  # (was `/proc/PID/fd/pipe:[N]: file not found`)
-    assert err.startswith(f"tlm: error: {pipe}: is a scene file given as a pipe or a device, which a render reads "
-                          "again")
+    assert err.startswith(f"tlm: error: {pipe}: is a scene file given as a pipe, a device or a deleted file (a "
+                          "here-document's), which a render reads again")
     assert not (tmp_path / "r").exists()
 
 

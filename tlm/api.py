@@ -255,9 +255,11 @@ def _scene_of(raw: Any, path: Path) -> Path | None:
     if not isinstance(raw, dict) or not raw or "scene" in raw:
         return None
     if "geometry" in raw or "extends" in raw:
-        if not path.is_file():  # (a pipe's text is gone once read, and a render reads its scene file again)
-            raise InputError("is a scene file given as a pipe or a device, which a render reads again (and its "
-                             "extends: and meshes from its folder): save it to a file and name that", source=str(path))
+        if not (path.is_file() and path.resolve().is_file()):  # (a pipe's text is gone once read, and a render
+            # reads it again by its name: a deleted file's, /dev/stdin <<EOF's, is '/tmp/sh-thd.X (deleted)')
+            raise InputError("is a scene file given as a pipe, a device or a deleted file (a here-document's), which a "
+                             "render reads again (and its extends: and meshes from its folder): save it to a file and "
+                             "name that", source=str(path))
         # (its keys, and its extends: chain's, checked now: a typo is its one line, before a run's note on it)
         read_scene_tree(path.resolve(), ())
         return path.resolve()
@@ -299,11 +301,11 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
     ``overrides``: dotted keys to set, ``{"render.spp": 2}`` or ``["render.spp=2"]`` (as
     ``tlm run --set``). ``base``: where a mapping's (or a RunConfig's) relative paths start
     (default: the working folder); a file's (a built-in name's, a scene file's) start at its own
-    folder and a Config's at its ``base``: another ``base`` given with one is an :class:`InputError`
-    naming ``base``, never ignored. A relative ``arch.programs`` given in
-    ``overrides`` is relative to the working folder whatever the config (a file, a scene
-    file, a mapping with its ``base``, a built-in name), as ``--set`` takes it; the config
-    then holds it as an absolute path. A missing file, a YAML error, an unknown key or a
+    folder (a pipe's, ``/dev/fd/N``, read once, in none: the working folder) and a Config's at its ``base``:
+    another ``base`` given with one is an :class:`InputError` naming ``base``, never ignored. A relative
+    ``arch.programs`` given in ``overrides`` is relative to the working folder whatever the config (a file, a
+    scene file, a mapping with its ``base``, a built-in name), as ``--set`` takes it; the config then holds it
+    as an absolute path. A missing file, a YAML error, an unknown key or a
     value out of range raise :class:`InputError` naming it; so does a file whose keys say it
     is a study or a sweep, which names the command that runs it (``tlm thesis thesis``).
     ``via``: what error messages call the overrides (``cornell.yaml, with the overrides:

@@ -8,7 +8,7 @@ import os
 import re
 from pathlib import Path
 
-from tlm.config import read_yaml
+from tlm.config import file_folder, read_yaml
 from tlm.config_words import yaml_kind
 from tlm.errors import InputError, did_you_mean
 
@@ -101,7 +101,7 @@ def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, boo
         raise InputError("an empty name names no run config file", source=src, key="base")
     names = list_experiments()
     file = folder / base
-    if file.is_file():
+    if file.is_file() or (file.exists() and not file.is_dir()):  # (a pipe's, a FIFO's: read_yaml reads it once)
         return file, False
     if file.is_dir() and base not in names:  # (a folder named as a built-in experiment does not hide it)
         raise InputError(f"{base!r} is a folder: name a run config file", source=src, key="base")
@@ -145,7 +145,7 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
             raw = {}
         if not isinstance(raw, dict):
             raise InputError(f"must be a run config mapping, got {yaml_kind(raw)}", source=str(file))
-        return raw, str(file), folder if builtin else file.resolve().parent
+        return raw, str(file), folder if builtin else file_folder(file)  # (a pipe's: the working folder)
     if base is None:
         return {}, src, folder
     if not isinstance(base, dict):

@@ -177,9 +177,10 @@ def load_programs(path: str | Path | None = None) -> Programs:
     returns its own copy, which the caller may change."""
     p = Path(path) if path is not None else DEFAULT_PATH
     source = str(p)
-    if not p.is_file():
-        raise InputError("file not found", source=source, key="arch.programs")
-    text = read_text(p)
+    try:  # (read once, bounded: a pipe's table too, ``--set arch.programs=<(...)``; a folder, a device said as such)
+        text = read_text(p)
+    except InputError as e:
+        raise e.replaced(key="arch.programs") from None
     key = (source, text_digest(text))
     with _MEMO_LOCK:
         got = _MEMO.get(key)

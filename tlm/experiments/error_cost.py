@@ -98,7 +98,7 @@ import numpy as np
 from tlm.arch.functional import TreeWork
 from tlm.arch.model import simulate
 from tlm.caches import cached_image
-from tlm.config import RunConfig, apply_overrides, config_from_dict, to_dict
+from tlm.config import RunConfig, apply_overrides, config_from_dict, file_folder, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import EnvironmentFailure, InputError
 from tlm.experiments.error_cost_clock import CompileClock
@@ -240,7 +240,7 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None,
     if "mode" in base and base_cfg.mode != "pmap":
         raise InputError(f"{base_cfg.mode!r}: error-vs-cost measures the photon map, and every point is a photon-map "
                          "frame (mode: pmap): give mode: pmap, or leave it out", source=src, key="base.mode")
-    folder = Path(path).resolve().parent
+    folder = file_folder(path)  # (a pipe's, <(...): the working folder, as its paths were typed)
     label = src  # (what a point's config is named by in its errors)
     if overrides:
         base = with_set(base, overrides, [folder])

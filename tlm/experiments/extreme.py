@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config import SECTIONS, config_from_dict, deep_merge
+from tlm.config import SECTIONS, config_from_dict, deep_merge, file_folder
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
@@ -155,7 +155,7 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     label = src  # (what a case's config is named by in its errors)
     if overrides:
         given = base
-        base = with_set(base, overrides, [Path(path).resolve().parent])
+        base = with_set(base, overrides, [file_folder(path)])
         label = with_overrides(src)
         try:  # (a bad --set said as tlm run says it; a base that holds only under its cases, as ever by them)
             config_from_dict(base, label)
@@ -204,7 +204,7 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
             config_from_dict(deep_merge(base, c["config"]), f"{label} ({where})")
             ran.add(name)
         names.add(name)
-    return base, cases, Path(path).resolve().parent
+    return base, cases, file_folder(path)  # (a pipe's, <(...): the working folder)
 
 
 def _leaves(config: dict, prefix: str = "") -> list[str]:

@@ -44,33 +44,17 @@ import numpy as np
 
 from tlm.arch.functional import Functional
 from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, note_use, remove_entry
-from tlm.config import config_from_dict, noting_reads, read_text, text_digest, to_dict
-from tlm.errors import InputError, path_shown
+from tlm.config import config_from_dict, noting_reads, to_dict
 from tlm.experiments import run
+from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
-from tlm.scenes.cache import parse_versions, read_as, writable
+from tlm.scenes.cache import parse_versions, writable
 from tlm.scenes.loader import load_scene, resolve_scene_path
-from tlm.scenes.meshes import mesh_files
 from tlm.scenes.model import Scene
 from tlm.storage import warn, write_atomic, write_file
-
-
-def scene_fingerprint(scene) -> str:
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(scene.triangles, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(scene.material_index).tobytes())
-    if scene.normals is not None:
-        h.update(np.ascontiguousarray(scene.normals, dtype=np.float64).tobytes())
-    h.update(repr((scene.materials, scene.lights, scene.camera, scene.photons)).encode())
-    # (what its results say of it: its name, and its files' notes with its folder left out, as given and as a note
-    # shows it (path_shown: a tab as \t), so that a copy of the scene in another folder shares the frame: :func:`_here`)
-    folder = os.path.dirname(scene.source) if scene.source else ""
-    notes = [str(n).replace(folder, "").replace(path_shown(folder), "") for n in scene.extra.get("notes") or []]
-    h.update(repr((scene.name, notes)).encode())
-    return h.hexdigest()[:16]
 
 
 @dataclass(frozen=True)
@@ -192,7 +176,7 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
         hit = _SCENE_KEYS.get(key)
     if hit is None:
         hit = _kept_key(key)
-    if hit is not None and _unchanged(hit[1]):
+    if hit is not None and unchanged(hit[1]):
         with _MEMO_LOCK:
             _SCENE_KEYS[key] = hit
             _SCENE_KEYS.move_to_end(key)
@@ -202,7 +186,7 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
     with noting_reads() as reads, timer.stage("load_scene"):
         scene = load_scene(ref, base, resolution, source)
     fingerprint = scene_fingerprint(scene)
-    checks = _checks(reads)
+    checks = read_checks(reads)
     with _MEMO_LOCK:
         _SCENE_KEYS.pop(key, None)
         if checks is not None:
@@ -239,7 +223,7 @@ def _kept_key(key: tuple) -> tuple[str, list] | None:
         kept = json.loads(path.read_text())
         if (not isinstance(kept, dict) or kept.get("tlm") != SCENE_KEY_FORMAT or kept.get("key") != plain
                 or not isinstance(kept.get("fingerprint"), str) or not isinstance(kept.get("checks"), list)
-                or not all(isinstance(c, list) and c and c[0] in _TELLS for c in kept["checks"])):
+                or not all(isinstance(c, list) and c and c[0] in TELLS for c in kept["checks"])):
             return None
     except (OSError, ValueError):
         return None
@@ -263,114 +247,6 @@ def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
             remove_entry(path, path.parent)
         with write_atomic(path) as f:
             f.write(json.dumps(body))
-
-
-def _checks(reads: list) -> list | None:
-    """For each file read that :func:`tlm.config.noting_reads` noted, what tells it now and what it
-    told then, as JSON (``[kind, *arguments, then]``: :data:`_TELLS` tells it now); None where one
-    cannot be told so, or where a mesh's file or one its parse read beside it (an OBJ's material
-    library, a glTF's buffer) tells now other bytes than the parse read (saved while the scene loaded:
-    what it tells now is not what the fingerprint was parsed from; :func:`tlm.scenes.cache.read_as`)."""
-    out, seen = [], set()
-    try:
-        for read in reads:
-            said = repr(read[:4])  # (a file read twice the same: one mesh placed twice)
-            if said in seen:
-                continue
-            seen.add(said)
-            if read[0] == "side":  # (a file a mesh's parse read beside it: checked with its mesh's, below)
-                continue
-            if read[0] == "yaml":  # (its text's digest as it was parsed)
-                _, path, digest, extends = read
-                out.append(["text", path, digest])
-                if extends is not None:
-                    found = [extends, str(Path(path).parent), path]
-                    out.append(["found", *found, _tell(["found", *found, None])])
-            elif read[0] == "mesh":
-                _, path, digest, names, resolve = read
-                if digest is None:
-                    return None
-                if names is not None:  # (an OBJ: its libraries found again beside it; [] for PLY, STL, GLB)
-                    check = ["libraries", path, names, _function_name(resolve)]
-                else:  # (a glTF's buffers: tlm.scenes.meshes.mesh_files)
-                    check = ["listed", path]
-                now = _tell([*check, None])
-                if now[0] != _plain([path, digest]):  # (the file changed while it was loaded)
-                    return None
-                if not read_as([(p, d["sha256"]) for p, d in now[1:]], reads):  # (its libraries, buffers: too)
-                    return None
-                out.append([*check, now])
-            else:
-                return None
-    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError, KeyError, IndexError):
-        return None
-    return out
-
-
-def _plain(value):
-    """``value`` as JSON gives it back (tuples as lists): what a check told, here and read from disk alike."""
-    return json.loads(json.dumps(value))
-
-
-def _function_name(f) -> str:
-    """``module:qualname`` of a module-level function (one that :func:`_function` finds again), else a ValueError."""
-    name = f"{f.__module__}:{f.__qualname__}"
-    if _function(name) is not f:
-        raise ValueError(f"{name} is not found by its name")
-    return name
-
-
-def _function(name: str):
-    """The function of tlm's scene loaders named ``module:qualname`` (a check read from disk calls it:
-    a name outside ``tlm.scenes`` is refused, a ValueError)."""
-    import importlib
-
-    module, _, qualname = name.partition(":")
-    if not module.startswith("tlm.scenes."):
-        raise ValueError(f"{name} is not a function of tlm's scene loaders")
-    f = importlib.import_module(module)
-    for part in qualname.split("."):
-        f = getattr(f, part)
-    return f
-
-
-def _text_digest(path: str) -> str:
-    return text_digest(read_text(Path(path)))
-
-
-def _found(ref: str, folder: Path, src: str) -> str:
-    """The scene file an ``extends: ref`` in ``src`` finds now (as the loader looks for it)."""
-    return str(resolve_scene_path(ref, folder, src, key="extends"))
-
-
-def _mesh_and_libraries(path: Path, names: list, resolve) -> list:
-    return [(str(p), file_digest(p)) for p in (path, *resolve(path, names))]
-
-
-def _listed(path: Path) -> list:
-    return [(str(p), d) for p, d in mesh_files(path)]
-
-
-# what tells a check's file now, by the check's kind, from its arguments (a check is [kind, *arguments, then])
-_TELLS = {
-    "text": lambda path: _text_digest(path),
-    "found": lambda ref, folder, src: _found(ref, Path(folder), src),
-    "libraries": lambda path, names, resolve: _mesh_and_libraries(Path(path), names, _function(resolve)),
-    "listed": lambda path: _listed(Path(path)),
-}
-
-
-def _tell(check: list):
-    """What the file of ``check`` tells now (as JSON)."""
-    return _plain(_TELLS[check[0]](*check[1:-1]))
-
-
-def _unchanged(checks: list) -> bool:
-    """Whether every file a remembered load read tells what it told then."""
-    try:
-        return all(_tell(check) == check[-1] for check in checks)
-    except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError, KeyError, IndexError):
-        return False  # (a file gone or unreadable: the load says so; a check read from disk not understood)
 
 
 def is_cached(key: str) -> bool:
@@ -534,9 +410,10 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
 
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
     """``got``, a cached frame, with its summary's ``scene.source`` the file this config names,
-    and its warnings naming this file's folder: the key holds the scene's content and file
-    name, not its folder, so the same project in another folder shares the frame, and its
-    results name its own files."""
+    and its warnings naming this copy's files: the key holds the scene's content, its file's
+    name and its notes' paths relative to its folder (:func:`scene_fingerprint`), not where it lies,
+    so the same project in another folder shares the frame (a mesh outside the scene's folder,
+    ``../m/x.obj``, too), and its results name its own files (:func:`~tlm.experiments.frame_scenes.moved_line`)."""
     held = got.summary.get("scene")
     if not isinstance(held, dict) or not isinstance(held.get("source"), str):
         return got
@@ -545,8 +422,7 @@ def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: 
         was, now = os.path.dirname(held["source"]), os.path.dirname(here)
         got.summary["scene"] = {**held, "source": here}
         if was and isinstance(got.summary.get("warnings"), list):
-            shown = (path_shown(was), path_shown(now)) if path_shown(was) != was else (now, now)  # (a note's: \t)
-            got.summary["warnings"] = [w.replace(was, now).replace(*shown) if isinstance(w, str) else w
+            got.summary["warnings"] = [moved_line(w, was, now) if isinstance(w, str) else w
                                        for w in got.summary["warnings"]]
     return got
 

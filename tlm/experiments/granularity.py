@@ -32,7 +32,7 @@ from pathlib import Path
 
 from tlm.arch.granularity import fine_ti_cycles
 from tlm.arch.model import simulate
-from tlm.config import config_from_dict
+from tlm.config import config_from_dict, file_folder
 from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_functional
@@ -62,7 +62,7 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
                          key="packet_sizes")
     if overrides:
         config_from_dict(base, base_src)  # (the base's own errors first, naming its file)
-        base = with_set(base, overrides, list(dict.fromkeys([folder, Path(path).resolve().parent])))
+        base = with_set(base, overrides, list(dict.fromkeys([folder, file_folder(path)])))
         refuse_set(overrides, {"arch.packet_size": "set by the study's packet_sizes, one simulation each: list "
                                                    "them there, not by --set"}, src)
         base_src = with_overrides(base_src)

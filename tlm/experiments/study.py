@@ -31,7 +31,7 @@ from typing import Any
 
 import yaml
 
-from tlm.config import SECTIONS, apply_overrides, files_from, read_yaml, scene_from, to_dict
+from tlm.config import SECTIONS, apply_overrides, file_folder, files_from, read_yaml, scene_from, to_dict
 from tlm.config_words import parse_yaml
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
@@ -58,7 +58,7 @@ def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
     base = raw.get("base") or {}
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
-    return raw, _files_absolute(base, Path(path).resolve().parent), src
+    return raw, _files_absolute(base, file_folder(path)), src  # (a pipe's, <(...): the working folder)
 
 
 def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str, Path]:
@@ -70,7 +70,7 @@ def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str,
     from tlm.builtin import read_base
 
     raw, src = _study_frame(path, keys)
-    base, base_src, folder = read_base(raw.get("base"), Path(path).resolve().parent, src, "study file")
+    base, base_src, folder = read_base(raw.get("base"), file_folder(path), src, "study file")
     return raw, _files_absolute(base, folder), base_src, folder
 
 

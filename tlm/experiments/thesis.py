@@ -66,7 +66,7 @@ import numpy as np
 
 from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import PM_TABLE_NAMES, simulate
-from tlm.config import MODES, RunConfig, config_from_dict, to_dict
+from tlm.config import MODES, RunConfig, config_from_dict, file_folder, to_dict
 from tlm.config_words import with_overrides
 from tlm.errors import InputError
 from tlm.experiments.provenance import identities_remembered, scene_label
@@ -157,7 +157,7 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     for key in ("scene", "mode"):
         if key in base:
             raise InputError(f"is set by '{key}s', not in base", source=src, key=f"base.{key}")
-    folder = Path(path).resolve().parent
+    folder = file_folder(path)  # (a pipe's, <(...): the working folder's, as its paths were typed)
     label = src  # (what a cell's config is named by in its errors)
     if overrides:
         base = with_set(base, overrides, [folder])

@@ -268,23 +268,12 @@ def mesh_path(mesh: str, path: Path) -> Path:
 
 
 def plain_path(path: Path) -> Path:
-    """``path`` without its ``..`` and ``.`` (:func:`os.path.normpath`, not ``resolve``: a symbolic
-    link keeps its name) where that names the same entry: the same name in the same folder
-    (``scenes/../m/box.obj`` as ``m/box.obj``), whether the file is there or not (a missing file's
-    message names it plainly too). Kept as given where the folders differ (a ``..`` after a symbolic
-    link to a folder leads elsewhere than the name without it) or where the folder is not there."""
-    norm = Path(os.path.normpath(path))
-    if norm == path:
-        return path
-    if norm.name != path.name:  # (a path ending in .. or .: a folder's; the same entry where the two are one)
-        try:
-            return norm if os.path.samefile(norm, path) else path
-        except (OSError, ValueError):
-            return path
-    try:
-        return norm if os.path.samefile(norm.parent, path.parent) else path
-    except (OSError, ValueError):  # (a folder on the way not there; a NUL in a name: no such folder)
-        return path
+    """``path`` without its ``..`` and ``.`` where that names the same entry (``scenes/../m/box.obj`` as
+    ``m/box.obj``), kept as given where it would name another or cannot be told: the one rule of a mesh's
+    path, :func:`tlm.scenes.meshes.shown_path` (which a mesh's load names it by)."""
+    from tlm.scenes.meshes import shown_path  # (as load_mesh: meshes is imported where a scene needs it)
+
+    return shown_path(path)
 
 
 def _shape(raw: dict, src: str, key: str) -> Geometry:

@@ -167,16 +167,24 @@ def load_mesh(path: Path) -> Geometry:
 
 
 def shown_path(path: Path) -> Path:
-    """``path`` as messages name it: its ``..`` and ``.`` taken out (:func:`os.path.normpath`, not
-    ``resolve``: a symbolic link keeps its name), ``scenes/../cb/box.obj`` as ``cb/box.obj``, where
-    that is the same file in the same folder (a ``..`` after a symbolic link to a folder leads
-    elsewhere than the name without it: such a path is kept as given)."""
+    """``path`` as messages name it and whatever compares paths reads it: without its ``..`` and ``.``
+    (:func:`os.path.normpath`, not ``resolve``: a symbolic link keeps its name) where that names the same
+    entry, the same name in the same folder (``scenes/../cb/box.obj`` as ``cb/box.obj``), whether the file
+    is there or not (a missing file's message names it plainly too). Kept as given where the folders
+    differ (a ``..`` after a symbolic link to a folder leads elsewhere than the name without it) or where
+    a folder on the way is not there. The one rule of a mesh's path (:func:`tlm.scenes.compose.plain_path`
+    is this)."""
     norm = Path(os.path.normpath(path))
     if norm == path:
         return path
+    if norm.name != path.name:  # (a path ending in .. or .: a folder's; the same entry where the two are one)
+        try:
+            return norm if os.path.samefile(norm, path) else path
+        except (OSError, ValueError):
+            return path
     try:
-        return norm if os.path.samefile(norm, path) and os.path.samefile(norm.parent, path.parent) else path
-    except OSError:  # (not there: a message names it as given)
+        return norm if os.path.samefile(norm.parent, path.parent) else path
+    except (OSError, ValueError):  # (a folder on the way not there; a NUL in a name: no such folder)
         return path
 
 
@@ -485,7 +493,9 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
         items.append((stem, loaded, np.eye(4), None))
     if not items:
         raise InputError("the file holds no geometry (empty mesh)", source=src)
-    for n in sorted({node for _, _, transform, node in items if node is not None and singular(transform[:3, :3])}):
+    # (whether each item's node's transform is singular: a flat mesh its node's zero scale keeps; judged once an item)
+    flats = [node is not None and singular(transform[:3, :3]) for _, _, transform, node in items]
+    for n in sorted({node for (_, _, _, node), flat in zip(items, flats) if flat}):
         # (a singular transform, judged by all the triangles of the node's mesh, its primitives together: two
         # flat layers are no flat mesh)
         tri = [np.asarray(geom.vertices, dtype=np.float64)[np.asarray(geom.faces)] for _, geom, _, node in items
@@ -506,7 +516,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     part_ids: list[np.ndarray] = []
     mat_ids: list[np.ndarray] = []
     corner_normals: list[np.ndarray | None] = []
-    for name, geom, transform, node in items:
+    for (name, geom, transform, _), flat in zip(items, flats):
         label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
         has_faces = isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
         strips = _ply_strips(geom) if ext == ".ply" and not has_faces else None
@@ -533,7 +543,6 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
             from tlm.scenes.objfile import unit_as_written
 
             nrm = unit_as_written(nrm.reshape(-1, 3)).reshape(nrm.shape)
-        flat = node is not None and singular(transform[:3, :3])  # (a flat mesh its node's zero scale keeps)
         if not np.allclose(transform, np.eye(4)):
             tri = tri @ transform[:3, :3].T + transform[:3, 3]
             if nrm is not None:  # normals transform by the inverse transpose (a singular one: by the adjugate)
