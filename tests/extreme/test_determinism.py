@@ -6,7 +6,8 @@
 * packet size, pipelines N and scheduler: the images and every functional section of
   ``results.json`` identical (only the timing sections may differ);
 * executors: one sweep in this process, in a process pool and on Dask gives the same
-  point folders and the same ``sweep.csv`` but for its host-seconds columns;
+  point folders and the same ``sweep.csv`` but for its host-seconds columns and who ran
+  each point (its worker, host and process);
 * a different seed changes the images (so the comparisons above can fail).
 
 Each run gets its own functional and reference cache (``TLM_CACHE``), so a rerun
@@ -42,14 +43,16 @@ HOST_FIELDS = (
     "git_modified",  # whether the checkout differs from HEAD: others edit it while the suite runs
     "code_fingerprint",  # the package's content: the same edits
 )
-# a sweep point's results.json has one more, inside its "functional" section:
-POINT_HOST_FIELDS = ("functional.render_host_seconds",)  # the render's seconds per stage
+# a sweep point's results.json has two more: inside its "functional" section, and who ran it:
+POINT_HOST_FIELDS = ("functional.render_host_seconds",  # the render's seconds per stage
+                     "ran")  # who ran the point: its Dask worker, host and process id
 # (its "key" and "cached" are compared: the key hashes the config, the scene and the
 # functional layer's source, and the first point of each key renders, the rest read it)
 # the reference's meta.json: how long the rounds took
 REFERENCE_HOST_FIELDS = ("host_seconds",)
 # sweep.csv / sweep.jsonl columns copied from the points' host_seconds
-SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write")
+SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off", "seconds.write",
+                      "worker", "host", "pid")  # (and who ran the point: its results.json "ran")
 
 # results.json sections of the functional layer (the render): independent of the
 # architecture, so equal across packet sizes, N and schedulers ...
@@ -302,7 +305,7 @@ def test_executors_give_identical_points_and_rows(in_process, executor):
     """One sweep in this process (jobs=1) and in a process pool (jobs=2) or on a local
     Dask cluster (2 workers), each with a fresh cache: the same point folders byte for
     byte (results.json but for the host fields), the same sweep.yaml, and the same
-    sweep.csv and sweep.jsonl rows but for the seconds columns."""
+    sweep.csv and sweep.jsonl rows but for the seconds columns and who ran each point."""
     if executor == "dask":
         pytest.importorskip("distributed", reason="dask.distributed is not installed: no Dask executor")
     ref = in_process

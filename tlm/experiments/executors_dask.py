@@ -288,6 +288,7 @@ class WorkerWatch:
         address = str(msg.get("worker"))
         event = (*event, self.why.pop(address, None), address in self.checked, self.where(address))
         self.checked.discard(address)
+        self.names.pop(address, None)  # (another worker at that address says its own name, or none, when asked)
         self.events.append(event)
 
     def close(self) -> None:

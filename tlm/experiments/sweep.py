@@ -636,13 +636,14 @@ def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
 def _seen_here(record: dict, task: Task) -> dict:
     """A remote worker's point as this machine sees it: a point its worker wrote where this
     machine does not see it (its own disk, not a shared one) failed, with where it went;
-    a failed point's ``error.json`` written here where its worker could not. The worker's file is told by
+    a failed point's ``error.json`` written here where its worker could not (with who ran it, the record's
+    ``ran``, as the worker writes it). The worker's file is told by
     its content, the record's own (:func:`_holds`): a point run again keeps its old folder, whose
     ``results.json`` (or ``error.json`` of an earlier try) is not the worker's."""
     if record["status"] != "ok":
         if not _holds(Path(task.out) / "error.json", record["error"]):
             with suppress(OSError, InputError):
-                write_error(task, record["error"])
+                write_error(task, record["error"], record.get("ran"))
         return record
     if _holds(Path(task.out) / "results.json", record.get("results")):
         return record
@@ -652,7 +653,7 @@ def _seen_here(record: dict, task: Task) -> dict:
         "share the sweep's output folder between this machine and the workers' at the same path (a shared file "
         "system), then run the sweep again"), "worker", "")
     with suppress(OSError, InputError):
-        write_error(task, error)
+        write_error(task, error, record.get("ran"))
     return {"status": "failed", "error": error, **({"ran": record["ran"]} if "ran" in record else {})}
 
 

@@ -121,12 +121,19 @@ def columns(rows: list[dict], factors: Iterable[str] = ()) -> list[str]:
     the sweep's ``factors``, where given, then ``scene`` and ``mode`` (every row's fields, in its
     order: a file of no rows has them too, a sweep stopped before any point finished); every other
     field of ``rows`` as it first appears (the factors, ``scene``, ``mode``, ``cycles.*``, ``fps``,
-    ...); then those of :func:`result_columns` no row has (all of them when no point is ok)."""
+    ...); then those of :func:`result_columns` no row has (all of them when no point is ok). Who ran the points
+    (:data:`RAN_COLUMNS`, where a row has them) follows ``mode`` whatever row says it first: a sweep of an older
+    tlm resumed has rows without them before those with them, which would put them after the results."""
     cols = list(FIRST_COLUMNS)
     factors = list(factors)
     cols.extend(k for k in ([*factors, "scene", "mode"] if factors else ()) if k not in cols)
     for r in rows:
         cols.extend(k for k in r if k not in cols)
+    ran = [k for k in RAN_COLUMNS if k in cols]
+    if ran and "mode" in cols:
+        cols = [k for k in cols if k not in ran]
+        at = cols.index("mode") + 1
+        cols[at:at] = ran
     cols.extend(k for k in result_columns() if k not in cols)
     return cols
 
