@@ -18,7 +18,10 @@ use the programs' scales of that time (:data:`SCALES`, with no cycles per record
 Rewritten a fourth time when the gather's cone weight became a work item of its own
 (``photons_weighted``, h235): the photon-map runs' ``work.pmap`` gained it, and the disk
 run's Fragment PM no longer pays the cone weight (its ``cycles`` and ``units`` fell);
-images, photons, every other count and the cone filters' cycles stayed the same. (The
+images, photons, every other count and the cone filters' cycles stayed the same. Rewritten
+a fifth time, for ``run:ring-pmap-kvoxel-dynamic`` alone and its timing alone (``cycles``,
+``events``, ``units``), when a dynamic stream of two images came to run on until its
+completions repeat (``tlm.arch.steady``): images and counts stayed the same. (The
 AVX2 file was written on an AVX512 machine with ``NPY_DISABLE_CPU_FEATURES="X86_V4
 AVX512_ICL"``, which reproduced the file of HEAD exactly first.)
 

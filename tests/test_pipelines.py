@@ -165,7 +165,7 @@ def test_pipelines_finish_and_account_every_cycle(ring, cornell_pmap, n, schedul
         tiles = t.program.stages[-1].tiles
         assert sum(tl.pixels for tl in tiles) == fn.pixels
         per_frame = sum(-(-tl.pixels // cfg.arch.copy_words_per_cycle) for tl in tiles)
-        assert t.units["compose"]["T_norm"] == per_frame * cfg.arch.frames
+        assert t.units["compose"]["T_norm"] == per_frame * len(t.frames)  # (a dynamic stream runs on until it settles)
         for k in PMS:
             assert t.cycles[k] == max(p[k] for p in t.pipelines)
 
@@ -173,11 +173,13 @@ def test_pipelines_finish_and_account_every_cycle(ring, cornell_pmap, n, schedul
 @pytest.mark.slow
 def test_more_pipelines_are_faster(ring):
     """This small frame is Vertex-bound (its throughput is the one Vertex PM's); the per-pipeline
-    PMs and the latency shrink with N."""
+    PMs shrink with N, and the latency down to 2 TVert, the steady state's once the Vertex PM is the
+    limit (2 and 4 pipelines: 785,898 cycles each)."""
     cfg, fn, progs, _ = ring
     t = {n: simulate(fn, progs, _with(cfg.arch, pipelines=n, scheduler="dynamic")) for n in (1, 2, 4)}
-    for key in ("traversal", "intersection", "fragment", "latency"):
+    for key in ("traversal", "intersection", "fragment"):
         assert t[4].cycles[key] < t[2].cycles[key] < t[1].cycles[key], key
+    assert t[4].cycles["latency"] == t[2].cycles["latency"] == 2 * t[4].cycles["vertex"] < t[1].cycles["latency"]
     assert t[4].cycles["vertex"] == t[1].cycles["vertex"]
     assert t[4].cycles["throughput"] >= t[4].cycles["vertex"]
 
@@ -190,12 +192,13 @@ def test_dynamic_scheduler_balances_an_unbalanced_image(ring):
     keep[(rows < fn.height // 2) & (cols < fn.width // 2)] = True
     work = {p: {k: np.where(keep, v, 0) for k, v in w.items()} for p, w in fn.work.items()}
     lopsided = dataclasses.replace(fn, work=work)
-    a = _with(cfg.arch, pipelines=4, frames=3)
+    a = _with(cfg.arch, pipelines=4, frames=5)
     static = simulate(lopsided, progs, _with(a, scheduler="static"))
     dynamic = simulate(lopsided, progs, _with(a, scheduler="dynamic", tiles_per_pipeline=4))
     # the slowest pipeline's Intersection PM (the frame waits for it) and the latency
     assert dynamic.cycles["intersection"] < 0.4 * static.cycles["intersection"]
-    assert dynamic.cycles["latency"] < static.cycles["latency"]
+    # (in the steady state both are Vertex-bound: the latency is 2 TVert under either scheduler)
+    assert dynamic.cycles["latency"] == static.cycles["latency"] == 2 * dynamic.cycles["vertex"]
     idle_static = [static.units[f"pipe{p}.intersection"]["idle"] / static.units[f"pipe{p}.intersection"]["elapsed"]
                    for p in range(4)]
     assert max(idle_static) > 0.9  # three quadrants without work
@@ -510,7 +513,8 @@ def test_the_steady_state_throughput_does_not_depend_on_the_stream_length(cornel
     cfg, fn, progs = cornell_pmap
     runs = {f: simulate(fn, progs, _with(cfg.arch, frames=f, pipelines=pipelines, scheduler=scheduler))
             for f in (4, 5, 6, 8, 12)}
-    assert not runs[4].throughput_estimate["steady"]
+    # (a dynamic stream runs on past arch.frames until its completions repeat: steady at 4 frames too)
+    assert runs[4].throughput_estimate["steady"] is (scheduler == "dynamic")
     assert all(runs[f].throughput_estimate["steady"] for f in (5, 6, 8, 12))
     thr = [runs[f].cycles["throughput"] for f in (5, 6, 8, 12)]
     assert max(thr) - min(thr) <= 1  # one period's cycles split between its frames: rounding to whole cycles

@@ -7,7 +7,9 @@ The frame program's pipelines (``pipe0``..), each of Processing Modules that are
 ``xbar`` (:class:`Crossbar`), which routes PMs to modules (swaps) and copies blocks
 between modules; with more than one pipeline, the ``compose`` unit that receives the
 tiles. A stream of ``arch.frames`` frames passes through, ``arch.images_in_flight`` (2)
-at a time: image slot ``s`` owns a pipeline's modules ``2s`` and ``2s+1``.
+at a time: image slot ``s`` owns a pipeline's modules ``2s`` and ``2s+1``. A stream that
+only settles after a transient (the dynamic scheduler with two images) runs on past
+``arch.frames`` until its completions repeat (:func:`settling`, :mod:`tlm.arch.steady`).
 
 Each frame runs the program of :func:`frame_program` (the reconstruction of the
 thesis's Figs. 13 and 14, see ``docs/architecture.md``): stages, shared ones on
@@ -66,6 +68,7 @@ from tlm.arch.granularity import (
 )
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
+from tlm.arch.steady import frames_cap, keep_going, steady_throughput
 from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run, within_int64
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
@@ -264,14 +267,29 @@ def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b
     copy_done.succeed()
 
 
+def settling(program: FrameProgram, arch: ArchConfig) -> bool:
+    """Whether the stream runs past ``arch.frames`` until its completions repeat
+    (:mod:`tlm.arch.steady`): two images in flight and a scheduler whose completions are
+    not periodic from the warm-up on (the dynamic queue)."""
+    return arch.images_in_flight > 1 and not SCHEDULERS[program.scheduler].periodic_from_warmup
+
+
 def _stream(model: Model, done: simpy.events.Event):
+    """Frames arrive as image slots free up: ``arch.frames`` of them, and for a settling
+    stream more, one at each completion, until the completions repeat (``keep_going``) or
+    :func:`~tlm.arch.steady.frames_cap` frames have arrived."""
     env = model.env
+    arch = model.arch
     slots = simpy.Store(env)
-    for s in range(model.arch.images_in_flight):
+    for s in range(arch.images_in_flight):
         slots.put(s)
     running = []
-    for f in range(model.arch.frames):
+    more = settling(model.program, arch)
+    cap = frames_cap(arch.frames) if more else arch.frames
+    for f in range(cap):
         slot = yield slots.get()  # the raw data of frame f is accepted when a module pair is free
+        if f >= arch.frames and not keep_going([r.done for r in model.frames if r.done >= 0], arch.images_in_flight):
+            break
         rec = FrameRecord(f, slot, arrival=int(env.now))
         model.frames.append(rec)
         proc = env.process(_frame_process(model, rec))
@@ -381,7 +399,8 @@ class Timing:
 
 
 def simulate(fn: Functional, programs: Programs, arch: ArchConfig) -> Timing:
-    """Run the stream of ``arch.frames`` frames of ``fn`` through the model.
+    """Run the stream of ``arch.frames`` frames of ``fn`` through the model (more, for a stream
+    that settles only after a transient: :func:`settling`; ``timing.frames`` lists every one).
 
     ``timing.granularity`` compares the frame's packets with packets of one ray, pixel or
     photon (:func:`granularity_estimate`, after the run, with :func:`fine_ti_cycles`: the
@@ -449,7 +468,8 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
               cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
-    within_int64(end, f"the stream of {arch.frames} frame{'s' * (arch.frames != 1)}")  # (no unit's are more)
+    nf = len(model.frames)
+    within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}")  # (no unit's are more)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget
@@ -471,12 +491,13 @@ def event_bound(program: FrameProgram, arch: ArchConfig) -> int:
     """
     items = sum(len(js.packets) + 1 for ph in program.phases for js in ph.jobs)
     tiles = sum(len(st.tiles) for st in program.stages)
-    return EVENTS_PER_ITEM * (items + tiles) * arch.frames + 100_000
+    frames = frames_cap(arch.frames) if settling(program, arch) else arch.frames  # (the most the stream runs)
+    return EVENTS_PER_ITEM * (items + tiles) * frames + 100_000
 
 
 def _results(model: Model, program: FrameProgram, end: int, events: int, trace: Trace | None) -> Timing:
     arch = model.arch
-    nf = arch.frames
+    nf = len(model.frames)  # arch.frames, or more where the stream ran on until it settled (settling)
     checks = {}
     # every unit closes its books and reports them (a PM's idle wait for a job is booked to the end)
     pms = [pm.close(end) for pm in model.pms.values()]
@@ -509,14 +530,18 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     for rec in model.frames:
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
-    throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight)
+    throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight,
+                                               settling(program, arch))
     # latency over the frames that complete in the steady window and arrived after the
     # warm-up (the k-th completion: an earlier arrival met the half-empty pipeline of the
     # fill), all frames without a window; exact rational means rounded to whole cycles
     # (a float mean is off past 2**53 cycles)
     by_done = sorted(model.frames, key=lambda r: (r.done, r.index))
     window = estimate["window"]
-    if window:
+    if estimate.get("latency_arrivals"):  # a settling stream: whole periods of arrivals (tlm.arch.steady)
+        lo, hi = estimate.pop("latency_arrivals")
+        steady = [r for r in model.frames if lo <= r.index < hi]
+    elif window:
         warm = by_done[window[0]].done
         steady = [r for r in by_done[window[0] + 1:window[1] + 1] if r.arrival >= warm]
     else:
@@ -542,38 +567,6 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe,
                   throughput_estimate=estimate,
                   granularity=granularity_estimate(program, arch, throughput_i, cycles[slowest]))
-
-
-def steady_throughput(done: list[int], in_flight: int) -> tuple[int, dict]:
-    """TThru, the steady state's cycles per frame, from the frames' completion cycles.
-
-    With ``k`` = ``in_flight`` images, frames 0 .. k-1 arrive together at cycle 0 and
-    frame f + k arrives when frame f is done. Between the completions d[f-1] and d[f]
-    (sorted) the model is in its steady state when frame f - 1 + k exists, that is for
-    f <= F - k: the last k - 1 completions drain with fewer images in flight. The first
-    k completions are the warm-up. The gaps alternate with two images (short, long),
-    so the window spans a whole number of periods: from d[k-1] over m * k gaps,
-    m = (F - 2k + 1) // k, which needs F >= 3k - 1 frames (5 for the thesis's two images).
-    One image runs its frames back to back, each alone from the same state (the frame
-    program gives each PM one module role, so a PM never moves and nothing carries over:
-    every frame takes the same cycles), so one frame is already its steady value; two or
-    more give the window over every gap. A shorter stream has no steady window: its TThru
-    is the stream's elapsed cycles per frame (``done[-1] / F``, fill and drain included),
-    and the estimate says so (``steady: false``).
-    """
-    f, k = len(done), in_flight
-    d = sorted(done)
-    m = (f - 2 * k + 1) // k
-    if m >= 1:
-        a, b = k - 1, k - 1 + m * k
-        value = round(Fraction(d[b] - d[a], b - a))
-        return value, {"steady": True, "frames": f, "window": [a, b], "estimator": "steady-state window"}
-    if k == 1 and f == 1:
-        return d[0], {"steady": True, "frames": 1, "window": None,
-                      "estimator": "the one frame (one image in flight: every frame takes the same cycles)"}
-    value = round(Fraction(d[-1], f))
-    return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k - 1,
-                   "estimator": "elapsed cycles per frame (stream too short for a steady-state window)"}
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "MaxEventsReached", "PhaseSpec", "Timing",

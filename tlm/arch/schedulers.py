@@ -43,6 +43,9 @@ class Scheduler:
 
     name = ""
     pinned = False  # each stage's tile p runs on one fixed pipeline, the same for every stage (static tiles)
+    # the completions repeat from the warm-up on with two images in flight (static tiles); else the model runs
+    # the stream past arch.frames until they do (tlm.arch.steady: the dynamic queue settles after a transient)
+    periodic_from_warmup = False
 
     def tiles(self, arch) -> int:
         """The number of tiles a tiled stage is cut into under ``arch`` (ArchConfig)."""
@@ -71,6 +74,7 @@ class Static(Scheduler):
     """
 
     pinned = True
+    periodic_from_warmup = True
 
     def tiles(self, arch) -> int:
         return arch.pipelines

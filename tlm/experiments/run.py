@@ -274,7 +274,8 @@ def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
     return {
         "clock_hz": arch.clock_hz,
         "packet_size": arch.packet_size,
-        "frames": arch.frames,
+        "frames": len(tm.frames),  # arch.frames, or more: a dynamic stream runs on until it settles (tlm.arch.steady)
+        "frames_asked": arch.frames,
         "images_in_flight": arch.images_in_flight,
         "memory": arch.memory,
         "programs": {"source": programs.source, "scale": programs.scale,

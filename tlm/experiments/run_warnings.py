@@ -120,7 +120,12 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
         return []
     lines = []
     est = timing.throughput_estimate
-    if est and not est["steady"]:
+    if est and est.get("settled") is False and not est["steady"]:  # (settled or not, steady: said in its estimate)
+        a, b = est["window"]
+        lines.append(f"the stream did not settle within {est['frames']} frames (the dynamic scheduler's completions "
+                     f"did not repeat): cycles.throughput is the mean gap over its last {b - a} steady completions, "
+                     f"which moved {est['moved']:+.2%} between their halves; raise arch.frames to settle it")
+    elif est and not est["steady"] and est.get("settled") is None:
         lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
                      f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
                      "cycles.throughput is the stream's elapsed cycles per frame")

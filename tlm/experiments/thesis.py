@@ -541,7 +541,7 @@ def _norm_per_frame(fns: dict, programs: Programs) -> dict[str, dict[str, float]
     out: dict[str, dict[str, float]] = {}
     for s, (fn, cfg) in fns.items():
         sim = simulate(fn, programs, cfg.arch)
-        out[s] = {pm: sim.units[f"pipe0.{pm}"]["T_norm"] / cfg.arch.frames for pm in FIT_PMS}
+        out[s] = {pm: sim.units[f"pipe0.{pm}"]["T_norm"] / len(sim.frames) for pm in FIT_PMS}
     return out
 
 
@@ -599,7 +599,7 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         scales, cycles = {}, {}
         for pm, metric in FIT_PMS.items():
             y = np.array([thesis_value(_name(s), "rcast", metric) * 1e6 for s in scenes])
-            frames = np.array([fns[s][1].arch.frames for s in scenes], dtype=float)
+            frames = np.array([len(sims[s].frames) for s in scenes], dtype=float)
             norm = np.array([sims[s].units[f"pipe0.{pm}"]["T_norm"] for s in scenes], dtype=float) / frames
             other = np.array([sims[s].cycles[pm] for s in scenes], dtype=float) - norm
             n = np.array([instructions[s][pm] for s in scenes])

@@ -1,0 +1,124 @@
+"""TThru, the steady state's cycles per frame, from the frames' completion cycles.
+
+With ``k`` = ``arch.images_in_flight`` images, frames 0 .. k-1 arrive together at cycle 0
+and frame f + k arrives when frame f is done. Between the sorted completions d[i] and
+d[i+1] the model is in its steady state when a frame arrived at d[i], that is for
+i >= k - 1 (the first k completions are the warm-up) and up to the last completion at
+which a frame arrived (the last k - 1 completions drain with fewer images in flight).
+
+Two kinds of stream (:func:`steady_throughput`):
+
+* *Periodic from the warm-up*: one image in flight (every frame runs alone from the same
+  state) and the static tiles (each pipeline runs the same tiles of every frame, and the
+  completions repeat from d[k-1] on with a period of one or two gaps: checked over 1-8
+  pipelines, both memories, one and two images in ``tests/test_dynamic_steady_h292.py``).
+  The window spans whole periods of k gaps from d[k-1] (m = (F - 2k + 1) // k of them,
+  which needs F >= 3k - 1 frames). A shorter stream has no window: TThru is then
+  ``d[-1] / F`` (fill and drain included) and ``steady`` is false.
+* *Settling*: the dynamic scheduler with two images in flight. Which pipeline takes which
+  of the low-priority image's tiles, and how far that image has got when the other
+  completes, depend on the times the frames before left; the two images' relative phase
+  is carried from frame to frame and settles only after a transient of several frames,
+  into a period of one to dozens of gaps (Cornell at 32x32: 1 pipeline from the 3rd
+  steady gap, period 1; 2 pipelines from the 10th, period 3; 8 pipelines with
+  ``memory: copy`` from the 24th, period 15; 4 pipelines only after some 120 gaps, period 52).
+  The model runs such a stream past ``arch.frames`` until its steady gaps end in a
+  confirmed period (:func:`periodic_tail`: the period seen twice, over at least
+  :data:`MIN_REPEAT_GAPS` gaps), at most :func:`frames_cap` frames (:func:`keep_going`), and TThru
+  is the mean gap over whole periods of it. Where it did not settle within the cap, TThru
+  is the mean gap over the later half of the steady gaps (the first half left as the
+  transient), ``moved`` says how far the mean of that window's second half is from its
+  first's, and ``steady`` is whether that is at most :data:`STEADY_MOVED` (0.5%: the scaling
+  sweeps' unsettled points moved 0.3% at most; a run warns, and a scaling fit notes, only an
+  unsettled stream that is not steady).
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+SETTLE_FRAMES = 64  # the frames a settling stream runs at most (or arch.frames, if more)
+MIN_REPEAT_GAPS = 4  # a period is confirmed when seen twice and over at least these many gaps
+STEADY_MOVED = 0.005  # an unsettled stream's window is steady where its halves' means differ by at most this
+
+
+def frames_cap(frames: int) -> int:
+    """The most frames a settling stream of ``arch.frames`` = ``frames`` runs."""
+    return max(frames, SETTLE_FRAMES)
+
+
+def periodic_tail(gaps: list[int]) -> tuple[int, int] | None:
+    """(s, p): the smallest period p with which ``gaps`` end, seen at least twice and over at
+    least :data:`MIN_REPEAT_GAPS` gaps, and the first gap s of that periodic run (every gap
+    from s on equals the one p later); None where the gaps end in no confirmed period."""
+    n = len(gaps)
+    for p in range(1, n // 2 + 1):
+        need = max(2 * p, MIN_REPEAT_GAPS)
+        if need > n or any(gaps[i] != gaps[i + p] for i in range(n - need, n - p)):
+            continue
+        s = n - need
+        while s > 0 and gaps[s - 1] == gaps[s - 1 + p]:
+            s -= 1
+        return s, p
+    return None
+
+
+def keep_going(done: list[int], in_flight: int) -> bool:
+    """Whether a settling stream whose frames so far completed at ``done`` (a frame arrived
+    at each of them) has not settled yet: its steady gaps end in no confirmed period."""
+    d = sorted(done)
+    return periodic_tail([d[i + 1] - d[i] for i in range(in_flight - 1, len(d) - 1)]) is None
+
+
+def steady_throughput(done: list[int], in_flight: int, settling: bool = False) -> tuple[int, dict]:
+    """TThru from the completion cycles ``done`` of a stream with ``in_flight`` images (see the
+    module's text): periodic from the warm-up (``settling`` false) or settling (the dynamic
+    scheduler with two images, run until periodic by the model). Returns the value rounded to
+    whole cycles (an exact rational mean) and how it was measured: ``steady``, ``frames``,
+    ``window`` [a, b] (indices into the sorted completions), ``estimator``; a settling
+    stream's ``settled``, ``period`` (gaps) or ``moved``, and ``latency_arrivals`` [lo, hi): the
+    frames the latency is the mean over (those arriving in the window, whole periods of them,
+    done before the drain); a short stream's ``min_frames``."""
+    f, k = len(done), in_flight
+    d = sorted(done)
+    m = (f - 2 * k + 1) // k
+    if m >= 1 and settling:
+        gaps = [d[i + 1] - d[i] for i in range(k - 1, f - k)]
+        tail = periodic_tail(gaps)
+        if tail is not None:
+            s, p = tail
+            whole = math.lcm(p, k)  # whole periods that are whole rounds of the k images too, where they fit
+            span = (len(gaps) - s) // whole * whole or (len(gaps) - s) // p * p
+            a, b = k - 1 + s, k - 1 + s + span
+            value = round(Fraction(d[b] - d[a], b - a))
+            # the latency's frames: those that arrived at d[a], d[a+1], .. (frame k + i arrives at the i-th
+            # completion), whole periods of them, each done by d[f - k] (before the drain)
+            arrivals = (f - 2 * k + 1 - a) // p * p
+            return value, {"steady": True, "frames": f, "window": [a, b], "settled": True, "period": p,
+                           "latency_arrivals": [k + a, k + a + arrivals] if arrivals else None,
+                           "estimator": f"periodic steady state (from completion {a}, a period of {p} "
+                                        f"gap{'s' * (p != 1)})"}
+        half = len(gaps) // 2
+        a, b = k - 1 + half, f - k
+        value = round(Fraction(d[b] - d[a], b - a))
+        mid = (a + b) // 2
+        moved = (float(Fraction(d[b] - d[mid], b - mid) / Fraction(d[mid] - d[a], mid - a)) - 1
+                 if a < mid < b and d[mid] > d[a] else 0.0)
+        arrivals = f - 2 * k + 1 - a
+        return value, {"steady": abs(moved) <= STEADY_MOVED, "frames": f, "window": [a, b], "settled": False,
+                       "moved": moved,
+                       "min_frames": None,  # (no length known: raise arch.frames)
+                       "latency_arrivals": [k + a, k + a + arrivals] if arrivals > 0 else None,
+                       "estimator": f"mean gap over the last {b - a} steady completions: not periodic within "
+                                    f"{f} frames"}
+    if m >= 1:
+        a, b = k - 1, k - 1 + m * k
+        value = round(Fraction(d[b] - d[a], b - a))
+        return value, {"steady": True, "frames": f, "window": [a, b], "estimator": "steady-state window"}
+    if k == 1 and f == 1:
+        return d[0], {"steady": True, "frames": 1, "window": None,
+                      "estimator": "the one frame (one image in flight: every frame takes the same cycles)"}
+    value = round(Fraction(d[-1], f))
+    return value, {"steady": False, "frames": f, "window": None, "min_frames": 3 * k - 1,
+                   "estimator": "elapsed cycles per frame (stream too short for a steady-state window)"}
