@@ -157,6 +157,10 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     ``progress``: a bar on stderr, drawn only when it is a terminal (:func:`tlm.progress.progress_bar`),
     with a step for reading the inputs, each section, the summary and the page, named as it runs
     (``report: cycles``); gone at the end. Nothing else the report prints or writes changes with it.
+
+    From several threads of one process at once, each report writes what it writes alone: their figures
+    are drawn one report at a time (:data:`DRAWING`; the bar says ``report: waiting for another report's
+    figures`` meanwhile).
     """
     from tlm.experiments.provenance import identities_remembered
 
@@ -164,6 +168,29 @@ def build_report(dirs: list[Path], out: Path | None = None, title: str | None = 
     # the objects the process held before, not scanned again by the collector while the figures are made)
     with figure_output(formats, dpi), identities_remembered(), older_objects_frozen():
         return _build_report(dirs, out, title, scaling_sweeps, note, progress)
+
+
+# matplotlib draws text through state that every thread of the process shares: mathtext's one parser (its
+# state while it parses) and its cache of parsed labels, which hold the fonts of the thread that parsed them,
+# and the rcParams set around a PDF's or SVG's save (:func:`tlm.report.common.write_png`). Two reports drawing
+# at once in one process drew some tick labels wrong ("10^6" as "0^6", a stray "1") or failed ("failed to load
+# glyph"): a report's figures are drawn while it holds this lock, one report at a time (reentrant: a report
+# written from inside another's drawing does not wait for itself; released however the drawing ends).
+DRAWING = threading.RLock()
+
+
+@contextlib.contextmanager
+def drawing(bar=None) -> Iterator[None]:
+    """Within it, this thread holds :data:`DRAWING`; where another thread's report holds it, the progress
+    bar ``bar`` says so while this one waits."""
+    if not DRAWING.acquire(blocking=False):
+        if bar is not None:
+            bar.set_description_str("report: waiting for another report's figures", refresh=True)
+        DRAWING.acquire()
+    try:
+        yield
+    finally:
+        DRAWING.release()
 
 
 _FROZEN = threading.Lock()
@@ -278,7 +305,9 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
             if (out / name).is_dir():
                 shutil.copytree(out / name, tmp / name)
         try:
-            with reading(inputs.reads):  # (a file that collect.read read, not read again: a scaling study's sweep)
+            # (a file that collect.read read, not read again: a scaling study's sweep; the figures drawn by one
+            # report at a time in this process: :data:`DRAWING`)
+            with reading(inputs.reads), drawing(bar):
                 # (no bar drawn: sections called as before, with the inputs and the folder alone)
                 secs = sections(inputs, tmp, step) if not bar.disable else sections(inputs, tmp)
                 from tlm.report.summary import summary_section
