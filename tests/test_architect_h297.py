@@ -46,15 +46,21 @@ def _fidelity_line(page: str) -> str:
     return lines[0]
 
 
-def test_the_tables_link_to_fidelity_by_cell_from_the_report_folder(tmp_path):
+def test_the_tables_link_to_fidelity_by_cell_from_the_report_folder(tmp_path, monkeypatch):
     inputs = read([sweep_folder(tmp_path / "S")])  # (cornell points: Table III)
-    out = tmp_path / "deep" / "report"
+    real = tables.FIDELITY_DOC
+    # (h302) a link only from a report folder inside the checkout: a checkout in tmp_path, not /work/main
+    doc = tmp_path / "checkout" / "docs" / "fidelity.md"
+    doc.parent.mkdir(parents=True)
+    doc.write_text(real.read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.setattr(tables, "FIDELITY_DOC", doc)
+    out = tmp_path / "checkout" / "deep" / "report"
     out.mkdir(parents=True)
     line = _fidelity_line(tables_section(inputs, out).html)
     href = html.unescape(re.search(r'<a href="([^"]+)">docs/fidelity\.md, “By cell”</a>', line).group(1))
     file, _, part = href.partition("#")
-    assert not os.path.isabs(file) and (out / file).resolve() == tables.FIDELITY_DOC, href  # (relative: it moves)
-    headings = re.findall(r"^#+ (.+)$", tables.FIDELITY_DOC.read_text(encoding="utf-8"), re.M)
+    assert not os.path.isabs(file) and file == "../../docs/fidelity.md" and (out / file).resolve() == doc, href
+    headings = re.findall(r"^#+ (.+)$", real.read_text(encoding="utf-8"), re.M)
     assert part == "by-cell" and "By cell" in headings  # (the anchor GitHub and Markdown viewers give it)
 
 

@@ -30,6 +30,15 @@ def print_thesis(done: dict, out: Path) -> None:
         storage.warn(line)
 
 
+def _two_n(fit: dict) -> str:
+    """What ``tlm scaling`` adds after a fit's N where it has two (N = 1 and another): no test, and why (h302: a
+    slowest-pipeline error of 225% was said to be exact: B = 1 where the two points leave it undetermined)."""
+    if len(fit["pipelines"]) > 2:
+        return ""
+    exact = fit["max_abs_rel_error"] == 0 and fit["slowest"]["max_abs_rel_error"] == 0
+    return f" alone: two points fit A and B{' exactly' if exact else ' (not both determined)'}, a test of nothing"
+
+
 def print_scaling(done: dict, out: Path) -> None:
     """What ``tlm scaling`` prints of its fits."""
     for note in done["notes"]:
@@ -45,8 +54,7 @@ def print_scaling(done: dict, out: Path) -> None:
               f"{combination}{f['target']:10s} A {f['A']:8.4g}  B {f['B']:8.4g}  "
               f"max |error| {f['max_abs_rel_error']:6.1%}; "
               f"slowest-pipeline variant: max |error| {f['slowest']['max_abs_rel_error']:6.1%} "
-              f"(N = {values_text(f['pipelines'])}"
-              f"{' alone: two points fit A and B exactly, a test of nothing' if len(f['pipelines']) <= 2 else ''})")
+              f"(N = {values_text(f['pipelines'])}{_two_n(f)})")
     # (the latency is images in flight x TThru at every point of a group: its fit is the throughput fit scaled)
     lat = [f for f in fits if f["target"] == "latency"]
     times = {f.get("latency_multiple") for f in lat}

@@ -443,7 +443,7 @@ def _gantt_rows(run: Run, g: Gantt) -> tuple[list[str], str | None]:
 # a timeline's time unit: the largest of these its stream lasts at least one of (at 600 MHz, ms or µs; at 1 Hz,
 # days or years: no "ms" with an offset of x1e10 on the axis), and its clock's: the largest the clock is one of
 TIME_UNITS = (("years", 365.25 * 86400), ("days", 86400.0), ("h", 3600.0), ("min", 60.0), ("s", 1.0), ("ms", 1e-3),
-              ("µs", 1e-6), ("ns", 1e-9))
+              ("µs", 1e-6), ("ns", 1e-9), ("ps", 1e-12))  # (ps: a cycle at arch.clock_hz's 1e12 is 1 ps, not 0.001 ns)
 CLOCK_UNITS = (("THz", 1e12), ("GHz", 1e9), ("MHz", 1e6), ("kHz", 1e3), ("Hz", 1.0))
 
 

@@ -115,10 +115,11 @@ def untested(fit: dict) -> bool:
 
 def error_text(fit: dict) -> str:
     """A fit's largest |error| as a caption or a legend shows it, with why it tests nothing where it is
-    :func:`untested`."""
-    ns = sorted({r["pipelines"] for r in fit["rows"]})
-    return f"{fit['max_abs_rel_error']:.1%}" + (f" (N = {' and '.join(map(str, ns))} alone: exact by "
-                                                 "construction)" if untested(fit) else "")
+    :func:`untested`: exact by construction where the error is 0, else (the two points leave B or A undetermined,
+    as a slowest pipeline holding all the work at both N does, and B = 1 or A = 0 is taken) no measure either."""
+    ns = " and ".join(map(str, sorted({r["pipelines"] for r in fit["rows"]})))
+    why = "exact by construction" if fit["max_abs_rel_error"] == 0 else "A and B not both determined"
+    return f"{fit['max_abs_rel_error']:.1%}" + (f" (N = {ns} alone: {why})" if untested(fit) else "")
 
 
 def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = "") -> None:
@@ -560,8 +561,9 @@ def scaling_section(inputs: Inputs, out: Path) -> Section:
                               f"{error_text(v)}" for k, v in sorted(drawn.items()))
             if any(untested(v) for v in drawn.values()):  # (two points fit two parameters: a 0.0% that is no test)
                 worst += (". A fit of two values of N tests nothing: eq. 5.2's two parameters, A and B, are "
-                          "solved from its two points, which it then meets exactly whatever the model does; a third "
-                          "N in the sweep is what tests the equation")
+                          "solved from its two points, which it then meets exactly whatever the model does (where "
+                          "the two points do not determine both, B = 1 or A = 0 is taken, and the error measures "
+                          "that choice, not the model); a third N in the sweep is what tests the equation")
             sec.figures.append(Figure(file, f"{scene_shown}: scaling from {label}{' (out of date)' if stale else ''}",
                                       stale + "Solid: simulated; dashed: eq. 5.2 fitted exactly at N = 1 and by "
                                       "least squares elsewhere; dotted: the slowest-pipeline variant. "

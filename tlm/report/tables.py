@@ -391,10 +391,12 @@ FIDELITY_DOC, FIDELITY_PART = Path(__file__).resolve().parents[2] / "docs" / "fi
 
 def fidelity_html(out: Path) -> str:
     """Why cells differ from the thesis, pointing to docs/fidelity.md's "By cell": a link relative to the report
-    folder ``out`` where that page is beside the package (a source checkout: ``../docs/fidelity.md#by-cell`` from
-    the committed ``plots/``), its name alone in an installed copy, which ships no docs (no link that leads nowhere)."""
+    folder ``out`` where ``out`` is inside the source checkout that holds the page (the committed ``plots/``:
+    ``../docs/fidelity.md#by-cell``, which moves with the checkout); its name alone elsewhere: in an installed
+    copy, which ships no docs, and for a report outside the checkout (``/tmp/r``), whose link would climb to the
+    checkout's place on this machine and lead nowhere once the folder is copied or moved (h302)."""
     words = "docs/fidelity.md, “By cell”"
-    if FIDELITY_DOC.is_file():
+    if FIDELITY_DOC.is_file() and Path(out).resolve().is_relative_to(FIDELITY_DOC.parents[1]):
         href = quote(os.path.relpath(FIDELITY_DOC, Path(out).resolve()).replace(os.sep, "/")) + "#" + FIDELITY_PART
         words = f'<a href="{html.escape(href)}">{html.escape(words)}</a>'
     else:
