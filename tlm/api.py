@@ -356,10 +356,11 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
 
 
 def _own_base(config: Config, base: str | Path | None, whose: str) -> Config:
-    """``config`` (a file's, or a Config given), whose relative paths start at its own folder
-    (``config.base``): a ``base`` given that is another folder is refused, never ignored unsaid."""
+    """``config``, where ``base`` is None or its own ``config.base``: another is refused, never ignored unsaid."""
     if base is not None and Path(base).resolve() != Path(config.base).resolve():
-        raise InputError(f"{base}: {whose} relative paths start at its own folder ({config.base}), not at base: "
+        piped = config.source and not Path(config.source).resolve().exists()  # (/dev/fd/63: tlm.config.file_folder)
+        own = f"the working folder ({config.base}; a pipe is in none)" if piped else f"its own folder ({config.base})"
+        raise InputError(f"{base}: {whose} relative paths start at {own}, not at base: "
                          "base is for a mapping or a RunConfig; leave it out", key="base")
     return config
 

@@ -12,6 +12,7 @@ import inspect
 import numbers
 import os
 import re
+import stat
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
@@ -31,6 +32,26 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
     from tlm.scenes.loader import list_scenes  # (what tlm.api.list_scenes returns)
 
     return find(os.fspath(ref), command, list_scenes())
+
+
+# the names of a file descriptor (a config piped, ``<(...)``: ``/dev/fd/63``; ``/dev/stdin``; ``/proc/self/fd/0``)
+_DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
+
+
+def nameless(path: str | os.PathLike) -> str | None:
+    """What the file ``path`` is where its name is none of its own, which a folder or a command named after it
+    would not find again: ``"a pipe"`` (``tlm run <(...)``'s ``/dev/fd/63``, a piped ``/dev/stdin``, a FIFO: read
+    once, its text gone), ``"a file descriptor's name"`` (a file given as ``/dev/stdin < cornell.yaml``: every
+    such config's name is ``stdin``); None for a file of a name of its own, a folder, and what is not there."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        return "a pipe"
+    if stat.S_ISREG(mode) and _DESCRIPTOR.fullmatch(os.path.abspath(os.fspath(path))):
+        return "a file descriptor's name"
+    return None
 
 
 def shown(value: Any) -> str:
@@ -223,22 +244,31 @@ def flags_are_kept() -> bool:
 
 
 argument_names.flags_kept = flags_kept  # type: ignore[attr-defined]  (tlm.api re-exports argument_names)
+# (the command line's way to nameless, through tlm.api as to flags_kept: tlm.api.experiment_path.nameless)
+experiment_path.nameless = nameless  # type: ignore[attr-defined]
+
+
+def kind_check(command: str) -> Callable[[Any, Path], None]:
+    """What a loader of ``tlm COMMAND``'s experiment file calls on the data of its one read of it, and the file's
+    path: :func:`refuse_other_kind` (a pipe's text, ``<(...)``, is read once: a check that read it first would
+    leave the loader nothing)."""
+    return functools.partial(_refuse_for, command=command)
+
+
+def _refuse_for(raw: Any, path: Path, command: str) -> None:
+    refuse_other_kind(raw, path, command)
 
 
 def experiment_file(path: str | Path, command: str) -> Path:
     """The experiment file a study function was given, as ``tlm COMMAND PATH`` takes it
     (:func:`experiment_path`): ``path`` where it exists, else the built-in experiment of
-    that name; an :class:`InputError` otherwise, for what is neither a path nor a name, and
-    for a file whose keys say it is another command's (:func:`refuse_other_kind`)."""
-    from tlm.config import read_yaml
-
+    that name; an :class:`InputError` otherwise, for what is neither a path nor a name. Not read
+    here: a file whose keys say it is another command's is refused by its loader, on the one read
+    of its text (:func:`kind_check`): a pipe's (``<(...)``), read here, would be gone for the loader."""
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"{shown(path)} is not an experiment: give an experiment file's path or a built-in "
                          "experiment's name ('tlm config list')", key="path")
-    found = experiment_path(path, command)
-    if found.is_file():  # (a folder, or a file that cannot be read: the study's own loading says so)
-        refuse_other_kind(read_yaml(found), found, command)
-    return found
+    return experiment_path(path, command)
 
 
 # what each kind of file is (file_kind), and what each command takes, in the messages
@@ -288,7 +318,8 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     """An :class:`InputError` naming the command to use when the keys of the file ``path``
     (its data ``raw``) say clearly it is for another command than ``tlm COMMAND``
     (:func:`file_kind`): ``tlm run thesis``, ``tlm sweep cornell``. A built-in experiment is
-    named by its name, as ``tlm config list -l`` names it."""
+    named by its name, as ``tlm config list -l`` names it. A loader calls it on the data of its one read of
+    the file (:func:`kind_check`)."""
     from tlm.builtin import configs_dir, list_experiments
 
     found = file_kind(raw)
@@ -296,16 +327,18 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if found is None or found[0] in takes:
         return
     kind, keys = found
-    ref = str(path)
+    ref, save = str(path), ""
     try:
         if Path(path).resolve().parent == configs_dir().resolve() and Path(path).stem in list_experiments():
             ref = Path(path).stem
     except OSError:
         pass
+    if nameless(path):  # (a pipe's /dev/fd/63 names nothing once read)
+        ref, save = "FILE", "save it to a file and "
     wanted = " or ".join(KIND_NAMES[k] for k in takes if k in KIND_NAMES) or f"a file for 'tlm {command}'"
-    use = {"run": f"run it with tlm run {ref}",
-           "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's `scene:`"
-           }.get(kind, f"run it with tlm {kind} {ref}")
+    use = save + {"run": f"run it with tlm run {ref}",
+                  "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's "
+                           "`scene:`"}.get(kind, f"run it with tlm {kind} {ref}")
     if command == "calibrate" and kind != "thesis":
         wanted += " (tlm calibrate fits the programs to a thesis study's scenes)"
     raise InputError(f"{KIND_NAMES[kind]} (it has {', '.join(f'{k}:' for k in keys)}), not {wanted}: {use}",

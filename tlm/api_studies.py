@@ -20,6 +20,7 @@ from tlm.api_common import argument_names, arguments_text, flags_are_kept
 from tlm.api_common import checked as _checked
 from tlm.api_common import experiment_file as _experiment_file
 from tlm.api_common import folder as _folder
+from tlm.api_common import kind_check as _kind_check
 from tlm.api_common import shown as _shown
 from tlm.config import config_from_dict
 from tlm.errors import InputError
@@ -106,6 +107,15 @@ def _experiment(path: object, command: str) -> Path:
     return _experiment_file(expanded(path, "path"), command)
 
 
+def _study(path: object, command: str):
+    """``(the study file ``tlm COMMAND`` runs, a block whose one read of it checks its kind)``: a file that is another
+    command's refused, naming it (:func:`~tlm.experiments.study.checking`, :func:`~tlm.api_common.kind_check`)."""
+    from tlm.experiments.study import checking
+
+    found = _experiment(path, command)
+    return found, checking(found, _kind_check(command))
+
+
 # ---------------------------------------------------------------- many experiments
 
 
@@ -164,12 +174,14 @@ def run_sweep(path: str | Path, out: str | Path, *, jobs: int | None = None, das
     jobs = _checked(jobs, "jobs", int, "a whole number of worker processes", none="the CPUs available")
     progress = _checked(progress, "progress", bool)
     warn, say = callback(warn, "warn"), callback(say, "say")
+    check = _kind_check("sweep")  # (a run config's, a study's file: the command to use, from the sweep's one read)
     if _checked(dry_run, "dry_run", bool):
         return plan_sweep(_experiment(path, "sweep"), out_folder(out), jobs=jobs, dask=dask, dask_wait=dask_wait,
-                          overrides=_overrides(overrides), reference=_checked(reference, "reference", bool))
+                          overrides=_overrides(overrides), reference=_checked(reference, "reference", bool),
+                          check=check)
     return run_all(_experiment(path, "sweep"), out_folder(out), jobs=jobs, dask=dask, progress=progress,
                    dask_wait=dask_wait, warn=warn, overrides=_overrides(overrides),
-                   reference=_checked(reference, "reference", bool), say=say)
+                   reference=_checked(reference, "reference", bool), say=say, check=check)
 
 
 @argument_names
@@ -223,8 +235,10 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
     bar = _checked(bar, "bar", bool)
     progress = callback(progress, "progress", "a function of (scene, mode, results)")
     warn = callback(warn, "warn")
-    return run_thesis(_experiment(path, "thesis"), out_folder(out), progress, bar=bar,
-                      overrides=_overrides(overrides), warn=warn if warn is not None else (lambda line: None))
+    path, checked = _study(path, "thesis")
+    with checked:
+        return run_thesis(path, out_folder(out), progress, bar=bar, overrides=_overrides(overrides),
+                          warn=warn if warn is not None else (lambda line: None))
 
 
 @argument_names
@@ -237,7 +251,9 @@ def calibrate(path: str | Path, *, progress: Callable[[int, dict], None] | None 
     from tlm.experiments.thesis import calibrate as fit
 
     progress = callback(progress, "progress", "a function of (iteration, report)")
-    return fit(_experiment(path, "calibrate"), progress=progress)
+    path, checked = _study(path, "calibrate")
+    with checked:
+        return fit(path, progress=progress)
 
 
 def tlm_version() -> str:
@@ -290,8 +306,9 @@ def calibration_table(path: str | Path, target: str | Path | None = None) -> Pat
 
     if target is not None:  # (named: written where it is named, an installed package's folder included)
         return Path(target)
-    path = _experiment_file(path, "calibrate")
-    base, scenes, _, folder = load_study(path)
+    path, checked = _study(path, "calibrate")
+    with checked:
+        base, scenes, _, folder = load_study(path)
     used = Path(programs_for(config_from_dict({**base, "scene": scenes[0], "mode": "rcast"}, str(path)),
                              folder).source)
     target = used if used.is_file() else DEFAULT_PATH
@@ -352,8 +369,9 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
 
     progress = callback(progress, "progress", "a function of one row")
     warned = _Warned(callback(warn, "warn"))
-    rows = run_granularity(_experiment(path, "granularity"), out_folder(out), progress,
-                           overrides=_overrides(overrides), **warned.arguments())
+    path, checked = _study(path, "granularity")
+    with checked:
+        rows = run_granularity(path, out_folder(out), progress, overrides=_overrides(overrides), **warned.arguments())
     return StudyRows(rows, warnings=warned.lines)
 
 
@@ -427,9 +445,11 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
     note = callback(note, "note")
     # (the command line's: printed on stderr by the study, once each, as tlm.storage.warn prints them)
     hear = callback(warn, "warn") or (_stderr_warning if kept else None)
-    rows = run_error_vs_cost(_experiment(path, "error-vs-cost"), out_folder(out), progress=progress,
-                             truth=Truth(spp=truth_spp), note=said(notes, note), overrides=_overrides(overrides),
-                             warned=said(warnings, hear), via="--set" if kept else "the overrides")
+    path, checked = _study(path, "error-vs-cost")
+    with checked:
+        rows = run_error_vs_cost(path, out_folder(out), progress=progress, truth=Truth(spp=truth_spp),
+                                 note=said(notes, note), overrides=_overrides(overrides),
+                                 warned=said(warnings, hear), via="--set" if kept else "the overrides")
     return StudyRows(rows, notes, warnings)
 
 
@@ -447,8 +467,9 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 
     progress = callback(progress, "progress", "a function of one row")
     warned = _Warned(callback(warn, "warn"))
-    rows = run_extreme(_experiment(path, "extreme"), out_folder(out), progress, overrides=_overrides(overrides),
-                       **warned.arguments())
+    path, checked = _study(path, "extreme")
+    with checked:
+        rows = run_extreme(path, out_folder(out), progress, overrides=_overrides(overrides), **warned.arguments())
     return StudyRows(rows, warnings=warned.lines)
 
 

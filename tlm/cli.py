@@ -20,7 +20,7 @@ from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_cache import add_cache_parser, cache_command
 from tlm.cli_report import kept_whole, report_after, report_claimed, say_err
-from tlm.cli_run import blame_flag, figures3, print_run  # (what tlm run prints)
+from tlm.cli_run import blame_flag, default_out, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
     deadlock_line,
@@ -107,7 +107,7 @@ def _cmd_plots(args: argparse.Namespace) -> int:
 
 
 def _cmd_extreme(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    out = default_out(args)
 
     def progress(row: dict) -> None:
         print(f"  {'pass' if row['passed'] else 'FAIL'}  {row['category']:10s} {row['case']:24s} {row['measured']}",
@@ -197,6 +197,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides.append(f"{flag}={value}")
         flagged[f"--{flag} {value}"] = overrides[-1]
     outputs = None if args.outputs is None else api.parse_outputs(args.outputs)  # (named before the config)
+    out = default_out(args)  # (a pipe's config, of no name of its own: --out asked for before it is read)
     try:
         cfg = api.load_config(args.config, overrides)
     except InputError as exc:
@@ -209,7 +210,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
                              f"{Path(args.config).resolve()}` (extends: is read from the new file's folder) and "
                              f"the {root}: to change (docs/scenes.md), and run that)") from None
         raise
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
     storage.check_destination(out, "results.json")  # (a bad --out its one line, nothing said before it)
     if cfg.scene_file:  # (a note on stdout, with the run's lines, once the config loaded and --out checked: bad
         # input is its one line on stderr, and a warning said before the render is stderr's first line)
@@ -239,11 +239,14 @@ def _reference_command(args: argparse.Namespace, overrides: list[str]) -> str:
         typed = build_parser().parse_args(list(argv)).config
     except (InputError, SystemExit, AttributeError):  # (a run not from a command line: its config's path)
         typed = args.config
-    return " ".join(["tlm reference", shlex.quote(str(typed)), *(f"--set {shlex.quote(o)}" for o in overrides)])
+    gone = api.experiment_path.nameless(args.config)  # (a pipe's /dev/fd/63: no file to read again later)
+    command = " ".join(["tlm reference", "FILE" if gone else shlex.quote(str(typed)),
+                        *(f"--set {shlex.quote(o)}" for o in overrides)])
+    return f"{command} (FILE: the config, saved to a file: {typed} is {gone})" if gone else command
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    out = default_out(args)
     storage.SAID.clear()  # (a cache's line said during the sweep is not passed to warned again)
 
     def warned(line: str) -> None:  # (each as it is known: the factors' before the points run)
@@ -342,7 +345,7 @@ def _cmd_reference(args: argparse.Namespace) -> int:
 
 
 def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    out = default_out(args)
 
     def progress(i: int, n: int, row: dict) -> None:
         # (rel_mse against tlm's own photon-map reference; the composite's against Mitsuba, FLIP where measured)
@@ -378,7 +381,7 @@ def _cmd_params(args: argparse.Namespace) -> int:
 
 
 def _cmd_thesis(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    out = default_out(args)
 
     def progress(scene, mode, results):
         c = results["cycles"]
@@ -394,7 +397,7 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 
 
 def _cmd_granularity(args: argparse.Namespace) -> int:
-    out = Path(args.out) if args.out else Path("runs") / Path(args.config).stem
+    out = default_out(args)
 
     def progress(size, tm, secs):
         print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
@@ -414,6 +417,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     def progress(it, params):
         print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
+    if not args.dry_run and args.write is None and api.experiment_path.nameless(args.config) == "a pipe":
+        raise InputError("is a pipe, read once: its own table (base.arch.programs) is found by a read of the study "
+                         "before the fit's: give --write FILE, or --dry-run", source=args.config)
     if not args.dry_run:  # (a table it may not write is refused before the fit, not after it)
         api.calibration_table(args.config, args.write)
     programs, report = api.calibrate(args.config, progress=progress)

@@ -1,10 +1,12 @@
 """``tlm run``'s lines: what it prints of the run it wrote (:func:`print_run`: the scene, each pass's
 work, the photon-map frame's error against its reference, the timing, the warnings; :func:`figures3`: a
 number to three figures, ``tlm thesis``'s frame rates too), and which flag a refused config is named by
-(:func:`blame_flag`: ``with --seed -1``, not ``with --set``). The command itself is :mod:`tlm.cli`'s."""
+(:func:`blame_flag`: ``with --seed -1``, not ``with --set``), and the folder an experiment command writes by
+default (:func:`default_out`). The command itself is :mod:`tlm.cli`'s."""
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from collections.abc import Callable
@@ -28,6 +30,21 @@ def blame_flag(config: str, sets: list[str], flagged: dict[str, str]) -> None:
         return
     for given, item in flagged.items():
         api.load_config(cfg, [item], via=given)
+
+
+def default_out(args: argparse.Namespace) -> Path:
+    """The folder ``tlm run``, ``tlm sweep`` and the studies write: ``--out``, else ``runs/<the config's name>``.
+    A config whose name is none of its own (:func:`~tlm.api_common.nameless`: a pipe, ``<(...)``'s
+    ``/dev/fd/63``, ``/dev/stdin``) is refused, one line, nothing read: its default folder, ``runs/63``, would be
+    every piped config's, the second replacing the first."""
+    if args.out:
+        return Path(args.out)
+    default = Path("runs") / Path(args.config).stem
+    what = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless)
+    if what is not None:
+        raise InputError(f"is {what}: give --out (a name not its own: {default}, the default, would be the folder of "
+                         f"every config given so, one replacing another)", source=args.config)
+    return default
 
 
 def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], str], t0: float) -> None:

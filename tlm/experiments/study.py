@@ -23,6 +23,8 @@ replaced whole.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -37,11 +39,30 @@ from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
 
+# the study file the API runs and the check of its data (tlm.api_common.kind_check: another command's file refused,
+# naming that command), while checking() holds them
+_CHECK: contextvars.ContextVar[tuple[Path, Callable[[Any, Path], None]] | None] = contextvars.ContextVar(
+    "tlm_study_check", default=None)
+
+
+@contextlib.contextmanager
+def checking(path: Path, check: Callable[[Any, Path], None]):
+    """A block whose read of the study file ``path`` (:func:`read_study`, :func:`read_study_base`) calls ``check``
+    with its data and path before its own checks: on the one read of its text (a pipe's, ``<(...)``, is read once)."""
+    token = _CHECK.set((Path(path), check))
+    try:
+        yield
+    finally:
+        _CHECK.reset(token)
+
 
 def _study_frame(path: Path, keys: tuple[str, ...]) -> tuple[dict, str]:
     """``(raw, source)`` of the study file ``path``: a mapping of ``base``, ``keys`` and
-    ``description`` (InputError otherwise)."""
+    ``description`` (InputError otherwise); inside :func:`checking` of it, its check first."""
     raw = read_yaml(path)
+    given = _CHECK.get()
+    if given is not None and given[0] == Path(path):
+        given[1](raw, Path(path))
     src = str(path)
     allowed = ("base", *keys, "description")
     if not isinstance(raw, dict):

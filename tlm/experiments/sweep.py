@@ -224,7 +224,7 @@ def _table_digest(config: dict, folder: Path, seen: dict[str, str | None]) -> st
 def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
               progress: bool = False, dask_wait: float | None = None,
               warn: Callable[[str], None] | None = None, overrides: Iterable[str] = (), reference: bool = False,
-              say: Callable[[str], None] | None = None) -> Outcome:
+              say: Callable[[str], None] | None = None, check: Callable[[Any, Path], None] | None = None) -> Outcome:
     """Run every point of the sweep file ``path`` not already done in ``out``. ``overrides``: the
     ``dotted.key=value`` strings of ``tlm sweep --set``, applied to the base config of every point
     before its factors (:func:`~tlm.experiments.sweep_file.load_sweep`): part of each point's config,
@@ -244,7 +244,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     they run (:func:`~tlm.experiments.sweep_reference.hold_references`: one the cache could not take, or pruned
     meanwhile, measures them all the same; what a killed sweep left there, every sweep into ``out`` removes,
     :func:`~tlm.experiments.sweep_reference.clean_held`); one that fails is a warning and its points run without
-    their error."""
+    their error. ``check``: the sweep file's data's (:func:`~tlm.experiments.sweep_file.load_sweep`)."""
     leave_if_bootstrapping()  # (a worker re-running a script that sweeps as it is imported touches no folder)
     t_start = time.perf_counter()
     # (the Dask address's form, even where every point is done and no scheduler is reached)
@@ -260,7 +260,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     # (a bad TLM_KERNELS or TLM_FORK_WORKERS refused once, before any point; numba not imported for it where it is
     # sure to import: a sweep whose frames are all cached runs no kernel)
     kernels_here(), fork_workers()
-    sweep = load_sweep(Path(path), overrides)  # loads every distinct programs table and scene
+    sweep = load_sweep(Path(path), overrides, check)  # loads every distinct programs table and scene
     out = Path(out)
     check_destination(out, MARKER)  # before anything is written or said: a bad --out is its one line
     said = [*sweep.inert_factors(), *sweep.inert_sets()]  # (a factor, or a --set, that no point reads)

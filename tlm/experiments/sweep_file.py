@@ -16,7 +16,7 @@ import dataclasses
 import hashlib
 import json
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -435,10 +435,12 @@ class _Checked:
 _REFUSED = object()
 
 
-def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
+def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, Path], None] | None = None
+               ) -> Sweep:
     """Read and check a sweep file and every point's config, and load the scenes and programs
     tables the points name (their content is part of the points' keys); InputError names the
-    file and key.
+    file and key. ``check``: called with the file's data and ``path`` on its one read, before its own checks (the
+    API's refusal of a file that is another command's, :func:`tlm.api_common.kind_check`: a pipe's text is read once).
 
     ``overrides``: ``dotted.key=value`` strings (``tlm sweep --set``), applied to the base after
     the file's ``set`` (a key both give: the --set's value) and before the factors, as ``tlm run
@@ -457,6 +459,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = ()) -> Sweep:
     path = Path(path)
     src = str(path)
     raw = read_yaml(path)
+    if check is not None:  # (a run config, a study: the command that runs it, from this one read)
+        check(raw, path)
     if not isinstance(raw, dict):
         raise InputError(f"must be a mapping with {', '.join(SWEEP_KEYS)}", source=src)
     for key in raw:

@@ -12,7 +12,8 @@ unfinished point's folder, run again; one done without the trace.json it asks fo
 again and kept until its new folder replaces it) and
 those it warns of (:func:`~tlm.experiments.sweep.other_folders`),
 the warnings it says before its points run (:meth:`~tlm.experiments.sweep_file.Sweep.inert_factors`,
-:meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`); with ``reference`` (``--reference``), the photon-map
+:meth:`~tlm.experiments.sweep_file.Sweep.inert_sets`, ``render.threads`` and ``--jobs`` past the CPUs available:
+:mod:`tlm.experiments.run_warnings`); with ``reference`` (``--reference``), the photon-map
 references it would compute, decided as :func:`~tlm.experiments.sweep_reference.sweep_references` decides
 (one per distinct value of the keys a reference reads; a cached one judged by its ``meta.json`` alone, its
 image neither read nor, where damaged, removed). A scene is loaded only where a key needs it: the frames'
@@ -25,7 +26,7 @@ its remembered fingerprint, and no entry read is marked used.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -140,13 +141,15 @@ DRY_RUN_CONNECT_TIMEOUT = 5  # seconds a dry run waits for a --dask scheduler's 
 
 
 def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None = None,
-               dask_wait: float | None = None, overrides: Iterable[str] = (), reference: bool = False) -> SweepPlan:
+               dask_wait: float | None = None, overrides: Iterable[str] = (), reference: bool = False,
+               check: Callable[[Any, Path], None] | None = None) -> SweepPlan:
     """What :func:`~tlm.experiments.sweep.run_sweep` of the same arguments would do, nothing run or written (``tlm
     sweep --dry-run``): its checks of them, of the environment's kernel settings, of the sweep file (every point's
     config: :func:`~tlm.experiments.sweep_file.load_sweep`) and of ``out`` first, in its order (the same errors),
     a ``--dask tcp://...`` scheduler's address (``tls://``, ``ws://``, ``wss://`` alike: no handshake) tried as
     the sweep tries it (:func:`~tlm.experiments.executors_dask.answers`: one TCP connection, closed at once, within
-    :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made, nothing submitted), then :func:`plan`."""
+    :data:`DRY_RUN_CONNECT_TIMEOUT` seconds; no client made, nothing submitted), then :func:`plan`. ``check``: the
+    sweep file's data's, as the sweep's (:func:`~tlm.experiments.sweep_file.load_sweep`)."""
     from tlm.experiments.provenance import kernels_here
     from tlm.experiments.sweep import checked_options
     from tlm.kernels.threads import fork_workers
@@ -154,20 +157,30 @@ def plan_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None 
     dask = checked_options(jobs, dask, dask_wait)[0]
     kernels_here(), fork_workers()  # (a bad TLM_KERNELS or TLM_FORK_WORKERS: refused as by the sweep)
     with read_only():  # (the scenes' loads read the scene cache and write nothing: no parse kept, no entry touched)
-        sweep = load_sweep(Path(path), overrides)
+        sweep = load_sweep(Path(path), overrides, check)
         storage.check_destination(Path(out), MARKER)
     if dask not in (None, "local"):  # (a scheduler's address: tried as the sweep tries it, nothing submitted)
         from tlm.experiments.executors_dask import answers
 
         answers(dask, timeout=DRY_RUN_CONNECT_TIMEOUT)
+    if dask is None and jobs is None:  # (the sweep's worker processes: the CPUs available)
+        from tlm.kernels.threads import available
+
+        jobs = available()
     with read_only():
-        return plan(sweep, Path(out), reference, remote=dask not in (None, "local"))
+        return plan(sweep, Path(out), reference, remote=dask not in (None, "local"),
+                    jobs=jobs if dask is None else None)
 
 
-def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False) -> SweepPlan:
+def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False, jobs: int | None = None
+         ) -> SweepPlan:
     """What :func:`~tlm.experiments.sweep.run_sweep` of the loaded ``sweep`` into ``out`` would do (the module's
-    docstring); ``out`` checked already (:func:`~tlm.storage.check_destination`). Reads, writes nothing."""
+    docstring); ``out`` checked already (:func:`~tlm.storage.check_destination`). Reads, writes nothing. Its
+    warnings are the sweep's, the ``render.threads`` past the CPUs available among them (not for a remote
+    scheduler's workers), and, with ``jobs`` (local worker processes; None: a Dask cluster's), ``--jobs`` times
+    ``render.threads`` past them (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`)."""
     from tlm.experiments.frames import is_cached
+    from tlm.experiments.run_warnings import sweep_jobs_line, sweep_threads_line
     from tlm.experiments.sweep import other_folders, other_folders_line
 
     out = Path(out)
@@ -181,11 +194,14 @@ def plan(sweep: Sweep, out: Path, reference: bool = False, remote: bool = False)
     # (of them, done but for the trace.json the point asks for: point_done)
     untraced = sum(h in present and by_hash[h][0].traces and done_record(points_dir / h) is not None for h in todo)
     warnings = [*sweep.inert_factors(), *sweep.inert_sets()]
+    warnings += [] if remote else sweep_threads_line(sweep.points, str(sweep.path))  # (as the sweep starts)
     references = again = None
     if reference:
         references, again, line = _references(sweep, records)
         warnings += line
     run = todo | (again or set())
+    if jobs is not None and run:  # (--jobs x render.threads past the CPUs: as the sweep's points start)
+        warnings += sweep_jobs_line([by_hash[h][0] for h in sorted(run)], min(jobs, len(run)))
     # (as run_sweep: a folder of no finished point is removed first, a finished one kept until it is replaced)
     ended = {h: finished(points_dir / h) is not None for h in run if h in present}
     replaced, kept = sum(not e for e in ended.values()), sum(ended.values())
