@@ -96,8 +96,7 @@ class RenderConfig:
         None, "radiance scale before the sRGB curve; null = auto (99.5th percentile -> 1)",
         min_exclusive=0.0,
     )
-    batch: int = _f(4, "leaves per ray tested together by the traversal kernel (speed only)",
-                    min=1, max=64)
+    batch: int = _f(4, "leaves per ray tested together by the traversal kernel (speed only)", min=1, max=64)
     batch_rays: int = _f(1 << 17, "eye rays (pixels x spp) a run traces and shades together, pixel by pixel, "
                          "every pass of a batch before the next; also the most shadow rays, and mirror and glass "
                          "rays (all bounces of a pixel run), traced together within a pass, so the specular "
@@ -216,8 +215,7 @@ class ReferenceConfig:
     spp: int = _f(4, "eye rays per pixel of a cycle of that many rounds (one a round, a new photon map each; "
                   "at most max_rounds / 2), stratified over the pixel (each cell of a g x g grid once when a "
                   "square number): cycles average to the pixel's box-filter integral, which every render.spp "
-                  "converges to, so one reference serves every spp; the standard error is over cycles",
-                  min=1, max=4096)
+                  "converges to, so one reference serves every spp; the standard error is over cycles", min=1, max=4096)
     auto: bool = _f(True, "'tlm run' of a pmap config computes and caches the reference when none is cached, "
                     "to print and record the photon frame's error (false, or 'tlm run --no-reference': the "
                     "error is left out unless a reference is cached)")
@@ -272,8 +270,7 @@ class ArchConfig:
 @dataclass(frozen=True)
 class RunConfig:
     scene: str = _f("cornell", "built-in scene name or path to a scene YAML (relative to the config)")
-    mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)",
-                   choices=MODES)
+    mode: str = _f("refract", "rcast | reflect | refract | pmap (each adds passes to the previous)", choices=MODES)
     seed: int = _f(0, "seed of every random stream (SeedSequence); at most 2**64 - 1, the kernels' 64-bit hash key",
                    min=0, max=2**64 - 1)
     resolution: list[int] | None = _f(
@@ -454,9 +451,11 @@ MAX_TEXT_BYTES = 64 * 2**20
 
 
 def read_text(path: Path) -> str:
-    """A UTF-8 text file's text, as :func:`read_yaml` reads it; a missing or unreadable file
-    is an InputError naming it, and so is a folder, a device (``/dev/zero``: no file ends it) and
-    a file of more than :data:`MAX_TEXT_BYTES` (a pipe's text read no further than that)."""
+    """A UTF-8 text file's text, as :func:`read_yaml` reads it; a missing or unreadable file is an InputError naming
+    it, and so is a folder, a device (``/dev/zero``: no file ends it) and a file of more than :data:`MAX_TEXT_BYTES`
+    (a pipe's text read no further than that)."""
+    if "\0" in os.fspath(path):  # (which open refuses with a ValueError)
+        raise InputError("file not found (a file name holds no NUL character)", source=str(path))
     try:
         with open(path, "rb") as f:  # (a folder: IsADirectoryError, below)
             mode = os.fstat(f.fileno())
