@@ -130,7 +130,7 @@ def test_a_claim_still_held_is_left(tmp_path):
 
 def test_a_point_whose_error_json_cannot_be_written_keeps_its_own_error(tmp_path, monkeypatch):
     """run_point's docstring: an exception never leaves the worker; the row is the point's error."""
-    def refuse(task, error):
+    def refuse(task, error, *who):  # (who ran it, since 81ec1d4)
         raise InputError("is an older tlm's results.json", source=str(tmp_path / "points" / "h"))
 
     monkeypatch.setattr(sweep_point, "write_error", refuse)
