@@ -82,7 +82,9 @@ def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], 
     cyc = results.get("cycles")
     if cyc:
         tm = results["timing"]
-        print(f"timing ({tm['frames']} frames, packets of {tm['packet_size']}, "
+        asked = tm.get("frames_asked", tm["frames"])  # a dynamic stream runs on until it settles (tlm.arch.steady)
+        ran = f"{tm['frames']} frames" + (f" run, {asked} asked" if asked != tm["frames"] else "")
+        print(f"timing ({ran}, packets of {tm['packet_size']}, "
               f"{tm['clock_hz'] / 1e6:g} MHz), millions of cycles per frame:")
         print("  " + "  ".join(f"{k} {cyc[k] / 1e6:.3f}" for k in
                                ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")))

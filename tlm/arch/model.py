@@ -464,12 +464,16 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     counts: dict = {}
     bound = event_bound(program, arch)
     budget = min(arch.max_events, bound)
-    why = f"arch.max_events = {arch.max_events} events" if budget == arch.max_events else (
+    # a settling stream runs past arch.frames (tlm.arch.steady): a cap or a stop names the frames it may run
+    ran_on = "" if not settling(program, arch) else (
+        f" (the dynamic stream of two images runs on past arch.frames = {arch.frames} until its completions "
+        f"repeat, at most {frames_cap(arch.frames)} frames: tlm/arch/steady.py)")
+    why = f"arch.max_events = {arch.max_events} events{ran_on}" if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
               cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
     nf = len(model.frames)
-    within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}")  # (no unit's are more)
+    within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}{ran_on}")  # (no unit's are more)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget

@@ -13,13 +13,15 @@ and fits A and B per (scene, mode, scheduler) and per target: the frame latency 
 frame in the stream). The fit is exact at N = 1, as the thesis asks, and least squares
 over the other N. In this model the latency is no second measurement: the stream is a closed
 loop (a frame arrives when the one ``arch.images_in_flight`` before it is done), so by Little's
-law the latency is images in flight x TThru: to the cycle at the default 5 frames in every case
-checked (with frames done in order, the one steady frame's latency spans the window TThru is
-measured over) and with one image, and to within a
-few percent over a longer stream where the steady state is not periodic in k frames (the
-dynamic scheduler in PMap); not where the stream is too short for a steady state
-(``throughput_steady`` false). Where every point of a group has it (:func:`latency_multiple`),
-the latency fit's A and B are the throughput fit's times that multiple, with the same errors:
+law the latency is images in flight x TThru: to the cycle (or the one rounding leaves) in every case
+checked with the static tiles at the default 5 frames (with frames done in order, the one steady
+frame's latency spans the window TThru is measured over), with one image, and with the dynamic
+scheduler's two images, whose stream runs on past ``arch.frames`` until its completions repeat
+(:mod:`tlm.arch.steady`: TThru and the latency over whole periods); within 0.2% where such a stream
+does not settle within its 64 frames (``throughput_estimate.settled`` false: means over the later
+half of its steady completions); not where the stream is too short for a steady state
+(``throughput_steady`` false). Where every point of a group has it (:func:`latency_multiple`), the
+latency fit's A and B are the throughput fit's times that multiple, with the same errors:
 its ``latency_multiple`` says so (None where it does not hold), and ``tlm scaling`` and the
 report say the latency fit is the throughput fit scaled. Eq. 5.2 divides the sum over the
 pipelines by N: it assumes tiles of equal work. Beside it, the *slowest-pipeline* variant puts N times the slowest
