@@ -28,6 +28,8 @@ one-line :class:`~tlm.errors.InputError` naming the file and the key.
 from __future__ import annotations
 
 import copy
+import os
+import stat
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -166,6 +168,9 @@ def _unknown(raw: dict, allowed, source: str, prefix: str) -> None:
 MEMO_SIZE = 8  # the tables one process remembers (the least recently used goes)
 _MEMO: OrderedDict[tuple[str, str], Programs] = OrderedDict()  # (source, sha256 of the text) -> table
 _MEMO_LOCK = threading.Lock()
+# (a pipe's table, ``--set arch.programs=<(...)``: its text is gone once read, and each case of a study reads the
+# table again, so it is remembered by the pipe, its path and inode, while that is open: _pipe_of)
+_PIPED: OrderedDict[tuple[str, int, int], Programs] = OrderedDict()
 
 
 def load_programs(path: str | Path | None = None) -> Programs:
@@ -177,6 +182,11 @@ def load_programs(path: str | Path | None = None) -> Programs:
     returns its own copy, which the caller may change."""
     p = Path(path) if path is not None else DEFAULT_PATH
     source = str(p)
+    pipe = _pipe_of(p)
+    with _MEMO_LOCK:
+        got = _PIPED.get(pipe) if pipe is not None else None
+    if got is not None:  # (read once: a second read of the pipe finds nothing)
+        return copy.deepcopy(got)
     try:  # (read once, bounded: a pipe's table too, ``--set arch.programs=<(...)``; a folder, a device said as such)
         text = read_text(p)
     except InputError as e:
@@ -192,7 +202,22 @@ def load_programs(path: str | Path | None = None) -> Programs:
             _MEMO[key] = got
             while len(_MEMO) > MEMO_SIZE:
                 _MEMO.popitem(last=False)
+    if pipe is not None:
+        with _MEMO_LOCK:
+            _PIPED[pipe] = got
+            while len(_PIPED) > MEMO_SIZE:
+                _PIPED.popitem(last=False)
     return copy.deepcopy(got)  # (the remembered table stays as it was read)
+
+
+def _pipe_of(path: Path) -> tuple[str, int, int] | None:
+    """``(path, device, inode)`` of the pipe ``path`` names (``/dev/fd/N`` of ``<(...)``, a FIFO), whose text a
+    read takes away; None for anything else (a file is read again: an edit is seen)."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):  # (not there, a NUL in the name: read_text says what it is)
+        return None
+    return (str(path), st.st_dev, st.st_ino) if stat.S_ISFIFO(st.st_mode) else None
 
 
 def _parse_programs(raw, source: str) -> Programs:

@@ -15,6 +15,7 @@ what it told then, and :func:`unchanged` whether they still tell it: how a remem
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -69,10 +70,21 @@ def marked_line(line: str, folder: str, tagged: bool = True) -> str:
     so a path is marked by the folder it is nearest (``../m/x.obj`` one up from the scene's folder: mark 1 and
     ``m/x.obj``). Two copies of one project in other folders give the same marked lines; a path marked is told
     apart from any other, which is marked otherwise or not at all."""
-    for k, f in enumerate(_levels(folder)):
-        for form, tag in ((path_shown(f), "s"), (f, "r")):  # (one, where the folder has no control characters)
-            line = line.replace(form + os.sep, f"\0{k}{tag if tagged else ''}\0")
+    for form, mark in _marks(folder, tagged):
+        line = line.replace(form, mark)
     return line
+
+
+@functools.lru_cache(maxsize=64)
+def _marks(folder: str, tagged: bool) -> tuple[tuple[str, str], ...]:
+    """What :func:`marked_line` replaces in a line, in its order, and by what: made once for a folder (5,000 notes
+    of a scene 8 folders deep, each folder shown again per note: 0.32 s, 8x the hash of 300k triangles)."""
+    out = []
+    for k, f in enumerate(_levels(folder)):
+        out.append((path_shown(f) + os.sep, f"\0{k}{'s' if tagged else ''}\0"))
+        if path_shown(f) != f:  # (and as it is, where the folder has control characters)
+            out.append((f + os.sep, f"\0{k}{'r' if tagged else ''}\0"))
+    return tuple(out)
 
 
 def moved_line(line: str, was: str, now: str) -> str:
@@ -83,6 +95,8 @@ def moved_line(line: str, was: str, now: str) -> str:
 
     def back(m: re.Match) -> str:
         k, shown = int(m[1]), m[2] == "s"
+        if k >= max(len(levels), len(old)):  # (no mark of ours: a NUL in a cached line, a sidecar's, kept)
+            return m[0]
         f = levels[k] if k < len(levels) else old[k]
         return (path_shown(f) if shown else f) + os.sep
 

@@ -89,14 +89,19 @@ SUMMARY_FORMAT = "functional-summary/5"  # /2: with the npz's size and sha256; /
 SUMMARY_FIELDS = {"scene": dict, "plan": dict, "primary": dict, "work": dict, "photons": (dict, type(None)),
                   "error": (dict, type(None)), "warnings": list, "host_seconds": dict, "pmap": (dict, type(None))}
 assert set(SUMMARY_FIELDS) == {*SUMMARY_KEYS, "host_seconds", "pmap"}
+# (and, where it was written by a tlm that counts them, ``notes``: how many of its first warnings are the scene's
+# notes, the lines whose paths :func:`_here` moves to a copy's folders; an entry without it has them all moved)
+SUMMARY_OPTIONAL = {"notes": int}
 
 
 def summary_problem(summary: dict) -> str | None:
     """Why a sidecar of :data:`SUMMARY_FORMAT` does not hold what a result row reads (each key of
     :data:`SUMMARY_FIELDS` of its type, its warnings lines, its host seconds numbers), or None."""
-    why = fields_problem(summary, SUMMARY_FIELDS)
+    why = fields_problem(summary, SUMMARY_FIELDS, SUMMARY_OPTIONAL)
     if why is None and not all(isinstance(w, str) for w in summary["warnings"]):
         why = "its 'warnings' are not all lines"
+    if why is None and not 0 <= summary.get("notes", 0) <= len(summary["warnings"]):
+        why = "its 'notes' are not a count of its warnings"
     if why is None and not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                                for v in summary["host_seconds"].values()):
         why = "its 'host_seconds' are not all numbers"
@@ -308,9 +313,12 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep), nor
     # the reference's (its error is measured when the frame is read: _measured)
     inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg)}
+    # (the scene's notes come first, checks.file_warnings: the lines _here moves to a copy's folders, and no other,
+    # a material's name that holds a path of the project is the copy's material's name too)
+    notes = sum(w not in inert for w in full["warnings"][:len(res.scene.extra.get("notes") or [])])
     full["warnings"] = [w for w in full["warnings"] if w not in inert]
     pmap = res.radiance["pmap"].reshape(-1, 3) if res.error is not None else None
-    summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS},
+    summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS}, "notes": notes,
                "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
                "pmap": None if pmap is None else {"reference": res.error["reference"],
                                                   **_reference_settings(cfg, res.scene.photons)}}
@@ -422,8 +430,10 @@ def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: 
         was, now = os.path.dirname(held["source"]), os.path.dirname(here)
         got.summary["scene"] = {**held, "source": here}
         if was and isinstance(got.summary.get("warnings"), list):
-            got.summary["warnings"] = [moved_line(w, was, now) if isinstance(w, str) else w
-                                       for w in got.summary["warnings"]]
+            # (the scene's notes, the first lines: the rest say what its content holds, the copy's too, as it is)
+            notes = got.summary.get("notes", len(got.summary["warnings"]))
+            got.summary["warnings"] = [moved_line(w, was, now) if isinstance(w, str) and i < notes else w
+                                       for i, w in enumerate(got.summary["warnings"])]
     return got
 
 

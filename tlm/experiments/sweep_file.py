@@ -329,6 +329,10 @@ def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work:
         except InputError as e:  # the table's own message, and which point names it
             raise InputError(str(e), source=source) from None
         path = DEFAULT_PATH if table is None else folder / table  # an absolute table stays itself
+        if not Path(path).is_file():  # (a pipe's, <(...): read once here, its points run in processes of their own)
+            raise InputError("is no file but a pipe or a device, which each point of a sweep reads again in its own "
+                             "process: save the table to a file and name that", source=str(path),
+                             key="arch.programs")
         seen["programs", table] = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
     if work is None:
         work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
