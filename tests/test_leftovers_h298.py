@@ -6,7 +6,7 @@
    scene's own folder out of the notes; now every path in a note under the scene's folder or one above it
    is said relative to the scene's folder (marked_line), and a cached frame's warnings are moved to the
    copy's folders (moved_line, frames._here). Two meshes at other places still give two fingerprints.
-2. tlm.scenes.compose.plain_path and tlm.scenes.meshes.shown_path are one rule (a missing file named
+2. tlm.scenes.compose.mesh_path and tlm.scenes.meshes.shown_path are one rule (a missing file named
    plainly; a NUL in a name is no ValueError).
 3. A glTF item's transform is judged singular once (tlm.scenes.meshes._load_trimesh).
 4. A study file given as a pipe (``tlm thesis <(cat ...)``) takes its relative paths from the working
@@ -31,7 +31,7 @@ from tlm.errors import InputError
 from tlm.experiments import frames
 from tlm.experiments.frame_scenes import marked_line, moved_line, scene_fingerprint
 from tlm.scenes import meshes
-from tlm.scenes.compose import plain_path
+from tlm.scenes.compose import mesh_path
 from tlm.scenes.loader import load_scene
 
 # an L-shaped (concave) hexagon: its load notes it, naming the mesh file
@@ -105,14 +105,15 @@ def test_a_copy_of_a_project_reads_the_cached_frame_and_its_warning_names_the_co
 
 
 def test_a_mesh_path_has_one_rule_a_missing_file_named_plainly_and_a_nul_no_value_error(tmp_path):
-    """shown_path kept a missing file's ``..`` (plain_path took it out) and raised a ValueError on a NUL."""
+    """shown_path kept a missing file's ``..`` (compose.plain_path, mesh_path's rule then, took it out) and raised
+    a ValueError on a NUL."""
     (tmp_path / "a").mkdir()
     (tmp_path / "m.obj").write_text("v 0 0 0\n")
     (tmp_path / "link").symlink_to(tmp_path / "a")
     for given in (tmp_path / "a" / ".." / "m.obj", tmp_path / "a" / ".." / "gone.obj",
                   tmp_path / "link" / ".." / "m.obj", tmp_path / "x" / ".." / "m.obj", Path(f"{tmp_path}/./m.obj"),
                   tmp_path / "a" / "..", Path(f"{tmp_path}/a\0b/../m.obj")):
-        assert meshes.shown_path(given) == plain_path(given), given
+        assert meshes.shown_path(given) == mesh_path(str(given), tmp_path / "s.yaml"), given
     assert meshes.shown_path(tmp_path / "a" / ".." / "gone.obj") == tmp_path / "gone.obj"
     assert meshes.shown_path(Path(f"{tmp_path}/a\0b/../m.obj")) == Path(f"{tmp_path}/a\0b/../m.obj")
     with pytest.raises(InputError, match="mesh file not found") as info:

@@ -64,7 +64,8 @@ def test_a_two_n_fit_with_an_error_is_not_said_to_be_exact(tmp_path, capsys):
     print_scaling({"notes": [], "fits": [fit, {**fit, "slowest": exact["slowest"]}]}, tmp_path)
     undetermined, both = capsys.readouterr().out.splitlines()[1:3]
     assert "exactly" not in undetermined, undetermined
-    assert undetermined.endswith("(N = 1, 4 alone: two points fit A and B (not both determined), a test of nothing)")
+    assert undetermined.endswith("(N = 1, 4 alone, a test of nothing: eq. 5.2 exact by construction; slowest-pipeline "
+                                 "variant: A and B not both determined)"), undetermined
     assert both.endswith("(N = 1, 4 alone: two points fit A and B exactly, a test of nothing)"), both
 
 

@@ -39,16 +39,23 @@ _DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|
 
 
 def nameless(path: str | os.PathLike) -> str | None:
-    """What the file ``path`` is where its name is none of its own, which a folder or a command named after it
-    would not find again: ``"a pipe"`` (``tlm run <(...)``'s ``/dev/fd/63``, a piped ``/dev/stdin``, a FIFO: read
-    once, its text gone), ``"a file descriptor's name"`` (a file given as ``/dev/stdin < cornell.yaml``: every
-    such config's name is ``stdin``); None for a file of a name of its own, a folder, and what is not there."""
+    """What the file ``path`` is where its name is none of its own, or where its text is read once, which a folder
+    or a command named after it would not find again: ``"a pipe"`` (``tlm run <(...)``'s ``/dev/fd/63``, a piped
+    ``/dev/stdin``: read once, its text gone, in no folder), ``"a named FIFO"`` (``mkfifo c``: a name and a folder
+    of its own, which its relative paths start at, :func:`tlm.config.file_folder`, but read once too: ``runs/c``
+    would be the folder of every config written to it), ``"a file descriptor's name"`` (a file given as
+    ``/dev/stdin < cornell.yaml``: every such config's name is ``stdin``); None for a file of a name of its own, a
+    folder, and what is not there."""
     try:
         mode = os.stat(path).st_mode
     except (OSError, ValueError):
         return None
     if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
-        return "a pipe"
+        try:  # (a pipe's /dev/fd/63 resolves to /proc/PID/fd/pipe:[N], which is in no folder)
+            named = stat.S_ISFIFO(mode) and Path(path).resolve().exists()
+        except (OSError, RuntimeError):
+            named = False
+        return "a named FIFO" if named else "a pipe"
     if stat.S_ISREG(mode) and _DESCRIPTOR.fullmatch(os.path.abspath(os.fspath(path))):
         return "a file descriptor's name"
     return None
@@ -252,11 +259,7 @@ def kind_check(command: str) -> Callable[[Any, Path], None]:
     """What a loader of ``tlm COMMAND``'s experiment file calls on the data of its one read of it, and the file's
     path: :func:`refuse_other_kind` (a pipe's text, ``<(...)``, is read once: a check that read it first would
     leave the loader nothing)."""
-    return functools.partial(_refuse_for, command=command)
-
-
-def _refuse_for(raw: Any, path: Path, command: str) -> None:
-    refuse_other_kind(raw, path, command)
+    return functools.partial(refuse_other_kind, command=command)
 
 
 def experiment_file(path: str | Path, command: str) -> Path:

@@ -417,8 +417,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     def progress(it, params):
         print(f"  iteration {it}: " + ", ".join(f"{k} {v:.4g}" for k, v in params.items()), flush=True)
 
-    if not args.dry_run and args.write is None and api.experiment_path.nameless(args.config) == "a pipe":
-        raise InputError("is a pipe, read once: its own table (base.arch.programs) is found by a read of the study "
+    once = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless: a pipe, a named FIFO: read once)
+    if not args.dry_run and args.write is None and once in ("a pipe", "a named FIFO"):
+        raise InputError(f"is {once}, read once: its own table (base.arch.programs) is found by a read of the study "
                          "before the fit's: give --write FILE, or --dry-run", source=args.config)
     if not args.dry_run:  # (a table it may not write is refused before the fit, not after it)
         api.calibration_table(args.config, args.write)

@@ -36,11 +36,15 @@ def default_out(args: argparse.Namespace) -> Path:
     """The folder ``tlm run``, ``tlm sweep`` and the studies write: ``--out``, else ``runs/<the config's name>``.
     A config whose name is none of its own (:func:`~tlm.api_common.nameless`: a pipe, ``<(...)``'s
     ``/dev/fd/63``, ``/dev/stdin``) is refused, one line, nothing read: its default folder, ``runs/63``, would be
-    every piped config's, the second replacing the first."""
+    every piped config's, the second replacing the first; so is a named FIFO's (read once: ``runs/c`` would be
+    every config's written to it)."""
     if args.out:
         return Path(args.out)
     default = Path("runs") / Path(args.config).stem
     what = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless)
+    if what == "a named FIFO":  # (a name of its own, but read once: each config written to it is another)
+        raise InputError(f"is {what}, read once: give --out ({default}, the default, would be the folder of every "
+                         f"config written to it, one replacing another)", source=args.config)
     if what is not None:
         raise InputError(f"is {what}: give --out (a name not its own: {default}, the default, would be the folder of "
                          f"every config given so, one replacing another)", source=args.config)

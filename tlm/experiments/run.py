@@ -254,11 +254,24 @@ def simulate_run(res: RenderResult, programs: Programs, progress: bool = False, 
     elapsed time while it runs; ``timer``: gets the stage ``simulate``."""
     timer = Timer() if timer is None else timer
     with timer.stage("simulate"), progress_bar(progress, desc="simulate", total=1, unit="run", leave=False,
-                                               postfix=f"{res.cfg.arch.frames} frames") as bar, Ticking(bar):
+                                               postfix=frames_said(res.cfg.arch)) as bar, Ticking(bar):
         timing = simulate(res.functional(), programs, res.cfg.arch)
         bar.update()
     release_memory()  # (the model's freed blocks, before the outputs are written)
     return timing
+
+
+def frames_said(arch: ArchConfig) -> str:
+    """The frames a stream of ``arch`` runs, as its progress bar says them: ``arch.frames``, or for a settling
+    stream (:func:`tlm.arch.model.settling`: two images in flight, the dynamic queue) as many or more, until its
+    completions repeat, :func:`tlm.arch.steady.frames_cap` at most."""
+    from tlm.arch.steady import frames_cap
+    from tlm.registry import SCHEDULERS
+
+    settles = arch.images_in_flight > 1 and not SCHEDULERS[arch.scheduler].periodic_from_warmup  # (model.settling)
+    if settles and frames_cap(arch.frames) > arch.frames:
+        return f"{arch.frames} to {frames_cap(arch.frames)} frames, until it settles"
+    return f"{arch.frames} frames"
 
 
 def simulate_render(res: RenderResult, programs: Programs, progress: bool = False) -> RenderResult:

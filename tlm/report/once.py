@@ -2,7 +2,7 @@
 
 A scaling study's sweep (its ``sweep.yaml`` and ``sweep.jsonl``) is read as an input
 (:func:`tlm.report.collect.read`), and again by each check of whether the study's fit still shows
-the sweep as it is now (:func:`tlm.experiments.scaling.sweep_points`: §3's fits and notes, the
+the sweep as it is now (:func:`tlm.experiments.scaling_dated.sweep_points`: §3's fits and notes, the
 summary's "Does it scale"): six reads of each file a report. :class:`Reads` keeps what one report
 read, by the file's resolved path and its stat (a file replaced or written to meanwhile is read
 again, its modification time set back too: ``cp -p``, ``rsync -a --inplace``, ``touch -r``), on that
@@ -47,7 +47,7 @@ class Reads:
 
 @contextlib.contextmanager
 def reading(reads: Reads) -> Iterator[None]:
-    """Within it (in this thread), a sweep's files that :func:`tlm.experiments.scaling.sweep_points` reads
+    """Within it (in this thread), a sweep's files that :func:`tlm.experiments.scaling_dated.sweep_points` reads
     are read by ``reads`` (:data:`tlm.experiments.scaling.SWEEP_READ`), as it was before at its end."""
     from tlm.experiments.scaling import SWEEP_READ
 

@@ -118,8 +118,17 @@ def error_text(fit: dict) -> str:
     :func:`untested`: exact by construction where the error is 0, else (the two points leave B or A undetermined,
     as a slowest pipeline holding all the work at both N does, and B = 1 or A = 0 is taken) no measure either."""
     ns = " and ".join(map(str, sorted({r["pipelines"] for r in fit["rows"]})))
-    why = "exact by construction" if fit["max_abs_rel_error"] == 0 else "A and B not both determined"
+    why = untested_why(fit["max_abs_rel_error"])
     return f"{fit['max_abs_rel_error']:.1%}" + (f" (N = {ns} alone: {why})" if untested(fit) else "")
+
+
+def untested_why(error: float) -> str:
+    """What a fit of two values of N alone (:func:`untested`) is, judged by its own largest |error| ``error`` (an
+    eq. 5.2 fit and its slowest-pipeline variant each alone): exact by construction where 0, else its two points
+    leave A or B undetermined (B = 1 or A = 0 taken). The one rule of the report's captions and of ``tlm scaling``'s
+    lines (``tlm.cli_tables._two_n``, which reaches the report only through tlm.api, applies it to each fit:
+    tests/test_lastread_h309.py holds the two to it)."""
+    return "exact by construction" if error == 0 else "A and B not both determined"
 
 
 def plot_scaling(scene: str, fits: dict[tuple, dict], path: Path, source: str = "") -> None:

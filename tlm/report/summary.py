@@ -385,8 +385,15 @@ def _study_labels(studies: list) -> dict[int, str]:
 
 
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
+    from tlm.report.tradeoff import (
+        as_drawn,
+        floor_line,
+        log_floor,
+        reference_converged,
+        series_styles,
+        truth_noise_words,
+    )
     from tlm.report.tradeoff import gather_rays as _gather_rays
-    from tlm.report.tradeoff import log_floor, reference_converged, series_styles, truth_noise_words
     from tlm.report.tradeoff import series_of as _series
 
     studies = [st for st in inputs.of_kind("error-vs-cost") if st.rows]
@@ -419,15 +426,14 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     values = np.array([float(r[err]) for r in rows])
     floor = log_floor(values)  # (an error of 0 drawn a decade below the least positive one)
     log_y = floor == floor  # (none above 0: a linear axis, each error drawn as it is; a log one could draw none)
+    drawn = as_drawn(values, floor if log_y else None)  # (on a log axis: a 0 at the floor, below 0 left off)
     zero, below, odd = int((values == 0).sum()), int((values < 0).sum()), int((~np.isfinite(values)).sum())
-    shown = np.isfinite(values) & ((values >= 0) if log_y else True)
+    shown = np.isfinite(drawn)
     for name in [n for n in series if any(k and series_of(r) == n for r, k in zip(rows, shown, strict=True))]:
-        rs = sorted((r for r, k in zip(rows, shown, strict=True) if k and series_of(r) == name),
-                    key=lambda r: r["frame_seconds"])
-        ax.plot([r["frame_seconds"] for r in rs], [r[err] or floor if log_y else r[err] for r in rs], label=name,
-                **{**line_style(styles[name]), "linestyle": "none"})
-    if zero and log_y:
-        ax.axhline(floor, color="0.4", linestyle=":", linewidth=1.0, label=f"error 0, drawn at {floor:.2g}")
+        xy = sorted(((r["frame_seconds"], y) for r, y, k in zip(rows, drawn, shown, strict=True)
+                     if k and series_of(r) == name), key=lambda p: p[0])
+        ax.plot([x for x, _ in xy], [y for _, y in xy], label=name, **{**line_style(styles[name]), "linestyle": "none"})
+    floor_line(ax, "y", floor if log_y else None, values, "error")
     ax.set_xscale("log")
     log_ticks(ax, "x")  # (no minor tick labels running into each other)
     if log_y:

@@ -147,7 +147,7 @@ def _points(rows: list[dict], mask) -> str:
     return f"{'Point' if len(ids) == 1 else 'Points'} {listed} of rows.csv"
 
 
-def _floor_line(ax, axis: str, floor: float | None, values, what: str) -> None:
+def floor_line(ax, axis: str, floor: float | None, values, what: str) -> None:
     """The dotted line a log axis draws its 0s of ``values`` on (:func:`as_drawn`), labelled in the key."""
     if floor is not None and (np.asarray(values, dtype=float) == 0).any():
         (ax.axvline if axis == "x" else ax.axhline)(floor, color="0.4", linestyle=":", linewidth=1.0, zorder=1,
@@ -332,8 +332,8 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
         for x, a, b in zip(cx[mo & mt], oy[mo & mt], ty[mo & mt], strict=True):
             ax.plot([x, x], [a, b], color=colour(i), linewidth=0.6, alpha=0.5, zorder=2)
     on_x, on_t, on_o = ok & np.isfinite(cx), ok & np.isfinite(ty), ok & np.isfinite(oy)  # (drawn: x, filled, hollow)
-    _floor_line(ax, "x", x_floor, cost[on_x & (on_t | on_o)], "host wall time")
-    _floor_line(ax, "y", y_floor, np.concatenate([truth[on_x & on_t], own[on_x & on_o]]), "RMSE")
+    floor_line(ax, "x", x_floor, cost[on_x & (on_t | on_o)], "host wall time")
+    floor_line(ax, "y", y_floor, np.concatenate([truth[on_x & on_t], own[on_x & on_o]]), "RMSE")
     for axis, floor in (("x", x_floor), ("y", y_floor)):
         if floor is not None:
             (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
@@ -428,7 +428,7 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
         ax.scatter([], [], s=float(all_sizes[counts.index(p)]), facecolors="0.7", edgecolors="black",
                    label=f"{p:,} photons")
     for axis, floor, values, zero in (("x", x_floor, c, what), ("y", y_floor, e, "RMSE")):
-        _floor_line(ax, axis, floor, values, zero)
+        floor_line(ax, axis, floor, values, zero)
         if floor is not None:
             (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
             log_ticks(ax, axis)

@@ -52,7 +52,7 @@ from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num, shown, vec
 
 __all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_path",
-           "plain_path", "transform_geometry"]
+           "transform_geometry"]
 
 SOURCES = ("builder", "mesh", "shape")
 ITEM_KEYS = ("builder", "mesh", "shape", "params", "transform", "name")
@@ -261,19 +261,13 @@ def _not_a_mesh_file(mpath: Path) -> str | None:
 
 def mesh_path(mesh: str, path: Path) -> Path:
     """An item's ``mesh:`` file, relative to the scene file ``path`` that names it, without its ``..``
-    and ``.`` where the plain name is the same entry (:func:`plain_path`): one mesh reached two ways
-    (``a/../m/box.obj``, ``m/box.obj``) is one path, in messages and to whatever compares them."""
-    mpath = Path(mesh)
-    return plain_path(mpath if mpath.is_absolute() else path.parent / mpath)
-
-
-def plain_path(path: Path) -> Path:
-    """``path`` without its ``..`` and ``.`` where that names the same entry (``scenes/../m/box.obj`` as
-    ``m/box.obj``), kept as given where it would name another or cannot be told: the one rule of a mesh's
-    path, :func:`tlm.scenes.meshes.shown_path` (which a mesh's load names it by)."""
+    and ``.`` where the plain name is the same entry (:func:`tlm.scenes.meshes.shown_path`, the one rule of a mesh's
+    path): one mesh reached two ways (``a/../m/box.obj``, ``m/box.obj``) is one path, in messages and to whatever
+    compares them."""
     from tlm.scenes.meshes import shown_path  # (as load_mesh: meshes is imported where a scene needs it)
 
-    return shown_path(path)
+    mpath = Path(mesh)
+    return shown_path(mpath if mpath.is_absolute() else path.parent / mpath)
 
 
 def _shape(raw: dict, src: str, key: str) -> Geometry:

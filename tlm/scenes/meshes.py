@@ -172,8 +172,8 @@ def shown_path(path: Path) -> Path:
     entry, the same name in the same folder (``scenes/../cb/box.obj`` as ``cb/box.obj``), whether the file
     is there or not (a missing file's message names it plainly too). Kept as given where the folders
     differ (a ``..`` after a symbolic link to a folder leads elsewhere than the name without it) or where
-    a folder on the way is not there. The one rule of a mesh's path (:func:`tlm.scenes.compose.plain_path`
-    is this)."""
+    a folder on the way is not there. The one rule of a mesh's path (:func:`tlm.scenes.compose.mesh_path`
+    applies it)."""
     norm = Path(os.path.normpath(path))
     if norm == path:
         return path
