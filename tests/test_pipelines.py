@@ -525,4 +525,5 @@ def test_the_steady_state_throughput_does_not_depend_on_the_stream_length(cornel
         done = sorted(f["done"] for f in t.frames)
         return (done[-1] - done[0]) / (len(done) - 1)
 
-    assert len({round(gap_mean(runs[f])) for f in (5, 6, 8, 12)}) > 1
+    if scheduler == "static":  # (a dynamic stream runs on to the same frame from each of these lengths: one stream)
+        assert len({round(gap_mean(runs[f])) for f in (5, 6, 8, 12)}) > 1

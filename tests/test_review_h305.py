@@ -24,7 +24,7 @@ def frame():
 
 
 def test_max_events_reached_past_the_frames_asked_says_the_stream_ran_on(frame):
-    """Two pipelines, dynamic, 5 frames asked: the stream runs 18 frames until its gaps repeat. A
+    """Two pipelines, dynamic, 5 frames asked: the stream runs 24 frames until its gaps repeat. A
     cap just under its events stops it at a frame past the 5 asked; the line says the stream runs on
     past arch.frames = 5, at most 64 frames (before: only 'stopped at arch.max_events = N events'); a
     static stream's says nothing of it."""

@@ -169,7 +169,8 @@ MEMO_SIZE = 8  # the tables one process remembers (the least recently used goes)
 _MEMO: OrderedDict[tuple[str, str], Programs] = OrderedDict()  # (source, sha256 of the text) -> table
 _MEMO_LOCK = threading.Lock()
 # (a pipe's table, ``--set arch.programs=<(...)``: its text is gone once read, and each case of a study reads the
-# table again, so it is remembered by the pipe, its path and inode, while that is open: _pipe_of)
+# table again, so it is remembered by the pipe, its path and inode, while that is open: _pipe_of; never a named
+# FIFO, whose next writer gives another table)
 _PIPED: OrderedDict[tuple[str, int, int], Programs] = OrderedDict()
 
 
@@ -211,13 +212,25 @@ def load_programs(path: str | Path | None = None) -> Programs:
 
 
 def _pipe_of(path: Path) -> tuple[str, int, int] | None:
-    """``(path, device, inode)`` of the pipe ``path`` names (``/dev/fd/N`` of ``<(...)``, a FIFO), whose text a
-    read takes away; None for anything else (a file is read again: an edit is seen)."""
+    """``(path, device, inode)`` of the anonymous pipe ``path`` names (``/dev/fd/N`` of ``<(...)``,
+    ``/proc/PID/fd/N``: a descriptor's link that reads ``pipe:[inode]``), whose text a read takes away; None for
+    anything else: a file is read again (an edit is seen), and so is a named FIFO (each writer gives a new text)."""
     try:
         st = os.stat(path)
     except (OSError, ValueError):  # (not there, a NUL in the name: read_text says what it is)
         return None
-    return (str(path), st.st_dev, st.st_ino) if stat.S_ISFIFO(st.st_mode) else None
+    if not stat.S_ISFIFO(st.st_mode):
+        return None
+    link = str(path)
+    for _ in range(40):  # (links to links: a descriptor's name, as /dev/fd/N is, ends at "pipe:[inode]")
+        try:
+            target = os.readlink(link)
+        except OSError:  # (not a link: a named FIFO itself)
+            return None
+        if target.startswith("pipe:["):
+            return str(path), st.st_dev, st.st_ino
+        link = os.path.join(os.path.dirname(link), target)
+    return None
 
 
 def _parse_programs(raw, source: str) -> Programs:
