@@ -15,7 +15,7 @@ def _task(tmp_path):
 
 
 def test_a_full_disk_refusing_a_failed_points_error_json_is_its_record(tmp_path, monkeypatch):
-    def full(task, error):
+    def full(task, error, *who):  # (who ran it, since 81ec1d4)
         raise EnvironmentFailure("cannot write: no space left on device", source=str(tmp_path / "points" / "h"))
 
     monkeypatch.setattr(sweep_point, "write_error", full)

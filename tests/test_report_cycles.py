@@ -118,16 +118,17 @@ def test_breakdown_of_many_pipelines_is_the_mean_per_pm_kind(data):
     assert [lb.split("\n")[0] for lb in bd.labels] == ["vertex", "traversal", "intersection", "fragment"]
     trav = [units[f"pipe{p}.traversal"] for p in range(4)]
     i = 1
-    assert bd.frames == 2
-    assert bd.segments["T_norm"][i] == pytest.approx(np.mean([u["T_norm"] for u in trav]) / 2)
-    assert bd.segments["stall: handshake"][i] == pytest.approx(np.mean([u["stall"]["handshake"] for u in trav]) / 2)
+    n = wide.results["timing"]["frames"]  # (the frames run: a dynamic stream runs on past arch.frames = 2)
+    assert bd.frames == n >= 2
+    assert bd.segments["T_norm"][i] == pytest.approx(np.mean([u["T_norm"] for u in trav]) / n)
+    assert bd.segments["stall: handshake"][i] == pytest.approx(np.mean([u["stall"]["handshake"] for u in trav]) / n)
     total = sum(bd.segments[s] for s in SEGMENTS)
-    assert total == pytest.approx(bd.elapsed) and bd.elapsed == pytest.approx(units["xbar"]["elapsed"] / 2)
+    assert total == pytest.approx(bd.elapsed) and bd.elapsed == pytest.approx(units["xbar"]["elapsed"] / n)
     # with a higher threshold every PM of every pipeline has its bar
     each = breakdown(wide, few=4)
     pms = [k for k in units if k.startswith("pipe")]
     assert len(each.labels) == len(pms) == 13 and each.aggregate is None
-    assert sum(each.segments[s] for s in SEGMENTS) == pytest.approx([units[k]["elapsed"] / 2 for k in pms])
+    assert sum(each.segments[s] for s in SEGMENTS) == pytest.approx([units[k]["elapsed"] / n for k in pms])
 
 
 def test_gantt_totals_equal_the_trace_and_the_units_statistics(data):

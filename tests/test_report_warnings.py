@@ -62,7 +62,8 @@ def test_a_sweep_point_s_warnings_are_its_own(tmp_path, cache):
     for row in rows:
         results = json.loads((out / "points" / row["hash"] / "results.json").read_text())
         got[(row["arch.scheduler"], row["arch.frames"])] = [w.split(" ", 1)[0] for w in results["warnings"]]
-    assert got == {("dynamic", 5): [], ("dynamic", 2): ["arch.frames=2"], ("static", 5): ["arch.tiles_per_pipeline"],
+    # (a dynamic stream of two images runs on past arch.frames until it settles: 2 frames asked is not too short)
+    assert got == {("dynamic", 5): [], ("dynamic", 2): [], ("static", 5): ["arch.tiles_per_pipeline"],
                    ("static", 2): ["arch.tiles_per_pipeline", "arch.frames=2"]}
 
 
