@@ -41,7 +41,7 @@ def _results(n: int, source: Path, name: str, work: int = 12000) -> dict:
     per = {"traversal": 9000 // n, "intersection": work // n, "fragment": 3000 // n}
     return {"scene": {"name": name, "source": str(source)}, "mode": "rcast", "fps": 1e9 / (1000 + work // n),
             "timing": {"pipelines": [per] * n, "throughput_estimate": {"steady": True, "frames": 5}},
-            "cycles": {"vertex": 1000, "latency": 2000 + work // n, "throughput": 1000 + work // n}}
+            "cycles": {"vertex": 1000, **per, "latency": 2000 + work // n, "throughput": 1000 + work // n}}
 
 
 def pipelines_sweep(folder: Path, points: list[tuple[int, str, Path, str]]) -> Path:

@@ -127,7 +127,7 @@ def _config(n: int, levels: int) -> dict:
 def _results(n: int, work: int) -> dict:
     per = {"traversal": work // n, "intersection": 2 * work // n, "fragment": work // (2 * n)}
     return {"scene": {"name": "cornell"}, "timing": {"pipelines": [per] * n},
-            "cycles": {"vertex": 1000, "latency": 2000 + 2 * work // n, "throughput": 1000 + 2 * work // n}}
+            "cycles": {"vertex": 1000, **per, "latency": 2000 + 2 * work // n, "throughput": 1000 + 2 * work // n}}
 
 
 def test_a_combination_with_one_n_is_left_out_with_a_note_where_another_has_two():

@@ -49,7 +49,7 @@ def _sweep(folder: Path, points: list[tuple[int, int]], work: int = 12000, salt:
         thru = 1000 + (work + miss) // n
         res = {"scene": {"name": "cornell", "source": str(CORNELL)}, "mode": "rcast", "fps": 1e9 / thru,
                "timing": {"pipelines": [per] * n, "throughput_estimate": {"steady": True, "frames": 5}},
-               "cycles": {"vertex": 1000, "latency": 1000 + thru, "throughput": thru}}
+               "cycles": {"vertex": 1000, **per, "latency": 1000 + thru, "throughput": thru}}
         spec["points"].append({"point": i, "hash": h, "factors": factors})
         if rows_of is None or n in rows_of:
             rows.append({"point": i, "hash": h, "status": "ok", "error": None, "scene": "cornell", "mode": "rcast",

@@ -28,7 +28,7 @@ def _results(n: int) -> dict:
     """A point's results.json, as much of it as eq. 5.2 reads: the work splits over N pipelines."""
     per = {"traversal": 9000 // n, "intersection": 12000 // n, "fragment": 3000 // n}
     return {"scene": {"name": "cornell"}, "timing": {"pipelines": [per] * n},
-            "cycles": {"vertex": 1000, "latency": 2000 + 12000 // n, "throughput": 1000 + 12000 // n}}
+            "cycles": {"vertex": 1000, **per, "latency": 2000 + 12000 // n, "throughput": 1000 + 12000 // n}}
 
 
 def fake_sweep(folder: Path, points: list[tuple[dict, dict, str]]) -> Path:

@@ -209,6 +209,10 @@ def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
                    error=res.error if pm else None, timing=None)
 
 
+# the keys of a run's results.json ``cycles`` that :func:`_ours` reads (tlm report checks a run's file has them)
+OURS_CYCLES = (*PM_TABLE_NAMES, "throughput")
+
+
 def _ours(cycles: dict, fps: float) -> dict[str, float]:
     out = {PM_TABLE_NAMES[pm]: cycles[pm] / 1e6 for pm in PM_TABLE_NAMES}
     out["TThru"] = cycles["throughput"] / 1e6

@@ -18,6 +18,7 @@ import yaml
 from tlm.config import MODES
 from tlm.config_words import MAX_EXPANDED, ExpansionError, refuse_expansion, safe_load
 from tlm.errors import InputError
+from tlm.experiments.thesis import OURS_CYCLES
 
 
 def read_json(path: Path) -> Any:
@@ -172,6 +173,7 @@ LIST = (lambda v: isinstance(v, list), "a list")
 TIMING_OPTIONAL = {"units": MAPPING, "frame_times": LIST, "pipelines": LIST,
                    "images_in_flight": (lambda v: v is None or (isinstance(v, int) and not isinstance(v, bool)
                                                                 and v > 0), "a positive whole number or empty")}
+CYCLES_KEYS = dict.fromkeys(OURS_CYCLES, COUNT)  # (the cycles the thesis tables read of a run)
 IMAGE_OPTIONAL = {"exposure": (lambda v: v is None or (FINITE[0](v) and v > 0), "a positive finite number or empty")}
 ERROR_OPTIONAL = {"rel_mse": FINITE_OR_NONE}
 
@@ -190,7 +192,8 @@ def counts(value: Any, path: Path, where: str, none: bool = False) -> None:
 def read_results(path: Path) -> dict:
     """A run's ``results.json``, checked for what the sections read of it: an :class:`InputError`
     naming the file and the key for one of another type, a count that is not a finite number or is
-    negative (``cycles``, ``fps``, ``work``, ``timing.units``), or a mode tlm does not know."""
+    negative (``cycles``, ``fps``, ``work``, ``timing.units``), a ``cycles`` without one the thesis tables
+    read (:data:`CYCLES_KEYS`), or a mode tlm does not know."""
     results = read_json(path)
     if not isinstance(results, dict) or "timing" not in results or "scene" not in results:
         raise InputError("is not a tlm results file (no 'timing' or 'scene')", source=str(path))
@@ -209,6 +212,8 @@ def read_results(path: Path) -> dict:
     for key, none in (("cycles", False), ("work", True)):
         counts(results.get(key) or {}, path, key, none)
     counts(((results.get("photons") or {}).get("work")) or {}, path, "photons.work", True)
+    if results.get("cycles") is not None:  # (tlm writes every PM's cycles and TThru: the thesis tables read them)
+        check(results["cycles"], path, "cycles", what, CYCLES_KEYS)
     for name, unit in ((results.get("timing") or {}).get("units") or {}).items():
         if not isinstance(unit, dict):
             raise InputError(f"is {short(unit)}, not a mapping ({what})", source=str(path), key=f"timing.units.{name}")

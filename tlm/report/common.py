@@ -243,9 +243,18 @@ class LogTicks(LogLocator):
             return True
         length, prop = room
         sizes = [_text_size(text, prop)[0 if self.which == "x" else 1] for text in log_labels(ticks)]
-        at = [length * math.log(t / lo) / math.log(hi / lo) for t in ticks]
+        whole = _ln_ratio(hi, lo)
+        at = [length * _ln_ratio(t, lo) / whole for t in ticks]
         gap = LOG_LABEL_GAP * prop.get_size_in_points()
         return all(b - a >= (sa + sb) / 2 + gap for a, b, sa, sb in zip(at, at[1:], sizes, sizes[1:]))
+
+
+def _ln_ratio(a: float, b: float) -> float:
+    """ln(a / b) of two positive floats: the log of their ratio where that is a finite float (right even
+    for 1e300 and the next float, whose logs are equal), else the difference of their logs (the ratio of
+    1e300 to 1e-301 overflows to inf: :class:`LogTicks` placed its ticks at inf / inf, nan)."""
+    r = float(a) / float(b)
+    return math.log(r) if 0 < r < math.inf else math.log(a) - math.log(b)
 
 
 @functools.lru_cache(maxsize=512)
