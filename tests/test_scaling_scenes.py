@@ -32,7 +32,7 @@ def _results(n: int, source: Path, name: str = "cornell", steady: bool | None = 
         {"steady": True, "frames": 5} if steady else {"steady": False, "frames": 2, "min_frames": 5})
     return {"scene": {"name": name, "source": str(source)},
             "timing": {"pipelines": [per] * n, "throughput_estimate": estimate},
-            "cycles": {"vertex": 1000, "latency": 2000 + work // n, "throughput": 1000 + work // n}}
+            "cycles": {**per, "vertex": 1000, "latency": 2000 + work // n, "throughput": 1000 + work // n}}
 
 
 def fake_sweep(folder: Path, points: list[tuple[int, dict, str]], salt: str = "") -> Path:

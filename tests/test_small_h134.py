@@ -33,7 +33,7 @@ def _config(n: int, trace: bool) -> dict:
 def _results(n: int, extra: int = 0) -> dict:
     per = {"traversal": 9000 // n, "intersection": 12000 // n, "fragment": 3000 // n}
     return {"scene": {"name": "cornell"}, "timing": {"pipelines": [per] * n},
-            "cycles": {"vertex": 1000, "latency": 2000 + 12000 // n + extra, "throughput": 1000 + 12000 // n}}
+            "cycles": {**per, "vertex": 1000, "latency": 2000 + 12000 // n + extra, "throughput": 1000 + 12000 // n}}
 
 
 def _records(extra: dict | None = None) -> list[dict]:
