@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -40,3 +42,27 @@ def elsewhere(tmp_path, monkeypatch):
     folder.mkdir()
     monkeypatch.chdir(folder)
     return folder
+
+
+@pytest.fixture
+def piped():
+    """``piped(text)``: ``/dev/fd/N`` of a pipe holding ``text`` whose writer closed, as ``<(...)`` gives; its
+    reader is closed after the test."""
+    fds = []
+
+    def make(text: str) -> str:
+        r, w = os.pipe()
+        fds.append(r)
+        os.write(w, text.encode())
+        os.close(w)
+        return f"/dev/fd/{r}"
+
+    yield make
+    for fd in fds:
+        os.close(fd)
+
+
+@pytest.fixture
+def pipes(piped):
+    """:func:`piped`, its path a :class:`~pathlib.Path`."""
+    return lambda text: Path(piped(text))

@@ -24,8 +24,12 @@ from tlm.config import config_from_dict
 
 @pytest.fixture(scope="module")
 def refract():
+    return refract_frame()
+
+
+def refract_frame():
     """Cornell refract at 32x32 (configs/cornell.yaml's frame, 4 eye rays and 4 light samples a
-    pixel)."""
+    pixel): its config, functional work and programs."""
     from tlm.experiments.run import render
 
     cfg = config_from_dict({"scene": "cornell", "mode": "refract", "resolution": [32, 32],

@@ -18,7 +18,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -141,22 +140,6 @@ def test_an_items_transform_is_judged_singular_once(tmp_path, cache, monkeypatch
 
 
 # ------------------------------------------------------------------ 4. a study file from a pipe
-
-
-def _pipe(text: str) -> Path:
-    """``/dev/fd/N`` of a pipe holding ``text`` (as ``<(cat file)`` gives one): its reader is closed at exit."""
-    r, w = os.pipe()
-    os.write(w, text.encode())
-    os.close(w)
-    return Path(f"/dev/fd/{r}")
-
-
-@pytest.fixture
-def pipes():
-    made = []
-    yield lambda text: made.append(_pipe(text)) or made[-1]
-    for p in made:
-        os.close(int(p.name))
 
 
 def test_a_thesis_study_from_a_pipe_looks_for_its_scenes_in_the_working_folder(tmp_path, monkeypatch, pipes):

@@ -33,23 +33,6 @@ needs_dev_fd = pytest.mark.skipif(not os.path.isdir("/dev/fd"), reason="no /dev/
 
 
 @pytest.fixture
-def piped():
-    """``piped(text)``: ``/dev/fd/N`` of a pipe holding ``text`` whose writer closed, as ``<(...)`` gives."""
-    fds = []
-
-    def make(text: str) -> str:
-        r, w = os.pipe()
-        fds.append(r)
-        os.write(w, text.encode())
-        os.close(w)
-        return f"/dev/fd/{r}"
-
-    yield make
-    for fd in fds:
-        os.close(fd)
-
-
-@pytest.fixture
 def reads(monkeypatch):
     """The paths :func:`tlm.config.read_text` reads (every YAML read), in order."""
     seen: list[str] = []

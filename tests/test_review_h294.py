@@ -13,7 +13,6 @@ import importlib
 import pickle
 import signal
 import sys
-import types
 
 import pytest
 
@@ -21,23 +20,9 @@ import tlm.whole_imports as whole
 from tlm.api_common import as_arguments
 from tlm.errors import InputError
 
+from .test_errors_replaced_h289 import _whole_cache_entry as _cache_entry  # (one stand-in)
+
 POSIX = pytest.mark.skipif(not hasattr(signal, "SIGALRM"), reason="POSIX signals")
-
-
-def _cache_entry(tmp_path, nc):
-    """A stand-in for numba's ``Cache`` of one of tlm's files: an index and its data file, both whole."""
-    index, entry = tmp_path / "probe.nbi", tmp_path / "probe.1.nbc"
-    index.write_bytes(pickle.dumps("0.68.1", protocol=-1) + pickle.dumps(("stamp", {"key": entry.name}), -1))
-    entry.write_bytes(pickle.dumps((b"ELF", b"BC\xc0\xde"), protocol=-1))
-
-    class Locator(nc._PackageStamp):
-        pass
-
-    cache = types.SimpleNamespace(
-        _impl=types.SimpleNamespace(locator=Locator()), _name="probe",
-        _cache_file=types.SimpleNamespace(_index_path=str(index), _load_index=lambda: {"key": entry.name}),
-        _index_key=lambda sig, codegen: "key")
-    return cache, types.SimpleNamespace(codegen=lambda: None), (index, entry)
 
 
 def _timeout(signum, frame):

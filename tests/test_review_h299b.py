@@ -16,22 +16,6 @@ ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.skipif(not os.path.isdir("/dev/fd"), reason="no /dev/fd here")
 
 
-@pytest.fixture
-def piped():
-    fds = []
-
-    def make(text: str) -> str:
-        r, w = os.pipe()
-        fds.append(r)
-        os.write(w, text.encode())
-        os.close(w)
-        return f"/dev/fd/{r}"
-
-    yield make
-    for fd in fds:
-        os.close(fd)
-
-
 def test_a_piped_study_names_files_from_the_working_folder(piped, monkeypatch):
     monkeypatch.chdir(ROOT)
     study = piped("scenes: [cornell]\nmodes: [rcast]\nbase: {arch: {programs: tlm/arch/programs.yaml}}\n")

@@ -15,7 +15,6 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -92,21 +91,6 @@ def test_the_marks_of_a_folder_are_made_once_for_all_its_notes(monkeypatch):
 
 
 # ------------------------------------------------------------------ a programs table from a pipe, read once
-
-
-def _pipe(text: str) -> Path:
-    r, w = os.pipe()
-    os.write(w, text.encode())
-    os.close(w)
-    return Path(f"/dev/fd/{r}")
-
-
-@pytest.fixture
-def pipes():
-    made = []
-    yield lambda text: made.append(_pipe(text)) or made[-1]
-    for p in made:
-        os.close(int(p.name))
 
 
 def test_a_programs_table_from_a_pipe_is_read_once_and_given_again(pipes):

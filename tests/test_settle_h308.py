@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import threading
 
@@ -22,24 +21,14 @@ import pytest
 import yaml
 
 from tlm.arch.costs import DEFAULT_PATH, load_programs
-from tlm.arch.model import simulate
 from tlm.arch.steady import STEADY_SPREAD, periodic_tail
-from tlm.config import config_from_dict
+
+from .test_dynamic_steady_h292 import _run, refract_frame
 
 
 @pytest.fixture(scope="module")
 def refract():
-    """Cornell refract at 32x32 (configs/cornell.yaml's frame, 4 eye rays and 4 light samples a pixel)."""
-    from tlm.experiments.run import render
-
-    cfg = config_from_dict({"scene": "cornell", "mode": "refract", "resolution": [32, 32],
-                            "render": {"spp": 4, "light_samples": 4}, "arch": {"trace": False}}, "test")
-    return cfg, render(cfg).functional(), load_programs()
-
-
-def _run(refract, **arch):
-    cfg, fn, progs = refract
-    return simulate(fn, progs, dataclasses.replace(cfg.arch, **arch))
+    return refract_frame()
 
 
 def test_a_repeat_inside_the_transient_is_not_taken_for_the_steady_state(refract):
