@@ -54,7 +54,9 @@ def default_out(args: argparse.Namespace) -> Path:
 def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], str], t0: float) -> None:
     """What ``tlm run`` prints of the run it wrote into ``out``: the scene, each pass's work, the
     error, the timing, and the warnings not said during the run; ``command()``: the ``tlm reference``
-    command that computes a reference the run did not have (tlm/cli.py's ``_reference_command``)."""
+    command that computes a reference the run did not have (tlm/cli.py's ``_reference_command``), but for a
+    config read once (a pipe), whose command ``results.json`` records: it names the run's ``config.resolved.yaml``
+    (:func:`tlm.experiments.run.skipped_reference`)."""
     sc = results["scene"]
     print(f"scene {sc['name']}: {sc['triangles']} triangles, {sc['resolution'][0]}x{sc['resolution'][1]}, "
           f"BSP {sc['bsp']['levels']} levels, {sc['bsp']['leaves']} leaves")
@@ -77,8 +79,9 @@ def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], 
         print(f"  pass {name:8s} rays {w['primary_rays'] + w['secondary_rays']:>8d} "
               f"shadow {w['shadow_rays']:>8d} tri tests {w['tri_tests'] + w['shadow_tri_tests']:>10d} "
               f"({w['tri_tests_per_ray']:.1f} per ray, {w['tri_tests_per_shadow_ray']:.1f} per shadow ray)")
-    if results.get("error") is not None:
-        print(_error_line(results["error"], skip, command()))
+    if (error := results.get("error")) is not None:  # (a config read once, a pipe: the run's copy, as recorded)
+        once = error.get("config_read_once")
+        print(_error_line(error, skip, f"{error.get('command')} ({once})" if once else command()))
     for name, why in results["plan"]["left_out"].items():
         print(f"  left out {name}: {why}")
     for note in results["plan"]["notes"]:

@@ -343,13 +343,15 @@ def save_traceback(exc: BaseException) -> Path | None:
     else the temporary folder), ``tlm-traceback-<time>-<host>-<pid>.txt``: the cache may be
     shared between machines, where a pid alone names no process. Its path, or None when
     neither can be written. The file is made new, for this user alone (0600): a file or link
-    already at its name (another user's, in the shared temporary folder) is not written through."""
+    already at its name (another user's, in the shared temporary folder) is not written through.
+    A second error of the process in the same second gets a name of its own, ``...-<pid>-2.txt``
+    (``-3``, ...: :func:`_traceback_name`), the first's file kept."""
     from tlm import storage
     from tlm.caches import cache_root
 
     text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
             + "".join(traceback.format_exception(exc)))
-    name = f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{storage.process_tag()}.txt"  # (<host>-<pid>)
+    name = _traceback_name(f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{storage.process_tag()}")  # <host>-<pid>
     import tempfile
 
     for folder in (cache_root("tracebacks"), Path(tempfile.gettempdir())):
@@ -359,7 +361,7 @@ def save_traceback(exc: BaseException) -> Path | None:
         except OSError:
             continue
         try:
-            with os.fdopen(fd, "w") as f:
+            with os.fdopen(fd, "w", encoding="utf-8") as f:  # (a non-ASCII message or path, whatever the locale)
                 f.write(text)
             return folder / name
         except OSError:  # (a full disk: made, not written; no empty or cut-off traceback is left behind)
@@ -367,6 +369,20 @@ def save_traceback(exc: BaseException) -> Path | None:
                 os.unlink(folder / name)
             continue
     return None
+
+
+_NAMED = ["", 0]  # the last traceback file's name less its suffix, and how many of this process's it named
+_NAMED_LOCK = threading.Lock()
+
+
+def _traceback_name(stem: str) -> str:
+    """``<stem>.txt`` for this process's first traceback file of ``stem`` (of one second), ``<stem>-2.txt`` for its
+    second, ...: two errors of one second (two threads' internal errors, a deadlock's line and the error after it)
+    get a file each, not the second's a name taken (it went to the temporary folder, a third's nowhere)."""
+    with _NAMED_LOCK:
+        _NAMED[:] = [stem, _NAMED[1] + 1 if _NAMED[0] == stem else 1]
+        n = _NAMED[1]
+    return f"{stem}.txt" if n == 1 else f"{stem}-{n}.txt"
 
 
 

@@ -36,6 +36,7 @@ from tlm.config_paths import (  # noqa: F401  (PATH_KEYS, builtin_scenes_dir, na
     paths_from,
     scene_from,
 )
+from tlm.config_read import NotText, TooLarge, yaml_text
 from tlm.config_words import (
     DuplicateKeyError,
     ExpansionError,
@@ -437,7 +438,7 @@ def read_yaml(path: Path) -> Any:
     format_ = mesh_file_format(path) if os.path.isfile(path) else None
     if format_ is not None:
         raise InputError(mesh_file_hint(str(path), format_), source=str(path))
-    text = read_text(path)
+    text = yaml_text(path, read_text)  # (one read; a mesh's bytes from a pipe told as a mesh file's are)
     data = yaml_from_text(text, path)
     if _READS.get() is not None:
         extends = data.get("extends") if isinstance(data, dict) else None
@@ -462,10 +463,10 @@ def read_text(path: Path) -> str:
             if stat.S_ISCHR(mode.st_mode) or stat.S_ISBLK(mode.st_mode):
                 raise InputError("is a device, not a file to read: name a YAML file", source=str(path))
             if mode.st_size > MAX_TEXT_BYTES:  # (in bytes: 64 MiB and 1 byte is no "64 MiB, at most 64 MiB")
-                raise InputError(_too_large(f"{mode.st_size:,} bytes, at most"), source=str(path))
+                raise TooLarge(_too_large(f"{mode.st_size:,} bytes, at most"), source=str(path))
             data = _read_bounded(f, mode.st_size)
         if len(data) > MAX_TEXT_BYTES:
-            raise InputError(_too_large("more than"), source=str(path))
+            raise TooLarge(_too_large("more than"), source=str(path))
         # (as Path.read_text gives it: universal newlines, a byte offset in the whole file where it is no UTF-8)
         return data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
@@ -473,8 +474,8 @@ def read_text(path: Path) -> str:
     except IsADirectoryError:
         raise InputError("is a folder, not a file: name a YAML file", source=str(path)) from None
     except UnicodeDecodeError as e:
-        raise InputError(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
-                         source=str(path)) from None
+        raise NotText(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
+                      source=str(path), head=e.object[:2**20], size=len(e.object)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
 
@@ -495,9 +496,8 @@ def _read_bounded(f: typing.BinaryIO, size: int) -> bytes:
     return b"".join(chunks)
 
 
-def _too_large(size: str) -> str:
-    return (f"is too large to be a YAML file tlm reads ({size} {MAX_TEXT_BYTES // 2**20} MiB): a mesh is "
-            "named in a scene file's geometry (docs/scenes.md)")
+def _too_large(size: str) -> str:  # (read_yaml adds where a mesh goes: config_read.yaml_text)
+    return f"is too large to be a YAML file tlm reads ({size} {MAX_TEXT_BYTES // 2**20} MiB)"
 
 
 def file_folder(path: Path) -> Path:

@@ -583,8 +583,12 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
     block within a block, or two generators of one thread), so concurrent writers of one path,
     threads or processes, of one machine or of two sharing a folder, never share it) that is
     renamed onto ``path`` at the end; on any error the sibling is removed and ``path`` is left as it was.
+    A text file is UTF-8 (``encoding``, unless given), whatever the locale's encoding: a non-ASCII cell of
+    ``sweep.csv`` (a worker's host name) under ``LC_ALL=C`` or a Latin-1 locale is written, as is.
     """
     path = Path(path)
+    if "b" not in mode:
+        open_kw.setdefault("encoding", "utf-8")
     tmp = _temporary_file(path)
     try:
         with open(tmp, mode, **open_kw) as fh:

@@ -91,6 +91,8 @@ def appending(path: Path, mode: str = "a", **open_kw) -> Iterator[_Appended]:
     line naming the file, never a bare ``no space left on device``. Where the block fails, its error
     goes on, not the close's (a flush of what it had not written yet, on a full disk failing too)."""
     path = Path(path)
+    if "b" not in mode:  # (UTF-8, whatever the locale's encoding, as write_atomic's)
+        open_kw.setdefault("encoding", "utf-8")
     with naming(path):
         fh = open(path, mode, **open_kw)  # noqa: SIM115  (closed below, its failure named)
     try:

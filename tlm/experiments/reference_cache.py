@@ -81,7 +81,7 @@ def save_reference(key: str, image: np.ndarray, meta: dict, root: Path | None = 
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "reference.npy", image.astype(np.float32))
         body = {"key": key, **meta, "npy": file_digest(tmp / "reference.npy")}
-        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n")
+        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
     return final
 
 

@@ -30,6 +30,9 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
+import os
+import re
+import stat
 import time
 from collections.abc import Callable, Iterable
 from contextlib import contextmanager
@@ -331,13 +334,44 @@ def error_against(key: str, settings, pmap: np.ndarray | None, image: np.ndarray
             "reference_sha256": npy.get("sha256") if isinstance(npy, dict) else None}
 
 
-def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None) -> dict:
+def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterable[str] | None,
+                      out: Path | None = None) -> dict:
     """What ``results.json``'s ``error`` records of a photon-map reference not computed as asked:
     ``skipped``, why (``--no-reference``, the run's ``reference`` false, or the config's
     ``reference.auto: false``), and ``command``, the ``tlm reference`` command that computes it
-    (:func:`reference_command`), as ``tlm run`` prints them."""
-    return {"skipped": "--no-reference" if cfg.reference.auto else "reference.auto: false",
-            "command": reference_command(config_path, overrides)}
+    (:func:`reference_command`), as ``tlm run`` prints them. A config read once (:func:`read_once`:
+    ``tlm run <(...)``'s ``/dev/fd/63``, which no later command finds) is named by the config the run
+    folder ``out`` keeps, ``config.resolved.yaml`` (its every setting, the ``--set`` values included), and
+    ``config_read_once`` says so."""
+    skipped = "--no-reference" if cfg.reference.auto else "reference.auto: false"
+    once = read_once(config_path)
+    if once is None or out is None:
+        return {"skipped": skipped, "command": reference_command(config_path, overrides)}
+    kept = (Path(out) / "config.resolved.yaml").absolute()
+    return {"skipped": skipped, "command": reference_command(str(kept)),
+            "config_read_once": f"{config_path} is {once}, read once: the command names the run's copy of it, "
+                                f"{kept.name}, with every setting, the --set values included"}
+
+
+# the names of a file descriptor (``<(...)``'s ``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``): tlm.api_common's
+_DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
+
+
+def read_once(config_path: str | None) -> str | None:
+    """What the config ``config_path`` is where a later command cannot read it again: ``"a pipe"`` (``tlm run
+    <(...)``'s ``/dev/fd/63``, a FIFO: its text is gone once read), ``"a file descriptor's name"`` (``/dev/stdin <
+    cornell.yaml``); None for a file of its own name, and for none (:func:`tlm.api_common.nameless`, in this layer)."""
+    if not config_path:
+        return None
+    try:
+        mode = os.stat(config_path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        return "a pipe"
+    if stat.S_ISREG(mode) and _DESCRIPTOR.fullmatch(os.path.abspath(config_path)):
+        return "a file descriptor's name"
+    return None
 
 
 def reference_command(config_path: str | None, overrides: Iterable[str] | None = ()) -> str:
@@ -521,7 +555,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             })
             save_npz(tmp / "aov" / "work.npz",
                      {f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()})
-        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False))
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False), encoding="utf-8")
         if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         results = results_dict(res, exposure, config_path, overrides, say_unread)
@@ -535,7 +569,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             res.timer.book_apart("one_off", one_off())
         results["host_seconds"] = {k: round(v, 6) for k, v in res.timer.seconds.items()}
         # (strict JSON: an fps of no cycles to time, inf here, is written as null)
-        (tmp / "results.json").write_text(json_text(results, indent=2) + "\n")
+        (tmp / "results.json").write_text(json_text(results, indent=2) + "\n", encoding="utf-8")
     return results
 
 
@@ -588,7 +622,7 @@ def run(cfg: RunConfig, out: Path, base: Path | None = None, config_path: str | 
                                      progress=progress, say=say)
             res = replace(res, error=error)
         elif res.error is not None and not res.error["available"]:  # (skipped as asked: the report says so)
-            res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides)})
+            res = replace(res, error={**res.error, **skipped_reference(cfg, config_path, overrides, out)})
         res = simulate_render(res, programs, progress=progress)
         with progress_bar(progress, desc="write", total=1, unit="folder", leave=False) as bar, Ticking(bar):
             results = write_run(res, out, config_path, overrides, outputs,

@@ -122,7 +122,7 @@ def run_point(task: Task) -> dict:
         # (an error folder of the same point that a concurrent sweep's failed try put there meanwhile: replaced)
         with atomic_folder(Path(task.out), "results.json", POINT_FILES, clean_once=True,
                            replaces=("error.json",)) as tmp:
-            (tmp / "config.resolved.yaml").write_text(config_text(task.config))
+            (tmp / "config.resolved.yaml").write_text(config_text(task.config), encoding="utf-8")
             if timing.trace is not None:
                 timing.trace.write(tmp / "trace.json", cfg.arch.clock_hz)
             results = {
@@ -149,7 +149,8 @@ def run_point(task: Task) -> dict:
             # (its folder made, config.resolved.yaml, trace.json and the record: all of the write but results.json's
             # own text and the folder's move into place, which come after the seconds they would hold)
             results["host_seconds"]["write"] = round(time.perf_counter() - t2, 6)
-            (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n")  # (strict: inf as null)
+            # (strict: inf as null)
+            (tmp / "results.json").write_text(storage.json_text(results, indent=2) + "\n", encoding="utf-8")
         return {"status": "ok", "results": results, "worker": where, "ran": ran_on}
     except Exception as e:
         if (stop := interrupted_by(e)) is not None:  # Ctrl-C wrapped by a kernel: the sweep stops
@@ -342,8 +343,8 @@ def write_error(task: Task, error: dict, ran: dict | None = None) -> None:
     if storage.write_into(Path(task.out), "error.json", text, keep):
         return
     with atomic_folder(Path(task.out), "error.json", POINT_FILES, clean_once=True, into=keep) as tmp:
-        (tmp / "config.resolved.yaml").write_text(config_text(task.config))
-        (tmp / "error.json").write_text(text)
+        (tmp / "config.resolved.yaml").write_text(config_text(task.config), encoding="utf-8")
+        (tmp / "error.json").write_text(text, encoding="utf-8")
 
 
 _C_DUMPER = getattr(yaml, "CSafeDumper", None)  # (libyaml's emitter: None where PyYAML was built without it)

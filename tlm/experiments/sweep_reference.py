@@ -463,13 +463,17 @@ def _dotted(config: dict, dotted: str) -> Any:
 
 def _base_config(sweep) -> str | None:
     """The sweep's base config as a command line names it: its file's path from the working folder, a
-    built-in one's name; None (``CONFIG``) for a mapping in the sweep file."""
+    built-in one's name; None (``CONFIG``) for a mapping in the sweep file, and for a file read once (a pipe,
+    :func:`~tlm.experiments.run.read_once`), which no later command finds: the point's ``config.resolved.yaml``."""
     from tlm.builtin import base_path
+    from tlm.experiments.run import read_once
 
     if sweep.base_file is None:
         return None
     with suppress(InputError, OSError, ValueError):
         file, builtin = base_path(sweep.base_file, sweep.path.resolve().parent, str(sweep.path), "sweep file")
+        if not builtin and read_once(str(file)) is not None:
+            return None
         return str(file) if builtin else os.path.relpath(file)
     return sweep.base_file
 

@@ -388,7 +388,7 @@ def save_ground_truth(key: str, image: np.ndarray, meta: dict) -> Path:
     with atomic_folder(final, "meta.json") as tmp:
         np.save(tmp / "image.npy", np.asarray(image, dtype=np.float32))
         body = {"key": key, **meta, "npy": file_digest(tmp / "image.npy")}
-        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n")
+        (tmp / "meta.json").write_text(json.dumps(body, indent=2) + "\n", encoding="utf-8")
     return final
 
 

@@ -290,7 +290,7 @@ def _whole_file(path: Path) -> str:
     """The text of a file tlm writes whole (atomically, a study's table): an :class:`InputError`
     for one that is empty or cut off, a damaged copy, not a study with no rows."""
     try:
-        with open(path, newline="") as f:
+        with open(path, newline="", encoding="utf-8") as f:  # (as tlm wrote it: storage.write_atomic)
             text = f.read()
     except (OSError, ValueError) as e:
         raise InputError(f"cannot read: {e}", source=str(path)) from None

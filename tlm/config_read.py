@@ -1,0 +1,90 @@
+"""What :func:`tlm.config.read_yaml` says of a file it reads that is no YAML file, by the role of a
+YAML file read where a config or a scene file goes: a mesh file given through a pipe (``tlm run
+<(cat pawn.obj)``), told by its bytes as a mesh file given by its name is (:func:`yaml_text`), and a
+file too large to be one (:class:`TooLarge`), whose hint names a scene file's ``geometry`` there only,
+not where another reader of :func:`tlm.config.read_text` (an ``arch.programs`` table) read it."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from tlm.errors import InputError
+from tlm.mesh_files import MESH_FORMATS, mesh_file_format, mesh_file_hint
+
+# what a file too large to be a YAML file tlm reads is where a config or a scene file goes (read_yaml's)
+MESH_NAMED = "a mesh is named in a scene file's geometry (docs/scenes.md)"
+_PEEKED = 1 << 20  # (bytes of a pipe's text a mesh is told by: a glTF JSON's parse, up to mesh_files' 1 MiB)
+
+
+class TooLarge(InputError):
+    """:func:`tlm.config.read_text`'s file of more than ``MAX_TEXT_BYTES``: its line says the size alone,
+    which fits any file read whole (a programs table too); :func:`yaml_text` adds what fits a config's."""
+
+
+class NotText(InputError):
+    """:func:`tlm.config.read_text`'s file that is no UTF-8 text, with ``head`` (its first bytes) and ``size``
+    (how many it held): what :func:`yaml_text` tells a piped binary mesh (a PLY's, a glTF's) by, the file's
+    bytes being gone once read from a pipe."""
+
+    def __init__(self, message: str, *, source: str | None = None, head: bytes = b"", size: int = 0) -> None:
+        super().__init__(message, source=source)
+        self.head, self.size = head, size
+
+
+def yaml_text(path: Path, read: Callable[[Path], str]) -> str:
+    """``read(path)``'s text (:func:`tlm.config.read_text`, one read) where a YAML config or scene file goes:
+    a file too large to be one is said with where a mesh goes (:data:`MESH_NAMED`), and one read from a pipe
+    or a FIFO (no regular file, whose first bytes :func:`tlm.config.read_yaml` peeks at before) that holds a
+    mesh file's bytes is an InputError with the line a mesh file given by its name gets, not its parse's
+    (``must be a mapping``, ``not a UTF-8 text file``)."""
+    try:
+        text = read(path)
+    except TooLarge as e:
+        raise e.replaced(message=f"{e.message}: {MESH_NAMED}") from None
+    except NotText as e:
+        if not os.path.isfile(path):
+            _refuse_mesh(path, e.head, e.size)
+        raise
+    if not os.path.isfile(path):
+        data = text.encode("utf-8", "surrogatepass")
+        _refuse_mesh(path, data[:_PEEKED], len(data))
+    return text
+
+
+def _refuse_mesh(path: Path, head: bytes, size: int) -> None:
+    """An InputError where the bytes read from the pipe ``path`` (``head``, the first of ``size``) are a mesh
+    file's (:func:`~tlm.mesh_files.mesh_file_format`: an MTL library's are left to the YAML parse), saying so as
+    :func:`~tlm.mesh_files.mesh_file_hint` says it of a mesh file, and to save it as one first."""
+    format_ = _piped_format(head, size)
+    if format_ is None or format_ not in MESH_FORMATS.values():
+        return
+    name = "mesh" + next(e for e, f in MESH_FORMATS.items() if f == format_)
+    hint = mesh_file_hint(name, format_)  # (as of a file named so: "is an OBJ mesh file, not a YAML file: write ...")
+    said = f"{format_} mesh file, not a YAML file: "
+    hint = hint.replace(said, f"{format_} mesh file given as a pipe, not a YAML file: save it as a file, {name} (a "
+                        "mesh file is read by its suffix), ", 1)
+    raise InputError(hint, source=str(path))
+
+
+def _piped_format(head: bytes, size: int) -> str | None:
+    """:func:`~tlm.mesh_files.mesh_file_format` of bytes read from a pipe (``head``: the first, ``size``: how many
+    it held), told as a file's are: through an anonymous file in memory of the same bytes and size (Linux's
+    ``memfd_create``; the rest of it, past ``head``, a hole). None where there is none (another system)."""
+    if not hasattr(os, "memfd_create") or not os.path.isdir("/proc/self/fd"):
+        return None
+    try:
+        fd = os.memfd_create("tlm-piped", getattr(os, "MFD_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        view = memoryview(head)
+        while view:
+            view = view[os.write(fd, view):]
+        os.ftruncate(fd, max(size, len(head)))
+        return mesh_file_format(f"/proc/self/fd/{fd}")
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
