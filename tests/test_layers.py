@@ -33,7 +33,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.experiments",),
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
-    ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common", "tlm.cli", "tlm.cli_args",
+    ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",
+     "tlm.api_config",  # (h311: Config, load_config and scene_file, out of tlm.api)
+     "tlm.cli", "tlm.cli_args",
      "tlm.cli_report", "tlm.cli_run", "tlm.cli_signals", "tlm.cli_streams", "tlm.cli_cache",
      "tlm.cli_tables", "tlm.__main__", "tlm"),
 )

@@ -285,7 +285,7 @@ def _stream(model: Model, done: simpy.events.Event):
         slots.put(s)
     running = []
     more = settling(model.program, arch)
-    cap = frames_cap(arch.frames) if more else arch.frames
+    cap = frames_cap(arch.frames, arch.settle_frames) if more else arch.frames
     for f in range(cap):
         slot = yield slots.get()  # the raw data of frame f is accepted when a module pair is free
         if f >= arch.frames and not keep_going([r.done for r in model.frames if r.done >= 0], arch.images_in_flight):
@@ -465,9 +465,10 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     bound = event_bound(program, arch)
     budget = min(arch.max_events, bound)
     # a settling stream runs past arch.frames (tlm.arch.steady): a cap or a stop names the frames it may run
-    ran_on = "" if not settling(program, arch) else (
+    cap = frames_cap(arch.frames, arch.settle_frames)
+    ran_on = "" if not settling(program, arch) or cap == arch.frames else (
         f" (the dynamic stream of two images runs on past arch.frames = {arch.frames} until its completions "
-        f"repeat, at most {frames_cap(arch.frames)} frames: tlm/arch/steady.py)")
+        f"repeat, at most {cap} frames, arch.settle_frames: tlm/arch/steady.py)")
     why = f"arch.max_events = {arch.max_events} events{ran_on}" if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
@@ -495,7 +496,7 @@ def event_bound(program: FrameProgram, arch: ArchConfig) -> int:
     """
     items = sum(len(js.packets) + 1 for ph in program.phases for js in ph.jobs)
     tiles = sum(len(st.tiles) for st in program.stages)
-    frames = frames_cap(arch.frames) if settling(program, arch) else arch.frames  # (the most the stream runs)
+    frames = frames_cap(arch.frames, arch.settle_frames) if settling(program, arch) else arch.frames  # (the most run)
     return EVENTS_PER_ITEM * (items + tiles) * frames + 100_000
 
 
@@ -536,6 +537,8 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
             raise AssertionError(f"frame {rec.index} did not finish")
     throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight,
                                                settling(program, arch))
+    if settling(program, arch):  # (the most frames it could run: arch.settle_frames, or arch.frames if more)
+        estimate["frames_cap"] = frames_cap(arch.frames, arch.settle_frames)
     # latency over the frames that complete in the steady window and arrived after the
     # warm-up (the k-th completion: an earlier arrival met the half-empty pipeline of the
     # fill), all frames without a window; exact rational means rounded to whole cycles
@@ -550,6 +553,7 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
         steady = [r for r in by_done[window[0] + 1:window[1] + 1] if r.arrival >= warm]
     else:
         steady = by_done
+    steady = steady or by_done  # (a window with no frame that arrived in it: every frame, as without one)
     latency_i = round(Fraction(sum(r.done - r.arrival for r in steady), len(steady)))
     estimate["latency_frames"] = sorted(r.index for r in steady)
     per_pipe = [dict.fromkeys(PMS, 0) for _ in range(program.pipelines)]

@@ -25,9 +25,10 @@ Two kinds of stream (:func:`steady_throughput`):
   The model runs such a stream past ``arch.frames`` until its steady gaps end in a
   confirmed period (:func:`periodic_tail`: the period held over at least two whole periods, at least
   :data:`MIN_REPEAT_GAPS` gaps, and at least as many gaps as came before it), at most :func:`frames_cap`
-  frames (:func:`keep_going`), and TThru is the mean gap over whole periods of it. The transient itself
-  repeats for a while: Cornell refract at 32x32, 3 pipelines, ``swap``, begins with a period of 2 held
-  over 7 gaps before its period of 3 (a rule of two periods over 4 gaps stopped it after 7 frames and
+  frames (:func:`keep_going`; ``arch.settle_frames``, default :data:`SETTLE_FRAMES`, or ``arch.frames`` if
+  more: ``settle_frames: 1`` runs ``arch.frames`` alone), and TThru is the mean gap over whole periods of it.
+  The transient itself repeats for a while: Cornell refract at 32x32, 3 pipelines, ``swap``, begins with a
+  period of 2 held over 7 gaps before its period of 3 (a rule of two periods over 4 gaps stopped it after 7 frames and
   read TThru 1.45% low), ring at 32x32 with 3 pipelines with a period of 1 over 6 gaps before its period
   of 15 (2.1% low). Against streams of 200 frames (Cornell refract, Cornell pmap, ring at 32x32, 1-8
   pipelines, both memories) no repeat inside a transient held over more than 7 gaps: 12 keeps a margin.
@@ -45,14 +46,15 @@ from __future__ import annotations
 import math
 from fractions import Fraction
 
-SETTLE_FRAMES = 64  # the frames a settling stream runs at most (or arch.frames, if more)
+SETTLE_FRAMES = 64  # arch.settle_frames' default: the frames a settling stream runs at most (or arch.frames, if more)
 MIN_REPEAT_GAPS = 12  # a period is confirmed when held over at least these many gaps (two periods, its transient)
 STEADY_SPREAD = 0.01  # an unsettled stream's window is steady where its running mean moves by at most this share
 
 
-def frames_cap(frames: int) -> int:
-    """The most frames a settling stream of ``arch.frames`` = ``frames`` runs."""
-    return max(frames, SETTLE_FRAMES)
+def frames_cap(frames: int, settle_frames: int = SETTLE_FRAMES) -> int:
+    """The most frames a settling stream of ``arch.frames`` = ``frames`` runs: ``arch.settle_frames``, or
+    ``frames`` if more (``settle_frames`` 1: ``frames`` alone, no run-on)."""
+    return max(frames, settle_frames)
 
 
 def periodic_tail(gaps: list[int]) -> tuple[int, int] | None:
@@ -114,11 +116,14 @@ def steady_throughput(done: list[int], in_flight: int, settling: bool = False) -
         # the running mean over the window, from its middle on: how far the estimate moves there
         run = [Fraction(d[j] - d[a], j - a) for j in range((a + b) // 2, b + 1) if j > a]
         spread = float((max(run) - min(run)) / Fraction(d[b] - d[a], b - a)) if run and d[b] > d[a] else 0.0
-        arrivals = f - 2 * k + 1 - a
-        return value, {"steady": spread <= STEADY_SPREAD, "frames": f, "window": [a, b], "settled": False,
-                       "spread": spread,
-                       "min_frames": None,  # (no length known: raise arch.frames)
-                       "latency_arrivals": [k + a, k + a + arrivals] if arrivals > 0 else None,
+        # the latency's frames: those that arrived in the window and were done before the drain; in a stream cut
+        # short (arch.settle_frames) that has none, those that arrived after the warm-up
+        lo = a if f - 2 * k + 1 - a > 0 else k - 1
+        arrivals = f - 2 * k + 1 - lo
+        return value, {"steady": spread <= STEADY_SPREAD and len(run) > 1,  # (one mean shows no movement)
+                       "frames": f, "window": [a, b], "settled": False, "spread": spread,
+                       "min_frames": None,  # (no length known: raise arch.settle_frames)
+                       "latency_arrivals": [k + lo, k + lo + arrivals] if arrivals > 0 else None,
                        "estimator": f"mean gap over the last {b - a} steady completions: not periodic within "
                                     f"{f} frames"}
     if m >= 1:

@@ -272,8 +272,9 @@ def frames_said(arch: ArchConfig) -> str:
     from tlm.registry import SCHEDULERS
 
     settles = arch.images_in_flight > 1 and not SCHEDULERS[arch.scheduler].periodic_from_warmup  # (model.settling)
-    if settles and frames_cap(arch.frames) > arch.frames:
-        return f"{arch.frames} to {frames_cap(arch.frames)} frames, until it settles"
+    cap = frames_cap(arch.frames, arch.settle_frames)
+    if settles and cap > arch.frames:
+        return f"{arch.frames} to {cap} frames, until it settles"
     return f"{arch.frames} frames"
 
 

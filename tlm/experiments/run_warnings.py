@@ -124,8 +124,8 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
         a, b = est["window"]
         lines.append(f"the stream did not settle within {est['frames']} frames (the dynamic scheduler's completions "
                      f"did not repeat): cycles.throughput is the mean gap over its last {b - a} steady completions, "
-                     f"whose running mean moved by {est['spread']:.2%} over their last half; raise arch.frames to "
-                     "settle it")
+                     f"whose running mean moved by {est['spread']:.2%} over their last half; raise arch.settle_frames "
+                     "(the most frames it runs) to settle it")
     elif est and not est["steady"] and est.get("settled") is None:
         lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
                      f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
 from tlm.errors import InputError
+from tlm.registry import SCHEDULERS
 from tlm.scenes.model import Scene
 
 PASSES = ("rcast", "reflect", "refract", "pmap")  # the frames, one per mode
@@ -230,6 +231,9 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     arch = cfg.arch
     if arch.pipelines == 1:
         out["arch.fanout"] = "arch.pipelines is 1 (no other pipeline to copy to)"
+    if arch.images_in_flight == 1 or SCHEDULERS[arch.scheduler].periodic_from_warmup:  # (tlm.arch.model.settling)
+        out["arch.settle_frames"] = ("the stream runs arch.frames alone: only the dynamic scheduler with two images "
+                                     "in flight runs on until it settles")
     if arch.images_in_flight == 1:
         out["arch.context_switch_cycles"] = ("arch.images_in_flight is 1 (a PM never has an older image's job "
                                              "to switch to)")
