@@ -167,12 +167,13 @@ def _scene_of(raw: Any, path: Path) -> Path | None:
     """:func:`scene_file` of ``path``, whose YAML (``raw``) is read already: read once (a pipe's is gone)."""
     import dataclasses
 
+    from tlm.builtin import is_scene_mapping
     from tlm.scenes.loader import SCENE_KEYS, read_scene_tree
 
     _refuse_other_kind(raw, path, "run")
     if not isinstance(raw, dict) or not raw or "scene" in raw:
         return None
-    if "geometry" in raw or "extends" in raw:
+    if is_scene_mapping(raw):  # (tlm.builtin's rule, by which a sweep's or a study's base: takes one too)
         if not (path.is_file() and path.resolve().is_file()):  # (a pipe's text is gone once read, and a render
             # reads it again by its name: a deleted file's, /dev/stdin <<EOF's, is '/tmp/sh-thd.X (deleted)')
             raise InputError("is a scene file given as a pipe, a device or a deleted file (a here-document's), which a "

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import os
 import re
+import sys
 from pathlib import Path
 
 from tlm.config import file_folder, read_yaml
 from tlm.config_words import yaml_kind
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, escaped_line
 
 # the command that takes an experiment file, by the first of its keys found here (a study's
 # own keys: tlm.experiments.*); a file with none of them is a run config ('tlm run')
@@ -130,7 +131,9 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
     ``{}``; a string names a run config file or a built-in run config (:func:`base_path`,
     relative to ``folder``, the experiment file's; ``beside``: what that file is, for the
     messages). A file's relative paths start at its own folder; a built-in run config's at
-    ``folder`` (it names its scene by name). A sweep or a study (a file or a built-in one)
+    ``folder`` (it names its scene by name). A scene file (:func:`is_scene_mapping`) is taken as
+    ``tlm run`` takes one, ``{scene: FILE}`` (the default settings), with a note on stderr saying so
+    (:func:`_scene_base`). A sweep or a study (a file or a built-in one)
     is refused as a base, and so is anything but a mapping or a string: InputError naming
     ``src`` and the key ``base``."""
     if isinstance(base, str):
@@ -145,12 +148,37 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
             raw = {}
         if not isinstance(raw, dict):
             raise InputError(f"must be a run config mapping, got {yaml_kind(raw)}", source=str(file))
+        if is_scene_mapping(raw):
+            return _scene_base(base, file, src)
         return raw, str(file), folder if builtin else file_folder(file)  # (a pipe's: the working folder)
     if base is None:
         return {}, src, folder
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping or the path of a run config file", source=src, key="base")
     return base, src, folder
+
+
+def is_scene_mapping(raw: object) -> bool:
+    """Whether a YAML file's data (``raw``) is a scene file's rather than a run config's: a mapping with
+    ``geometry`` (or ``extends``) and no ``scene`` (:func:`tlm.api.scene_file`'s rule, which ``tlm run``
+    takes a file by)."""
+    return isinstance(raw, dict) and "scene" not in raw and ("geometry" in raw or "extends" in raw)
+
+
+def _scene_base(base: str, file: Path, src: str) -> tuple[dict, str, Path]:
+    """:func:`read_base` of a ``base:`` that names a scene file ``file``: ``{scene: FILE}`` (absolute), as
+    ``tlm run FILE`` renders it, said on stderr (``tlm: note: ...``, as ``tlm run`` says it); its keys are
+    checked where the points load it. One given as a pipe or a device is refused: a render reads it again."""
+    if not (file.is_file() and file.resolve().is_file()):
+        raise InputError(f"{base!r} is a scene file given as a pipe, a device or a deleted file, which a render "
+                         "reads again (and its extends: and meshes from its folder): save it to a file and name that",
+                         source=src, key="base")
+    scene = file.resolve()
+    note = (f"{src}: base: {base} is a scene file: rendering it with the default settings (a config would say "
+            f"`scene: {base}`; see 'tlm params')")
+    sys.stderr.write(f"tlm: note: {escaped_line(note)}\n")  # (as tlm.report says its notes: stdout may be JSON)
+    sys.stderr.flush()
+    return {"scene": str(scene)}, f"scene file {scene} at the default settings", scene.parent
 
 
 def experiment_command(name: str) -> str:

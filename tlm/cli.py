@@ -34,6 +34,7 @@ from tlm.cli_signals import (
     version,
     writes_files,
 )
+from tlm.cli_tables import print_point_warnings
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
@@ -272,6 +273,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         n = len(done.rows)
         print(f"{n} points: {done.ok} ok, {done.failed} failed, {done.skipped} skipped (done before); "
               f"{done.renders} rendered; {done.seconds:.1f} s; wrote {out}")
+        print_point_warnings(done.rows, out, done.warnings)  # (on stderr: how many points recorded each)
         report_after(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv")
     return 1 if done.failed else 0
 

@@ -1,11 +1,14 @@
 """The tables the commands print of what the API returns (out of :mod:`tlm.cli`, which imports
 them by their old names): ``tlm thesis``'s Tables I-III and counts per work item
 (:func:`print_thesis`), ``tlm scaling``'s eq. 5.2 fits (:func:`print_scaling`), and a default as
-``tlm params`` writes it in its column (:func:`yaml_text`)."""
+``tlm params`` writes it in its column (:func:`yaml_text`), and the warnings ``tlm sweep``'s points
+recorded (:func:`print_point_warnings`)."""
 
 from __future__ import annotations
 
+import json
 import sys
+from collections import Counter
 from pathlib import Path
 
 from tlm import storage
@@ -74,6 +77,49 @@ def print_scaling(done: dict, out: Path) -> None:
         print(f"latency = images in flight x TThru at every point of {scaled} of the {len(lat)} latency fits "
               "(a closed loop, Little's law): those are their throughput fits scaled, not a second test of eq. 5.2")
     print(f"wrote {out}")
+
+
+POINT_WARNINGS_SHOWN = 5  # the distinct warnings of a sweep's points said in the terminal; the rest counted
+
+
+def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
+    """What ``tlm sweep`` says, after its summary line, of the warnings its points recorded (each ok point's
+    ``results.json``, ``warnings``: a point of this run, of a run resumed, from any worker): on stderr, a
+    line per distinct warning, ``tlm: warning: 3 of 4 points: ...``, the most recorded first (then the first
+    met), at most :data:`POINT_WARNINGS_SHOWN` of them, then how many more there are. A line the sweep said
+    already (``said``, its own warnings; a cache's, said once) is not said again; a record that cannot be read
+    is left to the report, which names it."""
+    per_hash: dict[str, list[str]] = {}
+    counts: Counter[str] = Counter()
+    for row in rows:
+        h = row.get("hash")
+        if row.get("status") != "ok" or not isinstance(h, str):
+            continue
+        if h not in per_hash:
+            per_hash[h] = _recorded(Path(out) / "points" / h / "results.json")
+        counts.update(per_hash[h])
+    known = {" ".join(line.split()) for line in said} | storage.SAID
+    lines = [(line, n) for line, n in counts.most_common() if line not in known]  # (ties: the first met first)
+    if not lines:
+        return
+    sys.stdout.flush()  # (the summary line first)
+    for line, n in lines[:POINT_WARNINGS_SHOWN]:
+        storage.warn(f"{n} of {len(rows)} points: {line}")
+    if len(lines) > POINT_WARNINGS_SHOWN:
+        more = len(lines) - POINT_WARNINGS_SHOWN
+        storage.warn(f"and {more} more warning{'s' if more > 1 else ''} of the points (each point's "
+                     f"{Path(out) / 'points'}/HASH/results.json lists its own; the sweep's report shows them all)")
+
+
+def _recorded(path: Path) -> list[str]:
+    """The distinct warnings (whitespace as :func:`tlm.storage.warn` says them) of a point's ``results.json``;
+    none where it cannot be read or holds no list of them."""
+    try:
+        lines = json.loads(path.read_text(encoding="utf-8")).get("warnings")
+    except (OSError, ValueError, AttributeError):
+        return []
+    return list(dict.fromkeys(" ".join(x.split()) for x in lines if isinstance(x, str))) if isinstance(lines, list) \
+        else []
 
 
 def yaml_text(value) -> str:

@@ -33,6 +33,7 @@ import functools
 import gzip
 import hashlib
 import lzma
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -292,20 +293,31 @@ def _shown(word: bytes) -> str:
 # ------------------------------------------------------------------ numeric blocks
 
 
+def _blank_keys(block: bytes, key: bytes) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """``block`` (lines that each start with ``key``) with ``key`` blanked where it starts a line and
+    only there, its bytes and its newlines: a letter anywhere else (``v -1.01v0.5 0 1``, ``f 1 2 3f4``)
+    stays, for ``np.fromstring`` to refuse and the per-line reader to name (a blank would read it as a
+    separator)."""
+    b = np.frombuffer(block, dtype=np.uint8).copy()
+    newline = np.flatnonzero(b == 10)
+    for k in range(len(key)):
+        b[k] = 32
+        b[newline[:-1] + 1 + k] = 32
+    return b.tobytes(), b, newline
+
+
 def _vectors_fast(block: bytes, n: int, key: bytes) -> np.ndarray | None:
     """(n, 3) the first three numbers of each of the ``n`` lines of ``block`` (every
     line starting with ``key``), or None when the fast path cannot read them."""
-    body = block.replace(key, b" " * len(key))
+    body, b, newline = _blank_keys(block, key)
     try:
         values = np.fromstring(body, dtype=np.float64, sep=" ")
     except ValueError:
         return None
-    b = np.frombuffer(body, dtype=np.uint8)
     word = b > 32
     tok = np.flatnonzero(word[1:] & ~word[:-1]) + 1  # where each number starts
     if tok.shape[0] != values.shape[0]:
         return None
-    newline = np.flatnonzero(b == 10)
     if values.shape[0] == 3 * n:  # the usual case: check that every line holds 3 of them
         t = tok.reshape(n, 3)
         if (t[1:, 0] > newline[:-1]).all() and (t[:, 2] < newline).all():
@@ -350,6 +362,8 @@ def colour_notes(obj: ObjData, src: str) -> tuple[str, ...]:
 
 
 def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np.ndarray:
+    """The per-line reader of :func:`_vectors_fast`'s lines, naming the first it cannot read (Python's
+    ``float`` less its underscores: ``1_0`` is no OBJ number)."""
     out = np.empty((lines.shape[0], 3))
     for i, raw in enumerate(block.split(b"\n")[: lines.shape[0]]):
         words = _strip_comment(raw).split()[1:]
@@ -358,6 +372,8 @@ def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np
                        f"a '{what}' statement needs 3 numbers, got {len(words)}")
         for j in range(3):
             try:
+                if b"_" in words[j]:
+                    raise ValueError
                 out[i, j] = float(words[j])
             except ValueError:
                 raise _err(source, int(lines[i]) + 1,
@@ -365,6 +381,7 @@ def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np
     return out
 
 
+_INDEX = re.compile(rb"[+-]?[0-9]+")  # a face corner's index, as the fast path reads it
 _HUGE = 2 ** 62  # |index| from here on: no file has that many elements (and int64 holds them)
 
 
@@ -372,14 +389,17 @@ def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     """Every corner of the ``n`` face lines of ``block``: its line (0..n-1), vertex index,
     and normal index (0 where it has none) with a flag; None when the fast path cannot
     read the block."""
-    body = block.replace(b"f", b" ")
+    body, b, newline = _blank_keys(block, b"f")
     try:
         values = np.fromstring(body.replace(b"/", b" "), dtype=np.int64, sep=" ")
     except ValueError:
         return None
     if ((values >= _HUGE) | (values <= -_HUGE)).any():  # (read as int64's limit, its sign lost: the slow path names it)
         return None
-    b = np.frombuffer(body, dtype=np.uint8)
+    if b"-" in body or b"+" in body:  # a sign alone: np.fromstring reads "- 3" as -3, "-" as 0
+        sign = np.flatnonzero((b == 45) | (b == 43))
+        if not ((b[sign + 1] >= 48) & (b[sign + 1] <= 57)).all():
+            return None
     digit = (b > 32) & (b != 47)  # bytes of numbers (byte 0, the blanked 'f', is not one)
     edge = np.flatnonzero(np.diff(digit.view(np.int8)))
     start, end = edge[0::2] + 1, edge[1::2] + 1  # each number's first byte and the byte after it
@@ -401,7 +421,7 @@ def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     slot = total - total[first][corner]
     if slot.max(initial=0) > 2:
         return None
-    line = np.searchsorted(np.flatnonzero(b == 10), start[first])
+    line = np.searchsorted(newline, start[first])
     vertex = values[first]
     has_normal = np.zeros(vertex.shape[0], dtype=bool)
     normal = np.zeros(vertex.shape[0], dtype=np.int64)
@@ -419,6 +439,8 @@ def _corners_slow(block: bytes, lines: np.ndarray, source: str):
             if len(parts) > 3 or not parts[0]:
                 raise _err(source, int(lines[i]) + 1, f"cannot read the face corner {_shown(corner)}")
             try:
+                if not all(_INDEX.fullmatch(p) for p in parts if p):  # (int() would read "3_0" as 30)
+                    raise ValueError
                 idx = [int(p) if p else None for p in parts]
             except ValueError:
                 raise _err(source, int(lines[i]) + 1,
