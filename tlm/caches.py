@@ -3,11 +3,13 @@
 * :func:`cache_home` — the folder of every cache (``$TLM_CACHE``, else ``$XDG_CACHE_HOME/tlm``,
   else ``~/.cache/tlm``); :func:`cache_root` — one cache's folder in it (``functional``,
   ``scenes``, ``references``, ``oracle``: :data:`CACHES`).
-* :func:`cache_failed` — the one line, said once a process, that a cache cannot be written, why,
-  and what that costs (speed only, never a result); :func:`cache_warnings` — this process's lines,
-  which a run records; :func:`cache_warnings_held` — a sweep's point keeps them for its sweep to say.
-  A write of :mod:`tlm.storage` that fails under a cache's folder (a full disk) says its line too
-  (:func:`tlm.storage.on_failed_write`).
+* :func:`cache_failed` — the one line, said once a process per problem, that a cache cannot be written,
+  why, and what that costs (speed only, never a result); :func:`cache_warnings` — the lines on the caches
+  as they are now, which a run records (a folder fixed since is said no more); :func:`cache_warnings_held` —
+  a sweep's point keeps them for its sweep to say. A write that fails under a cache's folder (a full disk, the
+  folder replaced by a file since it was first looked at) says its line too (:func:`tlm.storage.on_failed_write`,
+  :func:`cache_write_failed`); one that succeeds clears a line only a failed write could tell
+  (:func:`cache_written`).
 * :func:`file_digest`, :func:`digest_problem` — the size and checksum a cache entry's sidecar keeps
   of a file, and why a file is not the one described; :func:`cached_image` — an image entry read
   back whole, or a damaged one said and removed, so that it is computed again; :func:`fields_problem` —
@@ -28,6 +30,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
+from tlm import storage
 from tlm.errors import EnvironmentFailure, InputError, environment_problem
 from tlm.storage import on_failed_write, warn
 
@@ -81,7 +84,8 @@ CACHES = {
 CACHE_WARNING = "cannot write tlm's "  # how each line of cache_warnings() starts
 _CACHE_LOCK = threading.Lock()
 _CACHE_CHECKED: set[Path] = set()  # the cache folders looked at in this process
-_CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> its line (said once a process)
+_CACHE_LINES: dict[Path, str] = {}  # a cache folder that cannot be written -> its line, as last found
+_CACHE_WRITES: set[Path] = set()  # those of _CACHE_LINES a failed write told, which looking cannot (a full disk)
 _CACHE_SAID: set[str] = set()  # the lines said on stderr in this process
 _CACHE_HELD = 0  # > 0: the lines are kept, not said (a sweep point: its sweep says them once)
 
@@ -129,30 +133,42 @@ def cache_problem(folder: Path) -> str | None:
 
 
 def cache_failed(path: Path, why: str) -> None:
-    """Say, once a process per cache folder, that one of tlm's caches (the one ``path`` is
-    in or under) cannot be written, why, and what that costs; nothing for a path in none."""
+    """Note that one of tlm's caches (the one ``path`` is in or under) cannot be written, why, and what
+    that costs, and say it (once a process per line: :func:`say_cache_warning`); nothing for a path in none.
+    ``why`` is a failed write's; where looking at the folder finds why (:func:`cache_problem`: a file in
+    its place since it was first looked at), that is the line, the one a fresh process says."""
     path = Path(path)
     home = cache_home()
     kind = next((k for k in CACHES if path == home / k or home / k in path.parents), None)
     if kind is None:
         return
     folder = home / kind
-    name, cost = CACHES[kind]
+    seen = cache_problem(folder)
+    line = _cache_line(folder, seen or why)
     with _CACHE_LOCK:
-        if folder in _CACHE_LINES:
+        if _CACHE_LINES.get(folder) == line:
             return
-        line = f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
         _CACHE_LINES[folder] = line
+        if seen is None:
+            _CACHE_WRITES.add(folder)
+        else:
+            _CACHE_WRITES.discard(folder)
         held = _CACHE_HELD > 0
     if not held:
         say_cache_warning(line)
 
 
+def _cache_line(folder: Path, why: str) -> str:
+    """The line on the cache ``folder`` (``<cache_home()>/<kind>``) that cannot be written, and why."""
+    name, cost = CACHES[folder.name]
+    return f"{CACHE_WARNING}{name} cache {folder} ({why}): {cost}; set TLM_CACHE to a writable folder"
+
+
 def say_cache_warning(line: str) -> bool:
     """:func:`warn` a line of :func:`cache_warnings` (this process's or a worker's) unless this
-    process said it already; whether it was said now."""
+    process said it already (here, or a sweep's ``warn``: :data:`tlm.storage.SAID`); whether it was said now."""
     with _CACHE_LOCK:
-        if line in _CACHE_SAID:
+        if line in _CACHE_SAID or " ".join(line.split()) in storage.SAID:
             return False
         _CACHE_SAID.add(line)
     warn(line)
@@ -160,11 +176,46 @@ def say_cache_warning(line: str) -> bool:
 
 
 def cache_warnings() -> list[str]:
-    """The lines of this process on the caches of :func:`cache_home` it cannot write
-    (:func:`cache_failed`), said or held."""
+    """The lines on the caches of :func:`cache_home` this process cannot write (:func:`cache_failed`),
+    said or held, as they are now: each folder found unwritable is looked at again (once a call: a run's
+    record, a sweep point's, a sweep's; :func:`cache_problem`, a few system calls). One fixed since is
+    left out (and looked at afresh by the next :func:`cache_root`), one whose problem changed gets its new
+    line; a line a failed write told (a full disk) stays till a write into that cache succeeds
+    (:func:`cache_written`). Outside :func:`cache_warnings_held`, a line not said yet in this process (met
+    while held: a sweep's point in this process) is said now, as a fresh process says it."""
     home = cache_home()
     with _CACHE_LOCK:
-        return [line for folder, line in _CACHE_LINES.items() if folder.parent == home]
+        found = [folder for folder in _CACHE_LINES if folder.parent == home]
+    lines = []
+    for folder in found:
+        why = cache_problem(folder)
+        with _CACHE_LOCK:
+            if folder not in _CACHE_LINES:  # (cleared meanwhile by another thread's write)
+                continue
+            if why is not None:
+                _CACHE_LINES[folder] = _cache_line(folder, why)
+                _CACHE_WRITES.discard(folder)
+            elif folder not in _CACHE_WRITES:  # (fixed: said no more)
+                del _CACHE_LINES[folder]
+                _CACHE_CHECKED.discard(folder)
+                continue
+            lines.append(_CACHE_LINES[folder])
+            held = _CACHE_HELD > 0
+        if not held:
+            say_cache_warning(lines[-1])
+    return lines
+
+
+def cache_written(path: Path) -> None:
+    """A write into one of tlm's caches (the one ``path`` is in or under) succeeded: a line on it that
+    only a failed write could tell (a full disk since freed) is said no more."""
+    path = Path(path)
+    home = cache_home()
+    with _CACHE_LOCK:
+        for folder in [f for f in _CACHE_WRITES if path == f or f in path.parents]:
+            if folder.parent == home:
+                _CACHE_WRITES.discard(folder)
+                _CACHE_LINES.pop(folder, None)
 
 
 @contextmanager
@@ -181,10 +232,11 @@ def cache_warnings_held() -> Iterator[None]:
             _CACHE_HELD -= 1
 
 
-def _note_cache_write(path: Path, e: BaseException) -> None:
+def cache_write_failed(path: Path, e: BaseException) -> None:
     """A write under one of the caches failed (:func:`tlm.storage.write_atomic`,
     :func:`tlm.storage.atomic_folder`, which call this on every failed write once this module is
-    imported): said once (a full disk, a folder :func:`cache_problem` could not tell was read-only)."""
+    imported; a cache's writer for the rest of its write, its folder's ``mkdir``): said once (a full disk,
+    a folder :func:`cache_problem` could not tell was read-only, a file put in a folder's place since)."""
     if isinstance(e, EnvironmentFailure):
         why = str(e)
     elif isinstance(e, OSError):
@@ -196,6 +248,7 @@ def _note_cache_write(path: Path, e: BaseException) -> None:
     cache_failed(path, why)
 
 
+_note_cache_write = cache_write_failed  # (the name tlm.storage's hearers knew it by)
 on_failed_write(_note_cache_write)  # (tlm.storage knows nothing of caches: it tells whoever asked)
 
 

@@ -36,14 +36,22 @@ import json
 import os
 import threading
 from collections import OrderedDict
-from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from tlm.arch.functional import Functional
-from tlm.caches import cache_root, digest_problem, fields_problem, file_digest, note_use, remove_entry
+from tlm.caches import (
+    cache_root,
+    cache_write_failed,
+    cache_written,
+    digest_problem,
+    fields_problem,
+    file_digest,
+    note_use,
+    remove_entry,
+)
 from tlm.config import config_from_dict, noting_reads, to_dict
 from tlm.experiments import run
 from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
@@ -246,12 +254,20 @@ def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
         return
     path, plain = found
     body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks}
-    with suppress(OSError, TypeError, ValueError):
+    try:
+        text = json.dumps(body)
+    except (TypeError, ValueError):
+        return
+    try:
         path.parent.mkdir(parents=True, exist_ok=True)
         if path.is_dir() and not path.is_symlink():  # (not the whole cache that cannot be written: this entry)
             remove_entry(path, path.parent)
         with write_atomic(path) as f:
-            f.write(json.dumps(body))
+            f.write(text)
+    except OSError as e:  # (said once, as any failed write into a cache: its folder's mkdir's too)
+        cache_write_failed(path, e)
+    else:
+        cache_written(path)
 
 
 def is_cached(key: str) -> bool:
@@ -335,9 +351,13 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
                     np.save(fh, pmap)
                 side_text["pmap"] = {**summary["pmap"], **file_digest(_image_file(path))}
             write_file(side, json.dumps(side_text, indent=1) + "\n")
-        except OSError:  # a read-only (or full) cache only costs speed
+        except OSError as e:  # a read-only (or full) cache only costs speed, said once (its folder's mkdir's too:
+            # a file put in its place since this process first looked at it)
+            cache_write_failed(path, e)
             for done in saved:  # (files without their sidecar: nothing reads them, so they would only fill the disk)
                 remove_entry(done, cache_dir())
+        else:
+            cache_written(path)
     got = CachedRender(fn, summary, False, key)
     return _measured(got, cfg, lambda: pmap, res.scene, base, source)
 

@@ -522,7 +522,8 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
     once the folder's seconds are measured, before ``results.json`` records them.
 
     ``results.json`` ``warnings`` end with the lines on tlm's caches that this process
-    could not write (:func:`tlm.caches.cache_warnings`), as a sweep point's do.
+    cannot write (:func:`tlm.caches.cache_warnings`), as a sweep point's do: each looked at again as the
+    folder is written, so one fixed since an earlier run of the process is recorded no more.
     """
     outputs = set(outputs)
     unknown = outputs - set(OUTPUTS)
@@ -560,7 +561,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         results = results_dict(res, exposure, config_path, overrides, say_unread)
-        # the caches this process could not write (said on stderr when met; a sweep's points record them too)
+        # the caches this process cannot write, as they are now (said on stderr once; a sweep's points record them too)
         results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
         # (the write: the folder and the record, up to results.json's own text, as a sweep point's)
         t1 = time.perf_counter()

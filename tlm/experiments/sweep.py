@@ -85,7 +85,7 @@ from pathlib import Path
 from typing import Any
 
 from tlm import claims, storage
-from tlm.caches import CACHE_WARNING, cache_warnings
+from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held
 from tlm.errors import EnvironmentFailure, InputError, interrupted_by
 from tlm.experiments.executors import (
     DASK_POLL,
@@ -373,7 +373,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     unread = sweep.unread_factors([(p, records[p.hash]["results"]) for p in sweep.points
                                    if records[p.hash]["status"] == "ok"])
     unread += unmeasured_line(sweep, records, out, reference)
-    caches = _cache_lines([records[h] for h in tasks], cache_warnings())
+    with cache_warnings_held():  # (the caches as they are now, said below through warn: a line a point of this
+        # process met, held, reaches warn too)
+        caches = _cache_lines([records[h] for h in tasks], cache_warnings())
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
     if warn is not None:

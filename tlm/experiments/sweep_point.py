@@ -202,8 +202,10 @@ def _worker_cache_warnings(task: Task, where: str | None) -> list[str]:
     worker's (``task.code``) ending ``(on the Dask worker ADDRESS on host NAME)``: its cache is its own machine's,
     which the sweep's lines (one each: :func:`~tlm.experiments.sweep._cache_lines`) would not tell from the sweep's
     own. A local pool's worker, or a ``--dask local`` one, has the sweep's ``TLM_CACHE``, and its lines are the
-    sweep's own (said once)."""
-    lines = cache_warnings()
+    sweep's own (said once). Each folder is looked at again (the cache as it is for this point: one fixed since a
+    point before is said no more), held: the sweep says them."""
+    with cache_warnings_held():
+        lines = cache_warnings()
     if where is None or task.code is None:
         return lines
     return [f"{line} (on {where})" for line in lines]

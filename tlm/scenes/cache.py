@@ -50,7 +50,15 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.caches import cache_root, digest_problem, file_digest, note_use, remove_entry
+from tlm.caches import (
+    cache_root,
+    cache_write_failed,
+    cache_written,
+    digest_problem,
+    file_digest,
+    note_use,
+    remove_entry,
+)
 from tlm.config import note_read, noting_reads
 from tlm.errors import InputError
 from tlm.fingerprint import code_fingerprint
@@ -372,7 +380,10 @@ def _imported(meta: dict, source: str) -> Imported:
 
 
 def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
-    """The arrays and the metadata as one file, atomically; nothing on an OSError, nor inside :func:`read_only`."""
+    """The arrays and the metadata as one file, atomically; nothing inside :func:`read_only`. A write that fails
+    (its folder's ``mkdir`` too: a file put in its place since this process first looked at it) is said once
+    (:func:`~tlm.caches.cache_write_failed`), one that succeeds clears a full disk's line
+    (:func:`~tlm.caches.cache_written`)."""
     if not writable():
         return
     blob = np.frombuffer(json.dumps({"format": FORMAT, **meta}).encode(), dtype=np.uint8)
@@ -382,8 +393,10 @@ def _write(entry: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
         entry.parent.mkdir(parents=True, exist_ok=True)
         with write_atomic(entry, "wb") as fh:
             np.savez(fh, meta=blob, **arrays)
-    except OSError:
-        pass  # a read-only (or full) cache only costs speed
+    except OSError as e:  # a read-only (or full) cache only costs speed
+        cache_write_failed(entry, e)
+    else:
+        cache_written(entry)
 
 
 def _damaged(entry: Path, why: str) -> None:
