@@ -606,8 +606,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "the built-in experiments: 'tlm config list')")
     pl.add_argument("--runs", default="runs", help="folder for the experiments' outputs (default: runs)")
     pl.add_argument("--out", type=folder_name, default="plots", help="report folder (default: plots)")
-    pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps (thesis, "
-                    "scaling_ring, ..., cornell_pmap; --only may be given again); the report reads every step's "
+    pl.add_argument("--only", nargs="+", action="extend", metavar="STEP", help="run only these steps, of: thesis "
+                    "scaling_ring scaling_room scaling_cornell design_space bsp_levels sweep_fifo eq52 tlm_granularity "
+                    "error_vs_cost cornell_pmap extreme (--only may be given again); the report reads every step's "
                     "folder that exists; a step that exits 1 (failures among its results) is said, the others and "
                     "the report still run, and tlm plots then exits 1")
     no_progress(pl, "passed to every step (of them tlm thesis and tlm run draw bars, when stderr is a terminal; "

@@ -7,6 +7,7 @@ hinted at too: it is read with the OBJ that names it (:func:`mtl_user`), which i
 from __future__ import annotations
 
 import os
+import re
 
 # the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
 MESH_FORMATS = {".obj": "an OBJ", ".ply": "a PLY", ".stl": "an STL", ".glb": "a binary glTF (.glb)", ".gltf": "a glTF"}
@@ -148,12 +149,20 @@ def _by_key(name: str, key: str | None, what: str, scene: str, mesh: str, it: st
 
 def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = None) -> str:
     """:func:`mesh_file_hint` of an MTL material library ``name`` (relative to ``folder``, where
-    given): what it is, and the OBJ to name instead (:func:`mtl_user`), as :func:`mesh_file_hint`
-    words it for ``key`` (under ``extends``, as the scene file that extends it names it)."""
+    given): what it is, and the OBJs beside it whose ``mtllib`` names it (:func:`mtl_users`), the
+    first to name instead, as :func:`mesh_file_hint` words it for ``key`` (under ``extends``, as the
+    scene file that extends it names it); where none names it, it says so (and what an OBJ of its
+    stem names instead)."""
     beside = os.path.join(folder, name) if folder is not None else name
-    obj = mtl_user(beside if os.path.exists(beside) else name)  # (else as the working folder finds it)
-    what = (f"{MTL_FORMAT} (the materials of an OBJ mesh, read with the OBJ whose `mtllib` names it"
-            f"{f': {obj}, beside it' if obj else ''})")
+    users, other = mtl_users(beside if os.path.exists(beside) else name)  # (else as the working folder finds it)
+    obj = users[0] if users else other[0] if other else None
+    if users:
+        listed = " and ".join([", ".join(users[:-1]), users[-1]] if len(users) > 1 else users)
+        found = f": {listed}, beside it"
+    else:  # (the OBJ of its stem, where there is one, is still the one to name: it reads its own mtllib)
+        found = f"; no OBJ beside it names it{f': {other[0]}, of its stem, reads {other[1]} instead' if other else ''}"
+    what = f"{MTL_FORMAT} (the materials of an OBJ mesh, read with the OBJ{'s' if len(users) > 1 else ''} whose " \
+           f"`mtllib` names it{found})"
     mesh = obj or "THE.obj"
     if obj and key == "extends":  # (a path from the scene file that extends the library, as its name is)
         mesh = os.path.join(os.path.dirname(name), obj)
@@ -163,12 +172,21 @@ def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = Non
 
 
 def mtl_user(name: str | os.PathLike) -> str | None:
-    """The name of the OBJ file beside the MTL library ``name`` that uses it, where that is plain:
-    one of its stem (``CornellBox-Sphere.obj``, or compressed: ``.obj.xz``, ...), else the one OBJ
-    beside it (plain, up to 64 OBJ files looked at) whose first 64 KiB has an ``mtllib`` naming it.
-    None where there is none, or more than one."""
-    import re
+    """The name of an OBJ file beside the MTL library ``name`` whose ``mtllib`` names it
+    (:func:`mtl_users`; one of its stem first); None where none does."""
+    users = mtl_users(name)[0]
+    return users[0] if users else None
 
+
+_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n]*)", re.MULTILINE)
+
+
+def mtl_users(name: str | os.PathLike) -> tuple[list[str], tuple[str, str] | None]:
+    """The OBJ files beside the MTL library ``name`` (plain or compressed: ``.obj.xz``, ...; up to
+    64 looked at, by name) whose ``mtllib`` statements in their first 64 KiB name it, one of its
+    stem first (``CornellBox-Sphere.obj``), then by name; and, where none does, an OBJ of its stem
+    and what its ``mtllib`` names instead (McGuire's ``CornellBox-Glossy-Floor.obj`` reads
+    ``CornellBox-Glossy.mtl``), else None. Only the ``mtllib`` lines are read."""
     path = os.fspath(name)
     folder, base = os.path.dirname(path) or ".", os.path.basename(path)
     stem = base[: -len(os.path.splitext(base)[1])] if base.lower().endswith(_MESH_COMPRESSED) else base
@@ -176,27 +194,39 @@ def mtl_user(name: str | os.PathLike) -> str | None:
     try:
         names = sorted(os.listdir(folder))
     except OSError:
-        return None
-    same = [n for n in names if n.lower() in {f"{stem}.obj".lower(), *(f"{stem}.obj{z}".lower()
-                                                                       for z in _MESH_COMPRESSED)}]
-    if same:
-        return same[0]
-    named = re.compile(rb"^[ \t]*mtllib[ \t]+(.*)$", re.MULTILINE)
-    users = []
-    for n in [n for n in names if n.lower().endswith(".obj")][:64]:
-        try:
-            with open(os.path.join(folder, n), "rb") as f:
-                head = f.read(1 << 16)
-        except OSError:
-            continue
-        if any(_names(base, m.group(1)) for m in named.finditer(head)):
+        return [], None
+    objs = [n for n in names if n.lower().endswith((".obj", *(f".obj{z}" for z in _MESH_COMPRESSED)))][:64]
+    own = {f"{stem}.obj".lower(), *(f"{stem}.obj{z}".lower() for z in _MESH_COMPRESSED)}
+    objs.sort(key=lambda n: n.lower() not in own)
+    users, other = [], None
+    for n in objs:
+        libs = _mtllibs(os.path.join(folder, n))
+        if any(_names(base, text) for text in libs):
             users.append(n)
-    return users[0] if len(users) == 1 else None
+        elif n.lower() in own and other is None:
+            other = (n, " and ".join(t.decode("utf-8", "replace").strip() for t in libs) or "no library (no mtllib)")
+    return users, (None if users else other)
+
+
+def _mtllibs(path: str) -> list[bytes]:
+    """The texts of the ``mtllib`` statements in the first 64 KiB of the OBJ ``path`` (decompressed
+    as its suffix says); none where it cannot be read."""
+    import bz2
+    import gzip
+    import lzma
+
+    opener = {".gz": gzip.open, ".xz": lzma.open, ".bz2": bz2.open}.get(os.path.splitext(path)[1].lower(), open)
+    try:
+        with opener(path, "rb") as f:
+            head = f.read(1 << 16)
+    except (OSError, EOFError, lzma.LZMAError):
+        return []
+    return [m.group(1) for m in _MTLLIB.finditer(head)]
 
 
 def _names(base: str, mtllib: bytes) -> bool:
     """Whether an ``mtllib`` statement's text names the file ``base`` beside the OBJ: one of its
     names, or its whole text (a name with spaces), written as ``base`` or with ``./`` or ``..``
     that lead back to it (``./box.mtl``, ``.\\box.mtl``)."""
-    text = mtllib.decode("utf-8", errors="replace")
+    text = mtllib.decode("utf-8", errors="replace").strip()
     return any(os.path.normpath(w.replace("\\", "/")) == base for w in (*text.split(), text.strip()) if w)

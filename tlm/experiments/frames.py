@@ -58,6 +58,7 @@ from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_f
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
+from tlm.render import checks
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
 from tlm.scenes.cache import parse_versions, writable
 from tlm.scenes.loader import load_scene, resolve_scene_path
@@ -331,7 +332,7 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg)}
     # (the scene's notes come first, checks.file_warnings: the lines _here moves to a copy's folders, and no other,
     # a material's name that holds a path of the project is the copy's material's name too)
-    notes = sum(w not in inert for w in full["warnings"][:len(res.scene.extra.get("notes") or [])])
+    notes = sum(w not in inert for w in full["warnings"][:len(checks.note_warnings(res.scene))])
     full["warnings"] = [w for w in full["warnings"] if w not in inert]
     pmap = res.radiance["pmap"].reshape(-1, 3) if res.error is not None else None
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS}, "notes": notes,
@@ -448,13 +449,28 @@ def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: 
     here = scene.source if scene is not None else str(resolve_scene_path(cfg.scene, base, source))
     if held["source"] != here:
         was, now = os.path.dirname(held["source"]), os.path.dirname(here)
-        got.summary["scene"] = {**held, "source": here}
+        got.summary["scene"] = {**held, "source": here, **(_moved_from(held, was, now) if was else {})}
         if was and isinstance(got.summary.get("warnings"), list):
             # (the scene's notes, the first lines: the rest say what its content holds, the copy's too, as it is)
             notes = got.summary.get("notes", len(got.summary["warnings"]))
             got.summary["warnings"] = [moved_line(w, was, now) if isinstance(w, str) and i < notes else w
                                        for i, w in enumerate(got.summary["warnings"])]
     return got
+
+
+def _moved_from(scene: dict, was: str, now: str) -> dict:
+    """A cached summary's ``scene`` ``materials`` and ``lights`` with each one's ``from`` (the MTL line, the scene
+    file's key that gave it: :func:`tlm.experiments.run.scene_stats`) naming the copy's files in ``now``
+    (:func:`moved_line`); {} where they hold none."""
+    out = {}
+    mats, lights = scene.get("materials"), scene.get("lights")
+    if isinstance(mats, dict):
+        out["materials"] = {k: {**m, "from": moved_line(m["from"], was, now)}
+                            if isinstance(m, dict) and isinstance(m.get("from"), str) else m for k, m in mats.items()}
+    if isinstance(lights, list):
+        out["lights"] = [{**lt, "from": moved_line(lt["from"], was, now)}
+                         if isinstance(lt, dict) and isinstance(lt.get("from"), str) else lt for lt in lights]
+    return out
 
 
 def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:

@@ -67,7 +67,7 @@ from tlm.render.frame import Frame, GBuffer, ImageGBuffer
 from tlm.render.image import auto_exposure, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, photon_count, plan
 from tlm.render.pmap import radii
-from tlm.scenes.model import Scene
+from tlm.scenes.model import Light, Scene
 from tlm.storage import atomic_folder, check_destination, json_text, warn
 
 OUTPUTS = ("aov", "radiance", "trace")  # what a run folder may leave out (images and results.json: always)
@@ -418,18 +418,26 @@ def scene_head(scene: Scene, bounds) -> tuple[dict, np.ndarray]:
 
 
 def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
-    """``results.json`` ``scene``: :func:`scene_head`, each material's kind and triangles, each
-    light as ``tlm scene show`` lists it (its type, power and its kind's own fields, so that two
-    runs whose spot cones or sun directions differ differ here too) and the BSP's statistics."""
+    """``results.json`` ``scene``: :func:`scene_head`, each material's kind, triangles and the values the
+    renderer used (:meth:`~tlm.scenes.model.Material.info`: its colours, ior, emission, what its file gave that
+    tlm does not render and where it came from), each light as ``tlm scene show`` lists it (its type, power and
+    its kind's own fields, so that two runs whose spot cones or sun directions differ differ here too) with
+    where it came from (:func:`light_record`) and the BSP's statistics."""
     head, used = scene_head(scene, lambda lo, hi: [lo.tolist(), hi.tolist()])
     return {
         **head,
-        "materials": {
-            m.name: {"kind": m.kind, "triangles": int(used[i])} for i, m in enumerate(scene.materials)
-        },
-        "lights": [lt.info() for lt in scene.lights],
+        "materials": {m.name: {"kind": m.kind, "triangles": int(used[i]), **m.info()}
+                      for i, m in enumerate(scene.materials)},
+        "lights": [light_record(lt) for lt in scene.lights],
         "bsp": accel.tree.stats(),
     }
+
+
+def light_record(lt: Light) -> dict:
+    """``results.json``'s record of a light: :meth:`~tlm.scenes.model.Light.info`, and ``from``, a mesh file's
+    light's name (its file, ``KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``). A light without ``from`` is
+    the scene file's ``lights:`` entry of its place; the mesh light (``materials``) is its materials' emission."""
+    return {**lt.info(), "from": lt.name} if lt.name and lt.kind != "mesh" else lt.info()
 
 
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,

@@ -1,13 +1,17 @@
 """Section 7: where every number of the report came from.
 
 Per run shown (a run, a thesis cell, a sweep point): its folder, seed, git revision,
-package versions and host wall seconds, and its resolved config (collapsed). Per study
-folder (thesis, scaling, granularity, error-vs-cost): its ``provenance.json`` and
-resolved config when it has them; a folder written before they were recorded says so.
+package versions and host wall seconds, and its resolved config (collapsed). Per scene the
+runs rendered (once for the runs whose ``results.json`` record one scene alike: a sweep's
+points on one scene, once): its materials' values as the renderer used them and its lights,
+each with where it came from (:func:`scene_tables`). Per study folder (thesis, scaling,
+granularity, error-vs-cost): its ``provenance.json`` and resolved config when it has them; a
+folder written before they were recorded says so.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import yaml
@@ -111,6 +115,97 @@ def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
     return out
 
 
+MATERIAL_VALUES = ("albedo", "reflectance", "ior", "transmittance")  # (one of them: a kind's values recorded)
+MAX_LISTED = 6  # runs named per scene; the rest counted
+OLD = "not recorded by the tlm of this run (an older one)"
+
+
+def _text(v) -> str:
+    """A recorded value as a reader writes it: a triple ``0.725 0.71 0.68``, a number ``1.5``, text as it is."""
+    if isinstance(v, list) and v and all(isinstance(x, int | float) and not isinstance(x, bool) for x in v):
+        return " ".join(f"{x:g}" for x in v)
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list):
+        return ", ".join(_text(x) for x in v)
+    if isinstance(v, dict):
+        return "; ".join(f"{k}: {_text(x)}" for k, x in v.items())
+    return str(v)
+
+
+def _table(head: list[str], rows: list[list[str]]) -> str:
+    return ("<table><tr>" + "".join(f'<th class="l">{esc(h)}</th>' for h in head) + "</tr>" + "".join(
+        "<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in row) + "</tr>" for row in rows) + "</table>")
+
+
+def _recorded(mats) -> bool:
+    """Whether ``results.json`` ``scene.materials`` records the values (each material its kind's): an older
+    tlm recorded each one's kind and triangles only, or nothing."""
+    return isinstance(mats, dict) and bool(mats) and all(
+        isinstance(m, dict) and any(k in m for k in MATERIAL_VALUES) for m in mats.values())
+
+
+def _materials_table(mats) -> str:
+    """``results.json`` ``scene.materials`` as a table, or a line saying they were not recorded."""
+    if not _recorded(mats):
+        kinds = sorted({str(m.get("kind")) for m in mats.values() if isinstance(m, dict)}) \
+            if isinstance(mats, dict) else []
+        more = f"; {len(mats)} materials, of kinds {', '.join(kinds)}" if kinds else ""
+        return f"<p>Material values: {esc(OLD + more)}.</p>"
+    rows = [[str(name), str(m.get("kind")), _text(m.get("triangles", "")),
+             ", ".join(f"{k} {_text(m[k])}" for k in MATERIAL_VALUES if k in m), _text(m.get("emission", "")),
+             _text(m.get("ignored", "")), str(m.get("from", ""))] for name, m in mats.items()]
+    return _table(["material", "kind", "triangles", "values", "emission Le", "ignored (not rendered)", "from"], rows)
+
+
+def _lights_table(lights, mats) -> str:
+    """``results.json`` ``scene.lights`` as a table: where each came from (``from``: a mesh file's light; none:
+    the scene file's ``lights:`` entry, where ``mats`` are recorded, else not recorded by an older tlm); the mesh
+    light's emission, its materials'."""
+    if not isinstance(lights, list) or not all(isinstance(lt, dict) for lt in lights):
+        return f"<p>Lights: {esc(OLD)}.</p>"
+    if not lights:
+        return "<p>Lights: none.</p>"
+    said = ("type", "kind", "power", "from")
+    emits = {str(k): m.get("emission") for k, m in mats.items() if isinstance(m, dict)} if _recorded(mats) else {}
+
+    def source(lt: dict) -> str:
+        if lt.get("from"):
+            return str(lt["from"])
+        if lt.get("type", lt.get("kind")) == "mesh":
+            return "its materials' emission" + ("".join(
+                f"; {k} {_text(emits[k])}" for k in lt.get("materials") or [] if emits.get(k)) if emits else "")
+        return "the scene file's lights:" if _recorded(mats) else OLD
+
+    rows = [[str(lt.get("type", lt.get("kind"))), _text(lt.get("power", "")),
+             ", ".join(f"{k} {_text(v)}" for k, v in lt.items() if k not in said), source(lt)] for lt in lights]
+    return _table(["light", "power W", "where", "from"], rows)
+
+
+def scene_tables(runs: list[Run]) -> list[str]:
+    """Per scene the runs rendered, its materials and lights as their ``results.json`` record them
+    (``scene.materials``, ``scene.lights``), collapsed: once for the runs that record one scene alike (its
+    name, file, materials and lights), naming them."""
+    groups: dict[str, list[Run]] = {}
+    for run in runs:
+        scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
+        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")], sort_keys=True,
+                         default=str)
+        groups.setdefault(key, []).append(run)
+    parts = []
+    for members in groups.values():
+        scene = members[0].results.get("scene") or {}
+        mats, lights = scene.get("materials"), scene.get("lights")
+        named = ", ".join(r.label for r in members[:MAX_LISTED]) + (
+            f" and {len(members) - MAX_LISTED} more" if len(members) > MAX_LISTED else "")
+        counts = ", ".join(f"{len(v)} {w}{'' if len(v) == 1 else 's'}" if isinstance(v, t) else f"no {w}s"
+                           for v, t, w in ((mats, dict, "material"), (lights, list, "light")))
+        parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: {esc(counts)} "
+                     f"({'runs' if len(members) > 1 else 'run'} {esc(named)})</summary>"
+                     f"{_materials_table(mats)}{_lights_table(lights, mats)}</details>")
+    return parts
+
+
 def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
     # (a --set column where some run was made with overrides: a sweep point's are its sweep's)
@@ -134,6 +229,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     else:
         cases = inputs.unread_cases()
         parts.append(f"<p>No run among the inputs{'; ' + esc(cases) if cases else ''}.</p>")
+    parts += scene_tables(inputs.runs)  # (each scene's materials and lights, as the runs read them)
     for run in inputs.runs[:MAX_CONFIGS]:
         parts.append(f"<details><summary>{esc(run.label)}: resolved config</summary><pre>"
                      f"{esc(yaml.safe_dump(run.config, sort_keys=False))}</pre></details>")

@@ -185,7 +185,9 @@ def _kept(path: Path, parse: Parse, resolve: Resolve, digest: dict, entry: Path)
             "notes": [n.replace(here, _HERE) for n in geom.notes],
             "materials": [{"name": m.name, "kind": m.kind, "albedo": m.albedo, "reflectance": m.reflectance,
                            "ior": m.ior, "transmittance": m.transmittance, "emission": m.emission,
-                           "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined.replace(here, _HERE)}
+                           "ignored": m.ignored, "alias": m.alias, "undefined": m.undefined.replace(here, _HERE),
+                           # (an MTL's path beside the mesh as {dir}: the entry serves a copy elsewhere too)
+                           "origin": _origin_kept(m.origin, path)}
                           for m in geom.materials],
             # (a file's own lights and camera: its source is the file read, so it is not kept)
             "imports": [{"lights": [_light_record(lt) for lt in i.lights],
@@ -317,6 +319,15 @@ def read_as(files: list[tuple[Path | str, str]], reads: list) -> bool:
 
 
 _HERE = "{mesh}"  # a cached line's place for the path of the file it was read for
+_DIR = "{dir}"  # a cached material origin's place for the folder of that file (an MTL beside it)
+
+
+def _origin_kept(origin: str, path: Path) -> str:
+    """A material's origin (``Material.origin``) as an entry for the mesh file ``path`` keeps it: that file as
+    {mesh}, a file in its folder (its MTL) as ``{dir}/NAME``."""
+    folder = os.path.join(str(path.parent), "")
+    return origin.replace(str(path), _HERE) if origin.startswith(str(path)) else (
+        _DIR + os.sep + origin[len(folder):] if origin.startswith(folder) else origin)
 
 
 def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | None = None) -> Geometry | None:
@@ -326,8 +337,10 @@ def _geometry(entry: Path, got: dict[str, np.ndarray], meta: dict, path: Path | 
         ok = (tri.ndim == 3 and tri.shape[1:] == (3, 3) and part.shape == (n,)
               and all(got[k].shape[0] == n for k in ("normals", "face_material") if k in got))
         here = str(path) if path is not None else _HERE
+        folder = str(path.parent) if path is not None else _DIR
         materials = tuple(Material(**{k: tuple(v) if isinstance(v, list) else v.replace(_HERE, here)
-                                      if k == "undefined" else v for k, v in m.items()})
+                                      if k == "undefined" else v.replace(_HERE, here).replace(_DIR, folder)
+                                      if k == "origin" else v for k, v in m.items()})
                           for m in meta["materials"])
         names = tuple(str(s) for s in meta["part_names"])
         imports = tuple(_imported(i, str(path) if path is not None else _HERE) for i in meta.get("imports", []))

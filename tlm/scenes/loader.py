@@ -29,6 +29,8 @@ from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
 from tlm.errors import InputError, did_you_mean, path_shown
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
+from tlm.scenes.chain import origin as _origin
+from tlm.scenes.chain import record as _record
 from tlm.scenes.float32_range import (  # noqa: F401  (the old names, still importable from here)
     F32_MARGIN,
     F32_MAX,
@@ -265,12 +267,15 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
         )
 
 
-def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] | None = None) -> tuple[dict, Path]:
+def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] | None = None,
+                    origins: dict[str, Path] | None = None) -> tuple[dict, Path]:
     """The scene file's mapping with its ``extends:`` chain merged in, and the file whose
     ``geometry`` it uses (a mesh path is relative to the file that names it). ``given``, where
     passed, gets each ``materials:`` entry's name -> the file of the chain that gave it last (this
     file where it names the entry, else the base's that does): an entry only inherited is not
-    this file's to check (:func:`_check_unused`).
+    this file's to check (:func:`_check_unused`). ``origins``, where passed, gets each key of the
+    merged mapping, dotted (``geometry.transform.scale``; a list's is its key's), -> the file of
+    the chain that gave it last, for naming that file in an error on it (:func:`tlm.scenes.chain.origin`).
 
     ``extends: NAME_OR_PATH`` starts from another scene file; this file's keys replace
     the base's, and mappings (``materials``, ``parts``, ``camera``, a material's fields)
@@ -297,6 +302,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
             raise InputError("null removes an inherited material, and this file extends no scene (extends:): give the "
                              "material's fields, or leave it out", source=src, key=f"materials.{name}")
         _given(given, own, path)
+        _record(origins, raw, {}, path)
         return raw, path
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
@@ -305,7 +311,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
-    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given)
+    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given, origins)
     _given(given, own, path)
     geometry = raw.get("geometry")
     if "geometry" in raw and not (isinstance(geometry, dict) and isinstance(base.get("geometry"), dict)
@@ -323,6 +329,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
                    and isinstance(base_mats.get(k), dict) and base_mats[k].get("type") != v["type"]}
         base = {**base, "materials": {k: v for k, v in base_mats.items() if k not in retyped}}
     merged = deep_merge(base, raw)
+    _record(origins, raw, base, path)
     if _removed(mats):  # (an inherited material given as null: taken out)
         merged["materials"] = {k: v for k, v in merged["materials"].items() if v is not None}
     return merged, geom_path
@@ -348,9 +355,24 @@ def load_scene(
     ``--set``) that gave ``ref`` and ``resolution``, for error messages.
     """
     path = resolve_scene_path(ref, base, config_source)
-    src = str(path)
     given: dict[str, Path] = {}
-    raw, geom_path = read_scene_tree(path, (), given)
+    origins: dict[str, Path] = {}
+    raw, geom_path = read_scene_tree(path, (), given, origins)
+    try:
+        return _scene(path, raw, geom_path, given, resolution, config_source)
+    except InputError as e:  # (on a key of an extends: chain: named against the file that gave it)
+        if not e.key or e.source not in (str(path), str(geom_path)):
+            raise
+        where = str(_origin(origins, e.key) or path)
+        if where == e.source:
+            raise
+        raise e.replaced(source=where) from None
+
+
+def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resolution: list[int] | None,
+           config_source: str | None) -> Scene:
+    """:func:`load_scene` of the scene file ``path``, read (:func:`read_scene_tree`) as ``raw``."""
+    src = str(path)
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
     geom = _geometry(raw["geometry"], str(geom_path), geom_path)
@@ -517,7 +539,9 @@ def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, 
     file_mats = tuple(geom.materials)
     if not materials_raw and not file_mats:
         raise InputError("no materials defined (and the geometry's file defines none)", source=src, key="materials")
-    yaml_mats = {str(k): _material(str(k), v, src) for k, v in materials_raw.items()}
+    # (each entry's origin: the file of the extends: chain that gave it, for results.json's scene.materials)
+    yaml_mats = {str(k): replace(_material(str(k), v, src), origin=f"{(inherited or {}).get(str(k), src)}: "
+                                 f"materials.{k}") for k, v in materials_raw.items()}
     chosen: list[Material] = []
     remap = np.full(len(file_mats) + 1, -1, dtype=np.int32)  # file material -> scene material (the last: none)
     undefined: dict[int, str] = {}  # scene material -> why its file's faces name it and no library defines it

@@ -80,6 +80,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import struct
 from pathlib import Path
 
@@ -87,8 +88,8 @@ from tlm.errors import InputError
 from tlm.scenes.model import Material
 
 __all__ = [
-    "GLB_MAGIC", "glb_chunks", "glb_length_notes", "gltf_json", "gltf_material", "gltf_materials", "mtl_material",
-    "parse_mtl", "write_glb",
+    "GLB_MAGIC", "fold_mtl_notes", "glb_chunks", "glb_length_notes", "gltf_json", "gltf_material", "gltf_materials",
+    "mtl_material", "mtl_text", "parse_mtl", "write_glb",
 ]
 
 GLASS_ILLUM = (4, 6, 7, 9)
@@ -120,6 +121,28 @@ def _given_again(source: str, name: str, key: str, given: list[tuple[int, str, o
     lines = [f"line {line} `{key} {text}`" for line, text, _ in given]
     return (f"{source}: line {given[-1][0]}: material {name!r}: {key} given {times}, {', '.join(lines[:-1])} and "
             f"{lines[-1]}: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give it once)")
+
+
+def mtl_text(data: bytes, source: str, notes: list[str] | None = None) -> str:
+    """An MTL file's bytes as text: UTF-8, a byte that is not read as U+FFFD (as an OBJ's
+    ``usemtl`` names are read, so that the two still match). ``notes``, where given, gets one line
+    for a file with such bytes: the first line that has them, how many do, and what Latin-1 would
+    read there (a file saved in Latin-1: ``newmtl Fußboden`` reads ``Fu\ufffdboden``, which a
+    scene file's ``materials:`` entry spelled ``Fußboden`` does not name)."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        at = exc.start
+    rows = data.split(b"\n")
+    bad = sum(1 for row in rows if not row.isascii() and "\ufffd" in row.decode("utf-8", "replace"))
+    line = data.count(b"\n", 0, at) + 1
+    raw = rows[line - 1].strip()[:80]
+    if notes is not None:
+        more = f", and {bad - 1} more line{'s' if bad > 2 else ''}" if bad > 1 else ""
+        notes.append(f"{source}: line {line}: bytes that are not UTF-8 ({raw.decode('utf-8', 'replace')!r}{more}): "
+                     f"read as U+FFFD, so a name there matches no scene file's `materials:` entry spelled otherwise; "
+                     f"read as Latin-1 the line is {raw.decode('latin-1')!r} (save the file as UTF-8)")
+    return data.decode("utf-8", "replace")
 
 
 def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dict[str, int] | None = None
@@ -201,6 +224,62 @@ def parse_mtl(text: str, source: str, notes: list[str] | None = None, lines: dic
                       if len({value for *_, value in given}) > 1]
         out.append(mtl_material(name, props, source, number, notes))
     return out
+
+
+_NAME = r"(?P<name>'(?:[^'\\]|\\.)*'|\"(?:[^\"\\]|\\.)*\")"  # (a material's name, as repr writes it)
+# the MTL notes one mistake repeated over a file's materials repeats (fold_mtl_notes): kind -> (pattern, what n of
+# them are, how the first is said, what the folded line ends with)
+_FOLDED = {
+    "clipped": (re.compile(rf"^(?P<file>.+?): line (?P<line>\d+): material {_NAME}: (?P<key>Kd|Ks) (?P<said>[^:]*) is "
+                           r"over 1: clipped to (?P<what>\w+) (?P<to>\[[^\]]*\])(?P<hint>.*)$"),
+                "materials whose {key} is over 1, each clipped to {what} [0, 1]", "{key} {said} -> {to}", "{hint}"),
+    "again": (re.compile(rf"^(?P<file>.+?): line (?P<line>\d+): material {_NAME}: (?P<key>\w+) given (?P<said>.*?): "
+                         r"the last is used, (?P<hint>.*)$"),
+              "statements given again in one material with another value",
+              "{key} given {said}",
+              ": the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give each once)"),
+    "newmtl": (re.compile(rf"^(?P<file>.+?): line (?P<line>\d+): newmtl {_NAME} again \((?P<said>first defined at "
+                          r"line \d+)\): (?P<hint>.*)$"),
+               "newmtl names defined again, each later definition ignored", "{said}",
+               ": the first definitions are used (rename them)"),
+}
+
+
+def fold_mtl_notes(notes: list[str]) -> list[str]:
+    """``notes`` with the MTL notes of one mistake repeated in a file (:func:`parse_mtl`'s: a colour
+    clipped, with or without the 0-255 hint; a statement given again; a ``newmtl`` name defined
+    again) folded into one line per file and kind, where there are two or more, at the first's
+    place: their count, the first's line, material and value, the hint. Every other note is kept
+    as it is. Each note stays in ``Geometry.notes`` (``tlm scene show`` lists them all); a run's
+    warnings fold them (:func:`tlm.render.checks.file_warnings`)."""
+    groups: dict[tuple, list[tuple[int, re.Match]]] = {}
+    for i, note in enumerate(notes):
+        for kind, (pattern, *_) in _FOLDED.items():
+            m = pattern.match(str(note))
+            if m is not None:
+                hint = m["hint"] if kind == "clipped" else ""
+                groups.setdefault((m["file"], kind, m["key"] if kind == "clipped" else "", hint), []).append((i, m))
+                break
+    first: dict[int, str] = {}
+    dropped: set[int] = set()
+    for (file, kind, *_), found in groups.items():
+        if len(found) < 2:
+            continue
+        _, what, said, hint = _FOLDED[kind]
+        i, m = found[0]
+        fields = {k: v for k, v in m.groupdict().items() if v is not None}
+        more = len(found) - 1
+        first[i] = (f"{file}: {len(found)} {what.format(**fields)}: the first at line {m['line']}, material "
+                    f"{m['name']} ({said.format(**fields)}), and {more} more at line{'s' if more > 1 else ''} "
+                    f"{_lines([int(x['line']) for _, x in found[1:]])}{hint.format(**fields)} (`tlm scene show` "
+                    "lists each)")
+        dropped.update(j for j, _ in found[1:])
+    return [first.get(i, str(n)) for i, n in enumerate(notes) if i not in dropped]
+
+
+def _lines(numbers: list[int], shown: int = 3) -> str:
+    """``12, 20, 31, ...``: the first ``shown`` line numbers, and ``...`` where there are more."""
+    return ", ".join(map(str, numbers[:shown])) + (", ..." if len(numbers) > shown else "")
 
 
 def mtl_material(name: str, props: dict, source: str = "", line: int = 0, notes: list[str] | None = None
@@ -585,4 +664,6 @@ def gltf_materials(header: dict, source: str = "") -> list[Material]:
     mats = header.get("materials") or []
     if not isinstance(mats, list):
         raise InputError("'materials' is not a list", source=source)
-    return [gltf_material(m, i, source) for i, m in enumerate(mats)]
+    # (each one's origin, for results.json's scene.materials: Material.origin)
+    return [gltf_material(m, i, source).with_origin(f"{source} materials[{i}]" if source else "")
+            for i, m in enumerate(mats)]

@@ -321,7 +321,10 @@ def _unit_or_none(normals: np.ndarray) -> np.ndarray | None:
 
 def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) -> list[Path]:
     """The files an ``mtllib`` statement names, found beside the OBJ (plain first, then
-    compressed like the OBJ); a missing one is an error naming the OBJ and the MTL."""
+    compressed like the OBJ): its whole text as one name (exporters write a name with spaces so),
+    else the names its spaces separate (the OBJ spec's several libraries). A missing one is an
+    error naming the OBJ, the whole text and each file looked for, and a file beside it whose
+    name differs only in letter case."""
     folder = obj_path.parent
 
     def find(name: str) -> Path | None:
@@ -338,38 +341,62 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     words = text.split()
     if not words:
         raise InputError(f"line {line}: 'mtllib' names no file", source=src)
-    out = []
-    for word in words:
-        p = find(word)
-        if p is None:
-            looked = folder / word.replace("\\", "/")
-            also = f" or {looked}{zext}" if zext else ""
-            raise InputError(f"line {line}: the material library {word!r} (mtllib) is missing: "
-                             f"no file {looked}{also}", source=src)
-        out.append(p)
-    return out
+    found = [find(word) for word in words]
+    if all(p is not None for p in found):
+        return found
+
+    def looked(name: str) -> str:
+        at = folder / name.replace("\\", "/")
+        return f"{at} or {at}{zext}" if zext else str(at)
+
+    missing = [w for w, p in zip(words, found, strict=True) if p is None]
+    tried = f"no file {looked(text)}"
+    if len(words) > 1:
+        there = ", ".join(w for w, p in zip(words, found, strict=True) if p is not None)
+        tried += (f", nor {' and '.join(looked(w) for w in missing)} (of the names its spaces separate, as the OBJ "
+                  f"spec reads several libraries{f'; {there} found' if there else ''})")
+    raise InputError(f"line {line}: the material library {text!r} (mtllib) is missing: {tried}"
+                     f"{_case_hint(folder, [text, *missing])}", source=src)
+
+
+def _case_hint(folder: Path, names: list[str]) -> str:
+    """``" (box.MTL is there: names differ in letter case ...)"``: the files beside the OBJ whose
+    names differ from one of ``names`` only in letter case, else ``""``."""
+    try:
+        there = {n.lower(): n for n in sorted(os.listdir(folder))}
+    except OSError:
+        return ""
+    near = list(dict.fromkeys(there[n.lower()] for n in names if n.lower() in there and there[n.lower()] != n))
+    if not near:
+        return ""
+    return (f" ({' and '.join(repr(n) for n in near)} {'is' if len(near) == 1 else 'are'} there: the name differs in "
+            "letter case, which this file system tells apart; write it as the file is named)")
 
 
 def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.ndarray | None, tuple[str, ...]]:
     """The OBJ's materials, each face's index into them, and the notes of its libraries
     (:func:`~tlm.scenes.materials.parse_mtl`'s, and a material a later library defines again)."""
-    from tlm.scenes.materials import parse_mtl
+    from tlm.scenes.materials import mtl_text, parse_mtl
     from tlm.scenes.objfile import read_bytes
 
+    odd = [(n, line) for n, line in zip(obj.material_names, obj.material_lines, strict=True) if "\ufffd" in n]
+    notes: list[str] = [f"{src}: line {odd[0][1]}: usemtl {odd[0][0]!r}: bytes that are not UTF-8, read as U+FFFD"
+                        f"{f' ({len(odd)} usemtl names)' if len(odd) > 1 else ''}: a scene file's `materials:` entry "
+                        "spelled otherwise does not name it (save the file as UTF-8)"] if odd else []
     if not obj.mtllibs:
-        return (), None, ()
+        return (), None, tuple(notes)
     library: dict[str, Material] = {}
     first: dict[str, tuple[Path, int]] = {}  # (a material's library and the line of its newmtl there)
-    notes: list[str] = []
     files = _libraries(path, obj.mtllibs)  # (the lookup the scene cache reruns: tlm.scenes.cache)
     for mtl in files:
         lines: dict[str, int] = {}
         # (its read noted with the bytes' sha256: what a memo of the parse checks the library by)
-        for m in parse_mtl(read_bytes(mtl, side=True).decode("utf-8", "replace"), str(mtl), notes, lines):
+        for m in parse_mtl(mtl_text(read_bytes(mtl, side=True), str(mtl), notes), str(mtl), notes, lines):
             if m.name in library and first[m.name][0] != mtl:
                 notes.append(f"{mtl}: line {lines[m.name]}: newmtl {m.name!r} is defined by {first[m.name][0]} too "
                              f"(line {first[m.name][1]}), named first by the mtllib: that one is used")
-            library.setdefault(m.name, m)
+            # (where its values come from, for results.json's scene.materials: Material.origin)
+            library.setdefault(m.name, m.with_origin(f"{mtl}:{lines[m.name]}"))
             first.setdefault(m.name, (mtl, lines[m.name]))
     materials = tuple(library.values())
     index = {m.name: i for i, m in enumerate(materials)}

@@ -11,7 +11,7 @@ materials.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import NamedTuple
 
@@ -87,10 +87,36 @@ class Material:
     # (the line), for the error when the scene file gives it neither a materials: entry nor a
     # default_material (tlm.scenes.loader); its values are a placeholder
     undefined: str = field(default="", compare=False)
+    # where its values come from, for results.json (:meth:`info`): ``FILE:LINE`` of an MTL's newmtl, ``FILE
+    # materials[i]`` of a glTF's, ``FILE: materials.NAME`` of a scene file's entry; "" where not known (a
+    # builder's); not part of the material's value (equality, hashes, repr)
+    origin: str = field(default="", compare=False, repr=False)
 
     @property
     def emits(self) -> bool:
         return max(self.emission) > 0.0
+
+    def with_origin(self, origin: str) -> Material:
+        """The material with :attr:`origin` ``origin`` (its value the same)."""
+        return replace(self, origin=origin)
+
+    def info(self) -> dict:
+        """The values the renderer uses, as plain data (``results.json``'s ``scene.materials``): ``kind``,
+        its kind's own (a Lambertian's ``albedo``, a mirror's ``reflectance``, a dielectric's ``ior`` and
+        ``transmittance``), ``emission`` where it emits, ``ignored`` where its file gives what tlm does not
+        render (:attr:`ignored`) and ``from`` (:attr:`origin`) where known."""
+        out: dict = {"kind": self.kind}
+        if self.kind == "lambertian":
+            out["albedo"] = [float(x) for x in self.albedo]
+        elif self.kind == "mirror":
+            out["reflectance"] = [float(x) for x in self.reflectance]
+        elif self.kind == "dielectric":
+            out.update(ior=float(self.ior), transmittance=[float(x) for x in self.transmittance])
+        if self.emits:
+            out["emission"] = [float(x) for x in self.emission]
+        if self.ignored:
+            out["ignored"] = [str(x) for x in self.ignored]
+        return {**out, "from": self.origin} if self.origin else out
 
     def record(self) -> dict:
         """The material as plain data (for hashes): its fields, ``emission`` only when it emits
