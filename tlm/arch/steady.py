@@ -124,8 +124,9 @@ def steady_throughput(done: list[int], in_flight: int, settling: bool = False) -
                        "frames": f, "window": [a, b], "settled": False, "spread": spread,
                        "min_frames": None,  # (no length known: raise arch.settle_frames)
                        "latency_arrivals": [k + lo, k + lo + arrivals] if arrivals > 0 else None,
-                       "estimator": f"mean gap over the last {b - a} steady completions: not periodic within "
-                                    f"{f} frames"}
+                       "estimator": (f"mean gap over the last {b - a} steady completions" if len(run) > 1 else
+                                     "the last steady gap alone (too few completions to tell whether it moves)")
+                                    + f": not periodic within {f} frames"}
     if m >= 1:
         a, b = k - 1, k - 1 + m * k
         value = round(Fraction(d[b] - d[a], b - a))

@@ -122,10 +122,14 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     est = timing.throughput_estimate
     if est and est.get("settled") is False and not est["steady"]:  # (settled or not, steady: said in its estimate)
         a, b = est["window"]
+        # (one running mean, a window of one gap: no movement to measure, its spread of 0 says nothing)
+        over = ("its last steady gap alone, too few completions to tell whether it moves" if b - a < 2 else
+                f"the mean gap over its last {b - a} steady completions, whose running mean moved by "
+                f"{est['spread']:.2%} over their last half")
+        # (the stream ran max(arch.frames, arch.settle_frames) frames: a bound at or below that changes nothing)
         lines.append(f"the stream did not settle within {est['frames']} frames (the dynamic scheduler's completions "
-                     f"did not repeat): cycles.throughput is the mean gap over its last {b - a} steady completions, "
-                     f"whose running mean moved by {est['spread']:.2%} over their last half; raise arch.settle_frames "
-                     "(the most frames it runs) to settle it")
+                     f"did not repeat): cycles.throughput is {over}; raise arch.settle_frames (the most frames it "
+                     f"runs) above {est['frames']} to settle it")
     elif est and not est["steady"] and est.get("settled") is None:
         lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
                      f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
@@ -179,10 +183,20 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
     * ``arch.fifo_depth`` when every Traversal/Intersection job's FIFO behaves alike at
       this depth and the default's: every packet carries at least as many triangle
       addresses as the larger depth (each enters an empty FIFO alone at either), or the
-      job's packets all fit in the smaller one together (the FIFO never fills).
+      job's packets all fit in the smaller one together (the FIFO never fills);
+    * ``arch.settle_frames`` when a settling stream stopped where its completions repeated, below this bound
+      and at or below the default's, or when both bounds give ``arch.frames`` (the run at either is the same).
     """
     default = ArchConfig()
     out: dict[str, str] = {}
+    cap = (timing.throughput_estimate or {}).get("frames_cap")  # (a settling stream's: tlm.arch.steady.frames_cap)
+    if arch.settle_frames != default.settle_frames and cap is not None:
+        ran, other = len(timing.frames), max(arch.frames, default.settle_frames)
+        if cap == other:
+            out["arch.settle_frames"] = f"arch.frames = {arch.frames} bounds the stream at this value and the default's"
+        elif ran < cap and ran <= other:
+            out["arch.settle_frames"] = (f"the stream settled after {ran} frames, within this bound and the "
+                                         f"default's ({default.settle_frames})")
     xb = timing.crossbar or {}
     if arch.swap_cycles != default.swap_cycles and xb.get("swaps") == 0:
         out["arch.swap_cycles"] = "no PM moved to another module (timing.crossbar.swaps is 0)"

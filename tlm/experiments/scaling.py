@@ -160,7 +160,7 @@ def unsteady(rec: dict) -> str:
     if rec.get("settled") is False:
         return (f"its stream did not settle within {rec.get('frames')} frames (throughput_steady false): its TThru "
                 "and latency are means over the later half of its steady completions, not over whole periods "
-                "(raise arch.settle_frames)")
+                f"(raise arch.settle_frames above {rec.get('frames')})")
     need = f"; a steady window needs at least {rec['min_frames']} frames" if rec.get("min_frames") else ""
     frames = f"of {rec['frames']} frames " if rec.get("frames") else ""
     return (f"its stream {frames}was too short for a steady state (throughput_steady false{need}): its TThru and "
