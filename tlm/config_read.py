@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tlm.errors import InputError
-from tlm.mesh_files import MESH_FORMATS, mesh_file_format, mesh_file_hint
+from tlm.mesh_files import MESH_FORMATS, mesh_bytes_format, mesh_file_hint
 
 # what a file too large to be a YAML file tlm reads is where a config or a scene file goes (read_yaml's)
 MESH_NAMED = "a mesh is named in a scene file's geometry (docs/scenes.md)"
@@ -55,9 +55,9 @@ def yaml_text(path: Path, read: Callable[[Path], str]) -> str:
 
 def _refuse_mesh(path: Path, head: bytes, size: int) -> None:
     """An InputError where the bytes read from the pipe ``path`` (``head``, the first of ``size``) are a mesh
-    file's (:func:`~tlm.mesh_files.mesh_file_format`: an MTL library's are left to the YAML parse), saying so as
+    file's (:func:`~tlm.mesh_files.mesh_bytes_format`: an MTL library's are left to the YAML parse), saying so as
     :func:`~tlm.mesh_files.mesh_file_hint` says it of a mesh file, and to save it as one first."""
-    format_ = _piped_format(head, size)
+    format_ = mesh_bytes_format(head, size)  # (by the bytes themselves: any system, no file made of them)
     if format_ is None or format_ not in MESH_FORMATS.values():
         return
     name = "mesh" + next(e for e, f in MESH_FORMATS.items() if f == format_)
@@ -66,25 +66,3 @@ def _refuse_mesh(path: Path, head: bytes, size: int) -> None:
     hint = hint.replace(said, f"{format_} mesh file given as a pipe, not a YAML file: save it as a file, {name} (a "
                         "mesh file is read by its suffix), ", 1)
     raise InputError(hint, source=str(path))
-
-
-def _piped_format(head: bytes, size: int) -> str | None:
-    """:func:`~tlm.mesh_files.mesh_file_format` of bytes read from a pipe (``head``: the first, ``size``: how many
-    it held), told as a file's are: through an anonymous file in memory of the same bytes and size (Linux's
-    ``memfd_create``; the rest of it, past ``head``, a hole). None where there is none (another system)."""
-    if not hasattr(os, "memfd_create") or not os.path.isdir("/proc/self/fd"):
-        return None
-    try:
-        fd = os.memfd_create("tlm-piped", getattr(os, "MFD_CLOEXEC", 0))
-    except OSError:
-        return None
-    try:
-        view = memoryview(head)
-        while view:
-            view = view[os.write(fd, view):]
-        os.ftruncate(fd, max(size, len(head)))
-        return mesh_file_format(f"/proc/self/fd/{fd}")
-    except OSError:
-        return None
-    finally:
-        os.close(fd)

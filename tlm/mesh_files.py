@@ -27,29 +27,27 @@ _GLTF_NOT_LISTS = {"asset", "scene", "extensions", "extras"}  # (every other one
 _GLTF_PARSED = 1 << 20  # (bytes: a JSON file up to this size is parsed to tell a glTF; a larger one by its first bytes)
 
 
-def _gltf_json(path: str | os.PathLike, head: bytes, size: int) -> bool:
-    """Whether the JSON file ``path`` (``head``: its first bytes, ``size`` its length) is a
-    glTF: an object whose ``asset`` is an object with a ``version``, whose ``meshes`` is a
+def _gltf_json(data: bytes, head: bytes, size: int) -> bool:
+    """Whether the JSON file of ``size`` bytes whose first are ``data`` (``head``: the first few of them, leading
+    blanks left out) is a glTF: an object whose ``asset`` is an object with a ``version``, whose ``meshes`` is a
     list, and whose every key is one of glTF's top-level properties, of its type (``scene``
     an index, ``nodes``, ``buffers``, ... lists). Parsed up to
-    :data:`_GLTF_PARSED` bytes; a larger file (or one that does not parse: a glTF cut short)
+    :data:`_GLTF_PARSED` bytes (``data`` all of them); a larger file (or one that does not parse: a glTF cut short)
     by its first bytes, ``"asset": {`` holding ``"version"`` and a list of ``meshes``,
     ``nodes``, ``accessors``, ... beside it. A config written as JSON (``{"scene": "cornell",
     "asset": 1}``) is none."""
     import json
-    import re
 
-    if size <= _GLTF_PARSED:
+    if size <= _GLTF_PARSED and len(data) >= size:
         try:
-            with open(path, "rb") as f:
-                data = json.loads(f.read())
-        except (OSError, ValueError):
-            data = None
-        if data is not None:
-            return (isinstance(data, dict) and set(data) <= _GLTF_KEYS and isinstance(data.get("asset"), dict)
-                    and "version" in data["asset"] and isinstance(data.get("meshes"), list)
-                    and all(isinstance(v, list) for k, v in data.items() if k not in _GLTF_NOT_LISTS)
-                    and (isinstance(data.get("scene", 0), int) and not isinstance(data.get("scene"), bool)))
+            parsed = json.loads(data)
+        except ValueError:
+            parsed = None
+        if parsed is not None:
+            return (isinstance(parsed, dict) and set(parsed) <= _GLTF_KEYS and isinstance(parsed.get("asset"), dict)
+                    and "version" in parsed["asset"] and isinstance(parsed.get("meshes"), list)
+                    and all(isinstance(v, list) for k, v in parsed.items() if k not in _GLTF_NOT_LISTS)
+                    and (isinstance(parsed.get("scene", 0), int) and not isinstance(parsed.get("scene"), bool)))
     return (re.search(rb'"asset"\s*:\s*\{[^{}]*"version"\s*:', head) is not None
             and re.search(rb'"(scenes|nodes|meshes|accessors|bufferViews|buffers)"\s*:\s*\[', head) is not None)
 
@@ -77,10 +75,26 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
         return None
     try:
         with open(path, "rb") as f:
-            head = f.read(4096)
+            data = f.read(_HEAD)
             size = os.fstat(f.fileno()).st_size
+            if data.lstrip()[:1] == b"{" and size <= _GLTF_PARSED:  # (a JSON file: a glTF's is told by its parse)
+                data += f.read(_GLTF_PARSED + 1 - len(data))
     except OSError:
         return None
+    return mesh_bytes_format(data, size, name)
+
+
+_HEAD = 4096  # (bytes: a file's first, by which its format is told, but a JSON one's parse)
+
+
+def mesh_bytes_format(data: bytes, size: int | None = None, name: str = "") -> str | None:
+    """:func:`mesh_file_format` by content of a file's bytes: ``data``, its first (all of them, up to
+    :data:`_GLTF_PARSED`, for a glTF JSON to be parsed; else its first bytes tell it), of ``size`` (none:
+    ``len(data)``); ``name``: its name in lower case, where it has one (a ``.yaml`` one is no binary STL).
+    What a file read from a pipe, whose bytes are gone once read, is told by (:func:`tlm.config_read.yaml_text`),
+    on any system."""
+    size = len(data) if size is None else size
+    head = data[:_HEAD]
     if head[:4] == b"glTF":
         return MESH_FORMATS[".glb"]
     lines = head.replace(b"\r", b"").split(b"\n")
@@ -98,7 +112,7 @@ def mesh_file_format(path: str | os.PathLike, content: bool = True) -> str | Non
                                             for x in words):
         return MTL_FORMAT
     text = head.lstrip()
-    if text[:1] == b"{" and _gltf_json(path, text, size):
+    if text[:1] == b"{" and _gltf_json(data, text, size):
         return MESH_FORMATS[".gltf"]
     return None
 

@@ -30,7 +30,7 @@ def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # (as appending writes it, whatever the locale)
     except OSError as e:
         raise InputError(f"cannot read: {e.strerror or e}", source=str(path)) from None
     lines = text.splitlines()

@@ -311,7 +311,7 @@ def finished(folder: Path) -> dict | None:
     :func:`~tlm.experiments.sweep_reference.point_done`): its folder stays until the new one replaces it
     (:func:`~tlm.storage.atomic_folder`), so that an interrupt meanwhile loses nothing."""
     try:
-        results = json.loads((folder / "results.json").read_text())
+        results = json.loads((folder / "results.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     if not (isinstance(results, dict) and results.get("tlm") == POINT_FORMAT and results.get("hash") == folder.name

@@ -81,7 +81,7 @@ def reference_now(error: Any) -> bool:
     if error.get("available") is not True:
         return False
     try:
-        npy = json.loads(meta.read_text()).get("npy")
+        npy = json.loads(meta.read_text(encoding="utf-8")).get("npy")
     except (OSError, ValueError, AttributeError):  # (none cached now, or a damaged one: its reader says so)
         return False
     sha = npy.get("sha256") if isinstance(npy, dict) else None

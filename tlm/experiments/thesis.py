@@ -644,7 +644,7 @@ def fitted_parameters() -> list[str]:
 def write_calibrated(programs: Programs, report: dict, target: Path, command: str) -> None:
     """Rewrite the table's ``scale`` and ``record_cycles`` values and ``calibration`` block, keeping its comments."""
     source = Path(programs.source) if Path(programs.source).exists() else DEFAULT_PATH
-    text = source.read_text()
+    text = source.read_text(encoding="utf-8")  # (as load_programs reads it, and write_file writes it: UTF-8)
     for pm in PROGRAMMABLE:
         section = re.search(rf"^{pm}:\n(?:(?:[ \t].*|)\n)*", text, re.MULTILINE)
         if section is None:

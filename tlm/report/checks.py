@@ -25,7 +25,7 @@ def read_json(path: Path) -> Any:
     """A JSON file tlm writes whole: an :class:`InputError` naming it where it cannot be read or
     is not JSON (empty, cut off, edited: a damaged copy)."""
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # (as tlm writes it, whatever the locale)
     except (OSError, ValueError) as e:  # (ValueError: not text, UnicodeDecodeError)
         raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
     if not text.strip():
@@ -125,7 +125,7 @@ def read_yaml(path: Path) -> Any:
     """A YAML file tlm writes whole (a point's ``config.resolved.yaml``, a sweep's ``sweep.yaml``): an
     :class:`InputError` naming it where it cannot be read or is not YAML."""
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")  # (as tlm writes it, whatever the locale)
     except (OSError, ValueError) as e:
         raise InputError(f"cannot read: {getattr(e, 'strerror', None) or e}", source=str(path)) from None
     if _C_LOADER is not None and _shallow(text):

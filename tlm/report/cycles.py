@@ -316,7 +316,7 @@ def gantt(trace_path: Path) -> Gantt:
     state ``preempted`` of the unit; their idle filler is not a state of the unit and
     is dropped. Slices of a name this module does not know keep their name as state.
     """
-    doc = json.loads(Path(trace_path).read_text())
+    doc = json.loads(Path(trace_path).read_text(encoding="utf-8"))
     events = doc["traceEvents"] if isinstance(doc, dict) else doc
     names: dict[int, str] = {}
     for ev in events:

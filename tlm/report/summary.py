@@ -517,7 +517,7 @@ def _base_seed(folder: Path | None) -> str:
     from tlm.config_words import safe_load
 
     try:
-        seed = (safe_load((Path(folder) / "config.resolved.yaml").read_text()) or {}).get("seed")
+        seed = (safe_load((Path(folder) / "config.resolved.yaml").read_text(encoding="utf-8")) or {}).get("seed")
     except (OSError, TypeError, AttributeError, yaml.YAMLError):
         seed = None
     return str(seed) if seed is not None else f"the base of {getattr(folder, 'name', '?')}"

@@ -462,7 +462,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
 def _gran_label(study: Study, name: str) -> str:
     cfg = study.path / "config.resolved.yaml"
     try:
-        c = safe_load(cfg.read_text()) if cfg.is_file() else None  # (aliases bounded: config_words.safe_load)
+        # (aliases bounded: config_words.safe_load)
+        c = safe_load(cfg.read_text(encoding="utf-8")) if cfg.is_file() else None
     except (OSError, yaml.YAMLError):
         c = None
     if isinstance(c, dict) and c.get("scene"):
