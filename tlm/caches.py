@@ -136,7 +136,9 @@ def cache_failed(path: Path, why: str) -> None:
     """Note that one of tlm's caches (the one ``path`` is in or under) cannot be written, why, and what
     that costs, and say it (once a process per line: :func:`say_cache_warning`); nothing for a path in none.
     ``why`` is a failed write's; where looking at the folder finds why (:func:`cache_problem`: a file in
-    its place since it was first looked at), that is the line, the one a fresh process says."""
+    its place since it was first looked at), that is the line, the one a fresh process says. A failed write's
+    line stands till a write succeeds (:func:`cache_written`) or looking finds why: the next failed write's, of
+    another entry (a short write's other sizes), is not a new problem, said again a frame."""
     path = Path(path)
     home = cache_home()
     kind = next((k for k in CACHES if path == home / k or home / k in path.parents), None)
@@ -146,7 +148,7 @@ def cache_failed(path: Path, why: str) -> None:
     seen = cache_problem(folder)
     line = _cache_line(folder, seen or why)
     with _CACHE_LOCK:
-        if _CACHE_LINES.get(folder) == line:
+        if _CACHE_LINES.get(folder) == line or (seen is None and folder in _CACHE_WRITES):
             return
         _CACHE_LINES[folder] = line
         if seen is None:
@@ -237,6 +239,8 @@ def cache_write_failed(path: Path, e: BaseException) -> None:
     :func:`tlm.storage.atomic_folder`, which call this on every failed write once this module is
     imported; a cache's writer for the rest of its write, its folder's ``mkdir``): said once (a full disk,
     a folder :func:`cache_problem` could not tell was read-only, a file put in a folder's place since)."""
+    if isinstance(e, EnvironmentFailure) and isinstance(e.__cause__, OSError):
+        e = e.__cause__  # (tlm.storage's, naming the entry: the machine's words alone, as its hearer was told)
     if isinstance(e, EnvironmentFailure):
         why = str(e)
     elif isinstance(e, OSError):
