@@ -89,11 +89,11 @@ def test_the_points_warnings_are_said_with_how_many_points_recorded_each(tmp_pat
 
 
 def test_past_five_distinct_warnings_the_rest_are_counted(tmp_path, capsys):
-    lines = [f"w{k}" for k in range(POINT_WARNINGS_SHOWN + 3)]
+    lines = [f"w{chr(97 + k)}" for k in range(POINT_WARNINGS_SHOWN + 3)]  # (wa, wb, ...: w0, w1 would be one)
     print_point_warnings(_points(tmp_path, [lines, lines[:1]]), tmp_path, [])
     err = capsys.readouterr().err.splitlines()
-    assert err[0] == "tlm: warning: 2 of 2 points: w0" and err[1:POINT_WARNINGS_SHOWN] == [
-        f"tlm: warning: 1 of 2 points: w{k}" for k in range(1, POINT_WARNINGS_SHOWN)]
+    assert err[0] == "tlm: warning: 2 of 2 points: wa" and err[1:POINT_WARNINGS_SHOWN] == [
+        f"tlm: warning: 1 of 2 points: w{chr(97 + k)}" for k in range(1, POINT_WARNINGS_SHOWN)]
     assert err[POINT_WARNINGS_SHOWN:] == [
         f"tlm: warning: and 3 more warnings of the points (each point's {tmp_path / 'points'}/HASH/results.json "
         "lists its own; the sweep's report shows them all)"]

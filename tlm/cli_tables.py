@@ -7,6 +7,7 @@ recorded (:func:`print_point_warnings`)."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from collections import Counter
 from pathlib import Path
@@ -86,29 +87,46 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
     """What ``tlm sweep`` says, after its summary line, of the warnings its points recorded (each ok point's
     ``results.json``, ``warnings``: a point of this run, of a run resumed, from any worker): on stderr, a
     line per distinct warning, ``tlm: warning: 3 of 4 points: ...``, the most recorded first (then the first
-    met), at most :data:`POINT_WARNINGS_SHOWN` of them, then how many more there are. A line the sweep said
+    met), at most :data:`POINT_WARNINGS_SHOWN` of them, then how many more there are. Warnings that differ in
+    their numbers alone (``moved by 0.14%``, ``by 0.29%``) are one, said in the wording first met with how many
+    wordings it had (:func:`_folded`): one kind on every point is not a line per point. A line the sweep said
     already (``said``, its own warnings; a cache's, said once) is not said again; a record that cannot be read
     is left to the report, which names it."""
     per_hash: dict[str, list[str]] = {}
-    counts: Counter[str] = Counter()
+    known = {" ".join(line.split()) for line in said} | storage.SAID
+    counts: Counter[str] = Counter()  # points per form (a warning, its numbers masked)
+    wordings: dict[str, dict[str, None]] = {}  # each form's wordings, in the order met
     for row in rows:
         h = row.get("hash")
         if row.get("status") != "ok" or not isinstance(h, str):
             continue
         if h not in per_hash:
-            per_hash[h] = _recorded(Path(out) / "points" / h / "results.json")
-        counts.update(per_hash[h])
-    known = {" ".join(line.split()) for line in said} | storage.SAID
-    lines = [(line, n) for line, n in counts.most_common() if line not in known]  # (ties: the first met first)
+            per_hash[h] = [line for line in _recorded(Path(out) / "points" / h / "results.json") if line not in known]
+        forms = list(dict.fromkeys(_folded(line) for line in per_hash[h]))
+        for line in per_hash[h]:
+            wordings.setdefault(_folded(line), {})[line] = None
+        counts.update(forms)
+    lines = counts.most_common()  # (ties: the first met first)
     if not lines:
         return
     sys.stdout.flush()  # (the summary line first)
-    for line, n in lines[:POINT_WARNINGS_SHOWN]:
-        storage.warn(f"{n} of {len(rows)} points: {line}")
+    for form, n in lines[:POINT_WARNINGS_SHOWN]:
+        first, k = next(iter(wordings[form])), len(wordings[form])
+        how = f" (in {k} wordings that differ in their numbers; the first met)" if k > 1 else ""
+        storage.warn(f"{n} of {len(rows)} points{how}: {first}")
     if len(lines) > POINT_WARNINGS_SHOWN:
         more = len(lines) - POINT_WARNINGS_SHOWN
         storage.warn(f"and {more} more warning{'s' if more > 1 else ''} of the points (each point's "
                      f"{Path(out) / 'points'}/HASH/results.json lists its own; the sweep's report shows them all)")
+
+
+_NUMBER = re.compile(r"[0-9]+(?:\.[0-9]+)?")
+
+
+def _folded(line: str) -> str:
+    """A warning with its numbers masked (``moved by 0.14%`` and ``by 0.29%``: ``moved by #%``): the warnings of
+    one kind that :func:`print_point_warnings` counts as one."""
+    return _NUMBER.sub("#", line)
 
 
 def _recorded(path: Path) -> list[str]:

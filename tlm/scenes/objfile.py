@@ -400,6 +400,9 @@ def _corners_fast(block: bytes, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
         sign = np.flatnonzero((b == 45) | (b == 43))
         if not ((b[sign + 1] >= 48) & (b[sign + 1] <= 57)).all():
             return None
+    slash = np.flatnonzero(b == 47)
+    if (b[slash - 1] <= 32).any():  # a corner of slashes without its vertex ("f 1 2 // 3"): not dropped, refused
+        return None
     digit = (b > 32) & (b != 47)  # bytes of numbers (byte 0, the blanked 'f', is not one)
     edge = np.flatnonzero(np.diff(digit.view(np.int8)))
     start, end = edge[0::2] + 1, edge[1::2] + 1  # each number's first byte and the byte after it
