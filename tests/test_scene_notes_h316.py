@@ -146,8 +146,8 @@ def test_a_ceiling_light_wound_to_face_its_ceiling_is_warned_of_and_one_facing_t
         said[face] = checks.light_warnings(scene, build_accel(scene.triangles))
     assert said["f 9 10 11 12"] == [], said
     (line,) = said["f 12 11 10 9"]
-    assert re.match(r"lights\[0\] \(mesh 'light'\) sends (9\d|100)% of its power into a surface within 0\.02 of "
-                    r"the scene's diagonal of it \(at 0\.01", line), line
+    assert re.match(r"lights\[0\] \(mesh 'light'\) sends (9\d|100)% of its power into a surface within 0\.0346 of "
+                    r"it \(the smaller of 0\.02 of the scene's diagonal and 0\.5 of its size; at 0\.01", line), line
     assert "is its face wound the wrong way? reverse the order of its faces' corners" in line, line
 
 

@@ -33,8 +33,9 @@ from tlm.scenes.meshes import mesh_files
 
 
 def scene_fingerprint(scene) -> str:
-    """16 hex digits of the scene's content (triangles, materials, normals, lights, camera, photons), its name
-    and its notes, their paths said from the scene's folder (:func:`marked_line`): not where the project lies."""
+    """16 hex digits of the scene's content (triangles, materials, normals, lights, camera, photons), its name,
+    its notes and its materials' origins, their paths said from the scene's folder (:func:`marked_line`): not
+    where the project lies."""
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(scene.triangles, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(scene.material_index).tobytes())
@@ -46,7 +47,11 @@ def scene_fingerprint(scene) -> str:
     # project in another folder shares the frame: marked_line, frames._here)
     folder = os.path.dirname(scene.source) if scene.source else ""
     notes = [marked_line(str(n), folder, tagged=False) for n in scene.extra.get("notes") or []]
-    h.update(repr((scene.name, notes)).encode())
+    # (and where each material came from, results.json's scene.materials' from: Material.origin, no part of its
+    # value; a copy whose MTL defines it on another line, or whose material another file of its extends: chain
+    # gives, has a frame of its own, which names its own line)
+    origins = [marked_line(m.origin, folder, tagged=False) for m in scene.materials]
+    h.update(repr((scene.name, notes, origins)).encode())
     return h.hexdigest()[:16]
 
 

@@ -58,7 +58,7 @@ from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_f
 from tlm.experiments.run_warnings import reference_warnings
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
-from tlm.render import checks
+from tlm.render.checks import note_warnings
 from tlm.render.planner import inert_changes, inert_settings, recorded_inert_settings, same_frame_settings
 from tlm.scenes.cache import parse_versions, writable
 from tlm.scenes.loader import load_scene, resolve_scene_path
@@ -330,9 +330,9 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep), nor
     # the reference's (its error is measured when the frame is read: _measured)
     inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg)}
-    # (the scene's notes come first, checks.file_warnings: the lines _here moves to a copy's folders, and no other,
-    # a material's name that holds a path of the project is the copy's material's name too)
-    notes = sum(w not in inert for w in full["warnings"][:len(checks.note_warnings(res.scene))])
+    # (the scene's notes come first, tlm.render.checks.file_warnings: the lines _here moves to a copy's folders, and
+    # no other, a material's name that holds a path of the project is the copy's material's name too)
+    notes = sum(w not in inert for w in full["warnings"][:len(note_warnings(res.scene))])
     full["warnings"] = [w for w in full["warnings"] if w not in inert]
     pmap = res.radiance["pmap"].reshape(-1, 3) if res.error is not None else None
     summary = {"format": SUMMARY_FORMAT, **{k: full[k] for k in SUMMARY_KEYS}, "notes": notes,

@@ -29,8 +29,9 @@ patterns, no random numbers), so the warnings of a run repeat exactly.
   still finds it, and never more than :data:`PROBE_EPS` times the scene's diagonal from
   it (:func:`probe_eps`). A quad or mesh light with hits, not all on back faces, is probed once
   more (:func:`blocked_share`): over :data:`BLOCKED_LIMIT` of its power (its spread rays weighted
-  by their cosine) stopping on an opaque surface within :data:`NEAR_LIMIT` of the scene's diagonal
-  is a light wound to face the surface it lies against (a ceiling light facing the ceiling).
+  by their cosine) stopping on an opaque surface within :func:`near_distance` of it (:data:`NEAR_LIMIT`
+  of the scene's diagonal, and :data:`NEAR_SIZE` of the light's size) is a light wound to face the
+  surface it lies against (a ceiling light facing the ceiling).
 * :func:`camera_warnings`: no eye ray hit anything, or more than
   :data:`BACK_FACE_LIMIT` of the eye rays' hits are on the back of an opaque triangle
   (the camera is inside a closed solid: a room's walls, wound to face in, are seen from
@@ -71,6 +72,7 @@ STORED_LIMIT = 0.01  # share of the emitted photons below which the photon map i
 BLACK_LIMIT = 1e-12  # brightest pixel, relative to light_scale, below which the image is black
 PROBE_EPS = 1e-5  # probe rays start this far (relative to the light's size) from the light
 NEAR_LIMIT = 0.02  # share of the scene's diagonal within which a surface stops a light's power right away
+NEAR_SIZE = 0.5  # ... and share of the light's size (a room's ceiling light over a wide ground: its floor is not near)
 BLOCKED_LIMIT = 0.5  # share of a light's power stopped so (blocked_share) over which the run warns
 GRAZING = 1e-6  # cosine to a light's normal under which an aimed probe ray counts as in its plane
 COARSE_LIMIT = SPAWN_EPS / 10  # float64's spacing at the scene's coordinates, relative to its extent, above
@@ -300,7 +302,8 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
                        "rays that hit the scene hit the back of an opaque triangle (is it inside a closed mesh, "
                        "outside a room whose walls face in, or is the geometry wound inside out?)")
         else:
-            out += blocked_warnings(i, light, *blocked_share(scene, accel, light, n, kind))
+            out += blocked_warnings(i, light, *blocked_share(scene, accel, light, n, kind),
+                                    near=near_distance(light, accel))
     return out
 
 
@@ -309,12 +312,15 @@ def blocked_share(scene: Scene, accel: TriangleAccel, light: Light, n: int = PRO
     """``(share, distance, rays)``: the share of a quad or mesh light's power (its :func:`probe_rays`
     over the side it emits on, each weighted by its cosine to the light's normal, as the power it
     carries) that hits an opaque surface (not glass, not the light's own triangles) within
-    :data:`NEAR_LIMIT` of the scene's diagonal, the cosine-weighted mean distance of those hits, and the
-    rays traced; ``(0, 0, 0)`` for a point, spot or directional light (no face)."""
+    :func:`near_distance` of it, the cosine-weighted mean distance of those hits, and the rays traced;
+    ``(0, 0, 0)`` for a point, spot or directional light (no face). Near is the smaller of
+    :data:`NEAR_LIMIT` of the scene's diagonal and :data:`NEAR_SIZE` of the light's size: a ceiling
+    light 2 m over the floor of a room on a ground 1 km wide (0.02 of its diagonal: 28 m) does not stop
+    its power on the floor."""
     o, d, src, normal = probe_rays(light, n, scene.bounds())
-    if normal is None or o.shape[0] == 0 or not accel.scale > 0.0:
+    near = near_distance(light, accel)
+    if normal is None or o.shape[0] == 0 or not near > 0.0:
         return 0.0, 0.0, 0
-    near = NEAR_LIMIT * accel.scale
     h = closest_hit(accel, o, d, tmin=probe_eps(light, accel, o), tmax=near, ignore=src)
     tri = h.triangle
     hit = tri >= 0
@@ -331,19 +337,30 @@ def blocked_share(scene: Scene, accel: TriangleAccel, light: Light, n: int = PRO
     return blocked / total, float((cos[hit] * h.t[hit]).sum() / blocked), int(o.shape[0])
 
 
-def blocked_warnings(i: int, light: Light, share: float, distance: float, rays: int) -> list[str]:
+def near_distance(light: Light, accel: TriangleAccel) -> float:
+    """How far from a quad or mesh light a surface is one it lies against (:func:`blocked_share`): the
+    smaller of :data:`NEAR_LIMIT` x the scene's diagonal (``accel.scale``) and :data:`NEAR_SIZE` x the
+    light's size (:func:`light_size`); 0 where either is not positive."""
+    if not accel.scale > 0.0:
+        return 0.0
+    return min(NEAR_LIMIT * accel.scale, NEAR_SIZE * light_size(light))
+
+
+def blocked_warnings(i: int, light: Light, share: float, distance: float, rays: int, near: float) -> list[str]:
     """A line when over :data:`BLOCKED_LIMIT` of a light's power is stopped by a surface right in
-    front of it (:func:`blocked_share`): a ceiling light whose face is wound to face the ceiling it
-    hangs under (McGuire's ``CornellBox-Original`` with its light's face reversed, pmap at 32x32 and 5,000
-    photons: the composite's mean radiance 0.113 -> 0.021, its black pixels 2.4% -> 45%)."""
+    front of it (:func:`blocked_share`, within ``near``: :func:`near_distance`): a ceiling light whose face
+    is wound to face the ceiling it hangs under (McGuire's ``CornellBox-Original`` with its light's face
+    reversed, pmap at 32x32 and 5,000 photons: the composite's mean radiance 0.113 -> 0.021, its black
+    pixels 2.4% -> 45%)."""
     if not share > BLOCKED_LIMIT:
         return []
     flip = ("swap edge_u and edge_v (cross(edge_u, edge_v) is the side it emits on)" if light.kind == "quad" else
             "reverse the order of its faces' corners (cross(V1 - V0, V2 - V0) is the side it emits on)")
-    return [f"{light_name(i, light)} sends {100.0 * share:.0f}% of its power into a surface within "
-            f"{NEAR_LIMIT:g} of the scene's diagonal of it (at {distance:.3g} on average; {rays} probe rays over "
-            f"the side it emits on, weighted by their cosine): it faces the surface it lies against (is its face "
-            f"wound the wrong way? {flip})"]
+    return [f"{light_name(i, light)} sends {100.0 * share:.0f}% of its power into a surface within {near:.3g} "
+            f"of it (the smaller of {NEAR_LIMIT:g} of the scene's diagonal and {NEAR_SIZE:g} of its size; at "
+            f"{distance:.3g} on average; {rays} probe rays over the side it emits on, weighted by their cosine): "
+            f"it faces the surface it lies against (is its face wound the wrong way? {flip}; a lamp aimed at a "
+            "wall on purpose lights the scene by that wall only)"]
 
 
 def file_warnings(scene: Scene) -> list[str]:

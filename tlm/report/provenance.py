@@ -185,7 +185,10 @@ def _lights_table(lights, mats) -> str:
 def scene_tables(runs: list[Run]) -> list[str]:
     """Per scene the runs rendered, its materials and lights as their ``results.json`` record them
     (``scene.materials``, ``scene.lights``), collapsed: once for the runs that record one scene alike (its
-    name, file, materials and lights), naming them."""
+    name, file, materials and lights), naming them. A later record of a scene listed (its name and file: a
+    sweep's points that differ in a material) lists only its materials and lights that differ from the
+    first's (a sweep of 200 points over one material of the conference room: 200 rows, not 200 tables of 36);
+    no more than :data:`MAX_CONFIGS` records are listed, the rest counted."""
     groups: dict[str, list[Run]] = {}
     for run in runs:
         scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
@@ -193,16 +196,36 @@ def scene_tables(runs: list[Run]) -> list[str]:
                          default=str)
         groups.setdefault(key, []).append(run)
     parts = []
-    for members in groups.values():
+    first: dict[str, tuple[dict, str]] = {}  # (a scene's name and file -> its first record listed, and its runs)
+    for members in list(groups.values())[:MAX_CONFIGS]:
         scene = members[0].results.get("scene") or {}
         mats, lights = scene.get("materials"), scene.get("lights")
         named = ", ".join(r.label for r in members[:MAX_LISTED]) + (
             f" and {len(members) - MAX_LISTED} more" if len(members) > MAX_LISTED else "")
+        runs_named = f"{'runs' if len(members) > 1 else 'run'} {named}"
+        which = json.dumps([scene.get(k) for k in ("name", "source")], default=str)
+        was = first.get(which)
+        if was is not None and _recorded(mats) and _recorded(was[0].get("materials")) \
+                and set(mats) == set(was[0]["materials"]):
+            other = {k: m for k, m in mats.items() if was[0]["materials"][k] != m}
+            same_lights = lights == was[0].get("lights")
+            what = " and ".join([f"{len(other)} material{'' if len(other) == 1 else 's'}"] * bool(other)
+                                + ["its lights"] * (not same_lights))
+            parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: as for {esc(was[1])}, but "
+                         f"{esc(what)} ({esc(runs_named)})</summary>{_materials_table(other) if other else ''}"
+                         f"{'' if same_lights else _lights_table(lights, mats)}</details>")
+            continue
+        first.setdefault(which, (scene, runs_named))
         counts = ", ".join(f"{len(v)} {w}{'' if len(v) == 1 else 's'}" if isinstance(v, t) else f"no {w}s"
                            for v, t, w in ((mats, dict, "material"), (lights, list, "light")))
         parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: {esc(counts)} "
-                     f"({'runs' if len(members) > 1 else 'run'} {esc(named)})</summary>"
+                     f"({esc(runs_named)})</summary>"
                      f"{_materials_table(mats)}{_lights_table(lights, mats)}</details>")
+    if len(groups) > MAX_CONFIGS:
+        left = sum(len(m) for m in list(groups.values())[MAX_CONFIGS:])
+        parts.append(f"<p>The materials and lights of {len(groups) - MAX_CONFIGS} more scene records ({left} "
+                     f"run{'' if left == 1 else 's'}) are not listed: each run's results.json holds them "
+                     "(scene.materials, scene.lights).</p>")
     return parts
 
 
