@@ -101,6 +101,8 @@ def scene_info(scene: Scene | str | Path) -> dict:
     """What ``tlm scene show`` prints: triangles, bounds, resolution, photons, materials,
     parts, lights and camera of a scene (or of the scene named), and ``notes``: the lines
     on what its mesh files gave that was imported or left out, which a run warns of. Each
+    material gives ``from`` where its values' source is known (:attr:`Material.origin`, as in
+    ``results.json``). Each
     light is its ``type``, ``power`` and its kind's own fields: a point light's ``position``;
     a spot's ``position``, ``direction``, ``inner_cone_angle`` and ``outer_cone_angle``
     (degrees); a directional light's ``direction`` and ``irradiance``; a quad's ``corner``,
@@ -118,7 +120,8 @@ def scene_info(scene: Scene | str | Path) -> dict:
              **({"reflectance": list(m.reflectance)} if m.kind == "mirror" else {}),
              **({"ior": m.ior, "transmittance": list(m.transmittance)} if m.kind == "dielectric" else {}),
              **({"emission": list(m.emission)} if m.emits else {}),
-             **({"ignored": list(m.ignored)} if m.ignored else {})}  # (not rendered: checks.material_warnings)
+             **({"ignored": list(m.ignored)} if m.ignored else {}),  # (not rendered: checks.material_warnings)
+             **({"from": m.origin} if m.origin else {})}  # (where its values come from: Material.origin)
             for i, m in enumerate(scene.materials)
         ],
         "parts": {p: int((scene.part == i).sum()) for i, p in enumerate(scene.part_names)},

@@ -159,13 +159,27 @@ def unsteady(rec: dict) -> str:
     not settle (the dynamic scheduler's completions did not repeat within the frames it ran)."""
     if rec.get("settled") is False:
         return (f"its stream did not settle within {rec.get('frames')} frames (throughput_steady false): its TThru "
-                "and latency are means over the later half of its steady completions, not over whole periods "
-                f"(raise arch.settle_frames above {rec.get('frames')})")
+                f"is the mean gap over the later half of its steady completions and its latency the mean over "
+                f"{_latency_frames(rec)}, not over whole periods (raise arch.settle_frames above {rec.get('frames')})")
     need = f"; a steady window needs at least {rec['min_frames']} frames" if rec.get("min_frames") else ""
     frames = f"of {rec['frames']} frames " if rec.get("frames") else ""
     return (f"its stream {frames}was too short for a steady state (throughput_steady false{need}): its TThru and "
             "latency are measured over the whole stream, fill and drain included, and the fit reads them as the "
             "steady state's (raise arch.frames)")
+
+
+def _latency_frames(rec: dict) -> str:
+    """The frames an unsettled stream's latency is the mean over (:func:`tlm.arch.steady.steady_throughput`):
+    those that arrived in the window of its later half of steady completions and were done before the drain,
+    or where none was (a short stream: 5 frames of two images), those that arrived after the warm-up."""
+    f, k = rec.get("frames"), rec.get("in_flight")
+    if not (isinstance(f, int) and isinstance(k, int) and k >= 1):
+        return ("the frames that arrived in that window (after the warm-up where none of those was done before "
+                "the drain)")
+    gaps = f - 2 * k + 1  # (the steady gaps; the window starts at completion k - 1 + gaps // 2)
+    if gaps - (k - 1 + gaps // 2) > 0:
+        return "the frames that arrived in that window"
+    return "the frames that arrived after the warm-up (none that arrived in that window was done before the drain)"
 
 
 def _factors_text(factors, row: dict) -> str:

@@ -29,7 +29,7 @@ from tlm.errors import InputError
 from tlm.experiments.provenance import scene_identity, scene_label
 from tlm.experiments.scaling import no_effect
 from tlm.experiments.study import read_study
-from tlm.render.planner import inert_settings, inert_timing_settings
+from tlm.render.planner import inert_settings, inert_timing_settings, same_frame_settings
 from tlm.scenes.loader import scenes_dir
 
 # The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
@@ -131,12 +131,15 @@ def setting_mismatches(table: str, config: dict | None) -> list[str]:
     neither (:func:`tlm.experiments.scaling.no_effect`: the threads, batches, exposure, event
     cap, trace, ``reference.*``), a key the cell never reads at its value
     (:func:`~tlm.render.planner.inert_settings`: the photon sections outside ``pmap``, the
-    reflect depth in ``rcast``, ...; :func:`~tlm.render.planner.inert_timing_settings`) and a
-    key ``config`` lacks (a folder written before the key existed)."""
+    reflect depth in ``rcast``, ...; :func:`~tlm.render.planner.inert_timing_settings`), a timing
+    key the thesis's stream never reads (``arch.settle_frames`` of its static stream, ``arch.fanout``
+    of its one pipeline: the thesis's value stands for none, and the key that makes ours read it,
+    ``arch.scheduler``, ``arch.pipelines``, is said) and a key ``config`` lacks (a folder written
+    before the key existed)."""
     if not isinstance(config, dict) or config.get("mode") not in MODES or table not in THESIS_SCENES:
         return []
     thesis = _thesis_setting(table, config["mode"])
-    unread = _unread_keys(config)
+    unread = _unread_keys(config) | _unread_keys(thesis, stream=True)
     out = []
     for key, _, _ in describe():
         if key in NOT_SETTING or no_effect(key) or key in unread:
@@ -159,9 +162,12 @@ def _lookup(config: dict, key: str):
     return node
 
 
-def _unread_keys(config: dict) -> set[str]:
+def _unread_keys(config: dict, stream: bool = False) -> set[str]:
     """The keys a run of ``config`` never reads at the values it gives them (its mode's passes,
-    its filter, its scheduler, ...); none when ``config`` is no valid config of this schema."""
+    its filter, its scheduler, ...); none when ``config`` is no valid config of this schema.
+    ``stream``: the timing keys its stream never reads alone (its scheduler's, its pipelines', its
+    images in flight's), not those read at a value that gives what others do
+    (:func:`~tlm.render.planner.same_frame_settings`: ``cache.pairs`` 4, read, gives what 2 does)."""
     known: dict = {}
     for key, _, _ in describe():  # (a key this schema lacks, of an older folder, is left out)
         value = _lookup(config, key)
@@ -175,6 +181,8 @@ def _unread_keys(config: dict) -> set[str]:
         cfg = config_from_dict(known)
     except InputError:
         return set()
+    if stream:
+        return set(inert_timing_settings(cfg)) - set(same_frame_settings(cfg))
     return {*inert_settings(cfg), *inert_timing_settings(cfg)}
 
 

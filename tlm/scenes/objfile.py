@@ -502,6 +502,8 @@ def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
     """Parse OBJ text (bytes); ``source`` names the file in errors."""
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
+    if b"\n" not in data and b"\r" in data:  # old-Mac CR-only line endings (else read as one line)
+        data = data.replace(b"\r", b"\n")
     if not data.endswith(b"\n"):
         data += b"\n"
     L = _Lines(data)
