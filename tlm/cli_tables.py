@@ -94,6 +94,7 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
     is left to the report, which names it."""
     per_hash: dict[str, list[str]] = {}
     known = {" ".join(line.split()) for line in said} | storage.SAID
+    covered = _covered_keys(said)  # (a point's "KEY = V has no effect in this run": the sweep said it of KEY)
     counts: Counter[str] = Counter()  # points per form (a warning, its numbers masked)
     wordings: dict[str, dict[str, None]] = {}  # each form's wordings, in the order met
     for row in rows:
@@ -101,7 +102,8 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
         if row.get("status") != "ok" or not isinstance(h, str):
             continue
         if h not in per_hash:
-            per_hash[h] = [line for line in _recorded(Path(out) / "points" / h / "results.json") if line not in known]
+            per_hash[h] = [line for line in _recorded(Path(out) / "points" / h / "results.json")
+                           if line not in known and _NO_EFFECT.sub(r"\1", line, count=1) not in covered]
         forms = list(dict.fromkeys(_folded(line) for line in per_hash[h]))
         for line in per_hash[h]:
             wordings.setdefault(_folded(line), {})[line] = None
@@ -121,6 +123,17 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
 
 
 _NUMBER = re.compile(r"[0-9]+(?:\.[0-9]+)?")
+# a point's line of a key it set to no effect (tlm.render.planner, tlm.experiments.run_warnings), and the sweep's
+# own line of a factor or --set key that changed nothing (tlm.experiments.sweep_file: inert and unread factors)
+_NO_EFFECT = re.compile(r"^([A-Za-z_][A-Za-z0-9_.]*) = .* has no effect in this run: .*$", re.DOTALL)
+_SWEEP_NOTHING = re.compile(r"(?:the factor|--set) ([A-Za-z_][A-Za-z0-9_.]*)[=: ].*?change[sd]? nothing in")
+
+
+def _covered_keys(said: list[str]) -> set[str]:
+    """The keys of which the sweep's own lines (``said``) say that they changed nothing in its points (``the
+    factor arch.swap_cycles changed nothing in any of the 4 points``): each point's line of that key says it
+    again, so :func:`print_point_warnings` leaves those out."""
+    return {m.group(1) for line in said for m in [_SWEEP_NOTHING.search(line)] if m}
 
 
 def _folded(line: str) -> str:
