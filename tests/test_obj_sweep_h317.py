@@ -45,8 +45,9 @@ def _scene_base(tmp_path: Path) -> None:
                                        "vfov: 39.3}\nresolution: [8, 8]\nphotons: 100\n")
 
 
-NOTE = ("tlm: note: {src}: base: box.yaml is a scene file: rendering it with the default settings (a config would "
-        "say `scene: box.yaml`; see 'tlm params')\n")
+NOTE = ("tlm: note: {src}: base: box.yaml is a scene file: taking it as a config of that scene at the default "
+        "settings, the sweep's or study's own settings over them (a config would say `scene: box.yaml`; see "
+        "'tlm params')\n")
 
 
 def test_a_sweeps_base_may_be_a_scene_file(tmp_path, capsys):

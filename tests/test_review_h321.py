@@ -71,7 +71,7 @@ def test_a_bound_that_bounds_nothing_has_no_effect(refract):
     """Settled first (24 frames, below 40 and 64), or arch.frames the bound at both: the default's run, said to have
     no effect; a bound that stopped the stream (1, 16) or the default itself: not."""
     for frames, settle, inert in [
-            (5, 40, "the stream settled after 24 frames, within this bound and the default's (64)"),
+            (5, 40, "the stream ran 24 frames, where it settled: within this bound and the default's (64)"),
             (70, 16, "arch.frames = 70 bounds the stream at this value and the default's"),
             (5, 16, None), (5, 1, None), (5, 64, None)]:
         t, cfg = _run(refract, frames=frames, settle_frames=settle)

@@ -42,7 +42,7 @@ def test_a_ceiling_light_facing_its_floor_is_not_warned_of_in_a_scene_on_a_wide_
 
 
 def test_a_quad_light_facing_its_ceiling_is_still_warned_of_on_a_wide_ground(tmp_path):
-    """The same box with a quad light 1 mm under its ceiling (y 1.98 .. 1.99) facing it: near is half its size."""
+    """The same box with a quad light 2 cm under its ceiling (its corner at y 1.97) facing it: near is half its size."""
     scene_file = tmp_path / "s.yaml"
     scene_file.write_text(GROUND.format(mesh=MESHES / "CornellBox-Original.obj") + (
         "lights: [{type: quad, corner: [-0.2, 1.97, -0.2], edge_u: [0.0, 0.0, 0.4], edge_v: [0.4, 0.0, 0.0], "

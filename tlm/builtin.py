@@ -174,8 +174,8 @@ def _scene_base(base: str, file: Path, src: str) -> tuple[dict, str, Path]:
                          "reads again (and its extends: and meshes from its folder): save it to a file and name that",
                          source=src, key="base")
     scene = file.resolve()
-    note = (f"{src}: base: {base} is a scene file: rendering it with the default settings (a config would say "
-            f"`scene: {base}`; see 'tlm params')")
+    note = (f"{src}: base: {base} is a scene file: taking it as a config of that scene at the default settings, "
+            f"the sweep's or study's own settings over them (a config would say `scene: {base}`; see 'tlm params')")
     sys.stderr.write(f"tlm: note: {escaped_line(note)}\n")  # (as tlm.report says its notes: stdout may be JSON)
     sys.stderr.flush()
     return {"scene": str(scene)}, f"scene file {scene} at the default settings", scene.parent

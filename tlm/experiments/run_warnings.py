@@ -195,8 +195,9 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
         if cap == other:
             out["arch.settle_frames"] = f"arch.frames = {arch.frames} bounds the stream at this value and the default's"
         elif ran < cap and ran <= other:
-            out["arch.settle_frames"] = (f"the stream settled after {ran} frames, within this bound and the "
-                                         f"default's ({default.settle_frames})")
+            asked = f"the {ran} frames asked (arch.frames), settled by then" if ran == arch.frames else \
+                f"{ran} frames, where it settled"
+            out["arch.settle_frames"] = (f"the stream ran {asked}: within this bound and the default's ({other})")
     xb = timing.crossbar or {}
     if arch.swap_cycles != default.swap_cycles and xb.get("swaps") == 0:
         out["arch.swap_cycles"] = "no PM moved to another module (timing.crossbar.swaps is 0)"

@@ -129,6 +129,7 @@ def mtl_text(data: bytes, source: str, notes: list[str] | None = None) -> str:
     for a file with such bytes: the first line that has them, how many do, and what Latin-1 would
     read there (a file saved in Latin-1: ``newmtl Fußboden`` reads ``Fu\ufffdboden``, which a
     scene file's ``materials:`` entry spelled ``Fußboden`` does not name)."""
+    data = data.removeprefix(b"\xef\xbb\xbf")  # (a UTF-8 byte order mark, as Notepad saves one: not part of newmtl)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
