@@ -24,7 +24,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.storage_errors",  # (h252: what a failed write says, out of tlm.storage)
      "tlm.storage_files",  # (several files written all or none, out of tlm.storage)
      "tlm.fingerprint", "tlm.registry", "tlm.progress", "tlm.whole_imports", "tlm.caches", "tlm.config_words",
-     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths", "tlm.config_read"),
+     "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths", "tlm.config_read",
+     "tlm.config_sections"),
     ("tlm.scenes",),
     ("tlm.kernels",),
     ("tlm.render",),
