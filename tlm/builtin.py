@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from tlm.config import file_folder, read_yaml
@@ -124,7 +125,8 @@ def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, boo
                      source=src, key="base")
 
 
-def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, str, Path]:
+def read_base(base: object, folder: Path, src: str, beside: str,
+              check_scene: Callable[[Path], object] | None = None) -> tuple[dict, str, Path]:
     """The run config an experiment file's ``base:`` gives (a sweep's, a granularity
     study's): ``(the mapping, the source its errors name, the folder its relative paths
     start at)``. A mapping is the experiment file's own (``src``, ``folder``); none is
@@ -133,7 +135,8 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
     messages). A file's relative paths start at its own folder; a built-in run config's at
     ``folder`` (it names its scene by name). A scene file (:func:`is_scene_mapping`) is taken as
     ``tlm run`` takes one, ``{scene: FILE}`` (the default settings), with a note on stderr saying so
-    (:func:`_scene_base`). A sweep or a study (a file or a built-in one)
+    (:func:`_scene_base`), once ``check_scene`` (where given) read its keys: a typo is its one line, no note
+    before it. A sweep or a study (a file or a built-in one)
     is refused as a base, and so is anything but a mapping or a string: InputError naming
     ``src`` and the key ``base``."""
     if isinstance(base, str):
@@ -149,7 +152,7 @@ def read_base(base: object, folder: Path, src: str, beside: str) -> tuple[dict, 
         if not isinstance(raw, dict):
             raise InputError(f"must be a run config mapping, got {yaml_kind(raw)}", source=str(file))
         if is_scene_mapping(raw):
-            return _scene_base(base, file, src)
+            return _scene_base(base, file, src, check_scene)
         return raw, str(file), folder if builtin else file_folder(file)  # (a pipe's: the working folder)
     if base is None:
         return {}, src, folder
@@ -165,15 +168,19 @@ def is_scene_mapping(raw: object) -> bool:
     return isinstance(raw, dict) and "scene" not in raw and ("geometry" in raw or "extends" in raw)
 
 
-def _scene_base(base: str, file: Path, src: str) -> tuple[dict, str, Path]:
+def _scene_base(base: str, file: Path, src: str,
+                check: Callable[[Path], object] | None = None) -> tuple[dict, str, Path]:
     """:func:`read_base` of a ``base:`` that names a scene file ``file``: ``{scene: FILE}`` (absolute), as
     ``tlm run FILE`` renders it, said on stderr (``tlm: note: ...``, as ``tlm run`` says it); its keys are
-    checked where the points load it. One given as a pipe or a device is refused: a render reads it again."""
+    checked first by ``check`` (the scene loader's, which this layer does not import), else where the points load
+    it. One given as a pipe or a device is refused: a render reads it again."""
     if not (file.is_file() and file.resolve().is_file()):
         raise InputError(f"{base!r} is a scene file given as a pipe, a device or a deleted file, which a render "
                          "reads again (and its extends: and meshes from its folder): save it to a file and name that",
                          source=src, key="base")
     scene = file.resolve()
+    if check is not None:
+        check(scene)  # (an error here is the one line: the note is said of a scene file that reads)
     note = (f"{src}: base: {base} is a scene file: taking it as a config of that scene at the default settings, "
             f"the sweep's or study's own settings over them (a config would say `scene: {base}`; see 'tlm params')")
     sys.stderr.write(f"tlm: note: {escaped_line(note)}\n")  # (as tlm.report says its notes: stdout may be JSON)

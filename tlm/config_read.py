@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tlm.errors import InputError
-from tlm.mesh_files import MESH_FORMATS, mesh_bytes_format, mesh_file_hint
+from tlm.mesh_files import MESH_FORMATS, mesh_bytes_format, piped_mesh_hint
 
 # what a file too large to be a YAML file tlm reads is where a config or a scene file goes (read_yaml's)
 MESH_NAMED = "a mesh is named in a scene file's geometry (docs/scenes.md)"
@@ -60,9 +60,5 @@ def _refuse_mesh(path: Path, head: bytes, size: int) -> None:
     format_ = mesh_bytes_format(head, size)  # (by the bytes themselves: any system, no file made of them)
     if format_ is None or format_ not in MESH_FORMATS.values():
         return
-    name = "mesh" + next(e for e, f in MESH_FORMATS.items() if f == format_)
-    hint = mesh_file_hint(name, format_)  # (as of a file named so: "is an OBJ mesh file, not a YAML file: write ...")
-    said = f"{format_} mesh file, not a YAML file: "
-    hint = hint.replace(said, f"{format_} mesh file given as a pipe, not a YAML file: save it as a file, {name} (a "
-                        "mesh file is read by its suffix), ", 1)
+    hint = piped_mesh_hint(format_)  # (as of a file named mesh.obj, and to save it so first)
     raise InputError(hint, source=str(path))

@@ -25,6 +25,8 @@ _GLTF_KEYS = {"asset", "scene", "scenes", "nodes", "meshes", "accessors", "buffe
               "extensionsRequired", "extras"}
 _GLTF_NOT_LISTS = {"asset", "scene", "extensions", "extras"}  # (every other one is a list; 'scene' an index)
 _GLTF_PARSED = 1 << 20  # (bytes: a JSON file up to this size is parsed to tell a glTF; a larger one by its first bytes)
+# the names of a file descriptor (``<(...)``'s ``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``): tlm.api_common's
+_DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
 
 
 def _gltf_json(data: bytes, head: bytes, size: int) -> bool:
@@ -127,6 +129,8 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str 
     ``name`` is relative to (a scene file's, for its ``extends``; none: the working folder)."""
     if format_ == MTL_FORMAT:
         return _mtl_hint(name, key, folder)
+    if key is None and _DESCRIPTOR.fullmatch(os.path.abspath(name)):  # (/dev/stdin < pawn.ply: its name is none
+        return piped_mesh_hint(format_, "given by a file descriptor's name")  # of its own, as a pipe's is not)
     base, renamed = os.path.basename(name), ""
     if mesh_file_format(base, content=False) is None:
         base = os.path.splitext(base)[0] + next(e for e, f in MESH_FORMATS.items() if f == format_)
@@ -134,6 +138,16 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str 
     scene = (f"`geometry: {{mesh: {base}}}` in a scene file beside it, with `materials:` and `camera:` "
              f"unless the mesh file gives them (docs/scenes.md, \"Geometry\")")
     return _by_key(name, key, f"{format_} mesh file", scene, base, "it", renamed)
+
+
+def piped_mesh_hint(format_: str, given: str = "given as a pipe") -> str:
+    """:func:`mesh_file_hint` of a mesh file of ``format_`` read as YAML where its name is none of its own
+    (``given``: a pipe's, ``tlm run <(cat pawn.obj)``; a file descriptor's, ``/dev/stdin < pawn.ply``): to save
+    it as a file of a mesh's suffix first."""
+    name = "mesh" + next(e for e, f in MESH_FORMATS.items() if f == format_)
+    hint = mesh_file_hint(name, format_)  # (as of a file named so: "is an OBJ mesh file, not a YAML file: write ...")
+    return hint.replace(f"{format_} mesh file, not a YAML file: ", f"{format_} mesh file {given}, not a YAML file: "
+                        f"save it as a file, {name} (a mesh file is read by its suffix), ", 1)
 
 
 def mesh_file_missing(format_: str) -> str:

@@ -91,8 +91,16 @@ def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str,
     from tlm.builtin import read_base
 
     raw, src = _study_frame(path, keys)
-    base, base_src, folder = read_base(raw.get("base"), file_folder(path), src, "study file")
+    base, base_src, folder = read_base(raw.get("base"), file_folder(path), src, "study file", scene_keys)
     return raw, _files_absolute(base, folder), base_src, folder
+
+
+def scene_keys(path: Path) -> None:
+    """Read the scene file ``path``'s keys and its ``extends:`` chain's (an InputError on a typo), as ``tlm run``
+    does before its note on a scene file: :func:`tlm.builtin.read_base`'s check of a scene file given as a base."""
+    from tlm.scenes.loader import read_scene_tree
+
+    read_scene_tree(path, ())
 
 
 def _files_absolute(base: dict, folder: Path) -> dict:

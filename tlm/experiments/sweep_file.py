@@ -46,7 +46,7 @@ from tlm.config import (
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import render_key
-from tlm.experiments.study import override_key, with_set
+from tlm.experiments.study import override_key, scene_keys, with_set
 from tlm.experiments.sweep_factors import assign as _assign
 from tlm.experiments.sweep_factors import dotted_keys as _dotted_keys
 from tlm.experiments.sweep_factors import expand as expand
@@ -475,7 +475,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
         raise InputError(f"{description!r} is not a string", source=src, key="description")
     folder = file_folder(path)  # (an anonymous pipe's: the working folder)
     base_file = raw.get("base") if isinstance(raw.get("base"), str) else None
-    base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file")
+    base, base_src, folder = read_base(raw.get("base"), folder, src, "sweep file", scene_keys)
     try:
         config_from_dict(base, base_src)  # the base alone, so its errors name its own file
     except InputError as e:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -165,9 +166,9 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
             named = "" if os.path.abspath(odd) == os.path.abspath(ref) else f": {odd}"
             if config_source == ref and not named:  # (given by itself, `tlm scene show /dev/null`: named once, as
                 # the file, without a key it was not given under, as a mesh file given by itself is)
-                raise InputError(f"is {_not_a_file(odd)}, not a scene file", source=ref)
-            raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file", source=config_source,
-                             key=key)
+                raise InputError(f"is {_not_a_file(odd)}, not a scene file{_save_it(odd)}", source=ref)
+            raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file{_save_it(odd)}",
+                             source=config_source, key=key)
         raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
                          source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
@@ -198,6 +199,8 @@ def _not_a_file(path: Path) -> str:
     if path.is_dir():
         return "a folder"
     if path.is_symlink():
+        if _piped(path):  # (/dev/stdin, <(...)'s /dev/fd/63: /proc's link names 'pipe:[N]', which no path is)
+            return "a pipe (a file descriptor's name)"
         try:
             path.resolve(strict=True)
         except (RuntimeError, OSError) as exc:  # (a loop: RuntimeError up to Python 3.12, OSError ELOOP after)
@@ -205,6 +208,21 @@ def _not_a_file(path: Path) -> str:
                 return "a symbolic link that leads round in a loop"
             return f"a symbolic link to {os.readlink(path)!r}, which is not there"
     return "a special file (a device, a pipe or a socket)"
+
+
+def _piped(path: Path) -> bool:
+    """Whether ``path`` leads to a pipe or a socket (read once: its text is gone, and a render reads a scene again)."""
+    try:
+        mode = os.stat(path).st_mode  # (through /proc's descriptor links, which a path's resolve does not follow)
+    except (OSError, ValueError):
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
+
+
+def _save_it(path: Path) -> str:
+    """What a scene given as a pipe (:func:`_piped`) is to be instead, after its "not a scene file"; else nothing."""
+    return (": a scene is read by its file's name (again by a render, its extends: and meshes from its folder): save "
+            "it to a file and name that") if path.is_symlink() and _piped(path) else ""
 
 
 def _material(name: str, raw: Any, src: str) -> Material:

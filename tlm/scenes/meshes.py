@@ -350,11 +350,17 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
         return f"{at} or {at}{zext}" if zext else str(at)
 
     missing = [w for w, p in zip(words, found, strict=True) if p is None]
+    dirs = list(dict.fromkeys(str(folder / n.replace("\\", "/")) for n in [text, *missing]
+                              if (folder / n.replace("\\", "/")).is_dir()))  # (`mtllib sub`: a folder of that name)
+    if dirs and len(words) == 1:
+        raise InputError(f"line {line}: the material library {text!r} (mtllib) is a folder, not a file: {dirs[0]}"
+                         + (f" (nor is there {dirs[0]}{zext})" if zext else ""), source=src)
     tried = f"no file {looked(text)}"
     if len(words) > 1:
         there = ", ".join(w for w, p in zip(words, found, strict=True) if p is not None)
         tried += (f", nor {' and '.join(looked(w) for w in missing)} (of the names its spaces separate, as the OBJ "
                   f"spec reads several libraries{f'; {there} found' if there else ''})")
+    tried += f" ({' and '.join(dirs)}: {'a folder' if len(dirs) == 1 else 'folders'})" if dirs else ""
     raise InputError(f"line {line}: the material library {text!r} (mtllib) is missing: {tried}"
                      f"{_case_hint(folder, [text, *missing])}", source=src)
 
