@@ -46,14 +46,14 @@ def elsewhere(tmp_path, monkeypatch):
 
 @pytest.fixture
 def piped():
-    """``piped(text)``: ``/dev/fd/N`` of a pipe holding ``text`` whose writer closed, as ``<(...)`` gives; its
-    reader is closed after the test."""
+    """``piped(text)``: ``/dev/fd/N`` of a pipe holding ``text`` (str, or bytes as they are) whose writer closed,
+    as ``<(...)`` gives; its reader is closed after the test."""
     fds = []
 
-    def make(text: str) -> str:
+    def make(text: str | bytes) -> str:
         r, w = os.pipe()
         fds.append(r)
-        os.write(w, text.encode())
+        os.write(w, text if isinstance(text, bytes) else text.encode())
         os.close(w)
         return f"/dev/fd/{r}"
 

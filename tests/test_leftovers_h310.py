@@ -34,23 +34,6 @@ ROOT = Path(__file__).resolve().parents[1]
 needs_dev_fd = pytest.mark.skipif(not os.path.isdir("/dev/fd"), reason="no /dev/fd here")
 
 
-@pytest.fixture
-def piped_bytes():
-    """``piped_bytes(data)``: ``/dev/fd/N`` of a pipe holding ``data`` (bytes) whose writer closed, as ``<(...)``."""
-    fds = []
-
-    def make(data: bytes) -> str:
-        r, w = os.pipe()
-        fds.append(r)
-        os.write(w, data)
-        os.close(w)
-        return f"/dev/fd/{r}"
-
-    yield make
-    for fd in fds:
-        os.close(fd)
-
-
 # ------------------------------------------------------------------ 1: tracebacks of one second
 
 
@@ -87,11 +70,11 @@ def test_errors_in_one_second_get_a_traceback_file_each_in_the_cache(cache, monk
 # ------------------------------------------------------------------ 2: the reference command of a piped config
 
 
-def test_a_piped_configs_reference_command_names_the_runs_copy(tmp_path, piped_bytes):
+def test_a_piped_configs_reference_command_names_the_runs_copy(tmp_path, piped):
     from tlm.experiments.run import read_once, skipped_reference
 
     cfg = config.config_from_dict({"scene": "cornell", "mode": "pmap"})
-    pipe = piped_bytes(b"scene: cornell\n")
+    pipe = piped(b"scene: cornell\n")
     out = tmp_path / "o"
     got = skipped_reference(cfg, pipe, ["resolution=[16,16]"], out)
     assert got["command"] == f"tlm reference {out.absolute() / 'config.resolved.yaml'}"  # (was /dev/fd/N --set ...)
@@ -104,9 +87,9 @@ def test_a_piped_configs_reference_command_names_the_runs_copy(tmp_path, piped_b
 
 
 @needs_dev_fd
-def test_tlm_run_of_a_piped_config_records_a_command_that_runs_again(tmp_path, cache, piped_bytes, capsys):
+def test_tlm_run_of_a_piped_config_records_a_command_that_runs_again(tmp_path, cache, piped, capsys):
     out = tmp_path / "pm"
-    pipe = piped_bytes((ROOT / "configs" / "cornell.yaml").read_bytes())
+    pipe = piped((ROOT / "configs" / "cornell.yaml").read_bytes())
     assert main(["run", pipe, "--mode", "pmap", "--set", "resolution=[16,16]", "--set", "photons.count=2000",
                  "--no-reference", "--out", str(out), "--no-progress", "--no-report"]) == 0
     resolved = out.absolute() / "config.resolved.yaml"
@@ -118,7 +101,7 @@ def test_tlm_run_of_a_piped_config_records_a_command_that_runs_again(tmp_path, c
     assert (cfg.mode, cfg.resolution, cfg.photons.count) == ("pmap", [16, 16], 2000)
 
 
-def test_a_sweeps_piped_base_is_named_by_a_points_config(tmp_path, piped_bytes, monkeypatch):
+def test_a_sweeps_piped_base_is_named_by_a_points_config(tmp_path, piped, monkeypatch):
     from types import SimpleNamespace
 
     from tlm.experiments.sweep_reference import _base_config
@@ -127,7 +110,7 @@ def test_a_sweeps_piped_base_is_named_by_a_points_config(tmp_path, piped_bytes, 
     (tmp_path / "base.yaml").write_text("scene: cornell\n")
     sweep = SimpleNamespace(path=tmp_path / "sweep.yaml", base_file="base.yaml")
     assert _base_config(sweep) == "base.yaml"
-    assert _base_config(SimpleNamespace(path=tmp_path / "sweep.yaml", base_file=piped_bytes(b"scene: cornell\n"))) \
+    assert _base_config(SimpleNamespace(path=tmp_path / "sweep.yaml", base_file=piped(b"scene: cornell\n"))) \
         is None  # (was /dev/fd/N, relative to here: no command reads it again)
 
 
@@ -145,12 +128,12 @@ GLTF = b'{"asset": {"version": "2.0"}, "meshes": [], "scenes": []}'
 @pytest.mark.parametrize(("data", "suffix", "format_"), [
     (OBJ, ".obj", "an OBJ"), (PLY, ".ply", "a PLY"), (STL, ".stl", "an STL"),
     (GLB, ".glb", "a binary glTF (.glb)"), (GLTF, ".gltf", "a glTF")], ids=["obj", "ply", "stl", "glb", "gltf"])
-def test_a_piped_mesh_is_said_as_a_mesh_file_is(tmp_path, piped_bytes, data, suffix, format_):
+def test_a_piped_mesh_is_said_as_a_mesh_file_is(tmp_path, piped, data, suffix, format_):
     named = tmp_path / f"mesh{suffix}"
     named.write_bytes(data)
     with pytest.raises(InputError) as by_name:
         config.read_yaml(named)
-    pipe = piped_bytes(data)
+    pipe = piped(data)
     with pytest.raises(InputError) as piped:  # (was: must be a mapping, a YAML error, not a UTF-8 text file)
         config.read_yaml(Path(pipe))
     assert str(piped.value) == str(by_name.value).replace(
@@ -161,12 +144,12 @@ def test_a_piped_mesh_is_said_as_a_mesh_file_is(tmp_path, piped_bytes, data, suf
 
 
 @needs_dev_fd
-def test_tlm_run_of_a_piped_mesh_is_one_line(tmp_path, piped_bytes, capsys):
-    assert main(["run", piped_bytes(OBJ), "--out", str(tmp_path / "r")]) == 2
+def test_tlm_run_of_a_piped_mesh_is_one_line(tmp_path, piped, capsys):
+    assert main(["run", piped(OBJ), "--out", str(tmp_path / "r")]) == 2
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and "is an OBJ mesh file given as a pipe, not a YAML file" in err
     assert not (tmp_path / "r").exists()
-    assert config.read_yaml(Path(piped_bytes(b"scene: cornell\n"))) == {"scene": "cornell"}  # (YAML: as before)
+    assert config.read_yaml(Path(piped(b"scene: cornell\n"))) == {"scene": "cornell"}  # (YAML: as before)
 
 
 # ------------------------------------------------------------------ 4: too large, by the file's role

@@ -35,34 +35,17 @@ GLB = b"glTF" + struct.pack("<II", 2, 100) + b"\xff" * 88
 GLTF = b'\n  {"asset": {"version": "2.0"}, "meshes": [], "scenes": []}'
 
 
-@pytest.fixture
-def piped_bytes():
-    """``piped_bytes(data)``: ``/dev/fd/N`` of a pipe holding ``data`` (bytes) whose writer closed, as ``<(...)``."""
-    fds = []
-
-    def make(data: bytes) -> str:
-        r, w = os.pipe()
-        fds.append(r)
-        os.write(w, data)
-        os.close(w)
-        return f"/dev/fd/{r}"
-
-    yield make
-    for fd in fds:
-        os.close(fd)
-
-
 @pytest.mark.skipif(not os.path.isdir("/dev/fd"), reason="no /dev/fd here")
 @pytest.mark.parametrize(("data", "format_"), [
     (OBJ, "an OBJ"), (PLY, "a PLY"), (STL, "an STL"), (GLB, "a binary glTF (.glb)"), (GLTF, "a glTF")],
     ids=["obj", "ply", "stl", "glb", "gltf"])
-def test_a_piped_mesh_is_told_where_there_is_no_memfd(piped_bytes, monkeypatch, data, format_):
+def test_a_piped_mesh_is_told_where_there_is_no_memfd(piped, monkeypatch, data, format_):
     monkeypatch.delattr(os, "memfd_create", raising=False)  # (macOS, the BSDs: no memfd_create, no /proc)
-    pipe = piped_bytes(data)
+    pipe = piped(data)
     with pytest.raises(InputError) as e:  # (was: must be a mapping, a YAML error, not a UTF-8 text file)
         config.read_yaml(Path(pipe))
     assert f"{pipe}: is {format_} mesh file given as a pipe, not a YAML file: save it as a file" in str(e.value)
-    assert config.read_yaml(Path(piped_bytes(b"scene: cornell\n"))) == {"scene": "cornell"}  # (YAML: as before)
+    assert config.read_yaml(Path(piped(b"scene: cornell\n"))) == {"scene": "cornell"}  # (YAML: as before)
 
 
 BIG_GLTF = json.dumps({"asset": {"version": "2.0"}, "meshes": [], "extras": "x" * (1 << 20)}).encode()
