@@ -12,12 +12,12 @@ import inspect
 import numbers
 import os
 import re
-import stat
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
+from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -32,33 +32,6 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
     from tlm.scenes.loader import list_scenes  # (what tlm.api.list_scenes returns)
 
     return find(os.fspath(ref), command, list_scenes())
-
-
-# the names of a file descriptor (a config piped, ``<(...)``: ``/dev/fd/63``; ``/dev/stdin``; ``/proc/self/fd/0``)
-_DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
-
-
-def nameless(path: str | os.PathLike) -> str | None:
-    """What the file ``path`` is where its name is none of its own, or where its text is read once, which a folder
-    or a command named after it would not find again: ``"a pipe"`` (``tlm run <(...)``'s ``/dev/fd/63``, a piped
-    ``/dev/stdin``: read once, its text gone, in no folder), ``"a named FIFO"`` (``mkfifo c``: a name and a folder
-    of its own, which its relative paths start at, :func:`tlm.config.file_folder`, but read once too: ``runs/c``
-    would be the folder of every config written to it), ``"a file descriptor's name"`` (a file given as
-    ``/dev/stdin < cornell.yaml``: every such config's name is ``stdin``); None for a file of a name of its own, a
-    folder, and what is not there."""
-    try:
-        mode = os.stat(path).st_mode
-    except (OSError, ValueError):
-        return None
-    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
-        try:  # (a pipe's /dev/fd/63 resolves to /proc/PID/fd/pipe:[N], which is in no folder)
-            named = stat.S_ISFIFO(mode) and Path(path).resolve().exists()
-        except (OSError, RuntimeError):
-            named = False
-        return "a named FIFO" if named else "a pipe"
-    if stat.S_ISREG(mode) and _DESCRIPTOR.fullmatch(os.path.abspath(os.fspath(path))):
-        return "a file descriptor's name"
-    return None
 
 
 def shown(value: Any) -> str:

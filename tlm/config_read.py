@@ -7,11 +7,12 @@ not where another reader of :func:`tlm.config.read_text` (an ``arch.programs`` t
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Callable
 from pathlib import Path
 
 from tlm.errors import InputError
-from tlm.mesh_files import MESH_FORMATS, mesh_bytes_format, piped_mesh_hint
+from tlm.mesh_files import MESH_FORMATS, descriptor_name, mesh_bytes_format, piped_mesh_hint
 
 # what a file too large to be a YAML file tlm reads is where a config or a scene file goes (read_yaml's)
 MESH_NAMED = "a mesh is named in a scene file's geometry (docs/scenes.md)"
@@ -62,3 +63,26 @@ def _refuse_mesh(path: Path, head: bytes, size: int) -> None:
         return
     hint = piped_mesh_hint(format_)  # (as of a file named mesh.obj, and to save it so first)
     raise InputError(hint, source=str(path))
+
+
+def nameless(path: str | os.PathLike) -> str | None:
+    """What the file ``path`` is where its name is none of its own, or where its text is read once, which a folder
+    or a command named after it would not find again: ``"a pipe"`` (``tlm run <(...)``'s ``/dev/fd/63``, a piped
+    ``/dev/stdin``: read once, its text gone, in no folder), ``"a named FIFO"`` (``mkfifo c``: a name and a folder
+    of its own, which its relative paths start at, :func:`tlm.config.file_folder`, but read once too: ``runs/c``
+    would be the folder of every config written to it), ``"a file descriptor's name"`` (a file given as
+    ``/dev/stdin < cornell.yaml``: every such config's name is ``stdin``); None for a file of a name of its own, a
+    folder, and what is not there."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+        try:  # (a pipe's /dev/fd/63 resolves to /proc/PID/fd/pipe:[N], which is in no folder)
+            named = stat.S_ISFIFO(mode) and Path(path).resolve().exists()
+        except (OSError, RuntimeError):
+            named = False
+        return "a named FIFO" if named else "a pipe"
+    if stat.S_ISREG(mode) and descriptor_name(path):
+        return "a file descriptor's name"
+    return None

@@ -25,8 +25,14 @@ _GLTF_KEYS = {"asset", "scene", "scenes", "nodes", "meshes", "accessors", "buffe
               "extensionsRequired", "extras"}
 _GLTF_NOT_LISTS = {"asset", "scene", "extensions", "extras"}  # (every other one is a list; 'scene' an index)
 _GLTF_PARSED = 1 << 20  # (bytes: a JSON file up to this size is parsed to tell a glTF; a larger one by its first bytes)
-# the names of a file descriptor (``<(...)``'s ``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``): tlm.api_common's
+# the names of a file descriptor (``<(...)``'s ``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``)
 _DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
+
+
+def descriptor_name(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a file descriptor's name (``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``), a name of
+    no file of its own: the one rule of :func:`tlm.config_read.nameless` and of a mesh's hint."""
+    return _DESCRIPTOR.fullmatch(os.path.abspath(os.fspath(path))) is not None
 
 
 def _gltf_json(data: bytes, head: bytes, size: int) -> bool:
@@ -129,7 +135,7 @@ def mesh_file_hint(name: str, format_: str, key: str | None = None, folder: str 
     ``name`` is relative to (a scene file's, for its ``extends``; none: the working folder)."""
     if format_ == MTL_FORMAT:
         return _mtl_hint(name, key, folder)
-    if key is None and _DESCRIPTOR.fullmatch(os.path.abspath(name)):  # (/dev/stdin < pawn.ply: its name is none
+    if key is None and descriptor_name(name):  # (/dev/stdin < pawn.ply: its name is none
         return piped_mesh_hint(format_, "given by a file descriptor's name")  # of its own, as a pipe's is not)
     base, renamed = os.path.basename(name), ""
     if mesh_file_format(base, content=False) is None:

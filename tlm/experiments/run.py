@@ -30,9 +30,6 @@ when it is a terminal) follows the batches and the timing model.
 
 from __future__ import annotations
 
-import os
-import re
-import stat
 import time
 from collections.abc import Callable, Iterable
 from contextlib import contextmanager
@@ -48,6 +45,7 @@ from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
 from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, to_dict
+from tlm.config_read import nameless
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean
 from tlm.experiments.error_cost_clock import CompileClock
@@ -354,25 +352,12 @@ def skipped_reference(cfg: RunConfig, config_path: str | None, overrides: Iterab
                                 f"{kept.name}, with every setting, the --set values included"}
 
 
-# the names of a file descriptor (``<(...)``'s ``/dev/fd/63``, ``/dev/stdin``, ``/proc/self/fd/0``): tlm.api_common's
-_DESCRIPTOR = re.compile(r"/(?:dev/(?:stdin|fd/[0-9]+)|proc/(?:self|thread-self|[0-9]+)/fd/[0-9]+)")
-
-
 def read_once(config_path: str | None) -> str | None:
     """What the config ``config_path`` is where a later command cannot read it again: ``"a pipe"`` (``tlm run
     <(...)``'s ``/dev/fd/63``, a FIFO: its text is gone once read), ``"a file descriptor's name"`` (``/dev/stdin <
-    cornell.yaml``); None for a file of its own name, and for none (:func:`tlm.api_common.nameless`, in this layer)."""
-    if not config_path:
-        return None
-    try:
-        mode = os.stat(config_path).st_mode
-    except (OSError, ValueError):
-        return None
-    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
-        return "a pipe"
-    if stat.S_ISREG(mode) and _DESCRIPTOR.fullmatch(os.path.abspath(config_path)):
-        return "a file descriptor's name"
-    return None
+    cornell.yaml``); None for a file of its own name, and for none (:func:`tlm.config_read.nameless`)."""
+    once = nameless(config_path) if config_path else None
+    return "a pipe" if once == "a named FIFO" else once
 
 
 def reference_command(config_path: str | None, overrides: Iterable[str] | None = ()) -> str:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import errno
 import os
-import stat
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
+from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean, path_shown
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
@@ -211,12 +211,9 @@ def _not_a_file(path: Path) -> str:
 
 
 def _piped(path: Path) -> bool:
-    """Whether ``path`` leads to a pipe or a socket (read once: its text is gone, and a render reads a scene again)."""
-    try:
-        mode = os.stat(path).st_mode  # (through /proc's descriptor links, which a path's resolve does not follow)
-    except (OSError, ValueError):
-        return False
-    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
+    """Whether ``path`` leads to a pipe or a socket (read once: its text is gone, and a render reads a scene again):
+    :func:`tlm.config_read.nameless`, through /proc's descriptor links, which a path's resolve does not follow."""
+    return nameless(path) in ("a pipe", "a named FIFO")
 
 
 def _save_it(path: Path) -> str:
