@@ -34,15 +34,15 @@ needs_dev_fd = pytest.mark.skipif(not os.path.isdir("/dev/fd"), reason="no /dev/
 
 @pytest.fixture
 def reads(monkeypatch):
-    """The paths :func:`tlm.config.read_text` reads (every YAML read), in order."""
+    """The paths :func:`tlm.config.read_bytes` reads (every YAML read, every ``read_text``), in order."""
     seen: list[str] = []
-    real = config.read_text
+    real = config.read_bytes
 
     def counted(path):
         seen.append(str(path))
         return real(path)
 
-    monkeypatch.setattr(config, "read_text", counted)
+    monkeypatch.setattr(config, "read_bytes", counted)
     return seen
 
 

@@ -345,7 +345,7 @@ def _read_image(folder: Path, name: str, key: str, fields: dict | None, optional
         return None, None, None
     bad, why = side, None
     try:
-        meta = json.loads(side.read_text())
+        meta = json.loads(side.read_text(encoding="utf-8"))
         if not isinstance(meta, dict) or meta.get("key") != key:
             raise ValueError("not the metadata of this entry")
     except (OSError, ValueError) as e:

@@ -37,7 +37,7 @@ from tlm.config_paths import (  # noqa: F401  (PATH_KEYS, builtin_scenes_dir, na
     paths_from,
     scene_from,
 )
-from tlm.config_read import NotText, TooLarge, yaml_text
+from tlm.config_read import TooLarge, decoded, yaml_text
 from tlm.config_sections import (  # noqa: F401  (FILTERS and the functional model's sections: re-exported)
     FILTERS,
     BSPConfig,
@@ -282,11 +282,11 @@ def read_yaml(path: Path) -> Any:
 
     Inside :func:`noting_reads`, the read is noted: ``("yaml", path, sha256 of the text,
     the mapping's ``extends``)`` (what a memo of a load that reads it checks)."""
-    # (a regular file's first bytes alone: a pipe's or a FIFO's, once read, are gone; read_text's read is their one)
+    # (a regular file's first bytes alone: a pipe's or a FIFO's, once read, are gone; read_bytes' read is their one)
     format_ = mesh_file_format(path) if os.path.isfile(path) else None
     if format_ is not None:
         raise InputError(mesh_file_hint(str(path), format_), source=str(path))
-    text = yaml_text(path, read_text)  # (one read; a mesh's bytes from a pipe told as a mesh file's are)
+    text = yaml_text(path, read_bytes)  # (one read; a mesh's bytes from a pipe told as a mesh file's are)
     data = yaml_from_text(text, path)
     if _READS.get() is not None:
         extends = data.get("extends") if isinstance(data, dict) else None
@@ -300,9 +300,16 @@ MAX_TEXT_BYTES = 64 * 2**20
 
 
 def read_text(path: Path) -> str:
-    """A UTF-8 text file's text, as :func:`read_yaml` reads it; a missing or unreadable file is an InputError naming
-    it, and so is a folder, a device (``/dev/zero``: no file ends it) and a file of more than :data:`MAX_TEXT_BYTES`
-    (a pipe's text read no further than that)."""
+    """A UTF-8 text file's text, as :func:`read_yaml` reads it: :func:`read_bytes`'s bytes decoded
+    (:func:`tlm.config_read.decoded`: universal newlines; a file that is no UTF-8 text an InputError naming it)."""
+    return decoded(read_bytes(path), path)
+
+
+def read_bytes(path: Path) -> bytes:
+    """The bytes of a text file tlm reads whole, as they are (what a piped mesh is told by, before they are decoded:
+    :func:`tlm.config_read.yaml_text`); a missing or unreadable file is an InputError naming it, and so is a folder,
+    a device (``/dev/zero``: no file ends it) and a file of more than :data:`MAX_TEXT_BYTES` (a pipe's read no
+    further than that)."""
     if "\0" in os.fspath(path):  # (which open refuses with a ValueError)
         raise InputError("file not found (a file name holds no NUL character)", source=str(path))
     try:
@@ -313,19 +320,15 @@ def read_text(path: Path) -> str:
             if mode.st_size > MAX_TEXT_BYTES:  # (in bytes: 64 MiB and 1 byte is no "64 MiB, at most 64 MiB")
                 raise TooLarge(_too_large(f"{mode.st_size:,} bytes, at most"), source=str(path))
             data = _read_bounded(f, mode.st_size)
-        if len(data) > MAX_TEXT_BYTES:
-            raise TooLarge(_too_large("more than"), source=str(path))
-        # (as Path.read_text gives it: universal newlines, a byte offset in the whole file where it is no UTF-8)
-        return data.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
         raise InputError("file not found", source=str(path)) from None
     except IsADirectoryError:
         raise InputError("is a folder, not a file: name a YAML file", source=str(path)) from None
-    except UnicodeDecodeError as e:
-        raise NotText(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
-                      source=str(path), head=e.object[:2**20], size=len(e.object)) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", source=str(path)) from None
+    if len(data) > MAX_TEXT_BYTES:
+        raise TooLarge(_too_large("more than"), source=str(path))
+    return data
 
 
 def _read_bounded(f: typing.BinaryIO, size: int) -> bytes:

@@ -2,7 +2,8 @@
 YAML file read where a config or a scene file goes: a mesh file given through a pipe (``tlm run
 <(cat pawn.obj)``), told by its bytes as a mesh file given by its name is (:func:`yaml_text`), and a
 file too large to be one (:class:`TooLarge`), whose hint names a scene file's ``geometry`` there only,
-not where another reader of :func:`tlm.config.read_text` (an ``arch.programs`` table) read it."""
+not where another reader of :func:`tlm.config.read_text` (an ``arch.programs`` table) read it; and the text of the
+bytes such a file holds (:func:`decoded`: UTF-8 whatever the locale, told as a mesh's or not before it is decoded)."""
 
 from __future__ import annotations
 
@@ -25,33 +26,36 @@ class TooLarge(InputError):
 
 
 class NotText(InputError):
-    """:func:`tlm.config.read_text`'s file that is no UTF-8 text, with ``head`` (its first bytes) and ``size``
-    (how many it held): what :func:`yaml_text` tells a piped binary mesh (a PLY's, a glTF's) by, the file's
-    bytes being gone once read from a pipe."""
-
-    def __init__(self, message: str, *, source: str | None = None, head: bytes = b"", size: int = 0) -> None:
-        super().__init__(message, source=source)
-        self.head, self.size = head, size
+    """:func:`decoded`'s bytes that are no UTF-8 text (a binary file read where a YAML or a text file goes)."""
 
 
-def yaml_text(path: Path, read: Callable[[Path], str]) -> str:
-    """``read(path)``'s text (:func:`tlm.config.read_text`, one read) where a YAML config or scene file goes:
-    a file too large to be one is said with where a mesh goes (:data:`MESH_NAMED`), and one read from a pipe
+def decoded(data: bytes, path: Path) -> str:
+    """The text of ``data``, the bytes :func:`tlm.config.read_bytes` read from ``path``, as ``Path.read_text`` gives
+    it: UTF-8, whatever the locale's encoding, in universal newlines; bytes that are no UTF-8 a :class:`NotText`
+    naming ``path`` and the byte offset in the whole file."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise NotText(f"not a UTF-8 text file (byte 0x{e.object[e.start]:02x} at offset {e.start})",
+                      source=str(path)) from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def yaml_text(path: Path, read: Callable[[Path], bytes]) -> str:
+    """The text of ``read(path)``'s bytes (:func:`tlm.config.read_bytes`, one read) where a YAML config or scene file
+    goes: a file too large to be one is said with where a mesh goes (:data:`MESH_NAMED`), and one read from a pipe
     or a FIFO (no regular file, whose first bytes :func:`tlm.config.read_yaml` peeks at before) that holds a
     mesh file's bytes is an InputError with the line a mesh file given by its name gets, not its parse's
-    (``must be a mapping``, ``not a UTF-8 text file``)."""
+    (``must be a mapping``, ``not a UTF-8 text file``). The mesh is told by the bytes as read, before they are
+    decoded (a binary STL whose bytes are UTF-8 holding ``\\r\\n`` pairs is no STL of its size once its newlines
+    are made ``\\n``)."""
     try:
-        text = read(path)
+        data = read(path)
     except TooLarge as e:
         raise e.replaced(message=f"{e.message}: {MESH_NAMED}") from None
-    except NotText as e:
-        if not os.path.isfile(path):
-            _refuse_mesh(path, e.head, e.size)
-        raise
     if not os.path.isfile(path):
-        data = text.encode("utf-8", "surrogatepass")
         _refuse_mesh(path, data[:_PEEKED], len(data))
-    return text
+    return decoded(data, path)
 
 
 def _refuse_mesh(path: Path, head: bytes, size: int) -> None:

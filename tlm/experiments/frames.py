@@ -234,7 +234,7 @@ def _kept_key(key: tuple) -> tuple[str, list] | None:
         return None
     path, plain = found
     try:
-        kept = json.loads(path.read_text())
+        kept = json.loads(path.read_text(encoding="utf-8"))
         if (not isinstance(kept, dict) or kept.get("tlm") != SCENE_KEY_FORMAT or kept.get("key") != plain
                 or not isinstance(kept.get("fingerprint"), str) or not isinstance(kept.get("checks"), list)
                 or not all(isinstance(c, list) and c and c[0] in TELLS for c in kept["checks"])):
@@ -283,7 +283,7 @@ def is_cached(key: str) -> bool:
     if not (path.is_file() and side.is_file()):
         return False
     try:
-        summary = json.loads(side.read_text())
+        summary = json.loads(side.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
     return (isinstance(summary, dict) and summary.get("format") == SUMMARY_FORMAT
@@ -480,7 +480,7 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
     is marked used (its sidecar's time: :func:`tlm.caches.note_use`; no digest checks it), so that
     ``tlm cache prune`` removes frames by their last use where access times are not kept."""
     try:
-        summary = json.loads(side.read_text())
+        summary = json.loads(side.read_text(encoding="utf-8"))
         if not isinstance(summary, dict):
             raise ValueError("not a JSON object")
     except (FileNotFoundError, NotADirectoryError):

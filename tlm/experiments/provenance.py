@@ -182,12 +182,14 @@ def _files_whole(dist, mod: str) -> bool:
 
 
 def _git(*args: str, cwd: Path) -> str | None:
-    """``git args`` in ``cwd``: its output, stripped; None where git fails or is missing."""
+    """``git args`` in ``cwd``: its output, stripped; None where git fails or is missing. Its bytes are read as a
+    file name is (``os.fsdecode``), whatever the locale's encoding: a checkout in a folder of a non-ASCII name
+    (``--show-toplevel``) under ``LC_ALL=C`` is that folder, as ``Path(__file__)`` names it, not a decoding error."""
     try:
-        out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, text=True, timeout=5, check=False)
+        out = subprocess.run(["git", *args], cwd=cwd, capture_output=True, timeout=5, check=False)
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() if out.returncode == 0 else None
+    return os.fsdecode(out.stdout).strip() if out.returncode == 0 else None
 
 
 def _checkout() -> Path | None:

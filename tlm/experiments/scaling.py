@@ -111,7 +111,7 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
     if not rows_path.is_file():
         raise InputError("is not a sweep folder (no sweep.jsonl): run 'tlm sweep' first", source=str(sweep_dir))
     try:
-        spec = safe_load((sweep_dir / "sweep.yaml").read_text()) or {}
+        spec = safe_load((sweep_dir / "sweep.yaml").read_text(encoding="utf-8")) or {}
     except (OSError, ValueError, yaml.YAMLError):
         spec = {}
     points = [p for p in (spec.get("points") if isinstance(spec, dict) else None) or [] if isinstance(p, dict)]
@@ -134,8 +134,8 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
             continue
         folder = sweep_dir / "points" / str(row.get("hash"))
         try:
-            res = json.loads((folder / "results.json").read_text())
-            cfg = safe_load((folder / "config.resolved.yaml").read_text())
+            res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+            cfg = safe_load((folder / "config.resolved.yaml").read_text(encoding="utf-8"))
         except FileNotFoundError as e:
             raise InputError(f"point {row.get('point')}: {e.filename} is missing (rerun 'tlm sweep' into this "
                              "folder to compute the point again)", source=str(rows_path), key=f"line {n}") from None

@@ -19,8 +19,8 @@ from tlm.storage import read_jsonl
 
 # how sweep_points reads a sweep's sweep.yaml (its data) and sweep.jsonl (its rows); while a report is written, by
 # that report's reads, each file once a report (tlm.report.once.reading sets it for the report alone)
-SWEEP_READ: ContextVar[Callable[[Path], Any]] = ContextVar(
-    "SWEEP_READ", default=lambda path: read_jsonl(path) if path.suffix == ".jsonl" else safe_load(path.read_text()))
+SWEEP_READ: ContextVar[Callable[[Path], Any]] = ContextVar("SWEEP_READ", default=lambda path: (
+    read_jsonl(path) if path.suffix == ".jsonl" else safe_load(path.read_text(encoding="utf-8"))))
 
 
 def sweep_points(sweep_dir: Path) -> tuple[list[str], list[str]]:

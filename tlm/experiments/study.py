@@ -224,7 +224,8 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
         if overrides:  # (the --set strings the study's configs were made with: their values are in its configs)
             made = {"study": made.pop("study"), "overrides": overrides, **made}
         write_file(tmp / "provenance.json", json_text(made, indent=2) + "\n")
-        write_file(tmp / MANIFEST, "".join(f"{n}\n" for n in sorted({*os.listdir(tmp), MANIFEST, "report"})))
+        names = sorted({*os.listdir(tmp), MANIFEST, "report"})  # (as bytes: a name as the file system holds it)
+        write_file(tmp / MANIFEST, b"".join(os.fsencode(n) + b"\n" for n in names))
     return rows
 
 
@@ -233,10 +234,12 @@ MANIFEST = ".tlm-files"  # the names a study wrote in its folder (the module's d
 
 def _owned(out: Path) -> set[str] | None:
     """The names an earlier study in ``out`` wrote (its :data:`MANIFEST`), which a rerun
-    replaces; None (replace everything) for a folder without one."""
+    replaces; None (replace everything) for a folder without one. Its names are read as ``os.listdir`` gives
+    them (``os.fsdecode``: UTF-8 ones as such, or as the surrogates of a ``LC_ALL=C`` process), whatever the
+    locale's encoding: a non-ASCII name is its file's, never a decoding error that replaces the user's files too."""
     try:
-        return {n for n in (out / MANIFEST).read_text().splitlines() if n}
-    except (OSError, UnicodeDecodeError):
+        return {os.fsdecode(n) for n in (out / MANIFEST).read_bytes().splitlines() if n}
+    except OSError:
         return None
 
 

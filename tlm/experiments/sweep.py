@@ -663,7 +663,7 @@ def _holds(path: Path, value) -> bool:
     """Whether the JSON file ``path`` here holds ``value`` (a worker's record, as written: strict JSON), or a
     mapping with each of its keys (an ``error.json``: the error with the point's hash and factors)."""
     try:
-        here = json.loads(path.read_text())
+        here = json.loads(path.read_text(encoding="utf-8"))
         want = json.loads(storage.json_text(value))
     except (OSError, ValueError, TypeError):
         return False

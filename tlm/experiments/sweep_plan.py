@@ -266,7 +266,7 @@ def _cached_meta(key: str) -> dict | None:
 
     folder = cache_dir() / key
     try:
-        meta = json.loads((folder / "meta.json").read_text())
+        meta = json.loads((folder / "meta.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     if not isinstance(meta, dict) or meta.get("key", key) != key or fields_problem(meta, META_FIELDS, META_OPTIONAL):
