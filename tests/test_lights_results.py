@@ -49,6 +49,8 @@ def test_results_lights_are_the_scene_show_lights(tmp_path):
     recorded = json.loads(json.dumps(_lights(path)))  # (as results.json holds them)
     assert recorded == json.loads(json.dumps(tlm.scene_info(str(path))["lights"]))
     point, spot, sun, quad, mesh = recorded
+    # (h333: each the scene file's entry it came from; the mesh light none, its materials' emission)
+    assert [lt.pop("from") for lt in (point, spot, sun, quad)] == [f"{path}: lights[{i}]" for i in range(4)]
     # the keys results.json always had keep their names and values
     assert [lt["type"] for lt in recorded] == ["point", "spot", "directional", "quad", "mesh"]
     assert point == {"type": "point", "power": [1.0, 2.0, 3.0], "position": [0.0, 3.0, 0.0]}
@@ -69,6 +71,7 @@ def test_results_lights_are_the_scene_show_lights(tmp_path):
 def test_spots_that_differ_only_in_their_cone_or_aim_differ_in_results(tmp_path, changed):
     a = _lights(_scene(tmp_path, "a.yaml", lights=[SPOT]))
     b = _lights(_scene(tmp_path, "b.yaml", lights=[changed]))
+    a, b = ([{k: v for k, v in lt.items() if k != "from"} for lt in x] for x in (a, b))  # (their files differ)
     assert a[0]["power"] == b[0]["power"] and a != b
 
 

@@ -187,7 +187,8 @@ def test_a_material_a_second_library_defines_again_is_noted_with_both_lines(tmp_
     (tmp_path / "s.yaml").write_text("geometry: {mesh: m.obj}\n" + CAMERA + LIGHT)
     said = [n for n in api.load_scene(tmp_path / "s.yaml").extra["notes"] if "n.mtl" in n]
     assert said == [f"{tmp_path / 'n.mtl'}: line 3: newmtl 'floor' is defined by {tmp_path / 'm.mtl'} too (line 3), "
-                    "named first by the mtllib: that one is used"], said
+                    "which the mtllib names first: that one is used (results.json's scene.materials, `from`, names "
+                    "it), this one is ignored"], said  # (h333: which one is recorded said too)
 
 
 # ------------------------------------------------------------ 5, 6. an empty GLB, a glTF 1.0 file

@@ -102,7 +102,8 @@ def test_a_light_a_gltf_gave_says_where_it_came_from(tmp_path):
     glb = _scene_glb(tmp_path)  # (a lamp on two nodes, a spot 'beam' on one)
     scene = load_scene(str(_yaml(tmp_path, "geometry: {mesh: s.glb}\n")))
     lights = scene_stats(scene, build_accel(scene.triangles, levels=2))["lights"]
-    punctual = f"{glb.name} KHR_lights_punctual.lights"  # (a glTF light's name: its file's name and its key)
+    # (h333: its file as a glTF material's from names it, the path, and its key; Light.origin)
+    punctual = f"{glb} KHR_lights_punctual.lights"
     assert [lt["from"] for lt in lights if lt["type"] != "mesh"] == [
         f"{punctual}[0] 'lamp' at nodes[2]", f"{punctual}[0] 'lamp' at nodes[3]", f"{punctual}[1] 'beam' at nodes[5]"]
 

@@ -38,7 +38,8 @@ def test_scene_show_lists_what_a_gltf_gave_and_what_was_left_out(tmp_path, capsy
             "imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
             "lights:") in notes
     assert shown["lights"][2] == {"type": "spot", "power": [4.0 * math.pi * 9.0] * 3, "position": [0.0, 0.0, 0.0],
-                                  "direction": [0.0, 0.0, -1.0], "inner_cone_angle": 0.0, "outer_cone_angle": 45.0}
+                                  "direction": [0.0, 0.0, -1.0], "inner_cone_angle": 0.0, "outer_cone_angle": 45.0,
+                                  "from": f"{glb} KHR_lights_punctual.lights[1] 'beam' at nodes[5]"}  # (h333)
     assert (f"{glb}: its camera cameras[0] at nodes[4] is the scene's camera (vfov 28.6479 degrees): the "
             "scene file gives no camera:") in notes
     assert (f"{glb}: not imported from its cameras: cameras[1] at nodes[6] (orthographic: tlm's camera is a "
@@ -77,6 +78,8 @@ def test_scene_show_lists_each_light_with_its_own_kinds_fields(tmp_path, capsys)
                     "edge_v": [0.0, 0.0, 1.0], "power": [5.0, 5.0, 5.0]}],
     }))
     point, spot, sun, quad = _show(capsys, path)["lights"]
+    # (h333: each with its from, the scene file's entry)
+    assert [lt.pop("from") for lt in (point, spot, sun, quad)] == [f"{path}: lights[{i}]" for i in range(4)]
     assert point == {"type": "point", "power": [1.0, 2.0, 3.0], "position": [0.0, 3.0, 0.0]}
     assert spot == {"type": "spot", "power": [4.0, 4.0, 4.0], "position": [2.0, 3.0, 0.0],
                     "direction": [0.0, -2.0, 0.0], "inner_cone_angle": 10.0, "outer_cone_angle": 30.0}

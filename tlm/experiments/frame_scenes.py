@@ -47,10 +47,10 @@ def scene_fingerprint(scene) -> str:
     # project in another folder shares the frame: marked_line, frames._here)
     folder = os.path.dirname(scene.source) if scene.source else ""
     notes = [marked_line(str(n), folder, tagged=False) for n in scene.extra.get("notes") or []]
-    # (and where each material came from, results.json's scene.materials' from: Material.origin, no part of its
-    # value; a copy whose MTL defines it on another line, or whose material another file of its extends: chain
-    # gives, has a frame of its own, which names its own line)
-    origins = [marked_line(m.origin, folder, tagged=False) for m in scene.materials]
+    # (and where each material and light came from, results.json's scene.materials' and scene.lights' from:
+    # Material.origin, Light.origin, no part of its value; a copy whose MTL defines it on another line, or whose
+    # material or lights: another file of its extends: chain gives, has a frame of its own, which names its own line)
+    origins = [marked_line(x.origin, folder, tagged=False) for x in (*scene.materials, *scene.lights)]
     h.update(repr((scene.name, notes, origins)).encode())
     return h.hexdigest()[:16]
 

@@ -419,10 +419,12 @@ def scene_stats(scene: Scene, accel: TriangleAccel) -> dict:
 
 
 def light_record(lt: Light) -> dict:
-    """``results.json``'s record of a light: :meth:`~tlm.scenes.model.Light.info`, and ``from``, a mesh file's
-    light's name (its file, ``KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``). A light without ``from`` is
-    the scene file's ``lights:`` entry of its place; the mesh light (``materials``) is its materials' emission."""
-    return {**lt.info(), "from": lt.name} if lt.name and lt.kind != "mesh" else lt.info()
+    """``results.json``'s record of a light: :meth:`~tlm.scenes.model.Light.info`, with its ``from``
+    (:attr:`~tlm.scenes.model.Light.origin`: ``FILE: lights[i]``, a scene file's entry; a mesh file's light, its
+    file and ``KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``), else its name (a Light built without one);
+    the mesh light (``materials``) is its materials' emission."""
+    info = lt.info()
+    return {**info, "from": lt.name} if "from" not in info and lt.name and lt.kind != "mesh" else info
 
 
 def results_dict(res: RenderResult, exposure: float, config_path: str | None,

@@ -359,8 +359,9 @@ def blocked_warnings(i: int, light: Light, share: float, distance: float, rays: 
     return [f"{light_name(i, light)} sends {100.0 * share:.0f}% of its power into a surface within {near:.3g} "
             f"of it (the smaller of {NEAR_LIMIT:g} of the scene's diagonal and {NEAR_SIZE:g} of its size; at "
             f"{distance:.3g} on average; {rays} probe rays over the side it emits on, weighted by their cosine): "
-            f"it faces the surface it lies against (is its face wound the wrong way? {flip}; a lamp aimed at a "
-            "wall on purpose lights the scene by that wall only)"]
+            f"it faces the surface it lies against (is its face wound the wrong way? {flip}; if it is aimed at that "
+            "surface on purpose, as a lamp lighting a room off a wall, nothing is wrong: the scene is lit by the "
+            "light that surface reflects, and this line can be ignored)"]
 
 
 def file_warnings(scene: Scene) -> list[str]:

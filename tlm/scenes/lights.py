@@ -12,6 +12,7 @@ file, the key and the value. The scene loader (:mod:`tlm.scenes.loader`) calls i
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -85,8 +86,6 @@ def mesh_light(triangles: np.ndarray, material_index: np.ndarray, materials: tup
 def with_mesh_light(scene: Scene) -> Scene:
     """``scene`` with its mesh light (the emitting triangles) rebuilt from its geometry, and its
     directional lights' power set from its triangles' box (:func:`~tlm.scenes.model.directional_power`)."""
-    from dataclasses import replace
-
     lights = tuple(lt for lt in scene.lights if lt.kind != "mesh")
     if any(lt.kind == "directional" for lt in lights):
         lo, hi = scene.bounds()
@@ -219,10 +218,13 @@ def _placed(lt: Light, where: str, file: str) -> Light:
     return lt
 
 
-def scene_lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...], list[str]]:
+def scene_lights(raw: dict, geom: Geometry, src: str, given_by: str = "") -> tuple[tuple[Light, ...], list[str]]:
     """The scene's lights: the scene file's ``lights:`` when it gives the key (itself or through
-    ``extends``), else the mesh files' point, spot and directional lights
-    (:attr:`Geometry.imports`); and a line per mesh file with such lights saying which it is."""
+    ``extends``: ``given_by``, the file of the chain that gave it, default ``src``), else the mesh files'
+    point, spot and directional lights (:attr:`Geometry.imports`); and a line per mesh file with such
+    lights saying which it is. Each light's :attr:`~tlm.scenes.model.Light.origin` names its entry:
+    ``FILE: lights[i]``, or the mesh file (its path, as a glTF material's ``from`` has it) and its
+    light's name (``KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``)."""
     notes = []
     if "lights" in raw:
         lights_raw = raw.get("lights") or []
@@ -233,13 +235,15 @@ def scene_lights(raw: dict, geom: Geometry, src: str) -> tuple[tuple[Light, ...]
                 k = len(_kinds(imps))
                 notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} not used: the scene "
                              f"file gives lights: (leave lights: out to import {'them' if k > 1 else 'it'})")
-        return tuple(_light(i, v, src) for i, v in enumerate(lights_raw)), notes
+        return tuple(replace(_light(i, v, src), origin=f"{given_by or src}: lights[{i}]")
+                     for i, v in enumerate(lights_raw)), notes
     lights = []
     for file, imps in _grouped(geom).items():
         if not any(i.lights for i in imps):
             continue
         for lt in (lt for i in imps for lt in i.lights):
-            lights.append(_placed(lt, lt.name.removeprefix(f"{Path(file).name} "), file))
+            label = lt.name.removeprefix(f"{Path(file).name} ")
+            lights.append(replace(_placed(lt, label, file), origin=f"{file} {label}"))
         k = len(_kinds(imps))
         notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} imported as "
                      f"{_imported_as(imps)}: the scene file gives no lights:")

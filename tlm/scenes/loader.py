@@ -374,7 +374,7 @@ def load_scene(
     origins: dict[str, Path] = {}
     raw, geom_path = read_scene_tree(path, (), given, origins)
     try:
-        return _scene(path, raw, geom_path, given, resolution, config_source)
+        return _scene(path, raw, geom_path, given, resolution, config_source, _origin(origins, "lights"))
     except InputError as e:  # (on a key of an extends: chain: named against the file that gave it)
         if not e.key or e.source not in (str(path), str(geom_path)):
             raise
@@ -385,8 +385,9 @@ def load_scene(
 
 
 def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resolution: list[int] | None,
-           config_source: str | None) -> Scene:
-    """:func:`load_scene` of the scene file ``path``, read (:func:`read_scene_tree`) as ``raw``."""
+           config_source: str | None, lights_by: Path | None = None) -> Scene:
+    """:func:`load_scene` of the scene file ``path``, read (:func:`read_scene_tree`) as ``raw`` (its ``lights:``
+    given by ``lights_by``, a file of its ``extends:`` chain, where known)."""
     src = str(path)
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
@@ -398,7 +399,7 @@ def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resol
     materials, material_index, unused = _assign_materials(raw, geom, src, inherited)
     part = np.asarray(geom.part, dtype=np.int32)
 
-    lights, notes = scene_lights(raw, geom, src)
+    lights, notes = scene_lights(raw, geom, src, str(lights_by or path))
     notes = [*unused, *notes]
     view, camera_notes = _camera(raw, geom, src)
 

@@ -88,8 +88,8 @@ from tlm.errors import InputError
 from tlm.scenes.model import Material
 
 __all__ = [
-    "GLB_MAGIC", "fold_mtl_notes", "glb_chunks", "glb_length_notes", "gltf_json", "gltf_material", "gltf_materials",
-    "mtl_material", "mtl_text", "parse_mtl", "write_glb",
+    "GLB_MAGIC", "LIBRARY_WINS", "fold_mtl_notes", "glb_chunks", "glb_length_notes", "gltf_json", "gltf_material",
+    "gltf_materials", "mtl_material", "mtl_text", "parse_mtl", "write_glb",
 ]
 
 GLASS_ILLUM = (4, 6, 7, 9)
@@ -243,23 +243,32 @@ _FOLDED = {
                           r"line \d+)\): (?P<hint>.*)$"),
                "newmtl names defined again, each later definition ignored", "{said}",
                ": the first definitions are used (rename them)"),
+    "library": (re.compile(rf"^(?P<file>.+?): line (?P<line>\d+): newmtl {_NAME} is defined by (?P<key>.+) too "
+                           r"\(line (?P<said>\d+)\), which the mtllib names first: (?P<hint>.*)$"),
+                "newmtl names that {key} defines too, which the mtllib names first", "{key} line {said}",
+                ": the definitions in {key} are used (results.json's scene.materials, `from`, names them), these "
+                "are ignored"),
 }
+# (what an OBJ's MTL notes say of a material a later library defines again: which definition is used and recorded)
+LIBRARY_WINS = "that one is used (results.json's scene.materials, `from`, names it), this one is ignored"
 
 
 def fold_mtl_notes(notes: list[str]) -> list[str]:
     """``notes`` with the MTL notes of one mistake repeated in a file (:func:`parse_mtl`'s: a colour
     clipped, with or without the 0-255 hint; a statement given again; a ``newmtl`` name defined
-    again) folded into one line per file and kind, where there are two or more, at the first's
-    place: their count, the first's line, material and value, the hint. Every other note is kept
-    as it is. Each note stays in ``Geometry.notes`` (``tlm scene show`` lists them all); a run's
-    warnings fold them (:func:`tlm.render.checks.file_warnings`)."""
+    again, in the file or by a library the OBJ's ``mtllib`` names before it) folded into one line per
+    file and kind, where there are two or more, at the first's place: their count, the first's line,
+    material and value, the hint. Every other note is kept as it is. Each note stays in
+    ``Geometry.notes`` (``tlm scene show`` lists them all); a run's warnings fold them
+    (:func:`tlm.render.checks.file_warnings`)."""
     groups: dict[tuple, list[tuple[int, re.Match]]] = {}
     for i, note in enumerate(notes):
         for kind, (pattern, *_) in _FOLDED.items():
             m = pattern.match(str(note))
             if m is not None:
                 hint = m["hint"] if kind == "clipped" else ""
-                groups.setdefault((m["file"], kind, m["key"] if kind == "clipped" else "", hint), []).append((i, m))
+                key = m["key"] if kind in ("clipped", "library") else ""
+                groups.setdefault((m["file"], kind, key, hint), []).append((i, m))
                 break
     first: dict[int, str] = {}
     dropped: set[int] = set()

@@ -382,7 +382,7 @@ def _case_hint(folder: Path, names: list[str]) -> str:
 def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.ndarray | None, tuple[str, ...]]:
     """The OBJ's materials, each face's index into them, and the notes of its libraries
     (:func:`~tlm.scenes.materials.parse_mtl`'s, and a material a later library defines again)."""
-    from tlm.scenes.materials import mtl_text, parse_mtl
+    from tlm.scenes.materials import LIBRARY_WINS, mtl_text, parse_mtl
     from tlm.scenes.objfile import read_bytes
 
     odd = [(n, line) for n, line in zip(obj.material_names, obj.material_lines, strict=True) if "\ufffd" in n]
@@ -400,7 +400,7 @@ def _obj_materials(path: Path, obj, src: str) -> tuple[tuple[Material, ...], np.
         for m in parse_mtl(mtl_text(read_bytes(mtl, side=True), str(mtl), notes), str(mtl), notes, lines):
             if m.name in library and first[m.name][0] != mtl:
                 notes.append(f"{mtl}: line {lines[m.name]}: newmtl {m.name!r} is defined by {first[m.name][0]} too "
-                             f"(line {first[m.name][1]}), named first by the mtllib: that one is used")
+                             f"(line {first[m.name][1]}), which the mtllib names first: {LIBRARY_WINS}")
             # (where its values come from, for results.json's scene.materials: Material.origin)
             library.setdefault(m.name, m.with_origin(f"{mtl}:{lines[m.name]}"))
             first.setdefault(m.name, (mtl, lines[m.name]))

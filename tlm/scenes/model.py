@@ -168,6 +168,9 @@ class Light:
     radiance: np.ndarray | None = field(default=None, compare=False, repr=False)
     # a mesh light's emitting materials' names, in the scene's order (its ``name`` joins them with ", ")
     materials: tuple[str, ...] = field(default=(), compare=False)
+    # where it comes from, for results.json and ``tlm scene show`` (:meth:`info`'s ``from``): ``FILE: lights[i]``
+    # of a scene file's entry, ``FILE KHR_lights_punctual.lights[i] 'NAME' at nodes[n]`` of a glTF's light
+    origin: str = field(default="", compare=False, repr=False)
 
     def record(self) -> dict:
         """The light as plain data (for hashes and results.json): a quad or point light's
@@ -191,7 +194,7 @@ class Light:
         """The light as ``tlm scene show`` lists it (and a run's ``results.json``): its type,
         power (W) and its kind's own fields (a spot's cone angles in degrees, as a scene file
         gives them; a directional light's power is its irradiance over the disc covering the scene;
-        a mesh light's ``materials`` a list of names)."""
+        a mesh light's ``materials`` a list of names), and ``from`` (:attr:`origin`) where known."""
         own: dict
         if self.kind == "point":
             own = {"position": list(self.position)}
@@ -206,7 +209,7 @@ class Light:
         else:
             own = {"corner": list(self.corner), "edge_u": list(self.edge_u), "edge_v": list(self.edge_v),
                    "area": self.area}
-        return {"type": self.kind, "power": list(self.power), **own}
+        return {"type": self.kind, "power": list(self.power), **own, **({"from": self.origin} if self.origin else {})}
 
     @cached_property
     def axis(self) -> np.ndarray:

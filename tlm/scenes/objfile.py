@@ -13,6 +13,10 @@
   ``mtllib`` (a library's name may hold spaces: the whole rest of the line when that is
   one file, otherwise its words).
 
+A line that ends with a backslash continues on the next (the spec's long lines; joined before any
+other reading, a comment's too: :func:`_joined`), each line keeping its number; a CR alone ends a
+line as a newline does.
+
 How it is fast: the line starts come from one ``np.flatnonzero`` over the bytes, a line's
 statement from its first two or three bytes, and the ``v``/``vn``/``f`` lines (gathered
 in runs of consecutive lines, which is how files hold them) are parsed in one
@@ -363,18 +367,22 @@ def colour_notes(obj: ObjData, src: str) -> tuple[str, ...]:
 
 def _vectors_slow(block: bytes, lines: np.ndarray, what: str, source: str) -> np.ndarray:
     """The per-line reader of :func:`_vectors_fast`'s lines, naming the first it cannot read (Python's
-    ``float`` less its underscores: ``1_0`` is no OBJ number)."""
+    ``float`` less its underscores: ``1_0`` is no OBJ number): the first three numbers of each, and a
+    ``v``'s fourth to sixth (``w``, or a vertex colour ``r g b``: read as the fast path reads them,
+    not kept)."""
     out = np.empty((lines.shape[0], 3))
     for i, raw in enumerate(block.split(b"\n")[: lines.shape[0]]):
         words = _strip_comment(raw).split()[1:]
         if len(words) < 3:
             raise _err(source, int(lines[i]) + 1,
                        f"a '{what}' statement needs 3 numbers, got {len(words)}")
-        for j in range(3):
+        for j in range(min(len(words), 6) if what == "v" else 3):
             try:
                 if b"_" in words[j]:
                     raise ValueError
-                out[i, j] = float(words[j])
+                number = float(words[j])
+                if j < 3:
+                    out[i, j] = number
             except ValueError:
                 raise _err(source, int(lines[i]) + 1,
                            f"cannot read {_shown(words[j])} as a number in a '{what}' statement") from None
@@ -498,14 +506,46 @@ def _current(marks: np.ndarray, at: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------ the reader
 
 
+_CONTINUED = re.compile(rb"\\\r?\n")  # a backslash that ends a line: the next line continues its statement
+
+
+def _joined(data: bytes) -> bytes:
+    """``data`` (ending with a newline) with each statement continued over lines by a backslash at their
+    end (the OBJ spec's long lines, ``f 1 2 \\`` then ``3``) joined on its first line: each backslash and
+    its line end blanked, and as many empty lines put after the statement, so that every later line
+    keeps its number (an error, ``face_line``, names the statement's first line)."""
+    found = [m.span() for m in _CONTINUED.finditer(data)] if b"\\" in data else []
+    if not found:
+        return data
+    buf = bytearray(data)
+    pieces, at, k = [], 0, 0
+    while k < len(found):
+        joined = 0
+        while True:
+            a, b = found[k]
+            buf[a:b] = b" " * (b - a)
+            joined += 1
+            end = data.find(b"\n", b)  # (the newline of the line it continues on)
+            if k + 1 < len(found) and found[k + 1][1] == end + 1:  # (that line ends with a backslash too)
+                k += 1
+                continue
+            break
+        k += 1
+        end = len(data) if end < 0 else end + 1
+        pieces += [bytes(buf[at:end]), b"\n" * joined]
+        at = end
+    return b"".join([*pieces, bytes(buf[at:])])
+
+
 def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
     """Parse OBJ text (bytes); ``source`` names the file in errors."""
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
-    if b"\n" not in data and b"\r" in data:  # old-Mac CR-only line endings (else read as one line)
-        data = data.replace(b"\r", b"\n")
+    if b"\r" in data and data.count(b"\r") != data.count(b"\r\n"):  # a CR alone ends a line (old Mac, a stray one)
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     if not data.endswith(b"\n"):
         data += b"\n"
+    data = _joined(data)
     L = _Lines(data)
     c0 = L.buf[L.start]
     if ((c0 == 32) | (c0 == 9)).any():  # indented statements: rare, normalize them first
