@@ -122,16 +122,27 @@ def test_git_output_of_a_checkout_in_a_non_ascii_folder_is_read_under_an_ascii_l
 # what may read or write text without naming its encoding: files of the kernel's, ASCII by their format
 _LOCALE_OK = {("tlm/kernels/threads.py", "self_cgroup.read_text()"),  # (/proc/self/cgroup)
               ("tlm/kernels/threads.py", "path.read_text()")}  # (a control group's cpu.max, cpu.cfs_quota_us)
-_TEXT_FLAGS = ("text", "universal_newlines")
-_OPENS = ("io.open", "codecs.open", "os.fdopen")  # (as open: a mode second)
+# open-like calls: (the position of their mode, of their encoding); a mode of None is the default, "r"
+_OPENS = {"open": (1, 3), "io.open": (1, 3), "os.fdopen": (1, 3), "codecs.open": (1, 2)}
+# compressed files' opens, binary unless their mode says "t"; their encoding's position (lzma's is a keyword)
+_COMPRESSED = {"gzip.open": 3, "bz2.open": 3, "lzma.open": None}
+# temporary files, "w+b" unless their mode says otherwise: (the position of their mode, of their encoding)
+_TEMPORARY = {"TemporaryFile": (0, 2), "NamedTemporaryFile": (0, 2), "SpooledTemporaryFile": (1, 3)}
+_SUBPROCESS = ("run", "Popen", "check_output", "check_call", "call")  # (text=, errors=: their output as text)
+_ALWAYS_TEXT = ("os.popen", "subprocess.getoutput", "subprocess.getstatusoutput")  # (text in the locale's, always)
+
+
+def _arg(call: ast.Call, keyword: str, at: int | None) -> ast.expr | None:
+    """The argument ``keyword`` of a call: given by name, else its positional argument ``at`` (None: none)."""
+    for kw in call.keywords:
+        if kw.arg == keyword:
+            return kw.value
+    return call.args[at] if at is not None and len(call.args) > at else None
 
 
 def _mode(call: ast.Call, at: int) -> ast.expr | None:
     """The mode argument of an ``open``-like call: its ``mode=``, else its positional argument ``at``."""
-    for kw in call.keywords:
-        if kw.arg == "mode":
-            return kw.value
-    return call.args[at] if len(call.args) > at else None
+    return _arg(call, "mode", at)
 
 
 def _text_mode(mode: ast.expr | None) -> bool:
@@ -141,36 +152,61 @@ def _text_mode(mode: ast.expr | None) -> bool:
     return isinstance(mode, ast.Constant) and isinstance(mode.value, str) and "b" not in mode.value
 
 
+def _given(value: ast.expr | None) -> bool:
+    """Whether an argument is given, and is no literal None (``encoding=None``: the locale's)."""
+    return value is not None and not (isinstance(value, ast.Constant) and value.value is None)
+
+
+def _locale_text(call: ast.Call) -> bool:
+    """Whether ``call`` reads or writes text in the locale's encoding (no encoding named, by name or position)."""
+    func = call.func
+    callee = ast.unparse(func)
+    last = func.attr if isinstance(func, ast.Attribute) else func.id if isinstance(func, ast.Name) else ""
+    if isinstance(func, ast.Attribute) and last in ("read_text", "write_text"):
+        # (importlib.metadata's Distribution.read_text(filename) reads UTF-8 itself)
+        return callee != "dist.read_text" and not _given(_arg(call, "encoding", 0 if last == "read_text" else 1))
+    if callee in _OPENS:
+        mode_at, encoding_at = _OPENS[callee]
+        return _text_mode(_mode(call, mode_at)) and not _given(_arg(call, "encoding", encoding_at))
+    if callee in _COMPRESSED:
+        mode = _mode(call, 1)
+        return (isinstance(mode, ast.Constant) and isinstance(mode.value, str) and "t" in mode.value
+                and not _given(_arg(call, "encoding", _COMPRESSED[callee])))
+    if callee.removeprefix("tempfile.") in _TEMPORARY:  # (tempfile.X, or X imported from it)
+        mode_at, encoding_at = _TEMPORARY[callee.removeprefix("tempfile.")]
+        mode = _mode(call, mode_at)
+        return mode is not None and _text_mode(mode) and not _given(_arg(call, "encoding", encoding_at))
+    if callee in ("io.TextIOWrapper", "TextIOWrapper"):
+        return not _given(_arg(call, "encoding", 1))
+    if callee in _ALWAYS_TEXT:
+        return True
+    if isinstance(func, ast.Attribute) and last == "open" and callee != "os.open":
+        mode = _mode(call, 0)  # (Path.open(mode); zf.open(name, ...), Image.open(path): no mode first)
+        return ((mode is None and not call.args) or (
+            isinstance(mode, ast.Constant) and isinstance(mode.value, str)
+            and set(mode.value) <= set("rwxat+") and _text_mode(mode))) and not _given(_arg(call, "encoding", 2))
+    # (a subprocess's output as text: text=, universal_newlines= or errors=; a text= of another function is its own)
+    flags = ("text", "universal_newlines", "errors") if last in _SUBPROCESS else ("universal_newlines",)
+    return not _given(_arg(call, "encoding", None)) and any(
+        kw.arg in flags and not (isinstance(kw.value, ast.Constant) and not kw.value.value)
+        for kw in call.keywords)
+
+
 def locale_reads(source: str, name: str) -> list[str]:
     """The calls of ``source`` (the module ``name``, ``tlm/...py``) that read or write text in the locale's
-    encoding: ``.read_text()``/``.write_text()``, a text-mode ``open``/``os.fdopen``/``io.open``/``Path.open``,
-    a ``subprocess`` call with ``text=True``, each without ``encoding=``; a call given ``**kwargs`` is left to its
-    caller, /proc's files and :data:`_LOCALE_OK` aside."""
+    encoding: ``.read_text()``/``.write_text()``, a text-mode ``open``/``os.fdopen``/``io.open``/``codecs.open``/
+    ``Path.open``, a ``gzip``/``bz2``/``lzma`` open in a ``t`` mode, a text-mode temporary file, an
+    ``io.TextIOWrapper``, ``os.popen``, a ``subprocess`` call with ``text=True`` (or ``universal_newlines``,
+    ``errors``), each without an encoding (by name or position; ``encoding=None`` is none); a call given
+    ``**kwargs`` is left to its caller, /proc's files and :data:`_LOCALE_OK` aside."""
     found = []
     for node in ast.walk(ast.parse(source)):
-        if not isinstance(node, ast.Call):
+        if not isinstance(node, ast.Call) or None in {kw.arg for kw in node.keywords}:
             continue
-        kws = {kw.arg for kw in node.keywords}
-        if "encoding" in kws or None in kws:
-            continue
-        func, text = node.func, ast.unparse(node)
+        text = ast.unparse(node)
         if "/proc/" in text or (name, text) in _LOCALE_OK:
             continue
-        bad = False
-        if isinstance(func, ast.Attribute) and func.attr in ("read_text", "write_text"):
-            # (importlib.metadata's Distribution.read_text(filename) reads UTF-8 itself)
-            bad = ast.unparse(func.value) != "dist"
-        elif (isinstance(func, ast.Name) and func.id == "open") or ast.unparse(func) in _OPENS:
-            bad = _text_mode(_mode(node, 1))
-        elif isinstance(func, ast.Attribute) and func.attr == "open" and ast.unparse(func.value) not in ("os",):
-            mode = _mode(node, 0)  # (Path.open(mode); zf.open(name, ...), Image.open(path): no mode first)
-            bad = (mode is None and not node.args) or (
-                isinstance(mode, ast.Constant) and isinstance(mode.value, str)
-                and set(mode.value) <= set("rwxat+") and _text_mode(mode))
-        elif any(kw.arg in _TEXT_FLAGS and not (isinstance(kw.value, ast.Constant) and not kw.value.value)
-                 for kw in node.keywords):
-            bad = True
-        if bad:
+        if _locale_text(node):
             found.append(f"{name}:{node.lineno}: {text}")
     return found
 
