@@ -46,26 +46,53 @@ from __future__ import annotations
 
 import csv
 import errno
-import itertools
 import os
 import re
 import shutil
 import socket  # noqa: F401  (storage.socket.gethostname: what _host, tlm.storage_lock's, asks)
 import stat
 import sys
-import threading
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
-from tlm import storage_lock
+from tlm import storage_live, storage_lock
 from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.storage_errors import raise_environmental as _raise_environmental
 from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
 from tlm.storage_files import write_files as _write_files
 from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
-from tlm.storage_lock import _host, folder_lock
+from tlm.storage_live import (  # noqa: F401  (re-exported)
+    _CLEANED,
+    _FILES,
+    _LIVE,
+    _WRITERS,
+    _forget_live,
+    _hold,
+    _release,
+    _thread_tag,
+    _writer,
+    left_by_the_gone,
+    pid_alive,
+    process_tag,
+)
+from tlm.storage_lock import _host, folder_lock  # noqa: F401  (_host: storage._host, tlm.claims's)
+from tlm.storage_swap import mounted as _mounted
+from tlm.storage_swap import swap_in as _swap_in
+from tlm.storage_swap import swap_tries as _swap_tries  # noqa: F401  (kept importable from here)
+
+_LIVE_LOCK = storage_live._LIVE_LOCK  # (storage_live's, made anew in a forked child: this name follows, _same_lock)
+
+
+def _same_lock() -> None:
+    """In a forked child: :data:`_LIVE_LOCK` the child's new one (made by ``storage_live._forget_live``, first)."""
+    global _LIVE_LOCK
+    _LIVE_LOCK = storage_live._LIVE_LOCK
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_same_lock)
 
 
 def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", also: Collection[str] = ()) -> Path:
@@ -124,11 +151,6 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
 # the markers of the outputs written into their folder in place, never replacing it (a sweep's ``sweep.yaml``:
 # its points, rows and report go inside, :func:`tlm.experiments.sweep.run_sweep`): such a folder may be a mount point
 IN_PLACE = frozenset({"sweep.yaml"})
-
-
-def _mounted(out: Path) -> str:
-    """The refusal of a destination that is a mount point."""
-    return f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it"
 
 
 def is_mount(path: Path) -> bool:
@@ -210,75 +232,6 @@ def distinct_folders(dirs: Iterable[str | Path], notes: list[str] | None = None)
     return list(unique.values())
 
 
-def pid_alive(pid: int) -> bool:
-    """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        pass  # alive (another user's) or unknown
-    try:
-        line = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return True  # no /proc: it exists
-    return not line[line.rindex(")") + 2:].startswith(("Z", "X"))
-
-
-def process_tag() -> str:
-    """``h<host>-<pid>``: this process, as the names a writer makes beside a destination (temporary
-    files and folders, claims), a sweep folder's holder record and a traceback file carry it: on a
-    disk shared between machines a process id alone names no process."""
-    return f"{_host()}-{os.getpid()}"
-
-
-_LIVE_LOCK = threading.Lock()
-_LIVE: set[str] = set()  # the names of the temporary folders this process's writers are using now
-_WRITERS = itertools.count()  # (numbers the writers of this process; under _LIVE_LOCK)
-_FILES: set[str] = set()  # the temporary files this process's write_atomic blocks are writing now
-_CLEANED: set[str] = set()  # the folders whose leftovers this process looked for once (atomic_folder's clean_once)
-
-
-def _writer() -> str:
-    """``<host>-<pid>-<n>``: one writer of a folder, ``n`` counting this process's writers, so
-    that two threads (or two writers of one thread) never share a temporary folder."""
-    with _LIVE_LOCK:
-        n = next(_WRITERS)
-    return f"{process_tag()}-{n}"
-
-
-def _thread_tag() -> str:
-    """What a temporary file's name adds for the thread writing it: nothing in the main thread,
-    ``-t<id>`` in any other, so two threads writing one file never share its temporary file."""
-    if threading.current_thread() is threading.main_thread():
-        return ""
-    return f"-t{threading.get_native_id()}"
-
-
-def _hold(name: str) -> None:
-    """Note the temporary folder ``name`` as in use by this process (:func:`clean_stale` keeps it)."""
-    with _LIVE_LOCK:
-        _LIVE.add(name)
-
-
-def _release(name: str) -> None:
-    """The temporary folder ``name`` is no longer in use (it was renamed or removed)."""
-    with _LIVE_LOCK:
-        _LIVE.discard(name)
-
-
-def _forget_live() -> None:
-    """In a forked child: the parent's folders carry the parent's pid, and its locks may be held."""
-    global _LIVE_LOCK
-    _LIVE_LOCK = threading.Lock()
-    _LIVE.clear()
-    _FILES.clear()
-    _CLEANED.clear()
-
-
-if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_forget_live)
-
 
 def clean_stale(folder: Path, name: str = ".+") -> None:
     """Remove the temporary folders (``.<name>.tmp-<host>-<pid>-<n>``, ``.<name>.old-<host>-<pid>-<n>-<m>``)
@@ -315,90 +268,8 @@ def stale_files(folder: Path, name: str = ".+") -> list[Path]:
 
 def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], bool],
                       in_use: Callable[[Path], bool]) -> list[Path]:
-    """The entries of ``folder`` (not links; of ``kind``) whose names ``pattern`` matches (its
-    groups: the host, None for an older writer's name, and the process id) that a process of this
-    machine now gone left, or this process before (its id reused) where ``in_use`` (asked
-    under the lock of this process's writers) says none of its writers uses it now."""
-    try:
-        entries = list(Path(folder).iterdir())
-    except OSError:
-        return []
-    host, gone = _host(), []
-    for e in entries:
-        m = pattern.fullmatch(e.name)
-        if not m or (m[1] is not None and m[1] != host) or e.is_symlink() or not kind(e):
-            continue
-        pid = int(m[2])
-        if pid == os.getpid():
-            with _LIVE_LOCK:
-                if in_use(e):
-                    continue
-        elif pid_alive(pid):
-            continue
-        gone.append(e)
-    return gone
-
-
-def _swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:
-    """Put ``tmp`` in place of ``out``: an old ``out`` swapped for it in one call where the file system
-    can (:func:`tlm.storage_lock.exchange`; then removed, at ``tmp``'s name), else moved aside first and
-    removed after (the old folder back where ``tmp`` cannot follow or a signal comes between the two);
-    retried when another writer put a folder there in between. ``writer``: the :func:`_writer` the names
-    of the old folders carry (a new one when not given)."""
-    writer = writer or _writer()
-    held: list[str] = []
-    try:
-        _swap_tries(tmp, out, writer, held)
-    finally:
-        for name in held:
-            _release(name)
-
-
-def _swap_tries(tmp: Path, out: Path, writer: str, held: list[str]) -> None:
-    """:func:`_swap_in`'s loop; ``held`` gets the old folders' names it noted as in use."""
-    for n in itertools.count():
-        try:
-            if out.exists() and storage_lock.exchange(tmp, out):
-                shutil.rmtree(tmp, ignore_errors=True)  # (the old folder, at the temporary folder's name now)
-                return
-        except FileNotFoundError:
-            pass  # (moved meanwhile: by a writer that renames twice, between its renames: renamed onto below)
-        except OSError as e:  # (a mount point is_mount missed: EBUSY)
-            if e.errno == errno.EBUSY:
-                raise InputError(_mounted(out), key="--out") from None
-            raise
-        old = None
-        if out.exists():  # (a file system without the exchange, or another OS: two renames)
-            old = out.parent / f".{out.name}.old-{writer}-{n}"
-            _hold(old.name)
-            held.append(old.name)
-            try:
-                out.rename(old)
-            except FileNotFoundError:
-                old = None  # another writer moved it first
-            except OSError as e:  # (a mount point is_mount missed: it stays as it is, and so does the output)
-                if e.errno == errno.EBUSY:
-                    raise InputError(_mounted(out), key="--out") from None
-                raise
-        try:
-            tmp.rename(out)
-        except OSError as e:
-            if e.errno in (errno.ENOTEMPTY, errno.EEXIST) and n < 100:
-                if old is not None:
-                    shutil.rmtree(old, ignore_errors=True)
-                continue  # another writer's folder arrived meanwhile: it is replaced in turn
-            if old is not None and not out.exists():
-                with suppress(OSError):
-                    old.rename(out)  # put the old folder back
-            raise
-        except BaseException:  # a signal between the two renames: the old folder goes back
-            if old is not None and not out.exists():
-                with suppress(OSError):
-                    old.rename(out)
-            raise
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-        return
+    """:func:`tlm.storage_live.left_by_the_gone`, asking this module's :func:`pid_alive` whether a process runs."""
+    return left_by_the_gone(folder, pattern, kind, in_use, pid_alive)
 
 
 _OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work
@@ -540,7 +411,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
 def _first_clean(folder: Path) -> bool:
     """Whether this process has not yet looked for leftovers in ``folder`` (noted now: it will)."""
     key = os.path.abspath(folder)
-    with _LIVE_LOCK:
+    with storage_live._LIVE_LOCK:
         if key in _CLEANED:
             return False
         _CLEANED.add(key)
@@ -601,7 +472,7 @@ def write_atomic(path: Path, mode: str = "w", **open_kw) -> Iterator[IO]:
         _raise_environmental(e, path)
         raise
     finally:
-        with _LIVE_LOCK:
+        with storage_live._LIVE_LOCK:
             _FILES.discard(os.path.abspath(tmp))
 
 
@@ -610,7 +481,7 @@ def _temporary_file(path: Path) -> Path:
     (and its thread's tag), ``...-2``, ``-3``, ... that no block of this process is writing now. The
     host (:func:`process_tag`): on a folder shared between machines a process id alone names no process."""
     base = f".{path.name}.tmp{process_tag()}{_thread_tag()}"
-    with _LIVE_LOCK:
+    with storage_live._LIVE_LOCK:
         tmp, n = path.with_name(base), 1
         while os.path.abspath(tmp) in _FILES:
             n += 1

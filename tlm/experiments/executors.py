@@ -23,13 +23,10 @@ import itertools
 import logging
 import os
 import queue
-import select
 import signal
 import socket as socket  # (kept: executors.socket, the module answers connects with, is what tests patch)
-import sys
 import threading
 import time
-import warnings
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import ExitStack, suppress
@@ -43,6 +40,11 @@ from tlm.experiments.executors_dask import host_kept as _host_kept  # (kept impo
 from tlm.experiments.executors_dask import local_preloads as _local_preloads
 from tlm.experiments.executors_dask import pre_spawn_env as _pre_spawn_env
 from tlm.experiments.executors_dask import quiet_client as _client
+from tlm.experiments.executors_exit import PARENT_POLL as PARENT_POLL  # (these: kept importable from here)
+from tlm.experiments.executors_exit import alive as _alive  # noqa: F401
+from tlm.experiments.executors_exit import exit_with as _exit_with
+from tlm.experiments.executors_exit import release_semaphores as release_semaphores
+from tlm.experiments.executors_exit import watch_parent as _watch_parent  # noqa: F401
 from tlm.experiments.worker_start import OWN_PROCESS as OWN_PROCESS  # (these: kept importable from here)
 from tlm.experiments.worker_start import TLM_PRELOAD as TLM_PRELOAD
 from tlm.experiments.worker_start import UNGUARDED_EXIT as UNGUARDED_EXIT
@@ -53,7 +55,6 @@ from tlm.experiments.worker_start import main_file_hidden, mp_context, tlm_prelo
 from tlm.experiments.worker_start import main_script as main_script
 from tlm.experiments.worker_start import sigint_ignored as _sigint_ignored  # (tests import it from here)
 from tlm.experiments.worker_start import unguarded_error as unguarded_error
-from tlm.kernels.threads import die_with_parent
 from tlm.progress import interrupts_deferred
 
 DASK_POLL = 1.0  # seconds between a sweep's checks of its Dask scheduler while it waits for points
@@ -62,7 +63,6 @@ WORKERS_POLL = 5.0  # seconds between the sweep's questions to the scheduler abo
 # shorter wait asks twice within it)
 ASK_TIMEOUT = 30.0  # seconds the scheduler gets to answer one
 STOP_WAIT = 0.5  # seconds an interrupted sweep's --dask local workers get to close before they are killed
-PARENT_POLL = 0.5  # seconds between a worker's checks that the sweep's process lives (without a pidfd)
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
 BROKEN_WAIT = 60  # seconds a broken local pool gets to fail the points it holds
@@ -382,77 +382,11 @@ def _run_started(token: int, fn, /, *args, **kwargs):
     return fn(*args, **kwargs)
 
 
-def release_semaphores() -> None:
-    """Unlink this process's multiprocessing semaphores now (a local pool's queues' locks)
-    and tell the resource tracker, as multiprocessing's finalizers do at a normal exit: for
-    a process about to end with ``os._exit``, which runs none. Without this the tracker, the
-    last to hold their names, unlinks them itself and prints "resource_tracker: There appear
-    to be N leaked semaphore objects to clean up at shutdown" and a line of its source.
-
-    The semaphores are found by their finalizers (``multiprocessing.util``'s registry, where
-    a named ``SemLock`` enters itself with ``SemLock._cleanup``); a finalizer runs once, so
-    an exit after this does not run it again. Meant for a signal handler: it waits for
-    nothing but the tracker's lock, which is held only while a message is written. Where
-    this thread holds it (the signal came during one of the tracker's own calls) the
-    tracker warns that it is called reentrantly and still writes the message; that
-    warning is not shown."""
-    synchronize, util = sys.modules.get("multiprocessing.synchronize"), sys.modules.get("multiprocessing.util")
-    registry = getattr(util, "_finalizer_registry", None)
-    if synchronize is None or registry is None:  # (no semaphore made)
-        return
-    cleanup = synchronize.SemLock._cleanup
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for finalizer in list(registry.values()):
-            if getattr(finalizer, "_callback", None) is cleanup:
-                with suppress(Exception):
-                    finalizer()
-
-
 def _worker_env(env: dict[str, str]) -> None:
     """Give a worker this process's ``TLM_*`` variables (``TLM_CACHE``) as they are now."""
     for k in [k for k in os.environ if k.startswith("TLM_")]:
         del os.environ[k]
     os.environ.update(env)
-
-
-def _exit_with(parent: int) -> None:
-    """End this worker when the sweep's process ``parent`` dies.
-
-    A killed sweep (SIGKILL: no shutdown runs) would otherwise leave its workers running
-    the points queued to them, and then waiting for more forever. On Linux the kernel
-    kills a worker whose parent process dies (:func:`tlm.kernels.threads.die_with_parent`); but under
-    ``forkserver`` that parent is the fork server, which lives as long as its children.
-    So a daemon thread also waits for ``parent`` itself to end (on a pidfd, else polling
-    its pid and this process's parent) and ends the worker with ``os._exit``.
-    """
-    die_with_parent()
-    threading.Thread(target=_watch_parent, args=(parent, os.getppid()), name="tlm-watch-sweep",
-                     daemon=True).start()
-
-
-def _watch_parent(parent: int, ppid: int) -> None:
-    pidfd = None
-    with suppress(AttributeError, OSError):  # no pidfd (not Linux >= 5.3), or ``parent`` is gone already
-        pidfd = os.pidfd_open(parent)
-    if pidfd is not None:
-        select.select([pidfd], [], [])  # readable once ``parent`` has ended
-    else:
-        while _alive(parent) and os.getppid() == ppid:
-            time.sleep(PARENT_POLL)
-    os._exit(1)
-
-
-def _alive(pid: int) -> bool:
-    if os.name != "posix":  # os.kill(pid, 0) would terminate it there: the parent check alone
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        pass  # it exists (another user's pid: ours was reused); the parent check still holds
-    return True
 
 
 def kernel_threads(jobs: int, dask: str | None, points: int) -> int | None:

@@ -15,7 +15,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +24,6 @@ import yaml
 
 from tlm.builtin import read_base
 from tlm.config import (
-    PATH_KEYS,
     SECTIONS,
     RunConfig,
     check_leaf,
@@ -34,7 +32,6 @@ from tlm.config import (
     file_folder,
     files_from,
     is_leaf,
-    names_scene_file,
     paths_from,
     plain,
     read_yaml,
@@ -45,15 +42,21 @@ from tlm.config import (
 )
 from tlm.config_words import sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
-from tlm.experiments.frames import render_key
 from tlm.experiments.study import override_key, scene_keys, with_set
+from tlm.experiments.sweep_checks import one_run_one_row as _one_run_one_row
+from tlm.experiments.sweep_checks import resolved_value as _resolved  # noqa: F401  (kept importable from here)
+from tlm.experiments.sweep_checks import scenes_found as _scenes_found
 from tlm.experiments.sweep_factors import assign as _assign
 from tlm.experiments.sweep_factors import dotted_keys as _dotted_keys
 from tlm.experiments.sweep_factors import expand as expand
 from tlm.experiments.sweep_factors import expand_both as _expand_both
 from tlm.experiments.sweep_factors import given_once as _given_once
 from tlm.experiments.sweep_factors import keys_given as _keys_given
-from tlm.experiments.sweep_factors import value_identity as _same
+from tlm.experiments.sweep_factors import value_identity as _same  # noqa: F401  (kept importable from here)
+from tlm.experiments.sweep_keys import canonical_json as _json
+from tlm.experiments.sweep_keys import from_folder as _from  # noqa: F401  (kept importable from here)
+from tlm.experiments.sweep_keys import keyed_field as _keyed
+from tlm.experiments.sweep_keys import point_inputs as point_inputs  # (what a test replaces: read here)
 from tlm.experiments.sweep_sets import at_default, given_by, named, refuse_factor_sets, said_once, set_leaves
 from tlm.fingerprint import code_fingerprint
 
@@ -267,78 +270,12 @@ def config_hash(resolved: dict, inputs: dict[str, str] | None = None, folder: Pa
                 None if inputs is None else _json(inputs))
 
 
-def _json(value: Any) -> str:
-    """Canonical JSON: sorted keys, no spaces."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":"))
-
-
-def _keyed(name: str, resolved: Any, folder: Path | None = None) -> str:
-    """A top-level field of a resolved config as the point's key holds it: ``"name":`` and
-    its JSON, less ``render.threads`` (it changes the speed alone, bit-identical results: a
-    point keeps its key). Where ``folder`` (the sweep file's) is given, an absolute ``scene``
-    file and ``arch.programs`` table are keyed by their path from it (:func:`_from`): where
-    the project lies is not part of the key, only which of its files a point names (their
-    content is, by ``inputs``: :func:`config_hash`). Two files of one content that a sweep
-    lists stay two points."""
-    if name == "render" and isinstance(resolved, dict):
-        resolved = {k: v for k, v in resolved.items() if k != "threads"}
-    if folder is not None and name == "scene":
-        resolved = _from(resolved, folder)
-    if folder is not None and name == "arch" and isinstance(resolved, dict) and "programs" in resolved:
-        resolved = {**resolved, "programs": _from(resolved["programs"], folder)}
-    return f"{json.dumps(name)}:{_json(resolved)}"
-
-
-def _from(value: Any, folder: Path) -> Any:
-    """An absolute path ``value`` as its path from ``folder`` (posix: ``../scenes/box.yaml``);
-    anything else (a built-in scene's name, none) as it is."""
-    if not isinstance(value, str) or not os.path.isabs(value):
-        return value
-    try:
-        return Path(os.path.relpath(value, folder)).as_posix()
-    except ValueError:  # (another drive: no path from there)
-        return value
-
-
 def _key(keyed: list[str], inputs: str | None) -> str:
     """16 hex digits of sha256 over ``{"code": ..., "config": {fields}, "inputs": ...}`` (keys
     sorted): the fields' :func:`_keyed` texts in the order of their names, the inputs' JSON."""
     more = "" if inputs is None else f',"inputs":{inputs}'
     blob = f'{{"code":{json.dumps(code_fingerprint())},"config":{{{",".join(keyed)}}}{more}}}'
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work: Any = None) -> dict[str, str]:
-    """Fingerprints of the files ``cfg`` names: its frame's functional key (the scene's
-    content) and the sha256 of the programs table's bytes.
-
-    Loads the scene and the programs table (an InputError names ``source``). ``seen``
-    keeps what was loaded, for the next point: points of one sweep share most of them.
-    ``work``: what names the config's frame in ``seen``, where the caller has it (any value
-    that the resolved config less ``arch`` decides, and that decides it); by default that
-    config's JSON.
-    """
-    from tlm.arch.costs import DEFAULT_PATH
-    from tlm.experiments.run import programs_for
-
-    seen = {} if seen is None else seen
-    table = cfg.arch.programs
-    if ("programs", table) not in seen:
-        try:
-            programs_for(cfg, folder)
-        except InputError as e:  # the table's own message, and which point names it
-            raise InputError(str(e), source=source) from None
-        path = DEFAULT_PATH if table is None else folder / table  # an absolute table stays itself
-        if not Path(path).is_file():  # (a pipe's, <(...): read once here, its points run in processes of their own)
-            raise InputError("is no file but a pipe or a device, which each point of a sweep reads again in its own "
-                             "process: save the table to a file and name that", source=str(path),
-                             key="arch.programs")
-        seen["programs", table] = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
-    if work is None:
-        work = json.dumps({k: v for k, v in to_dict(cfg).items() if k != "arch"}, sort_keys=True)
-    if ("functional", work) not in seen:
-        seen["functional", work] = render_key(cfg, folder, source)
-    return {"functional": seen["functional", work], "programs": seen["programs", table]}
 
 
 @dataclass(frozen=True)
@@ -625,69 +562,3 @@ def _traced(arch: _Field, trace: bool, by_factor: bool, folder: Path) -> tuple[d
     keyed_as = config if by_factor else {**resolved, "trace": True}
     keyed = arch.keyed if keyed_as == resolved else _keyed("arch", keyed_as, folder)
     return config, keyed
-
-
-def _scenes_found(rows: list, src: str, folders: list[Path], per_point: bool = True) -> None:
-    """An InputError naming the point (``per_point``; not for a scene every point has of a ``--set``,
-    ``src`` then the file ``with --set``), the scene file and ``folders`` (where it was looked
-    for) for the first point whose ``scene`` is a relative path that none of them holds
-    (:func:`~tlm.config.scene_from` left it so) and that is no built-in scene
-    (``thesis/ring.yaml``)."""
-    from tlm.scenes.loader import resolve_scene_path
-
-    done = set()
-    for i, _, fields in rows:
-        scene = fields["scene"].value
-        if scene in done or not names_scene_file(scene) or not scene or Path(scene).is_absolute():
-            continue
-        resolve_scene_path(scene, folders[0], f"{src} (point {i})" if per_point else src, also=tuple(folders[1:]))
-        done.add(scene)
-
-
-def _resolved(config: dict, dotted: str) -> Any:
-    """The value of the dotted key ``dotted`` in a point's resolved ``config`` (a missing one:
-    a fresh object, equal to nothing)."""
-    here: Any = config
-    for part in dotted.split("."):
-        if not isinstance(here, dict) or part not in here:
-            return object()
-        here = here[part]
-    return here
-
-
-def _one_run_one_row(points: list[Point], src: str) -> None:
-    """An InputError when points of other factor values are one run (one key): only
-    ``render.threads`` is left out of the key (it changes the speed alone, bit for bit the
-    same results), so a sweep over it would run its first value and label the others' rows
-    with values never run. So is one value written two ways (``1000000000`` and ``1.0e+9`` of
-    ``arch.clock_hz``, a float), which :func:`_given_once` takes for two, one file named
-    two ways (``box.yaml`` and ``./box.yaml``: one absolute path once read), and values that give
-    one config (``photons: [{}, null]`` where the base has no ``photons``: its defaults either way)."""
-    first: dict[str, Point] = {}
-    for p in points:
-        other = first.setdefault(p.hash, p)
-        if other is p:
-            continue
-        differ = [k for k in p.factors if _same(p.factors[k]) != _same(other.factors.get(k))]
-        alike = [k for k in differ if p.factors[k] == other.factors.get(k)]
-        if alike:  # (1000000000 and 1000000000.0 of a float: one value, written two ways)
-            both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in alike)
-            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
-                             + " are one value, given twice", source=src, key=", ".join(alike))
-        files = [k for k in differ
-                 if k in ("scene", *PATH_KEYS) and _resolved(p.config, k) == _resolved(other.config, k)]
-        if files:  # (box.yaml and ./box.yaml, or a path from the sweep file and one from its base: one file)
-            both = (f"{value_text(other.factors[k])} and {value_text(p.factors[k])}" for k in files)
-            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
-                             + " name one file, given twice", source=src, key=", ".join(files))
-        if differ and _resolved(p.config, "render.threads") == _resolved(other.config, "render.threads"):
-            # (not the threads: values that give one config, {} and null of a section the base leaves out)
-            both = (f"{k}: {value_text(other.factors.get(k))} and {value_text(p.factors[k])}" for k in differ)
-            raise InputError(f"points {other.index} and {p.index} are one run: " + ", ".join(both)
-                             + " give the same config (a section's mapping merges into the base's section, and "
-                             "null gives it at its defaults): give one of them", source=src, key=", ".join(differ))
-        if differ:
-            raise InputError(f"points {other.index} and {p.index} differ only in {', '.join(differ)} "
-                             f"(render.threads changes no result, only the host's speed), so they would be one run "
-                             "with two labels: give render.threads under set:, and time thread counts with "
-                             "benchmarks/bench_threads.py", source=src, key=", ".join(differ))
