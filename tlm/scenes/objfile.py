@@ -512,18 +512,18 @@ _CONTINUED = re.compile(rb"\\\r?\n")  # a backslash that ends a line: the next l
 def _joined(data: bytes) -> bytes:
     """``data`` (ending with a newline) with each statement continued over lines by a backslash at their
     end (the OBJ spec's long lines, ``f 1 2 \\`` then ``3``) joined on its first line: each backslash and
-    its line end blanked, and as many empty lines put after the statement, so that every later line
-    keeps its number (an error, ``face_line``, names the statement's first line)."""
+    its line end read as one blank, whatever the line end (``o my \\`` then ``box`` is the object
+    ``my  box`` in a file of LF, CRLF or CR line ends alike), and as many empty lines put after the
+    statement, so that every later line keeps its number (an error, ``face_line``, names the
+    statement's first line)."""
     found = [m.span() for m in _CONTINUED.finditer(data)] if b"\\" in data else []
     if not found:
         return data
-    buf = bytearray(data)
     pieces, at, k = [], 0, 0
     while k < len(found):
         joined = 0
         while True:
-            a, b = found[k]
-            buf[a:b] = b" " * (b - a)
+            b = found[k][1]
             joined += 1
             end = data.find(b"\n", b)  # (the newline of the line it continues on)
             if k + 1 < len(found) and found[k + 1][1] == end + 1:  # (that line ends with a backslash too)
@@ -532,9 +532,9 @@ def _joined(data: bytes) -> bytes:
             break
         k += 1
         end = len(data) if end < 0 else end + 1
-        pieces += [bytes(buf[at:end]), b"\n" * joined]
+        pieces += [_CONTINUED.sub(b" ", data[at:end]), b"\n" * joined]
         at = end
-    return b"".join([*pieces, bytes(buf[at:])])
+    return b"".join([*pieces, data[at:]])
 
 
 def parse_obj(data: bytes, source: str, stem: str) -> ObjData:
