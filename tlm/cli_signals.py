@@ -361,7 +361,8 @@ def save_traceback(exc: BaseException) -> Path | None:
         except OSError:
             continue
         try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:  # (a non-ASCII message or path, whatever the locale)
+            with os.fdopen(fd, "w", encoding="utf-8", errors="backslashreplace") as f:  # (a non-ASCII message
+                # or path, whatever the locale; a path of bytes not UTF-8, a surrogate, escaped)
                 f.write(text)
             return folder / name
         except OSError:  # (a full disk: made, not written; no empty or cut-off traceback is left behind)
