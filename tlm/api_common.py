@@ -250,7 +250,8 @@ def experiment_file(path: str | Path, command: str) -> Path:
 # what each kind of file is (file_kind), and what each command takes, in the messages
 KIND_NAMES = {"run": "a run config", "scene": "a scene file", "sweep": "a sweep file",
               "thesis": "a thesis study file", "extreme": "an extreme-cases study file",
-              "granularity": "a granularity study file", "error-vs-cost": "an error-vs-cost study file"}
+              "granularity": "a granularity study file", "error-vs-cost": "an error-vs-cost study file",
+              "sweep record": "a sweep folder's record of the sweep it ran"}
 # the kinds each command takes (a command not named: its own kind)
 COMMAND_KINDS = {"run": ("run", "scene"), "reference": ("run", "scene"), "calibrate": ("thesis",)}
 
@@ -261,7 +262,8 @@ def file_kind(raw: Any) -> tuple[str, list[str]] | None:
     the command that takes it; with no key of a run config or a scene file beside them, and
     with ``base`` or a key that is no near miss of a run config's: ``modes`` alone is a run
     config's typo of ``mode``), ``run`` (a run config: ``scene``, or run config keys alone) or
-    ``scene`` (a scene file: ``geometry`` or ``extends``, no ``scene``). None when they do
+    ``scene`` (a scene file: ``geometry`` or ``extends``, no ``scene``), ``sweep record`` (a sweep folder's
+    ``sweep.yaml``: ``tlm: sweep/1``, whose ``points:`` are no error-vs-cost study's). None when they do
     not say (what the loading then reports)."""
     import dataclasses
 
@@ -271,6 +273,8 @@ def file_kind(raw: Any) -> tuple[str, list[str]] | None:
 
     if not isinstance(raw, dict) or not raw:
         return None
+    if str(raw.get("tlm", "")).startswith("sweep/"):  # (tlm.experiments.sweep_file.Sweep.to_dict's marker)
+        return "sweep record", ["tlm"]
     keys = [str(k) for k in raw]
     fields = [f.name for f in dataclasses.fields(RunConfig)]
     own = [k for k, _ in EXPERIMENT_COMMANDS if k in keys]
@@ -288,6 +292,20 @@ def file_kind(raw: Any) -> tuple[str, list[str]] | None:
     if all(k in fields for k in keys):
         return "run", keys
     return None
+
+
+def _sweep_again(raw: dict, path: Path) -> str:
+    """What to do with a sweep folder's ``sweep.yaml`` (``raw``, at ``path``): the ``tlm sweep`` command that runs
+    its sweep file (``sweep:``) into the folder again with its ``--set`` (``overrides:``), which skips the points
+    done and runs the others, and ``tlm report`` of the folder, which reads it."""
+    import shlex
+
+    folder = shlex.quote(str(Path(path).parent))
+    sweep = raw.get("sweep")
+    sets = [f" --set {shlex.quote(str(o))}" for o in raw.get("overrides") or [] if isinstance(o, str | int | float)]
+    again = f"tlm sweep {shlex.quote(sweep) if isinstance(sweep, str) and sweep else 'SWEEP_FILE'} --out {folder}"
+    return (f"to run the sweep again, or finish it (the points done are skipped): {again}{''.join(sets)} (its sweep "
+            f"file, as this record names it); to read it: tlm report {folder}")
 
 
 def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
@@ -315,6 +333,9 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     use = save + {"run": f"run it with tlm run {ref}",
                   "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's "
                            "`scene:`"}.get(kind, f"run it with tlm {kind} {ref}")
+    if kind == "sweep record":
+        raise InputError(f"{KIND_NAMES[kind]} (tlm: {raw['tlm']}), not {wanted}: {_sweep_again(raw, path)}",
+                         source=str(path))
     if command == "calibrate" and kind != "thesis":
         wanted += " (tlm calibrate fits the programs to a thesis study's scenes)"
     raise InputError(f"{KIND_NAMES[kind]} (it has {', '.join(f'{k}:' for k in keys)}), not {wanted}: {use}",

@@ -32,15 +32,25 @@ def blame_flag(config: str, sets: list[str], flagged: dict[str, str]) -> None:
         api.load_config(cfg, [item], via=given)
 
 
+RESOLVED = "config.resolved.yaml"  # (what a run folder and a sweep point keep of their config)
+
+
 def default_out(args: argparse.Namespace) -> Path:
     """The folder ``tlm run``, ``tlm sweep`` and the studies write: ``--out``, else ``runs/<the config's name>``.
     A config whose name is none of its own (:func:`~tlm.api_common.nameless`: a pipe, ``<(...)``'s
     ``/dev/fd/63``, ``/dev/stdin``) is refused, one line, nothing read: its default folder, ``runs/63``, would be
     every piped config's, the second replacing the first; so is a named FIFO's (read once: ``runs/c`` would be
-    every config's written to it)."""
+    every config's written to it). So is a run folder's (or a sweep point's) ``config.resolved.yaml``: its default,
+    ``runs/config.resolved``, would be the folder of every run folder's config run again, one replacing another's
+    results; the line suggests a folder named after the run's (``runs/a-again`` for ``runs/a/config.resolved.yaml``)."""
     if args.out:
         return Path(args.out)
     default = Path("runs") / Path(args.config).stem
+    if Path(args.config).name == RESOLVED:
+        folder = Path(args.config).absolute().parent.name or "run"
+        raise InputError(f"is a run folder's {RESOLVED}: give --out, say --out runs/{folder}-again ({default}, the "
+                         f"default, would be the folder of every run folder's {RESOLVED} run again, one replacing "
+                         "another)", source=args.config)
     what = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless)
     if what == "a named FIFO":  # (a name of its own, but read once: each config written to it is another)
         raise InputError(f"is {what}, read once: give --out ({default}, the default, would be the folder of every "

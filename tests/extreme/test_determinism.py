@@ -57,7 +57,8 @@ SWEEP_HOST_COLUMNS = ("seconds.functional", "seconds.simulate", "seconds.one_off
 # results.json sections of the functional layer (the render): independent of the
 # architecture, so equal across packet sizes, N and schedulers ...
 FUNCTIONAL_FIELDS = ("tlm", "config", "overrides", "seed", "mode", "scene", "plan", "primary", "work",
-                     "work_keys", "photons", "image", "error", "warnings")
+                     "work_keys", "photons", "image", "error", "warnings",
+                     "scene_digest")  # (h339: the scene inputs as read: the same for every arch)
 # ... and those of the timing model, which the architecture changes by design
 TIMING_FIELDS = ("cycles", "fps", "timing")
 

@@ -55,7 +55,7 @@ from tlm.caches import (
 from tlm.config import config_from_dict, noting_reads, to_dict
 from tlm.experiments import run
 from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
-from tlm.experiments.run_warnings import reference_warnings
+from tlm.experiments.run_warnings import reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.checks import note_warnings
@@ -87,9 +87,10 @@ class CachedRender:
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
-SUMMARY_FORMAT = "functional-summary/5"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
+SUMMARY_FORMAT = "functional-summary/6"  # /2: with the npz's size and sha256; /3: warnings without the settings unused;
 # /4: a reference not converged is a warning, and an unread override is warned of once; /5: the photon-map
-# frame's image kept (``pmap``), its error measured when read, the reference's lines not kept
+# frame's image kept (``pmap``), its error measured when read, the reference's lines not kept; /6: the line on
+# render.threads past the CPUs not kept (the process's and machine's that runs a point, not the frame's)
 
 
 # what a sidecar of SUMMARY_FORMAT holds, by type (summary_problem): the keys a result row reads
@@ -328,8 +329,10 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     full = run.results_dict(res, exposure=0.0, config_path=source)
     # the render's own warnings: not this config's unused settings, which another config of the
     # key (a sweep point of other arch or estimate settings) does not share (tlm.experiments.sweep), nor
-    # the reference's (its error is measured when the frame is read: _measured)
-    inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg)}
+    # the reference's (its error is measured when the frame is read: _measured), nor the line on render.threads
+    # past the CPUs, which neither the key (the threads) nor the frame (the machine's CPUs) holds: the process
+    # that runs a point says its own (tlm.experiments.sweep_point.run_point)
+    inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg), *threads_warning(cfg)}
     # (the scene's notes come first, tlm.render.checks.file_warnings: the lines _here moves to a copy's folders, and
     # no other, a material's name that holds a path of the project is the copy's material's name too)
     notes = sum(w not in inert for w in full["warnings"][:len(note_warnings(res.scene))])

@@ -255,7 +255,7 @@ def identities_remembered():
         _REMEMBERED.reset(token)
 
 
-def scene_identity(source) -> str:
+def scene_identity(source, reads: list | None = None) -> str:
     """The scene file ``source`` (a run's ``scene.source``) as a digest of its bytes and of
     those of the files its ``extends:`` chain names (a built-in name there is the same scene
     for every file that names it), and of the files its geometry's meshes are read from (each
@@ -266,13 +266,17 @@ def scene_identity(source) -> str:
     A scene without mesh files keeps the digest of its scene files alone. A file that is not
     on this machine (a folder written elsewhere) is told by its path. Eq. 5.2's groups
     (:mod:`tlm.experiments.scaling`) and the thesis's scenes
-    (:func:`tlm.experiments.thesis.table_of`) are told apart so."""
+    (:func:`tlm.experiments.thesis.table_of`) are told apart so.
+
+    ``reads``: what a load of that scene noted (:func:`tlm.config.noting_reads`, as :func:`tlm.experiments.run.render`
+    loads it): each mesh file's digest and what names its other files are taken from its ``("mesh", ...)`` record,
+    not read and parsed again (a 27 MB OBJ: its sha256 once, the load's); the same identity as without them."""
     if not source:
         return "(no scene file recorded)"
     path = Path(str(source))
     memo = _REMEMBERED.get()
-    if memo is None:
-        return _scene_identity(path)
+    if memo is None or reads:
+        return _scene_identity(path, reads)
     try:
         st = path.stat()
         key = (str(path), str(path.resolve()), st.st_mtime_ns, st.st_size)
@@ -283,10 +287,10 @@ def scene_identity(source) -> str:
     return memo[key]
 
 
-def _scene_identity(path: Path) -> str:
-    """:func:`scene_identity` of the scene file ``path``, computed."""
+def _scene_identity(path: Path, reads: list | None = None) -> str:
+    """:func:`scene_identity` of the scene file ``path``, computed (``reads``: a load's, :func:`_noted`)."""
     ident = _identity(path, 0)
-    meshes = _mesh_lines(path) if ident.startswith("sha256 ") else []
+    meshes = [] if not ident.startswith("sha256 ") else _mesh_lines(path, reads) if reads else _mesh_lines(path)
     if not meshes:
         return ident
     digest = hashlib.sha256(ident.encode())
@@ -295,10 +299,11 @@ def _scene_identity(path: Path) -> str:
     return f"sha256 {digest.hexdigest()[:16]}"
 
 
-def _mesh_lines(path: Path) -> list[str]:
+def _mesh_lines(path: Path, reads: list | None = None) -> list[str]:
     """A line per mesh file of the scene file ``path``'s geometry, in its order: the digests of
     the files a load of it reads (:func:`tlm.scenes.meshes.mesh_files`: the mesh's content, the
-    others' with their paths relative to the mesh), or that it is missing or unreadable."""
+    others' with their paths relative to the mesh; from ``reads`` where a load noted them, :func:`_noted`),
+    or that it is missing or unreadable."""
     from tlm.errors import InputError
     from tlm.scenes.meshes import mesh_files
 
@@ -306,10 +311,11 @@ def _mesh_lines(path: Path) -> list[str]:
         paths = mesh_paths(path)
     except (InputError, OSError, ValueError):
         return []  # (a scene file that does not load: its bytes tell it)
+    noted = _noted(reads)
     out = []
     for i, mesh in enumerate(paths):
         try:
-            files = mesh_files(mesh)
+            files = _files_noted(mesh, noted.get(os.path.realpath(mesh))) or mesh_files(mesh)
         except (InputError, OSError, ValueError) as e:
             out.append(f"mesh {i}: {'missing' if not mesh.is_file() else f'unreadable ({type(e).__name__})'}")
             continue
@@ -317,6 +323,25 @@ def _mesh_lines(path: Path) -> list[str]:
         parts += [f"{os.path.relpath(f, mesh.parent)} {d['sha256']} {d['size']}" for f, d in files[1:]]
         out.append(f"mesh {i}: " + "; ".join(parts))
     return out
+
+
+def _noted(reads: list | None) -> dict[str, tuple]:
+    """The ``("mesh", path, digest, names, resolve)`` records of a scene load's ``reads`` by the mesh's real
+    path (:func:`tlm.scenes.cache.mesh`: the digest it computed of the file, what names its other files)."""
+    return {os.path.realpath(r[1]): r for r in reads or () if r and r[0] == "mesh" and len(r) == 5 and r[2]}
+
+
+def _files_noted(mesh: Path, record: tuple | None) -> list[tuple[Path, dict]] | None:
+    """:func:`tlm.scenes.meshes.mesh_files` of ``mesh`` from a load's ``record`` of it (:func:`_noted`): the
+    mesh's digest the load computed, its other files' (an OBJ's libraries, few kB) computed now where the
+    record names them; None where it names none (a glTF's buffers: :func:`~tlm.scenes.meshes.mesh_files`)."""
+    from tlm.caches import file_digest
+
+    if record is None or not isinstance(record[3], list):
+        return None
+    _, _, digest, names, resolve = record
+    return [(Path(mesh), digest), *((Path(p), file_digest(Path(p))) for p in (resolve(Path(mesh), names)
+                                                                             if names else ()))]
 
 
 def mesh_paths(scene: Path) -> list[Path]:

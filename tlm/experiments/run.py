@@ -44,13 +44,13 @@ from tlm.arch.functional import Functional, save_npz
 from tlm.arch.model import Timing, simulate
 from tlm.caches import cache_warnings
 from tlm.claims import claimed
-from tlm.config import ArchConfig, RunConfig, to_dict
+from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
 from tlm.config_read import nameless
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import load_frame
-from tlm.experiments.provenance import code_state, versions
+from tlm.experiments.provenance import code_state, scene_identity, versions
 from tlm.experiments.reference import difference_image, ensure_reference, image_error
 from tlm.experiments.reference_cache import load_reference, meets_tolerance
 from tlm.experiments.run_warnings import eye_hits, run_warnings, stream_warnings, unread_overrides
@@ -62,7 +62,7 @@ from tlm.progress import Ticking, Timer, progress_bar
 from tlm.render import checks
 from tlm.render.batches import Primary, render_batches
 from tlm.render.frame import Frame, GBuffer, ImageGBuffer
-from tlm.render.image import auto_exposure, to_srgb8, write_png
+from tlm.render.image import auto_exposure, overflow_line, to_srgb8, write_png
 from tlm.render.planner import Plan, check_photon_memory, photon_count, plan
 from tlm.render.pmap import radii
 from tlm.scenes.model import Light, Scene
@@ -122,6 +122,7 @@ class RenderResult:
     base: Path | None = None
     overrides: tuple[str, ...] = ()
     via: str = "--set"
+    scene_digest: str | None = None  # the scene's inputs as render() loaded them (results.json scene_digest)
 
     @property
     def accel(self) -> TriangleAccel:
@@ -208,15 +209,22 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
     :func:`~tlm.scenes.loader.load_scene` ``(cfg.scene, base, cfg.resolution, config_source)``
     gives it: :func:`tlm.experiments.frames.cached_render`, whose key loaded it), not loaded
     again; ``timer``: the result's host seconds start from it (that load's stage);
-    ``overrides`` and ``via``: the result's (:class:`RenderResult`), what its warnings name.
+    ``overrides`` and ``via``: the result's (:class:`RenderResult`), what its warnings name. A scene it loads
+    gets its ``scene_digest``: :func:`~tlm.experiments.provenance.scene_identity` of the files the load read, from
+    the digests the load computed (a scene given is not digested: None).
 
     The kernels run on ``render.threads`` threads (null: :func:`~tlm.kernels.threads.default_threads`), with the
     bits of one (:mod:`tlm.kernels.threads`)."""
     check_numba_threads()  # (before numba's import, which it would fail)
     with threads.using(cfg.render.threads):
         timer = Timer() if timer is None else timer
-        with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar:
+        with progress_bar(progress, desc="load scene", total=None, unit="step", leave=False) as bar, \
+                noting_reads() as reads:
             frame = load_frame(cfg, base, config_source, timer, bar, scene=scene)
+        digest = None
+        if scene is None and frame.scene.source:  # (of the load's stage: its files' digests, most of them reused)
+            with timer.stage("load_scene"):
+                digest = scene_identity(frame.scene.source, reads)
         the_plan = plan(frame.scene, cfg)
         if "pmap" in the_plan.run_names:  # (the global group and the caustic group's own budget)
             ph = cfg.photons
@@ -235,7 +243,7 @@ def render(cfg: RunConfig, base: Path | None = None, config_source: str | None =
             error = photon_error(frame, done.radiance["pmap"].reshape(-1, 3))
     return RenderResult(frame.scene, cfg, the_plan, frame, done.gbuffer, done.radiance, done.work, timer,
                         done.photons, error, primary=done.primary, gather_maps=done.gather_maps,
-                        overrides=tuple(overrides), via=via)
+                        overrides=tuple(overrides), via=via, scene_digest=digest)
 
 
 def programs_for(cfg: RunConfig, base: Path | None) -> Programs:
@@ -462,6 +470,8 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "seed": res.cfg.seed,
         "mode": res.cfg.mode,
         "scene": scene_stats(res.scene, res.accel),
+        # (the bytes of the scene file, its extends: chain, its meshes and their libraries, as the run read them)
+        "scene_digest": res.scene_digest,
         "plan": res.plan.to_dict(),
         "primary": {
             "pixels": int(pixels),
@@ -532,6 +542,8 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         primary = res.primary if res.primary is not None else _primary_of(res)
         surfaces = ~primary.sees_light  # lights seen directly would set the exposure
         exposure = res.cfg.render.exposure or auto_exposure(composite.reshape(-1, 3)[surfaces])
+        # (an exposure that takes pixels past the largest float: white, said once)
+        overflow = overflow_line(composite, exposure, composite.reshape(-1, 3)[surfaces])
         if "radiance" in outputs:
             (tmp / "radiance").mkdir()
         for name, rad in [*res.radiance.items(), ("composite", composite)]:
@@ -558,6 +570,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
         results = results_dict(res, exposure, config_path, overrides, say_unread)
         # the caches this process cannot write, as they are now (said on stderr once; a sweep's points record them too)
         results["warnings"] += [w for w in cache_warnings() if w not in results["warnings"]]
+        results["warnings"] += [overflow] if overflow else []
         # (the write: the folder and the record, up to results.json's own text, as a sweep point's)
         t1 = time.perf_counter()
         res.timer.seconds["write"] = t1 - t0

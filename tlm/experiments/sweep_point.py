@@ -129,8 +129,10 @@ def run_point(task: Task) -> dict:
                 "tlm": POINT_FORMAT, "hash": task.hash, "sweep": task.source, "factors": task.factors,
                 "seed": cfg.seed, "mode": cfg.mode,
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
-                # the render's warnings, and this point's own (what it sets and never reads; its stream)
-                "warnings": [*(summary.get("warnings") or []), *inert_changes(cfg), *stream_warnings(timing, cfg),
+                # the render's warnings, and this point's own (its render.threads past this process's CPUs; what it
+                # sets and never reads; its stream)
+                "warnings": [*(summary.get("warnings") or []), *_threads_lines(task, cfg, where), *inert_changes(cfg),
+                             *stream_warnings(timing, cfg),
                              *_worker_cache_warnings(task, where)],  # (the caches this worker could not write)
                 # the timing keys it changed from their defaults and never read, with why (for the
                 # sweep's own line on a factor no point read: Sweep.unread_factors)
@@ -195,6 +197,22 @@ def _checked(task: Task, where: str | None) -> tuple[dict, Any, Path]:
     if where is not None and task.code is not None:
         _check_worker_inputs(task, cfg, folder, where)
     return ran, cfg, folder
+
+
+def _threads_lines(task: Task, cfg, where: str | None) -> list[str]:
+    """The line on the ``render.threads`` the point's config gives past the CPUs available to this process
+    (:func:`~tlm.experiments.run_warnings.threads_warning`), said by the process that runs the point, its frame
+    cached or not: neither the frame's key nor its cached summary holds the threads or the machine's CPUs
+    (:func:`~tlm.experiments.frames.cached_render`). None where the config leaves it null (the worker's share:
+    :func:`_with_threads`). A remote Dask worker's (``task.code``) ends ``(on the Dask worker ADDRESS on host
+    NAME)``, its CPUs its machine's; a local worker's is the line the sweep says as it starts
+    (:func:`~tlm.experiments.run_warnings.sweep_threads_line`), said once."""
+    from tlm.experiments.run_warnings import threads_warning
+
+    if (task.config.get("render") or {}).get("threads") is None:
+        return []
+    lines = threads_warning(cfg)
+    return lines if where is None or task.code is None else [f"{line} (on {where})" for line in lines]
 
 
 def _worker_cache_warnings(task: Task, where: str | None) -> list[str]:

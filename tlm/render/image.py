@@ -24,16 +24,36 @@ def to_srgb8(radiance: np.ndarray, exposure: float) -> np.ndarray:
     """(H, W, 3) linear radiance -> (H, W, 3) uint8 sRGB, clipped.
 
     Converted in blocks of :data:`SRGB_BLOCK` values (each value on its own), so a
-    1080p frame needs no whole-image float64 temporaries."""
+    1080p frame needs no whole-image float64 temporaries. A value that ``exposure`` takes past the
+    largest float (``render.exposure: 1e308``) is white, as any past 1 is, quietly: the run says it once
+    (:func:`overflow_line`)."""
     radiance = np.asarray(radiance)
     flat = radiance.reshape(-1)
     out = np.empty(flat.shape[0], dtype=np.uint8)
     for a in range(0, flat.shape[0], SRGB_BLOCK):
         b = min(a + SRGB_BLOCK, flat.shape[0])
-        x = np.clip(np.nan_to_num(flat[a:b] * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+        with np.errstate(over="ignore"):  # (inf: white, below)
+            x = np.clip(np.nan_to_num(flat[a:b] * exposure, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
         s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
         out[a:b] = np.round(s * 255.0).astype(np.uint8)
     return out.reshape(radiance.shape)
+
+
+def overflow_line(radiance: np.ndarray, exposure: float, auto: np.ndarray | None = None,
+                  key: str = "render.exposure") -> str | None:
+    """The line a run warns of where ``exposure`` (``key``'s value) takes a pixel of ``radiance`` (H, W, 3) past the
+    largest float: how many pixels, shown white (as any past 1 is), and the exposure that would show the image,
+    :func:`auto_exposure`'s of ``auto`` (the pixels it sets the exposure by: a run's surfaces; None: all); None
+    where none overflows."""
+    rad = np.asarray(radiance).reshape(-1, 3)
+    with np.errstate(over="ignore", invalid="ignore"):
+        over = int(np.count_nonzero(np.isinf(rad.max(axis=1).astype(np.float64) * exposure)))
+    if not over:
+        return None
+    return (f"{key} = {exposure:g} takes the radiance of {over} of {rad.shape[0]} pixels past the largest float: "
+            f"they are white in images/*.png, as any past 1 is; an exposure of about "
+            f"{auto_exposure(rad if auto is None else np.asarray(auto).reshape(-1, 3)):.3g} "
+            f"shows the image (null: that, auto)")
 
 
 def write_png(path: Path, rgb8: np.ndarray) -> None:

@@ -156,6 +156,54 @@ def name_scenes(runs: list) -> None:
     if renamed:
         for r in runs:
             r.named = renamed.get((r.named, same_file((r.results.get("scene") or {}).get("source"))), r.named)
+    _by_digest(runs)
+
+
+def scene_digest(run) -> tuple[str | None, bool]:
+    """The digest of a run's scene inputs (:func:`~tlm.experiments.provenance.scene_identity`: its scene file,
+    ``extends:`` chain, meshes and their libraries) and whether its ``results.json`` recorded it as the run read
+    them (``scene_digest``); for a sweep point or a run of an older tlm, which record none, that of the files as
+    they are on this machine now (None where its scene file is not here), and False."""
+    from tlm.experiments.provenance import scene_identity
+
+    recorded = run.results.get("scene_digest")
+    if isinstance(recorded, str) and recorded:
+        return recorded, True
+    source = (run.results.get("scene") or {}).get("source")
+    return (scene_identity(source) if source and Path(str(source)).is_file() else None), False
+
+
+def _by_digest(runs: list) -> None:
+    """Where the runs of one scene name recorded different scene digests (:func:`scene_digest`: one scene file
+    whose mesh, MTL or YAML was edited between them), each is named with its digest's first 8 digits too
+    (``orig.yaml [9124ca48]``): one name, one scene content. A digest not recorded (an older tlm) splits none, and
+    its run keeps the name (:func:`digest_notes` says why)."""
+    digests: dict[str, set[str]] = {}
+    for r in runs:
+        got, recorded = scene_digest(r)
+        if recorded:
+            digests.setdefault(r.named, set()).add(got)
+    for r in runs:
+        got, recorded = scene_digest(r)
+        if recorded and len(digests.get(r.named, ())) > 1:
+            r.named = f"{r.named} [{got.removeprefix('sha256 ')[:8]}]"
+
+
+def digest_notes(runs: list) -> list[str]:
+    """The report's lines on runs whose scene contents differ though their scene file is one
+    (:func:`_by_digest` named them apart). A run that records no digest (an older tlm's, a sweep point) is compared
+    by its files as they are now, which its scene's table says (:func:`tlm.report.provenance.scene_tables`)."""
+    from tlm.report.common import some
+
+    split: dict[str, list] = {}
+    for r in runs:
+        base, _, tail = r.named.rpartition(" [")
+        if base and tail.endswith("]") and scene_digest(r)[1]:
+            split.setdefault(base, []).append(r)
+    return [f"The runs of scene {name} did not read the same scene inputs (its file, its extends: chain, its "
+            f"meshes and their MTL libraries: results.json scene_digest): "
+            f"{some(sorted({f'{r.named} ({r.label})' for r in members}))}; their numbers are of different scenes"
+            for name, members in split.items()]
 
 
 def same_file(source: Any) -> str:

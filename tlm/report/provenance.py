@@ -1,7 +1,9 @@
 """Section 7: where every number of the report came from.
 
 Per run shown (a run, a thesis cell, a sweep point): its folder, seed, git revision,
-package versions and host wall seconds, and its resolved config (collapsed). Per scene the
+package versions and host wall seconds (and who ran it, a sweep point's host and Dask worker, where more than
+one ran the points shown; else each sweep's line says where: :func:`ran_note`), and its resolved config (collapsed).
+Per scene the
 runs rendered (once for the runs whose ``results.json`` record one scene alike: a sweep's
 points on one scene, once): its materials' values as the renderer used them and its lights,
 each with where it came from (:func:`scene_tables`). Per study folder (thesis, scaling,
@@ -12,13 +14,15 @@ folder written before they were recorded says so.
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 
 import yaml
 
 from tlm.report.collect import Inputs, Run, with_set
-from tlm.report.common import Section
+from tlm.report.common import Section, count, some
 from tlm.report.html import esc
+from tlm.report.names import digest_notes, scene_digest
 
 VERSIONS = ("tlm", "python", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")  # (kernels: numba or numpy)
 MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
@@ -60,6 +64,52 @@ def _code(r: dict) -> str:
     more = (["modified"] if r.get("git_modified") else []) + (
         [f"code {r['code_fingerprint']}"] if r.get("code_fingerprint") else [])
     return f"{rev} ({', '.join(more)})" if more else rev
+
+
+Who = tuple[str | None, str | None]  # (the Dask worker's name, the host) that ran a sweep point
+
+
+def ran_by(ran: dict | None) -> Who | None:
+    """Who ran a sweep point, as its row's ``worker`` and ``host`` (or its ``results.json`` ``ran``) record it
+    (:func:`tlm.experiments.dask_workers.ran_here`): (the Dask worker's name or None, the host); None where
+    neither is recorded (a point of an older tlm, one whose worker died before it could say)."""
+    if not isinstance(ran, dict):
+        return None
+    worker, host = (v if isinstance(v, str) and v else None for v in (ran.get("worker"), ran.get("host")))
+    return None if worker is None and host is None else (worker, host)
+
+
+def ran_label(who: Who | None) -> str:
+    """A ``ran on`` cell: ``HOST``, ``WORKER on HOST`` for a Dask worker's, ``not recorded``."""
+    if who is None:
+        return "not recorded"
+    worker, host = who
+    return host if worker is None else f"{worker} on {host}" if host else worker
+
+
+def ran_note(whos: list[Who | None], what: str = "point") -> str | None:
+    """Where ``whos`` (a sweep's points, :func:`ran_by`) ran, in a sentence: ``All 3 points ran on host vm``
+    (the Dask worker's name too, where one ran them), or, run on more than one, each host (or worker) with its
+    count of points (:func:`~tlm.report.common.some` of them), most first; None where none records it."""
+    known = [w for w in whos if w is not None]
+    if not known:
+        return None
+    unknown = len(whos) - len(known)
+    rest = f"{unknown} {'does' if unknown == 1 else 'do'} not record where {'it' if unknown == 1 else 'they'} ran"
+    counts = Counter(known).most_common()
+    if len(counts) == 1:
+        (worker, host), _ = counts[0]
+        where = f"host {host}" if worker is None else f"the Dask worker {worker}" + (f" on host {host}" if host else "")
+        lead = (f"{len(known)} of the {len(whos)} {what}s" if unknown else
+                f"All {count(len(whos), what)}" if len(whos) > 1 else f"The {what}")
+        return f"{lead} ran on {where}{f' ({rest})' if unknown else ''}"
+    hosts = {host for (_, host), _ in counts}
+    workers = sum(worker is not None for (worker, _), _ in counts)
+    local = " and local processes" if workers and workers < len(counts) else ""  # (a sweep resumed on Dask)
+    places = f"{count(workers, 'Dask worker')}{local} on " * bool(workers) + count(len(hosts), "host")
+    return (f"The {count(len(whos), what)} ran on {places}: "
+            f"{some([f'{ran_label(who)} ({count(n, what)})' for who, n in counts])}"
+            f"{f'; {rest}' if unknown else ''}")
 
 
 FLAGS = ("mode", "seed")  # tlm run's --mode and --seed: results.json ``overrides`` ends with them as mode=, seed=
@@ -118,6 +168,7 @@ def shared_stages(runs: list[Run]) -> dict[int, dict[str, float]]:
 MATERIAL_VALUES = ("albedo", "reflectance", "ior", "transmittance")  # (one of them: a kind's values recorded)
 MAX_LISTED = 6  # runs named per scene; the rest counted
 OLD = "not recorded by the tlm of this run (an older one)"
+NOW = " (of its files now: not recorded)"  # (a scene digest of a run of an older tlm: names.scene_digest)
 
 
 def _text(v) -> str:
@@ -192,8 +243,8 @@ def scene_tables(runs: list[Run]) -> list[str]:
     groups: dict[str, list[Run]] = {}
     for run in runs:
         scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
-        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")], sort_keys=True,
-                         default=str)
+        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")] + [scene_digest(run)],
+                         sort_keys=True, default=str)
         groups.setdefault(key, []).append(run)
     parts = []
     first: dict[str, tuple[dict, str]] = {}  # (a scene's name and file -> its first record listed, and its runs)
@@ -205,19 +256,22 @@ def scene_tables(runs: list[Run]) -> list[str]:
         runs_named = f"{'runs' if len(members) > 1 else 'run'} {named}"
         which = json.dumps([scene.get(k) for k in ("name", "source")], default=str)
         was = first.get(which)
+        digest, recorded = scene_digest(members[0])
         if was is not None and _recorded(mats) and _recorded(was[0].get("materials")) \
                 and set(mats) == set(was[0]["materials"]):
             other = {k: m for k, m in mats.items() if was[0]["materials"][k] != m}
             same_lights = lights == was[0].get("lights")
             what = " and ".join([f"{len(other)} material{'' if len(other) == 1 else 's'}"] * bool(other)
-                                + ["its lights"] * (not same_lights))
+                                + ["its lights"] * (not same_lights)
+                                + [f"inputs {digest}{'' if recorded else NOW}"] * (digest != was[2]))
             parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: as for {esc(was[1])}, but "
                          f"{esc(what)} ({esc(runs_named)})</summary>{_materials_table(other) if other else ''}"
                          f"{'' if same_lights else _lights_table(lights, mats)}</details>")
             continue
-        first.setdefault(which, (scene, runs_named))
+        first.setdefault(which, (scene, runs_named, digest))
         counts = ", ".join(f"{len(v)} {w}{'' if len(v) == 1 else 's'}" if isinstance(v, t) else f"no {w}s"
                            for v, t, w in ((mats, dict, "material"), (lights, list, "light")))
+        counts += f", inputs {digest}{'' if recorded else NOW}" if digest else ""
         parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: {esc(counts)} "
                      f"({esc(runs_named)})</summary>"
                      f"{_materials_table(mats)}{_lights_table(lights, mats)}</details>")
@@ -233,13 +287,18 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
     # (a --set column where some run was made with overrides: a sweep point's are its sweep's)
     overrides = any(given_set(run) for run in inputs.runs)
-    head = ["run", "kind", "folder", *(["--set"] if overrides else []), "seed", "git revision", "versions", "host s"]
+    # (who ran each sweep point, its host and Dask worker: a column where more than one did, else the sweep's line
+    # below says it once; a tlm run or a thesis cell does not record it)
+    whos = [ran_by(run.results.get("ran")) if run.kind == "sweep-point" else None for run in inputs.runs]
+    ran = len({w for w in whos if w is not None}) > 1
+    head = ["run", "kind", "folder", *(["--set"] if overrides else []), "seed", "git revision", "versions", "host s",
+            *(["ran on"] if ran else [])]
     parts = []
     if inputs.runs:
         shared = shared_stages(inputs.runs)
         parts.append("<table><tr>" + "".join(f'<th class="l">{esc(h)}</th>' for h in head) + "</tr>")
         for i, run in enumerate(inputs.runs):
-            cells = _run_row(run, shared.get(i), overrides)
+            cells = _run_row(run, shared.get(i), overrides) + ([ran_label(whos[i])] if ran else [])
             parts.append("<tr>" + "".join(f'<td class="l">{esc(c)}</td>' for c in cells) + "</tr>")
         parts.append("</table>")
         if shared:  # (the study's line, when the study is an input, is above the notes: html.section's order)
@@ -253,6 +312,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
         cases = inputs.unread_cases()
         parts.append(f"<p>No run among the inputs{'; ' + esc(cases) if cases else ''}.</p>")
     parts += scene_tables(inputs.runs)  # (each scene's materials and lights, as the runs read them)
+    sec.notes += digest_notes(inputs.runs)  # (one scene file of other contents in two runs)
     for run in inputs.runs[:MAX_CONFIGS]:
         parts.append(f"<details><summary>{esc(run.label)}: resolved config</summary><pre>"
                      f"{esc(yaml.safe_dump(run.config, sort_keys=False))}</pre></details>")
@@ -261,6 +321,8 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
                          "every run's is its folder's config.resolved.yaml.")
     for sw in inputs.sweeps:  # (its points' rows above list its --set; its file and --set once, as the studies')
         line = f"sweep folder {sw.path}: sweep file {sw.spec.get('sweep')}, {with_set(sw.overrides) or 'no --set'}"
+        if (where := ran_note([ran_by(r) for r in sw.rows])) is not None:  # (its host seconds are that machine's)
+            line += f"; {where[0].lower()}{where[1:]}"
         parts.append(f"<p>{esc(line)}</p>")
     for st in inputs.studies:
         p = st.meta.get("provenance")

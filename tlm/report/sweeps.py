@@ -2,7 +2,9 @@
 
 Per sweep, a table of its points (factors, status, simulated FPS, TThru, the slowest
 PM, host seconds less their one-off part, numba compiling and first imports, said in a note
-under it; a failed point with its error) and one figure per varied factor:
+under it, and where they were measured: the host and Dask worker that ran the points, said once where one
+ran them all, else a column, :func:`~tlm.report.provenance.ran_note`; a failed point with its error)
+and one figure per varied factor:
 the simulated FPS against that factor's values, one line per combination of the other
 factors. Combinations that draw the same line are drawn once, one label naming them all,
 and the lines are counted after that: up to :data:`MAX_SERIES` distinct lines are drawn
@@ -53,6 +55,7 @@ from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, Figure, FigureName, Section, count, line_style, new_figure, save, some
 from tlm.report.html import esc
 from tlm.report.names import value_text
+from tlm.report.provenance import ran_by, ran_label, ran_note
 from tlm.report.sweep_lines import (
     LEVELS,
     all_numbers,
@@ -140,8 +143,11 @@ def table(sw: Sweep) -> str:
     # (the points' image error against their reference, where they measured it: sweep.csv's error.rel_mse and
     # error.rmse, a column each)
     errs = [k for k in ERROR_COLUMNS if any(_finite(r.get(k)) for r in rows if r.get("status") == "ok")]
+    # (who ran each point, the host and the Dask worker: a column only where more than one did, else said once)
+    whos = [ran_by(r) for r in rows]
+    ran = len({w for w in whos if w is not None}) > 1
     head = ["point", *factors, "status", "FPS", "TThru (M cycles)", *(["Ttrav / Tisct"] if ratio else []),
-            *(ERROR_COLUMNS[k] for k in errs), "slowest PM", "host s"]
+            *(ERROR_COLUMNS[k] for k in errs), "slowest PM", "host s", *(["ran on"] if ran else [])]
     out = ['<table><tr>' + "".join(f"<th>{esc(h)}</th>" for h in head) + "</tr>"]
     # each column's numbers in one notation (column_texts): a factor's values, FPS, TThru, host seconds
     shown = rows[:MAX_ROWS]
@@ -162,7 +168,8 @@ def table(sw: Sweep) -> str:
             k += 1
         else:
             cells = [f"failed: {r.get('error')}", "", *([""] if ratio else []), *("" for _ in errs), "", ""]
-        vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells]
+        vals = [str(r.get("point")), *(columns[f][i] for f in factors), str(r.get("status")), *cells,
+                *([ran_label(whos[i])] if ran else [])]
         out.append("<tr>" + "".join(f"<td>{esc(v)}</td>" for v in vals) + "</tr>")
     out.append("</table>")
     once = [r for r in ok if _finite(r.get("seconds.one_off"))]
@@ -175,6 +182,8 @@ def table(sw: Sweep) -> str:
                    "loading kernels "
                    "and modules imported for the first time, paid by whichever points each worker ran first, not "
                    f"by their settings ({esc(where)}).</p>")
+    if (where := ran_note(whos)) is not None:  # (host s are that machine's: sweep.csv's worker and host)
+        out.append(f'<p class="note">{esc(where)}.</p>')
     if len(rows) > MAX_ROWS:
         out.append(f'<p class="note">The first {MAX_ROWS} of {len(rows)} points are listed; '
                    f"all are in {esc(sw.path / 'sweep.csv')}.</p>")

@@ -169,8 +169,8 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
                 raise InputError(f"is {_not_a_file(odd)}, not a scene file{_save_it(odd)}", source=ref)
             raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file{_save_it(odd)}",
                              source=config_source, key=key)
-        raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}",
-                         source=config_source, key=key)
+        raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}"
+                         f"{_moved_run(ref, config_source, key)}", source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
@@ -178,6 +178,16 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
         f"{ref!r} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
         source=config_source, key=key,
     )
+
+
+def _moved_run(ref: str, config_source: str | None, key: str) -> str:
+    """What to do where a run folder's ``config.resolved.yaml`` names a ``scene`` file by an absolute path not here."""
+    if key != "scene" or os.path.basename(str(config_source).split(", with ")[0]) != "config.resolved.yaml" \
+            or not os.path.isabs(ref):
+        return ""
+    return ("; a run folder's config.resolved.yaml names its scene file by the absolute path it had where the run "
+            "was made: was the project moved, or the folder copied from elsewhere? give the file as it is now, "
+            "--set scene=PATH")
 
 
 def _mesh_folders(ref: str, base: Path | None, also: tuple[Path, ...]) -> list[str] | None:
