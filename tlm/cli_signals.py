@@ -490,7 +490,7 @@ def _say(text: str) -> None:
         sys.stderr.flush()
     except Exception:
         with suppress(OSError):
-            os.write(2, f"{text}\n".encode())
+            os.write(2, f"{text}\n".encode("utf-8", "backslashreplace"))  # (a surrogate escaped, as stderr does)
 
 
 def _end() -> None:

@@ -77,7 +77,7 @@ from tlm.storage_live import (  # noqa: F401  (re-exported)
     pid_alive,
     process_tag,
 )
-from tlm.storage_lock import _host, folder_lock  # noqa: F401  (_host: storage._host, tlm.claims's)
+from tlm.storage_lock import _host, folder_lock  # (_host: storage._host, tlm.claims's; _left_by_the_gone asks it)
 from tlm.storage_swap import mounted as _mounted
 from tlm.storage_swap import swap_in as _swap_in
 from tlm.storage_swap import swap_tries as _swap_tries  # noqa: F401  (kept importable from here)
@@ -268,8 +268,9 @@ def stale_files(folder: Path, name: str = ".+") -> list[Path]:
 
 def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], bool],
                       in_use: Callable[[Path], bool]) -> list[Path]:
-    """:func:`tlm.storage_live.left_by_the_gone`, asking this module's :func:`pid_alive` whether a process runs."""
-    return left_by_the_gone(folder, pattern, kind, in_use, pid_alive)
+    """:func:`tlm.storage_live.left_by_the_gone`, asking this module's :func:`pid_alive` whether a process runs and
+    its ``_host`` this machine's name (both what a test replaces: storage.pid_alive, storage._host)."""
+    return left_by_the_gone(folder, pattern, kind, in_use, pid_alive, _host)
 
 
 _OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work

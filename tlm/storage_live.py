@@ -69,7 +69,7 @@ def _thread_tag() -> str:
 
 
 def _hold(name: str) -> None:
-    """Note the temporary folder ``name`` as in use by this process (:func:`clean_stale` keeps it)."""
+    """Note the temporary folder ``name`` as in use by this process (:func:`tlm.storage.clean_stale` keeps it)."""
     with _LIVE_LOCK:
         _LIVE.add(name)
 
@@ -94,17 +94,19 @@ if hasattr(os, "register_at_fork"):
 
 
 def left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], bool],
-                     in_use: Callable[[Path], bool], alive: Callable[[int], bool] = pid_alive) -> list[Path]:
+                     in_use: Callable[[Path], bool], alive: Callable[[int], bool] = pid_alive,
+                     host_of: Callable[[], str] = _host) -> list[Path]:
     """The entries of ``folder`` (not links; of ``kind``) whose names ``pattern`` matches (its
     groups: the host, None for an older writer's name, and the process id) that a process of this
     machine now gone left, or this process before (its id reused) where ``in_use`` (asked
     under the lock of this process's writers) says none of its writers uses it now; ``alive``: whether a
-    process of this machine runs (:func:`pid_alive`; :func:`tlm.storage._left_by_the_gone` passes its own)."""
+    process of this machine runs (:func:`pid_alive`), ``host_of``: this machine's name (``_host``):
+    :func:`tlm.storage._left_by_the_gone` passes its own of both, what a test replaces there."""
     try:
         entries = list(Path(folder).iterdir())
     except OSError:
         return []
-    host, gone = _host(), []
+    host, gone = host_of(), []
     for e in entries:
         m = pattern.fullmatch(e.name)
         if not m or (m[1] is not None and m[1] != host) or e.is_symlink() or not kind(e):

@@ -61,7 +61,7 @@ def folder_lock(out: Path, waiting: Callable[[], None] | None = None, *, probe: 
     ``renameat2``; another machine writing through NFS a disk this one reads locally), caught between
     its renames: a reader finds no folder (as it would have after 10 ms of a slow writer), and a writer
     here finds none to carry the user's files over from, so it puts its folder in place of the one the
-    other renames in next (:func:`tlm.storage._swap_tries`), removing what that one carried over."""
+    other renames in next (:func:`tlm.storage_swap.swap_tries`), removing what that one carried over."""
     out = Path(out)
     for _ in range(1000):
         try:

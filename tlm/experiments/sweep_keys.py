@@ -51,6 +51,7 @@ def from_folder(value: Any, folder: Path) -> Any:
     except ValueError:  # (another drive: no path from there)
         return value
 
+
 def point_inputs(cfg, folder: Path, source: str, seen: dict | None = None, work: Any = None) -> dict[str, str]:
     """Fingerprints of the files ``cfg`` names: its frame's functional key (the scene's
     content) and the sha256 of the programs table's bytes.

@@ -38,7 +38,8 @@ METRICS = ("TVert", "TTrav", "Tisct", "TFrag", "TThru", "FPS")
 PM_METRICS = ("TVert", "TTrav", "Tisct", "TFrag")
 CALIBRATED = {("rcast", "TVert"), ("rcast", "TTrav"), ("rcast", "TFrag")}
 # Held-out cells that are no prediction of their own, each another cell again (in the thesis's
-# tables and in ours alike): the headline median leaves them out (:func:`summarize`), the CSV keeps them.
+# tables and in ours alike): the headline median leaves them out (:func:`tlm.experiments.thesis.summarize`),
+# the CSV keeps them.
 # Their kind (as the summary's ``not_predictions`` names it) -> why.
 NOT_PREDICTIONS = {
     "TVert in Reflect and Refract": "the fitted RCast TVert again: one geometry BSP a frame, whatever the mode",
@@ -93,8 +94,8 @@ def with_comparable(rows: list[dict], not_comparable: dict[str, list[str]]) -> l
     """``rows`` (:func:`comparison_rows`) with whether each can be compared with the thesis:
     ``comparable`` false and ``not_comparable`` how ours differs (``"; "``-joined, as the
     summary's words join them) for a row whose scene is in ``not_comparable`` (its rows'
-    name -> how, :func:`mismatches`), true and None for another; both None where the thesis
-    has no value (nothing to compare). Its ``rel_error`` is kept, as the report keeps the
+    name -> how, :func:`~tlm.experiments.thesis_setting.mismatches`), true and None for another; both None where
+    the thesis has no value (nothing to compare). Its ``rel_error`` is kept, as the report keeps the
     value: a reader of the CSV is told, not left to join it with the summary."""
     out = []
     for r in rows:
@@ -106,7 +107,7 @@ def with_comparable(rows: list[dict], not_comparable: dict[str, list[str]]) -> l
 
 def describe_rows(rows: list[dict[str, Any]], scenes: dict[str, str] | None = None) -> str:
     """Tables I-III as `tlm thesis` prints them: ours (thesis) per scene-mode and metric;
-    ``scenes``: each scene's name in the printout (:func:`scene_names`)."""
+    ``scenes``: each scene's name in the printout (:func:`tlm.experiments.thesis.scene_names`)."""
     cells: dict[tuple[str, str], dict[str, dict]] = {}
     for r in rows:
         cells.setdefault(((scenes or {}).get(str(r["scene"]), str(r["scene"])), r["mode"]), {})[r["metric"]] = r

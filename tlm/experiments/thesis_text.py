@@ -2,7 +2,7 @@
 re-exports them): the per-item table ``tlm thesis`` prints (:func:`describe_items`), a summary's held-out
 median and slowest-PM count in words, as ``tlm thesis`` and the report quote them (:func:`median_words`,
 :func:`slowest_words`), and a number in fixed notation (:func:`fixed`). Tables I-III themselves,
-:func:`~tlm.experiments.thesis.describe_rows`, stay beside the metrics they list."""
+:func:`~tlm.experiments.thesis_tables.describe_rows`, stay beside the metrics they list."""
 
 from __future__ import annotations
 
