@@ -42,10 +42,10 @@ HOST_FIELDS = (
     "git_revision",  # HEAD of the checkout: others commit to it while the suite runs
     "git_modified",  # whether the checkout differs from HEAD: others edit it while the suite runs
     "code_fingerprint",  # the package's content: the same edits
+    "ran",  # who ran it: its Dask worker (a sweep point's; None for a tlm run), host and process id
 )
-# a sweep point's results.json has two more: inside its "functional" section, and who ran it:
-POINT_HOST_FIELDS = ("functional.render_host_seconds",  # the render's seconds per stage
-                     "ran")  # who ran the point: its Dask worker, host and process id
+# a sweep point's results.json has one more, inside its "functional" section:
+POINT_HOST_FIELDS = ("functional.render_host_seconds",)  # the render's seconds per stage
 # (its "key" and "cached" are compared: the key hashes the config, the scene and the
 # functional layer's source, and the first point of each key renders, the rest read it)
 # the reference's meta.json: how long the rounds took

@@ -48,6 +48,7 @@ from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
 from tlm.config_read import nameless
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean
+from tlm.experiments.dask_workers import ran_here
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import load_frame
 from tlm.experiments.provenance import code_state, scene_identity, versions
@@ -498,6 +499,7 @@ def results_dict(res: RenderResult, exposure: float, config_path: str | None,
         "host_seconds": {k: round(v, 6) for k, v in res.timer.seconds.items()},
         "versions": versions(),
         **code_state(),
+        "ran": ran_here(),  # (who ran it, as a sweep point records it: worker None outside a Dask worker, host, pid)
         "warnings": warnings,
     }
 

@@ -41,7 +41,7 @@ from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.report.collect import Inputs, read
-from tlm.report.common import Section, count, current_output, figure_output, forget_names
+from tlm.report.common import Section, count, current_output, drawable, figure_output, forget_names
 from tlm.report.html import esc, page
 from tlm.report.once import reading
 from tlm.report.warnings import warnings_html
@@ -333,5 +333,5 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
         intro += scenes_note(inputs)
         text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
                     summary=summary, notice=warnings_html(inputs))
-        (tmp / MARKER).write_text(text, encoding="utf-8")
+        (tmp / MARKER).write_text(drawable(text), encoding="utf-8")  # (a folder name of bytes not UTF-8 escaped)
     return Path(out) / MARKER

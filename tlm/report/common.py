@@ -49,6 +49,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure as MplFigure
 from matplotlib.mathtext import MathTextParser
+from matplotlib.text import Text
 from matplotlib.ticker import Formatter, LogLocator
 
 from tlm.errors import InputError
@@ -487,6 +488,54 @@ _MATHTEXT = MathTextParser("path")
 VECTOR_RC = {"pdf.fonttype": 42, "svg.fonttype": "none"}
 
 
+def drawable(text: str) -> str:
+    """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
+    (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
+    text that a font draws and UTF-8 writes (matplotlib refuses a surrogate). Text without one is as it is."""
+    if not any("\ud800" <= c <= "\udfff" for c in text):
+        return text
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
+                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
+
+
+class _Drawable(Formatter):
+    """An axis's formatter whose labels are :func:`drawable`: ``inner``'s, each surrogate escaped."""
+
+    def __init__(self, inner: Formatter):
+        self.inner = inner
+
+    def __call__(self, x, pos=None):
+        return drawable(self.inner(x, pos))
+
+    def format_ticks(self, values):
+        return [drawable(t) for t in self.inner.format_ticks(values)]
+
+    def get_offset(self):
+        return drawable(self.inner.get_offset())
+
+    def set_locs(self, locs):
+        self.inner.set_locs(locs)
+
+    def set_axis(self, axis):
+        super().set_axis(axis)
+        self.inner.set_axis(axis)
+
+
+def _drawable_texts(fig: MplFigure) -> None:
+    """Every text of ``fig`` (titles, labels, tick labels, legends, notes) :func:`drawable`: a run folder's
+    name of bytes not UTF-8 in a label is drawn with its bytes escaped, where matplotlib would raise."""
+    for ax in fig.axes:  # (tick labels, set_xticks(ticks, labels) or a formatter's: made again as the figure draws)
+        for axis in (ax.xaxis, ax.yaxis):
+            for minor, labels in ((False, axis.get_majorticklabels()), (True, axis.get_minorticklabels())):
+                if any(t.get_text() != drawable(t.get_text()) for t in labels):
+                    formatter = axis.get_minor_formatter() if minor else axis.get_major_formatter()
+                    (axis.set_minor_formatter if minor else axis.set_major_formatter)(_Drawable(formatter))
+    for text in fig.findobj(Text):
+        got = text.get_text()
+        if isinstance(got, str) and got != (shown := drawable(got)):
+            text.set_text(shown)
+
+
 def write_png(fig: MplFigure, path: Path) -> None:
     """Write ``fig`` as the PNG ``path`` at the resolution set (:func:`figure_output`, by default
     :data:`DPI`), laid out once and drawn once, and beside it each other format set (``path``
@@ -501,6 +550,7 @@ def write_png(fig: MplFigure, path: Path) -> None:
     fig.set_dpi(out.dpi)
     canvas = FigureCanvasAgg(fig)
     canvas.get_renderer().mathtext_parser = _MATHTEXT
+    _drawable_texts(fig)  # (a surrogate in a label: matplotlib raises)
     engine = fig.get_layout_engine()
     if engine is not None:
         if fig.axes:  # (as Figure.draw runs it, ignoring a ValueError)
@@ -527,7 +577,7 @@ def _name_part(text, limit: int | None = NAME_PART) -> str:
     folded = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
     part = re.sub(r"[^A-Za-z0-9-]+", "_", folded).strip("_-")[:limit].rstrip("_-")
     if not part and text.strip():
-        part = "x" + hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+        part = "x" + hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
     return part
 
 
@@ -575,7 +625,8 @@ def figure_name(out: Path, *parts, key: str | None = None) -> str:
         stem = _stem([short_keys(p) for p in parts], cut=True)
     folder = Path(out)
     taken = _TAKEN.setdefault(str(folder.absolute()), {})
-    tag = hashlib.sha1(key.encode("utf-8")).hexdigest()[:8]
+    # (surrogatepass: a folder's name of bytes not UTF-8 in the key, os.fsdecode's surrogates, one key still)
+    tag = hashlib.sha1(key.encode("utf-8", "surrogatepass")).hexdigest()[:8]
     candidates = [stem, f"{stem}_{tag}", *(f"{stem}_{tag}_{i}" for i in range(2, 1000))]
     for name in (f"{c}.png" for c in candidates):
         other = taken.get(name)

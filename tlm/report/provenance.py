@@ -1,8 +1,9 @@
 """Section 7: where every number of the report came from.
 
 Per run shown (a run, a thesis cell, a sweep point): its folder, seed, git revision,
-package versions and host wall seconds (and who ran it, a sweep point's host and Dask worker, where more than
-one ran the points shown; else each sweep's line says where: :func:`ran_note`), and its resolved config (collapsed).
+package versions and host wall seconds (and who ran it, its host and a sweep point's Dask worker, where more than
+one ran the runs shown; else each sweep's line says where its points ran: :func:`ran_note`), and its resolved
+config (collapsed).
 Per scene the
 runs rendered (once for the runs whose ``results.json`` record one scene alike: a sweep's
 points on one scene, once): its materials' values as the renderer used them and its lights,
@@ -66,13 +67,14 @@ def _code(r: dict) -> str:
     return f"{rev} ({', '.join(more)})" if more else rev
 
 
-Who = tuple[str | None, str | None]  # (the Dask worker's name, the host) that ran a sweep point
+Who = tuple[str | None, str | None]  # (the Dask worker's name, the host) that ran a sweep point or a run
 
 
 def ran_by(ran: dict | None) -> Who | None:
-    """Who ran a sweep point, as its row's ``worker`` and ``host`` (or its ``results.json`` ``ran``) record it
-    (:func:`tlm.experiments.dask_workers.ran_here`): (the Dask worker's name or None, the host); None where
-    neither is recorded (a point of an older tlm, one whose worker died before it could say)."""
+    """Who ran a sweep point, as its row's ``worker`` and ``host`` (or its ``results.json`` ``ran``, as a tlm run's
+    and a thesis cell's too) record it (:func:`tlm.experiments.dask_workers.ran_here`): (the Dask worker's name or
+    None, the host); None where neither is recorded (a run or point of an older tlm, a point whose worker died
+    before it could say)."""
     if not isinstance(ran, dict):
         return None
     worker, host = (v if isinstance(v, str) and v else None for v in (ran.get("worker"), ran.get("host")))
@@ -287,9 +289,10 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec = Section("provenance", "Provenance: config, seed, versions, revision and host time of every run")
     # (a --set column where some run was made with overrides: a sweep point's are its sweep's)
     overrides = any(given_set(run) for run in inputs.runs)
-    # (who ran each sweep point, its host and Dask worker: a column where more than one did, else the sweep's line
-    # below says it once; a tlm run or a thesis cell does not record it)
-    whos = [ran_by(run.results.get("ran")) if run.kind == "sweep-point" else None for run in inputs.runs]
+    # (who ran each run, its host and Dask worker: a column where more than one did, else a sweep's line below says
+    # it once for its points; a tlm run's or a thesis cell's host is its results.json's "ran", shown only beside
+    # another host's run: one machine's runs, one run alone, need no column)
+    whos = [ran_by(run.results.get("ran")) for run in inputs.runs]
     ran = len({w for w in whos if w is not None}) > 1
     head = ["run", "kind", "folder", *(["--set"] if overrides else []), "seed", "git revision", "versions", "host s",
             *(["ran on"] if ran else [])]
