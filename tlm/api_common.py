@@ -294,6 +294,35 @@ def file_kind(raw: Any) -> tuple[str, list[str]] | None:
     return None
 
 
+RESOLVED = "config.resolved.yaml"  # (what a run folder, a sweep point and a study folder keep of their config)
+
+
+def again_folder(path: str | Path) -> str:
+    """The name of a folder for the config ``path`` (a run folder's ``config.resolved.yaml``) run again: its run
+    folder's name and ``-again`` (``a-again`` for ``runs/a/config.resolved.yaml``)."""
+    return f"{Path(path).absolute().parent.name or 'run'}-again"
+
+
+def other_command_first(path: str | Path, command: str) -> None:
+    """:func:`refuse_other_kind` of the regular file ``path`` for ``tlm COMMAND``, read here (a check made before a
+    command's own read, where what it would say first is of no use for a file the command does not take: a run
+    folder's ``config.resolved.yaml`` given to ``tlm sweep`` needs no ``--out``, but ``tlm run``). Nothing where it
+    is no regular file (a pipe's text is read once, by its loader) or does not read as YAML (its loader says why)."""
+    import yaml
+
+    try:
+        if not Path(path).is_file():
+            return
+        raw = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError, yaml.YAMLError):
+        return
+    refuse_other_kind(raw, Path(path), command)
+
+
+# (the command line's way to it, through tlm.api as to nameless: tlm.api.experiment_path.other_command_first)
+experiment_path.other_command_first = other_command_first  # type: ignore[attr-defined]
+
+
 def _sweep_again(raw: dict, path: Path) -> str:
     """What to do with a sweep folder's ``sweep.yaml`` (``raw``, at ``path``): the ``tlm sweep`` command that runs
     its sweep file (``sweep:``) into the folder again with its ``--set`` (``overrides:``), which skips the points
@@ -303,9 +332,17 @@ def _sweep_again(raw: dict, path: Path) -> str:
     folder = shlex.quote(str(Path(path).parent))
     sweep = raw.get("sweep")
     sets = [f" --set {shlex.quote(str(o))}" for o in raw.get("overrides") or [] if isinstance(o, str | int | float)]
-    again = f"tlm sweep {shlex.quote(sweep) if isinstance(sweep, str) and sweep else 'SWEEP_FILE'} --out {folder}"
-    return (f"to run the sweep again, or finish it (the points done are skipped): {again}{''.join(sets)} (its sweep "
-            f"file, as this record names it); to read it: tlm report {folder}")
+    named = sweep if isinstance(sweep, str) and sweep else None
+    # (the record names the sweep file as tlm sweep was given it: a relative path is from the folder it ran in, which
+    # the record does not keep; one not found from here, or moved since, is no command to run as it is)
+    here = named is not None and Path(named).is_file()
+    again = f"tlm sweep {shlex.quote(named) if here else 'SWEEP_FILE'} --out {folder}"
+    where = "moved since?" if named is not None and os.path.isabs(named) else "a path from the folder tlm sweep ran in"
+    which = ("its sweep file, as this record names it" if here else
+             f"SWEEP_FILE: its sweep file, which this record names {named!r}, not found from here ({where})"
+             if named is not None else "SWEEP_FILE: its sweep file, which this record does not name")
+    return (f"to run the sweep again, or finish it (the points done are skipped): {again}{''.join(sets)} ({which}); "
+            f"to read it: tlm report {folder}")
 
 
 def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
@@ -330,7 +367,9 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if nameless(path):  # (a pipe's /dev/fd/63 names nothing once read)
         ref, save = "FILE", "save it to a file and "
     wanted = " or ".join(KIND_NAMES[k] for k in takes if k in KIND_NAMES) or f"a file for 'tlm {command}'"
-    use = save + {"run": f"run it with tlm run {ref}",
+    # (a run folder's or a sweep point's config.resolved.yaml, run again, needs --out: tlm.cli_run.default_out)
+    out = f" --out runs/{again_folder(path)}" if Path(path).name == RESOLVED and not save else ""
+    use = save + {"run": f"run it with tlm run {ref}{out}",
                   "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's "
                            "`scene:`"}.get(kind, f"run it with tlm {kind} {ref}")
     if kind == "sweep record":

@@ -42,11 +42,15 @@ def default_out(args: argparse.Namespace) -> Path:
     every piped config's, the second replacing the first; so is a named FIFO's (read once: ``runs/c`` would be
     every config's written to it). So is a run folder's (or a sweep point's) ``config.resolved.yaml``: its default,
     ``runs/config.resolved``, would be the folder of every run folder's config run again, one replacing another's
-    results; the line suggests a folder named after the run's (``runs/a-again`` for ``runs/a/config.resolved.yaml``)."""
+    results; the line suggests a folder named after the run's (``runs/a-again`` for ``runs/a/config.resolved.yaml``).
+    A file of another command's (a run folder's config given to ``tlm sweep``) is refused first as that, with the
+    command to use (:func:`~tlm.api_common.other_command_first`), not asked for an ``--out`` it does not need."""
     if args.out:
         return Path(args.out)
     default = Path("runs") / Path(args.config).stem
     if Path(args.config).name == RESOLVED:
+        # (a file the command does not take: what to run it with first, not --out: tlm sweep of a run folder's)
+        api.experiment_path.other_command_first(args.config, getattr(args, "cmd", None) or "run")
         folder = Path(args.config).absolute().parent.name or "run"
         raise InputError(f"is a run folder's {RESOLVED}: give --out, say --out runs/{folder}-again ({default}, the "
                          f"default, would be the folder of every run folder's {RESOLVED} run again, one replacing "

@@ -181,9 +181,11 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
 
 
 def _moved_run(ref: str, config_source: str | None, key: str) -> str:
-    """What to do where a run folder's ``config.resolved.yaml`` names a ``scene`` file by an absolute path not here."""
-    if key != "scene" or os.path.basename(str(config_source).split(", with ")[0]) != "config.resolved.yaml" \
-            or not os.path.isabs(ref):
+    """What to do where a run folder's ``config.resolved.yaml`` names a ``scene`` file by an absolute path not here
+    (none where a ``--set scene=`` gave the path on top of it: the file's own ``scene:`` is another)."""
+    config, given = str(config_source).split(", with ")[0], str(config_source)
+    if key != "scene" or os.path.basename(config) != "config.resolved.yaml" or not os.path.isabs(ref) or (
+            config != given and os.path.isfile(config) and dict(read_yaml(Path(config))).get("scene") != ref):
         return ""
     return ("; a run folder's config.resolved.yaml names its scene file by the absolute path it had where the run "
             "was made: was the project moved, or the folder copied from elsewhere? give the file as it is now, "
