@@ -257,8 +257,8 @@ def identities_remembered():
 
 def scene_identity(source, reads: list | None = None) -> str:
     """The scene file ``source`` (a run's ``scene.source``) as a digest of its bytes and of
-    those of the files its ``extends:`` chain names (a built-in name there is the same scene
-    for every file that names it), and of the files its geometry's meshes are read from (each
+    those of the files its ``extends:`` chain names (found as the loader finds them, a built-in
+    name's file among them: :func:`_extended`), and of the files its geometry's meshes are read from (each
     mesh file, an OBJ's MTL libraries, a glTF's buffers: :func:`tlm.scenes.meshes.mesh_files`,
     by their content and, for the libraries and buffers, their names beside the mesh): two
     copies of one scene file with copies of its meshes, in the same places relative to it, are
@@ -270,7 +270,9 @@ def scene_identity(source, reads: list | None = None) -> str:
 
     ``reads``: what a load of that scene noted (:func:`tlm.config.noting_reads`, as :func:`tlm.experiments.run.render`
     loads it): each mesh file's digest and what names its other files are taken from its ``("mesh", ...)`` record,
-    not read and parsed again (a 27 MB OBJ: its sha256 once, the load's); the same identity as without them."""
+    and the digests of those files (MTL libraries, glTF buffers) from its ``("side", ...)`` records, not read and
+    parsed again (a 27 MB OBJ: its sha256 once, the load's; a glTF's JSON alone read, for its buffers' names:
+    :func:`_files_noted`); the same identity as without them."""
     if not source:
         return "(no scene file recorded)"
     path = Path(str(source))
@@ -311,11 +313,11 @@ def _mesh_lines(path: Path, reads: list | None = None) -> list[str]:
         paths = mesh_paths(path)
     except (InputError, OSError, ValueError):
         return []  # (a scene file that does not load: its bytes tell it)
-    noted = _noted(reads)
+    noted, sides = _noted(reads), _sides(reads)
     out = []
     for i, mesh in enumerate(paths):
         try:
-            files = _files_noted(mesh, noted.get(os.path.realpath(mesh))) or mesh_files(mesh)
+            files = _files_noted(mesh, noted.get(os.path.realpath(mesh)), sides) or mesh_files(mesh)
         except (InputError, OSError, ValueError) as e:
             out.append(f"mesh {i}: {'missing' if not mesh.is_file() else f'unreadable ({type(e).__name__})'}")
             continue
@@ -331,17 +333,74 @@ def _noted(reads: list | None) -> dict[str, tuple]:
     return {os.path.realpath(r[1]): r for r in reads or () if r and r[0] == "mesh" and len(r) == 5 and r[2]}
 
 
-def _files_noted(mesh: Path, record: tuple | None) -> list[tuple[Path, dict]] | None:
-    """:func:`tlm.scenes.meshes.mesh_files` of ``mesh`` from a load's ``record`` of it (:func:`_noted`): the
-    mesh's digest the load computed, its other files' (an OBJ's libraries, few kB) computed now where the
-    record names them; None where it names none (a glTF's buffers: :func:`~tlm.scenes.meshes.mesh_files`)."""
-    from tlm.caches import file_digest
+def _sides(reads: list | None) -> dict[str, set[str]]:
+    """The ``("side", path, sha256 of the bytes read)`` records of a scene load's ``reads`` (an OBJ's MTL libraries,
+    a glTF's buffers and images, :func:`tlm.scenes.objfile.read_bytes`, :func:`tlm.scenes.mesh_checks.noting_resolver`;
+    a cached mesh's libraries, checked: :func:`tlm.scenes.cache.mesh`) by the file's real path: each file's digests."""
+    out: dict[str, set[str]] = {}
+    for r in reads or ():
+        if r and r[0] == "side" and len(r) == 3 and isinstance(r[2], str):
+            out.setdefault(os.path.realpath(r[1]), set()).add(r[2])
+    return out
 
-    if record is None or not isinstance(record[3], list):
+
+def _files_noted(mesh: Path, record: tuple | None, sides: dict[str, set[str]]) -> list[tuple[Path, dict]] | None:
+    """:func:`tlm.scenes.meshes.mesh_files` of ``mesh`` from a load's ``record`` of it (:func:`_noted`) and the files
+    its parse read beside it (``sides``, :func:`_sides`): the mesh's digest the load computed, and the digest of each
+    other file (an OBJ's libraries, from what the record names; a glTF's buffers, from its JSON: a ``.glb``'s JSON
+    chunk alone) the sha256 of the bytes the load read, with its size; a file whose read was not noted (or that two
+    reads found different) digested now. Without the mesh read again: the same list, the same digests. None where
+    there is no record."""
+    from tlm.caches import file_digest
+    from tlm.scenes.meshes import mesh_format
+
+    if record is None:
         return None
     _, _, digest, names, resolve = record
-    return [(Path(mesh), digest), *((Path(p), file_digest(Path(p))) for p in (resolve(Path(mesh), names)
-                                                                             if names else ()))]
+    mesh = Path(mesh)
+    if isinstance(names, list):
+        others = resolve(mesh, names) if names else []
+    elif mesh_format(mesh)[0] in (".gltf", ".glb"):  # (its parse names none: any .gltf, a .glb with external buffers)
+        others = _buffer_paths(mesh)
+    else:
+        return None
+
+    def noted(p: Path) -> dict:
+        got = sides.get(os.path.realpath(p), set())
+        return {"size": os.stat(p).st_size, "sha256": next(iter(got))} if len(got) == 1 else file_digest(p)
+
+    return [(mesh, digest), *((Path(p), noted(Path(p))) for p in others)]
+
+
+def _buffer_paths(path: Path) -> list[Path]:
+    """The buffer files of the glTF ``path`` (its ``buffers`` by ``uri``, found as the load finds them, as
+    :func:`tlm.scenes.meshes.mesh_files` names them); of a ``.glb`` its JSON chunk is read, not its binary one."""
+    import json
+    from urllib.parse import unquote
+
+    from tlm.scenes.materials import gltf_json
+    from tlm.scenes.meshes import mesh_format
+    from tlm.scenes.objfile import read_bytes
+
+    header, data = None, None
+    with open(path, "rb") as f:
+        head = f.read(20)
+        if head[:4] == b"glTF" and len(head) == 20 and head[16:20] == b"JSON":  # (a .glb: header, JSON chunk's)
+            try:
+                header = json.loads(f.read(int.from_bytes(head[12:16], "little")))
+            except ValueError:
+                header = None  # (read whole below: gltf_json says what is wrong)
+        elif not mesh_format(path)[1]:  # (a .gltf, its JSON: read once; a compressed file is read whole below)
+            data = head + f.read()
+    if not isinstance(header, dict):
+        header = gltf_json(path, read_bytes(path) if data is None else data)
+    out = []
+    for b in header.get("buffers") or []:
+        uri = b.get("uri") if isinstance(b, dict) else None
+        if isinstance(uri, str) and not uri.startswith("data:"):
+            file = path.parent / uri
+            out.append(file if file.is_file() else path.parent / unquote(uri))  # (as the load finds it)
+    return out
 
 
 def mesh_paths(scene: Path) -> list[Path]:
@@ -371,9 +430,24 @@ def _identity(path: Path, depth: int) -> str:
         ref = (yaml.safe_load(data) or {}).get("extends")
     except (ValueError, AttributeError, yaml.YAMLError):
         ref = None
-    if isinstance(ref, str) and depth < 8 and (ref.endswith(".yaml") or "/" in ref):
-        digest.update(_identity(path.parent / ref, depth + 1).encode())
+    base = _extended(path, ref) if isinstance(ref, str) and ref and depth < 8 else None
+    if base is not None:
+        digest.update(_identity(base, depth + 1).encode())
     return f"sha256 {digest.hexdigest()[:16]}"
+
+
+def _extended(path: Path, ref: str) -> Path | None:
+    """The scene file that ``extends: ref`` in the scene file ``path`` names, found as the loader finds it
+    (:func:`tlm.scenes.loader.resolve_scene_path`: beside it, then the working folder, then the built-in scenes, a
+    built-in name among them: an edit to the built-in ``cornell.yaml`` changes the identity of a file that extends
+    it); where none is found, a path beside it (told by its path), or None for a name."""
+    from tlm.errors import InputError
+    from tlm.scenes.loader import resolve_scene_path
+
+    try:
+        return resolve_scene_path(ref, path.parent, str(path), key="extends")
+    except (InputError, OSError, ValueError):
+        return path.parent / ref if ref.endswith(".yaml") or "/" in ref else None
 
 
 def scene_label(source) -> str:

@@ -171,6 +171,7 @@ MATERIAL_VALUES = ("albedo", "reflectance", "ior", "transmittance")  # (one of t
 MAX_LISTED = 6  # runs named per scene; the rest counted
 OLD = "not recorded by the tlm of this run (an older one)"
 NOW = " (of its files now: not recorded)"  # (a scene digest of a run of an older tlm: names.scene_digest)
+NOT_HERE = " (not recorded, and its scene file is not on this machine)"  # (no digest at all: names.scene_digest)
 
 
 def _text(v) -> str:
@@ -243,9 +244,13 @@ def scene_tables(runs: list[Run]) -> list[str]:
     first's (a sweep of 200 points over one material of the conference room: 200 rows, not 200 tables of 36);
     no more than :data:`MAX_CONFIGS` records are listed, the rest counted."""
     groups: dict[str, list[Run]] = {}
+    digests: dict[int, tuple[str | None, bool]] = {}  # (each run's scene_digest: the digest, whether recorded)
     for run in runs:
         scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
-        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")] + [scene_digest(run)],
+        digests[id(run)] = scene_digest(run)
+        # (by the digest alone: a run that recorded it and a sweep point whose files are digested now, of one
+        # scene, are one record)
+        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")] + [digests[id(run)][0]],
                          sort_keys=True, default=str)
         groups.setdefault(key, []).append(run)
     parts = []
@@ -258,22 +263,25 @@ def scene_tables(runs: list[Run]) -> list[str]:
         runs_named = f"{'runs' if len(members) > 1 else 'run'} {named}"
         which = json.dumps([scene.get(k) for k in ("name", "source")], default=str)
         was = first.get(which)
-        digest, recorded = scene_digest(members[0])
+        digest = digests[id(members[0])][0]
+        now = "" if any(digests[id(r)][1] for r in members) else NOW  # (none of them recorded it: digested now)
         if was is not None and _recorded(mats) and _recorded(was[0].get("materials")) \
                 and set(mats) == set(was[0]["materials"]):
             other = {k: m for k, m in mats.items() if was[0]["materials"][k] != m}
             same_lights = lights == was[0].get("lights")
             what = " and ".join([f"{len(other)} material{'' if len(other) == 1 else 's'}"] * bool(other)
                                 + ["its lights"] * (not same_lights)
-                                + [f"inputs {digest}{'' if recorded else NOW}"] * (digest != was[2]))
-            parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: as for {esc(was[1])}, but "
-                         f"{esc(what)} ({esc(runs_named)})</summary>{_materials_table(other) if other else ''}"
+                                + [f"inputs {digest}{now}"] * (digest is not None and digest != was[2])
+                                + [f"inputs not known{NOT_HERE}"] * (digest is None and was[2] is not None))
+            but = f", but {what}" if what else ""  # (none: values alike but written otherwise, 1 and 1.0)
+            parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: as for {esc(was[1])}{esc(but)} "
+                         f"({esc(runs_named)})</summary>{_materials_table(other) if other else ''}"
                          f"{'' if same_lights else _lights_table(lights, mats)}</details>")
             continue
         first.setdefault(which, (scene, runs_named, digest))
         counts = ", ".join(f"{len(v)} {w}{'' if len(v) == 1 else 's'}" if isinstance(v, t) else f"no {w}s"
                            for v, t, w in ((mats, dict, "material"), (lights, list, "light")))
-        counts += f", inputs {digest}{'' if recorded else NOW}" if digest else ""
+        counts += f", inputs {digest}{now}" if digest else ""
         parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: {esc(counts)} "
                      f"({esc(runs_named)})</summary>"
                      f"{_materials_table(mats)}{_lights_table(lights, mats)}</details>")
