@@ -445,6 +445,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             written.update(getattr(nanny, "pre_spawn_env", None) or {})
         client = stack.enter_context(_client(Client, cluster))
         stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
+        pool = DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
     else:
         answers(dask)  # (a refused connection at once, where distributed retries it for CONNECT_TIMEOUT s)
         try:
@@ -453,9 +454,8 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
             # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
         pool = DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
-        pool.watch.refuse()  # (a worker that cannot load the points, named before one is sent: WorkerCannotRun)
-        return pool
-    return DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
+    pool.watch.start(refuse=pool.remote)  # (a worker that cannot run the points left out, before one is sent)
+    return pool
 
 
 class _Quiet:
@@ -554,11 +554,19 @@ class DaskPool(cf.Executor):
     def submit(self, fn, /, *args, **kwargs):
         if getattr(self, "keyed", False):
             kwargs["key"] = self.watch.key(fn)
+            if (good := self.watch.targets()) is not None:  # (a worker left out: WorkerWatch.leave_out)
+                kwargs.update(workers=good, allow_other_workers=False)
         return self.executor.submit(fn, *args, **kwargs)
 
+    def send_again(self, point: str, record: dict) -> bool:
+        """Whether the point ``point``, failed for its worker (:meth:`WorkerWatch.send_again`: then left out), is
+        submitted again, to the other workers."""
+        return getattr(self, "keyed", False) and hasattr(self, "watch") and self.watch.send_again(point, record)
+
     def lost(self) -> list[str]:
-        """The lines on the workers that left the cluster while they held some of the sweep's points."""
-        return self.watch.lost() if hasattr(self, "watch") else []
+        """The lines on the workers left out of the sweep (:meth:`WorkerWatch.left_out`), then on those that left
+        the cluster while they held some of the sweep's points."""
+        return [*self.watch.left_out(), *self.watch.lost()] if hasattr(self, "watch") else []
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         with suppress(Exception):  # (a client whose scheduler is gone cannot cancel anything)
@@ -600,11 +608,8 @@ class DaskPool(cf.Executor):
             return None
         self.asked = now
         try:
-            workers = self.client.nthreads(callback_timeout=ASK_TIMEOUT)
-            why = "has had no worker"
-            if getattr(self, "remote", False) and hasattr(self, "watch"):  # (one that joined since: checked)
-                self.watch.check(list(workers))
-            workers = len(workers)
+            workers = self.client.nthreads(callback_timeout=ASK_TIMEOUT)  # (one that joined since: checked)
+            workers, why = self.watch.seen(workers) if hasattr(self, "watch") else (len(workers), "has had no worker")
         except Exception as e:  # (a scheduler that does not answer: the same bounded wait)
             if getattr(self.client, "status", "running") != "running":
                 return self._quiet(f"lost the Dask scheduler {self.address} ({type(e).__name__}: {e})")

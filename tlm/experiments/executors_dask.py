@@ -4,8 +4,9 @@ connects (:func:`answers`, within :data:`CONNECT_TIMEOUT` seconds), and :class:`
 one line that says the cluster, not a point, stopped the sweep; :func:`host_kept`, which puts back
 what a local cluster changes in this process (the variables its nannies set, distributed's loggers); the
 preloads of a local cluster's workers (:func:`local_preloads`); and :class:`WorkerWatch`, which checks
-that each worker can load the sweep's points before any is sent (:class:`WorkerCannotRun`) and names a
-worker that left the cluster while it ran some of them.
+that each worker can run the sweep's points before any is sent (:class:`WorkerCannotRun` where none can), leaves
+out one that cannot, or whose points fail for it, while another can (its points sent to the others, once), and
+names a worker that left the cluster while it ran some of them.
 
 :mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
 executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
@@ -198,7 +199,8 @@ class WorkerCannotRun(EnvironmentFailure):
 def _on_worker(runner: str, dask_worker=None) -> dict:
     """What a Dask worker has of tlm: its host, its name (``dask_worker``'s, which ``Client.run`` passes: the
     ``--name`` it was given, for the lines on it), the folder its ``tlm`` imports from, whether it has the module
-    ``runner`` and, where its tlm can say, its code fingerprint. Run on the worker as :func:`worker_probe`'s
+    ``runner`` and, where its tlm can say, its code fingerprint (a worker with the runner too: :func:`other_code`
+    compares it with the sweep's). Run on the worker as :func:`worker_probe`'s
     copy, pickled by value: the standard library only, and no exception leaves it (a worker whose tlm is older
     than the sweep's lacks modules that the sweep has, this one's included)."""
     import contextlib
@@ -220,7 +222,7 @@ def _on_worker(runner: str, dask_worker=None) -> dict:
             seen["error"] = f"{type(e).__name__}: {e}"
     except Exception as e:  # (a tlm that fails as it is imported)
         seen["error"] = f"{type(e).__name__}: {e}"
-    if seen["tlm"] is not None and not seen["runner"] and seen["error"] is None:  # (for the line on it)
+    if seen["tlm"] is not None and seen["error"] is None:  # (compared with the sweep's, and for the line on it)
         with contextlib.suppress(Exception):  # (a tlm too old, or too odd, to say)
             seen["fingerprint"] = str(importlib.import_module("tlm.fingerprint").code_fingerprint())
     return seen
@@ -251,7 +253,22 @@ def cannot_run(seen, sweeps: str | None = None) -> str | None:
     return f"its tlm at {seen['tlm']}{code} has no {RUNNER} (it is older than the sweep's)"
 
 
+def other_code(seen, sweeps: str | None) -> str | None:
+    """Why a worker whose :func:`_on_worker` answer is ``seen``, which can load the sweep's points, would fail each
+    (``OtherCodeOnWorker``): its code fingerprint is not the sweep's (``sweeps``); None where it is, or where either
+    is not known (its points say what they meet)."""
+    if not isinstance(seen, dict) or not seen.get("runner") or not sweeps or not seen.get("fingerprint"):
+        return None
+    if seen["fingerprint"] == sweeps:
+        return None
+    return (f"its tlm at {seen.get('tlm')} runs other code (code fingerprint {seen['fingerprint']}; the sweep's "
+            f"{sweeps}): install the sweep's tlm on the workers, and restart them after an update of it")
+
+
 ASK_WORKERS = 30.0  # seconds the workers get to answer the probe
+# the errors of a point that say its worker cannot run the sweep's points (tlm.experiments.sweep_point,
+# tlm.experiments.dask_workers): that worker is left out, the point sent to the others (WorkerWatch.send_again)
+WORKER_CAUSED = frozenset({"PathNotOnWorker", "OtherCodeOnWorker", "OtherInputsOnWorker", "OtherVersionsOnWorker"})
 
 
 class WorkerWatch:
@@ -270,6 +287,10 @@ class WorkerWatch:
         self.why: dict[str, str] = {}  # a worker's address -> why it cannot load the sweep's points
         self.checked: set[str] = set()
         self.lines: list[str] = []
+        self.alive: set[str] = set()  # the workers the scheduler had when last asked (check, DaskPool.trouble)
+        self.bad: dict[str, list] = {}  # a worker left out (its address) -> [why, how many of its points ran again]
+        self.again: set[str] = set()  # the points (their hashes) sent again to the good workers: once each
+        self.last: set[str] = set()  # the workers found bad, by a point, when none good was left beside them
         self.events: deque = deque()  # (time, message) of the scheduler's "all" topic, appended by the client's loop
         self.subscribed = False
         subscribe = getattr(client, "subscribe_topic", None)
@@ -288,6 +309,7 @@ class WorkerWatch:
         address = str(msg.get("worker"))
         event = (*event, self.why.pop(address, None), address in self.checked, self.where(address))
         self.checked.discard(address)
+        self.alive.discard(address)
         self.names.pop(address, None)  # (another worker at that address says its own name, or none, when asked)
         self.events.append(event)
 
@@ -334,6 +356,7 @@ class WorkerWatch:
         except Exception:  # (a scheduler that does not answer: the sweep's own wait says it)
             return []
         lines = []
+        self.alive.update(got)
         for address, seen in sorted(got.items()):
             self.checked.add(address)
             if isinstance(seen, dict) and seen.get("host"):
@@ -345,11 +368,96 @@ class WorkerWatch:
                 why = cannot_run(seen, self.sweeps_code())
                 self.why[address] = why
                 lines.append(f"{self.where(address)} cannot run tlm's points: {why}")
+            elif (other := other_code(seen, self.sweeps_code())) is not None:  # (each of its points would fail)
+                self.why[address] = other
+        for address in sorted(a for a in got if a in self.why):
+            self.leave_out(address, f"it cannot run tlm's points: {self.why[address]}")
         return lines
 
-    def refuse(self) -> None:
-        """:class:`WorkerCannotRun` naming each worker that cannot load the sweep's points, before any is sent."""
+    def seen(self, workers) -> tuple[int, str]:
+        """The scheduler's ``workers`` (their addresses) as it lists them now: kept, for :meth:`targets`, and each
+        that joined since asked (:meth:`check`). How many the sweep's points can go to, and the words for none
+        (``has had no worker``): the points sent to the good workers only wait for one, beside those left out."""
+        self.alive = set(workers)
+        self.check(list(workers))
+        if self.alive and self.bad and not self.targets():
+            return 0, "has had no worker that can run the sweep's points"
+        return len(self.alive), "has had no worker"
+
+    def start(self, refuse: bool) -> None:
+        """Before the first point: every worker asked (:meth:`check`); those that cannot run the sweep's points are
+        left out (:meth:`leave_out`) while a good one remains. Where none does, as before: ``refuse`` (a remote
+        cluster), :class:`WorkerCannotRun` where a worker cannot load the points (:meth:`refuse`); else the points
+        are sent to them all, and fail there with why (a tlm of other code: ``OtherCodeOnWorker``)."""
         lines = self.check()
+        if lines and refuse and not self.targets():
+            self.refuse(lines)
+
+    def leave_out(self, address: str, why: str) -> bool:
+        """The worker at ``address`` is left out of the sweep's points from now on (:meth:`targets`), for ``why``
+        (said once: :meth:`left_out`), where another worker of the scheduler's is not (else, as before, the points
+        go to every worker, and fail there with why). Whether it is left out."""
+        if address in self.bad:
+            return True
+        if not self.alive - set(self.bad) - set(self.why) - {address}:  # (no good worker but it)
+            return False
+        self.bad[address] = [why, 0]
+        return True
+
+    def targets(self) -> list[str] | None:
+        """The workers the sweep's points go to (``Client.submit``'s ``workers``, no other allowed): those not left
+        out (:meth:`leave_out`); None where none is left out, or none but those is there (every worker, as before)."""
+        if not self.bad:
+            return None
+        good = sorted(self.alive - set(self.bad) - set(self.why))
+        return good or None
+
+    def send_again(self, point: str, record: dict) -> bool:
+        """Whether the point ``point`` (its hash), whose worker's record is ``record``, goes again to the other
+        workers: it failed for its worker (:data:`WORKER_CAUSED`: that worker's code, versions, view of the sweep's
+        files), which is then left out (:meth:`leave_out`), and it was not sent again before (a point that fails
+        again on another worker fails, as before)."""
+        error = record.get("error") if record.get("status") == "failed" else None
+        if not isinstance(error, dict) or error.get("type") not in WORKER_CAUSED:
+            return False
+        address = self.address_of((record.get("ran") or {}).get("worker"))
+        if address is None:
+            return False
+        if not self.leave_out(address, f"{error['type']}: {error.get('message')}"):
+            self.last.add(address)  # (no good worker but it: the points fail with why, as before)
+            return False
+        if point in self.again or not self.targets():
+            return False
+        self.again.add(point)
+        self.bad[address][1] += 1
+        return True
+
+    def address_of(self, worker) -> str | None:
+        """The address of the worker a point's record names (``ran.worker``: its name, else its address), or None."""
+        if not isinstance(worker, str):
+            return None
+        if worker in self.alive or worker in self.bad:
+            return worker
+        named = [a for a, n in self.names.items() if n == worker]
+        return named[0] if len(named) == 1 else None
+
+    def left_out(self) -> list[str]:
+        """One line on each worker left out of the sweep (:meth:`leave_out`): which, why, and that its points went
+        to the other workers (how many ran again there). None where the other workers turned out bad too (their
+        points failed with why: as on a cluster of none good)."""
+        if self.last:
+            return []
+        lines = []
+        for address, (why, n) in self.bad.items():
+            again = f"{n} of them run again there" if n else "none was sent to it"
+            lines.append(f"{self.where(address)} was left out of the sweep ({why}); its points went to the other "
+                         f"workers ({again})")
+        return lines
+
+    def refuse(self, lines: list[str] | None = None) -> None:
+        """:class:`WorkerCannotRun` naming each worker that cannot load the sweep's points (``lines``: those
+        :meth:`check` gave; None: asked now), before any is sent."""
+        lines = self.check() if lines is None else lines
         if lines:
             self.close()
             raise WorkerCannotRun(f"{'; '.join(lines)}: install the sweep's tlm on the workers and restart them "

@@ -68,7 +68,6 @@ references (``--reference``) and the line on its points without an image error:
 from __future__ import annotations
 
 import concurrent.futures as cf
-import json
 import math
 import numbers
 import os
@@ -106,13 +105,14 @@ from tlm.experiments.run_warnings import sweep_threads_line as threads_line
 from tlm.experiments.sweep_file import Point, load_sweep
 from tlm.experiments.sweep_point import (
     MARKER,
-    PathNotOnWorker,
     Task,
     error_record,
     finished,
     run_point,
+    scene_checks,
     write_error,
 )
+from tlm.experiments.sweep_point import seen_here as _seen_here  # (kept importable from here: tests)
 from tlm.experiments.sweep_reference import (
     Held,
     clean_held,
@@ -300,12 +300,15 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             warn(line)
     where = os.path.abspath(points_dir)  # (a Dask worker's working folder is not this one)
     tables: dict[str, str | None] = {}  # arch.programs -> the sha256 of its text (each table read once)
+    scenes: dict[str, str] = {}  # a scene -> the files its load read (each scene loaded once: scene_checks)
     tasks = {h: Task(h, by_hash[h][0].config, by_hash[h][0].factors, str(sweep.folder), str(sweep.path),
                      os.path.join(where, h), provenance, threads=share,
                      inputs=_inputs(by_hash[h][0].config, sweep.folder, str(sweep.path)),
                      code=provenance["code_fingerprint"] if remote else None, functional=fkeys[h],
                      programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None,
-                     own_code=provenance["code_fingerprint"] if dask == "local" else None)
+                     own_code=provenance["code_fingerprint"] if dask == "local" else None,
+                     scene_files=scene_checks(by_hash[h][0].config, sweep.folder, str(sweep.path), scenes)
+                     if remote else "")
              for h in todo}
 
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
@@ -574,6 +577,9 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                     if record["status"] != "ok" and says_disk_full(record["error"]["type"], record["error"]["message"]):
                         full = full or record["error"]["message"]
                         continue
+                    if isinstance(pool, DaskPool) and pool.send_again(h, record):  # (its worker left out: the point
+                        submit(h)  # to the other workers, once)
+                        continue
                     if remote:
                         record = _seen_here(record, tasks[h])
                     records[h] = record
@@ -633,43 +639,6 @@ def _wait_gone(pids: list[int], timeout: float = 2.0) -> None:
         pids = [pid for pid in pids if storage.pid_alive(pid)]
         if pids:
             time.sleep(0.02)
-
-
-def _seen_here(record: dict, task: Task) -> dict:
-    """A remote worker's point as this machine sees it: a point its worker wrote where this
-    machine does not see it (its own disk, not a shared one) failed, with where it went;
-    a failed point's ``error.json`` written here where its worker could not (with who ran it, the record's
-    ``ran``, as the worker writes it). The worker's file is told by
-    its content, the record's own (:func:`_holds`): a point run again keeps its old folder, whose
-    ``results.json`` (or ``error.json`` of an earlier try) is not the worker's."""
-    if record["status"] != "ok":
-        if not _holds(Path(task.out) / "error.json", record["error"]):
-            with suppress(OSError, InputError):
-                write_error(task, record["error"], record.get("ran"))
-        return record
-    if _holds(Path(task.out) / "results.json", record.get("results")):
-        return record
-    where = record.get("worker") or "its Dask worker"
-    error = error_record(PathNotOnWorker(
-        f"{where} wrote {task.out}, which this machine does not see (its results are on the worker's machine): "
-        "share the sweep's output folder between this machine and the workers' at the same path (a shared file "
-        "system), then run the sweep again"), "worker", "")
-    with suppress(OSError, InputError):
-        write_error(task, error, record.get("ran"))
-    return {"status": "failed", "error": error, **({"ran": record["ran"]} if "ran" in record else {})}
-
-
-def _holds(path: Path, value) -> bool:
-    """Whether the JSON file ``path`` here holds ``value`` (a worker's record, as written: strict JSON), or a
-    mapping with each of its keys (an ``error.json``: the error with the point's hash and factors)."""
-    try:
-        here = json.loads(path.read_text(encoding="utf-8"))
-        want = json.loads(storage.json_text(value))
-    except (OSError, ValueError, TypeError):
-        return False
-    if isinstance(want, dict) and isinstance(here, dict):
-        return all(k in here and here[k] == v for k, v in want.items())
-    return here == want
 
 
 def _record(f: cf.Future, task: Task) -> dict:

@@ -73,6 +73,8 @@ class Task:
     # --dask local cluster imported as it started must have (run_point: else OtherCodeOnWorker)
     references: tuple[tuple[str, str], ...] = ()  # (reference key, folder): the copies of the references the
     # sweep holds in its output folder (--reference), which the point reads first (reference_cache.holding)
+    scene_files: str = ""  # the files the sweep's load of the point's scene read, with what told each (JSON of
+    # frame_scenes.read_checks: scene_checks), for a remote worker's line on the one that differs there
 
 
 def run_point(task: Task) -> dict:
@@ -315,7 +317,100 @@ def _check_worker_inputs(task: Task, cfg, folder: Path, where: str) -> None:
             scene = resolve_scene_path(cfg.scene, folder, task.source)
             raise OtherInputsOnWorker(
                 f"{where} sees other inputs for this point (its frame key {key}, the sweep's {task.functional}; "
-                f"its scene file {scene}): the scene file or its meshes differ there; {fix}")
+                f"its scene file {scene}): {_which_differ(task.scene_files, str(scene))}; {fix}")
+
+
+def scene_checks(config: dict, folder: Path, source: str, seen: dict[str, str]) -> str:
+    """The files the sweep's load of the scene of the point of ``config`` reads (the scene file, its ``extends:``
+    chain, its meshes with their libraries or buffers), each with what told it then, as JSON
+    (:func:`~tlm.experiments.frame_scenes.read_checks`), for :attr:`Task.scene_files`; ``""`` where they cannot be
+    told. ``seen``: those of each scene loaded so far (one load each: a remote sweep's, its scenes cached)."""
+    from tlm.config import noting_reads
+    from tlm.experiments.frame_scenes import read_checks
+    from tlm.scenes.loader import load_scene
+
+    ref = config.get("scene")
+    key = json.dumps([ref, str(folder)], default=str)
+    if key not in seen:
+        seen[key] = ""
+        with suppress(Exception):  # (a line's detail: a scene that cannot be told says what it did before)
+            with noting_reads() as reads:
+                load_scene(ref, folder, None, source)
+            checks = read_checks(reads)
+            seen[key] = json.dumps(checks) if checks else ""
+    return seen[key]
+
+
+def _which_differ(files: str, scene: str) -> str:
+    """Which of the sweep's input files (``files``: :func:`scene_checks`'s) differ where this worker reads them
+    (the first, and how many more), or that its scene file is another than the sweep's (``scene``: this worker's);
+    as before where neither can be told."""
+    from tlm.experiments.frame_scenes import _tell
+
+    unknown = "the scene file or its meshes differ there"
+    try:
+        checks = json.loads(files) if files else []
+    except ValueError:
+        return unknown
+    differ: list[str] = []
+    for check in checks:
+        try:
+            now = _tell(check)
+        except Exception:  # (a file not there, or unreadable: it differs)
+            now = None
+        then = check[-1]
+        if now == then:
+            continue
+        if check[0] in ("libraries", "listed") and isinstance(then, list):  # ([path, digest] each: the mesh first)
+            had = {str(p): d for p, d in then}
+            got = {str(p): d for p, d in now} if isinstance(now, list) else {}
+            differ += [p for p in had if got.get(p) != had[p]] or [str(check[1])]
+        else:
+            differ.append(str(then if check[0] == "found" else check[1]))  # (found: the file its extends: found)
+    first = [c for c in checks if c and c[0] == "text"]
+    if not differ and first and str(first[0][1]) != scene:  # (its scene file is not the one the sweep read)
+        return f"the sweep read the scene file {first[0][1]}"
+    if not differ:
+        return unknown
+    more = f" (and {len(differ) - 1} more of the sweep's input files)" if len(differ) > 1 else ""
+    return f"the sweep's input file {differ[0]} differs there{more}"
+
+
+def seen_here(record: dict, task: Task) -> dict:
+    """A remote worker's point as this machine sees it: a point its worker wrote where this
+    machine does not see it (its own disk, not a shared one) failed, with where it went;
+    a failed point's ``error.json`` written here where its worker could not (with who ran it, the record's
+    ``ran``, as the worker writes it). The worker's file is told by
+    its content, the record's own (:func:`_holds`): a point run again keeps its old folder, whose
+    ``results.json`` (or ``error.json`` of an earlier try) is not the worker's."""
+    if record["status"] != "ok":
+        if not _holds(Path(task.out) / "error.json", record["error"]):
+            with suppress(OSError, InputError):
+                write_error(task, record["error"], record.get("ran"))
+        return record
+    if _holds(Path(task.out) / "results.json", record.get("results")):
+        return record
+    where = record.get("worker") or "its Dask worker"
+    error = error_record(PathNotOnWorker(
+        f"{where} wrote {task.out}, which this machine does not see (its results are on the worker's machine): "
+        "share the sweep's output folder between this machine and the workers' at the same path (a shared file "
+        "system), then run the sweep again"), "worker", "")
+    with suppress(OSError, InputError):
+        write_error(task, error, record.get("ran"))
+    return {"status": "failed", "error": error, **({"ran": record["ran"]} if "ran" in record else {})}
+
+
+def _holds(path: Path, value) -> bool:
+    """Whether the JSON file ``path`` here holds ``value`` (a worker's record, as written: strict JSON), or a
+    mapping with each of its keys (an ``error.json``: the error with the point's hash and factors)."""
+    try:
+        here = json.loads(path.read_text(encoding="utf-8"))
+        want = json.loads(storage.json_text(value))
+    except (OSError, ValueError, TypeError):
+        return False
+    if isinstance(want, dict) and isinstance(here, dict):
+        return all(k in here and here[k] == v for k, v in want.items())
+    return here == want
 
 
 def error_record(e: BaseException, stage: str, tb: str) -> dict:
