@@ -12,6 +12,7 @@ import inspect
 import numbers
 import os
 import re
+import shlex
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,6 +20,7 @@ from typing import Any, TypeVar
 
 from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean
+from tlm.mesh_files import descriptor_name
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -323,24 +325,47 @@ def other_command_first(path: str | Path, command: str) -> None:
 experiment_path.other_command_first = other_command_first  # type: ignore[attr-defined]
 
 
+def _not_recorded_sweep(raw: dict, named: str) -> str | None:
+    """Why the file ``named`` (a sweep folder's record ``raw`` names its sweep file so), read from here, is no sweep
+    file to run that sweep again with; None where it is one whose ``base``, ``set``, ``grid`` and ``zip`` are the
+    record's. A file of that name of another sweep (the record itself: ``sweep.yaml`` given in its own folder, of a
+    sweep file named ``sweep.yaml``) would run another sweep into the folder."""
+    import yaml
+
+    if descriptor_name(named):  # (tlm sweep <(...): /dev/fd/63 names a pipe read once, or another file now)
+        return "a pipe's, read once (give the file that was piped)"
+    try:
+        found = yaml.safe_load(Path(named).read_text(encoding="utf-8")) if Path(named).is_file() else None
+    except (OSError, ValueError, yaml.YAMLError):
+        found = None
+    if not isinstance(found, dict):
+        where = "moved since?" if os.path.isabs(named) else "a path from the folder tlm sweep ran in"
+        return f"not found from here ({where})"
+    if str(found.get("tlm", "")).startswith("sweep/"):
+        return "here a sweep folder's record, not a sweep file"
+    base = found.get("base") if isinstance(found.get("base"), str) else None
+    if ("base_file" in raw and base != raw["base_file"]) or any(
+            k in raw and (found.get(k) or {}) != (raw[k] or {}) for k in ("set", "grid", "zip")):
+        return "here another sweep's file (its base, set, grid or zip are not the record's)"
+    return None
+
+
 def _sweep_again(raw: dict, path: Path) -> str:
     """What to do with a sweep folder's ``sweep.yaml`` (``raw``, at ``path``): the ``tlm sweep`` command that runs
     its sweep file (``sweep:``) into the folder again with its ``--set`` (``overrides:``), which skips the points
     done and runs the others, and ``tlm report`` of the folder, which reads it."""
-    import shlex
-
     folder = shlex.quote(str(Path(path).parent))
     sweep = raw.get("sweep")
     sets = [f" --set {shlex.quote(str(o))}" for o in raw.get("overrides") or [] if isinstance(o, str | int | float)]
     named = sweep if isinstance(sweep, str) and sweep else None
     # (the record names the sweep file as tlm sweep was given it: a relative path is from the folder it ran in, which
-    # the record does not keep; one not found from here, or moved since, is no command to run as it is)
-    here = named is not None and Path(named).is_file()
-    again = f"tlm sweep {shlex.quote(named) if here else 'SWEEP_FILE'} --out {folder}"
-    where = "moved since?" if named is not None and os.path.isabs(named) else "a path from the folder tlm sweep ran in"
-    which = ("its sweep file, as this record names it" if here else
-             f"SWEEP_FILE: its sweep file, which this record names {named!r}, not found from here ({where})"
-             if named is not None else "SWEEP_FILE: its sweep file, which this record does not name")
+    # the record does not keep; one not found from here, or moved since, is no command to run as it is, nor is a file
+    # of that name here of another sweep: the record itself, sweep.yaml, given in its folder, or another project's)
+    why = _not_recorded_sweep(raw, named) if named is not None else None
+    again = f"tlm sweep {shlex.quote(named) if named is not None and why is None else 'SWEEP_FILE'} --out {folder}"
+    which = ("SWEEP_FILE: its sweep file, which this record does not name" if named is None else
+             "its sweep file, as this record names it" if why is None else
+             f"SWEEP_FILE: its sweep file, which this record names {named!r}, {why}")
     return (f"to run the sweep again, or finish it (the points done are skipped): {again}{''.join(sets)} ({which}); "
             f"to read it: tlm report {folder}")
 
@@ -358,7 +383,7 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if found is None or found[0] in takes:
         return
     kind, keys = found
-    ref, save = str(path), ""
+    ref, save = shlex.quote(str(path)), ""  # (a command to run as printed: a path with a space quoted)
     try:
         if Path(path).resolve().parent == configs_dir().resolve() and Path(path).stem in list_experiments():
             ref = Path(path).stem
@@ -368,7 +393,7 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
         ref, save = "FILE", "save it to a file and "
     wanted = " or ".join(KIND_NAMES[k] for k in takes if k in KIND_NAMES) or f"a file for 'tlm {command}'"
     # (a run folder's or a sweep point's config.resolved.yaml, run again, needs --out: tlm.cli_run.default_out)
-    out = f" --out runs/{again_folder(path)}" if Path(path).name == RESOLVED and not save else ""
+    out = f" --out {shlex.quote(f'runs/{again_folder(path)}')}" if Path(path).name == RESOLVED and not save else ""
     use = save + {"run": f"run it with tlm run {ref}{out}",
                   "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's "
                            "`scene:`"}.get(kind, f"run it with tlm {kind} {ref}")

@@ -7,6 +7,7 @@ default (:func:`default_out`). The command itself is :mod:`tlm.cli`'s."""
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 from collections.abc import Callable
@@ -51,8 +52,8 @@ def default_out(args: argparse.Namespace) -> Path:
     if Path(args.config).name == RESOLVED:
         # (a file the command does not take: what to run it with first, not --out: tlm sweep of a run folder's)
         api.experiment_path.other_command_first(args.config, getattr(args, "cmd", None) or "run")
-        folder = Path(args.config).absolute().parent.name or "run"
-        raise InputError(f"is a run folder's {RESOLVED}: give --out, say --out runs/{folder}-again ({default}, the "
+        folder = shlex.quote(f"runs/{Path(args.config).absolute().parent.name or 'run'}-again")  # (run as printed)
+        raise InputError(f"is a run folder's {RESOLVED}: give --out, say --out {folder} ({default}, the "
                          f"default, would be the folder of every run folder's {RESOLVED} run again, one replacing "
                          "another)", source=args.config)
     what = api.experiment_path.nameless(args.config)  # (tlm.api_common.nameless)
