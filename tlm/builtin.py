@@ -13,6 +13,7 @@ from pathlib import Path
 from tlm.config import file_folder, read_yaml
 from tlm.config_words import yaml_kind
 from tlm.errors import InputError, did_you_mean, escaped_line
+from tlm.storage_json import escaped
 
 # the command that takes an experiment file, by the first of its keys found here (a study's
 # own keys: tlm.experiments.*); a file with none of them is a run config ('tlm run')
@@ -273,5 +274,6 @@ def exported_text(source: Path, name: str, file: Path) -> bytes:
     if own.encode() not in data:
         return data
     lines = data.decode("utf-8").splitlines(keepends=True)
-    return "".join(line.replace(own, str(file)) if line.lstrip().startswith("#") else line
+    named = escaped(str(file))  # (a folder of bytes not UTF-8, dir_\\xff: shown escaped, as UTF-8 writes it)
+    return "".join(line.replace(own, named) if line.lstrip().startswith("#") else line
                    for line in lines).encode("utf-8")

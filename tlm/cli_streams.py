@@ -5,9 +5,12 @@ once, quietly (exit status 141, as if killed by SIGPIPE); one that writes a dest
 ... | head``: :func:`writes_files`, a claim of its folder) runs to its end, what it prints from
 then on dropped, and exits with 141 once its folder is whole. A reader of stderr that goes away
 stops nothing: the command's warnings and lines are lost, to no one (:class:`_Guarded`, made by
-:func:`guard_streams` as a command begins). Where stdout or stderr was closed as the process
-started (``2>&-``) it is ``/dev/null`` (:func:`no_stream_closed`). How the command then ends (its
-exit status, its last line) is :mod:`tlm.cli_signals`', which re-exports these names: a test's
+:func:`guard_streams` as a command begins). A line the stream cannot encode (a path of bytes not UTF-8,
+``run_\\udcff`` as Python reads it, printed to a stdout that refuses surrogates: a UTF-8 locale other than
+``C.UTF-8``, ``PYTHONIOENCODING=utf-8``) is written with the byte escaped, ``run_\\xff`` (:func:`_writable`), where
+it raised UnicodeEncodeError and the command ended as an internal error, its files written. Where stdout or
+stderr was closed as the process started (``2>&-``) it is ``/dev/null`` (:func:`no_stream_closed`). How the
+command then ends (its exit status, its last line) is :mod:`tlm.cli_signals`', which re-exports these names: a test's
 ``monkeypatch.setattr(cli_signals, "_writing", ...)`` reaches the code here.
 
 Only the standard library is imported: :mod:`tlm.cli_signals` imports this module before it takes
@@ -56,7 +59,8 @@ class _Guarded:
     (:data:`_GONE`) and the first BrokenPipeError kept (``error``): a reader of stdout gone ends
     the command with exit status 141 once its work is done, as if SIGPIPE had ended it
     (:func:`tlm.cli_signals.signals`, :func:`tlm.cli_signals._flushed`); one of stderr changes
-    nothing (its warnings and lines are lost, to no one). Anything else is the stream's."""
+    nothing (its warnings and lines are lost, to no one). Text the stream cannot encode is written escaped
+    (:func:`_writable`). Anything else is the stream's."""
 
     def __init__(self, stream, name: str) -> None:
         self._stream = stream
@@ -74,7 +78,11 @@ class _Guarded:
 
     def write(self, text):
         try:
-            return self._stream.write(text)
+            try:
+                return self._stream.write(text)
+            except UnicodeEncodeError:  # (encoded whole before any of it is written: nothing written twice)
+                self._stream.write(_writable(text, getattr(self._stream, "encoding", None)))
+                return len(text)
         except BrokenPipeError as e:
             self._gone(e)
             if self._name == "stdout" and not _writing():
@@ -126,6 +134,20 @@ def _writing() -> bool:
         return True
     claims = sys.modules.get("tlm.claims")  # (imported by the commands that write a destination: none held before)
     return claims is not None and claims.holding()
+
+
+def _writable(text: str, encoding: str | None) -> str:
+    """``text`` as a stream of ``encoding`` that refused it writes it: each surrogate of a byte of a file name not
+    UTF-8 (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, as :func:`tlm.storage_json.escaped`
+    writes it in a CSV cell or a figure (not imported: only the standard library is, see the module's notes), and
+    any other character the encoding has not (another lone surrogate, a ``×`` to an ASCII stream) as Python's
+    backslash escape (``\\ud800``, ``\\xd7``)."""
+    text = "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else c for c in text)
+    encoding = encoding or "utf-8"
+    try:
+        return text.encode(encoding, "backslashreplace").decode(encoding)
+    except LookupError:  # (an encoding Python does not know: ASCII, which every one writes)
+        return text.encode("ascii", "backslashreplace").decode("ascii")
 
 
 def guard_streams() -> dict[str, _Guarded]:

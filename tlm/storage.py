@@ -62,7 +62,7 @@ from tlm.errors import EnvironmentFailure, InputError, escaped_line
 from tlm.storage_errors import raise_environmental as _raise_environmental
 from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
 from tlm.storage_files import write_files as _write_files
-from tlm.storage_json import appending, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
+from tlm.storage_json import appending, escaped, finite, json_text, naming, read_jsonl  # noqa: F401  (re-exported)
 from tlm.storage_live import (  # noqa: F401  (re-exported)
     _CLEANED,
     _FILES,
@@ -517,9 +517,9 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
 
     The CSV's columns are ``columns`` first (a column no row has is there too, its cells
     empty), then every other key of the rows in the order it first appears; a list or mapping
-    value is written as JSON in its cell. The JSON is strict (:func:`json_text`: a number that
-    is not finite is null), and such a number's CSV cell is empty, as null's. Both files are
-    written atomically.
+    value is written as JSON in its cell, text with a surrogate escaped (:func:`_cell`). The JSON is
+    strict (:func:`json_text`: a number that is not finite is null), and such a number's CSV cell is
+    empty, as null's. Both files are written atomically.
     """
     rows = list(rows)
     cols = list(columns)
@@ -531,7 +531,16 @@ def write_rows(folder: Path, name: str, rows: Iterable[dict], columns: Iterable[
         w = csv.DictWriter(fh, fieldnames=cols)
         w.writeheader()
         for r in rows:
-            w.writerow({k: json_text(v) if isinstance(v, (list, dict)) else finite(v) for k, v in r.items()})
+            w.writerow({k: _cell(v) for k, v in r.items()})
+
+
+def _cell(value):
+    """``value`` as its CSV cell (:func:`write_rows`): a list or mapping as JSON, a number that is not finite
+    None, text with each surrogate escaped (:func:`tlm.storage_json.escaped`: a path of bytes not UTF-8 in an
+    error a row holds, ``dir_\\xff``, where UTF-8 raised UnicodeEncodeError and nothing was written). The JSON
+    keeps the surrogate as its own escape (``\\udcff``), the path read back as it is."""
+    cell = json_text(value) if isinstance(value, (list, dict)) else finite(value)
+    return escaped(cell) if isinstance(cell, str) else cell
 
 
 def write_files(files: Sequence[tuple[Path, str | bytes]]) -> None:

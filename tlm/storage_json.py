@@ -6,6 +6,8 @@
 * :func:`read_jsonl` — the rows of a JSON-lines file the experiments append to, a last line cut
   off by a killed process left out; :func:`appending` — such a file appended to, its failures
   naming it (:func:`naming`: a write that names no file, ``os.pwrite`` or a flush, named by its path).
+* :func:`escaped` — text with each surrogate as an escape (a byte of a file name not UTF-8, ``\\xff``): what a
+  CSV cell, a figure's label or a file's text holds of a path or an error naming one, which UTF-8 writes.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -120,6 +123,21 @@ def json_text(value, **dumps_kw) -> str:
         if "Out of range float values" not in str(e):
             raise  # (a circular reference)
     return json.dumps(finite(value), allow_nan=False, **dumps_kw)
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def escaped(text: str) -> str:
+    """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
+    (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
+    text that UTF-8 writes (a surrogate raises UnicodeEncodeError) and a font draws. Text without one is as it
+    is. (A JSON or YAML file keeps the surrogate as its own escape instead, ``\\udcff``, read back as the same
+    path.)"""
+    if not _SURROGATE.search(text):  # (a scan of the text's characters in C: a whole report page's too)
+        return text
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
+                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
 
 
 def finite(value):

@@ -103,5 +103,5 @@ def given_once(grid: dict[str, list], zipped: dict[str, list], src: str) -> None
 def value_identity(value: Any) -> str:
     """What a factor value is, to find one given twice: its type and canonical JSON, so that
     ``1`` and ``1.0`` (or ``true``) are other values here (the point's check may refuse one, or
-    find them one run: :func:`~tlm.experiments.sweep_file._one_run_one_row`)."""
+    find them one run: :func:`~tlm.experiments.sweep_checks.one_run_one_row`)."""
     return f"{type(value).__name__}:{json.dumps(value, sort_keys=True, default=repr)}"

@@ -11,7 +11,8 @@ the seconds of writing its folder (``seconds.write``).
 ``sweep.jsonl`` and ``sweep.csv`` hold the rows (:func:`write_rows`), the CSV
 with an ok point's columns whatever the points' outcome (:func:`columns`), and a factor's null
 value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
-(:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``).
+(:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``), and a path of bytes not UTF-8 in a cell
+(a failed point's error naming its folder ``run_\\xff``) with the byte escaped, ``\\xff`` (:func:`csv_cell`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import Any
 from tlm import storage
 from tlm.errors import error_line
 from tlm.experiments.sweep_file import Point
+from tlm.storage_json import escaped
 
 FIRST_COLUMNS = ("point", "hash", "status", "error")
 RAN_COLUMNS = ("worker", "host", "pid")  # who ran a point (its record's ``ran``: dask_workers.ran_here), after its
@@ -166,7 +168,7 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
     (:func:`csv_cell`), which an empty cell (a field the row does not have: a failed point's
     ``fps``) would not tell apart.
 
-    Where either write fails (a full disk), ``sweep.csv`` is removed and the error goes on: the CSV there
+    Where either write fails (a full disk, any error), ``sweep.csv`` is removed and the error goes on: the CSV there
     would contradict ``sweep.jsonl``, the rows just written or those a sweep appended since the CSV was
     (nothing but the JSONL is lost: the CSV is written from its rows)."""
     rows = sorted(rows, key=lambda r: r["point"])
@@ -179,7 +181,7 @@ def write_rows(out: Path, rows: list[dict], factors: Iterable[str] = ()) -> None
             w.writeheader()
             for r in rows:
                 w.writerow({k: csv_cell(v, k in named) for k, v in r.items()})
-    except OSError:
+    except Exception:  # (a full disk; any other, which left the CSV of before beside these rows too)
         with suppress(OSError):
             (out / "sweep.csv").unlink(missing_ok=True)
         raise
@@ -206,7 +208,9 @@ def csv_text(rows: Iterable[dict], columns: Iterable[str] = (), values: Iterable
 def csv_cell(value: Any, factor: bool = False) -> Any:
     """A row's value as its ``sweep.csv`` cell: a list or mapping as JSON, a number that is not
     finite as an empty cell (strict JSON's null, as :func:`tlm.storage.write_rows` writes it), a
-    factor's null (``factor``) as ``null``, as the sweep file's YAML and ``--set`` write it; anything
+    factor's null (``factor``) as ``null``, as the sweep file's YAML and ``--set`` write it; text with each
+    surrogate escaped (:func:`tlm.storage_json.escaped`: a path of bytes not UTF-8, ``os.fsdecode(b"run_\\xff")``,
+    as ``run_\\xff``, which UTF-8 writes: the surrogate raised UnicodeEncodeError and no CSV was written); anything
     else as the CSV writes it."""
     if value is None:
         return "null" if factor else None
@@ -214,6 +218,8 @@ def csv_cell(value: Any, factor: bool = False) -> Any:
         return storage.json_text(value)
     if isinstance(value, float) and not math.isfinite(value):
         return None
+    if isinstance(value, str):
+        return escaped(value)
     return value
 
 

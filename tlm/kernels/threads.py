@@ -333,7 +333,7 @@ _FORKED_SHARE = 1  # their :func:`share` (the calls in flight: twice the process
 _FORK_LOCK = threading.Lock()  # one forked pool at a time: its workers inherit _FORKED
 
 # Threads that may run beside a fork, by name: a sweep worker's watch on its parent
-# (tlm.experiments.executors._watch_parent) waits in select() or sleep() and then calls
+# (tlm.experiments.executors_exit.watch_parent) waits in select() or sleep() and then calls
 # os._exit, holding no lock a forked worker could need.
 _QUIET_THREADS = frozenset({"tlm-watch-sweep"})
 
@@ -455,7 +455,7 @@ def _forked_init(holds_compiler_lock: bool, parent: int) -> None:
     killer) or ended by ``os._exit`` (the command line's second Ctrl-C, a sweep worker's
     watch on its own parent) runs no shutdown, and its workers would wait on their pipes for
     ever. On Linux the kernel kills the worker then (``PR_SET_PDEATHSIG``, as a sweep's
-    workers do: :func:`tlm.experiments.executors._exit_with`); a parent that died before
+    workers do: :func:`tlm.experiments.executors_exit.exit_with`); a parent that died before
     that call is seen by its pid. The kernel sends the signal when the *thread* that forked
     ends, not the process: the forks happen in the thread that iterates :func:`forked`'s
     generator, which consumes the workers' results, so the workers serve no one once it is

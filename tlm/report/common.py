@@ -53,6 +53,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import Formatter, LogLocator
 
 from tlm.errors import InputError
+from tlm.storage_json import escaped
 
 # Okabe-Ito colours, ordered so that neighbours differ in luminance (greyscale-safe)
 COLOURS = ("#000000", "#E69F00", "#0072B2", "#F0E442", "#D55E00", "#56B4E9", "#009E73", "#CC79A7")
@@ -375,6 +376,7 @@ def untangle(fig: MplFigure, texts: list, offsets, hide: bool = False) -> list:
         return []
     fig.set_dpi(current_output().dpi)
     renderer = FigureCanvasAgg(fig).get_renderer()
+    _drawable_texts(fig)  # (a surrogate in a label, a title: matplotlib raises as it lays them out)
     engine = fig.get_layout_engine()
     if engine is not None:
         _lay_out(fig, engine)
@@ -491,11 +493,9 @@ VECTOR_RC = {"pdf.fonttype": 42, "svg.fonttype": "none"}
 def drawable(text: str) -> str:
     """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
     (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
-    text that a font draws and UTF-8 writes (matplotlib refuses a surrogate). Text without one is as it is."""
-    if not any("\ud800" <= c <= "\udfff" for c in text):
-        return text
-    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
-                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
+    text that a font draws and UTF-8 writes (matplotlib refuses a surrogate). Text without one is as it is
+    (:func:`tlm.storage_json.escaped`, as a CSV cell's)."""
+    return escaped(text)
 
 
 class _Drawable(Formatter):
