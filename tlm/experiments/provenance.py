@@ -333,24 +333,27 @@ def _noted(reads: list | None) -> dict[str, tuple]:
     return {os.path.realpath(r[1]): r for r in reads or () if r and r[0] == "mesh" and len(r) == 5 and r[2]}
 
 
-def _sides(reads: list | None) -> dict[str, set[str]]:
-    """The ``("side", path, sha256 of the bytes read)`` records of a scene load's ``reads`` (an OBJ's MTL libraries,
-    a glTF's buffers and images, :func:`tlm.scenes.objfile.read_bytes`, :func:`tlm.scenes.mesh_checks.noting_resolver`;
-    a cached mesh's libraries, checked: :func:`tlm.scenes.cache.mesh`) by the file's real path: each file's digests."""
-    out: dict[str, set[str]] = {}
+def _sides(reads: list | None) -> dict[str, set[tuple[str, int | None]]]:
+    """The ``("side", path, sha256 of the bytes read[, their size])`` records of a scene load's ``reads`` (an OBJ's
+    MTL libraries, a glTF's buffers and images, :func:`tlm.scenes.objfile.read_bytes`,
+    :func:`tlm.scenes.mesh_checks.noting_resolver`; a cached mesh's libraries, checked: :func:`tlm.scenes.cache.mesh`)
+    by the file's real path: each file's digests, each with the size read where the record gives it (else None)."""
+    out: dict[str, set[tuple[str, int | None]]] = {}
     for r in reads or ():
-        if r and r[0] == "side" and len(r) == 3 and isinstance(r[2], str):
-            out.setdefault(os.path.realpath(r[1]), set()).add(r[2])
+        if r and r[0] == "side" and len(r) in (3, 4) and isinstance(r[2], str):
+            size = r[3] if len(r) == 4 and isinstance(r[3], int) and not isinstance(r[3], bool) else None
+            out.setdefault(os.path.realpath(r[1]), set()).add((r[2], size))
     return out
 
 
-def _files_noted(mesh: Path, record: tuple | None, sides: dict[str, set[str]]) -> list[tuple[Path, dict]] | None:
+def _files_noted(mesh: Path, record: tuple | None,
+                 sides: dict[str, set[tuple[str, int | None]]]) -> list[tuple[Path, dict]] | None:
     """:func:`tlm.scenes.meshes.mesh_files` of ``mesh`` from a load's ``record`` of it (:func:`_noted`) and the files
     its parse read beside it (``sides``, :func:`_sides`): the mesh's digest the load computed, and the digest of each
     other file (an OBJ's libraries, from what the record names; a glTF's buffers, from its JSON: a ``.glb``'s JSON
-    chunk alone) the sha256 of the bytes the load read, with its size; a file whose read was not noted (or that two
-    reads found different) digested now. Without the mesh read again: the same list, the same digests. None where
-    there is no record."""
+    chunk alone) the sha256 of the bytes the load read, with their size (the record's, else the file's now); a file
+    whose read was not noted (or that two reads found different) digested now. Without the mesh read again: the
+    same list, the same digests. None where there is no record."""
     from tlm.caches import file_digest
     from tlm.scenes.meshes import mesh_format
 
@@ -367,7 +370,12 @@ def _files_noted(mesh: Path, record: tuple | None, sides: dict[str, set[str]]) -
 
     def noted(p: Path) -> dict:
         got = sides.get(os.path.realpath(p), set())
-        return {"size": os.stat(p).st_size, "sha256": next(iter(got))} if len(got) == 1 else file_digest(p)
+        shas, sizes = {sha for sha, _ in got}, {n for _, n in got if n is not None}
+        if len(shas) != 1 or len(sizes) > 1:
+            return file_digest(p)
+        # (the size read where the record gives it: a file saved between the load and now, to another size, is
+        # not its old sha256 with its new size, a digest of neither; else the size now)
+        return {"size": sizes.pop() if sizes else os.stat(p).st_size, "sha256": shas.pop()}
 
     return [(mesh, digest), *((Path(p), noted(Path(p))) for p in others)]
 

@@ -23,7 +23,7 @@ import yaml
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section, count, some
 from tlm.report.html import esc
-from tlm.report.names import digest_notes, scene_digest
+from tlm.report.names import digest_notes, same_file, scene_digest
 
 VERSIONS = ("tlm", "python", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")  # (kernels: numba or numpy)
 MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
@@ -239,18 +239,28 @@ def _lights_table(lights, mats) -> str:
 def scene_tables(runs: list[Run]) -> list[str]:
     """Per scene the runs rendered, its materials and lights as their ``results.json`` record them
     (``scene.materials``, ``scene.lights``), collapsed: once for the runs that record one scene alike (its
-    name, file, materials and lights), naming them. A later record of a scene listed (its name and file: a
-    sweep's points that differ in a material) lists only its materials and lights that differ from the
+    name, file, materials, lights and inputs' digest, :func:`~tlm.report.names.scene_digest`; a run that records
+    no digest, a sweep point, is told by its files now, and is not put with runs that recorded it where runs of its
+    scene file recorded two: it may have read either), naming them. A later record of a scene listed (its name
+    and file: a sweep's points that differ in a material) lists only its materials and lights that differ from the
     first's (a sweep of 200 points over one material of the conference room: 200 rows, not 200 tables of 36);
     no more than :data:`MAX_CONFIGS` records are listed, the rest counted."""
     groups: dict[str, list[Run]] = {}
     digests: dict[int, tuple[str | None, bool]] = {}  # (each run's scene_digest: the digest, whether recorded)
+    recorded_of: dict[str, set] = {}  # (each scene file's digests that its runs recorded)
+    for run in runs:
+        digests[id(run)] = got, recorded = scene_digest(run)
+        scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
+        if recorded:
+            recorded_of.setdefault(same_file(scene.get("source")), set()).add(got)
     for run in runs:
         scene = run.results.get("scene") if isinstance(run.results.get("scene"), dict) else {}
-        digests[id(run)] = scene_digest(run)
+        got, recorded = digests[id(run)]
         # (by the digest alone: a run that recorded it and a sweep point whose files are digested now, of one
-        # scene, are one record)
-        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")] + [digests[id(run)][0]],
+        # scene, are one record; but not where another run of the file recorded other contents, the file edited
+        # between runs: what the point read is not known, and its own record says its digest is of the files now)
+        joins = recorded or recorded_of.get(same_file(scene.get("source")), set()) <= {got}
+        key = json.dumps([scene.get(k) for k in ("name", "source", "materials", "lights")] + [got, joins],
                          sort_keys=True, default=str)
         groups.setdefault(key, []).append(run)
     parts = []

@@ -150,8 +150,8 @@ def mesh(path: Path, parse: Parse, resolve: Resolve) -> Geometry:
         if libraries is not None:
             geom = _geometry(entry, *got, path=path)
             if geom is not None:
-                for p, sha in libraries:  # (the bytes the entry was parsed from, just checked: "read" as they were)
-                    note_read(("side", str(p), sha))
+                for p, sha, size in libraries:  # (the bytes it was parsed from, checked: "read" as they were)
+                    note_read(("side", str(p), sha, size))
                 note_read(("mesh", str(path), digest, got[1].get("names"), resolve))
                 return geom
     geom, names = _kept(path, parse, resolve, digest, entry)
@@ -288,9 +288,9 @@ def _read(entry: Path) -> tuple[dict[str, np.ndarray], dict] | None:
     return arrays, meta
 
 
-def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> list[tuple[Path, str]] | None:
+def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> list[tuple[Path, str, int]] | None:
     """Where the lookup of the entry's other files beside ``path`` finds the same paths, and each
-    is the file it was: those files, each with the sha256 of the bytes the entry was parsed from;
+    is the file it was: those files, each with the sha256 and size of the bytes the entry was parsed from;
     else None."""
     deps = meta.get("deps")
     try:
@@ -302,7 +302,7 @@ def _libraries_unchanged(path: Path, meta: dict, resolve: Resolve) -> list[tuple
         return None
     if not all(digest_problem(path.parent / d["path"], d) is None for d in deps):
         return None
-    return [(p, d["sha256"]) for p, d in zip(found, deps, strict=True)]
+    return [(p, d["sha256"], d["size"]) for p, d in zip(found, deps, strict=True)]
 
 
 def read_as(files: list[tuple[Path | str, str]], reads: list) -> bool:

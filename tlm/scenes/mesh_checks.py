@@ -174,7 +174,7 @@ def noting_resolver_class():
                     except ValueError:
                         continue
                     if file.exists():
-                        note_read(("side", str(file), hashlib.sha256(data).hexdigest()))
+                        note_read(("side", str(file), hashlib.sha256(data).hexdigest(), len(data)))
                         break
             except (AttributeError, OSError, TypeError):
                 pass  # (not noted: a memo of the parse finds this file's read missing, and remembers nothing)

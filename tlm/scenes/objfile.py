@@ -102,7 +102,7 @@ def read_bytes(path: Path, side: bool = False) -> bytes:
     except OSError as exc:
         raise InputError(f"cannot read the file ({exc.strerror or exc})", source=str(path)) from None
     if side:
-        note_read(("side", str(path), hashlib.sha256(data).hexdigest()))
+        note_read(("side", str(path), hashlib.sha256(data).hexdigest(), len(data)))
     unzip = COMPRESSED_SUFFIXES.get(path.suffix.lower())
     if unzip is not None:
         try:
