@@ -183,7 +183,12 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
     * ``arch.fifo_depth`` when every Traversal/Intersection job's FIFO behaves alike at
       this depth and the default's: every packet carries at least as many triangle
       addresses as the larger depth (each enters an empty FIFO alone at either), or the
-      job's packets all fit in the smaller one together (the FIFO never fills);
+      job's packets all fit in the smaller one together (the FIFO never fills); and, past
+      packets of one, where the packets-of-one estimate (``timing.granularity``, its
+      phases' rays, pixels or photons one by one at ``arch.fifo_depth``) is alike too: they
+      fit in the smaller depth together, each taking an entry at least (a phase's triangle
+      addresses plus ``arch.packet_size`` a packet: a coarse packet that enters alone says
+      nothing of its rays);
     * ``arch.settle_frames`` when a settling stream stopped where its completions repeated, below this bound
       and at or below the default's, or when both bounds give ``arch.frames`` (the run at either is the same).
     """
@@ -206,9 +211,12 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
         out["arch.context_switch_cycles"] = "no PM was preempted (timing.crossbar.preemptions are 0)"
     if arch.fifo_depth != default.fifo_depth:
         lo, hi = sorted((arch.fifo_depth, default.fifo_depth))
-        ways = {_fifo_alike(np.asarray(ph.jobs[0].entries, dtype=np.int64), lo, hi)
-                for ph in timing.program.phases if len(ph.jobs) == 2 and ph.jobs[0].entries is not None}
-        if ways and None not in ways:
+        fifo = [ph.jobs[0] for ph in timing.program.phases if len(ph.jobs) == 2 and ph.jobs[0].entries is not None]
+        ways = {_fifo_alike(np.asarray(js.entries, dtype=np.int64), lo, hi) for js in fifo}
+        # (the estimate's packets of one, a packet's rays, pixels or photons one by one, each an entry at least)
+        fine = arch.packet_size == 1 or "change_cycles" not in (timing.granularity or {}) or all(
+            int(np.asarray(js.entries, dtype=np.int64).sum()) + len(js.entries) * arch.packet_size <= lo for js in fifo)
+        if ways and None not in ways and fine:
             out["arch.fifo_depth"] = {
                 frozenset({"alone"}): f"every packet carries at least {hi} triangle addresses, so it enters an "
                                       f"empty FIFO alone at depth {lo} and at {hi} (lower arch.packet_size to see "
