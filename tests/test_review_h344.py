@@ -25,7 +25,8 @@ def test_a_replaced_host_of_storage_is_what_its_cleaning_asks(tmp_path, monkeypa
 def test_a_line_said_straight_to_stderrs_descriptor_escapes_a_surrogate(monkeypatch, capfd):
     """cli_signals._say's fallback (a write to sys.stderr under way where a signal landed: the line goes to file
     descriptor 2 itself) writes a path of bytes not UTF-8 (a surrogate) escaped, as sys.stderr does: it raised
-    UnicodeEncodeError, and the line was lost."""
+    UnicodeEncodeError, and the line was lost. The byte is ``\\xe8``, as stdout shows it (h352: Python's
+    ``\\udce8``)."""
     from tlm import cli_signals
 
     def reentrant(text: str) -> None:
@@ -34,4 +35,4 @@ def test_a_line_said_straight_to_stderrs_descriptor_escapes_a_surrogate(monkeypa
     monkeypatch.setattr(cli_signals, "_line", reentrant)
     name = os.fsdecode(b"/data/sc\xe8ne.obj")  # (a lone surrogate, \udce8)
     cli_signals._say(f"tlm: error: the output could not be written: {name}")
-    assert capfd.readouterr().err == "tlm: error: the output could not be written: /data/sc\\udce8ne.obj\n"
+    assert capfd.readouterr().err == "tlm: error: the output could not be written: /data/sc\\xe8ne.obj\n"

@@ -1,7 +1,7 @@
 """A factor value given twice (``grid: {arch.fifo_depth: [1, 1]}``) is refused (exit 2, one line,
 nothing written): its points are one run, and were run once but written as two rows of one hash
 in ``sweep.csv``, which the report counted as two runs. As points that differ only in
-``render.threads`` are refused as one run with two labels (sweep_file._one_run_one_row)."""
+``render.threads`` are refused as one run with two labels (sweep_checks.one_run_one_row)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """A traceback file of an error whose message holds a surrogate (a path of bytes that are not UTF-8, as
 ``os.fsdecode`` gives it under a UTF-8 locale) is written, the byte escaped: it was lost (UnicodeEncodeError,
-so the line named no file)."""
+so the line named no file). The byte is written ``\\xe8``, as stderr, stdout and a CSV cell show it (h352: it was
+Python's ``\\udce8``)."""
 
 from __future__ import annotations
 
@@ -16,4 +17,4 @@ def test_a_traceback_naming_a_path_not_utf8_is_saved_with_the_byte_escaped(cache
     except FileNotFoundError as e:
         saved = cli_signals.save_traceback(e)
     assert saved is not None and saved.parent == cache / "tracebacks"
-    assert "cannot read /data/sc\\udce8ne.obj" in saved.read_text(encoding="utf-8")
+    assert "cannot read /data/sc\\xe8ne.obj" in saved.read_text(encoding="utf-8")  # (as stderr, stdout show it: h352)

@@ -12,14 +12,13 @@ import inspect
 import numbers
 import os
 import re
-import shlex
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
 from tlm.config_read import nameless
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, shell_word
 from tlm.mesh_files import descriptor_name
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -354,15 +353,15 @@ def _sweep_again(raw: dict, path: Path) -> str:
     """What to do with a sweep folder's ``sweep.yaml`` (``raw``, at ``path``): the ``tlm sweep`` command that runs
     its sweep file (``sweep:``) into the folder again with its ``--set`` (``overrides:``), which skips the points
     done and runs the others, and ``tlm report`` of the folder, which reads it."""
-    folder = shlex.quote(str(Path(path).parent))
+    folder = shell_word(str(Path(path).parent))
     sweep = raw.get("sweep")
-    sets = [f" --set {shlex.quote(str(o))}" for o in raw.get("overrides") or [] if isinstance(o, str | int | float)]
+    sets = [f" --set {shell_word(str(o))}" for o in raw.get("overrides") or [] if isinstance(o, str | int | float)]
     named = sweep if isinstance(sweep, str) and sweep else None
     # (the record names the sweep file as tlm sweep was given it: a relative path is from the folder it ran in, which
     # the record does not keep; one not found from here, or moved since, is no command to run as it is, nor is a file
     # of that name here of another sweep: the record itself, sweep.yaml, given in its folder, or another project's)
     why = _not_recorded_sweep(raw, named) if named is not None else None
-    again = f"tlm sweep {shlex.quote(named) if named is not None and why is None else 'SWEEP_FILE'} --out {folder}"
+    again = f"tlm sweep {shell_word(named) if named is not None and why is None else 'SWEEP_FILE'} --out {folder}"
     which = ("SWEEP_FILE: its sweep file, which this record does not name" if named is None else
              "its sweep file, as this record names it" if why is None else
              f"SWEEP_FILE: its sweep file, which this record names {named!r}, {why}")
@@ -383,7 +382,7 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
     if found is None or found[0] in takes:
         return
     kind, keys = found
-    ref, save = shlex.quote(str(path)), ""  # (a command to run as printed: a path with a space quoted)
+    ref, save = shell_word(str(path)), ""  # (a command to run as printed: a path with a space quoted)
     try:
         if Path(path).resolve().parent == configs_dir().resolve() and Path(path).stem in list_experiments():
             ref = Path(path).stem
@@ -393,7 +392,7 @@ def refuse_other_kind(raw: Any, path: Path, command: str) -> None:
         ref, save = "FILE", "save it to a file and "
     wanted = " or ".join(KIND_NAMES[k] for k in takes if k in KIND_NAMES) or f"a file for 'tlm {command}'"
     # (a run folder's or a sweep point's config.resolved.yaml, run again, needs --out: tlm.cli_run.default_out)
-    out = f" --out {shlex.quote(f'runs/{again_folder(path)}')}" if Path(path).name == RESOLVED and not save else ""
+    out = f" --out {shell_word(f'runs/{again_folder(path)}')}" if Path(path).name == RESOLVED and not save else ""
     use = save + {"run": f"run it with tlm run {ref}{out}",
                   "scene": f"render it with tlm run {ref} (its default settings), or name it in a run config's "
                            "`scene:`"}.get(kind, f"run it with tlm {kind} {ref}")

@@ -38,7 +38,7 @@ from tlm.cli_tables import print_point_warnings
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
-from tlm.errors import check_numba_threads, path_shown
+from tlm.errors import check_numba_threads, path_shown, shell_word
 
 
 def _say(line: str) -> None:
@@ -233,16 +233,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _reference_command(args: argparse.Namespace, overrides: list[str]) -> str:
     """The ``tlm reference`` command that computes the reference of the run ``args``: its config as
     typed, and the overrides the run had (``--set``, and ``--mode``/``--seed`` as ``--set``)."""
-    import shlex
-
     argv = args.argv if getattr(args, "argv", None) is not None else sys.argv[1:]
     try:
         typed = build_parser().parse_args(list(argv)).config
     except (InputError, SystemExit, AttributeError):  # (a run not from a command line: its config's path)
         typed = args.config
     gone = api.experiment_path.nameless(args.config)  # (a pipe's /dev/fd/63: no file to read again later)
-    command = " ".join(["tlm reference", "FILE" if gone else shlex.quote(str(typed)),
-                        *(f"--set {shlex.quote(o)}" for o in overrides)])
+    command = " ".join(["tlm reference", "FILE" if gone else shell_word(str(typed)),
+                        *(f"--set {shell_word(o)}" for o in overrides)])
     return f"{command} (FILE: the config, saved to a file: {typed} is {gone})" if gone else command
 
 

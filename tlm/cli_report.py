@@ -15,7 +15,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
-from tlm.errors import EnvironmentFailure, interrupted_by
+from tlm.errors import EnvironmentFailure, interrupted_by, shell_word
 
 
 def say_err(line: str) -> None:
@@ -125,10 +125,8 @@ def _page_id(folder: Path) -> tuple[int, int] | None:
 def _report_command(args: argparse.Namespace, out: Path) -> str:
     """``tlm report OUT`` that writes the report of ``out`` as the command would have (its
     ``--formats`` and ``--dpi``), ready to paste (quoted for a shell)."""
-    import shlex
-
-    command = ["tlm report", shlex.quote(str(out))]
-    command += [f"--{flag} {shlex.quote(str(value))}" for flag in ("formats", "dpi")
+    command = ["tlm report", shell_word(str(out))]
+    command += [f"--{flag} {shell_word(str(value))}" for flag in ("formats", "dpi")
                 if (value := getattr(args, flag, None)) is not None]
     return " ".join(command)
 

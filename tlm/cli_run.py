@@ -7,7 +7,6 @@ default (:func:`default_out`). The command itself is :mod:`tlm.cli`'s."""
 from __future__ import annotations
 
 import argparse
-import shlex
 import sys
 import time
 from collections.abc import Callable
@@ -16,6 +15,7 @@ from pathlib import Path
 from tlm import api, storage
 from tlm.api import InputError
 from tlm.errors import escaped_line as escaped  # (tlm.cli_signals.escaped: the same lines)
+from tlm.errors import shell_word
 
 
 def blame_flag(config: str, sets: list[str], flagged: dict[str, str]) -> None:
@@ -52,7 +52,7 @@ def default_out(args: argparse.Namespace) -> Path:
     if Path(args.config).name == RESOLVED:
         # (a file the command does not take: what to run it with first, not --out: tlm sweep of a run folder's)
         api.experiment_path.other_command_first(args.config, getattr(args, "cmd", None) or "run")
-        folder = shlex.quote(f"runs/{Path(args.config).absolute().parent.name or 'run'}-again")  # (run as printed)
+        folder = shell_word(f"runs/{Path(args.config).absolute().parent.name or 'run'}-again")  # (run as printed)
         raise InputError(f"is a run folder's {RESOLVED}: give --out, say --out {folder} ({default}, the "
                          f"default, would be the folder of every run folder's {RESOLVED} run again, one replacing "
                          "another)", source=args.config)

@@ -202,6 +202,7 @@ from tlm.errors import (
     interrupted_by,
     memory_problem,
     signal_landed,
+    surrogates_escaped,
     thread_problem,
 )
 
@@ -214,8 +215,8 @@ _EXIT: list[int] = []  # the exit status of the process's own command, once it e
 
 def _line(text: str) -> None:
     """A line on stderr (the command's last); none where its reader went away."""
-    with suppress(BrokenPipeError):
-        sys.stderr.write(f"{text}\n")
+    with suppress(BrokenPipeError):  # (a byte of a path not UTF-8 as \xff, as stdout shows it: not \udcff)
+        sys.stderr.write(f"{surrogates_escaped(text)}\n")
 
 
 def version() -> str:
@@ -349,8 +350,8 @@ def save_traceback(exc: BaseException) -> Path | None:
     from tlm import storage
     from tlm.caches import cache_root
 
-    text = (f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
-            + "".join(traceback.format_exception(exc)))
+    text = surrogates_escaped(f"{version()}\ncommand: {' '.join(sys.argv)}\ncwd: {os.getcwd()}\n\n"
+                              + "".join(traceback.format_exception(exc)))  # (a byte not UTF-8: \xff, as stderr's)
     name = _traceback_name(f"tlm-traceback-{time.strftime('%Y%m%d-%H%M%S')}-{storage.process_tag()}")  # <host>-<pid>
     import tempfile
 
@@ -490,7 +491,7 @@ def _say(text: str) -> None:
         sys.stderr.flush()
     except Exception:
         with suppress(OSError):
-            os.write(2, f"{text}\n".encode("utf-8", "backslashreplace"))  # (a surrogate escaped, as stderr does)
+            os.write(2, f"{surrogates_escaped(text)}\n".encode())  # (a surrogate escaped, \xff, as stderr does)
 
 
 def _end() -> None:

@@ -8,7 +8,8 @@ stops nothing: the command's warnings and lines are lost, to no one (:class:`_Gu
 :func:`guard_streams` as a command begins). A line the stream cannot encode (a path of bytes not UTF-8,
 ``run_\\udcff`` as Python reads it, printed to a stdout that refuses surrogates: a UTF-8 locale other than
 ``C.UTF-8``, ``PYTHONIOENCODING=utf-8``) is written with the byte escaped, ``run_\\xff`` (:func:`_writable`), where
-it raised UnicodeEncodeError and the command ended as an internal error, its files written. Where stdout or
+it raised UnicodeEncodeError and the command ended as an internal error, its files written; stderr writes such a
+byte so always (:func:`_bytes_shown`: Python's stderr wrote ``run_\\udcff``). Where stdout or
 stderr was closed as the process started (``2>&-``) it is ``/dev/null`` (:func:`no_stream_closed`). How the
 command then ends (its exit status, its last line) is :mod:`tlm.cli_signals`', which re-exports these names: a test's
 ``monkeypatch.setattr(cli_signals, "_writing", ...)`` reaches the code here.
@@ -20,6 +21,7 @@ the command's early signals (:func:`tlm.cli_signals.early_signals`), as the proc
 from __future__ import annotations
 
 import os
+import re
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
@@ -79,6 +81,9 @@ class _Guarded:
     def write(self, text):
         try:
             try:
+                if self._name == "stderr" and isinstance(text, str):  # (a byte of a path not UTF-8 as stdout, a CSV
+                    self._stream.write(_bytes_shown(text))  # cell, a figure show it, \xff: not Python's \udcff)
+                    return len(text)
                 return self._stream.write(text)
             except UnicodeEncodeError:  # (encoded whole before any of it is written: nothing written twice)
                 self._stream.write(_writable(text, getattr(self._stream, "encoding", None)))
@@ -142,12 +147,24 @@ def _writable(text: str, encoding: str | None) -> str:
     writes it in a CSV cell or a figure (not imported: only the standard library is, see the module's notes), and
     any other character the encoding has not (another lone surrogate, a ``×`` to an ASCII stream) as Python's
     backslash escape (``\\ud800``, ``\\xd7``)."""
-    text = "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else c for c in text)
+    text = _bytes_shown(text)
     encoding = encoding or "utf-8"
     try:
         return text.encode(encoding, "backslashreplace").decode(encoding)
     except LookupError:  # (an encoding Python does not know: ASCII, which every one writes)
         return text.encode("ascii", "backslashreplace").decode("ascii")
+
+
+_BYTE = re.compile("[\udc80-\udcff]")
+
+
+def _bytes_shown(text: str) -> str:
+    """``text`` with each surrogate of a byte of a file name not UTF-8 as ``\\xff`` (:func:`_writable`); what
+    stderr writes of it (Python's own stderr: ``\\udcff``, a backslash escape), as a ``tlm:`` line shows it
+    (:func:`tlm.errors.escaped_line`)."""
+    if not _BYTE.search(text):  # (a scan in C: a progress bar's many writes)
+        return text
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else c for c in text)
 
 
 def guard_streams() -> dict[str, _Guarded]:

@@ -15,6 +15,7 @@ import contextlib
 import difflib
 import errno
 import os
+import re
 from collections.abc import Iterable
 from typing import Any
 
@@ -43,8 +44,60 @@ def escaped_line(text: str) -> str:
     """``text`` on one line (its whitespace one space), its control characters escaped
     (:data:`LINE_ESCAPES`): what ``tlm: error:``, ``tlm: warning:`` and ``tlm: plots:`` lines print
     (:func:`tlm.cli_signals.escaped`), so that a value from a file or the command line (an escape
-    sequence in a scene's or a folder's name) is shown, not obeyed by the terminal."""
-    return " ".join(text.split()).translate(LINE_ESCAPES)
+    sequence in a scene's or a folder's name) is shown, not obeyed by the terminal. A byte of a path not
+    UTF-8 is ``\\xff`` (:func:`surrogates_escaped`), as stdout, a CSV cell and a figure show it."""
+    return surrogates_escaped(" ".join(text.split()).translate(LINE_ESCAPES))
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def surrogates_escaped(text: str) -> str:
+    """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
+    (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
+    text that UTF-8 writes (a surrogate raises UnicodeEncodeError) and a font draws. Text without one is as it
+    is. (:func:`tlm.storage_json.escaped`, a CSV cell's, a figure's; a ``tlm:`` line's on stderr. A JSON or YAML
+    file keeps the surrogate as its own escape instead, ``\\udcff``, read back as the same path.)"""
+    if not _SURROGATE.search(text):  # (a scan of the text's characters in C: a whole report page's too)
+        return text
+    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
+                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
+
+
+def shell_word(word: str) -> str:
+    """``word`` (a path, a ``--set`` value) quoted for bash, in a command tlm prints for its user to run as
+    printed: as :func:`shlex.quote` quotes it (``'my runs/a.yaml'``), but where ``shlex.quote``'s word would not
+    give the word back once printed, bash's ANSI-C form, ``$'dir_\\xff/sw.yaml'``, with its ``\\`` and ``'``
+    escaped: a byte not UTF-8 (Python's surrogate, ``dir_\\udcff``, which a ``tlm:`` line or stdout shows as
+    ``\\xff``: :func:`surrogates_escaped`), a control character or whitespace other than a space (which
+    :func:`escaped_line` escapes or makes one space), two spaces in a row (made one), each such character as its
+    bytes, ``\\xHH``. (``$'...'`` is bash's, zsh's and ksh's, not a plain POSIX sh's.)"""
+    import shlex
+
+    if not any(_shown_otherwise(word, i) for i in range(len(word))):
+        return shlex.quote(word)
+    out = []
+    for i, c in enumerate(word):
+        if c in "\\'":
+            out.append("\\" + c)
+        elif _shown_otherwise(word, i):
+            try:
+                raw = os.fsencode(c)
+            except UnicodeEncodeError:  # (a lone surrogate of no byte, in no file name: its UTF-8)
+                raw = c.encode("utf-8", "surrogatepass")
+            out.extend(f"\\x{b:02x}" for b in raw)
+        else:
+            out.append(c)
+    return "$'" + "".join(out) + "'"
+
+
+def _shown_otherwise(word: str, i: int) -> bool:
+    """Whether a line shows ``word[i]`` as another text than the character (:func:`shell_word`): a surrogate, a
+    control character, whitespace other than a space, a space after a space."""
+    c = word[i]
+    if c == " ":
+        return i > 0 and word[i - 1] == " "
+    return c.isspace() or ord(c) in LINE_ESCAPES or "\ud800" <= c <= "\udfff"
 
 
 _KEPT = object()  # (a field of :meth:`InputError.replaced` not given: kept)

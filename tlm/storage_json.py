@@ -15,13 +15,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import re
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import IO
 
-from tlm.errors import EnvironmentFailure, InputError, environment_problem
+from tlm.errors import EnvironmentFailure, InputError, environment_problem, surrogates_escaped
 
 
 def read_jsonl(path: Path, hint: str = "") -> list[tuple[int, dict]]:
@@ -125,19 +124,13 @@ def json_text(value, **dumps_kw) -> str:
     return json.dumps(finite(value), allow_nan=False, **dumps_kw)
 
 
-_SURROGATE = re.compile("[\ud800-\udfff]")
-
-
 def escaped(text: str) -> str:
     """``text`` with each surrogate as an escape: a byte that a file name of bytes not UTF-8 holds
     (``os.fsdecode(b"run_\\xff")`` is ``run_\\udcff``) as ``\\xff``, any other lone surrogate as ``\\ud800``:
     text that UTF-8 writes (a surrogate raises UnicodeEncodeError) and a font draws. Text without one is as it
     is. (A JSON or YAML file keeps the surrogate as its own escape instead, ``\\udcff``, read back as the same
-    path.)"""
-    if not _SURROGATE.search(text):  # (a scan of the text's characters in C: a whole report page's too)
-        return text
-    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
-                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
+    path.) :func:`tlm.errors.surrogates_escaped`, which a ``tlm:`` line on stderr shows too."""
+    return surrogates_escaped(text)
 
 
 def finite(value):

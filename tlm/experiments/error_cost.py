@@ -100,7 +100,7 @@ from tlm.arch.model import simulate
 from tlm.caches import cached_image
 from tlm.config import RunConfig, apply_overrides, config_from_dict, file_folder, to_dict
 from tlm.config_words import sets_nothing, value_text, with_overrides
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, shell_word
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.error_cost_frame import frame_functional, frame_time
 from tlm.experiments.error_cost_frame import others_key as _others_key
@@ -606,7 +606,7 @@ def _uncached_reference(key: str, image: np.ndarray, meta: dict, error: BaseExce
                       "used by this study only", warned)
     else:
         study_warning(f"reference {key}: not cached ({why}): kept in {folder} instead, which later runs read with "
-                      f"TLM_CACHE={root}", warned)
+                      f"TLM_CACHE={shell_word(str(root))}", warned)
         kept = cached_image(folder, "reference.npy", key, "reference", "the next study computes it again")
         if kept is not None:  # (what a later run reads from there: reference.json the same as a cached one's)
             return kept

@@ -67,7 +67,7 @@ from pathlib import Path
 import numpy as np
 
 from tlm.config import EstimateConfig, PhotonConfig, RunConfig
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, shell_word
 from tlm.experiments.reference_cache import (
     RULE,
     ReferenceSettings,
@@ -607,5 +607,5 @@ def _kept_elsewhere(key: str, image: np.ndarray, meta: dict, error: BaseExceptio
             return None
         raise error from None
     warn(f"reference {key}: not cached ({' '.join(str(error).split())}): kept in {folder} instead, "
-         f"which later runs read with TLM_CACHE={root}")
+         f"which later runs read with TLM_CACHE={shell_word(str(root))}")
     return folder

@@ -40,7 +40,7 @@ import numpy as np
 
 from tlm.caches import cache_problem, cache_root, cached_image, file_digest
 from tlm.config import RunConfig
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, shell_word
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder
 
@@ -318,7 +318,7 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
         except (EnvironmentFailure, OSError, InputError) as e:
             line += f"; the one computed now is dropped (not kept in {root}: {' '.join(str(e).split())})"
         else:
-            line += f"; the one computed now is kept in {folder} (TLM_CACHE={root} reads it)"
+            line += f"; the one computed now is kept in {folder} (TLM_CACHE={shell_word(str(root))} reads it)"
     return Stored(held[0], held[1], cache_dir() / key, False, line)
 
 

@@ -47,7 +47,7 @@ from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
 from tlm.config_read import nameless
 from tlm.config_words import with_overrides
-from tlm.errors import InputError, check_numba_threads, did_you_mean
+from tlm.errors import InputError, check_numba_threads, did_you_mean, shell_word
 from tlm.experiments.dask_workers import ran_here
 from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.loading import load_frame
@@ -373,8 +373,6 @@ def reference_command(config_path: str | None, overrides: Iterable[str] | None =
     """The ``tlm reference`` command that computes the reference of a run of ``config_path`` with
     ``overrides`` (its ``--set`` strings): a built-in experiment by its name (``cornell_pmap``),
     another config by its path as given; ``CONFIG`` for a config that is no file (a mapping)."""
-    import shlex
-
     from tlm.builtin import configs_dir, list_experiments
 
     typed = str(config_path) if config_path else "CONFIG"
@@ -384,7 +382,7 @@ def reference_command(config_path: str | None, overrides: Iterable[str] | None =
             typed = path.stem
     except OSError:
         pass
-    return " ".join(["tlm reference", shlex.quote(typed), *(f"--set {shlex.quote(str(o))}" for o in overrides or ())])
+    return " ".join(["tlm reference", shell_word(typed), *(f"--set {shell_word(str(o))}" for o in overrides or ())])
 
 
 def _write_difference(res: RenderResult, path: Path) -> None:

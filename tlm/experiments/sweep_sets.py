@@ -8,13 +8,12 @@ gave; and the words of the warnings on what no point reads (:class:`~tlm.experim
 from __future__ import annotations
 
 import re
-import shlex
 from collections.abc import Iterable
 from typing import Any
 
 import yaml
 
-from tlm.errors import InputError
+from tlm.errors import InputError, shell_word
 from tlm.experiments.study import override_key, refuse_set, set_leaves
 
 _NUMBER = re.compile(r"(\d+(?:\.\d+)?)")  # (a split on it: the text between at even places, numbers at odd)
@@ -59,7 +58,7 @@ def refuse_factor_sets(overrides: Iterable[str], factors: dict[str, str], src: s
         if list(leaves) == [key] or not any(f.startswith(key + ".") for _, f in touched):
             refuse_set([item], {f: f"a factor of the sweep ({factors[f]}.{f}), {why}" for _, f in touched}, src)
         f = next(f for _, f in touched if f.startswith(key + "."))
-        others = [f"--set {shlex.quote(f'{k}={_flow(v)}')}" for k, v in leaves.items()
+        others = [f"--set {shell_word(f'{k}={_flow(v)}')}" for k, v in leaves.items()
                   if not any(given_by(k, [g]) for g in factors)]
         rest = f"; give its other keys one by one: {' '.join(others)}" if others else ""
         raise InputError(f"{key} holds {f}, a factor of the sweep ({factors[f]}.{f}), {why}{rest}", source=src,

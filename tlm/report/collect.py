@@ -42,7 +42,7 @@ from typing import Any
 
 from tlm import claims
 from tlm.config import MODES
-from tlm.errors import InputError
+from tlm.errors import InputError, shell_word
 from tlm.experiments.thesis import METRICS, PM_METRICS
 from tlm.report.checks import (  # noqa: F401  (the kinds of value and results.json's keys: importable from here too)
     BOOL,
@@ -251,7 +251,7 @@ class Inputs:
         return (f"the {n} case{'s' * (n != 1)} of the extreme stud{'ies' if len(studies) > 1 else 'y'} "
                 f"({', '.join(str(st.path) for st, _ in studies)}) were simulated, but this report reads only "
                 "their expected and measured behaviour (§8): each case is a run folder under cases/, which "
-                f"'tlm report {studies[0][0].path / 'cases'}' draws")
+                f"tlm report {shell_word(str(studies[0][0].path / 'cases'))} draws")
 
     def scene_of_file(self, source: Any, name: Any = None) -> str:
         """The report's name (:func:`scene_label`) of the scene file ``source``: that of the runs
