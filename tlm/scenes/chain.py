@@ -1,12 +1,14 @@
 """Which file of a scene file's ``extends:`` chain gave each key of the merged mapping
 (:func:`~tlm.scenes.loader.read_scene_tree`), so that an error on a key names the file that
 gave it: a base's bad value is the base's, a key this file gives (a one-item ``geometry:``
-merged into the base's) this file's."""
+merged into the base's) this file's; and what becomes of the entries that a base's ``parts:`` (a null
+taking one out, :func:`parts_removed`) or ``materials:`` (:func:`nulls`, :func:`note_given`) gave."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Any
 
 
 def record(origins: dict[str, Path] | None, raw: dict, base: dict, path: Path, prefix: str = "") -> None:
@@ -38,3 +40,43 @@ def origin(origins: dict[str, Path], key: str) -> Path | None:
             files = {origins[at], *(f for o, f in origins.items() if o.startswith((f"{at}.", f"{at}[")))}
             return origins[at] if len(files) == 1 else None
     return None
+
+
+def parts_removed(merged: dict, raw: dict, base: dict) -> None:
+    """``parts: {X: null}`` in a file whose base (``base``, merged) gives ``parts.X``: the entry
+    taken out of ``merged`` (:func:`~tlm.scenes.loader.read_scene_tree`), so that it is no more
+    checked: the part, where the geometry has it, takes the mesh file's material or
+    ``default_material``; where the file's geometry has no such part, nothing is said of it."""
+    own, inherited, out = raw.get("parts"), base.get("parts"), merged.get("parts")
+    if isinstance(own, dict) and isinstance(inherited, dict) and isinstance(out, dict):
+        merged["parts"] = {k: v for k, v in out.items() if not (k in own and own[k] is None and k in inherited)}
+
+
+def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path], files: list[Path],
+                src: str) -> tuple[dict, list[str]]:
+    """``raw`` without the ``parts:`` entries a base of the ``extends:`` chain ``files`` (base first)
+    gave for a part that the geometry, replaced or changed by a later file of the chain, no longer
+    has (a file extending ``examples/mesh_on_floor`` without its pawns), and a note each naming the
+    base file and the part. An entry for a part the geometry lacks that the file giving the
+    geometry (or a later one) gave is left: the error it is names that file and key."""
+    parts = raw.get("parts")
+    at = {f: i for i, f in enumerate(files)}
+    geometry_by = at.get(origins.get("geometry"), -1)  # (the last file of the chain that gave geometry:)
+    if not isinstance(parts, dict) or geometry_by < 0:
+        return raw, []
+    given_by = {k: origins.get(f"parts.{k}") for k in parts if k not in part_names}
+    stale = {k: by for k, by in given_by.items() if at.get(by, geometry_by) < geometry_by}
+    notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {k!r}: the entry "
+             f"is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
+    return {**raw, "parts": {k: v for k, v in parts.items() if k not in stale}}, notes
+
+
+def nulls(materials: Any) -> list:
+    """The names a scene file's ``materials:`` mapping gives as null (each removes the base's material)."""
+    return [k for k, v in materials.items() if v is None] if isinstance(materials, dict) else []
+
+
+def note_given(given: dict[str, Path] | None, materials: Any, path: Path) -> None:
+    """``given`` (:func:`~tlm.scenes.loader.read_scene_tree`): each material ``materials`` gives -> ``path``."""
+    if given is not None and isinstance(materials, dict):
+        given.update(dict.fromkeys((str(k) for k, v in materials.items() if v is not None), path))

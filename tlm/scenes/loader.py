@@ -30,6 +30,7 @@ from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean, path_shown
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
+from tlm.scenes.chain import note_given, nulls, parts_removed, stale_parts
 from tlm.scenes.chain import origin as _origin
 from tlm.scenes.chain import record as _record
 from tlm.scenes.float32_range import (  # noqa: F401  (the old names, still importable from here)
@@ -295,14 +296,15 @@ def check_resolution(width: int, height: int, src: str, key: str = "resolution")
 
 
 def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] | None = None,
-                    origins: dict[str, Path] | None = None) -> tuple[dict, Path]:
+                    origins: dict[str, Path] | None = None, files: list[Path] | None = None) -> tuple[dict, Path]:
     """The scene file's mapping with its ``extends:`` chain merged in, and the file whose
     ``geometry`` it uses (a mesh path is relative to the file that names it). ``given``, where
     passed, gets each ``materials:`` entry's name -> the file of the chain that gave it last (this
     file where it names the entry, else the base's that does): an entry only inherited is not
     this file's to check (:func:`_check_unused`). ``origins``, where passed, gets each key of the
     merged mapping, dotted (``geometry.transform.scale``; a list's is its key's), -> the file of
-    the chain that gave it last, for naming that file in an error on it (:func:`tlm.scenes.chain.origin`).
+    the chain that gave it last, for naming that file in an error on it (:func:`tlm.scenes.chain.origin`);
+    ``files``, where passed, the files of the chain, base first (:func:`tlm.scenes.chain.stale_parts`).
 
     ``extends: NAME_OR_PATH`` starts from another scene file; this file's keys replace
     the base's, and mappings (``materials``, ``parts``, ``camera``, a material's fields)
@@ -311,7 +313,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     one-item ``geometry`` that names no ``mesh`` merges into the base's, whose mesh path
     stays relative to the base. A material given as null (``materials: {chrome: null}``) removes the
     base's material of that name (one the base does not give is an error, as is a null in a file that
-    extends none); a ``lights:`` list replaces the base's whole (``lights: []``: none).
+    extends none), a ``parts:`` entry as null the base's entry; a ``lights:`` list replaces the base's whole.
     """
     src = str(path)
     raw = read_yaml(path)
@@ -325,11 +327,13 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     _keys(raw, SCENE_KEYS, src, "")
     own = raw.get("materials")
     if "extends" not in raw:
-        for name in _removed(own):  # (nothing to remove: a null here is a mistake, said as such)
+        for name in nulls(own):  # (nothing to remove: a null here is a mistake, said as such)
             raise InputError("null removes an inherited material, and this file extends no scene (extends:): give the "
                              "material's fields, or leave it out", source=src, key=f"materials.{name}")
-        _given(given, own, path)
+        note_given(given, own, path)
         _record(origins, raw, {}, path)
+        if files is not None:
+            files.append(path)
         return raw, path
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
@@ -338,15 +342,15 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
         raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
-    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given, origins)
-    _given(given, own, path)
+    base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given, origins, files)
+    note_given(given, own, path)
     geometry = raw.get("geometry")
     if "geometry" in raw and not (isinstance(geometry, dict) and isinstance(base.get("geometry"), dict)
                                   and "mesh" not in geometry):
         geom_path = path  # (this file names the geometry's mesh, or replaces the geometry)
     mats, base_mats = raw.get("materials"), base.get("materials")
     inherited = list(base_mats) if isinstance(base_mats, dict) else []
-    for name in _removed(mats):
+    for name in nulls(mats):
         if name not in inherited:
             raise InputError(f"null removes an inherited material, and {base_path} (extends:) gives none named "
                              f"{name!r}{did_you_mean(str(name), [str(k) for k in inherited])}", source=src,
@@ -357,19 +361,12 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
         base = {**base, "materials": {k: v for k, v in base_mats.items() if k not in retyped}}
     merged = deep_merge(base, raw)
     _record(origins, raw, base, path)
-    if _removed(mats):  # (an inherited material given as null: taken out)
+    parts_removed(merged, raw, base)
+    if files is not None:
+        files.append(path)
+    if nulls(mats):  # (an inherited material given as null: taken out)
         merged["materials"] = {k: v for k, v in merged["materials"].items() if v is not None}
     return merged, geom_path
-
-
-def _removed(materials: Any) -> list:
-    """The names a scene file's ``materials:`` mapping gives as null (each removes the base's material)."""
-    return [k for k, v in materials.items() if v is None] if isinstance(materials, dict) else []
-
-
-def _given(given: dict[str, Path] | None, materials: Any, path: Path) -> None:
-    if given is not None and isinstance(materials, dict):
-        given.update(dict.fromkeys((str(k) for k, v in materials.items() if v is not None), path))
 
 
 def load_scene(
@@ -384,9 +381,10 @@ def load_scene(
     path = resolve_scene_path(ref, base, config_source)
     given: dict[str, Path] = {}
     origins: dict[str, Path] = {}
-    raw, geom_path = read_scene_tree(path, (), given, origins)
+    files: list[Path] = []
+    raw, geom_path = read_scene_tree(path, (), given, origins, files)
     try:
-        return _scene(path, raw, geom_path, given, resolution, config_source, _origin(origins, "lights"))
+        return _scene(path, raw, geom_path, given, resolution, config_source, origins, files)
     except InputError as e:  # (on a key of an extends: chain: named against the file that gave it)
         if not e.key or e.source not in (str(path), str(geom_path)):
             raise
@@ -397,9 +395,9 @@ def load_scene(
 
 
 def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resolution: list[int] | None,
-           config_source: str | None, lights_by: Path | None = None) -> Scene:
-    """:func:`load_scene` of the scene file ``path``, read (:func:`read_scene_tree`) as ``raw`` (its ``lights:``
-    given by ``lights_by``, a file of its ``extends:`` chain, where known)."""
+           config_source: str | None, origins: dict[str, Path], files: list[Path]) -> Scene:
+    """:func:`load_scene` of the scene file ``path``, read (:func:`read_scene_tree`) as ``raw`` (``origins``: the
+    file of its ``extends:`` chain, ``files``, that gave each key)."""
     src = str(path)
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
@@ -408,11 +406,12 @@ def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resol
     _check_triangles(tri, src)
 
     inherited = {name: str(f) for name, f in given.items() if f != path}  # (through extends:)
+    raw, stale = stale_parts(raw, tuple(geom.part_names), origins, files, src)  # (a base's, of parts now gone)
     materials, material_index, unused = _assign_materials(raw, geom, src, inherited)
     part = np.asarray(geom.part, dtype=np.int32)
 
-    lights, notes = scene_lights(raw, geom, src, str(lights_by or path))
-    notes = [*unused, *notes]
+    lights, notes = scene_lights(raw, geom, src, str(_origin(origins, "lights") or path))
+    notes = [*stale, *unused, *notes]
     view, camera_notes = _camera(raw, geom, src)
 
     res = resolution if resolution is not None else raw.get("resolution")
