@@ -12,8 +12,7 @@ from pathlib import Path
 
 from tlm.config import file_folder, read_yaml
 from tlm.config_words import yaml_kind
-from tlm.errors import InputError, did_you_mean, escaped_line
-from tlm.storage_json import escaped
+from tlm.errors import InputError, did_you_mean, escaped_line, shell_word
 
 # the command that takes an experiment file, by the first of its keys found here (a study's
 # own keys: tlm.experiments.*); a file with none of them is a run config ('tlm run')
@@ -268,12 +267,14 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
 def exported_text(source: Path, name: str, file: Path) -> bytes:
     """The built-in experiment file ``source`` (of ``name``) as ``tlm config export`` writes it
     to ``file``: its comment lines' ``configs/NAME.yaml`` (the checkout's path of this file, in
-    the commands they show) read ``file``, as given; the rest byte for byte."""
+    the commands they show) read ``file``, as given, quoted for a shell as every command tlm prints is
+    (:func:`tlm.errors.shell_word`: ``'my runs/x.yaml'``; a folder of bytes not UTF-8, ``$'dir_\\xff/x.yaml'``,
+    which bash gives back as those bytes and UTF-8 writes); the rest byte for byte."""
     data = source.read_bytes()
     own = f"configs/{name}.yaml"
     if own.encode() not in data:
         return data
     lines = data.decode("utf-8").splitlines(keepends=True)
-    named = escaped(str(file))  # (a folder of bytes not UTF-8, dir_\\xff: shown escaped, as UTF-8 writes it)
+    named = shell_word(str(file))  # (a command to run as shown: dir_\\xff escaped alone was bash's dir_xff)
     return "".join(line.replace(own, named) if line.lstrip().startswith("#") else line
                    for line in lines).encode("utf-8")

@@ -58,10 +58,15 @@ def surrogates_escaped(text: str) -> str:
     text that UTF-8 writes (a surrogate raises UnicodeEncodeError) and a font draws. Text without one is as it
     is. (:func:`tlm.storage_json.escaped`, a CSV cell's, a figure's; a ``tlm:`` line's on stderr. A JSON or YAML
     file keeps the surrogate as its own escape instead, ``\\udcff``, read back as the same path.)"""
-    if not _SURROGATE.search(text):  # (a scan of the text's characters in C: a whole report page's too)
-        return text
-    return "".join(f"\\x{ord(c) - 0xDC00:02x}" if "\udc80" <= c <= "\udcff" else
-                   f"\\u{ord(c):04x}" if "\ud800" <= c <= "\udfff" else c for c in text)
+    # (a scan in C, text without one given back as it is; a Python call for each surrogate alone: a report page
+    # of 1 MB naming such a folder, 7 ms, where a join over its characters took 170 ms)
+    return _SURROGATE.sub(_surrogate_escape, text)
+
+
+def _surrogate_escape(match: re.Match) -> str:
+    """The escape of one surrogate (:func:`surrogates_escaped`): ``\\xff`` for a byte's, ``\\ud800`` for another."""
+    code = ord(match.group())
+    return f"\\x{code - 0xDC00:02x}" if 0xDC80 <= code <= 0xDCFF else f"\\u{code:04x}"
 
 
 def shell_word(word: str) -> str:
