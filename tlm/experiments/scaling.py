@@ -631,7 +631,7 @@ def figure_files(scenes) -> dict[str, str]:
     taken: set[str] = set()
     for scene in sorted(scenes):
         stem = f"scaling_{file_slug(scene)}"
-        tag = hashlib.sha1(scene.encode("utf-8")).hexdigest()[:8]
+        tag = hashlib.sha1(scene.encode("utf-8", "surrogatepass")).hexdigest()[:8]  # (a path of bytes not UTF-8)
         name = next(n for n in (stem, f"{stem}_{tag}", *(f"{stem}_{tag}_{i}" for i in range(2, 1000)))
                     if f"{n}.png".lower() not in taken)
         taken.add(f"{name}.png".lower())
@@ -657,5 +657,5 @@ def file_slug(text: str) -> str:
     slug = "".join(map(ascii_of, text)).strip("_.")
     if text.isascii():
         return slug[:60] or "scene"
-    tag = hashlib.sha1(text.encode("utf-8")).hexdigest()[:8]
+    tag = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
     return f"{slug[:60 - 9].rstrip('_.') or 'scene'}_{tag}"

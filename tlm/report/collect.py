@@ -81,6 +81,7 @@ from tlm.report.folders import find, kind_of, real_path
 from tlm.report.names import name_scenes, path_labels, same_file, scene_label, value_text
 from tlm.report.once import Reads
 from tlm.storage import read_jsonl
+from tlm.storage_json import escaped
 
 
 @dataclass
@@ -617,7 +618,11 @@ def _study(inputs: Inputs, folder: Path, kind: str) -> None:
     if kind == "scaling":
         rows = (_csv_rows(folder / "eq52.csv", "a row of a tlm eq. 5.2 table", SCALING_COLUMNS, SCALING_OPTIONAL)
                 if (folder / "eq52.csv").is_file() else [])
-        study = Study("scaling", folder, rows, _eq52(folder / "eq52.json", rows))
+        meta = _eq52(folder / "eq52.json", rows)
+        # (eq52.csv holds a scene path of bytes not UTF-8 escaped, dir_\\xff, eq52.json as it is: the fits' name)
+        named = {escaped(str(f.get("scene"))): f.get("scene") for f in meta.get("fits") or [] if isinstance(f, dict)}
+        rows = [{**r, "scene": named.get(r.get("scene"), r.get("scene"))} for r in rows]
+        study = Study("scaling", folder, rows, meta)
     elif kind == "granularity":
         path = folder / "granularity.jsonl"
         study = Study("granularity", folder, [row for _, row in _study_jsonl(path)])
