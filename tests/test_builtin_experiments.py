@@ -7,6 +7,7 @@ the scenes of bad input on purpose."""
 from __future__ import annotations
 
 import json
+import shlex
 import shutil
 import tomllib
 from pathlib import Path
@@ -188,9 +189,11 @@ def installed(tmp_path, monkeypatch):
 
 
 # what the refusal of an installed copy's table asks for, the same from the command line and from
-# Python (each way by its whole command or call: no bare flag renamed to an argument, "with target")
-INSTALLED_WAYS = ("name another table (tlm calibrate --write FILE, or tlm.write_calibration's target=), "
-                  "or fit and print only (tlm calibrate --dry-run, or tlm.calibrate alone)")
+# Python (each way by its whole command or call: no bare flag renamed to an argument, "with target"),
+# naming the study given (h357; STUDY where write_calibration is not given it)
+def installed_ways(study: str) -> str:
+    return (f"name another table (tlm calibrate --write FILE {study}, or tlm.write_calibration's target=), "
+            f"or fit and print only (tlm calibrate --dry-run {study}, or tlm.calibrate alone)")
 
 
 def test_write_calibration_leaves_an_installed_table_alone(installed, tmp_path):
@@ -198,7 +201,7 @@ def test_write_calibration_leaves_an_installed_table_alone(installed, tmp_path):
     programs = costs.load_programs(installed)
     with pytest.raises(InputError, match=r"not written: the table is inside the installed tlm package ") as e:
         tlm.api.write_calibration(programs, {"cells": {}})
-    assert str(e.value).endswith(INSTALLED_WAYS)
+    assert str(e.value).endswith(installed_ways("STUDY"))
     assert installed.read_bytes() == before and not list(installed.parent.glob("*.tmp"))
 
 
@@ -211,7 +214,7 @@ def test_calibrate_on_an_installed_copy_is_refused_before_the_fit(installed, tmp
     assert main(["calibrate", str(CONFIGS / "thesis.yaml")]) == 2
     line = _one_error(capsys)
     assert line.startswith(f"tlm: error: {installed}: not written: the table is inside the installed tlm package")
-    assert line.endswith(INSTALLED_WAYS)
+    assert line.endswith(installed_ways(shlex.quote(str(CONFIGS / "thesis.yaml"))))
     assert installed.read_bytes() == before
     for more in (["--dry-run"], ["--write", str(tmp_path / "mine.yaml")]):  # these reach the fit
         assert main(["calibrate", str(CONFIGS / "thesis.yaml"), *more]) == 1

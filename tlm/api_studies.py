@@ -23,7 +23,7 @@ from tlm.api_common import folder as _folder
 from tlm.api_common import kind_check as _kind_check
 from tlm.api_common import shown as _shown
 from tlm.config import config_from_dict
-from tlm.errors import InputError
+from tlm.errors import InputError, shell_word
 from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:
@@ -278,19 +278,24 @@ def in_checkout(package: str | Path) -> bool:
     return (package.parent / "pyproject.toml").is_file() or (package.parent / ".git").exists()
 
 
-def _refuse_installed(target: Path) -> None:
+def _refuse_installed(target: Path, study: str | Path | None = None) -> None:
     """An InputError, nothing written, where the default table ``target`` lies inside the
     package of an installed copy (its packaged ``tlm/arch/programs.yaml``): a calibration
     there would change the table of every user of that installation, and the fingerprint
     of its code (every cached result of it would be stale). Its message reads the same from
     the command line and from Python: it names each way by its whole command or call, no
-    bare flag that :func:`~tlm.api_common.argument_names` would rename for a caller in Python."""
+    bare flag that :func:`~tlm.api_common.argument_names` would rename for a caller in Python
+    (``--write FILE`` before the study, where that command is told from a flag of the call's
+    at any length of the study's path). Its commands run as printed: ``study``, the study
+    as given (a path, a built-in study's name; quoted: :func:`~tlm.errors.shell_word`), else
+    ``STUDY`` (:func:`write_calibration`, which is not given it)."""
     package = _package_dir()
     if not in_checkout(package) and Path(target).resolve().is_relative_to(package):
+        named = "STUDY" if study is None else shell_word(os.fspath(study))
         raise InputError(f"not written: the table is inside the installed tlm package ({package}, not a checkout), "
-                         "where a fit would change it for every user of this installation: name another table "
-                         "(tlm calibrate --write FILE, or tlm.write_calibration's target=), or fit and print only "
-                         "(tlm calibrate --dry-run, or tlm.calibrate alone)", source=str(target))
+                         f"where a fit would change it for every user of this installation: name another table "
+                         f"(tlm calibrate --write FILE {named}, or tlm.write_calibration's target=), or fit and "
+                         f"print only (tlm calibrate --dry-run {named}, or tlm.calibrate alone)", source=str(target))
 
 
 @imports_whole
@@ -306,13 +311,14 @@ def calibration_table(path: str | Path, target: str | Path | None = None) -> Pat
 
     if target is not None:  # (named: written where it is named, an installed package's folder included)
         return Path(target)
+    given = path  # (as the user gave it: the refusal's commands name it)
     path, checked = _study(path, "calibrate")
     with checked:
         base, scenes, _, folder = load_study(path)
     used = Path(programs_for(config_from_dict({**base, "scene": scenes[0], "mode": "rcast"}, str(path)),
                              folder).source)
     target = used if used.is_file() else DEFAULT_PATH
-    _refuse_installed(target)
+    _refuse_installed(target, given)
     return target
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
+from tlm.cli_args import experiment_argument as _experiment_file
 from tlm.cli_cache import add_cache_parser, cache_command
 from tlm.cli_report import kept_whole, report_after, report_claimed, say_err
 from tlm.cli_run import blame_flag, default_out, figures3, print_run  # (what tlm run prints)
@@ -154,7 +155,7 @@ def _experiment_arg(args: argparse.Namespace) -> None:
                              "('tlm config list')", source=args.config)
         return
     say_err(f"{path_shown(args.config)}: the built-in experiment {path_shown(path)}")
-    args.config = str(path)
+    args.config, args.given = str(path), args.config  # (given: as typed, for a command printed to run again)
 
 
 def _cmd_config(args: argparse.Namespace) -> int:
@@ -175,7 +176,7 @@ def _cmd_config(args: argparse.Namespace) -> int:
             f"{file} is already a copy of the built-in experiment {args.name}: kept")
     if base:
         said += (" and " if file in written else "; wrote ") + base[0]
-    print(f"{said}; run it: tlm {api.experiment_command(args.name)} {file}")
+    print(f"{said}; run it: tlm {api.experiment_command(args.name)} {shell_word(str(file))}")
     return 0
 
 
@@ -422,7 +423,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"is {once}, read once: its own table (base.arch.programs) is found by a read of the study "
                          "before the fit's: give --write FILE, or --dry-run", source=args.config)
     if not args.dry_run:  # (a table it may not write is refused before the fit, not after it)
-        api.calibration_table(args.config, args.write)
+        api.calibration_table(getattr(args, "given", args.config), args.write)  # (its refusal names it as typed)
     programs, report = api.calibrate(args.config, progress=progress)
     for scene, cells in report["cells"].items():
         print(f"  {scene:8s} " + "  ".join(f"{m} {v['ours']:.3f} (thesis {v['thesis']})" for m, v in cells.items()))
@@ -479,8 +480,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
     sw = sub.add_parser("sweep", help="run a base config over a grid of factors, one folder and one row per point "
                         "(resumable)")
-    sw.add_argument("config", help="sweep YAML (base, set, grid, zip), e.g. configs/sweep_fifo.yaml, or a built-in "
-                    "experiment's name: sweep_fifo")
+    _experiment_file(sw, "sweep YAML (base, set, grid, zip)", "sweep_fifo")
     sw.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     sw.add_argument("--jobs", type=int, help="worker processes (default: the CPUs available, as for "
                     "render.threads, without its cap of 8; 1 = in this process); a point that leaves "
@@ -540,8 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
     no_progress(rf)
     rf.set_defaults(func=_cmd_reference)
     ev = sub.add_parser("error-vs-cost", help="photon-map filters: image error against work and host time")
-    ev.add_argument("config", help="experiment YAML (base config and grids of points), e.g. "
-                    "configs/error_vs_cost.yaml, or a built-in experiment's name: error_vs_cost")
+    _experiment_file(ev, "experiment YAML (base config and grids of points)", "error_vs_cost")
     ev.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     ev.add_argument("--truth-spp", type=int, default=4096, metavar="N",
                     help="samples per pixel of the Mitsuba 3 path-traced ground truth the composites are also "
@@ -552,8 +551,8 @@ def build_parser() -> argparse.ArgumentParser:
     no_report(ev)
     ev.set_defaults(func=_cmd_error_vs_cost)
     th = sub.add_parser("thesis", help="reproduce Tables I-III: every scene x mode, thesis_comparison.csv")
-    th.add_argument("config", help="study YAML (base, scenes, modes; without base every cell runs at the default "
-                    "settings, not the thesis's), e.g. configs/thesis.yaml, or a built-in experiment's name: thesis")
+    _experiment_file(th, "study YAML (base, scenes, modes; without base every cell runs at the default "
+                        "settings, not the thesis's)", "thesis")
     th.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     _set_option(th, "the base config of every cell (scene and mode, which scenes: and modes: set, are refused)")
     no_progress(th)
@@ -561,8 +560,7 @@ def build_parser() -> argparse.ArgumentParser:
     th.set_defaults(func=_cmd_thesis)
     gr = sub.add_parser("granularity", help="cycle error of coarse packets against one ray per packet, "
                         "with host wall time")
-    gr.add_argument("config", help="YAML with base and packet_sizes, e.g. configs/tlm_granularity.yaml, or a "
-                    "built-in experiment's name: tlm_granularity")
+    _experiment_file(gr, "YAML with base and packet_sizes", "tlm_granularity")
     gr.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     _set_option(gr, "the base config (arch.packet_size, which packet_sizes sets, is refused)")
     no_progress(gr, NO_BAR)
@@ -570,8 +568,7 @@ def build_parser() -> argparse.ArgumentParser:
     gr.set_defaults(func=_cmd_granularity)
     ca = sub.add_parser("calibrate", help="fit the PM programs' free parameters (scales, cycles per record) "
                         "to the RCast column of Tables I-III")
-    ca.add_argument("config", help="study YAML with at least two of the thesis's scenes and mode rcast, e.g. "
-                    "configs/thesis.yaml, or a built-in experiment's name: thesis")
+    _experiment_file(ca, "study YAML with at least two of the thesis's scenes and mode rcast", "thesis")
     ca.add_argument("--write", type=table_file, metavar="TABLE",
                     help="table to write (default: the study's own, its base.arch.programs, else the packaged "
                     "tlm/arch/programs.yaml; the packaged table is never written from a study at another setting "
@@ -590,7 +587,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=_cmd_report)
     ex = sub.add_parser("extreme", help="stiff and extreme cases: each case's expected behaviour against the "
                         "measured one (exit 1 if any differs)")
-    ex.add_argument("config", help="cases YAML, e.g. configs/extreme.yaml, or a built-in experiment's name: extreme")
+    _experiment_file(ex, "cases YAML", "extreme")
     ex.add_argument("--out", type=folder_name, help="output folder (default: runs/<config name>)")
     _set_option(ex, "the base config merged under every case's (a key a case's config gives is refused)",
                 example="render.spp=2")  # (its cases set resolution)

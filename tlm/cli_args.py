@@ -152,3 +152,11 @@ def no_progress(parser: argparse.ArgumentParser, bars: str | None = None) -> Non
     else:
         what = f"no progress bar: {bars}"
     parser.add_argument("--no-progress", action="store_true", help=what)
+
+
+def experiment_argument(parser: argparse.ArgumentParser, what: str, name: str) -> None:
+    """The positional ``config`` of a command that takes an experiment file (``what``): its help names
+    the built-in experiment ``name`` first, which runs from any folder, then its file, which a checkout
+    alone has (``configs/NAME.yaml``)."""
+    parser.add_argument("config", help=f"{what}, or a built-in experiment's name: {name} (from any folder; "
+                        f"its file in a checkout: configs/{name}.yaml)")

@@ -3,8 +3,9 @@
 One table per ``tlm extreme`` folder, grouped by category: the case, the behaviour it
 expects, what was measured, and whether that is what was expected. A path in what was
 measured (a bad-input case's error names the scene file, as it was on the machine that ran
-it) is shown as :func:`tlm.report.names.shown_path` shows it: a built-in scene file by its
-place in the repository, a file of the study's folder relative to it.
+it) is shown as :func:`tlm.report.names.shown_path` shows it: a built-in scene or experiment file by its
+place in the repository (``configs/extreme.yaml``, from an installed copy too), a file of the study's folder
+relative to it.
 """
 
 from __future__ import annotations

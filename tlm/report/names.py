@@ -96,17 +96,38 @@ def scene_label(ref: Any, source: Any, name: Any = None) -> str:
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.~/-])/[^\s:;,'\"()<>]*[^\s:;,'\"()<>.]")  # (not a sentence's full stop)
 
 
+def _packaged(path: Path) -> str | None:
+    """The file ``path`` (absolute) of this installation's built-in scenes or experiments (their mesh
+    and material files too) by its place in the repository, ``scenes/meshes/CornellBox-Original.mtl``,
+    ``configs/extreme.yaml``, in a checkout as in an installed copy (``site-packages/tlm/_scenes``,
+    ``_configs``: :func:`tlm.scenes.loader.scenes_dir`, :func:`tlm.builtin.configs_dir`); else None."""
+    from tlm.builtin import configs_dir
+    from tlm.scenes.loader import scenes_dir
+
+    for root, shown in ((scenes_dir(), "scenes"), (configs_dir(), "configs")):
+        try:
+            return f"{shown}/{path.resolve().relative_to(root.resolve()).as_posix()}".removesuffix("/.")
+        except (ValueError, OSError):
+            continue
+    return None
+
+
 def shown_path(path: str, folder: Path | None = None) -> str:
     """An absolute path a run recorded (on the machine it ran on, in a temporary checkout
     perhaps) as the report shows it: a built-in scene file by its place in the repository
-    (``scenes/extreme/bad_scale_zero.yaml``), a file in ``folder`` (the run's or study's
-    folder) relative to it, one under the current folder relative to that; else as given."""
+    (``scenes/extreme/bad_scale_zero.yaml``), and so any file of this installation's built-in scenes
+    and experiments (``configs/extreme.yaml``, where an installed copy has ``.../site-packages/tlm/_configs/
+    extreme.yaml``: :func:`_packaged`), a file in ``folder`` (the run's or study's folder) relative to it,
+    one under the current folder relative to that; else as given."""
     from tlm.scenes.loader import list_scenes
 
     p = Path(path)
     builtin = _builtin_under(path, list_scenes())
     if builtin is not None:
         return f"scenes/{builtin}{p.suffix}"
+    packaged = _packaged(p) if p.is_absolute() else None
+    if packaged is not None:
+        return packaged
     for base in ([Path(folder)] if folder is not None else []) + [Path.cwd()]:
         try:
             return p.relative_to(base.resolve()).as_posix() or "."

@@ -7,9 +7,10 @@ config (collapsed).
 Per scene the
 runs rendered (once for the runs whose ``results.json`` record one scene alike: a sweep's
 points on one scene, once): its materials' values as the renderer used them and its lights,
-each with where it came from (:func:`scene_tables`). Per study folder (thesis, scaling,
-granularity, error-vs-cost): its ``provenance.json`` and resolved config when it has them; a
-folder written before they were recorded says so.
+each with where it came from (:func:`scene_tables`; a built-in scene's file by its place in the repository,
+``scenes/cornell.yaml``, from an installed copy too: :func:`~tlm.report.names.shown_paths`). Per study
+folder (thesis, scaling, granularity, error-vs-cost): its ``provenance.json`` (its study file shown so
+too) and resolved config when it has them; a folder written before they were recorded says so.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import yaml
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section, count, some
 from tlm.report.html import esc
-from tlm.report.names import digest_notes, same_file, scene_digest
+from tlm.report.names import digest_notes, same_file, scene_digest, shown_paths
 
 VERSIONS = ("tlm", "python", "numpy", "numba", "simpy", "scipy", "trimesh", "kernels")  # (kernels: numba or numpy)
 MAX_CONFIGS = 64  # full resolved configs listed; the rest are in their folders
@@ -208,7 +209,7 @@ def _materials_table(mats) -> str:
         return f"<p>Material values: {esc(OLD + more)}.</p>"
     rows = [[str(name), str(m.get("kind")), _text(m.get("triangles", "")),
              ", ".join(f"{k} {_text(m[k])}" for k in MATERIAL_VALUES if k in m), _text(m.get("emission", "")),
-             _text(m.get("ignored", "")), str(m.get("from", ""))] for name, m in mats.items()]
+             _text(m.get("ignored", "")), shown_paths(str(m.get("from", "")))] for name, m in mats.items()]
     return _table(["material", "kind", "triangles", "values", "emission Le", "ignored (not rendered)", "from"], rows)
 
 
@@ -225,7 +226,7 @@ def _lights_table(lights, mats) -> str:
 
     def source(lt: dict) -> str:
         if lt.get("from"):
-            return str(lt["from"])
+            return shown_paths(str(lt["from"]))
         if lt.get("type", lt.get("kind")) == "mesh":
             return "its materials' emission" + ("".join(
                 f"; {k} {_text(emits[k])}" for k in lt.get("materials") or [] if emits.get(k)) if emits else "")
@@ -348,7 +349,8 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     for st in inputs.studies:
         p = st.meta.get("provenance")
         line = (f"{st.kind} folder {st.path}: " + (
-            f"study {p.get('study')}, {with_set(st.overrides) + ', ' if st.overrides else ''}git {_code(p)}, "
+            f"study {shown_paths(str(p.get('study')))}, "
+            f"{with_set(st.overrides) + ', ' if st.overrides else ''}git {_code(p)}, "
             f"{_versions(p.get('versions'))}, host {p.get('host_seconds')} s" if p else
             "no provenance.json (written by an older tlm); its runs' folders, when it has them, record theirs"))
         if st.kind == "thesis" and st.meta.get("host_seconds"):
