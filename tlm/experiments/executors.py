@@ -552,10 +552,8 @@ class DaskPool(cf.Executor):
         self.keyed = type(self.executor).__name__ == "ClientExecutor"  # (a client's: each point keyed, for watch)
 
     def submit(self, fn, /, *args, **kwargs):
-        if getattr(self, "keyed", False):
-            kwargs["key"] = self.watch.key(fn)
-            if (good := self.watch.targets()) is not None:  # (a worker left out: WorkerWatch.leave_out)
-                kwargs.update(workers=good, allow_other_workers=False)
+        if getattr(self, "keyed", False):  # (keyed, to the good workers only, sent again where they all left)
+            return self.watch.send(fn, args, kwargs)
         return self.executor.submit(fn, *args, **kwargs)
 
     def send_again(self, point: str, record: dict) -> bool:

@@ -5,8 +5,9 @@ one line that says the cluster, not a point, stopped the sweep; :func:`host_kept
 what a local cluster changes in this process (the variables its nannies set, distributed's loggers); the
 preloads of a local cluster's workers (:func:`local_preloads`); and :class:`WorkerWatch`, which checks
 that each worker can run the sweep's points before any is sent (:class:`WorkerCannotRun` where none can), leaves
-out one that cannot, or whose points fail for it, while another can (its points sent to the others, once), and
-names a worker that left the cluster while it ran some of them.
+out one that cannot, or whose points fail for it, while another can (its points sent to the others, once), sends
+a point again whose good workers all left (to the good ones there: :meth:`WorkerWatch.move`), and names a worker
+that left the cluster while it ran some of them.
 
 :mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
 executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
@@ -17,9 +18,11 @@ worker: :mod:`tlm.experiments.dask_workers`. Nothing here imports distributed at
 from __future__ import annotations
 
 import builtins
+import concurrent.futures as cf
 import logging
 import os
 import socket
+import threading
 import types
 import uuid
 import warnings
@@ -291,6 +294,11 @@ class WorkerWatch:
         self.bad: dict[str, list] = {}  # a worker left out (its address) -> [why, how many of its points ran again]
         self.again: set[str] = set()  # the points (their hashes) sent again to the good workers: once each
         self.last: set[str] = set()  # the workers found bad, by a point, when none good was left beside them
+        # a point's future as the sweep holds it -> [its Dask future, the workers it went to (None: any), fn, args,
+        # kwargs]: sent again where those all left (move); its entry dropped once it is done
+        self.sent: dict[cf.Future, list] = {}
+        self.kept: list[str] = []  # the good workers last there (targets: while none is, a point waits for one)
+        self.lock = threading.Lock()  # (sent: the Dask futures' callbacks run in threads of their own)
         self.events: deque = deque()  # (time, message) of the scheduler's "all" topic, appended by the client's loop
         self.subscribed = False
         subscribe = getattr(client, "subscribe_topic", None)
@@ -315,7 +323,14 @@ class WorkerWatch:
 
     def close(self) -> None:
         """The scheduler's events no longer sent to this client: before it closes (else an in-process scheduler
-        logs, at CRITICAL, the event of the client's own close that it could not send it)."""
+        logs, at CRITICAL, the event of the client's own close that it could not send it); the points still sent
+        (:meth:`send`: a sweep stopped) cancelled."""
+        with self.lock:
+            left = [entry[0] for entry in self.sent.values() if entry[0] is not None]
+            self.sent.clear()
+        if left:
+            with suppress(Exception):  # (a client whose scheduler is gone cannot cancel anything)
+                self.client.cancel(left)
         if self.subscribed:
             self.subscribed = False
             with suppress(Exception):
@@ -326,6 +341,84 @@ class WorkerWatch:
         key = f"{getattr(fn, '__name__', 'point')}-{uuid.uuid4()}"
         self.keys.add(key)
         return key
+
+    def send(self, fn, args: tuple, kwargs: dict) -> cf.Future:
+        """The point ``fn(*args, **kwargs)`` submitted to the workers that can run it (:meth:`targets`, each time it
+        is sent), keyed (:meth:`key`); the future the sweep holds, which takes the Dask future's outcome. Where the
+        workers it was sent to all left (a nanny that restarts its worker gives it another port), it is sent again
+        to the good ones there (:meth:`move`): Dask keeps it for the gone addresses, and the sweep waited for ever."""
+        held: cf.Future = cf.Future()
+        with self.lock:
+            self.sent[held] = [None, None, fn, args, kwargs]
+        held.add_done_callback(self._dropped)
+        self._submit(held)
+        return held
+
+    def _submit(self, held: cf.Future) -> None:
+        """``held``'s point submitted to the workers that can run it now (:meth:`send`)."""
+        with self.lock:
+            entry = self.sent.get(held)
+        if entry is None:  # (cancelled by the sweep meanwhile)
+            return
+        fn, args, kwargs = entry[2:]
+        good = self.targets()
+        where = {} if good is None else {"workers": good, "allow_other_workers": False}
+        future = self.client.submit(fn, *args, key=self.key(fn), pure=False, **kwargs, **where)
+        with self.lock:
+            mine = self.sent.get(held) is entry
+            if mine:
+                entry[0], entry[1] = future, good
+        if not mine:  # (cancelled by the sweep meanwhile)
+            with suppress(Exception):
+                future.cancel()
+            return
+        future.add_done_callback(lambda done: self._done(held, done))
+
+    def _done(self, held: cf.Future, future) -> None:
+        """The Dask ``future`` of ``held`` done: its outcome ``held``'s, where it is still ``held``'s (not one sent
+        since: :meth:`move`)."""
+        with self.lock:
+            entry = self.sent.get(held)
+            if entry is None or entry[0] is not future:
+                return
+            del self.sent[held]
+        with suppress(cf.InvalidStateError):  # (the sweep cancelled it meanwhile)
+            if future.status == "cancelled":  # (by the scheduler: a lost connection, a restarted cluster)
+                held.cancel()
+                held.set_running_or_notify_cancel()
+                return
+            try:
+                held.set_result(future.result())
+            except Exception as e:  # (the point's worker died: KilledWorker; the scheduler lost)
+                held.set_exception(e)
+            except BaseException:  # (cancelled as it was read)
+                held.cancel()
+                held.set_running_or_notify_cancel()
+
+    def _dropped(self, held: cf.Future) -> None:
+        """``held`` done: cancelled by the sweep (an interrupt), its Dask future too."""
+        if held.cancelled():
+            with self.lock:
+                entry = self.sent.pop(held, None)
+            if entry is not None and entry[0] is not None:
+                with suppress(Exception):
+                    entry[0].cancel()
+
+    def move(self) -> int:
+        """The points whose workers (those they were sent to: :meth:`send`) all left the cluster, sent again to the
+        good workers there (:meth:`targets`); how many. None moved where no worker is left out (their Dask futures
+        go to any worker) or none good is there (the sweep's wait for one: :meth:`seen`)."""
+        if not self.bad or not self.good():
+            return 0
+        with self.lock:
+            stuck = [(held, entry[0]) for held, entry in self.sent.items()
+                     if entry[0] is not None and entry[1] and not self.alive.intersection(entry[1])
+                     and not entry[0].done()]
+        for held, old in stuck:
+            self._submit(held)
+            with suppress(Exception):
+                old.cancel()
+        return len(stuck)
 
     def sweeps_code(self) -> str | None:
         """The sweep's code fingerprint (this process's tlm), for a line on a worker of another."""
@@ -370,7 +463,7 @@ class WorkerWatch:
                 lines.append(f"{self.where(address)} cannot run tlm's points: {why}")
             elif (other := other_code(seen, self.sweeps_code())) is not None:  # (each of its points would fail)
                 self.why[address] = other
-        for address in sorted(a for a in got if a in self.why):
+        for address in sorted(a for a in self.alive if a in self.why):  # (those found before a good one joined too)
             self.leave_out(address, f"it cannot run tlm's points: {self.why[address]}")
         return lines
 
@@ -380,7 +473,8 @@ class WorkerWatch:
         (``has had no worker``): the points sent to the good workers only wait for one, beside those left out."""
         self.alive = set(workers)
         self.check(list(workers))
-        if self.alive and self.bad and not self.targets():
+        self.move()  # (the points sent to good workers that all left since: to those there now)
+        if self.alive and self.bad and not self.good():
             return 0, "has had no worker that can run the sweep's points"
         return len(self.alive), "has had no worker"
 
@@ -402,15 +496,25 @@ class WorkerWatch:
         if not self.alive - set(self.bad) - set(self.why) - {address}:  # (no good worker but it)
             return False
         self.bad[address] = [why, 0]
+        self.kept = self.good()
         return True
+
+    def good(self) -> list[str]:
+        """The workers there (as last asked) that are not left out (:meth:`leave_out`) nor found unable to run the
+        sweep's points."""
+        return sorted(self.alive - set(self.bad) - set(self.why))
 
     def targets(self) -> list[str] | None:
         """The workers the sweep's points go to (``Client.submit``'s ``workers``, no other allowed): those not left
-        out (:meth:`leave_out`); None where none is left out, or none but those is there (every worker, as before)."""
+        out (:meth:`leave_out`); None where none is left out (every worker, as before). Where none of them is there
+        (a good worker that its nanny restarts is gone a moment, and back at another port), those last there: the
+        point waits for a good worker (:meth:`move`, within --dask-wait: :meth:`seen`), where it went to a bad one
+        and failed there."""
         if not self.bad:
             return None
-        good = sorted(self.alive - set(self.bad) - set(self.why))
-        return good or None
+        if good := self.good():
+            self.kept = good
+        return self.kept or None
 
     def send_again(self, point: str, record: dict) -> bool:
         """Whether the point ``point`` (its hash), whose worker's record is ``record``, goes again to the other
@@ -443,12 +547,12 @@ class WorkerWatch:
 
     def left_out(self) -> list[str]:
         """One line on each worker left out of the sweep (:meth:`leave_out`): which, why, and that its points went
-        to the other workers (how many ran again there). None where the other workers turned out bad too (their
-        points failed with why: as on a cluster of none good)."""
-        if self.last:
-            return []
+        to the other workers (how many ran again there). Where the other workers turned out bad too (their points
+        failed with why: as on a cluster of none good), only those the probe found, which no row names."""
         lines = []
         for address, (why, n) in self.bad.items():
+            if self.last and address not in self.why:
+                continue
             again = f"{n} of them run again there" if n else "none was sent to it"
             lines.append(f"{self.where(address)} was left out of the sweep ({why}); its points went to the other "
                          f"workers ({again})")
