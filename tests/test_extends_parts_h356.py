@@ -88,7 +88,20 @@ def test_a_base_s_own_wrong_entry_is_the_base_s_error_until_a_later_file_changes
     assert capsys.readouterr().err == (f"tlm: error: {base}: parts.flore: the geometry has no part 'flore' (parts: "
                                        "floor) (did you mean 'floor'?)\n")
     scaled = _write(tmp_path, "scaled.yaml", "extends: base.yaml\ngeometry: {transform: {scale: 2.0}}\n")
-    assert load_scene(str(scaled)).extra["notes"] == [_note(scaled, "flore", base)]
+    assert main(["scene", "show", str(scaled)]) == 2  # (a transform keeps the parts: still the base's error, h358)
+    assert capsys.readouterr().err.startswith(f"tlm: error: {base}: parts.flore: the geometry has no part 'flore'")
+    renamed = _write(tmp_path, "ground.yaml", "extends: base.yaml\ngeometry: {name: ground}\nparts: {ground: m}\n")
+    assert load_scene(str(renamed)).extra["notes"] == [_note(renamed, p, base) for p in ("floor", "flore")]
+
+
+def test_a_one_item_merge_of_a_builder_s_params_that_drops_a_part_makes_the_base_s_entry_a_note(tmp_path):
+    base = _write(tmp_path, "ring_glass.yaml", "extends: ring\ngeometry: {params: {glass_radius: 3.0}}\n"
+                  "materials: {glass: {type: dielectric, ior: 1.5}}\nparts: {glass: glass}\n")
+    assert load_scene(str(base)).part_names == ("floor", "ring", "glass")
+    plain = _write(tmp_path, "plain.yaml", "extends: ring_glass.yaml\ngeometry: {params: {glass_radius: 0.0}}\n")
+    scene = load_scene(str(plain))
+    assert scene.part_names == ("floor", "ring")
+    assert [n for n in scene.extra["notes"] if ": parts." in n] == [_note(plain, "glass", base)]
 
 
 def test_conference_keeping_one_ceiling_panel(tmp_path):

@@ -291,7 +291,8 @@ def _refuse_installed(target: Path, study: str | Path | None = None) -> None:
     ``STUDY`` (:func:`write_calibration`, which is not given it)."""
     package = _package_dir()
     if not in_checkout(package) and Path(target).resolve().is_relative_to(package):
-        named = "STUDY" if study is None else shell_word(os.fspath(study))
+        given = "STUDY" if study is None else os.fspath(study)
+        named = shell_word(f"./{given}" if given.startswith("-") else given)  # (-th.yaml: no flag to argparse)
         raise InputError(f"not written: the table is inside the installed tlm package ({package}, not a checkout), "
                          f"where a fit would change it for every user of this installation: name another table "
                          f"(tlm calibrate --write FILE {named}, or tlm.write_calibration's target=), or fit and "

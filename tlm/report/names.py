@@ -115,14 +115,19 @@ def _packaged(path: Path) -> str | None:
 def shown_path(path: str, folder: Path | None = None) -> str:
     """An absolute path a run recorded (on the machine it ran on, in a temporary checkout
     perhaps) as the report shows it: a built-in scene file by its place in the repository
-    (``scenes/extreme/bad_scale_zero.yaml``), and so any file of this installation's built-in scenes
-    and experiments (``configs/extreme.yaml``, where an installed copy has ``.../site-packages/tlm/_configs/
-    extreme.yaml``: :func:`_packaged`), a file in ``folder`` (the run's or study's folder) relative to it,
-    one under the current folder relative to that; else as given."""
+    (``scenes/extreme/bad_scale_zero.yaml``; one of another checkout's ``scenes`` folder where it is not on
+    this machine or is the same scene as the built-in one here, as :func:`scene_label` names it), and so any
+    file of this installation's built-in scenes and experiments (``configs/extreme.yaml``, where an installed
+    copy has ``.../site-packages/tlm/_configs/extreme.yaml``: :func:`_packaged`), a file in ``folder`` (the
+    run's or study's folder) relative to it, one under the current folder relative to that; else as given."""
     from tlm.scenes.loader import list_scenes
 
     p = Path(path)
-    builtin = _builtin_under(path, list_scenes())
+    builtin = _builtin_under(path)
+    if builtin is None:  # (another checkout's built-in file: where it is on this machine, only the same scene as
+        # the one here, as scene_label; a user's own, edited .../scenes/cornell.yaml is not scenes/cornell.yaml)
+        tail = _builtin_under(path, list_scenes())
+        builtin = _same_builtin(path) if tail is not None and p.is_file() else tail
     if builtin is not None:
         return f"scenes/{builtin}{p.suffix}"
     packaged = _packaged(p) if p.is_absolute() else None

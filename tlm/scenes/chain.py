@@ -55,13 +55,14 @@ def parts_removed(merged: dict, raw: dict, base: dict) -> None:
 def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path], files: list[Path],
                 src: str) -> tuple[dict, list[str]]:
     """``raw`` without the ``parts:`` entries a base of the ``extends:`` chain ``files`` (base first)
-    gave for a part that the geometry, replaced or changed by a later file of the chain, no longer
-    has (a file extending ``examples/mesh_on_floor`` without its pawns), and a note each naming the
-    base file and the part. An entry for a part the geometry lacks that the file giving the
-    geometry (or a later one) gave is left: the error it is names that file and key."""
+    gave for a part that the geometry, replaced or changed by a later file of the chain (more than a
+    ``transform``: :func:`_parts_by`), no longer has (a file extending ``examples/mesh_on_floor``
+    without its pawns), and a note each naming the base file and the part. An entry for a part the
+    geometry lacks that the file giving the geometry (or a later one) gave is left: the error it is
+    names that file and key."""
     parts = raw.get("parts")
     at = {f: i for i, f in enumerate(files)}
-    geometry_by = at.get(origins.get("geometry"), -1)  # (the last file of the chain that gave geometry:)
+    geometry_by = _parts_by(origins, at)
     if not isinstance(parts, dict) or geometry_by < 0:
         return raw, []
     given_by = {k: origins.get(f"parts.{k}") for k in parts if k not in part_names}
@@ -69,6 +70,17 @@ def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path]
     notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {k!r}: the entry "
              f"is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
     return {**raw, "parts": {k: v for k, v in parts.items() if k not in stale}}, notes
+
+
+def _parts_by(origins: dict[str, Path], at: dict[Path, int]) -> int:
+    """The place in the chain (``at``) of the last file that gave the geometry's parts: that gave ``geometry:``,
+    but not a one-item ``geometry`` that only merges a ``transform`` into the base's (a scale keeps the part
+    names: a base's entry for a part its own geometry lacks stays the base's error); -1 where none."""
+    below = [k for k in origins if k.startswith(("geometry.", "geometry["))]
+    if not below:  # (a list, or a value not a mapping: the file that gave it)
+        return at.get(origins.get("geometry"), -1)
+    return max((at.get(origins[k], -1) for k in below
+                if k != "geometry.transform" and not k.startswith("geometry.transform.")), default=-1)
 
 
 def nulls(materials: Any) -> list:
