@@ -84,8 +84,9 @@ class ArchConfig:
                          "(1 Hz to 1e12, a terahertz)", min=1.0, max=1e12)
     frames: int = _f(5, "frames in the simulated stream (the same image, two in flight); TThru is measured over the "
                      "steady state (at least 5 frames with two images in flight, 1 with one)", min=1, max=10000)
-    settle_frames: int = _f(64, "the most frames the dynamic scheduler with two images runs, on past frames until its "
-                            "completions repeat: max(frames, settle_frames); 1: frames alone", min=1, max=10000)
+    settle_frames: int = _f(64, "the most frames a stream of two images runs, on past frames until its completions "
+                            "repeat (the dynamic scheduler; the static one where the asked frames' steady gaps do not "
+                            "repeat from the first): max(frames, settle_frames); 1: frames alone", min=1, max=10000)
     images_in_flight: int = _f(2, "images in flight: 2 (thesis: modules 0&1 image 0, 2&3 image 1) or 1; memory "
                                "modules: 2 x images_in_flight x pipelines (+1 composer past 1 pipeline)", min=1, max=2)
     packet_size: int = _f(256, "rays, pixels or photons per packet: the TLM's granularity (1 = fine reference)",

@@ -8,8 +8,9 @@ The frame program's pipelines (``pipe0``..), each of Processing Modules that are
 between modules; with more than one pipeline, the ``compose`` unit that receives the
 tiles. A stream of ``arch.frames`` frames passes through, ``arch.images_in_flight`` (2)
 at a time: image slot ``s`` owns a pipeline's modules ``2s`` and ``2s+1``. A stream that
-only settles after a transient (the dynamic scheduler with two images) runs on past
-``arch.frames`` until its completions repeat (:func:`settling`, :mod:`tlm.arch.steady`).
+only settles after a transient (two images with the dynamic scheduler, or with the static one
+where the asked frames' steady gaps do not repeat from the first) runs on past
+``arch.frames`` until its completions repeat (:func:`settles`, :mod:`tlm.arch.steady`).
 
 Each frame runs the program of :func:`frame_program` (the reconstruction of the
 thesis's Figs. 13 and 14, see ``docs/architecture.md``): stages, shared ones on
@@ -68,7 +69,7 @@ from tlm.arch.granularity import (
 )
 from tlm.arch.memory import Module
 from tlm.arch.pm import PM, PM_KINDS, Job
-from tlm.arch.steady import frames_cap, keep_going, steady_throughput
+from tlm.arch.steady import frames_cap, keep_going, repeats_from_warmup, steady_throughput
 from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run, within_int64
 from tlm.config import ArchConfig
 from tlm.registry import SCHEDULERS
@@ -268,10 +269,24 @@ def _copy_after(model: Model, waits: list, copy_done, spec: PhaseSpec, a: int, b
 
 
 def settling(program: FrameProgram, arch: ArchConfig) -> bool:
-    """Whether the stream runs past ``arch.frames`` until its completions repeat
-    (:mod:`tlm.arch.steady`): two images in flight and a scheduler whose completions are
-    not periodic from the warm-up on (the dynamic queue)."""
-    return arch.images_in_flight > 1 and not SCHEDULERS[program.scheduler].periodic_from_warmup
+    """Whether the stream may run past ``arch.frames`` until its completions repeat
+    (:mod:`tlm.arch.steady`): two images in flight, with the dynamic queue, or with the static
+    tiles where ``arch.frames`` leaves a steady window (at least ``3k - 1``); a static stream
+    only where the asked frames' steady gaps do not already repeat from the first
+    (:func:`settles`: their completions too may begin with a transient)."""
+    k = arch.images_in_flight
+    return k > 1 and (not SCHEDULERS[program.scheduler].periodic_from_warmup or arch.frames >= 3 * k - 1)
+
+
+def settles(program: FrameProgram, arch: ArchConfig, done: list[int]) -> bool:
+    """Whether the stream whose completions so far are ``done`` is measured as one that settles
+    (ran on, or would have, until its completions repeat): :func:`settling`, less a static stream
+    whose steady gaps among the asked frames' completions repeat from the first
+    (:func:`~tlm.arch.steady.repeats_from_warmup`, the same at any length of the stream)."""
+    if not settling(program, arch):
+        return False
+    static = SCHEDULERS[program.scheduler].periodic_from_warmup
+    return not (static and repeats_from_warmup(done, arch.images_in_flight, arch.frames))
 
 
 def _stream(model: Model, done: simpy.events.Event):
@@ -288,8 +303,10 @@ def _stream(model: Model, done: simpy.events.Event):
     cap = frames_cap(arch.frames, arch.settle_frames) if more else arch.frames
     for f in range(cap):
         slot = yield slots.get()  # the raw data of frame f is accepted when a module pair is free
-        if f >= arch.frames and not keep_going([r.done for r in model.frames if r.done >= 0], arch.images_in_flight):
-            break
+        if f >= arch.frames:
+            so_far = [r.done for r in model.frames if r.done >= 0]
+            if not (settles(model.program, arch, so_far) and keep_going(so_far, arch.images_in_flight)):
+                break
         rec = FrameRecord(f, slot, arrival=int(env.now))
         model.frames.append(rec)
         proc = env.process(_frame_process(model, rec))
@@ -467,18 +484,33 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     # a settling stream runs past arch.frames (tlm.arch.steady): a cap or a stop names the frames it may run
     cap = frames_cap(arch.frames, arch.settle_frames)
     ran_on = "" if not settling(program, arch) or cap == arch.frames else (
-        f" (the dynamic stream of two images runs on past arch.frames = {arch.frames} until its completions "
+        f" (the stream of two images runs on past arch.frames = {arch.frames} until its completions "
         f"repeat, at most {cap} frames, arch.settle_frames: tlm/arch/steady.py)")
-    why = f"arch.max_events = {arch.max_events} events{ran_on}" if budget == arch.max_events else (
+    static = SCHEDULERS[program.scheduler].periodic_from_warmup
+
+    def said_on() -> str:  # (a static stream runs on only where its asked frames' gaps do not repeat: said if it did)
+        return ran_on if not static or len(model.frames) > arch.frames else ""
+
+    why = Said(lambda: f"arch.max_events = {arch.max_events} events{said_on()}") if budget == arch.max_events else (
         f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
               cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
     nf = len(model.frames)
-    within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}{ran_on}")  # (no unit's are more)
+    within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}{said_on()}")  # (no unit's are more)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
     timing.event_budget = budget
     return timing
+
+
+class Said:
+    """Words read when they are said (``str``): a stop's, which may name what the stream did by then."""
+
+    def __init__(self, words) -> None:
+        self.words = words
+
+    def __str__(self) -> str:
+        return self.words()
 
 
 EVENTS_PER_ITEM = 64  # the liveness bound's SimPy events per packet, job and tile (runs need 1.6-3.2)
@@ -535,9 +567,9 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
     for rec in model.frames:
         if rec.done < 0:
             raise AssertionError(f"frame {rec.index} did not finish")
-    throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight,
-                                               settling(program, arch))
-    if settling(program, arch):  # (the most frames it could run: arch.settle_frames, or arch.frames if more)
+    ran_as = settles(program, arch, [r.done for r in model.frames])
+    throughput_i, estimate = steady_throughput([r.done for r in model.frames], arch.images_in_flight, ran_as)
+    if ran_as:  # (the most frames it could run: arch.settle_frames, or arch.frames if more)
         estimate["frames_cap"] = frames_cap(arch.frames, arch.settle_frames)
     # latency over the frames that complete in the steady window and arrived after the
     # warm-up (the k-th completion: an earlier arrival met the half-empty pipeline of the

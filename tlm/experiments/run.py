@@ -273,12 +273,14 @@ def simulate_run(res: RenderResult, programs: Programs, progress: bool = False, 
 
 def frames_said(arch: ArchConfig) -> str:
     """The frames a stream of ``arch`` runs, as its progress bar says them: ``arch.frames``, or for a settling
-    stream (:func:`tlm.arch.model.settling`: two images in flight, the dynamic queue) as many or more, until its
-    completions repeat, :func:`tlm.arch.steady.frames_cap` at most."""
+    stream (:func:`tlm.arch.model.settling`: two images in flight, the dynamic queue, or the static tiles where
+    their asked frames' gaps may not repeat) as many or more, until its completions repeat,
+    :func:`tlm.arch.steady.frames_cap` at most."""
     from tlm.arch.steady import frames_cap
     from tlm.registry import SCHEDULERS
 
-    settles = arch.images_in_flight > 1 and not SCHEDULERS[arch.scheduler].periodic_from_warmup  # (model.settling)
+    k = arch.images_in_flight
+    settles = k > 1 and (not SCHEDULERS[arch.scheduler].periodic_from_warmup or arch.frames >= 3 * k - 1)  # (settling)
     cap = frames_cap(arch.frames, arch.settle_frames)
     if settles and cap > arch.frames:
         return f"{arch.frames} to {cap} frames, until it settles"

@@ -127,7 +127,7 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
                 f"the mean gap over its last {b - a} steady completions, whose running mean moved by "
                 f"{est['spread']:.2%} over their last half")
         # (the stream ran max(arch.frames, arch.settle_frames) frames: a bound at or below that changes nothing)
-        lines.append(f"the stream did not settle within {est['frames']} frames (the dynamic scheduler's completions "
+        lines.append(f"the stream did not settle within {est['frames']} frames (its completions "
                      f"did not repeat): cycles.throughput is {over}; raise arch.settle_frames (the most frames it "
                      f"runs) above {est['frames']} to settle it")
     elif est and not est["steady"] and est.get("settled") is None:

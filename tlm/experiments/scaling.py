@@ -156,7 +156,7 @@ def collect(sweep_dir: Path, notes: list[str] | None = None, failed: list[str] |
 
 def unsteady(rec: dict) -> str:
     """The note on a point (a :func:`record`) whose stream was too short for a steady state, or did
-    not settle (the dynamic scheduler's completions did not repeat within the frames it ran)."""
+    not settle (its completions did not repeat within the frames it ran)."""
     if rec.get("settled") is False:
         return (f"its stream did not settle within {rec.get('frames')} frames (throughput_steady false): its TThru "
                 f"is the mean gap over the later half of its steady completions and its latency the mean over "

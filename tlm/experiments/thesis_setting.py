@@ -132,10 +132,10 @@ def setting_mismatches(table: str, config: dict | None) -> list[str]:
     cap, trace, ``reference.*``), a key the cell never reads at its value
     (:func:`~tlm.render.planner.inert_settings`: the photon sections outside ``pmap``, the
     reflect depth in ``rcast``, ...; :func:`~tlm.render.planner.inert_timing_settings`), a timing
-    key the thesis's stream never reads (``arch.settle_frames`` of its static stream, ``arch.fanout``
-    of its one pipeline: the thesis's value stands for none, and the key that makes ours read it,
-    ``arch.scheduler``, ``arch.pipelines``, is said) and a key ``config`` lacks (a folder written
-    before the key existed)."""
+    key the thesis's stream never reads (``arch.fanout`` of its one pipeline: the thesis's value
+    stands for none, and the key that makes ours read it, ``arch.pipelines``, is said; its static
+    stream of two images may read ``arch.settle_frames``, :func:`tlm.arch.model.settling`) and a
+    key ``config`` lacks (a folder written before the key existed)."""
     if not isinstance(config, dict) or config.get("mode") not in MODES or table not in THESIS_SCENES:
         return []
     thesis = _thesis_setting(table, config["mode"])

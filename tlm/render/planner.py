@@ -231,9 +231,10 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     arch = cfg.arch
     if arch.pipelines == 1:
         out["arch.fanout"] = "arch.pipelines is 1 (no other pipeline to copy to)"
-    if arch.images_in_flight == 1 or SCHEDULERS[arch.scheduler].periodic_from_warmup:  # (tlm.arch.model.settling)
-        out["arch.settle_frames"] = ("the stream runs arch.frames alone: only the dynamic scheduler with two images "
-                                     "in flight runs on until it settles")
+    k = arch.images_in_flight
+    if k == 1 or (SCHEDULERS[arch.scheduler].periodic_from_warmup and arch.frames < 3 * k - 1):  # (model.settling)
+        out["arch.settle_frames"] = ("the stream runs arch.frames alone: only a stream of two images in flight runs "
+                                     "on until it settles (the static tiles' from 3 x images_in_flight - 1 frames)")
     if arch.images_in_flight == 1:
         out["arch.context_switch_cycles"] = ("arch.images_in_flight is 1 (a PM never has an older image's job "
                                              "to switch to)")
