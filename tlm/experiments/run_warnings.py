@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.arch.model import Timing
+from tlm.arch.model import Timing, settling
 from tlm.config import ArchConfig, RunConfig
 from tlm.config_words import sets_nothing
 from tlm.experiments.study import override_key, set_leaves
@@ -190,11 +190,18 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
       addresses plus ``arch.packet_size`` a packet: a coarse packet that enters alone says
       nothing of its rays);
     * ``arch.settle_frames`` when a settling stream stopped where its completions repeated, below this bound
-      and at or below the default's, or when both bounds give ``arch.frames`` (the run at either is the same).
+      and at or below the default's, or when both bounds give ``arch.frames`` (the run at either is the same);
+      and when a static stream of two images did not run as a settling one (no ``frames_cap``): the steady gaps
+      among the frames asked repeat from the first (:func:`tlm.arch.model.settles`), which no bound changes.
     """
     default = ArchConfig()
     out: dict[str, str] = {}
-    cap = (timing.throughput_estimate or {}).get("frames_cap")  # (a settling stream's: tlm.arch.steady.frames_cap)
+    est = timing.throughput_estimate or {}
+    cap = est.get("frames_cap")  # (a settling stream's: tlm.arch.steady.frames_cap)
+    if (arch.settle_frames != default.settle_frames and cap is None and est and timing.program is not None
+            and SCHEDULERS[timing.program.scheduler].periodic_from_warmup and settling(timing.program, arch)):
+        out["arch.settle_frames"] = (f"the steady gaps among the {arch.frames} frames asked repeat from the first: "
+                                     "the static stream ran them alone, as it does at any bound")
     if arch.settle_frames != default.settle_frames and cap is not None:
         ran, other = len(timing.frames), max(arch.frames, default.settle_frames)
         if cap == other:
