@@ -110,7 +110,7 @@ def test_settle_frames_bounds_a_static_stream_and_it_warns(pmap16):
     cfg = dataclasses.replace(pmap16.cfg, arch=dataclasses.replace(pmap16.cfg.arch, pipelines=3, settle_frames=1))
     assert any("did not settle within 5 frames" in line for line in stream_warnings(t, cfg))
     assert cfg.arch.scheduler == "static" and "arch.settle_frames" not in inert_timing_settings(cfg)
-    assert frames_said(dataclasses.replace(cfg.arch, settle_frames=64)) == "5 to 64 frames, until it settles"
+    assert frames_said(dataclasses.replace(cfg.arch, settle_frames=64)) == "5 frames, to 64 if they do not repeat"
     four = dataclasses.replace(cfg, arch=dataclasses.replace(cfg.arch, frames=4))
     assert "arch.settle_frames" in inert_timing_settings(four) and frames_said(four.arch) == "4 frames"
 

@@ -283,6 +283,8 @@ def frames_said(arch: ArchConfig) -> str:
     settles = k > 1 and (not SCHEDULERS[arch.scheduler].periodic_from_warmup or arch.frames >= 3 * k - 1)  # (settling)
     cap = frames_cap(arch.frames, arch.settle_frames)
     if settles and cap > arch.frames:
+        if SCHEDULERS[arch.scheduler].periodic_from_warmup:  # (the static tiles: most repeat, and run arch.frames)
+            return f"{arch.frames} frames, to {cap} if they do not repeat"
         return f"{arch.frames} to {cap} frames, until it settles"
     return f"{arch.frames} frames"
 
