@@ -128,7 +128,7 @@ def read_checks(reads: list) -> list | None:
                 out.append(["text", path, digest])
                 if extends is not None:
                     found = [extends, str(Path(path).parent), path]
-                    out.append(["found", *found, _tell(["found", *found, None])])
+                    out.append(["found", *found, tell(["found", *found, None])])
             elif read[0] == "mesh":
                 _, path, digest, names, resolve = read
                 if digest is None:
@@ -137,7 +137,7 @@ def read_checks(reads: list) -> list | None:
                     check = ["libraries", path, names, _function_name(resolve)]
                 else:  # (a glTF's buffers: tlm.scenes.meshes.mesh_files)
                     check = ["listed", path]
-                now = _tell([*check, None])
+                now = tell([*check, None])
                 if now[0] != _plain([path, digest]):  # (the file changed while it was loaded)
                     return None
                 if not read_as([(p, d["sha256"]) for p, d in now[1:]], reads):  # (its libraries, buffers: too)
@@ -203,7 +203,7 @@ TELLS = {
 }
 
 
-def _tell(check: list):
+def tell(check: list):
     """What the file of ``check`` tells now (as JSON)."""
     return _plain(TELLS[check[0]](*check[1:-1]))
 
@@ -211,6 +211,6 @@ def _tell(check: list):
 def unchanged(checks: list) -> bool:
     """Whether every file a remembered load read tells what it told then."""
     try:
-        return all(_tell(check) == check[-1] for check in checks)
+        return all(tell(check) == check[-1] for check in checks)
     except (OSError, InputError, ValueError, TypeError, AttributeError, ImportError, KeyError, IndexError):
         return False  # (a file gone or unreadable: the load says so; a check read from disk not understood)

@@ -345,7 +345,7 @@ def _which_differ(files: str, scene: str) -> str:
     """Which of the sweep's input files (``files``: :func:`scene_checks`'s) differ where this worker reads them
     (the first, and how many more), or that its scene file is another than the sweep's (``scene``: this worker's);
     as before where neither can be told."""
-    from tlm.experiments.frame_scenes import _tell
+    from tlm.experiments.frame_scenes import tell
 
     unknown = "the scene file or its meshes differ there"
     try:
@@ -355,7 +355,7 @@ def _which_differ(files: str, scene: str) -> str:
     differ: list[str] = []
     for check in checks:
         try:
-            now = _tell(check)
+            now = tell(check)
         except Exception:  # (a file not there, or unreadable: it differs)
             now = None
         then = check[-1]
