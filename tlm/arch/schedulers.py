@@ -43,8 +43,9 @@ class Scheduler:
 
     name = ""
     pinned = False  # each stage's tile p runs on one fixed pipeline, the same for every stage (static tiles)
-    # the completions repeat from the warm-up on with two images in flight (static tiles); else the model runs
-    # the stream past arch.frames until they do (tlm.arch.steady: the dynamic queue settles after a transient)
+    # the completions mostly repeat from the warm-up on with two images in flight (static tiles: where the asked
+    # frames' gaps do not, the stream runs on as the dynamic one does, tlm.arch.steady.repeats_from_warmup); else the
+    # model runs the stream past arch.frames until they do (the dynamic queue settles after a transient)
     periodic_from_warmup = False
 
     def tiles(self, arch) -> int:

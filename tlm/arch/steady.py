@@ -94,7 +94,7 @@ def repeats_from_warmup(done: list[int], in_flight: int, frames: int) -> bool:
     or not; 7 give four, a period of 2 seen too. The old window, whole rounds of the images
     from d[k-1], is then whole periods of them: a static stream that passes keeps its TThru and
     runs the frames asked. Not a proof: a transient whose first gaps repeat would pass (none among
-    140 static settings of Cornell at 16x16 and 24x24: ``docs/architecture.md``)."""
+    140 static settings of Cornell at 16x16 and 24x24, nor 400 more of a review: ``docs/architecture.md``)."""
     k = in_flight
     d = sorted(done)[:frames - k + 1]
     gaps = [d[i + 1] - d[i] for i in range(k - 1, len(d) - 1)]

@@ -606,12 +606,15 @@ class DaskPool(cf.Executor):
             return None
         self.asked = now
         try:
-            workers = self.client.nthreads(callback_timeout=ASK_TIMEOUT)  # (one that joined since: checked)
-            workers, why = self.watch.seen(workers) if hasattr(self, "watch") else (len(workers), "has had no worker")
+            asked = self.client.nthreads(callback_timeout=ASK_TIMEOUT)
         except Exception as e:  # (a scheduler that does not answer: the same bounded wait)
             if getattr(self.client, "status", "running") != "running":
                 return self._quiet(f"lost the Dask scheduler {self.address} ({type(e).__name__}: {e})")
-            workers, why = 0, f"has not answered ({type(e).__name__}: {e})"
+            asked, why = None, f"has not answered ({type(e).__name__}: {e})"
+        if asked is None:
+            workers = 0
+        else:  # (one that joined since: checked; an error of tlm's own there is not a scheduler's silence)
+            workers, why = self.watch.seen(asked) if hasattr(self, "watch") else (len(asked), "has had no worker")
         if workers:
             self.workerless_since = None
             return None

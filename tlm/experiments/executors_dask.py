@@ -292,6 +292,7 @@ class WorkerWatch:
         self.lines: list[str] = []
         self.alive: set[str] = set()  # the workers the scheduler had when last asked (check, DaskPool.trouble)
         self.bad: dict[str, list] = {}  # a worker left out (its address) -> [why, how many of its points ran again]
+        self.back: dict[str, list] = {}  # those left out that came back at their address, answering well (lines kept)
         self.again: set[str] = set()  # the points (their hashes) sent again to the good workers: once each
         self.last: set[str] = set()  # the workers found bad, by a point, when none good was left beside them
         # a point's future as the sweep holds it -> [its Dask future, the workers it went to (None: any), fn, args,
@@ -452,6 +453,9 @@ class WorkerWatch:
         self.alive.update(got)
         for address, seen in sorted(got.items()):
             self.checked.add(address)
+            if address in self.bad and address not in self.why and cannot_run(seen) is None and \
+                    other_code(seen, self.sweeps_code()) is None:  # (a worker back at the address of one left out:
+                self.back[address] = self.bad.pop(address)  # asked afresh; its points say what they meet)
             if isinstance(seen, dict) and seen.get("host"):
                 self.hosts[address] = str(seen["host"])
             if isinstance(seen, dict) and isinstance(seen.get("name"), str):
@@ -463,7 +467,8 @@ class WorkerWatch:
                 lines.append(f"{self.where(address)} cannot run tlm's points: {why}")
             elif (other := other_code(seen, self.sweeps_code())) is not None:  # (each of its points would fail)
                 self.why[address] = other
-        for address in sorted(a for a in self.alive if a in self.why):  # (those found before a good one joined too)
+        for address in sorted(a for a in list(self.alive) if a in self.why):  # (found before a good one joined too;
+            # a copy: the client's loop thread drops a worker that leaves, _event)
             self.leave_out(address, f"it cannot run tlm's points: {self.why[address]}")
         return lines
 
@@ -542,7 +547,7 @@ class WorkerWatch:
             return None
         if worker in self.alive or worker in self.bad:
             return worker
-        named = [a for a, n in self.names.items() if n == worker]
+        named = [a for a, n in list(self.names.items()) if n == worker]  # (a copy: _event drops one that leaves)
         return named[0] if len(named) == 1 else None
 
     def left_out(self) -> list[str]:
@@ -550,10 +555,11 @@ class WorkerWatch:
         to the other workers (how many ran again there). Where the other workers turned out bad too (their points
         failed with why: as on a cluster of none good), only those the probe found, which no row names."""
         lines = []
-        for address, (why, n) in self.bad.items():
+        for address, (why, n) in [*self.back.items(), *self.bad.items()]:
             if self.last and address not in self.why:
                 continue
-            again = f"{n} of them run again there" if n else "none was sent to it"
+            again = (f"{n} of them run again there" if n else "none was sent to it" if address in self.why else
+                     "none of them run again there")  # (its failed point had run again already: it fails)
             lines.append(f"{self.where(address)} was left out of the sweep ({why}); its points went to the other "
                          f"workers ({again})")
         return lines
