@@ -1,7 +1,8 @@
 """Which file of a scene file's ``extends:`` chain gave each key of the merged mapping
 (:func:`~tlm.scenes.loader.read_scene_tree`), so that an error on a key names the file that
 gave it: a base's bad value is the base's, a key this file gives (a one-item ``geometry:``
-merged into the base's) this file's; and what becomes of the entries that a base's ``parts:`` (a null
+merged into the base's) this file's, a part with no material the file's that gave the geometry
+(:func:`blamed`); and what becomes of the entries that a base's ``parts:`` (a null
 taking one out, :func:`parts_removed`) or ``materials:`` (:func:`nulls`, :func:`note_given`) gave."""
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 from typing import Any
+
+from tlm.errors import InputError
 
 
 def record(origins: dict[str, Path] | None, raw: dict, base: dict, path: Path, prefix: str = "") -> None:
@@ -40,6 +43,29 @@ def origin(origins: dict[str, Path], key: str) -> Path | None:
             files = {origins[at], *(f for o, f in origins.items() if o.startswith((f"{at}.", f"{at}[")))}
             return origins[at] if len(files) == 1 else None
     return None
+
+
+def blamed(e: InputError, raw: dict, origins: dict[str, Path], files: list[Path], path: Path) -> InputError | None:
+    """``e``, an error of :func:`~tlm.scenes.loader.load_scene` of the scene file ``path`` (merged: ``raw``) on a key,
+    as it names the file of the ``extends:`` chain ``files`` that gave that key (:func:`origin`); None where that is
+    ``e``'s. A part with no material (key ``parts``, ``raw``'s ``parts:`` a mapping, or none) is the last file's that
+    gave the geometry's parts (:func:`_parts_by`) unless a later file gave a ``parts:`` entry: the fix is there (a
+    ``parts:`` entry, ``default_material``), and an earlier file's ``parts:``, given for the geometry it replaced, is
+    named as such."""
+    where, message = origin(origins, str(e.key)) or path, e.message
+    if e.key == "parts" and isinstance(raw.get("parts") or {}, dict):
+        at = {f: i for i, f in enumerate(files)}
+        by = _parts_by(origins, at)
+        givers = {origins[k] for k in origins if k == "parts" or k.startswith(("parts.", "parts["))}
+        if by >= 0 and all(at.get(f, len(files)) <= by for f in givers):
+            where = files[by]
+            earlier = [str(f) for f in files[:by] if f in givers]
+            if earlier:
+                message += (f"; the parts: given by {' and '.join(earlier)} (through extends:) is for the geometry "
+                            "this file's geometry: replaces: give them materials under parts: or set default_material")
+    if str(where) == e.source and message == e.message:
+        return None
+    return e.replaced(source=str(where), message=message)
 
 
 def parts_removed(merged: dict, raw: dict, base: dict) -> None:

@@ -30,7 +30,7 @@ from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean, path_shown
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
-from tlm.scenes.chain import note_given, nulls, parts_removed, stale_parts
+from tlm.scenes.chain import blamed, note_given, nulls, parts_removed, stale_parts
 from tlm.scenes.chain import origin as _origin
 from tlm.scenes.chain import record as _record
 from tlm.scenes.float32_range import (  # noqa: F401  (the old names, still importable from here)
@@ -388,10 +388,10 @@ def load_scene(
     except InputError as e:  # (on a key of an extends: chain: named against the file that gave it)
         if not e.key or e.source not in (str(path), str(geom_path)):
             raise
-        where = str(_origin(origins, e.key) or path)
-        if where == e.source:
+        named = blamed(e, raw, origins, files, path)  # (None: e names the file that gave its key)
+        if named is None:
             raise
-        raise e.replaced(source=where) from None
+        raise named from None
 
 
 def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resolution: list[int] | None,
