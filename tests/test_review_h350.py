@@ -17,34 +17,19 @@ import shutil
 from pathlib import Path
 
 import pytest
-import yaml
 
+from tests.test_h339 import OBJ
+from tests.test_scene_digest_h346 import _project
 from tlm.cli import main
 from tlm.config import noting_reads
 from tlm.experiments.provenance import scene_identity
 from tlm.experiments.sweep import run_sweep
 from tlm.scenes.loader import load_scene
 
-SCENE = ("geometry: [{mesh: m.obj}, {shape: plane, params: {size: [4, 4]}}]\n"
-         "materials: {g: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\ndefault_material: g\n"
-         "lights: [{type: point, position: [0, 3, -2], power: [40, 40, 40]}]\n"
-         "camera: {eye: [0, 1, -5], target: [0, 0, 0], vfov: 40}\nresolution: [8, 8]\n")
-OBJ = "mtllib m.mtl\nv -1 0 0\nv 1 0 0\nv 0 1 0\nusemtl g\nf 1 2 3\n"
-
 
 @pytest.fixture(autouse=True)
 def _own_cache(cache):  # (tests/conftest.py: a TLM_CACHE of the test's own)
     return cache
-
-
-def _project(folder: Path) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "s.yaml").write_text(SCENE)
-    (folder / "m.obj").write_text(OBJ)
-    (folder / "m.mtl").write_text("newmtl g\nKd 0.5 0.5 0.5\n")
-    (folder / "exp.yaml").write_text("scene: s.yaml\nmode: rcast\n")
-    (folder / "sw.yaml").write_text(yaml.safe_dump({"base": "exp.yaml", "grid": {"arch.fifo_depth": [1, 16]}}))
-    return folder
 
 
 def test_sweep_points_are_not_given_the_inputs_of_a_run_of_other_recorded_contents(tmp_path, monkeypatch):

@@ -16,6 +16,8 @@ import tlm.experiments.executors_dask as executors_dask
 
 pytest.importorskip("distributed")
 
+from tests.test_dask_health_h341 import _Client
+
 OTHER = "0123456789abcdef"  # a code fingerprint that is not the sweep's
 
 
@@ -62,24 +64,6 @@ def test_a_point_whose_good_workers_all_left_is_sent_to_the_good_ones_there(monk
         finally:
             pool.shutdown(wait=False)
             pool.quiet.restore()
-
-
-class _Client:
-    """A client of a scheduler whose workers answer the probe with ``answers``."""
-
-    status = "running"
-
-    def __init__(self, answers: dict) -> None:
-        self.answers = answers
-
-    def get_executor(self, pure=False):
-        return self
-
-    def run(self, fn, *args, workers=None, on_error="raise", callback_timeout=None):
-        return {a: s for a, s in self.answers.items() if workers is None or a in workers}
-
-    def nthreads(self, callback_timeout=None):
-        return dict.fromkeys(self.answers, 1)
 
 
 def test_a_worker_of_other_code_alone_at_first_is_left_out_once_a_good_one_joins():

@@ -23,6 +23,8 @@ import pytest
 import yaml
 
 import tlm.caches
+from tests.test_h339 import OBJ, QUIET, SCENE
+from tests.test_h339 import _project as _run_project
 from tlm.cli import main
 from tlm.config import noting_reads
 from tlm.experiments.provenance import scene_identity
@@ -32,12 +34,6 @@ from tlm.scenes import loader, meshes
 from tlm.scenes.loader import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENE = ("geometry: [{mesh: m.obj}, {shape: plane, params: {size: [4, 4]}}]\n"
-         "materials: {g: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\ndefault_material: g\n"
-         "lights: [{type: point, position: [0, 3, -2], power: [40, 40, 40]}]\n"
-         "camera: {eye: [0, 1, -5], target: [0, 0, 0], vfov: 40}\nresolution: [8, 8]\n")
-OBJ = "mtllib m.mtl\nv -1 0 0\nv 1 0 0\nv 0 1 0\nusemtl g\nf 1 2 3\n"
-QUIET = ["--no-progress", "--no-report", "--outputs", "images"]
 
 
 @pytest.fixture(autouse=True)
@@ -46,11 +42,8 @@ def _own_cache(cache):  # (tests/conftest.py: a TLM_CACHE of the test's own)
 
 
 def _project(folder: Path) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "s.yaml").write_text(SCENE)
-    (folder / "m.obj").write_text(OBJ)
-    (folder / "m.mtl").write_text("newmtl g\nKd 0.5 0.5 0.5\n")
-    (folder / "exp.yaml").write_text("scene: s.yaml\nmode: rcast\n")
+    """test_h339's project (a scene of an OBJ with its MTL, a run config) and a sweep of two points over it."""
+    _run_project(folder)
     (folder / "sw.yaml").write_text(yaml.safe_dump({"base": "exp.yaml", "grid": {"arch.fifo_depth": [1, 16]}}))
     return folder
 

@@ -104,3 +104,12 @@ class Registry:
 
 ESTIMATORS = Registry("radiance estimator", ("tlm.render.estimators",), "tlm.estimators")
 SCHEDULERS = Registry("scheduler", ("tlm.arch.schedulers",), "tlm.schedulers")
+
+
+def may_run_on(scheduler: str, in_flight: int, frames: int) -> bool:
+    """Whether a stream of the scheduler ``scheduler`` (:data:`SCHEDULERS`'s name) with ``in_flight`` images and
+    ``arch.frames`` = ``frames`` may run past its frames until its completions repeat (:mod:`tlm.arch.steady`): two
+    images in flight, with a queue whose completions need not repeat from the warm-up on (the dynamic one), or with
+    the static tiles where the frames leave a steady window (at least ``3k - 1``). One rule for the model
+    (:func:`tlm.arch.model.settling`), the planner's unread keys and a run's progress bar."""
+    return in_flight > 1 and (not SCHEDULERS[scheduler].periodic_from_warmup or frames >= 3 * in_flight - 1)

@@ -72,7 +72,7 @@ from tlm.arch.pm import PM, PM_KINDS, Job
 from tlm.arch.steady import frames_cap, keep_going, repeats_from_warmup, steady_throughput
 from tlm.arch.units import Deadlock, MaxEventsReached, Trace, run, within_int64
 from tlm.config import ArchConfig
-from tlm.registry import SCHEDULERS
+from tlm.registry import SCHEDULERS, may_run_on
 
 # -- the model's state ------------------------------------------------------------------------
 
@@ -274,8 +274,7 @@ def settling(program: FrameProgram, arch: ArchConfig) -> bool:
     tiles where ``arch.frames`` leaves a steady window (at least ``3k - 1``); a static stream
     only where the asked frames' steady gaps do not already repeat from the first
     (:func:`settles`: their completions too may begin with a transient)."""
-    k = arch.images_in_flight
-    return k > 1 and (not SCHEDULERS[program.scheduler].periodic_from_warmup or arch.frames >= 3 * k - 1)
+    return may_run_on(program.scheduler, arch.images_in_flight, arch.frames)
 
 
 def settles(program: FrameProgram, arch: ArchConfig, done: list[int]) -> bool:

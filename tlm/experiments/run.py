@@ -277,10 +277,9 @@ def frames_said(arch: ArchConfig) -> str:
     their asked frames' gaps may not repeat) as many or more, until its completions repeat,
     :func:`tlm.arch.steady.frames_cap` at most."""
     from tlm.arch.steady import frames_cap
-    from tlm.registry import SCHEDULERS
+    from tlm.registry import SCHEDULERS, may_run_on
 
-    k = arch.images_in_flight
-    settles = k > 1 and (not SCHEDULERS[arch.scheduler].periodic_from_warmup or arch.frames >= 3 * k - 1)  # (settling)
+    settles = may_run_on(arch.scheduler, arch.images_in_flight, arch.frames)  # (model.settling)
     cap = frames_cap(arch.frames, arch.settle_frames)
     if settles and cap > arch.frames:
         if SCHEDULERS[arch.scheduler].periodic_from_warmup:  # (the static tiles: most repeat, and run arch.frames)

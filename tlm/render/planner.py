@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
 from tlm.errors import InputError
-from tlm.registry import SCHEDULERS
+from tlm.registry import may_run_on
 from tlm.scenes.model import Scene
 
 PASSES = ("rcast", "reflect", "refract", "pmap")  # the frames, one per mode
@@ -231,8 +231,7 @@ def inert_timing_settings(cfg: RunConfig) -> dict[str, str]:
     arch = cfg.arch
     if arch.pipelines == 1:
         out["arch.fanout"] = "arch.pipelines is 1 (no other pipeline to copy to)"
-    k = arch.images_in_flight
-    if k == 1 or (SCHEDULERS[arch.scheduler].periodic_from_warmup and arch.frames < 3 * k - 1):  # (model.settling)
+    if not may_run_on(arch.scheduler, arch.images_in_flight, arch.frames):  # (model.settling)
         out["arch.settle_frames"] = ("the stream runs arch.frames alone: only a stream of two images in flight runs "
                                      "on until it settles (the static tiles' from 3 x images_in_flight - 1 frames)")
     if arch.images_in_flight == 1:
