@@ -91,7 +91,15 @@ def test_a_base_s_own_wrong_entry_is_the_base_s_error_until_a_later_file_changes
     assert main(["scene", "show", str(scaled)]) == 2  # (a transform keeps the parts: still the base's error, h358)
     assert capsys.readouterr().err.startswith(f"tlm: error: {base}: parts.flore: the geometry has no part 'flore'")
     renamed = _write(tmp_path, "ground.yaml", "extends: base.yaml\ngeometry: {name: ground}\nparts: {ground: m}\n")
-    assert load_scene(str(renamed)).extra["notes"] == [_note(renamed, p, base) for p in ("floor", "flore")]
+    # (renamed: the base's floor entry is a note; its flore, which names no part of the base's plane either, stays
+    # its error: a shape's part names are known without building it, h369)
+    assert main(["scene", "show", str(renamed)]) == 2
+    assert capsys.readouterr().err.startswith(f"tlm: error: {base}: parts.flore: the geometry has no part 'flore'")
+    _write(tmp_path, "base.yaml", "geometry: {shape: plane, name: floor, params: {size: [1.0, 1.0]}}\n"
+           "materials: {m: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\nparts: {floor: m}\n"
+           "lights: [{type: point, position: [0.0, 1.0, 0.0], power: [1.0, 1.0, 1.0]}]\n"
+           "camera: {eye: [0.0, 1.0, -2.0], target: [0.0, 0.0, 0.0], vfov: 40.0}\nresolution: [8, 8]\n")
+    assert load_scene(str(renamed)).extra["notes"] == [_note(renamed, "floor", base)]
 
 
 def test_a_one_item_merge_of_a_builder_s_params_that_drops_a_part_makes_the_base_s_entry_a_note(tmp_path):

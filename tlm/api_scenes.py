@@ -137,13 +137,14 @@ def scene_info(scene: Scene | str | Path) -> dict:
 def export_scene(scene: Scene | str | Path, file: str | Path) -> Scene:
     """Write a scene's world-space triangles, in triangle-id order, as ``.ply`` or ``.obj``,
     or the whole scene as a scene file ``.yaml`` (with its ``.obj`` and ``.mtl`` beside it:
-    :mod:`tlm.scenes.export`); returns the scene. A Scene that no scene file could hold (NaN or
-    infinite vertices, as one made with ``dataclasses.replace`` may have) is an InputError naming
-    it and its first such triangle, as the loader names a file's, and nothing is written."""
+    :mod:`tlm.scenes.export`); returns the scene as written: in a ``.yaml`` or ``.obj``, only the materials
+    its triangles take (:func:`tlm.scenes.export.used_materials`: one no triangle takes, such as a base's that the
+    file's ``geometry:`` left unused, is not written), in a ``.ply`` every material, named by its index. A Scene
+    that no scene file could hold (NaN or infinite vertices, as one made with ``dataclasses.replace`` may have) is
+    an InputError naming it and its first such triangle, as the loader names a file's, and nothing is written."""
     from tlm.scenes.export import export_triangles
 
     scene = _scene(scene)
     if not isinstance(file, (str, os.PathLike)):
         raise InputError(f"{_shown(file)} is not a file path (.ply, .obj or .yaml)", key="file")
-    export_triangles(scene, Path(expanded(file, "file")))
-    return scene
+    return export_triangles(scene, Path(expanded(file, "file")))

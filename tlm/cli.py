@@ -303,7 +303,7 @@ def _cmd_scene(args: argparse.Namespace) -> int:
     if args.scene_cmd == "show":
         print(json.dumps(api.scene_info(scene), indent=2))
         return 0
-    api.export_scene(scene, args.file)
+    scene = api.export_scene(scene, args.file)  # (the scene as written: the materials its triangles use)
     file = Path(args.file)
     mtl = f"{file.with_suffix('.mtl')} ({len(scene.materials)} materials)"
     if file.suffix.lower() in (".yaml", ".yml"):

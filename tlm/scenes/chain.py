@@ -11,7 +11,23 @@ import re
 from pathlib import Path
 from typing import Any
 
-from tlm.errors import InputError
+from tlm.errors import InputError, did_you_mean
+
+
+class Files(list):
+    """The files of an ``extends:`` chain, base first (:func:`~tlm.scenes.loader.read_scene_tree`), and
+    ``geometries``: each one's ``geometry:`` value, merged, and the file its mesh paths are relative to."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.geometries: dict[Path, tuple[Any, Path]] = {}
+
+
+def add_file(files: list[Path], path: Path, geometry: Any, geom_path: Path) -> None:
+    """``path`` appended to ``files``; for :class:`Files`, its ``geometry`` and ``geom_path`` kept."""
+    files.append(path)
+    if isinstance(files, Files):
+        files.geometries[path] = (geometry, geom_path)
 
 
 def record(origins: dict[str, Path] | None, raw: dict, base: dict, path: Path, prefix: str = "") -> None:
@@ -79,13 +95,16 @@ def parts_removed(merged: dict, raw: dict, base: dict) -> None:
 
 
 def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path], files: list[Path],
-                src: str) -> tuple[dict, list[str]]:
+                src: str, items: list | None = None) -> tuple[dict, list[str]]:
     """``raw`` without the ``parts:`` entries a base of the ``extends:`` chain ``files`` (base first)
     gave for a part that the geometry, replaced or changed by a later file of the chain (more than a
     ``transform``: :func:`_parts_by`), no longer has (a file extending ``examples/mesh_on_floor``
     without its pawns), and a note each naming the base file and the part. An entry for a part the
     geometry lacks that the file giving the geometry (or a later one) gave is left: the error it is
-    names that file and key."""
+    names that file and key. So is a base's entry that names no part of the geometry it was given for
+    (a typo), as far as the part names of the geometries from that file on (``files`` a :class:`Files`: each
+    file's ``geometry:``) are known without building them (:func:`~tlm.scenes.compose.listed_part_names`, from
+    ``items``, the items of the geometry built): an InputError naming that file and key."""
     parts = raw.get("parts")
     at = {f: i for i, f in enumerate(files)}
     geometry_by = _parts_by(origins, at)
@@ -93,9 +112,33 @@ def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path]
         return raw, []
     given_by = {k: origins.get(f"parts.{k}") for k in parts if k not in part_names}
     stale = {k: by for k, by in given_by.items() if at.get(by, geometry_by) < geometry_by}
+    for k, by in stale.items():
+        _typo(k, by, files[at[by]:geometry_by], getattr(files, "geometries", None), items)
     notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {k!r}: the entry "
              f"is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
     return {**raw, "parts": {k: v for k, v in parts.items() if k not in stale}}, notes
+
+
+def _typo(part: str, by: Path, since: list[Path], geometries: dict[Path, tuple[Any, Path]] | None,
+          items: list | None) -> None:
+    """An InputError naming the file ``by`` and its ``parts.PART`` where ``part`` is a part of no geometry of the
+    files ``since`` (``by`` and those after it before the file that gave the geometry), each known (their part names:
+    :func:`~tlm.scenes.compose.listed_part_names`): a typo, as ``by`` alone says it; where one is not known, the
+    entry may have been for a part of it: nothing."""
+    from tlm.scenes.compose import listed_part_names
+
+    if geometries is None or items is None:
+        return
+    known = []
+    for f in since:
+        geometry, geom_path = geometries.get(f, (None, f))
+        names = None if geometry is None else listed_part_names(geometry, geom_path, items)
+        if names is None or part in names:
+            return
+        known.append(names)
+    names = known[0]
+    raise InputError(f"the geometry has no part {part!r} (parts: {', '.join(names)}){did_you_mean(str(part), names)}",
+                     source=str(by), key=f"parts.{part}")
 
 
 def _parts_by(origins: dict[str, Path], at: dict[Path, int]) -> int:

@@ -51,8 +51,8 @@ from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
 from tlm.scenes.validate import num, shown, vec
 
-__all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "mesh_path",
-           "transform_geometry"]
+__all__ = ["ITEM_KEYS", "SHAPES", "TRANSFORM_KEYS", "compose_geometry", "item_transform", "listed_part_names",
+           "mesh_path", "transform_geometry"]
 
 SOURCES = ("builder", "mesh", "shape")
 ITEM_KEYS = ("builder", "mesh", "shape", "params", "transform", "name")
@@ -326,8 +326,9 @@ def _tessellate(shapes, kind: str, p: dict, src: str, pk: str) -> np.ndarray:
     return tri
 
 
-def _item(raw: Any, src: str, path: Path, key: str) -> tuple[Geometry, str | None]:
-    """One item: its geometry, transformed and with its parts renamed, and its ``name``."""
+def _item(raw: Any, src: str, path: Path, key: str, items: list | None = None) -> tuple[Geometry, str | None]:
+    """One item: its geometry, transformed and with its parts renamed, and its ``name``; ``items``, where passed,
+    gets what gave the item's parts (:func:`_source`) and their names before its ``name`` renamed them."""
     if not isinstance(raw, dict):
         raise InputError(f"must be a mapping with one of {', '.join(SOURCES)}, got {raw!r}", source=src, key=key)
     _keys(raw, ITEM_KEYS, src, key)
@@ -345,44 +346,97 @@ def _item(raw: Any, src: str, path: Path, key: str) -> tuple[Geometry, str | Non
         geom = _mesh(raw, src, path, key)
     else:
         geom = _shape(raw, src, key)
+    if items is not None:
+        items.append((_source(raw, path), tuple(geom.part_names)))
     if transform is not None:
         geom = transform_geometry(geom, *transform)
         if not np.isfinite(geom.triangles).all():
             raise InputError("makes vertices non-finite", source=src, key=f"{key}.transform")
     if name is not None:
-        names = (name,) if len(geom.part_names) == 1 else tuple(f"{name}.{p}" for p in geom.part_names)
-        geom = replace(geom, part_names=names)
+        geom = replace(geom, part_names=_named(geom.part_names, name))
     return geom, name
+
+
+def _named(part_names: tuple[str, ...], name: str) -> tuple[str, ...]:
+    """An item's part names under its ``name``: ``N`` (one part) or ``N.PART``."""
+    return (name,) if len(part_names) == 1 else tuple(f"{name}.{p}" for p in part_names)
+
+
+def _source(raw: Any, path: Path) -> tuple | None:
+    """What gives the parts of the item ``raw`` of the scene file ``path`` (its ``transform`` and ``name`` aside),
+    to know it listed again: ``("builder", NAME, PARAMS)``, ``("mesh", FILE)`` (:func:`mesh_path`), ``("shape",
+    NAME)``; None for an item that is none of them."""
+    if not isinstance(raw, dict) or len([k for k in SOURCES if k in raw]) != 1:
+        return None
+    if isinstance(raw.get("builder"), str):
+        return ("builder", raw["builder"], raw.get("params") or {})
+    if isinstance(raw.get("shape"), str):
+        return ("shape", raw["shape"])
+    if isinstance(raw.get("mesh"), str) and raw["mesh"]:
+        try:
+            return ("mesh", str(mesh_path(raw["mesh"], path)))
+        except (OSError, ValueError):  # (a name no file has: no such item is known)
+            return None
+    return None
+
+
+def listed_part_names(raw: Any, path: Path, items: list) -> tuple[str, ...] | None:
+    """The part names of the geometry ``raw`` (a ``geometry:`` value of the scene file ``path``, mesh paths
+    relative to it), known without building it: a shape's from its kind, a builder's (the same name and params) or
+    a mesh file's from the item of another geometry built (``items``: :func:`compose_geometry`'s), each under its
+    ``name``, merged as :func:`merge` merges them; None where one item's cannot be known so (a mesh file or a
+    builder's params that no built item has) or the geometry is no geometry."""
+    listed = raw if isinstance(raw, list) else [raw]
+    if not listed:
+        return None
+    per_item, names = [], []
+    for item in listed:
+        source = _source(item, path)
+        name = item.get("name") if isinstance(item, dict) else None
+        if source is None or (name is not None and (not isinstance(name, str) or not name.strip())):
+            return None
+        if source[0] == "shape":
+            own = (source[1],) if source[1] in SHAPES else None
+        else:
+            own = next((n for s, n in items if s == source), None)
+        if own is None:
+            return None
+        per_item.append(own if name is None else _named(own, name))
+        names.append(name)
+    if not isinstance(raw, list):
+        return per_item[0]
+    try:
+        return tuple(p for own in _renamed(per_item, names, None) for p in own)
+    except InputError:  # (a geometry that is an error: not known)
+        return None
 
 
 # ---------------------------------------------------------------- merging
 
 
-def compose_geometry(raw: Any, src: str, path: Path) -> Geometry:
+def compose_geometry(raw: Any, src: str, path: Path, items: list | None = None) -> Geometry:
     """The Geometry of a scene's ``geometry:`` value (one item or a list of items);
-    ``src`` and ``path`` are the scene file that names it (mesh paths are relative to it)."""
+    ``src`` and ``path`` are the scene file that names it (mesh paths are relative to it). ``items``, where
+    passed, gets each item's source and part names, for :func:`listed_part_names`."""
     if isinstance(raw, dict):
-        return _item(raw, src, path, "geometry")[0]
+        return _item(raw, src, path, "geometry", items)[0]
     if not isinstance(raw, list):
         raise InputError(f"must be a mapping (builder, mesh or shape) or a list of them, got {raw!r}",
                          source=src, key="geometry")
     if not raw:
         raise InputError("an empty list: give at least one builder, mesh or shape", source=src, key="geometry")
-    items = [_item(r, src, path, f"geometry[{i}]") for i, r in enumerate(raw)]
-    return merge([g for g, _ in items], [n for _, n in items], src)
+    built = [_item(r, src, path, f"geometry[{i}]", items) for i, r in enumerate(raw)]
+    return merge([g for g, _ in built], [n for _, n in built], src)
 
 
-def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str | None = None) -> Geometry:
-    """Concatenate geometries in order: parts (renamed where names repeat), normals,
-    file materials and ``face_material`` (offset)."""
-    from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
-
-    names = names or [None] * len(geoms)
+def _renamed(per_item: list[tuple[str, ...]], names: list[str | None], src: str | None) -> list[tuple[str, ...]]:
+    """Each item's part names in the merged geometry (:func:`merge`): a name an earlier item already uses
+    renamed ``PART_2`` (then ``_3`` ...), an error where the item has a ``name``."""
     part_names: list[str] = []
-    parts, materials, face_material = [], [], []
-    for i, (g, item_name) in enumerate(zip(geoms, names, strict=True)):
-        local = []
-        for p in g.part_names:
+    out = []
+    for i, (own, item_name) in enumerate(zip(per_item, names, strict=True)):
+        local: list[str] = []
+        for p in own:
             final, k = p, 2
             while final in part_names or final in local:
                 if item_name is not None:
@@ -390,6 +444,20 @@ def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str
                                      source=src, key=f"geometry[{i}].name")
                 final, k = f"{p}_{k}", k + 1
             local.append(final)
+        part_names.extend(local)
+        out.append(tuple(local))
+    return out
+
+
+def merge(geoms: list[Geometry], names: list[str | None] | None = None, src: str | None = None) -> Geometry:
+    """Concatenate geometries in order: parts (renamed where names repeat), normals,
+    file materials and ``face_material`` (offset)."""
+    from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
+
+    renamed = _renamed([tuple(g.part_names) for g in geoms], names or [None] * len(geoms), src)
+    part_names: list[str] = []
+    parts, materials, face_material = [], [], []
+    for g, local in zip(geoms, renamed, strict=True):
         parts.append(np.asarray(g.part, dtype=np.int32) + len(part_names))
         part_names.extend(local)
         index = []  # the item's file materials in the merged list: equal ones shared, a name reused renamed

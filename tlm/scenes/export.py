@@ -34,6 +34,13 @@ Each triangle is written with its own three vertices (no welding), so face ``i``
 the file is triangle id ``i`` of every AOV and BSP leaf, exactly, and the vertex
 positions are the ones the renderer uses.
 
+The OBJ, its MTL library and the scene file hold the materials the scene's triangles take
+(:func:`used_materials`), no other: a material no triangle takes (a base's, given through ``extends:``, that a
+scene file replacing the base's ``geometry:`` leaves unused; a palette entry no part names) is not rendered, and
+written it would be the exported file's own, rendered by no triangle and named in no note. So the exported scene
+file loads as the scene rendered and exports again to the same files. (A PLY names each material by its index in
+the scene, every one: a name that no face takes names nothing on reading.)
+
 Every file written (OBJ, MTL, PLY and scene file) carries, below its first line, the
 notices of the mesh files the scene's geometry comes from (:func:`notices`), as comment
 lines: a published mesh's licence asks for its attribution to go with every copy (the
@@ -53,6 +60,7 @@ from __future__ import annotations
 
 import json
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -88,8 +96,9 @@ def check_scene(scene: Scene) -> None:
                              f"{i}, {normals[i].tolist()})", source=where, key="normals")
 
 
-def export_triangles(scene: Scene, path: Path) -> None:
-    """Write ``scene`` to ``path`` as its suffix says (the module's docstring); a scene that no
+def export_triangles(scene: Scene, path: Path) -> Scene:
+    """Write ``scene`` to ``path`` as its suffix says (the module's docstring) and return it as written (its
+    materials those its triangles take but in a PLY: :func:`used_materials`); a scene that no
     file could hold (:func:`check_scene`) or a path that cannot take it is an InputError before
     anything is written."""
     path = Path(path)
@@ -98,6 +107,8 @@ def export_triangles(scene: Scene, path: Path) -> None:
         raise InputError(f"unsupported format {suffix or '(none)'!r}: use {', '.join(FORMATS[:-1])} or {FORMATS[-1]}",
                          source=str(path))
     check_scene(scene)
+    if suffix != ".ply":  # (a PLY names each material by the scene's index: a name no face takes is read as none)
+        scene = used_materials(scene)
     tri = scene.triangles
     n = tri.shape[0]
     verts = tri.reshape(-1, 3)
@@ -132,6 +143,20 @@ def export_triangles(scene: Scene, path: Path) -> None:
         warn(f"{path}: the export carries no licence notice for the mesh {shown_path(mesh)}: there is no notice "
              "file of it beside it (COPYRIGHT*, LICENSE*, LICENCE*) and none in its header; if its licence asks for "
              "one with every copy, add it beside the exported files")
+    return scene
+
+
+def used_materials(scene: Scene) -> Scene:
+    """``scene`` with only the materials its triangles take, in their order, and each triangle's index into them
+    (the module's docstring); ``scene`` itself where it takes every one, or where an index names none of them."""
+    index = np.asarray(scene.material_index)
+    n = len(scene.materials)
+    used = np.unique(index)
+    if len(used) == n or not len(index) or used[0] < 0 or used[-1] >= n:
+        return scene
+    new = np.full(n, -1, dtype=np.int32)
+    new[used] = np.arange(len(used), dtype=np.int32)
+    return replace(scene, materials=tuple(scene.materials[i] for i in used.tolist()), material_index=new[index])
 
 
 _NOTICE = "Notice of the mesh "  # (the first line of a mesh's notice in a file tlm exports)
@@ -392,6 +417,7 @@ def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
     (default: :func:`notices` of the scene)."""
     import yaml
 
+    scene = used_materials(scene)
     mats = {}
     for m in scene.materials:
         entry: dict = {"type": m.kind}
@@ -443,6 +469,7 @@ def mtl_text(scene: Scene, told: list[str] | None = None) -> str:
     def rgb(c) -> str:
         return " ".join(repr(float(x)) for x in c)
 
+    scene = used_materials(scene)
     out = [f"{_MTL_HEAD}{_one_line(scene.name)}: its materials",
            *(f"# {t}" for t in (notices(scene) if told is None else told))]
     for m in scene.materials:

@@ -30,7 +30,7 @@ from tlm.config_read import nameless
 from tlm.errors import InputError, did_you_mean, path_shown
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
-from tlm.scenes.chain import blamed, note_given, nulls, parts_removed, stale_parts
+from tlm.scenes.chain import Files, add_file, blamed, note_given, nulls, parts_removed, stale_parts
 from tlm.scenes.chain import origin as _origin
 from tlm.scenes.chain import record as _record
 from tlm.scenes.float32_range import (  # noqa: F401  (the old names, still importable from here)
@@ -253,12 +253,12 @@ def _material(name: str, raw: Any, src: str) -> Material:
     return Material(name, kind, ior=ior, transmittance=trans, emission=emission)
 
 
-def _geometry(raw: Any, src: str, path: Path) -> Geometry:
+def _geometry(raw: Any, src: str, path: Path, items: list | None = None) -> Geometry:
     """``geometry:``, one item (builder, mesh or shape) or a list of them, each with an
-    optional ``transform`` and ``name`` (:mod:`tlm.scenes.compose`)."""
+    optional ``transform`` and ``name`` (:mod:`tlm.scenes.compose`; ``items``: its items' sources)."""
     from tlm.scenes.compose import compose_geometry
 
-    return compose_geometry(raw, src, path)
+    return compose_geometry(raw, src, path, items)
 
 
 def _check_triangles(tri: np.ndarray, src: str, key: str = "geometry") -> None:
@@ -333,7 +333,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
         note_given(given, own, path)
         _record(origins, raw, {}, path)
         if files is not None:
-            files.append(path)
+            add_file(files, path, raw.get("geometry"), path)
         return raw, path
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
@@ -363,7 +363,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     _record(origins, raw, base, path)
     parts_removed(merged, raw, base)
     if files is not None:
-        files.append(path)
+        add_file(files, path, merged.get("geometry"), geom_path)
     if nulls(mats):  # (an inherited material given as null: taken out)
         merged["materials"] = {k: v for k, v in merged["materials"].items() if v is not None}
     return merged, geom_path
@@ -381,7 +381,7 @@ def load_scene(
     path = resolve_scene_path(ref, base, config_source)
     given: dict[str, Path] = {}
     origins: dict[str, Path] = {}
-    files: list[Path] = []
+    files = Files()  # (and each one's geometry: stale_parts)
     raw, geom_path = read_scene_tree(path, (), given, origins, files)
     try:
         return _scene(path, raw, geom_path, given, resolution, config_source, origins, files)
@@ -401,12 +401,13 @@ def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resol
     src = str(path)
     if "geometry" not in raw:
         raise InputError("missing (builder or mesh)", source=src, key="geometry")
-    geom = _geometry(raw["geometry"], str(geom_path), geom_path)
+    items: list = []  # (each item's source and part names: what a base's geometry listed again names, stale_parts)
+    geom = _geometry(raw["geometry"], str(geom_path), geom_path, items)
     tri = np.asarray(geom.triangles, dtype=np.float64)
     _check_triangles(tri, src)
 
     inherited = {name: str(f) for name, f in given.items() if f != path}  # (through extends:)
-    raw, stale = stale_parts(raw, tuple(geom.part_names), origins, files, src)  # (a base's, of parts now gone)
+    raw, stale = stale_parts(raw, tuple(geom.part_names), origins, files, src, items)  # (a base's, of parts gone)
     materials, material_index, unused = _assign_materials(raw, geom, src, inherited)
     part = np.asarray(geom.part, dtype=np.int32)
 
