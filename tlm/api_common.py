@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from tlm.config_read import nameless
-from tlm.errors import InputError, did_you_mean, shell_word
+from tlm.errors import InputError, did_you_mean, quoted, shell_word
 from tlm.mesh_files import descriptor_name
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -37,11 +37,12 @@ def experiment_path(ref: str | Path, command: str = "run") -> Path:
 
 def shown(value: Any) -> str:
     """A value an argument was given, as an error message names it, on one short line: its
-    ``repr`` for a string, a path, a number, None or a short list of them; else its type
+    ``repr`` for a string, a number, None or a short list of them, and for a path its text's (as
+    :func:`tlm.errors.quoted` quotes them: a byte not UTF-8 as ``\\xff``); else its type
     (``a RenderResult``), not a ``repr`` of many lines (a render's, a scene's) or of no use."""
     if (value is None or isinstance(value, (str, bytes, numbers.Number, os.PathLike, list, tuple))
             or (type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0)):  # (numpy's scalars)
-        text = repr(value)
+        text = quoted(value)
         if "\n" not in text and len(text) <= 120:
             return text
     name = type(value).__name__
@@ -364,7 +365,7 @@ def _sweep_again(raw: dict, path: Path) -> str:
     again = f"tlm sweep {shell_word(named) if named is not None and why is None else 'SWEEP_FILE'} --out {folder}"
     which = ("SWEEP_FILE: its sweep file, which this record does not name" if named is None else
              "its sweep file, as this record names it" if why is None else
-             f"SWEEP_FILE: its sweep file, which this record names {named!r}, {why}")
+             f"SWEEP_FILE: its sweep file, which this record names {quoted(named)}, {why}")
     return (f"to run the sweep again, or finish it (the points done are skipped): {again}{''.join(sets)} ({which}); "
             f"to read it: tlm report {folder}")
 

@@ -23,7 +23,7 @@ from tlm.api_common import folder as _folder
 from tlm.api_common import kind_check as _kind_check
 from tlm.api_common import shown as _shown
 from tlm.config import config_from_dict
-from tlm.errors import InputError, shell_word
+from tlm.errors import InputError, quoted, shell_word
 from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:
@@ -59,7 +59,7 @@ def home(path: str | os.PathLike, key: str) -> Path:
         return Path(path).expanduser()
     except RuntimeError:
         tilde = Path(path).parts[0]
-        raise InputError(f"{os.fspath(path)!r}: {tilde} names no home folder ("
+        raise InputError(f"{quoted(path)}: {tilde} names no home folder ("
                          f"{'no such user' if tilde != '~' else 'HOME is not set'}): give the path in full",
                          key=key) from None
 
@@ -520,7 +520,7 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
 
     def waiting() -> None:  # (another process holds it: a run replacing the folder, a report reading it)
         holder = lock_holder(dirs[0]) or "another process"
-        hear(f"{str(dirs[0])!r} is held by {holder}, a run replacing it or a report reading it: the report waits "
+        hear(f"{quoted(dirs[0])} is held by {holder}, a run replacing it or a report reading it: the report waits "
              "for it to end")
 
     with folder_lock(dirs[0], waiting=waiting, probe=False):  # (a reader: nothing written beside the folder)

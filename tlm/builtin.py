@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tlm.config import file_folder, read_yaml
 from tlm.config_words import yaml_kind
-from tlm.errors import InputError, did_you_mean, escaped_line, shell_word
+from tlm.errors import InputError, did_you_mean, escaped_line, quoted, shell_word
 
 # the command that takes an experiment file, by the first of its keys found here (a study's
 # own keys: tlm.experiments.*); a file with none of them is a run config ('tlm run')
@@ -106,21 +106,21 @@ def base_path(base: str, folder: Path, src: str, beside: str) -> tuple[Path, boo
     if file.is_file() or (file.exists() and not file.is_dir()):  # (a pipe's, a FIFO's: read_yaml reads it once)
         return file, False
     if file.is_dir() and base not in names:  # (a folder named as a built-in experiment does not hide it)
-        raise InputError(f"{base!r} is a folder: name a run config file", source=src, key="base")
+        raise InputError(f"{quoted(base)} is a folder: name a run config file", source=src, key="base")
     yaml_file = base.lower().endswith((".yaml", ".yml"))
     export = "'tlm config export NAME FILE.yaml' copies one out to edit"
     if not (yaml_file or "/" in base or os.sep in base):
         if base in names:
             return configs_dir() / f"{base}.yaml", True
-        raise InputError(f"{base!r}: neither a file (relative to the {beside}) nor a built-in experiment "
+        raise InputError(f"{quoted(base)}: neither a file (relative to the {beside}) nor a built-in experiment "
                          f"('tlm config list -l' lists them; {export}){did_you_mean(base, names)}",
                          source=src, key="base")
     stem = Path(base).stem if yaml_file else Path(base).name
     if stem in names:
-        raise InputError(f"{base!r}: file not found (relative to the {beside}); the built-in experiment of that "
+        raise InputError(f"{quoted(base)}: file not found (relative to the {beside}); the built-in experiment of that "
                          f"name: base: {stem} ('tlm config export {stem} FILE.yaml' copies it out to edit)",
                          source=src, key="base")
-    raise InputError(f"{base!r}: file not found (relative to the {beside}); a built-in experiment is named "
+    raise InputError(f"{quoted(base)}: file not found (relative to the {beside}); a built-in experiment is named "
                      f"without .yaml (base: cornell; 'tlm config list -l' lists them; {export})",
                      source=src, key="base")
 
@@ -144,7 +144,7 @@ def read_base(base: object, folder: Path, src: str, beside: str,
         raw = read_yaml(file)
         command = next((c for key, c in EXPERIMENT_COMMANDS if key in raw), "run") if isinstance(raw, dict) else "run"
         if command != "run":
-            raise InputError(f"{base!r} is an experiment of 'tlm {command}', not a run config: name a run config "
+            raise InputError(f"{quoted(base)} is an experiment of 'tlm {command}', not a run config: name a run config "
                              "file, or a built-in run config ('tlm config list -l' says which command takes each one)",
                              source=src, key="base")
         if raw is None:
@@ -175,7 +175,7 @@ def _scene_base(base: str, file: Path, src: str,
     checked first by ``check`` (the scene loader's, which this layer does not import), else where the points load
     it. One given as a pipe or a device is refused: a render reads it again."""
     if not (file.is_file() and file.resolve().is_file()):
-        raise InputError(f"{base!r} is a scene file given as a pipe, a device or a deleted file, which a render "
+        raise InputError(f"{quoted(base)} is a scene file given as a pipe, a device or a deleted file, which a render "
                          "reads again (and its extends: and meshes from its folder): save it to a file and name that",
                          source=src, key="base")
     scene = file.resolve()
@@ -235,14 +235,14 @@ def export_experiment(name: str, file: str | Path) -> list[Path]:
 
     names = list_experiments()
     if name not in names:
-        raise InputError(f"{name!r} is not a built-in experiment ({', '.join(names)}){did_you_mean(name, names)}")
+        raise InputError(f"{quoted(name)} is not a built-in experiment ({', '.join(names)}){did_you_mean(name, names)}")
     file = Path(file)
     if file.suffix.lower() not in (".yaml", ".yml"):
         raise InputError("name a .yaml file to copy the experiment into", source=str(file))
     if file.is_dir():
         raise InputError("is a folder; name a .yaml file", source=str(file))
     if not file.parent.is_dir():
-        raise InputError(f"folder {str(file.parent)!r} does not exist", source=str(file))
+        raise InputError(f"folder {quoted(file.parent)} does not exist", source=str(file))
     source = configs_dir() / f"{name}.yaml"
     copies = [(exported_text(source, name, file), file)]
     raw = read_yaml(source)

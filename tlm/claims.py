@@ -32,7 +32,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from tlm.errors import EnvironmentFailure, InputError, path_shown
+from tlm.errors import EnvironmentFailure, InputError, path_shown, quoted
 from tlm.progress import interrupts_deferred
 from tlm.storage import _GUARD, _RUNNING, _host, naming, pid_alive, process_tag
 from tlm.storage_errors import takes_no_files
@@ -93,7 +93,7 @@ def _claim_stale(path: Path, what: str) -> None:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
-            raise InputError(f"another {what} of other points is writing into {str(path.parent)!r} "
+            raise InputError(f"another {what} of other points is writing into {quoted(path.parent)} "
                              f"({holder}): wait for it to end, or give another folder",
                              key="--out") from None
         path.unlink(missing_ok=True)
@@ -198,7 +198,7 @@ def held_line(what: str, folder: str, holder: str, report_folder: bool = False) 
     the folder the user gave (``tlm report DIR``, no ``--out``), said so, and ``--out`` named."""
     into, other = ("into its report folder", "another folder with --out") if report_folder else ("into",
                                                                                                "another folder")
-    return f"another {what} is writing {into} {folder!r} ({holder}): wait for it to end, or give {other}"
+    return f"another {what} is writing {into} {quoted(folder)} ({holder}): wait for it to end, or give {other}"
 
 
 @contextmanager

@@ -15,7 +15,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
-from tlm.errors import EnvironmentFailure, interrupted_by, shell_word
+from tlm.errors import EnvironmentFailure, interrupted_by, quoted, shell_word
 
 
 def say_err(line: str) -> None:
@@ -43,7 +43,7 @@ def report_after(args: argparse.Namespace, out: Path, kept: str, files: str) -> 
     begun, earlier = False, None  # (the page in OUT/report as this report begins: a sweep's folder keeps its last)
     try:
         with report_claimed(folder, wait=lambda holder: say_err(
-                f"note: another report is writing into {str(folder)!r} ({holder}): the report of {kept} in {out} "
+                f"note: another report is writing into {quoted(folder)} ({holder}): the report of {kept} in {out} "
                 "waits for it to end")):
             begun, earlier = True, _page_id(folder)
             # no other run replaces the folder while its report is written

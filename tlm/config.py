@@ -61,7 +61,7 @@ from tlm.config_words import (
 from tlm.config_words import check_bounds as _check_bounds
 from tlm.config_words import check_range as _check_range
 from tlm.config_words import whole_floats as _whole_floats
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 from tlm.mesh_files import mesh_file_format, mesh_file_hint
 from tlm.registry import SCHEDULERS
 
@@ -424,17 +424,17 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
     raw = dict(raw)
     for item in overrides:
         if "=" not in item:
-            raise InputError(f"{item!r} is not of the form dotted.key=value", source=source)
+            raise InputError(f"{quoted(item)} is not of the form dotted.key=value", source=source)
         key, _, text = item.partition("=")
         if not all(part.strip() for part in key.split(".")):
-            raise InputError(f"{item!r}: the dotted key before '=' is empty or has an empty part", source=source)
+            raise InputError(f"{quoted(item)}: the dotted key before '=' is empty or has an empty part", source=source)
         try:
             value = parse_yaml(text)
         except yaml.YAMLError as e:  # (what is wrong with it: a key given twice, a syntax error)
             problem = getattr(e, "problem", None) or str(e).splitlines()[0]
             if isinstance(e, DuplicateKeyError):
                 problem = problem.replace(" (first at line 1)", "")  # (a value of one line)
-            raise InputError(f"cannot parse value {text!r}: {problem}", source=source, key=key) from None
+            raise InputError(f"cannot parse value {quoted(text)}: {problem}", source=source, key=key) from None
         parts = key.strip().split(".")
         if cwd is not None:
             value = scene_from(value, [cwd]) if parts == ["scene"] else paths_from(".".join(parts), value, cwd)

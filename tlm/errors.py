@@ -40,6 +40,20 @@ def path_shown(path: object) -> str:
         str(path).translate(LINE_ESCAPES)
 
 
+_REPR_SURROGATE = re.compile(r"\\(\\|udc([89a-f][0-9a-f]))")  # (a repr's ``\\``, taken whole, or a byte's ``\udcff``)
+
+
+def quoted(value: object) -> str:
+    """A path or a name the user gave, quoted as a message names it: its ``repr`` (``'my runs/a.yaml'``, a
+    tab as ``\\t``; a path object as its text, not ``PosixPath(...)``), a byte of a name not UTF-8 as
+    ``\\xff`` (``'dir_\\xff/out'``), as a ``tlm:`` line, stdout and a CSV cell show it
+    (:func:`surrogates_escaped`), not as Python's ``\\udcff``. A folder literally named with a backslash,
+    ``dir_\\xff``, is ``'dir_\\\\xff'``, as ``repr`` writes it. Anything else: its ``repr``, a surrogate
+    in a string of it (a list of paths) shown so too."""
+    text = repr(os.fspath(value) if isinstance(value, os.PathLike) else value)
+    return _REPR_SURROGATE.sub(lambda m: "\\\\" if m.group(2) is None else f"\\x{m.group(2)}", text)
+
+
 def escaped_line(text: str) -> str:
     """``text`` on one line (its whitespace one space), its control characters escaped
     (:data:`LINE_ESCAPES`): what ``tlm: error:``, ``tlm: warning:`` and ``tlm: plots:`` lines print

@@ -9,6 +9,8 @@ from __future__ import annotations
 import os
 import re
 
+from tlm.errors import quoted
+
 # the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
 MESH_FORMATS = {".obj": "an OBJ", ".ply": "a PLY", ".stl": "an STL", ".glb": "a binary glTF (.glb)", ".gltf": "a glTF"}
 _MESH_COMPRESSED = (".gz", ".xz", ".bz2")
@@ -171,12 +173,12 @@ def _by_key(name: str, key: str | None, what: str, scene: str, mesh: str, it: st
     config key, ``""``: the command line's scene, None: a file read as YAML): write ``scene`` instead,
     naming ``it`` (``mesh``) under ``geometry:`` (``renamed``: what to rename it first, or nothing)."""
     if key == "extends":
-        return (f"{name!r} is {what}, not a scene file to extend: name {it} under `geometry:` instead "
+        return (f"{quoted(name)} is {what}, not a scene file to extend: name {it} under `geometry:` instead "
                 f"({renamed}`geometry: {{mesh: {mesh}}}`; docs/scenes.md, \"Geometry\")")
     if key == "":
         return f"is {what}, not a scene: {renamed}write {scene}, and name that file in its place"
     if key is not None:
-        return (f"{name!r} is {what}, not a scene: {renamed}write {scene}, and name that file instead "
+        return (f"{quoted(name)} is {what}, not a scene: {renamed}write {scene}, and name that file instead "
                 f"(`{key}: SCENE.yaml`, `--set scene=SCENE.yaml`, `tlm run SCENE.yaml`)")
     return f"is {what}, not a YAML file: {renamed}write {scene}, and run that file (`tlm run SCENE.yaml`)"
 

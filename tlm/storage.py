@@ -58,7 +58,7 @@ from pathlib import Path
 from typing import IO
 
 from tlm import storage_live, storage_lock
-from tlm.errors import EnvironmentFailure, InputError, escaped_line
+from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
 from tlm.storage_errors import raise_environmental as _raise_environmental
 from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
 from tlm.storage_files import write_files as _write_files
@@ -106,7 +106,7 @@ def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", a
     resolved = out.resolve()
     cwd = Path.cwd().resolve()
     if resolved == cwd or resolved in cwd.parents:
-        raise InputError(f"{str(out)!r} is the current folder or one of its parents; name a new folder",
+        raise InputError(f"{quoted(out)} is the current folder or one of its parents; name a new folder",
                          key=key)
     if resolved.exists():
         _check_existing(out, resolved, marker, key, also)
@@ -116,7 +116,7 @@ def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", a
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():  # (a file where a folder on the way should be: the user's path, not the machine)
-        raise InputError(f"{str(out)!r} cannot be made: {str(parent)!r} is a file, not a folder", key=key)
+        raise InputError(f"{quoted(out)} cannot be made: {quoted(parent)} is a file, not a folder", key=key)
     if not os.access(parent, os.W_OK | os.X_OK):
         raise EnvironmentFailure(f"cannot write into {parent} (read-only or not permitted)", source=str(out))
     return resolved
@@ -133,7 +133,7 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
     another folder's, not a folder without its marker."""
     try:
         if not stat.S_ISDIR(resolved.stat().st_mode):
-            raise InputError(f"{str(out)!r} exists and is not a folder", key=key)
+            raise InputError(f"{quoted(out)} exists and is not a folder", key=key)
         if is_mount(resolved) and marker not in IN_PLACE:
             raise InputError(_mounted(out), key=key)
         if any((resolved / m).is_file() for m in (marker, *also)):
@@ -144,7 +144,7 @@ def _check_existing(out: Path, resolved: Path, marker: str, key: str, also: Coll
         return
     if not any(e.name in (marker, *also) and e.is_file() for e in entries) and any(
             not any(_claiming(e.name, m) for m in (marker, *also)) for e in entries):
-        raise InputError(f"{str(out)!r} exists and is not an earlier tlm output (no {marker}); "
+        raise InputError(f"{quoted(out)} exists and is not an earlier tlm output (no {marker}); "
                          "refusing to replace it", key=key)
 
 
@@ -370,7 +370,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                     kept = _keep_beside(tmp, out)
                     if kept is None:
                         raise refused from None
-                    raise InputError(f"{refused}; this run's output is kept in {str(kept)!r}") from None
+                    raise InputError(f"{refused}; this run's output is kept in {quoted(kept)}") from None
             try:
                 moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
             except OSError as e:  # a file of the user's that cannot be moved (a read-only folder of theirs)
@@ -378,8 +378,8 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                 if kept is None:
                     raise
                 raise EnvironmentFailure(
-                    f"cannot carry {e.filename!r} into the new output ({e.strerror}), so the folder is left as it "
-                    f"was; this run's output is kept in {str(kept)!r}", source=str(out)) from None
+                    f"cannot carry {quoted(e.filename)} into the new output ({e.strerror}), so the folder is left as "
+                    f"it was; this run's output is kept in {quoted(kept)}", source=str(out)) from None
             new = os.lstat(tmp)
             try:
                 _swap_in(tmp, out, writer)
@@ -394,11 +394,11 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                         stuck.append(name)
                 if stuck:  # (never removed with the temporary folder: it is kept beside, whole, and named)
                     kept = _keep_beside(tmp, out)
-                    where = f"kept in {str(kept)!r}"
+                    where = f"kept in {quoted(kept)}"
                     if kept is None:  # (left where they are, not removed, and said)
                         leave = True
-                        where = f"left in {str(tmp)!r}, which the next output written to {str(out)!r} removes"
-                    warn(f"{out}: the new output could not take its place and {', '.join(map(repr, stuck))} "
+                        where = f"left in {quoted(tmp)}, which the next output written to {quoted(out)} removes"
+                    warn(f"{out}: the new output could not take its place and {', '.join(map(quoted, stuck))} "
                          f"could not be moved back into it: they and this run's output are {where}")
                 raise
     except BaseException as e:

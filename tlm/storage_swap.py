@@ -13,13 +13,13 @@ from contextlib import suppress
 from pathlib import Path
 
 from tlm import storage_lock
-from tlm.errors import InputError
+from tlm.errors import InputError, quoted
 from tlm.storage_live import _hold, _release, _writer
 
 
 def mounted(out: Path) -> str:
     """The refusal of a destination that is a mount point."""
-    return f"{str(out)!r} is a mount point, which cannot be replaced; name a folder inside it"
+    return f"{quoted(out)} is a mount point, which cannot be replaced; name a folder inside it"
 
 
 def swap_in(tmp: Path, out: Path, writer: str | None = None) -> None:

@@ -46,7 +46,7 @@ import numpy as np
 
 from tlm.config import SECTIONS, config_from_dict, deep_merge, file_folder
 from tlm.config_words import with_overrides
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
 from tlm.storage import warn
 
@@ -140,9 +140,10 @@ def _check_check(chk: Any, src: str, key: str, earlier: set[str], ran: set[str])
     if kind in ("same_image", "compare"):
         other = chk["case"] if kind == "compare" else chk["same_image"]
         if other not in earlier:
-            raise InputError(f"{other!r} is not an earlier case", source=src, key=key)
+            raise InputError(f"{quoted(other)} is not an earlier case", source=src, key=key)
         if other not in ran:
-            raise InputError(f"{other!r} expects an error, so it has no results to compare with", source=src, key=key)
+            raise InputError(f"{quoted(other)} expects an error, so it has no results to compare with", source=src,
+                             key=key)
     return kind
 
 
@@ -183,9 +184,9 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
                 raise InputError("missing", source=src, key=f"{where}.{k}")
         name = c["name"]
         if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
-            raise InputError(f"{name!r} must be a folder name", source=src, key=f"{where}.name")
+            raise InputError(f"{quoted(name)} must be a folder name", source=src, key=f"{where}.name")
         if name in names:
-            raise InputError(f"{name!r} is used twice", source=src, key=f"{where}.name")
+            raise InputError(f"{quoted(name)} is used twice", source=src, key=f"{where}.name")
         if not isinstance(c["config"], dict):
             raise InputError("must be a run config mapping", source=src, key=f"{where}.config")
         if not isinstance(c["checks"], list) or not c["checks"]:
@@ -197,7 +198,7 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
         if expects_error and len(c["checks"]) != 1:
             raise InputError("a case that expects an error has that one check", source=src, key=f"{where}.checks")
         if overrides:  # (its keys: a --set of one would be lost in this case)
-            refuse_set(overrides, {k: f"set by the case {name!r} ({where}.config.{k}), whose config wins over "
+            refuse_set(overrides, {k: f"set by the case {quoted(name)} ({where}.config.{k}), whose config wins over "
                                       "--set; change the case in the cases file, not by --set"
                                    for k in _leaves(c["config"])}, src)
         if not expects_error:  # a case that should run must have a valid config now
@@ -262,7 +263,7 @@ def _judge(check, folder: Path, results: dict, done: dict[str, tuple[Path, dict]
     kind = _kind(check)
     other = check.get("case" if kind == "compare" else "same_image") if kind in ("compare", "same_image") else None
     if other is not None and other not in done:
-        return False, f"case {other!r} has no results (its run failed)"
+        return False, f"case {quoted(other)} has no results (its run failed)"
     if kind == "finite":
         bad_images = [p.name for p in sorted((folder / "radiance").glob("*.npy")) if not np.isfinite(np.load(p)).all()]
         bad_numbers = sum(1 for v in _numbers(results) if not math.isfinite(v))

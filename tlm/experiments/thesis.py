@@ -68,7 +68,7 @@ from tlm.arch.costs import DEFAULT_PATH, PROGRAMMABLE, Programs
 from tlm.arch.model import simulate
 from tlm.config import MODES, RunConfig, config_from_dict, file_folder, to_dict
 from tlm.config_words import with_overrides
-from tlm.errors import InputError
+from tlm.errors import InputError, quoted
 from tlm.experiments.provenance import identities_remembered, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.run_warnings import unread_overrides
@@ -136,7 +136,7 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     scenes = raw.get("scenes", list(THESIS_SCENES.values()))
     modes = raw.get("modes", list(MODES))
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) for s in scenes):
-        raise InputError(f"{scenes!r} must be a non-empty list of scene names or paths", source=src, key="scenes")
+        raise InputError(f"{quoted(scenes)} must be a non-empty list of scene names or paths", source=src, key="scenes")
     if not isinstance(modes, list) or not modes or any(m not in MODES for m in modes):
         raise InputError(f"{modes!r} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
     twice = sorted({m for m in modes if modes.count(m) > 1}, key=MODES.index)
@@ -151,11 +151,12 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     for s in scenes:  # each scene writes DIR/<name> and its rows: one scene, one name
         file = resolve_scene_path(s, folder, src, "scenes").resolve()
         if file in files:
-            raise InputError(f"{files[file]!r} and {s!r} are the same scene (list it once)" if files[file] != s
-                             else f"{s!r} is listed twice (list it once)", source=src, key="scenes")
+            raise InputError(f"{quoted(files[file])} and {quoted(s)} are the same scene (list it once)"
+                             if files[file] != s else f"{quoted(s)} is listed twice (list it once)", source=src,
+                             key="scenes")
         if _name(s) in names:
-            raise InputError(f"{names[_name(s)]!r} and {s!r} would both write the folder and the rows of "
-                             f"scene {_name(s)!r} (a study lists one of them)", source=src, key="scenes")
+            raise InputError(f"{quoted(names[_name(s)])} and {quoted(s)} would both write the folder and the rows of "
+                             f"scene {quoted(_name(s))} (a study lists one of them)", source=src, key="scenes")
         files[file], names[_name(s)] = s, s
     return base, scenes, sorted(set(modes), key=MODES.index), folder
 

@@ -62,6 +62,7 @@ import math
 
 import numpy as np
 
+from tlm.errors import quoted
 from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import TriangleAccel, closest_hit
 from tlm.scenes.model import DISC_MARGIN, KIND, Light, Scene, bounding_sphere
@@ -87,7 +88,7 @@ _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 def light_name(i: int, light: Light) -> str:
     """``lights[i] (kind 'name')``: how a warning names a light."""
     name = getattr(light, "name", "") or ""
-    return f"lights[{i}] ({light.kind}{f' {name!r}' if name else ''})"
+    return f"lights[{i}] ({light.kind}{f' {quoted(name)}' if name else ''})"
 
 
 def _fibonacci(n: int, hemisphere: bool) -> np.ndarray:
@@ -430,10 +431,10 @@ def emission_warnings(scene: Scene, shown: int = 3) -> list[str]:
         if not m.emits or not on.any() or (area[on] > 0.0).any():
             continue
         parts = [scene.part_names[p] for p in np.unique(scene.part[on])]
-        names = ", ".join(repr(p) for p in parts[:shown]) + (f" and {len(parts) - shown} more"
+        names = ", ".join(quoted(p) for p in parts[:shown]) + (f" and {len(parts) - shown} more"
                                                               if len(parts) > shown else "")
         k = int(on.sum())
-        out.append(f"material {m.name!r} emits (emission {list(m.emission)}) only on {k} triangle"
+        out.append(f"material {quoted(m.name)} emits (emission {list(m.emission)}) only on {k} triangle"
                    f"{'s' if k > 1 else ''} of zero area (part{'s' if len(parts) > 1 else ''} {names}): a triangle "
                    "without area emits nothing, so no light comes from it")
     return out
@@ -448,13 +449,14 @@ def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
     if not hit:
         return []
     what = ", ".join(dict.fromkeys(k for m in hit for k in m.ignored))
-    names = ", ".join(repr(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown else "")
+    names = ", ".join(quoted(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown
+                                                                else "")
     many = len(hit) > 1
     # (a Lambertian's constant colour is its albedo; the others say what they become: a glTF material
     # whose metallicFactor defaults to 1 is a mirror, not its diffuse colour)
     other = [m for m in hit if m.kind != "lambertian"]
     became = ("" if not other else f", as {rendered_as(other[0])}" if not many else
-              " (" + "; ".join(f"{m.name!r} as {rendered_as(m)}" for m in other[:shown]) + ")")
+              " (" + "; ".join(f"{quoted(m.name)} as {rendered_as(m)}" for m in other[:shown]) + ")")
     return [f"{len(hit)} material{'s' if many else ''} of the mesh file{'s' if many else ''} ({names}) "
             f"{'use' if many else 'uses'} what tlm does not render: {what}; "
             f"{'each renders' if many else 'it renders'} with its constant colour{became} (a scene file's "
