@@ -35,7 +35,7 @@ from tlm.cli_signals import (
     version,
     writes_files,
 )
-from tlm.cli_tables import print_point_warnings
+from tlm.cli_tables import granularity_progress, print_granularity, print_point_warnings
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
@@ -400,16 +400,9 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 def _cmd_granularity(args: argparse.Namespace) -> int:
     out = default_out(args)
 
-    def progress(size, tm, secs):
-        print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
-              f"{tm.events:>9d} events, {secs:7.2f} s", flush=True)
-
-    rows = api.granularity(args.config, out, progress=progress, **_overrides(args))
+    rows = api.granularity(args.config, out, progress=granularity_progress, **_overrides(args))
     with kept_whole(args, out, "the study", "granularity.csv and granularity.jsonl"):
-        for r in rows:
-            print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
-                  f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s")
-        print(f"wrote {out}/granularity.csv")
+        print_granularity(rows, out)  # (and, where the sizes ran different frame counts, a line saying so)
         report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
     return 0
 

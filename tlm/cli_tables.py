@@ -2,7 +2,8 @@
 them by their old names): ``tlm thesis``'s Tables I-III and counts per work item
 (:func:`print_thesis`), ``tlm scaling``'s eq. 5.2 fits (:func:`print_scaling`), and a default as
 ``tlm params`` writes it in its column (:func:`yaml_text`), and the warnings ``tlm sweep``'s points
-recorded (:func:`print_point_warnings`)."""
+recorded (:func:`print_point_warnings`), and ``tlm granularity``'s rows (:func:`granularity_progress` as each
+size is simulated, then :func:`print_granularity`)."""
 
 from __future__ import annotations
 
@@ -78,6 +79,46 @@ def print_scaling(done: dict, out: Path) -> None:
         print(f"latency = images in flight x TThru at every point of {scaled} of the {len(lat)} latency fits "
               "(a closed loop, Little's law): those are their throughput fits scaled, not a second test of eq. 5.2")
     print(f"wrote {out}")
+
+
+def granularity_progress(size: int, tm, secs: float) -> None:
+    """What ``tlm granularity`` prints as each packet size is simulated (``tm``: its Timing)."""
+    nf = len(tm.frames)  # (arch.frames, or more where the stream ran on until it settled: tlm/arch/steady.py)
+    print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
+          f"{tm.events:>9d} events, {nf:>3d} frame{'s' * (nf != 1)}, {secs:7.2f} s", flush=True)
+
+
+def print_granularity(rows: list[dict], out: Path) -> None:
+    """What ``tlm granularity`` prints of its rows: per packet size its error, the frames simulated and the host
+    seconds, in all and per frame; under them, where the rows ran different frame counts, a line saying so
+    (:func:`granularity_frames_line`)."""
+    for r in rows:
+        nf = r["frames"]
+        print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
+              f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s, {nf} frame{'s' * (nf != 1)} "
+              f"({r['simulate_seconds_per_frame']:.3g} s a frame)")
+    line = granularity_frames_line(rows)
+    if line:
+        print(line)
+    print(f"wrote {out}/granularity.csv")
+
+
+def granularity_frames_line(rows: list[dict]) -> str:
+    """``tlm granularity``'s line under its rows where they ran different frame counts (h364: a stream of two
+    images whose steady gaps do not repeat runs on past ``arch.frames`` until they do, at one packet size and
+    not at another), so the totals (``simulate_seconds``, ``simpy_events``) are not compared; "" where every
+    row ran the same. (The rows' own grouping, as tlm.experiments.granularity.frames_differ groups them for
+    the report: the CLI reads the experiments only through tlm.api.)"""
+    ran: dict[int, list[int]] = {}
+    for r in rows:
+        ran.setdefault(r["frames"], []).append(r["packet_size"])
+    if len(ran) < 2:
+        return ""
+    counts = "; ".join(f"{f} at packets of {values_text(sizes)}" for f, sizes in sorted(ran.items()))
+    return (f"  the rows ran different frame counts: {counts} (where the stream's completions did not repeat "
+            "within arch.frames it ran on until they did, at most arch.settle_frames: tlm/arch/steady.py); "
+            "simulate_seconds and simpy_events are totals over a row's frames: compare them per frame "
+            "(simulate_seconds_per_frame, simpy_events_per_frame in granularity.csv)")
 
 
 POINT_WARNINGS_SHOWN = 5  # the distinct warnings of a sweep's points said in the terminal; the rest counted

@@ -19,9 +19,14 @@ and writes ``granularity.csv`` and ``granularity.jsonl``: per packet size the cy
 largest of them, the run's own estimate of how far the packets move TThru from packets
 of one, over TThru (``granularity_share``, results.json ``timing.granularity.share``,
 negative where they are faster; ``tlm run`` warns from 5% either way), the host wall
-seconds of the simulation and its SimPy events; beside them ``config.resolved.yaml`` and
-``provenance.json`` (versions, git revision, host seconds).
-Images do not depend on the packet size (the functional layer never sees it).
+seconds of the simulation and its SimPy events; then (appended: the columns before keep
+their places) the frames the stream simulated (``frames``: ``arch.frames``, or more where
+it ran on until its completions repeated, at most ``arch.settle_frames``:
+tlm/arch/steady.py, which may happen at one packet size and not at another) and the
+seconds and events per frame (``simulate_seconds_per_frame``, ``simpy_events_per_frame``),
+the ones to compare where the rows ran different frame counts (:func:`frames_differ`);
+beside them ``config.resolved.yaml`` and ``provenance.json`` (versions, git revision, host
+seconds). Images do not depend on the packet size (the functional layer never sees it).
 """
 
 from __future__ import annotations
@@ -43,7 +48,10 @@ from tlm.storage import check_destination, warn
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
 COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_abs_rel_error",
-           "granularity_share", "simulate_seconds", "simpy_events", "reference")
+           "granularity_share", "simulate_seconds", "simpy_events", "reference",
+           # (h364, appended: a stream may run on past arch.frames at one size and not at another, and the two
+           # before are totals over the frames run; these make the rows comparable)
+           "frames", "simulate_seconds_per_frame", "simpy_events_per_frame")
 KEYS = ("packet_sizes",)  # the study's own keys, beside base and description
 
 
@@ -95,8 +103,11 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
         secs = time.perf_counter() - t0
         if progress is not None:
             progress(size, tm, secs)
+        frames = len(tm.frames)  # (arch.frames, or more: the stream ran on until it settled, tlm/arch/steady.py)
         return {"packet_size": size, **{m: tm.cycles[m] for m in METRICS}, "simulate_seconds": round(secs, 4),
-                "simpy_events": tm.events, "granularity_share": tm.granularity["share"]}
+                "simpy_events": tm.events, "granularity_share": tm.granularity["share"], "frames": frames,
+                "simulate_seconds_per_frame": round(secs / frames, 6),
+                "simpy_events_per_frame": round(tm.events / frames, 1)}
 
     def relative(raw: list[dict], _folder: Path) -> list[dict]:
         ref = raw[0]  # the smallest packet size is the reference
@@ -108,8 +119,24 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
                          "max_abs_rel_error": round(max(abs(v) for v in errs.values()), 6),
                          "granularity_share": r["granularity_share"],
                          "simulate_seconds": r["simulate_seconds"], "simpy_events": r["simpy_events"],
-                         "reference": sizes[0]})
+                         "reference": sizes[0], "frames": r["frames"],
+                         "simulate_seconds_per_frame": r["simulate_seconds_per_frame"],
+                         "simpy_events_per_frame": r["simpy_events_per_frame"]})
         return rows
 
     return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative,
                      overrides=overrides)
+
+
+def frames_differ(rows: list[dict]) -> dict[int, list[int]]:
+    """``{frames: [packet sizes]}`` (frames increasing) of a granularity study's rows where they ran
+    different frame counts (a stream that ran on past ``arch.frames`` until its completions repeated,
+    at some sizes and not at others: tlm/arch/steady.py); ``{}`` where they ran the same, or rows
+    written before the ``frames`` column."""
+    ran: dict[int, list[int]] = {}
+    for r in rows:
+        f = r.get("frames")
+        if not isinstance(f, int) or isinstance(f, bool):
+            return {}
+        ran.setdefault(f, []).append(r["packet_size"])
+    return dict(sorted(ran.items())) if len(ran) > 1 else {}

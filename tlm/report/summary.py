@@ -585,11 +585,14 @@ def _other_errors(inputs: Inputs) -> str:
 GRANULARITY_TOLERANCE = 0.01  # the cycle error against packets of one that the summary calls close
 
 
-def _granularity_finding(name: str, size: np.ndarray, secs: np.ndarray, err: np.ndarray) -> str:
+def _granularity_finding(name: str, size: np.ndarray, secs: np.ndarray, err: np.ndarray, frames: str = "") -> str:
     """One granularity study in words (sizes increasing, the smallest the reference): the
     largest packet up to which EVERY size keeps within the tolerance (the error need not fall
     steadily with the size: a size that comes back within it past one that does not is said
-    as such, not taken for the finding), then the default size's error (``arch.packet_size``)."""
+    as such, not taken for the finding), then the default size's error (``arch.packet_size``).
+    ``frames``: where the sizes ran different frame counts, the note that says so
+    (:func:`~tlm.report.tradeoff.granularity_per_frame`); ``secs`` are then per frame."""
+    per = " a frame" if frames else ""
     ref = int(np.argmin(size))
     coarse = np.flatnonzero(size > size[ref])  # (the reference itself is not a finding)
     off = np.flatnonzero(err[coarse] > GRANULARITY_TOLERANCE)
@@ -601,7 +604,7 @@ def _granularity_finding(name: str, size: np.ndarray, secs: np.ndarray, err: np.
                 f"(error {err[i]:.2%})")
         if steady.size > 1:
             text += f", as every size below it does (at most {err[steady].max():.2%})"
-        text += f", in {secs[i]:.3g} s of simulation against {secs[ref]:.3g} s"
+        text += f", in {secs[i]:.3g} s of simulation{per} against {secs[ref]:.3g} s"
     elif off.size == coarse.size:
         i = None
         text = (f"every packet size above {int(size[ref]):,} is more than 1% off its cycles "
@@ -620,15 +623,15 @@ def _granularity_finding(name: str, size: np.ndarray, secs: np.ndarray, err: np.
     if d.size and default != size[ref] and d[0] != i:
         j = int(d[0])
         text += (f"; the default packets of {default:,} (arch.packet_size) are {err[j]:.2%} off, in "
-                 f"{secs[j]:.3g} s of simulation against {secs[ref]:.3g} s")
-    return head + text + "."
+                 f"{secs[j]:.3g} s of simulation{per} against {secs[ref]:.3g} s")
+    return head + text + (f"; {esc(frames)}" if frames else "") + "."
 
 
 def study_findings(inputs: Inputs) -> list[str]:
     """The granularity and extreme studies, in words: the largest packet up to which every size
     keeps within 1% of the reference and what it saves, and the default size's error
     (:func:`_granularity_finding`); the cases not as expected."""
-    from tlm.report.tradeoff import granularity_points
+    from tlm.report.tradeoff import granularity_per_frame, granularity_points
 
     texts = []
     for st in inputs.of_kind("granularity"):
@@ -636,7 +639,7 @@ def study_findings(inputs: Inputs) -> list[str]:
         ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
         if ok.sum() < 2:
             continue
-        texts.append(_granularity_finding(st.path.name, size[ok], secs[ok], np.abs(err[ok])))
+        texts.append(_granularity_finding(st.path.name, size[ok], secs[ok], np.abs(err[ok]), granularity_per_frame(st)))
     for st in inputs.of_kind("extreme"):
         failed = [str(r["case"]) for r in st.rows if not r["passed"]]
         texts.append(f"<b>Extreme cases {esc(st.path.name)}:</b> {len(st.rows) - len(failed)} of {len(st.rows)} as "

@@ -21,7 +21,10 @@
     latency) against the host wall time of the simulation (``simulate_seconds``), each
     point labelled with its packet size. The reference's error is 0, which a log axis
     cannot show: it is drawn hollow at a floor below the smallest nonzero error, and the
-    caption says so.
+    caption says so. Where a study's sizes ran different frame counts (``frames``: a stream
+    that ran on until it settled at some sizes, arch.settle_frames), the host seconds are
+    drawn per frame (``simulate_seconds_per_frame``), and a note says which ran how many
+    (:func:`granularity_per_frame`).
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ import yaml
 
 from tlm.config_words import safe_load
 from tlm.experiments.error_cost_truth import truth_noise_words
+from tlm.experiments.granularity import frames_differ
 from tlm.report.collect import Inputs, Study, with_set
 from tlm.report.common import (
     Section,
@@ -471,19 +475,39 @@ def _gran_label(study: Study, name: str) -> str:
     return name
 
 
-def granularity_points(study: Study) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(packet sizes, host seconds, max |relative cycle error|), by packet size."""
+def granularity_per_frame(study: Study) -> str:
+    """Where the study's packet sizes ran different frame counts (h364: a stream that ran on past
+    ``arch.frames`` until it settled at some sizes and not at others), a note saying which ran how
+    many, whose host seconds are then compared per frame; "" where they ran the same (or the rows
+    hold no ``frames``: a study written before the column)."""
+    ran = frames_differ(study.rows)
+    if not ran:
+        return ""
+    counts = "; ".join(f"{f} at packets of {', '.join(str(s) for s in sizes)}" for f, sizes in ran.items())
+    return (f"the packet sizes ran different frame counts ({counts}: the stream ran on past arch.frames until "
+            "its completions repeated, at most arch.settle_frames), so their host seconds are compared per frame "
+            "(simulate_seconds_per_frame)")
+
+
+def granularity_points(study: Study, per_frame: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(packet sizes, host seconds, max |relative cycle error|), by packet size. The seconds are per frame
+    (``simulate_seconds_per_frame``) where ``per_frame``, by default where the sizes ran different frame
+    counts (:func:`granularity_per_frame`); otherwise the whole simulation's (``simulate_seconds``)."""
+    per_frame = bool(granularity_per_frame(study)) if per_frame is None else per_frame
     rows = sorted(study.rows, key=lambda r: _num(r.get("packet_size")))
     size = np.array([_num(r.get("packet_size")) for r in rows])
-    secs = np.array([_num(r.get("simulate_seconds")) for r in rows])
+    secs = np.array([_num(r.get("simulate_seconds_per_frame" if per_frame else "simulate_seconds")) for r in rows])
     err = np.array([_num(r.get("max_abs_rel_error")) for r in rows])
     return size, secs, err
 
 
 def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[str]):
     data = []
+    per_frame = any(granularity_per_frame(st) for st in studies)  # (one axis: per frame for all, if for one)
     for st, label in zip(studies, study_names(studies), strict=True):
-        size, secs, err = granularity_points(st)
+        size, secs, err = granularity_points(st, per_frame)
+        if granularity_per_frame(st):
+            notes.append(f"{label}: {granularity_per_frame(st)}.")
         ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
         if not ok.all():
             notes.append(f"{label}: {int((~ok).sum())} rows lack a packet size, seconds or error; not drawn.")
@@ -509,6 +533,10 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
     caption = ("Each point is one packet size (labelled; 1 = one ray or pixel per packet, the finest). Error: "
                "the largest |relative error| of any PM's cycles, TThru or the latency against the study's "
                "smallest packet size, its reference.")
+    if per_frame:
+        caption += (" Host time per frame: a study's packet sizes ran different frame counts (the notes say which: "
+                    "a stream that ran on until it settled, arch.settle_frames), so the whole simulation's seconds "
+                    "are not comparable.")
     if log_y:
         ax.set_yscale("log")
         ax.axhline(floor, color="0.4", linestyle=":", linewidth=1.0,
@@ -517,7 +545,7 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
     else:
         notes.append("Every packet size gave exactly the reference's cycles (error 0): a linear error axis.")
     _log_if_decades(ax, "x", np.concatenate([s for _, _, s, _ in data]))
-    ax.set(xlabel="host wall time of the simulation (s)",
+    ax.set(xlabel=f"host wall time of the simulation{' per frame' * per_frame} (s)",
            ylabel="TLM cycle error: max |relative error| vs. the finest packet",
            title="TLM timing error against host wall time, per packet size")
     ax.grid(True, which="both", alpha=0.3)
