@@ -367,7 +367,7 @@ class Timing:
     pipelines: list[dict] = field(default_factory=list)  # per pipeline: each PM's cycles per frame
     model: Model | None = None  # the simulated units (their logs), for tests and inspection
     throughput_estimate: dict = field(default_factory=dict)  # how TThru was measured (steady_throughput)
-    event_budget: int = 0  # the liveness bound the run had: min(arch.max_events, event_bound(...))
+    event_budget: int = 0  # the run's stop at its end: min(arch.max_events, event_bound of the frames it started)
     granularity: dict = field(default_factory=dict)  # how far the packets move TThru (granularity_estimate)
 
     def to_dict(self) -> dict:
@@ -478,8 +478,6 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     done = Flag(env)  # (the run loop asks it after every event)
     env.process(_stream(model, done))
     counts: dict = {}
-    bound = event_bound(program, arch)
-    budget = min(arch.max_events, bound)
     # a settling stream runs past arch.frames (tlm.arch.steady): a cap or a stop names the frames it may run
     cap = frames_cap(arch.frames, arch.settle_frames)
     ran_on = "" if not settling(program, arch) or cap == arch.frames else (
@@ -490,15 +488,31 @@ def _simulate_program(program: FrameProgram, arch: ArchConfig) -> Timing:
     def said_on() -> str:  # (a static stream runs on only where its asked frames' gaps do not repeat: said if it did)
         return ran_on if not static or len(model.frames) > arch.frames else ""
 
-    why = Said(lambda: f"arch.max_events = {arch.max_events} events{said_on()}") if budget == arch.max_events else (
-        f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program: it makes no progress")
+    capped_why = Said(lambda: f"arch.max_events = {arch.max_events} events{said_on()}")
+    most = event_bound(program, arch)  # (the most it may need, at the most frames it may run)
+    per_frame = frame_events(program)
+
+    def limit() -> tuple[int, object, type[Deadlock]]:
+        """The run's stop now (asked again whenever it is reached): the liveness bound of the frames the
+        stream has started, arch.frames at least (a settling one starts more only as it runs on), or the
+        config's cap where lower; and what a stop there says and raises."""
+        started = max(len(model.frames), arch.frames)
+        bound = min(most, per_frame * started + EVENTS_FLOOR)
+        if arch.max_events <= bound:
+            return arch.max_events, capped_why, MaxEventsReached
+        on = f" in each of the {started} frames started (arch.frames = {arch.frames}, run on)" \
+            if started > arch.frames else ""
+        return bound, (f"{bound} events passed, {EVENTS_PER_ITEM} per packet, job and tile of the program{on}: "
+                       "it makes no progress"), Deadlock
+
+    budget, why, capped = limit()
     end = run(env, done, [pm.unit for pm in model.pms.values()], max_events=budget, counts=counts, why=why,
-              cycle_end=model.cycle_end, capped=MaxEventsReached if budget == arch.max_events else Deadlock)
+              cycle_end=model.cycle_end, capped=capped, extend=limit)
     nf = len(model.frames)
     within_int64(end, f"the stream of {nf} frame{'s' * (nf != 1)}{said_on()}")  # (no unit's are more)
     timing = _results(model, program, end, counts["events"], trace)
     timing.model = model
-    timing.event_budget = budget
+    timing.event_budget = limit()[0]  # (the bound at its end: of the frames it ran)
     return timing
 
 
@@ -513,22 +527,36 @@ class Said:
 
 
 EVENTS_PER_ITEM = 64  # the liveness bound's SimPy events per packet, job and tile (runs need 1.6-3.2)
+EVENTS_FLOOR = 100_000  # and its events beside them, once a run
 
 
-def event_bound(program: FrameProgram, arch: ArchConfig) -> int:
-    """The most SimPy events a stream of ``program`` can need while it makes progress.
+def frame_events(program: FrameProgram) -> int:
+    """The liveness bound's events for one frame of ``program``: ``EVENTS_PER_ITEM`` per packet, job and tile."""
+    items = sum(len(js.packets) + 1 for ph in program.phases for js in ph.jobs)
+    tiles = sum(len(st.tiles) for st in program.stages)
+    return EVENTS_PER_ITEM * (items + tiles)
+
+
+def event_bound(program: FrameProgram, arch: ArchConfig, frames: int | None = None) -> int:
+    """The most SimPy events a stream of ``program`` can need while it makes progress, having
+    started ``frames`` frames (None: the most it may run, :func:`~tlm.arch.steady.frames_cap`
+    of a settling stream, ``arch.frames`` of another).
 
     Every packet, job and tile costs a bounded number of events (its work, the module's
     service, a FIFO hand-over, a preemption's save, swap and restore, a copy): at most a
     few each in every run measured (1.6 to 3.2 per packet and job, packets of 1 to a
-    whole frame, 1 to 16 pipelines). ``EVENTS_PER_ITEM`` times that, plus a constant, is
-    the liveness bound: a model past it is not making progress, so it stops in seconds
-    rather than after ``arch.max_events`` (which caps it).
+    whole frame, 1 to 16 pipelines). ``EVENTS_PER_ITEM`` times that per frame, plus
+    ``EVENTS_FLOOR``, is the liveness bound: a model past it is not making progress, so it
+    stops in seconds rather than after ``arch.max_events`` (which caps it). A run's bound
+    grows with the frames its stream has started (``arch.frames`` at first; a settling one
+    that runs on starts more, one at each completion), never past this one at None: a
+    stream that runs the frames asked, most do, is stopped after ``arch.frames`` frames'
+    worth, not ``frames_cap``'s (:func:`simulate_program`; ``timing.event_budget``, the
+    bound at its end).
     """
-    items = sum(len(js.packets) + 1 for ph in program.phases for js in ph.jobs)
-    tiles = sum(len(st.tiles) for st in program.stages)
-    frames = frames_cap(arch.frames, arch.settle_frames) if settling(program, arch) else arch.frames  # (the most run)
-    return EVENTS_PER_ITEM * (items + tiles) * frames + 100_000
+    if frames is None:
+        frames = frames_cap(arch.frames, arch.settle_frames) if settling(program, arch) else arch.frames
+    return frame_events(program) * frames + EVENTS_FLOOR
 
 
 def _results(model: Model, program: FrameProgram, end: int, events: int, trace: Trace | None) -> Timing:

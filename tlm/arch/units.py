@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Generator, Iterable
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -561,7 +561,8 @@ class Unit:
 
 def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit], max_events: int = 10_000_000,
         counts: dict | None = None, why: str | None = None, cycle_end: CycleEnd | None = None,
-        capped: type[Deadlock] = Deadlock) -> int:
+        capped: type[Deadlock] = Deadlock, extend: Callable[[], tuple[int, object, type[Deadlock]]] | None = None,
+        ) -> int:
     """Run until ``done`` fires; return the cycle it fired at.
 
     Raises :class:`Deadlock` if the event queue empties first, or if ``max_events`` events
@@ -570,6 +571,10 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     ``why``, if given, is what the error says when ``max_events`` pass, and ``capped`` the
     error raised then (:class:`MaxEventsReached` when ``max_events`` is the config's cap: ``why``
     then names it, ``arch.max_events = 100 events``, and the message says it stopped there).
+    ``extend``, if given, is asked when ``max_events`` events have passed for the limit now, and
+    the ``why`` and ``capped`` of a stop there: a limit that grows as the run goes (the liveness
+    bound of the frames a stream has started, :func:`tlm.arch.model.event_bound`); the run goes on
+    while it is above the events passed (asked at the limit only: no cost between).
     ``cycle_end``, if given, holds the model's end-of-cycle events
     (:class:`tlm.arch.events.CycleEnd`): one is released whenever the current cycle has no
     other event left, before time moves on.
@@ -582,7 +587,10 @@ def run(env: simpy.Environment, done: simpy.events.Event, units: Iterable[Unit],
     try:
         while not done.triggered:
             if steps >= max_events:
-                _deadlock(env, units, budget_why, capped)
+                if extend is not None:  # (a bound that may have grown since: asked again)
+                    max_events, budget_why, capped = extend()
+                if steps >= max_events:
+                    _deadlock(env, units, budget_why, capped)
             if late and peek() > env.now:  # the cycle's other events have all run
                 cycle_end.release()
             step()

@@ -308,7 +308,9 @@ def timing_dict(tm: Timing, arch: ArchConfig, programs: Programs) -> dict:
         "programs": {"source": programs.source, "scale": programs.scale,
                      "record_cycles": programs.record_cycles},
         "simpy_events": tm.events,
-        "event_bound": tm.event_budget,  # the liveness bound the run had (model.event_bound)
+        # the run's stop at its end: the liveness bound of the frames its stream started (model.event_bound,
+        # arch.frames' worth, more for a stream that ran on), or arch.max_events where lower
+        "event_bound": tm.event_budget,
         **{k: v for k, v in tm.to_dict().items() if k not in ("cycles", "fps", "events")},
     }
 

@@ -23,6 +23,7 @@ import math
 import re
 from pathlib import Path
 
+from tlm.arch.steady import frames_cap
 from tlm.builtin import configs_dir
 from tlm.config import MODES, config_from_dict, describe, to_dict
 from tlm.errors import InputError
@@ -76,14 +77,15 @@ def table_of(source: str | Path | None) -> str | None:
 def mismatches(table: str, *, source: str | None = None, resolution: list[int] | None = None,
                photons: int | None = None, spp: int | None = None, light_samples: int | None = None,
                pipelines: int | None = None, clock_hz: float | None = None,
-               config: dict | None = None) -> list[str]:
+               config: dict | None = None, timing: dict | None = None) -> list[str]:
     """How a frame set beside ``table`` differs from the thesis's (empty: comparable).
 
     The one rule of comparability: the scene file ``source`` must be the thesis's scene
     of that table (:func:`table_of`), and the resolution, the photons emitted (None: no
     photon pass), the eye rays and light samples per pixel, the pipelines and the clock
     the thesis's, and every other key of the resolved ``config`` that changes the cycles
-    or the image the thesis's setting's (:func:`setting_mismatches`). A value given as
+    or the image the thesis's setting's (:func:`setting_mismatches`; ``timing``, the run's
+    ``results.json`` ``timing`` where there is one, says which keys its stream read). A value given as
     None is not judged. Each entry says what ours is, in a few words (``16×16 pixels
     (thesis 320×320)``, ``bsp.levels 3 (thesis: floor(ln n))``)."""
     w, h, n, _ = THESIS_SIZES[table]
@@ -102,7 +104,7 @@ def mismatches(table: str, *, source: str | None = None, resolution: list[int] |
         out.append(f"{pipelines} pipelines (the tables are one pipeline)")
     if clock_hz is not None and not math.isclose(float(clock_hz), THESIS_CLOCK_HZ):
         out.append(f"clock {float(clock_hz) / 1e6:g} MHz (thesis 600 MHz)")
-    return out + setting_mismatches(table, config)
+    return out + setting_mismatches(table, config, timing)
 
 
 def thesis_setting(table: str, mode: str) -> dict:
@@ -120,7 +122,7 @@ def _thesis_setting(table: str, mode: str) -> dict:
     return to_dict(config_from_dict({**base, "scene": THESIS_SCENES[table], "mode": mode}, src))
 
 
-def setting_mismatches(table: str, config: dict | None) -> list[str]:
+def setting_mismatches(table: str, config: dict | None, timing: dict | None = None) -> list[str]:
     """How the resolved config ``config`` of a cell set beside ``table`` (a dict, as
     :func:`~tlm.config.to_dict` or ``config.resolved.yaml`` gives it; None: not judged)
     differs from the thesis's (:func:`thesis_setting` of its mode), key by key: every key
@@ -133,13 +135,27 @@ def setting_mismatches(table: str, config: dict | None) -> list[str]:
     (:func:`~tlm.render.planner.inert_settings`: the photon sections outside ``pmap``, the
     reflect depth in ``rcast``, ...; :func:`~tlm.render.planner.inert_timing_settings`), a timing
     key the thesis's stream never reads (``arch.fanout`` of its one pipeline: the thesis's value
-    stands for none, and the key that makes ours read it, ``arch.pipelines``, is said; its static
-    stream of two images may read ``arch.settle_frames``, :func:`tlm.arch.model.settling`) and a
-    key ``config`` lacks (a folder written before the key existed)."""
+    stands for none, and the key that makes ours read it, ``arch.pipelines``, is said) and a
+    key ``config`` lacks (a folder written before the key existed).
+
+    ``arch.settle_frames``: the thesis's static stream of two images *may* read it
+    (:func:`tlm.arch.model.settling`: it runs on past ``arch.frames`` where the asked frames' steady gaps
+    do not repeat), so from the config alone it is judged. ``timing``, the cell's ``results.json``
+    ``timing`` section (the report's Table III and the thesis study have it; ``tlm calibrate``, which
+    judges before it simulates, has not), decides it from the run instead (:func:`_bound_unread`): the
+    key is no mismatch where this run's stream would have run the same at the thesis's value, that is
+    where it ran the frames asked and was not measured as settling (no ``frames_cap``: its asked gaps
+    repeat, at any bound), where both values give it the same cap, or where it settled before its own cap
+    and within the thesis's; it is one where it ran on and was cut by its cap, or stopped there. What the
+    results give is this cell's run, not a run of the thesis's setting: with the other keys the thesis's
+    (any other is said itself) the two streams are the same but for the key, so this is the key's own
+    effect."""
     if not isinstance(config, dict) or config.get("mode") not in MODES or table not in THESIS_SCENES:
         return []
     thesis = _thesis_setting(table, config["mode"])
     unread = _unread_keys(config) | _unread_keys(thesis, stream=True)
+    if _bound_unread(timing, _lookup(config, SETTLE), _lookup(thesis, SETTLE)):
+        unread.add(SETTLE)
     out = []
     for key, _, _ in describe():
         if key in NOT_SETTING or no_effect(key) or key in unread:
@@ -148,6 +164,31 @@ def setting_mismatches(table: str, config: dict | None) -> list[str]:
         if ours is not _MISSING and ours != theirs:
             out.append(f"{key} {_value_text(key, ours)} (thesis: {_value_text(key, theirs)})")
     return out
+
+
+SETTLE = "arch.settle_frames"
+
+
+def _bound_unread(timing: dict | None, ours, theirs) -> bool:
+    """Whether the run whose ``results.json`` ``timing`` section is ``timing`` would have run the same
+    frames to the same cycles with ``arch.settle_frames`` at ``theirs`` as at ``ours`` (the stream of
+    :mod:`tlm.arch.steady`: it runs on past ``frames_asked`` only where measured as settling, one arrival
+    at a time until its completions repeat, at most ``frames_cap``): no ``frames_cap`` in its
+    ``throughput_estimate`` and the frames asked run (no bound acts); the same cap at both values; or it
+    settled at fewer frames than its cap and no more than the other value's cap (each arrival decides
+    alike up to there). False where ``timing`` does not say (no run, a folder of another schema)."""
+    if not isinstance(timing, dict) or not isinstance(ours, int) or not isinstance(theirs, int):
+        return False
+    est, ran, asked = timing.get("throughput_estimate"), timing.get("frames"), timing.get("frames_asked")
+    if not isinstance(est, dict) or not isinstance(ran, int) or not isinstance(asked, int) or ran < asked:
+        return False
+    cap = est.get("frames_cap")
+    if cap is None:
+        return ran == asked and "window" in est  # (not measured as settling: ran the frames asked, at any bound)
+    if cap != frames_cap(asked, ours):  # (a folder whose results and config disagree)
+        return False
+    other = frames_cap(asked, theirs)
+    return cap == other or (est.get("settled") is True and ran < cap and ran <= other)
 
 
 _MISSING = object()
@@ -216,14 +257,17 @@ def photons_of(results: dict, config: dict) -> int | None:
 
 
 def run_mismatches(table: str, results: dict, config: dict) -> list[str]:
-    """:func:`mismatches` of a run folder: its ``results.json`` and resolved config, as dicts."""
+    """:func:`mismatches` of a run folder: its ``results.json`` and resolved config, as dicts (its
+    ``timing`` section says whether its stream read ``arch.settle_frames``: :func:`setting_mismatches`)."""
     scene = results.get("scene") or {}
     render = config.get("render") or {}
     photons = photons_of(results, config)
     ran = (results.get("plan") or {}).get("run")
     if photons is None and config.get("mode") == "pmap" and isinstance(ran, list):
         photons = 0  # (a PMap cell whose photon pass was left out, photons.count=0: it emitted none)
+    timing = results.get("timing")
     return mismatches(table, source=scene.get("source"), resolution=scene.get("resolution"),
                       photons=photons, spp=render.get("spp"),
                       light_samples=render.get("light_samples"), pipelines=(config.get("arch") or {}).get("pipelines"),
-                      clock_hz=(results.get("timing") or {}).get("clock_hz"), config=config)
+                      clock_hz=(timing or {}).get("clock_hz"), config=config,
+                      timing=timing if isinstance(timing, dict) else None)
