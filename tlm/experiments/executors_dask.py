@@ -7,7 +7,8 @@ preloads of a local cluster's workers (:func:`local_preloads`); and :class:`Work
 that each worker can run the sweep's points before any is sent (:class:`WorkerCannotRun` where none can), leaves
 out one that cannot, or whose points fail for it, while another can (its points sent to the others, once), sends
 a point again whose good workers all left (to the good ones there: :meth:`WorkerWatch.move`), and names a worker
-that left the cluster while it ran some of them.
+that left the cluster while it ran some of them (each of these events, as the sweep's folder keeps it:
+:meth:`WorkerWatch.worker_events`).
 
 :mod:`tlm.experiments.executors` opens the executors and re-exports these names; the Dask
 executor itself (:class:`~tlm.experiments.executors.DaskPool`), the seconds it waits and polls,
@@ -295,6 +296,8 @@ class WorkerWatch:
         self.back: dict[str, list] = {}  # those left out that came back at their address, answering well (lines kept)
         self.again: set[str] = set()  # the points (their hashes) sent again to the good workers: once each
         self.last: set[str] = set()  # the workers found bad, by a point, when none good was left beside them
+        self.failed_on: dict[str, str] = {}  # a point sent again (its hash) -> the worker it failed for (its address)
+        self.gone: list[dict] = []  # the workers that left while they held some of the sweep's points (lost: events)
         # a point's future as the sweep holds it -> [its Dask future, the workers it went to (None: any), fn, args,
         # kwargs]: sent again where those all left (move); its entry dropped once it is done
         self.sent: dict[cf.Future, list] = {}
@@ -538,6 +541,7 @@ class WorkerWatch:
         if point in self.again or not self.targets():
             return False
         self.again.add(point)
+        self.failed_on[point] = address
         self.bad[address][1] += 1
         return True
 
@@ -589,7 +593,35 @@ class WorkerWatch:
                 why = ("why is in its own log; it left before the sweep could ask what tlm it has: one whose tlm is "
                        "older than the sweep's leaves so at its first point")
             self.lines.append(f"{where} left the cluster while it held {held} of the sweep's points ({why})")
+            self.gone.append({"event": "left-cluster", "worker": str(msg.get("worker")), "why": why,
+                              "points_held": held, "line": self.lines[-1]})
         return list(self.lines)
+
+    def worker_events(self, records: dict[str, dict]) -> list[dict]:
+        """What the sweep's folder keeps of its workers (``workers.json``: :func:`~tlm.experiments.sweep_rows.
+        keep_worker_events`), one plain-data event for each line of :meth:`left_out` and :meth:`lost`: ``left-out``
+        (the worker's address, name and host, why, and each point sent again from it: its hash, and from
+        ``records``, the sweep's record of each point by its hash, the worker it ran on then and how it ended),
+        ``re-admitted`` (one left out that came back at its address answering well) and ``left-cluster``
+        (how many of the sweep's points it held), each with its ``line``, as said."""
+        out = []
+        lines = iter(self.left_out())
+        for address, (why, _) in [*self.back.items(), *self.bad.items()]:
+            if self.last and address not in self.why:  # (as left_out: no line on it)
+                continue
+            again = []
+            for point in sorted(p for p, a in self.failed_on.items() if a == address):
+                record = records.get(point) or {}
+                ran = record.get("ran") if isinstance(record.get("ran"), dict) else {}
+                again.append({"hash": point, "ran_on": ran.get("worker"), "host": ran.get("host"),
+                              "status": record.get("status", "not run")})
+            worker = {"worker": address, "name": self.names.get(address), "host": self.hosts.get(address)}
+            out.append({"event": "left-out", **worker, "why": why, "sent_again": again, "line": next(lines, None)})
+            if address in self.back:
+                out.append({"event": "re-admitted", **worker, "line": f"{self.where(address)}, left out of the "
+                            "sweep, came back at its address answering well and took the sweep's points again"})
+        self.lost()
+        return [*out, *self.gone]
 
 
 def killed_worker_line(e: BaseException) -> str | None:

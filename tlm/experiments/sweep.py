@@ -43,6 +43,8 @@ already done, and recomputes those whose inputs changed. Output folder::
                              factor gives it, so a rerun that asks for a trace runs only the
                              points done without one: point_done); or error.json when the
                              point failed (retried by a rerun)
+    workers.json             a Dask sweep's events on its workers: one left out, why, its points sent again
+                             and where they ran (only where one happened: sweep_rows.keep_worker_events)
 
 A point renders nothing that another point rendered: points that differ only in
 ``arch`` (or in settings their mode never reads: ``photons.count`` in mode rcast) share one
@@ -125,7 +127,7 @@ from tlm.experiments.sweep_reference import (
     sweep_references,
     unmeasured_line,
 )
-from tlm.experiments.sweep_rows import columns, point_row, write_rows
+from tlm.experiments.sweep_rows import columns, keep_worker_events, point_row, write_rows
 from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -312,6 +314,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
              for h in todo}
 
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
+    pool = None
     with ExitStack() as held:  # (the folder, held until the last row is written)
         held.callback(forget_last_frame)  # (the frame an in-process point read last: not kept after the sweep)
         held.enter_context(keeping_accel())  # (the BSP its last render built, kept for the next: not after it)
@@ -358,12 +361,15 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                     said += lost
                     for line in lost if warn is not None else ():
                         warn(line)
+                    _keep_workers(out, pool, records)  # (those lines' events, kept in the folder: workers.json)
         except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
                 _clean_stale(points_dir)
             if rows_due:  # the rows of the points done, as a run to its end writes them
                 _write_finished(out, sweep, records, todo)
+                with suppress(Exception):  # (what stopped the sweep is said, not a failed write of these)
+                    _keep_workers(out, pool, records)
             raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
@@ -515,6 +521,13 @@ def _set_scene(overrides: Iterable[str]) -> Any:
     return None
 
 
+def _keep_workers(out: Path, pool, records: dict[str, dict]) -> None:
+    """A Dask sweep's events on its workers (a worker left out, why, its points sent again and where they ran, ...:
+    :meth:`~tlm.experiments.executors_dask.WorkerWatch.worker_events`) kept in its folder, ``workers.json``."""
+    if isinstance(pool, DaskPool) and hasattr(pool, "watch"):
+        keep_worker_events(out, pool.watch.worker_events(records))
+
+
 def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:
     """The sweep's rows (:func:`~tlm.experiments.sweep_rows.write_rows`); with no row, which would
     name them, its ``factors`` name the CSV's factor columns."""
@@ -581,7 +594,10 @@ def _dispatch(pool: cf.Executor, tasks: dict[str, Task], fkeys: dict[str, str], 
                         submit(h)  # to the other workers, once)
                         continue
                     if remote:
-                        record = _seen_here(record, tasks[h])
+                        ok, record = record["status"] == "ok", _seen_here(record, tasks[h])
+                        if ok and record["status"] != "ok" and pool.send_again(h, record):  # (its results on its
+                            submit(h)  # worker's own disk, not seen here: PathNotOnWorker, sent again as above)
+                            continue
                     records[h] = record
                     for p in by_hash[h]:
                         jsonl.write(storage.json_text(row(p, record)) + "\n")

@@ -18,7 +18,9 @@ value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an 
 from __future__ import annotations
 
 import csv
+import datetime
 import io
+import json
 import math
 import re
 from collections.abc import Iterable
@@ -221,6 +223,28 @@ def csv_cell(value: Any, factor: bool = False) -> Any:
     if isinstance(value, str):
         return escaped(value)
     return value
+
+
+WORKERS_FILE = "workers.json"  # a Dask sweep's events on its workers (keep_worker_events), beside its rows
+WORKERS_FORMAT = "sweep-workers/1"
+
+
+def keep_worker_events(out: Path, events: list[dict]) -> None:
+    """The Dask workers' ``events`` of a sweep into the folder ``out`` (:meth:`~tlm.experiments.executors_dask.
+    WorkerWatch.worker_events`: a worker left out and why, the points sent again from it and where they ran, one
+    re-admitted, one that left the cluster holding points), each stamped ``when`` (now, UTC: the sweep's end), after
+    those of the sweeps run into the folder before (a rerun's points done earlier were run so): ``workers.json``
+    (``tlm: sweep-workers/1``, ``events``), written whole, atomically (:func:`tlm.storage.write_file`), for
+    ``tlm report``. Nothing is written for none; one of before that cannot be read is replaced."""
+    if not events:
+        return
+    when = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    kept: list = []
+    with suppress(OSError, ValueError, UnicodeDecodeError):
+        old = json.loads((out / WORKERS_FILE).read_text(encoding="utf-8"))
+        kept = [e for e in old.get("events") or [] if isinstance(e, dict)] if isinstance(old, dict) else []
+    body = {"tlm": WORKERS_FORMAT, "events": [*kept, *({**e, "when": when} for e in events)]}
+    storage.write_file(out / WORKERS_FILE, storage.json_text(body, indent=2) + "\n")
 
 
 def trim_torn(path: Path) -> None:

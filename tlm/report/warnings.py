@@ -15,6 +15,9 @@ error-vs-cost's reference not converged is its ``reference.json`` ``reference_co
 here from it, :func:`reference_line`, and said in the axis label, title and caption of each of the study's
 error figures, :func:`tlm.report.tradeoff.reference_words`.)
 
+A Dask sweep's events on its workers (a worker left out, why, its points sent again and where they ran: its
+``workers.json``) are listed in the same block (:func:`workers_html`).
+
 Inputs whose results different tlm code made (their code fingerprints differ, or one records none: an
 older tlm) are said first, naming which folders are of which code (:func:`code_line`); what is drawn
 is not changed.
@@ -22,8 +25,10 @@ is not changed.
 
 from __future__ import annotations
 
+import json
 from collections import Counter
 
+from tlm.experiments.sweep_rows import WORKERS_FILE
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
 
@@ -145,13 +150,68 @@ def damaged_html(inputs: Inputs) -> str:
             + "".join(f"<li>{esc(line)}</li>" for line in inputs.damaged) + "</ul>")
 
 
+def _point_words(sent: dict, points: dict[str, str]) -> str:
+    """A point sent again from a worker left out (``workers.json``'s ``sent_again``): its number in the sweep (else
+    its hash), where it ran then and how it ended."""
+    h = str(sent.get("hash"))
+    ran = sent.get("ran_on")
+    where = f" ran again on {ran}" + (f" on host {sent['host']}" if sent.get("host") else "") if ran else ""
+    return f"{points.get(h, h[:12])}{where} ({sent.get('status', 'not run')})"
+
+
+def worker_events(inputs: Inputs) -> list[tuple[str, str]]:
+    """``(line, whose)`` for each event a Dask sweep among the inputs kept on its workers (its ``workers.json``:
+    :func:`tlm.experiments.sweep_rows.keep_worker_events`): a worker left out of it, why, and its points sent again
+    (where each ran then: it ran twice), one re-admitted, one that left the cluster while it held points; one
+    that cannot be read, a line saying so."""
+    out = []
+    for sw in getattr(inputs, "sweeps", None) or []:
+        path = sw.path / WORKERS_FILE
+        if not path.is_file():
+            continue
+        whose = f"the sweep {sw.label}"
+        try:
+            body = json.loads(path.read_text(encoding="utf-8"))
+            events = body.get("events") if isinstance(body, dict) else None
+            if not isinstance(events, list):
+                raise ValueError("it holds no events list")
+        except (OSError, ValueError, UnicodeDecodeError) as e:
+            out.append((f"{path} could not be read ({e}): what the sweep kept of its Dask workers (one left out, "
+                        "points sent again) is not shown", whose))
+            continue
+        points = {str(r.get("hash")): f"#{r['point']}" for r in sw.rows if isinstance(r, dict) and "point" in r}
+        for event in (e for e in events if isinstance(e, dict)):
+            line = event.get("line")
+            if not isinstance(line, str):
+                line = f"the Dask worker {event.get('worker')}: {event.get('event')} ({event.get('why')})"
+            again = [_point_words(p, points) for p in event.get("sent_again") or [] if isinstance(p, dict)]
+            if again:
+                line += f"; point{'s' * (len(again) > 1)} sent again: " + ", ".join(again)
+            out.append((line, whose + (f", {event['when']}" if isinstance(event.get("when"), str) else "")))
+    return out
+
+
+def workers_html(inputs: Inputs) -> str:
+    """The events the Dask sweeps among the inputs kept on their workers (:func:`worker_events`), a paragraph and a
+    list; "" where there are none."""
+    found = worker_events(inputs)
+    if not found:
+        return ""
+    n = len(found)
+    return (f"<p><strong>Dask workers.</strong> The sweeps shown kept {n} event{'s' * (n > 1)} on their Dask "
+            f"workers ({esc(WORKERS_FILE)} <code>events</code>); a point sent again ran twice, and its row is "
+            "its second run:</p><ul>"
+            + "".join(f"<li>{esc(line)}<span class=\"note\"> ({esc(whose)})</span></li>" for line, whose in found)
+            + "</ul>")
+
+
 def warnings_html(inputs: Inputs) -> str:
     """The block under the report's inputs line: inputs of different tlm code (:func:`code_line`), the
     damaged files left out (:func:`damaged_html`) and the warnings the runs recorded; empty when there
     are none of these."""
     found = recorded(inputs)
     studies = study_recorded(inputs)
-    damaged = damaged_html(inputs)
+    damaged = damaged_html(inputs) + workers_html(inputs)
     mixed = code_line(inputs)
     if mixed is not None:  # (said first: it bears on every number of the page)
         damaged = f"<p><strong>Different code.</strong> {esc(mixed[0].upper() + mixed[1:])}.</p>" + damaged
