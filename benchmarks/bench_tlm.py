@@ -29,8 +29,34 @@ does). Each layer is timed separately, the best of ``--repeat`` runs. Prints
 
 Prints PASS/FAIL against the three bars and exits 1 if one fails.
 
+``--run-on`` measures instead what the static run-on rule costs (since e4f30a1: a static
+stream of two images whose steady gaps among the asked frames do not repeat runs on past
+``arch.frames`` until its completions repeat, at most ``arch.settle_frames``;
+``tlm.arch.steady``). No static setting of the bench's 320 x 320 frame was found to run on (1-8,
+12 and 16 pipelines with either memory, packets of 64 or 1024, serial fan-out: 2026-12-02), so the case renders
+three small Cornell frames once each (:data:`RUN_ON_FRAMES`) and simulates a fixed set of
+static settings of two images in flight and 5 frames asked, some that run on and some that
+do not (:data:`RUN_ON_SETTINGS`), with the default ``ArchConfig`` otherwise (trace on, as
+``tlm run``). Each setting is simulated three ways, the rounds interleaved, the best of
+``--repeat`` each: with the rule (the default ``arch.settle_frames``); with the rule off
+(``arch.settle_frames: 1``, the 5 frames asked alone: the reference of the rule's cost, what
+the same run took before the rule); and, for a setting that runs on, with the rule off and
+``arch.frames`` set to the frames it ran (the same frames without the rule's checks: its
+seconds a frame against the rule's say whether the rule's bookkeeping costs anything beyond
+the frames). Prints for each the frames asked and run, the simulate seconds, the seconds a
+frame asked and a frame run, and the ratios; then the run-on settings' summed time against
+the rule off (and the others', which should not move), and PASS/FAIL of the rule's own cost
+(:data:`RUN_ON_BAR`: the run-on settings' summed seconds against the rule off at the frames they
+ran, and the others' against the rule off, at most 1.10x each: the frames it adds are what it is
+for, its checks should cost next to nothing) and of the set itself (each setting runs on, or not,
+as listed). The seconds a frame run are printed beside issue 25's bar of at most 0.19 s a
+simulated frame, which is the bench's own frame's (its ``simulate`` line), not these small ones'.
+Times are wall seconds; the summary lines give the process's CPU seconds too
+(best of the same runs), steadier where other work shares the machine.
+
     python benchmarks/bench_tlm.py [--scene cornell] [--mode pmap] [--repeat 3]
                                    [--fine-frames N] [--skip-fine]
+    python benchmarks/bench_tlm.py --run-on [--repeat 3]
 """
 
 from __future__ import annotations
@@ -50,6 +76,28 @@ SIMPY_SHARE_BAR = 0.10
 CYCLES_PER_SECOND_BAR = 60e6  # issue [7 of 7]: at most 10x slower than the 600 MHz chip
 CYCLE_ERROR_BAR = 0.02
 BAR_METRICS = (*PMS, "throughput", "latency")
+SIMULATE_BAR = 0.19  # issue 25: simulate at most 0.19 s a simulated frame (of the bench's frame)
+RUN_ON_BAR = 1.10  # --run-on: the rule's checks cost at most 10% beyond the frames it adds
+
+# The run-on case's frames (Cornell, each rendered once) and its static settings of two images in
+# flight, 5 frames asked: (frame, arch changes, whether it runs on past the 5; the frames it ran when
+# the set was chosen, 2026-12-02). tests/test_static_steady_h349.py holds pmap16's 3, 4 and 8 pipelines.
+RUN_ON_FRAMES = {
+    "pmap16": {"scene": "cornell", "mode": "pmap", "resolution": [16, 16],
+               "render": {"spp": 1, "light_samples": 1}, "photons": {"count": 4000}},
+    "pmap32": {"scene": "cornell", "mode": "pmap", "resolution": [32, 32]},
+    "refract32": {"scene": "cornell", "mode": "refract", "resolution": [32, 32]},
+}
+RUN_ON_SETTINGS = (
+    ("pmap16", {"pipelines": 3}, True),  # 16 frames
+    ("pmap16", {"pipelines": 8}, True),  # 15
+    ("pmap32", {"pipelines": 4}, True),  # 17
+    ("pmap32", {"pipelines": 7, "memory": "copy"}, True),  # 16
+    ("refract32", {"pipelines": 4, "memory": "copy"}, True),  # 15
+    ("pmap16", {"pipelines": 4}, False),
+    ("pmap32", {"pipelines": 5}, False),
+    ("refract32", {"pipelines": 3}, False),
+)
 
 
 def end_cycle(tm) -> int:
@@ -63,7 +111,89 @@ def timed(fn):
     return out, time.perf_counter() - t0
 
 
-def main() -> None:
+def setting_name(frame: str, changes: dict) -> str:
+    return " ".join([frame, *(f"{k}={v}" for k, v in changes.items())])
+
+
+def run_on_case(settings=RUN_ON_SETTINGS, repeat: int = 3) -> list[dict]:
+    """Simulate each static setting with the run-on rule, with it off (``settle_frames: 1``) and, where it ran
+    on, with it off at the frames it ran; the rounds interleaved, the best of ``repeat`` each. Prints a row a
+    setting and the verdicts; returns the rows."""
+    programs = load_programs()
+    fns = {}
+    for frame in dict.fromkeys(f for f, _, _ in settings):
+        cfg = config_from_dict(RUN_ON_FRAMES[frame], "bench_tlm")
+        fns[frame] = (cfg.arch, render(cfg).functional())
+    rows = []
+    print(f"the static run-on rule's cost: {len(settings)} static settings of two images in flight, Cornell; "
+          f"best of {repeat} (wall seconds), trace on; 'off': arch.settle_frames 1 (the frames asked alone); "
+          f"'off at the frames run': arch.frames = the frames the rule ran, settle_frames 1")
+    print(f"  {'setting':34s} {'asked':>5s} {'run':>4s} {'rule s':>8s} {'s/asked':>8s} {'s/run':>7s} "
+          f"{'off s':>8s} {'rule/off':>8s} {'off@run s':>9s} {'s/run':>7s} {'rule/off@run':>12s}")
+    for frame, changes, listed in settings:
+        base, fn = fns[frame]
+        arch = replace(base, **changes)
+        assert arch.scheduler == "static" and arch.images_in_flight == 2, (frame, changes)
+        off = replace(arch, settle_frames=1)
+        ran = len(simulate(fn, programs, arch).frames)
+        ways = {"rule": arch, "off": off}
+        if ran > arch.frames:
+            ways["off@run"] = replace(off, frames=ran)
+        best = dict.fromkeys(ways, float("inf"))
+        cpu = dict.fromkeys(ways, float("inf"))
+        frames = {}
+        for _ in range(repeat):
+            for way, a in ways.items():
+                c0 = time.process_time()
+                tm, s = timed(lambda a=a, fn=fn: simulate(fn, programs, a))
+                cpu[way] = min(cpu[way], time.process_time() - c0)
+                best[way] = min(best[way], s)
+                frames[way] = len(tm.frames)
+        assert frames["rule"] == ran and frames["off"] == arch.frames and frames.get("off@run", ran) == ran, frames
+        row = {"setting": setting_name(frame, changes), "listed": listed, "runs_on": ran > arch.frames,
+               "asked": arch.frames, "run": ran, "rule_s": best["rule"], "off_s": best["off"],
+               "off_at_run_s": best.get("off@run"), "rule_cpu": cpu["rule"], "off_cpu": cpu["off"],
+               "off_at_run_cpu": cpu.get("off@run")}
+        rows.append(row)
+        at_run = (f"{row['off_at_run_s']:9.3f} {row['off_at_run_s'] / ran:7.4f} "
+                  f"{(row['rule_s'] / ran) / (row['off_at_run_s'] / ran):11.2f}x" if row["runs_on"]
+                  else f"{'-':>9s} {'-':>7s} {'-':>12s}")
+        print(f"  {row['setting']:34s} {arch.frames:5d} {ran:4d} {row['rule_s']:8.3f} "
+              f"{row['rule_s'] / arch.frames:8.4f} {row['rule_s'] / ran:7.4f} {row['off_s']:8.3f} "
+              f"{row['rule_s'] / row['off_s']:7.2f}x {at_run}")
+    run_on = [r for r in rows if r["runs_on"]]
+    rest = [r for r in rows if not r["runs_on"]]
+    for label, group in (("the settings that run on", run_on), ("the settings that do not", rest)):
+        if group:
+            rule, off = sum(r["rule_s"] for r in group), sum(r["off_s"] for r in group)
+            rule_cpu, off_cpu = sum(r["rule_cpu"] for r in group), sum(r["off_cpu"] for r in group)
+            line = (f"  {label} ({len(group)}): {rule:.3f} s with the rule, {off:.3f} s with it off "
+                    f"(settle_frames 1): {rule / off:.2f}x (CPU seconds {rule_cpu:.3f} against {off_cpu:.3f}: "
+                    f"{rule_cpu / off_cpu:.2f}x)")
+            if group is run_on:
+                at, at_cpu = sum(r["off_at_run_s"] for r in group), sum(r["off_at_run_cpu"] for r in group)
+                line += (f"; {sum(r['run'] for r in group)} frames run for {sum(r['asked'] for r in group)} asked; "
+                         f"against the rule off at the frames run ({at:.3f} s): {rule / at:.2f}x (CPU "
+                         f"{rule_cpu / at_cpu:.2f}x)")
+            print(line)
+    moved = [r["setting"] for r in rows if r["runs_on"] != r["listed"]]
+    verdict(not moved, "the set's settings run on, or not, as listed" if not moved else
+            f"these settings no longer run on as listed, pick new ones: {', '.join(moved)}")
+    if run_on:  # the rule's own cost: its checks, beyond the frames it adds (which are what it is for)
+        rule, at = sum(r["rule_s"] for r in run_on), sum(r["off_at_run_s"] for r in run_on)
+        kept = sum(r["rule_s"] for r in rest) / sum(r["off_s"] for r in rest) if rest else 1.0
+        per_run = max(r["rule_s"] / r["run"] for r in run_on)
+        verdict(rule / at <= RUN_ON_BAR and kept <= RUN_ON_BAR,
+                f"the rule's own cost: the run-on settings {rule / at:.2f}x the rule off at the frames they ran, "
+                f"the others {kept:.2f}x the rule off (bar: at most {RUN_ON_BAR:.2f}x each, wall seconds summed "
+                f"over the set); at most {per_run:.4f} s a frame run (these small frames are not the bench's: "
+                f"issue 25's bar of {SIMULATE_BAR} s a simulated frame is its frame's simulate line, without --run-on)")
+    else:
+        verdict(False, "no setting of the set ran on: nothing of the rule measured")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="cornell")
     ap.add_argument("--mode", default="pmap")
@@ -72,7 +202,13 @@ def main() -> None:
                     help="frames of both simulations of the packet-size comparison (default: arch.frames, "
                          "the shortest stream with a steady-state throughput)")
     ap.add_argument("--skip-fine", action="store_true", help="skip the packet_size=1 reference")
-    args = ap.parse_args()
+    ap.add_argument("--run-on", action="store_true",
+                    help="instead: the static run-on rule's cost on small static settings that run on and that "
+                         "do not, against the same settings with arch.settle_frames 1 (see the module's text)")
+    args = ap.parse_args(argv)
+    if args.run_on:
+        run_on_case(repeat=args.repeat)
+        exit_status()
 
     cfg = config_from_dict({"scene": args.scene, "mode": args.mode}, "bench_tlm")
     arch = cfg.arch
