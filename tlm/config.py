@@ -414,6 +414,35 @@ def deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
+# a byte not UTF-8 in a --set value (U+DC80..U+DCFF, as the command line decodes it: ``scene=dir_\xff/x.yaml``),
+# which YAML refuses, stands in as a character of plane 16's private use area while YAML reads the value
+_STAND_IN = {c: c - 0xDC80 + 0x10F780 for c in range(0xDC80, 0xDD00)}
+_BYTE_BACK = {s: c for c, s in _STAND_IN.items()}
+
+
+def read_set_value(text: str) -> Any:
+    """A ``--set`` value's text read as YAML (:func:`~tlm.config_words.parse_yaml`), a byte not UTF-8 in it
+    (a surrogate: a path of a folder so named, ``scene=dir_\\xff/x.yaml``), which YAML refuses, kept as that
+    surrogate in the strings it is read into (the path opens): it stands in as a character of the private use
+    area while YAML reads the text, so YAML's syntax (a number, a list, a quoted string) reads as without it.
+    A text that holds such a stand-in itself is read as it is."""
+    if not any(ord(c) in _STAND_IN for c in text) or any(ord(c) in _BYTE_BACK for c in text):
+        return parse_yaml(text)
+    return _bytes_back(parse_yaml(text.translate(_STAND_IN)))
+
+
+def _bytes_back(value: Any) -> Any:
+    """``value`` (YAML's reading of a --set value, :func:`read_set_value`) with the stand-ins in its strings (a
+    mapping's keys too) as the bytes they stand for."""
+    if isinstance(value, str):
+        return value.translate(_BYTE_BACK)
+    if isinstance(value, list):
+        return [_bytes_back(v) for v in value]
+    if isinstance(value, dict):
+        return {_bytes_back(k): _bytes_back(v) for k, v in value.items()}
+    return value
+
+
 def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd: Path | None = None) -> dict:
     """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping.
     ``cwd``: where the strings were given (the command line's working folder): a relative
@@ -429,9 +458,9 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
         if not all(part.strip() for part in key.split(".")):
             raise InputError(f"{quoted(item)}: the dotted key before '=' is empty or has an empty part", source=source)
         try:
-            value = parse_yaml(text)
+            value = read_set_value(text)
         except yaml.YAMLError as e:  # (what is wrong with it: a key given twice, a syntax error)
-            problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+            problem = (getattr(e, "problem", None) or str(e).splitlines()[0]).translate(_BYTE_BACK)
             if isinstance(e, DuplicateKeyError):
                 problem = problem.replace(" (first at line 1)", "")  # (a value of one line)
             raise InputError(f"cannot parse value {quoted(text)}: {problem}", source=source, key=key) from None

@@ -39,7 +39,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from tlm.errors import EnvironmentFailure, InputError, escaped_line
+from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section, count, current_output, drawable, figure_output, forget_names
 from tlm.report.html import esc, page
@@ -90,7 +90,7 @@ def scenes_note(inputs: Inputs) -> str:
     shared = inputs.shared_names()
     if not shared:
         return ""
-    each = "; ".join(f"{esc(repr(name))} is the name in the files of {esc(' and '.join(labels))}"
+    each = "; ".join(f"{esc(quoted(name))} is the name in the files of {esc(' and '.join(labels))}"
                      for name, labels in shared)
     return ("<p>Scenes are named by their files throughout (a built-in scene by its path under scenes/ without "
             ".yaml: thesis/room is scenes/thesis/room.yaml; another by the path its config gave), not by the "
@@ -127,7 +127,7 @@ def check_out(out: Path | None, dirs: list[Path], also: Iterable[Path] = ()) -> 
         raise EnvironmentFailure(f"{e}; give --out") from None
     for d in (*dirs, *also):
         if resolved == (d := Path(d)).resolve() or resolved in d.resolve().parents:
-            raise InputError(f"{str(where)!r} {'is' if resolved == d.resolve() else 'holds'} {str(d)!r}, an input of "
+            raise InputError(f"{quoted(where)} {'is' if resolved == d.resolve() else 'holds'} {quoted(d)}, an input of "
                              "the report: writing the report there would remove it (the report replaces its folder "
                              "whole); name another folder", key="--out")
     return resolved

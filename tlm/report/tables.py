@@ -32,6 +32,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from tlm.config import MODES
+from tlm.errors import quoted
 from tlm.experiments.thesis import (
     CALIBRATED,
     METRICS,
@@ -157,7 +158,7 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
             scenes.setdefault(str(row["scene"]), []).append(row)
         for scene, rows in scenes.items():
             if scene not in THESIS:
-                notes.append(f"{study.path.name}: scene {inputs.study_scene(study, scene)!r} has no table in the "
+                notes.append(f"{study.path.name}: scene {quoted(inputs.study_scene(study, scene))} has no table in the "
                              "thesis, left out of the tables")
                 continue
             src = Source(f"thesis study {study.path.name}", scene, study=study,
@@ -195,9 +196,9 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
         for row in rows:
             src.rows[(run.mode, row["metric"])] = row
     for scene, labels in no_table.items():  # (a sweep of hundreds of points: one note, its count and a few labels)
-        notes.append(f"{labels[0]}: scene {scene!r} has no table in the thesis, left out of the tables"
-                     if len(labels) == 1 else f"scene {scene!r} has no table in the thesis: {len(labels)} runs of "
-                     f"it left out of the tables ({some(labels)})")
+        notes.append(f"{labels[0]}: scene {quoted(scene)} has no table in the thesis, left out of the tables"
+                     if len(labels) == 1 else f"scene {quoted(scene)} has no table in the thesis: {len(labels)} runs "
+                     f"of it left out of the tables ({some(labels)})")
     if no_cycles:
         notes.append(f"{no_cycles[0]}: no simulated cycles in results.json, left out of the tables"
                      if len(no_cycles) == 1 else f"{len(no_cycles)} runs with no simulated cycles in results.json "

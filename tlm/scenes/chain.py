@@ -11,7 +11,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 
 
 class Files(list):
@@ -114,8 +114,8 @@ def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path]
     stale = {k: by for k, by in given_by.items() if at.get(by, geometry_by) < geometry_by}
     for k, by in stale.items():
         _typo(k, by, files[at[by]:geometry_by], getattr(files, "geometries", None), items)
-    notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {k!r}: the entry "
-             f"is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
+    notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {quoted(k)}: the "
+             f"entry is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
     return {**raw, "parts": {k: v for k, v in parts.items() if k not in stale}}, notes
 
 
@@ -137,7 +137,8 @@ def _typo(part: str, by: Path, since: list[Path], geometries: dict[Path, tuple[A
             return
         known.append(names)
     names = known[0]
-    raise InputError(f"the geometry has no part {part!r} (parts: {', '.join(names)}){did_you_mean(str(part), names)}",
+    raise InputError(f"the geometry has no part {quoted(part)} (parts: {', '.join(names)})"
+                     f"{did_you_mean(str(part), names)}",
                      source=str(by), key=f"parts.{part}")
 
 

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 from tlm.scenes.model import Geometry, Imported, Light, unit_vector
 from tlm.scenes.validate import keys as _keys
 from tlm.scenes.validate import mapping as _mapping
@@ -194,7 +194,7 @@ def _builder(raw: dict, src: str, key: str) -> Geometry:
     name = raw["builder"]
     if not isinstance(name, str) or name not in BUILDERS:
         raise InputError(
-            f"{name!r} is not a builder ({', '.join(BUILDERS)}){did_you_mean(str(name), BUILDERS)}",
+            f"{quoted(name)} is not a builder ({', '.join(BUILDERS)}){did_you_mean(str(name), BUILDERS)}",
             source=src, key=f"{key}.builder",
         )
     params = _params(raw, src, key)
@@ -219,7 +219,7 @@ def _mesh(raw: dict, src: str, path: Path, key: str) -> Geometry:
 
     mesh = raw["mesh"]
     if not isinstance(mesh, str) or not mesh:
-        raise InputError(f"{mesh!r} is not a file name", source=src, key=f"{key}.mesh")
+        raise InputError(f"{quoted(mesh)} is not a file name", source=src, key=f"{key}.mesh")
     if "params" in raw:
         raise InputError("a mesh takes no params (scale, rotate and move it with transform)",
                          source=src, key=f"{key}.params")
@@ -241,22 +241,22 @@ def _not_a_mesh_file(mpath: Path) -> str | None:
             try:
                 to = os.readlink(mpath)
             except OSError:  # (removed meanwhile)
-                return f"mesh file {str(mpath)!r} not found"
+                return f"mesh file {quoted(mpath)} not found"
             end = ("itself a link that leads to no file" if os.path.islink(mpath.parent / to) else
                    "which is not there")  # (a chain of links ending in nothing)
-            return f"mesh file {str(mpath)!r} is a symbolic link to {to!r}, {end}"
-        return f"mesh file {str(mpath)!r} not found"
+            return f"mesh file {quoted(mpath)} is a symbolic link to {quoted(to)}, {end}"
+        return f"mesh file {quoted(mpath)} not found"
     except OSError as e:  # (a folder on the way that cannot be searched, a link loop, a name too long)
-        return f"mesh file {str(mpath)!r} cannot be read ({e.strerror or e})"
+        return f"mesh file {quoted(mpath)} cannot be read ({e.strerror or e})"
     except ValueError:  # (a NUL character: no file has such a name)
-        return f"mesh file {str(mpath)!r} not found (a file name holds no NUL character)"
+        return f"mesh file {quoted(mpath)} not found (a file name holds no NUL character)"
     if stat.S_ISREG(mode):
         return None
     if stat.S_ISDIR(mode):
-        return f"{str(mpath)!r} is a folder, not a mesh file"
+        return f"{quoted(mpath)} is a folder, not a mesh file"
     kind = ("a character device" if stat.S_ISCHR(mode) else "a block device" if stat.S_ISBLK(mode) else
             "a named pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a special file")
-    return f"{str(mpath)!r} is {kind}, not a mesh file (a mesh is read from a regular file)"
+    return f"{quoted(mpath)} is {kind}, not a mesh file (a mesh is read from a regular file)"
 
 
 def mesh_path(mesh: str, path: Path) -> Path:
@@ -275,7 +275,7 @@ def _shape(raw: dict, src: str, key: str) -> Geometry:
 
     kind = raw["shape"]
     if not isinstance(kind, str) or kind not in SHAPES:
-        raise InputError(f"{kind!r} is not a shape ({', '.join(SHAPES)}){did_you_mean(str(kind), SHAPES)}",
+        raise InputError(f"{quoted(kind)} is not a shape ({', '.join(SHAPES)}){did_you_mean(str(kind), SHAPES)}",
                          source=src, key=f"{key}.shape")
     pk = f"{key}.params"
     given = _params(raw, src, key)
@@ -338,7 +338,7 @@ def _item(raw: Any, src: str, path: Path, key: str, items: list | None = None) -
                          source=src, key=key)
     name = raw.get("name")
     if name is not None and (not isinstance(name, str) or not name.strip()):
-        raise InputError(f"{name!r} is not a name", source=src, key=f"{key}.name")
+        raise InputError(f"{quoted(name)} is not a name", source=src, key=f"{key}.name")
     transform = item_transform(raw.get("transform"), src, f"{key}.transform")
     if "builder" in raw:
         geom = _builder(raw, src, key)
@@ -440,7 +440,8 @@ def _renamed(per_item: list[tuple[str, ...]], names: list[str | None], src: str 
             final, k = p, 2
             while final in part_names or final in local:
                 if item_name is not None:
-                    raise InputError(f"{p!r} is already a part name of an earlier item; give this item another name",
+                    raise InputError(f"{quoted(p)} is already a part name of an earlier item; give this item "
+                                     "another name",
                                      source=src, key=f"geometry[{i}].name")
                 final, k = f"{p}_{k}", k + 1
             local.append(final)

@@ -65,7 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import EnvironmentFailure, InputError
+from tlm.errors import EnvironmentFailure, InputError, quoted
 from tlm.scenes.model import Scene
 from tlm.storage import warn, write_atomic, write_files
 
@@ -81,7 +81,7 @@ def check_scene(scene: Scene) -> None:
     ``dataclasses.replace`` of its triangles) is checked here before it is exported or described."""
     from tlm.scenes.loader import _check_triangles  # (the loader's own check and wording)
 
-    where = f"scene {scene.name!r}"
+    where = f"scene {quoted(scene.name)}"
     try:
         tri = np.asarray(scene.triangles, dtype=np.float64)
     except (TypeError, ValueError):
@@ -104,7 +104,8 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
-        raise InputError(f"unsupported format {suffix or '(none)'!r}: use {', '.join(FORMATS[:-1])} or {FORMATS[-1]}",
+        raise InputError(f"unsupported format {quoted(suffix or '(none)')}: use {', '.join(FORMATS[:-1])} or "
+                         f"{FORMATS[-1]}",
                          source=str(path))
     check_scene(scene)
     if suffix != ".ply":  # (a PLY names each material by the scene's index: a name no face takes is read as none)
@@ -114,7 +115,7 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
     verts = tri.reshape(-1, 3)
     faces = np.arange(3 * n, dtype=np.int64).reshape(n, 3)
     if not path.parent.is_dir():
-        raise InputError(f"folder {str(path.parent)!r} does not exist", source=str(path))
+        raise InputError(f"folder {quoted(path.parent)} does not exist", source=str(path))
     if path.is_dir():
         raise InputError("is a folder; name a .ply, .obj or .yaml file", source=str(path))
     scene_file = suffix in (".yaml", ".yml")
@@ -368,7 +369,7 @@ def _check_library(scene: Scene, library: Path) -> None:
     library beside its OBJ), which it would replace."""
     for m in scene.materials:
         if not m.name or "#" in m.name or m.name != m.name.strip() or any(c in m.name for c in "\r\n"):
-            raise InputError(f"material {m.name!r} cannot be named in an MTL library (a '#' starts a comment; "
+            raise InputError(f"material {quoted(m.name)} cannot be named in an MTL library (a '#' starts a comment; "
                              "spaces at its ends, or a line break, do not survive): rename it in the scene file",
                              source=str(library.with_suffix(".obj")))
     if library.exists() and not _written_by_tlm(library):

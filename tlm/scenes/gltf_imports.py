@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import InputError
+from tlm.errors import InputError, quoted
 from tlm.scenes.model import Camera, Imported, Light
 
 __all__ = ["check_mesh_nodes", "gltf_imports", "singular", "singular_message"]
@@ -319,7 +319,7 @@ def _entries(table, where: str, src: str) -> list[dict]:
 
 def _label(entry: dict, where: str) -> str:
     name = entry.get("name")
-    return f"{where} {name!r}" if isinstance(name, str) and name else where
+    return f"{where} {quoted(name)}" if isinstance(name, str) and name else where
 
 
 def _light_entry(light: dict, i: int, src: str) -> tuple[str, np.ndarray, tuple[float, float]]:

@@ -27,7 +27,7 @@ import numpy as np
 
 from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
 from tlm.config_read import nameless
-from tlm.errors import InputError, did_you_mean, path_shown
+from tlm.errors import InputError, did_you_mean, path_shown, quoted
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
 from tlm.scenes.chain import Files, add_file, blamed, note_given, nulls, parts_removed, stale_parts
@@ -135,7 +135,7 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
             looked = f" (looked in {', '.join(map(path_shown, folders))})" if folders else ""
             stem = os.path.splitext(ref)[0]
             stem = os.path.splitext(stem)[0] if mesh_file_format(stem, content=False) is not None else stem
-            raise InputError(f"{'file' if by_itself else repr(ref)} not found{looked}; {mesh_file_missing(format_)}"
+            raise InputError(f"{'file' if by_itself else quoted(ref)} not found{looked}; {mesh_file_missing(format_)}"
                              f"{did_you_mean(stem, list_scenes())}",
                              source=ref if by_itself else config_source, key=None if by_itself else key)
         if by_itself:  # (named once)
@@ -168,15 +168,15 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
             if config_source == ref and not named:  # (given by itself, `tlm scene show /dev/null`: named once, as
                 # the file, without a key it was not given under, as a mesh file given by itself is)
                 raise InputError(f"is {_not_a_file(odd)}, not a scene file{_save_it(odd)}", source=ref)
-            raise InputError(f"scene file {ref!r}{named} is {_not_a_file(odd)}, not a scene file{_save_it(odd)}",
+            raise InputError(f"scene file {quoted(ref)}{named} is {_not_a_file(odd)}, not a scene file{_save_it(odd)}",
                              source=config_source, key=key)
-        raise InputError(f"scene file {ref!r} not found{looked}{did_you_mean(stem, list_scenes())}"
+        raise InputError(f"scene file {quoted(ref)} not found{looked}{did_you_mean(stem, list_scenes())}"
                          f"{_moved_run(ref, config_source, key)}", source=config_source, key=key)
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
     raise InputError(
-        f"{ref!r} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
+        f"{quoted(ref)} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
         source=config_source, key=key,
     )
 
@@ -219,7 +219,7 @@ def _not_a_file(path: Path) -> str:
         except (RuntimeError, OSError) as exc:  # (a loop: RuntimeError up to Python 3.12, OSError ELOOP after)
             if isinstance(exc, RuntimeError) or getattr(exc, "errno", None) == errno.ELOOP:
                 return "a symbolic link that leads round in a loop"
-            return f"a symbolic link to {os.readlink(path)!r}, which is not there"
+            return f"a symbolic link to {quoted(os.readlink(path))}, which is not there"
     return "a special file (a device, a pipe or a socket)"
 
 
@@ -337,11 +337,11 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
         return raw, path
     ref = raw.pop("extends")
     if not isinstance(ref, str) or not ref:
-        raise InputError(f"{ref!r} must be a scene name or a scene file path", source=src, key="extends")
+        raise InputError(f"{quoted(ref)} must be a scene name or a scene file path", source=src, key="extends")
     base_path = resolve_scene_path(ref, path.parent, src, key="extends")
     if base_path.resolve() in seen or base_path.resolve() == path.resolve():
         chain = "".join(f" through {p.name}" for p in seen)
-        raise InputError(f"{ref!r} extends itself{chain}", source=src, key="extends")
+        raise InputError(f"{quoted(ref)} extends itself{chain}", source=src, key="extends")
     base, geom_path = read_scene_tree(base_path, (*seen, path.resolve()), given, origins, files)
     note_given(given, own, path)
     geometry = raw.get("geometry")
@@ -353,7 +353,7 @@ def read_scene_tree(path: Path, seen: tuple[Path, ...], given: dict[str, Path] |
     for name in nulls(mats):
         if name not in inherited:
             raise InputError(f"null removes an inherited material, and {base_path} (extends:) gives none named "
-                             f"{name!r}{did_you_mean(str(name), [str(k) for k in inherited])}", source=src,
+                             f"{quoted(name)}{did_you_mean(str(name), [str(k) for k in inherited])}", source=src,
                              key=f"materials.{name}")
     if isinstance(mats, dict) and isinstance(base_mats, dict):
         retyped = {k for k, v in mats.items() if isinstance(v, dict) and "type" in v
@@ -542,9 +542,9 @@ def _a_file_material(name: str, file_mats: tuple[Material, ...], given: Any = No
     material's name whose fields to give there); "" for another name."""
     if not any(name in (m.name, m.alias) for m in file_mats):
         return ""
-    how = f"`materials: {{{name}: ...}}` with the fields of {given!r}" if isinstance(given, str) else \
+    how = f"`materials: {{{name}: ...}}` with the fields of {quoted(given)}" if isinstance(given, str) else \
         f"`materials: {{{name}: {{type: ..., ...}}}}`"
-    return (f"; {name!r} is a material of the mesh file, not a part: to change the triangles that take it, "
+    return (f"; {quoted(name)} is a material of the mesh file, not a part: to change the triangles that take it, "
             f"replace it under materials: ({how})")
 
 
@@ -588,12 +588,12 @@ def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, 
     parts_raw = _mapping(raw.get("parts") or {}, src, "parts")
     default = raw.get("default_material")
     if default is not None and default not in names:
-        raise InputError(f"{default!r} is not a material{did_you_mean(str(default), names)}",
+        raise InputError(f"{quoted(default)} is not a material{did_you_mean(str(default), names)}",
                          source=src, key="default_material")
     for p in parts_raw:
         if p not in geom.part_names:
             raise InputError(
-                f"the geometry has no part {p!r} (parts: {', '.join(geom.part_names)})"
+                f"the geometry has no part {quoted(p)} (parts: {', '.join(geom.part_names)})"
                 f"{_a_file_material(str(p), file_mats, parts_raw[p]) or did_you_mean(str(p), geom.part_names)}",
                 source=src, key=f"parts.{p}",
             )
@@ -605,7 +605,7 @@ def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, 
         if m is None:
             continue
         if m not in names:
-            raise InputError(f"{m!r} is not a material{did_you_mean(str(m), names)}",
+            raise InputError(f"{quoted(m)} is not a material{did_you_mean(str(m), names)}",
                              source=src, key=f"parts.{p}")
         part_material[i] = names.index(m)
     unused = _check_unused(yaml_mats, file_mats, parts_raw, default, src, inherited or {})
@@ -627,7 +627,7 @@ def _assign_materials(raw: dict, geom: Geometry, src: str, inherited: dict[str, 
     if unset.any():
         if default is None:
             parts = sorted({geom.part_names[i] for i in np.unique(part[unset])})
-            raise InputError(f"part {parts[0]!r} has no material and there is no default_material"
+            raise InputError(f"part {quoted(parts[0])} has no material and there is no default_material"
                              + (f" ({len(parts)} parts lack one)" if len(parts) > 1 else ""),
                              source=src, key="parts")
         material_index = np.where(unset, names.index(default), material_index).astype(np.int32)

@@ -84,7 +84,7 @@ import re
 import struct
 from pathlib import Path
 
-from tlm.errors import InputError
+from tlm.errors import InputError, quoted
 from tlm.scenes.model import Material
 
 __all__ = [
@@ -426,7 +426,7 @@ def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: st
         if uri is None:
             out.append(len(binary) if binary is not None and i == 0 else None)
         elif not isinstance(uri, str):
-            raise InputError(f"buffers[{i}].uri = {uri!r} is not a string", source=source)
+            raise InputError(f"buffers[{i}].uri = {quoted(uri)} is not a string", source=source)
         elif uri.startswith("data:"):
             payload = uri.partition(",")[2]
             try:
@@ -438,7 +438,7 @@ def gltf_buffer_sizes(header: dict, path: Path, binary: bytes | None, source: st
         else:
             found = [f for f in (path.parent / uri, path.parent / unquote(uri)) if f.is_file()]
             if not found:
-                raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / unquote(uri)}", source=source)
+                raise InputError(f"buffers[{i}].uri {quoted(uri)}: no file {path.parent / unquote(uri)}", source=source)
             out.append(found[0].stat().st_size)
     return out
 
@@ -464,7 +464,7 @@ def check_gltf_buffers(header: dict, sizes: list[int | None], source: str) -> tu
         have = sizes[i] if i < len(sizes) else None
         length = b.get("byteLength", have)  # (left out, as the spec does not allow: what its data holds)
         uri = b.get("uri")
-        whats.append(f"its file {uri!r}" if isinstance(uri, str) and not uri.startswith("data:")
+        whats.append(f"its file {quoted(uri)}" if isinstance(uri, str) and not uri.startswith("data:")
                      else "its data URI" if isinstance(uri, str) else "the BIN chunk")
         lengths.append(length)
         held.append(have)

@@ -11,7 +11,7 @@ import functools
 import re
 from pathlib import Path
 
-from tlm.errors import InputError
+from tlm.errors import InputError, quoted
 
 __all__ = ["absolute_uri", "buffer_files", "buffer_reader", "check_ascii_stl", "glb_binary", "noting_resolver",
            "noting_resolver_class"]
@@ -41,7 +41,7 @@ def buffer_files(header: dict, path: Path, src: str) -> list | None:
             out.append(b)
             continue
         if absolute_uri(uri):
-            raise InputError(f"buffers[{i}].uri {uri!r} is an absolute path or URL: tlm reads a glTF's buffers "
+            raise InputError(f"buffers[{i}].uri {quoted(uri)} is an absolute path or URL: tlm reads a glTF's buffers "
                              f"from files named relative to its folder, {path.parent} (../ included)", source=src)
         plain = unquote(uri)
         if not (path.parent / uri).is_file() and (path.parent / plain).is_file():
@@ -49,7 +49,7 @@ def buffer_files(header: dict, path: Path, src: str) -> list | None:
             changed = True
             continue
         if not (path.parent / uri).is_file():
-            raise InputError(f"buffers[{i}].uri {uri!r}: no file {path.parent / plain}", source=src)
+            raise InputError(f"buffers[{i}].uri {quoted(uri)}: no file {path.parent / plain}", source=src)
         out.append(b)
     return out if changed else None
 
@@ -158,7 +158,7 @@ def noting_resolver_class():
 
         def absolute(self, name: str):
             if os.path.isabs(name.strip()):
-                raise ValueError(f"{name!r} is an absolute path, not a file name relative to the glTF")
+                raise ValueError(f"{quoted(name)} is an absolute path, not a file name relative to the glTF")
             parent = getattr(super(), "absolute", None)  # (trimesh 4 has none)
             return parent(name) if parent is not None else Path(self.parent) / name.strip()
 

@@ -58,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 from tlm.scenes.gltf_imports import check_mesh_nodes, gltf_imports, singular, singular_message
 from tlm.scenes.mat3 import _cross, adjugate3, det3, inverse3  # noqa: F401  (the old names, importable here)
 from tlm.scenes.mat3 import keeps_triangles as _keeps_triangles
@@ -124,7 +124,7 @@ def mesh_format(path: Path) -> tuple[str, str]:
     if ext not in SUPPORTED_EXTENSIONS or (zext and ext == ".gltf"):
         shown = (ext + zext) if zext else (path.suffix or "(none)")
         raise InputError(
-            f"unsupported mesh extension {shown!r}; supported: {', '.join(SUPPORTED_EXTENSIONS)} "
+            f"unsupported mesh extension {quoted(shown)}; supported: {', '.join(SUPPORTED_EXTENSIONS)} "
             f"(all but .gltf also compressed: {', '.join(COMPRESSED_EXTENSIONS)})",
             source=str(path),
         )
@@ -353,7 +353,7 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     dirs = list(dict.fromkeys(str(folder / n.replace("\\", "/")) for n in [text, *missing]
                               if (folder / n.replace("\\", "/")).is_dir()))  # (`mtllib sub`: a folder of that name)
     if dirs and len(words) == 1:
-        raise InputError(f"line {line}: the material library {text!r} (mtllib) is a folder, not a file: {dirs[0]}"
+        raise InputError(f"line {line}: the material library {quoted(text)} (mtllib) is a folder, not a file: {dirs[0]}"
                          + (f" (nor is there {dirs[0]}{zext})" if zext else ""), source=src)
     tried = f"no file {looked(text)}"
     if len(words) > 1:
@@ -361,7 +361,7 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
         tried += (f", nor {' and '.join(looked(w) for w in missing)} (of the names its spaces separate, as the OBJ "
                   f"spec reads several libraries{f'; {there} found' if there else ''})")
     tried += f" ({' and '.join(dirs)}: {'a folder' if len(dirs) == 1 else 'folders'})" if dirs else ""
-    raise InputError(f"line {line}: the material library {text!r} (mtllib) is missing: {tried}"
+    raise InputError(f"line {line}: the material library {quoted(text)} (mtllib) is missing: {tried}"
                      f"{_case_hint(folder, [text, *missing])}", source=src)
 
 
@@ -375,7 +375,7 @@ def _case_hint(folder: Path, names: list[str]) -> str:
     near = list(dict.fromkeys(there[n.lower()] for n in names if n.lower() in there and there[n.lower()] != n))
     if not near:
         return ""
-    return (f" ({' and '.join(repr(n) for n in near)} {'is' if len(near) == 1 else 'are'} there: the name differs in "
+    return (f" ({' and '.join(quoted(n) for n in near)} {'is' if len(near) == 1 else 'are'} there: the name differs in "
             "letter case, which this file system tells apart; write it as the file is named)")
 
 
@@ -550,7 +550,7 @@ def _load_trimesh(path: Path, ext: str, zext: str, stem: str, src: str) -> Geome
     mat_ids: list[np.ndarray] = []
     corner_normals: list[np.ndarray | None] = []
     for (name, geom, transform, _), flat in zip(items, flats):
-        label = "the mesh" if len(items) == 1 else f"geometry {name!r}"
+        label = "the mesh" if len(items) == 1 else f"geometry {quoted(name)}"
         has_faces = isinstance(geom, trimesh.Trimesh) and len(geom.faces) > 0
         strips = _ply_strips(geom) if ext == ".ply" and not has_faces else None
         polys = plyfile.polygons(geom, src) if ext == ".ply" and has_faces else None

@@ -17,6 +17,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tlm.errors import quoted
+
 MATERIAL_KINDS = ("lambertian", "mirror", "dielectric")
 KIND = {k: i for i, k in enumerate(MATERIAL_KINDS)}  # a material kind's small-integer code
 LIGHT_KINDS = ("quad", "point", "mesh", "spot", "directional")
@@ -217,7 +219,7 @@ class Light:
         read-only)."""
         u = unit_vector(self.direction)
         if u is None:
-            raise ValueError(f"{self.kind} light {self.name!r}: direction {list(self.direction)} has no length")
+            raise ValueError(f"{self.kind} light {quoted(self.name)}: direction {list(self.direction)} has no length")
         return _frozen(u)
 
     @property
