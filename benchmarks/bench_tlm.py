@@ -206,6 +206,14 @@ def main(argv: list[str] | None = None) -> None:
                     help="instead: the static run-on rule's cost on small static settings that run on and that "
                          "do not, against the same settings with arch.settle_frames 1 (see the module's text)")
     args = ap.parse_args(argv)
+    if args.repeat < 1:  # (h372: no round at all timed nothing, and --run-on's rows then failed on a KeyError)
+        ap.error(f"--repeat: {args.repeat} is not a whole number >= 1 (the best of that many runs)")
+    ignored = [flag for flag, given in (("--scene", args.scene != "cornell"), ("--mode", args.mode != "pmap"),
+                                        ("--fine-frames", args.fine_frames is not None),
+                                        ("--skip-fine", args.skip_fine)) if given]
+    if args.run_on and ignored:  # (h372: its frames and settings are fixed, RUN_ON_FRAMES and RUN_ON_SETTINGS)
+        ap.error(f"--run-on times its own fixed frames and settings (RUN_ON_SETTINGS): {', '.join(ignored)} "
+                 "would be ignored; give --repeat alone with it")
     if args.run_on:
         run_on_case(repeat=args.repeat)
         exit_status()

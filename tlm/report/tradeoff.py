@@ -23,8 +23,9 @@
     cannot show: it is drawn hollow at a floor below the smallest nonzero error, and the
     caption says so. Where a study's sizes ran different frame counts (``frames``: a stream
     that ran on until it settled at some sizes, arch.settle_frames), the host seconds are
-    drawn per frame (``simulate_seconds_per_frame``), and a note says which ran how many
-    (:func:`granularity_per_frame`).
+    drawn per frame (``simulate_seconds_per_frame``), every study's on the one axis, and a
+    note says which ran how many (:func:`granularity_per_frame`); a study written before the
+    ``frames`` column cannot be put per frame, and is then left out of the figure, said.
 """
 
 from __future__ import annotations
@@ -508,6 +509,14 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
         size, secs, err = granularity_points(st, per_frame)
         if granularity_per_frame(st):
             notes.append(f"{label}: {granularity_per_frame(st)}.")
+        if per_frame and not any(isinstance(r.get("frames"), int) for r in st.rows):
+            # (h372: a study written before the frames column, beside one whose sizes ran different frame
+            # counts: its seconds are whole simulations' of frames it does not say, not per frame)
+            notes.append(f"{label}: written before granularity.csv's frames column, its rows say the host seconds "
+                         "of the whole simulation but not the frames simulated, so they cannot be drawn per frame "
+                         "beside the studies whose sizes ran different frame counts; not drawn (run the study "
+                         "again to draw it).")
+            continue
         ok = np.isfinite(size) & np.isfinite(secs) & np.isfinite(err)
         if not ok.all():
             notes.append(f"{label}: {int((~ok).sum())} rows lack a packet size, seconds or error; not drawn.")
