@@ -374,7 +374,7 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
     known too (None: nothing is printed)."""
     from tlm.experiments.granularity import run_granularity
 
-    progress = callback(progress, "progress", "a function of one row")
+    progress = callback(progress, "progress", "a function of (packet size, timing, seconds)")
     warned = _Warned(callback(warn, "warn"))
     path, checked = _study(path, "granularity")
     with checked:

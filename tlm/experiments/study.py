@@ -33,8 +33,16 @@ from typing import Any
 
 import yaml
 
-from tlm.config import SECTIONS, apply_overrides, file_folder, files_from, read_yaml, scene_from, to_dict
-from tlm.config_words import parse_yaml
+from tlm.config import (
+    SECTIONS,
+    apply_overrides,
+    file_folder,
+    files_from,
+    read_set_value,
+    read_yaml,
+    scene_from,
+    to_dict,
+)
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
@@ -123,7 +131,7 @@ def set_leaves(item: str) -> dict[str, Any]:
     sets none, the section as it was); a value YAML cannot read (refused elsewhere): its key alone."""
     key, _, text = str(item).partition("=")
     try:
-        value = parse_yaml(text)
+        value = read_set_value(text)  # (as apply_overrides reads it: a byte not UTF-8 kept, scene=dir_\xff/x.yaml)
     except yaml.YAMLError:
         return {key.strip(): None}
     return value_leaves(key.strip(), value)
