@@ -297,6 +297,7 @@ class WorkerWatch:
         self.again: set[str] = set()  # the points (their hashes) sent again to the good workers: once each
         self.last: set[str] = set()  # the workers found bad, by a point, when none good was left beside them
         self.failed_on: dict[str, str] = {}  # a point sent again (its hash) -> the worker it failed for (its address)
+        self.back_again: dict[str, list[str]] = {}  # one re-admitted -> the points sent again from it before (hashes)
         self.gone: list[dict] = []  # the workers that left while they held some of the sweep's points (lost: events)
         # a point's future as the sweep holds it -> [its Dask future, the workers it went to (None: any), fn, args,
         # kwargs]: sent again where those all left (move); its entry dropped once it is done
@@ -459,6 +460,10 @@ class WorkerWatch:
             if address in self.bad and address not in self.why and cannot_run(seen) is None and \
                     other_code(seen, self.sweeps_code()) is None:  # (a worker back at the address of one left out:
                 self.back[address] = self.bad.pop(address)  # asked afresh; its points say what they meet)
+                # (the points sent again from it so far: its left-out event's, not those of its leaving out again)
+                self.back_again[address] = sorted(p for p, a in self.failed_on.items() if a == address)
+                for p in self.back_again[address]:
+                    del self.failed_on[p]
             if isinstance(seen, dict) and seen.get("host"):
                 self.hosts[address] = str(seen["host"])
             if isinstance(seen, dict) and isinstance(seen.get("name"), str):
@@ -606,18 +611,22 @@ class WorkerWatch:
         (how many of the sweep's points it held), each with its ``line``, as said."""
         out = []
         lines = iter(self.left_out())
-        for address, (why, _) in [*self.back.items(), *self.bad.items()]:
+        # (one re-admitted and left out again is in both: its events in that order, each with its own points)
+        entries = [*((a, v, True) for a, v in self.back.items()), *((a, v, False) for a, v in self.bad.items())]
+        for address, (why, _), readmitted in entries:
             if self.last and address not in self.why:  # (as left_out: no line on it)
                 continue
             again = []
-            for point in sorted(p for p, a in self.failed_on.items() if a == address):
+            points = self.back_again.get(address, []) if readmitted else \
+                sorted(p for p, a in self.failed_on.items() if a == address)
+            for point in points:
                 record = records.get(point) or {}
                 ran = record.get("ran") if isinstance(record.get("ran"), dict) else {}
                 again.append({"hash": point, "ran_on": ran.get("worker"), "host": ran.get("host"),
                               "status": record.get("status", "not run")})
             worker = {"worker": address, "name": self.names.get(address), "host": self.hosts.get(address)}
             out.append({"event": "left-out", **worker, "why": why, "sent_again": again, "line": next(lines, None)})
-            if address in self.back:
+            if readmitted:
                 out.append({"event": "re-admitted", **worker, "line": f"{self.where(address)}, left out of the "
                             "sweep, came back at its address answering well and took the sweep's points again"})
         self.lost()

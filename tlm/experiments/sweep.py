@@ -44,7 +44,8 @@ already done, and recomputes those whose inputs changed. Output folder::
                              points done without one: point_done); or error.json when the
                              point failed (retried by a rerun)
     workers.json             a Dask sweep's events on its workers: one left out, why, its points sent again
-                             and where they ran (only where one happened: sweep_rows.keep_worker_events)
+                             and where they ran (only where one happened: sweep_rows.keep_worker_events),
+                             of each run of the sweep into the folder (a sweep of other points removes it)
 
 A point renders nothing that another point rendered: points that differ only in
 ``arch`` (or in settings their mode never reads: ``photons.count`` in mode rcast) share one
@@ -127,7 +128,7 @@ from tlm.experiments.sweep_reference import (
     sweep_references,
     unmeasured_line,
 )
-from tlm.experiments.sweep_rows import columns, keep_worker_events, point_row, write_rows
+from tlm.experiments.sweep_rows import columns, forget_worker_events, keep_worker_events, point_row, write_rows
 from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -314,7 +315,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
              for h in todo}
 
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
-    pool = None
+    pool, workers_kept = None, False  # (workers_kept: its workers' events written, not again as the pool closes)
     with ExitStack() as held:  # (the folder, held until the last row is written)
         held.callback(forget_last_frame)  # (the frame an in-process point read last: not kept after the sweep)
         held.enter_context(keeping_accel())  # (the BSP its last render built, kept for the next: not after it)
@@ -333,6 +334,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 if not made:
                     storage.write_file(out / MARKER, marker)
                 points_dir.mkdir(parents=True, exist_ok=True)
+                forget_worker_events(out, sweep.identity())  # (those of another sweep into the folder before)
                 _clean_stale(points_dir)
                 clean_held(out)  # (the copies of references that killed sweeps left: --reference or not)
                 present = listed(points_dir)
@@ -361,7 +363,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                     said += lost
                     for line in lost if warn is not None else ():
                         warn(line)
-                    _keep_workers(out, pool, records)  # (those lines' events, kept in the folder: workers.json)
+                    _keep_workers(out, pool, records, sweep.identity())  # (those lines' events: workers.json)
+                    workers_kept = True
         except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
@@ -369,7 +372,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
             if rows_due:  # the rows of the points done, as a run to its end writes them
                 _write_finished(out, sweep, records, todo)
                 with suppress(Exception):  # (what stopped the sweep is said, not a failed write of these)
-                    _keep_workers(out, pool, records)
+                    if not workers_kept:  # (an interrupt while the executor closed: the events written already)
+                        _keep_workers(out, pool, records, sweep.identity())
             raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
@@ -521,11 +525,12 @@ def _set_scene(overrides: Iterable[str]) -> Any:
     return None
 
 
-def _keep_workers(out: Path, pool, records: dict[str, dict]) -> None:
+def _keep_workers(out: Path, pool, records: dict[str, dict], sweep: str) -> None:
     """A Dask sweep's events on its workers (a worker left out, why, its points sent again and where they ran, ...:
-    :meth:`~tlm.experiments.executors_dask.WorkerWatch.worker_events`) kept in its folder, ``workers.json``."""
+    :meth:`~tlm.experiments.executors_dask.WorkerWatch.worker_events`) kept in its folder, ``workers.json``, after
+    those of the earlier runs of the sweep (``sweep``: its identity) into it."""
     if isinstance(pool, DaskPool) and hasattr(pool, "watch"):
-        keep_worker_events(out, pool.watch.worker_events(records))
+        keep_worker_events(out, pool.watch.worker_events(records), sweep)
 
 
 def _write_rows(out: Path, rows: list[dict], factors: list[str]) -> None:

@@ -229,22 +229,49 @@ WORKERS_FILE = "workers.json"  # a Dask sweep's events on its workers (keep_work
 WORKERS_FORMAT = "sweep-workers/1"
 
 
-def keep_worker_events(out: Path, events: list[dict]) -> None:
+def keep_worker_events(out: Path, events: list[dict], sweep: str | None = None) -> None:
     """The Dask workers' ``events`` of a sweep into the folder ``out`` (:meth:`~tlm.experiments.executors_dask.
     WorkerWatch.worker_events`: a worker left out and why, the points sent again from it and where they ran, one
     re-admitted, one that left the cluster holding points), each stamped ``when`` (now, UTC: the sweep's end), after
-    those of the sweeps run into the folder before (a rerun's points done earlier were run so): ``workers.json``
-    (``tlm: sweep-workers/1``, ``events``), written whole, atomically (:func:`tlm.storage.write_file`), for
-    ``tlm report``. Nothing is written for none; one of before that cannot be read is replaced."""
+    those of the earlier runs of the sweep into the folder (a rerun's points done earlier were run so; ``sweep``: its
+    identity, :meth:`~tlm.experiments.sweep_file.Sweep.identity`, kept as the file's ``sweep``): ``workers.json``
+    (``tlm: sweep-workers/1``, ``sweep``, ``events``), written whole, atomically (:func:`tlm.storage.write_file`), for
+    ``tlm report``. Nothing is written for none; one of before that cannot be read, is not of this format (no
+    ``tlm: sweep-workers/1``, no ``events`` list) or is another sweep's, is replaced. The file is read and written
+    under the folder's lock (:func:`tlm.storage.folder_lock`): two runs of one sweep sharing the folder keep each
+    one's events."""
     if not events:
         return
     when = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-    kept: list = []
-    with suppress(OSError, ValueError, UnicodeDecodeError):
-        old = json.loads((out / WORKERS_FILE).read_text(encoding="utf-8"))
-        kept = [e for e in old.get("events") or [] if isinstance(e, dict)] if isinstance(old, dict) else []
-    body = {"tlm": WORKERS_FORMAT, "events": [*kept, *({**e, "when": when} for e in events)]}
-    storage.write_file(out / WORKERS_FILE, storage.json_text(body, indent=2) + "\n")
+    with storage.folder_lock(out):
+        body = {"tlm": WORKERS_FORMAT, **({"sweep": sweep} if sweep is not None else {}),
+                "events": [*(kept_worker_events(out, sweep) or []), *({**e, "when": when} for e in events)]}
+        storage.write_file(out / WORKERS_FILE, storage.json_text(body, indent=2) + "\n")
+
+
+def kept_worker_events(out: Path, sweep: str | None = None) -> list[dict] | None:
+    """The events the folder ``out``'s ``workers.json`` keeps (:func:`keep_worker_events`): [] where it has none, or
+    one that cannot be read or is not of this format; None where it is another sweep's than ``sweep`` (where given:
+    a sweep of other points run into the folder since)."""
+    try:
+        body = json.loads((out / WORKERS_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return []
+    if not isinstance(body, dict) or body.get("tlm") != WORKERS_FORMAT or not isinstance(body.get("events"), list):
+        return []
+    if sweep is not None and body.get("sweep") != sweep:
+        return None
+    return [e for e in body["events"] if isinstance(e, dict)]
+
+
+def forget_worker_events(out: Path, sweep: str) -> None:
+    """``workers.json`` removed from the folder ``out`` where it is of another sweep than ``sweep`` (its identity): a
+    sweep of other points now runs into the folder, whose rows its events (of points no longer its) do not tell of."""
+    if kept_worker_events(out, sweep) is not None:  # (none of another sweep: nothing to do, no lock waited for)
+        return
+    with storage.folder_lock(out):
+        if kept_worker_events(out, sweep) is None:
+            (out / WORKERS_FILE).unlink(missing_ok=True)
 
 
 def trim_torn(path: Path) -> None:

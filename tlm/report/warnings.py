@@ -28,7 +28,7 @@ from __future__ import annotations
 import json
 from collections import Counter
 
-from tlm.experiments.sweep_rows import WORKERS_FILE
+from tlm.experiments.sweep_rows import WORKERS_FILE, WORKERS_FORMAT
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
 
@@ -172,7 +172,9 @@ def worker_events(inputs: Inputs) -> list[tuple[str, str]]:
         whose = f"the sweep {sw.label}"
         try:
             body = json.loads(path.read_text(encoding="utf-8"))
-            events = body.get("events") if isinstance(body, dict) else None
+            if not isinstance(body, dict) or body.get("tlm") != WORKERS_FORMAT:
+                raise ValueError(f"it is not a tlm: {WORKERS_FORMAT} file")
+            events = body.get("events")
             if not isinstance(events, list):
                 raise ValueError("it holds no events list")
         except (OSError, ValueError, UnicodeDecodeError) as e:
@@ -184,7 +186,8 @@ def worker_events(inputs: Inputs) -> list[tuple[str, str]]:
             line = event.get("line")
             if not isinstance(line, str):
                 line = f"the Dask worker {event.get('worker')}: {event.get('event')} ({event.get('why')})"
-            again = [_point_words(p, points) for p in event.get("sent_again") or [] if isinstance(p, dict)]
+            sent = event.get("sent_again")
+            again = [_point_words(p, points) for p in sent if isinstance(p, dict)] if isinstance(sent, list) else []
             if again:
                 line += f"; point{'s' * (len(again) > 1)} sent again: " + ", ".join(again)
             out.append((line, whose + (f", {event['when']}" if isinstance(event.get("when"), str) else "")))

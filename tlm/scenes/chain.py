@@ -95,7 +95,7 @@ def parts_removed(merged: dict, raw: dict, base: dict) -> None:
 
 
 def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path], files: list[Path],
-                src: str, items: list | None = None) -> tuple[dict, list[str]]:
+                src: str, items: list | None = None, hint: Any = None) -> tuple[dict, list[str]]:
     """``raw`` without the ``parts:`` entries a base of the ``extends:`` chain ``files`` (base first)
     gave for a part that the geometry, replaced or changed by a later file of the chain (more than a
     ``transform``: :func:`_parts_by`), no longer has (a file extending ``examples/mesh_on_floor``
@@ -104,7 +104,9 @@ def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path]
     names that file and key. So is a base's entry that names no part of the geometry it was given for
     (a typo), as far as the part names of the geometries from that file on (``files`` a :class:`Files`: each
     file's ``geometry:``) are known without building them (:func:`~tlm.scenes.compose.listed_part_names`, from
-    ``items``, the items of the geometry built): an InputError naming that file and key."""
+    ``items``, the items of the geometry built): an InputError naming that file and key, with ``hint(part,
+    value)``'s words where they say more than a near name (the loader's: the name is a material of the mesh
+    files), as the base alone says it."""
     parts = raw.get("parts")
     at = {f: i for i, f in enumerate(files)}
     geometry_by = _parts_by(origins, at)
@@ -113,14 +115,15 @@ def stale_parts(raw: dict, part_names: tuple[str, ...], origins: dict[str, Path]
     given_by = {k: origins.get(f"parts.{k}") for k in parts if k not in part_names}
     stale = {k: by for k, by in given_by.items() if at.get(by, geometry_by) < geometry_by}
     for k, by in stale.items():
-        _typo(k, by, files[at[by]:geometry_by], getattr(files, "geometries", None), items)
+        _typo(k, by, files[at[by]:geometry_by], getattr(files, "geometries", None), items,
+              hint(k, parts[k]) if hint is not None else "")
     notes = [f"{src}: parts.{k} (given by {by}, through extends:): the geometry here has no part {quoted(k)}: the "
              f"entry is not used (`parts: {{{k}: null}}` leaves it out without this note)" for k, by in stale.items()]
     return {**raw, "parts": {k: v for k, v in parts.items() if k not in stale}}, notes
 
 
 def _typo(part: str, by: Path, since: list[Path], geometries: dict[Path, tuple[Any, Path]] | None,
-          items: list | None) -> None:
+          items: list | None, hint: str = "") -> None:
     """An InputError naming the file ``by`` and its ``parts.PART`` where ``part`` is a part of no geometry of the
     files ``since`` (``by`` and those after it before the file that gave the geometry), each known (their part names:
     :func:`~tlm.scenes.compose.listed_part_names`): a typo, as ``by`` alone says it; where one is not known, the
@@ -138,7 +141,7 @@ def _typo(part: str, by: Path, since: list[Path], geometries: dict[Path, tuple[A
         known.append(names)
     names = known[0]
     raise InputError(f"the geometry has no part {quoted(part)} (parts: {', '.join(names)})"
-                     f"{did_you_mean(str(part), names)}",
+                     f"{hint or did_you_mean(str(part), names)}",
                      source=str(by), key=f"parts.{part}")
 
 

@@ -407,7 +407,8 @@ def _scene(path: Path, raw: dict, geom_path: Path, given: dict[str, Path], resol
     _check_triangles(tri, src)
 
     inherited = {name: str(f) for name, f in given.items() if f != path}  # (through extends:)
-    raw, stale = stale_parts(raw, tuple(geom.part_names), origins, files, src, items)  # (a base's, of parts gone)
+    raw, stale = stale_parts(raw, tuple(geom.part_names), origins, files, src, items,  # (a base's, of parts gone)
+                             lambda p, given: _a_file_material(str(p), tuple(geom.materials), given))
     materials, material_index, unused = _assign_materials(raw, geom, src, inherited)
     part = np.asarray(geom.part, dtype=np.int32)
 
