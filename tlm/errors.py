@@ -50,7 +50,10 @@ def quoted(value: object) -> str:
     (:func:`surrogates_escaped`), not as Python's ``\\udcff``. A folder literally named with a backslash,
     ``dir_\\xff``, is ``'dir_\\\\xff'``, as ``repr`` writes it. Anything else: its ``repr``, a surrogate
     in a string of it (a list of paths) shown so too."""
-    text = repr(os.fspath(value) if isinstance(value, os.PathLike) else value)
+    try:
+        text = repr(os.fspath(value) if isinstance(value, os.PathLike) else value)
+    except Exception:  # (a path object whose __fspath__ fails or gives no text: a message names it, never raises)
+        text = repr(value)
     return _REPR_SURROGATE.sub(lambda m: "\\\\" if m.group(2) is None else f"\\x{m.group(2)}", text)
 
 

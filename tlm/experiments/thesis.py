@@ -138,7 +138,7 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) for s in scenes):
         raise InputError(f"{quoted(scenes)} must be a non-empty list of scene names or paths", source=src, key="scenes")
     if not isinstance(modes, list) or not modes or any(m not in MODES for m in modes):
-        raise InputError(f"{modes!r} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
+        raise InputError(f"{quoted(modes)} must be a non-empty list of {', '.join(MODES)}", source=src, key="modes")
     twice = sorted({m for m in modes if modes.count(m) > 1}, key=MODES.index)
     if twice:  # (each mode writes DIR/<scene>/<mode> and its rows once: a second one would be dropped)
         raise InputError(f"{', '.join(repr(m) for m in twice)} {'is' if len(twice) == 1 else 'are'} listed twice "
@@ -497,15 +497,15 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     """
     base, scenes, modes, folder = load_study(Path(path))
     if "rcast" not in modes:
-        raise InputError(f"{modes!r} has no rcast: calibrate fits the RCast column only (the other modes' cells "
+        raise InputError(f"{quoted(modes)} has no rcast: calibrate fits the RCast column only (the other modes' cells "
                          "are predictions)", source=str(path), key="modes")
     unknown = [s for s in scenes if _name(s) not in THESIS]
     if unknown:
-        raise InputError(f"{unknown} have no thesis table to calibrate against", source=str(path), key="scenes")
+        raise InputError(f"{quoted(unknown)} have no thesis table to calibrate against", source=str(path), key="scenes")
     if len(scenes) < 2:
-        raise InputError(f"{scenes!r}: one scene gives one RCast cell per PM, too few for the Traversal and Fragment "
-                         "PMs' two parameters each (scale, record_cycles): list at least two of the thesis's scenes "
-                         f"({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
+        raise InputError(f"{quoted(scenes)}: one scene gives one RCast cell per PM, too few for the Traversal and "
+                         "Fragment PMs' two parameters each (scale, record_cycles): list at least two of the "
+                         f"thesis's scenes ({', '.join(THESIS_SCENES.values())})", source=str(path), key="scenes")
     cfgs = {s: config_from_dict({**base, "scene": s, "mode": "rcast"}, str(path)) for s in scenes}
     cfg0 = cfgs[scenes[0]]
     programs = programs_for(cfg0, folder)  # a bad instruction table fails before the renders

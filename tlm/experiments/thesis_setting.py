@@ -188,7 +188,9 @@ def _bound_unread(timing: dict | None, ours, theirs) -> bool:
     if cap != frames_cap(asked, ours):  # (a folder whose results and config disagree)
         return False
     other = frames_cap(asked, theirs)
-    return cap == other or (est.get("settled") is True and ran < cap and ran <= other)
+    # (below its cap it stopped where its completions so far repeated, as at any cap from there on, whatever
+    # the estimate over the whole stream says, est["settled"]: run_warnings.timing_inert judges it so too)
+    return cap == other or (ran < cap and ran <= other)
 
 
 _MISSING = object()
