@@ -371,7 +371,9 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
     ``overrides``: ``dotted.key=value`` strings (``tlm granularity --set``) applied to its base (not
     ``arch.packet_size``). Its warnings (an override that sets nothing, ``render={}``), which ``tlm
     granularity`` prints on stderr, are the rows' ``attrs["warnings"]``; ``warn`` gets each as it is
-    known too (None: nothing is printed)."""
+    known too (None: nothing is printed). ``progress(packet_size, timing, seconds)`` is called as each
+    size is simulated (``timing``: its Timing; ``len(timing.frames)`` the frames it ran, more than
+    ``arch.frames`` where the stream ran on: the rows' ``frames`` and ``*_per_frame`` columns)."""
     from tlm.experiments.granularity import run_granularity
 
     progress = callback(progress, "progress", "a function of (packet size, timing, seconds)")

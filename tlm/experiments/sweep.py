@@ -514,14 +514,16 @@ def _row(point: Point, record: dict, sweep) -> dict:
 
 
 def _set_scene(overrides: Iterable[str]) -> Any:
-    """The value of the last ``--set scene=...`` of ``overrides`` as written (read as YAML), or None."""
+    """The value of the last ``--set scene=...`` of ``overrides`` as written, read as the run's ``--set`` reads it
+    (:func:`~tlm.config.read_set_value`: a byte not UTF-8 kept, ``scene=dir_\\xff/x.yaml``), or None."""
     import yaml
 
+    from tlm.config import read_set_value
     from tlm.experiments.study import override_key
 
     given = [str(o).partition("=")[2] for o in overrides if override_key(str(o)) == "scene"]
     with suppress(yaml.YAMLError):
-        return yaml.safe_load(given[-1]) if given else None
+        return read_set_value(given[-1]) if given else None
     return None
 
 

@@ -210,8 +210,8 @@ def workers_html(inputs: Inputs) -> str:
 
 def warnings_html(inputs: Inputs) -> str:
     """The block under the report's inputs line: inputs of different tlm code (:func:`code_line`), the
-    damaged files left out (:func:`damaged_html`) and the warnings the runs recorded; empty when there
-    are none of these."""
+    damaged files left out (:func:`damaged_html`), the events the Dask sweeps kept on their workers
+    (:func:`workers_html`) and the warnings the runs recorded; empty when there are none of these."""
     found = recorded(inputs)
     studies = study_recorded(inputs)
     damaged = damaged_html(inputs) + workers_html(inputs)
