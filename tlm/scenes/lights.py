@@ -95,6 +95,28 @@ def with_mesh_light(scene: Scene) -> Scene:
     return replace(scene, lights=lights if light is None else (*lights, light))
 
 
+def scaled_light(lt: Light, scale: float, translate: np.ndarray) -> Light:
+    """A point, spot, quad or directional light of a scene scaled about the origin by ``scale``, then
+    moved by ``translate`` (:func:`tlm.scenes.loader.transform_scene`): its power times ``scale**2`` (its
+    radiance, so the image, unchanged; a directional light's is set again from the scene's box,
+    :func:`with_mesh_light`) and its kind's own points moved: a point's or spot's ``position``, a quad's
+    ``corner`` (its edges scaled). A field its kind does not have is left as it is: moved, a quad's
+    ``position`` (0, 0, 0) became the translation, a value no scene file gives, so that the scene
+    exported (:func:`tlm.scenes.export.scene_yaml`) loaded back as another Light."""
+    def pt(p) -> tuple[float, float, float]:
+        return tuple(float(x) for x in np.asarray(p) * scale + translate)
+
+    def vec(v) -> tuple[float, float, float]:
+        return tuple(float(x) for x in np.asarray(v) * scale)
+
+    power = tuple(float(x) * scale**2 for x in lt.power)
+    if lt.kind == "quad":
+        return replace(lt, power=power, corner=pt(lt.corner), edge_u=vec(lt.edge_u), edge_v=vec(lt.edge_v))
+    if lt.kind in ("point", "spot"):
+        return replace(lt, power=power, position=pt(lt.position))
+    return replace(lt, power=power)
+
+
 def unit_direction(v: tuple[float, float, float], src: str, key: str) -> tuple[float, float, float]:
     """``v`` itself, or an InputError when it is no direction (zero: it has no length,
     :func:`~tlm.scenes.model.unit_vector`)."""

@@ -43,7 +43,7 @@ from tlm.scenes.float32_range import (  # noqa: F401  (the old names, still impo
     float32_sizes,
 )
 from tlm.scenes.lights import mesh_light as mesh_light  # (kept importable from here: tlm.render.checks names it)
-from tlm.scenes.lights import scene_lights, typed, with_mesh_light
+from tlm.scenes.lights import scaled_light, scene_lights, typed, with_mesh_light
 from tlm.scenes.model import Camera, Geometry, Material, Scene
 from tlm.scenes.normals import DEFAULT_CREASE_ANGLE, crease_normals
 from tlm.scenes.shapes import machine_memory
@@ -673,27 +673,13 @@ def transform_scene(scene: Scene, scale: float, translate: np.ndarray) -> Scene:
     """Scale about the origin then translate: geometry, lights and camera together.
 
     Light power is scaled by ``scale**2`` so that radiance, and so the image, does not
-    change: a scene scaled by 1e-6 or moved 1e6 away renders the same picture.
+    change: a scene scaled by 1e-6 or moved 1e6 away renders the same picture. A light's
+    fields its kind does not have stay as they are (:func:`~tlm.scenes.lights.scaled_light`).
     """
-    from dataclasses import replace
-
     def pt(p):
         return tuple(float(x) for x in np.asarray(p) * scale + translate)
 
-    def vec(v):
-        return tuple(float(x) for x in np.asarray(v) * scale)
-
-    lights = tuple(
-        replace(
-            lt,
-            power=tuple(float(x) * scale**2 for x in lt.power),
-            position=pt(lt.position),
-            corner=pt(lt.corner),
-            edge_u=vec(lt.edge_u),
-            edge_v=vec(lt.edge_v),
-        )
-        for lt in scene.lights if lt.kind != "mesh"
-    )
+    lights = tuple(scaled_light(lt, scale, translate) for lt in scene.lights if lt.kind != "mesh")
     cam = replace(scene.camera, eye=pt(scene.camera.eye), target=pt(scene.camera.target))
     moved = replace(scene, triangles=scene.triangles * scale + translate, lights=lights, camera=cam)
     return with_mesh_light(moved)
