@@ -80,7 +80,13 @@ def left_out_warnings(plan, cfg: RunConfig) -> list[str]:
     traced and the run has no pmap frame, which its passes and images would otherwise leave unsaid."""
     return [f"mode {cfg.mode!r} asks for the photon-map pass, but {p.reason}: the pass is left out, no photon is "
             f"traced and the run has no pmap frame (its passes: {', '.join(plan.run_names)})"
+            + (_COUNT_HINT if p.by == "photons.count" and cfg.photons.count is None else "")
             for p in plan.passes if p.name == "pmap" and not p.run and p.by is not None]
+
+
+# (a null photons.count takes the scene file's photons:, 0 where it gives none: say where to give it)
+_COUNT_HINT = ("; the config's photons.count is null, so the scene file's photons: counts, and it gives 0 or "
+               "none: give the scene file photons: N, or --set photons.count=N")
 
 
 def threads_warning(cfg: RunConfig | None, cpus: int | None = None) -> list[str]:

@@ -103,6 +103,8 @@ _SCALARS = ("Ni", "d", "Tr", "illum", "Ns")
 _MTL_LOOKS = ("bump", "disp", "decal", "refl", "norm", "Pr", "Pm", "Ps", "Pc", "Pcr", "aniso", "anisor")
 _GLTF_READ = ("KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior")
 _SPEC_GLOSS = "KHR_materials_pbrSpecularGlossiness"  # (not read: a glTF reader without it reads the fallback)
+# (an illum 2 material's Ks that outweighs its Kd: the file's look is glossy, tlm's Lambertian)
+HIGHLIGHT = "Ks (an illum 2 glossy highlight stronger than Kd)"
 _IGNORED = "ignored"  # (the key of a material's ignored statements among its MTL properties)
 _SAID = "said"  # (its statements as the file writes them, by key: [(line, numbers as written, value), ...])
 
@@ -296,7 +298,9 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0, notes:
                  ) -> Material:
     """Map one MTL material (``props``: key -> (value, line number)) to tlm's kinds,
     by the module's table. ``notes``, where given, gets a line when the colour used (``Kd``
-    of a Lambertian, ``Ks`` of a mirror) has a component over 1, clipped to 1."""
+    of a Lambertian, ``Ks`` of a mirror) has a component over 1, clipped to 1. An ``illum 2``
+    material's ``Ks`` of at least 0.5 and over its ``Kd`` (a glossy highlight, ``CornellBox-Glossy``'s
+    sphere: a look tlm does not render) is kept on its ``ignored``, for the run's warning."""
 
     def get(key, default=None):
         return props[key][0] if key in props else default
@@ -330,6 +334,8 @@ def mtl_material(name: str, props: dict, source: str = "", line: int = 0, notes:
     if illum in MIRROR_ILLUM or (illum is None and max(ks) > max(kd) and max(ks) > 0.0):
         return Material(name, "mirror", reflectance=clipped("Ks", "reflectance", ks), emission=emission,
                         ignored=ignored)
+    if illum == 2 and max(ks) >= 0.5 and max(ks) > max(kd):
+        ignored = (*ignored, HIGHLIGHT)
     return Material(name, "lambertian", albedo=clipped("Kd", "albedo", kd), emission=emission, ignored=ignored)
 
 
