@@ -484,10 +484,11 @@ def granularity_per_frame(study: Study) -> str:
     ran = frames_differ(study.rows)
     if not ran:
         return ""
-    counts = "; ".join(f"{f} at packets of {', '.join(str(s) for s in sizes)}" for f, sizes in ran.items())
-    return (f"the packet sizes ran different frame counts ({counts}: the stream ran on past arch.frames until "
-            "its completions repeated, at most arch.settle_frames), so their host seconds are compared per frame "
-            "(simulate_seconds_per_frame)")
+    most = max(ran, key=lambda f: (len(ran[f]), -f))  # (the frame count of most sizes: "the others")
+    counts = "; ".join([*(f"{f} at packets of {', '.join(str(s) for s in sizes)}" for f, sizes in ran.items()
+                          if f != most), f"{most} at the others"])
+    return (f"the packet sizes ran different frame counts ({counts}: a stream ran on until its completions "
+            "repeated, arch.settle_frames), so host seconds are per frame")
 
 
 def granularity_points(study: Study, per_frame: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
