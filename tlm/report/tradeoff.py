@@ -484,9 +484,12 @@ def granularity_per_frame(study: Study) -> str:
     ran = frames_differ(study.rows)
     if not ran:
         return ""
-    most = max(ran, key=lambda f: (len(ran[f]), -f))  # (the frame count of most sizes: "the others")
+    # (the frame count of most sizes, the fewer frames on a tie: "the others", where they are two or more
+    # sizes; where each count ran at one size, every size is named: "the others" would be one, unnamed)
+    most = max(ran, key=lambda f: (len(ran[f]), -f))
+    most = most if len(ran[most]) > 1 else None
     counts = "; ".join([*(f"{f} at packets of {', '.join(str(s) for s in sizes)}" for f, sizes in ran.items()
-                          if f != most), f"{most} at the others"])
+                          if f != most), *([f"{most} at the others"] if most is not None else [])])
     return (f"the packet sizes ran different frame counts ({counts}: a stream ran on until its completions "
             "repeated, arch.settle_frames), so host seconds are per frame")
 

@@ -168,8 +168,8 @@ def _transform_imported(imp: Imported, m: np.ndarray, t: np.ndarray) -> Imported
         with np.errstate(over="ignore", invalid="ignore"):
             u = unit_vector(m @ np.asarray(lt.direction, dtype=np.float64))
         # (NaN where M leaves it none, which only a product beyond float64 can: the loader names it)
-        return replace(lt, position=pt(lt.position), direction=(math.nan,) * 3 if u is None
-                       else tuple(float(x) for x in u))
+        return replace(lt, position=pt(lt.position) if lt.kind == "spot" else lt.position,  # (a directional
+                       direction=(math.nan,) * 3 if u is None else tuple(float(x) for x in u))  # light has none)
 
     lights = tuple(light(lt) for lt in imp.lights)
     cam = imp.camera

@@ -493,8 +493,8 @@ def gltf_imports(header: dict, src: str) -> tuple[Imported | None, tuple[str, ..
                 out.append(Light("spot", tuple(float(x) for x in 4.0 * math.pi * radiant), position=position,
                                  direction=direction, inner_angle=cone[0], outer_angle=cone[1], name=name))
             else:  # (lux read as W per unit area; its power is set by the scene's loader, from the scene's box)
-                out.append(Light("directional", (0.0, 0.0, 0.0), position=position, direction=direction,
-                                 irradiance=tuple(float(x) for x in radiant), name=name))
+                out.append(Light("directional", (0.0, 0.0, 0.0), direction=direction,  # (no position: its node's
+                                 irradiance=tuple(float(x) for x in radiant), name=name))  # is no field of its kind)
         if "range" in lights[k] and kind != "directional":
             ranged.append((f"{_label(lights[k], f'lights[{k}]')} (range {lights[k]['range']:g})", kind))
     camera, camera_name, aspect = None, "", None

@@ -79,7 +79,8 @@ class Material:
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     # what the mesh file gives the material that tlm does not render (MTL ``map_Kd``, ``bump``;
     # glTF ``baseColorTexture``, ``alpha``), for the run's warning (tlm.render.checks); not part
-    # of the material's value (equality, hashes)
+    # of the material's equality nor of its record() (references, Mitsuba), but its repr is, and so
+    # the scene fingerprint of the frame cache
     ignored: tuple[str, ...] = field(default=(), compare=False)
     # a mesh file's material renamed where two files name one (tlm.scenes.compose.merge): the
     # name its file gives it, by which a scene file's materials: entry still replaces it
