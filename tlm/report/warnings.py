@@ -203,7 +203,7 @@ def workers_html(inputs: Inputs) -> str:
     n = len(found)
     return (f"<p><strong>Dask workers.</strong> The sweeps shown kept {n} event{'s' * (n > 1)} on their Dask "
             f"workers ({esc(WORKERS_FILE)} <code>events</code>); a point sent again ran twice, and its row is "
-            "its second run:</p><ul>"
+            "its later run (or a run since, where the sweep ran again into its folder):</p><ul>"
             + "".join(f"<li>{esc(line)}<span class=\"note\"> ({esc(whose)})</span></li>" for line, whose in found)
             + "</ul>")
 
