@@ -77,6 +77,7 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
     error_vs_cost,
     extreme,
     granularity,
+    granularity_frames,  # noqa: F401  (not in __all__: the CLI's line under tlm granularity's table)
     in_checkout,  # noqa: F401
     out_folder,
     plots,

@@ -402,6 +402,15 @@ class _Warned:
 
 
 
+def granularity_frames(rows: list[dict]) -> dict[int, list[int]]:
+    """``{frames: [packet sizes]}`` of :func:`granularity`'s rows where they ran different frame counts, ``{}``
+    where they ran the same (:func:`tlm.experiments.granularity.frames_differ`, as the report groups them): what
+    ``tlm granularity`` says under its table."""
+    from tlm.experiments.granularity import frames_differ
+
+    return frames_differ(rows)
+
+
 def _stderr_warning(line: str) -> None:
     from tlm.storage import warn
 

@@ -107,14 +107,13 @@ def granularity_frames_line(rows: list[dict]) -> str:
     """``tlm granularity``'s line under its rows where they ran different frame counts (h364: a stream of two
     images whose steady gaps do not repeat runs on past ``arch.frames`` until they do, at one packet size and
     not at another), so the totals (``simulate_seconds``, ``simpy_events``) are not compared; "" where every
-    row ran the same. (The rows' own grouping, as tlm.experiments.granularity.frames_differ groups them for
-    the report: the CLI reads the experiments only through tlm.api.)"""
-    ran: dict[int, list[int]] = {}
-    for r in rows:
-        ran.setdefault(r["frames"], []).append(r["packet_size"])
-    if len(ran) < 2:
+    row ran the same. (The rows grouped as the report groups them, :func:`tlm.api.granularity_frames`.)"""
+    from tlm import api
+
+    ran = api.granularity_frames(rows)
+    if not ran:
         return ""
-    counts = "; ".join(f"{f} at packets of {values_text(sizes)}" for f, sizes in sorted(ran.items()))
+    counts = "; ".join(f"{f} at packets of {values_text(sizes)}" for f, sizes in ran.items())
     return (f"  the rows ran different frame counts: {counts} (where the stream's completions did not repeat "
             "within arch.frames it ran on until they did, at most arch.settle_frames: tlm/arch/steady.py); "
             "simulate_seconds and simpy_events are totals over a row's frames: compare them per frame "

@@ -61,6 +61,13 @@ def frames_cap(frames: int, settle_frames: int = SETTLE_FRAMES) -> int:
     return max(frames, settle_frames)
 
 
+def runs_alike(ran: int, cap: int, other: int) -> bool:
+    """Whether a settling stream that ran ``ran`` frames under its cap ``cap`` (:func:`frames_cap`) would run
+    the same under the cap ``other``: the same cap, or it stopped below its own where its completions so far
+    repeated, as at any cap from there on, and no later than ``other`` (each arrival decides alike up to there)."""
+    return cap == other or (ran < cap and ran <= other)
+
+
 def periodic_tail(gaps: list[int]) -> tuple[int, int] | None:
     """(s, p): the smallest period p with which ``gaps`` end, held over at least two whole periods, at
     least :data:`MIN_REPEAT_GAPS` gaps and at least as many gaps as came before it (s: a repeat inside the

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from tlm.arch.model import Timing, settling
+from tlm.arch.steady import runs_alike
 from tlm.config import ArchConfig, RunConfig
 from tlm.config_words import sets_nothing
 from tlm.experiments.study import override_key, set_leaves
@@ -212,7 +213,7 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
         ran, other = len(timing.frames), max(arch.frames, default.settle_frames)
         if cap == other:
             out["arch.settle_frames"] = f"arch.frames = {arch.frames} bounds the stream at this value and the default's"
-        elif ran < cap and ran <= other:
+        elif runs_alike(ran, cap, other):
             asked = f"the {ran} frames asked (arch.frames), settled by then" if ran == arch.frames else \
                 f"{ran} frames, where it settled"
             out["arch.settle_frames"] = (f"the stream ran {asked}: within this bound and the default's ({other})")

@@ -254,14 +254,23 @@ def kept_worker_events(out: Path, sweep: str | None = None) -> list[dict] | None
     one that cannot be read or is not of this format; None where it is another sweep's than ``sweep`` (where given:
     a sweep of other points run into the folder since)."""
     try:
-        body = json.loads((out / WORKERS_FILE).read_text(encoding="utf-8"))
-    except (OSError, ValueError, UnicodeDecodeError):
-        return []
-    if not isinstance(body, dict) or body.get("tlm") != WORKERS_FORMAT or not isinstance(body.get("events"), list):
+        body = read_worker_events(out / WORKERS_FILE)
+    except (OSError, ValueError):  # (UnicodeDecodeError among them)
         return []
     if sweep is not None and body.get("sweep") != sweep:
         return None
     return [e for e in body["events"] if isinstance(e, dict)]
+
+
+def read_worker_events(path: Path) -> dict:
+    """The body of the ``workers.json`` at ``path`` (:func:`keep_worker_events`); OSError where it cannot be read,
+    ValueError (a UnicodeDecodeError, a JSONDecodeError, or one saying why) where it is no such file."""
+    body = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(body, dict) or body.get("tlm") != WORKERS_FORMAT:
+        raise ValueError(f"it is not a tlm: {WORKERS_FORMAT} file")
+    if not isinstance(body.get("events"), list):
+        raise ValueError("it holds no events list")
+    return body
 
 
 def forget_worker_events(out: Path, sweep: str) -> None:

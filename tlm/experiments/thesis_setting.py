@@ -23,7 +23,7 @@ import math
 import re
 from pathlib import Path
 
-from tlm.arch.steady import frames_cap
+from tlm.arch.steady import frames_cap, runs_alike
 from tlm.builtin import configs_dir
 from tlm.config import MODES, config_from_dict, describe, to_dict
 from tlm.errors import InputError
@@ -187,10 +187,9 @@ def _bound_unread(timing: dict | None, ours, theirs) -> bool:
         return ran == asked and "window" in est  # (not measured as settling: ran the frames asked, at any bound)
     if cap != frames_cap(asked, ours):  # (a folder whose results and config disagree)
         return False
-    other = frames_cap(asked, theirs)
-    # (below its cap it stopped where its completions so far repeated, as at any cap from there on, whatever
-    # the estimate over the whole stream says, est["settled"]: run_warnings.timing_inert judges it so too)
-    return cap == other or (ran < cap and ran <= other)
+    # (below its cap it stopped where its completions so far repeated, whatever the estimate over the whole
+    # stream says, est["settled"]: run_warnings.timing_inert judges it so too)
+    return runs_alike(ran, cap, frames_cap(asked, theirs))
 
 
 _MISSING = object()

@@ -25,10 +25,9 @@ is not changed.
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 
-from tlm.experiments.sweep_rows import WORKERS_FILE, WORKERS_FORMAT
+from tlm.experiments.sweep_rows import WORKERS_FILE, read_worker_events
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
 
@@ -171,13 +170,8 @@ def worker_events(inputs: Inputs) -> list[tuple[str, str]]:
             continue
         whose = f"the sweep {sw.label}"
         try:
-            body = json.loads(path.read_text(encoding="utf-8"))
-            if not isinstance(body, dict) or body.get("tlm") != WORKERS_FORMAT:
-                raise ValueError(f"it is not a tlm: {WORKERS_FORMAT} file")
-            events = body.get("events")
-            if not isinstance(events, list):
-                raise ValueError("it holds no events list")
-        except (OSError, ValueError, UnicodeDecodeError) as e:
+            events = read_worker_events(path)["events"]
+        except (OSError, ValueError) as e:  # (UnicodeDecodeError among them)
             out.append((f"{path} could not be read ({e}): what the sweep kept of its Dask workers (one left out, "
                         "points sent again) is not shown", whose))
             continue
