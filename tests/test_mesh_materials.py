@@ -493,7 +493,7 @@ def test_a_run_warns_of_the_textures_of_the_materials_it_shows(tmp_path):
             "camera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], vfov: 40}\nresolution: [8, 8]\n")
     (tmp_path / "s.yaml").write_text(head)
     (line,) = material_warnings(api.load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of the mesh files ('wood', 'stone') use what tlm does not render: "
+    assert line.startswith("2 materials of the mesh file ('wood', 'stone') use what tlm does not render: "
                            "map_Kd, bump;"), line
     (tmp_path / "s.yaml").write_text(head + "materials: {wood: {type: lambertian, albedo: [0.5, 0.3, 0.1]}}\n")
     scene = api.load_scene(tmp_path / "s.yaml")

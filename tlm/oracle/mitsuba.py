@@ -94,6 +94,7 @@ import numpy as np
 
 from tlm.caches import cache_root
 from tlm.errors import EnvironmentFailure, InputError
+from tlm.scenes.lights import own_points
 from tlm.scenes.model import Scene
 from tlm.storage import atomic_folder
 
@@ -223,9 +224,10 @@ def _normalised(scene: Scene) -> Scene:
     def vec(v):
         return tuple(float(x) for x in np.asarray(v, dtype=np.float64) * k)
 
-    # (a directional light's irradiance does not change; its power, irradiance x the area of a disc, does)
-    lights = tuple(replace(lt, position=pt(lt.position), corner=pt(lt.corner), edge_u=vec(lt.edge_u),
-                           edge_v=vec(lt.edge_v), power=tuple(float(x) * k * k for x in lt.power))
+    # (each light's own points and lengths, as the scene loader's transform moves them, lights.scaled_light: a
+    # field its kind does not have stays as it is; a directional light's irradiance does not change, its power,
+    # irradiance x the area of a disc, does)
+    lights = tuple(replace(lt, power=tuple(float(x) * k * k for x in lt.power), **own_points(lt, pt, vec))
                    for lt in scene.lights if lt.kind != "mesh")  # a mesh light goes with its material
     camera = replace(scene.camera, eye=(0.0, 0.0, 0.0), target=pt(scene.camera.target))
     triangles = (np.asarray(scene.triangles, dtype=np.float64) - eye) * k

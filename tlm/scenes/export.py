@@ -22,7 +22,8 @@ A ``.yaml`` target writes the scene file that closes the round trip (:func:`scen
 ``geometry: {mesh: STEM.obj}``, every material under ``materials:`` with its exact values
 (which replace the MTL's of the same name on reading, glass's transmittance included),
 the quad, point, spot and directional lights (a mesh light is its emitting materials; a
-directional light's irradiance: its power follows the scene's bounds), the camera, the
+directional light's irradiance: its power follows the scene's bounds; each with its ``name:`` where
+it has one, a glTF's light which it was), the camera, the
 resolution and the photon count. ``tlm run`` on it renders what the original scene
 renders. Floats are written as Python's ``repr``, which reads back to the same bits.
 
@@ -445,6 +446,10 @@ def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
         elif light.kind == "directional":
             lights.append({"type": "directional", "direction": _floats(light.direction),
                            "irradiance": _floats(light.irradiance)})
+        else:  # (a mesh light is its emitting materials)
+            continue
+        if light.name:  # (a glTF's light's: which it was, FILE KHR_lights_punctual.lights[i] 'NAME' at nodes[n])
+            lights[-1] = {"type": light.kind, "name": light.name, **lights[-1]}
     cam = scene.camera
     doc = {
         "name": scene.name,

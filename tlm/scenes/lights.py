@@ -3,8 +3,8 @@ directional lights of its mesh files used when it gives no ``lights:``, and the 
 of its emitting triangles.
 
 :func:`scene_lights` reads the ``lights:`` list (each item a ``point``, ``quad``, ``spot`` or
-``directional`` light of :data:`LIGHT_KEYS`), or, without the key, takes the lights the
-geometry's mesh files import (:attr:`~tlm.scenes.model.Geometry.imports`), with a line per
+``directional`` light of :data:`LIGHT_KEYS`, each with an optional ``name``), or, without the
+key, takes the lights the geometry's mesh files import (:attr:`~tlm.scenes.model.Geometry.imports`), with a line per
 mesh file saying which. Every problem is an :class:`~tlm.errors.InputError` naming the
 file, the key and the value. The scene loader (:mod:`tlm.scenes.loader`) calls it.
 """
@@ -12,6 +12,7 @@ file, the key and the value. The scene loader (:mod:`tlm.scenes.loader`) calls i
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from tlm.config_words import value_text
-from tlm.errors import InputError, did_you_mean
+from tlm.errors import InputError, did_you_mean, quoted
 from tlm.scenes.model import Geometry, Imported, Light, Material, Scene, directional_power, unit_vector
 from tlm.scenes.validate import MAX_MAGNITUDE
 from tlm.scenes.validate import keys as _keys
@@ -42,6 +43,9 @@ LIGHT_REQUIRED = {
     "directional": (("direction", _DIRECTION + " (the way its light travels)"),
                     ("irradiance", "[r, g, b] in W per unit area, each >= 0")),
 }
+# a key every type takes: the light's name (Light.name; optional), which says where it comes from (an exported glTF
+# light's ``FILE KHR_lights_punctual.lights[i] 'NAME' at nodes[n]``: tlm.scenes.export) and its from shows
+LIGHT_NAME = "name"
 SPOT_ANGLES = (0.0, 45.0)  # a spot's default inner_cone_angle and outer_cone_angle (degrees; glTF's 0 and pi / 4)
 
 
@@ -95,6 +99,19 @@ def with_mesh_light(scene: Scene) -> Scene:
     return replace(scene, lights=lights if light is None else (*lights, light))
 
 
+def own_points(lt: Light, pt: Callable[[Any], tuple], vec: Callable[[Any], tuple]) -> dict[str, tuple]:
+    """A point, spot, quad or directional light's own points mapped by ``pt`` and its own lengths by ``vec``,
+    as fields for :func:`dataclasses.replace`: a point's or spot's ``position``, a quad's ``corner`` (``pt``)
+    and ``edge_u`` and ``edge_v`` (``vec``); none of a directional light's (its ``direction`` a way, not a
+    length). A field its kind does not have is not among them (:func:`scaled_light`; the Mitsuba writer's
+    frame, :func:`tlm.oracle.mitsuba.scene_dict`)."""
+    if lt.kind == "quad":
+        return {"corner": pt(lt.corner), "edge_u": vec(lt.edge_u), "edge_v": vec(lt.edge_v)}
+    if lt.kind in ("point", "spot"):
+        return {"position": pt(lt.position)}
+    return {}
+
+
 def scaled_light(lt: Light, scale: float, translate: np.ndarray) -> Light:
     """A point, spot, quad or directional light of a scene scaled about the origin by ``scale``, then
     moved by ``translate`` (:func:`tlm.scenes.loader.transform_scene`): its power times ``scale**2`` (its
@@ -109,12 +126,7 @@ def scaled_light(lt: Light, scale: float, translate: np.ndarray) -> Light:
     def vec(v) -> tuple[float, float, float]:
         return tuple(float(x) for x in np.asarray(v) * scale)
 
-    power = tuple(float(x) * scale**2 for x in lt.power)
-    if lt.kind == "quad":
-        return replace(lt, power=power, corner=pt(lt.corner), edge_u=vec(lt.edge_u), edge_v=vec(lt.edge_v))
-    if lt.kind in ("point", "spot"):
-        return replace(lt, power=power, position=pt(lt.position))
-    return replace(lt, power=power)
+    return replace(lt, power=tuple(float(x) * scale**2 for x in lt.power), **own_points(lt, pt, vec))
 
 
 def unit_direction(v: tuple[float, float, float], src: str, key: str) -> tuple[float, float, float]:
@@ -150,8 +162,17 @@ def _spot(raw: dict, key: str, src: str) -> Light:
 
 
 def _light(i: int, raw: Any, src: str) -> Light:
+    """The scene file's ``lights[i]``, named by its ``name:`` where it gives one."""
     key = f"lights[{i}]"
-    raw, kind = typed(raw, src, key, LIGHT_KEYS)
+    raw, kind = typed(raw, src, key, {k: (*v, LIGHT_NAME) for k, v in LIGHT_KEYS.items()})
+    name = raw.get(LIGHT_NAME, "")
+    if not isinstance(name, str):
+        raise InputError(f"{value_text(name)} is not a string (the light's name)", source=src, key=f"{key}.name")
+    return replace(_unnamed(i, raw, src, kind), name=name)
+
+
+def _unnamed(i: int, raw: dict, src: str, kind: str) -> Light:
+    key = f"lights[{i}]"
     for need, what in LIGHT_REQUIRED[kind]:
         if need not in raw and not (kind == "spot" and need == "power" and "intensity" in raw):
             raise InputError(f"required for type {kind}: {what}", source=src, key=f"{key}.{need}")
@@ -240,6 +261,12 @@ def _placed(lt: Light, where: str, file: str) -> Light:
     return lt
 
 
+def _entry(lt: Light, where: str) -> Light:
+    """A scene file's light with its origin: its entry, ``FILE: lights[i]``, and its name where it has one
+    (``FILE: lights[i] 'NAME'``, as a glTF's ``KHR_lights_punctual.lights[i] 'NAME'``)."""
+    return replace(lt, origin=f"{where} {quoted(lt.name)}" if lt.name else where)
+
+
 def scene_lights(raw: dict, geom: Geometry, src: str, given_by: str = "") -> tuple[tuple[Light, ...], list[str]]:
     """The scene's lights: the scene file's ``lights:`` when it gives the key (itself or through
     ``extends``: ``given_by``, the file of the chain that gave it, default ``src``), else the mesh files'
@@ -257,7 +284,7 @@ def scene_lights(raw: dict, geom: Geometry, src: str, given_by: str = "") -> tup
                 k = len(_kinds(imps))
                 notes.append(f"{file}: its {_imported_lights(imps)} {'are' if k > 1 else 'is'} not used: the scene "
                              f"file gives lights: (leave lights: out to import {'them' if k > 1 else 'it'})")
-        return tuple(replace(_light(i, v, src), origin=f"{given_by or src}: lights[{i}]")
+        return tuple(_entry(_light(i, v, src), f"{given_by or src}: lights[{i}]")
                      for i, v in enumerate(lights_raw)), notes
     lights = []
     for file, imps in _grouped(geom).items():
