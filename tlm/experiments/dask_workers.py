@@ -1,7 +1,9 @@
 """What runs on a Dask worker, or checks one, for a sweep's point.
 
 A point that a Dask worker runs sizes its kernel threads on the worker's own machine
-(:func:`dask_worker_threads`: the sweep's machine is not the worker's), names the worker
+(:func:`dask_worker_threads`: the sweep's machine is not the worker's), or, where its config gives
+``render.threads``, says when that count oversubscribes the machine (:func:`dask_oversubscribed`; the sweep
+says it once per machine: :func:`machine_lines`), names the worker
 in its messages (:func:`dask_worker_where`: by its ``--name``, :func:`worker_words`), records who ran it
 (:func:`ran_here`: the worker's name, host and process) and the versions of the process that ran
 it (:func:`worker_versions`) and is refused on a worker whose numpy, numba or Python
@@ -13,6 +15,7 @@ The executors that hand points to the workers: :mod:`tlm.experiments.executors`.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import threading
 import time
@@ -53,39 +56,108 @@ def dask_setup(worker) -> None:
 def dask_worker_threads() -> int | None:
     """In a Dask worker: the ``render.threads`` of a point whose config leaves it null (the
     sweep could not size it: the workers' machines are not the sweep's), the CPUs
-    available here over the task slots of every worker on this machine (their ``nthreads``
-    summed, the machine as the scheduler names it for this worker), at least one: the
-    points that run at once on a machine share its CPUs. A worker of 32 threads on a
-    32-core machine runs 32 points at once, each on one thread, where each would
-    otherwise take all 32. None outside a Dask worker. Where the scheduler cannot be asked
-    (or says something not understood), this worker's own slots; what it said is kept for
-    :data:`SLOTS_TTL` seconds. Speed only: no error leaves it."""
+    available here over the task slots of every worker on this machine (:func:`_machine_slots`),
+    at least one: the points that run at once on a machine share its CPUs. A worker of 32
+    threads on a 32-core machine runs 32 points at once, each on one thread, where each would
+    otherwise take all 32. None outside a Dask worker. Speed only: no error leaves it."""
     worker = _dask_worker()
     if worker is None:
         return None
-    from distributed import get_client
-
     from tlm.kernels.threads import shared_threads
+
+    return shared_threads(_machine_slots(worker))  # (at most DEFAULT_MAX_THREADS)
+
+
+def _machine_slots(worker) -> int:
+    """The task slots of every Dask worker on ``worker``'s machine (their ``nthreads`` summed, the
+    machine as the scheduler names it for this worker), at least this worker's own: the points that
+    run at once there. Where the scheduler cannot be asked (or says something not understood), this
+    worker's own slots; what it said is kept for :data:`SLOTS_TTL` seconds (one question a minute at
+    most, whichever of :func:`dask_worker_threads` and :func:`dask_oversubscribed` asks)."""
+    from distributed import get_client
 
     own = max(1, int(getattr(worker.state, "nthreads", 1) or 1))
     now = time.monotonic()
     kept = _SLOTS.get(worker.address)
     if kept is not None and now - kept[0] < SLOTS_TTL:
-        slots = kept[1]
-    else:
-        slots = own
+        return kept[1]
+    try:
+        client = get_client(timeout=5)
         try:
-            client = get_client(timeout=5)
-            try:
-                listed = client.scheduler_info(n_workers=-1)["workers"]
-            except TypeError:  # (an older distributed lists every worker without being asked)
-                listed = client.scheduler_info()["workers"]
-            host = listed[worker.address]["host"]  # (the scheduler's own name of this machine)
-            slots = max(own, sum(int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host))
-        except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
-            slots = own
-        _SLOTS[worker.address] = (now, slots)
-    return shared_threads(slots)  # (at most DEFAULT_MAX_THREADS)
+            listed = client.scheduler_info(n_workers=-1)["workers"]
+        except TypeError:  # (an older distributed lists every worker without being asked)
+            listed = client.scheduler_info()["workers"]
+        host = listed[worker.address]["host"]  # (the scheduler's own name of this machine)
+        slots = max(own, sum(int(w.get("nthreads") or 0) for w in listed.values() if w.get("host") == host))
+    except Exception:  # (a speed hint: a scheduler that cannot say leaves this worker's slots)
+        slots = own
+    _SLOTS[worker.address] = (now, slots)
+    return slots
+
+
+def _machine_host(worker) -> str:
+    """``worker``'s machine as the scheduler names it (the host of its address: an IP address, as
+    ``dask worker`` listens on one), else this machine's own name."""
+    try:
+        from distributed.comm import get_address_host
+
+        return str(get_address_host(worker.address))
+    except Exception:  # (an address not understood)
+        import socket
+
+        return socket.gethostname()
+
+
+# the line of a Dask point whose given render.threads, times the points at once on its machine, oversubscribes that
+# machine's CPUs (dask_oversubscribed); machine_lines reads it back: render.threads, host, points at once
+OVERSUBSCRIBED = re.compile(r"render\.threads = (\d+) on host (\S+) with (\d+) points at once \(the task slots of "
+                            r"its Dask workers\) oversubscribes ")
+
+
+def dask_oversubscribed(threads: int | None, running: int = 0, local: bool = False) -> list[str]:
+    """In a Dask worker: a line where a point's given ``render.threads`` (``threads``), times the points
+    that run at once on this machine (the task slots of its workers, :func:`_machine_slots`, as
+    :func:`dask_worker_threads` counts them, no more than ``running``, the points the sweep runs; 0: not
+    known), is more kernel threads than the CPUs available here, while that count alone is no more than
+    them (:func:`~tlm.experiments.run_warnings.threads_warning` says that one): the point runs as asked,
+    its line naming the machine, render.threads, the points at once and the CPUs, the way the sweep's own
+    ``--jobs`` line says it for its local workers (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`).
+    ``local``: a ``--dask local`` cluster's worker, whose slots ``--jobs`` sets. None for a null
+    ``threads`` (sized to fit: :func:`dask_worker_threads`) and outside a Dask worker."""
+    if threads is None:
+        return []
+    worker = _dask_worker()
+    if worker is None:
+        return []
+    from tlm.kernels.threads import available
+
+    at_once = _machine_slots(worker)
+    at_once = min(at_once, running) if running > 0 else at_once
+    cpus = available()
+    if at_once <= 1 or threads > cpus or threads * at_once <= cpus:
+        return []
+    fix = ("lower --jobs" if local else
+           "start that machine's Dask workers with fewer threads (dask worker --nthreads)")
+    return [f"render.threads = {threads} on host {_machine_host(worker)} with {at_once} points at once (the task "
+            f"slots of its Dask workers) oversubscribes its {cpus} CPU{'s' if cpus != 1 else ''} available "
+            f"({threads * at_once} kernel threads): they take turns on them, which is slower, not faster (results "
+            f"are the same); {fix}, or leave render.threads null (each point then gets its share of the machine's "
+            "CPUs)"]
+
+
+def machine_lines(lines) -> list[str]:
+    """Of a sweep's points' warning ``lines``, their :func:`dask_oversubscribed` lines, one per machine (the
+    one of the most kernel threads there), in the order the machines are first met: what the sweep says
+    once for all the points that ran on it."""
+    found: dict[str, tuple[int, str]] = {}
+    for line in lines:
+        m = OVERSUBSCRIBED.match(line) if isinstance(line, str) else None
+        if m is None:
+            continue
+        kernel = int(m.group(1)) * int(m.group(3))
+        if m.group(2) not in found or kernel > found[m.group(2)][0]:
+            found[m.group(2)] = (kernel, line)
+    return [line for _, line in found.values()]
 
 
 def _dask_worker():

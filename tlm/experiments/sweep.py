@@ -89,6 +89,7 @@ from typing import Any
 from tlm import claims, storage
 from tlm.caches import CACHE_WARNING, cache_warnings, cache_warnings_held
 from tlm.errors import EnvironmentFailure, InputError, interrupted_by
+from tlm.experiments.dask_workers import machine_lines
 from tlm.experiments.executors import (
     DASK_POLL,
     DaskPool,
@@ -311,7 +312,7 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                      programs=_table_digest(by_hash[h][0].config, sweep.folder, tables) if remote else None,
                      own_code=provenance["code_fingerprint"] if dask == "local" else None,
                      scene_files=scene_checks(by_hash[h][0].config, sweep.folder, str(sweep.path), scenes)
-                     if remote else "")
+                     if remote else "", running=len(todo))
              for h in todo}
 
     rows_due = False  # (the folder is this sweep's: its rows are written, when it ends and when it is cut short)
@@ -389,14 +390,16 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     with cache_warnings_held():  # (the caches as they are now, said below through warn: a line a point of this
         # process met, held, reaches warn too)
         caches = _cache_lines([records[h] for h in tasks], cache_warnings())
+    # (a given render.threads past a Dask machine's CPUs at its points at once: once per machine, as its points said it)
+    machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
     if warn is not None:
-        for line in [*unread, *caches, *stale]:
+        for line in [*machines, *unread, *caches, *stale]:
             if line not in caches or " ".join(line.split()) not in storage.SAID:  # (a cache's: said once)
                 warn(line)
     return Outcome(rows, len(computed) - failed, failed, skipped, renders, time.perf_counter() - t_start, out,
-                   [*said, *unread, *caches, *stale], other)
+                   [*said, *machines, *unread, *caches, *stale], other)
 
 
 def checked_options(jobs: int | None, dask: str | None,

@@ -31,6 +31,7 @@ from tlm.errors import InputError, interrupted_by
 from tlm.experiments.dask_workers import (
     OtherVersionsOnWorker,
     check_worker_versions,
+    dask_oversubscribed,
     dask_worker_threads,
     dask_worker_where,
     ran_here,
@@ -75,6 +76,8 @@ class Task:
     # sweep holds in its output folder (--reference), which the point reads first (reference_cache.holding)
     scene_files: str = ""  # the files the sweep's load of the point's scene read, with what told each (JSON of
     # frame_scenes.read_checks: scene_checks), for a remote worker's line on the one that differs there
+    running: int = 0  # the points the sweep runs (0: not known): no more run at once on a Dask worker's machine,
+    # whatever its task slots (dask_workers.dask_oversubscribed)
 
 
 def run_point(task: Task) -> dict:
@@ -208,13 +211,18 @@ def _threads_lines(task: Task, cfg, where: str | None) -> list[str]:
     (:func:`~tlm.experiments.frames.cached_render`). None where the config leaves it null (the worker's share:
     :func:`_with_threads`). A remote Dask worker's (``task.code``) ends ``(on the Dask worker ADDRESS on host
     NAME)``, its CPUs its machine's; a local worker's is the line the sweep says as it starts
-    (:func:`~tlm.experiments.run_warnings.sweep_threads_line`), said once."""
+    (:func:`~tlm.experiments.run_warnings.sweep_threads_line`), said once. A Dask worker's point adds the line
+    where that count, times the points at once on its machine, is past the machine's CPUs
+    (:func:`~tlm.experiments.dask_workers.dask_oversubscribed`; the sweep says it once per machine)."""
     from tlm.experiments.run_warnings import threads_warning
 
-    if (task.config.get("render") or {}).get("threads") is None:
+    asked = (task.config.get("render") or {}).get("threads")
+    if asked is None:
         return []
     lines = threads_warning(cfg)
-    return lines if where is None or task.code is None else [f"{line} (on {where})" for line in lines]
+    lines = lines if where is None or task.code is None else [f"{line} (on {where})" for line in lines]
+    # (on a Dask worker: that count times the points at once on its machine past its CPUs, naming the machine)
+    return lines + dask_oversubscribed(cfg.render.threads, task.running, local=task.code is None)
 
 
 def _worker_cache_warnings(task: Task, where: str | None) -> list[str]:
