@@ -425,6 +425,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
 
     quiet = _Quiet()  # (DaskPool.trouble silences distributed's logs)
     stack.push(quiet.after)  # restored once the client has closed (not when a signal ends the process)
+    quiet.hush()  # (its narration of a closed connection: silent for the client's whole life, from before it connects)
     if dask == "local":
         from distributed.utils import get_mp_context
 
@@ -443,7 +444,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
         for nanny in list(getattr(cluster, "workers", {}).values()):  # (what each nanny sets, as it computed it)
             written.update(getattr(nanny, "pre_spawn_env", None) or {})
-        client = stack.enter_context(_client(Client, cluster))
+        client = quiet.client = stack.enter_context(_client(Client, cluster))
         stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
         pool = DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
     else:
@@ -453,24 +454,51 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
         except (OSError, ValueError, TypeError, MemoryError) as e:  # TimeoutError is an OSError (MemoryError: a
             # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
+        quiet.client = client
+        stack.push(quiet.before)  # (the client closes silenced where it has lost its scheduler, or on a signal)
         pool = DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
     pool.watch.start(refuse=pool.remote)  # (a worker that cannot run the points left out, before one is sent)
     return pool
 
 
 class _Quiet:
-    """distributed's loggers silenced (:meth:`now`) and put back as they were (:meth:`restore`)."""
+    """distributed's loggers silenced (:meth:`now`) and put back as they were (:meth:`restore`); those that only
+    narrate a connection closing, kept below WARNING (:meth:`hush`) for the sweep client's whole life."""
 
     def __init__(self) -> None:
         self.levels: dict[str, int] = {}
+        self.client = None  # the sweep's Client, once connected (:meth:`before`)
 
     def now(self) -> None:
         with _LEFT_LOCK:
             for name in ["distributed", *logging.root.manager.loggerDict]:  # (dask's config sets its children's)
-                if (name == "distributed" or name.startswith("distributed.")) and name not in self.levels:
-                    # (one left silenced after an earlier signal: its level before that, not the silence)
-                    self.levels[name] = _LEFT_QUIET.pop(name, logging.getLogger(name).level)
+                if name == "distributed" or name.startswith("distributed."):
+                    # (one left silenced after an earlier signal: its level before that, not the silence; one
+                    # hushed: its level before the hush)
+                    if name not in self.levels:
+                        self.levels[name] = _LEFT_QUIET.pop(name, logging.getLogger(name).level)
                     logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+
+    def hush(self) -> None:
+        """The loggers of :data:`NARRATING` (and their children) kept from logging below WARNING until
+        :meth:`restore`: distributed's event loop thread logs a connection closed under the client as it happens
+        ("Batched Comm Closed" at INFO, with its traceback), before the sweep can know its scheduler is lost and
+        say so in one line (:meth:`DaskPool.trouble`, then :meth:`now`). Their warnings and errors still reach
+        the user; a logger already at WARNING or above (distributed.client's own, by Dask's config) is left."""
+        with _LEFT_LOCK:
+            for name in [*NARRATING, *logging.root.manager.loggerDict]:
+                if name in self.levels or not any(name == n or name.startswith(n + ".") for n in NARRATING):
+                    continue
+                effective = _level_before(name)  # (before the pop: one left silenced, its level before)
+                own = _LEFT_QUIET.pop(name, logging.getLogger(name).level)  # (as :meth:`now`)
+                if own != logging.NOTSET:
+                    level = max(own, logging.WARNING)
+                elif name in NARRATING and effective < logging.WARNING:
+                    level = logging.WARNING
+                else:  # (a child: its parent's, WARNING at least now; a root already above: as it is)
+                    level = logging.NOTSET
+                self.levels[name] = own
+                logging.getLogger(name).setLevel(level)
 
     def restore(self) -> None:
         for name, level in self.levels.items():
@@ -486,8 +514,9 @@ class _Quiet:
     # goes on after a Ctrl-C: a notebook's); any other end of the stack puts them back at once.
 
     def before(self, kind: type[BaseException] | None, *_) -> bool:
-        """An ExitStack exit callback entered after the cluster: on a signal, silence now."""
-        if _signalled(kind):
+        """An ExitStack exit callback entered after the client: silence now on a signal, or where the client has
+        lost its scheduler (its close logs the reconnection it cancels, with a traceback, at ERROR)."""
+        if _signalled(kind) or getattr(self.client, "status", "running") != "running":
             self.now()
         return False
 
@@ -508,6 +537,9 @@ class _Quiet:
 
 
 QUIET_GRACE = 10.0  # seconds distributed's loggers stay silenced after a signal ended a --dask local sweep
+NARRATING = ("distributed.batched", "distributed.client", "distributed.comm", "distributed.core")  # distributed's
+# loggers whose INFO records, in the sweep's process, narrate connections: opened, closed (with a traceback),
+# reconnecting, pooled (:meth:`_Quiet.hush`)
 _LEFT_QUIET: dict[str, int] = {}  # logger -> its level before the silence, for the loggers left silenced
 _LEFT_LOCK = threading.Lock()
 
@@ -518,6 +550,17 @@ def _put_back_left() -> None:
         for name, level in _LEFT_QUIET.items():
             logging.getLogger(name).setLevel(level)
         _LEFT_QUIET.clear()
+
+
+def _level_before(name: str) -> int:
+    """The effective level of the logger ``name`` as it was before tlm silenced any of distributed's (those left
+    silenced after a signal, :data:`_LEFT_QUIET`, at their levels before; the caller holds :data:`_LEFT_LOCK`)."""
+    while name:
+        level = _LEFT_QUIET.get(name, logging.getLogger(name).level)
+        if level != logging.NOTSET:
+            return level
+        name = name.rpartition(".")[0]
+    return logging.root.level
 
 
 def _signalled(kind: type[BaseException] | None) -> bool:
