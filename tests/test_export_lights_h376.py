@@ -8,7 +8,6 @@ of its emitting material), transformed, and a glTF's imported point, spot and di
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,10 +24,10 @@ OWN = {"point": ("position",), "quad": ("corner", "edge_u", "edge_v"),
 SLOW = {"conference"}  # (331k triangles: seconds to export and read back)
 
 
-def _same(a: Light, b: Light, imported: bool = False) -> None:
+def _same(a: Light, b: Light) -> None:
     """``b`` (the exported scene's) is ``a``, field by field: kind, power, its kind's own fields, the
-    record (scene hashes, references) and ``tlm scene show``'s view of it; a scene file's light (not
-    imported: its name, from the glTF, is not a scene file's) the very same Light."""
+    record (scene hashes, references) and ``tlm scene show``'s view of it; and the very same Light (a glTF's
+    light too, its name included: the export writes it as the entry's name:, h381)."""
     assert (a.kind, a.power) == (b.kind, b.power)
     for name in OWN.get(a.kind, ()):
         assert getattr(a, name) == getattr(b, name), (a.kind, name)
@@ -41,10 +40,7 @@ def _same(a: Light, b: Light, imported: bool = False) -> None:
     info_a.pop("from", None)
     info_b.pop("from", None)
     assert info_a == info_b
-    if not imported:
-        assert a == b
-    else:  # (all but the glTF light's name; a directional light's node position is none of its fields, h379)
-        assert replace(a, name=b.name) == b
+    assert a == b  # (a glTF's directional light's node position is none of its fields, h379)
 
 
 def _round_trip(scene, folder: Path, stem: str = "out"):
@@ -125,8 +121,8 @@ def test_every_kind_of_light_round_trips(tmp_path, transform):
 
 def test_imported_gltf_lights_round_trip(tmp_path):
     """A glTF's point, spot and directional lights (KHR_lights_punctual), imported where the scene
-    file gives no lights:, are written as lights: entries that load to the same lights (but their
-    names, which say which glTF light each was)."""
+    file gives no lights:, are written as lights: entries that load to the same lights, whole: their
+    names, which say which glTF light each was, too (h381)."""
     from .test_gltf_lights import _glb, _on
 
     lights = [{"type": "point", "name": "lamp", "intensity": 5.0, "color": [1.0, 0.5, 0.25]},
@@ -145,6 +141,8 @@ def test_imported_gltf_lights_round_trip(tmp_path):
     scene = load_scene(tmp_path / "s.yaml")
     assert [lt.kind for lt in scene.lights] == ["point", "spot", "directional"]
     again, _ = _round_trip(scene, tmp_path)
+    assert [lt.name for lt in scene.lights] == [f"s.glb KHR_lights_punctual.lights[{i}] '{n}' at nodes[{i + 1}]"
+                                                for i, n in enumerate(("lamp", "beam", "sun"))]
     for a, b in zip(scene.lights, again.lights, strict=True):
-        _same(a, b, imported=True)
-    assert len(again.lights) == 3
+        _same(a, b)
+    assert again.lights == scene.lights

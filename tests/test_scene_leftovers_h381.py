@@ -97,7 +97,7 @@ def test_a_light_name_that_is_no_string_is_an_error(tmp_path, value, said):
     path = _lights(tmp_path, {**POINT, "name": value})
     with pytest.raises(InputError) as e:
         load_scene(path)
-    assert str(e.value) == f"{path}: lights[0].name: {said} is not a string (the light's name)"
+    assert str(e.value) == f"{path}: lights[0].name: {said} is not text (the light's name: quote it, name: \"...\")"
 
 
 def test_other_keys_of_a_light_are_still_errors(tmp_path):
@@ -112,7 +112,7 @@ def test_the_cli_refuses_a_bad_name_with_status_2(tmp_path, capsys):
     path = _lights(tmp_path, {**POINT, "name": 7})
     assert main(["scene", "show", str(path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"tlm: error: {path}: lights[0].name: 7 is not a string (the light's name)"]
+    assert err == [f"tlm: error: {path}: lights[0].name: 7 is not text (the light's name: quote it, name: \"...\")"]
 
 
 # --- 2. the Mitsuba writer's frame -----------------------------------------------------------------------------

@@ -11,6 +11,7 @@ file, the key and the value. The scene loader (:mod:`tlm.scenes.loader`) calls i
 
 from __future__ import annotations
 
+import datetime
 import math
 from collections.abc import Callable
 from dataclasses import replace
@@ -166,8 +167,10 @@ def _light(i: int, raw: Any, src: str) -> Light:
     key = f"lights[{i}]"
     raw, kind = typed(raw, src, key, {k: (*v, LIGHT_NAME) for k, v in LIGHT_KEYS.items()})
     name = raw.get(LIGHT_NAME, "")
-    if not isinstance(name, str):
-        raise InputError(f"{value_text(name)} is not a string (the light's name)", source=src, key=f"{key}.name")
+    if not isinstance(name, str):  # (a date as written, 2020-01-01: not '2020-01-01', a string)
+        said = name.isoformat() if isinstance(name, datetime.date) else value_text(name)
+        raise InputError(f"{said} is not text (the light's name: quote it, name: \"...\")", source=src,
+                         key=f"{key}.name")
     return replace(_unnamed(i, raw, src, kind), name=name)
 
 
