@@ -493,11 +493,11 @@ def test_a_run_warns_of_the_textures_of_the_materials_it_shows(tmp_path):
             "camera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], vfov: 40}\nresolution: [8, 8]\n")
     (tmp_path / "s.yaml").write_text(head)
     (line,) = material_warnings(api.load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of the mesh file ('wood', 'stone') use what tlm does not render: "
+    assert line.startswith("2 materials of 't.mtl' ('wood', 'stone') use what tlm does not render: "
                            "map_Kd, bump;"), line
     (tmp_path / "s.yaml").write_text(head + "materials: {wood: {type: lambertian, albedo: [0.5, 0.3, 0.1]}}\n")
     scene = api.load_scene(tmp_path / "s.yaml")
-    assert material_warnings(scene) == ["1 material of the mesh file ('stone') uses what tlm does not render: "
+    assert material_warnings(scene) == ["1 material of 't.mtl' ('stone') uses what tlm does not render: "
                                         "map_Kd; it renders with its constant colour (a scene file's materials: "
                                         "entry of the same name replaces it)"]
     assert api.scene_info(scene)["materials"][1]["ignored"] == ["map_Kd"]

@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -453,14 +454,16 @@ def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
     names = ", ".join(quoted(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown
                                                                 else "")
     many = len(hit) > 1
-    files = len({_material_file(m.origin) for m in hit})  # (the files they come from: one, or how many)
+    # (the files that define them, by name: an MTL library, a glTF; one OBJ may name two libraries, two OBJs share one)
+    files = list(dict.fromkeys(quoted(Path(_material_file(m.origin)).name) for m in hit))
+    of = (files[0] if len(files) == 1 else f"{', '.join(files[:-1])} and {files[-1]}" if len(files) <= shown else
+          f"{', '.join(files[:shown])} and {len(files) - shown} more files")
     # (a Lambertian's constant colour is its albedo; the others say what they become: a glTF material
     # whose metallicFactor defaults to 1 is a mirror, not its diffuse colour)
     other = [m for m in hit if m.kind != "lambertian"]
     became = ("" if not other else f", as {rendered_as(other[0])}" if not many else
               " (" + "; ".join(f"{quoted(m.name)} as {rendered_as(m)}" for m in other[:shown]) + ")")
-    return [f"{len(hit)} material{'s' if many else ''} of the {f'{files} mesh files' if files > 1 else 'mesh file'} "
-            f"({names}) "
+    return [f"{len(hit)} material{'s' if many else ''} of {of} ({names}) "
             f"{'use' if many else 'uses'} what tlm does not render: {what}; "
             f"{'each renders' if many else 'it renders'} with its constant colour{became} (a scene file's "
             "materials: entry of the same name replaces it)"]
@@ -468,8 +471,8 @@ def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
 
 def _material_file(origin: str) -> str:
     """The file a mesh file's material comes from, by its :attr:`~tlm.scenes.model.Material.origin`: a
-    glTF's ``FILE materials[i]``, an MTL's ``FILE:LINE`` (the OBJ's library, for the OBJ: an OBJ naming two
-    libraries counts as two files here, as a material two files share counts as the first's)."""
+    glTF's ``FILE materials[i]``, an MTL's ``FILE:LINE`` (the OBJ's library, which :func:`material_warnings`
+    names: an OBJ may name two libraries, two OBJs may share one)."""
     found = re.fullmatch(r"(.*)(?: materials\[[0-9]+\]|:[0-9]+)", origin, re.S)
     return found.group(1) if found else origin
 
