@@ -3,7 +3,8 @@
 A point that a Dask worker runs sizes its kernel threads on the worker's own machine
 (:func:`dask_worker_threads`: the sweep's machine is not the worker's), or, where its config gives
 ``render.threads``, says when that count oversubscribes the machine (:func:`dask_oversubscribed`; the sweep
-says it once per machine: :func:`machine_lines`), names the worker
+says it once per machine, as a remote worker's line of that count past its machine's CPUs alone:
+:func:`machine_lines`), names the worker
 in its messages (:func:`dask_worker_where`: by its ``--name``, :func:`worker_words`), records who ran it
 (:func:`ran_here`: the worker's name, host and process) and the versions of the process that ran
 it (:func:`worker_versions`) and is refused on a worker whose numpy, numba or Python
@@ -109,9 +110,16 @@ def _machine_host(worker) -> str:
 
 
 # the line of a Dask point whose given render.threads, times the points at once on its machine, oversubscribes that
-# machine's CPUs (dask_oversubscribed); machine_lines reads it back: render.threads, host, points at once
-OVERSUBSCRIBED = re.compile(r"render\.threads = (\d+) on host (\S+) with (\d+) points at once \(the task slots of "
-                            r"its Dask workers\) oversubscribes ")
+# machine's CPUs (dask_oversubscribed: the points at once are its workers' task slots, or all the sweep runs where
+# those are fewer); machine_lines reads it back: render.threads, host, points at once
+OVERSUBSCRIBED = re.compile(r"render\.threads = (\d+) on host (\S+) with (\d+) points at once \((?:the task "
+                            r"slots of its Dask workers|all the sweep runs, of its Dask workers' \d+ task slots)\) "
+                            r"oversubscribes ")
+# a remote Dask point's line of a given render.threads past its worker machine's CPUs alone (run_warnings.
+# threads_warning's, ending "(on the Dask worker NAME (ADDRESS) on host HOST)": sweep_point._threads_lines, which
+# the sweep does not say as it starts, as it does a local one's); machine_lines reads it back: render.threads, host
+ALONE = re.compile(r"render\.threads = (\d+) is more than the \d+ CPUs? available to this process .*\(on the Dask "
+                   r"worker .+ on host (\S+)\)$")
 
 
 def dask_oversubscribed(threads: int | None, running: int = 0, local: bool = False) -> list[str]:
@@ -123,7 +131,8 @@ def dask_oversubscribed(threads: int | None, running: int = 0, local: bool = Fal
     its line naming the machine, render.threads, the points at once and the CPUs, the way the sweep's own
     ``--jobs`` line says it for its local workers (:func:`~tlm.experiments.run_warnings.sweep_jobs_line`).
     ``local``: a ``--dask local`` cluster's worker, whose slots ``--jobs`` sets. None for a null
-    ``threads`` (sized to fit: :func:`dask_worker_threads`) and outside a Dask worker."""
+    ``threads`` (sized to fit: :func:`dask_worker_threads`), for one thread (a null's count there too, where the
+    slots alone are past the CPUs: leaving it null would change nothing) and outside a Dask worker."""
     if threads is None:
         return []
     worker = _dask_worker()
@@ -131,15 +140,18 @@ def dask_oversubscribed(threads: int | None, running: int = 0, local: bool = Fal
         return []
     from tlm.kernels.threads import available
 
-    at_once = _machine_slots(worker)
-    at_once = min(at_once, running) if running > 0 else at_once
+    slots = _machine_slots(worker)
+    at_once = min(slots, running) if running > 0 else slots
     cpus = available()
-    if at_once <= 1 or threads > cpus or threads * at_once <= cpus:
+    # (one thread: what a null count gets there too, which says nothing: the slots alone are past the CPUs)
+    if at_once <= 1 or threads <= 1 or threads > cpus or threads * at_once <= cpus:
         return []
     fix = ("lower --jobs" if local else
            "start that machine's Dask workers with fewer threads (dask worker --nthreads)")
-    return [f"render.threads = {threads} on host {_machine_host(worker)} with {at_once} points at once (the task "
-            f"slots of its Dask workers) oversubscribes its {cpus} CPU{'s' if cpus != 1 else ''} available "
+    which = ("the task slots of its Dask workers" if at_once == slots else
+             f"all the sweep runs, of its Dask workers' {slots} task slots")
+    return [f"render.threads = {threads} on host {_machine_host(worker)} with {at_once} points at once ({which}) "
+            f"oversubscribes its {cpus} CPU{'s' if cpus != 1 else ''} available "
             f"({threads * at_once} kernel threads): they take turns on them, which is slower, not faster (results "
             f"are the same); {fix}, or leave render.threads null (each point then gets its share of the machine's "
             "CPUs)"]
@@ -147,16 +159,22 @@ def dask_oversubscribed(threads: int | None, running: int = 0, local: bool = Fal
 
 def machine_lines(lines) -> list[str]:
     """Of a sweep's points' warning ``lines``, their :func:`dask_oversubscribed` lines, one per machine (the
-    one of the most kernel threads there), in the order the machines are first met: what the sweep says
-    once for all the points that ran on it."""
-    found: dict[str, tuple[int, str]] = {}
+    one of the most kernel threads there), and a remote Dask worker's line of a given ``render.threads`` past its
+    machine's CPUs alone (:data:`ALONE`), one per machine (the one of the most threads there), in the order the
+    machines are first met: what the sweep says once for all the points that ran on it. (A machine as each line
+    names it: the host of its workers' address, the host name of the worker's machine.)"""
+    found: dict[tuple[str, str], tuple[int, str]] = {}
     for line in lines:
-        m = OVERSUBSCRIBED.match(line) if isinstance(line, str) else None
-        if m is None:
+        if not isinstance(line, str):
             continue
-        kernel = int(m.group(1)) * int(m.group(3))
-        if m.group(2) not in found or kernel > found[m.group(2)][0]:
-            found[m.group(2)] = (kernel, line)
+        if (m := OVERSUBSCRIBED.match(line)) is not None:
+            key, weight = ("at once", m.group(2)), int(m.group(1)) * int(m.group(3))
+        elif (m := ALONE.match(line)) is not None:
+            key, weight = ("alone", m.group(2)), int(m.group(1))
+        else:
+            continue
+        if key not in found or weight > found[key][0]:
+            found[key] = (weight, line)
     return [line for _, line in found.values()]
 
 

@@ -390,7 +390,8 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
     with cache_warnings_held():  # (the caches as they are now, said below through warn: a line a point of this
         # process met, held, reaches warn too)
         caches = _cache_lines([records[h] for h in tasks], cache_warnings())
-    # (a given render.threads past a Dask machine's CPUs at its points at once: once per machine, as its points said it)
+    # (a given render.threads past a Dask machine's CPUs at its points at once, or a remote one's alone: once per
+    # machine, as its points said it)
     machines = machine_lines(w for h in tasks for w in (records[h].get("results") or {}).get("warnings") or [])
     other = other_folders(points_dir, by_hash)  # (said last: next to the summary line it qualifies)
     stale = [other_folders_line(other, points_dir)] if other else []
