@@ -465,6 +465,8 @@ class _Quiet:
     """distributed's loggers silenced (:meth:`now`) and put back as they were (:meth:`restore`); those that only
     narrate a connection closing, kept below WARNING (:meth:`hush`) for the sweep client's whole life."""
 
+    left_due = 0.0  # when the loggers left silenced by the latest signal are put back (:func:`_put_back_left`)
+
     def __init__(self) -> None:
         self.levels: dict[str, int] = {}
         self.client = None  # the sweep's Client, once connected (:meth:`before`)
@@ -530,7 +532,8 @@ class _Quiet:
         with _LEFT_LOCK:
             _LEFT_QUIET.update(self.levels)
             self.levels.clear()
-        later = threading.Timer(QUIET_GRACE, _put_back_left)
+            due = _Quiet.left_due = time.monotonic() + QUIET_GRACE  # (an earlier signal's timer: not these)
+        later = threading.Timer(QUIET_GRACE, _put_back_left, args=(due,))
         later.daemon = True  # (a process that ends meanwhile does not wait for it)
         later.start()
         return False
@@ -544,9 +547,13 @@ _LEFT_QUIET: dict[str, int] = {}  # logger -> its level before the silence, for 
 _LEFT_LOCK = threading.Lock()
 
 
-def _put_back_left() -> None:
-    """The levels of the loggers left silenced after a signal (:meth:`_Quiet.after`), put back."""
+def _put_back_left(due: float | None = None) -> None:
+    """The levels of the loggers left silenced after a signal (:meth:`_Quiet.after`), put back; by the timer of
+    the signal whose grace ends at ``due``, only where no later signal has left them silenced since (a sweep
+    signalled within an earlier one's grace: its grace, whole)."""
     with _LEFT_LOCK:
+        if due is not None and due < _Quiet.left_due:  # (the later signal's own timer puts them back)
+            return
         for name, level in _LEFT_QUIET.items():
             logging.getLogger(name).setLevel(level)
         _LEFT_QUIET.clear()
