@@ -6,7 +6,8 @@ Each check returns warnings, one line each naming the thing (``lights[1] (quad)`
 ``tlm run`` prints them on stderr. Everything here is deterministic (fixed probe
 patterns, no random numbers), so the warnings of a run repeat exactly.
 
-* :func:`light_warnings`: a light of zero power among lights with power is named (its shadow rays
+* :func:`light_warnings`: a scene with no light at all is said, with how to give one
+  (:data:`NO_LIGHTS`); a light of zero power among lights with power is named (its shadow rays
   are cast and charged to the timing model, and add nothing: :func:`zero_power_warnings`); every
   light with power is probed with :data:`PROBE_RAYS` rays
   spread over the side it emits on (a point light: the sphere; a spot: its outer cone; a
@@ -278,9 +279,18 @@ def zero_power_warnings(scene: Scene) -> list[str]:
             "give it power)" for i in off]
 
 
+NO_LIGHTS = ("the scene has no lights: nothing emits (no lights: in the scene file, no material with emission: an "
+             "MTL's Ke, a glTF's emissive; no glTF light), so every frame is black: give it lights: (a quad light "
+             "under the ceiling: docs/scenes.md, Lights) or a material emission: [r, g, b] under materials:")
+
+
 def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> list[str]:
     """One line per light with power that reaches no surface or lights only back faces, and per
-    light of zero power among lights with power (:func:`zero_power_warnings`)."""
+    light of zero power among lights with power (:func:`zero_power_warnings`); a scene with no
+    light at all (a published mesh with no emitter, as McGuire's conference room) is
+    :data:`NO_LIGHTS`, which says how to add one."""
+    if not scene.lights:
+        return [NO_LIGHTS]
     out = zero_power_warnings(scene)
     kind = scene.material_table()["kind"] if scene.lights else None
     for i, light in enumerate(scene.lights):
