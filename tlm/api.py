@@ -93,6 +93,7 @@ from tlm.api_studies import (  # the many experiments and the reports (see the e
 from tlm.arch.units import Deadlock, MaxEventsReached
 from tlm.config import MODES, RunConfig, apply_overrides, config_from_dict, describe, to_dict
 from tlm.errors import InputError, StepsFailed, did_you_mean  # (StepsFailed: what plots raises)
+from tlm.experiments.dask_workers import machine_key  # noqa: F401  (not in __all__: tlm sweep's, a machine said once)
 from tlm.whole_imports import imports_whole
 
 if TYPE_CHECKING:

@@ -130,11 +130,15 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
     met), at most :data:`POINT_WARNINGS_SHOWN` of them, then how many more there are. Warnings that differ in
     their numbers alone (``moved by 0.14%``, ``by 0.29%``) are one, said in the wording first met with how many
     wordings it had (:func:`_folded`): one kind on every point is not a line per point. A line the sweep said
-    already (``said``, its own warnings; a cache's, said once) is not said again; a record that cannot be read
-    is left to the report, which names it."""
+    already (``said``, its own warnings; a cache's, said once) is not said again, nor a point's line of a Dask
+    machine's render.threads that the sweep said once for that machine (another count there, another worker's:
+    :func:`tlm.api.machine_key`); a record that cannot be read is left to the report, which names it."""
+    from tlm import api
+
     per_hash: dict[str, list[str]] = {}
     known = {" ".join(line.split()) for line in said} | storage.SAID
     covered = _covered_keys(said)  # (a point's "KEY = V has no effect in this run": the sweep said it of KEY)
+    machines = {key for line in said if (key := api.machine_key(line)) is not None}  # (each machine said once)
     counts: Counter[str] = Counter()  # points per form (a warning, its numbers masked)
     wordings: dict[str, dict[str, None]] = {}  # each form's wordings, in the order met
     for row in rows:
@@ -143,7 +147,8 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
             continue
         if h not in per_hash:
             per_hash[h] = [line for line in _recorded(Path(out) / "points" / h / "results.json")
-                           if line not in known and _NO_EFFECT.sub(r"\1", line, count=1) not in covered]
+                           if line not in known and _NO_EFFECT.sub(r"\1", line, count=1) not in covered
+                           and api.machine_key(line) not in machines]
         forms = list(dict.fromkeys(_folded(line) for line in per_hash[h]))
         for line in per_hash[h]:
             wordings.setdefault(_folded(line), {})[line] = None

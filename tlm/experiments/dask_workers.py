@@ -165,17 +165,33 @@ def machine_lines(lines) -> list[str]:
     names it: the host of its workers' address, the host name of the worker's machine.)"""
     found: dict[tuple[str, str], tuple[int, str]] = {}
     for line in lines:
-        if not isinstance(line, str):
+        if (read := _machine_line(line)) is None:
             continue
-        if (m := OVERSUBSCRIBED.match(line)) is not None:
-            key, weight = ("at once", m.group(2)), int(m.group(1)) * int(m.group(3))
-        elif (m := ALONE.match(line)) is not None:
-            key, weight = ("alone", m.group(2)), int(m.group(1))
-        else:
-            continue
+        key, weight = read
         if key not in found or weight > found[key][0]:
             found[key] = (weight, line)
     return [line for _, line in found.values()]
+
+
+def machine_key(line) -> tuple[str, str] | None:
+    """The machine a :func:`machine_lines` line is of, and its kind: ``("at once", HOST)`` for a
+    :data:`OVERSUBSCRIBED` line, ``("alone", HOST)`` for an :data:`ALONE` one; None for any other line. A
+    point's line of a key the sweep said once already is of a machine it said (``tlm sweep`` leaves it out of
+    the points' warnings after its summary)."""
+    read = _machine_line(line)
+    return None if read is None else read[0]
+
+
+def _machine_line(line) -> tuple[tuple[str, str], int] | None:
+    """A :func:`machine_lines` line read back: its machine's key (:func:`machine_key`) and its weight (the
+    kernel threads at once there, or the count alone); None for any other line."""
+    if not isinstance(line, str):
+        return None
+    if (m := OVERSUBSCRIBED.match(line)) is not None:
+        return ("at once", m.group(2)), int(m.group(1)) * int(m.group(3))
+    if (m := ALONE.match(line)) is not None:
+        return ("alone", m.group(2)), int(m.group(1))
+    return None
 
 
 def _dask_worker():

@@ -416,13 +416,16 @@ def sweep_jobs_line(points: Iterable[Any], workers: int, cpus: int | None = None
     each rendering with the most ``render.threads`` a point of ``points`` gives, run more threads than
     the ``cpus`` available, while that count alone is no more than them (:func:`sweep_threads_line`
     says that one): a point that leaves it null gets its worker's share (tlm.experiments.executors.
-    kernel_threads), one that gives it does not."""
+    kernel_threads), one that gives it does not. Nothing for a count of 1: where ``--jobs`` alone is past the
+    CPUs a null gets 1 there too (leaving it null would change nothing), and ``--jobs`` past the CPUs by
+    itself is allowed and not said (as :func:`~tlm.experiments.dask_workers.dask_oversubscribed` leaves it)."""
     if cpus is None:
         from tlm.kernels.threads import available
 
         cpus = available()
     most = max(((p.config.get("render") or {}).get("threads") or 0 for p in points), default=0)
-    if workers <= 1 or not most or most > cpus or workers * most <= cpus:
+    # (one thread: what a null count gets there too, which says nothing: --jobs alone is past the CPUs)
+    if workers <= 1 or most <= 1 or most > cpus or workers * most <= cpus:
         return []
     return [f"--jobs: {workers} worker processes, each with render.threads = {most}, run {workers * most} kernel "
             f"threads on the {cpus} CPU{'s' if cpus != 1 else ''} available to this process: they take turns on "
