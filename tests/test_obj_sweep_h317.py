@@ -108,8 +108,8 @@ def test_tlm_sweep_says_a_warning_all_its_points_recorded_resumed_too(tmp_path, 
     spec = tmp_path / "sw.yaml"
     spec.write_text("base: {scene: box.yaml}\nset: {mode: rcast, render.spp: 1, arch.packet_size: 16}\n"
                     "grid:\n  seed: [1, 2]\n")
-    said = ("tlm: warning: 2 of 2 points: 1 material of 'CornellBox-Original.mtl' ('floor') uses what tlm does not render: "
-            "map_Kd; it renders with its constant colour")
+    said = ("tlm: warning: 2 of 2 points: 1 material of 'CornellBox-Original.mtl' ('floor') uses what tlm does not "
+            "render: map_Kd; it renders with its constant colour")
     for _ in range(2):  # (the second: both points done before, read back)
         assert main(["sweep", str(spec), "--out", str(tmp_path / "o"), "--no-report", "--no-progress"]) == 0
         out, err = capsys.readouterr()

@@ -7,8 +7,8 @@
 * The Mitsuba writer's frame (:func:`tlm.oracle.mitsuba._normalised`) moved every light field whatever the
   light's kind, as the loader's transform did before 044a944 (a quad's ``position``, a point's ``corner``):
   now each kind's own points and lengths only (:func:`tlm.scenes.lights.own_points`, the loader's helper).
-* ``material_warnings`` said "2 materials of the mesh files" of a single file: "of the mesh file", or
-  "of the N mesh files".
+* ``material_warnings`` said "2 materials of the mesh files" of a single file: now it names the files that
+  define them ("of 't.mtl'", "of 'a.mtl' and 'b.mtl'": 74ef2d4, tests/test_material_files_lead66.py).
 """
 
 from __future__ import annotations
@@ -220,7 +220,7 @@ def test_the_mitsuba_scene_is_what_the_loaders_lights_imply(tmp_path):
     assert sun["irradiance"]["value"] == list(d.irradiance)
 
 
-# --- 3. "of the mesh file" -------------------------------------------------------------------------------------
+# --- 3. the files of the materials -----------------------------------------------------------------------------
 
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
 CAMERA = ("lights: [{type: point, position: [0.3, 0.3, 1], power: [10, 10, 10]}]\n"
@@ -244,7 +244,7 @@ def test_materials_of_two_files_are_of_the_2_mesh_files(tmp_path):
                                      + CAMERA)
     (line,) = material_warnings(load_scene(tmp_path / "s.yaml"))
     assert line.startswith("2 materials of 'a.mtl' and 'b.mtl' ('wood', 'stone') use what tlm does not render:"), line
-    # (one of them replaced by the scene file: one material, of the mesh file)
+    # (one of them replaced by the scene file: one material, of its file)
     (tmp_path / "s.yaml").write_text("geometry: [{mesh: a.obj}, {mesh: b.obj, transform: {translate: [2, 0, 0]}}]\n"
                                      + CAMERA + "materials: {wood: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n")
     (line,) = material_warnings(load_scene(tmp_path / "s.yaml"))

@@ -150,7 +150,8 @@ class Outcome:
     out: Path
     # the sweep's own warnings (run_sweep prints none; tlm sweep does): its factors and --set strings that
     # no point read (Sweep.inert_factors, inert_sets, before the points run; Sweep.unread_factors, after); the caches
-    # its workers could not write; point folders that are not its points
+    # its workers could not write; point folders that are not its points; a given render.threads past the CPUs (alone
+    # or times --jobs, as it starts; a Dask machine's, once per machine after the points: dask_workers.machine_lines)
     warnings: list[str] = field(default_factory=list)
     # folders in points/ that are not this sweep's points (an earlier run of other code or config)
     other_folders: int = 0

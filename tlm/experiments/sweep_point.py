@@ -209,8 +209,8 @@ def _threads_lines(task: Task, cfg, where: str | None) -> list[str]:
     (:func:`~tlm.experiments.run_warnings.threads_warning`), said by the process that runs the point, its frame
     cached or not: neither the frame's key nor its cached summary holds the threads or the machine's CPUs
     (:func:`~tlm.experiments.frames.cached_render`). None where the config leaves it null (the worker's share:
-    :func:`_with_threads`). A remote Dask worker's (``task.code``) ends ``(on the Dask worker ADDRESS on host
-    NAME)``, its CPUs its machine's (the sweep says it once per machine as it ends:
+    :func:`_with_threads`). A remote Dask worker's (``task.code``) ends ``(on the Dask worker NAME (ADDRESS) on
+    host HOST)``, its CPUs its machine's (the sweep says it once per machine as it ends:
     :func:`~tlm.experiments.dask_workers.machine_lines`); a local worker's is the line the sweep says as it starts
     (:func:`~tlm.experiments.run_warnings.sweep_threads_line`), said once. A Dask worker's point adds the line
     where that count, times the points at once on its machine, is past the machine's CPUs

@@ -292,7 +292,7 @@ def light_warnings(scene: Scene, accel: TriangleAccel, n: int = PROBE_RAYS) -> l
     if not scene.lights:
         return [NO_LIGHTS]
     out = zero_power_warnings(scene)
-    kind = scene.material_table()["kind"] if scene.lights else None
+    kind = scene.material_table()["kind"]
     for i, light in enumerate(scene.lights):
         if not any(p > 0.0 for p in light.power):
             continue  # a light switched off: zero_power_warnings, or (all off) the black image, says so
