@@ -4,6 +4,7 @@ Shared by the scene loader and the geometry composer."""
 
 from __future__ import annotations
 
+import datetime
 import math
 from typing import Any
 
@@ -44,7 +45,8 @@ SHOWN_CHARS = 200  # the most characters of a value an error line shows (the res
 
 
 def shown(v: Any, limit: int = SHOWN_CHARS) -> str:
-    """``repr`` of a value as an error line names it, a whole number past 900 bits (float64
+    """``repr`` of a value as an error line names it, a date or time as YAML read it (``2020-01-01``, not
+    ``datetime.date(2020, 1, 1)``), a whole number past 900 bits (float64
     holds none past 1024) by its count of digits, in a list too; cut to ``limit`` characters,
     a list's items taken only until then (a list of millions, aliases' too, said after a few)."""
     if isinstance(v, list):
@@ -59,6 +61,8 @@ def shown(v: Any, limit: int = SHOWN_CHARS) -> str:
         text = f"[{', '.join(parts)}]"
     elif isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 900:
         return digit_count(v)
+    elif isinstance(v, (datetime.date, datetime.time)):  # (a YAML date or time as written: 2020-01-01)
+        text = v.isoformat()
     else:
         text = repr(v)
     return text if len(text) <= limit else text[: limit - 3] + "..."
