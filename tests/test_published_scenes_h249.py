@@ -53,7 +53,8 @@ def test_a_statement_given_twice_in_a_material_is_the_last_and_noted():
                              "t.mtl", notes)
     assert wood.albedo == (1.0, 1.0, 1.0) and same.kind == "lambertian"  # (last-wins, as trimesh reads it)
     assert notes == ["t.mtl: line 4: material 'wood': Kd given twice, line 2 `Kd 0.286 0.149 0.129` and line 4 "
-                     "`Kd 1 1 1`: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give it once)"]
+                     "`Kd 1 1 1`: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another value: "
+                     "a scene file's `materials: {wood: ...}` entry, the MTL file left as it is)"]
 
 
 def test_the_conference_table_s_two_kd_are_noted_with_the_one_used():

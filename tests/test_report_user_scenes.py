@@ -69,10 +69,12 @@ def test_a_users_edited_scenes_cornell_is_not_the_builtin_cornell(tmp_path, monk
     # the report says that two scenes here share the name in their files
     assert inputs.shared_names() == [("cornell", ["cornell", "cornell.yaml"])]
     assert "the name in the files of cornell and cornell.yaml" in scenes_note(inputs)
-    # Table III names both scenes of its sources, not one "cornell" for two files
+    # Table III is of the built-in file's runs alone: the edited one is not the thesis's scene (h389: by its
+    # file, it has no table in the thesis), not one "cornell" for two files
     section = tables_section(inputs, tmp_path)
-    assert [f.title for f in section.figures] == [
-        "Table III (Cornell Box scene): ours (cornell, cornell.yaml) against the thesis"]
+    assert [f.title for f in section.figures] == ["Table III (Cornell Box scene): ours (cornell) against the thesis"]
+    assert ("mine: cornell.yaml/rcast: scene 'cornell' has no table in the thesis (cornell.yaml is not the thesis's "
+            "Cornell Box scene, cornell), left out of the tables") in section.notes
 
 
 def test_a_builtin_name_for_two_different_files_here_is_split(tmp_path, monkeypatch):

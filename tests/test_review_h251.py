@@ -75,5 +75,6 @@ def test_a_statement_given_three_times_is_one_note_naming_the_line_used():
     (red,) = parse_mtl("newmtl red\nKd 1 0 0\nKd 0 1 0\nKa 0 0 0\nKd 0 0 1\nKa 0 0 0\n", "t.mtl", notes)
     assert red.albedo == (0.0, 0.0, 1.0)
     assert notes == ["t.mtl: line 5: material 'red': Kd given 3 times, line 2 `Kd 1 0 0`, line 3 `Kd 0 1 0` and "
-                     "line 5 `Kd 0 0 1`: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give it "
-                     "once)"]  # (Ka given twice alike: not noted)
+                     "line 5 `Kd 0 0 1`: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another "
+                     "value: a scene file's `materials: {red: ...}` entry, the MTL file left as it is)"]
+    # (Ka given twice alike: not noted)

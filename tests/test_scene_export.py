@@ -172,7 +172,7 @@ def test_a_scene_file_export_renders_the_original_image(tmp_path, capsys):
 
     assert main(["scene", "export", "cornell", str(tmp_path / "s.yaml")]) == 0
     out = capsys.readouterr().out
-    assert out.startswith(f"wrote {tmp_path / 's.yaml'} (the scene file: 1 light besides emitting materials, ")
+    assert out.startswith(f"wrote {tmp_path / 's.yaml'} (the scene file: 1 light, the camera, ")  # (none emits)
     assert f"{tmp_path / 's.obj'} (2604 triangles) and {tmp_path / 's.mtl'} (5 materials)" in out
     cfg = {"resolution": [24, 24], "mode": "pmap", "photons": {"count": 2000}}
     a = render_image({**cfg, "scene": "cornell"}).composite

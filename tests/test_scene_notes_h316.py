@@ -65,7 +65,8 @@ def test_repeated_statements_and_newmtl_names_fold_per_file_and_kind(tmp_path):
     assert lines == [
         f"{lib}: 2 statements given again in one material with another value: the first at line 3, material 'a' "
         "(Kd given twice, line 2 `Kd 0.1 0.1 0.1` and line 3 `Kd 0.2 0.2 0.2`), and 1 more at line 6: the last is "
-        "used, as OBJ readers (trimesh, tinyobjloader) take it (give each once) (`tlm scene show` lists each)",
+        "used, as OBJ readers (trimesh, tinyobjloader) take it (another value: a scene file's `materials:` entry "
+        "of each, the MTL file left as it is) (`tlm scene show` lists each)",
         f"{lib}: 2 newmtl names defined again, each later definition ignored: the first at line 7, material 'a' "
         "(first defined at line 1), and 1 more at line 9: the first definitions are used (rename them) "
         "(`tlm scene show` lists each)",

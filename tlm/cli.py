@@ -308,8 +308,9 @@ def _cmd_scene(args: argparse.Namespace) -> int:
     mtl = f"{file.with_suffix('.mtl')} ({len(scene.materials)} materials)"
     if file.suffix.lower() in (".yaml", ".yml"):
         lights = sum(1 for lt in scene.lights if lt.kind != "mesh")
-        print(f"wrote {file} (the scene file: {lights} light{'s' if lights != 1 else ''} besides emitting "
-              f"materials, the camera, {scene.camera.width}x{scene.camera.height}, {scene.photons} photons), "
+        besides = " besides emitting materials" if any(m.emits for m in scene.materials) else ""
+        print(f"wrote {file} (the scene file: {lights} light{'s' if lights != 1 else ''}{besides}, "
+              f"the camera, {scene.camera.width}x{scene.camera.height}, {scene.photons} photons), "
               f"{file.with_suffix('.obj')} ({scene.n_triangles} triangles) and {mtl}")
         return 0
     also = f" and {mtl}" if file.suffix.lower() == ".obj" else ""

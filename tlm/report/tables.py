@@ -4,8 +4,10 @@ Where the rows come from:
 
 * a ``tlm thesis`` folder (a :class:`~tlm.report.collect.Study` of kind ``thesis``): its
   ``thesis_comparison.csv``, one source per (study, scene);
-* otherwise every run folder and sweep point whose scene is named as a thesis table's
-  (ring, room, cornell), through :func:`tlm.experiments.thesis.comparison_rows`. Runs of one
+* otherwise every run folder and sweep point whose scene is a thesis table's scene (ring, room,
+  cornell) by its file, not its name (:func:`thesis_table`: a user's ``room.yaml``, or the built-in
+  ``room``, is not the thesis's ``thesis/room``, and gets the note a scene without a thesis table
+  gets), through :func:`tlm.experiments.thesis.comparison_rows`. Runs of one
   scene file whose resolved configs agree except for ``mode`` fill the columns of one table
   (:func:`_config_key`); every other run (every sweep point) is a source of its own.
 
@@ -13,8 +15,7 @@ Each table is laid out like the thesis's (metrics as rows, modes as columns); a 
 shows ours, the thesis's value and the relative error (ours - thesis) / thesis. Marks:
 ``†`` a calibrated cell (:data:`tlm.experiments.thesis.CALIBRATED`: fitted, not a
 prediction), ``▲`` the slowest PM of the scene-mode in the thesis, ``●`` the slowest PM
-in ours. A source whose scene is not the thesis's (judged by its file: the built-in
-``ring`` is not the thesis's ``thesis/ring``) or whose resolution, photon count, sampling
+in ours. A source whose resolution, photon count, sampling
 (eye rays per pixel, light samples), pipeline count or clock differs from the thesis's is
 still shown, marked *not comparable* with the reason (the one rule,
 :func:`tlm.experiments.thesis.mismatches`); neither its table's summary, nor its study's
@@ -33,6 +34,7 @@ from urllib.parse import quote
 
 from tlm.config import MODES
 from tlm.errors import quoted
+from tlm.experiments.provenance import scene_identity
 from tlm.experiments.thesis import (
     CALIBRATED,
     METRICS,
@@ -46,11 +48,13 @@ from tlm.experiments.thesis import (
     run_mismatches,
     slowest_words,
     summarize,
+    table_of,
 )
 from tlm.report.collect import Inputs, Run, Study
 from tlm.report.common import Section, line_style, new_figure, save, some, untangle
 from tlm.report.names import shown_paths
 from tlm.report.sweep_lines import column_texts
+from tlm.scenes.loader import scenes_dir
 
 TABLE_NUMBER = {"ring": "I", "room": "II", "cornell": "III"}
 SCENE_TITLE = {"ring": "Scene with ring", "room": "Room scene", "cornell": "Cornell Box scene"}
@@ -116,6 +120,50 @@ def _study_cells(inputs: Inputs, study: Study) -> list[Run]:
     return [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
 
 
+def thesis_table(run: Run) -> str | None:
+    """The thesis table (``ring``, ``room``, ``cornell``) whose scene ``run``'s scene is, judged by
+    its file, not its name (a user's ``room.yaml``, named ``room`` by its stem, and the built-in
+    ``room`` are not the thesis's ``thesis/room``): the ``scene_digest`` its ``results.json``
+    recorded where that is a built-in thesis scene's identity now
+    (:func:`~tlm.experiments.provenance.scene_identity`), else its ``scene.source`` as
+    :func:`tlm.experiments.thesis.table_of` judges it (the file's identity where it is on this
+    machine, else its place under a ``scenes`` folder: a run of an older tlm, which recorded no
+    digest, or of a built-in scene edited since). A results.json with neither (nothing to tell
+    the file by) is judged by the scene's name. None: not a thesis scene."""
+    scene = run.results.get("scene") or {}
+    name = str(scene.get("name"))
+    if name not in THESIS_SCENES:
+        return None
+    digest, source = run.results.get("scene_digest"), scene.get("source")
+    if isinstance(digest, str) and digest and digest == scene_identity(scenes_dir() / f"{THESIS_SCENES[name]}.yaml"):
+        return name
+    if source:
+        return name if table_of(str(source)) == name else None
+    return None if isinstance(digest, str) and digest else name
+
+
+def not_thesis_words(scene: str, label: str) -> str:
+    """What a scene named as a thesis table's but of another file is: `` (scenes/room.yaml is not the
+    thesis's Room scene, thesis/room)`` (``label`` empty: `` (not the thesis's ...)``); empty for a scene
+    of another name."""
+    if scene not in THESIS_SCENES:
+        return ""
+    return f" ({f'{label} is ' if label else ''}not the thesis's {SCENE_TITLE[scene]}, {THESIS_SCENES[scene]})"
+
+
+def _study_table(study: Study, scene: str, cells: list[Run]) -> bool:
+    """Whether the scene ``scene`` of a thesis study is the thesis table's own scene (by its file): that
+    of its cells (:func:`thesis_table`); where they are gone, what the study said when it ran (its
+    ``not_comparable`` naming the scene file as not the thesis's), else it is taken to be."""
+    if scene not in THESIS:
+        return False
+    if cells:
+        return thesis_table(cells[0]) == scene
+    judged = study.meta.get("not_comparable")
+    why = judged.get(scene) if isinstance(judged, dict) else None
+    return not (isinstance(why, list) and any(str(w).startswith("the scene ") for w in why))
+
+
 def mismatches(run: Run, scene: str) -> list[str]:
     """How ``run`` differs from the setting of the thesis's table for ``scene`` (empty: none):
     :func:`tlm.experiments.thesis.mismatches`, the one rule, of its results and config."""
@@ -157,28 +205,30 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
         for row in study.rows:
             scenes.setdefault(str(row["scene"]), []).append(row)
         for scene, rows in scenes.items():
-            if scene not in THESIS:
-                notes.append(f"{study.path.name}: scene {quoted(inputs.study_scene(study, scene))} has no table in the "
-                             "thesis, left out of the tables")
+            runs = [r for r in cells if r.scene == scene]
+            if not _study_table(study, scene, runs):
+                notes.append(f"{study.path.name}: scene {quoted(inputs.study_scene(study, scene))} has no table in "
+                             f"the thesis{not_thesis_words(scene, '')}, left out of the tables")
                 continue
-            src = Source(f"thesis study {study.path.name}", scene, study=study,
-                         runs=[r for r in cells if r.scene == scene], named=_study_scene(study, scene))
+            src = Source(f"thesis study {study.path.name}", scene, study=study, runs=runs,
+                         named=_study_scene(study, scene))
             for row in rows:
                 src.rows[(str(row["mode"]), str(row["metric"]))] = row
             _judge(src)
             by_scene[scene].append(src)
     groups: dict[tuple[str, str], list[Source]] = {}
-    skipped = [r for r in inputs.runs if r.kind == "sweep-point" and r.scene in THESIS and inputs.of_kind("thesis")]
+    skipped = [r for r in inputs.runs if r.kind == "sweep-point" and inputs.of_kind("thesis") and thesis_table(r)]
     if skipped:
         notes.append(f"{len(skipped)} sweep points of thesis scenes are not tabled: a thesis study is among the "
                      "inputs (sweep points are tabled only without one)")
-    no_table: dict[str, list[str]] = {}  # a scene with no thesis table: the runs of it left out
+    no_table: dict[tuple[str, str], list[str]] = {}  # a scene with no thesis table (its words): the runs left out
     no_cycles: list[str] = []
     for run in inputs.runs:
         if run.path.resolve() in in_study or (skipped and run.kind == "sweep-point"):
             continue
-        if run.scene not in THESIS:
-            no_table.setdefault(run.scene, []).append(run.label)
+        if thesis_table(run) is None:
+            no_table.setdefault((run.scene, not_thesis_words(run.scene, shown_paths(run.scene_label))),
+                                []).append(run.label)
             continue
         if not run.results.get("cycles") or run.results.get("fps") is None:
             no_cycles.append(run.label)
@@ -195,10 +245,10 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
         src.runs.append(run)
         for row in rows:
             src.rows[(run.mode, row["metric"])] = row
-    for scene, labels in no_table.items():  # (a sweep of hundreds of points: one note, its count and a few labels)
-        notes.append(f"{labels[0]}: scene {quoted(scene)} has no table in the thesis, left out of the tables"
-                     if len(labels) == 1 else f"scene {quoted(scene)} has no table in the thesis: {len(labels)} runs "
-                     f"of it left out of the tables ({some(labels)})")
+    for (scene, why), labels in no_table.items():  # (a sweep of hundreds of points: one note, its count, a few labels)
+        notes.append(f"{labels[0]}: scene {quoted(scene)} has no table in the thesis{why}, left out of the tables"
+                     if len(labels) == 1 else f"scene {quoted(scene)} has no table in the thesis{why}: {len(labels)} "
+                     f"runs of it left out of the tables ({some(labels)})")
     if no_cycles:
         notes.append(f"{no_cycles[0]}: no simulated cycles in results.json, left out of the tables"
                      if len(no_cycles) == 1 else f"{len(no_cycles)} runs with no simulated cycles in results.json "
@@ -249,7 +299,8 @@ def study_summaries(inputs: Inputs, sources: dict[str, list[Source]] | None = No
     out = []
     for study in inputs.of_kind("thesis"):
         named = {s: inputs.study_scene(study, s) for s in {str(r["scene"]) for r in study.rows}}
-        rows = [{**r, "scene": named[str(r["scene"])]} for r in study.rows if str(r["scene"]) in THESIS]
+        tabled = {src.scene for srcs in sources.values() for src in srcs if src.study is study}  # (by its file)
+        rows = [{**r, "scene": named[str(r["scene"])]} for r in study.rows if str(r["scene"]) in tabled]
         if rows:  # (the scenes by their files, as the tables name them: its words name them so)
             differ = {named[src.scene]: src.not_comparable for srcs in sources.values() for src in srcs
                       if src.study is study and src.not_comparable}

@@ -118,11 +118,13 @@ def _clip01(c) -> tuple[float, float, float]:
 
 def _given_again(source: str, name: str, key: str, given: list[tuple[int, str, object]]) -> str:
     """The note on the statement ``key`` of the material ``name`` given more than once with other
-    values (``given``: each time's line, numbers as written and value): every line, and the last used."""
+    values (``given``: each time's line, numbers as written and value): every line, the last used, and where
+    another value is given without editing the (perhaps published) MTL file: a scene file's ``materials:``."""
     times = "twice" if len(given) == 2 else f"{len(given)} times"
     lines = [f"line {line} `{key} {text}`" for line, text, _ in given]
     return (f"{source}: line {given[-1][0]}: material {name!r}: {key} given {times}, {', '.join(lines[:-1])} and "
-            f"{lines[-1]}: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give it once)")
+            f"{lines[-1]}: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another value: a "
+            f"scene file's `materials: {{{name}: ...}}` entry, the MTL file left as it is)")
 
 
 def mtl_text(data: bytes, source: str, notes: list[str] | None = None) -> str:
@@ -240,7 +242,8 @@ _FOLDED = {
                          r"the last is used, (?P<hint>.*)$"),
               "statements given again in one material with another value",
               "{key} given {said}",
-              ": the last is used, as OBJ readers (trimesh, tinyobjloader) take it (give each once)"),
+              ": the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another value: a scene file's "
+              "`materials:` entry of each, the MTL file left as it is)"),
     "newmtl": (re.compile(rf"^(?P<file>.+?): line (?P<line>\d+): newmtl {_NAME} again \((?P<said>first defined at "
                           r"line \d+)\): (?P<hint>.*)$"),
                "newmtl names defined again, each later definition ignored", "{said}",
