@@ -52,7 +52,7 @@ from tlm.experiments.thesis import (
 )
 from tlm.report.collect import Inputs, Run, Study
 from tlm.report.common import Section, line_style, new_figure, save, some, untangle
-from tlm.report.names import shown_paths
+from tlm.report.names import same_file, shown_paths
 from tlm.report.sweep_lines import column_texts
 from tlm.scenes.loader import scenes_dir
 
@@ -123,23 +123,29 @@ def _study_cells(inputs: Inputs, study: Study) -> list[Run]:
 def thesis_table(run: Run) -> str | None:
     """The thesis table (``ring``, ``room``, ``cornell``) whose scene ``run``'s scene is, judged by
     its file, not its name (a user's ``room.yaml``, named ``room`` by its stem, and the built-in
-    ``room`` are not the thesis's ``thesis/room``): the ``scene_digest`` its ``results.json``
-    recorded where that is a built-in thesis scene's identity now
-    (:func:`~tlm.experiments.provenance.scene_identity`), else its ``scene.source`` as
-    :func:`tlm.experiments.thesis.table_of` judges it (the file's identity where it is on this
-    machine, else its place under a ``scenes`` folder: a run of an older tlm, which recorded no
-    digest, or of a built-in scene edited since). A results.json with neither (nothing to tell
-    the file by) is judged by the scene's name. None: not a thesis scene."""
+    ``room`` are not the thesis's ``thesis/room``): by the ``scene_digest`` its ``results.json``
+    recorded, the file as the run read it: the thesis's scene where that is a built-in thesis
+    scene's identity now (:func:`~tlm.experiments.provenance.scene_identity`) or where its
+    ``scene.source`` is that built-in file itself (edited since the run); any other file is not,
+    whatever it holds now or wherever it is (h391: a user's ``scenes/cornell.yaml``, edited, is not
+    Table III's once its folder is moved off this machine, nor once the file is reverted). A
+    results.json without one (a run of an older tlm, a sweep point) is judged by its
+    ``scene.source`` as :func:`tlm.experiments.thesis.table_of` judges it (the file's identity
+    where it is on this machine, else its place under a ``scenes`` folder), one with neither
+    (nothing to tell the file by) by the scene's name. None: not a thesis scene."""
     scene = run.results.get("scene") or {}
     name = str(scene.get("name"))
     if name not in THESIS_SCENES:
         return None
     digest, source = run.results.get("scene_digest"), scene.get("source")
-    if isinstance(digest, str) and digest and digest == scene_identity(scenes_dir() / f"{THESIS_SCENES[name]}.yaml"):
-        return name
+    builtin = scenes_dir() / f"{THESIS_SCENES[name]}.yaml"
+    if isinstance(digest, str) and digest:
+        if digest == scene_identity(builtin) or (source and same_file(source) == same_file(builtin)):
+            return name
+        return None
     if source:
         return name if table_of(str(source)) == name else None
-    return None if isinstance(digest, str) and digest else name
+    return name
 
 
 def not_thesis_words(scene: str, label: str) -> str:
@@ -166,8 +172,13 @@ def _study_table(study: Study, scene: str, cells: list[Run]) -> bool:
 
 def mismatches(run: Run, scene: str) -> list[str]:
     """How ``run`` differs from the setting of the thesis's table for ``scene`` (empty: none):
-    :func:`tlm.experiments.thesis.mismatches`, the one rule, of its results and config."""
-    return run_mismatches(scene, run.results, run.config)
+    :func:`tlm.experiments.thesis.mismatches`, the one rule, of its results and config; its scene
+    file judged as :func:`thesis_table` judges it (h391: a copy of the thesis's file, by the digest the
+    run recorded, is the thesis's scene though the copy is not on this machine or was edited since)."""
+    results = run.results
+    if thesis_table(run) == scene:  # (the file as the run read it: not judged again as it is now)
+        results = {**results, "scene": {**(results.get("scene") or {}), "source": None}}
+    return run_mismatches(scene, results, run.config)
 
 
 def _config_key(run: Run) -> str:
