@@ -24,7 +24,7 @@ import dask
 import pytest
 import yaml
 
-from tlm.experiments import dask_workers, executors
+from tlm.experiments import dask_workers, executors, executors_quiet
 
 from .test_sweep import _descendants
 
@@ -187,7 +187,7 @@ def test_loggers_left_silent_by_a_signal_come_back_and_a_later_sweep_keeps_their
 
     log = logging.getLogger("distributed.worker")
     monkeypatch.setattr(log, "level", logging.INFO)
-    monkeypatch.setattr(executors, "QUIET_GRACE", 0.2)
+    monkeypatch.setattr(executors_quiet, "QUIET_GRACE", 0.2)
     executors._Quiet().after(KeyboardInterrupt)
     assert log.level > logging.CRITICAL
     later = executors._Quiet()
