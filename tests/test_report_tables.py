@@ -50,6 +50,25 @@ def ring_run(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def thesis_study(tmp_path_factory):
+    """A tiny `tlm thesis` folder of the thesis's scenes (Tables I and III): thesis/ring and cornell,
+    RCast and PMap (the built-in ``ring`` is not Table I's scene, so its cells are not tabled)."""
+    root = tmp_path_factory.mktemp("thesis_study")
+    spec = root / "thesis.yaml"
+    spec.write_text(yaml.safe_dump({"base": TINY, "scenes": ["thesis/ring", "cornell"], "modes": ["rcast", "pmap"]}))
+    run_thesis(spec, root / "thesis")
+    return root / "thesis"
+
+
+@pytest.fixture(scope="module")
+def thesis_ring_run(tmp_path_factory):
+    """A single `tlm run` of the thesis's ring scene (Table I's) in mode refract."""
+    out = tmp_path_factory.mktemp("run") / "thesis_ring_refract"
+    run_experiment(config_from_dict({**TINY, "scene": "thesis/ring", "mode": "refract"}, "test"), out)
+    return out
+
+
 def _png_ok(path) -> None:
     assert path.is_file(), path
     pixels = imread(path)
@@ -91,7 +110,8 @@ def _as_run(run: Run, kind: str, label: str, **results) -> Run:
 # -- Tables I-III ----------------------------------------------------------------------------------
 
 @pytest.mark.slow
-def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
+def test_tables_from_study_show_the_csv_values_and_marks(thesis_study, tmp_path):
+    study = thesis_study
     section = tables_section(read([study]), tmp_path)
     assert section.absent is None and section.key == "tables"
     assert [f.file for f in section.figures] == ["tables_ring.png", "tables_cornell.png"]
@@ -130,16 +150,19 @@ def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
     # the study's summary, and the 32x32 frames are flagged as not comparable
     summary = json.loads((study / "thesis_summary.json").read_text())
     assert summary["median_abs_rel_error_held_out"] is None  # not comparable: no median, and the line says why
-    assert "Thesis study thesis: no median |relative error| (not comparable with the thesis: ring is " in html_text
+    assert ("Thesis study thesis: no median |relative error| (not comparable with the thesis: thesis/ring is "
+            in html_text)
     assert f"in {summary['slowest_pm_matches']} of {summary['scene_modes']} scene-modes" in html_text
     assert html_text.count('data-comparable="no"') == 2
     assert any("32×32 pixels (thesis 320×240)" in n and "2,000 photons (thesis 20,000)" in n for n in section.notes)
     assert MARK_CALIBRATED in html_text and "calibrated cell" in html_text  # the legend
-    # the study's per-item table: every cell of thesis_summary.json's per_item, ours (thesis)
+    # the study's per-item table: every cell of thesis_summary.json's per_item (keyed by table), ours
+    # (thesis), each row named by its scene as the study ran it
     start = html_text.index('class="thesis-table per-item"')
     table = html_text[start:html_text.index("</table>", start)]
-    assert set(re.findall(r"<tr><th>([a-z]+/[a-z]+)</th>", table)) == set(summary["per_item"]) == \
-        {f"{s}/{m}" for s in ("ring", "cornell") for m in ("rcast", "pmap")}
+    assert set(summary["per_item"]) == {f"{s}/{m}" for s in ("ring", "cornell") for m in ("rcast", "pmap")}
+    assert set(re.findall(r"<tr><th>([a-z/]+)</th>", table)) == \
+        {f"{s}/{m}" for s in ("thesis/ring", "cornell") for m in ("rcast", "pmap")}
     it = summary["per_item"]["cornell/pmap"]
     row = re.search(r"<tr><th>cornell/pmap</th>(.*?)</tr>", table).group(1)
     assert f"<td>{it['rays']:,}</td>" in row
@@ -147,11 +170,11 @@ def test_tables_from_study_show_the_csv_values_and_marks(study, tmp_path):
 
 
 @pytest.mark.slow
-def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run, tmp_path):
-    inputs = read([study])
+def test_tables_from_runs_group_by_config_and_mark_comparability(thesis_study, thesis_ring_run, tmp_path):
+    inputs = read([thesis_study])
     cells = {r.label: r for r in inputs.runs}
     # two cells of one study, posing as separate runs: one table with both columns
-    runs = [_as_run(cells["ring/rcast"], "run", "a"), _as_run(cells["ring/pmap"], "run", "b")]
+    runs = [_as_run(cells["thesis/ring/rcast"], "run", "a"), _as_run(cells["thesis/ring/pmap"], "run", "b")]
     # a run at the thesis's sizes (faked) is comparable
     big = _as_run(cells["cornell/rcast"], "run", "big", **{"scene.resolution": [320, 320]})
     big.config.setdefault("render", {}).update(spp=1, light_samples=1)  # and at the thesis's sampling
@@ -161,24 +184,24 @@ def test_tables_from_runs_group_by_config_and_mark_comparability(study, ring_run
     tables = re.findall(r'<table class="thesis-table" data-scene="(\w+)" data-source="([^"]*)" '
                         r'data-comparable="(\w+)"', section.html)
     assert tables == [("ring", "a, b", "no"), ("cornell", "big", "yes")]
-    pmap = cells["ring/pmap"].results
+    pmap = cells["thesis/ring/pmap"].results
     spans = _spans(_cell(section.html, "ring/pmap/TTrav", "a, b"))
     assert spans["ours"] == fmt(pmap["cycles"]["traversal"] / 1e6)
     assert spans["thesis"] == fmt(THESIS["ring"]["TTrav"][MODES.index("pmap")])
     assert spans["err"] == "n/c"  # no relative error against another setting than the thesis's
     assert _spans(_cell(section.html, "cornell/rcast/TTrav", "big"))["err"].endswith("%")
     spans = _spans(_cell(section.html, "ring/rcast/FPS", "a, b"))
-    assert spans["ours"] == fmt(cells["ring/rcast"].results["fps"])
+    assert spans["ours"] == fmt(cells["thesis/ring/rcast"].results["fps"])
     assert not any("big" in n for n in section.notes)
-    assert any("ring (a, b) is not comparable" in n for n in section.notes)
+    assert any(n.startswith("thesis/ring (a, b) is not comparable") for n in section.notes)
     # the single run of a smaller mode: its column only
-    section = tables_section(read([ring_run]), tmp_path)
+    section = tables_section(read([thesis_ring_run]), tmp_path)
     assert "ours" in _cell(section.html, "ring/refract/TVert") and "ours" not in _cell(section.html, "ring/pmap/TVert")
 
 
 @pytest.mark.slow
-def test_tables_are_bounded_and_say_what_they_leave_out(study, tmp_path):
-    cell = next(r for r in read([study]).runs if r.label == "ring/pmap")
+def test_tables_are_bounded_and_say_what_they_leave_out(thesis_study, tmp_path):
+    cell = next(r for r in read([thesis_study]).runs if r.label == "thesis/ring/pmap")
     points = [_as_run(cell, "sweep-point", f"sweep #{i}") for i in range(MAX_TABLES_PER_SCENE + 2)]
     section = tables_section(Inputs([], runs=points), tmp_path)
     assert section.html.count('<table class="thesis-table"') == MAX_TABLES_PER_SCENE
@@ -187,9 +210,9 @@ def test_tables_are_bounded_and_say_what_they_leave_out(study, tmp_path):
 
 
 @pytest.mark.slow
-def test_sweep_points_are_not_tabled_beside_a_thesis_study(study, tmp_path):
-    inputs = read([study])
-    cell = next(r for r in inputs.runs if r.label == "ring/pmap")
+def test_sweep_points_are_not_tabled_beside_a_thesis_study(thesis_study, tmp_path):
+    inputs = read([thesis_study])
+    cell = next(r for r in inputs.runs if r.label == "thesis/ring/pmap")
     points = [_as_run(cell, "sweep-point", f"sweep #{i}") for i in range(2)]
     (tmp_path / "a").mkdir()
     alone = tables_section(Inputs([], runs=points), tmp_path / "a")
