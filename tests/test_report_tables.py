@@ -32,41 +32,43 @@ TINY = {"seed": 0, "resolution": [32, 32], "photons": {"count": 2000}, "render":
         "arch": {"frames": 1}}
 
 
+def _study(tmp_path_factory, name: str, scenes: list[str]):
+    root = tmp_path_factory.mktemp(name)
+    spec = root / "thesis.yaml"
+    spec.write_text(yaml.safe_dump({"base": TINY, "scenes": scenes, "modes": ["rcast", "pmap"]}))
+    run_thesis(spec, root / "thesis")
+    return root / "thesis"
+
+
+def _refract_run(tmp_path_factory, folder: str, scene: str):
+    out = tmp_path_factory.mktemp("run") / folder
+    run_experiment(config_from_dict({**TINY, "scene": scene, "mode": "refract"}, "test"), out)
+    return out
+
+
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     """A tiny `tlm thesis` folder: ring and cornell, RCast and PMap."""
-    root = tmp_path_factory.mktemp("study")
-    spec = root / "thesis.yaml"
-    spec.write_text(yaml.safe_dump({"base": TINY, "scenes": ["ring", "cornell"], "modes": ["rcast", "pmap"]}))
-    run_thesis(spec, root / "thesis")
-    return root / "thesis"
+    return _study(tmp_path_factory, "study", ["ring", "cornell"])
 
 
 @pytest.fixture(scope="module")
 def ring_run(tmp_path_factory):
     """A single `tlm run` of the ring scene in mode refract (the ring has no dielectric)."""
-    out = tmp_path_factory.mktemp("run") / "ring_refract"
-    run_experiment(config_from_dict({**TINY, "scene": "ring", "mode": "refract"}, "test"), out)
-    return out
+    return _refract_run(tmp_path_factory, "ring_refract", "ring")
 
 
 @pytest.fixture(scope="module")
 def thesis_study(tmp_path_factory):
     """A tiny `tlm thesis` folder of the thesis's scenes (Tables I and III): thesis/ring and cornell,
     RCast and PMap (the built-in ``ring`` is not Table I's scene, so its cells are not tabled)."""
-    root = tmp_path_factory.mktemp("thesis_study")
-    spec = root / "thesis.yaml"
-    spec.write_text(yaml.safe_dump({"base": TINY, "scenes": ["thesis/ring", "cornell"], "modes": ["rcast", "pmap"]}))
-    run_thesis(spec, root / "thesis")
-    return root / "thesis"
+    return _study(tmp_path_factory, "thesis_study", ["thesis/ring", "cornell"])
 
 
 @pytest.fixture(scope="module")
 def thesis_ring_run(tmp_path_factory):
     """A single `tlm run` of the thesis's ring scene (Table I's) in mode refract."""
-    out = tmp_path_factory.mktemp("run") / "thesis_ring_refract"
-    run_experiment(config_from_dict({**TINY, "scene": "thesis/ring", "mode": "refract"}, "test"), out)
-    return out
+    return _refract_run(tmp_path_factory, "thesis_ring_refract", "thesis/ring")
 
 
 def _png_ok(path) -> None:
