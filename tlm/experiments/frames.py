@@ -36,7 +36,7 @@ import json
 import os
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +55,7 @@ from tlm.caches import (
 from tlm.config import config_from_dict, noting_reads, to_dict
 from tlm.experiments import run
 from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
+from tlm.experiments.provenance import scene_identity
 from tlm.experiments.run_warnings import reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
@@ -84,6 +85,9 @@ class CachedRender:
     summary: dict
     cached: bool  # True when both came from the cache
     key: str  # the cache key (:func:`functional_key`)
+    # the scene's inputs as the key read them (results.json scene_digest: provenance.scene_identity of the files of
+    # the load that gave the key's fingerprint, remembered with it while they are unchanged); None: no scene file
+    scene_digest: str | None = None
 
 
 SUMMARY_KEYS = ("scene", "plan", "primary", "work", "photons", "error", "warnings")
@@ -130,16 +134,17 @@ def render_key(cfg, base: Path | None = None, source: str | None = None) -> str:
     return _keyed(cfg, base, source)[0]
 
 
-def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = None) -> tuple[str, Scene | None]:
+def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = None
+           ) -> tuple[str, Scene | None, str | None]:
     """:func:`render_key` with the scene its key loaded (None where the fingerprint was
-    remembered), so that a render on a cache miss does not load it again; ``timer``: gets the
-    stage ``load_scene`` of that load."""
-    fingerprint, scene = _scene_key(cfg.scene, base, cfg.resolution, source, timer)
-    return functional_key(cfg, fingerprint, code_fingerprint()), scene
+    remembered), so that a render on a cache miss does not load it again, and the scene's digest
+    (:func:`_scene_key`); ``timer``: gets the stage ``load_scene`` of that load."""
+    fingerprint, scene, digest = _scene_key(cfg.scene, base, cfg.resolution, source, timer)
+    return functional_key(cfg, fingerprint, code_fingerprint()), scene, digest
 
 
 MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
-_SCENE_KEYS: OrderedDict[tuple, tuple[str, list]] = OrderedDict()  # inputs -> (fingerprint, checks)
+_SCENE_KEYS: OrderedDict[tuple, tuple] = OrderedDict()  # inputs -> (fingerprint, checks, scene digest)
 _MEMO_LOCK = threading.Lock()
 
 
@@ -165,9 +170,14 @@ def scene_key(ref, base: Path | None = None, resolution: list[int] | None = None
 
 
 def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str | None,
-               timer: Timer | None = None) -> tuple[str, Scene | None]:
+               timer: Timer | None = None) -> tuple[str, Scene | None, str | None]:
     """:func:`scene_key` with the scene it loaded, or None where it gave the remembered
-    fingerprint (a caller that renders next uses this one: the scene loaded once).
+    fingerprint (a caller that renders next uses this one: the scene loaded once), and the scene's
+    digest (``results.json``'s ``scene_digest``, as :func:`tlm.experiments.run.render` records a run's:
+    :func:`~tlm.experiments.provenance.scene_identity` of the files that load read, from the digests it
+    computed), remembered with the fingerprint (in this process and on disk) while those files are
+    unchanged: a sweep's points of one scene digest it once (an entry on disk of a tlm before it, none:
+    its files digested once in this process).
 
     A fingerprint is remembered in this process and, for a scene with mesh files (their parse is the
     cost), on disk too (:func:`_kept_key`: ``scenes/key-<hash>.json`` in tlm's cache), under the same key
@@ -184,33 +194,38 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
     try:
         hash(key)
     except TypeError:  # (a resolution of other items than numbers: load_scene says what is wrong)
-        with timer.stage("load_scene"):
+        with timer.stage("load_scene"), noting_reads() as reads:
             scene = load_scene(ref, base, resolution, source)
-        return scene_fingerprint(scene), scene
+            digest = scene_identity(scene.source, reads) if scene.source else None
+        return scene_fingerprint(scene), scene, digest
     with _MEMO_LOCK:
         hit = _SCENE_KEYS.get(key)
     if hit is None:
         hit = _kept_key(key)
     if hit is not None and unchanged(hit[1]):
+        if hit[2] is None:  # (an entry on disk of a tlm before the digest: its files digested now, once)
+            hit = (hit[0], hit[1], scene_identity(path))
         with _MEMO_LOCK:
             _SCENE_KEYS[key] = hit
             _SCENE_KEYS.move_to_end(key)
             while len(_SCENE_KEYS) > MEMO_SIZE:
                 _SCENE_KEYS.popitem(last=False)
-        return hit[0], None
+        return hit[0], None, hit[2]
     with noting_reads() as reads, timer.stage("load_scene"):
         scene = load_scene(ref, base, resolution, source)
+        # (of the load's stage, as a run's: its files' digests, most of them the load's own)
+        digest = scene_identity(scene.source, reads) if scene.source else None
     fingerprint = scene_fingerprint(scene)
     checks = read_checks(reads)
     with _MEMO_LOCK:
         _SCENE_KEYS.pop(key, None)
         if checks is not None:
-            _SCENE_KEYS[key] = (fingerprint, checks)
+            _SCENE_KEYS[key] = (fingerprint, checks, digest)
             while len(_SCENE_KEYS) > MEMO_SIZE:
                 _SCENE_KEYS.popitem(last=False)
     if checks is not None and any(c[0] in ("libraries", "listed") for c in checks):  # (a mesh parsed: the cost)
-        _keep_key(key, fingerprint, checks)
-    return fingerprint, scene
+        _keep_key(key, fingerprint, checks, digest)
+    return fingerprint, scene, digest
 
 
 SCENE_KEY_FORMAT = "tlm-scene-key/1"  # the "tlm" field of a remembered scene fingerprint (scenes/key-<hash>.json)
@@ -227,8 +242,9 @@ def _key_file(key: tuple) -> tuple[Path, list] | None:
     return cache_root("scenes") / f"key-{name}.json", plain
 
 
-def _kept_key(key: tuple) -> tuple[str, list] | None:
-    """The fingerprint and checks remembered on disk for ``key`` (:func:`_keep_key`), or None: none kept,
+def _kept_key(key: tuple) -> tuple[str, list, str | None] | None:
+    """The fingerprint, checks and scene digest remembered on disk for ``key`` (:func:`_keep_key`; the digest None
+    where a tlm before it kept the entry), or None: none kept,
     or one not read whole (its checks then run as a load's would: a damaged one costs a load, quietly)."""
     found = _key_file(key)
     if found is None:
@@ -244,18 +260,20 @@ def _kept_key(key: tuple) -> tuple[str, list] | None:
         return None
     if writable():  # (not inside tlm.scenes.cache.read_only: a dry run)
         note_use(path)  # (tlm cache prune keeps the fingerprints in use)
-    return kept["fingerprint"], kept["checks"]
+    digest = kept.get("digest")
+    return kept["fingerprint"], kept["checks"], digest if isinstance(digest, str) and digest else None
 
 
-def _keep_key(key: tuple, fingerprint: str, checks: list) -> None:
-    """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` on disk (speed only: a cache
+def _keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = None) -> None:
+    """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` (and the scene's ``digest``, its
+    ``scene_digest``) on disk (speed only: a cache
     that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run). A
     folder where the file should be is a damaged entry (:func:`_kept_key` read none): removed, the file written."""
     found = _key_file(key) if writable() else None
     if found is None:
         return
     path, plain = found
-    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks}
+    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks, "digest": digest}
     try:
         text = json.dumps(body)
     except (TypeError, ValueError):
@@ -306,10 +324,12 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     again, a damaged one (a folder where either file should be too) said and removed first.
     Both files are written atomically, so concurrent renders of one key (two processes of a
     sweep) leave one whole entry; a write that fails (a full disk, a read-only cache) costs
-    speed only, and leaves no ``.npz`` without its sidecar.
+    speed only, and leaves no ``.npz`` without its sidecar. Its ``scene_digest`` is that of the scene
+    files the key was computed from (:func:`_scene_key`), a frame read from the cache too: this config's
+    files as this process read them, not those of whoever rendered the frame first.
     """
     timer = Timer()
-    key, scene = _keyed(cfg, base, source, timer)  # (the scene, when the key loaded it: rendered from it)
+    key, scene, digest = _keyed(cfg, base, source, timer)  # (the scene, when the key loaded it: rendered from it)
     path = cache_dir() / f"{key}.npz"
     side = path.with_suffix(".json")
     if use_cache:
@@ -318,8 +338,8 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
             _damaged(folder, side if folder == path else path, "a folder, not a file")
         elif path.exists() and side.exists():
             got = _load_entry(path, side, key)
-            if got is not None:
-                got = _here(got, cfg, base, source, scene)
+            if got is not None:  # (the digest of the scene its key was computed from: this config's files now)
+                got = _here(replace(got, scene_digest=digest), cfg, base, source, scene)
                 measured = _measured(got, cfg, lambda: _image(path, side, got.summary["pmap"]), scene, base, source)
                 if measured is not None:
                     return measured
@@ -362,7 +382,7 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
                 remove_entry(done, cache_dir())
         else:
             cache_written(path)
-    got = CachedRender(fn, summary, False, key)
+    got = CachedRender(fn, summary, False, key, digest)
     return _measured(got, cfg, lambda: pmap, res.scene, base, source)
 
 
@@ -438,7 +458,7 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
     error = run.error_against(key, settings, frame, image, meta)
     summary = {**got.summary, "error": error,
                "warnings": [*(got.summary.get("warnings") or []), *reference_warnings(error, cfg)]}
-    return CachedRender(got.functional, summary, got.cached, got.key)
+    return replace(got, summary=summary)
 
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:
     """``got``, a cached frame, with its summary's ``scene.source`` the file this config names,

@@ -133,6 +133,9 @@ def run_point(task: Task) -> dict:
             results = {
                 "tlm": POINT_FORMAT, "hash": task.hash, "sweep": task.source, "factors": task.factors,
                 "seed": cfg.seed, "mode": cfg.mode,
+                # (beside the scene: its inputs as this process read them for the frame's key, as a run's results.json
+                # records them: frames.cached_render, a frame from the cache too; a Dask worker's, the files it read)
+                "scene": summary.get("scene"), "scene_digest": got.scene_digest,
                 **{k: summary.get(k) for k in SUMMARY_KEYS},
                 # the render's warnings, and this point's own (its render.threads past this process's CPUs; what it
                 # sets and never reads; its stream)

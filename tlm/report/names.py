@@ -188,8 +188,8 @@ def name_scenes(runs: list) -> None:
 def scene_digest(run) -> tuple[str | None, bool]:
     """The digest of a run's scene inputs (:func:`~tlm.experiments.provenance.scene_identity`: its scene file,
     ``extends:`` chain, meshes and their libraries) and whether its ``results.json`` recorded it as the run read
-    them (``scene_digest``); for a sweep point or a run of an older tlm, which record none, that of the files as
-    they are on this machine now (None where its scene file is not here), and False."""
+    them (``scene_digest``, a sweep point's too); for a run or sweep point of an older tlm, which record none, that
+    of the files as they are on this machine now (None where its scene file is not here), and False."""
     from tlm.experiments.provenance import scene_identity
 
     recorded = run.results.get("scene_digest")
@@ -217,7 +217,7 @@ def _by_digest(runs: list) -> None:
 
 def digest_notes(runs: list) -> list[str]:
     """The report's lines on runs whose scene contents differ though their scene file is one
-    (:func:`_by_digest` named them apart). A run that records no digest (an older tlm's, a sweep point) is compared
+    (:func:`_by_digest` named them apart). A run that records no digest (an older tlm's run or sweep point) is compared
     by its files as they are now, which its scene's table says (:func:`tlm.report.provenance.scene_tables`)."""
     from tlm.report.common import some
 
