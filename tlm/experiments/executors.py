@@ -46,8 +46,8 @@ from tlm.experiments.executors_exit import exit_with as _exit_with
 from tlm.experiments.executors_exit import release_semaphores as release_semaphores
 from tlm.experiments.executors_exit import watch_parent as _watch_parent  # noqa: F401
 from tlm.experiments.executors_quiet import QUIET_GRACE as QUIET_GRACE  # (these: kept importable from here)
-from tlm.experiments.executors_quiet import _put_back_left as _put_back_left
-from tlm.experiments.executors_quiet import _Quiet
+from tlm.experiments.executors_quiet import Quiet as _Quiet
+from tlm.experiments.executors_quiet import put_back_left as _put_back_left  # noqa: F401 (tests call it from here)
 from tlm.experiments.worker_start import OWN_PROCESS as OWN_PROCESS  # (these: kept importable from here)
 from tlm.experiments.worker_start import TLM_PRELOAD as TLM_PRELOAD
 from tlm.experiments.worker_start import UNGUARDED_EXIT as UNGUARDED_EXIT

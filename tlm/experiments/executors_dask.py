@@ -117,7 +117,7 @@ def host_kept():
     Yields the record of what it sets (a dict the caller fills: :func:`pre_spawn_env`, the nannies' own); a
     variable is put back only where its value is still what distributed wrote, so that one another thread set
     meanwhile stays (the whole environment was put back, undoing it). Their levels are
-    :class:`tlm.experiments.executors._Quiet`'s."""
+    :class:`tlm.experiments.executors_quiet.Quiet`'s."""
     env = dict(os.environ)
     written: dict[str, str] = {}
     loggers = {n: (list(logging.getLogger(n).handlers), logging.getLogger(n).propagate) for n in _HOST_LOGGERS}

@@ -1,8 +1,8 @@
 """distributed's loggers around a sweep's Dask client (:func:`tlm.experiments.executors.open_executor`): those
-that only narrate connections kept below WARNING for the client's whole life (:meth:`_Quiet.hush`: a lost scheduler's
+that only narrate connections kept below WARNING for the client's whole life (:meth:`Quiet.hush`: a lost scheduler's
 "Batched Comm Closed" traceback, logged on distributed's loop thread before the sweep's poll sees the loss, would
 precede tlm's one line), all of them silenced once the sweep knows its scheduler is lost or a signal ends it
-(:meth:`_Quiet.now`), and put back as they were after (on a signal, :data:`QUIET_GRACE` seconds later).
+(:meth:`Quiet.now`), and put back as they were after (on a signal, :data:`QUIET_GRACE` seconds later).
 :mod:`tlm.experiments.executors` re-exports these names.
 """
 
@@ -13,11 +13,11 @@ import threading
 import time
 
 
-class _Quiet:
+class Quiet:
     """distributed's loggers silenced (:meth:`now`) and put back as they were (:meth:`restore`); those that only
     narrate a connection closing, kept below WARNING (:meth:`hush`) for the sweep client's whole life."""
 
-    left_due = 0.0  # when the loggers left silenced by the latest signal are put back (:func:`_put_back_left`)
+    left_due = 0.0  # when the loggers left silenced by the latest signal are put back (:func:`put_back_left`)
 
     def __init__(self) -> None:
         self.levels: dict[str, int] = {}
@@ -84,8 +84,8 @@ class _Quiet:
         with _LEFT_LOCK:
             _LEFT_QUIET.update(self.levels)
             self.levels.clear()
-            due = _Quiet.left_due = time.monotonic() + QUIET_GRACE  # (an earlier signal's timer: not these)
-        later = threading.Timer(QUIET_GRACE, _put_back_left, args=(due,))
+            due = Quiet.left_due = time.monotonic() + QUIET_GRACE  # (an earlier signal's timer: not these)
+        later = threading.Timer(QUIET_GRACE, put_back_left, args=(due,))
         later.daemon = True  # (a process that ends meanwhile does not wait for it)
         later.start()
         return False
@@ -94,17 +94,17 @@ class _Quiet:
 QUIET_GRACE = 10.0  # seconds distributed's loggers stay silenced after a signal ended a --dask local sweep
 NARRATING = ("distributed.batched", "distributed.client", "distributed.comm", "distributed.core")  # distributed's
 # loggers whose INFO records, in the sweep's process, narrate connections: opened, closed (with a traceback),
-# reconnecting, pooled (:meth:`_Quiet.hush`)
+# reconnecting, pooled (:meth:`Quiet.hush`)
 _LEFT_QUIET: dict[str, int] = {}  # logger -> its level before the silence, for the loggers left silenced
 _LEFT_LOCK = threading.Lock()
 
 
-def _put_back_left(due: float | None = None) -> None:
-    """The levels of the loggers left silenced after a signal (:meth:`_Quiet.after`), put back; by the timer of
+def put_back_left(due: float | None = None) -> None:
+    """The levels of the loggers left silenced after a signal (:meth:`Quiet.after`), put back; by the timer of
     the signal whose grace ends at ``due``, only where no later signal has left them silenced since (a sweep
     signalled within an earlier one's grace: its grace, whole)."""
     with _LEFT_LOCK:
-        if due is not None and due < _Quiet.left_due:  # (the later signal's own timer puts them back)
+        if due is not None and due < Quiet.left_due:  # (the later signal's own timer puts them back)
             return
         for name, level in _LEFT_QUIET.items():
             logging.getLogger(name).setLevel(level)
