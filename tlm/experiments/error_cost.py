@@ -105,7 +105,7 @@ from tlm.experiments.error_cost_clock import CompileClock
 from tlm.experiments.error_cost_frame import frame_functional, frame_time
 from tlm.experiments.error_cost_frame import others_key as _others_key
 from tlm.experiments.error_cost_frame import own_passes as _own_passes
-from tlm.experiments.error_cost_truth import Truth, truth_error, truth_noise_words
+from tlm.experiments.error_cost_truth import Truth, black_lines, truth_error, truth_noise_words
 from tlm.experiments.loading import cast_image, load_frame
 from tlm.experiments.reference import compute_reference, image_error, reference_key
 from tlm.experiments.reference_cache import (
@@ -368,6 +368,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     elif truth_meta["available"] and truth_noise_words(truth.spp):  # (its noise in every truth_* error)
         words = truth_noise_words(truth.spp)
         study_warning(f"error-vs-cost: {words[0].lower()}{words[1:]}", warned)
+    for line in black_lines(reference, truth_image, key):  # (a column empty in every row: said, h394)
+        study_warning(f"error-vs-cost: {line}", warned)
 
     maps: dict[tuple, tuple] = {}  # map key -> (the trace, its seconds without compilation)
     density_s: dict[tuple, float] = {}  # (id of a map in maps, k) -> seconds of its density radius

@@ -18,6 +18,10 @@ import numpy as np
 from tlm.errors import InputError
 
 TRUTH_SPP_LOW = 1024  # samples per pixel of the ground truth below which its noise is said (the default: 4096)
+# A ground truth whose brightest value is below this is scaled to 1, with the composite, before FLIP: flip_evaluator
+# ends the whole process (C++ abort, "Start exposure must be smaller than stop exposure!") on a reference whose
+# luminance peaks below about 1e-7, and HDR-FLIP does not change when both images are scaled (h394)
+FLIP_FAINT = 1e-3
 
 
 def truth_noise_words(spp) -> str:
@@ -81,6 +85,20 @@ class Truth:
         return np.asarray(image, dtype=np.float64), meta
 
 
+def black_lines(reference: np.ndarray, truth: np.ndarray | None, key: str) -> list[str]:
+    """A warning line for our reference (of key ``key``) and for the ground truth where either is black (every
+    pixel 0), which leaves a column empty in every row, said rather than left unsaid (h394: a camera that sees
+    nothing lit; ``tlm run`` of the base says why, as its own warnings)."""
+    lines = []
+    if not np.any(reference):
+        lines.append(f"the photon-map reference {key} is black (every pixel 0): every row's rel_mse is empty (no "
+                     "squared reference to divide by); 'tlm run' of the base says why (its warnings)")
+    if truth is not None and not np.any(truth > 0):
+        lines.append("the ground truth is black (every pixel 0): every row's truth_rel_mse and truth_flip are empty; "
+                     "'tlm run' of the base says why (its warnings)")
+    return lines
+
+
 def flip_missing() -> str | None:
     """Why FLIP cannot be measured (its optional package ``flip_evaluator`` does not import), or None."""
     from tlm.oracle.mitsuba import INSTALL_HINT
@@ -108,5 +126,16 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
     img = composite.reshape(truth.shape)
     err = image_error(img[keep], truth[keep])  # the same measures as against our own reference
     return {"truth_rmse": err["rmse"], "truth_rel_mse": err["rel_mse"],
-            "truth_flip": oracle.flip(img, truth) if flip else None}
+            "truth_flip": _flip(img, truth, oracle.flip) if flip else None}
+
+
+def _flip(img: np.ndarray, truth: np.ndarray, flip) -> float | None:
+    """``flip(img, truth)``, or None where the truth is black (FLIP has no exposure range to take from
+    it); a faint truth (brightest value below :data:`FLIP_FAINT`) is scaled to 1, with ``img``, first."""
+    peak = float(np.max(np.maximum(truth, 0.0), initial=0.0))
+    if peak == 0.0:  # (a camera that sees nothing lit: flip_evaluator would abort the process)
+        return None
+    if peak >= FLIP_FAINT:
+        return flip(img, truth)
+    return flip(img / peak, truth / peak)
 

@@ -38,11 +38,11 @@ from pathlib import Path
 from tlm.arch.granularity import fine_ti_cycles
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict, file_folder
-from tlm.config_words import with_overrides
+from tlm.config_words import value_text, with_overrides
 from tlm.errors import InputError
-from tlm.experiments.frames import cached_functional
+from tlm.experiments.frames import cached_render
 from tlm.experiments.run import programs_for
-from tlm.experiments.run_warnings import empty_sets
+from tlm.experiments.run_warnings import empty_sets, reference_warnings
 from tlm.experiments.study import read_study_base, refuse_set, run_study, with_set
 from tlm.storage import check_destination, warn
 
@@ -66,7 +66,7 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):
-        raise InputError(f"{sizes!r} must be a non-empty list of whole numbers >= 1", source=src,
+        raise InputError(f"{value_text(sizes)} must be a non-empty list of whole numbers >= 1", source=src,
                          key="packet_sizes")
     if overrides:
         config_from_dict(base, base_src)  # (the base's own errors first, naming its file)
@@ -84,14 +84,22 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
     ``overrides``: ``tlm granularity --set`` strings (:func:`load_granularity`), in the study's
     ``config.resolved.yaml`` by their values and listed in its ``provenance.json``; one that sets
     nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`, naming them ``via``)
-    is given to ``warned`` (default: said on stderr; :func:`tlm.api.granularity` returns it)."""
+    is given to ``warned`` (default: said on stderr; :func:`tlm.api.granularity` returns it), and so is each
+    of the rendered frame's own warnings, as ``tlm run`` says them, led by ``granularity: ``."""
     overrides = tuple(str(o) for o in overrides)
     cfg, sizes, folder = load_granularity(Path(path), overrides)
     for line in empty_sets(overrides, via):  # (a --set render={} sets nothing: said once, as tlm run says it)
         warned(line)
     check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
-    fn, _hit = cached_functional(cfg, folder, str(path))
+    got = cached_render(cfg, folder, str(path))
+    fn = got.functional
+    # the frame's own warnings, as tlm run says them (a camera that sees nothing, a black image, a light that
+    # reaches nothing: the study's cycles are of that frame, h394); not the photon frame's error, none of its business
+    off = reference_warnings(got.summary.get("error"), cfg)
+    for line in dict.fromkeys(got.summary.get("warnings") or []):
+        if line not in off:
+            warned(f"granularity: {line}")
     if any(size > 1 for size in sizes):  # the coarse sizes' estimate against packets of one, once untimed:
         # a large frame's flow shops load their compiled kernel at the first call (numba's import, ~2 s),
         # which would be booked as the first coarse size's host seconds (a small frame's take the loop)
