@@ -37,24 +37,29 @@ def test_a_factor_that_changes_only_the_error_is_said_to_change_it_and_the_least
     assert "changes nothing" not in text
     assert ("estimate.radius_photons changes the image error (relative MSE 0.0537 at 25 → 0.0187 at 400, averaged "
             "over the other factors), not the frame rate, between points that differ only in it; ") in text
-    assert text.endswith("the best point is photons.count = 25000, estimate.radius_photons = 400 at 2.01 FPS, the "
-                         "least image error (relative MSE 0.0231) of the 3 points tied at that frame rate.")
+    assert text.endswith("the fastest point is photons.count = 25000, estimate.radius_photons = 400 at 2.01 FPS, the "
+                         "least image error (relative MSE 0.0231) of the 3 points tied at that frame rate; the point "
+                         "of the lowest image error (relative MSE 0.0144) is photons.count = 100000, "
+                         "estimate.radius_photons = 400 at 1.34 FPS.")  # (a slower point's error is lower: h396)
 
 
 def test_points_tied_in_frame_rate_and_error_are_each_named():
     errors = [0.05, 0.02, 0.02, 0.06, 0.03, 0.01]
     (text,) = sweep_findings(Inputs([], sweeps=[_sweep(errors)]))
-    assert text.endswith("the best points, tied at 2.01 FPS and at the least image error (relative MSE 0.02) of the 3 "
-                         "points tied at that frame rate, are (photons.count = 25000, estimate.radius_photons = 100) "
-                         "and (photons.count = 25000, estimate.radius_photons = 400).")
+    assert text.endswith("the fastest points, tied at 2.01 FPS and at the least image error (relative MSE 0.02) of the "
+                         "3 points tied at that frame rate, are (photons.count = 25000, estimate.radius_photons = 100) "
+                         "and (photons.count = 25000, estimate.radius_photons = 400); the point of the lowest image "
+                         "error (relative MSE 0.01) is photons.count = 100000, estimate.radius_photons = 400 at "
+                         "1.34 FPS.")
 
 
 def test_a_factor_that_changes_neither_says_so():
     errors = [0.05, 0.05, 0.05, 0.02, 0.02, 0.02]
     (text,) = sweep_findings(Inputs([], sweeps=[_sweep(errors)]))
     assert ("estimate.radius_photons changes nothing (neither the frame rate nor the image error) between points "
-            "that differ only in it; the best point is photons.count = 25000, estimate.radius_photons = 25 at "
-            "2.01 FPS.") in text
+            "that differ only in it; the fastest point is photons.count = 25000, estimate.radius_photons = 25 at "
+            "2.01 FPS (relative MSE 0.05); the point of the lowest image error (relative MSE 0.02) is "
+            "photons.count = 100000, estimate.radius_photons = 25 at 1.34 FPS.") in text
 
 
 def test_one_frame_rate_everywhere_still_finds_the_error():

@@ -1,5 +1,6 @@
 """The summary's sentences on what a sweep's factors do (:mod:`tlm.report.summary` says them): per sweep,
-the factor that moves the frame rate most, like with like, and its best point (:func:`sweep_findings`); the
+the factor that moves the frame rate most, like with like, and its fastest point (the best where no slower
+point has a lower image error, else the point of the lowest error beside it: :func:`sweep_findings`); the
 factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
 be compared; the best of points tied in frame rate is the one of least image error where each measured it; and
 per sweep whose points measured their image error, the factor that moves it most (:func:`error_factor`, said
@@ -8,6 +9,7 @@ under "What quality costs").
 
 from __future__ import annotations
 
+import ast
 from collections import defaultdict
 
 import numpy as np
@@ -100,16 +102,46 @@ def _measured(rows: list[dict]) -> list[dict]:
 
 def _error_range(k: str, eff: dict, most: bool = False) -> str:
     """How ``k`` changes the image error (:func:`_effect` of :data:`ERROR`, ``eff``), in words: its
-    values' mean relative MSE from the worst to the best (tied values said so), averaged over the other
-    factors where it is compared in more than one of their combinations; with ``most``, the ratio too
-    ("" where no combination finished with each of its values)."""
+    values' mean relative MSE from the worst to the best (tied values said so), or, where its values are
+    numbers that the mean error is not monotone over (:func:`_not_monotone`), each value's in the values'
+    order, said so (at most :data:`MAX_LISTED`: then the ends and the extremes, the rest left out);
+    averaged over the other factors where it is compared in more than one of their combinations; with
+    ``most``, the ratio too ("" where no combination finished with each of its values)."""
     means = eff["values"]
     if not means:
         return ""
     hi, lo = max(means.values()), min(means.values())
     ratio = f"{hi / lo:.2f}x, " if most and lo > 0 else ""
-    return (f"{ratio}relative MSE {hi:.3g} at {_values(_extreme(k, means, hi))} → {lo:.3g} at "
-            f"{_values(_extreme(k, means, lo))}{', averaged over the other factors' if eff['combos'] > 1 else ''}")
+    order = _not_monotone(means)
+    if order is None:
+        said = (f"relative MSE {hi:.3g} at {_values(_extreme(k, means, hi))} → {lo:.3g} at "
+                f"{_values(_extreme(k, means, lo))}")
+    else:
+        ends = {0, len(order) - 1, *(i for i, v in enumerate(order) if any(same_value(means[v], m) for m in (hi, lo)))}
+        shown = list(range(len(order))) if len(order) <= MAX_LISTED else sorted(ends)
+        said = f"not monotone{f' over its {len(order)} values' if len(shown) < len(order) else ''}: relative MSE "
+        for n, i in enumerate(shown):
+            said += ("" if n == 0 else ", " if i == shown[n - 1] + 1 else ", …, ")
+            said += f"{means[order[i]]:.3g} at {esc(_as_yaml(k, order[i]))}"
+    return f"{ratio}{said}{', averaged over the other factors' if eff['combos'] > 1 else ''}"
+
+
+MAX_LISTED = 6  # the most values of a factor whose error is not monotone over them said each
+
+
+def _not_monotone(means: dict[str, float]) -> list[str] | None:
+    """The values (reprs, :func:`_effect`'s keys) in increasing order, where there are three or more,
+    each a number, and the ``means`` over them both rise and fall (steps of 1e-9 or less not counted:
+    :func:`same_value`); None else (a factor of names or of two values has no order to break)."""
+    try:
+        nums = {v: ast.literal_eval(v) for v in means}
+    except (ValueError, SyntaxError, TypeError):  # (a name, nan)
+        return None
+    if len(nums) < 3 or not all(_number(x) for x in nums.values()):
+        return None
+    order = sorted(means, key=nums.__getitem__)
+    steps = [b - a for a, b in zip((means[v] for v in order), (means[v] for v in order[1:])) if not same_value(a, b)]
+    return order if any(d > 0 for d in steps) and any(d < 0 for d in steps) else None
 
 
 def _as_yaml(k: str, text: str) -> str:
@@ -136,7 +168,10 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
     factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
     the least image error where each of them measured it (the text says so), else each of them
     (those of the least error, tied), in sweep order (the first of those that differ only in
-    ``inert``; at most :data:`MAX_TIED_POINTS` named, the rest counted)."""
+    ``inert``; at most :data:`MAX_TIED_POINTS` named, the rest counted). It is "the best point" where
+    no point measured its image error or it has the lowest error of all (said so where not said as
+    the least of the tied); else "the fastest point", with its error, and the point of the lowest
+    error after it (:func:`_lowest`): a faster point of a larger error is not the best of all."""
     top = max(r["fps"] for r in rows)
     best = {}
     for r in rows:
@@ -147,20 +182,58 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
         low = min(float(r[ERROR]) for r in best.values())
         best = {key: r for key, r in best.items() if same_value(float(r[ERROR]), low)}
         least = f"the least image error (relative MSE {low:.3g}) of the {tied} points tied at that frame rate"
-    where = [", ".join(f"{k} = {_as_yaml(k, repr(r.get(k)))}" for k in factors) for r in best.values()]
+    errs = [float(r[ERROR]) for r in _measured(rows)]
+    lowest = min(errs) if errs else None
+    fastest = lowest is not None and not all(_number(r.get(ERROR)) and same_value(float(r[ERROR]), lowest)
+                                             for r in best.values())
+    word = "fastest" if fastest else "best"
+    where = [_where(r, factors) for r in best.values()]
     if len(where) == 1:
-        return f"the best point is {esc(where[0])} at {top:.3g} FPS{', ' + least if least else ''}."
+        (r,) = best.values()
+        own = ("" if least or not _number(r.get(ERROR)) else
+               f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
+               f", with the lowest image error (relative MSE {lowest:.3g})" if lowest is not None else "")
+        text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
+    else:
+        text = (f"the {word} points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
+                f"are {_and(_named(where, factors))}")
+    return f"{text}; {_lowest(rows, factors, inert, lowest)}." if fastest else f"{text}."
+
+
+def _where(r: dict, factors: list[str]) -> str:
+    """A point's factors, ``a = 1, b = 2`` (not escaped)."""
+    return ", ".join(f"{k} = {_as_yaml(k, repr(r.get(k)))}" for k in factors)
+
+
+def _named(where: list[str], factors: list[str]) -> list[str]:
+    """Points said one after another (:func:`_where`, with more, each in parentheses where there are more
+    factors than one), escaped: at most :data:`MAX_TIED_POINTS`, the rest counted."""
     named = [esc(w if len(factors) == 1 else f"({w})") for w in where[:MAX_TIED_POINTS]]
-    if len(where) > MAX_TIED_POINTS:
-        named.append(f"{len(where) - MAX_TIED_POINTS} more")
-    return (f"the best points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
-            f"are {_and(named)}.")
+    return named + ([f"{len(where) - MAX_TIED_POINTS} more"] if len(where) > MAX_TIED_POINTS else [])
+
+
+def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float) -> str:
+    """The point of the lowest image error ``low`` among ``rows`` and its frame rate, in words; those
+    that tie (to 1e-9), each, as :func:`_best_points` names the tied (not escaped twice)."""
+    points: dict[tuple, dict] = {}
+    for r in _measured(rows):
+        if same_value(float(r[ERROR]), low):
+            points.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
+    if len(points) == 1:
+        (r,) = points.values()
+        return f"the point of the lowest image error (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
+               f"{r['fps']:.3g} FPS"
+    fps = [f" at {r['fps']:.3g} FPS" for r in points.values()]
+    named = [w + (fps[i] if i < MAX_TIED_POINTS else "")
+             for i, w in enumerate(_named([_where(r, factors) for r in points.values()], factors))]
+    return f"the points of the lowest image error (relative MSE {low:.3g}), tied, are {_and(named)}"
 
 
 def error_factor(inputs: Inputs) -> str:
     """A sentence (after a space) per sweep whose points measured their image error: the factor that
     moves the mean error most, like with like (:func:`_effect` of :data:`ERROR`: the ratio of its
-    worst value's mean to its best's), where one factor does (none tied with it); "" else."""
+    worst value's mean to its best's; each value's mean where it is not monotone over them: :func:`_error_range`),
+    where one factor does (none tied with it); "" else."""
     said = ""
     for sw in inputs.sweeps:
         every = named_rows(sw)
