@@ -2,8 +2,9 @@
 camera sees nothing lit gives Mitsuba a black ground truth, and flip_evaluator ended the whole process
 on it (a C++ abort, "Start exposure must be smaller than stop exposure!", no output, no one-line
 error); so did a faint one (luminance peaking below about 1e-7). The composite's truth_flip is now
-empty where the truth is black, and a faint truth is scaled to 1, with the composite, before FLIP
-(HDR-FLIP does not change when both images are scaled). Each call runs in a child process, so that
+empty where the truth is black, and a truth too faint for FLIP is scaled to 1, with the composite, before
+FLIP (only such a one: HDR-FLIP changes with the scale where half the truth is dark, h397,
+tests/test_review_h397.py). Each call runs in a child process, so that
 the old abort fails the test rather than the test run."""
 
 from __future__ import annotations

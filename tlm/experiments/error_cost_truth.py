@@ -18,10 +18,14 @@ import numpy as np
 from tlm.errors import InputError
 
 TRUTH_SPP_LOW = 1024  # samples per pixel of the ground truth below which its noise is said (the default: 4096)
-# A ground truth whose brightest value is below this is scaled to 1, with the composite, before FLIP: flip_evaluator
-# ends the whole process (C++ abort, "Start exposure must be smaller than stop exposure!") on a reference whose
-# luminance peaks below about 1e-7, and HDR-FLIP does not change when both images are scaled (h394)
-FLIP_FAINT = 1e-3
+# A ground truth whose luminance peaks below this is scaled, with the composite, to a brightest value of 1 before FLIP:
+# flip_evaluator ends the whole process (C++ abort, "Start exposure must be smaller than stop exposure!") on a
+# reference whose luminance Y (FLIP_LUMINANCE) peaks below 2**-23, where its start exposure log2(x / Y_max) passes its
+# stop exposure log2(x / max(Y_median, 2**-23)) (h394). Only such a truth: HDR-FLIP is not the same for both images
+# scaled where that median is held at 2**-23 (half the truth dark: a faint truth's exposure range is shorter), so a
+# truth FLIP measures as it is keeps FLIP's own number (h397); twice the bound, for float32's rounding of Y
+FLIP_FAINT = 2.0 ** -22
+FLIP_LUMINANCE = (0.2126729, 0.7151522, 0.0721750)  # (linear sRGB's Y, as flip_evaluator computes it)
 
 
 def truth_noise_words(spp) -> str:
@@ -131,11 +135,13 @@ def truth_error(composite: np.ndarray, truth: np.ndarray | None, keep: np.ndarra
 
 def _flip(img: np.ndarray, truth: np.ndarray, flip) -> float | None:
     """``flip(img, truth)``, or None where the truth is black (FLIP has no exposure range to take from
-    it); a faint truth (brightest value below :data:`FLIP_FAINT`) is scaled to 1, with ``img``, first."""
-    peak = float(np.max(np.maximum(truth, 0.0), initial=0.0))
+    it); a truth too faint for FLIP (its luminance peaking below :data:`FLIP_FAINT`) is scaled, with ``img``, so
+    that its brightest value is 1 first."""
+    lit = np.maximum(truth, 0.0)
+    peak = float(np.max(lit, initial=0.0))
     if peak == 0.0:  # (a camera that sees nothing lit: flip_evaluator would abort the process)
         return None
-    if peak >= FLIP_FAINT:
+    if float(np.max(lit @ np.array(FLIP_LUMINANCE), initial=0.0)) >= FLIP_FAINT:
         return flip(img, truth)
     return flip(img / peak, truth / peak)
 

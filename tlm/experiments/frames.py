@@ -34,6 +34,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, replace
@@ -144,7 +145,7 @@ def _keyed(cfg, base: Path | None, source: str | None, timer: Timer | None = Non
 
 
 MEMO_SIZE = 8  # the scenes whose fingerprint one process remembers (the least recently used goes)
-_SCENE_KEYS: OrderedDict[tuple, tuple] = OrderedDict()  # inputs -> (fingerprint, checks, scene digest)
+_SCENE_KEYS: OrderedDict[tuple, tuple] = OrderedDict()  # inputs -> (fingerprint, checks, scene digest, _yaml_bytes)
 _MEMO_LOCK = threading.Lock()
 
 
@@ -176,8 +177,8 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
     digest (``results.json``'s ``scene_digest``, as :func:`tlm.experiments.run.render` records a run's:
     :func:`~tlm.experiments.provenance.scene_identity` of the files that load read, from the digests it
     computed), remembered with the fingerprint (in this process and on disk) while those files are
-    unchanged: a sweep's points of one scene digest it once (an entry on disk of a tlm before it, none:
-    its files digested once in this process).
+    unchanged and its YAML files keep their bytes (:func:`_yaml_bytes`: the checks tell their text): a sweep's points
+    of one scene digest it once (an entry on disk of a tlm before it, none: its files digested once, and kept).
 
     A fingerprint is remembered in this process and, for a scene with mesh files (their parse is the
     cost), on disk too (:func:`_kept_key`: ``scenes/key-<hash>.json`` in tlm's cache), under the same key
@@ -203,8 +204,12 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
     if hit is None:
         hit = _kept_key(key)
     if hit is not None and unchanged(hit[1]):
-        if hit[2] is None:  # (an entry on disk of a tlm before the digest: its files digested now, once)
-            hit = (hit[0], hit[1], scene_identity(path))
+        now = _yaml_bytes(hit[1])  # (before the digest: a file saved between them is digested again next time)
+        if hit[2] is None or now != hit[3]:  # (an entry of a tlm before the digest; a YAML file's bytes not those
+            # digested, its text the same (its line ends: the checks' text is in universal newlines): digested now)
+            hit = (hit[0], hit[1], scene_identity(path), now)
+            if any(c[0] in ("libraries", "listed") for c in hit[1]):  # (kept on disk: once, not once a process)
+                _keep_key(key, *hit)
         with _MEMO_LOCK:
             _SCENE_KEYS[key] = hit
             _SCENE_KEYS.move_to_end(key)
@@ -213,22 +218,34 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
         return hit[0], None, hit[2]
     with noting_reads() as reads, timer.stage("load_scene"):
         scene = load_scene(ref, base, resolution, source)
-        # (of the load's stage, as a run's: its files' digests, most of them the load's own)
-        digest = scene_identity(scene.source, reads) if scene.source else None
     fingerprint = scene_fingerprint(scene)
-    checks = read_checks(reads)
+    checks = read_checks(reads)  # (the load's reads alone: not the digest's own read of the scene's YAML)
+    now = None if checks is None else _yaml_bytes(checks)
+    with timer.stage("load_scene"):  # (of the load's stage, as a run's: its files' digests, most of them the load's)
+        digest = scene_identity(scene.source, reads) if scene.source else None
     with _MEMO_LOCK:
         _SCENE_KEYS.pop(key, None)
         if checks is not None:
-            _SCENE_KEYS[key] = (fingerprint, checks, digest)
+            _SCENE_KEYS[key] = (fingerprint, checks, digest, now)
             while len(_SCENE_KEYS) > MEMO_SIZE:
                 _SCENE_KEYS.popitem(last=False)
     if checks is not None and any(c[0] in ("libraries", "listed") for c in checks):  # (a mesh parsed: the cost)
-        _keep_key(key, fingerprint, checks, digest)
+        _keep_key(key, fingerprint, checks, digest, now)
     return fingerprint, scene, digest
 
 
+def _yaml_bytes(checks: list) -> list | None:
+    """The sha256 of the bytes of each YAML file of a load's ``checks`` (its ``text`` ones: the scene file and its
+    ``extends:`` chain), which the scene's digest hashes and those checks do not tell (their text is in universal
+    newlines: a file saved with CRLF line ends is the same text, other bytes); None where one is not read."""
+    try:
+        return [hashlib.sha256(Path(c[1]).read_bytes()).hexdigest() for c in checks if c[0] == "text"]
+    except (OSError, TypeError, ValueError):
+        return None
+
+
 SCENE_KEY_FORMAT = "tlm-scene-key/1"  # the "tlm" field of a remembered scene fingerprint (scenes/key-<hash>.json)
+_DIGEST = re.compile("sha256 [0-9a-f]{16}")  # (a scene digest of a scene file that loaded: scene_identity's)
 
 
 def _key_file(key: tuple) -> tuple[Path, list] | None:
@@ -242,9 +259,10 @@ def _key_file(key: tuple) -> tuple[Path, list] | None:
     return cache_root("scenes") / f"key-{name}.json", plain
 
 
-def _kept_key(key: tuple) -> tuple[str, list, str | None] | None:
-    """The fingerprint, checks and scene digest remembered on disk for ``key`` (:func:`_keep_key`; the digest None
-    where a tlm before it kept the entry), or None: none kept,
+def _kept_key(key: tuple) -> tuple[str, list, str | None, list | None] | None:
+    """The fingerprint, checks, scene digest and its YAML files' bytes' sha256 (:func:`_yaml_bytes`) remembered on disk
+    for ``key`` (:func:`_keep_key`; the digest and bytes None where a tlm before them kept the entry, or either is
+    damaged: the files digested again), or None: none kept,
     or one not read whole (its checks then run as a load's would: a damaged one costs a load, quietly)."""
     found = _key_file(key)
     if found is None:
@@ -260,11 +278,15 @@ def _kept_key(key: tuple) -> tuple[str, list, str | None] | None:
         return None
     if writable():  # (not inside tlm.scenes.cache.read_only: a dry run)
         note_use(path)  # (tlm cache prune keeps the fingerprints in use)
-    digest = kept.get("digest")
-    return kept["fingerprint"], kept["checks"], digest if isinstance(digest, str) and digest else None
+    digest, digested = kept.get("digest"), kept.get("digested")  # (either damaged or not there: digested again)
+    if not (isinstance(digest, str) and _DIGEST.fullmatch(digest) and isinstance(digested, list)
+            and all(isinstance(d, str) for d in digested)):
+        digest = digested = None
+    return kept["fingerprint"], kept["checks"], digest, digested
 
 
-def _keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = None) -> None:
+def _keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = None,
+              digested: list | None = None) -> None:
     """Remember ``fingerprint`` of the scene load ``key`` with its ``checks`` (and the scene's ``digest``, its
     ``scene_digest``) on disk (speed only: a cache
     that cannot be written is left as it is; nothing inside :func:`tlm.scenes.cache.read_only`, a dry run). A
@@ -273,7 +295,8 @@ def _keep_key(key: tuple, fingerprint: str, checks: list, digest: str | None = N
     if found is None:
         return
     path, plain = found
-    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks, "digest": digest}
+    body = {"tlm": SCENE_KEY_FORMAT, "key": plain, "fingerprint": fingerprint, "checks": checks, "digest": digest,
+            "digested": digested}  # (the sha256 of the bytes of its YAML files that digest is of: _yaml_bytes)
     try:
         text = json.dumps(body)
     except (TypeError, ValueError):
