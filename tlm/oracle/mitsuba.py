@@ -561,8 +561,10 @@ def flip(test, reference, exposure: float | None = None) -> float:
     """Mean FLIP error (0 = identical, 1 = maximal) of two linear (height, width, 3) images.
 
     ``exposure=None``: HDR-FLIP (``flip_evaluator``) on the linear radiance, with FLIP's
-    own exposure range (start and stop exposures computed from the reference; the
-    result does not change when both images are scaled) and its defaults (ACES tone
+    own exposure range (start and stop exposures computed from the reference: the result
+    does not change when both images are scaled, except where more than half the reference
+    is so dark that the stop exposure is pinned by its floor, 2**-23 of luminance, below
+    which, at the peak, flip_evaluator aborts the process) and its defaults (ACES tone
     mapper, 67 pixels per degree). It takes about 0.5 s at 320x320 on one core.
     ``exposure`` given: LDR-FLIP of the pictures we write, both images tone-mapped by
     :func:`tlm.render.image.to_srgb8` at that one exposure (e.g.
