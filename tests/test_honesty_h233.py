@@ -158,12 +158,12 @@ def _cost(seeds: dict[str, dict[str, float]], tmp_path: Path) -> Study:
 
 def test_what_quality_costs_says_one_seed_is_one_seed(tmp_path):
     rows = [{"filter": f, "rel_mse": e, "frame_seconds": 0.1, "factors": f"estimate.filter={f}"}
-            for f, e in (("knn", 0.0393), ("disk", 0.0401))]
+            for f, e in (("mvoxel", 0.0393), ("disk", 0.0401))]
     (tmp_path / "ec").mkdir()
     (tmp_path / "ec" / "config.resolved.yaml").write_text("scene: cornell\nseed: 3\n")
     lead = html.unescape(summary_section(Inputs([], studies=[Study("error-vs-cost", tmp_path / "ec", rows)]),
                                          tmp_path).lead)
-    assert "the lowest error is knn's" in lead
+    assert "the lowest error is mvoxel's" in lead
     assert "These rows are of one seed (seed 3): where the filters' errors are close, another seed" in lead
 
 

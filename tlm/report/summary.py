@@ -386,12 +386,15 @@ def _study_labels(studies: list) -> dict[int, str]:
 
 def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     from tlm.report.tradeoff import (
+        KNN_REFERENCE,
+        KNN_WHY,
         as_drawn,
         floor_line,
         log_floor,
         reference_converged,
         series_styles,
         truth_noise_words,
+        unmodelled_cost,
     )
     from tlm.report.tradeoff import gather_rays as _gather_rays
     from tlm.report.tradeoff import series_of as _series
@@ -429,10 +432,14 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     drawn = as_drawn(values, floor if log_y else None)  # (on a log axis: a 0 at the floor, below 0 left off)
     zero, below, odd = int((values == 0).sum()), int((values < 0).sum()), int((~np.isfinite(values)).sum())
     shown = np.isfinite(drawn)
+    apart = False  # (the k-NN reference drawn: hollow, its own key, as its frame time leaves out its search)
     for name in [n for n in series if any(k and series_of(r) == n for r, k in zip(rows, shown, strict=True))]:
         xy = sorted(((r["frame_seconds"], y) for r, y, k in zip(rows, drawn, shown, strict=True)
                      if k and series_of(r) == name), key=lambda p: p[0])
-        ax.plot([x for x, _ in xy], [y for _, y in xy], label=name, **{**line_style(styles[name]), "linestyle": "none"})
+        knn = any(unmodelled_cost(r) for r in rows if series_of(r) == name)
+        apart |= knn
+        ax.plot([x for x, _ in xy], [y for _, y in xy], label=name + (f" ({KNN_REFERENCE})" if knn else ""),
+                **{**line_style(styles[name]), "linestyle": "none", **({"markerfacecolor": "none"} if knn else {})})
     floor_line(ax, "y", floor if log_y else None, values, "error")
     ax.set_xscale("log")
     log_ticks(ax, "x")  # (no minor tick labels running into each other)
@@ -447,6 +454,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
              "of its own" + ("; each study's points a series of their own, named by its folder and the --set "
                              "overrides the other studies do not share" if len(studies) > 1 else "")
              + "); lower left is better"
+             + (f"; hollow: the k-NN reference (knn), not comparable: {KNN_WHY}" if apart else "")
              + (f"; {zero} of them with an error of 0, which a log axis cannot show: drawn at {floor:.2g} (the "
                 "dotted line)" if zero and log_y else "")
              + (f"; {below} with an error below 0, which a log axis cannot show: not drawn" if below and log_y else "")
@@ -462,10 +470,15 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
                 "are drawn)." + points_error(inputs) + error_factor(inputs)), f
     left = len(rows) - len(quoted)
     rows = quoted
-    best = {}
+    best, knn = {}, {}  # (knn: the k-NN reference, whose frame time leaves out its search: ranked by it nowhere)
     for r in rows:
-        if series_of(r) not in best or r[err] < best[series_of(r)][err]:
-            best[series_of(r)] = r
+        into = knn if unmodelled_cost(r) else best
+        if series_of(r) not in into or r[err] < into[series_of(r)][err]:
+            into[series_of(r)] = r
+    if not best:
+        return ("<b>What quality costs:</b> only the k-NN reference (knn) was measured, relative MSE "
+                f"{min(r[err] for r in knn.values()):.3g}: its simulated frame time leaves out its search (not "
+                "modelled), so no filter is ranked by frame time." + points_error(inputs) + error_factor(inputs)), f
     lo = min(best.values(), key=lambda r: r[err])
     gather = _gather_rays(lo)
     st = lo["_study"]
@@ -477,6 +490,8 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     rest = [f"{esc(k)} {best[k][err]:.3g} at {best[k]['frame_seconds']:.3g} s"
             + (" (against a reference NOT converged)" if id(best[k]["_study"]) in unsure else "") for k in series
             if k in best and best[k] is not lo]
+    refs = [f"{esc(k)} {knn[k][err]:.3g}" + (" (against a reference NOT converged)" if id(knn[k]["_study"]) in unsure
+                                             else "") for k in series if k in knn]
     if err == "truth_rel_mse":  # (the truth's samples, and where they are few, that its noise is in the error)
         spp = lo.get("truth_spp")
         against = " against Mitsuba's path tracer" + (f" ({int(spp):,} spp)" if _number(spp) and spp > 0 else "")
@@ -485,11 +500,14 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         against = " against our reference" + (" (NOT converged)" if reference_converged(st) is False else "")
         noise = ""
     seeds = _seeds_words(rows, err, series_of)  # (one seed's winner is one sample: said as such)
-    text = (f"<b>What quality costs:</b> the lowest error is {esc(lo['filter'])}'s"
+    text = (f"<b>What quality costs:</b> the lowest error{' of a filter whose search is modelled' * bool(knn)} is "
+            f"{esc(lo['filter'])}'s"
             + (f" with final gathering ({gather} rays)" if gather else "")
             + (f" (from {esc(source)})" if source else "") + ", relative MSE "
             f"{lo[err]:.3g} at {lo['frame_seconds']:.3g} s a frame"
             + against + (f"; {', '.join(rest)}" if rest else "")
+            + (f"; the k-NN reference, not ranked as its frame time leaves out its search (not modelled): "
+               f"{', '.join(refs)}" if refs else "")
             + (f" ({_count(left, 'row')} with a relative MSE below 0 or not a finite number left out)" if left
                else "") + "." + esc(seeds) + noise
             + points_error(inputs) + error_factor(inputs))

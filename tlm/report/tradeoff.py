@@ -9,7 +9,10 @@
     own, after ``mvoxel + final gather (4 rays)``; a point's name adds its caustic photon budget), the
     same in each of a study's figures and in the summary's (:func:`series_styles`); the marker's
     area grows with the photon count; the Pareto front (the points no other point beats
-    on both error and time) is drawn as a step line and its points are named. A reference
+    on both error and time) is drawn as a step line and its points are named. The k-NN reference
+    (``knn``) is drawn hollow on the simulated-frame-time figure and left off its front: the timing
+    model charges its k photons per query but not its search (:func:`unmodelled_cost`); on the host
+    wall time figure, measured time, it is a filter like the others. A reference
     that did not converge (``reference.json``'s ``reference_converged``, or the rows') is said so in
     the axis label, title and caption (:func:`reference_words`). Titles that the study's ``--set``
     makes long are wrapped (:func:`~tlm.report.common.wrap_title`). An axis is log where its positive
@@ -52,8 +55,22 @@ from tlm.report.common import (
     untangle,
     wrap_title,
 )
+from tlm.report.names import scene_label
 
 TITLE_INCHES = 5.6  # the axes' width of an error-vs-cost figure (9 inches wide, its key to the right): its title's
+
+
+KNN_REFERENCE = "k-NN reference: search not modelled"  # (its key's words on a simulated-frame-time figure)
+KNN_WHY = ("the timing model charges its k photons per query but not its search (a scipy k-d tree, no memory "
+           "layout of the thesis hardware), so its simulated frame time is not its cost")
+
+
+def unmodelled_cost(r: dict) -> bool:
+    """Whether a row's simulated frame time leaves out its filter's search: the k-NN filter (``knn``, the
+    exact reference of :func:`tlm.kernels.estimate.knn_estimate`) is charged its k photons tested per
+    query and no tree walk (node_visits and gather_misses 0). Such a row is drawn apart on a figure
+    against simulated frame time and is ranked by it nowhere (no Pareto front, no summary's ranking)."""
+    return str(r.get("filter")) == "knn"
 
 
 def pareto_front(cost, error) -> np.ndarray:
@@ -403,7 +420,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     sizes = _sizes(np.where(np.isfinite(photons), photons, 1)[ok])
     sub = [r for r, k in zip(rows, ok, strict=True) if k]
     c, e = cost[ok], err[ok]
-    front = pareto_front(c, e)  # (of the values: a 0 is the least)
+    apart = np.array([cost_key == "frame" and unmodelled_cost(r) for r in sub], dtype=bool)  # (knn: hollow)
+    front = pareto_front(np.where(apart, math.nan, c), e)  # (of the values: a 0 is the least)
     cd, ed = as_drawn(c, x_floor), as_drawn(e, y_floor)  # (where the points are drawn)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
@@ -411,14 +429,19 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     for f in [f for f in styles if any(series_of(r) == f for r in sub)]:
         i = styles[f]
         m = np.array([series_of(r) == f for r in sub])
-        ax.scatter(cd[m], ed[m], s=sizes[m], c=colour(i), marker=marker(i), edgecolors="black", linewidths=0.6,
-                   alpha=0.85, label=f"filter {f}", zorder=3)  # (and final gathering)
+        if (m & ~apart).any():
+            ax.scatter(cd[m & ~apart], ed[m & ~apart], s=sizes[m & ~apart], c=colour(i), marker=marker(i),
+                       edgecolors="black", linewidths=0.6, alpha=0.85, label=f"filter {f}", zorder=3)  # (and gathering)
+        if (m & apart).any():
+            ax.scatter(cd[m & apart], ed[m & apart], s=sizes[m & apart], facecolors="none", edgecolors=colour(i),
+                       marker=marker(i), linewidths=1.2, label=f"filter {f} ({KNN_REFERENCE})", zorder=3)
     o = np.argsort(c[front], kind="stable")
     fc, fe = cd[front][o], ed[front][o]
-    ax.step(fc, fe, where="post", color="black", linestyle="--", linewidth=1.2, zorder=2,
-            label="Pareto front (lowest RMSE for no more time)")
-    ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
-               zorder=4)
+    if front.any():
+        ax.step(fc, fe, where="post", color="black", linestyle="--", linewidth=1.2, zorder=2,
+                label="Pareto front (lowest RMSE for no more time)")
+        ax.scatter(fc, fe, s=sizes[front][o] * 2.2 + 40, facecolors="none", edgecolors="black", linewidths=1.2,
+                   zorder=4)
     front_rows = [sub[j] for j in np.flatnonzero(front)[o]]
     numbers = []
     for j, (x, y, r) in enumerate(zip(fc, fe, front_rows, strict=True)):  # numbered, named in the key:
@@ -444,8 +467,11 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
-    caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; ringed and numbered "
-               f"(named in the key): the {count(int(front.sum()), 'point')} of the Pareto front.")
+    caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; "
+               + (f"ringed and numbered (named in the key): the {count(int(front.sum()), 'point')} of the Pareto "
+                  "front." if front.any() else "no Pareto front: no point's frame time is modelled in full."))
+    if apart.any():
+        caption += f" Hollow, and left off the front: the k-NN reference (knn), as {KNN_WHY}."
     # (a point is named by its value on one axis where it is drawn on the other, or that value is below 0: a 0 with
     # a time below 0 is not "drawn at" the floor; ``point``, else its place among all the rows, not the drawn)
     on_x, on_y = present & np.isfinite(as_drawn(cost, x_floor)), present & np.isfinite(as_drawn(err, y_floor))
@@ -471,8 +497,8 @@ def _gran_label(study: Study, name: str) -> str:
         c = safe_load(cfg.read_text(encoding="utf-8")) if cfg.is_file() else None
     except (OSError, yaml.YAMLError):
         c = None
-    if isinstance(c, dict) and c.get("scene"):
-        return f"{name} ({c.get('scene')}/{c.get('mode')})"
+    if isinstance(c, dict) and c.get("scene"):  # (a user's scene file as the report names it: scene_label)
+        return f"{name} ({scene_label(str(c['scene']), str(c['scene']))}/{c.get('mode')})"
     return name
 
 
