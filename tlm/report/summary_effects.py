@@ -4,7 +4,9 @@ point has a lower image error, else the point of the lowest error beside it: :fu
 factors that change nothing, those that keep the frame rate but change the image error, and those that cannot
 be compared; the best of points tied in frame rate is the one of least image error where each measured it; and
 per sweep whose points measured their image error, the factor that moves it most (:func:`error_factor`, said
-under "What quality costs").
+under "What quality costs"). The k-NN reference's points (``estimate.filter: knn`` in photon-map mode) are
+ranked by frame rate nowhere, their search not modelled (:func:`_ranked_points`, as the error-vs-cost report);
+a factor's values are written as YAML writes them (``cone``, not ``'cone'``: :func:`_as_yaml`).
 """
 
 from __future__ import annotations
@@ -13,8 +15,9 @@ import ast
 from collections import defaultdict
 
 import numpy as np
+import yaml
 
-from tlm.report.collect import Inputs, with_set
+from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.html import esc
 from tlm.report.names import value_text
 from tlm.report.summary_points import and_ as _and
@@ -145,9 +148,30 @@ def _not_monotone(means: dict[str, float]) -> list[str] | None:
 
 
 def _as_yaml(k: str, text: str) -> str:
-    """A factor's value as :func:`_effect` keys it (its repr) with null, true and false as YAML writes
-    them, null with what it asks of ``k`` (:func:`~tlm.report.names.value_text`)."""
-    return {"None": value_text(k, None), "True": "true", "False": "false"}.get(text, text)
+    """A factor's value as :func:`_effect` keys it (its repr) as YAML writes it: null, true and false, null
+    with what it asks of ``k`` (:func:`~tlm.report.names.value_text`); a text unquoted (``cone``, not
+    ``'cone'``) but where YAML would read it as another type (``'true'``, ``'1.5'``: :func:`_yaml_text`),
+    in a list too; another value as its repr."""
+    if text in ("None", "True", "False"):
+        return {"None": value_text(k, None), "True": "true", "False": "false"}[text]
+    try:
+        v = ast.literal_eval(text)
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):  # (nan, inf: as they are)
+        return text
+    return _yaml_text(v) if isinstance(v, str | list | tuple) else text
+
+
+def _yaml_text(v) -> str:
+    """A text as YAML writes it, quoted only where YAML would read it as another type or it needs quotes;
+    a list's items alike (``[cone, 'true', 2]``)."""
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_yaml_text(x) for x in v) + "]"
+    if isinstance(v, str):
+        said = yaml.safe_dump(v, default_flow_style=True, allow_unicode=True, width=1 << 30)
+        said = said.removesuffix("\n").removesuffix("\n...")
+        # (a text of more than one line: on one, double-quoted, its line breaks escaped)
+        return said if "\n" not in said else yaml.safe_dump(v, default_style='"', width=1 << 30).strip()
+    return value_text("", v)
 
 
 MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
@@ -163,7 +187,7 @@ def _values(tied: list[str]) -> str:
     return esc(tied[0]) if len(tied) == 1 else f"{esc(_and(tied))}, tied"
 
 
-def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
+def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str = "") -> str:
     """The point of the highest frame rate in words; where points that differ in more than the
     factors ``inert`` (which change nothing: the text says so) tie at it (to 1e-9), the one of
     the least image error where each of them measured it (the text says so), else each of them
@@ -171,7 +195,8 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
     ``inert``; at most :data:`MAX_TIED_POINTS` named, the rest counted). It is "the best point" where
     no point measured its image error or it has the lowest error of all (said so where not said as
     the least of the tied); else "the fastest point", with its error, and the point of the lowest
-    error after it (:func:`_lowest`): a faster point of a larger error is not the best of all."""
+    error after it (:func:`_lowest`): a faster point of a larger error is not the best of all. ``of`` follows
+    "the lowest image error" (`` of the points ranked``: the k-NN reference's left out, :func:`_ranked_points`)."""
     top = max(r["fps"] for r in rows)
     best = {}
     for r in rows:
@@ -192,12 +217,53 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str]) -> str:
         (r,) = best.values()
         own = ("" if least or not _number(r.get(ERROR)) else
                f" (relative MSE {float(r[ERROR]):.3g})" if fastest else
-               f", with the lowest image error (relative MSE {lowest:.3g})" if lowest is not None else "")
+               f", with the lowest image error{of} (relative MSE {lowest:.3g})" if lowest is not None else "")
         text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
     else:
         text = (f"the {word} points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
                 f"are {_and(_named(where, factors))}")
-    return f"{text}; {_lowest(rows, factors, inert, lowest)}." if fastest else f"{text}."
+    return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
+
+
+KNN_APART = "the k-NN reference's frame rate is not ranked, its search not modelled"
+
+
+def _ranked_points(rows: list[dict], out: list[bool], factors: list[str], inert: list[str]) -> str:
+    """:func:`_best_points` of the ``rows`` whose frame rate is their cost: not those of the k-NN reference
+    (``out``: :func:`_unranked`), whose simulated frame time leaves out its search, as the error-vs-cost
+    report ranks it by that time nowhere (:func:`~tlm.report.tradeoff.unmodelled_cost`); they are said to be
+    left out (every point of the sweep one of them: no point is named)."""
+    ranked = [r for r, o in zip(rows, out, strict=True) if not o]
+    if not any(out):
+        return _best_points(rows, factors, inert)
+    n, errs = sum(out), [float(r[ERROR]) for r, o in zip(rows, out, strict=True) if o and _number(r.get(ERROR))]
+    err = (f"relative MSE {min(errs):.3g}" if n == 1 else f"the lowest relative MSE {min(errs):.3g}") if errs else ""
+    if not ranked:
+        return f"{KNN_APART}: every point is of estimate.filter = knn{f' ({err})' if err else ''}."
+    said = _best_points(ranked, factors, inert, " of the points ranked").removesuffix(".")
+    points = "the point" if n == 1 else f"the {n} points"
+    return f"{said}; {KNN_APART} ({points} of estimate.filter = knn{', ' * bool(err)}{err})."
+
+
+def _unranked(sw: Sweep, rows: list[dict]) -> list[bool]:
+    """Per row, whether it is a point of the k-NN reference whose frame time leaves out its search
+    (:func:`~tlm.report.tradeoff.unmodelled_cost` of its filter) in photon-map mode (``pmap``: in another the
+    filter gathers nothing): its filter is its factor ``estimate.filter`` where the sweep varies it (or its
+    ``estimate`` section), else its point's ``config.resolved.yaml`` (a --set or the base config's), its mode
+    its row's ``mode`` else that config's."""
+    from tlm.report.tradeoff import unmodelled_cost  # (as summary.py: tradeoff's imports only where asked)
+
+    configs = {run.path.name: run.config for run in sw.runs}
+    out = []
+    for r in rows:
+        config = configs.get(str(r.get("hash"))) or {}
+        est = config.get("estimate") if isinstance(config.get("estimate"), dict) else {}
+        if isinstance(r.get("estimate"), dict):
+            est = r["estimate"]
+        filt = r["estimate.filter"] if "estimate.filter" in r else est.get("filter")
+        mode = r.get("mode") or config.get("mode")
+        out.append(mode in (None, "pmap") and unmodelled_cost({"filter": filt}))
+    return out
 
 
 def _where(r: dict, factors: list[str]) -> str:
@@ -212,7 +278,7 @@ def _named(where: list[str], factors: list[str]) -> list[str]:
     return named + ([f"{len(where) - MAX_TIED_POINTS} more"] if len(where) > MAX_TIED_POINTS else [])
 
 
-def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float) -> str:
+def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, of: str = "") -> str:
     """The point of the lowest image error ``low`` among ``rows`` and its frame rate, in words; those
     that tie (to 1e-9), each, as :func:`_best_points` names the tied (not escaped twice)."""
     points: dict[tuple, dict] = {}
@@ -221,12 +287,12 @@ def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float) 
             points.setdefault(tuple(repr(r.get(k)) for k in factors if k not in inert), r)
     if len(points) == 1:
         (r,) = points.values()
-        return f"the point of the lowest image error (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
+        return f"the point of the lowest image error{of} (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
                f"{r['fps']:.3g} FPS"
     fps = [f" at {r['fps']:.3g} FPS" for r in points.values()]
     named = [w + (fps[i] if i < MAX_TIED_POINTS else "")
              for i, w in enumerate(_named([_where(r, factors) for r in points.values()], factors))]
-    return f"the points of the lowest image error (relative MSE {low:.3g}), tied, are {_and(named)}"
+    return f"the points of the lowest image error{of} (relative MSE {low:.3g}), tied, are {_and(named)}"
 
 
 def error_factor(inputs: Inputs) -> str:
@@ -273,7 +339,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
     between points that differ only in them (neither the frame rate nor, where the points measured
     it, the image error :data:`ERROR`), those that change the image error but not the frame rate
     (from its worst value's mean error to its best's), and those that cannot be compared like with
-    like (no combination finished with each of their values)."""
+    like (no combination finished with each of their values). The k-NN reference's points (:func:`_unranked`)
+    weigh in no factor's frame rate ratio and are not among the points ranked by it (:func:`_ranked_points`)."""
     texts = []
     for sw in inputs.sweeps:
         every = named_rows(sw)
@@ -283,6 +350,8 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             continue
         spread, nothing, apart, along, left, errs, unjudged, kept = {}, [], [], {}, {}, [], [], []
         measured = _measured(rows)  # (a factor that keeps the frame rate may still change the image error)
+        unranked = _unranked(sw, rows)  # (the k-NN reference's points: no factor's frame rate is ranked by them)
+        ranked = [r for r, u in zip(rows, unranked, strict=True) if not u]
         for k in factors:
             along[k] = _moves_with(every, k, factors)
             held = [j for j in factors if j != k and j not in along[k]]
@@ -305,11 +374,14 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                 nothing.append(k)
             elif not means:
                 apart.append(k)
-            elif min(means.values()) > 0 and not same_value(max(means.values()), min(means.values())):
+            elif any(unranked) and not (eff := _effect(ranked, k, held) or {}).get("values"):
+                continue  # (it moves the frame rate only with the k-NN reference's points in: not ranked)
+            elif min((means := eff["values"]).values()) > 0 and not same_value(max(means.values()),
+                                                                               min(means.values())):
                 top, bottom = max(means.values()), min(means.values())
                 spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom))
-                left[k] = len(rows) - eff["used"]
-        best = _best_points(rows, factors, nothing)
+                left[k] = len(ranked) - eff["used"]
+        best = _ranked_points(rows, unranked, factors, nothing)
         text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
                 f"{', ' + esc(with_set(sw.overrides)) if sw.overrides else ''}{esc(sw.unfinished)}): ")
         notes = ""
@@ -339,7 +411,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi)}) and its "
                      f"worst ({_values(lo)}), averaged over ")
             text += ("the other factors; " if not left[k] else
-                     f"the other factors' values that finished with each of its values ({left[k]} of the {len(rows)} "
+                     f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
                      f"ok points left out for that); ")
             text += notes + best
         elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
