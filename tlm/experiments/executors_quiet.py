@@ -37,8 +37,9 @@ class Quiet:
         """The loggers of :data:`NARRATING` (and their children) kept from logging below WARNING until
         :meth:`restore`: distributed's event loop thread logs a connection closed under the client as it happens
         ("Batched Comm Closed" at INFO, with its traceback), before the sweep can know its scheduler is lost and
-        say so in one line (:meth:`DaskPool.trouble`, then :meth:`now`). Their warnings and errors still reach
-        the user; a logger already at WARNING or above (distributed.client's own, by Dask's config) is left."""
+        say so in one line (:meth:`tlm.experiments.executors.DaskPool.trouble`, then :meth:`now`). Their warnings
+        and errors still reach the user; a logger already at WARNING or above (distributed.client's own, by Dask's
+        config) is left."""
         with _LEFT_LOCK:
             for name in [*NARRATING, *logging.root.manager.loggerDict]:
                 if name in self.levels or not any(name == n or name.startswith(n + ".") for n in NARRATING):

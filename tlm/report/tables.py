@@ -129,7 +129,7 @@ def thesis_table(run: Run) -> str | None:
     ``scene.source`` is that built-in file itself (edited since the run); any other file is not,
     whatever it holds now or wherever it is (h391: a user's ``scenes/cornell.yaml``, edited, is not
     Table III's once its folder is moved off this machine, nor once the file is reverted). A
-    results.json without one (a run of an older tlm, a sweep point) is judged by its
+    results.json without one (a run or sweep point of an older tlm) is judged by its
     ``scene.source`` as :func:`tlm.experiments.thesis.table_of` judges it (the file's identity
     where it is on this machine, else its place under a ``scenes`` folder), one with neither
     (nothing to tell the file by) by the scene's name. None: not a thesis scene."""
