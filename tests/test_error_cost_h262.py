@@ -139,11 +139,11 @@ def test_one_series_over_seeds_is_not_said_to_win(tmp_path):
                                          tmp_path).lead)
     assert "lowest in" not in lead, lead
     assert "disk: mean 0.045 (0.04-0.05) over 3 seeds" in lead, lead
-    two = rows + [{**r, "filter": "knn", "rel_mse": r["rel_mse"] * 1.1,
-                   "factors": r["factors"].replace("disk", "knn")} for r in rows]
+    two = rows + [{**r, "filter": "mvoxel", "rel_mse": r["rel_mse"] * 1.1,
+                   "factors": r["factors"].replace("disk", "mvoxel")} for r in rows]
     lead = html.unescape(summary_section(Inputs([], studies=[Study("error-vs-cost", tmp_path / "ec", two)]),
                                          tmp_path).lead)
-    assert "disk: lowest in 3 of 3" in lead and "knn: lowest in 0 of 3" in lead, lead
+    assert "disk: lowest in 3 of 3" in lead and "mvoxel: lowest in 0 of 3" in lead, lead
 
 
 @pytest.mark.parametrize("points, message", [

@@ -168,9 +168,9 @@ def test_what_quality_costs_says_one_seed_is_one_seed(tmp_path):
 
 
 def test_what_quality_costs_gives_the_spread_over_several_seeds(tmp_path):
-    study = _cost({"0": {"knn": 0.0393, "disk": 0.0401}, "1": {"knn": 0.0420, "disk": 0.0400},
-                   "2": {"knn": 0.0410, "disk": 0.0405}}, tmp_path)
+    study = _cost({"0": {"mvoxel": 0.0393, "disk": 0.0401}, "1": {"mvoxel": 0.0420, "disk": 0.0400},
+                   "2": {"mvoxel": 0.0410, "disk": 0.0405}}, tmp_path)
     lead = html.unescape(summary_section(Inputs([], studies=[study]), tmp_path).lead)
     assert "Over the rows' 3 seeds, each series' lowest error per seed: " in lead
-    assert "knn: lowest in 1 of 3, mean 0.0408 (0.0393-0.042) over 3 seeds" in lead
+    assert "mvoxel: lowest in 1 of 3, mean 0.0408 (0.0393-0.042) over 3 seeds" in lead
     assert "disk: lowest in 2 of 3, mean 0.0402 (0.04-0.0405) over 3 seeds" in lead

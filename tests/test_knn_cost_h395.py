@@ -125,3 +125,16 @@ def test_a_granularity_study_of_a_users_scene_is_named_as_the_report_names_the_s
     assert tradeoff._gran_label(study, "gran") == "gran (scene/sphere.yaml/rcast)"  # (not the absolute path)
     (gran / "config.resolved.yaml").write_text("scene: cornell\nmode: pmap\n")
     assert tradeoff._gran_label(study, "gran") == "gran (cornell/pmap)"
+
+
+def test_the_seeds_sentence_compares_the_filters_ranked(tmp_path):
+    """(stop 66, h399's finding) Over several seeds, the spread of each filter's lowest error is said of the filters
+    whose search is modelled, as the sentence's lowest error is: it said 'disk: lowest in 0 of 2 ... knn: lowest in 2
+    of 2' right after naming disk's the lowest error of a filter whose search is modelled."""
+    rows = [{"filter": f, "rel_mse": e * (1 + s / 10), "frame_seconds": 0.1,
+             "factors": f"estimate.filter={f}; seed={s}"}
+            for s in (0, 1) for f, e in (("knn", 0.01), ("disk", 0.03), ("mvoxel", 0.04))]
+    lead = html.unescape(summary_section(Inputs([], studies=[Study("error-vs-cost", tmp_path / "ec", rows)]),
+                                         tmp_path).lead)
+    assert "disk: lowest in 2 of 2" in lead and "mvoxel: lowest in 0 of 2" in lead, lead
+    assert "knn: lowest" not in lead, lead

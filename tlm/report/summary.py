@@ -499,7 +499,8 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     else:
         against = " against our reference" + (" (NOT converged)" if reference_converged(st) is False else "")
         noise = ""
-    seeds = _seeds_words(rows, err, series_of)  # (one seed's winner is one sample: said as such)
+    # (one seed's winner is one sample: said as such; among the filters ranked, as the lowest error above is)
+    seeds = _seeds_words([r for r in rows if not unmodelled_cost(r)], err, series_of)
     text = (f"<b>What quality costs:</b> the lowest error{' of a filter whose search is modelled' * bool(knn)} is "
             f"{esc(lo['filter'])}'s"
             + (f" with final gathering ({gather} rays)" if gather else "")
