@@ -151,27 +151,40 @@ def _as_yaml(k: str, text: str) -> str:
     """A factor's value as :func:`_effect` keys it (its repr) as YAML writes it: null, true and false, null
     with what it asks of ``k`` (:func:`~tlm.report.names.value_text`); a text unquoted (``cone``, not
     ``'cone'``) but where YAML would read it as another type (``'true'``, ``'1.5'``: :func:`_yaml_text`),
-    in a list too; another value as its repr."""
+    in a list or a section's mapping too; another value as its repr."""
     if text in ("None", "True", "False"):
         return {"None": value_text(k, None), "True": "true", "False": "false"}[text]
     try:
         v = ast.literal_eval(text)
     except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):  # (nan, inf: as they are)
         return text
-    return _yaml_text(v) if isinstance(v, str | list | tuple) else text
+    return _yaml_text(v) if isinstance(v, str | list | tuple | dict) else text
 
 
 def _yaml_text(v) -> str:
     """A text as YAML writes it, quoted only where YAML would read it as another type or it needs quotes;
-    a list's items alike (``[cone, 'true', 2]``)."""
+    a list's items and a mapping's keys and values alike (``[cone, 'true', 2]``, ``{filter: knn}``); on one
+    line, and read back as the same text (one YAML would read otherwise, a line break of its own in it:
+    double-quoted, escaped)."""
     if isinstance(v, list | tuple):
         return "[" + ", ".join(_yaml_text(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_yaml_text(a)}: {_yaml_text(b)}" for a, b in v.items()) + "}"
     if isinstance(v, str):
         said = yaml.safe_dump(v, default_flow_style=True, allow_unicode=True, width=1 << 30)
         said = said.removesuffix("\n").removesuffix("\n...")
-        # (a text of more than one line: on one, double-quoted, its line breaks escaped)
-        return said if "\n" not in said else yaml.safe_dump(v, default_style='"', width=1 << 30).strip()
+        if any(c in said for c in "\n\x85\u2028\u2029") or _read(said) != v:  # (one line: double-quoted, escaped)
+            said = yaml.safe_dump(v, default_style='"', width=1 << 30).strip()
+        return said
     return value_text("", v)
+
+
+def _read(said: str):
+    """What YAML reads a value written ``said`` as (None where it reads nothing)."""
+    try:
+        return yaml.safe_load(said)
+    except yaml.YAMLError:
+        return None
 
 
 MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
@@ -228,41 +241,46 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
 KNN_APART = "the k-NN reference's frame rate is not ranked, its search not modelled"
 
 
-def _ranked_points(rows: list[dict], out: list[bool], factors: list[str], inert: list[str]) -> str:
+def _ranked_points(rows: list[dict], out: list[bool | None], factors: list[str], inert: list[str]) -> str:
     """:func:`_best_points` of the ``rows`` whose frame rate is their cost: not those of the k-NN reference
     (``out``: :func:`_unranked`), whose simulated frame time leaves out its search, as the error-vs-cost
     report ranks it by that time nowhere (:func:`~tlm.report.tradeoff.unmodelled_cost`); they are said to be
-    left out (every point of the sweep one of them: no point is named)."""
+    left out (every point of the sweep one of them: no point is named); where knn points of another mode are
+    ranked (``out`` None: their filter gathers nothing), the clause says those left out are photon-map mode's."""
     ranked = [r for r, o in zip(rows, out, strict=True) if not o]
+    knn = "estimate.filter = knn" + (" in mode pmap" if None in out else "")
     if not any(out):
         return _best_points(rows, factors, inert)
-    n, errs = sum(out), [float(r[ERROR]) for r, o in zip(rows, out, strict=True) if o and _number(r.get(ERROR))]
+    n = out.count(True)
+    errs = [float(r[ERROR]) for r, o in zip(rows, out, strict=True) if o and _number(r.get(ERROR))]
     err = (f"relative MSE {min(errs):.3g}" if n == 1 else f"the lowest relative MSE {min(errs):.3g}") if errs else ""
     if not ranked:
-        return f"{KNN_APART}: every point is of estimate.filter = knn{f' ({err})' if err else ''}."
+        return f"{KNN_APART}: every point is of {knn}{f' ({err})' if err else ''}."
     said = _best_points(ranked, factors, inert, " of the points ranked").removesuffix(".")
     points = "the point" if n == 1 else f"the {n} points"
-    return f"{said}; {KNN_APART} ({points} of estimate.filter = knn{', ' * bool(err)}{err})."
+    return f"{said}; {KNN_APART} ({points} of {knn}{', ' * bool(err)}{err})."
 
 
-def _unranked(sw: Sweep, rows: list[dict]) -> list[bool]:
+def _unranked(sw: Sweep, rows: list[dict]) -> list[bool | None]:
     """Per row, whether it is a point of the k-NN reference whose frame time leaves out its search
     (:func:`~tlm.report.tradeoff.unmodelled_cost` of its filter) in photon-map mode (``pmap``: in another the
-    filter gathers nothing): its filter is its factor ``estimate.filter`` where the sweep varies it (or its
-    ``estimate`` section), else its point's ``config.resolved.yaml`` (a --set or the base config's), its mode
-    its row's ``mode`` else that config's."""
+    filter gathers nothing): True; None for a knn point in another mode (ranked, as its filter gathers nothing);
+    else False. Its filter is its factor ``estimate.filter`` where the sweep varies it, else its ``estimate``
+    section's where that factor gives ``filter`` (a section given merges into the config's), else its point's
+    ``config.resolved.yaml`` (a --set or the base config's), its mode its row's ``mode`` else that config's."""
     from tlm.report.tradeoff import unmodelled_cost  # (as summary.py: tradeoff's imports only where asked)
 
     configs = {run.path.name: run.config for run in sw.runs}
-    out = []
+    out: list[bool | None] = []
     for r in rows:
         config = configs.get(str(r.get("hash"))) or {}
         est = config.get("estimate") if isinstance(config.get("estimate"), dict) else {}
-        if isinstance(r.get("estimate"), dict):
+        if isinstance(r.get("estimate"), dict) and "filter" in r["estimate"]:
             est = r["estimate"]
         filt = r["estimate.filter"] if "estimate.filter" in r else est.get("filter")
         mode = r.get("mode") or config.get("mode")
-        out.append(mode in (None, "pmap") and unmodelled_cost({"filter": filt}))
+        knn = unmodelled_cost({"filter": filt})
+        out.append(True if knn and mode in (None, "pmap") else None if knn else False)
     return out
 
 
@@ -412,7 +430,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                      f"worst ({_values(lo)}), averaged over ")
             text += ("the other factors; " if not left[k] else
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
-                     f"ok points left out for that); ")
+                     f"ok points{' ranked' * any(unranked)} left out for that); ")
             text += notes + best
         elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
             text += (f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS"
