@@ -90,17 +90,31 @@ def granularity_progress(size: int, tm, secs: float) -> None:
 
 def print_granularity(rows: list[dict], out: Path) -> None:
     """What ``tlm granularity`` prints of its rows: per packet size its error, the frames simulated and the host
-    seconds, in all and per frame; under them, where the rows ran different frame counts, a line saying so
-    (:func:`granularity_frames_line`)."""
-    for r in rows:
-        nf = r["frames"]
-        print(f"  packets of {r['packet_size']:>8d}: max |cycle error| {r['max_abs_rel_error']:.3%} "
-              f"against packets of {r['reference']}, {r['simulate_seconds']:.2f} s, {nf} frame{'s' * (nf != 1)} "
-              f"({r['simulate_seconds_per_frame']:.3g} s a frame)")
+    seconds, in all and per frame, each column but the line's last as wide as its widest cell (a packet size of
+    any width, 2e12, keeps the table aligned: h397); under them, where the rows ran different frame counts, a line
+    saying so (:func:`granularity_frames_line`), then the study's notes (its ``granularity_summary.json``: two or
+    more sizes at or past the frame's largest phase, which run every phase as one packet: h400)."""
+    cells = [(str(r["packet_size"]), f"{r['max_abs_rel_error']:.3%}", f"{r['simulate_seconds']:.2f}", str(r["frames"]),
+              "frame" if r["frames"] == 1 else "frames", f"{r['simulate_seconds_per_frame']:.3g}") for r in rows]
+    wide = [max([8 if i == 0 else 0, *(len(c[i]) for c in cells)]) for i in range(5)]  # (the last: line's end)
+    for r, (size, err, secs, nf, word, per) in zip(rows, cells, strict=True):
+        print(f"  packets of {size:>{wide[0]}}: max |cycle error| {err:>{wide[1]}} against packets of "
+              f"{r['reference']}, {secs:>{wide[2]}} s, {nf:>{wide[3]}} {word:{wide[4]}} ({per} s a frame)")
     line = granularity_frames_line(rows)
     if line:
         print(line)
+    for line in _granularity_notes(out):
+        print(f"  {line}")
     print(f"wrote {out}/granularity.csv")
+
+
+def _granularity_notes(out: Path) -> list[str]:
+    """The ``notes`` of the granularity study in ``out`` (its ``granularity_summary.json``), [] where it has none."""
+    try:
+        notes = json.loads((Path(out) / "granularity_summary.json").read_text(encoding="utf-8")).get("notes")
+    except (OSError, ValueError, AttributeError):
+        return []
+    return [str(n) for n in notes] if isinstance(notes, list) else []
 
 
 def granularity_frames_line(rows: list[dict]) -> str:

@@ -25,8 +25,12 @@ it ran on until its completions repeated, at most ``arch.settle_frames``:
 tlm/arch/steady.py, which may happen at one packet size and not at another) and the
 seconds and events per frame (``simulate_seconds_per_frame``, ``simpy_events_per_frame``),
 the ones to compare where the rows ran different frame counts (:func:`frames_differ`);
-beside them ``config.resolved.yaml`` and ``provenance.json`` (versions, git revision, host
-seconds). Images do not depend on the packet size (the functional layer never sees it).
+beside them ``config.resolved.yaml``, ``provenance.json`` (versions, git revision, host
+seconds) and ``granularity_summary.json`` (:data:`SUMMARY`, the study's own record, as a thesis
+study's ``thesis_summary.json``: its ``warnings``, the lines said on stderr, which the report lists;
+the frame's largest phase the packet size cuts, the sizes at or past it, which run every phase as
+one packet and so give the same cycles, and the line that says so: :func:`one_packet_line`).
+Images do not depend on the packet size (the functional layer never sees it).
 """
 
 from __future__ import annotations
@@ -53,6 +57,9 @@ COLUMNS = ("packet_size", *METRICS, *(f"rel_error_{m}" for m in METRICS), "max_a
            # before are totals over the frames run; these make the rows comparable)
            "frames", "simulate_seconds_per_frame", "simpy_events_per_frame")
 KEYS = ("packet_sizes",)  # the study's own keys, beside base and description
+SUMMARY = "granularity_summary.json"  # the study's own record (its warnings, the sizes that run as one packet)
+# a BSP build's job: a packet per level of its tree at any packet size (tlm/arch/frame_program.py, _level_packets)
+LEVEL_KINDS = ("geometry_bsp", "photon_bsp")
 
 
 def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
@@ -85,11 +92,18 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
     ``config.resolved.yaml`` by their values and listed in its ``provenance.json``; one that sets
     nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`, naming them ``via``)
     is given to ``warned`` (default: said on stderr; :func:`tlm.api.granularity` returns it), and so is each
-    of the rendered frame's own warnings, as ``tlm run`` says them, led by ``granularity: ``."""
+    of the rendered frame's own warnings, as ``tlm run`` says them, led by ``granularity: ``; those lines are
+    kept in the study's ``granularity_summary.json`` (:func:`summary_record`), which the report lists."""
     overrides = tuple(str(o) for o in overrides)
     cfg, sizes, folder = load_granularity(Path(path), overrides)
-    for line in empty_sets(overrides, via):  # (a --set render={} sets nothing: said once, as tlm run says it)
+    said: list[str] = []  # (each line given to warned, kept in the study's record, which the report reads: h400)
+
+    def say(line: str) -> None:
+        said.append(line)
         warned(line)
+
+    for line in empty_sets(overrides, via):  # (a --set render={} sets nothing: said once, as tlm run says it)
+        say(line)
     check_destination(out, "granularity.jsonl")  # before the render
     programs = programs_for(cfg, folder)
     got = cached_render(cfg, folder, str(path))
@@ -99,16 +113,20 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
     off = reference_warnings(got.summary.get("error"), cfg)
     for line in dict.fromkeys(got.summary.get("warnings") or []):
         if line not in off:
-            warned(f"granularity: {line}")
+            say(f"granularity: {line}")
     if any(size > 1 for size in sizes):  # the coarse sizes' estimate against packets of one, once untimed:
         # a large frame's flow shops load their compiled kernel at the first call (numba's import, ~2 s),
         # which would be booked as the first coarse size's host seconds (a small frame's take the loop)
         fine_ti_cycles(fn, programs, replace(cfg.arch, trace=False))
 
+    largest: list[dict | None] = []  # the frame's largest phase the packet size cuts (the same at every size)
+
     def one(size: int, _folder: Path) -> dict:
         t0 = time.perf_counter()
         tm = simulate(fn, programs, replace(cfg.arch, packet_size=size, trace=False))
         secs = time.perf_counter() - t0
+        if not largest:
+            largest.append(largest_phase(tm.program))
         if progress is not None:
             progress(size, tm, secs)
         frames = len(tm.frames)  # (arch.frames, or more: the stream ran on until it settled, tlm/arch/steady.py)
@@ -132,8 +150,61 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
                          "simpy_events_per_frame": r["simpy_events_per_frame"]})
         return rows
 
+    def record(_rows: list[dict]) -> dict:
+        return {SUMMARY: summary_record(sizes, largest[0] if largest else None, said)}
+
     return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative,
-                     overrides=overrides)
+                     files=record, overrides=overrides)
+
+
+def largest_phase(program) -> dict | None:
+    """``{"phase", "items", "unit"}`` of the largest phase of ``program`` (a FrameProgram) that the packet size
+    cuts into packets: its name (``rcast.rays``; the largest of its tiles'), its items (pixels, or photons in a
+    ``photons.*`` phase: what its first job's packets hold, at any packet size) and their unit; None where no phase
+    is cut by the packet size (a BSP build's job, :data:`LEVEL_KINDS`, is a packet per level at any size)."""
+    best = None
+    for ph in program.phases:
+        job = ph.jobs[0] if ph.jobs else None
+        if job is None or job.kind in LEVEL_KINDS:
+            continue
+        n = int(job.items.sum())
+        if best is None or n > best["items"]:
+            best = {"phase": ph.name, "items": n, "unit": "photons" if ph.name.startswith("photons.") else "pixels"}
+    return best
+
+
+def one_packet_sizes(sizes: list[int], largest: dict | None) -> list[int]:
+    """The packet sizes of ``sizes`` at or past the items of ``largest`` (:func:`largest_phase`; None: every
+    size): at each, every phase runs as one packet, so they simulate the same program."""
+    return [s for s in sizes if largest is None or s >= largest["items"]]
+
+
+def one_packet_line(sizes: list[int], largest: dict | None) -> str:
+    """The line ``tlm granularity`` says under its table, and its record keeps, where two or more packet sizes of
+    ``sizes`` are at or past the frame's largest phase (:func:`one_packet_sizes`): each phase runs as one packet
+    at each, so their cycles are the same (h394/h397: at 16x16, 256 to 102400 gave the same row, unsaid); "" where
+    fewer are (one size alone gives no row another repeats; the record lists it in ``one_packet``)."""
+    at = one_packet_sizes(sizes, largest)
+    if len(at) < 2:
+        return ""
+    listed = f"{', '.join(str(s) for s in at[:-1])} and {at[-1]}"
+    same = "so their cycles, errors and events are the same"
+    if largest is None:  # (no phase cut: every size runs the same program)
+        return (f"packet sizes {listed}: the frame has no pixel or photon phase for a packet size to cut (its BSP "
+                f"builds are a packet per level), {same}")
+    n, unit = largest["items"], largest["unit"]
+    return (f"packet sizes {listed} are at or past the {n} {unit if n != 1 else unit[:-1]} of the frame's largest "
+            f"phase ({largest['phase']}): each phase runs as one packet at each, {same}")
+
+
+def summary_record(sizes: list[int], largest: dict | None, warnings: list[str]) -> dict:
+    """The study's ``granularity_summary.json`` (:data:`SUMMARY`): its ``warnings`` (the lines said on stderr,
+    each once: the overrides' and the frame's own; the report lists them), the frame's ``largest_phase``
+    (:func:`largest_phase`), the ``one_packet`` sizes (:func:`one_packet_sizes`) and ``notes``, the line
+    saying so (:func:`one_packet_line`; none where it is "")."""
+    line = one_packet_line(sizes, largest)
+    return {"warnings": list(dict.fromkeys(warnings)), "largest_phase": largest,
+            "one_packet": one_packet_sizes(sizes, largest), "notes": [line] if line else []}
 
 
 def frames_differ(rows: list[dict]) -> dict[int, list[int]]:

@@ -625,7 +625,9 @@ def _study(inputs: Inputs, folder: Path, kind: str) -> None:
         study = Study("scaling", folder, rows, meta)
     elif kind == "granularity":
         path = folder / "granularity.jsonl"
-        study = Study("granularity", folder, [row for _, row in _study_jsonl(path)])
+        summary = folder / "granularity_summary.json"  # (its warnings, for the report's box; none before h400)
+        study = Study("granularity", folder, [row for _, row in _study_jsonl(path)],
+                      {"granularity_summary": _json(summary)} if summary.is_file() else {})
     elif kind == "extreme":
         path = folder / "extreme.jsonl"
         study = Study("extreme", folder, _rows_checked(path, _study_jsonl(path), "a tlm extreme case's row",

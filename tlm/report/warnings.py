@@ -10,8 +10,9 @@ prints for a run; the commands that run many of them print none, so the report i
 they are read. A study's own warnings, said once for the study on stderr (``tlm thesis``'s
 ``--set`` no cell reads), are the ``warnings`` list of its file (``thesis_summary.json``; any
 study record with one: :data:`STUDY_FILES`), listed in the same box once each, attributed to
-the study. (``tlm error-vs-cost``, ``tlm extreme`` and ``tlm granularity`` write no such list:
-error-vs-cost's reference not converged is its ``reference.json`` ``reference_converged`` false, listed
+the study; so is a granularity study's (its ``granularity_summary.json``: the overrides' lines and the
+frame's own, ``granularity: the camera faces nothing ...``). (``tlm error-vs-cost`` and ``tlm extreme`` write
+no such list: error-vs-cost's reference not converged is its ``reference.json`` ``reference_converged`` false, listed
 here from it, :func:`reference_line`, and said in the axis label, title and caption of each of the study's
 error figures, :func:`tlm.report.tradeoff.reference_words`.)
 
@@ -35,7 +36,8 @@ SHOWN_RUNS = 4  # runs named per warning; the rest counted
 SHOWN_WARNINGS = 8  # warnings listed in the box itself; the rest in a <details> under them (the page's first screens)
 # a study's records (Study.meta key -> its file) whose ``warnings`` list is the study's own; "" is the
 # meta itself (a thesis study's meta is its thesis_summary.json)
-STUDY_FILES = {"": "thesis_summary.json", "reference": "reference.json", "provenance": "provenance.json"}
+STUDY_FILES = {"": "thesis_summary.json", "reference": "reference.json", "provenance": "provenance.json",
+               "granularity_summary": "granularity_summary.json"}
 
 
 def recorded(inputs: Inputs) -> list[tuple[str, list[str]]]:
