@@ -160,16 +160,21 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
 def largest_phase(program) -> dict | None:
     """``{"phase", "items", "unit"}`` of the largest phase of ``program`` (a FrameProgram) that the packet size
     cuts into packets: its name (``rcast.rays``; the largest of its tiles'), its items (pixels, or photons in a
-    ``photons.*`` phase: what its first job's packets hold, at any packet size) and their unit; None where no phase
-    is cut by the packet size (a BSP build's job, :data:`LEVEL_KINDS`, is a packet per level at any size)."""
+    ``photons.*`` phase: what its first job's packets hold, at any packet size) and their unit, with ``tiles``, the
+    tiles of its stage, where it has more than one (a stage over several pipelines: the items are its largest
+    tile's, not the frame's); None where no phase is cut by the packet size (a BSP build's job,
+    :data:`LEVEL_KINDS`, is a packet per level at any size)."""
     best = None
-    for ph in program.phases:
-        job = ph.jobs[0] if ph.jobs else None
-        if job is None or job.kind in LEVEL_KINDS:
-            continue
-        n = int(job.items.sum())
-        if best is None or n > best["items"]:
-            best = {"phase": ph.name, "items": n, "unit": "photons" if ph.name.startswith("photons.") else "pixels"}
+    for stage in program.stages:
+        for ph in (ph for tile in stage.tiles for ph in tile.phases):
+            job = ph.jobs[0] if ph.jobs else None
+            if job is None or job.kind in LEVEL_KINDS:
+                continue
+            n = int(job.items.sum())
+            if best is None or n > best["items"]:
+                best = {"phase": ph.name, "items": n, "unit": "photons" if ph.name.startswith("photons.") else "pixels"}
+                if len(stage.tiles) > 1:  # (a tile's items, not the frame's: h402)
+                    best["tiles"] = len(stage.tiles)
     return best
 
 
@@ -193,8 +198,9 @@ def one_packet_line(sizes: list[int], largest: dict | None) -> str:
         return (f"packet sizes {listed}: the frame has no pixel or photon phase for a packet size to cut (its BSP "
                 f"builds are a packet per level), {same}")
     n, unit = largest["items"], largest["unit"]
+    of = f", in the largest of its {largest['tiles']} tiles" if largest.get("tiles") else ""  # (a tile's items: h402)
     return (f"packet sizes {listed} are at or past the {n} {unit if n != 1 else unit[:-1]} of the frame's largest "
-            f"phase ({largest['phase']}): each phase runs as one packet at each, {same}")
+            f"phase ({largest['phase']}{of}): each phase runs as one packet at each, {same}")
 
 
 def summary_record(sizes: list[int], largest: dict | None, warnings: list[str]) -> dict:
