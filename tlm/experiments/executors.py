@@ -447,9 +447,7 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
                                                        silence_logs=logging.CRITICAL, **_local_preloads()))
         for nanny in list(getattr(cluster, "workers", {}).values()):  # (what each nanny sets, as it computed it)
             written.update(getattr(nanny, "pre_spawn_env", None) or {})
-        client = quiet.client = stack.enter_context(_client(Client, cluster))
-        stack.push(quiet.before)  # (runs first as the stack closes: the cluster closes silenced on a signal)
-        pool = DaskPool(client, "local", remote=False, quiet=quiet, wait=dask_wait, cluster=cluster)
+        client = stack.enter_context(_client(Client, cluster))
     else:
         answers(dask)  # (a refused connection at once, where distributed retries it for CONNECT_TIMEOUT s)
         try:
@@ -457,9 +455,11 @@ def open_executor(stack: ExitStack, jobs: int, dask: str | None, points: int,
         except (OSError, ValueError, TypeError, MemoryError) as e:  # TimeoutError is an OSError (MemoryError: a
             # message size read from what is not a scheduler)
             raise InputError(f"cannot reach the Dask scheduler {dask!r} ({e})", key="--dask") from None
-        quiet.client = client
-        stack.push(quiet.before)  # (the client closes silenced where it has lost its scheduler, or on a signal)
-        pool = DaskPool(client, dask, remote=True, quiet=quiet, wait=dask_wait)
+        cluster = None
+    quiet.client = client
+    stack.push(quiet.before)  # (runs first as the stack closes: the client, and a local cluster, close silenced
+    # on a signal or where the client has lost its scheduler)
+    pool = DaskPool(client, dask, remote=dask != "local", quiet=quiet, wait=dask_wait, cluster=cluster)
     pool.watch.start(refuse=pool.remote)  # (a worker that cannot run the points left out, before one is sent)
     return pool
 
