@@ -365,23 +365,38 @@ def write_calibration(programs: Programs, report: dict, target: str | Path | Non
 @argument_names
 @imports_whole
 def granularity(path: str | Path, out: str | Path, *, progress: Callable | None = None,
-                overrides: Iterable[str] | None = None, warn: Callable[[str], None] | None = None) -> StudyRows:
+                overrides: Iterable[str] | None = None, warn: Callable[[str], None] | None = None,
+                start: Callable[[list[int]], None] | None = None) -> StudyRows:
     """Cycle error of coarse packets against one ray per packet (``tlm granularity``) for the
     study file ``path`` (or the built-in study of that name): a list of dicts (:class:`StudyRows`).
     ``overrides``: ``dotted.key=value`` strings (``tlm granularity --set``) applied to its base (not
     ``arch.packet_size``). Its warnings (an override that sets nothing, ``render={}``), which ``tlm
     granularity`` prints on stderr, are the rows' ``attrs["warnings"]``; ``warn`` gets each as it is
-    known too (None: nothing is printed). ``progress(packet_size, timing, seconds)`` is called as each
+    known too (None: nothing is printed). Its notes, which ``tlm granularity`` prints under its table,
+    are their ``attrs["notes"]``: where two or more packet sizes are at or past the items of the frame's
+    largest phase, the line saying they run every phase as one packet, so their rows are the same; with
+    them ``attrs["one_packet"]`` (the sizes at or past it, a list, maybe of one) and
+    ``attrs["largest_phase"]`` (``{"phase", "items", "unit"}``, with ``tiles`` where its stage has
+    several; None where no phase is cut by the packet size), as its ``granularity_summary.json`` keeps
+    them (h407). ``progress(packet_size, timing, seconds)`` is called as each
     size is simulated (``timing``: its Timing; ``len(timing.frames)`` the frames it ran, more than
-    ``arch.frames`` where the stream ran on: the rows' ``frames`` and ``*_per_frame`` columns)."""
+    ``arch.frames`` where the stream ran on: the rows' ``frames`` and ``*_per_frame`` columns);
+    ``start(packet_sizes)`` once before the first, with the sizes in the order they are simulated
+    (increasing; ``tlm granularity`` aligns its progress lines by the widest)."""
     from tlm.experiments.granularity import run_granularity
 
     progress = callback(progress, "progress", "a function of (packet size, timing, seconds)")
+    start = callback(start, "start", "a function of (packet sizes)")
     warned = _Warned(callback(warn, "warn"))
     path, checked = _study(path, "granularity")
+    kept: list[dict] = []  # (the study's granularity_summary.json, as it was written)
     with checked:
-        rows = run_granularity(path, out_folder(out), progress, overrides=_overrides(overrides), **warned.arguments())
-    return StudyRows(rows, warnings=warned.lines)
+        rows = run_granularity(path, out_folder(out), progress, overrides=_overrides(overrides), start=start,
+                               noted=kept.append, **warned.arguments())
+    record = kept[-1] if kept else {}
+    found = StudyRows(rows, notes=record.get("notes") or [], warnings=warned.lines)
+    found.attrs.update(one_packet=list(record.get("one_packet") or []), largest_phase=record.get("largest_phase"))
+    return found
 
 
 class _Warned:

@@ -35,7 +35,7 @@ from tlm.cli_signals import (
     version,
     writes_files,
 )
-from tlm.cli_tables import granularity_progress, print_granularity, print_point_warnings
+from tlm.cli_tables import GranularityProgress, print_granularity, print_point_warnings
 from tlm.cli_tables import print_scaling as _print_scaling
 from tlm.cli_tables import print_thesis as _print_thesis
 from tlm.cli_tables import yaml_text as _yaml_text
@@ -401,7 +401,8 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
 def _cmd_granularity(args: argparse.Namespace) -> int:
     out = default_out(args)
 
-    rows = api.granularity(args.config, out, progress=granularity_progress, **_overrides(args))
+    progress = GranularityProgress()  # (its lines as wide as the widest packet size: h407)
+    rows = api.granularity(args.config, out, progress=progress, start=progress.start, **_overrides(args))
     with kept_whole(args, out, "the study", "granularity.csv and granularity.jsonl"):
         print_granularity(rows, out)  # (and, where the sizes ran different frame counts, a line saying so)
         report_after(args, out, "the study", "granularity.csv and granularity.jsonl")

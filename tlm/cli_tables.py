@@ -2,7 +2,7 @@
 them by their old names): ``tlm thesis``'s Tables I-III and counts per work item
 (:func:`print_thesis`), ``tlm scaling``'s eq. 5.2 fits (:func:`print_scaling`), and a default as
 ``tlm params`` writes it in its column (:func:`yaml_text`), and the warnings ``tlm sweep``'s points
-recorded (:func:`print_point_warnings`), and ``tlm granularity``'s rows (:func:`granularity_progress` as each
+recorded (:func:`print_point_warnings`), and ``tlm granularity``'s rows (:class:`GranularityProgress` as each
 size is simulated, then :func:`print_granularity`)."""
 
 from __future__ import annotations
@@ -81,11 +81,22 @@ def print_scaling(done: dict, out: Path) -> None:
     print(f"wrote {out}")
 
 
-def granularity_progress(size: int, tm, secs: float) -> None:
-    """What ``tlm granularity`` prints as each packet size is simulated (``tm``: its Timing)."""
-    nf = len(tm.frames)  # (arch.frames, or more where the stream ran on until it settled: tlm/arch/steady.py)
-    print(f"  packets of {size:>8d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
-          f"{tm.events:>9d} events, {nf:>3d} frame{'s' * (nf != 1)}, {secs:7.2f} s", flush=True)
+class GranularityProgress:
+    """What ``tlm granularity`` prints as each packet size is simulated (``tm``: its Timing), the size as wide as
+    the study's widest (told by :meth:`start`, before the first: :func:`tlm.api.granularity`'s ``start``), at
+    least 8, as :func:`print_granularity`'s table has it: a size of 102400000 pushed its line's columns out of
+    line (h407)."""
+
+    def __init__(self) -> None:
+        self.wide = 8
+
+    def start(self, sizes: list[int]) -> None:
+        self.wide = max([8, *(len(str(s)) for s in sizes)])
+
+    def __call__(self, size: int, tm, secs: float) -> None:
+        nf = len(tm.frames)  # (arch.frames, or more where the stream ran on until it settled: tlm/arch/steady.py)
+        print(f"  packets of {size:>{self.wide}d}: throughput {tm.cycles['throughput'] / 1e6:10.4f} M cycles, "
+              f"{tm.events:>9d} events, {nf:>3d} frame{'s' * (nf != 1)}, {secs:7.2f} s", flush=True)
 
 
 def print_granularity(rows: list[dict], out: Path) -> None:
@@ -103,7 +114,8 @@ def print_granularity(rows: list[dict], out: Path) -> None:
     line = granularity_frames_line(rows)
     if line:
         print(line)
-    for line in _granularity_notes(out):
+    notes = getattr(rows, "attrs", {}).get("notes")  # (tlm.api.granularity's; else the study's record: h407)
+    for line in notes if isinstance(notes, list) else _granularity_notes(out):
         print(f"  {line}")
     print(f"wrote {out}/granularity.csv")
 

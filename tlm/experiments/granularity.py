@@ -86,14 +86,17 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
 
 
 def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *,
-                    via: str = "--set", warned=warn) -> list[dict]:
+                    via: str = "--set", warned=warn, start=None, noted=None) -> list[dict]:
     """Simulate the frame of ``path`` at each packet size; rows relative to the smallest.
     ``overrides``: ``tlm granularity --set`` strings (:func:`load_granularity`), in the study's
     ``config.resolved.yaml`` by their values and listed in its ``provenance.json``; one that sets
     nothing (``--set render={}``: :func:`~tlm.experiments.run_warnings.empty_sets`, naming them ``via``)
     is given to ``warned`` (default: said on stderr; :func:`tlm.api.granularity` returns it), and so is each
     of the rendered frame's own warnings, as ``tlm run`` says them, led by ``granularity: ``; those lines are
-    kept in the study's ``granularity_summary.json`` (:func:`summary_record`), which the report lists."""
+    kept in the study's ``granularity_summary.json`` (:func:`summary_record`), which the report lists.
+    ``start(sizes)``, where given, gets the packet sizes (increasing, the order they are simulated in) once,
+    before the first (``tlm granularity`` aligns its progress lines by the widest: h407); ``noted(record)``
+    gets that record once it is known (:func:`tlm.api.granularity` returns its line and sizes)."""
     overrides = tuple(str(o) for o in overrides)
     cfg, sizes, folder = load_granularity(Path(path), overrides)
     said: list[str] = []  # (each line given to warned, kept in the study's record, which the report reads: h400)
@@ -120,6 +123,8 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
         fine_ti_cycles(fn, programs, replace(cfg.arch, trace=False))
 
     largest: list[dict | None] = []  # the frame's largest phase the packet size cuts (the same at every size)
+    if start is not None:
+        start(list(sizes))
 
     def one(size: int, _folder: Path) -> dict:
         t0 = time.perf_counter()
@@ -151,7 +156,10 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
         return rows
 
     def record(_rows: list[dict]) -> dict:
-        return {SUMMARY: summary_record(sizes, largest[0] if largest else None, said)}
+        kept = summary_record(sizes, largest[0] if largest else None, said)
+        if noted is not None:
+            noted(kept)
+        return {SUMMARY: kept}
 
     return run_study(str(path), out, "granularity", sizes, one, columns=COLUMNS, config=cfg, finish=relative,
                      files=record, overrides=overrides)

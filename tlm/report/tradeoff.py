@@ -520,6 +520,15 @@ def granularity_per_frame(study: Study) -> str:
             "repeated, arch.settle_frames), so host seconds are per frame")
 
 
+def granularity_same_rows(study: Study) -> list[str]:
+    """The study's own notes (its ``granularity_summary.json``'s ``notes``: two or more packet sizes at or past the
+    items of the frame's largest phase, which run every phase as one packet and so give the same rows, as ``tlm
+    granularity`` said under its table: h400, h407); [] for a study written before them, or a record without."""
+    record = study.meta.get("granularity_summary") if isinstance(study.meta, dict) else None
+    notes = record.get("notes") if isinstance(record, dict) else None
+    return [str(n) for n in notes if str(n).strip()] if isinstance(notes, list) else []
+
+
 def granularity_points(study: Study, per_frame: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(packet sizes, host seconds, max |relative cycle error|), by packet size. The seconds are per frame
     (``simulate_seconds_per_frame``) where ``per_frame``, by default where the sizes ran different frame
@@ -539,6 +548,8 @@ def granularity_figure(studies: list[Study], out: Path, name: str, notes: list[s
         size, secs, err = granularity_points(st, per_frame)
         if granularity_per_frame(st):
             notes.append(f"{label}: {granularity_per_frame(st)}.")
+        for line in granularity_same_rows(st):  # (its points at those sizes are one row's, drawn at each: h407)
+            notes.append(f"{label}: {line.rstrip('.')}.")
         if per_frame and not any(isinstance(r.get("frames"), int) for r in st.rows):
             # (h372: a study written before the frames column, beside one whose sizes ran different frame
             # counts: its seconds are whole simulations' of frames it does not say, not per frame)
