@@ -23,6 +23,7 @@ import tlm.experiments.frames as frames
 from tlm.arch.functional import Functional
 from tlm.caches import file_digest
 from tlm.config import config_from_dict, load_config, to_dict
+from tlm.config_words import dump_yaml, parse_yaml
 from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.experiments.frames import cache_dir, cached_render, functional_key
@@ -129,7 +130,7 @@ def committed_configs() -> list[tuple[str, dict]]:
     config and scene file (the studies' and the scenes' odd values: long descriptions, nested lists)."""
     out = []
     for path in sorted((REPO / "configs").glob("*.yaml")):
-        out.append((f"{path.name} (as written)", yaml.safe_load(path.read_text())))
+        out.append((f"{path.name} (as written)", parse_yaml(path.read_text())))
         try:
             out.append((f"{path.name} (resolved)", to_dict(load_config(path)[0])))
             continue
@@ -138,20 +139,20 @@ def committed_configs() -> list[tuple[str, dict]]:
         try:
             sweep = load_sweep(path)
         except InputError:  # (a study file: its base, where it has one)
-            base = yaml.safe_load(path.read_text()).get("base")
+            base = parse_yaml(path.read_text()).get("base")
             if isinstance(base, dict):
                 out.append((f"{path.name} base", to_dict(config_from_dict(base))))
             continue
         out += [(f"{path.name} point {p.index}", p.config) for p in sweep.points]
     for path in sorted((REPO / "scenes").rglob("*.yaml")):
-        out.append((str(path.relative_to(REPO)), yaml.safe_load(path.read_text())))
+        out.append((str(path.relative_to(REPO)), parse_yaml(path.read_text())))
     return out
 
 
 def test_config_text_is_safe_dumps_for_every_committed_config():
     configs = committed_configs()
     assert len(configs) > 250
-    differ = [name for name, c in configs if config_text(c) != yaml.safe_dump(c, sort_keys=False)]
+    differ = [name for name, c in configs if config_text(c) != dump_yaml(c, sort_keys=False)]
     assert differ == []
 
 
@@ -171,7 +172,7 @@ ODD = {
 @pytest.mark.parametrize("name", sorted(ODD))
 def test_config_text_is_safe_dumps_for_odd_values(name):
     config = {"scene": "cornell", name: ODD[name], "render": {"spp": 4, "what": ODD[name]}}
-    assert config_text(config) == yaml.safe_dump(config, sort_keys=False)
+    assert config_text(config) == dump_yaml(config, sort_keys=False)
 
 
 def test_config_text_takes_libyamls_emitter_for_a_plain_config(monkeypatch):
@@ -179,8 +180,9 @@ def test_config_text_takes_libyamls_emitter_for_a_plain_config(monkeypatch):
     if getattr(yaml, "CSafeDumper", None) is None:
         pytest.skip("PyYAML without libyaml")
     config = to_dict(load_config(REPO / "configs" / "cornell_pmap.yaml")[0])
-    want = yaml.safe_dump(config, sort_keys=False)
-    monkeypatch.setattr(yaml, "safe_dump", lambda *a, **k: pytest.fail("the pure-Python emitter was used"))
+    want = dump_yaml(config, sort_keys=False)
+    monkeypatch.setattr("tlm.experiments.sweep_point.dump_yaml",
+                        lambda *a, **k: pytest.fail("the pure-Python emitter was used"))
     assert config_text(config) == want
 
 

@@ -20,6 +20,7 @@ import yaml
 import tlm.experiments.sweep_file as sweep_mod
 import tlm.fingerprint as fingerprint
 from tlm.config import config_from_dict
+from tlm.config_words import dump_yaml
 from tlm.errors import InputError
 from tlm.experiments.sweep_file import Point, Sweep, _assign, expand, load_sweep
 
@@ -181,9 +182,9 @@ def test_sweep_yaml_is_the_dump_of_the_sweep():
     factors = expand(grid, {})
     points = [Point(i, f, {}, hashes[i % len(hashes)]) for i, f in enumerate(factors)]
     sw = _sweep(points, grid, description="long " * 30)
-    assert sw.marker() == yaml.safe_dump(sw.to_dict(), sort_keys=False)
+    assert sw.marker() == dump_yaml(sw.to_dict(), sort_keys=False)
     # a list for a value: the dump's own (anchors where points share it)
     grid = {"resolution": [[16, 16], [8, 8]]}
     points = [Point(i, f, {}, hashes[i]) for i, f in enumerate(expand(grid, {"seed": [0]}))]
     sw = _sweep(points, grid, {"seed": [0]})
-    assert sw.marker() == yaml.safe_dump(sw.to_dict(), sort_keys=False)
+    assert sw.marker() == dump_yaml(sw.to_dict(), sort_keys=False)

@@ -227,14 +227,13 @@ def _recorded(path: Path) -> list[str]:
 def yaml_text(value) -> str:
     """A default as a config file writes it, and as YAML reads it back: ``null``, ``true``,
     ``cornell``, ``[16, 16]``; a whole float of 10**6 or more as ``6.0e+08`` (YAML reads
-    ``6e+08``, with no point, as text)."""
+    ``6e+08``, with no point, as text); a string as :func:`~tlm.config_words.flow_text` writes it."""
     import math
 
-    import yaml
+    from tlm.config_words import flow_text
 
     if isinstance(value, float) and math.isfinite(value) and value == int(value) and abs(value) >= 1e6:
         mantissa, exponent = f"{value:e}".split("e")
         mantissa = mantissa.rstrip("0")
         return f"{mantissa}{'0' if mantissa.endswith('.') else ''}e{exponent}"
-    text = yaml.safe_dump(value, default_flow_style=True, width=10**9, allow_unicode=True).strip()
-    return text.removesuffix("...").strip()
+    return flow_text(value)

@@ -6,8 +6,9 @@ Saying: the error messages of tlm name a value as a user writes it in YAML
 (:func:`value_text`: ``two``, ``null``, ``1e9``, ``[64, 64]``), what a config field holds
 in YAML's words (:func:`type_name`: ``an integer or null``), what to write instead
 (:func:`type_hint`), what a file holds that is not a mapping (:func:`yaml_kind`) and a
-config with overrides (:func:`with_overrides`). The two live together because a string is
-said bare only where :func:`parse_yaml` reads it back as that string. A value given for a
+config with overrides (:func:`with_overrides`). Writing: :class:`Dumper` (:func:`dump_yaml`; on one
+line, :func:`flow_text`), YAML that :func:`parse_yaml` reads back the same. They live together because a
+string is said and written bare only where :func:`parse_yaml` reads it back as that string. A value given for a
 key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`, and why
 an empty one there (``--set render={}``) sets nothing: :func:`sets_nothing`.
 """
@@ -136,6 +137,55 @@ def safe_load(text: str) -> Any:
 def parse_yaml(text: str) -> Any:
     """YAML text to data, with YAML 1.2 floats."""
     return yaml.load(text, Loader=_Loader)
+
+
+class Dumper(yaml.SafeDumper):
+    """PyYAML's safe dumper (``yaml.safe_dump``'s), but it writes a string bare only where :func:`parse_yaml`
+    reads it back as that string: a string that YAML 1.1 holds as text and tlm's reader as a number
+    (``1e3``, ``+1.0e-3``, ``.5e+3``: YAML 1.2 floats) is quoted, as a number, a date, a boolean or a null
+    written as text already was (``'1e3'``). It tells them by the reader's own implicit resolvers: any other
+    value is written as ``yaml.safe_dump`` writes it, byte for byte."""
+
+
+Dumper.yaml_implicit_resolvers = {k: list(v) for k, v in _Loader.yaml_implicit_resolvers.items()}
+
+if hasattr(yaml, "CSafeDumper"):
+    class CDumper(yaml.CSafeDumper):
+        """:class:`Dumper` with libyaml's emitter (a quarter of the time; the resolvers are Python's)."""
+
+    CDumper.yaml_implicit_resolvers = Dumper.yaml_implicit_resolvers
+else:  # (PyYAML built without libyaml)
+    CDumper = None  # type: ignore[assignment,misc]
+
+
+def dump_yaml(data: Any, **kwargs: Any) -> str:
+    """``yaml.safe_dump(data, **kwargs)`` by :class:`Dumper`: the YAML text of a file tlm writes for itself or
+    a user to read back (``config.resolved.yaml``, ``sweep.yaml``, an exported scene), read back the same by
+    :func:`parse_yaml` and by ``yaml.safe_load``; ``kwargs``: ``yaml.dump``'s (``sort_keys=False``)."""
+    return yaml.dump(data, Dumper=Dumper, **kwargs)
+
+
+_BREAKS = ("\n", "\r", "\x85", "\u2028", "\u2029")  # (what YAML reads as a line break)
+
+
+def flow_text(value: Any) -> str:
+    """``value`` on one line as YAML's flow style writes it (:class:`Dumper`'s, its characters as they are):
+    ``[16, 16]``, ``{spp: 2}``, ``cornell``; a string quoted only where :func:`parse_yaml` would read it as
+    another value or it needs quotes (``'1e3'``, ``'true'``); one of a line break, or that would not read
+    back the same, double-quoted and escaped (``"a\\nb"``). What a ``--set`` or a config file takes."""
+    said = yaml.dump(value, Dumper=Dumper, default_flow_style=True, allow_unicode=True, width=1 << 30)
+    said = said.strip().removesuffix("...").strip()  # (a bare scalar's document end)
+    if isinstance(value, str) and (any(c in said for c in _BREAKS) or _read(said) != value):
+        said = yaml.dump(value, Dumper=Dumper, default_style='"', width=1 << 30).strip()
+    return said
+
+
+def _read(said: str) -> Any:
+    """What :func:`parse_yaml` reads the text ``said`` as (None where it reads nothing)."""
+    try:
+        return parse_yaml(said)
+    except yaml.YAMLError:
+        return None
 
 
 def value_text(v: Any, limit: int = 80) -> str:

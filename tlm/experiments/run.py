@@ -37,7 +37,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from tlm.arch.costs import Programs, load_programs
 from tlm.arch.functional import Functional, save_npz
@@ -46,7 +45,7 @@ from tlm.caches import cache_warnings
 from tlm.claims import claimed
 from tlm.config import ArchConfig, RunConfig, noting_reads, to_dict
 from tlm.config_read import nameless
-from tlm.config_words import with_overrides
+from tlm.config_words import dump_yaml, with_overrides
 from tlm.errors import InputError, check_numba_threads, did_you_mean, shell_word
 from tlm.experiments.dask_workers import ran_here
 from tlm.experiments.error_cost_clock import CompileClock
@@ -569,7 +568,7 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
             })
             save_npz(tmp / "aov" / "work.npz",
                      {f"{p}.{k}": v for p, counts in res.work.items() for k, v in counts.items()})
-        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(to_dict(res.cfg), sort_keys=False), encoding="utf-8")
+        (tmp / "config.resolved.yaml").write_text(dump_yaml(to_dict(res.cfg), sort_keys=False), encoding="utf-8")
         if "trace" in outputs and res.timing is not None and res.timing.trace is not None:
             res.timing.trace.write(tmp / "trace.json", res.cfg.arch.clock_hz)
         results = results_dict(res, exposure, config_path, overrides, say_unread)

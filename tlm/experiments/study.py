@@ -43,6 +43,7 @@ from tlm.config import (
     scene_from,
     to_dict,
 )
+from tlm.config_words import dump_yaml
 from tlm.errors import InputError
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
@@ -224,7 +225,7 @@ def run_study(source: str, out: Path, name: str, points: Iterable[Any],
             rows = finish(rows, tmp)
         write_rows(tmp, name, rows, columns)
         if config is not None:
-            write_file(tmp / "config.resolved.yaml", yaml.safe_dump(to_dict(config), sort_keys=False))
+            write_file(tmp / "config.resolved.yaml", dump_yaml(to_dict(config), sort_keys=False))
         for fname, value in (files(rows) if files is not None else {}).items():
             write_file(tmp / fname, _text(fname, value))
         made = provenance(source, time.perf_counter() - start)
@@ -255,5 +256,5 @@ def _text(name: str, value: Any) -> str:
     if isinstance(value, str):
         return value
     if name.endswith(".yaml"):
-        return yaml.safe_dump(value, sort_keys=False)
+        return dump_yaml(value, sort_keys=False)
     return json_text(value, indent=2, default=str) + "\n"  # (strict JSON: a fit's inf or nan as null)

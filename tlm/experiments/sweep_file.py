@@ -40,7 +40,7 @@ from tlm.config import (
     to_dict,
     with_leaves,
 )
-from tlm.config_words import sets_nothing, value_text, with_overrides
+from tlm.config_words import Dumper, dump_yaml, sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.study import override_key, scene_keys, with_set
 from tlm.experiments.sweep_checks import one_run_one_row as _one_run_one_row
@@ -229,7 +229,8 @@ class Sweep:
         }
 
     def marker(self) -> str:
-        """``sweep.yaml``'s text: ``yaml.safe_dump(self.to_dict(), sort_keys=False)``.
+        """``sweep.yaml``'s text: :func:`~tlm.config_words.dump_yaml` ``(self.to_dict(), sort_keys=False)``
+        (``yaml.safe_dump``'s, a string that tlm's reader takes for a number quoted: a description ``'1e3'``).
 
         Where every factor value is a plain scalar (a string, number, bool or null: no YAML
         anchors between points), the points' lines are put together from each factor
@@ -237,9 +238,10 @@ class Sweep:
         head = self.to_dict()
         del head["points"]
         lines = {}  # (key, value's id) -> its lines in a point's factors (the values live as long as the points)
-        resolver = yaml.resolver.Resolver()  # (a hash that reads as a number is quoted, as the dump quotes it)
+        resolver = yaml.resolver.Resolver()  # (a hash that reads as a number is quoted, as the dump quotes it:
+        resolver.yaml_implicit_resolvers = Dumper.yaml_implicit_resolvers  # tlm's reader's, 1234e5...: a float)
         str_tag = "tag:yaml.org,2002:str"
-        out = [yaml.safe_dump(head, sort_keys=False), "points:\n"]
+        out = [dump_yaml(head, sort_keys=False), "points:\n"]
         for p in self.points:
             shown = p.hash if resolver.resolve(yaml.ScalarNode, p.hash, (True, False)) == str_tag else f"'{p.hash}'"
             out.append(f"- point: {p.index}\n  hash: {shown}\n  factors:\n")
@@ -247,8 +249,8 @@ class Sweep:
                 line = lines.get((k, id(v)))
                 if line is None:
                     if type(v) not in _SCALARS:  # (a list or a mapping: the dump's own, anchors and all)
-                        return yaml.safe_dump(self.to_dict(), sort_keys=False)
-                    text = yaml.safe_dump([{"factors": {k: v}}], sort_keys=False)
+                        return dump_yaml(self.to_dict(), sort_keys=False)
+                    text = dump_yaml([{"factors": {k: v}}], sort_keys=False)
                     line = lines[k, id(v)] = text[text.index("\n") + 1:]
                 out.append(line)
         return "".join(out)

@@ -27,6 +27,7 @@ import yaml
 from tlm import storage
 from tlm.caches import cache_warnings, cache_warnings_held
 from tlm.config import config_from_dict
+from tlm.config_words import CDumper, dump_yaml
 from tlm.errors import InputError, interrupted_by
 from tlm.experiments.dask_workers import (
     OtherVersionsOnWorker,
@@ -474,20 +475,21 @@ def write_error(task: Task, error: dict, ran: dict | None = None) -> None:
         (tmp / "error.json").write_text(text, encoding="utf-8")
 
 
-_C_DUMPER = getattr(yaml, "CSafeDumper", None)  # (libyaml's emitter: None where PyYAML was built without it)
+_C_DUMPER = CDumper  # (libyaml's emitter: None where PyYAML was built without it)
 KEY_CHARS = 64  # the longest key the C dumper is given (longer ones: the two emitters choose a key's form apart)
 
 
 def config_text(config: dict) -> str:
-    """``config.resolved.yaml``'s text: ``yaml.safe_dump(config, sort_keys=False)``, by libyaml's emitter
-    (``yaml.CSafeDumper``, a quarter of the time) where its text is the same: a mapping whose keys are
-    printable ASCII of 1 to :data:`KEY_CHARS` characters and whose strings are printable ASCII, of plain
-    numbers, booleans, nulls, lists and mappings (:func:`_same_text_in_c`). A string of other characters
-    (a path with an accent, a newline) goes through PyYAML's own emitter, as ever: the two fold a long
-    double-quoted string, and write an empty or long key, each its own way."""
+    """``config.resolved.yaml``'s text: :func:`~tlm.config_words.dump_yaml` ``(config, sort_keys=False)``
+    (``yaml.safe_dump``'s text, a string that tlm's reader takes for a number quoted: ``'1e3'``), by libyaml's
+    emitter (:class:`~tlm.config_words.CDumper`, a quarter of the time) where its text is the same: a mapping
+    whose keys are printable ASCII of 1 to :data:`KEY_CHARS` characters and whose strings are printable ASCII,
+    of plain numbers, booleans, nulls, lists and mappings (:func:`_same_text_in_c`). A string of other
+    characters (a path with an accent, a newline) goes through PyYAML's own emitter, as ever: the two fold a
+    long double-quoted string, and write an empty or long key, each its own way."""
     if _C_DUMPER is not None and isinstance(config, dict) and _same_text_in_c(config):
         return yaml.dump(config, Dumper=_C_DUMPER, sort_keys=False)
-    return yaml.safe_dump(config, sort_keys=False)
+    return dump_yaml(config, sort_keys=False)
 
 
 def _printable(text: str) -> bool:

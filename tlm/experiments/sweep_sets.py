@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable
-from typing import Any
 
-import yaml
-
+from tlm.config_words import flow_text
 from tlm.errors import InputError, shell_word
 from tlm.experiments.study import override_key, refuse_set, set_leaves
 
@@ -58,16 +56,11 @@ def refuse_factor_sets(overrides: Iterable[str], factors: dict[str, str], src: s
         if list(leaves) == [key] or not any(f.startswith(key + ".") for _, f in touched):
             refuse_set([item], {f: f"a factor of the sweep ({factors[f]}.{f}), {why}" for _, f in touched}, src)
         f = next(f for _, f in touched if f.startswith(key + "."))
-        others = [f"--set {shell_word(f'{k}={_flow(v)}')}" for k, v in leaves.items()
+        others = [f"--set {shell_word(f'{k}={flow_text(v)}')}" for k, v in leaves.items()
                   if not any(given_by(k, [g]) for g in factors)]
         rest = f"; give its other keys one by one: {' '.join(others)}" if others else ""
         raise InputError(f"{key} holds {f}, a factor of the sweep ({factors[f]}.{f}), {why}{rest}", source=src,
                          key=f"--set {item.strip()}")
-
-
-def _flow(value: Any) -> str:
-    """``value`` as a ``--set`` writes it: YAML's flow style, on one line."""
-    return yaml.safe_dump(value, default_flow_style=True, width=10**6).strip().removesuffix("...").strip()
 
 
 def at_default(config: dict, defaults: dict, dotted: str) -> bool:

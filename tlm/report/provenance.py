@@ -19,8 +19,7 @@ import json
 from collections import Counter
 from pathlib import Path
 
-import yaml
-
+from tlm.config_words import dump_yaml
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section, count, some
 from tlm.report.html import esc
@@ -337,7 +336,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
     sec.notes += digest_notes(inputs.runs)  # (one scene file of other contents in two runs)
     for run in inputs.runs[:MAX_CONFIGS]:
         parts.append(f"<details><summary>{esc(run.label)}: resolved config</summary><pre>"
-                     f"{esc(yaml.safe_dump(run.config, sort_keys=False))}</pre></details>")
+                     f"{esc(dump_yaml(run.config, sort_keys=False))}</pre></details>")
     if len(inputs.runs) > MAX_CONFIGS:
         sec.notes.append(f"The resolved configs of the first {MAX_CONFIGS} of {len(inputs.runs)} runs are listed; "
                          "every run's is its folder's config.resolved.yaml.")
@@ -358,7 +357,7 @@ def provenance_section(inputs: Inputs, out: Path) -> Section:
         parts.append(f"<p>{esc(line)}</p>")
         if "config" in st.meta:
             parts.append(f"<details><summary>{esc(st.path.name)}: resolved config</summary><pre>"
-                         f"{esc(yaml.safe_dump(st.meta['config'], sort_keys=False))}</pre></details>")
+                         f"{esc(dump_yaml(st.meta['config'], sort_keys=False))}</pre></details>")
     sec.html = "\n".join(parts)
     if not inputs.runs and not inputs.studies:
         sec.absent = "no inputs"

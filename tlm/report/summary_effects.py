@@ -15,9 +15,10 @@ import ast
 from collections import defaultdict
 
 import numpy as np
-import yaml
 
+from tlm.config_words import flow_text
 from tlm.report.collect import Inputs, Sweep, with_set
+from tlm.report.common import NAMED, some
 from tlm.report.html import esc
 from tlm.report.names import value_text
 from tlm.report.summary_points import and_ as _and
@@ -117,8 +118,8 @@ def _error_range(k: str, eff: dict, most: bool = False) -> str:
     ratio = f"{hi / lo:.2f}x, " if most and lo > 0 else ""
     order = _not_monotone(means)
     if order is None:
-        said = (f"relative MSE {hi:.3g} at {_values(_extreme(k, means, hi))} → {lo:.3g} at "
-                f"{_values(_extreme(k, means, lo))}")
+        said = (f"relative MSE {hi:.3g} at {_values(_extreme(k, means, hi), len(means))} → {lo:.3g} at "
+                f"{_values(_extreme(k, means, lo), len(means))}")
     else:
         ends = {0, len(order) - 1, *(i for i, v in enumerate(order) if any(same_value(means[v], m) for m in (hi, lo)))}
         shown = list(range(len(order))) if len(order) <= MAX_LISTED else sorted(ends)
@@ -170,21 +171,9 @@ def _yaml_text(v) -> str:
         return "[" + ", ".join(_yaml_text(x) for x in v) + "]"
     if isinstance(v, dict):
         return "{" + ", ".join(f"{_yaml_text(a)}: {_yaml_text(b)}" for a, b in v.items()) + "}"
-    if isinstance(v, str):
-        said = yaml.safe_dump(v, default_flow_style=True, allow_unicode=True, width=1 << 30)
-        said = said.removesuffix("\n").removesuffix("\n...")
-        if any(c in said for c in "\n\x85\u2028\u2029") or _read(said) != v:  # (one line: double-quoted, escaped)
-            said = yaml.safe_dump(v, default_style='"', width=1 << 30).strip()
-        return said
+    if isinstance(v, str):  # (one line: one of a line break double-quoted, escaped; '1e3', which tlm reads as 1000.0)
+        return flow_text(v)
     return value_text("", v)
-
-
-def _read(said: str):
-    """What YAML reads a value written ``said`` as (None where it reads nothing)."""
-    try:
-        return yaml.safe_load(said)
-    except yaml.YAMLError:
-        return None
 
 
 MAX_TIED_POINTS = 4  # the best points named when more tie (the rest counted)
@@ -195,9 +184,15 @@ def _extreme(k: str, means: dict[str, float], m: float) -> list[str]:
     return [_as_yaml(k, v) for v, mean in means.items() if same_value(mean, m)]
 
 
-def _values(tied: list[str]) -> str:
-    """One value, or the values that tie, said so (``2 and 4, tied``)."""
-    return esc(tied[0]) if len(tied) == 1 else f"{esc(_and(tied))}, tied"
+def _values(tied: list[str], of: int) -> str:
+    """One value, or the values that tie, said so (``2 and 4, tied``); of more than
+    :data:`~tlm.report.common.NAMED`, how many of the factor's ``of`` values and the first few
+    (:func:`~tlm.report.common.some`: ``49 of its 50 values, tied: 2, 3, 4, 5 and 45 more``)."""
+    if len(tied) == 1:
+        return esc(tied[0])
+    if len(tied) <= NAMED:
+        return f"{esc(_and(tied))}, tied"
+    return f"{len(tied)} of its {of} values, tied: {esc(some(tied))}"
 
 
 def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str = "") -> str:
@@ -345,9 +340,12 @@ def error_factor(inputs: Inputs) -> str:
 def sweep_findings(inputs: Inputs) -> list[str]:
     """Per sweep, in words: the factor whose values move the mean frame rate most (the ratio
     of its best value's mean to its worst's) and the point of the highest frame rate. Values
-    and points that tie (to 1e-9) are said as tied, every one of them (a best value and a best
-    point that would each be one of the tied at random could contradict each other), but for
-    points that differ only in factors that change nothing (:func:`_best_points`).
+    and points that tie (to 1e-9) are said as tied (a best value and a best point that would each
+    be one of the tied at random could contradict each other), but for points that differ only in
+    factors that change nothing (:func:`_best_points`); of many, the first few and how many more
+    (:func:`_values`, :func:`_named`). Where every point runs at one frame rate, the text says what
+    else no factor changes (every PM's cycles, the image error: each the same in every point), and
+    where a factor moves a PM's cycles, names the factors that change nothing at all after it.
 
     A factor is judged like with like: its values are compared in the combinations of the
     other factors' values that finished (status ok) with every one of its values, so that a
@@ -397,7 +395,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             elif min((means := eff["values"]).values()) > 0 and not same_value(max(means.values()),
                                                                                min(means.values())):
                 top, bottom = max(means.values()), min(means.values())
-                spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom))
+                spread[k] = (top / bottom, _extreme(k, means, top), _extreme(k, means, bottom), len(means))
                 left[k] = len(ranked) - eff["used"]
         best = _ranked_points(rows, unranked, factors, nothing)
         text = (f"<b>Sweep {esc(sw.label)}</b> ({len(rows)} of {len(sw.rows)} points ok"
@@ -422,19 +420,29 @@ def sweep_findings(inputs: Inputs) -> list[str]:
                       f"finished with each of {'its' if len(apart) == 1 else 'their'} values); ")
         if spread:
             k = max(spread, key=lambda f: spread[f][0])
-            ratio, hi, lo = spread[k]
+            ratio, hi, lo, n = spread[k]
             text += f"{esc(k)} moves the frame rate most"
             if along[k]:
                 text += f" (with {esc(', '.join(along[k]))}, which {'moves' if len(along[k]) == 1 else 'move'} with it)"
-            text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi)}) and its "
-                     f"worst ({_values(lo)}), averaged over ")
+            text += (f", {ratio:.2f}x between its best value{'s' if len(hi) > 1 else ''} ({_values(hi, n)}) and its "
+                     f"worst ({_values(lo, n)}), averaged over ")
             text += ("the other factors; " if not left[k] else
                      f"the other factors' values that finished with each of its values ({left[k]} of the {len(ranked)} "
                      f"ok points{' ranked' * any(unranked)} left out for that); ")
             text += notes + best
         elif len({r["fps"] for r in rows}) == 1 and not errs:  # (a tie everywhere: no best value, no best point)
-            text += (f"no factor changes the frame rate: every point runs at {rows[0]['fps']:.3g} FPS"
-                     + (f"; {moved.removesuffix('; ')}" if moved else "") + ".")
+            low = [float(r[ERROR]) for r in measured]
+            alike = bool(low) and all(same_value(e, low[0]) for e in low)  # (nor the image error: said so)
+            said = ("" if not alike else f" with a relative MSE of {low[0]:.3g}" if len(low) == len(rows) else
+                    f", and each of the {len(low)} that measured its image error has a relative MSE of {low[0]:.3g}")
+            counts = [[r.get(c) for r in rows] for c in CYCLES]  # (each the same in every point: said so)
+            same = not moved and all(all(_number(v) for v in vs) and all(same_value(v, vs[0]) for v in vs)
+                                     for vs in counts)
+            unchanged = ["the frame rate", *["any PM's cycles"] * same, *["the image error"] * alike]
+            kept_said = f"{', '.join(unchanged[:-1])} or {unchanged[-1]}" if len(unchanged) > 1 else unchanged[0]
+            # (where a factor moves a cycle count, it first, then those that change nothing at all and the rest)
+            others = f"; {moved}{notes.replace(moved, '', 1)}".removesuffix("; ") if moved else ""
+            text += f"no factor changes {kept_said}: every point runs at {rows[0]['fps']:.3g} FPS{said}{others}."
         elif len({r["fps"] for r in rows}) == 1:  # (the image error still tells the points apart)
             text += f"no factor changes the frame rate (every point runs at {rows[0]['fps']:.3g} FPS); " + notes + best
         else:

@@ -26,7 +26,7 @@ directional light's irradiance: its power follows the scene's bounds; each with 
 it has one, a glTF's light which it was), the camera, the
 resolution and the photon count. ``tlm run`` on it renders what the original scene
 renders. Floats are written as Python's ``repr``, which reads back to the same bits; a name that tlm's
-YAML reads as a number (``1e3``, a float in YAML 1.2) quoted (:func:`_dumper`).
+YAML reads as a number (``1e3``, a float in YAML 1.2) quoted (:func:`tlm.config_words.dump_yaml`).
 
 The OBJ, its MTL library and the scene file are written together, all or none
 (:func:`tlm.storage.write_files`): a full disk or a signal leaves an earlier export of the same name as it
@@ -67,6 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config_words import dump_yaml
 from tlm.errors import EnvironmentFailure, InputError, quoted
 from tlm.scenes.model import Scene
 from tlm.storage import warn, write_atomic, write_files
@@ -414,37 +415,10 @@ def _floats(values) -> list[float]:
     return [float(x) for x in values]
 
 
-def _dumper() -> type:
-    """PyYAML's safe dumper, but a string that tlm's reader (:func:`tlm.config_words.parse_yaml`, YAML 1.2
-    floats) reads as a number is quoted: a name ``1e3`` (a light's, a material's, the scene's), which YAML 1.1
-    writes bare, read back as 1000.0 (the exported file then failed to load, or lost the material's name)."""
-    import yaml
-
-    from tlm.config_words import parse_yaml
-
-    text = "tag:yaml.org,2002:str"
-
-    class Dumper(yaml.SafeDumper):
-        def resolve(self, kind, value, implicit):
-            tag = super().resolve(kind, value, implicit)
-            if kind is yaml.ScalarNode and implicit[0] and tag == text and value[:1] in tuple("-+0123456789."):
-                try:
-                    read = parse_yaml(value)
-                except yaml.YAMLError:
-                    read = value
-                if not isinstance(read, str):  # (bare, tlm reads it as a number, or other than it: quoted)
-                    return "tag:yaml.org,2002:float"
-            return tag
-
-    return Dumper
-
-
 def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
     """The scene file of ``scene`` whose geometry is the OBJ ``mesh`` (a name beside it),
     as the module's docstring says; ``told``: the notice lines below its first lines
     (default: :func:`notices` of the scene)."""
-    import yaml
-
     scene = used_materials(scene)
     mats = {}
     for m in scene.materials:
@@ -492,7 +466,7 @@ def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
             "beside it.\n"
             "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.\n")
     head += _comments("# ", notices(scene) if told is None else told)
-    return head + yaml.dump(doc, Dumper=_dumper(), sort_keys=False, default_flow_style=None, width=120)
+    return head + dump_yaml(doc, sort_keys=False, default_flow_style=None, width=120)
 
 
 def mtl_text(scene: Scene, told: list[str] | None = None) -> str:
