@@ -523,10 +523,11 @@ def granularity_per_frame(study: Study) -> str:
 def granularity_same_rows(study: Study) -> list[str]:
     """The study's own notes (its ``granularity_summary.json``'s ``notes``: two or more packet sizes at or past the
     items of the frame's largest phase, which run every phase as one packet and so give the same rows, as ``tlm
-    granularity`` said under its table: h400, h407); [] for a study written before them, or a record without."""
+    granularity`` said under its table: h400, h407); [] for a study written before them, or a record without. Only
+    its lines of text: a damaged record's ``null`` or number is no line (it was said, ``g: None.``: h410)."""
     record = study.meta.get("granularity_summary") if isinstance(study.meta, dict) else None
     notes = record.get("notes") if isinstance(record, dict) else None
-    return [str(n) for n in notes if str(n).strip()] if isinstance(notes, list) else []
+    return [n for n in notes if isinstance(n, str) and n.strip()] if isinstance(notes, list) else []
 
 
 def granularity_points(study: Study, per_frame: bool | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
