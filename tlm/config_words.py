@@ -168,12 +168,27 @@ def dump_yaml(data: Any, **kwargs: Any) -> str:
 _BREAKS = ("\n", "\r", "\x85", "\u2028", "\u2029")  # (what YAML reads as a line break)
 
 
+class _OneLine(Dumper):
+    """:class:`Dumper` that writes a string of a line break double-quoted and escaped (``"a\\nb"``), in a list
+    or a mapping too: YAML's flow style folds a quoted one onto more lines (``['a\\n\\n  b']``)."""
+
+
+def _one_line_str(dumper: Dumper, data: str) -> yaml.ScalarNode:
+    style = '"' if any(c in data for c in _BREAKS) else None
+    return dumper.represent_scalar("tag:yaml.org,2002:str", data, style=style)
+
+
+_OneLine.add_representer(str, _one_line_str)
+
+
 def flow_text(value: Any) -> str:
     """``value`` on one line as YAML's flow style writes it (:class:`Dumper`'s, its characters as they are):
     ``[16, 16]``, ``{spp: 2}``, ``cornell``; a string quoted only where :func:`parse_yaml` would read it as
     another value or it needs quotes (``'1e3'``, ``'true'``); one of a line break, or that would not read
-    back the same, double-quoted and escaped (``"a\\nb"``). What a ``--set`` or a config file takes."""
-    said = yaml.dump(value, Dumper=Dumper, default_flow_style=True, allow_unicode=True, width=1 << 30)
+    back the same, double-quoted and escaped (``"a\\nb"``), in a list or a mapping too (:class:`_OneLine`).
+    What a ``--set`` or a config file takes."""
+    said = yaml.dump(value, Dumper=Dumper if isinstance(value, str) else _OneLine, default_flow_style=True,
+                     allow_unicode=True, width=1 << 30)
     said = said.strip().removesuffix("...").strip()  # (a bare scalar's document end)
     if isinstance(value, str) and (any(c in said for c in _BREAKS) or _read(said) != value):
         said = yaml.dump(value, Dumper=Dumper, default_style='"', width=1 << 30).strip()
