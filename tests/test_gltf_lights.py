@@ -105,8 +105,8 @@ def test_point_lights_take_their_nodes_world_positions_and_4_pi_intensity_color(
     notes = file_warnings(scene)
     assert not any("not imported from its KHR_lights_punctual lights" in n for n in notes)
     assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
-            "imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3] and KHR_lights_punctual.lights[1] 'beam' at nodes[5]) "
+            "are imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
             "lights:") in notes
 
 
@@ -178,8 +178,8 @@ def test_the_scene_files_lights_and_camera_come_first(tmp_path):
     assert [lt.position for lt in scene.lights] == [(0.0, 9.0, 0.0)] and scene.camera.eye == (0.0, 0.0, 6.0)
     notes = file_warnings(scene)
     assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
-            "not used: the scene file gives lights: (leave lights: out to import them)") in notes
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3] and KHR_lights_punctual.lights[1] 'beam' at nodes[5]) "
+            "are not used: the scene file gives lights: (leave lights: out to import them)") in notes
     assert (f"{glb}: its camera cameras[0] at nodes[4] is not used: the scene file gives camera: (leave "
             "camera: out to import it)") in notes
     assert not any("imported as" in n or "is the scene's camera" in n for n in notes)
@@ -203,8 +203,8 @@ def test_range_aspect_ratio_and_unplaced_entries_are_named(tmp_path):
     assert sun.direction == (0.0, 0.0, -1.0) and sun.irradiance == (1.0, 1.0, 1.0)  # (a node's -z; 1 lux, white)
     notes = file_warnings(scene)
     assert (f"{glb}: not imported from its KHR_lights_punctual lights: lights[1] (point, on no node of the glTF's "
-            "scene), lights[4] (spot, on no node of the glTF's scene)") in notes
-    assert (f"{glb}: the range of its point and spot lights lights[0] 'lamp' (range 4), lights[3] (range 2) is not "
+            "scene) and lights[4] (spot, on no node of the glTF's scene)") in notes
+    assert (f"{glb}: the range of its point and spot lights lights[0] 'lamp' (range 4) and lights[3] (range 2) is not "
             "modelled: a tlm point or spot light reaches every distance (falling off as 1/d^2)") in notes
     assert f"{glb}: not imported from its cameras: cameras[1] at nodes[3] (a perspective camera after the first)" \
         in notes

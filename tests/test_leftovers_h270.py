@@ -41,7 +41,7 @@ def test_inputs_of_other_code_are_named_in_the_warnings_box():
     line = box.code_line(inputs)
     assert line is not None and "different tlm code" in line
     assert "code aaaa: runs/new_run" in line
-    assert "no code recorded (an older tlm): runs/sw, runs/old_run" in line
+    assert "no code recorded (an older tlm): runs/sw and runs/old_run" in line
     assert "<strong>Different code.</strong>" in box.warnings_html(inputs)
     same = Inputs([Path("runs")], runs=[new, _run("runs/other", "aaaa")])
     assert box.code_line(same) is None and box.warnings_html(same) == ""

@@ -20,7 +20,8 @@ def test_one_obj_with_two_libraries_names_both(tmp_path):
     (tmp_path / "t.obj").write_text("mtllib a.mtl b.mtl\n" + TRI + "usemtl wood\nf 1 2 3\nusemtl stone\nf 2 4 3\n")
     (tmp_path / "s.yaml").write_text("geometry: {mesh: t.obj}\n" + CAMERA)
     (line,) = material_warnings(load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of 'a.mtl' and 'b.mtl' ('wood', 'stone') use what tlm does not render:"), line
+    assert line.startswith("2 materials of 'a.mtl' and 'b.mtl' ('wood' and 'stone') use what tlm does not "
+                           "render:"), line
 
 
 def test_two_objs_sharing_a_library_name_it_once(tmp_path):

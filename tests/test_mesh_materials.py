@@ -493,7 +493,7 @@ def test_a_run_warns_of_the_textures_of_the_materials_it_shows(tmp_path):
             "camera: {eye: [0.5, 0.5, 3], target: [0.5, 0.5, 0], vfov: 40}\nresolution: [8, 8]\n")
     (tmp_path / "s.yaml").write_text(head)
     (line,) = material_warnings(api.load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of 't.mtl' ('wood', 'stone') use what tlm does not render: "
+    assert line.startswith("2 materials of 't.mtl' ('wood' and 'stone') use what tlm does not render: "
                            "map_Kd, bump;"), line
     (tmp_path / "s.yaml").write_text(head + "materials: {wood: {type: lambertian, albedo: [0.5, 0.3, 0.1]}}\n")
     scene = api.load_scene(tmp_path / "s.yaml")
@@ -582,9 +582,9 @@ def test_a_gltf_s_cameras_punctual_lights_and_double_sided_emission_are_warned_o
     path = str(tmp_path / "s.glb")
     nowhere = "on no node of the glTF's scene"  # (the header's lights and cameras: no node names them)
     assert g.notes == (f"{path}: not imported from its KHR_lights_punctual lights: lights[0] (point, {nowhere}), "
-                       f"lights[1] (spot, {nowhere}), lights[2] (point, {nowhere}), lights[3] (directional, "
+                       f"lights[1] (spot, {nowhere}), lights[2] (point, {nowhere}) and lights[3] (directional, "
                        f"{nowhere})",
-                       f"{path}: not imported from its cameras: cameras[0] ({nowhere}), cameras[1] ({nowhere})")
+                       f"{path}: not imported from its cameras: cameras[0] ({nowhere}) and cameras[1] ({nowhere})")
     assert g.imports == ()  # (nothing placed: nothing imported)
     assert g.materials[3].ignored == ("doubleSided emission",) and g.materials[0].ignored == ()
     (tmp_path / "s.yaml").write_text("geometry: [{mesh: s.glb}, {mesh: s.glb, transform: {translate: [0, 9, 0]}}]\n"

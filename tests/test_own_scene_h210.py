@@ -40,11 +40,11 @@ def test_a_materials_entry_named_after_no_file_material_is_refused_with_the_near
     with pytest.raises(InputError) as e:
         api.load_scene(path)
     assert str(e.value).startswith(f"{path}: materials.tallbox: used by no triangle (the mesh files' materials: "
-                                   "tallBox, floor; did you mean 'tallBox'?)"), e.value
+                                   "tallBox and floor; did you mean 'tallBox'?)"), e.value
     assert "\n" not in str(e.value)
     path = _scene(tmp_path, LIGHT + "materials: {shiny: {type: mirror, reflectance: [0.9, 0.9, 0.9]}}\n")
     with pytest.raises(InputError, match=r"materials\.shiny: used by no triangle \(the mesh files' materials: "
-                                         r"tallBox, floor\): "):
+                                         r"tallBox and floor\): "):
         api.load_scene(path)
     # an entry a file's material, a part or default_material names loads, and so does every built-in scene
     mirror = "{type: mirror, reflectance: [0.9, 0.9, 0.9]}"

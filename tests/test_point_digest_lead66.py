@@ -28,4 +28,5 @@ def test_a_point_of_an_older_tlm_is_digested_now_and_says_so(tmp_path, monkeypat
         results.write_text(json.dumps(record))
     monkeypatch.chdir(tmp_path)
     (said,) = _summaries(build_report([tmp_path / "sw"], tmp_path / "rep").read_text())
-    assert f"inputs {scene_identity(p / 's.yaml')} (of its files now: not recorded) (runs sw #0, sw #1)" in said, said
+    assert (f"inputs {scene_identity(p / 's.yaml')} (of its files now: not recorded) (runs sw #0 and sw #1)"
+            in said), said

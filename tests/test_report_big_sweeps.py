@@ -60,8 +60,8 @@ def sweep_folder(root: Path, name: str = "cornell", levels=(6, 7), cycles_rows: 
 
 
 def test_some_counts_many_and_names_few():
-    assert some([f"#{i}" for i in range(3)]) == "#0, #1, #2"
-    assert some([f"#{i}" for i in range(8)]) == "#0, #1, #2, #3, #4, #5, #6, #7"
+    assert some([f"#{i}" for i in range(3)]) == "#0, #1 and #2"  # (h413: listed, the last after "and")
+    assert some([f"#{i}" for i in range(8)]) == "#0, #1, #2, #3, #4, #5, #6 and #7"
     assert some([f"#{i}" for i in range(996)]) == "#0, #1, #2, #3 and 992 more"
 
 

@@ -74,7 +74,7 @@ def test_a_null_level_beside_its_number_keeps_every_series(tmp_path):
     assert (s1["floor_ln"], s1["closest_level"], s1["best_level"]) == (6, 6, 6)
     assert s1["ratio_at_floor"] == 398940 / 522870 and s1["fps_at_floor"] == MEASURED[(6, 1)][5]
     # the repeats left out are counted, and why
-    assert notes == ["N: points 0, 1 left out of the BSP-levels balance as repeats: each measured the same Ttrav, "
+    assert notes == ["N: points 0 and 1 left out of the BSP-levels balance as repeats: each measured the same Ttrav, "
                      "Tisct, FPS and TThru as the point of its series at its level, bsp.levels null being the "
                      "builder's floor(ln n) (that point is shown)"]
 
@@ -99,5 +99,5 @@ def test_points_of_one_level_that_differ_still_leave_their_series_out(tmp_path):
     notes: list[str] = []
     series, summary = levels_balance(read([sweep_folder(tmp_path / "D", differ=True)]).sweeps[0], notes)
     assert series == {} and summary == []
-    assert notes == ["D: 2 series (ring (pipelines=1), ring (pipelines=2)): no balance curve, several points share a "
-                     "level with different cycles or FPS (they differ in a factor the report cannot tell apart)"]
+    assert notes == ["D: 2 series (ring (pipelines=1) and ring (pipelines=2)): no balance curve, several points share "
+                     "a level with different cycles or FPS (they differ in a factor the report cannot tell apart)"]

@@ -221,7 +221,7 @@ def test_select_runs_picks_representatives_and_says_so():
     assert any("bare" in n for n in notes) and any("slowest mode" in n for n in notes)
     assert any("4 of 8 points" in n and "fewest and the most pipelines" in n for n in notes)
     chosen, notes = select_runs(inputs, limit=3)
-    assert len(chosen) == 3 and any("left out: sw #1, sw #2, sw #5, sw #6" in n for n in notes)
+    assert len(chosen) == 3 and any("left out: sw #1, sw #2, sw #5 and sw #6" in n for n in notes)
 
 
 def test_cycles_section_absent_without_runs(data, tmp_path):

@@ -116,7 +116,7 @@ def test_where_the_cycles_go_shows_a_sweeps_first_and_last_point(tmp_path):
     chosen, notes = select_runs(inputs)
     assert [r.label for r in chosen] == ["s48 #0", "s48 #19"]
     assert notes == ["Sweep s48: 2 of 20 points are shown, its first and last point (s48 #0 [packet_size=1, "
-                     "fifo_depth=1], s48 #19 [packet_size=256, fifo_depth=1024])."]
+                     "fifo_depth=1] and s48 #19 [packet_size=256, fifo_depth=1024])."]
 
 
 def test_a_note_of_many_runs_left_out_counts_them_and_names_a_few(tmp_path):

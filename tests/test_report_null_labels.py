@@ -88,8 +88,8 @@ def test_the_note_of_the_points_where_the_cycles_go_says_null():
     points = [Run(Path(f"h{i}"), f"sw #{i}", "sweep-point", {"scene": {"name": "cornell"}, "cycles": {"throughput": 1},
                   "timing": {"units": {"xbar": {}}}}, {}, {"bsp.levels": lv}) for i, lv in enumerate((None, 6, 8))]
     _, notes = select_runs(Inputs([], runs=points, sweeps=[Sweep(Path("sw"), {}, [], points)]))
-    assert notes == [f"Sweep sw: 2 of 3 points are shown, its first and last point (sw #0 [levels={NULL_LEVELS}], "
-                     "sw #2 [levels=8])."], notes
+    assert notes == [f"Sweep sw: 2 of 3 points are shown, its first and last point (sw #0 [levels={NULL_LEVELS}] "
+                     "and sw #2 [levels=8])."], notes
 
 
 def test_the_findings_say_null(tmp_path):

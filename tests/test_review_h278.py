@@ -126,7 +126,7 @@ def test_a_sweep_whose_points_two_codes_ran_says_how_many_each():
     points = [run("runs/sw/points/h1", "aaaa"), run("runs/sw/points/h2", "bbbb"), run("runs/sw/points/h3", "bbbb")]
     other = run("runs/x", "bbbb", "run")
     line = box.code_line(Inputs([Path("runs")], runs=[*points, other], sweeps=[Sweep(Path("runs/sw"), {}, [], points)]))
-    assert "code aaaa: runs/sw (1 of 3 points); code bbbb: runs/sw (2 of 3 points), runs/x" in line
+    assert "code aaaa: runs/sw (1 of 3 points); code bbbb: runs/sw (2 of 3 points) and runs/x" in line
     one = [run("runs/sw/points/h1", "aaaa")]
     line = box.code_line(Inputs([Path("runs")], runs=[*one, other], sweeps=[Sweep(Path("runs/sw"), {}, [], one)]))
     assert "code aaaa: runs/sw; code bbbb: runs/x" in line

@@ -53,7 +53,7 @@ def test_sweep_points_are_not_given_the_inputs_of_a_run_of_other_recorded_conten
     points = [s for s in said if "sw #0" in s]
     assert len(said) == 3 and len(points) == 1, said  # (was two: the points with run b, as if they had read its files)
     # (h393: the points record the digest of the files they read, the first contents: no longer "of its files now")
-    assert "b:" not in points[0] and f"inputs {first} (runs sw #0, sw #1)" in points[0], points
+    assert "b:" not in points[0] and f"inputs {first} (runs sw #0 and sw #1)" in points[0], points
 
 
 def test_a_side_records_size_is_the_size_read(tmp_path):

@@ -74,7 +74,7 @@ def test_a_run_and_sweep_points_of_one_unchanged_scene_are_one_scene_record(tmp_
     said = _summaries(build_report([tmp_path / "a", tmp_path / "sw2"], tmp_path / "rep2").read_text())
     now = scene_identity(p / "s.yaml")
     assert now != recorded and len(said) == 2, said
-    assert f"but inputs {now} (runs sw2 #0, sw2 #1)" in said[1], said  # (h393: recorded by the points)
+    assert f"but inputs {now} (runs sw2 #0 and sw2 #1)" in said[1], said  # (h393: recorded by the points)
     assert not any(re.search(r"but \(", s) for s in said), said
 
 

@@ -233,7 +233,7 @@ def test_two_materials_of_one_file_are_of_the_mesh_file(tmp_path):
                                     "map_Kd s.png\n")
     (tmp_path / "s.yaml").write_text("geometry: {mesh: t.obj}\n" + CAMERA)
     (line,) = material_warnings(load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of 't.mtl' ('wood', 'stone') use what tlm does not render: map_Kd;")
+    assert line.startswith("2 materials of 't.mtl' ('wood' and 'stone') use what tlm does not render: map_Kd;")
 
 
 def test_materials_of_two_files_are_of_the_2_mesh_files(tmp_path):
@@ -243,7 +243,8 @@ def test_materials_of_two_files_are_of_the_2_mesh_files(tmp_path):
     (tmp_path / "s.yaml").write_text("geometry: [{mesh: a.obj}, {mesh: b.obj, transform: {translate: [2, 0, 0]}}]\n"
                                      + CAMERA)
     (line,) = material_warnings(load_scene(tmp_path / "s.yaml"))
-    assert line.startswith("2 materials of 'a.mtl' and 'b.mtl' ('wood', 'stone') use what tlm does not render:"), line
+    assert line.startswith("2 materials of 'a.mtl' and 'b.mtl' ('wood' and 'stone') use what tlm does not "
+                           "render:"), line
     # (one of them replaced by the scene file: one material, of its file)
     (tmp_path / "s.yaml").write_text("geometry: [{mesh: a.obj}, {mesh: b.obj, transform: {translate: [2, 0, 0]}}]\n"
                                      + CAMERA + "materials: {wood: {type: lambertian, albedo: [0.5, 0.5, 0.5]}}\n")

@@ -158,7 +158,7 @@ def test_runs_of_one_scene_are_listed_once(small_run):
     runs = [Run(Path(f"sw/{i}"), f"sw #{i}", "sweep-point", r, {}) for i, r in enumerate([results, results, other])]
     tables = scene_tables(runs)
     assert len(tables) == 2
-    assert "(runs sw #0, sw #1)" in tables[0] and "(run sw #2)" in tables[1]
+    assert "(runs sw #0 and sw #1)" in tables[0] and "(run sw #2)" in tables[1]
     assert "albedo 0.5 0.5 0.5" in tables[1] and "albedo 0.5 0.5 0.5" not in tables[0]
     # none recorded at all (a results.json with no materials or lights): said, no error
     (bare,) = scene_tables([Run(Path("x"), "x", "run", {"scene": {"name": "x"}}, {})])

@@ -34,8 +34,8 @@ def test_scene_show_lists_what_a_gltf_gave_and_what_was_left_out(tmp_path, capsy
     assert (f"{glb}: not imported from its KHR_lights_punctual lights: lights[2] 'sky' (directional, on no node of "
             "the glTF's scene)") in notes
     assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
-            "imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3] and KHR_lights_punctual.lights[1] 'beam' at nodes[5]) "
+            "are imported as tlm lights of their kinds (power 4 pi x intensity x color W): the scene file gives no "
             "lights:") in notes
     assert shown["lights"][2] == {"type": "spot", "power": [4.0 * math.pi * 9.0] * 3, "position": [0.0, 0.0, 0.0],
                                   "direction": [0.0, 0.0, -1.0], "inner_cone_angle": 0.0, "outer_cone_angle": 45.0,
@@ -50,8 +50,8 @@ def test_scene_show_says_when_the_scene_file_replaces_them(tmp_path, capsys):
     glb = _scene_glb(tmp_path)
     notes = _show(capsys, _yaml(tmp_path, "geometry: {mesh: s.glb}\nlights: []\n" + CAMERA))["notes"]
     assert (f"{glb}: its 3 lights (2 point and 1 spot: KHR_lights_punctual.lights[0] 'lamp' at nodes[2], "
-            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3], KHR_lights_punctual.lights[1] 'beam' at nodes[5]) are "
-            "not used: the scene file gives lights: (leave lights: out to import them)") in notes
+            "KHR_lights_punctual.lights[0] 'lamp' at nodes[3] and KHR_lights_punctual.lights[1] 'beam' at nodes[5]) "
+            "are not used: the scene file gives lights: (leave lights: out to import them)") in notes
     assert (f"{glb}: its camera cameras[0] at nodes[4] is not used: the scene file gives camera: (leave camera: out "
             "to import it)") in notes
 

@@ -492,7 +492,7 @@ def test_a_gltf_s_spot_and_directional_lights_are_imported(tmp_path):
     np.testing.assert_allclose(sun.power, np.array([3.0, 3.0, 1.5]) * math.pi * (np.linalg.norm(hi - lo) / 2) ** 2)
     notes = checks.file_warnings(scene)
     assert (f"{tmp_path / 's.gltf'}: its 2 lights (1 spot and 1 directional: KHR_lights_punctual.lights[0] 'beam' "
-            "at nodes[1], KHR_lights_punctual.lights[1] 'sun' at nodes[2]) are imported as tlm lights of their "
+            "at nodes[1] and KHR_lights_punctual.lights[1] 'sun' at nodes[2]) are imported as tlm lights of their "
             "kinds (power 4 pi x intensity x color W; irradiance intensity x color W per unit area): the scene "
             "file gives no lights:") in notes
     assert not any("not imported" in n for n in notes)

@@ -10,7 +10,8 @@ config with overrides (:func:`with_overrides`). Writing: :class:`Dumper` (:func:
 line, :func:`flow_text`), YAML that :func:`parse_yaml` reads back the same. They live together because a
 string is said and written bare only where :func:`parse_yaml` reads it back as that string. A value given for a
 key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`, and why
-an empty one there (``--set render={}``) sets nothing: :func:`sets_nothing`.
+an empty one there (``--set render={}``) sets nothing: :func:`sets_nothing`. Items listed in a line
+(``a, b, c and 5 more``): :func:`listing`.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import math
 import re
 import types
 import typing
-from collections.abc import Collection, Iterator, Mapping
+from collections.abc import Collection, Iterable, Iterator, Mapping
 from typing import Any
 
 import yaml
@@ -391,3 +392,15 @@ def check_range(v: Any, meta: dict, source: str, key: str) -> None:
         raise InputError(f"{value_text(v)} must be positive", source=source, key=key)
     if key == "render.light_samples" and math.isqrt(v) ** 2 != v:
         raise InputError(f"{value_text(v)} must be a square number (1, 4, 9, 16, ...)", source=source, key=key)
+
+
+def listing(items: Iterable[str], named: int | None = None, more: str = "more", whole: int | None = None,
+            last: str = "and") -> str:
+    """``items`` said in a line, the last after ``last``: ``a``, ``a and b``, ``a, b and c`` (``a, b or c``; none:
+    ``""``); of more than ``whole`` (``named`` + 1 unless given: one left over is named, never "and 1 more"), the
+    first ``named`` and how many more: ``a, b, c and 5 more`` (``more``: the words after the count, ``more
+    files``). ``named`` None: every item. The one way tlm's notes and messages list names, points and files."""
+    items = list(items)
+    if named is not None and len(items) > (named + 1 if whole is None else max(whole, named)):
+        return f"{', '.join(items[:named])} and {len(items) - named} {more}" if named else f"{len(items)} {more}"
+    return "".join(items) if len(items) < 2 else f"{', '.join(items[:-1])} {last} {items[-1]}"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import re
 
+from tlm.config_words import listing
 from tlm.errors import quoted
 
 # the mesh files tlm reads (tlm.scenes.meshes.SUPPORTED_EXTENSIONS), each as a message names its format
@@ -193,8 +194,7 @@ def _mtl_hint(name: str, key: str | None, folder: str | os.PathLike | None = Non
     users, other = mtl_users(beside if os.path.exists(beside) else name)  # (else as the working folder finds it)
     obj = users[0] if users else other[0] if other else None
     if users:
-        listed = " and ".join([", ".join(users[:-1]), users[-1]] if len(users) > 1 else users)
-        found = f": {listed}, beside it"
+        found = f": {listing(users)}, beside it"
     else:  # (the OBJ of its stem, where there is one, is still the one to name: it reads its own mtllib)
         found = f"; no OBJ beside it names it{f': {other[0]}, of its stem, reads {other[1]} instead' if other else ''}"
     what = f"{MTL_FORMAT} (the materials of an OBJ mesh, read with the OBJ{'s' if len(users) > 1 else ''} whose " \
@@ -240,7 +240,7 @@ def mtl_users(name: str | os.PathLike) -> tuple[list[str], tuple[str, str] | Non
         if any(_names(base, text) for text in libs):
             users.append(n)
         elif n.lower() in own and other is None:
-            other = (n, " and ".join(t.decode("utf-8", "replace").strip() for t in libs) or "no library (no mtllib)")
+            other = (n, listing(t.decode("utf-8", "replace").strip() for t in libs) or "no library (no mtllib)")
     return users, (None if users else other)
 
 

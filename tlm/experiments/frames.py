@@ -53,7 +53,8 @@ from tlm.caches import (
     note_use,
     remove_entry,
 )
-from tlm.config import config_from_dict, noting_reads, to_dict
+from tlm.config import config_from_dict, decoded, noting_reads, read_bytes, text_digest, to_dict
+from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
 from tlm.experiments.provenance import scene_identity
@@ -203,8 +204,8 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
         hit = _SCENE_KEYS.get(key)
     if hit is None:
         hit = _kept_key(key)
-    if hit is not None and unchanged(hit[1]):
-        now = _yaml_bytes(hit[1])  # (before the digest: a file saved between them is digested again next time)
+    now = None if hit is None else _told(hit[1])  # (before the digest: a file saved between is digested again next)
+    if now is not None:
         if hit[2] is None or now != hit[3]:  # (an entry of a tlm before the digest; a YAML file's bytes not those
             # digested, its text the same (its line ends: the checks' text is in universal newlines): digested now)
             hit = (hit[0], hit[1], scene_identity(path), now)
@@ -232,6 +233,26 @@ def _scene_key(ref, base: Path | None, resolution: list[int] | None, source: str
     if checks is not None and any(c[0] in ("libraries", "listed") for c in checks):  # (a mesh parsed: the cost)
         _keep_key(key, fingerprint, checks, digest, now)
     return fingerprint, scene, digest
+
+
+def _told(checks: list) -> list | None:
+    """:func:`_yaml_bytes` of a remembered load's ``checks`` where every file tells what it told then
+    (:func:`~tlm.experiments.frame_scenes.unchanged`, in their order), else None: each YAML file read once, its
+    ``text`` check's text (:func:`tlm.config.read_text`) and its bytes' sha256 from one read."""
+    sums = []
+    try:
+        for check in checks:
+            if check[0] != "text" or len(check) != 3:  # (a text check of other arguments: unchanged's TypeError)
+                if not unchanged([check]):
+                    return None
+                continue
+            data = read_bytes(Path(check[1]))
+            if text_digest(decoded(data, Path(check[1]))) != check[-1]:
+                return None
+            sums.append(hashlib.sha256(data).hexdigest())
+    except (OSError, InputError, ValueError, TypeError, AttributeError, KeyError, IndexError):
+        return None  # (as unchanged: a file gone or unreadable, a check read from disk not understood)
+    return sums
 
 
 def _yaml_bytes(checks: list) -> list | None:

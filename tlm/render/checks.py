@@ -65,6 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config_words import listing
 from tlm.errors import quoted
 from tlm.kernels.shade import SPAWN_EPS
 from tlm.kernels.traverse import TriangleAccel, closest_hit
@@ -443,8 +444,7 @@ def emission_warnings(scene: Scene, shown: int = 3) -> list[str]:
         if not m.emits or not on.any() or (area[on] > 0.0).any():
             continue
         parts = [scene.part_names[p] for p in np.unique(scene.part[on])]
-        names = ", ".join(quoted(p) for p in parts[:shown]) + (f" and {len(parts) - shown} more"
-                                                              if len(parts) > shown else "")
+        names = listing(map(quoted, parts), shown)
         k = int(on.sum())
         out.append(f"material {quoted(m.name)} emits (emission {list(m.emission)}) only on {k} triangle"
                    f"{'s' if k > 1 else ''} of zero area (part{'s' if len(parts) > 1 else ''} {names}): a triangle "
@@ -461,13 +461,11 @@ def material_warnings(scene: Scene, shown: int = 3) -> list[str]:
     if not hit:
         return []
     what = ", ".join(dict.fromkeys(k for m in hit for k in m.ignored))
-    names = ", ".join(quoted(m.name) for m in hit[:shown]) + (f" and {len(hit) - shown} more" if len(hit) > shown
-                                                                else "")
+    names = listing((quoted(m.name) for m in hit), shown)
     many = len(hit) > 1
     # (the files that define them, by name: an MTL library, a glTF; one OBJ may name two libraries, two OBJs share one)
     files = list(dict.fromkeys(quoted(Path(_material_file(m.origin)).name) for m in hit))
-    of = (files[0] if len(files) == 1 else f"{', '.join(files[:-1])} and {files[-1]}" if len(files) <= shown else
-          f"{', '.join(files[:shown])} and {len(files) - shown} more files")
+    of = listing(files, shown, "more files")
     # (a Lambertian's constant colour is its albedo; the others say what they become: a glTF material
     # whose metallicFactor defaults to 1 is a mirror, not its diffuse colour)
     other = [m for m in hit if m.kind != "lambertian"]

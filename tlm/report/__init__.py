@@ -39,6 +39,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
+from tlm.config_words import listing
 from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section, count, current_output, drawable, figure_output, forget_names
@@ -90,7 +91,7 @@ def scenes_note(inputs: Inputs) -> str:
     shared = inputs.shared_names()
     if not shared:
         return ""
-    each = "; ".join(f"{esc(quoted(name))} is the name in the files of {esc(' and '.join(labels))}"
+    each = "; ".join(f"{esc(quoted(name))} is the name in the files of {esc(listing(labels))}"
                      for name, labels in shared)
     return ("<p>Scenes are named by their files throughout (a built-in scene by its path under scenes/ without "
             ".yaml: thesis/room is scenes/thesis/room.yaml; another by the path its config gave), not by the "
@@ -101,8 +102,7 @@ def linked(formats) -> str:
     """What the page says of each figure's files: ``Each figure links to its PNG file.``, or with
     ``pdf`` and ``svg`` its PNG, PDF and SVG files."""
     names = [f.upper() for f in formats]
-    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
-    return f"Each figure links to its {listed} file{'s' * (len(names) > 1)}."
+    return f"Each figure links to its {listing(names)} file{'s' * (len(names) > 1)}."
 
 
 def default_out(dirs: list[Path]) -> Path:

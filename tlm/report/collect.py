@@ -163,9 +163,23 @@ class Sweep:
     # how the report names it: its folder's name, or where two sweeps of the report share that name, the
     # shortest tail of its path that tells it from the other (``a/sw``, ``b/sw``; :func:`read` sets it)
     label: str = ""
+    # (:meth:`run_of`'s lookup: the runs' list it was made of, and its runs by their folder's name)
+    _by_name: tuple = field(default=((None, 0), {}), init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.label = self.label or self.path.name
+
+    def run_of(self, row: Any) -> Run | None:
+        """The finished point of the sweep's row ``row`` (sweep.jsonl's): the :class:`Run` of its folder
+        ``points/<hash>`` (its ``config``, ``results``, ``path``), found by the row's ``hash``; None for a row
+        whose point the report did not read (not ok, its folder gone or damaged: its row says ``missing`` or
+        ``damaged``), a row of another sweep, one without a hash. Looked up in a map made once per sweep (and
+        again where :attr:`runs` is another list or changed length)."""
+        (made, n), by_name = self._by_name
+        if made is not self.runs or n != len(self.runs):
+            by_name = {r.path.name: r for r in self.runs}
+            self._by_name = ((self.runs, len(self.runs)), by_name)
+        return by_name.get(str(row.get("hash"))) if isinstance(row, dict) else None
 
     @property
     def overrides(self) -> list[str]:

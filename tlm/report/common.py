@@ -54,6 +54,7 @@ from matplotlib.mathtext import MathTextParser
 from matplotlib.text import Text
 from matplotlib.ticker import Formatter, LogLocator
 
+from tlm.config_words import listing
 from tlm.errors import InputError
 from tlm.storage_json import escaped
 
@@ -72,12 +73,10 @@ NAMED_SOME = 4
 
 
 def some(items: list[str]) -> str:
-    """``items`` joined by commas: all of up to :data:`NAMED`, else the first :data:`NAMED_SOME`
-    and how many more (a sweep of hundreds of points is not a note of hundreds of labels):
-    ``A1 #4, A1 #5, A1 #6, A1 #7 and 192 more``. The note says how many there are in all."""
-    if len(items) <= NAMED:
-        return ", ".join(items)
-    return f"{', '.join(items[:NAMED_SOME])} and {len(items) - NAMED_SOME} more"
+    """``items`` listed (:func:`~tlm.config_words.listing`): all of up to :data:`NAMED`, ``A1 #4, A1 #5 and
+    A1 #6``, else the first :data:`NAMED_SOME` and how many more (a sweep of hundreds of points is not a note of
+    hundreds of labels): ``A1 #4, A1 #5, A1 #6, A1 #7 and 192 more``. The note says how many there are in all."""
+    return listing(items, NAMED_SOME, whole=NAMED)
 
 
 def count(n: int, word: str, plural: str | None = None) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Container
 from pathlib import Path
 
+from tlm.config_words import listing
 from tlm.errors import InputError
 
 
@@ -196,9 +197,8 @@ def _search_line(root: Path, software: list[Path], listed: int, seconds: float) 
         parts.append(f"the search for tlm folders listed {listed:,} folders in {seconds:.1f} s (name the folders "
                      "that hold the runs, or one nearer them, for a quicker report)")
     if software:
-        shown = ", ".join(str(p) for p in software[:SOFTWARE_SHOWN])
-        rest = f" and {len(software) - SOFTWARE_SHOWN} more" if len(software) > SOFTWARE_SHOWN else ""
+        shown = listing(map(str, software), SOFTWARE_SHOWN)
         parts.append(f"{len(software)} folder{'s' * (len(software) > 1)} of installed software not searched "
                      f"(a virtual or conda environment, site-packages, dist-packages or node_modules: no tlm "
-                     f"command writes there): {shown}{rest}")
+                     f"command writes there): {shown}")
     return [f"{root}: {'; '.join(parts)}"] if parts else []

@@ -19,7 +19,7 @@ import json
 from collections import Counter
 from pathlib import Path
 
-from tlm.config_words import dump_yaml
+from tlm.config_words import dump_yaml, listing
 from tlm.report.collect import Inputs, Run, with_set
 from tlm.report.common import Section, count, some
 from tlm.report.html import esc
@@ -268,8 +268,7 @@ def scene_tables(runs: list[Run]) -> list[str]:
     for members in list(groups.values())[:MAX_CONFIGS]:
         scene = members[0].results.get("scene") or {}
         mats, lights = scene.get("materials"), scene.get("lights")
-        named = ", ".join(r.label for r in members[:MAX_LISTED]) + (
-            f" and {len(members) - MAX_LISTED} more" if len(members) > MAX_LISTED else "")
+        named = listing([r.label for r in members], MAX_LISTED)
         runs_named = f"{'runs' if len(members) > 1 else 'run'} {named}"
         which = json.dumps([scene.get(k) for k in ("name", "source")], default=str)
         was = first.get(which)
@@ -279,10 +278,10 @@ def scene_tables(runs: list[Run]) -> list[str]:
                 and set(mats) == set(was[0]["materials"]):
             other = {k: m for k, m in mats.items() if was[0]["materials"][k] != m}
             same_lights = lights == was[0].get("lights")
-            what = " and ".join([f"{len(other)} material{'' if len(other) == 1 else 's'}"] * bool(other)
-                                + ["its lights"] * (not same_lights)
-                                + [f"inputs {digest}{now}"] * (digest is not None and digest != was[2])
-                                + [f"inputs not known{NOT_HERE}"] * (digest is None and was[2] is not None))
+            what = listing([f"{len(other)} material{'' if len(other) == 1 else 's'}"] * bool(other)
+                           + ["its lights"] * (not same_lights)
+                           + [f"inputs {digest}{now}"] * (digest is not None and digest != was[2])
+                           + [f"inputs not known{NOT_HERE}"] * (digest is None and was[2] is not None))
             but = f", but {what}" if what else ""  # (none: values alike but written otherwise, 1 and 1.0)
             parts.append(f"<details><summary>scene {esc(members[0].scene_label)}: as for {esc(was[1])}{esc(but)} "
                          f"({esc(runs_named)})</summary>{_materials_table(other) if other else ''}"

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from matplotlib.ticker import NullLocator
 
+from tlm.config_words import listing
 from tlm.errors import InputError
 from tlm.experiments import scaling as eq52
 from tlm.report.collect import Inputs, Sweep
@@ -99,7 +100,7 @@ def merged_label(values: list[dict]) -> str:
     keys = list(values[0])
     texts = {k: _value_texts(k, values) for k in keys}
     if keys and math.prod(len(t) for t in texts.values()) == len(values):
-        parts = [f"{k} = {t[0] if len(t) == 1 else ', '.join(t[:-1]) + ' or ' + t[-1]}" for k, t in texts.items()]
+        parts = [f"{k} = {listing(t, last='or')}" for k, t in texts.items()]
         text = "; ".join(parts)
     else:
         text = f"{eq52.combination_text(values[0])} and {count(len(values) - 1, 'more combination')}"
@@ -258,7 +259,6 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
         notes.append(f"{name}: no idle fractions to draw: its rows have no idle.<pm> column "
                      f"({', '.join(f'idle.{p}' for p in PMS)}); a sweep run by a newer tlm writes them")
         return {}
-    by_hash = {r.path.name: r for r in sw.runs}
     # a sweep crossing N with other factors: a figure per combination of their values (as eq. 5.2's fits)
     # where one has two values of N (a zip of N with another factor: one figure over N, as before)
     # (a factor that leaves the cycles as they are, arch.trace, splits nothing: eq52.one_per_n)
@@ -273,7 +273,7 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
     factors: dict[int, dict] = {}  # (each point's factors, by id of its dict: what tells apart two of one N)
     unknown = []
     for r in sorted(ok, key=lambda r: r.get("point", 0)):
-        run = by_hash.get(str(r.get("hash")))
+        run = sw.run_of(r)
         arch = (run.config.get("arch") or {}) if run is not None else {}
         n = r.get("arch.pipelines", arch.get("pipelines"))
         sched = r.get("arch.scheduler", arch.get("scheduler"))
@@ -286,8 +286,8 @@ def idle_points(sw: Sweep, notes: list[str]) -> dict[tuple, dict]:
         factors[id(point)] = {k: r.get(k) for k in factors_of(sw)}
         groups[(str(r.get("scene")), str(r.get("mode")), *((combination,) if combination else ()))].append(point)
     if unknown:
-        notes.append(f"{name}: points {', '.join(unknown)} left out of the idle figures: neither the row nor a "
-                     "results folder gives their scheduler and N")
+        notes.append(f"{name}: {'points' if len(unknown) > 1 else 'point'} {some(unknown)} left out of the idle "
+                     "figures: neither the row nor a results folder gives their scheduler and N")
     out = {}
     for key, pts in sorted(groups.items(), key=lambda kv: kv[0][:2]):  # (a scene's combinations as they came)
         scene, mode = key[:2]

@@ -232,7 +232,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         text = (f"<b>What limits it:</b> the {PM_METRIC[top[0]]} PM is the bottleneck in {most} of {len(keys)} "
                 f"scene-modes, {busy} of the time.")
     else:
-        names = ", ".join(PM_METRIC[pm] for pm in top[:-1]) + f" and {PM_METRIC[top[-1]]}"
+        names = _and([PM_METRIC[pm] for pm in top])
         text = (f"<b>What limits it:</b> no one PM: each of {names} is the bottleneck in {most} of {len(keys)} "
                 f"scene-modes, {busy} of the time there.")
     if slowest:

@@ -16,7 +16,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from tlm.config_words import flow_text
+from tlm.config_words import flow_text, listing
 from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, some
 from tlm.report.html import esc
@@ -229,7 +229,7 @@ def _best_points(rows: list[dict], factors: list[str], inert: list[str], of: str
         text = f"the {word} point is {esc(where[0])} at {top:.3g} FPS{own}{', ' + least if least else ''}"
     else:
         text = (f"the {word} points, tied at {top:.3g} FPS{' and at ' + least if least else ''}, "
-                f"are {_and(_named(where, factors))}")
+                f"are {_named(where, factors)}")
     return f"{text}; {_lowest(rows, factors, inert, lowest, of)}." if fastest else f"{text}."
 
 
@@ -265,10 +265,10 @@ def _unranked(sw: Sweep, rows: list[dict]) -> list[bool | None]:
     ``config.resolved.yaml`` (a --set or the base config's), its mode its row's ``mode`` else that config's."""
     from tlm.report.tradeoff import unmodelled_cost  # (as summary.py: tradeoff's imports only where asked)
 
-    configs = {run.path.name: run.config for run in sw.runs}
     out: list[bool | None] = []
     for r in rows:
-        config = configs.get(str(r.get("hash"))) or {}
+        run = sw.run_of(r)
+        config = (run.config if run is not None else None) or {}
         est = config.get("estimate") if isinstance(config.get("estimate"), dict) else {}
         if isinstance(r.get("estimate"), dict) and "filter" in r["estimate"]:
             est = r["estimate"]
@@ -284,11 +284,12 @@ def _where(r: dict, factors: list[str]) -> str:
     return ", ".join(f"{k} = {_as_yaml(k, repr(r.get(k)))}" for k in factors)
 
 
-def _named(where: list[str], factors: list[str]) -> list[str]:
-    """Points said one after another (:func:`_where`, with more, each in parentheses where there are more
-    factors than one), escaped: at most :data:`MAX_TIED_POINTS`, the rest counted."""
-    named = [esc(w if len(factors) == 1 else f"({w})") for w in where[:MAX_TIED_POINTS]]
-    return named + ([f"{len(where) - MAX_TIED_POINTS} more"] if len(where) > MAX_TIED_POINTS else [])
+def _named(where: list[str], factors: list[str], after: list[str] | None = None) -> str:
+    """Points listed (:func:`_where`, each in parentheses where there are more factors than one, then its
+    ``after``), escaped: at most :data:`MAX_TIED_POINTS` named, the rest counted
+    (:func:`~tlm.config_words.listing`)."""
+    return listing([esc(w if len(factors) == 1 else f"({w})") + (after[i] if after else "")
+                    for i, w in enumerate(where)], MAX_TIED_POINTS)
 
 
 def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, of: str = "") -> str:
@@ -303,9 +304,8 @@ def _lowest(rows: list[dict], factors: list[str], inert: list[str], low: float, 
         return f"the point of the lowest image error{of} (relative MSE {low:.3g}) is {esc(_where(r, factors))} at " \
                f"{r['fps']:.3g} FPS"
     fps = [f" at {r['fps']:.3g} FPS" for r in points.values()]
-    named = [w + (fps[i] if i < MAX_TIED_POINTS else "")
-             for i, w in enumerate(_named([_where(r, factors) for r in points.values()], factors))]
-    return f"the points of the lowest image error{of} (relative MSE {low:.3g}), tied, are {_and(named)}"
+    named = _named([_where(r, factors) for r in points.values()], factors, fps)
+    return f"the points of the lowest image error{of} (relative MSE {low:.3g}), tied, are {named}"
 
 
 def error_factor(inputs: Inputs) -> str:
@@ -439,7 +439,7 @@ def sweep_findings(inputs: Inputs) -> list[str]:
             same = not moved and all(all(_number(v) for v in vs) and all(same_value(v, vs[0]) for v in vs)
                                      for vs in counts)
             unchanged = ["the frame rate", *["any PM's cycles"] * same, *["the image error"] * alike]
-            kept_said = f"{', '.join(unchanged[:-1])} or {unchanged[-1]}" if len(unchanged) > 1 else unchanged[0]
+            kept_said = listing(unchanged, last="or")
             # (where a factor moves a cycle count, it first, then those that change nothing at all and the rest)
             others = f"; {moved}{notes.replace(moved, '', 1)}".removesuffix("; ") if moved else ""
             text += f"no factor changes {kept_said}: every point runs at {rows[0]['fps']:.3g} FPS{said}{others}."

@@ -11,6 +11,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from tlm.config_words import listing
 from tlm.report.collect import Inputs, Run
 from tlm.report.html import esc
 
@@ -30,8 +31,8 @@ def count(n: int, what: str) -> str:
 
 
 def and_(items: list[str]) -> str:
-    """``a``, ``a and b``, ``a, b and c``."""
-    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+    """``a``, ``a and b``, ``a, b and c`` (:func:`~tlm.config_words.listing`, every item)."""
+    return listing(items)
 
 
 def fps_of_points(inputs: Inputs) -> str:
@@ -142,12 +143,11 @@ def _point_errors(sw) -> tuple[list[tuple[float, str]], list]:
     """A sweep's finished photon-map points: ``(relative MSE, reference key)`` of those that measured
     their image error (sweep.csv's ``error.rel_mse``), and the runs of those that have none (no
     reference cached: ``results.json`` ``error.available`` false)."""
-    runs = {r.path.name: r for r in sw.runs}
     measured, unmeasured = [], []
     for row in sw.rows:
         if row.get("status") != "ok":
             continue
-        run = runs.get(str(row.get("hash")))
+        run = sw.run_of(row)
         error = run.results.get("error") if run is not None else None
         if number(row.get("error.rel_mse")):
             measured.append((float(row["error.rel_mse"]), str((error or {}).get("reference"))))

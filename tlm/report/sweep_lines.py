@@ -172,9 +172,8 @@ def resolved_value(factor: str, run) -> float | None:
 def null_points(sw: Sweep, factor: str, nulls: list[dict], others: list[str]) -> list[tuple[tuple, Any, float]]:
     """The finished points of ``factor`` null: ``(combination of the other factors, the value it
     resolved to or None, FPS)`` each, in point order."""
-    by_hash = {r.path.name: r for r in sw.runs}
-    return [(tuple(hashable(r.get(f)) for f in others), resolved_value(factor, by_hash.get(str(r.get("hash")))),
-             r["fps"]) for r in sorted(nulls, key=lambda r: order_key(r.get("point")))]
+    return [(tuple(hashable(r.get(f)) for f in others), resolved_value(factor, sw.run_of(r)), r["fps"])
+            for r in sorted(nulls, key=lambda r: order_key(r.get("point")))]
 
 
 def draw_nulls(ax, factor: str, nulled: list[tuple[tuple, Any, float]], index: dict[tuple, int], band: bool,

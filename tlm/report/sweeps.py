@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
+from tlm.config_words import listing
 from tlm.kernels.bsp import default_levels
 from tlm.report.collect import Inputs, Sweep, with_set
 from tlm.report.common import NAMED, Figure, FigureName, Section, count, line_style, new_figure, save, some
@@ -96,18 +97,16 @@ def named_rows(sw: Sweep) -> list[dict]:
     name under ``scenes/``, :attr:`~tlm.report.collect.Run.scene_label`), not as its config
     wrote it: the sweep's ``room`` and a thesis study's ``room`` may be two files. A row
     without a results folder keeps what its config wrote."""
-    by_hash = {r.path.name: r for r in sw.runs}
     out = []
     for r in sw.rows:
-        run = by_hash.get(str(r.get("hash")))
+        run = sw.run_of(r)
         out.append({**r, "scene": run.scene_label} if run is not None and "scene" in r else r)
     return out
 
 
 def _listed(what: str, values: list[str]) -> str:
     """``scene a``, ``scenes a and b``, ``scenes a, b and c``."""
-    said = values[0] if len(values) == 1 else f"{', '.join(values[:-1])} and {values[-1]}"
-    return f"{what}{'s' * (len(values) > 1)} {said}"
+    return f"{what}{'s' * (len(values) > 1)} {listing(values)}"
 
 
 def described(sw: Sweep) -> str:
@@ -204,8 +203,7 @@ def _combo_label(others: list[str], combo: tuple) -> str:
 
 def _alternatives(factor: str, values: list) -> str:
     """``1, 16, 256 or 4096``."""
-    texts = [value_text(factor, v) for v in values]
-    return texts[0] if len(texts) == 1 else ", ".join(texts[:-1]) + " or " + texts[-1]
+    return listing([value_text(factor, v) for v in values], last="or")
 
 
 def _group_label(others: list[str], combos: list[tuple]) -> str:
@@ -355,14 +353,13 @@ def levels_balance(sw: Sweep, notes: list[str]) -> tuple[dict[tuple, list[dict]]
     """
     name = sw.label
     others = [f for f in factors_of(sw) if f not in (LEVELS, "scene")]
-    by_hash = {r.path.name: r for r in sw.runs}
     triangles: dict[str, set[int]] = defaultdict(set)
     series: dict[tuple, list[dict]] = defaultdict(list)
     unusable = []
     for r in sorted(named_rows(sw), key=lambda r: r.get("point", 0)):
         if r.get("status") != "ok":
             continue
-        run = by_hash.get(str(r.get("hash")))
+        run = sw.run_of(r)
         scene = str(r.get("scene"))
         bsp = ((run.results.get("scene") or {}).get("bsp") or {}) if run is not None else {}
         if run is not None and run.results["scene"].get("triangles") is not None:
@@ -458,11 +455,11 @@ def _one_per_level(pts: list[dict]) -> tuple[list[dict] | None, list[dict]]:
 
 
 def _points(numbers: list[str]) -> str:
-    """``point 3``, ``points 3, 5``, or of many ``200 points (0, 1, 2, 3 and 196 more)``."""
+    """``point 3``, ``points 3 and 5``, or of many ``200 points (0, 1, 2, 3 and 196 more)``."""
     if len(numbers) == 1:
         return f"point {numbers[0]}"
     if len(numbers) <= NAMED:
-        return f"points {', '.join(numbers)}"
+        return f"points {listing(numbers)}"
     return f"{len(numbers)} points ({some(numbers)})"
 
 

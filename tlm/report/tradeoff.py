@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from tlm.config_words import safe_load
+from tlm.config_words import listing, safe_load
 from tlm.experiments.error_cost_truth import truth_noise_words
 from tlm.experiments.granularity import frames_differ
 from tlm.report.collect import Inputs, Study, with_set
@@ -162,11 +162,10 @@ def off_log_words(rows: list[dict], values, floor: float | None, what: str) -> s
 
 
 def _points(rows: list[dict], mask) -> str:
-    """``Point 3`` or ``Points 3, 5 and 7`` of rows.csv (their ``point``; the first 8, then how many more)."""
+    """``Point 3`` or ``Points 3, 5 and 7`` of rows.csv (their ``point``; of more than 8, the first 7, then how
+    many more: :func:`~tlm.config_words.listing`)."""
     ids = [str(r.get("point", j)) for j, (r, m) in enumerate(zip(rows, mask, strict=True)) if m]
-    shown = ids if len(ids) <= 8 else [*ids[:7], f"{len(ids) - 7} more"]
-    listed = shown[0] if len(shown) == 1 else ", ".join(shown[:-1]) + " and " + shown[-1]
-    return f"{'Point' if len(ids) == 1 else 'Points'} {listed} of rows.csv"
+    return f"{'Point' if len(ids) == 1 else 'Points'} {listing(ids, 7)} of rows.csv"
 
 
 def floor_line(ax, axis: str, floor: float | None, values, what: str) -> None:
@@ -302,7 +301,7 @@ def wall_time_caption(rows: list[dict]) -> str:
              if np.isfinite(one_off[j]) and one_off[j] > 0]
     named = [f"{rows[j].get('point', j)} ({one_off[j]:.3g} s)" for j in order]
     most = (f"; most of it for the settings of row{'s' if len(named) > 1 else ''} "
-            f"{', '.join(named[:-1]) + ' and ' if len(named) > 1 else ''}{named[-1]} of rows.csv" if named else "")
+            f"{listing(named)} of rows.csv" if named else "")
     return ("Host wall time: the point's photon maps (trace, leaf order, density radii) and its gather, with the "
             "kernels warm; a map shared by several points is counted in full by each (its cost if run alone). "
             "One-off work is charged to no point: the seconds in which numba compiled or loaded a kernel or a "

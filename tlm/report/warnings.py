@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections import Counter
 
+from tlm.config_words import listing
 from tlm.experiments.sweep_rows import WORKERS_FILE, read_worker_events
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
@@ -129,13 +130,9 @@ def code_line(inputs: Inputs) -> str | None:
     if len(groups) < 2:
         return None
 
-    def named(folders: list[str]) -> str:
-        return ", ".join(folders[:SHOWN_RUNS]) + (f" and {len(folders) - SHOWN_RUNS} more"
-                                                  if len(folders) > SHOWN_RUNS else "")
-
-    parts = [f"code {c}: {named(f)}" for c, f in groups.items() if c is not None]
+    parts = [f"code {c}: {listing(f, SHOWN_RUNS)}" for c, f in groups.items() if c is not None]
     if None in groups:
-        parts.append(f"no code recorded (an older tlm): {named(groups[None])}")
+        parts.append(f"no code recorded (an older tlm): {listing(groups[None], SHOWN_RUNS)}")
     return ("these inputs come from different tlm code, so their numbers may differ by the code alone, whatever "
             "their settings (" + "; ".join(parts) + "); run them again with one tlm to compare them")
 
@@ -224,8 +221,7 @@ def warnings_html(inputs: Inputs) -> str:
     for line, labels in found:
         if line in said:  # (a cell of an older study recorded the study's line too: once, the study's)
             continue
-        named = ", ".join(labels[:SHOWN_RUNS]) + (f" and {len(labels) - SHOWN_RUNS} more" if len(labels) > SHOWN_RUNS
-                                                  else "")
+        named = listing(labels, SHOWN_RUNS)
         whose = "" if total == 1 and not studies else " (every run)" if len(labels) == total else (
             f" ({len(labels)} of {total} runs: {named})")
         items.append(f"<li>{esc(line)}<span class=\"note\">{esc(whose)}</span></li>")
@@ -238,9 +234,9 @@ def warnings_html(inputs: Inputs) -> str:
         (study_names[0] if len(study_names) == 1 else f"{len(study_names)} studies") if studies else "")))
     who = who[0].upper() + who[1:]
     named = [f.partition(":") for f in [*(["results.json"] if kept else []), *files]]
-    where = (esc(" and ".join(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
+    where = (esc(listing(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
              if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
-             " and ".join(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
+             listing(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
     n = len(items)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"

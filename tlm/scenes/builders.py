@@ -27,6 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from tlm.config_words import listing
 from tlm.scenes import shapes, validate
 from tlm.scenes.model import Geometry
 
@@ -122,7 +123,7 @@ def _check_size(builder: Callable[..., Geometry], terms: list[tuple[int, dict[st
         named.update(keys)
         rest -= n
     given = [f"{k} = {validate.shown(v)}" for k, v in named.items()]
-    what = f"{builder.__name__} with " + (f"{', '.join(given[:-1])} and {given[-1]}" if len(given) > 1 else given[0])
+    what = f"{builder.__name__} with {listing(given)}"
     shapes.check_triangle_count(total, what)  # (a count past 900 bits named by its digits)
 
 

@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+from tlm.config_words import listing
 from tlm.errors import InputError, did_you_mean, quoted
 
 
@@ -77,7 +78,7 @@ def blamed(e: InputError, raw: dict, origins: dict[str, Path], files: list[Path]
             where = files[by]
             earlier = [str(f) for f in files[:by] if f in givers]
             if earlier:
-                message += (f"; the parts: given by {' and '.join(earlier)} (through extends:) is for the geometry "
+                message += (f"; the parts: given by {listing(earlier)} (through extends:) is for the geometry "
                             "this file's geometry: replaces: give them materials under parts: or set default_material")
     if str(where) == e.source and message == e.message:
         return None

@@ -67,7 +67,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tlm.config_words import dump_yaml
+from tlm.config_words import dump_yaml, listing
 from tlm.errors import EnvironmentFailure, InputError, quoted
 from tlm.scenes.model import Scene
 from tlm.storage import warn, write_atomic, write_files
@@ -107,8 +107,7 @@ def export_triangles(scene: Scene, path: Path) -> Scene:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
-        raise InputError(f"unsupported format {quoted(suffix or '(none)')}: use {', '.join(FORMATS[:-1])} or "
-                         f"{FORMATS[-1]}",
+        raise InputError(f"unsupported format {quoted(suffix or '(none)')}: use {listing(FORMATS, last='or')}",
                          source=str(path))
     check_scene(scene)
     if suffix != ".ply":  # (a PLY names each material by the scene's index: a name no face takes is read as none)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config_words import listing
 from tlm.errors import InputError, quoted
 from tlm.scenes.model import Camera, Imported, Light
 
@@ -22,7 +23,7 @@ _SHOWN = 4  # entries a note names before "and N more"
 
 
 def _listed(items: list[str]) -> str:
-    return ", ".join(items[:_SHOWN]) + (f" and {len(items) - _SHOWN} more" if len(items) > _SHOWN else "")
+    return listing(items, _SHOWN)
 
 
 def _numbers(value, n: int, where: str, src: str) -> np.ndarray:

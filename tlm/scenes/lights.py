@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from tlm.config_words import value_text
+from tlm.config_words import listing, value_text
 from tlm.errors import InputError, did_you_mean, quoted
 from tlm.scenes.model import Geometry, Imported, Light, Material, Scene, directional_power, unit_vector
 from tlm.scenes.validate import MAX_MAGNITUDE
@@ -223,13 +223,12 @@ def _imported_lights(imps: list[Imported]) -> str:
                                for lt in i.lights))
     kinds = _kinds(imps)
     n = len(kinds)
-    shown = ", ".join(names[:4]) + (f" and {len(names) - 4} more" if len(names) > 4 else "")
+    shown = listing(names, 4)
     items = f", in each of its {len(imps)} geometry items" if len(imps) > 1 else ""
     counts = [(k, kinds.count(k)) for k in _KIND_ORDER if k in kinds]
     if len(counts) == 1:
         return f"{f'{n} {kinds[0]} lights' if n > 1 else f'{kinds[0]} light'} ({shown}{items})"
-    listed = [f"{c} {k}" for k, c in counts]
-    return f"{n} lights ({', '.join(listed[:-1])} and {listed[-1]}: {shown}{items})"
+    return f"{n} lights ({listing(f'{c} {k}' for k, c in counts)}: {shown}{items})"
 
 
 def _imported_as(imps: list[Imported]) -> str:

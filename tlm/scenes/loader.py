@@ -27,6 +27,7 @@ import numpy as np
 
 from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
 from tlm.config_read import nameless
+from tlm.config_words import listing
 from tlm.errors import InputError, did_you_mean, path_shown, quoted
 from tlm.mesh_files import mesh_file_format, mesh_file_hint, mesh_file_missing
 from tlm.scenes import cache
@@ -662,7 +663,7 @@ def _check_unused(yaml_mats: dict[str, Material], file_mats: tuple[Material, ...
     if not unused:
         return notes
     name = unused[0]
-    listed = ", ".join(file_names[:shown]) + (f" and {len(file_names) - shown} more" if len(file_names) > shown else "")
+    listed = listing(file_names, shown)
     close = did_you_mean(name, file_names).strip()[1:-1]  # ("did you mean 'x'?" without its brackets)
     raise InputError(f"used by no triangle (the mesh files' materials: {listed}{'; ' + close if close else ''}): give "
                      "it a mesh file's material's name (to replace that material), or name it under parts: or as "

@@ -84,6 +84,7 @@ import re
 import struct
 from pathlib import Path
 
+from tlm.config_words import listing
 from tlm.errors import InputError, quoted
 from tlm.scenes.model import Material
 
@@ -122,8 +123,8 @@ def _given_again(source: str, name: str, key: str, given: list[tuple[int, str, o
     another value is given without editing the (perhaps published) MTL file: a scene file's ``materials:``."""
     times = "twice" if len(given) == 2 else f"{len(given)} times"
     lines = [f"line {line} `{key} {text}`" for line, text, _ in given]
-    return (f"{source}: line {given[-1][0]}: material {name!r}: {key} given {times}, {', '.join(lines[:-1])} and "
-            f"{lines[-1]}: the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another value: a "
+    return (f"{source}: line {given[-1][0]}: material {name!r}: {key} given {times}, {listing(lines)}: "
+            f"the last is used, as OBJ readers (trimesh, tinyobjloader) take it (another value: a "
             f"scene file's `materials: {{{name}: ...}}` entry, the MTL file left as it is)")
 
 

@@ -58,6 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tlm.config_words import listing
 from tlm.errors import InputError, did_you_mean, quoted
 from tlm.scenes.gltf_imports import check_mesh_nodes, gltf_imports, singular, singular_message
 from tlm.scenes.mat3 import _cross, adjugate3, det3, inverse3  # noqa: F401  (the old names, importable here)
@@ -358,9 +359,9 @@ def _library_paths(obj_path: Path, text: str, line: int, zext: str, src: str) ->
     tried = f"no file {looked(text)}"
     if len(words) > 1:
         there = ", ".join(w for w, p in zip(words, found, strict=True) if p is not None)
-        tried += (f", nor {' and '.join(looked(w) for w in missing)} (of the names its spaces separate, as the OBJ "
+        tried += (f", nor {listing(map(looked, missing))} (of the names its spaces separate, as the OBJ "
                   f"spec reads several libraries{f'; {there} found' if there else ''})")
-    tried += f" ({' and '.join(dirs)}: {'a folder' if len(dirs) == 1 else 'folders'})" if dirs else ""
+    tried += f" ({listing(dirs)}: {'a folder' if len(dirs) == 1 else 'folders'})" if dirs else ""
     raise InputError(f"line {line}: the material library {quoted(text)} (mtllib) is missing: {tried}"
                      f"{_case_hint(folder, [text, *missing])}", source=src)
 
@@ -375,7 +376,7 @@ def _case_hint(folder: Path, names: list[str]) -> str:
     near = list(dict.fromkeys(there[n.lower()] for n in names if n.lower() in there and there[n.lower()] != n))
     if not near:
         return ""
-    return (f" ({' and '.join(quoted(n) for n in near)} {'is' if len(near) == 1 else 'are'} there: the name differs in "
+    return (f" ({listing(map(quoted, near))} {'is' if len(near) == 1 else 'are'} there: the name differs in "
             "letter case, which this file system tells apart; write it as the file is named)")
 
 
