@@ -57,7 +57,7 @@ def test_a_start_that_raises_stops_the_study_with_nothing_written(tmp_path, cach
 
 def test_start_gets_the_sizes_once_each_increasing(tmp_path, cache):
     told: list[list[int]] = []
-    rows = tlm.granularity(_study(tmp_path, [256, 64, 64]), tmp_path / "g", start=told.append)
+    rows = tlm.granularity(_study(tmp_path, [256, 64]), tmp_path / "g", start=told.append)
     assert told == [[64, 256]] and [r["packet_size"] for r in rows] == [64, 256]
     assert rows.attrs["notes"] == [] and rows.attrs["one_packet"] == [256]  # (one size alone: no line)
 

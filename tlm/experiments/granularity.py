@@ -35,6 +35,7 @@ Images do not depend on the packet size (the functional layer never sees it).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -42,7 +43,7 @@ from pathlib import Path
 from tlm.arch.granularity import fine_ti_cycles
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict, file_folder
-from tlm.config_words import value_text, with_overrides
+from tlm.config_words import type_hint, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_render
 from tlm.experiments.run import programs_for
@@ -64,25 +65,45 @@ LEVEL_KINDS = ("geometry_bsp", "photon_bsp")
 
 def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     """``(config, packet sizes in increasing order, the folder its relative paths start at)``
-    of the study file ``path``; InputError names the file and the key. ``overrides``: ``tlm
-    granularity --set`` strings, applied to the base as ``tlm run --set`` applies them; one of
-    ``arch.packet_size``, which ``packet_sizes`` sets, is refused, as is a bad key or value."""
+    of the study file ``path``; InputError names the file and the key (a size listed twice: as ``tlm sweep``
+    refuses a value a grid lists twice, h416). ``overrides``: ``tlm granularity --set`` strings, applied to
+    the base as ``tlm run --set`` applies them; one of ``arch.packet_size``, which ``packet_sizes`` sets, or of
+    ``packet_sizes`` (the study file's own), is refused, as is a bad key or value."""
     path = Path(path)
     src = str(path)
     raw, base, base_src, folder = read_study_base(path, KEYS)
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):
-        raise InputError(f"{value_text(sizes)} must be a non-empty list of whole numbers >= 1", source=src,
-                         key="packet_sizes")
+        raise InputError(f"{value_text(sizes)} must be a non-empty list of whole numbers >= 1{_whole_hint(sizes)}",
+                         source=src, key="packet_sizes")
+    twice = next((v for i, v in enumerate(sizes) if v in sizes[:i]), None)
+    if twice is not None:  # (as tlm sweep words a value a grid lists twice: its row would be one simulation, twice)
+        raise InputError(f"{value_text(twice)} given twice", source=src, key="packet_sizes")
     if overrides:
         config_from_dict(base, base_src)  # (the base's own errors first, naming its file)
         base = with_set(base, overrides, list(dict.fromkeys([folder, file_folder(path)])))
         refuse_set(overrides, {"arch.packet_size": "set by the study's packet_sizes, one simulation each: list "
-                                                   "them there, not by --set"}, src)
+                                                   "them there, not by --set",
+                               # (the study's own key, not the run config's: h409 found "unknown key" here)
+                               **{k: "the study file's own key, and --set sets its base (the run config): "
+                                     f"change {k} in the study file" for k in KEYS}}, src)
         base_src = with_overrides(base_src)
     cfg = config_from_dict(base, base_src)
-    return cfg, sorted(set(sizes)), folder
+    return cfg, sorted(sizes), folder
+
+
+def _whole_hint(sizes) -> str:
+    """What to write instead, where ``sizes`` is a list of whole numbers >= 1 some written as floats
+    (``[2e12]``, ``[4.0]``: YAML reads a number with an exponent or a point as a float), as tlm says it of
+    a config's integer (:func:`tlm.config_words.type_hint`); else nothing."""
+    def whole(v) -> bool:
+        return ((isinstance(v, int) and not isinstance(v, bool))
+                or (isinstance(v, float) and math.isfinite(v) and v.is_integer())) and v >= 1
+
+    if not isinstance(sizes, list) or not all(whole(v) for v in sizes):
+        return ""
+    return type_hint(sizes, list[int], {})
 
 
 def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *,

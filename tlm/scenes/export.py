@@ -54,8 +54,9 @@ compared, any case: ``CornellBox-Water.obj.xz`` and ``COPYRIGHT-cornellbox.txt``
 such), any other is every mesh's there (``copyright.txt``, as McGuire's archives publish it
 beside their OBJ files; ``LICENSE``); a symbolic link has those of the file it links to
 too. A mesh that tlm exported carries its notices in its own
-header, and they are passed on. A mesh file with none is named in a warning (``tlm: warning:
-...``, a line each): the export carries no licence notice for it.
+header, and they are passed on (in the scene file's comments, a character that YAML reads in no file, a BEL
+or an ESC, as its escape, ``\\x07``: :func:`_yaml_comment`). A mesh file with none is named in a warning
+(``tlm: warning: ...``, a line each): the export carries no licence notice for it.
 """
 
 from __future__ import annotations
@@ -461,11 +462,24 @@ def scene_yaml(scene: Scene, mesh: str, told: list[str] | None = None) -> str:
         "resolution": [int(cam.width), int(cam.height)],
         "photons": int(scene.photons),
     }
-    head = (f"{_MTL_HEAD}{_one_line(scene.name)}: written by tlm scene export, with {mesh} and its MTL library "
-            "beside it.\n"
-            "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.\n")
-    head += _comments("# ", notices(scene) if told is None else told)
-    return head + dump_yaml(doc, sort_keys=False, default_flow_style=None, width=120)
+    head = [f"{_MTL_HEAD}{_one_line(scene.name)}: written by tlm scene export, with {_one_line(mesh)} and its MTL "
+            "library beside it.",
+            "# The materials replace the MTL's of the same name (exactly); mesh lights are the emitting materials.",
+            *(f"# {line}" for line in (notices(scene) if told is None else told))]
+    return "".join(f"{_yaml_comment(line)}\n" for line in head) + dump_yaml(doc, sort_keys=False,
+                                                                             default_flow_style=None, width=120)
+
+
+# a character YAML reads in no file, not even in a comment: C0 controls but tab, line feed and carriage return,
+# DEL, C1 controls but NEL, surrogates, U+FFFE and U+FFFF (PyYAML's Reader.NON_PRINTABLE; libyaml's reader's)
+_NOT_YAML = re.compile("[^\t\n\r\x20-\x7e\x85\xa0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+
+
+def _yaml_comment(line: str) -> str:
+    """A comment line of the scene file as YAML can hold it (h416): each character YAML refuses
+    (:data:`_NOT_YAML`: a BEL, an ESC or a NUL in a scene's name or a licence notice) as its Python escape,
+    ``\\x07``, ``\\x1b``, ``\\x00`` (the name itself, in ``name:``, keeps them: YAML's own escapes)."""
+    return _NOT_YAML.sub(lambda m: ascii(m.group())[1:-1], _one_line(line))  # (a NEL, U+2028: a line break)
 
 
 def mtl_text(scene: Scene, told: list[str] | None = None) -> str:
