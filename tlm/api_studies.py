@@ -456,8 +456,9 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
     computed, or the ground truth; no ground truth, and why: its ``truth_*`` columns are then empty)
     are the rows' ``attrs["notes"]``, and ``note`` gets each as it is known too (None: nothing is
     printed); its warnings (the reference not converged, or not cached; an override that sets nothing,
-    ``render={}``), which ``tlm error-vs-cost`` prints on stderr, are their ``attrs["warnings"]``; ``warn``
-    gets each as it is known too (None: nothing is printed)."""
+    ``render={}``; a camera that faces nothing; a black reference or ground truth), which ``tlm error-vs-cost``
+    prints on stderr and its ``reference.json`` keeps (``warnings``, which the report lists), are their
+    ``attrs["warnings"]``; ``warn`` gets each as it is known too (None: nothing is printed)."""
     from tlm.experiments.error_cost import Truth, run_error_vs_cost
 
     notes: list[str] = []

@@ -80,7 +80,9 @@ File format::
 Output folder: ``rows.csv`` and ``rows.jsonl`` (one row per point, readable by
 pandas; in the CSV a null of a setting's column, :data:`SETTING_COLUMNS`, is ``null``, any other
 an empty cell), ``reference.json`` (the reference used: its metadata, ``reference_converged``
-and whether it was ``computed`` by this study), ``config.resolved.yaml`` and
+and whether it was ``computed`` by this study; ``reference_black`` and ``truth_black``, where the reference or
+the ground truth is black and no relative error can be measured; and the study's ``warnings``, each line it
+said once, which ``tlm report`` lists in its warnings box), ``config.resolved.yaml`` and
 ``provenance.json`` (versions, git revision, host seconds).
 """
 
@@ -126,6 +128,7 @@ from tlm.experiments.sweep_factors import keys_given as _keys_given
 from tlm.experiments.sweep_rows import csv_text
 from tlm.kernels.work import GATHER_KEYS
 from tlm.registry import ESTIMATORS
+from tlm.render.checks import camera_warnings
 from tlm.render.frame import Frame, GBuffer, cast
 from tlm.render.passes import gather_points_full, sees_a_light
 from tlm.render.planner import photon_count, same_frame_settings
@@ -316,7 +319,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     one. ``note`` receives one-line messages (the reference or the ground truth computed, or no
     ground truth); ``warned`` each warning line, in place of stderr (None: printed there; the reference not
     converged, or not cached: :func:`study_warning`; a ``--set`` or points value that sets nothing,
-    ``render={}``, before any work: :func:`empty_lines`, naming the overrides ``via``).
+    ``render={}``, before any work: :func:`empty_lines`, naming the overrides ``via``; the frame's camera that
+    faces nothing; a black reference or ground truth, :func:`black_lines`; a truth of few samples). Those lines,
+    each once, are kept in ``reference.json``'s ``warnings``, which the report lists (h417).
     ``overrides``: ``tlm error-vs-cost --set`` strings, applied to the base (:func:`load_experiment`);
     ``config.resolved.yaml`` holds their values, ``provenance.json`` lists them.
     """
@@ -325,7 +330,13 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         raise InputError(f"{truth.spp!r} is not a count of samples per pixel (0: no ground truth)", key="--truth-spp")
     start = time.perf_counter()
     overrides = tuple(str(o) for o in overrides)
-    base, points, folder = load_experiment(Path(path), overrides, lambda line: study_warning(line, warned), via)
+    said: list[str] = []  # (each warning line, kept in reference.json's warnings, which the report lists: h417)
+
+    def say(line: str) -> None:
+        said.append(" ".join(line.split()))
+        study_warning(line, warned)
+
+    base, points, folder = load_experiment(Path(path), overrides, say, via)
     check_destination(out, "rows.jsonl")  # before any work
     cfg0 = config_from_dict({**base, "mode": "pmap"}, str(path))
     configs = [config_from_dict({**apply_overrides(base, _override_strings(p)), "mode": "pmap"}, str(path))
@@ -337,6 +348,10 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
     frame0 = load_frame(cfg0, folder, str(path))
     scene, accel = frame0.scene, frame0.accel
     g = cast_image(frame0)
+    # the frame's camera that faces nothing, as tlm run says it (why its reference is black: h417); not its other
+    # lines (a camera inside a closed mesh, the furnace's by design: 'tlm run' of the base says them)
+    for line in camera_warnings(g.origin.shape[0], int((g.triangle >= 0).sum()), 0):
+        say(f"error-vs-cost: {line}")
 
     settings = ReferenceSettings.from_config(scene, cfg0)
     key = reference_key(scene, cfg0, settings)
@@ -346,15 +361,15 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                              "render's specular depths and Fresnel settings, reference.photons, reference.k_nearest): "
                              "every point is measured against the base's reference; run one experiment per value",
                              source=str(path), key=f"points: {point}")
-    reference, ref_meta, computed = study_reference(frame0, settings, key, note, warned)
+    reference, ref_meta, computed = study_reference(frame0, settings, key, note, say)
     converged = meets_tolerance(ref_meta, settings)
     if not converged:
         err = ref_meta.get("relative_standard_error")
-        study_warning(f"error-vs-cost: the photon-map reference {key} is NOT converged: relative standard error "
+        say(f"error-vs-cost: the photon-map reference {key} is NOT converged: relative standard error "
                       f"{'n/a' if err is None else f'{err:.4f}'} after {ref_meta.get('rounds')} rounds, above the "
                       f"base's reference.tolerance {settings.tolerance}; every row's rmse and rel_mse include its "
                       "noise (reference_converged: false in the rows and reference.json); raise the base's "
-                      "reference.max_rounds (or reference.tolerance)", warned)
+                      "reference.max_rounds (or reference.tolerance)")
     reference = reference.reshape(-1, 3)
     truth_image, truth_meta = truth.load(frame0, g, note)
     keep = None
@@ -367,9 +382,11 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         note(f"no ground truth: {truth_meta['reason']}; the truth_* columns are empty")
     elif truth_meta["available"] and truth_noise_words(truth.spp):  # (its noise in every truth_* error)
         words = truth_noise_words(truth.spp)
-        study_warning(f"error-vs-cost: {words[0].lower()}{words[1:]}", warned)
+        say(f"error-vs-cost: {words[0].lower()}{words[1:]}")
+    black = {"reference_black": not np.any(reference),  # (no rel_mse can be measured: the report says so, h417)
+             "truth_black": truth_image is not None and not np.any(truth_image > 0)}
     for line in black_lines(reference, truth_image, key):  # (a column empty in every row: said, h394)
-        study_warning(f"error-vs-cost: {line}", warned)
+        say(f"error-vs-cost: {line}")
 
     maps: dict[tuple, tuple] = {}  # map key -> (the trace, its seconds without compilation)
     density_s: dict[tuple, float] = {}  # (id of a map in maps, k) -> seconds of its density radius
@@ -451,7 +468,8 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                          one, columns=COLUMNS, config=cfg0, started=start, overrides=overrides,
                          files=lambda rows: {"reference.json": {"key": key, **ref_meta,
                                                                 "reference_converged": converged,
-                                                                "computed": computed},
+                                                                "computed": computed, **black,
+                                                                "warnings": list(dict.fromkeys(said))},
                                              "truth.json": truth_meta,
                                              # (over run_study's rows.csv: a setting's null as null)
                                              "rows.csv": csv_text(rows, COLUMNS, SETTING_COLUMNS)})

@@ -542,8 +542,8 @@ def _moved_from(scene: dict, was: str, now: str) -> dict:
 
 def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
     """The cached entry, or None: outdated (an older format, rendered again quietly), gone
-    (a file of it removed since it was found: a prune, another process; a miss, quietly) or
-    damaged (a warning naming the file; both files removed, so it is said once). An entry read
+    (a file of it removed since it was found: a prune, another process; a miss, quietly) or damaged
+    (a sidecar naming no format, ``{}``, too: a warning naming the file; both removed, said once). An entry read
     is marked used (its sidecar's time: :func:`tlm.caches.note_use`; no digest checks it), so that
     ``tlm cache prune`` removes frames by their last use where access times are not kept."""
     try:
@@ -555,8 +555,14 @@ def _load_entry(path: Path, side: Path, key: str) -> CachedRender | None:
     except (OSError, ValueError) as e:  # (UnicodeDecodeError is a ValueError)
         _damaged(side, path, f"unreadable sidecar ({type(e).__name__})")
         return None
-    if summary.get("format") != SUMMARY_FORMAT:
-        return None  # an entry of an older tlm: rendered again and replaced
+    fmt = summary.get("format")
+    if fmt != SUMMARY_FORMAT:
+        if isinstance(fmt, str) and fmt.startswith(SUMMARY_FORMAT.partition("/")[0] + "/"):
+            return None  # an entry of an older tlm (every sidecar names its format): rendered again and replaced
+        # (``{}``, or JSON of another shape: no sidecar tlm wrote, said as a damaged one is: h417)
+        _damaged(side, path, "no format: not a functional-cache sidecar" if fmt is None
+                 else f"format {json.dumps(fmt)[:60]}: not a functional-cache sidecar's")
+        return None
     problem = summary_problem(summary)
     if problem is not None:
         _damaged(side, path, problem)

@@ -18,7 +18,10 @@
     makes long are wrapped (:func:`~tlm.report.common.wrap_title`). An axis is log where its positive
     values span a decade (the RMSE against the ground truth: where one is positive); there a value of 0
     is drawn on a dotted line a decade below the least positive one (:func:`log_floor`), one below 0 is
-    left off, and the caption names both by their ``point`` in rows.csv (:func:`off_log_words`).
+    left off, and the caption names both by their ``point`` in rows.csv (:func:`off_log_words`). A black
+    reference or ground truth (:func:`black_images`: no relative error can be measured) is said first in the
+    section (its lead) and in the figures' captions; a black reference's RMSEs (each point's own radiance) draw
+    no Pareto front.
 (b) From ``tlm granularity`` folders: the TLM's cycle error against its fine reference
     (``max_abs_rel_error``, the largest relative error of any PM's cycles, TThru or the
     latency) against the host wall time of the simulation (``simulate_seconds``), each
@@ -55,6 +58,7 @@ from tlm.report.common import (
     untangle,
     wrap_title,
 )
+from tlm.report.html import esc
 from tlm.report.names import scene_label
 
 TITLE_INCHES = 5.6  # the axes' width of an error-vs-cost figure (9 inches wide, its key to the right): its title's
@@ -250,6 +254,31 @@ def reference_words(study: Study) -> tuple[str, str]:
             "reference's own noise.")
 
 
+def black_images(study: Study) -> tuple[bool, bool]:
+    """Whether the study's photon-map reference, and its ground truth, are black (every pixel 0: a camera that
+    sees nothing lit), so that no relative error can be measured against it: ``reference.json``'s
+    ``reference_black`` and ``truth_black`` (h417), else, for a study written before them, its rows (an
+    ``rmse`` in some row and a ``rel_mse`` of null in every row; a ``truth_rmse`` and no ``truth_rel_mse``)."""
+    ref = study.meta.get("reference") if isinstance(study.meta, dict) else None
+    ref = ref if isinstance(ref, dict) else {}
+
+    def rows_say(err: str, rel: str) -> bool:
+        return (any(np.isfinite(_num(r.get(err))) for r in study.rows)
+                and all(rel in r and r[rel] is None for r in study.rows))
+
+    ref_black, truth_black = (ref[k] if isinstance(ref.get(k), bool) else rows_say(err, rel) for k, err, rel in
+                              (("reference_black", "rmse", "rel_mse"), ("truth_black", "truth_rmse", "truth_rel_mse")))
+    return ref_black, truth_black
+
+
+BLACK_REFERENCE = ("The photon-map reference is black (every pixel 0; 'tlm run' of the base says why, e.g. a camera "
+                   "that faces nothing): no relative error can be measured (every row's rel_mse is empty), and each "
+                   "RMSE against it is the point's own radiance, not its filter's error, so no point is ranked by it "
+                   "(no Pareto front).")
+BLACK_TRUTH = ("The ground truth is black (every pixel 0): no relative error against it can be measured (every row's "
+               "truth_rel_mse and truth_flip are empty), and each RMSE against it is the composite's own radiance.")
+
+
 def _point_name(r: dict) -> str:
     f = str(r.get("filter"))
     if gather_rays(r):
@@ -372,7 +401,10 @@ def evc_truth_figure(study: Study, out: Path, name: str, notes: list[str], label
                + ", over every pixel; a vertical line joins a point's two errors. They are errors of "
                "different images: the gap holds the other frames' error and what the model leaves out or gets "
                "wrong, not the model's bias alone. " + (f"{unconverged} " if unconverged else "")
-               + (f"{truth_noise_words(spp)} " if truth_noise_words(spp) else "") + wall_time_caption(rows))
+               + (f"{truth_noise_words(spp)} " if truth_noise_words(spp) else "")
+               + "".join(f"{w} " for w, b in zip((BLACK_TRUTH, BLACK_REFERENCE), black_images(study)[::-1], strict=True)
+                         if b)
+               + wall_time_caption(rows))
     caption += (off_log_words(rows, named_off(np.where(ok, truth, math.nan), on_x), y_floor,
                               "an RMSE against the ground truth")
                 + off_log_words(rows, named_off(np.where(ok, own, math.nan), on_x), y_floor,
@@ -420,7 +452,8 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     sub = [r for r, k in zip(rows, ok, strict=True) if k]
     c, e = cost[ok], err[ok]
     apart = np.array([cost_key == "frame" and unmodelled_cost(r) for r in sub], dtype=bool)  # (knn: hollow)
-    front = pareto_front(np.where(apart, math.nan, c), e)  # (of the values: a 0 is the least)
+    black = black_images(study)[0]  # (a black reference: every RMSE a point's own radiance, none ranked: h417)
+    front = pareto_front(np.where(apart | black, math.nan, c), e)  # (of the values: a 0 is the least)
     cd, ed = as_drawn(c, x_floor), as_drawn(e, y_floor)  # (where the points are drawn)
     fig = new_figure(9, 5.5)
     ax = fig.subplots()
@@ -462,13 +495,17 @@ def evc_figure(study: Study, out: Path, name: str, cost_key: str, notes: list[st
     against, unconverged = reference_words(study)
     ax.set(xlabel=xlabel, ylabel=f"image RMSE against {against} (linear radiance)",
            title=wrap_title(f"{label}: photon-map RMSE against {what}"
-                            + (" (reference NOT converged)" if unconverged else ""), TITLE_INCHES))
+                            + (" (reference NOT converged)" if unconverged else "")
+                            + (" (reference black: no error measured)" if black else ""), TITLE_INCHES))
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     hidden = untangle(fig, numbers, PARETO_OFFSETS, hide=True)
     caption = (f"{count(int(ok.sum()), 'point')}; marker area grows with the photon count; "
                + (f"ringed and numbered (named in the key): the {count(int(front.sum()), 'point')} of the Pareto "
-                  "front." if front.any() else "no Pareto front: no point's frame time is modelled in full."))
+                  "front." if front.any() else "no Pareto front: the reference is black." if black
+                  else "no Pareto front: no point's frame time is modelled in full."))
+    if black:
+        caption += " " + BLACK_REFERENCE
     if apart.any():
         caption += f" Hollow, and left off the front: the k-NN reference (knn), as {KNN_WHY}."
     # (a point is named by its value on one axis where it is drawn on the other, or that value is below 0: a 0 with
@@ -623,6 +660,9 @@ def tradeoff_section(inputs: Inputs, out: Path) -> Section:
         if not st.rows:
             sec.notes.append(f"{label}: the error-vs-cost study has no rows.")
             continue
+        for words, black in zip((BLACK_REFERENCE, BLACK_TRUTH), black_images(st), strict=True):
+            if black:  # (said plainly, first, above its figures: h417)
+                sec.lead += f"<p><b>{esc(label)}</b>: {esc(words)}</p>"
         for key in ("frame", "wall"):
             fig = evc_figure(st, out, f"tradeoff_{i:02d}_rmse_vs_{key}_time.png", key, sec.notes, label)
             if fig is not None:

@@ -11,9 +11,11 @@ they are read. A study's own warnings, said once for the study on stderr (``tlm 
 ``--set`` no cell reads), are the ``warnings`` list of its file (``thesis_summary.json``; any
 study record with one: :data:`STUDY_FILES`), listed in the same box once each, attributed to
 the study; so is a granularity study's (its ``granularity_summary.json``: the overrides' lines and the
-frame's own, ``granularity: the camera faces nothing ...``). (``tlm error-vs-cost`` and ``tlm extreme`` write
-no such list: error-vs-cost's reference not converged is its ``reference.json`` ``reference_converged`` false, listed
-here from it, :func:`reference_line`, and said in the axis label, title and caption of each of the study's
+frame's own, ``granularity: the camera faces nothing ...``) and an error-vs-cost study's (its ``reference.json``
+``warnings``: the overrides' lines, the frame's camera, the reference not converged or not cached, a black reference
+or ground truth, the truth's few samples: h417). (``tlm extreme`` writes no such list; an error-vs-cost study written
+before that list has its reference not converged listed from its ``reference.json`` ``reference_converged`` false,
+:func:`reference_line`; either way it is said in the axis label, title and caption of each of the study's
 error figures, :func:`tlm.report.tradeoff.reference_words`.)
 
 A Dask sweep's events on its workers (a worker left out, why, its points sent again and where they ran: its
@@ -58,9 +60,10 @@ def study_label(study) -> str:
 
 def reference_line(study) -> str | None:
     """The warning of an error-vs-cost study whose reference did not converge (``reference.json``
-    ``reference_converged``, else ``converged``, false), as the study printed it; None for any other."""
+    ``reference_converged``, else ``converged``, false), as the study printed it; None for any other, and for
+    one whose ``reference.json`` keeps its ``warnings`` (h417: the line the study said is among them)."""
     ref = study.meta.get("reference") if study.kind == "error-vs-cost" and isinstance(study.meta, dict) else None
-    if not isinstance(ref, dict):
+    if not isinstance(ref, dict) or isinstance(ref.get("warnings"), list):
         return None
     converged = ref.get("reference_converged", ref.get("converged"))
     if converged is not False:
