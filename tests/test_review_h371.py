@@ -44,8 +44,8 @@ def _study(tmp_path: Path, body: str) -> Path:
     (tmp_path / DIR).mkdir()
     (tmp_path / DIR / "cornell.yaml").write_text((REPO / "scenes" / "cornell.yaml").read_text(encoding="utf-8"),
                                                  encoding="utf-8")
-    (tmp_path / DIR / "mine.yaml").write_text((REPO / "scenes" / "cornell.yaml").read_text(encoding="utf-8"),
-                                              encoding="utf-8")
+    (tmp_path / DIR / "mine.yaml").write_text((REPO / "scenes" / "cornell.yaml").read_text(encoding="utf-8")
+                                              .replace("vfov: 39.3", "vfov: 40"), encoding="utf-8")  # (not cornell's)
     study = tmp_path / "study.yaml"
     study.write_text(body, encoding="utf-8")
     return study

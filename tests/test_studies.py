@@ -61,7 +61,7 @@ def test_restrict_equals_rendering_the_smaller_mode():
 
 
 def test_thesis_study_writes_the_comparison(tmp_path):
-    path = _study(tmp_path, scenes=["ring"], modes=["rcast", "pmap"])
+    path = _study(tmp_path, scenes=["thesis/ring"], modes=["rcast", "pmap"])
     out = tmp_path / "out"
     done = run_thesis(path, out)
     with open(out / "thesis_comparison.csv") as f:
@@ -133,7 +133,7 @@ def test_fit_scale_is_the_weighted_least_squares_minimum():
 
 
 def test_calibrate_fits_and_rewrites_the_table(tmp_path):
-    path = _study(tmp_path, scenes=["ring", "cornell"], modes=["rcast"])
+    path = _study(tmp_path, scenes=["thesis/ring", "cornell"], modes=["rcast"])
     programs, report = calibrate(path, iterations=3)
     assert set(report["cells"]) == {"ring", "cornell"}
     assert programs.scale["vertex"] > 0 and programs.record_cycles["vertex"] == 0  # a scale alone
@@ -167,7 +167,7 @@ def test_calibrate_keeps_the_record_cycles_it_does_not_fit_and_writes_a_missing_
     table = tmp_path / "table.yaml"
     table.write_text("# a user's table\ncalibration: {}\n" + yaml.safe_dump({k: v for k, v in raw.items()
                                                                               if k != "calibration"}))
-    path = _study(tmp_path, scenes=["ring", "cornell"], modes=["rcast"])
+    path = _study(tmp_path, scenes=["thesis/ring", "cornell"], modes=["rcast"])
     spec = yaml.safe_load(path.read_text())
     spec["base"]["arch"] = {**spec["base"]["arch"], "programs": str(table)}
     path.write_text(yaml.safe_dump(spec))

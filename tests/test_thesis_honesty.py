@@ -140,7 +140,6 @@ def test_a_thesis_scene_is_told_by_its_file_not_its_name(tmp_path, cache, scene,
 
 
 @pytest.mark.parametrize("scenes, named", [
-    (["ring", "thesis/ring"], ("'ring'", "'thesis/ring'")),
     (["cornell", "cornell"], ("'cornell' is listed twice",)),
     (["cornell", "SCENES/cornell.yaml"], ("'cornell'", "cornell.yaml'", "the same scene")),
 ])

@@ -26,6 +26,8 @@ def print_thesis(done: dict, out: Path) -> None:
     print(describe_rows(done["rows"], done.get("names")))
     sm = done["summary"]
     print(f"{median_words(sm)}; {slowest_words(sm)}")
+    for line in (sm.get("no_table") or {}).values():  # (a scene without a table, by its file: bunny.yaml)
+        print(line)
     print("per work item, ours (thesis's time over our count): cycles per traced ray, triangle tests "
           "per ray, cycles per pixel, cycles per triangle")
     print(describe_items(sm["per_item"], done.get("names")))

@@ -10,10 +10,13 @@ Every key is optional, as in every study file (:func:`tlm.experiments.study.read
 without ``base`` each cell runs at the default settings (``tlm params``: the scene's own
 resolution, 4 eye rays and 4 light samples per pixel, not the thesis's 1 and 1), without
 ``scenes`` the thesis's three, without ``modes`` all four. A scene or a mode may be listed
-once, and no two scenes may share a file name (each writes the folder ``DIR/<name>``).
+once, and so may a thesis table's scene (a copy of its file beside it is refused).
 
-Which table a scene is set beside is its file's name (``ring``, ``room``, ``cornell``);
-whether it *is* the thesis's scene, at the thesis's setting, is the one rule of
+Which table a scene is set beside is its file, not its name (:func:`scene_keys`: an unchanged
+copy ``myring.yaml`` of ``thesis/ring`` is Table I's, named ``ring`` in the rows and the folder
+``DIR/ring``; a user's ``room.yaml``, or ``bunny.yaml``, has no table: its rows no thesis value,
+``DIR/<stem>``, a number added where two share a stem, ``room-2``). Whether a table's scene is
+comparable, at the thesis's setting, is the one rule of
 comparability, :func:`~tlm.experiments.thesis_setting.mismatches` (its names are
 re-exported here): the summary's medians, the report's tables and ``tlm calibrate``'s
 refusal to overwrite the packaged table all follow it. A scene that is not comparable keeps
@@ -36,8 +39,10 @@ over TThru; ``median_abs_rel_error_held_out``: the median over every held-out ce
 included), (``not_comparable``: why the others are
 left out, keyed by the scene as the CSV's ``scene`` column names it; ``median_withheld``:
 the same in words, naming the scene as the printout does; ``scenes``: the one name -> the
-other, ``ring`` -> ``thesis/ring``) and, per scene-mode, whether our slowest PM is the
-thesis's.
+other, ``ring`` -> ``thesis/ring``; ``no_table``: a scene without a table -> a line saying so, which
+``tlm thesis`` prints) and, per scene-mode, whether our slowest PM is the thesis's. A scene named as
+a table's but of another file (:func:`judged_table`) is judged as that table's: its rows say
+``comparable`` false, ``the scene room.yaml (the thesis's is thesis/room)``, and it counts in no median.
 
 ``tlm calibrate FILE`` fits the free parameters of the instruction table (the ``scale``
 of each programmable PM, and the ``record_cycles`` of the Traversal and Fragment PMs)
@@ -73,15 +78,18 @@ from tlm.experiments.provenance import identities_remembered, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.run_warnings import unread_overrides
 from tlm.experiments.study import read_study, refuse_set, run_study, with_set
-from tlm.experiments.thesis_setting import (  # noqa: F401  (all but mismatches, run_mismatches, THESIS_SCENES: re-exported)
+from tlm.experiments.thesis_setting import (  # noqa: F401  (those this module does not use: re-exported)
     NOT_SETTING,
     THESIS_CLOCK_HZ,
     THESIS_SAMPLING,
     THESIS_SCENES,
     THESIS_SIZES,
+    judged_table,
     mismatches,
+    no_table,
     photons_of,
     run_mismatches,
+    scene_keys,
     setting_mismatches,
     table_of,
     thesis_setting,
@@ -147,17 +155,14 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
         for m in modes:
             config_from_dict({**base, "scene": s, "mode": m}, f"{label} (scene {s}, mode {m})")
     files: dict[Path, str] = {}
-    names: dict[str, str] = {}
-    for s in scenes:  # each scene writes DIR/<name> and its rows: one scene, one name
+    for s in scenes:  # each scene writes DIR/<key> and its rows: one file, one scene (scene_keys: one key each)
         file = resolve_scene_path(s, folder, src, "scenes").resolve()
         if file in files:
             raise InputError(f"{quoted(files[file])} and {quoted(s)} are the same scene (list it once)"
                              if files[file] != s else f"{quoted(s)} is listed twice (list it once)", source=src,
                              key="scenes")
-        if _name(s) in names:
-            raise InputError(f"{quoted(names[_name(s)])} and {quoted(s)} would both write the folder and the rows of "
-                             f"scene {quoted(_name(s))} (a study lists one of them)", source=src, key="scenes")
-        files[file], names[_name(s)] = s, s
+        files[file] = s
+    scene_keys(scenes, folder, src)  # (two scenes of one table, by their files' bytes: refused)
     return base, scenes, sorted(set(modes), key=MODES.index), folder
 
 
@@ -188,8 +193,9 @@ def _sum_keys(work: dict, keys: tuple[str, ...]) -> int:
     return int(sum(v for k, v in work.items() if k in keys))
 
 
-def per_item(scene: str, mode: str, results: dict) -> dict[str, Any]:
-    """A cell's PM times per work item, ours beside what the thesis's time implies.
+def per_item(scene: str | None, mode: str, results: dict) -> dict[str, Any]:
+    """A cell's PM times per work item, ours beside what the thesis's time implies (``scene``: the
+    cell's table, :func:`scene_keys`; None: no thesis column).
 
     The thesis gives times, not counts, so its per-item figures divide its time by *our*
     count of the item (the same pixels, triangles and photons; rays as our scene traces
@@ -269,7 +275,8 @@ def summarize(rows: list[dict], not_comparable: dict[str, list[str]] | None = No
     left_kinds = [k for k in NOT_PREDICTIONS if k in kinds.values()]
     fitted = [abs(r["rel_error"]) for r in compared if r["calibrated"]]
     withheld = None
-    left = {s: w for s, w in nc.items() if any(str(r["scene"]) == s for r in known)}
+    # (a scene of the study's: one without a table, named as one's, :func:`judged_table`, is said too)
+    left = {s: w for s, w in nc.items() if any(str(r["scene"]) == s for r in rows)}
     if left:
         shown = {s: (names or {}).get(s, s) for s in left}
         what = "; ".join(f"{shown[s]} is {', '.join(w)}" for s, w in left.items())
@@ -328,6 +335,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     warn = _warn if warn is None else warn
     overrides = tuple(str(o) for o in overrides)
     base, scenes, modes, folder = load_study(Path(path), overrides)
+    keys = scene_keys(scenes, folder, str(path))  # (each scene's rows, folder and entries: its table, else stem)
     wall: dict[str, float] = {}
     summary: dict = {}
     items: dict[str, dict] = {}
@@ -340,12 +348,12 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
 
     def names_of(scene: str) -> str:
         names.update(names or scene_names(scenes, folder, str(path)))
-        return names.get(_name(scene), scene)
+        return names.get(keys[scene][0], scene)
 
     def summary_file(rows: list[dict]) -> dict:
         names.update(names or scene_names(scenes, folder, str(path)))
-        summary.update(summarize(rows, differ, names), scenes=dict(names), per_item=items, host_seconds=wall,
-                       warnings=unread_lines(unread, len(scenes), len(modes)))
+        summary.update(summarize(rows, differ, names), scenes=dict(names), no_table=no_table(keys, names),
+                       per_item=items, host_seconds=wall, warnings=unread_lines(unread, len(scenes), len(modes)))
         return {"thesis_summary.json": summary}
 
     # (each cell is judged by its scene file: the identities of that file and of the built-in ones, once)
@@ -354,6 +362,8 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
         def one_scene(scene: str, tmp: Path) -> list[dict]:
             """A scene's render, then each mode's simulation and run folder: its comparison rows."""
             t0 = time.perf_counter()
+            key, table = keys[scene]
+            judged = judged_table(scene, table)
             cells.set_postfix_str(f"{scene}: render")
             big = config_from_dict({**base, "scene": scene, "mode": modes[-1]}, str(path))
             programs = programs_for(big, folder)
@@ -366,17 +376,17 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
                 sub = simulate_render(sub, programs, progress=bar)
                 # (its overrides the --set strings alone, as a case of tlm extreme records them; its scene and
                 # mode are its results' own. A --set this cell never reads is said once, for every cell: unread)
-                results = write_run(sub, tmp / _name(scene) / mode, str(path), list(overrides), say_unread=False)
+                results = write_run(sub, tmp / key / mode, str(path), list(overrides), say_unread=False)
                 for line in unread_overrides(sub, overrides):
                     item, _, why = line.partition(" has no effect in this run: ")
                     unread.setdefault(item, {})[(names_of(scene), mode)] = why.replace(f"mode {mode!r}", "its mode")
                 for line in results["warnings"]:  # (its own: the --set it never read are not among them)
                     said.setdefault(" ".join(line.split()), []).append(f"{names_of(scene)} {mode}")
-                rows.extend(comparison_rows(_name(scene), mode, _ours(results["cycles"], results["fps"])))
-                items[f"{_name(scene)}/{mode}"] = per_item(_name(scene), mode, results)
-                if _name(scene) in THESIS:
-                    seen = differ.setdefault(_name(scene), [])
-                    seen.extend(m for m in run_mismatches(_name(scene), results, to_dict(cfg)) if m not in seen)
+                rows.extend(table_rows(key, table, mode, _ours(results["cycles"], results["fps"])))
+                items[f"{key}/{mode}"] = per_item(table, mode, results)
+                if judged is not None:  # (one named as a table's but of another file: 'the scene ...' first)
+                    seen = differ.setdefault(key, [])
+                    seen.extend(m for m in run_mismatches(judged, results, to_dict(cfg)) if m not in seen)
                 cells.update()
                 if progress is not None:
                     progress(scene, mode, results)
@@ -385,7 +395,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
 
         # (each row says whether its cell is compared: its scene judged by every mode's cell, as the summary judges it)
         rows = run_study(str(path), out, "thesis_comparison", scenes, one_scene, columns=COLUMNS,
-                         marker="thesis_comparison.csv", finish=lambda rows, _: with_comparable(rows, differ),
+                         marker="thesis_comparison.csv", finish=lambda rows, _: marked(rows, differ),
                          files=summary_file, overrides=overrides)
     unread_said = list(summary.get("warnings") or [])
     lines = [*unread_said, *cell_warning_lines(said, len(scenes) * len(modes), SAID - before)]
@@ -440,15 +450,29 @@ def _name(scene: str) -> str:
     return Path(scene).stem
 
 
+def table_rows(key: str, table: str | None, mode: str, ours: dict[str, float]) -> list[dict]:
+    """:func:`comparison_rows` of a study's scene named ``key`` whose table is ``table`` (by its file):
+    without one (None), no thesis value, whatever its name (a user's ``room.yaml`` is not Table II's)."""
+    rows = comparison_rows(key, mode, ours)
+    return rows if table is not None else [{**r, "thesis": None, "rel_error": None} for r in rows]
+
+
+def marked(rows: list[dict], differ: dict[str, list[str]]) -> list[dict]:
+    """:func:`with_comparable`, and a scene of no table that is judged as one's (:func:`judged_table`: not the
+    thesis's scene by its file) marked not comparable in every row, saying why, though it has no thesis value."""
+    return [{**r, "comparable": False, "not_comparable": "; ".join(differ[str(r["scene"])])}
+            if r["thesis"] is None and differ.get(str(r["scene"])) else r for r in with_comparable(rows, differ)]
+
+
 def scene_names(scenes: list[str], folder: Path, source: str) -> dict[str, str]:
-    """Each scene of a study by the name its rows give it (its file's name, ``ring``) -> the
-    scene as the report names it: a built-in one by its name under ``scenes/`` (``thesis/ring``,
-    not the built-in ``ring``), another as the study lists it (its path)."""
+    """Each scene of a study by the name its rows give it (:func:`scene_keys`: its table, ``ring``,
+    else its file's stem) -> the scene as the report names it: a built-in one by its name under
+    ``scenes/`` (``thesis/ring``, not the built-in ``ring``), another as the study lists it (its path)."""
     names = {}
-    for s in scenes:
+    for s, (key, _) in scene_keys(scenes, folder, source).items():
         file = resolve_scene_path(s, folder, source, "scenes").resolve()
         label = scene_label(file)
-        names[_name(s)] = label if label != str(file) else s
+        names[key] = label if label != str(file) else s
     return names
 
 
@@ -489,7 +513,9 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     weighted least-squares step with a re-simulation until it settles.
 
     Refused (:class:`~tlm.errors.InputError`, before any render): a study without the
-    ``rcast`` mode (the only column fitted), a scene without a thesis table, and fewer
+    ``rcast`` mode (the only column fitted), a scene without a thesis table (by its file,
+    :func:`scene_keys`: a user's ``room.yaml`` is fitted to no table, a copy of ``thesis/ring``
+    under another name is Table I's, its ``cells`` named ``ring``), and fewer
     than two scenes (one cell per PM cannot fix a scale and a record cost: the fit would
     be one of infinitely many exact ones). The report's ``not_comparable`` (scene -> how
     ours differs, :func:`mismatches`; empty: the thesis's setting) says whether the fit
@@ -499,9 +525,14 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     if "rcast" not in modes:
         raise InputError(f"{quoted(modes)} has no rcast: calibrate fits the RCast column only (the other modes' cells "
                          "are predictions)", source=str(path), key="modes")
-    unknown = [s for s in scenes if _name(s) not in THESIS]
-    if unknown:
-        raise InputError(f"{quoted(unknown)} have no thesis table to calibrate against", source=str(path), key="scenes")
+    tables = {s: table for s, (_, table) in scene_keys(scenes, folder, str(path)).items()}  # (by its file)
+    unknown = [s for s in scenes if tables[s] is None]
+    if unknown:  # (a scene whose name is a table's but not its file, judged_table: fitted to no table)
+        named = [f"{quoted(s)} is not the thesis's {_name(s)} scene, {THESIS_SCENES[_name(s)]}" for s in unknown
+                 if judged_table(s, None)]
+        raise InputError(f"{quoted(unknown)} have no thesis table to calibrate against"
+                         + (f" (a scene is a table's by its file, not its name: {'; '.join(named)})" if named else ""),
+                         source=str(path), key="scenes")
     if len(scenes) < 2:
         raise InputError(f"{quoted(scenes)}: one scene gives one RCast cell per PM, too few for the Traversal and "
                          "Fragment PMs' two parameters each (scale, record_cycles): list at least two of the "
@@ -516,10 +547,10 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         res = render(cfg, folder, str(path))
         fns[scene] = (res.functional(), cfg)
         cam = res.scene.camera
-        differ[_name(scene)] = mismatches(_name(scene), source=res.scene.source, resolution=[cam.width, cam.height],
-                                          spp=cfg.render.spp, light_samples=cfg.render.light_samples,
-                                          pipelines=cfg.arch.pipelines, clock_hz=cfg.arch.clock_hz,
-                                          config=to_dict(cfg))
+        differ[tables[scene]] = mismatches(tables[scene], source=res.scene.source,
+                                           resolution=[cam.width, cam.height], spp=cfg.render.spp,
+                                           light_samples=cfg.render.light_samples, pipelines=cfg.arch.pipelines,
+                                           clock_hz=cfg.arch.clock_hz, config=to_dict(cfg))
     ones, zeros = dict.fromkeys(PROGRAMMABLE, 1.0), dict.fromkeys(PROGRAMMABLE, 0.0)
     # T_norm is linear in the parameters: instructions and records per frame, once
     instructions = _norm_per_frame(fns, programs.with_scales(ones, zeros))
@@ -532,7 +563,7 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         sims = {s: simulate(fn, programs, cfg.arch) for s, (fn, cfg) in fns.items()}
         scales, cycles = {}, {}
         for pm, metric in FIT_PMS.items():
-            y = np.array([thesis_value(_name(s), "rcast", metric) * 1e6 for s in scenes])
+            y = np.array([thesis_value(tables[s], "rcast", metric) * 1e6 for s in scenes])
             frames = np.array([len(sims[s].frames) for s in scenes], dtype=float)
             norm = np.array([sims[s].units[f"pipe0.{pm}"]["T_norm"] for s in scenes], dtype=float) / frames
             other = np.array([sims[s].cycles[pm] for s in scenes], dtype=float) - norm
@@ -546,7 +577,7 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
         params = {**{f"{p}.scale": v for p, v in scales.items()},
                   **{f"{p}.record_cycles": cycles[p] for p in FIT_RECORDS}}
         history.append({"iteration": it, "parameters": params,
-                        "cells": {_name(s): _ours(sims[s].cycles, sims[s].fps) for s in scenes}})
+                        "cells": {tables[s]: _ours(sims[s].cycles, sims[s].fps) for s in scenes}})
         if progress is not None:
             progress(it, params)
         converged = all(abs(scales[p] - programs.scale[p]) <= 1e-6 * max(scales[p], 1e-12)
@@ -559,7 +590,7 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     cells = {}
     for s in scenes:
         ours = _ours(sims[s].cycles, sims[s].fps)
-        cells[_name(s)] = {m: {"thesis": thesis_value(_name(s), "rcast", m), "ours": round(ours[m], 4)}
+        cells[tables[s]] = {m: {"thesis": thesis_value(tables[s], "rcast", m), "ours": round(ours[m], 4)}
                            for m in FIT_PMS.values()}
     report = {"scales": programs.scale, "record_cycles": programs.record_cycles, "fitted": fitted_parameters(),
               "cells": cells, "iterations": len(history), "history": history,

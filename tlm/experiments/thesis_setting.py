@@ -5,9 +5,9 @@ at one setting: each scene's 320×240 or 320×320 pixels, 20,000 to 120,000 phot
 ray and one light sample per pixel, one pipeline at 600 MHz (:data:`THESIS_SIZES`,
 :data:`THESIS_SAMPLING`, :data:`THESIS_CLOCK_HZ`), and every other key at the value of the
 built-in ``configs/thesis.yaml`` (:func:`thesis_setting`). Which table a scene is set beside
-is its file's name (``ring``, ``room``, ``cornell``); whether it *is* the thesis's scene is
-its file (:data:`THESIS_SCENES`: the built-in ``thesis/ring``, ``thesis/room`` and
-``cornell``; :func:`table_of`). :func:`mismatches` is the one rule: that scene, that
+is its file (:data:`THESIS_SCENES`: the built-in ``thesis/ring``, ``thesis/room`` and
+``cornell``, or a copy of one, by its bytes; :func:`table_of`), not its name: a study's
+scenes by :func:`scene_keys`. :func:`mismatches` is the one rule: that scene, that
 setting, and every other key of the cell's resolved config that changes the cycles or the
 image at the thesis's value (:func:`setting_mismatches`); :func:`run_mismatches` applies it
 to a run folder. The summary's medians (:func:`tlm.experiments.thesis.summarize`), the
@@ -26,12 +26,12 @@ from pathlib import Path
 from tlm.arch.steady import frames_cap, runs_alike
 from tlm.builtin import configs_dir
 from tlm.config import MODES, config_from_dict, describe, to_dict
-from tlm.errors import InputError
-from tlm.experiments.provenance import scene_identity, scene_label
+from tlm.errors import InputError, quoted
+from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.scaling import no_effect
 from tlm.experiments.study import read_study
 from tlm.render.planner import inert_settings, inert_timing_settings, same_frame_settings
-from tlm.scenes.loader import scenes_dir
+from tlm.scenes.loader import resolve_scene_path, scenes_dir
 
 # The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
 THESIS_SCENES = {"ring": "thesis/ring", "room": "thesis/room", "cornell": "cornell"}
@@ -72,6 +72,54 @@ def table_of(source: str | Path | None) -> str | None:
         if p.parts[-len(tail):] == tail or p.parts[-len(tail):] == ("_scenes", *tail[1:]):
             return table
     return None
+
+
+def scene_keys(scenes: list[str], folder: Path, source: str) -> dict[str, tuple[str, str | None]]:
+    """Each scene of a thesis study, as listed, -> ``(key, table)``: ``table`` the thesis table whose
+    scene its file is, by its bytes (:func:`table_of`: an unchanged copy ``myring.yaml`` of
+    ``thesis/ring`` is ``ring``; a user's ``room.yaml``, or the built-in ``room``, none); ``key`` what
+    its rows (the CSV's ``scene``), its folder ``DIR/<key>`` and the summary name it by: its table,
+    else its file's stem (``bunny``), else, where another scene of the study has that, the stem and a
+    number (``room-2``: a user's ``room.yaml`` beside ``thesis/room``; ``x-2``: ``b/x.yaml`` after
+    ``a/x.yaml``). Two scenes of one table (a copy beside the thesis's own file) are refused in one
+    line (:class:`~tlm.errors.InputError`, naming ``source``'s ``scenes``)."""
+    with identities_remembered():
+        tables = {s: table_of(resolve_scene_path(s, folder, source, "scenes").resolve()) for s in scenes}
+    first: dict[str, str] = {}
+    for s, table in tables.items():
+        if table is not None and table in first:
+            raise InputError(f"{quoted(first[table])} and {quoted(s)} are both the thesis's {table} scene (by the "
+                             "bytes of their files): list one of them", source=source, key="scenes")
+        first.setdefault(table, s)
+    taken = {t.casefold() for t in first if t is not None}  # (DIR/<key>: one folder on a case-blind disk too)
+    out = {}
+    for s, table in tables.items():
+        key, n = table or Path(s).stem, 1
+        while table is None and key.casefold() in taken:
+            n += 1
+            key = f"{Path(s).stem}-{n}"
+        taken.add(key.casefold())
+        out[s] = (key, table)
+    return out
+
+
+def judged_table(scene: str, table: str | None) -> str | None:
+    """The table a study's ``scene`` is judged against (:func:`mismatches`): its own (``table``, by its
+    file: :func:`scene_keys`), else the one its file's name claims (a user's ``room.yaml``, the
+    built-in ``ring``: not comparable, 'the scene room.yaml (the thesis's is thesis/room)'), else None."""
+    return table or (Path(scene).stem if Path(scene).stem in THESIS_SCENES else None)
+
+
+def no_table(keys: dict[str, tuple[str, str | None]], names: dict[str, str]) -> dict[str, str]:
+    """Each scene of a study without a thesis table (``keys``: :func:`scene_keys`; ``names``: the key ->
+    its name as printed) -> a line saying so, and which thesis scene it is not where its name is one's."""
+    out = {}
+    for s, (key, table) in keys.items():
+        judged = judged_table(s, table)
+        if table is None:
+            why = f" (not the thesis's {judged} scene, {THESIS_SCENES[judged]}: told by its file)" if judged else ""
+            out[key] = f"{names.get(key, s)} has no table in the thesis{why}: its rows have no thesis value"
+    return out
 
 
 def mismatches(table: str, *, source: str | None = None, resolution: list[int] | None = None,
