@@ -396,11 +396,12 @@ def check_range(v: Any, meta: dict, source: str, key: str) -> None:
 
 def listing(items: Iterable[str], named: int | None = None, more: str = "more", whole: int | None = None,
             last: str = "and") -> str:
-    """``items`` said in a line, the last after ``last``: ``a``, ``a and b``, ``a, b and c`` (``a, b or c``; none:
-    ``""``); of more than ``whole`` (``named`` + 1 unless given: one left over is named, never "and 1 more"), the
-    first ``named`` and how many more: ``a, b, c and 5 more`` (``more``: the words after the count, ``more
-    files``). ``named`` None: every item. The one way tlm's notes and messages list names, points and files."""
-    items = list(items)
-    if named is not None and len(items) > (named + 1 if whole is None else max(whole, named)):
-        return f"{', '.join(items[:named])} and {len(items) - named} {more}" if named else f"{len(items)} {more}"
+    """``items`` said in a line (each as ``str`` gives it), the last after ``last``: ``a``, ``a and b``, ``a, b and
+    c`` (``a, b or c``; none: ``""``); of more than ``whole`` (``named`` + 1 unless given, and never less: one left
+    over is named, never "and 1 more"), the first ``named`` and how many more: ``a, b, c and 5 more`` (``more``:
+    the words after the count, ``more files``; ``a, b, c or 5 more`` of ``last`` "or"). ``named`` None: every
+    item. The one way tlm's notes and messages list names, points and files."""
+    items = [str(item) for item in items]  # (read once: a generator is consumed here, and only here)
+    if named is not None and len(items) > max(named + 1, whole or 0):
+        return f"{', '.join(items[:named])} {last} {len(items) - named} {more}" if named else f"{len(items)} {more}"
     return "".join(items) if len(items) < 2 else f"{', '.join(items[:-1])} {last} {items[-1]}"

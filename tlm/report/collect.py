@@ -179,7 +179,8 @@ class Sweep:
         if made is not self.runs or n != len(self.runs):
             by_name = {r.path.name: r for r in self.runs}
             self._by_name = ((self.runs, len(self.runs)), by_name)
-        return by_name.get(str(row.get("hash"))) if isinstance(row, dict) else None
+        h = row.get("hash") if isinstance(row, dict) else None
+        return None if h is None else by_name.get(str(h))  # (no hash: no point, not a folder named "None")
 
     @property
     def overrides(self) -> list[str]:
