@@ -1,10 +1,12 @@
 """Who holds an output folder while it is written: a run's destination, a sweep's folder.
 
-* :func:`claimed` — a run's destination, held by one process while it works: a second ``tlm run
-  --out X`` of another process is refused at once, naming the first (its host and pid), before it
+* :func:`claimed` — a run's destination (a study's, a report's), held by one process while it works: a
+  second writer of another process is refused at once, naming the first (its host and pid), before it
   does any work; threads of one process share the claim.
 * :func:`sharing` — a sweep's folder, held by the processes of one identity (one sweep's points):
   a sweep of other points running into it is refused, naming its holder.
+* :func:`refuse_held` — the refusal of a destination another live process holds (its claim, or a sweep
+  running in it), which :func:`tlm.storage.check_destination` asks of every writer before its work.
 * :func:`holding` — whether this process holds a destination now (:func:`claimed`'s).
 * :func:`lock_holder` — the process holding a folder's lock (:func:`tlm.storage.folder_lock`), for
   the line of one that waits for it (``tlm report``).
@@ -52,7 +54,8 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
     identity's file: one it gets is stale (its processes ended, the kernel released their
     locks) and is removed; one it cannot get is held, and the refusal names its holder
     (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
-    cannot be from here. The last holder of an identity removes its file on the way out."""
+    cannot be from here. The last holder of an identity removes its file on the way out. A folder
+    that a live ``tlm run`` or study claims (:func:`claimed`) is refused too (:func:`refuse_held`)."""
     out = Path(out)
     with naming(out / _GUARD):  # (a full disk: one line naming the file, :func:`tlm.storage.naming`)
         guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
@@ -68,6 +71,9 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
                 mine = os.open(mine_path, os.O_RDWR | os.O_CREAT, 0o644)
                 fcntl.flock(mine, fcntl.LOCK_SH)
                 os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
+            # (and only then the claim beside the folder looked at: a run or a study that claims it as this sweep
+            # comes in finds this sweep's file, or this sweep finds its claim; one of the two is refused)
+            refuse_held(out.resolve(), out, "sweep.yaml", in_place=True)
         finally:
             fcntl.flock(guard, fcntl.LOCK_UN)
         yield
@@ -278,6 +284,7 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
                 os.close(fd)
                 continue
             holder = _claim_holder(fd, path)
+            what = _kind(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or what  # (the holder's, where said)
             os.close(fd)
             _remove_made(made)
             refused = FolderHeld(held_line(what, str(given), holder), key="--out")
@@ -289,15 +296,129 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
             same = False
         if same:  # (not a file its holder removed between this open and this lock)
             try:
-                os.pwrite(fd, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)
+                os.pwrite(fd, _record(what), 0)
             except OSError as e:  # (a full disk: no run could be written there either)
                 _drop_claim(fd, path, made)
                 raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror}: {path})",
                                          source=str(given)) from None
+            # (then a sweep running in the folder looked for: one that came in as this claim was taken finds it,
+            # or is found here, :func:`sharing`)
+            sweep = _sweep_holder(out) if out.is_dir() else None
+            if sweep is not None:
+                _drop_claim(fd, path, made)
+                refused = FolderHeld(held_line("sweep", str(given), sweep), key="--out")
+                refused.held = ("sweep", str(given), sweep)
+                raise refused
             return fd, path, made
         os.close(fd)
     _remove_made(made)
     raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
+
+
+def _record(what: str) -> bytes:
+    """A claim file's record (:data:`_RECORD` bytes): its holder's host and pid on the first line, as
+    :func:`_holder` (and an older tlm) reads it, and what the holder writes (``run``, ``study``,
+    ``report``) on the second, which a refusal names (:func:`refuse_held`)."""
+    return f"{f'{process_tag()}{chr(10)}{what}'[:_RECORD - 1]:<{_RECORD - 1}}\n".encode()
+
+
+def _kind(record: str) -> str | None:
+    """What the holder of a claim file's ``record`` writes (:func:`_record`'s second line); None for an
+    older tlm's record, which says none."""
+    lines = record.split("\n")
+    word = lines[1].strip() if len(lines) > 2 else ""
+    return word if re.fullmatch(r"[a-z][a-z -]*", word) else None
+
+
+# what writes a destination, by the file that marks its output (for a refusal naming an older tlm's holder,
+# whose record says nothing of it: :func:`refuse_held`); any other marker is a study's
+_WRITERS = {"results.json": "run", "sweep.yaml": "sweep", "report.html": "report"}
+
+
+def refuse_held(out: Path, given: Path, marker: str, key: str = "--out", in_place: bool = False) -> None:
+    """A :class:`FolderHeld` where another live process writes the destination ``out`` (resolved;
+    ``given``: as the caller named it): it holds the claim beside it (:func:`claimed`: a ``tlm run``,
+    a study, a report), or, unless ``in_place`` (a sweep's own folder, which runs of one sweep share:
+    :func:`sharing`), a sweep runs in it. Called by :func:`tlm.storage.check_destination`, so that
+    every writer of a folder (a run, a sweep, a study, a report) is refused at once, before any work,
+    naming the holder (``another run is writing into 'OUT' (process 4242 on this machine, HOST (tlm
+    run ...))``), not found out at its end, when one output replaces the other's. Its own claims (this
+    process's) and stale ones (their process gone: their lock free) are none; the lock alone decides."""
+    with _CLAIMS_LOCK:
+        if os.fsdecode(out) in _CLAIMS:  # (this process's own: a run's write of the folder it claimed)
+            return
+    path = out.parent / f".{out.name}{_CLAIMED}"
+    held = _held_claim(path)
+    what = None
+    if held is not None:
+        what, holder = held
+        what = what or _WRITERS.get(marker, "study")
+    elif not in_place and out.is_dir():
+        holder = _sweep_holder(out)
+        what = "sweep" if holder is not None else None
+    if what is None:
+        return
+    refused = FolderHeld(held_line(what, str(given), holder), key=key)
+    refused.held = (what, str(given), holder)
+    raise refused
+
+
+def _held_claim(path: Path) -> tuple[str | None, str] | None:
+    """The claim file ``path`` (:func:`claimed`) where another process holds it: what it writes (None: an
+    older tlm's record) and who (:func:`_claim_holder`); None where there is none, or it is stale. Looked at
+    with a shared lock, let go at once: a run taking the file that instant is refused as by a holder."""
+    try:  # (not through a link, and never waiting: a FIFO put there would block the open)
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return None  # (free: none holds it; its lock goes with the descriptor)
+        except BlockingIOError:
+            pass
+        except OSError:  # (a file system without locks: no claim could be held there)
+            return None
+        if _being_dropped(fd, path):  # (a dead run's, which drop_stale is removing)
+            return None
+        holder = _claim_holder(fd, path)
+        return _kind(os.pread(fd, _RECORD, 0).decode("ascii", "replace")), holder
+    finally:
+        os.close(fd)
+
+
+def _sweep_holder(out: Path) -> str | None:
+    """The process of a sweep running in the folder ``out`` (:func:`sharing`'s running files, one of them
+    held), as a refusal names it (:func:`_holder`); None where none runs there. Looked at under the folder's
+    guard, as a sweep coming in looks (nothing made: a folder without a guard has no sweep running)."""
+    if not any(out.glob(f"{_RUNNING}*")):
+        return None
+    try:
+        guard = os.open(out / _GUARD, os.O_RDWR | os.O_CLOEXEC | os.O_NOFOLLOW)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        for path in sorted(out.glob(f"{_RUNNING}*")):
+            try:
+                fd = os.open(path, os.O_RDWR | os.O_CLOEXEC | os.O_NOFOLLOW)
+            except OSError:
+                continue
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (got: stale, left for the next sweep to remove)
+            except BlockingIOError:
+                return _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
+            except OSError:
+                continue
+            finally:
+                os.close(fd)
+        return None
+    except OSError:
+        return None
+    finally:
+        os.close(guard)
 
 
 def _gone(record: str) -> bool:

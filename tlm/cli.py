@@ -20,7 +20,7 @@ from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_args import experiment_argument as _experiment_file
 from tlm.cli_cache import add_cache_parser, cache_command
-from tlm.cli_report import kept_whole, report_after, report_claimed, say_err
+from tlm.cli_report import kept_whole, report_after, report_claimed, say_err, study_claimed
 from tlm.cli_run import blame_flag, default_out, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
@@ -115,13 +115,14 @@ def _cmd_extreme(args: argparse.Namespace) -> int:
         print(f"  {'pass' if row['passed'] else 'FAIL'}  {row['category']:10s} {row['case']:24s} {row['measured']}",
               flush=True)
 
-    rows = api.extreme(args.config, out, progress=progress, **_overrides(args))
-    kept = ("the study", "extreme.csv, extreme.jsonl and the cases' run folders")
-    with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
-        failed = [r["case"] for r in rows if not r["passed"]]
-        print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
-              + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
-        report_after(args, out, *kept)
+    with study_claimed(out, "extreme.jsonl"):  # (its folder this process's, to the end of its report)
+        rows = api.extreme(args.config, out, progress=progress, **_overrides(args))
+        kept = ("the study", "extreme.csv, extreme.jsonl and the cases' run folders")
+        with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
+            failed = [r["case"] for r in rows if not r["passed"]]
+            print(f"{len(rows)} cases: {len(rows) - len(failed)} as expected, {len(failed)} not"
+                  + (f" ({', '.join(failed)})" if failed else "") + f"; wrote {out}")
+            report_after(args, out, *kept)
     return 1 if failed else 0
 
 
@@ -280,10 +281,11 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_scaling(args: argparse.Namespace) -> int:
     dirs = [Path(d) for d in args.sweeps]
     out = Path(args.out) if args.out else Path("runs") / f"eq52_{dirs[0].name}"
-    done = api.scaling(dirs, out)
-    with kept_whole(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene"):
-        _print_scaling(done, out)
-        report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
+    with study_claimed(out, "eq52.json"):
+        done = api.scaling(dirs, out)
+        with kept_whole(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene"):
+            _print_scaling(done, out)
+            report_after(args, out, "the fit", "eq52.json, eq52.csv and a figure per scene")
     return 0
 
 
@@ -366,11 +368,12 @@ def _cmd_error_vs_cost(args: argparse.Namespace) -> int:
     def note(message: str) -> None:
         print(f"error-vs-cost: {message}", flush=True)
 
-    rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
-                             **_overrides(args))
-    with kept_whole(args, out, "the study", "rows.csv, rows.jsonl and reference.json"):
-        print(f"wrote {out} ({len(rows)} rows)")
-        report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
+    with study_claimed(out, "rows.jsonl"):
+        rows = api.error_vs_cost(args.config, out, truth_spp=args.truth_spp, progress=progress, note=note,
+                                 **_overrides(args))
+        with kept_whole(args, out, "the study", "rows.csv, rows.jsonl and reference.json"):
+            print(f"wrote {out} ({len(rows)} rows)")
+            report_after(args, out, "the study", "rows.csv, rows.jsonl and reference.json")
     return 0
 
 
@@ -390,11 +393,12 @@ def _cmd_thesis(args: argparse.Namespace) -> int:
         fps = "-" if results["fps"] is None else figures3(results["fps"])
         _say(f"  {scene} {mode}: throughput {c['throughput'] / 1e6:.2f} M cycles, {fps} fps")
 
-    done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress, **_overrides(args))
-    kept = ("the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene and mode")
-    with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
-        _print_thesis(done, out)
-        report_after(args, out, *kept)
+    with study_claimed(out, "thesis_comparison.csv"):
+        done = api.thesis(args.config, out, progress=progress, bar=not args.no_progress, **_overrides(args))
+        kept = ("the study", "thesis_comparison.csv, thesis_summary.json and a run folder per scene and mode")
+        with kept_whole(args, out, *kept):  # (a signal from here on: the study is kept, whole, said so)
+            _print_thesis(done, out)
+            report_after(args, out, *kept)
     return 0
 
 
@@ -402,10 +406,11 @@ def _cmd_granularity(args: argparse.Namespace) -> int:
     out = default_out(args)
 
     progress = GranularityProgress()  # (its lines as wide as the widest packet size: h407)
-    rows = api.granularity(args.config, out, progress=progress, start=progress.start, **_overrides(args))
-    with kept_whole(args, out, "the study", "granularity.csv and granularity.jsonl"):
-        print_granularity(rows, out)  # (and, where the sizes ran different frame counts, a line saying so)
-        report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
+    with study_claimed(out, "granularity.jsonl"):
+        rows = api.granularity(args.config, out, progress=progress, start=progress.start, **_overrides(args))
+        with kept_whole(args, out, "the study", "granularity.csv and granularity.jsonl"):
+            print_granularity(rows, out)  # (and, where the sizes ran different frame counts, a line saying so)
+            report_after(args, out, "the study", "granularity.csv and granularity.jsonl")
     return 0
 
 

@@ -90,6 +90,8 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
     written is said with ``; give --out``."""
     try:  # (a bad --out said as such, before the claim's file beside it)
         storage.check_destination(folder, "report.html")
+    except claims.FolderHeld:  # (another process's report there: refused, or waited for, as its claim is below)
+        pass
     except EnvironmentFailure as e:  # (DIR/report, unwritable: the user may name another, tlm report's own flag)
         if of is None or wait is not None:
             raise
@@ -110,6 +112,18 @@ def report_claimed(folder: Path, wait: Callable[[str], None] | None = None, of: 
                     wait(holder)
                     told = True
                 time.sleep(0.1)
+        yield
+
+
+@contextmanager
+def study_claimed(out: Path, marker: str) -> Iterator[None]:
+    """A study's folder ``out`` (``tlm granularity``, ``error-vs-cost``, ``thesis``, ``extreme``, ``scaling``:
+    ``marker`` its file) held by this process from before its work to the end of its report, as ``tlm run``
+    holds its own (:func:`tlm.claims.claimed`): a run, a study, a sweep or a report of another process into it
+    meanwhile is refused at once, naming this one, not found out at its end. A bad ``out``, or one another
+    process writes now, is refused first, as such (:func:`tlm.storage.check_destination`)."""
+    storage.check_destination(out, marker)
+    with claims.claimed(out, "study"):
         yield
 
 

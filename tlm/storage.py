@@ -31,8 +31,10 @@ turns into such a thing while the block runs (another program's folder, a file) 
 output beside it, in a folder of its own (``OUT.unsaved-<pid>``, else ``-2``, ``-3``, ...), which the
 error names (:func:`_keep_beside`).
 
-A run holds its destination while it works (:func:`tlm.claims.claimed`): a second ``tlm run --out X``
-of another process is refused at once, naming the first. Concurrent writers of one destination that
+A run holds its destination while it works (:func:`tlm.claims.claimed`), as a study command and a report
+do theirs: any writer of another process into it (a run, a study, a sweep, a report) is refused at once,
+naming the first (:func:`check_destination`, through :func:`tlm.claims.refuse_held`), as a run, a study or a
+report into a folder a sweep is running in is. Concurrent writers of one destination that
 remain (two threads of one process calling ``tlm.run`` into one folder, two runs of one sweep
 writing one point) never see each other's temporary folders: each has its own
 (``.<name>.tmp-<host>-<pid>-<n>``, ``n`` counting the writers of the process); the swap of the
@@ -99,7 +101,9 @@ def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", a
     """The resolved destination, or an InputError saying why it may not be written
     (an EnvironmentFailure when its parent folder cannot be written). ``also``: other files that mark an
     earlier output it may replace (a sweep point's ``error.json``, beside ``results.json``). An empty
-    path is named as given (``''``), not as the ``'.'`` it becomes."""
+    path is named as given (``''``), not as the ``'.'`` it becomes. A destination another live process
+    writes (a run's, a study's or a report's claim beside it, a sweep running in it: :func:`tlm.claims.refuse_held`)
+    is refused first, naming that process (:class:`tlm.claims.FolderHeld`): every writer is refused at once."""
     if os.fspath(out) in ("", b""):
         raise InputError("'' is the current folder (an empty path); name a new folder", key=key)
     out = Path(out)
@@ -108,6 +112,9 @@ def check_destination(out: str | os.PathLike, marker: str, key: str = "--out", a
     if resolved == cwd or resolved in cwd.parents:
         raise InputError(f"{quoted(out)} is the current folder or one of its parents; name a new folder",
                          key=key)
+    from tlm import claims  # (which imports this module)
+
+    claims.refuse_held(resolved, out, marker, key, in_place=marker in IN_PLACE)
     if resolved.exists():
         _check_existing(out, resolved, marker, key, also)
     # (an existing folder written in place, a sweep's: written inside, never swapped, so it and not its
@@ -302,7 +309,7 @@ def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
 @contextmanager
 def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
                   clean_once: bool = False, into: Callable[[Path], bool] | None = None,
-                  replaces: Collection[str] = ()) -> Iterator[Path]:
+                  replaces: Collection[str] = (), finished: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
 
     ``marker`` is the file that marks an earlier output of this kind (it may be
@@ -318,11 +325,15 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
     point), the block's ``marker`` file is renamed into it instead, the rest of the block's folder dropped; such
     a folder found as this starts is not refused. ``replaces``: other files than ``marker`` that mark an earlier
     output this may replace (a point's ``results.json`` over its failed try's ``error.json``, a concurrent sweep's).
+    ``finished``: the block writes what was computed before it (a run's end, :func:`tlm.experiments.run.write_run`):
+    a destination refused as this starts (another program's folder put there meanwhile) is written all the same,
+    and the output kept beside it (``OUT.unsaved-<pid>``) as one refused at the swap, the refusal saying so.
     """
     try:
         out = check_destination(out, marker, also=replaces)
     except (InputError, EnvironmentFailure) as e:  # (a cache's folder: said once, tlm.caches)
-        if into is None or not isinstance(e, InputError) or not _kept(Path(out), into):
+        kept_there = into is not None and _kept(Path(out), into)  # (a concurrent sweep's point, kept)
+        if not isinstance(e, InputError) or not (kept_there or (finished and _beside_possible(Path(out)))):
             _failed_write(out, e)
             raise
         out = Path(out).resolve()  # (asked again under the lock at the swap)
@@ -333,6 +344,13 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
         yield from _atomic_folder(out, marker, owned, tmp, writer, clean_once, into, replaces)
     finally:
         _release(tmp.name)
+
+
+def _beside_possible(out: Path) -> bool:
+    """Whether a refused ``out`` can have an output kept beside it (:func:`atomic_folder`'s ``finished``):
+    its parent is a folder, and it is neither the current folder nor one above it."""
+    resolved, cwd = out.resolve(), Path.cwd().resolve()
+    return resolved.parent.is_dir() and resolved != cwd and resolved not in cwd.parents
 
 
 def _kept(out: Path, into: Callable[[Path], bool]) -> bool:
@@ -363,14 +381,18 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                 os.replace(tmp / marker, out / marker)
                 shutil.rmtree(tmp, ignore_errors=True)
                 return
-            if out.exists():
-                try:  # another writer may have put something else there meanwhile
+            try:  # another writer may have put something else there meanwhile, or claimed it (a live run's)
+                if out.exists():
                     check_destination(out, marker, also=replaces)
-                except InputError as refused:  # the finished output is kept beside it, not thrown away
-                    kept = _keep_beside(tmp, out)
-                    if kept is None:
-                        raise refused from None
-                    raise InputError(f"{refused}; this run's output is kept in {quoted(kept)}") from None
+                else:
+                    from tlm import claims
+
+                    claims.refuse_held(out, out, marker, in_place=marker in IN_PLACE)
+            except InputError as refused:  # the finished output is kept beside it, not thrown away
+                kept = _keep_beside(tmp, out)
+                if kept is None:
+                    raise refused from None
+                raise InputError(f"{refused}; this run's output is kept in {quoted(kept)}") from None
             try:
                 moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
             except OSError as e:  # a file of the user's that cannot be moved (a read-only folder of theirs)

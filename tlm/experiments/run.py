@@ -539,7 +539,9 @@ def write_run(res: RenderResult, out: Path, config_path: str | None = None,
     if unknown:
         raise ValueError(f"outputs {sorted(unknown)} are not among {OUTPUTS}")
     t0 = time.perf_counter()
-    with atomic_folder(out, "results.json", owned=RUN_FILES) as tmp:
+    # (finished: what is written is computed already, so a destination refused now, another program's folder put
+    # there as the run worked, gets it kept beside, OUT.unsaved-<pid>, said: the render is not lost)
+    with atomic_folder(out, "results.json", owned=RUN_FILES, finished=True) as tmp:
         (tmp / "images").mkdir()
         composite = res.composite
         h, w = res.scene.camera.height, res.scene.camera.width
