@@ -36,8 +36,10 @@ from pathlib import Path
 
 from tlm.errors import EnvironmentFailure, InputError, path_shown, quoted
 from tlm.progress import interrupts_deferred
-from tlm.storage import _GUARD, _RUNNING, _host, naming, pid_alive, process_tag
 from tlm.storage_errors import takes_no_files
+from tlm.storage_json import naming
+from tlm.storage_live import _GUARD, _RUNNING, pid_alive, process_tag
+from tlm.storage_lock import _host
 
 _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``, padded)
 

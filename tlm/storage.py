@@ -68,7 +68,9 @@ from tlm.storage_json import appending, escaped, finite, json_text, naming, read
 from tlm.storage_live import (  # noqa: F401  (re-exported)
     _CLEANED,
     _FILES,
+    _GUARD,
     _LIVE,
+    _RUNNING,
     _WRITERS,
     _forget_live,
     _hold,
@@ -181,8 +183,6 @@ def _mount_points() -> frozenset[bytes]:
                      for fields in map(bytes.split, lines) if len(fields) > 4)
 
 
-_GUARD = ".tlm-lock"  # (the lock files of tlm.claims.sharing, which a sweep's folder may hold)
-_RUNNING = ".tlm-running-"
 
 
 def _claiming(name: str, marker: str) -> bool:

@@ -22,6 +22,11 @@ from pathlib import Path
 
 from tlm.storage_lock import _host
 
+# The files of tlm.claims.sharing in a sweep's folder (its lock, and one per running sweep): here, below both
+# tlm.storage (which skips them) and tlm.claims (which writes them), so that neither imports the other
+_GUARD = ".tlm-lock"
+_RUNNING = ".tlm-running-"
+
 
 def pid_alive(pid: int) -> bool:
     """Whether process ``pid`` runs (a zombie, ended but not yet reaped, does not)."""
