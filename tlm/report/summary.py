@@ -389,6 +389,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         KNN_REFERENCE,
         KNN_WHY,
         as_drawn,
+        black_words,
         floor_line,
         log_floor,
         reference_converged,
@@ -405,11 +406,15 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
     err = "truth_rel_mse" if any(r.get("truth_rel_mse") is not None for r in rows) else "rel_mse"
     measured = [r for r in rows if r.get(err) is not None]
     rows = [r for r in measured if _number(r.get("frame_seconds")) and r["frame_seconds"] > 0]  # (a log axis's)
-    if not rows and studies:  # (not "no error-against-cost study": a study written before the frame was simulated)
-        return ("<b>What quality costs:</b> no row of the error-against-cost "
-                + ("study" if len(studies) == 1 else "studies") + " among the inputs has both a relative MSE and a "
+    black, said = black_words(studies, err)  # (a study whose reference, or truth, is black: no relative MSE, h419)
+    if not rows and studies:  # (not "no error-against-cost study": a black image, or the frame not simulated)
+        others = len(studies) - len(black)
+        return ("<b>What quality costs:</b> " + said + ((" No row of the other" if black else "no row of the")
+                + " error-against-cost " + ("study" if others == 1 else "studies") + " among the inputs has both a "
+                "relative MSE and a "
                 "simulated frame time above 0 (a study written before 'tlm error-vs-cost' simulated the frame: run it "
                 "again): no error against frame time here; its figures draw the RMSE against host wall time."
+                if others else " No error against frame time here.")
                 + points_error(inputs) + error_factor(inputs)), None
     if not rows:
         return _other_errors(inputs), None
@@ -510,7 +515,7 @@ def _tradeoff(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
             + (f"; the k-NN reference, not ranked as its frame time leaves out its search (not modelled): "
                f"{', '.join(refs)}" if refs else "")
             + (f" ({_count(left, 'row')} with a relative MSE below 0 or not a finite number left out)" if left
-               else "") + "." + esc(seeds) + noise
+               else "") + "." + esc(seeds) + noise + (f" {said}" if said else "")
             + points_error(inputs) + error_factor(inputs))
     return text, f
 

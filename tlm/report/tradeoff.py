@@ -271,6 +271,20 @@ def black_images(study: Study) -> tuple[bool, bool]:
     return ref_black, truth_black
 
 
+def black_words(studies: list[Study], err: str) -> tuple[list[Study], str]:
+    """The error-vs-cost studies of no ``err`` in any row whose image it is measured against, the reference
+    (``rel_mse``) or the ground truth (``truth_rel_mse``), is black (:func:`black_images`), and an HTML sentence
+    saying so (the summary's "What quality costs": not "written before the frame was simulated", h419)."""
+    black = [st for st in studies if all(r.get(err) is None for r in st.rows) and black_images(st)[err != "rel_mse"]]
+    names = [n for st, n in zip(studies, study_names(studies), strict=True) if any(st is b for b in black)]
+    whose = "" if len(studies) == 1 else f" of {'each of ' * (len(names) > 1)}{listing(names)}"
+    what = "ground truth" + whose if err != "rel_mse" else "photon-map reference" + whose + (
+        " (and its ground truth)" if black and all(black_images(st)[1] for st in black) else "")
+    return black, (f"The {esc(what)} is black (every pixel 0; 'tlm run' of the base says why, e.g. a camera "
+                   "that faces nothing): no relative error can be measured against it, so its points have no "
+                   "relative MSE." if black else "")
+
+
 BLACK_REFERENCE = ("The photon-map reference is black (every pixel 0; 'tlm run' of the base says why, e.g. a camera "
                    "that faces nothing): no relative error can be measured (every row's rel_mse is empty), and each "
                    "RMSE against it is the point's own radiance, not its filter's error, so no point is ranked by it "
@@ -662,7 +676,7 @@ def tradeoff_section(inputs: Inputs, out: Path) -> Section:
             continue
         for words, black in zip((BLACK_REFERENCE, BLACK_TRUTH), black_images(st), strict=True):
             if black:  # (said plainly, first, above its figures: h417)
-                sec.lead += f"<p><b>{esc(label)}</b>: {esc(words)}</p>"
+                sec.lead += ("<br>" if sec.lead else "") + f"<b>{esc(label)}</b>: {esc(words)}"  # (in <p>)
         for key in ("frame", "wall"):
             fig = evc_figure(st, out, f"tradeoff_{i:02d}_rmse_vs_{key}_time.png", key, sec.notes, label)
             if fig is not None:
