@@ -29,12 +29,15 @@ from tlm.config import MODES, config_from_dict, describe, to_dict
 from tlm.errors import InputError, quoted
 from tlm.experiments.provenance import identities_remembered, scene_identity, scene_label
 from tlm.experiments.scaling import no_effect
-from tlm.experiments.study import read_study
+from tlm.experiments.study import MANIFEST, read_study
 from tlm.render.planner import inert_settings, inert_timing_settings, same_frame_settings
 from tlm.scenes.loader import resolve_scene_path, scenes_dir
 
 # The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
 THESIS_SCENES = {"ring": "thesis/ring", "room": "thesis/room", "cornell": "cornell"}
+# What a thesis study writes in its folder beside a scene's DIR/<key> (tlm.experiments.study.run_study, its report)
+STUDY_FILES = ("report", "thesis_comparison.csv", "thesis_comparison.jsonl", "thesis_summary.json",
+               "config.resolved.yaml", "provenance.json", MANIFEST)
 # The thesis's stated sizes (Tables I-III headings; the thesis scenes' defaults):
 # width, height, photons, triangles.
 THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
@@ -81,7 +84,8 @@ def scene_keys(scenes: list[str], folder: Path, source: str) -> dict[str, tuple[
     its rows (the CSV's ``scene``), its folder ``DIR/<key>`` and the summary name it by: its table,
     else its file's stem (``bunny``), else, where another scene of the study has that, the stem and a
     number (``room-2``: a user's ``room.yaml`` beside ``thesis/room``; ``x-2``: ``b/x.yaml`` after
-    ``a/x.yaml``). Two scenes of one table (a copy beside the thesis's own file) are refused in one
+    ``a/x.yaml``; ``report-2``: a ``report.yaml``, whose ``DIR/report`` would be the study's report,
+    :data:`STUDY_FILES`). Two scenes of one table (a copy beside the thesis's own file) are refused in one
     line (:class:`~tlm.errors.InputError`, naming ``source``'s ``scenes``)."""
     with identities_remembered():
         tables = {s: table_of(resolve_scene_path(s, folder, source, "scenes").resolve()) for s in scenes}
@@ -91,7 +95,8 @@ def scene_keys(scenes: list[str], folder: Path, source: str) -> dict[str, tuple[
             raise InputError(f"{quoted(first[table])} and {quoted(s)} are both the thesis's {table} scene (by the "
                              "bytes of their files): list one of them", source=source, key="scenes")
         first.setdefault(table, s)
-    taken = {t.casefold() for t in first if t is not None}  # (DIR/<key>: one folder on a case-blind disk too)
+    # (DIR/<key>: one folder on a case-blind disk too, and none of the study's own files)
+    taken = {t.casefold() for t in [*first, *STUDY_FILES] if t is not None}
     out = {}
     for s, table in tables.items():
         key, n = table or Path(s).stem, 1

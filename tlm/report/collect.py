@@ -279,19 +279,35 @@ class Inputs:
         return scene_label(None, source, name)
 
     def study_scene(self, study: Study, scene: Any) -> str:
-        """A study table's scene (its rows name it by the name in its file, or eq. 5.2's label)
-        as the report names it: by the scene file of the study's cells, or of its fits."""
+        """A study table's scene (a thesis study's rows name it as its folder, ``ring-2``; another's by
+        the name in its file, or eq. 5.2's label) as the report names it: by the scene file of the
+        study's cells (:meth:`study_cells`), or of its fits."""
         scene = str(scene)
         if study.kind == "thesis":
-            root = study.path.resolve()
-            for r in self.runs:
-                if r.kind == "thesis" and r.scene == scene and r.path.resolve().parent.parent == root:
-                    return r.scene_label
+            for r in self.study_cells(study, scene):
+                return r.scene_label
         if study.kind == "scaling":
             for f in study.meta.get("fits") or []:
                 if str(f.get("scene")) == scene and f.get("scene_file"):
                     return self.scene_of_file(f["scene_file"], scene)
         return scene
+
+    def study_cells(self, study: Study, scene: Any = None) -> list[Run]:
+        """A thesis study's cells (its run folders ``DIR/<scene>/<mode>``); with ``scene``, those of
+        the scene its rows name so: by their folder, as every tlm has named it after the rows, not
+        by the name in the scene file, which two scenes of a study may share (the built-in ``ring``,
+        ``DIR/ring-2``, beside ``thesis/ring``, ``DIR/ring``; a user's file whose scene is named
+        ``ring``). Where no folder is so named, a cell in a folder no row names, by that name."""
+        root = study.path.resolve()
+        cells = [r for r in self.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
+        if scene is None:
+            return cells
+        scene = str(scene)
+        found = [r for r in cells if r.path.parent.name == scene]
+        if found:
+            return found
+        named = {str(row.get("scene")) for row in study.rows}
+        return [r for r in cells if r.path.parent.name not in named and r.scene == scene]
 
     def shared_names(self) -> list[tuple[str, list[str]]]:
         """The scenes' names in their files that two or more scenes of the inputs share, each

@@ -115,11 +115,6 @@ class Source:
         return theirs, ours
 
 
-def _study_cells(inputs: Inputs, study: Study) -> list[Run]:
-    root = study.path.resolve()
-    return [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
-
-
 def thesis_table(run: Run) -> str | None:
     """The thesis table (``ring``, ``room``, ``cornell``) whose scene ``run``'s scene is, judged by
     its file, not its name (a user's ``room.yaml``, named ``room`` by its stem, and the built-in
@@ -210,16 +205,20 @@ def _collect_sources(inputs: Inputs, notes: list[str]) -> dict[str, list[Source]
     by_scene: dict[str, list[Source]] = {s: [] for s in THESIS}
     in_study: set[Path] = set()
     for study in inputs.of_kind("thesis"):
-        cells = _study_cells(inputs, study)
-        in_study.update(r.path.resolve() for r in cells)
+        in_study.update(r.path.resolve() for r in inputs.study_cells(study))
         scenes: dict[str, list[dict]] = {}
         for row in study.rows:
             scenes.setdefault(str(row["scene"]), []).append(row)
         for scene, rows in scenes.items():
-            runs = [r for r in cells if r.scene == scene]
+            # (its cells by their folder, DIR/<scene>/<mode>, not by the name in their file: the built-in ring,
+            # its rows ring-2, is named ring as thesis/ring is)
+            runs = inputs.study_cells(study, scene)
             if not _study_table(study, scene, runs):
+                # (named in its file as a table's scene but not its file: 'not the thesis's ...'; an older study's
+                # copy of thesis/ring, rows 'myring' of no table, is not said to be another file)
+                named = runs[0].scene if runs and thesis_table(runs[0]) is None else scene
                 notes.append(f"{study.path.name}: scene {quoted(inputs.study_scene(study, scene))} has no table in "
-                             f"the thesis{not_thesis_words(scene, '')}, left out of the tables")
+                             f"the thesis{not_thesis_words(named, '')}, left out of the tables")
                 continue
             src = Source(f"thesis study {study.path.name}", scene, study=study, runs=runs,
                          named=_study_scene(study, scene))
