@@ -283,8 +283,10 @@ def check_worker_versions(sweeps: dict | None, here: dict, where: str) -> None:
     differ = [f"{_LABELS.get(k, k)} {_result_version(here, k)} (the sweep's {_result_version(sweeps, k)})"
               for k in names if _result_version(here, k) != _result_version(sweeps, k)]
     if differ:
+        from tlm.config_words import listing
+
         raise OtherVersionsOnWorker(
-            f"{where} runs {' and '.join(differ)}: its points could give other results than the sweep's; install "
+            f"{where} runs {listing(differ)}: its points could give other results than the sweep's; install "
             "the sweep's versions on the workers and restart them")
 
 

@@ -122,7 +122,7 @@ from tlm.experiments.reference_cache import (
     verdict,
 )
 from tlm.experiments.run import programs_for
-from tlm.experiments.study import override_key, read_study, refuse_set, run_study, with_set
+from tlm.experiments.study import override_key, read_study, refuse_own_keys, refuse_set, run_study, with_set
 from tlm.experiments.sweep_factors import given_once
 from tlm.experiments.sweep_factors import keys_given as _keys_given
 from tlm.experiments.sweep_rows import csv_text
@@ -247,6 +247,7 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None,
     label = src  # (what a point's config is named by in its errors)
     if overrides:
         base = with_set(base, overrides, [folder])
+        refuse_own_keys(overrides, ("points",), src)
         varied: dict[str, str] = {}  # each key a point sets, by the first grid that does (a section's mapping:
         for i, grid in enumerate(_grids(raw.get("points"))):  # the keys it names, as it merges into the section)
             for k, v in grid.items():

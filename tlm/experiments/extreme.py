@@ -47,7 +47,7 @@ import numpy as np
 from tlm.config import SECTIONS, config_from_dict, deep_merge, file_folder
 from tlm.config_words import with_overrides
 from tlm.errors import InputError, did_you_mean, quoted
-from tlm.experiments.study import read_study, refuse_set, run_study, with_set
+from tlm.experiments.study import read_study, refuse_own_keys, refuse_set, run_study, with_set
 from tlm.storage import warn
 
 COLUMNS = ("case", "category", "expect", "checks", "measured", "passed", "seconds")
@@ -157,6 +157,7 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     if overrides:
         given = base
         base = with_set(base, overrides, [file_folder(path)])
+        refuse_own_keys(overrides, ("cases",), src)
         label = with_overrides(src)
         try:  # (a bad --set said as tlm run says it; a base that holds only under its cases, as ever by them)
             config_from_dict(base, label)

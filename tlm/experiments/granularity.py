@@ -48,7 +48,7 @@ from tlm.errors import InputError
 from tlm.experiments.frames import cached_render
 from tlm.experiments.run import programs_for
 from tlm.experiments.run_warnings import empty_sets, reference_warnings
-from tlm.experiments.study import read_study_base, refuse_set, run_study, with_set
+from tlm.experiments.study import read_study_base, refuse_own_keys, refuse_set, run_study, with_set
 from tlm.storage import check_destination, warn
 
 METRICS = ("vertex", "traversal", "intersection", "fragment", "throughput", "latency")
@@ -67,8 +67,9 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     """``(config, packet sizes in increasing order, the folder its relative paths start at)``
     of the study file ``path``; InputError names the file and the key (a size listed twice: as ``tlm sweep``
     refuses a value a grid lists twice, h416). ``overrides``: ``tlm granularity --set`` strings, applied to
-    the base as ``tlm run --set`` applies them; one of ``arch.packet_size``, which ``packet_sizes`` sets, or of
-    ``packet_sizes`` (the study file's own), is refused, as is a bad key or value."""
+    the base as ``tlm run --set`` applies them; one of ``arch.packet_size``, which ``packet_sizes`` sets, or of the
+    study file's own keys (``packet_sizes``, ``base``, ``description``: :func:`refuse_own_keys`), is
+    refused, as is a bad key or value."""
     path = Path(path)
     src = str(path)
     raw, base, base_src, folder = read_study_base(path, KEYS)
@@ -83,11 +84,10 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     if overrides:
         config_from_dict(base, base_src)  # (the base's own errors first, naming its file)
         base = with_set(base, overrides, list(dict.fromkeys([folder, file_folder(path)])))
+        # (the study file's own keys, not the run config's: h409 found "unknown key" here)
+        refuse_own_keys(overrides, KEYS, src)
         refuse_set(overrides, {"arch.packet_size": "set by the study's packet_sizes, one simulation each: list "
-                                                   "them there, not by --set",
-                               # (the study's own key, not the run config's: h409 found "unknown key" here)
-                               **{k: "the study file's own key, and --set sets its base (the run config): "
-                                     f"change {k} in the study file" for k in KEYS}}, src)
+                                                   "them there, not by --set"}, src)
         base_src = with_overrides(base_src)
     cfg = config_from_dict(base, base_src)
     return cfg, sorted(sizes), folder

@@ -189,6 +189,24 @@ def refuse_set(overrides: Iterable[str], taken: dict[str, str], source: str | No
             raise InputError(f"{named} {why}", source=source, key=f"--set {item.strip()}")
 
 
+def refuse_own_keys(overrides: Iterable[str], keys: Iterable[str], source: str | None = None,
+                    file: str = "study file") -> None:
+    """:func:`refuse_set` of the file's own keys (``base``, ``description`` and ``keys``, the study's:
+    ``packet_sizes``; ``file``: what the file is, ``sweep file``) given by ``--set``, which sets the
+    base's keys, the run config's: each study says it the same way (h416, h423), where the run config's
+    check said a plain "unknown key"; a key under base (``base.render.spp=2``) is told the --set
+    that sets it (``render.spp=2``)."""
+    overrides = list(overrides)
+    for item in overrides:
+        key, _, value = str(item).partition("=")
+        if key.strip().startswith("base.") and key.strip() != "base.":
+            raise InputError(f"{key.strip()} is in base, the {file}'s own key, and --set sets what base holds (the "
+                             f"run config): --set {key.strip()[5:]}={value.strip()}", source=source,
+                             key=f"--set {item.strip()}")
+    refuse_set(overrides, {k: f"the {file}'s own key, and --set sets its base (the run config): change {k} in "
+                              f"the {file}" for k in dict.fromkeys(("base", *keys, "description"))}, source)
+
+
 def run_study(source: str, out: Path, name: str, points: Iterable[Any],
               run_point: Callable[[Any, Path], dict | list[dict] | None], *, columns: Iterable[str] = (),
               marker: str | None = None, config=None, finish: Callable[[list[dict], Path], list[dict]] | None = None,

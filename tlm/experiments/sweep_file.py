@@ -42,7 +42,7 @@ from tlm.config import (
 )
 from tlm.config_words import Dumper, dump_yaml, sets_nothing, value_text, with_overrides
 from tlm.errors import InputError
-from tlm.experiments.study import override_key, scene_keys, with_set
+from tlm.experiments.study import override_key, refuse_own_keys, scene_keys, with_set
 from tlm.experiments.sweep_checks import one_run_one_row as _one_run_one_row
 from tlm.experiments.sweep_checks import resolved_value as _resolved  # noqa: F401  (kept importable from here)
 from tlm.experiments.sweep_checks import scenes_found as _scenes_found
@@ -461,6 +461,7 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
     if overrides:
         fixed = with_set(fixed, overrides, scene_folders)
+        refuse_own_keys(overrides, SWEEP_KEYS, src, "sweep file")
         # (a factor whose values are a section's mappings sets the keys they name: a --set of another is kept)
         factor_sets = {k: (where, _keys_given(k, values)) for where, section in (("grid", grid), ("zip", zipped))
                        for k, values in section.items()}

@@ -425,6 +425,7 @@ def _judged(meta: dict, asked: list[ReferenceSettings]) -> str:
     """Where a reference's points ask for different stopping rules: which of their own tolerances it meets, with
     how many points each (each point's error records its own, ``reference_converged``); none where they ask
     alike."""
+    from tlm.config_words import listing
     from tlm.experiments.reference_cache import meets_tolerance
 
     if all(s == asked[0] for s in asked):
@@ -433,7 +434,7 @@ def _judged(meta: dict, asked: list[ReferenceSettings]) -> str:
     for s in asked:
         told = counts[meets_tolerance(meta, s)]
         told[s.tolerance] = told.get(s.tolerance, 0) + 1
-    said = [f"{verb} " + " and ".join(f"{t:g} ({n} point{'s' if n != 1 else ''})" for t, n in sorted(told.items()))
+    said = [f"{verb} " + listing(f"{t:g} ({n} point{'s' if n != 1 else ''})" for t, n in sorted(told.items()))
             for verb, told in (("meets", counts[True]), ("does NOT meet", counts[False])) if told]
     return f"; against its points' own tolerances it {', and '.join(said)}"
 

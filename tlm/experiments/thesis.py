@@ -77,7 +77,7 @@ from tlm.errors import InputError, quoted
 from tlm.experiments.provenance import identities_remembered, scene_label
 from tlm.experiments.run import RenderResult, programs_for, render, simulate_render, write_run
 from tlm.experiments.run_warnings import unread_overrides
-from tlm.experiments.study import read_study, refuse_set, run_study, with_set
+from tlm.experiments.study import read_study, refuse_own_keys, refuse_set, run_study, with_set
 from tlm.experiments.thesis_setting import (  # noqa: F401  (those this module does not use: re-exported)
     NOT_SETTING,
     THESIS_CLOCK_HZ,
@@ -137,6 +137,7 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     label = src  # (what a cell's config is named by in its errors)
     if overrides:
         base = with_set(base, overrides, [folder])
+        refuse_own_keys(overrides, ("scenes", "modes"), src)
         refuse_set(overrides, {k: f"set by the study's {k}s, one cell each: list them under {k}s in the study "
                                   "file, not by --set" for k in ("scene", "mode")}, src)
         label = with_overrides(src)

@@ -16,7 +16,7 @@ from typing import Any
 import yaml
 
 from tlm.config import MODES
-from tlm.config_words import MAX_EXPANDED, ExpansionError, refuse_expansion, safe_load
+from tlm.config_words import MAX_EXPANDED, ExpansionError, listing, refuse_expansion, safe_load
 from tlm.errors import InputError
 from tlm.experiments.thesis import OURS_CYCLES
 
@@ -203,7 +203,7 @@ def read_results(path: Path) -> dict:
     if results["timing"] is not None:  # (tlm writes cycles, fps and timing together, or all three empty)
         empty = [k for k in ("cycles", "fps") if k in results and results[k] is None]
         if empty:
-            raise InputError(f"{' and '.join(repr(k) for k in empty)} {'is' if len(empty) == 1 else 'are'} empty "
+            raise InputError(f"{listing(repr(k) for k in empty)} {'is' if len(empty) == 1 else 'are'} empty "
                              "but 'timing' is not: an edited or damaged copy (tlm writes them together)",
                              source=str(path))
     for key, optional in (("timing", TIMING_OPTIONAL), ("image", IMAGE_OPTIONAL), ("error", ERROR_OPTIONAL)):

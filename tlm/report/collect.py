@@ -513,7 +513,8 @@ def read(dirs: list[Path], skip: Path | None = None, reads: Reads | None = None)
         said: list[str] = []
         found = [(d, k)] if k is not None else find(d, skip, said)
         if not found:  # (and what the search passed over: a link not followed, a folder it could not list)
-            shown = said[:3] + ([f"and {len(said) - 3} more passed over"] if len(said) > 3 else [])  # (one line)
+            # (one line: three and how many more, never "and 1 more" (listing's rule); "; " between: a line has commas)
+            shown = said if len(said) <= 4 else [*said[:3], f"and {len(said) - 3} more passed over"]
             raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, scaling or "
                              "extreme folder) at any depth" + "".join(f"; {n}" for n in shown), source=str(d))
         inputs.notes.extend(said)
