@@ -165,12 +165,12 @@ def test_a_sweep_is_refused_a_folder_a_run_or_study_claims_as_it_comes_in(tmp_pa
                                     "eq52.json", "report.html", "sweep.yaml", "results.json"])
 def test_every_writers_check_refuses_a_live_claim_and_ignores_a_stale_one(tmp_path, marker):
     """storage.check_destination, which every writer calls before its work: a live claim of another process
-    refused, naming it (an older tlm's record, which says not what it writes: named as the writer of that
-    marker would be); one whose process is gone (its lock free) ignored, as before."""
+    refused, naming it (an older tlm's record, which says not what it writes: a run's, or in a report's folder
+    a report's, the only claims an older tlm took, h422); one whose process is gone (its lock free) ignored."""
     out = tmp_path / "o"
     with held(beside(out), kind=None) as pid, pytest.raises(claims.FolderHeld) as e:
         storage.check_destination(out, marker)
-    what = {"results.json": "run", "sweep.yaml": "sweep", "report.html": "report"}.get(marker, "study")
+    what = "report" if marker == "report.html" else "run"  # (an older tlm's claims: a run's or a report's, h422)
     line = f"--out: another {what} is writing into {str(out)!r} (process {pid} on this machine, "
     assert str(e.value).startswith(line), e.value
     beside(out).write_text(f"{storage._host()}-{pid}\n")  # (left by it, now gone)

@@ -12,7 +12,8 @@ first needs it, whole (:func:`tlm.whole_imports.imports_whole`), as in :mod:`tlm
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -107,13 +108,47 @@ def _experiment(path: object, command: str) -> Path:
     return _experiment_file(expanded(path, "path"), command)
 
 
-def _study(path: object, command: str):
+def _study(path: object, command: str, out: object = None):
     """``(the study file ``tlm COMMAND`` runs, a block whose one read of it checks its kind)``: a file that is another
-    command's refused, naming it (:func:`~tlm.experiments.study.checking`, :func:`~tlm.api_common.kind_check`)."""
+    command's refused, naming it (:func:`~tlm.experiments.study.checking`, :func:`~tlm.api_common.kind_check`); given
+    ``out``, the study's folder (checked after the file's path: :func:`out_folder`), the block holds it too
+    (:func:`_held`)."""
+    found = _experiment(path, command)
+    return found, _running(found, command, None if out is None else out_folder(out))
+
+
+@contextmanager
+def _running(found: Path, command: str, out: Path | None) -> Iterator[None]:
+    """:func:`_study`'s block: the folder ``out`` held (:func:`_held`), then the study file ``found`` checked."""
     from tlm.experiments.study import checking
 
-    found = _experiment(path, command)
-    return found, checking(found, _kind_check(command))
+    with ExitStack() as block:
+        if out is not None:
+            block.enter_context(_held(out, _MARKERS[command]))
+        block.enter_context(checking(found, _kind_check(command)))
+        yield
+
+
+# the file that marks each study's output (its folder's :func:`tlm.storage.check_destination`)
+_MARKERS = {"thesis": "thesis_comparison.csv", "granularity": "granularity.jsonl", "error-vs-cost": "rows.jsonl",
+            "extreme": "extreme.jsonl", "scaling": "eq52.json"}
+
+
+@contextmanager
+def _held(out: Path, marker: str) -> Iterator[None]:
+    """The study folder ``out`` (``marker``: its file) held by this process while the study runs, as its command
+    holds it (:func:`tlm.claims.claimed`, a study's claim): another process's run, study, sweep or report into it
+    meanwhile is refused at once, naming this one, and this study is refused one that another process writes now,
+    before any work (two studies into one folder ended last-wins: h422). A bad ``out`` is refused first, as such
+    (:func:`tlm.storage.check_destination`). From the command line, which holds it already to the end of its
+    report (:func:`tlm.cli_report.study_claimed`), the claim is that one, shared (:func:`~tlm.claims.claimed`
+    counts its holders in a process), never a second."""
+    from tlm.claims import claimed
+    from tlm.storage import check_destination
+
+    check_destination(out, marker)
+    with claimed(out, "study"):
+        yield
 
 
 # ---------------------------------------------------------------- many experiments
@@ -215,7 +250,11 @@ def scaling(sweeps: Iterable[str | Path], out: str | Path) -> dict:
     from tlm.report.scaling import plot_scaling
 
     dirs = folder_list(sweeps, "sweeps", "the sweep folders to fit (tlm sweep's output folders)")
-    return analyse(dirs, out_folder(out), plot=plot_scaling)
+    out = out_folder(out)
+    if not dirs:  # (no folder: the fit's own error, before the folder's claim)
+        return analyse(dirs, out, plot=plot_scaling)
+    with _held(out, _MARKERS["scaling"]):
+        return analyse(dirs, out, plot=plot_scaling)
 
 
 @argument_names
@@ -235,7 +274,7 @@ def thesis(path: str | Path, out: str | Path, *, progress: Callable[[str, str, d
     bar = _checked(bar, "bar", bool)
     progress = callback(progress, "progress", "a function of (scene, mode, results)")
     warn = callback(warn, "warn")
-    path, checked = _study(path, "thesis")
+    path, checked = _study(path, "thesis", out)
     with checked:
         return run_thesis(path, out_folder(out), progress, bar=bar, overrides=_overrides(overrides),
                           warn=warn if warn is not None else (lambda line: None))
@@ -388,7 +427,7 @@ def granularity(path: str | Path, out: str | Path, *, progress: Callable | None 
     progress = callback(progress, "progress", "a function of (packet size, timing, seconds)")
     start = callback(start, "start", "a function of (packet sizes)")
     warned = _Warned(callback(warn, "warn"))
-    path, checked = _study(path, "granularity")
+    path, checked = _study(path, "granularity", out)
     kept: list[dict] = []  # (the study's granularity_summary.json, as it was written)
     with checked:
         rows = run_granularity(path, out_folder(out), progress, overrides=_overrides(overrides), start=start,
@@ -479,7 +518,7 @@ def error_vs_cost(path: str | Path, out: str | Path, *, truth_spp: int = 4096,
     note = callback(note, "note")
     # (the command line's: printed on stderr by the study, once each, as tlm.storage.warn prints them)
     hear = callback(warn, "warn") or (_stderr_warning if kept else None)
-    path, checked = _study(path, "error-vs-cost")
+    path, checked = _study(path, "error-vs-cost", out)
     with checked:
         rows = run_error_vs_cost(path, out_folder(out), progress=progress, truth=Truth(spp=truth_spp),
                                  note=said(notes, note), overrides=_overrides(overrides),
@@ -501,7 +540,7 @@ def extreme(path: str | Path, out: str | Path, *, progress: Callable[[dict], Non
 
     progress = callback(progress, "progress", "a function of one row")
     warned = _Warned(callback(warn, "warn"))
-    path, checked = _study(path, "extreme")
+    path, checked = _study(path, "extreme", out)
     with checked:
         rows = run_extreme(path, out_folder(out), progress, overrides=_overrides(overrides), **warned.arguments())
     return StudyRows(rows, warnings=warned.lines)

@@ -45,7 +45,7 @@ _RECORD = 64  # bytes of a running file's record of its holder (``<host>-<pid>``
 
 
 @contextmanager
-def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
+def sharing(out: Path, identity: str, what: str = "run", made: str | None = None) -> Iterator[None]:
     """Hold the existing folder ``out`` for the processes of one ``identity`` (a sweep's
     points) while the block runs: an :class:`InputError` if a process of another identity
     holds it. Processes of one identity share it (two runs of one sweep cooperate).
@@ -57,10 +57,15 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
     locks) and is removed; one it cannot get is held, and the refusal names its holder
     (:func:`_holder`). The lock alone decides: a pid is never checked, another machine's
     cannot be from here. The last holder of an identity removes its file on the way out. A folder
-    that a live ``tlm run`` or study claims (:func:`claimed`) is refused too (:func:`refuse_held`)."""
+    that a live ``tlm run`` or study claims (:func:`claimed`) is refused too (:func:`refuse_held`), leaving
+    nothing it made: its guard where this made it, and, ``made`` (the marker file this process made ``out`` with
+    just before: :func:`tlm.storage.claim_folder`), that file and the folder (h422)."""
     out = Path(out)
     with naming(out / _GUARD):  # (a full disk: one line naming the file, :func:`tlm.storage.naming`)
-        guard = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644), True
+        except FileExistsError:
+            guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644), False
     mine_path = out / f"{_RUNNING}{identity}"
     mine = None
     try:
@@ -75,7 +80,13 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
                 os.pwrite(mine, f"{process_tag():<{_RECORD - 1}}\n".encode(), 0)  # (fixed width: holders overwrite it)
             # (and only then the claim beside the folder looked at: a run or a study that claims it as this sweep
             # comes in finds this sweep's file, or this sweep finds its claim; one of the two is refused)
-            refuse_held(out.resolve(), out, "sweep.yaml", in_place=True)
+            try:
+                refuse_held(out.resolve(), out, "sweep.yaml", in_place=True)
+            except FolderHeld:
+                if _unshare(mine, mine_path):  # (this sweep's alone: what it made goes, under the guard still)
+                    mine = None
+                    _unmake(out, made, new)
+                raise
         finally:
             fcntl.flock(guard, fcntl.LOCK_UN)
         yield
@@ -87,6 +98,34 @@ def sharing(out: Path, identity: str, what: str = "run") -> Iterator[None]:
                 mine_path.unlink(missing_ok=True)
             os.close(mine)
         os.close(guard)
+
+
+def _unshare(mine: int, path: Path) -> bool:
+    """Whether this process held the running file ``path`` (open as ``mine``) alone: then it is removed and
+    closed (:func:`sharing` refused, under its guard); held by another process of its identity, it is left."""
+    try:
+        fcntl.flock(mine, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    with suppress(OSError):
+        path.unlink()
+    os.close(mine)
+    return True
+
+
+def _unmake(out: Path, made: str | None, guard: bool) -> None:
+    """Remove what a refused :func:`sharing` of the folder ``out`` made, where no sweep runs there: its guard
+    (``guard``: this made it), and, ``made``, the marker file this process made the folder with, and the folder
+    where that leaves it empty."""
+    if any(out.glob(f"{_RUNNING}*")):
+        return
+    with suppress(OSError):
+        if made is not None:
+            (out / made).unlink()
+        if guard or made is not None:
+            (out / _GUARD).unlink()
+        if made is not None:
+            out.rmdir()
 
 
 def _claim_stale(path: Path, what: str) -> None:
@@ -265,6 +304,16 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
             _remove_made(made)
             raise EnvironmentFailure(f"cannot write: {takes_no_files(there)}", source=str(given)) from None
         except OSError as e:
+            if e.errno in (errno.EACCES, errno.EPERM):  # (another user's file there: its holder's, or a stale one)
+                foreign = _foreign(path)
+                if foreign is True:  # (stale, removed: a new one taken)
+                    continue
+                if foreign:
+                    _remove_made(made)
+                    kind, holder = foreign
+                    refused = FolderHeld(held_line(kind or what, str(given), holder), key="--out")
+                    refused.held = (kind or what, str(given), holder)
+                    raise refused from None
             _remove_made(made)
             if e.errno in (errno.EROFS, errno.EACCES, errno.EPERM):  # (as check_destination and the swap say it)
                 raise EnvironmentFailure(f"cannot write into {path_shown(out.parent)} (read-only or not permitted)",
@@ -285,36 +334,89 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
             if _being_dropped(fd, path):  # (a dead run's file, drop_stale removing it as this opened it: a new one)
                 os.close(fd)
                 continue
-            holder = _claim_holder(fd, path)
-            what = _kind(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or what  # (the holder's, where said)
-            os.close(fd)
-            _remove_made(made)
-            refused = FolderHeld(held_line(what, str(given), holder), key="--out")
-            refused.held = (what, str(given), holder)
-            raise refused from None
-        try:
-            same = os.path.samestat(os.stat(path), os.fstat(fd))
-        except OSError:
-            same = False
-        if same:  # (not a file its holder removed between this open and this lock)
-            try:
-                os.pwrite(fd, _record(what), 0)
-            except OSError as e:  # (a full disk: no run could be written there either)
-                _drop_claim(fd, path, made)
-                raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror}: {path})",
-                                         source=str(given)) from None
-            # (then a sweep running in the folder looked for: one that came in as this claim was taken finds it,
-            # or is found here, :func:`sharing`)
-            sweep = _sweep_holder(out) if out.is_dir() else None
-            if sweep is not None:
-                _drop_claim(fd, path, made)
-                refused = FolderHeld(held_line("sweep", str(given), sweep), key="--out")
-                refused.held = ("sweep", str(given), sweep)
-                raise refused
-            return fd, path, made
-        os.close(fd)
+            if not _let_go(fd):  # (let go: a writer's check that looked at it, its shared lock held a moment)
+                holder = _claim_holder(fd, path)
+                what = _kind(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or what  # (the holder's, if said)
+                os.close(fd)
+                _remove_made(made)
+                refused = FolderHeld(held_line(what, str(given), holder), key="--out")
+                refused.held = (what, str(given), holder)
+                raise refused from None
+        taken = _claim_taken(fd, path, made, out, given, what)
+        if taken is not None:
+            return taken
     _remove_made(made)
     raise EnvironmentFailure(f"cannot claim the output folder: {path} keeps changing", source=str(given))
+
+
+def _foreign(path: Path) -> tuple[str | None, str] | bool:
+    """The claim file ``path`` that this process may not open to write (another user's, left by a run of theirs,
+    :func:`_take_claim`): its holder's kind and words (:func:`_held_claim`) where its lock is held; True where
+    it is stale (its lock free) and was removed, under a shared lock, so that a run of that user taking it the
+    while finds it gone (:func:`_claim_taken`) and takes a new one; False where it is neither (it cannot be read,
+    nor removed: a folder that takes no new files of this user's), as the caller says it."""
+    held = _held_claim(path)
+    if held is not None:
+        return held
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        if _same_file(fd, path):
+            path.unlink()
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def _claim_taken(fd: int, path: Path, made: list[Path], out: Path, given: Path, what: str
+                 ) -> tuple[int, Path, list[Path]] | None:
+    """:func:`_take_claim`'s claim file ``path``, open as ``fd`` and locked: its record written and the folder
+    looked at for a running sweep; None (``fd`` closed) where ``path`` no longer names the file (its holder
+    removed it between the open and the lock: the caller opens it again)."""
+    try:
+        same = os.path.samestat(os.stat(path), os.fstat(fd))
+    except OSError:
+        same = False
+    if not same:
+        os.close(fd)
+        return None
+    try:
+        os.pwrite(fd, _record(what), 0)
+    except OSError as e:  # (a full disk: no run could be written there either)
+        _drop_claim(fd, path, made)
+        raise EnvironmentFailure(f"cannot write beside the output folder ({e.strerror}: {path})",
+                                 source=str(given)) from None
+    # (then a sweep running in the folder looked for: one that came in as this claim was taken finds it,
+    # or is found here, :func:`sharing`)
+    sweep = _sweep_holder(out, guarded=False) if out.is_dir() else None
+    if sweep is not None:
+        _drop_claim(fd, path, made)
+        refused = FolderHeld(held_line("sweep", str(given), sweep), key="--out")
+        refused.held = ("sweep", str(given), sweep)
+        raise refused
+    return fd, path, made
+
+
+def _let_go(fd: int, wait: float = 0.05) -> bool:
+    """Whether the lock of the claim file open as ``fd``, held by another, is let go within ``wait`` seconds,
+    and taken (exclusive) here: another writer's check of the folder (:func:`_held_claim`'s shared lock, held
+    for as long as a look takes), never a claim's holder, which keeps it while it writes."""
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        time.sleep(0.002)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except OSError:
+            pass
+    return False
 
 
 def _record(what: str) -> bytes:
@@ -332,9 +434,10 @@ def _kind(record: str) -> str | None:
     return word if re.fullmatch(r"[a-z][a-z -]*", word) else None
 
 
-# what writes a destination, by the file that marks its output (for a refusal naming an older tlm's holder,
-# whose record says nothing of it: :func:`refuse_held`); any other marker is a study's
-_WRITERS = {"results.json": "run", "sweep.yaml": "sweep", "report.html": "report"}
+# what an older tlm's claim (its record says nothing of it: :func:`refuse_held`) is of, by the file that marks the
+# output the caller writes: a report's folder a report's, any other a ``tlm run``'s (an older tlm's only other claim;
+# none of its sweeps or studies took one: h422)
+_WRITERS = {"report.html": "report"}
 
 
 def refuse_held(out: Path, given: Path, marker: str, key: str = "--out", in_place: bool = False) -> None:
@@ -353,8 +456,11 @@ def refuse_held(out: Path, given: Path, marker: str, key: str = "--out", in_plac
     held = _held_claim(path)
     what = None
     if held is not None:
+        with _CLAIMS_LOCK:  # (this process's own, taken by another thread as this one looked: h422)
+            if os.fsdecode(out) in _CLAIMS:
+                return
         what, holder = held
-        what = what or _WRITERS.get(marker, "study")
+        what = what or _WRITERS.get(marker, "run")
     elif not in_place and out.is_dir():
         holder = _sweep_holder(out)
         what = "sweep" if holder is not None else None
@@ -391,10 +497,14 @@ def _held_claim(path: Path) -> tuple[str | None, str] | None:
         os.close(fd)
 
 
-def _sweep_holder(out: Path) -> str | None:
+def _sweep_holder(out: Path, guarded: bool = True) -> str | None:
     """The process of a sweep running in the folder ``out`` (:func:`sharing`'s running files, one of them
     held), as a refusal names it (:func:`_holder`); None where none runs there. Looked at under the folder's
-    guard, as a sweep coming in looks (nothing made: a folder without a guard has no sweep running)."""
+    guard, as a sweep coming in looks (nothing made: a folder without a guard has no sweep running); not
+    ``guarded``, without it: by :func:`_take_claim`, which holds this process's claims' lock, which a sweep of
+    this process coming in asks for under the guard (:func:`refuse_held`: the two threads would wait for each
+    other for ever, h422). A sweep that comes in as the claim is taken finds the claim there, its record written
+    before this looks: one of the two is refused."""
     if not any(out.glob(f"{_RUNNING}*")):
         return None
     try:
@@ -402,7 +512,8 @@ def _sweep_holder(out: Path) -> str | None:
     except OSError:
         return None
     try:
-        fcntl.flock(guard, fcntl.LOCK_EX)
+        if guarded:
+            fcntl.flock(guard, fcntl.LOCK_EX)
         for path in sorted(out.glob(f"{_RUNNING}*")):
             try:
                 fd = os.open(path, os.O_RDWR | os.O_CLOEXEC | os.O_NOFOLLOW)

@@ -331,7 +331,9 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                 # the same points shares it
                 marker = sweep.marker()
                 made = claim_folder(out, MARKER, marker, existing=False)
-                held.enter_context(claims.sharing(out, sweep.identity(), "sweep"))
+                # (refused there, by a run or a study that claimed the folder after this sweep's check: the folder
+                # and sweep.yaml this made go, h422)
+                held.enter_context(claims.sharing(out, sweep.identity(), "sweep", made=MARKER if made else None))
                 rows_due = True
                 if not made:
                     storage.write_file(out / MARKER, marker)
