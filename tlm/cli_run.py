@@ -82,7 +82,7 @@ def print_run(results: dict, out: Path, skip: str | None, command: Callable[[], 
             print(f"  pass {name:8s} photons {ph['emitted']:>8d} stored {ph['stored']:>8d} "
                   f"({ph['caustic']} caustic); {ph['filter']} gathers {w['gathers']}, "
                   f"photons tested {w['photons_tested']}")
-            per = [f"{m} r={ph[key]:.4g} ({ph[f'{key}_rule']}"
+            per = [(f"{m} (no radius" if ph.get(key) is None else f"{m} r={ph[key]:.4g} ({ph[f'{key}_rule']}")
                    + (f", ~{ph[f'{key}_photons']} photons" if f"{key}_photons" in ph else "")
                    + f"): tested {g['photons_tested_per_gather']:.1f} accepted {g['photons_accepted_per_gather']:.1f}"
                    for m, key in (("caustic", "caustic_radius"), ("indirect", "radius"), ("photons", "radius"),

@@ -63,6 +63,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     warnings += inert_changes(res.cfg, skip=unread)
     warnings += _unread_lines(res, unread, res.via)
     warnings += empty_sets(res.overrides, res.via)
+    warnings += trace_dropped(res.cfg, res.overrides, res.via)
     warnings += reference_warnings(res.error, res.cfg)
     warnings += checks.branching_warning(res.cfg, res.scene)
     warnings += threads_warning(res.cfg)
@@ -328,6 +329,24 @@ def empty_sets(overrides: Iterable[str] | None, via: str = "--set") -> list[str]
         lines.append(f"{_given(via)(item)} has no effect in this run: it "
                      f"{sets_nothing(f'{via} {null}' if via.startswith('-') else null)}")
     return lines
+
+
+def trace_dropped(cfg: RunConfig, overrides: Iterable[str] | None, via: str = "--set") -> list[str]:
+    """A line when an override asks for the timing model's trace (``--set arch.trace=true``, the last
+    override of the key) and the run keeps none: ``tlm run --outputs`` without ``trace`` (``--outputs
+    images``) turns ``arch.trace`` off (:func:`tlm.experiments.run.run`: the outputs name what the folder
+    gets), so no ``trace.json`` is written; the line says why, naming the override as it was given."""
+    if cfg.arch.trace:
+        return []
+    asked = None
+    for item in overrides or ():
+        leaves = set_leaves(item)
+        if "arch.trace" in leaves:
+            asked = (item, leaves["arch.trace"])
+    if asked is None or asked[1] is not True:
+        return []
+    return [f"{_given(via)(str(asked[0]).strip())} is not kept: no trace.json is written, because the run's "
+            "outputs (tlm run --outputs) do not name trace; add it (--outputs images,trace) to write one"]
 
 
 def _given(via: str):

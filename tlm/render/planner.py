@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from tlm.config import MODES, RunConfig
 from tlm.errors import InputError
-from tlm.registry import may_run_on
+from tlm.registry import ESTIMATORS, may_run_on
 from tlm.scenes.model import Scene
 
 PASSES = ("rcast", "reflect", "refract", "pmap")  # the frames, one per mode
@@ -139,14 +139,36 @@ FINAL_GATHER_RADIUS_PHOTONS = ("estimate.final_gather is on (its rays gather the
                                "estimate.final_gather_photons; the indirect map this sizes is not gathered)")
 
 
+# the keys that size a photon map's fixed search radius (tlm.render.pmap.radii): none read by an estimator
+# that declares it uses no radius (tlm.render.estimators.Estimator.uses_radius: ``knn``)
+RADIUS_SETTINGS = ("estimate.radius", "estimate.radius_fraction", "estimate.radius_photons",
+                   "estimate.caustic_radius", "estimate.caustic_radius_fraction", "estimate.caustic_radius_photons")
+
+
+def uses_radius(filter_name: str) -> bool:
+    """Whether the estimator ``estimate.filter`` names gathers within a fixed search radius, as
+    it declares (:attr:`tlm.render.estimators.Estimator.uses_radius`; an unknown name: True,
+    its error is the config check's)."""
+    return getattr(ESTIMATORS[filter_name], "uses_radius", True) if filter_name in ESTIMATORS else True
+
+
+def radius_settings(cfg: RunConfig) -> tuple[str, ...]:
+    """The keys that size a radius of ``cfg``'s photon-map frame: :data:`RADIUS_SETTINGS`, and
+    ``estimate.final_gather_photons`` under final gathering (the global map's density rule)."""
+    return (*RADIUS_SETTINGS, *(("estimate.final_gather_photons",) if cfg.estimate.final_gather > 0 else ()))
+
+
 def recorded_inert_settings(cfg: RunConfig) -> set[str]:
     """The keys :func:`inert_settings` names for ``cfg`` (judged from its mode) whose value a
     frame still records: ``estimate.radius_photons`` under final gathering with the density
     rule, which changes neither the image nor the work but sizes the indirect map's radius
     that ``results.json`` records beside it (``photons.radius``, ``photons.radius_photons``;
-    :func:`tlm.render.pmap.radii`). The functional key keeps them
+    :func:`tlm.render.pmap.radii`); none under a filter that uses no radius (``knn``: no radius
+    recorded). The functional key keeps them
     (:func:`tlm.experiments.frames.functional_key`), so a frame's record is its own config's."""
     est = cfg.estimate
+    if cfg.mode == "pmap" and not uses_radius(est.filter):  # (knn: results.json records no radius)
+        return set()
     if cfg.mode == "pmap" and est.final_gather > 0 and est.radius is None and est.radius_fraction is None:
         return {"estimate.radius_photons"}
     return set()
@@ -181,12 +203,29 @@ def inert_settings(cfg: RunConfig, pmap_reason: str | None = None) -> dict[str, 
             out["estimate.final_gather_photons"] = "estimate.final_gather is 0 (no final gathering)"
         elif est.radius is None and est.radius_fraction is None:  # (else the rule of radius, radius_fraction below)
             out["estimate.radius_photons"] = FINAL_GATHER_RADIUS_PHOTONS
+        else:  # (the global map's radius is the indirect map's given one: tlm.render.pmap.global_radius)
+            given = "estimate.radius" if est.radius is not None else "estimate.radius_fraction"
+            out["estimate.final_gather_photons"] = (f"{given} is set, and sizes the global map that final gathering "
+                                                    "gathers too (final_gather_photons sizes it only by density)")
         for prefix in ("", "caustic_"):
             if getattr(est, f"{prefix}radius") is not None:
                 for name in (f"{prefix}radius_fraction", f"{prefix}radius_photons"):
                     out[f"estimate.{name}"] = f"estimate.{prefix}radius is set, and comes first"
             elif getattr(est, f"{prefix}radius_fraction") is not None:
                 out[f"estimate.{prefix}radius_photons"] = f"estimate.{prefix}radius_fraction is set, and comes first"
+        if not uses_radius(est.filter):  # (knn: the k nearest photons, at any distance)
+            for key in radius_settings(cfg):
+                out[key] = (f"estimate.filter is {est.filter!r}, which gathers the estimate.k_nearest nearest "
+                            "photons within no fixed radius")
+        ph = cfg.photons
+        if ph.caustic_count is not None:
+            out["photons.caustic_fraction"] = ("photons.caustic_count is set: the caustic photons are a budget of "
+                                               "their own, not a fraction of each light's")
+        if ph.levels is not None:
+            out["photons.leaf_photons"] = "photons.levels is set, and comes first (the maps' BSP split levels)"
+        if ph.aim == "box":
+            out["photons.aim_triangles"] = ("photons.aim is 'box' (one box around every specular triangle): only "
+                                            "'parts' aims at boxes of aim_triangles triangles")
     out.update(walk_inert_settings(cfg.mode))
     if cfg.arch.scheduler == "static":
         out["arch.tiles_per_pipeline"] = "arch.scheduler is 'static' (one tile a pipeline): only 'dynamic' queues tiles"

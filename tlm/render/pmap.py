@@ -51,7 +51,7 @@ from tlm.render.frame import (
     trace_secondary,
 )
 from tlm.render.passes import gather_points_full
-from tlm.render.planner import photon_count
+from tlm.render.planner import photon_count, uses_radius
 
 # the caustic map's leaf reads: a stream not in tlm.kernels.memory.PM_STREAMS, so a pair of its own
 # (the two maps' gathers of consecutive packets then miss as the whole image's do)
@@ -187,9 +187,14 @@ def radii(frame: Frame, photons: PhotonMaps | PhotonMap) -> dict:
     ``fraction`` or ``density`` (with ``<key>_photons``, its k), and ``fallback`` where the
     density rule's map is too small to measure (fewer than 2 photons, or all on one point: an
     empty caustic map), the radius then :data:`FALLBACK_FRACTION` of the diagonal
-    (``<key>_fraction``)."""
+    (``<key>_fraction``). Under a filter that uses no radius (``knn``:
+    :func:`tlm.render.planner.uses_radius`) each radius and rule is None, as an error-cost row's."""
     est = frame.cfg.estimate
     out = {}
+    if not uses_radius(est.filter):  # (knn: the k nearest photons, within no radius: none recorded)
+        if final_gathering(frame, photons):
+            out.update(global_radius=None, global_radius_rule=None, final_gather=est.final_gather)
+        return {**out, "radius": None, "radius_rule": None, "caustic_radius": None, "caustic_radius_rule": None}
     if final_gathering(frame, photons):
         out["global_radius"], out["global_radius_rule"] = _global_radius_used(frame, photons)
         if out["global_radius_rule"] == "density":
