@@ -329,7 +329,8 @@ def test_what_only_the_run_can_tell_is_warned_of(tmp_path, capsys):
     flight and one frame (already the steady value: no "too short" warning), the serial
     fan-out (32 pipelines: it matters) and a FIFO depth no packet of 16 pixels can feel, not called
     unread (h349: the packets-of-one estimate, timing.granularity, reads arch.fifo_depth unless a
-    phase's addresses plus arch.packet_size a packet fit in the smaller depth, 1024; not here)."""
+    phase's addresses plus arch.packet_size a packet fit in the smaller depth, 1024; not here), but said to
+    change no simulated cycle by the FIFOs' peaks (h425: every put found its FIFO empty at either depth)."""
     out = tmp_path / "o"
     assert main(["run", str(REPO / "configs" / "cornell.yaml"), "--out", str(out), "--no-progress", "--no-report",
                  "--no-reference", "--outputs", "images", "--mode", "rcast", "--set", "resolution=[4,4]",
@@ -339,7 +340,11 @@ def test_what_only_the_run_can_tell_is_warned_of(tmp_path, capsys):
     warnings = json.loads((out / "results.json").read_text())["warnings"]
     assert warnings == [
         "arch.pipelines = 32: 16 of the 32 image tiles have no pixels (a 4x4 image cut into a 4x8 grid): a pipeline "
-        "given one has no pixel work in it"]
+        "given one has no pixel work in it",
+        "arch.fifo_depth = 2048 changes no simulated cycle in this run (cycles, stalls and frame times are those of "
+        "the default 1024): no FIFO held more than 924 entries or 1 packet at once (timing.fifo, its peaks); every "
+        "put found its FIFO empty, so no put ever waited, at depth 1024 or at 2048; only timing.granularity, the "
+        "packets-of-one estimate, reads the depth (lower arch.packet_size to see it in the cycles)"]
     assert all(f"tlm: warning: {w}" in err for w in warnings)
 
 

@@ -47,7 +47,7 @@ import simpy
 from tlm.arch.costs import Programs
 from tlm.arch.crossbar import Crossbar
 from tlm.arch.events import CycleEnd, Flag, all_done
-from tlm.arch.fifo import Fifo
+from tlm.arch.fifo import Fifo, fifo_peaks
 from tlm.arch.frame_program import (
     PM_TABLE_NAMES,
     PMS,
@@ -158,7 +158,7 @@ class _Frame:
                 waits = [ev for ev, _, _ in after]
                 after.append((copy_done, "copy", f"block copy for '{spec.name}' of frame {rec.index}"))
                 env.process(_copy_after(model, waits, copy_done, spec, a, b, rec.index, pipe))
-            fifo = Fifo(env, model.arch.fifo_depth) if len(spec.jobs) == 2 else None
+            fifo = Fifo(env, model.arch.fifo_depth, pipe) if len(spec.jobs) == 2 else None
             if fifo is not None:
                 model.fifos.append(fifo)
             dones = []
@@ -369,6 +369,7 @@ class Timing:
     throughput_estimate: dict = field(default_factory=dict)  # how TThru was measured (steady_throughput)
     event_budget: int = 0  # the run's stop at its end: min(arch.max_events, event_bound of the frames it started)
     granularity: dict = field(default_factory=dict)  # how far the packets move TThru (granularity_estimate)
+    fifo: dict = field(default_factory=dict)  # the FIFOs' peak occupancy (tlm.arch.fifo.fifo_peaks)
 
     def to_dict(self) -> dict:
         return {
@@ -386,6 +387,7 @@ class Timing:
             "tiling": self.program.tiling,
             "throughput_estimate": self.throughput_estimate,
             "granularity": self.granularity,
+            "fifo": self.fifo,
         }
 
     def __repr__(self) -> str:
@@ -633,7 +635,8 @@ def _results(model: Model, program: FrameProgram, end: int, events: int, trace: 
           "preemptions": {r.scope: r.preemptions for r in pms}}
     return Timing(cycles, fps, units, frames, events, program, trace, checks, xb, pipelines=per_pipe,
                   throughput_estimate=estimate,
-                  granularity=granularity_estimate(program, arch, throughput_i, cycles[slowest]))
+                  granularity=granularity_estimate(program, arch, throughput_i, cycles[slowest]),
+                  fifo=fifo_peaks(model.fifos, arch.fifo_depth, program.pipelines))
 
 
 __all__ = ["PMS", "PM_TABLE_NAMES", "Deadlock", "FrameProgram", "JobSpec", "MaxEventsReached", "PhaseSpec", "Timing",

@@ -325,12 +325,12 @@ class PM:
                 if slots < 1:
                     slots = 1
                 if pops:
-                    fifo.free(slots)
+                    fifo.free(slots, entries)
                     fifo.popped += entries
-                elif fifo.try_push(k, slots):
+                elif fifo.try_push(k, slots, entries):
                     job.pending_push = False
                     fifo.pushed += entries
-                elif (yield from self._push(job, k, slots)):
+                elif (yield from self._push(job, k, slots, entries)):
                     fifo.pushed += entries
                 else:
                     job.interrupted = True  # preempted while the FIFO was full
@@ -409,12 +409,12 @@ class Traversal(PM):
     kind = "traversal"
     pushes = True
 
-    def _push(self, job: Job, k: int, slots: int):
+    def _push(self, job: Job, k: int, slots: int, entries: int):
         """Packet k's addresses did not fit in the FIFO: wait until they do; False if preempted meanwhile."""
         fifo = job.fifo
         job.pending_push = True
         while (yield from self._fifo_stall(job, fifo.space, "fifo_full", job.space_what)):  # (fifo.space_freed)
-            if fifo.try_push(k, slots):
+            if fifo.try_push(k, slots, entries):
                 job.pending_push = False
                 return True
         return False

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from tlm.arch.fifo import fifo_depth_alike
 from tlm.arch.model import Timing, settling
 from tlm.arch.steady import runs_alike
 from tlm.config import ArchConfig, RunConfig
@@ -158,7 +159,7 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
                      "pipeline given one has no pixel work in it")
     lines += [f"{key} = {getattr(cfg.arch, key.split('.', 1)[1])!r} has no effect in this run: {why}"
               for key, why in timing_inert(timing, cfg.arch).items()]
-    return lines
+    return lines + fifo_depth_lines(timing, cfg.arch)
 
 
 def inert_timing_changes(timing: Timing, cfg: RunConfig) -> dict[str, str]:
@@ -197,7 +198,10 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
       phases' rays, pixels or photons one by one at ``arch.fifo_depth``) is alike too: they
       fit in the smaller depth together, each taking an entry at least (a phase's triangle
       addresses plus ``arch.packet_size`` a packet: a coarse packet that enters alone says
-      nothing of its rays);
+      nothing of its rays); or, past those rules, where the FIFOs' peaks (``timing.fifo``)
+      show every put entering the cycle it did at either depth
+      (:func:`tlm.arch.fifo.fifo_depth_alike`) and the estimate does not read the depth (packets of
+      one, or no ``change_cycles``); where it does, :func:`fifo_depth_lines` says the cycles alone;
     * ``arch.settle_frames`` when a settling stream stopped where its completions repeated, below this bound
       and at or below the default's, or when both bounds give ``arch.frames`` (the run at either is the same);
       and when a static stream of two images did not run as a settling one (no ``frames_cap``): the steady gaps
@@ -241,7 +245,53 @@ def timing_inert(timing: Timing, arch: ArchConfig) -> dict[str, str]:
                                          "together: the FIFO never fills"}.get(
                 frozenset(ways), f"each Traversal/Intersection phase's packets either all carry at least {hi} "
                                  f"triangle addresses or fit in {lo} FIFO entries together")
+        elif _estimate_blind(timing, arch) and fifo_depth_alike(getattr(timing, "fifo", None), arch.fifo_depth,
+                                                                 default.fifo_depth):
+            out["arch.fifo_depth"] = _fifo_why(timing.fifo, arch.fifo_depth, default.fifo_depth)
     return out
+
+
+def _estimate_blind(timing: Timing, arch: ArchConfig) -> bool:
+    """Whether ``timing.granularity`` reads no FIFO depth: packets of one (the estimate is 0),
+    or no ``change_cycles`` (a program built by hand: no flow shop in it)."""
+    return arch.packet_size == 1 or "change_cycles" not in (timing.granularity or {})
+
+
+def fifo_depth_lines(timing: Timing | None, arch: ArchConfig) -> list[str]:
+    """The line for an ``arch.fifo_depth`` away from its default that leaves every simulated
+    cycle as at the default (the FIFOs' peaks, ``timing.fifo``:
+    :func:`tlm.arch.fifo.fifo_depth_alike`) while the packets-of-one estimate
+    (``timing.granularity``) may read it, so that :func:`timing_inert` does not call it
+    unread: a sweep of the depth shows flat cycles, and this says why."""
+    default = ArchConfig()
+    if (timing is None or arch.fifo_depth == default.fifo_depth or _estimate_blind(timing, arch)
+            or "arch.fifo_depth" in timing_inert(timing, arch)
+            or not fifo_depth_alike(getattr(timing, "fifo", None), arch.fifo_depth, default.fifo_depth)):
+        return []
+    return [f"arch.fifo_depth = {arch.fifo_depth} changes no simulated cycle in this run (cycles, stalls and "
+            f"frame times are those of the default {default.fifo_depth}): "
+            f"{_fifo_why(timing.fifo, arch.fifo_depth, default.fifo_depth)}; only timing.granularity, the "
+            "packets-of-one estimate, reads the depth (lower arch.packet_size to see it in the cycles)"]
+
+
+def _fifo_why(peaks: dict, depth: int, other: int) -> str:
+    """Why every put enters the cycle it did at ``depth`` and at ``other``, from the FIFOs'
+    ``peaks`` (``timing.fifo``, :func:`tlm.arch.fifo.fifo_depth_alike` holding)."""
+    lo, hi = sorted((depth, other))
+    n, waited = peaks["peak_packets"], peaks["waited"]
+    parts = [f"no FIFO held more than {peaks['peak_entries']} entries or {n} packet{'s' if n != 1 else ''} at once "
+             "(timing.fifo, its peaks)"]
+    if peaks["peak_shared"]:
+        parts.append(f"no packet entered beside others with more than {peaks['peak_shared']} triangle addresses "
+                     f"held in all (timing.fifo.peak_shared), within depth {lo}")
+    else:
+        parts.append("every put " + ("that did not wait " if waited else "") + "found its FIFO empty")
+    if not waited:
+        return "; ".join(parts) + f", so no put ever waited, at depth {lo} or at {hi}"
+    parts.append(f"the {waited} put{'s' if waited != 1 else ''} that waited each found one packet there that with "
+                 f"it holds {peaks['least_waited']} triangle addresses or more (timing.fifo.least_waited), more than "
+                 f"depth {hi}: each waited for that packet to leave at either depth")
+    return "; ".join(parts) + f", so every put entered the FIFO the cycle it did at depth {lo} as at {hi}"
 
 
 def granularity_line(granularity: dict, throughput: int, packet_size: int, images_in_flight: int) -> str:

@@ -238,7 +238,19 @@ def breakdown_figure(run: Run, out: Path, name: str | FigureName):
     caption += (f"Bars: {bd.aggregate}." if bd.aggregate else "Bars: every PM of every pipeline.")
     if empty:
         caption += f" No cycles (not drawn): {', '.join(SEGMENT_LABELS[s] for s in empty)}."
+    caption += fifo_caption(run.results["timing"].get("fifo"))
     return save(fig, out, name, f"{run.title}: where the cycles go (eq. 5.1)", _point(run) + caption)
+
+
+def fifo_caption(fifo: dict | None) -> str:
+    """The FIFOs' peak occupancy (results.json ``timing.fifo``) as a sentence of the breakdown's
+    caption; "" for a run without it (one written before it was recorded)."""
+    if not fifo:
+        return ""
+    n, waited = fifo["peak_packets"], fifo["waited"]
+    return (f" Traversal-to-Intersection FIFOs (depth {fifo['depth']}): at most {fifo['peak_entries']} entries and "
+            f"{n} packet{'s' if n != 1 else ''} held at once; {waited} put{'s' if waited != 1 else ''} waited for "
+            "room (timing.fifo).")
 
 
 def _title(ax, title: str, run: Run) -> None:
