@@ -146,7 +146,8 @@ def test_the_report_gives_a_column_where_more_than_one_host_or_worker_ran_the_po
     sec = sweeps_section(inputs, tmp_path)
     assert "<th>host s</th><th>ran on</th>" in sec.html
     assert "<td>w7 on node7</td></tr>" in sec.html and f"<td>{host}</td></tr>" in sec.html
-    said = f"The 3 points ran on 1 Dask worker and local processes on 2 hosts: {host} (2 points), w7 on node7 (1 point)"
+    said = (f"The 3 points ran on 1 Dask worker and local processes on 2 hosts: {host} (2 points) and w7 on node7 "
+            "(1 point)")
     assert said in sec.html
     prov = provenance_section(inputs, tmp_path)
     assert '<th class="l">ran on</th>' in prov.html and '<td class="l">w7 on node7</td>' in prov.html
