@@ -385,7 +385,9 @@ def trace_dropped(cfg: RunConfig, overrides: Iterable[str] | None, via: str = "-
     """A line when an override asks for the timing model's trace (``--set arch.trace=true``, the last
     override of the key) and the run keeps none: ``tlm run --outputs`` without ``trace`` (``--outputs
     images``) turns ``arch.trace`` off (:func:`tlm.experiments.run.run`: the outputs name what the folder
-    gets), so no ``trace.json`` is written; the line says why, naming the override as it was given."""
+    gets), so no ``trace.json`` is written; the line says why, naming the override as it was given, and the
+    outputs as they were: ``tlm run --outputs``, or ``tlm.api.run``'s ``outputs`` where the overrides came
+    through the API (``via`` not a flag: ``the overrides``)."""
     if cfg.arch.trace:
         return []
     asked = None
@@ -395,8 +397,10 @@ def trace_dropped(cfg: RunConfig, overrides: Iterable[str] | None, via: str = "-
             asked = (item, leaves["arch.trace"])
     if asked is None or asked[1] is not True:
         return []
+    where, add = (("tlm run --outputs", "--outputs images,trace") if via.startswith("-") else
+                  ("tlm.api.run's outputs", 'outputs="images,trace"'))  # (h426: the API's caller has no flags)
     return [f"{_given(via)(str(asked[0]).strip())} is not kept: no trace.json is written, because the run's "
-            "outputs (tlm run --outputs) do not name trace; add it (--outputs images,trace) to write one"]
+            f"outputs ({where}) do not name trace; add it ({add}) to write one"]
 
 
 def _given(via: str):

@@ -148,9 +148,13 @@ def density_wanted(frame: Frame) -> list[tuple[str, int]]:
     """The ``(map, k)`` whose density radius the pmap frame's radii ask for (:func:`radii`,
     :func:`global_radius`, :func:`_radius`), from its settings alone: map "global" (final
     gathering's map, when the trace keeps one), "indirect" or "caustic" (the one map of a
-    trace without the split stands for both: :func:`density_requests`)."""
+    trace without the split stands for both: :func:`density_requests`). None under a filter that
+    uses no radius (``knn``: :func:`tlm.render.planner.uses_radius`): no gather reads one, so none
+    is made, nor timed in an error-vs-cost row's ``trace_seconds`` (h426)."""
     est = frame.cfg.estimate
-    out = []
+    out: list[tuple[str, int]] = []
+    if not uses_radius(est.filter):
+        return out
     if est.final_gather > 0 and est.radius is None and est.radius_fraction is None:
         out.append(("global", est.final_gather_photons))
     for which, k in (("indirect", est.radius_photons), ("caustic", est.caustic_radius_photons)):
@@ -287,6 +291,13 @@ def gathered_radii(frame: Frame, photons: PhotonMaps | PhotonMap | None) -> dict
     (:func:`map_radius`): with final gathering the caustic and global maps', not the indirect map's
     (built, and recorded by :func:`radii`, but not gathered), which is not computed here."""
     return {name: map_radius(frame, photons, name) for name in gathered_maps(frame, photons)}
+
+
+def _gather_radius(frame: Frame, photons: PhotonMaps | PhotonMap, name: str) -> float:
+    """The radius :func:`pmap_pass` hands the estimator for the map ``name``: :func:`map_radius`, or
+    ``math.inf`` under a filter that uses no radius (``knn``, the k nearest photons at any distance:
+    :func:`tlm.render.planner.uses_radius`), so no density radius is made that no gather reads (h426)."""
+    return map_radius(frame, photons, name) if uses_radius(frame.cfg.estimate.filter) else math.inf
 
 
 # the host-seconds stages of the pmap and fgather passes (tlm.render.batches times pass <name> as
@@ -435,7 +446,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
         g.memo["fgather_work"] = new_work(p)
     sidx, tri, pts, n, weight, bounce, medium = gather_points_full(frame, g)
     gathered = gathered_maps(frame, photons)  # (the global map's gathers are the final-gather rays', below)
-    maps = [(name, m, map_radius(frame, photons, name), kdtree if name == "photons" else None,
+    maps = [(name, m, _gather_radius(frame, photons, name), kdtree if name == "photons" else None,
              CAUSTIC_STREAM if name == "caustic" else GATHER_STREAM)
             for name, m in gathered.items() if name != "global"]
     if sidx.shape[0] == 0 or not (maps or fg):
@@ -447,7 +458,7 @@ def pmap_pass(frame: Frame, g: GBuffer, photons: PhotonMaps | PhotonMap, kdtree=
     if "global" in gathered:
         with booked_apart(FGATHER_STAGE, within=PMAP_STAGE):  # (the rays and their gathers: the fgather pass's)
             fg_streams = new_streams(frame) if fg_streams is None else fg_streams
-            radius = map_radius(frame, photons, "global")
+            radius = _gather_radius(frame, photons, "global")
             pkeys = keys * 64 + bounce
             # chunks of whole pixels, in pixel order, of at most FG_CHUNK_RAYS rays
             step = max(1, FG_CHUNK_RAYS // frame.cfg.estimate.final_gather)
