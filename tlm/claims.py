@@ -61,15 +61,10 @@ def sharing(out: Path, identity: str, what: str = "run", made: str | None = None
     nothing it made: its guard where this made it, and, ``made`` (the marker file this process made ``out`` with
     just before: :func:`tlm.storage.claim_folder`), that file and the folder (h422)."""
     out = Path(out)
-    with naming(out / _GUARD):  # (a full disk: one line naming the file, :func:`tlm.storage.naming`)
-        try:
-            guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644), True
-        except FileExistsError:
-            guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644), False
+    guard, new = _guard(out)
     mine_path = out / f"{_RUNNING}{identity}"
     mine = None
     try:
-        fcntl.flock(guard, fcntl.LOCK_EX)
         try:
             for other in sorted(out.glob(f"{_RUNNING}*")):
                 if other.name != mine_path.name:
@@ -100,6 +95,22 @@ def sharing(out: Path, identity: str, what: str = "run", made: str | None = None
         os.close(guard)
 
 
+def _guard(out: Path) -> tuple[int, bool]:
+    """The guard of the folder ``out`` open and locked (exclusive), and whether this made it (:func:`sharing`).
+    One removed as this waited for its lock (a refused sweep's, :func:`_unmake`) is opened again: the lock is
+    that of the file ``.tlm-lock`` names, or two sweeps would hold two guards at once (h428)."""
+    while True:
+        with naming(out / _GUARD):  # (a full disk: one line naming the file, :func:`tlm.storage.naming`)
+            try:
+                guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644), True
+            except FileExistsError:
+                guard, new = os.open(out / _GUARD, os.O_RDWR | os.O_CREAT, 0o644), False
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        if _same_file(guard, out / _GUARD):
+            return guard, new
+        os.close(guard)
+
+
 def _unshare(mine: int, path: Path) -> bool:
     """Whether this process held the running file ``path`` (open as ``mine``) alone: then it is removed and
     closed (:func:`sharing` refused, under its guard); held by another process of its identity, it is left."""
@@ -115,10 +126,13 @@ def _unshare(mine: int, path: Path) -> bool:
 
 def _unmake(out: Path, made: str | None, guard: bool) -> None:
     """Remove what a refused :func:`sharing` of the folder ``out`` made, where no sweep runs there: its guard
-    (``guard``: this made it), and, ``made``, the marker file this process made the folder with, and the folder
-    where that leaves it empty."""
+    (``guard``: this made it), and, ``made``, the marker file this process made the folder with, and the folder,
+    where nothing else is in it (a sweep of these points that came in and ended meanwhile left its points and
+    that marker: all kept, h428). Under the guard, which ``.tlm-lock`` names still (:func:`_guard`)."""
     if any(out.glob(f"{_RUNNING}*")):
         return
+    if made is not None and not set(os.listdir(out)) <= {made, _GUARD}:  # (another's points there: h428)
+        made = None
     with suppress(OSError):
         if made is not None:
             (out / made).unlink()
@@ -139,6 +153,9 @@ def _claim_stale(path: Path, what: str) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            if _let_go(fd):  # (a claim's look, unguarded, at a dead sweep's file: its lock held a moment, h428)
+                path.unlink(missing_ok=True)
+                return
             holder = _holder(os.pread(fd, _RECORD, 0).decode("ascii", "replace"))
             raise InputError(f"another {what} of other points is writing into {quoted(path.parent)} "
                              f"({holder}): wait for it to end, or give another folder",
@@ -352,9 +369,12 @@ def _take_claim(out: Path, given: Path, what: str) -> tuple[int, Path, list[Path
 def _foreign(path: Path) -> tuple[str | None, str] | bool:
     """The claim file ``path`` that this process may not open to write (another user's, left by a run of theirs,
     :func:`_take_claim`): its holder's kind and words (:func:`_held_claim`) where its lock is held; True where
-    it is stale (its lock free) and was removed, under a shared lock, so that a run of that user taking it the
-    while finds it gone (:func:`_claim_taken`) and takes a new one; False where it is neither (it cannot be read,
-    nor removed: a folder that takes no new files of this user's), as the caller says it."""
+    it is stale (its lock free) and was removed, under an exclusive lock, so that a run of that user taking it the
+    while finds it gone (:func:`_claim_taken`) and takes a new one, and two takers never both remove a file, the
+    second the first's new claim (both then wrote, h428); True too (looked at again) where another holds that
+    lock a moment (a taker, a look). The lock is a shared one only where a file open to read takes no exclusive
+    one (NFS: EBADF). False where it is neither (it cannot be read, nor removed: a folder that takes no new files
+    of this user's), as the caller says it."""
     held = _held_claim(path)
     if held is not None:
         return held
@@ -365,7 +385,15 @@ def _foreign(path: Path) -> tuple[str | None, str] | bool:
     try:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             return False
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            time.sleep(0.002)
+            return True
+        except OSError as e:
+            if e.errno != errno.EBADF:
+                raise
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
         if _same_file(fd, path):
             path.unlink()
         return True
