@@ -294,13 +294,13 @@ BLACK_TRUTH = ("The ground truth is black (every pixel 0): no relative error aga
 
 
 def _point_name(r: dict) -> str:
-    f = str(r.get("filter"))
+    f = filt = str(r.get("filter"))
     if gather_rays(r):
-        f = series_of(r)
+        f = series_of(r)  # (the series' name: 'knn + final gather'; the settings below go by the filter itself)
     extra = ""
-    if f == "knn" and r.get("k_nearest") is not None:
+    if filt == "knn" and r.get("k_nearest") is not None:
         extra = f", k={int(r['k_nearest'])}"
-    elif f == "kvoxel" and r.get("k") is not None:
+    elif filt == "kvoxel" and r.get("k") is not None:
         extra = f", k={int(r['k'])}, r={_num(r.get('radius_fraction')):g}"
     elif r.get("radius_fraction") is not None:
         extra = f", r={_num(r.get('radius_fraction')):g}"
