@@ -1,4 +1,5 @@
-"""Who holds an output folder while it is written: a run's destination, a sweep's folder.
+"""Who holds an output folder while it is written: a run's, a study's or a report's destination, a
+sweep's folder.
 
 * :func:`claimed` — a run's destination (a study's, a report's), held by one process while it works: a
   second writer of another process is refused at once, naming the first (its host and pid), before it

@@ -183,8 +183,6 @@ def _mount_points() -> frozenset[bytes]:
                      for fields in map(bytes.split, lines) if len(fields) > 4)
 
 
-
-
 def _claiming(name: str, marker: str) -> bool:
     """Whether ``name`` is the temporary file of a marker being written (another tlm
     process claiming the folder this instant, :func:`claim_folder`: ``.<marker>.tmp<host>-<pid>``,

@@ -130,9 +130,9 @@ def fifo_peaks(fifos: list[Fifo], depth: int, pipelines: int) -> dict:
     """``timing.fifo`` of results.json: ``depth`` (``arch.fifo_depth``), ``fifos`` (the FIFOs
     the frames filled: one a Traversal/Intersection phase a tile a frame) and, over them all
     and per pipeline (``pipelines``: its Intersection PM's input), the peaks of :class:`Fifo`:
-    ``peak_entries`` and ``peak_packets`` held at once, ``peak_shared``, ``least_waited``
-    (None where no put waited for the one packet held), the most of the others (``waited``
-    and ``waited_on_many`` summed)."""
+    ``peak_entries`` and ``peak_packets`` held at once and ``peak_shared`` (each the most of
+    its FIFOs'), ``least_waited`` (the fewest; None where no put waited for the one packet
+    held), ``waited`` and ``waited_on_many`` (summed)."""
     per = [{**dict.fromkeys(PEAKS, 0), "least_waited": None} for _ in range(pipelines)]
     for f in fifos:
         row = per[f.pipe]

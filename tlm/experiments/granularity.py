@@ -43,7 +43,7 @@ from pathlib import Path
 from tlm.arch.granularity import fine_ti_cycles
 from tlm.arch.model import simulate
 from tlm.config import config_from_dict, file_folder
-from tlm.config_words import type_hint, value_text, with_overrides
+from tlm.config_words import listing, type_hint, value_text, with_overrides
 from tlm.errors import InputError
 from tlm.experiments.frames import cached_render
 from tlm.experiments.run import programs_for
@@ -221,7 +221,7 @@ def one_packet_line(sizes: list[int], largest: dict | None) -> str:
     at = one_packet_sizes(sizes, largest)
     if len(at) < 2:
         return ""
-    listed = f"{', '.join(str(s) for s in at[:-1])} and {at[-1]}"
+    listed = listing(at)
     same = "so their cycles, errors and events are the same"
     if largest is None:  # (no phase cut: every size runs the same program)
         return (f"packet sizes {listed}: the frame has no pixel or photon phase for a packet size to cut (its BSP "

@@ -10,7 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 
-from tlm.config_words import flow_text
+from tlm.config_words import flow_text, listing
 from tlm.errors import InputError, shell_word
 from tlm.experiments.study import override_key, refuse_set, set_leaves
 
@@ -34,7 +34,7 @@ def said_once(whys) -> str:
             continue
         at = varied[0]
         values = sorted({m[at] for m in members}, key=float)
-        listed = f"{', '.join(values[:-1])} or {values[-1]}"
+        listed = listing(values, last="or")
         out.append("".join(listed if i == at else part for i, part in enumerate(members[0])))
     return "; ".join(sorted(out))
 
