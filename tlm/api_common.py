@@ -9,9 +9,11 @@ from __future__ import annotations
 import contextvars
 import functools
 import inspect
+import json
 import numbers
 import os
 import re
+import shlex
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
@@ -110,6 +112,10 @@ _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*(?: [A-Z][A-Z_]*\b| -?[0-9]+(?:\
 _COMMAND = re.compile(r"\btlm [a-z-]+(?: [^\s,;:()]+)* $")  # what precedes a flag of a command shown whole
 # what precedes a flag that is a config's label, ``cornell.yaml, with --set`` (the overrides' ``via``: kept)
 _LABEL = re.compile(r", with $")
+# ``--set ITEM`` (one or more in a row) of a ``dotted.key=value`` item as :func:`~tlm.errors.shell_word` writes it
+_WORD = r"""(?:'[^']*'(?:"'"'[^']*')*|[^\s'"`=]+=[^\s'"`]*)"""
+_SETS = re.compile(rf"(?<![\w-])--set {_WORD}(?: --set {_WORD})*")
+_SET_SETS = re.compile(r"(?<![\w-])--set sets\b")  # (``--set sets its base``: ``overrides set its base``)
 
 
 def flag_argument(flag: str, names: set[str]) -> str | None:
@@ -132,6 +138,23 @@ def arguments_text(text: str, names: set[str], switches: set[str] | frozenset[st
     ``truth_spp=0``), but those of a command shown
     whole (``tlm report --formats pdf``), a config's label (``cornell.yaml, with --set``: how its
     overrides were given, :attr:`tlm.api.Config.via`) and flags of no argument of the function."""
+
+    def kept(m: re.Match) -> bool:  # (a flag of a command shown whole, or of a config's label)
+        before = text[max(0, m.start() - 60):m.start()]
+        return bool(_COMMAND.search(before) or _LABEL.search(before))
+
+    def items(m: re.Match) -> str:  # (--set render.spp=2: overrides=["render.spp=2"], as Python passes it)
+        if kept(m) or "\\" in m.group(0):  # (a backslash: kept as written, which shlex would take as an escape)
+            return m.group(0)
+        try:
+            words = [w for w in shlex.split(m.group(0)) if w != "--set"]
+        except ValueError:
+            return m.group(0)
+        return f"overrides={json.dumps(words, ensure_ascii=False)}"
+
+    if "overrides" in names:
+        text = _SETS.sub(items, text)
+        text = _SET_SETS.sub(lambda m: m.group(0) if kept(m) else "overrides set", text)
 
     def argument(m: re.Match) -> str:
         flag = m.group(0).split(" ")[0]
@@ -160,6 +183,8 @@ def as_arguments(error: InputError, names: set[str], switches: set[str] | frozen
     name = flag_argument(str(error.key), names) if error.key else None
     if name is not None:
         renamed(error, name)
+    elif str(error.key).startswith("--set ") and "overrides" in names:  # (the item refused: overrides ITEM)
+        renamed(error, f"overrides {str(error.key)[6:]}")
     source = flag_argument(error.source, names) if isinstance(error.source, str) else None
     if source is not None:
         _take(error, error.replaced(source=source))

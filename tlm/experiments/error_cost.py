@@ -90,6 +90,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -131,7 +132,7 @@ from tlm.registry import ESTIMATORS
 from tlm.render.checks import camera_warnings
 from tlm.render.frame import Frame, GBuffer, cast
 from tlm.render.passes import gather_points_full, sees_a_light
-from tlm.render.planner import photon_count, same_frame_settings
+from tlm.render.planner import photon_count, same_frame_settings, uses_radius
 from tlm.render.pmap import (
     density_requests,
     gathered_maps,
@@ -155,7 +156,8 @@ COLUMNS = (
 # the columns that hold a point's setting as its config has it: their null is the setting's value
 # (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other
 # column's null is a measure not taken or of no meaning for the row (no ground truth, the k of a filter that
-# samples no voxels, the fps of no cycles): an empty cell
+# samples no voxels, the fps of no cycles): an empty cell. The radius_fraction of a filter that uses no radius
+# (knn: :func:`tlm.render.planner.uses_radius`) is of no meaning too: null in rows.jsonl, an empty cell in rows.csv
 SETTING_COLUMNS = ("filter", "radius_fraction", "cone_k", "final_gather", "aim")
 
 
@@ -439,14 +441,15 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         tm = simulate(fn, programs[cfg.arch.programs], replace(cfg.arch, trace=False))
         simulate_s = time.perf_counter() - t0
         est = cfg.estimate
-        radii = gathered_radii(frame, traced.photons) if ESTIMATORS[est.filter].uses_radius else {}
+        used = ESTIMATORS[est.filter].uses_radius  # (knn: no radius, so radius_fraction does nothing: null)
+        radii = gathered_radii(frame, traced.photons) if used else {}
         indirect = next((m for m in ("global", "indirect", "photons") if m in radii), None)  # (the indirect light's)
         row = {
             "point": i, "factors": factors_text(point),
             "filter": est.filter, "photons": n, "stored": traced.photons.n,
             "radius": radii.get(indirect),
             "caustic_radius": radii.get("caustic"),
-            "radius_fraction": est.radius_fraction, "k": est.k if est.filter == "kvoxel" else None,
+            "radius_fraction": est.radius_fraction if used else None, "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),
             "aim": cfg.photons.aim,
@@ -473,7 +476,14 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                                                                 "warnings": list(dict.fromkeys(said))},
                                              "truth.json": truth_meta,
                                              # (over run_study's rows.csv: a setting's null as null)
-                                             "rows.csv": csv_text(rows, COLUMNS, SETTING_COLUMNS)})
+                                             "rows.csv": csv_text(_csv_rows(rows), COLUMNS, SETTING_COLUMNS)})
+
+
+def _csv_rows(rows: list[dict]) -> list[dict]:
+    """``rows`` as rows.csv has them: the radius_fraction of a filter that uses no radius is of no meaning, an
+    empty cell (NaN, as :func:`~tlm.experiments.sweep_rows.csv_cell` writes it), not ``null`` (the density rule)."""
+    return [{**r, "radius_fraction": math.nan} if r.get("radius_fraction") is None and not uses_radius(str(r["filter"]))
+            else r for r in rows]
 
 
 def radius_rule_used(frame: Frame, photons, name: str) -> str:

@@ -44,7 +44,7 @@ from tlm.config import (
     to_dict,
 )
 from tlm.config_words import dump_yaml
-from tlm.errors import InputError
+from tlm.errors import InputError, shell_word
 from tlm.experiments.provenance import provenance
 from tlm.storage import atomic_folder, check_destination, json_text, write_file, write_rows
 
@@ -195,13 +195,14 @@ def refuse_own_keys(overrides: Iterable[str], keys: Iterable[str], source: str |
     ``packet_sizes``; ``file``: what the file is, ``sweep file``) given by ``--set``, which sets the
     base's keys, the run config's: each study says it the same way (h416, h423), where the run config's
     check said a plain "unknown key"; a key under base (``base.render.spp=2``) is told the --set
-    that sets it (``render.spp=2``)."""
+    that sets it (``render.spp=2``; through the API, :func:`tlm.api_common.arguments_text`:
+    ``overrides=["render.spp=2"]``)."""
     overrides = list(overrides)
     for item in overrides:
         key, _, value = str(item).partition("=")
         if key.strip().startswith("base.") and key.strip() != "base.":
             raise InputError(f"{key.strip()} is in base, the {file}'s own key, and --set sets what base holds (the "
-                             f"run config): --set {key.strip()[5:]}={value.strip()}", source=source,
+                             f"run config): --set {shell_word(f'{key.strip()[5:]}={value.strip()}')}", source=source,
                              key=f"--set {item.strip()}")
     refuse_set(overrides, {k: f"the {file}'s own key, and --set sets its base (the run config): change {k} in "
                               f"the {file}" for k in dict.fromkeys(("base", *keys, "description"))}, source)

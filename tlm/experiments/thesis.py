@@ -453,9 +453,10 @@ def _name(scene: str) -> str:
 
 def table_rows(key: str, table: str | None, mode: str, ours: dict[str, float]) -> list[dict]:
     """:func:`comparison_rows` of a study's scene named ``key`` whose table is ``table`` (by its file):
-    without one (None), no thesis value, whatever its name (a user's ``room.yaml`` is not Table II's)."""
+    without one (None), no thesis value and no cell calibrated, whatever its name (a user's ``room.yaml`` is
+    not Table II's: nothing was fitted to it)."""
     rows = comparison_rows(key, mode, ours)
-    return rows if table is not None else [{**r, "thesis": None, "rel_error": None} for r in rows]
+    return rows if table is not None else [{**r, "thesis": None, "rel_error": None, "calibrated": False} for r in rows]
 
 
 def marked(rows: list[dict], differ: dict[str, list[str]]) -> list[dict]:

@@ -78,6 +78,8 @@ def ours(cycles: dict, fps: float) -> dict[str, float]:
 
 
 def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]:
+    """A scene-mode's rows (:data:`COLUMNS` but the last two): ``calibrated`` true only for a cell of
+    :data:`CALIBRATED` with a thesis value (a scene with no table has nothing fitted to it)."""
     rows = []
     for metric in METRICS:
         t = thesis_value(scene, mode, metric)
@@ -85,7 +87,7 @@ def comparison_rows(scene: str, mode: str, ours: dict[str, float]) -> list[dict]
         rows.append({
             "scene": scene, "mode": mode, "metric": metric, "thesis": t, "ours": round(o, 6),
             "rel_error": None if t is None else round((o - t) / t, 6),
-            "calibrated": (mode, metric) in CALIBRATED,
+            "calibrated": t is not None and (mode, metric) in CALIBRATED,
         })
     return rows
 
