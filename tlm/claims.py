@@ -379,13 +379,10 @@ def _foreign(path: Path) -> tuple[str | None, str] | bool:
     held = _held_claim(path)
     if held is not None:
         return held
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError:
+    fd = _look(path)
+    if fd is None:
         return False
     try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return False
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -500,17 +497,30 @@ def refuse_held(out: Path, given: Path, marker: str, key: str = "--out", in_plac
     raise refused
 
 
-def _held_claim(path: Path) -> tuple[str | None, str] | None:
-    """The claim file ``path`` (:func:`claimed`) where another process holds it: what it writes (None: an
-    older tlm's record) and who (:func:`_claim_holder`); None where there is none, or it is stale. Looked at
-    with a shared lock, let go at once: a run taking the file that instant is refused as by a holder."""
-    try:  # (not through a link, and never waiting: a FIFO put there would block the open)
+def _look(path: Path) -> int | None:
+    """``path`` open to read for a look at a claim file: not through a link, and never waiting (a FIFO put there
+    would block the open); None where it cannot be opened or is not a regular file (closed again)."""
+    try:
         fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return None
     try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return None
+        if stat.S_ISREG(os.fstat(fd).st_mode):
+            return fd
+    except OSError:
+        pass
+    os.close(fd)
+    return None
+
+
+def _held_claim(path: Path) -> tuple[str | None, str] | None:
+    """The claim file ``path`` (:func:`claimed`) where another process holds it: what it writes (None: an
+    older tlm's record) and who (:func:`_claim_holder`); None where there is none, or it is stale. Looked at
+    with a shared lock, let go at once: a run taking the file that instant is refused as by a holder."""
+    fd = _look(path)
+    if fd is None:
+        return None
+    try:
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
             return None  # (free: none holds it; its lock goes with the descriptor)
@@ -614,14 +624,13 @@ def drop_stale(out: Path) -> bool:
     with _CLAIMS_LOCK:
         if os.fsdecode(out) in _CLAIMS:  # (this process's own: held)
             return False
-    try:  # (not through a link, and never waiting: a FIFO put there would block the open)
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError:
+    fd = _look(path)
+    if fd is None:
         return False
     try:
         # (read before the lock: one not provably stale, a live or reused pid's, another machine's, an older
         # tlm's, one not written yet, is never locked, so a run claiming it at this moment is not refused for it)
-        if not stat.S_ISREG(os.fstat(fd).st_mode) or not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")):
+        if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")):
             return False
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # (held, or a file system without locks: left)
         if not _gone(os.pread(fd, _RECORD, 0).decode("ascii", "replace")) or not _same_file(fd, path):
