@@ -99,11 +99,40 @@ def test_many_warnings_keep_the_first_screens_and_drop_none():
 
     from tlm.report import warnings as box
 
-    runs = [SimpleNamespace(label=f"run {i}", results={"warnings": [f"warning number {i}"]}) for i in range(11)]
+    words = [f"warning {'abcdefghijk'[i]}" for i in range(11)]  # (no numbers: lines that differ in numbers fold)
+    runs = [SimpleNamespace(label=f"run {i}", results={"warnings": [words[i]]}) for i in range(11)]
     page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
     shown, _, hidden = page.partition("<details>")
-    assert [f"warning number {i}" in shown for i in range(11)] == [i < box.SHOWN_WARNINGS for i in range(11)]
-    assert all(f"warning number {i}" in hidden for i in range(box.SHOWN_WARNINGS, 11))
-    assert "<summary>3 more warnings</summary>" in hidden and "recorded 11 warnings" in shown
+    assert [f"{words[i]}<" in shown for i in range(11)] == [i < box.SHOWN_WARNINGS for i in range(11)]
+    assert all(f"{words[i]}<" in hidden for i in range(box.SHOWN_WARNINGS, 11))
+    assert "<summary>3 more warnings</summary>" in hidden and "recorded 11 warnings (" in shown
     few = box.warnings_html(SimpleNamespace(runs=runs[:box.SHOWN_WARNINGS], damaged=[]))
-    assert "<details>" not in few and all(f"warning number {i}" in few for i in range(box.SHOWN_WARNINGS))
+    assert "<details>" not in few and all(f"{words[i]}<" in few for i in range(box.SHOWN_WARNINGS))
+
+
+def test_warnings_that_differ_only_in_numbers_are_one_item_with_the_others_below():
+    """A sweep's points each said arch.fifo_depth's line with their own figures: six long lines that differ only
+    in numbers took the committed report past its first screens (stop 67). The box says such lines once, in the
+    wording first met, with how many wordings and which runs, and the other wordings one click below it; none is
+    dropped, and lines of other kinds keep their own items."""
+    from types import SimpleNamespace
+
+    from tlm.report import warnings as box
+
+    depth = "arch.fifo_depth = {} changes no simulated cycle: the {} puts that waited"
+    said = [[depth.format(16, 3065), "BSP stopped at 11 of 12 levels"], [depth.format(16, 2985)],
+            [depth.format(256, 3065), "cache.pairs = 2 has no effect"], [depth.format(256, 3065)], []]
+    runs = [SimpleNamespace(label=f"p{i}", results={"warnings": lines}) for i, lines in enumerate(said)]
+    page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
+    head, _, items = page.partition("<ul>")
+    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>), 3 once each where they "
+            "differ only in their numbers;") in head
+    first, _, rest = items.partition("<details>")
+    assert first.startswith(f"<li>{depth.format(16, 3065)}<span class=\"note\"> (in 3 wordings that differ only "
+                            "in their numbers, the first met shown; 4 of 5 runs: p0, p1, p2 and p3)</span>")
+    others, _, after = rest.partition("</details>")
+    assert others == (f"<summary>its 2 other wordings</summary><ul><li>{depth.format(16, 2985)}<span class=\"note\">"
+                      f" (1 of 5 runs: p1)</span></li><li>{depth.format(256, 3065)}<span class=\"note\"> (2 of 5 runs: "
+                      "p2 and p3)</span></li></ul>")
+    assert after.startswith("</li><li>BSP stopped at 11 of 12 levels<span class=\"note\"> (1 of 5 runs: p0)</span>")
+    assert "cache.pairs = 2 has no effect" in after and page.count("<li>") == 5  # (each wording once)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from tlm import storage
 from tlm.cli_report import say_err
+from tlm.config_words import number_form
 from tlm.errors import values_text
 
 
@@ -157,10 +158,11 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
     line per distinct warning, ``tlm: warning: 3 of 4 points: ...``, the most recorded first (then the first
     met), at most :data:`POINT_WARNINGS_SHOWN` of them, then how many more there are. Warnings that differ in
     their numbers alone (``moved by 0.14%``, ``by 0.29%``) are one, said in the wording first met with how many
-    wordings it had (:func:`_folded`): one kind on every point is not a line per point. A line the sweep said
-    already (``said``, its own warnings; a cache's, said once) is not said again, nor a point's line of a Dask
-    machine's render.threads that the sweep said once for that machine (another count there, another worker's:
-    :func:`tlm.api.machine_key`); a record that cannot be read is left to the report, which names it."""
+    wordings it had (:func:`tlm.config_words.number_form`; the report's warnings box folds them alike): one kind
+    on every point is not a line per point. A line the sweep said already (``said``, its own warnings; a cache's,
+    said once) is not said again, nor a point's line of a Dask machine's render.threads that the sweep said once
+    for that machine (another count there, another worker's: :func:`tlm.api.machine_key`); a record that cannot
+    be read is left to the report, which names it."""
     from tlm import api
 
     per_hash: dict[str, list[str]] = {}
@@ -177,9 +179,9 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
             per_hash[h] = [line for line in _recorded(Path(out) / "points" / h / "results.json")
                            if line not in known and _NO_EFFECT.sub(r"\1", line, count=1) not in covered
                            and api.machine_key(line) not in machines]
-        forms = list(dict.fromkeys(_folded(line) for line in per_hash[h]))
+        forms = list(dict.fromkeys(number_form(line) for line in per_hash[h]))
         for line in per_hash[h]:
-            wordings.setdefault(_folded(line), {})[line] = None
+            wordings.setdefault(number_form(line), {})[line] = None
         counts.update(forms)
     lines = counts.most_common()  # (ties: the first met first)
     if not lines:
@@ -195,7 +197,6 @@ def print_point_warnings(rows: list[dict], out: Path, said: list[str]) -> None:
                      f"{Path(out) / 'points'}/HASH/results.json lists its own; the sweep's report shows them all)")
 
 
-_NUMBER = re.compile(r"[0-9]+(?:\.[0-9]+)?")
 # a point's line of a key it set to no effect (tlm.render.planner, tlm.experiments.run_warnings), and the sweep's
 # own line of a factor or --set key that changed nothing (tlm.experiments.sweep_file: inert and unread factors)
 _NO_EFFECT = re.compile(r"^([A-Za-z_][A-Za-z0-9_.]*) = .* has no effect in this run: .*$", re.DOTALL)
@@ -209,10 +210,6 @@ def _covered_keys(said: list[str]) -> set[str]:
     return {m.group(1) for line in said for m in [_SWEEP_NOTHING.search(line)] if m}
 
 
-def _folded(line: str) -> str:
-    """A warning with its numbers masked (``moved by 0.14%`` and ``by 0.29%``: ``moved by #%``): the warnings of
-    one kind that :func:`print_point_warnings` counts as one."""
-    return _NUMBER.sub("#", line)
 
 
 def _recorded(path: Path) -> list[str]:

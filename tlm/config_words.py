@@ -11,7 +11,8 @@ line, :func:`flow_text`), YAML that :func:`parse_yaml` reads back the same. They
 string is said and written bare only where :func:`parse_yaml` reads it back as that string. A value given for a
 key over the value there (``--set render={spp: 1}``, a sweep's ``set:``): :func:`laid_over`, and why
 an empty one there (``--set render={}``) sets nothing: :func:`sets_nothing`. Items listed in a line
-(``a, b, c and 5 more``): :func:`listing`.
+(``a, b, c and 5 more``): :func:`listing`. Lines of one kind that differ only in their numbers (a warning
+each run says with its own figures): :func:`number_form`.
 """
 
 from __future__ import annotations
@@ -405,3 +406,13 @@ def listing(items: Iterable[str], named: int | None = None, more: str = "more", 
     if named is not None and len(items) > max(named + 1, whole or 0):
         return f"{', '.join(items[:named])} {last} {len(items) - named} {more}" if named else f"{len(items)} {more}"
     return "".join(items) if len(items) < 2 else f"{', '.join(items[:-1])} {last} {items[-1]}"
+
+
+_NUMBER = re.compile(r"[0-9]+(?:\.[0-9]+)?")
+
+
+def number_form(line: str) -> str:
+    """``line`` with each of its numbers masked as ``#`` (``moved by 0.14%`` and ``moved by 0.29%`` are both
+    ``moved by #%``): the lines of one kind that ``tlm sweep``'s stderr and the report's warnings box say once,
+    with how many wordings they had."""
+    return _NUMBER.sub("#", line)

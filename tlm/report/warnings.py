@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from tlm.config_words import listing
+from tlm.config_words import listing, number_form
 from tlm.experiments.sweep_rows import WORKERS_FILE, read_worker_events
 from tlm.report.collect import Inputs
 from tlm.report.html import esc
@@ -221,14 +221,28 @@ def warnings_html(inputs: Inputs) -> str:
     for line, whose_studies, _ in studies:  # (a study's own first: said once for all its cells)
         items.append(f"<li>{esc(line)}<span class=\"note\"> ({esc(', '.join(whose_studies))})</span></li>")
     said = {line for line, _, _ in studies}
-    for line, labels in found:
-        if line in said:  # (a cell of an older study recorded the study's line too: once, the study's)
+    kept = [(line, labels) for line, labels in found if line not in said]  # (a cell of an older study recorded
+    # the study's line too: once, the study's)
+
+    def whose(labels: list[str]) -> str:  # (which runs said it; "" of a page of one run)
+        return "" if total == 1 and not studies else "every run" if len(labels) == total else (
+            f"{len(labels)} of {total} runs: {listing(labels, SHOWN_RUNS)}")
+
+    def note(*words: str) -> str:
+        said = "; ".join(filter(None, words))
+        return f"<span class=\"note\"> ({esc(said)})</span>" if said else "<span class=\"note\"></span>"
+    for wordings in folded(kept):
+        (line, labels), others = wordings[0], wordings[1:]
+        if not others:
+            items.append(f"<li>{esc(line)}{note(whose(labels))}</li>")
             continue
-        named = listing(labels, SHOWN_RUNS)
-        whose = "" if total == 1 and not studies else " (every run)" if len(labels) == total else (
-            f" ({len(labels)} of {total} runs: {named})")
-        items.append(f"<li>{esc(line)}<span class=\"note\">{esc(whose)}</span></li>")
-    kept = [(line, labels) for line, labels in found if line not in said]
+        every = list(dict.fromkeys(label for _, ls in wordings for label in ls))
+        items.append(f"<li>{esc(line)}"
+                     + note(f"in {len(wordings)} wordings that differ only in their numbers, the first met shown",
+                            whose(every))
+                     + f"<details><summary>its {len(others)} other wording{'s' * (len(others) > 1)}</summary><ul>"
+                     + "".join(f"<li>{esc(other)}{note(whose(ls))}</li>" for other, ls in others)
+                     + "</ul></details></li>")
     runs = len({label for _, labels in kept for label in labels})
     study_names = list(dict.fromkeys(s for _, whose, _ in studies for s in whose))
     files = list(dict.fromkeys(f for _, _, fs in studies for f in fs))
@@ -240,10 +254,24 @@ def warnings_html(inputs: Inputs) -> str:
     where = (esc(listing(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
              if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
              listing(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
-    n = len(items)
+    n = len(studies) + len(kept)
+    kinds = ("" if len(items) == n else
+             f", {len(items)} once each where they differ only in their numbers")  # (:func:`folded`)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
             + "".join(rest) + "</ul></details>") if rest else ""
     return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
-            f"warning{'s' if n > 1 else ''} ({where}); read what is drawn "
+            f"warning{'s' if n > 1 else ''} ({where}){esc(kinds)}; read what is drawn "
             "from them with these in mind:</p><ul>" + "".join(shown) + "</ul>" + more + "</div>")
+
+
+def folded(found: list[tuple[str, list[str]]]) -> list[list[tuple[str, list[str]]]]:
+    """The runs' warnings (``(line, labels)``, :func:`recorded`) grouped by :func:`tlm.config_words.number_form`,
+    each group in the order first met (its first wording first): ``arch.fifo_depth = 16 changes no simulated
+    cycle ... the 3065 puts that waited ...`` and ``... the 2985 puts ...`` of two sweep points are one item of the
+    box, said once with its other wordings one click below (a sweep over many points would fill the first
+    screens with lines that differ only in their figures)."""
+    groups: dict[str, list[tuple[str, list[str]]]] = {}
+    for line, labels in found:
+        groups.setdefault(number_form(line), []).append((line, labels))
+    return list(groups.values())
