@@ -95,3 +95,23 @@ def test_set_items_are_named_as_python_passes_them():
     assert arguments_text("cornell.yaml, with --set: render.spp: bad", names) == \
         "cornell.yaml, with --set: render.spp: bad"
     assert arguments_text("--set render.spp=2", {"out"}) == "--set render.spp=2"  # (no overrides argument)
+
+
+def test_an_error_vs_cost_row_with_a_radius_given_records_no_radius_fraction(tmp_path, cache):
+    """(lead, stop 68) A row whose base gives ``estimate.radius`` (scene units, which comes first) recorded its
+    ``radius_fraction`` as if the fraction had sized the gather, and the report named the point ``r=0.03``: it is
+    null now, an empty cell in rows.csv, as under knn; a kvoxel point keeps both its k and its fraction."""
+    exp = tmp_path / "evc.yaml"
+    base = {**BASE, "estimate": {"radius": 0.05}}
+    points = [{"estimate.filter": ["disk"], "estimate.radius_fraction": [0.03]}]
+    exp.write_text(json.dumps({"base": base, "points": points}))
+    rows = run_error_vs_cost(exp, tmp_path / "out", truth=Truth(spp=0))
+    assert [(r["radius_fraction"], r["radius"], r["radius_rule"]) for r in rows] == [(None, 0.05, "radius")]
+    with open(tmp_path / "out" / "rows.csv", newline="") as fh:
+        assert [r["radius_fraction"] for r in csv.DictReader(fh)] == [""]  # (not 'null', the density rule)
+    name = _point_name(rows[0])
+    assert "r=" not in name and name.startswith("disk"), name
+    kvoxel = _point_name({"filter": "kvoxel", "photons": 1000, "k": 8, "radius_fraction": 0.02})
+    assert kvoxel == "kvoxel, 1,000 ph, k=8, r=0.02", kvoxel
+    density = _point_name({"filter": "kvoxel", "photons": 1000, "k": 8, "radius_fraction": None})
+    assert density == "kvoxel, 1,000 ph, k=8", density  # (the old code: 'r=nan')

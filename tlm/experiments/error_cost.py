@@ -449,7 +449,9 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
             "filter": est.filter, "photons": n, "stored": traced.photons.n,
             "radius": radii.get(indirect),
             "caustic_radius": radii.get("caustic"),
-            "radius_fraction": est.radius_fraction if used else None, "k": est.k if est.filter == "kvoxel" else None,
+            # (an explicit estimate.radius comes first: the fraction does nothing then, as under knn)
+            "radius_fraction": est.radius_fraction if used and est.radius is None else None,
+            "k": est.k if est.filter == "kvoxel" else None,
             "k_nearest": est.k_nearest if est.filter == "knn" else None, "cone_k": est.cone_k,
             "final_gather": est.final_gather, "caustic_photons": _caustic_photons(cfg, n),
             "aim": cfg.photons.aim,
@@ -480,10 +482,11 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
 
 
 def _csv_rows(rows: list[dict]) -> list[dict]:
-    """``rows`` as rows.csv has them: the radius_fraction of a filter that uses no radius is of no meaning, an
-    empty cell (NaN, as :func:`~tlm.experiments.sweep_rows.csv_cell` writes it), not ``null`` (the density rule)."""
-    return [{**r, "radius_fraction": math.nan} if r.get("radius_fraction") is None and not uses_radius(str(r["filter"]))
-            else r for r in rows]
+    """``rows`` as rows.csv has them: the radius_fraction of a filter that uses no radius, or of a row whose radius
+    ``estimate.radius`` gave in scene units (``radius_rule`` ``radius``), is of no meaning, an empty cell (NaN, as
+    :func:`~tlm.experiments.sweep_rows.csv_cell` writes it), not ``null`` (the density rule)."""
+    return [{**r, "radius_fraction": math.nan} if r.get("radius_fraction") is None and (
+        not uses_radius(str(r["filter"])) or r.get("radius_rule") == "radius") else r for r in rows]
 
 
 def radius_rule_used(frame: Frame, photons, name: str) -> str:

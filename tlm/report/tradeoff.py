@@ -301,9 +301,9 @@ def _point_name(r: dict) -> str:
     if filt == "knn" and r.get("k_nearest") is not None:
         extra = f", k={int(r['k_nearest'])}"
     elif filt == "kvoxel" and r.get("k") is not None:
-        extra = f", k={int(r['k'])}, r={_num(r.get('radius_fraction')):g}"
-    elif r.get("radius_fraction") is not None:
-        extra = f", r={_num(r.get('radius_fraction')):g}"
+        extra = f", k={int(r['k'])}"
+    if filt != "knn" and r.get("radius_fraction") is not None:  # (null: the density rule, or estimate.radius given)
+        extra += f", r={_num(r.get('radius_fraction')):g}"
     caustic = _num(r.get("caustic_photons"))
     if np.isfinite(caustic) and caustic > 0:
         extra += f", {int(caustic):,} caustic ph"
