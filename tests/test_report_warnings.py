@@ -125,14 +125,73 @@ def test_warnings_that_differ_only_in_numbers_are_one_item_with_the_others_below
     runs = [SimpleNamespace(label=f"p{i}", results={"warnings": lines}) for i, lines in enumerate(said)]
     page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
     head, _, items = page.partition("<ul>")
-    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>), 3 once each where they "
-            "differ only in their numbers;") in head
+    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>), in 3 items: lines that "
+            "differ only in their numbers are one;") in head
     first, _, rest = items.partition("<details>")
     assert first.startswith(f"<li>{depth.format(16, 3065)}<span class=\"note\"> (in 3 wordings that differ only "
-                            "in their numbers, the first met shown; 4 of 5 runs: p0, p1, p2 and p3)</span>")
+                            "in their numbers, the first met shown; 4 of 5 runs: p0, p1, p2 and p3; this one by "
+                            "1 of 5 runs: p0)</span>")
     others, _, after = rest.partition("</details>")
     assert others == (f"<summary>its 2 other wordings</summary><ul><li>{depth.format(16, 2985)}<span class=\"note\">"
                       f" (1 of 5 runs: p1)</span></li><li>{depth.format(256, 3065)}<span class=\"note\"> (2 of 5 runs: "
                       "p2 and p3)</span></li></ul>")
     assert after.startswith("</li><li>BSP stopped at 11 of 12 levels<span class=\"note\"> (1 of 5 runs: p0)</span>")
     assert "cache.pairs = 2 has no effect" in after and page.count("<li>") == 5  # (each wording once)
+
+
+def test_a_folded_item_names_the_runs_of_the_wording_it_shows():
+    """h436: the item of lines that differ only in their numbers named the runs of its kind after the wording it
+    shows, and that wording's own runs nowhere: ``light 0 reaches nothing (...; every run)`` of two runs where one
+    said ``light 0`` (each run says its own lights' lines, one run several of them). Each wording is said with its
+    own runs: the one shown ``this one by``, the others below it."""
+    from types import SimpleNamespace
+
+    from tlm.report import warnings as box
+
+    said = [["light 0 reaches nothing", "light 1 reaches nothing"], ["light 1 reaches nothing"]]
+    runs = [SimpleNamespace(label=f"p{i}", results={"warnings": lines}) for i, lines in enumerate(said)]
+    page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
+    assert ("<li>light 0 reaches nothing<span class=\"note\"> (in 2 wordings that differ only in their numbers, the "
+            "first met shown; every run; this one by 1 of 2 runs: p0)</span><details><summary>its 1 other wording"
+            "</summary><ul><li>light 1 reaches nothing<span class=\"note\"> (every run)</span></li></ul></details>"
+            "</li>") in page
+    one = box.warnings_html(SimpleNamespace(runs=runs[:1], damaged=[]))  # (a page of one run names no run)
+    assert ("<li>light 0 reaches nothing<span class=\"note\"> (in 2 wordings that differ only in their numbers, the "
+            "first met shown)</span>") in one and "The run recorded 2 warnings" in one
+
+
+def test_a_folded_item_past_the_first_screens_is_counted_by_its_lines_and_nests_its_details():
+    """h436: a folded item past SHOWN_WARNINGS was counted as one warning in the "more" summary (``1 more
+    warning`` over three lines); it says how many items and how many warnings are one click below, and its
+    own <details> sits whole inside theirs (each tag closed in order)."""
+    from html.parser import HTMLParser
+    from types import SimpleNamespace
+
+    from tlm.report import warnings as box
+
+    words = [f"warning {'abcdefgh'[i]}" for i in range(box.SHOWN_WARNINGS)]
+    lines = [*words, "moved by 0.14%", "moved by 0.29%", "moved by 1.5%", "warning z"]
+    runs = [SimpleNamespace(label=f"run {i}", results={"warnings": [line]}) for i, line in enumerate(lines)]
+    page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
+    assert ("12 of the 12 runs recorded 12 warnings (results.json <code>warnings</code>), in 10 items: lines that "
+            "differ only in their numbers are one;") in page
+    shown, _, hidden = page.partition("<details>")
+    assert all(f"{w}<" in shown for w in words) and "moved" not in shown
+    assert hidden.startswith("<summary>2 more items, 4 warnings</summary><ul><li>moved by 0.14%")
+    assert all(f"{line}<" in hidden for line in lines[box.SHOWN_WARNINGS:]) and page.count("<li>") == 12
+
+    class Tags(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.open, self.bad = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.open.append(tag)
+
+        def handle_endtag(self, tag):
+            if not self.open or self.open.pop() != tag:
+                self.bad.append(tag)
+
+    tags = Tags()
+    tags.feed(page)
+    assert tags.open == [] and tags.bad == []

@@ -217,9 +217,9 @@ def warnings_html(inputs: Inputs) -> str:
     if not found and not studies:
         return f'<div class="warnings">{damaged}</div>' if damaged else ""
     total = len(inputs.runs)
-    items = []
+    items: list[tuple[str, int]] = []  # (an item of the box, how many of the lines it says: :func:`folded`)
     for line, whose_studies, _ in studies:  # (a study's own first: said once for all its cells)
-        items.append(f"<li>{esc(line)}<span class=\"note\"> ({esc(', '.join(whose_studies))})</span></li>")
+        items.append((f"<li>{esc(line)}<span class=\"note\"> ({esc(', '.join(whose_studies))})</span></li>", 1))
     said = {line for line, _, _ in studies}
     kept = [(line, labels) for line, labels in found if line not in said]  # (a cell of an older study recorded
     # the study's line too: once, the study's)
@@ -234,15 +234,16 @@ def warnings_html(inputs: Inputs) -> str:
     for wordings in folded(kept):
         (line, labels), others = wordings[0], wordings[1:]
         if not others:
-            items.append(f"<li>{esc(line)}{note(whose(labels))}</li>")
+            items.append((f"<li>{esc(line)}{note(whose(labels))}</li>", 1))
             continue
         every = list(dict.fromkeys(label for _, ls in wordings for label in ls))
-        items.append(f"<li>{esc(line)}"
-                     + note(f"in {len(wordings)} wordings that differ only in their numbers, the first met shown",
-                            whose(every))
-                     + f"<details><summary>its {len(others)} other wording{'s' * (len(others) > 1)}</summary><ul>"
-                     + "".join(f"<li>{esc(other)}{note(whose(ls))}</li>" for other, ls in others)
-                     + "</ul></details></li>")
+        mine = whose(labels)  # (the runs of the wording shown, not only of its kind: each line with its runs)
+        items.append((f"<li>{esc(line)}"
+                      + note(f"in {len(wordings)} wordings that differ only in their numbers, the first met shown",
+                             whose(every), mine and f"this one by {mine}")
+                      + f"<details><summary>its {len(others)} other wording{'s' * (len(others) > 1)}</summary><ul>"
+                      + "".join(f"<li>{esc(other)}{note(whose(ls))}</li>" for other, ls in others)
+                      + "</ul></details></li>", len(wordings)))
     runs = len({label for _, labels in kept for label in labels})
     study_names = list(dict.fromkeys(s for _, whose, _ in studies for s in whose))
     files = list(dict.fromkeys(f for _, _, fs in studies for f in fs))
@@ -254,15 +255,18 @@ def warnings_html(inputs: Inputs) -> str:
     where = (esc(listing(name for name, _, _ in named)) + " <code>warnings</code>"  # (their warnings lists)
              if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
              listing(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
-    n = len(studies) + len(kept)
-    kinds = ("" if len(items) == n else
-             f", {len(items)} once each where they differ only in their numbers")  # (:func:`folded`)
+    n = len(studies) + len(kept)  # (== the lines its items say)
+    kinds = ("" if len(items) == n else f", in {len(items)} item{'s' * (len(items) > 1)}: lines that differ only "
+             "in their numbers are one")  # (:func:`folded`)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
-    more = (f"<details><summary>{len(rest)} more warning{'s' if len(rest) > 1 else ''}</summary><ul>"
-            + "".join(rest) + "</ul></details>") if rest else ""
+    hidden = sum(k for _, k in rest)  # (a folded item past the first ones says its wordings there too)
+    more = (f"<details><summary>{len(rest)} more "
+            + (f"warning{'s' * (len(rest) > 1)}" if hidden == len(rest) else
+               f"item{'s' * (len(rest) > 1)}, {hidden} warnings")
+            + "</summary><ul>" + "".join(item for item, _ in rest) + "</ul></details>") if rest else ""
     return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
             f"warning{'s' if n > 1 else ''} ({where}){esc(kinds)}; read what is drawn "
-            "from them with these in mind:</p><ul>" + "".join(shown) + "</ul>" + more + "</div>")
+            "from them with these in mind:</p><ul>" + "".join(item for item, _ in shown) + "</ul>" + more + "</div>")
 
 
 def folded(found: list[tuple[str, list[str]]]) -> list[list[tuple[str, list[str]]]]:
