@@ -44,6 +44,7 @@ from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
 from tlm.report.collect import Inputs, read
 from tlm.report.common import Section, count, current_output, drawable, figure_output, forget_names
 from tlm.report.html import esc, page
+from tlm.report.names import path_labels
 from tlm.report.once import reading
 from tlm.report.warnings import warnings_html
 from tlm.storage import atomic_folder, check_destination, distinct_folders
@@ -331,7 +332,7 @@ def _build_report_steps(dirs: list[Path], out: Path | None, title: str | None, s
                  f"in {time.perf_counter() - t0:.1f} s. {linked(current_output().formats)}</p>")
         intro += "".join(f'<p class="note">{esc(n)}.</p>' for n in inputs.notes)  # (a folder with no tlm output)
         intro += scenes_note(inputs)
-        text = page(title or f"tlm report: {', '.join(d.name for d in dirs)}", intro, secs, tmp,
+        text = page(title or f"tlm report: {', '.join(path_labels(dirs))}", intro, secs, tmp,
                     summary=summary, notice=warnings_html(inputs))
         (tmp / MARKER).write_text(drawable(text), encoding="utf-8")  # (a folder name of bytes not UTF-8 escaped)
     return Path(out) / MARKER

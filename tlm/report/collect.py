@@ -511,10 +511,12 @@ def read(dirs: list[Path], skip: Path | None = None, reads: Reads | None = None)
             raise InputError("is not a folder", source=str(d))
         k = kind_of(d)
         said: list[str] = []
-        found = [(d, k)] if k is not None else find(d, skip, said)
+        named: list[int] = []  # (how many folders each line of ``said`` names: a line of "and 12 more ...", 12)
+        found = [(d, k)] if k is not None else find(d, skip, said, named)
         if not found:  # (and what the search passed over: a link not followed, a folder it could not list)
-            # (one line: three and how many more, never "and 1 more" (listing's rule); "; " between: a line has commas)
-            shown = said if len(said) <= 4 else [*said[:3], f"and {len(said) - 3} more passed over"]
+            # (one line: three folders and how many more *folders*, not lines, never "and 1 more" (listing's rule,
+            # whose ", " does not fit: "; " between, as a line has commas; and a line may name many folders))
+            shown = said if len(said) <= 4 else [*said[:3], f"and {sum(named[3:])} more passed over"]
             raise InputError("holds no tlm output (a run, sweep, thesis, error-vs-cost, granularity, scaling or "
                              "extreme folder) at any depth" + "".join(f"; {n}" for n in shown), source=str(d))
         inputs.notes.extend(said)

@@ -45,7 +45,8 @@ def real_path(folder: Path) -> str:
     return os.path.realpath(folder)
 
 
-NOTES_SHOWN = 10  # the lines :func:`find` gives of each kind of folder it passes over; then how many more
+NOTES_SHOWN = 10  # the lines :func:`find` gives of each kind of folder it passes over; then how many more (one
+# more than that: named too, never "and 1 more")
 # folders of installed software, which no tlm command writes into, not searched by :func:`find` (``tlm report ~``
 # would list every file of every environment): by their name, or by what they hold (a virtual environment's
 # ``pyvenv.cfg``, a conda installation's or environment's ``conda-meta``)
@@ -58,7 +59,8 @@ LONG_FOLDERS = 10_000
 LONG_SECONDS = 5.0
 
 
-def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -> list[tuple[Path, str]]:
+def find(root: Path, skip: Path | None = None, notes: list[str] | None = None,
+         named: list[int] | None = None) -> list[tuple[Path, str]]:
     """The tlm folders under ``root`` (a folder no tlm command wrote) at any depth, each with its
     kind (:func:`kind_of`), in sorted order of their paths: a tlm folder's own subfolders are its
     own (a sweep's points), not searched. Not searched either: a hidden folder (``.git``, ``.venv``,
@@ -70,12 +72,16 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
     searched, and named, where it lies there).
 
     ``notes`` gets a line for each folder passed over that may have been meant, at most
-    :data:`NOTES_SHOWN` of a kind and then a line of how many more: a link to a folder outside
+    :data:`NOTES_SHOWN` of a kind and then a line of how many more (never "and 1 more": one over
+    :data:`NOTES_SHOWN` is named, as :func:`~tlm.config_words.listing` does): a link to a folder outside
     ``root`` that is not a tlm folder, a folder that could not be listed and, where tlm folders were
     found, a folder with none in it at any depth (its subfolders not named apart), then one line
     that says the folders of installed software passed over and a long search (:data:`LONG_FOLDERS`
     folders listed, or :data:`LONG_SECONDS`), where there were any or it was; where none were found,
-    the hidden, report and installed software's folders passed over instead. Each folder is listed
+    the hidden, report and installed software's folders passed over instead. ``named`` gets, for
+    each line of ``notes``, how many folders it names (1; a line of how many more, that many; the
+    line on the search, the folders of installed software it counts), so that what is passed over
+    is counted in folders, not in lines (:func:`tlm.report.collect.read`). Each folder is listed
     once; its entries' types come with the listing (no stat of a file, nor of a folder but a link's)."""
     import os
     import time
@@ -85,16 +91,15 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
     skipped = real_path(skip) if skip is not None else None
     lines: dict[str, list[str]] = {"link": [], "unlisted": [], "empty": [], "hidden": [], "report": [],
                                    "software": []}
-    more = dict.fromkeys(lines, 0)
+    met = dict.fromkeys(lines, 0)  # (the folders of each kind passed over: its lines and how many more)
     found: list[tuple[Path, str]] = []
     software: list[Path] = []  # (the folders of installed software passed over, in the order met)
     listed = 0  # (the folders listed: how long the search was)
 
     def note(kind: str, line: str) -> None:
-        if len(lines[kind]) < NOTES_SHOWN:
+        met[kind] += 1
+        if len(lines[kind]) <= NOTES_SHOWN:  # (one over kept: named in place of "and 1 more")
             lines[kind].append(line)
-        else:
-            more[kind] += 1
 
     def listing(d: Path) -> list[os.DirEntry] | str:
         nonlocal listed
@@ -177,15 +182,22 @@ def find(root: Path, skip: Path | None = None, notes: list[str] | None = None) -
     for c in sorted(empty):  # (in the order of their paths, as the tlm folders are)
         note("empty", f"{c}: no run, sweep or study in it")
     said = notes if notes is not None else []
+    counts = named if named is not None else []
     wording = {"link": "links to folders outside {root} not followed", "unlisted": "folders not searched",
                "empty": "folders with no run, sweep or study in them", "hidden": "hidden folders not searched",
                "report": "report folders not searched", "software": "folders of installed software not searched"}
     for kind in ("link", "unlisted", *(("empty",) if found else ("hidden", "report", "software"))):
-        said.extend(lines[kind])
-        if more[kind]:
-            said.append(f"and {more[kind]} more {wording[kind].format(root=root)}")
+        if met[kind] <= NOTES_SHOWN + 1:
+            said.extend(lines[kind])
+            counts.extend([1] * len(lines[kind]))
+        else:  # (2 or more: a plural)
+            said.extend([*lines[kind][:NOTES_SHOWN], f"and {met[kind] - NOTES_SHOWN} more "
+                         f"{wording[kind].format(root=root)}"])
+            counts.extend([*[1] * NOTES_SHOWN, met[kind] - NOTES_SHOWN])
     if found:
-        said.extend(_search_line(root, software, listed, time.perf_counter() - t0))
+        search = _search_line(root, software, listed, time.perf_counter() - t0)
+        said.extend(search)
+        counts.extend([len(software)] * len(search))
     return found
 
 
