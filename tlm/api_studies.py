@@ -579,18 +579,45 @@ def write_report(dirs: Iterable[str | Path], out: str | Path | None = None, titl
     out = out_folder(out) if out is not None else None
     formats = _formats(formats)
     hear = callback(note, "note") or (lambda line: None)  # (None: the page alone says them; nothing printed)
-    if not lock:
-        return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
-    from tlm.claims import lock_holder
-    from tlm.storage import folder_lock
+    with _report_held(dirs, out, formats, dpi):
+        if not lock:
+            return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
+        from tlm.claims import lock_holder
+        from tlm.storage import folder_lock
 
-    def waiting() -> None:  # (another process holds it: a run replacing the folder, a report reading it)
-        holder = lock_holder(dirs[0]) or "another process"
-        hear(f"{quoted(dirs[0])} is held by {holder}, a run replacing it or a report reading it: the report waits "
-             "for it to end")
+        def waiting() -> None:  # (another process holds it: a run replacing the folder, a report reading it)
+            holder = lock_holder(dirs[0]) or "another process"
+            hear(f"{quoted(dirs[0])} is held by {holder}, a run replacing it or a report reading it: the report "
+                 "waits for it to end")
 
-    with folder_lock(dirs[0], waiting=waiting, probe=False):  # (a reader: nothing written beside the folder)
-        return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
+        with folder_lock(dirs[0], waiting=waiting, probe=False):  # (a reader: nothing written beside the folder)
+            return build_report(dirs, out, title, formats=formats, dpi=dpi, note=hear, progress=progress)
+
+
+@contextmanager
+def _report_held(dirs: list[Path], out: Path | None, formats: str | list[str] | None,
+                 dpi: int | str | None) -> Iterator[None]:
+    """:func:`write_report`'s block: its folder (``out``; None: ``DIR/report`` of the one folder) held by this
+    process while the report is written, as ``tlm report`` holds it (:func:`tlm.claims.claimed`, a report's claim):
+    another process's report, run, study or sweep into it meanwhile is refused at once, naming this one, and this
+    report is refused a folder another process writes now, before any work (was: none held from Python, two
+    reports into one folder last-wins: h434). What :func:`tlm.report.build_report` refuses before it reads
+    anything is refused first, as it says it, nothing made for the claim: bad ``formats`` or ``dpi``, a bad ``out``
+    or one that is an input (:func:`tlm.report.check_out`); a folder of ``dirs`` that is not there takes no claim
+    (its own error, from the report). From the command line, which holds it already (``tlm report`` and a
+    command's report at its end: :func:`tlm.cli_report.report_claimed`), the claim is that one, shared
+    (:func:`~tlm.claims.claimed` counts its holders in a process), never a second."""
+    if not dirs or not all(Path(d).is_dir() for d in dirs):
+        yield
+        return
+    from tlm.claims import claimed
+    from tlm.report import check_out
+    from tlm.report.common import output
+
+    output(formats, dpi)  # (checked as the report checks them, first)
+    check_out(out, dirs)
+    with claimed(out if out is not None else Path(dirs[0]) / "report", "report"):
+        yield
 
 
 @imports_whole

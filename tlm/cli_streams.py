@@ -120,8 +120,10 @@ _WRITES = False  # the command writes files (:func:`writes_files`, set by tlm.cl
 def writes_files(yes: bool) -> Iterator[None]:
     """While the block runs, the command is one that writes files (``tlm run``, ``sweep``, a study,
     ``scaling``, a report, an export), whatever it holds at the moment: a sweep shares its folder
-    (:func:`tlm.claims.sharing`), a study or ``tlm scaling`` holds none, and each prints its summary
-    before its report; :func:`_writing` reads it."""
+    (:func:`tlm.claims.sharing`), which :func:`tlm.claims.holding` does not count; a run, a study, ``tlm scaling``
+    and a report claim theirs (:func:`tlm.claims.claimed`, from the command or its API function), but only once
+    their input is checked, and ``tlm report`` lets its claim go before its ``wrote`` line; an export claims none.
+    Each prints its summary before its report; :func:`_writing` reads it."""
     global _WRITES
     before, _WRITES = _WRITES, yes
     try:
