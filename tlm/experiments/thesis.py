@@ -125,10 +125,14 @@ from tlm.storage import warn as _warn
 
 
 def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[str], list[str], Path]:
-    """``(base, scenes, modes, folder)`` of the study file ``path``, every cell's config checked.
-    ``overrides``: ``tlm thesis --set`` strings, applied to ``base`` as ``tlm run --set`` applies
-    them; one of ``scene`` or ``mode``, which each cell gets from ``scenes`` and ``modes``, is
-    refused, as is a bad key or value (the error names the file ``with --set``)."""
+    """``(base, scenes, modes, folder)`` of the study file ``path``, every cell's config checked. ``overrides``:
+    ``tlm thesis --set`` strings, applied to ``base`` as ``tlm run --set`` applies them; one of ``scene`` or ``mode``
+    (each cell's, from ``scenes`` and ``modes``) is refused, and a bad key or value (named: FILE ``with --set``)."""
+    return _study(path, overrides)[:4]
+
+
+def _study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[str], list[str], Path, dict]:
+    """:func:`load_study` and each scene's ``(key, table)``: :func:`scene_keys` once a study (it reads every file)."""
     raw, base, src = read_study(path, ("scenes", "modes"))
     for key in ("scene", "mode"):
         if key in base:
@@ -163,8 +167,8 @@ def load_study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
                              if files[file] != s else f"{quoted(s)} is listed twice (list it once)", source=src,
                              key="scenes")
         files[file] = s
-    scene_keys(scenes, folder, src)  # (two scenes of one table, by their files' bytes: refused)
-    return base, scenes, sorted(set(modes), key=MODES.index), folder
+    keys = scene_keys(scenes, folder, src)  # (two scenes of one table, by their files' bytes: refused)
+    return base, scenes, sorted(set(modes), key=MODES.index), folder, keys
 
 
 def restrict(res: RenderResult, cfg: RunConfig) -> RenderResult:
@@ -335,24 +339,21 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     quiet_cells = warn is None
     warn = _warn if warn is None else warn
     overrides = tuple(str(o) for o in overrides)
-    base, scenes, modes, folder = load_study(Path(path), overrides)
-    keys = scene_keys(scenes, folder, str(path))  # (each scene's rows, folder and entries: its table, else stem)
+    base, scenes, modes, folder, keys = _study(Path(path), overrides)  # (keys: each scene's rows, folder, entries)
     wall: dict[str, float] = {}
     summary: dict = {}
     items: dict[str, dict] = {}
     differ: dict[str, list[str]] = {}  # scene -> how its cells differ from the thesis's setting
-    names: dict[str, str] = {}  # (each scene as the tables name it, for the summary's words too)
+    names = scene_names(scenes, folder, str(path), keys)  # (each scene as the tables name it, the summary's words too)
 
     unread: dict[str, dict[tuple[str, str], str]] = {}  # a --set some cell never reads -> its cells -> why
     said: dict[str, list[str]] = {}  # a cell's own warning -> the cells that gave it ("thesis/ring pmap")
     before = set(SAID)  # (a line said on stderr during the study, a cache's, is not said again after it)
 
     def names_of(scene: str) -> str:
-        names.update(names or scene_names(scenes, folder, str(path)))
         return names.get(keys[scene][0], scene)
 
     def summary_file(rows: list[dict]) -> dict:
-        names.update(names or scene_names(scenes, folder, str(path)))
         summary.update(summarize(rows, differ, names), scenes=dict(names), no_table=no_table(keys, names),
                        per_item=items, host_seconds=wall, warnings=unread_lines(unread, len(scenes), len(modes)))
         return {"thesis_summary.json": summary}
@@ -402,8 +403,7 @@ def run_thesis(path: Path, out: Path, progress=None, bar: bool = False, override
     lines = [*unread_said, *cell_warning_lines(said, len(scenes) * len(modes), SAID - before)]
     for line in unread_said if quiet_cells else lines:
         warn(line)
-    return {"rows": rows, "summary": summary, "names": names or scene_names(scenes, folder, str(path)),
-            "warnings": lines}
+    return {"rows": rows, "summary": summary, "names": names, "warnings": lines}
 
 
 def cell_warning_lines(said: dict[str, list[str]], cells: int, already: set[str] = frozenset()) -> list[str]:
@@ -466,12 +466,12 @@ def marked(rows: list[dict], differ: dict[str, list[str]]) -> list[dict]:
             if r["thesis"] is None and differ.get(str(r["scene"])) else r for r in with_comparable(rows, differ)]
 
 
-def scene_names(scenes: list[str], folder: Path, source: str) -> dict[str, str]:
-    """Each scene of a study by the name its rows give it (:func:`scene_keys`: its table, ``ring``,
-    else its file's stem) -> the scene as the report names it: a built-in one by its name under
+def scene_names(scenes: list[str], folder: Path, source: str, keys: dict | None = None) -> dict[str, str]:
+    """Each scene of a study by the name its rows give it (:func:`scene_keys`, or ``keys`` where given: its table,
+    ``ring``, else its file's stem) -> the scene as the report names it: a built-in one by its name under
     ``scenes/`` (``thesis/ring``, not the built-in ``ring``), another as the study lists it (its path)."""
     names = {}
-    for s, (key, _) in scene_keys(scenes, folder, source).items():
+    for s, (key, _) in (keys or scene_keys(scenes, folder, source)).items():
         file = resolve_scene_path(s, folder, source, "scenes").resolve()
         label = scene_label(file)
         names[key] = label if label != str(file) else s
@@ -523,11 +523,11 @@ def calibrate(path: Path, iterations: int = 4, progress=None) -> tuple[Programs,
     ours differs, :func:`mismatches`; empty: the thesis's setting) says whether the fit
     is one to the thesis's setting.
     """
-    base, scenes, modes, folder = load_study(Path(path))
+    base, scenes, modes, folder, keys = _study(Path(path))
     if "rcast" not in modes:
         raise InputError(f"{quoted(modes)} has no rcast: calibrate fits the RCast column only (the other modes' cells "
                          "are predictions)", source=str(path), key="modes")
-    tables = {s: table for s, (_, table) in scene_keys(scenes, folder, str(path)).items()}  # (by its file)
+    tables = {s: table for s, (_, table) in keys.items()}  # (by its file: scene_keys)
     unknown = [s for s in scenes if tables[s] is None]
     if unknown:  # (a scene whose name is a table's but not its file, judged_table: fitted to no table)
         named = [f"{quoted(s)} is not the thesis's {_name(s)} scene, {THESIS_SCENES[_name(s)]}" for s in unknown

@@ -292,8 +292,7 @@ def images_section(inputs: Inputs, out: Path) -> Section:
     jobs: list[tuple[list[Row], str, FigureName, str]] = []  # rows, title, file name, caption
     in_study: set[Path] = set()
     for study in inputs.of_kind("thesis"):
-        root = study.path.resolve()
-        cells = [r for r in inputs.runs if r.kind == "thesis" and r.path.resolve().parent.parent == root]
+        cells = inputs.study_cells(study)  # (its run folders DIR/<scene>/<mode>, as the tables find them)
         in_study.update(r.path.resolve() for r in cells)
         order = list(THESIS_SCENES.values())
         scenes = sorted(dict.fromkeys(r.scene_label for r in cells),
