@@ -8,13 +8,23 @@ imports them from here (and names them as its own: ``from tlm.config import scen
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
+
+from tlm import storage
+from tlm.errors import path_shown, quoted
 
 # the dotted keys whose values are file paths, each relative to the file that wrote it (the
 # command line's: relative to the working folder); ``scene`` names a file that way too, or a
 # built-in scene by name (:func:`scene_from`)
 PATH_KEYS = ("arch.programs",)
+# a scene file's top-level keys that no run config has (of tlm.scenes.loader.SCENE_KEYS, which this layer
+# does not import; tlm.cli's _SCENE_ONLY alike): what tells a scene file from a run config of one name
+# (configs/room.yaml, beside configs/cornell.yaml, runs the built-in scene room: no scene of its own)
+SCENE_ONLY_KEYS = frozenset(("camera", "lights", "materials", "parts", "default_material", "geometry",
+                             "transform", "crease_angle", "extends"))
+_TOP_KEY = re.compile(r"^([A-Za-z_][\w-]*)[ \t]*:", re.M)  # (a block mapping's key at column 0)
 
 
 def builtin_scenes_dir() -> Path:
@@ -45,6 +55,8 @@ def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
     ``thesis/ring``, ``thesis/ring.yaml``), an absolute path, and a path none of them holds
     are returned as they are (:func:`~tlm.scenes.loader.resolve_scene_path` finds the
     built-in one, or says that the file is missing)."""
+    if isinstance(value, str) and value:
+        shadowed_warning(value, folders)
     if not names_scene_file(value) or not value or Path(value).is_absolute():
         return value
     builtin = builtin_scenes_dir()
@@ -58,6 +70,53 @@ def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
     if os.path.isfile(target):
         return target
     return value  # (thesis/ring.yaml: a built-in scene, a name wherever it runs; else the loader says it is missing)
+
+
+def shadowed_warning(value: str, folders: list[Path] | tuple[Path, ...]) -> None:
+    """Say once (a line of :func:`tlm.storage.warn`, not said again while :data:`tlm.storage.SAID`
+    holds one of ``value``) where the ``scene`` value ``value`` names a built-in scene (``room``,
+    ``thesis/ring``), which the loader takes, while a scene file of that name (``room.yaml``,
+    ``thesis/ring.yml``) is in one of ``folders`` or in the working folder, looked for as
+    :func:`scene_from` looks for a file: a user who meant the file gets the built-in scene, unsaid
+    before (h435). Which one is taken is not changed; the line says how to give the file
+    (``scene=./room.yaml``). A run config of that name (``configs/room.yaml``: no key of
+    :data:`SCENE_ONLY_KEYS`) and the built-in scene's own file (run from ``scenes/``) are no such file."""
+    if value.lower().endswith((".yaml", ".yml")) or Path(value).is_absolute():
+        return  # (a file's name: the folders before the built-in scenes, as scene_from looks)
+    builtin = builtin_scenes_dir() / f"{value}.yaml"
+    if not builtin.is_file():
+        return
+    said = f"scene {quoted(value)} is the built-in scene of that name"
+    if any(line.startswith(said) for line in storage.SAID):
+        return  # (once: --set scene= is looked at from the working folder, then from the config's)
+    for folder in dict.fromkeys([*map(os.fspath, folders), os.getcwd()]):
+        for suffix in (".yaml", ".yml"):
+            target = os.path.abspath(os.path.join(folder, value + suffix))
+            if os.path.isfile(target) and not _same_file(target, builtin) and _scene_file(target):
+                shown = os.path.relpath(target)
+                shown = target if shown.startswith("..") else shown
+                storage.warn(f"{said}, not the file {path_shown(shown)}: to run the file, give it as a path, "
+                             f"scene=./{path_shown(value + suffix)}")
+                return
+
+
+def _same_file(a: str, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _scene_file(path: str) -> bool:
+    """Whether the YAML file ``path`` may be a scene file: it names a key of :data:`SCENE_ONLY_KEYS` at its
+    top level, or no block key there (a flow mapping, a file not read); not a run config (``scene: room``)."""
+    try:
+        with open(path, "rb") as f:
+            text = f.read(1 << 20).decode("utf-8", "replace")
+    except OSError:
+        return True
+    keys = set(_TOP_KEY.findall(text))
+    return not keys or bool(keys & SCENE_ONLY_KEYS)
 
 
 def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:

@@ -76,8 +76,8 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):
-        raise InputError(f"{value_text(sizes)} must be a non-empty list of whole numbers >= 1{_whole_hint(sizes)}",
-                         source=src, key="packet_sizes")
+        raise InputError(f"{value_text(sizes)} must be a non-empty list of whole numbers >= 1{_whole_hint(sizes)}"
+                         f"{_twice_too(sizes)}", source=src, key="packet_sizes")
     twice = next((v for i, v in enumerate(sizes) if v in sizes[:i]), None)
     if twice is not None:  # (as tlm sweep words a value a grid lists twice: its row would be one simulation, twice)
         raise InputError(f"{value_text(twice)} given twice", source=src, key="packet_sizes")
@@ -104,6 +104,22 @@ def _whole_hint(sizes) -> str:
     if not isinstance(sizes, list) or not all(whole(v) for v in sizes):
         return ""
     return type_hint(sizes, list[int], {})
+
+
+def _twice_too(sizes) -> str:
+    """Where ``sizes`` (a list refused for its types or values) gives one number twice, compared as numbers
+    (``[4, 4.0]``, ``[4, 4, 0]``): the clause that says so, to follow the list's other error in its line, so
+    that the fix of that one is not refused next for this (h435); else nothing."""
+    if not isinstance(sizes, list):
+        return ""
+    numbers = [v for v in sizes if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    twice = next((v for i, v in enumerate(numbers) if v in numbers[:i]), None)
+    if twice is None:
+        return ""
+    written = list(dict.fromkeys(value_text(v) for v in numbers if v == twice))
+    whole = isinstance(twice, float) and twice.is_integer() and abs(twice) < 1e21
+    also = f" (as {' and '.join(written)})" if len(written) > 1 else ""
+    return f"; and {value_text(int(twice) if whole else twice)} is given twice{also}: list it once"
 
 
 def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, ...] = (), *,
