@@ -647,7 +647,9 @@ def plots(configs: str | Path, runs: str | Path, out: str | Path, only: str | li
     returns 1 (None: nothing is printed). Steps that return 1 and the rest run; the report is
     written, then :class:`tlm.api.StepsFailed` (``.page``, ``.steps``) names them. ``formats`` and
     ``dpi``: the report's figure files, as :func:`write_report` takes them (checked before the
-    first step). ``only``: a list of steps' names, or one step's name."""
+    first step). ``only``: a list of steps' names, or one step's name. ``out`` is held by this process from
+    after those checks to its report written (a report's claim, as :func:`write_report` holds its folder):
+    another process's ``tlm plots`` or report into it is refused at once, naming this one."""
     from tlm.report.common import figure_output
     from tlm.report.regenerate import regenerate
 

@@ -21,9 +21,12 @@ that cannot finish): it is said, the other steps and the report still run, and
 :class:`StepsFailed` (``tlm plots``: exit status 1) names such steps at the end. Any
 other status, or bad input (an :class:`~tlm.errors.InputError` out of the step), stops
 the command at that step. An ``out`` that the report could not be written into (a file, a
-read-only folder's), or that is or holds ``runs`` or ``configs`` (the report replaces its folder
-whole), is refused before the first step, as a bad ``--only`` or ``--configs`` is.
-A command stopped so writes no report, and the report an
+read-only folder's), or that is or holds ``runs`` or ``configs`` or is a step's folder under ``runs`` (the
+report replaces its folder whole), is refused before the first step, as a bad ``--only`` or ``--configs`` is;
+so is one another process writes now. From then to its report written, ``out`` is this process's (a report's
+claim, :func:`tlm.claims.claimed`, as ``tlm report`` holds its own): another ``tlm plots``, ``tlm report``, run
+or study into it meanwhile is refused at once, naming this one; the claim goes as the command ends, stopped too.
+A command stopped at a step writes no report, and the report an
 earlier ``tlm plots`` left in ``out`` stays as it was (a command that fails leaves its
 destination alone; ``plots/`` is the committed report the README shows): the error then
 says that the report there is the earlier one, with its date (:func:`earlier_report`).
@@ -37,7 +40,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from tlm.errors import InputError, StepsFailed, escaped_line
+from tlm.claims import FolderHeld, claimed
+from tlm.errors import InputError, StepsFailed, escaped_line, quoted
 
 SCALING = ("scaling_ring", "scaling_room", "scaling_cornell")  # the sweeps the eq52 step fits
 SWEEPS = (*SCALING, "design_space", "bsp_levels", "sweep_fifo")
@@ -86,7 +90,7 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
     try:
         return _regenerate(configs, runs, out, only, run_command, say, ran)
     except InputError as e:
-        earlier = earlier_report(out, ran)
+        earlier = None if isinstance(e, FolderHeld) else earlier_report(out, ran)  # (another's report there now)
         if earlier is None:
             raise
         raise InputError(f"{e}; {earlier}") from None
@@ -102,7 +106,7 @@ def regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None = No
 
 def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, run_command, say,
                 ran: list[str]) -> Path:
-    from tlm.report import build_report, check_out
+    from tlm.report import check_out
 
     names = [n for n, _ in STEPS]
     for n in only or []:
@@ -114,6 +118,10 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
                          key="--configs")
     # (the report's folder, refused as its write refuses it, or holding the steps' folders: before the first step)
     check_out(out, [], [runs, configs])
+    for n in names:  # (a step's own folder: the step would write it in this process's claim, the report replace it)
+        if out.resolve() == (runs / n).resolve():
+            raise InputError(f"{quoted(out)} is step {n}'s folder under --runs: the report would replace the step's "
+                             "output (it replaces its folder whole); name another folder", key="--out")
     planned = [n for n in names if not only or n in only]
     # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
     # (a missing one is said and left out of the fit; none at all is refused before any step runs)
@@ -122,6 +130,20 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
     if "eq52" in planned and len(absent) == len(SCALING):
         raise InputError(f"step eq52 fits the scaling sweeps, and none is under {runs} ({_why_absent(runs, absent)}) "
                          f"nor among the steps to run: add {' or '.join(absent)} to --only", key="--only")
+    # (--out held from here to its report written, as tlm report holds it, a report's claim: another tlm plots or
+    # report into it meanwhile is refused at once naming this one, not last-wins; the steps, in this process or
+    # not, claim their folders under --runs, which check_out keeps out of --out: h439)
+    with claimed(out, "report"):
+        return _steps(configs, runs, out, only, absent, run_command, say, ran)
+
+
+def _steps(configs: Path, runs: Path, out: Path, only: list[str] | None, absent: list[str], run_command, say,
+           ran: list[str]) -> Path:
+    """The steps (all, or ``only``) and the report of their folders into ``out``, which this process holds
+    (:func:`_regenerate`); ``absent``: the scaling sweeps neither run nor under ``runs``, left out of eq52's fit."""
+    from tlm.report import build_report
+
+    names = [n for n, _ in STEPS]
     failed = []
     for name, argv in STEPS:
         if only and name not in only:
