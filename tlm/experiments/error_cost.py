@@ -157,7 +157,8 @@ COLUMNS = (
 # (estimate.radius_fraction: null, the density rule), ``null`` in rows.csv as in a sweep's sweep.csv; any other
 # column's null is a measure not taken or of no meaning for the row (no ground truth, the k of a filter that
 # samples no voxels, the fps of no cycles): an empty cell. The radius_fraction of a filter that uses no radius
-# (knn: :func:`tlm.render.planner.uses_radius`) is of no meaning too: null in rows.jsonl, an empty cell in rows.csv
+# (knn: :func:`tlm.render.planner.uses_radius`), or of a point that gives estimate.radius, is of no meaning too:
+# null in rows.jsonl, an empty cell in rows.csv
 SETTING_COLUMNS = ("filter", "radius_fraction", "cone_k", "final_gather", "aim")
 
 
@@ -468,6 +469,7 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
         if progress is not None:
             progress(i, len(points), row)
         return row
+    given = {i for i, c in enumerate(configs) if c.estimate.radius is not None}  # (estimate.radius: rows.csv)
     with clock.running():
         return run_study(str(path), out, "rows",
                          [(i, p, c) for i, (p, c) in enumerate(zip(points, configs, strict=True))],
@@ -478,15 +480,17 @@ def run_error_vs_cost(path: Path, out: Path, progress=None, truth: Truth | None 
                                                                 "warnings": list(dict.fromkeys(said))},
                                              "truth.json": truth_meta,
                                              # (over run_study's rows.csv: a setting's null as null)
-                                             "rows.csv": csv_text(_csv_rows(rows), COLUMNS, SETTING_COLUMNS)})
+                                             "rows.csv": csv_text(_csv_rows(rows, given), COLUMNS,
+                                                                  SETTING_COLUMNS)})
 
 
-def _csv_rows(rows: list[dict]) -> list[dict]:
-    """``rows`` as rows.csv has them: the radius_fraction of a filter that uses no radius, or of a row whose radius
-    ``estimate.radius`` gave in scene units (``radius_rule`` ``radius``), is of no meaning, an empty cell (NaN, as
-    :func:`~tlm.experiments.sweep_rows.csv_cell` writes it), not ``null`` (the density rule)."""
+def _csv_rows(rows: list[dict], given: set[int] | frozenset[int] = frozenset()) -> list[dict]:
+    """``rows`` as rows.csv has them: the radius_fraction of a filter that uses no radius, or of a point whose
+    config gives ``estimate.radius`` (scene units; the points ``given``), is of no meaning, an empty cell (NaN, as
+    :func:`~tlm.experiments.sweep_rows.csv_cell` writes it), not ``null`` (the density rule). By the point's config,
+    not its ``radius_rule``, which is empty where its indirect map is not gathered (``photons.count: 0``: h437)."""
     return [{**r, "radius_fraction": math.nan} if r.get("radius_fraction") is None and (
-        not uses_radius(str(r["filter"])) or r.get("radius_rule") == "radius") else r for r in rows]
+        not uses_radius(str(r["filter"])) or r.get("point") in given) else r for r in rows]
 
 
 def radius_rule_used(frame: Frame, photons, name: str) -> str:
