@@ -239,7 +239,10 @@ def _command(pid: int, most: int = 100) -> str:
 
 
 _CLAIMED = ".tlm-running"  # the suffix of a claimed destination's sibling (``.<name>.tlm-running``)
-_CLAIMS_LOCK = threading.Lock()
+# (reentrant: a claim left open, a ``claimed`` block entered and never left, is let go by the garbage collector,
+# whose close of its generator takes this lock in whatever thread it runs, one holding it too, as a claim is
+# taken: a plain lock waited there for ever, and every later claim of the process with it, h431)
+_CLAIMS_LOCK = threading.RLock()
 _CLAIMS: dict[str, list] = {}  # the destinations this process holds: path -> [fd, claim file, holders, made]
 
 
@@ -670,7 +673,7 @@ def _remove_made(made: list[Path]) -> None:
 def _forget_claims() -> None:
     """In a forked child: the parent's claims, never unlocked by the child (which would release them)."""
     global _CLAIMS_LOCK
-    _CLAIMS_LOCK = threading.Lock()
+    _CLAIMS_LOCK = threading.RLock()
     _CLAIMS.clear()
 
 

@@ -50,7 +50,11 @@ def process_tag() -> str:
     return f"{_host()}-{os.getpid()}"
 
 
-_LIVE_LOCK = threading.Lock()
+# (reentrant, as tlm.claims' lock: a write_atomic or atomic_folder block left open in a reference cycle is closed
+# by the garbage collector, whose close takes this lock in whatever thread it runs, one holding it too, as
+# tlm.storage._temporary_file allocates under it: a plain lock waited there for ever; each section adds, removes
+# or looks up its own name, never walks a set, so a section entered again there is safe: h431)
+_LIVE_LOCK = threading.RLock()
 _LIVE: set[str] = set()  # the names of the temporary folders this process's writers are using now
 _WRITERS = itertools.count()  # (numbers the writers of this process; under _LIVE_LOCK)
 _FILES: set[str] = set()  # the temporary files this process's write_atomic blocks are writing now
@@ -88,7 +92,7 @@ def _release(name: str) -> None:
 def _forget_live() -> None:
     """In a forked child: the parent's folders carry the parent's pid, and its locks may be held."""
     global _LIVE_LOCK
-    _LIVE_LOCK = threading.Lock()
+    _LIVE_LOCK = threading.RLock()
     _LIVE.clear()
     _FILES.clear()
     _CLEANED.clear()
