@@ -79,8 +79,9 @@ def shadowed_warning(value: str, folders: list[Path] | tuple[Path, ...]) -> None
     ``thesis/ring.yml``) is in one of ``folders`` or in the working folder, looked for as
     :func:`scene_from` looks for a file: a user who meant the file gets the built-in scene, unsaid
     before (h435). Which one is taken is not changed; the line says how to give the file
-    (``scene=./room.yaml``). A run config of that name (``configs/room.yaml``: no key of
-    :data:`SCENE_ONLY_KEYS`) and the built-in scene's own file (run from ``scenes/``) are no such file."""
+    (``scene=./room.yaml``, or its path from the config's folder: :func:`_given_as`). A run config of that
+    name (``configs/room.yaml``: no key of :data:`SCENE_ONLY_KEYS`) and the built-in scene's own file (run from
+    ``scenes/``) are no such file."""
     if value.lower().endswith((".yaml", ".yml")) or Path(value).is_absolute():
         return  # (a file's name: the folders before the built-in scenes, as scene_from looks)
     builtin = builtin_scenes_dir() / f"{value}.yaml"
@@ -96,8 +97,31 @@ def shadowed_warning(value: str, folders: list[Path] | tuple[Path, ...]) -> None
                 shown = os.path.relpath(target)
                 shown = target if shown.startswith("..") else shown
                 storage.warn(f"{said}, not the file {path_shown(shown)}: to run the file, give it as a path, "
-                             f"scene=./{path_shown(value + suffix)}")
+                             f"scene={path_shown(_given_as(target, value + suffix, folders))}")
                 return
+
+
+def _given_as(target: str, name: str, folders: list[Path] | tuple[Path, ...]) -> str:
+    """The ``scene`` path for :func:`shadowed_warning`'s line that names the file ``target`` (found as ``name``,
+    ``room.yaml``, in one of ``folders`` or the working folder) whichever way it is read: as a config's ``scene:``
+    (looked for in ``folders``, then the working folder) and as ``--set scene=`` (the working folder first, then
+    beside the config). ``./room.yaml`` where it does; else the file's path from the first of ``folders`` or
+    from the working folder (``../room.yaml``, ``cfg/room.yaml``), the shorter that does; else its whole path. A
+    run config ``configs/room.yaml`` beside ``configs/cornell.yaml`` made ``./room.yaml`` that config (h438)."""
+    cwd = os.getcwd()
+    orders = ([*map(os.fspath, folders), cwd], [cwd, *map(os.fspath, folders)])
+
+    def found(given: str, order: list[str]) -> str | None:
+        return next((t for t in (os.path.abspath(os.path.join(f, given)) for f in order) if os.path.isfile(t)), None)
+
+    def names_it(given: str) -> bool:
+        return all(_same_file(t, Path(target)) for t in (found(given, order) or "" for order in orders))
+
+    if names_it(f"./{name}"):
+        return f"./{name}"
+    paths = (os.path.relpath(target, start) for start in (*map(os.fspath, folders[:1]), cwd))
+    named = [p for p in (p if os.sep in p else f"./{p}" for p in paths) if names_it(p)]
+    return min(named, key=len) if named else target
 
 
 def _same_file(a: str, b: Path) -> bool:
