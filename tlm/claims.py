@@ -291,10 +291,16 @@ def claimed(out: Path, what: str = "run") -> Iterator[None]:
         # (a signal while the claim is taken, its file made but not yet held here, left the file
         # behind: the command line's handler raises it once the claim is held, and dropped)
         with interrupts_deferred(), _CLAIMS_LOCK:
-            held = _CLAIMS.get(key)
-            if held is None:
-                held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
-            held[3] += 1
+            while True:
+                held = _CLAIMS.get(key)
+                if held is None:
+                    held = _CLAIMS[key] = [*_take_claim(out, given, what), 0]
+                held[3] += 1
+                # (a claim of ``out`` left open, let go by the collector in this thread between the look and the
+                # count, the lock reentrant: its file dropped, this count is of nothing; counted anew, h442)
+                if _CLAIMS.get(key) is held:
+                    break
+                held[3] -= 1
             taken = held
         yield
     finally:

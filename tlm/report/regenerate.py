@@ -20,12 +20,12 @@ of ``tlm extreme`` that differs from its expectation, a sweep point that failed,
 that cannot finish): it is said, the other steps and the report still run, and
 :class:`StepsFailed` (``tlm plots``: exit status 1) names such steps at the end. Any
 other status, or bad input (an :class:`~tlm.errors.InputError` out of the step), stops
-the command at that step. An ``out`` that the report could not be written into (a file, a
-read-only folder's), or that is or holds ``runs`` or ``configs`` or is a step's folder under ``runs`` (the
-report replaces its folder whole), is refused before the first step, as a bad ``--only`` or ``--configs`` is;
-so is one another process writes now. From then to its report written, ``out`` is this process's (a report's
-claim, :func:`tlm.claims.claimed`, as ``tlm report`` holds its own): another ``tlm plots``, ``tlm report``, run
-or study into it meanwhile is refused at once, naming this one; the claim goes as the command ends, stopped too.
+the command at that step. An ``out`` that the report could not be written into (a file, a read-only folder's), or
+that is or holds ``runs`` or ``configs`` or is (or lies in) a step's folder under ``runs`` (the report replaces its
+folder whole; the step writes its own), is refused before the first step, as a bad ``--only`` or ``--configs`` is;
+so is one another process writes now. From then to its report written, ``out`` is this process's (a report's claim,
+:func:`tlm.claims.claimed`, as ``tlm report`` holds its own): another ``tlm plots``, ``tlm report``, run or study
+into it meanwhile is refused at once, naming this one; the claim goes as the command ends, stopped too.
 A command stopped at a step writes no report, and the report an
 earlier ``tlm plots`` left in ``out`` stays as it was (a command that fails leaves its
 destination alone; ``plots/`` is the committed report the README shows): the error then
@@ -118,10 +118,14 @@ def _regenerate(configs: Path, runs: Path, out: Path, only: list[str] | None, ru
                          key="--configs")
     # (the report's folder, refused as its write refuses it, or holding the steps' folders: before the first step)
     check_out(out, [], [runs, configs])
-    for n in names:  # (a step's own folder: the step would write it in this process's claim, the report replace it)
+    for n in names:  # (a step's own folder: the step would write it in this process's claim, the report replace it;
+        # one inside it: the claim's file, made before the step, lay in the step's folder, which it refused, h442)
         if out.resolve() == (runs / n).resolve():
             raise InputError(f"{quoted(out)} is step {n}'s folder under --runs: the report would replace the step's "
                              "output (it replaces its folder whole); name another folder", key="--out")
+        if (runs / n).resolve() in out.resolve().parents:
+            raise InputError(f"{quoted(out)} lies in step {n}'s folder under --runs, which the step writes (its "
+                             "output there, not the report's); name a folder outside it", key="--out")
     planned = [n for n in names if not only or n in only]
     # the scaling sweeps the eq52 step fits: those this command runs, and those an earlier one left under runs
     # (a missing one is said and left out of the fit; none at all is refused before any step runs)
