@@ -125,8 +125,8 @@ def test_warnings_that_differ_only_in_numbers_are_one_item_with_the_others_below
     runs = [SimpleNamespace(label=f"p{i}", results={"warnings": lines}) for i, lines in enumerate(said)]
     page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
     head, _, items = page.partition("<ul>")
-    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>), in 3 items: lines that "
-            "differ only in their numbers are one;") in head
+    assert ("4 of the 5 runs recorded 5 warnings (results.json <code>warnings</code>) of 3 kinds (lines that "
+            "differ only in their numbers are one kind, listed once);") in head
     first, _, rest = items.partition("<details>")
     assert first.startswith(f"<li>{depth.format(16, 3065)}<span class=\"note\"> (in 3 wordings that differ only "
                             "in their numbers, the first met shown; 4 of 5 runs: p0, p1, p2 and p3; this one by "
@@ -173,11 +173,11 @@ def test_a_folded_item_past_the_first_screens_is_counted_by_its_lines_and_nests_
     lines = [*words, "moved by 0.14%", "moved by 0.29%", "moved by 1.5%", "warning z"]
     runs = [SimpleNamespace(label=f"run {i}", results={"warnings": [line]}) for i, line in enumerate(lines)]
     page = box.warnings_html(SimpleNamespace(runs=runs, damaged=[]))
-    assert ("12 of the 12 runs recorded 12 warnings (results.json <code>warnings</code>), in 10 items: lines that "
-            "differ only in their numbers are one;") in page
+    assert ("12 of the 12 runs recorded 12 warnings (results.json <code>warnings</code>) of 10 kinds (lines that "
+            "differ only in their numbers are one kind, listed once);") in page
     shown, _, hidden = page.partition("<details>")
     assert all(f"{w}<" in shown for w in words) and "moved" not in shown
-    assert hidden.startswith("<summary>2 more items, 4 warnings</summary><ul><li>moved by 0.14%")
+    assert hidden.startswith("<summary>2 more kinds, 4 warnings</summary><ul><li>moved by 0.14%")
     assert all(f"{line}<" in hidden for line in lines[box.SHOWN_WARNINGS:]) and page.count("<li>") == 12
 
     class Tags(HTMLParser):

@@ -256,13 +256,13 @@ def warnings_html(inputs: Inputs) -> str:
              if not any(key for _, _, key in named) else  # (else each file's key: reference.json's is another)
              listing(f"{esc(name)} <code>{esc(key or 'warnings')}</code>" for name, _, key in named))
     n = len(studies) + len(kept)  # (== the lines its items say)
-    kinds = ("" if len(items) == n else f", in {len(items)} item{'s' * (len(items) > 1)}: lines that differ only "
-             "in their numbers are one")  # (:func:`folded`)
+    kinds = ("" if len(items) == n else f" of {len(items)} kind{'s' * (len(items) > 1)} (lines that differ only in "
+             "their numbers are one kind, listed once)")  # (:func:`folded`)
     shown, rest = items[:SHOWN_WARNINGS], items[SHOWN_WARNINGS:]
     hidden = sum(k for _, k in rest)  # (a folded item past the first ones says its wordings there too)
     more = (f"<details><summary>{len(rest)} more "
             + (f"warning{'s' * (len(rest) > 1)}" if hidden == len(rest) else
-               f"item{'s' * (len(rest) > 1)}, {hidden} warnings")
+               f"kind{'s' * (len(rest) > 1)}, {hidden} warnings")
             + "</summary><ul>" + "".join(item for item, _ in rest) + "</ul></details>") if rest else ""
     return (f'<div class="warnings">{damaged}<p><strong>Warnings.</strong> {esc(who)} recorded {n} '
             f"warning{'s' if n > 1 else ''} ({where}){esc(kinds)}; read what is drawn "
