@@ -41,9 +41,12 @@ class Timers:
 
 @pytest.fixture
 def levels(monkeypatch):
-    """distributed's loggers at INFO (its own config's) as the test starts, put back after it; no timer left."""
+    """distributed's loggers at INFO (its own config's) as the test starts, put back after it; no timer left. A
+    grace an earlier test in the process left pending (an interrupted sweep's: its loggers silenced, a real timer
+    to put them back) ends first, as its timer's end would: its silence is not these tests' starting levels."""
     import distributed  # noqa: F401  (its import sets its loggers' levels)
 
+    executors._put_back_left()
     kept = {n: logging.getLogger(n).level for n in NAMES}
     logging.getLogger("distributed").setLevel(logging.INFO)
     timers = Timers()
