@@ -9,10 +9,32 @@ from __future__ import annotations
 
 import gc
 import threading
+from contextlib import contextmanager
 
 from tlm import claims
 
 HANG = 60.0  # seconds: only a hang takes this long (the claim itself takes milliseconds)
+
+
+@contextmanager
+def _collector_off():
+    """The collector off in the block (it runs where the test says), the earlier tests' garbage collected first."""
+    enabled = gc.isenabled()
+    gc.collect()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def _joined(work) -> threading.Thread:
+    """``work`` run in a thread of its own, waited for until :data:`HANG` (a hang leaves it alive)."""
+    thread = threading.Thread(target=work, daemon=True)
+    thread.start()
+    thread.join(HANG)
+    return thread
 
 
 def _left_open(out) -> None:
@@ -42,19 +64,11 @@ def test_a_claim_left_open_collected_while_this_thread_takes_another_is_dropped_
         with claims.claimed(tmp_path / "b"):
             done.append(sorted(claims._CLAIMS))
 
-    enabled = gc.isenabled()
-    gc.collect()  # (the earlier tests' garbage collected here, in this thread: the one below finds this test's alone)
-    gc.disable()  # (the collector runs where this test says, not before)
-    try:
+    with _collector_off():
         _left_open(tmp_path / "a")
         assert (tmp_path / ".a.tlm-running").exists()
         monkeypatch.setattr(claims, "_take_claim", take_claim)
-        thread = threading.Thread(target=second, daemon=True)
-        thread.start()
-        thread.join(HANG)
-    finally:
-        if enabled:
-            gc.enable()
+        thread = _joined(second)
     assert not thread.is_alive(), "a claim taken while the collector let go of another waited for ever"
     assert collected and collected[0] > 0
     assert done == [[str((tmp_path / "b").resolve())]]  # (the claim left open dropped, by the collector)
@@ -86,22 +100,14 @@ def test_a_write_left_open_collected_while_this_thread_writes_another_is_dropped
             f.write("x")
         done.append(True)
 
-    enabled = gc.isenabled()
-    gc.collect()
-    gc.disable()
-    try:
+    with _collector_off():
         cm = storage.write_atomic(tmp_path / "a.txt")
         cm.__enter__()
         cycle = {"write": cm}
         cycle["self"] = cycle
         del cm, cycle
         monkeypatch.setattr(Path, "with_name", with_name)
-        thread = threading.Thread(target=second, daemon=True)
-        thread.start()
-        thread.join(HANG)
-    finally:
-        if enabled:
-            gc.enable()
+        thread = _joined(second)
     assert not thread.is_alive(), "a write while the collector let go of another waited for ever"
     assert collected and collected[0] > 0 and done == [True]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["b.txt"]  # (the write left open: its temporary file gone)
