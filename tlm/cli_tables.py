@@ -210,8 +210,6 @@ def _covered_keys(said: list[str]) -> set[str]:
     return {m.group(1) for line in said for m in [_SWEEP_NOTHING.search(line)] if m}
 
 
-
-
 def _recorded(path: Path) -> list[str]:
     """The distinct warnings (whitespace as :func:`tlm.storage.warn` says them) of a point's ``results.json``;
     none where it cannot be read or holds no list of them."""
