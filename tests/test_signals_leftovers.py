@@ -160,3 +160,27 @@ def test_a_ctrl_c_while_the_sweep_starts_its_workers_is_not_lost(tmp_path):
                           preexec_fn=default_sigint, timeout=120)
     assert (proc.returncode, proc.stdout.split("\n")) == (0, ["not taken there", "taken after", "True False", ""]), \
         proc.stderr
+
+
+def _held(seconds: float) -> float:
+    time.sleep(seconds)
+    return seconds
+
+
+def test_a_stopped_pool_has_closed_its_wake_up_pipe():
+    """An interrupted sweep's pool, once ``stop`` returns, has closed its manager thread's wake-up
+    pipe: CPython 3.11's exit handler (``concurrent.futures.process._python_exit``) writes to that
+    pipe unguarded, and the manager thread, closing it meanwhile (it saw the killed workers), made
+    the write fail: "Exception ignored in: <module 'threading'> ... OSError: [Errno 9] Bad file
+    descriptor" after tlm's own line (CI, ``test_a_sweep_signalled_stops_its_workers[SIGINT-twice]``)."""
+    pool = LocalPool(2)
+    futures = [pool.submit(_held, 60) for _ in range(2)]
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(pool.pids) < 2:
+        pool._read_started()
+        time.sleep(0.01)
+    assert len(pool.pids) == 2, "the workers did not start the points"
+    manager, wakeup = pool.pool._executor_manager_thread, pool.pool._executor_manager_thread_wakeup
+    killed = pool.stop()
+    assert len(killed) == 2 and all(f.cancelled() for f in futures)
+    assert not manager.is_alive() and wakeup._closed

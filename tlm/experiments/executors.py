@@ -69,6 +69,7 @@ STOP_WAIT = 0.5  # seconds an interrupted sweep's --dask local workers get to cl
 MAX_DEATHS = 2  # a point whose worker process died this often, the last time running it alone, fails
 MAX_BLIND = 3  # a local pool broken this often in a row with no point started: the points it held fail
 BROKEN_WAIT = 60  # seconds a broken local pool gets to fail the points it holds
+STOP_JOIN = 5  # seconds an interrupted local pool's manager thread gets to end (its workers killed: at once)
 
 
 class InProcess(cf.Executor):
@@ -310,7 +311,14 @@ class LocalPool(cf.Executor):
         for proc in processes:
             with suppress(Exception):
                 proc.kill()
+        manager = getattr(self.pool, "_executor_manager_thread", None)  # (None once shut down)
         self.pool.shutdown(wait=False, cancel_futures=True)
+        # its manager thread, which sees the workers dead and closes the pool's wake-up pipe, is
+        # waited for (a little): CPython 3.11's exit handler (concurrent.futures.process._python_exit)
+        # writes to that pipe unguarded, and a close in between printed "Exception ignored in:
+        # <module 'threading'> ... OSError: [Errno 9] Bad file descriptor" after tlm's own line
+        if manager is not None and manager is not threading.current_thread():
+            manager.join(timeout=STOP_JOIN)
         return [proc.pid for proc in processes if proc.pid is not None]
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
