@@ -46,6 +46,7 @@ from tlm.render.image import to_srgb8
 from tlm.render.planner import PASSES
 from tlm.report.collect import Inputs, Run
 from tlm.report.common import FigureName, Section, new_figure, save
+from tlm.report.tables import thesis_table
 
 MODE_TITLE = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
 SCENE_TITLE = {"ring": "Scene with ring (Fig. 15)", "room": "Room scene (Fig. 16)",
@@ -74,11 +75,14 @@ class Row:
 def scene_title(run: Run) -> str:
     """The run's scene as the report names it (its file: ``thesis/room``), with the thesis's
     title and figure where it is the thesis's scene (``thesis/room: Room scene (Fig. 16)``); a
-    scene that only shares the name of one (the built-in ``room``) says that it is not that one."""
+    scene that only shares the name of one (the built-in ``room``) says that it is not that one.
+    The thesis's scene is judged as Tables I-III judge it (:func:`~tlm.report.tables.thesis_table`, by
+    its file: a byte copy of ``thesis/room`` under another name is it, a user's ``room.yaml`` is not;
+    h452: a label compared here put a run in Table III whose caption said it was not that scene)."""
     label = run.scene_label
     if run.scene not in SCENE_TITLE:
         return label
-    if THESIS_SCENES.get(run.scene) == label:
+    if thesis_table(run) == run.scene:
         return f"{label}: {SCENE_TITLE[run.scene]}"
     return f"{label}, not the thesis's {SCENE_TITLE[run.scene]}"
 

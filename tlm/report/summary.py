@@ -52,7 +52,7 @@ from tlm.report.summary_points import (
 from tlm.report.summary_points import and_ as _and
 from tlm.report.summary_points import count as _count
 from tlm.report.summary_points import number as _number
-from tlm.report.tables import study_summaries
+from tlm.report.tables import study_summaries, thesis_table
 
 MODES = ("rcast", "reflect", "refract", "pmap")
 MODE_NAMES = {"rcast": "RCast", "reflect": "Reflect", "refract": "Refract", "pmap": "PMap"}
@@ -192,7 +192,7 @@ def _bottleneck(inputs: Inputs, out: Path) -> tuple[str, Figure | None]:
         busy = busy_shares(r.results)  # (each PM's busiest pipeline's, as its cycles.<pm> and slowest_pm)
         if busy is not None:
             cells[(r.scene_label, r.mode)] = busy
-            if THESIS_SCENES.get(r.scene) == r.scene_label:  # (the thesis's scene: its slowest PM is known)
+            if thesis_table(r) == r.scene:  # (the thesis's scene by its file, as the tables say)
                 cell_of[(r.scene_label, r.mode)] = f"{r.scene}/{r.mode}"  # (the study's name of the cell)
     if not cells:
         return bottleneck_of_points(inputs), None

@@ -583,8 +583,10 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
     section = Section("tables", "Tables I–III: ours against the thesis")
     sources = collect_sources(inputs, section.notes)
     if not sources:
-        section.absent = ("no thesis study and no run of a thesis scene (ring, room, cornell) with simulated cycles "
-                          "among the inputs")
+        files = list(THESIS_SCENES.values())
+        section.absent = ("no run or thesis study among the inputs has simulated cycles of a thesis scene file "
+                          f"({', '.join(files[:-1])} or {files[-1]}; a scene of any other file is not one, even one "
+                          f"named {', '.join(list(THESIS_SCENES)[:-1])} or {list(THESIS_SCENES)[-1]})")
         return section
     parts = ['<div class="tlm-tables">', STYLE]
     for study, summary in study_summaries(inputs, sources):
