@@ -244,10 +244,11 @@ def load_config(config: str | Path | Mapping[str, Any] | RunConfig | Config, ove
         out = Config(config, Path(base) if base is not None else Path.cwd(), via=via)
         return _updated(out, more, via) if more else out
     if isinstance(config, Mapping):
-        from tlm.config import files_from
+        from tlm.config import files_from, sets_scene
 
         folder = Path(base) if base is not None else Path.cwd()
-        raw = files_from(dict(config), folder.resolve())  # (its scene file and table: absolute, as a file's are)
+        # (its scene file and table: absolute, as a file's are; its scene, which an override replaces, unsaid)
+        raw = files_from(dict(config), folder.resolve(), not sets_scene(more))
         raw = apply_overrides(raw, more, source=via, cwd=Path.cwd()) if more else raw
         source = with_overrides("(dict)", via) if more else "(dict)"
         return Config(config_from_dict(raw, source), folder, None, tuple(more), via=via)

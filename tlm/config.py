@@ -36,6 +36,7 @@ from tlm.config_paths import (  # noqa: F401  (PATH_KEYS, builtin_scenes_dir, na
     names_scene_file,
     paths_from,
     scene_from,
+    sets_scene,
 )
 from tlm.config_read import TooLarge, decoded, yaml_text
 from tlm.config_sections import (  # noqa: F401  (FILTERS and the functional model's sections: re-exported)
@@ -449,9 +450,12 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
     path they give to a key of :data:`PATH_KEYS` is made absolute from there
     (:func:`paths_from`), not left relative to the config's folder; so is a ``scene`` file
     found there (:func:`scene_from`). A mapping given for a section merges into it, as its dotted
-    leaves would (``render={spp: 1}`` is ``render.spp=1``: :func:`~tlm.config_words.laid_over`)."""
+    leaves would (``render={spp: 1}`` is ``render.spp=1``: :func:`~tlm.config_words.laid_over`). A ``scene``
+    that a later one replaces is not warned of (:func:`~tlm.config_paths.shadowed_warning`: not the one used)."""
     raw = dict(raw)
-    for item in overrides:
+    overrides = list(overrides)
+    last = max((i for i, item in enumerate(overrides) if sets_scene([item])), default=-1)  # (the scene used)
+    for i, item in enumerate(overrides):
         if "=" not in item:
             raise InputError(f"{quoted(item)} is not of the form dotted.key=value", source=source)
         key, _, text = item.partition("=")
@@ -466,7 +470,8 @@ def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd:
             raise InputError(f"cannot parse value {quoted(text)}: {problem}", source=source, key=key) from None
         parts = key.strip().split(".")
         if cwd is not None:
-            value = scene_from(value, [cwd]) if parts == ["scene"] else paths_from(".".join(parts), value, cwd)
+            value = scene_from(value, [cwd], i == last) if parts == ["scene"] else \
+                paths_from(".".join(parts), value, cwd)
         node = raw
         for p in parts[:-1]:
             child = node.get(p)
@@ -502,7 +507,8 @@ def config_from_yaml(raw: Any, path: Path | None, overrides: list[str] | None = 
                              "not taken as the defaults: 'tlm params' lists them)", source=source)
         if not isinstance(raw, dict):
             raise InputError(f"must be a mapping of keys (key: value lines), got {yaml_kind(raw)}", source=source)
-        raw = files_from(raw, base)  # (the files it names: from the config's folder, once)
+        # (the files it names: from the config's folder, once; its scene, which a --set replaces, unsaid)
+        raw = files_from(raw, base, warn=not sets_scene(overrides or ()))
     if overrides:  # (command-line paths: relative to the working folder, not to the config's)
         raw = apply_overrides(raw, overrides, source=via, cwd=Path.cwd())
         source = with_overrides(source, via)

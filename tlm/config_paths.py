@@ -43,7 +43,7 @@ def names_scene_file(value: Any) -> bool:
     return isinstance(value, str) and (value.lower().endswith((".yaml", ".yml")) or "/" in value or os.sep in value)
 
 
-def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
+def scene_from(value: Any, folders: list[Path] | tuple[Path, ...], warn: bool = True) -> Any:
     """``value``, a ``scene`` given by a file in the first of ``folders`` (the command line:
     the working folder), as the absolute path of the file it names, looked for as
     :func:`tlm.scenes.loader.resolve_scene_path` looks: in each of ``folders`` (each
@@ -54,8 +54,10 @@ def scene_from(value: Any, folders: list[Path] | tuple[Path, ...]) -> Any:
     ``config.resolved.yaml`` from another folder). A built-in scene's name (``cornell``,
     ``thesis/ring``, ``thesis/ring.yaml``), an absolute path, and a path none of them holds
     are returned as they are (:func:`~tlm.scenes.loader.resolve_scene_path` finds the
-    built-in one, or says that the file is missing)."""
-    if isinstance(value, str) and value:
+    built-in one, or says that the file is missing). ``warn``: false where a value given after this one
+    replaces it (an override of ``scene``: :func:`sets_scene`), so that :func:`shadowed_warning` says nothing
+    of a scene not used (h451)."""
+    if warn and isinstance(value, str) and value:
         shadowed_warning(value, folders)
     if not names_scene_file(value) or not value or Path(value).is_absolute():
         return value
@@ -90,15 +92,52 @@ def shadowed_warning(value: str, folders: list[Path] | tuple[Path, ...]) -> None
     said = f"scene {quoted(value)} is the built-in scene of that name"
     if any(line.startswith(said) for line in storage.SAID):
         return  # (once: --set scene= is looked at from the working folder, then from the config's)
+    found = _file_named(value, folders, builtin)
+    if found is not None:
+        target, name = found
+        storage.warn(f"{said}, not the file {path_shown(_shown(target))}: to run the file, give it as a path, "
+                     f"scene={path_shown(_given_as(target, name, folders))}")
+
+
+def sets_scene(overrides: Any) -> bool:
+    """Whether one of the ``dotted.key=value`` strings ``overrides`` sets ``scene`` (``scene=...``, or
+    ``scene.file=...``, which makes it a mapping), its key read as :func:`tlm.config.apply_overrides` reads it:
+    a ``scene`` given before them (a config's, a study's base's) is then not the one used, and is not warned of
+    (:func:`shadowed_warning`, h451)."""
+    return any(str(item).partition("=")[0].strip().split(".")[0] == "scene" for item in overrides)
+
+
+def scene_file_hint(value: str, folders: list[Path] | tuple[Path, ...]) -> str:
+    """For the error of the ``scene`` value ``value`` that is no built-in scene's name (``myroom``): where a scene
+    file of that name (``myroom.yaml``) is in one of ``folders`` or in the working folder, looked for as
+    :func:`shadowed_warning` looks, the clause that names it and how to give it (``scene=./myroom.yaml``, h451);
+    else nothing."""
+    found = _file_named(value, folders) if value and not names_scene_file(value) else None
+    if found is None:
+        return ""
+    target, name = found
+    return (f"; a scene file of that name lies at {path_shown(_shown(target))}: to run it, give it as a path, "
+            f"scene={path_shown(_given_as(target, name, folders))}")
+
+
+def _file_named(value: str, folders: list[Path] | tuple[Path, ...], builtin: Path | None = None
+                ) -> tuple[str, str] | None:
+    """``(absolute path, name)`` of the first scene file named ``value`` with ``.yaml`` or ``.yml``
+    (``room.yaml``) in one of ``folders`` or in the working folder, other than ``builtin`` (the built-in
+    scene's own file, run from ``scenes/``); a run config of that name (:func:`_scene_file`) is none."""
     for folder in dict.fromkeys([*map(os.fspath, folders), os.getcwd()]):
         for suffix in (".yaml", ".yml"):
             target = os.path.abspath(os.path.join(folder, value + suffix))
-            if os.path.isfile(target) and not _same_file(target, builtin) and _scene_file(target):
-                shown = os.path.relpath(target)
-                shown = target if shown.startswith("..") else shown
-                storage.warn(f"{said}, not the file {path_shown(shown)}: to run the file, give it as a path, "
-                             f"scene={path_shown(_given_as(target, value + suffix, folders))}")
-                return
+            if (os.path.isfile(target) and (builtin is None or not _same_file(target, builtin))
+                    and _scene_file(target)):
+                return target, value + suffix
+    return None
+
+
+def _shown(target: str) -> str:
+    """The absolute path ``target`` as a message names it: from the working folder where it lies under it."""
+    shown = os.path.relpath(target)
+    return target if shown.startswith("..") else shown
 
 
 def _given_as(target: str, name: str, folders: list[Path] | tuple[Path, ...]) -> str:
@@ -166,12 +205,13 @@ def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> An
     return value
 
 
-def files_from(raw: dict, folder: Path) -> dict:
+def files_from(raw: dict, folder: Path, warn: bool = True) -> dict:
     """The run config mapping ``raw``, written by a file in ``folder``, with the files it
     names as absolute paths: ``scene`` (:func:`scene_from`) and the keys of
     :data:`PATH_KEYS` (:func:`paths_from`). Its ``config.resolved.yaml`` then names the same
-    files wherever it is run again, and so does a worker of another working folder."""
+    files wherever it is run again, and so does a worker of another working folder. ``warn``:
+    false where its ``scene`` is replaced after (:func:`scene_from`'s)."""
     out = {k: paths_from(k, v, folder) for k, v in raw.items()}
     if "scene" in out:
-        out["scene"] = scene_from(out["scene"], [folder])
+        out["scene"] = scene_from(out["scene"], [folder], warn)
     return out

@@ -152,7 +152,7 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     ``overrides``: ``tlm extreme --set`` strings, applied to the base (merged under every case's
     config) as ``tlm run --set`` applies them; one of a key a case's config gives (or a section
     above or below one) is refused: that case's value would win unsaid."""
-    raw, base, src = read_study(path, ("cases",))
+    raw, base, src = read_study(path, ("cases",), overrides)
     label = src  # (what a case's config is named by in its errors)
     if overrides:
         given = base

@@ -72,7 +72,7 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     refused, as is a bad key or value."""
     path = Path(path)
     src = str(path)
-    raw, base, base_src, folder = read_study_base(path, KEYS)
+    raw, base, base_src, folder = read_study_base(path, KEYS, overrides)
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
             or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in sizes)):

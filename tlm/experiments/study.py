@@ -41,6 +41,7 @@ from tlm.config import (
     read_set_value,
     read_yaml,
     scene_from,
+    sets_scene,
     to_dict,
 )
 from tlm.config_words import dump_yaml
@@ -82,26 +83,30 @@ def _study_frame(path: Path, keys: tuple[str, ...]) -> tuple[dict, str]:
     return raw, src
 
 
-def read_study(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str]:
-    """``(raw, base, source)`` of the study file ``path`` whose own keys are ``keys``."""
+def read_study(path: Path, keys: tuple[str, ...], overrides: Iterable[str] = ()) -> tuple[dict, dict, str]:
+    """``(raw, base, source)`` of the study file ``path`` whose own keys are ``keys``. ``overrides``: the
+    ``--set`` strings the base is then given (:func:`with_set`): where one sets ``scene``, the base's scene,
+    not the one used, is not warned of (:func:`tlm.config_paths.shadowed_warning`, h451)."""
     raw, src = _study_frame(path, keys)
     base = raw.get("base") or {}
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
-    return raw, _files_absolute(base, file_folder(path)), src  # (a pipe's, <(...): the working folder)
+    # (a pipe's, <(...): the working folder)
+    return raw, _files_absolute(base, file_folder(path), not sets_scene(overrides)), src
 
 
-def read_study_base(path: Path, keys: tuple[str, ...]) -> tuple[dict, dict, str, Path]:
+def read_study_base(path: Path, keys: tuple[str, ...], overrides: Iterable[str] = ()
+                    ) -> tuple[dict, dict, str, Path]:
     """:func:`read_study` of a study whose ``base`` may also name a run config as a sweep's
     may (:func:`tlm.builtin.read_base`): a file relative to the study file, or a built-in
     run config's name (``base: cornell``). ``(raw, base, the source the base's errors name,
     the folder its relative paths start at)``: a base file's own folder, else the study
-    file's."""
+    file's. ``overrides``: as :func:`read_study`'s."""
     from tlm.builtin import read_base
 
     raw, src = _study_frame(path, keys)
     base, base_src, folder = read_base(raw.get("base"), file_folder(path), src, "study file", scene_keys)
-    return raw, _files_absolute(base, folder), base_src, folder
+    return raw, _files_absolute(base, folder, not sets_scene(overrides)), base_src, folder
 
 
 def scene_keys(path: Path) -> None:
@@ -112,11 +117,11 @@ def scene_keys(path: Path) -> None:
     read_scene_tree(path, ())
 
 
-def _files_absolute(base: dict, folder: Path) -> dict:
+def _files_absolute(base: dict, folder: Path, warn: bool = True) -> dict:
     """``base`` with the files it names (``scene``, ``arch.programs``; relative to
-    ``folder``) as absolute paths (:func:`tlm.config.files_from`): the points'
+    ``folder``) as absolute paths (:func:`tlm.config.files_from`, ``warn`` its): the points'
     ``config.resolved.yaml`` then name those files wherever they are run again."""
-    return files_from(base, folder)
+    return files_from(base, folder, warn)
 
 
 def override_key(item: str) -> str:

@@ -37,6 +37,7 @@ from tlm.config import (
     read_yaml,
     run_config_field,
     scene_from,
+    sets_scene,
     to_dict,
     with_leaves,
 )
@@ -450,14 +451,16 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
     here = file_folder(path)
     scene_folders = list(dict.fromkeys([here, folder]))
 
-    def moved(k: str, v: Any) -> Any:
-        return scene_from(v, scene_folders) if k == "scene" else paths_from(k, v, here)
+    def moved(k: str, v: Any, warn: bool = True) -> Any:
+        return scene_from(v, scene_folders, warn) if k == "scene" else paths_from(k, v, here)
 
-    fixed = files_from(base, folder)  # (the base's files: from the base config's folder)
-    for k, v in settings.items():
-        fixed = _assign(fixed, k, moved(k, v))
-    config_from_dict(fixed, f"{src} (base with set)")
+    # (a scene that set, a factor or a --set replaces, used by no point: not warned of, h451)
     overrides = tuple(str(o) for o in overrides)
+    replaced = sets_scene(overrides) or sets_scene(f"{k}=" for k in (*settings, *grid, *zipped))
+    fixed = files_from(base, folder, not replaced)  # (the base's files: from the base config's folder)
+    for k, v in settings.items():
+        fixed = _assign(fixed, k, moved(k, v, not sets_scene(overrides)))
+    config_from_dict(fixed, f"{src} (base with set)")
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
     if overrides:
         fixed = with_set(fixed, overrides, scene_folders)

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from tlm.config import builtin_scenes_dir, deep_merge, read_yaml
+from tlm.config_paths import scene_file_hint
 from tlm.config_read import nameless
 from tlm.config_words import listing
 from tlm.errors import InputError, did_you_mean, path_shown, quoted
@@ -176,8 +177,9 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
-    raise InputError(
-        f"{quoted(ref)} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}",
+    raise InputError(  # (a scene file of that name here: how to give it, h451)
+        f"{quoted(ref)} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}"
+        f"{scene_file_hint(ref, [Path.cwd() if base is None else Path(base), *map(Path, also)])}",
         source=config_source, key=key,
     )
 
