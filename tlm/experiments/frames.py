@@ -58,7 +58,7 @@ from tlm.errors import InputError
 from tlm.experiments import run
 from tlm.experiments.frame_scenes import TELLS, moved_line, read_checks, scene_fingerprint, unchanged
 from tlm.experiments.provenance import scene_identity
-from tlm.experiments.run_warnings import reference_warnings, threads_warning
+from tlm.experiments.run_warnings import emitted_photons, reference_warnings, threads_warning
 from tlm.fingerprint import code_fingerprint
 from tlm.progress import Timer
 from tlm.render.checks import note_warnings
@@ -396,7 +396,8 @@ def cached_render(cfg, base: Path | None = None, source: str | None = None, use_
     # the reference's (its error is measured when the frame is read: _measured), nor the line on render.threads
     # past the CPUs, which neither the key (the threads) nor the frame (the machine's CPUs) holds: the process
     # that runs a point says its own (tlm.experiments.sweep_point.run_point)
-    inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg), *threads_warning(cfg)}
+    inert = {*inert_changes(cfg), *reference_warnings(res.error, cfg, emitted_photons(res), res.scene.photons),
+             *threads_warning(cfg)}
     # (the scene's notes come first, tlm.render.checks.file_warnings: the lines _here moves to a copy's folders, and
     # no other, a material's name that holds a path of the project is the copy's material's name too)
     notes = sum(w not in inert for w in full["warnings"][:len(note_warnings(res.scene))])
@@ -501,7 +502,9 @@ def _measured(got: CachedRender, cfg, pmap, scene: Scene | None, base: Path | No
         return None
     error = run.error_against(key, settings, frame, image, meta)
     summary = {**got.summary, "error": error,
-               "warnings": [*(got.summary.get("warnings") or []), *reference_warnings(error, cfg)]}
+               "warnings": [*(got.summary.get("warnings") or []),
+                            *reference_warnings(error, cfg, (got.summary.get("photons") or {}).get("emitted"),
+                                                scene_photons if scene is None else scene.photons)]}
     return replace(got, summary=summary)
 
 def _here(got: CachedRender, cfg, base: Path | None, source: str | None, scene: Scene | None) -> CachedRender:

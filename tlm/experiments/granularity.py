@@ -72,6 +72,7 @@ def load_granularity(path: Path, overrides: tuple[str, ...] = ()):
     refused, as is a bad key or value."""
     path = Path(path)
     src = str(path)
+    overrides = tuple(overrides)  # (read twice: an iterator's, once; h455)
     raw, base, base_src, folder = read_study_base(path, KEYS, overrides)
     sizes = raw.get("packet_sizes")
     if (not isinstance(sizes, list) or not sizes
@@ -150,7 +151,8 @@ def run_granularity(path: Path, out: Path, progress=None, overrides: tuple[str, 
     fn = got.functional
     # the frame's own warnings, as tlm run says them (a camera that sees nothing, a black image, a light that
     # reaches nothing: the study's cycles are of that frame, h394); not the photon frame's error, none of its business
-    off = reference_warnings(got.summary.get("error"), cfg)
+    off = reference_warnings(got.summary.get("error"), cfg, (got.summary.get("photons") or {}).get("emitted"),
+                             (got.summary.get("scene") or {}).get("photons"))  # (the blur line too, h453)
     for line in dict.fromkeys(got.summary.get("warnings") or []):
         if line not in off:
             say(f"granularity: {line}")

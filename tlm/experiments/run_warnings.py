@@ -3,10 +3,10 @@ but a wrong or a misleading result.
 
 :func:`run_warnings`: the render's (a scene, camera or image check of :mod:`tlm.render.checks`,
 a setting the run never reads, an override of a key whose pass is left out:
-:func:`unread_overrides`, a reference not converged: :func:`reference_warnings`, a BSP cut
-short); :func:`stream_warnings`: the simulated stream's (too few frames, packets too coarse
-from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set that the timing model
-never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
+:func:`unread_overrides`, a reference not converged or much blurrier than the run: :func:`reference_warnings`,
+a BSP cut short); :func:`stream_warnings`: the simulated stream's (too few frames, a period whose gaps differ:
+:func:`period_warnings`, packets too coarse from :data:`GRANULARITY_WARNING` on, tiles without pixels, a key set
+that the timing model never read: :func:`timing_inert`). A sweep point records :func:`inert_timing_changes` too.
 :func:`tlm.experiments.run.results_dict` puts them in ``results.json``.
 """
 
@@ -65,7 +65,7 @@ def run_warnings(res: RenderResult) -> list[str]:  # noqa: F821
     warnings += _unread_lines(res, unread, res.via)
     warnings += empty_sets(res.overrides, res.via)
     warnings += trace_dropped(res.cfg, res.overrides, res.via)
-    warnings += reference_warnings(res.error, res.cfg)
+    warnings += reference_warnings(res.error, res.cfg, emitted_photons(res), res.scene.photons)
     warnings += checks.branching_warning(res.cfg, res.scene)
     warnings += threads_warning(res.cfg)
     if "pmap" in res.plan.run_names:
@@ -144,6 +144,7 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
         lines.append(f"arch.frames={est['frames']} is too short for a steady-state throughput (at least "
                      f"{est['min_frames']} frames with arch.images_in_flight={cfg.arch.images_in_flight}): "
                      "cycles.throughput is the stream's elapsed cycles per frame")
+    lines += period_warnings(timing, cfg.arch.images_in_flight)
     share = (timing.granularity or {}).get("share", 0.0)
     if abs(share) >= GRANULARITY_WARNING:
         lines.append(granularity_line(timing.granularity, timing.cycles["throughput"], cfg.arch.packet_size,
@@ -160,6 +161,54 @@ def stream_warnings(timing: Timing | None, cfg: RunConfig) -> list[str]:
     lines += [f"{key} = {getattr(cfg.arch, key.split('.', 1)[1])!r} has no effect in this run: {why}"
               for key, why in timing_inert(timing, cfg.arch).items()]
     return lines + fifo_depth_lines(timing, cfg.arch)
+
+
+# the gaps of a steady period of two frames or more apart by this share of TThru (their largest less their
+# smallest) from which a run warns: two images in flight take turns, and the mean over the period jumps with the
+# work (h453, Cornell refract, render.spp 1, 1 pipeline: resolution 33x31 -> 33x32, 3% more pixels, gaps
+# 2526275/1800904 -> 2660842/2398486, fps 277.3 -> 237.2, -14%; 31x30 -> 31x31, period 1 -> 2 (33% apart), fps
+# 259.0 -> 277.4, +7% for 3% more pixels)
+PERIOD_WARNING = 0.10
+
+
+def period_gaps(timing: Timing) -> list[int] | None:
+    """The gaps (cycles between completions) of one period of the stream's steady state, the one
+    ``cycles.throughput`` is the mean over: a settled stream's ``period`` (``timing.throughput_estimate``),
+    else a steady window's own shortest period where the window holds two of it at least (the static tiles'
+    stream, periodic from the warm-up); None where the stream shows no period (too short, not settled)."""
+    est = timing.throughput_estimate or {}
+    window = est.get("window")
+    if not est.get("steady") or not window or est.get("settled") is False:
+        return None
+    done = sorted(f["done"] for f in timing.frames)
+    a, b = window
+    gaps = [done[i + 1] - done[i] for i in range(a, b)]
+    period = est.get("period") or next((p for p in range(1, len(gaps) // 2 + 1) if len(gaps) % p == 0
+                                        and all(gaps[i] == gaps[i + p] for i in range(len(gaps) - p))), None)
+    return None if period is None or period > len(gaps) else gaps[:period]
+
+
+def period_warnings(timing: Timing, images_in_flight: int) -> list[str]:
+    """A line when the steady state is a period of two frames or more (:func:`period_gaps`) whose gaps
+    differ by :data:`PERIOD_WARNING` of ``cycles.throughput`` or more, largest less smallest: the images in
+    flight take turns (one image's frame done soon after the other's, then a long wait), ``cycles.throughput``
+    and ``fps`` are the mean over the period, and a small change of the work can change the turns and move
+    that mean by more than the work changed, even the other way."""
+    gaps = period_gaps(timing) if images_in_flight > 1 else None  # (one image: each frame alone, the same gap)
+    if not gaps or len(gaps) < 2:
+        return []
+    mean = sum(gaps) / len(gaps)
+    share = (max(gaps) - min(gaps)) / mean if mean > 0 else 0.0
+    if share < PERIOD_WARNING:
+        return []
+    shown = (" and ".join(str(g) for g in gaps) if len(gaps) == 2 else ", ".join(str(g) for g in gaps)
+             if len(gaps) <= 4 else f"from {min(gaps)} to {max(gaps)}")
+    return [f"the stream settled into a period of {len(gaps)} frames whose gaps differ by {share:.0%} of "
+            f"cycles.throughput ({shown} cycles; timing.frame_times): the {images_in_flight} images in flight "
+            "take turns, and cycles.throughput and fps are the mean over the period, which a small change of the "
+            "work (a few pixels more, another render.spp) can move by more than the work changed, even the other "
+            "way (the turns change); compare runs by more than that, or with arch.images_in_flight = 1 (each "
+            "frame alone, no turns)"]
 
 
 def inert_timing_changes(timing: Timing, cfg: RunConfig) -> dict[str, str]:
@@ -458,18 +507,57 @@ def _unread_lines(res: RenderResult, unread: dict[str, str], via: str) -> list[s
     return lines
 
 
-def reference_warnings(error: dict | None, cfg: RunConfig) -> list[str]:
+def reference_warnings(error: dict | None, cfg: RunConfig, emitted: int | None = None,
+                       scene_photons: int | None = None) -> list[str]:
     """A line when the photon-map frame's error (``results.json`` ``error``) was measured
     against a reference that is not converged (``reference_converged`` false: it does not meet
-    ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it."""
+    ``cfg.reference``'s stopping rule), worded as ``tlm run``'s error line says it; and, given the
+    run's ``emitted`` photons and the scene's (``scene_photons``, what a null ``reference.photons``
+    takes), the line of :func:`blur_warnings` on a reference much blurrier than the run."""
+    blur = blur_warnings(error, cfg, emitted, scene_photons)
     if not (error and error.get("available")) or error.get("reference_converged"):
-        return []
+        return blur
     rse, rounds, ref = error.get("reference_standard_error"), error.get("reference_rounds"), cfg.reference
     rule = f"reference.tolerance {ref.tolerance:g}" + (f", reference.min_rounds {ref.min_rounds}"
                                                        if isinstance(rounds, int) and rounds < ref.min_rounds else "")
     return [f"the photon-map reference {error['reference']} is NOT converged ({rounds} rounds, relative standard "
             f"error {'n/a' if rse is None else f'{rse:.4f}'}, {rule}): the pmap error against it (error.rmse, "
-            "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'"]
+            "error.rel_mse) includes its noise; raise reference.max_rounds and compute it again with 'tlm reference'",
+            *blur]
+
+
+# the run's photons a round past this many times its reference's: the run's k-NN kernel is so much narrower
+# that its error against the reference measures mostly the reference's blur (h453: configs/cornell-water.yaml 4.17x,
+# configs/ring.yaml with --mode pmap 15x, the other committed configs 1x; a reference's cost grows with its photons)
+BLUR_RATIO = 4
+
+
+def emitted_photons(res: RenderResult) -> int | None:  # noqa: F821
+    """The photons the run's photon-map pass emitted (its caustic group's own ``photons.caustic_count``
+    included), None without the pass."""
+    return None if res.photons is None else int(res.photons.photons.stats()["emitted"])
+
+
+def blur_warnings(error: dict | None, cfg: RunConfig, emitted: int | None, scene_photons: int | None) -> list[str]:
+    """A line when the photon-map frame's error was measured (``error`` ``available``) against a reference
+    whose photons a round (``reference.photons``, null: the scene's ``scene_photons``) are fewer than the
+    run's ``emitted`` by more than :data:`BLUR_RATIO` times: each of its rounds is a k-NN estimate whose
+    kernel holds ``reference.k_nearest`` photons of a map that much sparser, so it converges to an image
+    much blurrier than the run's; the error (``error.rmse``, ``error.rel_mse``) then measures mostly that
+    blur, not the run's noise. It names both counts and the key to raise."""
+    if not (error and error.get("available")) or emitted is None:
+        return []
+    given = cfg.reference.photons
+    ref = scene_photons if given is None else given
+    if not isinstance(ref, int) or ref <= 0 or emitted <= BLUR_RATIO * ref:
+        return []
+    whose = "reference.photons" if given is not None else "reference.photons null: the scene's photons"
+    return [f"the photon-map frame emits {emitted} photons, {emitted / ref:.2f}x the {ref} a round of its "
+            f"reference {error['reference']} ({whose}): each round's k-NN estimate ({cfg.reference.k_nearest} "
+            "photons) spans a much wider kernel than this run's, so the pmap error against it (error.rmse, "
+            "error.rel_mse) measures mostly the reference's blur, not this run's noise; raise reference.photons "
+            f"to {-(-emitted // BLUR_RATIO)} or more (at most {BLUR_RATIO}x fewer than the run's) and compute it "
+            "again with 'tlm reference'"]
 
 
 def sweep_threads_line(points: Iterable[Any], source: str, cpus: int | None = None) -> list[str]:
