@@ -184,7 +184,8 @@ def test_render_simulate_and_run_agree(tmp_path, cache):
     unread = tlm.render_image(cfg.updated({"estimate.k": 9}))
     assert unread.warnings == ["estimate.k=9 (in the overrides) has no effect in this run: the photon-map pass is "
                                "left out (mode 'rcast' does not include the pmap (photon-map) pass)"]
-    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["config.resolved.yaml", "images", "results.json"]
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == [".tlm-written", "config.resolved.yaml", "images",
+                                                                     "results.json"]
 
 
 def test_scenes_are_listed_shown_and_exported(tmp_path):

@@ -66,7 +66,7 @@ def test_run_folder_layout(cornell_run):
     assert "report/report.html" in report and all(f.endswith((".png", ".html")) for f in report)
     files = [f for f in files if not f.startswith("report/")]
     assert files == sorted([
-        "config.resolved.yaml", "results.json", "trace.json",
+        ".tlm-written", "config.resolved.yaml", "results.json", "trace.json",
         "images/rcast.png", "images/reflect.png", "images/refract.png", "images/composite.png",
         "radiance/rcast.npy", "radiance/reflect.npy", "radiance/refract.npy", "radiance/composite.npy",
         "aov/primary.npz", "aov/work.npz",

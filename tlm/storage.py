@@ -19,6 +19,9 @@ destination only when the block finished; on any error (or Ctrl-C) the temporary
 folder is removed and an earlier folder of the same name is left as it was. An earlier folder is
 swapped for the new one in one call where the file system can (:func:`tlm.storage_lock.exchange`), so
 the destination is never missing meanwhile; elsewhere (NFS, another OS) it is renamed aside first.
+An output that keeps what its user put in its folder (a run's, a study's: ``owned``) lists what it wrote
+there (:data:`LISTING`, where it holds a folder), so that a rerun tells the user's files inside the output's
+own folders (a run's ``images/``) from the output's, and carries them over (:func:`_carry_over`).
 
 An existing destination is replaced only if it is an earlier output of the same kind:
 a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
@@ -57,7 +60,7 @@ import sys
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
-from typing import IO
+from typing import IO, cast
 
 from tlm import storage_live, storage_lock
 from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
@@ -281,31 +284,93 @@ def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], 
 _OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work
 
 
+LISTING = ".tlm-written"  # the paths an output wrote in its folder (_write_listing), where it holds a folder
+_WHOLE = object()  # atomic_folder's owned left out: an output replaced whole, which keeps no listing
+
+
+def _write_listing(tmp: Path) -> None:
+    """Record every path the finished output ``tmp`` holds (its folders' too, relative, one a line, as the file
+    system names it) in its :data:`LISTING`, where it holds a folder (a run's ``images``): what a rerun into its
+    folder tells from the user's files put in those folders (:func:`_carry_over`). A name with a newline is left
+    out (its file counts as the user's: kept, never removed by mistake)."""
+    with os.scandir(tmp) as listing:
+        if not any(e.is_dir(follow_symlinks=False) for e in listing):
+            return
+    paths = [os.fsencode(os.path.relpath(os.path.join(root, n), tmp))
+             for root, dirs, files in os.walk(tmp) for n in (*dirs, *files)]
+    own = os.fsencode(LISTING)
+    write_file(tmp / LISTING, b"".join(sorted(p + b"\n" for p in paths if b"\n" not in p and p != own)))
+
+
+def _listed(out: Path) -> set[str] | None:
+    """The paths the output in ``out`` wrote there (its :data:`LISTING`); None where it has none."""
+    try:
+        return {os.fsdecode(p) for p in (out / LISTING).read_bytes().split(b"\n") if p}
+    except OSError:
+        return None
+
+
+def _real_dir(path: Path) -> bool:
+    """Whether ``path`` is a folder, not a link to one."""
+    return stat.S_ISDIR(os.lstat(path).st_mode)
+
+
 def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
     """Move the entries of the folder ``out`` that its writer does not own (``owned``: the
     names an output of this kind may hold) and ``tmp`` does not hold into ``tmp``: the
-    user's own files beside an output survive its replacement. The names moved."""
+    user's own files beside an output survive its replacement. Inside a folder of an owned name that the old
+    output wrote itself (its :data:`LISTING` names it: a run's ``images``, not the ``report`` its report wrote
+    after it, which that replaces whole), what the listing does not name is the user's, moved to the same path
+    in ``tmp`` where ``tmp`` does not hold that path (:func:`_carry_inside`). An old output without a listing
+    (an older tlm's) has its folders replaced whole. The paths moved (relative to ``out``)."""
     moved: list[str] = []
     try:
         entries = sorted(os.listdir(out))
     except OSError:
         return moved
+    listed = _listed(out) or set()
     try:
         for name in entries:
-            if (name in owned or _OURS.match(name) or (tmp / name).exists() or (tmp / name).is_symlink()):
+            if name in owned or name == LISTING:
+                if name in listed and _real_dir(out / name):
+                    _carry_inside(out, tmp, name, listed, moved)
+                continue
+            if _OURS.match(name) or (tmp / name).exists() or (tmp / name).is_symlink():
                 continue
             (out / name).rename(tmp / name)
             moved.append(name)
     except BaseException:  # (what was moved goes back before the new folder is dropped)
-        for name in moved:
+        for name in reversed(moved):
             with suppress(OSError):
                 (tmp / name).rename(out / name)
         raise
     return moved
 
 
+def _carry_inside(out: Path, tmp: Path, folder: str, listed: set[str], moved: list[str]) -> None:
+    """Move each entry of ``out/folder`` that the old output did not write (not in ``listed``) to its path in
+    ``tmp``, its folders made there, unless ``tmp`` holds that path or a file where one of its folders would be
+    (the new output's name: its own); look into each folder the old output wrote, or that both hold, the
+    same way. ``moved`` gets each path moved."""
+    for name in sorted(os.listdir(out / folder)):
+        path = f"{folder}/{name}"
+        src, dst = out / path, tmp / path
+        if path in listed or os.path.lexists(dst):
+            if _real_dir(src) and (path in listed or _real_dir(dst)):
+                _carry_inside(out, tmp, path, listed, moved)
+            continue
+        parent = dst.parent
+        while parent != tmp and not os.path.lexists(parent):
+            parent = parent.parent
+        if parent != tmp and not _real_dir(parent):
+            continue  # (the new output has a file where the user's folder was)
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        src.rename(dst)
+        moved.append(path)
+
+
 @contextmanager
-def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
+def atomic_folder(out: Path, marker: str, owned: Collection[str] | object | None = _WHOLE,
                   clean_once: bool = False, into: Callable[[Path], bool] | None = None,
                   replaces: Collection[str] = (), finished: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary folder that replaces ``out`` when the block succeeds.
@@ -313,7 +378,10 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
     ``marker`` is the file that marks an earlier output of this kind (it may be
     replaced); the block must write it. ``owned``: the names such an output may hold;
     where given, whatever else an earlier ``out`` holds (a user's notes, an analysis
-    folder) is carried into the new one, not removed with the old output.
+    folder) is carried into the new one, not removed with the old output, and what it holds in the folders
+    the old output wrote itself (:data:`LISTING`, which such an output keeps: :func:`_carry_over`). None: an
+    output that carries nothing this time (a study's whose earlier folder has no record of its names) but keeps
+    its listing all the same; left out: one replaced whole (a report's, a cache's), with no listing.
     Before it, the temporary folders that killed writers of ``out`` left beside it are removed
     (:func:`clean_stale`, which lists the whole of ``out``'s parent); ``clean_once``: only at this
     process's first write into that parent (a sweep's points: the sweep cleans its ``points/`` at its
@@ -339,7 +407,9 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | None = None,
     tmp = out.parent / f".{out.name}.tmp-{writer}"
     _hold(tmp.name)  # (before it exists: no other thread's clean_stale may take it for a leftover)
     try:
-        yield from _atomic_folder(out, marker, owned, tmp, writer, clean_once, into, replaces)
+        names = None if owned is _WHOLE else cast("Collection[str] | None", owned)
+        yield from _atomic_folder(out, marker, names, tmp, writer, clean_once, into, replaces,
+                                  listing=owned is not _WHOLE)
     finally:
         _release(tmp.name)
 
@@ -358,8 +428,10 @@ def _kept(out: Path, into: Callable[[Path], bool]) -> bool:
 
 def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: Path,
                    writer: str, clean_once: bool = False,
-                   into: Callable[[Path], bool] | None = None, replaces: Collection[str] = ()) -> Iterator[Path]:
-    """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``."""
+                   into: Callable[[Path], bool] | None = None, replaces: Collection[str] = (),
+                   listing: bool = False) -> Iterator[Path]:
+    """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``; ``listing``: its
+    :data:`LISTING` written."""
     leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -374,6 +446,8 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
         yield tmp
         if not (tmp / marker).is_file():
             raise RuntimeError(f"an output folder was written without its {marker}")
+        if listing:
+            _write_listing(tmp)  # (before any file of the user's comes in: what this output wrote)
         with folder_lock(out):
             if into is not None and _kept(out, into):  # (the marker into it, under the lock: nothing swaps in between)
                 os.replace(tmp / marker, out / marker)
