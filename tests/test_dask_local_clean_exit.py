@@ -26,6 +26,7 @@ import yaml
 
 from tlm.experiments import dask_workers, executors, executors_quiet
 
+from .test_signals import tlm_lines
 from .test_sweep import _descendants
 
 REPO = Path(__file__).resolve().parents[1]
@@ -81,15 +82,16 @@ def start(tmp_path: Path, env: dict | None = None) -> tuple[subprocess.Popen, Pa
 def test_a_dask_local_sweep_sigtermed_with_its_process_group_says_one_line(tmp_path):
     """SIGTERM to the whole process group (a batch system's, ``kill -TERM -- -PGID``) once a point
     is done: the workers die at once, each with the semaphore of its point's progress bar
-    before; the sweep's stderr is exactly its one line, exit status 143."""
-    proc, _ = start(tmp_path)
+    before; the sweep's stderr is exactly its one line (how many points it kept), exit status 143."""
+    proc, out = start(tmp_path)
     try:
         os.killpg(proc.pid, signal.SIGTERM)
         _, err = proc.communicate(timeout=120)  # (a hang guard, not a timing: EOF once the tracker has ended)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert err == "tlm: terminated (SIGTERM)\n"
+    # (the points done, kept: as many as the rows in the folder, h450)
+    assert tlm_lines(err, out, 8) == [err.rstrip("\n")] and err.startswith("tlm: terminated (SIGTERM) with "), err
     assert proc.returncode == 128 + signal.SIGTERM
 
 

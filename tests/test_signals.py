@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import select
 import signal
 import subprocess
@@ -102,7 +103,7 @@ def test_a_sweep_point_interrupted_inside_a_kernel_stops_the_sweep(tmp_path, mon
     out = tmp_path / "sw"
     assert main(["sweep", str(sweep_file(tmp_path, 2)), "--out", str(out), "--jobs", "1", "--no-progress",
                  "--no-report"]) == 130
-    assert capsys.readouterr().err.strip().splitlines()[-1] == "tlm: interrupted"
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "tlm: interrupted before any point finished"
     assert rows(out) == [] and not list(out.rglob("error.json"))
 
 
@@ -171,7 +172,26 @@ def rows(out: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()] if path.exists() else []
 
 
-TLM_LINES = {"tlm: interrupted", "tlm: terminated (SIGTERM)", "tlm: interrupted again: stopping now"}
+# tlm's lines of a signalled sweep: the first signal's, which says how many of its points the folder keeps
+# (h450: a bare "tlm: interrupted" before), and a second's; nothing else (no traceback, no resource tracker's)
+TLM_LINE = re.compile(r"tlm: (?:interrupted|terminated \(SIGTERM\))(?: with (\d+) of (\d+) points finished"
+                      r"(?: \((\d+) failed, to run again\))? and kept in (.+); run the same command to go on"
+                      r"| before any point finished)?|tlm: interrupted again: stopping now")
+
+
+def tlm_lines(err: str, out: Path, n: int) -> list[str]:
+    """The lines of ``err``, each one of tlm's (:data:`TLM_LINE`), two at most; the numbers a first signal's
+    line says agree with the rows in ``out`` (``sweep.jsonl``) and the ``n`` points of the sweep."""
+    lines = err.strip().splitlines()
+    assert lines and len(lines) <= 2 and all(TLM_LINE.fullmatch(line) for line in lines), err
+    for line in lines:
+        kept, total, failed, folder = TLM_LINE.fullmatch(line).groups()
+        if kept is not None:
+            assert (int(kept), int(total), int(failed or 0), folder) == (
+                len(rows(out)), n, sum(r["status"] != "ok" for r in rows(out)), str(out)), (line, len(rows(out)))
+        elif "before any point finished" in line:
+            assert rows(out) == [], line
+    return lines
 
 
 @pytest.mark.slow
@@ -228,8 +248,8 @@ def test_a_sweep_signalled_stops_its_workers(sig, twice, executor, tmp_path, mon
     # (a second signal in the interpreter's last moments, after its handlers are gone, ends it
     # by the signal itself: -sig here, 128 + sig to a shell all the same)
     assert proc.returncode == 128 + sig or (twice and proc.returncode == -sig)
-    lines = err.strip().splitlines()
-    assert lines and set(lines) <= TLM_LINES and len(lines) <= 2, err
+    lines = tlm_lines(err, out, n)
+    assert twice or "points finished and kept in" in lines[0], err  # (two done, at least, and rows written)
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and any(map(_running, below)):
         time.sleep(0.05)

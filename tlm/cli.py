@@ -20,7 +20,7 @@ from tlm.api import MODES, Deadlock, InputError
 from tlm.cli_args import NO_BAR, Parser, figure_files, folder_name, no_progress, no_report, seconds, table_file, title
 from tlm.cli_args import experiment_argument as _experiment_file
 from tlm.cli_cache import add_cache_parser, cache_command
-from tlm.cli_report import kept_whole, report_after, report_claimed, say_err, study_claimed
+from tlm.cli_report import kept_whole, report_after, report_claimed, say_err, study_claimed, sweep_cut_short
 from tlm.cli_run import blame_flag, default_out, figures3, print_run  # (what tlm run prints)
 from tlm.cli_signals import (
     blas_buffer_mapped,
@@ -263,9 +263,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         for line in plan.warnings:  # (on stderr, as the sweep says them; in the JSON too)
             warned(line)
         return 0
-    done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
-                         dask_wait=args.dask_wait, warn=warned, reference=args.reference, say=_say,
-                         **_overrides(args))
+    with sweep_cut_short(out):  # (a signal: how many of its points the folder keeps, and how to go on)
+        done = api.run_sweep(args.config, out, jobs=args.jobs, dask=args.dask, progress=not args.no_progress,
+                             dask_wait=args.dask_wait, warn=warned, reference=args.reference, say=_say,
+                             **_overrides(args))
     with kept_whole(args, out, "the sweep", "its points, sweep.jsonl and sweep.csv"):
         for row in done.rows:
             if row["status"] != "ok":

@@ -1,7 +1,8 @@
 """The report a command writes at its end (``OUT/report``, :func:`report_after`), the claim of a
 report's folder that it and ``tlm report`` take (:func:`report_claimed`), and what a signal while
-it is written says (:func:`_report_interrupted`); with the line a command says on stderr
-(:func:`say_err`). Printing only, as :mod:`tlm.cli`: the report itself is :mod:`tlm.api`'s."""
+it is written says (:func:`_report_interrupted`), and one while a sweep's points run
+(:func:`sweep_cut_short`); with the line a command says on stderr (:func:`say_err`). Printing only, as
+:mod:`tlm.cli`: the report itself is :mod:`tlm.api`'s."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from pathlib import Path
 from tlm import api, claims, storage
 from tlm.api import InputError
 from tlm.cli_signals import Interrupted
-from tlm.errors import EnvironmentFailure, interrupted_by, quoted, shell_word
+from tlm.errors import EnvironmentFailure, interrupted_by, path_shown, quoted, shell_word
 
 
 def say_err(line: str) -> None:
@@ -73,6 +74,28 @@ def kept_whole(args: argparse.Namespace, out: Path, kept: str, files: str) -> It
         if getattr(args, "no_report", False):
             raise Interrupted(f"after {kept} was written: {kept} in {out} is kept, whole ({files})") from e
         raise Interrupted(f"before its report began: {_not_written(args, out, f'{kept} in {out}', files)}") from e
+
+
+@contextmanager
+def sweep_cut_short(out: Path) -> Iterator[None]:
+    """Around a sweep's points (:func:`tlm.api.run_sweep`): a signal meanwhile ends it saying how many of its
+    points are finished and kept in ``out`` (their rows in ``sweep.jsonl``, those done by an earlier run counted;
+    how many failed, which a rerun runs again) and that the same command goes on from there, or that none had
+    finished (not a bare ``tlm: interrupted``, which left the user to guess what the folder kept). Said where
+    the sweep noted them (:func:`tlm.experiments.sweep_rows.note_kept`: not where its rows could not be written)."""
+    try:
+        yield
+    except BaseException as e:  # (a Ctrl-C, or an error a C extension made of it: errors.interrupted_by)
+        kept = getattr(e, "kept_points", None)  # (sweep_rows.KEPT: the CLI reaches the layers through tlm.api only)
+        if kept is None or isinstance(e, Interrupted) or not (isinstance(e, KeyboardInterrupt)
+                                                               or interrupted_by(e) is not None):
+            raise
+        rows, failed, total = kept
+        if not rows:
+            raise Interrupted("before any point finished") from e
+        of = f" ({failed} failed, to run again)" if failed else ""
+        raise Interrupted(f"with {rows} of {total} points finished{of} and kept in {path_shown(out)}; "
+                          "run the same command to go on") from e
 
 
 @contextmanager

@@ -130,6 +130,7 @@ from tlm.experiments.sweep_reference import (
     unmeasured_line,
 )
 from tlm.experiments.sweep_rows import columns, forget_worker_events, keep_worker_events, point_row, write_rows
+from tlm.experiments.sweep_rows import note_kept as _note_kept
 from tlm.experiments.sweep_rows import trim_torn as _trim_torn
 from tlm.experiments.worker_start import leave_if_bootstrapping
 from tlm.progress import SWEEP_ETA_AFTER, checkpoint, progress_bar
@@ -369,15 +370,17 @@ def run_sweep(path: Path, out: Path, jobs: int | None = None, dask: str | None =
                         warn(line)
                     _keep_workers(out, pool, records, sweep.identity())  # (those lines' events: workers.json)
                     workers_kept = True
-        except BaseException:  # (interrupted, or the cluster lost: its workers are gone once the
+        except BaseException as e:  # (interrupted, or the cluster lost: its workers are gone once the
             # executor closed; what one killed mid-point left half written goes, as after a run)
             if todo:
                 _clean_stale(points_dir)
+            kept = [records[p.hash] for p in sweep.points if p.hash in records]  # (those done before: not claimed yet)
             if rows_due:  # the rows of the points done, as a run to its end writes them
-                _write_finished(out, sweep, records, todo)
+                kept = _write_finished(out, sweep, records, todo)
                 with suppress(Exception):  # (what stopped the sweep is said, not a failed write of these)
                     if not workers_kept:  # (an interrupt while the executor closed: the events written already)
                         _keep_workers(out, pool, records, sweep.identity())
+            _note_kept(e, kept, len(sweep.points))  # (an interrupt's line says them: tlm.cli_report.sweep_cut_short)
             raise
         if todo:
             _clean_stale(points_dir)  # what workers that died (or were ended) left half written
@@ -482,21 +485,25 @@ def _cache_lines(records: list[dict], here: list[str]) -> list[str]:
     return lines
 
 
-def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str]) -> None:
+def _write_finished(out: Path, sweep, records: dict[str, dict], todo: list[str]) -> list[dict] | None:
     """``sweep.jsonl`` and ``sweep.csv`` of a sweep cut short (interrupted, its cluster lost): the
     rows of its points done, those done before and those its workers finished (a point whose
     worker wrote its folder whole before the sweep took its result is done too; one done before without
     the trace.json it now asks for too, its folder kept till its new one replaces it), as the end of a
-    run writes them. A write that fails leaves the files as they were (each is written whole or
-    not at all): the sweep's own error goes on, and ``sweep.jsonl`` holds the rows appended."""
+    run writes them: the records of their rows, one per row. A write that fails leaves the files as they were
+    (each is written whole or not at all): None, the sweep's own error goes on, and ``sweep.jsonl`` holds the rows
+    appended."""
     points_dir = out / "points"
     present = listed(points_dir)
     for h in todo:  # (and one done before without the trace.json it now asks for, not run again yet: its folder
         # kept, its results its row's, point_done aside)
         if h not in records and h in present and (rec := done_record(points_dir / h)) is not None:
             records[h] = rec
+    kept = [p for p in sweep.points if p.hash in records]
     with suppress(OSError, InputError):
-        _write_rows(out, [_row(p, records[p.hash], sweep) for p in sweep.points if p.hash in records], sweep.factors)
+        _write_rows(out, [_row(p, records[p.hash], sweep) for p in kept], sweep.factors)
+        return [records[p.hash] for p in kept]
+    return None
 
 
 def _row(point: Point, record: dict, sweep) -> dict:

@@ -13,6 +13,7 @@ with an ok point's columns whatever the points' outcome (:func:`columns`), and a
 value (``bsp.levels: [null, 6]``) as ``null``, as its YAML writes it, not as an empty cell
 (:func:`csv_text`: a study's rows alike, error-vs-cost's ``rows.csv``), and a path of bytes not UTF-8 in a cell
 (a failed point's error naming its folder ``run_\\xff``) with the byte escaped, ``\\xff`` (:func:`csv_cell`).
+A sweep interrupted notes on its interrupt how many of its points' rows its folder keeps (:func:`note_kept`).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from tlm import storage
-from tlm.errors import error_line
+from tlm.errors import error_line, interrupted_by
 from tlm.experiments.sweep_file import Point
 from tlm.storage_json import escaped
 
@@ -290,3 +291,18 @@ def trim_torn(path: Path) -> None:
         data = f.read()
         if data and not data.endswith(b"\n"):
             f.truncate(data.rfind(b"\n") + 1)
+
+
+KEPT = "kept_points"  # the attribute of a sweep's interrupt that says what its folder kept (note_kept)
+
+
+def note_kept(e: BaseException, records: list[dict] | None, total: int) -> None:
+    """What a sweep interrupted (``e``: a KeyboardInterrupt, or an error a C extension made of one,
+    :func:`tlm.errors.interrupted_by`) kept in its folder, noted on ``e`` (its :data:`KEPT`: how many of its
+    ``total`` points have a row there, those done before counted, and how many of these failed) for its
+    line (:func:`tlm.cli_report.sweep_cut_short`): ``records``, the records of those points, one per row
+    (None: their rows could not be written, nothing noted). Any other exception is left as it is."""
+    if records is None or not (isinstance(e, KeyboardInterrupt) or interrupted_by(e) is not None):
+        return
+    with suppress(AttributeError, TypeError):  # (an exception that takes no attribute: its line is the bare one)
+        setattr(e, KEPT, (len(records), sum(r.get("status") != "ok" for r in records), total))
