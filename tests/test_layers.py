@@ -32,7 +32,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("tlm.render",),
     ("tlm.oracle",),
     ("tlm.arch",),
-    ("tlm.experiments",),
+    ("tlm.experiments",
+     "tlm.experiments.reference_resume"),  # (h454: an interrupted reference resumed, out of reference)
     ("tlm.report",),
     # tlm: the package's __init__, which re-exports tlm.api
     ("tlm.api", "tlm.api_studies", "tlm.api_scenes", "tlm.api_cache", "tlm.api_common",

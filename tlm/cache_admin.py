@@ -14,8 +14,11 @@ An **entry** is what a cache's reader reads as one: ``functional/<key>.npz`` wit
 ``<key>.json`` and a photon-map frame's ``<key>.pmap.npy``; ``scenes/mesh-<key>.npz``,
 ``normals-<key>.npz`` or a scene's remembered fingerprint ``key-<key>.json``; ``references/<key>/``
 and ``oracle/<key>/`` (a folder: the image and its
-``meta.json``); ``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be
-written) a kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
+``meta.json``), and ``references/<key>.partial.npz``, the rounds saved of a reference being computed or
+interrupted (:mod:`tlm.experiments.reference_resume`: an entry of its own, which a prune may remove as
+any other; the compute that wrote it writes it again after its next cycle);
+``tracebacks/tlm-traceback-*.txt``; in ``numba/`` (where numba's own folders cannot be written) a
+kernel's index ``<name>.nbi`` with its ``<name>.<n>.nbc``. Its **last use** is the latest
 access or modification time of its files; its **size** the apparent bytes of its files (``ls -l``'s, not
 ``du``'s blocks; a folder itself counts nothing). tlm's reads refresh a file's modification time
 (:func:`tlm.caches.note_use`): a frame read, its sidecar ``<key>.json``'s; a mesh or normals entry read
@@ -56,6 +59,7 @@ _HEX = r"[0-9a-f]{16,64}"
 _FUNCTIONAL = re.compile(rf"({_HEX})\.(npz|json|pmap\.npy)")
 _SCENES = re.compile(rf"((?:mesh|normals|key)-{_HEX})\.(npz|json)")
 _FOLDER_KEY = re.compile(_HEX)
+_PARTIAL = re.compile(rf"{_HEX}\.partial\.npz")  # (references/: the rounds saved of a reference, a file)
 _TRACEBACK = re.compile(r"tlm-traceback-.+\.txt")
 _NUMBA = re.compile(r"(.+\.py\d+)\.(nbi|\d+\.nbc)")
 # the temporary names of tlm's writers (tlm.storage: write_atomic, atomic_folder, write_files, a kept
@@ -241,6 +245,8 @@ def _entry_key(name: str, path: Path) -> str | None:
     elif name == "scenes":
         m = _SCENES.fullmatch(n)
     elif name in ("references", "oracle"):
+        if name == "references" and _PARTIAL.fullmatch(n):
+            return n if path.is_file() else None
         return n if _FOLDER_KEY.fullmatch(n) and path.is_dir() else None
     elif name == "tracebacks":
         return n if _TRACEBACK.fullmatch(n) and path.is_file() else None

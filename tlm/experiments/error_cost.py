@@ -614,7 +614,7 @@ def study_reference(frame: Frame, settings: ReferenceSettings, key: str,
     if found is not None:
         return found[0], found[1], False
     cam = frame.scene.camera
-    image, meta = compute_reference(frame, None, settings)
+    image, meta = compute_reference(frame, None, settings, key=key, say=note)  # (resumes an interrupted one)
     image = image.reshape(cam.height, cam.width, 3)
     try:
         stored = store_reference(key, image, meta, settings)

@@ -51,7 +51,8 @@ temporary folder (``<tmp>/tlm-cache-<uid>/references/<key>``), says where, and e
 it would have with a writable cache. That folder is made for this user alone, and one made
 by someone else first (a link, another user's folder, one others may write) is not written
 into (:func:`private_folder`). Which reference the cache keeps, and its files:
-:mod:`tlm.experiments.reference_cache`.
+:mod:`tlm.experiments.reference_cache`. One interrupted (Ctrl-C, a crash) resumes from its last
+finished cycle, to the same bits: :mod:`tlm.experiments.reference_resume`.
 """
 
 from __future__ import annotations
@@ -84,6 +85,7 @@ from tlm.experiments.reference_cache import (
     store_reference,
     verdict,
 )
+from tlm.experiments.reference_resume import Partial, Rounds
 from tlm.kernels.camera import primary_rays
 from tlm.kernels.engine import engine
 from tlm.kernels.estimate import density_radius
@@ -271,7 +273,7 @@ def reference_round(frame: Frame, settings: ReferenceSettings, photon_seed: int,
 
 
 def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettings, progress=None,
-                      bar: bool = False) -> tuple[np.ndarray, dict]:
+                      bar: bool = False, key: str | None = None, say=None) -> tuple[np.ndarray, dict]:
     """Average k-NN photon-map frames over independent rounds until converged.
 
     Rounds come in cycles of :func:`cycle_length` (``spp``) rounds, each round a new photon
@@ -288,6 +290,12 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     bar : a progress bar of the rounds on stderr (only when it is a terminal); its total is the
         most rounds (``reference.max_rounds``), and its status says that it stops before, once the
         relative standard error is below the tolerance (``rse 0.0412, stop < 0.03``).
+    key : the reference's key (:func:`reference_key`), for a caller that stores it
+        (:func:`~tlm.experiments.reference_cache.store_reference`, which then removes its saved rounds):
+        its rounds are saved after each cycle, and the rounds saved by an interrupted compute of the key
+        resumed from, to the same result (:mod:`tlm.experiments.reference_resume`; ``say``: called with
+        the line that says so, or why not; ``meta`` then says ``resumed_from_round``, and its
+        ``host_seconds`` add the earlier ones). None: nothing saved nor resumed.
     Returns the (pixels, 3) radiance and the metadata (rounds, changes, converged).
     """
     del g
@@ -297,15 +305,21 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
     max_cycles = max(2, settings.max_rounds // strata)
     min_cycles = max(2, -(-settings.min_rounds // strata))
     cam = frame.scene.camera
-    mean = np.zeros((cam.width * cam.height, 3))
-    m2 = np.zeros_like(mean)  # Welford's running sum of squared deviations
-    changes: list[float] = []
-    errors: list[float] = []
+    saved = None if key is None else Partial(key, strata, cam.width * cam.height, say)
+    done = (saved.resume(min_cycles, max_cycles, settings.tolerance) if saved is not None else None) or Rounds()
+    k0 = done.k  # (cycles resumed: the rounds saved stop no earlier under these settings, reference_resume)
+    mean = np.zeros((cam.width * cam.height, 3)) if done.mean is None else done.mean
+    m2 = np.zeros_like(mean) if done.m2 is None else done.m2  # Welford's running sum of squared deviations
+    changes, errors = list(done.changes), list(done.errors)
     t0 = time.perf_counter()
-    converged = False
+    converged = k0 >= min_cycles and errors[-1] < settings.tolerance  # (resumed at the very cycle it stops at)
     rounds = progress_bar(bar, total=max_cycles * strata, desc="reference", unit="round", leave=False,
+                          initial=k0 * strata,
                           postfix=f"stops at rse < {settings.tolerance}")  # (rse: the relative standard error)
-    for k, child in enumerate(np.random.SeedSequence(REFERENCE_SEED).spawn(max_cycles), start=1):
+    if k0 > 1:
+        rounds.set_postfix_str(f"rse {errors[-1]:.4f}, stop < {settings.tolerance}")
+    children = np.random.SeedSequence(REFERENCE_SEED).spawn(max_cycles)
+    for k, child in enumerate([] if converged else children[k0:], start=k0 + 1):
         shift_seed = int(child.generate_state(1)[0])
         frame_k = np.zeros_like(mean)
         for turn, each in enumerate(child.spawn(strata)):
@@ -334,6 +348,8 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
         if k >= min_cycles and errors[-1] < settings.tolerance:
             converged = True
             break
+        if saved is not None and k < max_cycles:  # (the state after this cycle: an interrupt resumes from it)
+            saved.save(Rounds(k, mean, m2, changes, errors, done.seconds + time.perf_counter() - t0))
     rounds.close()
     cycles = len(errors) + 1
     meta = {
@@ -347,8 +363,9 @@ def compute_reference(frame: Frame, g: GBuffer | None, settings: ReferenceSettin
         "standard_error_per_cycle": errors,
         "change_per_cycle": changes,
         "converged": converged,
-        "host_seconds": round(time.perf_counter() - t0, 3),
+        "host_seconds": round(done.seconds + time.perf_counter() - t0, 3),
         "seed": REFERENCE_SEED,
+        **({"resumed_from_round": k0 * strata} if k0 else {}),
     }
     return mean, meta
 
@@ -401,7 +418,7 @@ def ensure_reference(frame: Frame, compute: bool = False, bar: bool = False, say
     t0 = time.perf_counter()
     drawn = bar and _terminal(sys.stderr)  # (the bar says how the rounds go: no lines besides it)
     lines = round_lines(say, settings) if say is not None and not drawn else None
-    image, meta = compute_reference(frame, None, settings, progress=lines, bar=bar)
+    image, meta = compute_reference(frame, None, settings, progress=lines, bar=bar, key=key, say=say)
     cam = frame.scene.camera
     kept = ""
     try:
@@ -568,7 +585,7 @@ def make_reference(cfg: RunConfig, base: Path | None = None, source: str | None 
     frame = load_frame(cfg, scene=scene)
     say(f"reference {key}: {settings.photons} photons per round, k = {settings.k_nearest}, "
         f"tolerance {settings.tolerance}, cycles of {cycle_length(settings)} rounds")
-    image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar)
+    image, meta = compute_reference(frame, None, settings, progress=progress, bar=bar, key=key, say=say)
     image = image.reshape(scene.camera.height, scene.camera.width, 3)
     try:
         stored = store_reference(key, image, meta, settings, force=force)

@@ -17,6 +17,12 @@ the temporary folder (:func:`kept_root`, ``<tmp>/tlm-cache-<uid>/references/<key
 folder is made for this user alone, and one made by someone else first (a link, another
 user's folder, one others may write) is not written into (:func:`private_folder`).
 
+A reference computed by ``tlm run`` or ``tlm reference`` saves its rounds after each finished cycle
+beside its entry, ``references/<key>.partial.npz`` (:func:`partial_path`;
+:mod:`tlm.experiments.reference_resume`), so that one interrupted resumes from there; the file is removed
+once the reference is stored, or could not be (:func:`drop_partial`), and ``tlm cache`` lists and prunes
+it as an entry of its own.
+
 A sweep (``tlm sweep --reference``) holds its own copy of each reference its points are measured
 against, for the sweep's duration (:func:`holding`): a point reads it there first, so that a
 ``tlm cache prune`` meanwhile, or a cache that could not take a reference the sweep computed,
@@ -273,6 +279,39 @@ class Stored:
     same: bool = False  # (not replaced: the cache holds the same reference.npy as the one computed now)
 
 
+PARTIAL = ".partial.npz"  # references/<key>.partial.npz: the rounds of a reference interrupted
+
+
+def partial_path(key: str) -> Path:
+    """Where the rounds of a compute of reference ``key`` are saved after each finished cycle, beside its
+    entry (:mod:`tlm.experiments.reference_resume`): ``references/<key>.partial.npz``."""
+    return cache_dir() / f"{key}{PARTIAL}"
+
+
+def partial_info(path: Path) -> dict | None:
+    """The header (``info``) of the saved rounds at ``path``, or None where there are none or it cannot be read."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            info = json.loads(str(z["info"][()]))
+    except Exception:  # (a damaged file, whatever numpy, zipfile or json make of it: none)
+        return None
+    return info if isinstance(info, dict) else None
+
+
+def drop_partial(key: str, meta: dict) -> None:
+    """Remove the saved rounds of a compute of ``key`` (:func:`partial_path`), the reference of ``meta``
+    being stored; but for rounds that went further, in cycles as long (``rounds_per_cycle``), than its
+    ``cycles``: another compute's, to a stricter tolerance, interrupted, which a later one resumes."""
+    path = partial_path(key)
+    info = partial_info(path)
+    k, cycles = (info or {}).get("k"), meta.get("cycles")
+    if (info is not None and info.get("strata") == meta.get("rounds_per_cycle") and isinstance(k, int)
+            and isinstance(cycles, int) and k > cycles):
+        return
+    with contextlib.suppress(OSError):
+        path.unlink()
+
+
 def store_reference(key: str, image: np.ndarray, meta: dict, settings: ReferenceSettings,
                     force: bool = False) -> Stored:
     """Cache the reference ``key`` computed now (``image`` (H, W, 3), ``meta``) where it is
@@ -282,7 +321,20 @@ def store_reference(key: str, image: np.ndarray, meta: dict, settings: Reference
     cannot take; not where the cache is that folder, or where that folder holds a better one)
     or dropped, which ``line`` says; one that is the same file as the cached one (its ``reference.npy``'s
     sha256: computed at once by another process) is dropped, and ``line`` says it is the same (``same``).
-    The errors of :func:`save_reference` where the cache cannot take it."""
+    The errors of :func:`save_reference` where the cache cannot take it. Either way the rounds saved of
+    the compute, which finished, are removed (:func:`drop_partial`; not where an interrupt stops this: the
+    next compute resumes from them)."""
+    try:
+        stored = _store(key, image, meta, settings, force)
+    except (EnvironmentFailure, OSError, InputError):
+        drop_partial(key, meta)
+        raise
+    drop_partial(key, meta)
+    return stored
+
+
+def _store(key: str, image: np.ndarray, meta: dict, settings: ReferenceSettings, force: bool) -> Stored:
+    """:func:`store_reference`, but for its saved rounds."""
     held = None if force else load_reference(key, cache_dir())  # (the cache's, not a sweep's own copy: holding)
     if held is None or better(meta, held[1], settings):  # (its meta as meta.json holds it: with the npy's sha256)
         # (the image as reference.npy holds it, float32: what a later run reads back, so measures alike)

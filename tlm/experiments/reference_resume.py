@@ -1,0 +1,200 @@
+"""A reference interrupted (Ctrl-C, SIGTERM, a crash) resumes from its last finished cycle.
+
+A converged reference (:func:`tlm.experiments.reference.compute_reference`) takes minutes, hours on a
+large scene. Its rounds come in cycles whose seeds do not depend on the stopping rule (cycle ``k`` of the
+same length is the same whatever the tolerance and ``min_rounds``/``max_rounds``), and its running state
+after a cycle is small: the cycles finished, the running mean and Welford's ``m2`` (float64, per pixel),
+the change and relative standard error of each cycle, and the host seconds so far. :class:`Partial` saves
+that state after each cycle but the last, atomically (:func:`tlm.storage.write_atomic`: a temporary file
+of this process's own, renamed into place), in the cache beside the entry it becomes,
+``references/<key>.partial.npz`` (:func:`~tlm.experiments.reference_cache.partial_path`; float64 stored
+exactly), and the next compute of the key resumes from it, to the same bits as a compute never
+interrupted: the same image, the same ``meta.json`` but for ``host_seconds`` (the earlier seconds added)
+and ``resumed_from_round`` (the rounds it did not compute again).
+
+Rounds saved under another stopping rule are resumed where the rule asked for now would not have stopped
+before them; rounds past the point where it stops (more cycles than its ``max_rounds`` allows, or a cycle
+before the last saved one that meets its tolerance) are not resumed (the compute starts from round 1 and
+stops where that rule stops it: they are kept for a later compute that goes further), nor those of cycles
+of another length (``reference.spp``) or of the other engine (``TLM_KERNELS``): a line says why. (Not
+checked: that tlm's code is the one that saved them, as a cached reference is not: a change of the code
+that changes a reference changes its key, :data:`~tlm.experiments.reference.KEY_VERSION`.) A damaged
+file, or one of another key, is said in one line, removed and computed again. The saved rounds are
+removed once the compute finished and its reference is stored, or could not be
+(:func:`~tlm.experiments.reference_cache.drop_partial`; a compute that no caller stores, ``key`` None,
+saves none).
+
+Two processes computing one key at once save the same rounds (the same seeds) into one file, each
+through a temporary file of its own: neither reads a half-written one, and the one behind does not
+replace the rounds of the one ahead (:meth:`Partial.save`); one that starts while another computes the
+key resumes from its rounds (the same result), and its line says so (the file names its writer).
+
+A cache that cannot be written keeps no rounds (its one line, :mod:`tlm.caches`, says it cannot be
+written): none are kept in the temporary folder, where the reference itself may go
+(:func:`~tlm.experiments.reference_cache.kept_root`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tlm.errors import EnvironmentFailure, InputError
+from tlm.experiments.reference_cache import partial_info, partial_path
+from tlm.kernels.engine import engine
+from tlm.storage import pid_alive, process_tag, warn, write_atomic
+
+PARTIAL_VERSION = 1  # the layout of a .partial.npz
+
+
+@dataclass
+class Rounds:
+    """The running state of a reference after ``k`` finished cycles: the mean and Welford's ``m2``
+    ((pixels, 3) float64), the change and relative standard error after each cycle from the second, and
+    the host seconds its rounds took."""
+
+    k: int = 0
+    mean: np.ndarray | None = None
+    m2: np.ndarray | None = None
+    changes: list[float] = field(default_factory=list)
+    errors: list[float] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+class _Damaged(Exception):
+    """A saved file that is no reference's rounds, or another key's (its message: why)."""
+
+
+def stops_at(errors: list[float], k: int, min_cycles: int, max_cycles: int, tolerance: float) -> int | None:
+    """The cycle, of the first ``k``, that a compute stops at (:func:`compute_reference`'s rule: at least
+    ``min_cycles``, a relative standard error below ``tolerance``, or ``max_cycles``), given the errors
+    of its cycles from the second; None where it goes on past cycle ``k``."""
+    for j in range(max(2, min_cycles), min(k, max_cycles) + 1):
+        if errors[j - 2] < tolerance:
+            return j
+    return max_cycles if max_cycles <= k else None
+
+
+def _whose(writer: object) -> str:
+    """Whose rounds they are: a reference interrupted earlier, or (``writer``, ``h<host>-<pid>``, a live
+    process of this machine's) one another process is computing now (the same rounds: resumed all the same)."""
+    host, _, pid = str(writer).rpartition("-")
+    if writer != process_tag() and host == process_tag().rpartition("-")[0] and pid.isdigit() and pid_alive(int(pid)):
+        return f"a reference that process {pid} is computing now"
+    return "a reference interrupted earlier"
+
+
+class Partial:
+    """The saved rounds of the reference ``key``, computed in cycles of ``strata`` rounds over ``pixels``
+    pixels (:func:`~tlm.experiments.reference_cache.partial_path`). ``say``: called with the line that says
+    a compute resumes, or why it does not (else a damaged file's line is a warning, :func:`~tlm.storage.warn`,
+    and the others unsaid)."""
+
+    def __init__(self, key: str, strata: int, pixels: int, say=None):
+        self.key, self.strata, self.pixels, self.say = key, strata, pixels, say
+        self.path = partial_path(key)
+        self.kind = {"version": PARTIAL_VERSION, "key": key, "strata": strata, "engine": engine()}
+        self.off = False  # (a save failed: the cache cannot be written; no more tries)
+
+    def _tell(self, line: str, warning: bool = False) -> None:
+        if self.say is not None:
+            self.say(line)
+        elif warning:
+            warn(line)
+
+    def resume(self, min_cycles: int, max_cycles: int, tolerance: float) -> Rounds | None:
+        """The rounds saved where a compute of that stopping rule resumes from them (the line said), else
+        None (a line says why, but where none are saved)."""
+        try:
+            if not (self.path.exists() or self.path.is_symlink()):
+                return None
+        except OSError:  # (a cache folder that cannot be looked into: its own line says so, tlm.caches)
+            return None
+        try:
+            info, rounds = self._read()
+        except _Damaged as e:
+            self._tell(f"reference {self.key}: the rounds saved of a reference interrupted earlier, {self.path}, "
+                       f"are ignored and removed ({e}): it is computed from round 1", warning=True)
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+            return None
+        done = rounds.k * info["strata"]
+        why = self._why_not(info, rounds, min_cycles, max_cycles, tolerance)
+        if why is not None:
+            self._tell(f"reference {self.key}: not resuming from round {done} of {_whose(info.get('writer'))} "
+                       f"({why}): it is computed from round 1")
+            return None
+        self._tell(f"reference {self.key}: resuming from round {done} of {_whose(info.get('writer'))} "
+                   f"({rounds.k} cycles of {self.strata} rounds done in {rounds.seconds:.1f} s, saved in {self.path})")
+        return rounds
+
+    def _why_not(self, info: dict, rounds: Rounds, min_cycles: int, max_cycles: int, tolerance: float) -> str | None:
+        if info["strata"] != self.strata:
+            return (f"it was computed in cycles of {info['strata']} rounds, these settings make cycles of "
+                    f"{self.strata} (reference.spp, at most half of reference.max_rounds)")
+        if info["engine"] != self.kind["engine"]:
+            return (f"it was computed with TLM_KERNELS={info['engine']}, this run with {self.kind['engine']}: "
+                    "the last bits of their estimates may differ")
+        stop = stops_at(rounds.errors, rounds.k, min_cycles, max_cycles, tolerance)
+        if stop is not None and stop < rounds.k:
+            return (f"these reference settings stop it at round {stop * self.strata}, before that; "
+                    "its rounds are kept for a compute that goes further")
+        return None
+
+    def _read(self) -> tuple[dict, Rounds]:
+        try:
+            with np.load(self.path, allow_pickle=False) as z:
+                missing = {"info", "mean", "m2", "changes", "errors"} - set(z.files)
+                if missing:
+                    raise _Damaged(f"it has no {', '.join(sorted(missing))}")
+                info = json.loads(str(z["info"][()]))
+                mean, m2, changes, errors = (z[n] for n in ("mean", "m2", "changes", "errors"))
+        except _Damaged:
+            raise
+        except Exception as e:  # (not an .npz, cut short, a folder: whatever numpy, zipfile or json say)
+            raise _Damaged(f"it cannot be read: {' '.join(str(e).split()) or type(e).__name__}") from None
+        if not isinstance(info, dict):
+            raise _Damaged("its header is no record")
+        if info.get("version") != PARTIAL_VERSION:
+            raise _Damaged(f"its layout is {info.get('version')!r}, not {PARTIAL_VERSION}")
+        if info.get("key") != self.key:
+            raise _Damaged(f"it holds the rounds of reference {info.get('key')!r}, not {self.key}")
+        k, strata, seconds = info.get("k"), info.get("strata"), info.get("seconds")
+        if not (type(k) is int and k >= 1 and type(strata) is int and strata >= 1):
+            raise _Damaged(f"its cycles ({k!r}) or rounds per cycle ({strata!r}) are no positive whole numbers")
+        if not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool) and math.isfinite(seconds)
+                and seconds >= 0):
+            raise _Damaged(f"its seconds ({seconds!r}) are no number of seconds")
+        if not isinstance(info.get("engine"), str):
+            raise _Damaged("it names no engine")
+        for name, a, shape in (("mean", mean, (self.pixels, 3)), ("m2", m2, (self.pixels, 3)),
+                               ("changes", changes, (k - 1,)), ("errors", errors, (k - 1,))):
+            if a.dtype != np.float64 or a.shape != shape or not np.all(np.isfinite(a)):
+                raise _Damaged(f"its {name} is {a.dtype} {a.shape}, not finite float64 {shape}")
+        if np.any(m2 < 0):
+            raise _Damaged("its m2 is negative")
+        return info, Rounds(k, mean, m2, [float(x) for x in changes], [float(x) for x in errors], float(seconds))
+
+    def save(self, rounds: Rounds) -> None:
+        """Save ``rounds`` (atomically), but where the file holds as many cycles or more of the same kind
+        (another process ahead on the same key), or a save failed before (the cache cannot be written)."""
+        if self.off:
+            return
+        info = partial_info(self.path)
+        if (info is not None and all(info.get(f) == v for f, v in self.kind.items())
+                and type(info.get("k")) is int and info["k"] >= rounds.k):
+            return
+        head = json.dumps({**self.kind, "k": rounds.k, "seconds": rounds.seconds, "writer": process_tag()})
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with write_atomic(self.path, "wb") as fh:
+                np.savez(fh, info=np.array(head), mean=np.asarray(rounds.mean, dtype=np.float64),
+                         m2=np.asarray(rounds.m2, dtype=np.float64),
+                         changes=np.asarray(rounds.changes, dtype=np.float64).reshape(-1),
+                         errors=np.asarray(rounds.errors, dtype=np.float64).reshape(-1))
+        except (OSError, EnvironmentFailure, InputError):  # (the cache's one line says it cannot be written)
+            self.off = True
