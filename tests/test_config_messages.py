@@ -64,6 +64,13 @@ def test_the_probe_s_messages():
         "(dict): mode: nope is not one of rcast, reflect, refract, pmap")
     assert "scene: 3 is not a string (quote it, '3'" in _error(lambda: config_from_dict({"scene": 3}))
     assert _error(lambda: config_from_dict({"render": "two"})) == "(dict): render: must be a mapping of keys, got two"
+    # a section given the one value its main key takes: the hint says where it goes (a bare "photons: 5000" was
+    # refused with no word of photons.count)
+    assert _error(lambda: config_from_dict({"photons": 5000})) == (
+        "(dict): photons: must be a mapping of keys, got 5000 (did you mean photons: {count: 5000}?)")
+    assert _error(lambda: config_from_dict({"estimate": "knn"})) == (
+        "(dict): estimate: must be a mapping of keys, got knn (did you mean estimate: {filter: knn}?)")
+    assert _error(lambda: config_from_dict({"photons": True})) == "(dict): photons: must be a mapping of keys, got true"
 
 
 def test_a_file_that_is_not_a_mapping_says_what_it_is(tmp_path):

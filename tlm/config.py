@@ -171,13 +171,19 @@ def _schema(cls: type) -> tuple[dict[str, Any], dict[str, dataclasses.Field]]:
 
 
 _ABSENT = object()  # a plain key the raw mapping leaves out: the section's default
+# a section given one value where its keys belong: the key that value most likely meant (the error's hint)
+_MAIN_KEY: dict[str, tuple[str, type | tuple[type, ...]]] = {"photons": ("count", int), "estimate": ("filter", str)}
 
 
 def _build(cls: type, raw: Any, source: str, prefix: str) -> Any:
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
-        raise InputError(f"must be a mapping of keys, got {value_text(raw)}", source=source, key=prefix or "(top)")
+        main = _MAIN_KEY.get(prefix)  # (photons: 5000 meant photons: {count: 5000})
+        hint = "" if main is None or not isinstance(raw, main[1]) or isinstance(raw, bool) else \
+            f" (did you mean {prefix}: {{{main[0]}: {value_text(raw)}}}?)"
+        raise InputError(f"must be a mapping of keys, got {value_text(raw)}{hint}", source=source,
+                         key=prefix or "(top)")
     hints, fields = _schema(cls)
     for key in raw:
         if key not in fields:
