@@ -80,6 +80,7 @@ def test_a_users_scene_named_room_is_in_no_table_and_not_titled_as_one_and_the_t
     assert "not the thesis's Room scene (Fig. 16)" in _image_title(run, tmp_path / "i")
     tables = tables_section(Inputs([], runs=[run]), tmp_path / "t")
     assert tables.absent == ("no run or thesis study among the inputs has simulated cycles of a thesis scene file "
-                             "(thesis/ring, thesis/room or cornell; a scene of any other file is not one, even one "
+                             "(thesis/ring, thesis/room or cornell, or a byte copy of one; a scene of any other "
+                             "file is not one, even one "
                              "named ring, room or cornell)")
     assert any("scene 'room' has no table in the thesis (" in n for n in tables.notes), tables.notes

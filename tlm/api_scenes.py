@@ -46,8 +46,14 @@ def scene_description(name: str) -> str:
 
     names = every()
     if not isinstance(name, str) or name not in names:
-        raise InputError(f"{_shown(name)} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}",
-                         key="scene")
+        from tlm.config_paths import scene_file_named
+
+        found = scene_file_named(name, [Path.cwd()])  # (a scene file of that name here: what reads it, h455)
+        hint = "" if found is None else (f"; a scene file of that name lies at {found[0]}, which scene_description "
+                                         f"does not describe (the built-in scenes alone): load_scene({found[1]!r}) "
+                                         "reads it")
+        raise InputError(f"{_shown(name)} is not a built-in scene ({', '.join(names)}){did_you_mean(str(name), names)}"
+                         f"{hint}", key="scene")
     path = scenes_dir() / f"{name}.yaml"
     try:
         raw = read_yaml(path)

@@ -450,17 +450,19 @@ def _bytes_back(value: Any) -> Any:
     return value
 
 
-def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd: Path | None = None) -> dict:
+def apply_overrides(raw: dict, overrides: list[str], source: str = "--set", cwd: Path | None = None,
+                    warn: bool = True) -> dict:
     """Apply ``dotted.key=value`` strings (values parsed as YAML) to a raw mapping.
     ``cwd``: where the strings were given (the command line's working folder): a relative
     path they give to a key of :data:`PATH_KEYS` is made absolute from there
     (:func:`paths_from`), not left relative to the config's folder; so is a ``scene`` file
     found there (:func:`scene_from`). A mapping given for a section merges into it, as its dotted
     leaves would (``render={spp: 1}`` is ``render.spp=1``: :func:`~tlm.config_words.laid_over`). A ``scene``
-    that a later one replaces is not warned of (:func:`~tlm.config_paths.shadowed_warning`: not the one used)."""
+    that a later one replaces is not warned of (:func:`~tlm.config_paths.shadowed_warning`: not the one used), nor
+    any where ``warn`` is false (a ``--set scene`` that a study refuses after: h455)."""
     raw = dict(raw)
     overrides = list(overrides)
-    last = max((i for i, item in enumerate(overrides) if sets_scene([item])), default=-1)  # (the scene used)
+    last = max((i for i, item in enumerate(overrides) if warn and sets_scene([item])), default=-1)  # (the one used)
     for i, item in enumerate(overrides):
         if "=" not in item:
             raise InputError(f"{quoted(item)} is not of the form dotted.key=value", source=source)
@@ -501,6 +503,7 @@ def config_from_yaml(raw: Any, path: Path | None, overrides: list[str] | None = 
     read once, its text parsed from memory (a pipe's, ``tlm run <(...)``, has nothing left for a second read)."""
     source = "(defaults)"
     base = Path.cwd()
+    overrides = None if overrides is None else list(overrides)  # (read twice: an iterator's, once; h455)
     if path is None:
         raw = {}
     else:

@@ -24,7 +24,9 @@ PATH_KEYS = ("arch.programs",)
 # (configs/room.yaml, beside configs/cornell.yaml, runs the built-in scene room: no scene of its own)
 SCENE_ONLY_KEYS = frozenset(("camera", "lights", "materials", "parts", "default_material", "geometry",
                              "transform", "crease_angle", "extends"))
-_TOP_KEY = re.compile(r"^([A-Za-z_][\w-]*)[ \t]*:", re.M)  # (a block mapping's key at column 0)
+_TOP_KEY = re.compile(r"^[\"']?([A-Za-z_][\w-]*)[\"']?[ \t]*:", re.M)  # (a block mapping's key at column 0)
+# (a flow mapping's key, ``{scene: room, mode: rcast}``: a file of no block key read by its flow keys, h455)
+_FLOW_KEY = re.compile(r"[{,][ \t\r\n]*[\"']?([A-Za-z_][\w-]*)[\"']?[ \t]*:")
 
 
 def builtin_scenes_dir() -> Path:
@@ -107,17 +109,30 @@ def sets_scene(overrides: Any) -> bool:
     return any(str(item).partition("=")[0].strip().split(".")[0] == "scene" for item in overrides)
 
 
-def scene_file_hint(value: str, folders: list[Path] | tuple[Path, ...]) -> str:
+def scene_file_hint(value: str, folders: list[Path] | tuple[Path, ...], by_itself: bool = False) -> str:
     """For the error of the ``scene`` value ``value`` that is no built-in scene's name (``myroom``): where a scene
     file of that name (``myroom.yaml``) is in one of ``folders`` or in the working folder, looked for as
     :func:`shadowed_warning` looks, the clause that names it and how to give it (``scene=./myroom.yaml``, h451);
-    else nothing."""
-    found = _file_named(value, folders) if value and not names_scene_file(value) else None
+    else nothing. ``by_itself``: ``value`` was given as a scene by itself, not as a config's ``scene``
+    (``tlm scene show myroom``, ``tlm.load_scene("myroom")``): the path alone (``./myroom.yaml``, h455)."""
+    found = scene_file_named(value, folders)
     if found is None:
         return ""
+    shown, given = found
+    how = f"give it as a path, {given}" if by_itself else f"to run it, give it as a path, scene={given}"
+    return f"; a scene file of that name lies at {shown}: {how}"
+
+
+def scene_file_named(value: Any, folders: list[Path] | tuple[Path, ...]) -> tuple[str, str] | None:
+    """``(the file as a line names it, the path that gives it)`` of the scene file that :func:`scene_file_hint`
+    names for ``value`` (``("cfg/myroom.yaml", "./myroom.yaml")``); None where there is none."""
+    if not isinstance(value, str) or not value or names_scene_file(value):
+        return None
+    found = _file_named(value, folders)
+    if found is None:
+        return None
     target, name = found
-    return (f"; a scene file of that name lies at {path_shown(_shown(target))}: to run it, give it as a path, "
-            f"scene={path_shown(_given_as(target, name, folders))}")
+    return path_shown(_shown(target)), path_shown(_given_as(target, name, folders))
 
 
 def _file_named(value: str, folders: list[Path] | tuple[Path, ...], builtin: Path | None = None
@@ -172,14 +187,15 @@ def _same_file(a: str, b: Path) -> bool:
 
 def _scene_file(path: str) -> bool:
     """Whether the YAML file ``path`` may be a scene file: it names a key of :data:`SCENE_ONLY_KEYS` at its
-    top level, or no block key there (a flow mapping, a file not read); not a run config (``scene: room``)."""
+    top level (a flow mapping's: anywhere in it), or no key (a file not read); not a run config (``scene: room``,
+    ``"scene": room``, ``{scene: room}``)."""
     try:
         with open(path, "rb") as f:
             text = f.read(1 << 20).decode("utf-8", "replace")
     except OSError:
         return True
-    keys = set(_TOP_KEY.findall(text))
-    return not keys or bool(keys & SCENE_ONLY_KEYS)
+    keys = set(_TOP_KEY.findall(text)) or set(_FLOW_KEY.findall(text))  # (a key quoted, "scene":, or of a flow
+    return not keys or bool(keys & SCENE_ONLY_KEYS)  # mapping, {scene: room}, too: a run config so written, h455)
 
 
 def paths_from(key: str, value: Any, folder: Path, to: Path | None = None) -> Any:

@@ -240,6 +240,7 @@ def load_experiment(path: Path, overrides: tuple[str, ...] = (), warned=None,
     checked, with a line for each ``--set`` and each points value that sets nothing (a section's
     mapping that names no key, ``--set render={}``, ``render: [{}]``, merges into the base's:
     :func:`empty_lines`; ``via``: what those lines call the overrides)."""
+    overrides = tuple(overrides)  # (read twice: an iterator's, once; h455)
     raw, base, src = read_study(path, ("points",), overrides)
     points = expand(raw.get("points"), src)
     base_cfg = config_from_dict(base, src)  # (a mode that is no mode is refused here, as by tlm run)

@@ -152,11 +152,12 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
     ``overrides``: ``tlm extreme --set`` strings, applied to the base (merged under every case's
     config) as ``tlm run --set`` applies them; one of a key a case's config gives (or a section
     above or below one) is refused: that case's value would win unsaid."""
-    raw, base, src = read_study(path, ("cases",), overrides)
+    overrides = tuple(overrides)  # (read twice: an iterator's, once; h455)
+    raw, base, src = read_study(path, ("cases",), overrides, lambda raw: _scened(raw.get("cases"))[1])
     label = src  # (what a case's config is named by in its errors)
     if overrides:
-        given = base
-        base = with_set(base, overrides, [file_folder(path)])
+        given = base  # (a --set scene that a case's scene refuses below: not warned of, h455)
+        base = with_set(base, overrides, [file_folder(path)], not _scened(raw.get("cases"))[0])
         refuse_own_keys(overrides, ("cases",), src)
         label = with_overrides(src)
         try:  # (a bad --set said as tlm run says it; a base that holds only under its cases, as ever by them)
@@ -207,6 +208,15 @@ def load_cases(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[
             ran.add(name)
         names.add(name)
     return base, cases, file_folder(path)  # (a pipe's, <(...): the working folder)
+
+
+def _scened(cases: Any) -> tuple[bool, bool]:
+    """Whether some and whether every case of ``cases`` (the file's, unchecked) gives its config a ``scene``:
+    the base's is then not that case's (every case's: not warned of, :func:`tlm.config_paths.shadowed_warning`),
+    and a ``--set scene`` is refused (h455)."""
+    scened = [isinstance(c, dict) and isinstance(c.get("config"), dict) and "scene" in c["config"]
+              for c in (cases if isinstance(cases, list) else [])]
+    return any(scened), bool(scened) and all(scened)
 
 
 def _leaves(config: dict, prefix: str = "") -> list[str]:

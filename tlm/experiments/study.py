@@ -83,16 +83,19 @@ def _study_frame(path: Path, keys: tuple[str, ...]) -> tuple[dict, str]:
     return raw, src
 
 
-def read_study(path: Path, keys: tuple[str, ...], overrides: Iterable[str] = ()) -> tuple[dict, dict, str]:
+def read_study(path: Path, keys: tuple[str, ...], overrides: Iterable[str] = (),
+               own_scenes: Callable[[dict], bool] | None = None) -> tuple[dict, dict, str]:
     """``(raw, base, source)`` of the study file ``path`` whose own keys are ``keys``. ``overrides``: the
     ``--set`` strings the base is then given (:func:`with_set`): where one sets ``scene``, the base's scene,
-    not the one used, is not warned of (:func:`tlm.config_paths.shadowed_warning`, h451)."""
+    not the one used, is not warned of (:func:`tlm.config_paths.shadowed_warning`, h451); nor where
+    ``own_scenes(raw)`` says that the study file gives each of its cells a scene of its own (h455: an extreme
+    study's cases). Give a tuple or a list: an iterator is read here, and the caller's then empty."""
     raw, src = _study_frame(path, keys)
     base = raw.get("base") or {}
     if not isinstance(base, dict):
         raise InputError("must be a run config mapping", source=src, key="base")
-    # (a pipe's, <(...): the working folder)
-    return raw, _files_absolute(base, file_folder(path), not sets_scene(overrides)), src
+    replaced = sets_scene(overrides) or (own_scenes is not None and own_scenes(raw))
+    return raw, _files_absolute(base, file_folder(path), not replaced), src  # (a pipe's, <(...): the working folder)
 
 
 def read_study_base(path: Path, keys: tuple[str, ...], overrides: Iterable[str] = ()
@@ -153,18 +156,20 @@ def value_leaves(key: str, value: Any) -> dict[str, Any]:
     return {key: value}
 
 
-def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = ()) -> dict:
+def with_set(raw: dict, overrides: Iterable[str], folders: Iterable[Path] = (), warn: bool = True) -> dict:
     """The run config mapping ``raw`` with the ``--set`` strings ``overrides`` (``dotted.key=value``,
     values read as YAML) applied as ``tlm run --set`` applies them (:func:`tlm.config.load_config`):
     a relative ``arch.programs`` or ``scene`` file from the working folder, and a ``scene`` file
     that is not there looked for in ``folders`` (the study or sweep file's), each then absolute.
-    A string not of that form, or a value YAML cannot read, is an InputError naming ``--set``."""
+    A string not of that form, or a value YAML cannot read, is an InputError naming ``--set``.
+    ``warn``: false where a ``--set scene`` is refused after (the study's or sweep's own scenes give every
+    cell's): its bare name is not warned of (:func:`tlm.config_paths.shadowed_warning`) before the error (h455)."""
     overrides = list(overrides)
     if not overrides:
         return raw
-    out = apply_overrides(raw, overrides, source="--set", cwd=Path.cwd())
+    out = apply_overrides(raw, overrides, source="--set", cwd=Path.cwd(), warn=warn)
     if "scene" in out and any(override_key(o) == "scene" for o in overrides):
-        out = {**out, "scene": scene_from(out["scene"], list(folders))}
+        out = {**out, "scene": scene_from(out["scene"], list(folders), warn)}
     return out
 
 

@@ -462,8 +462,8 @@ def load_sweep(path: Path, overrides: Iterable[str] = (), check: Callable[[Any, 
         fixed = _assign(fixed, k, moved(k, v, not sets_scene(overrides)))
     config_from_dict(fixed, f"{src} (base with set)")
     label = with_overrides(src) if overrides else src  # (what a point's error names its config by)
-    if overrides:
-        fixed = with_set(fixed, overrides, scene_folders)
+    if overrides:  # (a --set scene beside a scene factor, refused below: not warned of, h455)
+        fixed = with_set(fixed, overrides, scene_folders, not sets_scene(f"{k}=" for k in (*grid, *zipped)))
         refuse_own_keys(overrides, SWEEP_KEYS, src, "sweep file")
         # (a factor whose values are a section's mappings sets the keys they name: a --set of another is kept)
         factor_sets = {k: (where, _keys_given(k, values)) for where, section in (("grid", grid), ("zip", zipped))

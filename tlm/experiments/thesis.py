@@ -140,7 +140,7 @@ def _study(path: Path, overrides: tuple[str, ...] = ()) -> tuple[dict, list[str]
     folder = file_folder(path)  # (a pipe's, <(...): the working folder's, as its paths were typed)
     label = src  # (what a cell's config is named by in its errors)
     if overrides:
-        base = with_set(base, overrides, [folder])
+        base = with_set(base, overrides, [folder], warn=False)  # (a --set scene, refused below: not warned of, h455)
         refuse_own_keys(overrides, ("scenes", "modes"), src)
         refuse_set(overrides, {k: f"set by the study's {k}s, one cell each: list them under {k}s in the study "
                                   "file, not by --set" for k in ("scene", "mode")}, src)

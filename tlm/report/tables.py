@@ -585,7 +585,8 @@ def tables_section(inputs: Inputs, out: Path) -> Section:
     if not sources:
         files = list(THESIS_SCENES.values())
         section.absent = ("no run or thesis study among the inputs has simulated cycles of a thesis scene file "
-                          f"({', '.join(files[:-1])} or {files[-1]}; a scene of any other file is not one, even one "
+                          f"({', '.join(files[:-1])} or {files[-1]}, or a byte copy of one; a scene of any other "
+                          "file is not one, even one "
                           f"named {', '.join(list(THESIS_SCENES)[:-1])} or {list(THESIS_SCENES)[-1]})")
         return section
     parts = ['<div class="tlm-tables">', STYLE]

@@ -177,9 +177,10 @@ def resolve_scene_path(ref: str | os.PathLike, base: Path | None = None, config_
     builtin = scenes_dir() / f"{ref}.yaml"
     if builtin.is_file():
         return builtin
-    raise InputError(  # (a scene file of that name here: how to give it, h451)
+    folders = [Path.cwd() if base is None else Path(base), *map(Path, also)]  # (a scene file of that name there:
+    raise InputError(  # how to give it, h451; a name given by itself, tlm scene show myroom: its path alone, h455)
         f"{quoted(ref)} is not a built-in scene ({', '.join(listed_scenes())}){did_you_mean(ref, listed_scenes())}"
-        f"{scene_file_hint(ref, [Path.cwd() if base is None else Path(base), *map(Path, also)])}",
+        f"{scene_file_hint(ref, folders, by_itself=config_source == ref)}",
         source=config_source, key=key,
     )
 
