@@ -24,6 +24,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "tlm.storage_errors",  # (h252: what a failed write says, out of tlm.storage)
      "tlm.storage_files",  # (several files written all or none, out of tlm.storage)
      "tlm.storage_live", "tlm.storage_swap",  # (h334: a process's writers, the swap of a folder: out of tlm.storage)
+     "tlm.storage_carry",  # (h456: what a rerun keeps of the user's files in an output's folder, out of tlm.storage)
      "tlm.fingerprint", "tlm.registry", "tlm.progress", "tlm.whole_imports", "tlm.caches", "tlm.config_words",
      "tlm.mesh_files", "tlm.claims", "tlm.cache_admin", "tlm.config_paths", "tlm.config_read",
      "tlm.config_sections"),

@@ -2,7 +2,7 @@
 
 A run's ``images``, ``radiance`` and ``aov`` (a study's folders the same) were replaced whole by a rerun, so a
 user's ``images/my_annotated.png`` went without a word. The output now lists what it wrote (``.tlm-written``,
-:func:`tlm.storage._write_listing`); a rerun carries what the old listing does not name to the same path in the
+:func:`tlm.storage_carry.write_listing`); a rerun carries what the old listing does not name to the same path in the
 new folder, unless the new output writes that path (then it is the new output's). A rerun that fails leaves
 the old folder, the user's files in it, as it was.
 """

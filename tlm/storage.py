@@ -21,7 +21,8 @@ swapped for the new one in one call where the file system can (:func:`tlm.storag
 the destination is never missing meanwhile; elsewhere (NFS, another OS) it is renamed aside first.
 An output that keeps what its user put in its folder (a run's, a study's: ``owned``) lists what it wrote
 there (:data:`LISTING`, where it holds a folder), so that a rerun tells the user's files inside the output's
-own folders (a run's ``images/``) from the output's, and carries them over (:func:`_carry_over`).
+own folders (a run's ``images/``) from the output's, and carries them over (:mod:`tlm.storage_carry`); a path
+of the user's that the new output writes itself is the output's, and said (a warning).
 
 An existing destination is replaced only if it is an earlier output of the same kind:
 a folder holding the ``marker`` file (``results.json`` for a run folder), or an empty
@@ -64,6 +65,7 @@ from typing import IO, cast
 
 from tlm import storage_live, storage_lock
 from tlm.errors import EnvironmentFailure, InputError, escaped_line, quoted
+from tlm.storage_carry import LISTING, carry_over, lost_line, put_back, write_listing  # noqa: F401  (LISTING: storage's)
 from tlm.storage_errors import raise_environmental as _raise_environmental
 from tlm.storage_errors import write_problem  # noqa: F401  (re-exported: storage.write_problem)
 from tlm.storage_files import write_files as _write_files
@@ -281,92 +283,7 @@ def _left_by_the_gone(folder: Path, pattern: re.Pattern, kind: Callable[[Path], 
     return left_by_the_gone(folder, pattern, kind, in_use, pid_alive, _host)
 
 
-_OURS = re.compile(r"\..+\.(tmp|old)-")  # the temporary folders tlm's writers leave while they work
-
-
-LISTING = ".tlm-written"  # the paths an output wrote in its folder (_write_listing), where it holds a folder
 _WHOLE = object()  # atomic_folder's owned left out: an output replaced whole, which keeps no listing
-
-
-def _write_listing(tmp: Path) -> None:
-    """Record every path the finished output ``tmp`` holds (its folders' too, relative, one a line, as the file
-    system names it) in its :data:`LISTING`, where it holds a folder (a run's ``images``): what a rerun into its
-    folder tells from the user's files put in those folders (:func:`_carry_over`). A name with a newline is left
-    out (its file counts as the user's: kept, never removed by mistake)."""
-    with os.scandir(tmp) as listing:
-        if not any(e.is_dir(follow_symlinks=False) for e in listing):
-            return
-    paths = [os.fsencode(os.path.relpath(os.path.join(root, n), tmp))
-             for root, dirs, files in os.walk(tmp) for n in (*dirs, *files)]
-    own = os.fsencode(LISTING)
-    write_file(tmp / LISTING, b"".join(sorted(p + b"\n" for p in paths if b"\n" not in p and p != own)))
-
-
-def _listed(out: Path) -> set[str] | None:
-    """The paths the output in ``out`` wrote there (its :data:`LISTING`); None where it has none."""
-    try:
-        return {os.fsdecode(p) for p in (out / LISTING).read_bytes().split(b"\n") if p}
-    except OSError:
-        return None
-
-
-def _real_dir(path: Path) -> bool:
-    """Whether ``path`` is a folder, not a link to one."""
-    return stat.S_ISDIR(os.lstat(path).st_mode)
-
-
-def _carry_over(out: Path, tmp: Path, owned: Collection[str]) -> list[str]:
-    """Move the entries of the folder ``out`` that its writer does not own (``owned``: the
-    names an output of this kind may hold) and ``tmp`` does not hold into ``tmp``: the
-    user's own files beside an output survive its replacement. Inside a folder of an owned name that the old
-    output wrote itself (its :data:`LISTING` names it: a run's ``images``, not the ``report`` its report wrote
-    after it, which that replaces whole), what the listing does not name is the user's, moved to the same path
-    in ``tmp`` where ``tmp`` does not hold that path (:func:`_carry_inside`). An old output without a listing
-    (an older tlm's) has its folders replaced whole. The paths moved (relative to ``out``)."""
-    moved: list[str] = []
-    try:
-        entries = sorted(os.listdir(out))
-    except OSError:
-        return moved
-    listed = _listed(out) or set()
-    try:
-        for name in entries:
-            if name in owned or name == LISTING:
-                if name in listed and _real_dir(out / name):
-                    _carry_inside(out, tmp, name, listed, moved)
-                continue
-            if _OURS.match(name) or (tmp / name).exists() or (tmp / name).is_symlink():
-                continue
-            (out / name).rename(tmp / name)
-            moved.append(name)
-    except BaseException:  # (what was moved goes back before the new folder is dropped)
-        for name in reversed(moved):
-            with suppress(OSError):
-                (tmp / name).rename(out / name)
-        raise
-    return moved
-
-
-def _carry_inside(out: Path, tmp: Path, folder: str, listed: set[str], moved: list[str]) -> None:
-    """Move each entry of ``out/folder`` that the old output did not write (not in ``listed``) to its path in
-    ``tmp``, its folders made there, unless ``tmp`` holds that path or a file where one of its folders would be
-    (the new output's name: its own); look into each folder the old output wrote, or that both hold, the
-    same way. ``moved`` gets each path moved."""
-    for name in sorted(os.listdir(out / folder)):
-        path = f"{folder}/{name}"
-        src, dst = out / path, tmp / path
-        if path in listed or os.path.lexists(dst):
-            if _real_dir(src) and (path in listed or _real_dir(dst)):
-                _carry_inside(out, tmp, path, listed, moved)
-            continue
-        parent = dst.parent
-        while parent != tmp and not os.path.lexists(parent):
-            parent = parent.parent
-        if parent != tmp and not _real_dir(parent):
-            continue  # (the new output has a file where the user's folder was)
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        src.rename(dst)
-        moved.append(path)
 
 
 @contextmanager
@@ -378,9 +295,10 @@ def atomic_folder(out: Path, marker: str, owned: Collection[str] | object | None
     ``marker`` is the file that marks an earlier output of this kind (it may be
     replaced); the block must write it. ``owned``: the names such an output may hold;
     where given, whatever else an earlier ``out`` holds (a user's notes, an analysis
-    folder) is carried into the new one, not removed with the old output, and what it holds in the folders
-    the old output wrote itself (:data:`LISTING`, which such an output keeps: :func:`_carry_over`). None: an
-    output that carries nothing this time (a study's whose earlier folder has no record of its names) but keeps
+    folder) is carried into the new one, not removed with the old output, and what it holds in its own folders
+    that the old output did not write (:data:`LISTING`, which such an output keeps:
+    :func:`tlm.storage_carry.carry_over`). None: an output that carries nothing this time (a study's whose
+    earlier folder has no record of its names) but keeps
     its listing all the same; left out: one replaced whole (a report's, a cache's), with no listing.
     Before it, the temporary folders that killed writers of ``out`` left beside it are removed
     (:func:`clean_stale`, which lists the whole of ``out``'s parent); ``clean_once``: only at this
@@ -433,6 +351,9 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
     """:func:`atomic_folder`'s body, into the temporary folder ``tmp`` of ``writer``; ``listing``: its
     :data:`LISTING` written."""
     leave = False  # (the temporary folder holds a user's files that could be kept nowhere else)
+    moved: list[str] = []  # (the user's paths carried into tmp, until they are back or tmp took out's place)
+    lost: list[str] = []  # (the user's paths that the new output's own take: said once it took out's place)
+    new: os.stat_result | None = None  # (tmp's, to tell whether it took out's place)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         if not clean_once or _first_clean(out.parent):
@@ -447,7 +368,7 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
         if not (tmp / marker).is_file():
             raise RuntimeError(f"an output folder was written without its {marker}")
         if listing:
-            _write_listing(tmp)  # (before any file of the user's comes in: what this output wrote)
+            write_listing(tmp, write_file)  # (before any file of the user's comes in: what this output wrote)
         with folder_lock(out):
             if into is not None and _kept(out, into):  # (the marker into it, under the lock: nothing swaps in between)
                 os.replace(tmp / marker, out / marker)
@@ -465,42 +386,62 @@ def _atomic_folder(out: Path, marker: str, owned: Collection[str] | None, tmp: P
                 if kept is None:
                     raise refused from None
                 raise InputError(f"{refused}; this run's output is kept in {quoted(kept)}") from None
-            try:
-                moved = _carry_over(out, tmp, owned) if owned is not None and out.is_dir() else []
-            except OSError as e:  # a file of the user's that cannot be moved (a read-only folder of theirs)
-                kept = _keep_beside(tmp, out)
-                if kept is None:
-                    raise
-                raise EnvironmentFailure(
-                    f"cannot carry {quoted(e.filename)} into the new output ({e.strerror}), so the folder is left as "
-                    f"it was; this run's output is kept in {quoted(kept)}", source=str(out)) from None
             new = os.lstat(tmp)
+            swapping = False
             try:
+                if owned is not None and out.is_dir():
+                    carry_over(out, tmp, owned, moved, lost)
+                swapping = True
                 _swap_in(tmp, out, writer)
-            except BaseException:  # (the user's files go back where they were)
+            except BaseException as e:  # (the user's files go back where they were)
                 if storage_lock.is_at(out, new):  # (swapped in, then a signal: it stays; the old one goes with tmp)
+                    moved.clear()
                     raise
-                stuck = []
-                for name in moved:
-                    try:
-                        (tmp / name).rename(out / name)
-                    except OSError:
-                        stuck.append(name)
+                stuck = put_back(tmp, out, moved)
+                if not swapping and isinstance(e, OSError):  # a file of the user's that cannot be moved
+                    kept = _keep_beside(tmp, out)
+                    leave = kept is None and bool(stuck)
+                    moved.clear()  # (kept beside or left, and said)
+                    if kept is None:
+                        _stuck_said(out, tmp, kept, stuck)
+                        raise
+                    raise EnvironmentFailure(
+                        f"cannot carry {quoted(e.filename)} into the new output ({e.strerror}), so the folder is "
+                        f"left as it was{_stuck_text(stuck)}; this run's output is kept in {quoted(kept)}",
+                        source=str(out)) from None
                 if stuck:  # (never removed with the temporary folder: it is kept beside, whole, and named)
                     kept = _keep_beside(tmp, out)
-                    where = f"kept in {quoted(kept)}"
-                    if kept is None:  # (left where they are, not removed, and said)
-                        leave = True
-                        where = f"left in {quoted(tmp)}, which the next output written to {quoted(out)} removes"
-                    warn(f"{out}: the new output could not take its place and {', '.join(map(quoted, stuck))} "
-                         f"could not be moved back into it: they and this run's output are {where}")
+                    leave = kept is None
+                    moved.clear()
+                    _stuck_said(out, tmp, kept, stuck)
                 raise
+            moved.clear()
+        if lost:
+            warn(lost_line(out, lost))
     except BaseException as e:
+        if moved and not (new is not None and storage_lock.is_at(out, new)):  # (a signal as they went back: the
+            leave = True  # temporary folder holds some, never removed, said)
+            _stuck_said(out, tmp, _keep_beside(tmp, out) if tmp.is_dir() else None, moved)
         if not leave:
             shutil.rmtree(tmp, ignore_errors=True)
         _failed_write(out, e)
         _raise_environmental(e, out)
         raise
+
+
+def _stuck_text(stuck: list[str]) -> str:
+    """The clause of a carry's refusal on the user's files that could not be moved back (none: '')."""
+    return f" but for {', '.join(map(quoted, stuck))}, which could not be moved back" if stuck else ""
+
+
+def _stuck_said(out: Path, tmp: Path, kept: Path | None, stuck: list[str]) -> None:
+    """Say where the user's files ``stuck`` in the new output's ``tmp`` (not moved back into ``out``) are."""
+    if not stuck:
+        return
+    where = f"kept in {quoted(kept)}" if kept is not None else \
+        f"left in {quoted(tmp)}, which the next output written to {quoted(out)} removes"
+    warn(f"{out}: the new output could not take its place and {', '.join(map(quoted, stuck))} "
+         f"could not be moved back into it: they and this run's output are {where}")
 
 
 def _first_clean(folder: Path) -> bool:

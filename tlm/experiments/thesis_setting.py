@@ -32,12 +32,13 @@ from tlm.experiments.scaling import no_effect
 from tlm.experiments.study import MANIFEST, read_study
 from tlm.render.planner import inert_settings, inert_timing_settings, same_frame_settings
 from tlm.scenes.loader import resolve_scene_path, scenes_dir
+from tlm.storage import LISTING
 
 # The thesis's scenes: the built-in scene file of each table (configs/thesis.yaml)
 THESIS_SCENES = {"ring": "thesis/ring", "room": "thesis/room", "cornell": "cornell"}
 # What a thesis study writes in its folder beside a scene's DIR/<key> (tlm.experiments.study.run_study, its report)
 STUDY_FILES = ("report", "thesis_comparison.csv", "thesis_comparison.jsonl", "thesis_summary.json",
-               "config.resolved.yaml", "provenance.json", MANIFEST)
+               "config.resolved.yaml", "provenance.json", MANIFEST, LISTING)
 # The thesis's stated sizes (Tables I-III headings; the thesis scenes' defaults):
 # width, height, photons, triangles.
 THESIS_SIZES = {"ring": (320, 240, 20_000, 646), "room": (320, 240, 80_000, 7812),
